@@ -1,0 +1,26 @@
+# Two entry points on a fresh machine: `make demo` (the paper's example end to end)
+# and `make test` (the test suite). Both create .venv and install what they need.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+.PHONY: demo test bench clean
+demo: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python examples/transport_loop.py
+
+test: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[bench]'
+	$(BIN)/python benchmarks/roots.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info
