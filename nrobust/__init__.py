@@ -1,0 +1,17 @@
+"""nrobust: delay-robustness analysis of boundary-controlled hyperbolic PDEs.
+
+The reference is Auriol, Aarsnes, Martin and Di Meglio, "Delay-robust control design
+for two heterodirectional linear coupled hyperbolic PDEs": a 2x2 hyperbolic system is
+mapped to a neutral equation with distributed delay, whose characteristic
+quasi-polynomial decides stability with and without a delay in the loop.
+"""
+
+from importlib.metadata import PackageNotFoundError, version
+
+from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
+from .quasipoly import DistributedDelay, QuasiPolynomial
+
+try:
+    __version__ = version("nrobust")
+except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0.0.0"
