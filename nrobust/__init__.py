@@ -10,6 +10,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
 from .quasipoly import DistributedDelay, QuasiPolynomial
+from .sweep import SweepResult, grid, robustness, sweep
 
 try:
     __version__ = version("nrobust")
