@@ -11,6 +11,7 @@ from importlib.metadata import PackageNotFoundError, version
 from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .sweep import SweepResult, grid, robustness, sweep
+from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
 
 try:
     __version__ = version("nrobust")

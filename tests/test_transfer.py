@@ -1,0 +1,125 @@
+"""Transfer functions with delays: algebra, closed forms, python-control interop."""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+import pytest
+
+from nrobust.errors import ParameterError
+from nrobust.hyperbolic import TransportSystem
+from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
+from nrobust.transfer import QuasiTransferFunction, open_loop_tf, pade_approximation, to_frd
+
+RNG = np.random.default_rng(7)
+POINTS = RNG.uniform(-0.5, 2.0, 6) + 1j * RNG.uniform(-20.0, 20.0, 6)
+
+
+def _transport_h0(rho: float, q: float, lam: float = 1.0, mu: float = 1.0) -> QuasiTransferFunction:
+    return open_loop_tf(TransportSystem(lam=lam, mu=mu, q=q, rho=rho))
+
+
+@pytest.mark.parametrize("rho,q,lam,mu", [(0.85, 1.0, 1.0, 1.0), (1.5, 1.2, 2.0, 0.5), (-0.9, 1.3, 1.0, 3.0)])
+def test_h0_vanishing_denominator_at_closed_form_poles(rho, q, lam, mu):
+    """Poles of H_0 are (ln|rho q| + i (2k pi or (2k+1) pi)) / tau (paper, section 2.2)."""
+    H0 = _transport_h0(rho, q, lam, mu)
+    tau = 1 / lam + 1 / mu
+    k = np.arange(-5, 6)
+    shift = 0.0 if rho * q > 0 else np.pi
+    poles = (np.log(abs(rho * q)) + 1j * (2 * np.pi * k + shift)) / tau
+    assert np.max(np.abs(H0.den(poles))) < 1e-12
+    assert np.all(np.abs(H0(poles + 1e-3)) > 1e2)
+
+
+def test_h0_value_and_frequency_response():
+    H0 = _transport_h0(0.85, 1.0)
+    s = POINTS
+    expected = 1.0 / (1.0 - 0.85 * np.exp(-2.0 * s))
+    assert np.allclose(H0(s), expected, rtol=1e-13)
+    w = np.linspace(0.0, 5.0, 11)
+    assert np.allclose(H0.frequency_response(w), 1.0 / (1.0 - 0.85 * np.exp(-2j * w)), rtol=1e-13)
+
+
+def _plant() -> QuasiTransferFunction:
+    nt = DistributedDelay([0.0, 0.5, 1.0, 1.0, 2.0], [0.3, 0.1, 0.2, -0.4, 0.05])
+    return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-0.85]], [0.0, 2.0], [nt]))
+
+
+def test_series_parallel_delay_pointwise():
+    H = _plant()
+    G = QuasiTransferFunction(QuasiPolynomial([[1.0, 0.3]], [0.0]), QuasiPolynomial([[1.0, 2.0]], [0.0]))
+    s = POINTS
+    assert np.allclose(H.series(G)(s), H(s) * G(s), rtol=1e-12)
+    assert np.allclose((H * G)(s), H(s) * G(s), rtol=1e-12)
+    assert np.allclose(H.parallel(G)(s), H(s) + G(s), rtol=1e-12)
+    assert np.allclose((H - G)(s), H(s) - G(s), rtol=1e-12)
+    assert np.allclose(H.delay(0.3)(s), H(s) * np.exp(-0.3 * s), rtol=1e-12)
+    assert np.allclose((2.0 * H)(s), 2.0 * H(s), rtol=1e-12)
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_feedback_denominator_is_the_closed_loop_characteristic(sign):
+    """Plant H_1 = 1/D, delayed U_BS2 controller C = -K q e^{-tau s} + I_N: the loop
+    closes on F = D - C e^{-delta s} (sign=+1), the paper's eq. (delay_eq_alpha_ter)."""
+    H = _plant()
+    K, q, delta = 0.1, 1.0, 0.05
+    i_n = QuasiPolynomial([], [], H.den.distributed)
+    C = QuasiTransferFunction(QuasiPolynomial([[-K * q]], [2.0]) + i_n, 1.0).delay(delta)
+    closed = H.feedback(C, sign=sign)
+    s = POINTS
+    D = H.den(s)
+    Cs = -K * q * np.exp(-2.0 * s) + i_n(s)
+    F = D - sign * Cs * np.exp(-delta * s)
+    assert np.allclose(closed.den(s), F, rtol=1e-12)
+    assert np.allclose(closed(s), H(s) / (1 - sign * H(s) * C(s)), rtol=1e-10)
+
+
+def test_feedback_rejects_two_distributed_factors():
+    H = _plant()
+    with pytest.raises(ParameterError, match="other"):
+        H.feedback(QuasiTransferFunction(1.0, H.den))
+
+
+def test_bad_arguments_name_the_parameter():
+    with pytest.raises(ParameterError, match="num"):
+        QuasiTransferFunction("x", 1.0)
+    with pytest.raises(ParameterError, match="sign"):
+        _plant().feedback(1.0, sign=0)
+    with pytest.raises(ParameterError, match="delta"):
+        _plant().delay(-1.0)
+    with pytest.raises(ParameterError, match="omega"):
+        to_frd(_plant(), [1.0, 0.5])
+
+
+def test_to_frd_matches_python_control_evaluation():
+    H = _plant()
+    w = np.linspace(0.0, 10.0, 41)
+    frd = to_frd(H, w)
+    assert isinstance(frd, control.FrequencyResponseData)
+    for k in (0, 7, 40):
+        assert np.isclose(control.evalfr(frd, 1j * w[k]), H(1j * w[k]), rtol=1e-13)
+    resp = control.frequency_response(frd, w)
+    assert np.allclose(np.squeeze(resp.frdata), H.frequency_response(w), rtol=1e-13)
+    assert np.allclose(np.squeeze(to_frd(H.den, w).frdata), H.den(1j * w), rtol=1e-13)
+
+
+def test_pade_point_delays_converge_with_order():
+    H0 = _transport_h0(0.85, 1.0)
+    w = np.linspace(0.0, 1.0, 30)
+    errors = [pade_approximation(H0, order, w)[1].max() for order in (2, 4, 6)]
+    assert errors[0] > errors[1] > errors[2]
+    model, err = pade_approximation(H0, 6, w)
+    assert isinstance(model, control.TransferFunction)
+    # the model's own evaluation by python-control agrees with the returned error
+    direct = np.abs(np.array([control.evalfr(model, 1j * x) for x in w]) - H0.frequency_response(w))
+    assert np.allclose(direct, err, atol=1e-12)
+    assert err.max() < 1e-8
+
+
+def test_pade_distributed_error_decreases_with_quadrature():
+    H = _plant()
+    w = np.linspace(0.0, 0.8, 20)
+    coarse = pade_approximation(H, 6, w, n_quad=2)[1].max()
+    fine = pade_approximation(H, 6, w, n_quad=8)[1].max()
+    assert fine < coarse
+    assert fine < 5e-3
