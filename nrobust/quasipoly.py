@@ -373,7 +373,7 @@ class QuasiPolynomial:
             (_as_poly("coefs", p), t) for t, p in sorted(merged.items()) if np.any(p != 0)
         )
         object.__setattr__(self, "point_terms", terms)
-        object.__setattr__(self, "distributed", dist)
+        object.__setattr__(self, "distributed", tuple(d for d in dist if np.any(d.poly != 0) and np.any(d.values != 0)))
 
     @classmethod
     def _from_parts(cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]) -> "QuasiPolynomial":
@@ -569,7 +569,10 @@ class QuasiPolynomial:
             poly = f"({poly})" if np.count_nonzero(p) > 1 else poly
             parts.append(poly if t == 0 else f"{poly} e^(-{t:.6g} s)")
         parts += [repr(d) for d in self.distributed]
-        return "QuasiPolynomial(" + " + ".join(parts) + ")"
+        text = parts[0] if parts else "0"
+        for part in parts[1:]:
+            text += f" - {part[1:]}" if part.startswith("-") else f" + {part}"
+        return f"QuasiPolynomial({text})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
