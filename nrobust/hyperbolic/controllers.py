@@ -41,7 +41,6 @@ from numpy.typing import NDArray
 from .._validate import finite_real, nonnegative, positive
 from ..errors import ParameterError
 from ..quasipoly import QuasiPolynomial
-from .delay_form import delay_form
 from .system import Hyperbolic2x2
 
 __all__ = [
@@ -217,6 +216,8 @@ def _distributed_part(system: Hyperbolic2x2, n: int) -> QuasiPolynomial:
     """``I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu`` (zero on an uncoupled system)."""
     if system.uncoupled:
         return QuasiPolynomial([[0.0]], [0.0])
+    from .delay_form import delay_form  # kernels are solved only for coupled systems
+
     return QuasiPolynomial([], [], [delay_form(system, n=n).N_tilde])
 
 
