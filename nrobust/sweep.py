@@ -511,7 +511,7 @@ def _dask_client(executor: Any) -> Iterator[tuple[Any, str]]:
     if executor == "dask":
         with distributed.LocalCluster(
             n_workers=_cpu_count(), threads_per_worker=1, processes=True,
-            dashboard_address=None, silence_logs=logging.ERROR,
+            dashboard_address=":0", silence_logs=logging.ERROR,
         ) as cluster, distributed.Client(cluster) as client:
             yield client, f"dask(LocalCluster, {_cpu_count()} workers)"
     else:
