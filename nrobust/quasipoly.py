@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.signal import czt
 
 from ._validate import nonnegative
 from .errors import ParameterError
@@ -35,6 +36,11 @@ _SERIES_RADIUS = 1.0
 _SERIES_TERMS = 30
 # Number of complex entries one block of the (s x nodes) exponential matrix may hold.
 _BLOCK = 1 << 20
+# Chirp-z transforms run on blocks of this many frequencies: the chirp phase error grows
+# like the square of the block length (measured: 2e-11 relative at 20000, ~1e-13 at 1024).
+_CZT_BLOCK = 1024
+# Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
+_CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 
 
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
@@ -61,6 +67,53 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
             cur = (k * cur - e) / zb
             out[k, big] = cur
     return out
+
+
+def _uniform_line(s: NDArray[np.complex128]) -> tuple[float, float, float] | None:
+    """``(x, w0, dw)`` if ``s = x + i (w0 + k dw)``, ``k = 0..len-1``, to rounding; else None."""
+    if s.size < _CZT_MIN_S or np.any(s.real != s.real[0]):
+        return None
+    w0, dw = float(s.imag[0]), float(s.imag[1] - s.imag[0])
+    ideal = w0 + dw * np.arange(s.size)
+    if dw == 0 or np.max(np.abs(s.imag - ideal)) > 8 * np.finfo(float).eps * np.max(np.abs(s.imag)):
+        return None
+    return float(s.real[0]), w0, dw
+
+
+def _arithmetic_step(nu: NDArray[np.float64]) -> float | None:
+    """``d`` if ``nu = nu_0 + k d`` to rounding; else None."""
+    if nu.size < _CZT_MIN_NODES:
+        return None
+    d = float((nu[-1] - nu[0]) / (nu.size - 1))
+    ideal = nu[0] + d * np.arange(nu.size)
+    if d <= 0 or np.max(np.abs(nu - ideal)) > 8 * np.finfo(float).eps * max(np.max(np.abs(nu)), 1.0):
+        return None
+    return d
+
+
+def _exp_sums(s: NDArray[np.complex128], nu: NDArray[np.float64], coef: NDArray) -> NDArray[np.complex128]:
+    """``exp(-outer(s, nu)) @ coef``, shape ``(len(s), coef.shape[1])``.
+
+    On a vertical line with uniform frequency steps and uniformly spaced ``nu`` this is a
+    chirp-z transform (``O((N + M) log(N + M))`` instead of ``N M`` exponentials):
+    ``sum_n c_n e^{-(nu_0 + n d) s_k} = e^{-nu_0 s_k} sum_n (c_n e^{-n d x}) A^{-n} W^{n k}``
+    with ``A = e^{i d w0}`` and ``W = e^{-i d dw}``.
+    """
+    line = _uniform_line(s)
+    step = _arithmetic_step(nu) if line is not None else None
+    if line is None or step is None:
+        out = np.empty((s.size, coef.shape[1]), dtype=complex)
+        rows = max(1, _BLOCK // max(nu.size, 1))
+        for lo in range(0, s.size, rows):
+            out[lo : lo + rows] = np.exp(-np.outer(s[lo : lo + rows], nu)) @ coef
+        return out
+    x, w0, dw = line
+    weighted = coef * np.exp(-step * x * np.arange(nu.size))[:, None]
+    out = np.empty((s.size, coef.shape[1]), dtype=complex)
+    for lo in range(0, s.size, _CZT_BLOCK):
+        m = min(_CZT_BLOCK, s.size - lo)
+        out[lo : lo + m] = czt(weighted, m=m, w=np.exp(-1j * step * dw), a=np.exp(1j * step * (w0 + lo * dw)), axis=0)
+    return out * np.exp(-nu[0] * s)[:, None]
 
 
 def _as_poly(name: str, coefs: ArrayLike) -> NDArray[np.complex128] | NDArray[np.float64]:
@@ -222,11 +275,7 @@ class DistributedDelay:
             idx = np.flatnonzero(inverse == g)
             hg = float(np.mean(h[idx]))
             phi = _phi(s * hg, coef.shape[1] - 1)  # (L, S)
-            rows = max(1, _BLOCK // max(idx.size, 1))
-            for lo in range(0, s.size, rows):
-                sl = slice(lo, lo + rows)
-                e = np.exp(-np.outer(s[sl], start[idx]))  # (S, M)
-                out[sl] += np.einsum("sl,ls->s", e @ coef[idx], phi[:, sl])
+            out += np.einsum("sl,ls->s", _exp_sums(s, start[idx], coef[idx]), phi)
         return out
 
     # ------------------------------------------------------------------ evaluation
