@@ -12,6 +12,7 @@ from .errors import CertificationError, ConvergenceError, NrobustError, Paramete
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredController, FiniteTimeController, OpenLoop, ReflectionController, characteristic, classify, loop_factors)
 from .sweep import SweepResult, grid, robustness, sweep
+from . import plots
 from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
 
 try:

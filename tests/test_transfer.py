@@ -123,3 +123,19 @@ def test_pade_distributed_error_decreases_with_quadrature():
     fine = pade_approximation(H, 6, w, n_quad=8)[1].max()
     assert fine < coarse
     assert fine < 5e-3
+
+
+@pytest.mark.parametrize("rho,q,lam,mu", [(0.85, 1.0, 1.0, 1.0), (-0.9, 1.3, 1.0, 3.0), (1.5, 1.2, 2.0, 0.5)])
+def test_h0_certified_poles_equal_closed_form(rho, q, lam, mu):
+    """poles(region) finds exactly (ln|rho q| + i (2k pi or (2k+1) pi)) / tau in the box."""
+    H0 = _transport_h0(rho, q, lam, mu)
+    tau = 1 / lam + 1 / mu
+    shift = 0.0 if rho * q > 0 else np.pi
+    box = (-2.0, 2.0, -25.0, 25.0)
+    k = np.arange(-20, 21)
+    expected = (np.log(abs(rho * q)) + 1j * (2 * np.pi * k + shift)) / tau
+    expected = expected[np.abs(expected.imag) <= 25.0]
+    found = H0.poles(box)
+    assert found.certified and found.count == expected.size
+    assert np.allclose(np.sort_complex(found.roots), np.sort_complex(expected), atol=1e-10)
+    assert H0.zeros(box).count == 0

@@ -1,0 +1,470 @@
+"""Plots of delay-robustness analyses: compute, then plot.
+
+Every figure has two halves, as in python-control: a ``*_response`` function computes a
+small frozen data object (JSON-ready through ``to_dict()``) and the object's ``plot``
+method (or the ``*_plot`` wrapper) draws it on a matplotlib ``Axes``. Every plot accepts
+``ax=`` and returns a :class:`NrobustPlot` holding the artists it drew, keyed by what
+they show, so that a test or a user can check and restyle them.
+
+Nyquist plots of neutral loops need care: ``L(i w) = B(i w)/A(i w) e^{-i w delta}`` does
+not decay as ``w`` grows, so the classical encirclement count (python-control's, which
+closes the contour at infinity assuming ``L -> 0``) does not apply. The count given here
+is the winding, along the imaginary axis, of ``G(s) = F(s) / ((s + 1)^n D(s))`` where
+``F = A + B e^{-delta s}`` is the closed-loop characteristic function, ``n`` its degree
+and ``D`` its principal part (a difference operator): when ``D`` has its zeros in
+``Re s < 0`` (spectral bound ``c_D < 0``), ``G -> 1`` uniformly as ``|s| -> infinity`` in
+``Re s >= 0``, so the number of closed-loop zeros in ``Re s > 0`` is the winding of
+``G(i w)`` around 0 as ``w`` decreases from ``+W`` to ``-W``, once ``|G - 1| < 1`` beyond
+``W``. When ``c_D >= 0`` the closed loop has infinitely many zeros in (or accumulating
+at) the right half-plane and no finite count exists.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._validate import nonnegative, positive, positive_int, region as check_region
+from .errors import ParameterError
+from .quasipoly import QuasiPolynomial
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .roots import RootSet
+
+__all__ = [
+    "NrobustPlot",
+    "NyquistResponse",
+    "nyquist_response",
+    "nyquist_plot",
+    "root_map_plot",
+    "RootLocusData",
+    "root_locus_response",
+    "root_locus_plot",
+    "simulation_plot",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class NrobustPlot:
+    """What a plot function drew.
+
+    Attributes
+    ----------
+    lines : dict of str to list of matplotlib artists
+        The artists, keyed by what they show (``"loop"``, ``"roots"``, ``"chains"``...).
+    axes : matplotlib.axes.Axes
+        The Axes drawn on.
+    figure : matplotlib.figure.Figure
+        Its figure.
+    """
+
+    lines: dict[str, list[Any]]
+    axes: "Axes"
+    figure: "Figure"
+
+
+def _get_ax(ax: "Axes | None") -> "Axes":
+    if ax is not None:
+        return ax
+    import matplotlib.pyplot as plt
+
+    _, ax = plt.subplots()
+    return ax
+
+
+def _as_quasi(name: str, value: Any) -> QuasiPolynomial:
+    if not isinstance(value, QuasiPolynomial):
+        raise ParameterError(name, "a QuasiPolynomial", value)
+    return value
+
+
+# ---------------------------------------------------------------------- Nyquist
+@dataclass(frozen=True, eq=False)
+class NyquistResponse:
+    """The loop ``L(i w) = B(i w)/A(i w) e^{-i w delta}`` and its closed-loop count.
+
+    Attributes
+    ----------
+    omega : ndarray
+        Frequencies ``0 <= w <= omega_max`` of the plotted branch.
+    loop : ndarray
+        ``L(i omega)``.
+    delta : float
+        The loop delay.
+    crossings : ndarray
+        Frequencies ``w > 0`` where ``|L(i w)| = 1`` (``|A| = |B|``): the only frequencies
+        at which a root can cross the imaginary axis as ``delta`` varies.
+    principal_bound : float
+        Upper bound of the spectral bound ``c_D`` of the closed-loop difference operator.
+    rhp_zeros : int or None
+        Number of zeros of ``F = A + B e^{-delta s}`` in ``Re s > 0`` from the winding of
+        ``G = F / ((s+1)^n D)``; None when no finite count exists (``c_D >= 0``) or when the
+        count is not reliable (a zero on or next to the axis, or ``|G - 1| >= 1`` at the
+        ends of the band).
+    tail : float
+        ``max |G(i w) - 1|`` over ``0.9 W <= |w| <= W``: below 1, the band end adds no turn.
+    note : str
+        Why ``rhp_zeros`` is None, or ``""``.
+    """
+
+    omega: NDArray[np.float64]
+    loop: NDArray[np.complex128]
+    delta: float
+    crossings: NDArray[np.float64]
+    principal_bound: float
+    rhp_zeros: int | None
+    tail: float
+    note: str
+
+    def plot(self, ax: "Axes | None" = None, unit_circle: bool = True) -> NrobustPlot:
+        """Draw the loop, its mirror image, ``-1``, the unit circle and the crossings."""
+        ax = _get_ax(ax)
+        lines: dict[str, list[Any]] = {}
+        lines["loop"] = ax.plot(self.loop.real, self.loop.imag, "-", color="C0", label=f"L(iw), delta={self.delta:g}")
+        lines["mirror"] = ax.plot(self.loop.real, -self.loop.imag, "--", color="C0", alpha=0.5)
+        if unit_circle:
+            th = np.linspace(0.0, 2 * np.pi, 361)
+            lines["unit_circle"] = ax.plot(np.cos(th), np.sin(th), ":", color="0.5", label="|L| = 1")
+        lines["critical"] = ax.plot([-1.0], [0.0], "r+", markersize=12, label="-1")
+        if self.crossings.size:
+            a_b = self.crossing_points()
+            lines["crossings"] = ax.plot(a_b.real, a_b.imag, "o", color="C3", label="crossings")
+            for w, p in zip(self.crossings, a_b):
+                ax.annotate(f"{w:.3g}", (p.real, p.imag), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        else:
+            lines["crossings"] = []
+        count = "no finite count" if self.rhp_zeros is None else f"{self.rhp_zeros} closed-loop zeros in Re s > 0"
+        ax.set_title(f"Nyquist, {count}", fontsize="small")
+        ax.set_xlabel("Re L")
+        ax.set_ylabel("Im L")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.axhline(0.0, color="0.8", lw=0.5)
+        ax.axvline(0.0, color="0.8", lw=0.5)
+        ax.legend(fontsize="x-small", loc="best")
+        return NrobustPlot(lines, ax, ax.figure)
+
+    def crossing_points(self) -> NDArray[np.complex128]:
+        """``L(i w_c)`` at the crossing frequencies (on the unit circle)."""
+        return np.interp(self.crossings, self.omega, self.loop.real) + 1j * np.interp(
+            self.crossings, self.omega, self.loop.imag
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (the sampled loop is left out)."""
+        return {
+            "delta": self.delta,
+            "omega_max": float(self.omega[-1]),
+            "crossings": self.crossings.tolist(),
+            "principal_bound": float(self.principal_bound),
+            "rhp_zeros": self.rhp_zeros,
+            "tail": float(self.tail),
+            "note": self.note,
+        }
+
+
+def _principal(F: QuasiPolynomial) -> tuple[int, list[tuple[complex, float]]]:
+    """Degree ``n`` and the ``s^n`` terms ``(a_k, tau_k)`` of ``F``."""
+    n = F.degree
+    return n, [(complex(p[n]), t) for p, t in F.point_terms if p.size - 1 == n and p[n] != 0]
+
+
+def _winding(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], max_levels: int = 12) -> tuple[float, NDArray]:
+    """Total change of argument of ``fun(i w)`` along increasing ``w``, refining the grid
+    until every step turns by less than ``pi / 8``."""
+    vals = fun(1j * w)
+    for _ in range(max_levels):
+        steps = np.abs(np.angle(vals[1:] / vals[:-1]))
+        bad = np.flatnonzero(steps > np.pi / 8)
+        if bad.size == 0:
+            break
+        mids = 0.5 * (w[bad] + w[bad + 1])
+        w = np.insert(w, bad + 1, mids)
+        vals = np.insert(vals, bad + 1, fun(1j * mids))
+    return float(np.sum(np.angle(vals[1:] / vals[:-1]))), vals
+
+
+def nyquist_response(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    delta: float = 0.0,
+    omega_max: float = 200.0,
+    n: int = 4001,
+) -> NyquistResponse:
+    """Compute the Nyquist data of the loop ``L = B/A e^{-delta s}``.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The loop factors, ``F(s) = A(s) + B(s) e^{-delta s}`` (e.g. from
+        :func:`nrobust.hyperbolic.loop_factors`; for U_BS2 ``F`` is the characteristic
+        function of the paper's eq. (delay_eq_alpha_ter)).
+    delta : float
+        Loop delay ``>= 0``.
+    omega_max : float
+        Upper end ``W`` of the frequency band.
+    n : int
+        Initial number of samples on ``[0, W]`` (refined where the argument turns fast).
+
+    Returns
+    -------
+    NyquistResponse
+        See the module notes for how ``rhp_zeros`` is counted.
+    """
+    A = _as_quasi("A", A)
+    B = _as_quasi("B", B)
+    delta = nonnegative("delta", delta)
+    W = positive("omega_max", omega_max)
+    n = positive_int("n", n, 16)
+    w = np.linspace(0.0, W, n)
+    a_w = A(1j * w)
+    b_w = B(1j * w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        loop = b_w / a_w * np.exp(-1j * w * delta)
+    crossings = _crossings(A, B, w, np.abs(a_w) - np.abs(b_w))
+
+    F = A + B.shift(delta)
+    deg, lead = _principal(F)
+    note = ""
+    rhp: int | None = None
+    tail = float("nan")
+    if not lead:
+        bound = float("inf")
+        note = "the principal part of F vanishes: advanced type, no finite count"
+    else:
+        from .difference import DifferenceOperator
+
+        D = DifferenceOperator([a for a, _ in lead], [t for _, t in lead])
+        # C_D >= c_D is cheap and certified; the exact c_D only when C_D does not decide
+        bound = float(D.strong_spectral_bound())
+        if bound >= 0.0:
+            bound = float(D.spectral_bound().upper)
+        if bound >= 0.0:
+            note = f"the principal part has spectral bound {bound:.6g} >= 0: no finite count in Re s > 0"
+        else:
+
+            def G(s: NDArray) -> NDArray:
+                return F(s) / ((s + 1.0) ** deg * D(s))
+
+            full = np.concatenate([-w[:0:-1], w])
+            turn, g = _winding(G, full)
+            ends = np.abs(full) >= 0.9 * W
+            tail = float(np.max(np.abs(G(1j * full[ends]) - 1.0)))
+            count = -turn / (2 * np.pi)
+            if np.min(np.abs(g)) < 1e-10 * np.max(np.abs(g)):
+                note = "F has a zero on or next to the imaginary axis"
+            elif tail >= 1.0:
+                note = f"|G - 1| = {tail:.3g} >= 1 at the band end: raise omega_max"
+            elif abs(count - round(count)) > 0.1:
+                note = f"winding {count:.3f} is not close to an integer"
+            else:
+                rhp = int(round(count))
+    return NyquistResponse(w, loop, delta, crossings, bound, rhp, tail, note)
+
+
+def _crossings(A: QuasiPolynomial, B: QuasiPolynomial, w: NDArray, gap: NDArray) -> NDArray[np.float64]:
+    """Zeros of ``|A(i w)| - |B(i w)|`` on ``w > 0`` located by sign change and bisection."""
+    from scipy.optimize import brentq
+
+    def h(x: float) -> float:
+        return float(np.abs(A(np.array([1j * x]))[0]) - np.abs(B(np.array([1j * x]))[0]))
+
+    out = []
+    idx = np.flatnonzero(np.sign(gap[1:]) * np.sign(gap[:-1]) < 0)
+    for i in idx:
+        if w[i] == 0.0 and gap[i] == 0.0:
+            continue
+        out.append(brentq(h, w[i], w[i + 1], xtol=1e-13))
+    out += [float(x) for x, g in zip(w, gap) if g == 0.0 and x > 0]
+    return np.array(sorted(out))
+
+
+def nyquist_plot(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    delta: float = 0.0,
+    omega_max: float = 200.0,
+    ax: "Axes | None" = None,
+) -> NrobustPlot:
+    """Compute :func:`nyquist_response` and plot it (see :meth:`NyquistResponse.plot`)."""
+    return nyquist_response(A, B, delta, omega_max).plot(ax=ax)
+
+
+# ---------------------------------------------------------------------- root map
+def root_map_plot(
+    F: QuasiPolynomial,
+    region: tuple[float, float, float, float],
+    roots: "RootSet | ArrayLike | None" = None,
+    ax: "Axes | None" = None,
+    chains: bool = True,
+) -> NrobustPlot:
+    """Roots of ``F`` in a rectangle, the chain asymptotes of its principal part, the axis.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+    region : tuple
+        ``(re_min, re_max, im_min, im_max)``.
+    roots : RootSet or array_like, optional
+        Precomputed roots; by default ``find_roots(F, region)`` (certified).
+    ax : matplotlib Axes, optional
+    chains : bool
+        Draw the vertical asymptotes ``Re s = c`` of the root chains of the difference
+        operator ``F.principal_part()`` (Hale and Verduyn Lunel) that meet the region.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["roots"]`` (one marker artist whose data are the roots),
+        ``lines["chains"]`` (one line per chain), ``lines["axis"]``.
+    """
+    F = _as_quasi("F", F)
+    box = check_region(region)
+    if roots is None:
+        from .roots import find_roots
+
+        roots = find_roots(F, box)
+    values = np.asarray(getattr(roots, "roots", roots), dtype=complex).ravel()
+    ax = _get_ax(ax)
+    lines: dict[str, list[Any]] = {"chains": []}
+    lines["axis"] = [ax.axvline(0.0, color="k", lw=0.8, label="imaginary axis")]
+    if chains and F.is_neutral:
+        for k, chain in enumerate(F.principal_part().chains().chains):
+            if box[0] <= chain.real <= box[1]:
+                lines["chains"].append(
+                    ax.axvline(chain.real, color="C1", ls="--", lw=0.8, label="chain asymptotes" if k == 0 else None)
+                )
+    lines["roots"] = ax.plot(values.real, values.imag, "x", color="C0", label=f"{values.size} roots")
+    ax.set_xlim(box[0], box[1])
+    ax.set_ylim(box[2], box[3])
+    ax.set_xlabel("Re s")
+    ax.set_ylabel("Im s")
+    ax.legend(fontsize="x-small", loc="best")
+    return NrobustPlot(lines, ax, ax.figure)
+
+
+# ---------------------------------------------------------------------- root locus
+@dataclass(frozen=True, eq=False)
+class RootLocusData:
+    """Roots of a family ``F_p`` in a region as the parameter ``p`` moves.
+
+    Attributes
+    ----------
+    name : str
+        Name of the parameter (``"K"``, ``"delta"``...).
+    params : ndarray
+        Parameter values.
+    roots : tuple of ndarray
+        ``roots[i]`` are the roots of ``F_{params[i]}`` in ``region``.
+    region : tuple
+        The rectangle searched.
+    """
+
+    name: str
+    params: NDArray[np.float64]
+    roots: tuple[NDArray[np.complex128], ...]
+    region: tuple[float, float, float, float]
+
+    def plot(self, ax: "Axes | None" = None, cmap: str = "viridis") -> NrobustPlot:
+        """Scatter the roots coloured by the parameter; ``lines["roots"]`` is the collection."""
+        ax = _get_ax(ax)
+        pts = np.concatenate(self.roots) if self.roots else np.zeros(0, complex)
+        col = np.concatenate([np.full(r.size, p) for p, r in zip(self.params, self.roots)]) if self.roots else np.zeros(0)
+        lines: dict[str, list[Any]] = {}
+        lines["axis"] = [ax.axvline(0.0, color="k", lw=0.8)]
+        sc = ax.scatter(pts.real, pts.imag, c=col, cmap=cmap, s=10, vmin=self.params.min(), vmax=self.params.max())
+        lines["roots"] = [sc]
+        lines["colorbar"] = [ax.figure.colorbar(sc, ax=ax, label=self.name)]
+        ax.set_xlim(self.region[0], self.region[1])
+        ax.set_ylim(self.region[2], self.region[3])
+        ax.set_xlabel("Re s")
+        ax.set_ylabel("Im s")
+        ax.set_title(f"Root locus in {self.name}", fontsize="small")
+        return NrobustPlot(lines, ax, ax.figure)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (roots as ``[re, im]`` pairs)."""
+        return {
+            "name": self.name,
+            "params": self.params.tolist(),
+            "roots": [[[float(z.real), float(z.imag)] for z in r] for r in self.roots],
+            "region": list(self.region),
+        }
+
+
+def root_locus_response(
+    family: Callable[[float], QuasiPolynomial],
+    params: ArrayLike,
+    region: tuple[float, float, float, float],
+    name: str = "p",
+    progress: bool = False,
+) -> RootLocusData:
+    """Roots of ``family(p)`` in ``region`` for each ``p`` of ``params`` (certified counts).
+
+    ``family`` maps a parameter to a characteristic function, e.g.
+    ``lambda K: characteristic(system, ReflectionController(K), delta)`` for a locus in
+    ``K`` or ``lambda d: characteristic(system, controller, d)`` for a locus in ``delta``.
+    """
+    from .roots import find_roots
+
+    box = check_region(region)
+    p = np.atleast_1d(np.asarray(params, dtype=float))
+    if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
+        raise ParameterError("params", "a non-empty 1-D array of finite numbers", params)
+    it: Sequence[float] | Any = p
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(p, desc=f"root locus in {name}", leave=False)
+    roots = tuple(np.asarray(find_roots(_as_quasi("family(p)", family(float(x))), box).roots, dtype=complex) for x in it)
+    return RootLocusData(name, p, roots, box)
+
+
+def root_locus_plot(
+    family: Callable[[float], QuasiPolynomial],
+    params: ArrayLike,
+    region: tuple[float, float, float, float],
+    name: str = "p",
+    ax: "Axes | None" = None,
+) -> NrobustPlot:
+    """Compute :func:`root_locus_response` and plot it."""
+    return root_locus_response(family, params, region, name).plot(ax=ax)
+
+
+# ---------------------------------------------------------------------- time domain
+def simulation_plot(
+    results: Sequence[Any],
+    labels: Sequence[str] | None = None,
+    ax: "Axes | None" = None,
+) -> NrobustPlot:
+    """``L^2`` norm of simulated states against time, log scale (paper, figures 1 and 3).
+
+    Parameters
+    ----------
+    results : sequence of simulation results
+        Outputs of :func:`nrobust.hyperbolic.simulate` (``times`` and ``norm``).
+    labels : sequence of str, optional
+        One legend entry per result.
+    """
+    results = list(results)
+    if not results:
+        raise ParameterError("results", "at least one simulation result", results)
+    if labels is not None and len(labels) != len(results):
+        raise ParameterError("labels", f"one label per result ({len(results)})", labels)
+    ax = _get_ax(ax)
+    lines: dict[str, list[Any]] = {"norms": []}
+    for k, res in enumerate(results):
+        t = np.asarray(res.times, dtype=float)
+        y = np.asarray(res.norm, dtype=float)
+        label = labels[k] if labels is not None else None
+        lines["norms"] += ax.semilogy(t, np.maximum(y, np.finfo(float).tiny), label=label)
+    ax.set_xlabel("t")
+    ax.set_ylabel("||(u, v)(t)||_L2")
+    if labels is not None:
+        ax.legend(fontsize="x-small", loc="best")
+    return NrobustPlot(lines, ax, ax.figure)

@@ -1,0 +1,130 @@
+"""Plots: each artist holds what it claims (rendered with the Agg backend)."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from nrobust import plots  # noqa: E402
+from nrobust.errors import ParameterError  # noqa: E402
+from nrobust.hyperbolic import Hyperbolic2x2  # noqa: E402
+from nrobust.hyperbolic.controllers import ReflectionController  # noqa: E402
+from nrobust.hyperbolic.simulate import simulate  # noqa: E402
+from nrobust.quasipoly import QuasiPolynomial as Q  # noqa: E402
+from nrobust.roots import count_roots, find_roots  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt.close("all")
+
+
+A_TRANSPORT = Q([[1.0], [-0.85]], [0.0, 2.0])  # 1 - rho q e^{-tau s}, paper's example
+
+
+def test_nyquist_reflection_controller_is_stable_without_crossings():
+    """U_BS2 on the transport system: |K q| < 1 - |rho q|, |L| < 1 everywhere (eq. (boun_K2))."""
+    B = Q([[0.1]], [2.0])
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=60.0, n=2001)
+    assert resp.rhp_zeros == 0 and resp.note == ""
+    assert resp.crossings.size == 0
+    w = resp.omega
+    expected = B(1j * w) / A_TRANSPORT(1j * w) * np.exp(-0.1j * w)
+    assert np.allclose(resp.loop, expected, rtol=1e-12)
+    fig, ax = plt.subplots()
+    out = resp.plot(ax=ax)
+    assert out.axes is ax and out.figure is fig
+    assert np.allclose(out.lines["loop"][0].get_xdata(), expected.real)
+    assert np.allclose(out.lines["loop"][0].get_ydata(), expected.imag)
+    circle = out.lines["unit_circle"][0]
+    assert np.allclose(np.hypot(circle.get_xdata(), circle.get_ydata()), 1.0)
+    assert out.lines["crossings"] == []
+    assert list(out.lines["critical"][0].get_xdata()) == [-1.0]
+
+
+def test_nyquist_finite_time_controller_has_no_finite_count():
+    """U_BS with |rho q| > 1/2: the difference operator is not stable (Theorem 3)."""
+    B = Q([[0.85]], [2.0])
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.01, omega_max=20.0, n=2001)
+    assert resp.rhp_zeros is None and resp.principal_bound > 0
+    assert "spectral bound" in resp.note
+    assert resp.crossings.size > 0
+    assert np.allclose(np.abs(B(1j * resp.crossings) / A_TRANSPORT(1j * resp.crossings)), 1.0, atol=1e-9)
+    out = resp.plot()
+    pts = resp.crossing_points()
+    assert np.allclose(out.lines["crossings"][0].get_xdata(), pts.real)
+    assert np.allclose(np.abs(pts), 1.0, atol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "A,B,delta",
+    [
+        (Q([[-1.0, 1.0]], [0.0]), Q([[0.0]], [0.0]), 0.0),  # s - 1
+        (Q([[-1.0, 1.0]], [0.0]), Q([[0.0, 0.5]], [1.0]), 0.0),  # neutral, one real root > 0
+        (Q([[2.0, 1.0]], [0.0]), Q([[-3.0, 0.4]], [0.5]), 0.7),  # neutral with a delay
+    ],
+)
+def test_nyquist_count_matches_certified_root_count(A, B, delta):
+    resp = plots.nyquist_response(A, B, delta=delta, omega_max=400.0)
+    F = A + B.shift(delta)
+    assert resp.rhp_zeros is not None, resp.note
+    assert resp.rhp_zeros == int(count_roots(F, (0.0, 20.0, -400.0, 400.0)))
+
+
+def test_root_map_markers_are_the_roots_and_chains_are_drawn():
+    F = Q([[1.0], [-0.85], [0.1]], [0.0, 2.0, 2.1])
+    box = (-1.0, 1.0, -15.0, 15.0)
+    roots = find_roots(F, box)
+    out = plots.root_map_plot(F, box, roots=roots)
+    marker = out.lines["roots"][0]
+    assert np.allclose(marker.get_xdata(), roots.roots.real)
+    assert np.allclose(marker.get_ydata(), roots.roots.imag)
+    reals = sorted(line.get_xdata()[0] for line in out.lines["chains"])
+    expected = sorted(c.real for c in F.principal_part().chains().chains if -1.0 <= c.real <= 1.0)
+    assert np.allclose(reals, expected)
+    assert out.lines["axis"][0].get_xdata()[0] == 0.0
+    assert out.axes.get_xlim() == (-1.0, 1.0)
+
+
+def test_root_locus_in_a_gain_matches_closed_form():
+    """F_K(s) = 1 - K e^{-s}: roots ln K + 2 pi i k."""
+    Ks = np.array([0.5, 0.7, 0.9])
+    data = plots.root_locus_response(lambda K: Q([[1.0], [-K]], [0.0, 1.0]), Ks, (-1.0, 0.5, -10.0, 10.0), name="K")
+    for K, r in zip(Ks, data.roots):
+        expected = np.log(K) + 2j * np.pi * np.arange(-1, 2)
+        assert np.allclose(np.sort_complex(r), np.sort_complex(expected), atol=1e-9)
+    out = data.plot()
+    scatter = out.lines["roots"][0]
+    offsets = scatter.get_offsets()
+    assert offsets.shape == (9, 2)
+    assert np.allclose(np.sort(scatter.get_array()), np.repeat(Ks, 3))
+    assert data.to_dict()["name"] == "K"
+
+
+def test_simulation_plot_log_scale_one_line_per_run():
+    system = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
+    runs = [
+        simulate(system, ReflectionController(0.1), d, 4.0, lambda x: np.sin(np.pi * x), lambda x: 1.0 + 0 * x, n=40)
+        for d in (0.0, 0.1)
+    ]
+    out = plots.simulation_plot(runs, labels=["delta=0", "delta=0.1"])
+    assert out.axes.get_yscale() == "log"
+    assert len(out.lines["norms"]) == 2
+    assert np.allclose(out.lines["norms"][1].get_ydata(), runs[1].norm)
+    with pytest.raises(ParameterError, match="labels"):
+        plots.simulation_plot(runs, labels=["one"])
+
+
+def test_plot_arguments_are_checked():
+    with pytest.raises(ParameterError, match="A"):
+        plots.nyquist_response(1.0, A_TRANSPORT)
+    with pytest.raises(ParameterError, match="omega_max"):
+        plots.nyquist_response(A_TRANSPORT, A_TRANSPORT, omega_max=-1.0)
+    with pytest.raises(ParameterError, match="region"):
+        plots.root_map_plot(A_TRANSPORT, (1.0, 0.0, -1.0, 1.0), roots=[])
