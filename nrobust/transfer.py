@@ -221,7 +221,7 @@ def open_loop_tf(system: Any, n: int | None = None) -> QuasiTransferFunction:
     n : int, optional
         Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only).
     """
-    from .hyperbolic import Hyperbolic2x2
+    from .hyperbolic.system import Hyperbolic2x2
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
@@ -243,7 +243,8 @@ def output_map(system: Any, n: int | None = None) -> QuasiPolynomial:
     + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
     ``N~`` in eq. (eq_N_tilde). For a transport system ``M = 1``.
     """
-    from .hyperbolic import Hyperbolic2x2, solve_kernels
+    from .hyperbolic.kernels import solve_kernels
+    from .hyperbolic.system import Hyperbolic2x2
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
@@ -293,7 +294,7 @@ def closed_loop_tf(system: Any, controller: Any, delta: float, output: str = "v"
     QuasiTransferFunction
         Its denominator is the closed-loop characteristic function ``F``.
     """
-    from .hyperbolic import loop_factors
+    from .hyperbolic.controllers import loop_factors
 
     delta = nonnegative("delta", delta)
     if output not in ("v", "beta"):
@@ -307,7 +308,7 @@ def closed_loop_tf(system: Any, controller: Any, delta: float, output: str = "v"
 
 def _controller_denominator(controller: Any) -> QuasiPolynomial:
     """``c_d(s)``: ``1 + b s`` for the filtered controller ``(1 + a s)/(1 + b s)``, else 1."""
-    from .hyperbolic import FilteredController
+    from .hyperbolic.controllers import FilteredController
 
     if isinstance(controller, FilteredController):
         return QuasiPolynomial([[1.0, float(controller.b)]], [0.0])
