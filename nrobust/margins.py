@@ -1,0 +1,658 @@
+"""Delay margins, stability charts, admissible gains and the decay-rate/margin trade-off.
+
+A loop with a delay ``delta`` has the characteristic function
+
+    F(s; delta) = A(s) + B(s) e^{-delta s}
+
+(:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``, eq. (delay_eq_alpha_ter),
+``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``). Roots reach the imaginary axis at
+``s = i w`` only where ``|A(i w)| = |B(i w)|``; at such a *crossing frequency* the delays
+that put a root on the axis are
+
+    delta_{c,k} = (arg(-B(i w)/A(i w)) mod 2 pi + 2 pi k) / w,   k = 0, 1, ...
+
+(from ``e^{-i w delta} = -A/B``). A root crosses from left to right (destabilising) or
+back (stabilising) according to the sign of ``Re ds/ddelta``, which by implicit
+differentiation of ``F(s(delta); delta) = 0`` is
+
+    ds/ddelta = s B(s) e^{-delta s} / F'(s),   Re (ds/ddelta)^{-1} = Re[-(A'/A - B'/B)/s],
+
+independent of ``k``. The number of unstable roots is piecewise constant in ``delta``
+and changes only at these delays, so a certified count at ``delta = 0`` and the signed
+crossings give it for every ``delta``: stability windows included.
+
+Completeness rests on two bounds (paper, proofs of Lemma 1 and Theorem 3). With ``n`` the
+degree and ``D_A``, ``D_B`` the principal parts, ``|A(i w)| - |B(i w)|`` is at least
+``w^n (gap - r_A(w) - r_B(w))``, where ``gap = |a_0| - sum |others|`` is positive exactly
+when the difference operator of ``F(.; delta)`` is strongly stable for every delta, and
+``r`` are the remainders of :func:`nrobust.rouche.tail_bound` (``|int N e^{-i w nu}| <=
+V / w`` by integration by parts). Past the frequency ``W`` where ``r_A + r_B < gap`` there
+is no crossing, and no root with ``Re s >= 0``, for any delta. On ``[0, W]`` the function
+``h(w) = |A(i w)| - |B(i w)|`` is explored with a certified exclusion test: with ``L`` a
+bound of ``|A'| + |B'|`` on a segment (``QuasiPolynomial.deriv_bound``),
+``|h(w_i)| + |h(w_{i+1})| > L (w_{i+1} - w_i)`` proves that ``h`` has no zero on it;
+the other segments are halved down to a relative width ``1e-9``, where sign changes are
+refined by Brent's method to ``1e-12`` and sign-preserving clusters (tangential touches,
+double roots of ``h``) are reported as tangential crossings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq, minimize_scalar
+
+from ._validate import finite_real, nonnegative, positive, positive_int
+from .errors import CertificationError, ParameterError
+from .quasipoly import QuasiPolynomial
+from .rouche import joint_degree, principal_gap, radius_where, tail_bound
+
+__all__ = [
+    "Crossing",
+    "DelayMargin",
+    "crossing_frequencies",
+    "delay_margin",
+]
+
+# Blocks on which one Lipschitz bound of |A'| + |B'| is computed and shared by all
+# segments inside.
+_LIPSCHITZ_BLOCKS = 64
+# Segments are halved down to this width relative to max(1, W) before they are
+# classified as holding a crossing.
+_MIN_WIDTH = 1e-9
+# Brent's method tolerance on the crossing frequency (absolute, times max(1, w)).
+_XTOL = 1e-12
+# Relative tolerance under which a crossing delay counts as delta = 0, and under which
+# A(0) + B(0) counts as zero.
+_ZERO_TOL = 1e-12
+# Largest number of crossing delays enumerated up to delta_max.
+_MAX_EVENTS = 100_000
+
+
+def _is_real(*parts: QuasiPolynomial) -> bool:
+    for P in parts:
+        for p, _ in P.point_terms:
+            if np.iscomplexobj(p) and np.any(p.imag != 0):
+                return False
+        for d in P.distributed:
+            for arr in (d.values, d.poly):
+                if np.iscomplexobj(arr) and np.any(arr.imag != 0):
+                    return False
+    return True
+
+
+def _json(x: float | None) -> float | str | None:
+    if x is None:
+        return None
+    if np.isnan(x):
+        return "nan"
+    if np.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return float(x)
+
+
+# ============================================================================ crossings
+@dataclass(frozen=True)
+class Crossing:
+    """A frequency ``w`` with ``|A(i w)| = |B(i w)|`` and the delays that put ``i w`` on a root.
+
+    Attributes
+    ----------
+    omega : float
+        Crossing frequency ``w`` (negative only for complex coefficients).
+    delays : tuple of float
+        ``delta_{c,k}``, ``k = 0, 1, ...``, up to the requested ``delta_max`` (at least the
+        first one).
+    direction : int
+        ``+1`` destabilising (roots move into ``Re s > 0`` as delta grows), ``-1``
+        stabilising, ``0`` tangential (the root touches the axis and turns back).
+    ds_ddelta : complex
+        ``ds/ddelta`` at ``s = i w``, ``delta = delays[0]``.
+    tangential : bool
+        True when ``|A| - |B|`` touches zero without changing sign (a double root).
+    """
+
+    omega: float
+    delays: tuple[float, ...]
+    direction: int
+    ds_ddelta: complex
+    tangential: bool
+
+    @property
+    def period(self) -> float:
+        """Spacing ``2 pi / |w|`` of the delay sequence."""
+        return float(2.0 * np.pi / abs(self.omega))
+
+    def __repr__(self) -> str:
+        kind = {1: "destabilising", -1: "stabilising", 0: "tangential"}[self.direction]
+        return f"Crossing(omega={self.omega:.10g}, delta_0={self.delays[0]:.10g}, period={self.period:.6g}, {kind})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "omega": self.omega,
+            "delays": list(self.delays),
+            "direction": self.direction,
+            "ds_ddelta": [self.ds_ddelta.real, self.ds_ddelta.imag],
+            "tangential": self.tangential,
+        }
+
+
+@dataclass(frozen=True)
+class CrossingSearch:
+    """All zeros of ``|A(i w)| - |B(i w)|`` on ``[w_min, W]`` and how they were certified.
+
+    Attributes
+    ----------
+    omegas : ndarray
+        Crossing frequencies, increasing.
+    tangential : ndarray of bool
+        Which of them are tangential touches (double roots).
+    frequency_bound : float
+        ``W``: no crossing for ``|w| > W`` (and no zero of ``F(.; delta)`` with
+        ``Re s >= 0``, ``|s| > W``, for any delta).
+    gap : float
+        Dominance of the first principal term, ``|a_0| - sum |others|``.
+    evaluations : int
+        Evaluations of ``A`` and ``B`` on the axis.
+    """
+
+    omegas: NDArray[np.float64]
+    tangential: NDArray[np.bool_]
+    frequency_bound: float
+    gap: float
+    evaluations: int
+
+
+class _AxisFunction:
+    """``h(w) = |A(i w)| - |B(i w)|`` with an evaluation counter and a work bound."""
+
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int) -> None:
+        self.A, self.B = A, B
+        self.evals = 0
+        self.max_evals = max_evals
+
+    def __call__(self, w: NDArray[np.float64]) -> NDArray[np.float64]:
+        w = np.asarray(w, dtype=float)
+        self.evals += w.size
+        if self.evals > self.max_evals:
+            raise CertificationError(
+                f"crossing search: more than {self.max_evals} evaluations on the imaginary axis "
+                "(raise max_evals)"
+            )
+        s = 1j * w
+        return np.abs(self.A(s)) - np.abs(self.B(s))
+
+    def scalar(self, w: float) -> float:
+        return float(self(np.array([w]))[0])
+
+
+def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float] | None:
+    """``(W, gap)``: no crossing above ``W``; None when the principal part is not strongly stable.
+
+    ``gap = |a_0| - sum |others|`` over the principal terms of ``A`` and of
+    ``B e^{-delta s}`` (``delta -> 0+``), positive iff the difference operator of
+    ``F(.; delta)`` is strongly stable (Hale and Verduyn Lunel: ``gamma_0 < 1`` for a
+    scalar operator). None is also returned for advanced-type loops.
+    """
+    n = joint_degree(A, B)
+    pg = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
+    if pg is None or pg.gap <= 0.0:
+        return None
+    gap, t0 = pg.gap, pg.t0
+    W = radius_where(
+        lambda R: float(tail_bound(A, n, R, 0.0, t0) + tail_bound(B, n, R, 0.0, t0)), gap, "frequency_bound"
+    )
+    return W, gap
+
+
+def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDArray], NDArray], step: float) -> tuple[list[float], list[bool]]:
+    """Certified zeros of ``h`` on ``[lo, hi]`` (see the module notes)."""
+    nb = _LIPSCHITZ_BLOCKS
+    per_block = max(1, int(np.ceil((hi - lo) / nb / step)))
+    grid = np.linspace(lo, hi, nb * per_block + 1)
+    hv = h(grid)
+    edges = np.linspace(lo, hi, nb + 1)
+    Lb = L_of(edges[:-1], edges[1:])
+    wl, wr, hl, hr = grid[:-1], grid[1:], hv[:-1], hv[1:]
+    blk = np.repeat(np.arange(nb), per_block)
+    min_width = _MIN_WIDTH * max(1.0, hi - lo)
+    final_l: list[NDArray] = []
+    final_hl: list[NDArray] = []
+    final_r: list[NDArray] = []
+    final_hr: list[NDArray] = []
+    while wl.size:
+        keep = np.abs(hl) + np.abs(hr) <= Lb[blk] * (wr - wl)
+        wl, wr, hl, hr, blk = wl[keep], wr[keep], hl[keep], hr[keep], blk[keep]
+        small = (wr - wl) <= min_width
+        final_l.append(wl[small])
+        final_r.append(wr[small])
+        final_hl.append(hl[small])
+        final_hr.append(hr[small])
+        wl, wr, hl, hr, blk = wl[~small], wr[~small], hl[~small], hr[~small], blk[~small]
+        if not wl.size:
+            break
+        wm = 0.5 * (wl + wr)
+        hm = h(wm)
+        wl, wr = np.concatenate([wl, wm]), np.concatenate([wm, wr])
+        hl, hr = np.concatenate([hl, hm]), np.concatenate([hm, hr])
+        blk = np.concatenate([blk, blk])
+    L = np.concatenate(final_l)
+    order = np.argsort(L)
+    L = L[order]
+    R = np.concatenate(final_r)[order]
+    HL = np.concatenate(final_hl)[order]
+    HR = np.concatenate(final_hr)[order]
+    roots: list[float] = []
+    tangential: list[bool] = []
+    i = 0
+    while i < L.size:  # clusters of contiguous unresolved segments
+        j = i
+        while j + 1 < L.size and L[j + 1] <= R[j]:
+            j += 1
+        pts = np.concatenate([L[i : j + 1], R[j : j + 1]])
+        vals = np.concatenate([HL[i : j + 1], HR[j : j + 1]])
+        signs = np.sign(vals)
+        found = False
+        for k in range(pts.size - 1):
+            if vals[k] == 0.0:
+                roots.append(float(pts[k]))
+                tangential.append(False)
+                found = True
+            elif signs[k] * signs[k + 1] < 0:
+                roots.append(float(brentq(h.scalar, pts[k], pts[k + 1], xtol=_XTOL * max(1.0, abs(pts[k])), rtol=4 * np.finfo(float).eps)))
+                tangential.append(False)
+                found = True
+        if vals[-1] == 0.0:
+            roots.append(float(pts[-1]))
+            tangential.append(False)
+            found = True
+        if not found:  # |h| small without a sign change: a touch (or a near-touch), kept conservatively
+            res = minimize_scalar(lambda w: abs(h.scalar(w)), bounds=(pts[0], pts[-1]), method="bounded", options={"xatol": _XTOL})
+            roots.append(float(res.x))
+            tangential.append(True)
+        i = j + 1
+    return roots, tangential
+
+
+def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int = 2_000_000) -> CrossingSearch:
+    """Every frequency ``w > 0`` (all real ``w`` for complex coefficients) with ``|A(i w)| = |B(i w)|``.
+
+    The search range ``[0, W]`` is finite and provably complete (module notes); the
+    exclusion test makes every reported absence of a crossing a proof.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The loop factors of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+    max_evals : int, optional
+        Work bound on the evaluations of ``A`` and ``B``.
+
+    Returns
+    -------
+    CrossingSearch
+
+    Raises
+    ------
+    ParameterError
+        If the difference operator of the loop is not strongly stable for small delays
+        (no finite ``W`` exists: crossings accumulate at infinity).
+    CertificationError
+        If the work bound is hit.
+
+    Examples
+    --------
+    >>> A = QuasiPolynomial([[1.0, 1.0]], [0.0])      # s + 1
+    >>> B = QuasiPolynomial([[2.0]], [0.0])           # 2 e^{-delta s}
+    >>> res = crossing_frequencies(A, B)
+    >>> round(float(res.omegas[0]) ** 2, 10)
+    3.0
+    """
+    for name, P in (("A", A), ("B", B)):
+        if not isinstance(P, QuasiPolynomial):
+            raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
+    max_evals = positive_int("max_evals", max_evals)
+    fb = frequency_bound(A, B)
+    if fb is None:
+        raise ParameterError(
+            "A, B", "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)", None
+        )
+    W, gap = fb
+    h = _AxisFunction(A, B, max_evals)
+    tau = max(A.max_delay, B.max_delay, 1.0 / max(W, 1.0))
+    step = np.pi / (8.0 * tau)
+
+    def L_of(a: NDArray, b: NDArray) -> NDArray:
+        return A.deriv_bound(1j * a, 1j * b) + B.deriv_bound(1j * a, 1j * b)
+
+    lo = 0.0 if _is_real(A, B) else -W
+    roots, tang = _search(h, lo, W, L_of, step)
+    keep = [k for k, w in enumerate(roots) if abs(w) > _ZERO_TOL * max(1.0, W)]
+    omegas = np.array([roots[k] for k in keep], dtype=float)
+    return CrossingSearch(omegas, np.array([tang[k] for k in keep], dtype=bool), float(W), float(gap), h.evals)
+
+
+def _crossing(A: QuasiPolynomial, B: QuasiPolynomial, w: float, tangential: bool, delta_max: float) -> Crossing:
+    """Delay sequence and direction at the crossing frequency ``w``."""
+    s = np.array([1j * w])
+    a, b = complex(A(s)[0]), complex(B(s)[0])
+    da, db = complex(A.deriv(s)[0]), complex(B.deriv(s)[0])
+    period = 2.0 * np.pi / abs(w)
+    base = float(np.mod(np.angle(-b / a) / w, period))
+    if base > period * (1 - _ZERO_TOL) or base < period * _ZERO_TOL:
+        base = 0.0
+    count = 1 if not np.isfinite(delta_max) or delta_max < base else int(np.floor((delta_max - base) / period)) + 1
+    if count > _MAX_EVENTS:
+        raise ParameterError("delta_max", f"small enough that at most {_MAX_EVENTS} crossing delays are enumerated", delta_max)
+    delays = tuple(float(base + k * period) for k in range(max(count, 1)))
+    e = np.exp(-s[0] * base)
+    ds = s[0] * b * e / (da + db * e - base * b * e)
+    inv_re = (-(da / a - db / b) / s[0]).real
+    scale = abs(da / a) + abs(db / b)
+    if tangential or abs(inv_re) <= 1e-9 * max(scale / abs(w), 1e-300):
+        direction = 0
+    else:
+        direction = 1 if inv_re > 0 else -1
+    return Crossing(float(w), delays, direction, complex(ds), bool(tangential or direction == 0))
+
+
+# ============================================================================ delay margin
+@dataclass(frozen=True)
+class DelayMargin:
+    """Delay margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` and its stability intervals.
+
+    Attributes
+    ----------
+    margin : float
+        ``delta*``: the loop is exponentially stable for every ``delta`` in
+        ``[0, delta*)`` and not at ``delta*``. 0 when the nominal loop is not stable or
+        the difference operator is not strongly stable for small ``delta > 0`` (the
+        paper's zero margin, Theorem 3); ``inf`` when no crossing exists.
+    omega : float or None
+        Crossing frequency at which the margin is reached.
+    crossings : tuple of Crossing
+        Every crossing frequency with its delays up to ``delta_max``.
+    nominal_stable : bool
+        The loop with ``delta = 0`` is exponentially stable.
+    nominal_unstable : int or None
+        Certified number of zeros of ``F(.; 0)`` with ``Re s > 0`` (None when a zero
+        lies on the imaginary axis or no count was possible).
+    strongly_stable : bool
+        The difference operator of ``F(.; delta)`` is strongly stable for small delays.
+    zero_root : bool
+        ``A(0) + B(0) = 0``: ``s = 0`` is a root for every delta.
+    intervals : tuple of (float, float)
+        Maximal open delay intervals in ``[0, delta_max]`` on which the loop is
+        exponentially stable (``[0, hi)`` when it includes the nominal loop).
+    counts : tuple of (float, float, int)
+        Number of zeros with ``Re s > 0`` on each interval between crossing delays.
+    delta_max : float
+        Range of delays covered by ``intervals``.
+    frequency_bound : float or None
+        ``W``: no crossing (and no zero in ``Re s >= 0``) for ``|s| > W``, every delta.
+    gap : float
+        ``|a_0| - sum |others|`` of the principal terms (``> 0`` iff strongly stable).
+    verified : bool
+        The margin was checked: ``|F(i w; delta*)|`` is at rounding level and a
+        certified count finds no zero in ``Re s > 0`` at ``delta* (1 - 1e-3)``.
+    residual : float or None
+        ``|F(i w; delta*)| / (|A| + |B|)`` at the margin.
+    reason : str
+        How the margin was decided, in words.
+    """
+
+    margin: float
+    omega: float | None
+    crossings: tuple[Crossing, ...]
+    nominal_stable: bool
+    nominal_unstable: int | None
+    strongly_stable: bool
+    zero_root: bool
+    intervals: tuple[tuple[float, float], ...]
+    counts: tuple[tuple[float, float, int], ...]
+    delta_max: float
+    frequency_bound: float | None
+    gap: float
+    verified: bool
+    residual: float | None
+    reason: str
+    evaluations: int = field(default=0)
+
+    def is_stable(self, delta: ArrayLike) -> NDArray[np.bool_]:
+        """Exponential stability at each ``delta`` in ``[0, delta_max]`` (from the intervals)."""
+        d = np.asarray(delta, dtype=float)
+        if np.any(d < 0) or np.any(d > self.delta_max):
+            raise ParameterError("delta", f"in [0, delta_max = {self.delta_max:.6g}]", delta)
+        out = np.zeros(d.shape, dtype=bool)
+        for lo, hi in self.intervals:
+            out |= ((d > lo) | ((lo == 0.0) & (d == 0.0) & self.nominal_stable)) & (d < hi)
+        return out
+
+    def unstable_count(self, delta: ArrayLike) -> NDArray[np.int64]:
+        """Number of zeros with ``Re s > 0`` at each ``delta`` (-1 on a crossing delay)."""
+        d = np.asarray(delta, dtype=float)
+        if np.any(d < 0) or np.any(d > self.delta_max):
+            raise ParameterError("delta", f"in [0, delta_max = {self.delta_max:.6g}]", delta)
+        out = np.full(d.shape, -1, dtype=np.int64)
+        for lo, hi, n in self.counts:
+            out[(d > lo) & (d < hi)] = n
+        if self.nominal_unstable is not None:
+            out[d == 0.0] = self.nominal_unstable
+        return out
+
+    def __repr__(self) -> str:
+        w = "None" if self.omega is None else f"{self.omega:.10g}"
+        return (
+            f"DelayMargin(margin={self.margin:.10g}, omega={w}, crossings={len(self.crossings)}, "
+            f"nominal_stable={self.nominal_stable}, strongly_stable={self.strongly_stable}, "
+            f"windows={len(self.intervals)}, verified={self.verified}, reason={self.reason!r})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinities as strings)."""
+        return {
+            "margin": _json(self.margin),
+            "omega": _json(self.omega),
+            "crossings": [c.to_dict() for c in self.crossings],
+            "nominal_stable": self.nominal_stable,
+            "nominal_unstable": self.nominal_unstable,
+            "strongly_stable": self.strongly_stable,
+            "zero_root": self.zero_root,
+            "intervals": [[_json(lo), _json(hi)] for lo, hi in self.intervals],
+            "counts": [[_json(lo), _json(hi), n] for lo, hi, n in self.counts],
+            "delta_max": _json(self.delta_max),
+            "frequency_bound": _json(self.frequency_bound),
+            "gap": self.gap,
+            "verified": self.verified,
+            "residual": _json(self.residual),
+            "reason": self.reason,
+            "evaluations": self.evaluations,
+        }
+
+
+def _count_unstable(F: QuasiPolynomial, W: float) -> int:
+    """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``."""
+    from .roots import count_roots
+
+    r = 1.01 * W + 1e-9
+    return int(count_roots(F, (0.0, r, -r, r)))
+
+
+def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> int | None:
+    """Certified count of unstable zeros of ``A + B``, or None if it cannot be certified."""
+    from .rouche import root_free_region
+
+    F = A + B
+    if W is None:
+        try:
+            W = root_free_region(F).radius
+        except (ParameterError, CertificationError):
+            return None
+    return _count_unstable(F, W)
+
+
+def _as_factors(system: Any, controller: Any) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    if isinstance(system, QuasiPolynomial):
+        if not isinstance(controller, QuasiPolynomial):
+            raise ParameterError("B", "a QuasiPolynomial when A is one", type(controller).__name__)
+        return system, controller
+    from .hyperbolic.controllers import loop_factors
+
+    return loop_factors(system, controller)
+
+
+def delay_margin(
+    system: Any,
+    controller: Any,
+    *,
+    delta_max: float | None = None,
+    verify: bool = True,
+    max_evals: int = 2_000_000,
+) -> DelayMargin:
+    """Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+
+    Called either as ``delay_margin(A, B)`` with two :class:`QuasiPolynomial` or as
+    ``delay_margin(system, controller)`` (the factors of
+    :func:`nrobust.hyperbolic.loop_factors`, e.g. eq. (delay_eq_alpha_ter) for
+    ``U_BS2(K)``).
+
+    Parameters
+    ----------
+    system, controller
+        ``A, B`` or a plant and a controller.
+    delta_max : float, optional
+        Range of delays for the stability intervals; default twice the largest first
+        crossing delay (``inf`` without crossings).
+    verify : bool, optional
+        Check the margin by the residual at ``i w`` and a certified count at
+        ``delta* (1 - 1e-3)``.
+    max_evals : int, optional
+        Work bound of the crossing search.
+
+    Returns
+    -------
+    DelayMargin
+
+    Raises
+    ------
+    CertificationError
+        A work bound was hit, or the verification contradicts the crossing analysis.
+
+    Examples
+    --------
+    >>> A = QuasiPolynomial([[1.0, 1.0]], [0.0])      # s + 1
+    >>> B = QuasiPolynomial([[2.0]], [0.0])           # 2 e^{-delta s}
+    >>> dm = delay_margin(A, B)
+    >>> round(dm.margin, 10) == round(np.arccos(-0.5) / np.sqrt(3.0), 10)
+    True
+    """
+    A, B = _as_factors(system, controller)
+    max_evals = positive_int("max_evals", max_evals)
+    if delta_max is not None:
+        delta_max = positive("delta_max", delta_max) if np.isfinite(float(delta_max)) else float("inf")
+    real = _is_real(A, B)
+    a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
+    zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    fb = frequency_bound(A, B)
+    n = joint_degree(A, B)
+    pg = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
+    gap = float("-inf") if pg is None else pg.gap
+    if fb is None:
+        nominal = _nominal_count(A, B, None)
+        reason = (
+            "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
+            if pg is None
+            else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g} <= 0): zero margin"
+        )
+        return DelayMargin(
+            margin=0.0, omega=None, crossings=(), nominal_stable=nominal == 0 and not zero_root,
+            nominal_unstable=nominal, strongly_stable=False, zero_root=zero_root, intervals=(), counts=(),
+            delta_max=0.0 if delta_max is None else delta_max, frequency_bound=None, gap=gap, verified=False,
+            residual=None, reason=reason,
+        )
+    search = crossing_frequencies(A, B, max_evals=max_evals)
+    W = search.frequency_bound
+    firsts = []
+    for w, t in zip(search.omegas, search.tangential):
+        firsts.append(_crossing(A, B, float(w), bool(t), 0.0).delays[0])
+    if delta_max is None:
+        delta_max = 2.0 * max(firsts) if firsts and max(firsts) > 0 else float("inf")
+    crossings = tuple(
+        sorted(
+            (_crossing(A, B, float(w), bool(t), delta_max) for w, t in zip(search.omegas, search.tangential)),
+            key=lambda c: (c.delays[0], c.omega),
+        )
+    )
+    mult = 2 if real else 1
+    events: dict[float, int] = {}
+    for c in crossings:
+        for d in c.delays:
+            if d <= delta_max:
+                events[d] = events.get(d, 0) + mult * c.direction
+    axis_at_zero = zero_root or (0.0 in events)
+    nominal = None if axis_at_zero else _count_unstable(A + B, W)
+    nominal_stable = nominal == 0
+    marks = sorted(d for d in events if d > 0.0)
+    # Number of unstable zeros on the first interval (0, first positive crossing delay).
+    if nominal is not None:
+        first = nominal
+    elif zero_root:
+        first = None
+    else:
+        probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
+        first = _count_unstable(A + B.shift(probe), W)
+    counts: list[tuple[float, float, int]] = []
+    intervals: list[tuple[float, float]] = []
+    if first is not None:
+        bounds = [0.0] + marks + [delta_max]
+        cur = first
+        for k in range(len(bounds) - 1):
+            if k > 0:
+                cur += events[bounds[k]]
+                if cur < 0:
+                    raise CertificationError(
+                        f"delay_margin: negative number of unstable roots after delta = {bounds[k]:.12g} "
+                        "(crossing directions inconsistent with the count)"
+                    )
+            if bounds[k + 1] > bounds[k]:
+                counts.append((bounds[k], bounds[k + 1], cur))
+        for lo, hi, m in counts:
+            if m == 0:
+                if intervals and intervals[-1][1] == lo and events.get(lo, 0) == 0 and not any(
+                    lo in c.delays and c.tangential for c in crossings
+                ):
+                    intervals[-1] = (intervals[-1][0], hi)
+                else:
+                    intervals.append((lo, hi))
+    if zero_root:
+        margin, omega, reason = 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
+    elif not nominal_stable:
+        margin, omega = 0.0, None
+        reason = "the nominal loop (delta = 0) is not exponentially stable"
+    elif not crossings:
+        margin, omega, reason = float("inf"), None, "no crossing frequency: stable for every delay"
+    else:
+        margin, omega = crossings[0].delays[0], crossings[0].omega
+        reason = f"first crossing at w = {omega:.10g}"
+    verified, residual = False, None
+    if verify and nominal_stable and np.isfinite(margin) and margin > 0 and omega is not None:
+        s = np.array([1j * omega])
+        Fm = A(s) + B(s) * np.exp(-s * margin)
+        residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
+        below = _count_unstable(A + B.shift(margin * (1 - 1e-3)), W)
+        if residual > 1e-8 or below != 0:
+            raise CertificationError(
+                f"delay_margin: verification failed at delta* = {margin:.12g} (residual {residual:.3g}, "
+                f"{below} unstable roots just below delta*)"
+            )
+        verified = True
+    return DelayMargin(
+        margin=float(margin), omega=None if omega is None else float(omega), crossings=crossings,
+        nominal_stable=bool(nominal_stable and not zero_root), nominal_unstable=nominal, strongly_stable=True,
+        zero_root=zero_root, intervals=tuple(intervals), counts=tuple(counts), delta_max=float(delta_max),
+        frequency_bound=W, gap=search.gap, verified=verified, residual=residual, reason=reason,
+        evaluations=search.evaluations,
+    )

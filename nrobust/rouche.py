@@ -1,0 +1,512 @@
+"""Rouché-type certificates: root-free regions and guaranteed delay bounds.
+
+Two certificates, both from the inequality ``|F| >= |D| - |F - D| > 0`` where ``D`` is
+the part of ``F`` that dominates:
+
+* :func:`root_free_region`: ``D = s^n P(s)`` with ``P`` the principal part (difference
+  operator) of ``F``. Where ``|F - s^n P| < |s^n P|`` the function ``F`` has no zero: a
+  half-plane ``Re s > c`` and the set ``{Re s >= x0, |s| > R}``. These bounds make every
+  root search of nrobust finite (paper, proof of Lemma 1 and of Theorem 3: "integrating
+  by parts, ``|H(s)|`` converges to zero for ``|s|`` large enough").
+* :func:`rouche_delay_bound`: the proof of Theorem 4 made quantitative. For the
+  reflection-preserving control law ``U_BS2(K)`` (eq. (control3)) the loop with a delay
+  ``delta`` has the characteristic function (eq. (delay_eq_alpha_ter))
+
+      F(s) = 1 - q rho e^{-tau s} + K q e^{-(tau + delta) s} + I(s, delta),
+      I(s, delta) = int_0^tau N~(nu) (e^{-nu s} - e^{-(nu + delta) s}) dnu,
+
+  (the paper prints ``-I``; the sign does not enter the bound). On ``Re s >= 0``,
+  ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` and
+  ``|I(s, delta)| <= omega(delta) = int |N~(nu) - N~(nu - delta)| dnu`` (``N~`` extended
+  by zero), the L1 modulus of continuity of ``N~``, computed exactly for the piecewise
+  linear ``N~``. Every ``delta`` with ``omega(delta) < 1 - |q rho| - |K q|`` is admissible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._validate import finite_real, positive, positive_int
+from .errors import CertificationError, ParameterError
+from .quasipoly import DistributedDelay, QuasiPolynomial
+
+if TYPE_CHECKING:
+    from .hyperbolic.controllers import Controller
+    from .hyperbolic.system import Hyperbolic2x2
+
+__all__ = [
+    "RootFreeRegion",
+    "RoucheDelayBound",
+    "l1_modulus",
+    "root_free_region",
+    "rouche_delay_bound",
+]
+
+# Doublings of the radius (from 1) before the decay of the remainder is declared too
+# slow to beat the principal part.
+_MAX_DOUBLINGS = 200
+# Bisection steps on the radius / abscissa: 2^-80 of the bracket, below double precision.
+_BISECTIONS = 80
+
+
+# ---------------------------------------------------------------------------- bounds
+def joint_degree(*parts: QuasiPolynomial) -> int:
+    """Largest point-term degree ``n`` among ``parts``; checks the distributed degrees.
+
+    Raises
+    ------
+    ParameterError
+        If a distributed term has a polynomial factor of degree above ``n`` (it would
+        enter the principal part, which the bounds below do not model).
+    """
+    n = max(P.degree for P in parts)
+    for P in parts:
+        for d in P.distributed:
+            if d.poly.size - 1 > n:
+                raise ParameterError(
+                    "distributed", f"terms whose polynomial degree is at most {n} (the point-term degree)", d
+                )
+    return n
+
+
+def leading_terms(P: QuasiPolynomial, n: int) -> list[tuple[complex, float]]:
+    """The ``s^n`` coefficients ``a_k`` of the point terms of ``P`` with their delays."""
+    return [(complex(p[n]), t) for p, t in P.point_terms if p.size - 1 == n and p[n] != 0]
+
+
+def min_delay(P: QuasiPolynomial) -> float:
+    """Smallest delay of ``P``, point or distributed (``inf`` for the zero function)."""
+    ends = [t for _, t in P.point_terms] + [d.a for d in P.distributed]
+    return float(min(ends, default=np.inf))
+
+
+def tail_bound(P: QuasiPolynomial, n: int, radius: ArrayLike, x0: float, t0: float) -> NDArray[np.float64]:
+    """Upper bound of ``|e^{t0 s} (P(s) - s^n D_P(s))| / |s|^n`` on ``{Re s >= x0, |s| >= R}``.
+
+    ``D_P`` is the sum of the ``s^n`` point terms. The remainder collects the lower
+    powers of the point terms, bounded by ``sum_j |p_kj| R^(j - n) e^{-(tau_k - t0) x0}``,
+    and the distributed terms, bounded by ``|q|(R) R^-n min(M_0, V / R) e^{t0 x0}`` with
+    ``M_0 = int |N| e^{-nu x0}`` (``abs_moment``) and ``V`` the variation bound
+    (integration by parts, ``|int N e^{-nu s}| <= V(Re s) / |s|``). Each term is
+    non-increasing in ``R`` and, when every delay is ``>= t0``, in ``Re s >= x0``.
+
+    Parameters
+    ----------
+    P : QuasiPolynomial
+        The function.
+    n : int
+        Degree of the principal part (at least the degree of every term of ``P``).
+    radius : array_like
+        Values of ``R > 0``.
+    x0 : float
+        Smallest real part considered.
+    t0 : float
+        Delay by which ``P`` is normalised (the delay of the first principal term).
+    """
+    R = np.asarray(radius, dtype=float)
+    out = np.zeros(R.shape)
+    for p, t in P.point_terms:
+        weight = np.exp(-(t - t0) * x0)
+        for j in range(min(p.size, n)):
+            out = out + abs(p[j]) * R ** (j - n) * weight
+    for d in P.distributed:
+        m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
+        decay = np.minimum(m0, float(d.variation_bound(x0)) * np.exp(t0 * x0) / R) if d.moment == 0 else m0
+        qpow = sum(abs(c) * R ** (j - n) for j, c in enumerate(d.poly))
+        out = out + qpow * decay
+    return out
+
+
+@dataclass(frozen=True)
+class PrincipalGap:
+    """Lower bound of ``|D_first| - sum |D_others|`` for a sum of principal parts.
+
+    Attributes
+    ----------
+    gap : float
+        ``|a_first| - sum_{others} |a_k| e^{-(tau_k - t0) x0}`` at the abscissa used.
+    t0 : float
+        Delay of the first (dominating) principal term.
+    first : str
+        Which part carries the first term (``"A"``, ``"B"``, ...).
+    """
+
+    gap: float
+    t0: float
+    first: str
+
+
+def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: float = 0.0) -> PrincipalGap | None:
+    """Dominance gap of the first principal term over all others, or None if none dominates.
+
+    ``parts`` maps a label to ``(P, order)``: the terms of ``P`` are ordered by
+    ``(delay, order)``, so ``order = 1`` places a part's terms after the terms of
+    ``order = 0`` parts with the same delay (a loop delay ``delta -> 0+``). None is
+    returned when the first principal term is preceded by another term of the functions
+    (an advanced-type function: chains of roots go to ``Re s = +inf``).
+    """
+    lead = [(abs(a), t, order, label) for label, (P, order) in parts.items() for a, t in leading_terms(P, n)]
+    if not lead:
+        return None
+    lead.sort(key=lambda e: (e[1], e[2]))
+    a0, t0, order0, label0 = lead[0]
+    for P, order in parts.values():
+        if (min_delay(P), order) < (t0, order0):
+            return None
+    others = sum(a * np.exp(-(t - t0) * x0) for a, t, _, _ in lead[1:])
+    return PrincipalGap(float(a0 - others), float(t0), label0)
+
+
+def radius_where(tail: Any, level: float, what: str) -> float:
+    """Smallest ``R`` (up to bisection accuracy, rounded up) with ``tail(R) < level``.
+
+    ``tail`` must be non-increasing. Raises :class:`CertificationError` if the tail
+    stays above ``level`` for every ``R <= 2^_MAX_DOUBLINGS``.
+    """
+    hi = 1.0
+    for _ in range(_MAX_DOUBLINGS):
+        if tail(hi) < level:
+            break
+        hi *= 2.0
+    else:
+        raise CertificationError(
+            f"{what}: the remainder does not fall below the principal-part gap {level:.3g} "
+            f"for |s| <= 2^{_MAX_DOUBLINGS}"
+        )
+    lo = 0.0
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if mid <= 0.0 or mid == hi or mid == lo:
+            break
+        if tail(mid) < level:
+            hi = mid
+        else:
+            lo = mid
+    return float(hi)
+
+
+# ---------------------------------------------------------------------------- root-free region
+@dataclass(frozen=True)
+class RootFreeRegion:
+    """Certificate that a quasi-polynomial ``F`` has no zero in a region.
+
+    ``F`` has no zero with ``Re s > half_plane``, and none in
+    ``{Re s >= x0, |s| > radius}`` (``|F - s^n D| < |s^n D|`` there, ``D`` the principal
+    part).
+
+    Attributes
+    ----------
+    half_plane : float
+        Abscissa ``c``: no zero with ``Re s > c``.
+    x0 : float
+        Left edge of the second region.
+    radius : float
+        ``R``: no zero with ``Re s >= x0`` and ``|s| > R``.
+    degree : int
+        ``n``, the degree of the principal part.
+    gap : float
+        ``|a_0| - sum_{k>=1} |a_k| e^{-(tau_k - tau_0) x0}``, the dominance of the principal
+        part on ``Re s >= x0`` (positive).
+    """
+
+    half_plane: float
+    x0: float
+    radius: float
+    degree: int
+    gap: float
+
+    def contains(self, s: ArrayLike) -> NDArray[np.bool_]:
+        """True where ``s`` lies in the certified root-free region."""
+        s = np.asarray(s, dtype=complex)
+        return (s.real > self.half_plane) | ((s.real >= self.x0) & (np.abs(s) > self.radius))
+
+    def box(self) -> tuple[float, float, float, float]:
+        """A rectangle ``(x0, c, -R, R)`` holding every zero with ``Re s >= x0``."""
+        return (self.x0, max(self.half_plane, self.x0 + 1e-12 * max(1.0, self.radius)), -self.radius, self.radius)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "half_plane": self.half_plane,
+            "x0": self.x0,
+            "radius": self.radius,
+            "degree": self.degree,
+            "gap": self.gap,
+        }
+
+
+def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
+    """Certified zero-free regions of ``F`` from its principal part.
+
+    With ``F(s) = s^n D(s) + R(s)``, ``D(s) = sum_k a_k e^{-tau_k s}`` the principal part
+    (paper, proof of Lemma 1: ``F + H`` with ``|H| -> 0``), ``F(s) != 0`` wherever
+    ``|R(s)| < |s|^n |D(s)|``. On ``Re s >= x`` (delays measured from ``tau_0``),
+    ``|D| >= |a_0| - sum_{k>=1} |a_k| e^{-(tau_k - tau_0) x}`` and ``|R| / |s|^n`` is bounded
+    by :func:`tail_bound`, non-increasing in ``|s|`` and in ``Re s``.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+        A retarded or neutral quasi-polynomial whose first principal term has the
+        smallest delay of all its terms.
+    x0 : float, optional
+        Left edge of the region ``{Re s >= x0, |s| > R}``; it must lie to the right of
+        ``C_D`` (the root of ``|a_0| = sum |a_k| e^{-(tau_k - tau_0) x}``).
+
+    Returns
+    -------
+    RootFreeRegion
+
+    Raises
+    ------
+    ParameterError
+        If ``F`` is of advanced type or ``x0`` does not leave a positive gap.
+    CertificationError
+        If a work bound is hit.
+
+    Examples
+    --------
+    >>> F = QuasiPolynomial([[1.0, 1.0], [0.5]], [0.0, 1.0])   # s + 1 + 0.5 e^{-s}
+    >>> cert = root_free_region(F)
+    >>> bool(cert.half_plane < 0.5)
+    True
+    """
+    x0 = finite_real("x0", x0)
+    n = joint_degree(F)
+    g0 = principal_gap({"F": (F, 0)}, n, x0)
+    if g0 is None:
+        raise ParameterError("F", "of retarded or neutral type (its first principal term has the smallest delay)", F)
+    if g0.gap <= 0.0:
+        raise ParameterError(
+            "x0", "to the right of the strong spectral bound of the principal part (positive dominance gap)", x0
+        )
+    gap, t0 = g0.gap, g0.t0
+
+    def margin(x: float, R: float) -> float:
+        g = principal_gap({"F": (F, 0)}, n, x)
+        assert g is not None
+        return g.gap - float(tail_bound(F, n, R, x, t0))
+
+    radius = radius_where(lambda R: float(tail_bound(F, n, R, x0, t0)), gap, "root_free_region")
+    # Half-plane: for Re s = x >= c we have |s| >= x, and the bound is non-increasing in x.
+    lo, hi = x0, max(x0, 0.0) + 1.0
+    for _ in range(_MAX_DOUBLINGS):
+        if hi > 0 and margin(hi, hi) > 0:
+            break
+        hi = 2.0 * hi
+    else:
+        raise CertificationError("root_free_region: no root-free half-plane found")
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if mid <= 0 or mid == lo or mid == hi:
+            break
+        if margin(mid, mid) > 0:
+            hi = mid
+        else:
+            lo = mid
+    return RootFreeRegion(half_plane=float(min(hi, radius)), x0=x0, radius=radius, degree=n, gap=float(gap))
+
+
+# ---------------------------------------------------------------------------- L1 modulus
+def _pl_eval(nodes: NDArray, values: NDArray, x: NDArray, side: str) -> NDArray:
+    """One-sided limits of the piecewise-linear ``N`` (zero outside its support) at ``x``."""
+    idx = np.searchsorted(nodes, x, side="right" if side == "right" else "left")
+    inside = (idx > 0) & (idx < nodes.size)
+    i = np.clip(idx, 1, nodes.size - 1)
+    x0, x1 = nodes[i - 1], nodes[i]
+    h = np.where(x1 > x0, x1 - x0, 1.0)
+    t = np.clip((x - x0) / h, 0.0, 1.0)
+    return np.where(inside, values[i - 1] + t * (values[i] - values[i - 1]), 0.0)
+
+
+def _abs_linear_integral(f0: NDArray, f1: NDArray, h: NDArray) -> NDArray:
+    """``int_0^h |f0 + (f1 - f0) t/h| dt`` exactly."""
+    a, b = np.abs(f0), np.abs(f1)
+    same = f0 * f1 >= 0
+    denom = np.where(same, 1.0, a + b)
+    return np.where(same, 0.5 * h * (a + b), 0.5 * h * (a * a + b * b) / denom)
+
+
+def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
+    """``omega(delta) = int |N(nu) - N(nu - delta)| dnu``, ``N`` extended by zero, exactly.
+
+    ``N`` is the piecewise-linear interpolant of a :class:`DistributedDelay` (jumps at
+    repeated nodes and at the ends of the support included). The difference is linear
+    between the merged breakpoints ``nodes`` and ``nodes + delta``, where its modulus is
+    integrated in closed form. ``omega(delta) <= delta * TV(N)`` and
+    ``omega(d1 + d2) <= omega(d1) + omega(d2)``.
+
+    Parameters
+    ----------
+    N : DistributedDelay
+        Real kernel of moment 0 (its polynomial factor is ignored: ``omega`` is a
+        property of the kernel).
+    delta : array_like
+        Shifts ``delta >= 0``.
+    """
+    if np.iscomplexobj(N.values) or N.moment != 0:
+        raise ParameterError("N", "a real kernel of moment 0", N)
+    d = np.asarray(delta, dtype=float)
+    if np.any(~np.isfinite(d)) or np.any(d < 0):
+        raise ParameterError("delta", "finite and >= 0", delta)
+    out = np.empty(d.shape)
+    nodes, values = N.nodes, N.values
+    for idx, dk in np.ndenumerate(d):
+        br = np.unique(np.concatenate([nodes, nodes + dk]))
+        lo, hi = br[:-1], br[1:]
+        shifted = nodes + dk  # the same floats as in br: one-sided limits stay exact at jumps
+        f0 = _pl_eval(nodes, values, lo, "right") - _pl_eval(shifted, values, lo, "right")
+        f1 = _pl_eval(nodes, values, hi, "left") - _pl_eval(shifted, values, hi, "left")
+        out[idx] = float(np.sum(_abs_linear_integral(f0, f1, hi - lo)))
+    return out
+
+
+def total_variation(N: DistributedDelay) -> float:
+    """Total variation of ``N`` extended by zero (end values, slopes and jumps)."""
+    v = N.values
+    if np.iscomplexobj(v):
+        raise ParameterError("N", "a real kernel", N)
+    return float(abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))))
+
+
+# ---------------------------------------------------------------------------- delay bound
+@dataclass(frozen=True)
+class RoucheDelayBound:
+    """A guaranteed delay range ``[0, delta_0]`` from the proof of Theorem 4.
+
+    Attributes
+    ----------
+    delta_0 : float
+        Every loop delay in ``[0, delta_0]`` keeps the loop exponentially stable
+        (``inf`` when ``N~ = 0``; 0 when ``epsilon_0 <= 0``).
+    epsilon_0 : float
+        ``1 - |q rho| - |K q|``, the lower bound of the delay-free part on ``Re s >= 0``.
+    omega_at_delta_0 : float
+        ``omega(delta_0)``, the bound of ``|I(s, delta_0)|`` (below ``epsilon_0``).
+    total_variation : float
+        ``TV(N~)``, the Lipschitz constant of ``omega`` used between samples.
+    K : float
+        Gain of the proximal reflection kept by the controller (``rho`` for U_BS).
+    steps : int
+        Certified steps taken by the march in ``delta``.
+    """
+
+    delta_0: float
+    epsilon_0: float
+    omega_at_delta_0: float
+    total_variation: float
+    K: float
+    steps: int
+
+    def __repr__(self) -> str:
+        return (
+            f"RoucheDelayBound(delta_0={self.delta_0:.6g}, epsilon_0={self.epsilon_0:.6g}, "
+            f"omega(delta_0)={self.omega_at_delta_0:.6g}, K={self.K:.6g})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (``inf`` as the string ``"inf"``)."""
+        return {
+            "delta_0": self.delta_0 if np.isfinite(self.delta_0) else "inf",
+            "epsilon_0": self.epsilon_0,
+            "omega_at_delta_0": self.omega_at_delta_0,
+            "total_variation": self.total_variation,
+            "K": self.K,
+            "steps": self.steps,
+        }
+
+
+def delay_bound_from_kernel(
+    N: DistributedDelay | None, epsilon_0: float, K: float = 0.0, rtol: float = 1e-6, max_steps: int = 100_000
+) -> RoucheDelayBound:
+    """Largest certified ``delta_0`` with ``sup_{d <= delta_0} omega(d) < epsilon_0``.
+
+    March from ``d = 0``: with ``omega(d)`` computed exactly and the subadditive bound
+    ``omega(d + h) <= omega(d) + h TV(N)``, every step ``h < (epsilon_0 - omega(d)) / TV``
+    keeps ``omega < epsilon_0`` on ``[d, d + h]``. The march stops when the step falls
+    below ``rtol * d``; the result is certified whatever the stopping point.
+
+    Parameters
+    ----------
+    N : DistributedDelay or None
+        The kernel ``N~`` (None for a transport system).
+    epsilon_0 : float
+        ``1 - |q rho| - |K q|``.
+    K : float, optional
+        Recorded in the result.
+    rtol : float, optional
+        Relative step below which the march stops.
+    max_steps : int, optional
+        Work bound.
+    """
+    epsilon_0 = finite_real("epsilon_0", epsilon_0)
+    rtol = positive("rtol", rtol)
+    max_steps = positive_int("max_steps", max_steps)
+    if epsilon_0 <= 0.0:
+        return RoucheDelayBound(0.0, epsilon_0, 0.0, 0.0 if N is None else total_variation(N), K, 0)
+    tv = 0.0 if N is None else total_variation(N)
+    if tv == 0.0:
+        return RoucheDelayBound(np.inf, epsilon_0, 0.0, tv, K, 0)
+    assert N is not None
+    d, om, steps = 0.0, 0.0, 0
+    safety = 1.0 - 1e-9
+    while steps < max_steps:
+        h = safety * (epsilon_0 - om) / tv
+        if d > 0.0 and h <= rtol * d:
+            break
+        om_next = float(l1_modulus(N, d + h))
+        if om_next >= epsilon_0:
+            raise CertificationError(
+                f"delay_bound_from_kernel: omega({d + h:.6g}) = {om_next:.6g} exceeds the subadditive bound "
+                f"omega(d) + h TV = {om + h * tv:.6g} (kernel values not representable?)"
+            )
+        d, om, steps = d + h, om_next, steps + 1
+    return RoucheDelayBound(float(d), epsilon_0, om, tv, K, steps)
+
+
+def rouche_delay_bound(system: "Hyperbolic2x2", controller: "Controller", n: int | None = None) -> RoucheDelayBound:
+    """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
+
+    On ``Re s >= 0`` the characteristic function of eq. (delay_eq_alpha_ter) satisfies
+    ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` with
+    ``|I(s, delta)| <= omega(delta)`` (:func:`l1_modulus` of ``N~``). Every delay in
+    ``[0, delta_0]`` with ``sup omega < epsilon_0 = 1 - |q rho| - |K q|`` keeps ``F``
+    zero-free on ``Re s >= 0``; the strict inequality extends to ``Re s >= -epsilon``
+    for some ``epsilon > 0`` by continuity, so the loop is exponentially stable.
+    ``delta_0`` is a lower bound of the delay margin (:func:`nrobust.margins.delay_margin`).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The plant (a :class:`TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
+        whenever ``epsilon_0 > 0``).
+    controller : ReflectionController or FiniteTimeController
+        ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
+    n : int, optional
+        Kernel grid of the delay form (default: that of the closed-loop functions).
+
+    Returns
+    -------
+    RoucheDelayBound
+    """
+    from .hyperbolic.controllers import DEFAULT_N, FiniteTimeController, ReflectionController
+    from .hyperbolic.delay_form import delay_form
+    from .hyperbolic.system import Hyperbolic2x2
+
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    if isinstance(controller, ReflectionController):
+        K = float(controller.K)
+    elif isinstance(controller, FiniteTimeController):
+        K = float(system.rho)
+    else:
+        raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
+    grid = DEFAULT_N if n is None else positive_int("n", n, 2)
+    eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
+    N = None if system.uncoupled else delay_form(system, n=grid).N_tilde
+    return delay_bound_from_kernel(N, eps0, K)
+
