@@ -676,13 +676,20 @@ def _abscissa_value(result: Any) -> float:
     return float(result.value)
 
 
+#: Where analyses, systems and controllers are looked up by name, in this order.
+_NAMESPACES = ("nrobust", "nrobust.hyperbolic", "nrobust.margins", "nrobust.roots")
+
+
 def _nrobust_function(name: str) -> Callable[..., Any]:
-    """``nrobust.<name>``, looked up when an analysis runs."""
-    package = importlib.import_module("nrobust")
-    try:
-        return getattr(package, name)
-    except AttributeError:
-        raise ParameterError("analysis", f"an analysis this installation provides (nrobust.{name} is missing)", name) from None
+    """``nrobust.<name>`` (or the same name in a subpackage), looked up when an analysis runs."""
+    for module in _NAMESPACES:
+        try:
+            found = getattr(importlib.import_module(module), name, None)
+        except ImportError:
+            continue
+        if found is not None:
+            return found
+    raise ParameterError("analysis", f"an analysis this installation provides (nrobust.{name} is missing)", name)
 
 
 def margin_and_decay(system: Any, controller: Any) -> dict[str, float]:
@@ -698,14 +705,16 @@ def margin_and_decay(system: Any, controller: Any) -> dict[str, float]:
     Returns
     -------
     dict
-        ``delta_star`` (``nrobust.delay_margin(system, controller).delta_star``; ``inf``
-        when every delay is tolerated), ``abscissa`` (spectral abscissa of the
-        delay-free characteristic function) and ``decay_rate = -abscissa``.
+        ``delta_star`` (the ``margin`` of ``nrobust.delay_margin(system, controller)``;
+        ``inf`` when every delay is tolerated, 0 when an arbitrarily small delay
+        destabilises), ``abscissa`` (spectral abscissa of the delay-free characteristic
+        function ``nrobust.characteristic(system, controller, 0.0)``) and
+        ``decay_rate = -abscissa``.
     """
     margin = _nrobust_function("delay_margin")(system, controller)
     characteristic = _nrobust_function("characteristic")(system, controller, 0.0)
     abscissa = _abscissa_value(_nrobust_function("spectral_abscissa")(characteristic))
-    return {"delta_star": float(margin.delta_star), "abscissa": abscissa, "decay_rate": -abscissa}
+    return {"delta_star": float(margin.margin), "abscissa": abscissa, "decay_rate": -abscissa}
 
 
 @dataclass(frozen=True)
@@ -931,7 +940,8 @@ class _Analysis:
 
 
 def _margin_columns(result: Any) -> dict[str, Any]:
-    return {"delta_star": float(result.delta_star)}
+    return {"delta_star": float(result.margin), "nominal_stable": bool(result.nominal_stable),
+            "strongly_stable": bool(result.strongly_stable), "verified": bool(result.verified)}
 
 
 def _abscissa_columns(result: Any) -> dict[str, Any]:

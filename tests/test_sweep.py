@@ -13,6 +13,7 @@ import pytest
 
 import nrobust
 from nrobust.errors import ParameterError
+from nrobust.hyperbolic import TransportSystem
 from nrobust.sweep import ANALYSES, PointFailure, RobustnessResult, _Analysis, run_sweep_file
 
 distributed = pytest.importorskip("distributed")
@@ -52,6 +53,10 @@ def draw_toy(rng: np.random.Generator) -> ToySystem:
 
 def toy_analysis(system: ToySystem, controller: float) -> dict:
     return {"delta_star": toy_margin(system.a + controller, system.b), "decay_rate": system.a + system.b + controller}
+
+
+def draw_transport(rng: np.random.Generator) -> TransportSystem:
+    return TransportSystem(lam=1.0, mu=2.0, q=float(rng.uniform(0.8, 1.3)), rho=float(rng.uniform(0.3, 0.9)))
 
 
 def returns_float(a: float, b: float) -> float:
@@ -240,26 +245,11 @@ def toy_file_margin(system, controller, scale: float = 1.0):
     return Margin(scale * toy_margin(1.0 - rq, kq + rq))
 
 
-@dataclass(frozen=True)
-class FakeTransport:
-    lam: float
-    mu: float
-    q: float
-    rho: float
-
-
-@dataclass(frozen=True)
-class FakeReflection:
-    K: float
-
-
 @pytest.fixture
 def toy_registry(monkeypatch):
-    """Register a closed-form analysis and plain system/controller types under the names
-    the file runner looks up in the nrobust namespace, so its machinery is tested alone."""
+    """Register a closed-form analysis under a name the file runner looks up in the
+    nrobust namespace, so that its machinery is tested apart from the margin search."""
     monkeypatch.setattr(nrobust, "toy_file_margin", toy_file_margin, raising=False)
-    monkeypatch.setattr(nrobust, "TransportSystem", FakeTransport, raising=False)
-    monkeypatch.setattr(nrobust, "ReflectionController", FakeReflection, raising=False)
     monkeypatch.setitem(ANALYSES, "toy", _Analysis("toy_file_margin", 2, (), lambda r: {"delta_star": r.delta_star}))
 
 
@@ -339,3 +329,46 @@ def test_sweep_file_bad_distribution_is_named(tmp_path, toy_registry):
     with pytest.raises(ParameterError) as info:
         run_sweep_file(tmp_path / "SWEEP.toml", tmp_path / "out")
     assert info.value.name == "sampling.distributions.rho.uniform"
+
+
+# --- on the plant: transport equations with the reflection-preserving controller ---
+
+
+def test_robustness_on_transport_system_matches_the_paper():
+    """Margin inf iff |rho q| + |K q| < 1 (else 0); decay rate -ln|(rho - K) q| / tau."""
+    K = 0.2
+    res = nrobust.robustness(draw_transport, nrobust.ReflectionController(K), 16, seed=5, executor=2)
+    assert res.n_failed == 0
+    t = res.sweep.table()
+    rq, kq = np.abs(t["system.rho"] * t["system.q"]), np.abs(K * t["system.q"])
+    robust = rq + kq < 1
+    assert robust.any() and (~robust).any()
+    np.testing.assert_array_equal(np.isinf(t["delta_star"]), robust)
+    assert np.all(t["delta_star"][~robust] == 0.0)
+    tau = 1.0 / 1.0 + 1.0 / 2.0
+    expected = -np.log(np.abs((t["system.rho"] - K) * t["system.q"])) / tau
+    np.testing.assert_allclose(t["decay_rate"], expected, rtol=1e-8)
+    assert res == nrobust.robustness(draw_transport, nrobust.ReflectionController(K), 16, seed=5, executor="serial")
+
+
+def test_sweep_file_on_transport_system(tmp_path):
+    (tmp_path / "SWEEP.toml").write_text("""
+analysis = ["delay_margin", "spectral_abscissa"]
+executor = 2
+[system]
+type = "TransportSystem"
+lam = 1.0
+mu = 1.0
+q = 1.0
+[controller]
+type = "ReflectionController"
+[grid]
+K = [0.0, 0.1, 0.3]
+rho = [0.5, 0.85]
+""")
+    out = run_sweep_file(tmp_path / "SWEEP.toml", tmp_path / "out")
+    t = out.sweep.table()
+    assert out.sweep.n_failed == 0 and len(t) == 6
+    np.testing.assert_array_equal(np.isinf(t["delta_star"]), t["rho"] + t["K"] < 1)
+    np.testing.assert_allclose(t["decay_rate"], -np.log(np.abs(t["rho"] - t["K"])) / 2.0, rtol=1e-8)
+    assert out.png.stat().st_size > 0
