@@ -1,0 +1,453 @@
+"""Difference operators ``D(s) = sum_k a_k e^{-tau_k s}``: strong stability and root chains.
+
+The principal part of a neutral quasi-polynomial is a difference operator: for
+``|s| -> infinity`` in a vertical strip ``F(s) = s^n (D(s) + O(1/s))``, so the
+high-frequency roots of ``F`` lie on the chains of zeros of ``D``. In the paper this is
+the operator ``1 - rho q e^{-tau s} (+ rho q e^{-(tau + delta) s})`` whose strong
+stability (``|rho q| < 1/2`` with the finite-time controller ``U_BS``) decides
+delay-robustness (paper, Section 3, after eq. (delay_eq_no_couplings2), citing Hale and
+Verduyn Lunel, "Strong stabilization of neutral functional differential equations",
+2002).
+
+Notation. With ``tau_0 < tau_1 < ...`` and ``r_k = tau_k - tau_0``, the zeros of ``D``
+are those of ``a_0 + sum_{k>=1} a_k e^{-r_k s}``.
+
+* ``gamma_0 = sum_{k>=1} |a_k| / |a_0|``; ``D`` is *strongly stable* (exponentially
+  stable for every small perturbation of the delays) iff ``gamma_0 < 1``.
+* ``c_D = sup {Re s : D(s) = 0}``, the spectral bound.
+* ``C_D``: the real root of ``sum_{k>=1} |a_k| e^{-r_k c} = |a_0|``. It is the supremum
+  of ``c_D`` over small perturbations of the delays; ``c_D <= C_D``, with equality for
+  rationally independent delays (Hale and Verduyn Lunel, Theorem 9.6.x of
+  "Introduction to Functional Differential Equations", 1993).
+* Commensurate delays ``r_k = n_k h`` (integers ``n_k``): ``D = 0`` iff the polynomial
+  ``P(z) = sum_k a_k z^{n_k}`` vanishes at ``z = e^{-h s}``, so every root ``z_i`` gives a
+  vertical chain ``s = (-ln z_i + 2 pi i m) / h``, ``m`` in Z.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from math import lcm
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import brentq
+
+from .errors import ParameterError
+
+__all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
+
+# Commensurability test: every ratio r_k / r_max must agree with a fraction of
+# denominator <= _MAX_DENOMINATOR to within _COMMENSURATE_RTOL; the common step is then
+# h = r_max / lcm(denominators) and the degree of P is lcm(denominators) <= _MAX_DEGREE.
+_COMMENSURATE_RTOL = 1e-10
+_MAX_DENOMINATOR = 1000
+_MAX_DEGREE = 4000
+# Roots of P closer than this (relative to |z|) are merged into one multiple root.
+_MULTIPLE_RTOL = 1e-6
+# Seeds used for the certified lower bound of c_D when the delays are incommensurate.
+_LOWER_BOUND_SEEDS = 64
+
+
+def _complex_if_needed(a: NDArray) -> NDArray:
+    return a if np.iscomplexobj(a) and np.any(a.imag != 0) else a.real.astype(float)
+
+
+def _cluster_polynomial_roots(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+    """Group numerically coincident polynomial roots; return cluster means and sizes."""
+    z = z[np.argsort(-np.abs(z), kind="stable")]
+    used = np.zeros(z.size, dtype=bool)
+    centers: list[complex] = []
+    sizes: list[int] = []
+    for i in range(z.size):
+        if used[i]:
+            continue
+        near = (~used) & (np.abs(z - z[i]) <= _MULTIPLE_RTOL * abs(z[i]))
+        m = int(np.count_nonzero(near))
+        while True:  # a root of multiplicity m is split by ~eps^(1/m): widen the net to that scale
+            radius = max(_MULTIPLE_RTOL, 4 * np.finfo(float).eps ** (1.0 / (m + 1))) * abs(z[i])
+            wider = (~used) & (np.abs(z - z[i]) <= radius)
+            if int(np.count_nonzero(wider)) <= m:
+                break
+            m = int(np.count_nonzero(wider))
+            near = wider
+        used |= near
+        centers.append(complex(np.mean(z[near])))
+        sizes.append(m)
+    return np.array(centers, dtype=complex), np.array(sizes, dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class Chain:
+    """One vertical chain of zeros ``s_m = real + i (offset + m * spacing)``, ``m`` in Z.
+
+    Attributes
+    ----------
+    real : float
+        The abscissa ``-ln|z| / h`` of the chain.
+    offset : float
+        ``-arg(z) / h``: the imaginary part of the zero with ``m = 0``.
+    spacing : float
+        ``2 pi / h``.
+    multiplicity : int
+        Multiplicity of ``z`` as a root of ``P`` (and of every zero on the chain).
+    z : complex
+        The root of ``P(z) = sum_k a_k z^{n_k}``.
+    """
+
+    real: float
+    offset: float
+    spacing: float
+    multiplicity: int
+    z: complex
+
+    def points(self, im_min: float, im_max: float) -> NDArray[np.complex128]:
+        """Zeros of the chain with ``im_min <= Im s <= im_max``."""
+        m0 = int(np.ceil((im_min - self.offset) / self.spacing))
+        m1 = int(np.floor((im_max - self.offset) / self.spacing))
+        m = np.arange(m0, m1 + 1)
+        return self.real + 1j * (self.offset + m * self.spacing)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "real": self.real,
+            "offset": self.offset,
+            "spacing": self.spacing,
+            "multiplicity": self.multiplicity,
+            "z": [self.z.real, self.z.imag],
+        }
+
+
+@dataclass(frozen=True)
+class Chains:
+    """The zero chains of a difference operator.
+
+    Attributes
+    ----------
+    commensurate : bool
+        True if the delays are commensurate (then ``chains`` is exhaustive).
+    step : float or None
+        The common step ``h`` of commensurate delays.
+    chains : tuple of Chain
+        The chains, rightmost first (empty if incommensurate or if ``D`` has one term).
+    bracket : tuple of float
+        ``(lower, upper)`` enclosing ``c_D``; ``lower == upper`` when commensurate.
+    """
+
+    commensurate: bool
+    step: float | None
+    chains: tuple[Chain, ...]
+    bracket: tuple[float, float]
+
+    def points(self, im_min: float, im_max: float) -> NDArray[np.complex128]:
+        """All zeros of ``D`` on the chains with ``im_min <= Im s <= im_max`` (one per zero)."""
+        if not self.chains:
+            return np.zeros(0, dtype=complex)
+        return np.concatenate([c.points(im_min, im_max) for c in self.chains])
+
+    def __len__(self) -> int:
+        return len(self.chains)
+
+    def __repr__(self) -> str:
+        if not self.commensurate:
+            return f"Chains(incommensurate delays, c_D in [{self.bracket[0]:.6g}, {self.bracket[1]:.6g}])"
+        lines = ", ".join(f"Re s = {c.real:.6g}" + (f" (x{c.multiplicity})" if c.multiplicity > 1 else "") for c in self.chains)
+        return f"Chains(h={self.step:.6g}, spacing={2 * np.pi / self.step:.6g}: {lines})" if self.step else "Chains(none)"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "commensurate": self.commensurate,
+            "step": self.step,
+            "chains": [c.to_dict() for c in self.chains],
+            "bracket": list(self.bracket),
+        }
+
+
+@dataclass(frozen=True)
+class SpectralBound:
+    """The spectral bound ``c_D = sup {Re s : D(s) = 0}`` or a certified bracket of it.
+
+    Attributes
+    ----------
+    lower, upper : float
+        ``lower <= c_D <= upper``; equal when ``exact``. ``-inf`` when ``D`` has no zero.
+    exact : bool
+        True for commensurate delays (``c_D`` from the roots of ``P(z)``).
+    step : float or None
+        The common step ``h`` when exact.
+    """
+
+    lower: float
+    upper: float
+    exact: bool
+    step: float | None
+
+    @property
+    def value(self) -> float:
+        """``c_D`` when exact, else the certified upper end of the bracket."""
+        return self.upper
+
+    def __repr__(self) -> str:
+        if self.exact:
+            return f"SpectralBound(c_D={self.upper:.12g}, exact, h={self.step})"
+        return f"SpectralBound(c_D in [{self.lower:.12g}, {self.upper:.12g}], bracket)"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinite values as strings)."""
+        return {
+            "lower": _json_float(self.lower),
+            "upper": _json_float(self.upper),
+            "exact": self.exact,
+            "step": self.step,
+        }
+
+
+def _json_float(x: float) -> float | str:
+    return float(x) if np.isfinite(x) else ("-inf" if x < 0 else "inf")
+
+
+@dataclass(frozen=True, eq=False)
+class DifferenceOperator:
+    """``D(s) = sum_k a_k e^{-tau_k s}`` with ``a_0 != 0`` at the smallest delay.
+
+    Parameters
+    ----------
+    coefs : array_like
+        Coefficients ``a_k`` (real or complex), one per delay.
+    delays : array_like
+        Delays ``tau_k >= 0``; equal delays are merged, zero coefficients away from the
+        smallest delay are dropped.
+
+    Raises
+    ------
+    ParameterError
+        Empty ``coefs``, mismatched lengths, negative or non-finite ``delays``,
+        non-finite ``coefs``, or ``a_0 = 0`` at the smallest delay.
+
+    Examples
+    --------
+    >>> D = DifferenceOperator([1, -0.85, 0.1], [0, 2, 2.1])
+    >>> round(D.gamma_0, 12), D.is_strongly_stable()
+    (0.95, True)
+    """
+
+    coefs: NDArray
+    delays: NDArray[np.float64]
+
+    def __init__(self, coefs: ArrayLike, delays: ArrayLike) -> None:
+        try:
+            a = np.atleast_1d(np.asarray(coefs, dtype=complex))
+            t = np.atleast_1d(np.asarray(delays, dtype=float))
+        except (TypeError, ValueError):
+            raise ParameterError("coefs", "a 1-D sequence of finite numbers", coefs) from None
+        if a.ndim != 1 or a.size == 0:
+            raise ParameterError("coefs", "a non-empty 1-D sequence of numbers", coefs)
+        if not np.all(np.isfinite(a)):
+            raise ParameterError("coefs", "finite (no nan or inf)", coefs)
+        if t.shape != a.shape:
+            raise ParameterError("delays", f"one delay per coefficient ({a.size})", delays)
+        if not np.all(np.isfinite(t)) or np.any(t < 0):
+            raise ParameterError("delays", "finite and >= 0", delays)
+        uniq, inverse = np.unique(t, return_inverse=True)
+        merged = np.zeros(uniq.size, dtype=complex)
+        np.add.at(merged, inverse, a)
+        if merged[0] == 0:
+            raise ParameterError(
+                "coefs", f"nonzero at the smallest delay {uniq[0]:g} (a_0 != 0)", coefs
+            )
+        keep = merged != 0
+        object.__setattr__(self, "coefs", _complex_if_needed(merged[keep]))
+        object.__setattr__(self, "delays", uniq[keep])
+
+    # ------------------------------------------------------------------ evaluation
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Evaluate ``D(s)`` on an array of complex ``s``."""
+        s = np.asarray(s, dtype=complex)
+        out = np.zeros(s.shape, dtype=complex)
+        for a, t in zip(self.coefs, self.delays):
+            out += a * np.exp(-t * s)
+        return out
+
+    @property
+    def relative_delays(self) -> NDArray[np.float64]:
+        """``r_k = tau_k - tau_0``."""
+        return self.delays - self.delays[0]
+
+    # ------------------------------------------------------------------ strong stability
+    @property
+    def gamma_0(self) -> float:
+        """``sum_{k>=1} |a_k| / |a_0|`` (Hale and Verduyn Lunel's ``gamma_0``)."""
+        return float(np.sum(np.abs(self.coefs[1:])) / abs(self.coefs[0]))
+
+    def is_strongly_stable(self) -> bool:
+        """True iff ``gamma_0 < 1``: exponentially stable for all small delay perturbations."""
+        return self.gamma_0 < 1.0
+
+    def strong_spectral_bound(self) -> float:
+        """``C_D``: the real ``c`` with ``sum_{k>=1} |a_k| e^{-r_k c} = |a_0|``.
+
+        ``C_D`` is the supremum of the spectral bound over small perturbations of the
+        delays (Hale and Verduyn Lunel, 2002); ``C_D < 0`` iff strongly stable.
+        Returns ``-inf`` for a single-term operator (no zeros).
+        """
+        if self.coefs.size == 1:
+            return -np.inf
+        mags = np.abs(self.coefs[1:])
+        r = self.relative_delays[1:]
+        a0 = abs(self.coefs[0])
+
+        def g(c: float) -> float:
+            return float(np.sum(mags * np.exp(-r * c)) - a0)
+
+        # g decreases strictly from +inf to -a0; each term alone bounds the root:
+        # |a_k| e^{-r_k c} = a0 at c_k, and c_D* lies in [max c_k, max c_k + ln(K)/r_min].
+        ck = np.log(mags / a0) / r
+        lo = float(np.max(ck))
+        hi = lo + np.log(mags.size) / float(np.min(r)) + 1e-12 * (1 + abs(lo))
+        while g(hi) > 0:  # rounding guard
+            hi += 1e-9 * (1 + abs(hi))
+        if g(lo) <= 0:
+            return lo
+        return float(brentq(g, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
+
+    # ------------------------------------------------------------------ commensurate delays
+    def commensurate_step(self) -> tuple[float, NDArray[np.int64]] | None:
+        """``(h, n)`` with ``r_k = n_k h`` if the delays are commensurate, else None.
+
+        Each ratio ``r_k / r_max`` is matched by a fraction of denominator at most 1000
+        within a relative tolerance of 1e-10; the degree ``lcm`` of the denominators is
+        at most 4000. ``h`` is the least-squares fit of ``r_k = n_k h``.
+        """
+        r = self.relative_delays
+        if r.size == 1:
+            return None
+        rmax = float(r[-1])
+        fracs = [Fraction(float(x / rmax)).limit_denominator(_MAX_DENOMINATOR) for x in r]
+        if any(abs(float(f) - x / rmax) > _COMMENSURATE_RTOL for f, x in zip(fracs, r)):
+            return None
+        den = lcm(*(f.denominator for f in fracs))
+        if den > _MAX_DEGREE:
+            return None
+        n = np.array([f.numerator * (den // f.denominator) for f in fracs], dtype=np.int64)
+        h = float(np.dot(n, r) / np.dot(n, n))
+        return h, n
+
+    def _z_roots(self, h: float, n: NDArray[np.int64]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+        """Roots of ``P(z) = sum_k a_k z^{n_k}`` (clustered, with multiplicities)."""
+        poly = np.zeros(int(n[-1]) + 1, dtype=complex)
+        poly[n] = self.coefs
+        z = np.roots(poly[::-1])
+        return _cluster_polynomial_roots(z)
+
+    def chains(self) -> Chains:
+        """The zero chains of ``D``.
+
+        For commensurate delays ``r_k = n_k h`` each root ``z_i`` of ``P`` gives the chain
+        ``s = (-ln|z_i| + i(2 pi m - arg z_i)) / h``; otherwise only the bracket of
+        :meth:`spectral_bound` is returned.
+        """
+        found = self.commensurate_step()
+        if found is None:
+            sb = self.spectral_bound()
+            return Chains(False, None, (), (sb.lower, sb.upper))
+        h, n = found
+        z, mult = self._z_roots(h, n)
+        chains = [
+            Chain(float(-np.log(abs(zi)) / h), float(-np.angle(zi) / h), float(2 * np.pi / h), int(m), complex(zi))
+            for zi, m in zip(z, mult)
+        ]
+        chains.sort(key=lambda c: (-c.real, c.offset))
+        c = chains[0].real
+        return Chains(True, h, tuple(chains), (c, c))
+
+    # ------------------------------------------------------------------ spectral bound
+    def spectral_bound(self) -> SpectralBound:
+        """``c_D = sup {Re s : D(s) = 0}``.
+
+        Exact (``lower == upper``) for commensurate delays. Otherwise a certified bracket:
+        ``upper = C_D`` (no zero with ``Re s > C_D``, since there ``|a_0| >
+        sum |a_k e^{-r_k s}|``) and ``lower`` the real part of a zero located by Newton's
+        method from a commensurate approximation of the delays and proven by a certified
+        argument-principle count in a small box around it, minus the half-width of that
+        box.
+        """
+        if self.coefs.size == 1:
+            return SpectralBound(-np.inf, -np.inf, True, None)
+        found = self.commensurate_step()
+        if found is not None:
+            h, n = found
+            z, _ = self._z_roots(h, n)
+            c = float(np.max(-np.log(np.abs(z)) / h))
+            return SpectralBound(c, c, True, h)
+        upper = self.strong_spectral_bound()
+        return SpectralBound(self._certified_lower_bound(upper), upper, False, None)
+
+    def _approximation(self) -> "DifferenceOperator":
+        """The same coefficients with delay ratios rounded to denominators <= 64."""
+        r = self.relative_delays
+        rmax = float(r[-1])
+        approx = [float(Fraction(float(x / rmax)).limit_denominator(64)) * rmax for x in r]
+        return DifferenceOperator(self.coefs, np.array(approx) + self.delays[0])
+
+    def _certified_lower_bound(self, upper: float) -> float:
+        """A certified lower bound of ``c_D`` for incommensurate delays (see spectral_bound)."""
+        from .quasipoly import QuasiPolynomial
+        from .roots import count_roots
+
+        rel = DifferenceOperator(self.coefs, self.relative_delays)
+        approx = rel._approximation().chains()
+        seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in approx.chains])
+        s = _newton_difference(rel, seeds)
+        s = s[np.isfinite(s)]
+        ok = np.abs(rel(s)) <= 1e-10 * np.sum(np.abs(rel.coefs)[:, None] * np.exp(-np.outer(rel.delays, s.real)), axis=0)
+        F = QuasiPolynomial([[a] for a in rel.coefs], rel.delays)
+        for cand in s[ok][np.argsort(-s[ok].real)][:8]:
+            half = 1e-6 * (1.0 + abs(cand))
+            box = (cand.real - half, cand.real + half, cand.imag - half, cand.imag + half)
+            try:
+                cnt = count_roots(F, box)
+            except ParameterError:
+                continue
+            if int(cnt) >= 1:
+                return float(min(cnt.region[0], upper))
+        return -np.inf
+
+    # ------------------------------------------------------------------ output
+    def __repr__(self) -> str:
+        terms = " + ".join(
+            (f"{a.real:.6g}" if np.isrealobj(self.coefs) else f"({a:.6g})") + (f" e^(-{t:.6g} s)" if t else "")
+            for a, t in zip(self.coefs, self.delays)
+        )
+        return f"DifferenceOperator({terms}; gamma_0={self.gamma_0:.6g})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        coefs = (
+            [[float(c.real), float(c.imag)] for c in self.coefs] if np.iscomplexobj(self.coefs) else [float(c) for c in self.coefs]
+        )
+        return {
+            "coefs": coefs,
+            "delays": [float(t) for t in self.delays],
+            "gamma_0": self.gamma_0,
+            "strongly_stable": self.is_strongly_stable(),
+            "strong_spectral_bound": _json_float(self.strong_spectral_bound()),
+        }
+
+
+def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: int = 60) -> NDArray[np.complex128]:
+    """Vectorised Newton iteration on ``D`` from the seeds ``s`` (nan where it fails).
+
+    Steps are limited to length 1, so that a seed cannot be thrown far from its chain.
+    """
+    s = np.array(s, dtype=complex)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for _ in range(iters):
+            e = np.exp(-np.outer(D.delays, s))
+            step = (D.coefs @ e) / (-(D.coefs * D.delays) @ e)
+            step = np.where(np.abs(step) > 1.0, step / np.abs(step), step)
+            s = np.where(np.isfinite(step), s - step, np.nan)
+    return s

@@ -1,0 +1,145 @@
+"""Difference operators: strong stability, spectral bounds and chains against closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nrobust import ParameterError, QuasiPolynomial
+from nrobust.difference import DifferenceOperator
+
+# 1 - 0.85 e^{-2 s} + 0.1 e^{-2.1 s}: commensurate with h = 0.1, P(z) = 1 - 0.85 z^20 + 0.1 z^21.
+D_EX = DifferenceOperator([1.0, -0.85, 0.1], [0.0, 2.0, 2.1])
+
+
+def _z_roots() -> np.ndarray:
+    poly = np.zeros(22)
+    poly[0], poly[20], poly[21] = 1.0, -0.85, 0.1
+    return np.roots(poly[::-1])
+
+
+def test_gamma_0_and_strong_stability() -> None:
+    assert D_EX.gamma_0 == pytest.approx(0.95, abs=1e-15)
+    assert D_EX.is_strongly_stable()
+
+
+def test_commensurate_step_and_degree() -> None:
+    h, n = D_EX.commensurate_step()
+    assert h == pytest.approx(0.1, rel=1e-14)
+    assert n.tolist() == [0, 20, 21]
+
+
+def test_chains_match_polynomial_roots() -> None:
+    z = _z_roots()
+    chains = D_EX.chains()
+    assert chains.commensurate and len(chains) == 21
+    assert chains.chains[0].spacing == pytest.approx(2 * np.pi / 0.1)
+    got = np.array([c.z for c in chains.chains])
+    assert np.max(np.min(np.abs(got[:, None] - z[None, :]), axis=0)) < 1e-12
+    # every listed chain point is a zero of D
+    pts = chains.points(-0.5, 200.0)
+    assert pts.size == 21 * 3 + sum(1 for c in chains.chains if c.points(-0.5, 200.0).size == 4)
+    scale = np.sum(np.abs(D_EX.coefs)[:, None] * np.exp(-np.outer(D_EX.delays, pts.real)), axis=0)
+    assert np.max(np.abs(D_EX(pts)) / scale) < 1e-13
+    reals = np.array([c.real for c in chains.chains])
+    assert np.all(np.diff(reals) <= 0)
+
+
+def test_spectral_bound_exact_for_commensurate() -> None:
+    sb = D_EX.spectral_bound()
+    assert sb.exact and sb.lower == sb.upper
+    assert sb.value == pytest.approx(np.max(-np.log(np.abs(_z_roots())) / 0.1), abs=1e-12)
+    assert sb.value <= D_EX.strong_spectral_bound() + 1e-12
+
+
+@pytest.mark.parametrize(
+    "coefs, delays",
+    [([1.0, -0.85, 0.1], [0.0, 2.0, 2.1]), ([2.0, 1.0, -0.5, 0.3], [1.0, 1.5, 2.0, 3.7]), ([1.0, 3.0], [0.0, 1.0])],
+)
+def test_strong_spectral_bound_solves_its_equation(coefs: list[float], delays: list[float]) -> None:
+    D = DifferenceOperator(coefs, delays)
+    c = D.strong_spectral_bound()
+    r = D.relative_delays[1:]
+    lhs = np.sum(np.abs(D.coefs[1:]) * np.exp(-r * c))
+    assert lhs == pytest.approx(abs(D.coefs[0]), rel=1e-13)
+    assert (c < 0) == D.is_strongly_stable()
+
+
+def test_two_terms_closed_form() -> None:
+    # 1 + a e^{-tau s}: zeros at (ln|a| + i(arg(-a)... )) / tau, c_D = C_D = ln|a| / tau
+    D = DifferenceOperator([1.0, -0.5], [0.0, 2.0])
+    assert D.spectral_bound().value == pytest.approx(np.log(0.5) / 2, abs=1e-14)
+    assert D.strong_spectral_bound() == pytest.approx(np.log(0.5) / 2, abs=1e-14)
+    ch = D.chains()
+    assert len(ch) == 1 and ch.chains[0].offset == pytest.approx(0.0, abs=1e-14)
+
+
+def test_double_chain_multiplicity() -> None:
+    # (1 - a e^{-s})^2 = 1 - 2a e^{-s} + a^2 e^{-2s}: one chain of double zeros
+    a = 0.5
+    ch = DifferenceOperator([1.0, -2 * a, a * a], [0.0, 1.0, 2.0]).chains()
+    assert len(ch) == 1 and ch.chains[0].multiplicity == 2
+    assert ch.chains[0].real == pytest.approx(np.log(a), abs=1e-7)
+
+
+@pytest.mark.parametrize("rho_q", [-0.9, -0.51, -0.3, 0.0001, 0.2, 0.49, 0.51, 0.7, 2.0])
+@pytest.mark.parametrize("delta", [0.05, 0.3, np.sqrt(2) / 3])
+def test_paper_u_bs_principal_part(rho_q: float, delta: float) -> None:
+    # paper: 1 - rho q e^{-tau s} + rho q e^{-(tau + delta) s}, not strongly stable iff |rho q| > 1/2
+    tau = 1.7
+    D = DifferenceOperator([1.0, -rho_q, rho_q], [0.0, tau, tau + delta])
+    assert D.gamma_0 == pytest.approx(2 * abs(rho_q), rel=1e-15)
+    assert D.is_strongly_stable() == (abs(rho_q) < 0.5)
+    assert (D.strong_spectral_bound() < 0) == (abs(rho_q) < 0.5)
+
+
+def test_incommensurate_bracket_is_certified() -> None:
+    D = DifferenceOperator([1.0, 0.6, 0.3], [0.0, 1.0, np.sqrt(2)])
+    assert D.commensurate_step() is None
+    sb = D.spectral_bound()
+    assert not sb.exact
+    assert sb.upper == pytest.approx(D.strong_spectral_bound())
+    assert -np.inf < sb.lower <= sb.upper
+    ch = D.chains()
+    assert not ch.commensurate and ch.bracket == (sb.lower, sb.upper)
+
+
+def test_single_term_has_no_zeros() -> None:
+    D = DifferenceOperator([2.0], [0.5])
+    assert D.spectral_bound().value == -np.inf
+    assert D.strong_spectral_bound() == -np.inf
+    assert len(D.chains()) == 0
+
+
+def test_principal_part_of_quasipolynomial() -> None:
+    F = QuasiPolynomial([[0.5, 1.0], [0.3, 0.7]], [0.0, 1.0])
+    D = F.principal_part()
+    assert isinstance(D, DifferenceOperator)
+    assert D.coefs.tolist() == [1.0, 0.7]
+    assert D.spectral_bound().value == pytest.approx(np.log(0.7), abs=1e-14)
+
+
+def test_evaluation_and_dict() -> None:
+    s = np.array([0.3 + 2j, -1.0])
+    expect = 1 - 0.85 * np.exp(-2 * s) + 0.1 * np.exp(-2.1 * s)
+    assert np.allclose(D_EX(s), expect, rtol=1e-15)
+    d = D_EX.to_dict()
+    assert d["gamma_0"] == pytest.approx(0.95) and d["strongly_stable"] is True
+    assert "gamma_0=0.95" in repr(D_EX)
+
+
+@pytest.mark.parametrize(
+    "coefs, delays, name",
+    [
+        ([], [], "coefs"),
+        ([1.0, 2.0], [0.0, -1.0], "delays"),
+        ([1.0, 2.0], [0.0, np.inf], "delays"),
+        ([1.0, 2.0], [0.0], "delays"),
+        ([0.0, 1.0], [0.0, 1.0], "coefs"),
+        ([1.0, np.nan], [0.0, 1.0], "coefs"),
+    ],
+)
+def test_bad_input_names_parameter(coefs: list[float], delays: list[float], name: str) -> None:
+    with pytest.raises(ParameterError) as err:
+        DifferenceOperator(coefs, delays)
+    assert err.value.name == name
