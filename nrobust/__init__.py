@@ -10,6 +10,8 @@ from importlib.metadata import PackageNotFoundError, version
 
 from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
 from .quasipoly import DistributedDelay, QuasiPolynomial
+from .difference import DifferenceOperator
+from .roots import RootSet, count_roots, find_roots, spectral_abscissa
 from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredController, FiniteTimeController, OpenLoop, ReflectionController, characteristic, classify, loop_factors)
 from .sweep import SweepResult, grid, robustness, sweep
 from . import plots
