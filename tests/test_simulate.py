@@ -1,0 +1,473 @@
+"""Tests of the time-domain simulator (nrobust.hyperbolic.simulate).
+
+References used here are independent of the simulator: the method of characteristics in
+closed form for transport loops, the exact target-system identity of U_BS2 (eq.
+(control3)), and the closed-loop characteristic function computed in the Laplace domain
+with the matrix exponential of the plant (no delay form, no inverse kernels).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import FrozenInstanceError
+from functools import lru_cache
+
+import numpy as np
+import pytest
+
+from nrobust import (
+    FeedbackLaw,
+    FilteredController,
+    FiniteTimeController,
+    OpenLoop,
+    ParameterError,
+    ReflectionController,
+    Simulation,
+    simulate,
+)
+from nrobust.hyperbolic.kernels import solve_kernels
+from nrobust.hyperbolic.system import Hyperbolic2x2, TransportSystem
+
+PAPER = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
+PAPER_TRANSPORT = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
+
+
+def zero(xi):
+    return np.zeros_like(np.asarray(xi, dtype=float))
+
+
+@lru_cache(maxsize=None)
+def paper_kernels(n: int = 401):
+    return solve_kernels(PAPER, n)
+
+
+# --------------------------------------------------------------------------------------
+# Exact solution of a transport loop by the method of characteristics
+# --------------------------------------------------------------------------------------
+
+
+def transport_exact(system, K, lag, n, steps, u0, v0):
+    """Exact node values of the transport loop with ``U = -K u(t, 1)`` delayed by ``lag`` steps.
+
+    Integer arithmetic on the lattice ``t_j = j / (lam n)``, ``x_k = k / n`` (``lam = mu``):
+    ``u(t, 1) = u0(1 - lam t)`` before the first crossing, then ``q v(t - 1/lam, 0)``;
+    ``v(t, 0) = v0(mu t)``, then ``beta(t - 1/mu)`` with ``beta(t) = v(t, 1) = rho u(t, 1)
+    + U(t - delta)`` for ``t > 0`` and ``beta(0) = v0(1)``.
+    """
+    beta = np.empty(steps + 1)
+    u_right = np.empty(steps + 1)
+
+    def v_left(j):  # v(t_j, 0)
+        return v0(j / n) if j <= n else beta[j - n]
+
+    for j in range(steps + 1):
+        u_right[j] = u0(1.0 - j / n) if j <= n else system.q * v_left(j - n)
+        if j == 0:
+            beta[j] = v0(1.0)
+        else:
+            delayed = -K * u_right[j - lag] if j >= lag else 0.0
+            beta[j] = system.rho * u_right[j] + delayed
+    k = np.arange(n + 1)
+    u = np.empty((steps + 1, n + 1))
+    v = np.empty((steps + 1, n + 1))
+    for j in range(steps + 1):
+        for i in k:
+            u[j, i] = u0((i - j) / n) if i >= j else system.q * v_left(j - i)
+            v[j, i] = v0((i + j) / n) if i + j <= n else beta[j - (n - i)]
+    return u, v, -K * u_right
+
+
+@pytest.mark.parametrize(
+    ("K", "delta"),
+    [(0.9, 0.0), (0.9, 0.3), (0.3, 0.0), (0.3, 0.02), (0.0, 0.0), (-0.4, 1.0)],
+)
+def test_transport_loop_matches_characteristics_to_rounding(K, delta):
+    system = TransportSystem(lam=1.25, mu=1.25, q=0.7, rho=0.9)
+    n, t_end = 40, 6.0
+
+    def u0(x):
+        return np.cos(3.0 * x) + (x > 0.4)
+
+    def v0(x):
+        return x**2 - 0.5 * np.sin(7.0 * x)
+
+    law = FeedbackLaw(-K, zero, zero)
+    sim = simulate(system, law, delta, t_end, u0, v0, n=n, snapshot_every=1)
+    lag = round(delta / sim.dt)
+    assert sim.delay_interpolation == "exact shift"
+    u, v, control = transport_exact(system, K, lag, n, sim.times.size - 1, u0, v0)
+    scale = max(1.0, np.abs(u).max(), np.abs(v).max())
+    assert np.abs(sim.u - u).max() <= 1e-13 * scale
+    assert np.abs(sim.v - v).max() <= 1e-13 * scale
+    assert np.abs(sim.control - control).max() <= 1e-13 * scale
+    w = np.full(n + 1, 1.0 / n)
+    w[[0, -1]] /= 2
+    exact_norm = np.sqrt((u * u + v * v) @ w)
+    assert np.allclose(sim.norm, exact_norm, rtol=1e-13, atol=0.0)
+
+
+def test_finite_time_transport_vanishes_exactly():
+    sim = simulate(PAPER_TRANSPORT, FiniteTimeController(), 0.0, 5.0, np.cos, np.sin, n=64)
+    assert np.all(sim.norm[sim.times > PAPER_TRANSPORT.tau + 1e-12] == 0.0)
+    assert sim.norm[0] > 0.5
+
+
+def test_fractional_delay_is_interpolated_at_fourth_order():
+    """``delta`` off the grid: the history is read by 4-point Lagrange interpolation."""
+    system = TransportSystem(lam=1.0, mu=1.0, q=0.8, rho=0.7)
+    K, delta, t_end = 0.5, 0.3137, 4.0
+
+    def u0(x):
+        return np.sin(np.pi * x) ** 4  # U(0) = 0 and a state compatible to second order
+
+    def v0(x):
+        return np.sin(np.pi * x) ** 4 * (1.0 + x) / 0.8
+
+    def exact_u1(t):  # u(t, 1) of the continuous loop, by the method of characteristics
+        if t <= 1.0:
+            return u0(1.0 - t)
+        return system.q * (v0(t - 1.0) if t <= 2.0 else beta(t - 2.0))
+
+    def beta(t):
+        delayed = -K * exact_u1(t - delta) if t >= delta else 0.0
+        return system.rho * exact_u1(t) + delayed
+
+    errors = []
+    for n in (50, 100):
+        sim = simulate(system, FeedbackLaw(-K, zero, zero), delta, t_end, u0, v0, n=n)
+        assert sim.delay_interpolation == "Lagrange-4"
+        exact = np.array([-K * exact_u1(t) for t in sim.times])
+        errors.append(np.abs(sim.control - exact).max())
+    assert errors[1] < 1e-6
+    assert errors[0] / errors[1] > 2.0**3.5
+
+
+# --------------------------------------------------------------------------------------
+# Exact identities of the coupled closed loop without delay
+# --------------------------------------------------------------------------------------
+
+
+def compatible_v0(law, u0, rho, q, n_quad=4001):
+    """``v0 = 1/q + c x^3`` with ``v0(1) = rho u0(1) + U(0)`` (U(0) from the law, delta = 0)."""
+    xi = np.linspace(0.0, 1.0, n_quad)
+    w = np.full(n_quad, xi[1])
+    w[[0, -1]] /= 2
+    a = w @ (law.gain_u(xi) * u0(xi) + law.gain_v(xi) / q) + law.boundary_gain * u0(1.0)
+    b = w @ (law.gain_v(xi) * xi**3)
+    c = (rho * u0(1.0) + a - 1.0 / q) / (1.0 - b)
+    return lambda x: 1.0 / q + c * x**3
+
+
+def test_reflection_controller_keeps_exact_round_trip_ratio():
+    """U_BS2(K), delta = 0: ``||(u, v)(t)|| = |q (rho - K)| ||(u, v)(t - tau)||`` for ``t >= tau``.
+
+    In the target coordinates the loop is pure transport with reflections ``q`` and
+    ``rho - K`` (eqs. (alpha_eq_mille)-(alpha_boun_mille)), so ``(alpha, beta)(t) = q (rho
+    - K) (alpha, beta)(t - tau)`` for ``t >= tau``. The inverse Volterra map
+    (eqs. (back_inv1)-(back_inv2)) is linear and does not depend on time, hence the same
+    identity holds for ``(u, v)`` itself and for its L2 norm: no kernels are needed to
+    state it on the original state. The initial state is compatible with both boundary
+    conditions, so no discontinuity is sampled.
+    """
+    law = ReflectionController(0.1).feedback_law(PAPER, paper_kernels())
+
+    def u0(x):
+        return 1.0 + 0.5 * np.sin(np.pi * x)
+
+    v0 = compatible_v0(law, u0, PAPER.rho, PAPER.q)
+    sim = simulate(PAPER, law, 0.0, 10.0, u0, v0, n=800)
+    lag = round(PAPER.tau / sim.dt)
+    ratio = sim.norm[lag:] / sim.norm[:-lag]
+    assert sim.times[lag] == pytest.approx(2.0)
+    assert np.abs(ratio - 0.75).max() < 1e-6
+
+
+def test_finite_time_controller_reaches_zero_after_tau():
+    law = FiniteTimeController().feedback_law(PAPER, paper_kernels())
+
+    def u0(x):
+        return 1.0 + 0.5 * np.sin(np.pi * x)
+
+    v0 = compatible_v0(law, u0, PAPER.rho, PAPER.q)
+    sim = simulate(PAPER, law, 0.0, 6.0, u0, v0, n=400)
+    peak = sim.norm.max()
+    assert peak > 1.0
+    after = sim.times >= PAPER.tau
+    assert sim.norm[after].max() < 1e-6 * peak  # the O(h^2) defect of the scheme
+    assert sim.norm[sim.times >= 2 * PAPER.tau].max() < 1e-10 * peak
+
+
+def test_controller_objects_and_feedback_laws_agree():
+    law = FiniteTimeController().feedback_law(PAPER, paper_kernels())
+    a = simulate(PAPER, law, 0.05, 3.0, np.cos, np.sin, n=100)
+    b = simulate(PAPER, FiniteTimeController(), 0.05, 3.0, np.cos, np.sin, n=100, kernels=paper_kernels())
+    c = simulate(PAPER, FilteredController(0.7, 0.7), 0.05, 3.0, np.cos, np.sin, n=100, kernels=paper_kernels())
+    assert np.array_equal(a.norm, b.norm)
+    assert np.allclose(a.norm, c.norm, rtol=1e-12, atol=1e-12)
+    opened = simulate(PAPER, OpenLoop(), 0.0, 3.0, np.cos, np.sin, n=100)
+    assert np.all(opened.control == 0.0)
+
+
+# --------------------------------------------------------------------------------------
+# Growth rates against the spectrum
+# --------------------------------------------------------------------------------------
+
+
+def plant_modes(system, s, x):
+    """``(u, v)(x) = exp(M(s) x) [q, 1]`` solving the Laplace-transformed plant, constant couplings.
+
+    ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]``; with ``M = (T/2) I + M0``,
+    ``M0`` traceless, ``exp(M x) = e^{T x/2} (cosh(k x) I + sinh(k x)/k M0)``, ``k^2 = -det M0``.
+    """
+    lam, mu = system.lam, system.mu
+    s = np.asarray(s, dtype=complex)[..., None]
+    trace = s * (1.0 / mu - 1.0 / lam)
+    a = -s / lam - trace / 2.0
+    b = float(system.sigma_pm) / lam
+    c = -float(system.sigma_mp) / mu
+    k = np.sqrt(a * a + b * c)
+    safe = np.where(k == 0, 1.0, k)
+    shk = np.where(k == 0, x, np.sinh(k * x) / safe)
+    chk = np.cosh(k * x)
+    grow = np.exp(trace * x / 2.0)
+    u = grow * (chk * system.q + shk * (a * system.q + b))
+    v = grow * (chk + shk * (c * system.q - a))
+    return u, v
+
+
+def gauss_nodes(cells, points=4):
+    t, w = np.polynomial.legendre.leggauss(points)
+    h = 1.0 / cells
+    left = np.arange(cells)[:, None] * h
+    return (left + h * (t + 1.0) / 2.0).ravel(), np.tile(w * h / 2.0, cells)
+
+
+def closed_loop_function(system, law, delta):
+    """``s -> v(1) - rho u(1) - e^{-delta s} (boundary_gain u(1) + int gain_u u + gain_v v)``.
+
+    Its zeros are the closed-loop poles: a mode ``e^{s t} (u, v)(x)`` exists iff the plant
+    mode ``exp(M(s) x) [q, 1]`` meets the actuated boundary condition with the delayed law.
+    Gains are piecewise linear on the kernel grid (400 cells): Gauss-Legendre on each cell.
+    """
+    xs, ws = gauss_nodes(400)
+    gu, gv = law.gain_u(xs), law.gain_v(xs)
+    points = np.concatenate([xs, [1.0]])
+
+    def F(s):
+        u, v = plant_modes(system, s, points)
+        u1, v1 = u[..., -1], v[..., -1]
+        integral = (u[..., :-1] * gu + v[..., :-1] * gv) @ ws
+        return v1 - system.rho * u1 - np.exp(-delta * np.asarray(s)) * (law.boundary_gain * u1 + integral)
+
+    return F
+
+
+def principal_roots(system, gain, delta):
+    """Roots of ``1 - rho q e^{-tau s} + gain q e^{-(tau + delta) s}`` (tau/delta integer),
+    one period ``0 <= Im s < 2 pi/delta``: a polynomial in ``z = e^{-delta s}``."""
+    m = round(system.tau / delta)
+    assert abs(m * delta - system.tau) < 1e-12
+    coefs = np.zeros(m + 2)
+    coefs[0] = 1.0
+    coefs[m] -= system.rho * system.q
+    coefs[m + 1] += gain * system.q
+    z = np.roots(coefs[::-1]).astype(complex)
+    s = -np.log(z) / delta
+    return s.real + 1j * np.mod(s.imag, 2 * np.pi / delta)
+
+
+def rightmost_root(F, seeds, iters=40):
+    """Newton from each seed; the converged root of largest real part."""
+    s = np.array(seeds, dtype=complex)
+    for _ in range(iters):
+        h = 1e-6
+        step = F(s) / ((F(s + h) - F(s - h)) / (2 * h))
+        s = s - step
+        if np.all(np.abs(step) < 1e-12):
+            break
+    ok = np.abs(F(s)) < 1e-9 * np.maximum(1.0, np.abs(s))
+    assert np.count_nonzero(ok) >= 1
+    return s[ok][np.argmax(s[ok].real)]
+
+
+CASES = [
+    # (system, controller, K in the principal part, delta, t_end)
+    (PAPER_TRANSPORT, FiniteTimeController(), 0.85, 0.01, 10.0),
+    (PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 0.1, 20.0),
+    (PAPER, FiniteTimeController(), 0.85, 0.01, 10.0),
+    (PAPER, ReflectionController(0.1), 0.1, 0.1, 20.0),
+]
+
+
+@pytest.mark.parametrize(("system", "controller", "gain", "delta", "t_end"), CASES)
+def test_growth_rate_matches_spectral_abscissa(system, controller, gain, delta, t_end):
+    """Fitted slope of ``log ||(u, v)||`` against the rightmost closed-loop root.
+
+    The principal part's roots lie on chains whose real part varies smoothly with
+    frequency; a generic initial state excites a continuum of nearly dominant modes and
+    ``log ||(u, v)||`` then grows like ``x_max t - log(t)/2`` (a Laplace-type integral),
+    whose fitted slope approaches ``x_max`` only as ``1/(2t)``. The initial state is
+    therefore the plant mode of the rightmost root (its history before ``t = 0`` is still
+    zero, so the other modes are excited too, but weakly).
+    """
+    kernels = None if system.uncoupled else paper_kernels()
+    law = controller.feedback_law(system, kernels)
+    F = closed_loop_function(system, law, delta)
+    chain = principal_roots(system, gain, delta)
+    top = chain.real.max()
+    periods = np.arange(3 if delta < 0.05 else 4)[:, None] * (2 * np.pi / delta)
+    seeds = (chain[chain.real > top - 0.02][None, :] + 1j * periods).ravel()
+    root = rightmost_root(F, seeds)
+    # Far along the chains the roots tend to those of the principal part (the distributed
+    # term decays like 1/|s|): the spectral abscissa is the larger of both.
+    abscissa = max(root.real, top)
+    n = 400
+    x = np.linspace(0.0, 1.0, n + 1)
+    u0, v0 = plant_modes(system, root, x)
+    scale = np.abs(np.concatenate([u0, v0])).max()
+    sim = simulate(system, law, delta, t_end, u0.real / scale, v0.real / scale, n=n)
+    rate = sim.growth_rate(2.0)
+    assert abs(rate - abscissa) <= 0.1 * abs(abscissa)
+    assert abs(rate - root.real) <= 2e-3 * max(abs(root.real), 0.1)
+    assert (rate > 0) == (abscissa > 0)
+
+
+def test_filtered_transport_decays_at_its_rightmost_root():
+    """U_1 = -(1 + a s)/(1 + b s) rho u(1, s) (section 2.3.2) against
+    ``(1 + b s)(1 - rho q e^{-tau s}) + (1 + a s) rho q e^{-(tau + delta) s}``."""
+    system, a, b, delta = PAPER_TRANSPORT, 0.1, 1.0, 0.05
+    rq, tau = system.rho * system.q, system.tau
+
+    def F(s):
+        return (1 + b * s) * (1 - rq * np.exp(-tau * s)) + (1 + a * s) * rq * np.exp(-(tau + delta) * s)
+
+    seeds = (np.linspace(-0.5, 0.0, 6)[:, None] + 1j * np.arange(0.0, 200.0, 1.5)[None, :]).ravel()
+    root = rightmost_root(F, seeds)
+    assert root.real < 0
+    x = np.linspace(0.0, 1.0, 401)
+    u0, v0 = plant_modes(system, root, x)
+    sim = simulate(system, FilteredController(a, b), delta, 30.0, u0.real, v0.real, n=400)
+    assert sim.growth_rate(10.0) == pytest.approx(root.real, rel=0.1)
+
+
+# --------------------------------------------------------------------------------------
+# Convergence
+# --------------------------------------------------------------------------------------
+
+
+def smooth_problem():
+    """Spatially varying couplings, smooth gains, a filter and a delay; ``U(0) = 0`` and a
+    state compatible with both boundaries, so the solution stays continuous."""
+    system = Hyperbolic2x2(
+        lam=1.5, mu=1.5, sigma_pm=lambda x: 0.8 + 0.4 * np.cos(2 * x), sigma_mp=lambda x: 1.0 - 0.5 * x, q=0.9, rho=0.6
+    )
+
+    def gain_u(xi):
+        return 0.5 * np.cos(xi)
+
+    def gain_v(xi):
+        return -0.3 + 0.2 * xi
+
+    law = FeedbackLaw(-0.2, gain_u, gain_v, (0.3, 0.5))
+
+    def u0(x):
+        return 1.0 + 0.5 * x
+
+    # v0 = 1/q + (rho u0(1) - 1/q) x + c x (1 - x), with c such that V(0) = 0.
+    xi = np.linspace(0.0, 1.0, 20001)
+    w = np.full(xi.size, xi[1])
+    w[[0, -1]] /= 2
+    base = 1 / system.q + (system.rho * u0(1.0) - 1 / system.q) * xi
+    v_zero = law.boundary_gain * u0(1.0) + w @ (gain_u(xi) * u0(xi) + gain_v(xi) * base)
+    c = -v_zero / (w @ (gain_v(xi) * xi * (1 - xi)))
+
+    def v0(x):
+        return 1 / system.q + (system.rho * u0(1.0) - 1 / system.q) * x + c * x * (1 - x)
+
+    return system, law, u0, v0
+
+
+def observed_orders(delta, ns):
+    system, law, u0, v0 = smooth_problem()
+    runs = [simulate(system, law, delta, 6.0, u0, v0, n=n) for n in ns]
+    coarse = runs[0].times
+    histories = [np.interp(coarse, r.times, r.norm) for r in runs]
+    # Sampled times of the coarsest run are sampled times of every run (n doubles).
+    for r, h in zip(runs, histories):
+        assert np.allclose(h, r.norm[:: r.n // ns[0]])
+    diffs = [np.abs(histories[i] - histories[i + 1]).max() for i in range(len(ns) - 1)]
+    return [math.log2(diffs[i] / diffs[i + 1]) for i in range(len(diffs) - 1)]
+
+
+def test_second_order_convergence_quick():
+    orders = observed_orders(0.1, (60, 120, 240))
+    assert min(orders) >= 1.8, orders
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delta", [0.1, 0.0123])
+def test_second_order_convergence_of_the_norm_history(delta):
+    orders = observed_orders(delta, (60, 120, 240, 480, 960))
+    assert min(orders) >= 1.8, orders
+
+
+# --------------------------------------------------------------------------------------
+# Result object and input checks
+# --------------------------------------------------------------------------------------
+
+
+def test_result_snapshots_and_json():
+    sim = simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 1.0, np.cos, np.sin, n=20, snapshot_every=5)
+    assert isinstance(sim, Simulation)
+    assert sim.times.size == 21 and sim.norm.shape == sim.control.shape == sim.times.shape
+    assert np.allclose(sim.snapshot_times, [0.0, 0.25, 0.5, 0.75, 1.0])
+    assert sim.u.shape == sim.v.shape == (5, 21)
+    data = json.loads(json.dumps(sim.to_dict()))
+    assert data["delay_interpolation"] == "exact shift" and data["n"] == 20
+    assert "Simulation(n=20" in repr(sim)
+    final = simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 1.0, np.cos, np.sin, n=20)
+    assert final.u.shape == (1, 21) and final.snapshot_times[0] == pytest.approx(1.0)
+    with pytest.raises(FrozenInstanceError):
+        sim.n = 3  # type: ignore[misc]
+
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"system": TransportSystem(lam=1.0, mu=2.0, q=1.0, rho=0.5)}, "system"),
+        ({"system": "plant"}, "system"),
+        ({"delta": -0.1}, "delta"),
+        ({"delta": float("nan")}, "delta"),
+        ({"t_end": 0.0}, "t_end"),
+        ({"n": 1}, "n"),
+        ({"u0": np.zeros(7)}, "u0"),
+        ({"v0": lambda x: np.full_like(x, np.inf)}, "v0"),
+        ({"controller": 3.0}, "controller"),
+        ({"snapshot_every": 0}, "snapshot_every"),
+        ({"max_updates": 100}, "(n, t_end)"),
+    ],
+)
+def test_bad_input_raises_parameter_error(kwargs, name):
+    args = {
+        "system": PAPER_TRANSPORT,
+        "controller": OpenLoop(),
+        "delta": 0.0,
+        "t_end": 1.0,
+        "u0": np.cos,
+        "v0": np.sin,
+        "n": 20,
+    }
+    args.update(kwargs)
+    with pytest.raises(ParameterError) as info:
+        simulate(**args)
+    assert info.value.name == name
+
+
+def test_growth_rate_window_checks():
+    sim = simulate(PAPER_TRANSPORT, FiniteTimeController(), 0.0, 3.0, np.cos, np.sin, n=20)
+    with pytest.raises(ParameterError):
+        sim.growth_rate(5.0)
+    with pytest.raises(ParameterError):
+        sim.growth_rate(2.5)  # the norm is exactly zero there
