@@ -13,6 +13,7 @@ from .quasipoly import DistributedDelay, QuasiPolynomial
 from .difference import DifferenceOperator
 from .roots import RootSet, count_roots, find_roots, spectral_abscissa
 from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredController, FiniteTimeController, OpenLoop, ReflectionController, characteristic, classify, loop_factors)
+from .hyperbolic.simulate import Simulation, simulate
 from .sweep import SweepResult, grid, robustness, sweep
 from . import plots
 from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
