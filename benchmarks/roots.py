@@ -1,0 +1,119 @@
+"""Root finding on 1 - 0.85 e^{-2s} + 0.1 e^{-2.1s} in [-3, 1] x [-0.5, H]: nrobust vs peers.
+
+The quasi-polynomial is the transport loop of the paper (rho q = 0.85, K = 0.1,
+delta = 0.1, eq. (delay_transport2)). Its delays are commensurate with step 0.1, so the
+exact roots are ``s = (-ln z + 2 pi i k) / 0.1`` for the 21 roots ``z`` of
+``1 - 0.85 z^20 + 0.1 z^21``. Each solver runs in this process on the same region:
+
+* nrobust ``find_roots`` (certified count, chain seeding, certified boxes);
+* qpmr (Vyhlidal and Zitek's mapping-based QPmR; not certified);
+* cxroots (argument principle by quadrature, count accepted within 0.1 of an integer);
+  run for H = 50 and 200 only, skipped at H = 200 with ``--quick``.
+
+Printed per solver: roots found, exact count, largest distance from an exact root to
+the nearest found root (inf if a root is missed), seconds, and the time ratio of the
+peer to nrobust.
+
+Run: ``python benchmarks/roots.py [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+from typing import Callable
+
+import numpy as np
+
+from nrobust import QuasiPolynomial, find_roots
+
+COEFS = [[1.0], [-0.85], [0.1]]
+DELAYS = [0.0, 2.0, 2.1]
+RE_MIN, RE_MAX, IM_MIN = -3.0, 1.0, -0.5
+
+
+def exact_roots(H: float) -> np.ndarray:
+    """Roots in the region from the degree-21 polynomial in z = e^{-0.1 s}."""
+    poly = np.zeros(22)
+    poly[0], poly[20], poly[21] = 1.0, -0.85, 0.1
+    base = -np.log(np.roots(poly[::-1])) / 0.1
+    k = np.arange(-2, int(H * 0.1 / (2 * np.pi)) + 3)
+    s = (base[:, None] + 2j * np.pi * k[None, :] / 0.1).ravel()
+    return s[(s.real > RE_MIN) & (s.real < RE_MAX) & (s.imag > IM_MIN) & (s.imag < H)]
+
+
+def max_error(found: np.ndarray, exact: np.ndarray) -> float:
+    """Largest distance from an exact root to the nearest found root."""
+    if found.size == 0:
+        return float("inf")
+    return float(np.max(np.min(np.abs(exact[:, None] - found[None, :]), axis=1)))
+
+
+def run_nrobust(H: float) -> np.ndarray:
+    F = QuasiPolynomial(COEFS, DELAYS)
+    res = find_roots(F, (RE_MIN, RE_MAX, IM_MIN, H))
+    if not res.certified:
+        raise RuntimeError("nrobust did not certify the region")
+    return np.repeat(res.roots, res.multiplicities)
+
+
+def run_qpmr(H: float) -> np.ndarray:
+    import qpmr
+
+    coefs = np.array(COEFS, dtype=float)
+    with warnings.catch_warnings():  # qpmr casts complex grid values inside numpy.ma
+        warnings.simplefilter("ignore", np.exceptions.ComplexWarning)
+        roots, _ = qpmr.qpmr(coefs, np.array(DELAYS), region=(RE_MIN, RE_MAX, IM_MIN, H))
+    return np.asarray(roots, dtype=complex)
+
+
+def run_cxroots(H: float) -> np.ndarray:
+    from cxroots import Rectangle
+
+    def f(s: complex) -> complex:
+        return 1 - 0.85 * np.exp(-2 * s) + 0.1 * np.exp(-2.1 * s)
+
+    def df(s: complex) -> complex:
+        return 1.7 * np.exp(-2 * s) - 0.21 * np.exp(-2.1 * s)
+
+    result = Rectangle([RE_MIN, RE_MAX], [IM_MIN, H]).roots(f, df)
+    return np.repeat(np.array(result.roots, dtype=complex), result.multiplicities)
+
+
+def timed(fn: Callable[[float], np.ndarray], H: float, repeat: int) -> tuple[np.ndarray, float]:
+    """Best wall-clock time of ``repeat`` runs (a single run for slow peers)."""
+    best = float("inf")
+    roots = np.zeros(0, dtype=complex)
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        roots = fn(H)
+        best = min(best, time.perf_counter() - t0)
+    return roots, best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="skip cxroots at H = 200 (it takes minutes)")
+    args = parser.parse_args()
+    header = f"{'H':>6} {'solver':>8} {'found':>6} {'exact':>6} {'max error':>10} {'seconds':>9} {'peer/nrobust':>13}"
+    print(header)
+    print("-" * len(header))
+    for H in (50.0, 200.0, 1000.0):
+        exact = exact_roots(H)
+        runs: list[tuple[str, Callable[[float], np.ndarray], int]] = [("nrobust", run_nrobust, 5), ("qpmr", run_qpmr, 3)]
+        if H == 50.0 or (H == 200.0 and not args.quick):
+            runs.append(("cxroots", run_cxroots, 1))
+        base = None
+        for name, fn, repeat in runs:
+            roots, seconds = timed(fn, H, repeat)
+            base = seconds if base is None else base
+            ratio = "" if name == "nrobust" else f"{seconds / base:13.1f}"
+            print(
+                f"{H:6.0f} {name:>8} {roots.size:6d} {exact.size:6d} {max_error(roots, exact):10.2e} "
+                f"{seconds:9.4f} {ratio:>13}"
+            )
+
+
+if __name__ == "__main__":
+    main()
