@@ -25,13 +25,13 @@ Completeness rests on two bounds (paper, proofs of Lemma 1 and Theorem 3). With 
 degree and ``D_A``, ``D_B`` the principal parts, ``|A(i w)| - |B(i w)|`` is at least
 ``w^n (gap - r_A(w) - r_B(w))``, where ``gap = |a_0| - sum |others|`` is positive exactly
 when the difference operator of ``F(.; delta)`` is strongly stable for every delta, and
-``r`` are the remainders of :func:`nrobust.rouche.tail_bound` (``|int N e^{-i w nu}| <=
+``r`` are the remainders of :class:`nrobust.rouche.TailBound` (``|int N e^{-i w nu}| <=
 V / w`` by integration by parts). Past the frequency ``W`` where ``r_A + r_B < gap`` there
 is no crossing, and no root with ``Re s >= 0``, for any delta. On ``[0, W]`` the function
 ``h(w) = |A(i w)| - |B(i w)|`` is explored with a certified exclusion test: with ``L`` a
 bound of ``|A'| + |B'|`` on a segment (``QuasiPolynomial.deriv_bound``),
 ``|h(w_i)| + |h(w_{i+1})| > L (w_{i+1} - w_i)`` proves that ``h`` has no zero on it;
-the other segments are halved down to a relative width ``1e-9``, where sign changes are
+the other segments are cut (eightfold per round) down to a relative width ``1e-9``, where sign changes are
 refined by Brent's method to ``1e-12`` and sign-preserving clusters (tangential touches,
 double roots of ``h``) are reported as tangential crossings.
 """
@@ -47,8 +47,8 @@ from scipy.optimize import brentq, minimize_scalar
 
 from ._validate import finite_real, nonnegative, positive, positive_int
 from .errors import CertificationError, ParameterError
-from .quasipoly import QuasiPolynomial
-from .rouche import joint_degree, principal_gap, radius_where, tail_bound
+from .quasipoly import DistributedDelay, QuasiPolynomial
+from .rouche import TailBound, joint_degree, principal_gap, radius_where
 
 __all__ = [
     "Crossing",
@@ -63,6 +63,8 @@ _LIPSCHITZ_BLOCKS = 64
 # Segments are halved down to this width relative to max(1, W) before they are
 # classified as holding a crossing.
 _MIN_WIDTH = 1e-9
+# Each unresolved segment is cut into this many pieces per round.
+_SPLIT = 8
 # Brent's method tolerance on the crossing frequency (absolute, times max(1, w)).
 _XTOL = 1e-12
 # Relative tolerance under which a crossing delay counts as delta = 0, and under which
@@ -190,6 +192,57 @@ class _AxisFunction:
         return float(self(np.array([w]))[0])
 
 
+class _AxisLipschitz:
+    """Bound of ``|P'(i w)|`` on segments ``[a, b]`` of the frequency axis.
+
+    Point terms use :meth:`QuasiPolynomial.deriv_bound`; a distributed term
+    ``q(s) int N e^{-nu s}`` contributes ``max|q'| M_0 + max|q| M_1`` with
+    ``M_k = int nu^k |N| dnu`` computed once and ``max|q| <= sum_j |q_j| r^j``,
+    ``r = max(|a|, |b|)``.
+    """
+
+    def __init__(self, P: QuasiPolynomial) -> None:
+        self.point = QuasiPolynomial(P.coefs, P.delays) if P.point_terms else None
+        self.dist = [
+            (np.abs(d.poly), float(d.abs_moment(0.0, 0)), float(d.abs_moment(0.0, 1))) for d in P.distributed
+        ]
+
+    def __call__(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+        out = np.zeros(np.shape(a))
+        if self.point is not None:
+            out = out + self.point.deriv_bound(1j * a, 1j * b)
+        r = np.maximum(np.abs(a), np.abs(b))
+        for q, m0, m1 in self.dist:
+            qmax = sum(c * r**j for j, c in enumerate(q))
+            dqmax = sum(j * c * r ** (j - 1) for j, c in enumerate(q) if j > 0)
+            out = out + dqmax * m0 + qmax * m1
+        return out
+
+
+def simplify(F: QuasiPolynomial) -> QuasiPolynomial:
+    """Merge distributed terms on the same nodes (same polynomial and moment) and drop zeros.
+
+    ``A + B`` of a loop often holds ``I_N - I_N`` (``U_BS2``: the nominal loop is the
+    target system ``1 - (rho - K) q e^{-tau s}``); merging makes its evaluation exact and
+    cheap.
+    """
+    groups: dict[tuple, list] = {}
+    for d in F.distributed:
+        # a constant polynomial factor is folded into the kernel values
+        vals, poly = (d.values * d.poly[0], np.ones(1)) if d.poly.size == 1 else (d.values, d.poly)
+        key = (d.nodes.tobytes(), poly.tobytes(), poly.dtype.str, d.moment)
+        groups.setdefault(key, []).append((d.nodes, vals, poly, d.moment))
+    dist = []
+    for parts in groups.values():
+        vals = sum(v for _, v, _, _ in parts)
+        if np.any(vals != 0):
+            nodes, _, poly, moment = parts[0]
+            dist.append(DistributedDelay(nodes, vals, poly, moment))
+    if not F.point_terms and not dist:
+        return QuasiPolynomial([[0.0]], [0.0])
+    return QuasiPolynomial(F.coefs, F.delays, dist) if F.point_terms else QuasiPolynomial([], [], dist)
+
+
 def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float] | None:
     """``(W, gap)``: no crossing above ``W``; None when the principal part is not strongly stable.
 
@@ -203,9 +256,8 @@ def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, floa
     if pg is None or pg.gap <= 0.0:
         return None
     gap, t0 = pg.gap, pg.t0
-    W = radius_where(
-        lambda R: float(tail_bound(A, n, R, 0.0, t0) + tail_bound(B, n, R, 0.0, t0)), gap, "frequency_bound"
-    )
+    ta, tb = TailBound(A, n, 0.0, t0), TailBound(B, n, 0.0, t0)
+    W = radius_where(lambda R: float(ta(R) + tb(R)), gap, "frequency_bound")
     return W, gap
 
 
@@ -235,11 +287,14 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
         wl, wr, hl, hr, blk = wl[~small], wr[~small], hl[~small], hr[~small], blk[~small]
         if not wl.size:
             break
-        wm = 0.5 * (wl + wr)
-        hm = h(wm)
-        wl, wr = np.concatenate([wl, wm]), np.concatenate([wm, wr])
-        hl, hr = np.concatenate([hl, hm]), np.concatenate([hm, hr])
-        blk = np.concatenate([blk, blk])
+        frac = np.arange(1, _SPLIT) / _SPLIT
+        inner = wl[:, None] + (wr - wl)[:, None] * frac[None, :]
+        hin = h(inner.ravel()).reshape(inner.shape)
+        pts = np.concatenate([wl[:, None], inner, wr[:, None]], axis=1)
+        vals = np.concatenate([hl[:, None], hin, hr[:, None]], axis=1)
+        wl, wr = pts[:, :-1].ravel(), pts[:, 1:].ravel()
+        hl, hr = vals[:, :-1].ravel(), vals[:, 1:].ravel()
+        blk = np.repeat(blk, _SPLIT)
     L = np.concatenate(final_l)
     order = np.argsort(L)
     L = L[order]
@@ -320,13 +375,19 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
         raise ParameterError(
             "A, B", "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)", None
         )
+    return _crossing_search(A, B, fb, max_evals)
+
+
+def _crossing_search(A: QuasiPolynomial, B: QuasiPolynomial, fb: tuple[float, float], max_evals: int) -> CrossingSearch:
     W, gap = fb
     h = _AxisFunction(A, B, max_evals)
     tau = max(A.max_delay, B.max_delay, 1.0 / max(W, 1.0))
     step = np.pi / (8.0 * tau)
 
+    la, lb = _AxisLipschitz(A), _AxisLipschitz(B)
+
     def L_of(a: NDArray, b: NDArray) -> NDArray:
-        return A.deriv_bound(1j * a, 1j * b) + B.deriv_bound(1j * a, 1j * b)
+        return la(a, b) + lb(a, b)
 
     lo = 0.0 if _is_real(A, B) else -W
     roots, tang = _search(h, lo, W, L_of, step)
@@ -335,28 +396,39 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
     return CrossingSearch(omegas, np.array([tang[k] for k in keep], dtype=bool), float(W), float(gap), h.evals)
 
 
-def _crossing(A: QuasiPolynomial, B: QuasiPolynomial, w: float, tangential: bool, delta_max: float) -> Crossing:
-    """Delay sequence and direction at the crossing frequency ``w``."""
-    s = np.array([1j * w])
-    a, b = complex(A(s)[0]), complex(B(s)[0])
-    da, db = complex(A.deriv(s)[0]), complex(B.deriv(s)[0])
-    period = 2.0 * np.pi / abs(w)
-    base = float(np.mod(np.angle(-b / a) / w, period))
-    if base > period * (1 - _ZERO_TOL) or base < period * _ZERO_TOL:
-        base = 0.0
-    count = 1 if not np.isfinite(delta_max) or delta_max < base else int(np.floor((delta_max - base) / period)) + 1
-    if count > _MAX_EVENTS:
-        raise ParameterError("delta_max", f"small enough that at most {_MAX_EVENTS} crossing delays are enumerated", delta_max)
-    delays = tuple(float(base + k * period) for k in range(max(count, 1)))
-    e = np.exp(-s[0] * base)
-    ds = s[0] * b * e / (da + db * e - base * b * e)
-    inv_re = (-(da / a - db / b) / s[0]).real
-    scale = abs(da / a) + abs(db / b)
-    if tangential or abs(inv_re) <= 1e-9 * max(scale / abs(w), 1e-300):
-        direction = 0
-    else:
-        direction = 1 if inv_re > 0 else -1
-    return Crossing(float(w), delays, direction, complex(ds), bool(tangential or direction == 0))
+def _crossings(A: QuasiPolynomial, B: QuasiPolynomial, search: CrossingSearch, delta_max: float | None) -> tuple[tuple[Crossing, ...], float]:
+    """Delay sequences and directions at every crossing frequency; returns ``delta_max`` too.
+
+    ``delta_max = None`` selects one full period past the first delay of every crossing,
+    ``max_c (delta_{c,0} + 2 pi / |w_c|)`` (``inf`` without crossings).
+    """
+    w = search.omegas
+    if not w.size:
+        return (), float("inf") if delta_max is None else delta_max
+    s = 1j * w
+    a, b, da, db = A(s), B(s), A.deriv(s), B.deriv(s)
+    period = 2.0 * np.pi / np.abs(w)
+    base = np.mod(np.angle(-b / a) / w, period)
+    base[(base > period * (1 - _ZERO_TOL)) | (base < period * _ZERO_TOL)] = 0.0
+    if delta_max is None:
+        delta_max = float(np.max(base + period))
+    e = np.exp(-s * base)
+    ds = s * b * e / (da + db * e - base * b * e)
+    inv_re = (-(da / a - db / b) / s).real
+    scale = (np.abs(da / a) + np.abs(db / b)) / np.abs(w)
+    out = []
+    for k in range(w.size):
+        count = 1 if delta_max < base[k] else int(np.floor((delta_max - base[k]) / period[k] * (1 + 1e-12))) + 1
+        if count > _MAX_EVENTS:
+            raise ParameterError("delta_max", f"small enough that at most {_MAX_EVENTS} crossing delays are enumerated", delta_max)
+        tangential = bool(search.tangential[k]) or abs(inv_re[k]) <= 1e-9 * scale[k]
+        direction = 0 if tangential else (1 if inv_re[k] > 0 else -1)
+        delays = tuple(float(base[k] + j * period[k]) for j in range(count))
+        out.append(Crossing(float(w[k]), delays, direction, complex(ds[k]), tangential))
+    # rounding may put the last delay an ulp above delta_max: delta_max covers it
+    within = [d for c in out for d in c.delays if d <= delta_max * (1 + 1e-12)]
+    delta_max = max([float(delta_max)] + within)
+    return tuple(sorted(out, key=lambda c: (c.delays[0], c.omega))), float(delta_max)
 
 
 # ============================================================================ delay margin
@@ -485,7 +557,7 @@ def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> i
     """Certified count of unstable zeros of ``A + B``, or None if it cannot be certified."""
     from .rouche import root_free_region
 
-    F = A + B
+    F = simplify(A + B)
     if W is None:
         try:
             W = root_free_region(F).radius
@@ -524,8 +596,9 @@ def delay_margin(
     system, controller
         ``A, B`` or a plant and a controller.
     delta_max : float, optional
-        Range of delays for the stability intervals; default twice the largest first
-        crossing delay (``inf`` without crossings).
+        Range of delays for the stability intervals; default
+        ``max_c (delta_{c,0} + 2 pi / |w_c|)``, one period of every crossing (``inf``
+        without crossings).
     verify : bool, optional
         Check the margin by the residual at ``i w`` and a certified count at
         ``delta* (1 - 1e-3)``.
@@ -573,19 +646,9 @@ def delay_margin(
             delta_max=0.0 if delta_max is None else delta_max, frequency_bound=None, gap=gap, verified=False,
             residual=None, reason=reason,
         )
-    search = crossing_frequencies(A, B, max_evals=max_evals)
+    search = _crossing_search(A, B, fb, max_evals)
     W = search.frequency_bound
-    firsts = []
-    for w, t in zip(search.omegas, search.tangential):
-        firsts.append(_crossing(A, B, float(w), bool(t), 0.0).delays[0])
-    if delta_max is None:
-        delta_max = 2.0 * max(firsts) if firsts and max(firsts) > 0 else float("inf")
-    crossings = tuple(
-        sorted(
-            (_crossing(A, B, float(w), bool(t), delta_max) for w, t in zip(search.omegas, search.tangential)),
-            key=lambda c: (c.delays[0], c.omega),
-        )
-    )
+    crossings, delta_max = _crossings(A, B, search, delta_max)
     mult = 2 if real else 1
     events: dict[float, int] = {}
     for c in crossings:
@@ -593,7 +656,7 @@ def delay_margin(
             if d <= delta_max:
                 events[d] = events.get(d, 0) + mult * c.direction
     axis_at_zero = zero_root or (0.0 in events)
-    nominal = None if axis_at_zero else _count_unstable(A + B, W)
+    nominal = None if axis_at_zero else _count_unstable(simplify(A + B), W)
     nominal_stable = nominal == 0
     marks = sorted(d for d in events if d > 0.0)
     # Number of unstable zeros on the first interval (0, first positive crossing delay).

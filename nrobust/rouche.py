@@ -84,7 +84,7 @@ def min_delay(P: QuasiPolynomial) -> float:
     return float(min(ends, default=np.inf))
 
 
-def tail_bound(P: QuasiPolynomial, n: int, radius: ArrayLike, x0: float, t0: float) -> NDArray[np.float64]:
+class TailBound:
     """Upper bound of ``|e^{t0 s} (P(s) - s^n D_P(s))| / |s|^n`` on ``{Re s >= x0, |s| >= R}``.
 
     ``D_P`` is the sum of the ``s^n`` point terms. The remainder collects the lower
@@ -92,7 +92,8 @@ def tail_bound(P: QuasiPolynomial, n: int, radius: ArrayLike, x0: float, t0: flo
     and the distributed terms, bounded by ``|q|(R) R^-n min(M_0, V / R) e^{t0 x0}`` with
     ``M_0 = int |N| e^{-nu x0}`` (``abs_moment``) and ``V`` the variation bound
     (integration by parts, ``|int N e^{-nu s}| <= V(Re s) / |s|``). Each term is
-    non-increasing in ``R`` and, when every delay is ``>= t0``, in ``Re s >= x0``.
+    non-increasing in ``R`` and, when every delay is ``>= t0``, in ``Re s >= x0``. The
+    kernel integrals are computed once; calls cost a few flops.
 
     Parameters
     ----------
@@ -100,25 +101,34 @@ def tail_bound(P: QuasiPolynomial, n: int, radius: ArrayLike, x0: float, t0: flo
         The function.
     n : int
         Degree of the principal part (at least the degree of every term of ``P``).
-    radius : array_like
-        Values of ``R > 0``.
     x0 : float
         Smallest real part considered.
     t0 : float
         Delay by which ``P`` is normalised (the delay of the first principal term).
     """
-    R = np.asarray(radius, dtype=float)
-    out = np.zeros(R.shape)
-    for p, t in P.point_terms:
-        weight = np.exp(-(t - t0) * x0)
-        for j in range(min(p.size, n)):
-            out = out + abs(p[j]) * R ** (j - n) * weight
-    for d in P.distributed:
-        m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
-        decay = np.minimum(m0, float(d.variation_bound(x0)) * np.exp(t0 * x0) / R) if d.moment == 0 else m0
-        qpow = sum(abs(c) * R ** (j - n) for j, c in enumerate(d.poly))
-        out = out + qpow * decay
-    return out
+
+    def __init__(self, P: QuasiPolynomial, n: int, x0: float, t0: float) -> None:
+        self.n = n
+        self.point = np.zeros(n)
+        for p, t in P.point_terms:
+            m = min(p.size, n)
+            self.point[:m] += np.abs(p[:m]) * np.exp(-(t - t0) * x0)
+        self.dist: list[tuple[NDArray, float, float]] = []
+        for d in P.distributed:
+            m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
+            v = float(d.variation_bound(x0)) * np.exp(t0 * x0) if d.moment == 0 else np.inf
+            self.dist.append((np.abs(d.poly), m0, v))
+
+    def __call__(self, radius: ArrayLike) -> NDArray[np.float64]:
+        """The bound at ``|s| = R`` (vectorised over ``R > 0``)."""
+        R = np.asarray(radius, dtype=float)
+        out = np.zeros(R.shape)
+        for j, c in enumerate(self.point):
+            out = out + c * R ** (j - self.n)
+        for q, m0, v in self.dist:
+            qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q))
+            out = out + qpow * np.minimum(m0, v / R)
+        return out
 
 
 @dataclass(frozen=True)
@@ -246,7 +256,7 @@ def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
     (paper, proof of Lemma 1: ``F + H`` with ``|H| -> 0``), ``F(s) != 0`` wherever
     ``|R(s)| < |s|^n |D(s)|``. On ``Re s >= x`` (delays measured from ``tau_0``),
     ``|D| >= |a_0| - sum_{k>=1} |a_k| e^{-(tau_k - tau_0) x}`` and ``|R| / |s|^n`` is bounded
-    by :func:`tail_bound`, non-increasing in ``|s|`` and in ``Re s``.
+    by :class:`TailBound`, non-increasing in ``|s|`` and in ``Re s``.
 
     Parameters
     ----------
@@ -289,9 +299,9 @@ def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
     def margin(x: float, R: float) -> float:
         g = principal_gap({"F": (F, 0)}, n, x)
         assert g is not None
-        return g.gap - float(tail_bound(F, n, R, x, t0))
+        return g.gap - float(TailBound(F, n, x, t0)(R))
 
-    radius = radius_where(lambda R: float(tail_bound(F, n, R, x0, t0)), gap, "root_free_region")
+    radius = radius_where(lambda R: float(TailBound(F, n, x0, t0)(R)), gap, "root_free_region")
     # Half-plane: for Re s = x >= c we have |s| >= x, and the bound is non-increasing in x.
     lo, hi = x0, max(x0, 0.0) + 1.0
     for _ in range(_MAX_DOUBLINGS):

@@ -1,0 +1,209 @@
+"""Delay margins against closed forms, stability windows against certified counts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nrobust import CertificationError, ParameterError, QuasiPolynomial
+from nrobust.margins import crossing_frequencies, delay_margin, simplify
+from nrobust.quasipoly import DistributedDelay
+from nrobust.roots import count_roots
+
+
+def first_order(a: float, b: float) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``s + a + b e^{-delta s}``."""
+    return QuasiPolynomial([[a, 1.0]], [0.0]), QuasiPolynomial([[b]], [0.0])
+
+
+def second_order(a: float, b: float, c: float) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``s^2 + a s + b + c e^{-delta s}`` (oscillator with delayed position feedback)."""
+    return QuasiPolynomial([[b, a, 1.0]], [0.0]), QuasiPolynomial([[c]], [0.0])
+
+
+def transport(rho_q: float, kq: float, tau: float = 2.0) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` (paper eq. (delay_transport2))."""
+    return QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau]), QuasiPolynomial([[kq]], [tau])
+
+
+def synthetic_kernel() -> DistributedDelay:
+    """A piecewise-linear N~ on [0, 2] with a jump at nu = 1 (as at nu = 1/mu)."""
+    x1, x2 = np.linspace(0.0, 1.0, 41), np.linspace(1.0, 2.0, 41)
+    return DistributedDelay(np.r_[x1, x2], np.r_[0.6 * np.cos(2 * x1) + 0.3, -0.5 + 0.4 * x2])
+
+
+def distributed_loop(rho_q: float, kq: float) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``A = 1 - Phi``, ``B = K q e^{-tau s} - I_N`` with ``Phi = rho q e^{-2 s} - I_N``."""
+    i_n = QuasiPolynomial([], [], [synthetic_kernel()])
+    phi = QuasiPolynomial([[rho_q]], [2.0]) - i_n
+    return 1.0 - phi, QuasiPolynomial([[kq]], [2.0]) - i_n
+
+
+@pytest.mark.parametrize("a, b", [(1.0, 2.0), (0.5, 3.0), (-0.2, 1.0), (0.0, 1.5), (3.0, 3.5)])
+def test_first_order_closed_form(a: float, b: float) -> None:
+    A, B = first_order(a, b)
+    dm = delay_margin(A, B)
+    w = np.sqrt(b * b - a * a)
+    assert dm.margin == pytest.approx(np.arccos(-a / b) / w, rel=1e-11)
+    assert dm.omega == pytest.approx(w, rel=1e-11)
+    assert dm.nominal_stable and dm.verified and dm.residual < 1e-12
+    assert [c.direction for c in dm.crossings] == [1]
+    assert dm.intervals[0] == (0.0, dm.margin)
+    assert dm.crossings[0].delays[1] == pytest.approx(dm.margin + 2 * np.pi / w)
+
+
+@pytest.mark.parametrize("a, b", [(1.0, 0.5), (2.0, -1.9), (1.0, 0.0)])
+def test_first_order_delay_independent(a: float, b: float) -> None:
+    dm = delay_margin(*first_order(a, b))
+    assert dm.margin == np.inf and not dm.crossings and dm.nominal_stable
+    assert dm.intervals == ((0.0, np.inf),)
+
+
+def test_unstable_nominal_has_zero_margin() -> None:
+    dm = delay_margin(*first_order(1.0, -2.0))  # s - 1 at delta = 0
+    assert dm.margin == 0.0 and not dm.nominal_stable and dm.nominal_unstable == 1
+    assert dm.intervals == ()
+
+
+def test_zero_root_for_every_delay() -> None:
+    dm = delay_margin(*first_order(1.0, -1.0))  # F(0; delta) = 0
+    assert dm.zero_root and dm.margin == 0.0 and not dm.nominal_stable
+
+
+def test_stability_windows_second_order() -> None:
+    a, b, c = 0.1, 1.0, 0.5
+    A, B = second_order(a, b, c)
+    dm = delay_margin(A, B, delta_max=12.0)
+    # closed form: |A(iw)| = |B| <=> w^4 + (a^2 - 2b) w^2 + b^2 - c^2 = 0
+    p = 2 * b - a * a
+    w2 = np.array([p + np.sqrt(p * p - 4 * (b * b - c * c)), p - np.sqrt(p * p - 4 * (b * b - c * c))]) / 2
+    wp, wm = np.sqrt(w2)
+
+    def first_delay(w: float) -> float:
+        return float(np.mod(np.angle(-c / (b - w * w + 1j * a * w)), 2 * np.pi) / w)
+
+    dp, dmn = first_delay(wp), first_delay(wm)
+    assert sorted(c_.omega for c_ in dm.crossings) == pytest.approx(sorted([wm, wp]), rel=1e-11)
+    dirs = {round(c_.omega, 8): c_.direction for c_ in dm.crossings}
+    assert dirs == {round(wp, 8): 1, round(wm, 8): -1}
+    assert dm.margin == pytest.approx(dp, rel=1e-11)
+    # windows: stable on [0, d+_0), unstable until d-_0, stable again until d+_1
+    assert len(dm.intervals) == 2
+    assert dm.intervals[0][1] == pytest.approx(dp, rel=1e-11)
+    assert dm.intervals[1][0] == pytest.approx(dmn, rel=1e-11)
+    assert dm.intervals[1][1] == pytest.approx(dp + 2 * np.pi / wp, rel=1e-11)
+    # every interval count agrees with a certified count at its midpoint
+    for lo, hi, n in dm.counts:
+        mid = 0.5 * (lo + hi)
+        assert int(count_roots(A + B.shift(mid), (0.0, 3.0, -3.0, 3.0))) == n
+    assert list(dm.is_stable([0.0, 0.1, 1.0, 4.5, 9.0])) == [True, True, False, True, False]
+    assert list(dm.unstable_count([0.1, 1.0])) == [0, 2]
+
+
+def test_direction_matches_frequency_sweep_sign() -> None:
+    """Re ds/ddelta has the sign of d/dw (|A|^2 - |B|^2) (Cooke and van den Driessche)."""
+    A, B = second_order(0.1, 1.0, 0.5)
+    dm = delay_margin(A, B, delta_max=1.0)
+    for c in dm.crossings:
+        w = np.array([c.omega - 1e-6, c.omega + 1e-6])
+        g = np.abs(A(1j * w)) ** 2 - np.abs(B(1j * w)) ** 2
+        assert np.sign(g[1] - g[0]) == c.direction == np.sign(c.ds_ddelta.real)
+
+
+def test_tangential_touch_is_reported() -> None:
+    a, b = 0.1, 1.0
+    c = np.sqrt(b * b - (2 * b - a * a) ** 2 / 4)  # double root of |A|^2 - |B|^2
+    A, B = second_order(a, b, c)
+    res = crossing_frequencies(A, B)
+    w0 = np.sqrt((2 * b - a * a) / 2)
+    assert res.omegas.size >= 1
+    assert np.all(np.abs(res.omegas - w0) < 1e-6)
+    dm = delay_margin(A, B, delta_max=20.0, verify=False)
+    assert sum(c_.direction for c_ in dm.crossings) == 0  # no net change of the count
+    assert dm.margin == pytest.approx(min(c_.delays[0] for c_ in dm.crossings))
+
+
+def test_complex_coefficients_scan_both_signs() -> None:
+    A, B = QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[2.0j]], [0.0])
+    dm = delay_margin(A, B, delta_max=6.0)
+    assert sorted(c.omega for c in dm.crossings) == pytest.approx([-np.sqrt(3), np.sqrt(3)], rel=1e-11)
+    for lo, hi, n in dm.counts:
+        mid = 0.5 * (lo + hi)
+        assert int(count_roots(A + B.shift(mid), (0.0, 4.0, -4.0, 4.0))) == n
+
+
+@pytest.mark.parametrize(
+    "rho_q, kq, expected",
+    [(0.85, 0.1, np.inf), (0.85, -0.14, np.inf), (-0.6, 0.3, np.inf), (0.85, 0.2, 0.0), (0.5, 0.6, 0.0), (0.3, -0.8, 0.0)],
+)
+def test_transport_reflection_controller(rho_q: float, kq: float, expected: float) -> None:
+    """Margin inf iff |rho q| + |K q| < 1 (eq. (delay_transport2)), 0 when it exceeds 1."""
+    dm = delay_margin(*transport(rho_q, kq))
+    assert dm.margin == expected
+    assert dm.strongly_stable == (abs(rho_q) + abs(kq) < 1)
+    assert dm.nominal_stable == (abs(rho_q - kq) < 1)
+
+
+@pytest.mark.parametrize("rho_q", [0.85, 0.6, -0.7])
+def test_transport_finite_time_controller_zero_margin(rho_q: float) -> None:
+    """U_BS: principal part 1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s}, Theorem 3."""
+    A = QuasiPolynomial([[1.0], [-rho_q]], [0.0, 2.0])
+    B = QuasiPolynomial([[rho_q]], [2.0])
+    dm = delay_margin(A, B)
+    assert dm.margin == 0.0 and not dm.strongly_stable
+    assert dm.nominal_stable  # F(.; 0) = 1: finite-time convergence without delay
+
+
+def test_transport_finite_time_controller_small_gain() -> None:
+    A = QuasiPolynomial([[1.0], [-0.4]], [0.0, 2.0])
+    dm = delay_margin(A, QuasiPolynomial([[0.4]], [2.0]))
+    assert dm.margin == np.inf and dm.strongly_stable
+
+
+def test_strong_stability_matches_difference_operator() -> None:
+    for rho_q, kq in [(0.85, 0.1), (0.85, 0.2), (0.4, 0.4), (0.45, 0.5)]:
+        A, B = transport(rho_q, kq)
+        D = (A + B.shift(1e-3 * np.sqrt(2))).principal_part()
+        assert delay_margin(A, B).strongly_stable == D.is_strongly_stable()
+
+
+def test_distributed_loop_margin_verified_and_complete() -> None:
+    A, B = distributed_loop(0.85, 0.1)
+    dm = delay_margin(A, B)
+    assert dm.nominal_stable and dm.verified and 0 < dm.margin < np.inf
+    # no crossing missed: brute-force sign changes on a dense grid of [0, W]
+    w = np.linspace(0.0, dm.frequency_bound, 200_001)
+    h = np.abs(A(1j * w)) - np.abs(B(1j * w))
+    changes = w[1:][np.sign(h[1:]) != np.sign(h[:-1])]
+    assert changes.size == len(dm.crossings)
+    assert np.allclose(np.sort(changes), sorted(c.omega for c in dm.crossings), atol=w[1])
+    # the margin crossing is a root of F on the axis
+    s = 1j * dm.omega
+    F = A + B.shift(dm.margin)
+    assert abs(F(np.array([s]))[0]) < 1e-10
+
+
+def test_simplify_cancels_opposite_kernels() -> None:
+    A, B = distributed_loop(0.85, 0.1)
+    F = simplify(A + B)
+    assert not F.distributed  # I_N - I_N: the target system 1 - (rho - K) q e^{-tau s}
+    s = np.array([0.3 + 2.0j, 1.0 - 7.0j])
+    assert np.allclose(F(s), (A + B)(s), atol=1e-13)
+
+
+def test_result_serialises_and_validates() -> None:
+    dm = delay_margin(*first_order(1.0, 2.0), delta_max=10.0)
+    d = dm.to_dict()
+    assert d["margin"] == dm.margin and len(d["crossings"]) == 1 and d["delta_max"] == 10.0
+    assert "DelayMargin(margin=1.2091995" in repr(dm)
+    assert delay_margin(*first_order(1.0, 0.5)).to_dict()["margin"] == "inf"
+    with pytest.raises(ParameterError):
+        delay_margin(QuasiPolynomial([[1.0, 1.0]], [0.0]), 2.0)
+    with pytest.raises(ParameterError):
+        delay_margin(*first_order(1.0, 2.0), delta_max=-1.0)
+    with pytest.raises(ParameterError):
+        dm.is_stable(11.0)
+    with pytest.raises(ParameterError):
+        crossing_frequencies(*transport(0.85, 0.3))
+    with pytest.raises(CertificationError):
+        crossing_frequencies(*distributed_loop(0.85, 0.1), max_evals=10)
