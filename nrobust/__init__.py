@@ -16,6 +16,7 @@ from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredContro
 from .hyperbolic.simulate import Simulation, simulate
 from .sweep import SweepResult, grid, robustness, sweep
 from . import plots
+from .certificate import Certificate, certify
 from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
 
 try:

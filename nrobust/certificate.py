@@ -1,0 +1,318 @@
+"""Certificates: every number that decides the delay robustness of one closed loop.
+
+:func:`certify` runs the whole analysis of a plant and a controller and returns a
+:class:`Certificate`: the paper's classification by ``|rho q|`` (sections 2 and 3), the
+closed-loop difference operator with its ``gamma_0`` and strong stability (Hale and
+Verduyn Lunel; eq. (eq_rho_q), eq. (boun_K2)), certified root counts per box at
+``delta = 0`` and ``delta = delta_max``, the spectral abscissa, the exact delay margin
+with its crossing frequency, the Rouché bound ``delta_0`` from the proof of Theorem 4,
+and, for ``U_BS2(K)``, the gains ``K`` that keep the loop stable for every delay in
+``[0, delta_max]``. Nothing in a certificate is typed in by hand: each field is the
+output of the function named in its docstring, with the parameters and library versions
+that produced it.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ._validate import positive, region as check_region
+from .errors import ParameterError
+
+__all__ = ["Certificate", "PrincipalPart", "certify"]
+
+#: Default search rectangle for the certified root counts, in units of ``1/tau``.
+_DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
+
+
+def _json_float(x: float | None) -> float | str | None:
+    if x is None:
+        return None
+    x = float(x)
+    if np.isnan(x):
+        return "nan"
+    if np.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return x
+
+
+@dataclass(frozen=True)
+class PrincipalPart:
+    """The closed-loop difference operator ``D(s) = sum_k a_k e^{-tau_k s}`` at one delay.
+
+    Attributes
+    ----------
+    delta : float
+        The loop delay at which ``F(s; delta)`` was formed.
+    coefs, delays : tuple of float
+        ``a_k`` (real parts; the loops of the paper are real) and ``tau_k``.
+    gamma_0 : float
+        ``sum_{k >= 1} |a_k| / |a_0|``; for U_BS this is ``2 |rho q|`` (eq. (eq_rho_q)), for
+        U_BS2(K) ``|rho q| + |K q|`` (eq. (boun_K2)).
+    strongly_stable : bool
+        ``gamma_0 < 1``: the loop's high-frequency chains stay in ``Re s < 0`` for every
+        small delay (Hale and Verduyn Lunel).
+    strong_spectral_bound : float
+        ``C_D``, the supremum of the chains' abscissa over small delay perturbations.
+    """
+
+    delta: float
+    coefs: tuple[float, ...]
+    delays: tuple[float, ...]
+    gamma_0: float
+    strongly_stable: bool
+    strong_spectral_bound: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "delta": self.delta,
+            "coefs": list(self.coefs),
+            "delays": list(self.delays),
+            "gamma_0": self.gamma_0,
+            "strongly_stable": self.strongly_stable,
+            "strong_spectral_bound": _json_float(self.strong_spectral_bound),
+        }
+
+
+def _principal(F: Any, delta: float) -> PrincipalPart:
+    D = F.principal_part()
+    return PrincipalPart(
+        float(delta),
+        tuple(float(np.real(a)) for a in D.coefs),
+        tuple(float(t) for t in D.delays),
+        float(D.gamma_0),
+        bool(D.is_strongly_stable()),
+        float(D.strong_spectral_bound()),
+    )
+
+
+def _versions() -> dict[str, str]:
+    import scipy
+
+    from . import __version__
+
+    return {
+        "nrobust": __version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "python": platform.python_version(),
+    }
+
+
+@dataclass(frozen=True, eq=False)
+class Certificate:
+    """The delay-robustness certificate of one closed loop (see :func:`certify`).
+
+    Attributes
+    ----------
+    system, controller : objects
+        The plant and controller analysed (kept to redraw figures; serialised through
+        their ``to_dict``).
+    delta_max : float
+        The range ``[0, delta_max]`` of loop delays covered.
+    classification : Classification
+        :func:`nrobust.hyperbolic.classify`: the regime of ``|rho q|``.
+    principal_nominal, principal_delayed : PrincipalPart
+        The difference operator of ``F(s; 0)`` and of ``F(s; delta_max)``.
+    roots_nominal, roots_delayed : RootSet
+        :func:`nrobust.roots.find_roots` of ``F(s; 0)`` and ``F(s; delta_max)`` in
+        ``region``, with per-box certified counts.
+    abscissa : SpectralAbscissa
+        :func:`nrobust.roots.spectral_abscissa` of ``F(s; 0)`` (the decay rate is its
+        opposite).
+    margin : DelayMargin
+        :func:`nrobust.margins.delay_margin` with the crossing frequency and the stability
+        intervals up to ``delta_max``.
+    rouche : RoucheDelayBound or None
+        :func:`nrobust.rouche.rouche_delay_bound` (U_BS and U_BS2 only).
+    k_region : object or None
+        :func:`nrobust.margins.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
+        delay in ``[0, delta_max]`` stable.
+    region : tuple of float
+        The rectangle of the root counts.
+    versions : dict
+        nrobust, numpy, scipy and python versions.
+    """
+
+    system: Any
+    controller: Any
+    delta_max: float
+    classification: Any
+    principal_nominal: PrincipalPart
+    principal_delayed: PrincipalPart
+    roots_nominal: Any
+    roots_delayed: Any
+    abscissa: Any
+    margin: Any
+    rouche: Any
+    k_region: Any
+    region: tuple[float, float, float, float]
+    versions: dict[str, str]
+
+    # ------------------------------------------------------------------ verdicts
+    @property
+    def nominally_stable(self) -> bool:
+        """The loop without delay is exponentially stable (from the delay margin's count)."""
+        return bool(self.margin.nominal_stable)
+
+    @property
+    def delay_margin(self) -> float:
+        """``delta*`` (``inf`` when no crossing exists)."""
+        return float(self.margin.margin)
+
+    @property
+    def delay_robust(self) -> bool:
+        """Stable for ``delta = 0`` and for every small ``delta > 0`` (Definition 1)."""
+        return self.nominally_stable and self.delay_margin > 0.0
+
+    @property
+    def stable_up_to_delta_max(self) -> bool:
+        """Stable for every delay in ``[0, delta_max]``."""
+        return self.delay_robust and self.delay_margin > self.delta_max
+
+    @property
+    def verdict(self) -> str:
+        """The conclusion in one sentence."""
+        name = type(self.controller).__name__
+        if not self.nominally_stable:
+            return f"{name}: the loop is not stable even without delay."
+        if not self.delay_robust:
+            return f"{name}: stable without delay but with zero delay margin: not delay-robust."
+        if self.stable_up_to_delta_max:
+            return (
+                f"{name}: delay-robust, stable for every delay in [0, {self.delta_max:g}] "
+                f"(delay margin {self.delay_margin:.6g})."
+            )
+        return f"{name}: delay-robust with margin {self.delay_margin:.6g} < delta_max = {self.delta_max:g}."
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description of every field."""
+        return {
+            "verdict": self.verdict,
+            "nominally_stable": self.nominally_stable,
+            "delay_robust": self.delay_robust,
+            "delay_margin": _json_float(self.delay_margin),
+            "stable_up_to_delta_max": self.stable_up_to_delta_max,
+            "system": self.system.to_dict(),
+            "controller": self.controller.to_dict(),
+            "delta_max": self.delta_max,
+            "classification": self.classification.to_dict(),
+            "principal_nominal": self.principal_nominal.to_dict(),
+            "principal_delayed": self.principal_delayed.to_dict(),
+            "roots_nominal": self.roots_nominal.to_dict(),
+            "roots_delayed": self.roots_delayed.to_dict(),
+            "spectral_abscissa": self.abscissa.to_dict(),
+            "margin": self.margin.to_dict(),
+            "rouche": None if self.rouche is None else self.rouche.to_dict(),
+            "k_region": None if self.k_region is None else self.k_region.to_dict(),
+            "region": list(self.region),
+            "versions": dict(self.versions),
+        }
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """The certificate as JSON text (strict: no NaN or infinity literals)."""
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False, default=_json_default)
+
+    def __repr__(self) -> str:
+        return (
+            f"Certificate({type(self.controller).__name__}, delta_max={self.delta_max:g}, "
+            f"margin={self.delay_margin:.6g}, nominally_stable={self.nominally_stable}, "
+            f"delay_robust={self.delay_robust})"
+        )
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.floating,)):
+        return _json_float(float(obj))
+    if isinstance(obj, (np.bool_,)):
+        return bool(obj)
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, complex):
+        return [obj.real, obj.imag]
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def certify(
+    system: Any,
+    controller: Any,
+    delta_max: float = 0.1,
+    region: tuple[float, float, float, float] | None = None,
+    k_region: bool = True,
+) -> Certificate:
+    """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or TransportSystem
+        The plant, eqs. (u_pde)-(IC).
+    controller : OpenLoop, FiniteTimeController, ReflectionController or FilteredController
+        The control law (U_BS eq. (control), U_BS2(K) eq. (control3), ...).
+    delta_max : float
+        Largest loop delay of interest (``> 0``).
+    region : tuple, optional
+        ``(re_min, re_max, im_min, im_max)`` for the certified root counts; default
+        ``(-3, 1, -40, 40) / tau``: about 13 periods ``2 pi / tau`` of the root chains.
+    k_region : bool
+        For ``ReflectionController``, also compute the admissible gains on
+        ``[0, delta_max]`` (:func:`nrobust.margins.k_region`).
+
+    Returns
+    -------
+    Certificate
+    """
+    from .hyperbolic.controllers import FiniteTimeController, ReflectionController, characteristic, classify
+    from .margins import delay_margin
+    from .roots import find_roots, spectral_abscissa
+    from .rouche import rouche_delay_bound
+
+    delta_max = positive("delta_max", delta_max)
+    if not np.isfinite(delta_max):
+        raise ParameterError("delta_max", "finite", delta_max)
+    classification = classify(system)  # also checks the system
+    if region is None:
+        tau = float(system.tau)
+        box = (_DEFAULT_REGION[0] / tau, _DEFAULT_REGION[1] / tau, _DEFAULT_REGION[2] / tau, _DEFAULT_REGION[3] / tau)
+    else:
+        box = check_region(region)
+    F0 = characteristic(system, controller, 0.0)
+    Fd = characteristic(system, controller, delta_max)
+    roots0 = find_roots(F0, box)
+    rootsd = find_roots(Fd, box)
+    abscissa = spectral_abscissa(F0)
+    margin = delay_margin(system, controller, delta_max=delta_max)
+    rouche = (
+        rouche_delay_bound(system, controller)
+        if isinstance(controller, (ReflectionController, FiniteTimeController))
+        else None
+    )
+    kreg = None
+    if k_region and isinstance(controller, ReflectionController):
+        from .margins import k_region as compute_k_region
+
+        kreg = compute_k_region(system, delta_max)
+    return Certificate(
+        system=system,
+        controller=controller,
+        delta_max=delta_max,
+        classification=classification,
+        principal_nominal=_principal(F0, 0.0),
+        principal_delayed=_principal(Fd, delta_max),
+        roots_nominal=roots0,
+        roots_delayed=rootsd,
+        abscissa=abscissa,
+        margin=margin,
+        rouche=rouche,
+        k_region=kreg,
+        region=tuple(float(v) for v in box),  # type: ignore[arg-type]
+        versions=_versions(),
+    )

@@ -1,0 +1,337 @@
+"""Reports: certificates written as Markdown, self-contained HTML and JSON.
+
+:func:`write_report` turns one or several :class:`~nrobust.certificate.Certificate` into
+
+* ``report.md`` with the figures as PNG files next to it (``figures/``),
+* ``report.html``, a single file with the same content and the figures embedded as
+  base64 PNG (it can be mailed or attached as is),
+* ``certificate.json`` (one certificate) or ``certificate_<k>.json`` (several).
+
+Every number in a report is read from a certificate (or from the figures passed in),
+never typed in: the report is a view of computations, not a second source of results.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+
+from .certificate import Certificate
+from .errors import ParameterError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["ReportFiles", "write_report", "certificate_figures"]
+
+
+@dataclass(frozen=True)
+class ReportFiles:
+    """Paths written by :func:`write_report`."""
+
+    markdown: Path
+    html: Path
+    json: tuple[Path, ...]
+    figures: tuple[Path, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (paths as strings)."""
+        return {
+            "markdown": str(self.markdown),
+            "html": str(self.html),
+            "json": [str(p) for p in self.json],
+            "figures": [str(p) for p in self.figures],
+        }
+
+
+# ---------------------------------------------------------------------- document model
+@dataclass(frozen=True)
+class _Heading:
+    level: int
+    text: str
+
+
+@dataclass(frozen=True)
+class _Paragraph:
+    text: str
+
+
+@dataclass(frozen=True)
+class _Table:
+    header: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+
+
+@dataclass(frozen=True)
+class _Figure:
+    name: str
+    caption: str
+    png: bytes
+
+
+def _fmt(x: Any, digits: int = 6) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, (bool, np.bool_)):
+        return "yes" if x else "no"
+    if isinstance(x, str):
+        return x
+    x = float(x)
+    if np.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return f"{x:.{digits}g}"
+
+
+def _png(fig: "Figure") -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    return buf.getvalue()
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_") or "figure"
+
+
+def _controller_label(controller: Any) -> str:
+    params = {k: v for k, v in controller.to_dict().items() if k != "controller"}
+    inner = ", ".join(f"{k}={_fmt(v)}" for k, v in params.items())
+    return f"{type(controller).__name__}({inner})"
+
+
+def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
+    """The standard figures of a certificate: root maps at ``0`` and ``delta_max``, Nyquist.
+
+    Root maps reuse the certificate's root sets; the Nyquist data are computed from the
+    loop factors of the certified loop at ``delta_max``.
+    """
+    import matplotlib.pyplot as plt
+
+    from .hyperbolic.controllers import characteristic, loop_factors
+    from .plots import nyquist_response, root_map_plot
+
+    out: list[tuple[str, Figure]] = []
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2), sharey=True)
+    for ax, delta, roots in ((axes[0], 0.0, cert.roots_nominal), (axes[1], cert.delta_max, cert.roots_delayed)):
+        F = characteristic(cert.system, cert.controller, delta)
+        root_map_plot(F, cert.region, roots=roots, ax=ax)
+        ax.set_title(f"delta = {delta:g}: {roots.count} roots (certified: {_fmt(roots.certified)})", fontsize="small")
+    fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
+    out.append(("Closed-loop roots in the certified region, with the chain asymptotes of the difference operator", fig))
+
+    A, B = loop_factors(cert.system, cert.controller)
+    w_max = 40.0 * 2 * np.pi / float(cert.system.tau)
+    fig, ax = plt.subplots(figsize=(5.0, 5.0))
+    nyquist_response(A, B, cert.delta_max, omega_max=w_max).plot(ax=ax)
+    out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
+    return out
+
+
+def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, "Figure"]]]:
+    label = _controller_label(cert.controller)
+    head = f"{label}" if index is None else f"{index + 1}. {label}"
+    cls = cert.classification
+    m = cert.margin
+    blocks: list[Any] = [_Heading(2, head), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(cls.statement)]
+    rows = [
+        ("open-loop gain rho q", _fmt(cls.rho_q), "classify (section 2)"),
+        ("regime", cls.regime, "classify"),
+        ("gamma_0 of the difference operator, delta = 0", _fmt(cert.principal_nominal.gamma_0), "principal_part"),
+        (
+            f"gamma_0 of the difference operator, delta = {cert.delta_max:g}",
+            _fmt(cert.principal_delayed.gamma_0),
+            "principal_part (eq. (eq_rho_q), (boun_K2))",
+        ),
+        ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),
+        ("spectral abscissa, delta = 0", _fmt(cert.abscissa.value), "spectral_abscissa"),
+        ("nominally stable", _fmt(cert.nominally_stable), "delay_margin"),
+        ("delay margin delta*", _fmt(cert.delay_margin), "delay_margin"),
+        ("crossing frequency at delta*", _fmt(m.omega), "delay_margin"),
+        ("margin verified (residual and count)", _fmt(m.verified), "delay_margin"),
+        ("how the margin was decided", m.reason, "delay_margin"),
+        (
+            "stable delay intervals in [0, delta_max]",
+            ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in m.intervals) or "none",
+            "delay_margin",
+        ),
+        (
+            "Rouché guaranteed range delta_0",
+            "-" if cert.rouche is None else _fmt(cert.rouche.delta_0),
+            "rouche_delay_bound (Theorem 4)",
+        ),
+        (
+            f"roots in the region, delta = 0",
+            f"{cert.roots_nominal.count} (certified: {_fmt(cert.roots_nominal.certified)})",
+            "find_roots",
+        ),
+        (
+            f"roots in the region, delta = {cert.delta_max:g}",
+            f"{cert.roots_delayed.count} (certified: {_fmt(cert.roots_delayed.certified)})",
+            "find_roots",
+        ),
+        ("region (Re min, Re max, Im min, Im max)", ", ".join(_fmt(v, 4) for v in cert.region), "certify"),
+    ]
+    if cert.k_region is not None:
+        rows.append(("admissible gains K on [0, delta_max]", _k_region_text(cert.k_region), "k_region"))
+    blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
+    box_rows = tuple(
+        (f"delta = {_fmt(d)}", ", ".join(_fmt(v, 4) for v in box), str(int(c)))
+        for d, rs in ((0.0, cert.roots_nominal), (cert.delta_max, cert.roots_delayed))
+        for box, c in zip(np.asarray(rs.boxes).reshape(-1, 4), rs.box_counts)
+    )
+    if box_rows:
+        blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
+        blocks.append(_Table(("loop", "box", "roots"), box_rows))
+    return blocks, certificate_figures(cert)
+
+
+def _k_region_text(kreg: Any) -> str:
+    data = kreg.to_dict()
+    intervals = data.get("intervals")
+    if isinstance(intervals, list) and intervals:
+        return ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in intervals)
+    return "none" if isinstance(intervals, list) else str(data)
+
+
+# ---------------------------------------------------------------------- renderers
+def _markdown(blocks: Sequence[Any], fig_paths: Mapping[str, str]) -> str:
+    out: list[str] = []
+    for b in blocks:
+        if isinstance(b, _Heading):
+            out.append("#" * b.level + " " + b.text)
+        elif isinstance(b, _Paragraph):
+            out.append(b.text)
+        elif isinstance(b, _Table):
+            out.append("| " + " | ".join(b.header) + " |")
+            out.append("|" + "|".join("---" for _ in b.header) + "|")
+            out += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in b.rows]
+        elif isinstance(b, _Figure):
+            out.append(f"![{b.caption}]({fig_paths[b.name]})\n\n*{b.caption}*")
+        out.append("")
+    return "\n".join(out)
+
+
+def _inline(text: str) -> str:
+    """Escape, then render ``**bold**`` and ``code`` spans."""
+    t = html.escape(text)
+    t = re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", t)
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", t)
+
+
+_CSS = (
+    "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#222}"
+    "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;"
+    "text-align:left;vertical-align:top}th{background:#eee}figure{margin:1.5em 0}"
+    "img{max-width:100%}figcaption{font-style:italic;font-size:.9em}"
+)
+
+
+def _html(title: str, blocks: Sequence[Any]) -> str:
+    out = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+    ]
+    for b in blocks:
+        if isinstance(b, _Heading):
+            out.append(f"<h{b.level}>{_inline(b.text)}</h{b.level}>")
+        elif isinstance(b, _Paragraph):
+            out.append(f"<p>{_inline(b.text)}</p>")
+        elif isinstance(b, _Table):
+            out.append("<table><tr>" + "".join(f"<th>{_inline(h)}</th>" for h in b.header) + "</tr>")
+            out += ["<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in row) + "</tr>" for row in b.rows]
+            out.append("</table>")
+        elif isinstance(b, _Figure):
+            data = base64.b64encode(b.png).decode("ascii")
+            out.append(
+                f'<figure><img alt="{html.escape(b.caption)}" src="data:image/png;base64,{data}">'
+                f"<figcaption>{html.escape(b.caption)}</figcaption></figure>"
+            )
+    out.append("</body></html>")
+    return "\n".join(out)
+
+
+# ---------------------------------------------------------------------- entry point
+def write_report(
+    certificates: Certificate | Sequence[Certificate],
+    out_dir: str | Path,
+    figures: Sequence[tuple[str, "Figure"]] = (),
+    title: str = "nrobust delay-robustness report",
+    intro: Sequence[str] = (),
+) -> ReportFiles:
+    """Write a Markdown report, a self-contained HTML report and the certificates' JSON.
+
+    Parameters
+    ----------
+    certificates : Certificate or sequence of Certificate
+        From :func:`nrobust.certify`; one section each, with its standard figures
+        (:func:`certificate_figures`).
+    out_dir : path-like
+        Output directory (created if needed).
+    figures : sequence of (caption, matplotlib Figure), optional
+        Further figures (simulations, stability charts...), appended in order.
+    title : str
+        Report title.
+    intro : sequence of str
+        Paragraphs placed after the title.
+
+    Returns
+    -------
+    ReportFiles
+    """
+    import matplotlib.pyplot as plt
+
+    certs = [certificates] if isinstance(certificates, Certificate) else list(certificates)
+    if not certs or not all(isinstance(c, Certificate) for c in certs):
+        raise ParameterError("certificates", "a Certificate or a non-empty sequence of Certificate", certificates)
+    for k, item in enumerate(figures):
+        if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and hasattr(item[1], "savefig")):
+            raise ParameterError(f"figures[{k}]", "a (caption, matplotlib Figure) pair", item)
+    out = Path(out_dir)
+    fig_dir = out / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+
+    system = certs[0].system
+    blocks: list[Any] = [_Heading(1, title)]
+    blocks += [_Paragraph(p) for p in intro]
+    blocks.append(_Paragraph(f"**System.** `{system!r}`, tau = {_fmt(system.tau)}."))
+    all_figs: list[tuple[str, Figure]] = []
+    for k, cert in enumerate(certs):
+        section, figs = _certificate_blocks(cert, None if len(certs) == 1 else k)
+        blocks += section
+        for caption, fig in figs:
+            blocks.append(_Figure(f"{k + 1}_{_slug(caption)[:40]}", caption, _png(fig)))
+            all_figs.append((caption, fig))
+    if figures:
+        blocks.append(_Heading(2, "Further figures"))
+        for j, (caption, fig) in enumerate(figures):
+            blocks.append(_Figure(f"extra_{j + 1}_{_slug(caption)[:40]}", caption, _png(fig)))
+    v = certs[0].versions
+    blocks.append(_Paragraph("Computed with " + ", ".join(f"{k} {val}" for k, val in v.items()) + "."))
+
+    fig_paths: dict[str, str] = {}
+    written: list[Path] = []
+    for b in blocks:
+        if isinstance(b, _Figure):
+            path = fig_dir / f"{b.name}.png"
+            path.write_bytes(b.png)
+            fig_paths[b.name] = f"figures/{path.name}"
+            written.append(path)
+    md = out / "report.md"
+    md.write_text(_markdown(blocks, fig_paths), encoding="utf-8")
+    page = out / "report.html"
+    page.write_text(_html(title, blocks), encoding="utf-8")
+    jsons: list[Path] = []
+    for k, cert in enumerate(certs):
+        path = out / ("certificate.json" if len(certs) == 1 else f"certificate_{k + 1}.json")
+        path.write_text(cert.to_json(), encoding="utf-8")
+        jsons.append(path)
+    for _, fig in all_figs:
+        plt.close(fig)
+    return ReportFiles(md, page, tuple(jsons), tuple(written))

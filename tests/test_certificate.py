@@ -1,0 +1,85 @@
+"""Certificates and reports: every field is consistent with the computation it names."""
+
+from __future__ import annotations
+
+import json
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from nrobust.certificate import Certificate, certify  # noqa: E402
+from nrobust.errors import ParameterError  # noqa: E402
+from nrobust.hyperbolic import TransportSystem  # noqa: E402
+from nrobust.hyperbolic.controllers import FilteredController, characteristic  # noqa: E402
+from nrobust.report import write_report  # noqa: E402
+
+SYSTEM = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
+
+
+@pytest.fixture(scope="module")
+def filtered() -> Certificate:
+    return certify(SYSTEM, FilteredController(0.1, 1.0), delta_max=0.1)
+
+
+def test_filtered_difference_operator_is_eq_cond_a_b(filtered):
+    """Principal part b - (b - a) rho q e^{-tau s} at delta = 0, and
+    b - b rho q e^{-tau s} + a rho q e^{-(tau + delta) s} for delta > 0 (eq. (cond_a_b))."""
+    rq = 0.85
+    assert filtered.principal_nominal.gamma_0 == pytest.approx(rq * 0.9)
+    assert filtered.principal_delayed.gamma_0 == pytest.approx(rq * 1.1)
+    assert filtered.principal_delayed.delays == pytest.approx((0.0, 2.0, 2.1))
+    assert filtered.principal_delayed.strongly_stable
+
+
+def test_filtered_margin_is_a_root_on_the_axis(filtered):
+    assert filtered.nominally_stable and filtered.delay_robust
+    d, w = filtered.delay_margin, filtered.margin.omega
+    assert 0.1 < d < np.inf and w > 0
+    F = characteristic(SYSTEM, FilteredController(0.1, 1.0), d)
+    assert abs(F(np.array([1j * w]))[0]) < 1e-8
+    assert filtered.stable_up_to_delta_max
+    assert "delay-robust" in filtered.verdict
+
+
+def test_root_counts_and_abscissa_agree(filtered):
+    for roots in (filtered.roots_nominal, filtered.roots_delayed):
+        assert roots.certified
+        assert int(np.sum(roots.box_counts)) == roots.count == int(np.sum(roots.multiplicities))
+        assert np.all(roots.roots.real < 0)
+    assert filtered.abscissa.value < 0
+    assert filtered.abscissa.value >= np.max(filtered.roots_nominal.roots.real) - 1e-9
+
+
+def test_json_is_strict_and_complete(filtered):
+    data = json.loads(filtered.to_json())
+    assert data["delay_margin"] == pytest.approx(filtered.delay_margin)
+    assert data["controller"]["controller"] == "FilteredController"
+    assert data["system"]["rho"] == 0.85
+    assert set(data["versions"]) == {"nrobust", "numpy", "scipy", "python"}
+    assert data["rouche"] is None and data["k_region"] is None
+    assert data["roots_nominal"]["count"] == filtered.roots_nominal.count
+
+
+def test_report_files(filtered, tmp_path):
+    files = write_report(filtered, tmp_path)
+    md = files.markdown.read_text()
+    page = files.html.read_text()
+    assert f"{filtered.delay_margin:.6g}" in md and f"{filtered.delay_margin:.6g}" in page
+    assert md.count("![") == len(files.figures) == 2
+    assert page.count("data:image/png;base64,") == 2 and "<img" in page
+    for fig in files.figures:
+        assert fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert json.loads(files.json[0].read_text())["verdict"] == filtered.verdict
+
+
+def test_bad_arguments():
+    with pytest.raises(ParameterError, match="delta_max"):
+        certify(SYSTEM, FilteredController(0.1, 1.0), delta_max=0.0)
+    with pytest.raises(ParameterError, match="region"):
+        certify(SYSTEM, FilteredController(0.1, 1.0), region=(1.0, 0.0, -1.0, 1.0))
+    with pytest.raises(ParameterError, match="certificates"):
+        write_report([], "unused")
