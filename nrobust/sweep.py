@@ -818,11 +818,12 @@ class RobustnessResult:
         }
 
     def __repr__(self) -> str:
-        head = "  ".join(f"q{lev:g}" for lev in self.levels)
+        width = max([len(c) for c in self.quantiles] + [6]) + 2
+        head = "".join(f"{f'q{lev:g}':>11}" for lev in self.levels)
         lines = [f"RobustnessResult({self.n_samples} samples, {self.n_failed} failed, seed={self.seed})",
-                 f"  {'':<14}{head}"]
+                 f"  {'':<{width}}{head}"]
         for col, vals in self.quantiles.items():
-            lines.append(f"  {col:<14}" + "  ".join(f"{v:.4g}" for v in vals))
+            lines.append(f"  {col:<{width}}" + "".join(f"{v:>11.4g}" for v in vals))
         return "\n".join(lines)
 
 
@@ -1275,21 +1276,32 @@ def _chart(result: SweepResult, swept: list[str], plot: dict[str, str], sampling
     if x is not None and x not in result.parameter_columns:
         raise ParameterError("plot.x", f"a swept parameter: one of {list(result.parameter_columns)}", x)
 
+    ok = table["status"] == "ok"
+    title = f"{result.n_ok} ok, {result.n_failed} failed"
+    if sampling and y is not None:
+        shown = [y, *[c for c in numeric if c != y]][:3]
+        fig = Figure(figsize=(4.0 * len(shown), 3.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        for i, col in enumerate(shown):
+            ax = fig.add_subplot(1, len(shown), i + 1)
+            vals = table[col][ok]
+            finite = vals[np.isfinite(vals)]
+            n_inf = int(np.sum(np.isposinf(vals)))
+            if finite.size:
+                ax.hist(finite, bins=max(5, min(50, 2 * int(np.sqrt(finite.size)))), color="C0")
+            else:
+                ax.text(0.5, 0.5, f"no finite {col}", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xlabel(col)
+            ax.set_ylabel("samples")
+            ax.set_title(f"{n_inf} infinite" if n_inf else "", fontsize="small")
+        fig.suptitle(title, fontsize="medium")
+        fig.savefig(path, dpi=120)
+        return path
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    ok = table["status"] == "ok"
-    title = f"{result.n_ok} ok, {result.n_failed} failed"
     if y is None:
         ax.text(0.5, 0.5, "no numeric result", ha="center", va="center", transform=ax.transAxes)
-    elif sampling:
-        vals = table[y][ok]
-        finite = vals[np.isfinite(vals)]
-        ax.hist(finite, bins=max(5, min(50, int(np.sqrt(max(1, finite.size))) * 2)), color="C0")
-        ax.set_xlabel(y)
-        ax.set_ylabel("samples")
-        n_inf = int(np.sum(np.isinf(vals)))
-        title += f", {n_inf} infinite {y}" if n_inf else ""
     elif x is not None and table.dtype[x].kind in "fiu" and len(varying) == 2 and table.dtype[varying[1]].kind in "fiu":
         x2 = varying[1] if x == varying[0] else varying[0]
         xs, ys = np.unique(table[x]), np.unique(table[x2])
