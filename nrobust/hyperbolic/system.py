@@ -1,0 +1,221 @@
+"""Boundary-controlled 2x2 heterodirectional hyperbolic systems.
+
+The plant of the reference paper, eqs. (u_pde)-(IC)::
+
+    u_t + lam u_x = sigma_pm(x) v,      u(t, 0) = q v(t, 0),
+    v_t - mu  v_x = sigma_mp(x) u,      v(t, 1) = rho u(t, 1) + U(t),
+
+on ``x in [0, 1]`` with ``lam, mu > 0`` and ``q != 0``. The in-domain couplings are
+numbers or callables on ``[0, 1]``; :class:`TransportSystem` is the uncoupled case of
+Section 2 (eqs. (u_pde_no_cou)-(IC_no_cou)).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Union
+
+import numpy as np
+
+from .._validate import finite_real, positive
+from ..errors import ParameterError
+
+__all__ = ["Coupling", "Hyperbolic2x2", "TransportSystem"]
+
+Coupling = Union[float, Callable[[np.ndarray], Any]]
+
+# Grid on which callable couplings are probed at construction.
+_PROBE = np.linspace(0.0, 1.0, 17)
+# Points at which callable couplings are tabulated by ``to_dict``.
+_SAMPLES = np.linspace(0.0, 1.0, 11)
+
+
+def _coupling_name(value: Coupling) -> str:
+    """Readable name of a coupling for ``repr``: the number, or the callable's name."""
+    if callable(value):
+        return f"<function {getattr(value, '__qualname__', type(value).__name__)}>"
+    return repr(value)
+
+
+def _call_vectorised(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.ndarray | None:
+    """Evaluate ``fun`` on the array ``x``; ``None`` if it does not act elementwise."""
+    try:
+        with np.errstate(all="ignore"):
+            out = np.asarray(fun(x))
+    except Exception:  # a scalar-only callable may raise anything on an array
+        return None
+    if out.shape != x.shape:
+        return None
+    if np.iscomplexobj(out):
+        if np.any(out.imag != 0):
+            raise ParameterError(name, "real-valued on [0, 1]", "complex values")
+        out = out.real
+    return out.astype(float)
+
+
+def _make_evaluator(name: str, value: Any) -> tuple[Coupling, Callable[[np.ndarray], np.ndarray]]:
+    """Check a coupling and return it with a vectorised evaluator on arrays of ``x``.
+
+    Numbers are returned as floats. A callable that does not act elementwise on arrays
+    is wrapped point by point. The evaluator is probed on a 17-point grid of ``[0, 1]``
+    and must return finite reals there.
+    """
+    if not callable(value):
+        if isinstance(value, (bool, np.bool_)) or not np.isscalar(value):
+            raise ParameterError(name, "a finite real number or a callable on [0, 1]", value)
+        number = finite_real(name, value)
+        return number, lambda x: np.full(np.shape(x), number)
+
+    def pointwise(x: np.ndarray) -> np.ndarray:
+        flat = [float(np.real_if_close(value(float(xi)))) for xi in np.ravel(x)]
+        return np.asarray(flat, dtype=float).reshape(np.shape(x))
+
+    def vectorised(x: np.ndarray) -> np.ndarray:
+        arr = np.asarray(x, dtype=float)
+        out = _call_vectorised(name, value, arr)
+        return pointwise(arr) if out is None else out
+
+    probe = _call_vectorised(name, value, _PROBE)
+    evaluator = vectorised if probe is not None else pointwise
+    if probe is None:
+        try:
+            probe = pointwise(_PROBE)
+        except (TypeError, ValueError):
+            raise ParameterError(name, "a callable returning real numbers on [0, 1]", value) from None
+    if not np.all(np.isfinite(probe)):
+        raise ParameterError(name, "finite on [0, 1] (checked on a 17-point grid)", value)
+    return value, evaluator
+
+
+@dataclass(frozen=True, repr=False)
+class Hyperbolic2x2:
+    """Two heterodirectional transport equations coupled in the domain, eqs. (u_pde)-(IC).
+
+    Parameters
+    ----------
+    lam, mu : float
+        Transport speeds, ``lam > 0`` rightwards for ``u``, ``mu > 0`` leftwards for ``v``.
+    sigma_pm, sigma_mp : float or callable
+        In-domain couplings ``sigma^{+-}(x)`` (source of ``u``) and ``sigma^{-+}(x)``
+        (source of ``v``): numbers or callables on ``[0, 1]`` returning finite reals.
+    q : float
+        Proximal reflection ``u(t, 0) = q v(t, 0)``, ``q != 0``.
+    rho : float
+        Distal reflection ``v(t, 1) = rho u(t, 1) + U(t)``.
+
+    Raises
+    ------
+    ParameterError
+        If a speed is not positive, ``q`` is zero, a number is not finite, or a coupling
+        is neither a number nor a callable with finite real values on a probe grid.
+    """
+
+    lam: float
+    mu: float
+    sigma_pm: Coupling
+    sigma_mp: Coupling
+    q: float
+    rho: float
+    _eval_pm: Callable[[np.ndarray], np.ndarray] = field(init=False, repr=False, compare=False)
+    _eval_mp: Callable[[np.ndarray], np.ndarray] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "lam", positive("lam", self.lam))
+        object.__setattr__(self, "mu", positive("mu", self.mu))
+        q = finite_real("q", self.q)
+        if q == 0.0:
+            raise ParameterError("q", "nonzero (the kernel boundary condition divides by q)", self.q)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "rho", finite_real("rho", self.rho))
+        for attr, evaluator in (("sigma_pm", "_eval_pm"), ("sigma_mp", "_eval_mp")):
+            value, fun = _make_evaluator(attr, getattr(self, attr))
+            object.__setattr__(self, attr, value)
+            object.__setattr__(self, evaluator, fun)
+
+    @property
+    def tau(self) -> float:
+        """Round-trip transport time ``1/lam + 1/mu``, eq. (eq_tau)."""
+        return 1.0 / self.lam + 1.0 / self.mu
+
+    @property
+    def rho_q(self) -> float:
+        """Open-loop gain ``rho * q`` of the principal (difference) part."""
+        return self.rho * self.q
+
+    @property
+    def constant_couplings(self) -> bool:
+        """True when both couplings are numbers (closed forms apply)."""
+        return not (callable(self.sigma_pm) or callable(self.sigma_mp))
+
+    @property
+    def uncoupled(self) -> bool:
+        """True when both couplings are the number zero."""
+        return self.constant_couplings and self.sigma_pm == 0.0 and self.sigma_mp == 0.0
+
+    def sigma_pm_at(self, x: Any) -> np.ndarray:
+        """``sigma^{+-}(x)`` on an array of ``x``, same shape."""
+        return self._eval_pm(np.asarray(x, dtype=float))
+
+    def sigma_mp_at(self, x: Any) -> np.ndarray:
+        """``sigma^{-+}(x)`` on an array of ``x``, same shape."""
+        return self._eval_mp(np.asarray(x, dtype=float))
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}(lam={self.lam!r}, mu={self.mu!r}, "
+            f"sigma_pm={_coupling_name(self.sigma_pm)}, sigma_mp={_coupling_name(self.sigma_mp)}, "
+            f"q={self.q!r}, rho={self.rho!r})"
+        )
+
+    def _coupling_dict(self, attr: str) -> float | dict[str, Any]:
+        value = getattr(self, attr)
+        if not callable(value):
+            return float(value)
+        at = self.sigma_pm_at if attr == "sigma_pm" else self.sigma_mp_at
+        return {
+            "callable": _coupling_name(value),
+            "x": _SAMPLES.tolist(),
+            "values": at(_SAMPLES).tolist(),
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description; callable couplings are tabulated on 11 points."""
+        return {
+            "type": type(self).__name__,
+            "lam": self.lam,
+            "mu": self.mu,
+            "sigma_pm": self._coupling_dict("sigma_pm"),
+            "sigma_mp": self._coupling_dict("sigma_mp"),
+            "q": self.q,
+            "rho": self.rho,
+            "tau": self.tau,
+            "rho_q": self.rho_q,
+        }
+
+
+@dataclass(frozen=True, repr=False)
+class TransportSystem(Hyperbolic2x2):
+    """Uncoupled transport equations, eqs. (u_pde_no_cou)-(IC_no_cou).
+
+    A :class:`Hyperbolic2x2` with ``sigma_pm = sigma_mp = 0``; its kernels vanish and
+    its delay form is ``1 - rho q e^{-tau s}`` (eq. (delay_eq_no_couplings)).
+
+    Parameters
+    ----------
+    lam, mu : float
+        Transport speeds, both ``> 0``.
+    q : float
+        Proximal reflection, ``q != 0``.
+    rho : float
+        Distal reflection.
+    """
+
+    lam: float
+    mu: float
+    q: float
+    rho: float
+    sigma_pm: Coupling = field(default=0.0, init=False)
+    sigma_mp: Coupling = field(default=0.0, init=False)
+
+    def __repr__(self) -> str:
+        return f"TransportSystem(lam={self.lam!r}, mu={self.mu!r}, q={self.q!r}, rho={self.rho!r})"
