@@ -540,9 +540,11 @@ def _classify_executor(executor: Any) -> str:
 
 
 def _progress_bar(total: int, progress: bool | None) -> Any:
-    from tqdm.auto import tqdm
+    """A text progress bar on stderr; by default shown in terminals and notebooks only."""
+    from tqdm import tqdm
 
-    show = sys.stderr.isatty() if progress is None else bool(progress)
+    interactive = sys.stderr.isatty() or "ipykernel" in sys.modules
+    show = interactive if progress is None else bool(progress)
     return tqdm(total=total, disable=not show, desc="sweep", unit="pt", file=sys.stderr)
 
 
@@ -581,7 +583,8 @@ def sweep(
     chunksize : int, optional
         Points per task; by default about four tasks per worker.
     progress : bool, optional
-        Show a tqdm progress bar on stderr. By default only when stderr is a terminal.
+        Show a tqdm progress bar on stderr. By default only when stderr is a terminal
+        or the code runs in a Jupyter kernel, so logs and batch jobs stay clean.
 
     Returns
     -------
@@ -616,6 +619,10 @@ def sweep(
         chunksize = int(chunksize)
     kind = _classify_executor(executor)
     pts = [dict(p) for p in points]
+    if kind == "pool" or isinstance(executor, ProcessPoolExecutor):
+        _check_picklable(func, pts, pickle.dumps, "worker processes")
+    elif kind == "dask":
+        _check_picklable(func, pts, _require_distributed("dask").protocol.pickle.dumps, "Dask workers")
 
     start = time.perf_counter()
     with _progress_bar(len(pts), progress) as bar:
@@ -629,7 +636,6 @@ def sweep(
             n_workers = _cpu_count() if executor is None else int(executor)
             size = chunksize or _auto_chunksize(len(pts), n_workers)
             chunks = _chunks(pts, size)
-            _check_picklable(func, pts, pickle.dumps, "worker processes")
             description = f"processes({n_workers})"
             with ProcessPoolExecutor(max_workers=min(n_workers, len(chunks))) as pool:
                 try:
@@ -640,13 +646,9 @@ def sweep(
         elif kind == "executor":
             n_workers = getattr(executor, "_max_workers", None) or _cpu_count()
             chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
-            if isinstance(executor, ProcessPoolExecutor):
-                _check_picklable(func, pts, pickle.dumps, "worker processes")
             description = f"executor({type(executor).__name__})"
             outcomes = list(itertools.chain.from_iterable(_run_on_futures_executor(executor, func, chunks, bar)))
         else:
-            distributed = _require_distributed("dask")
-            _check_picklable(func, pts, distributed.protocol.pickle.dumps, "Dask workers")
             with _dask_client(executor) as (client, description):
                 n_workers = sum(client.nthreads().values()) or 1
                 chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
@@ -1146,8 +1148,8 @@ def run_sweep_file(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
         Directory for ``sweep.csv``, ``sweep.json`` and ``sweep.png`` (created if
         needed).
     dask_address : str, optional
-        Address of a Dask scheduler (``"tcp://scheduler:8786"``); overrides the file's
-        ``executor``.
+        Address of a Dask scheduler (``"tcp://scheduler:8786"``, or ``"scheduler:8786"``
+        for TCP); overrides the file's ``executor``.
     progress : bool, optional
         As in :func:`sweep`.
 
@@ -1235,8 +1237,12 @@ def run_sweep_file(path: str | os.PathLike[str], out_dir: str | os.PathLike[str]
             if name not in given and routes.get(name) != section:
                 raise ParameterError(f"{section}.{name}", f"given in [{section}] or swept in [grid] / [sampling]")
 
-    executor = spec.get("executor") if dask_address is None else dask_address
-    if "executor" in spec and dask_address is None:
+    if dask_address is not None:
+        if not isinstance(dask_address, str) or ":" not in dask_address:
+            raise ParameterError("dask_address", "a Dask scheduler address such as 'tcp://scheduler:8786'", dask_address)
+        executor: Any = dask_address if dask_address.startswith(_DASK_SCHEMES) else f"tcp://{dask_address}"
+    else:
+        executor = spec.get("executor")
         _classify_executor(executor)
     chunksize = spec.get("chunksize")
     if chunksize is not None and (isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1):

@@ -123,6 +123,7 @@ def test_serial_processes_threads_and_dask_give_identical_results(dask_client):
         nrobust.sweep(analyse_point, POINTS),  # all cores
         nrobust.sweep(analyse_point, POINTS, 2, chunksize=3),
         nrobust.sweep(analyse_point, POINTS, dask_client, chunksize=1),
+        nrobust.sweep(analyse_point, POINTS, dask_client.scheduler.address),  # a client per call
     ]
     with ThreadPoolExecutor(2) as pool:
         runs.append(nrobust.sweep(analyse_point, POINTS, pool))
@@ -141,6 +142,13 @@ def test_dask_local_cluster_started_and_closed_by_the_call():
     res = nrobust.sweep(analyse_point, POINTS, "dask")
     assert res.executor.startswith("dask(LocalCluster")
     assert res == nrobust.sweep(analyse_point, POINTS, "serial")
+
+
+def test_progress_bar_on_request(capsys):
+    nrobust.sweep(analyse_point, POINTS, "serial", progress=True)
+    assert "8/8" in capsys.readouterr().err
+    nrobust.sweep(analyse_point, POINTS, "serial", progress=False)
+    assert capsys.readouterr().err == ""
 
 
 def test_wrong_return_type_is_a_recorded_failure():
@@ -372,3 +380,10 @@ rho = [0.5, 0.85]
     np.testing.assert_array_equal(np.isinf(t["delta_star"]), t["rho"] + t["K"] < 1)
     np.testing.assert_allclose(t["decay_rate"], -np.log(np.abs(t["rho"] - t["K"])) / 2.0, rtol=1e-8)
     assert out.png.stat().st_size > 0
+
+
+def test_sweep_file_bad_dask_address_is_named(tmp_path, toy_registry):
+    (tmp_path / "SWEEP.toml").write_text(GRID_TOML)
+    with pytest.raises(ParameterError) as info:
+        run_sweep_file(tmp_path / "SWEEP.toml", tmp_path / "out", dask_address="scheduler")
+    assert info.value.name == "dask_address"
