@@ -204,14 +204,15 @@ class PointFailure:
     message : str
         ``str(exception)``.
     traceback : str
-        The formatted traceback, as seen on the worker.
+        The formatted traceback, as seen on the worker (not compared by ``==``: its file
+        paths depend on the machine that ran the point).
     """
 
     index: int
     point: dict[str, Any]
     type: str
     message: str
-    traceback: str = field(repr=False)
+    traceback: str = field(repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of the failure."""
