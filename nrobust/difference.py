@@ -47,8 +47,10 @@ _MAX_DENOMINATOR = 1000
 _MAX_DEGREE = 4000
 # Roots of P closer than this (relative to |z|) are merged into one multiple root.
 _MULTIPLE_RTOL = 1e-6
-# Seeds used for the certified lower bound of c_D when the delays are incommensurate.
-_LOWER_BOUND_SEEDS = 64
+# Seeds (per chain, on the rightmost chains) for the certified lower bound of c_D when
+# the delays are incommensurate.
+_LOWER_BOUND_SEEDS = 32
+_LOWER_BOUND_CHAINS = 4
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:
@@ -400,7 +402,8 @@ class DifferenceOperator:
 
         rel = DifferenceOperator(self.coefs, self.relative_delays)
         approx = rel._approximation().chains()
-        seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in approx.chains])
+        right = approx.chains[:_LOWER_BOUND_CHAINS]
+        seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right])
         s = _newton_difference(rel, seeds)
         s = s[np.isfinite(s)]
         ok = np.abs(rel(s)) <= 1e-10 * np.sum(np.abs(rel.coefs)[:, None] * np.exp(-np.outer(rel.delays, s.real)), axis=0)
@@ -444,10 +447,16 @@ def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: 
     Steps are limited to length 1, so that a seed cannot be thrown far from its chain.
     """
     s = np.array(s, dtype=complex)
+    active = np.flatnonzero(np.isfinite(s))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for _ in range(iters):
-            e = np.exp(-np.outer(D.delays, s))
+            if not active.size:
+                break
+            x = s[active]
+            e = np.exp(-np.outer(D.delays, x))
             step = (D.coefs @ e) / (-(D.coefs * D.delays) @ e)
             step = np.where(np.abs(step) > 1.0, step / np.abs(step), step)
-            s = np.where(np.isfinite(step), s - step, np.nan)
+            good = np.isfinite(step)
+            s[active] = np.where(good, x - step, np.nan)
+            active = active[good & (np.abs(step) > 4 * np.finfo(float).eps * (1 + np.abs(x)))]
     return s

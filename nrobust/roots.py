@@ -43,6 +43,8 @@ _MIN_STEP = 1e-13
 # Initial number of steps per edge.
 _INITIAL_STEPS = 8
 _SIDES = ("bottom", "right", "top", "left")
+# Root-finding strategies of find_roots (see its docstring).
+METHODS = ("auto", "subdivision")
 
 
 # ====================================================================== counting engine
@@ -83,10 +85,41 @@ class _Edges:
     blocked: NDArray[np.bool_]  # True where a root lies on or too near the segment
 
 
+def _first_order_ok(bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+    """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding)."""
+    room = np.minimum(np.abs(st["fa"]) - _ROUNDING * st["ma"], np.abs(st["fb"]) - _ROUNDING * st["mb"])
+    return bound * np.abs(st["b"] - st["a"]) * 0.5 < room
+
+
+def _second_order_ok(bound2: NDArray, bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+    """Step rule of order 2, for steps near a root where order 1 needs tiny steps.
+
+    With ``M2`` a bound of ``|F''|`` on the step, ``F(a + t) = F(a) + F'(a) t + R(t)`` with
+    ``|R| <= M2 |t|^2 / 2``: ``F`` stays in the tube of that radius about the segment
+    ``[F(a), F(a) + F'(a) h]``. If the segment's distance to 0 exceeds the radius, the
+    tube is a convex set without 0, hence in an open half-plane, and the change of
+    argument over the step is again the principal value of ``arg(F(b) / F(a))``.
+    """
+    h = st["b"] - st["a"]
+    p0, v = st["fa"], st["dfa"] * h
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(-np.real(np.conj(v) * p0) / np.abs(v) ** 2, 0.0, 1.0)
+    dist = np.abs(p0 + np.nan_to_num(t) * v)
+    slack = _ROUNDING * (st["ma"] + bound * np.abs(h))
+    return bound2 * np.abs(h) ** 2 * 0.5 + slack < dist
+
+
+def _take(st: dict[str, NDArray], mask: NDArray[np.bool_]) -> dict[str, NDArray]:
+    return {k: v[mask] for k, v in st.items()}
+
+
 def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _Budget, labels: Sequence[str]) -> _Edges:
     """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
 
-    All segments are refined together; only the steps that fail the step rule are halved.
+    All segments are refined together; only the steps that fail both step rules
+    (:func:`_first_order_ok`, :func:`_second_order_ok`) are halved. The order-2 rule
+    (one evaluation of ``F'`` and a bound of ``|F''|``) is tried only on steps that fail
+    the order-1 rule by a factor above 4, i.e. close to a root.
     """
     n_edges = starts.size
     t = np.linspace(0.0, 1.0, _INITIAL_STEPS + 1)
@@ -95,38 +128,54 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
     budget.spend(pts.size, "sampling contour edges")
     fv = F(pts)
     mag = _magnitude(F, pts)
-    a, b = pts[:, :-1].ravel(), pts[:, 1:].ravel()
-    fa, fb = fv[:, :-1].ravel(), fv[:, 1:].ravel()
-    ma, mb = mag[:, :-1].ravel(), mag[:, 1:].ravel()
-    owner = np.repeat(np.arange(n_edges), _INITIAL_STEPS)
+    st = {
+        "a": pts[:, :-1].ravel(), "b": pts[:, 1:].ravel(),
+        "fa": fv[:, :-1].ravel(), "fb": fv[:, 1:].ravel(),
+        "ma": mag[:, :-1].ravel(), "mb": mag[:, 1:].ravel(),
+        "dfa": np.full(n_edges * _INITIAL_STEPS, np.nan, dtype=complex),
+        "owner": np.repeat(np.arange(n_edges), _INITIAL_STEPS),
+    }
     turns = np.zeros(n_edges)
     blocked = np.zeros(n_edges, dtype=bool)
-    blocked[np.unique(owner[(np.abs(fa) <= _NEAR_ZERO * ma) | (np.abs(fb) <= _NEAR_ZERO * mb)])] = True
-    while a.size:
-        live = ~blocked[owner]
-        a, b, fa, fb, ma, mb, owner = a[live], b[live], fa[live], fb[live], ma[live], mb[live], owner[live]
-        if not a.size:
+    near = (np.abs(st["fa"]) <= _NEAR_ZERO * st["ma"]) | (np.abs(st["fb"]) <= _NEAR_ZERO * st["mb"])
+    blocked[np.unique(st["owner"][near])] = True
+    dF: QuasiPolynomial | None = None
+    while st["a"].size:
+        st = _take(st, ~blocked[st["owner"]])
+        if not st["a"].size:
             break
-        budget.spend(a.size, f"bounding |F'| on the {_edge_label(labels, owner[0])}")
-        bound = F.deriv_bound(a, b) * (1.0 + 1e-12)
-        room = np.minimum(np.abs(fa) - _ROUNDING * ma, np.abs(fb) - _ROUNDING * mb)
-        ok = bound * np.abs(b - a) * 0.5 < room
-        turns += np.bincount(owner[ok], weights=np.angle(fb[ok] / fa[ok]), minlength=n_edges)
-        bad = ~ok
-        a, b, fa, fb, ma, mb, owner = a[bad], b[bad], fa[bad], fb[bad], ma[bad], mb[bad], owner[bad]
-        if not a.size:
+        what = f"bounding |F'| on the {_edge_label(labels, int(st['owner'][0]))}"
+        budget.spend(st["a"].size, what)
+        bound = F.deriv_bound(st["a"], st["b"]) * (1.0 + 1e-12)
+        ok = _first_order_ok(bound, st)
+        room = np.minimum(np.abs(st["fa"]), np.abs(st["fb"]))
+        close = ~ok & (bound * np.abs(st["b"] - st["a"]) > 8.0 * room)
+        if np.any(close):
+            dF = F.derivative() if dF is None else dF
+            idx = np.flatnonzero(close)
+            need = idx[np.isnan(st["dfa"][idx])]
+            budget.spend(2 * idx.size, what.replace("|F'|", "|F''|"))
+            st["dfa"][need] = F.deriv(st["a"][need])
+            sub = _take(st, close)
+            ok[idx] = _second_order_ok(dF.deriv_bound(sub["a"], sub["b"]) * (1.0 + 1e-12), bound[idx], sub)
+        turns += np.bincount(st["owner"][ok], weights=np.angle(st["fb"][ok] / st["fa"][ok]), minlength=n_edges)
+        st = _take(st, ~ok)
+        if not st["a"].size:
             break
-        too_short = np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))
-        blocked[np.unique(owner[too_short])] = True
+        a, b = st["a"], st["b"]
+        blocked[np.unique(st["owner"][np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
         mid = 0.5 * (a + b)
-        budget.spend(mid.size, f"refining the {_edge_label(labels, owner[0])}")
+        budget.spend(mid.size, f"refining the {_edge_label(labels, int(st['owner'][0]))}")
         fm = F(mid)
         mm = _magnitude(F, mid)
-        blocked[np.unique(owner[np.abs(fm) <= _NEAR_ZERO * mm])] = True
-        a, b = np.concatenate([a, mid]), np.concatenate([mid, b])
-        fa, fb = np.concatenate([fa, fm]), np.concatenate([fm, fb])
-        ma, mb = np.concatenate([ma, mm]), np.concatenate([mm, mb])
-        owner = np.concatenate([owner, owner])
+        blocked[np.unique(st["owner"][np.abs(fm) <= _NEAR_ZERO * mm])] = True
+        st = {
+            "a": np.concatenate([a, mid]), "b": np.concatenate([mid, b]),
+            "fa": np.concatenate([st["fa"], fm]), "fb": np.concatenate([fm, st["fb"]]),
+            "ma": np.concatenate([st["ma"], mm]), "mb": np.concatenate([mm, st["mb"]]),
+            "dfa": np.concatenate([st["dfa"], np.full(mid.size, np.nan, dtype=complex)]),
+            "owner": np.concatenate([st["owner"], st["owner"]]),
+        }
     return _Edges(turns / (2 * np.pi), blocked)
 
 
@@ -320,8 +369,8 @@ def _newton(F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max
             break
         budget.spend(2 * act.size, "refining roots by Newton's method")
         x = s[act]
-        f, d = F(x), F.deriv(x)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            f, d = F(x), F.deriv(x)
             step = f / d
         bad = ~np.isfinite(step)
         alive[act[bad]] = False
@@ -709,6 +758,7 @@ def find_roots(
     *,
     cluster_tol: float = 1e-6,
     seeds: ArrayLike | None = None,
+    method: str = "auto",
     max_evals: int = 5_000_000,
 ) -> RootSet:
     """All roots of ``F`` in a rectangle, certified complete.
@@ -722,6 +772,11 @@ def find_roots(
         multiple root and a tight cluster are indistinguishable in floating point).
     seeds : array_like of complex, optional
         Extra starting points for Newton's method.
+    method : {"auto", "subdivision"}, optional
+        ``"auto"`` seeds Newton's method from the chains and a grid first and subdivides
+        only what remains; ``"subdivision"`` bisects the region from the start, with
+        Newton's method in every box that holds roots not yet accepted (slower; both
+        are certified).
     max_evals : int, optional
         Work bound (evaluations of ``F``, ``F'`` and derivative bounds).
 
@@ -751,19 +806,24 @@ def find_roots(
     F = _check_function(F)
     box = _check_region(region)
     cluster_tol = positive("cluster_tol", cluster_tol)
+    if method not in METHODS:
+        raise ParameterError("method", f"one of {METHODS}", method)
     max_evals = positive_int("max_evals", max_evals)
     budget = _Budget(max_evals)
     finder = _Finder(F, box, cluster_tol, budget)
     total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
     finder.region = reg
+    leaves: list[tuple[Region, int]] = []
     if total > 0:
         extra = np.zeros(0, dtype=complex) if seeds is None else np.atleast_1d(np.asarray(seeds, dtype=complex)).ravel()
-        finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
-        if finder.found.total() < total:
-            finder.seed_and_accept(finder.grid_seeds(reg, 4 * total + 16), 1.0)
-        leaves = finder.subdivide(total) if finder.found.total() != total else []
-    else:
-        leaves = []
+        if method == "auto":
+            finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
+            if finder.found.total() < total:
+                finder.seed_and_accept(finder.grid_seeds(reg, 4 * total + 16), 1.0)
+        else:
+            finder.seed_and_accept(extra, 1.0)
+        if finder.found.total() != total:
+            leaves = finder.subdivide(total)
     return _result(finder, total, reg, shifted, leaves)
 
 
@@ -871,9 +931,10 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
     ``|s| = R``, ``Re s >= x``: ``|p_0(s) e^{-tau_0 s}| >= (|c_0n| - sum_{j<n} |c_0j|
     R^(j-n)) R^n e^{-tau_0 Re s}`` exceeds the sum of the moduli of the other terms when
     ``|c_0n| - sum_{j<n} |c_0j| R^(j-n) > sum_{k>=1} sum_j |c_kj| R^(j-n)
-    e^{-(tau_k - tau_0) x} + sum_dist sum_j |q_j| R^(j-n) int |N| e^{-(nu - tau_0) x}``.
-    Both sides are monotone in ``R`` and ``x`` (all delays are ``>= tau_0``), so the
-    inequality at ``(R, x)`` holds on the whole set.
+    e^{-(tau_k - tau_0) x} + sum_dist sum_j |q_j| R^(j-n) e^{tau_0 x} B(x, R)`` with
+    ``B = min(int |N| e^{-nu x}, V(x) / R)`` (``V``: the integration-by-parts bound
+    ``DistributedDelay.variation_bound``). Both sides are monotone in ``R`` and ``x``
+    (all delays are ``>= tau_0``), so the inequality at ``(R, x)`` holds on the whole set.
     """
     n = F.degree
     (p0, tau0), rest = F.point_terms[0], F.point_terms[1:]
@@ -884,7 +945,11 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
     for p, t in rest:
         rhs += powers[:, : p.size] @ np.abs(p) * np.exp(-(t - tau0) * x)
     for d in F.distributed:
-        rhs += powers[:, : d.poly.size] @ np.abs(d.poly) * float(d.abs_moment(np.array([x]), 0)[0]) * np.exp(tau0 * x)
+        xa = np.array([x])
+        dist = np.full(R.size, float(d.abs_moment(xa, 0)[0]))
+        if d.moment == 0:  # integration by parts: |int N e^{-nu s}| <= V(Re s) / |s|
+            dist = np.minimum(dist, float(d.variation_bound(xa)[0]) / R)
+        rhs += powers[:, : d.poly.size] @ np.abs(d.poly) * dist * np.exp(tau0 * x)
     ok = lhs > rhs * (1 + 1e-12)
     return float(R[np.argmax(ok)]) if ok.any() else None
 
@@ -965,10 +1030,15 @@ def _neutral_abscissa(
     F: QuasiPolynomial, D: Any, x_min: float, x_right: float, radius: float, real: bool,
     im_max: float | None, chain_value: float, cluster_tol: float, max_evals: int,
 ) -> SpectralAbscissa:
-    y = radius
     x_min_r = _root_free_radius(F, x_min)
-    if x_min_r is not None:
-        y = max(y, x_min_r)
+    step = x_min - D.strong_spectral_bound()
+    for _ in range(8):  # distributed terms may need a wider margin than C_D alone
+        if x_min_r is not None:
+            break
+        x_min += step
+        step *= 2
+        x_min_r = _root_free_radius(F, x_min)
+    y = radius if x_min_r is None else max(radius, x_min_r)
     right = (x_min, max(x_right, radius) + 1.0, *_band(y, real))
     roots = find_roots(F, right, cluster_tol=cluster_tol, max_evals=max_evals)
     complete = roots.certified and x_min_r is not None
@@ -976,7 +1046,7 @@ def _neutral_abscissa(
         return _abscissa_from(roots, chain_value, x_min if complete else np.inf, complete, upper_from_roots=complete)
     chains = D.chains()
     period = chains.chains[0].spacing if chains.commensurate and chains.chains else 2 * np.pi / max(F.max_delay, 1e-3)
-    height = float(im_max) if im_max is not None else max(y, 50.0, 10 * period)
+    height = float(im_max) if im_max is not None else max(y, 100.0, 2 * period)
     low = (min(chain_value, x_min) - 0.5, x_min, *_band(height, real))
     roots = find_roots(F, low, cluster_tol=cluster_tol, max_evals=max_evals)
     return _abscissa_from(roots, chain_value, x_min if complete else np.inf, roots.certified and complete)

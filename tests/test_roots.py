@@ -40,14 +40,15 @@ def test_single_delay_closed_form(a: float, tau: float) -> None:
 
 
 # ---------------------------------------------------------------- s + a + b e^{-tau s}
+@pytest.mark.parametrize("method", ["auto", "subdivision"])
 @pytest.mark.parametrize("a, b, tau", [(1.0, 2.0, 1.0), (-0.5, 0.3, 2.0), (0.2, -1.5, 0.5), (0.0, 1.0, 1.0)])
-def test_lambert_w(a: float, b: float, tau: float) -> None:
+def test_lambert_w(a: float, b: float, tau: float, method: str) -> None:
     F = QuasiPolynomial([[a, 1.0], [b]], [0.0, tau])
     region = (-6.0, 3.0, -30.0, 30.0)
     k = np.arange(-30, 31)
     exact = _in(-a + lambertw(-b * tau * np.exp(a * tau), k=k) / tau, region)
     exact = np.unique(np.round(exact, 12))
-    roots = find_roots(F, region)
+    roots = find_roots(F, region, method=method)
     assert roots.certified and roots.count == exact.size
     assert _match(roots.roots, exact) < 1e-11
 
@@ -61,12 +62,13 @@ def _neutral_exact(region: tuple[float, float, float, float]) -> np.ndarray:
     return _in((base[:, None] + 2j * np.pi * k[None, :] / 0.1).ravel(), region)
 
 
-def test_neutral_64_roots() -> None:
+@pytest.mark.parametrize("method", ["auto", "subdivision"])
+def test_neutral_64_roots(method: str) -> None:
     region = (-3.0, 1.0, -0.5, 200.0)
     exact = _neutral_exact(region)
     assert exact.size == 64
     assert int(count_roots(NEUTRAL, region)) == 64
-    roots = find_roots(NEUTRAL, region)
+    roots = find_roots(NEUTRAL, region, method=method)
     assert roots.certified and roots.count == 64 and len(roots) == 64
     assert np.all(roots.multiplicities == 1)
     assert _match(roots.roots, exact) < 1e-10
@@ -84,14 +86,15 @@ def test_neutral_tall_strip() -> None:
 
 
 # ---------------------------------------------------------------- multiplicities
+@pytest.mark.parametrize("method", ["auto", "subdivision"])
 @pytest.mark.parametrize("a", [0.5, 2.0])
-def test_double_roots_expanded_square(a: float) -> None:
+def test_double_roots_expanded_square(a: float, method: str) -> None:
     # (1 - a e^{-s})^2: double roots at ln a + 2 pi i k
     F = QuasiPolynomial([[1.0], [-2 * a], [a * a]], [0.0, 1.0, 2.0])
     region = (-2.0, 2.0, -1.0, 20.0)
     exact = _in(np.log(a) + 2j * np.pi * np.arange(0, 4), region)
     assert int(count_roots(F, region)) == 2 * exact.size
-    roots = find_roots(F, region)
+    roots = find_roots(F, region, method=method)
     assert roots.certified and roots.count == 2 * exact.size
     assert np.all(roots.multiplicities == 2)
     assert _match(roots.roots, exact) < 1e-9
@@ -215,6 +218,9 @@ def test_bad_function_and_options() -> None:
     with pytest.raises(ParameterError) as err:
         find_roots(NEUTRAL, (0, 1, 0, 1), cluster_tol=-1.0)
     assert err.value.name == "cluster_tol"
+    with pytest.raises(ParameterError) as err:
+        find_roots(NEUTRAL, (0, 1, 0, 1), method="newton")
+    assert err.value.name == "method"
     with pytest.raises(ParameterError) as err:
         count_roots(NEUTRAL, (0, 1, 0, 1), max_evals=0)
     assert err.value.name == "max_evals"
