@@ -31,8 +31,8 @@ is no crossing, and no root with ``Re s >= 0``, for any delta. On ``[0, W]`` the
 ``h(w) = |A(i w)| - |B(i w)|`` is explored with a certified exclusion test: with ``L`` a
 bound of ``|A'| + |B'|`` on a segment (``QuasiPolynomial.deriv_bound``),
 ``|h(w_i)| + |h(w_{i+1})| > L (w_{i+1} - w_i)`` proves that ``h`` has no zero on it;
-the other segments are cut (eightfold per round) down to a relative width ``1e-9``, where sign changes are
-refined by Brent's method to ``1e-12`` and sign-preserving clusters (tangential touches,
+the other segments are cut (eightfold per round) down to a relative width ``1e-7``, where sign changes are
+refined by a safeguarded secant method to ``1e-12`` and sign-preserving clusters (tangential touches,
 double roots of ``h``) are reported as tangential crossings.
 """
 
@@ -43,10 +43,10 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from ._validate import finite_real, nonnegative, positive, positive_int
-from .errors import CertificationError, ParameterError
+from .errors import CertificationError, ConvergenceError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .rouche import TailBound, joint_degree, principal_gap, radius_where
 
@@ -62,10 +62,18 @@ __all__ = [
 _LIPSCHITZ_BLOCKS = 64
 # Segments are halved down to this width relative to max(1, W) before they are
 # classified as holding a crossing.
-_MIN_WIDTH = 1e-9
+_MIN_WIDTH = 1e-7
+# Uniform refinements (at most _UNIFORM_PASSES) divide the grid by the factor that lets
+# this quantile of its segments pass the exclusion test, up to _UNIFORM_MAX segments per
+# Lipschitz block.
+_UNIFORM_QUANTILE = 0.99
+_UNIFORM_PASSES = 3
+_UNIFORM_MAX = 1024
 # Each unresolved segment is cut into this many pieces per round.
 _SPLIT = 8
-# Brent's method tolerance on the crossing frequency (absolute, times max(1, w)).
+# Work bound of the bracket refinement.
+_MAX_REFINE = 200
+# Tolerance on the crossing frequency (absolute, times max(1, w)).
 _XTOL = 1e-12
 # Relative tolerance under which a crossing delay counts as delta = 0, and under which
 # A(0) + B(0) counts as zero.
@@ -170,14 +178,32 @@ class CrossingSearch:
 
 
 class _AxisFunction:
-    """``h(w) = |A(i w)| - |B(i w)|`` with an evaluation counter and a work bound."""
+    """``h(w) = |A(i w)| - |B(i w)|`` with an evaluation counter and a work bound.
+
+    Kernels shared by ``A`` and ``B`` (``I_N`` in both factors of every controller of
+    the paper) are evaluated once per frequency.
+    """
 
     def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int) -> None:
-        self.A, self.B = A, B
+        self.points = [QuasiPolynomial(P.coefs, P.delays) if P.point_terms else None for P in (A, B)]
+        kernels: dict[tuple, tuple[DistributedDelay, list[complex]]] = {}
+        for side, P in enumerate((A, B)):
+            for d in P.distributed:
+                const = d.poly.size == 1
+                poly = np.ones(1) if const else d.poly
+                key = (d.nodes.tobytes(), d.values.tobytes(), poly.tobytes(), d.moment)
+                if key not in kernels:
+                    kernels[key] = (DistributedDelay(d.nodes, d.values, poly, d.moment), [0.0, 0.0])
+                kernels[key][1][side] += complex(d.poly[0]) if const else 1.0
+        self.kernels = list(kernels.values())
         self.evals = 0
         self.max_evals = max_evals
 
     def __call__(self, w: NDArray[np.float64]) -> NDArray[np.float64]:
+        return self.with_scale(w)[0]
+
+    def with_scale(self, w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``h(w)`` and ``|A(i w)| + |B(i w)|`` (the scale of its rounding error)."""
         w = np.asarray(w, dtype=float)
         self.evals += w.size
         if self.evals > self.max_evals:
@@ -186,7 +212,12 @@ class _AxisFunction:
                 "(raise max_evals)"
             )
         s = 1j * w
-        return np.abs(self.A(s)) - np.abs(self.B(s))
+        vals = [np.zeros(s.shape, dtype=complex) if P is None else P(s) for P in self.points]
+        for d, (ca, cb) in self.kernels:
+            k = d(s)
+            vals[0] = vals[0] + ca * k
+            vals[1] = vals[1] + cb * k
+        return np.abs(vals[0]) - np.abs(vals[1]), np.abs(vals[0]) + np.abs(vals[1])
 
     def scalar(self, w: float) -> float:
         return float(self(np.array([w]))[0])
@@ -269,6 +300,16 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
     hv = h(grid)
     edges = np.linspace(lo, hi, nb + 1)
     Lb = L_of(edges[:-1], edges[1:])
+    # One uniform refinement (evaluated as a chirp-z transform) sized so that most
+    # segments pass the exclusion test at once; the rest is refined adaptively.
+    for _ in range(_UNIFORM_PASSES):
+        need = np.repeat(Lb, per_block) * np.diff(grid) / np.maximum(np.abs(hv[:-1]) + np.abs(hv[1:]), 1e-300)
+        factor = int(np.clip(np.ceil(np.quantile(need, _UNIFORM_QUANTILE)), 1, _UNIFORM_MAX // per_block))
+        if factor <= 1:
+            break
+        per_block *= factor
+        grid = np.linspace(lo, hi, nb * per_block + 1)
+        hv = h(grid)
     wl, wr, hl, hr = grid[:-1], grid[1:], hv[:-1], hv[1:]
     blk = np.repeat(np.arange(nb), per_block)
     min_width = _MIN_WIDTH * max(1.0, hi - lo)
@@ -303,6 +344,7 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
     HR = np.concatenate(final_hr)[order]
     roots: list[float] = []
     tangential: list[bool] = []
+    brackets: list[tuple[float, float, float, float]] = []
     i = 0
     while i < L.size:  # clusters of contiguous unresolved segments
         j = i
@@ -310,27 +352,52 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
             j += 1
         pts = np.concatenate([L[i : j + 1], R[j : j + 1]])
         vals = np.concatenate([HL[i : j + 1], HR[j : j + 1]])
-        signs = np.sign(vals)
-        found = False
-        for k in range(pts.size - 1):
-            if vals[k] == 0.0:
-                roots.append(float(pts[k]))
-                tangential.append(False)
-                found = True
-            elif signs[k] * signs[k + 1] < 0:
-                roots.append(float(brentq(h.scalar, pts[k], pts[k + 1], xtol=_XTOL * max(1.0, abs(pts[k])), rtol=4 * np.finfo(float).eps)))
-                tangential.append(False)
-                found = True
-        if vals[-1] == 0.0:
-            roots.append(float(pts[-1]))
-            tangential.append(False)
-            found = True
-        if not found:  # |h| small without a sign change: a touch (or a near-touch), kept conservatively
+        zero = vals == 0.0
+        change = np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)
+        roots += [float(w) for w in pts[zero]]
+        tangential += [False] * int(np.count_nonzero(zero))
+        brackets += [(pts[k], pts[k + 1], vals[k], vals[k + 1]) for k in change]
+        if not zero.any() and not change.size:  # |h| small without a sign change: a touch, kept conservatively
             res = minimize_scalar(lambda w: abs(h.scalar(w)), bounds=(pts[0], pts[-1]), method="bounded", options={"xatol": _XTOL})
             roots.append(float(res.x))
             tangential.append(True)
         i = j + 1
+    if brackets:
+        roots += list(_refine(h, *(np.array(v, dtype=float) for v in zip(*brackets))))
+        tangential += [False] * len(brackets)
     return roots, tangential
+
+
+def _refine(h: _AxisFunction, a: NDArray, b: NDArray, ha: NDArray, hb: NDArray) -> NDArray[np.float64]:
+    """Zeros of ``h`` in the sign-change brackets ``[a, b]``, all at once.
+
+    Safeguarded secant (regula falsi, midpoint when the secant point falls in the outer
+    tenths or on every third step): the bracket at least halves every three steps, and a
+    bracket is done when narrower than ``_XTOL max(1, |w|)`` or when ``|h|`` reaches the
+    rounding level of ``|A| + |B|``.
+    """
+    x = 0.5 * (a + b)
+    done = np.zeros(a.shape, dtype=bool)
+    for it in range(_MAX_REFINE):
+        width = b - a
+        done |= width <= _XTOL * np.maximum(1.0, np.abs(a))
+        act = np.flatnonzero(~done)
+        if not act.size:
+            return x
+        aa, bb, fa, fb = a[act], b[act], ha[act], hb[act]
+        sec = bb - fb * (bb - aa) / (fb - fa)
+        mid = 0.5 * (aa + bb)
+        inner = (sec > aa + 0.1 * (bb - aa)) & (sec < bb - 0.1 * (bb - aa))
+        xn = np.where(inner & (it % 3 != 2), sec, mid)
+        fx, scale = h.with_scale(xn)
+        x[act] = xn
+        left = np.sign(fx) == np.sign(fa)
+        a[act] = np.where(left, xn, aa)
+        ha[act] = np.where(left, fx, fa)
+        b[act] = np.where(left, bb, xn)
+        hb[act] = np.where(left, fb, fx)
+        done[act] |= np.abs(fx) <= 8 * np.finfo(float).eps * scale
+    raise ConvergenceError(f"crossing refinement: {int(np.count_nonzero(~done))} brackets not resolved in {_MAX_REFINE} steps")
 
 
 def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int = 2_000_000) -> CrossingSearch:
