@@ -912,30 +912,32 @@ def robustness(
 
 @dataclass(frozen=True)
 class _Analysis:
-    """An analysis of ``run_sweep_file``: which nrobust function it calls and its options.
+    """An analysis of ``run_sweep_file``: the nrobust function it calls and its result columns.
 
-    ``target`` is looked up in the ``nrobust`` namespace when the analysis runs; its
-    keyword parameters after the first ``n_positional`` ones are the analysis options,
-    with ``own`` options handled here (``delta`` of ``spectral_abscissa``).
+    ``target`` is looked up by name when the analysis runs. It is called as
+    ``target(system, controller, **options)``, or, when ``on_characteristic``, as
+    ``target(characteristic(system, controller, delta), **options)`` with the loop delay
+    ``delta`` (default 0) as one more option. The options are the keyword parameters of
+    ``target`` after those arguments.
     """
 
     target: str
-    n_positional: int
-    own: tuple[str, ...]
     columns: Callable[[Any], dict[str, Any]]
+    on_characteristic: bool = False
 
     def options(self) -> set[str] | None:
         """Accepted option names (``None``: any, the target takes ``**kwargs``)."""
         params = list(inspect.signature(_nrobust_function(self.target)).parameters.values())
         if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
             return None
-        rest = params[self.n_positional:]
-        names = {p.name for p in rest if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)}
-        return names | set(self.own)
+        rest = params[1 if self.on_characteristic else 2:]
+        kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+        names = {p.name for p in rest if p.kind in kinds}
+        return names | {"delta"} if self.on_characteristic else names
 
     def __call__(self, system: Any, controller: Any, **options: Any) -> dict[str, Any]:
         fn = _nrobust_function(self.target)
-        if self.target == "spectral_abscissa":
+        if self.on_characteristic:
             delta = options.pop("delta", 0.0)
             value = fn(_nrobust_function("characteristic")(system, controller, delta), **options)
         else:
@@ -956,8 +958,8 @@ def _abscissa_columns(result: Any) -> dict[str, Any]:
 #: Analyses that ``run_sweep_file`` knows by name. Each runs one nrobust function, looked
 #: up in the ``nrobust`` namespace at call time, on the system and controller of a point.
 ANALYSES: dict[str, _Analysis] = {
-    "delay_margin": _Analysis("delay_margin", 2, (), _margin_columns),
-    "spectral_abscissa": _Analysis("spectral_abscissa", 1, ("delta",), _abscissa_columns),
+    "delay_margin": _Analysis("delay_margin", _margin_columns),
+    "spectral_abscissa": _Analysis("spectral_abscissa", _abscissa_columns, on_characteristic=True),
 }
 _SYSTEM_TYPES = ("TransportSystem", "Hyperbolic2x2")
 _CONTROLLER_TYPES = ("OpenLoop", "FiniteTimeController", "ReflectionController", "FilteredController")
@@ -1126,8 +1128,8 @@ def _route_names(keys: Sequence[str], section: str, sys_names: set[str], ctl_nam
     routes = {}
     for key in keys:
         homes = [h for h, names in (("system", sys_names), ("controller", ctl_names)) if key in names]
-        if option_names is None or key in option_names:
-            homes.append("options")
+        if (option_names is not None and key in option_names) or (option_names is None and not homes):
+            homes.append("options")  # an analysis taking **kwargs receives the names no plant or controller takes
         if not homes:
             allowed = sorted(sys_names | ctl_names | (option_names or set()))
             raise ParameterError(f"{section}.{key}", f"a parameter of [system], [controller] or an analysis option: one of {allowed}", key)
