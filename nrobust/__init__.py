@@ -12,6 +12,7 @@ from .errors import CertificationError, ConvergenceError, NrobustError, Paramete
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .difference import DifferenceOperator
 from .roots import RootSet, count_roots, find_roots, spectral_abscissa
+from .hyperbolic import DelayForm, Hyperbolic2x2, Kernels, TransportSystem, boundary_function, delay_form, solve_kernels
 from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredController, FiniteTimeController, OpenLoop, ReflectionController, characteristic, classify, loop_factors)
 from .hyperbolic.simulate import Simulation, simulate
 from .sweep import SweepResult, grid, robustness, sweep

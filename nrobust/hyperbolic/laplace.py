@@ -19,17 +19,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
-
-from ..errors import ConvergenceError, ParameterError
+from .._validate import positive_int
+from ..errors import ParameterError
 from .system import Hyperbolic2x2
 
-__all__ = ["boundary_function"]
+__all__ = ["boundary_function", "magnus_steps"]
 
-# Tolerances of the ODE route (varying couplings). Against the closed form on constant
-# couplings the route is accurate to about 1e-10 relative for |s| <= 300.
-_RTOL = 1e-12
-_ATOL = 1e-14
+# Default Magnus steps (varying couplings): at least _MIN_STEPS, and _STEPS_PER_PHASE
+# per unit of |s| tau. Measured: absolute error about 1e-9 for |s| <= 200 (the method is
+# fourth order; halving the step divides the error by 16).
+_MIN_STEPS = 200
+_STEPS_PER_PHASE = 5.0
 # Below this |Delta| the function sinh(Delta)/Delta is evaluated by its Taylor series.
 _SERIES_RADIUS = 1e-2
 
@@ -66,33 +66,60 @@ def _constant_scaled(system: Hyperbolic2x2, s: np.ndarray) -> tuple[np.ndarray, 
     return u1, v1
 
 
-def _ode_scaled(system: Hyperbolic2x2, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``e^{-s/mu} [u(1, s); v(1, s)]`` by an adaptive 8th-order Runge-Kutta (DOP853).
+def _expm2(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Entries of ``exp([[a, b], [c, d]])`` (elementwise arrays), in closed form."""
+    m = 0.5 * (a + d)
+    delta = np.sqrt((0.5 * (a - d)) ** 2 + b * c)
+    e_plus, e_minus = np.exp(m + delta), np.exp(m - delta)
+    cosh = 0.5 * (e_plus + e_minus)
+    small = np.abs(delta) < _SERIES_RADIUS
+    safe = np.where(small, 1.0, delta)
+    d2 = delta * delta
+    series = np.exp(m) * (1.0 + d2 / 6.0 * (1.0 + d2 / 20.0 * (1.0 + d2 / 42.0 * (1.0 + d2 / 72.0))))
+    sinhc = np.where(small, series, (e_plus - e_minus) / (2.0 * safe))
+    return cosh + sinhc * (a - m), sinhc * b, sinhc * c, cosh + sinhc * (d - m)
 
-    Integrates ``z = e^{-s x / mu} [u; v]``, ``z' = (A(x, s) - s/mu I) z``, for all ``s``
-    at once (one stacked system), with ``rtol = 1e-12``.
+
+def magnus_steps(system: Hyperbolic2x2, s: np.ndarray) -> int:
+    """Default number of Magnus steps on ``[0, 1]`` for the frequencies ``s``."""
+    top = float(np.max(np.abs(s))) if s.size else 0.0
+    return max(_MIN_STEPS, int(np.ceil(_STEPS_PER_PHASE * top * system.tau)))
+
+
+def _magnus_scaled(system: Hyperbolic2x2, s: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """``e^{-s/mu} [u(1, s); v(1, s)]`` by the fourth-order Magnus integrator, fixed steps.
+
+    Integrates ``z = e^{-s x / mu} [u; v]``, ``z' = B(x) z`` with
+    ``B = [[-s tau, sigma_pm/lam], [-sigma_mp/mu, 0]]``, vectorised over ``s``: on each
+    step ``z <- exp(Omega) z``, ``Omega = h/2 (B_1 + B_2) + sqrt(3)/12 h^2 [B_2, B_1]``
+    with ``B_1, B_2`` at the two Gauss points and ``exp`` in closed form. The large
+    term ``-s tau`` is constant, so it enters the commutator only linearly and the
+    method keeps its fourth order at high frequency.
     """
     flat = s.ravel()
-    lam, mu = system.lam, system.mu
-    k = flat.size
+    h = 1.0 / steps
+    g = np.sqrt(3.0) / 6.0
+    x1 = (np.arange(steps) + 0.5 - g) * h
+    x2 = (np.arange(steps) + 0.5 + g) * h
+    p1, p2 = system.sigma_pm_at(x1) / system.lam, system.sigma_pm_at(x2) / system.lam
+    m1, m2 = -system.sigma_mp_at(x1) / system.mu, -system.sigma_mp_at(x2) / system.mu
+    diag = -flat * system.tau
+    f = np.sqrt(3.0) / 12.0 * h * h
+    u = np.full(flat.shape, system.q, dtype=complex)
+    v = np.ones(flat.shape, dtype=complex)
+    for k in range(steps):
+        # [B_2, B_1] for B_i = [[diag, p_i], [m_i, 0]].
+        e00, e01, e10, e11 = _expm2(
+            h * diag + f * (p2[k] * m1[k] - p1[k] * m2[k]),
+            0.5 * h * (p1[k] + p2[k]) + f * diag * (p1[k] - p2[k]),
+            0.5 * h * (m1[k] + m2[k]) + f * diag * (m2[k] - m1[k]),
+            np.full(flat.shape, f * (m2[k] * p1[k] - m1[k] * p2[k]), dtype=complex),
+        )
+        u, v = e00 * u + e01 * v, e10 * u + e11 * v
+    return u.reshape(s.shape), v.reshape(s.shape)
 
-    def rhs(x: float, z: np.ndarray) -> np.ndarray:
-        u, v = z[:k], z[k:]
-        pm = float(system.sigma_pm_at(np.array(x)))
-        mp = float(system.sigma_mp_at(np.array(x)))
-        du = -flat * (1.0 / lam + 1.0 / mu) * u + pm / lam * v
-        dv = -mp / mu * u
-        return np.concatenate([du, dv])
 
-    z0 = np.concatenate([np.full(k, system.q, dtype=complex), np.ones(k, dtype=complex)])
-    sol = solve_ivp(rhs, (0.0, 1.0), z0, method="DOP853", rtol=_RTOL, atol=_ATOL, t_eval=[1.0])
-    if not sol.success:
-        raise ConvergenceError(f"boundary_function: ODE solver failed ({sol.message})")
-    z1 = sol.y[:, -1]
-    return z1[:k].reshape(s.shape), z1[k:].reshape(s.shape)
-
-
-def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False) -> np.ndarray:
+def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False, steps: int | None = None) -> np.ndarray:
     """Boundary function ``v(1, s) - rho u(1, s)`` of the Laplace-transformed plant.
 
     Parameters
@@ -106,6 +133,9 @@ def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False) -> np
         characteristic function of the delay form, ``1 - rho q e^{-tau s}
         + int_0^tau N~(nu) e^{-nu s} dnu`` (eq. (delay_eq_alpha)), and stays bounded for
         large ``Re s``.
+    steps : int, optional
+        Magnus steps on ``[0, 1]`` for varying couplings (default
+        :func:`magnus_steps`); ignored for constant couplings.
 
     Returns
     -------
@@ -115,10 +145,11 @@ def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False) -> np
     Notes
     -----
     Constant couplings: closed-form 2x2 matrix exponential, exact to rounding.
-    Varying couplings: the ODE ``d/dx [u; v] = A(x, s) [u; v]`` is integrated by DOP853
-    with ``rtol = 1e-12``; against the closed form the relative error is about ``1e-10``
-    for ``|s| <= 300``. Its zeros are the open-loop eigenvalues, computed without any
-    backstepping kernel.
+    Varying couplings: the ODE ``d/dx [u; v] = A(x, s) [u; v]`` is integrated by the
+    fourth-order Magnus method with fixed steps, vectorised over ``s``; with the default
+    steps the absolute error of the scaled function is about ``1e-9`` for
+    ``|s| <= 200`` (measured against an adaptive DOP853 solve at ``rtol = 1e-12``).
+    Its zeros are the open-loop eigenvalues, computed without any backstepping kernel.
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2", system)
@@ -126,7 +157,8 @@ def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False) -> np
     if system.constant_couplings:
         u1, v1 = _constant_scaled(system, s_arr)
     else:
-        u1, v1 = _ode_scaled(system, s_arr)
+        n_steps = magnus_steps(system, s_arr) if steps is None else positive_int("steps", steps)
+        u1, v1 = _magnus_scaled(system, s_arr, n_steps)
     out = v1 - system.rho * u1
     if not scaled:
         out = out * np.exp(s_arr / system.mu)
