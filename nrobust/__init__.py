@@ -19,6 +19,8 @@ from .sweep import SweepResult, grid, robustness, sweep
 from . import plots
 from .certificate import Certificate, certify
 from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
+from .margins import ABRegion, Crossing, DelayMargin, KRegion, StabilityChart, Tradeoff, ab_region, crossing_frequencies, delay_margin, k_region, stability_chart, tradeoff
+from .rouche import RootFreeRegion, RoucheDelayBound, l1_modulus, root_free_region, rouche_delay_bound
 
 try:
     __version__ = version("nrobust")
