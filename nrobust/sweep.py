@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from .errors import ParameterError
 
@@ -540,13 +541,18 @@ def _classify_executor(executor: Any) -> str:
     raise ParameterError("executor", _EXECUTOR_REQUIREMENT, executor)
 
 
-def _progress_bar(total: int, progress: bool | None) -> Any:
-    """A text progress bar on stderr; by default shown in terminals and notebooks only."""
-    from tqdm import tqdm
+class _ProgressBar(tqdm):
+    """tqdm without its monitor thread, so that no helper thread is alive (and copied
+    half-way through a lock) when the process pool forks its workers."""
 
+    monitor_interval = 0
+
+
+def _progress_bar(total: int, progress: bool | None) -> _ProgressBar:
+    """A text progress bar on stderr; by default shown in terminals and notebooks only."""
     interactive = sys.stderr.isatty() or "ipykernel" in sys.modules
     show = interactive if progress is None else bool(progress)
-    return tqdm(total=total, disable=not show, desc="sweep", unit="pt", file=sys.stderr)
+    return _ProgressBar(total=total, disable=not show, desc="sweep", unit="pt", file=sys.stderr)
 
 
 def sweep(

@@ -18,6 +18,14 @@ from nrobust.sweep import ANALYSES, PointFailure, RobustnessResult, _Analysis, r
 
 distributed = pytest.importorskip("distributed")
 
+# The module's in-process Dask cluster keeps threads alive while some tests fork process
+# pools. From Python 3.12 on, os.fork() then warns that a lock held by one of those threads
+# could be copied into the child; the children here run only the pure functions below and
+# never touch Dask, so that one warning is ignored for this module, by its exact text.
+pytestmark = pytest.mark.filterwarnings(
+    r"ignore:This process \(pid=\d+\) is multi-threaded, use of fork\(\) may lead to deadlocks:DeprecationWarning"
+)
+
 
 # --- functions sent to workers: module level, so that the process pool can pickle them ---
 
