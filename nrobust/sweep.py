@@ -1012,7 +1012,8 @@ def _typed_table(spec: dict[str, Any], section: str, types: tuple[str, ...]) -> 
 
 
 def _axis_values(name: str, value: Any) -> list[Any]:
-    """A grid axis: a list, or a table ``{start, stop, num}`` (linspace, endpoints included)."""
+    """A grid axis: a list, or a table ``{start, stop, num}`` (linspace, endpoints included,
+    values rounded to 12 significant digits)."""
     if isinstance(value, list):
         if not value:
             raise ParameterError(name, "a non-empty list or {start, stop, num}", value)
@@ -1026,7 +1027,8 @@ def _axis_values(name: str, value: Any) -> list[Any]:
         for key in ("start", "stop"):
             if isinstance(value[key], bool) or not isinstance(value[key], (int, float)):
                 raise ParameterError(f"{name}.{key}", "a number", value[key])
-        return [float(x) for x in np.linspace(value["start"], value["stop"], num)]
+        # 12 significant digits: 0.1 rather than 0.09999999999999999 in tables and charts
+        return [float(f"{x:.12g}") for x in np.linspace(value["start"], value["stop"], num)]
     raise ParameterError(name, "a list of values or a table {start, stop, num}", value)
 
 
