@@ -1103,7 +1103,8 @@ class StabilityChart:
     values : ndarray, shape ``(len(Ks), len(deltas))``
         ``quantity`` at each grid point: the number of zeros with ``Re s > 0``
         (``inf`` when the difference operator is not strongly stable and ``delta > 0``;
-        ``-1`` exactly on a crossing delay), or the spectral abscissa.
+        ``nan`` at ``delta = 0`` when the nominal count cannot be certified, e.g. a chain of
+        zeros in ``Re s > 0``; ``-1`` exactly on a crossing delay), or the spectral abscissa.
     quantity : str
         ``"count"`` or ``"abscissa"``.
     margins : ndarray

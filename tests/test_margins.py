@@ -207,3 +207,127 @@ def test_result_serialises_and_validates() -> None:
         crossing_frequencies(*transport(0.85, 0.3))
     with pytest.raises(CertificationError):
         crossing_frequencies(*distributed_loop(0.85, 0.1), max_evals=10)
+
+
+# ---------------------------------------------------------------------------- hyperbolic plants
+from concurrent.futures import ThreadPoolExecutor  # noqa: E402
+
+from nrobust import (  # noqa: E402
+    FilteredController,
+    FiniteTimeController,
+    Hyperbolic2x2,
+    ReflectionController,
+    TransportSystem,
+    characteristic,
+    loop_factors,
+)
+from nrobust.margins import ab_region, k_region, stability_chart, tradeoff  # noqa: E402
+from nrobust.rouche import rouche_delay_bound  # noqa: E402
+
+
+def paper_system() -> Hyperbolic2x2:
+    """Section 5: lam = mu = sigma+- = sigma-+ = q = 1, rho = 0.85."""
+    return Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+
+
+def test_paper_example_finite_time_controller_has_zero_margin() -> None:
+    dm = delay_margin(paper_system(), FiniteTimeController())
+    assert dm.margin == 0.0 and not dm.strongly_stable and dm.nominal_stable  # Theorem 3
+
+
+def test_paper_example_reflection_controller_rouche_below_margin() -> None:
+    system, ctrl = paper_system(), ReflectionController(0.05)
+    dm = delay_margin(system, ctrl, verify=False)
+    bound = rouche_delay_bound(system, ctrl)
+    assert 0.0 < bound.delta_0 <= dm.margin < np.inf
+    assert bound.epsilon_0 == pytest.approx(0.1)
+
+
+@pytest.mark.slow
+def test_paper_example_reflection_controller() -> None:
+    system, ctrl = paper_system(), ReflectionController(0.1)
+    dm = delay_margin(system, ctrl)
+    assert dm.verified and dm.nominal_stable and 0.0 < dm.margin < np.inf
+    assert dm.is_stable(0.1)  # the paper's Figure 3 runs K = 0.1 with delta = 0.1
+    # independent check on the characteristic function of the closed loop
+    nxt = min(d for c in dm.crossings for d in c.delays if d > dm.margin)
+    W = dm.frequency_bound
+    box = (0.0, 1.01 * W, -1.01 * W, 1.01 * W)
+    assert int(count_roots(characteristic(system, ctrl, 0.5 * dm.margin), box)) == 0
+    assert int(count_roots(characteristic(system, ctrl, 0.5 * (dm.margin + nxt)), box)) == 2
+    bound = rouche_delay_bound(system, ctrl)
+    assert 0.0 < bound.delta_0 <= dm.margin
+
+
+def test_transport_system_controllers() -> None:
+    system = TransportSystem(1.0, 1.0, 1.0, 0.85)
+    assert delay_margin(system, ReflectionController(0.1)).margin == np.inf
+    assert delay_margin(system, ReflectionController(0.2)).margin == 0.0
+    assert delay_margin(system, FiniteTimeController()).margin == 0.0
+    assert rouche_delay_bound(system, ReflectionController(0.1)).delta_0 == np.inf
+    assert rouche_delay_bound(system, ReflectionController(0.2)).delta_0 == 0.0
+
+
+def test_k_region_transport_matches_paper_bound() -> None:
+    """For transport the paper's |K| < (1 - |rho q|)/|q| is necessary and sufficient."""
+    system = TransportSystem(1.0, 1.0, 0.8, 0.9)
+    kb = (1 - 0.72) / 0.8
+    region = k_region(system, 2.0, n=9)
+    assert region.paper_bound == pytest.approx(kb)
+    assert len(region.intervals) == 1
+    lo, hi = region.intervals[0]
+    assert lo == pytest.approx(-kb, abs=2 * region.tol) and hi == pytest.approx(kb, abs=2 * region.tol)
+    assert region.admissible.all() and "KRegion" in repr(region)
+    assert region.to_dict()["intervals"][0][1] == hi
+
+
+def test_tradeoff_transport_closed_form() -> None:
+    system = TransportSystem(1.0, 1.0, 1.0, 0.85)
+    Ks = np.array([-0.1, 0.0, 0.1])
+    tr = tradeoff(system, Ks)
+    assert tr.decay_rates == pytest.approx(-np.log(np.abs(0.85 - Ks)) / 2.0, rel=1e-8)
+    assert np.all(tr.margins == np.inf) and np.all(tr.rouche_bounds == np.inf)
+    assert tr.to_dict()["margins"] == ["inf"] * 3
+
+
+def test_stability_chart_transport_and_map_hook() -> None:
+    system = TransportSystem(1.0, 1.0, 1.0, 0.85)
+    Ks, deltas = np.array([-0.2, 0.0, 0.1, 0.2]), np.array([0.0, 0.3, 1.0])
+    chart = stability_chart(system, Ks, deltas)
+    assert chart.values.shape == (4, 3)
+    assert np.all(chart.values[1:3] == 0)  # |rho q| + |K q| < 1: stable for all delays
+    assert np.all(np.isinf(chart.values[[0, 3], 1:]))  # not strongly stable: infinitely many
+    assert chart.values[3, 0] == 0  # K = 0.2: nominal reflection rho - K = 0.65, stable
+    assert np.isnan(chart.values[0, 0])  # K = -0.2: reflection 1.05, a chain in Re s > 0
+    with ThreadPoolExecutor(2) as ex:
+        again = stability_chart(system, Ks, deltas, map=ex.map)
+    assert np.array_equal(again.values, chart.values, equal_nan=True)
+    assert len(chart.to_dict()["values"]) == 4
+
+
+def test_stability_chart_counts_match_certified_counts() -> None:
+    system = paper_system()
+    Ks, deltas = np.array([0.0, 0.1]), np.array([0.0, 0.1, 0.3, 0.9])
+    chart = stability_chart(system, Ks, deltas)
+    assert chart.margins == pytest.approx([delay_margin(system, ReflectionController(K), verify=False).margin for K in Ks])
+    A, B = loop_factors(system, ReflectionController(0.1))
+    W = delay_margin(A, B, verify=False).frequency_bound
+    F = characteristic(system, ReflectionController(0.1), 0.3)
+    assert chart.values[1, 2] == int(count_roots(F, (0.0, 1.01 * W, -1.01 * W, 1.01 * W))) == 4
+    assert list(chart.values[:, 0]) == [0, 0]
+    for i in range(2):
+        assert np.all(chart.boundaries[i][:, 0] <= deltas.max())
+
+
+def test_ab_region_transport() -> None:
+    system = TransportSystem(1.0, 1.0, 1.0, 0.85)
+    a, b = np.array([-0.5, 0.0, 0.25]), np.array([0.5, 2.0])
+    reg = ab_region(system, 0.5, a, b)
+    A_, B_ = np.meshgrid(a, b, indexing="ij")
+    assert np.array_equal(reg.strongly_stable, 0.85 * (1 + np.abs(A_) / B_) < 1)
+    assert not np.any(reg.admissible & ~reg.strongly_stable)  # strong stability is necessary
+    assert np.any(reg.paper_conditions & ~reg.strongly_stable)  # eq. (cond_a_b) lacks |a|
+    assert reg.admissible[2, 1]  # a = 0.25, b = 2: |a|/b = 0.125 < 0.15/0.85
+    dm = delay_margin(system, FilteredController(0.25, 2.0))
+    assert dm.margin == reg.margins[2, 1] and dm.verified in (True, False)
+    assert "ABRegion" in repr(reg) and len(reg.to_dict()["a"]) == 3
