@@ -1340,12 +1340,12 @@ def _chart(result: SweepResult, swept: list[str], plot: dict[str, str], sampling
         fin = np.isfinite(yv)
         order = np.argsort(xv[fin], kind="stable")
         ax.plot(xv[fin][order], yv[fin][order], "o-", ms=3, label=y)
+        edge = ax.get_xaxis_transform()  # x in data, y in axes units: markers on the frame
         if (~fin).any():
-            top = yv[fin].max() if fin.any() else 1.0
-            ax.plot(xv[~fin], np.full((~fin).sum(), top), "^", color="C1", label=f"{y} = inf")
+            ax.plot(xv[~fin], np.full((~fin).sum(), 0.97), "^", color="C1", transform=edge, label=f"{y} = inf")
         if (~ok).any():
-            ax.plot(table[x][~ok].astype(float), np.full((~ok).sum(), np.nanmin(yv[fin]) if fin.any() else 0.0),
-                    "x", color="C3", label="failed")
+            ax.plot(table[x][~ok].astype(float), np.full((~ok).sum(), 0.03), "x", color="C3", transform=edge,
+                    label="failed")
         ax.set_xlabel(x)
         ax.set_ylabel(y)
         ax.legend(loc="best", fontsize="small")
