@@ -44,7 +44,7 @@ scheme is second-order convergent. See ``docs/simulation.md``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Union
 
 import numpy as np
@@ -54,14 +54,14 @@ from .._validate import finite_real, nonnegative, positive, positive_int
 from ..errors import ParameterError
 from .system import Hyperbolic2x2
 
-__all__ = ["Simulation", "simulate"]
+__all__ = ["Simulation", "simulate", "v_nodes"]
 
 Array = NDArray[np.float64]
 InitialState = Union[Callable[[Array], Any], Array]
 
 #: Relative tolerance under which ``delta / dt`` counts as an integer.
 _INTEGER_TOL = 1e-9
-#: Default bound on the number of cell updates (``n`` times the number of steps).
+#: Default bound on the number of node updates (nodes times steps).
 MAX_UPDATES = 2 * 10**9
 
 
@@ -78,11 +78,13 @@ class Simulation:
     control : ndarray, shape (m + 1,)
         The controller output ``U(t_j)``; the plant receives ``U(t_j - delta)``.
     x : ndarray, shape (n + 1,)
-        Nodes ``k / n``.
+        Nodes ``k / n`` of ``u``.
+    x_v : ndarray
+        Nodes of ``v`` (``x`` itself when ``lam == mu``; see :func:`v_nodes`).
     snapshot_times : ndarray, shape (k,)
         Times of the stored states.
-    u, v : ndarray, shape (k, n + 1)
-        States at ``snapshot_times`` on the nodes ``x``.
+    u, v : ndarray, shapes (k, x.size) and (k, x_v.size)
+        States at ``snapshot_times``.
     delta : float
         Loop delay.
     dt : float
@@ -92,12 +94,15 @@ class Simulation:
     delay_interpolation : str
         ``"exact shift"`` when ``delta`` is a multiple of ``dt`` (or zero), otherwise
         ``"Lagrange-4"``.
+    scheme : str
+        ``"characteristic lattice"`` (``lam == mu``) or ``"two characteristic grids"``.
     """
 
     times: Array
     norm: Array
     control: Array
     x: Array
+    x_v: Array
     snapshot_times: Array
     u: Array
     v: Array
@@ -105,7 +110,7 @@ class Simulation:
     dt: float
     n: int
     delay_interpolation: str
-    scheme: str = field(default="characteristic lattice, trapezoidal couplings")
+    scheme: str
 
     def growth_rate(self, t_min: float, t_max: float | None = None) -> float:
         """Least-squares slope of ``log ||(u, v)(t)||`` on ``[t_min, t_max]``.
@@ -150,6 +155,7 @@ class Simulation:
             "norm": self.norm.tolist(),
             "control": self.control.tolist(),
             "x": self.x.tolist(),
+            "x_v": self.x_v.tolist(),
             "snapshot_times": self.snapshot_times.tolist(),
             "u": self.u.tolist(),
             "v": self.v.tolist(),
@@ -171,7 +177,7 @@ def _initial(name: str, value: InitialState, x: Array) -> Array:
         except (TypeError, ValueError):
             raise ParameterError(name, f"a callable or an array of {x.size} node values", value) from None
     if out.shape != x.shape:
-        raise ParameterError(name, f"{x.size} values, one per node k/n", f"shape {out.shape}")
+        raise ParameterError(name, f"{x.size} values, one per node", f"shape {out.shape}")
     if not np.all(np.isfinite(out)):
         raise ParameterError(name, "finite on [0, 1]", "non-finite values")
     return out.copy()
@@ -231,12 +237,241 @@ def _history_weights(s: float, current: int) -> tuple[NDArray[np.intp], Array]:
     lo = max(0, min(i0 - 1, current - 3))
     hi = min(lo + 3, current)
     idx = np.arange(lo, hi + 1)
-    w = np.ones(idx.size)
-    for m, node in enumerate(idx):
-        for other in idx:
-            if other != node:
-                w[m] *= (s - other) / (node - other)
-    return idx, w
+    return idx, _lagrange(idx.astype(float), s)
+
+
+def _lagrange(nodes: Array, s: float) -> Array:
+    """Weights of the Lagrange interpolant on ``nodes`` evaluated at ``s``."""
+    w = np.ones(nodes.size)
+    for m, node in enumerate(nodes):
+        for other in nodes[np.arange(nodes.size) != m]:
+            w[m] *= (s - other) / (node - other)
+    return w
+
+
+@dataclass(frozen=True)
+class _Stencil:
+    """Four-point Lagrange interpolation from sorted ``nodes`` to fixed ``targets``."""
+
+    index: NDArray[np.intp]
+    weight: Array
+
+    @classmethod
+    def build(cls, nodes: Array, targets: Array) -> "_Stencil":
+        size = min(4, nodes.size)
+        right = np.searchsorted(nodes, targets, side="right")
+        lo = np.clip(right - size // 2, 0, nodes.size - size)
+        index = lo[:, None] + np.arange(size)[None, :]
+        weight = np.empty(index.shape)
+        for row, (cols, target) in enumerate(zip(index, targets)):
+            weight[row] = _lagrange(nodes[cols], float(target))
+        return cls(index, weight)
+
+    def __call__(self, values: Array) -> Array:
+        return np.einsum("ij,ij->i", values[self.index], self.weight)
+
+
+def _trapezoid_weights(nodes: Array) -> Array:
+    """Trapezoidal-rule weights on sorted, possibly non-uniform nodes."""
+    gaps = np.diff(nodes)
+    w = np.zeros(nodes.size)
+    w[:-1] += gaps / 2.0
+    w[1:] += gaps / 2.0
+    return w
+
+
+class _Loop:
+    """The actuated boundary ``v(t, 1) = rho u(t, 1) + U(t - delta)`` and the control history.
+
+    ``V(t) = boundary_gain u(t, 1) + int gain_u u + gain_v v`` (trapezoidal rule);
+    ``U = (a/b) V + w`` with ``b w' + w = (1 - a/b) V`` (``U = V`` without filter), so
+    ``U_j = base_j + g V_j`` with ``base_j`` known from step ``j - 1``.
+    """
+
+    def __init__(self, law: Any, wu: Array, wv: Array, rho: float, delta: float, dt: float, steps: int) -> None:
+        self.bg = finite_real("boundary_gain", law.boundary_gain)
+        self.wu, self.wv, self.rho = wu, wv, rho
+        self.alpha = self.bg + wu[-1]  # weight of u(t, 1) in V (node x = 1 last on both grids)
+        self.beta = wv[-1]  # weight of v(t, 1) in V
+        self.ratio, self.decay, phi1, phi2 = _filter_coefficients(law.filter, dt)
+        self.phi1 = (1.0 - self.ratio) * phi1
+        self.gain = self.ratio + (1.0 - self.ratio) * phi2
+        self.shift = delta / dt
+        self.exact = abs(self.shift - round(self.shift)) <= _INTEGER_TOL * max(1.0, self.shift)
+        self.lag = int(round(self.shift)) if self.exact else -1
+        self.control = np.empty(steps + 1)
+        self.v_prev = 0.0
+        self.w_state = 0.0
+
+    def start(self, u: Array, v: Array) -> None:
+        """``U(0) = (a/b) V(0)``: the filter starts at rest."""
+        self.v_prev = float(self.wu @ u + self.wv @ v) + self.bg * u[-1]
+        self.control[0] = self.ratio * self.v_prev
+        self.w_state = 0.0
+
+    def delayed(self, j: int) -> tuple[float, float]:
+        """``U(t_j - delta) = hist + theta U(t_j)`` from the stored samples ``U(t_i)``, ``i < j``."""
+        if self.exact:
+            if self.lag == 0:
+                return 1.0, 0.0
+            return 0.0, (self.control[j - self.lag] if self.lag <= j else 0.0)
+        s = j - self.shift
+        if s < 0.0:
+            return 0.0, 0.0
+        idx, wts = _history_weights(s, j)
+        theta = float(wts[-1]) if idx[-1] == j else 0.0
+        past = idx < j
+        return theta, float(wts[past] @ self.control[idx[past]])
+
+    def solve(self, j: int, ru: float, a: float, v_inner: float) -> tuple[float, float]:
+        """Boundary values ``(u, v)`` at ``x = 1`` and time ``t_j``.
+
+        Solves ``u = ru + a v``, ``v = rho u + hist + theta U``,
+        ``U = base + g (v_inner + alpha u + beta v)``, where ``v_inner`` is the part of
+        ``V`` from the other nodes.
+        """
+        theta, hist = self.delayed(j)
+        c = self.decay * self.w_state + self.phi1 * self.v_prev + self.gain * v_inner
+        p = self.rho + theta * self.gain * self.alpha
+        r = hist + theta * c
+        q = 1.0 - theta * self.gain * self.beta
+        den = q - a * p
+        if abs(den) < 1e-12 or abs(q) < 1e-12:
+            raise ParameterError("controller", "a boundary loop with a solvable implicit step", (theta, self.gain))
+        u1 = (ru * q + a * r) / den
+        return u1, (p * u1 + r) / q
+
+    def commit(self, j: int, u: Array, v: Array) -> None:
+        """Store ``U(t_j)`` from the final state at ``t_j`` and advance the filter."""
+        v_now = float(self.wu @ u + self.wv @ v) + self.bg * u[-1]
+        base = self.decay * self.w_state + self.phi1 * self.v_prev
+        self.control[j] = base + self.gain * v_now
+        self.w_state = self.control[j] - self.ratio * v_now
+        self.v_prev = v_now
+
+
+class _Recorder:
+    """L2 norm at every step and states every ``every`` steps (and at the end)."""
+
+    def __init__(self, steps: int, every: int | None, wu: Array, wv: Array) -> None:
+        self.steps, self.every, self.wu, self.wv = steps, every, wu, wv
+        self.norm = np.empty(steps + 1)
+        self.index: list[int] = []
+        self.u: list[Array] = []
+        self.v: list[Array] = []
+
+    def __call__(self, j: int, u: Array, v: Array) -> None:
+        self.norm[j] = math.sqrt(float(self.wu @ (u * u) + self.wv @ (v * v)))
+        if (self.every is not None and j % self.every == 0) or j == self.steps:
+            self.index.append(j)
+            self.u.append(u.copy())
+            self.v.append(v.copy())
+
+
+def _march_lattice(
+    system: Hyperbolic2x2, x: Array, u: Array, v: Array, dt: float, steps: int, loop: _Loop, record: _Recorder
+) -> None:
+    """Equal speeds: the characteristic lattice (nodes at ``t_j``, midpoints at ``t_j + dt/2``)."""
+    n = x.size - 1
+    xm = (np.arange(n) + 0.5) / n
+    h4 = dt / 4.0  # trapezoidal factor on a half step
+    spm, smp = h4 * system.sigma_pm_at(x), h4 * system.sigma_mp_at(x)
+    spm_m, smp_m = h4 * system.sigma_pm_at(xm), h4 * system.sigma_mp_at(xm)
+    det_m = 1.0 - spm_m * smp_m
+    det_i = 1.0 - spm[1:-1] * smp[1:-1]
+    det_0 = 1.0 - smp[0] * system.q
+    if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
+        raise ParameterError("n", "large enough for the trapezoidal coupling step to be solvable", n)
+    inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
+    wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
+    for j in range(1, steps + 1):
+        # Half step: nodes -> midpoints (u from the left node, v from the right node).
+        ru = u[:-1] + spm[:-1] * v[:-1]
+        rv = v[1:] + smp[1:] * u[1:]
+        um = (ru + spm_m * rv) * inv_m
+        vm = (rv + smp_m * ru) * inv_m
+        # Half step: midpoints -> nodes.
+        ru = um + spm_m * vm  # arrives at nodes 1..n
+        rv = vm + smp_m * um  # arrives at nodes 0..n-1
+        u[1:-1] = (ru[:-1] + spm[1:-1] * rv[1:]) * inv_i
+        v[1:-1] = (rv[1:] + smp[1:-1] * ru[:-1]) * inv_i
+        v[0] = rv[0] * inv_0
+        u[0] = system.q * v[0]
+        u[-1], v[-1] = loop.solve(j, ru[-1], spm[-1], float(wu_in @ u[:-1] + wv_in @ v[:-1]))
+        loop.commit(j, u, v)
+        record(j, u, v)
+
+
+def _v_grid(mu: float, dt: float) -> Array:
+    """Nodes of ``v`` (ascending): ``1 - k mu dt`` down to the last one in ``[0, 1]``, then 0.
+
+    When ``1/(mu dt)`` is an integer the last node is 0 itself; otherwise 0 is added as the
+    boundary point of a partial cell of length ``r < mu dt``.
+    """
+    hv = mu * dt
+    cells = int(math.floor(1.0 / hv + 1e-9))
+    nodes = 1.0 - hv * np.arange(cells, -1, -1)
+    if nodes[0] <= 1e-9 * hv:
+        nodes[0] = 0.0
+        return nodes
+    return np.concatenate([[0.0], nodes])
+
+
+def _march_two_grids(
+    system: Hyperbolic2x2,
+    x: Array,
+    xv: Array,
+    u: Array,
+    v: Array,
+    dt: float,
+    steps: int,
+    loop: _Loop,
+    record: _Recorder,
+) -> None:
+    """Unequal speeds: ``u`` on ``x`` (step ``lam dt``), ``v`` on ``xv`` (step ``mu dt``).
+
+    Transport is an index shift on each grid; the couplings are integrated along the
+    characteristics by Heun's method (trapezoidal corrector), with the other unknown read
+    by 4-point Lagrange interpolation across grids. ``v(t, 0)`` is the value of the
+    characteristic that was at ``x = mu dt`` one step earlier (interpolated when
+    ``1/(mu dt)`` is not an integer), with the trapezoidal coupling to ``u(t, 0) = q v(t, 0)``.
+    """
+    hv = system.mu * dt
+    pm_u = system.sigma_pm_at(x)
+    mp_v = system.sigma_mp_at(xv)
+    src = np.minimum(xv[:-1] + hv, 1.0)  # where the v characteristics were one step earlier
+    mp_src = system.sigma_mp_at(src)
+    v_at_u = _Stencil.build(xv, x)
+    u_at_v = _Stencil.build(x, xv)
+    u_at_src = _Stencil.build(x, src)
+    v_at_src = _Stencil.build(xv, src)
+    h2 = dt / 2.0
+    inv_0 = 1.0 / (1.0 - h2 * mp_v[0] * system.q)
+    wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
+    un, vn = np.empty_like(u), np.empty_like(v)
+
+    def close(j: int, v_src0: float, fv_src0: float) -> None:
+        """Boundaries of the new state: ``x = 0`` (reflection) and ``x = 1`` (control)."""
+        vn[0] = (v_src0 + h2 * fv_src0) * inv_0
+        un[0] = system.q * vn[0]
+        un[-1], vn[-1] = loop.solve(j, un[-1], 0.0, float(wu_in @ un[:-1] + wv_in @ vn[:-1]))
+
+    for j in range(1, steps + 1):
+        fu_old = pm_u * v_at_u(v)  # sigma_pm v along the u characteristics at t_{j-1}
+        v_src = v_at_src(v)  # v one step upstream of the v nodes
+        fv_old = mp_src * u_at_src(u)  # sigma_mp u there
+        # Predictor (Euler), then corrector (trapezoid) with the predicted state at t_j.
+        un[1:] = u[:-1] + dt * fu_old[:-1]
+        vn[:-1] = v_src + dt * fv_old
+        close(j, v_src[0], fv_old[0])
+        fu_new = pm_u * v_at_u(vn)
+        fv_new = mp_v * u_at_v(un)
+        un[1:] = u[:-1] + h2 * (fu_old[:-1] + fu_new[1:])
+        vn[:-1] = v_src + h2 * (fv_old + fv_new[:-1])
+        close(j, v_src[0], fv_old[0])
+        u[:], v[:] = un, vn
+        loop.commit(j, u, v)
+        record(j, u, v)
 
 
 def simulate(
@@ -258,7 +493,8 @@ def simulate(
     Parameters
     ----------
     system : Hyperbolic2x2
-        The plant; the characteristic lattice needs equal speeds ``lam == mu``.
+        The plant, eqs. (u_pde)-(IC) (or (u_pde_no_cou)-(IC_no_cou) for a
+        ``TransportSystem``).
     controller : Controller or FeedbackLaw
         An object with ``feedback_law(system, kernels)`` (``OpenLoop``,
         ``FiniteTimeController`` = U_BS eq. (control), ``ReflectionController(K)`` = U_BS2
@@ -269,18 +505,19 @@ def simulate(
     t_end : float
         Final time ``> 0``; the run ends at the first sampled time ``>= t_end``.
     u0, v0 : callable or array
-        Initial state: callables on arrays of ``x`` or values on the ``n + 1`` nodes.
+        Initial state: callables on arrays of ``x``, or values on the nodes (``n + 1``
+        for ``u``; for ``v`` as many as :func:`v_nodes` returns).
     n : int, default 400
-        Cells on ``[0, 1]``; the sampling step is ``dt = 1 / (lam n)``.
+        Cells of the ``u`` grid; the sampling step is ``dt = 1 / (lam n)``.
     snapshot_every : int, optional
         Store the state every this many steps (and at the end); default: final state only.
     kernels : Kernels, optional
         Backstepping kernels for the controller; solved with ``kernel_n`` points otherwise
         (not needed for an uncoupled system or a ``FeedbackLaw``).
     kernel_n : int, optional
-        Kernel grid points, default ``n + 1`` (kernel nodes on the simulation nodes).
+        Kernel grid points, default ``n + 1`` (kernel nodes on the ``u`` nodes).
     max_updates : int
-        Bound on ``n`` times the number of steps.
+        Bound on the number of node updates (nodes times steps).
 
     Returns
     -------
@@ -290,17 +527,18 @@ def simulate(
     Raises
     ------
     ParameterError
-        On bad input, unequal speeds, a work bound exceeded, or an ill-posed boundary loop.
+        On bad input, a work bound exceeded, or an ill-posed boundary loop.
+
+    Notes
+    -----
+    ``lam == mu``: characteristic lattice, exact transport, trapezoidal couplings at the
+    crossings. ``lam != mu``: one grid per direction (steps ``lam dt`` and ``mu dt``),
+    exact index shifts, Heun couplings with cubic cross-grid interpolation, and a partial
+    last cell at ``x = 0`` for ``v`` when ``1/(mu dt)`` is not an integer.
+    See ``docs/simulation.md``.
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
-    c = system.lam
-    if abs(system.mu - c) > 1e-12 * c:
-        raise ParameterError(
-            "system",
-            "equal speeds lam == mu (the characteristic lattice is built on one crossing grid)",
-            (system.lam, system.mu),
-        )
     delta = nonnegative("delta", delta)
     t_end = positive("t_end", t_end)
     n = positive_int("n", n, minimum=2)
@@ -309,114 +547,63 @@ def simulate(
         snapshot_every = positive_int("snapshot_every", snapshot_every)
     max_updates = positive_int("max_updates", max_updates)
 
-    dt = 1.0 / (c * n)
+    lattice = abs(system.mu - system.lam) <= 1e-12 * system.lam
+    dt = 1.0 / (system.lam * n)
     steps = max(1, int(math.ceil(t_end / dt - 1e-9)))
-    if steps * n > max_updates:
-        raise ParameterError("(n, t_end)", f"at most max_updates = {max_updates} cell updates", steps * n)
-
     x = np.linspace(0.0, 1.0, n + 1)
-    xm = (np.arange(n) + 0.5) / n
+    xv = x if lattice else v_nodes(system, n)
+    updates = steps * (2 * n if lattice else x.size + xv.size)
+    if updates > max_updates:
+        raise ParameterError("(n, t_end)", f"at most max_updates = {max_updates} node updates", updates)
+
     u = _initial("u0", u0, x)
-    v = _initial("v0", v0, x)
-
+    v = _initial("v0", v0, xv)
     law = _feedback_law(system, controller, kernels, kernel_n)
-    bg = finite_real("boundary_gain", law.boundary_gain)
-    weights = np.full(n + 1, 1.0 / n)
-    weights[[0, -1]] = 0.5 / n
-    wu = weights * _gain_values("gain_u", law.gain_u, x)
-    wv = weights * _gain_values("gain_v", law.gain_v, x)
-    alpha = bg + wu[-1]  # weight of u(t, 1) in V
-    beta = wv[-1]  # weight of v(t, 1) in V
-    wu_in, wv_in = wu[:-1], wv[:-1]
-    ratio, decay, phi1, phi2 = _filter_coefficients(law.filter, dt)
-    gain_now = ratio + (1.0 - ratio) * phi2
-
-    # Trapezoidal factor on a half step (length dt / 2) and the couplings at the nodes.
-    h4 = dt / 4.0
-    spm, smp = h4 * system.sigma_pm_at(x), h4 * system.sigma_mp_at(x)
-    spm_m, smp_m = h4 * system.sigma_pm_at(xm), h4 * system.sigma_mp_at(xm)
-    det_m = 1.0 - spm_m * smp_m
-    det_i = 1.0 - spm[1:-1] * smp[1:-1]
-    det_0 = 1.0 - smp[0] * system.q
-    if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
-        raise ParameterError("n", "large enough for the trapezoidal coupling step to be solvable", n)
-    inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
-    spm_n, rho, q = spm[-1], system.rho, system.q
-
-    shift = delta / dt
-    exact = abs(shift - round(shift)) <= _INTEGER_TOL * max(1.0, shift)
-    lag = int(round(shift)) if exact else -1
+    w_x, w_v = _trapezoid_weights(x), _trapezoid_weights(xv)
+    loop = _Loop(
+        law,
+        w_x * _gain_values("gain_u", law.gain_u, x),
+        w_v * _gain_values("gain_v", law.gain_v, xv),
+        system.rho,
+        delta,
+        dt,
+        steps,
+    )
+    record = _Recorder(steps, snapshot_every, w_x, w_v)
+    loop.start(u, v)
+    record(0, u, v)
+    if lattice:
+        _march_lattice(system, x, u, v, dt, steps, loop, record)
+    else:
+        _march_two_grids(system, x, xv, u, v, dt, steps, loop, record)
 
     times = dt * np.arange(steps + 1)
-    norm = np.empty(steps + 1)
-    control = np.empty(steps + 1)
-    snap_t: list[float] = []
-    snap_u: list[Array] = []
-    snap_v: list[Array] = []
-
-    def record(j: int) -> None:
-        norm[j] = math.sqrt(float(weights @ (u * u + v * v)))
-        if (snapshot_every is not None and j % snapshot_every == 0) or j == steps:
-            snap_t.append(times[j])
-            snap_u.append(u.copy())
-            snap_v.append(v.copy())
-
-    v_prev = float(wu @ u + wv @ v) + bg * u[-1]
-    control[0] = ratio * v_prev
-    w_state = control[0] - ratio * v_prev
-    record(0)
-
-    for j in range(1, steps + 1):
-        # Half step: nodes -> midpoints (u from the left node, v from the right node).
-        ru = u[:-1] + spm[:-1] * v[:-1]
-        rv = v[1:] + smp[1:] * u[1:]
-        um = (ru + spm_m * rv) * inv_m
-        vm = (rv + smp_m * ru) * inv_m
-        # Half step: midpoints -> nodes.
-        ru = um + spm_m * vm  # arrives at nodes 1..n
-        rv = vm + smp_m * um  # arrives at nodes 0..n-1
-        u[1:-1] = (ru[:-1] + spm[1:-1] * rv[1:]) * inv_i
-        v[1:-1] = (rv[1:] + smp[1:-1] * ru[:-1]) * inv_i
-        v[0] = rv[0] * inv_0
-        u[0] = q * v[0]
-        # Boundary x = 1: u' = ru_n + spm_n v', v' = rho u' + U(t_j - delta), U = C + g V.
-        s = j - shift
-        if exact:
-            theta = 1.0 if lag == 0 else 0.0
-            hist = control[j - lag] if 0 < lag <= j else 0.0
-        elif s < 0.0:
-            theta, hist = 0.0, 0.0
-        else:
-            idx, wts = _history_weights(s, j)
-            theta = float(wts[-1]) if idx[-1] == j else 0.0
-            past = idx < j
-            hist = float(wts[past] @ control[idx[past]])
-        base = decay * w_state + (1.0 - ratio) * phi1 * v_prev
-        C = base + gain_now * float(wu_in @ u[:-1] + wv_in @ v[:-1])
-        P = rho + theta * gain_now * alpha
-        R = hist + theta * C
-        Q = 1.0 - theta * gain_now * beta
-        den = Q - spm_n * P
-        if abs(den) < 1e-12 or abs(Q) < 1e-12:
-            raise ParameterError("controller", "a boundary loop with a solvable implicit step", (theta, gain_now))
-        u[-1] = (ru[-1] * Q + spm_n * R) / den
-        v[-1] = (P * u[-1] + R) / Q
-        v_now = float(wu @ u + wv @ v) + bg * u[-1]
-        control[j] = base + gain_now * v_now
-        w_state = control[j] - ratio * v_now
-        v_prev = v_now
-        record(j)
-
     return Simulation(
         times=times,
-        norm=norm,
-        control=control,
+        norm=record.norm,
+        control=loop.control,
         x=x,
-        snapshot_times=np.asarray(snap_t),
-        u=np.asarray(snap_u),
-        v=np.asarray(snap_v),
+        x_v=xv,
+        snapshot_times=times[record.index],
+        u=np.asarray(record.u),
+        v=np.asarray(record.v),
         delta=delta,
         dt=dt,
         n=n,
-        delay_interpolation="exact shift" if exact else "Lagrange-4",
+        delay_interpolation="exact shift" if loop.exact else "Lagrange-4",
+        scheme="characteristic lattice" if lattice else "two characteristic grids",
     )
+
+
+def v_nodes(system: Hyperbolic2x2, n: int) -> Array:
+    """Nodes (ascending) on which :func:`simulate` stores ``v`` for ``n`` cells of ``u``.
+
+    Equal speeds: the ``u`` nodes ``k / n``. Otherwise ``1 - k mu dt`` (``dt = 1/(lam n)``)
+    down to the last one in ``[0, 1]``, and ``x = 0`` when that one is not 0.
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    n = positive_int("n", n, minimum=2)
+    if abs(system.mu - system.lam) <= 1e-12 * system.lam:
+        return np.linspace(0.0, 1.0, n + 1)
+    return _v_grid(system.mu, 1.0 / (system.lam * n))
