@@ -159,6 +159,19 @@ def test_progress_bar_on_request(capsys):
     assert capsys.readouterr().err == ""
 
 
+def margin_of(controller, rho: float) -> dict:
+    """A point whose parameter is an object: the columns come from its to_dict()."""
+    return {"delta_star": toy_margin(1.0 - rho, controller.K + rho)}
+
+
+def test_object_parameters_are_flattened_into_columns():
+    points = [{"controller": nrobust.ReflectionController(K), "rho": 0.3} for K in (0.1, 0.8)]
+    t = nrobust.sweep(margin_of, points, 2).table()
+    assert t.dtype.names[:5] == ("index", "controller.controller", "controller.K", "rho", "status")
+    assert list(t["controller.K"]) == [0.1, 0.8]
+    assert np.isinf(t["delta_star"][0]) and np.isfinite(t["delta_star"][1])
+
+
 def test_wrong_return_type_is_a_recorded_failure():
     res = nrobust.sweep(returns_float, POINTS[:2], "serial")
     assert res.n_failed == 2 and res.failures[0].type == "TypeError"
