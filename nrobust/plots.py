@@ -302,6 +302,7 @@ def root_map_plot(
     roots: "RootSet | ArrayLike | None" = None,
     ax: "Axes | None" = None,
     chains: bool = True,
+    max_chains: int = 12,
 ) -> NrobustPlot:
     """Roots of ``F`` in a rectangle, the chain asymptotes of its principal part, the axis.
 
@@ -316,6 +317,10 @@ def root_map_plot(
     chains : bool
         Draw the vertical asymptotes ``Re s = c`` of the root chains of the difference
         operator ``F.principal_part()`` (Hale and Verduyn Lunel) that meet the region.
+    max_chains : int
+        At most this many asymptotes are drawn, the rightmost ones (a loop delay ``delta``
+        commensurate with ``tau`` in steps ``h`` gives ``(tau + delta)/h`` chains); the
+        legend says how many were left out.
 
     Returns
     -------
@@ -333,12 +338,14 @@ def root_map_plot(
     ax = _get_ax(ax)
     lines: dict[str, list[Any]] = {"chains": []}
     lines["axis"] = [ax.axvline(0.0, color="k", lw=0.8, label="imaginary axis")]
+    max_chains = positive_int("max_chains", max_chains)
     if chains and F.is_neutral:
-        for k, chain in enumerate(F.principal_part().chains().chains):
-            if box[0] <= chain.real <= box[1]:
-                lines["chains"].append(
-                    ax.axvline(chain.real, color="C1", ls="--", lw=0.8, label="chain asymptotes" if k == 0 else None)
-                )
+        inside = [c for c in F.principal_part().chains().chains if box[0] <= c.real <= box[1]]
+        inside.sort(key=lambda c: -c.real)
+        left_out = len(inside) - max_chains
+        label = "chain asymptotes" + (f" ({max_chains} rightmost of {len(inside)})" if left_out > 0 else "")
+        for k, chain in enumerate(inside[:max_chains]):
+            lines["chains"].append(ax.axvline(chain.real, color="C1", ls="--", lw=0.8, label=label if k == 0 else None))
     lines["roots"] = ax.plot(values.real, values.imag, "x", color="C0", label=f"{values.size} roots")
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])

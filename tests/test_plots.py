@@ -87,7 +87,9 @@ def test_root_map_markers_are_the_roots_and_chains_are_drawn():
     assert np.allclose(marker.get_ydata(), roots.roots.imag)
     reals = sorted(line.get_xdata()[0] for line in out.lines["chains"])
     expected = sorted(c.real for c in F.principal_part().chains().chains if -1.0 <= c.real <= 1.0)
-    assert np.allclose(reals, expected)
+    assert len(expected) == 20 and np.allclose(reals, expected[-12:])  # the 12 rightmost by default
+    out_all = plots.root_map_plot(F, box, roots=roots, max_chains=50)
+    assert np.allclose(sorted(line.get_xdata()[0] for line in out_all.lines["chains"]), expected)
     assert out.lines["axis"][0].get_xdata()[0] == 0.0
     assert out.axes.get_xlim() == (-1.0, 1.0)
 
