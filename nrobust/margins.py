@@ -382,8 +382,9 @@ def _refine(h: _AxisFunction, a: NDArray, b: NDArray, ha: NDArray, hb: NDArray) 
 
     Safeguarded secant (regula falsi, midpoint when the secant point falls in the outer
     tenths or on every third step): the bracket at least halves every three steps, and a
-    bracket is done when narrower than ``_XTOL max(1, |w|)`` or when ``|h|`` reaches the
-    rounding level of ``|A| + |B|``.
+    bracket is done when narrower than ``_XTOL max(1, |w|)``, when two successive
+    estimates agree to that tolerance, or when ``|h|`` reaches the rounding level of
+    ``|A| + |B|``.
     """
     x = 0.5 * (a + b)
     done = np.zeros(a.shape, dtype=bool)
@@ -399,13 +400,14 @@ def _refine(h: _AxisFunction, a: NDArray, b: NDArray, ha: NDArray, hb: NDArray) 
         inner = (sec > aa + 0.1 * (bb - aa)) & (sec < bb - 0.1 * (bb - aa))
         xn = np.where(inner & (it % 3 != 2), sec, mid)
         fx, scale = h.with_scale(xn)
+        settled = np.abs(xn - x[act]) <= _XTOL * np.maximum(1.0, np.abs(xn))  # successive estimates agree
         x[act] = xn
         left = np.sign(fx) == np.sign(fa)
         a[act] = np.where(left, xn, aa)
         ha[act] = np.where(left, fx, fa)
         b[act] = np.where(left, bb, xn)
         hb[act] = np.where(left, fb, fx)
-        done[act] |= np.abs(fx) <= 8 * np.finfo(float).eps * scale
+        done[act] |= (np.abs(fx) <= 8 * np.finfo(float).eps * scale) | settled
     raise ConvergenceError(f"crossing refinement: {int(np.count_nonzero(~done))} brackets not resolved in {_MAX_REFINE} steps")
 
 
@@ -760,14 +762,8 @@ def delay_margin(
                     )
             if bounds[k + 1] > bounds[k]:
                 counts.append((bounds[k], bounds[k + 1], cur))
-        for lo, hi, m in counts:
-            if m == 0:
-                if intervals and intervals[-1][1] == lo and events.get(lo, 0) == 0 and not any(
-                    lo in c.delays and c.tangential for c in crossings
-                ):
-                    intervals[-1] = (intervals[-1][0], hi)
-                else:
-                    intervals.append((lo, hi))
+        # consecutive intervals are separated by a delay with a zero on the axis: never merged
+        intervals = [(lo, hi) for lo, hi, m in counts if m == 0]
     if zero_root:
         margin, omega, reason = 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
     elif not nominal_stable:
