@@ -10,8 +10,8 @@ with ``U(t) = 0`` for ``t < 0`` and ``U`` given by a state feedback
 U_BS2(K) (eq. (control3)), their filtered versions (section 2.3.2) or any law of the form
 ``boundary_gain * u(t, 1) + int_0^1 gain_u u + gain_v v dxi``.
 
-Scheme: a single characteristic lattice
----------------------------------------
+Equal speeds: a single characteristic lattice
+---------------------------------------------
 With equal speeds ``lam = mu = c`` every point of the lattice below is the crossing of
 one u-characteristic and one v-characteristic. With ``n`` cells and ``dt = 1 / (c n)``:
 
@@ -38,7 +38,18 @@ decoupled odd and even sub-lattices, as it does when ``u`` and ``v`` are stored 
 same nodes at every step of size ``1 / (c n)`` (there, the two halves are tied only by
 the control integral, and their difference evolves without the integral part of the
 feedback). The pure transport loop is reproduced to rounding; with couplings the
-scheme is second-order convergent. See ``docs/simulation.md``.
+scheme is second-order convergent.
+
+Unequal speeds: two characteristic grids
+----------------------------------------
+With ``lam != mu`` and ``dt = 1 / (lam n)``, ``u`` lives on ``k / n`` and ``v`` on
+``1 - k mu dt``; each step is an exact index shift on both grids. The couplings are
+integrated along the characteristics by Heun's method (Euler predictor, trapezoidal
+corrector), the other unknown being read by 4-point Lagrange interpolation across the
+grids. When ``1/(mu dt)`` is not an integer, the ``v`` grid ends with a partial cell and
+``v(t, 0)`` is the value, interpolated, of the characteristic that was at ``x = mu dt``
+one step earlier. Transport is still exact when ``lam/mu`` makes ``1/(mu dt)`` an integer;
+the scheme is second order. See ``docs/simulation.md``.
 """
 
 from __future__ import annotations
