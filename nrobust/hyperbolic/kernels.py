@@ -21,7 +21,7 @@ interpolation at the feet of the characteristics that are not grid-aligned
 The inverse kernels ``L`` of (back_inv1)-(back_inv2) are computed from ``K`` through the
 Volterra resolvent identity ``L = K + K o L``, i.e.
 ``L(x, xi) = K(x, xi) + int_xi^x K(x, s) L(s, xi) ds``, discretised with the trapezoidal
-rule on the same grid and solved row by row (second order).
+rule on the same grid (second order) and solved as one block-triangular linear system.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
+from scipy.linalg import solve_triangular
 
 from .._validate import positive_int
 from ..errors import ParameterError
@@ -84,7 +85,9 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
     ``A(x_i, xi_j)`` is integrated from ``(x_{i-1}, xi_{j-1})`` and ``B(x_i, xi_j)`` from its
     foot ``(x_{i-1}, xi_j + kappa h)`` (cubic interpolation at level ``i-1``) or, within
     one step of the diagonal, from the point where the characteristic leaves the diagonal
-    (``A`` there is interpolated linearly along the diagonal). The sources are
+    (``A`` there is interpolated linearly along the diagonal); on the first three levels,
+    where fewer than four nodes are available, every cross characteristic starts from
+    the diagonal. The sources are
     integrated with the trapezoidal rule; the implicit terms make a 2x2 linear system per
     node, solved in closed form.
 
@@ -99,10 +102,6 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
     b_foot = b(np.minimum(x + kappa * h, 1.0))
     # Offsets m = i - j whose characteristic reaches the diagonal within one step.
     n_near = int(np.ceil(1.0 + kappa - _FOOT_TOL))
-    m_near = np.arange(1, n_near)
-    t_star = m_near * h / (1.0 + kappa)
-    x_star = np.maximum(x[:, None] - t_star[None, :], 0.0)
-    b_star, g_star = b(x_star), g(x_star)
 
     A = np.zeros((n, n))
     B = np.zeros((n, n))
@@ -112,29 +111,30 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
         A_prev, B_prev = A[i - 1, :i], B[i - 1, :i]
         B[i, i] = g_x[i]
         A[i, i] = A_prev[i - 1] + 0.5 * h * (a_x[i - 1] * B_prev[i - 1] + a_x[i] * g_x[i])
-        j = np.arange(i)
         # Diagonal kernel: A_new = alpha0 + c1 * B_new (A_new = r B_new at xi = 0).
         alpha0 = np.zeros(i)
         c1 = np.full(i, r)
-        alpha0[1:] = A_prev[:-1] + 0.5 * h * a_x[:i - 1] * B_prev[:-1]
+        alpha0[1:] = A_prev[:-1] + 0.5 * h * a_x[: i - 1] * B_prev[:-1]
         c1[1:] = 0.5 * h * a_x[1:i]
-        # Cross kernel: B_new = beta0 + c2 * A_new.
+        # Cross kernel: B_new = beta0 + c2 * A_new. On the first levels, where fewer
+        # than four nodes are available for the cubic foot interpolation, every
+        # characteristic is integrated from the diagonal (length <= 3h, local error O(h^3)).
         beta0 = np.empty(i)
         c2 = np.empty(i)
-        n_reg = max(i - n_near + 1, 0)
+        n_reg = max(i - n_near + 1, 0) if i >= 4 else 0
         if n_reg:
-            idx, w = _interpolate(B_prev, j[:n_reg] + kappa)
+            j = np.arange(n_reg)
+            idx, w = _interpolate(B_prev, j + kappa)
             A_foot = np.sum(A_prev[idx] * w, axis=1)
             B_foot = np.sum(B_prev[idx] * w, axis=1)
             beta0[:n_reg] = B_foot + 0.5 * h * b_foot[:n_reg] * A_foot
             c2[:n_reg] = 0.5 * h * b_x[:n_reg]
-        m = np.arange(1, min(n_near, i + 1))
-        jn = i - m
-        xs = x_star[i, m - 1]
-        A_diag = A_prev[i - 1] + (xs - x[i - 1]) / h * (A[i, i] - A_prev[i - 1])
-        ts = t_star[m - 1]
-        beta0[jn] = g_star[i, m - 1] + 0.5 * ts * b_star[i, m - 1] * A_diag
-        c2[jn] = 0.5 * ts * b_x[jn]
+        jn = np.arange(n_reg, i)
+        t_star = (i - jn) * h / (1.0 + kappa)
+        x_star = x[i] - t_star
+        A_diag = np.interp(x_star, x[: i + 1], np.diagonal(A)[: i + 1])
+        beta0[jn] = g(x_star) + 0.5 * t_star * b(x_star) * A_diag
+        c2[jn] = 0.5 * t_star * b_x[jn]
         B[i, :i] = (beta0 + c2 * alpha0) / (1.0 - c1 * c2)
         A[i, :i] = alpha0 + c1 * B[i, :i]
     return A, B
@@ -169,40 +169,40 @@ def _solve_K(system: Hyperbolic2x2, n: int) -> Array:
     return K
 
 
-def _trapezoid_weights(n: int) -> Array:
-    """Weights ``W[i, k]`` of the trapezoidal rule for ``int_0^{x_i}`` on the grid.
-
-    Row 0 carries ``W[0, 0] = h/2`` instead of an empty rule: in the product
-    ``L_h K_h`` it supplies the end-point term ``h/2 L(x_i, 0) K(0, 0)`` of the trapezoidal
-    rule for ``int_0^{x_i} L(x_i, s) K(s, 0) ds``, without which the column ``xi = 0`` of
-    ``L`` would be first-order accurate only.
-    """
-    h = 1.0 / (n - 1)
-    W = np.tril(np.full((n, n), h))
-    W[:, 0] *= 0.5
-    W[np.arange(n), np.arange(n)] *= 0.5
-    W[0, 0] = 0.5 * h
-    return W
-
-
 def _resolvent(K: Array) -> Array:
-    """Inverse kernels from the trapezoidal Nystrom discretisation of (back1)-(back2).
+    """Inverse kernels from the resolvent identity ``L = K + K o L`` (trapezoidal rule).
 
-    On the grid, (back1)-(back2) with the trapezoidal rule read ``alpha = (I - K_h) w``
-    with ``w = (u, v)`` at the nodes; the inverse ``(I - K_h)^{-1} = I + L_h`` gives
-    ``L(x_i, xi_k) = L_h[i, k] / W[i, k]`` (``W`` the trapezoidal weights): from
-    ``L_h = K_h + L_h K_h`` these values satisfy the trapezoidal rule for the resolvent
-    identity ``L(x, xi) = K(x, xi) + int_xi^x L(x, s) K(s, xi) ds`` up to ``O(h^2)``. On the
-    diagonal the exact identity ``L(x, x) = K(x, x)`` is used.
+    For ``i > k`` the trapezoidal rule on ``[xi_k, x_i]`` gives::
+
+        L_ik = K_ik + h (1/2 K_ik L_kk + sum_{k<m<i} K_im L_mk + 1/2 K_ii L_ik),
+
+    with 2x2 blocks ``K_im = K(x_i, x_m)`` and ``L_kk = K_kk`` (the integral vanishes on
+    the diagonal). With ``Lam_mk = L_mk`` for ``m > k`` and ``Lam_kk = L_kk / 2``, these
+    equations for all ``(i, k)`` are the block lower-triangular system
+    ``(I - K_h) Lam = R``, ``K_h[i, m] = h K_im`` for ``m < i`` and ``h/2 K_ii`` for
+    ``m = i``, ``R_ik = K_ik`` for ``i > k`` and ``R_kk = (I - h/2 K_kk) K_kk / 2`` (which
+    returns ``Lam_kk = K_kk / 2``). Scaled by the inverse diagonal blocks it is unit
+    lower triangular and is solved at once by substitution.
     """
     n = K.shape[-1]
-    W = _trapezoid_weights(n)
-    Kb = K.transpose(2, 0, 3, 1).reshape(2 * n, 2 * n)  # Kb[2i + a, 2k + b] = K^{ab}(x_i, xi_k)
+    h = 1.0 / (n - 1)
+    eye2 = np.eye(2)
+    Kb = K.transpose(2, 0, 3, 1).reshape(2 * n, 2 * n)  # Kb[2i + a, 2m + b] = K^{ab}(x_i, xi_m)
+    W = np.tril(np.full((n, n), h), -1) + np.diag(np.full(n, 0.5 * h))
     Wb = np.repeat(np.repeat(W, 2, axis=0), 2, axis=1)
-    inverse = np.linalg.inv(np.eye(2 * n) - Kb * Wb) - np.eye(2 * n)
-    Lb = np.divide(inverse, Wb, out=np.zeros_like(inverse), where=Wb > 0)
-    L = Lb.reshape(n, 2, n, 2).transpose(1, 3, 0, 2)
+    lower = np.repeat(np.repeat(np.tri(n, n, -1), 2, axis=0), 2, axis=1)
+    R = Kb * lower
     diag = np.arange(n)
+    Kd = K[:, :, diag, diag].transpose(2, 0, 1)  # (n, 2, 2)
+    Rd = np.einsum("kab,kbc->kac", eye2 - 0.5 * h * Kd, 0.5 * Kd)
+    for k in range(n):
+        R[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = Rd[k]
+    # Scale by the inverse diagonal blocks: the system becomes unit lower triangular.
+    D_inv = np.linalg.inv(eye2 - 0.5 * h * Kd)
+    M = np.einsum("kab,kbj->kaj", D_inv, (np.eye(2 * n) - Kb * Wb).reshape(n, 2, 2 * n))
+    R = np.einsum("kab,kbj->kaj", D_inv, R.reshape(n, 2, 2 * n))
+    Lam = solve_triangular(M.reshape(2 * n, 2 * n), R.reshape(2 * n, 2 * n), lower=True, unit_diagonal=True)
+    L = Lam.reshape(n, 2, n, 2).transpose(1, 3, 0, 2) * np.tri(n)
     L[:, :, diag, diag] = K[:, :, diag, diag]
     return L
 
@@ -341,18 +341,18 @@ def _richardson(fine: Array, coarse: Array) -> Array:
     """Richardson extrapolation ``F_h + (F_h - F_2h)/3`` of second-order tables ``(2, 2, n, n)``.
 
     The correction is known on the coarse nodes; it is carried to the fine nodes by
-    piecewise-linear interpolation on the triangulated coarse grid (it is ``O(h^2)`` and
-    smooth, so the interpolation adds ``O(h^4)``).
+    piecewise-linear interpolation on the triangulated coarse grid (cells split along
+    ``(1, 1)``): a fine node between two coarse nodes takes their mean. The correction is
+    ``O(h^2)`` and smooth, so the interpolation adds ``O(h^4)``.
     """
     n = fine.shape[-1]
-    x = np.linspace(0.0, 1.0, n)
-    rows, cols = np.tril_indices(n)
-    correction = (fine[:, :, ::2, ::2] - coarse) / 3.0
-    out = fine.copy()
-    for a in range(2):
-        for b in range(2):
-            out[a, b, rows, cols] += _p1_interpolate(correction[a, b], x[rows], x[cols])
-    return out
+    c = (fine[:, :, ::2, ::2] - coarse) / 3.0
+    up = np.zeros_like(fine)
+    up[:, :, ::2, ::2] = c
+    up[:, :, 1::2, ::2] = 0.5 * (c[:, :, :-1, :] + c[:, :, 1:, :])
+    up[:, :, ::2, 1::2] = 0.5 * (c[:, :, :, :-1] + c[:, :, :, 1:])
+    up[:, :, 1::2, 1::2] = 0.5 * (c[:, :, :-1, :-1] + c[:, :, 1:, 1:])
+    return fine + up * np.tri(n)
 
 
 def solve_kernels(system: Hyperbolic2x2, n: int = 401, extrapolate: bool | None = None) -> Kernels:
