@@ -219,7 +219,9 @@ def open_loop_tf(system: Any, n: int | None = None) -> QuasiTransferFunction:
     ----------
     system : TransportSystem or Hyperbolic2x2
     n : int, optional
-        Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only).
+        Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only;
+        default: the grid of the closed-loop functions, so that ``H_1`` and
+        :func:`closed_loop_tf` share the same ``N~``).
     """
     from .hyperbolic.system import Hyperbolic2x2
 
@@ -227,8 +229,9 @@ def open_loop_tf(system: Any, n: int | None = None) -> QuasiTransferFunction:
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
+    from .hyperbolic.controllers import DEFAULT_N
     from .hyperbolic.delay_form import delay_form
-    form = delay_form(system) if n is None else delay_form(system, n=n)
+    form = delay_form(system, n=DEFAULT_N if n is None else positive_int("n", n, 2))
     return QuasiTransferFunction(1.0, form.characteristic)
 
 
@@ -242,7 +245,15 @@ def output_map(system: Any, n: int | None = None) -> QuasiPolynomial:
     ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
     + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
     ``N~`` in eq. (eq_N_tilde). For a transport system ``M = 1``.
+
+    Parameters
+    ----------
+    system : TransportSystem or Hyperbolic2x2
+    n : int, optional
+        Kernel grid (default: that of the closed-loop functions); ``M~`` is tabulated on
+        ``n + 1`` points of each piece.
     """
+    from .hyperbolic.controllers import DEFAULT_N
     from .hyperbolic.kernels import solve_kernels
     from .hyperbolic.system import Hyperbolic2x2
 
@@ -250,9 +261,9 @@ def output_map(system: Any, n: int | None = None) -> QuasiPolynomial:
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiPolynomial([[1.0]], [0.0])
-    kernels = solve_kernels(system) if n is None else solve_kernels(system, n=n)
+    m = DEFAULT_N if n is None else positive_int("n", n, 2)
+    kernels = solve_kernels(system, n=m)
     lam, mu, q = float(system.lam), float(system.mu), float(system.q)
-    m = 200 if n is None else max(int(n), 2)
     xi = np.linspace(0.0, 1.0, m + 1)
     ones = np.ones_like(xi)
     # beta part on nu in [0, 1/mu]: xi = 1 - mu nu, decreasing in nu

@@ -139,3 +139,47 @@ def test_h0_certified_poles_equal_closed_form(rho, q, lam, mu):
     assert found.certified and found.count == expected.size
     assert np.allclose(np.sort_complex(found.roots), np.sort_complex(expected), atol=1e-10)
     assert H0.zeros(box).count == 0
+
+
+# ---------------------------------------------------------------------- coupled plants
+from scipy.linalg import expm  # noqa: E402
+
+from nrobust.hyperbolic import Hyperbolic2x2  # noqa: E402
+from nrobust.hyperbolic.controllers import (  # noqa: E402
+    FilteredController,
+    ReflectionController,
+    characteristic,
+    loop_factors,
+)
+from nrobust.transfer import closed_loop_tf, output_map  # noqa: E402
+
+COUPLED = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=0.7, q=0.8, rho=0.6)
+
+
+def test_open_loop_to_v_matches_matrix_exponential():
+    """Two routes to v(s, 1)/U(s): M(s) H_1(s) through the kernels, and the kernel-free
+    Laplace-domain ODE d/dx [u; v] = A(s) [u; v] solved by a matrix exponential."""
+    H1 = open_loop_tf(COUPLED)
+    M = output_map(COUPLED)
+    s = np.array([0.3 + 1j, -0.2 + 5j, 1.0 + 20j])
+    got = M(s) * H1(s)
+    for sk, g in zip(s, got):
+        A = np.array([[-sk / COUPLED.lam, COUPLED.sigma_pm / COUPLED.lam], [-COUPLED.sigma_mp / COUPLED.mu, sk / COUPLED.mu]])
+        phi = expm(A) @ np.array([COUPLED.q, 1.0])
+        assert g == pytest.approx(phi[1] / (phi[1] - COUPLED.rho * phi[0]), rel=1e-6)
+
+
+@pytest.mark.parametrize("controller", [ReflectionController(0.1), FilteredController(0.2, 1.0)])
+def test_closed_loop_denominator_is_the_characteristic_function(controller):
+    s = POINTS
+    T = closed_loop_tf(COUPLED, controller, 0.05, output="beta")
+    assert np.allclose(T.den(s), characteristic(COUPLED, controller, 0.05)(s), rtol=1e-12)
+    # the same loop closed with feedback(): plant H_1 = 1/D, controller c_n/c_d = -B/c_d
+    A, B = loop_factors(COUPLED, controller)
+    c_d = T.num
+    D = open_loop_tf(COUPLED).den
+    assert np.allclose(A(s), D(s) * c_d(s), rtol=1e-10)
+    loop = open_loop_tf(COUPLED).feedback(QuasiTransferFunction(-B, c_d).delay(0.05), sign=1)
+    assert np.allclose(loop(s), T(s), rtol=1e-10)
+    v_out = closed_loop_tf(COUPLED, controller, 0.05)
+    assert np.allclose(v_out(s), output_map(COUPLED)(s) * T(s), rtol=1e-10)
