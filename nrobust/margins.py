@@ -380,34 +380,40 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
 def _refine(h: _AxisFunction, a: NDArray, b: NDArray, ha: NDArray, hb: NDArray) -> NDArray[np.float64]:
     """Zeros of ``h`` in the sign-change brackets ``[a, b]``, all at once.
 
-    Safeguarded secant (regula falsi, midpoint when the secant point falls in the outer
-    tenths or on every third step): the bracket at least halves every three steps, and a
-    bracket is done when narrower than ``_XTOL max(1, |w|)``, when two successive
-    estimates agree to that tolerance, or when ``|h|`` reaches the rounding level of
-    ``|A| + |B|``.
+    Secant steps through the last two iterates, kept inside the bracket, with a bisection
+    whenever the bracket has not halved over the last three steps (Dekker's safeguard).
+    A bracket is done when narrower than ``_XTOL max(1, |w|)``, when two successive
+    secant iterates agree to that tolerance (superlinear convergence), or when ``|h|``
+    reaches the rounding level of ``|A| + |B|``.
     """
-    x = 0.5 * (a + b)
+    xp, fp = a.copy(), ha.copy()
+    x, fx = b.copy(), hb.copy()
+    history = [b - a] * 3
     done = np.zeros(a.shape, dtype=bool)
-    for it in range(_MAX_REFINE):
+    for _ in range(_MAX_REFINE):
         width = b - a
         done |= width <= _XTOL * np.maximum(1.0, np.abs(a))
         act = np.flatnonzero(~done)
         if not act.size:
             return x
-        aa, bb, fa, fb = a[act], b[act], ha[act], hb[act]
-        sec = bb - fb * (bb - aa) / (fb - fa)
+        aa, bb = a[act], b[act]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sec = x[act] - fx[act] * (x[act] - xp[act]) / (fx[act] - fp[act])
         mid = 0.5 * (aa + bb)
-        inner = (sec > aa + 0.1 * (bb - aa)) & (sec < bb - 0.1 * (bb - aa))
-        xn = np.where(inner & (it % 3 != 2), sec, mid)
-        fx, scale = h.with_scale(xn)
-        settled = np.abs(xn - x[act]) <= _XTOL * np.maximum(1.0, np.abs(xn))  # successive estimates agree
-        x[act] = xn
-        left = np.sign(fx) == np.sign(fa)
+        stalled = width[act] > 0.5 * history[0][act]
+        use_sec = np.isfinite(sec) & (sec > aa) & (sec < bb) & ~stalled
+        xn = np.where(use_sec, sec, mid)
+        fn, scale = h.with_scale(xn)
+        settled = use_sec & (np.abs(xn - x[act]) <= _XTOL * np.maximum(1.0, np.abs(xn)))
+        xp[act], fp[act] = x[act], fx[act]
+        x[act], fx[act] = xn, fn
+        left = np.sign(fn) == np.sign(ha[act])
         a[act] = np.where(left, xn, aa)
-        ha[act] = np.where(left, fx, fa)
+        ha[act] = np.where(left, fn, ha[act])
         b[act] = np.where(left, bb, xn)
-        hb[act] = np.where(left, fb, fx)
-        done[act] |= (np.abs(fx) <= 8 * np.finfo(float).eps * scale) | settled
+        hb[act] = np.where(left, hb[act], fn)
+        history = history[1:] + [b - a]
+        done[act] |= (np.abs(fn) <= 8 * np.finfo(float).eps * scale) | settled
     raise ConvergenceError(f"crossing refinement: {int(np.count_nonzero(~done))} brackets not resolved in {_MAX_REFINE} steps")
 
 
