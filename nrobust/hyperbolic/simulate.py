@@ -60,6 +60,7 @@ from typing import Any, Callable, Union
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import sparse
 
 from .._validate import finite_real, nonnegative, positive, positive_int
 from ..errors import ParameterError
@@ -260,26 +261,17 @@ def _lagrange(nodes: Array, s: float) -> Array:
     return w
 
 
-@dataclass(frozen=True)
-class _Stencil:
-    """Four-point Lagrange interpolation from sorted ``nodes`` to fixed ``targets``."""
-
-    index: NDArray[np.intp]
-    weight: Array
-
-    @classmethod
-    def build(cls, nodes: Array, targets: Array) -> "_Stencil":
-        size = min(4, nodes.size)
-        right = np.searchsorted(nodes, targets, side="right")
-        lo = np.clip(right - size // 2, 0, nodes.size - size)
-        index = lo[:, None] + np.arange(size)[None, :]
-        weight = np.empty(index.shape)
-        for row, (cols, target) in enumerate(zip(index, targets)):
-            weight[row] = _lagrange(nodes[cols], float(target))
-        return cls(index, weight)
-
-    def __call__(self, values: Array) -> Array:
-        return np.einsum("ij,ij->i", values[self.index], self.weight)
+def _stencil(nodes: Array, targets: Array) -> sparse.csr_matrix:
+    """Four-point Lagrange interpolation from sorted ``nodes`` to ``targets``, as a matrix."""
+    size = min(4, nodes.size)
+    right = np.searchsorted(nodes, targets, side="right")
+    lo = np.clip(right - size // 2, 0, nodes.size - size)
+    index = lo[:, None] + np.arange(size)[None, :]
+    weight = np.empty(index.shape)
+    for row, (cols, target) in enumerate(zip(index, targets)):
+        weight[row] = _lagrange(nodes[cols], float(target))
+    rows = np.repeat(np.arange(targets.size), size)
+    return sparse.csr_matrix((weight.ravel(), (rows, index.ravel())), shape=(targets.size, nodes.size))
 
 
 def _trapezoid_weights(nodes: Array) -> Array:
@@ -452,10 +444,10 @@ def _march_two_grids(
     mp_v = system.sigma_mp_at(xv)
     src = np.minimum(xv[:-1] + hv, 1.0)  # where the v characteristics were one step earlier
     mp_src = system.sigma_mp_at(src)
-    v_at_u = _Stencil.build(xv, x)
-    u_at_v = _Stencil.build(x, xv)
-    u_at_src = _Stencil.build(x, src)
-    v_at_src = _Stencil.build(xv, src)
+    v_at_u = _stencil(xv, x)
+    u_at_v = _stencil(x, xv)
+    u_at_src = _stencil(x, src)
+    v_at_src = _stencil(xv, src)
     h2 = dt / 2.0
     inv_0 = 1.0 / (1.0 - h2 * mp_v[0] * system.q)
     wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
@@ -468,15 +460,15 @@ def _march_two_grids(
         un[-1], vn[-1] = loop.solve(j, un[-1], 0.0, float(wu_in @ un[:-1] + wv_in @ vn[:-1]))
 
     for j in range(1, steps + 1):
-        fu_old = pm_u * v_at_u(v)  # sigma_pm v along the u characteristics at t_{j-1}
-        v_src = v_at_src(v)  # v one step upstream of the v nodes
-        fv_old = mp_src * u_at_src(u)  # sigma_mp u there
+        fu_old = pm_u * (v_at_u @ v)  # sigma_pm v along the u characteristics at t_{j-1}
+        v_src = v_at_src @ v  # v one step upstream of the v nodes
+        fv_old = mp_src * (u_at_src @ u)  # sigma_mp u there
         # Predictor (Euler), then corrector (trapezoid) with the predicted state at t_j.
         un[1:] = u[:-1] + dt * fu_old[:-1]
         vn[:-1] = v_src + dt * fv_old
         close(j, v_src[0], fv_old[0])
-        fu_new = pm_u * v_at_u(vn)
-        fv_new = mp_v * u_at_v(un)
+        fu_new = pm_u * (v_at_u @ vn)
+        fv_new = mp_v * (u_at_v @ un)
         un[1:] = u[:-1] + h2 * (fu_old[:-1] + fu_new[1:])
         vn[:-1] = v_src + h2 * (fv_old + fv_new[:-1])
         close(j, v_src[0], fv_old[0])
