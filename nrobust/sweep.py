@@ -920,30 +920,29 @@ def robustness(
 class _Analysis:
     """An analysis of ``run_sweep_file``: the nrobust function it calls and its result columns.
 
-    ``target`` is looked up by name when the analysis runs. It is called as
-    ``target(system, controller, **options)``, or, when ``on_characteristic``, as
-    ``target(characteristic(system, controller, delta), **options)`` with the loop delay
-    ``delta`` (default 0) as one more option. The options are the keyword parameters of
-    ``target`` after those arguments.
+    ``target`` is looked up by name when the analysis runs. With ``n_positional == 2`` it
+    is called as ``target(system, controller, **options)``; with ``n_positional == 1`` as
+    ``target(characteristic(system, controller, delta), **options)``, the loop delay
+    ``delta`` (default 0) being one of the options in ``own``. The options are the keyword
+    parameters of ``target`` after its ``n_positional`` first ones, plus ``own``.
     """
 
     target: str
+    n_positional: int
+    own: tuple[str, ...]
     columns: Callable[[Any], dict[str, Any]]
-    on_characteristic: bool = False
 
     def options(self) -> set[str] | None:
         """Accepted option names (``None``: any, the target takes ``**kwargs``)."""
         params = list(inspect.signature(_nrobust_function(self.target)).parameters.values())
         if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
             return None
-        rest = params[1 if self.on_characteristic else 2:]
         kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-        names = {p.name for p in rest if p.kind in kinds}
-        return names | {"delta"} if self.on_characteristic else names
+        return {p.name for p in params[self.n_positional:] if p.kind in kinds} | set(self.own)
 
     def __call__(self, system: Any, controller: Any, **options: Any) -> dict[str, Any]:
         fn = _nrobust_function(self.target)
-        if self.on_characteristic:
+        if self.n_positional == 1:
             delta = options.pop("delta", 0.0)
             value = fn(_nrobust_function("characteristic")(system, controller, delta), **options)
         else:
@@ -964,8 +963,8 @@ def _abscissa_columns(result: Any) -> dict[str, Any]:
 #: Analyses that ``run_sweep_file`` knows by name. Each runs one nrobust function, looked
 #: up in the ``nrobust`` namespace at call time, on the system and controller of a point.
 ANALYSES: dict[str, _Analysis] = {
-    "delay_margin": _Analysis("delay_margin", _margin_columns),
-    "spectral_abscissa": _Analysis("spectral_abscissa", _abscissa_columns, on_characteristic=True),
+    "delay_margin": _Analysis("delay_margin", 2, (), _margin_columns),
+    "spectral_abscissa": _Analysis("spectral_abscissa", 1, ("delta",), _abscissa_columns),
 }
 _SYSTEM_TYPES = ("TransportSystem", "Hyperbolic2x2")
 _CONTROLLER_TYPES = ("OpenLoop", "FiniteTimeController", "ReflectionController", "FilteredController")

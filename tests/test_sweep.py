@@ -279,7 +279,7 @@ def toy_registry(monkeypatch):
     """Register a closed-form analysis under a name the file runner looks up in the
     nrobust namespace, so that its machinery is tested apart from the margin search."""
     monkeypatch.setattr(nrobust, "toy_file_margin", toy_file_margin, raising=False)
-    monkeypatch.setitem(ANALYSES, "toy", _Analysis("toy_file_margin", lambda r: {"delta_star": r.delta_star}))
+    monkeypatch.setitem(ANALYSES, "toy", _Analysis("toy_file_margin", 2, (), lambda r: {"delta_star": r.delta_star}))
 
 
 GRID_TOML = """
