@@ -39,13 +39,13 @@ double roots of ``h``) are reported as tangential crossings.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize_scalar
 
-from ._validate import finite_real, nonnegative, positive, positive_int
+from ._validate import positive, positive_int
 from .errors import CertificationError, ConvergenceError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .rouche import TailBound, joint_degree, principal_gap, radius_where
