@@ -94,7 +94,7 @@ def test_extrapolated_closed_form_is_more_accurate():
 
 # --------------------------------------------------------------------------- convergence
 @pytest.mark.parametrize("system", VARYING)
-@pytest.mark.parametrize("extrapolate", [False, True])
+@pytest.mark.parametrize("extrapolate", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_second_order_convergence_varying_couplings(system, extrapolate):
     """Observed order from differences of successive grids 51, 101, 201, 401 (>= 1.8)."""
     grids = [solve_kernels(system, n=n, extrapolate=extrapolate) for n in (51, 101, 201, 401)]
