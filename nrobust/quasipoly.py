@@ -370,6 +370,23 @@ class DistributedDelay:
         }
 
 
+def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDelay, ...]:
+    """Sum the terms that share nodes, polynomial and moment; drop the zero ones.
+
+    Exact cancellation matters: ``A + B`` of a loop with ``B = K q e^{-tau s} - I_N`` and
+    ``A = 1 - rho q e^{-tau s} + I_N`` must not keep ``I_N - I_N`` as rounding noise.
+    """
+    merged: list[DistributedDelay] = []
+    for d in terms:
+        for i, m in enumerate(merged):
+            if m.moment == d.moment and np.array_equal(m.nodes, d.nodes) and np.array_equal(m.poly, d.poly):
+                merged[i] = DistributedDelay(m.nodes, m.values + d.values, m.poly, m.moment)
+                break
+        else:
+            merged.append(d)
+    return tuple(d for d in merged if np.any(d.poly != 0) and np.any(d.values != 0))
+
+
 def _json_array(a: NDArray) -> list:
     if np.iscomplexobj(a):
         return [[float(v.real), float(v.imag)] for v in a]
@@ -422,7 +439,7 @@ class QuasiPolynomial:
             (_as_poly("coefs", p), t) for t, p in sorted(merged.items()) if np.any(p != 0)
         )
         object.__setattr__(self, "point_terms", terms)
-        object.__setattr__(self, "distributed", tuple(d for d in dist if np.any(d.poly != 0) and np.any(d.values != 0)))
+        object.__setattr__(self, "distributed", _merge_distributed(dist))
 
     @classmethod
     def _from_parts(cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]) -> "QuasiPolynomial":

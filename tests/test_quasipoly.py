@@ -212,3 +212,14 @@ def test_chirp_z_path_on_vertical_lines_matches_direct(monkeypatch):
         monkeypatch.undo()
         # Block length 1024 bounds the chirp phase error; measured ~1e-13 relative.
         assert np.max(np.abs(fast - direct)) < 1e-12 * np.max(np.abs(direct))
+
+
+def test_identical_distributed_terms_merge_and_cancel_exactly():
+    d = _jump_kernel()
+    A = QuasiPolynomial([[1], [-0.85]], [0, 2], [d])
+    B = QuasiPolynomial([[0.1]], [2], [d.scale(-1.0)])
+    F = A + B.shift(0.0)
+    assert F.distributed == ()
+    assert np.allclose(F(S_SAMPLES), 1 - 0.75 * np.exp(-2 * S_SAMPLES), rtol=1e-15)
+    G = A + A
+    assert len(G.distributed) == 1 and np.allclose(G(S_SAMPLES), 2 * A(S_SAMPLES), rtol=1e-14)
