@@ -344,8 +344,8 @@ class DistributedDelay:
         )
 
     def scale(self, c: complex) -> "DistributedDelay":
-        """Multiply by a constant."""
-        return DistributedDelay(self.nodes, self.values, self.poly * c, self.moment)
+        """Multiply by a constant (applied to the values, so equal supports still merge)."""
+        return DistributedDelay(self.nodes, self.values * c, self.poly, self.moment)
 
     def times_poly(self, coefs: ArrayLike) -> "DistributedDelay":
         """Multiply by a polynomial (coefficients in increasing powers)."""
