@@ -303,6 +303,11 @@ def test_stability_chart_transport_and_map_hook() -> None:
         again = stability_chart(system, Ks, deltas, map=ex.map)
     assert np.array_equal(again.values, chart.values, equal_nan=True)
     assert len(chart.to_dict()["values"]) == 4
+    absc = stability_chart(system, [0.0, 0.1], [0.0, 0.5], quantity="abscissa")
+    assert absc.values[:, 0] == pytest.approx(np.log([0.85, 0.75]) / 2.0, abs=1e-8)  # target systems
+    assert absc.values[1, 1] < 0  # margin inf: still stable at delta = 0.5
+    with pytest.raises(ParameterError):
+        stability_chart(system, Ks, deltas, quantity="roots")
 
 
 def test_stability_chart_counts_match_certified_counts() -> None:
