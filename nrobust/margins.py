@@ -31,7 +31,8 @@ is no crossing, and no root with ``Re s >= 0``, for any delta. On ``[0, W]`` the
 ``h(w) = |A(i w)| - |B(i w)|`` is explored with a certified exclusion test: with ``L`` a
 bound of ``|A'| + |B'|`` on a segment (``QuasiPolynomial.deriv_bound``),
 ``|h(w_i)| + |h(w_{i+1})| > L (w_{i+1} - w_i)`` proves that ``h`` has no zero on it;
-the other segments are cut (eightfold per round) down to a relative width ``1e-7``, where sign changes are
+the other segments are cut (at least eightfold per round, on one uniform line per
+cluster) down to a relative width ``1e-7``, where sign changes are
 refined by a safeguarded secant method to ``1e-12`` and sign-preserving clusters (tangential touches,
 double roots of ``h``) are reported as tangential crossings.
 """
@@ -78,8 +79,11 @@ _MIN_WIDTH = 1e-7
 _UNIFORM_QUANTILE = 0.99
 _UNIFORM_PASSES = 3
 _UNIFORM_MAX = 1024
-# Each unresolved segment is cut into this many pieces per round.
+# Each unresolved segment is cut into at least this many pieces per round, and a cluster
+# of contiguous segments into at least _LINE_POINTS (the evaluator sums the kernels as a
+# chirp-z transform on uniform lines of 64 points or more).
 _SPLIT = 8
+_LINE_POINTS = 64
 # Work bound of the bracket refinement.
 _MAX_REFINE = 200
 # Tolerance on the crossing frequency (absolute, times max(1, w)).
@@ -337,14 +341,21 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
         wl, wr, hl, hr, blk = wl[~small], wr[~small], hl[~small], hr[~small], blk[~small]
         if not wl.size:
             break
-        frac = np.arange(1, _SPLIT) / _SPLIT
-        inner = wl[:, None] + (wr - wl)[:, None] * frac[None, :]
-        hin = h(inner.ravel()).reshape(inner.shape)
-        pts = np.concatenate([wl[:, None], inner, wr[:, None]], axis=1)
-        vals = np.concatenate([hl[:, None], hin, hr[:, None]], axis=1)
-        wl, wr = pts[:, :-1].ravel(), pts[:, 1:].ravel()
-        hl, hr = vals[:, :-1].ravel(), vals[:, 1:].ravel()
-        blk = np.repeat(blk, _SPLIT)
+        # Refine each cluster of contiguous segments on one uniform line (a chirp-z
+        # evaluation when long enough), every segment cut into at least _SPLIT pieces.
+        order = np.argsort(wl)
+        wl, wr, blk = wl[order], wr[order], blk[order]
+        cuts = np.r_[0, np.flatnonzero(wr[:-1] != wl[1:]) + 1, wl.size]
+        parts: list[tuple[NDArray, NDArray, NDArray]] = []
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            factor = max(_SPLIT, -(-_LINE_POINTS // (b - a)))
+            line = np.linspace(wl[a], wr[b - 1], (b - a) * factor + 1)
+            parts.append((line, h(line), np.repeat(blk[a:b], factor)))
+        wl = np.concatenate([p[0][:-1] for p in parts])
+        wr = np.concatenate([p[0][1:] for p in parts])
+        hl = np.concatenate([p[1][:-1] for p in parts])
+        hr = np.concatenate([p[1][1:] for p in parts])
+        blk = np.concatenate([p[2] for p in parts])
     L = np.concatenate(final_l)
     order = np.argsort(L)
     L = L[order]
