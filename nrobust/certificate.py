@@ -59,6 +59,11 @@ class PrincipalPart:
         small delay (Hale and Verduyn Lunel).
     strong_spectral_bound : float
         ``C_D``, the supremum of the chains' abscissa over small delay perturbations.
+    spectral_bound : float
+        ``c_D``, the abscissa of the rightmost chain at this very delay (exact for
+        commensurate delays, the certified upper end of its bracket otherwise).
+    chains : tuple of float
+        Abscissae ``Re s`` of the root chains, rightmost first (commensurate delays only).
     """
 
     delta: float
@@ -67,6 +72,8 @@ class PrincipalPart:
     gamma_0: float
     strongly_stable: bool
     strong_spectral_bound: float
+    spectral_bound: float
+    chains: tuple[float, ...]
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -77,11 +84,15 @@ class PrincipalPart:
             "gamma_0": self.gamma_0,
             "strongly_stable": self.strongly_stable,
             "strong_spectral_bound": _json_float(self.strong_spectral_bound),
+            "spectral_bound": _json_float(self.spectral_bound),
+            "chains": [_json_float(c) for c in self.chains],
         }
 
 
 def _principal(F: Any, delta: float) -> PrincipalPart:
     D = F.principal_part()
+    chains = D.chains()
+    bound = chains.bracket[1]  # c_D when commensurate, else the certified upper end
     return PrincipalPart(
         float(delta),
         tuple(float(np.real(a)) for a in D.coefs),
@@ -89,6 +100,8 @@ def _principal(F: Any, delta: float) -> PrincipalPart:
         float(D.gamma_0),
         bool(D.is_strongly_stable()),
         float(D.strong_spectral_bound()),
+        float(bound),
+        tuple(float(c.real) for c in chains.chains),
     )
 
 

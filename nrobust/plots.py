@@ -47,6 +47,8 @@ __all__ = [
     "root_locus_response",
     "root_locus_plot",
     "simulation_plot",
+    "stability_chart_plot",
+    "tradeoff_plot",
 ]
 
 
@@ -100,6 +102,8 @@ class NyquistResponse:
     crossings : ndarray
         Frequencies ``w > 0`` where ``|L(i w)| = 1`` (``|A| = |B|``): the only frequencies
         at which a root can cross the imaginary axis as ``delta`` varies.
+    crossing_values : ndarray
+        ``L(i w)`` at the crossing frequencies (on the unit circle).
     principal_bound : float
         Upper bound of the spectral bound ``c_D`` of the closed-loop difference operator.
     rhp_zeros : int or None
@@ -117,6 +121,7 @@ class NyquistResponse:
     loop: NDArray[np.complex128]
     delta: float
     crossings: NDArray[np.float64]
+    crossing_values: NDArray[np.complex128]
     principal_bound: float
     rhp_zeros: int | None
     tail: float
@@ -133,7 +138,7 @@ class NyquistResponse:
             lines["unit_circle"] = ax.plot(np.cos(th), np.sin(th), ":", color="0.5", label="|L| = 1")
         lines["critical"] = ax.plot([-1.0], [0.0], "r+", markersize=12, label="-1")
         if self.crossings.size:
-            a_b = self.crossing_points()
+            a_b = self.crossing_values
             lines["crossings"] = ax.plot(a_b.real, a_b.imag, "o", color="C3", label="crossings")
             for w, p in zip(self.crossings, a_b):
                 ax.annotate(f"{w:.3g}", (p.real, p.imag), textcoords="offset points", xytext=(4, 4), fontsize=7)
@@ -148,12 +153,6 @@ class NyquistResponse:
         ax.axvline(0.0, color="0.8", lw=0.5)
         ax.legend(fontsize="x-small", loc="best")
         return NrobustPlot(lines, ax, ax.figure)
-
-    def crossing_points(self) -> NDArray[np.complex128]:
-        """``L(i w_c)`` at the crossing frequencies (on the unit circle)."""
-        return np.interp(self.crossings, self.omega, self.loop.real) + 1j * np.interp(
-            self.crossings, self.omega, self.loop.imag
-        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (the sampled loop is left out)."""
@@ -195,6 +194,7 @@ def nyquist_response(
     delta: float = 0.0,
     omega_max: float = 200.0,
     n: int = 4001,
+    principal_bound: float | None = None,
 ) -> NyquistResponse:
     """Compute the Nyquist data of the loop ``L = B/A e^{-delta s}``.
 
@@ -210,6 +210,10 @@ def nyquist_response(
         Upper end ``W`` of the frequency band.
     n : int
         Initial number of samples on ``[0, W]`` (refined where the argument turns fast).
+    principal_bound : float, optional
+        An upper bound of the spectral bound ``c_D`` of the difference operator of
+        ``F = A + B e^{-delta s}`` computed elsewhere (e.g.
+        ``Certificate.principal_delayed.spectral_bound``); by default it is computed here.
 
     Returns
     -------
@@ -224,9 +228,13 @@ def nyquist_response(
     w = np.linspace(0.0, W, n)
     a_w = A(1j * w)
     b_w = B(1j * w)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        loop = b_w / a_w * np.exp(-1j * w * delta)
     crossings = _crossings(A, B, w, np.abs(a_w) - np.abs(b_w))
+
+    def L(s: NDArray) -> NDArray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return B(s) / A(s) * np.exp(-s * delta)
+
+    w, loop = _refine_curve(L, w)
 
     F = A + B.shift(delta)
     deg, lead = _principal(F)
@@ -240,10 +248,13 @@ def nyquist_response(
         from .difference import DifferenceOperator
 
         D = DifferenceOperator([a for a, _ in lead], [t for _, t in lead])
-        # C_D >= c_D is cheap and certified; the exact c_D only when C_D does not decide
-        bound = float(D.strong_spectral_bound())
-        if bound >= 0.0:
-            bound = float(D.spectral_bound().upper)
+        if principal_bound is not None:
+            bound = float(principal_bound)
+        else:
+            # C_D >= c_D is cheap and certified; the exact c_D only when C_D does not decide
+            bound = float(D.strong_spectral_bound())
+            if bound >= 0.0:
+                bound = float(D.spectral_bound().upper)
         if bound >= 0.0:
             note = f"the principal part has spectral bound {bound:.6g} >= 0: no finite count in Re s > 0"
         else:
@@ -264,7 +275,24 @@ def nyquist_response(
                 note = f"winding {count:.3f} is not close to an integer"
             else:
                 rhp = int(round(count))
-    return NyquistResponse(w, loop, delta, crossings, bound, rhp, tail, note)
+    return NyquistResponse(w, loop, delta, crossings, L(1j * crossings), bound, rhp, tail, note)
+
+
+def _refine_curve(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], levels: int = 8) -> tuple[NDArray, NDArray]:
+    """Sample ``fun(i w)`` so that consecutive points are closer than 2 % of the curve's
+    median modulus (or 0.02), halving the steps that are not, up to ``levels`` times."""
+    vals = fun(1j * w)
+    finite = np.isfinite(vals)
+    scale = max(float(np.median(np.abs(vals[finite]))) if np.any(finite) else 1.0, 1.0)
+    for _ in range(levels):
+        jumps = np.abs(np.diff(vals))
+        bad = np.flatnonzero(np.isfinite(jumps) & (jumps > 0.02 * scale))
+        if bad.size == 0:
+            break
+        mids = 0.5 * (w[bad] + w[bad + 1])
+        w = np.insert(w, bad + 1, mids)
+        vals = np.insert(vals, bad + 1, fun(1j * mids))
+    return w, vals
 
 
 def _crossings(A: QuasiPolynomial, B: QuasiPolynomial, w: NDArray, gap: NDArray) -> NDArray[np.float64]:
@@ -301,7 +329,7 @@ def root_map_plot(
     region: tuple[float, float, float, float],
     roots: "RootSet | ArrayLike | None" = None,
     ax: "Axes | None" = None,
-    chains: bool = True,
+    chains: bool | Sequence[float] = True,
     max_chains: int = 12,
 ) -> NrobustPlot:
     """Roots of ``F`` in a rectangle, the chain asymptotes of its principal part, the axis.
@@ -314,9 +342,11 @@ def root_map_plot(
     roots : RootSet or array_like, optional
         Precomputed roots; by default ``find_roots(F, region)`` (certified).
     ax : matplotlib Axes, optional
-    chains : bool
+    chains : bool or sequence of float
         Draw the vertical asymptotes ``Re s = c`` of the root chains of the difference
-        operator ``F.principal_part()`` (Hale and Verduyn Lunel) that meet the region.
+        operator ``F.principal_part()`` (Hale and Verduyn Lunel) that meet the region;
+        a sequence gives the abscissae ``c`` directly (e.g. ``PrincipalPart.chains`` of a
+        certificate).
     max_chains : int
         At most this many asymptotes are drawn, the rightmost ones (a loop delay ``delta``
         commensurate with ``tau`` in steps ``h`` gives ``(tau + delta)/h`` chains); the
@@ -339,13 +369,14 @@ def root_map_plot(
     lines: dict[str, list[Any]] = {"chains": []}
     lines["axis"] = [ax.axvline(0.0, color="k", lw=0.8, label="imaginary axis")]
     max_chains = positive_int("max_chains", max_chains)
-    if chains and F.is_neutral:
-        inside = [c for c in F.principal_part().chains().chains if box[0] <= c.real <= box[1]]
-        inside.sort(key=lambda c: -c.real)
-        left_out = len(inside) - max_chains
-        label = "chain asymptotes" + (f" ({max_chains} rightmost of {len(inside)})" if left_out > 0 else "")
-        for k, chain in enumerate(inside[:max_chains]):
-            lines["chains"].append(ax.axvline(chain.real, color="C1", ls="--", lw=0.8, label=label if k == 0 else None))
+    if isinstance(chains, bool):
+        reals = [c.real for c in F.principal_part().chains().chains] if chains and F.is_neutral else []
+    else:
+        reals = [float(c) for c in chains]
+    inside = sorted((c for c in reals if box[0] <= c <= box[1]), reverse=True)
+    label = "chain asymptotes" + (f" ({max_chains} rightmost of {len(inside)})" if len(inside) > max_chains else "")
+    for k, c in enumerate(inside[:max_chains]):
+        lines["chains"].append(ax.axvline(c, color="C1", ls="--", lw=0.8, label=label if k == 0 else None))
     lines["roots"] = ax.plot(values.real, values.imag, "x", color="C0", label=f"{values.size} roots")
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])
@@ -474,4 +505,106 @@ def simulation_plot(
     ax.set_ylabel("||(u, v)(t)||_L2")
     if labels is not None:
         ax.legend(fontsize="x-small", loc="best")
+    return NrobustPlot(lines, ax, ax.figure)
+
+
+# ---------------------------------------------------------------------- charts
+def stability_chart_plot(
+    chart: Any,
+    ax: "Axes | None" = None,
+    k_bound: float | None = None,
+    rouche: tuple[ArrayLike, ArrayLike] | None = None,
+) -> NrobustPlot:
+    """Stability chart in ``(K, delta)``: the grid, the exact boundary, the paper's bound.
+
+    Parameters
+    ----------
+    chart : StabilityChart
+        From :func:`nrobust.margins.stability_chart` (``quantity="count"``).
+    ax : matplotlib Axes, optional
+    k_bound : float, optional
+        The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (boun_K2)
+        (``classify(system).k_bound``), drawn as two vertical lines.
+    rouche : (Ks, delta_0) pair, optional
+        The guaranteed delays ``delta_0(K)`` of Theorem 4's proof
+        (:func:`nrobust.margins.tradeoff` gives them as ``rouche_bounds``).
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["stable"]`` (grid points with no unstable zero), ``lines["unstable"]``,
+        ``lines["margin"]`` (the exact boundary ``delta*(K)``), ``lines["crossings"]`` (every
+        crossing delay up to ``max(deltas)``), ``lines["paper_bound"]``, ``lines["rouche"]``.
+    """
+    if getattr(chart, "quantity", None) != "count":
+        raise ParameterError("chart", 'a StabilityChart with quantity "count"', chart)
+    ax = _get_ax(ax)
+    Ks, deltas, values = chart.Ks, chart.deltas, chart.values
+    KK, DD = np.meshgrid(Ks, deltas, indexing="ij")
+    stable = values == 0
+    lines: dict[str, list[Any]] = {}
+    lines["stable"] = ax.plot(KK[stable], DD[stable], "s", color="tab:green", ms=3, alpha=0.6, label="stable")
+    lines["unstable"] = ax.plot(KK[~stable], DD[~stable], "s", color="tab:red", ms=3, alpha=0.35, label="unstable")
+    top = float(deltas.max())
+    shown = np.where(np.isfinite(chart.margins), np.minimum(chart.margins, top), top)
+    lines["margin"] = ax.plot(Ks, shown, "-", color="k", lw=1.5, label="delay margin delta*(K)")
+    kc, dc = [], []
+    for K, rows in zip(Ks, chart.boundaries):
+        rows = np.asarray(rows).reshape(-1, 3)
+        kc += [K] * rows.shape[0]
+        dc += list(rows[:, 0])
+    lines["crossings"] = ax.plot(kc, dc, ".", color="0.3", ms=3, label="crossing delays") if kc else []
+    lines["paper_bound"] = []
+    if k_bound is not None:
+        kb = float(k_bound)
+        for k, x in enumerate((-kb, kb)):
+            lines["paper_bound"].append(
+                ax.axvline(x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (boun_K2)" if k == 0 else None)
+            )
+    lines["rouche"] = []
+    if rouche is not None:
+        rk, rd = (np.asarray(v, dtype=float) for v in rouche)
+        if rk.shape != rd.shape:
+            raise ParameterError("rouche", "a pair (Ks, delta_0) of equal lengths", rouche)
+        lines["rouche"] = ax.plot(rk, np.minimum(rd, top), "-.", color="C1", label="Rouche delta_0(K), Theorem 4")
+    ax.set_xlabel("K")
+    ax.set_ylabel("delta")
+    ax.set_ylim(0.0, top * 1.02)
+    ax.set_title("Stability chart of U_BS2(K)", fontsize="small")
+    ax.legend(fontsize="x-small", loc="upper right")
+    return NrobustPlot(lines, ax, ax.figure)
+
+
+def tradeoff_plot(tradeoff: Any, ax: "Axes | None" = None, annotate: bool = True) -> NrobustPlot:
+    """Decay rate against delay margin as the gain ``K`` varies (the paper's trade-off).
+
+    Parameters
+    ----------
+    tradeoff : Tradeoff
+        From :func:`nrobust.margins.tradeoff`.
+    ax : matplotlib Axes, optional
+    annotate : bool
+        Write ``K`` next to the points.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["curve"]`` with x = delay margins (finite ones) and y = decay rates.
+    """
+    ax = _get_ax(ax)
+    Ks = np.asarray(tradeoff.Ks, dtype=float)
+    m = np.asarray(tradeoff.margins, dtype=float)
+    r = np.asarray(tradeoff.decay_rates, dtype=float)
+    ok = np.isfinite(m) & np.isfinite(r)
+    lines: dict[str, list[Any]] = {}
+    lines["curve"] = ax.plot(m[ok], r[ok], "o-", color="C0", ms=4, label="U_BS2(K)")
+    if annotate:
+        for K, x, y in zip(Ks[ok], m[ok], r[ok]):
+            ax.annotate(f"{K:.3g}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=6)
+    ax.set_xlabel("delay margin delta*")
+    ax.set_ylabel("decay rate (- spectral abscissa)")
+    ax.set_title("Decay rate against delay margin", fontsize="small")
+    hidden = int(np.sum(~ok))
+    if hidden:
+        ax.text(0.02, 0.02, f"{hidden} gain(s) with infinite margin not shown", transform=ax.transAxes, fontsize=7)
     return NrobustPlot(lines, ax, ax.figure)

@@ -118,9 +118,13 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
 
     out: list[tuple[str, Figure]] = []
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2), sharey=True)
-    for ax, delta, roots in ((axes[0], 0.0, cert.roots_nominal), (axes[1], cert.delta_max, cert.roots_delayed)):
+    panels = (
+        (axes[0], 0.0, cert.roots_nominal, cert.principal_nominal),
+        (axes[1], cert.delta_max, cert.roots_delayed, cert.principal_delayed),
+    )
+    for ax, delta, roots, principal in panels:
         F = characteristic(cert.system, cert.controller, delta)
-        root_map_plot(F, cert.region, roots=roots, ax=ax)
+        root_map_plot(F, cert.region, roots=roots, ax=ax, chains=principal.chains)
         ax.set_title(f"delta = {delta:g}: {roots.count} roots (certified: {_fmt(roots.certified)})", fontsize="small")
     fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
     out.append(("Closed-loop roots in the certified region, with the chain asymptotes of the difference operator", fig))
@@ -128,7 +132,7 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
     A, B = loop_factors(cert.system, cert.controller)
     w_max = 40.0 * 2 * np.pi / float(cert.system.tau)
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
-    nyquist_response(A, B, cert.delta_max, omega_max=w_max).plot(ax=ax)
+    nyquist_response(A, B, cert.delta_max, omega_max=w_max, principal_bound=cert.principal_delayed.spectral_bound).plot(ax=ax)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
     return out
 

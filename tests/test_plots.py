@@ -57,9 +57,9 @@ def test_nyquist_finite_time_controller_has_no_finite_count():
     assert resp.crossings.size > 0
     assert np.allclose(np.abs(B(1j * resp.crossings) / A_TRANSPORT(1j * resp.crossings)), 1.0, atol=1e-9)
     out = resp.plot()
-    pts = resp.crossing_points()
+    pts = resp.crossing_values
     assert np.allclose(out.lines["crossings"][0].get_xdata(), pts.real)
-    assert np.allclose(np.abs(pts), 1.0, atol=1e-3)
+    assert np.allclose(np.abs(pts), 1.0, atol=1e-9)
 
 
 @pytest.mark.parametrize(
