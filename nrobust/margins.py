@@ -486,9 +486,9 @@ def _crossing_search(A: QuasiPolynomial, B: QuasiPolynomial, fb: tuple[float, fl
 
     lo = 0.0 if _is_real(A, B) else -W
     roots, tang = _search(h, lo, W, L_of, step)
-    keep = [k for k, w in enumerate(roots) if abs(w) > _ZERO_TOL * max(1.0, W)]
-    omegas = np.array([roots[k] for k in keep], dtype=float)
-    return CrossingSearch(omegas, np.array([tang[k] for k in keep], dtype=bool), float(W), float(gap), h.evals)
+    keep = sorted((w, k) for k, w in enumerate(roots) if abs(w) > _ZERO_TOL * max(1.0, W))
+    omegas = np.array([w for w, _ in keep], dtype=float)
+    return CrossingSearch(omegas, np.array([tang[k] for _, k in keep], dtype=bool), float(W), float(gap), h.evals)
 
 
 def _crossings(A: QuasiPolynomial, B: QuasiPolynomial, search: CrossingSearch, delta_max: float | None) -> tuple[tuple[Crossing, ...], float]:
@@ -507,6 +507,8 @@ def _crossings(A: QuasiPolynomial, B: QuasiPolynomial, search: CrossingSearch, d
     base[(base > period * (1 - _ZERO_TOL)) | (base < period * _ZERO_TOL)] = 0.0
     if delta_max is None:
         delta_max = float(np.max(base + period))
+    elif not np.isfinite(delta_max):
+        raise ParameterError("delta_max", "finite: the loop has crossing frequencies, hence infinitely many crossing delays", delta_max)
     e = np.exp(-s * base)
     ds = s * b * e / (da + db * e - base * b * e)
     inv_re = (-(da / a - db / b) / s).real

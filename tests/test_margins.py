@@ -204,6 +204,9 @@ def test_result_serialises_and_validates() -> None:
     with pytest.raises(ParameterError):
         dm.is_stable(11.0)
     with pytest.raises(ParameterError):
+        delay_margin(*first_order(1.0, 2.0), delta_max=np.inf)
+    assert delay_margin(*first_order(1.0, 0.5), delta_max=np.inf).intervals == ((0.0, np.inf),)
+    with pytest.raises(ParameterError):
         crossing_frequencies(*transport(0.85, 0.3))
     with pytest.raises(CertificationError):
         crossing_frequencies(*distributed_loop(0.85, 0.1), max_evals=10)
