@@ -14,7 +14,12 @@ import pytest  # noqa: E402
 from nrobust.certificate import Certificate, certify  # noqa: E402
 from nrobust.errors import ParameterError  # noqa: E402
 from nrobust.hyperbolic import TransportSystem  # noqa: E402
-from nrobust.hyperbolic.controllers import FilteredController, characteristic  # noqa: E402
+from nrobust.hyperbolic.controllers import (  # noqa: E402
+    FilteredController,
+    FiniteTimeController,
+    ReflectionController,
+    characteristic,
+)
 from nrobust.report import write_report  # noqa: E402
 
 SYSTEM = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
@@ -83,3 +88,28 @@ def test_bad_arguments():
         certify(SYSTEM, FilteredController(0.1, 1.0), region=(1.0, 0.0, -1.0, 1.0))
     with pytest.raises(ParameterError, match="certificates"):
         write_report([], "unused")
+
+
+def test_transport_reflection_controller_matches_eq_boun_K2():
+    """U_BS2 on the transport system: |K q| < 1 - |rho q| gives an infinite margin, the
+    Rouche range is unbounded and the admissible gains are |K| < (1 - |rho q|)/|q|."""
+    cert = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1)
+    assert cert.delay_margin == np.inf and cert.stable_up_to_delta_max
+    assert cert.principal_delayed.gamma_0 == pytest.approx(0.95)
+    assert cert.rouche.delta_0 == np.inf
+    (lo, hi), = cert.k_region.intervals
+    assert lo == pytest.approx(-0.15, abs=1e-4) and hi == pytest.approx(0.15, abs=1e-4)
+    data = json.loads(cert.to_json())
+    assert data["delay_margin"] == "inf" and data["k_region"]["paper_bound"] == pytest.approx(0.15)
+
+
+def test_transport_finite_time_controller_has_zero_margin():
+    """Theorem 3 / eq. (eq_rho_q): gamma_0 = 2 |rho q| = 1.7 > 1, margin 0."""
+    cert = certify(SYSTEM, FiniteTimeController(), delta_max=0.05)
+    assert cert.nominally_stable and not cert.delay_robust and cert.delay_margin == 0.0
+    assert cert.principal_delayed.gamma_0 == pytest.approx(1.7)
+    assert not cert.principal_delayed.strongly_stable
+    assert cert.principal_delayed.spectral_bound > 0 and cert.principal_delayed.chains[0] == pytest.approx(
+        cert.principal_delayed.spectral_bound
+    )
+    assert "zero delay margin" in cert.verdict

@@ -130,3 +130,24 @@ def test_plot_arguments_are_checked():
         plots.nyquist_response(A_TRANSPORT, A_TRANSPORT, omega_max=-1.0)
     with pytest.raises(ParameterError, match="region"):
         plots.root_map_plot(A_TRANSPORT, (1.0, 0.0, -1.0, 1.0), roots=[])
+
+
+def test_stability_chart_and_tradeoff_plots_draw_their_data():
+    from nrobust.margins import StabilityChart, Tradeoff
+
+    Ks = np.array([-0.1, 0.0, 0.1])
+    deltas = np.array([0.0, 0.1, 0.2])
+    values = np.array([[0, 0, 1], [0, 0, 0], [0, 1, 1]], dtype=float)
+    margins = np.array([0.15, np.inf, 0.05])
+    boundaries = (np.array([[0.15, 3.0, 1.0]]), np.zeros((0, 3)), np.array([[0.05, 2.0, 1.0], [0.3, 2.0, 1.0]]))
+    chart = StabilityChart(Ks, deltas, values, "count", margins, boundaries)
+    out = plots.stability_chart_plot(chart, k_bound=0.15, rouche=(Ks, np.array([0.01, 0.02, 0.0])))
+    assert len(out.lines["stable"][0].get_xdata()) == 6 and len(out.lines["unstable"][0].get_xdata()) == 3
+    assert np.allclose(out.lines["margin"][0].get_ydata(), [0.15, 0.2, 0.05])  # infinite margin drawn at the top
+    assert np.allclose(out.lines["crossings"][0].get_ydata(), [0.15, 0.05, 0.3])
+    assert [line.get_xdata()[0] for line in out.lines["paper_bound"]] == [-0.15, 0.15]
+    assert np.allclose(out.lines["rouche"][0].get_ydata(), [0.01, 0.02, 0.0])
+    trade = Tradeoff(Ks, np.array([0.1, 0.2, 0.3]), margins, np.zeros(3))
+    out = plots.tradeoff_plot(trade)
+    assert np.allclose(out.lines["curve"][0].get_xdata(), [0.15, 0.05])
+    assert np.allclose(out.lines["curve"][0].get_ydata(), [0.1, 0.3])
