@@ -665,14 +665,14 @@ def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> i
     return _count_unstable(F, W)
 
 
-def _as_factors(system: Any, controller: Any) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+def _as_factors(system: Any, controller: Any, n: int | None) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     if isinstance(system, QuasiPolynomial):
         if not isinstance(controller, QuasiPolynomial):
             raise ParameterError("B", "a QuasiPolynomial when A is one", type(controller).__name__)
         return system, controller
     from .hyperbolic.controllers import loop_factors
 
-    return loop_factors(system, controller)
+    return loop_factors(system, controller) if n is None else loop_factors(system, controller, positive_int("n", n, 2))
 
 
 def delay_margin(
@@ -682,6 +682,7 @@ def delay_margin(
     delta_max: float | None = None,
     verify: bool = True,
     max_evals: int = 2_000_000,
+    n: int | None = None,
 ) -> DelayMargin:
     """Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
@@ -703,6 +704,9 @@ def delay_margin(
         ``delta* (1 - 1e-3)``.
     max_evals : int, optional
         Work bound of the crossing search.
+    n : int, optional
+        Kernel grid of the delay form when called with a plant (default that of
+        :func:`nrobust.hyperbolic.loop_factors`); the margin converges as ``1/n^2``.
 
     Returns
     -------
@@ -721,7 +725,7 @@ def delay_margin(
     >>> bool(abs(dm.margin - np.arccos(-0.5) / np.sqrt(3.0)) < 1e-12)
     True
     """
-    A, B = _as_factors(system, controller)
+    A, B = _as_factors(system, controller, n)
     max_evals = positive_int("max_evals", max_evals)
     if delta_max is not None:
         delta_max = positive("delta_max", delta_max) if np.isfinite(float(delta_max)) else float("inf")

@@ -339,3 +339,26 @@ def test_ab_region_transport() -> None:
     dm = delay_margin(system, FilteredController(0.25, 2.0))
     assert dm.margin == reg.margins[2, 1] and dm.verified in (True, False)
     assert "ABRegion" in repr(reg) and len(reg.to_dict()["a"]) == 3
+
+
+def test_paper_example_margin_converges_second_order_in_kernel_grid() -> None:
+    system, ctrl = paper_system(), ReflectionController(0.1)
+    m = [delay_margin(system, ctrl, verify=False, n=n).margin for n in (51, 101, 201)]
+    ratio = (m[1] - m[0]) / (m[2] - m[1])
+    assert 3.0 < ratio < 5.0  # second order in 1/n: the kernel solver's accuracy
+    assert abs(m[2] - m[1]) < 2e-6
+
+
+@pytest.mark.slow
+def test_paper_example_margin_against_simulation() -> None:
+    """The plant itself decays just below delta* and grows just above (Figure 3's loop)."""
+    from nrobust import simulate
+
+    system, ctrl = paper_system(), ReflectionController(0.1)
+    dm = delay_margin(system, ctrl, verify=False)
+    rates = []
+    for delta in (0.85 * dm.margin, 1.15 * dm.margin):
+        sim = simulate(system, ctrl, delta, 60.0, lambda x: np.sin(np.pi * x), lambda x: np.cos(3 * x), n=200)
+        late = sim.times > 30.0
+        rates.append(np.polyfit(sim.times[late], np.log(sim.norm[late]), 1)[0])
+    assert rates[0] < 0 < rates[1]
