@@ -32,9 +32,9 @@ is no crossing, and no root with ``Re s >= 0``, for any delta. On ``[0, W]`` the
 bound of ``|A'| + |B'|`` on a segment (``QuasiPolynomial.deriv_bound``),
 ``|h(w_i)| + |h(w_{i+1})| > L (w_{i+1} - w_i)`` proves that ``h`` has no zero on it;
 the other segments are cut (at least eightfold per round, on one uniform line per
-cluster) down to a relative width ``1e-7``, where sign changes are
-refined by a safeguarded secant method to ``1e-12`` and sign-preserving clusters (tangential touches,
-double roots of ``h``) are reported as tangential crossings.
+cluster) down to a relative width ``1e-7``. There, sign changes are refined by a
+safeguarded secant method to ``1e-12``, and clusters without a sign change (tangential
+touches, double roots of ``h``) are reported, conservatively, as tangential crossings.
 """
 
 from __future__ import annotations
@@ -70,8 +70,9 @@ __all__ = [
 # Blocks on which one Lipschitz bound of |A'| + |B'| is computed and shared by all
 # segments inside.
 _LIPSCHITZ_BLOCKS = 64
-# Segments are halved down to this width relative to max(1, W) before they are
-# classified as holding a crossing.
+# Unresolved segments are cut down to this width relative to max(1, W) before they are
+# classified as holding a crossing: crossings closer than this are resolved as one (odd
+# number) or as a tangential touch (even number).
 _MIN_WIDTH = 1e-7
 # Uniform refinements (at most _UNIFORM_PASSES) divide the grid by the factor that lets
 # this quantile of its segments pass the exclusion test, up to _UNIFORM_MAX segments per
@@ -313,7 +314,7 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
     hv = h(grid)
     edges = np.linspace(lo, hi, nb + 1)
     Lb = L_of(edges[:-1], edges[1:])
-    # One uniform refinement (evaluated as a chirp-z transform) sized so that most
+    # Uniform refinements (evaluated as chirp-z transforms) sized so that most
     # segments pass the exclusion test at once; the rest is refined adaptively.
     for _ in range(_UNIFORM_PASSES):
         need = np.repeat(Lb, per_block) * np.diff(grid) / np.maximum(np.abs(hv[:-1]) + np.abs(hv[1:]), 1e-300)
