@@ -44,13 +44,15 @@ __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
 # h = r_max / lcm(denominators) and the degree of P is lcm(denominators) <= _MAX_DEGREE.
 _COMMENSURATE_RTOL = 1e-10
 _MAX_DENOMINATOR = 1000
-_MAX_DEGREE = 4000
+_MAX_DEGREE = 1000
 # Roots of P closer than this (relative to |z|) are merged into one multiple root.
 _MULTIPLE_RTOL = 1e-6
 # Seeds (per chain, on the rightmost chains) for the certified lower bound of c_D when
 # the delays are incommensurate.
 _LOWER_BOUND_SEEDS = 32
 _LOWER_BOUND_CHAINS = 4
+# Largest degree of the commensurate approximation that seeds the lower bound.
+_APPROX_DEGREE = 128
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:
@@ -322,7 +324,7 @@ class DifferenceOperator:
 
         Each ratio ``r_k / r_max`` is matched by a fraction of denominator at most 1000
         within a relative tolerance of 1e-10; the degree ``lcm`` of the denominators is
-        at most 4000. ``h`` is the least-squares fit of ``r_k = n_k h``.
+        at most 1000 (the companion matrix of ``P`` then has at most 1000 rows). ``h`` is the least-squares fit of ``r_k = n_k h``.
         """
         r = self.relative_delays
         if r.size == 1:
@@ -388,12 +390,25 @@ class DifferenceOperator:
         upper = self.strong_spectral_bound()
         return SpectralBound(self._certified_lower_bound(upper), upper, False, None)
 
-    def _approximation(self) -> "DifferenceOperator":
-        """The same coefficients with delay ratios rounded to denominators <= 64."""
+    def commensurate_approximation(self) -> "DifferenceOperator":
+        """A commensurate operator with the same coefficients and nearby delays (seeds).
+
+        ``r_k ~ n_k h`` with ``h = r_max / L``, ``L <= 128`` chosen to minimise the largest
+        relative error with distinct ``n_k >= 1`` (so the degree stays at most 128).
+        """
         r = self.relative_delays
-        rmax = float(r[-1])
-        approx = [float(Fraction(float(x / rmax)).limit_denominator(64)) * rmax for x in r]
-        return DifferenceOperator(self.coefs, np.array(approx) + self.delays[0])
+        ratios = r / r[-1]
+        best: tuple[float, int] = (np.inf, 0)
+        for L in range(1, _APPROX_DEGREE + 1):
+            n = np.rint(ratios * L)
+            if np.any(n[1:] < 1) or np.any(np.diff(n) <= 0):
+                continue
+            err = float(np.max(np.abs(n / L - ratios)))
+            if err < best[0] - 1e-15:
+                best = (err, L)
+        L = best[1]
+        approx = np.rint(ratios * L) * (r[-1] / L)
+        return DifferenceOperator(self.coefs, approx + self.delays[0])
 
     def _certified_lower_bound(self, upper: float) -> float:
         """A certified lower bound of ``c_D`` for incommensurate delays (see spectral_bound)."""
@@ -401,7 +416,7 @@ class DifferenceOperator:
         from .roots import count_roots
 
         rel = DifferenceOperator(self.coefs, self.relative_delays)
-        approx = rel._approximation().chains()
+        approx = rel.commensurate_approximation().chains()
         right = approx.chains[:_LOWER_BOUND_CHAINS]
         seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right])
         s = _newton_difference(rel, seeds)

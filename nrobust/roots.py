@@ -535,35 +535,28 @@ class _Finder:
         self.budget = budget
         self.counter = _Counter(F, budget)
         self.found = _Found()
-        x0, x1, y0, y1 = region
-        self.scale = max(x1 - x0, y1 - y0)
 
     # ------------------------------------------------------------ candidate boxes
     def _half_widths(self, pts: NDArray[np.complex128]) -> NDArray[np.float64]:
-        """Half-widths of disjoint square boxes about new points (Chebyshev distances)."""
-        cap = 1e-4 * (1.0 + np.abs(pts))
+        """Largest half-widths of square boxes about new points, disjoint from each other
+        and from the accepted boxes (Chebyshev distances)."""
+        cap = np.full(pts.size, np.inf)
         if pts.size > 1:
             xy = np.column_stack([pts.real, pts.imag])
             dist, _ = cKDTree(xy).query(xy, k=2, p=np.inf)
-            cap = np.minimum(cap, 0.3 * dist[:, 1])
+            cap = 0.3 * dist[:, 1]
         old = self.found.array()
         if old.size:
             c = np.column_stack([(old[:, 0] + old[:, 1]) / 2, (old[:, 2] + old[:, 3]) / 2])
-            r = (old[:, 1] - old[:, 0]) / 2
-            tree = cKDTree(c)
-            k = min(4, c.shape[0])
-            dist, idx = tree.query(np.column_stack([pts.real, pts.imag]), k=k, p=np.inf)
+            r = np.maximum(old[:, 1] - old[:, 0], old[:, 3] - old[:, 2]) / 2
+            k = min(8, c.shape[0])
+            dist, idx = cKDTree(c).query(np.column_stack([pts.real, pts.imag]), k=k, p=np.inf)
             dist, idx = dist.reshape(pts.size, k), idx.reshape(pts.size, k)
-            gap = np.min(dist - r[idx], axis=1)
-            cap = np.minimum(cap, 0.9 * gap)
+            cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
         return cap
 
-    def _clip(self, box: Region) -> Region:
-        x0, x1, y0, y1 = self.region
-        return (max(box[0], x0), min(box[1], x1), max(box[2], y0), min(box[3], y1))
-
     def _merge_clusters(self, pts: NDArray[np.complex128]) -> NDArray[np.complex128]:
-        """Replace candidates closer than ``max(cluster_tol, 1e-5 (1 + |s|))`` by their mean.
+        """Replace candidates closer than ``max(cluster_tol, 1e-5 (1 + max |s|))`` by their mean.
 
         Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, so
         its limit points scatter; one box about their mean counts them all at once, and
@@ -590,40 +583,55 @@ class _Finder:
         return np.array([pts[groups == g].mean() for g in np.unique(groups)])
 
     # ------------------------------------------------------------ acceptance
-    def accept(self, cand: NDArray[np.complex128], depth: int = 0) -> None:
-        """Certify candidate roots by counts in small disjoint boxes about them."""
-        cand = self._new_candidates(cand)
+    def accept(self, cand: NDArray[np.complex128], owners: Sequence[Region] | None = None, depth: int = 0) -> None:
+        """Certify candidate roots by counts in small disjoint boxes about them.
+
+        ``owners`` are disjoint boxes (default: the region); a candidate is kept only
+        inside one of them and its box is clipped to it, so that accepted boxes never
+        straddle the cuts of the subdivision.
+        """
+        cand, own = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
         if not cand.size:
             return
-        half = self._half_widths(cand)
-        keep = half > 8 * _EPS * (1.0 + np.abs(cand))
-        cand, half = cand[keep], half[keep]
-        soft = np.minimum(half, 1e-3 * (1.0 + np.abs(cand)))
-        for factor in (1.0, 4.0, 0.3):
+        hard = self._half_widths(cand)
+        soft = np.minimum(hard, 1e-4 * (1.0 + np.abs(cand)))
+        keep = soft > 8 * _EPS * (1.0 + np.abs(cand))
+        cand, own, hard, soft = cand[keep], own[keep], hard[keep], soft[keep]
+        for factor in (1.0, 4.0, 0.3):  # a blocked box edge runs through a root: resize
             if not cand.size:
                 return
-            h = np.minimum(soft * factor, half)
-            boxes = [self._clip((z.real - r, z.real + r, z.imag - r, z.imag + r)) for z, r in zip(cand, h)]
-            counts, blocked = self.counter.count(boxes)
+            h = np.minimum(soft * factor, hard)
+            boxes = np.column_stack([
+                np.maximum(cand.real - h, own[:, 0]), np.minimum(cand.real + h, own[:, 1]),
+                np.maximum(cand.imag - h, own[:, 2]), np.minimum(cand.imag + h, own[:, 3]),
+            ])
+            counts, blocked = self.counter.count([tuple(b) for b in boxes])
             stuck = blocked.any(axis=1)
-            for z, r, b, c in zip(cand[~stuck], h[~stuck], np.array(boxes)[~stuck], counts[~stuck]):
-                self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
-            cand, half, soft = cand[stuck], half[stuck], soft[stuck]
+            for z, r, b, o, c in zip(cand[~stuck], h[~stuck], boxes[~stuck], own[~stuck], counts[~stuck]):
+                self._accept_box(complex(z), float(r), tuple(b), tuple(o), int(c), depth)
+            cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
 
-    def _new_candidates(self, cand: NDArray[np.complex128]) -> NDArray[np.complex128]:
-        """Finite candidates inside the region, outside accepted boxes, near ones merged."""
+    def _new_candidates(self, cand: NDArray[np.complex128], owners: list[Region]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+        """Finite candidates inside an owner box and outside accepted boxes, near ones
+        merged; returned with their owner boxes."""
         cand = cand[np.isfinite(cand)]
-        x0, x1, y0, y1 = self.region
-        cand = cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)]
         old = self.found.array()
         if cand.size and old.size:
             c = np.column_stack([(old[:, 0] + old[:, 1]) / 2, (old[:, 2] + old[:, 3]) / 2])
             r = np.maximum(old[:, 1] - old[:, 0], old[:, 3] - old[:, 2]) / 2
             dist, idx = cKDTree(c).query(np.column_stack([cand.real, cand.imag]), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
-        return self._merge_clusters(cand)
+        cands, owns = [], []
+        for box in owners:
+            x0, x1, y0, y1 = box
+            inside = self._merge_clusters(cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)])
+            cands.append(inside)
+            owns.append(np.tile(np.asarray(box, dtype=float), (inside.size, 1)))
+        if not cands:
+            return np.zeros(0, dtype=complex), np.zeros((0, 4))
+        return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4)
 
-    def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
+    def _accept_box(self, z: complex, h: float, box: Region, owner: Region, c: int, depth: int) -> None:
         """Accept a box with a certified count ``c``: a root, a cluster, or resolve it."""
         if c <= 0:
             return
@@ -633,13 +641,13 @@ class _Finder:
         mom = _circle_moments(self.F, z, 0.9 * h, c, self.budget)
         if abs(mom.count - c) > 0.25:  # roots near the circle or in the box corners
             if depth < 3:
-                self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), depth + 1)
+                self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), [owner], depth + 1)
             return
         spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
         if spread < max(self.cluster_tol, mom.noise):
             self._add(complex(np.mean(mom.points)), c, box)
         elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
-            self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), depth + 1)
+            self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [owner], depth + 1)
 
     def _add(self, z: complex, m: int, box: Region) -> None:
         self.found.centers.append(z)
@@ -648,12 +656,16 @@ class _Finder:
 
     # ------------------------------------------------------------ seeds
     def chain_seeds(self) -> NDArray[np.complex128]:
-        """Zeros of the principal part's chains near the region (neutral ``F``)."""
+        """Zeros of the principal part's chains near the region (neutral ``F``).
+
+        For incommensurate delays these are the chains of
+        :meth:`DifferenceOperator.commensurate_approximation`: approximate seeds only.
+        """
         if self.F.kind != "neutral":
             return np.zeros(0, dtype=complex)
-        ch = self.F.principal_part().chains()
-        if not ch.commensurate:
-            return np.zeros(0, dtype=complex)
+        D = self.F.principal_part()
+        # incommensurate delays: the chains of a nearby commensurate operator are seeds too
+        ch = (D if D.commensurate_step() is not None else D.commensurate_approximation()).chains()
         x0, x1, y0, y1 = self.region
         pad = 1.0
         pts = ch.points(y0 - pad, y1 + pad)
@@ -696,42 +708,34 @@ class _Finder:
             return (x0, cut, y0, y1), (cut, x1, y0, y1)
         return (x0, x1, y0, cut), (x0, x1, cut, y1)
 
-    def subdivide(self, total: int, max_depth: int = 60) -> list[tuple[Region, int]]:
-        """Find the roots not yet accepted: split boxes whose count exceeds what they hold."""
-        leaves: list[tuple[Region, int]] = []
+    def subdivide(self, total: int, max_depth: int = 60) -> None:
+        """Find the roots not yet accepted: halve every box whose certified count exceeds
+        the multiplicity accepted inside it, seeding Newton's method in each such box."""
         level: list[tuple[Region, int]] = [(self.region, total)]
         for _ in range(max_depth):
-            pending = []
-            for box, c in level:
-                u = c - self.found.inside(box)
-                if u < 0:
+            pending = [(box, c) for box, c in level if c != self.found.inside(box)]
+            for box, c in pending:
+                if c < self.found.inside(box):
                     raise CertificationError(f"box {box} holds more accepted roots than its certified count {c}")
-                (leaves if u == 0 else pending).append((box, c))
             if not pending:
-                return leaves
+                return
             seeds = np.concatenate([self.grid_seeds(b, 9) for b, _ in pending])
             size = max(max(b[1] - b[0], b[3] - b[2]) for b, _ in pending)
-            self.seed_and_accept(seeds, size)
-            level = []
+            self.accept(_newton(self.F, seeds, self.budget, size), [b for b, _ in pending])
             children: list[Region] = []
             for box, c in pending:
                 u = c - self.found.inside(box)
-                if u == 0:
-                    leaves.append((box, c))
-                elif max(box[1] - box[0], box[3] - box[2]) < self.cluster_tol:
-                    z = complex(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3]))
-                    self._add(z, u, box)
-                    leaves.append((box, c))
-                else:
+                if u > 0 and max(box[1] - box[0], box[3] - box[2]) < self.cluster_tol:
+                    self._add(complex(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3])), u, box)
+                elif u > 0:
                     children.extend(self._split(box))
             if not children:
-                return leaves
+                return
             counts, blocked = self.counter.count(children)
+            level = []
             for k in range(0, len(children), 2):
-                if blocked[k].any() or blocked[k + 1].any():
-                    # a root sits on the cut: cut elsewhere next round by re-splitting the parent
-                    parent = (children[k][0], children[k + 1][1], children[k][2], children[k + 1][3])
-                    level.extend(self._recut(parent))
+                if blocked[k].any() or blocked[k + 1].any():  # the cut runs through a root
+                    level.extend(self._recut((children[k][0], children[k + 1][1], children[k][2], children[k + 1][3])))
                 else:
                     level.extend([(children[k], int(counts[k])), (children[k + 1], int(counts[k + 1]))])
         raise CertificationError(f"subdivision reached depth {max_depth} without isolating every root")
@@ -813,7 +817,6 @@ def find_roots(
     finder = _Finder(F, box, cluster_tol, budget)
     total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
     finder.region = reg
-    leaves: list[tuple[Region, int]] = []
     if total > 0:
         extra = np.zeros(0, dtype=complex) if seeds is None else np.atleast_1d(np.asarray(seeds, dtype=complex)).ravel()
         if method == "auto":
@@ -823,11 +826,11 @@ def find_roots(
         else:
             finder.seed_and_accept(extra, 1.0)
         if finder.found.total() != total:
-            leaves = finder.subdivide(total)
-    return _result(finder, total, reg, shifted, leaves)
+            finder.subdivide(total)
+    return _result(finder, total, reg, shifted)
 
 
-def _result(finder: _Finder, total: int, reg: Region, shifted: bool, leaves: list[tuple[Region, int]]) -> RootSet:
+def _result(finder: _Finder, total: int, reg: Region, shifted: bool) -> RootSet:
     found = finder.found
     z = np.array(found.centers, dtype=complex)
     m = np.array(found.mults, dtype=np.int64)
@@ -1055,19 +1058,25 @@ def _neutral_abscissa(
 def _retarded_abscissa(
     F: QuasiPolynomial, x_right: float, radius: float, real: bool, cluster_tol: float, max_evals: int,
 ) -> SpectralAbscissa:
-    width = 1.0
+    """Widen a window ``[x_right - w, x_max]`` leftwards (``w = 0, 1, 2, 4, ...``) until it
+    holds a root; every root with ``Re s`` in the window is found, so the rightmost is."""
     x_max = max(x_right, radius) + 1.0
-    for _ in range(12):
+    searched: Region | None = None
+    for width in [0.0] + [2.0**j for j in range(12)]:
         x_min = x_right - width
         y = _root_free_radius(F, x_min)
         if y is None or y > _MAX_RADIUS:
             break
         box = (x_min, x_max, *_band(max(y, radius), real))
-        roots = find_roots(F, box, cluster_tol=cluster_tol, max_evals=max_evals)
-        if roots.count > 0:
+        count = count_roots(F, box, max_evals=max_evals)
+        searched = count.region
+        if count > 0:
+            roots = find_roots(F, box, cluster_tol=cluster_tol, max_evals=max_evals)
             return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
-        width *= 2.0
-    return SpectralAbscissa(-np.inf, None, False, -np.inf, x_right - width, True, (x_right - width, x_max, 0.0, 0.0))
+    if searched is None:
+        raise CertificationError(f"no root-free far field for Re s >= {x_right:.6g}: cannot bound the roots")
+    # no root with Re s >= searched[0] at all
+    return SpectralAbscissa(-np.inf, None, False, -np.inf, searched[0], True, searched)
 
 
 def _abscissa_from(
