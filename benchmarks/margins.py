@@ -9,12 +9,15 @@ Measured in this process:
   *dense scan*: ``|A(i w)| - |B(i w)|`` sampled with step ``1e-3`` on ``[0, W]`` (same
   ``W``), sign changes refined by Brent's method; no completeness guarantee (it misses
   tangential touches and pairs of crossings closer than the step);
+* the guaranteed delay ``delta_0`` of Theorem 4's proof (:func:`nrobust.rouche_delay_bound`)
+  beside ``delta*``;
 * a 50 x 50 chart of the number of unstable roots on ``K in [-0.14, 0.14]``,
   ``delta in [0, 0.5]`` by :func:`nrobust.stability_chart` (one crossing analysis per
   gain), against certified counts (:func:`nrobust.count_roots`) at every grid point,
   timed on a few points and extrapolated to the 2500.
 
-Printed: values, seconds, and the time ratio peer / nrobust.
+Printed: values, seconds (best of several runs for the single margin and its peer), and
+the time ratio peer / nrobust.
 
 Run: ``python benchmarks/margins.py [--quick]`` (``--quick``: a 10 x 10 chart).
 """
@@ -34,6 +37,7 @@ from nrobust import (
     count_roots,
     delay_margin,
     loop_factors,
+    rouche_delay_bound,
     stability_chart,
 )
 
@@ -58,13 +62,13 @@ def dense_scan_margin(A, B, W: float, step: float = 1e-3) -> tuple[float, int]:
 
 
 def timed(fn, repeat: int = 1):
-    """Median wall time of ``repeat`` calls and the last result."""
+    """Best wall time of ``repeat`` calls (as ``timeit``: the least disturbed by other load) and the last result."""
     times, out = [], None
     for _ in range(repeat):
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)
-    return float(np.median(times)), out
+    return float(np.min(times)), out
 
 
 def main() -> None:
@@ -79,7 +83,7 @@ def main() -> None:
 
     t_dm, dm = timed(lambda: delay_margin(A, B, verify=False), repeat=5)
     t_dmv, dmv = timed(lambda: delay_margin(A, B))
-    t_peer, (m_peer, n_peer) = timed(lambda: dense_scan_margin(A, B, dm.frequency_bound))
+    t_peer, (m_peer, n_peer) = timed(lambda: dense_scan_margin(A, B, dm.frequency_bound), repeat=3)
     print("\none delay margin, K = 0.1")
     print(f"  nrobust delay_margin          delta* = {dm.margin:.12f}  w = {dm.omega:.10f}  "
           f"{len(dm.crossings)} crossings in [0, W = {dm.frequency_bound:.4g}], {dm.evaluations} evaluations  "
@@ -88,6 +92,9 @@ def main() -> None:
           f"{t_dmv:.4f} s")
     print(f"  dense scan (step 1e-3)        delta* = {m_peer:.12f}  {n_peer} crossings  {t_peer:.4f} s  "
           f"ratio {t_peer / t_dm:.1f}x")
+    t_rb, rb = timed(lambda: rouche_delay_bound(system, ctrl))
+    print(f"  Rouche bound (Theorem 4)      delta_0 = {rb.delta_0:.6f} <= delta*  ({rb.steps} certified steps)  "
+          f"{t_rb:.4f} s")
 
     n = 10 if args.quick else 50
     Ks = np.linspace(-0.14, 0.14, n)
