@@ -170,11 +170,11 @@ def test_partial_cell_at_the_reflecting_boundary_converges():
         return system.q * (v0(system.mu * t0) if t0 <= 1.0 / system.mu else (system.rho - K) * exact_u1(t0 - 1.0 / system.mu))
 
     errors = []
-    for n in (40, 80):
+    for n in (80, 160):
         sim = simulate(system, FeedbackLaw(-K, zero, zero), 0.0, 6.0, u0, v0, n=n)
         assert 0.0 < sim.x_v[1] < system.mu * sim.dt  # the partial cell
         errors.append(np.abs(sim.control - np.array([-K * exact_u1(t) for t in sim.times])).max())
-    assert errors[1] < 1e-4
+    assert errors[1] < 1e-6
     assert math.log2(errors[0] / errors[1]) > 1.8
 
 
@@ -254,8 +254,11 @@ def test_unequal_speeds_round_trip_ratio_converges_at_second_order(lam, mu):
     assert math.log2(errors[0] / errors[1]) > 1.8
 
 
-def test_unequal_speeds_finite_time_residual_is_small_and_decays():
-    system = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
+@pytest.mark.parametrize("mu", [2.0, 1.001])
+def test_unequal_speeds_finite_time_residual_is_small_and_decays(mu):
+    """Nearly equal speeds put the two grids almost on top of each other: a scheme that
+    skipped the crossings between sampled times would split into two sub-lattices there."""
+    system = Hyperbolic2x2(lam=1.0, mu=mu, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
     law = FiniteTimeController().feedback_law(system, solve_kernels(system, 201))
 
     def u0(x):
@@ -265,8 +268,8 @@ def test_unequal_speeds_finite_time_residual_is_small_and_decays():
     sim = simulate(system, law, 0.0, 5 * system.tau, u0, v0, n=200)
     peaks = [sim.norm[(sim.times > m * system.tau) & (sim.times <= (m + 1) * system.tau)].max() for m in range(5)]
     assert peaks[0] > 1.0
-    assert peaks[1] < 1e-4 * peaks[0]
-    assert all(later < 0.5 * earlier for earlier, later in zip(peaks[1:], peaks[2:]))
+    assert peaks[1] < 1e-4 * peaks[0]  # the O(h^2) defect of the scheme
+    assert all(later < 0.1 * earlier for earlier, later in zip(peaks[1:], peaks[2:]))
 
 
 def test_controller_objects_and_feedback_laws_agree():

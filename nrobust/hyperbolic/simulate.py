@@ -262,14 +262,27 @@ def _lagrange(nodes: Array, s: float) -> Array:
 
 
 def _stencil(nodes: Array, targets: Array) -> sparse.csr_matrix:
-    """Four-point Lagrange interpolation from sorted ``nodes`` to ``targets``, as a matrix."""
-    size = min(4, nodes.size)
-    right = np.searchsorted(nodes, targets, side="right")
-    lo = np.clip(right - size // 2, 0, nodes.size - size)
-    index = lo[:, None] + np.arange(size)[None, :]
+    """Four-point Lagrange interpolation from sorted ``nodes`` to ``targets``, as a matrix.
+
+    A target on a node (a characteristic) is read exactly. A node closer than a quarter of
+    the typical spacing to the previous one (the end of a short partial cell) is left out
+    of the stencils, which keeps the weights bounded.
+    """
+    gaps = np.diff(nodes)
+    keep = np.concatenate([[True], gaps >= 0.25 * float(np.median(gaps))])
+    usable = np.flatnonzero(keep)
+    size = min(4, usable.size)
+    right = np.searchsorted(nodes[usable], targets, side="right")
+    lo = np.clip(right - size // 2, 0, usable.size - size)
+    index = usable[lo[:, None] + np.arange(size)[None, :]]
     weight = np.empty(index.shape)
-    for row, (cols, target) in enumerate(zip(index, targets)):
-        weight[row] = _lagrange(nodes[cols], float(target))
+    tol = 1e-9 * float(gaps.min())
+    for row, target in enumerate(targets):
+        hit = np.flatnonzero(np.abs(nodes - target) <= tol)
+        if hit.size:
+            index[row], weight[row] = hit[0], np.eye(size)[0]
+        else:
+            weight[row] = _lagrange(nodes[index[row]], float(target))
     rows = np.repeat(np.arange(targets.size), size)
     return sparse.csr_matrix((weight.ravel(), (rows, index.ravel())), shape=(targets.size, nodes.size))
 
@@ -405,19 +418,63 @@ def _march_lattice(
         record(j, u, v)
 
 
-def _v_grid(mu: float, dt: float) -> Array:
-    """Nodes of ``v`` (ascending): ``1 - k mu dt`` down to the last one in ``[0, 1]``, then 0.
+def _v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
+    """Positions of ``v`` (ascending): ``1 - (k + offset) mu dt`` in ``[0, 1]``, and ``x = 0``.
 
-    When ``1/(mu dt)`` is an integer the last node is 0 itself; otherwise 0 is added as the
-    boundary point of a partial cell of length ``r < mu dt``.
+    ``offset = 0`` at the sampled times, ``1/2`` at the half steps. When no characteristic
+    sits at 0, the point ``x = 0`` is added: the boundary of a partial cell.
     """
     hv = mu * dt
-    cells = int(math.floor(1.0 / hv + 1e-9))
-    nodes = 1.0 - hv * np.arange(cells, -1, -1)
+    count = int(math.floor(1.0 / hv - offset + 1e-9))
+    nodes = 1.0 - hv * (np.arange(count, -1, -1) + offset)
     if nodes[0] <= 1e-9 * hv:
         nodes[0] = 0.0
         return nodes
     return np.concatenate([[0.0], nodes])
+
+
+@dataclass(frozen=True, eq=False)
+class _Phase:
+    """Positions of ``u`` and ``v`` at the sampled times (phase 0) or the half steps (phase 1).
+
+    Entry 0 of both arrays is ``x = 0``; in phase 0 the last entries are ``x = 1``.
+    """
+
+    xu: Array
+    xv: Array
+    pm_u: Array  # sigma_pm at xu
+    mp_v: Array  # sigma_mp at xv
+    v_at_u: sparse.csr_matrix  # v on xv -> values at xu
+    u_at_v: sparse.csr_matrix  # u on xu -> values at xv
+
+    @classmethod
+    def build(cls, system: Hyperbolic2x2, xu: Array, xv: Array) -> "_Phase":
+        return cls(xu, xv, system.sigma_pm_at(xu), system.sigma_mp_at(xv), _stencil(xv, xu), _stencil(xu, xv))
+
+
+@dataclass(frozen=True, eq=False)
+class _HalfStep:
+    """From phase ``a`` to phase ``b`` in ``dt / 2``: where each new value comes from.
+
+    ``u`` entries ``1..`` of ``b`` come from ``u`` entries ``u_src`` of ``a`` (exact shift);
+    the first ``m`` ``v`` entries of ``b`` (all but ``x = 1``) from the points ``mu dt / 2``
+    upstream, read from ``a`` by ``v_up`` (a pick on characteristics, an interpolation for
+    ``x = 0``), where ``u`` is read by ``u_up``.
+    """
+
+    a: _Phase
+    b: _Phase
+    u_src: NDArray[np.intp]
+    m: int
+    v_up: sparse.csr_matrix
+    u_up: sparse.csr_matrix
+    mp_up: Array
+
+    @classmethod
+    def build(cls, system: Hyperbolic2x2, a: _Phase, b: _Phase, u_src: NDArray[np.intp], dt: float) -> "_HalfStep":
+        m = b.xv.size - 1 if b.xv[-1] == 1.0 else b.xv.size
+        up = np.minimum(b.xv[:m] + system.mu * dt / 2.0, 1.0)
+        return cls(a, b, u_src, m, _stencil(a.xv, up), _stencil(a.xu, up), system.sigma_mp_at(up))
 
 
 def _march_two_grids(
@@ -431,48 +488,60 @@ def _march_two_grids(
     loop: _Loop,
     record: _Recorder,
 ) -> None:
-    """Unequal speeds: ``u`` on ``x`` (step ``lam dt``), ``v`` on ``xv`` (step ``mu dt``).
+    """Unequal speeds: ``u`` on steps of ``lam dt``, ``v`` on steps of ``mu dt``, in half steps.
 
-    Transport is an index shift on each grid; the couplings are integrated along the
-    characteristics by Heun's method (trapezoidal corrector), with the other unknown read
-    by 4-point Lagrange interpolation across grids. ``v(t, 0)`` is the value of the
-    characteristic that was at ``x = mu dt`` one step earlier (interpolated when
-    ``1/(mu dt)`` is not an integer), with the trapezoidal coupling to ``u(t, 0) = q v(t, 0)``.
+    At the sampled times ``u`` sits on ``x`` and ``v`` on ``xv``; at the half steps both are
+    shifted by half a cell, so that, as on the lattice of equal speeds, the characteristics
+    that cross between two sampled times meet at the half step and no family of crossings
+    is skipped. Transport is an exact index shift. The couplings are integrated over each
+    half step by Heun's method (trapezoidal corrector), the other unknown being read by
+    4-point Lagrange interpolation across the grids. ``v(t, 0)`` is the value of the
+    characteristic that was at ``x = mu dt / 2`` half a step earlier (interpolated when no
+    characteristic sits there), with the trapezoidal coupling to ``u(t, 0) = q v(t, 0)``.
     """
-    hv = system.mu * dt
-    pm_u = system.sigma_pm_at(x)
-    mp_v = system.sigma_mp_at(xv)
-    src = np.minimum(xv[:-1] + hv, 1.0)  # where the v characteristics were one step earlier
-    mp_src = system.sigma_mp_at(src)
-    v_at_u = _stencil(xv, x)
-    u_at_v = _stencil(x, xv)
-    u_at_src = _stencil(x, src)
-    v_at_src = _stencil(xv, src)
-    h2 = dt / 2.0
-    inv_0 = 1.0 / (1.0 - h2 * mp_v[0] * system.q)
+    n = x.size - 1
+    hu = 1.0 / n
+    phase0 = _Phase.build(system, x, xv)
+    phase1 = _Phase.build(system, np.concatenate([[0.0], (np.arange(n) + 0.5) * hu]), _v_grid(system.mu, dt, 0.5))
+    shift = np.arange(n)
+    steps_ab = (
+        _HalfStep.build(system, phase0, phase1, shift, dt),  # u entry k + 1 <- entry k
+        _HalfStep.build(system, phase1, phase0, shift + 1, dt),  # u entry k + 1 <- entry k + 1
+    )
+    h = dt / 2.0
+    h2 = dt / 4.0
+    inv_0 = 1.0 / (1.0 - h2 * system.sigma_mp_at(np.zeros(1))[0] * system.q)
     wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
-    un, vn = np.empty_like(u), np.empty_like(v)
+    state = {0: (u, v), 1: (np.empty(phase1.xu.size), np.empty(phase1.xv.size))}
+    scratch = {0: (np.empty_like(u), np.empty_like(v)), 1: state[1]}
 
-    def close(j: int, v_src0: float, fv_src0: float) -> None:
-        """Boundaries of the new state: ``x = 0`` (reflection) and ``x = 1`` (control)."""
-        vn[0] = (v_src0 + h2 * fv_src0) * inv_0
-        un[0] = system.q * vn[0]
-        un[-1], vn[-1] = loop.solve(j, un[-1], 0.0, float(wu_in @ un[:-1] + wv_in @ vn[:-1]))
+    def half(step: _HalfStep, uo: Array, vo: Array, un: Array, vn: Array, j: int | None) -> None:
+        m, src = step.m, step.u_src
+        fu_old = (step.a.pm_u * (step.a.v_at_u @ vo))[src]
+        v_up = step.v_up @ vo
+        fv_up = step.mp_up * (step.u_up @ uo)
 
+        def close() -> None:
+            vn[0] = (v_up[0] + h2 * fv_up[0]) * inv_0
+            un[0] = system.q * vn[0]
+            if j is not None:
+                un[-1], vn[-1] = loop.solve(j, un[-1], 0.0, float(wu_in @ un[:-1] + wv_in @ vn[:-1]))
+
+        un[1:] = uo[src] + h * fu_old
+        vn[:m] = v_up + h * fv_up
+        close()
+        fu_new = step.b.pm_u * (step.b.v_at_u @ vn)
+        fv_new = step.b.mp_v * (step.b.u_at_v @ un)
+        un[1:] = uo[src] + h2 * (fu_old + fu_new[1:])
+        vn[:m] = v_up + h2 * (fv_up + fv_new[:m])
+        close()
+
+    u1, v1 = state[1]
+    ut, vt = scratch[0]
     for j in range(1, steps + 1):
-        fu_old = pm_u * (v_at_u @ v)  # sigma_pm v along the u characteristics at t_{j-1}
-        v_src = v_at_src @ v  # v one step upstream of the v nodes
-        fv_old = mp_src * (u_at_src @ u)  # sigma_mp u there
-        # Predictor (Euler), then corrector (trapezoid) with the predicted state at t_j.
-        un[1:] = u[:-1] + dt * fu_old[:-1]
-        vn[:-1] = v_src + dt * fv_old
-        close(j, v_src[0], fv_old[0])
-        fu_new = pm_u * (v_at_u @ vn)
-        fv_new = mp_v * (u_at_v @ un)
-        un[1:] = u[:-1] + h2 * (fu_old[:-1] + fu_new[1:])
-        vn[:-1] = v_src + h2 * (fv_old + fv_new[:-1])
-        close(j, v_src[0], fv_old[0])
-        u[:], v[:] = un, vn
+        half(steps_ab[0], u, v, u1, v1, None)
+        half(steps_ab[1], u1, v1, ut, vt, j)
+        u[:], v[:] = ut, vt
         loop.commit(j, u, v)
         record(j, u, v)
 
