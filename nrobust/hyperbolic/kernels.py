@@ -63,16 +63,29 @@ def _lagrange_weights(t: Array, order: int) -> Array:
     return w
 
 
-def _interpolate(values: Array, positions: Array) -> tuple[Array, Array]:
-    """Stencil of local cubic interpolation of ``values`` (on nodes 0, 1, ...) at ``positions``.
+class _CubicFeet:
+    """Cubic Lagrange stencils for the feet ``xi_j + kappa h`` (in units of ``h``: ``j + kappa``).
 
-    Returns the index array and weights, each of shape ``(len(positions), order)`` with
-    ``order = min(4, len(values))``; the stencil is shifted inwards at the ends.
+    The stencil of foot ``j`` is the four nodes around it; at level ``i - 1`` (nodes
+    ``0, ..., i - 1``) it is shifted inwards where it would pass the last node. The
+    unshifted weights are computed once; only shifted rows are recomputed per level.
     """
-    order = min(4, values.size)
-    start = np.clip(np.floor(positions + _FOOT_TOL).astype(int) - 1, 0, values.size - order)
-    idx = start[:, None] + np.arange(order)
-    return idx, _lagrange_weights(positions - start, order)
+
+    def __init__(self, n: int, kappa: float) -> None:
+        self.positions = np.arange(n) + kappa
+        self.start = np.maximum(np.floor(self.positions + _FOOT_TOL).astype(int) - 1, 0)
+        self.weights = _lagrange_weights(self.positions - self.start, 4)
+
+    def stencil(self, count: int, last: int) -> tuple[Array, Array]:
+        """Indices and weights, shape ``(count, 4)``, of the first ``count`` feet on nodes ``0..last``."""
+        start = self.start[:count]
+        weights = self.weights[:count]
+        shifted = start > last - 3
+        if np.any(shifted):
+            start = np.minimum(start, last - 3)
+            weights = weights.copy()
+            weights[shifted] = _lagrange_weights(self.positions[:count][shifted] - start[shifted], 4)
+        return start[:, None] + np.arange(4), weights
 
 
 def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple[Array, Array]:
@@ -105,6 +118,7 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
     b_foot = b(np.minimum(x + kappa * h, 1.0))
     # Offsets m = i - j whose characteristic reaches the diagonal within one step.
     n_near = int(np.ceil(1.0 + kappa - _FOOT_TOL))
+    feet = _CubicFeet(n, kappa)
 
     A = np.zeros((n, n))
     B = np.zeros((n, n))
@@ -126,8 +140,7 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
         c2 = np.empty(i)
         n_reg = max(i - n_near + 1, 0) if i >= 4 else 0
         if n_reg:
-            j = np.arange(n_reg)
-            idx, w = _interpolate(B_prev, j + kappa)
+            idx, w = feet.stencil(n_reg, i - 1)
             A_foot = np.sum(A_prev[idx] * w, axis=1)
             B_foot = np.sum(B_prev[idx] * w, axis=1)
             beta0[:n_reg] = B_foot + 0.5 * h * b_foot[:n_reg] * A_foot
