@@ -43,13 +43,17 @@ scheme is second-order convergent.
 Unequal speeds: two characteristic grids
 ----------------------------------------
 With ``lam != mu`` and ``dt = 1 / (lam n)``, ``u`` lives on ``k / n`` and ``v`` on
-``1 - k mu dt``; each step is an exact index shift on both grids. The couplings are
-integrated along the characteristics by Heun's method (Euler predictor, trapezoidal
-corrector), the other unknown being read by 4-point Lagrange interpolation across the
-grids. When ``1/(mu dt)`` is not an integer, the ``v`` grid ends with a partial cell and
-``v(t, 0)`` is the value, interpolated, of the characteristic that was at ``x = mu dt``
-one step earlier. Transport is still exact when ``lam/mu`` makes ``1/(mu dt)`` an integer;
-the scheme is second order. See ``docs/simulation.md``.
+``1 - k mu dt`` at the sampled times, both shifted by half a cell at the half steps, so
+that characteristics crossing between two sampled times are also coupled half-way (with
+``lam = mu`` they meet exactly there: the lattice above), and no family of crossings is
+skipped. Each half step is an exact index shift on both
+grids; the couplings are integrated along the characteristics by Heun's method (Euler
+predictor, trapezoidal corrector), the other unknown being read by 4-point Lagrange
+interpolation across the grids (exactly where a characteristic sits). When ``1/(mu dt)``
+is not an integer the ``v`` grid ends with a partial cell and ``v(t, 0)`` is the value,
+interpolated, of the characteristic that was at ``x = mu dt / 2`` half a step earlier.
+Transport stays exact when ``1/(mu dt)`` is an integer; the scheme is second order.
+See ``docs/simulation.md``.
 """
 
 from __future__ import annotations
@@ -605,8 +609,9 @@ def simulate(
     -----
     ``lam == mu``: characteristic lattice, exact transport, trapezoidal couplings at the
     crossings. ``lam != mu``: one grid per direction (steps ``lam dt`` and ``mu dt``),
-    exact index shifts, Heun couplings with cubic cross-grid interpolation, and a partial
-    last cell at ``x = 0`` for ``v`` when ``1/(mu dt)`` is not an integer.
+    advanced in half steps by exact index shifts, Heun couplings with cubic cross-grid
+    interpolation, and a partial last cell at ``x = 0`` for ``v`` when ``1/(mu dt)`` is
+    not an integer.
     See ``docs/simulation.md``.
     """
     if not isinstance(system, Hyperbolic2x2):
