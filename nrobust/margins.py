@@ -327,6 +327,13 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
     wl, wr, hl, hr = grid[:-1], grid[1:], hv[:-1], hv[1:]
     blk = np.repeat(np.arange(nb), per_block)
     min_width = _MIN_WIDTH * max(1.0, hi - lo)
+
+    def _block(a: NDArray, b: NDArray) -> NDArray:
+        """Index of the largest block bound over each segment ``[a, b]`` (blocks are contiguous)."""
+        ia = np.clip(((a - lo) / (hi - lo) * nb).astype(int), 0, nb - 1)
+        ib = np.clip(((b - lo) / (hi - lo) * nb).astype(int), 0, nb - 1)
+        return np.where(Lb[ib] > Lb[ia], ib, ia)
+
     final_l: list[NDArray] = []
     final_hl: list[NDArray] = []
     final_r: list[NDArray] = []
@@ -342,21 +349,26 @@ def _search(h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDA
         wl, wr, hl, hr, blk = wl[~small], wr[~small], hl[~small], hr[~small], blk[~small]
         if not wl.size:
             break
-        # Refine each cluster of contiguous segments on one uniform line (a chirp-z
-        # evaluation when long enough), every segment cut into at least _SPLIT pieces.
+        # Refine each cluster of contiguous segments on one uniform line covering it, with
+        # a power-of-two step at most 1/_SPLIT of its segments and 1/_LINE_POINTS of its
+        # span: the nodes k 2^e are exact, so the evaluator sums the kernels as a chirp-z
+        # transform.
         order = np.argsort(wl)
-        wl, wr, blk = wl[order], wr[order], blk[order]
+        wl, wr = wl[order], wr[order]
         cuts = np.r_[0, np.flatnonzero(wr[:-1] != wl[1:]) + 1, wl.size]
-        parts: list[tuple[NDArray, NDArray, NDArray]] = []
+        lines = []
         for a, b in zip(cuts[:-1], cuts[1:]):
-            factor = max(_SPLIT, -(-_LINE_POINTS // (b - a)))
-            line = np.linspace(wl[a], wr[b - 1], (b - a) * factor + 1)
-            parts.append((line, h(line), np.repeat(blk[a:b], factor)))
-        wl = np.concatenate([p[0][:-1] for p in parts])
-        wr = np.concatenate([p[0][1:] for p in parts])
-        hl = np.concatenate([p[1][:-1] for p in parts])
-        hr = np.concatenate([p[1][1:] for p in parts])
-        blk = np.concatenate([p[2] for p in parts])
+            target = min((wr[a] - wl[a]) / _SPLIT, (wr[b - 1] - wl[a]) / _LINE_POINTS)
+            step = 2.0 ** np.floor(np.log2(target))
+            k0, k1 = np.floor(wl[a] / step), np.ceil(wr[b - 1] / step)
+            line = (k0 + np.arange(k1 - k0 + 1)) * step
+            line = line[(line >= lo) & (line <= hi)]
+            lines.append((line, h(line)))
+        wl = np.concatenate([ln[:-1] for ln, _ in lines])
+        wr = np.concatenate([ln[1:] for ln, _ in lines])
+        hl = np.concatenate([v[:-1] for _, v in lines])
+        hr = np.concatenate([v[1:] for _, v in lines])
+        blk = _block(wl, wr)
     L = np.concatenate(final_l)
     order = np.argsort(L)
     L = L[order]
