@@ -99,9 +99,9 @@ class Hyperbolic2x2:
         In-domain couplings ``sigma^{+-}(x)`` (source of ``u``) and ``sigma^{-+}(x)``
         (source of ``v``): numbers or callables on ``[0, 1]`` returning finite reals.
     q : float
-        Proximal reflection ``u(t, 0) = q v(t, 0)``, ``q != 0``.
+        Distal reflection (at the unactuated end) ``u(t, 0) = q v(t, 0)``, ``q != 0``.
     rho : float
-        Distal reflection ``v(t, 1) = rho u(t, 1) + U(t)``.
+        Proximal reflection (at the actuated end) ``v(t, 1) = rho u(t, 1) + U(t)``.
 
     Raises
     ------
@@ -205,9 +205,9 @@ class TransportSystem(Hyperbolic2x2):
     lam, mu : float
         Transport speeds, both ``> 0``.
     q : float
-        Proximal reflection, ``q != 0``.
+        Distal reflection, ``q != 0``.
     rho : float
-        Distal reflection.
+        Proximal reflection.
     """
 
     lam: float
