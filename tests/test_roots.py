@@ -224,3 +224,43 @@ def test_bad_function_and_options() -> None:
     with pytest.raises(ParameterError) as err:
         count_roots(NEUTRAL, (0, 1, 0, 1), max_evals=0)
     assert err.value.name == "max_evals"
+
+
+def test_root_at_corner_shifts_two_edges() -> None:
+    F = QuasiPolynomial([[0.0, 1.0]], [0.0])  # root at s = 0
+    res = count_roots(F, (0.0, 1.0, 0.0, 1.0))
+    assert int(res) == 1 and res.shifted
+    assert res.region[0] < 0.0 and res.region[2] < 0.0
+
+
+@pytest.mark.parametrize("method", ["auto", "subdivision"])
+def test_subdivision_cut_through_a_root(method: str) -> None:
+    # the first cut of (-1, 1) x (-1, 1) is Re s = 0, through the root s = 0
+    F = QuasiPolynomial([[0.0, 1.0]], [0.0])
+    roots = find_roots(F, (-1.0, 1.0, -1.0, 1.0), method=method)
+    assert roots.certified and roots.count == 1
+    assert abs(roots.roots[0]) < 1e-14
+
+
+def test_find_roots_region_through_roots_is_reported() -> None:
+    # 1 - 2 e^{-s}: roots ln 2 + 2 pi i k; the region's right edge is Re s = ln 2
+    F = QuasiPolynomial([[1.0], [-2.0]], [0.0, 1.0])
+    roots = find_roots(F, (-1.0, np.log(2.0), -1.0, 13.0))
+    assert roots.shifted and roots.region[1] > np.log(2.0)
+    assert roots.certified and roots.count == 3
+    assert np.allclose(roots.roots, np.log(2.0) + 2j * np.pi * np.arange(3), atol=1e-12)
+
+
+def test_complex_coefficients() -> None:
+    # s - i w0 + a e^{-s}: no conjugate symmetry; roots are a rotated Lambert-W family
+    w0, a = 3.0, 0.5
+    F = QuasiPolynomial([[-1j * w0, 1.0], [a]], [0.0, 1.0])
+    k = np.arange(-20, 21)
+    exact = 1j * w0 + lambertw(-a * np.exp(-1j * w0), k=k)
+    region = (-4.0, 2.0, -40.0, 40.0)
+    exact = _in(exact, region)
+    roots = find_roots(F, region)
+    assert roots.certified and roots.count == exact.size
+    assert _match(roots.roots, exact) < 1e-11
+    res = spectral_abscissa(F)
+    assert res.value == pytest.approx(np.max(exact.real), abs=1e-12)
