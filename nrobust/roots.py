@@ -71,7 +71,9 @@ def _magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.floa
     for p, t in F.point_terms:
         out += np.polynomial.polynomial.polyval(r, np.abs(p)) * np.exp(-t * s.real)
     if F.distributed:
-        xs, inv = np.unique(s.real, return_inverse=True)
+        # int |N| nu^k e^{-nu x} decreases in x (nu >= 0): rounding x down to 1/64 keeps an
+        # upper bound and lets the samples of a contour share a few evaluations
+        xs, inv = np.unique(np.floor(s.real * 64.0) / 64.0, return_inverse=True)
         for d in F.distributed:
             out += np.polynomial.polynomial.polyval(r, np.abs(d.poly)) * d.abs_moment(xs, 0)[inv.reshape(s.shape)]
     return out
@@ -268,10 +270,13 @@ class RootCount(int):
 
     def __new__(cls, count: int, region: Region, shifted: bool, evaluations: int) -> "RootCount":
         obj = super().__new__(cls, count)
-        obj.region = tuple(float(v) for v in region)  # type: ignore[assignment]
-        obj.shifted = shifted
-        obj.evaluations = evaluations
+        object.__setattr__(obj, "region", tuple(float(v) for v in region))
+        object.__setattr__(obj, "shifted", bool(shifted))
+        object.__setattr__(obj, "evaluations", int(evaluations))
         return obj
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"RootCount is immutable (cannot set {name!r})")
 
     def __repr__(self) -> str:
         r = ", ".join(f"{v:.12g}" for v in self.region)

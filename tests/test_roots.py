@@ -148,6 +148,9 @@ def test_root_on_edge_is_shifted_and_reported() -> None:
     assert isinstance(res, RootCount) and int(res) == 1
     assert res.shifted and res.region[1] > 1.0
     assert json.loads(json.dumps(res.to_dict()))["count"] == 1
+    assert res + 1 == 2 and "shifted=True" in repr(res)
+    with pytest.raises(AttributeError):
+        res.shifted = False  # type: ignore[misc]
 
 
 def test_work_bound_names_the_edge() -> None:
