@@ -121,15 +121,15 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
     All segments are refined together; only the steps that fail both step rules
     (:func:`_first_order_ok`, :func:`_second_order_ok`) are halved. The order-2 rule
     (one evaluation of ``F'`` and a bound of ``|F''|``) is tried only on steps that fail
-    the order-1 rule by a factor above 4, i.e. close to a root.
+    the order-1 rule by a factor above 8, i.e. close to a root. When the work bound is
+    hit, the error names the edge that holds the most unfinished steps.
     """
     n_edges = starts.size
     t = np.linspace(0.0, 1.0, _INITIAL_STEPS + 1)
     pts = starts[:, None] + (ends - starts)[:, None] * t[None, :]
     pts[:, -1] = ends  # exact corners, so that adjacent edges close the contour
     budget.spend(pts.size, "sampling contour edges")
-    fv = F(pts)
-    mag = _magnitude(F, pts)
+    fv, mag = _evaluate(F, pts, labels, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
     st = {
         "a": pts[:, :-1].ravel(), "b": pts[:, 1:].ravel(),
         "fa": fv[:, :-1].ravel(), "fb": fv[:, 1:].ravel(),
@@ -146,7 +146,7 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
         st = _take(st, ~blocked[st["owner"]])
         if not st["a"].size:
             break
-        what = f"bounding |F'| on the {_edge_label(labels, int(st['owner'][0]))}"
+        what = f"bounding |F'| on the {_edge_label(labels, int(np.bincount(st['owner']).argmax()))}"
         budget.spend(st["a"].size, what)
         bound = F.deriv_bound(st["a"], st["b"]) * (1.0 + 1e-12)
         ok = _first_order_ok(bound, st)
@@ -167,9 +167,8 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
         a, b = st["a"], st["b"]
         blocked[np.unique(st["owner"][np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
         mid = 0.5 * (a + b)
-        budget.spend(mid.size, f"refining the {_edge_label(labels, int(st['owner'][0]))}")
-        fm = F(mid)
-        mm = _magnitude(F, mid)
+        budget.spend(mid.size, f"refining the {_edge_label(labels, int(np.bincount(st['owner']).argmax()))}")
+        fm, mm = _evaluate(F, mid, labels, st["owner"])
         blocked[np.unique(st["owner"][np.abs(fm) <= _NEAR_ZERO * mm])] = True
         st = {
             "a": np.concatenate([a, mid]), "b": np.concatenate([mid, b]),
@@ -183,6 +182,18 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
 
 def _edge_label(labels: Sequence[str], i: int) -> str:
     return labels[i] if i < len(labels) else f"edge {i}"
+
+
+def _evaluate(F: QuasiPolynomial, s: NDArray[np.complex128], labels: Sequence[str], owner: NDArray) -> tuple[NDArray, NDArray]:
+    """``F(s)`` and its rounding scale; an overflow is an error naming the edge."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        fv = F(s)
+        mag = _magnitude(F, s)
+    bad = ~(np.isfinite(fv) & np.isfinite(mag))
+    if np.any(bad):
+        edge = _edge_label(labels, int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
+        raise CertificationError(f"F overflows on the {edge}: move the region to the right or shrink it")
+    return fv, mag
 
 
 def _box_edges(box: Sequence[float]) -> list[tuple[complex, complex]]:

@@ -267,3 +267,9 @@ def test_complex_coefficients() -> None:
     assert _match(roots.roots, exact) < 1e-11
     res = spectral_abscissa(F)
     assert res.value == pytest.approx(np.max(exact.real), abs=1e-12)
+
+
+def test_overflow_names_the_edge() -> None:
+    F = QuasiPolynomial([[1.0], [-0.5]], [0.0, 10.0])
+    with pytest.raises(CertificationError, match="overflows on the bottom edge"):
+        count_roots(F, (-100.0, 1.0, 0.0, 1.0))
