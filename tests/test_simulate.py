@@ -28,6 +28,7 @@ from nrobust import (
     simulate,
 )
 from nrobust.hyperbolic.kernels import solve_kernels
+from nrobust.hyperbolic.simulate import v_nodes
 from nrobust.hyperbolic.system import Hyperbolic2x2, TransportSystem
 
 PAPER = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
@@ -38,9 +39,16 @@ def zero(xi):
     return np.zeros_like(np.asarray(xi, dtype=float))
 
 
+UNEQUAL = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
+
+
 @lru_cache(maxsize=None)
-def paper_kernels(n: int = 401):
-    return solve_kernels(PAPER, n)
+def kernels_of(system, n: int = 401):
+    return solve_kernels(system, n)
+
+
+def paper_kernels():
+    return kernels_of(PAPER)
 
 
 # --------------------------------------------------------------------------------------
@@ -371,6 +379,7 @@ CASES = [
     (PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 0.1, 20.0),
     (PAPER, FiniteTimeController(), 0.85, 0.01, 10.0),
     (PAPER, ReflectionController(0.1), 0.1, 0.1, 20.0),
+    (UNEQUAL, FiniteTimeController(), 0.85, 0.01, 10.0),
 ]
 
 
@@ -385,13 +394,15 @@ def test_growth_rate_matches_spectral_abscissa(system, controller, gain, delta, 
     therefore the plant mode of the rightmost root (its history before ``t = 0`` is still
     zero, so the other modes are excited too, but weakly).
     """
-    kernels = None if system.uncoupled else paper_kernels()
+    kernels = None if system.uncoupled else kernels_of(system)
     law = controller.feedback_law(system, kernels)
     F = closed_loop_function(system, law, delta)
     chain = principal_roots(system, gain, delta)
     top = chain.real.max()
     periods = np.arange(3 if delta < 0.05 else 4)[:, None] * (2 * np.pi / delta)
     seeds = (chain[chain.real > top - 0.02][None, :] + 1j * periods).ravel()
+    n = 400
+    seeds = seeds[seeds.imag < 0.4 * np.pi * n * system.lam]  # well below the grid's pi/dt
     root = rightmost_root(F, seeds)
     if not system.uncoupled:
         # Second route: the delay form (kernels L, N~) of the paper, eq. (delay_eq_alpha).
@@ -401,9 +412,8 @@ def test_growth_rate_matches_spectral_abscissa(system, controller, gain, delta, 
     # Far along the chains the roots tend to those of the principal part (the distributed
     # term decays like 1/|s|): the spectral abscissa is the larger of both.
     abscissa = max(root.real, top)
-    n = 400
-    x = np.linspace(0.0, 1.0, n + 1)
-    u0, v0 = plant_modes(system, root, x)
+    u0, _ = plant_modes(system, root, np.linspace(0.0, 1.0, n + 1))
+    _, v0 = plant_modes(system, root, v_nodes(system, n))
     scale = np.abs(np.concatenate([u0, v0])).max()
     sim = simulate(system, law, delta, t_end, u0.real / scale, v0.real / scale, n=n)
     rate = sim.growth_rate(2.0)
