@@ -948,7 +948,7 @@ def k_region(
     n : int, optional
         Size of the default grid.
     tol : float, optional
-        Accuracy of the interval ends; default ``1e-3`` times the paper's bound.
+        Accuracy of the interval ends; default ``1e-4`` times the paper's bound.
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
     map : callable, optional
@@ -962,7 +962,7 @@ def k_region(
     delta_max = positive("delta_max", delta_max)
     family = _reflection if controller is None else controller
     kb = _k_bound(system)
-    tol = positive("tol", tol) if tol is not None else 1e-3 * (kb if kb > 0 else 1.0)
+    tol = positive("tol", tol) if tol is not None else 1e-4 * (kb if kb > 0 else 1.0)
     if Ks is None:
         n = positive_int("n", n, 3)
         if kb == 0.0:
