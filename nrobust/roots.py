@@ -1021,23 +1021,24 @@ def spectral_abscissa(
     if region is not None:
         roots = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals)
         return _abscissa_from(roots, chain_value, np.inf, roots.certified)
-    c_strong = D.strong_spectral_bound()
-    margin = 0.1 * (1.0 + abs(c_strong)) if np.isfinite(c_strong) else 1.0
-    x_right, radius = _right_half_plane(F, c_strong + margin if np.isfinite(c_strong) else 0.0)
     real = _has_real_coefficients(F)
+    c_strong = D.strong_spectral_bound()
     if np.isfinite(c_strong):
-        return _neutral_abscissa(F, D, c_strong + margin, x_right, radius, real, im_max, chain_value, cluster_tol, max_evals)
+        margin = 0.1 * (1.0 + abs(c_strong))
+        x_min, radius = _right_half_plane(F, c_strong + margin, margin)
+        return _neutral_abscissa(F, D, x_min, radius, real, im_max, chain_value, cluster_tol, max_evals)
+    x_right, radius = _right_half_plane(F, 0.0, 1.0)
     return _retarded_abscissa(F, x_right, radius, real, cluster_tol, max_evals)
 
 
-def _right_half_plane(F: QuasiPolynomial, x0: float) -> tuple[float, float]:
-    """``(x, R)``: no root with ``Re s >= x`` and ``|s| >= R`` (``x >= x0`` increased as needed)."""
-    x = x0
-    for _ in range(60):
+def _right_half_plane(F: QuasiPolynomial, x0: float, step: float) -> tuple[float, float]:
+    """``(x, R)``: no root with ``Re s >= x`` and ``|s| >= R``, for the first
+    ``x = x0 + step (2^j - 1)`` where :func:`_root_free_radius` finds one."""
+    for j in range(40):
+        x = x0 + step * (2.0**j - 1.0)
         R = _root_free_radius(F, x)
         if R is not None:
             return x, R
-        x += max(1.0, abs(x))
     raise CertificationError("no root-free right half-plane found: the quasi-polynomial is not retarded or neutral")
 
 
@@ -1046,29 +1047,21 @@ def _band(y: float, real: bool) -> tuple[float, float]:
 
 
 def _neutral_abscissa(
-    F: QuasiPolynomial, D: Any, x_min: float, x_right: float, radius: float, real: bool,
+    F: QuasiPolynomial, D: Any, x_min: float, radius: float, real: bool,
     im_max: float | None, chain_value: float, cluster_tol: float, max_evals: int,
 ) -> SpectralAbscissa:
-    x_min_r = _root_free_radius(F, x_min)
-    step = x_min - D.strong_spectral_bound()
-    for _ in range(8):  # distributed terms may need a wider margin than C_D alone
-        if x_min_r is not None:
-            break
-        x_min += step
-        step *= 2
-        x_min_r = _root_free_radius(F, x_min)
-    y = radius if x_min_r is None else max(radius, x_min_r)
-    right = (x_min, max(x_right, radius) + 1.0, *_band(y, real))
+    """Exhaustive search of ``Re s >= x_min`` (inside the disc of ``radius``), then of a
+    band below ``x_min`` near the chains."""
+    right = (x_min, max(x_min, radius) + 1.0, *_band(radius, real))
     roots = find_roots(F, right, cluster_tol=cluster_tol, max_evals=max_evals)
-    complete = roots.certified and x_min_r is not None
     if roots.count > 0:
-        return _abscissa_from(roots, chain_value, x_min if complete else np.inf, complete, upper_from_roots=complete)
+        return _abscissa_from(roots, chain_value, x_min, roots.certified, upper_from_roots=roots.certified)
     chains = D.chains()
     period = chains.chains[0].spacing if chains.commensurate and chains.chains else 2 * np.pi / max(F.max_delay, 1e-3)
-    height = float(im_max) if im_max is not None else max(y, 100.0, 2 * period)
+    height = float(im_max) if im_max is not None else max(radius, 100.0, 2 * period)
     low = (min(chain_value, x_min) - 0.5, x_min, *_band(height, real))
-    roots = find_roots(F, low, cluster_tol=cluster_tol, max_evals=max_evals)
-    return _abscissa_from(roots, chain_value, x_min if complete else np.inf, roots.certified and complete)
+    band = find_roots(F, low, cluster_tol=cluster_tol, max_evals=max_evals)
+    return _abscissa_from(band, chain_value, x_min, band.certified and roots.certified)
 
 
 def _retarded_abscissa(
