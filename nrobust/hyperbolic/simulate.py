@@ -155,7 +155,8 @@ class Simulation:
         return (
             f"Simulation(n={self.n}, dt={self.dt:.3g}, delta={self.delta!r}, "
             f"t_end={self.times[-1]:.6g}, final_norm={self.norm[-1]:.3e}, "
-            f"snapshots={self.snapshot_times.size}, delay_interpolation={self.delay_interpolation!r})"
+            f"snapshots={self.snapshot_times.size}, delay_interpolation={self.delay_interpolation!r}, "
+            f"scheme={self.scheme!r})"
         )
 
     def to_dict(self) -> dict[str, Any]:
