@@ -273,3 +273,18 @@ def test_overflow_names_the_edge() -> None:
     F = QuasiPolynomial([[1.0], [-0.5]], [0.0, 10.0])
     with pytest.raises(CertificationError, match="overflows on the bottom edge"):
         count_roots(F, (-100.0, 1.0, 0.0, 1.0))
+
+
+def test_spectral_abscissa_in_a_given_region() -> None:
+    res = spectral_abscissa(NEUTRAL, (-3.0, 1.0, -0.5, 50.0))
+    exact = _neutral_exact((-3.0, 1.0, -0.5, 50.0))
+    assert res.certified and res.region == (-3.0, 1.0, -0.5, 50.0)
+    assert res.root.real == pytest.approx(np.max(exact.real), abs=1e-12)
+    assert not res.approached_at_infinity
+
+
+def test_spectral_abscissa_rejects_advanced() -> None:
+    F = QuasiPolynomial([[1.0], [0.0, 1.0]], [0.0, 1.0])  # 1 + s e^{-s}: advanced
+    with pytest.raises(ParameterError) as err:
+        spectral_abscissa(F)
+    assert err.value.name == "F"
