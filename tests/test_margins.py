@@ -362,3 +362,16 @@ def test_paper_example_margin_against_simulation() -> None:
         late = sim.times > 30.0
         rates.append(np.polyfit(sim.times[late], np.log(sim.norm[late]), 1)[0])
     assert rates[0] < 0 < rates[1]
+
+
+def test_k_region_paper_example_is_strictly_inside_the_paper_bound() -> None:
+    """With delta_max = 0.2 neither K = 0 nor gains near the bound 0.15 are admissible."""
+    system = paper_system()
+    region = k_region(system, 0.2, Ks=[0.0, 0.05, 0.1], tol=5e-3)
+    assert list(region.admissible) == [False, True, True]
+    (lo, hi), = region.intervals
+    assert 0.0 < lo < 0.05 and 0.1 < hi < region.paper_bound
+    for K in (lo - 2 * region.tol, hi + 2 * region.tol):  # just outside: margin below 0.2
+        assert delay_margin(system, ReflectionController(K), verify=False).margin <= 0.2
+    for K in (lo + 2 * region.tol, hi - 2 * region.tol):
+        assert delay_margin(system, ReflectionController(K), verify=False).margin > 0.2
