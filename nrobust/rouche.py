@@ -318,7 +318,8 @@ def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
             hi = mid
         else:
             lo = mid
-    return RootFreeRegion(half_plane=float(min(hi, radius)), x0=x0, radius=radius, degree=n, gap=float(gap))
+    # Re s > max(R, x0) lies in {Re s >= x0, |s| > R} as well
+    return RootFreeRegion(half_plane=float(min(hi, max(radius, x0))), x0=x0, radius=radius, degree=n, gap=float(gap))
 
 
 # ---------------------------------------------------------------------------- L1 modulus
