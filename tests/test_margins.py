@@ -337,7 +337,7 @@ def test_ab_region_transport() -> None:
     assert np.any(reg.paper_conditions & ~reg.strongly_stable)  # eq. (cond_a_b) lacks |a|
     assert reg.admissible[2, 1]  # a = 0.25, b = 2: |a|/b = 0.125 < 0.15/0.85
     dm = delay_margin(system, FilteredController(0.25, 2.0))
-    assert dm.margin == reg.margins[2, 1] and dm.verified in (True, False)
+    assert dm.margin == reg.margins[2, 1] > 0.5 and dm.nominal_stable
     assert "ABRegion" in repr(reg) and len(reg.to_dict()["a"]) == 3
 
 
