@@ -132,9 +132,10 @@ class Chains:
     Attributes
     ----------
     commensurate : bool
-        True if the delays are commensurate (then ``chains`` is exhaustive).
+        True if the delays are commensurate (then ``chains`` is exhaustive); also True for
+        a single-term operator, which has no zeros.
     step : float or None
-        The common step ``h`` of commensurate delays.
+        The common step ``h`` of commensurate delays (None for a single term).
     chains : tuple of Chain
         The chains, rightmost first (empty if incommensurate or if ``D`` has one term).
     bracket : tuple of float
@@ -159,7 +160,9 @@ class Chains:
         if not self.commensurate:
             return f"Chains(incommensurate delays, c_D in [{self.bracket[0]:.6g}, {self.bracket[1]:.6g}])"
         lines = ", ".join(f"Re s = {c.real:.6g}" + (f" (x{c.multiplicity})" if c.multiplicity > 1 else "") for c in self.chains)
-        return f"Chains(h={self.step:.6g}, spacing={2 * np.pi / self.step:.6g}: {lines})" if self.step else "Chains(none)"
+        if self.step is None:
+            return "Chains(none: a single term has no zeros)"
+        return f"Chains(h={self.step:.6g}, spacing={2 * np.pi / self.step:.6g}: {lines})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -354,6 +357,8 @@ class DifferenceOperator:
         ``s = (-ln|z_i| + i(2 pi m - arg z_i)) / h``; otherwise only the bracket of
         :meth:`spectral_bound` is returned.
         """
+        if self.coefs.size == 1:
+            return Chains(True, None, (), (-np.inf, -np.inf))
         found = self.commensurate_step()
         if found is None:
             sb = self.spectral_bound()

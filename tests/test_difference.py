@@ -108,7 +108,9 @@ def test_single_term_has_no_zeros() -> None:
     D = DifferenceOperator([2.0], [0.5])
     assert D.spectral_bound().value == -np.inf
     assert D.strong_spectral_bound() == -np.inf
-    assert len(D.chains()) == 0
+    ch = D.chains()
+    assert len(ch) == 0 and ch.commensurate and ch.points(0.0, 10.0).size == 0
+    assert "no zeros" in repr(ch)
 
 
 def test_principal_part_of_quasipolynomial() -> None:
