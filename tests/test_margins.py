@@ -375,3 +375,23 @@ def test_k_region_paper_example_is_strictly_inside_the_paper_bound() -> None:
         assert delay_margin(system, ReflectionController(K), verify=False).margin <= 0.2
     for K in (lo + 2 * region.tol, hi - 2 * region.tol):
         assert delay_margin(system, ReflectionController(K), verify=False).margin > 0.2
+
+
+@pytest.mark.parametrize("a, b", [(0.0, 1.0), (0.1, 1.0), (0.15, 2.0)])
+def test_filtered_transport_loop_has_a_finite_margin_when_rho_q_above_half(a: float, b: float) -> None:
+    """eq. (cond_a_b) gives a positive margin, not stability for every delay, when |rho q| > 1/2.
+
+    At w = 0, |A|^2 - |B|^2 = (1 - rho q)^2 - (rho q)^2 < 0, while it is positive at high
+    frequency (strong stability): a crossing exists.
+    """
+    rho_q = 0.85
+    A = QuasiPolynomial([[1.0, b], [-rho_q, -rho_q * b]], [0.0, 2.0])  # (1 + b s)(1 - rho q e^{-2s})
+    B = QuasiPolynomial([[rho_q, rho_q * a]], [2.0])  # (1 + a s) rho q e^{-2s}
+    assert a / b < (1 - rho_q) / rho_q and a < (1 - rho_q) / rho_q  # the paper's conditions
+    dm = delay_margin(A, B)
+    assert dm.verified and 0.0 < dm.margin < np.inf
+    nxt = min(d for c in dm.crossings for d in c.delays if d > dm.margin)
+    F = A + B.shift(0.5 * (dm.margin + nxt))
+    W = dm.frequency_bound
+    assert int(count_roots(F, (0.0, 1.01 * W, -1.01 * W, 1.01 * W))) == 2
+    assert dm.margin == delay_margin(TransportSystem(1.0, 1.0, 1.0, rho_q), FilteredController(a, b)).margin
