@@ -77,6 +77,8 @@ InitialState = Union[Callable[[Array], Any], Array]
 
 #: Relative tolerance under which ``delta / dt`` counts as an integer.
 _INTEGER_TOL = 1e-9
+#: Default kernel cells: the kernels' second-order error is then about 1e-6.
+KERNEL_CELLS = 400
 #: Default bound on the number of node updates (nodes times steps).
 MAX_UPDATES = 2 * 10**9
 
@@ -592,7 +594,8 @@ def simulate(
         Backstepping kernels for the controller; solved with ``kernel_n`` points otherwise
         (not needed for an uncoupled system or a ``FeedbackLaw``).
     kernel_n : int, optional
-        Kernel grid points, default ``n + 1`` (kernel nodes on the ``u`` nodes).
+        Kernel grid points, default ``min(n, 400) + 1`` (kernel nodes on ``u`` nodes when
+        ``n <= 400``; the kernel solver's cost grows like the cube of its grid).
     max_updates : int
         Bound on the number of node updates (nodes times steps).
 
@@ -620,7 +623,7 @@ def simulate(
     delta = nonnegative("delta", delta)
     t_end = positive("t_end", t_end)
     n = positive_int("n", n, minimum=2)
-    kernel_n = n + 1 if kernel_n is None else positive_int("kernel_n", kernel_n, minimum=3)
+    kernel_n = min(n, KERNEL_CELLS) + 1 if kernel_n is None else positive_int("kernel_n", kernel_n, minimum=3)
     if snapshot_every is not None:
         snapshot_every = positive_int("snapshot_every", snapshot_every)
     max_updates = positive_int("max_updates", max_updates)
