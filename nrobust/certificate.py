@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import positive, region as check_region
+from ._validate import positive, positive_int, region as check_region
 from .errors import ParameterError
 
 __all__ = ["Certificate", "PrincipalPart", "certify"]
@@ -261,6 +261,7 @@ def certify(
     delta_max: float = 0.1,
     region: tuple[float, float, float, float] | None = None,
     k_region: bool = True,
+    k_grid: int = 9,
 ) -> Certificate:
     """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
 
@@ -278,6 +279,12 @@ def certify(
     k_region : bool
         For ``ReflectionController``, also compute the admissible gains on
         ``[0, delta_max]`` (:func:`nrobust.margins.k_region`).
+    k_grid : int
+        Number of gains of that computation, evenly spread in ``|K| < (1 - |rho q|)/|q|``;
+        the interval ends are resolved to the grid step (``KRegion.tol``), since each
+        further bisection step costs a delay-margin analysis, and those near the
+        strong-stability limit are the most expensive. Call
+        :func:`nrobust.margins.k_region` directly for sharper ends.
 
     Returns
     -------
@@ -310,10 +317,12 @@ def certify(
         else None
     )
     kreg = None
-    if k_region and isinstance(controller, ReflectionController):
+    if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
         from .margins import k_region as compute_k_region
 
-        kreg = compute_k_region(system, delta_max)
+        k_grid = positive_int("k_grid", k_grid, 3)
+        step = 2.0 * classification.k_bound / (k_grid + 1)
+        kreg = compute_k_region(system, delta_max, n=k_grid, tol=step)
     return Certificate(
         system=system,
         controller=controller,

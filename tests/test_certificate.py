@@ -98,7 +98,9 @@ def test_transport_reflection_controller_matches_eq_boun_K2():
     assert cert.principal_delayed.gamma_0 == pytest.approx(0.95)
     assert cert.rouche.delta_0 == np.inf
     (lo, hi), = cert.k_region.intervals
-    assert lo == pytest.approx(-0.15, abs=1e-4) and hi == pytest.approx(0.15, abs=1e-4)
+    tol = cert.k_region.tol  # ends resolved to the grid step of k_grid gains
+    assert tol == pytest.approx(0.3 / 10)
+    assert -0.15 < lo <= -0.15 + tol and 0.15 - tol <= hi < 0.15
     data = json.loads(cert.to_json())
     assert data["delay_margin"] == "inf" and data["k_region"]["paper_bound"] == pytest.approx(0.15)
 
