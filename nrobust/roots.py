@@ -528,17 +528,29 @@ class _Found:
         self.centers: list[complex] = []
         self.mults: list[int] = []
         self.boxes: list[Region] = []
+        self._array: NDArray[np.float64] | None = None
+
+    def add(self, z: complex, m: int, box: Region) -> None:
+        self.centers.append(z)
+        self.mults.append(m)
+        self.boxes.append(box)
+        self._array = None
 
     def total(self) -> int:
         return int(sum(self.mults))
 
     def inside(self, box: Region) -> int:
         """Multiplicity of accepted roots whose boxes lie inside ``box``."""
+        b = self.array()
         x0, x1, y0, y1 = box
-        return int(sum(m for m, b in zip(self.mults, self.boxes) if b[0] >= x0 and b[1] <= x1 and b[2] >= y0 and b[3] <= y1))
+        mask = (b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1)
+        return int(np.sum(np.asarray(self.mults, dtype=np.int64)[mask])) if mask.any() else 0
 
     def array(self) -> NDArray[np.float64]:
-        return np.array(self.boxes, dtype=float).reshape(-1, 4)
+        """The accepted boxes as an ``(n, 4)`` array."""
+        if self._array is None:
+            self._array = np.array(self.boxes, dtype=float).reshape(-1, 4)
+        return self._array
 
 
 class _Finder:
@@ -652,7 +664,7 @@ class _Finder:
         if c <= 0:
             return
         if c == 1:
-            self._add(z, 1, box)
+            self.found.add(z, 1, box)
             return
         mom = _circle_moments(self.F, z, 0.9 * h, c, self.budget)
         if abs(mom.count - c) > 0.25:  # roots near the circle or in the box corners
@@ -661,14 +673,9 @@ class _Finder:
             return
         spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
         if spread < max(self.cluster_tol, mom.noise):
-            self._add(complex(np.mean(mom.points)), c, box)
+            self.found.add(complex(np.mean(mom.points)), c, box)
         elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
             self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [owner], depth + 1)
-
-    def _add(self, z: complex, m: int, box: Region) -> None:
-        self.found.centers.append(z)
-        self.found.mults.append(m)
-        self.found.boxes.append(box)
 
     # ------------------------------------------------------------ seeds
     def chain_seeds(self) -> NDArray[np.complex128]:
@@ -742,7 +749,7 @@ class _Finder:
             for box, c in pending:
                 u = c - self.found.inside(box)
                 if u > 0 and max(box[1] - box[0], box[3] - box[2]) < self.cluster_tol:
-                    self._add(complex(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3])), u, box)
+                    self.found.add(complex(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3])), u, box)
                 elif u > 0:
                     children.extend(self._split(box))
             if not children:
