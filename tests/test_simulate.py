@@ -541,6 +541,7 @@ def test_result_snapshots_and_json():
         ({"delta": float("nan")}, "delta"),
         ({"t_end": 0.0}, "t_end"),
         ({"n": 1}, "n"),
+        ({"system": TransportSystem(lam=1.0, mu=10.0, q=1.0, rho=0.5)}, "n"),
         ({"u0": np.zeros(7)}, "u0"),
         ({"v0": lambda x: np.full_like(x, np.inf)}, "v0"),
         ({"controller": 3.0}, "controller"),

@@ -633,6 +633,8 @@ def simulate(
     steps = max(1, int(math.ceil(t_end / dt - 1e-9)))
     x = np.linspace(0.0, 1.0, n + 1)
     xv = x if lattice else v_nodes(system, n)
+    if xv.size < 4:
+        raise ParameterError("n", f">= {math.ceil(3 * system.mu / system.lam)} (three cells of v at least)", n)
     updates = steps * (2 * n if lattice else x.size + xv.size)
     if updates > max_updates:
         raise ParameterError("(n, t_end)", f"at most max_updates = {max_updates} node updates", updates)
