@@ -498,9 +498,9 @@ def _march_two_grids(
     """Unequal speeds: ``u`` on steps of ``lam dt``, ``v`` on steps of ``mu dt``, in half steps.
 
     At the sampled times ``u`` sits on ``x`` and ``v`` on ``xv``; at the half steps both are
-    shifted by half a cell, so that, as on the lattice of equal speeds, the characteristics
-    that cross between two sampled times meet at the half step and no family of crossings
-    is skipped. Transport is an exact index shift. The couplings are integrated over each
+    shifted by half a cell, so that characteristics crossing between two sampled times are
+    also coupled half-way (on the lattice of equal speeds they meet exactly there) and no
+    family of crossings is skipped. Transport is an exact index shift. The couplings are integrated over each
     half step by Heun's method (trapezoidal corrector), the other unknown being read by
     4-point Lagrange interpolation across the grids. ``v(t, 0)`` is the value of the
     characteristic that was at ``x = mu dt / 2`` half a step earlier (interpolated when no
@@ -519,8 +519,8 @@ def _march_two_grids(
     h2 = dt / 4.0
     inv_0 = 1.0 / (1.0 - h2 * system.sigma_mp_at(np.zeros(1))[0] * system.q)
     wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
-    state = {0: (u, v), 1: (np.empty(phase1.xu.size), np.empty(phase1.xv.size))}
-    scratch = {0: (np.empty_like(u), np.empty_like(v)), 1: state[1]}
+    u1, v1 = np.empty(phase1.xu.size), np.empty(phase1.xv.size)  # state at the half step
+    ut, vt = np.empty_like(u), np.empty_like(v)  # state at the next sampled time
 
     def half(step: _HalfStep, uo: Array, vo: Array, un: Array, vn: Array, j: int | None) -> None:
         m, src = step.m, step.u_src
@@ -543,8 +543,6 @@ def _march_two_grids(
         vn[:m] = v_up + h2 * (fv_up + fv_new[:m])
         close()
 
-    u1, v1 = state[1]
-    ut, vt = scratch[0]
     for j in range(1, steps + 1):
         half(steps_ab[0], u, v, u1, v1, None)
         half(steps_ab[1], u1, v1, ut, vt, j)
