@@ -17,8 +17,8 @@ are those of ``a_0 + sum_{k>=1} a_k e^{-r_k s}``.
 * ``c_D = sup {Re s : D(s) = 0}``, the spectral bound.
 * ``C_D``: the real root of ``sum_{k>=1} |a_k| e^{-r_k c} = |a_0|``. It is the supremum
   of ``c_D`` over small perturbations of the delays; ``c_D <= C_D``, with equality for
-  rationally independent delays (Hale and Verduyn Lunel, Theorem 9.6.x of
-  "Introduction to Functional Differential Equations", 1993).
+  rationally independent delays (Hale and Verduyn Lunel, 2002; "Introduction to
+  Functional Differential Equations", 1993, Chapter 9).
 * Commensurate delays ``r_k = n_k h`` (integers ``n_k``): ``D = 0`` iff the polynomial
   ``P(z) = sum_k a_k z^{n_k}`` vanishes at ``z = e^{-h s}``, so every root ``z_i`` gives a
   vertical chain ``s = (-ln z_i + 2 pi i m) / h``, ``m`` in Z.
