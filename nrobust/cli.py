@@ -248,8 +248,11 @@ def _progress(total: int, enabled: bool, desc: str) -> Any:
     return tqdm(total=total, desc=desc, disable=not enabled, leave=False, file=sys.stderr)
 
 
-def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) -> Any:
-    """``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report."""
+def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) -> tuple[Any, str]:
+    """``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report.
+
+    Returns the :class:`~nrobust.report.ReportFiles` and the certificate's verdict.
+    """
     from .certificate import certify
     from .hyperbolic.simulate import simulate
     from .report import write_report
@@ -275,7 +278,7 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) ->
             ))
         files = write_report(cert, out_dir, figures=figures)
         bar.update(1)
-    return files
+    return files, cert.verdict
 
 
 # ---------------------------------------------------------------------- paper
@@ -564,7 +567,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     progress = not args.no_progress
     try:
         if args.command == "analyze":
-            files = run_analyze(args.file, args.out, progress=progress)
+            files, verdict = run_analyze(args.file, args.out, progress=progress)
+            print(verdict)
             print(f"wrote {files.markdown}, {files.html}, {', '.join(str(p) for p in files.json)}")
         elif args.command == "paper":
             summary = run_paper(args.out, progress=progress)

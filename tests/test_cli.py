@@ -49,7 +49,8 @@ def _write(tmp_path: Path, text: str) -> Path:
 def test_analyze_writes_report_and_valid_json(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["analyze", str(_write(tmp_path, SMALL)), "-o", str(out), "--no-progress"]) == 0
-    assert "report.md" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "report.md" in printed and "FilteredController: delay-robust" in printed
     data = json.loads((out / "certificate.json").read_text())
     assert data["controller"] == {"controller": "FilteredController", "a": 0.1, "b": 1.0}
     assert data["delay_robust"] is True and data["delay_margin"] > 0.1
