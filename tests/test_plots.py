@@ -51,7 +51,7 @@ def test_nyquist_reflection_controller_is_stable_without_crossings():
 def test_nyquist_finite_time_controller_has_no_finite_count():
     """U_BS with |rho q| > 1/2: the difference operator is not stable (Theorem 3)."""
     B = Q([[0.85]], [2.0])
-    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.01, omega_max=20.0, n=2001)
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=20.0, n=2001)
     assert resp.rhp_zeros is None and resp.principal_bound > 0
     assert "spectral bound" in resp.note
     assert resp.crossings.size > 0
