@@ -205,9 +205,9 @@ class _AxisFunction:
             for d in P.distributed:
                 const = d.poly.size == 1
                 poly = np.ones(1) if const else d.poly
-                key = (d.nodes.tobytes(), d.values.tobytes(), poly.tobytes(), d.moment)
+                key = (d.nodes.tobytes(), d.values.tobytes(), poly.tobytes(), d.moment, d.interpolation)
                 if key not in kernels:
-                    kernels[key] = (DistributedDelay(d.nodes, d.values, poly, d.moment), [0.0, 0.0])
+                    kernels[key] = (d.replace(poly=poly), [0.0, 0.0])
                 kernels[key][1][side] += complex(d.poly[0]) if const else 1.0
         self.kernels = list(kernels.values())
         self.evals = 0
@@ -262,30 +262,6 @@ class _AxisLipschitz:
             dqmax = sum(j * c * r ** (j - 1) for j, c in enumerate(q) if j > 0)
             out = out + dqmax * m0 + qmax * m1
         return out
-
-
-def simplify(F: QuasiPolynomial) -> QuasiPolynomial:
-    """Merge distributed terms on the same nodes (same polynomial and moment) and drop zeros.
-
-    ``A + B`` of a loop often holds ``I_N - I_N`` (``U_BS2``: the nominal loop is the
-    target system ``1 - (rho - K) q e^{-tau s}``); merging makes its evaluation exact and
-    cheap.
-    """
-    groups: dict[tuple, list] = {}
-    for d in F.distributed:
-        # a constant polynomial factor is folded into the kernel values
-        vals, poly = (d.values * d.poly[0], np.ones(1)) if d.poly.size == 1 else (d.values, d.poly)
-        key = (d.nodes.tobytes(), poly.tobytes(), poly.dtype.str, d.moment)
-        groups.setdefault(key, []).append((d.nodes, vals, poly, d.moment))
-    dist = []
-    for parts in groups.values():
-        vals = sum(v for _, v, _, _ in parts)
-        if np.any(vals != 0):
-            nodes, _, poly, moment = parts[0]
-            dist.append(DistributedDelay(nodes, vals, poly, moment))
-    if not F.point_terms and not dist:
-        return QuasiPolynomial([[0.0]], [0.0])
-    return QuasiPolynomial(F.coefs, F.delays, dist) if F.point_terms else QuasiPolynomial([], [], dist)
 
 
 def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float] | None:
@@ -669,7 +645,7 @@ def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> i
     """Certified count of unstable zeros of ``A + B``, or None if it cannot be certified."""
     from .rouche import root_free_region
 
-    F = simplify(A + B)
+    F = A + B
     if W is None:
         try:
             W = root_free_region(F).radius
@@ -772,7 +748,7 @@ def delay_margin(
             if d <= delta_max:
                 events[d] = events.get(d, 0) + mult * c.direction
     axis_at_zero = zero_root or (0.0 in events)
-    nominal = None if axis_at_zero else _count_unstable(simplify(A + B), W)
+    nominal = None if axis_at_zero else _count_unstable(A + B, W)
     nominal_stable = nominal == 0
     marks = sorted(d for d in events if d > 0.0)
     # Number of unstable zeros on the first interval (0, first positive crossing delay).
@@ -1183,7 +1159,7 @@ class _PartialAbscissa:
         from .roots import spectral_abscissa
 
         A, B = loop_factors(self.system, self.family(point[0]))
-        F = simplify(A + B) if point[1] == 0 else A + B.shift(point[1])
+        F = A + B if point[1] == 0 else A + B.shift(point[1])
         return float(spectral_abscissa(F).value)
 
 
@@ -1301,7 +1277,7 @@ class _PartialTradeoff:
 
         ctrl = self.family(float(K))
         A, B = loop_factors(self.system, ctrl)
-        rate = -float(spectral_abscissa(simplify(A + B)).value)
+        rate = -float(spectral_abscissa(A + B).value)
         margin = delay_margin(A, B, verify=False).margin
         d0 = rouche_delay_bound(self.system, ctrl).delta_0 if isinstance(ctrl, ReflectionController) else np.nan
         return rate, float(margin), float(d0)

@@ -18,7 +18,9 @@ from math import comb, factorial
 from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
+from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
+from scipy.interpolate import CubicSpline
 from scipy.signal import czt
 
 from ._validate import nonnegative
@@ -174,13 +176,47 @@ def _fmt_num(c: complex) -> str:
     return f"({c.real:.6g}{c.imag:+.6g}j)"
 
 
+def _linear_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Segments of positive length with ``N = v_i + (v_{i+1} - v_i) t`` on each."""
+    keep = np.diff(nodes) > 0
+    left, right = values[:-1][keep], values[1:][keep]
+    return nodes[:-1][keep], np.diff(nodes)[keep], np.stack([left, right - left], axis=1)
+
+
+def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Not-a-knot cubic splines on the pieces between jumps, as polynomials in ``t``."""
+    breaks = np.r_[0, np.flatnonzero(np.diff(nodes) == 0) + 1, nodes.size]
+    starts, hs, polys = [], [], []
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        x, y = nodes[lo:hi], values[lo:hi]
+        h = np.diff(x)
+        if x.size < 2:  # a lone node between two jumps carries no segment
+            continue
+        if x.size < 4:
+            # The line (2 nodes) or parabola (3 nodes) through the piece, expanded in the
+            # local variable t of each segment: p(x_i + h_i t).
+            p = Polynomial(np.polynomial.polynomial.polyfit(x - x[0], y, x.size - 1))
+            pc = np.array([np.pad(p(Polynomial([x[i] - x[0], h[i]])).coef, (0, 4))[:4] for i in range(h.size)])
+        else:
+            spline = CubicSpline(x, y, bc_type="not-a-knot")
+            # spline.c[k, i] multiplies (nu - x_i)^(3-k); with nu - x_i = h_i t:
+            pc = np.stack([spline.c[3 - j] * h**j for j in range(4)], axis=1)
+        starts.append(x[:-1])
+        hs.append(h)
+        polys.append(pc)
+    return np.concatenate(starts), np.concatenate(hs), np.concatenate(polys).astype(values.dtype)
+
+
+_INTERPOLATIONS = {"linear": _linear_pieces, "cubic": _cubic_pieces}
+
+
 @dataclass(frozen=True, eq=False)
 class DistributedDelay:
     """A distributed-delay term ``q(s) int_a^b nu^m N(nu) e^{-nu s} dnu``.
 
-    ``N`` is given by its values on non-decreasing ``nodes`` and interpolated linearly;
-    a node repeated twice marks a jump of ``N`` there (the left value first), as the
-    jump of ``N~`` at ``nu = 1/mu`` in the paper's eq. (eq_N_tilde).
+    ``N`` is given by its values on non-decreasing ``nodes`` and interpolated linearly or
+    by cubic splines; a node repeated twice marks a jump of ``N`` there (the left value
+    first), as the jump of ``N~`` at ``nu = 1/mu`` in the paper's eq. (eq_N_tilde).
 
     Parameters
     ----------
@@ -194,6 +230,10 @@ class DistributedDelay:
     moment : int, optional
         The power ``m`` of the weight ``nu^m`` (default 0); derivatives in ``s`` of a
         distributed term are distributed terms of higher moment.
+    interpolation : {"linear", "cubic"}, optional
+        ``"linear"`` (default, second order) or ``"cubic"``: a not-a-knot cubic spline on
+        each piece between jumps (fourth order for smooth ``N``; pieces of 2 or 3 nodes
+        get the line or parabola through them).
 
     Notes
     -----
@@ -207,8 +247,16 @@ class DistributedDelay:
     values: NDArray
     poly: NDArray = field(default_factory=lambda: np.ones(1))
     moment: int = 0
+    interpolation: str = "linear"
 
-    def __init__(self, nodes: ArrayLike, values: ArrayLike, poly: ArrayLike = (1.0,), moment: int = 0) -> None:
+    def __init__(
+        self,
+        nodes: ArrayLike,
+        values: ArrayLike,
+        poly: ArrayLike = (1.0,),
+        moment: int = 0,
+        interpolation: str = "linear",
+    ) -> None:
         x = np.asarray(nodes, dtype=float)
         if x.ndim != 1 or x.size < 2:
             raise ParameterError("nodes", "a 1-D sequence of at least 2 numbers", nodes)
@@ -230,10 +278,24 @@ class DistributedDelay:
             raise ParameterError("values", "finite (no nan or inf)", values)
         if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
             raise ParameterError("moment", "an integer >= 0", moment)
+        if interpolation not in _INTERPOLATIONS:
+            raise ParameterError("interpolation", f"one of {sorted(_INTERPOLATIONS)}", interpolation)
+        q = _as_poly("poly", poly)
+        v = v.astype(np.result_type(v, q, float))
+        if q.size == 1:  # canonical form: a constant factor lives in the values
+            v, q = v * q[0], np.ones(1)
         object.__setattr__(self, "nodes", x)
-        object.__setattr__(self, "values", v.astype(complex if np.iscomplexobj(v) else float))
-        object.__setattr__(self, "poly", _as_poly("poly", poly))
+        object.__setattr__(self, "values", v)
+        object.__setattr__(self, "poly", q)
         object.__setattr__(self, "moment", int(moment))
+        object.__setattr__(self, "interpolation", interpolation)
+        object.__setattr__(self, "_pieces", _INTERPOLATIONS[interpolation](x, self.values))
+
+    def replace(self, **changes: Any) -> "DistributedDelay":
+        """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
+        args = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
+        args.update(changes)
+        return DistributedDelay(**args, interpolation=self.interpolation)
 
     # ------------------------------------------------------------------ structure
     @property
@@ -246,29 +308,37 @@ class DistributedDelay:
         """Upper end of the support."""
         return float(self.nodes[-1])
 
-    def _segments(self) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """Segments of positive length: start, length, left value, right value."""
-        keep = np.diff(self.nodes) > 0
-        return self.nodes[:-1][keep], np.diff(self.nodes)[keep], self.values[:-1][keep], self.values[1:][keep]
+    def _local_coefficients(self, extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None) -> tuple[NDArray, NDArray, NDArray]:
+        """Coefficients ``c[i, l]`` of ``h_i nu^(m+extra) N(nu)`` in powers of ``t`` on each segment.
 
-    def _local_coefficients(self, extra: int, values: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray]:
-        """Coefficients ``c[i, l]`` of ``h_i * nu^(m+extra) N(nu)`` in powers of ``t`` on each segment."""
-        start, h, left, right = self._segments()
-        if values is not None:
-            keep = np.diff(self.nodes) > 0
-            left, right = values[:-1][keep], values[1:][keep]
+        ``pieces = (start, h, P)`` with ``P[i, j]`` the coefficient of ``t^j`` of ``N`` on
+        segment ``i``; by default the interpolant's.
+        """
+        start, h, poly_t = self._pieces if pieces is None else pieces
         k = self.moment + extra
-        coef = np.zeros((start.size, k + 2), dtype=np.result_type(left, float))
-        slope = right - left
+        coef = np.zeros((start.size, k + poly_t.shape[1]), dtype=np.result_type(poly_t, float))
         for j in range(k + 1):  # (start + h t)^k = sum_j C(k, j) start^(k-j) h^j t^j
             w = comb(k, j) * start ** (k - j) * h**j
-            coef[:, j] += w * left
-            coef[:, j + 1] += w * slope
+            coef[:, j : j + poly_t.shape[1]] += w[:, None] * poly_t
         return start, h, coef * h[:, None]
 
-    def _moment_integral(self, s: NDArray[np.complex128], extra: int, values: NDArray | None = None) -> NDArray[np.complex128]:
+    def _abs_pieces(self) -> tuple[NDArray, NDArray, NDArray]:
+        """Piecewise polynomials bounding ``|N|`` from above on every segment.
+
+        Linear: the linear interpolant of ``|N|`` (convexity of the modulus). Cubic: the
+        constant ``sum_j |P_ij| >= max_t |P_i(t)|``.
+        """
+        start, h, poly_t = self._pieces
+        if poly_t.shape[1] == 2:
+            left = np.abs(poly_t[:, 0])
+            return start, h, np.stack([left, np.abs(poly_t[:, 0] + poly_t[:, 1]) - left], axis=1)
+        return start, h, np.sum(np.abs(poly_t), axis=1, keepdims=True)
+
+    def _moment_integral(
+        self, s: NDArray[np.complex128], extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None
+    ) -> NDArray[np.complex128]:
         """``int nu^(m+extra) N(nu) e^{-nu s} dnu`` for the interpolant, exact, at flat ``s``."""
-        start, h, coef = self._local_coefficients(extra, values)
+        start, h, coef = self._local_coefficients(extra, pieces)
         out = np.zeros(s.shape, dtype=complex)
         hs, inverse = np.unique(np.round(h, 14), return_inverse=True)
         for g, hg in enumerate(hs):
@@ -297,12 +367,12 @@ class DistributedDelay:
     def abs_moment(self, x: ArrayLike, k: int = 0) -> NDArray[np.float64]:
         """Upper bound of ``int nu^(m+k) |N(nu)| e^{-nu x} dnu`` for real ``x`` (vectorised).
 
-        ``|N|`` is bounded on each segment by the linear interpolant of ``|N|`` at its
-        ends (convexity of the modulus), whose weighted integral is computed exactly.
+        ``|N|`` is bounded on each segment by a polynomial (:meth:`_abs_pieces`), whose
+        weighted integral is computed exactly.
         """
         x = np.asarray(x, dtype=float)
         flat = x.ravel().astype(complex)
-        return np.abs(self._moment_integral(flat, k, np.abs(self.values))).reshape(x.shape)
+        return np.abs(self._moment_integral(flat, k, self._abs_pieces())).reshape(x.shape)
 
     def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
         """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).
@@ -313,12 +383,13 @@ class DistributedDelay:
         if self.moment != 0:
             raise ParameterError("moment", "0 for variation_bound", self.moment)
         x = np.asarray(x, dtype=float)
-        start, h, left, right = self._segments()
+        start, h, poly_t = self._pieces
         jumps = np.flatnonzero(np.diff(self.nodes) == 0)
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
         for j in jumps:
             out = out + np.abs(self.values[j + 1] - self.values[j]) * np.exp(-self.nodes[j] * x)
-        slope = np.abs(right - left) / h
+        # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
+        slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
         xe = x[..., None]
         with np.errstate(divide="ignore", invalid="ignore"):
             seg = np.where(
@@ -338,18 +409,18 @@ class DistributedDelay:
         delta = nonnegative("delta", delta)
         m = self.moment
         return tuple(
-            DistributedDelay(self.nodes + delta, self.values * comb(m, j) * (-delta) ** (m - j), self.poly, j)
+            self.replace(nodes=self.nodes + delta, values=self.values * comb(m, j) * (-delta) ** (m - j), moment=j)
             for j in range(m + 1)
             if j == m or delta != 0
         )
 
     def scale(self, c: complex) -> "DistributedDelay":
         """Multiply by a constant (applied to the values, so equal supports still merge)."""
-        return DistributedDelay(self.nodes, self.values * c, self.poly, self.moment)
+        return self.replace(values=self.values * c)
 
     def times_poly(self, coefs: ArrayLike) -> "DistributedDelay":
         """Multiply by a polynomial (coefficients in increasing powers)."""
-        return DistributedDelay(self.nodes, self.values, _polymul(self.poly, _as_poly("coefs", coefs)), self.moment)
+        return self.replace(poly=_polymul(self.poly, _as_poly("coefs", coefs)))
 
     def __repr__(self) -> str:
         weight = "" if self.moment == 0 else f"nu^{self.moment} "
@@ -367,6 +438,7 @@ class DistributedDelay:
             "values": _json_array(self.values),
             "poly": _json_array(self.poly),
             "moment": self.moment,
+            "interpolation": self.interpolation,
         }
 
 
@@ -379,8 +451,9 @@ def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDe
     merged: list[DistributedDelay] = []
     for d in terms:
         for i, m in enumerate(merged):
-            if m.moment == d.moment and np.array_equal(m.nodes, d.nodes) and np.array_equal(m.poly, d.poly):
-                merged[i] = DistributedDelay(m.nodes, m.values + d.values, m.poly, m.moment)
+            same = m.moment == d.moment and m.interpolation == d.interpolation
+            if same and np.array_equal(m.nodes, d.nodes) and np.array_equal(m.poly, d.poly):
+                merged[i] = m.replace(values=m.values + d.values)
                 break
         else:
             merged.append(d)
@@ -545,8 +618,8 @@ class QuasiPolynomial:
         for d in self.distributed:
             dq = _polyder(d.poly)
             if np.any(dq != 0):
-                dist.append(DistributedDelay(d.nodes, d.values, dq, d.moment))
-            dist.append(DistributedDelay(d.nodes, -d.values, d.poly, d.moment + 1))
+                dist.append(d.replace(poly=dq))
+            dist.append(d.replace(values=-d.values, moment=d.moment + 1))
         return QuasiPolynomial._from_parts(terms, dist)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nrobust import CertificationError, ParameterError, QuasiPolynomial
-from nrobust.margins import crossing_frequencies, delay_margin, simplify
+from nrobust.margins import crossing_frequencies, delay_margin
 from nrobust.quasipoly import DistributedDelay
 from nrobust.roots import count_roots
 
@@ -183,12 +183,12 @@ def test_distributed_loop_margin_verified_and_complete() -> None:
     assert abs(F(np.array([s]))[0]) < 1e-10
 
 
-def test_simplify_cancels_opposite_kernels() -> None:
+def test_nominal_loop_cancels_opposite_kernels() -> None:
     A, B = distributed_loop(0.85, 0.1)
-    F = simplify(A + B)
+    F = A + B
     assert not F.distributed  # I_N - I_N: the target system 1 - (rho - K) q e^{-tau s}
     s = np.array([0.3 + 2.0j, 1.0 - 7.0j])
-    assert np.allclose(F(s), (A + B)(s), atol=1e-13)
+    assert np.allclose(F(s), 1 - 0.75 * np.exp(-2 * s), atol=1e-13)
 
 
 def test_result_serialises_and_validates() -> None:
@@ -345,7 +345,9 @@ def test_paper_example_margin_converges_second_order_in_kernel_grid() -> None:
     system, ctrl = paper_system(), ReflectionController(0.1)
     m = [delay_margin(system, ctrl, verify=False, n=n).margin for n in (51, 101, 201)]
     ratio = (m[1] - m[0]) / (m[2] - m[1])
-    assert 3.0 < ratio < 5.0  # second order in 1/n: the kernel solver's accuracy
+    # At least second order in 1/n. N~ is a cubic spline (fourth order), so the kernels
+    # set the rate: observed ratio ~8 (order 3, their Richardson extrapolation).
+    assert np.log2(ratio) >= 1.8
     assert abs(m[2] - m[1]) < 2e-6
 
 

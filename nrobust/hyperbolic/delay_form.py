@@ -122,9 +122,10 @@ def _unit_interval(name: str, x: Any) -> np.ndarray:
 
 
 def _n_tilde(system: Hyperbolic2x2, xi: np.ndarray, N_alpha: np.ndarray, N_beta: np.ndarray) -> DistributedDelay:
-    """``N~`` of eq. (eq_N_tilde) as a piecewise-linear :class:`DistributedDelay`.
+    """``N~`` of eq. (eq_N_tilde) as a cubic-spline :class:`DistributedDelay`.
 
-    On ``[0, 1/mu]``: ``N~(nu) = mu N^beta(1 - mu nu)``, nodes ``(1 - xi)/mu``; on
+    The spline interpolation is fourth order, so the error of the delay form is that of
+    the kernels (``docs/numerics_kernels.md``), not that of the interpolation. On ``[0, 1/mu]``: ``N~(nu) = mu N^beta(1 - mu nu)``, nodes ``(1 - xi)/mu``; on
     ``[1/mu, tau]``: ``N~(nu) = lam q N^alpha(lam nu - lam/mu)``, nodes ``1/mu + xi/lam``.
     The node ``1/mu`` appears twice, carrying the jump.
     """
@@ -133,7 +134,7 @@ def _n_tilde(system: Hyperbolic2x2, xi: np.ndarray, N_alpha: np.ndarray, N_beta:
     nodes_alpha = 1.0 / mu + xi / lam
     nodes = np.concatenate([nodes_beta, nodes_alpha])
     values = np.concatenate([mu * N_beta[::-1], lam * system.q * N_alpha])
-    return DistributedDelay(nodes, values)
+    return DistributedDelay(nodes, values, interpolation="cubic")
 
 
 def delay_form(system: Hyperbolic2x2, n: int = 401, kernels: Kernels | None = None) -> DelayForm:
