@@ -263,6 +263,28 @@ def test_unequal_speeds_round_trip_ratio_converges_at_second_order(lam, mu):
     assert math.log2(errors[0] / errors[1]) > 1.8
 
 
+@pytest.mark.parametrize(("lam", "mu"), [(1.0, 1.0), (1.2, 0.8)])
+def test_varying_couplings_round_trip_ratio(lam, mu):
+    """The identity of U_BS2 with spatially varying couplings: ``|q (rho - K)| = 0.63``."""
+    system = Hyperbolic2x2(
+        lam=lam, mu=mu, sigma_pm=lambda x: 1 + 0.5 * np.sin(3 * x), sigma_mp=lambda x: 0.8 - 0.6 * x, q=0.9, rho=0.8
+    )
+    law = ReflectionController(0.1).feedback_law(system, solve_kernels(system, 401))
+
+    def u0(x):
+        return 1.0 + 0.5 * np.sin(np.pi * x)
+
+    v0 = compatible_v0(law, u0, system.rho, system.q)
+    errors = []
+    for n in (100, 200):
+        sim = simulate(system, law, 0.0, 3 * system.tau, u0, v0, n=n)
+        later = sim.times >= system.tau
+        before = np.interp(sim.times[later] - system.tau, sim.times, sim.norm)
+        errors.append(np.abs(sim.norm[later] / before - 0.63).max())
+    assert errors[1] < 1e-5
+    assert math.log2(errors[0] / errors[1]) > 1.8
+
+
 @pytest.mark.parametrize("mu", [2.0, 1.001])
 def test_unequal_speeds_finite_time_residual_is_small_and_decays(mu):
     """Nearly equal speeds put the two grids almost on top of each other: a scheme that
