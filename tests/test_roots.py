@@ -288,3 +288,29 @@ def test_spectral_abscissa_rejects_advanced() -> None:
     with pytest.raises(ParameterError) as err:
         spectral_abscissa(F)
     assert err.value.name == "F"
+
+
+_CROSS_CASES = {
+    # neutral of degree 1 with commensurate delays: chains are approximate seeds
+    "neutral-degree-1": QuasiPolynomial([[1.0, 1.0], [0.0, -0.85], [0.3, 0.1]], [0.0, 2.0, 2.1]),
+    # incommensurate delays: seeds from a commensurate approximation
+    "incommensurate": QuasiPolynomial([[1.0], [0.6], [0.3]], [0.0, 1.0, np.sqrt(2.0)]),
+    # a tabulated kernel with a jump, as N~ of the paper
+    "distributed-jump": QuasiPolynomial(
+        [[1.0], [-0.4]],
+        [0.0, 1.5],
+        [DistributedDelay([0.0, 0.5, 1.0, 1.0, 1.5], [0.3, -0.2, 0.1, -0.4, 0.2])],
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(_CROSS_CASES))
+def test_methods_agree(name: str) -> None:
+    F = _CROSS_CASES[name]
+    region = (-3.0, 1.0, -0.5, 60.0)
+    auto = find_roots(F, region)
+    sub = find_roots(F, region, method="subdivision")
+    assert auto.certified and sub.certified and auto.count == sub.count > 0
+    assert _match(auto.roots, sub.roots) < 1e-10
+    assert np.max(auto.residuals) < 1e-10
+    assert np.all(auto.radii < 1e-2)
