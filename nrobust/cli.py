@@ -520,7 +520,8 @@ def run_paper(
     summary["elapsed_seconds"] = time.perf_counter() - start
     summary["workers"] = workers
     summary["files"] = files.to_dict()
-    (Path(out_dir) / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default), encoding="utf-8")
+    text = json.dumps(_json_clean(summary), indent=2, allow_nan=False)
+    (Path(out_dir) / "summary.json").write_text(text, encoding="utf-8")
     return summary
 
 
@@ -529,6 +530,7 @@ def _fmt_num(x: Any) -> str:
 
 
 def _json_default(obj: Any) -> Any:
+    """One value as strict JSON: infinities and NaN as strings, numpy scalars as Python."""
     if isinstance(obj, (np.floating, float)):
         x = float(obj)
         return x if np.isfinite(x) else ("inf" if x > 0 else "-inf" if x < 0 else "nan")
@@ -537,6 +539,17 @@ def _json_default(obj: Any) -> Any:
     if isinstance(obj, np.bool_):
         return bool(obj)
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _json_clean(obj: Any) -> Any:
+    """A nested structure with every non-JSON value passed through :func:`_json_default`."""
+    if isinstance(obj, dict):
+        return {str(k): _json_clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_json_clean(v) for v in obj]
+    if obj is None or isinstance(obj, (str, bool, int)) and not isinstance(obj, np.bool_):
+        return obj
+    return _json_default(obj)
 
 
 # ---------------------------------------------------------------------- main
