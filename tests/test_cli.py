@@ -135,3 +135,19 @@ def test_python_dash_m(tmp_path):
     assert run.stderr.strip().splitlines()[-1].startswith("nrobust: error: system.speed ")
     help_run = subprocess.run([sys.executable, "-m", "nrobust", "--help"], capture_output=True, text=True, env=env, timeout=120)
     assert help_run.returncode == 0 and "analyze" in help_run.stdout and "paper" in help_run.stdout
+
+
+def test_paper_end_to_end_small(tmp_path):
+    """The paper's pipeline on a coarse chart and short simulations, on two workers."""
+    from nrobust.cli import run_paper
+
+    summary = run_paper(tmp_path, progress=False, workers=2, t_end=2.0, n=20, n_K=5, n_delta=4)
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert data["classification"]["regime"] == "no_robust_finite_time"
+    assert data["U_BS"]["delay_margin"] == 0.0 and data["U_BS"]["gamma_0_delayed"] == pytest.approx(1.7)
+    bs2 = data["U_BS2(K=0.1)"]
+    assert 0.2 < bs2["delay_margin"] < 0.25 and bs2["spectral_abscissa"] < 0
+    assert summary["files"]["html"].endswith("report.html")
+    page = (tmp_path / "report.html").read_text()
+    assert page.count("data:image/png;base64,") == 8  # 2 x (root maps, Nyquist) + 4 further figures
+    assert len(list((tmp_path / "figures").glob("*.png"))) == 8
