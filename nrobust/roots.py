@@ -635,8 +635,8 @@ class _Finder:
             ])
             counts, blocked = self.counter.count([tuple(b) for b in boxes])
             stuck = blocked.any(axis=1)
-            for z, r, b, o, c in zip(cand[~stuck], h[~stuck], boxes[~stuck], own[~stuck], counts[~stuck]):
-                self._accept_box(complex(z), float(r), tuple(b), tuple(o), int(c), depth)
+            for z, r, b, c in zip(cand[~stuck], h[~stuck], boxes[~stuck], counts[~stuck]):
+                self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
             cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
 
     def _new_candidates(self, cand: NDArray[np.complex128], owners: list[Region]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
@@ -659,23 +659,25 @@ class _Finder:
             return np.zeros(0, dtype=complex), np.zeros((0, 4))
         return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4)
 
-    def _accept_box(self, z: complex, h: float, box: Region, owner: Region, c: int, depth: int) -> None:
+    def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
         """Accept a box with a certified count ``c``: a root, a cluster, or resolve it."""
         if c <= 0:
             return
         if c == 1:
             self.found.add(z, 1, box)
             return
+        # the roots of this box are resolved inside it, so that their boxes stay disjoint
+        # from the other boxes of the batch being accepted
         mom = _circle_moments(self.F, z, 0.9 * h, c, self.budget)
         if abs(mom.count - c) > 0.25:  # roots near the circle or in the box corners
             if depth < 3:
-                self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), [owner], depth + 1)
+                self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), [box], depth + 1)
             return
         spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
         if spread < max(self.cluster_tol, mom.noise):
             self.found.add(complex(np.mean(mom.points)), c, box)
         elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
-            self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [owner], depth + 1)
+            self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [box], depth + 1)
 
     # ------------------------------------------------------------ seeds
     def chain_seeds(self) -> NDArray[np.complex128]:
@@ -865,7 +867,7 @@ def _result(finder: _Finder, total: int, reg: Region, shifted: bool) -> RootSet:
     radii = np.hypot(dx, dy)
     finder.budget.spend(z.size, "computing residuals")
     residuals = np.abs(finder.F(z)) if z.size else np.zeros(0)
-    certified = int(m.sum()) == total
+    certified = int(m.sum()) == total and _disjoint(b)
     return RootSet(
         roots=z,
         multiplicities=m,
@@ -879,6 +881,19 @@ def _result(finder: _Finder, total: int, reg: Region, shifted: bool) -> RootSet:
         shifted=shifted,
         evaluations=finder.budget.used,
     )
+
+
+def _disjoint(boxes: NDArray[np.float64]) -> bool:
+    """True if no two boxes overlap (the certificate adds their counts)."""
+    if boxes.shape[0] < 2:
+        return True
+    center = np.column_stack([(boxes[:, 0] + boxes[:, 1]) / 2, (boxes[:, 2] + boxes[:, 3]) / 2])
+    half = np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) / 2
+    for i, j in cKDTree(center).query_pairs(2 * float(half.max()), p=np.inf):
+        a, b = boxes[i], boxes[j]
+        if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
+            return False
+    return True
 
 
 # ====================================================================== spectral abscissa

@@ -314,3 +314,13 @@ def test_methods_agree(name: str) -> None:
     assert _match(auto.roots, sub.roots) < 1e-10
     assert np.max(auto.residuals) < 1e-10
     assert np.all(auto.radii < 1e-2)
+
+
+def test_close_but_separate_roots_are_resolved() -> None:
+    # roots 1 and 1 + 1.5e-5: one candidate box counts 2, contour moments separate them
+    F = QuasiPolynomial([[1 + 1.5e-5, -(2 + 1.5e-5), 1.0]], [0.0])
+    roots = find_roots(F, (0.0, 2.5, -1.0, 1.0))
+    assert roots.certified and roots.count == 2
+    assert roots.multiplicities.tolist() == [1, 1]
+    assert _match(roots.roots, np.array([1.0, 1.0 + 1.5e-5])) < 1e-10
+    assert np.all(roots.radii < 1.5e-5)
