@@ -377,7 +377,7 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferF
     def poly_tf(coefs: NDArray) -> Any:
         c = np.real_if_close(np.asarray(coefs))
         if np.iscomplexobj(c):
-            raise ParameterError("F_or_tf", "real polynomial coefficients for a python-control model", coefs)
+            raise ParameterError("tf", "real polynomial coefficients for a python-control model", coefs)
         return control.TransferFunction(c[::-1].astype(float), [1.0])
 
     total: Any = control.TransferFunction([0.0], [1.0])
@@ -385,7 +385,7 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferF
         total = total + poly_tf(p) * exp_tf(t)
     for d in f.distributed:
         if d.moment:
-            raise ParameterError("F_or_tf", "distributed terms of moment 0 for the Pade approximation", d)
+            raise ParameterError("tf", "distributed terms of moment 0 for the Pade approximation", d)
         pieces = np.flatnonzero(np.diff(d.nodes) == 0) + 1
         acc: Any = control.TransferFunction([0.0], [1.0])
         for lo, hi in zip(np.r_[0, pieces], np.r_[pieces, d.nodes.size]):

@@ -183,3 +183,9 @@ def test_closed_loop_denominator_is_the_characteristic_function(controller):
     assert np.allclose(loop(s), T(s), rtol=1e-10)
     v_out = closed_loop_tf(COUPLED, controller, 0.05)
     assert np.allclose(v_out(s), output_map(COUPLED)(s) * T(s), rtol=1e-10)
+
+
+def test_pade_rejects_complex_coefficients():
+    H = QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [0.5j]], [0.0, 1.0]))
+    with pytest.raises(ParameterError, match="tf must be real polynomial coefficients"):
+        pade_approximation(H, 2, [0.0, 1.0])
