@@ -360,7 +360,8 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferF
     Every ``e^{-tau s}`` is replaced by ``control.pade(tau, order)``; a distributed term
     ``q(s) int N(nu) e^{-nu s} dnu`` is first discretised by the composite midpoint rule
     with ``n_quad`` nodes on each interval of the support between jumps,
-    ``sum_i w_i N(nu_i) e^{-nu_i s}``, and each point delay of that sum replaced likewise.
+    ``sum_i w_i N(nu_i) e^{-nu_i s}`` (``N(nu_i)`` interpolated linearly between the
+    tabulated values), and each point delay of that sum replaced likewise.
     """
     import control
 
@@ -386,6 +387,8 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferF
     for d in f.distributed:
         if d.moment:
             raise ParameterError("tf", "distributed terms of moment 0 for the Pade approximation", d)
+        if np.iscomplexobj(d.values):
+            raise ParameterError("tf", "real distributed kernels for a python-control model", d)
         pieces = np.flatnonzero(np.diff(d.nodes) == 0) + 1
         acc: Any = control.TransferFunction([0.0], [1.0])
         for lo, hi in zip(np.r_[0, pieces], np.r_[pieces, d.nodes.size]):
@@ -394,7 +397,7 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferF
                 continue
             edges = np.linspace(nodes[0], nodes[-1], n_quad + 1)
             mids = 0.5 * (edges[1:] + edges[:-1])
-            weights = np.diff(edges) * np.interp(mids, nodes, np.real(vals))
+            weights = np.diff(edges) * np.interp(mids, nodes, vals)
             for nu, wgt in zip(mids, weights):
                 acc = acc + float(wgt) * exp_tf(round(float(nu), 15))
         total = total + poly_tf(d.poly) * acc
