@@ -18,7 +18,7 @@ disjoint boxes add up to the certified count of the whole region.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -926,6 +926,11 @@ class SpectralAbscissa:
         in ``[c_D - o(1), upper_bound]``.
     region : tuple of float
         The rectangle searched.
+    strong_bound : float
+        ``C_D`` of the principal part: the supremum of the chain abscissa over small
+        perturbations of the delays (equal to ``chain_value`` for rationally independent
+        delays; ``-inf`` for retarded ``F``). A loop is robust to small delays only if
+        ``C_D < 0`` (Hale and Verduyn Lunel, 2002).
     """
 
     value: float
@@ -935,13 +940,14 @@ class SpectralAbscissa:
     upper_bound: float
     certified: bool
     region: Region
+    strong_bound: float = -np.inf
 
     def __repr__(self) -> str:
         root = "None" if self.root is None else f"{self.root.real:.12g}{self.root.imag:+.12g}j"
         tail = ", approached as Im s -> infinity" if self.approached_at_infinity else ""
         return (
             f"SpectralAbscissa(value={self.value:.12g}, root={root}{tail}, chain_value={self.chain_value:.6g}, "
-            f"upper_bound={self.upper_bound:.6g}, certified={self.certified})"
+            f"strong_bound={self.strong_bound:.6g}, upper_bound={self.upper_bound:.6g}, certified={self.certified})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -954,6 +960,7 @@ class SpectralAbscissa:
             "upper_bound": _json_float(self.upper_bound),
             "certified": self.certified,
             "region": list(self.region),
+            "strong_bound": _json_float(self.strong_bound),
         }
 
 
@@ -1040,17 +1047,19 @@ def spectral_abscissa(
         raise ParameterError("F", "retarded or neutral (an advanced quasi-polynomial has unbounded root real parts)", F)
     D = F.principal_part()
     chain_value = D.spectral_bound().upper
+    c_strong = D.strong_spectral_bound()
     if region is not None:
         roots = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals)
-        return _abscissa_from(roots, chain_value, np.inf, roots.certified)
-    real = _has_real_coefficients(F)
-    c_strong = D.strong_spectral_bound()
-    if np.isfinite(c_strong):
+        result = _abscissa_from(roots, chain_value, np.inf, roots.certified)
+    elif np.isfinite(c_strong):
         margin = 0.1 * (1.0 + abs(c_strong))
         x_min, radius = _right_half_plane(F, c_strong + margin, margin)
-        return _neutral_abscissa(F, D, x_min, radius, real, im_max, chain_value, cluster_tol, max_evals)
-    x_right, radius = _right_half_plane(F, 0.0, 1.0)
-    return _retarded_abscissa(F, x_right, radius, real, cluster_tol, max_evals)
+        real = _has_real_coefficients(F)
+        result = _neutral_abscissa(F, D, x_min, radius, real, im_max, chain_value, cluster_tol, max_evals)
+    else:
+        x_right, radius = _right_half_plane(F, 0.0, 1.0)
+        result = _retarded_abscissa(F, x_right, radius, _has_real_coefficients(F), cluster_tol, max_evals)
+    return replace(result, strong_bound=float(c_strong))
 
 
 def _right_half_plane(F: QuasiPolynomial, x0: float, step: float) -> tuple[float, float]:
