@@ -301,6 +301,8 @@ class RootCount(int):
 def _check_function(F: Any) -> QuasiPolynomial:
     if not isinstance(F, QuasiPolynomial):
         raise ParameterError("F", "a QuasiPolynomial", type(F).__name__)
+    if not F.point_terms and not F.distributed:
+        raise ParameterError("F", "not identically zero (every point would be a root)", F)
     return F
 
 

@@ -221,6 +221,9 @@ def test_bad_function_and_options() -> None:
         count_roots(lambda s: s, (0, 1, 0, 1))
     assert err.value.name == "F"
     with pytest.raises(ParameterError) as err:
+        find_roots(QuasiPolynomial([[0.0]], [0.0]), (0, 1, 0, 1))
+    assert err.value.name == "F"
+    with pytest.raises(ParameterError) as err:
         find_roots(NEUTRAL, (0, 1, 0, 1), cluster_tol=-1.0)
     assert err.value.name == "cluster_tol"
     with pytest.raises(ParameterError) as err:
