@@ -330,7 +330,15 @@ def _paper_job(job: str, *args: Any) -> Any:
         from .margins import tradeoff
 
         return tradeoff(system, *args)
-    raise ParameterError("job", "one of simulate, certify, chart, tradeoff", job)
+    if job == "locus":
+        from .hyperbolic.controllers import ReflectionController, characteristic
+        from .plots import root_locus_response
+
+        Ks, delta, region = args
+        return root_locus_response(
+            lambda K: characteristic(system, ReflectionController(K), delta), Ks, region, name="K"
+        )
+    raise ParameterError("job", "one of simulate, certify, chart, tradeoff, locus", job)
 
 
 class _SingleThreadBlas:
@@ -396,8 +404,8 @@ def run_paper(
     (U_BS2 with ``K = 0.1``, eq. (control3), ``delta = 0, 0.01, 0.1``), certifies both
     loops (classification, difference operator, certified roots, spectral abscissa,
     delay margin, Rouché bound), computes the ``(K, delta)`` stability chart and the
-    decay/margin trade-off of U_BS2, writes the report and ``summary.json`` with the
-    headline numbers, each read from a computation.
+    decay/margin trade-off and the root locus in ``K`` of U_BS2, writes the report and
+    ``summary.json`` with the headline numbers, each read from a computation.
 
     Parameters
     ----------
@@ -436,6 +444,7 @@ def run_paper(
         "chart": ("chart", Ks, deltas),
         "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3)),
         "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1)),
+        "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
     }
     for d in PAPER_DELAYS_FIG1:
         tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, n)
@@ -460,6 +469,10 @@ def run_paper(
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     tradeoff_plot(trade, ax=ax)
     figures.append(("Trade-off between decay rate and delay margin as K varies (labels: K)", fig))
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    res["locus"].plot(ax=ax)
+    figures.append((f"Root locus of U_BS2 in K at delta = {max(PAPER_DELAYS_FIG3):g} (upper half-plane; "
+                    "the roots of a real loop are symmetric)", fig))
 
     def growth(run: Any) -> float:
         """Least-squares slope of log ||(u, v)|| over the second half of the run."""

@@ -91,7 +91,9 @@ def _fmt(x: Any, digits: int = 6) -> str:
 
 def _png(fig: "Figure") -> bytes:
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("tight")
+    fig.savefig(buf, format="png", dpi=100)
     return buf.getvalue()
 
 
@@ -130,9 +132,10 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
     out.append(("Closed-loop roots in the certified region, with the chain asymptotes of the difference operator", fig))
 
     A, B = loop_factors(cert.system, cert.controller)
-    w_max = 40.0 * 2 * np.pi / float(cert.system.tau)
+    w_max = 20.0 * 2 * np.pi / float(cert.system.tau)  # 20 periods of the principal part
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
-    nyquist_response(A, B, cert.delta_max, omega_max=w_max, principal_bound=cert.principal_delayed.spectral_bound).plot(ax=ax)
+    resp = nyquist_response(A, B, cert.delta_max, omega_max=w_max, n=2001, principal_bound=cert.principal_delayed.spectral_bound)
+    resp.plot(ax=ax)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
     return out
 

@@ -149,5 +149,5 @@ def test_paper_end_to_end_small(tmp_path):
     assert 0.2 < bs2["delay_margin"] < 0.25 and bs2["spectral_abscissa"] < 0
     assert summary["files"]["html"].endswith("report.html")
     page = (tmp_path / "report.html").read_text()
-    assert page.count("data:image/png;base64,") == 8  # 2 x (root maps, Nyquist) + 4 further figures
-    assert len(list((tmp_path / "figures").glob("*.png"))) == 8
+    assert page.count("data:image/png;base64,") == 9  # 2 x (root maps, Nyquist) + 5 further figures
+    assert len(list((tmp_path / "figures").glob("*.png"))) == 9
