@@ -35,9 +35,9 @@ Region = tuple[float, float, float, float]
 
 _EPS = float(np.finfo(float).eps)
 # Rounding allowance on |F| at a sample, relative to the sum of the moduli of its terms.
-_ROUNDING = 32 * _EPS
+_ROUNDING = 64 * _EPS
 # A sample with |F| below this (relative to the same sum) is "on a root": shift the edge.
-_NEAR_ZERO = 256 * _EPS
+_NEAR_ZERO = 512 * _EPS
 # Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
 _MIN_STEP = 1e-13
 # Initial number of steps per edge.
