@@ -76,7 +76,6 @@ def test_neutral_64_roots(method: str) -> None:
     assert np.all(np.diff(roots.roots.imag) >= 0)
 
 
-@pytest.mark.slow
 def test_neutral_tall_strip() -> None:
     region = (-3.0, 1.0, -0.5, 1000.0)
     exact = _neutral_exact(region)
