@@ -19,7 +19,7 @@ disjoint boxes add up to the certified count of the whole region.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -115,7 +115,7 @@ def _take(st: dict[str, NDArray], mask: NDArray[np.bool_]) -> dict[str, NDArray]
     return {k: v[mask] for k, v in st.items()}
 
 
-def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _Budget, labels: Sequence[str]) -> _Edges:
+def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _Budget, label: Callable[[int], str]) -> _Edges:
     """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
 
     All segments are refined together; only the steps that fail both step rules
@@ -129,7 +129,7 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
     pts = starts[:, None] + (ends - starts)[:, None] * t[None, :]
     pts[:, -1] = ends  # exact corners, so that adjacent edges close the contour
     budget.spend(pts.size, "sampling contour edges")
-    fv, mag = _evaluate(F, pts, labels, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
+    fv, mag = _evaluate(F, pts, label, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
     st = {
         "a": pts[:, :-1].ravel(), "b": pts[:, 1:].ravel(),
         "fa": fv[:, :-1].ravel(), "fb": fv[:, 1:].ravel(),
@@ -146,7 +146,7 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
         st = _take(st, ~blocked[st["owner"]])
         if not st["a"].size:
             break
-        what = f"bounding |F'| on the {_edge_label(labels, int(np.bincount(st['owner']).argmax()))}"
+        what = f"bounding |F'| on the {label(int(np.bincount(st['owner']).argmax()))}"
         budget.spend(st["a"].size, what)
         bound = F.deriv_bound(st["a"], st["b"]) * (1.0 + 1e-12)
         ok = _first_order_ok(bound, st)
@@ -167,8 +167,8 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
         a, b = st["a"], st["b"]
         blocked[np.unique(st["owner"][np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
         mid = 0.5 * (a + b)
-        budget.spend(mid.size, f"refining the {_edge_label(labels, int(np.bincount(st['owner']).argmax()))}")
-        fm, mm = _evaluate(F, mid, labels, st["owner"])
+        budget.spend(mid.size, f"refining the {label(int(np.bincount(st['owner']).argmax()))}")
+        fm, mm = _evaluate(F, mid, label, st["owner"])
         blocked[np.unique(st["owner"][np.abs(fm) <= _NEAR_ZERO * mm])] = True
         st = {
             "a": np.concatenate([a, mid]), "b": np.concatenate([mid, b]),
@@ -180,18 +180,14 @@ def _wind_segments(F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _
     return _Edges(turns / (2 * np.pi), blocked)
 
 
-def _edge_label(labels: Sequence[str], i: int) -> str:
-    return labels[i] if i < len(labels) else f"edge {i}"
-
-
-def _evaluate(F: QuasiPolynomial, s: NDArray[np.complex128], labels: Sequence[str], owner: NDArray) -> tuple[NDArray, NDArray]:
+def _evaluate(F: QuasiPolynomial, s: NDArray[np.complex128], label: Callable[[int], str], owner: NDArray) -> tuple[NDArray, NDArray]:
     """``F(s)`` and its rounding scale; an overflow is an error naming the edge."""
     with np.errstate(over="ignore", invalid="ignore"):
         fv = F(s)
         mag = _magnitude(F, s)
     bad = ~(np.isfinite(fv) & np.isfinite(mag))
     if np.any(bad):
-        edge = _edge_label(labels, int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
+        edge = label(int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
         raise CertificationError(f"F overflows on the {edge}: move the region to the right or shrink it")
     return fv, mag
 
@@ -226,7 +222,6 @@ class _Counter:
     def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them."""
         edges = [e for box in boxes for e in _box_edges(box)]
-        labels = [_describe_edge(box, k) for box in boxes for k in range(4)]
         todo: dict[tuple[complex, complex], int] = {}
         for i, (p, q) in enumerate(edges):
             if (p, q) not in self.cache and (q, p) not in self.cache and (p, q) not in todo:
@@ -238,7 +233,7 @@ class _Counter:
                 np.array([k[0] for k in keys]),
                 np.array([k[1] for k in keys]),
                 self.budget,
-                [labels[todo[k]] for k in keys],
+                lambda j: _describe_edge(boxes[todo[keys[j]] // 4], todo[keys[j]] % 4),
             )
             for k, tr, bl in zip(keys, res.turns, res.blocked):
                 self.cache[k] = (float(tr), bool(bl))
