@@ -113,6 +113,11 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
     Root maps reuse the certificate's root sets; the Nyquist data are computed from the
     loop factors of the certified loop at ``delta_max``.
     """
+    return _figures(cert)[0]
+
+
+def _figures(cert: Certificate) -> tuple[list[tuple[str, "Figure"]], Any]:
+    """The standard figures and the Nyquist data behind the last one."""
     import matplotlib.pyplot as plt
 
     from .hyperbolic.controllers import characteristic, loop_factors
@@ -137,7 +142,7 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
     resp = nyquist_response(A, B, cert.delta_max, omega_max=w_max, n=2001, principal_bound=cert.principal_delayed.spectral_bound)
     resp.plot(ax=ax)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
-    return out
+    return out, resp
 
 
 def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, "Figure"]]]:
@@ -184,6 +189,15 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         ),
         ("region (Re min, Re max, Im min, Im max)", ", ".join(_fmt(v, 4) for v in cert.region), "certify"),
     ]
+    figures, nyquist = _figures(cert)
+    # the same number by two routes: crossing analysis and winding along the axis
+    crossing_count = int(m.unstable_count(cert.delta_max)) if np.isfinite(m.delta_max) and cert.delta_max <= m.delta_max else None
+    rows.append((
+        f"closed-loop zeros in Re s > 0 at delta = {cert.delta_max:g}",
+        f"{'-' if crossing_count is None or crossing_count < 0 else crossing_count} (crossings); "
+        f"{'no finite count' if nyquist.rhp_zeros is None else nyquist.rhp_zeros} (Nyquist winding)",
+        "delay_margin; nyquist_response",
+    ))
     if cert.k_region is not None:
         rows.append(("admissible gains K on [0, delta_max]", _k_region_text(cert.k_region), "k_region"))
     blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
@@ -195,7 +209,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     if box_rows:
         blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
         blocks.append(_Table(("loop", "box", "roots"), box_rows))
-    return blocks, certificate_figures(cert)
+    return blocks, figures
 
 
 def _k_region_text(kreg: Any) -> str:

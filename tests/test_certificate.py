@@ -115,3 +115,14 @@ def test_transport_finite_time_controller_has_zero_margin():
         cert.principal_delayed.spectral_bound
     )
     assert "zero delay margin" in cert.verdict
+
+
+def test_report_counts_unstable_zeros_by_two_routes(tmp_path):
+    """Beyond its margin (0.31) the filtered loop has zeros in Re s > 0: the crossing
+    analysis and the Nyquist winding of F/((s+1) D) must give the same number."""
+    cert = certify(SYSTEM, FilteredController(0.1, 1.0), delta_max=0.5)
+    assert not cert.stable_up_to_delta_max
+    expected = int(cert.margin.unstable_count(0.5))
+    assert expected > 0
+    md = write_report(cert, tmp_path).markdown.read_text()
+    assert f"| {expected} (crossings); {expected} (Nyquist winding) |" in md
