@@ -213,11 +213,11 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
 
 
 def _k_region_text(kreg: Any) -> str:
-    data = kreg.to_dict()
-    intervals = data.get("intervals")
-    if isinstance(intervals, list) and intervals:
-        return ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in intervals)
-    return "none" if isinstance(intervals, list) else str(data)
+    """The admissible intervals of a :class:`~nrobust.margins.KRegion` and their accuracy."""
+    if not kreg.intervals:
+        return "none"
+    ivs = ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in kreg.intervals)
+    return f"{ivs}; ends within {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
 
 
 # ---------------------------------------------------------------------- renderers
