@@ -328,3 +328,16 @@ def test_close_but_separate_roots_are_resolved() -> None:
     assert roots.multiplicities.tolist() == [1, 1]
     assert _match(roots.roots, np.array([1.0, 1.0 + 1.5e-5])) < 1e-10
     assert np.all(roots.radii < 1.5e-5)
+
+
+def test_certificate_boxes_hold_the_exact_roots() -> None:
+    region = (-3.0, 1.0, -0.5, 200.0)
+    exact = _neutral_exact(region)
+    roots = find_roots(NEUTRAL, region)
+    nearest = np.argmin(np.abs(exact[:, None] - roots.roots[None, :]), axis=1)
+    assert np.all(np.abs(exact - roots.roots[nearest]) <= roots.radii[nearest])
+    b = roots.boxes
+    inside = (exact.real[:, None] > b[None, :, 0]) & (exact.real[:, None] < b[None, :, 1])
+    inside &= (exact.imag[:, None] > b[None, :, 2]) & (exact.imag[:, None] < b[None, :, 3])
+    assert np.all(inside.sum(axis=1) == 1)  # each exact root in exactly one certified box
+    assert roots.box_counts.sum() == roots.count
