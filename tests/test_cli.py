@@ -6,16 +6,13 @@ import json
 import os
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-import nrobust
 from nrobust.cli import PiecewiseLinear, load_system_file, main
 from nrobust.errors import ParameterError
-from nrobust.sweep import ANALYSES, _Analysis
 
 SMALL = """
 [system]
@@ -104,24 +101,25 @@ def test_varying_coupling_table(tmp_path):
         load_system_file(_write(tmp_path, bad))
 
 
-def test_sweep_subcommand_calls_the_file_runner(tmp_path, monkeypatch, capsys):
-    @dataclass(frozen=True)
-    class Margin:
-        delta_star: float
-
-    def toy(system, controller):
-        return Margin(1.0 - abs(system.rho * system.q) - abs(controller.K * system.q))
-
-    monkeypatch.setattr(nrobust, "toy_cli_margin", toy, raising=False)
-    monkeypatch.setitem(ANALYSES, "toy", _Analysis("toy_cli_margin", 2, (), lambda r: {"delta_star": r.delta_star}))
+def test_sweep_subcommand_calls_the_file_runner(tmp_path, capsys):
     (tmp_path / "SWEEP.toml").write_text(
-        'analysis = "toy"\nexecutor = "serial"\n[system]\ntype = "TransportSystem"\nlam = 1.0\nmu = 1.0\nq = 1.0\n'
-        '[controller]\ntype = "ReflectionController"\n[grid]\nK = [0.0, 0.1]\nrho = [0.5]\n'
+        'analysis = "delay_margin"\nexecutor = "serial"\n[system]\ntype = "TransportSystem"\nlam = 1.0\nmu = 1.0\n'
+        'q = 1.0\n[controller]\ntype = "ReflectionController"\n[grid]\nK = [0.1, 0.8]\nrho = [0.5]\n'
     )
     out = tmp_path / "out"
     assert main(["sweep", str(tmp_path / "SWEEP.toml"), "-o", str(out), "--no-progress"]) == 0
     assert "2 points, 0 failed" in capsys.readouterr().out
     assert json.loads((out / "sweep.json").read_text())["n_points"] == 2
+    rows = (out / "sweep.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    margins = [row.split(",")[header.index("delta_star")] for row in rows[1:]]
+    # |K q| < 1 - |rho q|: every delay is tolerated (eq. (boun_K2)); |rho q| + |K q| > 1:
+    # the difference operator is not strongly stable, zero margin
+    assert margins[0] == "inf" and float(margins[1]) == 0.0
+    bad = tmp_path / "BAD.toml"
+    bad.write_text((tmp_path / "SWEEP.toml").read_text().replace("[grid]", "[grid]\nspeed = [1]"))
+    assert main(["sweep", str(bad), "-o", str(out), "--no-progress"]) == 2
+    assert "grid.speed" in capsys.readouterr().err
 
 
 def test_python_dash_m(tmp_path):
