@@ -5,11 +5,20 @@ from __future__ import annotations
 import control
 import numpy as np
 import pytest
+from scipy.linalg import expm
 
 from nrobust.errors import ParameterError
-from nrobust.hyperbolic import TransportSystem
+from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
+from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, characteristic, loop_factors
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
-from nrobust.transfer import QuasiTransferFunction, open_loop_tf, pade_approximation, to_frd
+from nrobust.transfer import (
+    QuasiTransferFunction,
+    closed_loop_tf,
+    open_loop_tf,
+    output_map,
+    pade_approximation,
+    to_frd,
+)
 
 RNG = np.random.default_rng(7)
 POINTS = RNG.uniform(-0.5, 2.0, 6) + 1j * RNG.uniform(-20.0, 20.0, 6)
@@ -142,16 +151,6 @@ def test_h0_certified_poles_equal_closed_form(rho, q, lam, mu):
 
 
 # ---------------------------------------------------------------------- coupled plants
-from scipy.linalg import expm  # noqa: E402
-
-from nrobust.hyperbolic import Hyperbolic2x2  # noqa: E402
-from nrobust.hyperbolic.controllers import (  # noqa: E402
-    FilteredController,
-    ReflectionController,
-    characteristic,
-    loop_factors,
-)
-from nrobust.transfer import closed_loop_tf, output_map  # noqa: E402
 
 COUPLED = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=0.7, q=0.8, rho=0.6)
 
