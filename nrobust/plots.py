@@ -17,6 +17,11 @@ and ``D`` its principal part (a difference operator): when ``D`` has its zeros i
 ``G(i w)`` around 0 as ``w`` decreases from ``+W`` to ``-W``, once ``|G - 1| < 1`` beyond
 ``W``. When ``c_D >= 0`` the closed loop has infinitely many zeros in (or accumulating
 at) the right half-plane and no finite count exists.
+
+This count is sampled, not certified: the frequency grid is refined until every step
+turns ``G`` by less than ``pi/8``, and ``|G - 1| < 1`` is checked on the last tenth of
+the band only. Certified counts are those of :func:`nrobust.roots.count_roots` and of
+:func:`nrobust.margins.delay_margin`; reports print both routes side by side.
 """
 
 from __future__ import annotations
@@ -112,7 +117,8 @@ class NyquistResponse:
         count is not reliable (a zero on or next to the axis, or ``|G - 1| >= 1`` at the
         ends of the band).
     tail : float
-        ``max |G(i w) - 1|`` over ``0.9 W <= |w| <= W``: below 1, the band end adds no turn.
+        ``max |G(i w) - 1|`` sampled over ``0.9 W <= |w| <= W``: below 1 there, the band
+        end is taken to add no turn (``G`` is not bounded beyond ``W``).
     note : str
         Why ``rhp_zeros`` is None, or ``""``.
     """
