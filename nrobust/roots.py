@@ -40,6 +40,8 @@ _ROUNDING = 64 * _EPS
 _NEAR_ZERO = 512 * _EPS
 # Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
 _MIN_STEP = 1e-13
+# Newton's method stalls near an m-fold root at |F| ~ eps A; such points are limits too.
+_STALLED = 1e3 * _ROUNDING
 # Initial number of steps per edge.
 _INITIAL_STEPS = 8
 _SIDES = ("bottom", "right", "top", "left")
@@ -371,7 +373,7 @@ def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000
 
 
 # ====================================================================== refinement
-def _newton(F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max_step: float, iters: int = 40) -> NDArray[np.complex128]:
+def _newton(F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max_step: float, iters: int = 60) -> NDArray[np.complex128]:
     """Vectorised Newton iteration; returns nan where it did not converge."""
     s = np.array(s0, dtype=complex).ravel()
     done = np.zeros(s.size, dtype=bool)
@@ -396,7 +398,7 @@ def _newton(F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max
     # points with a residual at rounding level
     s_live = s[alive & ~done]
     if s_live.size:
-        r = np.abs(F(s_live)) <= 1e-9 * _magnitude(F, s_live)
+        r = np.abs(F(s_live)) <= _STALLED * _magnitude(F, s_live)
         idx = np.flatnonzero(alive & ~done)
         done[idx[r]] = True
     return np.where(done & alive, s, np.nan)
@@ -632,9 +634,21 @@ class _Finder:
             ])
             counts, blocked = self.counter.count([tuple(b) for b in boxes])
             stuck = blocked.any(axis=1)
-            for z, r, b, c in zip(cand[~stuck], h[~stuck], boxes[~stuck], counts[~stuck]):
+            single = ~stuck & (counts == 1)
+            self._accept_simple(cand[single], h[single], boxes[single])
+            for z, r, b, c in zip(cand[~stuck & ~single], h[~stuck & ~single], boxes[~stuck & ~single], counts[~stuck & ~single]):
                 self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
             cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
+
+    def _accept_simple(self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64]) -> None:
+        """Accept boxes holding one root each, polishing the candidates (which may be the
+        mean of merged limit points) by Newton steps that stay in the box."""
+        if not z.size:
+            return
+        w = _newton(self.F, z, self.budget, float(np.min(h)))
+        inside = np.isfinite(w) & (boxes[:, 0] < w.real) & (w.real < boxes[:, 1]) & (boxes[:, 2] < w.imag) & (w.imag < boxes[:, 3])
+        for zi, box in zip(np.where(inside, w, z), boxes):
+            self.found.add(complex(zi), 1, tuple(box))
 
     def _new_candidates(self, cand: NDArray[np.complex128], owners: list[Region]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
         """Finite candidates inside an owner box and outside accepted boxes, near ones
@@ -657,11 +671,8 @@ class _Finder:
         return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4)
 
     def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
-        """Accept a box with a certified count ``c``: a root, a cluster, or resolve it."""
+        """Accept a box with a certified count ``c != 1``: a cluster, or resolve it."""
         if c <= 0:
-            return
-        if c == 1:
-            self.found.add(z, 1, box)
             return
         # the roots of this box are resolved inside it, so that their boxes stay disjoint
         # from the other boxes of the batch being accepted
@@ -844,7 +855,9 @@ def find_roots(
         if method == "auto":
             finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
             if finder.found.total() < total:
-                finder.seed_and_accept(finder.grid_seeds(reg, 4 * total + 16), 1.0)
+                n_grid = 4 * total + 16
+                cell = np.sqrt((reg[1] - reg[0]) * (reg[3] - reg[2]) / n_grid)
+                finder.seed_and_accept(finder.grid_seeds(reg, n_grid), 2.0 * cell)
         else:
             finder.seed_and_accept(extra, 1.0)
         if finder.found.total() != total:

@@ -341,3 +341,12 @@ def test_certificate_boxes_hold_the_exact_roots() -> None:
     inside &= (exact.imag[:, None] > b[None, :, 2]) & (exact.imag[:, None] < b[None, :, 3])
     assert np.all(inside.sum(axis=1) == 1)  # each exact root in exactly one certified box
     assert roots.box_counts.sum() == roots.count
+
+
+def test_roots_on_different_scales_are_polished() -> None:
+    # limit points of Newton's method from a coarse grid scatter; accepted roots are polished
+    exact = np.array([1e-3, 2e-3, 10.0, 10.0 + 1e-3j, -5.0])
+    F = QuasiPolynomial([np.poly(exact)[::-1]], [0.0])
+    roots = find_roots(F, (-20.0, 20.0, -20.0, 20.0))
+    assert roots.certified and roots.count == 5 and len(roots) == 5
+    assert _match(roots.roots, exact) < 1e-10
