@@ -151,3 +151,21 @@ def test_stability_chart_and_tradeoff_plots_draw_their_data():
     out = plots.tradeoff_plot(trade)
     assert np.allclose(out.lines["curve"][0].get_xdata(), [0.15, 0.05])
     assert np.allclose(out.lines["curve"][0].get_ydata(), [0.1, 0.3])
+
+
+def test_root_locus_in_delta_and_the_one_call_wrappers():
+    """Locus in the loop delay of U = -rho u(t, 1) on the transport line: every plotted
+    point is a zero of 1 - rho q e^{-tau s} + rho q e^{-(tau + delta) s}."""
+    def family(d):
+        return A_TRANSPORT + Q([[0.85]], [2.0]).shift(d)
+
+    deltas = [0.25, 0.5]
+    out = plots.root_locus_plot(family, deltas, (-1.0, 0.5, 0.0, 12.0), name="delta")
+    pts = out.lines["roots"][0].get_offsets()
+    z = pts[:, 0] + 1j * pts[:, 1]
+    colours = out.lines["roots"][0].get_array()
+    assert z.size > 0 and set(np.unique(colours)) == set(deltas)
+    for d in deltas:
+        assert np.max(np.abs(family(d)(z[colours == d]))) < 1e-8
+    nyq = plots.nyquist_plot(A_TRANSPORT, Q([[0.1]], [2.0]), delta=0.1, omega_max=10.0)
+    assert "0 closed-loop zeros" in nyq.axes.get_title()
