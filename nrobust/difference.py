@@ -399,12 +399,18 @@ class DifferenceOperator:
         """A commensurate operator with the same coefficients and nearby delays (seeds).
 
         ``r_k ~ n_k h`` with ``h = r_max / L``, ``L <= 128`` chosen to minimise the largest
-        relative error with distinct ``n_k >= 1`` (so the degree stays at most 128).
+        relative error with distinct ``n_k >= 1``; when two delays are closer than
+        ``r_max / 128`` (a small loop delay next to the round trip), ``L`` grows until
+        they are separated (``L > 1/gap`` suffices), up to the degree bound ``_MAX_DEGREE``.
         """
         r = self.relative_delays
         ratios = r / r[-1]
+        gap = float(np.min(np.diff(ratios)))
+        top = max(_APPROX_DEGREE, int(np.ceil(1.0 / gap)) + 1)
+        if top > _MAX_DEGREE:
+            raise ParameterError("delays", f"with relative gaps above 2/{_MAX_DEGREE} for chain seeding", self.delays)
         best: tuple[float, int] = (np.inf, 0)
-        for L in range(1, _APPROX_DEGREE + 1):
+        for L in range(1, top + 1):
             n = np.rint(ratios * L)
             if np.any(n[1:] < 1) or np.any(np.diff(n) <= 0):
                 continue
@@ -421,7 +427,10 @@ class DifferenceOperator:
         from .roots import count_roots
 
         rel = DifferenceOperator(self.coefs, self.relative_delays)
-        approx = rel.commensurate_approximation().chains()
+        try:
+            approx = rel.commensurate_approximation().chains()
+        except ParameterError:  # delays too close to seed from a commensurate approximation
+            return -np.inf
         right = approx.chains[:_LOWER_BOUND_CHAINS]
         seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right])
         s = _newton_difference(rel, seeds)

@@ -145,3 +145,14 @@ def test_bad_input_names_parameter(coefs: list[float], delays: list[float], name
     with pytest.raises(ParameterError) as err:
         DifferenceOperator(coefs, delays)
     assert err.value.name == name
+
+
+def test_close_delays_of_a_small_loop_delay_are_bracketed():
+    """U_BS with delta = 0.003 (Theorem 3): delays 2 and 2.003 are 0.15 % apart."""
+    D = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.003])
+    sb = D.spectral_bound()
+    assert sb.upper == pytest.approx(D.strong_spectral_bound(), abs=1e-12)
+    assert 0.0 < sb.lower <= sb.upper  # a certified root to the right of the axis
+    # Closer still: no commensurate seeding within the degree bound; the bracket stays honest.
+    sb = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.0007]).spectral_bound()
+    assert sb.lower == -np.inf and sb.upper > 0.26
