@@ -4,25 +4,89 @@ The reference is Auriol, Aarsnes, Martin and Di Meglio, "Delay-robust control de
 for two heterodirectional linear coupled hyperbolic PDEs": a 2x2 hyperbolic system is
 mapped to a neutral equation with distributed delay, whose characteristic
 quasi-polynomial decides stability with and without a delay in the loop.
+
+The data flow and the contract of each module are in ``docs/architecture.md``.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _version
 
-from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
-from .quasipoly import DistributedDelay, QuasiPolynomial
-from .difference import DifferenceOperator
-from .roots import RootSet, count_roots, find_roots, spectral_abscissa
-from .hyperbolic import DelayForm, Hyperbolic2x2, Kernels, TransportSystem, boundary_function, delay_form, solve_kernels
-from .hyperbolic.controllers import (Classification, FeedbackLaw, FilteredController, FiniteTimeController, OpenLoop, ReflectionController, characteristic, classify, loop_factors)
-from .hyperbolic.simulate import Simulation, simulate
-from .sweep import SweepResult, grid, robustness, sweep
 from . import plots
 from .certificate import Certificate, certify
-from .transfer import QuasiTransferFunction, closed_loop_tf, open_loop_tf, output_map, pade_approximation, to_frd
-from .margins import ABRegion, Crossing, DelayMargin, KRegion, StabilityChart, Tradeoff, ab_region, crossing_frequencies, delay_margin, k_region, stability_chart, tradeoff
+from .difference import DifferenceOperator
+from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
+from .hyperbolic import (
+    DelayForm,
+    Hyperbolic2x2,
+    Kernels,
+    TransportSystem,
+    boundary_function,
+    delay_form,
+    solve_kernels,
+)
+from .hyperbolic.controllers import (
+    Classification,
+    FeedbackLaw,
+    FilteredController,
+    FiniteTimeController,
+    OpenLoop,
+    ReflectionController,
+    characteristic,
+    classify,
+    loop_factors,
+)
+from .hyperbolic.simulate import Simulation, simulate
+from .margins import (
+    ABRegion,
+    Crossing,
+    DelayMargin,
+    KRegion,
+    StabilityChart,
+    Tradeoff,
+    ab_region,
+    crossing_frequencies,
+    delay_margin,
+    k_region,
+    stability_chart,
+    tradeoff,
+)
+from .quasipoly import DistributedDelay, QuasiPolynomial
+from .roots import RootSet, count_roots, find_roots, spectral_abscissa
 from .rouche import RootFreeRegion, RoucheDelayBound, l1_modulus, root_free_region, rouche_delay_bound
+from .sweep import SweepResult, grid, robustness, sweep
+from .transfer import (
+    QuasiTransferFunction,
+    closed_loop_tf,
+    open_loop_tf,
+    output_map,
+    pade_approximation,
+    to_frd,
+)
 
 try:
-    __version__ = version("nrobust")
-except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = _version("nrobust")
+except _PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0"
+
+__all__ = [
+    # quasi-polynomials, difference operators, roots
+    "QuasiPolynomial", "DistributedDelay", "DifferenceOperator",
+    "count_roots", "find_roots", "spectral_abscissa", "RootSet",
+    # hyperbolic systems, kernels, delay form, controllers, simulation
+    "Hyperbolic2x2", "TransportSystem", "solve_kernels", "Kernels", "boundary_function",
+    "delay_form", "DelayForm",
+    "OpenLoop", "FiniteTimeController", "ReflectionController", "FilteredController",
+    "FeedbackLaw", "characteristic", "loop_factors", "classify", "Classification",
+    "simulate", "Simulation",
+    # margins, certificates, charts
+    "delay_margin", "DelayMargin", "crossing_frequencies", "Crossing",
+    "rouche_delay_bound", "RoucheDelayBound", "root_free_region", "RootFreeRegion", "l1_modulus",
+    "k_region", "KRegion", "ab_region", "ABRegion", "stability_chart", "StabilityChart",
+    "tradeoff", "Tradeoff",
+    # transfer functions, reports, sweeps, plots
+    "QuasiTransferFunction", "open_loop_tf", "closed_loop_tf", "output_map", "to_frd",
+    "pade_approximation", "certify", "Certificate", "sweep", "grid", "robustness",
+    "SweepResult", "plots",
+    # errors
+    "NrobustError", "ParameterError", "RegionError", "ConvergenceError", "CertificationError",
+]
