@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import lru_cache
 from math import lcm
 from typing import Any
 
@@ -53,6 +54,16 @@ _LOWER_BOUND_SEEDS = 32
 _LOWER_BOUND_CHAINS = 4
 # Largest degree of the commensurate approximation that seeds the lower bound.
 _APPROX_DEGREE = 128
+
+
+@lru_cache(maxsize=128)
+def _polynomial_roots(coefs: tuple[complex, ...], powers: tuple[int, ...]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+    """Clustered roots of ``sum_k coefs[k] z^powers[k]`` (cached: sweeps and root finding
+    ask again for the same principal part, and a companion matrix of degree 1000 costs
+    about a second)."""
+    poly = np.zeros(powers[-1] + 1, dtype=complex)
+    poly[list(powers)] = coefs
+    return _cluster_polynomial_roots(np.roots(poly[::-1]))
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:
@@ -345,10 +356,8 @@ class DifferenceOperator:
 
     def _z_roots(self, h: float, n: NDArray[np.int64]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
         """Roots of ``P(z) = sum_k a_k z^{n_k}`` (clustered, with multiplicities)."""
-        poly = np.zeros(int(n[-1]) + 1, dtype=complex)
-        poly[n] = self.coefs
-        z = np.roots(poly[::-1])
-        return _cluster_polynomial_roots(z)
+        z, m = _polynomial_roots(tuple(complex(a) for a in self.coefs), tuple(int(k) for k in n))
+        return z.copy(), m.copy()
 
     def chains(self) -> Chains:
         """The zero chains of ``D``.
@@ -395,20 +404,21 @@ class DifferenceOperator:
         upper = self.strong_spectral_bound()
         return SpectralBound(self._certified_lower_bound(upper), upper, False, None)
 
-    def commensurate_approximation(self) -> "DifferenceOperator":
+    def commensurate_approximation(self, max_degree: int = _MAX_DEGREE) -> "DifferenceOperator":
         """A commensurate operator with the same coefficients and nearby delays (seeds).
 
         ``r_k ~ n_k h`` with ``h = r_max / L``, ``L <= 128`` chosen to minimise the largest
         relative error with distinct ``n_k >= 1``; when two delays are closer than
         ``r_max / 128`` (a small loop delay next to the round trip), ``L`` grows until
-        they are separated (``L > 1/gap`` suffices), up to the degree bound ``_MAX_DEGREE``.
+        they are separated (``L > 1/gap`` suffices), up to the degree bound ``max_degree``
+        (default 1000; a ParameterError beyond it).
         """
         r = self.relative_delays
         ratios = r / r[-1]
         gap = float(np.min(np.diff(ratios)))
         top = max(_APPROX_DEGREE, int(np.ceil(1.0 / gap)) + 1)
-        if top > _MAX_DEGREE:
-            raise ParameterError("delays", f"with relative gaps above 2/{_MAX_DEGREE} for chain seeding", self.delays)
+        if top > max_degree:
+            raise ParameterError("delays", f"with relative gaps above 2/{max_degree} for chain seeding", self.delays)
         best: tuple[float, int] = (np.inf, 0)
         for L in range(1, top + 1):
             n = np.rint(ratios * L)

@@ -40,8 +40,16 @@ _ROUNDING = 64 * _EPS
 _NEAR_ZERO = 512 * _EPS
 # Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
 _MIN_STEP = 1e-13
+# Limit points of Newton's method closer than this (relative to 1 + |s|) share one box.
+_MERGE_RTOL = 1e-4
+# A stalled Newton iterate is within this many steps |F/F'| of the roots it approaches
+# (an m-fold root is m steps away).
+_REACH = 10.0
 # Newton's method stalls near an m-fold root at |F| ~ eps A; such points are limits too.
 _STALLED = 1e3 * _ROUNDING
+# Largest degree of the commensurate approximation whose chains seed Newton's method
+# for incommensurate principal parts.
+_SEED_DEGREE = 128
 # Initial number of steps per edge.
 _INITIAL_STEPS = 8
 _SIDES = ("bottom", "right", "top", "left")
@@ -582,32 +590,48 @@ class _Finder:
             cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
         return cap
 
-    def _merge_clusters(self, pts: NDArray[np.complex128]) -> NDArray[np.complex128]:
-        """Replace candidates closer than ``max(cluster_tol, 1e-5 (1 + max |s|))`` by their mean.
+    def _merge_clusters(self, pts: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+        """Merge limit points that may belong to one root or one cluster of roots.
 
-        Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, so
-        its limit points scatter; one box about their mean counts them all at once, and
-        the count decides whether they are one multiple root or several roots.
+        Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, where
+        its step ``|F/F'|`` is about ``1/m`` of that distance: each point gets the reach
+        ``max(1e-4 (1 + |s|), 10 |F/F'|)``, and points closer than the sum of their reaches
+        (or than ``cluster_tol``) share one box. The count of that box decides whether
+        they are one multiple root or several roots (resolved by contour moments, then
+        polished). Returns the group means and spreads (largest distance from the mean
+        plus reach beyond ``1e-4 (1 + |s|)``), which size the boxes.
         """
-        if pts.size < 2:
-            return pts
-        xy = np.column_stack([pts.real, pts.imag])
-        radius = max(self.cluster_tol, 1e-5 * (1.0 + float(np.max(np.abs(pts)))))
-        pairs = cKDTree(xy).query_pairs(radius, output_type="ndarray")
-        if not pairs.size:
-            return pts
+        if not pts.size:
+            return pts, np.zeros(0)
+        self.budget.spend(2 * pts.size, "merging limit points")
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            step = np.abs(self.F(pts) / self.F.deriv(pts))
+        base = _MERGE_RTOL * (1.0 + np.abs(pts))
+        stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * base), 1e3 * base)
+        reach = np.maximum(base, stalled)
         parent = np.arange(pts.size)
+        if pts.size > 1:
+            xy = np.column_stack([pts.real, pts.imag])
+            pairs = cKDTree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
+            if pairs.size:
+                gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
+                pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
 
-        def root(i: int) -> int:
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = parent[i]
-            return i
+            def root(i: int) -> int:
+                while parent[i] != i:
+                    parent[i] = parent[parent[i]]
+                    i = parent[i]
+                return i
 
-        for i, j in pairs:
-            parent[root(i)] = root(j)
-        groups = np.array([root(i) for i in range(pts.size)])
-        return np.array([pts[groups == g].mean() for g in np.unique(groups)])
+            for i, j in pairs:
+                parent[root(i)] = root(j)
+            parent = np.array([root(i) for i in range(pts.size)])
+        groups = np.unique(parent)
+        means = np.array([pts[parent == g].mean() for g in groups])
+        spread = np.array(
+            [np.max(np.abs(pts[parent == g] - m) + np.where(stalled[parent == g] > base[parent == g], stalled[parent == g], 0.0)) for g, m in zip(groups, means)]
+        )
+        return means, spread
 
     # ------------------------------------------------------------ acceptance
     def accept(self, cand: NDArray[np.complex128], owners: Sequence[Region] | None = None, depth: int = 0) -> None:
@@ -617,14 +641,15 @@ class _Finder:
         inside one of them and its box is clipped to it, so that accepted boxes never
         straddle the cuts of the subdivision.
         """
-        cand, own = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
+        cand, own, spread = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
         if not cand.size:
             return
         hard = self._half_widths(cand)
-        soft = np.minimum(hard, 1e-4 * (1.0 + np.abs(cand)))
+        # |F| ~ r^m on the box edges of an m-fold root: boxes well wider than the scatter
+        soft = np.minimum(hard, np.maximum(1e-4 * (1.0 + np.abs(cand)), 10.0 * spread))
         keep = soft > 8 * _EPS * (1.0 + np.abs(cand))
         cand, own, hard, soft = cand[keep], own[keep], hard[keep], soft[keep]
-        for factor in (1.0, 4.0, 0.3):  # a blocked box edge runs through a root: resize
+        for factor in (1.0, 4.0, 16.0, 64.0, 0.3):  # an edge at rounding level of a root: resize
             if not cand.size:
                 return
             h = np.minimum(soft * factor, hard)
@@ -647,12 +672,33 @@ class _Finder:
             return
         w = _newton(self.F, z, self.budget, float(np.min(h)))
         inside = np.isfinite(w) & (boxes[:, 0] < w.real) & (w.real < boxes[:, 1]) & (boxes[:, 2] < w.imag) & (w.imag < boxes[:, 3])
-        for zi, box in zip(np.where(inside, w, z), boxes):
+        z = np.where(inside, w, z)
+        boxes = self._tighten(z, np.ones(z.size, dtype=np.int64), boxes, 1e-4 * (1.0 + np.abs(z)))
+        for zi, box in zip(z, boxes):
             self.found.add(complex(zi), 1, tuple(box))
 
-    def _new_candidates(self, cand: NDArray[np.complex128], owners: list[Region]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+    def _tighten(self, z: NDArray[np.complex128], m: NDArray[np.int64], boxes: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Replace boxes by sub-boxes of half-width ``half`` about ``z`` where those still
+        count ``m`` roots (a smaller certified enclosure); keep the others."""
+        wide = np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) > 4.0 * half
+        if not wide.any():
+            return boxes
+        zw, hw, bw = z[wide], half[wide], boxes[wide]
+        inner = np.column_stack([
+            np.maximum(zw.real - hw, bw[:, 0]), np.minimum(zw.real + hw, bw[:, 1]),
+            np.maximum(zw.imag - hw, bw[:, 2]), np.minimum(zw.imag + hw, bw[:, 3]),
+        ])
+        counts, blocked = self.counter.count([tuple(b) for b in inner])
+        good = (counts == m[wide]) & ~blocked.any(axis=1)
+        out = boxes.copy()
+        out[np.flatnonzero(wide)[good]] = inner[good]
+        return out
+
+    def _new_candidates(
+        self, cand: NDArray[np.complex128], owners: list[Region]
+    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
         """Finite candidates inside an owner box and outside accepted boxes, near ones
-        merged; returned with their owner boxes."""
+        merged; returned with their owner boxes and the spreads of the merge."""
         cand = cand[np.isfinite(cand)]
         old = self.found.array()
         if cand.size and old.size:
@@ -660,15 +706,16 @@ class _Finder:
             r = np.maximum(old[:, 1] - old[:, 0], old[:, 3] - old[:, 2]) / 2
             dist, idx = cKDTree(c).query(np.column_stack([cand.real, cand.imag]), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
-        cands, owns = [], []
+        cands, owns, flags = [], [], []
         for box in owners:
             x0, x1, y0, y1 = box
-            inside = self._merge_clusters(cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)])
+            inside, spread = self._merge_clusters(cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)])
             cands.append(inside)
+            flags.append(spread)
             owns.append(np.tile(np.asarray(box, dtype=float), (inside.size, 1)))
         if not cands:
-            return np.zeros(0, dtype=complex), np.zeros((0, 4))
-        return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4)
+            return np.zeros(0, dtype=complex), np.zeros((0, 4)), np.zeros(0)
+        return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4), np.concatenate(flags)
 
     def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
         """Accept a box with a certified count ``c != 1``: a cluster, or resolve it."""
@@ -683,7 +730,10 @@ class _Finder:
             return
         spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
         if spread < max(self.cluster_tol, mom.noise):
-            self.found.add(complex(np.mean(mom.points)), c, box)
+            center = complex(np.mean(mom.points))
+            half = max(1e-4 * (1.0 + abs(center)), 4.0 * max(spread, mom.noise))
+            tight = self._tighten(np.array([center]), np.array([c]), np.array([box], dtype=float), np.array([half]))
+            self.found.add(center, c, tuple(tight[0]))
         elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
             self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [box], depth + 1)
 
@@ -697,8 +747,13 @@ class _Finder:
         if self.F.kind != "neutral":
             return np.zeros(0, dtype=complex)
         D = self.F.principal_part()
-        # incommensurate delays: the chains of a nearby commensurate operator are seeds too
-        ch = (D if D.commensurate_step() is not None else D.commensurate_approximation()).chains()
+        if D.commensurate_step() is not None:
+            ch = D.chains()
+        else:  # the chains of a nearby commensurate operator of low degree are seeds too
+            try:
+                ch = D.commensurate_approximation(max_degree=_SEED_DEGREE).chains()
+            except ParameterError:  # delays too close for a low degree: grid seeds only
+                return np.zeros(0, dtype=complex)
         x0, x1, y0, y1 = self.region
         pad = 1.0
         pts = ch.points(y0 - pad, y1 + pad)

@@ -350,3 +350,18 @@ def test_roots_on_different_scales_are_polished() -> None:
     roots = find_roots(F, (-20.0, 20.0, -20.0, 20.0))
     assert roots.certified and roots.count == 5 and len(roots) == 5
     assert _match(roots.roots, exact) < 1e-10
+
+
+@pytest.mark.parametrize("m", [3, 4, 5])
+def test_high_multiplicity_chains(m: int) -> None:
+    # (1 - e^{-s}/2)^m: m-fold roots at -ln 2 + 2 pi i k; Newton stalls at ~eps^(1/m)
+    G = QuasiPolynomial([[1.0], [-0.5]], [0.0, 1.0])
+    F = G
+    for _ in range(m - 1):
+        F = F * G
+    roots = find_roots(F, (-2.0, 1.0, -1.0, 8.0))
+    assert roots.certified and roots.count == 2 * m
+    assert roots.multiplicities.tolist() == [m, m]
+    assert _match(roots.roots, np.log(0.5) + 2j * np.pi * np.arange(2)) < 1e-8
+    exact = np.log(0.5) + 2j * np.pi * np.arange(2)
+    assert np.all(np.abs(roots.roots - exact) <= roots.radii)
