@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import json_float, json_safe
 from ._validate import positive, positive_int, region as check_region
 from .errors import ParameterError
 
@@ -28,17 +29,6 @@ __all__ = ["Certificate", "PrincipalPart", "certify"]
 
 #: Default search rectangle for the certified root counts, in units of ``1/tau``.
 _DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
-
-
-def _json_float(x: float | None) -> float | str | None:
-    if x is None:
-        return None
-    x = float(x)
-    if np.isnan(x):
-        return "nan"
-    if np.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return x
 
 
 @dataclass(frozen=True)
@@ -83,9 +73,9 @@ class PrincipalPart:
             "delays": list(self.delays),
             "gamma_0": self.gamma_0,
             "strongly_stable": self.strongly_stable,
-            "strong_spectral_bound": _json_float(self.strong_spectral_bound),
-            "spectral_bound": _json_float(self.spectral_bound),
-            "chains": [_json_float(c) for c in self.chains],
+            "strong_spectral_bound": json_float(self.strong_spectral_bound),
+            "spectral_bound": json_float(self.spectral_bound),
+            "chains": [json_float(c) for c in self.chains],
         }
 
 
@@ -211,7 +201,7 @@ class Certificate:
             "verdict": self.verdict,
             "nominally_stable": self.nominally_stable,
             "delay_robust": self.delay_robust,
-            "delay_margin": _json_float(self.delay_margin),
+            "delay_margin": json_float(self.delay_margin),
             "stable_up_to_delta_max": self.stable_up_to_delta_max,
             "system": self.system.to_dict(),
             "controller": self.controller.to_dict(),
@@ -231,7 +221,7 @@ class Certificate:
 
     def to_json(self, indent: int | None = 2) -> str:
         """The certificate as JSON text (strict: no NaN or infinity literals)."""
-        return json.dumps(self.to_dict(), indent=indent, allow_nan=False, default=_json_default)
+        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
 
     def __repr__(self) -> str:
         return (
@@ -239,20 +229,6 @@ class Certificate:
             f"margin={self.delay_margin:.6g}, nominally_stable={self.nominally_stable}, "
             f"delay_robust={self.delay_robust})"
         )
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.floating,)):
-        return _json_float(float(obj))
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, complex):
-        return [obj.real, obj.imag]
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def certify(

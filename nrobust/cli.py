@@ -27,6 +27,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ._json import json_float, json_safe
 from .errors import NrobustError, ParameterError
 
 __all__ = ["main", "load_system_file", "PiecewiseLinear", "run_analyze", "run_paper"]
@@ -503,7 +504,7 @@ def run_paper(
         },
         "chart": {
             "Ks": chart.Ks.tolist(),
-            "margins": [_json_default(m) for m in chart.margins],
+            "margins": [json_float(m) for m in chart.margins],
             f"K_stable_up_to_{max(PAPER_DELAYS_FIG3):g}_on_grid": admissible,
         },
         "tradeoff": trade.to_dict(),
@@ -533,36 +534,13 @@ def run_paper(
     summary["elapsed_seconds"] = time.perf_counter() - start
     summary["workers"] = workers
     summary["files"] = files.to_dict()
-    text = json.dumps(_json_clean(summary), indent=2, allow_nan=False)
+    text = json.dumps(json_safe(summary), indent=2, allow_nan=False)
     (Path(out_dir) / "summary.json").write_text(text, encoding="utf-8")
     return summary
 
 
 def _fmt_num(x: Any) -> str:
     return "-" if x is None else f"{float(x):.6g}"
-
-
-def _json_default(obj: Any) -> Any:
-    """One value as strict JSON: infinities and NaN as strings, numpy scalars as Python."""
-    if isinstance(obj, (np.floating, float)):
-        x = float(obj)
-        return x if np.isfinite(x) else ("inf" if x > 0 else "-inf" if x < 0 else "nan")
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def _json_clean(obj: Any) -> Any:
-    """A nested structure with every non-JSON value passed through :func:`_json_default`."""
-    if isinstance(obj, dict):
-        return {str(k): _json_clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_json_clean(v) for v in obj]
-    if obj is None or isinstance(obj, (str, bool, int)) and not isinstance(obj, np.bool_):
-        return obj
-    return _json_default(obj)
 
 
 # ---------------------------------------------------------------------- main

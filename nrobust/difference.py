@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
+from ._json import json_float
 from .errors import ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
@@ -217,15 +218,11 @@ class SpectralBound:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinite values as strings)."""
         return {
-            "lower": _json_float(self.lower),
-            "upper": _json_float(self.upper),
+            "lower": json_float(self.lower),
+            "upper": json_float(self.upper),
             "exact": self.exact,
             "step": self.step,
         }
-
-
-def _json_float(x: float) -> float | str:
-    return float(x) if np.isfinite(x) else ("-inf" if x < 0 else "inf")
 
 
 @dataclass(frozen=True, eq=False)
@@ -476,7 +473,7 @@ class DifferenceOperator:
             "delays": [float(t) for t in self.delays],
             "gamma_0": self.gamma_0,
             "strongly_stable": self.is_strongly_stable(),
-            "strong_spectral_bound": _json_float(self.strong_spectral_bound()),
+            "strong_spectral_bound": json_float(self.strong_spectral_bound()),
         }
 
 

@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize_scalar
 
+from ._json import json_float
 from ._validate import positive, positive_int
 from .errors import CertificationError, ConvergenceError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
@@ -106,16 +107,6 @@ def _is_real(*parts: QuasiPolynomial) -> bool:
                 if np.iscomplexobj(arr) and np.any(arr.imag != 0):
                     return False
     return True
-
-
-def _json(x: float | None) -> float | str | None:
-    if x is None:
-        return None
-    if np.isnan(x):
-        return "nan"
-    if np.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return float(x)
 
 
 # ============================================================================ crossings
@@ -614,20 +605,20 @@ class DelayMargin:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinities as strings)."""
         return {
-            "margin": _json(self.margin),
-            "omega": _json(self.omega),
+            "margin": json_float(self.margin),
+            "omega": json_float(self.omega),
             "crossings": [c.to_dict() for c in self.crossings],
             "nominal_stable": self.nominal_stable,
             "nominal_unstable": self.nominal_unstable,
             "strongly_stable": self.strongly_stable,
             "zero_root": self.zero_root,
-            "intervals": [[_json(lo), _json(hi)] for lo, hi in self.intervals],
-            "counts": [[_json(lo), _json(hi), n] for lo, hi, n in self.counts],
-            "delta_max": _json(self.delta_max),
-            "frequency_bound": _json(self.frequency_bound),
+            "intervals": [[json_float(lo), json_float(hi)] for lo, hi in self.intervals],
+            "counts": [[json_float(lo), json_float(hi), n] for lo, hi, n in self.counts],
+            "delta_max": json_float(self.delta_max),
+            "frequency_bound": json_float(self.frequency_bound),
             "gap": self.gap,
             "verified": self.verified,
-            "residual": _json(self.residual),
+            "residual": json_float(self.residual),
             "reason": self.reason,
             "evaluations": self.evaluations,
         }
@@ -885,7 +876,7 @@ class KRegion:
             "delta_max": self.delta_max,
             "paper_bound": self.paper_bound,
             "Ks": self.Ks.tolist(),
-            "margins": [_json(m) for m in self.margins],
+            "margins": [json_float(m) for m in self.margins],
             "admissible": self.admissible.tolist(),
             "tol": self.tol,
         }
@@ -1049,7 +1040,7 @@ class ABRegion:
             "a": self.a.tolist(),
             "b": self.b.tolist(),
             "admissible": self.admissible.tolist(),
-            "margins": [[_json(m) for m in row] for row in self.margins],
+            "margins": [[json_float(m) for m in row] for row in self.margins],
             "strongly_stable": self.strongly_stable.tolist(),
             "paper_conditions": self.paper_conditions.tolist(),
             "delta_max": self.delta_max,
@@ -1140,9 +1131,9 @@ class StabilityChart:
         return {
             "Ks": self.Ks.tolist(),
             "deltas": self.deltas.tolist(),
-            "values": [[_json(v) for v in row] for row in self.values],
+            "values": [[json_float(v) for v in row] for row in self.values],
             "quantity": self.quantity,
-            "margins": [_json(m) for m in self.margins],
+            "margins": [json_float(m) for m in self.margins],
             "boundaries": [b.tolist() for b in self.boundaries],
         }
 
@@ -1257,9 +1248,9 @@ class Tradeoff:
         """JSON-ready description."""
         return {
             "Ks": self.Ks.tolist(),
-            "decay_rates": [_json(v) for v in self.decay_rates],
-            "margins": [_json(v) for v in self.margins],
-            "rouche_bounds": [_json(v) for v in self.rouche_bounds],
+            "decay_rates": [json_float(v) for v in self.decay_rates],
+            "margins": [json_float(v) for v in self.margins],
+            "rouche_bounds": [json_float(v) for v in self.rouche_bounds],
         }
 
 

@@ -178,7 +178,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
             "rouche_delay_bound (Theorem 4)",
         ),
         (
-            f"roots in the region, delta = 0",
+            "roots in the region, delta = 0",
             f"{cert.roots_nominal.count} (certified: {_fmt(cert.roots_nominal.certified)})",
             "find_roots",
         ),

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from ._json import json_float
 from ._validate import positive, positive_int, region as _check_region
 from .errors import CertificationError, ParameterError
 from .quasipoly import QuasiPolynomial
@@ -1018,19 +1019,15 @@ class SpectralAbscissa:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return {
-            "value": _json_float(self.value),
+            "value": json_float(self.value),
             "root": None if self.root is None else [self.root.real, self.root.imag],
             "approached_at_infinity": self.approached_at_infinity,
-            "chain_value": _json_float(self.chain_value),
-            "upper_bound": _json_float(self.upper_bound),
+            "chain_value": json_float(self.chain_value),
+            "upper_bound": json_float(self.upper_bound),
             "certified": self.certified,
             "region": list(self.region),
-            "strong_bound": _json_float(self.strong_bound),
+            "strong_bound": json_float(self.strong_bound),
         }
-
-
-def _json_float(x: float) -> float | str:
-    return float(x) if np.isfinite(x) else ("-inf" if x < 0 else "inf")
 
 
 # Largest |s| tried by the root-free radius; beyond it the search is not certified.

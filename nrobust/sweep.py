@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from ._json import json_safe
 from .errors import ParameterError
 
 __all__ = [
@@ -102,19 +103,6 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
     return [dict(zip(names, combo)) for combo in itertools.product(*values)]
 
 
-def _json_default(obj: Any) -> Any:
-    """``json.dumps`` hook for the values found inside result lists."""
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, complex):
-        return [obj.real, obj.imag]
-    if hasattr(obj, "to_dict"):
-        return obj.to_dict()
-    return repr(obj)
-
-
 def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
     """Flatten ``value`` into scalar columns of ``out`` named after ``prefix``.
 
@@ -135,7 +123,7 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
     elif callable(getattr(value, "to_dict", None)) and not isinstance(value, type):
         _flatten(value.to_dict(), prefix, out)
     elif isinstance(value, (list, tuple, np.ndarray)):
-        out[prefix] = json.dumps(value, default=_json_default)
+        out[prefix] = json.dumps(json_safe(value))
     else:
         out[prefix] = repr(value)
 
@@ -175,19 +163,6 @@ def _run_chunk(func: Callable[..., Any], chunk: Sequence[Mapping[str, Any]]) -> 
 # ---------------------------------------------------------------------------------------
 # results
 # ---------------------------------------------------------------------------------------
-
-
-def _json_safe(value: Any) -> Any:
-    """``value`` with non-finite floats written as the strings ``"inf"``, ``"-inf"``, ``"nan"``."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, Mapping):
-        return {str(k): _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, (bool, int, float, str)) or value is None:
-        return value
-    return _json_safe(_json_default(value))
 
 
 @dataclass(frozen=True)
@@ -394,7 +369,7 @@ class SweepResult:
         if extra:
             data.update(extra)
         path = Path(path)
-        path.write_text(json.dumps(_json_safe(data), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        path.write_text(json.dumps(json_safe(data), indent=1, allow_nan=False) + "\n", encoding="utf-8")
         return path
 
     def __repr__(self) -> str:
