@@ -110,21 +110,28 @@ def test_second_order_convergence_varying_couplings(system, extrapolate):
 
 
 # --------------------------------------------------------------------------- residuals
-def k_residuals(k: Kernels) -> np.ndarray:
-    """Max over interior nodes of the residuals of (kerneK^{uu})-(kerneK^{vv}) (central differences)."""
-    s = k.system
-    lam, mu, h = s.lam, s.mu, k.h
-    n = k.n
+def _stencil(k: Kernels):
+    """Interior nodes ``(i, j)`` of the triangle and central differences in x and xi there."""
+    n, h = k.n, k.h
     i, j = np.nonzero(np.tri(n, n, -1, dtype=bool))
     keep = (j >= 1) & (i <= n - 2)
     i, j = i[keep], j[keep]
-    xi = k.grid[j]
 
     def dx(F):
         return (F[i + 1, j] - F[i - 1, j]) / (2 * h)
 
     def dxi(F):
         return (F[i, j + 1] - F[i, j - 1]) / (2 * h)
+
+    return i, j, dx, dxi
+
+
+def k_residuals(k: Kernels) -> np.ndarray:
+    """Max over interior nodes of the residuals of (kerneK^{uu})-(kerneK^{vv}) (central differences)."""
+    s = k.system
+    lam, mu = s.lam, s.mu
+    i, j, dx, dxi = _stencil(k)
+    xi = k.grid[j]
 
     Kuu, Kuv, Kvu, Kvv = k.K[0, 0], k.K[0, 1], k.K[1, 0], k.K[1, 1]
     pm, mp = s.sigma_pm_at(xi), s.sigma_mp_at(xi)
@@ -145,18 +152,9 @@ def l_residuals(k: Kernels) -> np.ndarray:
         mu L^{ba}_x - lam L^{ba}_xi = -sigma_mp(x) L^{aa},  mu (L^{bb}_x + L^{bb}_xi) = -sigma_mp(x) L^{ab}.
     """
     s = k.system
-    lam, mu, h = s.lam, s.mu, k.h
-    n = k.n
-    i, j = np.nonzero(np.tri(n, n, -1, dtype=bool))
-    keep = (j >= 1) & (i <= n - 2)
-    i, j = i[keep], j[keep]
+    lam, mu = s.lam, s.mu
+    i, j, dx, dxi = _stencil(k)
     x = k.grid[i]
-
-    def dx(F):
-        return (F[i + 1, j] - F[i - 1, j]) / (2 * h)
-
-    def dxi(F):
-        return (F[i, j + 1] - F[i, j - 1]) / (2 * h)
 
     Laa, Lab, Lba, Lbb = k.L[0, 0], k.L[0, 1], k.L[1, 0], k.L[1, 1]
     pm, mp = s.sigma_pm_at(x), s.sigma_mp_at(x)

@@ -51,19 +51,9 @@ def _constant_scaled(system: Hyperbolic2x2, s: np.ndarray) -> tuple[np.ndarray, 
     lam, mu, q = system.lam, system.mu, system.q
     a, d = -s / lam, s / mu
     b, c = float(system.sigma_pm) / lam, -float(system.sigma_mp) / mu
-    m = 0.5 * (a + d)
-    delta = np.sqrt((0.5 * (a - d)) ** 2 + b * c)
-    shift = m - s / mu
-    e_plus, e_minus = np.exp(shift + delta), np.exp(shift - delta)
-    cosh = 0.5 * (e_plus + e_minus)
-    small = np.abs(delta) < _SERIES_RADIUS
-    safe = np.where(small, 1.0, delta)
-    d2 = delta * delta
-    series = np.exp(shift) * (1.0 + d2 / 6.0 * (1.0 + d2 / 20.0 * (1.0 + d2 / 42.0 * (1.0 + d2 / 72.0))))
-    sinhc = np.where(small, series, (e_plus - e_minus) / (2.0 * safe))
-    u1 = cosh * q + sinhc * ((a - m) * q + b)
-    v1 = cosh + sinhc * (c * q + (d - m))
-    return u1, v1
+    # e^{-s/mu} exp(A) = exp(A - (s/mu) I): the scaling that keeps |v(1)| from overflowing.
+    e11, e12, e21, e22 = _expm2(a - s / mu, b, c, d - s / mu)
+    return e11 * q + e12, e21 * q + e22
 
 
 def _expm2(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
