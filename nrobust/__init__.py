@@ -14,7 +14,7 @@ from importlib.metadata import version as _version
 from . import plots
 from .certificate import Certificate, certify
 from .difference import DifferenceOperator
-from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError
+from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError, SweepError
 from .hyperbolic import (
     DelayForm,
     Hyperbolic2x2,
@@ -53,7 +53,7 @@ from .margins import (
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .roots import RootSet, count_roots, find_roots, spectral_abscissa
 from .rouche import RootFreeRegion, RoucheDelayBound, l1_modulus, root_free_region, rouche_delay_bound
-from .sweep import SweepResult, grid, robustness, sweep
+from .sweep import SweepMap, SweepResult, grid, robustness, sweep, sweep_map
 from .transfer import (
     QuasiTransferFunction,
     closed_loop_tf,
@@ -86,7 +86,8 @@ __all__ = [
     # transfer functions, reports, sweeps, plots
     "QuasiTransferFunction", "open_loop_tf", "closed_loop_tf", "output_map", "to_frd",
     "pade_approximation", "certify", "Certificate", "sweep", "grid", "robustness",
-    "SweepResult", "plots",
+    "SweepResult", "SweepMap", "sweep_map", "plots",
     # errors
     "NrobustError", "ParameterError", "RegionError", "ConvergenceError", "CertificationError",
+    "SweepError",
 ]

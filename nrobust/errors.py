@@ -13,6 +13,7 @@ __all__ = [
     "RegionError",
     "ConvergenceError",
     "CertificationError",
+    "SweepError",
 ]
 
 
@@ -55,3 +56,7 @@ class CertificationError(NrobustError, RuntimeError):
     Raised instead of returning an uncertified answer silently; the message says
     what could not be certified and which bound was hit.
     """
+
+
+class SweepError(NrobustError, RuntimeError):
+    """A point of a parallel grid computation raised; the message names the point and the error."""

@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize_scalar
 
 from ._json import json_float
+from .sweep import sweep_map
 from ._validate import positive, positive_int
 from .errors import CertificationError, ConvergenceError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
@@ -799,7 +800,9 @@ def delay_margin(
 
 
 # ============================================================================ gain studies
-Mapper = Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]
+def _mapper(executor: Any) -> Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]:
+    """The built-in ``map`` in this process, else the sweep machinery's (``nrobust.sweep``)."""
+    return map if isinstance(executor, str) and executor == "serial" else sweep_map(executor)
 
 
 def _reflection(K: float) -> Any:
@@ -890,7 +893,7 @@ def k_region(
     n: int = 41,
     tol: float | None = None,
     controller: Callable[[float], Any] | None = None,
-    map: Mapper = map,
+    executor: Any = "serial",
 ) -> KRegion:
     """Gains keeping the loop stable for every delay in ``[0, delta_max]``.
 
@@ -918,8 +921,9 @@ def k_region(
         Accuracy of the interval ends; default ``1e-4`` times the paper's bound.
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
-    map : callable, optional
-        ``map(func, iterable)`` used for the grid, e.g. ``executor.map`` of a process pool.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
 
     Returns
     -------
@@ -936,7 +940,7 @@ def k_region(
             raise ParameterError("system", "with |rho q| < 1 for the default gain grid (pass Ks)", system)
         Ks = kb * np.linspace(-1.0, 1.0, n + 2)[1:-1]
     grid = np.sort(_grid("Ks", Ks))
-    results = list(map(_PartialMargin(system, delta_max, family), grid))
+    results = list(_mapper(executor)(_PartialMargin(system, delta_max, family), grid))
     margins = np.array([r.margin for r in results])
     ok = np.array([r.nominal_stable and r.margin > delta_max for r in results])
 
@@ -1047,7 +1051,7 @@ class ABRegion:
         }
 
 
-def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, map: Mapper = map) -> ABRegion:
+def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, executor: Any = "serial") -> ABRegion:
     """Admissible filter coefficients of the filtered finite-time controller (section 2.3.2).
 
     With ``U_1(s) = -(1 + a s)/(1 + b s) U_BS``, the loop is
@@ -1066,8 +1070,9 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, map:
         Delay range to tolerate.
     a, b : array_like
         Grid axes (``b > 0``).
-    map : callable, optional
-        ``map(func, iterable)`` for the grid.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
 
     Returns
     -------
@@ -1079,7 +1084,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, map:
     if np.any(bv <= 0):
         raise ParameterError("b", "> 0", b)
     pairs = [(float(x), float(y)) for x in av for y in bv]
-    results = list(map(_PartialFilter(system, delta_max), pairs))
+    results = list(_mapper(executor)(_PartialFilter(system, delta_max), pairs))
     shape = (av.size, bv.size)
     margins = np.array([r.margin for r in results]).reshape(shape)
     ok = np.array([r.nominal_stable and r.margin > delta_max for r in results]).reshape(shape)
@@ -1161,7 +1166,7 @@ def stability_chart(
     *,
     quantity: str = "count",
     controller: Callable[[float], Any] | None = None,
-    map: Mapper = map,
+    executor: Any = "serial",
 ) -> StabilityChart:
     """Stability chart of ``U_BS2(K)`` in the ``(K, delta)`` plane (section 4.2.1).
 
@@ -1181,8 +1186,9 @@ def stability_chart(
         What to tabulate.
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
-    map : callable, optional
-        ``map(func, iterable)`` for the grid, e.g. the ``map`` of a process pool.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
 
     Returns
     -------
@@ -1196,7 +1202,7 @@ def stability_chart(
         raise ParameterError("quantity", "'count' or 'abscissa'", quantity)
     family = _reflection if controller is None else controller
     dmax = float(np.max(dv)) if np.max(dv) > 0 else None
-    results = list(map(_PartialMargin(system, dmax, family), kv))
+    results = list(_mapper(executor)(_PartialMargin(system, dmax, family), kv))
     margins = np.array([r.margin for r in results])
     boundaries = tuple(
         np.array([(d, c.omega, c.direction) for c in r.crossings for d in c.delays if d <= np.max(dv)]).reshape(-1, 3)
@@ -1204,7 +1210,7 @@ def stability_chart(
     )
     if quantity == "abscissa":
         pts = [(float(K), float(d)) for K in kv for d in dv]
-        values = np.array(list(map(_PartialAbscissa(system, family), pts))).reshape(kv.size, dv.size)
+        values = np.array(list(_mapper(executor)(_PartialAbscissa(system, family), pts))).reshape(kv.size, dv.size)
     else:
         values = np.empty((kv.size, dv.size))
         for i, r in enumerate(results):
@@ -1274,7 +1280,9 @@ class _PartialTradeoff:
         return rate, float(margin), float(d0)
 
 
-def tradeoff(system: Any, Ks: ArrayLike, *, controller: Callable[[float], Any] | None = None, map: Mapper = map) -> Tradeoff:
+def tradeoff(
+    system: Any, Ks: ArrayLike, *, controller: Callable[[float], Any] | None = None, executor: Any = "serial"
+) -> Tradeoff:
     """Decay rate of the nominal loop against the delay margin, over ``K``.
 
     The paper's remark after Lemma 3: ``K`` trades the convergence rate of the target
@@ -1289,8 +1297,9 @@ def tradeoff(system: Any, Ks: ArrayLike, *, controller: Callable[[float], Any] |
         Gains.
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
-    map : callable, optional
-        ``map(func, iterable)`` for the gains.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
 
     Returns
     -------
@@ -1299,5 +1308,5 @@ def tradeoff(system: Any, Ks: ArrayLike, *, controller: Callable[[float], Any] |
     _check_system(system)
     kv = _grid("Ks", Ks)
     family = _reflection if controller is None else controller
-    rows = np.array(list(map(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
+    rows = np.array(list(_mapper(executor)(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
     return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2])

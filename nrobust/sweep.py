@@ -25,7 +25,7 @@ import pickle
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -36,19 +36,21 @@ import numpy as np
 from tqdm import tqdm
 
 from ._json import json_safe
-from .errors import ParameterError
+from .errors import ParameterError, SweepError
 
 __all__ = [
     "ANALYSES",
     "PointFailure",
     "RobustnessResult",
     "SweepFileResult",
+    "SweepMap",
     "SweepResult",
     "grid",
     "margin_and_decay",
     "robustness",
     "run_sweep_file",
     "sweep",
+    "sweep_map",
 ]
 
 #: Columns every table starts or ends its fixed part with; result keys that collide with
@@ -147,17 +149,21 @@ def _result_columns(value: Any) -> dict[str, Any]:
 # ---------------------------------------------------------------------------------------
 
 
-def _run_point(func: Callable[..., Any], point: Mapping[str, Any]) -> tuple[Any, ...]:
-    """Call ``func(**point)``: ``("ok", columns)`` or ``("error", type, message, traceback)``."""
+def _run_point(func: Callable[..., Any], point: Mapping[str, Any], columns: bool = True) -> tuple[Any, ...]:
+    """Call ``func(**point)``: ``("ok", result)`` or ``("error", type, message, traceback)``.
+
+    With ``columns`` the result is flattened into table columns on the worker.
+    """
     try:
-        return ("ok", _result_columns(func(**point)))
+        result = func(**point)
+        return ("ok", _result_columns(result) if columns else result)
     except Exception as exc:
         return ("error", type(exc).__name__, str(exc), traceback.format_exc())
 
 
-def _run_chunk(func: Callable[..., Any], chunk: Sequence[Mapping[str, Any]]) -> list[tuple[Any, ...]]:
+def _run_chunk(func: Callable[..., Any], chunk: Sequence[Mapping[str, Any]], columns: bool = True) -> list[tuple[Any, ...]]:
     """Run consecutive points on one worker; one task per chunk amortises the transfer."""
-    return [_run_point(func, point) for point in chunk]
+    return [_run_point(func, point, columns) for point in chunk]
 
 
 # ---------------------------------------------------------------------------------------
@@ -444,9 +450,9 @@ def _auto_chunksize(n_points: int, n_workers: int) -> int:
 
 
 def _run_on_futures_executor(
-    pool: Executor, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any
+    pool: Executor, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any, columns: bool
 ) -> list[list[tuple[Any, ...]]]:
-    futures = {pool.submit(_run_chunk, func, chunk): i for i, chunk in enumerate(chunks)}
+    futures = {pool.submit(_run_chunk, func, chunk, columns): i for i, chunk in enumerate(chunks)}
     out: list[list[tuple[Any, ...]]] = [[] for _ in chunks]
     try:
         for fut in as_completed(futures):
@@ -460,11 +466,11 @@ def _run_on_futures_executor(
 
 
 def _run_on_dask(
-    client: Any, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any
+    client: Any, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any, columns: bool
 ) -> list[list[tuple[Any, ...]]]:
     import distributed
 
-    futures = [client.submit(_run_chunk, func, chunk, pure=False) for chunk in chunks]
+    futures = [client.submit(_run_chunk, func, chunk, columns, pure=False) for chunk in chunks]
     index = {fut.key: i for i, fut in enumerate(futures)}
     out: list[list[tuple[Any, ...]]] = [[] for _ in chunks]
     try:
@@ -528,6 +534,51 @@ def _progress_bar(total: int, progress: bool | None) -> _ProgressBar:
     interactive = sys.stderr.isatty() or "ipykernel" in sys.modules
     show = interactive if progress is None else bool(progress)
     return _ProgressBar(total=total, disable=not show, desc="sweep", unit="pt", file=sys.stderr)
+
+
+def _execute(
+    func: Callable[..., Any],
+    pts: list[dict[str, Any]],
+    executor: Any,
+    chunksize: int | None,
+    progress: bool | None,
+    columns: bool,
+) -> tuple[list[tuple[Any, ...]], str]:
+    """Run ``func(**point)`` for every point on ``executor``; outcomes in input order."""
+    kind = _classify_executor(executor)
+    if kind == "pool" or isinstance(executor, ProcessPoolExecutor):
+        _check_picklable(func, pts, pickle.dumps, "worker processes")
+    elif kind == "dask":
+        _check_picklable(func, pts, _require_distributed("dask").protocol.pickle.dumps, "Dask workers")
+    with _progress_bar(len(pts), progress) as bar:
+        if kind == "serial":
+            description = "serial"
+            outcomes = []
+            for point in pts:
+                outcomes.append(_run_point(func, point, columns))
+                bar.update(1)
+        elif kind == "pool":
+            n_workers = _cpu_count() if executor is None else int(executor)
+            size = chunksize or _auto_chunksize(len(pts), n_workers)
+            chunks = _chunks(pts, size)
+            description = f"processes({n_workers})"
+            with ProcessPoolExecutor(max_workers=min(n_workers, len(chunks))) as pool:
+                try:
+                    outcomes = list(itertools.chain.from_iterable(_run_on_futures_executor(pool, func, chunks, bar, columns)))
+                except BaseException:
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    raise
+        elif kind == "executor":
+            n_workers = getattr(executor, "_max_workers", None) or _cpu_count()
+            chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
+            description = f"executor({type(executor).__name__})"
+            outcomes = list(itertools.chain.from_iterable(_run_on_futures_executor(executor, func, chunks, bar, columns)))
+        else:
+            with _dask_client(executor) as (client, description):
+                n_workers = sum(client.nthreads().values()) or 1
+                chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
+                outcomes = list(itertools.chain.from_iterable(_run_on_dask(client, func, chunks, bar, columns)))
+    return outcomes, description
 
 
 def sweep(
@@ -599,42 +650,9 @@ def sweep(
         if isinstance(chunksize, bool) or not isinstance(chunksize, (int, np.integer)) or chunksize < 1:
             raise ParameterError("chunksize", "a positive int or None", chunksize)
         chunksize = int(chunksize)
-    kind = _classify_executor(executor)
     pts = [dict(p) for p in points]
-    if kind == "pool" or isinstance(executor, ProcessPoolExecutor):
-        _check_picklable(func, pts, pickle.dumps, "worker processes")
-    elif kind == "dask":
-        _check_picklable(func, pts, _require_distributed("dask").protocol.pickle.dumps, "Dask workers")
-
     start = time.perf_counter()
-    with _progress_bar(len(pts), progress) as bar:
-        if kind == "serial":
-            description = "serial"
-            outcomes = []
-            for point in pts:
-                outcomes.append(_run_point(func, point))
-                bar.update(1)
-        elif kind == "pool":
-            n_workers = _cpu_count() if executor is None else int(executor)
-            size = chunksize or _auto_chunksize(len(pts), n_workers)
-            chunks = _chunks(pts, size)
-            description = f"processes({n_workers})"
-            with ProcessPoolExecutor(max_workers=min(n_workers, len(chunks))) as pool:
-                try:
-                    outcomes = list(itertools.chain.from_iterable(_run_on_futures_executor(pool, func, chunks, bar)))
-                except BaseException:
-                    pool.shutdown(wait=True, cancel_futures=True)
-                    raise
-        elif kind == "executor":
-            n_workers = getattr(executor, "_max_workers", None) or _cpu_count()
-            chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
-            description = f"executor({type(executor).__name__})"
-            outcomes = list(itertools.chain.from_iterable(_run_on_futures_executor(executor, func, chunks, bar)))
-        else:
-            with _dask_client(executor) as (client, description):
-                n_workers = sum(client.nthreads().values()) or 1
-                chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
-                outcomes = list(itertools.chain.from_iterable(_run_on_dask(client, func, chunks, bar)))
+    outcomes, description = _execute(func, pts, executor, chunksize, progress, columns=True)
     elapsed = time.perf_counter() - start
 
     results: list[dict[str, Any] | None] = []
@@ -646,6 +664,60 @@ def sweep(
             results.append(None)
             failures.append(PointFailure(i, point, outcome[1], outcome[2], outcome[3]))
     return SweepResult(tuple(pts), tuple(results), tuple(failures), description, elapsed)
+
+
+class _Item:
+    """``func(item)`` called as ``func(**{"item": item})`` by the sweep machinery (picklable)."""
+
+    def __init__(self, func: Callable[[Any], Any]) -> None:
+        self.func = func
+
+    def __call__(self, item: Any) -> Any:
+        return self.func(item)
+
+
+@dataclass(frozen=True)
+class SweepMap:
+    """``map(func, items)`` on a sweep executor: results in input order, work spread out.
+
+    Any grid computation of nrobust that takes an ``executor`` (``stability_chart``,
+    ``k_region``, ``ab_region``, ``tradeoff``) runs its points through this. Unlike
+    :func:`sweep`, which records failures per point, a map needs every result: an item
+    whose call raises stops the computation with a :class:`~nrobust.errors.SweepError`
+    naming the item and the original error.
+
+    Parameters
+    ----------
+    executor : None, str, int, Executor or dask.distributed.Client
+        As in :func:`sweep`.
+    chunksize : int, optional
+        Items per task.
+    progress : bool, optional
+        As in :func:`sweep`.
+    """
+
+    executor: Any = None
+    chunksize: int | None = None
+    progress: bool | None = None
+
+    def __post_init__(self) -> None:
+        _classify_executor(self.executor)  # reject a bad executor before any work
+
+    def __call__(self, func: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+        items = list(items)
+        if not items:
+            return []
+        pts = [{"item": item} for item in items]
+        outcomes, _ = _execute(_Item(func), pts, self.executor, self.chunksize, self.progress, columns=False)
+        for item, outcome in zip(items, outcomes):
+            if outcome[0] != "ok":
+                raise SweepError(f"item {item!r} raised {outcome[1]}: {outcome[2]}")
+        return [outcome[1] for outcome in outcomes]
+
+
+def sweep_map(executor: Any = None, *, chunksize: int | None = None, progress: bool | None = None) -> SweepMap:
+    """A ``map``-like callable that runs on ``executor`` (see :class:`SweepMap`)."""
+    return SweepMap(executor, chunksize, progress)
 
 
 # ---------------------------------------------------------------------------------------

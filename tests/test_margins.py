@@ -293,7 +293,7 @@ def test_tradeoff_transport_closed_form() -> None:
     assert tr.to_dict()["margins"] == ["inf"] * 3
 
 
-def test_stability_chart_transport_and_map_hook() -> None:
+def test_stability_chart_transport_on_executors() -> None:
     system = TransportSystem(1.0, 1.0, 1.0, 0.85)
     Ks, deltas = np.array([-0.2, 0.0, 0.1, 0.2]), np.array([0.0, 0.3, 1.0])
     chart = stability_chart(system, Ks, deltas)
@@ -303,8 +303,10 @@ def test_stability_chart_transport_and_map_hook() -> None:
     assert chart.values[3, 0] == 0  # K = 0.2: nominal reflection rho - K = 0.65, stable
     assert np.isnan(chart.values[0, 0])  # K = -0.2: reflection 1.05, a chain in Re s > 0
     with ThreadPoolExecutor(2) as ex:
-        again = stability_chart(system, Ks, deltas, map=ex.map)
+        again = stability_chart(system, Ks, deltas, executor=ex)
     assert np.array_equal(again.values, chart.values, equal_nan=True)
+    on_processes = stability_chart(system, Ks, deltas, executor=2)  # the sweep machinery's pool
+    assert np.array_equal(on_processes.values, chart.values, equal_nan=True)
     assert len(chart.to_dict()["values"]) == 4
     absc = stability_chart(system, [0.0, 0.1], [0.0, 0.5], quantity="abscissa")
     assert absc.values[:, 0] == pytest.approx(np.log([0.85, 0.75]) / 2.0, abs=1e-8)  # target systems

@@ -408,3 +408,22 @@ def test_sweep_file_bad_dask_address_is_named(tmp_path, toy_registry):
     with pytest.raises(ParameterError) as info:
         run_sweep_file(tmp_path / "SWEEP.toml", tmp_path / "out", dask_address="scheduler")
     assert info.value.name == "dask_address"
+
+
+def _square_or_fail(x: float) -> float:
+    if x == 3:
+        raise ValueError("three is not allowed")
+    return x * x
+
+
+def test_sweep_map_keeps_order_and_names_a_failing_item():
+    from nrobust.errors import SweepError
+    from nrobust.sweep import sweep_map
+
+    items = [5, 1, 4, 2]
+    assert sweep_map("serial")(_square_or_fail, items) == [25, 1, 16, 4]
+    assert sweep_map(2, chunksize=1)(_square_or_fail, items) == [25, 1, 16, 4]
+    with pytest.raises(SweepError, match=r"item 3 raised ValueError: three is not allowed"):
+        sweep_map("serial")(_square_or_fail, [1, 3])
+    with pytest.raises(ParameterError, match="executor"):
+        sweep_map("threads")

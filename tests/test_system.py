@@ -99,3 +99,22 @@ def test_invalid_data_raise_parameter_error(change, name):
 def test_transport_system_validates():
     with pytest.raises(ParameterError):
         TransportSystem(lam=1.0, mu=1.0, q=0.0, rho=1.0)
+
+
+def _module_level_coupling(x):
+    return 1.0 + 0.5 * x
+
+
+def test_systems_pickle_for_worker_processes():
+    """Sweeps and charts send systems to other processes: they must pickle."""
+    import pickle
+
+    for system in (
+        Hyperbolic2x2(1.0, 2.0, 0.5, 0.25, 0.8, 0.5),
+        Hyperbolic2x2(1.0, 2.0, _module_level_coupling, 0.25, 0.8, 0.5),
+        TransportSystem(1.0, 1.0, 1.0, 0.85),
+    ):
+        again = pickle.loads(pickle.dumps(system))
+        x = np.linspace(0.0, 1.0, 5)
+        assert again == system
+        np.testing.assert_array_equal(again.sigma_pm_at(x), system.sigma_pm_at(x))

@@ -53,33 +53,49 @@ def _call_vectorised(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.nd
     return out.astype(float)
 
 
-def _make_evaluator(name: str, value: Any) -> tuple[Coupling, Callable[[np.ndarray], np.ndarray]]:
+def _pointwise(fun: Callable[..., Any], x: np.ndarray) -> np.ndarray:
+    """Evaluate a scalar-only callable point by point."""
+    flat = [float(np.real_if_close(fun(float(xi)))) for xi in np.ravel(x)]
+    return np.asarray(flat, dtype=float).reshape(np.shape(x))
+
+
+@dataclass(frozen=True)
+class _Evaluator:
+    """Vectorised evaluation of one coupling; picklable whenever the coupling is.
+
+    A number is broadcast; a callable is called on the whole array when it acts
+    elementwise (``vectorised``), point by point otherwise.
+    """
+
+    name: str
+    value: Coupling
+    vectorised: bool
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        if not callable(self.value):
+            return np.full(np.shape(x), self.value)
+        arr = np.asarray(x, dtype=float)
+        out = _call_vectorised(self.name, self.value, arr) if self.vectorised else None
+        return _pointwise(self.value, arr) if out is None else out
+
+
+def _make_evaluator(name: str, value: Any) -> tuple[Coupling, _Evaluator]:
     """Check a coupling and return it with a vectorised evaluator on arrays of ``x``.
 
     Numbers are returned as floats. A callable that does not act elementwise on arrays
-    is wrapped point by point. The evaluator is probed on a 17-point grid of ``[0, 1]``
+    is evaluated point by point. The evaluator is probed on a 17-point grid of ``[0, 1]``
     and must return finite reals there.
     """
     if not callable(value):
         if isinstance(value, (bool, np.bool_)) or not np.isscalar(value):
             raise ParameterError(name, "a finite real number or a callable on [0, 1]", value)
         number = finite_real(name, value)
-        return number, lambda x: np.full(np.shape(x), number)
-
-    def pointwise(x: np.ndarray) -> np.ndarray:
-        flat = [float(np.real_if_close(value(float(xi)))) for xi in np.ravel(x)]
-        return np.asarray(flat, dtype=float).reshape(np.shape(x))
-
-    def vectorised(x: np.ndarray) -> np.ndarray:
-        arr = np.asarray(x, dtype=float)
-        out = _call_vectorised(name, value, arr)
-        return pointwise(arr) if out is None else out
-
+        return number, _Evaluator(name, number, True)
     probe = _call_vectorised(name, value, _PROBE)
-    evaluator = vectorised if probe is not None else pointwise
+    evaluator = _Evaluator(name, value, probe is not None)
     if probe is None:
         try:
-            probe = pointwise(_PROBE)
+            probe = _pointwise(value, _PROBE)
         except (TypeError, ValueError):
             raise ParameterError(name, "a callable returning real numbers on [0, 1]", value) from None
     if not np.all(np.isfinite(probe)):
@@ -116,8 +132,8 @@ class Hyperbolic2x2:
     sigma_mp: Coupling
     q: float
     rho: float
-    _eval_pm: Callable[[np.ndarray], np.ndarray] = field(init=False, repr=False, compare=False)
-    _eval_mp: Callable[[np.ndarray], np.ndarray] = field(init=False, repr=False, compare=False)
+    _eval_pm: _Evaluator = field(init=False, repr=False, compare=False)
+    _eval_mp: _Evaluator = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "lam", positive("lam", self.lam))
