@@ -54,11 +54,16 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
     small = np.abs(z) < _SERIES_RADIUS
     if np.any(small):
         zs = z[small]
+        # Terms until the remainder r^m / m! (r = max |z| < 1) is below 1e-17.
+        r, bound, terms = float(np.max(np.abs(zs))), 1.0, 1
+        while terms < _SERIES_TERMS and bound > 1e-17:
+            bound *= r / terms
+            terms += 1
+        ks = np.arange(kmax + 1)[:, None]
         term = np.ones_like(zs)  # (-z)^m / m!
         acc = np.zeros((kmax + 1,) + zs.shape, dtype=complex)
-        for m in range(_SERIES_TERMS):
-            for k in range(kmax + 1):
-                acc[k] += term / (m + k + 1)
+        for m in range(terms):
+            acc += term / (m + ks + 1)
             term = term * (-zs) / (m + 1)
         out[:, small] = acc
     big = ~small
