@@ -406,6 +406,29 @@ class DistributedDelay:
             )
         return out + np.sum(slope * seg, axis=-1)
 
+    def total_variation(self) -> float:
+        """Upper bound of the total variation of ``N`` extended by zero (exact if linear).
+
+        End values, jumps, and on each segment ``int_0^1 |P'(t)| dt <= sum_j j |P_j|``.
+        """
+        _, _, poly_t = self._pieces
+        jumps = np.sum(np.abs(np.diff(self.values)[np.diff(self.nodes) == 0]))
+        inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
+        return float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
+
+    def linear_deviation(self) -> float:
+        """Upper bound of ``int |N - N_lin|``, ``N_lin`` the linear interpolant of the values.
+
+        Zero for linear interpolation. On a spline segment the difference is
+        ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)``, whose modulus
+        integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when ``P_3 = 0``).
+        """
+        _, h, poly_t = self._pieces
+        if poly_t.shape[1] == 2:
+            return 0.0
+        p2, p3 = poly_t[:, 2], poly_t[:, 3]
+        return float(np.sum(h * (np.abs(p2 + p3) / 6.0 + np.abs(p3) / 12.0)))
+
     # ------------------------------------------------------------------ algebra
     def shift(self, delta: float) -> tuple["DistributedDelay", ...]:
         """Multiply by ``e^{-delta s}``: the support moves to ``[a + delta, b + delta]``.

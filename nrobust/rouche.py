@@ -345,10 +345,12 @@ def _abs_linear_integral(f0: NDArray, f1: NDArray, h: NDArray) -> NDArray:
 def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
     """``omega(delta) = int |N(nu) - N(nu - delta)| dnu``, ``N`` extended by zero, exactly.
 
-    ``N`` is the piecewise-linear interpolant of a :class:`DistributedDelay` (jumps at
-    repeated nodes and at the ends of the support included). The difference is linear
+    For the piecewise-linear interpolant of a :class:`DistributedDelay` (jumps at
+    repeated nodes and at the ends of the support included) the difference is linear
     between the merged breakpoints ``nodes`` and ``nodes + delta``, where its modulus is
-    integrated in closed form. ``omega(delta) <= delta * TV(N)`` and
+    integrated in closed form: exact. For a spline interpolant the result is an upper
+    bound, ``omega_lin(delta) + 2 int |N - N_lin|`` (triangle inequality;
+    :meth:`DistributedDelay.linear_deviation`). ``omega(delta) <= delta * TV(N)`` and
     ``omega(d1 + d2) <= omega(d1) + omega(d2)``.
 
     Parameters
@@ -373,15 +375,14 @@ def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
         f0 = _pl_eval(nodes, values, lo, "right") - _pl_eval(shifted, values, lo, "right")
         f1 = _pl_eval(nodes, values, hi, "left") - _pl_eval(shifted, values, hi, "left")
         out[idx] = float(np.sum(_abs_linear_integral(f0, f1, hi - lo)))
-    return out
+    return out + 2.0 * N.linear_deviation()
 
 
 def total_variation(N: DistributedDelay) -> float:
-    """Total variation of ``N`` extended by zero (end values, slopes and jumps)."""
-    v = N.values
-    if np.iscomplexobj(v):
+    """Total variation of ``N`` extended by zero (an upper bound for splines)."""
+    if np.iscomplexobj(N.values):
         raise ParameterError("N", "a real kernel", N)
-    return float(abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))))
+    return N.total_variation()
 
 
 # ---------------------------------------------------------------------------- delay bound

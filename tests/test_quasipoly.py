@@ -260,3 +260,20 @@ def test_cubic_pieces_bounds_and_algebra():
     # A constant polynomial factor is folded into the values (canonical form).
     e = DistributedDelay([0, 1], [1, 2], poly=[3.0])
     assert e.poly.tolist() == [1.0] and e.values.tolist() == [3.0, 6.0]
+
+
+def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
+    x = np.r_[np.linspace(0, 1, 9), np.linspace(1, 2, 9)]
+    v = np.r_[np.sin(4 * x[:9]), 1 + np.cos(3 * x[9:])]
+    lin, cub = DistributedDelay(x, v), DistributedDelay(x, v, interpolation="cubic")
+    assert lin.linear_deviation() == 0.0
+    assert lin.total_variation() == pytest.approx(abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))))
+    # Dense samples of the spline: its variation and its distance to the linear interpolant.
+    start, h, P = cub._pieces
+    t = np.linspace(0, 1, 2001)
+    seg = np.array([np.polyval(p[::-1], t) for p in P])  # spline values, one row per segment
+    tv = abs(v[0]) + abs(v[-1]) + abs(v[9] - v[8]) + np.sum(np.abs(np.diff(seg, axis=1)))
+    line = P[:, :1] + (np.sum(P, axis=1, keepdims=True) - P[:, :1]) * t
+    dev = np.sum(h * np.trapezoid(np.abs(seg - line), t, axis=1))
+    assert tv <= cub.total_variation() + 1e-12 and dev <= cub.linear_deviation() + 1e-12
+    assert cub.linear_deviation() < 1.5 * dev + 1e-9  # and tight
