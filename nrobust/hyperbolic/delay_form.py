@@ -56,8 +56,8 @@ class DelayForm:
         eqs. (L_alpha)-(L_beta), on ``xi``.
     N_tilde : DistributedDelay
         ``N~`` of eq. (eq_N_tilde), with the factor ``q`` on the ``N^alpha`` branch (see
-        the module notes), on ``[0, tau]``, piecewise linear with the jump at
-        ``nu = 1/mu`` on a repeated node; identically zero for an uncoupled system.
+        the module notes), on ``[0, tau]``, a cubic spline on each side of the jump at
+        ``nu = 1/mu`` (a repeated node); identically zero for an uncoupled system.
     characteristic : QuasiPolynomial
         ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the denominator of the
         open-loop transfer function ``H_1``.
@@ -153,9 +153,9 @@ def delay_form(system: Hyperbolic2x2, n: int = 401, kernels: Kernels | None = No
     -------
     DelayForm
         ``tau``, ``rho q``, ``N^alpha``, ``N^beta``, ``N~`` and the characteristic
-        quasi-polynomial. ``N~`` converges at second order in ``1/n``, uniformly in
-        ``s`` for its Laplace transform (the piecewise-linear interpolant is integrated
-        exactly).
+        quasi-polynomial. The spline interpolant of ``N~`` is integrated exactly, so the
+        error of its Laplace transform is uniform in ``s`` and set by the kernels
+        (third order with the default extrapolation, ``docs/numerics_kernels.md``).
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2", system)
