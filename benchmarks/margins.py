@@ -122,6 +122,10 @@ def main() -> None:
           f"margins {np.nanmin(chart.margins):.4f} .. {np.nanmax(chart.margins):.4f})")
     print(f"  certified count per point     {per_point:.3f} s x {n * n} = {per_point * n * n:.1f} s (extrapolated)  "
           f"ratio {per_point * n * n / t_chart:.1f}x  counts agree at {len(probe)} probes: {agree}")
+    t_par, chart_par = timed(lambda: stability_chart(system, Ks, deltas, executor=None))
+    same = np.array_equal(chart_par.values, chart.values, equal_nan=True)
+    print(f"  stability_chart, all cores    {t_par:.3f} s  (sweep executor: local processes)  "
+          f"speed-up {t_chart / t_par:.2f}x  identical: {same}")
 
 
 if __name__ == "__main__":
