@@ -342,25 +342,8 @@ def _abs_linear_integral(f0: NDArray, f1: NDArray, h: NDArray) -> NDArray:
     return np.where(same, 0.5 * h * (a + b), 0.5 * h * (a * a + b * b) / denom)
 
 
-def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
-    """``omega(delta) = int |N(nu) - N(nu - delta)| dnu``, ``N`` extended by zero, exactly.
-
-    For the piecewise-linear interpolant of a :class:`DistributedDelay` (jumps at
-    repeated nodes and at the ends of the support included) the difference is linear
-    between the merged breakpoints ``nodes`` and ``nodes + delta``, where its modulus is
-    integrated in closed form: exact. For a spline interpolant the result is an upper
-    bound, ``omega_lin(delta) + 2 int |N - N_lin|`` (triangle inequality;
-    :meth:`DistributedDelay.linear_deviation`). ``omega(delta) <= delta * TV(N)`` and
-    ``omega(d1 + d2) <= omega(d1) + omega(d2)``.
-
-    Parameters
-    ----------
-    N : DistributedDelay
-        Real kernel of moment 0 (its polynomial factor is ignored: ``omega`` is a
-        property of the kernel).
-    delta : array_like
-        Shifts ``delta >= 0``.
-    """
+def _linear_l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
+    """``omega`` of the piecewise-linear interpolant of ``N``'s values, exactly (see :func:`l1_modulus`)."""
     if np.iscomplexobj(N.values) or N.moment != 0:
         raise ParameterError("N", "a real kernel of moment 0", N)
     d = np.asarray(delta, dtype=float)
@@ -375,7 +358,29 @@ def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
         f0 = _pl_eval(nodes, values, lo, "right") - _pl_eval(shifted, values, lo, "right")
         f1 = _pl_eval(nodes, values, hi, "left") - _pl_eval(shifted, values, hi, "left")
         out[idx] = float(np.sum(_abs_linear_integral(f0, f1, hi - lo)))
-    return out + 2.0 * N.linear_deviation()
+    return out
+
+
+def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
+    """``omega(delta) = int |N(nu) - N(nu - delta)| dnu``, ``N`` extended by zero.
+
+    Exact for the piecewise-linear interpolant of a :class:`DistributedDelay` (jumps at
+    repeated nodes and at the ends of the support included): the difference is linear
+    between the merged breakpoints ``nodes`` and ``nodes + delta``, where its modulus is
+    integrated in closed form. For a spline interpolant the result is an upper bound,
+    ``omega_lin(delta) + 2 int |N - N_lin|`` (triangle inequality;
+    :meth:`DistributedDelay.linear_deviation`). ``omega(delta) <= delta * TV(N)`` and
+    ``omega(d1 + d2) <= omega(d1) + omega(d2)``.
+
+    Parameters
+    ----------
+    N : DistributedDelay
+        Real kernel of moment 0 (its polynomial factor is ignored: ``omega`` is a
+        property of the kernel).
+    delta : array_like
+        Shifts ``delta >= 0``.
+    """
+    return _linear_l1_modulus(N, delta) + 2.0 * N.linear_deviation()
 
 
 def total_variation(N: DistributedDelay) -> float:
@@ -464,20 +469,26 @@ def delay_bound_from_kernel(
     if tv == 0.0:
         return RoucheDelayBound(np.inf, epsilon_0, 0.0, tv, K, 0)
     assert N is not None
+    # omega <= omega_lin + 2 int |N - N_lin|: march on the exact omega_lin against the
+    # budget left by the spline correction (all of epsilon_0 for a linear kernel).
+    correction = 2.0 * N.linear_deviation()
+    budget = epsilon_0 - correction
+    if budget <= 0.0:
+        return RoucheDelayBound(0.0, epsilon_0, correction, tv, K, 0)
     d, om, steps = 0.0, 0.0, 0
     safety = 1.0 - 1e-9
     while steps < max_steps:
-        h = safety * (epsilon_0 - om) / tv
+        h = safety * (budget - om) / tv
         if d > 0.0 and h <= rtol * d:
             break
-        om_next = float(l1_modulus(N, d + h))
-        if om_next >= epsilon_0:
+        om_next = float(_linear_l1_modulus(N, d + h))
+        if om_next >= budget:
             raise CertificationError(
                 f"delay_bound_from_kernel: omega({d + h:.6g}) = {om_next:.6g} exceeds the subadditive bound "
                 f"omega(d) + h TV = {om + h * tv:.6g} (kernel values not representable?)"
             )
         d, om, steps = d + h, om_next, steps + 1
-    return RoucheDelayBound(float(d), epsilon_0, om, tv, K, steps)
+    return RoucheDelayBound(float(d), epsilon_0, om + correction, tv, K, steps)
 
 
 def rouche_delay_bound(system: "Hyperbolic2x2", controller: "Controller", n: int | None = None) -> RoucheDelayBound:

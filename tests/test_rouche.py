@@ -115,3 +115,14 @@ def test_root_free_region_neutral_with_distributed_term() -> None:
         root_free_region(F, x0=-1.0)  # left of the chains: no dominance
     with pytest.raises(ParameterError):
         root_free_region(QuasiPolynomial([[1.0], [0.0, 1.0]], [0.0, 1.0]))  # advanced: s e^{-s} + 1
+
+
+def test_delay_bound_near_the_paper_bound_and_below_the_spline_correction() -> None:
+    """epsilon_0 -> 0 (|K| -> (1 - |rho q|)/|q|): delta_0 -> 0, never an error."""
+    from nrobust import Hyperbolic2x2, ReflectionController, rouche_delay_bound
+
+    plant = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+    for K in (0.15 - 1e-15, 0.15 - 1e-9, 0.1499):
+        bound = rouche_delay_bound(plant, ReflectionController(K))
+        assert 0.0 <= bound.delta_0 < 1e-3
+        assert bound.omega_at_delta_0 <= bound.epsilon_0 or bound.delta_0 == 0.0
