@@ -98,3 +98,24 @@ def test_theorem_2_open_loop_gain_above_one():
         found = nr.find_roots(F, (chain - 0.1, chain + 0.1, im0, im0 + 20.0))
         assert found.certified and found.count >= 5
         assert np.all(found.roots.real > 0)
+
+
+@pytest.mark.slow
+def test_the_paper_job_at_full_size(tmp_path):
+    """`nrobust paper` (the README's main job) with its default sizes, numbers included."""
+    import json
+
+    from nrobust.cli import run_paper
+
+    run_paper(tmp_path, progress=False)
+    data = json.loads((tmp_path / "summary.json").read_text())
+    bs, bs2 = data["U_BS"], data["U_BS2(K=0.1)"]
+    assert bs["delay_margin"] == 0.0 and bs["gamma_0_delayed"] == pytest.approx(1.7)
+    assert bs["chain_abscissa_delayed"] == pytest.approx(0.26465293, abs=1e-7)
+    assert bs2["delay_margin"] == pytest.approx(0.2295391304, abs=2e-10)
+    assert bs2["crossing_frequency"] == pytest.approx(6.2809603591, abs=1e-8)
+    assert bs2["spectral_abscissa"] == pytest.approx(np.log(0.75) / 2, abs=1e-10)
+    assert 0.0 < bs2["rouche_delta_0"] <= bs2["delay_margin"]
+    stable = data["chart"]["K_stable_up_to_0.1_on_grid"]
+    assert min(stable) > -0.15 and max(stable) < 0.15  # inside the paper's bound (boun_K2)
+    assert (tmp_path / "report.html").stat().st_size > 100_000
