@@ -36,5 +36,5 @@ def test_example_runs(script: str, tmp_path: Path) -> None:
     if script == "paper_figures.py":
         assert len(list(tmp_path.glob("*.png"))) == 2
     if script == "transport_loop.py":
-        # The certified count of the reference function on [-3, 1] x [-0.5, 200].
+        # The certified count of the reference function 1 - 0.85 e^{-2s} + 0.1 e^{-2.1s} on [-3, 1] x [-0.5, 200].
         assert "certified count in (-3.0, 1.0, -0.5, 200.0): 64 (certified: True)" in done.stdout
