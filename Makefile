@@ -1,31 +1,68 @@
 # Two entry points on a fresh machine: `make demo` (the paper's example end to end)
-# and `make test` (the test suite). Both create .venv and install what they need.
+# and `make test` (the test suite). Both create .venv and install what they need:
+# demo the package alone, test (and check) the package with its test extra.
 PYTHON ?= python3
+PYTHON310 ?= python3.10
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
+# One stamp per install: the package alone, and the package with the test extra.
+STAMP_BASE := $(VENV)/.installed-base
+STAMP_TEST := $(VENV)/.installed-test
+# The oldest supported Python, in a venv of its own (see test-py310).
+VENV310 := .venv310
+STAMP_310 := $(VENV310)/.installed-test
+# The paths `make check` lints and format-checks.
+LINT_PATHS := nrobust tests benchmarks examples
 # One BLAS thread: nrobust's linear algebra is small and parallelised by processes;
 # threaded OpenBLAS on a busy 2-core machine was measured 4-25x slower.
 export OPENBLAS_NUM_THREADS = 1
 export OMP_NUM_THREADS = 1
 export MPLBACKEND = Agg
 
-$(STAMP): pyproject.toml
+$(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
 
-.PHONY: demo test bench clean
-demo: $(STAMP)
+$(STAMP_BASE): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $(STAMP_BASE)
+
+# The test extra includes the package, so this install satisfies demo's stamp too.
+$(STAMP_TEST): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP_TEST) $(STAMP_BASE)
+
+.PHONY: demo test check test-py310 bench clean
+demo: $(STAMP_BASE)
 	$(BIN)/nrobust paper -o out/
 
-test: $(STAMP)
+# The tests and the doctests of the package (testpaths in pyproject.toml).
+test: $(STAMP_TEST)
 	$(BIN)/python -m pytest -q
 
-bench: $(STAMP)
+# Lint, format and type checks. All three run; the target fails if any failed.
+check: $(STAMP_TEST)
+	@status=0; \
+	echo "== ruff check"; $(BIN)/ruff check $(LINT_PATHS) || status=1; \
+	echo "== ruff format --check"; $(BIN)/ruff format --check $(LINT_PATHS) || status=1; \
+	echo "== mypy"; $(BIN)/mypy || status=1; \
+	exit $$status
+
+# A quick subset of the tests on Python 3.10, the oldest supported version (TOML
+# loading there needs tomli, not the standard library's tomllib).
+$(STAMP_310): pyproject.toml
+	$(PYTHON310) -m venv $(VENV310)
+	echo '*' > $(VENV310)/.gitignore
+	$(VENV310)/bin/python -m pip install --quiet --upgrade pip
+	$(VENV310)/bin/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP_310)
+
+test-py310: $(STAMP_310)
+	$(VENV310)/bin/python -m pytest -q tests/test_cli.py
+
+bench: $(STAMP_TEST)
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	for b in roots kernels margins simulate sweep; do echo "== benchmarks/$$b.py"; $(BIN)/python benchmarks/$$b.py || exit 1; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) $(VENV310) build *.egg-info .ruff_cache .mypy_cache

@@ -60,7 +60,10 @@ def main() -> None:
     for name, system in PLANTS.items():
         K_ref, L_ref = reference(system, n_K, n_L)
         print(f"\n{name}   (reference: K from n = {n_K}, L from n = {n_L}, both extrapolated)")
-        print(f"{'n':>5} | {'plain: err K':>12} {'err L':>9} {'s':>7} | {'extrap: err K':>13} {'err L':>9} {'s':>7} | {'err ratio K':>11} {'time ratio':>10}")
+        print(
+            f"{'n':>5} | {'plain: err K':>12} {'err L':>9} {'s':>7} | {'extrap: err K':>13} {'err L':>9} {'s':>7} | "
+            f"{'err ratio K':>11} {'time ratio':>10}"
+        )
         for n in grids:
             row = []
             for extrapolate in (False, True):

@@ -85,16 +85,21 @@ def main() -> None:
     t_dmv, dmv = timed(lambda: delay_margin(A, B))
     t_peer, (m_peer, n_peer) = timed(lambda: dense_scan_margin(A, B, dm.frequency_bound), repeat=3)
     print("\none delay margin, K = 0.1")
-    print(f"  nrobust delay_margin          delta* = {dm.margin:.12f}  w = {dm.omega:.10f}  "
-          f"{len(dm.crossings)} crossings in [0, W = {dm.frequency_bound:.4g}], {dm.evaluations} evaluations  "
-          f"{t_dm:.4f} s")
-    print(f"  nrobust delay_margin, verified delta* = {dmv.margin:.12f}  residual {dmv.residual:.1e}  "
-          f"{t_dmv:.4f} s")
-    print(f"  dense scan (step 1e-3)        delta* = {m_peer:.12f}  {n_peer} crossings  {t_peer:.4f} s  "
-          f"ratio {t_peer / t_dm:.1f}x")
+    print(
+        f"  nrobust delay_margin          delta* = {dm.margin:.12f}  w = {dm.omega:.10f}  "
+        f"{len(dm.crossings)} crossings in [0, W = {dm.frequency_bound:.4g}], {dm.evaluations} evaluations  "
+        f"{t_dm:.4f} s"
+    )
+    print(f"  nrobust delay_margin, verified delta* = {dmv.margin:.12f}  residual {dmv.residual:.1e}  {t_dmv:.4f} s")
+    print(
+        f"  dense scan (step 1e-3)        delta* = {m_peer:.12f}  {n_peer} crossings  {t_peer:.4f} s  "
+        f"ratio {t_peer / t_dm:.1f}x"
+    )
     t_rb, rb = timed(lambda: rouche_delay_bound(system, ctrl))
-    print(f"  Rouche bound (Theorem 4)      delta_0 = {rb.delta_0:.6f} <= delta*  ({rb.steps} certified steps)  "
-          f"{t_rb:.4f} s")
+    print(
+        f"  Rouche bound (Theorem 4)      delta_0 = {rb.delta_0:.6f} <= delta*  ({rb.steps} certified steps)  "
+        f"{t_rb:.4f} s"
+    )
 
     n = 10 if args.quick else 50
     Ks = np.linspace(-0.14, 0.14, n)
@@ -118,14 +123,20 @@ def main() -> None:
     )
     stable = int(np.sum(chart.values == 0))
     print(f"\n{n} x {n} stability chart (unstable-root counts), K in [-0.14, 0.14], delta in [0, 0.5]")
-    print(f"  nrobust stability_chart       {t_chart:.3f} s  ({stable} stable grid points, "
-          f"margins {np.nanmin(chart.margins):.4f} .. {np.nanmax(chart.margins):.4f})")
-    print(f"  certified count per point     {per_point:.3f} s x {n * n} = {per_point * n * n:.1f} s (extrapolated)  "
-          f"ratio {per_point * n * n / t_chart:.1f}x  counts agree at {len(probe)} probes: {agree}")
+    print(
+        f"  nrobust stability_chart       {t_chart:.3f} s  ({stable} stable grid points, "
+        f"margins {np.nanmin(chart.margins):.4f} .. {np.nanmax(chart.margins):.4f})"
+    )
+    print(
+        f"  certified count per point     {per_point:.3f} s x {n * n} = {per_point * n * n:.1f} s (extrapolated)  "
+        f"ratio {per_point * n * n / t_chart:.1f}x  counts agree at {len(probe)} probes: {agree}"
+    )
     t_par, chart_par = timed(lambda: stability_chart(system, Ks, deltas, executor=None))
     same = np.array_equal(chart_par.values, chart.values, equal_nan=True)
-    print(f"  stability_chart, all cores    {t_par:.3f} s  (sweep executor: local processes)  "
-          f"speed-up {t_chart / t_par:.2f}x  identical: {same}")
+    print(
+        f"  stability_chart, all cores    {t_par:.3f} s  (sweep executor: local processes)  "
+        f"speed-up {t_chart / t_par:.2f}x  identical: {same}"
+    )
 
 
 if __name__ == "__main__":

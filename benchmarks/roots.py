@@ -24,7 +24,7 @@ import argparse
 import logging
 import time
 import warnings
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -118,7 +118,10 @@ def main() -> None:
     print("-" * len(header))
     for H in (50.0, 200.0, 1000.0):
         exact = exact_roots(H)
-        runs: list[tuple[str, Callable[[float], np.ndarray], int]] = [("nrobust", run_nrobust, 5), ("qpmr", run_qpmr, 3)]
+        runs: list[tuple[str, Callable[[float], np.ndarray], int]] = [
+            ("nrobust", run_nrobust, 5),
+            ("qpmr", run_qpmr, 3),
+        ]
         if H == 50.0 or (H == 200.0 and not args.quick):
             runs.append(("cxroots", run_cxroots, 1))
         base = None
@@ -127,7 +130,8 @@ def main() -> None:
             base = seconds if base is None else base
             ratio = "" if name == "nrobust" else f"{seconds / base:13.1f}"
             print(
-                f"{H:6.0f} {name:>8} {roots.size:6d} {matched(roots, exact):8d} {exact.size:6d} {max_error(roots, exact):10.2e} "
+                f"{H:6.0f} {name:>8} {roots.size:6d} {matched(roots, exact):8d} {exact.size:6d} "
+                f"{max_error(roots, exact):10.2e} "
                 f"{seconds:9.4f} {ratio:>13}"
             )
 

@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 import nrobust
+from nrobust.parallel import _cpu_count
 from nrobust.roots import count_roots
-from nrobust.sweep import _cpu_count
 
 
 def analyse(a: float, delta: float, b: float = 1.0) -> dict:
@@ -50,7 +50,7 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=400, help="number of grid points (default 400)")
     parser.add_argument("--repeat", type=int, default=3, help="best of this many runs (default 3)")
     args = parser.parse_args()
-    n_a = max(2, int(round(math.sqrt(args.points / 2))))
+    n_a = max(2, round(math.sqrt(args.points / 2)))
     points = nrobust.grid(a=np.linspace(-0.8, 0.8, n_a), delta=np.linspace(0.05, 3.0, max(1, args.points // n_a)))
     cores = _cpu_count()
 
@@ -66,20 +66,27 @@ def main() -> None:
     except ImportError:
         distributed = None
     if distributed is not None:
-        with distributed.LocalCluster(n_workers=cores, threads_per_worker=1, processes=True,
-                                      dashboard_address=":0", silence_logs=50) as cluster, \
-                distributed.Client(cluster) as client:
+        with (
+            distributed.LocalCluster(
+                n_workers=cores, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=50
+            ) as cluster,
+            distributed.Client(cluster) as client,
+        ):
             rate_dask, on_dask = _timed(points, client, args.repeat)
         rows.append((f"Dask LocalCluster, {cores} workers", rate_dask, on_dask))
 
-    print(f"nrobust.sweep on {len(points)} points, {cores} cores; per point: closed-form margin "
-          f"+ certified right half-plane root count ({1e3 / rate_serial:.2f} ms serially)")
+    print(
+        f"nrobust.sweep on {len(points)} points, {cores} cores; per point: closed-form margin "
+        f"+ certified right half-plane root count ({1e3 / rate_serial:.2f} ms serially)"
+    )
     print(f"  margin and root count agree on {int(consistent.sum())}/{len(points)} points")
     print(f"  {'executor':<34}{'points/s':>10}{'vs serial':>11}  identical")
     for name, rate, res in rows:
         print(f"  {name:<34}{rate:>10.1f}{rate / rate_serial:>10.2f}x  {res == reference}")
-    print(f"  speed-up all cores vs 1 worker: {rate_all / rate_one:.2f}x; "
-          f"parallel efficiency {rate_all / (cores * rate_one):.0%}")
+    print(
+        f"  speed-up all cores vs 1 worker: {rate_all / rate_one:.2f}x; "
+        f"parallel efficiency {rate_all / (cores * rate_one):.0%}"
+    )
 
 
 if __name__ == "__main__":

@@ -21,14 +21,14 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-import nrobust  # noqa: E402
-from nrobust import plots  # noqa: E402
-from nrobust.hyperbolic import TransportSystem  # noqa: E402
-from nrobust.margins import ab_region  # noqa: E402
-from nrobust.report import write_report  # noqa: E402
+import nrobust
+from nrobust import plots
+from nrobust.hyperbolic import TransportSystem
+from nrobust.hyperbolic.studies import ab_region
+from nrobust.report import write_report
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)
@@ -38,8 +38,10 @@ system = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
 controller = nrobust.FilteredController(a=0.1, b=1.0)
 cert = nrobust.certify(system, controller, delta_max=0.2)
 print(cert.verdict)
-print(f"difference operator at delta = 0.2: gamma_0 = {cert.principal_delayed.gamma_0:.4g} "
-      f"(= |rho q| (1 + a/b) = {0.85 * 1.1:.4g})")
+print(
+    f"difference operator at delta = 0.2: gamma_0 = {cert.principal_delayed.gamma_0:.4g} "
+    f"(= |rho q| (1 + a/b) = {0.85 * 1.1:.4g})"
+)
 files = write_report(cert, out / "filtered_report")
 print(f"report: {files.html}")
 
@@ -48,8 +50,10 @@ a = np.linspace(-0.6, 0.6, 13)
 b = np.linspace(0.2, 2.0, 10)
 region = ab_region(system, 0.2, a, b)
 agree = np.mean(region.admissible[region.paper_conditions])
-print(f"{int(region.admissible.sum())} of {region.admissible.size} grid filters tolerate every delay in [0, 0.2]; "
-      f"{100 * agree:.0f}% of those meeting eq. (cond_a_b) do")
+print(
+    f"{int(region.admissible.sum())} of {region.admissible.size} grid filters tolerate every delay in [0, 0.2]; "
+    f"{100 * agree:.0f}% of those meeting eq. (cond_a_b) do"
+)
 fig, ax = plt.subplots(figsize=(6, 4.5))
 AA, BB = np.meshgrid(a, b, indexing="ij")
 ax.plot(AA[region.admissible], BB[region.admissible], "s", color="tab:green", ms=5, label="margin > 0.2 (exact)")

@@ -26,12 +26,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-import nrobust  # noqa: E402
-from nrobust import QuasiPolynomial, QuasiTransferFunction, plots  # noqa: E402
-from nrobust.margins import Tradeoff  # noqa: E402
+import nrobust
+from nrobust import QuasiPolynomial, QuasiTransferFunction, plots
+from nrobust.hyperbolic.studies import Tradeoff
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)

@@ -29,8 +29,10 @@ def analyse(system: TransportSystem, controller: nrobust.hyperbolic.controllers.
     D = F.principal_part()
     print(f"\n{type(controller).__name__} {controller.to_dict()}, delta = {delta}")
     print(f"  characteristic function: {F}")
-    print(f"  difference operator: gamma_0 = {D.gamma_0:.4f}, strongly stable: {D.is_strongly_stable()}, "
-          f"strong spectral bound C_D = {D.strong_spectral_bound():.6f}")
+    print(
+        f"  difference operator: gamma_0 = {D.gamma_0:.4f}, strongly stable: {D.is_strongly_stable()}, "
+        f"strong spectral bound C_D = {D.strong_spectral_bound():.6f}"
+    )
     roots = nrobust.find_roots(F, REGION)
     print(f"  certified count in {REGION}: {roots.count} (certified: {roots.certified})")
     rightmost = max(roots.roots, key=lambda z: z.real)

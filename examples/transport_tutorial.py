@@ -23,13 +23,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import control  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import control
+import matplotlib.pyplot as plt
+import numpy as np
 
-import nrobust  # noqa: E402
-from nrobust import plots  # noqa: E402
-from nrobust.hyperbolic import TransportSystem  # noqa: E402
+import nrobust
+from nrobust import plots
+from nrobust.hyperbolic import TransportSystem
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)
@@ -42,8 +42,10 @@ H0 = nrobust.open_loop_tf(system)
 poles = H0.poles((-1.0, 1.0, -20.0, 20.0))
 k = np.arange(-3, 4)
 closed_form = (np.log(system.rho_q) + 2j * np.pi * k) / system.tau
-print(f"H_0: {poles.count} certified poles in the box; nearest to the closed form differ by "
-      f"{max(np.min(np.abs(poles.roots - z)) for z in closed_form):.1e}")
+print(
+    f"H_0: {poles.count} certified poles in the box; nearest to the closed form differ by "
+    f"{max(np.min(np.abs(poles.roots - z)) for z in closed_form):.1e}"
+)
 
 # 2. and 3. the two control laws with a loop delay --------------------------------------
 delta = 0.05
@@ -52,8 +54,10 @@ for ax, controller in zip(axes, (nrobust.FiniteTimeController(), nrobust.Reflect
     margin = nrobust.delay_margin(system, controller)
     F = nrobust.characteristic(system, controller, delta)
     D = F.principal_part()
-    print(f"{type(controller).__name__}: delay margin {margin.margin:.4g} ({margin.reason}); "
-          f"gamma_0 = {D.gamma_0:.3g}, rightmost chain Re s = {D.spectral_bound().upper:.4g}")
+    print(
+        f"{type(controller).__name__}: delay margin {margin.margin:.4g} ({margin.reason}); "
+        f"gamma_0 = {D.gamma_0:.3g}, rightmost chain Re s = {D.spectral_bound().upper:.4g}"
+    )
     plots.root_map_plot(F, (-1.5, 0.8, -70.0, 70.0), ax=ax)
     ax.set_title(f"{type(controller).__name__}, delta = {delta:g}", fontsize="small")
 fig.savefig(out / "transport_root_maps.png", dpi=110)
@@ -63,8 +67,10 @@ for ax, controller in zip(axes, (nrobust.FiniteTimeController(), nrobust.Reflect
     A, B = nrobust.loop_factors(system, controller)
     resp = plots.nyquist_response(A, B, delta, omega_max=60.0)
     resp.plot(ax=ax)
-    print(f"Nyquist, {type(controller).__name__}: closed-loop zeros in Re s > 0: "
-          f"{resp.rhp_zeros if resp.rhp_zeros is not None else 'no finite count: ' + resp.note}")
+    print(
+        f"Nyquist, {type(controller).__name__}: closed-loop zeros in Re s > 0: "
+        f"{resp.rhp_zeros if resp.rhp_zeros is not None else 'no finite count: ' + resp.note}"
+    )
 fig.savefig(out / "transport_nyquist.png", dpi=110)
 
 # root locus in delta: the finite-time loop's roots move right as delta grows; for every
@@ -73,7 +79,9 @@ fig.savefig(out / "transport_nyquist.png", dpi=110)
 fig, ax = plt.subplots(figsize=(6, 4.5))
 locus = plots.root_locus_response(
     lambda d: nrobust.characteristic(system, nrobust.FiniteTimeController(), d),
-    [0.02, 0.05, 0.1, 0.2], (-1.5, 0.8, -40.0, 40.0), name="delta",
+    [0.02, 0.05, 0.1, 0.2],
+    (-1.5, 0.8, -40.0, 40.0),
+    name="delta",
 )
 locus.plot(ax=ax)
 for d, r in zip(locus.params, locus.roots):
@@ -89,6 +97,8 @@ print(f"gains stable for every delay in [0, 1]: {region.intervals}, paper bound 
 w = np.linspace(0.0, 1.0, 50)
 model, err = nrobust.pade_approximation(H0, 6, w)
 frd = nrobust.to_frd(H0, np.linspace(0.01, 10.0, 400))
-print(f"Pade model of order {len(model.den[0][0]) - 1}, max error {err.max():.1e} on [0, 1] rad/s; "
-      f"FRD |H_0(i)| = {abs(control.evalfr(frd, 1j * frd.omega[39])):.4g}")
+print(
+    f"Pade model of order {len(model.den[0][0]) - 1}, max error {err.max():.1e} on [0, 1] rad/s; "
+    f"FRD |H_0(i)| = {abs(control.evalfr(frd, 1j * frd.omega[39])):.4g}"
+)
 print(f"figures in {out}/")

@@ -22,14 +22,14 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-import nrobust  # noqa: E402
-from nrobust import plots  # noqa: E402
-from nrobust.hyperbolic import Hyperbolic2x2, boundary_function  # noqa: E402
-from nrobust.margins import stability_chart  # noqa: E402
-from nrobust.report import write_report  # noqa: E402
+import nrobust
+from nrobust import plots
+from nrobust.hyperbolic import Hyperbolic2x2, boundary_function
+from nrobust.hyperbolic.studies import stability_chart
+from nrobust.report import write_report
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)
@@ -50,8 +50,10 @@ print(system, nrobust.classify(system).statement, sep="\n")
 H1 = nrobust.open_loop_tf(system)
 poles = H1.poles((-2.0, 2.0, -30.0, 30.0))
 scaled = boundary_function(system, poles.roots, scaled=True)
-print(f"{poles.count} certified open-loop poles (rightmost Re s = {poles.roots.real.max():.5f}); "
-      f"kernel-free boundary function there: max |.| = {np.abs(scaled).max():.1e}")
+print(
+    f"{poles.count} certified open-loop poles (rightmost Re s = {poles.roots.real.max():.5f}); "
+    f"kernel-free boundary function there: max |.| = {np.abs(scaled).max():.1e}"
+)
 
 # 2. certificate and report -------------------------------------------------------------
 cert = nrobust.certify(system, nrobust.ReflectionController(0.1), delta_max=0.2, k_grid=5)

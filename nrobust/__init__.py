@@ -8,11 +8,11 @@ quasi-polynomial decides stability with and without a delay in the loop.
 The data flow and the contract of each module are in ``docs/architecture.md``.
 """
 
-from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
-from importlib.metadata import version as _version
-
 from . import plots
+from ._version import __version__ as __version__
+from .bounds import RootFreeRegion, RoucheDelayBound, l1_modulus, root_free_region
 from .certificate import Certificate, certify
+from .crossings import Crossing, crossing_frequencies
 from .difference import DifferenceOperator
 from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError, SweepError
 from .hyperbolic import (
@@ -35,59 +35,95 @@ from .hyperbolic.controllers import (
     classify,
     loop_factors,
 )
+from .hyperbolic.loops import closed_loop_tf, open_loop_tf, output_map
+from .hyperbolic.robustness import rouche_delay_bound
 from .hyperbolic.simulate import Simulation, simulate
-from .margins import (
+from .hyperbolic.studies import (
     ABRegion,
-    Crossing,
-    DelayMargin,
     KRegion,
     StabilityChart,
     Tradeoff,
     ab_region,
-    crossing_frequencies,
     delay_margin,
     k_region,
     stability_chart,
     tradeoff,
 )
+from .margins import DelayMargin
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .roots import RootSet, count_roots, find_roots, spectral_abscissa
-from .rouche import RootFreeRegion, RoucheDelayBound, l1_modulus, root_free_region, rouche_delay_bound
-from .sweep import SweepMap, SweepResult, grid, robustness, sweep, sweep_map
-from .transfer import (
-    QuasiTransferFunction,
-    closed_loop_tf,
-    open_loop_tf,
-    output_map,
-    pade_approximation,
-    to_frd,
-)
 
-try:
-    __version__ = _version("nrobust")
-except _PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0"
+# through the nrobust.sweep namespace module, so that the attribute nrobust.sweep is the function
+from .sweep import SweepMap, SweepResult, grid, robustness, sweep, sweep_map
+from .transfer import QuasiTransferFunction, pade_approximation, to_frd
 
 __all__ = [
     # quasi-polynomials, difference operators, roots
-    "QuasiPolynomial", "DistributedDelay", "DifferenceOperator",
-    "count_roots", "find_roots", "spectral_abscissa", "RootSet",
+    "QuasiPolynomial",
+    "DistributedDelay",
+    "DifferenceOperator",
+    "count_roots",
+    "find_roots",
+    "spectral_abscissa",
+    "RootSet",
     # hyperbolic systems, kernels, delay form, controllers, simulation
-    "Hyperbolic2x2", "TransportSystem", "solve_kernels", "Kernels", "boundary_function",
-    "delay_form", "DelayForm",
-    "OpenLoop", "FiniteTimeController", "ReflectionController", "FilteredController",
-    "FeedbackLaw", "characteristic", "loop_factors", "classify", "Classification",
-    "simulate", "Simulation",
+    "Hyperbolic2x2",
+    "TransportSystem",
+    "solve_kernels",
+    "Kernels",
+    "boundary_function",
+    "delay_form",
+    "DelayForm",
+    "OpenLoop",
+    "FiniteTimeController",
+    "ReflectionController",
+    "FilteredController",
+    "FeedbackLaw",
+    "characteristic",
+    "loop_factors",
+    "classify",
+    "Classification",
+    "simulate",
+    "Simulation",
     # margins, certificates, charts
-    "delay_margin", "DelayMargin", "crossing_frequencies", "Crossing",
-    "rouche_delay_bound", "RoucheDelayBound", "root_free_region", "RootFreeRegion", "l1_modulus",
-    "k_region", "KRegion", "ab_region", "ABRegion", "stability_chart", "StabilityChart",
-    "tradeoff", "Tradeoff",
+    "delay_margin",
+    "DelayMargin",
+    "crossing_frequencies",
+    "Crossing",
+    "rouche_delay_bound",
+    "RoucheDelayBound",
+    "root_free_region",
+    "RootFreeRegion",
+    "l1_modulus",
+    "k_region",
+    "KRegion",
+    "ab_region",
+    "ABRegion",
+    "stability_chart",
+    "StabilityChart",
+    "tradeoff",
+    "Tradeoff",
     # transfer functions, reports, sweeps, plots
-    "QuasiTransferFunction", "open_loop_tf", "closed_loop_tf", "output_map", "to_frd",
-    "pade_approximation", "certify", "Certificate", "sweep", "grid", "robustness",
-    "SweepResult", "SweepMap", "sweep_map", "plots",
+    "QuasiTransferFunction",
+    "open_loop_tf",
+    "closed_loop_tf",
+    "output_map",
+    "to_frd",
+    "pade_approximation",
+    "certify",
+    "Certificate",
+    "sweep",
+    "grid",
+    "robustness",
+    "SweepResult",
+    "SweepMap",
+    "sweep_map",
+    "plots",
     # errors
-    "NrobustError", "ParameterError", "RegionError", "ConvergenceError", "CertificationError",
+    "NrobustError",
+    "ParameterError",
+    "RegionError",
+    "ConvergenceError",
+    "CertificationError",
     "SweepError",
 ]

@@ -20,10 +20,29 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import scipy
 
 from ._json import json_float, json_safe
-from ._validate import positive, positive_int, region as check_region
+from ._validate import positive, positive_int
+from ._validate import region as check_region
+from ._version import __version__
+from .bounds import RoucheDelayBound
 from .errors import ParameterError
+from .hyperbolic import studies
+from .hyperbolic.controllers import (
+    Classification,
+    Controller,
+    FiniteTimeController,
+    ReflectionController,
+    characteristic,
+    classify,
+)
+from .hyperbolic.robustness import rouche_delay_bound
+from .hyperbolic.studies import KRegion, delay_margin
+from .hyperbolic.system import Hyperbolic2x2
+from .margins import DelayMargin
+from .quasipoly import QuasiPolynomial
+from .roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
 
 __all__ = ["Certificate", "PrincipalPart", "certify"]
 
@@ -79,7 +98,7 @@ class PrincipalPart:
         }
 
 
-def _principal(F: Any, delta: float) -> PrincipalPart:
+def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
     D = F.principal_part()
     chains = D.chains()
     bound = chains.bracket[1]  # c_D when commensurate, else the certified upper end
@@ -96,10 +115,6 @@ def _principal(F: Any, delta: float) -> PrincipalPart:
 
 
 def _versions() -> dict[str, str]:
-    import scipy
-
-    from . import __version__
-
     return {
         "nrobust": __version__,
         "numpy": np.__version__,
@@ -143,18 +158,18 @@ class Certificate:
         nrobust, numpy, scipy and python versions.
     """
 
-    system: Any
-    controller: Any
+    system: Hyperbolic2x2 | None
+    controller: Controller
     delta_max: float
-    classification: Any
+    classification: Classification
     principal_nominal: PrincipalPart
     principal_delayed: PrincipalPart
-    roots_nominal: Any
-    roots_delayed: Any
-    abscissa: Any
-    margin: Any
-    rouche: Any
-    k_region: Any
+    roots_nominal: RootSet
+    roots_delayed: RootSet
+    abscissa: SpectralAbscissa
+    margin: DelayMargin
+    rouche: RoucheDelayBound | None
+    k_region: KRegion | None
     region: tuple[float, float, float, float]
     versions: dict[str, str]
 
@@ -232,8 +247,8 @@ class Certificate:
 
 
 def certify(
-    system: Any,
-    controller: Any,
+    system: Hyperbolic2x2,
+    controller: Controller,
     delta_max: float = 0.1,
     region: tuple[float, float, float, float] | None = None,
     k_region: bool = True,
@@ -266,11 +281,6 @@ def certify(
     -------
     Certificate
     """
-    from .hyperbolic.controllers import FiniteTimeController, ReflectionController, characteristic, classify
-    from .margins import delay_margin
-    from .roots import find_roots, spectral_abscissa
-    from .rouche import rouche_delay_bound
-
     delta_max = positive("delta_max", delta_max)
     if not np.isfinite(delta_max):
         raise ParameterError("delta_max", "finite", delta_max)
@@ -295,11 +305,9 @@ def certify(
     )
     kreg = None
     if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
-        from .margins import k_region as compute_k_region
-
         k_grid = positive_int("k_grid", k_grid, 3)
         step = 2.0 * classification.k_bound / (k_grid + 1)
-        kreg = compute_k_region(system, delta_max, n=k_grid, tol=step)
+        kreg = studies.k_region(system, delta_max, n=k_grid, tol=step)
     return Certificate(
         system=system,
         controller=controller,

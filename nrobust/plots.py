@@ -26,21 +26,24 @@ the band only. Certified counts are those of :func:`nrobust.roots.count_roots` a
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validate import nonnegative, positive, positive_int, region as check_region
+from ._validate import nonnegative, positive, positive_int
+from ._validate import region as check_region
+from .difference import DifferenceOperator
 from .errors import ParameterError
+from .parallel import SweepResult
 from .quasipoly import QuasiPolynomial
+from .roots import RootSet, find_roots
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
-
-    from .roots import RootSet
 
 __all__ = [
     "NrobustPlot",
@@ -54,6 +57,8 @@ __all__ = [
     "simulation_plot",
     "stability_chart_plot",
     "tradeoff_plot",
+    "sweep_chart",
+    "simulation_figure",
 ]
 
 
@@ -72,11 +77,11 @@ class NrobustPlot:
     """
 
     lines: dict[str, list[Any]]
-    axes: "Axes"
-    figure: "Figure"
+    axes: Axes
+    figure: Figure
 
 
-def _get_ax(ax: "Axes | None") -> "Axes":
+def _get_ax(ax: Axes | None) -> Axes:
     if ax is not None:
         return ax
     import matplotlib.pyplot as plt
@@ -133,7 +138,7 @@ class NyquistResponse:
     tail: float
     note: str
 
-    def plot(self, ax: "Axes | None" = None, unit_circle: bool = True) -> NrobustPlot:
+    def plot(self, ax: Axes | None = None, unit_circle: bool = True) -> NrobustPlot:
         """Draw the loop, its mirror image, ``-1``, the unit circle and the crossings."""
         ax = _get_ax(ax)
         lines: dict[str, list[Any]] = {}
@@ -251,8 +256,6 @@ def nyquist_response(
         bound = float("inf")
         note = "the principal part of F vanishes: advanced type, no finite count"
     else:
-        from .difference import DifferenceOperator
-
         D = DifferenceOperator([a for a, _ in lead], [t for _, t in lead])
         if principal_bound is not None:
             bound = float(principal_bound)
@@ -280,11 +283,13 @@ def nyquist_response(
             elif abs(count - round(count)) > 0.1:
                 note = f"winding {count:.3f} is not close to an integer"
             else:
-                rhp = int(round(count))
+                rhp = round(count)
     return NyquistResponse(w, loop, delta, crossings, L(1j * crossings), bound, rhp, tail, note)
 
 
-def _refine_curve(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], levels: int = 8) -> tuple[NDArray, NDArray]:
+def _refine_curve(
+    fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], levels: int = 8
+) -> tuple[NDArray, NDArray]:
     """Sample ``fun(i w)`` so that consecutive points are closer than 2 % of the curve's
     median modulus (or 0.02), halving the steps that are not, up to ``levels`` times."""
     vals = fun(1j * w)
@@ -325,7 +330,7 @@ def nyquist_plot(
     B: QuasiPolynomial,
     delta: float = 0.0,
     omega_max: float = 200.0,
-    ax: "Axes | None" = None,
+    ax: Axes | None = None,
 ) -> NrobustPlot:
     """Compute :func:`nyquist_response` and plot it (see :meth:`NyquistResponse.plot`)."""
     return nyquist_response(A, B, delta, omega_max).plot(ax=ax)
@@ -335,8 +340,8 @@ def nyquist_plot(
 def root_map_plot(
     F: QuasiPolynomial,
     region: tuple[float, float, float, float],
-    roots: "RootSet | ArrayLike | None" = None,
-    ax: "Axes | None" = None,
+    roots: RootSet | ArrayLike | None = None,
+    ax: Axes | None = None,
     chains: bool | Sequence[float] = True,
     max_chains: int = 12,
 ) -> NrobustPlot:
@@ -369,8 +374,6 @@ def root_map_plot(
     F = _as_quasi("F", F)
     box = check_region(region)
     if roots is None:
-        from .roots import find_roots
-
         roots = find_roots(F, box)
     values = np.asarray(getattr(roots, "roots", roots), dtype=complex).ravel()
     ax = _get_ax(ax)
@@ -416,11 +419,13 @@ class RootLocusData:
     roots: tuple[NDArray[np.complex128], ...]
     region: tuple[float, float, float, float]
 
-    def plot(self, ax: "Axes | None" = None, cmap: str = "viridis") -> NrobustPlot:
+    def plot(self, ax: Axes | None = None, cmap: str = "viridis") -> NrobustPlot:
         """Scatter the roots coloured by the parameter; ``lines["roots"]`` is the collection."""
         ax = _get_ax(ax)
         pts = np.concatenate(self.roots) if self.roots else np.zeros(0, complex)
-        col = np.concatenate([np.full(r.size, p) for p, r in zip(self.params, self.roots)]) if self.roots else np.zeros(0)
+        col = (
+            np.concatenate([np.full(r.size, p) for p, r in zip(self.params, self.roots)]) if self.roots else np.zeros(0)
+        )
         lines: dict[str, list[Any]] = {}
         lines["axis"] = [ax.axvline(0.0, color="k", lw=0.8)]
         sc = ax.scatter(pts.real, pts.imag, c=col, cmap=cmap, s=10, vmin=self.params.min(), vmax=self.params.max())
@@ -456,7 +461,6 @@ def root_locus_response(
     ``lambda K: characteristic(system, ReflectionController(K), delta)`` for a locus in
     ``K`` or ``lambda d: characteristic(system, controller, d)`` for a locus in ``delta``.
     """
-    from .roots import find_roots
 
     box = check_region(region)
     p = np.atleast_1d(np.asarray(params, dtype=float))
@@ -467,7 +471,9 @@ def root_locus_response(
         from tqdm import tqdm
 
         it = tqdm(p, desc=f"root locus in {name}", leave=False)
-    roots = tuple(np.asarray(find_roots(_as_quasi("family(p)", family(float(x))), box).roots, dtype=complex) for x in it)
+    roots = tuple(
+        np.asarray(find_roots(_as_quasi("family(p)", family(float(x))), box).roots, dtype=complex) for x in it
+    )
     return RootLocusData(name, p, roots, box)
 
 
@@ -476,7 +482,7 @@ def root_locus_plot(
     params: ArrayLike,
     region: tuple[float, float, float, float],
     name: str = "p",
-    ax: "Axes | None" = None,
+    ax: Axes | None = None,
 ) -> NrobustPlot:
     """Compute :func:`root_locus_response` and plot it."""
     return root_locus_response(family, params, region, name).plot(ax=ax)
@@ -486,7 +492,7 @@ def root_locus_plot(
 def simulation_plot(
     results: Sequence[Any],
     labels: Sequence[str] | None = None,
-    ax: "Axes | None" = None,
+    ax: Axes | None = None,
 ) -> NrobustPlot:
     """``L^2`` norm of simulated states against time, log scale (paper, figures 1 and 3).
 
@@ -519,7 +525,7 @@ def simulation_plot(
 # ---------------------------------------------------------------------- charts
 def stability_chart_plot(
     chart: Any,
-    ax: "Axes | None" = None,
+    ax: Axes | None = None,
     k_bound: float | None = None,
     rouche: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> NrobustPlot:
@@ -567,7 +573,9 @@ def stability_chart_plot(
         kb = float(k_bound)
         for k, x in enumerate((-kb, kb)):
             lines["paper_bound"].append(
-                ax.axvline(x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (boun_K2)" if k == 0 else None)
+                ax.axvline(
+                    x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (boun_K2)" if k == 0 else None
+                )
             )
     lines["rouche"] = []
     if rouche is not None:
@@ -583,7 +591,7 @@ def stability_chart_plot(
     return NrobustPlot(lines, ax, ax.figure)
 
 
-def tradeoff_plot(tradeoff: Any, ax: "Axes | None" = None, annotate: bool = True) -> NrobustPlot:
+def tradeoff_plot(tradeoff: Any, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
     """Decay rate against delay margin as the gain ``K`` varies (the paper's trade-off).
 
     Parameters
@@ -616,3 +624,118 @@ def tradeoff_plot(tradeoff: Any, ax: "Axes | None" = None, annotate: bool = True
     if hidden:
         ax.text(0.02, 0.02, f"{hidden} gain(s) with infinite margin not shown", transform=ax.transAxes, fontsize=7)
     return NrobustPlot(lines, ax, ax.figure)
+
+
+def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, str], sampling: bool) -> Figure:
+    """The chart of a sweep: a curve for one swept name, a map for two, histograms for samples.
+
+    Parameters
+    ----------
+    result : SweepResult
+        The table.
+    swept : sequence of str
+        The names varied by the sweep.
+    plot : mapping
+        Optional ``x`` (a swept parameter) and ``y`` (a numeric result column).
+    sampling : bool
+        True for a Monte Carlo study: histograms of the result columns.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        A figure on an Agg canvas (no display needed).
+    """
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    table = result.table()
+    numeric = [c for c in result.result_columns if table.dtype[c].kind == "f"]
+    y = plot.get("y", numeric[0] if numeric else None)
+    if y is not None and y not in numeric:
+        raise ParameterError("plot.y", f"a numeric result column: one of {numeric}", y)
+    varying = [k for k in swept if len({repr(p.get(k)) for p in result.points}) > 1]
+    x = plot.get("x", varying[0] if varying else (swept[0] if swept else None))
+    if x is not None and x not in result.parameter_columns:
+        raise ParameterError("plot.x", f"a swept parameter: one of {list(result.parameter_columns)}", x)
+
+    ok = table["status"] == "ok"
+    title = f"{result.n_ok} ok, {result.n_failed} failed"
+    if sampling and y is not None:
+        shown = [y, *[c for c in numeric if c != y]][:3]
+        fig = Figure(figsize=(4.0 * len(shown), 3.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        for i, col in enumerate(shown):
+            ax = fig.add_subplot(1, len(shown), i + 1)
+            vals = table[col][ok]
+            finite = vals[np.isfinite(vals)]
+            n_inf = int(np.sum(np.isposinf(vals)))
+            if finite.size:
+                ax.hist(finite, bins=max(5, min(50, 2 * int(np.sqrt(finite.size)))), color="C0")
+            else:
+                ax.text(0.5, 0.5, f"no finite {col}", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xlabel(col)
+            ax.set_ylabel("samples")
+            ax.set_title(f"{n_inf} infinite" if n_inf else "", fontsize="small")
+        fig.suptitle(title, fontsize="medium")
+        return fig
+    fig = Figure(figsize=(6.4, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    if y is None:
+        ax.text(0.5, 0.5, "no numeric result", ha="center", va="center", transform=ax.transAxes)
+    elif x is not None and table.dtype[x].kind in "fiu" and len(varying) == 2 and table.dtype[varying[1]].kind in "fiu":
+        x2 = varying[1] if x == varying[0] else varying[0]
+        xs, ys = np.unique(table[x]), np.unique(table[x2])
+        grid_vals = np.full((ys.size, xs.size), np.nan)
+        for row in table[ok]:
+            grid_vals[np.searchsorted(ys, row[x2]), np.searchsorted(xs, row[x])] = row[y]
+        finite = grid_vals[np.isfinite(grid_vals)]
+        top = finite.max() if finite.size else 1.0
+        cmap = matplotlib.colormaps["viridis"].with_extremes(over="gold", bad="lightgray")
+        shown = np.where(np.isposinf(grid_vals), top + 1.0, grid_vals)
+        mesh = ax.pcolormesh(
+            xs,
+            ys,
+            np.ma.masked_invalid(shown),
+            shading="nearest",
+            cmap=cmap,
+            vmin=finite.min() if finite.size else 0.0,
+            vmax=top,
+        )
+        fig.colorbar(mesh, ax=ax, label=y, extend="max" if np.isposinf(grid_vals).any() else "neither")
+        ax.set_xlabel(x)
+        ax.set_ylabel(x2)
+        title += " (gold: inf, gray: failed)"
+    elif x is not None and table.dtype[x].kind in "fiu":
+        xv, yv = table[x][ok].astype(float), table[y][ok]
+        fin = np.isfinite(yv)
+        order = np.argsort(xv[fin], kind="stable")
+        ax.plot(xv[fin][order], yv[fin][order], "o-", ms=3, label=y)
+        edge = ax.get_xaxis_transform()  # x in data, y in axes units: markers on the frame
+        if (~fin).any():
+            ax.plot(xv[~fin], np.full((~fin).sum(), 0.97), "^", color="C1", transform=edge, label=f"{y} = inf")
+        if (~ok).any():
+            ax.plot(
+                table[x][~ok].astype(float), np.full((~ok).sum(), 0.03), "x", color="C3", transform=edge, label="failed"
+            )
+        ax.set_xlabel(x)
+        ax.set_ylabel(y)
+        ax.legend(loc="best", fontsize="small")
+    else:
+        yv = table[y]
+        ax.plot(np.arange(len(yv))[ok], yv[ok], "o", ms=3)
+        ax.set_xlabel("point index")
+        ax.set_ylabel(y)
+    ax.set_title(title, fontsize="medium")
+    return fig
+
+
+def simulation_figure(runs: Sequence[Any], labels: Sequence[str], title: str) -> Figure:
+    """A figure of :func:`simulation_plot` with a title (used by the reports)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    simulation_plot(runs, labels=labels, ax=ax)
+    ax.set_title(title, fontsize="small")
+    return fig

@@ -13,9 +13,11 @@ the integral of the interpolant against ``e^{-nu s}`` is computed in closed form
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from math import comb, factorial
-from typing import TYPE_CHECKING, Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -24,10 +26,8 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import czt
 
 from ._validate import nonnegative
+from .difference import DifferenceOperator
 from .errors import ParameterError
-
-if TYPE_CHECKING:
-    from .difference import DifferenceOperator
 
 __all__ = ["DistributedDelay", "QuasiPolynomial"]
 
@@ -50,7 +50,7 @@ _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
     """Return ``phi_k(z) = int_0^1 t^k e^{-z t} dt`` for ``k = 0..kmax``, stacked on axis 0."""
     z = np.asarray(z, dtype=complex)
-    out = np.empty((kmax + 1,) + z.shape, dtype=complex)
+    out = np.empty((kmax + 1, *z.shape), dtype=complex)
     small = np.abs(z) < _SERIES_RADIUS
     if np.any(small):
         zs = z[small]
@@ -61,7 +61,7 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
             terms += 1
         ks = np.arange(kmax + 1)[:, None]
         term = np.ones_like(zs)  # (-z)^m / m!
-        acc = np.zeros((kmax + 1,) + zs.shape, dtype=complex)
+        acc = np.zeros((kmax + 1, *zs.shape), dtype=complex)
         for m in range(terms):
             acc += term / (m + ks + 1)
             term = term * (-zs) / (m + 1)
@@ -194,7 +194,7 @@ def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray,
     """Not-a-knot cubic splines on the pieces between jumps, as polynomials in ``t``."""
     breaks = np.r_[0, np.flatnonzero(np.diff(nodes) == 0) + 1, nodes.size]
     starts, hs, polys = [], [], []
-    for lo, hi in zip(breaks[:-1], breaks[1:]):
+    for lo, hi in itertools.pairwise(breaks):
         x, y = nodes[lo:hi], values[lo:hi]
         h = np.diff(x)
         if x.size < 2:  # a lone node between two jumps carries no segment
@@ -298,7 +298,7 @@ class DistributedDelay:
         object.__setattr__(self, "interpolation", interpolation)
         object.__setattr__(self, "_pieces", _INTERPOLATIONS[interpolation](x, self.values))
 
-    def replace(self, **changes: Any) -> "DistributedDelay":
+    def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
         args = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
         args.update(changes)
@@ -315,7 +315,9 @@ class DistributedDelay:
         """Upper end of the support."""
         return float(self.nodes[-1])
 
-    def _local_coefficients(self, extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None) -> tuple[NDArray, NDArray, NDArray]:
+    def _local_coefficients(
+        self, extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None
+    ) -> tuple[NDArray, NDArray, NDArray]:
         """Coefficients ``c[i, l]`` of ``h_i nu^(m+extra) N(nu)`` in powers of ``t`` on each segment.
 
         ``pieces = (start, h, P)`` with ``P[i, j]`` the coefficient of ``t^j`` of ``N`` on
@@ -430,7 +432,7 @@ class DistributedDelay:
         return float(np.sum(h * (np.abs(p2 + p3) / 6.0 + np.abs(p3) / 12.0)))
 
     # ------------------------------------------------------------------ algebra
-    def shift(self, delta: float) -> tuple["DistributedDelay", ...]:
+    def shift(self, delta: float) -> tuple[DistributedDelay, ...]:
         """Multiply by ``e^{-delta s}``: the support moves to ``[a + delta, b + delta]``.
 
         For a moment ``m > 0`` the weight ``(mu - delta)^m`` expands into terms of lower
@@ -444,11 +446,11 @@ class DistributedDelay:
             if j == m or delta != 0
         )
 
-    def scale(self, c: complex) -> "DistributedDelay":
+    def scale(self, c: complex) -> DistributedDelay:
         """Multiply by a constant (applied to the values, so equal supports still merge)."""
         return self.replace(values=self.values * c)
 
-    def times_poly(self, coefs: ArrayLike) -> "DistributedDelay":
+    def times_poly(self, coefs: ArrayLike) -> DistributedDelay:
         """Multiply by a polynomial (coefficients in increasing powers)."""
         return self.replace(poly=_polymul(self.poly, _as_poly("coefs", coefs)))
 
@@ -520,7 +522,9 @@ class QuasiPolynomial:
     point_terms: tuple[tuple[NDArray, float], ...]
     distributed: tuple[DistributedDelay, ...]
 
-    def __init__(self, coefs: Sequence[ArrayLike], delays: ArrayLike, distributed: Iterable[DistributedDelay] = ()) -> None:
+    def __init__(
+        self, coefs: Sequence[ArrayLike], delays: ArrayLike, distributed: Iterable[DistributedDelay] = ()
+    ) -> None:
         if isinstance(coefs, (str, bytes)) or not isinstance(coefs, Sequence | np.ndarray):
             raise ParameterError("coefs", "a sequence of coefficient sequences", coefs)
         taus = np.atleast_1d(np.asarray(delays, dtype=float)) if len(coefs) else np.zeros(0)
@@ -538,14 +542,14 @@ class QuasiPolynomial:
         for k, (c, t) in enumerate(zip(coefs, taus)):
             p = _as_poly(f"coefs[{k}]", c)
             merged[float(t)] = _polyadd(merged[float(t)], p) if float(t) in merged else p
-        terms = tuple(
-            (_as_poly("coefs", p), t) for t, p in sorted(merged.items()) if np.any(p != 0)
-        )
+        terms = tuple((_as_poly("coefs", p), t) for t, p in sorted(merged.items()) if np.any(p != 0))
         object.__setattr__(self, "point_terms", terms)
         object.__setattr__(self, "distributed", _merge_distributed(dist))
 
     @classmethod
-    def _from_parts(cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]) -> "QuasiPolynomial":
+    def _from_parts(
+        cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]
+    ) -> QuasiPolynomial:
         terms = list(terms)
         dist = tuple(distributed)
         if not terms and not dist:
@@ -582,7 +586,7 @@ class QuasiPolynomial:
         only the smallest delay (retarded), the smallest and others (neutral), or not the
         smallest (advanced: chains of roots go to the right, no stability possible).
         """
-        lead = self._leading()
+        lead = self.leading_terms()
         if not lead or lead[0][1] != self.point_terms[0][1]:
             return "advanced"
         return "neutral" if len(lead) > 1 else "retarded"
@@ -597,8 +601,25 @@ class QuasiPolynomial:
         """True if only the smallest delay carries the highest power of ``s``."""
         return self.kind == "retarded"
 
-    def _leading(self) -> list[tuple[complex, float]]:
-        n = self.degree
+    @property
+    def is_real(self) -> bool:
+        """True if every coefficient (point and distributed) is real: roots come in conjugate pairs."""
+        parts = [p for p, _ in self.point_terms] + [a for d in self.distributed for a in (d.values, d.poly)]
+        return not any(np.iscomplexobj(a) and np.any(np.asarray(a).imag != 0) for a in parts)
+
+    def leading_terms(self, n: int | None = None) -> list[tuple[complex, float]]:
+        """The ``s^n`` coefficients ``a_k`` of the point terms with their delays ``tau_k``.
+
+        ``n`` defaults to :attr:`degree`; these terms form the principal part
+        ``D(s) = sum_k a_k e^{-tau_k s}`` of ``F`` (``F(s) = s^n (D(s) + O(1/s))``).
+
+        Raises
+        ------
+        ParameterError
+            If a distributed term has a polynomial factor of degree above ``n`` (it would
+            enter the principal part, which is modelled by point terms only).
+        """
+        n = self.degree if n is None else n
         for d in self.distributed:
             if d.poly.size - 1 > n:
                 raise ParameterError(
@@ -607,18 +628,17 @@ class QuasiPolynomial:
                     "a higher one enters the principal part",
                     d,
                 )
-        return [(p[n], t) for p, t in self.point_terms if p.size - 1 == n and p[n] != 0]
+        return [(complex(p[n]), t) for p, t in self.point_terms if p.size - 1 == n and p[n] != 0]
 
-    def principal_part(self) -> "DifferenceOperator":
+    def principal_part(self) -> DifferenceOperator:
         """The difference operator ``D(s) = sum_k a_k e^{-tau_k s}`` of the ``s^n`` terms.
 
         For ``|s| -> infinity`` in a vertical strip, ``F(s) = s^n (D(s) + O(1/s))``: the
         high-frequency root chains of ``F`` are those of ``D`` (Hale and Verduyn Lunel).
         """
-        from .difference import DifferenceOperator
-
-        lead = self._leading()
-        return DifferenceOperator([a for a, _ in lead], [t for _, t in lead])
+        lead = self.leading_terms()
+        coefs = np.array([a for a, _ in lead], dtype=complex)
+        return DifferenceOperator(coefs.real if self.is_real else coefs, [t for _, t in lead])
 
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
@@ -641,7 +661,7 @@ class QuasiPolynomial:
             out += d.deriv(s)
         return out
 
-    def derivative(self) -> "QuasiPolynomial":
+    def derivative(self) -> QuasiPolynomial:
         """``F'`` as a quasi-polynomial (distributed terms gain one moment)."""
         terms = [(_polyadd(_polyder(p), -t * p), t) for p, t in self.point_terms]
         dist: list[DistributedDelay] = []
@@ -683,7 +703,7 @@ class QuasiPolynomial:
         return out
 
     # ------------------------------------------------------------------ algebra
-    def __add__(self, other: Any) -> "QuasiPolynomial":
+    def __add__(self, other: Any) -> QuasiPolynomial:
         if isinstance(other, (int, float, complex, np.number)):
             other = QuasiPolynomial([[other]], [0.0])
         if not isinstance(other, QuasiPolynomial):
@@ -694,16 +714,16 @@ class QuasiPolynomial:
 
     __radd__ = __add__
 
-    def __neg__(self) -> "QuasiPolynomial":
+    def __neg__(self) -> QuasiPolynomial:
         return self * -1.0
 
-    def __sub__(self, other: Any) -> "QuasiPolynomial":
+    def __sub__(self, other: Any) -> QuasiPolynomial:
         return self + (-other)
 
-    def __rsub__(self, other: Any) -> "QuasiPolynomial":
+    def __rsub__(self, other: Any) -> QuasiPolynomial:
         return (-self) + other
 
-    def __mul__(self, other: Any) -> "QuasiPolynomial":
+    def __mul__(self, other: Any) -> QuasiPolynomial:
         if isinstance(other, (int, float, complex, np.number)):
             c = complex(other) if isinstance(other, complex) or np.iscomplexobj(other) else float(other)
             return QuasiPolynomial._from_parts(
@@ -712,9 +732,7 @@ class QuasiPolynomial:
         if not isinstance(other, QuasiPolynomial):
             return NotImplemented
         if self.distributed and other.distributed:
-            raise ParameterError(
-                "other", "a quasi-polynomial without distributed terms when self has some", other
-            )
+            raise ParameterError("other", "a quasi-polynomial without distributed terms when self has some", other)
         if self.distributed:
             return other * self
         terms = [(_polymul(p, r), t + u) for p, t in self.point_terms for r, u in other.point_terms]
@@ -723,11 +741,11 @@ class QuasiPolynomial:
 
     __rmul__ = __mul__
 
-    def times_poly(self, coefs: ArrayLike) -> "QuasiPolynomial":
+    def times_poly(self, coefs: ArrayLike) -> QuasiPolynomial:
         """Multiply by the polynomial with coefficients ``coefs`` (increasing powers)."""
         return self * QuasiPolynomial([coefs], [0.0])
 
-    def shift(self, delta: float) -> "QuasiPolynomial":
+    def shift(self, delta: float) -> QuasiPolynomial:
         """Multiply by ``e^{-delta s}`` (a loop delay ``delta >= 0``)."""
         delta = nonnegative("delta", delta)
         return QuasiPolynomial._from_parts(
@@ -757,4 +775,3 @@ class QuasiPolynomial:
             "delays": [t for _, t in self.point_terms],
             "distributed": [d.to_dict() for d in self.distributed],
         }
-

@@ -17,14 +17,17 @@ import base64
 import html
 import io
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .certificate import Certificate
 from .errors import ParameterError
+from .hyperbolic.controllers import characteristic, loop_factors
+from .plots import nyquist_response, root_map_plot
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -89,7 +92,7 @@ def _fmt(x: Any, digits: int = 6) -> str:
     return f"{x:.{digits}g}"
 
 
-def _png(fig: "Figure") -> bytes:
+def _png(fig: Figure) -> bytes:
     buf = io.BytesIO()
     if fig.get_layout_engine() is None:
         fig.set_layout_engine("tight")
@@ -107,7 +110,7 @@ def _controller_label(controller: Any) -> str:
     return f"{type(controller).__name__}({inner})"
 
 
-def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
+def certificate_figures(cert: Certificate) -> list[tuple[str, Figure]]:
     """The standard figures of a certificate: root maps at ``0`` and ``delta_max``, Nyquist.
 
     Root maps reuse the certificate's root sets; the Nyquist data are computed from the
@@ -116,12 +119,9 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, "Figure"]]:
     return _figures(cert)[0]
 
 
-def _figures(cert: Certificate) -> tuple[list[tuple[str, "Figure"]], Any]:
+def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     """The standard figures and the Nyquist data behind the last one."""
     import matplotlib.pyplot as plt
-
-    from .hyperbolic.controllers import characteristic, loop_factors
-    from .plots import nyquist_response, root_map_plot
 
     out: list[tuple[str, Figure]] = []
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2), sharey=True)
@@ -139,13 +139,15 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, "Figure"]], Any]:
     A, B = loop_factors(cert.system, cert.controller)
     w_max = 20.0 * 2 * np.pi / float(cert.system.tau)  # 20 periods of the principal part
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
-    resp = nyquist_response(A, B, cert.delta_max, omega_max=w_max, n=2001, principal_bound=cert.principal_delayed.spectral_bound)
+    resp = nyquist_response(
+        A, B, cert.delta_max, omega_max=w_max, n=2001, principal_bound=cert.principal_delayed.spectral_bound
+    )
     resp.plot(ax=ax)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
     return out, resp
 
 
-def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, "Figure"]]]:
+def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, Figure]]]:
     label = _controller_label(cert.controller)
     head = f"{label}" if index is None else f"{index + 1}. {label}"
     cls = cert.classification
@@ -191,13 +193,17 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     ]
     figures, nyquist = _figures(cert)
     # the same number by two routes: crossing analysis and winding along the axis
-    crossing_count = int(m.unstable_count(cert.delta_max)) if np.isfinite(m.delta_max) and cert.delta_max <= m.delta_max else None
-    rows.append((
-        f"closed-loop zeros in Re s > 0 at delta = {cert.delta_max:g}",
-        f"{'-' if crossing_count is None or crossing_count < 0 else crossing_count} (crossings); "
-        f"{'no finite count' if nyquist.rhp_zeros is None else nyquist.rhp_zeros} (Nyquist winding)",
-        "delay_margin; nyquist_response",
-    ))
+    crossing_count = (
+        int(m.unstable_count(cert.delta_max)) if np.isfinite(m.delta_max) and cert.delta_max <= m.delta_max else None
+    )
+    rows.append(
+        (
+            f"closed-loop zeros in Re s > 0 at delta = {cert.delta_max:g}",
+            f"{'-' if crossing_count is None or crossing_count < 0 else crossing_count} (crossings); "
+            f"{'no finite count' if nyquist.rhp_zeros is None else nyquist.rhp_zeros} (Nyquist winding)",
+            "delay_margin; nyquist_response",
+        )
+    )
     if cert.k_region is not None:
         rows.append(("admissible gains K on [0, delta_max]", _k_region_text(cert.k_region), "k_region"))
     blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
@@ -282,7 +288,7 @@ def _html(title: str, blocks: Sequence[Any]) -> str:
 def write_report(
     certificates: Certificate | Sequence[Certificate],
     out_dir: str | Path,
-    figures: Sequence[tuple[str, "Figure"]] = (),
+    figures: Sequence[tuple[str, Figure]] = (),
     title: str = "nrobust delay-robustness report",
     intro: Sequence[str] = (),
 ) -> ReportFiles:
@@ -312,7 +318,9 @@ def write_report(
     if not certs or not all(isinstance(c, Certificate) for c in certs):
         raise ParameterError("certificates", "a Certificate or a non-empty sequence of Certificate", certificates)
     for k, item in enumerate(figures):
-        if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and hasattr(item[1], "savefig")):
+        if not (
+            isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and hasattr(item[1], "savefig")
+        ):
             raise ParameterError(f"figures[{k}]", "a (caption, matplotlib Figure) pair", item)
     out = Path(out_dir)
     fig_dir = out / "figures"

@@ -2,10 +2,8 @@
 
 A :class:`QuasiTransferFunction` is a ratio ``H(s) = n(s) / d(s)`` of two
 :class:`~nrobust.quasipoly.QuasiPolynomial`, the form of every transfer function of the
-paper: the open loop ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` of the transport system
-(Laplace transform of eq. (delay_eq_no_couplings)) and
-``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` of the coupled
-system (Laplace transform of eq. (delay_eq_alpha)). Loops are built the way
+paper (the plants' open and closed loops are built by :mod:`nrobust.hyperbolic.loops`).
+Loops are built the way
 python-control users build them (``series``, ``parallel``, ``feedback``, ``delay``),
 poles and zeros are certified root sets of the denominator and numerator, and
 :func:`to_frd` / :func:`pade_approximation` hand the result to python-control.
@@ -21,21 +19,34 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import nonnegative, positive_int
 from .errors import ParameterError
-from .quasipoly import DistributedDelay, QuasiPolynomial
+from .quasipoly import QuasiPolynomial
 
 if TYPE_CHECKING:
     import control
 
     from .roots import RootSet
 
-__all__ = [
-    "QuasiTransferFunction",
-    "open_loop_tf",
-    "closed_loop_tf",
-    "output_map",
-    "to_frd",
-    "pade_approximation",
-]
+__all__ = ["QuasiTransferFunction", "pade_approximation", "to_frd"]
+
+#: Names that moved to :mod:`nrobust.hyperbolic.loops` (they need a plant); importing them
+#: from here still works and warns (see CHANGELOG.md).
+_MOVED_TO_HYPERBOLIC = ("open_loop_tf", "output_map", "closed_loop_tf")
+
+
+def __getattr__(name: str) -> Any:
+    """Deprecated aliases of the plant-level transfer functions (PEP 562)."""
+    if name in _MOVED_TO_HYPERBOLIC:
+        import warnings
+
+        from .hyperbolic import loops
+
+        warnings.warn(
+            f"nrobust.transfer.{name} moved to nrobust.hyperbolic.loops.{name} (also nrobust.{name})",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(loops, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _as_quasi(name: str, value: Any) -> QuasiPolynomial:
@@ -119,27 +130,25 @@ class QuasiTransferFunction:
             raise ParameterError("omega", "finite real frequencies", omega)
         return self(1j * w)
 
-    def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> "RootSet":
+    def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
         """Certified poles in a rectangle: the zeros of ``den`` (see :func:`nrobust.roots.find_roots`)."""
         from .roots import find_roots
 
         return find_roots(self.den, region, **kwargs)
 
-    def zeros(self, region: tuple[float, float, float, float], **kwargs: Any) -> "RootSet":
+    def zeros(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
         """Certified zeros in a rectangle: the zeros of ``num``."""
         from .roots import find_roots
 
         return find_roots(self.num, region, **kwargs)
 
     # ------------------------------------------------------------------ interconnection
-    def series(self, other: "QuasiTransferFunction | QuasiPolynomial | complex") -> "QuasiTransferFunction":
+    def series(self, other: QuasiTransferFunction | QuasiPolynomial | complex) -> QuasiTransferFunction:
         """``self * other``: the two blocks in cascade."""
         other = _as_tf("other", other)
-        return QuasiTransferFunction(
-            _product("other", self.num, other.num), _product("other", self.den, other.den)
-        )
+        return QuasiTransferFunction(_product("other", self.num, other.num), _product("other", self.den, other.den))
 
-    def parallel(self, other: "QuasiTransferFunction | QuasiPolynomial | complex") -> "QuasiTransferFunction":
+    def parallel(self, other: QuasiTransferFunction | QuasiPolynomial | complex) -> QuasiTransferFunction:
         """``self + other``: the two blocks in parallel."""
         other = _as_tf("other", other)
         if _is_one(self.den) and _is_one(other.den):
@@ -147,7 +156,9 @@ class QuasiTransferFunction:
         num = _product("other", self.num, other.den) + _product("other", other.num, self.den)
         return QuasiTransferFunction(num, _product("other", self.den, other.den))
 
-    def feedback(self, other: "QuasiTransferFunction | QuasiPolynomial | complex" = 1.0, sign: int = -1) -> "QuasiTransferFunction":
+    def feedback(
+        self, other: QuasiTransferFunction | QuasiPolynomial | complex = 1.0, sign: int = -1
+    ) -> QuasiTransferFunction:
         """Close the loop around ``self`` with ``other`` in the return path.
 
         ``sign = -1`` (negative feedback, python-control's default) gives
@@ -164,29 +175,29 @@ class QuasiTransferFunction:
         den = _product("other", self.den, other.den) - sign * _product("other", self.num, other.num)
         return QuasiTransferFunction(num, den)
 
-    def delay(self, delta: float) -> "QuasiTransferFunction":
+    def delay(self, delta: float) -> QuasiTransferFunction:
         """Multiply by ``e^{-delta s}``: a delay ``delta >= 0`` in series."""
         delta = nonnegative("delta", delta)
         return QuasiTransferFunction(self.num.shift(delta), self.den)
 
-    def __mul__(self, other: Any) -> "QuasiTransferFunction":
+    def __mul__(self, other: Any) -> QuasiTransferFunction:
         if not isinstance(other, (QuasiTransferFunction, QuasiPolynomial, int, float, complex, np.number)):
             return NotImplemented
         return self.series(other)
 
     __rmul__ = __mul__
 
-    def __add__(self, other: Any) -> "QuasiTransferFunction":
+    def __add__(self, other: Any) -> QuasiTransferFunction:
         if not isinstance(other, (QuasiTransferFunction, QuasiPolynomial, int, float, complex, np.number)):
             return NotImplemented
         return self.parallel(other)
 
     __radd__ = __add__
 
-    def __neg__(self) -> "QuasiTransferFunction":
+    def __neg__(self) -> QuasiTransferFunction:
         return QuasiTransferFunction(-self.num, self.den)
 
-    def __sub__(self, other: Any) -> "QuasiTransferFunction":
+    def __sub__(self, other: Any) -> QuasiTransferFunction:
         return self + (-_as_tf("other", other))
 
     # ------------------------------------------------------------------ display
@@ -204,128 +215,6 @@ def _as_tf(name: str, value: Any) -> QuasiTransferFunction:
     return QuasiTransferFunction(_as_quasi(name, value), 1.0)
 
 
-# ---------------------------------------------------------------------- from systems
-def open_loop_tf(system: Any, n: int | None = None) -> QuasiTransferFunction:
-    """Open-loop transfer function from ``U`` to the boundary output.
-
-    For a :class:`~nrobust.hyperbolic.TransportSystem` (or any uncoupled system) this is
-    ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` (from ``U`` to ``v(t, 1)``, Laplace transform
-    of eq. (delay_eq_no_couplings)); for a :class:`~nrobust.hyperbolic.Hyperbolic2x2` it is
-    ``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` (from ``U_0``
-    to ``beta(t, 1)``, Laplace transform of eq. (delay_eq_alpha)), whose denominator is
-    ``delay_form(system).characteristic``.
-
-    Parameters
-    ----------
-    system : TransportSystem or Hyperbolic2x2
-    n : int, optional
-        Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only;
-        default: the grid of the closed-loop functions, so that ``H_1`` and
-        :func:`closed_loop_tf` share the same ``N~``).
-    """
-    from .hyperbolic.system import Hyperbolic2x2
-
-    if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
-    if system.uncoupled:
-        return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
-    from .hyperbolic.controllers import DEFAULT_N
-    from .hyperbolic.delay_form import delay_form
-    form = delay_form(system, n=DEFAULT_N if n is None else positive_int("n", n, 2))
-    return QuasiTransferFunction(1.0, form.characteristic)
-
-
-def output_map(system: Any, n: int | None = None) -> QuasiPolynomial:
-    """``M(s)`` with ``v(s, 1) = M(s) beta(s, 1)`` for zero initial data.
-
-    The inverse transformation (eq. (back_inv2)) at ``x = 1`` with
-    ``alpha(s, xi) = q e^{-(xi/lam + 1/mu) s} beta(s, 1)`` and
-    ``beta(s, xi) = e^{-(1 - xi) s / mu} beta(s, 1)`` (eqs. (eq_alpha_1)-(eq_beta_1)) gives
-    ``M(s) = 1 + int_0^tau M~(nu) e^{-nu s} dnu`` with
-    ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
-    + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
-    ``N~`` in eq. (eq_N_tilde). For a transport system ``M = 1``.
-
-    Parameters
-    ----------
-    system : TransportSystem or Hyperbolic2x2
-    n : int, optional
-        Kernel grid (default: that of the closed-loop functions); ``M~`` is tabulated on
-        ``n + 1`` points of each piece.
-    """
-    from .hyperbolic.controllers import DEFAULT_N
-    from .hyperbolic.kernels import solve_kernels
-    from .hyperbolic.system import Hyperbolic2x2
-
-    if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
-    if system.uncoupled:
-        return QuasiPolynomial([[1.0]], [0.0])
-    m = DEFAULT_N if n is None else positive_int("n", n, 2)
-    kernels = solve_kernels(system, n=m)
-    lam, mu, q = float(system.lam), float(system.mu), float(system.q)
-    xi = np.linspace(0.0, 1.0, m + 1)
-    ones = np.ones_like(xi)
-    # beta part on nu in [0, 1/mu]: xi = 1 - mu nu, decreasing in nu
-    nu_b = (1.0 - xi[::-1]) / mu
-    val_b = mu * np.asarray(kernels.Lbb(ones, xi[::-1]), dtype=float)
-    # alpha part on nu in [1/mu, tau]: xi = lam (nu - 1/mu)
-    nu_a = xi / lam + 1.0 / mu
-    val_a = lam * q * np.asarray(kernels.Lba(ones, xi), dtype=float)
-    nodes = np.concatenate([nu_b, nu_a])
-    values = np.concatenate([val_b, val_a])
-    if not np.any(values != 0):
-        return QuasiPolynomial([[1.0]], [0.0])
-    return QuasiPolynomial([[1.0]], [0.0], [DistributedDelay(nodes, values)])
-
-
-def closed_loop_tf(system: Any, controller: Any, delta: float, output: str = "v") -> QuasiTransferFunction:
-    """Closed-loop transfer function from a disturbance at the actuated boundary.
-
-    The disturbance ``d`` enters where the (delayed) control does,
-    ``v(t, 1) = rho u(t, 1) + U(t - delta) + d(t)`` (eq. (IC)). With the loop written as
-    ``F(s) = A(s) + B(s) e^{-delta s}`` (:func:`~nrobust.hyperbolic.loop_factors`, the
-    characteristic function of eq. (delay_eq_alpha_ter) and its variants), ``A = D c_d`` and
-    ``B = -c_n`` where ``D`` is the open-loop denominator of ``H_1`` and ``c_n / c_d`` the
-    controller's map from ``beta(t, 1)`` to ``U``, the transfer to ``beta(t, 1)`` is
-    ``c_d(s) / F(s)``; to ``v(t, 1)`` it is ``M(s) c_d(s) / F(s)`` with ``M`` from
-    :func:`output_map`.
-
-    Parameters
-    ----------
-    system : TransportSystem or Hyperbolic2x2
-    controller : a controller of :mod:`nrobust.hyperbolic`
-    delta : float
-        Loop delay ``>= 0``.
-    output : {"v", "beta"}
-        ``"v"`` for ``v(t, 1)`` (default), ``"beta"`` for the target-system output.
-
-    Returns
-    -------
-    QuasiTransferFunction
-        Its denominator is the closed-loop characteristic function ``F``.
-    """
-    from .hyperbolic.controllers import loop_factors
-
-    delta = nonnegative("delta", delta)
-    if output not in ("v", "beta"):
-        raise ParameterError("output", '"v" or "beta"', output)
-    A, B = loop_factors(system, controller)
-    F = A + B.shift(delta)
-    c_d = _controller_denominator(controller)
-    num = c_d if output == "beta" else _product("output", output_map(system), c_d)
-    return QuasiTransferFunction(num, F)
-
-
-def _controller_denominator(controller: Any) -> QuasiPolynomial:
-    """``c_d(s)``: ``1 + b s`` for the filtered controller ``(1 + a s)/(1 + b s)``, else 1."""
-    from .hyperbolic.controllers import FilteredController
-
-    if isinstance(controller, FilteredController):
-        return QuasiPolynomial([[1.0, float(controller.b)]], [0.0])
-    return QuasiPolynomial([[1.0]], [0.0])
-
-
 # ---------------------------------------------------------------------- python-control
 def _response(obj: Any, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
     if isinstance(obj, (QuasiTransferFunction, QuasiPolynomial)):
@@ -340,7 +229,7 @@ def _omega_grid(omega: ArrayLike) -> NDArray[np.float64]:
     return w
 
 
-def to_frd(F_or_tf: QuasiPolynomial | QuasiTransferFunction, omega: ArrayLike) -> "control.FrequencyResponseData":
+def to_frd(F_or_tf: QuasiPolynomial | QuasiTransferFunction, omega: ArrayLike) -> control.FrequencyResponseData:
     """Tabulate ``F(i omega)`` (or ``H(i omega)``) as a python-control FRD.
 
     The result can be passed to python-control's frequency-domain tools (``bode_plot``,
@@ -354,7 +243,7 @@ def to_frd(F_or_tf: QuasiPolynomial | QuasiTransferFunction, omega: ArrayLike) -
     return control.FrequencyResponseData(_response(F_or_tf, 1j * w), w)
 
 
-def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> "control.TransferFunction":
+def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFunction:
     """A rational approximation of a quasi-polynomial ``f``.
 
     Every ``e^{-tau s}`` is replaced by ``control.pade(tau, order)``; a distributed term
@@ -409,7 +298,7 @@ def pade_approximation(
     order: int,
     omega: ArrayLike,
     n_quad: int = 8,
-) -> tuple["control.TransferFunction", NDArray[np.float64]]:
+) -> tuple[control.TransferFunction, NDArray[np.float64]]:
     """A rational python-control model of a transfer function with delays.
 
     Each point delay ``e^{-tau s}`` is replaced by ``control.pade(tau, order)``. A
@@ -446,9 +335,7 @@ def pade_approximation(
         raise ParameterError("tf", "a QuasiTransferFunction or a QuasiPolynomial", tf)
     num = _rational(tf.num, order, n_quad)
     den = _rational(tf.den, order, n_quad)
-    model = control.TransferFunction(
-        np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0])
-    )
+    model = control.TransferFunction(np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0]))
     exact = tf.frequency_response(w)
     approx = np.asarray(model(1j * w), dtype=complex)
     return model, np.abs(exact - approx)

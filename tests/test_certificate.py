@@ -8,19 +8,19 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
-from nrobust.certificate import Certificate, certify  # noqa: E402
-from nrobust.errors import ParameterError  # noqa: E402
-from nrobust.hyperbolic import TransportSystem  # noqa: E402
-from nrobust.hyperbolic.controllers import (  # noqa: E402
+from nrobust.certificate import Certificate, certify
+from nrobust.errors import ParameterError
+from nrobust.hyperbolic import TransportSystem
+from nrobust.hyperbolic.controllers import (
     FilteredController,
     FiniteTimeController,
     ReflectionController,
     characteristic,
 )
-from nrobust.report import write_report  # noqa: E402
+from nrobust.report import write_report
 
 SYSTEM = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
 
@@ -97,7 +97,7 @@ def test_transport_reflection_controller_matches_eq_boun_K2():
     assert cert.delay_margin == np.inf and cert.stable_up_to_delta_max
     assert cert.principal_delayed.gamma_0 == pytest.approx(0.95)
     assert cert.rouche.delta_0 == np.inf
-    (lo, hi), = cert.k_region.intervals
+    ((lo, hi),) = cert.k_region.intervals
     tol = cert.k_region.tol  # ends resolved to the grid step of k_grid gains
     assert tol == pytest.approx(0.3 / 10)
     assert -0.15 < lo <= -0.15 + tol and 0.15 - tol <= hi < 0.15

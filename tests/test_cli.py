@@ -95,7 +95,7 @@ def test_varying_coupling_table(tmp_path):
     spec = load_system_file(_write(tmp_path, text))
     sys_ = spec["system"]
     assert isinstance(sys_.sigma_pm, PiecewiseLinear)
-    assert np.allclose(sys_.sigma_pm_at([0.0, 0.25, 0.5]), [1.0, 1.5, 2.0])
+    np.testing.assert_allclose(sys_.sigma_pm_at([0.0, 0.25, 0.5]), [1.0, 1.5, 2.0], rtol=1e-15, atol=0)
     bad = text.replace("x = [0.0, 0.5, 1.0]", "x = [0.0, 0.7, 0.5]")
     with pytest.raises(ParameterError, match=r"system\.sigma_pm\.x"):
         load_system_file(_write(tmp_path, bad))
@@ -127,11 +127,16 @@ def test_python_dash_m(tmp_path):
     env = {**os.environ, "MPLBACKEND": "Agg"}
     run = subprocess.run(
         [sys.executable, "-m", "nrobust", "analyze", str(path), "-o", str(tmp_path / "o")],
-        capture_output=True, text=True, env=env, timeout=120,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
     )
     assert run.returncode == 2
     assert run.stderr.strip().splitlines()[-1].startswith("nrobust: error: system.speed ")
-    help_run = subprocess.run([sys.executable, "-m", "nrobust", "--help"], capture_output=True, text=True, env=env, timeout=120)
+    help_run = subprocess.run(
+        [sys.executable, "-m", "nrobust", "--help"], capture_output=True, text=True, env=env, timeout=120
+    )
     assert help_run.returncode == 0 and "analyze" in help_run.stdout and "paper" in help_run.stdout
 
 

@@ -30,16 +30,16 @@ def test_transport_finite_time_is_eq_delay_eq_no_couplings2(transport):
     """U = -rho u(1): v(t,1) = rho q v(t - tau, 1) - rho q v(t - tau - delta, 1)."""
     rq, tau, delta = transport.rho_q, transport.tau, 0.03
     F = characteristic(transport, FiniteTimeController(), delta)
-    assert np.allclose(F(S), 1 - rq * np.exp(-tau * S) + rq * np.exp(-(tau + delta) * S), rtol=1e-14)
+    np.testing.assert_allclose(F(S), 1 - rq * np.exp(-tau * S) + rq * np.exp(-(tau + delta) * S), rtol=1e-14, atol=0)
     # Without delay the loop is the constant 1: finite-time convergence, no root at all.
-    assert np.allclose(characteristic(transport, FiniteTimeController(), 0.0)(S), 1.0)
+    np.testing.assert_allclose(characteristic(transport, FiniteTimeController(), 0.0)(S), 1.0, rtol=1e-14, atol=0)
 
 
 def test_transport_reflection_is_eq_delay_transport2(transport):
     """U = -K u(1): v(t,1) - rho q v(t - tau, 1) + K q v(t - tau - delta, 1) = 0."""
     K, q, rq, tau, delta = 0.05, transport.q, transport.rho_q, transport.tau, 0.2
     F = characteristic(transport, ReflectionController(K), delta)
-    assert np.allclose(F(S), 1 - rq * np.exp(-tau * S) + K * q * np.exp(-(tau + delta) * S), rtol=1e-14)
+    np.testing.assert_allclose(F(S), 1 - rq * np.exp(-tau * S) + K * q * np.exp(-(tau + delta) * S), rtol=1e-14, atol=0)
 
 
 def test_transport_filtered_is_eq_delay_transport3(transport):
@@ -47,17 +47,19 @@ def test_transport_filtered_is_eq_delay_transport3(transport):
     a, b, rq, tau, delta = 0.2, 0.5, transport.rho_q, transport.tau, 0.1
     F = characteristic(transport, FilteredController(a, b), delta)
     expected = (1 + b * S) * (1 - rq * np.exp(-tau * S)) + (1 + a * S) * rq * np.exp(-(tau + delta) * S)
-    assert np.allclose(F(S), expected, rtol=1e-13)
+    np.testing.assert_allclose(F(S), expected, rtol=1e-13, atol=0)
     # Principal part: 1 - rho q e^{-tau s} + (a/b) rho q e^{-(tau + delta) s}.
     D = F.principal_part()
-    assert np.allclose(D(S), b * (1 - rq * np.exp(-tau * S) + a / b * rq * np.exp(-(tau + delta) * S)), rtol=1e-13)
+    np.testing.assert_allclose(
+        D(S), b * (1 - rq * np.exp(-tau * S) + a / b * rq * np.exp(-(tau + delta) * S)), rtol=1e-13, atol=0
+    )
     assert D.gamma_0 == pytest.approx(abs(rq) * (1 + a / b))
 
 
 def test_open_loop_transport_and_factors(transport):
     A, B = loop_factors(transport, OpenLoop())
-    assert np.allclose(A(S), 1 - transport.rho_q * np.exp(-transport.tau * S))
-    assert np.allclose(B(S), 0.0)
+    np.testing.assert_allclose(A(S), 1 - transport.rho_q * np.exp(-transport.tau * S), rtol=1e-14, atol=0)
+    np.testing.assert_allclose(B(S), 0.0, rtol=0, atol=0)  # OpenLoop: B is the zero quasi-polynomial
 
 
 def test_feedback_laws_on_transport(transport):

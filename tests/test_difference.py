@@ -124,7 +124,7 @@ def test_principal_part_of_quasipolynomial() -> None:
 def test_evaluation_and_dict() -> None:
     s = np.array([0.3 + 2j, -1.0])
     expect = 1 - 0.85 * np.exp(-2 * s) + 0.1 * np.exp(-2.1 * s)
-    assert np.allclose(D_EX(s), expect, rtol=1e-15)
+    np.testing.assert_allclose(D_EX(s), expect, rtol=1e-15, atol=0)
     d = D_EX.to_dict()
     assert d["gamma_0"] == pytest.approx(0.95) and d["strongly_stable"] is True
     assert "gamma_0=0.95" in repr(D_EX)

@@ -6,16 +6,15 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from nrobust import ParameterError, QuasiPolynomial
-from nrobust.margins import delay_margin
-from nrobust.quasipoly import DistributedDelay
-from nrobust.roots import count_roots
-from nrobust.rouche import (
+from nrobust import ParameterError, QuasiPolynomial, delay_margin
+from nrobust.bounds import (
     delay_bound_from_kernel,
     l1_modulus,
     root_free_region,
     total_variation,
 )
+from nrobust.quasipoly import DistributedDelay
+from nrobust.roots import count_roots
 
 
 def kernel() -> DistributedDelay:

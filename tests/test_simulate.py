@@ -8,10 +8,11 @@ with the matrix exponential of the plant (no delay form, no inverse kernels).
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from dataclasses import FrozenInstanceError
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
@@ -43,7 +44,7 @@ def zero(xi):
 UNEQUAL = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
 
 
-@lru_cache(maxsize=None)
+@cache
 def kernels_of(system, n: int = 401):
     return solve_kernels(system, n)
 
@@ -122,7 +123,7 @@ def test_transport_loop_matches_characteristics_to_rounding(lam, mu, K, delta):
     wv = np.full(sim.x_v.size, 1.0 / (sim.x_v.size - 1))
     wv[[0, -1]] /= 2
     exact_norm = np.sqrt((u * u) @ wu + (v * v) @ wv)
-    assert np.allclose(sim.norm, exact_norm, rtol=1e-13, atol=1e-14 * scale)
+    np.testing.assert_allclose(sim.norm, exact_norm, rtol=1e-13, atol=1e-14 * scale)
 
 
 def test_finite_time_transport_vanishes_exactly():
@@ -176,7 +177,9 @@ def test_partial_cell_at_the_reflecting_boundary_converges():
         if t <= 1.0:
             return u0(1.0 - t)
         t0 = t - 1.0  # time at which the characteristic left x = 0
-        return system.q * (v0(system.mu * t0) if t0 <= 1.0 / system.mu else (system.rho - K) * exact_u1(t0 - 1.0 / system.mu))
+        return system.q * (
+            v0(system.mu * t0) if t0 <= 1.0 / system.mu else (system.rho - K) * exact_u1(t0 - 1.0 / system.mu)
+        )
 
     errors = []
     for n in (80, 160):
@@ -299,7 +302,7 @@ def test_unequal_speeds_finite_time_residual_is_small_and_decays(mu):
     peaks = [sim.norm[(sim.times > m * system.tau) & (sim.times <= (m + 1) * system.tau)].max() for m in range(5)]
     assert peaks[0] > 1.0
     assert peaks[1] < 1e-4 * peaks[0]  # the O(h^2) defect of the scheme
-    assert all(later < 0.1 * earlier for earlier, later in zip(peaks[1:], peaks[2:]))
+    assert all(later < 0.1 * earlier for earlier, later in itertools.pairwise(peaks))
 
 
 def test_controller_objects_and_feedback_laws_agree():
@@ -308,7 +311,7 @@ def test_controller_objects_and_feedback_laws_agree():
     b = simulate(PAPER, FiniteTimeController(), 0.05, 3.0, np.cos, np.sin, n=100, kernels=paper_kernels())
     c = simulate(PAPER, FilteredController(0.7, 0.7), 0.05, 3.0, np.cos, np.sin, n=100, kernels=paper_kernels())
     assert np.array_equal(a.norm, b.norm)
-    assert np.allclose(a.norm, c.norm, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(a.norm, c.norm, rtol=1e-12, atol=1e-12)
     opened = simulate(PAPER, OpenLoop(), 0.0, 3.0, np.cos, np.sin, n=100)
     assert np.all(opened.control == 0.0)
 
@@ -515,7 +518,7 @@ def observed_orders(delta, ns, mu=1.5):
     histories = [np.interp(coarse, r.times, r.norm) for r in runs]
     # Sampled times of the coarsest run are sampled times of every run (n doubles).
     for r, h in zip(runs, histories):
-        assert np.allclose(h, r.norm[:: r.n // ns[0]])
+        np.testing.assert_allclose(h, r.norm[:: r.n // ns[0]], rtol=1e-15, atol=0)
     diffs = [np.abs(histories[i] - histories[i + 1]).max() for i in range(len(ns) - 1)]
     return [math.log2(diffs[i] / diffs[i + 1]) for i in range(len(diffs) - 1)]
 
@@ -541,7 +544,7 @@ def test_result_snapshots_and_json():
     sim = simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 1.0, np.cos, np.sin, n=20, snapshot_every=5)
     assert isinstance(sim, Simulation)
     assert sim.times.size == 21 and sim.norm.shape == sim.control.shape == sim.times.shape
-    assert np.allclose(sim.snapshot_times, [0.0, 0.25, 0.5, 0.75, 1.0])
+    np.testing.assert_allclose(sim.snapshot_times, [0.0, 0.25, 0.5, 0.75, 1.0], rtol=1e-15, atol=1e-15)
     assert sim.u.shape == sim.v.shape == (5, 21)
     data = json.loads(json.dumps(sim.to_dict()))
     assert data["delay_interpolation"] == "exact shift" and data["n"] == 20
@@ -550,7 +553,6 @@ def test_result_snapshots_and_json():
     assert final.u.shape == (1, 21) and final.snapshot_times[0] == pytest.approx(1.0)
     with pytest.raises(FrozenInstanceError):
         sim.n = 3  # type: ignore[misc]
-
 
 
 @pytest.mark.parametrize(

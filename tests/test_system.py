@@ -44,15 +44,15 @@ def test_to_dict_is_json_and_tabulates_callables():
 def test_couplings_evaluate_on_arrays():
     x = np.linspace(0.0, 1.0, 7).reshape(7, 1)
     system = Hyperbolic2x2(1.0, 2.0, lambda x: 1.0 + x**2, 0.25, 1.0, 0.2)
-    np.testing.assert_allclose(system.sigma_pm_at(x), 1.0 + x**2)
-    np.testing.assert_allclose(system.sigma_mp_at(x), np.full((7, 1), 0.25))
+    np.testing.assert_allclose(system.sigma_pm_at(x), 1.0 + x**2, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(system.sigma_mp_at(x), np.full((7, 1), 0.25), rtol=1e-15, atol=0)
 
 
 def test_scalar_only_callable_is_wrapped():
     system = Hyperbolic2x2(1.0, 2.0, math.sin, lambda x: 2.0, 1.0, 0.2)
     x = np.array([0.1, 0.5, 0.9])
-    np.testing.assert_allclose(system.sigma_pm_at(x), np.sin(x))
-    np.testing.assert_allclose(system.sigma_mp_at(x), [2.0, 2.0, 2.0])
+    np.testing.assert_allclose(system.sigma_pm_at(x), np.sin(x), rtol=1e-15, atol=0)
+    np.testing.assert_allclose(system.sigma_mp_at(x), [2.0, 2.0, 2.0], rtol=1e-15, atol=0)
     assert not system.constant_couplings
 
 

@@ -31,9 +31,10 @@ the last one, derived again from ``U_1 = -(1 + a s)/(1 + b s) rho u(1, s)``, has
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,7 +85,9 @@ class Controller(ABC):
     """A boundary controller for :class:`~nrobust.hyperbolic.system.Hyperbolic2x2`."""
 
     @abstractmethod
-    def factors(self, phi: QuasiPolynomial, i_n: QuasiPolynomial, kq_unit: QuasiPolynomial) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    def factors(
+        self, phi: QuasiPolynomial, i_n: QuasiPolynomial, kq_unit: QuasiPolynomial
+    ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
         """``(A, B)`` from ``Phi``, ``I_N`` and ``q e^{-tau s}`` (see the module table)."""
 
     @abstractmethod
@@ -221,7 +224,9 @@ def _distributed_part(system: Hyperbolic2x2, n: int) -> QuasiPolynomial:
     return QuasiPolynomial([], [], [delay_form(system, n=n).N_tilde])
 
 
-def loop_factors(system: Hyperbolic2x2, controller: Controller, n: int = DEFAULT_N) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+def loop_factors(
+    system: Hyperbolic2x2, controller: Controller, n: int = DEFAULT_N
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` with the closed-loop characteristic function ``F = A + B e^{-delta s}``.
 
     Parameters
@@ -245,7 +250,9 @@ def loop_factors(system: Hyperbolic2x2, controller: Controller, n: int = DEFAULT
     return controller.factors(phi, i_n, kq_unit)
 
 
-def characteristic(system: Hyperbolic2x2, controller: Controller, delta: float = 0.0, n: int = DEFAULT_N) -> QuasiPolynomial:
+def characteristic(
+    system: Hyperbolic2x2, controller: Controller, delta: float = 0.0, n: int = DEFAULT_N
+) -> QuasiPolynomial:
     """Closed-loop characteristic quasi-polynomial ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
     The closed loop is exponentially stable iff ``F`` has no zero with ``Re s >= 0`` and
@@ -321,19 +328,49 @@ def classify(system: Hyperbolic2x2, atol: float = 1e-12) -> Classification:
     g = abs(system.rho * system.q)
     k_bound = max(0.0, (1.0 - g) / abs(system.q))
     if abs(g - 1.0) <= atol:
-        return Classification(system.rho * system.q, "critical_one", None, False, 0.0,
-                              "|rho q| = 1: critical case; the open-loop chain lies on the imaginary axis.")
+        return Classification(
+            system.rho * system.q,
+            "critical_one",
+            None,
+            False,
+            0.0,
+            "|rho q| = 1: critical case; the open-loop chain lies on the imaginary axis.",
+        )
     if g > 1.0:
-        return Classification(system.rho * system.q, "not_stabilizable", False, False, 0.0,
-                              f"|rho q| = {g:.6g} > 1: no controller is robust to small loop delays (Theorem 2).")
+        return Classification(
+            system.rho * system.q,
+            "not_stabilizable",
+            False,
+            False,
+            0.0,
+            f"|rho q| = {g:.6g} > 1: no controller is robust to small loop delays (Theorem 2).",
+        )
     if abs(g - 0.5) <= atol:
-        return Classification(system.rho * system.q, "critical_half", True, False, k_bound,
-                              "|rho q| = 1/2: U_BS has a difference operator with gamma_0 = 1 (not strongly "
-                              f"stable); U_BS2(K) is delay-robust for |K| < {k_bound:.6g}.")
+        return Classification(
+            system.rho * system.q,
+            "critical_half",
+            True,
+            False,
+            k_bound,
+            "|rho q| = 1/2: U_BS has a difference operator with gamma_0 = 1 (not strongly "
+            f"stable); U_BS2(K) is delay-robust for |K| < {k_bound:.6g}.",
+        )
     if g > 0.5:
-        return Classification(system.rho * system.q, "no_robust_finite_time", True, False, k_bound,
-                              f"1/2 < |rho q| = {g:.6g} < 1: finite-time U_BS has zero delay margin (Theorem 3); "
-                              f"U_BS2(K) is delay-robust for |K| < {k_bound:.6g} (Theorem 4).")
-    return Classification(system.rho * system.q, "robust_finite_time", True, True, k_bound,
-                          f"|rho q| = {g:.6g} < 1/2: finite-time stabilization can be delay-robust; U_BS2(K) is "
-                          f"delay-robust for |K| < {k_bound:.6g}.")
+        return Classification(
+            system.rho * system.q,
+            "no_robust_finite_time",
+            True,
+            False,
+            k_bound,
+            f"1/2 < |rho q| = {g:.6g} < 1: finite-time U_BS has zero delay margin (Theorem 3); "
+            f"U_BS2(K) is delay-robust for |K| < {k_bound:.6g} (Theorem 4).",
+        )
+    return Classification(
+        system.rho * system.q,
+        "robust_finite_time",
+        True,
+        True,
+        k_bound,
+        f"|rho q| = {g:.6g} < 1/2: finite-time stabilization can be delay-robust; U_BS2(K) is "
+        f"delay-robust for |K| < {k_bound:.6g}.",
+    )

@@ -125,7 +125,8 @@ def _n_tilde(system: Hyperbolic2x2, xi: np.ndarray, N_alpha: np.ndarray, N_beta:
     """``N~`` of eq. (eq_N_tilde) as a cubic-spline :class:`DistributedDelay`.
 
     The spline interpolation is fourth order, so the error of the delay form is that of
-    the kernels (``docs/numerics_kernels.md``), not that of the interpolation. On ``[0, 1/mu]``: ``N~(nu) = mu N^beta(1 - mu nu)``, nodes ``(1 - xi)/mu``; on
+    the kernels (``docs/numerics_kernels.md``), not that of the interpolation. On
+    ``[0, 1/mu]``: ``N~(nu) = mu N^beta(1 - mu nu)``, nodes ``(1 - xi)/mu``; on
     ``[1/mu, tau]``: ``N~(nu) = lam q N^alpha(lam nu - lam/mu)``, nodes ``1/mu + xi/lam``.
     The node ``1/mu`` appears twice, carrying the jump.
     """

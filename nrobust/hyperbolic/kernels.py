@@ -29,8 +29,9 @@ other node, which raises the observed order to about three.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from scipy.linalg import solve_triangular

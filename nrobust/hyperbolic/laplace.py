@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
 from .._validate import positive_int
 from ..errors import ParameterError
 from .system import Hyperbolic2x2

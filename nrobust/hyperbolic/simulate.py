@@ -59,8 +59,9 @@ See ``docs/simulation.md``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Union
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,7 +74,7 @@ from .system import Hyperbolic2x2
 __all__ = ["Simulation", "simulate", "v_nodes"]
 
 Array = NDArray[np.float64]
-InitialState = Union[Callable[[Array], Any], Array]
+InitialState = Callable[[Array], Any] | Array
 
 #: Relative tolerance under which ``delta / dt`` counts as an integer.
 _INTEGER_TOL = 1e-9
@@ -252,7 +253,7 @@ def _history_weights(s: float, current: int) -> tuple[NDArray[np.intp], Array]:
     Four points ``floor(s) - 1 .. floor(s) + 2`` moved inside ``[0, current]`` (fewer near
     the start), so that no point lies before ``t = 0``.
     """
-    i0 = int(math.floor(s))
+    i0 = math.floor(s)
     lo = max(0, min(i0 - 1, current - 3))
     hi = min(lo + 3, current)
     idx = np.arange(lo, hi + 1)
@@ -321,7 +322,7 @@ class _Loop:
         self.gain = self.ratio + (1.0 - self.ratio) * phi2
         self.shift = delta / dt
         self.exact = abs(self.shift - round(self.shift)) <= _INTEGER_TOL * max(1.0, self.shift)
-        self.lag = int(round(self.shift)) if self.exact else -1
+        self.lag = round(self.shift) if self.exact else -1
         self.control = np.empty(steps + 1)
         self.v_prev = 0.0
         self.w_state = 0.0
@@ -432,7 +433,7 @@ def _v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
     sits at 0, the point ``x = 0`` is added: the boundary of a partial cell.
     """
     hv = mu * dt
-    count = int(math.floor(1.0 / hv - offset + 1e-9))
+    count = math.floor(1.0 / hv - offset + 1e-9)
     nodes = 1.0 - hv * (np.arange(count, -1, -1) + offset)
     if nodes[0] <= 1e-9 * hv:
         nodes[0] = 0.0
@@ -455,7 +456,7 @@ class _Phase:
     u_at_v: sparse.csr_matrix  # u on xu -> values at xv
 
     @classmethod
-    def build(cls, system: Hyperbolic2x2, xu: Array, xv: Array) -> "_Phase":
+    def build(cls, system: Hyperbolic2x2, xu: Array, xv: Array) -> _Phase:
         return cls(xu, xv, system.sigma_pm_at(xu), system.sigma_mp_at(xv), _stencil(xv, xu), _stencil(xu, xv))
 
 
@@ -478,7 +479,7 @@ class _HalfStep:
     mp_up: Array
 
     @classmethod
-    def build(cls, system: Hyperbolic2x2, a: _Phase, b: _Phase, u_src: NDArray[np.intp], dt: float) -> "_HalfStep":
+    def build(cls, system: Hyperbolic2x2, a: _Phase, b: _Phase, u_src: NDArray[np.intp], dt: float) -> _HalfStep:
         m = b.xv.size - 1 if b.xv[-1] == 1.0 else b.xv.size
         up = np.minimum(b.xv[:m] + system.mu * dt / 2.0, 1.0)
         return cls(a, b, u_src, m, _stencil(a.xv, up), _stencil(a.xu, up), system.sigma_mp_at(up))
@@ -628,7 +629,7 @@ def simulate(
 
     lattice = abs(system.mu - system.lam) <= 1e-12 * system.lam
     dt = 1.0 / (system.lam * n)
-    steps = max(1, int(math.ceil(t_end / dt - 1e-9)))
+    steps = max(1, math.ceil(t_end / dt - 1e-9))
     x = np.linspace(0.0, 1.0, n + 1)
     xv = x if lattice else v_nodes(system, n)
     if xv.size < 4:

@@ -12,8 +12,9 @@ Section 2 (eqs. (u_pde_no_cou)-(IC_no_cou)).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Union
+from typing import Any
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from ..errors import ParameterError
 
 __all__ = ["Coupling", "Hyperbolic2x2", "TransportSystem"]
 
-Coupling = Union[float, Callable[[np.ndarray], Any]]
+Coupling = float | Callable[[np.ndarray], Any]
 
 # Grid on which callable couplings are probed at construction.
 _PROBE = np.linspace(0.0, 1.0, 17)

@@ -1,6 +1,6 @@
-"""Rouché-type certificates: root-free regions and guaranteed delay bounds.
+"""Rouché-type bounds: root-free regions and the L1 modulus of a kernel.
 
-Two certificates, both from the inequality ``|F| >= |D| - |F - D| > 0`` where ``D`` is
+Both certificates come from the inequality ``|F| >= |D| - |F - D| > 0`` where ``D`` is
 the part of ``F`` that dominates:
 
 * :func:`root_free_region`: ``D = s^n P(s)`` with ``P`` the principal part (difference
@@ -8,24 +8,21 @@ the part of ``F`` that dominates:
   half-plane ``Re s > c`` and the set ``{Re s >= x0, |s| > R}``. These bounds make every
   root search of nrobust finite (paper, proof of Lemma 1 and of Theorem 3: "integrating
   by parts, ``|H(s)|`` converges to zero for ``|s|`` large enough").
-* :func:`rouche_delay_bound`: the proof of Theorem 4 made quantitative. For the
-  reflection-preserving control law ``U_BS2(K)`` (eq. (control3)) the loop with a delay
-  ``delta`` has the characteristic function (eq. (delay_eq_alpha_ter))
-
-      F(s) = 1 - q rho e^{-tau s} + K q e^{-(tau + delta) s} + I(s, delta),
-      I(s, delta) = int_0^tau N~(nu) (e^{-nu s} - e^{-(nu + delta) s}) dnu,
-
-  (the paper prints ``-I``; the sign does not enter the bound). On ``Re s >= 0``,
-  ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` and
-  ``|I(s, delta)| <= omega(delta) = int |N~(nu) - N~(nu - delta)| dnu`` (``N~`` extended
-  by zero), the L1 modulus of continuity of ``N~``, computed exactly for the piecewise
-  linear ``N~``. Every ``delta`` with ``omega(delta) < 1 - |q rho| - |K q|`` is admissible.
+* :func:`delay_bound_from_kernel`: for ``F(s) = F_0(s) + I(s, delta)`` with
+  ``|F_0| >= epsilon_0`` on ``Re s >= 0`` and
+  ``I(s, delta) = int_0^tau N(nu) (e^{-nu s} - e^{-(nu + delta) s}) dnu``,
+  ``|I(s, delta)| <= omega(delta) = int |N(nu) - N(nu - delta)| dnu`` (``N`` extended by
+  zero), the L1 modulus of continuity (:func:`l1_modulus`). Every ``delta`` with
+  ``omega(delta) < epsilon_0`` keeps ``F`` zero-free on ``Re s >= 0``: the proof of the
+  paper's Theorem 4 made quantitative (:func:`nrobust.rouche_delay_bound` applies it to
+  the paper's plants).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,16 +31,18 @@ from ._validate import finite_real, positive, positive_int
 from .errors import CertificationError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 
-if TYPE_CHECKING:
-    from .hyperbolic.controllers import Controller
-    from .hyperbolic.system import Hyperbolic2x2
-
 __all__ = [
+    "PrincipalGap",
     "RootFreeRegion",
     "RoucheDelayBound",
+    "TailBound",
+    "delay_bound_from_kernel",
+    "joint_degree",
     "l1_modulus",
+    "principal_gap",
+    "radius_where",
     "root_free_region",
-    "rouche_delay_bound",
+    "total_variation",
 ]
 
 # Doublings of the radius (from 1) before the decay of the remainder is declared too
@@ -71,11 +70,6 @@ def joint_degree(*parts: QuasiPolynomial) -> int:
                     "distributed", f"terms whose polynomial degree is at most {n} (the point-term degree)", d
                 )
     return n
-
-
-def leading_terms(P: QuasiPolynomial, n: int) -> list[tuple[complex, float]]:
-    """The ``s^n`` coefficients ``a_k`` of the point terms of ``P`` with their delays."""
-    return [(complex(p[n]), t) for p, t in P.point_terms if p.size - 1 == n and p[n] != 0]
 
 
 def min_delay(P: QuasiPolynomial) -> float:
@@ -159,7 +153,7 @@ def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: flo
     returned when the first principal term is preceded by another term of the functions
     (an advanced-type function: chains of roots go to ``Re s = +inf``).
     """
-    lead = [(abs(a), t, order, label) for label, (P, order) in parts.items() for a, t in leading_terms(P, n)]
+    lead = [(abs(a), t, order, label) for label, (P, order) in parts.items() for a, t in P.leading_terms(n)]
     if not lead:
         return None
     lead.sort(key=lambda e: (e[1], e[2]))
@@ -171,7 +165,7 @@ def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: flo
     return PrincipalGap(float(a0 - others), float(t0), label0)
 
 
-def radius_where(tail: Any, level: float, what: str) -> float:
+def radius_where(tail: Callable[[float], float], level: float, what: str) -> float:
     """Smallest ``R`` (up to bisection accuracy, rounded up) with ``tail(R) < level``.
 
     ``tail`` must be non-increasing. Raises :class:`CertificationError` if the tail
@@ -489,47 +483,3 @@ def delay_bound_from_kernel(
             )
         d, om, steps = d + h, om_next, steps + 1
     return RoucheDelayBound(float(d), epsilon_0, om + correction, tv, K, steps)
-
-
-def rouche_delay_bound(system: "Hyperbolic2x2", controller: "Controller", n: int | None = None) -> RoucheDelayBound:
-    """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
-
-    On ``Re s >= 0`` the characteristic function of eq. (delay_eq_alpha_ter) satisfies
-    ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` with
-    ``|I(s, delta)| <= omega(delta)`` (:func:`l1_modulus` of ``N~``). Every delay in
-    ``[0, delta_0]`` with ``sup omega < epsilon_0 = 1 - |q rho| - |K q|`` keeps ``F``
-    zero-free on ``Re s >= 0``; the strict inequality extends to ``Re s >= -epsilon``
-    for some ``epsilon > 0`` by continuity, so the loop is exponentially stable.
-    ``delta_0`` is a lower bound of the delay margin (:func:`nrobust.margins.delay_margin`).
-
-    Parameters
-    ----------
-    system : Hyperbolic2x2
-        The plant (a :class:`TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
-        whenever ``epsilon_0 > 0``).
-    controller : ReflectionController or FiniteTimeController
-        ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
-    n : int, optional
-        Kernel grid of the delay form (default: that of the closed-loop functions).
-
-    Returns
-    -------
-    RoucheDelayBound
-    """
-    from .hyperbolic.controllers import DEFAULT_N, FiniteTimeController, ReflectionController
-    from .hyperbolic.delay_form import delay_form
-    from .hyperbolic.system import Hyperbolic2x2
-
-    if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
-    if isinstance(controller, ReflectionController):
-        K = float(controller.K)
-    elif isinstance(controller, FiniteTimeController):
-        K = float(system.rho)
-    else:
-        raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
-    grid = DEFAULT_N if n is None else positive_int("n", n, 2)
-    eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
-    N = None if system.uncoupled else delay_form(system, n=grid).N_tilde
-    return delay_bound_from_kernel(N, eps0, K)
-

@@ -1,0 +1,233 @@
+"""The TOML input schema: systems, controllers, profiles and the SYSTEM.toml file.
+
+One place knows how a file names a plant or a controller (:data:`SYSTEM_TYPES`,
+:data:`CONTROLLER_TYPES`), reads TOML on every supported Python (``tomllib`` from 3.11,
+``tomli`` before) and turns a coupling table ``{x = [...], values = [...]}`` into a
+profile (:class:`PiecewiseLinear`). ``nrobust analyze`` reads SYSTEM.toml with
+:func:`load_system_file`; ``nrobust sweep`` reads SWEEP.toml with
+:mod:`nrobust.sweepfile`. Schemas: ``docs/getting_started.md`` and ``docs/sweeps.md``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ParameterError
+from .hyperbolic.controllers import (
+    Controller,
+    FilteredController,
+    FiniteTimeController,
+    OpenLoop,
+    ReflectionController,
+)
+from .hyperbolic.system import Hyperbolic2x2, TransportSystem
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised by the Python 3.10 run of CI
+    import tomli as tomllib
+
+__all__ = ["CONTROLLER_TYPES", "SYSTEM_TYPES", "PiecewiseLinear", "load_system_file", "load_toml"]
+
+#: The plants a file can name in ``[system] type = ...``.
+SYSTEM_TYPES: dict[str, type[Hyperbolic2x2]] = {"Hyperbolic2x2": Hyperbolic2x2, "TransportSystem": TransportSystem}
+#: The controllers a file can name in ``[controller] type = ...``.
+CONTROLLER_TYPES: dict[str, type[Controller]] = {
+    "OpenLoop": OpenLoop,
+    "FiniteTimeController": FiniteTimeController,
+    "ReflectionController": ReflectionController,
+    "FilteredController": FilteredController,
+}
+_SYSTEM_KEYS = {
+    "Hyperbolic2x2": ("lam", "mu", "sigma_pm", "sigma_mp", "q", "rho"),
+    "TransportSystem": ("lam", "mu", "q", "rho"),
+}
+_CONTROLLER_KEYS = {
+    "OpenLoop": (),
+    "FiniteTimeController": (),
+    "ReflectionController": ("K",),
+    "FilteredController": ("a", "b"),
+}
+_ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True}
+_SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "n": 200, "u0": 1.0, "v0": 1.0}
+_TOP_KEYS = ("system", "controller", "analysis", "simulation")
+
+
+def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
+    """Parse a TOML file; a missing or malformed file is a :class:`ParameterError` on ``path``."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError("path", f"an existing {what}", str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError("path", f"a valid TOML file ({exc})", str(path)) from None
+
+
+@dataclass(frozen=True)
+class PiecewiseLinear:
+    """A coupling given in a file as ``{x = [...], values = [...]}``, linear between nodes.
+
+    Parameters
+    ----------
+    x : tuple of float
+        Increasing nodes covering ``[0, 1]``.
+    values : tuple of float
+        Values at the nodes.
+    """
+
+    x: tuple[float, ...]
+    values: tuple[float, ...]
+
+    def __call__(self, x: Any) -> np.ndarray:
+        return np.interp(np.asarray(x, dtype=float), self.x, self.values)
+
+    @property
+    def __name__(self) -> str:  # used by the systems' repr
+        return "piecewise_linear"
+
+
+def _number(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise ParameterError(key, "a finite number", value)
+    return float(value)
+
+
+def _profile(key: str, value: Any) -> float | PiecewiseLinear:
+    """A number or a piecewise-linear table ``{x = [...], values = [...]}`` on [0, 1]."""
+    if not isinstance(value, dict):
+        return _number(key, value)
+    if set(value) != {"x", "values"}:
+        raise ParameterError(key, "a number or a table with exactly the keys x and values", value)
+    x, v = value["x"], value["values"]
+    if not isinstance(x, list) or not isinstance(v, list) or len(x) != len(v) or len(x) < 2:
+        raise ParameterError(f"{key}.x", "a list of at least 2 nodes, as long as values", x)
+    xs = tuple(_number(f"{key}.x", t) for t in x)
+    vs = tuple(_number(f"{key}.values", t) for t in v)
+    if xs[0] != 0.0 or xs[-1] != 1.0 or any(b <= a for a, b in itertools.pairwise(xs)):
+        raise ParameterError(f"{key}.x", "increasing from 0 to 1", x)
+    return PiecewiseLinear(xs, vs)
+
+
+def _table(spec: dict[str, Any], name: str, required: bool) -> dict[str, Any]:
+    table = spec.get(name)
+    if table is None and not required:
+        return {}
+    if not isinstance(table, dict):
+        raise ParameterError(name, f"a [{name}] table", table)
+    return table
+
+
+def _typed(table: dict[str, Any], section: str, keys: dict[str, tuple[str, ...]]) -> tuple[str, dict[str, Any]]:
+    kind = table.get("type")
+    if kind not in keys:
+        raise ParameterError(f"{section}.type", f"one of {list(keys)}", kind)
+    params = {k: v for k, v in table.items() if k != "type"}
+    for key in params:
+        if key not in keys[kind]:
+            raise ParameterError(f"{section}.{key}", f"a key of {kind}: one of {list(keys[kind])}", params[key])
+    for key in keys[kind]:
+        if key not in params:
+            raise ParameterError(f"{section}.{key}", f"given for {kind}", None)
+    return kind, params
+
+
+def _options(table: dict[str, Any], section: str, defaults: dict[str, Any]) -> dict[str, Any]:
+    for key in table:
+        if key not in defaults:
+            raise ParameterError(f"{section}.{key}", f"a key of [{section}]: one of {list(defaults)}", table[key])
+    return {**defaults, **table}
+
+
+def _wrap(key: str, build: Callable[[], Any]) -> Any:
+    """Build an object, prefixing the section to the parameter named by its error."""
+    try:
+        return build()
+    except ParameterError as exc:
+        raise ParameterError(f"{key}.{exc.name}", exc.requirement, exc.value) from None
+
+
+def load_system_file(path: str | Path) -> dict[str, Any]:
+    """Read a SYSTEM.toml file (schema in ``docs/getting_started.md``).
+
+    Returns
+    -------
+    dict
+        ``system``, ``controller``, ``delta_max``, ``region``, ``k_region`` and
+        ``simulation`` (None or a dict of ``delays``, ``t_end``, ``n``, ``u0``, ``v0``).
+
+    Raises
+    ------
+    ParameterError
+        Naming the bad key (``system.rho``, ``controller.type``, ``analysis.delta_max``...).
+    """
+    spec = load_toml(path, "TOML file")
+    for key in spec:
+        if key not in _TOP_KEYS:
+            raise ParameterError(key, f"a section of the file: one of {list(_TOP_KEYS)}", spec[key])
+
+    kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS)
+    values = {k: (_profile if k.startswith("sigma") else _number)(f"system.{k}", v) for k, v in params.items()}
+    cls = SYSTEM_TYPES[kind]
+    system = _wrap("system", lambda: cls(**values))
+
+    kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS)
+    values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
+    controller = _wrap("controller", lambda: CONTROLLER_TYPES[kind](**values))
+
+    analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
+    if analysis["delta_max"] is None:
+        raise ParameterError("analysis.delta_max", "given (the largest loop delay of interest, > 0)")
+    delta_max = _number("analysis.delta_max", analysis["delta_max"])
+    if delta_max <= 0:
+        raise ParameterError("analysis.delta_max", "> 0", analysis["delta_max"])
+    region = analysis["region"]
+    if region is not None:
+        if not isinstance(region, list) or len(region) != 4:
+            raise ParameterError("analysis.region", "a list [re_min, re_max, im_min, im_max]", region)
+        region = tuple(_number("analysis.region", v) for v in region)
+        if not (region[0] < region[1] and region[2] < region[3]):
+            raise ParameterError(
+                "analysis.region", "a non-empty rectangle: re_min < re_max, im_min < im_max", list(region)
+            )
+    if not isinstance(analysis["k_region"], bool):
+        raise ParameterError("analysis.k_region", "true or false", analysis["k_region"])
+
+    simulation = None
+    if "simulation" in spec:
+        sim = _options(_table(spec, "simulation", True), "simulation", _SIMULATION_KEYS)
+        delays = sim["delays"]
+        if not isinstance(delays, list) or not delays:
+            raise ParameterError("simulation.delays", "a non-empty list of loop delays >= 0", delays)
+        delays = [_number("simulation.delays", d) for d in delays]
+        if any(d < 0 for d in delays):
+            raise ParameterError("simulation.delays", "delays >= 0", delays)
+        t_end = _number("simulation.t_end", sim["t_end"])
+        if t_end <= 0:
+            raise ParameterError("simulation.t_end", "> 0", sim["t_end"])
+        n = sim["n"]
+        if isinstance(n, bool) or not isinstance(n, int) or n < 4:
+            raise ParameterError("simulation.n", "an integer >= 4", n)
+        simulation = {
+            "delays": delays,
+            "t_end": t_end,
+            "n": n,
+            "u0": _profile("simulation.u0", sim["u0"]),
+            "v0": _profile("simulation.v0", sim["v0"]),
+        }
+    return {
+        "system": system,
+        "controller": controller,
+        "delta_max": delta_max,
+        "region": region,
+        "k_region": analysis["k_region"],
+        "simulation": simulation,
+    }

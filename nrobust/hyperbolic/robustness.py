@@ -1,0 +1,63 @@
+"""The Rouché delay bound of the paper's plants (Theorem 4's proof, made quantitative).
+
+For the reflection-preserving control law ``U_BS2(K)`` (eq. (control3)) the loop with a
+delay ``delta`` has the characteristic function (eq. (delay_eq_alpha_ter))
+
+    F(s) = 1 - q rho e^{-tau s} + K q e^{-(tau + delta) s} + I(s, delta),
+    I(s, delta) = int_0^tau N~(nu) (e^{-nu s} - e^{-(nu + delta) s}) dnu,
+
+(the paper prints ``-I``; the sign does not enter the bound). On ``Re s >= 0``,
+``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` and ``|I(s, delta)| <= omega(delta)``,
+the L1 modulus of continuity of ``N~`` (:func:`nrobust.bounds.l1_modulus`). Every ``delta``
+with ``omega(delta) < 1 - |q rho| - |K q|`` is admissible.
+"""
+
+from __future__ import annotations
+
+from .._validate import positive_int
+from ..bounds import RoucheDelayBound, delay_bound_from_kernel
+from ..errors import ParameterError
+from .controllers import DEFAULT_N, Controller, FiniteTimeController, ReflectionController
+from .delay_form import delay_form
+from .system import Hyperbolic2x2
+
+__all__ = ["rouche_delay_bound"]
+
+
+def rouche_delay_bound(system: Hyperbolic2x2, controller: Controller, n: int | None = None) -> RoucheDelayBound:
+    """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
+
+    On ``Re s >= 0`` the characteristic function of eq. (delay_eq_alpha_ter) satisfies
+    ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` with
+    ``|I(s, delta)| <= omega(delta)`` (:func:`l1_modulus` of ``N~``). Every delay in
+    ``[0, delta_0]`` with ``sup omega < epsilon_0 = 1 - |q rho| - |K q|`` keeps ``F``
+    zero-free on ``Re s >= 0``; the strict inequality extends to ``Re s >= -epsilon``
+    for some ``epsilon > 0`` by continuity, so the loop is exponentially stable.
+    ``delta_0`` is a lower bound of the delay margin (:func:`nrobust.margins.delay_margin`).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The plant (a :class:`TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
+        whenever ``epsilon_0 > 0``).
+    controller : ReflectionController or FiniteTimeController
+        ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
+    n : int, optional
+        Kernel grid of the delay form (default: that of the closed-loop functions).
+
+    Returns
+    -------
+    RoucheDelayBound
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    if isinstance(controller, ReflectionController):
+        K = float(controller.K)
+    elif isinstance(controller, FiniteTimeController):
+        K = float(system.rho)
+    else:
+        raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
+    grid = DEFAULT_N if n is None else positive_int("n", n, 2)
+    eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
+    N = None if system.uncoupled else delay_form(system, n=grid).N_tilde
+    return delay_bound_from_kernel(N, eps0, K)

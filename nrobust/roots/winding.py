@@ -1,0 +1,386 @@
+"""Certified root counts of quasi-polynomials in rectangles: the argument principle.
+
+Counting uses the argument principle on the boundary of a rectangle with a step rule
+that makes the sum of sampled argument increments *exact*: on a contour step from
+``s_i`` to ``s_i + h`` let ``M`` bound ``|F'|`` on the step (``F.deriv_bound``, closed
+form). If ``M |h| / 2 < min(|F(s_i)|, |F(s_i + h)|)``, then on each half of the step
+``F`` stays in a disc about an end value that excludes 0, so the change of argument over
+the step is the principal value of ``arg(F(s_i + h) / F(s_i))``. Failing steps are
+halved. The winding number is then an integer by construction, not a rounded integral.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import positive_int
+from .._validate import region as _check_region
+from ..errors import CertificationError, ParameterError
+from ..quasipoly import QuasiPolynomial
+
+__all__ = ["Region", "RootCount", "count_roots"]
+
+Region = tuple[float, float, float, float]
+
+_EPS = float(np.finfo(float).eps)
+# Rounding allowance on |F| at a sample, relative to the sum of the moduli of its terms.
+_ROUNDING = 64 * _EPS
+# A sample with |F| below this (relative to the same sum) is "on a root": shift the edge.
+_NEAR_ZERO = 512 * _EPS
+# Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
+_MIN_STEP = 1e-13
+# Limit points of Newton's method closer than this (relative to 1 + |s|) share one box.
+_MERGE_RTOL = 1e-4
+# A stalled Newton iterate is within this many steps |F/F'| of the roots it approaches
+# (an m-fold root is m steps away).
+_REACH = 10.0
+# Newton's method stalls near an m-fold root at |F| ~ eps A; such points are limits too.
+_STALLED = 1e3 * _ROUNDING
+# Largest degree of the commensurate approximation whose chains seed Newton's method
+# for incommensurate principal parts.
+_SEED_DEGREE = 128
+# Initial number of steps per edge.
+_INITIAL_STEPS = 8
+_SIDES = ("bottom", "right", "top", "left")
+# Root-finding strategies of find_roots (see its docstring).
+METHODS = ("auto", "subdivision")
+
+
+# ====================================================================== counting engine
+class _Budget:
+    """Counts evaluations of ``F`` (and of its derivative bound) against a maximum."""
+
+    def __init__(self, max_evals: int) -> None:
+        self.max_evals = max_evals
+        self.used = 0
+
+    def spend(self, n: int, what: str) -> None:
+        self.used += int(n)
+        if self.used > self.max_evals:
+            raise CertificationError(
+                f"work bound max_evals={self.max_evals} exhausted while {what}; raise max_evals or use a smaller region"
+            )
+
+
+def _magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Sum of the moduli of the monomials of ``F`` at ``s``: the scale of its rounding error."""
+    out = np.zeros(s.shape)
+    r = np.abs(s)
+    for p, t in F.point_terms:
+        out += np.polynomial.polynomial.polyval(r, np.abs(p)) * np.exp(-t * s.real)
+    if F.distributed:
+        # int |N| nu^k e^{-nu x} decreases in x (nu >= 0): rounding x down to 1/64 keeps an
+        # upper bound and lets the samples of a contour share a few evaluations
+        xs, inv = np.unique(np.floor(s.real * 64.0) / 64.0, return_inverse=True)
+        for d in F.distributed:
+            out += np.polynomial.polynomial.polyval(r, np.abs(d.poly)) * d.abs_moment(xs, 0)[inv.reshape(s.shape)]
+    return out
+
+
+@dataclass
+class _Edges:
+    """Result of certifying a batch of oriented segments."""
+
+    turns: NDArray[np.float64]  # total change of argument / (2 pi) along each segment
+    blocked: NDArray[np.bool_]  # True where a root lies on or too near the segment
+
+
+def _first_order_ok(bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+    """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding)."""
+    room = np.minimum(np.abs(st["fa"]) - _ROUNDING * st["ma"], np.abs(st["fb"]) - _ROUNDING * st["mb"])
+    return bound * np.abs(st["b"] - st["a"]) * 0.5 < room
+
+
+def _second_order_ok(bound2: NDArray, bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+    """Step rule of order 2, for steps near a root where order 1 needs tiny steps.
+
+    With ``M2`` a bound of ``|F''|`` on the step, ``F(a + t) = F(a) + F'(a) t + R(t)`` with
+    ``|R| <= M2 |t|^2 / 2``: ``F`` stays in the tube of that radius about the segment
+    ``[F(a), F(a) + F'(a) h]``. If the segment's distance to 0 exceeds the radius, the
+    tube is a convex set without 0, hence in an open half-plane, and the change of
+    argument over the step is again the principal value of ``arg(F(b) / F(a))``.
+    """
+    h = st["b"] - st["a"]
+    p0, v = st["fa"], st["dfa"] * h
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(-np.real(np.conj(v) * p0) / np.abs(v) ** 2, 0.0, 1.0)
+    dist = np.abs(p0 + np.nan_to_num(t) * v)
+    slack = _ROUNDING * (st["ma"] + bound * np.abs(h))
+    return bound2 * np.abs(h) ** 2 * 0.5 + slack < dist
+
+
+def _take(st: dict[str, NDArray], mask: NDArray[np.bool_]) -> dict[str, NDArray]:
+    return {k: v[mask] for k, v in st.items()}
+
+
+def _wind_segments(
+    F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _Budget, label: Callable[[int], str]
+) -> _Edges:
+    """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
+
+    All segments are refined together; only the steps that fail both step rules
+    (:func:`_first_order_ok`, :func:`_second_order_ok`) are halved. The order-2 rule
+    (one evaluation of ``F'`` and a bound of ``|F''|``) is tried only on steps that fail
+    the order-1 rule by a factor above 8, i.e. close to a root. When the work bound is
+    hit, the error names the edge that holds the most unfinished steps.
+    """
+    n_edges = starts.size
+    t = np.linspace(0.0, 1.0, _INITIAL_STEPS + 1)
+    pts = starts[:, None] + (ends - starts)[:, None] * t[None, :]
+    pts[:, -1] = ends  # exact corners, so that adjacent edges close the contour
+    budget.spend(pts.size, "sampling contour edges")
+    fv, mag = _evaluate(F, pts, label, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
+    st = {
+        "a": pts[:, :-1].ravel(),
+        "b": pts[:, 1:].ravel(),
+        "fa": fv[:, :-1].ravel(),
+        "fb": fv[:, 1:].ravel(),
+        "ma": mag[:, :-1].ravel(),
+        "mb": mag[:, 1:].ravel(),
+        "dfa": np.full(n_edges * _INITIAL_STEPS, np.nan, dtype=complex),
+        "owner": np.repeat(np.arange(n_edges), _INITIAL_STEPS),
+    }
+    turns = np.zeros(n_edges)
+    blocked = np.zeros(n_edges, dtype=bool)
+    near = (np.abs(st["fa"]) <= _NEAR_ZERO * st["ma"]) | (np.abs(st["fb"]) <= _NEAR_ZERO * st["mb"])
+    blocked[np.unique(st["owner"][near])] = True
+    dF: QuasiPolynomial | None = None
+    while st["a"].size:
+        st = _take(st, ~blocked[st["owner"]])
+        if not st["a"].size:
+            break
+        what = f"bounding |F'| on the {label(int(np.bincount(st['owner']).argmax()))}"
+        budget.spend(st["a"].size, what)
+        bound = F.deriv_bound(st["a"], st["b"]) * (1.0 + 1e-12)
+        ok = _first_order_ok(bound, st)
+        room = np.minimum(np.abs(st["fa"]), np.abs(st["fb"]))
+        close = ~ok & (bound * np.abs(st["b"] - st["a"]) > 8.0 * room)
+        if np.any(close):
+            dF = F.derivative() if dF is None else dF
+            idx = np.flatnonzero(close)
+            need = idx[np.isnan(st["dfa"][idx])]
+            budget.spend(2 * idx.size, what.replace("|F'|", "|F''|"))
+            st["dfa"][need] = F.deriv(st["a"][need])
+            sub = _take(st, close)
+            ok[idx] = _second_order_ok(dF.deriv_bound(sub["a"], sub["b"]) * (1.0 + 1e-12), bound[idx], sub)
+        turns += np.bincount(st["owner"][ok], weights=np.angle(st["fb"][ok] / st["fa"][ok]), minlength=n_edges)
+        st = _take(st, ~ok)
+        if not st["a"].size:
+            break
+        a, b = st["a"], st["b"]
+        blocked[np.unique(st["owner"][np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
+        mid = 0.5 * (a + b)
+        budget.spend(mid.size, f"refining the {label(int(np.bincount(st['owner']).argmax()))}")
+        fm, mm = _evaluate(F, mid, label, st["owner"])
+        blocked[np.unique(st["owner"][np.abs(fm) <= _NEAR_ZERO * mm])] = True
+        st = {
+            "a": np.concatenate([a, mid]),
+            "b": np.concatenate([mid, b]),
+            "fa": np.concatenate([st["fa"], fm]),
+            "fb": np.concatenate([fm, st["fb"]]),
+            "ma": np.concatenate([st["ma"], mm]),
+            "mb": np.concatenate([mm, st["mb"]]),
+            "dfa": np.concatenate([st["dfa"], np.full(mid.size, np.nan, dtype=complex)]),
+            "owner": np.concatenate([st["owner"], st["owner"]]),
+        }
+    return _Edges(turns / (2 * np.pi), blocked)
+
+
+def _evaluate(
+    F: QuasiPolynomial, s: NDArray[np.complex128], label: Callable[[int], str], owner: NDArray
+) -> tuple[NDArray, NDArray]:
+    """``F(s)`` and its rounding scale; an overflow is an error naming the edge."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        fv = F(s)
+        mag = _magnitude(F, s)
+    bad = ~(np.isfinite(fv) & np.isfinite(mag))
+    if np.any(bad):
+        edge = label(int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
+        raise CertificationError(f"F overflows on the {edge}: move the region to the right or shrink it")
+    return fv, mag
+
+
+def _box_edges(box: Sequence[float]) -> list[tuple[complex, complex]]:
+    x0, x1, y0, y1 = box
+    return [
+        (complex(x0, y0), complex(x1, y0)),
+        (complex(x1, y0), complex(x1, y1)),
+        (complex(x1, y1), complex(x0, y1)),
+        (complex(x0, y1), complex(x0, y0)),
+    ]
+
+
+def _describe_edge(box: Sequence[float], side: int) -> str:
+    x0, x1, y0, y1 = box
+    if side in (0, 2):
+        y = y0 if side == 0 else y1
+        return f"{_SIDES[side]} edge (Im s = {y:.12g}, Re s in [{x0:.12g}, {x1:.12g}])"
+    x = x1 if side == 1 else x0
+    return f"{_SIDES[side]} edge (Re s = {x:.12g}, Im s in [{y0:.12g}, {y1:.12g}])"
+
+
+class _Counter:
+    """Certified counts of many boxes at once; edges shared between boxes are computed once."""
+
+    def __init__(self, F: QuasiPolynomial, budget: _Budget) -> None:
+        self.F = F
+        self.budget = budget
+        self.cache: dict[tuple[complex, complex], tuple[float, bool]] = {}
+
+    def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them."""
+        edges = [e for box in boxes for e in _box_edges(box)]
+        todo: dict[tuple[complex, complex], int] = {}
+        for i, (p, q) in enumerate(edges):
+            if (p, q) not in self.cache and (q, p) not in self.cache and (p, q) not in todo:
+                todo[(p, q)] = i
+        if todo:
+            keys = list(todo)
+            res = _wind_segments(
+                self.F,
+                np.array([k[0] for k in keys]),
+                np.array([k[1] for k in keys]),
+                self.budget,
+                lambda j: _describe_edge(boxes[todo[keys[j]] // 4], todo[keys[j]] % 4),
+            )
+            for k, tr, bl in zip(keys, res.turns, res.blocked):
+                self.cache[k] = (float(tr), bool(bl))
+        turns = np.empty(len(edges))
+        blocked = np.empty(len(edges), dtype=bool)
+        for i, (p, q) in enumerate(edges):
+            if (p, q) in self.cache:
+                tr, bl = self.cache[(p, q)]
+            else:
+                tr, bl = self.cache[(q, p)]
+                tr = -tr
+            turns[i], blocked[i] = tr, bl
+        turns = turns.reshape(-1, 4).sum(axis=1)
+        blocked = blocked.reshape(-1, 4)
+        counts = np.rint(turns).astype(np.int64)
+        good = ~blocked.any(axis=1)
+        if np.any(np.abs(turns[good] - counts[good]) > 1e-6):
+            raise CertificationError("a certified winding number is not an integer: floating-point failure")
+        return counts, blocked
+
+
+# ====================================================================== count_roots
+class RootCount(int):
+    """A certified number of roots (with multiplicity) in a rectangle; behaves as an ``int``.
+
+    Attributes
+    ----------
+    region : tuple of float
+        The rectangle actually counted; it differs from the requested one when an edge
+        passed through or too near a root and was moved outwards (``shifted``).
+    shifted : bool
+        True if ``region`` differs from the requested rectangle.
+    evaluations : int
+        Number of evaluations of ``F`` and of its derivative bound.
+    """
+
+    region: Region
+    shifted: bool
+    evaluations: int
+
+    def __new__(cls, count: int, region: Region, shifted: bool, evaluations: int) -> RootCount:
+        obj = super().__new__(cls, count)
+        object.__setattr__(obj, "region", tuple(float(v) for v in region))
+        object.__setattr__(obj, "shifted", bool(shifted))
+        object.__setattr__(obj, "evaluations", int(evaluations))
+        return obj
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"RootCount is immutable (cannot set {name!r})")
+
+    def __repr__(self) -> str:
+        r = ", ".join(f"{v:.12g}" for v in self.region)
+        return f"RootCount({int(self)}, region=({r}), shifted={self.shifted}, evaluations={self.evaluations})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {
+            "count": int(self),
+            "region": list(self.region),
+            "shifted": self.shifted,
+            "evaluations": self.evaluations,
+        }
+
+
+def _check_function(F: Any) -> QuasiPolynomial:
+    if not isinstance(F, QuasiPolynomial):
+        raise ParameterError("F", "a QuasiPolynomial", type(F).__name__)
+    if not F.point_terms and not F.distributed:
+        raise ParameterError("F", "not identically zero (every point would be a root)", F)
+    return F
+
+
+def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple[int, Region, bool]:
+    """Count a box, moving blocked edges outwards (by 1e-7, 1e-6, ... of its size)."""
+    reg = list(box)
+    size = max(reg[1] - reg[0], reg[3] - reg[2])
+    for attempt in range(max_shifts + 1):
+        counts, blocked = counter.count([tuple(reg)])
+        if not blocked[0].any():
+            return int(counts[0]), tuple(reg), attempt > 0  # type: ignore[return-value]
+        if attempt == max_shifts:
+            sides = "; ".join(_describe_edge(reg, k) for k in np.flatnonzero(blocked[0]))
+            raise CertificationError(f"a root lies on or within rounding of the {sides} after {max_shifts} shifts")
+        delta = size * 1e-7 * 10.0**attempt * 1.618
+        for k in np.flatnonzero(blocked[0]):
+            if k == 0:
+                reg[2] -= delta
+            elif k == 1:
+                reg[1] += delta
+            elif k == 2:
+                reg[3] += delta
+            else:
+                reg[0] -= delta
+    raise AssertionError("unreachable")
+
+
+def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000_000, max_shifts: int = 4) -> RootCount:
+    """Certified number of roots of ``F`` (with multiplicity) in a rectangle.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+    region : (re_min, re_max, im_min, im_max)
+        The rectangle; an edge through or within rounding of a root is moved outwards
+        and the rectangle actually counted is reported in the result.
+    max_evals : int, optional
+        Work bound: evaluations of ``F`` and of its derivative bound.
+    max_shifts : int, optional
+        How many times an edge may be moved before giving up.
+
+    Returns
+    -------
+    RootCount
+        An ``int`` with the attributes ``region``, ``shifted`` and ``evaluations``.
+
+    Raises
+    ------
+    RegionError
+        Empty or non-finite region.
+    CertificationError
+        The work bound was exhausted (the message names the edge), or a root stays on an
+        edge after ``max_shifts`` shifts.
+
+    Examples
+    --------
+    >>> from nrobust import QuasiPolynomial
+    >>> F = QuasiPolynomial([[1], [-0.85], [0.1]], [0, 2, 2.1])
+    >>> int(count_roots(F, (-3, 1, -0.5, 200)))
+    64
+    """
+    F = _check_function(F)
+    box = _check_region(region)
+    max_evals = positive_int("max_evals", max_evals)
+    max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
+    budget = _Budget(max_evals)
+    n, reg, shifted = _count_with_shifts(_Counter(F, budget), box, max_shifts)
+    return RootCount(n, reg, shifted, budget.used)
