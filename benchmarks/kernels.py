@@ -38,7 +38,7 @@ PLANTS = {
 def reference(system: Hyperbolic2x2, n_K: int, n_L: int) -> tuple[np.ndarray, np.ndarray]:
     """Fine-grid references: extrapolated ``K`` on ``n_K`` points, extrapolated ``L`` on ``n_L``."""
     K_ref = _richardson(_solve_K(system, n_K), _solve_K(system, (n_K + 1) // 2))
-    L_ref = solve_kernels(system, n=n_L).L
+    L_ref = solve_kernels(system, kernel_grid=n_L).L
     return K_ref, L_ref
 
 
@@ -46,7 +46,7 @@ def timed(system: Hyperbolic2x2, n: int, extrapolate: bool, repeat: int) -> tupl
     best, result = np.inf, None
     for _ in range(repeat):
         start = time.perf_counter()
-        result = solve_kernels(system, n=n, extrapolate=extrapolate)
+        result = solve_kernels(system, kernel_grid=n, extrapolate=extrapolate)
         best = min(best, time.perf_counter() - start)
     return best, result
 

@@ -117,7 +117,7 @@ def main() -> None:
     )
     for name, (controller, delta) in runs.items():
         law = controller.feedback_law(SYSTEM, kernels)
-        sim, t_sim = timed(lambda law=law, delta=delta: simulate(SYSTEM, law, delta, T_END, u0, v0, n=N))
+        sim, t_sim = timed(lambda law=law, delta=delta: simulate(SYSTEM, law, delta, T_END, u0, v0, cells=N))
         rows = [("lattice", sim.times, sim.norm, t_sim, 2 * N * (sim.times.size - 1))]
         for scheme in ("co-located", "upwind"):
             (times, norm), t_peer = timed(lambda law=law, delta=delta, scheme=scheme: peer(law, delta, N, scheme))
@@ -133,7 +133,7 @@ def main() -> None:
             print(f"{'':<22}spectral abscissa {spectrum.value:+.4f} (certified: {spectrum.certified}, {t_roots:.1f} s)")
     unequal = Hyperbolic2x2(lam=1.0, mu=2.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
     law = ReflectionController(0.1).feedback_law(unequal, solve_kernels(unequal, N + 1))
-    sim, t_sim = timed(lambda: simulate(unequal, law, 0.1, T_END, u0, v0, n=N))
+    sim, t_sim = timed(lambda: simulate(unequal, law, 0.1, T_END, u0, v0, cells=N))
     nodes = (sim.x.size + sim.x_v.size) * (sim.times.size - 1)
     print(
         f"\nunequal speeds (lam, mu) = (1, 2), two grids, U_BS2, delta = 0.1: {t_sim:.3f} s, "

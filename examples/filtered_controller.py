@@ -67,7 +67,7 @@ fig.savefig(out / "filtered_ab_region.png", dpi=110)
 
 # 3. the plant itself -----------------------------------------------------------------
 runs = [
-    nrobust.simulate(system, controller, d, 20.0, lambda x: np.ones_like(x), lambda x: np.sin(np.pi * x), n=100)
+    nrobust.simulate(system, controller, d, 20.0, lambda x: np.ones_like(x), lambda x: np.sin(np.pi * x), cells=100)
     for d in (0.0, 0.2)
 ]
 fig, ax = plt.subplots(figsize=(6, 4))

@@ -46,7 +46,7 @@ def figure(
     """One panel: the L2 norm against time for each delay; ``floor`` cuts the log axis."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for delta in deltas:
-        sim = simulate(SYSTEM, controller, delta, T_END, u0, v0, n=N, kernels=kernels)
+        sim = simulate(SYSTEM, controller, delta, T_END, u0, v0, cells=N, kernels=kernels)
         norm = np.where(sim.norm > 0.0, sim.norm, np.nan)
         ax.semilogy(sim.times, norm, label=f"delta = {delta:g}")
         print(

@@ -90,7 +90,7 @@ for d, r in zip(locus.params, locus.roots):
 fig.savefig(out / "transport_locus_delta.png", dpi=110)
 
 # K-admissible region: eq. (boun_K2) is exact for the transport system
-region = nrobust.k_region(system, 1.0, n=9)
+region = nrobust.k_region(system, 1.0, n_gains=9)
 print(f"gains stable for every delay in [0, 1]: {region.intervals}, paper bound |K| < {region.paper_bound:.3g}")
 
 # 4. python-control -------------------------------------------------------------------

@@ -56,7 +56,7 @@ print(
 )
 
 # 2. certificate and report -------------------------------------------------------------
-cert = nrobust.certify(system, nrobust.ReflectionController(0.1), delta_max=0.2, k_grid=5)
+cert = nrobust.certify(system, nrobust.ReflectionController(0.1), delta_max=0.2, n_gains=5)
 print(cert.verdict)
 files = write_report(cert, out / "varying_report")
 print(f"report: {files.html}")

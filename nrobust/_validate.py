@@ -1,8 +1,16 @@
-"""Small argument checks shared by the modules; each raises :class:`ParameterError`."""
+"""Small argument checks shared by the modules; each raises :class:`ParameterError`.
+
+:func:`renamed_keywords` keeps the old name of a renamed keyword argument working as a
+deprecated alias (``CHANGELOG.md`` lists the renames).
+"""
 
 from __future__ import annotations
 
-from typing import Any
+import functools
+import inspect
+import warnings
+from collections.abc import Callable
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 
@@ -55,4 +63,56 @@ def region(value: Any, name: str = "region") -> tuple[float, float, float, float
         raise RegionError(name, "a tuple (re_min, re_max, im_min, im_max) of finite reals", value)
     if not (vals[0] < vals[1] and vals[2] < vals[3]):
         raise RegionError(name, "a non-empty rectangle: re_min < re_max and im_min < im_max", value)
-    return vals  # type: ignore[return-value]
+    return (vals[0], vals[1], vals[2], vals[3])
+
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def renamed_keywords(**renames: str) -> Callable[[Callable[_P, _R]], Callable[_P, _R]]:
+    """Decorator keeping the old names of renamed keyword arguments as deprecated aliases.
+
+    ``@renamed_keywords(n="kernel_grid")``: a call with ``n=value`` emits a
+    :class:`DeprecationWarning` naming the new keyword and runs as ``kernel_grid=value``;
+    a call that gives both (by keyword, or the new one by position) raises
+    :class:`ParameterError` naming the old keyword. The signature shown by ``help`` and
+    :func:`inspect.signature` is the new one; the renames are kept on the wrapper as
+    ``deprecated_keywords`` (``{old: new}``) for callers that check option names against
+    the signature (SWEEP.toml options).
+
+    Parameters
+    ----------
+    **renames : str
+        ``old_name=new_name`` for each renamed parameter of the decorated function.
+    """
+
+    def decorate(func: Callable[_P, _R]) -> Callable[_P, _R]:
+        params = inspect.signature(func).parameters
+        for old, new in renames.items():
+            if new not in params or old in params:
+                raise TypeError(f"renamed_keywords: {func.__qualname__} has no parameter {new!r} or still has {old!r}")
+        positional = [name for name, p in params.items() if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+
+        @functools.wraps(func)
+        def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+            for old, new in renames.items():
+                if old not in kwargs:
+                    continue
+                value = kwargs.pop(old)
+                if new in kwargs or new in positional[: len(args)]:
+                    raise ParameterError(
+                        old, f"left out when {new} is given (it is the deprecated name of {new})", value
+                    )
+                warnings.warn(
+                    f"{func.__qualname__}: the keyword {old!r} is deprecated, use {new!r}",
+                    DeprecationWarning,
+                    stacklevel=2,
+                )
+                kwargs[new] = value
+            return func(*args, **kwargs)
+
+        vars(wrapper)["deprecated_keywords"] = dict(renames)
+        return wrapper
+
+    return decorate

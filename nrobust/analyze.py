@@ -43,20 +43,12 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) ->
         if sim is not None:
             runs: list[Simulation] = []
             for d in sim["delays"]:
-                runs.append(
-                    _wrap(
-                        "simulation",
-                        lambda d=d: simulate(
-                            spec["system"],
-                            spec["controller"],
-                            d,
-                            sim["t_end"],
-                            _initial(sim["u0"]),
-                            _initial(sim["v0"]),
-                            n=sim["n"],
-                        ),
-                    )
-                )
+
+                def run(delta: float = d) -> Simulation:
+                    u0, v0 = _initial(sim["u0"]), _initial(sim["v0"])
+                    return simulate(spec["system"], spec["controller"], delta, sim["t_end"], u0, v0, sim["cells"])
+
+                runs.append(_wrap("simulation", run))
                 bar.update(1)
             figures.append(
                 (

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._json import fields_dict
 from ._validate import finite_real, positive, positive_int
 from .errors import CertificationError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
@@ -104,25 +105,31 @@ class TailBound:
     def __init__(self, P: QuasiPolynomial, n: int, x0: float, t0: float) -> None:
         self.n = n
         self.point = np.zeros(n)
-        for p, t in P.point_terms:
-            m = min(p.size, n)
-            self.point[:m] += np.abs(p[:m]) * np.exp(-(t - t0) * x0)
-        self.dist: list[tuple[NDArray, float, float]] = []
-        for d in P.distributed:
-            m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
-            v = float(d.variation_bound(x0)) * np.exp(t0 * x0) if d.moment == 0 else np.inf
-            self.dist.append((np.abs(d.poly), m0, v))
+        # far to the left the weights e^{-(tau - t0) x0} overflow: an infinite bound is
+        # still a bound (the region is then simply not cleared)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for p, t in P.point_terms:
+                m = min(p.size, n)
+                a = np.abs(p[:m])
+                self.point[:m] += np.where(a > 0, a * np.exp(-(t - t0) * x0), 0.0)
+            self.dist: list[tuple[NDArray, float, float]] = []
+            for d in P.distributed:
+                m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
+                v = float(d.variation_bound(x0)) * np.exp(t0 * x0) if d.moment == 0 else np.inf
+                self.dist.append((np.abs(d.poly), m0, v))
 
     def __call__(self, radius: ArrayLike) -> NDArray[np.float64]:
         """The bound at ``|s| = R`` (vectorised over ``R > 0``)."""
         R = np.asarray(radius, dtype=float)
         out = np.zeros(R.shape)
-        for j, c in enumerate(self.point):
-            out = out + c * R ** (j - self.n)
-        for q, m0, v in self.dist:
-            qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q))
-            out = out + qpow * np.minimum(m0, v / R)
-        return out
+        with np.errstate(over="ignore", invalid="ignore"):
+            for j, c in enumerate(self.point):
+                if c:
+                    out = out + c * R ** (j - self.n)
+            for q, m0, v in self.dist:
+                qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q) if c)
+                out = out + qpow * np.minimum(m0, v / R)
+        return np.where(np.isnan(out), np.inf, out)
 
 
 @dataclass(frozen=True)
@@ -234,13 +241,7 @@ class RootFreeRegion:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return {
-            "half_plane": self.half_plane,
-            "x0": self.x0,
-            "radius": self.radius,
-            "degree": self.degree,
-            "gap": self.gap,
-        }
+        return fields_dict(self)
 
 
 def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
@@ -421,14 +422,7 @@ class RoucheDelayBound:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (``inf`` as the string ``"inf"``)."""
-        return {
-            "delta_0": self.delta_0 if np.isfinite(self.delta_0) else "inf",
-            "epsilon_0": self.epsilon_0,
-            "omega_at_delta_0": self.omega_at_delta_0,
-            "total_variation": self.total_variation,
-            "K": self.K,
-            "steps": self.steps,
-        }
+        return fields_dict(self)
 
 
 def delay_bound_from_kernel(
@@ -436,10 +430,17 @@ def delay_bound_from_kernel(
 ) -> RoucheDelayBound:
     """Largest certified ``delta_0`` with ``sup_{d <= delta_0} omega(d) < epsilon_0``.
 
-    March from ``d = 0``: with ``omega(d)`` computed exactly and the subadditive bound
-    ``omega(d + h) <= omega(d) + h TV(N)``, every step ``h < (epsilon_0 - omega(d)) / TV``
-    keeps ``omega < epsilon_0`` on ``[d, d + h]``. The march stops when the step falls
-    below ``rtol * d``; the result is certified whatever the stopping point.
+    ``omega`` is bounded through the linear interpolant ``N_lin`` of ``N``'s values,
+    ``omega(d) <= omega_lin(d) + 2 int |N - N_lin|`` (triangle inequality; the second
+    term, :meth:`~nrobust.quasipoly.DistributedDelay.linear_deviation`, is zero for a
+    linear kernel and small for the cubic spline ``N~``). ``omega_lin`` is computed in
+    closed form (see :func:`l1_modulus`) and marched from ``d = 0`` against the budget
+    ``epsilon_0 - 2 int |N - N_lin|``: with the subadditive bound
+    ``omega_lin(d + h) <= omega_lin(d) + h TV``, ``TV`` the total variation bound of
+    :meth:`~nrobust.quasipoly.DistributedDelay.total_variation` (at least that of
+    ``N_lin``), every step ``h < (budget - omega_lin(d)) / TV`` keeps ``omega < epsilon_0``
+    on ``[d, d + h]``. The march stops when the step falls below ``rtol * d``; the result
+    is certified whatever the stopping point.
 
     Parameters
     ----------

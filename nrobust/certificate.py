@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import scipy
 
-from ._json import json_float, json_safe
-from ._validate import positive, positive_int
+from ._json import fields_dict, json_safe
+from ._validate import positive, positive_int, renamed_keywords
 from ._validate import region as check_region
 from ._version import __version__
 from .bounds import RoucheDelayBound
@@ -38,7 +38,7 @@ from .hyperbolic.controllers import (
     classify,
 )
 from .hyperbolic.robustness import rouche_delay_bound
-from .hyperbolic.studies import KRegion, delay_margin
+from .hyperbolic.studies import DEFAULT_N_GAINS, KRegion, delay_margin
 from .hyperbolic.system import Hyperbolic2x2
 from .margins import DelayMargin
 from .quasipoly import QuasiPolynomial
@@ -85,17 +85,8 @@ class PrincipalPart:
     chains: tuple[float, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "delta": self.delta,
-            "coefs": list(self.coefs),
-            "delays": list(self.delays),
-            "gamma_0": self.gamma_0,
-            "strongly_stable": self.strongly_stable,
-            "strong_spectral_bound": json_float(self.strong_spectral_bound),
-            "spectral_bound": json_float(self.spectral_bound),
-            "chains": [json_float(c) for c in self.chains],
-        }
+        """JSON-ready description (infinities as strings)."""
+        return fields_dict(self)
 
 
 def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
@@ -148,9 +139,9 @@ class Certificate:
         :func:`nrobust.margins.delay_margin` with the crossing frequency and the stability
         intervals up to ``delta_max``.
     rouche : RoucheDelayBound or None
-        :func:`nrobust.rouche.rouche_delay_bound` (U_BS and U_BS2 only).
+        :func:`nrobust.hyperbolic.robustness.rouche_delay_bound` (U_BS and U_BS2 only).
     k_region : object or None
-        :func:`nrobust.margins.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
+        :func:`nrobust.hyperbolic.studies.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
         delay in ``[0, delta_max]`` stable.
     region : tuple of float
         The rectangle of the root counts.
@@ -158,7 +149,7 @@ class Certificate:
         nrobust, numpy, scipy and python versions.
     """
 
-    system: Hyperbolic2x2 | None
+    system: Hyperbolic2x2
     controller: Controller
     delta_max: float
     classification: Classification
@@ -177,7 +168,7 @@ class Certificate:
     @property
     def nominally_stable(self) -> bool:
         """The loop without delay is exponentially stable (from the delay margin's count)."""
-        return bool(self.margin.nominal_stable)
+        return bool(self.margin.nominally_stable)
 
     @property
     def delay_margin(self) -> float:
@@ -211,32 +202,23 @@ class Certificate:
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description of every field."""
-        return {
+        """JSON-ready description of every field, the verdicts first (infinities as strings).
+
+        ``abscissa`` is written as ``"spectral_abscissa"``.
+        """
+        verdicts = {
             "verdict": self.verdict,
             "nominally_stable": self.nominally_stable,
             "delay_robust": self.delay_robust,
-            "delay_margin": json_float(self.delay_margin),
+            "delay_margin": self.delay_margin,
             "stable_up_to_delta_max": self.stable_up_to_delta_max,
-            "system": self.system.to_dict(),
-            "controller": self.controller.to_dict(),
-            "delta_max": self.delta_max,
-            "classification": self.classification.to_dict(),
-            "principal_nominal": self.principal_nominal.to_dict(),
-            "principal_delayed": self.principal_delayed.to_dict(),
-            "roots_nominal": self.roots_nominal.to_dict(),
-            "roots_delayed": self.roots_delayed.to_dict(),
-            "spectral_abscissa": self.abscissa.to_dict(),
-            "margin": self.margin.to_dict(),
-            "rouche": None if self.rouche is None else self.rouche.to_dict(),
-            "k_region": None if self.k_region is None else self.k_region.to_dict(),
-            "region": list(self.region),
-            "versions": dict(self.versions),
         }
+        fields = {("spectral_abscissa" if k == "abscissa" else k): v for k, v in fields_dict(self).items()}
+        return {**json_safe(verdicts), **fields}
 
     def to_json(self, indent: int | None = 2) -> str:
         """The certificate as JSON text (strict: no NaN or infinity literals)."""
-        return json.dumps(json_safe(self.to_dict()), indent=indent, allow_nan=False)
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
     def __repr__(self) -> str:
         return (
@@ -246,13 +228,14 @@ class Certificate:
         )
 
 
+@renamed_keywords(k_grid="n_gains")
 def certify(
     system: Hyperbolic2x2,
     controller: Controller,
     delta_max: float = 0.1,
     region: tuple[float, float, float, float] | None = None,
     k_region: bool = True,
-    k_grid: int = 9,
+    n_gains: int = DEFAULT_N_GAINS,
 ) -> Certificate:
     """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
 
@@ -269,13 +252,14 @@ def certify(
         ``(-3, 1, -40, 40) / tau``: about 13 periods ``2 pi / tau`` of the root chains.
     k_region : bool
         For ``ReflectionController``, also compute the admissible gains on
-        ``[0, delta_max]`` (:func:`nrobust.margins.k_region`).
-    k_grid : int
-        Number of gains of that computation, evenly spread in ``|K| < (1 - |rho q|)/|q|``;
+        ``[0, delta_max]`` (:func:`nrobust.hyperbolic.studies.k_region`).
+    n_gains : int, default :data:`~nrobust.hyperbolic.studies.DEFAULT_N_GAINS`
+        Number of gains of that computation (formerly ``k_grid``, a deprecated alias),
+        evenly spread in ``|K| < (1 - |rho q|)/|q|``;
         the interval ends are resolved to the grid step (``KRegion.tol``), since each
         further bisection step costs a delay-margin analysis, and those near the
         strong-stability limit are the most expensive. Call
-        :func:`nrobust.margins.k_region` directly for sharper ends.
+        :func:`nrobust.hyperbolic.studies.k_region` directly for sharper ends.
 
     Returns
     -------
@@ -305,9 +289,9 @@ def certify(
     )
     kreg = None
     if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
-        k_grid = positive_int("k_grid", k_grid, 3)
-        step = 2.0 * classification.k_bound / (k_grid + 1)
-        kreg = studies.k_region(system, delta_max, n=k_grid, tol=step)
+        n_gains = positive_int("n_gains", n_gains, 3)
+        step = 2.0 * classification.k_bound / (n_gains + 1)
+        kreg = studies.k_region(system, delta_max, n_gains=n_gains, tol=step)
     return Certificate(
         system=system,
         controller=controller,

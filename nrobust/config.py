@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +28,7 @@ from .hyperbolic.controllers import (
     OpenLoop,
     ReflectionController,
 )
+from .hyperbolic.simulate import DEFAULT_CELLS
 from .hyperbolic.system import Hyperbolic2x2, TransportSystem
 
 if sys.version_info >= (3, 11):
@@ -56,7 +58,9 @@ _CONTROLLER_KEYS = {
     "FilteredController": ("a", "b"),
 }
 _ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True}
-_SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "n": 200, "u0": 1.0, "v0": 1.0}
+_SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0": 1.0, "v0": 1.0}
+#: Deprecated keys of ``[simulation]``, read as their new names with a DeprecationWarning.
+_SIMULATION_RENAMED = {"n": "cells"}
 _TOP_KEYS = ("system", "controller", "analysis", "simulation")
 
 
@@ -162,7 +166,9 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     -------
     dict
         ``system``, ``controller``, ``delta_max``, ``region``, ``k_region`` and
-        ``simulation`` (None or a dict of ``delays``, ``t_end``, ``n``, ``u0``, ``v0``).
+        ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``).
+        The deprecated key ``[simulation] n`` is read as ``cells`` with a
+        :class:`DeprecationWarning`.
 
     Raises
     ------
@@ -175,7 +181,9 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
             raise ParameterError(key, f"a section of the file: one of {list(_TOP_KEYS)}", spec[key])
 
     kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS)
-    values = {k: (_profile if k.startswith("sigma") else _number)(f"system.{k}", v) for k, v in params.items()}
+    values: dict[str, Any] = {
+        k: (_profile if k.startswith("sigma") else _number)(f"system.{k}", v) for k, v in params.items()
+    }
     cls = SYSTEM_TYPES[kind]
     system = _wrap("system", lambda: cls(**values))
 
@@ -203,7 +211,21 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
 
     simulation = None
     if "simulation" in spec:
-        sim = _options(_table(spec, "simulation", True), "simulation", _SIMULATION_KEYS)
+        table = dict(_table(spec, "simulation", True))
+        for old, new in _SIMULATION_RENAMED.items():
+            if old not in table:
+                continue
+            if new in table:
+                raise ParameterError(
+                    f"simulation.{old}", f"left out when simulation.{new} is given (it is the deprecated name of {new})"
+                )
+            warnings.warn(
+                f"{path}: the key simulation.{old} is deprecated, use simulation.{new}",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            table[new] = table.pop(old)
+        sim = _options(table, "simulation", _SIMULATION_KEYS)
         delays = sim["delays"]
         if not isinstance(delays, list) or not delays:
             raise ParameterError("simulation.delays", "a non-empty list of loop delays >= 0", delays)
@@ -213,13 +235,13 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         t_end = _number("simulation.t_end", sim["t_end"])
         if t_end <= 0:
             raise ParameterError("simulation.t_end", "> 0", sim["t_end"])
-        n = sim["n"]
-        if isinstance(n, bool) or not isinstance(n, int) or n < 4:
-            raise ParameterError("simulation.n", "an integer >= 4", n)
+        cells = sim["cells"]
+        if isinstance(cells, bool) or not isinstance(cells, int) or cells < 4:
+            raise ParameterError("simulation.cells", "an integer >= 4", cells)
         simulation = {
             "delays": delays,
             "t_end": t_end,
-            "n": n,
+            "cells": cells,
             "u0": _profile("simulation.u0", sim["u0"]),
             "v0": _profile("simulation.v0", sim["v0"]),
         }

@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
+from ._json import fields_dict
 from ._validate import positive_int
 from .bounds import TailBound, joint_degree, principal_gap, radius_where
 from .errors import CertificationError, ConvergenceError, ParameterError
@@ -113,19 +114,15 @@ class Crossing:
         return f"Crossing(omega={self.omega:.10g}, delta_0={self.delays[0]:.10g}, period={self.period:.6g}, {kind})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "omega": self.omega,
-            "delays": list(self.delays),
-            "direction": self.direction,
-            "ds_ddelta": [self.ds_ddelta.real, self.ds_ddelta.imag],
-            "tangential": self.tangential,
-        }
+        """JSON-ready description (``ds_ddelta`` as ``[real, imag]``)."""
+        return fields_dict(self)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CrossingSearch:
     """All zeros of ``|A(i w)| - |B(i w)|`` on ``[w_min, W]`` and how they were certified.
+
+    Compared by identity (``==`` is ``is``): it holds numpy arrays.
 
     Attributes
     ----------
@@ -227,97 +224,107 @@ def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, floa
     ``F(.; delta)`` is strongly stable (Hale and Verduyn Lunel: ``gamma_0 < 1`` for a
     scalar operator). None is also returned for advanced-type loops.
     """
-    n = joint_degree(A, B)
-    pg = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
-    if pg is None or pg.gap <= 0.0:
+    degree = joint_degree(A, B)
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, degree, 0.0)
+    if principal is None or principal.gap <= 0.0:
         return None
-    gap, t0 = pg.gap, pg.t0
-    ta, tb = TailBound(A, n, 0.0, t0), TailBound(B, n, 0.0, t0)
-    W = radius_where(lambda R: float(ta(R) + tb(R)), gap, "frequency_bound")
+    gap, t0 = principal.gap, principal.t0
+    tail_a, tail_b = TailBound(A, degree, 0.0, t0), TailBound(B, degree, 0.0, t0)
+    W = radius_where(lambda R: float(tail_a(R) + tail_b(R)), gap, "frequency_bound")
     return W, gap
 
 
 def _search(
-    h: _AxisFunction, lo: float, hi: float, L_of: Callable[[NDArray, NDArray], NDArray], step: float
+    h: _AxisFunction, lo: float, hi: float, lipschitz: Callable[[NDArray, NDArray], NDArray], step: float
 ) -> tuple[list[float], list[bool]]:
     """Certified zeros of ``h`` on ``[lo, hi]`` (see the module notes)."""
-    nb = _LIPSCHITZ_BLOCKS
-    per_block = max(1, int(np.ceil((hi - lo) / nb / step)))
-    grid = np.linspace(lo, hi, nb * per_block + 1)
-    hv = h(grid)
-    edges = np.linspace(lo, hi, nb + 1)
-    Lb = L_of(edges[:-1], edges[1:])
+    n_blocks = _LIPSCHITZ_BLOCKS
+    per_block = max(1, int(np.ceil((hi - lo) / n_blocks / step)))
+    grid = np.linspace(lo, hi, n_blocks * per_block + 1)
+    h_grid = h(grid)
+    edges = np.linspace(lo, hi, n_blocks + 1)
+    block_lipschitz = lipschitz(edges[:-1], edges[1:])
     # Uniform refinements (evaluated as chirp-z transforms) sized so that most
     # segments pass the exclusion test at once; the rest is refined adaptively.
     for _ in range(_UNIFORM_PASSES):
-        need = np.repeat(Lb, per_block) * np.diff(grid) / np.maximum(np.abs(hv[:-1]) + np.abs(hv[1:]), 1e-300)
+        need = (
+            np.repeat(block_lipschitz, per_block)
+            * np.diff(grid)
+            / np.maximum(np.abs(h_grid[:-1]) + np.abs(h_grid[1:]), 1e-300)
+        )
         factor = int(np.clip(np.ceil(np.quantile(need, _UNIFORM_QUANTILE)), 1, _UNIFORM_MAX // per_block))
         if factor <= 1:
             break
         per_block *= factor
-        grid = np.linspace(lo, hi, nb * per_block + 1)
-        hv = h(grid)
-    wl, wr, hl, hr = grid[:-1], grid[1:], hv[:-1], hv[1:]
-    blk = np.repeat(np.arange(nb), per_block)
+        grid = np.linspace(lo, hi, n_blocks * per_block + 1)
+        h_grid = h(grid)
+    left, right, h_left, h_right = grid[:-1], grid[1:], h_grid[:-1], h_grid[1:]
+    seg_block = np.repeat(np.arange(n_blocks), per_block)
     min_width = _MIN_WIDTH * max(1.0, hi - lo)
 
-    def _block(a: NDArray, b: NDArray) -> NDArray:
+    def _block_of(a: NDArray, b: NDArray) -> NDArray:
         """Index of the largest block bound over each segment ``[a, b]`` (blocks are contiguous)."""
-        ia = np.clip(((a - lo) / (hi - lo) * nb).astype(int), 0, nb - 1)
-        ib = np.clip(((b - lo) / (hi - lo) * nb).astype(int), 0, nb - 1)
-        return np.where(Lb[ib] > Lb[ia], ib, ia)
+        block_a = np.clip(((a - lo) / (hi - lo) * n_blocks).astype(int), 0, n_blocks - 1)
+        block_b = np.clip(((b - lo) / (hi - lo) * n_blocks).astype(int), 0, n_blocks - 1)
+        return np.where(block_lipschitz[block_b] > block_lipschitz[block_a], block_b, block_a)
 
-    final_l: list[NDArray] = []
-    final_hl: list[NDArray] = []
-    final_r: list[NDArray] = []
-    final_hr: list[NDArray] = []
-    while wl.size:
-        keep = np.abs(hl) + np.abs(hr) <= Lb[blk] * (wr - wl)
-        wl, wr, hl, hr, blk = wl[keep], wr[keep], hl[keep], hr[keep], blk[keep]
-        small = (wr - wl) <= min_width
-        final_l.append(wl[small])
-        final_r.append(wr[small])
-        final_hl.append(hl[small])
-        final_hr.append(hr[small])
-        wl, wr, hl, hr, blk = wl[~small], wr[~small], hl[~small], hr[~small], blk[~small]
-        if not wl.size:
+    small_left: list[NDArray] = []
+    small_h_left: list[NDArray] = []
+    small_right: list[NDArray] = []
+    small_h_right: list[NDArray] = []
+    while left.size:
+        keep = np.abs(h_left) + np.abs(h_right) <= block_lipschitz[seg_block] * (right - left)
+        left, right, h_left, h_right, seg_block = left[keep], right[keep], h_left[keep], h_right[keep], seg_block[keep]
+        small = (right - left) <= min_width
+        small_left.append(left[small])
+        small_right.append(right[small])
+        small_h_left.append(h_left[small])
+        small_h_right.append(h_right[small])
+        left, right, h_left, h_right, seg_block = (
+            left[~small],
+            right[~small],
+            h_left[~small],
+            h_right[~small],
+            seg_block[~small],
+        )
+        if not left.size:
             break
         # Refine each cluster of contiguous segments on one uniform line covering it, with
         # a power-of-two step at most 1/_SPLIT of its segments and 1/_LINE_POINTS of its
         # span: the nodes k 2^e are exact, so the evaluator sums the kernels as a chirp-z
         # transform.
-        order = np.argsort(wl)
-        wl, wr = wl[order], wr[order]
-        cuts = np.r_[0, np.flatnonzero(wr[:-1] != wl[1:]) + 1, wl.size]
+        order = np.argsort(left)
+        left, right = left[order], right[order]
+        cuts = np.r_[0, np.flatnonzero(right[:-1] != left[1:]) + 1, left.size]
         lines = []
-        for a, b in itertools.pairwise(cuts):
-            target = min((wr[a] - wl[a]) / _SPLIT, (wr[b - 1] - wl[a]) / _LINE_POINTS)
+        for first, stop in itertools.pairwise(cuts):
+            target = min((right[first] - left[first]) / _SPLIT, (right[stop - 1] - left[first]) / _LINE_POINTS)
             step = 2.0 ** np.floor(np.log2(target))
-            k0, k1 = np.floor(wl[a] / step), np.ceil(wr[b - 1] / step)
-            line = (k0 + np.arange(k1 - k0 + 1)) * step
+            k_lo, k_hi = np.floor(left[first] / step), np.ceil(right[stop - 1] / step)
+            line = (k_lo + np.arange(k_hi - k_lo + 1)) * step
             line = line[(line >= lo) & (line <= hi)]
             lines.append((line, h(line)))
-        wl = np.concatenate([ln[:-1] for ln, _ in lines])
-        wr = np.concatenate([ln[1:] for ln, _ in lines])
-        hl = np.concatenate([v[:-1] for _, v in lines])
-        hr = np.concatenate([v[1:] for _, v in lines])
-        blk = _block(wl, wr)
-    L = np.concatenate(final_l)
-    order = np.argsort(L)
-    L = L[order]
-    R = np.concatenate(final_r)[order]
-    HL = np.concatenate(final_hl)[order]
-    HR = np.concatenate(final_hr)[order]
+        left = np.concatenate([ln[:-1] for ln, _ in lines])
+        right = np.concatenate([ln[1:] for ln, _ in lines])
+        h_left = np.concatenate([v[:-1] for _, v in lines])
+        h_right = np.concatenate([v[1:] for _, v in lines])
+        seg_block = _block_of(left, right)
+    seg_left = np.concatenate(small_left)
+    order = np.argsort(seg_left)
+    seg_left = seg_left[order]
+    seg_right = np.concatenate(small_right)[order]
+    seg_h_left = np.concatenate(small_h_left)[order]
+    seg_h_right = np.concatenate(small_h_right)[order]
     roots: list[float] = []
     tangential: list[bool] = []
     brackets: list[tuple[float, float, float, float]] = []
     i = 0
-    while i < L.size:  # clusters of contiguous unresolved segments
+    while i < seg_left.size:  # clusters of contiguous unresolved segments
         j = i
-        while j + 1 < L.size and L[j + 1] <= R[j]:
+        while j + 1 < seg_left.size and seg_left[j + 1] <= seg_right[j]:
             j += 1
-        pts = np.concatenate([L[i : j + 1], R[j : j + 1]])
-        vals = np.concatenate([HL[i : j + 1], HR[j : j + 1]])
+        pts = np.concatenate([seg_left[i : j + 1], seg_right[j : j + 1]])
+        vals = np.concatenate([seg_h_left[i : j + 1], seg_h_right[j : j + 1]])
         zero = vals == 0.0
         change = np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)
         roots += [float(w) for w in pts[zero]]
@@ -415,32 +422,34 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
         if not isinstance(P, QuasiPolynomial):
             raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
     max_evals = positive_int("max_evals", max_evals)
-    fb = frequency_bound(A, B)
-    if fb is None:
+    w_bound = frequency_bound(A, B)
+    if w_bound is None:
         raise ParameterError(
             "A, B",
             "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)",
             None,
         )
-    return _crossing_search(A, B, fb, max_evals)
+    return _crossing_search(A, B, w_bound, max_evals)
 
 
-def _crossing_search(A: QuasiPolynomial, B: QuasiPolynomial, fb: tuple[float, float], max_evals: int) -> CrossingSearch:
-    W, gap = fb
+def _crossing_search(
+    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int
+) -> CrossingSearch:
+    W, gap = w_bound
     h = _AxisFunction(A, B, max_evals)
     tau = max(A.max_delay, B.max_delay, 1.0 / max(W, 1.0))
     step = np.pi / (8.0 * tau)
 
-    la, lb = _AxisLipschitz(A), _AxisLipschitz(B)
+    lipschitz_a, lipschitz_b = _AxisLipschitz(A), _AxisLipschitz(B)
 
-    def L_of(a: NDArray, b: NDArray) -> NDArray:
-        return la(a, b) + lb(a, b)
+    def lipschitz(a: NDArray, b: NDArray) -> NDArray:
+        return lipschitz_a(a, b) + lipschitz_b(a, b)
 
     lo = 0.0 if (A.is_real and B.is_real) else -W
-    roots, tang = _search(h, lo, W, L_of, step)
+    roots, tangential = _search(h, lo, W, lipschitz, step)
     keep = sorted((w, k) for k, w in enumerate(roots) if abs(w) > _ZERO_TOL * max(1.0, W))
     omegas = np.array([w for w, _ in keep], dtype=float)
-    return CrossingSearch(omegas, np.array([tang[k] for _, k in keep], dtype=bool), float(W), float(gap), h.evals)
+    return CrossingSearch(omegas, np.array([tangential[k] for _, k in keep], dtype=bool), float(W), float(gap), h.evals)
 
 
 def _crossings(
@@ -455,7 +464,7 @@ def _crossings(
     if not w.size:
         return (), float("inf") if delta_max is None else delta_max
     s = 1j * w
-    a, b, da, db = A(s), B(s), A.deriv(s), B.deriv(s)
+    a, b, da, db = A(s), B(s), A.deriv_at(s), B.deriv_at(s)
     period = 2.0 * np.pi / np.abs(w)
     base = np.mod(np.angle(-b / a) / w, period)
     base[(base > period * (1 - _ZERO_TOL)) | (base < period * _ZERO_TOL)] = 0.0

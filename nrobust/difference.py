@@ -36,7 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
-from ._json import json_float
+from ._json import fields_dict, json_safe
+from ._newton import newton
 from .errors import ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
@@ -129,14 +130,8 @@ class Chain:
         return self.real + 1j * (self.offset + m * self.spacing)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "real": self.real,
-            "offset": self.offset,
-            "spacing": self.spacing,
-            "multiplicity": self.multiplicity,
-            "z": [self.z.real, self.z.imag],
-        }
+        """JSON-ready description (``z`` as ``[real, imag]``)."""
+        return fields_dict(self)
 
 
 @dataclass(frozen=True)
@@ -181,13 +176,8 @@ class Chains:
         return f"Chains(h={self.step:.6g}, spacing={2 * np.pi / self.step:.6g}: {lines})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "commensurate": self.commensurate,
-            "step": self.step,
-            "chains": [c.to_dict() for c in self.chains],
-            "bracket": list(self.bracket),
-        }
+        """JSON-ready description (a ``-inf`` end of ``bracket`` as ``"-inf"``)."""
+        return fields_dict(self)
 
 
 @dataclass(frozen=True)
@@ -221,12 +211,7 @@ class SpectralBound:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinite values as strings)."""
-        return {
-            "lower": json_float(self.lower),
-            "upper": json_float(self.upper),
-            "exact": self.exact,
-            "step": self.step,
-        }
+        return fields_dict(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -462,40 +447,34 @@ class DifferenceOperator:
         return f"DifferenceOperator({terms}; gamma_0={self.gamma_0:.6g})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        coefs = (
-            [[float(c.real), float(c.imag)] for c in self.coefs]
-            if np.iscomplexobj(self.coefs)
-            else [float(c) for c in self.coefs]
+        """JSON-ready description: coefficients (complex ones as ``[real, imag]``), delays and stability."""
+        return json_safe(
+            {
+                "coefs": self.coefs,
+                "delays": self.delays,
+                "gamma_0": self.gamma_0,
+                "strongly_stable": self.is_strongly_stable(),
+                "strong_spectral_bound": self.strong_spectral_bound(),
+            }
         )
-        return {
-            "coefs": coefs,
-            "delays": [float(t) for t in self.delays],
-            "gamma_0": self.gamma_0,
-            "strongly_stable": self.is_strongly_stable(),
-            "strong_spectral_bound": json_float(self.strong_spectral_bound()),
-        }
 
 
 def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: int = 60) -> NDArray[np.complex128]:
-    """Vectorised Newton iteration on ``D`` from the seeds ``s`` (nan where it fails).
+    """Newton's method on ``D`` from the seeds ``s`` (nan where a step was not finite).
 
-    Steps are limited to length 1, so that a seed cannot be thrown far from its chain.
+    Steps are limited to length 1, so that a seed cannot be thrown far from its chain. A
+    point still moving after ``iters`` steps is returned as it stands: every candidate is
+    proven or discarded by :func:`_kantorovich_radius` afterwards.
     """
-    s = np.array(s, dtype=complex)
-    active = np.flatnonzero(np.isfinite(s))
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for _ in range(iters):
-            if not active.size:
-                break
-            x = s[active]
-            e = np.exp(-np.outer(D.delays, x))
-            step = (D.coefs @ e) / (-(D.coefs * D.delays) @ e)
-            step = np.where(np.abs(step) > 1.0, step / np.abs(step), step)
-            good = np.isfinite(step)
-            s[active] = np.where(good, x - step, np.nan)
-            active = active[good & (np.abs(step) > 4 * np.finfo(float).eps * (1 + np.abs(x)))]
-    return s
+
+    def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        e = np.exp(-np.outer(D.delays, x))
+        return D.coefs @ e, -(D.coefs * D.delays) @ e
+
+    def keep_all(x: NDArray[np.complex128]) -> NDArray[np.bool_]:
+        return np.ones(x.shape, dtype=bool)
+
+    return newton(fdf, s, max_step=1.0, iters=iters, accept_stalled=keep_all)
 
 
 def _kantorovich_radius(D: DifferenceOperator, c: complex) -> float | None:

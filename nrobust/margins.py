@@ -10,18 +10,19 @@ with :mod:`nrobust.hyperbolic.studies`.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._json import json_float
+from ._json import fields_dict
 from ._validate import positive, positive_int
 from .bounds import joint_degree, principal_gap, root_free_region
 from .crossings import _ZERO_TOL, Crossing, _crossing_search, _crossings, frequency_bound
 from .errors import CertificationError, ParameterError
-from .quasipoly import QuasiPolynomial
+from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import count_roots
 
 __all__ = ["DelayMargin", "delay_margin"]
@@ -43,7 +44,7 @@ class DelayMargin:
         Crossing frequency at which the margin is reached.
     crossings : tuple of Crossing
         Every crossing frequency with its delays up to ``delta_max``.
-    nominal_stable : bool
+    nominally_stable : bool
         The loop with ``delta = 0`` is exponentially stable.
     nominal_unstable : int or None
         Certified number of zeros of ``F(.; 0)`` with ``Re s > 0`` (None when a zero
@@ -75,7 +76,7 @@ class DelayMargin:
     margin: float
     omega: float | None
     crossings: tuple[Crossing, ...]
-    nominal_stable: bool
+    nominally_stable: bool
     nominal_unstable: int | None
     strongly_stable: bool
     zero_root: bool
@@ -89,6 +90,16 @@ class DelayMargin:
     reason: str
     evaluations: int = field(default=0)
 
+    @property
+    def nominal_stable(self) -> bool:
+        """Deprecated alias of :attr:`nominally_stable` (the name :class:`nrobust.Certificate` uses)."""
+        warnings.warn(
+            "DelayMargin.nominal_stable is deprecated, use DelayMargin.nominally_stable",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.nominally_stable
+
     def is_stable(self, delta: ArrayLike) -> NDArray[np.bool_]:
         """Exponential stability at each ``delta`` in ``[0, delta_max]`` (from the intervals)."""
         d = np.asarray(delta, dtype=float)
@@ -97,7 +108,7 @@ class DelayMargin:
         out = np.zeros(d.shape, dtype=bool)
         for lo, hi in self.intervals:
             closed = hi == self.delta_max and not any(hi in c.delays for c in self.crossings)
-            out |= ((d > lo) | ((lo == 0.0) & (d == 0.0) & self.nominal_stable)) & ((d < hi) | (closed & (d == hi)))
+            out |= ((d > lo) | ((lo == 0.0) & (d == 0.0) & self.nominally_stable)) & ((d < hi) | (closed & (d == hi)))
         return out
 
     def unstable_count(self, delta: ArrayLike) -> NDArray[np.int64]:
@@ -117,30 +128,13 @@ class DelayMargin:
         w = "None" if self.omega is None else f"{self.omega:.10g}"
         return (
             f"DelayMargin(margin={self.margin:.10g}, omega={w}, crossings={len(self.crossings)}, "
-            f"nominal_stable={self.nominal_stable}, strongly_stable={self.strongly_stable}, "
+            f"nominally_stable={self.nominally_stable}, strongly_stable={self.strongly_stable}, "
             f"windows={len(self.intervals)}, verified={self.verified}, reason={self.reason!r})"
         )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinities as strings)."""
-        return {
-            "margin": json_float(self.margin),
-            "omega": json_float(self.omega),
-            "crossings": [c.to_dict() for c in self.crossings],
-            "nominal_stable": self.nominal_stable,
-            "nominal_unstable": self.nominal_unstable,
-            "strongly_stable": self.strongly_stable,
-            "zero_root": self.zero_root,
-            "intervals": [[json_float(lo), json_float(hi)] for lo, hi in self.intervals],
-            "counts": [[json_float(lo), json_float(hi), n] for lo, hi, n in self.counts],
-            "delta_max": json_float(self.delta_max),
-            "frequency_bound": json_float(self.frequency_bound),
-            "gap": self.gap,
-            "verified": self.verified,
-            "residual": json_float(self.residual),
-            "reason": self.reason,
-            "evaluations": self.evaluations,
-        }
+        return fields_dict(self)
 
 
 def _count_unstable(F: QuasiPolynomial, W: float) -> int:
@@ -158,14 +152,6 @@ def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> i
         except (ParameterError, CertificationError):
             return None
     return _count_unstable(F, W)
-
-
-def _as_quasi(name: str, value: Any) -> QuasiPolynomial:
-    if isinstance(value, QuasiPolynomial):
-        return value
-    if isinstance(value, (int, float, complex, np.number)) and not isinstance(value, bool):
-        return QuasiPolynomial([[value]], [0.0])
-    raise ParameterError(name, "a QuasiPolynomial or a number", type(value).__name__)
 
 
 def delay_margin(
@@ -214,29 +200,28 @@ def delay_margin(
     >>> bool(abs(dm.margin - np.arccos(-0.5) / np.sqrt(3.0)) < 1e-12)
     True
     """
-    A, B = _as_quasi("A", A), _as_quasi("B", B)
+    A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
     max_evals = positive_int("max_evals", max_evals)
     if delta_max is not None:
         delta_max = positive("delta_max", delta_max) if np.isfinite(float(delta_max)) else float("inf")
     real = A.is_real and B.is_real
     a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
     zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
-    fb = frequency_bound(A, B)
-    n = joint_degree(A, B)
-    pg = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
-    gap = float("-inf") if pg is None else pg.gap
-    if fb is None:
+    w_bound = frequency_bound(A, B)
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+    gap = float("-inf") if principal is None else principal.gap
+    if w_bound is None:
         nominal = _nominal_count(A, B, None)
         reason = (
             "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
-            if pg is None
+            if principal is None
             else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g} <= 0): zero margin"
         )
         return DelayMargin(
             margin=0.0,
             omega=None,
             crossings=(),
-            nominal_stable=nominal == 0 and not zero_root,
+            nominally_stable=nominal == 0 and not zero_root,
             nominal_unstable=nominal,
             strongly_stable=False,
             zero_root=zero_root,
@@ -249,7 +234,7 @@ def delay_margin(
             residual=None,
             reason=reason,
         )
-    search = _crossing_search(A, B, fb, max_evals)
+    search = _crossing_search(A, B, w_bound, max_evals)
     W = search.frequency_bound
     crossings, delta_max = _crossings(A, B, search, delta_max)
     mult = 2 if real else 1
@@ -260,7 +245,7 @@ def delay_margin(
                 events[d] = events.get(d, 0) + mult * c.direction
     axis_at_zero = zero_root or (0.0 in events)
     nominal = None if axis_at_zero else _count_unstable(A + B, W)
-    nominal_stable = nominal == 0
+    stable_at_zero = nominal == 0
     marks = sorted(d for d in events if d > 0.0)
     # Number of unstable zeros on the first interval (0, first positive crossing delay).
     if nominal is not None:
@@ -289,7 +274,7 @@ def delay_margin(
         intervals = [(lo, hi) for lo, hi, m in counts if m == 0]
     if zero_root:
         margin, omega, reason = 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
-    elif not nominal_stable:
+    elif not stable_at_zero:
         margin, omega = 0.0, None
         reason = "the nominal loop (delta = 0) is not exponentially stable"
     elif not crossings:
@@ -298,7 +283,7 @@ def delay_margin(
         margin, omega = crossings[0].delays[0], crossings[0].omega
         reason = f"first crossing at w = {omega:.10g}"
     verified, residual = False, None
-    if verify and nominal_stable and np.isfinite(margin) and margin > 0 and omega is not None:
+    if verify and stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
         s = np.array([1j * omega])
         Fm = A(s) + B(s) * np.exp(-s * margin)
         residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
@@ -313,7 +298,7 @@ def delay_margin(
         margin=float(margin),
         omega=None if omega is None else float(omega),
         crossings=crossings,
-        nominal_stable=bool(nominal_stable and not zero_root),
+        nominally_stable=bool(stable_at_zero and not zero_root),
         nominal_unstable=nominal,
         strongly_stable=True,
         zero_root=zero_root,

@@ -11,10 +11,11 @@ import math
 import pickle
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from ._json import fields_dict
 from .errors import ParameterError
 from .hyperbolic.studies import margin_and_decay
 from .parallel import SweepResult, _flatten, _result_columns, sweep
@@ -36,7 +37,7 @@ class _SampleTask:
         system = self.sample_system(rng)
         out: dict[str, Any] = {}
         if callable(getattr(system, "to_dict", None)):
-            _flatten(system.to_dict(), "system", out)
+            _flatten(system, "system", out)
         out.update(_result_columns(self.analysis(system, self.controller)))
         return out
 
@@ -114,15 +115,8 @@ class RobustnessResult:
         raise ParameterError("level", f"one of {list(self.levels)}", level)
 
     def to_dict(self) -> dict[str, Any]:
-        """Dict of the study (quantiles, counts, seed and the per-sample table)."""
-        return {
-            "levels": list(self.levels),
-            "quantiles": {k: list(v) for k, v in self.quantiles.items()},
-            "n_samples": self.n_samples,
-            "n_failed": self.n_failed,
-            "seed": self.seed,
-            "sweep": self.sweep.to_dict(),
-        }
+        """Dict of the study (quantiles, counts, seed and the per-sample table); ``inf`` as ``"inf"``."""
+        return fields_dict(self)
 
     def __repr__(self) -> str:
         width = max([len(c) for c in self.quantiles] + [6]) + 2
@@ -192,7 +186,7 @@ def robustness(
     if n is None or n < 1:
         raise ParameterError("n_samples", "an integer >= 1", n_samples)
     if seed is None:
-        seed = int(np.random.SeedSequence().entropy)
+        seed = int(cast(int, np.random.SeedSequence().entropy))  # a fresh SeedSequence draws an int
     elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError("seed", "a non-negative int or None", seed)
     lev = _check_levels(levels)

@@ -3,11 +3,7 @@
 from __future__ import annotations
 
 import json
-import multiprocessing
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -15,13 +11,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ._json import json_float, json_safe
-from .analyze import _progress
+from ._validate import renamed_keywords
 from .certificate import certify
 from .errors import ParameterError
 from .hyperbolic.controllers import FiniteTimeController, ReflectionController, characteristic, classify
-from .hyperbolic.simulate import simulate
+from .hyperbolic.simulate import DEFAULT_CELLS, simulate
 from .hyperbolic.studies import stability_chart, tradeoff
 from .hyperbolic.system import Hyperbolic2x2
+from .parallel import sweep_map
 from .plots import root_locus_response, simulation_figure, stability_chart_plot, tradeoff_plot
 from .report import write_report
 
@@ -45,20 +42,20 @@ def _paper_v0(x: np.ndarray) -> np.ndarray:
     return 1.0 + np.sin(np.pi * np.asarray(x, dtype=float))
 
 
-def _paper_job(job: str, *args: Any) -> Any:
-    """One independent computation of :func:`run_paper`, run in a worker process.
+def _paper_job(task: tuple[Any, ...]) -> Any:
+    """One independent computation ``(job, *args)`` of :func:`run_paper`, run in a worker process.
 
-    The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker (its coupling
-    evaluators are closures, not picklable); a certificate travels back without it and
-    is re-attached to the caller's plant.
+    The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker, so a job is sent as its
+    name and a few numbers.
     """
+    job, *args = task
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     if job == "simulate":
-        controller, delta, t_end, n = args
-        return simulate(system, controller, delta, t_end, _paper_u0, _paper_v0, n=n)
+        controller, delta, t_end, cells = args
+        return simulate(system, controller, delta, t_end, _paper_u0, _paper_v0, cells)
     if job == "certify":
         controller, delta_max = args
-        return replace(certify(system, controller, delta_max=delta_max, k_region=False), system=None)
+        return certify(system, controller, delta_max=delta_max, k_region=False)
     if job == "chart":
         return stability_chart(system, *args)
     if job == "tradeoff":
@@ -71,53 +68,13 @@ def _paper_job(job: str, *args: Any) -> Any:
     raise ParameterError("job", "one of simulate, certify, chart, tradeoff, locus", job)
 
 
-class _SingleThreadBlas:
-    """Environment for worker processes: one BLAS thread each.
-
-    Worker processes are started with ``spawn`` while this context is active, so they
-    load numpy with ``OPENBLAS_NUM_THREADS=1`` (and the MKL/OpenMP equivalents): on a
-    shared machine several multithreaded BLAS pools compete for the same cores and
-    small eigenvalue problems (the chains of a difference operator) slow down tenfold.
-    """
-
-    _VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")
-
-    def __enter__(self) -> None:
-        self._saved = {k: os.environ.get(k) for k in self._VARS}
-        for k in self._VARS:
-            os.environ[k] = "1"
-
-    def __exit__(self, *exc: Any) -> None:
-        for k, v in self._saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-def _run_tasks(tasks: dict[str, tuple[Any, ...]], workers: int, progress: bool) -> dict[str, Any]:
-    """Run independent :func:`_paper_job` calls on ``workers`` spawned processes (0: here)."""
-    results: dict[str, Any] = {}
-    with _progress(len(tasks), progress, "paper example") as bar:
-        if workers == 0:
-            for name, args in tasks.items():
-                results[name] = _paper_job(*args)
-                bar.update(1)
-            return results
-        with _SingleThreadBlas(), ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {pool.submit(_paper_job, *args): name for name, args in tasks.items()}
-            for fut in as_completed(futures):
-                results[futures[fut]] = fut.result()
-                bar.update(1)
-    return results
-
-
+@renamed_keywords(n="cells")
 def run_paper(
     out_dir: str | Path,
     progress: bool = True,
     workers: int = 2,
     t_end: float = 15.0,
-    n: int = 200,
+    cells: int = DEFAULT_CELLS,
     n_K: int = 25,
     n_delta: int = 26,
 ) -> dict[str, Any]:
@@ -138,8 +95,10 @@ def run_paper(
         Show a progress bar (on stderr).
     workers : int
         Worker processes for the independent computations (0: all in this process).
-    t_end, n : float, int
-        Simulation horizon and grid.
+    t_end : float
+        Simulation horizon.
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+        Cells of the simulations' grid (formerly ``n``, a deprecated alias).
     n_K, n_delta : int
         Size of the stability chart's grid.
     """
@@ -161,13 +120,15 @@ def run_paper(
         "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
     }
     for d in PAPER_DELAYS_FIG1:
-        tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, n)
+        tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, cells)
     for d in PAPER_DELAYS_FIG3:
-        tasks[f"fig3_{d:g}"] = ("simulate", u_bs2, d, t_end, n)
-    res = _run_tasks(tasks, workers, progress)
+        tasks[f"fig3_{d:g}"] = ("simulate", u_bs2, d, t_end, cells)
+    # one task per chunk: the jobs are few and long, and the longest go first
+    run = sweep_map(workers or "serial", chunksize=1, progress=progress)
+    res = dict(zip(tasks, run(_paper_job, tasks.values())))
     fig1_runs = [res[f"fig1_{d:g}"] for d in PAPER_DELAYS_FIG1]
     fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
-    cert_bs, cert_bs2 = (replace(res[k], system=system) for k in ("cert_bs", "cert_bs2"))
+    cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
     chart, trade = res["chart"], res["tradeoff"]
 
     figures = [

@@ -27,9 +27,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from ._json import json_safe
+from ._json import decode_floats, json_safe
 from .errors import ParameterError, SweepError
 
 __all__ = ["PointFailure", "SweepMap", "SweepResult", "grid", "sweep", "sweep_map"]
@@ -89,9 +90,10 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
 def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
     """Flatten ``value`` into scalar columns of ``out`` named after ``prefix``.
 
-    Mappings and objects with ``to_dict()`` give dotted names, complex numbers give
-    ``.real`` and ``.imag`` columns, sequences are stored as a JSON string, any other
-    object as its ``repr``.
+    Mappings and objects with ``to_dict()`` give dotted names (the strings ``"inf"``,
+    ``"-inf"`` and ``"nan"`` of a ``to_dict()`` become floats again, so that numeric
+    columns stay numeric), complex numbers give ``.real`` and ``.imag`` columns,
+    sequences are stored as a JSON string, any other object as its ``repr``.
     """
     if isinstance(value, Mapping):
         for key, item in value.items():
@@ -104,9 +106,9 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
         out[f"{prefix}.real"] = value.real
         out[f"{prefix}.imag"] = value.imag
     elif callable(getattr(value, "to_dict", None)) and not isinstance(value, type):
-        _flatten(value.to_dict(), prefix, out)
+        _flatten(decode_floats(value.to_dict()), prefix, out)
     elif isinstance(value, (list, tuple, np.ndarray)):
-        out[prefix] = json.dumps(json_safe(value))
+        out[prefix] = json.dumps(json_safe(value), allow_nan=False)
     else:
         out[prefix] = repr(value)
 
@@ -114,7 +116,7 @@ def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
 def _result_columns(value: Any) -> dict[str, Any]:
     """The flat columns of one return value of the swept function."""
     if callable(getattr(value, "to_dict", None)) and not isinstance(value, (Mapping, type)):
-        value = value.to_dict()
+        value = decode_floats(value.to_dict())
     if not isinstance(value, Mapping):
         raise TypeError(
             f"the swept function must return a dict of scalars or an object with to_dict(), got {type(value).__name__}"
@@ -182,13 +184,15 @@ class PointFailure:
         """JSON-ready dict of the failure."""
         point: dict[str, Any] = {}
         _flatten(self.point, "", point)
-        return {
-            "index": self.index,
-            "point": point,
-            "type": self.type,
-            "message": self.message,
-            "traceback": self.traceback,
-        }
+        return json_safe(
+            {
+                "index": self.index,
+                "point": point,
+                "type": self.type,
+                "message": self.message,
+                "traceback": self.traceback,
+            }
+        )
 
 
 def _column_array(values: list[Any]) -> np.ndarray:
@@ -332,19 +336,22 @@ class SweepResult:
     def to_dict(self) -> dict[str, Any]:
         """Dict of the sweep: columns, rows, failures and counts.
 
-        Non-finite floats stay Python floats here; :meth:`to_json` writes them as the
-        strings ``"inf"``, ``"-inf"`` and ``"nan"`` so that the file is strict JSON.
+        Strict-JSON-ready like every ``to_dict()``: non-finite floats are the strings
+        ``"inf"``, ``"-inf"`` and ``"nan"`` (:meth:`records` and :meth:`table` keep the
+        floats).
         """
-        return {
-            "columns": list(self.columns),
-            "rows": self.records(),
-            "failures": [f.to_dict() for f in self.failures],
-            "n_points": len(self.points),
-            "n_ok": self.n_ok,
-            "n_failed": self.n_failed,
-            "executor": self.executor,
-            "elapsed": self.elapsed,
-        }
+        return json_safe(
+            {
+                "columns": self.columns,
+                "rows": self.records(),
+                "failures": self.failures,
+                "n_points": len(self.points),
+                "n_ok": self.n_ok,
+                "n_failed": self.n_failed,
+                "executor": self.executor,
+                "elapsed": self.elapsed,
+            }
+        )
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write the table as CSV (header row; missing values empty). Returns the path."""
@@ -385,6 +392,24 @@ def _cpu_count() -> int:
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0)) or 1
     return os.cpu_count() or 1
+
+
+def _one_blas_thread() -> None:
+    """Worker initializer: limit the BLAS and OpenMP pools of this process to one thread.
+
+    On a machine shared by several workers, multithreaded BLAS pools compete for the same
+    cores and the small eigenvalue problems of nrobust (the chains of a difference
+    operator) slow down tenfold. threadpoolctl changes the limit of the libraries already
+    loaded, so it works in forked workers, which inherit the parent's BLAS.
+    """
+    threadpool_limits(1)
+
+
+@contextmanager
+def _process_pool(n_workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A local pool of ``n_workers`` processes (the platform's start method), one BLAS thread each."""
+    with ProcessPoolExecutor(max_workers=n_workers, initializer=_one_blas_thread) as pool:
+        yield pool
 
 
 def _dask_client_type() -> type | None:
@@ -475,7 +500,7 @@ def _dask_client(executor: Any) -> Iterator[tuple[Any, str]]:
     """Yield ``(client, description)``; start and stop what this call created."""
     client_type = _dask_client_type()
     if client_type is not None and isinstance(executor, client_type):
-        yield executor, f"dask({executor.scheduler.address})"
+        yield executor, f"dask({executor.scheduler.address})"  # type: ignore[attr-defined]
         return
     distributed = _require_distributed(str(executor))
     if executor == "dask":
@@ -517,7 +542,7 @@ def _classify_executor(executor: Any) -> str:
 
 class _ProgressBar(tqdm):
     """tqdm without its monitor thread, so that no helper thread is alive (and copied
-    half-way through a lock) when the process pool forks its workers."""
+    half-way through a lock) when a fork-based pool passed as ``executor`` forks its workers."""
 
     monitor_interval = 0
 
@@ -555,7 +580,7 @@ def _execute(
             size = chunksize or _auto_chunksize(len(pts), n_workers)
             chunks = _chunks(pts, size)
             description = f"processes({n_workers})"
-            with ProcessPoolExecutor(max_workers=min(n_workers, len(chunks))) as pool:
+            with _process_pool(min(n_workers, len(chunks))) as pool:
                 try:
                     outcomes = list(
                         itertools.chain.from_iterable(_run_on_futures_executor(pool, func, chunks, bar, columns))

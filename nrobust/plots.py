@@ -32,13 +32,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from tqdm import tqdm
 
-from ._validate import nonnegative, positive, positive_int
+from ._json import fields_dict, json_safe
+from ._validate import nonnegative, positive, positive_int, renamed_keywords
 from ._validate import region as check_region
 from .difference import DifferenceOperator
 from .errors import ParameterError
 from .parallel import SweepResult
-from .quasipoly import QuasiPolynomial
+from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import RootSet, find_roots
 
 if TYPE_CHECKING:
@@ -88,12 +90,6 @@ def _get_ax(ax: Axes | None) -> Axes:
 
     _, ax = plt.subplots()
     return ax
-
-
-def _as_quasi(name: str, value: Any) -> QuasiPolynomial:
-    if not isinstance(value, QuasiPolynomial):
-        raise ParameterError(name, "a QuasiPolynomial", value)
-    return value
 
 
 # ---------------------------------------------------------------------- Nyquist
@@ -166,22 +162,18 @@ class NyquistResponse:
         return NrobustPlot(lines, ax, ax.figure)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (the sampled loop is left out)."""
-        return {
-            "delta": self.delta,
-            "omega_max": float(self.omega[-1]),
-            "crossings": self.crossings.tolist(),
-            "principal_bound": float(self.principal_bound),
-            "rhp_zeros": self.rhp_zeros,
-            "tail": float(self.tail),
-            "note": self.note,
-        }
-
-
-def _principal(F: QuasiPolynomial) -> tuple[int, list[tuple[complex, float]]]:
-    """Degree ``n`` and the ``s^n`` terms ``(a_k, tau_k)`` of ``F``."""
-    n = F.degree
-    return n, [(complex(p[n]), t) for p, t in F.point_terms if p.size - 1 == n and p[n] != 0]
+        """JSON-ready summary (the sampled loop is left out; infinities as strings)."""
+        return json_safe(
+            {
+                "delta": self.delta,
+                "omega_max": self.omega[-1],
+                "crossings": self.crossings,
+                "principal_bound": self.principal_bound,
+                "rhp_zeros": self.rhp_zeros,
+                "tail": self.tail,
+                "note": self.note,
+            }
+        )
 
 
 def _winding(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], max_levels: int = 12) -> tuple[float, NDArray]:
@@ -199,12 +191,13 @@ def _winding(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], max_leve
     return float(np.sum(np.angle(vals[1:] / vals[:-1]))), vals
 
 
+@renamed_keywords(n="n_freq")
 def nyquist_response(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
     delta: float = 0.0,
     omega_max: float = 200.0,
-    n: int = 4001,
+    n_freq: int = 4001,
     principal_bound: float | None = None,
 ) -> NyquistResponse:
     """Compute the Nyquist data of the loop ``L = B/A e^{-delta s}``.
@@ -219,8 +212,9 @@ def nyquist_response(
         Loop delay ``>= 0``.
     omega_max : float
         Upper end ``W`` of the frequency band.
-    n : int
-        Initial number of samples on ``[0, W]`` (refined where the argument turns fast).
+    n_freq : int, default 4001
+        Initial number of frequency samples on ``[0, W]``, ``>= 16`` (refined where the
+        argument turns fast; formerly ``n``, a deprecated alias).
     principal_bound : float, optional
         An upper bound of the spectral bound ``c_D`` of the difference operator of
         ``F = A + B e^{-delta s}`` computed elsewhere (e.g.
@@ -231,12 +225,11 @@ def nyquist_response(
     NyquistResponse
         See the module notes for how ``rhp_zeros`` is counted.
     """
-    A = _as_quasi("A", A)
-    B = _as_quasi("B", B)
+    A = as_quasipolynomial("A", A)
+    B = as_quasipolynomial("B", B)
     delta = nonnegative("delta", delta)
     W = positive("omega_max", omega_max)
-    n = positive_int("n", n, 16)
-    w = np.linspace(0.0, W, n)
+    w = np.linspace(0.0, W, positive_int("n_freq", n_freq, 16))
     a_w = A(1j * w)
     b_w = B(1j * w)
     crossings = _crossings(A, B, w, np.abs(a_w) - np.abs(b_w))
@@ -248,7 +241,7 @@ def nyquist_response(
     w, loop = _refine_curve(L, w)
 
     F = A + B.shift(delta)
-    deg, lead = _principal(F)
+    deg, lead = F.degree, F.leading_terms()
     note = ""
     rhp: int | None = None
     tail = float("nan")
@@ -371,7 +364,7 @@ def root_map_plot(
         ``lines["roots"]`` (one marker artist whose data are the roots),
         ``lines["chains"]`` (one line per chain), ``lines["axis"]``.
     """
-    F = _as_quasi("F", F)
+    F = as_quasipolynomial("F", F)
     box = check_region(region)
     if roots is None:
         roots = find_roots(F, box)
@@ -440,12 +433,7 @@ class RootLocusData:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (roots as ``[re, im]`` pairs)."""
-        return {
-            "name": self.name,
-            "params": self.params.tolist(),
-            "roots": [[[float(z.real), float(z.imag)] for z in r] for r in self.roots],
-            "region": list(self.region),
-        }
+        return fields_dict(self)
 
 
 def root_locus_response(
@@ -468,11 +456,9 @@ def root_locus_response(
         raise ParameterError("params", "a non-empty 1-D array of finite numbers", params)
     it: Sequence[float] | Any = p
     if progress:
-        from tqdm import tqdm
-
         it = tqdm(p, desc=f"root locus in {name}", leave=False)
     roots = tuple(
-        np.asarray(find_roots(_as_quasi("family(p)", family(float(x))), box).roots, dtype=complex) for x in it
+        np.asarray(find_roots(as_quasipolynomial("family(p)", family(float(x))), box).roots, dtype=complex) for x in it
     )
     return RootLocusData(name, p, roots, box)
 
@@ -499,7 +485,7 @@ def simulation_plot(
     Parameters
     ----------
     results : sequence of simulation results
-        Outputs of :func:`nrobust.hyperbolic.simulate` (``times`` and ``norm``).
+        Outputs of :func:`nrobust.hyperbolic.simulate.simulate` (``times`` and ``norm``).
     labels : sequence of str, optional
         One legend entry per result.
     """
@@ -534,14 +520,14 @@ def stability_chart_plot(
     Parameters
     ----------
     chart : StabilityChart
-        From :func:`nrobust.margins.stability_chart` (``quantity="count"``).
+        From :func:`nrobust.hyperbolic.studies.stability_chart` (``quantity="count"``).
     ax : matplotlib Axes, optional
     k_bound : float, optional
         The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (boun_K2)
         (``classify(system).k_bound``), drawn as two vertical lines.
     rouche : (Ks, delta_0) pair, optional
         The guaranteed delays ``delta_0(K)`` of Theorem 4's proof
-        (:func:`nrobust.margins.tradeoff` gives them as ``rouche_bounds``).
+        (:func:`nrobust.hyperbolic.studies.tradeoff` gives them as ``rouche_bounds``).
 
     Returns
     -------
@@ -597,7 +583,7 @@ def tradeoff_plot(tradeoff: Any, ax: Axes | None = None, annotate: bool = True) 
     Parameters
     ----------
     tradeoff : Tradeoff
-        From :func:`nrobust.margins.tradeoff`.
+        From :func:`nrobust.hyperbolic.studies.tradeoff`.
     ax : matplotlib Axes, optional
     annotate : bool
         Write ``K`` next to the points.

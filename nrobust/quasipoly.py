@@ -6,14 +6,16 @@ A quasi-polynomial is
 
 the form taken by every characteristic function of the paper, e.g. the open loop
 ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu`` (paper, Laplace transform of
-eq. (delay_eq_alpha)). The kernels ``N_j`` are tabulated and interpolated linearly;
-the integral of the interpolant against ``e^{-nu s}`` is computed in closed form
-(Filon-type), so its error does not grow with ``|Im s|``.
+eq. (delay_eq_alpha)). The kernels ``N_j`` are tabulated and interpolated, linearly or
+by a not-a-knot cubic spline on each piece between jumps (``N~`` of the delay form is a
+cubic spline); the integral of the interpolant against ``e^{-nu s}`` is computed in
+closed form (Filon-type), so its error does not grow with ``|Im s|``.
 """
 
 from __future__ import annotations
 
 import itertools
+import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from math import comb, factorial
@@ -25,11 +27,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.signal import czt
 
+from ._json import fields_dict, json_safe
 from ._validate import nonnegative
 from .difference import DifferenceOperator
 from .errors import ParameterError
 
-__all__ = ["DistributedDelay", "QuasiPolynomial"]
+__all__ = ["DistributedDelay", "QuasiPolynomial", "as_quasipolynomial"]
 
 # |z| below which phi_k(z) = int_0^1 t^k e^{-z t} dt is summed as a Taylor series
 # (the closed-form recursion loses digits by cancellation there); 30 terms at |z| < 1
@@ -248,6 +251,11 @@ class DistributedDelay:
     ``t = (nu - nu_i)/h``, the integral is ``h e^{-nu_i s} sum_l c_l phi_l(s h)`` with
     ``phi_l(z) = int_0^1 t^l e^{-z t} dt`` in closed form: exact for the interpolant at
     every ``s``.
+
+    Two terms compare equal (``==``, with a consistent ``hash``) when their nodes, values,
+    polynomials, moments and interpolations are equal after the constructor's canonical
+    form (a constant ``poly`` is moved into the values); real and complex arrays with the
+    same numbers are equal, as ``1.0 == 1 + 0j``.
     """
 
     nodes: NDArray[np.float64]
@@ -365,7 +373,16 @@ class DistributedDelay:
         return (_polyval(self.poly, flat) * self._moment_integral(flat, 0)).reshape(s.shape)
 
     def deriv(self, s: ArrayLike) -> NDArray[np.complex128]:
-        """Derivative in ``s``: ``q' J_m - q J_{m+1}`` with ``J_k = int nu^k N e^{-nu s}``."""
+        """Deprecated alias of :meth:`deriv_at` (it evaluates the derivative, it does not return it)."""
+        warnings.warn(
+            "DistributedDelay.deriv(s) is deprecated, use DistributedDelay.deriv_at(s)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.deriv_at(s)
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Evaluate the derivative in ``s``: ``q' J_m - q J_{m+1}`` with ``J_k = int nu^k N e^{-nu s}``."""
         s = np.asarray(s, dtype=complex)
         flat = s.ravel()
         out = _polyval(_polyder(self.poly), flat) * self._moment_integral(flat, 0)
@@ -463,15 +480,24 @@ class DistributedDelay:
             f"{self.nodes.size} nodes, {jumps} jump{'s' if jumps != 1 else ''})"
         )
 
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, DistributedDelay):
+            return NotImplemented
+        return (
+            self.moment == other.moment
+            and self.interpolation == other.interpolation
+            and np.array_equal(self.nodes, other.nodes)
+            and np.array_equal(self.poly, other.poly)
+            and np.array_equal(self.values, other.values)
+        )
+
+    def __hash__(self) -> int:
+        arrays = tuple(_canonical_bytes(a) for a in (self.nodes, self.poly, self.values))
+        return hash((self.moment, self.interpolation, arrays))
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "nodes": self.nodes.tolist(),
-            "values": _json_array(self.values),
-            "poly": _json_array(self.poly),
-            "moment": self.moment,
-            "interpolation": self.interpolation,
-        }
+        """JSON-ready description (complex values as ``[real, imag]``)."""
+        return fields_dict(self)
 
 
 def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDelay, ...]:
@@ -492,10 +518,14 @@ def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDe
     return tuple(d for d in merged if np.any(d.poly != 0) and np.any(d.values != 0))
 
 
-def _json_array(a: NDArray) -> list:
-    if np.iscomplexobj(a):
-        return [[float(v.real), float(v.imag)] for v in a]
-    return [float(v) for v in a]
+def _canonical_bytes(a: NDArray) -> bytes:
+    """The numbers of ``a`` as bytes equal for equal arrays (``==`` elementwise, same shape).
+
+    Real and complex arrays holding the same numbers give the same bytes, and ``-0.0``
+    the bytes of ``0.0`` (``-0.0 + 0.0 == +0.0``), so that ``hash`` follows
+    ``np.array_equal``.
+    """
+    return (np.asarray(a, dtype=complex) + 0.0).tobytes()
 
 
 @dataclass(frozen=True, eq=False)
@@ -511,6 +541,15 @@ class QuasiPolynomial:
         ``tau_k >= 0``, one per entry of ``coefs``; equal delays are merged.
     distributed : sequence of DistributedDelay, optional
         Distributed-delay terms.
+
+    Notes
+    -----
+    Equality is structural: two quasi-polynomials compare equal (``==``, with a
+    consistent ``hash``, so they can be dict keys) when their canonical forms agree: point
+    terms merged by delay, sorted, with trailing zero coefficients and zero terms dropped,
+    and the same distributed terms in any order (terms sharing nodes, polynomial and
+    moment merged). Equal functions written differently, e.g. a factor moved between
+    ``q(s)`` and ``N`` of a distributed term, may compare unequal.
 
     Examples
     --------
@@ -652,13 +691,22 @@ class QuasiPolynomial:
         return out
 
     def deriv(self, s: ArrayLike) -> NDArray[np.complex128]:
-        """Evaluate ``F'(s)`` on an array of complex ``s``."""
+        """Deprecated alias of :meth:`deriv_at`: it evaluates ``F'(s)``; :meth:`derivative` returns ``F'``."""
+        warnings.warn(
+            "QuasiPolynomial.deriv(s) is deprecated, use QuasiPolynomial.deriv_at(s) (or derivative() for F')",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.deriv_at(s)
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Evaluate ``F'(s)`` on an array of complex ``s`` (:meth:`derivative` returns ``F'`` itself)."""
         s = np.asarray(s, dtype=complex)
         out = np.zeros(s.shape, dtype=complex)
         for p, t in self.point_terms:
             out += (_polyval(_polyder(p), s) - t * _polyval(p, s)) * (np.exp(-t * s) if t else 1.0)
         for d in self.distributed:
-            out += d.deriv(s)
+            out += d.deriv_at(s)
         return out
 
     def derivative(self) -> QuasiPolynomial:
@@ -768,10 +816,54 @@ class QuasiPolynomial:
             text += f" - {part[1:]}" if part.startswith("-") else f" + {part}"
         return f"QuasiPolynomial({text})"
 
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, QuasiPolynomial):
+            return NotImplemented
+        return (
+            len(self.point_terms) == len(other.point_terms)
+            and all(t == u and np.array_equal(p, r) for (p, t), (r, u) in zip(self.point_terms, other.point_terms))
+            # the merged distributed terms are pairwise unequal: as sets they keep every term
+            and frozenset(self.distributed) == frozenset(other.distributed)
+        )
+
+    def __hash__(self) -> int:
+        points = tuple((t, _canonical_bytes(p)) for p, t in self.point_terms)
+        return hash((points, frozenset(self.distributed)))
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "coefs": [_json_array(p) for p, _ in self.point_terms],
-            "delays": [t for _, t in self.point_terms],
-            "distributed": [d.to_dict() for d in self.distributed],
-        }
+        """JSON-ready description: ``coefs`` and ``delays`` of the point terms, ``distributed``."""
+        return json_safe({"coefs": self.coefs, "delays": self.delays, "distributed": self.distributed})
+
+
+def as_quasipolynomial(name: str, value: Any) -> QuasiPolynomial:
+    """``value`` as a QuasiPolynomial: itself, or a finite number as a constant.
+
+    Parameters
+    ----------
+    name : str
+        Name of the parameter, for the error message.
+    value : QuasiPolynomial or number
+        A quasi-polynomial, or a finite real or complex number (a loop factor ``A`` or
+        ``B`` of ``A(s) + B(s) e^{-delta s}`` may be a constant).
+
+    Returns
+    -------
+    QuasiPolynomial
+
+    Raises
+    ------
+    ParameterError
+        ``value`` is neither (booleans are not numbers here), or is not finite.
+
+    Examples
+    --------
+    >>> as_quasipolynomial("B", 0.5)
+    QuasiPolynomial(0.5)
+    """
+    if isinstance(value, QuasiPolynomial):
+        return value
+    if isinstance(value, (int, float, complex, np.number)) and not isinstance(value, (bool, np.bool_)):
+        if not np.isfinite(value):
+            raise ParameterError(name, "a QuasiPolynomial or a finite number", value)
+        return QuasiPolynomial([np.atleast_1d(value)], [0.0])
+    raise ParameterError(name, "a QuasiPolynomial or a finite number", value)

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._json import fields_dict
 from .certificate import Certificate
 from .errors import ParameterError
 from .hyperbolic.controllers import characteristic, loop_factors
@@ -46,12 +47,7 @@ class ReportFiles:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (paths as strings)."""
-        return {
-            "markdown": str(self.markdown),
-            "html": str(self.html),
-            "json": [str(p) for p in self.json],
-            "figures": [str(p) for p in self.figures],
-        }
+        return fields_dict(self)
 
 
 # ---------------------------------------------------------------------- document model
@@ -140,7 +136,7 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     w_max = 20.0 * 2 * np.pi / float(cert.system.tau)  # 20 periods of the principal part
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
     resp = nyquist_response(
-        A, B, cert.delta_max, omega_max=w_max, n=2001, principal_bound=cert.principal_delayed.spectral_bound
+        A, B, cert.delta_max, omega_max=w_max, n_freq=2001, principal_bound=cert.principal_delayed.spectral_bound
     )
     resp.plot(ax=ax)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
@@ -219,7 +215,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
 
 
 def _k_region_text(kreg: Any) -> str:
-    """The admissible intervals of a :class:`~nrobust.margins.KRegion` and their accuracy."""
+    """The admissible intervals of a :class:`~nrobust.hyperbolic.studies.KRegion` and their accuracy."""
     if not kreg.intervals:
         return "none"
     ivs = ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in kreg.intervals)

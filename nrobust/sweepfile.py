@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ._json import json_safe
 from .config import CONTROLLER_TYPES, SYSTEM_TYPES, load_toml
 from .errors import ParameterError
 from .hyperbolic.controllers import characteristic
@@ -46,12 +47,17 @@ class _Analysis:
     columns: Callable[[Any], dict[str, Any]]
 
     def options(self) -> set[str] | None:
-        """Accepted option names (``None``: any, the target takes ``**kwargs``)."""
+        """Accepted option names (``None``: any, the target takes ``**kwargs``).
+
+        The deprecated names of renamed keywords (e.g. ``n`` of ``kernel_grid``) are
+        accepted too; the target warns when it receives one.
+        """
         params = list(inspect.signature(self.target).parameters.values())
         if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params):
             return None
         kinds = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
-        return {p.name for p in params[self.n_positional :] if p.kind in kinds} | set(self.own)
+        deprecated = set(getattr(self.target, "deprecated_keywords", {}))
+        return {p.name for p in params[self.n_positional :] if p.kind in kinds} | set(self.own) | deprecated
 
     def __call__(self, system: Any, controller: Any, **options: Any) -> dict[str, Any]:
         if self.n_positional == 1:
@@ -65,7 +71,7 @@ class _Analysis:
 def _margin_columns(result: Any) -> dict[str, Any]:
     return {
         "delta_star": float(result.margin),
-        "nominal_stable": bool(result.nominal_stable),
+        "nominally_stable": bool(result.nominally_stable),
         "strongly_stable": bool(result.strongly_stable),
         "verified": bool(result.verified),
     }
@@ -231,16 +237,18 @@ class SweepFileResult:
     levels: tuple[float, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        """Paths, quantiles and counts (the table itself is in the JSON file)."""
-        return {
-            "csv": str(self.csv),
-            "json": str(self.json),
-            "png": str(self.png),
-            "n_points": len(self.sweep.points),
-            "n_failed": self.sweep.n_failed,
-            "levels": list(self.levels),
-            "quantiles": {k: list(v) for k, v in self.quantiles.items()},
-        }
+        """Paths, quantiles (``inf`` as ``"inf"``) and counts (the table itself is in the JSON file)."""
+        return json_safe(
+            {
+                "csv": self.csv,
+                "json": self.json,
+                "png": self.png,
+                "n_points": len(self.sweep.points),
+                "n_failed": self.sweep.n_failed,
+                "levels": self.levels,
+                "quantiles": self.quantiles,
+            }
+        )
 
 
 def _route_names(

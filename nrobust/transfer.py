@@ -11,20 +11,21 @@ poles and zeros are certified root sets of the denominator and numerator, and
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._json import fields_dict
 from ._validate import nonnegative, positive_int
 from .errors import ParameterError
-from .quasipoly import QuasiPolynomial
+from .quasipoly import QuasiPolynomial, as_quasipolynomial
+from .roots import RootSet, find_roots
 
 if TYPE_CHECKING:
     import control
-
-    from .roots import RootSet
 
 __all__ = ["QuasiTransferFunction", "pade_approximation", "to_frd"]
 
@@ -36,8 +37,6 @@ _MOVED_TO_HYPERBOLIC = ("open_loop_tf", "output_map", "closed_loop_tf")
 def __getattr__(name: str) -> Any:
     """Deprecated aliases of the plant-level transfer functions (PEP 562)."""
     if name in _MOVED_TO_HYPERBOLIC:
-        import warnings
-
         from .hyperbolic import loops
 
         warnings.warn(
@@ -47,17 +46,6 @@ def __getattr__(name: str) -> Any:
         )
         return getattr(loops, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def _as_quasi(name: str, value: Any) -> QuasiPolynomial:
-    """Accept a QuasiPolynomial or a number (a constant quasi-polynomial)."""
-    if isinstance(value, QuasiPolynomial):
-        return value
-    if isinstance(value, (int, float, complex, np.number)) and not isinstance(value, bool):
-        if not np.isfinite(value):
-            raise ParameterError(name, "a finite number or a QuasiPolynomial", value)
-        return QuasiPolynomial([[value]], [0.0])
-    raise ParameterError(name, "a QuasiPolynomial or a finite number", value)
 
 
 def _product(name: str, f: QuasiPolynomial, g: QuasiPolynomial) -> QuasiPolynomial:
@@ -83,7 +71,7 @@ def _is_one(f: QuasiPolynomial) -> bool:
     )
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True)
 class QuasiTransferFunction:
     """A transfer function ``H(s) = num(s) / den(s)`` with delays.
 
@@ -99,6 +87,9 @@ class QuasiTransferFunction:
     delays are not formed (the algebra of :class:`QuasiPolynomial` keeps at most one
     distributed factor per product); loops of the paper never need them.
 
+    Equality is structural, as for :class:`QuasiPolynomial`: equal numerators and equal
+    denominators (``2 num / 2 den`` is not equal to ``num / den``).
+
     Examples
     --------
     >>> from nrobust import QuasiPolynomial
@@ -111,8 +102,8 @@ class QuasiTransferFunction:
     den: QuasiPolynomial
 
     def __init__(self, num: QuasiPolynomial | complex, den: QuasiPolynomial | complex = 1.0) -> None:
-        object.__setattr__(self, "num", _as_quasi("num", num))
-        object.__setattr__(self, "den", _as_quasi("den", den))
+        object.__setattr__(self, "num", as_quasipolynomial("num", num))
+        object.__setattr__(self, "den", as_quasipolynomial("den", den))
 
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
@@ -132,14 +123,10 @@ class QuasiTransferFunction:
 
     def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
         """Certified poles in a rectangle: the zeros of ``den`` (see :func:`nrobust.roots.find_roots`)."""
-        from .roots import find_roots
-
         return find_roots(self.den, region, **kwargs)
 
     def zeros(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
         """Certified zeros in a rectangle: the zeros of ``num``."""
-        from .roots import find_roots
-
         return find_roots(self.num, region, **kwargs)
 
     # ------------------------------------------------------------------ interconnection
@@ -206,13 +193,13 @@ class QuasiTransferFunction:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return {"num": self.num.to_dict(), "den": self.den.to_dict()}
+        return fields_dict(self)
 
 
 def _as_tf(name: str, value: Any) -> QuasiTransferFunction:
     if isinstance(value, QuasiTransferFunction):
         return value
-    return QuasiTransferFunction(_as_quasi(name, value), 1.0)
+    return QuasiTransferFunction(as_quasipolynomial(name, value), 1.0)
 
 
 # ---------------------------------------------------------------------- python-control

@@ -34,9 +34,9 @@ def test_filtered_difference_operator_is_eq_cond_a_b(filtered):
     """Principal part b - (b - a) rho q e^{-tau s} at delta = 0, and
     b - b rho q e^{-tau s} + a rho q e^{-(tau + delta) s} for delta > 0 (eq. (cond_a_b))."""
     rq = 0.85
-    assert filtered.principal_nominal.gamma_0 == pytest.approx(rq * 0.9)
-    assert filtered.principal_delayed.gamma_0 == pytest.approx(rq * 1.1)
-    assert filtered.principal_delayed.delays == pytest.approx((0.0, 2.0, 2.1))
+    assert filtered.principal_nominal.gamma_0 == pytest.approx(rq * 0.9, rel=1e-13, abs=1e-14)
+    assert filtered.principal_delayed.gamma_0 == pytest.approx(rq * 1.1, rel=1e-13, abs=1e-14)
+    assert filtered.principal_delayed.delays == pytest.approx((0.0, 2.0, 2.1), rel=1e-13, abs=1e-14)
     assert filtered.principal_delayed.strongly_stable
 
 
@@ -61,7 +61,7 @@ def test_root_counts_and_abscissa_agree(filtered):
 
 def test_json_is_strict_and_complete(filtered):
     data = json.loads(filtered.to_json())
-    assert data["delay_margin"] == pytest.approx(filtered.delay_margin)
+    assert data["delay_margin"] == pytest.approx(filtered.delay_margin, rel=1e-13, abs=1e-14)
     assert data["controller"]["controller"] == "FilteredController"
     assert data["system"]["rho"] == 0.85
     assert set(data["versions"]) == {"nrobust", "numpy", "scipy", "python"}
@@ -95,24 +95,26 @@ def test_transport_reflection_controller_matches_eq_boun_K2():
     Rouche range is unbounded and the admissible gains are |K| < (1 - |rho q|)/|q|."""
     cert = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1)
     assert cert.delay_margin == np.inf and cert.stable_up_to_delta_max
-    assert cert.principal_delayed.gamma_0 == pytest.approx(0.95)
+    assert cert.principal_delayed.gamma_0 == pytest.approx(0.95, rel=1e-13, abs=1e-14)
     assert cert.rouche.delta_0 == np.inf
     ((lo, hi),) = cert.k_region.intervals
-    tol = cert.k_region.tol  # ends resolved to the grid step of k_grid gains
-    assert tol == pytest.approx(0.3 / 10)
+    tol = cert.k_region.tol  # ends resolved to the grid step of n_gains gains
+    assert tol == pytest.approx(0.3 / 10, rel=1e-13, abs=1e-14)
     assert -0.15 < lo <= -0.15 + tol and 0.15 - tol <= hi < 0.15
     data = json.loads(cert.to_json())
-    assert data["delay_margin"] == "inf" and data["k_region"]["paper_bound"] == pytest.approx(0.15)
+    assert data["delay_margin"] == "inf" and data["k_region"]["paper_bound"] == pytest.approx(
+        0.15, rel=1e-13, abs=1e-14
+    )
 
 
 def test_transport_finite_time_controller_has_zero_margin():
     """Theorem 3 / eq. (eq_rho_q): gamma_0 = 2 |rho q| = 1.7 > 1, margin 0."""
     cert = certify(SYSTEM, FiniteTimeController(), delta_max=0.05)
     assert cert.nominally_stable and not cert.delay_robust and cert.delay_margin == 0.0
-    assert cert.principal_delayed.gamma_0 == pytest.approx(1.7)
+    assert cert.principal_delayed.gamma_0 == pytest.approx(1.7, rel=1e-13, abs=1e-14)
     assert not cert.principal_delayed.strongly_stable
     assert cert.principal_delayed.spectral_bound > 0 and cert.principal_delayed.chains[0] == pytest.approx(
-        cert.principal_delayed.spectral_bound
+        cert.principal_delayed.spectral_bound, rel=1e-13, abs=1e-14
     )
     assert "zero delay margin" in cert.verdict
 

@@ -33,7 +33,7 @@ delta_max = 0.1
 [simulation]
 delays = [0.0, 0.1]
 t_end = 3.0
-n = 20
+cells = 20
 """
 
 
@@ -67,7 +67,7 @@ def test_analyze_writes_report_and_valid_json(tmp_path, capsys):
         (("b = 1.0", "b = -1.0"), "controller.b"),
         (("delta_max = 0.1", "delta_max = -0.1"), "analysis.delta_max"),
         (("delta_max = 0.1", "delta_max = 0.1\nregion = [1, 0, -1, 1]"), "analysis.region"),
-        (("n = 20", "n = 2.5"), "simulation.n"),
+        (("cells = 20", "cells = 2.5"), "simulation.cells"),
         (("[simulation]", "[simulations]"), "simulations"),
         (("q = 1.0", "q = 0.0"), "system.q"),
     ],
@@ -144,10 +144,12 @@ def test_paper_end_to_end_small(tmp_path):
     """The paper's pipeline on a coarse chart and short simulations, on two workers."""
     from nrobust.cli import run_paper
 
-    summary = run_paper(tmp_path, progress=False, workers=2, t_end=2.0, n=20, n_K=5, n_delta=4)
+    summary = run_paper(tmp_path, progress=False, workers=2, t_end=2.0, cells=20, n_K=5, n_delta=4)
     data = json.loads((tmp_path / "summary.json").read_text())
     assert data["classification"]["regime"] == "no_robust_finite_time"
-    assert data["U_BS"]["delay_margin"] == 0.0 and data["U_BS"]["gamma_0_delayed"] == pytest.approx(1.7)
+    assert data["U_BS"]["delay_margin"] == 0.0 and data["U_BS"]["gamma_0_delayed"] == pytest.approx(
+        1.7, rel=1e-13, abs=1e-14
+    )
     bs2 = data["U_BS2(K=0.1)"]
     assert 0.2 < bs2["delay_margin"] < 0.25 and bs2["spectral_abscissa"] < 0
     assert summary["files"]["html"].endswith("report.html")

@@ -53,7 +53,7 @@ def test_transport_filtered_is_eq_delay_transport3(transport):
     np.testing.assert_allclose(
         D(S), b * (1 - rq * np.exp(-tau * S) + a / b * rq * np.exp(-(tau + delta) * S)), rtol=1e-13, atol=0
     )
-    assert D.gamma_0 == pytest.approx(abs(rq) * (1 + a / b))
+    assert D.gamma_0 == pytest.approx(abs(rq) * (1 + a / b), rel=1e-13, abs=1e-14)
 
 
 def test_open_loop_transport_and_factors(transport):
@@ -91,7 +91,7 @@ def test_classification_regimes(rho, q, regime, robust, finite_time):
     assert c.regime == regime
     assert c.delay_robustly_stabilizable is robust
     assert c.finite_time_delay_robust is finite_time
-    assert c.k_bound == pytest.approx(max(0.0, (1 - abs(rho * q)) / abs(q)))
+    assert c.k_bound == pytest.approx(max(0.0, (1 - abs(rho * q)) / abs(q)), rel=1e-13, abs=1e-14)
     assert c.to_dict()["regime"] == regime
 
 

@@ -38,7 +38,9 @@ S_GRID = (np.linspace(-2.0, 3.0, 6)[:, None] + 1j * np.linspace(-200.0, 200.0, 3
 def test_transport_delay_form_is_the_difference_equation():
     system = TransportSystem(lam=1.0, mu=2.0, q=1.5, rho=0.9)
     form = delay_form(system)
-    assert form.tau == pytest.approx(1.5) and form.rho_q == pytest.approx(1.35)
+    assert form.tau == pytest.approx(1.5, rel=1e-13, abs=1e-14) and form.rho_q == pytest.approx(
+        1.35, rel=1e-13, abs=1e-14
+    )
     assert not np.any(form.N_tilde.values) and form.characteristic.distributed == ()
     s = S_GRID[:20]
     np.testing.assert_allclose(form.characteristic(s), 1.0 - 1.35 * np.exp(-1.5 * s), rtol=0, atol=1e-14)
@@ -57,14 +59,16 @@ def test_transport_roots_lie_on_ln_rho_q_over_tau():
 
 # --------------------------------------------------------------------------- structure
 def test_structure_of_n_tilde():
-    form = delay_form(VARYING, n=51)
+    form = delay_form(VARYING, kernel_grid=51)
     nodes = form.N_tilde.nodes
     assert nodes[0] == 0.0 and nodes[-1] == pytest.approx(VARYING.tau, abs=1e-15)
     jump = np.flatnonzero(np.diff(nodes) == 0)
     np.testing.assert_array_equal(nodes[jump], [1.0 / VARYING.mu])  # one jump, on a node
     # the two branches of (eq_N_tilde), the N^alpha branch carrying the factor q
-    assert form.N_tilde.values[jump[0]] == pytest.approx(VARYING.mu * form.N_beta[0])
-    assert form.N_tilde.values[jump[0] + 1] == pytest.approx(VARYING.lam * VARYING.q * form.N_alpha[0])
+    assert form.N_tilde.values[jump[0]] == pytest.approx(VARYING.mu * form.N_beta[0], rel=1e-13, abs=1e-14)
+    assert form.N_tilde.values[jump[0] + 1] == pytest.approx(
+        VARYING.lam * VARYING.q * form.N_alpha[0], rel=1e-13, abs=1e-14
+    )
     nu = np.array([0.0, 0.1, 1.0 / VARYING.mu, 0.9, VARYING.tau])
     np.testing.assert_allclose(
         form.N_tilde_at(nu),
@@ -77,10 +81,14 @@ def test_structure_of_n_tilde():
 
 
 def test_n_alpha_n_beta_from_inverse_kernels():
-    kernels = solve_kernels(PAPER, n=101)
+    kernels = solve_kernels(PAPER, kernel_grid=101)
     form = delay_form(PAPER, kernels=kernels)
-    np.testing.assert_allclose(form.N_alpha, kernels.Lba(1.0, kernels.grid) - 0.85 * kernels.Laa(1.0, kernels.grid), rtol=1e-14, atol=0)
-    np.testing.assert_allclose(form.N_beta, kernels.Lbb(1.0, kernels.grid) - 0.85 * kernels.Lab(1.0, kernels.grid), rtol=1e-14, atol=0)
+    np.testing.assert_allclose(
+        form.N_alpha, kernels.Lba(1.0, kernels.grid) - 0.85 * kernels.Laa(1.0, kernels.grid), rtol=1e-14, atol=0
+    )
+    np.testing.assert_allclose(
+        form.N_beta, kernels.Lbb(1.0, kernels.grid) - 0.85 * kernels.Lab(1.0, kernels.grid), rtol=1e-14, atol=0
+    )
     np.testing.assert_allclose(form.N_alpha_at([0.0, 1.0]), form.N_alpha[[0, -1]], rtol=1e-14, atol=0)
     np.testing.assert_allclose(form.N_beta_at(0.5), form.N_beta[50], rtol=1e-14, atol=0)
 
@@ -88,13 +96,13 @@ def test_n_alpha_n_beta_from_inverse_kernels():
 def test_closed_form_n_tilde_when_sigma_mp_vanishes():
     """sigma_mp = 0: L^{aa}, L^{ab} constant, so N~ = -rho mu sigma_pm / (lam + mu) on [0, tau]."""
     system = Hyperbolic2x2(1.0, 2.5, 1.3, 0.0, 0.7, 0.85)
-    form = delay_form(system, n=201)
+    form = delay_form(system, kernel_grid=201)
     # kernel grid n = 201 (discretisation, not rounding): measured 6.9e-7
     np.testing.assert_allclose(form.N_tilde.values, -0.85 * 2.5 * 1.3 / 3.5, rtol=0, atol=1e-6)
 
 
 def test_repr_to_dict_and_validation():
-    form = delay_form(PAPER, n=21)
+    form = delay_form(PAPER, kernel_grid=21)
     assert isinstance(form, DelayForm) and repr(form).startswith("DelayForm(system=Hyperbolic2x2(")
     data = json.loads(json.dumps(form.to_dict()))
     assert data["tau"] == 2.0 and len(data["N_alpha"]) == 21
@@ -103,7 +111,7 @@ def test_repr_to_dict_and_validation():
     with pytest.raises(ParameterError):
         form.N_alpha_at(-0.1)
     with pytest.raises(ParameterError):
-        delay_form(PAPER, kernels=solve_kernels(VARYING, n=11))
+        delay_form(PAPER, kernels=solve_kernels(VARYING, kernel_grid=11))
     with pytest.raises(ParameterError):
         boundary_function(PAPER, np.nan)
 
@@ -149,7 +157,7 @@ def test_laplace_identity_converges(system):
     1.9e-6, 2.4e-7 (varying); the bound 8e-6 at n = 201 leaves ~4x.
     """
     exact = boundary_function(system, S_GRID, scaled=True) - 1.0 + system.rho_q * np.exp(-system.tau * S_GRID)
-    errors = [np.abs(delay_form(system, n=n).N_tilde(S_GRID) - exact).max() for n in (51, 101, 201)]
+    errors = [np.abs(delay_form(system, kernel_grid=n).N_tilde(S_GRID) - exact).max() for n in (51, 101, 201)]
     assert errors[-1] < 8e-6, errors
     assert np.all(np.log2(np.array(errors[:-1]) / np.array(errors[1:])) >= 1.8), errors
 
@@ -188,7 +196,7 @@ def test_open_loop_spectrum_two_routes(system, box, count):
     2.0e-9, 2.5e-10, 3.1e-11 (paper) and 2.7e-6, 3.4e-7, 4.2e-8 (varying); the
     tolerance 2e-6 at n = 201 leaves a margin of about 6.
     """
-    form = delay_form(system, n=201)
+    form = delay_form(system, kernel_grid=201)
     found = find_roots(form.characteristic, box)
     assert found.certified and found.count == count and np.all(found.multiplicities == 1)
     assert found.roots.real.max() > 0.5  # the paper's open loop is unstable

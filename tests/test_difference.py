@@ -33,7 +33,7 @@ def test_chains_match_polynomial_roots() -> None:
     z = _z_roots()
     chains = D_EX.chains()
     assert chains.commensurate and len(chains) == 21
-    assert chains.chains[0].spacing == pytest.approx(2 * np.pi / 0.1)
+    assert chains.chains[0].spacing == pytest.approx(2 * np.pi / 0.1, rel=1e-13, abs=1e-14)
     got = np.array([c.z for c in chains.chains])
     assert np.max(np.min(np.abs(got[:, None] - z[None, :]), axis=0)) < 1e-12
     # every listed chain point is a zero of D
@@ -98,7 +98,7 @@ def test_incommensurate_bracket_is_certified() -> None:
     assert D.commensurate_step() is None
     sb = D.spectral_bound()
     assert not sb.exact
-    assert sb.upper == pytest.approx(D.strong_spectral_bound())
+    assert sb.upper == pytest.approx(D.strong_spectral_bound(), rel=1e-13, abs=1e-14)
     assert -np.inf < sb.lower <= sb.upper
     ch = D.chains()
     assert not ch.commensurate and ch.bracket == (sb.lower, sb.upper)
@@ -126,7 +126,7 @@ def test_evaluation_and_dict() -> None:
     expect = 1 - 0.85 * np.exp(-2 * s) + 0.1 * np.exp(-2.1 * s)
     np.testing.assert_allclose(D_EX(s), expect, rtol=1e-15, atol=0)
     d = D_EX.to_dict()
-    assert d["gamma_0"] == pytest.approx(0.95) and d["strongly_stable"] is True
+    assert d["gamma_0"] == pytest.approx(0.95, rel=1e-13, abs=1e-14) and d["strongly_stable"] is True
     assert "gamma_0=0.95" in repr(D_EX)
 
 

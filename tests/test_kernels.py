@@ -68,7 +68,7 @@ def test_closed_forms_second_order(lam, mu, q, which):
             system = Hyperbolic2x2(lam, mu, 1.3, 0.0, q, 0.85)
         else:
             system = Hyperbolic2x2(lam, mu, 0.0, 1.3, q, 0.85)
-        kernels = solve_kernels(system, n=n, extrapolate=False)
+        kernels = solve_kernels(system, kernel_grid=n, extrapolate=False)
         tri, X, XI = lower(n)
         form = closed_form_no_sigma_mp if which == "no_sigma_mp" else closed_form_no_sigma_pm
         K_exact, L_exact = form(lam, mu, 1.3, q, X, XI)
@@ -84,8 +84,8 @@ def test_extrapolated_closed_form_is_more_accurate():
     system = Hyperbolic2x2(1.0, 2.5, 1.3, 0.0, 0.7, 0.85)
     tri, X, XI = lower(201)
     K_exact, L_exact = closed_form_no_sigma_mp(1.0, 2.5, 1.3, 0.7, X, XI)
-    plain = solve_kernels(system, n=201, extrapolate=False)
-    extrapolated = solve_kernels(system, n=201)
+    plain = solve_kernels(system, kernel_grid=201, extrapolate=False)
+    extrapolated = solve_kernels(system, kernel_grid=201)
     assert "Richardson" in extrapolated.method
     for exact, name in ((K_exact, "K"), (L_exact, "L")):
         e_plain = np.abs(getattr(plain, name) - exact)[:, :, tri].max()
@@ -98,7 +98,7 @@ def test_extrapolated_closed_form_is_more_accurate():
 @pytest.mark.parametrize("extrapolate", [False, pytest.param(True, marks=pytest.mark.slow)])
 def test_second_order_convergence_varying_couplings(system, extrapolate):
     """Observed order from differences of successive grids 51, 101, 201, 401 (>= 1.8)."""
-    grids = [solve_kernels(system, n=n, extrapolate=extrapolate) for n in (51, 101, 201, 401)]
+    grids = [solve_kernels(system, kernel_grid=n, extrapolate=extrapolate) for n in (51, 101, 201, 401)]
     for name in ("K", "L"):
         diffs = [
             np.abs(getattr(coarse, name) - getattr(fine, name)[:, :, ::2, ::2]).max()
@@ -171,7 +171,7 @@ def l_residuals(k: Kernels) -> np.ndarray:
 
 @pytest.mark.parametrize("system", VARYING)
 def test_pde_residuals_vanish_at_second_order(system):
-    coarse, fine = solve_kernels(system, n=101), solve_kernels(system, n=201)
+    coarse, fine = solve_kernels(system, kernel_grid=101), solve_kernels(system, kernel_grid=201)
     for residuals in (k_residuals, l_residuals):
         r_coarse, r_fine = residuals(coarse), residuals(fine)
         assert np.all(r_fine < 2e-3), r_fine
@@ -180,7 +180,7 @@ def test_pde_residuals_vanish_at_second_order(system):
 
 @pytest.mark.parametrize("system", VARYING)
 def test_boundary_conditions(system):
-    k = solve_kernels(system, n=101)
+    k = solve_kernels(system, kernel_grid=101)
     lam, mu, q = system.lam, system.mu, system.q
     x = k.grid
     d = np.arange(k.n)
@@ -214,7 +214,7 @@ def transform(k: Kernels, table: np.ndarray, state: np.ndarray, sign: float) -> 
 def test_inverse_transform_recovers_state(system):
     errors = []
     for n in (101, 201):
-        k = solve_kernels(system, n=n)
+        k = solve_kernels(system, kernel_grid=n)
         x = k.grid
         state = np.array([np.sin(2.0 * x) + 1.0, np.cos(3.0 * x) - x])
         alpha_beta = transform(k, k.K, state, -1.0)  # (back1)-(back2)
@@ -227,7 +227,7 @@ def test_inverse_transform_recovers_state(system):
 # --------------------------------------------------------------------------- evaluation
 def test_evaluation_at_arbitrary_points():
     system = Hyperbolic2x2(2.0, 0.7, 1.3, 0.0, -1.3, 0.5)
-    k = solve_kernels(system, n=201)
+    k = solve_kernels(system, kernel_grid=201)
     rng = np.random.default_rng(0)
     x = rng.uniform(0.0, 1.0, 500)
     xi = x * rng.uniform(0.0, 1.0, 500)
@@ -246,30 +246,30 @@ def test_evaluation_at_arbitrary_points():
 
 @pytest.mark.parametrize("x, xi", [(0.5, 0.6), (1.2, 0.1), (0.5, -0.1), (np.nan, 0.0)])
 def test_evaluation_outside_triangle_raises(x, xi):
-    k = solve_kernels(TransportSystem(1.0, 1.0, 1.0, 0.5), n=11)
+    k = solve_kernels(TransportSystem(1.0, 1.0, 1.0, 0.5), kernel_grid=11)
     with pytest.raises(ParameterError):
         k.Kuu(x, xi)
 
 
 def test_transport_kernels_vanish():
-    k = solve_kernels(TransportSystem(1.0, 3.0, 2.0, 0.5), n=21)
+    k = solve_kernels(TransportSystem(1.0, 3.0, 2.0, 0.5), kernel_grid=21)
     assert not np.any(k.K) and not np.any(k.L)
 
 
 def test_arguments_validated():
     system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
     with pytest.raises(ParameterError):
-        solve_kernels(system, n=2)
+        solve_kernels(system, kernel_grid=2)
     with pytest.raises(ParameterError):
-        solve_kernels(system, n=100, extrapolate=True)
+        solve_kernels(system, kernel_grid=100, extrapolate=True)
     with pytest.raises(ParameterError):
-        solve_kernels("not a system", n=11)  # type: ignore[arg-type]
-    assert "Richardson" not in solve_kernels(system, n=100).method  # even n: plain scheme
+        solve_kernels("not a system", kernel_grid=11)  # type: ignore[arg-type]
+    assert "Richardson" not in solve_kernels(system, kernel_grid=100).method  # even n: plain scheme
 
 
 def test_repr_and_to_dict():
     system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
-    k = solve_kernels(system, n=21)
+    k = solve_kernels(system, kernel_grid=21)
     assert repr(k).startswith("Kernels(system=Hyperbolic2x2(lam=1.0")
     data = json.loads(json.dumps(k.to_dict()))
     assert data["n"] == 21 and len(data["trace_x1"]["Kvu"]) == 21

@@ -31,7 +31,7 @@ A_TRANSPORT = Q([[1.0], [-0.85]], [0.0, 2.0])  # 1 - rho q e^{-tau s}, paper's e
 def test_nyquist_reflection_controller_is_stable_without_crossings():
     """U_BS2 on the transport system: |K q| < 1 - |rho q|, |L| < 1 everywhere (eq. (boun_K2))."""
     B = Q([[0.1]], [2.0])
-    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=60.0, n=2001)
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=60.0, n_freq=2001)
     assert resp.rhp_zeros == 0 and resp.note == ""
     assert resp.crossings.size == 0
     w = resp.omega
@@ -51,7 +51,7 @@ def test_nyquist_reflection_controller_is_stable_without_crossings():
 def test_nyquist_finite_time_controller_has_no_finite_count():
     """U_BS with |rho q| > 1/2: the difference operator is not stable (Theorem 3)."""
     B = Q([[0.85]], [2.0])
-    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=20.0, n=2001)
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=20.0, n_freq=2001)
     assert resp.rhp_zeros is None and resp.principal_bound > 0
     assert "spectral bound" in resp.note
     assert resp.crossings.size > 0
@@ -119,7 +119,9 @@ def test_root_locus_in_a_gain_matches_closed_form():
 def test_simulation_plot_log_scale_one_line_per_run():
     system = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
     runs = [
-        simulate(system, ReflectionController(0.1), d, 4.0, lambda x: np.sin(np.pi * x), lambda x: 1.0 + 0 * x, n=40)
+        simulate(
+            system, ReflectionController(0.1), d, 4.0, lambda x: np.sin(np.pi * x), lambda x: 1.0 + 0 * x, cells=40
+        )
         for d in (0.0, 0.1)
     ]
     out = plots.simulation_plot(runs, labels=["delta=0", "delta=0.1"])
@@ -131,8 +133,12 @@ def test_simulation_plot_log_scale_one_line_per_run():
 
 
 def test_plot_arguments_are_checked():
-    with pytest.raises(ParameterError, match="A"):
-        plots.nyquist_response(1.0, A_TRANSPORT)
+    with pytest.raises(ParameterError, match=r"^A must be"):
+        plots.nyquist_response(True, A_TRANSPORT)
+    with pytest.raises(ParameterError, match=r"^B must be"):
+        plots.nyquist_response(A_TRANSPORT, "0.85")
+    # a number is a constant factor, as in delay_margin(A, B): 1 + 0.5 e^{-0.3 s} has no root in Re s >= 0
+    assert plots.nyquist_response(1.0, 0.5, delta=0.3).rhp_zeros == 0
     with pytest.raises(ParameterError, match="omega_max"):
         plots.nyquist_response(A_TRANSPORT, A_TRANSPORT, omega_max=-1.0)
     with pytest.raises(ParameterError, match="region"):

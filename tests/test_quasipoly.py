@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from nrobust import DistributedDelay, ParameterError, QuasiPolynomial
-from nrobust.quasipoly import _phi
+from nrobust.quasipoly import _phi, as_quasipolynomial
 
 RNG = np.random.default_rng(7)
 S_SAMPLES = np.array([0.3 + 0.2j, -1.0 + 5.0j, 2.0 - 100.0j, 0.05j, -0.4 + 0.0j, 0.7 + 3000.0j])
@@ -99,10 +99,10 @@ def test_derivative_matches_evaluation_and_finite_differences():
     F = QuasiPolynomial([[1, 0.5, 2.0], [-0.85, 0.1]], [0, 2], [d.times_poly([0.3, 1.0])])
     s = S_SAMPLES[:5]
     dF = F.derivative()
-    assert np.max(np.abs(dF(s) - F.deriv(s))) < 1e-12 * np.max(np.abs(F.deriv(s)))
+    assert np.max(np.abs(dF(s) - F.deriv_at(s))) < 1e-12 * np.max(np.abs(F.deriv_at(s)))
     h = 1e-5
     fd = (F(s + h) - F(s - h)) / (2 * h)
-    assert np.max(np.abs(fd - F.deriv(s)) / np.abs(F.deriv(s))) < 1e-8
+    assert np.max(np.abs(fd - F.deriv_at(s)) / np.abs(F.deriv_at(s))) < 1e-8
 
 
 def test_algebra_shift_sum_product():
@@ -114,7 +114,7 @@ def test_algebra_shift_sum_product():
     np.testing.assert_allclose((F + G)(z), F(z) + G(z), rtol=1e-13, atol=0)
     np.testing.assert_allclose((F - 2.5 * G)(z), F(z) - 2.5 * G(z), rtol=1e-13, atol=0)
     np.testing.assert_allclose(F.shift(0.3)(z), F(z) * np.exp(-0.3 * z), rtol=1e-13, atol=0)
-    np.testing.assert_allclose(F.derivative().shift(0.7)(z), F.deriv(z) * np.exp(-0.7 * z), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(F.derivative().shift(0.7)(z), F.deriv_at(z) * np.exp(-0.7 * z), rtol=1e-12, atol=0)
     np.testing.assert_allclose(G.times_poly([1, 2])(z), G(z) * (1 + 2 * z), rtol=1e-13, atol=0)
     np.testing.assert_allclose((1.0 - G)(z), 1.0 - G(z), rtol=1e-13, atol=0)
 
@@ -142,7 +142,7 @@ def test_deriv_bound_is_an_upper_bound():
     b = a + RNG.uniform(-0.3, 0.3, 200) + 1j * RNG.uniform(-0.3, 0.3, 200)
     bound = F.deriv_bound(a, b)
     t = np.linspace(0, 1, 41)[:, None]
-    actual = np.max(np.abs(F.deriv(a + t * (b - a))), axis=0)
+    actual = np.max(np.abs(F.deriv_at(a + t * (b - a))), axis=0)
     assert np.all(actual <= bound)
     assert np.median(bound / actual) < 5  # the bound is usable for step control
 
@@ -274,7 +274,9 @@ def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
     v = np.r_[np.sin(4 * x[:9]), 1 + np.cos(3 * x[9:])]
     lin, cub = DistributedDelay(x, v), DistributedDelay(x, v, interpolation="cubic")
     assert lin.linear_deviation() == 0.0
-    assert lin.total_variation() == pytest.approx(abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))))
+    assert lin.total_variation() == pytest.approx(
+        abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))), rel=1e-13, abs=1e-14
+    )
     # Dense samples of the spline: its variation and its distance to the linear interpolant.
     _start, h, P = cub._pieces
     t = np.linspace(0, 1, 2001)
@@ -284,3 +286,79 @@ def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
     dev = np.sum(h * np.trapezoid(np.abs(seg - line), t, axis=1))
     assert tv <= cub.total_variation() + 1e-12 and dev <= cub.linear_deviation() + 1e-12
     assert cub.linear_deviation() < 1.5 * dev + 1e-9  # and tight
+
+
+@pytest.mark.parametrize("value", [2, -0.5, 1 + 2j, np.float32(0.25), np.int64(3)])
+def test_as_quasipolynomial_takes_finite_numbers_as_constants(value):
+    F = as_quasipolynomial("B", value)
+    np.testing.assert_allclose(F(S_SAMPLES), np.full(S_SAMPLES.shape, complex(value)), rtol=1e-7, atol=0)
+    G = QuasiPolynomial([[0, 1], [1]], [0, 1])
+    assert as_quasipolynomial("B", G) is G
+
+
+@pytest.mark.parametrize("value", [True, np.bool_(False), np.inf, complex(np.nan, 0), "s + 1", [1.0], None])
+def test_as_quasipolynomial_rejects_booleans_non_finite_and_other_types(value):
+    with pytest.raises(ParameterError, match=r"^A must be a QuasiPolynomial or a finite number"):
+        as_quasipolynomial("A", value)
+
+
+# --- structural equality ---
+
+
+def _kernels() -> tuple[DistributedDelay, DistributedDelay]:
+    return DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0, 0.5]), DistributedDelay([0.2, 1.0], [1.0, -1.0], moment=1)
+
+
+def test_same_function_in_another_order_is_equal_with_equal_hash():
+    d1, d2 = _kernels()
+    F = QuasiPolynomial([[1, 1], [0.5], [0.25, 0, 0]], [0, 1, 2], [d1, d2])
+    G = QuasiPolynomial([[0.25], [0.5], [1, 1]], [2, 1, 0], [d2, d1])  # trailing zeros trimmed
+    H = QuasiPolynomial([[1, 0.5], [0.5], [0, 0.5], [0.25]], [0, 1, 0, 2], [d1, d2])  # merged by delay
+    assert F == G == H and hash(F) == hash(G) == hash(H)
+    assert {F: "F"}[G] == "F" and len({F, G, H}) == 1
+    np.testing.assert_allclose(F(S_SAMPLES), G(S_SAMPLES), rtol=1e-14, atol=0)
+
+
+def test_a_tiny_change_makes_quasipolynomials_unequal():
+    d1, d2 = _kernels()
+    F = QuasiPolynomial([[1, 1], [0.5]], [0, 1], [d1])
+    assert F != QuasiPolynomial([[1, 1 + 1e-15], [0.5]], [0, 1], [d1])
+    assert F != QuasiPolynomial([[1, 1], [0.5]], [0, 1 + 1e-15], [d1])
+    assert F != QuasiPolynomial([[1, 1], [0.5]], [0, 1], [d1.scale(1 + 1e-15)])
+    assert F != QuasiPolynomial([[1, 1], [0.5]], [0, 1], [d1, d2])
+    assert F != QuasiPolynomial([[1, 1], [0.5]], [0, 1])
+    assert len({F, QuasiPolynomial([[1, 1], [0.5 + 1e-15]], [0, 1], [d1])}) == 2
+
+
+def test_equality_follows_the_canonical_form():
+    d1, _ = _kernels()
+    # real and complex coefficients with the same values, like 1.0 == 1 + 0j; -0.0 == 0.0
+    assert QuasiPolynomial([[1.0, -0.0, 2.0]], [0]) == QuasiPolynomial([[1 + 0j, 0.0, 2.0]], [0])
+    assert hash(QuasiPolynomial([[1.0, -0.0, 2.0]], [0])) == hash(QuasiPolynomial([[1 + 0j, 0.0, 2.0]], [0]))
+    # a constant factor of a distributed term lives in its values
+    assert DistributedDelay(d1.nodes, d1.values, poly=[2.0]) == d1.scale(2.0)
+    assert hash(DistributedDelay(d1.nodes, d1.values, poly=[2.0])) == hash(d1.scale(2.0))
+    # two terms on the same support are merged
+    half = d1.scale(0.5)
+    assert QuasiPolynomial([[1]], [0], [half, half]) == QuasiPolynomial([[1]], [0], [d1])
+    # the sum of a function and its negative is the zero function, whatever it was
+    F = QuasiPolynomial([[1, 1], [0.5]], [0, 1], [d1])
+    assert F - F == QuasiPolynomial([[0.0]], [0.0]) == QuasiPolynomial([[0.0]], [3.0])
+
+
+def test_distributed_delays_differ_by_any_attribute():
+    d1, _ = _kernels()
+    assert d1 == DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0, 0.5])
+    assert d1 != DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0, 0.5], interpolation="cubic")
+    assert d1 != DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0, 0.5], moment=1)
+    assert d1 != DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0, 0.5], poly=[1.0, 1.0])
+    assert d1 != DistributedDelay([0.0, 0.5, 1.1], [1.0, 2.0, 0.5])
+    assert d1 != DistributedDelay([0.0, 1.0], [1.0, 0.5])
+
+
+@pytest.mark.parametrize("other", [1, 1.0, "F", None, (1, 1)])
+def test_comparison_with_other_types_is_not_implemented(other):
+    d1, _ = _kernels()
+    F = QuasiPolynomial([[1]], [0])
+    assert F.__eq__(other) is NotImplemented and d1.__eq__(other) is NotImplemented
+    assert F != other and d1 != other and F != d1

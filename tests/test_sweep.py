@@ -129,7 +129,9 @@ def test_failing_point_is_reported_in_place():
     t = res.table()
     assert list(t["status"]) == ["error"] * 2 + ["ok"] * 6
     assert t["error_type"][0] == "ValueError" and t["error"][2] == ""
-    assert np.isnan(t["delta_star"][0]) and t["delta_star"][2] == pytest.approx(toy_margin(0.0, 1.0))
+    assert np.isnan(t["delta_star"][0]) and t["delta_star"][2] == pytest.approx(
+        toy_margin(0.0, 1.0), rel=1e-13, abs=1e-14
+    )
     assert np.isinf(t["delta_star"][6])  # a = 1.2 > |b| = 1: every delay tolerated
     assert t.dtype["root.w.imag"].kind == "f" and t.dtype["stable"] is np.dtype(object)  # missing bools stay None
     assert res.columns[:4] == ("index", "a", "b", "status")
@@ -221,7 +223,7 @@ def test_lambda_is_rejected_by_the_process_pool_with_a_clear_error(dask_client):
     assert nrobust.sweep(func, POINTS, "serial") == nrobust.sweep(func, POINTS, dask_client)
     # a functools.partial of a module-level function goes to processes
     part = nrobust.sweep(functools.partial(analyse_point, scale=2.0), POINTS, 2)
-    assert part.table()["delta_star"][2] == pytest.approx(2 * toy_margin(0.0, 1.0))
+    assert part.table()["delta_star"][2] == pytest.approx(2 * toy_margin(0.0, 1.0), rel=1e-13, abs=1e-14)
 
 
 def test_csv_and_json_outputs(tmp_path):
@@ -232,7 +234,8 @@ def test_csv_and_json_outputs(tmp_path):
     data = json.loads((tmp_path / "t.json").write_text("") or res.to_json(tmp_path / "t.json").read_text())
     assert data["n_failed"] == 2 and data["rows"][6]["delta_star"] == "inf"
     assert data["failures"][0]["type"] == "ValueError"
-    assert res.to_dict()["rows"][6]["delta_star"] == math.inf
+    assert res.to_dict()["rows"][6]["delta_star"] == "inf"  # to_dict is strict-JSON-ready
+    assert res.records()[6]["delta_star"] == math.inf  # the table keeps the float
     assert "2 failed" in repr(res)
 
 
@@ -258,8 +261,9 @@ def test_robustness_quantiles_and_reproducibility():
     summary = {k: v for k, v in res.to_dict().items() if k != "sweep"}
     quantiles = {c: list(v) for c, v in res.quantiles.items()}
     assert quantiles["delta_star"] == expected.tolist()
-    want = {"levels": [0.1, 0.5, 0.9], "quantiles": quantiles, "n_samples": 40, "n_failed": 0, "seed": 3}
-    assert summary == want and json.loads(json.dumps(summary)) == want
+    strict = {c: ["inf" if math.isinf(x) else x for x in v] for c, v in quantiles.items()}
+    want = {"levels": [0.1, 0.5, 0.9], "quantiles": strict, "n_samples": 40, "n_failed": 0, "seed": 3}
+    assert summary == want and json.loads(json.dumps(summary, allow_nan=False)) == want
 
 
 def test_robustness_identical_on_processes_and_failures_excluded():
@@ -449,6 +453,22 @@ def _square_or_fail(x: float) -> float:
     if x == 3:
         raise ValueError("three is not allowed")
     return x * x
+
+
+def _blas_threads(_: int) -> int:
+    from threadpoolctl import threadpool_info
+
+    return max((pool["num_threads"] for pool in threadpool_info()), default=1)
+
+
+def test_process_pool_workers_have_one_blas_thread():
+    """Workers of the local pool run their BLAS on one thread, whatever the parent uses."""
+    from threadpoolctl import threadpool_limits
+
+    from nrobust.sweep import sweep_map
+
+    with threadpool_limits(2):
+        assert sweep_map(2, chunksize=1)(_blas_threads, [0, 1]) == [1, 1]
 
 
 def test_sweep_map_keeps_order_and_names_a_failing_item():

@@ -39,9 +39,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._validate import finite_real, nonnegative, positive
+from .._json import fields_dict, json_safe
+from .._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
 from ..errors import ParameterError
 from ..quasipoly import QuasiPolynomial
+from .delay_form import delay_form
+from .kernels import DEFAULT_KERNEL_GRID
 from .system import Hyperbolic2x2
 
 __all__ = [
@@ -58,9 +61,6 @@ __all__ = [
 ]
 
 Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-
-#: Default kernel grid for the delay form behind the closed-loop functions.
-DEFAULT_N = 201
 
 
 def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -86,17 +86,17 @@ class Controller(ABC):
 
     @abstractmethod
     def factors(
-        self, phi: QuasiPolynomial, i_n: QuasiPolynomial, kq_unit: QuasiPolynomial
+        self, phi: QuasiPolynomial, i_n: QuasiPolynomial, round_trip: QuasiPolynomial
     ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
-        """``(A, B)`` from ``Phi``, ``I_N`` and ``q e^{-tau s}`` (see the module table)."""
+        """``(A, B)`` from ``Phi``, ``I_N`` and the round trip ``q e^{-tau s}`` (see the module table)."""
 
     @abstractmethod
     def feedback_law(self, system: Hyperbolic2x2, kernels: Any = None) -> FeedbackLaw:
         """The control law as gains on the state; ``kernels`` from ``solve_kernels``."""
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {"controller": type(self).__name__, **{k: v for k, v in vars(self).items()}}
+        """JSON-ready description: the class name under ``"controller"`` and the parameters."""
+        return json_safe({"controller": type(self).__name__, **vars(self)})
 
 
 def _kernel_gains(system: Hyperbolic2x2, kernels: Any, pairs: tuple[tuple[str, float], ...]) -> Gain:
@@ -118,7 +118,7 @@ def _kernel_gains(system: Hyperbolic2x2, kernels: Any, pairs: tuple[tuple[str, f
 class OpenLoop(Controller):
     """No control, ``U = 0``."""
 
-    def factors(self, phi, i_n, kq_unit):
+    def factors(self, phi, i_n, round_trip):
         return 1.0 - phi, phi * 0.0
 
     def feedback_law(self, system, kernels=None):
@@ -133,7 +133,7 @@ class FiniteTimeController(Controller):
     system, ``U = -rho u(t, 1)`` (eq. (Control_law_transport)).
     """
 
-    def factors(self, phi, i_n, kq_unit):
+    def factors(self, phi, i_n, round_trip):
         return 1.0 - phi, phi
 
     def feedback_law(self, system, kernels=None):
@@ -164,8 +164,8 @@ class ReflectionController(Controller):
     def __post_init__(self) -> None:
         object.__setattr__(self, "K", finite_real("K", self.K))
 
-    def factors(self, phi, i_n, kq_unit):
-        return 1.0 - phi, self.K * kq_unit - i_n
+    def factors(self, phi, i_n, round_trip):
+        return 1.0 - phi, self.K * round_trip - i_n
 
     def feedback_law(self, system, kernels=None):
         r = system.rho - self.K
@@ -197,7 +197,7 @@ class FilteredController(Controller):
         object.__setattr__(self, "a", finite_real("a", self.a))
         object.__setattr__(self, "b", positive("b", self.b))
 
-    def factors(self, phi, i_n, kq_unit):
+    def factors(self, phi, i_n, round_trip):
         return (1.0 - phi).times_poly([1.0, self.b]), phi.times_poly([1.0, self.a])
 
     def feedback_law(self, system, kernels=None):
@@ -215,17 +215,16 @@ def _check(system: Any, controller: Any) -> None:
 
 
 @lru_cache(maxsize=32)
-def _distributed_part(system: Hyperbolic2x2, n: int) -> QuasiPolynomial:
+def _distributed_part(system: Hyperbolic2x2, kernel_grid: int) -> QuasiPolynomial:
     """``I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu`` (zero on an uncoupled system)."""
     if system.uncoupled:
         return QuasiPolynomial([[0.0]], [0.0])
-    from .delay_form import delay_form  # kernels are solved only for coupled systems
-
-    return QuasiPolynomial([], [], [delay_form(system, n=n).N_tilde])
+    return QuasiPolynomial([], [], [delay_form(system, kernel_grid).N_tilde])
 
 
+@renamed_keywords(n="kernel_grid")
 def loop_factors(
-    system: Hyperbolic2x2, controller: Controller, n: int = DEFAULT_N
+    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` with the closed-loop characteristic function ``F = A + B e^{-delta s}``.
 
@@ -235,8 +234,11 @@ def loop_factors(
         The plant, eqs. (u_pde)-(IC).
     controller : Controller
         One of the paper's controllers.
-    n : int, optional
-        Kernel grid for ``N~`` (second-order accurate in ``1/n``).
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
+        carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
+        grid (extrapolated kernels), second order for an even one
+        (``docs/numerics_kernels.md``).
 
     Returns
     -------
@@ -244,14 +246,15 @@ def loop_factors(
         ``A`` and ``B`` as in the module's table.
     """
     _check(system, controller)
-    i_n = _distributed_part(system, int(n))
-    kq_unit = QuasiPolynomial([[system.q]], [system.tau])
-    phi = kq_unit * system.rho - i_n
-    return controller.factors(phi, i_n, kq_unit)
+    i_n = _distributed_part(system, positive_int("kernel_grid", kernel_grid, 3))
+    round_trip = QuasiPolynomial([[system.q]], [system.tau])  # q e^{-tau s}
+    phi = round_trip * system.rho - i_n
+    return controller.factors(phi, i_n, round_trip)
 
 
+@renamed_keywords(n="kernel_grid")
 def characteristic(
-    system: Hyperbolic2x2, controller: Controller, delta: float = 0.0, n: int = DEFAULT_N
+    system: Hyperbolic2x2, controller: Controller, delta: float = 0.0, kernel_grid: int = DEFAULT_KERNEL_GRID
 ) -> QuasiPolynomial:
     """Closed-loop characteristic quasi-polynomial ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
@@ -266,11 +269,11 @@ def characteristic(
         The controller.
     delta : float, optional
         Loop delay ``delta >= 0``.
-    n : int, optional
-        Kernel grid for ``N~``.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias).
     """
     delta = nonnegative("delta", delta)
-    a, b = loop_factors(system, controller, n)
+    a, b = loop_factors(system, controller, kernel_grid)
     return a + b.shift(delta)
 
 
@@ -309,7 +312,7 @@ class Classification:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return dict(vars(self))
+        return fields_dict(self)
 
 
 def classify(system: Hyperbolic2x2, atol: float = 1e-12) -> Classification:

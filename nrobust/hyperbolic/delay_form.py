@@ -28,9 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from .._json import fields_dict
+from .._validate import renamed_keywords
 from ..errors import ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
-from .kernels import Kernels, solve_kernels
+from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
 from .system import Hyperbolic2x2
 
 __all__ = ["DelayForm", "delay_form"]
@@ -102,16 +104,7 @@ class DelayForm:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description: the system, ``tau``, ``rho q`` and the tabulated kernels."""
-        return {
-            "type": "DelayForm",
-            "system": self.system.to_dict(),
-            "tau": self.tau,
-            "rho_q": self.rho_q,
-            "xi": self.xi.tolist(),
-            "N_alpha": self.N_alpha.tolist(),
-            "N_beta": self.N_beta.tolist(),
-            "N_tilde": self.N_tilde.to_dict(),
-        }
+        return {"type": "DelayForm", **fields_dict(self, exclude=("characteristic",))}
 
 
 def _unit_interval(name: str, x: Any) -> np.ndarray:
@@ -121,32 +114,58 @@ def _unit_interval(name: str, x: Any) -> np.ndarray:
     return arr
 
 
-def _n_tilde(system: Hyperbolic2x2, xi: np.ndarray, N_alpha: np.ndarray, N_beta: np.ndarray) -> DistributedDelay:
-    """``N~`` of eq. (eq_N_tilde) as a cubic-spline :class:`DistributedDelay`.
+def delay_kernel(
+    system: Hyperbolic2x2, xi: np.ndarray, alpha_branch: np.ndarray, beta_branch: np.ndarray
+) -> DistributedDelay:
+    """A kernel of the delay axis ``nu`` in ``[0, tau]`` from its two branches on ``[0, 1]``.
 
-    The spline interpolation is fourth order, so the error of the delay form is that of
-    the kernels (``docs/numerics_kernels.md``), not that of the interpolation. On
-    ``[0, 1/mu]``: ``N~(nu) = mu N^beta(1 - mu nu)``, nodes ``(1 - xi)/mu``; on
-    ``[1/mu, tau]``: ``N~(nu) = lam q N^alpha(lam nu - lam/mu)``, nodes ``1/mu + xi/lam``.
-    The node ``1/mu`` appears twice, carrying the jump.
+    The change of variables of eq. (eq_N_tilde): with ``f_alpha`` and ``f_beta`` tabulated
+    on the grid ``xi`` of ``[0, 1]``::
+
+        K(nu) = mu f_beta(1 - mu nu)                on [0, 1/mu]   (nodes (1 - xi)/mu),
+        K(nu) = lam q f_alpha(lam nu - lam/mu)      on [1/mu, tau] (nodes 1/mu + xi/lam),
+
+    as a cubic-spline :class:`DistributedDelay`; the node ``1/mu`` appears twice, carrying
+    the jump. ``f_alpha = N^alpha``, ``f_beta = N^beta`` give ``N~`` (with the factor ``q``,
+    see the module notes); ``f_alpha = L^{beta alpha}(1, .)``, ``f_beta = L^{beta beta}(1, .)``
+    give the kernel ``M~`` of the output map (:func:`nrobust.hyperbolic.loops.output_map`). The
+    spline interpolation is fourth order, so the error of the kernel is that of the
+    tabulated branches (``docs/numerics_kernels.md``), not that of the interpolation.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The plant (``lam``, ``mu``, ``q``).
+    xi : ndarray, shape (n,)
+        Increasing grid of ``[0, 1]``.
+    alpha_branch, beta_branch : ndarray, shape (n,)
+        ``f_alpha`` and ``f_beta`` on ``xi``.
+
+    Returns
+    -------
+    DistributedDelay
     """
     lam, mu = system.lam, system.mu
     nodes_beta = (1.0 - xi[::-1]) / mu
     nodes_alpha = 1.0 / mu + xi / lam
     nodes = np.concatenate([nodes_beta, nodes_alpha])
-    values = np.concatenate([mu * N_beta[::-1], lam * system.q * N_alpha])
+    values = np.concatenate([mu * beta_branch[::-1], lam * system.q * alpha_branch])
     return DistributedDelay(nodes, values, interpolation="cubic")
 
 
-def delay_form(system: Hyperbolic2x2, n: int = 401, kernels: Kernels | None = None) -> DelayForm:
+@renamed_keywords(n="kernel_grid")
+def delay_form(
+    system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID, kernels: Kernels | None = None
+) -> DelayForm:
     """Delay form (delay_eq_alpha) of the plant, with ``N~`` of eq. (eq_N_tilde).
 
     Parameters
     ----------
     system : Hyperbolic2x2
         The plant, eqs. (u_pde)-(IC).
-    n : int, default 401
-        Kernel grid points (see :func:`solve_kernels`); ignored when ``kernels`` is given.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid points (see :func:`~nrobust.hyperbolic.solve_kernels`); ignored when
+        ``kernels`` is given. (Formerly ``n``, a deprecated alias.)
     kernels : Kernels, optional
         Kernels of ``system`` already solved.
 
@@ -171,10 +190,10 @@ def delay_form(system: Hyperbolic2x2, n: int = 401, kernels: Kernels | None = No
         N_tilde = DistributedDelay([0.0, tau], [0.0, 0.0])
         return DelayForm(system, tau, system.rho_q, xi, zero, zero, N_tilde, QuasiPolynomial(coefs, delays))
     if kernels is None:
-        kernels = solve_kernels(system, n=n)
+        kernels = solve_kernels(system, kernel_grid)
     L1 = kernels.L[:, :, -1, :]
     N_alpha = L1[1, 0] - rho * L1[0, 0]
     N_beta = L1[1, 1] - rho * L1[0, 1]
-    N_tilde = _n_tilde(system, kernels.grid, N_alpha, N_beta)
+    N_tilde = delay_kernel(system, kernels.grid, N_alpha, N_beta)
     characteristic = QuasiPolynomial(coefs, delays, distributed=(N_tilde,))
     return DelayForm(system, tau, system.rho_q, kernels.grid, N_alpha, N_beta, N_tilde, characteristic)

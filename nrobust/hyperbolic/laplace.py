@@ -51,13 +51,16 @@ def _constant_scaled(system: Hyperbolic2x2, s: np.ndarray) -> tuple[np.ndarray, 
     """
     lam, mu, q = system.lam, system.mu, system.q
     a, d = -s / lam, s / mu
-    b, c = float(system.sigma_pm) / lam, -float(system.sigma_mp) / mu
+    # constant couplings (the caller checks system.constant_couplings): numbers, not callables
+    b, c = float(system.sigma_pm) / lam, -float(system.sigma_mp) / mu  # type: ignore[arg-type]
     # e^{-s/mu} exp(A) = exp(A - (s/mu) I): the scaling that keeps |v(1)| from overflowing.
     e11, e12, e21, e22 = _expm2(a - s / mu, b, c, d - s / mu)
     return e11 * q + e12, e21 * q + e22
 
 
-def _expm2(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
+def _expm2(
+    a: np.ndarray | float, b: np.ndarray | float, c: np.ndarray | float, d: np.ndarray | float
+) -> tuple[np.ndarray, ...]:
     """Entries of ``exp([[a, b], [c, d]])`` (elementwise arrays), in closed form."""
     m = 0.5 * (a + d)
     delta = np.sqrt((0.5 * (a - d)) ** 2 + b * c)

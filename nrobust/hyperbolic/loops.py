@@ -9,21 +9,20 @@ system (Laplace transform of eq. (delay_eq_alpha)), as
 
 from __future__ import annotations
 
-import numpy as np
-
-from .._validate import nonnegative, positive_int
+from .._validate import nonnegative, positive_int, renamed_keywords
 from ..errors import ParameterError
-from ..quasipoly import DistributedDelay, QuasiPolynomial
+from ..quasipoly import QuasiPolynomial
 from ..transfer import QuasiTransferFunction, _product
-from .controllers import DEFAULT_N, Controller, FilteredController, loop_factors
-from .delay_form import delay_form
-from .kernels import solve_kernels
+from .controllers import Controller, FilteredController, loop_factors
+from .delay_form import delay_form, delay_kernel
+from .kernels import DEFAULT_KERNEL_GRID, solve_kernels
 from .system import Hyperbolic2x2
 
 __all__ = ["closed_loop_tf", "open_loop_tf", "output_map"]
 
 
-def open_loop_tf(system: Hyperbolic2x2, n: int | None = None) -> QuasiTransferFunction:
+@renamed_keywords(n="kernel_grid")
+def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiTransferFunction:
     """Open-loop transfer function from ``U`` to the boundary output.
 
     For a :class:`~nrobust.hyperbolic.TransportSystem` (or any uncoupled system) this is
@@ -36,21 +35,22 @@ def open_loop_tf(system: Hyperbolic2x2, n: int | None = None) -> QuasiTransferFu
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    n : int, optional
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
         Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only;
-        default: the grid of the closed-loop functions, so that ``H_1`` and
-        :func:`closed_loop_tf` share the same ``N~``).
+        the default is that of the closed-loop functions, so that ``H_1`` and
+        :func:`closed_loop_tf` share the same ``N~``). Formerly ``n``, a deprecated alias.
     """
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
-    form = delay_form(system, n=DEFAULT_N if n is None else positive_int("n", n, 2))
+    form = delay_form(system, positive_int("kernel_grid", kernel_grid, 3))
     return QuasiTransferFunction(1.0, form.characteristic)
 
 
-def output_map(system: Hyperbolic2x2, n: int | None = None) -> QuasiPolynomial:
+@renamed_keywords(n="kernel_grid")
+def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiPolynomial:
     """``M(s)`` with ``v(s, 1) = M(s) beta(s, 1)`` for zero initial data.
 
     The inverse transformation (eq. (back_inv2)) at ``x = 1`` with
@@ -59,36 +59,25 @@ def output_map(system: Hyperbolic2x2, n: int | None = None) -> QuasiPolynomial:
     ``M(s) = 1 + int_0^tau M~(nu) e^{-nu s} dnu`` with
     ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
     + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
-    ``N~`` in eq. (eq_N_tilde). For a transport system ``M = 1``.
+    ``N~`` in eq. (eq_N_tilde), built by the same function
+    (:func:`~nrobust.hyperbolic.delay_form.delay_kernel`, a cubic spline on each side of
+    the jump at ``nu = 1/mu``). For a transport system ``M = 1``.
 
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    n : int, optional
-        Kernel grid (default: that of the closed-loop functions); ``M~`` is tabulated on
-        ``n + 1`` points of each piece.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid (that of the closed-loop functions by default; formerly ``n``, a
+        deprecated alias); ``M~`` is tabulated on its points on each side of the jump.
     """
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiPolynomial([[1.0]], [0.0])
-    m = DEFAULT_N if n is None else positive_int("n", n, 2)
-    kernels = solve_kernels(system, n=m)
-    lam, mu, q = float(system.lam), float(system.mu), float(system.q)
-    xi = np.linspace(0.0, 1.0, m + 1)
-    ones = np.ones_like(xi)
-    # beta part on nu in [0, 1/mu]: xi = 1 - mu nu, decreasing in nu
-    nu_b = (1.0 - xi[::-1]) / mu
-    val_b = mu * np.asarray(kernels.Lbb(ones, xi[::-1]), dtype=float)
-    # alpha part on nu in [1/mu, tau]: xi = lam (nu - 1/mu)
-    nu_a = xi / lam + 1.0 / mu
-    val_a = lam * q * np.asarray(kernels.Lba(ones, xi), dtype=float)
-    nodes = np.concatenate([nu_b, nu_a])
-    values = np.concatenate([val_b, val_a])
-    if not np.any(values != 0):
-        return QuasiPolynomial([[1.0]], [0.0])
-    return QuasiPolynomial([[1.0]], [0.0], [DistributedDelay(nodes, values)])
+    kernels = solve_kernels(system, positive_int("kernel_grid", kernel_grid, 3))
+    L1 = kernels.L[:, :, -1, :]  # L^{ab}(1, xi) on the grid, a, b in (alpha, beta)
+    return QuasiPolynomial([[1.0]], [0.0], [delay_kernel(system, kernels.grid, L1[1, 0], L1[1, 1])])
 
 
 def closed_loop_tf(

@@ -9,27 +9,33 @@ delay ``delta`` has the characteristic function (eq. (delay_eq_alpha_ter))
 (the paper prints ``-I``; the sign does not enter the bound). On ``Re s >= 0``,
 ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` and ``|I(s, delta)| <= omega(delta)``,
 the L1 modulus of continuity of ``N~`` (:func:`nrobust.bounds.l1_modulus`). Every ``delta``
-with ``omega(delta) < 1 - |q rho| - |K q|`` is admissible.
+with ``omega(delta) < 1 - |q rho| - |K q|`` is admissible. ``N~`` is a cubic spline, so
+``omega`` is bounded by that of its linear interpolant (closed form) plus twice their
+L1 distance (:func:`nrobust.bounds.delay_bound_from_kernel`).
 """
 
 from __future__ import annotations
 
-from .._validate import positive_int
+from .._validate import positive_int, renamed_keywords
 from ..bounds import RoucheDelayBound, delay_bound_from_kernel
 from ..errors import ParameterError
-from .controllers import DEFAULT_N, Controller, FiniteTimeController, ReflectionController
+from .controllers import Controller, FiniteTimeController, ReflectionController
 from .delay_form import delay_form
+from .kernels import DEFAULT_KERNEL_GRID
 from .system import Hyperbolic2x2
 
 __all__ = ["rouche_delay_bound"]
 
 
-def rouche_delay_bound(system: Hyperbolic2x2, controller: Controller, n: int | None = None) -> RoucheDelayBound:
+@renamed_keywords(n="kernel_grid")
+def rouche_delay_bound(
+    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
+) -> RoucheDelayBound:
     """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
 
     On ``Re s >= 0`` the characteristic function of eq. (delay_eq_alpha_ter) satisfies
     ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` with
-    ``|I(s, delta)| <= omega(delta)`` (:func:`l1_modulus` of ``N~``). Every delay in
+    ``|I(s, delta)| <= omega(delta)`` (:func:`nrobust.bounds.l1_modulus` of ``N~``). Every delay in
     ``[0, delta_0]`` with ``sup omega < epsilon_0 = 1 - |q rho| - |K q|`` keeps ``F``
     zero-free on ``Re s >= 0``; the strict inequality extends to ``Re s >= -epsilon``
     for some ``epsilon > 0`` by continuity, so the loop is exponentially stable.
@@ -38,12 +44,12 @@ def rouche_delay_bound(system: Hyperbolic2x2, controller: Controller, n: int | N
     Parameters
     ----------
     system : Hyperbolic2x2
-        The plant (a :class:`TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
+        The plant (a :class:`~nrobust.hyperbolic.TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
         whenever ``epsilon_0 > 0``).
     controller : ReflectionController or FiniteTimeController
         ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
-    n : int, optional
-        Kernel grid of the delay form (default: that of the closed-loop functions).
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid of the delay form (formerly ``n``, a deprecated alias).
 
     Returns
     -------
@@ -57,7 +63,7 @@ def rouche_delay_bound(system: Hyperbolic2x2, controller: Controller, n: int | N
         K = float(system.rho)
     else:
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
-    grid = DEFAULT_N if n is None else positive_int("n", n, 2)
+    grid = positive_int("kernel_grid", kernel_grid, 3)
     eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
-    N = None if system.uncoupled else delay_form(system, n=grid).N_tilde
+    N = None if system.uncoupled else delay_form(system, grid).N_tilde
     return delay_bound_from_kernel(N, eps0, K)

@@ -67,19 +67,24 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import sparse
 
-from .._validate import finite_real, nonnegative, positive, positive_int
+from .._json import fields_dict
+from .._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
 from ..errors import ParameterError
+from .kernels import solve_kernels
 from .system import Hyperbolic2x2
 
-__all__ = ["Simulation", "simulate", "v_nodes"]
+__all__ = ["DEFAULT_CELLS", "Simulation", "simulate", "v_nodes"]
 
 Array = NDArray[np.float64]
 InitialState = Callable[[Array], Any] | Array
 
 #: Relative tolerance under which ``delta / dt`` counts as an integer.
 _INTEGER_TOL = 1e-9
-#: Default kernel cells: the kernels' second-order error is then about 1e-6.
-KERNEL_CELLS = 400
+#: Default number of cells of the ``u`` grid (``dt = 1 / (lam cells)``): the grid of the
+#: paper's figures, 0.1-0.4 s per run of the paper's example to ``t = 10``
+#: (``docs/simulation.md``). It also caps the default kernel grid of :func:`simulate`,
+#: ``min(cells, DEFAULT_CELLS) + 1`` (kernel nodes on the ``u`` nodes).
+DEFAULT_CELLS = 400
 #: Default bound on the number of node updates (nodes times steps).
 MAX_UPDATES = 2 * 10**9
 
@@ -163,23 +168,8 @@ class Simulation:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description (lists of floats)."""
-        return {
-            "type": "Simulation",
-            "scheme": self.scheme,
-            "n": self.n,
-            "dt": self.dt,
-            "delta": self.delta,
-            "delay_interpolation": self.delay_interpolation,
-            "times": self.times.tolist(),
-            "norm": self.norm.tolist(),
-            "control": self.control.tolist(),
-            "x": self.x.tolist(),
-            "x_v": self.x_v.tolist(),
-            "snapshot_times": self.snapshot_times.tolist(),
-            "u": self.u.tolist(),
-            "v": self.v.tolist(),
-        }
+        """JSON-ready description (lists of floats; an overflowed state as ``"inf"``/``"nan"``)."""
+        return {"type": "Simulation", **fields_dict(self)}
 
 
 def _initial(name: str, value: InitialState, x: Array) -> Array:
@@ -203,16 +193,14 @@ def _initial(name: str, value: InitialState, x: Array) -> Array:
     return out.copy()
 
 
-def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_n: int) -> Any:
-    """The :class:`FeedbackLaw` of ``controller`` (itself if it already is one)."""
+def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_grid: int) -> Any:
+    """The :class:`~nrobust.hyperbolic.controllers.FeedbackLaw` of ``controller`` (itself if it already is one)."""
     if hasattr(controller, "boundary_gain") and hasattr(controller, "gain_u"):
         return controller
     if not callable(getattr(controller, "feedback_law", None)):
         raise ParameterError("controller", "a FeedbackLaw or an object with feedback_law(system, kernels)", controller)
     if kernels is None and not system.uncoupled:
-        from .kernels import solve_kernels
-
-        kernels = solve_kernels(system, n=kernel_n)
+        kernels = solve_kernels(system, kernel_grid)
     return controller.feedback_law(system, kernels)
 
 
@@ -552,6 +540,7 @@ def _march_two_grids(
         record(j, u, v)
 
 
+@renamed_keywords(n="cells", kernel_n="kernel_grid")
 def simulate(
     system: Hyperbolic2x2,
     controller: Any,
@@ -559,11 +548,11 @@ def simulate(
     t_end: float,
     u0: InitialState,
     v0: InitialState,
-    n: int = 400,
+    cells: int = DEFAULT_CELLS,
     *,
     snapshot_every: int | None = None,
     kernels: Any = None,
-    kernel_n: int | None = None,
+    kernel_grid: int | None = None,
     max_updates: int = MAX_UPDATES,
 ) -> Simulation:
     """Simulate the plant (u_pde)-(IC) under the feedback ``U(t - delta)``.
@@ -583,18 +572,21 @@ def simulate(
     t_end : float
         Final time ``> 0``; the run ends at the first sampled time ``>= t_end``.
     u0, v0 : callable or array
-        Initial state: callables on arrays of ``x``, or values on the nodes (``n + 1``
+        Initial state: callables on arrays of ``x``, or values on the nodes (``cells + 1``
         for ``u``; for ``v`` as many as :func:`v_nodes` returns).
-    n : int, default 400
-        Cells of the ``u`` grid; the sampling step is ``dt = 1 / (lam n)``.
+    cells : int, default :data:`DEFAULT_CELLS`
+        Cells of the ``u`` grid; the sampling step is ``dt = 1 / (lam cells)`` (formerly
+        ``n``, a deprecated alias).
     snapshot_every : int, optional
         Store the state every this many steps (and at the end); default: final state only.
     kernels : Kernels, optional
-        Backstepping kernels for the controller; solved with ``kernel_n`` points otherwise
+        Backstepping kernels for the controller; solved on ``kernel_grid`` points otherwise
         (not needed for an uncoupled system or a ``FeedbackLaw``).
-    kernel_n : int, optional
-        Kernel grid points, default ``min(n, 400) + 1`` (kernel nodes on ``u`` nodes when
-        ``n <= 400``; the kernel solver's cost grows like the cube of its grid).
+    kernel_grid : int, optional
+        Kernel grid points (formerly ``kernel_n``, a deprecated alias); default
+        ``min(cells, DEFAULT_CELLS) + 1``: the kernels are evaluated on the ``u`` nodes by
+        linear interpolation, so their nodes are put there, up to :data:`DEFAULT_CELLS`
+        cells (the kernel solver's cost grows like the cube of its grid).
     max_updates : int
         Bound on the number of node updates (nodes times steps).
 
@@ -621,8 +613,10 @@ def simulate(
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     delta = nonnegative("delta", delta)
     t_end = positive("t_end", t_end)
-    n = positive_int("n", n, minimum=2)
-    kernel_n = min(n, KERNEL_CELLS) + 1 if kernel_n is None else positive_int("kernel_n", kernel_n, minimum=3)
+    n = positive_int("cells", cells, minimum=2)
+    if kernel_grid is None:
+        kernel_grid = min(n, DEFAULT_CELLS) + 1
+    kernel_grid = positive_int("kernel_grid", kernel_grid, minimum=3)
     if snapshot_every is not None:
         snapshot_every = positive_int("snapshot_every", snapshot_every)
     max_updates = positive_int("max_updates", max_updates)
@@ -633,14 +627,14 @@ def simulate(
     x = np.linspace(0.0, 1.0, n + 1)
     xv = x if lattice else v_nodes(system, n)
     if xv.size < 4:
-        raise ParameterError("n", f">= {math.ceil(3 * system.mu / system.lam)} (three cells of v at least)", n)
+        raise ParameterError("cells", f">= {math.ceil(3 * system.mu / system.lam)} (three cells of v at least)", n)
     updates = steps * (2 * n if lattice else x.size + xv.size)
     if updates > max_updates:
-        raise ParameterError("(n, t_end)", f"at most max_updates = {max_updates} node updates", updates)
+        raise ParameterError("(cells, t_end)", f"at most max_updates = {max_updates} node updates", updates)
 
     u = _initial("u0", u0, x)
     v = _initial("v0", v0, xv)
-    law = _feedback_law(system, controller, kernels, kernel_n)
+    law = _feedback_law(system, controller, kernels, kernel_grid)
     w_x, w_v = _trapezoid_weights(x), _trapezoid_weights(xv)
     loop = _Loop(
         law,
@@ -677,15 +671,17 @@ def simulate(
     )
 
 
-def v_nodes(system: Hyperbolic2x2, n: int) -> Array:
-    """Nodes (ascending) on which :func:`simulate` stores ``v`` for ``n`` cells of ``u``.
+@renamed_keywords(n="cells")
+def v_nodes(system: Hyperbolic2x2, cells: int) -> Array:
+    """Nodes (ascending) on which :func:`simulate` stores ``v`` for ``cells`` cells of ``u``.
 
-    Equal speeds: the ``u`` nodes ``k / n``. Otherwise ``1 - k mu dt`` (``dt = 1/(lam n)``)
-    down to the last one in ``[0, 1]``, and ``x = 0`` when that one is not 0.
+    Equal speeds: the ``u`` nodes ``k / cells``. Otherwise ``1 - k mu dt``
+    (``dt = 1/(lam cells)``) down to the last one in ``[0, 1]``, and ``x = 0`` when that
+    one is not 0. (``cells`` was formerly ``n``, a deprecated alias.)
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
-    n = positive_int("n", n, minimum=2)
+    n = positive_int("cells", cells, minimum=2)
     if abs(system.mu - system.lam) <= 1e-12 * system.lam:
         return np.linspace(0.0, 1.0, n + 1)
     return _v_grid(system.mu, 1.0 / (system.lam * n))

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .._json import json_safe
 from .._validate import finite_real, positive
 from ..errors import ParameterError
 
@@ -191,23 +192,25 @@ class Hyperbolic2x2:
         at = self.sigma_pm_at if attr == "sigma_pm" else self.sigma_mp_at
         return {
             "callable": _coupling_name(value),
-            "x": _SAMPLES.tolist(),
-            "values": at(_SAMPLES).tolist(),
+            "x": _SAMPLES,
+            "values": at(_SAMPLES),
         }
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description; callable couplings are tabulated on 11 points."""
-        return {
-            "type": type(self).__name__,
-            "lam": self.lam,
-            "mu": self.mu,
-            "sigma_pm": self._coupling_dict("sigma_pm"),
-            "sigma_mp": self._coupling_dict("sigma_mp"),
-            "q": self.q,
-            "rho": self.rho,
-            "tau": self.tau,
-            "rho_q": self.rho_q,
-        }
+        return json_safe(
+            {
+                "type": type(self).__name__,
+                "lam": self.lam,
+                "mu": self.mu,
+                "sigma_pm": self._coupling_dict("sigma_pm"),
+                "sigma_mp": self._coupling_dict("sigma_mp"),
+                "q": self.q,
+                "rho": self.rho,
+                "tau": self.tau,
+                "rho_q": self.rho_q,
+            }
+        )
 
 
 @dataclass(frozen=True, repr=False)

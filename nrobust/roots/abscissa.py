@@ -8,13 +8,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._json import json_float
+from .._json import fields_dict
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
-from .finder import RootSet, find_roots
-from .winding import Region, _check_function, count_roots
+from .finder import RootSet, _Finder, _find_counted, find_roots
+from .winding import Region, _Budget, _check_function, _count_with_shifts
 
 __all__ = ["SpectralAbscissa", "spectral_abscissa"]
 
@@ -74,21 +74,18 @@ class SpectralAbscissa:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "value": json_float(self.value),
-            "root": None if self.root is None else [self.root.real, self.root.imag],
-            "approached_at_infinity": self.approached_at_infinity,
-            "chain_value": json_float(self.chain_value),
-            "upper_bound": json_float(self.upper_bound),
-            "certified": self.certified,
-            "region": list(self.region),
-            "strong_bound": json_float(self.strong_bound),
-        }
+        """JSON-ready description (``root`` as ``[real, imag]``, infinities as strings)."""
+        return fields_dict(self)
 
 
-# Largest |s| tried by the root-free radius; beyond it the search is not certified.
-_MAX_RADIUS = 1e6
+# Bisection steps on the left edge x(R) of the root-free far field.
+_EDGE_BISECTIONS = 60
+# Doublings of the far-field radius R in the march of the retarded abscissa.
+_MAX_STEPS = 200
+# Smallest half-height of the boxes of that march.
+_MIN_HALF_HEIGHT = 1.0
+# Edge shifts allowed when a box edge lands on a root (a multiple root needs a wide berth).
+_ABSCISSA_SHIFTS = 8
 
 
 def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
@@ -146,6 +143,13 @@ def spectral_abscissa(
     F = _check_function(F)
     if F.kind == "advanced":
         raise ParameterError("F", "retarded or neutral (an advanced quasi-polynomial has unbounded root real parts)", F)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals)
+
+
+def _spectral_abscissa(
+    F: QuasiPolynomial, region: ArrayLike | None, im_max: float | None, cluster_tol: float, max_evals: int
+) -> SpectralAbscissa:
     D = F.principal_part()
     chain_value = D.spectral_bound().upper
     c_strong = D.strong_spectral_bound()
@@ -203,6 +207,38 @@ def _neutral_abscissa(
     return _abscissa_from(band, chain_value, x_min, band.certified and roots.certified)
 
 
+def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
+    """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= R}`` (see :func:`_root_free_radius`)."""
+    g = principal_gap({"F": (F, 0)}, n, x)
+    return g is not None and g.gap > 0.0 and bool(TailBound(F, n, x, g.t0)(R) < g.gap)
+
+
+def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float) -> float:
+    """The smallest ``x`` in ``[-R, x_hi]`` (up to bisection, rounded to the right) with
+    ``{Re s >= x, |s| >= R}`` proven root-free; the far field must hold at ``x_hi``.
+
+    The dominance gap of the principal part increases and :class:`~nrobust.bounds.TailBound`
+    decreases with ``x``, so the set of such ``x`` is a half-line.
+    """
+    lo, hi = -R, x_hi
+    if _far_field_holds(F, n, lo, R):
+        return lo
+    for _ in range(_EDGE_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        if _far_field_holds(F, n, mid, R):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _is_exponential_polynomial(F: QuasiPolynomial) -> bool:
+    """True if ``F = p(s) e^{-tau s}``: its far-field bound does not depend on ``Re s``."""
+    return len(F.point_terms) == 1 and not F.distributed
+
+
 def _retarded_abscissa(
     F: QuasiPolynomial,
     x_right: float,
@@ -211,25 +247,48 @@ def _retarded_abscissa(
     cluster_tol: float,
     max_evals: int,
 ) -> SpectralAbscissa:
-    """Widen a window ``[x_right - w, x_max]`` leftwards (``w = 0, 1, 2, 4, ...``) until it
-    holds a root; every root with ``Re s`` in the window is found, so the rightmost is."""
+    """The rightmost root of a retarded ``F`` by a march on the root-free far field.
+
+    ``F`` has no root in ``{Re s >= x(R), |s| >= R}`` (:func:`_far_field_edge`); so every
+    root with ``Re s >= x(R)`` lies in the box ``[x(R), x_max] x [-R, R]`` (``x_max``
+    right of every root: ``max(x_right, radius) + 1``). The march doubles ``R`` from the
+    ``radius`` of the half-plane ``Re s >= x_right``, which moves ``x(R)`` to the left
+    (for long delays by about ``ln 2 / tau`` per step: the rightmost roots of
+    ``s + a + b e^{-tau s}`` sit near the axis, at ``|s| ~ |b| e^{-tau Re s}``), counts
+    the box and stops at the first box holding a root with ``Re s >= x(R)``: that root
+    is the rightmost one of ``F``. The boxes grow geometrically, so the work is about
+    twice that of the last box, and only the band ``|Im s| < R`` that can hold the
+    rightmost root is searched.
+
+    A retarded ``F`` of degree ``n >= 1`` has roots (infinitely many if it has a delayed
+    term), so the march ends with a root; the abscissa ``-inf`` is certified only for
+    ``F = p(s) e^{-tau s}`` (an exponential polynomial, whose bound holds for all
+    ``Re s``), when the box ``[-R, x_max] x [-R, R]`` holds no root: ``F = c e^{-tau s}``.
+    Otherwise the march ends with :class:`~nrobust.errors.CertificationError` when the
+    work bound ``max_evals`` (shared by all steps) is exhausted.
+    """
+    n = joint_degree(F)
     x_max = max(x_right, radius) + 1.0
-    searched: Region | None = None
-    for width in [0.0] + [2.0**j for j in range(12)]:
-        x_min = x_right - width
-        y = _root_free_radius(F, x_min)
-        if y is None or y > _MAX_RADIUS:
-            break
-        box = (x_min, x_max, *_band(max(y, radius), real))
-        count = count_roots(F, box, max_evals=max_evals)
-        searched = count.region
-        if count > 0:
-            roots = find_roots(F, box, cluster_tol=cluster_tol, max_evals=max_evals)
-            return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
-    if searched is None:
-        raise CertificationError(f"no root-free far field for Re s >= {x_right:.6g}: cannot bound the roots")
-    # no root with Re s >= searched[0] at all
-    return SpectralAbscissa(-np.inf, None, False, -np.inf, searched[0], True, searched)
+    whole = _is_exponential_polynomial(F)
+    budget = _Budget(max_evals)
+    R = radius
+    for _ in range(_MAX_STEPS):
+        x_far = -np.inf if whole else _far_field_edge(F, n, R, x_right)
+        half = 1.01 * max(R, _MIN_HALF_HEIGHT)  # edges off the disc |s| < R that holds the roots
+        box = (max(x_far, -half), x_max, *_band(half, real))
+        finder = _Finder(F, box, cluster_tol, budget)
+        total, reg, shifted = _count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
+        if total > 0:
+            roots = _find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
+            # a root left of x_far (in an edge shift) may have unseen roots to its right
+            if len(roots) and np.max(roots.roots.real) >= x_far:
+                return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
+        elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
+            return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
+        R *= 2.0
+    raise CertificationError(
+        f"spectral_abscissa: no root found with |s| < {R:.6g}; raise max_evals or give a region"
+    )
 
 
 def _abscissa_from(

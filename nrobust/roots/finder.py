@@ -18,6 +18,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
+from .._json import fields_dict
+from .._newton import newton
 from .._validate import positive, positive_int
 from .._validate import region as _check_region
 from ..errors import CertificationError, ParameterError
@@ -45,34 +47,53 @@ __all__ = ["RootSet", "find_roots"]
 def _newton(
     F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max_step: float, iters: int = 60
 ) -> NDArray[np.complex128]:
-    """Vectorised Newton iteration; returns nan where it did not converge."""
-    s = np.array(s0, dtype=complex).ravel()
-    done = np.zeros(s.size, dtype=bool)
-    alive = np.ones(s.size, dtype=bool)
-    for _ in range(iters):
-        act = np.flatnonzero(alive & ~done)
-        if not act.size:
-            break
-        budget.spend(2 * act.size, "refining roots by Newton's method")
-        x = s[act]
-        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            f, d = F(x), F.deriv(x)
-            step = f / d
-        bad = ~np.isfinite(step)
-        alive[act[bad]] = False
-        step = np.where(bad, 0, step)
-        big = np.abs(step) > max_step
-        step[big] *= max_step / np.abs(step[big])
-        s[act] = x - step
-        done[act] = (np.abs(step) <= 4 * _EPS * (1.0 + np.abs(x))) | (f == 0)
-    # a linearly converging (multiple) root may stop short of the step test: accept
-    # points with a residual at rounding level
-    s_live = s[alive & ~done]
-    if s_live.size:
-        r = np.abs(F(s_live)) <= _STALLED * _magnitude(F, s_live)
-        idx = np.flatnonzero(alive & ~done)
-        done[idx[r]] = True
-    return np.where(done & alive, s, np.nan)
+    """Newton's method on ``F`` from the seeds ``s0`` (nan where it did not converge).
+
+    Each step is charged to ``budget``; a point that stops short of the step test (a
+    linearly converging multiple root) is kept when its residual is at rounding level.
+    """
+
+    def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        return F(x), F.deriv_at(x)
+
+    def spend(n: int) -> None:
+        budget.spend(2 * n, "refining roots by Newton's method")
+
+    def residual_at_rounding_level(s: NDArray[np.complex128]) -> NDArray[np.bool_]:
+        return np.abs(F(s)) <= _STALLED * _magnitude(F, s)
+
+    return newton(fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level)
+
+
+# ====================================================================== boxes
+# A box is a row ``(re_min, re_max, im_min, im_max)``; distances between boxes and points
+# are Chebyshev distances (``p = inf``), the metric in which a box is a ball.
+def _xy(z: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Complex points as ``(n, 2)`` rows ``(Re, Im)``."""
+    return np.column_stack([z.real, z.imag])
+
+
+def _centers(boxes: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Centres (``(n, 2)`` rows) and Chebyshev radii (half the longer side) of boxes."""
+    center = np.column_stack([(boxes[:, 0] + boxes[:, 1]) / 2, (boxes[:, 2] + boxes[:, 3]) / 2])
+    return center, np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) / 2
+
+
+def _boxes_about(z: NDArray[np.complex128], h: NDArray[np.float64], owners: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Square boxes of half-width ``h`` about ``z``, each clipped to its row of ``owners``."""
+    return np.column_stack(
+        [
+            np.maximum(z.real - h, owners[:, 0]),
+            np.minimum(z.real + h, owners[:, 1]),
+            np.maximum(z.imag - h, owners[:, 2]),
+            np.minimum(z.imag + h, owners[:, 3]),
+        ]
+    )
+
+
+# Largest number of roots resolved by the contour moments of one circle; beyond it the
+# power sums are ill conditioned and the box is seeded and subdivided instead.
+_MAX_MOMENT_ROOTS = 16
 
 
 @dataclass
@@ -86,28 +107,39 @@ class _Moments:
 
 def _circle_moments(
     F: QuasiPolynomial, center: complex, radius: float, m: int, budget: _Budget, n: int = 64
-) -> _Moments:
-    """Estimate the ``m`` roots inside a circle from its contour moments.
+) -> _Moments | None:
+    """Estimate the ``m`` roots inside a circle from its contour moments, or None.
 
     Power sums ``p_k = (1/2 pi i) oint (s - c)^k F'/F ds`` by the trapezoidal rule
     (spectrally accurate on a circle); Newton's identities turn them into the polynomial
-    whose roots are the roots inside (Delves and Lyness). With ``d`` the relative rounding
-    error of ``F`` on the circle, ``m`` roots are resolved only to ``radius * d^(1/m)``:
-    a multiple root and a cluster below that scale are indistinguishable.
+    whose roots are the roots inside (Delves and Lyness). The sums are taken in the
+    variable ``(s - c) / radius`` (roots inside the unit disc), so that they stay of the
+    order of ``m`` instead of ``radius^k``. With ``d`` the relative rounding error of ``F``
+    on the circle, ``m`` roots are resolved only to ``radius * d^(1/m)``: a multiple root
+    and a cluster below that scale are indistinguishable. None when the estimate cannot
+    be trusted: more than :data:`_MAX_MOMENT_ROOTS` roots (Newton's identities lose all
+    digits), or ``F`` or ``F'`` not finite and nonzero on the circle.
     """
+    if m > _MAX_MOMENT_ROOTS:
+        return None
     theta = 2 * np.pi * np.arange(n) / n
-    w = radius * np.exp(1j * theta)
+    u = np.exp(1j * theta)
     budget.spend(2 * n, "computing contour moments")
-    fw = F(center + w)
-    ratio = F.deriv(center + w) / fw
-    d = float(np.max(_ROUNDING * _magnitude(F, center + w) / np.abs(fw)))
-    p = np.array([np.mean(ratio * w ** (k + 1)) for k in range(0, m + 1)])
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        fw = F(center + radius * u)
+        ratio = F.deriv_at(center + radius * u) * radius / fw
+        d = float(np.max(_ROUNDING * _magnitude(F, center + radius * u) / np.abs(fw)))
+    if not (np.all(np.isfinite(ratio)) and np.isfinite(d)):
+        return None
+    p = np.array([np.mean(ratio * u ** (k + 1)) for k in range(0, m + 1)])
     e = np.zeros(m + 1, dtype=complex)
     e[0] = 1.0
     for k in range(1, m + 1):
         e[k] = sum((-1) ** (i - 1) * e[k - i] * p[i] for i in range(1, k + 1)) / k
     coeffs = np.array([(-1) ** k * e[k] for k in range(m + 1)])
-    return _Moments(center + np.roots(coeffs), float(p[0].real), 10 * radius * d ** (1.0 / m))
+    if not np.all(np.isfinite(coeffs)):
+        return None
+    return _Moments(center + radius * np.roots(coeffs), float(p[0].real), 10 * radius * d ** (1.0 / m))
 
 
 # ====================================================================== result types
@@ -178,20 +210,8 @@ class RootSet:
         return "\n".join(rows)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return {
-            "roots": [[float(z.real), float(z.imag)] for z in self.roots],
-            "multiplicities": [int(m) for m in self.multiplicities],
-            "radii": [float(r) for r in self.radii],
-            "residuals": [float(r) for r in self.residuals],
-            "count": int(self.count),
-            "region": list(self.region),
-            "boxes": self.boxes.tolist(),
-            "box_counts": [int(c) for c in self.box_counts],
-            "certified": self.certified,
-            "shifted": self.shifted,
-            "evaluations": self.evaluations,
-        }
+        """JSON-ready description (roots as ``[real, imag]`` pairs)."""
+        return fields_dict(self)
 
 
 # ====================================================================== find_roots
@@ -220,6 +240,16 @@ class _Found:
         mask = (b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1)
         return int(np.sum(np.asarray(self.mults, dtype=np.int64)[mask])) if mask.any() else 0
 
+    def remove_inside(self, box: Region) -> None:
+        """Drop the accepted roots whose boxes lie inside ``box``."""
+        b = self.array()
+        x0, x1, y0, y1 = box
+        keep = ~((b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1))
+        self.centers = [z for z, k in zip(self.centers, keep) if k]
+        self.mults = [m for m, k in zip(self.mults, keep) if k]
+        self.boxes = [r for r, k in zip(self.boxes, keep) if k]
+        self._array = None
+
     def array(self) -> NDArray[np.float64]:
         """The accepted boxes as an ``(n, 4)`` array."""
         if self._array is None:
@@ -244,15 +274,14 @@ class _Finder:
         and from the accepted boxes (Chebyshev distances)."""
         cap = np.full(pts.size, np.inf)
         if pts.size > 1:
-            xy = np.column_stack([pts.real, pts.imag])
+            xy = _xy(pts)
             dist, _ = cKDTree(xy).query(xy, k=2, p=np.inf)
             cap = 0.3 * dist[:, 1]
         old = self.found.array()
         if old.size:
-            c = np.column_stack([(old[:, 0] + old[:, 1]) / 2, (old[:, 2] + old[:, 3]) / 2])
-            r = np.maximum(old[:, 1] - old[:, 0], old[:, 3] - old[:, 2]) / 2
+            c, r = _centers(old)
             k = min(8, c.shape[0])
-            dist, idx = cKDTree(c).query(np.column_stack([pts.real, pts.imag]), k=k, p=np.inf)
+            dist, idx = cKDTree(c).query(_xy(pts), k=k, p=np.inf)
             dist, idx = dist.reshape(pts.size, k), idx.reshape(pts.size, k)
             cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
         return cap
@@ -272,13 +301,13 @@ class _Finder:
             return pts, np.zeros(0)
         self.budget.spend(2 * pts.size, "merging limit points")
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            step = np.abs(self.F(pts) / self.F.deriv(pts))
+            step = np.abs(self.F(pts) / self.F.deriv_at(pts))
         base = _MERGE_RTOL * (1.0 + np.abs(pts))
         stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * base), 1e3 * base)
         reach = np.maximum(base, stalled)
         parent = np.arange(pts.size)
         if pts.size > 1:
-            xy = np.column_stack([pts.real, pts.imag])
+            xy = _xy(pts)
             pairs = cKDTree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
             if pairs.size:
                 gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
@@ -326,14 +355,7 @@ class _Finder:
             if not cand.size:
                 return
             h = np.minimum(soft * factor, hard)
-            boxes = np.column_stack(
-                [
-                    np.maximum(cand.real - h, own[:, 0]),
-                    np.minimum(cand.real + h, own[:, 1]),
-                    np.maximum(cand.imag - h, own[:, 2]),
-                    np.minimum(cand.imag + h, own[:, 3]),
-                ]
-            )
+            boxes = _boxes_about(cand, h, own)
             counts, blocked = self.counter.count([tuple(b) for b in boxes])
             stuck = blocked.any(axis=1)
             single = ~stuck & (counts == 1)
@@ -370,20 +392,29 @@ class _Finder:
         wide = np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) > 4.0 * half
         if not wide.any():
             return boxes
-        zw, hw, bw = z[wide], half[wide], boxes[wide]
-        inner = np.column_stack(
-            [
-                np.maximum(zw.real - hw, bw[:, 0]),
-                np.minimum(zw.real + hw, bw[:, 1]),
-                np.maximum(zw.imag - hw, bw[:, 2]),
-                np.minimum(zw.imag + hw, bw[:, 3]),
-            ]
-        )
+        inner = _boxes_about(z[wide], half[wide], boxes[wide])
         counts, blocked = self.counter.count([tuple(b) for b in inner])
         good = (counts == m[wide]) & ~blocked.any(axis=1)
         out = boxes.copy()
         out[np.flatnonzero(wide)[good]] = inner[good]
         return out
+
+    def _tighten_cluster(self, center: complex, c: int, box: Region, half: float) -> Region:
+        """The smallest of the boxes of half-width ``half``, ``half / 4``, ... about
+        ``center`` (not below ``1e-4 (1 + |center|)``) that still count the ``c`` roots
+        of ``box``: the rounding limit of a cluster is an estimate, the count decides."""
+        floor = 1e-4 * (1.0 + abs(center))
+        half = max(half, floor)
+        current = np.array([box], dtype=float)
+        for _ in range(6):
+            tight = self._tighten(np.array([center]), np.array([c]), current, np.array([half]))
+            if np.array_equal(tight, current):
+                break
+            current = tight
+            if half <= floor:
+                break
+            half = max(half / 4.0, floor)
+        return tuple(float(v) for v in current[0])  # type: ignore[return-value]
 
     def _new_candidates(
         self, cand: NDArray[np.complex128], owners: list[Region]
@@ -393,9 +424,8 @@ class _Finder:
         cand = cand[np.isfinite(cand)]
         old = self.found.array()
         if cand.size and old.size:
-            c = np.column_stack([(old[:, 0] + old[:, 1]) / 2, (old[:, 2] + old[:, 3]) / 2])
-            r = np.maximum(old[:, 1] - old[:, 0], old[:, 3] - old[:, 2]) / 2
-            dist, idx = cKDTree(c).query(np.column_stack([cand.real, cand.imag]), k=1, p=np.inf)
+            c, r = _centers(old)
+            dist, idx = cKDTree(c).query(_xy(cand), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
         cands, owns, flags = [], [], []
         for box in owners:
@@ -417,16 +447,14 @@ class _Finder:
         # the roots of this box are resolved inside it, so that their boxes stay disjoint
         # from the other boxes of the batch being accepted
         mom = _circle_moments(self.F, z, 0.9 * h, c, self.budget)
-        if abs(mom.count - c) > 0.25:  # roots near the circle or in the box corners
+        if mom is None or abs(mom.count - c) > 0.25:  # many roots, roots near the circle or in the box corners
             if depth < 3:
                 self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), [box], depth + 1)
             return
         spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
         if spread < max(self.cluster_tol, mom.noise):
             center = complex(np.mean(mom.points))
-            half = max(1e-4 * (1.0 + abs(center)), 4.0 * max(spread, mom.noise))
-            tight = self._tighten(np.array([center]), np.array([c]), np.array([box], dtype=float), np.array([half]))
-            self.found.add(center, c, tuple(tight[0]))
+            self.found.add(center, c, self._tighten_cluster(center, c, box, 4.0 * max(spread, mom.noise)))
         elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
             self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [box], depth + 1)
 
@@ -435,7 +463,7 @@ class _Finder:
         """Zeros of the principal part's chains near the region (neutral ``F``).
 
         For incommensurate delays these are the chains of
-        :meth:`DifferenceOperator.commensurate_approximation`: approximate seeds only.
+        :meth:`~nrobust.difference.DifferenceOperator.commensurate_approximation`: approximate seeds only.
         """
         if self.F.kind != "neutral":
             return np.zeros(0, dtype=complex)
@@ -504,27 +532,34 @@ class _Finder:
             size = max(max(b[1] - b[0], b[3] - b[2]) for b, _ in pending)
             self.accept(_newton(self.F, seeds, self.budget, size), [b for b, _ in pending])
             children: list[Region] = []
+            parents: list[tuple[Region, int]] = []
             for box, c in pending:
                 u = c - self.found.inside(box)
                 if u > 0 and max(box[1] - box[0], box[3] - box[2]) < self.cluster_tol:
-                    self.found.add(complex(0.5 * (box[0] + box[1]), 0.5 * (box[2] + box[3])), u, box)
+                    self._accept_cluster_box(box, c)
                 elif u > 0:
                     children.extend(self._split(box))
+                    parents.append((box, c))
             if not children:
                 return
             counts, blocked = self.counter.count(children)
             level = []
             for k in range(0, len(children), 2):
                 if blocked[k].any() or blocked[k + 1].any():  # the cut runs through a root
-                    level.extend(self._recut((children[k][0], children[k + 1][1], children[k][2], children[k + 1][3])))
+                    level.extend(self._recut(*parents[k // 2]))
                 else:
                     level.extend([(children[k], int(counts[k])), (children[k + 1], int(counts[k + 1]))])
         raise CertificationError(f"subdivision reached depth {max_depth} without isolating every root")
 
-    def _recut(self, parent: Region) -> list[tuple[Region, int]]:
-        """Split a box at 0.38 of its longer side (the half cut went through a root)."""
+    def _recut(self, parent: Region, c: int) -> list[tuple[Region, int]]:
+        """Split a box off its golden sections (the half cut went through a root).
+
+        If every cut runs within rounding of a root, the roots of the box form a cluster
+        that floating point cannot separate: the box is accepted as one entry holding its
+        ``c`` roots (:meth:`_accept_cluster_box`) and nothing is left to split.
+        """
         x0, x1, y0, y1 = parent
-        for frac in (0.381966, 0.618034, 0.2763, 0.7236):
+        for frac in (0.381966, 0.618034, 0.2763, 0.7236, 0.1459, 0.8541):
             if (x1 - x0) >= (y1 - y0):
                 cut = x0 + frac * (x1 - x0)
                 kids = [(x0, cut, y0, y1), (cut, x1, y0, y1)]
@@ -534,7 +569,26 @@ class _Finder:
             counts, blocked = self.counter.count(kids)
             if not blocked.any():
                 return [(kids[0], int(counts[0])), (kids[1], int(counts[1]))]
-        raise CertificationError(f"could not cut the box {parent} away from its roots")
+        self._accept_cluster_box(parent, c)
+        return [(parent, c)]
+
+    def _accept_cluster_box(self, box: Region, c: int) -> None:
+        """Accept a box with certified count ``c`` as one cluster entry of multiplicity ``c``.
+
+        The roots accepted inside it so far are merged into the entry. Its centre is the
+        moment centroid when the circle about the box counts ``c`` roots (the mean of a
+        cluster is well conditioned), else the centre of the box; the claim itself, ``c``
+        roots in the box, rests on the certified count only.
+        """
+        self.found.remove_inside(box)
+        x0, x1, y0, y1 = box
+        center = complex(0.5 * (x0 + x1), 0.5 * (y0 + y1))
+        mom = _circle_moments(self.F, center, 0.5 * float(np.hypot(x1 - x0, y1 - y0)), c, self.budget)
+        if mom is not None and abs(mom.count - c) <= 0.25:
+            mean = complex(np.mean(mom.points))
+            if x0 < mean.real < x1 and y0 < mean.imag < y1:
+                center = mean
+        self.found.add(center, c, box)
 
 
 def find_roots(
@@ -594,12 +648,19 @@ def find_roots(
     if method not in METHODS:
         raise ParameterError("method", f"one of {METHODS}", method)
     max_evals = positive_int("max_evals", max_evals)
-    budget = _Budget(max_evals)
-    finder = _Finder(F, box, cluster_tol, budget)
-    total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
+    extra = np.zeros(0, dtype=complex) if seeds is None else np.atleast_1d(np.asarray(seeds, dtype=complex)).ravel()
+    finder = _Finder(F, box, cluster_tol, _Budget(max_evals))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
+        return _find_counted(finder, total, reg, shifted, extra, method)
+
+
+def _find_counted(
+    finder: _Finder, total: int, reg: Region, shifted: bool, extra: NDArray[np.complex128], method: str = "auto"
+) -> RootSet:
+    """Steps 2-4 of :func:`find_roots` on a region ``reg`` already counted (``total`` roots)."""
     finder.region = reg
     if total > 0:
-        extra = np.zeros(0, dtype=complex) if seeds is None else np.atleast_1d(np.asarray(seeds, dtype=complex)).ravel()
         if method == "auto":
             finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
             if finder.found.total() < total:
@@ -645,8 +706,7 @@ def _disjoint(boxes: NDArray[np.float64]) -> bool:
     """True if no two boxes overlap (the certificate adds their counts)."""
     if boxes.shape[0] < 2:
         return True
-    center = np.column_stack([(boxes[:, 0] + boxes[:, 1]) / 2, (boxes[:, 2] + boxes[:, 3]) / 2])
-    half = np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) / 2
+    center, half = _centers(boxes)
     for i, j in cKDTree(center).query_pairs(2 * float(half.max()), p=np.inf):
         a, b = boxes[i], boxes[j]
         if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:

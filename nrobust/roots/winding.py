@@ -12,12 +12,13 @@ halved. The winding number is then an integer by construction, not a rounded int
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
 from ..errors import CertificationError, ParameterError
@@ -90,13 +91,50 @@ class _Edges:
     blocked: NDArray[np.bool_]  # True where a root lies on or too near the segment
 
 
-def _first_order_ok(bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+@dataclass
+class _Steps:
+    """The contour steps ``[start, end]`` not yet certified, as parallel arrays (one entry per step)."""
+
+    start: NDArray[np.complex128]
+    end: NDArray[np.complex128]
+    f_start: NDArray[np.complex128]  # F(start)
+    f_end: NDArray[np.complex128]  # F(end)
+    scale_start: NDArray[np.float64]  # rounding scale of F(start) (_magnitude)
+    scale_end: NDArray[np.float64]  # rounding scale of F(end)
+    df_start: NDArray[np.complex128]  # F'(start); NaN until the order-2 rule needs it
+    segment: NDArray[np.intp]  # index of the segment the step belongs to
+
+    @property
+    def size(self) -> int:
+        return int(self.start.size)
+
+    def take(self, mask: NDArray[np.bool_]) -> _Steps:
+        """The steps selected by ``mask``."""
+        return _Steps(*(getattr(self, f.name)[mask] for f in fields(self)))
+
+    def halve(self, mid: NDArray[np.complex128], f_mid: NDArray, scale_mid: NDArray) -> _Steps:
+        """Every step split at its midpoint ``mid`` (first halves, then second halves)."""
+        return _Steps(
+            start=np.concatenate([self.start, mid]),
+            end=np.concatenate([mid, self.end]),
+            f_start=np.concatenate([self.f_start, f_mid]),
+            f_end=np.concatenate([f_mid, self.f_end]),
+            scale_start=np.concatenate([self.scale_start, scale_mid]),
+            scale_end=np.concatenate([scale_mid, self.scale_end]),
+            df_start=np.concatenate([self.df_start, np.full(mid.size, np.nan, dtype=complex)]),
+            segment=np.concatenate([self.segment, self.segment]),
+        )
+
+
+def _first_order_ok(bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
     """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding)."""
-    room = np.minimum(np.abs(st["fa"]) - _ROUNDING * st["ma"], np.abs(st["fb"]) - _ROUNDING * st["mb"])
-    return bound * np.abs(st["b"] - st["a"]) * 0.5 < room
+    room = np.minimum(
+        np.abs(steps.f_start) - _ROUNDING * steps.scale_start, np.abs(steps.f_end) - _ROUNDING * steps.scale_end
+    )
+    return bound * np.abs(steps.end - steps.start) * 0.5 < room
 
 
-def _second_order_ok(bound2: NDArray, bound: NDArray, st: dict[str, NDArray]) -> NDArray[np.bool_]:
+def _second_order_ok(bound2: NDArray, bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
     """Step rule of order 2, for steps near a root where order 1 needs tiny steps.
 
     With ``M2`` a bound of ``|F''|`` on the step, ``F(a + t) = F(a) + F'(a) t + R(t)`` with
@@ -105,17 +143,13 @@ def _second_order_ok(bound2: NDArray, bound: NDArray, st: dict[str, NDArray]) ->
     tube is a convex set without 0, hence in an open half-plane, and the change of
     argument over the step is again the principal value of ``arg(F(b) / F(a))``.
     """
-    h = st["b"] - st["a"]
-    p0, v = st["fa"], st["dfa"] * h
+    h = steps.end - steps.start
+    p0, v = steps.f_start, steps.df_start * h
     with np.errstate(invalid="ignore", divide="ignore"):
         t = np.clip(-np.real(np.conj(v) * p0) / np.abs(v) ** 2, 0.0, 1.0)
     dist = np.abs(p0 + np.nan_to_num(t) * v)
-    slack = _ROUNDING * (st["ma"] + bound * np.abs(h))
+    slack = _ROUNDING * (steps.scale_start + bound * np.abs(h))
     return bound2 * np.abs(h) ** 2 * 0.5 + slack < dist
-
-
-def _take(st: dict[str, NDArray], mask: NDArray[np.bool_]) -> dict[str, NDArray]:
-    return {k: v[mask] for k, v in st.items()}
 
 
 def _wind_segments(
@@ -135,59 +169,54 @@ def _wind_segments(
     pts[:, -1] = ends  # exact corners, so that adjacent edges close the contour
     budget.spend(pts.size, "sampling contour edges")
     fv, mag = _evaluate(F, pts, label, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
-    st = {
-        "a": pts[:, :-1].ravel(),
-        "b": pts[:, 1:].ravel(),
-        "fa": fv[:, :-1].ravel(),
-        "fb": fv[:, 1:].ravel(),
-        "ma": mag[:, :-1].ravel(),
-        "mb": mag[:, 1:].ravel(),
-        "dfa": np.full(n_edges * _INITIAL_STEPS, np.nan, dtype=complex),
-        "owner": np.repeat(np.arange(n_edges), _INITIAL_STEPS),
-    }
+    steps = _Steps(
+        start=pts[:, :-1].ravel(),
+        end=pts[:, 1:].ravel(),
+        f_start=fv[:, :-1].ravel(),
+        f_end=fv[:, 1:].ravel(),
+        scale_start=mag[:, :-1].ravel(),
+        scale_end=mag[:, 1:].ravel(),
+        df_start=np.full(n_edges * _INITIAL_STEPS, np.nan, dtype=complex),
+        segment=np.repeat(np.arange(n_edges), _INITIAL_STEPS),
+    )
     turns = np.zeros(n_edges)
     blocked = np.zeros(n_edges, dtype=bool)
-    near = (np.abs(st["fa"]) <= _NEAR_ZERO * st["ma"]) | (np.abs(st["fb"]) <= _NEAR_ZERO * st["mb"])
-    blocked[np.unique(st["owner"][near])] = True
+    near = (np.abs(steps.f_start) <= _NEAR_ZERO * steps.scale_start) | (
+        np.abs(steps.f_end) <= _NEAR_ZERO * steps.scale_end
+    )
+    blocked[np.unique(steps.segment[near])] = True
     dF: QuasiPolynomial | None = None
-    while st["a"].size:
-        st = _take(st, ~blocked[st["owner"]])
-        if not st["a"].size:
+    while steps.size:
+        steps = steps.take(~blocked[steps.segment])
+        if not steps.size:
             break
-        what = f"bounding |F'| on the {label(int(np.bincount(st['owner']).argmax()))}"
-        budget.spend(st["a"].size, what)
-        bound = F.deriv_bound(st["a"], st["b"]) * (1.0 + 1e-12)
-        ok = _first_order_ok(bound, st)
-        room = np.minimum(np.abs(st["fa"]), np.abs(st["fb"]))
-        close = ~ok & (bound * np.abs(st["b"] - st["a"]) > 8.0 * room)
+        what = f"bounding |F'| on the {label(int(np.bincount(steps.segment).argmax()))}"
+        budget.spend(steps.size, what)
+        bound = F.deriv_bound(steps.start, steps.end) * (1.0 + 1e-12)
+        ok = _first_order_ok(bound, steps)
+        room = np.minimum(np.abs(steps.f_start), np.abs(steps.f_end))
+        close = ~ok & (bound * np.abs(steps.end - steps.start) > 8.0 * room)
         if np.any(close):
             dF = F.derivative() if dF is None else dF
             idx = np.flatnonzero(close)
-            need = idx[np.isnan(st["dfa"][idx])]
+            need = idx[np.isnan(steps.df_start[idx])]
             budget.spend(2 * idx.size, what.replace("|F'|", "|F''|"))
-            st["dfa"][need] = F.deriv(st["a"][need])
-            sub = _take(st, close)
-            ok[idx] = _second_order_ok(dF.deriv_bound(sub["a"], sub["b"]) * (1.0 + 1e-12), bound[idx], sub)
-        turns += np.bincount(st["owner"][ok], weights=np.angle(st["fb"][ok] / st["fa"][ok]), minlength=n_edges)
-        st = _take(st, ~ok)
-        if not st["a"].size:
+            steps.df_start[need] = F.deriv_at(steps.start[need])
+            sub = steps.take(close)
+            ok[idx] = _second_order_ok(dF.deriv_bound(sub.start, sub.end) * (1.0 + 1e-12), bound[idx], sub)
+        turns += np.bincount(
+            steps.segment[ok], weights=np.angle(steps.f_end[ok] / steps.f_start[ok]), minlength=n_edges
+        )
+        steps = steps.take(~ok)
+        if not steps.size:
             break
-        a, b = st["a"], st["b"]
-        blocked[np.unique(st["owner"][np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
+        a, b = steps.start, steps.end
+        blocked[np.unique(steps.segment[np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
         mid = 0.5 * (a + b)
-        budget.spend(mid.size, f"refining the {label(int(np.bincount(st['owner']).argmax()))}")
-        fm, mm = _evaluate(F, mid, label, st["owner"])
-        blocked[np.unique(st["owner"][np.abs(fm) <= _NEAR_ZERO * mm])] = True
-        st = {
-            "a": np.concatenate([a, mid]),
-            "b": np.concatenate([mid, b]),
-            "fa": np.concatenate([st["fa"], fm]),
-            "fb": np.concatenate([fm, st["fb"]]),
-            "ma": np.concatenate([st["ma"], mm]),
-            "mb": np.concatenate([mm, st["mb"]]),
-            "dfa": np.concatenate([st["dfa"], np.full(mid.size, np.nan, dtype=complex)]),
-            "owner": np.concatenate([st["owner"], st["owner"]]),
-        }
+        budget.spend(mid.size, f"refining the {label(int(np.bincount(steps.segment).argmax()))}")
+        fm, mm = _evaluate(F, mid, label, steps.segment)
+        blocked[np.unique(steps.segment[np.abs(fm) <= _NEAR_ZERO * mm])] = True
+        steps = steps.halve(mid, fm, mm)
     return _Edges(turns / (2 * np.pi), blocked)
 
 
@@ -297,18 +326,19 @@ class RootCount(int):
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"RootCount is immutable (cannot set {name!r})")
 
+    def __reduce__(self) -> tuple[type[RootCount], tuple[int, Region, bool, int]]:
+        """Rebuild from the count and the attributes (for ``copy`` and ``pickle``)."""
+        return (type(self), (int(self), self.region, self.shifted, self.evaluations))
+
     def __repr__(self) -> str:
         r = ", ".join(f"{v:.12g}" for v in self.region)
         return f"RootCount({int(self)}, region=({r}), shifted={self.shifted}, evaluations={self.evaluations})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return {
-            "count": int(self),
-            "region": list(self.region),
-            "shifted": self.shifted,
-            "evaluations": self.evaluations,
-        }
+        return json_safe(
+            {"count": int(self), "region": self.region, "shifted": self.shifted, "evaluations": self.evaluations}
+        )
 
 
 def _check_function(F: Any) -> QuasiPolynomial:
@@ -382,5 +412,6 @@ def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000
     max_evals = positive_int("max_evals", max_evals)
     max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
     budget = _Budget(max_evals)
-    n, reg, shifted = _count_with_shifts(_Counter(F, budget), box, max_shifts)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        n, reg, shifted = _count_with_shifts(_Counter(F, budget), box, max_shifts)
     return RootCount(n, reg, shifted, budget.used)

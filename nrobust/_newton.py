@@ -1,0 +1,83 @@
+"""Vectorised Newton iteration for analytic functions of one complex variable.
+
+One implementation serves the root finder (:mod:`nrobust.roots.finder`, on a
+quasi-polynomial, paper eq. (delay_eq_no_couplings2) and its closed-loop analogues) and
+the spectral bound of a difference operator (:mod:`nrobust.difference`, on the principal
+part ``D``); each caller supplies its function, its step limit and, through the
+callbacks, its work accounting and its test for points that stall short of convergence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["newton"]
+
+#: A step shorter than this, relative to ``1 + |s|``, ends the iteration of a point.
+STEP_RTOL = 4 * float(np.finfo(float).eps)
+
+
+def newton(
+    fdf: Callable[[NDArray[np.complex128]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+    s0: ArrayLike,
+    *,
+    max_step: float,
+    iters: int = 60,
+    on_step: Callable[[int], None] | None = None,
+    accept_stalled: Callable[[NDArray[np.complex128]], NDArray[np.bool_]] | None = None,
+) -> NDArray[np.complex128]:
+    """Newton's method ``s <- s - f(s)/f'(s)`` from every seed at once.
+
+    Parameters
+    ----------
+    fdf : callable
+        ``fdf(x) -> (f(x), f'(x))`` on a 1-D complex array.
+    s0 : array_like of complex
+        Seeds (flattened).
+    max_step : float
+        Longest step: a longer Newton step keeps its direction and is cut to this length,
+        so that a seed is not thrown far from the root it approximates.
+    iters : int, optional
+        Largest number of steps of each point.
+    on_step : callable, optional
+        Called with the number of points evaluated, before each step (work accounting).
+    accept_stalled : callable, optional
+        Called once on the points still iterating after ``iters`` steps; returns a boolean
+        mask of those to keep (e.g. a residual at rounding level: Newton's method
+        converges only linearly to a multiple root and may stop short of the step test).
+        By default none is kept.
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+        The limit of each seed: a point whose last step was shorter than
+        ``4 eps (1 + |s|)``, or one kept by ``accept_stalled``; nan where the step became
+        non-finite or the point was not kept.
+    """
+    s = np.array(s0, dtype=complex).ravel()
+    done = np.zeros(s.size, dtype=bool)
+    alive = np.ones(s.size, dtype=bool)
+    for _ in range(iters):
+        act = np.flatnonzero(alive & ~done)
+        if not act.size:
+            break
+        if on_step is not None:
+            on_step(act.size)
+        x = s[act]
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            f, d = fdf(x)
+            step = f / d
+        bad = ~np.isfinite(step)
+        alive[act[bad]] = False
+        step = np.where(bad, 0, step)
+        big = np.abs(step) > max_step
+        step[big] *= max_step / np.abs(step[big])
+        s[act] = x - step
+        done[act] = np.abs(step) <= STEP_RTOL * (1.0 + np.abs(x))
+    stalled = np.flatnonzero(alive & ~done)
+    if stalled.size and accept_stalled is not None:
+        done[stalled[accept_stalled(s[stalled])]] = True
+    return np.where(done & alive, s, np.nan)

@@ -1,0 +1,551 @@
+"""Independent oracles for the differential harness of issue 11 (``tests/test_harness.py``).
+
+Nothing here imports nrobust: the answers come from closed forms, exact rational
+arithmetic (:mod:`fractions`), ``scipy.special.lambertw``, ``numpy.roots`` and
+``mpmath.polyroots`` at high precision, so that a bug in nrobust cannot hide in its own
+reference. Each oracle states how far it can be trusted; when it cannot decide (a root
+within rounding of a contour, a root on the imaginary axis, a refinement that does not
+converge) it returns ``None`` or raises :class:`OracleUnsure`, and the case is skipped,
+not counted.
+
+Conventions: polynomial coefficients are in increasing powers of ``s`` (as in
+``nrobust.QuasiPolynomial``), a rectangle is ``(re_min, re_max, im_min, im_max)``.
+
+Derivations
+-----------
+* Lambert W. ``s + a + b e^{-tau s} = 0`` with ``z = tau (s + a)`` reads
+  ``z e^z = -b tau e^{a tau}``, so the roots are ``s_k = W_k(-b tau e^{a tau})/tau - a``,
+  one per branch ``k`` of Lambert's W (all roots when ``b != 0``). For a real argument the
+  principal branch has the largest real part (Shinozaki and Mori, 2006), checked here on
+  every call against the neighbouring branches.
+* Commensurate delays. ``sum_k c_k e^{-k h s} = D(z)`` with ``z = e^{-h s}``; every root
+  ``z_j`` of the polynomial ``D`` gives the vertical chain
+  ``s = (-log|z_j| - i arg z_j + 2 pi i m)/h``, ``m`` in ``Z``. ``1 - a e^{-tau s}`` is the
+  case ``D(z) = 1 - a z``.
+* Products. The roots of ``p(s) D(e^{-h s})`` are those of ``p`` and those of ``D``;
+  with dyadic roots and coefficients every product below is exact in binary floating point.
+* Distributed delay with a constant kernel: ``alpha + s int_0^h c e^{-nu s} dnu
+  = (alpha + c) - c e^{-h s}``: a ``1 - a e^{-h s}`` family with ``a = c/(alpha + c)``.
+* Loops ``A + B e^{-delta s}`` (real polynomials). On ``s = i w`` a root needs
+  ``|A(i w)| = |B(i w)|``: the zeros ``x_c > 0`` of the real polynomial
+  ``P(x) = |A(i w)|^2 - |B(i w)|^2`` in ``x = w^2`` (exact, over the rationals). The
+  delays are ``e^{i w delta} = -B/A``: ``delta_{c,k} = (arg(-B/A) mod 2 pi + 2 pi k)/w_c``.
+  From ``ds/ddelta = -s B e^{-delta s}/(A' + (B' - delta B) e^{-delta s})`` and
+  ``B e^{-delta s} = -A``: ``Re (ds/ddelta)^{-1} = (1/w) d/dw log|A/B|
+  = P'(w^2)/|A|^2`` on the axis, so a simple zero crosses in the direction
+  ``sign P'(x_c)``; a zero of even multiplicity touches the axis and turns back (no change
+  of the count, but a root on the axis at ``delta_{c,k}``). Every crossing moves a
+  conjugate pair. With ``N_0`` the unstable roots of the polynomial ``A + B`` (strongly
+  stable loops: ``deg B < deg A`` or ``|b_n| < |a_n|``, so no root comes from infinity),
+  ``N(delta) = N_0 + 2 sum_c sign P'(x_c) #{k : delta_{c,k} < delta}``; the margin is the
+  first ``delta_{c,0}`` (tangencies included: the loop is not exponentially stable there).
+* Transport loop ``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}``: for ``Re s >= 0`` the
+  delayed terms have modulus at most ``|rho q| + |K q|``, so ``|rho q| + |K q| < 1`` means
+  no root in ``Re s >= 0`` for any delta (margin ``inf``); if ``|rho q| + |K q| > 1`` the
+  difference operator is not strongly stable and crossings ``|1 - rho q e^{-i w tau}| = |K q|``
+  recur at frequencies ``w -> inf`` with delays ``(theta + 2 pi k)/w -> 0``: margin 0.
+  Hence the admissible gains for every ``delta_max > 0`` are the open interval
+  ``|K| < (1 - |rho q|)/|q|`` (empty if ``|rho q| >= 1``).
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+import mpmath as mp
+import numpy as np
+from scipy.special import lambertw
+
+Region = tuple[float, float, float, float]
+
+# Working precision of the mpmath parts (decimal digits).
+_DPS = 60
+
+
+class OracleUnsure(Exception):
+    """The oracle cannot decide this case reliably; the harness skips it."""
+
+
+def _polyroots(coeffs: list, extraprec: int) -> tuple[list, object]:
+    """``mpmath.polyroots`` of increasing-power coefficients (``asc=`` exists from mpmath 1.4 on)."""
+    if "asc" in inspect.signature(mp.polyroots).parameters:
+        return mp.polyroots(coeffs, maxsteps=400, extraprec=extraprec, error=True, asc=True)
+    return mp.polyroots(coeffs[::-1], maxsteps=400, extraprec=extraprec, error=True)
+
+
+# ============================================================ boxes and known roots
+def count_in_box(roots: Sequence[complex], box: Region, guard: float) -> int:
+    """Number of ``roots`` strictly inside ``box``.
+
+    Raises :class:`OracleUnsure` when a root lies within ``guard`` of an edge: a root that
+    close to the contour may be counted either way by any floating-point method.
+    """
+    x0, x1, y0, y1 = box
+    n = 0
+    for z in roots:
+        dx = min(abs(z.real - x0), abs(z.real - x1))
+        dy = min(abs(z.imag - y0), abs(z.imag - y1))
+        inside_x, inside_y = x0 < z.real < x1, y0 < z.imag < y1
+        if (dx <= guard and (y0 - guard) <= z.imag <= (y1 + guard)) or (
+            dy <= guard and (x0 - guard) <= z.real <= (x1 + guard)
+        ):
+            raise OracleUnsure(f"root {z} within {guard:.3g} of the edge of {box}")
+        n += int(inside_x and inside_y)
+    return n
+
+
+def poly_from_roots(roots: Sequence[complex], lead: float = 1.0) -> list[float]:
+    """Real coefficients (increasing powers) of ``lead * prod (s - r)``; complex roots are
+    given once per conjugate pair (``Im r > 0``), real roots once each.
+
+    With dyadic roots and a power-of-two ``lead`` (and moderate degree) every coefficient
+    is exact in binary floating point; :func:`exact_poly` checks it.
+    """
+    c = [Fraction(lead)]
+    for r in roots:
+        if r.imag == 0:
+            c = _pmul(c, [Fraction(-r.real), Fraction(1)])
+        else:
+            re, im = Fraction(r.real), Fraction(r.imag)
+            c = _pmul(c, [re * re + im * im, -2 * re, Fraction(1)])
+    out = [float(v) for v in c]
+    if any(Fraction(f) != v for f, v in zip(out, c)):
+        raise OracleUnsure("coefficients not exact in floating point")
+    return out
+
+
+def expand_roots(roots: Sequence[complex]) -> list[complex]:
+    """The roots of :func:`poly_from_roots`, each conjugate pair written out."""
+    out: list[complex] = []
+    for r in roots:
+        out.append(complex(r))
+        if r.imag != 0:
+            out.append(complex(r).conjugate())
+    return out
+
+
+# ============================================================ Lambert W family
+def lambert_roots(a: float, b: float, tau: float, im_max: float) -> np.ndarray:
+    """All roots of ``s + a + b e^{-tau s}`` with ``|Im s| <= im_max`` (``b != 0``, ``tau > 0``).
+
+    ``s_k = W_k(-b tau e^{a tau})/tau - a``: branch ``k`` has ``Im W_k`` within
+    ``(2 pi k - 2 pi, 2 pi k + 2 pi)``, so the branches up to ``im_max tau/(2 pi) + 2``
+    cover the band. Reliability: ``scipy.special.lambertw`` is accurate to a few ulps; the
+    residual of every root is checked, and a double root (argument ``-1/e``) is refused.
+    """
+    if b == 0 or tau <= 0:
+        raise ValueError("lambert_roots needs b != 0 and tau > 0")
+    x = -b * tau * math.exp(a * tau)
+    if not math.isfinite(x):
+        raise OracleUnsure("argument of W overflows")
+    if abs(x + math.exp(-1.0)) < 1e-8:
+        raise OracleUnsure("double root (argument of W near -1/e)")
+    kmax = int(im_max * tau / (2.0 * math.pi)) + 3
+    ks = np.arange(-kmax, kmax + 1)
+    s = np.array([complex(lambertw(x, int(k))) / tau - a for k in ks])
+    scale = abs(a) + abs(b) + np.abs(s) + 1.0
+    res = np.abs(s + a + b * np.exp(-tau * s)) / scale
+    if not np.all(np.isfinite(s)) or np.max(res) > 1e-9:
+        raise OracleUnsure(f"Lambert W residual {np.max(res):.3g}")
+    principal = s[kmax]
+    if np.max(s.real) > principal.real + 1e-12 * (1.0 + abs(principal)):
+        raise AssertionError("oracle: a non-principal branch lies right of W_0 (contradicts Shinozaki-Mori)")
+    return s[np.abs(s.imag) <= im_max]
+
+
+def lambert_rightmost(a: float, b: float, tau: float) -> complex:
+    """Rightmost root of ``s + a + b e^{-tau s}``: the principal branch (see module notes)."""
+    x = -b * tau * math.exp(a * tau)
+    return complex(lambertw(x, 0)) / tau - a
+
+
+# ============================================================ commensurate delays
+def z_roots(c: Sequence[float]) -> np.ndarray:
+    """Roots of ``D(z) = sum_k c_k z^k`` (``c_0 != 0``), by ``mpmath.polyroots`` at 60 digits.
+
+    Refuses (``OracleUnsure``) when the roots cannot be separated at that precision (a
+    multiple root of ``D``).
+    """
+    c = list(c)
+    while c and c[-1] == 0:
+        c.pop()
+    if len(c) < 2 or c[0] == 0:
+        raise ValueError("z_roots needs c_0 != 0 and degree >= 1")
+    with mp.workdps(_DPS):
+        try:
+            roots, err = _polyroots([mp.mpf(v) for v in c], extraprec=400)
+        except mp.libmp.NoConvergence:
+            raise OracleUnsure("polyroots did not converge (multiple root of D)") from None
+        if err > mp.mpf(10) ** (-30):
+            raise OracleUnsure(f"polyroots error {err}")
+        return np.array([complex(r) for r in roots])
+
+
+def chain_roots(z: Sequence[complex], h: float, box: Region) -> list[complex]:
+    """The roots ``s = (-log z_j + 2 pi i m)/h`` of ``D(e^{-h s})`` inside ``box`` (and a
+    guard band of one chain spacing around it)."""
+    out: list[complex] = []
+    x0, x1, y0, y1 = box
+    step = 2.0 * math.pi / h
+    for zj in z:
+        base = -np.log(complex(zj)) / h
+        if not (x0 - 1.0 <= base.real <= x1 + 1.0):
+            continue
+        m_lo = math.floor((y0 - base.imag) / step) - 1
+        m_hi = math.ceil((y1 - base.imag) / step) + 1
+        out.extend(complex(base.real, base.imag + m * step) for m in range(m_lo, m_hi + 1))
+    return out
+
+
+def chain_abscissa(z: Sequence[complex], h: float) -> float:
+    """``max_j -log|z_j| / h``: every chain is a vertical line of roots at that real part."""
+    return float(max(-math.log(abs(complex(v))) for v in z) / h)
+
+
+# ============================================================ exact rational polynomials
+def _trim(p: list[Fraction]) -> list[Fraction]:
+    p = list(p)
+    while len(p) > 1 and p[-1] == 0:
+        p.pop()
+    return p or [Fraction(0)]
+
+
+def _padd(p: list[Fraction], q: list[Fraction]) -> list[Fraction]:
+    n = max(len(p), len(q))
+    return _trim([(p[k] if k < len(p) else 0) + (q[k] if k < len(q) else 0) for k in range(n)])
+
+
+def _pscale(p: list[Fraction], c: Fraction) -> list[Fraction]:
+    return _trim([c * v for v in p])
+
+
+def _pmul(p: list[Fraction], q: list[Fraction]) -> list[Fraction]:
+    out = [Fraction(0)] * (len(p) + len(q) - 1)
+    for i, u in enumerate(p):
+        for j, v in enumerate(q):
+            out[i + j] += u * v
+    return _trim(out)
+
+
+def _pder(p: list[Fraction]) -> list[Fraction]:
+    return _trim([k * p[k] for k in range(1, len(p))]) if len(p) > 1 else [Fraction(0)]
+
+
+def _is_zero(p: list[Fraction]) -> bool:
+    return len(p) == 1 and p[0] == 0
+
+
+def _pdivmod(p: list[Fraction], q: list[Fraction]) -> tuple[list[Fraction], list[Fraction]]:
+    p, q = _trim(p), _trim(q)
+    if _is_zero(q):
+        raise ZeroDivisionError("polynomial division by zero")
+    if len(p) < len(q):
+        return [Fraction(0)], p
+    quot = [Fraction(0)] * (len(p) - len(q) + 1)
+    r = list(p)
+    for k in range(len(p) - len(q), -1, -1):
+        c = r[k + len(q) - 1] / q[-1]
+        quot[k] = c
+        for j, v in enumerate(q):
+            r[k + j] -= c * v
+    return _trim(quot), _trim(r[: len(q) - 1] or [Fraction(0)])
+
+
+def _pgcd(p: list[Fraction], q: list[Fraction]) -> list[Fraction]:
+    p, q = _trim(p), _trim(q)
+    while not _is_zero(q):
+        p, q = q, _pdivmod(p, q)[1]
+    return _pscale(p, 1 / p[-1])
+
+
+def squarefree_parts(p: list[Fraction]) -> list[tuple[list[Fraction], int]]:
+    """Yun's square-free decomposition over the rationals: ``p = c prod a_i^i``; returns
+    the non-constant ``(a_i, i)``. Exact: a multiple root is recognised as such."""
+    p = _trim(p)
+    if len(p) == 1:
+        return []
+    dp = _pder(p)
+    a0 = _pgcd(p, dp)
+    b = _pdivmod(p, a0)[0]
+    c = _pdivmod(dp, a0)[0]
+    d = _padd(c, _pscale(_pder(b), Fraction(-1)))
+    out = []
+    i = 1
+    while len(b) > 1:
+        a = _pgcd(b, d)
+        b = _pdivmod(b, a)[0]
+        c = _pdivmod(d, a)[0]
+        d = _padd(c, _pscale(_pder(b), Fraction(-1)))
+        if len(a) > 1:
+            out.append((a, i))
+        i += 1
+    return out
+
+
+def _mp_roots(p: list[Fraction]) -> list:
+    """Roots of a square-free rational polynomial at 60 digits."""
+    if len(p) < 2:
+        return []
+    if len(p) == 2:
+        return [mp.mpf(-p[0].numerator * p[1].denominator) / (p[0].denominator * p[1].numerator)]
+    coeffs = [mp.mpf(v.numerator) / v.denominator for v in p]
+    try:
+        roots, err = _polyroots(coeffs, extraprec=600)
+    except mp.libmp.NoConvergence:
+        raise OracleUnsure("polyroots did not converge") from None
+    if err > mp.mpf(10) ** (-40):
+        raise OracleUnsure(f"polyroots error {err}")
+    return list(roots)
+
+
+def _mp_eval(p: Sequence[Fraction], s):
+    acc = mp.mpf(0)
+    for v in reversed(p):
+        acc = acc * s + mp.mpf(v.numerator) / v.denominator
+    return acc
+
+
+# ============================================================ loops A + B e^{-delta s}
+@dataclass(frozen=True)
+class OracleCrossing:
+    """A zero ``x_c = w_c^2 > 0`` of ``P`` with its multiplicity and crossing direction.
+
+    ``theta`` is ``arg(-B/A) mod 2 pi`` at ``i w_c``: the delays are ``(theta + 2 pi k)/w_c``.
+    ``direction`` is ``sign P'(x_c)`` for a simple zero (odd multiplicity: the sign of
+    the first non-vanishing derivative), 0 for an even multiplicity (tangency).
+    """
+
+    omega: float
+    multiplicity: int
+    direction: int
+    theta: float
+
+    def delays(self, upto: float) -> list[float]:
+        """``delta_{c,k} <= upto`` (at least the first)."""
+        period = 2.0 * math.pi / self.omega
+        first = self.theta / self.omega
+        out = [first]
+        while np.isfinite(upto) and out[-1] + period <= upto:
+            out.append(out[-1] + period)
+        return out
+
+
+class LoopOracle:
+    """The classical crossing analysis of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+
+    ``A`` and ``B`` are real polynomials (increasing powers, floats taken exactly). Only
+    strongly stable loops are handled (``deg B < deg A`` or ``|b_n| < |a_n|``); others raise
+    ``ValueError``. Reliability: ``P`` and ``A + B`` are formed over the rationals, the
+    multiplicities of the zeros of ``P`` are exact (square-free decomposition), the zeros
+    are located at 60 digits. ``nominal_unstable`` is None (unsure) when ``A + B`` has a
+    zero within ``1e-12`` (relative) of the imaginary axis.
+    """
+
+    def __init__(self, a: Sequence[float], b: Sequence[float]) -> None:
+        A = _trim([Fraction(v) for v in a])
+        B = _trim([Fraction(v) for v in b])
+        if _is_zero(A) or _is_zero(B):
+            raise ValueError("A and B must be non-zero")
+        n, m = len(A) - 1, len(B) - 1
+        if m > n or (m == n and abs(B[-1]) >= abs(A[-1])):
+            raise ValueError("the loop is not strongly stable (deg B > deg A or |b_n| >= |a_n|)")
+        self.a, self.b = [float(v) for v in A], [float(v) for v in B]
+        self._A, self._B = A, B
+        self.zero_root = A[0] + B[0] == 0
+        self.P = _padd(_abs2_on_axis(A), _pscale(_abs2_on_axis(B), Fraction(-1)))
+        self.nominal_roots, self.nominal_unstable = self._nominal()
+        self.crossings = self._crossings()
+
+    # ---------------------------------------------------------------- nominal loop
+    def _nominal(self) -> tuple[list[complex], int | None]:
+        S = _padd(self._A, self._B)
+        roots: list[complex] = []
+        with mp.workdps(_DPS):
+            for part, mult in squarefree_parts(S):
+                for r in _mp_roots(part):
+                    roots.extend([complex(r)] * mult)
+        if len(roots) != len(S) - 1:
+            raise OracleUnsure("lost a root of A + B")
+        on_axis = any(abs(r.real) <= 1e-12 * (1.0 + abs(r)) for r in roots)
+        return roots, None if on_axis else sum(r.real > 0 for r in roots)
+
+    # ---------------------------------------------------------------- crossings
+    def _crossings(self) -> list[OracleCrossing]:
+        out: list[OracleCrossing] = []
+        with mp.workdps(_DPS):
+            for part, mult in squarefree_parts(self.P):
+                rest = _pdivmod(self.P, _ppow(part, mult))[0]
+                for r in _mp_roots(part):
+                    r = mp.mpc(r)
+                    if abs(r.imag) > mp.mpf(10) ** (-30) * (1 + abs(r)):
+                        if abs(r.imag) < mp.mpf(10) ** (-20) * (1 + abs(r)):
+                            raise OracleUnsure("zero of P neither clearly real nor clearly complex")
+                        continue
+                    x = r.real
+                    if x <= 0:
+                        if x > -(mp.mpf(10) ** (-30)):
+                            raise OracleUnsure("zero of P at w = 0 to working precision")
+                        continue
+                    w = mp.sqrt(x)
+                    if mult % 2 == 0:
+                        direction = 0
+                    else:
+                        sgn = _mp_eval(_pder(part), x) * _mp_eval(rest, x)
+                        direction = 1 if sgn > 0 else -1
+                    s = mp.mpc(0, w)
+                    ratio = -_mp_eval(self._B, s) / _mp_eval(self._A, s)
+                    theta = mp.arg(ratio) % (2 * mp.pi)
+                    if theta < mp.mpf(10) ** (-25) or 2 * mp.pi - theta < mp.mpf(10) ** (-25):
+                        theta = mp.mpf(0)
+                    out.append(OracleCrossing(float(w), mult, direction, float(theta)))
+        return sorted(out, key=lambda c: c.theta / c.omega)
+
+    # ---------------------------------------------------------------- verdicts
+    @property
+    def strongly_stable(self) -> bool:
+        return True
+
+    @property
+    def margin(self) -> float:
+        """First delay at which a root is on the axis (0 if the nominal loop is not stable)."""
+        if self.zero_root or self.nominal_unstable != 0:
+            return 0.0
+        firsts = [c.theta / c.omega for c in self.crossings]
+        return min(firsts) if firsts else math.inf
+
+    def crossing_delays(self, upto: float) -> list[float]:
+        return sorted(d for c in self.crossings for d in c.delays(upto) if d <= upto)
+
+    def unstable_count(self, delta: float, rtol: float = 1e-9) -> int:
+        """Number of zeros in ``Re s > 0`` at ``delta`` (the crossing count formula).
+
+        Raises :class:`OracleUnsure` on (or within ``rtol`` of) a crossing delay, at a
+        zero root, or when the nominal count is unsure.
+        """
+        if self.zero_root or self.nominal_unstable is None:
+            raise OracleUnsure("root on the axis at delta = 0 or for every delta")
+        n = self.nominal_unstable
+        for c in self.crossings:
+            for d in c.delays(delta * (1 + 2 * rtol) + 1e-300):
+                if abs(d - delta) <= rtol * max(abs(delta), 1e-300) + 1e-300:
+                    raise OracleUnsure(f"delta = {delta} on a crossing delay")
+                if d < delta:
+                    n += 2 * c.direction
+        if n < 0:
+            raise AssertionError("oracle: negative count (crossing analysis inconsistent)")
+        return n
+
+    def rhp_radius(self) -> float:
+        """``R``: ``|A(s)| > |B(s)| >= |B(s) e^{-delta s}|`` for ``Re s >= 0``, ``|s| >= R``."""
+        a, b = np.abs(self.a), np.abs(self.b)
+        n = len(a) - 1
+        R = 1.0
+        for _ in range(200):
+            lead = (a[n] - (b[n] if len(b) > n else 0.0)) * R**n
+            rest = sum(a[k] * R**k for k in range(n)) + sum(b[k] * R**k for k in range(min(len(b), n)))
+            if lead > 2.0 * rest:
+                return R
+            R *= 2.0
+        raise OracleUnsure("no root-free radius")
+
+    def count_by_argument(self, delta: float, max_pieces: int = 400_000) -> int:
+        """Independent count of the zeros in ``Re s > 0`` at ``delta``: the argument
+        principle on the boundary of the half disc ``{Re s > 0, |s| < R}``.
+
+        Each piece ``[s_1, s_2]`` of the contour (length ``L``) is accepted only if
+        ``|F(s_1)| > M L`` with ``M >= max |F'|`` on the piece (``|A'| + |B'| + delta |B|``
+        bounded by the absolute coefficients, valid for ``Re s >= 0``): then ``F`` has no
+        zero on the piece and its argument changes by less than ``pi/2``, read exactly from
+        ``F(s_2)/F(s_1)``. Pieces that fail are halved; beyond ``max_pieces`` (a root on or
+        near the axis) the oracle is unsure. Rounding is covered by a ``1e-12`` relative
+        allowance on ``|F|``.
+        """
+        a, b = np.array(self.a), np.array(self.b)
+        da, db = np.polynomial.polynomial.polyder(a), np.polynomial.polynomial.polyder(b)
+        R = self.rhp_radius()
+
+        def absval(c: np.ndarray, r: np.ndarray) -> np.ndarray:
+            return np.polynomial.polynomial.polyval(r, np.abs(c))
+
+        def F(s: np.ndarray) -> np.ndarray:
+            pv = np.polynomial.polynomial.polyval
+            return pv(s, a) + pv(s, b) * np.exp(-delta * s)
+
+        # Arc: angle from -pi/2 to pi/2; axis: Im s from R down to -R. Pieces as parameter pairs.
+        total = 0.0
+        for kind in ("arc", "axis"):
+            lo, hi = (-0.5 * math.pi, 0.5 * math.pi) if kind == "arc" else (R, -R)
+            t = np.linspace(lo, hi, 257)
+            starts, ends = t[:-1], t[1:]
+            pieces = starts.size
+            while starts.size:
+                if kind == "arc":
+                    s1, s2 = R * np.exp(1j * starts), R * np.exp(1j * ends)
+                    length = R * np.abs(ends - starts)
+                    rmax = np.full(starts.shape, R)
+                else:
+                    s1, s2 = 1j * starts, 1j * ends
+                    length = np.abs(ends - starts)
+                    rmax = np.maximum(np.abs(starts), np.abs(ends))
+                M = absval(da, rmax) + absval(db, rmax) + delta * absval(b, rmax)
+                f1, f2 = F(s1), F(s2)
+                slack = 1e-12 * (absval(a, rmax) + absval(b, rmax))
+                ok = np.abs(f1) > M * length + slack
+                total += float(np.sum(np.angle(f2[ok] / f1[ok])))
+                mid = 0.5 * (starts[~ok] + ends[~ok])
+                starts = np.concatenate([starts[~ok], mid])
+                ends = np.concatenate([mid, ends[~ok]])
+                pieces += mid.size
+                if pieces > max_pieces:
+                    raise OracleUnsure(f"argument principle: more than {max_pieces} pieces (root near the contour)")
+        turns = total / (2.0 * math.pi)
+        n = round(turns)
+        if abs(turns - n) > 1e-6:
+            raise AssertionError(f"oracle: non-integer winding {turns}")
+        return int(n)
+
+
+def _abs2_on_axis(p: list[Fraction]) -> list[Fraction]:
+    """``|p(i w)|^2`` as a polynomial in ``x = w^2``: ``E(x)^2 + x O(x)^2`` with
+    ``p(i w) = E(w^2) + i w O(w^2)``, ``E = p_0 - p_2 x + p_4 x^2 ...``, ``O = p_1 - p_3 x + ...``."""
+    even = _trim([p[k] * (-1) ** (k // 2) for k in range(0, len(p), 2)] or [Fraction(0)])
+    odd = _trim([p[k] * (-1) ** (k // 2) for k in range(1, len(p), 2)] or [Fraction(0)])
+    return _padd(_pmul(even, even), _pmul([Fraction(0), Fraction(1)], _pmul(odd, odd)))
+
+
+def _ppow(p: list[Fraction], k: int) -> list[Fraction]:
+    out = [Fraction(1)]
+    for _ in range(k):
+        out = _pmul(out, p)
+    return out
+
+
+# ============================================================ transport plant
+def transport_k_interval(q: float, rho: float) -> tuple[float, float] | None:
+    """Admissible gains of ``U_BS2(K)`` on the uncoupled transport plant, any ``delta_max > 0``:
+    ``(-k, k)`` with ``k = (1 - |rho q|)/|q|``, or None if ``|rho q| >= 1`` (module notes)."""
+    rq = abs(Fraction(rho) * Fraction(q))
+    if rq >= 1:
+        return None
+    k = float((1 - rq) / abs(Fraction(q)))
+    return (-k, k)
+
+
+def transport_margin(q: float, rho: float, K: float) -> float | None:
+    """Delay margin of ``1 - rho q e^{-tau s} + K q e^{-(tau+delta) s}``: ``inf`` if
+    ``|rho q| + |K q| < 1``; 0 if the nominal loop ``1 - (rho - K) q e^{-tau s}`` is unstable or
+    ``|rho q| + |K q| > 1``; None (unsure) on the boundary."""
+    Q, R, Kf = Fraction(q), Fraction(rho), Fraction(K)
+    total = abs(R * Q) + abs(Kf * Q)
+    nominal = abs((R - Kf) * Q)
+    if nominal >= 1:
+        return 0.0
+    if total < 1:
+        return math.inf
+    if total > 1:
+        return 0.0
+    return None

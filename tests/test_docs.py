@@ -1,0 +1,256 @@
+"""The documentation stays true: cross-references resolve and the examples run.
+
+* Every Sphinx-style reference (``:func:``, ``:class:``, ``:meth:``, ``:mod:``,
+  ``:data:``) in a docstring of an nrobust module names an object that exists and is of
+  that kind.
+* Every dotted ``nrobust.xxx`` name in backticks in ``README.md`` and ``docs/*.md``
+  resolves (except a former home, written ``was `nrobust.old```), and every file path
+  in backticks (``nrobust/...``, ``tests/...``, ...) exists.
+* Every ```python block of ``docs/*.md`` runs: the blocks of one page run in order as
+  one script (later blocks use the names of earlier ones), in a temporary directory,
+  with matplotlib's Agg backend and warnings as errors. A block whose first line is
+  ``# not run: <reason>`` is skipped (a cluster address, names defined elsewhere).
+"""
+
+from __future__ import annotations
+
+import ast
+import builtins
+import importlib
+import inspect
+import os
+import pkgutil
+import re
+import subprocess
+import sys
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pytest
+
+import nrobust
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = sorted((ROOT / "docs").glob("*.md"))
+PAGES = [ROOT / "README.md", *DOCS]
+NOT_RUN = "# not run:"
+
+_ROLE = re.compile(r":(func|class|meth|mod|data):`([^`]+)`")
+_FENCE = re.compile(r"^```([\w-]*)\n(.*?)^```", re.S | re.M)
+# an inline code span, unless it names a former home: "(was `nrobust.rouche`)"
+_INLINE = re.compile(r"(\bwas )?`([^`\n]+)`")
+_DOTTED = re.compile(r"(?<![\w.])nrobust(?:\.[A-Za-z_]\w*)+")
+_MISSING = object()
+_PATH = re.compile(r"(?<![\w./])((?:nrobust|tests|examples|benchmarks|docs)/[\w./-]*\w)")
+
+
+def _modules() -> list[ModuleType]:
+    """nrobust and every module under it (``__main__`` would run the command line)."""
+    names = [m.name for m in pkgutil.walk_packages(nrobust.__path__, "nrobust.") if not m.name.endswith("__main__")]
+    return [nrobust, *(importlib.import_module(name) for name in sorted(names))]
+
+
+def _docstrings(module: ModuleType) -> Iterator[tuple[list[str], str, int]]:
+    """``(enclosing class names, docstring, line)`` of the module and of every class and function in it."""
+    tree = ast.parse(inspect.getsource(module))
+
+    def walk(node: ast.AST, scope: list[str]) -> Iterator[tuple[list[str], str, int]]:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+                inner = [*scope, child.name] if isinstance(child, ast.ClassDef) else scope
+                doc = ast.get_docstring(child, clean=False)
+                if doc:
+                    yield inner, doc, child.lineno
+                yield from walk(child, inner)
+
+    doc = ast.get_docstring(tree, clean=False)
+    if doc:
+        yield [], doc, 1
+    yield from walk(tree, [])
+
+
+def _getattr(obj: Any, attr: str) -> Any:
+    """``getattr`` that treats a deprecated alias (a ``DeprecationWarning``) as missing."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            return getattr(obj, attr, _MISSING)
+        except DeprecationWarning:
+            return _MISSING
+
+
+def _candidates(name: str) -> Iterator[Any]:
+    """Objects a dotted name can denote: ``import a.b`` then ``getattr`` the rest, for every split."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj: Any = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            obj = _getattr(obj, attr)
+            if obj is _MISSING:
+                break
+        if obj is not _MISSING:
+            yield obj
+
+
+def _kind_ok(role: str, obj: Any) -> bool:
+    """``obj`` is what the role says: a module, a class, a callable (or property), anything for data."""
+    if role == "mod":
+        return inspect.ismodule(obj)
+    if role == "class":
+        return inspect.isclass(obj)
+    if role in ("func", "meth"):
+        return (callable(obj) and not inspect.ismodule(obj)) or isinstance(obj, property)
+    return not inspect.ismodule(obj)
+
+
+def _resolve(role: str, target: str, module: ModuleType, scope: list[str]) -> bool:
+    """A reference as Sphinx would read it: absolute, or relative to the enclosing classes and module."""
+    target = target.lstrip("~").removesuffix("()")
+    found = list(_candidates(target))
+    # relative names: inside the enclosing classes (innermost first), the module, the builtins
+    bases: list[Any] = []
+    for depth in range(len(scope), 0, -1):
+        obj: Any = module
+        for cls in scope[:depth]:
+            obj = getattr(obj, cls)
+        bases.append(obj)
+    bases += [module, builtins]
+    for base in bases:
+        obj = base
+        for attr in target.split("."):
+            obj = _getattr(obj, attr)
+            if obj is _MISSING:
+                break
+        if obj is not _MISSING:
+            found.append(obj)
+    return any(_kind_ok(role, obj) for obj in found)
+
+
+def _references() -> list[tuple[str, str, str, ModuleType, list[str]]]:
+    refs = []
+    for module in _modules():
+        path = Path(inspect.getfile(module)).relative_to(ROOT)
+        for scope, doc, line in _docstrings(module):
+            for m in _ROLE.finditer(doc):
+                where = f"{path}:{line + doc[: m.start()].count(chr(10))}"
+                refs.append((where, m.group(1), m.group(2), module, scope))
+    return refs
+
+
+def test_docstring_references_resolve():
+    refs = _references()
+    assert len(refs) > 100  # the collector sees the package
+    broken = [f"{where}: :{role}:`{target}`" for where, role, target, module, scope in refs]
+    broken = [b for b, ref in zip(broken, refs) if not _resolve(ref[1], ref[2], ref[3], ref[4])]
+    assert not broken, "unresolvable references in docstrings:\n" + "\n".join(broken)
+
+
+def _spans(text: str) -> list[str]:
+    """Fenced blocks and inline code spans of a markdown page."""
+    fences = [m.group(2) for m in _FENCE.finditer(text)]
+    prose = _FENCE.sub("", text)
+    return fences + [code for former, code in _INLINE.findall(prose) if not former]
+
+
+def test_markdown_names_resolve():
+    broken = []
+    seen = 0
+    for page in PAGES:
+        for span in _spans(page.read_text()):
+            for name in _DOTTED.findall(span):
+                seen += 1
+                if not any(True for _ in _candidates(name)):
+                    broken.append(f"{page.relative_to(ROOT)}: {name}")
+    assert seen > 30
+    assert not broken, "unresolvable nrobust names in the docs:\n" + "\n".join(sorted(set(broken)))
+
+
+def test_markdown_paths_exist():
+    missing = []
+    for page in PAGES:
+        for span in _spans(page.read_text()):
+            for path in _PATH.findall(span):
+                if not (ROOT / path.split("::")[0]).exists():
+                    missing.append(f"{page.relative_to(ROOT)}: {path}")
+    assert not missing, "files named in the docs that do not exist:\n" + "\n".join(sorted(set(missing)))
+
+
+def test_broken_references_are_reported():
+    """The resolver rejects what it must (a stale module, a private rename, the wrong kind)."""
+    from nrobust import margins
+
+    assert _resolve("func", "nrobust.margins.delay_margin", margins, [])
+    assert _resolve("func", "~nrobust.hyperbolic.loop_factors", margins, [])
+    assert _resolve("meth", "to_dict", margins, ["DelayMargin"])
+    assert _resolve("class", "ValueError", margins, [])
+    assert not _resolve("func", "nrobust.rouche.rouche_delay_bound", margins, [])
+    assert not _resolve("func", "nrobust.margins.k_region", margins, [])
+    assert not _resolve("func", "k_region", margins, [])
+    assert not _resolve("func", "nrobust.hyperbolic.simulate", margins, [])  # the module, not the function
+    assert not _resolve("mod", "nrobust.delay_margin", margins, [])
+    assert not any(True for _ in _candidates("nrobust.sweep._nrobust_function"))
+    assert not any(True for _ in _candidates("nrobust.transfer.open_loop_tf"))  # deprecated alias
+    assert any(True for _ in _candidates("nrobust.sweep.run_sweep_file"))
+
+
+def _python_blocks(page: Path) -> list[str]:
+    return [m.group(2) for m in _FENCE.finditer(page.read_text()) if m.group(1) == "python"]
+
+
+def test_not_run_marker_is_recognised():
+    blocks = _python_blocks(ROOT / "docs" / "sweeps.md")
+    assert any(b.startswith(NOT_RUN) for b in blocks)
+    assert any(not b.startswith(NOT_RUN) for b in blocks)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", [p for p in DOCS if _python_blocks(p)], ids=lambda p: p.name)
+def test_docs_python_blocks_run(page: Path, tmp_path: Path):
+    blocks = [b for b in _python_blocks(page) if not b.startswith(NOT_RUN)]
+    script = tmp_path / f"{page.stem}.py"
+    script.write_text("\n".join(blocks))
+    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    proc = subprocess.run(
+        [sys.executable, "-W", "error", str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=280
+    )
+    assert proc.returncode == 0, f"{page.name}: a python block fails\n{proc.stderr[-3000:]}"
+
+
+def _stated(block: str, expression: str) -> list[str]:
+    """The numbers written in the comment of the line of ``block`` that starts with ``expression``."""
+    (line,) = [ln for ln in block.splitlines() if ln.startswith(expression)]
+    return re.findall(r"\d+\.\d+", line.split("#", 1)[1])
+
+
+def _truncation_of(value: float, stated: str) -> bool:
+    """``stated`` (``0.2295391304``, written ``0.2295391304...``) is ``value`` cut after its digits."""
+    digits = len(stated.split(".")[1])
+    return float(stated) <= value < float(stated) + 10.0**-digits
+
+
+@pytest.mark.slow
+def test_margins_page_numbers_hold():
+    """The margin, crossing frequency and windows written next to the example of docs/margins.md."""
+    (block, *_) = _python_blocks(ROOT / "docs" / "margins.md")
+    scope: dict[str, Any] = {}
+    exec(compile(block, "docs/margins.md", "exec"), scope)
+    dm = scope["dm"]
+    margin, omega = _stated(block, "dm.margin, dm.omega")
+    assert _truncation_of(dm.margin, margin) and len(margin) >= 12
+    assert _truncation_of(dm.omega, omega)
+    windows = _stated(block, "dm.intervals")
+    assert [_truncation_of(x, s) for x, s in zip(np.ravel(dm.intervals)[1:], windows[1:])] == [True] * 3
+    (d0,) = _stated(block, "nr.rouche_delay_bound")
+    np.testing.assert_allclose(
+        scope["nr"].rouche_delay_bound(scope["plant"], scope["nr"].ReflectionController(0.1)).delta_0,
+        float(d0),
+        rtol=0,
+        atol=5e-6,
+    )

@@ -1,0 +1,923 @@
+"""Property-based, differential harness of issue 11: no certified output of nrobust may
+contradict an independent oracle (``tests/_oracles.py``), and bad input gets a named error.
+
+Every nrobust call runs under a hard per-example deadline (``SIGALRM``) and a memory cap
+(``RLIMIT_AS`` for the bad-input test), with warnings raised as errors, and is classified:
+a result (whose certified claims are checked against the oracle), an honest refusal
+(``CertificationError``/``ConvergenceError``, counted), or a contradiction (a refuted claim,
+a valid input rejected, another exception type, a NaN result, a hang). Contradictions are
+collected over the whole budget and each test fails at its end if it found any; the counts
+are printed by ``tests/conftest.py``.
+
+Budget: CI runs a fixed, derandomised set of examples (``max_examples`` per test below, the
+whole file in well under a minute). ``NROBUST_FUZZ_EXAMPLES=N`` (``make fuzz``) runs ``N``
+examples per unit weight of each test, random (not derandomised), with
+``NROBUST_FUZZ_EXAMPLE_SECONDS`` as the per-example deadline.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import os
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, is_dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import pytest
+from _fuzzstats import STATS
+from _guards import Hang, hard_deadline, memory_cap
+from _oracles import (
+    LoopOracle,
+    OracleUnsure,
+    chain_abscissa,
+    chain_roots,
+    count_in_box,
+    expand_roots,
+    lambert_rightmost,
+    lambert_roots,
+    poly_from_roots,
+    transport_k_interval,
+    transport_margin,
+    z_roots,
+)
+from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import strategies as st
+
+import nrobust as nr
+from nrobust import (
+    CertificationError,
+    ConvergenceError,
+    DistributedDelay,
+    ParameterError,
+    QuasiPolynomial,
+    ReflectionController,
+    TransportSystem,
+)
+
+# ============================================================================ budget
+FUZZ = int(os.environ.get("NROBUST_FUZZ_EXAMPLES", "0") or 0)
+EXAMPLE_SECONDS = float(os.environ.get("NROBUST_FUZZ_EXAMPLE_SECONDS", "60" if FUZZ else "20"))
+# Address-space cap above the current size for the bad-input test (a request for tens of
+# GiB must fail fast as a named error, not swap the machine).
+MEMORY_HEADROOM = 3 << 30
+
+pytestmark = pytest.mark.timeout(0 if FUZZ else 240)
+
+
+def budget(ci: int, weight: float = 1.0) -> settings:
+    """Hypothesis settings: ``ci`` derandomised examples in CI, ``FUZZ * weight`` random ones under ``make fuzz``."""
+    return settings(
+        max_examples=max(1, int(FUZZ * weight)) if FUZZ else ci,
+        derandomize=not FUZZ,
+        database=None,
+        deadline=None,  # the hard per-example deadline below replaces it (no flaky re-runs)
+        phases=(Phase.explicit, Phase.generate),  # no shrinking: contradictions are collected, not raised
+        suppress_health_check=list(HealthCheck),
+        print_blob=False,
+    )
+
+
+# ============================================================================ running nrobust
+@dataclass
+class Outcome:
+    """``kind``: ``ok``, ``refused`` (CertificationError/ConvergenceError), ``rejected``
+    (ParameterError/RegionError), ``wrong`` (any other exception, warnings included) or ``hang``."""
+
+    kind: str
+    value: Any = None
+    error: BaseException | None = None
+
+    def describe(self) -> str:
+        return f"{self.kind}: {type(self.error).__name__}: {str(self.error)[:300]}" if self.error else self.kind
+
+
+def call(fn: Callable[..., Any], *args: Any, seconds: float | None = None, **kwargs: Any) -> Outcome:
+    """Run one nrobust call under the deadline, with warnings as errors, and classify it."""
+    try:
+        with hard_deadline(EXAMPLE_SECONDS if seconds is None else seconds), warnings.catch_warnings():
+            warnings.simplefilter("error")
+            value = fn(*args, **kwargs)
+    except Hang as exc:
+        return Outcome("hang", error=exc)
+    except (CertificationError, ConvergenceError) as exc:
+        return Outcome("refused", error=exc)
+    except ParameterError as exc:
+        return Outcome("rejected", error=exc)
+    except (Exception, MemoryError) as exc:  # every other type is a defect (the brief of issue 11)
+        return Outcome("wrong", error=exc)
+    return Outcome("ok", value)
+
+
+def settle(out: Outcome, test: str, what: str, case: Any, valid: bool = True) -> bool:
+    """Book the non-result outcomes of a call on valid input; True iff there is a result to check."""
+    if out.kind == "ok":
+        return True
+    if out.kind == "refused":
+        STATS.refusal(test)
+    elif out.kind == "rejected" and valid:
+        STATS.contradiction(test, f"valid input rejected by {what}: {out.describe()}", case)
+    elif out.kind in ("wrong", "hang"):
+        STATS.contradiction(test, f"{out.kind} in {what}: {out.describe()}", case)
+    return False
+
+
+def run(prop: Callable[[], None], test: str) -> None:
+    """Run a property over its budget, then fail if it collected contradictions."""
+    before = len(STATS.contradictions)
+    prop()
+    new = [c for c in STATS.contradictions[before:] if c["test"] == test]
+    if new:
+        lines = [f"{len(new)} contradiction(s) in {test}:"] + [
+            f"- {c['what']}\n    case: {c['case']}" for c in new[:12]
+        ]
+        pytest.fail("\n".join(lines), pytrace=False)
+
+
+def unsure_guard(fn: Callable[[], Any]) -> Any:
+    """Evaluate an oracle; None (case skipped, counted) when it is unsure."""
+    try:
+        return fn()
+    except OracleUnsure:
+        STATS.unsure()
+        return None
+
+
+# ============================================================================ strategies
+def dyadic(lo: float, hi: float, bits: int = 3) -> st.SearchStrategy[float]:
+    """Multiples of ``2^-bits`` in ``[lo, hi]``: exact in binary, so products stay exact."""
+    return st.integers(math.ceil(lo * 2**bits), math.floor(hi * 2**bits)).map(lambda m: m / 2**bits)
+
+
+def nonzero_dyadic(lo: float, hi: float, bits: int = 3) -> st.SearchStrategy[float]:
+    """``+-`` a dyadic number of modulus in ``[lo, hi]``."""
+    return st.tuples(dyadic(lo, hi, bits), st.booleans()).map(lambda t: -t[0] if t[1] else t[0]).filter(bool)
+
+
+@st.composite
+def root_sets(draw: st.DrawFn) -> list[complex]:
+    """Roots of a real polynomial (pairs given once, ``Im > 0``), degree 1..6, some repeated."""
+    n_real = draw(st.integers(0, 3))
+    n_pair = draw(st.integers(0 if n_real else 1, 2))
+    roots = [complex(draw(dyadic(-4, 1)), 0.0) for _ in range(n_real)]
+    roots += [complex(draw(dyadic(-4, 1)), draw(dyadic(0.125, 6))) for _ in range(n_pair)]
+    if draw(st.booleans()) and len(expand_roots(roots)) <= 4:
+        roots.append(draw(st.sampled_from(roots)))  # a double root (or pair)
+    return roots
+
+
+@dataclass
+class KnownRoots:
+    """A quasi-polynomial with its exact roots: ``lead p(s/f) D(e^{-h s})`` (``D = 1`` for a polynomial)."""
+
+    F: QuasiPolynomial
+    poly_roots: list[complex]  # roots of p, written out with conjugates
+    z: np.ndarray | None  # roots of D, or None
+    h: float
+    description: str
+
+    def roots_in(self, box: tuple[float, float, float, float]) -> list[complex]:
+        out = [r for r in self.poly_roots]
+        if self.z is not None:
+            out += chain_roots(self.z, self.h, box)
+        return out
+
+    def abscissa(self) -> float:
+        vals = [r.real for r in self.poly_roots]
+        if self.z is not None:
+            vals.append(chain_abscissa(self.z, self.h))
+        return max(vals)
+
+    def scale(self) -> float:
+        return 1.0 + max(abs(r) for r in self.poly_roots)
+
+
+@st.composite
+def known_root_functions(draw: st.DrawFn) -> KnownRoots | None:
+    """Products of a polynomial with known roots and a z-polynomial of commensurate delays."""
+    base = draw(root_sets())
+    f = 2.0 ** draw(st.integers(-8, 12))  # frequency scale: exact (roots up to |s| ~ 1e5)
+    base = [complex(r.real * f, r.imag * f) for r in base]
+    lead = 2.0 ** draw(st.integers(-30, 30))  # tiny and huge coefficients
+    try:
+        p = poly_from_roots(base, lead)
+    except OracleUnsure:
+        return None
+    kind = draw(st.sampled_from(["poly", "poly", "exp", "z"]))
+    roots = expand_roots(base)
+    if kind == "poly":
+        return KnownRoots(QuasiPolynomial([p], [0.0]), roots, None, 1.0, f"lead {lead:g} prod (s - r), r = {base}")
+    h = draw(dyadic(0.125, 8)) / f
+    if kind == "exp":
+        c = [1.0, draw(nonzero_dyadic(0.125, 2))]
+    else:
+        n = draw(st.integers(2, 3))
+        c = [1.0] + [draw(st.integers(-24, 24)) / 16 for _ in range(n - 1)] + [draw(st.integers(1, 24)) / 16]
+    coefs = []
+    for ck in c:
+        exact = [Fraction(ck) * Fraction(v) for v in p]
+        coefs.append([float(v) for v in exact])
+        if any(Fraction(float(v)) != v for v in exact):
+            return None
+    z = unsure_guard(lambda: z_roots(c))
+    if z is None:
+        return None
+    delays = [k * h for k in range(len(c))]
+    if any(Fraction(d) != k * Fraction(h) for k, d in enumerate(delays)):
+        return None
+    F = QuasiPolynomial(coefs, delays)
+    return KnownRoots(F, roots, z, h, f"lead {lead:g} prod (s - r) * D(e^(-{h:g} s)), r = {base}, D = {c}")
+
+
+@st.composite
+def boxes_for(draw: st.DrawFn, center: complex, spread: float, height: float) -> tuple[float, float, float, float]:
+    """A rectangle about ``center``: widths and heights drawn on the scale ``spread``/``height``."""
+    fr = st.floats(0.05, 1.5)
+    x0 = center.real - draw(fr) * spread
+    x1 = center.real + draw(fr) * spread
+    y0 = center.imag - draw(fr) * height
+    y1 = center.imag + draw(fr) * height
+    return (x0, x1, y0, y1)
+
+
+# ============================================================================ checks shared by root tests
+def check_count(
+    test: str, F: QuasiPolynomial, box: tuple, truth_in: Callable[[tuple], list[complex]], scale: float, case: Any
+) -> None:
+    out = call(nr.count_roots, F, box)
+    if not settle(out, test, "count_roots", case):
+        return
+    rc = out.value
+    truth = unsure_guard(lambda: count_in_box(truth_in(rc.region), rc.region, 1e-9 * scale))
+    if truth is not None:
+        STATS.claim(int(rc) == truth, test, f"count_roots: {int(rc)} roots, truth {truth} in {rc.region}", case)
+
+
+def check_find(
+    test: str, F: QuasiPolynomial, box: tuple, truth_in: Callable[[tuple], list[complex]], scale: float, case: Any
+) -> None:
+    out = call(nr.find_roots, F, box)
+    if not settle(out, test, "find_roots", case):
+        return
+    rs = out.value
+    reg = rs.region
+    inside = unsure_guard(lambda: [r for r in truth_in(reg) if count_in_box([r], reg, 1e-9 * scale)])
+    if inside is None:
+        return
+    STATS.claim(rs.count == len(inside), test, f"find_roots count: {rs.count}, truth {len(inside)} in {reg}", case)
+    if not rs.certified:
+        STATS.refusal(test)
+        return
+    slack = 1e-9 * scale
+    STATS.claim(
+        int(np.sum(rs.multiplicities)) == len(inside),
+        test,
+        f"find_roots: certified multiplicities add to {int(np.sum(rs.multiplicities))}, truth {len(inside)}",
+        case,
+    )
+    for r in inside:
+        near = np.abs(rs.roots - r) <= rs.radii + slack
+        STATS.claim(
+            bool(near.any()), test, f"find_roots: exact root {r} not within the radius of any reported root", case
+        )
+    for z, m, rad in zip(rs.roots, rs.multiplicities, rs.radii):
+        k = sum(abs(r - z) <= rad + slack for r in inside)
+        STATS.claim(
+            k >= m, test, f"find_roots: reported root {z} (mult {m}, radius {rad:.3g}) holds {k} exact roots", case
+        )
+
+
+def check_abscissa(test: str, F: QuasiPolynomial, truth: float, scale: float, case: Any, rtol: float = 1e-6) -> None:
+    out = call(nr.spectral_abscissa, F)
+    if not settle(out, test, "spectral_abscissa", case):
+        return
+    sa = out.value
+    tol = rtol * scale
+    STATS.claim(
+        not math.isnan(sa.upper_bound) and truth <= sa.upper_bound + tol,
+        test,
+        f"spectral_abscissa: upper_bound {sa.upper_bound!r} below the rightmost root {truth!r}",
+        case,
+    )
+    if not sa.certified:
+        STATS.refusal(test)
+        return
+    STATS.claim(
+        abs(sa.value - truth) <= tol,
+        test,
+        f"spectral_abscissa: certified value {sa.value!r}, truth {truth!r}",
+        case,
+    )
+    if sa.root is not None and np.isfinite(sa.value):
+        # Differential: a certified search in a box about the reported value finds nothing to its right.
+        y = abs(sa.root.imag)
+        box = (sa.value - 0.5 * scale, sa.value + 0.5 * scale, -y - 0.5 * scale, y + 0.5 * scale)
+        fr = call(nr.find_roots, F, box)
+        if settle(fr, test, "find_roots about the abscissa", case) and fr.value.certified and len(fr.value):
+            right = float(np.max(fr.value.roots.real))
+            STATS.claim(
+                right <= sa.value + tol,
+                test,
+                f"spectral_abscissa {sa.value!r} but find_roots finds Re s = {right!r} in {box}",
+                case,
+            )
+
+
+# ============================================================================ 1. known roots
+@budget(ci=14, weight=1.0)
+@given(known_root_functions(), st.data())
+def _prop_known_roots(kr: KnownRoots | None, data: st.DataObject) -> None:
+    test = "known_roots"
+    if kr is None:
+        STATS.unsure()
+        return
+    STATS.case()
+    case = kr.description
+    scale = kr.scale()
+    center = complex(kr.abscissa(), 0.0)
+    height = max(abs(r.imag) for r in kr.poly_roots) + (12.0 / kr.h if kr.z is not None else 1.0)
+    height = min(height, 40.0 * scale)
+    box = data.draw(boxes_for(center, scale, height))
+    check_count(test, kr.F, box, kr.roots_in, scale, (case, box))
+    check_find(test, kr.F, box, kr.roots_in, scale, (case, box))
+    if kr.F.kind != "advanced":
+        check_abscissa(test, kr.F, kr.abscissa(), scale, case)
+
+
+def test_known_roots() -> None:
+    """count_roots, find_roots and spectral_abscissa against exact roots of products."""
+    run(_prop_known_roots, "known_roots")
+
+
+# ============================================================================ 2. Lambert W family
+@st.composite
+def lambert_cases(draw: st.DrawFn) -> tuple[float, float, float, float, str]:
+    """``(a, b, tau, lead, form)``: ``lead (s + a + b e^{-tau s})``, as point terms or with a
+    constant-kernel distributed delay ``alpha s + beta + s int_0^tau c e^{-nu s} dnu``."""
+    a = draw(dyadic(-3, 3))
+    b = draw(nonzero_dyadic(1 / 16, 4, bits=4))
+    tau = draw(dyadic(1, 8)) * 2.0 ** draw(st.integers(-3, 3))  # up to 64: long delays
+    lead = 2.0 ** draw(st.integers(-20, 20))
+    form = draw(st.sampled_from(["point", "point", "distributed"]))
+    return a, b, tau, lead, form
+
+
+def lambert_function(a: float, b: float, tau: float, lead: float, form: str) -> QuasiPolynomial:
+    if form == "point":
+        return QuasiPolynomial([[lead * a, lead], [lead * b]], [0.0, tau])
+    # alpha s + beta + c (1 - e^{-tau s}) with alpha = lead, c = -lead b, beta = lead a - c
+    c = -lead * b
+    kernel = DistributedDelay(np.linspace(0.0, tau, 5), np.full(5, c), [0.0, 1.0])
+    return QuasiPolynomial([[lead * a - c, lead]], [0.0], [kernel])
+
+
+@budget(ci=12, weight=1.0)
+@given(lambert_cases(), st.data())
+def _prop_lambert(params: tuple, data: st.DataObject) -> None:
+    test = "lambert"
+    a, b, tau, lead, form = params
+    STATS.case()
+    F = lambert_function(*params)
+    case = f"{lead:g} (s + {a!r} + {b!r} e^(-{tau!r} s)) [{form}]"
+    r0 = lambert_rightmost(a, b, tau)
+    scale = 1.0 + abs(r0) + abs(a) + abs(b)
+    height = abs(r0.imag) + min(30.0, 20.0 / tau + 2.0)
+
+    def truth_in(box: tuple) -> list[complex]:
+        return list(lambert_roots(a, b, tau, max(abs(box[2]), abs(box[3])) + 1.0))
+
+    box = data.draw(boxes_for(complex(r0.real, 0.0), 1.0 + abs(r0.real), height))
+    if unsure_guard(lambda: lambert_roots(a, b, tau, 1.0)) is None:
+        return
+    check_count(test, F, box, truth_in, scale, (case, box))
+    check_find(test, F, box, truth_in, scale, (case, box))
+    check_abscissa(test, F, r0.real, scale, case)
+
+
+def test_lambert_family() -> None:
+    """Rightmost roots of ``s + a + b e^{-tau s}`` (principal branch of W), point and distributed forms."""
+    run(_prop_lambert, "lambert")
+
+
+# ============================================================================ 3. loops A + B e^{-delta s}
+@st.composite
+def loops(draw: st.DrawFn) -> tuple[list[float], list[float], str] | None:
+    """Real polynomial loops of degree <= 3, with families that stress the crossing search."""
+    # weighted towards the families that stress the crossing search
+    kind = draw(st.sampled_from(["generic", "undamped", "undamped", "light", "light", "tangent", "tangent", "neutral"]))
+    if kind == "generic":
+        roots = draw(root_sets().filter(lambda r: len(expand_roots(r)) <= 3))
+        a = poly_from_roots(roots)
+        m = draw(st.integers(0, len(a) - 2))
+        b = [draw(dyadic(-4, 4)) for _ in range(m)] + [draw(nonzero_dyadic(0.125, 4))]
+    elif kind in ("undamped", "light"):
+        w = draw(dyadic(0.25, 4))
+        zeta = 0.0 if kind == "undamped" else 2.0 ** -draw(st.integers(4, 14))
+        a = [w * w, 2.0 * zeta * w, 1.0]
+        if draw(st.booleans()):  # a monomial B: the crossing sits exactly on the triangle bound
+            j = draw(st.integers(0, 1))
+            b = [0.0] * j + [draw(nonzero_dyadic(0.125, 4))]
+        else:
+            b = [draw(nonzero_dyadic(0.125, 4)), draw(dyadic(-4, 4))]
+    elif kind == "tangent":
+        # P(x) = (x - x0)^2 exactly: A = s^2 + u s + v^2 + u^2/4, B = u v, x0 = v^2 - u^2/4
+        u = draw(dyadic(0.125, 4))
+        v = draw(dyadic(0.125, 4).filter(lambda v: v > u / 2))
+        a, b = [v * v + u * u / 4, u, 1.0], [u * v]
+    else:  # neutral: deg B = deg A, |b_n| < |a_n|
+        roots = draw(root_sets().filter(lambda r: len(expand_roots(r)) <= 3))
+        a = poly_from_roots(roots)
+        b = [draw(dyadic(-4, 4)) for _ in range(len(a) - 1)] + [draw(nonzero_dyadic(0.125, 0.875))]
+    if kind in ("undamped", "light", "tangent") and draw(st.booleans()):
+        c = draw(dyadic(0.125, 4))  # a common stable factor (s + c), with B's possibly mirrored
+        sign = draw(st.sampled_from([1.0, -1.0]))
+        a = [float(v) for v in np.polynomial.polynomial.polymul(a, [c, 1.0])]
+        b = [float(v) for v in np.polynomial.polynomial.polymul(b, [sign * c, 1.0])]
+    # scale and frequency scaling (exact: powers of two)
+    g = 2.0 ** draw(st.integers(-30, 30))
+    f = 2.0 ** draw(st.integers(-5, 5))
+    a = [g * v * f**k for k, v in enumerate(a)]
+    b = [g * v * f**k for k, v in enumerate(b)]
+    if all(v == 0 for v in b):
+        return None
+    return a, b, kind
+
+
+def _loop_case(a: list[float], b: list[float], kind: str, dmax: float | None, verify: bool) -> str:
+    return f"{kind}: A = {a}, B = {b}, delta_max = {dmax}, verify = {verify}"
+
+
+def nominally_stable(dm: Any) -> bool:
+    """``DelayMargin.nominally_stable`` (``nominal_stable`` before its rename), read without a warning."""
+    names = {f.name for f in fields(dm)}
+    return bool(getattr(dm, "nominally_stable" if "nominally_stable" in names else "nominal_stable"))
+
+
+def check_margin(test: str, o: LoopOracle, dm: Any, case: str) -> None:
+    """The certified parts of a DelayMargin against the classical crossing analysis."""
+    claim = STATS.claim
+    claim(bool(dm.strongly_stable), test, "delay_margin: strongly stable loop reported not strongly stable", case)
+    if o.nominal_unstable is not None and not o.zero_root:
+        if dm.nominal_unstable is not None:
+            claim(
+                dm.nominal_unstable == o.nominal_unstable,
+                test,
+                f"delay_margin: nominal count {dm.nominal_unstable}, truth {o.nominal_unstable}",
+                case,
+            )
+        stable = nominally_stable(dm)
+        claim(
+            stable == (o.nominal_unstable == 0),
+            test,
+            f"delay_margin: nominally stable {stable}, truth {o.nominal_unstable} unstable roots",
+            case,
+        )
+    truth = o.margin
+    if o.zero_root or o.nominal_unstable is not None:
+        ok = (dm.margin == truth) if truth in (0.0, math.inf) else abs(dm.margin - truth) <= 1e-6 * truth
+        claim(ok, test, f"delay_margin: margin {dm.margin!r}, truth {truth!r}", case)
+    if o.nominal_unstable is None or o.zero_root:
+        return
+    # crossings: every oracle crossing up to delta_max reported with its direction and first delay
+    for c in o.crossings:
+        first = c.theta / c.omega
+        if first > dm.delta_max or first == 0.0:
+            continue
+        match = [x for x in dm.crossings if abs(abs(x.omega) - c.omega) <= 1e-6 * c.omega]
+        claim(bool(match), test, f"delay_margin: crossing w = {c.omega!r} (delta_0 = {first!r}) missed", case)
+        if match and c.multiplicity == 1:
+            x = match[0]
+            claim(
+                x.direction == c.direction,
+                test,
+                f"delay_margin: crossing w = {c.omega!r} direction {x.direction}, truth {c.direction}",
+                case,
+            )
+            claim(
+                abs(x.delays[0] - first) <= 1e-6 * (first + 1e-300),
+                test,
+                f"delay_margin: crossing w = {c.omega!r} delta_0 {x.delays[0]!r}, truth {first!r}",
+                case,
+            )
+    for x in dm.crossings:
+        known = any(abs(abs(x.omega) - c.omega) <= 1e-6 * c.omega for c in o.crossings)
+        claim(known, test, f"delay_margin: reported crossing w = {x.omega!r} is not a zero of |A|^2 - |B|^2", case)
+    # stability windows and counts at sampled delays away from every crossing delay
+    hi = dm.delta_max if np.isfinite(dm.delta_max) else 4.0 * max([c.theta / c.omega for c in o.crossings] + [1.0])
+    marks = o.crossing_delays(hi) + [d for x in dm.crossings for d in x.delays]
+    for t in np.linspace(0.0, 1.0, 9)[1:]:
+        d = float(t * hi)
+        if any(abs(d - m) <= 1e-6 * max(d, 1e-300) for m in marks) or d > dm.delta_max:
+            continue
+        n = unsure_guard(lambda d=d: o.unstable_count(d))
+        if n is None:
+            continue
+        got = call(dm.unstable_count, d)
+        if got.kind != "ok":
+            STATS.contradiction(test, f"DelayMargin.unstable_count({d!r}): {got.describe()}", case)
+            continue
+        claim(
+            int(got.value) == n,
+            test,
+            f"delay_margin: {int(got.value)} unstable roots at delta = {d!r}, truth {n}",
+            case,
+        )
+        stable = call(dm.is_stable, d)
+        if stable.kind == "ok":
+            claim(
+                bool(stable.value) == (n == 0),
+                test,
+                f"delay_margin: is_stable({d!r}) = {stable.value}, truth {n} roots",
+                case,
+            )
+
+
+@budget(ci=16, weight=1.5)
+@given(loops(), st.data())
+def _prop_loops(loop: tuple | None, data: st.DataObject) -> None:
+    test = "loops"
+    if loop is None:
+        STATS.unsure()
+        return
+    a, b, kind = loop
+    o = unsure_guard(lambda: LoopOracle(a, b))
+    if o is None:
+        return
+    STATS.case()
+    A, B = QuasiPolynomial([a], [0.0]), QuasiPolynomial([b], [0.0])
+    first = o.margin if np.isfinite(o.margin) and o.margin > 0 else 1.0
+    dmax = data.draw(st.sampled_from([None, None, first * 0.5, first * 2.0, first * 7.0]))
+    for verify in (True, False):
+        case = _loop_case(a, b, kind, dmax, verify)
+        out = call(nr.delay_margin, A, B, delta_max=dmax, verify=verify)
+        if settle(out, test, "delay_margin", case):
+            check_margin(test, o, out.value, case)
+    # independent counts at a sampled delay: the oracle's two routes agree, and nrobust agrees with them
+    if o.nominal_unstable is None or o.zero_root:
+        return
+    d = data.draw(st.floats(0.01, 3.0)) * first
+    n = unsure_guard(lambda: o.unstable_count(d))
+    n_ap = unsure_guard(lambda: o.count_by_argument(d))
+    if n is None or n_ap is None:
+        return
+    assert n == n_ap, f"oracle disagrees with itself at delta = {d}: crossing count {n}, argument principle {n_ap}"
+    case = _loop_case(a, b, kind, None, True) + f", delta = {d!r}"
+    R = 1.01 * o.rhp_radius()
+    F = A + B.shift(d)
+    out = call(nr.count_roots, F, (0.0, R, -R, R))
+    if settle(out, test, "count_roots", case):
+        STATS.claim(int(out.value) == n, test, f"count_roots at delta: {int(out.value)}, truth {n}", case)
+    ny = call(nr.plots.nyquist_response, A, B, d)
+    if settle(ny, test, "nyquist_response", case) and ny.value.rhp_zeros is not None:
+        STATS.claim(ny.value.rhp_zeros == n, test, f"nyquist_response: rhp_zeros {ny.value.rhp_zeros}, truth {n}", case)
+
+
+def test_loops_against_classical_crossings() -> None:
+    """delay_margin (verified and not), its windows and directions, count_roots and Nyquist counts."""
+    run(_prop_loops, "loops")
+
+
+# ============================================================================ 4. k_region on the transport plant
+@st.composite
+def transport_cases(draw: st.DrawFn) -> tuple[float, float, float, float, float]:
+    lam = draw(dyadic(0.25, 4))
+    mu = draw(dyadic(0.25, 4))
+    q = draw(nonzero_dyadic(0.125, 2))
+    rho = draw(dyadic(-2, 2))
+    delta_max = 2.0 ** draw(st.integers(-6, 2))
+    return lam, mu, q, rho, delta_max
+
+
+@budget(ci=6, weight=0.3)
+@given(transport_cases(), st.data())
+def _prop_transport(params: tuple, data: st.DataObject) -> None:
+    test = "transport_k_region"
+    lam, mu, q, rho, delta_max = params
+    STATS.case()
+    system = TransportSystem(lam, mu, q, rho)
+    truth = transport_k_interval(q, rho)
+    kb = truth[1] if truth else 1.0
+    Ks = kb * np.linspace(-1.0, 1.0, 7)[1:-1] if truth else np.array([-1.0, 0.0, 1.0])
+    tol = kb * 2.0**-20
+    case = f"TransportSystem({lam}, {mu}, {q}, {rho}), delta_max = {delta_max}, tol = {tol!r}"
+    out = call(nr.k_region, system, delta_max, Ks=Ks, tol=tol)
+    if settle(out, test, "k_region", case):
+        ivs = out.value.intervals
+        if truth is None:
+            STATS.claim(len(ivs) == 0, test, f"k_region: {ivs}, truth empty (|rho q| >= 1)", case)
+        else:
+            ok = len(ivs) == 1 and all(
+                abs(e - t) <= 1.001 * tol + 1e-12 * kb and abs(e) <= kb for e, t in zip(ivs[0], truth)
+            )
+            STATS.claim(ok, test, f"k_region: {ivs}, truth (-{kb!r}, {kb!r}) to {tol:.3g}", case)
+    # per-gain margins
+    j = data.draw(st.integers(1, 30))
+    for K in (kb * (1 - 2.0**-j), -kb * (1 - 2.0**-j), kb * (1 + 2.0**-j), data.draw(st.floats(-2 * kb, 2 * kb))):
+        m = transport_margin(q, rho, K)
+        if m is None:
+            STATS.unsure()
+            continue
+        gcase = case + f", K = {K!r}"
+        out = call(nr.delay_margin, system, ReflectionController(K))
+        if settle(out, test, "delay_margin(system, controller)", gcase):
+            STATS.claim(out.value.margin == m, test, f"delay_margin: {out.value.margin!r}, truth {m!r}", gcase)
+
+
+def test_transport_k_region() -> None:
+    """k_region and per-gain margins of the transport plant against their closed forms."""
+    run(_prop_transport, "transport_k_region")
+
+
+# ============================================================================ 5. bad input
+NAN, INF = float("nan"), float("inf")
+JUNK: list[Any] = [None, "1", object(), {"a": 1}, 1 + 1j, True, [1.0, 2.0]]
+
+#: tag -> (values that must be refused, values that may be accepted but must not give NaN)
+VALUES: dict[str, tuple[list[Any], list[Any]]] = {
+    "real": ([*JUNK, NAN, INF, -INF], [-1.0, 0.0, 1e300, -1e300, 5e-324]),
+    "pos": ([*JUNK, NAN, INF, -INF, -1.0, 0.0], [1e300, 5e-324]),
+    "nonneg": ([*JUNK, NAN, INF, -INF, -1.0], [0.0, 1e300, 5e-324]),
+    "pos_or_none": ([v for v in JUNK if v is not None] + [NAN, -INF, -1.0, 0.0], [None, INF, 1e300, 5e-324]),
+    "int": ([None, "3", 2.5, NAN, True, -1, 0, [3]], [10**9, 10**18]),
+    "int0": ([None, "3", 2.5, NAN, True, -1, [3]], [0, 10**9]),
+    "region": (
+        [
+            None,
+            (),
+            (0.0, 1.0, 0.0),
+            (1.0, 0.0, 0.0, 1.0),
+            (0.0, 1.0, 1.0, 0.0),
+            (NAN, 1.0, 0.0, 1.0),
+            (0.0, INF, 0.0, 1.0),
+            "abcd",
+            (0.0, 1.0, 0.0, 1.0, 2.0),
+            ("a", "b", "c", "d"),
+        ],
+        [(-1e300, 1e300, -1e300, 1e300), (0.0, 1e-300, 0.0, 1e-300), (-1e6, 1e6, -1e6, 1e6)],
+    ),
+    "region_or_none": (
+        [(), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0, 1.0), (NAN, 1.0, 0.0, 1.0), "abcd", (0.0, INF, 0.0, 1.0)],
+        [None, (-1e6, 1e6, -1e6, 1e6)],
+    ),
+    "qp": ([None, "s", [[1.0]], object(), 1.0, QuasiPolynomial([[0.0]], [0.0])], []),
+    "qp_or_number": ([None, "s", [[1.0]], object(), NAN, INF, True], [0.0, -1.0, 1e300]),
+    "coefs": (
+        [[], [[]], [["a"]], [[NAN]], [[INF]], [[1.0, None]], "abc", None, [[True]], [[1.0], [2.0], [3.0]]],
+        [[[1e300, 1.0], [1.0]], [[5e-324, 1.0], [0.5]], [[1.0, 1.0], [1e300]]],
+    ),
+    "delays": (
+        [[NAN, 1.0], [-1.0, 1.0], ["a", "b"], None, [], [INF, 1.0], [True, False], [0.0], "01"],
+        [[0.0, 1e300], [0.0, 5e-324], [0.0, 1e6]],
+    ),
+    "pair": (
+        [[NAN, 1.0], ["a", "b"], None, [], [INF, 1.0], [True, False], "ab", [1.0, None]],
+        [[1e300, 1.0], [5e-324, 1.0]],
+    ),
+    "nodes": (
+        [[NAN, 0.5, 1.0], [-1.0, 0.5, 1.0], ["a", "b", "c"], None, [], [0.0, INF, 1.0], [1.0, 0.5, 0.0], "abc"],
+        [[0.0, 0.5, 1e300], [0.0, 5e-324, 1e-300]],
+    ),
+    "values": ([[NAN, 1.0, 1.0], ["a", "b", "c"], None, [], [1.0, INF, 1.0], [1.0, 1.0]], [[1e300] * 3, [1j] * 3]),
+    "system": ([None, "paper", 1.0, object(), {"lam": 1.0}], []),
+    "controller": ([None, "K", 0.5, object()], []),
+    "choice": (["nope", None, 1, ""], []),
+    "grid": ([[], [NAN], [INF], "abc", None, [[1.0, 2.0], [3.0]], [True, False]], [[1e300], [-1e300], [0.0]]),
+    "state": ([None, "x", 1j, NAN, [NAN] * 3, lambda x: np.full_like(x, np.nan)], [0.0, lambda x: 1e300 + 0 * x]),
+    "seeds": ([["a"], [NAN], "abc"], [[], [1e300 + 0j]]),
+    "omega": ([[], [NAN], "abc", None, [[1.0], [2.0, 3.0]]], [[1e300], [0.0], [-1.0]]),
+}
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A public function, a cheap valid call, and the tags of the arguments to corrupt
+    (an int: a positional argument; a str: a keyword argument)."""
+
+    name: str
+    fn: Callable[..., Any]
+    args: tuple
+    kwargs: dict = field(default_factory=dict)
+    params: tuple[tuple[int | str, str], ...] = ()
+    extra_bad: dict = field(default_factory=dict)
+
+    def param_name(self, p: int | str) -> str:
+        if isinstance(p, str):
+            return p
+        try:
+            return list(inspect.signature(self.fn).parameters)[p]
+        except (TypeError, ValueError, IndexError):
+            return f"argument {p}"
+
+
+F0 = QuasiPolynomial([[1.0, 1.0], [0.5]], [0.0, 1.0])  # s + 1 + 0.5 e^{-s}
+A0, B0 = QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[2.0]], [0.0])
+T0 = TransportSystem(1.0, 2.0, 0.5, 0.8)
+C0 = ReflectionController(0.2)
+N0 = DistributedDelay([0.0, 0.5, 1.0], [1.0, 0.5, 0.25])
+
+
+def _sin(x: np.ndarray) -> np.ndarray:
+    return np.sin(np.pi * x)
+
+
+SPECS: list[Spec] = [
+    Spec("QuasiPolynomial", QuasiPolynomial, ([[1.0, 1.0], [0.5]], [0.0, 1.0]), params=((0, "coefs"), (1, "delays"))),
+    Spec(
+        "DistributedDelay",
+        DistributedDelay,
+        ([0.0, 0.5, 1.0], [1.0, 0.5, 0.25], [1.0]),
+        params=((0, "nodes"), (1, "values"), (2, "coefs"), ("moment", "int0"), ("interpolation", "choice")),
+        kwargs={"moment": 0, "interpolation": "linear"},
+    ),
+    Spec("DifferenceOperator", nr.DifferenceOperator, ([1.0, -0.5], [0.0, 1.0]), params=((0, "pair"), (1, "delays"))),
+    Spec(
+        "count_roots",
+        nr.count_roots,
+        (F0, (-2.0, 1.0, -5.0, 5.0)),
+        {"max_evals": 2_000_000, "max_shifts": 4},
+        ((0, "qp"), (1, "region"), ("max_evals", "int"), ("max_shifts", "int0")),
+    ),
+    Spec(
+        "find_roots",
+        nr.find_roots,
+        (F0, (-2.0, 1.0, -5.0, 5.0)),
+        {"cluster_tol": 1e-6, "seeds": None, "method": "auto", "max_evals": 5_000_000},
+        (
+            (0, "qp"),
+            (1, "region"),
+            ("cluster_tol", "pos"),
+            ("seeds", "seeds"),
+            ("method", "choice"),
+            ("max_evals", "int"),
+        ),
+    ),
+    Spec(
+        "spectral_abscissa",
+        nr.spectral_abscissa,
+        (F0,),
+        {"region": None, "im_max": None, "cluster_tol": 1e-6},
+        ((0, "qp"), ("region", "region_or_none"), ("im_max", "pos_or_none"), ("cluster_tol", "pos")),
+    ),
+    Spec(
+        "delay_margin(A, B)",
+        nr.delay_margin,
+        (A0, B0),
+        {"delta_max": None, "max_evals": 2_000_000},
+        ((0, "qp_or_number"), (1, "qp_or_number"), ("delta_max", "pos_or_none"), ("max_evals", "int")),
+    ),
+    Spec(
+        "delay_margin(system, controller)",
+        nr.delay_margin,
+        (T0, C0),
+        {"delta_max": None},
+        ((0, "system"), (1, "controller"), ("delta_max", "pos_or_none")),
+    ),
+    Spec(
+        "crossing_frequencies",
+        nr.crossing_frequencies,
+        (A0, B0),
+        {"max_evals": 2_000_000},
+        ((0, "qp"), (1, "qp"), ("max_evals", "int")),
+    ),
+    Spec("root_free_region", nr.root_free_region, (F0, 0.0), params=((0, "qp"), (1, "real"))),
+    Spec("l1_modulus", nr.l1_modulus, (N0, [0.1, 0.2]), params=((0, "qp"), (1, "omega"))),
+    Spec(
+        "Hyperbolic2x2",
+        nr.Hyperbolic2x2,
+        (1.0, 2.0, 0.5, 0.3, 0.7, 0.4),
+        params=((0, "pos"), (1, "pos"), (2, "real"), (3, "real"), (4, "real"), (5, "real")),
+    ),
+    Spec(
+        "TransportSystem",
+        TransportSystem,
+        (1.0, 2.0, 0.5, 0.8),
+        params=((0, "pos"), (1, "pos"), (2, "real"), (3, "real")),
+    ),
+    Spec("ReflectionController", ReflectionController, (0.2,), params=((0, "real"),)),
+    Spec("FilteredController", nr.FilteredController, (0.5, 1.0), params=((0, "real"), (1, "pos"))),
+    Spec("classify", nr.classify, (T0,), params=((0, "system"),)),
+    Spec("characteristic", nr.characteristic, (T0, C0, 0.1), params=((0, "system"), (1, "controller"), (2, "nonneg"))),
+    Spec("loop_factors", nr.loop_factors, (T0, C0), params=((0, "system"), (1, "controller"))),
+    Spec(
+        "k_region",
+        nr.k_region,
+        (T0, 0.1),
+        {"Ks": [-0.5, 0.0, 0.5], "tol": 1e-3},
+        ((0, "system"), (1, "pos"), ("Ks", "grid"), ("tol", "pos")),
+    ),
+    Spec(
+        "stability_chart",
+        nr.stability_chart,
+        (T0, [0.1, 0.2], [0.1, 0.2]),
+        {"quantity": "count"},
+        ((0, "system"), (1, "grid"), (2, "grid"), ("quantity", "choice")),
+    ),
+    Spec("tradeoff", nr.tradeoff, (T0, [0.1, 0.2]), params=((0, "system"), (1, "grid"))),
+    Spec(
+        "ab_region", nr.ab_region, (T0, 0.1, [0.1], [0.2]), params=((0, "system"), (1, "pos"), (2, "grid"), (3, "grid"))
+    ),
+    Spec(
+        "simulate",
+        nr.simulate,
+        (T0, C0, 0.1, 1.0, _sin, _sin, 20),
+        params=((0, "system"), (1, "controller"), (2, "nonneg"), (3, "pos"), (4, "state"), (5, "state"), (6, "int")),
+    ),
+    Spec("rouche_delay_bound", nr.rouche_delay_bound, (T0, C0), params=((0, "system"), (1, "controller"))),
+    Spec(
+        "QuasiTransferFunction",
+        nr.QuasiTransferFunction,
+        (A0, B0),
+        params=((0, "qp_or_number"), (1, "qp_or_number")),
+        extra_bad={1: [0.0, QuasiPolynomial([[0.0]], [0.0])]},
+    ),
+    Spec(
+        "closed_loop_tf",
+        nr.closed_loop_tf,
+        (T0, C0, 0.1),
+        {"output": "v"},
+        ((0, "system"), (1, "controller"), (2, "nonneg"), ("output", "choice")),
+    ),
+    Spec("open_loop_tf", nr.open_loop_tf, (T0,), params=((0, "system"),)),
+    Spec("boundary_function", nr.boundary_function, (T0, [1j, 2.0 + 1j]), params=((0, "system"), (1, "omega"))),
+    Spec("to_frd", nr.to_frd, (F0, [0.1, 1.0]), params=((0, "qp"), (1, "omega"))),
+    Spec(
+        "certify",
+        nr.certify,
+        (T0, C0, 0.1),
+        {"k_region": False},
+        ((0, "system"), (1, "controller"), (2, "pos"), ("region", "region_or_none")),
+    ),
+    Spec(
+        "nyquist_response",
+        nr.plots.nyquist_response,
+        (A0, B0, 0.5, 50.0, 201),
+        params=((0, "qp"), (1, "qp"), (2, "nonneg"), (3, "pos"), (4, "int")),
+    ),
+]
+
+
+def has_nan(obj: Any, depth: int = 0) -> bool:
+    """A NaN anywhere in a result (numbers, arrays, sequences, dicts, dataclass fields)."""
+    if depth > 6:
+        return False
+    if isinstance(obj, (float, complex, np.floating, np.complexfloating)):
+        return bool(np.isnan(obj))
+    if isinstance(obj, np.ndarray):
+        return obj.dtype.kind in "fc" and bool(np.isnan(obj).any())
+    if isinstance(obj, (list, tuple)):
+        return any(has_nan(v, depth + 1) for v in obj)
+    if isinstance(obj, dict):
+        return any(has_nan(v, depth + 1) for v in obj.values())
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return any(has_nan(getattr(obj, f.name, None), depth + 1) for f in fields(obj))
+    return False
+
+
+@st.composite
+def bad_calls(draw: st.DrawFn) -> tuple[Spec, int | str, Any, bool]:
+    spec = draw(st.sampled_from(SPECS))
+    p, tag = draw(st.sampled_from(spec.params))
+    bad, maybe = VALUES[tag]
+    bad = bad + spec.extra_bad.get(p, [])
+    pool = [(v, True) for v in bad] + [(v, False) for v in maybe]
+    value, invalid = draw(st.sampled_from(pool))
+    return spec, p, value, invalid
+
+
+@budget(ci=90, weight=4.0)
+@given(bad_calls())
+def _prop_bad_input(bc: tuple) -> None:
+    test = "bad_input"
+    spec, p, value, invalid = bc
+    STATS.case()
+    args, kwargs = list(spec.args), dict(spec.kwargs)
+    if isinstance(p, int):
+        args[p] = value
+    else:
+        kwargs[p] = value
+    name = spec.param_name(p)
+    case = f"{spec.name}: {name} = {value!r} ({'invalid' if invalid else 'extreme'})"
+    with memory_cap(MEMORY_HEADROOM):
+        out = call(spec.fn, *args, seconds=min(EXAMPLE_SECONDS, 30.0), **kwargs)
+    if out.kind == "refused":
+        STATS.refusal(test)
+        return
+    if out.kind in ("wrong", "hang"):
+        STATS.contradiction(test, out.describe(), case)
+        return
+    if out.kind == "rejected":
+        msg = f"{getattr(out.error, 'name', '')} {out.error}"
+        STATS.claim(name in msg, test, f"error names another parameter: {out.describe()}", case)
+        return
+    if invalid:
+        STATS.contradiction(test, "silently accepted: returned without error", case)
+        return
+    STATS.claim(not has_nan(out.value), test, "NaN in the result", case)
+
+
+def test_bad_input() -> None:
+    """Every public function fed bad input: a named ParameterError (or a refusal), nothing else."""
+    run(_prop_bad_input, "bad_input")
