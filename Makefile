@@ -32,13 +32,22 @@ $(STAMP_TEST): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP_TEST) $(STAMP_BASE)
 
-.PHONY: demo test check test-py310 bench clean
+.PHONY: demo test check fuzz test-py310 bench clean
 demo: $(STAMP_BASE)
 	$(BIN)/nrobust paper -o out/
 
-# The tests and the doctests of the package (testpaths in pyproject.toml).
+# The tests and the doctests of the package (testpaths in pyproject.toml), on every core.
 test: $(STAMP_TEST)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
+
+# The differential harness of issue 11 (tests/test_harness.py) with its long budget: about
+# 20 minutes on 2 cores, random examples, a 60 s deadline per example. Prints cases tried,
+# certified claims checked, contradictions (must be 0) and honest refusals; fails on any
+# contradiction. `make test` runs the same file on a small fixed budget.
+FUZZ_EXAMPLES ?= 500
+fuzz: $(STAMP_TEST)
+	NROBUST_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) NROBUST_FUZZ_EXAMPLE_SECONDS=60 \
+		$(BIN)/python -m pytest -q -p no:cacheprovider tests/test_harness.py
 
 # Lint, format and type checks. All three run; the target fails if any failed.
 check: $(STAMP_TEST)

@@ -11,6 +11,12 @@ Measured in this process:
   tangential touches and pairs of crossings closer than the step);
 * the guaranteed delay ``delta_0`` of Theorem 4's proof (:func:`nrobust.rouche_delay_bound`)
   beside ``delta*``;
+* the admissible gains :func:`nrobust.k_region` at ``tol = 1e-9`` for ``delta_max = 0.1`` and
+  ``0.2`` (issue 11's goal: under 1 s on 2 cores): the ends with their kind, the time to
+  locate them by their equations (the frequency scan) and the total with their verification
+  (two delay margins and a root count per end, and the 9 grid margins), serially and on 2
+  processes; without ``--quick`` also the former route (bisection on delay margins, still
+  used for other controller families) for comparison;
 * a 50 x 50 chart of the number of unstable roots on ``K in [-0.14, 0.14]``,
   ``delta in [0, 0.5]`` by :func:`nrobust.stability_chart` (one crossing analysis per
   gain), against certified counts (:func:`nrobust.count_roots`) at every grid point,
@@ -19,7 +25,7 @@ Measured in this process:
 Printed: values, seconds (best of several runs for the single margin and its peer), and
 the time ratio peer / nrobust.
 
-Run: ``python benchmarks/margins.py [--quick]`` (``--quick``: a 10 x 10 chart).
+Run: ``python benchmarks/margins.py [--quick]`` (``--quick``: a 10 x 10 chart, no bisection route).
 """
 
 from __future__ import annotations
@@ -34,12 +40,15 @@ from nrobust import (
     Hyperbolic2x2,
     ReflectionController,
     characteristic,
+    classify,
     count_roots,
     delay_margin,
+    k_region,
     loop_factors,
     rouche_delay_bound,
     stability_chart,
 )
+from nrobust.hyperbolic import studies
 
 
 def dense_scan_margin(A, B, W: float, step: float = 1e-3) -> tuple[float, int]:
@@ -71,6 +80,37 @@ def timed(fn, repeat: int = 1):
     return float(np.min(times)), out
 
 
+def bisection_family(K: float) -> ReflectionController:
+    """U_BS2(K) as a user family: ``k_region`` then bisects on delay margins (the former route)."""
+    return ReflectionController(K)
+
+
+def k_region_section(system: Hyperbolic2x2, quick: bool) -> None:
+    """Time ``k_region`` at ``tol = 1e-9``: locating the ends, verifying them, on 1 and 2 processes."""
+    kb = classify(system).k_bound
+    loop = studies._AffineLoop.of(system)
+    print("\nadmissible gains, tol = 1e-9 (goal: under 1 s on 2 cores)")
+    for delta_max in (0.1, 0.2):
+        t_loc, _ = timed(lambda d=delta_max: studies._locate_ends(loop, d, kb, 1e-9, 2_000_000), repeat=3)
+        cpu = time.process_time()
+        t_ser, reg = timed(lambda d=delta_max: k_region(system, d, tol=1e-9))
+        cpu = time.process_time() - cpu
+        t_par, reg2 = timed(lambda d=delta_max: k_region(system, d, tol=1e-9, executor=2))
+        same = reg.intervals == reg2.intervals
+        print(f"  delta_max = {delta_max}:")
+        for lo, hi in reg.ends:
+            for name, end in (("lower", lo), ("upper", hi)):
+                print(f"    {name} end K = {end.K:.12f}  {end.kind:<16} w = {end.omega:.8g}  delay {end.delay:.8g}")
+        print(
+            f"    locate (equations) {t_loc:.3f} s; k_region serial {t_ser:.3f} s ({cpu:.3f} s of CPU: a loaded "
+            f"machine shows in the difference), on 2 processes {t_par:.3f} s (same ends: {same})"
+        )
+        if not quick:
+            t_bis, bis = timed(lambda d=delta_max: k_region(system, d, tol=1e-9, controller=bisection_family))
+            gap = max(abs(a - b) for iv, jv in zip(bis.intervals, reg.intervals) for a, b in zip(iv, jv))
+            print(f"    former route (bisection on margins) {t_bis:.1f} s, ends differ by {gap:.2g}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10 x 10 chart instead of 50 x 50")
@@ -100,6 +140,8 @@ def main() -> None:
         f"  Rouche bound (Theorem 4)      delta_0 = {rb.delta_0:.6f} <= delta*  ({rb.steps} certified steps)  "
         f"{t_rb:.4f} s"
     )
+
+    k_region_section(system, args.quick)
 
     n = 10 if args.quick else 50
     Ks = np.linspace(-0.14, 0.14, n)

@@ -40,6 +40,7 @@ from .hyperbolic.robustness import rouche_delay_bound
 from .hyperbolic.simulate import Simulation, simulate
 from .hyperbolic.studies import (
     ABRegion,
+    GainEnd,
     KRegion,
     StabilityChart,
     Tradeoff,
@@ -97,6 +98,7 @@ __all__ = [
     "l1_modulus",
     "k_region",
     "KRegion",
+    "GainEnd",
     "ab_region",
     "ABRegion",
     "stability_chart",

@@ -8,21 +8,35 @@ from __future__ import annotations
 
 import functools
 import inspect
+import numbers
 import warnings
 from collections.abc import Callable
 from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import ParameterError, RegionError
 
 
+def is_real_number(value: Any) -> bool:
+    """True for a real number: a Python or numpy integer or float (or a 0-d numeric array).
+
+    Booleans are not numbers here (``True`` is not a gain), nor are strings (``"1"``),
+    complex numbers or sequences: nothing is converted silently.
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, np.ndarray):
+        return value.ndim == 0 and value.dtype.kind in "iuf"
+    return isinstance(value, numbers.Real)
+
+
 def finite_real(name: str, value: Any) -> float:
-    """Return ``value`` as a float, or raise if it is not a finite real number."""
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, "a finite real number", value) from None
+    """Return ``value`` as a float, or raise if it is not a finite real number (see :func:`is_real_number`)."""
+    if not is_real_number(value):
+        raise ParameterError(name, "a finite real number", value)
+    out = float(value)
     if not np.isfinite(out):
         raise ParameterError(name, "a finite real number", value)
     return out
@@ -44,21 +58,62 @@ def nonnegative(name: str, value: Any) -> float:
     return out
 
 
-def positive_int(name: str, value: Any, minimum: int = 1) -> int:
-    """Return ``value`` as an int >= ``minimum``, or raise."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ParameterError(name, f"an integer >= {minimum}", value)
-    if value < minimum:
-        raise ParameterError(name, f"an integer >= {minimum}", value)
+def positive_int(name: str, value: Any, minimum: int = 1, maximum: int | None = None) -> int:
+    """Return ``value`` as an int >= ``minimum`` (and <= ``maximum`` if given), or raise."""
+    what = f"an integer >= {minimum}" if maximum is None else f"an integer in [{minimum}, {maximum}]"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ParameterError(name, what, value)
+    if value < minimum or (maximum is not None and value > maximum):
+        raise ParameterError(name, what, value)
     return int(value)
+
+
+def _numeric_array(name: str, value: Any, kinds: str, what: str, ndim: int | None, min_size: int) -> NDArray:
+    """``np.asarray(value)`` if its dtype kind is one of ``kinds`` and it is finite, of
+    ``ndim`` dimensions and at least ``min_size`` entries; ParameterError otherwise."""
+    shape = "a sequence" if ndim == 1 else "an array" if ndim is None else f"a {ndim}-D array"
+    size = {0: "", 1: "at least one "}.get(min_size, f"at least {min_size} ")
+    expected = f"{shape} of {size}finite {what}"
+    if isinstance(value, (str, bytes)) or value is None:
+        raise ParameterError(name, expected, value)
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):  # ragged nesting
+        raise ParameterError(name, expected, value) from None
+    if arr.dtype.kind not in kinds or (ndim is not None and arr.ndim != ndim) or arr.size < min_size:
+        raise ParameterError(name, expected, value)
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(name, f"{expected} (no nan or inf)", value)
+    return arr
+
+
+def real_array(name: str, value: Any, *, ndim: int | None = 1, min_size: int = 1) -> NDArray[np.float64]:
+    """``value`` as a float array of finite real numbers, or raise :class:`ParameterError`.
+
+    Integers and floats only: booleans, strings, complex numbers, ``None`` entries and
+    ragged nesting are refused, never converted.
+    """
+    return _numeric_array(name, value, "iuf", "real numbers", ndim, min_size).astype(float)
+
+
+def number_array(name: str, value: Any, *, ndim: int | None = 1, min_size: int = 1) -> NDArray:
+    """``value`` as an array of finite numbers, float if they are real, complex otherwise.
+
+    As :func:`real_array`, with complex entries allowed.
+    """
+    arr = _numeric_array(name, value, "iufc", "numbers", ndim, min_size)
+    return arr.astype(complex if arr.dtype.kind == "c" else float)
 
 
 def region(value: Any, name: str = "region") -> tuple[float, float, float, float]:
     """Validate a rectangle ``(re_min, re_max, im_min, im_max)`` with positive area."""
     try:
-        vals = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
+        entries = tuple(value)
+    except TypeError:
         raise RegionError(name, "a tuple (re_min, re_max, im_min, im_max) of finite reals", value) from None
+    if not all(is_real_number(v) for v in entries):  # no strings, booleans or complex numbers
+        raise RegionError(name, "a tuple (re_min, re_max, im_min, im_max) of finite reals", value)
+    vals = tuple(float(v) for v in entries)
     if len(vals) != 4 or not all(np.isfinite(vals)):
         raise RegionError(name, "a tuple (re_min, re_max, im_min, im_max) of finite reals", value)
     if not (vals[0] < vals[1] and vals[2] < vals[3]):

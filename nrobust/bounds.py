@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
-from ._validate import finite_real, positive, positive_int
+from ._validate import finite_real, positive, positive_int, real_array
 from .errors import CertificationError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 
@@ -280,6 +280,8 @@ def root_free_region(F: QuasiPolynomial, x0: float = 0.0) -> RootFreeRegion:
     >>> round(cert.half_plane, 3), round(cert.radius, 3)   # no zero in Re s > 1.157
     (1.157, 1.5)
     """
+    if not isinstance(F, QuasiPolynomial):
+        raise ParameterError("F", "a QuasiPolynomial", F)
     x0 = finite_real("x0", x0)
     n = joint_degree(F)
     g0 = principal_gap({"F": (F, 0)}, n, x0)
@@ -339,10 +341,10 @@ def _abs_linear_integral(f0: NDArray, f1: NDArray, h: NDArray) -> NDArray:
 
 def _linear_l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
     """``omega`` of the piecewise-linear interpolant of ``N``'s values, exactly (see :func:`l1_modulus`)."""
-    if np.iscomplexobj(N.values) or N.moment != 0:
-        raise ParameterError("N", "a real kernel of moment 0", N)
-    d = np.asarray(delta, dtype=float)
-    if np.any(~np.isfinite(d)) or np.any(d < 0):
+    if not isinstance(N, DistributedDelay) or np.iscomplexobj(N.values) or N.moment != 0:
+        raise ParameterError("N", "a real DistributedDelay kernel of moment 0", N)
+    d = real_array("delta", delta, ndim=None)
+    if np.any(d < 0):
         raise ParameterError("delta", "finite and >= 0", delta)
     out = np.empty(d.shape)
     nodes, values = N.nodes, N.values
@@ -380,7 +382,7 @@ def l1_modulus(N: DistributedDelay, delta: ArrayLike) -> NDArray[np.float64]:
 
 def total_variation(N: DistributedDelay) -> float:
     """Total variation of ``N`` extended by zero (an upper bound for splines)."""
-    if np.iscomplexobj(N.values):
+    if not isinstance(N, DistributedDelay) or np.iscomplexobj(N.values):
         raise ParameterError("N", "a real kernel", N)
     return N.total_variation()
 

@@ -27,7 +27,7 @@ from ._validate import positive, positive_int, renamed_keywords
 from ._validate import region as check_region
 from ._version import __version__
 from .bounds import RoucheDelayBound
-from .errors import ParameterError
+from .errors import CertificationError, ParameterError
 from .hyperbolic import studies
 from .hyperbolic.controllers import (
     Classification,
@@ -142,11 +142,16 @@ class Certificate:
         :func:`nrobust.hyperbolic.robustness.rouche_delay_bound` (U_BS and U_BS2 only).
     k_region : object or None
         :func:`nrobust.hyperbolic.studies.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
-        delay in ``[0, delta_max]`` stable.
+        delay in ``[0, delta_max]`` stable, each end solved from its own equations and verified
+        (``KRegion.ends`` gives its kind: crossing, pair birth, nominal, strong-stability limit).
     region : tuple of float
         The rectangle of the root counts.
     versions : dict
         nrobust, numpy, scipy and python versions.
+    k_region_error : str
+        Why the admissible gains could not be certified (the
+        :class:`~nrobust.errors.CertificationError` of ``k_region``, which is then None);
+        empty otherwise.
     """
 
     system: Hyperbolic2x2
@@ -163,6 +168,7 @@ class Certificate:
     k_region: KRegion | None
     region: tuple[float, float, float, float]
     versions: dict[str, str]
+    k_region_error: str = ""
 
     # ------------------------------------------------------------------ verdicts
     @property
@@ -254,12 +260,13 @@ def certify(
         For ``ReflectionController``, also compute the admissible gains on
         ``[0, delta_max]`` (:func:`nrobust.hyperbolic.studies.k_region`).
     n_gains : int, default :data:`~nrobust.hyperbolic.studies.DEFAULT_N_GAINS`
-        Number of gains of that computation (formerly ``k_grid``, a deprecated alias),
-        evenly spread in ``|K| < (1 - |rho q|)/|q|``;
-        the interval ends are resolved to the grid step (``KRegion.tol``), since each
-        further bisection step costs a delay-margin analysis, and those near the
-        strong-stability limit are the most expensive. Call
-        :func:`nrobust.hyperbolic.studies.k_region` directly for sharper ends.
+        Number of gains, evenly spread in ``|K| < (1 - |rho q|)/|q|``, at which that
+        computation also reports (and cross-checks) delay margins (formerly ``k_grid``, a
+        deprecated alias). The interval ends do not depend on it: each is solved from the
+        equations of its kind and verified to ``KRegion.tol`` (``1e-10`` times the paper's
+        bound). When they cannot be verified (e.g. an end so close to the strong-stability
+        limit that the crossing search exceeds its work bound), ``k_region`` is None and
+        ``k_region_error`` says why.
 
     Returns
     -------
@@ -287,11 +294,13 @@ def certify(
         if isinstance(controller, (ReflectionController, FiniteTimeController))
         else None
     )
-    kreg = None
+    kreg, k_region_error = None, ""
     if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
         n_gains = positive_int("n_gains", n_gains, 3)
-        step = 2.0 * classification.k_bound / (n_gains + 1)
-        kreg = studies.k_region(system, delta_max, n_gains=n_gains, tol=step)
+        try:
+            kreg = studies.k_region(system, delta_max, n_gains=n_gains)
+        except CertificationError as exc:
+            k_region_error = str(exc)
     return Certificate(
         system=system,
         controller=controller,
@@ -307,4 +316,5 @@ def certify(
         k_region=kreg,
         region=tuple(float(v) for v in box),  # type: ignore[arg-type]
         versions=_versions(),
+        k_region_error=k_region_error,
     )

@@ -26,6 +26,7 @@ are those of ``a_0 + sum_{k>=1} a_k e^{-r_k s}``.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
@@ -38,6 +39,7 @@ from scipy.optimize import brentq
 
 from ._json import fields_dict, json_safe
 from ._newton import newton
+from ._validate import number_array, real_array
 from .errors import ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
@@ -67,7 +69,7 @@ def _polynomial_roots(
     about a second)."""
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
-    return _cluster_polynomial_roots(np.roots(poly[::-1]))
+    return _cluster_polynomial_roots(np.roots(poly[::-1]).astype(complex))
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:
@@ -127,7 +129,7 @@ class Chain:
         m0 = int(np.ceil((im_min - self.offset) / self.spacing))
         m1 = int(np.floor((im_max - self.offset) / self.spacing))
         m = np.arange(m0, m1 + 1)
-        return self.real + 1j * (self.offset + m * self.spacing)
+        return (self.real + 1j * (self.offset + m * self.spacing)).astype(np.complex128)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (``z`` as ``[real, imag]``)."""
@@ -243,19 +245,13 @@ class DifferenceOperator:
     delays: NDArray[np.float64]
 
     def __init__(self, coefs: ArrayLike, delays: ArrayLike) -> None:
-        try:
-            a = np.atleast_1d(np.asarray(coefs, dtype=complex))
-            t = np.atleast_1d(np.asarray(delays, dtype=float))
-        except (TypeError, ValueError):
-            raise ParameterError("coefs", "a 1-D sequence of finite numbers", coefs) from None
-        if a.ndim != 1 or a.size == 0:
-            raise ParameterError("coefs", "a non-empty 1-D sequence of numbers", coefs)
-        if not np.all(np.isfinite(a)):
-            raise ParameterError("coefs", "finite (no nan or inf)", coefs)
+        # a single number is a one-term operator; booleans and strings are refused, not converted
+        a = number_array("coefs", [coefs] if isinstance(coefs, numbers.Number) else coefs).astype(complex)
+        t = real_array("delays", [delays] if isinstance(delays, numbers.Number) else delays)
         if t.shape != a.shape:
             raise ParameterError("delays", f"one delay per coefficient ({a.size})", delays)
-        if not np.all(np.isfinite(t)) or np.any(t < 0):
-            raise ParameterError("delays", "finite and >= 0", delays)
+        if np.any(t < 0):
+            raise ParameterError("delays", ">= 0", delays)
         uniq, inverse = np.unique(t, return_inverse=True)
         merged = np.zeros(uniq.size, dtype=complex)
         np.add.at(merged, inverse, a)

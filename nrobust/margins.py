@@ -2,10 +2,21 @@
 
 The number of unstable roots is piecewise constant in ``delta`` and changes only at the
 crossing delays of :mod:`nrobust.crossings`, so a certified count at ``delta = 0`` and the
-signed crossings give it for every ``delta``: stability windows included. The loops of
-the paper's plants (:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``,
+signed crossings give it for every ``delta``: stability windows included. The crossing
+search is complete and classifies every crossing (simple, with a certified direction, or
+a tangency), so this count is right by construction, with or without ``verify``; the
+verification is an independent check by the argument principle, and a count that the
+crossings would make negative is reported as an error, never returned. The loops of the
+paper's plants (:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``,
 eq. (delay_eq_alpha_ter), ``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``) are studied
 with :mod:`nrobust.hyperbolic.studies`.
+
+Tangencies: a tangency at ``(w, delta_c)`` (a double zero in ``w`` of
+``|A(i w)|^2 - |B(i w)|^2``) puts a root on the axis at ``delta_c`` that returns to the
+left half-plane: the count does not change, but the loop is not exponentially stable at
+that single delay. The margin is therefore the first delay at which a root lies on the
+axis, tangencies included, and the stability windows (open intervals) exclude every
+tangency delay: a window ends at it and the next one starts there.
 """
 
 from __future__ import annotations
@@ -18,9 +29,18 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
-from ._validate import positive, positive_int
+from ._validate import positive_int
 from .bounds import joint_degree, principal_gap, root_free_region
-from .crossings import _ZERO_TOL, Crossing, _crossing_search, _crossings, frequency_bound
+from .crossings import (
+    _ZERO_TOL,
+    Crossing,
+    _axis_count,
+    _common_axis_zeros,
+    _crossing_search,
+    _crossings,
+    _is_zero,
+    frequency_bound,
+)
 from .errors import CertificationError, ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import count_roots
@@ -37,9 +57,12 @@ class DelayMargin:
     ----------
     margin : float
         ``delta*``: the loop is exponentially stable for every ``delta`` in
-        ``[0, delta*)`` and not at ``delta*``. 0 when the nominal loop is not stable or
-        the difference operator is not strongly stable for small ``delta > 0`` (the
-        paper's zero margin, Theorem 3); ``inf`` when no crossing exists.
+        ``[0, delta*)`` and not at ``delta*``, where a root lies on the imaginary axis
+        (the first destabilising crossing, or an earlier tangency). 0 when the nominal
+        loop is not stable or the difference operator is not strongly stable for small
+        ``delta > 0`` (the paper's zero margin, Theorem 3); ``inf`` when no crossing
+        exists, or when ``A`` or ``B`` is identically zero and the other is stable (the
+        loop does not depend on the delay).
     omega : float or None
         Crossing frequency at which the margin is reached.
     crossings : tuple of Crossing
@@ -55,7 +78,8 @@ class DelayMargin:
         ``A(0) + B(0) = 0``: ``s = 0`` is a root for every delta.
     intervals : tuple of (float, float)
         Maximal open delay intervals in ``[0, delta_max]`` on which the loop is
-        exponentially stable (``[0, hi)`` when it includes the nominal loop).
+        exponentially stable (``[0, hi)`` when it includes the nominal loop). Crossing
+        delays, tangencies included, are never inside a window.
     counts : tuple of (float, float, int)
         Number of zeros with ``Re s > 0`` on each interval between crossing delays.
     delta_max : float
@@ -65,10 +89,14 @@ class DelayMargin:
     gap : float
         ``|a_0| - sum |others|`` of the principal terms (``> 0`` iff strongly stable).
     verified : bool
-        The margin was checked: ``|F(i w; delta*)|`` is at rounding level and a
-        certified count finds no zero in ``Re s > 0`` at ``delta* (1 - 1e-3)``.
+        The margin was checked independently: a certified count by the argument
+        principle (on the boundary of the half disc of radius ``1.01 W``, the imaginary
+        axis sampled on chirp-z grids; :func:`nrobust.count_roots` where that does not
+        apply) finds no zero in ``Re s > 0`` at ``delta* (1 - 1e-3)``. The residual below
+        is checked with or without verification.
     residual : float or None
-        ``|F(i w; delta*)| / (|A| + |B|)`` at the margin.
+        ``|F(i w; delta*)| / (|A| + |B|)`` at the margin (at rounding level, else a
+        :class:`CertificationError` is raised).
     reason : str
         How the margin was decided, in words.
     """
@@ -138,9 +166,74 @@ class DelayMargin:
 
 
 def _count_unstable(F: QuasiPolynomial, W: float) -> int:
-    """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``."""
+    """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``.
+
+    For real coefficients the zeros come in conjugate pairs: the count of the upper box
+    ``(0, r) x (0, r)`` is doubled when no edge had to move (then no zero lies on the
+    positive real axis nor on the imaginary axis), which halves the contour on the
+    imaginary axis, where the count spends most of its work.
+    """
     r = 1.01 * W + 1e-9
+    if F.is_real:
+        upper = count_roots(F, (0.0, r, 0.0, r))
+        if not upper.shifted:
+            return 2 * int(upper)
     return int(count_roots(F, (0.0, r, -r, r)))
+
+
+def _delay_max(value: Any) -> float | None:
+    """``delta_max`` as None, ``inf`` or a positive float; NaN, ``-inf`` and non-positive values raise."""
+    if value is None:
+        return None
+    expected = "a positive number or inf (None: one period past every crossing delay)"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError("delta_max", expected, value)
+    if not float(value) > 0.0:  # NaN, -inf, 0 and negative numbers
+        raise ParameterError("delta_max", expected, value)
+    return float(value)
+
+
+def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: float | None) -> DelayMargin:
+    """The loop ``F = P`` (``which`` factor identically zero): no delay enters, one certified count decides.
+
+    A zero of ``P`` on (or within rounding of) the imaginary axis makes the count move its
+    left edge: the loop is then not exponentially stable and ``nominal_unstable`` is None.
+    """
+    principal = principal_gap({"P": (P, 0)}, joint_degree(P), 0.0)
+    gap = float("-inf") if principal is None else principal.gap
+    nominal: int | None = None
+    radius: float | None = None
+    if principal is not None and gap > 0.0 and not zero_root:
+        try:
+            radius = root_free_region(P).radius
+            r = 1.01 * radius + 1e-9
+            count = count_roots(P, (0.0, r, -r, r))
+            nominal = None if count.region[0] < 0.0 else int(count)
+        except (ParameterError, CertificationError):
+            nominal = None
+    stable = nominal == 0
+    d_max = float("inf") if delta_max is None else delta_max
+    other = "A" if which == "B" else "B e^{-delta s}"
+    return DelayMargin(
+        margin=float("inf") if stable else 0.0,
+        omega=None,
+        crossings=(),
+        nominally_stable=stable,
+        nominal_unstable=nominal,
+        strongly_stable=gap > 0.0,
+        zero_root=zero_root,
+        intervals=((0.0, d_max),) if stable else (),
+        counts=((0.0, d_max, nominal),) if nominal is not None else (),
+        delta_max=d_max,
+        frequency_bound=radius,
+        gap=gap,
+        verified=False,
+        residual=None,
+        reason=(
+            f"{which} is identically zero: the loop {other} does not depend on the delay and is "
+            + ("exponentially stable" if stable else "not exponentially stable")
+        ),
+    )
 
 
 def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> int | None:
@@ -188,8 +281,20 @@ def delay_margin(
 
     Raises
     ------
+    ParameterError
+        ``A`` and ``B`` both identically zero, ``delta_max`` not positive (NaN, ``-inf``),
+        or ``max_evals`` not a positive integer.
     CertificationError
-        A work bound was hit, or the verification contradicts the crossing analysis.
+        A work bound was hit (``max_evals`` is checked before any grid is allocated), a
+        crossing cluster could not be decided, or a check failed: the residual at the
+        margin, a count made negative by the crossing directions, or the verification.
+
+    Notes
+    -----
+    When ``B`` (or ``A``) is identically zero the loop does not depend on the delay: the
+    margin is ``inf`` if the other factor is exponentially stable (certified count, no
+    zero on the axis), else 0. When ``A`` and ``B`` vanish together at some ``i w`` the
+    loop has that root for every delay: margin 0, like ``A(0) + B(0) = 0``.
 
     Examples
     --------
@@ -202,11 +307,14 @@ def delay_margin(
     """
     A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
     max_evals = positive_int("max_evals", max_evals)
-    if delta_max is not None:
-        delta_max = positive("delta_max", delta_max) if np.isfinite(float(delta_max)) else float("inf")
+    delta_max = _delay_max(delta_max)
+    if _is_zero(A) and _is_zero(B):
+        raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
     real = A.is_real and B.is_real
     a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
     zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    if _is_zero(B) or _is_zero(A):
+        return _delay_free(B if _is_zero(A) else A, "A" if _is_zero(A) else "B", zero_root, delta_max)
     w_bound = frequency_bound(A, B)
     principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
     gap = float("-inf") if principal is None else principal.gap
@@ -215,7 +323,9 @@ def delay_margin(
         reason = (
             "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
             if principal is None
-            else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g} <= 0): zero margin"
+            else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g}"
+            + (" <= 0" if gap <= 0 else ", zero to rounding")
+            + "): zero margin"
         )
         return DelayMargin(
             margin=0.0,
@@ -234,9 +344,29 @@ def delay_margin(
             residual=None,
             reason=reason,
         )
-    search = _crossing_search(A, B, w_bound, max_evals)
+    search, axis_gap = _crossing_search(A, B, w_bound, max_evals)
     W = search.frequency_bound
-    crossings, delta_max = _crossings(A, B, search, delta_max)
+    common = _common_axis_zeros(axis_gap, search)
+    if common.size:
+        return DelayMargin(
+            margin=0.0,
+            omega=float(common[0]),
+            crossings=(),
+            nominally_stable=False,
+            nominal_unstable=None,
+            strongly_stable=True,
+            zero_root=zero_root,
+            intervals=(),
+            counts=(),
+            delta_max=float("inf") if delta_max is None else delta_max,
+            frequency_bound=W,
+            gap=search.gap,
+            verified=False,
+            residual=None,
+            reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
+            evaluations=search.evaluations,
+        )
+    crossings, delta_max = _crossings(A, B, search, delta_max, axis_gap)
     mult = 2 if real else 1
     events: dict[float, int] = {}
     for c in crossings:
@@ -265,8 +395,10 @@ def delay_margin(
                 cur += events[bounds[k]]
                 if cur < 0:
                     raise CertificationError(
-                        f"delay_margin: negative number of unstable roots after delta = {bounds[k]:.12g} "
-                        "(crossing directions inconsistent with the count)"
+                        f"delay_margin: the crossing directions make the number of unstable roots negative "
+                        f"({cur}) after delta = {bounds[k]:.12g}: certified count {first} on (0, {bounds[1]:.12g}), "
+                        f"changes {[(d, events[d]) for d in marks[:k]]}, crossings {list(crossings)}; "
+                        "this contradicts the certificates (please report it)"
                     )
             if bounds[k + 1] > bounds[k]:
                 counts.append((bounds[k], bounds[k + 1], cur))
@@ -280,20 +412,31 @@ def delay_margin(
     elif not crossings:
         margin, omega, reason = float("inf"), None, "no crossing frequency: stable for every delay"
     else:
-        margin, omega = crossings[0].delays[0], crossings[0].omega
-        reason = f"first crossing at w = {omega:.10g}"
+        first_crossing = crossings[0]
+        margin, omega = first_crossing.delays[0], first_crossing.omega
+        kind = "tangency (a double root touches the axis and returns)" if first_crossing.tangential else "crossing"
+        reason = f"first {kind} at w = {omega:.10g}"
     verified, residual = False, None
-    if verify and stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
+    if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
         s = np.array([1j * omega])
         Fm = A(s) + B(s) * np.exp(-s * margin)
         residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
-        below = _count_unstable(A + B.shift(margin * (1 - 1e-3)), W)
-        if residual > 1e-8 or below != 0:
+        if residual > 1e-8:
             raise CertificationError(
-                f"delay_margin: verification failed at delta* = {margin:.12g} (residual {residual:.3g}, "
-                f"{below} unstable roots just below delta*)"
+                f"delay_margin: F(i w; delta*) does not vanish at delta* = {margin:.12g}, w = {omega:.12g} "
+                f"(relative residual {residual:.3g})"
             )
-        verified = True
+        if verify:
+            probe = margin * (1 - 1e-3)
+            below = _axis_count(A, B, probe, W, axis_gap._kernels, max_evals)
+            if below is None:
+                below = _count_unstable(A + B.shift(probe), W)
+            if below != 0:
+                raise CertificationError(
+                    f"delay_margin: verification failed at delta* = {margin:.12g}: {below} unstable roots at "
+                    f"delta* (1 - 1e-3), where the crossing analysis finds none"
+                )
+            verified = True
     return DelayMargin(
         margin=float(margin),
         omega=None if omega is None else float(omega),

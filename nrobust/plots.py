@@ -8,20 +8,19 @@ they show, so that a test or a user can check and restyle them.
 
 Nyquist plots of neutral loops need care: ``L(i w) = B(i w)/A(i w) e^{-i w delta}`` does
 not decay as ``w`` grows, so the classical encirclement count (python-control's, which
-closes the contour at infinity assuming ``L -> 0``) does not apply. The count given here
-is the winding, along the imaginary axis, of ``G(s) = F(s) / ((s + 1)^n D(s))`` where
-``F = A + B e^{-delta s}`` is the closed-loop characteristic function, ``n`` its degree
-and ``D`` its principal part (a difference operator): when ``D`` has its zeros in
-``Re s < 0`` (spectral bound ``c_D < 0``), ``G -> 1`` uniformly as ``|s| -> infinity`` in
-``Re s >= 0``, so the number of closed-loop zeros in ``Re s > 0`` is the winding of
-``G(i w)`` around 0 as ``w`` decreases from ``+W`` to ``-W``, once ``|G - 1| < 1`` beyond
-``W``. When ``c_D >= 0`` the closed loop has infinitely many zeros in (or accumulating
-at) the right half-plane and no finite count exists.
-
-This count is sampled, not certified: the frequency grid is refined until every step
-turns ``G`` by less than ``pi/8``, and ``|G - 1| < 1`` is checked on the last tenth of
-the band only. Certified counts are those of :func:`nrobust.roots.count_roots` and of
-:func:`nrobust.margins.delay_margin`; reports print both routes side by side.
+closes the contour at infinity assuming ``L -> 0``) does not apply. The count given here,
+``rhp_zeros``, is certified: the number of zeros of ``F = A + B e^{-delta s}`` (the
+closed-loop characteristic function) in ``Re s > 0`` by the argument principle
+(:func:`nrobust.roots.count_roots`, a winding of ``F`` with a certified step) on the
+rectangle ``0 <= Re s <= c``, ``|Im s| <= R`` outside which
+:func:`nrobust.bounds.root_free_region` proves ``F`` zero-free on ``Re s >= 0``. That
+bound needs the principal part ``D`` of ``F`` (a difference operator) strongly stable,
+``C_D < 0``: then ``|F - s^n D| < |s^n D|`` for ``|s| > R``. Otherwise no count is given
+(``None``, with a ``note``): advanced type (the ``s^n`` terms miss the smallest delay:
+chains of zeros go to ``Re s = +inf``), ``c_D >= 0`` (infinitely many zeros in, or
+accumulating at, the closed right half-plane), or ``c_D < 0 <= C_D`` (finitely many
+zeros, but no root-free bound on ``Re s >= 0`` to count them in a bounded box); also when
+a zero lies on the imaginary axis or the count exceeds its work bound.
 """
 
 from __future__ import annotations
@@ -37,15 +36,18 @@ from tqdm import tqdm
 from ._json import fields_dict, json_safe
 from ._validate import nonnegative, positive, positive_int, renamed_keywords
 from ._validate import region as check_region
-from .difference import DifferenceOperator
-from .errors import ParameterError
+from .bounds import root_free_region
+from .errors import CertificationError, ParameterError
 from .parallel import SweepResult
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
-from .roots import RootSet, find_roots
+from .roots import RootSet, count_roots, find_roots
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure, SubFigure
+
+# Work bound on the initial frequency grid of nyquist_response.
+_MAX_FREQ = 10**6
 
 __all__ = [
     "NrobustPlot",
@@ -80,7 +82,7 @@ class NrobustPlot:
 
     lines: dict[str, list[Any]]
     axes: Axes
-    figure: Figure
+    figure: Figure | SubFigure
 
 
 def _get_ax(ax: Axes | None) -> Axes:
@@ -111,15 +113,18 @@ class NyquistResponse:
     crossing_values : ndarray
         ``L(i w)`` at the crossing frequencies (on the unit circle).
     principal_bound : float
-        Upper bound of the spectral bound ``c_D`` of the closed-loop difference operator.
+        Upper bound of the spectral bound ``c_D`` of the closed-loop difference operator
+        (``inf`` for an advanced-type loop).
     rhp_zeros : int or None
-        Number of zeros of ``F = A + B e^{-delta s}`` in ``Re s > 0`` from the winding of
-        ``G = F / ((s+1)^n D)``; None when no finite count exists (``c_D >= 0``) or when the
-        count is not reliable (a zero on or next to the axis, or ``|G - 1| >= 1`` at the
-        ends of the band).
-    tail : float
-        ``max |G(i w) - 1|`` sampled over ``0.9 W <= |w| <= W``: below 1 there, the band
-        end is taken to add no turn (``G`` is not bounded beyond ``W``).
+        Certified number of zeros of ``F = A + B e^{-delta s}`` in ``Re s > 0``, with
+        multiplicity (see the module notes); None when no finite count exists (advanced
+        type, ``c_D >= 0``) or none is certified (``c_D < 0 <= C_D``, a zero on the
+        imaginary axis, the work bound of the count); ``note`` says which.
+    count_region : tuple of float or None
+        The rectangle ``(0, c, -R, R)`` counted by :func:`nrobust.roots.count_roots`;
+        :func:`nrobust.bounds.root_free_region` proves ``F`` zero-free on ``Re s >= 0``
+        outside it. None when no count was made (or none was needed: ``F`` zero-free on
+        ``Re s > c`` with ``c < 0``).
     note : str
         Why ``rhp_zeros`` is None, or ``""``.
     """
@@ -131,7 +136,7 @@ class NyquistResponse:
     crossing_values: NDArray[np.complex128]
     principal_bound: float
     rhp_zeros: int | None
-    tail: float
+    count_region: tuple[float, float, float, float] | None
     note: str
 
     def plot(self, ax: Axes | None = None, unit_circle: bool = True) -> NrobustPlot:
@@ -170,25 +175,10 @@ class NyquistResponse:
                 "crossings": self.crossings,
                 "principal_bound": self.principal_bound,
                 "rhp_zeros": self.rhp_zeros,
-                "tail": self.tail,
+                "count_region": self.count_region,
                 "note": self.note,
             }
         )
-
-
-def _winding(fun: Callable[[NDArray], NDArray], w: NDArray[np.float64], max_levels: int = 12) -> tuple[float, NDArray]:
-    """Total change of argument of ``fun(i w)`` along increasing ``w``, refining the grid
-    until every step turns by less than ``pi / 8``."""
-    vals = fun(1j * w)
-    for _ in range(max_levels):
-        steps = np.abs(np.angle(vals[1:] / vals[:-1]))
-        bad = np.flatnonzero(steps > np.pi / 8)
-        if bad.size == 0:
-            break
-        mids = 0.5 * (w[bad] + w[bad + 1])
-        w = np.insert(w, bad + 1, mids)
-        vals = np.insert(vals, bad + 1, fun(1j * mids))
-    return float(np.sum(np.angle(vals[1:] / vals[:-1]))), vals
 
 
 @renamed_keywords(n="n_freq")
@@ -200,21 +190,23 @@ def nyquist_response(
     n_freq: int = 4001,
     principal_bound: float | None = None,
 ) -> NyquistResponse:
-    """Compute the Nyquist data of the loop ``L = B/A e^{-delta s}``.
+    """Compute the Nyquist data of the loop ``L = B/A e^{-delta s}`` and the certified
+    number of closed-loop zeros in ``Re s > 0``.
 
     Parameters
     ----------
-    A, B : QuasiPolynomial
+    A, B : QuasiPolynomial or number
         The loop factors, ``F(s) = A(s) + B(s) e^{-delta s}`` (e.g. from
         :func:`nrobust.hyperbolic.loop_factors`; for U_BS2 ``F`` is the characteristic
-        function of the paper's eq. (delay_eq_alpha_ter)).
+        function of the paper's eq. (delay_eq_alpha_ter)). ``A`` must not vanish
+        identically (``L = B/A``).
     delta : float
         Loop delay ``>= 0``.
     omega_max : float
-        Upper end ``W`` of the frequency band.
+        Upper end ``W`` of the plotted frequency band (the count does not depend on it).
     n_freq : int, default 4001
-        Initial number of frequency samples on ``[0, W]``, ``>= 16`` (refined where the
-        argument turns fast; formerly ``n``, a deprecated alias).
+        Initial number of frequency samples on ``[0, W]``, in ``[16, 10**6]`` (refined
+        where the curve moves fast; formerly ``n``, a deprecated alias).
     principal_bound : float, optional
         An upper bound of the spectral bound ``c_D`` of the difference operator of
         ``F = A + B e^{-delta s}`` computed elsewhere (e.g.
@@ -223,13 +215,24 @@ def nyquist_response(
     Returns
     -------
     NyquistResponse
-        See the module notes for how ``rhp_zeros`` is counted.
+        See the module notes for how ``rhp_zeros`` is certified, and when it is None.
+
+    Raises
+    ------
+    ParameterError
+        Bad input; ``A`` identically zero, or ``F`` identically zero (``B = -A`` at
+        ``delta = 0``).
     """
     A = as_quasipolynomial("A", A)
     B = as_quasipolynomial("B", B)
+    if not A.point_terms and not A.distributed:
+        raise ParameterError("A", "not identically zero (the loop is B/A)", A)
     delta = nonnegative("delta", delta)
     W = positive("omega_max", omega_max)
-    w = np.linspace(0.0, W, positive_int("n_freq", n_freq, 16))
+    w = np.linspace(0.0, W, positive_int("n_freq", n_freq, 16, maximum=_MAX_FREQ))
+    F = A + B.shift(delta)
+    if not F.point_terms and not F.distributed:
+        raise ParameterError("B", "not -A at delta = 0 (F = A + B would vanish identically)", B)
     a_w = A(1j * w)
     b_w = B(1j * w)
     crossings = _crossings(A, B, w, np.abs(a_w) - np.abs(b_w))
@@ -239,45 +242,48 @@ def nyquist_response(
             return B(s) / A(s) * np.exp(-s * delta)
 
     w, loop = _refine_curve(L, w)
+    bound, rhp, box, note = _rhp_count(F, principal_bound)
+    return NyquistResponse(w, loop, delta, crossings, L(1j * crossings), bound, rhp, box, note)
 
-    F = A + B.shift(delta)
-    deg, lead = F.degree, F.leading_terms()
-    note = ""
-    rhp: int | None = None
-    tail = float("nan")
-    if not lead:
-        bound = float("inf")
-        note = "the principal part of F vanishes: advanced type, no finite count"
+
+def _rhp_count(
+    F: QuasiPolynomial, principal_bound: float | None
+) -> tuple[float, int | None, tuple[float, float, float, float] | None, str]:
+    """``(c_D bound, zeros in Re s > 0 or None, rectangle counted or None, note)`` for ``F``."""
+    if F.kind == "advanced":
+        return np.inf, None, None, "advanced type (the s^n terms miss the smallest delay): no finite count"
+    D = F.principal_part()
+    strong = float(D.strong_spectral_bound())  # C_D >= c_D, cheap
+    if principal_bound is not None:
+        bound = float(principal_bound)
     else:
-        D = DifferenceOperator([a for a, _ in lead], [t for _, t in lead])
-        if principal_bound is not None:
-            bound = float(principal_bound)
-        else:
-            # C_D >= c_D is cheap and certified; the exact c_D only when C_D does not decide
-            bound = float(D.strong_spectral_bound())
-            if bound >= 0.0:
-                bound = float(D.spectral_bound().upper)
-        if bound >= 0.0:
-            note = f"the principal part has spectral bound {bound:.6g} >= 0: no finite count in Re s > 0"
-        else:
-
-            def G(s: NDArray) -> NDArray:
-                return F(s) / ((s + 1.0) ** deg * D(s))
-
-            full = np.concatenate([-w[:0:-1], w])
-            turn, g = _winding(G, full)
-            ends = np.abs(full) >= 0.9 * W
-            tail = float(np.max(np.abs(G(1j * full[ends]) - 1.0)))
-            count = -turn / (2 * np.pi)
-            if np.min(np.abs(g)) < 1e-10 * np.max(np.abs(g)):
-                note = "F has a zero on or next to the imaginary axis"
-            elif tail >= 1.0:
-                note = f"|G - 1| = {tail:.3g} >= 1 at the band end: raise omega_max"
-            elif abs(count - round(count)) > 0.1:
-                note = f"winding {count:.3f} is not close to an integer"
-            else:
-                rhp = round(count)
-    return NyquistResponse(w, loop, delta, crossings, L(1j * crossings), bound, rhp, tail, note)
+        bound = strong if strong < 0.0 else float(D.spectral_bound().upper)
+    if bound >= 0.0:
+        return bound, None, None, f"the principal part has spectral bound {bound:.6g} >= 0: no finite count in Re s > 0"
+    if strong >= 0.0:
+        return (
+            bound,
+            None,
+            None,
+            f"the principal part is stable (c_D <= {bound:.6g}) but not strongly stable (C_D = {strong:.6g}): "
+            "finitely many zeros in Re s > 0, not certified here",
+        )
+    try:
+        free = root_free_region(F, 0.0)
+        if free.half_plane < 0.0:  # no zero in Re s > c, c < 0
+            return bound, 0, None, ""
+        pad = 1e-6 * (1.0 + free.radius)
+        box = (0.0, free.half_plane + pad, -(free.radius + pad), free.radius + pad)
+        count = count_roots(F, box)
+    except CertificationError as exc:
+        return bound, None, None, f"count not certified: {exc}"
+    except ParameterError as exc:  # C_D < 0 by a rounding: no positive dominance gap on Re s >= 0
+        if exc.name != "x0":
+            raise
+        return bound, None, None, f"the principal part is not strongly stable to rounding (C_D = {strong:.6g})"
+    if count.region[0] < 0.0:
+        return bound, None, None, "F has a zero on or within rounding of the imaginary axis"
+    return bound, int(count), count.region, ""
 
 
 def _refine_curve(
@@ -679,11 +685,11 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
         finite = grid_vals[np.isfinite(grid_vals)]
         top = finite.max() if finite.size else 1.0
         cmap = matplotlib.colormaps["viridis"].with_extremes(over="gold", bad="lightgray")
-        shown = np.where(np.isposinf(grid_vals), top + 1.0, grid_vals)
+        capped = np.where(np.isposinf(grid_vals), top + 1.0, grid_vals)
         mesh = ax.pcolormesh(
             xs,
             ys,
-            np.ma.masked_invalid(shown),
+            np.ma.masked_invalid(capped),
             shading="nearest",
             cmap=cmap,
             vmin=finite.min() if finite.size else 0.0,

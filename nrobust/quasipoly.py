@@ -19,7 +19,7 @@ import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from math import comb, factorial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -28,7 +28,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import czt
 
 from ._json import fields_dict, json_safe
-from ._validate import nonnegative
+from ._validate import is_real_number, nonnegative, number_array, real_array
 from .difference import DifferenceOperator
 from .errors import ParameterError
 
@@ -263,6 +263,8 @@ class DistributedDelay:
     poly: NDArray = field(default_factory=lambda: np.ones(1))
     moment: int = 0
     interpolation: str = "linear"
+    if TYPE_CHECKING:  # set by __init__, not a dataclass field: the interpolant's per-segment pieces
+        _pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -272,11 +274,7 @@ class DistributedDelay:
         moment: int = 0,
         interpolation: str = "linear",
     ) -> None:
-        x = np.asarray(nodes, dtype=float)
-        if x.ndim != 1 or x.size < 2:
-            raise ParameterError("nodes", "a 1-D sequence of at least 2 numbers", nodes)
-        if not np.all(np.isfinite(x)):
-            raise ParameterError("nodes", "finite", nodes)
+        x = real_array("nodes", nodes, min_size=2)
         if x[0] < 0:
             raise ParameterError("nodes", "non-negative (delays are >= 0)", nodes)
         dx = np.diff(x)
@@ -286,11 +284,9 @@ class DistributedDelay:
             raise ParameterError("nodes", "with no node repeated more than twice", nodes)
         if not np.any(dx > 0):
             raise ParameterError("nodes", "spanning an interval of positive length", nodes)
-        v = np.asarray(values)
-        if v.shape != x.shape or not np.issubdtype(v.dtype, np.number):
+        v = number_array("values", values)
+        if v.shape != x.shape:
             raise ParameterError("values", f"numbers, one per node ({x.size})", values)
-        if not np.all(np.isfinite(v)):
-            raise ParameterError("values", "finite (no nan or inf)", values)
         if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
             raise ParameterError("moment", "an integer >= 0", moment)
         if interpolation not in _INTERPOLATIONS:
@@ -308,7 +304,7 @@ class DistributedDelay:
 
     def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
-        args = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
+        args: dict[str, Any] = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
         args.update(changes)
         return DistributedDelay(**args, interpolation=self.interpolation)
 
@@ -566,11 +562,11 @@ class QuasiPolynomial:
     ) -> None:
         if isinstance(coefs, (str, bytes)) or not isinstance(coefs, Sequence | np.ndarray):
             raise ParameterError("coefs", "a sequence of coefficient sequences", coefs)
-        taus = np.atleast_1d(np.asarray(delays, dtype=float)) if len(coefs) else np.zeros(0)
-        if taus.ndim != 1 or taus.size != len(coefs):
+        taus = real_array("delays", np.atleast_1d(delays) if is_real_number(delays) else delays, min_size=0)
+        if taus.size != len(coefs):
             raise ParameterError("delays", f"one delay per entry of coefs ({len(coefs)})", delays)
-        for t in taus:
-            nonnegative("delays", t)
+        if np.any(taus < 0):
+            raise ParameterError("delays", ">= 0 (delays, not advances)", delays)
         dist = tuple(distributed)
         for d in dist:
             if not isinstance(d, DistributedDelay):
@@ -753,7 +749,7 @@ class QuasiPolynomial:
     # ------------------------------------------------------------------ algebra
     def __add__(self, other: Any) -> QuasiPolynomial:
         if isinstance(other, (int, float, complex, np.number)):
-            other = QuasiPolynomial([[other]], [0.0])
+            other = QuasiPolynomial([np.array([other])], [0.0])
         if not isinstance(other, QuasiPolynomial):
             return NotImplemented
         return QuasiPolynomial._from_parts(

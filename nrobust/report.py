@@ -202,6 +202,8 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     )
     if cert.k_region is not None:
         rows.append(("admissible gains K on [0, delta_max]", _k_region_text(cert.k_region), "k_region"))
+    elif cert.k_region_error:
+        rows.append(("admissible gains K on [0, delta_max]", f"not certified: {cert.k_region_error}", "k_region"))
     blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
     box_rows = tuple(
         (f"delta = {_fmt(d)}", ", ".join(_fmt(v, 4) for v in box), str(int(c)))
@@ -214,12 +216,29 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     return blocks, figures
 
 
+def _end_text(end: Any) -> str:
+    """What closes an interval at a :class:`~nrobust.hyperbolic.studies.GainEnd`, in words."""
+    if end.kind == "crossing":
+        return f"crossing (a root at i {_fmt(end.omega, 8)} for delta = delta_max)"
+    if end.kind == "pair_birth":
+        return f"pair birth (|A| = |B| touches at w = {_fmt(end.omega, 8)}, crossing delay {_fmt(end.delay, 8)})"
+    if end.kind == "nominal":
+        return f"nominal loop unstable (a root at i {_fmt(end.omega, 8)} for delta = 0)"
+    if end.kind == "strong_stability":
+        return "strong-stability limit |rho q| + |K q| = 1"
+    return "bisection on delay margins"
+
+
 def _k_region_text(kreg: Any) -> str:
-    """The admissible intervals of a :class:`~nrobust.hyperbolic.studies.KRegion` and their accuracy."""
+    """The admissible intervals of a :class:`~nrobust.hyperbolic.studies.KRegion`, the kind of each end
+    and their accuracy."""
     if not kreg.intervals:
         return "none"
-    ivs = ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in kreg.intervals)
-    return f"{ivs}; ends within {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
+    parts = [
+        f"({_fmt(lo.K, 10)}, {_fmt(hi.K, 10)}): lower end {_end_text(lo)}, upper end {_end_text(hi)}"
+        for lo, hi in kreg.ends
+    ] or [f"({_fmt(lo, 10)}, {_fmt(hi, 10)})" for lo, hi in kreg.intervals]
+    return f"{'; '.join(parts)}; each end verified to {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
 
 
 # ---------------------------------------------------------------------- renderers

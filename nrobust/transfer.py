@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
-from ._validate import nonnegative, positive_int
+from ._validate import nonnegative, number_array, positive_int, real_array
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import RootSet, find_roots
@@ -78,7 +78,8 @@ class QuasiTransferFunction:
     Parameters
     ----------
     num, den : QuasiPolynomial or number
-        Numerator and denominator; numbers are constant quasi-polynomials.
+        Numerator and denominator; numbers are constant quasi-polynomials. ``den`` must
+        not be identically zero.
 
     Notes
     -----
@@ -102,13 +103,16 @@ class QuasiTransferFunction:
     den: QuasiPolynomial
 
     def __init__(self, num: QuasiPolynomial | complex, den: QuasiPolynomial | complex = 1.0) -> None:
+        den_qp = as_quasipolynomial("den", den)
+        if not den_qp.point_terms and not den_qp.distributed:
+            raise ParameterError("den", "not identically zero (H = num/den would be nowhere defined)", den)
         object.__setattr__(self, "num", as_quasipolynomial("num", num))
-        object.__setattr__(self, "den", as_quasipolynomial("den", den))
+        object.__setattr__(self, "den", den_qp)
 
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Evaluate ``H(s)`` on an array of complex ``s`` (``inf`` at poles hit exactly)."""
-        s = np.asarray(s, dtype=complex)
+        s = number_array("s", s, ndim=None, min_size=0).astype(complex)
         n = self.num(s)
         d = self.den(s)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -116,9 +120,7 @@ class QuasiTransferFunction:
 
     def frequency_response(self, omega: ArrayLike) -> NDArray[np.complex128]:
         """``H(i omega)`` for real angular frequencies ``omega`` (rad per unit time)."""
-        w = np.asarray(omega, dtype=float)
-        if not np.all(np.isfinite(w)):
-            raise ParameterError("omega", "finite real frequencies", omega)
+        w = real_array("omega", omega, ndim=None, min_size=0)
         return self(1j * w)
 
     def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
@@ -130,12 +132,12 @@ class QuasiTransferFunction:
         return find_roots(self.num, region, **kwargs)
 
     # ------------------------------------------------------------------ interconnection
-    def series(self, other: QuasiTransferFunction | QuasiPolynomial | complex) -> QuasiTransferFunction:
+    def series(self, other: QuasiTransferFunction | QuasiPolynomial | complex | np.number) -> QuasiTransferFunction:
         """``self * other``: the two blocks in cascade."""
         other = _as_tf("other", other)
         return QuasiTransferFunction(_product("other", self.num, other.num), _product("other", self.den, other.den))
 
-    def parallel(self, other: QuasiTransferFunction | QuasiPolynomial | complex) -> QuasiTransferFunction:
+    def parallel(self, other: QuasiTransferFunction | QuasiPolynomial | complex | np.number) -> QuasiTransferFunction:
         """``self + other``: the two blocks in parallel."""
         other = _as_tf("other", other)
         if _is_one(self.den) and _is_one(other.den):
@@ -203,15 +205,15 @@ def _as_tf(name: str, value: Any) -> QuasiTransferFunction:
 
 
 # ---------------------------------------------------------------------- python-control
-def _response(obj: Any, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+def _response(obj: Any, s: NDArray[np.complexfloating]) -> NDArray[np.complex128]:
     if isinstance(obj, (QuasiTransferFunction, QuasiPolynomial)):
         return np.asarray(obj(s), dtype=complex)
     raise ParameterError("F_or_tf", "a QuasiPolynomial or a QuasiTransferFunction", obj)
 
 
 def _omega_grid(omega: ArrayLike) -> NDArray[np.float64]:
-    w = np.asarray(omega, dtype=float)
-    if w.ndim != 1 or w.size < 2 or not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(np.diff(w) <= 0):
+    w = real_array("omega", omega, min_size=2)
+    if np.any(w < 0) or np.any(np.diff(w) <= 0):
         raise ParameterError("omega", "a 1-D increasing array of at least 2 finite frequencies >= 0", omega)
     return w
 

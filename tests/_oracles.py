@@ -291,15 +291,26 @@ def _mp_roots(p: list[Fraction]) -> list:
     if len(p) < 2:
         return []
     if len(p) == 2:
-        return [mp.mpf(-p[0].numerator * p[1].denominator) / (p[0].denominator * p[1].numerator)]
-    coeffs = [mp.mpf(v.numerator) / v.denominator for v in p]
-    try:
-        roots, err = _polyroots(coeffs, extraprec=600)
-    except mp.libmp.NoConvergence:
-        raise OracleUnsure("polyroots did not converge") from None
-    if err > mp.mpf(10) ** (-40):
-        raise OracleUnsure(f"polyroots error {err}")
-    return list(roots)
+        with mp.workdps(_DPS):
+            return [mp.mpf(-p[0].numerator * p[1].denominator) / (p[0].denominator * p[1].numerator)]
+    with mp.workdps(_DPS):
+        coeffs = [mp.mpf(v.numerator) / v.denominator for v in p]
+        try:
+            roots, err = _polyroots(coeffs, extraprec=600)
+        except mp.libmp.NoConvergence:
+            raise OracleUnsure("polyroots did not converge") from None
+        if err > mp.mpf(10) ** (-40):
+            raise OracleUnsure(f"polyroots error {err}")
+        return list(roots)
+
+
+def poly_roots(coefs: Sequence[float]) -> list[complex]:
+    """Roots (with multiplicity) of a real polynomial whose float coefficients (increasing
+    powers) are taken exactly: square-free parts over the rationals, then 60 digits."""
+    out: list[complex] = []
+    for part, mult in squarefree_parts(_trim([Fraction(v) for v in coefs])):
+        out.extend(complex(r) for r in _mp_roots(part) for _ in range(mult))
+    return out
 
 
 def _mp_eval(p: Sequence[Fraction], s):

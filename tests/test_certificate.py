@@ -98,9 +98,11 @@ def test_transport_reflection_controller_matches_eq_boun_K2():
     assert cert.principal_delayed.gamma_0 == pytest.approx(0.95, rel=1e-13, abs=1e-14)
     assert cert.rouche.delta_0 == np.inf
     ((lo, hi),) = cert.k_region.intervals
-    tol = cert.k_region.tol  # ends resolved to the grid step of n_gains gains
-    assert tol == pytest.approx(0.3 / 10, rel=1e-13, abs=1e-14)
-    assert -0.15 < lo <= -0.15 + tol and 0.15 - tol <= hi < 0.15
+    # the exact ends: the strong-stability limit |rho q| + |K q| = 1, verified 1e-10 k inside and outside
+    assert cert.k_region.tol == pytest.approx(1e-10 * 0.15, rel=1e-12)
+    np.testing.assert_allclose([lo, hi], [-0.15, 0.15], rtol=0, atol=1e-15)
+    assert [end.kind for end in cert.k_region.ends[0]] == ["strong_stability", "strong_stability"]
+    assert cert.k_region_error == ""
     data = json.loads(cert.to_json())
     assert data["delay_margin"] == "inf" and data["k_region"]["paper_bound"] == pytest.approx(
         0.15, rel=1e-13, abs=1e-14

@@ -61,7 +61,8 @@ def test_transport_system_is_uncoupled_hyperbolic():
     assert isinstance(system, Hyperbolic2x2)
     assert system.uncoupled
     assert system.sigma_pm == 0.0 and system.sigma_mp == 0.0
-    assert system.tau == pytest.approx(1.5, rel=1e-13, abs=1e-14) and system.rho_q == pytest.approx(0.75, rel=1e-13, abs=1e-14)
+    assert system.tau == pytest.approx(1.5, rel=1e-13, abs=1e-14)
+    assert system.rho_q == pytest.approx(0.75, rel=1e-13, abs=1e-14)
     assert repr(system) == "TransportSystem(lam=1.0, mu=2.0, q=0.5, rho=1.5)"
     np.testing.assert_array_equal(system.sigma_pm_at([0.0, 1.0]), [0.0, 0.0])
 

@@ -33,6 +33,7 @@ form, the loop factors, the delay margins and the Rouché bound all use it unles
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,7 +46,7 @@ from .._validate import positive_int, renamed_keywords
 from ..errors import ParameterError
 from .system import Hyperbolic2x2
 
-__all__ = ["DEFAULT_KERNEL_GRID", "Kernels", "solve_kernels"]
+__all__ = ["DEFAULT_KERNEL_GRID", "MAX_KERNEL_GRID", "Kernels", "solve_kernels"]
 
 #: Default kernel grid (points per direction on ``[0, 1]``) of every function that solves
 #: kernels. Measured on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)`` with
@@ -53,6 +54,16 @@ __all__ = ["DEFAULT_KERNEL_GRID", "Kernels", "solve_kernels"]
 #: margin 0.2295391303 is within 1.5e-10 of its 801-point value at 201 points (1.7e-11 at
 #: 401), and ``loop_factors`` costs 0.13-0.4 s at 201 points against 0.44-0.9 s at 401.
 DEFAULT_KERNEL_GRID = 201
+#: Largest kernel grid (work bound, checked before any table is allocated): the inverse
+#: kernels solve a dense triangular system of size ``2 kernel_grid``, about 0.8 GB of
+#: work arrays at 1601 points (the finest grid of ``benchmarks/kernels.py``).
+MAX_KERNEL_GRID = 1601
+#: Resolution bound of the marching scheme: the grid step times the largest source
+#: coefficient ``max |sigma| / min(lam, mu)`` must not exceed this. Measured on
+#: ``Hyperbolic2x2(lam, 1, 1, 1, 1, 0.85)`` against 1601 points: relative error of the
+#: traces ``K(1, xi)`` 1.4e-2 to 1.4e-1 at 1/8, 0.13 to 0.42 at 1/4, 0.7 to 1 from 1/2 on
+#: (and overflow far beyond): past the bound the tables carry no information.
+RESOLUTION = 0.25
 
 Array = np.ndarray
 Fun = Callable[[Array], Array]
@@ -386,6 +397,39 @@ def _richardson(fine: Array, coarse: Array) -> Array:
     return fine + up * np.tri(n)
 
 
+def _check_resolution(system: Hyperbolic2x2, n: int) -> None:
+    """Refuse a grid too coarse for the couplings, before any table is allocated.
+
+    The marching scheme resolves the sources ``sigma / lam`` and ``sigma / mu`` only when
+    ``h max|sigma| / min(lam, mu) <= RESOLUTION`` (``h = 1 / (n - 1)``; ``max|sigma|`` on the
+    grid). When even :data:`MAX_KERNEL_GRID` points cannot do it, the slower speed is
+    named with its admissible range; otherwise ``kernel_grid`` with the size needed.
+    """
+    if system.uncoupled:
+        return
+    x = np.linspace(0.0, 1.0, n)
+    sigma = float(max(np.max(np.abs(system.sigma_pm_at(x))), np.max(np.abs(system.sigma_mp_at(x)))))
+    slow, speed = ("lam", system.lam) if system.lam <= system.mu else ("mu", system.mu)
+    with np.errstate(over="ignore"):
+        steps = sigma / (speed * RESOLUTION)  # h <= 1 / steps
+    if steps <= n - 1:
+        return
+    if steps > MAX_KERNEL_GRID - 1:
+        raise ParameterError(
+            slow,
+            f">= {sigma / (RESOLUTION * (MAX_KERNEL_GRID - 1)):.6g} for couplings up to |sigma| = {sigma:.6g} "
+            f"(min(lam, mu) >= max|sigma| / ({RESOLUTION:g} (kernel_grid - 1)) resolves the kernel equations, "
+            f"and kernel_grid is at most MAX_KERNEL_GRID = {MAX_KERNEL_GRID})",
+            speed,
+        )
+    raise ParameterError(
+        "kernel_grid",
+        f">= {math.ceil(steps) + 1} for couplings up to |sigma| = {sigma:.6g} and min(lam, mu) = {speed:.6g} "
+        f"(grid step times max|sigma| / min(lam, mu) at most {RESOLUTION:g})",
+        n,
+    )
+
+
 @renamed_keywords(n="kernel_grid")
 def solve_kernels(
     system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID, extrapolate: bool | None = None
@@ -398,7 +442,9 @@ def solve_kernels(
         The plant, eqs. (u_pde)-(IC).
     kernel_grid : int, default :data:`DEFAULT_KERNEL_GRID`
         Grid points per direction on ``[0, 1]`` (step ``h = 1 / (kernel_grid - 1)``),
-        ``>= 3``; odd when ``extrapolate`` is True. (Formerly ``n``, a deprecated alias.)
+        ``>= 3`` and ``<=`` :data:`MAX_KERNEL_GRID`; odd when ``extrapolate`` is True;
+        fine enough for the couplings (``(kernel_grid - 1) RESOLUTION >= max|sigma| /
+        min(lam, mu)``, see :data:`RESOLUTION`). (Formerly ``n``, a deprecated alias.)
     extrapolate : bool, optional
         Combine the solutions on the grids with ``kernel_grid`` and ``(kernel_grid + 1) / 2``
         points by Richardson extrapolation. The plain scheme is second order; the
@@ -414,8 +460,10 @@ def solve_kernels(
     Raises
     ------
     ParameterError
-        If ``system`` is not a :class:`Hyperbolic2x2`, or ``kernel_grid`` is too small or
-        even while ``extrapolate`` is True.
+        If ``system`` is not a :class:`Hyperbolic2x2`, or ``kernel_grid`` is too small for
+        the couplings, above :data:`MAX_KERNEL_GRID`, or even while ``extrapolate`` is
+        True; ``lam`` (or ``mu``) when no admissible grid resolves the couplings (a
+        speed below ``max|sigma| / (RESOLUTION (MAX_KERNEL_GRID - 1))``).
 
     Notes
     -----
@@ -424,7 +472,8 @@ def solve_kernels(
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2", system)
-    n = positive_int("kernel_grid", kernel_grid, minimum=3)
+    n = positive_int("kernel_grid", kernel_grid, minimum=3, maximum=MAX_KERNEL_GRID)
+    _check_resolution(system, n)
     if extrapolate is None:
         extrapolate = n % 2 == 1 and n >= 5
     if extrapolate and (n % 2 == 0 or n < 5):

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .._validate import positive_int
+from .._validate import number_array, positive_int
 from ..errors import ParameterError
 from .system import Hyperbolic2x2
 
@@ -33,13 +33,13 @@ _MIN_STEPS = 200
 _STEPS_PER_PHASE = 5.0
 # Below this |Delta| the function sinh(Delta)/Delta is evaluated by its Taylor series.
 _SERIES_RADIUS = 1e-2
+# Work bound on the Magnus steps (varying couplings), checked before integrating.
+_MAX_STEPS = 10**6
 
 
 def _as_complex(s: Any) -> np.ndarray:
-    out = np.asarray(s, dtype=complex)
-    if not np.all(np.isfinite(out)):
-        raise ParameterError("s", "finite complex numbers", s)
-    return out
+    """``s`` as a complex array of finite numbers, at least one (strings, booleans, ragged refused)."""
+    return number_array("s", s, ndim=None).astype(complex)
 
 
 def _constant_scaled(system: Hyperbolic2x2, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -136,6 +136,13 @@ def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False, steps
     ndarray of complex
         The boundary function at ``s``, for the solution with ``[u; v](0) = [q; 1]``.
 
+    Raises
+    ------
+    ParameterError
+        Bad input; an ``s`` at which the function overflows (e.g. ``Re s tau`` below about
+        ``-700``, or ``Re s / mu`` above about 700 unscaled); for varying couplings an ``s``
+        so large that the default Magnus steps exceed 10**6.
+
     Notes
     -----
     Constant couplings: closed-form 2x2 matrix exponential, exact to rounding.
@@ -148,12 +155,30 @@ def boundary_function(system: Hyperbolic2x2, s: Any, scaled: bool = False, steps
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2", system)
     s_arr = _as_complex(s)
-    if system.constant_couplings:
-        u1, v1 = _constant_scaled(system, s_arr)
-    else:
-        n_steps = magnus_steps(system, s_arr) if steps is None else positive_int("steps", steps)
-        u1, v1 = _magnus_scaled(system, s_arr, n_steps)
-    out = v1 - system.rho * u1
-    if not scaled:
-        out = out * np.exp(s_arr / system.mu)
+    with np.errstate(all="ignore"):  # overflow is checked on the result
+        if system.constant_couplings:
+            u1, v1 = _constant_scaled(system, s_arr)
+        else:
+            if steps is None:
+                n_steps = magnus_steps(system, s_arr)
+                if n_steps > _MAX_STEPS:
+                    raise ParameterError(
+                        "s",
+                        f"of modulus at most {_MAX_STEPS / (_STEPS_PER_PHASE * system.tau):.6g} for varying couplings "
+                        f"(the default Magnus steps, {_STEPS_PER_PHASE:g} |s| tau, are at most {_MAX_STEPS})",
+                        f"max |s| = {np.max(np.abs(s_arr)):.6g}",
+                    )
+            else:
+                n_steps = positive_int("steps", steps, maximum=_MAX_STEPS)
+            u1, v1 = _magnus_scaled(system, s_arr, n_steps)
+        out = v1 - system.rho * u1
+        if not scaled:
+            out = out * np.exp(s_arr / system.mu)
+    bad = ~np.isfinite(out)
+    if np.any(bad):
+        raise ParameterError(
+            "s",
+            "where the boundary function is representable in double precision (it overflows there)",
+            complex(s_arr[bad].flat[0]),
+        )
     return out

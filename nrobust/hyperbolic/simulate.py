@@ -172,20 +172,35 @@ class Simulation:
         return {"type": "Simulation", **fields_dict(self)}
 
 
+def _real_state(name: str, raw: Any, expected: str) -> Array:
+    """``raw`` as a float array; complex values with a nonzero imaginary part, booleans,
+    strings and ragged sequences are refused (the simulated state is real)."""
+    try:
+        arr = np.asarray(raw)
+    except (TypeError, ValueError):  # ragged nesting
+        raise ParameterError(name, expected, raw) from None
+    if arr.dtype.kind == "c":
+        if np.any(arr.imag != 0):
+            raise ParameterError(name, "real-valued (simulate evolves real states)", "complex values")
+        arr = arr.real
+    if arr.dtype.kind not in "iuf":
+        raise ParameterError(name, expected, raw)
+    return arr.astype(float)
+
+
 def _initial(name: str, value: InitialState, x: Array) -> Array:
     """Sample an initial condition (callable or node values) on the nodes ``x``."""
     if callable(value):
+        expected = "a callable returning real numbers on arrays of x"
         try:
-            out = np.asarray(value(x), dtype=float)
+            raw = value(x)
         except (TypeError, ValueError):
-            raise ParameterError(name, "a callable returning real numbers on arrays of x", value) from None
+            raise ParameterError(name, expected, value) from None
+        out = _real_state(name, raw, expected)
         if out.shape == ():
             out = np.full(x.shape, float(out))
     else:
-        try:
-            out = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ParameterError(name, f"a callable or an array of {x.size} node values", value) from None
+        out = _real_state(name, value, f"a callable or an array of {x.size} node values")
     if out.shape != x.shape:
         raise ParameterError(name, f"{x.size} values, one per node", f"shape {out.shape}")
     if not np.all(np.isfinite(out)):
@@ -373,7 +388,16 @@ class _Recorder:
         self.v: list[Array] = []
 
     def __call__(self, j: int, u: Array, v: Array) -> None:
-        self.norm[j] = math.sqrt(float(self.wu @ (u * u) + self.wv @ (v * v)))
+        with np.errstate(over="ignore"):
+            square = float(self.wu @ (u * u) + self.wv @ (v * v))
+        if math.isinf(square):  # |state| above ~1e154: the squares overflow, the norm may not
+            scale = float(max(np.max(np.abs(u)), np.max(np.abs(v))))
+            if math.isfinite(scale):
+                self.norm[j] = scale * math.sqrt(float(self.wu @ (u / scale) ** 2 + self.wv @ (v / scale) ** 2))
+            else:
+                self.norm[j] = scale  # an overflowed state
+        else:
+            self.norm[j] = math.sqrt(square)
         if (self.every is not None and j % self.every == 0) or j == self.steps:
             self.index.append(j)
             self.u.append(u.copy())
@@ -393,7 +417,7 @@ def _march_lattice(
     det_i = 1.0 - spm[1:-1] * smp[1:-1]
     det_0 = 1.0 - smp[0] * system.q
     if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
-        raise ParameterError("n", "large enough for the trapezoidal coupling step to be solvable", n)
+        raise ParameterError("cells", "large enough for the trapezoidal coupling step to be solvable", n)
     inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
     wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
     for j in range(1, steps + 1):
@@ -425,8 +449,8 @@ def _v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
     nodes = 1.0 - hv * (np.arange(count, -1, -1) + offset)
     if nodes[0] <= 1e-9 * hv:
         nodes[0] = 0.0
-        return nodes
-    return np.concatenate([[0.0], nodes])
+        return nodes.astype(np.float64)
+    return np.concatenate([[0.0], nodes]).astype(np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -623,7 +647,14 @@ def simulate(
 
     lattice = abs(system.mu - system.lam) <= 1e-12 * system.lam
     dt = 1.0 / (system.lam * n)
+    if not math.isfinite(t_end / dt):
+        raise ParameterError("(cells, t_end)", f"at most max_updates = {max_updates} node updates", "inf")
     steps = max(1, math.ceil(t_end / dt - 1e-9))
+    # the work bound before any grid is allocated (a lower bound of the node count below:
+    # at least floor(1/(mu dt)) + 1 nodes of v, see _v_grid)
+    nodes_min = 2 * n if lattice else n + 2 + math.floor(1.0 / (system.mu * dt) + 1e-9)
+    if steps * nodes_min > max_updates:
+        raise ParameterError("(cells, t_end)", f"at most max_updates = {max_updates} node updates", steps * nodes_min)
     x = np.linspace(0.0, 1.0, n + 1)
     xv = x if lattice else v_nodes(system, n)
     if xv.size < 4:
@@ -653,7 +684,7 @@ def simulate(
     else:
         _march_two_grids(system, x, xv, u, v, dt, steps, loop, record)
 
-    times = dt * np.arange(steps + 1)
+    times = (dt * np.arange(steps + 1)).astype(np.float64)
     return Simulation(
         times=times,
         norm=record.norm,

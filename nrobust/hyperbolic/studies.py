@@ -11,21 +11,24 @@ takes ``executor=`` and runs its grid through :func:`nrobust.parallel.sweep_map`
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._json import fields_dict
-from .._validate import positive, positive_int, renamed_keywords
-from ..errors import ParameterError
+from .._json import fields_dict, json_safe
+from .._validate import is_real_number, positive, positive_int, real_array, renamed_keywords
+from ..bounds import root_free_region
+from ..crossings import frequency_bound
+from ..errors import CertificationError, ParameterError
 from ..margins import DelayMargin
 from ..margins import delay_margin as factor_delay_margin
 from ..parallel import sweep_map
 from ..quasipoly import QuasiPolynomial
-from ..roots import spectral_abscissa
+from ..roots import count_roots, spectral_abscissa
 from .controllers import (
     Controller,
     FilteredController,
@@ -40,7 +43,9 @@ from .system import Hyperbolic2x2
 
 __all__ = [
     "DEFAULT_N_GAINS",
+    "END_KINDS",
     "ABRegion",
+    "GainEnd",
     "KRegion",
     "StabilityChart",
     "Tradeoff",
@@ -53,10 +58,11 @@ __all__ = [
 ]
 
 #: Default number of gains of the grid of :func:`k_region` (and of
-#: :func:`nrobust.certify`'s K-region). The grid only has to put one gain inside each
-#: admissible interval; bisection then resolves its ends. On the paper's plant
-#: (``delta_max = 0.1``) 9 and 41 gains give the same interval ends to 7e-7 (below the
-#: default ``tol``) in 56 s against 81 s, and a certificate's K-region costs 2 s against 20 s.
+#: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their
+#: equations whatever the grid; its delay margins are reported and must agree with the
+#: intervals (a cross-check, about 0.2 s per gain on the paper's plant). For other
+#: controller families the grid has to put one gain inside each admissible interval, whose
+#: ends are then bisected.
 DEFAULT_N_GAINS = 9
 
 
@@ -174,10 +180,551 @@ def _check_system(system: Any) -> None:
 
 
 def _grid(name: str, values: ArrayLike) -> NDArray[np.float64]:
-    arr = np.atleast_1d(np.asarray(values, dtype=float))
-    if arr.ndim != 1 or arr.size < 1 or not np.all(np.isfinite(arr)):
-        raise ParameterError(name, "a non-empty 1-D array of finite numbers", values)
-    return arr
+    """A non-empty 1-D grid of finite reals (a number is a grid of one); booleans and strings are refused."""
+    return real_array(name, [values] if is_real_number(values) else values)
+
+
+# ============================================================================ exact ends of the K-region
+#: Kinds of the end of an admissible interval of gains (:attr:`GainEnd.kind`).
+END_KINDS = ("crossing", "pair_birth", "nominal", "strong_stability", "bisection")
+# Scan step on the axis: dw = pi / (_SCAN_STEPS T) rounded down to a power of two, T the
+# longest delay of the scanned functions (A e^{i w (tau + delta)} / R has 2 max_delay + delta):
+# at least 2 _SCAN_STEPS samples per period of their fastest oscillation.
+_SCAN_STEPS = 4
+# The bracketed solves stop at this relative width in w (or after _MAX_SOLVE steps).
+_W_RTOL = 1e-14
+# The same for the roots of the interpolants (their error is about 1e-8: a root to 1e-10 is
+# all they can give; those that matter are solved again on the loop).
+_MODEL_RTOL = 1e-10
+_MAX_SOLVE = 400
+# The first scan covers |K| <= (1 - _FIRST_CAP) k, k the paper's bound; without a critical
+# gain past a cap, the next cap is k - (k - cap) / _CAP_SHRINK.
+_FIRST_CAP = 0.125
+_CAP_SHRINK = 4.0
+# The interpolated loop's answers are trusted to _MODEL_SAFETY times its error bound; a
+# solve on the loop starts from a bracket of half-width _BRACKET_CELLS scan steps about them.
+_MODEL_SAFETY = 10.0
+_BRACKET_CELLS = 1e-3
+# A crossing of the margin outside an end belongs to the end's event within this relative
+# distance of its frequency.
+_OMEGA_RTOL = 1e-3
+# Order of the kinds when two events fall on the same gain (to rounding).
+_KIND_ORDER = {"nominal": 0, "crossing": 1, "pair_birth": 2, "strong_stability": 3}
+
+
+class GainEnd(NamedTuple):
+    """One end of an admissible interval of gains and the event that closes it.
+
+    Attributes
+    ----------
+    K : float
+        The gain at the end (the interval is open: ``K`` itself is not admissible).
+    kind : str
+        ``"crossing"``: a root reaches the axis at ``i omega`` for ``delta = delta_max``,
+        ``A(i w) + B(i w; K) e^{-i w delta_max} = 0`` (a branch of crossing delays passes
+        ``delta_max``); ``"pair_birth"``: ``g(w) = |A(i w)|^2 - |B(i w; K)|^2`` has a double
+        zero at ``omega`` (``g = dg/dw = 0``), a pair of crossing frequencies is born with
+        crossing delay ``delay <= delta_max``; ``"nominal"``: a root on the axis at
+        ``delta = 0`` (the nominal loop loses stability; ``omega = 0`` for ``s = 0``);
+        ``"strong_stability"``: ``|rho q| + |K q| = 1``, the difference operator stops being
+        strongly stable (roots come from ``omega = inf`` at delays down to ``0``);
+        ``"bisection"``: located by bisection on delay margins (a ``controller`` family other
+        than ``U_BS2(K)``; ``omega`` and ``delay`` are the first crossing of the margin just
+        outside, ``inf`` and that margin if it has none).
+    omega : float
+        Frequency of the root on the axis (``inf`` at the strong-stability limit).
+    delay : float
+        Delay at which it is there: ``delta_max``, the birth delay, or ``0`` (never ``nan``).
+    """
+
+    K: float
+    kind: str
+    omega: float
+    delay: float
+
+
+@dataclass(frozen=True)
+class _Axis:
+    """``A``, ``B_0``, ``R`` at ``s = i w`` and (when computed) their derivatives in ``w``."""
+
+    w: NDArray[np.float64]
+    a: NDArray[np.complex128]
+    b0: NDArray[np.complex128]
+    r: NDArray[np.complex128]
+    da: NDArray[np.complex128] | None = None
+    db0: NDArray[np.complex128] | None = None
+    dr: NDArray[np.complex128] | None = None
+
+    def k_at_delay(self, delta: float) -> NDArray[np.complex128]:
+        """The complex ``K`` with ``A + (B_0 + K R) e^{-i w delta} = 0``: a crossing where it is real."""
+        return -(self.a * np.exp(1j * self.w * delta) + self.b0) / self.r
+
+    def branches(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(D, m, sqrt D)``: ``|A|^2 = |B_0 + K R|^2`` at ``K = m +- sqrt D`` (``D >= 0``).
+
+        With ``u = B_0/R``: ``g = |R|^2 (|A|^2/|R|^2 - (K + Re u)^2 - (Im u)^2)``, quadratic in
+        ``K``; ``m = -Re u`` and ``D = |A|^2/|R|^2 - (Im u)^2``.
+        """
+        u = self.b0 / self.r
+        D = np.abs(self.a) ** 2 / np.abs(self.r) ** 2 - u.imag**2
+        return D, -u.real, np.sqrt(np.maximum(D, 0.0))
+
+    def branch_slopes(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(m', D')``, so that ``dK/dw = m' +- D' / (2 sqrt D)`` on the branches."""
+        assert self.da is not None and self.db0 is not None and self.dr is not None
+        u = self.b0 / self.r
+        du = (self.db0 * self.r - self.b0 * self.dr) / self.r**2
+        r2 = np.abs(self.r) ** 2
+        da2 = 2.0 * (np.conj(self.a) * self.da).real
+        dr2 = 2.0 * (np.conj(self.r) * self.dr).real
+        return -du.real, (da2 * r2 - np.abs(self.a) ** 2 * dr2) / r2**2 - 2.0 * u.imag * du.imag
+
+    def delays(self, K: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        """Smallest ``delta >= 0`` with ``i w`` a root of the loop with gain ``K`` (where ``|A| = |B|``)."""
+        return np.mod(np.angle(-(self.b0 + K * self.r) / self.a), 2.0 * np.pi) / self.w
+
+
+@dataclass(frozen=True)
+class _AffineLoop:
+    """``F(s; delta, K) = A(s) + (B_0(s) + K R(s)) e^{-delta s}``: ``U_BS2(K)``'s loop, affine in ``K``.
+
+    From :func:`loop_factors`: ``A = 1 - Phi``, ``B = K q e^{-tau s} - I_N``, so
+    ``B_0 = -I_N`` (the factor at ``K = 0``) and ``R = q e^{-tau s}`` (its change per unit gain).
+    """
+
+    A: QuasiPolynomial
+    B0: QuasiPolynomial
+    R: QuasiPolynomial
+    #: ``A + B_0``: the distributed parts cancel (``I_N - I_N``), so ``A(i w)`` costs one
+    #: evaluation of ``B_0`` (``A = S - B_0``).
+    S: QuasiPolynomial = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "S", self.A + self.B0)
+
+    @classmethod
+    def of(cls, system: Hyperbolic2x2) -> _AffineLoop:
+        """The loop of ``U_BS2(K)`` on ``system`` (``R`` checked to be the gain's factor)."""
+        A, B0 = loop_factors(system, ReflectionController(0.0))
+        A1, B1 = loop_factors(system, ReflectionController(1.0))
+        R = B1 - B0
+        if A1 != A or R.distributed or R != QuasiPolynomial([[system.q]], [system.tau]):
+            raise CertificationError("k_region: the U_BS2(K) loop is not A + (B_0 + K q e^{-tau s}) e^{-delta s}")
+        return cls(A, B0, R)
+
+    def axis(self, w: NDArray[np.float64], slopes: bool = False) -> _Axis:
+        s = 1j * np.asarray(w, dtype=float)
+        b0 = self.B0(s)
+        if not slopes:
+            return _Axis(s.imag, self.S(s) - b0, b0, self.R(s))
+        db0 = 1j * self.B0.deriv_at(s)
+        return _Axis(s.imag, self.S(s) - b0, b0, self.R(s), 1j * self.S.deriv_at(s) - db0, db0, 1j * self.R.deriv_at(s))
+
+    def B(self, K: float) -> QuasiPolynomial:
+        return self.B0 + self.R * K
+
+    def loop_at(self, K: float, delta: float) -> QuasiPolynomial:
+        """``F(.; delta, K)``."""
+        B = self.B(K)
+        return self.A + (B.shift(delta) if delta > 0 else B)
+
+
+def _junction(at: _Axis) -> NDArray[np.float64]:
+    """``D``: zero where the two branches ``K_pm`` meet."""
+    return at.branches()[0]
+
+
+def _branch_slope(at: _Axis, sign: float) -> NDArray[np.float64]:
+    """``dK/dw`` on the branch ``K = m + sign sqrt(D)`` (zero at a pair birth)."""
+    mx, Dx = at.branch_slopes()
+    return mx + sign * Dx / (2.0 * np.maximum(at.branches()[2], 1e-300))
+
+
+def _solve(
+    f: Callable[[NDArray[np.float64], NDArray[np.intp]], NDArray[np.float64]],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    flo: NDArray[np.float64],
+    fhi: NDArray[np.float64],
+    rtol: float = _W_RTOL,
+) -> NDArray[np.float64]:
+    """Zeros of ``f`` in the brackets ``[lo, hi]`` (``f(lo) f(hi) <= 0``), all brackets at once.
+
+    ``f(x, k)`` evaluates at the points ``x`` of the brackets ``k``. Illinois steps (regula
+    falsi halving the value kept twice), a bisection every fourth step; each bracket stops
+    at the relative width ``rtol``.
+    """
+    lo, hi, flo, fhi = (np.array(v, dtype=float) for v in (lo, hi, flo, fhi))
+    out = np.where(flo == 0, lo, np.where(fhi == 0, hi, np.nan))
+    side = np.zeros(lo.size, dtype=int)
+    for it in range(_MAX_SOLVE):
+        active = np.flatnonzero(np.isnan(out) & (hi - lo > rtol * np.maximum(np.abs(lo), np.abs(hi))))
+        if not active.size:
+            break
+        a, b, fa, fb = lo[active], hi[active], flo[active], fhi[active]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (a * fb - b * fa) / (fb - fa)
+        bisect = ~np.isfinite(x) | (x <= a) | (x >= b) | (it % 4 == 3)
+        x[bisect] = 0.5 * (a + b)[bisect]
+        fx = f(x, active)
+        out[active[fx == 0]] = x[fx == 0]
+        left = fx * fa < 0
+        right = ~left & (fx != 0)
+        i, j = active[left], active[right]
+        hi[i], fhi[i] = x[left], fx[left]
+        flo[i] = np.where(side[i] == 1, 0.5 * flo[i], flo[i])
+        side[i] = 1
+        lo[j], flo[j] = x[right], fx[right]
+        fhi[j] = np.where(side[j] == -1, 0.5 * fhi[j], fhi[j])
+        side[j] = -1
+    return np.where(np.isnan(out), 0.5 * (lo + hi), out)
+
+
+def _sign_changes(f: NDArray[np.float64], valid: NDArray[np.bool_] | None = None) -> NDArray[np.intp]:
+    """Indices ``j`` where ``f`` changes sign on ``[j, j + 1]`` (both samples valid)."""
+    change = (np.sign(f[:-1]) * np.sign(f[1:]) < 0) | ((f[:-1] == 0) & (f[1:] != 0))
+    if valid is not None:
+        change &= valid[:-1] & valid[1:]
+    return np.flatnonzero(change)
+
+
+def _sixth_derivative_bound(P: QuasiPolynomial) -> float:
+    """Bound of ``|d^6 P(i w) / dw^6|`` over real ``w`` (``inf`` if a term has a polynomial factor)."""
+    if any(p.size > 1 for p, _ in P.point_terms) or any(d.poly.size > 1 for d in P.distributed):
+        return float("inf")
+    total = sum(float(np.abs(p[0])) * t**6 for p, t in P.point_terms)
+    return total + sum(float(np.abs(d.poly[0]) * d.abs_moment(0.0, 6)) for d in P.distributed)
+
+
+class _AxisGrid:
+    """``S = A + B_0``, ``B_0``, ``R`` and two ``w``-derivatives at ``w_k = k dw``, with interpolants.
+
+    Off a uniform grid each evaluation of the kernel ``I_N`` costs ``O(nodes)``; on it one
+    chirp-z transform gives every sample. Between samples, quintic Hermite interpolants
+    (:meth:`model`) stand for the loop, with an error below :attr:`error` (``dw^6 / 46080``
+    times the sixth derivatives); they locate every root of the scan, and only those that
+    decide the region are solved again on the loop itself (:meth:`_Scan._exact`). The grid
+    grows with :meth:`extend` and keeps its samples.
+    """
+
+    def __init__(self, loop: _AffineLoop, dw: float) -> None:
+        self.loop, self.dw = loop, dw
+        self.w = np.zeros(0)
+        self.parts: tuple[NDArray[np.complex128], ...] = tuple(np.zeros(0, dtype=complex) for _ in range(9))
+        self._first = tuple(P.derivative() for P in (loop.S, loop.B0, loop.R))
+        self.roots: dict[tuple, NDArray[np.float64]] = {}  # the scans' roots of the interpolants
+        sixth = sum(_sixth_derivative_bound(P) for P in (loop.S, loop.B0, loop.B0, loop.R))
+        #: Bound of the interpolation error of ``|A| + |B_0| + |R|`` between samples.
+        self.error = float(sixth * dw**6 / 46080.0)
+
+    def extend(self, W: float) -> None:
+        """Samples up to ``W`` (at least 16)."""
+        n = max(int(np.ceil(W / self.dw)), 16)
+        if n <= self.w.size:
+            return
+        s = 1j * self.dw * np.arange(self.w.size + 1, n + 1)
+        new = []
+        for P, P1 in zip((self.loop.S, self.loop.B0, self.loop.R), self._first):
+            new += [P(s), 1j * P1(s), -P1.deriv_at(s)]  # P(i w) and its first two w-derivatives
+        self.parts = tuple(np.concatenate([old, part]) for old, part in zip(self.parts, new))
+        self.w = np.concatenate([self.w, s.imag])
+
+    def samples(self, n: int) -> _Axis:
+        """The loop at the first ``n`` samples, with slopes."""
+        S, dS, _, B0, dB0, _, R, dR, _ = (p[:n] for p in self.parts)
+        return _Axis(self.w[:n], S - B0, B0, R, dS - dB0, dB0, dR)
+
+    def model(self, j: NDArray[np.intp], x: NDArray[np.float64], slopes: bool = False) -> _Axis:
+        """The interpolated loop at ``x`` in ``[w_j, w_{j+1}]``."""
+        h, t = self.dw, (x - self.w[j]) / self.dw
+        t2, t3, t4, t5 = t**2, t**3, t**4, t**5
+        basis = (
+            1 - 10 * t3 + 15 * t4 - 6 * t5,
+            (t - 6 * t3 + 8 * t4 - 3 * t5) * h,
+            (t2 - 3 * t3 + 3 * t4 - t5) * h**2 / 2,
+            10 * t3 - 15 * t4 + 6 * t5,
+            (-4 * t3 + 7 * t4 - 3 * t5) * h,
+            (t3 - 2 * t4 + t5) * h**2 / 2,
+        )
+
+        def interp(f: NDArray, df: NDArray, ddf: NDArray, b: tuple) -> NDArray[np.complex128]:
+            return b[0] * f[j] + b[1] * df[j] + b[2] * ddf[j] + b[3] * f[j + 1] + b[4] * df[j + 1] + b[5] * ddf[j + 1]
+
+        S, dS, ddS, B0, dB0, ddB0, R, dR, ddR = self.parts
+        s, b0, r = interp(S, dS, ddS, basis), interp(B0, dB0, ddB0, basis), interp(R, dR, ddR, basis)
+        if not slopes:
+            return _Axis(x, s - b0, b0, r)
+        slope = (
+            (-30 * t2 + 60 * t3 - 30 * t4) / h,
+            1 - 18 * t2 + 32 * t3 - 15 * t4,
+            (2 * t - 9 * t2 + 12 * t3 - 5 * t4) * h / 2,
+            (30 * t2 - 60 * t3 + 30 * t4) / h,
+            -12 * t2 + 28 * t3 - 15 * t4,
+            (3 * t2 - 8 * t3 + 5 * t4) * h / 2,
+        )
+        ds, db0 = interp(S, dS, ddS, slope), interp(B0, dB0, ddB0, slope)
+        return _Axis(x, s - b0, b0, r, ds - db0, db0, interp(R, dR, ddR, slope))
+
+
+class _Scan:
+    """The loop on ``0 < w <= W``: its critical gains and crossing curves ``K_pm(w)``.
+
+    The verdict "stable for every delay in ``[0, delta_max]``" can change with ``K`` only
+    at a *critical gain*: a root on the axis at ``delta = delta_max`` (``Im K_delta(w) = 0``),
+    at ``delta = 0`` (the same with ``delta = 0``; ``w = 0`` included), or a pair birth with
+    delay ``<= delta_max`` (an extremum in ``w`` of a root ``K_pm(w)`` of ``g``). Gains whose
+    crossing frequencies all lie in ``(0, W]`` (every ``|K|`` whose frequency bound is ``<= W``)
+    have all their critical gains found, up to the sampling step ``dw``. Every root is first
+    located on the interpolants of :class:`_AxisGrid`; critical gains in ``window`` are then
+    solved on the loop to ``_W_RTOL`` in ``w``, the others only keep an estimate
+    (:attr:`beyond`), to choose the next window.
+    """
+
+    def __init__(self, grid: _AxisGrid, delta_max: float, kb: float, W: float, window: tuple[float, float]) -> None:
+        loop = grid.loop
+        self.loop, self.grid, self.delta_max = loop, grid, delta_max
+        lo_w, hi_w = window
+        grid.extend(W)
+        n = max(int(np.ceil(W / grid.dw)), 16)
+        ax = grid.samples(n)
+        w = ax.w
+        # what the interpolants may be off by: in K (|R| = |q| for U_BS2) and in the phase of B/A
+        r_min = float(np.min(np.abs(ax.r)))
+        self.margin = margin = _MODEL_SAFETY * grid.error / r_min + 1e-12 * kb
+        self.phase_margin = _MODEL_SAFETY * grid.error / max(float(np.min(np.abs(ax.a))), 1e-300)
+        crit: list[GainEnd] = []
+        self.beyond: list[float] = []  # estimates of the critical gains outside the window
+
+        def keep(K: float, kind: str, x: float, delta: float) -> None:
+            if lo_w <= K <= hi_w:
+                crit.append(GainEnd(float(K), kind, float(x), float(delta)))
+            elif -kb < K < kb:
+                self.beyond.append(float(K))
+
+        def sort_out(K_model: NDArray[np.float64]) -> NDArray[np.bool_]:
+            """Mask of the model's critical gains to solve on the loop; the rest go to ``beyond``."""
+            near = (K_model >= lo_w - margin) & (K_model <= hi_w + margin)
+            self.beyond.extend(K_model[~near & (np.abs(K_model) < kb)].tolist())
+            return near
+
+        # (a) and (c): a root on the axis at delta = delta_max or 0, Im K_delta(w) = 0
+        for delta, event in ((delta_max, "crossing"), (0.0, "nominal")):
+
+            def imag_k(at: _Axis, delta: float = delta) -> NDArray[np.float64]:
+                return at.k_at_delay(delta).imag
+
+            j = _sign_changes(ax.k_at_delay(delta).imag)
+            xm = self._model_roots(imag_k, j, ("delay", delta))
+            near = sort_out(grid.model(j, xm).k_at_delay(delta).real)
+            xs = self._exact(imag_k, j[near], xm[near])
+            for K, x in zip(loop.axis(xs).k_at_delay(delta).real, xs):
+                keep(K, event, x, delta)
+        s0 = np.array([0j])
+        K0 = -complex(loop.S(s0)[0]) / complex(loop.R(s0)[0])  # s = 0 is a root for every delay
+        if abs(K0.imag) <= 1e-12 * max(abs(K0), 1.0):
+            keep(K0.real, "nominal", 0.0, 0.0)
+        # (b): the branches K_pm(w) of |A| = |B|, their extrema (pair births) and junctions (D = 0)
+        D, m, root = ax.branches()
+        dm, dD = ax.branch_slopes()
+        valid = D > 0
+        jj = _sign_changes(D)
+        xj = self._model_roots(_junction, jj, ("junction",))
+        Kj = grid.model(jj, xj).branches()[1]
+        self.nodes: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp], NDArray[np.int_]]] = []
+        for sign in (1.0, -1.0):
+            Kb = np.where(valid, m + sign * root, np.nan)
+            slope = np.where(valid, dm + sign * dD / (2.0 * np.where(valid, root, 1.0)), 0.0)
+            je = _sign_changes(slope, valid)
+
+            def dK(at: _Axis, sign: float = sign) -> NDArray[np.float64]:
+                return _branch_slope(at, sign)
+
+            xe = self._model_roots(dK, je, ("extremum", sign), slopes=True)
+            at = grid.model(je, xe)
+            Ke = at.branches()[1] + sign * at.branches()[2]
+            births = at.delays(Ke) <= delta_max + self.phase_margin / np.maximum(xe, 1e-300)
+            near = births & sort_out(np.where(births, Ke, np.inf))
+            xs = self._exact(dK, je[near], xe[near], slopes=True)
+            at = loop.axis(xs)
+            _, mx, rx = at.branches()
+            for K, x, d in zip(mx + sign * rx, xs, at.delays(mx + sign * rx)):
+                if d <= delta_max:
+                    keep(K, "pair_birth", x, d)
+            # nodes of the branch: samples (exact), extrema and junctions (interpolated), with their cells
+            nw = np.concatenate([w, xe, xj])
+            order = np.argsort(nw, kind="stable")
+            cell = np.concatenate([np.arange(n), je, jj])
+            kind = np.concatenate([np.zeros(n, dtype=int), np.ones(xe.size, dtype=int), np.full(xj.size, 2)])
+            self.nodes.append((nw[order], np.concatenate([Kb, Ke, Kj])[order], cell[order], kind[order]))
+        self.critical = sorted(crit, key=lambda e: (e.K, _KIND_ORDER[e.kind]))
+
+    def _model_roots(
+        self, f: Callable[[_Axis], NDArray[np.float64]], j: NDArray[np.intp], key: tuple, slopes: bool = False
+    ) -> NDArray[np.float64]:
+        """Zeros of ``f`` of the interpolated loop in the cells ``[w_j, w_{j+1}]`` (a sign change each).
+
+        Kept by the grid under ``key`` and the cells: a later window on the same grid reuses them.
+        """
+        memo = (key, j.tobytes())
+        if memo not in self.grid.roots:
+            w, model = self.grid.w, self.grid.model
+            f_lo, f_hi = f(model(j, w[j], slopes)), f(model(j, w[j + 1], slopes))
+            self.grid.roots[memo] = _solve(
+                lambda x, k: f(model(j[k], x, slopes)), w[j], w[j + 1], f_lo, f_hi, _MODEL_RTOL
+            )
+        return self.grid.roots[memo]
+
+    def _exact(
+        self,
+        f: Callable[[_Axis], NDArray[np.float64]],
+        j: NDArray[np.intp],
+        x0: NDArray[np.float64],
+        slopes: bool = False,
+    ) -> NDArray[np.float64]:
+        """Zeros of ``f`` of the loop itself near the model's ``x0`` (in the cells ``j``)."""
+        if not j.size:
+            return x0
+        loop, w = self.loop, self.grid.w
+        half = _BRACKET_CELLS * self.grid.dw
+        lo, hi = np.maximum(x0 - half, w[j]), np.minimum(x0 + half, w[j + 1])
+        f_lo, f_hi = f(loop.axis(lo, slopes)), f(loop.axis(hi, slopes))
+        wide = np.sign(f_lo) * np.sign(f_hi) > 0  # the model's root is too far off: the whole cell
+        if wide.any():
+            lo[wide], hi[wide] = w[j[wide]], w[j[wide] + 1]
+            f_lo[wide], f_hi[wide] = f(loop.axis(lo[wide], slopes)), f(loop.axis(hi[wide], slopes))
+        return _solve(lambda x, k: f(loop.axis(x, slopes)), lo, hi, f_lo, f_hi)
+
+    def crossings(self, K: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Crossing frequencies of the loop with gain ``K`` in ``(0, W]`` and their smallest delays.
+
+        From the interpolated loop, except where its error matters: an extremum or junction
+        of a branch within :attr:`margin` of ``K`` is solved again on the loop, and so are the
+        crossings next to it, and every crossing whose delay is closer to ``delta_max`` than
+        the interpolants' error allows.
+        """
+        loop, model = self.loop, self.grid.model
+        ws, ds = [], []
+        for sign, (nw, nK, cell, kind) in zip((1.0, -1.0), self.nodes):
+            doubt = (kind > 0) & (np.abs(nK - K) <= self.margin)
+            if doubt.any():
+
+                def slope_of(at: _Axis, sign: float = sign) -> NDArray[np.float64]:
+                    return _branch_slope(at, sign)
+
+                nw, nK = nw.copy(), nK.copy()
+                ext, jun = np.flatnonzero(doubt & (kind == 1)), np.flatnonzero(doubt & (kind == 2))
+                nw[ext] = self._exact(slope_of, cell[ext], nw[ext], slopes=True)
+                nw[jun] = self._exact(_junction, cell[jun], nw[jun])
+                _, mx, rx = loop.axis(nw[doubt]).branches()
+                nK[doubt] = mx + np.where(kind[doubt] == 1, sign * rx, 0.0)
+            f = nK - K
+            i = _sign_changes(f, np.isfinite(f))
+            j = cell[i]
+
+            def on_branch(at: _Axis, sign: float = sign) -> NDArray[np.float64]:
+                _, mx, rx = at.branches()
+                return mx + sign * rx - K
+
+            def interpolated(x: NDArray[np.float64], k: NDArray[np.intp], j: NDArray[np.intp] = j) -> NDArray:
+                return on_branch(model(j[k], x))
+
+            x = _solve(interpolated, nw[i], nw[i + 1], f[i], f[i + 1], _MODEL_RTOL)
+            exact = doubt[i] | doubt[i + 1]
+            if exact.any():
+                e = np.flatnonzero(exact)
+                x[e] = _solve(lambda x, k: on_branch(loop.axis(x)), nw[i[e]], nw[i[e] + 1], f[i[e]], f[i[e] + 1])
+            d = np.where(exact, 0.0, model(j, x).delays(K))
+            close = exact | (np.abs(d - self.delta_max) * x <= self.phase_margin)
+            if close.any():
+                x[close & ~exact] = self._exact(on_branch, j[close & ~exact], x[close & ~exact])
+                d[close] = loop.axis(x[close]).delays(K)
+            ws.append(x)
+            ds.append(d)
+        return np.concatenate(ws), np.concatenate(ds)
+
+
+def _nominally_stable(loop: _AffineLoop, K: float) -> bool:
+    """Certified: ``F(.; 0, K)`` has no zero with ``Re s >= 0`` (all lie in the root-free radius)."""
+    F = loop.loop_at(K, 0.0)
+    r = 1.01 * root_free_region(F).radius + 1e-9
+    return int(count_roots(F, (0.0, r, -r, r))) == 0
+
+
+def _scan_step(loop: _AffineLoop, delta_max: float) -> float:
+    """``pi / (_SCAN_STEPS T)`` rounded down to a power of two.
+
+    A power of two makes every sample ``k dw`` exact, so that each extension of the grid
+    is recognised as a uniform line (chirp-z) by :meth:`QuasiPolynomial.__call__`.
+    """
+    T = 2.0 * max(loop.A.max_delay, loop.B0.max_delay, loop.R.max_delay) + delta_max
+    return float(2.0 ** np.floor(np.log2(np.pi / (_SCAN_STEPS * max(T, 1e-3)))))
+
+
+def _locate_ends(loop: _AffineLoop, delta_max: float, kb: float, tol: float, max_evals: int) -> list[tuple]:
+    """The admissible intervals of ``(-kb, kb)`` as pairs of :class:`GainEnd`, located by their equations.
+
+    A scan of the axis up to the frequency bound of the largest gain considered (the
+    *cap*) finds the critical gains; the verdict is constant between two of them and is
+    taken at their midpoint (crossings of :meth:`_Scan.crossings` with a delay
+    ``<= delta_max``; nominal stability counted once between two nominal critical gains).
+    While an admissible interval reaches a cap, the cap moves towards ``kb``; an interval
+    still admissible within ``tol`` of ``kb`` ends at the strong-stability limit.
+    """
+    dw = _scan_step(loop, delta_max)
+    grid = _AxisGrid(loop, dw)
+    caps = [-kb * (1.0 - _FIRST_CAP), kb * (1.0 - _FIRST_CAP)]
+    open_end = [False, False]
+    nominal: dict[tuple[float | None, float | None], bool] = {}
+    while True:
+        bounds = [frequency_bound(loop.A, loop.B(c)) for c in caps]
+        Ws = [0.0 if b is None else b[0] for b in bounds]
+        W = max(Ws)
+        if W / dw > max_evals / 6:
+            far = " and ".join(f"K = {c:.10g}" for c, Wc in zip(caps, Ws) if Wc / dw > max_evals / 6)
+            raise CertificationError(
+                f"k_region: an admissible interval reaches {far}, {kb - max(abs(c) for c in caps):.3g} from the "
+                f"strong-stability limit {kb:.10g}, where crossing frequencies extend to W = {W:.6g}: locating "
+                f"its end needs about {6 * W / dw:.3g} evaluations, beyond the work bound max_evals={max_evals}"
+            )
+        scan = _Scan(grid, delta_max, kb, W, (caps[0], caps[1]))
+        inside = [c for c in scan.critical if caps[0] < c.K < caps[1]]
+        cuts = [caps[0], *[c.K for c in inside], caps[1]]
+        nominal_cuts = [c.K for c in inside if c.kind == "nominal"]
+        ok = []
+        for lo, hi in itertools.pairwise(cuts):
+            mid = 0.5 * (lo + hi)
+            g = sum(1 for x in nominal_cuts if x < mid)
+            key = (nominal_cuts[g - 1] if g else None, nominal_cuts[g] if g < len(nominal_cuts) else None)
+            if key not in nominal:
+                nominal[key] = _nominally_stable(loop, mid)
+            ok.append(nominal[key] and not np.any(scan.crossings(mid)[1] <= delta_max))
+        moved = False
+        for side, sgn in ((1, 1.0), (0, -1.0)):
+            if open_end[side] or not ok[-1 if side else 0]:
+                continue
+            # past the first critical gain seen beyond the cap, but at most _CAP_SHRINK times closer
+            # to kb (gains past the cap have crossings above W, not scanned yet); within tol of kb
+            # the interval ends at the strong-stability limit
+            cap = abs(caps[side])
+            past = [sgn * K for K in scan.beyond if cap < sgn * K < kb - tol]
+            new = kb - (kb - cap) / _CAP_SHRINK
+            if past:
+                new = min(new, min(past) + (kb - min(past)) / _CAP_SHRINK)
+            new = min(max(new, cap + 0.5 * tol), kb - tol)
+            bound = frequency_bound(loop.A, loop.B(sgn * (kb - tol)))
+            if not past and bound is not None and bound[0] <= W:  # the scan covers every gain up to kb - tol
+                new = kb - tol
+            if new <= cap:
+                open_end[side] = True
+                continue
+            caps[side] = sgn * new
+            moved = True
+        if not moved:
+            break
+    lower = GainEnd(-kb, "strong_stability", float("inf"), 0.0)
+    upper = GainEnd(kb, "strong_stability", float("inf"), 0.0)
+    ends = [lower, *inside, upper]
+    return [(ends[k], ends[k + 1]) for k in range(len(ok)) if ok[k]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,7 +736,7 @@ class KRegion:
     Attributes
     ----------
     intervals : tuple of (float, float)
-        The admissible gains, as open intervals; ends located by bisection to ``tol``.
+        The admissible gains, as open intervals (``ends`` gives the event at each end).
     delta_max : float
         The delay range that must be tolerated.
     paper_bound : float
@@ -202,7 +749,14 @@ class KRegion:
     admissible : ndarray of bool
         ``delta*(K) > delta_max`` and the nominal loop stable, on the grid.
     tol : float
-        Accuracy of the interval ends.
+        Accuracy of the interval ends: each end was checked with :func:`delay_margin` at
+        ``tol`` inside (admissible) and ``tol`` outside (not admissible).
+    ends : tuple of (GainEnd, GainEnd)
+        For each interval, its lower and upper end with their kind (:class:`GainEnd`:
+        ``"crossing"``, ``"pair_birth"``, ``"nominal"``, ``"strong_stability"``, or
+        ``"bisection"`` for a ``controller`` family other than ``U_BS2(K)``).
+    method : str
+        ``"equations"`` (ends solved from the equations of their kind) or ``"bisection"``.
     """
 
     intervals: tuple[tuple[float, float], ...]
@@ -212,14 +766,224 @@ class KRegion:
     margins: NDArray[np.float64]
     admissible: NDArray[np.bool_]
     tol: float
+    ends: tuple[tuple[GainEnd, GainEnd], ...] = ()
+    method: str = "bisection"
 
     def __repr__(self) -> str:
         ivs = ", ".join(f"({lo:.6g}, {hi:.6g})" for lo, hi in self.intervals) or "empty"
         return f"KRegion(delta_max={self.delta_max:.6g}, K in {ivs}, paper bound |K| < {self.paper_bound:.6g})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return fields_dict(self)
+        """JSON-ready description; each end as ``{"K", "kind", "omega", "delay"}``."""
+        data = fields_dict(self, exclude=("ends",))
+        data["ends"] = json_safe([[end._asdict() for end in pair] for pair in self.ends])
+        return data
+
+
+@dataclass(frozen=True)
+class _CheckedMargin:
+    """Picklable ``K -> delay_margin(system, family(K))``, or the message of its CertificationError."""
+
+    system: Any
+    delta_max: float
+    family: Callable[[float], Any]
+    max_evals: int
+
+    def __call__(self, K: float) -> DelayMargin | str:
+        try:
+            return delay_margin(
+                self.system, self.family(float(K)), delta_max=self.delta_max, verify=False, max_evals=self.max_evals
+            )
+        except CertificationError as exc:
+            return str(exc)
+
+
+@dataclass(frozen=True)
+class _LoopMargin:
+    """Picklable ``K -> delay_margin(A, B_0 + K R)`` of an affine loop, or the message of its CertificationError.
+
+    The same margin as ``delay_margin(system, ReflectionController(K))``; a worker process
+    receives the loop's factors instead of solving the kernels again.
+    """
+
+    loop: _AffineLoop
+    delta_max: float
+    max_evals: int
+
+    def __call__(self, K: float) -> DelayMargin | str:
+        try:
+            A, B = self.loop.A, self.loop.B(float(K))
+            return factor_delay_margin(A, B, delta_max=self.delta_max, verify=False, max_evals=self.max_evals)
+        except CertificationError as exc:
+            return str(exc)
+
+
+def _unstable_root_near(loop: _AffineLoop, K: float, delta: float, omega: float) -> str | None:
+    """None if a certified count finds a zero of ``F(.; delta, K)`` with ``Re s > 0`` near ``i omega``.
+
+    Newton from ``i omega`` gives the zero ``s*``; :func:`nrobust.roots.count_roots` on the
+    square of half-side ``Re s* / 2`` about it must count at least one zero (the square lies
+    in ``Re s > 0``). Otherwise the reason, in words.
+    """
+    F = loop.loop_at(K, delta)
+    s = complex(0.0, omega)
+    for _ in range(60):
+        step = complex(F(np.array([s]))[0] / F.deriv_at(np.array([s]))[0])
+        s -= step
+        if not np.isfinite(s) or abs(step) <= 4e-16 * max(1.0, abs(s)):
+            break
+    if not (np.isfinite(s) and s.real > 0):
+        return f"no zero in Re s > 0 near i {omega:.10g} at delta = {delta:.10g} (Newton: {s:.6g})"
+    h = 0.5 * s.real
+    try:
+        count = count_roots(F, (s.real - h, s.real + h, s.imag - h, s.imag + h))
+    except CertificationError as exc:
+        return f"the count about {s:.12g} failed ({exc})"
+    if int(count) < 1 or count.region[0] <= 0.0:
+        return f"count_roots finds {int(count)} zeros in {count.region} about {s:.12g}"
+    return None
+
+
+def _check_end(
+    end: GainEnd,
+    inner: DelayMargin | str,
+    outer: DelayMargin | str,
+    K_out: float,
+    tol: float,
+    loop: _AffineLoop,
+    delta_max: float,
+) -> str | None:
+    """None if the margins ``tol`` inside and outside confirm ``end`` (and a count outside), else why not."""
+    for name, dm in (("inside", inner), ("outside", outer)):
+        if isinstance(dm, str):
+            return f"the delay margin {name} failed ({dm})"
+    assert isinstance(inner, DelayMargin) and isinstance(outer, DelayMargin)
+    if not _tolerates(inner, delta_max):
+        return f"inside, the margin is {inner.margin:.12g} (nominally stable: {inner.nominally_stable})"
+    if _tolerates(outer, delta_max):
+        return f"outside, the margin {outer.margin:.12g} still exceeds delta_max"
+    if end.kind == "strong_stability":
+        return None if not outer.strongly_stable else "outside, the difference operator is still strongly stable"
+    if end.kind == "nominal":
+        if outer.nominally_stable:
+            return "outside, the nominal loop is still stable"
+        return _unstable_root_near(loop, K_out, 0.0, end.omega)
+    # the event's crossings move by O(tol) (a crossing) or O(sqrt(tol)) (a pair birth) in w
+    reach = max(_OMEGA_RTOL, 10.0 * np.sqrt(tol / max(abs(end.K), tol))) * max(1.0, end.omega)
+    near = [c for c in outer.crossings if abs(abs(c.omega) - end.omega) <= reach and c.delays[0] <= delta_max]
+    if not near:
+        return f"outside, no crossing near w = {end.omega:.10g} with a delay <= delta_max"
+    if end.kind == "crossing":
+        return _unstable_root_near(loop, K_out, delta_max, end.omega)
+    if len(near) < 2:
+        return f"outside, one crossing near w = {end.omega:.10g} where a pair is born"
+    first, second = sorted(near, key=lambda c: c.delays[0])[:2]
+    return _unstable_root_near(loop, K_out, 0.5 * (first.delays[0] + second.delays[0]), end.omega)
+
+
+def _grid_verdicts(delta_max: float, grid: NDArray, margins: list[DelayMargin | str]) -> tuple[NDArray, NDArray]:
+    """Margins and verdicts of the grid gains (a failed margin raises, naming the gain)."""
+    for K, dm in zip(grid, margins):
+        if isinstance(dm, str):
+            raise CertificationError(f"k_region: the delay margin at the grid gain K = {K:.12g} failed: {dm}")
+    checked = [dm for dm in margins if isinstance(dm, DelayMargin)]
+    return np.array([dm.margin for dm in checked]), np.array([_tolerates(dm, delta_max) for dm in checked])
+
+
+def _exact_region(
+    system: Hyperbolic2x2, delta_max: float, kb: float, grid: NDArray, tol: float, executor: Any, max_evals: int
+) -> KRegion:
+    """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked."""
+    loop = _AffineLoop.of(system)
+    pairs = _locate_ends(loop, delta_max, kb, tol, max_evals) if kb > 0 else []
+    probes: list[float] = []
+    for lo, hi in pairs:
+        probes += [lo.K + tol, lo.K - tol, hi.K - tol, hi.K + tol]
+    results = list(_mapper(executor)(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
+    margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
+    checks = iter(results[grid.size :])
+    for lo, hi in pairs:
+        for end, sign in ((lo, 1.0), (hi, -1.0)):
+            inner, outer = next(checks), next(checks)
+            why = _check_end(end, inner, outer, end.K - sign * tol, tol, loop, delta_max)
+            if why is not None:
+                raise CertificationError(
+                    f"k_region: the end K = {end.K:.15g} ({end.kind}, w = {end.omega:.10g}) of the admissible "
+                    f"interval ({lo.K:.12g}, {hi.K:.12g}) could not be verified on the bracket "
+                    f"[{min(end.K - tol, end.K + tol):.15g}, {max(end.K - tol, end.K + tol):.15g}]: {why}"
+                )
+    intervals = tuple((float(lo.K), float(hi.K)) for lo, hi in pairs)
+    for K, good in zip(grid, ok):
+        near_end = any(min(abs(K - lo), abs(K - hi)) <= 2.0 * tol for lo, hi in intervals)
+        inside = any(lo < K < hi for lo, hi in intervals)
+        if not near_end and inside != bool(good):
+            raise CertificationError(
+                f"k_region: at the grid gain K = {K:.12g} the delay margin says {'' if good else 'not '}admissible, "
+                f"the located intervals {intervals} say the opposite"
+            )
+    return KRegion(intervals, delta_max, kb, grid, margins, ok, tol, tuple(pairs), "equations")
+
+
+def _bisection_region(
+    system: Any,
+    delta_max: float,
+    kb: float,
+    grid: NDArray,
+    tol: float,
+    family: Callable[[float], Any],
+    executor: Any,
+    max_evals: int,
+) -> KRegion:
+    """:func:`k_region` of another ``controller`` family: the grid's changes of verdict bisected to ``tol``."""
+    margin_at = _CheckedMargin(system, delta_max, family, max_evals)
+    at_grid = list(_mapper(executor)(margin_at, grid))
+    margins, ok = _grid_verdicts(delta_max, grid, at_grid)
+
+    def checked(K: float) -> DelayMargin:
+        dm = margin_at(K)
+        if isinstance(dm, str):
+            raise CertificationError(f"k_region: the delay margin at K = {K:.12g} failed while bisecting: {dm}")
+        return dm
+
+    def edge(good: float, bad: float, outer: DelayMargin | str | None) -> GainEnd:
+        while abs(good - bad) > tol:
+            mid = 0.5 * (good + bad)
+            dm = checked(mid)
+            if _tolerates(dm, delta_max):
+                good = mid
+            else:
+                bad, outer = mid, dm
+        outer = checked(bad) if not isinstance(outer, DelayMargin) else outer
+        first = outer.crossings[0] if outer.crossings else None
+        omega = float("inf") if first is None else abs(first.omega)
+        delay = float(outer.margin) if first is None else float(first.delays[0])
+        return GainEnd(float(good), "bisection", omega, delay)
+
+    ends: list[tuple[GainEnd, GainEnd]] = []
+    k = 0
+    while k < grid.size:
+        if not ok[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < grid.size and ok[j + 1]:
+            j += 1
+        lo_bad, lo_outer = (grid[k - 1], at_grid[k - 1]) if k > 0 else (-kb, None)
+        hi_bad, hi_outer = (grid[j + 1], at_grid[j + 1]) if j + 1 < grid.size else (kb, None)
+        lo = (
+            edge(grid[k], lo_bad, lo_outer)
+            if lo_bad < grid[k]
+            else GainEnd(float(grid[k]), "bisection", float("inf"), 0.0)
+        )
+        hi = (
+            edge(grid[j], hi_bad, hi_outer)
+            if hi_bad > grid[j]
+            else GainEnd(float(grid[j]), "bisection", float("inf"), 0.0)
+        )
+        ends.append((lo, hi))
+        k = j + 1
+    intervals = tuple((lo.K, hi.K) for lo, hi in ends)
+    return KRegion(intervals, delta_max, kb, grid, margins, ok, tol, tuple(ends), "bisection")
 
 
 @renamed_keywords(n="n_gains")
@@ -232,88 +996,89 @@ def k_region(
     tol: float | None = None,
     controller: Callable[[float], Any] | None = None,
     executor: Any = "serial",
+    max_evals: int = 2_000_000,
 ) -> KRegion:
-    """Gains keeping the loop stable for every delay in ``[0, delta_max]``.
+    """Gains keeping the loop stable for every delay in ``[0, delta_max]``, with exact ends.
 
     ``U_BS2(K)`` (eq. (control3)) is admissible when the nominal loop is stable and its
-    delay margin exceeds ``delta_max``. The margin is the *first* delay at which any
-    crossing branch reaches the axis, so the whole interval ``[0, delta_max]`` is checked
-    (stability windows further out do not count). The margin is evaluated on the grid
-    ``Ks`` and every change of admissibility between neighbours is located by bisection.
-    Features narrower than the grid step can be missed; inside a reported interval every
-    grid gain is certified by the crossing analysis of :func:`delay_margin`.
+    delay margin exceeds ``delta_max`` (the margin is the *first* delay at which a root
+    reaches the axis, so the whole of ``[0, delta_max]`` is checked). Its loop
+    ``A(s) + (B_0(s) + K q e^{-tau s}) e^{-delta s}`` (eq. (delay_eq_alpha_ter)) is affine in
+    ``K``, and an end of an admissible interval is one of:
+
+    * a *crossing*: ``A(i w) + B(i w; K) e^{-i w delta_max} = 0``, i.e. ``K(w) = -(A(i w)
+      e^{i w delta_max} + B_0(i w)) / (q e^{-i w tau})`` with ``Im K(w) = 0``, solved in ``w``;
+    * a *pair birth*: ``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2`` has a double zero in ``w``
+      (``g = dg/dw = 0``) with crossing delay ``<= delta_max``; ``g`` is quadratic in ``K``,
+      its roots ``K_pm(w)`` are explicit, and the birth is an extremum of ``K_pm(w)``;
+    * *nominal*: the crossing equation with ``delta = 0`` (the nominal loop loses stability);
+    * the *strong-stability* limit ``|rho q| + |K q| = 1`` (the paper's bound, eq. (boun_K2)).
+
+    A scan of the imaginary axis up to the frequency bound finds these critical gains
+    (between two of them the verdict is constant), each is solved from its own equation to
+    ``1e-14`` in ``w``, and each end is then verified independently: :func:`delay_margin` at
+    ``K -+ tol`` (admissible inside, not outside) and a certified root count in
+    ``Re s > 0`` outside, about the root of the end's event (:func:`nrobust.count_roots`). An
+    end that cannot be verified raises :class:`~nrobust.errors.CertificationError`. The grid
+    ``Ks`` is checked the same way: its certified verdicts must agree with the intervals.
+    Features narrower than the scan step ``pi / (4 (2 tau + delta_max))`` in frequency can
+    be missed; a verified end is exact whatever happens between ends.
+
+    For any other ``controller`` family the grid's changes of verdict are bisected to
+    ``tol`` on delay margins instead (kind ``"bisection"``).
 
     Parameters
     ----------
     system : Hyperbolic2x2
         The plant.
     delta_max : float
-        Delay range to tolerate (``> 0``).
+        Delay range to tolerate (``> 0``, finite).
     Ks : array_like, optional
-        Gain grid; default ``n_gains`` points spanning ``(-k, k)``, ``k`` the paper's bound
-        (gains outside it have zero margin: the difference operator
-        ``1 - rho q e^{-tau s} + K q e^{-(tau+delta) s}`` is not strongly stable).
+        Gain grid on which margins are reported (and, for other families, bisected); default
+        ``n_gains`` points spanning ``(-k, k)``, ``k`` the paper's bound (gains outside it
+        have zero margin: the difference operator ``1 - rho q e^{-tau s} + K q
+        e^{-(tau+delta) s}`` is not strongly stable).
     n_gains : int, default :data:`DEFAULT_N_GAINS`
-        Size of the default grid, ``>= 3`` (formerly ``n``, a deprecated alias). An
-        admissible interval narrower than the grid step ``2 k / (n_gains + 1)`` can be
-        missed.
+        Size of the default grid, ``>= 3`` (formerly ``n``, a deprecated alias).
     tol : float, optional
-        Accuracy of the interval ends; default ``1e-4`` times the paper's bound.
+        Accuracy of the interval ends (the offset of their verification); default
+        ``1e-10`` times the paper's bound (``1e-4`` times it when bisecting).
     controller : callable, optional
-        ``K -> controller``; default ``ReflectionController``.
+        ``K -> controller``; default (or ``ReflectionController``) ``U_BS2(K)``, whose ends
+        are solved from their equations.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
-        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        Where the delay margins run (:func:`nrobust.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
+    max_evals : int, optional
+        Work bound of each delay margin (:func:`nrobust.margins.delay_margin`) and of the
+        scan of the axis.
 
     Returns
     -------
     KRegion
+
+    Raises
+    ------
+    CertificationError
+        An end could not be verified (the message names its bracket), a delay margin
+        failed, or the scan would exceed ``max_evals``.
     """
     _check_system(system)
     delta_max = positive("delta_max", delta_max)
-    family = _reflection if controller is None else controller
+    max_evals = positive_int("max_evals", max_evals)
+    exact = controller is None or controller is ReflectionController
     kb = classify(system).k_bound
-    tol = positive("tol", tol) if tol is not None else 1e-4 * (kb if kb > 0 else 1.0)
+    scale = kb if kb > 0 else 1.0
+    tol = positive("tol", tol) if tol is not None else (1e-10 if exact else 1e-4) * scale
     if Ks is None:
         n_gains = positive_int("n_gains", n_gains, 3)
         if kb == 0.0:
             raise ParameterError("system", "with |rho q| < 1 for the default gain grid (pass Ks)", system)
         Ks = kb * np.linspace(-1.0, 1.0, n_gains + 2)[1:-1]
     grid = np.sort(_grid("Ks", Ks))
-    results = list(_mapper(executor)(_PartialMargin(system, delta_max, family), grid))
-    margins = np.array([r.margin for r in results])
-    ok = np.array([_tolerates(r, delta_max) for r in results])
-
-    def admissible(K: float) -> bool:
-        return _tolerates(_margin_for(K, system, delta_max, family), delta_max)
-
-    def edge(good: float, bad: float) -> float:
-        for _ in range(200):
-            if abs(good - bad) <= tol:
-                break
-            mid = 0.5 * (good + bad)
-            if admissible(mid):
-                good = mid
-            else:
-                bad = mid
-        return good
-
-    intervals: list[tuple[float, float]] = []
-    k = 0
-    while k < grid.size:
-        if not ok[k]:
-            k += 1
-            continue
-        j = k
-        while j + 1 < grid.size and ok[j + 1]:
-            j += 1
-        lo_bad = grid[k - 1] if k > 0 else -kb
-        hi_bad = grid[j + 1] if j + 1 < grid.size else kb
-        lo = edge(grid[k], lo_bad) if lo_bad < grid[k] else grid[k]
-        hi = edge(grid[j], hi_bad) if hi_bad > grid[j] else grid[j]
-        intervals.append((float(lo), float(hi)))
-        k = j + 1
-    return KRegion(tuple(intervals), delta_max, kb, grid, margins, ok, tol)
+    if controller is None or controller is ReflectionController:
+        return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals)
+    return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals)
 
 
 @dataclass(frozen=True)

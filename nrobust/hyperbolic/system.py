@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .._json import json_safe
-from .._validate import finite_real, positive
+from .._validate import finite_real, is_real_number, positive
 from ..errors import ParameterError
 
 __all__ = ["Coupling", "Hyperbolic2x2", "TransportSystem"]
@@ -46,8 +46,10 @@ def _call_vectorised(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.nd
             out = np.asarray(fun(x))
     except Exception:  # a scalar-only callable may raise anything on an array
         return None
-    if out.shape != x.shape:
+    if out.shape != x.shape or out.dtype.kind == "O":
         return None
+    if out.dtype.kind not in "iufc":  # booleans, strings: not converted silently
+        raise ParameterError(name, "real-valued on [0, 1] (numbers, not booleans or strings)", f"dtype {out.dtype}")
     if np.iscomplexobj(out):
         if np.any(out.imag != 0):
             raise ParameterError(name, "real-valued on [0, 1]", "complex values")
@@ -55,9 +57,14 @@ def _call_vectorised(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.nd
     return out.astype(float)
 
 
-def _pointwise(fun: Callable[..., Any], x: np.ndarray) -> np.ndarray:
-    """Evaluate a scalar-only callable point by point."""
-    flat = [float(np.real_if_close(fun(float(xi)))) for xi in np.ravel(x)]
+def _pointwise(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.ndarray:
+    """Evaluate a scalar-only callable point by point; each value must be a real number."""
+    flat = []
+    for xi in np.ravel(x):
+        value = np.real_if_close(fun(float(xi)))
+        if not is_real_number(value):
+            raise ParameterError(name, "a callable returning real numbers on [0, 1]", fun)
+        flat.append(float(value))
     return np.asarray(flat, dtype=float).reshape(np.shape(x))
 
 
@@ -78,7 +85,7 @@ class _Evaluator:
             return np.full(np.shape(x), self.value)
         arr = np.asarray(x, dtype=float)
         out = _call_vectorised(self.name, self.value, arr) if self.vectorised else None
-        return _pointwise(self.value, arr) if out is None else out
+        return _pointwise(self.name, self.value, arr) if out is None else out
 
 
 def _make_evaluator(name: str, value: Any) -> tuple[Coupling, _Evaluator]:
@@ -97,7 +104,7 @@ def _make_evaluator(name: str, value: Any) -> tuple[Coupling, _Evaluator]:
     evaluator = _Evaluator(name, value, probe is not None)
     if probe is None:
         try:
-            probe = _pointwise(value, _PROBE)
+            probe = _pointwise(name, value, _PROBE)
         except (TypeError, ValueError):
             raise ParameterError(name, "a callable returning real numbers on [0, 1]", value) from None
     if not np.all(np.isfinite(probe)):

@@ -13,7 +13,7 @@ from ..bounds import TailBound, joint_degree, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
-from .finder import RootSet, _Finder, _find_counted, find_roots
+from .finder import RootSet, _find_counted, _Finder, find_roots
 from .winding import Region, _Budget, _check_function, _count_with_shifts
 
 __all__ = ["SpectralAbscissa", "spectral_abscissa"]
@@ -29,10 +29,13 @@ class SpectralAbscissa:
     value : float
         ``sup {Re s : F(s) = 0}``: the real part of ``root``, or ``chain_value`` when the
         chains of a neutral ``F`` reach further right (then the supremum is approached
-        only as ``|Im s| -> infinity``); ``-inf`` if ``F`` has no root with
-        ``Re s >= region[0]``.
+        only as ``|Im s| -> infinity``); ``-inf`` only if ``F`` has no root at all
+        (``F = c e^{-tau s}``) or, when a ``region`` is given, none in it.
     root : complex or None
-        The rightmost root found in ``region``.
+        The rightmost root found in ``region`` (of a conjugate pair, the one with
+        ``Im s >= 0``). It may be the entry of a cluster of roots that floating point
+        cannot separate (multiplicity above 1, :class:`~nrobust.roots.RootSet`): ``root``
+        is then its centroid, and the supremum lies in ``[value, upper_bound]``.
     approached_at_infinity : bool
         True if ``value`` is the chain value ``c_D`` of the principal part and no root in
         ``region`` attains it (Hale and Verduyn Lunel: the high-frequency roots of a
@@ -44,9 +47,11 @@ class SpectralAbscissa:
         Certified: ``F`` has no root with ``Re s > upper_bound`` anywhere.
     certified : bool
         True if every root of ``region`` was found (certified count), so no root of
-        ``region`` lies to the right of ``root``. Outside ``region`` only ``upper_bound``
-        is certified: for neutral ``F`` the chain roots above ``region`` have real parts
-        in ``[c_D - o(1), upper_bound]``.
+        ``region`` lies to the right of the disc of ``root``'s entry. Outside ``region``
+        only ``upper_bound`` is certified: for neutral ``F`` the chain roots above
+        ``region`` have real parts in ``[c_D - o(1), upper_bound]``. For retarded ``F``
+        (no ``region`` given) ``region`` holds every root of ``F`` with ``Re s >= value``,
+        so ``value`` is certified for ``F``.
     region : tuple of float
         The rectangle searched.
     strong_bound : float
@@ -79,7 +84,7 @@ class SpectralAbscissa:
 
 
 # Bisection steps on the left edge x(R) of the root-free far field.
-_EDGE_BISECTIONS = 60
+_EDGE_BISECTIONS = 30
 # Doublings of the far-field radius R in the march of the retarded abscissa.
 _MAX_STEPS = 200
 # Smallest half-height of the boxes of that march.
@@ -100,7 +105,8 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
     if g is None or g.gap <= 0.0:
         return None
     try:
-        return radius_where(TailBound(F, n, x, g.t0), g.gap, "spectral_abscissa")
+        tail = TailBound(F, n, x, g.t0)
+        return radius_where(lambda R: float(tail(R)), g.gap, "spectral_abscissa")
     except CertificationError:
         return None
 
@@ -132,9 +138,20 @@ def spectral_abscissa(
     -------
     SpectralAbscissa
 
+    Raises
+    ------
+    ParameterError
+        An advanced ``F``, or a bad option.
+    CertificationError
+        The work bound ``max_evals`` (shared by every step of the search) was exhausted,
+        or ``F`` overflows on a contour: the message says what would help.
+
     Notes
     -----
-    For neutral ``F`` with principal part ``D``, no root lies in ``Re s > C_D + m`` outside
+    For retarded ``F`` the search marches on the root-free far field
+    (:func:`_retarded_abscissa`): boxes that hold every root with ``Re s >= x(R)`` grow
+    until one holds a root; ``-inf`` is returned only for ``c e^{-tau s}``, which has no
+    root. For neutral ``F`` with principal part ``D``, no root lies in ``Re s > C_D + m`` outside
     a disc, so the roots there are found exactly; below, the high-frequency roots
     approach the chains of ``D`` whose abscissa is ``c_D`` (Hale and Verduyn Lunel), so
     the supremum is ``max(c_D, real part of the rightmost root found)`` and may be
@@ -202,7 +219,9 @@ def _neutral_abscissa(
     chains = D.chains()
     period = chains.chains[0].spacing if chains.commensurate and chains.chains else 2 * np.pi / max(F.max_delay, 1e-3)
     height = float(im_max) if im_max is not None else max(radius, 100.0, 2 * period)
-    low = (min(chain_value, x_min) - 0.5, x_min, *_band(height, real))
+    # roots left of c_D do not change the value: a shallow band (e^{tau s} overflows far left for long delays)
+    depth = min(0.5, 16.0 / max(F.max_delay, 1e-300))
+    low = (min(chain_value, x_min) - depth, x_min, *_band(height, real))
     band = find_roots(F, low, cluster_tol=cluster_tol, max_evals=max_evals)
     return _abscissa_from(band, chain_value, x_min, band.certified and roots.certified)
 
@@ -239,6 +258,36 @@ def _is_exponential_polynomial(F: QuasiPolynomial) -> bool:
     return len(F.point_terms) == 1 and not F.distributed
 
 
+def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa | None:
+    """The abscissa of ``F = p(s) e^{-tau s}`` with real ``p`` in exact arithmetic, or None.
+
+    The float coefficients of ``p`` are rationals; python-flint (the ``rigorous`` extra)
+    isolates the roots of their square-free parts in certified balls. This resolves
+    what no floating-point evaluation of ``F`` can: a multiple root (exactly) and a
+    cluster of roots closer than the rounding limit ``eps^(1/m)`` (six roots ``1e-3``
+    apart near ``s = -1`` have ``|F|`` below the rounding error of ``F`` between them).
+    None without python-flint or for complex coefficients: the caller searches by counts.
+    """
+    try:
+        import flint
+    except ImportError:
+        return None
+    p = F.point_terms[0][0]
+    if np.iscomplexobj(p) and np.any(np.imag(p) != 0):
+        return None
+    coefs = [flint.fmpq(*float(c).as_integer_ratio()) for c in np.real(p)]
+    roots: list[Any] = list(flint.fmpq_poly(coefs).complex_roots())  # (acb ball, multiplicity) pairs
+    if not roots:  # a nonzero constant times e^{-tau s}
+        return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, region)
+    re = np.array([float(z.real.mid()) for z, _ in roots])
+    im = np.array([float(z.imag.mid()) for z, _ in roots])
+    top = np.array([float(z.real.upper()) for z, _ in roots])
+    best = np.flatnonzero(re == re.max())
+    i = int(best[np.argmax(im[best])])  # of a conjugate pair, the root with Im s >= 0
+    upper = float(np.nextafter(top.max(), np.inf))
+    return SpectralAbscissa(float(re[i]), complex(re[i], im[i]), False, -np.inf, upper, True, region)
+
+
 def _retarded_abscissa(
     F: QuasiPolynomial,
     x_right: float,
@@ -249,55 +298,67 @@ def _retarded_abscissa(
 ) -> SpectralAbscissa:
     """The rightmost root of a retarded ``F`` by a march on the root-free far field.
 
-    ``F`` has no root in ``{Re s >= x(R), |s| >= R}`` (:func:`_far_field_edge`); so every
-    root with ``Re s >= x(R)`` lies in the box ``[x(R), x_max] x [-R, R]`` (``x_max``
-    right of every root: ``max(x_right, radius) + 1``). The march doubles ``R`` from the
-    ``radius`` of the half-plane ``Re s >= x_right``, which moves ``x(R)`` to the left
-    (for long delays by about ``ln 2 / tau`` per step: the rightmost roots of
-    ``s + a + b e^{-tau s}`` sit near the axis, at ``|s| ~ |b| e^{-tau Re s}``), counts
-    the box and stops at the first box holding a root with ``Re s >= x(R)``: that root
-    is the rightmost one of ``F``. The boxes grow geometrically, so the work is about
-    twice that of the last box, and only the band ``|Im s| < R`` that can hold the
-    rightmost root is searched.
+    No root has ``Re s >= x_max = max(x_right, radius) + 1`` (the roots with
+    ``Re s >= x_right`` lie in ``|s| < radius``). For a radius ``R``, ``F`` has no root in
+    ``{Re s >= x(R), |s| >= R}`` (:func:`_far_field_edge`), so every root with
+    ``Re s >= x(R)`` lies in the box ``[x(R), min(x_max, R)] x [-R, R]``. The march starts
+    from the smallest ``R = radius 2^-k >= 1`` for which the far field holds at ``x_max``
+    (``x(R)`` is then far right and the box small) and doubles ``R``, which moves
+    ``x(R)`` to the left (for long delays by about ``ln 2 / tau`` per step: the rightmost
+    roots of ``s + a + b e^{-tau s}`` sit near the axis, at ``|s| ~ |b| e^{-tau Re s}``). It
+    stops at the first box holding a root with ``Re s >= x(R)``: that root is the
+    rightmost one of ``F``. The boxes grow geometrically, so the work is about twice
+    that of the last box, and only the band that can hold the rightmost root is searched.
 
     A retarded ``F`` of degree ``n >= 1`` has roots (infinitely many if it has a delayed
     term), so the march ends with a root; the abscissa ``-inf`` is certified only for
-    ``F = p(s) e^{-tau s}`` (an exponential polynomial, whose bound holds for all
-    ``Re s``), when the box ``[-R, x_max] x [-R, R]`` holds no root: ``F = c e^{-tau s}``.
-    Otherwise the march ends with :class:`~nrobust.errors.CertificationError` when the
-    work bound ``max_evals`` (shared by all steps) is exhausted.
+    ``F = p(s) e^{-tau s}`` (its far-field bound holds for every ``Re s``, ``x(R) = -inf``),
+    when the box ``[-R, R] x [-R, R]`` holds no root: ``F = c e^{-tau s}``. Otherwise the
+    march ends with :class:`~nrobust.errors.CertificationError` when the work bound
+    ``max_evals`` (shared by all steps) is exhausted.
     """
     n = joint_degree(F)
     x_max = max(x_right, radius) + 1.0
     whole = _is_exponential_polynomial(F)
+    if whole:
+        half = 1.01 * max(radius, _MIN_HALF_HEIGHT)
+        exact = _polynomial_abscissa(F, (-half, half, *_band(half, real)))
+        if exact is not None:
+            return exact
+    # boxes are at least _MIN_HALF_HEIGHT high: start there, or lower while the far field holds at x_max
+    R = max(radius, _MIN_HALF_HEIGHT)
+    while 0.5 * R >= _MIN_HALF_HEIGHT and _far_field_holds(F, n, x_max, 0.5 * R):
+        R *= 0.5
     budget = _Budget(max_evals)
-    R = radius
     for _ in range(_MAX_STEPS):
-        x_far = -np.inf if whole else _far_field_edge(F, n, R, x_right)
         half = 1.01 * max(R, _MIN_HALF_HEIGHT)  # edges off the disc |s| < R that holds the roots
-        box = (max(x_far, -half), x_max, *_band(half, real))
-        finder = _Finder(F, box, cluster_tol, budget)
-        total, reg, shifted = _count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
-        if total > 0:
-            roots = _find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
-            # a root left of x_far (in an edge shift) may have unseen roots to its right
-            if len(roots) and np.max(roots.roots.real) >= x_far:
-                return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
-        elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
-            return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
+        x_far = -np.inf if whole else _far_field_edge(F, n, R, x_max)
+        box = (max(x_far, -half), min(x_max, half), *_band(half, real))
+        if box[0] < box[1]:  # else no root has Re s >= x_far
+            finder = _Finder(F, box, cluster_tol, budget)
+            total, reg, shifted = _count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
+            if total > 0:
+                roots = _find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
+                # a root left of x_far (in an edge shift) may have unseen roots to its right
+                if len(roots) and np.max(roots.roots.real) >= x_far:
+                    return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
+            elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
+                return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
         R *= 2.0
-    raise CertificationError(
-        f"spectral_abscissa: no root found with |s| < {R:.6g}; raise max_evals or give a region"
-    )
+    raise CertificationError(f"spectral_abscissa: no root found with |s| < {R:.6g}; raise max_evals or give a region")
 
 
 def _abscissa_from(
     roots: RootSet, chain_value: float, upper: float, certified: bool, upper_from_roots: bool = False
 ) -> SpectralAbscissa:
     if len(roots):
-        i = int(np.argmax(roots.roots.real))
-        root: complex | None = complex(roots.roots[i])
-        best = root.real + (roots.radii[i] if upper_from_roots else 0.0)
+        right = roots.roots.real.max()
+        near = np.flatnonzero(roots.roots.real >= right - 1e-12 * (1.0 + abs(right)))
+        i = int(near[np.argmax(roots.roots.imag[near])])  # of a conjugate pair, the root with Im s >= 0
+        z = complex(roots.roots[i])
+        root: complex | None = z
+        # every entry's roots lie within its radius: the disc reaching furthest right bounds them all
+        best = float(np.max(roots.roots.real + roots.radii)) if upper_from_roots else z.real
     else:
         root, best = None, -np.inf
     found = -np.inf if root is None else root.real

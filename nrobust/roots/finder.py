@@ -139,7 +139,11 @@ def _circle_moments(
     coeffs = np.array([(-1) ** k * e[k] for k in range(m + 1)])
     if not np.all(np.isfinite(coeffs)):
         return None
-    return _Moments(center + radius * np.roots(coeffs), float(p[0].real), 10 * radius * d ** (1.0 / m))
+    try:
+        points = center + radius * np.asarray(np.roots(coeffs), dtype=np.complex128)
+    except np.linalg.LinAlgError:  # the companion matrix's eigenvalues did not converge
+        return None
+    return _Moments(points, float(p[0].real), 10 * radius * d ** (1.0 / m))
 
 
 # ====================================================================== result types
@@ -240,6 +244,10 @@ class _Found:
         mask = (b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1)
         return int(np.sum(np.asarray(self.mults, dtype=np.int64)[mask])) if mask.any() else 0
 
+    def clear_cache(self) -> None:
+        """Forget the array of boxes (after boxes were changed in place)."""
+        self._array = None
+
     def remove_inside(self, box: Region) -> None:
         """Drop the accepted roots whose boxes lie inside ``box``."""
         b = self.array()
@@ -291,19 +299,29 @@ class _Finder:
 
         Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, where
         its step ``|F/F'|`` is about ``1/m`` of that distance: each point gets the reach
-        ``max(1e-4 (1 + |s|), 10 |F/F'|)``, and points closer than the sum of their reaches
-        (or than ``cluster_tol``) share one box. The count of that box decides whether
-        they are one multiple root or several roots (resolved by contour moments, then
-        polished). Returns the group means and spreads (largest distance from the mean
-        plus reach beyond ``1e-4 (1 + |s|)``), which size the boxes.
+        ``max(b, 10 |F/F'|)`` with ``b = min(1e-4 (1 + |s|), d / 10)``, ``d`` the distance
+        to the nearest point outside ``1e-4 (1 + |s|)`` (at high frequency the roots of a
+        chain are closer than ``1e-4 |s|``: a relative reach alone would merge the whole
+        chain), and points closer than the sum of their reaches (or than ``cluster_tol``)
+        share one box. The count of that box decides whether they are one multiple root
+        or several roots (resolved by contour moments, then polished). Returns the group
+        means and spreads (largest distance from the mean plus reach beyond ``b``), which
+        size the boxes.
         """
         if not pts.size:
             return pts, np.zeros(0)
         self.budget.spend(2 * pts.size, "merging limit points")
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             step = np.abs(self.F(pts) / self.F.deriv_at(pts))
-        base = _MERGE_RTOL * (1.0 + np.abs(pts))
-        stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * base), 1e3 * base)
+        scale = _MERGE_RTOL * (1.0 + np.abs(pts))
+        base = scale.copy()
+        if pts.size > 1:
+            k = min(16, pts.size)
+            dist, _ = cKDTree(_xy(pts)).query(_xy(pts), k=k, p=np.inf)
+            dist = dist.reshape(pts.size, k)
+            distinct = np.where(dist > scale[:, None], dist, np.inf).min(axis=1)
+            base = np.minimum(scale, 0.1 * distinct)
+        stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * scale), 1e3 * scale)
         reach = np.maximum(base, stalled)
         parent = np.arange(pts.size)
         if pts.size > 1:
@@ -322,17 +340,12 @@ class _Finder:
             for i, j in pairs:
                 parent[root(i)] = root(j)
             parent = np.array([root(i) for i in range(pts.size)])
-        groups = np.unique(parent)
-        means = np.array([pts[parent == g].mean() for g in groups])
-        spread = np.array(
-            [
-                np.max(
-                    np.abs(pts[parent == g] - m)
-                    + np.where(stalled[parent == g] > base[parent == g], stalled[parent == g], 0.0)
-                )
-                for g, m in zip(groups, means)
-            ]
-        )
+        _, group = np.unique(parent, return_inverse=True)
+        size = np.bincount(group)
+        means = np.asarray((np.bincount(group, pts.real) + 1j * np.bincount(group, pts.imag)) / size, dtype=complex)
+        extra = np.where(stalled > base, stalled, 0.0)
+        spread = np.zeros(size.size)
+        np.maximum.at(spread, group, np.abs(pts - means[group]) + extra)
         return means, spread
 
     # ------------------------------------------------------------ acceptance
@@ -406,11 +419,12 @@ class _Finder:
         floor = 1e-4 * (1.0 + abs(center))
         half = max(half, floor)
         current = np.array([box], dtype=float)
-        for _ in range(6):
-            tight = self._tighten(np.array([center]), np.array([c]), current, np.array([half]))
-            if np.array_equal(tight, current):
-                break
-            current = tight
+        for _ in range(12):
+            if max(current[0, 1] - current[0, 0], current[0, 3] - current[0, 2]) > 4.0 * half:
+                tight = self._tighten(np.array([center]), np.array([c]), current, np.array([half]))
+                if np.array_equal(tight, current):  # the smaller box lost roots or met one
+                    break
+                current = tight
             if half <= floor:
                 break
             half = max(half / 4.0, floor)
@@ -501,21 +515,65 @@ class _Finder:
 
     # ------------------------------------------------------------ subdivision
     def _split(self, box: Region) -> tuple[Region, Region]:
-        """Halve a box across its longer side, moving the cut off accepted boxes."""
+        """Halve a box across its longer side, moving the cut off accepted boxes (or, if
+        every cut meets one, clipping the accepted boxes it meets: :meth:`_clear_cut`)."""
         x0, x1, y0, y1 = box
         vertical = (x1 - x0) >= (y1 - y0)
         lo, hi = (x0, x1) if vertical else (y0, y1)
-        old = self.found.array()
         cut = 0.5 * (lo + hi)
-        if old.size:
-            a, b = (old[:, 0], old[:, 1]) if vertical else (old[:, 2], old[:, 3])
-            for frac in (0.5, 0.45, 0.55, 0.4, 0.6, 0.35, 0.65, 0.3, 0.7):
+        for frac in (0.5, 0.45, 0.55, 0.4, 0.6, 0.35, 0.65, 0.3, 0.7):
+            cut = lo + frac * (hi - lo)
+            if not self._straddling(box, vertical, cut).size:
+                break
+        else:
+            for frac in (0.5, 0.4, 0.6):
                 cut = lo + frac * (hi - lo)
-                if not np.any((a <= cut) & (b >= cut)):
+                if self._clear_cut(box, vertical, cut):
                     break
         if vertical:
             return (x0, cut, y0, y1), (cut, x1, y0, y1)
         return (x0, x1, y0, cut), (x0, x1, cut, y1)
+
+    def _straddling(self, box: Region, vertical: bool, cut: float) -> NDArray[np.intp]:
+        """Indices of the accepted boxes that meet ``box`` and that the cut runs through."""
+        old = self.found.array()
+        if not old.size:
+            return np.zeros(0, dtype=np.intp)
+        x0, x1, y0, y1 = box
+        if vertical:
+            hit = (old[:, 0] <= cut) & (old[:, 1] >= cut) & (old[:, 2] < y1) & (old[:, 3] > y0)
+        else:
+            hit = (old[:, 2] <= cut) & (old[:, 3] >= cut) & (old[:, 0] < x1) & (old[:, 1] > x0)
+        return np.flatnonzero(hit)
+
+    def _clear_cut(self, box: Region, vertical: bool, cut: float) -> bool:
+        """Clip every accepted box the cut runs through to the side holding its roots.
+
+        The two parts of such a box are counted; if one holds all of its roots (and no
+        root lies on the cut), the entry keeps that part as its certified box, so that it
+        lies inside one child of the subdivision. False if some box cannot be cleared.
+        """
+        idx = self._straddling(box, vertical, cut)
+        if not idx.size:
+            return True
+        parts: list[Region] = []
+        for i in idx:
+            b0, b1, b2, b3 = self.found.boxes[i]
+            if vertical:
+                parts += [(b0, cut, b2, b3), (cut, b1, b2, b3)]
+            else:
+                parts += [(b0, b1, b2, cut), (b0, b1, cut, b3)]
+        counts, blocked = self.counter.count(parts)
+        new: list[tuple[int, Region]] = []
+        for k, i in enumerate(idx):
+            c0, c1, m = int(counts[2 * k]), int(counts[2 * k + 1]), self.found.mults[i]
+            if blocked[2 * k].any() or blocked[2 * k + 1].any() or sorted((c0, c1)) != [0, m]:
+                return False
+            new.append((int(i), parts[2 * k] if c0 == m else parts[2 * k + 1]))
+        for i, part in new:
+            self.found.boxes[i] = part
+        self.found.clear_cache()
+        return True
 
     def subdivide(self, total: int, max_depth: int = 60) -> None:
         """Find the roots not yet accepted: halve every box whose certified count exceeds
@@ -559,15 +617,16 @@ class _Finder:
         ``c`` roots (:meth:`_accept_cluster_box`) and nothing is left to split.
         """
         x0, x1, y0, y1 = parent
+        vertical = (x1 - x0) >= (y1 - y0)
         for frac in (0.381966, 0.618034, 0.2763, 0.7236, 0.1459, 0.8541):
-            if (x1 - x0) >= (y1 - y0):
+            if vertical:
                 cut = x0 + frac * (x1 - x0)
                 kids = [(x0, cut, y0, y1), (cut, x1, y0, y1)]
             else:
                 cut = y0 + frac * (y1 - y0)
                 kids = [(x0, x1, y0, cut), (x0, x1, cut, y1)]
             counts, blocked = self.counter.count(kids)
-            if not blocked.any():
+            if not blocked.any() and self._clear_cut(parent, vertical, cut):
                 return [(kids[0], int(counts[0])), (kids[1], int(counts[1]))]
         self._accept_cluster_box(parent, c)
         return [(parent, c)]

@@ -288,13 +288,13 @@ class _Counter:
                 tr, bl = self.cache[(q, p)]
                 tr = -tr
             turns[i], blocked[i] = tr, bl
-        turns = turns.reshape(-1, 4).sum(axis=1)
-        blocked = blocked.reshape(-1, 4)
-        counts = np.rint(turns).astype(np.int64)
-        good = ~blocked.any(axis=1)
-        if np.any(np.abs(turns[good] - counts[good]) > 1e-6):
+        box_turns = turns.reshape(-1, 4).sum(axis=1)
+        box_blocked = blocked.reshape(-1, 4)
+        counts = np.rint(box_turns).astype(np.int64)
+        good = ~box_blocked.any(axis=1)
+        if np.any(np.abs(box_turns[good] - counts[good]) > 1e-6):
             raise CertificationError("a certified winding number is not an integer: floating-point failure")
-        return counts, blocked
+        return counts, box_blocked
 
 
 # ====================================================================== count_roots
@@ -358,7 +358,7 @@ def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple
         if not blocked[0].any():
             return int(counts[0]), tuple(reg), attempt > 0  # type: ignore[return-value]
         if attempt == max_shifts:
-            sides = "; ".join(_describe_edge(reg, k) for k in np.flatnonzero(blocked[0]))
+            sides = "; ".join(_describe_edge(reg, int(k)) for k in np.flatnonzero(blocked[0]))
             raise CertificationError(f"a root lies on or within rounding of the {sides} after {max_shifts} shifts")
         delta = size * 1e-7 * 10.0**attempt * 1.618
         for k in np.flatnonzero(blocked[0]):

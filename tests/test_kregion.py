@@ -1,0 +1,193 @@
+"""Exact ends of the admissible gains of ``U_BS2(K)`` (issue 11: item 3, second half, and item 9).
+
+Each end of an admissible interval is checked against a truth that nrobust does not
+compute: a closed form solved with :mod:`mpmath`, the double zero of
+``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2`` solved with :func:`scipy.optimize.fsolve`, or a
+bisection on verified delay margins.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mpmath as mp
+import numpy as np
+import pytest
+from _oracles import transport_k_interval
+from scipy.optimize import fsolve
+
+import nrobust as nr
+from nrobust import (
+    CertificationError,
+    Hyperbolic2x2,
+    QuasiPolynomial,
+    ReflectionController,
+    TransportSystem,
+    certify,
+    delay_margin,
+    k_region,
+)
+from nrobust.hyperbolic import studies
+from nrobust.report import write_report
+
+QP = QuasiPolynomial
+PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+#: the plant of issue 11, item 9 (k = (1 - 0.63)/0.7 = 0.528571...)
+LAM2 = Hyperbolic2x2(2.0, 0.5, 0.3, -0.4, 0.7, 0.9)
+
+
+def admissible(system: Hyperbolic2x2, K: float, delta_max: float, verify: bool = True) -> bool:
+    dm = delay_margin(system, ReflectionController(K), delta_max=delta_max, verify=verify)
+    return bool(dm.nominally_stable and dm.margin > delta_max)
+
+
+def bisect_end(system: Hyperbolic2x2, good: float, bad: float, delta_max: float, tol: float) -> float:
+    """The end between an admissible ``good`` and an inadmissible ``bad`` gain, by bisection on
+    verified delay margins (the slow, independent route)."""
+    assert admissible(system, good, delta_max) and not admissible(system, bad, delta_max)
+    while abs(good - bad) > tol:
+        mid = 0.5 * (good + bad)
+        if admissible(system, mid, delta_max):
+            good = mid
+        else:
+            bad = mid
+    return 0.5 * (good + bad)
+
+
+def pair_birth(system: Hyperbolic2x2, K0: float, w0: float) -> tuple[float, float, float]:
+    """``(K_b, w_b, delay)``: ``g = dg/dw = 0`` solved by scipy's ``fsolve`` on the loop's values."""
+    A, B0 = nr.loop_factors(system, ReflectionController(0.0))
+    q, tau = system.q, system.tau
+
+    def g(x: np.ndarray) -> list[float]:
+        K, w = x
+        s = np.array([1j * w])
+        a, da, b0, db0 = A(s)[0], 1j * A.deriv_at(s)[0], B0(s)[0], 1j * B0.deriv_at(s)[0]
+        e = np.exp(-1j * w * tau)
+        b, db = K * q * e + b0, -1j * tau * K * q * e + db0
+        return [abs(a) ** 2 - abs(b) ** 2, 2 * (np.conj(a) * da).real - 2 * (np.conj(b) * db).real]
+
+    (K, w), info, ok, _ = fsolve(g, [K0, w0], xtol=1e-14, full_output=True)
+    assert ok == 1 and max(abs(v) for v in info["fvec"]) < 1e-12
+    s = np.array([1j * w])
+    b = K * q * np.exp(-1j * w * tau) + B0(s)[0]
+    return float(K), float(w), float(np.mod(np.angle(-b / A(s)[0]), 2 * np.pi) / w)
+
+
+# ============================================================ closed forms
+@pytest.mark.parametrize("a, delta_max", [(1.0, 0.5), (0.5, 2.0), (2.0, 0.1)])
+def test_closed_form_loop_has_a_nominal_and_a_crossing_end(a: float, delta_max: float) -> None:
+    """``s + a + K e^{-delta s}``: ``A = s + a``, ``B_0 = 0``, ``R = 1``.
+
+    Nominal stability: ``s = -a - K``, so ``K > -a`` (an end at ``s = 0``). For ``|K| <= a``
+    there is no crossing (``|i w + a| > |K|``); for ``K > a`` the crossing ``w = sqrt(K^2 - a^2)``
+    has the first delay ``delta*(K) = arccos(-a/K)/w``, decreasing in ``K``: the interval ends
+    where ``delta*(K) = delta_max`` (a continuous crossing).
+    """
+    mp.mp.dps = 40
+    A, B0, R = QP([[a, 1.0]], [0.0]), QP([[0.0]], [0.0]), QP([[1.0]], [0.0])
+    K_c = mp.findroot(lambda K: mp.acos(-a / K) / mp.sqrt(K**2 - a**2) - delta_max, 2 * a + 1 / delta_max)
+    w_c = mp.sqrt(K_c**2 - a**2)
+    loop = studies._AffineLoop(A, B0, R)
+    ((lo, hi),) = studies._locate_ends(loop, delta_max, 10.0 * (a + 1.0 / delta_max), 1e-12, 2_000_000)
+    assert (lo.kind, hi.kind) == ("nominal", "crossing")
+    np.testing.assert_allclose([lo.K, lo.omega], [-a, 0.0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose([hi.K, hi.omega, hi.delay], [float(K_c), float(w_c), delta_max], rtol=1e-13)
+
+
+@pytest.mark.parametrize(
+    "system, delta_max",
+    [
+        (TransportSystem(1.0, 2.0, 0.5, 0.8), 0.05),
+        (TransportSystem(1.0, 1.0, 0.8, 0.9), 2.0),
+        (TransportSystem(0.5, 4.0, 1.5, -0.3), 0.3),
+    ],
+)
+def test_transport_region_is_the_strong_stability_interval(system: TransportSystem, delta_max: float) -> None:
+    """``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}``: for ``|K| < k`` no crossing at all
+    (``|1 - rho q z| >= 1 - |rho q| > |K q|``) and the nominal chain sits at
+    ``Re s = ln|(rho - K) q| / tau < 0``; beyond, the difference operator is not strongly
+    stable. Both ends are the strong-stability limit (``tests/_oracles.py``)."""
+    truth = transport_k_interval(system.q, system.rho)
+    region = k_region(system, delta_max)
+    assert region.method == "equations"
+    ((lo, hi),) = region.ends
+    assert (lo.kind, hi.kind) == ("strong_stability", "strong_stability") and math.isinf(hi.omega)
+    np.testing.assert_allclose(region.intervals[0], truth, rtol=1e-14)
+    assert region.tol == pytest.approx(1e-10 * truth[1], rel=1e-12)
+
+
+# ============================================================ the paper's plant
+def test_paper_pair_birth_end() -> None:
+    """Issue 11, item 3: ``delta_max = 0.2`` ends where a pair of crossings is born near ``w = 4 pi``
+    (``delay_margin`` hit the near-touch for ``K`` from 0.13074 to 0.130755)."""
+    K_b, w_b, delay_b = pair_birth(PAPER, 0.13075, 4 * np.pi)
+    region = k_region(PAPER, 0.2, Ks=[0.12, 0.135], tol=1e-9)
+    ((lo, hi),) = region.ends
+    assert hi.kind == "pair_birth" and 0.13074 < hi.K < 0.130765
+    np.testing.assert_allclose([hi.K, hi.omega, hi.delay], [K_b, w_b, delay_b], rtol=0, atol=1e-9)
+    assert delay_b < 0.2
+    # the lower end is a continuous crossing: a root on the axis at delta_max, to rounding
+    assert lo.kind == "crossing" and lo.delay == 0.2
+    A, B = nr.loop_factors(PAPER, ReflectionController(lo.K))
+    s = np.array([1j * lo.omega])
+    residual = abs(A(s)[0] + B(s)[0] * np.exp(-s[0] * 0.2)) / (abs(A(s)[0]) + abs(B(s)[0]))
+    assert residual < 1e-13
+    assert list(region.admissible) == [True, False] and region.to_dict()["ends"][0][1]["kind"] == "pair_birth"
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+@pytest.mark.parametrize(
+    "delta_max, lower, upper, kinds",
+    [
+        (0.1, (-0.06, -0.07), (0.145, 0.147), ("crossing", "crossing")),
+        (0.2, (0.04, 0.03), (0.13, 0.135), ("crossing", "pair_birth")),
+    ],
+)
+def test_paper_ends_agree_with_bisection_on_verified_margins(
+    delta_max: float, lower: tuple[float, float], upper: tuple[float, float], kinds: tuple[str, str]
+) -> None:
+    """The two ends of the paper's plant, against a bisection on verified delay margins to 1e-9
+    from a coarse bracket (the old route: about a minute per end near the bound)."""
+    region = k_region(PAPER, delta_max, tol=1e-9)
+    ((lo, hi),) = region.ends
+    assert (lo.kind, hi.kind) == kinds
+    np.testing.assert_allclose(lo.K, bisect_end(PAPER, *lower, delta_max, 1e-9), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(hi.K, bisect_end(PAPER, *upper, delta_max, 1e-9), rtol=0, atol=1e-9)
+
+
+# ============================================================ issue 11, item 9: the plant of the report
+def test_item9_plant_ends_near_the_bound_are_refused_not_guessed() -> None:
+    """With ``delta_max = 0.1`` the ends sit within 1e-4 of ``k = 0.528571`` (not at +-0.5283, not at
+    ``k``): crossings near ``|1 - rho q e^{-i w tau}| = 1 - |rho q|`` reach ``delta <= 0.1`` up to
+    ``w = 68``. Proving ``K`` admissible there needs a crossing search up to ``W ~ 1/(k - |K|)``: the
+    work bound refuses it, with a named reason, instead of returning an unverified end."""
+    with pytest.raises(CertificationError, match="work bound"):
+        k_region(LAM2, 0.1)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+def test_item9_report_carries_the_exact_ends(tmp_path) -> None:
+    """``certify`` and the report of ``nrobust analyze``: exact ends with their kind, not a 9-gain grid."""
+    delta_max = 3.0
+    cert = certify(LAM2, ReflectionController(0.3), delta_max=delta_max)
+    assert cert.k_region is not None and cert.k_region_error == ""
+    ((lo, hi),) = cert.k_region.ends
+    assert (lo.kind, hi.kind) == ("pair_birth", "pair_birth")
+    for end, start in ((lo, (-0.5256, 2.53)), (hi, (0.5175, 2.49))):
+        K_b, w_b, delay_b = pair_birth(LAM2, *start)
+        np.testing.assert_allclose([end.K, end.omega, end.delay], [K_b, w_b, delay_b], rtol=0, atol=1e-8)
+        assert delay_b <= delta_max
+    for K, ok in ((lo.K + 1e-8, True), (lo.K - 1e-8, False), (hi.K - 1e-8, True), (hi.K + 1e-8, False)):
+        assert admissible(LAM2, K, delta_max) is ok
+    files = write_report(cert, tmp_path / "report")
+    text = files.markdown.read_text()
+    assert f"({lo.K:.10g}, {hi.K:.10g})" in text and "pair birth" in text and "within 0.0" not in text
+
+
+def test_item9_certificate_records_why_the_region_is_missing() -> None:
+    cert = certify(LAM2, ReflectionController(0.3), delta_max=0.1)
+    assert cert.k_region is None and "work bound" in cert.k_region_error
+    assert cert.to_dict()["k_region_error"] == cert.k_region_error
