@@ -38,7 +38,7 @@ demo: $(STAMP_BASE)
 
 # The tests and the doctests of the package (testpaths in pyproject.toml), on every core.
 test: $(STAMP_TEST)
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto -m 'not long'
 
 # The differential harness of issue 11 (tests/test_harness.py) with its long budget: about
 # 20 minutes on 2 cores, random examples, a 60 s deadline per example. Prints cases tried,
@@ -48,6 +48,7 @@ FUZZ_EXAMPLES ?= 500
 fuzz: $(STAMP_TEST)
 	NROBUST_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) NROBUST_FUZZ_EXAMPLE_SECONDS=60 \
 		$(BIN)/python -m pytest -q -p no:cacheprovider tests/test_harness.py
+	$(BIN)/python -m pytest -q -p no:cacheprovider -m long tests
 
 # Lint, format and type checks. All three run; the target fails if any failed.
 check: $(STAMP_TEST)

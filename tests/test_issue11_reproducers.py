@@ -169,7 +169,7 @@ def test_item5_find_roots_tall_box_no_linalg_error() -> None:
     answer_or_nrobust_error(nr.find_roots, QP([[1.0, 1.0], [0.5, 0.5]], [0.0, 1.0]), (-1.0, 1.0, 0.0, 1e5))
 
 
-@pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.timeout(400)
 def test_item5_spectral_abscissa_long_delay_no_linalg_error() -> None:
     F = QP([[1.0, 1.0], [0.3, 0.3], [0.2, 0.2]], [0.0, 1.0, 1000.0])
