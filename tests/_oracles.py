@@ -58,6 +58,7 @@ from fractions import Fraction
 
 import mpmath as mp
 import numpy as np
+from scipy.optimize import fsolve
 from scipy.special import lambertw
 
 Region = tuple[float, float, float, float]
@@ -560,3 +561,24 @@ def transport_margin(q: float, rho: float, K: float) -> float | None:
     if total > 1:
         return 0.0
     return None
+
+
+def pair_birth(A, B0, q: float, tau: float, K0: float, w0: float) -> tuple[float, float, float]:
+    """``(K_b, w_b, delay)``: where ``g(K, w) = |A(i w)|^2 - |B_K(i w)|^2`` with
+    ``B_K = K q e^{-tau s} + B0`` has a double zero in ``w`` (``g = dg/dw = 0``), solved by
+    scipy's ``fsolve`` from ``(K0, w0)`` on the values of ``A``, ``B0`` and their
+    derivatives (callables ``P(s)`` and ``P.deriv_at(s)``), and the crossing delay born there."""
+
+    def g(x: np.ndarray) -> list[float]:
+        K, w = x
+        s = np.array([1j * w])
+        a, da, b0, db0 = A(s)[0], 1j * A.deriv_at(s)[0], B0(s)[0], 1j * B0.deriv_at(s)[0]
+        e = np.exp(-1j * w * tau)
+        b, db = K * q * e + b0, -1j * tau * K * q * e + db0
+        return [abs(a) ** 2 - abs(b) ** 2, 2 * (np.conj(a) * da).real - 2 * (np.conj(b) * db).real]
+
+    (K, w), info, ok, _ = fsolve(g, [K0, w0], xtol=1e-14, full_output=True)
+    assert ok == 1 and max(abs(v) for v in info["fvec"]) < 1e-12
+    s = np.array([1j * w])
+    b = K * q * np.exp(-1j * w * tau) + B0(s)[0]
+    return float(K), float(w), float(np.mod(np.angle(-b / A(s)[0]), 2 * np.pi) / w)

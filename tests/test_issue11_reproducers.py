@@ -18,8 +18,15 @@ from typing import Any
 import numpy as np
 import pytest
 from _guards import Hang, hard_deadline, memory_cap
-from _oracles import LoopOracle, chain_abscissa, lambert_rightmost, poly_from_roots, poly_roots, z_roots
-from scipy.optimize import fsolve
+from _oracles import (
+    LoopOracle,
+    chain_abscissa,
+    lambert_rightmost,
+    pair_birth,
+    poly_from_roots,
+    poly_roots,
+    z_roots,
+)
 
 import nrobust as nr
 from nrobust import (
@@ -106,25 +113,9 @@ def test_item2_crossing_on_the_frequency_bound(verify: bool, delta_max: float | 
 # ============================================================ item 3: tangencies (pair births)
 def _paper_pair_birth() -> tuple[float, float, float]:
     """``(K_b, w_b, delta_b)``: the gain at which ``g(K, w) = |A(i w)|^2 - |B_K(i w)|^2`` gets a
-    double zero near ``w = 4 pi`` (``g = dg/dw = 0``, solved here with scipy on the loop's
-    values), and the crossing delay born there."""
+    double zero near ``w = 4 pi`` and the crossing delay born there (:func:`_oracles.pair_birth`)."""
     A, B0 = nr.loop_factors(PAPER, ReflectionController(0.0))
-    q, tau = PAPER.q, PAPER.tau
-
-    def g(x: np.ndarray) -> list[float]:
-        K, w = x
-        s = np.array([1j * w])
-        a, da, b0, db0 = A(s)[0], 1j * A.deriv_at(s)[0], B0(s)[0], 1j * B0.deriv_at(s)[0]
-        e = np.exp(-1j * w * tau)
-        b, db = K * q * e + b0, -1j * tau * K * q * e + db0
-        return [abs(a) ** 2 - abs(b) ** 2, 2 * (np.conj(a) * da).real - 2 * (np.conj(b) * db).real]
-
-    (K, w), info, ok, _ = fsolve(g, [0.13075, 4 * np.pi], xtol=1e-14, full_output=True)
-    assert ok == 1 and max(abs(v) for v in info["fvec"]) < 1e-12
-    s = np.array([1j * w])
-    b = K * q * np.exp(-1j * w * tau) + B0(s)[0]
-    delay = float(np.mod(np.angle(-b / A(s)[0]), 2 * np.pi) / w)
-    return float(K), float(w), delay
+    return pair_birth(A, B0, PAPER.q, PAPER.tau, 0.13075, 4 * np.pi)
 
 
 @pytest.mark.parametrize("K", [0.13074, 0.13075, 0.130755])

@@ -13,8 +13,8 @@ import math
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import pair_birth as oracle_pair_birth
 from _oracles import transport_k_interval
-from scipy.optimize import fsolve
 
 import nrobust as nr
 from nrobust import (
@@ -55,23 +55,9 @@ def bisect_end(system: Hyperbolic2x2, good: float, bad: float, delta_max: float,
 
 
 def pair_birth(system: Hyperbolic2x2, K0: float, w0: float) -> tuple[float, float, float]:
-    """``(K_b, w_b, delay)``: ``g = dg/dw = 0`` solved by scipy's ``fsolve`` on the loop's values."""
+    """``(K_b, w_b, delay)`` of the pair birth near ``(K0, w0)`` (:func:`_oracles.pair_birth`)."""
     A, B0 = nr.loop_factors(system, ReflectionController(0.0))
-    q, tau = system.q, system.tau
-
-    def g(x: np.ndarray) -> list[float]:
-        K, w = x
-        s = np.array([1j * w])
-        a, da, b0, db0 = A(s)[0], 1j * A.deriv_at(s)[0], B0(s)[0], 1j * B0.deriv_at(s)[0]
-        e = np.exp(-1j * w * tau)
-        b, db = K * q * e + b0, -1j * tau * K * q * e + db0
-        return [abs(a) ** 2 - abs(b) ** 2, 2 * (np.conj(a) * da).real - 2 * (np.conj(b) * db).real]
-
-    (K, w), info, ok, _ = fsolve(g, [K0, w0], xtol=1e-14, full_output=True)
-    assert ok == 1 and max(abs(v) for v in info["fvec"]) < 1e-12
-    s = np.array([1j * w])
-    b = K * q * np.exp(-1j * w * tau) + B0(s)[0]
-    return float(K), float(w), float(np.mod(np.angle(-b / A(s)[0]), 2 * np.pi) / w)
+    return oracle_pair_birth(A, B0, system.q, system.tau, K0, w0)
 
 
 # ============================================================ closed forms
