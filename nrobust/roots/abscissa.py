@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .._json import fields_dict
+from .._validate import positive, positive_int
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
@@ -160,6 +161,9 @@ def spectral_abscissa(
     F = _check_function(F)
     if F.kind == "advanced":
         raise ParameterError("F", "retarded or neutral (an advanced quasi-polynomial has unbounded root real parts)", F)
+    cluster_tol = positive("cluster_tol", cluster_tol)
+    im_max = None if im_max is None else positive("im_max", im_max)
+    max_evals = positive_int("max_evals", max_evals)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals)
 

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 from .._json import fields_dict
 from .._newton import newton
-from .._validate import positive, positive_int
+from .._validate import number_array, positive, positive_int
 from .._validate import region as _check_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
@@ -707,7 +707,11 @@ def find_roots(
     if method not in METHODS:
         raise ParameterError("method", f"one of {METHODS}", method)
     max_evals = positive_int("max_evals", max_evals)
-    extra = np.zeros(0, dtype=complex) if seeds is None else np.atleast_1d(np.asarray(seeds, dtype=complex)).ravel()
+    extra = (
+        np.zeros(0, dtype=complex)
+        if seeds is None
+        else number_array("seeds", seeds, ndim=None, min_size=0).astype(complex).ravel()
+    )
     finder = _Finder(F, box, cluster_tol, _Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
