@@ -1,7 +1,7 @@
 """Delay margin and stability chart of the paper's example: nrobust vs direct peers.
 
 The plant is the paper's section 5 example (lam = mu = sigma+- = sigma-+ = q = 1,
-rho = 0.85) with ``U_BS2(K)`` (eq. (control3)), whose loop is eq. (delay_eq_alpha_ter).
+rho = 0.85) with ``U_BS2(K)`` (eq. (53)), whose loop is eq. (60).
 Measured in this process:
 
 * one delay margin (``K = 0.1``) by :func:`nrobust.delay_margin` (certified crossing
@@ -14,7 +14,8 @@ Measured in this process:
 * the admissible gains :func:`nrobust.k_region` at ``tol = 1e-9`` for ``delta_max = 0.1`` and
   ``0.2`` (issue 11's goal: under 1 s on 2 cores): the ends with their kind, the time to
   locate them by their equations (the frequency scan) and the total with their verification
-  (two delay margins and a root count per end, and the 9 grid margins), serially and on 2
+  (a crossing search inside and a root count outside each end, and the 9 grid margins;
+  CPU time beside the wall time, which a loaded machine inflates), serially and on 2
   processes; without ``--quick`` also the former route (bisection on delay margins, still
   used for other controller families) for comparison;
 * a 50 x 50 chart of the number of unstable roots on ``K in [-0.14, 0.14]``,
@@ -109,6 +110,13 @@ def k_region_section(system: Hyperbolic2x2, quick: bool) -> None:
             t_bis, bis = timed(lambda d=delta_max: k_region(system, d, tol=1e-9, controller=bisection_family))
             gap = max(abs(a - b) for iv, jv in zip(bis.intervals, reg.intervals) for a, b in zip(iv, jv))
             print(f"    former route (bisection on margins) {t_bis:.1f} s, ends differ by {gap:.2g}")
+    near = Hyperbolic2x2(2.0, 0.5, 0.3, -0.4, 0.7, 0.9)  # ends within 1e-4 of k = 0.528571
+    cpu = time.process_time()
+    t_near, reg = timed(lambda: k_region(near, 0.2))
+    cpu = time.process_time() - cpu
+    ends = ", ".join(f"{end.K:.10f} ({end.kind}, w = {end.omega:.6g})" for pair in reg.ends for end in pair)
+    print(f"  lam = 2, mu = 0.5, sigma = (0.3, -0.4), q = 0.7, rho = 0.9, delta_max = 0.2: {ends}")
+    print(f"    k_region serial {t_near:.3f} s ({cpu:.3f} s of CPU)")
 
 
 def main() -> None:
@@ -134,6 +142,14 @@ def main() -> None:
     print(
         f"  dense scan (step 1e-3)        delta* = {m_peer:.12f}  {n_peer} crossings  {t_peer:.4f} s  "
         f"ratio {t_peer / t_dm:.1f}x"
+    )
+    # the proven margin (ball arithmetic) against the verified floating-point one, best of 3 each
+    t_ref, _ = timed(lambda: delay_margin(A, B), repeat=3)
+    t_prov, prov = timed(lambda: delay_margin(A, B, rigorous=True), repeat=3)
+    lo, hi = prov.margin_ball
+    print(
+        f"  proven (ball arithmetic)      delta* in [{lo:.15f}, {hi:.15f}]  {prov.evaluations} ball evaluations  "
+        f"{t_prov:.3f} s  ratio to the verified margin {t_prov / t_ref:.1f}x (goal: under 20x)"
     )
     t_rb, rb = timed(lambda: rouche_delay_bound(system, ctrl))
     print(

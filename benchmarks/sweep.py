@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -35,7 +36,7 @@ def analyse(a: float, delta: float, b: float = 1.0) -> dict:
     return {"delta_star": margin, "n_unstable": n_unstable, "consistent": (n_unstable == 0) == (delta < margin)}
 
 
-def _timed(points: list[dict], executor: object, repeat: int) -> tuple[float, nrobust.SweepResult]:
+def _timed(points: Sequence[dict], executor: object, repeat: int) -> tuple[float, nrobust.SweepResult]:
     """Best rate (points per second) of ``repeat`` sweeps, pool start-up included."""
     best = 0.0
     for _ in range(repeat):
@@ -64,7 +65,7 @@ def main() -> None:
     try:
         import distributed
     except ImportError:
-        distributed = None
+        distributed = None  # type: ignore[assignment]  # the Dask row is left out
     if distributed is not None:
         with (
             distributed.LocalCluster(

@@ -1,12 +1,13 @@
-"""Section 2.3.2 of the paper: filtering the finite-time law, U_1 = -(1 + a s)/(1 + b s) rho u(1, s).
+"""Section 2.3.2 of the paper: filtering the finite-time law, U_1 = -(1 + a s)/(1 + b s) rho u(1, s)
+=================================================================================================
 
-The delayed loop is the neutral equation (delay_transport3) of degree 1 with difference
-operator b - b rho q e^{-tau s} + a rho q e^{-(tau+delta) s}: it is strongly stable when
-|rho q| (1 + |a|/b) < 1, and the paper's sufficient conditions are eq. (cond_a_b),
-a/b < (1 - |rho q|)/|rho q| and a < (1 - |rho q|)/|rho q|. This example
+The delayed loop is the neutral equation (16) of degree 1 with difference
+operator ``b - b rho q e^{-tau s} + a rho q e^{-(tau+delta) s}``: it is strongly stable when
+``|rho q| (1 + |a|/b) < 1``, and the paper's sufficient conditions are eq. (17),
+``a/b < (1 - |rho q|)/|rho q|`` and ``a < (1 - |rho q|)/|rho q|``. This example
 
 1. certifies one filter (a, b) = (0.1, 1) and writes its report,
-2. maps the admissible (a, b) on a grid (exact margins) against eq. (cond_a_b),
+2. maps the admissible (a, b) on a grid (exact margins) against eq. (17),
 3. simulates the PDE under the filtered law with and without a loop delay.
 
 Run: python examples/filtered_controller.py [OUT_DIR]
@@ -52,7 +53,7 @@ region = ab_region(system, 0.2, a, b)
 agree = np.mean(region.admissible[region.paper_conditions])
 print(
     f"{int(region.admissible.sum())} of {region.admissible.size} grid filters tolerate every delay in [0, 0.2]; "
-    f"{100 * agree:.0f}% of those meeting eq. (cond_a_b) do"
+    f"{100 * agree:.0f}% of those meeting eq. (17) do"
 )
 fig, ax = plt.subplots(figsize=(6, 4.5))
 AA, BB = np.meshgrid(a, b, indexing="ij")
@@ -61,7 +62,7 @@ ax.plot(AA[~region.admissible], BB[~region.admissible], "s", color="tab:red", ms
 ax.contour(AA, BB, region.paper_conditions.astype(float), levels=[0.5], colors="k")
 ax.set_xlabel("a")
 ax.set_ylabel("b")
-ax.set_title("Filtered U_BS: admissible (a, b); black: boundary of eq. (cond_a_b)", fontsize="small")
+ax.set_title("Filtered U_BS: admissible (a, b); black: boundary of eq. (17)", fontsize="small")
 ax.legend(fontsize="x-small")
 fig.savefig(out / "filtered_ab_region.png", dpi=110)
 

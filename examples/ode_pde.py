@@ -1,4 +1,5 @@
-"""Section 4.2.2 of the paper: an ODE at the unactuated end of the transport line.
+"""Section 4.2.2 of the paper: an ODE at the unactuated end of the transport line
+==============================================================================
 
     u_t + u_x = 0,  v_t - v_x = 0,  u(t, 0) = q v(t, 0) + c x(t),  v(t, 1) = rho u(t, 1) + U(t),
     x' = a x + b v(t, 0).
@@ -11,8 +12,8 @@ gives the characteristic function
     F(s) = (s - a) - (q (s - a) + b) (rho - K e^{-delta s}) e^{-2s},
 
 whose difference operator 1 - rho q e^{-2s} + K q e^{-(2 + delta)s} is the one of
-eq. (delay_transport2): cancelling the reflection (K = rho) gives zero delay margin as
-soon as |rho q| > 1/2, and a partial reflection trades decay rate for delay margin.
+eq. (13): cancelling the reflection (K = rho) gives zero delay margin as
+soon as ``|rho q| > 1/2``, and a partial reflection trades decay rate for delay margin.
 
 Run: python examples/ode_pde.py [OUT_DIR]
 """

@@ -1,16 +1,17 @@
-"""The transport closed loop of the paper's section 2, end to end.
+"""The transport closed loop of the paper's section 2, end to end
+==============================================================
 
 Two transport equations with lam = mu = q = 1 and proximal reflection rho = 0.85
 (open-loop gain rho q = 0.85, between 1/2 and 1) under the reflection-preserving
 control U = -K u(1) with K = 0.1 and a loop delay delta = 0.1. The characteristic
-function (eq. (delay_transport2)) is
+function (eq. (13)) is
 
     F(s) = 1 - 0.85 e^{-2 s} + 0.1 e^{-2.1 s}.
 
 The script prints the paper's classification, the strong stability of the difference
 operator (Hale and Verduyn Lunel), the certified roots in [-3, 1] x [-0.5, 200], and the
 same analysis for the finite-time law U = -rho u(1), whose delayed loop is not strongly
-stable (eq. (eq_rho_q)).
+stable (eq. (11)).
 
 Run: ``python examples/transport_loop.py``
 """

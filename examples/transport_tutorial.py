@@ -1,14 +1,15 @@
-"""Section 2 of the paper, step by step: two transport equations coupled at the boundaries.
+"""Section 2 of the paper, step by step: two transport equations coupled at the boundaries
+=======================================================================================
 
     u_t + lam u_x = 0,  v_t - mu v_x = 0,  u(t, 0) = q v(t, 0),  v(t, 1) = rho u(t, 1) + U(t)
 
 1. The open-loop transfer function H_0 = 1/(1 - rho q e^{-tau s}) and its poles,
    certified, against their closed form (ln(rho q) + 2 k pi i)/tau.
-2. The finite-time law U = -rho u(t, 1), eq. (Control_law_transport): its delayed loop
+2. The finite-time law U = -rho u(t, 1), eq. (9): its delayed loop
    has the difference operator 1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s}; with
-   |rho q| > 1/2 the margin is zero (eq. (eq_rho_q)) and the root chains move to Re s > 0.
-3. The reflection-preserving law U = -K u(t, 1), eq. (U_transport): stable for every delay
-   when |K| < (1 - |rho q|)/|q|.
+   ``|rho q| > 1/2`` the margin is zero (eq. (11)) and the root chains move to Re s > 0.
+3. The reflection-preserving law U = -K u(t, 1), eq. (12): stable for every delay
+   when ``|K| < (1 - |rho q|)/|q|``.
 4. The same loops handed to python-control (FRD and Pade models).
 
 Run: python examples/transport_tutorial.py [OUT_DIR]
@@ -89,7 +90,7 @@ for d, r in zip(locus.params, locus.roots):
     print(f"U_BS, delta = {d:g}: rightmost root in the box {r.real.max():.3f}, rightmost chain c_D = {c_D:.3f}")
 fig.savefig(out / "transport_locus_delta.png", dpi=110)
 
-# K-admissible region: eq. (boun_K2) is exact for the transport system
+# K-admissible region: eq. (54) is exact for the transport system
 region = nrobust.k_region(system, 1.0, n_gains=9)
 print(f"gains stable for every delay in [0, 1]: {region.intervals}, paper bound |K| < {region.paper_bound:.3g}")
 

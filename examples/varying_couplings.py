@@ -1,8 +1,9 @@
-"""Spatially varying couplings and lam != mu: the delay form against the kernel-free route.
+"""Spatially varying couplings and lam != mu: the delay form against the kernel-free route
+=======================================================================================
 
-The plant (u_pde)-(IC) with sigma+-(x) = 1 + 0.5 cos(pi x), sigma-+(x) = 0.8 x, lam = 1,
+The plant (18)-(20) with sigma+-(x) = 1 + 0.5 cos(pi x), sigma-+(x) = 0.8 x, lam = 1,
 mu = 2, q = 1, rho = 0.6. Backstepping maps it to the neutral distributed-delay equation
-(delay_eq_alpha); its characteristic function 1 - rho q e^{-tau s} + int N~ e^{-nu s} must
+(39); its characteristic function 1 - rho q e^{-tau s} + int N~ e^{-nu s} must
 vanish exactly where the Laplace-domain boundary function v(1, s) - rho u(1, s) does,
 which is computed with no kernel at all (Magnus integration of the transformed ODE).
 

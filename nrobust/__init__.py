@@ -17,6 +17,7 @@ from .difference import DifferenceOperator
 from .errors import CertificationError, ConvergenceError, NrobustError, ParameterError, RegionError, SweepError
 from .hyperbolic import (
     DelayForm,
+    GeneralHyperbolic2x2,
     Hyperbolic2x2,
     Kernels,
     TransportSystem,
@@ -31,10 +32,12 @@ from .hyperbolic.controllers import (
     FiniteTimeController,
     OpenLoop,
     ReflectionController,
+    StateFeedback,
     characteristic,
     classify,
     loop_factors,
 )
+from .hyperbolic.frontends import arz, from_riemann, saint_venant
 from .hyperbolic.loops import closed_loop_tf, open_loop_tf, output_map
 from .hyperbolic.robustness import rouche_delay_bound
 from .hyperbolic.simulate import Simulation, simulate
@@ -51,6 +54,7 @@ from .hyperbolic.studies import (
     tradeoff,
 )
 from .margins import DelayMargin
+from .qpmatrix import QuasiPolynomialMatrix
 from .quasipoly import DistributedDelay, QuasiPolynomial
 from .roots import RootSet, count_roots, find_roots, spectral_abscissa
 
@@ -62,6 +66,7 @@ __all__ = [
     # quasi-polynomials, difference operators, roots
     "QuasiPolynomial",
     "DistributedDelay",
+    "QuasiPolynomialMatrix",
     "DifferenceOperator",
     "count_roots",
     "find_roots",
@@ -70,6 +75,10 @@ __all__ = [
     # hyperbolic systems, kernels, delay form, controllers, simulation
     "Hyperbolic2x2",
     "TransportSystem",
+    "GeneralHyperbolic2x2",
+    "saint_venant",
+    "arz",
+    "from_riemann",
     "solve_kernels",
     "Kernels",
     "boundary_function",
@@ -79,6 +88,7 @@ __all__ = [
     "FiniteTimeController",
     "ReflectionController",
     "FilteredController",
+    "StateFeedback",
     "FeedbackLaw",
     "characteristic",
     "loop_factors",

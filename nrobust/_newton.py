@@ -1,7 +1,7 @@
 """Vectorised Newton iteration for analytic functions of one complex variable.
 
 One implementation serves the root finder (:mod:`nrobust.roots.finder`, on a
-quasi-polynomial, paper eq. (delay_eq_no_couplings2) and its closed-loop analogues) and
+quasi-polynomial, paper eq. (10) and its closed-loop analogues) and
 the spectral bound of a difference operator (:mod:`nrobust.difference`, on the principal
 part ``D``); each caller supplies its function, its step limit and, through the
 callbacks, its work accounting and its test for points that stall short of convergence.

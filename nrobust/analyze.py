@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
+from ._progress import progress_bar
 from .certificate import certify
-from .config import PiecewiseLinear, _wrap, load_system_file
+from .config import NPLUSM_TYPE, PiecewiseLinear, _wrap, load_system_file
 from .hyperbolic.simulate import Simulation, simulate
+from .nplusm_report import run_nplusm_analyze
+from .outputs import RunOutputs
 from .plots import simulation_figure
 from .report import ReportFiles, write_report
 
@@ -25,19 +26,30 @@ def _initial(value: float | PiecewiseLinear) -> Callable[[np.ndarray], np.ndarra
     return lambda x: np.full(np.shape(x), c)
 
 
-def _progress(total: int, enabled: bool, desc: str) -> tqdm:
-    return tqdm(total=total, desc=desc, disable=not enabled, leave=False, file=sys.stderr)
-
-
-def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) -> tuple[ReportFiles, str]:
+def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = None) -> tuple[ReportFiles, str]:
     """``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report.
 
-    Returns the :class:`~nrobust.report.ReportFiles` and the certificate's verdict.
+    The input file is validated and ``out_dir`` checked (created, writable) before any
+    computation; the report's files are written as one set with ``manifest.json``
+    (:class:`~nrobust.outputs.RunOutputs`): a failed or interrupted run leaves ``out_dir``
+    as it was. Returns the :class:`~nrobust.report.ReportFiles` and the certificate's verdict. A progress
+    bar is drawn on stderr when ``progress`` is True, or for None when stderr is a terminal
+    or Jupyter.
     """
     spec = load_system_file(path)
+    if spec.get("kind") == NPLUSM_TYPE:  # an n + m plant: the cancellation study
+        return run_nplusm_analyze(spec, out_dir, progress)
     sim = spec["simulation"]
-    with _progress(2 + (0 if sim is None else len(sim["delays"])), progress, "analyze") as bar:
-        cert = certify(spec["system"], spec["controller"], spec["delta_max"], spec["region"], spec["k_region"])
+    outputs = RunOutputs(out_dir, "analyze")  # checked before anything is computed
+    with outputs, progress_bar(2 + (0 if sim is None else len(sim["delays"])), progress, "analyze") as bar:
+        cert = certify(
+            spec["system"],
+            spec["controller"],
+            spec["delta_max"],
+            spec["region"],
+            spec["k_region"],
+            rigorous=spec["rigorous"],
+        )
         bar.update(1)
         figures = []
         if sim is not None:
@@ -56,6 +68,7 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool = True) ->
                     simulation_figure(runs, [f"delta = {d:g}" for d in sim["delays"]], "Simulation of the PDE"),
                 )
             )
-        files = write_report(cert, out_dir, figures=figures)
+        files = outputs.final(write_report(cert, outputs.staging, figures=figures))
+        outputs.commit()
         bar.update(1)
     return files, cert.verdict

@@ -20,8 +20,11 @@ the part of ``F`` that dominates:
 
 from __future__ import annotations
 
+import bisect
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -407,6 +410,11 @@ class RoucheDelayBound:
         Gain of the proximal reflection kept by the controller (``rho`` for U_BS).
     steps : int
         Certified steps taken by the march in ``delta``.
+    rigorous : bool
+        True when every quantity of the bound (``epsilon_0`` as given, the spline
+        correction, ``TV`` and each ``omega_lin(d)``) was computed in exact rational
+        arithmetic from the stored floats (``rigorous=True``): ``delta_0`` is then proven
+        for ``N~`` as represented.
     """
 
     delta_0: float
@@ -415,6 +423,7 @@ class RoucheDelayBound:
     total_variation: float
     K: float
     steps: int
+    rigorous: bool = False
 
     def __repr__(self) -> str:
         return (
@@ -428,7 +437,12 @@ class RoucheDelayBound:
 
 
 def delay_bound_from_kernel(
-    N: DistributedDelay | None, epsilon_0: float, K: float = 0.0, rtol: float = 1e-6, max_steps: int = 100_000
+    N: DistributedDelay | None,
+    epsilon_0: float,
+    K: float = 0.0,
+    rtol: float = 1e-6,
+    max_steps: int = 100_000,
+    rigorous: bool = False,
 ) -> RoucheDelayBound:
     """Largest certified ``delta_0`` with ``sup_{d <= delta_0} omega(d) < epsilon_0``.
 
@@ -456,10 +470,18 @@ def delay_bound_from_kernel(
         Relative step below which the march stops.
     max_steps : int, optional
         Work bound.
+    rigorous : bool, optional
+        Prove the bound in exact rational arithmetic (:func:`_exact_delay_bound`): the
+        stored floats of ``N`` (nodes, values and spline pieces) and ``epsilon_0`` are
+        rationals, and so are ``omega_lin``, ``TV``, the spline correction and every step.
     """
     epsilon_0 = finite_real("epsilon_0", epsilon_0)
     rtol = positive("rtol", rtol)
     max_steps = positive_int("max_steps", max_steps)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if rigorous and N is not None and epsilon_0 > 0.0:
+        return _exact_delay_bound(N, epsilon_0, K, rtol, max_steps)
     if epsilon_0 <= 0.0:
         return RoucheDelayBound(0.0, epsilon_0, 0.0, 0.0 if N is None else total_variation(N), K, 0)
     tv = 0.0 if N is None else total_variation(N)
@@ -486,3 +508,91 @@ def delay_bound_from_kernel(
             )
         d, om, steps = d + h, om_next, steps + 1
     return RoucheDelayBound(float(d), epsilon_0, om + correction, tv, K, steps)
+
+
+# ---------------------------------------------------------------------------- exact delay bound
+def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], Fraction, Fraction]:
+    """Nodes, values, ``TV`` of the linear interpolant and the bound of ``int |N - N_lin|``, exactly.
+
+    On a segment ``[nu_k, nu_k + h]`` of positive length, ``N = P(t)`` (the stored piece)
+    and ``N_lin`` the line through the values ``v_k``, ``v_{k+1}``: ``N - N_lin`` is
+    ``-t (1 - t) (P_2 + P_3 + P_3 t)`` plus the line through ``P(0) - v_k`` and
+    ``P(1) - v_{k+1}`` (zero but for the rounding of the spline fit), so
+    ``int |N - N_lin| <= h (|P_2 + P_3| / 6 + |P_3| / 12 + (|P(0) - v_k| + |P(1) - v_{k+1}|) / 2)``.
+    """
+    nodes = [Fraction(float(x)) for x in N.nodes]
+    values = [Fraction(float(v)) for v in N.values]
+    start, h, poly = N._pieces
+    segments = [k for k in range(len(nodes) - 1) if nodes[k + 1] > nodes[k]]
+    if len(segments) != start.size or any(Fraction(float(start[i])) != nodes[k] for i, k in enumerate(segments)):
+        raise CertificationError("delay_bound_from_kernel(rigorous=True): the spline pieces do not match the nodes")
+    tv = (
+        abs(values[0])
+        + abs(values[-1])
+        + sum((abs(values[k + 1] - values[k]) for k in range(len(nodes) - 1)), Fraction(0))
+    )
+    dev = Fraction(0)
+    for i, k in enumerate(segments):
+        p = [Fraction(float(c)) for c in poly[i]] + [Fraction(0)] * 4
+        hh = Fraction(float(h[i]))
+        ends = abs(p[0] - values[k]) + abs(sum(p, Fraction(0)) - values[k + 1])
+        dev += hh * (abs(p[2] + p[3]) / 6 + abs(p[3]) / 12 + ends / 2)
+    return nodes, values, tv, dev
+
+
+def _exact_l1_modulus(nodes: list[Fraction], values: list[Fraction], d: Fraction) -> Fraction:
+    """``int |N_lin(nu) - N_lin(nu - d)| dnu`` exactly (``N_lin`` linear, zero outside its support)."""
+    n = len(nodes)
+
+    def limit(x: Fraction, right: bool) -> Fraction:
+        idx = bisect.bisect_right(nodes, x) if right else bisect.bisect_left(nodes, x)
+        if idx <= 0 or idx >= n:
+            return Fraction(0)
+        x0, x1 = nodes[idx - 1], nodes[idx]
+        return values[idx - 1] + (values[idx] - values[idx - 1]) * (x - x0) / (x1 - x0)
+
+    br = sorted(set(nodes) | {x + d for x in nodes})
+    total = Fraction(0)
+    for lo, hi in itertools.pairwise(br):
+        f0 = limit(lo, True) - limit(lo - d, True)
+        f1 = limit(hi, False) - limit(hi - d, False)
+        if f0 * f1 >= 0:
+            total += (hi - lo) * (abs(f0) + abs(f1)) / 2
+        else:
+            total += (hi - lo) * (f0 * f0 + f1 * f1) / (2 * (abs(f0) + abs(f1)))
+    return total
+
+
+def _exact_delay_bound(
+    N: DistributedDelay, epsilon_0: float, K: float, rtol: float, max_steps: int
+) -> RoucheDelayBound:
+    """:func:`delay_bound_from_kernel` in exact rational arithmetic (``epsilon_0 > 0``).
+
+    Each step from ``d`` to ``d + h`` (floats) is accepted when
+    ``omega_lin(d) + h TV_lin < budget`` exactly, which bounds ``omega_lin`` on the whole
+    step (subadditivity); then ``omega_lin(d + h)`` is computed exactly.
+    """
+    if np.iscomplexobj(N.values) or N.moment != 0:
+        raise ParameterError("N", "a real DistributedDelay kernel of moment 0", N)
+    nodes, values, tv, dev = _exact_pieces(N)
+    budget = Fraction(epsilon_0) - 2 * dev
+    if tv == 0:
+        return RoucheDelayBound(np.inf, epsilon_0, 0.0, 0.0, K, 0, True)
+    if budget <= 0:
+        return RoucheDelayBound(0.0, epsilon_0, float(2 * dev), float(tv), K, 0, True)
+    d, om, steps = 0.0, Fraction(0), 0
+    while steps < max_steps:
+        h = 0.999 * float((budget - om) / tv)
+        if d > 0.0 and h <= rtol * d:
+            break
+        nxt = d + h
+        if not om + (Fraction(nxt) - Fraction(d)) * tv < budget:
+            break
+        d, om, steps = nxt, _exact_l1_modulus(nodes, values, Fraction(nxt)), steps + 1
+    return RoucheDelayBound(float(d), epsilon_0, _up(om + 2 * dev), _up(tv), K, steps, True)
+
+
+def _up(x: Fraction) -> float:
+    """The float nearest ``x``, rounded up when below it."""
+    v = float(x)
+    return v if Fraction(v) >= x else float(np.nextafter(v, np.inf))

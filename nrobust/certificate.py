@@ -3,7 +3,7 @@
 :func:`certify` runs the whole analysis of a plant and a controller and returns a
 :class:`Certificate`: the paper's classification by ``|rho q|`` (sections 2 and 3), the
 closed-loop difference operator with its ``gamma_0`` and strong stability (Hale and
-Verduyn Lunel; eq. (eq_rho_q), eq. (boun_K2)), certified root counts per box at
+Verduyn Lunel; eq. (11), eq. (54)), certified root counts per box at
 ``delta = 0`` and ``delta = delta_max``, the spectral abscissa, the exact delay margin
 with its crossing frequency, the Rouché bound ``delta_0`` from the proof of Theorem 4,
 and, for ``U_BS2(K)``, the gains ``K`` that keep the loop stable for every delay in
@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import json
 import platform
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
+from typing import Any, TypeVar
 
 import numpy as np
 import scipy
@@ -36,15 +38,17 @@ from .hyperbolic.controllers import (
     ReflectionController,
     characteristic,
     classify,
+    normalize,
 )
+from .hyperbolic.kernels import DEFAULT_KERNEL_GRID
 from .hyperbolic.robustness import rouche_delay_bound
 from .hyperbolic.studies import DEFAULT_N_GAINS, KRegion, delay_margin
 from .hyperbolic.system import Hyperbolic2x2
 from .margins import DelayMargin
 from .quasipoly import QuasiPolynomial
-from .roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
+from .roots import RootSet, SpectralAbscissa, count_roots, find_roots, spectral_abscissa
 
-__all__ = ["Certificate", "PrincipalPart", "certify"]
+__all__ = ["CHECKED", "PROVEN", "Certificate", "Claim", "ModelError", "PrincipalPart", "certify"]
 
 #: Default search rectangle for the certified root counts, in units of ``1/tau``.
 _DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
@@ -61,8 +65,8 @@ class PrincipalPart:
     coefs, delays : tuple of float
         ``a_k`` (real parts; the loops of the paper are real) and ``tau_k``.
     gamma_0 : float
-        ``sum_{k >= 1} |a_k| / |a_0|``; for U_BS this is ``2 |rho q|`` (eq. (eq_rho_q)), for
-        U_BS2(K) ``|rho q| + |K q|`` (eq. (boun_K2)).
+        ``sum_{k >= 1} |a_k| / |a_0|``; for U_BS this is ``2 |rho q|`` (eq. (11)), for
+        U_BS2(K) ``|rho q| + |K q|`` (eq. (54)).
     strongly_stable : bool
         ``gamma_0 < 1``: the loop's high-frequency chains stay in ``Re s < 0`` for every
         small delay (Hale and Verduyn Lunel).
@@ -103,6 +107,253 @@ def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
         float(bound),
         tuple(float(c.real) for c in chains.chains),
     )
+
+
+#: Status of a claim proven in ball arithmetic (python-flint): a theorem about ``F`` as represented.
+PROVEN = "proven (ball arithmetic)"
+#: Status of a claim computed in floating point with a rounding allowance.
+CHECKED = "checked (floating point)"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One statement of a certificate and how far it is established.
+
+    Attributes
+    ----------
+    name : str
+        What the claim is about (``"delay margin"``, ``"nominal stability"``, ...).
+    statement : str
+        The claim, with its numbers.
+    status : str
+        :data:`PROVEN` (ball arithmetic, about ``F`` as represented) or :data:`CHECKED`
+        (floating point with a rounding allowance).
+    source : str
+        The function whose result the claim states.
+    """
+
+    name: str
+    statement: str
+    status: str
+    source: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """How far the represented loop is from the model: the kernel ``N~`` on a finite grid.
+
+    The proofs of a rigorous certificate concern ``F`` as represented (``N~`` the cubic
+    spline on ``kernel_grid`` points); this is the separate, floating-point evidence on
+    the distance to the exact kernel: the delay margin on a grid half as fine.
+
+    Attributes
+    ----------
+    kernel_grid, coarse_grid : int
+        The grid of the certificate and the coarser grid of the comparison.
+    margin, coarse_margin : float
+        The delay margins on both grids.
+    difference : float
+        ``|margin - coarse_margin|``; with the margin's observed third-order convergence in
+        the grid (``docs/margins.md``) the error of ``margin`` is about ``difference / 7``.
+    statement : str
+        The evidence in words.
+    """
+
+    kernel_grid: int
+    coarse_grid: int
+    margin: float
+    coarse_margin: float
+    difference: float
+    statement: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinities as strings)."""
+        return fields_dict(self)
+
+
+def _model_error(system: Hyperbolic2x2, controller: Controller, margin: DelayMargin) -> ModelError:
+    """The delay margin on the default kernel grid and on one half as fine (floating point)."""
+    grid = DEFAULT_KERNEL_GRID
+    coarse = (grid - 1) // 2 + 1
+    if getattr(system, "uncoupled", False):
+        return ModelError(
+            grid, grid, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
+        )
+    other = delay_margin(system, controller, kernel_grid=coarse).margin
+    if margin.margin == other:
+        diff = 0.0
+    elif np.isfinite(margin.margin) and np.isfinite(other):
+        diff = abs(margin.margin - other)
+    else:
+        diff = float("inf")
+    if diff == 0.0 and not (np.isfinite(other) and other > 0.0):
+        statement = (
+            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin is {other:g} on {coarse} "
+            f"and on {grid} points (decided by the structure of the loop, not by the values of N~)"
+        )
+    else:
+        statement = (
+            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin moves by {diff:.3g} from "
+            f"{coarse} to {grid} points (floating point; third-order convergence: error about {diff / 7.0:.2g})"
+        )
+    return ModelError(grid, coarse, float(margin.margin), float(other), float(diff), statement)
+
+
+def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float, float, float, float], int] | None:
+    """A box in ``Re s > 0`` holding zeros of ``F(s; delta_max)`` (count and box), or None.
+
+    The roots of a neutral loop approach the chains of its difference operator (each chain
+    ``Re s = c``, ``Im s = offset + k spacing``): a box of half-width ``min(c/2, 0.1)`` and
+    half-height 1 about a chain point with ``c > 0`` is counted (in ball arithmetic with
+    ``rigorous``); a positive count proves the loop unstable.
+    """
+    try:
+        chains = Fd.principal_part().chains().chains
+    except (ParameterError, CertificationError):
+        return None
+    for chain in [c for c in chains if c.real > 0][:3]:
+        im = chain.offset % chain.spacing if np.isfinite(chain.spacing) and chain.spacing > 0 else chain.offset
+        im = im or chain.spacing
+        r = min(0.5 * chain.real, 0.1)
+        box = (chain.real - r, chain.real + r, im - 1.0, im + 1.0)
+        try:
+            n = count_roots(Fd, box, rigorous=rigorous)
+        except CertificationError:
+            continue
+        if int(n) > 0 and n.region[0] > 0.0:
+            return tuple(float(v) for v in n.region), int(n)  # type: ignore[return-value]
+    return None
+
+
+def _outward(x: float | None, digits: int, up: bool) -> str:
+    """``x`` to ``digits`` significant digits, rounded up (``up``) or down: a displayed bound stays a bound."""
+    if x is None or not np.isfinite(x):
+        return "-" if x is None else str(float(x))
+    if x == 0.0:
+        return "0"
+    exact = Decimal(float(x))
+    quantum = Decimal(1).scaleb(exact.adjusted() - digits + 1)
+    return f"{exact.quantize(quantum, rounding=ROUND_CEILING if up else ROUND_FLOOR).normalize():g}"
+
+
+def _claims(
+    margin: DelayMargin,
+    roots0: RootSet,
+    rootsd: RootSet,
+    abscissa: SpectralAbscissa,
+    rouche: RoucheDelayBound | None,
+    kreg: KRegion | None,
+    delta_max: float,
+    witness: tuple[tuple[float, float, float, float], int] | None = None,
+) -> tuple[Claim, ...]:
+    """Every claim of a certificate with its status (proven in balls or checked in floating point)."""
+
+    def status(proven: bool) -> str:
+        return PROVEN if proven else CHECKED
+
+    main = margin.rigorous and margin.strongly_stable  # the crossing analysis ran in balls
+    out = [
+        Claim(
+            "strong stability",
+            "the difference operator of F(s; delta) is "
+            + ("" if margin.strongly_stable else "not ")
+            + f"strongly stable for small delta > 0 (principal gap {margin.gap:.6g})",
+            status(margin.rigorous),
+            "delay_margin",
+        ),
+        Claim(
+            "nominal stability",
+            "F(s; 0) has "
+            + (
+                "no zero in Re s >= 0"
+                if margin.nominally_stable
+                else ("an unknown number of zeros" if margin.nominal_unstable is None else f"{margin.nominal_unstable}")
+                + " zeros in Re s > 0 (or one on the axis)"
+            ),
+            status(
+                main
+                or (margin.rigorous and margin.zero_root)
+                or (margin.nominally_stable and abscissa.rigorous and abscissa.certified and abscissa.value < 0)
+            ),
+            "delay_margin (count_roots), spectral_abscissa",
+        ),
+    ]
+    if margin.margin_ball is not None and margin.rigorous:
+        lo, hi = margin.margin_ball
+        text = f"delta* in [{_outward(lo, 16, False)}, {_outward(hi, 16, True)}]"
+    else:
+        text = f"delta* = {margin.margin:.12g}"
+    reason = margin.reason.split(" (proven in ball arithmetic")[0]
+    out.append(Claim("delay margin", f"{text}: {reason}", status(margin.rigorous), "delay_margin"))
+    if margin.margin_ball is not None and margin.margin_ball[0] > delta_max:
+        out.append(
+            Claim(
+                "stability up to delta_max",
+                f"F(s; delta) has no zero in Re s >= 0 for every delta in [0, {delta_max:g}] (delta* > delta_max)",
+                status(margin.rigorous),
+                "delay_margin",
+            )
+        )
+    if witness is not None:
+        box, n = witness
+        out.append(
+            Claim(
+                "instability at delta_max",
+                f"F(s; {delta_max:g}) has at least {n} zero(s) in the box Re s in "
+                f"[{_outward(box[0], 6, False)}, {_outward(box[1], 6, True)}], "
+                f"Im s in [{_outward(box[2], 6, False)}, {_outward(box[3], 6, True)}] "
+                "(inside Re s > 0: a chain of the difference operator)",
+                status(margin.rigorous),
+                "count_roots",
+            )
+        )
+    if margin.omega is not None and np.isfinite(margin.margin) and margin.margin > 0:
+        first = next((c for c in margin.crossings if c.omega == margin.omega), None)
+        kind = "a tangency" if first is not None and first.tangential else "a destabilising crossing"
+        out.append(
+            Claim(
+                "crossing that fixes delta*",
+                f"{kind} at w = {margin.omega:.12g}, first of every zero of |A(i w)|^2 - |B(i w)|^2 on "
+                f"[0, W], W = {_outward(margin.frequency_bound, 6, True)}",
+                status(main),
+                "delay_margin (crossings)",
+            )
+        )
+    for name, roots, delta in (("roots at delta = 0", roots0, 0.0), ("roots at delta_max", rootsd, delta_max)):
+        right = int(np.sum(roots.box_counts[roots.boxes[:, 0] > 0.0])) if roots.boxes.size else 0
+        extra = f", {right} of them in boxes inside Re s > 0" if right else ""
+        out.append(
+            Claim(
+                name,
+                f"F(s; {delta:g}) has {roots.count} zeros in the region, each entry in its counted box{extra}",
+                status(roots.rigorous and roots.certified),
+                "find_roots",
+            )
+        )
+    out.append(
+        Claim(
+            "spectral abscissa",
+            f"no zero of F(s; 0) with Re s > {_outward(abscissa.value, 10, True)}",
+            status(abscissa.rigorous and abscissa.certified),
+            "spectral_abscissa",
+        )
+    )
+    if rouche is not None:
+        out.append(
+            Claim(
+                "Rouché delay range",
+                f"every delay in [0, {_outward(rouche.delta_0, 6, False)}] keeps F zero-free on Re s >= 0",
+                status(bool(getattr(rouche, "rigorous", False))),
+                "rouche_delay_bound",
+            )
+        )
+    if kreg is not None:
+        out.append(Claim("admissible gains", "gains K stable on [0, delta_max] (see k_region)", CHECKED, "k_region"))
+    return tuple(out)
 
 
 def _versions() -> dict[str, str]:
@@ -152,6 +403,14 @@ class Certificate:
         Why the admissible gains could not be certified (the
         :class:`~nrobust.errors.CertificationError` of ``k_region``, which is then None);
         empty otherwise.
+    rigorous : bool
+        ``certify(..., rigorous=True)``: the claims were proven in ball arithmetic where possible.
+    claims : tuple of Claim
+        Every claim with its status, :data:`PROVEN` or :data:`CHECKED` (see :attr:`scope`).
+    model_error : ModelError or None
+        With ``rigorous``: the floating-point evidence on the distance of ``N~`` to the kernel.
+    unproven : tuple of str
+        With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
     """
 
     system: Hyperbolic2x2
@@ -169,6 +428,26 @@ class Certificate:
     region: tuple[float, float, float, float]
     versions: dict[str, str]
     k_region_error: str = ""
+    rigorous: bool = False
+    claims: tuple[Claim, ...] = ()
+    model_error: ModelError | None = None
+    unproven: tuple[str, ...] = ()
+
+    @property
+    def scope(self) -> str:
+        """What the certificate's proofs are about, in words."""
+        if not self.rigorous:
+            return (
+                "Every claim is checked in floating point with a rounding allowance (certify(..., rigorous=True) "
+                "proves them in ball arithmetic)."
+            )
+        return (
+            "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
+            "N~ the cubic spline of the kernels on the kernel grid; they are proven in ball arithmetic "
+            "(python-flint). The distance of N~ to the exact kernel (the model error) is not part of the proofs: "
+            + (self.model_error.statement if self.model_error is not None else "not estimated")
+            + "."
+        )
 
     # ------------------------------------------------------------------ verdicts
     @property
@@ -218,6 +497,7 @@ class Certificate:
             "delay_robust": self.delay_robust,
             "delay_margin": self.delay_margin,
             "stable_up_to_delta_max": self.stable_up_to_delta_max,
+            "scope": self.scope,
         }
         fields = {("spectral_abscissa" if k == "abscissa" else k): v for k, v in fields_dict(self).items()}
         return {**json_safe(verdicts), **fields}
@@ -242,15 +522,16 @@ def certify(
     region: tuple[float, float, float, float] | None = None,
     k_region: bool = True,
     n_gains: int = DEFAULT_N_GAINS,
+    rigorous: bool = False,
 ) -> Certificate:
     """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
 
     Parameters
     ----------
     system : Hyperbolic2x2 or TransportSystem
-        The plant, eqs. (u_pde)-(IC).
+        The plant, eqs. (18)-(20).
     controller : OpenLoop, FiniteTimeController, ReflectionController or FilteredController
-        The control law (U_BS eq. (control), U_BS2(K) eq. (control3), ...).
+        The control law (U_BS eq. (47), U_BS2(K) eq. (53), ...).
     delta_max : float
         Largest loop delay of interest (``> 0``).
     region : tuple, optional
@@ -268,11 +549,19 @@ def certify(
         limit that the crossing search exceeds its work bound), ``k_region`` is None and
         ``k_region_error`` says why.
 
+    rigorous : bool
+        Prove the root counts, the spectral abscissa, the delay margin (with its crossing)
+        and the Rouché range in ball arithmetic (python-flint, ``pip install
+        nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
+        Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
+        :data:`PROVEN` or :data:`CHECKED`.
+
     Returns
     -------
     Certificate
     """
     delta_max = positive("delta_max", delta_max)
+    system, controller = normalize(system, controller)  # a general plant: its normal form
     if not np.isfinite(delta_max):
         raise ParameterError("delta_max", "finite", delta_max)
     classification = classify(system)  # also checks the system
@@ -285,12 +574,21 @@ def certify(
     # nominal U_BS and U_BS2 loops cancels exactly
     F0 = characteristic(system, controller, 0.0)
     Fd = characteristic(system, controller, delta_max)
-    roots0 = find_roots(F0, box)
-    rootsd = find_roots(Fd, box)
-    abscissa = spectral_abscissa(F0)
-    margin = delay_margin(system, controller, delta_max=delta_max)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    rigorous = bool(rigorous)
+    unproven: list[str] = []
+    roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
+    rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
+    abscissa = _prove("spectral abscissa", rigorous, unproven, lambda r: spectral_abscissa(F0, rigorous=r))
+    margin = _prove(
+        "delay margin",
+        rigorous,
+        unproven,
+        lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r),
+    )
     rouche = (
-        rouche_delay_bound(system, controller)
+        _prove("Rouché delay range", rigorous, unproven, lambda r: rouche_delay_bound(system, controller, rigorous=r))
         if isinstance(controller, (ReflectionController, FiniteTimeController))
         else None
     )
@@ -317,4 +615,31 @@ def certify(
         region=tuple(float(v) for v in box),  # type: ignore[arg-type]
         versions=_versions(),
         k_region_error=k_region_error,
+        rigorous=rigorous,
+        claims=_claims(
+            margin,
+            roots0,
+            rootsd,
+            abscissa,
+            rouche,
+            kreg,
+            delta_max,
+            _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
+        ),
+        model_error=_model_error(system, controller, margin) if rigorous else None,
+        unproven=tuple(unproven),
     )
+
+
+_T = TypeVar("_T")
+
+
+def _prove(name: str, rigorous: bool, unproven: list[str], compute: Callable[[bool], _T]) -> _T:
+    """``compute(rigorous)``; when the proof is refused, the floating-point result, and why in ``unproven``."""
+    if not rigorous:
+        return compute(False)
+    try:
+        return compute(True)
+    except CertificationError as exc:
+        unproven.append(f"{name}: not proven in ball arithmetic ({exc}); checked in floating point")
+        return compute(False)

@@ -7,12 +7,17 @@
     The reference paper's example end to end: classification, figures 1 and 3 by
     simulation of the PDE, delay margins of U_BS and U_BS2(K = 0.1), the ``(K, delta)``
     stability chart with the sufficient bound, the decay/margin trade-off and the report.
-``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS]``
-    A parameter sweep or Monte Carlo study (:func:`nrobust.sweep.run_sweep_file`).
+``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
+    A parameter sweep or Monte Carlo study (:func:`nrobust.sweep.run_sweep_file`); run
+    again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).
 
-Input errors end the program with exit code 2 and a one-line message naming the bad key
-(no traceback); a certified computation that reaches its work bound ends it with exit
-code 1 and the message of the :class:`~nrobust.errors.CertificationError`.
+Each command validates its whole input and checks that ``OUT/`` can be created and
+written before it computes anything. Input errors (a bad key, an unwritable ``OUT/``, a
+file that is not UTF-8 TOML) end the program with exit code 2 and a one-line message
+naming the bad key (no traceback); a certified computation that reaches its work bound
+ends it with exit code 1 and the message of the
+:class:`~nrobust.errors.CertificationError`; Ctrl-C ends it with exit code 130 and a
+one-line summary (for a sweep: the points done and where they are kept).
 """
 
 from __future__ import annotations
@@ -23,33 +28,55 @@ from collections.abc import Sequence
 
 import matplotlib
 
+from ._version import __version__
 from .analyze import run_analyze
 from .config import PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
 from .paper import PAPER_SYSTEM, run_paper
+from .parallel import SweepInterrupted
 from .sweepfile import run_sweep_file
 
 __all__ = ["PAPER_SYSTEM", "PiecewiseLinear", "load_system_file", "main", "run_analyze", "run_paper"]
 
 
 # ---------------------------------------------------------------------- main
+def _progress_options(parser: argparse.ArgumentParser) -> None:
+    """``--progress`` / ``--no-progress``; neither: bars only when stderr is a terminal or Jupyter."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument(
+        "--progress",
+        dest="progress",
+        action="store_const",
+        const=True,
+        default=None,
+        help="progress bars on stderr even when it is not a terminal (default: only in a terminal or Jupyter)",
+    )
+    group.add_argument("--no-progress", dest="progress", action="store_const", const=False, help="no progress bar")
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="nrobust", description="Delay-robustness analysis of boundary-controlled 2x2 hyperbolic PDEs."
     )
+    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     a = sub.add_parser("analyze", help="certify the loop described by a SYSTEM.toml file and write a report")
     a.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md)")
     a.add_argument("-o", "--out", required=True, help="output directory")
-    a.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_options(a)
     pp = sub.add_parser("paper", help="the reference paper's example end to end")
     pp.add_argument("-o", "--out", required=True, help="output directory")
-    pp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _progress_options(pp)
     s = sub.add_parser("sweep", help="run a SWEEP.toml parameter sweep or Monte Carlo study")
     s.add_argument("file", help="SWEEP.toml (schema: docs/sweeps.md)")
     s.add_argument("-o", "--out", required=True, help="output directory")
     s.add_argument("--dask", metavar="ADDRESS", default=None, help="Dask scheduler address, e.g. tcp://host:8786")
-    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument(
+        "--restart",
+        action="store_true",
+        help="discard the results of an earlier run in OUT and run every point (default: resume)",
+    )
+    _progress_options(s)
     return p
 
 
@@ -57,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``nrobust`` command; returns the exit code."""
     matplotlib.use("Agg")
     args = _parser().parse_args(argv)
-    progress = not args.no_progress
+    progress = args.progress
     try:
         if args.command == "analyze":
             files, verdict = run_analyze(args.file, args.out, progress=progress)
@@ -70,7 +97,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"in {summary['elapsed_seconds']:.1f} s"
             )
         else:
-            result = run_sweep_file(args.file, args.out, dask_address=args.dask, progress=progress)
+            result = run_sweep_file(
+                args.file, args.out, dask_address=args.dask, progress=progress, restart=args.restart
+            )
             print(
                 f"wrote {result.csv}, {result.json}, {result.png} "
                 f"({len(result.sweep.points)} points, {result.sweep.n_failed} failed)"
@@ -81,4 +110,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except NrobustError as exc:  # a certified computation hit its work bound
         print(f"nrobust: computation failed: {exc}", file=sys.stderr)
         return 1
+    except SweepInterrupted as exc:  # Ctrl-C: the finished points are in the journal
+        print(f"nrobust: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"nrobust: interrupted: nothing written, {args.out} holds what it held before", file=sys.stderr)
+        return 130
     return 0

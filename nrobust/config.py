@@ -10,6 +10,7 @@ profile (:class:`PiecewiseLinear`). ``nrobust analyze`` reads SYSTEM.toml with
 
 from __future__ import annotations
 
+import functools
 import itertools
 import sys
 import warnings
@@ -27,7 +28,12 @@ from .hyperbolic.controllers import (
     FiniteTimeController,
     OpenLoop,
     ReflectionController,
+    StateFeedback,
+    normalize,
 )
+from .hyperbolic.frontends import arz, saint_venant
+from .hyperbolic.general import GeneralHyperbolic2x2
+from .hyperbolic.nplusm import NPlusMSystem
 from .hyperbolic.simulate import DEFAULT_CELLS
 from .hyperbolic.system import Hyperbolic2x2, TransportSystem
 
@@ -38,26 +44,77 @@ else:  # pragma: no cover - exercised by the Python 3.10 run of CI
 
 __all__ = ["CONTROLLER_TYPES", "SYSTEM_TYPES", "PiecewiseLinear", "load_system_file", "load_toml"]
 
-#: The plants a file can name in ``[system] type = ...``.
-SYSTEM_TYPES: dict[str, type[Hyperbolic2x2]] = {"Hyperbolic2x2": Hyperbolic2x2, "TransportSystem": TransportSystem}
+
+def _plant_of(build: Callable[..., Any], name: str) -> Callable[..., GeneralHyperbolic2x2]:
+    """A front end returning its plant (``.system``), named ``name`` in the registry.
+
+    The signature is kept (``functools.wraps``) so that sweep files read the parameters
+    from it.
+    """
+
+    @functools.wraps(build)
+    def make(*args: Any, **kwargs: Any) -> GeneralHyperbolic2x2:
+        plant: GeneralHyperbolic2x2 = build(*args, **kwargs).system
+        return plant
+
+    make.__name__ = make.__qualname__ = name
+    return make
+
+
+#: The plants a file can name in ``[system] type = ...``: the paper's plants, the general
+#: plant and the physical front ends. The readers pass a general plant and its controller
+#: through :func:`~nrobust.hyperbolic.controllers.normalize` (the normal form, and the
+#: gains of a ``StateFeedback`` mapped from the physical coordinates).
+SYSTEM_TYPES: dict[str, Callable[..., Hyperbolic2x2 | GeneralHyperbolic2x2]] = {
+    "Hyperbolic2x2": Hyperbolic2x2,
+    "TransportSystem": TransportSystem,
+    "GeneralHyperbolic2x2": GeneralHyperbolic2x2,
+    "SaintVenant": _plant_of(saint_venant, "SaintVenant"),
+    "ARZ": _plant_of(arz, "ARZ"),
+}
+#: The ``n + m`` plant (``[system] type = "NPlusMSystem"``) has its own reader, :func:`_load_nplusm`:
+#: its analysis is a study of static feedbacks, not a 2x2 certificate, and sweeps do not take it.
+NPLUSM_TYPE = "NPlusMSystem"
 #: The controllers a file can name in ``[controller] type = ...``.
 CONTROLLER_TYPES: dict[str, type[Controller]] = {
     "OpenLoop": OpenLoop,
     "FiniteTimeController": FiniteTimeController,
     "ReflectionController": ReflectionController,
     "FilteredController": FilteredController,
+    "StateFeedback": StateFeedback,
 }
 _SYSTEM_KEYS = {
     "Hyperbolic2x2": ("lam", "mu", "sigma_pm", "sigma_mp", "q", "rho"),
     "TransportSystem": ("lam", "mu", "q", "rho"),
+    "GeneralHyperbolic2x2": ("lam", "mu", "a", "b", "c", "d", "q", "rho"),
+    "SaintVenant": ("length", "width", "slope", "discharge"),
+    "ARZ": ("length", "v_max", "rho_max", "gamma", "relaxation", "rho_star"),
 }
+#: Keys a file may leave out (the builder's default applies).
+_SYSTEM_OPTIONAL: dict[str, tuple[str, ...]] = {
+    "GeneralHyperbolic2x2": ("length", "time_unit"),
+    "SaintVenant": (
+        "manning",
+        "chezy",
+        "downstream",
+        "downstream_depth",
+        "weir_height",
+        "weir_coefficient",
+        "time_unit",
+    ),
+    "ARZ": ("time_unit",),
+}
+#: Coefficients of the general plant: numbers or samples ``{x = [...], values = [...]}`` on [0, L].
+_GENERAL_PROFILES = ("lam", "mu", "a", "b", "c", "d")
 _CONTROLLER_KEYS = {
     "OpenLoop": (),
     "FiniteTimeController": (),
     "ReflectionController": ("K",),
     "FilteredController": ("a", "b"),
+    "StateFeedback": ("k",),
 }
-_ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True}
+_CONTROLLER_OPTIONAL: dict[str, tuple[str, ...]] = {"StateFeedback": ("g_u", "g_v")}
+_ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True, "rigorous": False}
 _SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0": 1.0, "v0": 1.0}
 #: Deprecated keys of ``[simulation]``, read as their new names with a DeprecationWarning.
 _SIMULATION_RENAMED = {"n": "cells"}
@@ -74,6 +131,14 @@ def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
         raise ParameterError("path", f"an existing {what}", str(path)) from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError("path", f"a valid TOML file ({exc})", str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ParameterError(
+            "path",
+            f"a UTF-8 encoded TOML file (byte {exc.object[exc.start]:#04x} at offset {exc.start} is not UTF-8)",
+            str(path),
+        ) from None
+    except IsADirectoryError:
+        raise ParameterError("path", f"an existing {what}, not a directory", str(path)) from None
 
 
 @dataclass(frozen=True)
@@ -121,6 +186,32 @@ def _profile(key: str, value: Any) -> float | PiecewiseLinear:
     return PiecewiseLinear(xs, vs)
 
 
+def _samples(key: str, value: Any) -> float | tuple[tuple[float, ...], tuple[float, ...]]:
+    """A number or samples ``{x = [...], values = [...]}`` (the plant checks they span [0, L])."""
+    if not isinstance(value, dict):
+        return _number(key, value)
+    if set(value) != {"x", "values"}:
+        raise ParameterError(key, "a number or a table with exactly the keys x and values", value)
+    x, v = value["x"], value["values"]
+    if not isinstance(x, list) or not isinstance(v, list):
+        raise ParameterError(key, "lists x and values", value)
+    return tuple(_number(f"{key}.x", t) for t in x), tuple(_number(f"{key}.values", t) for t in v)
+
+
+def _system_value(kind: str, key: str, value: Any) -> Any:
+    """One value of ``[system]``: a coupling profile, a coefficient, a word, or a number."""
+    name = f"system.{key}"
+    if key.startswith("sigma"):
+        return _profile(name, value)
+    if kind == "GeneralHyperbolic2x2" and key in _GENERAL_PROFILES:
+        return _samples(name, value)
+    if key == "downstream":
+        if value not in ("gate", "weir"):
+            raise ParameterError(name, "'gate' or 'weir'", value)
+        return value
+    return _number(name, value)
+
+
 def _table(spec: dict[str, Any], name: str, required: bool) -> dict[str, Any]:
     table = spec.get(name)
     if table is None and not required:
@@ -130,14 +221,20 @@ def _table(spec: dict[str, Any], name: str, required: bool) -> dict[str, Any]:
     return table
 
 
-def _typed(table: dict[str, Any], section: str, keys: dict[str, tuple[str, ...]]) -> tuple[str, dict[str, Any]]:
+def _typed(
+    table: dict[str, Any],
+    section: str,
+    keys: dict[str, tuple[str, ...]],
+    optional: dict[str, tuple[str, ...]] | None = None,
+) -> tuple[str, dict[str, Any]]:
     kind = table.get("type")
     if kind not in keys:
         raise ParameterError(f"{section}.type", f"one of {list(keys)}", kind)
     params = {k: v for k, v in table.items() if k != "type"}
+    allowed = keys[kind] + (optional or {}).get(kind, ())
     for key in params:
-        if key not in keys[kind]:
-            raise ParameterError(f"{section}.{key}", f"a key of {kind}: one of {list(keys[kind])}", params[key])
+        if key not in allowed:
+            raise ParameterError(f"{section}.{key}", f"a key of {kind}: one of {list(allowed)}", params[key])
     for key in keys[kind]:
         if key not in params:
             raise ParameterError(f"{section}.{key}", f"given for {kind}", None)
@@ -159,13 +256,50 @@ def _wrap(key: str, build: Callable[[], Any]) -> Any:
         raise ParameterError(f"{key}.{exc.name}", exc.requirement, exc.value) from None
 
 
+def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
+    """An ``n + m`` file: ``[system] type = "NPlusMSystem"`` (``lam``, ``mu``, ``sigma``, ``q``, ``r``),
+    ``[controller] type = "Cancellation"`` with ``fractions`` (rows of cancelled fractions of
+    ``R``), ``[analysis] region``. Returns ``kind = "NPlusMSystem"``, ``system``,
+    ``cancellations`` and ``region``."""
+    for key in spec:
+        if key not in ("system", "controller", "analysis"):
+            raise ParameterError(key, "a section of an NPlusMSystem file: system, controller, analysis", spec[key])
+    table = {k: v for k, v in spec["system"].items() if k != "type"}
+    keys = ("lam", "mu", "sigma", "q", "r")
+    for key in table:
+        if key not in keys:
+            raise ParameterError(f"system.{key}", f"a key of NPlusMSystem: one of {list(keys)}", table[key])
+    for key in keys:
+        if key not in table:
+            raise ParameterError(f"system.{key}", "given for NPlusMSystem", None)
+    system = _wrap("system", lambda: NPlusMSystem(**table))
+    controller = _table(spec, "controller", True)
+    if controller.get("type") != "Cancellation" or set(controller) != {"type", "fractions"}:
+        raise ParameterError("controller", 'type = "Cancellation" and fractions = [[c_1, ..., c_n], ...]', controller)
+    fractions = controller["fractions"]
+    if not isinstance(fractions, list) or not fractions:
+        raise ParameterError("controller.fractions", "a non-empty list of rows of fractions", fractions)
+    rows = [[_number("controller.fractions", c) for c in row] if isinstance(row, list) else None for row in fractions]
+    if any(row is None or len(row) != system.n for row in rows):
+        raise ParameterError("controller.fractions", f"rows of {system.n} numbers (one per u component)", fractions)
+    analysis = _options(_table(spec, "analysis", True), "analysis", {"region": None})
+    region = analysis["region"]
+    if not isinstance(region, list) or len(region) != 4:
+        raise ParameterError("analysis.region", "a list [re_min, re_max, im_min, im_max]", region)
+    box = tuple(_number("analysis.region", v) for v in region)
+    if not (box[0] < box[1] and box[2] < box[3]):
+        raise ParameterError("analysis.region", "a non-empty rectangle: re_min < re_max, im_min < im_max", region)
+    return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box}
+
+
 def load_system_file(path: str | Path) -> dict[str, Any]:
     """Read a SYSTEM.toml file (schema in ``docs/getting_started.md``).
 
     Returns
     -------
     dict
-        ``system``, ``controller``, ``delta_max``, ``region``, ``k_region`` and
+        ``system``, ``controller``, ``delta_max``, ``region``, ``k_region``, ``rigorous``
+        (``[analysis] rigorous = true``: prove the certificate in ball arithmetic) and
         ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``).
         The deprecated key ``[simulation] n`` is read as ``cells`` with a
         :class:`DeprecationWarning`.
@@ -176,20 +310,28 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         Naming the bad key (``system.rho``, ``controller.type``, ``analysis.delta_max``...).
     """
     spec = load_toml(path, "TOML file")
+    if isinstance(spec.get("system"), dict) and spec["system"].get("type") == NPLUSM_TYPE:
+        return _load_nplusm(spec)
     for key in spec:
         if key not in _TOP_KEYS:
             raise ParameterError(key, f"a section of the file: one of {list(_TOP_KEYS)}", spec[key])
 
-    kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS)
-    values: dict[str, Any] = {
-        k: (_profile if k.startswith("sigma") else _number)(f"system.{k}", v) for k, v in params.items()
-    }
+    kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS, _SYSTEM_OPTIONAL)
+    values: dict[str, Any] = {k: _system_value(kind, k, v) for k, v in params.items()}
     cls = SYSTEM_TYPES[kind]
     system = _wrap("system", lambda: cls(**values))
 
-    kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS)
+    kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
     controller = _wrap("controller", lambda: CONTROLLER_TYPES[kind](**values))
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        raise ParameterError(
+            "system",
+            "a plant with a constant lam/mu for nrobust analyze (the certificate is built on the normal form; "
+            "for a varying ratio, e.g. a backwater profile, use nrobust.delay_margin in Python)",
+            system,
+        )
+    system, controller = normalize(system, controller)
 
     analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
     if analysis["delta_max"] is None:
@@ -208,6 +350,8 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
             )
     if not isinstance(analysis["k_region"], bool):
         raise ParameterError("analysis.k_region", "true or false", analysis["k_region"])
+    if not isinstance(analysis["rigorous"], bool):
+        raise ParameterError("analysis.rigorous", "true or false", analysis["rigorous"])
 
     simulation = None
     if "simulation" in spec:
@@ -251,5 +395,6 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         "delta_max": delta_max,
         "region": region,
         "k_region": analysis["k_region"],
+        "rigorous": analysis["rigorous"],
         "simulation": simulation,
     }

@@ -2,13 +2,13 @@
 
 Roots of a loop with a delay ``delta`` reach the imaginary axis at ``s = i w`` only where
 ``|A(i w)| = |B(i w)|``; at such a *crossing frequency* the delays that put a root on the
-axis are
+axis are ::
 
     delta_{c,k} = (arg(-B(i w)/A(i w)) mod 2 pi + 2 pi k) / w,   k = 0, 1, ...
 
 (from ``e^{-i w delta} = -A/B``). A root crosses from left to right (destabilising) or
 back (stabilising) according to the sign of ``Re ds/ddelta``. By implicit
-differentiation of ``F(s(delta); delta) = 0``, with ``g(w) = |A(i w)|^2 - |B(i w)|^2``,
+differentiation of ``F(s(delta); delta) = 0``, with ``g(w) = |A(i w)|^2 - |B(i w)|^2``, ::
 
     ds/ddelta = s B(s) e^{-delta s} / F'(s),
     Re (ds/ddelta)^{-1} = Re[-(A'/A - B'/B)/s] = g'(w) / (2 |A(i w)|^2 w),
@@ -29,7 +29,7 @@ operator of ``F(.; delta)`` is strongly stable for small delays). On the axis ev
 ``|e^{-tau s}| = 1``: if ``a_0`` belongs to ``A``, ``|D_A(i w)| - |D_B(i w)| >= gap``
 (otherwise ``|D_B| - |D_A| >= gap``), and :class:`nrobust.bounds.TailBound` gives
 ``|R_P(i w)| <= |w|^n r_P(|w|)`` with ``r_P`` non-increasing (lower powers decay like
-``|w|^(j-n)``, kernels like ``V/|w|`` by integration by parts). Hence
+``|w|^(j-n)``, kernels like ``V/|w|`` by integration by parts). Hence ::
 
     | |A(i w)| - |B(i w)| | >= |w|^n (gap - r_A(|w|) - r_B(|w|)).
 
@@ -64,7 +64,7 @@ narrower than ``1e-7 W``.
 
 **Second-order resolution.** Each remaining cluster ``I`` (centre ``c``, radius ``r``)
 is decided on the smooth ``g``. With ``a_k = A^{(k)}(i w)`` (derivatives in ``s``) and
-``b_k`` likewise,
+``b_k`` likewise, ::
 
     g'   = -2 Im(conj(a_0) a_1) + 2 Im(conj(b_0) b_1),
     g''  = 2 (|a_1|^2 - Re(conj(a_0) a_2)) - 2 (|b_1|^2 - Re(conj(b_0) b_2)),

@@ -5,7 +5,7 @@ The principal part of a neutral quasi-polynomial is a difference operator: for
 high-frequency roots of ``F`` lie on the chains of zeros of ``D``. In the paper this is
 the operator ``1 - rho q e^{-tau s} (+ rho q e^{-(tau + delta) s})`` whose strong
 stability (``|rho q| < 1/2`` with the finite-time controller ``U_BS``) decides
-delay-robustness (paper, Section 3, after eq. (delay_eq_no_couplings2), citing Hale and
+delay-robustness (paper, Section 3, after eq. (10), citing Hale and
 Verduyn Lunel, "Strong stabilization of neutral functional differential equations",
 2002).
 

@@ -8,7 +8,7 @@ a tangency), so this count is right by construction, with or without ``verify``;
 verification is an independent check by the argument principle, and a count that the
 crossings would make negative is reported as an error, never returned. The loops of the
 paper's plants (:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``,
-eq. (delay_eq_alpha_ter), ``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``) are studied
+eq. (60), ``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``) are studied
 with :mod:`nrobust.hyperbolic.studies`.
 
 Tangencies: a tangency at ``(w, delta_c)`` (a double zero in ``w`` of
@@ -33,6 +33,7 @@ from ._validate import positive_int
 from .bounds import joint_degree, principal_gap, root_free_region
 from .crossings import (
     _ZERO_TOL,
+    AxisGap,
     Crossing,
     _axis_count,
     _common_axis_zeros,
@@ -42,6 +43,7 @@ from .crossings import (
     frequency_bound,
 )
 from .errors import CertificationError, ParameterError
+from .proven_crossings import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import count_roots
 
@@ -99,6 +101,16 @@ class DelayMargin:
         :class:`CertificationError` is raised).
     reason : str
         How the margin was decided, in words.
+    evaluations : int
+        Evaluations of ``A`` and ``B`` spent by the crossing search.
+    rigorous : bool
+        True when the margin is proven in ball arithmetic (``delay_margin(..., rigorous=True)``):
+        the nominal count by :func:`nrobust.count_roots` with ``rigorous=True``, the crossing
+        set by :func:`nrobust.proven_crossings.proven_crossings` and ``delta*`` enclosed in
+        ``margin_ball``; a theorem about ``A`` and ``B`` as represented.
+    margin_ball : (float, float) or None
+        With ``rigorous``: ``(lo, hi)`` with ``lo <= delta* <= hi`` proven (``margin`` lies
+        inside); None otherwise.
     """
 
     margin: float
@@ -117,6 +129,13 @@ class DelayMargin:
     residual: float | None
     reason: str
     evaluations: int = field(default=0)
+    rigorous: bool = False
+    margin_ball: tuple[float, float] | None = None
+
+    @property
+    def method(self) -> str:
+        """``"ball arithmetic"`` (``rigorous=True``: proven) or ``"floating point"`` (checked)."""
+        return "ball arithmetic" if self.rigorous else "floating point"
 
     @property
     def nominal_stable(self) -> bool:
@@ -165,20 +184,52 @@ class DelayMargin:
         return fields_dict(self)
 
 
-def _count_unstable(F: QuasiPolynomial, W: float) -> int:
+def _count_unstable(F: QuasiPolynomial, W: float, rigorous: bool = False) -> int | None:
     """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``.
 
     For real coefficients the zeros come in conjugate pairs: the count of the upper box
     ``(0, r) x (0, r)`` is doubled when no edge had to move (then no zero lies on the
     positive real axis nor on the imaginary axis), which halves the contour on the
-    imaginary axis, where the count spends most of its work.
+    imaginary axis, where the count spends most of its work. None when the count had to
+    move its edge off ``Re s = 0`` (a zero on, or within rounding of, the axis): it then
+    counts another region, not ``Re s > 0``. ``rigorous``: counts proven in ball arithmetic.
     """
     r = 1.01 * W + 1e-9
     if F.is_real:
-        upper = count_roots(F, (0.0, r, 0.0, r))
+        upper = count_roots(F, (0.0, r, 0.0, r), rigorous=rigorous)
         if not upper.shifted:
             return 2 * int(upper)
-    return int(count_roots(F, (0.0, r, -r, r)))
+    count = count_roots(F, (0.0, r, -r, r), rigorous=rigorous)
+    return int(count) if count.region[0] == 0.0 else None
+
+
+def _margin_ball(proof: ProvenCrossings, zero_root: bool, nominal: int | None) -> tuple[float, float]:
+    """Enclosure of ``delta*`` from the proven crossings and the proven nominal count; raises what is not proven."""
+    if zero_root:
+        return (0.0, 0.0)
+    if nominal is None:
+        raise CertificationError(
+            "delay_margin(rigorous=True): the number of zeros of A + B in Re s >= 0 is not proven (a zero on or "
+            "within the ball radii of the imaginary axis at delta = 0)"
+        )
+    if nominal > 0:
+        return (0.0, 0.0)
+    ball = proof.margin_ball()
+    first = min((lo for lo, _ in proof.unresolved_delays), default=float("inf"))
+    if ball is None:
+        if proof.unresolved:
+            raise CertificationError(
+                f"delay_margin(rigorous=True): no proven crossing, but tangencies to rounding at w in "
+                f"{list(proof.unresolved)}: whether a root touches the axis there is not decided in ball arithmetic"
+            )
+        return (float("inf"), float("inf"))
+    if first <= ball[1]:
+        raise CertificationError(
+            f"delay_margin(rigorous=True): a tangency to rounding (w in {list(proof.unresolved)}, delays from "
+            f"{first:.12g}) may come before the first proven crossing (delay <= {ball[1]:.12g}); ball arithmetic "
+            "cannot tell a double zero from two close zeros or none"
+        )
+    return ball
 
 
 def _delay_max(value: Any) -> float | None:
@@ -254,11 +305,12 @@ def delay_margin(
     delta_max: float | None = None,
     verify: bool = True,
     max_evals: int = 2_000_000,
+    rigorous: bool = False,
 ) -> DelayMargin:
     """Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
     For a plant and a controller, :func:`nrobust.delay_margin` builds ``A`` and ``B`` with
-    :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (delay_eq_alpha_ter) for
+    :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
     ``U_BS2(K)``) and calls this function.
 
     Parameters
@@ -274,6 +326,14 @@ def delay_margin(
         ``delta* (1 - 1e-3)``.
     max_evals : int, optional
         Work bound of the crossing search.
+    rigorous : bool, optional
+        Prove the margin in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
+        the frequency bound, every zero of ``|A(i w)|^2 - |B(i w)|^2`` with the direction of its
+        crossing and its first delay (:func:`nrobust.proven_crossings.proven_crossings`),
+        and the nominal count (:func:`nrobust.count_roots` with ``rigorous=True``); the
+        result has ``rigorous=True`` and ``margin_ball = (lo, hi)`` enclosing ``delta*``.
+        What cannot be proven raises :class:`CertificationError` (e.g. a tangency to
+        rounding that could come first, a loop in which ``A`` or ``B`` is identically zero).
 
     Returns
     -------
@@ -287,7 +347,10 @@ def delay_margin(
     CertificationError
         A work bound was hit (``max_evals`` is checked before any grid is allocated), a
         crossing cluster could not be decided, or a check failed: the residual at the
-        margin, a count made negative by the crossing directions, or the verification.
+        margin, a count made negative by the crossing directions, or the verification;
+        with ``rigorous=True``, whatever could not be proven.
+    ImportError
+        ``rigorous=True`` without python-flint.
 
     Notes
     -----
@@ -308,17 +371,53 @@ def delay_margin(
     A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
     max_evals = positive_int("max_evals", max_evals)
     delta_max = _delay_max(delta_max)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
     if _is_zero(A) and _is_zero(B):
         raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
     real = A.is_real and B.is_real
     a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
     zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    if rigorous:
+        zero_root = proven_zero_root(A, B)
+        if _is_zero(B) or _is_zero(A):
+            raise CertificationError(
+                "delay_margin(rigorous=True): A or B is identically zero, the loop does not depend on the delay; "
+                "prove its stability with count_roots(..., rigorous=True)"
+            )
+        if zero_root:  # proven: s = 0 is a root for every delay, whatever the crossings
+            principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+            gap = float("-inf") if principal is None else principal.gap
+            return DelayMargin(
+                margin=0.0,
+                omega=0.0,
+                crossings=(),
+                nominally_stable=False,
+                nominal_unstable=None,
+                strongly_stable=gap > 0.0,
+                zero_root=True,
+                intervals=(),
+                counts=(),
+                delta_max=float("inf") if delta_max is None else delta_max,
+                frequency_bound=None,
+                gap=gap,
+                verified=False,
+                residual=None,
+                reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
+                rigorous=True,
+                margin_ball=(0.0, 0.0),
+            )
     if _is_zero(B) or _is_zero(A):
         return _delay_free(B if _is_zero(A) else A, "A" if _is_zero(A) else "B", zero_root, delta_max)
     w_bound = frequency_bound(A, B)
     principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
     gap = float("-inf") if principal is None else principal.gap
     if w_bound is None:
+        if rigorous and principal is not None and not proven_gap(A, B)[1] < 0.0:
+            raise CertificationError(
+                f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
+                "the boundary of strong stability to rounding): zero margin not proven"
+            )
         nominal = _nominal_count(A, B, None)
         reason = (
             "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
@@ -343,8 +442,15 @@ def delay_margin(
             verified=False,
             residual=None,
             reason=reason,
+            rigorous=rigorous,
+            margin_ball=(0.0, 0.0) if rigorous else None,
         )
-    search, axis_gap = _crossing_search(A, B, w_bound, max_evals)
+    proof: ProvenCrossings | None = None
+    if rigorous:
+        proof = proven_crossings(A, B, max_evals=max_evals)
+        search, axis_gap = proof.search(), AxisGap(A, B)
+    else:
+        search, axis_gap = _crossing_search(A, B, w_bound, max_evals)
     W = search.frequency_bound
     common = _common_axis_zeros(axis_gap, search)
     if common.size:
@@ -374,7 +480,7 @@ def delay_margin(
             if d <= delta_max:
                 events[d] = events.get(d, 0) + mult * c.direction
     axis_at_zero = zero_root or (0.0 in events)
-    nominal = None if axis_at_zero else _count_unstable(A + B, W)
+    nominal = None if axis_at_zero else _count_unstable(A + B, W, rigorous)
     stable_at_zero = nominal == 0
     marks = sorted(d for d in events if d > 0.0)
     # Number of unstable zeros on the first interval (0, first positive crossing delay).
@@ -384,7 +490,7 @@ def delay_margin(
         first = None
     else:
         probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
-        first = _count_unstable(A + B.shift(probe), W)
+        first = _count_unstable(A + B.shift(probe), W, rigorous)
     counts: list[tuple[float, float, int]] = []
     intervals: list[tuple[float, float]] = []
     if first is not None:
@@ -437,6 +543,12 @@ def delay_margin(
                     f"delta* (1 - 1e-3), where the crossing analysis finds none"
                 )
             verified = True
+    ball = None
+    if proof is not None:
+        ball = _margin_ball(proof, zero_root, nominal)
+        if not ball[0] <= margin <= ball[1]:
+            margin = 0.5 * (ball[0] + ball[1])
+        reason += f" (proven in ball arithmetic: delta* in [{ball[0]:.17g}, {ball[1]:.17g}])"
     return DelayMargin(
         margin=float(margin),
         omega=None if omega is None else float(omega),
@@ -454,4 +566,6 @@ def delay_margin(
         residual=residual,
         reason=reason,
         evaluations=search.evaluations,
+        rigorous=rigorous,
+        margin_ball=ball,
     )

@@ -8,6 +8,7 @@ default :func:`nrobust.hyperbolic.studies.margin_and_decay`) on the executors of
 from __future__ import annotations
 
 import math
+import os
 import pickle
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -18,7 +19,7 @@ import numpy as np
 from ._json import fields_dict
 from .errors import ParameterError
 from .hyperbolic.studies import margin_and_decay
-from .parallel import SweepResult, _flatten, _result_columns, sweep
+from .parallel import MAX_POINTS, SweepResult, _flatten, _result_columns, grid, sweep
 
 __all__ = ["RobustnessResult", "robustness"]
 
@@ -141,6 +142,10 @@ def robustness(
     levels: Sequence[float] = (0.05, 0.25, 0.5, 0.75, 0.95),
     chunksize: int | None = None,
     progress: bool | None = None,
+    max_points: int = MAX_POINTS,
+    timeout: float | None = None,
+    results: str | os.PathLike[str] | None = None,
+    restart: bool = False,
 ) -> RobustnessResult:
     """Monte Carlo study of the delay margin and decay rate under uncertain parameters.
 
@@ -168,8 +173,15 @@ def robustness(
         ``decay_rate``).
     levels : sequence of float, optional
         Quantile levels in [0, 1].
-    chunksize, progress : optional
-        As in :func:`sweep`.
+    chunksize, progress, max_points, timeout : optional
+        As in :func:`sweep` (``max_points`` caps ``n_samples``; a sample past ``timeout``
+        is a failure of type ``"Timeout"``).
+    results : path-like, optional
+        A journal of the samples (JSON lines), appended as each sample finishes; run the
+        same study again on it and the finished samples are read back, not recomputed
+        (see :func:`sweep`). Needs an int ``seed``.
+    restart : bool, default False
+        Start ``results`` afresh.
 
     Returns
     -------
@@ -186,13 +198,25 @@ def robustness(
     if n is None or n < 1:
         raise ParameterError("n_samples", "an integer >= 1", n_samples)
     if seed is None:
+        if results is not None:
+            raise ParameterError("seed", "an int when results is given (a fresh seed cannot be resumed)", seed)
         seed = int(cast(int, np.random.SeedSequence().entropy))  # a fresh SeedSequence draws an int
     elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError("seed", "a non-negative int or None", seed)
     lev = _check_levels(levels)
     task = _SampleTask(sample_system, controller, analysis or margin_and_decay, int(seed))
     try:
-        result = sweep(task, [{"sample": i} for i in range(n)], executor, chunksize=chunksize, progress=progress)
+        result = sweep(
+            task,
+            grid(sample=range(n)),
+            executor,
+            chunksize=chunksize,
+            progress=progress,
+            max_points=max_points,
+            timeout=timeout,
+            results=results,
+            restart=restart,
+        )
     except ParameterError as exc:
         if exc.name != "func":
             raise

@@ -2,27 +2,42 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 from ._json import json_float, json_safe
-from ._validate import renamed_keywords
+from ._validate import positive_int, renamed_keywords
 from .certificate import certify
 from .errors import ParameterError
 from .hyperbolic.controllers import FiniteTimeController, ReflectionController, characteristic, classify
-from .hyperbolic.simulate import DEFAULT_CELLS, simulate
+from .hyperbolic.kernels import solve_kernels
+from .hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate
 from .hyperbolic.studies import stability_chart, tradeoff
 from .hyperbolic.system import Hyperbolic2x2
+from .outputs import RunOutputs
 from .parallel import sweep_map
 from .plots import root_locus_response, simulation_figure, stability_chart_plot, tradeoff_plot
 from .report import write_report
 
-__all__ = ["PAPER_DELAYS_FIG1", "PAPER_DELAYS_FIG3", "PAPER_K", "PAPER_SYSTEM", "run_paper"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "PAPER_DELAYS_FIG1",
+    "PAPER_DELAYS_FIG3",
+    "PAPER_K",
+    "PAPER_SYSTEM",
+    "PAPER_T_END",
+    "paper_figure",
+    "run_paper",
+]
 
 #: The paper's numerical example (section 5): lam = mu = sigma+- = sigma-+ = q = 1, rho = 0.85.
 PAPER_SYSTEM = {"lam": 1.0, "mu": 1.0, "sigma_pm": 1.0, "sigma_mp": 1.0, "q": 1.0, "rho": 0.85}
@@ -30,6 +45,20 @@ PAPER_SYSTEM = {"lam": 1.0, "mu": 1.0, "sigma_pm": 1.0, "sigma_mp": 1.0, "q": 1.
 PAPER_K = 0.1
 PAPER_DELAYS_FIG1 = (0.0, 0.01)
 PAPER_DELAYS_FIG3 = (0.0, 0.01, 0.1)
+#: Horizon of the simulations of figures 1 and 3.
+PAPER_T_END = 15.0
+
+
+#: The certificates are proven in ball arithmetic when python-flint (``nrobust[rigorous]``) is installed.
+_RIGOROUS = importlib.util.find_spec("flint") is not None
+#: The paper's central claims, whose status the report states first.
+_CENTRAL_CLAIMS = (
+    "nominal stability",
+    "stability up to delta_max",
+    "crossing that fixes delta*",
+    "delay margin",
+    "instability at delta_max",
+)
 
 
 def _paper_u0(x: np.ndarray) -> np.ndarray:
@@ -54,12 +83,12 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
         controller, delta, t_end, cells = args
         return simulate(system, controller, delta, t_end, _paper_u0, _paper_v0, cells)
     if job == "certify":
-        controller, delta_max = args
-        return certify(system, controller, delta_max=delta_max, k_region=False)
+        controller, delta_max, rigorous = args
+        return certify(system, controller, delta_max=delta_max, k_region=False, rigorous=rigorous)
     if job == "chart":
-        return stability_chart(system, *args)
+        return stability_chart(system, *args, progress=False)
     if job == "tradeoff":
-        return tradeoff(system, *args)
+        return tradeoff(system, *args, progress=False)
     if job == "locus":
         Ks, delta, region = args
         return root_locus_response(
@@ -71,17 +100,17 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
 @renamed_keywords(n="cells")
 def run_paper(
     out_dir: str | Path,
-    progress: bool = True,
+    progress: bool | None = None,
     workers: int = 2,
-    t_end: float = 15.0,
+    t_end: float = PAPER_T_END,
     cells: int = DEFAULT_CELLS,
     n_K: int = 25,
     n_delta: int = 26,
 ) -> dict[str, Any]:
     """``nrobust paper``: the reference paper's example end to end; returns the summary.
 
-    Simulates the PDE for figures 1 (U_BS, eq. (control), ``delta = 0, 0.01``) and 3
-    (U_BS2 with ``K = 0.1``, eq. (control3), ``delta = 0, 0.01, 0.1``), certifies both
+    Simulates the PDE for figures 1 (U_BS, eq. (47), ``delta = 0, 0.01``) and 3
+    (U_BS2 with ``K = 0.1``, eq. (53), ``delta = 0, 0.01, 0.1``), certifies both
     loops (classification, difference operator, certified roots, spectral abscissa,
     delay margin, Rouché bound), computes the ``(K, delta)`` stability chart and the
     decay/margin trade-off and the root locus in ``K`` of U_BS2, writes the report and
@@ -90,9 +119,12 @@ def run_paper(
     Parameters
     ----------
     out_dir : path-like
-        Output directory.
-    progress : bool
-        Show a progress bar (on stderr).
+        Output directory, checked (created, writable) before anything is computed; the
+        report, its figures and ``summary.json`` are written there as one set with
+        ``manifest.json`` (:class:`~nrobust.outputs.RunOutputs`), so a failed or
+        interrupted run leaves it as it was.
+    progress : bool, optional
+        Show a progress bar on stderr; by default only when stderr is a terminal or Jupyter.
     workers : int
         Worker processes for the independent computations (0: all in this process).
     t_end : float
@@ -105,6 +137,22 @@ def run_paper(
     start = time.perf_counter()
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise ParameterError("workers", "an integer >= 0", workers)
+    with RunOutputs(out_dir, "paper") as outputs:  # checked before anything is computed
+        summary = _run_paper(outputs, start, progress, workers, t_end, cells, n_K, n_delta)
+    return summary
+
+
+def _run_paper(
+    outputs: RunOutputs,
+    start: float,
+    progress: bool | None,
+    workers: int,
+    t_end: float,
+    cells: int,
+    n_K: int,
+    n_delta: int,
+) -> dict[str, Any]:
+    """The body of :func:`run_paper`, writing into the staged ``outputs``."""
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     classification = classify(system)
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
@@ -115,8 +163,8 @@ def run_paper(
     tasks: dict[str, tuple[Any, ...]] = {
         "tradeoff": ("tradeoff", Ks[Ks >= 0]),
         "chart": ("chart", Ks, deltas),
-        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3)),
-        "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1)),
+        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3), _RIGOROUS),
+        "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1), _RIGOROUS),
         "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
     }
     for d in PAPER_DELAYS_FIG1:
@@ -132,16 +180,8 @@ def run_paper(
     chart, trade = res["chart"], res["tradeoff"]
 
     figures = [
-        (
-            "Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)",
-            simulation_figure(fig1_runs, [f"delta = {d:g}" for d in PAPER_DELAYS_FIG1], "U_BS, eq. (control)"),
-        ),
-        (
-            f"Figure 3 of the paper: L2 norm under U_BS2 with K = {PAPER_K:g}",
-            simulation_figure(
-                fig3_runs, [f"delta = {d:g}" for d in PAPER_DELAYS_FIG3], f"U_BS2(K={PAPER_K:g}), eq. (control3)"
-            ),
-        ),
+        ("Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)", paper_figure(1, fig1_runs)),
+        (f"Figure 3 of the paper: L2 norm under U_BS2 with K = {PAPER_K:g}", paper_figure(3, fig3_runs)),
     ]
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     stability_chart_plot(chart, ax=ax, k_bound=k_max, rouche=(trade.Ks, trade.rouche_bounds))
@@ -226,17 +266,75 @@ def run_paper(
         f"Gains of the chart's grid stable for every delay in [0, {max(PAPER_DELAYS_FIG3):g}]: "
         + (", ".join(f"{k:.3g}" for k in admissible) or "none")
         + ".",
+        "**What is proven.** "
+        + "; ".join(
+            f"{name}: {claim.name} {claim.status}"
+            for name, cert in (("U_BS", cert_bs), (f"U_BS2(K = {PAPER_K:g})", cert_bs2))
+            for claim in cert.claims
+            if claim.name in _CENTRAL_CLAIMS
+        )
+        + ". "
+        + cert_bs2.scope,
     ]
     files = write_report(
-        [cert_bs, cert_bs2], out_dir, figures=figures, title="nrobust: the paper's example, end to end", intro=intro
+        [cert_bs, cert_bs2],
+        outputs.staging,
+        figures=figures,
+        title="nrobust: the paper's example, end to end",
+        intro=intro,
     )
     summary["elapsed_seconds"] = time.perf_counter() - start
     summary["workers"] = workers
-    summary["files"] = files.to_dict()
-    text = json.dumps(json_safe(summary), indent=2, allow_nan=False)
-    (Path(out_dir) / "summary.json").write_text(text, encoding="utf-8")
+    summary["files"] = outputs.final(files).to_dict()
+    outputs.write_text("summary.json", json.dumps(json_safe(summary), indent=2, allow_nan=False))
+    outputs.commit()
     return summary
 
 
 def _fmt_num(x: Any) -> str:
     return "-" if x is None else f"{float(x):.6g}"
+
+
+def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: int = DEFAULT_CELLS) -> Figure:
+    """Figure 1 or 3 of the paper: the ``L^2`` norm of the simulated closed loop.
+
+    Figure 1: U_BS (eq. (47)) with ``delta = 0`` and ``0.01`` (:data:`PAPER_DELAYS_FIG1`):
+    finite-time convergence without delay, growth with the smallest delay (Theorem 3,
+    ``rho q = 0.85 > 1/2``). Figure 3: U_BS2 (eq. (53)) with ``K = 0.1`` and ``delta = 0,
+    0.01, 0.1`` (:data:`PAPER_DELAYS_FIG3`): stable for every delay. The plant is
+    :data:`PAPER_SYSTEM` from the initial state ``u = 1``, ``v = 1 + sin(pi x)``, up to
+    :data:`PAPER_T_END`; the log axis is cut at the scheme's ``O(h^2)`` residual
+    (:func:`nrobust.plots.residual_floor`). ``nrobust paper`` and
+    ``examples/paper_figures.py`` (the figures of the documentation) both draw them here.
+
+    Parameters
+    ----------
+    number : {1, 3}
+        Which figure.
+    runs : sequence of Simulation, optional
+        The simulations, one per delay of the figure, if already computed (``run_paper``
+        computes them in parallel); by default they are computed here with ``cells``.
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+        Grid cells of the simulations computed here.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if number not in (1, 3):
+        raise ParameterError("number", "1 or 3 (the paper's simulation figures)", number)
+    controller, deltas, law = (
+        (FiniteTimeController(), PAPER_DELAYS_FIG1, "U_BS, eq. (47)")
+        if number == 1
+        else (ReflectionController(PAPER_K), PAPER_DELAYS_FIG3, f"U_BS2(K={PAPER_K:g}), eq. (53)")
+    )
+    if runs is None:
+        system = Hyperbolic2x2(**PAPER_SYSTEM)
+        # the kernels simulate() would solve for each run (its default grid), solved once
+        kernels = solve_kernels(system, min(positive_int("cells", cells), DEFAULT_CELLS) + 1)
+        runs = [
+            simulate(system, controller, d, PAPER_T_END, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas
+        ]
+    elif len(runs) != len(deltas):
+        raise ParameterError("runs", f"one simulation per delay {deltas}", runs)
+    return simulation_figure(runs, [f"delta = {d:g}" for d in deltas], f"Figure {number} of the paper: {law}")

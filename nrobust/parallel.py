@@ -10,30 +10,47 @@ same executors, used by the gain studies (``executor=``). See ``docs/sweeps.md``
 from __future__ import annotations
 
 import csv
+import ctypes
 import itertools
 import json
 import logging
 import math
+import operator
 import os
 import pickle
+import select
+import signal
 import sys
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from threadpoolctl import threadpool_limits
-from tqdm import tqdm
 
+from ._atomic import atomic_write
+from ._journal import Journal, definition_hash, describe
 from ._json import decode_floats, json_safe
+from ._progress import ProgressBar, progress_bar
 from .errors import ParameterError, SweepError
 
-__all__ = ["PointFailure", "SweepMap", "SweepResult", "grid", "sweep", "sweep_map"]
+__all__ = [
+    "MAX_POINTS",
+    "Grid",
+    "PointFailure",
+    "SweepInterrupted",
+    "SweepMap",
+    "SweepResult",
+    "grid",
+    "sweep",
+    "sweep_map",
+]
 
 #: Columns every table starts or ends its fixed part with; result keys that collide with
 #: these (or with a parameter name) are renamed ``result.<key>``.
@@ -51,8 +68,76 @@ _EXECUTOR_REQUIREMENT = (
 # ---------------------------------------------------------------------------------------
 
 
-def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
-    """Cartesian product of parameter values, as a list of dicts.
+#: Default cap on the number of points of one sweep (``max_points=``): about 1 GB of
+#: points and results in memory at the measured ~1 kB per point of a typical analysis.
+MAX_POINTS = 1_000_000
+
+
+class Grid(Sequence[dict[str, Any]]):
+    """The cartesian product of parameter values (:func:`grid`), generated point by point.
+
+    A grid stores its axes, never the product: ``len`` is the product of the axis
+    lengths, ``grid[i]`` computes point ``i`` and iteration yields the points in
+    ``itertools.product`` order (the last axis fastest). A grid equals any sequence of
+    the same points in the same order.
+
+    Attributes
+    ----------
+    axes : dict of str to sequence
+        The values per parameter name (a ``range`` stays a ``range``).
+    """
+
+    def __init__(self, axes: Mapping[str, Sequence[Any]]) -> None:
+        self.axes = dict(axes)
+        self._size = math.prod(len(v) for v in self.axes.values())
+
+    def __len__(self) -> int:
+        return self._size
+
+    @overload
+    def __getitem__(self, index: int) -> dict[str, Any]: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[dict[str, Any]]: ...
+
+    def __getitem__(self, index: int | slice) -> dict[str, Any] | list[dict[str, Any]]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._size))]
+        i = operator.index(index)
+        if i < 0:
+            i += self._size
+        if not 0 <= i < self._size:
+            raise IndexError(f"grid index {index} out of range for {self._size} points")
+        point: dict[str, Any] = {}
+        for name, values in reversed(self.axes.items()):
+            i, k = divmod(i, len(values))
+            point[name] = values[k]
+        return {name: point[name] for name in self.axes}
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        names = list(self.axes)
+        return (dict(zip(names, combo)) for combo in itertools.product(*self.axes.values()))
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, Grid):
+            return self.axes == other.axes
+        if isinstance(other, Sequence) and not isinstance(other, (str, bytes)):
+            return len(other) == self._size and all(a == b for a, b in zip(self, other))
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def describe(self) -> str:
+        """``"a grid of 4 x 3 = 12 points over K, rho"``."""
+        sizes = " x ".join(str(len(v)) for v in self.axes.values())
+        return f"a grid of {sizes} = {self._size} points over {', '.join(self.axes)}"
+
+    def __repr__(self) -> str:
+        return f"Grid({', '.join(f'{k}: {len(v)} values' for k, v in self.axes.items())}; {self._size} points)"
+
+
+def grid(**axes: Sequence[Any] | np.ndarray) -> Grid:
+    """Cartesian product of parameter values, generated lazily.
 
     Parameters
     ----------
@@ -62,10 +147,12 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
 
     Returns
     -------
-    list of dict
-        ``len = prod(len(values))`` points; the last axis varies fastest
+    Grid
+        A sequence of ``prod(len(values))`` dicts, computed on demand (nothing of the
+        size of the product is allocated); the last axis varies fastest
         (``itertools.product`` order), so ``grid(K=[0, 1], delta=[0.1, 0.2])`` is
         ``[{K: 0, delta: 0.1}, {K: 0, delta: 0.2}, {K: 1, delta: 0.1}, {K: 1, delta: 0.2}]``.
+        :func:`sweep` refuses a grid of more than ``max_points`` points before running any.
 
     Raises
     ------
@@ -74,8 +161,7 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
     """
     if not axes:
         raise ParameterError("axes", "at least one keyword argument name=[values]")
-    names = list(axes)
-    values = []
+    values: dict[str, Sequence[Any]] = {}
     for name, vals in axes.items():
         if isinstance(vals, (str, bytes, Mapping)) or not isinstance(vals, (Sequence, np.ndarray, range)):
             raise ParameterError(name, "a sequence of values (list, tuple, range or 1-D array)", vals)
@@ -83,8 +169,10 @@ def grid(**axes: Sequence[Any]) -> list[dict[str, Any]]:
             raise ParameterError(name, "a 1-D array of values", vals)
         if len(vals) == 0:
             raise ParameterError(name, "a non-empty sequence of values", vals)
-        values.append([v.item() if isinstance(v, np.generic) else v for v in vals])
-    return [dict(zip(names, combo)) for combo in itertools.product(*values)]
+        values[name] = (
+            vals if isinstance(vals, range) else tuple(v.item() if isinstance(v, np.generic) else v for v in vals)
+        )
+    return Grid(values)
 
 
 def _flatten(value: Any, prefix: str, out: dict[str, Any]) -> None:
@@ -148,6 +236,142 @@ def _run_chunk(
 ) -> list[tuple[Any, ...]]:
     """Run consecutive points on one worker; one task per chunk amortises the transfer."""
     return [_run_point(func, point, columns) for point in chunk]
+
+
+#: Process ids of the point processes this process has forked and not yet reaped.
+_CHILDREN: set[int] = set()
+
+
+def _fork() -> int:
+    """``os.fork()``. From Python 3.12 it warns when other threads are alive (a lock they
+    hold could be copied into the child); the child forked here runs only the swept
+    function and writes to a pipe, so that one warning is ignored, by its exact text."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", r"This process \(pid=\d+\) is multi-threaded", DeprecationWarning)
+        return os.fork()
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a point process: on Linux, be killed when the process that forked it dies, even by
+    SIGKILL (``prctl(PR_SET_PDEATHSIG)``), so that a hung point never outlives its sweep."""
+    if sys.platform.startswith("linux"):
+        with suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # 1: PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the request was in place
+        os._exit(1)
+
+
+def _point_process(
+    func: Callable[..., Any], points: Sequence[Mapping[str, Any]], columns: bool, fd: int, parent: int
+) -> None:
+    """Body of a forked point process: run the points, send each outcome as a frame, exit."""
+    code = 0
+    try:
+        _die_with_parent(parent)
+        with os.fdopen(fd, "wb") as pipe:
+            for point in points:
+                outcome = _run_point(func, point, columns)
+                try:
+                    data = pickle.dumps(outcome)
+                except Exception as exc:
+                    data = pickle.dumps(("error", type(exc).__name__, f"the result cannot be sent back: {exc}", ""))
+                pipe.write(len(data).to_bytes(8, "little") + data)
+                pipe.flush()
+    except BaseException:
+        code = 1
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with suppress(Exception):
+                stream.flush()
+        os._exit(code)
+
+
+def _read_frame(fd: int, buf: bytearray, deadline: float) -> bytes | None:
+    """The next length-prefixed frame from ``fd``; None at the deadline; EOFError when the writer is gone."""
+    while True:
+        if len(buf) >= 8:
+            size = int.from_bytes(buf[:8], "little")
+            if len(buf) >= 8 + size:
+                frame = bytes(buf[8 : 8 + size])
+                del buf[: 8 + size]
+                return frame
+        remaining = deadline - time.monotonic()
+        if remaining <= 0 or not select.select([fd], [], [], remaining)[0]:
+            return None
+        data = os.read(fd, 1 << 16)
+        if not data:
+            raise EOFError
+        buf.extend(data)
+
+
+def _stop(pid: int) -> int:
+    """Kill a point process (if still running) and reap it; its wait status."""
+    with suppress(ProcessLookupError):
+        os.kill(pid, signal.SIGKILL)
+    _, status = os.waitpid(pid, 0)
+    _CHILDREN.discard(pid)
+    return status
+
+
+def _run_chunk_guarded(
+    func: Callable[..., Any],
+    chunk: Sequence[Mapping[str, Any]],
+    columns: bool,
+    timeout: float,
+    on_outcome: Callable[[int, tuple[Any, ...]], None] | None = None,
+) -> list[tuple[Any, ...]]:
+    """Run consecutive points in a forked process, each within ``timeout`` seconds.
+
+    A point that does not return in time is recorded as a failure of type ``Timeout``
+    and its process killed (``SIGKILL``); a point whose process dies (a crash, an
+    ``os._exit``) as a failure of type ``WorkerDied``. A fresh process then runs the rest
+    of the chunk. ``on_outcome(k, outcome)`` is called as each point finishes.
+    """
+    outcomes: list[tuple[Any, ...]] = []
+
+    def record(outcome: tuple[Any, ...]) -> None:
+        if on_outcome is not None:
+            on_outcome(len(outcomes), outcome)
+        outcomes.append(outcome)
+
+    while len(outcomes) < len(chunk):
+        read_fd, write_fd = os.pipe()
+        parent = os.getpid()
+        pid = _fork()
+        if pid == 0:  # the point process
+            os.close(read_fd)
+            _point_process(func, chunk[len(outcomes) :], columns, write_fd, parent)
+        _CHILDREN.add(pid)
+        os.close(write_fd)
+        buf = bytearray()
+        try:
+            while len(outcomes) < len(chunk):
+                try:
+                    frame = _read_frame(read_fd, buf, time.monotonic() + timeout)
+                except EOFError:
+                    code = os.waitstatus_to_exitcode(_stop(pid))
+                    how = f"was killed by signal {-code}" if code < 0 else f"exited with code {code}"
+                    record(("error", "WorkerDied", f"the process running the point {how}", ""))
+                    break
+                if frame is None:
+                    _stop(pid)
+                    message = f"no result within timeout = {timeout:g} s; the process running the point was killed"
+                    record(("error", "Timeout", message, ""))
+                    break
+                record(pickle.loads(frame))
+        finally:
+            os.close(read_fd)
+            if pid in _CHILDREN:
+                _stop(pid)
+    return outcomes
+
+
+def _kill_children_and_exit(signum: int, frame: Any) -> None:
+    """SIGTERM handler of nrobust's pool workers: take the point processes along."""
+    for pid in list(_CHILDREN):
+        with suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    os._exit(128 + signum)
 
 
 # ---------------------------------------------------------------------------------------
@@ -354,9 +578,9 @@ class SweepResult:
         )
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the table as CSV (header row; missing values empty). Returns the path."""
+        """Write the table as CSV (header row; missing values empty), atomically. Returns the path."""
         path = Path(path)
-        with path.open("w", newline="", encoding="utf-8") as fh:
+        with atomic_write(path) as fh:
             writer = csv.writer(fh)
             writer.writerow(self.columns)
             for row in self.records():
@@ -364,12 +588,13 @@ class SweepResult:
         return path
 
     def to_json(self, path: str | os.PathLike[str], extra: Mapping[str, Any] | None = None) -> Path:
-        """Write :meth:`to_dict` (plus ``extra`` entries) as strict JSON. Returns the path."""
+        """Write :meth:`to_dict` (plus ``extra`` entries) as strict JSON, atomically. Returns the path."""
         data = self.to_dict()
         if extra:
             data.update(extra)
         path = Path(path)
-        path.write_text(json.dumps(json_safe(data), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+        with atomic_write(path) as fh:
+            fh.write(json.dumps(json_safe(data), indent=1, allow_nan=False) + "\n")
         return path
 
     def __repr__(self) -> str:
@@ -394,21 +619,27 @@ def _cpu_count() -> int:
     return os.cpu_count() or 1
 
 
-def _one_blas_thread() -> None:
-    """Worker initializer: limit the BLAS and OpenMP pools of this process to one thread.
+def _init_pool_worker() -> None:
+    """Worker initializer: one BLAS thread, and point processes killed with the worker.
 
     On a machine shared by several workers, multithreaded BLAS pools compete for the same
     cores and the small eigenvalue problems of nrobust (the chains of a difference
     operator) slow down tenfold. threadpoolctl changes the limit of the libraries already
-    loaded, so it works in forked workers, which inherit the parent's BLAS.
+    loaded, so it works in forked workers, which inherit the parent's BLAS. A worker
+    stopped by SIGTERM (an interrupted sweep) kills the point processes it forked for a
+    timeout, so that no hung point outlives the sweep. Ctrl-C in a terminal reaches every
+    process of the group: the workers ignore it (no traceback from each of them) and the
+    parent, which handles it, stops them.
     """
     threadpool_limits(1)
+    signal.signal(signal.SIGTERM, _kill_children_and_exit)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle: it stops the pool
 
 
 @contextmanager
 def _process_pool(n_workers: int) -> Iterator[ProcessPoolExecutor]:
     """A local pool of ``n_workers`` processes (the platform's start method), one BLAS thread each."""
-    with ProcessPoolExecutor(max_workers=n_workers, initializer=_one_blas_thread) as pool:
+    with ProcessPoolExecutor(max_workers=n_workers, initializer=_init_pool_worker) as pool:
         yield pool
 
 
@@ -461,38 +692,49 @@ def _auto_chunksize(n_points: int, n_workers: int) -> int:
     return max(1, math.ceil(n_points / (4 * max(1, n_workers))))
 
 
+def _submit_args(
+    func: Callable[..., Any], chunk: list[Mapping[str, Any]], columns: bool, timeout: float | None
+) -> tuple[Any, ...]:
+    """The task that runs one chunk on a worker: in the worker itself, or in a forked point process with a timeout."""
+    if timeout is None:
+        return (_run_chunk, func, chunk, columns)
+    return (_run_chunk_guarded, func, chunk, columns, timeout)
+
+
 def _run_on_futures_executor(
-    pool: Executor, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any, columns: bool
-) -> list[list[tuple[Any, ...]]]:
-    futures = {pool.submit(_run_chunk, func, chunk, columns): i for i, chunk in enumerate(chunks)}
-    out: list[list[tuple[Any, ...]]] = [[] for _ in chunks]
+    pool: Executor,
+    func: Callable[..., Any],
+    chunks: list[list[Mapping[str, Any]]],
+    columns: bool,
+    timeout: float | None,
+    on_chunk: Callable[[int, list[tuple[Any, ...]]], None],
+) -> None:
+    futures = {pool.submit(*_submit_args(func, chunk, columns, timeout)): i for i, chunk in enumerate(chunks)}
     try:
         for fut in as_completed(futures):
-            i = futures[fut]
-            out[i] = fut.result()
-            bar.update(len(chunks[i]))
+            on_chunk(futures[fut], fut.result())
     finally:
         for fut in futures:
             fut.cancel()
-    return out
 
 
 def _run_on_dask(
-    client: Any, func: Callable[..., Any], chunks: list[list[Mapping[str, Any]]], bar: Any, columns: bool
-) -> list[list[tuple[Any, ...]]]:
+    client: Any,
+    func: Callable[..., Any],
+    chunks: list[list[Mapping[str, Any]]],
+    columns: bool,
+    timeout: float | None,
+    on_chunk: Callable[[int, list[tuple[Any, ...]]], None],
+) -> None:
     import distributed
 
-    futures = [client.submit(_run_chunk, func, chunk, columns, pure=False) for chunk in chunks]
+    futures = [client.submit(*_submit_args(func, chunk, columns, timeout), pure=False) for chunk in chunks]
     index = {fut.key: i for i, fut in enumerate(futures)}
-    out: list[list[tuple[Any, ...]]] = [[] for _ in chunks]
     try:
         for fut in distributed.as_completed(futures):
-            i = index[fut.key]
-            out[i] = fut.result()
-            bar.update(len(chunks[i]))
+            on_chunk(index[fut.key], fut.result())
     finally:
         client.cancel([f for f in futures if not f.done()])
-    return out
 
 
 @contextmanager
@@ -540,18 +782,17 @@ def _classify_executor(executor: Any) -> str:
     raise ParameterError("executor", _EXECUTOR_REQUIREMENT, executor)
 
 
-class _ProgressBar(tqdm):
-    """tqdm without its monitor thread, so that no helper thread is alive (and copied
-    half-way through a lock) when a fork-based pool passed as ``executor`` forks its workers."""
-
-    monitor_interval = 0
-
-
-def _progress_bar(total: int, progress: bool | None) -> _ProgressBar:
+def _progress_bar(total: int, progress: bool | None) -> ProgressBar:
     """A text progress bar on stderr; by default shown in terminals and notebooks only."""
-    interactive = sys.stderr.isatty() or "ipykernel" in sys.modules
-    show = interactive if progress is None else bool(progress)
-    return _ProgressBar(total=total, disable=not show, desc="sweep", unit="pt", file=sys.stderr)
+    return progress_bar(total, progress, desc="sweep", unit="pt", leave=True)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool of nrobust's now (on an interrupt): terminate its workers, which kill their point processes."""
+    for process in list(getattr(pool, "_processes", {}).values()):
+        with suppress(Exception):
+            process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _execute(
@@ -561,46 +802,121 @@ def _execute(
     chunksize: int | None,
     progress: bool | None,
     columns: bool,
+    timeout: float | None = None,
+    on_done: Callable[[int, tuple[Any, ...]], None] | None = None,
+    max_chunk: int | None = None,
 ) -> tuple[list[tuple[Any, ...]], str]:
-    """Run ``func(**point)`` for every point on ``executor``; outcomes in input order."""
+    """Run ``func(**point)`` for every point on ``executor``; outcomes in input order.
+
+    ``on_done(position, outcome)`` is called in this process as each point's outcome
+    arrives (point by point in serial mode, chunk by chunk on workers). ``max_chunk``
+    caps the automatic chunk size.
+    """
     kind = _classify_executor(executor)
     if kind == "pool" or isinstance(executor, ProcessPoolExecutor):
         _check_picklable(func, pts, pickle.dumps, "worker processes")
     elif kind == "dask":
         _check_picklable(func, pts, _require_distributed("dask").protocol.pickle.dumps, "Dask workers")
+    outcomes: list[tuple[Any, ...]] = [()] * len(pts)
+
     with _progress_bar(len(pts), progress) as bar:
+
+        def done(position: int, outcome: tuple[Any, ...]) -> None:
+            outcomes[position] = outcome
+            if on_done is not None:
+                on_done(position, outcome)
+            bar.update(1)
+
+        def chunking(n_workers: int) -> list[list[Mapping[str, Any]]]:
+            size = chunksize or min(_auto_chunksize(len(pts), n_workers), max_chunk or len(pts))
+            return _chunks(pts, size)
+
+        def chunk_done_for(chunks: list[list[Mapping[str, Any]]]) -> Callable[[int, list[tuple[Any, ...]]], None]:
+            starts = list(itertools.accumulate((len(c) for c in chunks), initial=0))
+
+            def chunk_done(i: int, chunk_outcomes: list[tuple[Any, ...]]) -> None:
+                for k, outcome in enumerate(chunk_outcomes):
+                    done(starts[i] + k, outcome)
+
+            return chunk_done
+
         if kind == "serial":
             description = "serial"
-            outcomes = []
-            for point in pts:
-                outcomes.append(_run_point(func, point, columns))
-                bar.update(1)
+            if timeout is not None:
+                _run_chunk_guarded(func, pts, columns, timeout, on_outcome=done)
+            else:
+                for position, point in enumerate(pts):
+                    done(position, _run_point(func, point, columns))
         elif kind == "pool":
             n_workers = _cpu_count() if executor is None else int(executor)
-            size = chunksize or _auto_chunksize(len(pts), n_workers)
-            chunks = _chunks(pts, size)
+            chunks = chunking(n_workers)
             description = f"processes({n_workers})"
             with _process_pool(min(n_workers, len(chunks))) as pool:
                 try:
-                    outcomes = list(
-                        itertools.chain.from_iterable(_run_on_futures_executor(pool, func, chunks, bar, columns))
-                    )
+                    _run_on_futures_executor(pool, func, chunks, columns, timeout, chunk_done_for(chunks))
                 except BaseException:
-                    pool.shutdown(wait=True, cancel_futures=True)
+                    _stop_pool(pool)
                     raise
         elif kind == "executor":
-            n_workers = getattr(executor, "_max_workers", None) or _cpu_count()
-            chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
+            chunks = chunking(getattr(executor, "_max_workers", None) or _cpu_count())
             description = f"executor({type(executor).__name__})"
-            outcomes = list(
-                itertools.chain.from_iterable(_run_on_futures_executor(executor, func, chunks, bar, columns))
-            )
+            _run_on_futures_executor(executor, func, chunks, columns, timeout, chunk_done_for(chunks))
         else:
             with _dask_client(executor) as (client, description):
-                n_workers = sum(client.nthreads().values()) or 1
-                chunks = _chunks(pts, chunksize or _auto_chunksize(len(pts), n_workers))
-                outcomes = list(itertools.chain.from_iterable(_run_on_dask(client, func, chunks, bar, columns)))
+                chunks = chunking(sum(client.nthreads().values()) or 1)
+                _run_on_dask(client, func, chunks, columns, timeout, chunk_done_for(chunks))
     return outcomes, description
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """A sweep stopped by Ctrl-C (``KeyboardInterrupt``); the finished points are kept.
+
+    Attributes
+    ----------
+    done : int
+        Points finished (in the journal, when the sweep has one).
+    total : int
+        Points of the sweep.
+    results : pathlib.Path or None
+        The journal holding the finished points; running the same sweep on it resumes.
+    """
+
+    def __init__(self, done: int, total: int, results: Path | None) -> None:
+        self.done, self.total, self.results = done, total, results
+        where = f", results in {results}, rerun to resume" if results is not None else ""
+        super().__init__(f"interrupted: {done} of {total} points done{where}")
+
+
+def _estimate_bytes(points: Sequence[Mapping[str, Any]]) -> int:
+    """Memory a sweep of ``points`` holds: its points and a typical ~1 kB result row each."""
+    first = points[0]
+    per_point = sys.getsizeof(first) + sum(sys.getsizeof(k) + sys.getsizeof(v) for k, v in first.items()) + 1024
+    return len(points) * per_point
+
+
+def _check_size(points: Sequence[Mapping[str, Any]], max_points: int) -> None:
+    """Refuse a sweep of more than ``max_points`` points, before any point is built or run."""
+    n = len(points)
+    if n > max_points:
+        what = points.describe() if isinstance(points, Grid) else f"a sequence of {n} points"
+        gib = _estimate_bytes(points) / 2**30
+        raise ParameterError(
+            "points",
+            f"at most max_points = {max_points} points, but it is {what} (about {gib:.3g} GiB in memory); "
+            "shrink it, or pass a larger max_points to run it",
+        )
+
+
+def _definition(func: Callable[..., Any], points: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """What a sweep computes on which points, for its journal."""
+    if isinstance(points, Grid):
+        return {"func": describe(func), "points": {"grid": describe(points.axes)}}
+    listed = describe(list(points))
+    return {"func": describe(func), "points": {"n": len(listed), "sha256": definition_hash(listed)}}
+
+
+#: Failures that are not the point's own: retried when a sweep resumes.
+_RETRIED = ("Timeout", "WorkerDied")
 
 
 def sweep(
@@ -610,6 +926,10 @@ def sweep(
     *,
     chunksize: int | None = None,
     progress: bool | None = None,
+    max_points: int = MAX_POINTS,
+    timeout: float | None = None,
+    results: str | os.PathLike[str] | None = None,
+    restart: bool = False,
 ) -> SweepResult:
     """Call ``func(**point)`` for every point and gather the outcomes.
 
@@ -636,28 +956,54 @@ def sweep(
           the duration of the call;
         - a ``dask.distributed.Client``: used, not closed.
     chunksize : int, optional
-        Points per task; by default about four tasks per worker.
+        Points per task; by default about four tasks per worker (at most 4 points per
+        task when ``results`` is given, so that finished points reach the journal soon).
     progress : bool, optional
         Show a tqdm progress bar on stderr. By default only when stderr is a terminal
         or the code runs in a Jupyter kernel, so logs and batch jobs stay clean.
+    max_points : int, default :data:`MAX_POINTS`
+        The largest sweep accepted. A larger one is refused before any point is built
+        or run, with the grid's shape, its size and an estimate of its memory.
+    timeout : float, optional
+        Seconds a point may run. Each point then runs in a forked process (POSIX only):
+        one past its time is killed and recorded as a failure of type ``"Timeout"``,
+        and a fresh process goes on with the next points. This holds on every executor
+        (the serial one included: the points run in a child of this process, so a hung
+        point cannot hang the sweep); on process pools and Dask the worker forks the
+        point process, so the worker itself is never lost.
+    results : path-like, optional
+        A journal (JSON lines, ``docs/sweeps.md``): each finished point is appended as
+        it arrives, under a header holding the sweep's definition (``func`` and the
+        points) and its SHA-256. If the file holds a journal of the same sweep, its
+        points are not run again (failures of type ``"Timeout"`` and ``"WorkerDied"``
+        are retried); a journal of another sweep is refused.
+    restart : bool, default False
+        Start ``results`` afresh even if it holds a journal.
 
     Returns
     -------
     SweepResult
-        One row per point, in input order. The same for every executor.
+        One row per point, in input order. The same for every executor, and the same
+        for a sweep resumed from its journal as for one run without interruption.
 
     Raises
     ------
     ParameterError
         If ``func`` is not callable or cannot be pickled for the chosen executor, if
-        ``points`` is not a non-empty sequence of dicts with string keys, or if
-        ``executor`` or ``chunksize`` is not one of the accepted values.
+        ``points`` is not a non-empty sequence of dicts with string keys or has more
+        than ``max_points`` points, if ``executor``, ``chunksize``, ``max_points`` or
+        ``timeout`` is not one of the accepted values, or if ``results`` holds a
+        journal of another sweep (naming both hashes and what changed).
+    SweepInterrupted
+        On Ctrl-C (a ``KeyboardInterrupt``), after the running workers are stopped;
+        the points finished until then are in the journal.
 
     Notes
     -----
     A point whose call raises an ``Exception`` becomes a :class:`PointFailure` (type,
-    message and traceback) and a row with ``status == "error"``. Failures of the
-    machinery itself (a worker process killed, a lost scheduler) are raised.
+    message and traceback) and a row with ``status == "error"``. Without ``timeout``,
+    failures of the machinery itself (a worker process killed, a lost scheduler) are
+    raised; with it, a point whose process dies is a failure of type ``"WorkerDied"``.
     """
     if not callable(func):
         raise ParameterError("func", "callable", func)
@@ -665,27 +1011,75 @@ def sweep(
         raise ParameterError("points", "a sequence of dicts, e.g. nrobust.grid(K=[...], delta=[...])", points)
     if len(points) == 0:
         raise ParameterError("points", "a non-empty sequence of dicts", points)
-    for i, point in enumerate(points):
-        if not isinstance(point, Mapping) or not all(isinstance(k, str) for k in point):
-            raise ParameterError(f"points[{i}]", "a dict with string keys", point)
+    if isinstance(max_points, bool) or not isinstance(max_points, (int, np.integer)) or max_points < 1:
+        raise ParameterError("max_points", "a positive int", max_points)
+    _check_size(points, int(max_points))
+    if not isinstance(points, Grid):
+        for i, point in enumerate(points):
+            if not isinstance(point, Mapping) or not all(isinstance(k, str) for k in point):
+                raise ParameterError(f"points[{i}]", "a dict with string keys", point)
     if chunksize is not None:
         if isinstance(chunksize, bool) or not isinstance(chunksize, (int, np.integer)) or chunksize < 1:
             raise ParameterError("chunksize", "a positive int or None", chunksize)
         chunksize = int(chunksize)
+    if timeout is not None:
+        if isinstance(timeout, bool) or not isinstance(timeout, (int, float, np.number)):
+            raise ParameterError("timeout", "a number of seconds > 0, or None", timeout)
+        if not (math.isfinite(timeout) and timeout > 0):
+            raise ParameterError("timeout", "a finite number of seconds > 0, or None", timeout)
+        if not hasattr(os, "fork"):
+            raise ParameterError("timeout", "None on this platform (a timeout needs os.fork, POSIX)", timeout)
+        timeout = float(timeout)
+    _classify_executor(executor)
     pts = [dict(p) for p in points]
-    start = time.perf_counter()
-    outcomes, description = _execute(func, pts, executor, chunksize, progress, columns=True)
-    elapsed = time.perf_counter() - start
+    definition = None if results is None else _definition(func, points if isinstance(points, Grid) else pts)
+    journal = None if results is None else Journal(results, definition, len(pts), restart)
+    done = (
+        {} if journal is None else {i: o for i, o in journal.done.items() if not (o[0] == "error" and o[1] in _RETRIED)}
+    )
+    todo = [i for i in range(len(pts)) if i not in done]
+    finished = [len(done)]
 
-    results: list[dict[str, Any] | None] = []
-    failures: list[PointFailure] = []
-    for i, (point, outcome) in enumerate(zip(pts, outcomes)):
-        if outcome[0] == "ok":
-            results.append(outcome[1])
+    def record(position: int, outcome: tuple[Any, ...]) -> None:
+        finished[0] += 1
+        if journal is not None:
+            journal.append(todo[position], outcome)
+
+    start = time.perf_counter()
+    try:
+        if todo:
+            fresh, description = _execute(
+                func,
+                [pts[i] for i in todo],
+                executor,
+                chunksize,
+                progress,
+                columns=True,
+                timeout=timeout,
+                on_done=record,
+                max_chunk=None if journal is None else 4,
+            )
         else:
-            results.append(None)
+            fresh, description = [], "resumed: nothing to run"
+    except KeyboardInterrupt:
+        raise SweepInterrupted(finished[0], len(pts), None if journal is None else journal.path) from None
+    finally:
+        if journal is not None:
+            journal.close()
+    elapsed = time.perf_counter() - start
+    outcomes = dict(done)
+    outcomes.update(zip(todo, fresh))
+
+    rows: list[dict[str, Any] | None] = []
+    failures: list[PointFailure] = []
+    for i, point in enumerate(pts):
+        outcome = outcomes[i]
+        if outcome[0] == "ok":
+            rows.append(outcome[1])
+        else:
+            rows.append(None)
             failures.append(PointFailure(i, point, outcome[1], outcome[2], outcome[3]))
-    return SweepResult(tuple(pts), tuple(results), tuple(failures), description, elapsed)
+    return SweepResult(tuple(pts), tuple(rows), tuple(failures), description, elapsed)
 
 
 class _Item:

@@ -40,7 +40,7 @@ from .bounds import root_free_region
 from .errors import CertificationError, ParameterError
 from .parallel import SweepResult
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
-from .roots import RootSet, count_roots, find_roots
+from .roots import RootSet, SpectralAbscissa, count_roots, find_roots, spectral_abscissa
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -48,16 +48,20 @@ if TYPE_CHECKING:
 
 # Work bound on the initial frequency grid of nyquist_response.
 _MAX_FREQ = 10**6
+# At most this many crossing frequencies are written on a Nyquist plot (the lowest, spread out).
+_MAX_CROSSING_LABELS = 6
 
 __all__ = [
     "NrobustPlot",
     "NyquistResponse",
     "nyquist_response",
     "nyquist_plot",
+    "root_map_region",
     "root_map_plot",
     "RootLocusData",
     "root_locus_response",
     "root_locus_plot",
+    "residual_floor",
     "simulation_plot",
     "stability_chart_plot",
     "tradeoff_plot",
@@ -140,20 +144,37 @@ class NyquistResponse:
     note: str
 
     def plot(self, ax: Axes | None = None, unit_circle: bool = True) -> NrobustPlot:
-        """Draw the loop, its mirror image, ``-1``, the unit circle and the crossings."""
+        """Draw the loop, its mirror image, ``-1``, the unit circle and the crossings.
+
+        ``lines["labels"]`` holds the frequency labels of the crossings: the lowest
+        frequencies first, at most six, none closer to another than 12 % of the plot's
+        width (the others are marked, not labelled).
+        """
         ax = _get_ax(ax)
         lines: dict[str, list[Any]] = {}
         lines["loop"] = ax.plot(self.loop.real, self.loop.imag, "-", color="C0", label=f"L(iw), delta={self.delta:g}")
-        lines["mirror"] = ax.plot(self.loop.real, -self.loop.imag, "--", color="C0", alpha=0.5)
+        lines["mirror"] = ax.plot(
+            self.loop.real, -self.loop.imag, "--", color="C0", alpha=0.5, label="L(-iw), mirror image"
+        )
         if unit_circle:
             th = np.linspace(0.0, 2 * np.pi, 361)
             lines["unit_circle"] = ax.plot(np.cos(th), np.sin(th), ":", color="0.5", label="|L| = 1")
         lines["critical"] = ax.plot([-1.0], [0.0], "r+", markersize=12, label="-1")
+        lines["labels"] = []
         if self.crossings.size:
             a_b = self.crossing_values
-            lines["crossings"] = ax.plot(a_b.real, a_b.imag, "o", color="C3", label="crossings")
+            lines["crossings"] = ax.plot(
+                a_b.real, a_b.imag, "o", color="C3", ms=4, label=f"{a_b.size} crossings |L| = 1 (labels: w)"
+            )
+            # label the lowest frequencies first, skipping a point too close to a labelled one
+            span = max(float(np.ptp(self.loop.real[np.isfinite(self.loop)])), 2.0)
+            placed: list[complex] = []
             for w, p in zip(self.crossings, a_b):
-                ax.annotate(f"{w:.3g}", (p.real, p.imag), textcoords="offset points", xytext=(4, 4), fontsize=7)
+                if len(placed) < _MAX_CROSSING_LABELS and all(abs(p - q) > 0.12 * span for q in placed):
+                    placed.append(p)
+                    lines["labels"].append(
+                        ax.annotate(f"{w:.3g}", (p.real, p.imag), textcoords="offset points", xytext=(4, 4), fontsize=7)
+                    )
         else:
             lines["crossings"] = []
         count = "no finite count" if self.rhp_zeros is None else f"{self.rhp_zeros} closed-loop zeros in Re s > 0"
@@ -198,7 +219,7 @@ def nyquist_response(
     A, B : QuasiPolynomial or number
         The loop factors, ``F(s) = A(s) + B(s) e^{-delta s}`` (e.g. from
         :func:`nrobust.hyperbolic.loop_factors`; for U_BS2 ``F`` is the characteristic
-        function of the paper's eq. (delay_eq_alpha_ter)). ``A`` must not vanish
+        function of the paper's eq. (60)). ``A`` must not vanish
         identically (``L = B/A``).
     delta : float
         Loop delay ``>= 0``.
@@ -336,9 +357,79 @@ def nyquist_plot(
 
 
 # ---------------------------------------------------------------------- root map
+#: The base rectangle of a root map, in units of ``1/T`` (``T`` the largest delay of ``F``).
+_BASE_REGION = (-3.0, 1.0, -40.0, 40.0)
+#: Work bound of a default root map: about this many roots at most (see root_map_region).
+_MAX_MAP_ROOTS = 600
+
+
+def root_map_region(
+    F: QuasiPolynomial,
+    base: tuple[float, float, float, float] | None = None,
+    abscissa: SpectralAbscissa | None = None,
+    max_roots: int = _MAX_MAP_ROOTS,
+) -> tuple[float, float, float, float]:
+    """A rectangle for a root map of ``F`` that holds its rightmost roots.
+
+    The rectangle is the smallest one containing ``base`` (default
+    ``(-3, 1, -40, 40) / T``, ``T`` the largest delay of ``F``), the rightmost root of
+    ``F`` (:func:`nrobust.roots.spectral_abscissa`) and the first root of the rightmost
+    chain of the principal part (:meth:`nrobust.difference.DifferenceOperator.chains`:
+    for a neutral ``F`` the high-frequency roots approach it), each with a margin of
+    ``0.5 / T`` in ``Re s`` and ``10 / T`` in ``Im s``. An unstable root of an open loop
+    (``+0.923`` for the paper's plant) or of a loop destabilised by a small delay (the
+    U_BS chains at ``Im s ~ 311`` for ``delta = 0.01``) is therefore on the map.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+    base : tuple of float, optional
+        ``(re_min, re_max, im_min, im_max)`` always contained in the result.
+    abscissa : SpectralAbscissa, optional
+        The spectral abscissa of ``F`` if already computed; by default it is computed here
+        (when that fails, only the chains and ``base`` are used).
+    max_roots : int
+        Work bound: the widening in height stops where the map would hold about
+        ``max_roots`` roots (``|Im s| T / pi`` roots per unit of ``Re s`` width, the density
+        of the chains); the chains above it still show as their asymptotes.
+
+    Returns
+    -------
+    tuple of float
+        ``(re_min, re_max, im_min, im_max)``.
+    """
+    F = as_quasipolynomial("F", F)
+    max_roots = positive_int("max_roots", max_roots)
+    T = float(F.max_delay) if F.max_delay > 0 else 1.0
+    base_box = check_region(base) if base is not None else tuple(v / T for v in _BASE_REGION)
+    box = list(base_box)
+    points: list[complex] = []
+    if abscissa is None and F.kind != "advanced":
+        try:
+            abscissa = spectral_abscissa(F)
+        except CertificationError:
+            abscissa = None
+    if abscissa is not None and abscissa.root is not None:
+        points.append(complex(abscissa.root))
+    if F.is_neutral:
+        chains = F.principal_part().chains().chains
+        if chains:
+            top = max(chains, key=lambda c: c.real)
+            first = (top.offset + 0.5 * top.spacing) % top.spacing - 0.5 * top.spacing
+            points.append(complex(top.real, abs(first)))
+    for z in points:
+        box[0] = min(box[0], z.real - 0.5 / T)
+        box[1] = max(box[1], z.real + 0.5 / T)
+        box[2] = min(box[2], -abs(z.imag) - 10.0 / T if F.is_real else z.imag - 10.0 / T)
+        box[3] = max(box[3], abs(z.imag) + 10.0 / T if F.is_real else z.imag + 10.0 / T)
+    height = max_roots * np.pi / (T * max(1.0, box[1] - box[0]))
+    box[2], box[3] = min(base_box[2], max(box[2], -height)), max(base_box[3], min(box[3], height))
+    return (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
+
+
 def root_map_plot(
     F: QuasiPolynomial,
-    region: tuple[float, float, float, float],
+    region: tuple[float, float, float, float] | None = None,
     roots: RootSet | ArrayLike | None = None,
     ax: Axes | None = None,
     chains: bool | Sequence[float] = True,
@@ -346,11 +437,15 @@ def root_map_plot(
 ) -> NrobustPlot:
     """Roots of ``F`` in a rectangle, the chain asymptotes of its principal part, the axis.
 
+    Roots in ``Re s > 0`` (unstable) are circled in red and counted in the legend; chain
+    asymptotes in ``Re s >= 0`` are drawn in red.
+
     Parameters
     ----------
     F : QuasiPolynomial
-    region : tuple
-        ``(re_min, re_max, im_min, im_max)``.
+    region : tuple, optional
+        ``(re_min, re_max, im_min, im_max)``; by default :func:`root_map_region`, which
+        holds the rightmost roots of ``F``.
     roots : RootSet or array_like, optional
         Precomputed roots; by default ``find_roots(F, region)`` (certified).
     ax : matplotlib Axes, optional
@@ -368,10 +463,11 @@ def root_map_plot(
     -------
     NrobustPlot
         ``lines["roots"]`` (one marker artist whose data are the roots),
-        ``lines["chains"]`` (one line per chain), ``lines["axis"]``.
+        ``lines["unstable"]`` (one marker artist on the roots with ``Re s > 0``; no data
+        when there is none), ``lines["chains"]`` (one line per chain), ``lines["axis"]``.
     """
     F = as_quasipolynomial("F", F)
-    box = check_region(region)
+    box = root_map_region(F) if region is None else check_region(region)
     if roots is None:
         roots = find_roots(F, box)
     values = np.asarray(getattr(roots, "roots", roots), dtype=complex).ravel()
@@ -385,9 +481,26 @@ def root_map_plot(
         reals = [float(c) for c in chains]
     inside = sorted((c for c in reals if box[0] <= c <= box[1]), reverse=True)
     label = "chain asymptotes" + (f" ({max_chains} rightmost of {len(inside)})" if len(inside) > max_chains else "")
+    n_right = sum(c >= 0.0 for c in inside[:max_chains])
     for k, c in enumerate(inside[:max_chains]):
-        lines["chains"].append(ax.axvline(c, color="C1", ls="--", lw=0.8, label=label if k == 0 else None))
+        if c >= 0.0:
+            text = f"{n_right} chain asymptote(s) in Re s >= 0" if k == 0 else None
+            lines["chains"].append(ax.axvline(c, color="tab:red", ls="--", lw=0.9, label=text))
+        else:
+            text = label if k == n_right else None
+            lines["chains"].append(ax.axvline(c, color="C1", ls="--", lw=0.8, label=text))
     lines["roots"] = ax.plot(values.real, values.imag, "x", color="C0", label=f"{values.size} roots")
+    bad = values[values.real > 0.0]
+    lines["unstable"] = ax.plot(
+        bad.real,
+        bad.imag,
+        "o",
+        ms=9,
+        mfc="none",
+        mec="tab:red",
+        mew=1.5,
+        label=f"{bad.size} unstable (Re s > 0)" if bad.size else None,
+    )
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])
     ax.set_xlabel("Re s")
@@ -481,34 +594,83 @@ def root_locus_plot(
 
 
 # ---------------------------------------------------------------------- time domain
+def residual_floor(results: Sequence[Any]) -> float:
+    """The accuracy level of simulations: ``h^2`` times their largest norm, ``h = 1/n`` the cell size.
+
+    The simulator is second order (:func:`nrobust.hyperbolic.simulate.simulate`): below
+    this level a norm shows the scheme's residual (a staircase after a finite-time
+    convergence), not the plant. :func:`simulation_plot` cuts its log axis there.
+    """
+    results = list(results)
+    if not results:
+        raise ParameterError("results", "at least one simulation result", results)
+    top = max(float(np.max(np.asarray(r.norm, dtype=float))) for r in results)
+    h = 1.0 / min(int(r.n) for r in results)
+    return h * h * top
+
+
 def simulation_plot(
     results: Sequence[Any],
     labels: Sequence[str] | None = None,
     ax: Axes | None = None,
+    floor: float | str | None = "residual",
 ) -> NrobustPlot:
     """``L^2`` norm of simulated states against time, log scale (paper, figures 1 and 3).
 
     Parameters
     ----------
     results : sequence of simulation results
-        Outputs of :func:`nrobust.hyperbolic.simulate.simulate` (``times`` and ``norm``).
+        Outputs of :func:`nrobust.hyperbolic.simulate.simulate` (``times``, ``norm``, ``n``).
     labels : sequence of str, optional
         One legend entry per result.
+    floor : float, "residual" or None
+        Bottom of the log axis: ``"residual"`` (default) cuts it at :func:`residual_floor`,
+        the ``O(h^2)`` accuracy of the scheme, and says so on the plot (a norm that
+        reaches 0 in finite time, as under U_BS without delay, would otherwise draw the
+        scheme's residual down to ``1e-40`` and flatten every other curve); a number cuts
+        it there; None keeps every positive value.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["norms"]`` (one line per result), ``lines["floor"]`` (the note on the cut).
     """
     results = list(results)
     if not results:
         raise ParameterError("results", "at least one simulation result", results)
     if labels is not None and len(labels) != len(results):
         raise ParameterError("labels", f"one label per result ({len(results)})", labels)
+    if floor == "residual":
+        bottom: float | None = residual_floor(results)
+    elif floor is None:
+        bottom = None
+    elif isinstance(floor, str):
+        raise ParameterError("floor", 'a number > 0, "residual" or None', floor)
+    else:
+        bottom = positive("floor", floor)
     ax = _get_ax(ax)
-    lines: dict[str, list[Any]] = {"norms": []}
+    lines: dict[str, list[Any]] = {"norms": [], "floor": []}
     for k, res in enumerate(results):
         t = np.asarray(res.times, dtype=float)
         y = np.asarray(res.norm, dtype=float)
         label = labels[k] if labels is not None else None
         lines["norms"] += ax.semilogy(t, np.maximum(y, np.finfo(float).tiny), label=label)
+    if bottom is not None:
+        norms = np.concatenate([np.asarray(r.norm, dtype=float) for r in results])
+        positive_norms = norms[norms > 0.0]
+        low = 0.5 * float(positive_norms.min()) if positive_norms.size else bottom
+        top = float(norms.max())
+        ax.set_ylim(max(bottom, low), max(3.0 * top, 10.0 * bottom))
+        if low < bottom:  # something lies below the cut: say so
+            what = "the scheme's O(h^2) residual" if floor == "residual" else "cut"
+            lines["floor"].append(
+                ax.text(
+                    0.01, 0.02, f"axis cut at {bottom:.1e} ({what})", transform=ax.transAxes, fontsize=7, color="0.35"
+                )
+            )
     ax.set_xlabel("t")
     ax.set_ylabel("||(u, v)(t)||_L2")
+    ax.grid(True, which="major", alpha=0.3)
     if labels is not None:
         ax.legend(fontsize="x-small", loc="best")
     return NrobustPlot(lines, ax, ax.figure)
@@ -529,11 +691,13 @@ def stability_chart_plot(
         From :func:`nrobust.hyperbolic.studies.stability_chart` (``quantity="count"``).
     ax : matplotlib Axes, optional
     k_bound : float, optional
-        The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (boun_K2)
+        The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (54)
         (``classify(system).k_bound``), drawn as two vertical lines.
     rouche : (Ks, delta_0) pair, optional
         The guaranteed delays ``delta_0(K)`` of Theorem 4's proof
         (:func:`nrobust.hyperbolic.studies.tradeoff` gives them as ``rouche_bounds``).
+        ``delta_0`` depends on ``K`` through ``|K|`` only (``epsilon_0 = 1 - |q rho| - |K q|``),
+        so a curve given for ``K >= 0`` only is drawn for ``-K`` too.
 
     Returns
     -------
@@ -566,15 +730,21 @@ def stability_chart_plot(
         for k, x in enumerate((-kb, kb)):
             lines["paper_bound"].append(
                 ax.axvline(
-                    x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (boun_K2)" if k == 0 else None
+                    x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (54)" if k == 0 else None
                 )
             )
     lines["rouche"] = []
     if rouche is not None:
-        rk, rd = (np.asarray(v, dtype=float) for v in rouche)
+        rk, rd = (np.asarray(v, dtype=float).ravel() for v in rouche)
         if rk.shape != rd.shape:
             raise ParameterError("rouche", "a pair (Ks, delta_0) of equal lengths", rouche)
-        lines["rouche"] = ax.plot(rk, np.minimum(rd, top), "-.", color="C1", label="Rouche delta_0(K), Theorem 4")
+        if rk.size and np.all(rk >= 0.0):  # delta_0 depends on |K| only: mirror the curve to K < 0
+            keep = rk > 0.0
+            rk, rd = np.concatenate([-rk[keep][::-1], rk]), np.concatenate([rd[keep][::-1], rd])
+        order = np.argsort(rk, kind="stable")
+        lines["rouche"] = ax.plot(
+            rk[order], np.minimum(rd[order], top), "-.", color="C1", label="Rouche delta_0(K), Theorem 4"
+        )
     ax.set_xlabel("K")
     ax.set_ylabel("delta")
     ax.set_ylim(0.0, top * 1.02)
@@ -702,8 +872,12 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
     elif x is not None and table.dtype[x].kind in "fiu":
         xv, yv = table[x][ok].astype(float), table[y][ok]
         fin = np.isfinite(yv)
-        order = np.argsort(xv[fin], kind="stable")
-        ax.plot(xv[fin][order], yv[fin][order], "o-", ms=3, label=y)
+        # every point in x order, NaN where the value is infinite or failed: the line has a gap
+        # there instead of joining the finite points on either side
+        x_all = table[x].astype(float)
+        y_all = np.where(ok & np.isfinite(table[y]), table[y], np.nan)
+        order = np.argsort(x_all, kind="stable")
+        ax.plot(x_all[order], y_all[order], "o-", ms=3, label=y)
         edge = ax.get_xaxis_transform()  # x in data, y in axes units: markers on the frame
         if (~fin).any():
             ax.plot(xv[~fin], np.full((~fin).sum(), 0.97), "^", color="C1", transform=edge, label=f"{y} = inf")
@@ -723,11 +897,13 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
     return fig
 
 
-def simulation_figure(runs: Sequence[Any], labels: Sequence[str], title: str) -> Figure:
-    """A figure of :func:`simulation_plot` with a title (used by the reports)."""
+def simulation_figure(
+    runs: Sequence[Any], labels: Sequence[str], title: str, floor: float | str | None = "residual"
+) -> Figure:
+    """A figure of :func:`simulation_plot` with a title (used by the reports and the paper's figures)."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
-    simulation_plot(runs, labels=labels, ax=ax)
+    simulation_plot(runs, labels=labels, ax=ax, floor=floor)
     ax.set_title(title, fontsize="small")
     return fig

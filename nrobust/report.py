@@ -27,8 +27,16 @@ import numpy as np
 from ._json import fields_dict
 from .certificate import Certificate
 from .errors import ParameterError
-from .hyperbolic.controllers import characteristic, loop_factors
-from .plots import nyquist_response, root_map_plot
+from .hyperbolic.controllers import (
+    FilteredController,
+    FiniteTimeController,
+    OpenLoop,
+    ReflectionController,
+    characteristic,
+    loop_factors,
+)
+from .plots import nyquist_response, root_map_plot, root_map_region
+from .roots import find_roots
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -120,17 +128,27 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     import matplotlib.pyplot as plt
 
     out: list[tuple[str, Figure]] = []
-    fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2))
     panels = (
-        (axes[0], 0.0, cert.roots_nominal, cert.principal_nominal),
-        (axes[1], cert.delta_max, cert.roots_delayed, cert.principal_delayed),
+        (axes[0], 0.0, cert.roots_nominal, cert.principal_nominal, cert.abscissa),
+        (axes[1], cert.delta_max, cert.roots_delayed, cert.principal_delayed, None),
     )
-    for ax, delta, roots, principal in panels:
+    for ax, delta, roots, principal, abscissa in panels:
         F = characteristic(cert.system, cert.controller, delta)
-        root_map_plot(F, cert.region, roots=roots, ax=ax, chains=principal.chains)
+        # the certified region, widened to hold the rightmost roots (an unstable root must show)
+        box = root_map_region(F, base=cert.region, abscissa=abscissa)
+        if box != tuple(cert.region):
+            roots = find_roots(F, box)
+        root_map_plot(F, box, roots=roots, ax=ax, chains=principal.chains)
         ax.set_title(f"delta = {delta:g}: {roots.count} roots (certified: {_fmt(roots.certified)})", fontsize="small")
     fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
-    out.append(("Closed-loop roots in the certified region, with the chain asymptotes of the difference operator", fig))
+    out.append(
+        (
+            "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
+            "with the chain asymptotes of the difference operator",
+            fig,
+        )
+    )
 
     A, B = loop_factors(cert.system, cert.controller)
     w_max = 20.0 * 2 * np.pi / float(cert.system.tau)  # 20 periods of the principal part
@@ -148,7 +166,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     head = f"{label}" if index is None else f"{index + 1}. {label}"
     cls = cert.classification
     m = cert.margin
-    blocks: list[Any] = [_Heading(2, head), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(cls.statement)]
+    blocks: list[Any] = [_Heading(2, head), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(_opening(cert))]
     rows = [
         ("open-loop gain rho q", _fmt(cls.rho_q), "classify (section 2)"),
         ("regime", cls.regime, "classify"),
@@ -156,14 +174,18 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         (
             f"gamma_0 of the difference operator, delta = {cert.delta_max:g}",
             _fmt(cert.principal_delayed.gamma_0),
-            "principal_part (eq. (eq_rho_q), (boun_K2))",
+            "principal_part (< 1: eq. (11) for U_BS, eq. (54) for U_BS2)",
         ),
         ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),
         ("spectral abscissa, delta = 0", _fmt(cert.abscissa.value), "spectral_abscissa"),
         ("nominally stable", _fmt(cert.nominally_stable), "delay_margin"),
         ("delay margin delta*", _fmt(cert.delay_margin), "delay_margin"),
         ("crossing frequency at delta*", _fmt(m.omega), "delay_margin"),
-        ("margin verified (residual and count)", _fmt(m.verified), "delay_margin"),
+        (
+            "margin verified (residual and count)",
+            "not needed: infinite, no crossing frequency" if np.isposinf(m.margin) else _fmt(m.verified),
+            "delay_margin",
+        ),
         ("how the margin was decided", m.reason, "delay_margin"),
         (
             "stable delay intervals in [0, delta_max]",
@@ -206,14 +228,61 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         rows.append(("admissible gains K on [0, delta_max]", f"not certified: {cert.k_region_error}", "k_region"))
     blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
     box_rows = tuple(
-        (f"delta = {_fmt(d)}", ", ".join(_fmt(v, 4) for v in box), str(int(c)))
+        (f"delta = {_fmt(d)}", _box_text(box), str(int(c)))
         for d, rs in ((0.0, cert.roots_nominal), (cert.delta_max, cert.roots_delayed))
         for box, c in zip(np.asarray(rs.boxes).reshape(-1, 4), rs.box_counts)
     )
     if box_rows:
         blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
         blocks.append(_Table(("loop", "box", "roots"), box_rows))
+    if cert.claims:
+        blocks.append(_Paragraph(f"**What is proven.** {cert.scope}"))
+        blocks.append(
+            _Table(
+                ("claim", "statement", "status", "computed by"),
+                tuple((c.name, c.statement, c.status, c.source) for c in cert.claims),
+            )
+        )
+        for note in cert.unproven:
+            blocks.append(_Paragraph(f"Not proven: {note}"))
     return blocks, figures
+
+
+def _opening(cert: Certificate) -> str:
+    """The sentence under the verdict: what the paper says of this controller on this plant."""
+    cls, controller = cert.classification, cert.controller
+    if isinstance(controller, (FiniteTimeController, ReflectionController)):
+        return cls.statement  # the regimes of |rho q| for U_BS and U_BS2 (Theorems 2 to 4)
+    if isinstance(controller, FilteredController):
+        a, b = float(controller.a), float(controller.b)
+        gamma = abs(cls.rho_q) * (1.0 + abs(a) / b)
+        return (
+            f"Filtered U_BS with a = {_fmt(a)}, b = {_fmt(b)} (section 2.3.2): its delayed loop's difference operator "
+            f"1 - rho q e^(-tau s) + (a/b) rho q e^(-(tau + delta) s) has gamma_0 = |rho q| (1 + |a|/b) = "
+            f"{_fmt(gamma)}, {'below' if gamma < 1.0 else 'not below'} 1, the condition for a positive delay margin "
+            "(the paper's eq. (17) states it without the absolute value of a)."
+        )
+    if isinstance(controller, OpenLoop):
+        return (
+            f"Open loop (U = 0), open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}"
+        )
+    return f"Open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}"
+
+
+def _interval(lo: float, hi: float) -> str:
+    """``[lo, hi]`` with the digits needed to tell the ends apart (a point when they are equal)."""
+    if lo == hi:
+        return _fmt(lo, 10)
+    digits = 4
+    while digits < 15 and _fmt(lo, digits) == _fmt(hi, digits):
+        digits += 1
+    return f"[{_fmt(lo, digits)}, {_fmt(hi, digits)}]"
+
+
+def _box_text(box: Any) -> str:
+    """A root box as ``Re [a, b] x Im [c, d]`` (a side of zero width as a single number)."""
+    re_lo, re_hi, im_lo, im_hi = (float(v) for v in box)
+    return f"Re {_interval(re_lo, re_hi)} x Im {_interval(im_lo, im_hi)}"
 
 
 def _end_text(end: Any) -> str:

@@ -8,14 +8,16 @@ gathers them under the name ``docs/sweeps.md`` uses.
 
 from .hyperbolic.studies import margin_and_decay
 from .montecarlo import RobustnessResult, robustness
-from .parallel import PointFailure, SweepMap, SweepResult, grid, sweep, sweep_map
+from .parallel import Grid, PointFailure, SweepInterrupted, SweepMap, SweepResult, grid, sweep, sweep_map
 from .sweepfile import ANALYSES, SweepFileResult, run_sweep_file
 
 __all__ = [
     "ANALYSES",
+    "Grid",
     "PointFailure",
     "RobustnessResult",
     "SweepFileResult",
+    "SweepInterrupted",
     "SweepMap",
     "SweepResult",
     "grid",

@@ -1,16 +1,19 @@
 """SWEEP.toml: a sweep or a Monte Carlo study described by a file, run and written to disk.
 
-:func:`run_sweep_file` reads the file (schema in ``docs/sweeps.md``), builds the systems
-and controllers of :mod:`nrobust.config`, runs the named analyses on the executors of
-:mod:`nrobust.parallel` and writes the table (CSV, JSON) and its chart
-(:func:`nrobust.plots.sweep_chart`).
+:func:`run_sweep_file` reads the file (schema in ``docs/sweeps.md``) and checks all of it
+and the output directory, builds the systems and controllers of :mod:`nrobust.config`,
+runs the named analyses on the executors of :mod:`nrobust.parallel` with a result journal
+in the output directory (so an interrupted sweep resumes), and writes the table (CSV,
+JSON), its chart (:func:`nrobust.plots.sweep_chart`) and the manifest of
+:mod:`nrobust.outputs`.
 """
 
 from __future__ import annotations
 
 import inspect
+import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,14 +23,15 @@ import numpy as np
 from ._json import json_safe
 from .config import CONTROLLER_TYPES, SYSTEM_TYPES, load_toml
 from .errors import ParameterError
-from .hyperbolic.controllers import characteristic
+from .hyperbolic.controllers import characteristic, normalize
 from .hyperbolic.studies import delay_margin
 from .montecarlo import _check_levels, _quantile_summary
-from .parallel import _DASK_SCHEMES, SweepResult, _classify_executor, grid, sweep
+from .outputs import MANIFEST, RunOutputs
+from .parallel import _DASK_SCHEMES, MAX_POINTS, SweepResult, _classify_executor, grid, sweep
 from .plots import sweep_chart
 from .roots import spectral_abscissa
 
-__all__ = ["ANALYSES", "SweepFileResult", "run_sweep_file"]
+__all__ = ["ANALYSES", "JOURNAL", "SweepFileResult", "run_sweep_file"]
 
 
 @dataclass(frozen=True)
@@ -39,12 +43,15 @@ class _Analysis:
     ``target(characteristic(system, controller, delta), **options)``, the loop delay
     ``delta`` (default 0) being one of the options in ``own``. The options are the keyword
     parameters of ``target`` after its ``n_positional`` first ones, plus ``own``.
+    ``numeric`` names the numeric columns that ``columns`` gives (``None``: not declared),
+    so that ``[plot] y`` is checked before the sweep runs.
     """
 
     target: Callable[..., Any]
     n_positional: int
     own: tuple[str, ...]
     columns: Callable[[Any], dict[str, Any]]
+    numeric: tuple[str, ...] | None = None
 
     def options(self) -> set[str] | None:
         """Accepted option names (``None``: any, the target takes ``**kwargs``).
@@ -85,10 +92,24 @@ def _abscissa_columns(result: Any) -> dict[str, Any]:
 #: Analyses that ``run_sweep_file`` knows by name. Each runs one nrobust function on the
 #: system and controller of a point.
 ANALYSES: dict[str, _Analysis] = {
-    "delay_margin": _Analysis(delay_margin, 2, (), _margin_columns),
-    "spectral_abscissa": _Analysis(spectral_abscissa, 1, ("delta",), _abscissa_columns),
+    "delay_margin": _Analysis(delay_margin, 2, (), _margin_columns, ("delta_star",)),
+    "spectral_abscissa": _Analysis(spectral_abscissa, 1, ("delta",), _abscissa_columns, ("abscissa", "decay_rate")),
 }
-_TOP_KEYS = ("analysis", "system", "controller", "options", "grid", "sampling", "plot", "executor", "chunksize")
+_TOP_KEYS = (
+    "analysis",
+    "system",
+    "controller",
+    "options",
+    "grid",
+    "sampling",
+    "plot",
+    "executor",
+    "chunksize",
+    "max_points",
+    "timeout",
+)
+#: Name of the result journal in a sweep's output directory.
+JOURNAL = "sweep.jsonl"
 _DISTRIBUTIONS = ("uniform", "loguniform", "normal", "choice")
 
 
@@ -102,13 +123,13 @@ def _signature_names(cls: Any) -> tuple[set[str], set[str]]:
 
 
 def _typed_table(
-    spec: dict[str, Any], section: str, types: dict[str, type]
+    spec: dict[str, Any], section: str, types: Mapping[str, Callable[..., Any]]
 ) -> tuple[str, dict[str, Any], set[str], set[str]]:
     table = spec.get(section)
     if not isinstance(table, dict):
         raise ParameterError(section, f"a [{section}] table with a 'type' key", table)
     kind = table.get("type")
-    if kind not in types:
+    if not isinstance(kind, str) or kind not in types:
         raise ParameterError(f"{section}.type", f"one of {list(types)}", kind)
     names, required = _signature_names(types[kind])
     params = {k: v for k, v in table.items() if k != "type"}
@@ -118,13 +139,15 @@ def _typed_table(
     return kind, params, names, required
 
 
-def _axis_values(name: str, value: Any) -> list[Any]:
-    """A grid axis: a list, or a table ``{start, stop, num}`` (linspace, endpoints included,
-    values rounded to 12 significant digits)."""
+def _axis_size(name: str, value: Any) -> int:
+    """Check a grid axis (a list, or a table ``{start, stop, num}``) and return its length, building nothing."""
     if isinstance(value, list):
         if not value:
             raise ParameterError(name, "a non-empty list or {start, stop, num}", value)
-        return value
+        for item in value:
+            if isinstance(item, float) and not math.isfinite(item):
+                raise ParameterError(name, "a list of finite values", value)
+        return len(value)
     if isinstance(value, dict):
         if set(value) != {"start", "stop", "num"}:
             raise ParameterError(name, "a list or a table with exactly the keys start, stop, num", value)
@@ -132,11 +155,20 @@ def _axis_values(name: str, value: Any) -> list[Any]:
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise ParameterError(f"{name}.num", "an integer >= 1", num)
         for key in ("start", "stop"):
-            if isinstance(value[key], bool) or not isinstance(value[key], (int, float)):
-                raise ParameterError(f"{name}.{key}", "a number", value[key])
-        # 12 significant digits: 0.1 rather than 0.09999999999999999 in tables and charts
-        return [float(f"{x:.12g}") for x in np.linspace(value["start"], value["stop"], num)]
+            end = value[key]
+            if isinstance(end, bool) or not isinstance(end, (int, float)) or not math.isfinite(end):
+                raise ParameterError(f"{name}.{key}", "a finite number", end)
+        return int(num)
     raise ParameterError(name, "a list of values or a table {start, stop, num}", value)
+
+
+def _axis_values(value: Any) -> list[Any]:
+    """A checked grid axis: the list, or ``linspace(start, stop, num)`` (endpoints included,
+    values rounded to 12 significant digits)."""
+    if isinstance(value, list):
+        return value
+    # 12 significant digits: 0.1 rather than 0.09999999999999999 in tables and charts
+    return [float(f"{x:.12g}") for x in np.linspace(value["start"], value["stop"], value["num"])]
 
 
 def _draw(dist: Any, rng: np.random.Generator) -> Any:
@@ -204,8 +236,9 @@ class _FileAnalysis:
                     allowed = ANALYSES[name].options()
                     if allowed is None or key in allowed:
                         opts[name][key] = value
-        system = SYSTEM_TYPES[self.system_type](**sys_params)
-        controller = CONTROLLER_TYPES[self.controller_type](**ctl_params)
+        system, controller = normalize(
+            SYSTEM_TYPES[self.system_type](**sys_params), CONTROLLER_TYPES[self.controller_type](**ctl_params)
+        )
         out: dict[str, Any] = {}
         for name in self.analyses:
             out.update(ANALYSES[name](system, controller, **opts[name]))
@@ -227,6 +260,9 @@ class SweepFileResult:
         a grid).
     levels : tuple of float
         Their levels.
+    journal, manifest : pathlib.Path
+        The result journal (``sweep.jsonl``, one line per finished point) and the
+        manifest of the run's files (``manifest.json``).
     """
 
     sweep: SweepResult
@@ -235,6 +271,8 @@ class SweepFileResult:
     png: Path
     quantiles: dict[str, tuple[float, ...]]
     levels: tuple[float, ...]
+    journal: Path | None = None
+    manifest: Path | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Paths, quantiles (``inf`` as ``"inf"``) and counts (the table itself is in the JSON file)."""
@@ -243,6 +281,8 @@ class SweepFileResult:
                 "csv": self.csv,
                 "json": self.json,
                 "png": self.png,
+                "journal": self.journal,
+                "manifest": self.manifest,
                 "n_points": len(self.sweep.points),
                 "n_failed": self.sweep.n_failed,
                 "levels": self.levels,
@@ -279,6 +319,9 @@ def run_sweep_file(
     dask_address: str | None = None,
     *,
     progress: bool | None = None,
+    restart: bool = False,
+    max_points: int | None = None,
+    timeout: float | None = None,
 ) -> SweepFileResult:
     """Run the sweep or Monte Carlo study described by a SWEEP.toml file.
 
@@ -287,13 +330,20 @@ def run_sweep_file(
     path : path-like
         The TOML file; its schema is in ``docs/sweeps.md``.
     out_dir : path-like
-        Directory for ``sweep.csv``, ``sweep.json`` and ``sweep.png`` (created if
-        needed).
+        Directory for ``sweep.jsonl`` (the journal, appended as points finish),
+        ``sweep.csv``, ``sweep.json``, ``sweep.png`` and ``manifest.json``; created if
+        needed, and checked to be writable before anything runs. If it holds the
+        journal of the same sweep, the sweep resumes: finished points are not run again.
     dask_address : str, optional
         Address of a Dask scheduler (``"tcp://scheduler:8786"``, or ``"scheduler:8786"``
         for TCP); overrides the file's ``executor``.
     progress : bool, optional
         As in :func:`sweep`.
+    restart : bool, default False
+        Discard the journal in ``out_dir`` and run every point (``nrobust sweep
+        --restart``); without it, a journal of another definition is an error.
+    max_points, timeout : optional
+        Override the file's ``max_points`` and ``timeout`` (see :func:`sweep`).
 
     Returns
     -------
@@ -304,7 +354,11 @@ def run_sweep_file(
     ------
     ParameterError
         Naming the bad key (``grid.K``, ``system.type``, ``options.delay_margin.foo``,
-        ...) when the file does not follow the schema.
+        ``plot.y``, ...) when the file does not follow the schema, ``out`` when
+        ``out_dir`` is not a writable directory, ``results`` when ``out_dir`` holds the
+        journal of another sweep; all before any point runs.
+    SweepInterrupted
+        On Ctrl-C; the finished points are in ``out_dir/sweep.jsonl``.
     """
     path = Path(path)
     spec = load_toml(path, "SWEEP.toml")
@@ -342,6 +396,17 @@ def run_sweep_file(
     for allowed in accepted.values():
         option_names = None if (allowed is None or option_names is None) else option_names | allowed
 
+    cap = spec.get("max_points", MAX_POINTS) if max_points is None else max_points
+    if isinstance(cap, bool) or not isinstance(cap, int) or cap < 1:
+        raise ParameterError("max_points", "a positive integer", cap)
+    seconds = spec.get("timeout") if timeout is None else timeout
+    if seconds is not None and (
+        isinstance(seconds, bool)
+        or not isinstance(seconds, (int, float))
+        or not (math.isfinite(seconds) and seconds > 0)
+    ):
+        raise ParameterError("timeout", "a finite number of seconds > 0", seconds)
+
     has_grid, has_sampling = "grid" in spec, "sampling" in spec
     if has_grid == has_sampling:
         raise ParameterError("grid", "given, or [sampling] given instead (exactly one of the two)")
@@ -351,7 +416,15 @@ def run_sweep_file(
         if not isinstance(table, dict) or not table:
             raise ParameterError("grid", "a non-empty table name = [values]", table)
         routes = _route_names(list(table), "grid", sys_names, ctl_names, option_names)
-        points = grid(**{k: _axis_values(f"grid.{k}", v) for k, v in table.items()})
+        sizes = {k: _axis_size(f"grid.{k}", v) for k, v in table.items()}
+        if math.prod(sizes.values()) > cap:
+            shape = " x ".join(str(n) for n in sizes.values())
+            raise ParameterError(
+                "grid",
+                f"at most max_points = {cap} points, but it is a grid of {shape} = {math.prod(sizes.values())} "
+                f"points over {', '.join(sizes)}; shrink it, or raise max_points",
+            )
+        points: Sequence[dict[str, Any]] = grid(**{k: _axis_values(v) for k, v in table.items()})
     else:
         table = spec["sampling"]
         if not isinstance(table, dict):
@@ -362,6 +435,8 @@ def run_sweep_file(
         n = table.get("n_samples")
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ParameterError("sampling.n_samples", "an integer >= 1", n)
+        if n > cap:
+            raise ParameterError("sampling.n_samples", f"at most max_points = {cap}; shrink it, or raise max_points", n)
         seed = table.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ParameterError("sampling.seed", "a non-negative integer", seed)
@@ -399,19 +474,37 @@ def run_sweep_file(
     plot = spec.get("plot", {})
     if not isinstance(plot, dict) or any(k not in ("x", "y") for k in plot):
         raise ParameterError("plot", "a table with optional keys x and y", plot)
+    if "x" in plot and plot["x"] not in routes:
+        raise ParameterError("plot.x", f"a swept parameter: one of {list(routes)}", plot["x"])
+    declared = [ANALYSES[name].numeric for name in analyses]
+    if "y" in plot and all(d is not None for d in declared):
+        numeric = [c for d in declared for c in (d or ())]
+        if plot["y"] not in numeric:
+            raise ParameterError("plot.y", f"a numeric result column: one of {numeric}", plot["y"])
 
     func = _FileAnalysis(
         sys_type, sys_params, ctl_type, ctl_params, analyses, {k: dict(v) for k, v in options.items()}, routes
     )
-    result = sweep(func, points, executor, chunksize=chunksize, progress=progress)
-    quantiles = _quantile_summary(result, levels, skip=list(routes)) if has_sampling else {}
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    csv_path = result.to_csv(out / "sweep.csv")
-    extra = {"source": str(path), "levels": list(levels), "quantiles": {k: list(v) for k, v in quantiles.items()}}
-    json_path = result.to_json(out / "sweep.json", extra=extra if has_sampling else {"source": str(path)})
-    fig = sweep_chart(result, list(routes), plot, has_sampling)
-    png_path = out / "sweep.png"
-    fig.savefig(png_path, dpi=120)
-    return SweepFileResult(result, csv_path, json_path, png_path, quantiles, levels)
+    with RunOutputs(out_dir, "sweep") as outputs:
+        result = sweep(
+            func,
+            points,
+            executor,
+            chunksize=chunksize,
+            progress=progress,
+            max_points=cap,
+            timeout=seconds,
+            results=outputs.directory / JOURNAL,
+            restart=restart,
+        )
+        quantiles = _quantile_summary(result, levels, skip=list(routes)) if has_sampling else {}
+        csv_path = outputs.final(result.to_csv(outputs.path("sweep.csv")))
+        extra = {"source": str(path), "levels": list(levels), "quantiles": {k: list(v) for k, v in quantiles.items()}}
+        staged_json = result.to_json(outputs.path("sweep.json"), extra=extra if has_sampling else {"source": str(path)})
+        json_path = outputs.final(staged_json)
+        png_path = outputs.savefig("sweep.png", sweep_chart(result, list(routes), plot, has_sampling), dpi=120)
+        journal = outputs.keep(JOURNAL)
+        outputs.commit()
+    return SweepFileResult(
+        result, csv_path, json_path, png_path, quantiles, levels, journal, outputs.directory / MANIFEST
+    )

@@ -20,7 +20,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
 from ._validate import nonnegative, number_array, positive_int, real_array
-from .errors import ParameterError
+from .bounds import root_free_region
+from .errors import CertificationError, ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import RootSet, find_roots
 
@@ -154,7 +155,7 @@ class QuasiTransferFunction:
         ``H / (1 + H G)``; ``sign = +1`` gives ``H / (1 - H G)``. With
         ``H = n_1/d_1`` and ``G = n_2/d_2`` the result is
         ``n_1 d_2 / (d_1 d_2 - sign n_1 n_2)``: its denominator is the closed-loop
-        characteristic function, e.g. ``F(s)`` of the paper's eq. (delay_eq_alpha_ter)
+        characteristic function, e.g. ``F(s)`` of the paper's eq. (60)
         when ``H = H_1`` and ``G`` is the delayed controller.
         """
         if sign not in (-1, 1):
@@ -222,14 +223,17 @@ def to_frd(F_or_tf: QuasiPolynomial | QuasiTransferFunction, omega: ArrayLike) -
     """Tabulate ``F(i omega)`` (or ``H(i omega)``) as a python-control FRD.
 
     The result can be passed to python-control's frequency-domain tools (``bode_plot``,
-    ``margin``...). Its Nyquist encirclement count assumes the response decays at high
-    frequency, which is false for neutral loops: use :func:`nrobust.plots.nyquist_response`
-    for the count.
+    ``margin``...); the system is named ``"F"`` (a quasi-polynomial) or ``"H"`` (a transfer
+    function), its input ``"u"`` and its output ``"y"``. Its Nyquist encirclement count
+    assumes the response decays at high frequency, which is false for neutral loops: use
+    :func:`nrobust.plots.nyquist_response` for the count.
     """
     import control
 
     w = _omega_grid(omega)
-    return control.FrequencyResponseData(_response(F_or_tf, 1j * w), w)
+    name = "F" if isinstance(F_or_tf, QuasiPolynomial) else "H"
+    # named system and signals: python-control's plots label their axes with these names
+    return control.FrequencyResponseData(_response(F_or_tf, 1j * w), w, name=name, inputs="u", outputs="y")
 
 
 def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFunction:
@@ -297,6 +301,18 @@ def pade_approximation(
     The model is valid in a band ``|omega| tau_max << order``; the error is returned so
     that the band can be checked, never assumed.
 
+    The model's poles in ``Re s > 0`` are those of ``tf``: its unstable poles are
+    certified (:func:`nrobust.bounds.root_free_region` bounds them, :func:`nrobust.roots.find_roots`
+    finds them), each must be matched by a pole of the model, and a further unstable pole
+    of the model, an artefact of the Pade approximants far out on the positive real axis
+    (``+91.6`` for the open loop of the paper's plant at order 6, where the one unstable
+    pole is ``0.923``), is mirrored to ``-conj(p)``: ``|model(i w)|`` is unchanged and the
+    phase moves (by ``2 arctan(w / p)`` for a real ``p``), which the returned error includes.
+    python-control's count of the model's poles in ``Re s > 0`` (``model.poles()``) is
+    checked against the certified count; when they differ (a model of high degree whose
+    polynomial coefficients span too many orders of magnitude for its roots), or when
+    the unstable poles of ``tf`` cannot be certified, the model is refused.
+
     Parameters
     ----------
     tf : QuasiTransferFunction or QuasiPolynomial
@@ -312,6 +328,14 @@ def pade_approximation(
     model : control.TransferFunction
     error : ndarray
         ``|H(i omega) - model(i omega)|`` on ``omega``.
+
+    Raises
+    ------
+    CertificationError
+        The unstable poles of ``tf`` cannot be certified (the principal part of its
+        denominator is not strongly stable, or a pole lies on the imaginary axis), a
+        certified unstable pole has no counterpart in the model (raise ``order``), or
+        python-control's verdict on the model disagrees with the certified count.
     """
     import control
 
@@ -325,6 +349,85 @@ def pade_approximation(
     num = _rational(tf.num, order, n_quad)
     den = _rational(tf.den, order, n_quad)
     model = control.TransferFunction(np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0]))
+    truth = _unstable_poles(tf.den)
+    model = _mirror_spurious_poles(model, truth)
+    verdict = int(np.sum(np.real(model.poles()) > 0.0))
+    if verdict != truth.size:
+        raise CertificationError(
+            f"the Pade model (degree {len(model.den[0][0]) - 1}) has {verdict} poles in Re s > 0 by python-control's "
+            f"root finder where the transfer function has {truth.size} (certified): its polynomial coefficients "
+            f"span {_span(model):.1e}, too wide for its roots; lower order or n_quad, or use to_frd for frequency "
+            "analyses"
+        )
     exact = tf.frequency_response(w)
     approx = np.asarray(model(1j * w), dtype=complex)
     return model, np.abs(exact - approx)
+
+
+def _span(model: control.TransferFunction) -> float:
+    """Ratio of the largest to the smallest nonzero coefficient magnitude of the model's denominator."""
+    c = np.abs(np.asarray(model.den[0][0], dtype=float))
+    c = c[c > 0]
+    return float(c.max() / c.min())
+
+
+def _unstable_poles(den: QuasiPolynomial) -> NDArray[np.complex128]:
+    """The zeros of ``den`` in ``Re s > 0``, certified (see :func:`pade_approximation`)."""
+    why = "the unstable poles of the Pade model cannot be checked"
+    if den.kind == "advanced":
+        raise CertificationError(f"{why}: the denominator is of advanced type (infinitely many poles in Re s > 0)")
+    try:
+        free = root_free_region(den, 0.0)
+    except ParameterError as exc:  # C_D >= 0: no root-free right half-plane far out
+        raise CertificationError(
+            f"{why}: the principal part of the denominator is not strongly stable ({exc}); its poles in Re s > 0 "
+            "are infinitely many or not bounded by the root-free region"
+        ) from exc
+    if free.half_plane < 0.0:
+        return np.zeros(0, dtype=complex)
+    pad = 1e-6 * (1.0 + free.radius)
+    found = find_roots(den, (0.0, free.half_plane + pad, -(free.radius + pad), free.radius + pad))
+    if found.region[0] < 0.0 or not found.certified:
+        raise CertificationError(f"{why}: a pole lies on or within rounding of the imaginary axis")
+    return np.repeat(np.asarray(found.roots, dtype=complex), np.asarray(found.multiplicities, dtype=int))
+
+
+def _mirror_spurious_poles(model: control.TransferFunction, truth: NDArray[np.complex128]) -> control.TransferFunction:
+    """``model`` with its unstable poles that match no pole of ``truth`` mirrored to ``-conj(p)``.
+
+    A Pade approximant of ``e^{-tau s}`` tends to ``(-1)^order``, not 0, as ``s -> +inf``, so
+    the rational model can vanish far out on the positive real axis: a false unstable pole
+    (``+91.6`` for the open loop of the paper's plant at order 6). Replacing each factor
+    ``s - p`` of such a pole by ``s + conj(p)`` keeps ``|model(i w)|`` exactly (the factor
+    ``(i w - p)/(i w + conj(p))`` has modulus 1) and, with the sign of the gain restored at
+    ``w = 0``, changes the phase (by ``2 arctan(w / p)`` for a real ``p``): small in the band
+    where the model is valid, and counted in the returned error. Each true unstable pole must be
+    matched by one of the model, else the order is too low.
+    """
+    import control
+
+    poles = np.asarray(model.poles(), dtype=complex)
+    unstable = list(np.flatnonzero(poles.real > 0.0))
+    for p in truth:
+        if not unstable:
+            raise CertificationError(
+                f"the Pade model has no unstable pole near the certified pole {p:.6g} of the denominator: raise order"
+            )
+        best = min(unstable, key=lambda k: abs(poles[k] - p))
+        if abs(poles[best] - p) > 0.1 * (1.0 + abs(p)):
+            raise CertificationError(
+                f"the Pade model's nearest unstable pole {poles[best]:.6g} is far from the certified pole {p:.6g}: "
+                "raise order or n_quad"
+            )
+        unstable.remove(best)
+    if not unstable:
+        return model
+    mirrored = poles.copy()
+    mirrored[unstable] = -np.conj(poles[unstable])
+    zeros = np.asarray(model.zeros(), dtype=complex)
+    num = np.real_if_close(np.poly(zeros)) if zeros.size else np.ones(1)
+    den = np.real_if_close(np.poly(mirrored))
+    gain = model.num[0][0][np.flatnonzero(model.num[0][0])[0]] / model.den[0][0][np.flatnonzero(model.den[0][0])[0]]
+    # (0 - p)/(0 + conj p) is -1 for a real p and 1 for a conjugate pair: the sign at w = 0 is kept
+    sign = (-1.0) ** int(np.sum(np.abs(poles[unstable].imag) <= 1e-12 * np.abs(poles[unstable])))
+    return control.TransferFunction(np.real(num) * float(np.real(gain)) * sign, np.real(den))

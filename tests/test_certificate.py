@@ -32,7 +32,7 @@ def filtered() -> Certificate:
 
 def test_filtered_difference_operator_is_eq_cond_a_b(filtered):
     """Principal part b - (b - a) rho q e^{-tau s} at delta = 0, and
-    b - b rho q e^{-tau s} + a rho q e^{-(tau + delta) s} for delta > 0 (eq. (cond_a_b))."""
+    b - b rho q e^{-tau s} + a rho q e^{-(tau + delta) s} for delta > 0 (eq. (17))."""
     rq = 0.85
     assert filtered.principal_nominal.gamma_0 == pytest.approx(rq * 0.9, rel=1e-13, abs=1e-14)
     assert filtered.principal_delayed.gamma_0 == pytest.approx(rq * 1.1, rel=1e-13, abs=1e-14)
@@ -110,7 +110,7 @@ def test_transport_reflection_controller_matches_eq_boun_K2():
 
 
 def test_transport_finite_time_controller_has_zero_margin():
-    """Theorem 3 / eq. (eq_rho_q): gamma_0 = 2 |rho q| = 1.7 > 1, margin 0."""
+    """Theorem 3 / eq. (11): gamma_0 = 2 |rho q| = 1.7 > 1, margin 0."""
     cert = certify(SYSTEM, FiniteTimeController(), delta_max=0.05)
     assert cert.nominally_stable and not cert.delay_robust and cert.delay_margin == 0.0
     assert cert.principal_delayed.gamma_0 == pytest.approx(1.7, rel=1e-13, abs=1e-14)

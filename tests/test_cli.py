@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +55,8 @@ def test_analyze_writes_report_and_valid_json(tmp_path, capsys):
     assert data["delay_robust"] is True and data["delay_margin"] > 0.1
     md = (out / "report.md").read_text()
     assert "L2 norm of the simulated closed loop" in md
+    # the opening speaks of the filter, not of U_BS2's gain bound
+    assert "Filtered U_BS with a = 0.1, b = 1" in md and "U_BS2(K) is delay-robust" not in md
     assert len(list((out / "figures").glob("*.png"))) == 3
     assert "data:image/png;base64," in (out / "report.html").read_text()
 
@@ -113,7 +117,7 @@ def test_sweep_subcommand_calls_the_file_runner(tmp_path, capsys):
     rows = (out / "sweep.csv").read_text().splitlines()
     header = rows[0].split(",")
     margins = [row.split(",")[header.index("delta_star")] for row in rows[1:]]
-    # |K q| < 1 - |rho q|: every delay is tolerated (eq. (boun_K2)); |rho q| + |K q| > 1:
+    # |K q| < 1 - |rho q|: every delay is tolerated (eq. (54)); |rho q| + |K q| > 1:
     # the difference operator is not strongly stable, zero margin
     assert margins[0] == "inf" and float(margins[1]) == 0.0
     bad = tmp_path / "BAD.toml"
@@ -156,3 +160,181 @@ def test_paper_end_to_end_small(tmp_path):
     page = (tmp_path / "report.html").read_text()
     assert page.count("data:image/png;base64,") == 9  # 2 x (root maps, Nyquist) + 5 further figures
     assert len(list((tmp_path / "figures").glob("*.png"))) == 9
+
+
+def test_version(capsys):
+    from nrobust import __version__
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"nrobust {__version__}"
+
+
+def test_progress_bars_only_in_a_terminal_or_on_request(tmp_path, capsys):
+    """stderr captured by pytest is not a terminal: no bar unless --progress asks for one."""
+    (tmp_path / "SWEEP.toml").write_text(
+        'analysis = "delay_margin"\nexecutor = "serial"\n[system]\ntype = "TransportSystem"\nlam = 1.0\nmu = 1.0\n'
+        'q = 1.0\n[controller]\ntype = "ReflectionController"\n[grid]\nK = [0.1, 0.8]\nrho = [0.5]\n'
+    )
+    assert not sys.stderr.isatty()
+    assert main(["sweep", str(tmp_path / "SWEEP.toml"), "-o", str(tmp_path / "a")]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["sweep", str(tmp_path / "SWEEP.toml"), "-o", str(tmp_path / "b"), "--progress"]) == 0
+    assert "2/2" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["sweep", str(tmp_path / "SWEEP.toml"), "-o", str(tmp_path / "c"), "--progress", "--no-progress"])
+
+
+def test_gain_studies_follow_the_progress_rule(capsys):
+    """k_region, stability_chart and tradeoff draw a bar on request, none by default off a terminal."""
+    from nrobust.hyperbolic import TransportSystem
+    from nrobust.hyperbolic.studies import k_region, stability_chart, tradeoff
+
+    plant = TransportSystem(1.0, 1.0, 1.0, 0.5)
+    runs = {
+        "k_region": lambda progress: k_region(plant, 0.1, n_gains=3, progress=progress),
+        "stability chart": lambda progress: stability_chart(plant, [0.1, 0.3], [0.0, 0.1], progress=progress),
+        "tradeoff": lambda progress: tradeoff(plant, [0.1, 0.3], progress=progress),
+    }
+    for desc, run in runs.items():
+        run(None)
+        assert capsys.readouterr().err == ""
+        run(True)
+        assert desc in capsys.readouterr().err
+
+
+SWEEP_SMALL = (
+    'analysis = "spectral_abscissa"\nexecutor = "serial"\n[system]\ntype = "TransportSystem"\nlam = 1.0\nmu = 1.0\n'
+    'q = 1.0\n[controller]\ntype = "ReflectionController"\n[grid]\nK = [0.1, 0.2]\nrho = [0.5]\n'
+)
+
+
+@pytest.mark.parametrize("where", ["/proc/nrobust-out", "file/sub", "file"])
+@pytest.mark.parametrize("command", ["analyze", "paper", "sweep"])
+def test_unwritable_output_fails_before_computing(tmp_path, capsys, command, where):
+    """-o to /proc, under a file or onto a file: exit 2 and one line, before any computation
+    (measured 1-5 ms after start-up; certify alone takes seconds, the paper minutes)."""
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "SWEEP.toml").write_text(SWEEP_SMALL)
+    out = where if where.startswith("/") else str(tmp_path / where)
+    args = {"analyze": [str(_write(tmp_path, SMALL))], "paper": [], "sweep": [str(tmp_path / "SWEEP.toml")]}
+    start = time.perf_counter()
+    assert main([command, *args[command], "-o", out, "--no-progress"]) == 2
+    assert time.perf_counter() - start < 2.0
+    err = capsys.readouterr().err
+    assert (
+        err.startswith("nrobust: error: out must be a directory that can be created and written")
+        and err.count("\n") == 1
+    )
+
+
+@pytest.mark.slow  # the interpreter's start-up and imports: seconds on a loaded machine
+def test_unwritable_output_from_the_shell(tmp_path):
+    """The same through the installed command: exit 2, one line, no traceback."""
+    run = subprocess.run(
+        [sys.executable, "-m", "nrobust", "paper", "-o", "/proc/nrobust-out"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.startswith("nrobust: error: out must be") and run.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("command", ["analyze", "sweep"])
+def test_non_utf8_input_is_a_one_line_error(tmp_path, capsys, command):
+    path = tmp_path / "x.toml"
+    path.write_bytes(b"\xff\xfe")
+    assert main([command, str(path), "-o", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    expected = "path must be a UTF-8 encoded TOML file (byte 0xff at offset 0 is not UTF-8)"
+    assert err == f"nrobust: error: {expected} (got '{path}')\n"
+
+
+@pytest.mark.slow  # two certifications
+def test_analyze_writes_a_manifest_and_replaces_the_set(tmp_path, capsys):
+    out = tmp_path / "out"
+    text = SMALL.split("[simulation]")[0].replace("delta_max = 0.1", "delta_max = 0.1\nk_region = false")
+    assert main(["analyze", str(_write(tmp_path, text)), "-o", str(out), "--no-progress"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    listed = {f["path"] for f in manifest["files"]}
+    on_disk = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()} - {"manifest.json"}
+    assert listed == on_disk and {"report.md", "report.html", "certificate.json"} <= listed
+    assert all(
+        f["size"] == (out / f["path"]).stat().st_size
+        and f["sha256"] == hashlib.sha256((out / f["path"]).read_bytes()).hexdigest()
+        for f in manifest["files"]
+    )
+    stale = out / "figures" / "extra_1_old.png"  # a figure of an earlier run, listed in its manifest
+    stale.write_bytes(b"old")
+    manifest["files"].append({"path": "figures/extra_1_old.png", "size": 3, "sha256": "0" * 64})
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    assert main(["analyze", str(_write(tmp_path, text)), "-o", str(out), "--no-progress"]) == 0
+    assert not stale.exists() and "wrote " + str(out / "report.md") in capsys.readouterr().out
+
+
+def test_report_wording_of_boxes_infinite_margins_and_piecewise_couplings():
+    """Root boxes with the digits that tell their ends apart, an infinite margin that reads as
+    such, and a piecewise-linear coupling printed by its definition."""
+    import re
+
+    from nrobust.certificate import certify
+    from nrobust.hyperbolic import Hyperbolic2x2, ReflectionController, TransportSystem
+    from nrobust.report import _box_text, _certificate_blocks, _Table
+
+    assert _box_text((-0.14582605, -0.14185603, -18.85154093, -18.84757091)) == (
+        "Re [-0.1458, -0.1419] x Im [-18.852, -18.848]"
+    )
+    assert _box_text((0.5, 0.5, -1.0, 1.0)) == "Re 0.5 x Im [-1, 1]"
+    cert = certify(TransportSystem(1.0, 1.0, 1.0, 0.5), ReflectionController(0.1), 0.1, k_region=False)
+    assert cert.delay_margin == np.inf  # |K q| < 1 - |rho q|: no crossing at all
+    blocks, _ = _certificate_blocks(cert, None)
+    rows = {row[0]: row[1] for b in blocks if isinstance(b, _Table) for row in b.rows}
+    assert rows["margin verified (residual and count)"] == "not needed: infinite, no crossing frequency"
+    boxes = [row[1] for b in blocks if isinstance(b, _Table) and b.header[1] == "box" for row in b.rows]
+    assert boxes
+    for text in boxes:
+        for lo, hi in re.findall(r"\[([^,]+), ([^\]]+)\]", text):
+            assert lo != hi, text
+    plant = Hyperbolic2x2(1.0, 1.0, PiecewiseLinear((0.0, 1.0), (1.0, 2.0)), 1.0, 1.0, 0.5)
+    assert "sigma_pm=PiecewiseLinear(x=(0.0, 1.0), values=(1.0, 2.0))" in repr(plant)
+
+
+_DEMO_RUN = """
+import importlib, pkgutil, sys
+import nrobust
+for module in pkgutil.walk_packages(nrobust.__path__, "nrobust."):
+    if not module.name.endswith("__main__"):
+        importlib.import_module(module.name)
+from nrobust.cli import main
+assert main(["analyze", sys.argv[1], "-o", sys.argv[2]]) == 0
+print("ok")
+"""
+# the test extra's packages (and their own dependencies that nothing else needs)
+_TEST_ONLY = ("dask", "distributed", "pytest", "_pytest", "xdist", "hypothesis", "mpmath", "flint", "python_flint")
+
+
+@pytest.mark.slow
+def test_demo_needs_only_the_package(tmp_path):
+    """`make demo` installs the package without its test extra: every module of nrobust imports,
+    and `nrobust analyze` runs, with dask, pytest, hypothesis, mpmath and python-flint absent
+    (a site directory without them, Python started without its own site)."""
+    import sysconfig
+
+    site = tmp_path / "site"
+    site.mkdir()
+    for entry in Path(sysconfig.get_paths()["purelib"]).iterdir():
+        if not entry.name.lower().startswith(_TEST_ONLY):
+            (site / entry.name).symlink_to(entry)
+    path = _write(tmp_path, SMALL.split("[simulation]")[0])
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run(
+        [sys.executable, "-S", "-c", _DEMO_RUN, str(path), str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": f"{root}{os.pathsep}{site}"},
+        timeout=280,
+    )
+    assert run.returncode == 0 and run.stdout.strip().endswith("ok"), run.stderr[-2000:]
+    assert (tmp_path / "out" / "report.html").exists()

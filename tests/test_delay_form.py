@@ -1,4 +1,4 @@
-"""Delay form (delay_eq_alpha) against the kernel-free boundary function.
+"""Delay form (39) against the kernel-free boundary function.
 
 Two independent routes to the open-loop characteristic function: the kernels give
 ``1 - rho q e^{-tau s} + int N~ e^{-nu s}``; the Laplace-transformed PDE gives
@@ -64,7 +64,7 @@ def test_structure_of_n_tilde():
     assert nodes[0] == 0.0 and nodes[-1] == pytest.approx(VARYING.tau, abs=1e-15)
     jump = np.flatnonzero(np.diff(nodes) == 0)
     np.testing.assert_array_equal(nodes[jump], [1.0 / VARYING.mu])  # one jump, on a node
-    # the two branches of (eq_N_tilde), the N^alpha branch carrying the factor q
+    # the two branches of (40), the N^alpha branch carrying the factor q
     assert form.N_tilde.values[jump[0]] == pytest.approx(VARYING.mu * form.N_beta[0], rel=1e-13, abs=1e-14)
     assert form.N_tilde.values[jump[0] + 1] == pytest.approx(
         VARYING.lam * VARYING.q * form.N_alpha[0], rel=1e-13, abs=1e-14

@@ -113,6 +113,8 @@ def _kind_ok(role: str, obj: Any) -> bool:
 def _resolve(role: str, target: str, module: ModuleType, scope: list[str]) -> bool:
     """A reference as Sphinx would read it: absolute, or relative to the enclosing classes and module."""
     target = target.lstrip("~").removesuffix("()")
+    if target.startswith("."):  # Sphinx: a suffix of a name, searched from the current module's package
+        target = f"{module.__name__.rpartition('.')[0]}{target}"
     found = list(_candidates(target))
     # relative names: inside the enclosing classes (innermost first), the module, the builtins
     bases: list[Any] = []
@@ -254,3 +256,38 @@ def test_margins_page_numbers_hold():
         rtol=0,
         atol=5e-6,
     )
+
+
+# a LaTeX label of the paper cited as an equation: "eq. (" + "control3)", "(" + "boun_K2)"...
+_LATEX_LABEL = re.compile(
+    r"\beqs?\. \([A-Za-z][\w^{}]*\)|\((?:boun_K2|control3|eq_rho_q|delay_eq_alpha\w*|eq_N_tilde|u_pde)\)"
+)
+
+
+def test_equations_are_cited_by_their_published_numbers():
+    """The reader of the published paper finds (53), not the LaTeX label of its source."""
+    sources = [
+        ROOT / "README.md",
+        *DOCS,
+        *sorted((ROOT / "nrobust").rglob("*.py")),
+        *sorted((ROOT / "examples").glob("*.py")),
+    ]
+    found = [
+        f"{path.relative_to(ROOT)}: {m.group(0)}"
+        for path in sources
+        for m in _LATEX_LABEL.finditer(path.read_text(encoding="utf-8"))
+    ]
+    assert not found, "equations cited by LaTeX label:\n" + "\n".join(found)
+
+
+def test_examples_open_with_a_gallery_title():
+    """sphinx-gallery (``make docs``) titles each example by the first line of its docstring,
+    underlined with ``=``; the README of the gallery exists."""
+    assert (ROOT / "examples" / "README.rst").exists()
+    untitled = []
+    for path in sorted((ROOT / "examples").glob("*.py")):
+        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")), clean=False) or ""
+        lines = doc.splitlines()
+        if len(lines) < 2 or not lines[0].strip() or lines[1] != "=" * len(lines[0]):
+            untitled.append(path.name)
+    assert not untitled, "examples without a title line underlined with '=': " + ", ".join(untitled)

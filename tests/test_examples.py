@@ -19,6 +19,7 @@ CASES = {
     "transport_tutorial.py": ["transport_root_maps.png", "transport_nyquist.png", "transport_locus_delta.png"],
     "varying_couplings.py": ["varying_chart.png"],
     "transport_loop.py": [],
+    "drift_flux.py": [],
 }
 
 

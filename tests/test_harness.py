@@ -767,6 +767,8 @@ VALUES: dict[str, tuple[list[Any], list[Any]]] = {
     "controller": ([None, "K", 0.5, object()], []),
     "choice": (["nope", None, 1, ""], []),
     "grid": ([[], [NAN], [INF], "abc", None, [[1.0, 2.0], [3.0]], [True, False]], [[1e300], [-1e300], [0.0]]),
+    # a grid whose None is the documented default (k_region's Ks)
+    "grid_or_none": ([[], [NAN], [INF], "abc", [[1.0, 2.0], [3.0]], [True, False]], [None, [1e300], [-1e300], [0.0]]),
     "state": ([None, "x", 1j, NAN, [NAN] * 3, lambda x: np.full_like(x, np.nan)], [0.0, lambda x: 1e300 + 0 * x]),
     "seeds": ([["a"], [NAN], "abc"], [[], [1e300 + 0j]]),
     "omega": ([[], [NAN], "abc", None, [[1.0], [2.0, 3.0]]], [[1e300], [0.0], [-1.0]]),
@@ -888,7 +890,7 @@ SPECS: list[Spec] = [
         nr.k_region,
         (T0, 0.1),
         {"Ks": [-0.5, 0.0, 0.5], "tol": 1e-3},
-        ((0, "system"), (1, "pos"), ("Ks", "grid"), ("tol", "pos_or_none")),
+        ((0, "system"), (1, "pos"), ("Ks", "grid_or_none"), ("tol", "pos_or_none")),
     ),
     Spec(
         "stability_chart",

@@ -39,6 +39,7 @@ from nrobust.hyperbolic.kernels import solve_kernels
 from nrobust.hyperbolic.simulate import simulate
 from nrobust.hyperbolic.studies import ab_region, k_region, stability_chart, tradeoff
 from nrobust.margins import delay_margin
+from nrobust.outputs import Manifest
 from nrobust.plots import nyquist_response, root_locus_response
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
 from nrobust.report import ReportFiles
@@ -120,6 +121,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         ),
         "NyquistResponse": nyquist_response(A, B, n_freq=101),  # retarded loop: principal bound -inf
         "RootLocusData": root_locus_response(root_family, [0.5, 1.0], (-3, 1, -10, 10)),
+        "Manifest": Manifest("sweep", "0", "2026-01-01T00:00:00Z", ({"path": "a.csv", "size": 1, "sha256": "0" * 64},)),
     }
 
 
@@ -160,6 +162,7 @@ NAMES = [
     "SweepFileResult",
     "NyquistResponse",
     "RootLocusData",
+    "Manifest",
 ]
 
 

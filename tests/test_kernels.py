@@ -1,7 +1,7 @@
-"""Backstepping kernels K (eqs. (kerneK^{uu})-(K_bond)) and inverse kernels L.
+"""Backstepping kernels K (eqs. (24)-(29)) and inverse kernels L.
 
 Independent checks: closed forms when one coupling vanishes, finite-difference residuals
-of the kernel PDEs and of the inverse-kernel PDEs (derived from (back_inv1)-(back_inv2)
+of the kernel PDEs and of the inverse-kernel PDEs (derived from (30)-(31)
 and the target system, not used by the solver), second-order convergence, and the
 composition of the transformation with its inverse.
 """
@@ -128,7 +128,7 @@ def _stencil(k: Kernels):
 
 
 def k_residuals(k: Kernels) -> np.ndarray:
-    """Max over interior nodes of the residuals of (kerneK^{uu})-(kerneK^{vv}) (central differences)."""
+    """Max over interior nodes of the residuals of (24)-(27) (central differences)."""
     s = k.system
     lam, mu = s.lam, s.mu
     i, j, dx, dxi = _stencil(k)
@@ -147,7 +147,7 @@ def k_residuals(k: Kernels) -> np.ndarray:
 
 
 def l_residuals(k: Kernels) -> np.ndarray:
-    """Residuals of the inverse-kernel PDEs, derived from (back_inv1)-(back_inv2)::
+    """Residuals of the inverse-kernel PDEs, derived from (30)-(31)::
 
     lam (L^{aa}_x + L^{aa}_xi) = sigma_pm(x) L^{ba},   lam L^{ab}_x - mu L^{ab}_xi = sigma_pm(x) L^{bb},
     mu L^{ba}_x - lam L^{ba}_xi = -sigma_mp(x) L^{aa},  mu (L^{bb}_x + L^{bb}_xi) = -sigma_mp(x) L^{ab}.
@@ -217,8 +217,8 @@ def test_inverse_transform_recovers_state(system):
         k = solve_kernels(system, kernel_grid=n)
         x = k.grid
         state = np.array([np.sin(2.0 * x) + 1.0, np.cos(3.0 * x) - x])
-        alpha_beta = transform(k, k.K, state, -1.0)  # (back1)-(back2)
-        recovered = transform(k, k.L, alpha_beta, +1.0)  # (back_inv1)-(back_inv2)
+        alpha_beta = transform(k, k.K, state, -1.0)  # (22)-(23)
+        recovered = transform(k, k.L, alpha_beta, +1.0)  # (30)-(31)
         errors.append(np.abs(recovered - state).max())
     assert errors[-1] < 1e-4
     assert observed_orders(errors)[0] >= 1.8, errors

@@ -144,13 +144,46 @@ def test_paper_ends_agree_with_bisection_on_verified_margins(
 
 
 # ============================================================ issue 11, item 9: the plant of the report
-def test_item9_plant_ends_near_the_bound_are_refused_not_guessed() -> None:
-    """With ``delta_max = 0.1`` the ends sit within 1e-4 of ``k = 0.528571`` (not at +-0.5283, not at
-    ``k``): crossings near ``|1 - rho q e^{-i w tau}| = 1 - |rho q|`` reach ``delta <= 0.1`` up to
-    ``w = 68``. Proving ``K`` admissible there needs a crossing search up to ``W ~ 1/(k - |K|)``: the
-    work bound refuses it, with a named reason, instead of returning an unverified end."""
-    with pytest.raises(CertificationError, match="work bound"):
-        k_region(LAM2, 0.1)
+@pytest.mark.slow
+@pytest.mark.parametrize("system, gap", [(PAPER, 1e-3), (LAM2, 1.7e-5)], ids=["paper", "lam2"])
+def test_second_order_frequency_bound_holds(system: Hyperbolic2x2, gap: float) -> None:
+    """``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 >= q^2 (k^2 - K^2) - C_2 / w^2`` (``studies._AxisBound``),
+    sampled on ``[0.5, 3 W_2]`` from the loop factors of :func:`nrobust.loop_factors`; no crossing
+    above ``W_2``, which grows like ``1/sqrt(k - |K|)`` where the first-order bound grows like
+    ``1/(k - |K|)`` (item 9's plant ``1.7e-5`` from ``-k``: 190 against 7.3e4)."""
+    bound = studies._AxisBound.of(studies._AffineLoop.of(system))
+    assert bound is not None
+    k = nr.classify(system).k_bound
+    A, B0 = nr.loop_factors(system, ReflectionController(0.0))
+    Ks = (0.0, -0.5 * k, 0.9 * k, k - gap, -(k - gap))
+    w = np.linspace(0.5, 3.0 * max(bound.W(K, K) for K in Ks), 40_001)
+    a, b0, r = A(1j * w), B0(1j * w), system.q * np.exp(-1j * system.tau * w)
+    p = abs(bound.rho_q)
+    for K in Ks:
+        W2, c = bound.W(K, K), bound.rho_q - K * bound.q
+        g = np.abs(a) ** 2 - np.abs(b0 + K * r) ** 2
+        C2 = (bound.n_tau - c * bound.n0) ** 2 / p + 2.0 * (1.0 + abs(c)) * bound.v2
+        assert np.all(g >= (1.0 - p) ** 2 - (K * system.q) ** 2 - C2 / w**2 - 1e-13)
+        assert np.all(g[w > W2] > 0.0)
+        W1 = nr.crossings.frequency_bound(A, B0 + QP([[K * system.q]], [system.tau]))[0]
+        assert W2 < W1
+    W1 = nr.crossings.frequency_bound(A, B0 + QP([[-(k - gap) * system.q]], [system.tau]))[0]
+    assert bound.W(-(k - gap), -(k - gap)) < 0.1 * W1
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_item9_plant_ends_at_delta_max_0_1() -> None:
+    """With ``delta_max = 0.1`` both ends are pair births within 1e-4 of ``k = 0.528571``: at
+    ``w = 62.83`` (``n = 25``) below, ``w = 32.67`` (``n = 13``) above, against scipy's
+    ``g = dg/dw = 0`` (formerly refused: the first-order bound needed ``W ~ 1/(k - |K|) ~ 1e5``)."""
+    region = k_region(LAM2, 0.1)
+    ((lo, hi),) = region.ends
+    assert (lo.kind, hi.kind) == ("pair_birth", "pair_birth")
+    for end, start in ((lo, (-0.528566, 62.83)), (hi, (0.52851, 32.67))):
+        K_b, w_b, delay_b = pair_birth(LAM2, *start)
+        np.testing.assert_allclose([end.K, end.omega, end.delay], [K_b, w_b, delay_b], rtol=0, atol=1e-8)
+        assert delay_b <= 0.1
 
 
 @pytest.mark.slow
@@ -173,7 +206,11 @@ def test_item9_report_carries_the_exact_ends(tmp_path) -> None:
     assert f"({lo.K:.10g}, {hi.K:.10g})" in text and "pair birth" in text and "within 0.0" not in text
 
 
-def test_item9_certificate_records_why_the_region_is_missing() -> None:
+def test_item9_certificate_records_why_the_region_is_missing(monkeypatch: pytest.MonkeyPatch) -> None:
+    def refuse(*args: object, **kwargs: object) -> None:
+        raise CertificationError("k_region: beyond the work bound max_evals=1")
+
+    monkeypatch.setattr(studies, "k_region", refuse)
     cert = certify(LAM2, ReflectionController(0.3), delta_max=0.1)
     assert cert.k_region is None and "work bound" in cert.k_region_error
     assert cert.to_dict()["k_region_error"] == cert.k_region_error

@@ -21,7 +21,7 @@ def second_order(a: float, b: float, c: float) -> tuple[QuasiPolynomial, QuasiPo
 
 
 def transport(rho_q: float, kq: float, tau: float = 2.0) -> tuple[QuasiPolynomial, QuasiPolynomial]:
-    """``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` (paper eq. (delay_transport2))."""
+    """``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` (paper eq. (13))."""
     return QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau]), QuasiPolynomial([[kq]], [tau])
 
 
@@ -143,7 +143,7 @@ def test_complex_coefficients_scan_both_signs() -> None:
     ],
 )
 def test_transport_reflection_controller(rho_q: float, kq: float, expected: float) -> None:
-    """Margin inf iff |rho q| + |K q| < 1 (eq. (delay_transport2)), 0 when it exceeds 1."""
+    """Margin inf iff |rho q| + |K q| < 1 (eq. (13)), 0 when it exceeds 1."""
     dm = delay_margin(*transport(rho_q, kq))
     assert dm.margin == expected
     assert dm.strongly_stable == (abs(rho_q) + abs(kq) < 1)
@@ -345,7 +345,7 @@ def test_ab_region_transport() -> None:
     A_, B_ = np.meshgrid(a, b, indexing="ij")
     assert np.array_equal(reg.strongly_stable, 0.85 * (1 + np.abs(A_) / B_) < 1)
     assert not np.any(reg.admissible & ~reg.strongly_stable)  # strong stability is necessary
-    assert np.any(reg.paper_conditions & ~reg.strongly_stable)  # eq. (cond_a_b) lacks |a|
+    assert np.any(reg.paper_conditions & ~reg.strongly_stable)  # eq. (17) lacks |a|
     assert reg.admissible[2, 1]  # a = 0.25, b = 2: |a|/b = 0.125 < 0.15/0.85
     dm = delay_margin(system, FilteredController(0.25, 2.0))
     assert dm.margin == reg.margins[2, 1] > 0.5 and dm.nominally_stable
@@ -392,7 +392,7 @@ def test_k_region_paper_example_is_strictly_inside_the_paper_bound() -> None:
 
 @pytest.mark.parametrize("a, b", [(0.0, 1.0), (0.1, 1.0), (0.15, 2.0)])
 def test_filtered_transport_loop_has_a_finite_margin_when_rho_q_above_half(a: float, b: float) -> None:
-    """eq. (cond_a_b) gives a positive margin, not stability for every delay, when |rho q| > 1/2.
+    """eq. (17) gives a positive margin, not stability for every delay, when |rho q| > 1/2.
 
     At w = 0, |A|^2 - |B|^2 = (1 - rho q)^2 - (rho q)^2 < 0, while it is positive at high
     frequency (strong stability): a crossing exists.

@@ -117,5 +117,5 @@ def test_the_paper_job_at_full_size(tmp_path):
     assert bs2["spectral_abscissa"] == pytest.approx(np.log(0.75) / 2, abs=1e-10)
     assert 0.0 < bs2["rouche_delta_0"] <= bs2["delay_margin"]
     stable = data["chart"]["K_stable_up_to_0.1_on_grid"]
-    assert min(stable) > -0.15 and max(stable) < 0.15  # inside the paper's bound (boun_K2)
+    assert min(stable) > -0.15 and max(stable) < 0.15  # inside the paper's bound (54)
     assert (tmp_path / "report.html").stat().st_size > 100_000

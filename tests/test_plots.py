@@ -29,7 +29,7 @@ A_TRANSPORT = Q([[1.0], [-0.85]], [0.0, 2.0])  # 1 - rho q e^{-tau s}, paper's e
 
 
 def test_nyquist_reflection_controller_is_stable_without_crossings():
-    """U_BS2 on the transport system: |K q| < 1 - |rho q|, |L| < 1 everywhere (eq. (boun_K2))."""
+    """U_BS2 on the transport system: |K q| < 1 - |rho q|, |L| < 1 everywhere (eq. (54))."""
     B = Q([[0.1]], [2.0])
     resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=60.0, n_freq=2001)
     assert resp.rhp_zeros == 0 and resp.note == ""
@@ -185,3 +185,149 @@ def test_root_locus_in_delta_and_the_one_call_wrappers():
         assert np.max(np.abs(family(d)(z[colours == d]))) < 1e-8
     nyq = plots.nyquist_plot(A_TRANSPORT, Q([[0.1]], [2.0]), delta=0.1, omega_max=10.0)
     assert "0 closed-loop zeros" in nyq.axes.get_title()
+
+
+def _paper_loop(controller, delta):
+    from nrobust.hyperbolic.controllers import characteristic
+
+    return characteristic(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85), controller, delta)
+
+
+def test_root_map_shows_the_unstable_open_loop_root():
+    """Open loop of the paper's plant: one unstable real root, 0.923 (outside the old fixed box [-3, 1]/tau)."""
+    from nrobust.hyperbolic.controllers import OpenLoop
+    from nrobust.roots import spectral_abscissa
+
+    F = _paper_loop(OpenLoop(), 0.0)
+    rightmost = spectral_abscissa(F).root
+    np.testing.assert_allclose(rightmost, 0.922962801372, rtol=0, atol=1e-10)
+    box = plots.root_map_region(F)
+    assert box[0] <= -1.5 and box[1] >= rightmost.real + 0.25 and box[2] <= -20.0 <= 20.0 <= box[3]
+    out = plots.root_map_plot(F)
+    unstable = out.lines["unstable"][0]
+    np.testing.assert_allclose(unstable.get_xdata(), [rightmost.real], rtol=1e-9, atol=0)
+    assert out.axes.get_xlim()[1] > rightmost.real
+    assert any("1 unstable" in t.get_text() for t in out.axes.get_legend().get_texts())
+
+
+@pytest.mark.slow
+def test_root_map_shows_the_unstable_roots_of_u_bs_at_a_small_delay():
+    """U_BS with delta = 0.01: the unstable roots sit near Im s = +-311 on the chains at Re s = 0.2647."""
+    from nrobust.hyperbolic.controllers import FiniteTimeController
+    from nrobust.roots import spectral_abscissa
+
+    F = _paper_loop(FiniteTimeController(), 0.01)
+    abscissa = spectral_abscissa(F)
+    rightmost = abscissa.root
+    assert rightmost.real > 0.26 and 300.0 < rightmost.imag < 320.0
+    box = plots.root_map_region(F, abscissa=abscissa)
+    assert box[0] < rightmost.real < box[1] and box[2] < -rightmost.imag and rightmost.imag < box[3]
+    out = plots.root_map_plot(F, box)
+    unstable = out.lines["unstable"][0]
+    z = unstable.get_xdata() + 1j * unstable.get_ydata()
+    assert z.size > 0 and np.all(z.real > 0)
+    assert np.min(np.abs(z - rightmost)) < 1e-8
+    # the certified count of the map's unstable roots agrees with the markers
+    assert int(count_roots(F, (0.0, box[1], box[2], box[3]))) == z.size
+
+
+def test_figure_1_cuts_its_axis_at_the_residual_and_shows_the_growth():
+    """Under U_BS without delay the norm reaches the scheme's residual after t = tau (down to
+    1e-40 and below); the axis stops at h^2 max ||.|| so that the delta = 0.01 growth shows."""
+    from nrobust.hyperbolic.controllers import FiniteTimeController
+    from nrobust.paper import PAPER_DELAYS_FIG1, PAPER_SYSTEM, _paper_u0, _paper_v0, paper_figure
+
+    system = Hyperbolic2x2(**PAPER_SYSTEM)
+    runs = [
+        simulate(system, FiniteTimeController(), d, 8.0, _paper_u0, _paper_v0, cells=100) for d in PAPER_DELAYS_FIG1
+    ]
+    assert runs[0].norm[-1] < 1e-15  # finite-time convergence, then the residual decays further
+    floor = plots.residual_floor(runs)
+    np.testing.assert_allclose(floor, max(r.norm.max() for r in runs) / 100**2, rtol=1e-15, atol=0)
+    ax = paper_figure(1, runs).axes[0]
+    bottom, top = ax.get_ylim()
+    assert bottom == floor and top > runs[1].norm.max()
+    # the delayed loop grows over the visible range: from t = 3 to t = 8 by a factor 1.75 (100 cells)
+    grown = runs[1].norm[-1] / runs[1].norm[np.searchsorted(runs[1].times, 3.0)]
+    assert grown > 1.5 and runs[1].norm.min() > bottom
+    assert "O(h^2) residual" in " ".join(t.get_text() for t in ax.texts)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["delta = 0", "delta = 0.01"]
+    # a stable loop stays above the residual: the axis hugs the data, no note
+    out = plots.simulation_plot(runs[1:])
+    assert out.lines["floor"] == [] and out.axes.get_ylim()[0] > floor
+    with pytest.raises(ParameterError, match="number"):
+        paper_figure(2)
+
+
+def test_rouche_curve_is_drawn_for_negative_gains_too():
+    """delta_0(K) of Theorem 4 depends on |K| only; a curve computed for K >= 0 is mirrored,
+    and the mirrored values are the bound computed at -K."""
+    from nrobust.hyperbolic.robustness import rouche_delay_bound
+    from nrobust.hyperbolic.studies import StabilityChart
+
+    system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+    Ks = np.array([0.0, 0.05, 0.1])
+    d0 = np.array([rouche_delay_bound(system, ReflectionController(K)).delta_0 for K in Ks])
+    chart = StabilityChart(
+        np.array([-0.1, 0.1]),
+        np.array([0.0, 1.0]),
+        np.zeros((2, 2)),
+        "count",
+        np.full(2, np.inf),
+        (np.zeros((0, 3)),) * 2,
+    )
+    line = plots.stability_chart_plot(chart, rouche=(Ks, d0)).lines["rouche"][0]
+    np.testing.assert_array_equal(line.get_xdata(), [-0.1, -0.05, 0.0, 0.05, 0.1])
+    mirrored = [rouche_delay_bound(system, ReflectionController(K)).delta_0 for K in (-0.1, -0.05)]
+    np.testing.assert_allclose(line.get_ydata()[:2], mirrored, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(line.get_ydata()[2:], d0, rtol=1e-15, atol=0)
+
+
+def test_nyquist_labels_are_spread_and_the_mirror_is_in_the_legend():
+    """U_BS on the transport line at delta = 0.01: dozens of crossings in clusters; at most six
+    labels, no two closer than 12 % of the plot's width."""
+    B = Q([[0.85]], [2.0])
+    resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.01, omega_max=60.0, n_freq=2001)
+    assert resp.crossings.size > 20
+    out = resp.plot()
+    labels = out.lines["labels"]
+    assert 1 <= len(labels) <= 6
+    at = np.array([complex(*a.xy) for a in labels])
+    span = max(np.ptp(resp.loop.real), 2.0)
+    gaps = np.abs(at[:, None] - at[None, :])[np.triu_indices(at.size, 1)]
+    assert np.all(gaps > 0.12 * span)
+    assert labels[0].get_text() == f"{resp.crossings[0]:.3g}"  # the lowest crossing is labelled
+    legend = [t.get_text() for t in out.axes.get_legend().get_texts()]
+    assert "L(-iw), mirror image" in legend and any(t.startswith(f"{resp.crossings.size} crossings") for t in legend)
+
+
+def test_sweep_chart_leaves_gaps_at_infinite_margins():
+    """A curve must not join the finite margins on either side of an infinite stretch."""
+    import nrobust
+
+    def margin(K: float) -> dict:
+        return {"delta_star": np.inf if abs(K) < 0.45 else 0.0}
+
+    result = nrobust.sweep(margin, [{"K": K} for K in np.linspace(-0.9, 0.9, 19)], "serial")
+    fig = plots.sweep_chart(result, ["K"], {}, sampling=False)
+    curve, infinite = fig.axes[0].get_lines()[:2]
+    y = np.asarray(curve.get_ydata(), dtype=float)
+    np.testing.assert_array_equal(np.isnan(y), np.abs(curve.get_xdata()) < 0.45)
+    assert len(infinite.get_xdata()) == 9
+
+
+def test_root_map_region_work_bound_keeps_the_base():
+    """U = -rho u(t, 1) on the transport line with delta = 0.01: the rightmost chain (Re s = 0.265)
+    first meets the roots near Im s = 311; a small work bound stops the widening, never the base."""
+    F = Q([[1.0], [-0.85], [0.85]], [0.0, 2.0, 2.01])
+    from nrobust.roots import spectral_abscissa
+
+    top = max(F.principal_part().chains().chains, key=lambda c: c.real)
+    sa = spectral_abscissa(F)
+    box = plots.root_map_region(F, abscissa=sa)
+    assert box[1] > top.real and box[3] > 300.0 and box[2] == -box[3]
+    capped = plots.root_map_region(F, abscissa=sa, max_roots=100)
+    np.testing.assert_allclose(capped[3], 100 * np.pi / (2.01 * (capped[1] - capped[0])), rtol=1e-12, atol=0)
+    assert capped[3] < 300.0
+    wide = plots.root_map_region(F, base=(-1.0, 0.5, -200.0, 200.0), abscissa=sa, max_roots=100)
+    assert wide[2] == -200.0 and wide[3] == 200.0

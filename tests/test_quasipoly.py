@@ -16,7 +16,7 @@ S_SAMPLES = np.array([0.3 + 0.2j, -1.0 + 5.0j, 2.0 - 100.0j, 0.05j, -0.4 + 0.0j,
 
 
 def _jump_kernel() -> DistributedDelay:
-    """A kernel with a jump at nu = 1, like N~ at nu = 1/mu (paper eq. (eq_N_tilde))."""
+    """A kernel with a jump at nu = 1, like N~ at nu = 1/mu (paper eq. (40))."""
     left = np.linspace(0.0, 1.0, 11)
     right = np.linspace(1.0, 2.5, 16)
     return DistributedDelay(np.r_[left, right], np.r_[np.sin(left), 2.0 + np.cos(right)])

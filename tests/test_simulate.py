@@ -2,7 +2,7 @@
 
 References used here are independent of the simulator: the method of characteristics in
 closed form for transport loops, the exact target-system identity of U_BS2 (eq.
-(control3)), and the closed-loop characteristic function computed in the Laplace domain
+(53)), and the closed-loop characteristic function computed in the Laplace domain
 with the matrix exponential of the plant (no delay form, no inverse kernels).
 """
 
@@ -210,9 +210,9 @@ def test_reflection_controller_keeps_exact_round_trip_ratio():
     """U_BS2(K), delta = 0: ``||(u, v)(t)|| = |q (rho - K)| ||(u, v)(t - tau)||`` for ``t >= tau``.
 
     In the target coordinates the loop is pure transport with reflections ``q`` and
-    ``rho - K`` (eqs. (alpha_eq_mille)-(alpha_boun_mille)), so ``(alpha, beta)(t) = q (rho
+    ``rho - K`` (eqs. (56)-(58)), so ``(alpha, beta)(t) = q (rho
     - K) (alpha, beta)(t - tau)`` for ``t >= tau``. The inverse Volterra map
-    (eqs. (back_inv1)-(back_inv2)) is linear and does not depend on time, hence the same
+    (eqs. (30)-(31)) is linear and does not depend on time, hence the same
     identity holds for ``(u, v)`` itself and for its L2 norm: no kernels are needed to
     state it on the original state. The initial state is compatible with both boundary
     conditions, so no discontinuity is sampled.
@@ -433,7 +433,7 @@ def test_growth_rate_matches_spectral_abscissa(system, controller, gain, delta, 
     seeds = seeds[seeds.imag < 0.4 * np.pi * n * system.lam]  # well below the grid's pi/dt
     root = rightmost_root(F, seeds)
     if not system.uncoupled:
-        # Second route: the delay form (kernels L, N~) of the paper, eq. (delay_eq_alpha).
+        # Second route: the delay form (kernels L, N~) of the paper, eq. (39).
         G = characteristic(system, controller, delta)
         newton_step = abs(G(np.array([root]))[0] / G.deriv_at(np.array([root]))[0])
         assert newton_step < 1e-5

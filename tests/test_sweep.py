@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -482,3 +483,19 @@ def test_sweep_map_keeps_order_and_names_a_failing_item():
         sweep_map("serial")(_square_or_fail, [1, 3])
     with pytest.raises(ParameterError, match="executor"):
         sweep_map("threads")
+
+
+def _hang_at_two(a: int) -> dict:
+    if a == 2:
+        time.sleep(600)
+    return {"a2": a * a}
+
+
+def test_timeout_on_dask_and_thread_pools(dask_client):
+    """The worker forks the point's process and kills it at the timeout; the worker lives on."""
+    with ThreadPoolExecutor(2) as threads:
+        for executor in (dask_client, threads):
+            res = nrobust.sweep(_hang_at_two, nrobust.grid(a=range(4)), executor, timeout=0.5, chunksize=2)
+            assert [(f.index, f.type) for f in res.failures] == [(2, "Timeout")]
+            np.testing.assert_array_equal(res.table()["a2"][[0, 1, 3]], [0, 1, 9])
+    assert nrobust.sweep(_hang_at_two, nrobust.grid(a=[0, 1]), dask_client, timeout=0.5).n_ok == 2

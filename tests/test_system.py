@@ -1,4 +1,4 @@
-"""Plants of eqs. (u_pde)-(IC): validation, evaluation of couplings, serialisation."""
+"""Plants of eqs. (18)-(20): validation, evaluation of couplings, serialisation."""
 
 from __future__ import annotations
 

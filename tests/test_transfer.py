@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from nrobust.errors import ParameterError
+from nrobust.errors import CertificationError, ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
 from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, characteristic, loop_factors
 from nrobust.hyperbolic.loops import closed_loop_tf, open_loop_tf, output_map
@@ -63,7 +63,7 @@ def test_series_parallel_delay_pointwise():
 @pytest.mark.parametrize("sign", [-1, 1])
 def test_feedback_denominator_is_the_closed_loop_characteristic(sign):
     """Plant H_1 = 1/D, delayed U_BS2 controller C = -K q e^{-tau s} + I_N: the loop
-    closes on F = D - C e^{-delta s} (sign=+1), the paper's eq. (delay_eq_alpha_ter)."""
+    closes on F = D - C e^{-delta s} (sign=+1), the paper's eq. (60)."""
     H = _plant()
     K, q, delta = 0.1, 1.0, 0.05
     i_n = QuasiPolynomial([], [], H.den.distributed)
@@ -168,7 +168,7 @@ def test_open_loop_to_v_matches_matrix_exponential():
 
 def test_output_map_matches_kernel_free_route():
     """M(s) = v(s, 1)/beta(s, 1) against the kernel-free route: beta(s, 1) = e^{s/mu} v(s, 0)
-    (eq. (eq_beta_1) and beta(t, 0) = v(t, 0)), so M(s) = e^{-s/mu} v(s, 1) with [u; v](0) = [q; 1].
+    (eq. (38) and beta(t, 0) = v(t, 0)), so M(s) = e^{-s/mu} v(s, 1) with [u; v](0) = [q; 1].
 
     M~ is the cubic spline of delay_kernel, like N~: largest relative error on these
     points measured 4.6e-9 with the default grid (2.9e-7 with the former linear
@@ -216,3 +216,63 @@ def test_transfer_functions_compare_structurally():
     assert H != QuasiTransferFunction(2.0, den * 2.0)  # same function, another representation
     assert H != QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-0.85 + 1e-15]], [0.0, 2.0]))
     assert H.__eq__(den) is NotImplemented
+
+
+def _paper_open_loop() -> QuasiTransferFunction:
+    return open_loop_tf(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85))
+
+
+def _rhp_count(model: control.TransferFunction) -> int:
+    """python-control's stability verdict: the number of poles of the model in Re s > 0."""
+    return int(np.sum(np.real(model.poles()) > 0.0))
+
+
+@pytest.mark.parametrize("order", [2, 4, 6])
+def test_pade_model_of_the_open_loop_has_its_one_unstable_pole(order):
+    """H1 of the paper's plant has one unstable pole, 0.923 (certified); the rational Pade model
+    had a false one far out on the real axis (+11.0, +42.8, +91.6 for orders 2, 4, 6)."""
+    from nrobust.roots import count_roots, find_roots
+
+    H1 = _paper_open_loop()
+    certified = count_roots(H1.den, (0.0, 5.0, -200.0, 200.0))  # root_free_region: none beyond Re 5 or |s| 200
+    assert int(certified) == 1
+    model, err = pade_approximation(H1, order, np.linspace(0.0, 2.0, 200))
+    assert _rhp_count(model) == int(certified)
+    (p,) = np.asarray(model.poles())[np.real(model.poles()) > 0]
+    (truth,) = find_roots(H1.den, (0.5, 1.5, -1.0, 1.0)).roots
+    # the model's pole against the certified one: the Pade and midpoint-rule error (measured 6.7e-3, 1.9e-3, 1.9e-3)
+    np.testing.assert_allclose(p, truth, rtol=0, atol=1e-2)
+    # the returned error includes the phase of the mirrored false pole: 0.38, 0.065, 0.030 measured
+    assert err.max() < {2: 0.5, 4: 0.1, 6: 0.05}[order]
+
+
+def test_pade_model_of_a_stable_closed_loop_is_stable():
+    """The closed loop of the getting-started page (U_BS2(0.1) with delta = 0.05): no pole in Re s > 0."""
+    from nrobust.roots import count_roots
+
+    system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+    _, B = loop_factors(system, ReflectionController(0.1))
+    loop = _paper_open_loop().feedback(QuasiTransferFunction(-B, 1.0).delay(0.05), sign=+1)
+    assert int(count_roots(loop.den, (0.0, 5.0, -200.0, 200.0))) == 0
+    model, err = pade_approximation(loop, 4, np.linspace(0.0, 2.0, 50), n_quad=4)
+    assert _rhp_count(model) == 0 and err.max() < 5e-3  # measured 1.8e-3
+    # degree 136: coefficients over ~1e120, python-control's roots are noise: refused, not returned
+    with pytest.raises(CertificationError, match=r"30 poles in Re s > 0 .* has 0 \(certified\)"):
+        pade_approximation(loop, 4, np.linspace(0.0, 2.0, 50), n_quad=8)
+
+
+def test_bode_plot_of_to_frd():
+    """python-control's bode_plot needs named signals (0.10.2 fails on an unnamed FRD)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    w = np.linspace(0.01, 10.0, 100)
+    frd = to_frd(_paper_open_loop(), w)
+    assert frd.name == "H" and frd.input_labels == ["u"] and frd.output_labels == ["y"]
+    assert to_frd(_paper_open_loop().den, w).name == "F"
+    out = control.bode_plot(frd)
+    mag = out.lines[0, 0][0].get_ydata()
+    np.testing.assert_allclose(mag, np.abs(_paper_open_loop().frequency_response(w)), rtol=1e-12, atol=0)
+    plt.close("all")

@@ -3,9 +3,14 @@
 ``system``: the plants :class:`Hyperbolic2x2` and :class:`TransportSystem`;
 ``kernels``: the backstepping kernels ``K`` and inverse kernels ``L``;
 ``laplace``: the kernel-free boundary function of the Laplace-transformed plant;
-``delay_form``: the neutral distributed-delay equation (delay_eq_alpha) and its
+``delay_form``: the neutral distributed-delay equation (39) and its
 characteristic quasi-polynomial; ``controllers``: the paper's control laws and the loop
 factors ``F = A + B e^{-delta s}``; ``loops``: open- and closed-loop transfer functions;
+``general``: general plants (varying speeds, diagonal terms, any length) and their normal
+form; ``feedback``: any linear boundary state feedback by kernels and by the Laplace route;
+``frontends``: open channels (Saint-Venant), ARZ traffic and characteristic forms;
+``varying``: the delay form of a general plant with any speeds; ``simulate_general``: the
+general plant simulated along its characteristics;
 ``robustness``: the Rouché delay bound; ``studies``: delay margins of a plant with a
 controller and the gain studies; ``simulate``: the PDE itself with a delayed control.
 """
@@ -18,31 +23,54 @@ from .controllers import (
     FiniteTimeController,
     OpenLoop,
     ReflectionController,
+    StateFeedback,
     characteristic,
     classify,
     loop_factors,
+    normalize,
 )
 from .delay_form import DelayForm, delay_form
+from .feedback import feedback_factor, laplace_loop_factors
+from .frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
+from .general import GeneralHyperbolic2x2, NormalForm
 from .kernels import Kernels, solve_kernels
-from .laplace import boundary_function
+from .laplace import boundary_function, general_solution
+from .simulate_general import GeneralSimulation, simulate_general
 from .system import Hyperbolic2x2, TransportSystem
+from .varying import VaryingDelayForm, varying_delay_form
 
 __all__ = [
     "Classification",
     "Controller",
     "DelayForm",
     "FeedbackLaw",
+    "ARZ",
     "FilteredController",
     "FiniteTimeController",
+    "GeneralHyperbolic2x2",
+    "GeneralSimulation",
     "Hyperbolic2x2",
     "Kernels",
+    "NormalForm",
     "OpenLoop",
     "ReflectionController",
+    "SaintVenant",
+    "StateFeedback",
     "TransportSystem",
+    "VaryingDelayForm",
+    "arz",
     "boundary_function",
     "characteristic",
     "classify",
     "delay_form",
+    "feedback_factor",
+    "from_riemann",
+    "general_solution",
+    "laplace_loop_factors",
     "loop_factors",
+    "normalize",
+    "saint_venant",
+    "simulate_general",
     "solve_kernels",
+    "varying_delay_form",
 ]

@@ -2,8 +2,8 @@
 
 Write ``Phi(t) = rho u(t, 1) - int_0^1 K^{vu}(1, xi) u + K^{vv}(1, xi) v dxi``, so that the
 actuated boundary condition reads ``beta(t, 1) = Phi(t) + U(t)`` in the backstepping
-coordinates (paper, eq. (IC_alpha)). Along the characteristics (eqs. (eq_alpha_1) to
-(delay_eq_alpha)), ``Phi`` is a functional of the past of ``beta(., 1)`` whose Laplace
+coordinates (paper, eq. (34)). Along the characteristics (eqs. (37) to
+(39)), ``Phi`` is a functional of the past of ``beta(., 1)`` whose Laplace
 transform is ``Phi(s) beta(s, 1)`` with
 
     Phi(s) = rho q e^{-tau s} - I_N(s),    I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu.
@@ -11,19 +11,20 @@ transform is ``Phi(s) beta(s, 1)`` with
 A controller with a loop delay ``delta`` then closes the loop as
 ``F(s; delta) = A(s) + B(s) e^{-delta s}``:
 
-============================  =====================  ==============================
-controller                    A(s)                   B(s)
-============================  =====================  ==============================
-open loop, ``U = 0``          ``1 - Phi``            ``0``
-U_BS, eq. (control)           ``1 - Phi``            ``Phi``
-U_BS2(K), eq. (control3)      ``1 - Phi``            ``K q e^{-tau s} - I_N``
+============================  ======================  =========================
+controller                    A(s)                    B(s)
+============================  ======================  =========================
+open loop, ``U = 0``          ``1 - Phi``             ``0``
+U_BS, eq. (47)                ``1 - Phi``             ``Phi``
+U_BS2(K), eq. (53)            ``1 - Phi``             ``K q e^{-tau s} - I_N``
 filtered U_BS, section 2.3.2  ``(1 + b s)(1 - Phi)``  ``(1 + a s) Phi``
-============================  =====================  ==============================
+any state feedback            ``1 - Phi``             ``-P`` (``feedback.py``)
+============================  ======================  =========================
 
 For U_BS this is ``1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s} + I_N (1 - e^{-delta s})``
 (Theorem 3), for U_BS2 ``1 - rho q e^{-tau s} + K q e^{-(tau+delta) s} + I_N (1 - e^{-delta
 s})`` (the proof of Theorem 4, with ``+I(s, delta)``). On a transport system ``I_N = 0``
-and these are eqs. (delay_eq_no_couplings2), (delay_transport2) and (delay_transport3);
+and these are eqs. (10), (13) and (16);
 the last one, derived again from ``U_1 = -(1 + a s)/(1 + b s) rho u(1, s)``, has
 ``rho q v(t - tau - delta, 1)`` (not ``q rho a``) on its right-hand side.
 """
@@ -44,8 +45,11 @@ from .._validate import finite_real, nonnegative, positive, positive_int, rename
 from ..errors import ParameterError
 from ..quasipoly import QuasiPolynomial
 from .delay_form import delay_form
-from .kernels import DEFAULT_KERNEL_GRID
+from .feedback import feedback_factor
+from .general import GeneralHyperbolic2x2
+from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
 from .system import Hyperbolic2x2
+from .varying import VaryingDelayForm, varying_delay_form
 
 __all__ = [
     "Classification",
@@ -55,9 +59,11 @@ __all__ = [
     "FiniteTimeController",
     "OpenLoop",
     "ReflectionController",
+    "StateFeedback",
     "characteristic",
     "classify",
     "loop_factors",
+    "normalize",
 ]
 
 Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
@@ -127,10 +133,10 @@ class OpenLoop(Controller):
 
 @dataclass(frozen=True)
 class FiniteTimeController(Controller):
-    """U_BS, eq. (control): cancels the proximal reflection; finite time for ``delta = 0``.
+    """U_BS, eq. (47): cancels the proximal reflection; finite time for ``delta = 0``.
 
     ``U_BS = -rho u(t, 1) + int_0^1 K^{vu}(1, xi) u + K^{vv}(1, xi) v dxi``; on a transport
-    system, ``U = -rho u(t, 1)`` (eq. (Control_law_transport)).
+    system, ``U = -rho u(t, 1)`` (eq. (9)).
     """
 
     def factors(self, phi, i_n, round_trip):
@@ -146,12 +152,12 @@ class FiniteTimeController(Controller):
 
 @dataclass(frozen=True)
 class ReflectionController(Controller):
-    """U_BS2(K), eq. (control3): keeps ``rho - K`` of the proximal reflection.
+    """U_BS2(K), eq. (53): keeps ``rho - K`` of the proximal reflection.
 
     ``U = -K u(1) - (rho - K) int K^{uu}(1,.) u + K^{uv}(1,.) v + int K^{vu}(1,.) u + K^{vv}(1,.) v``;
     the target system reflects ``(rho - K)`` at ``x = 1``, exponentially stable when
-    ``|K| < (1 - |rho q|)/|q|`` (eq. (boun_K2)). On a transport system, ``U = -K u(t, 1)``
-    (eq. (U_transport)).
+    ``|K| < (1 - |rho q|)/|q|`` (eq. (54)). On a transport system, ``U = -K u(t, 1)``
+    (eq. (12)).
 
     Parameters
     ----------
@@ -205,12 +211,87 @@ class FilteredController(Controller):
         return FeedbackLaw(law.boundary_gain, law.gain_u, law.gain_v, (self.a, self.b))
 
 
+@dataclass(frozen=True)
+class StateFeedback(Controller):
+    """Any linear boundary state feedback ``U = k u(t, L) + int_0^L g_u u + g_v v dx``.
+
+    The gains act on the state of the plant the controller is used with (on a
+    :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2`, its physical coordinates on
+    ``[0, L]``). Its loop factors are ``A = 1 - Phi`` and ``B = -P`` with ``P`` of
+    :func:`~nrobust.hyperbolic.feedback.feedback_factor` (the gains composed with the
+    inverse kernels), so they need the plant: :func:`loop_factors` computes them. The
+    proportional output feedback ``U = -K u(t, L)`` is ``StateFeedback(-K)``; U_BS and
+    U_BS2(K) are the cases whose gains are the kernel traces of their ``feedback_law``.
+
+    Parameters
+    ----------
+    k : float
+        Gain on ``u(t, L)``.
+    g_u, g_v : float or callable, default 0
+        Gains of the integral term, numbers or callables on arrays of ``x``.
+    """
+
+    k: float
+    g_u: Any = 0.0
+    g_v: Any = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "k", finite_real("k", self.k))
+        for name in ("g_u", "g_v"):
+            value = getattr(self, name)
+            if not callable(value):
+                object.__setattr__(self, name, finite_real(name, value))
+
+    def factors(self, phi, i_n, round_trip):
+        raise ParameterError(
+            "controller", "used through loop_factors(system, controller): a state feedback's B needs the plant", self
+        )
+
+    def feedback_law(self, system, kernels=None):
+        def gain(value: Any) -> Gain:
+            if callable(value):
+                return value
+            return lambda xi: np.full(np.shape(xi), float(value))
+
+        return FeedbackLaw(self.k, gain(self.g_u), gain(self.g_v))
+
+    def to_dict(self) -> dict[str, Any]:
+        gains = {
+            n: (getattr(self, n) if not callable(getattr(self, n)) else repr(getattr(self, n))) for n in ("g_u", "g_v")
+        }
+        return json_safe({"controller": "StateFeedback", "k": self.k, **gains})
+
+
+def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
+    """The plant as the paper's plant and the controller acting on it.
+
+    A :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` is replaced by its normal
+    form; a :class:`StateFeedback` on it gets its gains mapped to the normal coordinates
+    (:meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`). The paper's
+    controllers are defined on the normal form and pass unchanged. The characteristic
+    function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
+    those of the general plant. Any other plant (and its controller) passes unchanged.
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        form = system.normal_form()
+        if isinstance(controller, StateFeedback):
+            controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
+        return form.system, controller
+    return system, controller
+
+
 def _check(system: Any, controller: Any) -> None:
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
+    _check_controller(controller)
+
+
+def _check_controller(controller: Any) -> None:
     if not isinstance(controller, Controller):
         raise ParameterError(
-            "controller", "OpenLoop, FiniteTimeController, ReflectionController or FilteredController", controller
+            "controller",
+            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController or StateFeedback",
+            controller,
         )
 
 
@@ -219,21 +300,69 @@ def _distributed_part(system: Hyperbolic2x2, kernel_grid: int) -> QuasiPolynomia
     """``I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu`` (zero on an uncoupled system)."""
     if system.uncoupled:
         return QuasiPolynomial([[0.0]], [0.0])
-    return QuasiPolynomial([], [], [delay_form(system, kernel_grid).N_tilde])
+    return QuasiPolynomial([], [], [delay_form(system, kernels=_kernels(system, kernel_grid)).N_tilde])
+
+
+def _varying_factors(system: GeneralHyperbolic2x2, controller: Controller) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` of a plant with a varying speed ratio, from its characteristic delay form.
+
+    ``Phi = rho_q e^{-tau s} - I_N`` as for the paper's plant; no normal form exists, so the
+    controllers defined on it (U_BS2(K): its ``K q`` is a normal-form quantity) and the
+    integral gains of a state feedback are refused.
+    """
+    _check_controller(controller)
+    form = _varying_form(system)
+    i_n = QuasiPolynomial([], [], form.characteristic.distributed)
+    phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
+    if isinstance(controller, StateFeedback):
+        if callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0:
+            raise ParameterError(
+                "controller",
+                "a proportional feedback StateFeedback(k) on a plant with a varying lam/mu (integral gains need "
+                "the normal form, i.e. a constant lam/mu)",
+                controller,
+            )
+        return 1.0 - phi, form.u_factor() * (-controller.k)
+    if isinstance(controller, ReflectionController):
+        raise ParameterError(
+            "controller",
+            "OpenLoop, FiniteTimeController, FilteredController or StateFeedback(k) on a plant with a varying "
+            "lam/mu (U_BS2(K) is defined on the normal form, which needs a constant lam/mu)",
+            controller,
+        )
+    return controller.factors(phi, i_n, QuasiPolynomial([[0.0]], [0.0]))
+
+
+@lru_cache(maxsize=8)
+def _varying_form(system: GeneralHyperbolic2x2) -> VaryingDelayForm:
+    """The characteristic delay form of a plant with a varying speed ratio (cached)."""
+    return varying_delay_form(system)
+
+
+def _state_feedback_factor(system: Hyperbolic2x2, controller: StateFeedback, kernel_grid: int) -> QuasiPolynomial:
+    """``P`` of a state feedback, on the kernels the delay form of ``system`` was built from."""
+    kernels = None if system.uncoupled else _kernels(system, kernel_grid)
+    return feedback_factor(system, controller.k, controller.g_u, controller.g_v, kernel_grid, kernels)
+
+
+@lru_cache(maxsize=8)
+def _kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
+    """The kernels of ``system`` (shared by ``N~`` and the feedback factor of a state feedback)."""
+    return solve_kernels(system, kernel_grid)
 
 
 @renamed_keywords(n="kernel_grid")
 def loop_factors(
-    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` with the closed-loop characteristic function ``F = A + B e^{-delta s}``.
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant, eqs. (u_pde)-(IC).
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant, eqs. (18)-(20), or a general plant (through :func:`normalize`).
     controller : Controller
-        One of the paper's controllers.
+        One of the paper's controllers, or a :class:`StateFeedback`.
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
         Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
         carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
@@ -245,16 +374,25 @@ def loop_factors(
     tuple of QuasiPolynomial
         ``A`` and ``B`` as in the module's table.
     """
-    _check(system, controller)
-    i_n = _distributed_part(system, positive_int("kernel_grid", kernel_grid, 3))
-    round_trip = QuasiPolynomial([[system.q]], [system.tau])  # q e^{-tau s}
-    phi = round_trip * system.rho - i_n
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        return _varying_factors(system, controller)
+    plant: Hyperbolic2x2
+    plant, controller = normalize(system, controller)
+    _check(plant, controller)
+    i_n = _distributed_part(plant, positive_int("kernel_grid", kernel_grid, 3))
+    round_trip = QuasiPolynomial([[plant.q]], [plant.tau])  # q e^{-tau s}
+    phi = round_trip * plant.rho - i_n
+    if isinstance(controller, StateFeedback):
+        return 1.0 - phi, -_state_feedback_factor(plant, controller, kernel_grid)
     return controller.factors(phi, i_n, round_trip)
 
 
 @renamed_keywords(n="kernel_grid")
 def characteristic(
-    system: Hyperbolic2x2, controller: Controller, delta: float = 0.0, kernel_grid: int = DEFAULT_KERNEL_GRID
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: Controller,
+    delta: float = 0.0,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
 ) -> QuasiPolynomial:
     """Closed-loop characteristic quasi-polynomial ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
@@ -295,9 +433,9 @@ class Classification:
     finite_time_delay_robust : bool
         Whether U_BS keeps a positive delay margin: its delayed loop has the difference
         operator ``1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s}``, strongly stable iff
-        ``2 |rho q| < 1`` (eq. (eq_rho_q)).
+        ``2 |rho q| < 1`` (eq. (11)).
     k_bound : float
-        ``(1 - |rho q|)/|q|``: every ``|K|`` below it makes U_BS2 delay-robust (eq. (boun_K2));
+        ``(1 - |rho q|)/|q|``: every ``|K|`` below it makes U_BS2 delay-robust (eq. (54));
         0 when ``|rho q| >= 1``.
     statement : str
         The verdict in words.

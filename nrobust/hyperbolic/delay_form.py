@@ -1,18 +1,18 @@
-"""The neutral distributed-delay equation equivalent to the plant, eq. (delay_eq_alpha).
+"""The neutral distributed-delay equation equivalent to the plant, eq. (39).
 
-Through the Volterra transformation (back1)-(back2), the plant (u_pde)-(IC) becomes the
-target system (alpha_pde)-(IC_alpha), and the method of characteristics gives::
+Through the Volterra transformation (22)-(23), the plant (18)-(20) becomes the
+target system (32)-(34), and the method of characteristics gives::
 
     beta(t, 1) = rho q beta(t - tau, 1) + U(t) - int_0^tau N~(nu) beta(t - nu, 1) dnu,
 
-with ``N^alpha``, ``N^beta`` of eqs. (L_alpha)-(L_beta) and ``N~`` of eq. (eq_N_tilde)
+with ``N^alpha``, ``N^beta`` of eqs. (35)-(36) and ``N~`` of eq. (40)
 corrected by the factor ``q`` the paper drops::
 
     N~(nu) = lam q N^alpha(lam nu - lam/mu)  on [1/mu, tau],
     N~(nu) = mu N^beta(1 - mu nu)            on [0, 1/mu].
 
-The factor comes from eq. (eq_alpha_1), ``alpha(t, x) = q beta(t - x/lam - 1/mu, 1)``,
-which the paper substitutes into (IC_alpha) without its ``q``; the corrected form is
+The factor comes from eq. (37), ``alpha(t, x) = q beta(t - x/lam - 1/mu, 1)``,
+which the paper substitutes into (34) without its ``q``; the corrected form is
 the one whose Laplace transform equals the kernel-free boundary function
 (:func:`nrobust.hyperbolic.boundary_function`), and the two differ unless ``q = 1``.
 Its open-loop characteristic function is
@@ -32,6 +32,7 @@ from .._json import fields_dict
 from .._validate import renamed_keywords
 from ..errors import ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
+from .general import GeneralHyperbolic2x2
 from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
 from .system import Hyperbolic2x2
 
@@ -40,14 +41,14 @@ __all__ = ["DelayForm", "delay_form"]
 
 @dataclass(frozen=True, repr=False, eq=False)
 class DelayForm:
-    """Delay form (delay_eq_alpha) of a :class:`Hyperbolic2x2`.
+    """Delay form (39) of a :class:`Hyperbolic2x2`.
 
     Attributes
     ----------
     system : Hyperbolic2x2
         The plant.
     tau : float
-        ``1/lam + 1/mu``, eq. (eq_tau).
+        ``1/lam + 1/mu``, eq. (5).
     rho_q : float
         Gain of the point delay ``tau``.
     xi : ndarray
@@ -55,9 +56,9 @@ class DelayForm:
     N_alpha, N_beta : ndarray
         ``N^alpha(xi) = L^{beta alpha}(1, xi) - rho L^{alpha alpha}(1, xi)`` and
         ``N^beta(xi) = L^{beta beta}(1, xi) - rho L^{alpha beta}(1, xi)``,
-        eqs. (L_alpha)-(L_beta), on ``xi``.
+        eqs. (35)-(36), on ``xi``.
     N_tilde : DistributedDelay
-        ``N~`` of eq. (eq_N_tilde), with the factor ``q`` on the ``N^alpha`` branch (see
+        ``N~`` of eq. (40), with the factor ``q`` on the ``N^alpha`` branch (see
         the module notes), on ``[0, tau]``, a cubic spline on each side of the jump at
         ``nu = 1/mu`` (a repeated node); identically zero for an uncoupled system.
     characteristic : QuasiPolynomial
@@ -83,7 +84,7 @@ class DelayForm:
         return np.interp(_unit_interval("xi", xi), self.xi, self.N_beta)
 
     def N_tilde_at(self, nu: Any) -> np.ndarray:
-        """``N~(nu)`` of eq. (eq_N_tilde) (with the factor ``q``) at arrays of ``nu`` in ``[0, tau]``.
+        """``N~(nu)`` of eq. (40) (with the factor ``q``) at arrays of ``nu`` in ``[0, tau]``.
 
         At the jump ``nu = 1/mu`` the value from the right (the ``N^alpha`` branch) is
         returned.
@@ -119,7 +120,7 @@ def delay_kernel(
 ) -> DistributedDelay:
     """A kernel of the delay axis ``nu`` in ``[0, tau]`` from its two branches on ``[0, 1]``.
 
-    The change of variables of eq. (eq_N_tilde): with ``f_alpha`` and ``f_beta`` tabulated
+    The change of variables of eq. (40): with ``f_alpha`` and ``f_beta`` tabulated
     on the grid ``xi`` of ``[0, 1]``::
 
         K(nu) = mu f_beta(1 - mu nu)                on [0, 1/mu]   (nodes (1 - xi)/mu),
@@ -155,14 +156,15 @@ def delay_kernel(
 
 @renamed_keywords(n="kernel_grid")
 def delay_form(
-    system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID, kernels: Kernels | None = None
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID, kernels: Kernels | None = None
 ) -> DelayForm:
-    """Delay form (delay_eq_alpha) of the plant, with ``N~`` of eq. (eq_N_tilde).
+    """Delay form (39) of the plant, with ``N~`` of eq. (40).
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant, eqs. (u_pde)-(IC).
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant, eqs. (18)-(20); a general plant is replaced by its normal form
+        (:meth:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2.normal_form`).
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
         Kernel grid points (see :func:`~nrobust.hyperbolic.solve_kernels`); ignored when
         ``kernels`` is given. (Formerly ``n``, a deprecated alias.)
@@ -177,8 +179,10 @@ def delay_form(
         error of its Laplace transform is uniform in ``s`` and set by the kernels
         (third order with the default extrapolation, ``docs/numerics_kernels.md``).
     """
+    if isinstance(system, GeneralHyperbolic2x2):
+        system = system.normal_form().system
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2", system)
+        raise ParameterError("system", "a Hyperbolic2x2 or GeneralHyperbolic2x2", system)
     if kernels is not None and kernels.system is not system and kernels.system != system:
         raise ParameterError("kernels", "the kernels of the same system", kernels)
     rho, tau = system.rho, system.tau

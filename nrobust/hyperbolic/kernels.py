@@ -1,8 +1,8 @@
 """Backstepping kernels of the Volterra transformation and of its inverse.
 
-The transformation (back1)-(back2) maps ``(u, v)`` to the target system
-(alpha_pde)-(IC_alpha) when ``K = [[K^{uu}, K^{uv}], [K^{vu}, K^{vv}]]`` solves, on the
-triangle ``T = {0 <= xi <= x <= 1}``, eqs. (kerneK^{uu})-(K_bond)::
+The transformation (22)-(23) maps ``(u, v)`` to the target system
+(32)-(34) when ``K = [[K^{uu}, K^{uv}], [K^{vu}, K^{vv}]]`` solves, on the
+triangle ``T = {0 <= xi <= x <= 1}``, eqs. (24)-(29)::
 
     lam (K^{uu}_x + K^{uu}_xi)  = -sigma_mp(xi) K^{uv},     K^{uv}(x, 0) = (lam q / mu) K^{uu}(x, 0),
     lam K^{uv}_x - mu K^{uv}_xi = -sigma_pm(xi) K^{uu},     K^{uv}(x, x) =  sigma_pm(x) / (lam + mu),
@@ -18,7 +18,7 @@ solved exactly at the new level (a 2x2 linear system per node), with cubic Lagra
 interpolation at the feet of the characteristics that are not grid-aligned
 (``lam != mu``). The scheme is second-order convergent for smooth couplings.
 
-The inverse kernels ``L`` of (back_inv1)-(back_inv2) are computed from ``K`` through the
+The inverse kernels ``L`` of (30)-(31) are computed from ``K`` through the
 Volterra resolvent identity ``L = K + K o L``, i.e.
 ``L(x, xi) = K(x, xi) + int_xi^x K(x, s) L(s, xi) ds``, discretised with the trapezoidal
 rule on the same grid (second order) and solved as one block-triangular linear system.
@@ -181,7 +181,7 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
 
 
 def _solve_K(system: Hyperbolic2x2, n: int) -> Array:
-    """Kernels ``K`` of eqs. (kerneK^{uu})-(K_bond), shape ``(2, 2, n, n)``."""
+    """Kernels ``K`` of eqs. (24)-(29), shape ``(2, 2, n, n)``."""
     lam, mu, q = system.lam, system.mu, system.q
     K = np.zeros((2, 2, n, n))
     if system.uncoupled:
@@ -272,8 +272,8 @@ def _p1_interpolate(table: Array, x: Array, xi: Array) -> Array:
 
 @dataclass(frozen=True, repr=False, eq=False)
 class Kernels:
-    """Backstepping kernels ``K`` (eqs. (kerneK^{uu})-(K_bond)) and inverse kernels ``L``
-    (eqs. (back_inv1)-(back_inv2)) tabulated on a uniform grid of the triangle.
+    """Backstepping kernels ``K`` (eqs. (24)-(29)) and inverse kernels ``L``
+    (eqs. (30)-(31)) tabulated on a uniform grid of the triangle.
 
     Attributes
     ----------
@@ -434,12 +434,12 @@ def _check_resolution(system: Hyperbolic2x2, n: int) -> None:
 def solve_kernels(
     system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID, extrapolate: bool | None = None
 ) -> Kernels:
-    """Solve the kernel equations (kerneK^{uu})-(K_bond) and the inverse kernels.
+    """Solve the kernel equations (24)-(29) and the inverse kernels.
 
     Parameters
     ----------
     system : Hyperbolic2x2
-        The plant, eqs. (u_pde)-(IC).
+        The plant, eqs. (18)-(20).
     kernel_grid : int, default :data:`DEFAULT_KERNEL_GRID`
         Grid points per direction on ``[0, 1]`` (step ``h = 1 / (kernel_grid - 1)``),
         ``>= 3`` and ``<=`` :data:`MAX_KERNEL_GRID`; odd when ``extrapolate`` is True;

@@ -1,9 +1,9 @@
 """Transfer functions of the paper's plants: open loop, output map, closed loop.
 
 The open loop ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` of the transport system (Laplace
-transform of eq. (delay_eq_no_couplings)) and
+transform of eq. (6)) and
 ``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` of the coupled
-system (Laplace transform of eq. (delay_eq_alpha)), as
+system (Laplace transform of eq. (39)), as
 :class:`~nrobust.transfer.QuasiTransferFunction`.
 """
 
@@ -27,9 +27,9 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
 
     For a :class:`~nrobust.hyperbolic.TransportSystem` (or any uncoupled system) this is
     ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` (from ``U`` to ``v(t, 1)``, Laplace transform
-    of eq. (delay_eq_no_couplings)); for a :class:`~nrobust.hyperbolic.Hyperbolic2x2` it is
+    of eq. (6)); for a :class:`~nrobust.hyperbolic.Hyperbolic2x2` it is
     ``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` (from ``U_0``
-    to ``beta(t, 1)``, Laplace transform of eq. (delay_eq_alpha)), whose denominator is
+    to ``beta(t, 1)``, Laplace transform of eq. (39)), whose denominator is
     ``delay_form(system).characteristic``.
 
     Parameters
@@ -53,13 +53,13 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
 def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiPolynomial:
     """``M(s)`` with ``v(s, 1) = M(s) beta(s, 1)`` for zero initial data.
 
-    The inverse transformation (eq. (back_inv2)) at ``x = 1`` with
+    The inverse transformation (eq. (31)) at ``x = 1`` with
     ``alpha(s, xi) = q e^{-(xi/lam + 1/mu) s} beta(s, 1)`` and
-    ``beta(s, xi) = e^{-(1 - xi) s / mu} beta(s, 1)`` (eqs. (eq_alpha_1)-(eq_beta_1)) gives
+    ``beta(s, xi) = e^{-(1 - xi) s / mu} beta(s, 1)`` (eqs. (37)-(38)) gives
     ``M(s) = 1 + int_0^tau M~(nu) e^{-nu s} dnu`` with
     ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
     + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
-    ``N~`` in eq. (eq_N_tilde), built by the same function
+    ``N~`` in eq. (40), built by the same function
     (:func:`~nrobust.hyperbolic.delay_form.delay_kernel`, a cubic spline on each side of
     the jump at ``nu = 1/mu``). For a transport system ``M = 1``.
 
@@ -86,9 +86,9 @@ def closed_loop_tf(
     """Closed-loop transfer function from a disturbance at the actuated boundary.
 
     The disturbance ``d`` enters where the (delayed) control does,
-    ``v(t, 1) = rho u(t, 1) + U(t - delta) + d(t)`` (eq. (IC)). With the loop written as
+    ``v(t, 1) = rho u(t, 1) + U(t - delta) + d(t)`` (eq. (20)). With the loop written as
     ``F(s) = A(s) + B(s) e^{-delta s}`` (:func:`~nrobust.hyperbolic.loop_factors`, the
-    characteristic function of eq. (delay_eq_alpha_ter) and its variants), ``A = D c_d`` and
+    characteristic function of eq. (60) and its variants), ``A = D c_d`` and
     ``B = -c_n`` where ``D`` is the open-loop denominator of ``H_1`` and ``c_n / c_d`` the
     controller's map from ``beta(t, 1)`` to ``U``, the transfer to ``beta(t, 1)`` is
     ``c_d(s) / F(s)``; to ``v(t, 1)`` it is ``M(s) c_d(s) / F(s)`` with ``M`` from

@@ -1,7 +1,7 @@
 """The Rouché delay bound of the paper's plants (Theorem 4's proof, made quantitative).
 
-For the reflection-preserving control law ``U_BS2(K)`` (eq. (control3)) the loop with a
-delay ``delta`` has the characteristic function (eq. (delay_eq_alpha_ter))
+For the reflection-preserving control law ``U_BS2(K)`` (eq. (53)) the loop with a
+delay ``delta`` has the characteristic function (eq. (60))
 
     F(s) = 1 - q rho e^{-tau s} + K q e^{-(tau + delta) s} + I(s, delta),
     I(s, delta) = int_0^tau N~(nu) (e^{-nu s} - e^{-(nu + delta) s}) dnu,
@@ -16,6 +16,10 @@ L1 distance (:func:`nrobust.bounds.delay_bound_from_kernel`).
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from fractions import Fraction
+
 from .._validate import positive_int, renamed_keywords
 from ..bounds import RoucheDelayBound, delay_bound_from_kernel
 from ..errors import ParameterError
@@ -29,11 +33,11 @@ __all__ = ["rouche_delay_bound"]
 
 @renamed_keywords(n="kernel_grid")
 def rouche_delay_bound(
-    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
+    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID, rigorous: bool = False
 ) -> RoucheDelayBound:
     """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
 
-    On ``Re s >= 0`` the characteristic function of eq. (delay_eq_alpha_ter) satisfies
+    On ``Re s >= 0`` the characteristic function of eq. (60) satisfies
     ``|F(s)| >= 1 - |q rho| - |K q| - |I(s, delta)|`` with
     ``|I(s, delta)| <= omega(delta)`` (:func:`nrobust.bounds.l1_modulus` of ``N~``). Every delay in
     ``[0, delta_0]`` with ``sup omega < epsilon_0 = 1 - |q rho| - |K q|`` keeps ``F``
@@ -50,6 +54,11 @@ def rouche_delay_bound(
         ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
         Kernel grid of the delay form (formerly ``n``, a deprecated alias).
+    rigorous : bool, default False
+        Prove ``delta_0`` for ``N~`` as represented (the cubic spline on the kernel grid) in
+        exact rational arithmetic: ``epsilon_0`` from the stored ``q``, ``rho``, ``K``
+        (rounded down), then :func:`nrobust.bounds.delay_bound_from_kernel` with
+        ``rigorous=True``.
 
     Returns
     -------
@@ -65,5 +74,17 @@ def rouche_delay_bound(
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
     grid = positive_int("kernel_grid", kernel_grid, 3)
     eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
+    if rigorous:  # the float at or below the exact 1 - |q rho| - |K q|
+        exact = (
+            1
+            - abs(Fraction(float(system.q)) * Fraction(float(system.rho)))
+            - abs(Fraction(K) * Fraction(float(system.q)))
+        )
+        eps0 = float(exact)
+        if Fraction(eps0) > exact:
+            eps0 = math.nextafter(eps0, -math.inf)
     N = None if system.uncoupled else delay_form(system, grid).N_tilde
-    return delay_bound_from_kernel(N, eps0, K)
+    bound = delay_bound_from_kernel(N, eps0, K, rigorous=rigorous)
+    if rigorous and not bound.rigorous:  # N~ = 0 or epsilon_0 <= 0: exact comparisons of the stored numbers
+        bound = dataclasses.replace(bound, rigorous=True)
+    return bound

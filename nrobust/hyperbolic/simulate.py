@@ -1,4 +1,4 @@
-"""Time-domain simulation of the plant (u_pde)-(IC) with a delayed boundary control.
+"""Time-domain simulation of the plant (18)-(20) with a delayed boundary control.
 
 The closed loop simulated is::
 
@@ -6,8 +6,8 @@ The closed loop simulated is::
     v_t - mu  v_x = sigma_mp(x) u,      v(t, 1) = rho u(t, 1) + U(t - delta),
 
 with ``U(t) = 0`` for ``t < 0`` and ``U`` given by a state feedback
-(:class:`~nrobust.hyperbolic.controllers.FeedbackLaw`): U_BS (eq. (control)),
-U_BS2(K) (eq. (control3)), their filtered versions (section 2.3.2) or any law of the form
+(:class:`~nrobust.hyperbolic.controllers.FeedbackLaw`): U_BS (eq. (47)),
+U_BS2(K) (eq. (53)), their filtered versions (section 2.3.2) or any law of the form
 ``boundary_gain * u(t, 1) + int_0^1 gain_u u + gain_v v dxi``.
 
 Equal speeds: a single characteristic lattice
@@ -579,17 +579,17 @@ def simulate(
     kernel_grid: int | None = None,
     max_updates: int = MAX_UPDATES,
 ) -> Simulation:
-    """Simulate the plant (u_pde)-(IC) under the feedback ``U(t - delta)``.
+    """Simulate the plant (18)-(20) under the feedback ``U(t - delta)``.
 
     Parameters
     ----------
     system : Hyperbolic2x2
-        The plant, eqs. (u_pde)-(IC) (or (u_pde_no_cou)-(IC_no_cou) for a
+        The plant, eqs. (18)-(20) (or (1)-(3) for a
         ``TransportSystem``).
     controller : Controller or FeedbackLaw
         An object with ``feedback_law(system, kernels)`` (``OpenLoop``,
-        ``FiniteTimeController`` = U_BS eq. (control), ``ReflectionController(K)`` = U_BS2
-        eq. (control3), ``FilteredController(a, b)``) or a ``FeedbackLaw``.
+        ``FiniteTimeController`` = U_BS eq. (47), ``ReflectionController(K)`` = U_BS2
+        eq. (53), ``FilteredController(a, b)``) or a ``FeedbackLaw``.
     delta : float
         Loop delay ``>= 0``; the plant receives ``U(t - delta)``, with ``U = 0`` for
         ``t < 0``.

@@ -3,7 +3,7 @@
 :func:`delay_margin` takes a plant and a controller (or the two loop factors ``A, B``)
 and returns the margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}``
 (:func:`nrobust.margins.delay_margin`). The studies sweep the gain ``K`` of
-``U_BS2(K)`` (eq. (control3)) or the filter ``(a, b)`` of section 2.3.2: admissible gains
+``U_BS2(K)`` (eq. (53)) or the filter ``(a, b)`` of section 2.3.2: admissible gains
 (:func:`k_region`), filters (:func:`ab_region`), the stability chart in ``(K, delta)``
 (:func:`stability_chart`) and the decay-rate/margin trade-off (:func:`tradeoff`). Each
 takes ``executor=`` and runs its grid through :func:`nrobust.parallel.sweep_map`.
@@ -12,7 +12,7 @@ takes ``executor=`` and runs its grid through :func:`nrobust.parallel.sweep_map`
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -20,9 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._json import fields_dict, json_safe
+from .._progress import progress_bar
 from .._validate import is_real_number, positive, positive_int, real_array, renamed_keywords
 from ..bounds import root_free_region
-from ..crossings import frequency_bound
+from ..crossings import Crossing, _common_axis_zeros, _crossing_search, _crossings, frequency_bound
 from ..errors import CertificationError, ParameterError
 from ..margins import DelayMargin
 from ..margins import delay_margin as factor_delay_margin
@@ -32,11 +33,13 @@ from ..roots import count_roots, spectral_abscissa
 from .controllers import (
     Controller,
     FilteredController,
+    FiniteTimeController,
     ReflectionController,
     characteristic,
     classify,
     loop_factors,
 )
+from .general import GeneralHyperbolic2x2
 from .kernels import DEFAULT_KERNEL_GRID
 from .robustness import rouche_delay_bound
 from .system import Hyperbolic2x2
@@ -68,29 +71,32 @@ DEFAULT_N_GAINS = 9
 
 @renamed_keywords(n="kernel_grid")
 def delay_margin(
-    system: Hyperbolic2x2 | QuasiPolynomial,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2 | QuasiPolynomial,
     controller: Controller | QuasiPolynomial,
     *,
     delta_max: float | None = None,
     verify: bool = True,
     max_evals: int = 2_000_000,
     kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
 ) -> DelayMargin:
     """Delay margin and stability intervals of a plant with a controller, or of ``(A, B)``.
 
     Called as ``delay_margin(system, controller)``: the loop factors of
-    :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (delay_eq_alpha_ter) for
+    :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
     ``U_BS2(K)``) are passed to :func:`nrobust.margins.delay_margin`; called as
     ``delay_margin(A, B)`` with two :class:`QuasiPolynomial`, it is that function.
 
     Parameters
     ----------
-    system : Hyperbolic2x2 or QuasiPolynomial
-        The plant, or the factor ``A`` of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+    system : Hyperbolic2x2, GeneralHyperbolic2x2 or QuasiPolynomial
+        The plant (a general plant through its normal form), or the factor ``A`` of
+        ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
     controller : Controller or QuasiPolynomial
         The controller of the plant, or the factor ``B`` when ``system`` is ``A``.
-    delta_max, verify, max_evals
-        As in :func:`nrobust.margins.delay_margin`.
+    delta_max, verify, max_evals, rigorous
+        As in :func:`nrobust.margins.delay_margin` (``rigorous=True``: proven in ball
+        arithmetic for the loop as represented, ``N~`` the cubic spline on the kernel grid).
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
         Kernel grid of the delay form when called with a plant (ignored with ``A, B``;
         formerly ``n``, a deprecated alias); the margin converges at about third order
@@ -107,7 +113,7 @@ def delay_margin(
     -------
     DelayMargin
     """
-    if isinstance(system, Hyperbolic2x2):
+    if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
             raise ParameterError(
                 "controller",
@@ -132,7 +138,7 @@ def delay_margin(
             "F(s; delta) = A(s) + B(s) e^{-delta s}, with B as controller",
             type(system).__name__,
         )
-    return factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals)
+    return factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
 
 
 def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str, float]:
@@ -153,9 +159,25 @@ def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str,
 
 
 # ============================================================================ gain studies
-def _mapper(executor: Any) -> Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]:
-    """The built-in ``map`` in this process, else the sweep machinery's (``nrobust.sweep``)."""
-    return map if isinstance(executor, str) and executor == "serial" else sweep_map(executor)
+def _mapper(
+    executor: Any, progress: bool | None = None, desc: str = ""
+) -> Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]]:
+    """A ``map`` in this process (with a progress bar), else the sweep machinery's (``nrobust.sweep``).
+
+    The bar follows :func:`nrobust._progress.show_progress`: drawn when ``progress`` is True,
+    or for None when stderr is a terminal or Jupyter.
+    """
+    if not (isinstance(executor, str) and executor == "serial"):
+        return sweep_map(executor, progress=progress)
+
+    def serial(func: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+        todo = list(items)
+        with progress_bar(len(todo), progress, desc) as bar:
+            for item in todo:
+                yield func(item)
+                bar.update(1)
+
+    return serial
 
 
 def _reflection(K: float) -> ReflectionController:
@@ -167,7 +189,7 @@ def _margin_for(K: float, system: Any, delta_max: float | None, family: Callable
     return delay_margin(system, family(float(K)), delta_max=delta_max, verify=False)
 
 
-def _tolerates(margin: DelayMargin, delta_max: float) -> bool:
+def _tolerates(margin: DelayMargin | _Verdict, delta_max: float) -> bool:
     """True if the loop is stable for every delay in ``[0, delta_max]`` (admissible)."""
     return bool(margin.nominally_stable and margin.margin > delta_max)
 
@@ -205,9 +227,7 @@ _CAP_SHRINK = 4.0
 # solve on the loop starts from a bracket of half-width _BRACKET_CELLS scan steps about them.
 _MODEL_SAFETY = 10.0
 _BRACKET_CELLS = 1e-3
-# A crossing of the margin outside an end belongs to the end's event within this relative
-# distance of its frequency.
-_OMEGA_RTOL = 1e-3
+_EPS = float(np.finfo(float).eps)
 # Order of the kinds when two events fall on the same gain (to rounding).
 _KIND_ORDER = {"nominal": 0, "crossing": 1, "pair_birth": 2, "strong_stability": 3}
 
@@ -327,6 +347,99 @@ class _AffineLoop:
         """``F(.; delta, K)``."""
         B = self.B(K)
         return self.A + (B.shift(delta) if delta > 0 else B)
+
+
+@dataclass(frozen=True)
+class _AxisBound:
+    """Second-order bound of the crossing frequencies of ``U_BS2(K)``'s loop (none above :meth:`W`).
+
+    For ``S = 1 - rho q z``, ``R = q z`` (``z = e^{-tau s}``) and ``B_0 = J = int_0^tau n(nu)
+    e^{-nu s} dnu`` with ``n`` continuous and ``n'`` of bounded variation (the paper's plants),
+    ``A = S - J`` and ``B = K R + J``, so that on ``s = i w`` (``|J|^2`` cancels)
+
+        g = |A|^2 - |B|^2 = |S|^2 - K^2 q^2 - 2 Re(conj(T) J),   T = S + K R = 1 - c z,  c = (rho - K) q.
+
+    Integration by parts twice gives ``J = (n(0) - n(tau) z)/(i w) + E`` with
+    ``|E| <= V_2 / w^2``, ``V_2 = |n'(0)| + |n'(tau)| + TV(n')``. With ``z = e^{-i theta}``,
+    ``Re(conj(T) (n(0) - n(tau) z)/(i w)) = (n(tau) - c n(0)) sin(theta) / w``, and with
+    ``p = |rho q|``, ``phi = theta`` (``rho q > 0``) or ``theta - pi``, ``x = |sin(phi/2)|``:
+    ``|S|^2 = (1 - p)^2 + 4 p x^2`` and ``|sin theta| <= 2 x``. Hence, minimising
+    ``4 p x^2 - 4 beta x / w`` over ``x``,
+
+        g >= (1 - p)^2 - K^2 q^2 - C_2 / w^2,   C_2 = beta^2 / p + 2 (1 + |c|) V_2,  beta = |n(tau) - c n(0)|,
+
+    and there is no crossing above ``W_2 = sqrt(C_2 / (q^2 (k^2 - K^2)))``, ``k = (1 - p)/|q|``.
+    The first-order bound (:func:`nrobust.crossings.frequency_bound`) grows like
+    ``1/(k - |K|)``; this one like ``1/sqrt(k - |K|)`` (``lam = 2, mu = 0.5, sigma = (0.3, -0.4),
+    q = 0.7, rho = 0.9`` at ``k - |K| = 1.7e-5``: ``W_2 = 190`` instead of ``7.3e4``).
+    """
+
+    rho_q: float
+    q: float
+    n0: float
+    n_tau: float
+    v2: float
+
+    @classmethod
+    def of(cls, loop: _AffineLoop) -> _AxisBound | None:
+        """The bound of ``loop``, or None if it is not of the form above."""
+        S, B0, R = loop.S, loop.B0, loop.R
+        if len(R.point_terms) != 1 or R.distributed or not R.is_real:
+            return None
+        (r, tau), terms = R.point_terms[0], dict((t, p) for p, t in S.point_terms)
+        if r.size != 1 or set(terms) != {0.0, tau} or S.distributed or not S.is_real:
+            return None
+        if terms[0.0].size != 1 or terms[0.0][0] != 1.0 or terms[tau].size != 1 or terms[tau][0] == 0.0:
+            return None
+        if B0.point_terms or len(B0.distributed) != 1:
+            return None
+        d = B0.distributed[0]
+        if d.a != 0.0 or d.b != tau or d.moment != 0 or d.poly.size != 1 or np.iscomplexobj(d.values):
+            return None
+        start, h, poly = d._pieces
+        n = float(d.poly[0]) * np.asarray(poly, dtype=float)
+        j = np.arange(n.shape[1])
+        value_end, slope_start, slope_end = n.sum(axis=1), n[:, 1] / h, (n * j).sum(axis=1) / h
+        scale = float(np.max(np.abs(n[:, 0]))) + 1e-300
+        contiguous = np.abs(start[1:] - (start[:-1] + h[:-1])) <= 1e-12 * tau
+        if not np.all(contiguous) or np.any(np.abs(n[1:, 0] - value_end[:-1]) > 1e-12 * scale):
+            return None  # a gap or a jump of n: the first-order bound applies
+        # TV of n' on each segment: int |n''| = (1/h) int_0^1 |2 P_2 + 6 P_3 t| dt (cubic; 0 when linear)
+        a2 = 2.0 * n[:, 2] if n.shape[1] > 2 else np.zeros(h.size)
+        a3 = 6.0 * n[:, 3] if n.shape[1] > 3 else np.zeros(h.size)
+        lo, hi = a2, a2 + a3
+        crossing = lo * hi < 0
+        inside = np.where(crossing, (lo**2 + hi**2) / (2.0 * np.abs(np.where(crossing, a3, 1.0))), np.abs(lo + hi) / 2)
+        v2 = (
+            abs(slope_start[0])
+            + abs(slope_end[-1])
+            + float(np.sum(inside / h))
+            + float(np.sum(np.abs(slope_start[1:] - slope_end[:-1])))
+        )
+        # the bound carries its own rounding: V_2 a little larger (its sums err by ~ n_segments eps)
+        v2 = v2 * (1.0 + 1e-9) + 1e-300
+        return cls(-float(terms[tau][0]), float(r[0]), float(n[0, 0]), float(value_end[-1]), v2)
+
+    def W(self, K_lo: float, K_hi: float) -> float:
+        """A frequency above every crossing of every gain in ``[K_lo, K_hi]`` (``inf`` if one has ``|K| >= k``).
+
+        ``C_2`` is convex in ``K`` and ``1/(k^2 - K^2)`` too: both are largest at an end.
+        """
+        p, q = abs(self.rho_q), abs(self.q)
+        if p == 0.0:
+            return float("inf")
+        c2 = 0.0
+        room = float("inf")
+        for K in (K_lo, K_hi):
+            c = self.rho_q - K * self.q
+            beta = abs(self.n_tau - c * self.n0)
+            c2 = max(c2, beta**2 / p + 2.0 * (1.0 + abs(c)) * self.v2)
+            # q^2 (k^2 - K^2) = ((1 - p) - |K q|)((1 - p) + |K q|), the first factor less its rounding
+            gap = (1.0 - p) - abs(K) * q - 8.0 * _EPS * (1.0 + p + abs(K) * q)
+            room = min(room, gap * ((1.0 - p) + abs(K) * q))
+        if room <= 0.0:
+            return float("inf")
+        return float(np.sqrt(c2 * (1.0 + 1e-9) / room) * (1.0 + 1e-9))
 
 
 def _junction(at: _Axis) -> NDArray[np.float64]:
@@ -644,10 +757,20 @@ class _Scan:
 
 
 def _nominally_stable(loop: _AffineLoop, K: float) -> bool:
-    """Certified: ``F(.; 0, K)`` has no zero with ``Re s >= 0`` (all lie in the root-free radius)."""
-    F = loop.loop_at(K, 0.0)
+    """Certified: ``F(.; 0, K)`` has no zero with ``Re s >= 0``.
+
+    For ``U_BS2(K)`` the kernels cancel at ``delta = 0``: ``F = 1 - (rho - K) q e^{-tau s}``, whose
+    zeros lie on ``Re s = ln|(rho - K) q| / tau`` (closed form, eq. (60) with
+    ``delta = 0``). Otherwise a certified count in the root-free radius, its left edge on the axis
+    or to its left.
+    """
+    F = loop.S + loop.R * K  # = A + B_0 + K R = F(.; 0, K)
+    terms = F.point_terms
+    if not F.distributed and len(terms) <= 2 and terms[0][1] == 0.0 and all(p.size == 1 for p, _ in terms):
+        return len(terms) == 1 or abs(terms[1][0][0]) < abs(terms[0][0][0])  # c_0 + c_1 e^{-t s}
     r = 1.01 * root_free_region(F).radius + 1e-9
-    return int(count_roots(F, (0.0, r, -r, r))) == 0
+    count = count_roots(F, (0.0, r, -r, r))
+    return int(count) == 0 and count.region[0] <= 0.0
 
 
 def _scan_step(loop: _AffineLoop, delta_max: float) -> float:
@@ -672,12 +795,23 @@ def _locate_ends(loop: _AffineLoop, delta_max: float, kb: float, tol: float, max
     """
     dw = _scan_step(loop, delta_max)
     grid = _AxisGrid(loop, dw)
+    second = _AxisBound.of(loop)
+
+    def crossing_bound(lo: float, hi: float) -> float:
+        """Above every crossing frequency of the gains in ``[lo, hi]`` (``lo <= 0 <= hi``; 0: none):
+        :class:`_AxisBound`'s, else the first-order bound of the largest ``|K|``."""
+        if second is not None:
+            return second.W(lo, hi)
+        first = [frequency_bound(loop.A, loop.B(c)) for c in (lo, hi)]
+        return max(0.0 if b is None else b[0] for b in first)
+
     caps = [-kb * (1.0 - _FIRST_CAP), kb * (1.0 - _FIRST_CAP)]
     open_end = [False, False]
     nominal: dict[tuple[float | None, float | None], bool] = {}
+    # verdicts between two critical gains (not caps): a later, wider scan finds the same crossings there
+    between: dict[tuple[float, float], bool] = {}
     while True:
-        bounds = [frequency_bound(loop.A, loop.B(c)) for c in caps]
-        Ws = [0.0 if b is None else b[0] for b in bounds]
+        Ws = [crossing_bound(min(c, 0.0), max(c, 0.0)) for c in caps]
         W = max(Ws)
         if W / dw > max_evals / 6:
             far = " and ".join(f"K = {c:.10g}" for c, Wc in zip(caps, Ws) if Wc / dw > max_evals / 6)
@@ -697,7 +831,16 @@ def _locate_ends(loop: _AffineLoop, delta_max: float, kb: float, tol: float, max
             key = (nominal_cuts[g - 1] if g else None, nominal_cuts[g] if g < len(nominal_cuts) else None)
             if key not in nominal:
                 nominal[key] = _nominally_stable(loop, mid)
-            ok.append(nominal[key] and not np.any(scan.crossings(mid)[1] <= delta_max))
+            if not nominal[key]:
+                ok.append(False)
+                continue
+            if (lo, hi) not in between:
+                free = not np.any(scan.crossings(mid)[1] <= delta_max)
+                if lo not in caps and hi not in caps:
+                    between[(lo, hi)] = free
+                ok.append(free)
+                continue
+            ok.append(between[(lo, hi)])
         moved = False
         for side, sgn in ((1, 1.0), (0, -1.0)):
             if open_end[side] or not ok[-1 if side else 0]:
@@ -711,8 +854,8 @@ def _locate_ends(loop: _AffineLoop, delta_max: float, kb: float, tol: float, max
             if past:
                 new = min(new, min(past) + (kb - min(past)) / _CAP_SHRINK)
             new = min(max(new, cap + 0.5 * tol), kb - tol)
-            bound = frequency_bound(loop.A, loop.B(sgn * (kb - tol)))
-            if not past and bound is not None and bound[0] <= W:  # the scan covers every gain up to kb - tol
+            if not past and crossing_bound(min(0.0, sgn * (kb - tol)), max(0.0, sgn * (kb - tol))) <= W:
+                # the scan covers every gain up to kb - tol
                 new = kb - tol
             if new <= cap:
                 open_end[side] = True
@@ -740,7 +883,7 @@ class KRegion:
     delta_max : float
         The delay range that must be tolerated.
     paper_bound : float
-        ``(1 - |rho q|)/|q|`` of eq. (boun_K2). It is also necessary for a positive margin:
+        ``(1 - |rho q|)/|q|`` of eq. (54). It is also necessary for a positive margin:
         ``|rho q| + |K q| < 1`` is the strong stability of the loop's difference operator.
     Ks : ndarray
         Gain grid on which the margins were computed.
@@ -749,8 +892,9 @@ class KRegion:
     admissible : ndarray of bool
         ``delta*(K) > delta_max`` and the nominal loop stable, on the grid.
     tol : float
-        Accuracy of the interval ends: each end was checked with :func:`delay_margin` at
-        ``tol`` inside (admissible) and ``tol`` outside (not admissible).
+        Accuracy of the interval ends: each end was checked ``tol`` inside (admissible: the
+        certified crossing search of :func:`delay_margin`) and ``tol`` outside (not
+        admissible: a certified count of a zero in ``Re s > 0``).
     ends : tuple of (GainEnd, GainEnd)
         For each interval, its lower and upper end with their kind (:class:`GainEnd`:
         ``"crossing"``, ``"pair_birth"``, ``"nominal"``, ``"strong_stability"``, or
@@ -798,22 +942,54 @@ class _CheckedMargin:
             return str(exc)
 
 
+class _Verdict(NamedTuple):
+    """What :func:`_loop_verdict` proves of one gain: the fields of :class:`DelayMargin` that
+    :func:`k_region` reads."""
+
+    margin: float
+    nominally_stable: bool
+    strongly_stable: bool
+    crossings: tuple[Crossing, ...]
+
+
+def _loop_verdict(loop: _AffineLoop, K: float, delta_max: float, max_evals: int) -> _Verdict:
+    """Delay margin of ``A + (B_0 + K R) e^{-delta s}`` by the certified crossing search of
+    :func:`nrobust.delay_margin` on ``[0, W]``, ``W`` the smaller of the first-order frequency
+    bound and :class:`_AxisBound`'s (the margin of :func:`delay_margin`, whose search runs up to
+    the first-order bound: ``1/(k - |K|)`` instead of ``1/sqrt(k - |K|)`` near the paper's bound).
+
+    Roots reach ``Re s > 0`` only through the axis (the difference operator is strongly stable),
+    so the nominal verdict and the crossings decide every delay.
+    """
+    A, B = loop.A, loop.B(K)
+    first = frequency_bound(A, B)
+    if first is None:
+        return _Verdict(0.0, False, False, ())
+    bound = _AxisBound.of(loop)
+    W = first[0] if bound is None else min(first[0], bound.W(K, K))
+    search, axis_gap = _crossing_search(A, B, (W, first[1]), max_evals)
+    if _common_axis_zeros(axis_gap, search).size:  # a root on the axis for every delay
+        return _Verdict(0.0, False, True, ())
+    crossings, _ = _crossings(A, B, search, delta_max, axis_gap)
+    if not _nominally_stable(loop, K):
+        return _Verdict(0.0, False, True, crossings)
+    return _Verdict(crossings[0].delays[0] if crossings else float("inf"), True, True, crossings)
+
+
 @dataclass(frozen=True)
 class _LoopMargin:
-    """Picklable ``K -> delay_margin(A, B_0 + K R)`` of an affine loop, or the message of its CertificationError.
+    """Picklable ``K -> _loop_verdict(loop, K)``, or the message of its CertificationError.
 
-    The same margin as ``delay_margin(system, ReflectionController(K))``; a worker process
-    receives the loop's factors instead of solving the kernels again.
+    A worker process receives the loop's factors instead of solving the kernels again.
     """
 
     loop: _AffineLoop
     delta_max: float
     max_evals: int
 
-    def __call__(self, K: float) -> DelayMargin | str:
+    def __call__(self, K: float) -> _Verdict | str:
         try:
-            A, B = self.loop.A, self.loop.B(float(K))
-            return factor_delay_margin(A, B, delta_max=self.delta_max, verify=False, max_evals=self.max_evals)
+            return _loop_verdict(self.loop, float(K), self.delta_max, self.max_evals)
         except CertificationError as exc:
             return str(exc)
 
@@ -844,68 +1020,60 @@ def _unstable_root_near(loop: _AffineLoop, K: float, delta: float, omega: float)
     return None
 
 
-def _check_end(
-    end: GainEnd,
-    inner: DelayMargin | str,
-    outer: DelayMargin | str,
-    K_out: float,
-    tol: float,
-    loop: _AffineLoop,
-    delta_max: float,
-) -> str | None:
-    """None if the margins ``tol`` inside and outside confirm ``end`` (and a count outside), else why not."""
-    for name, dm in (("inside", inner), ("outside", outer)):
-        if isinstance(dm, str):
-            return f"the delay margin {name} failed ({dm})"
-    assert isinstance(inner, DelayMargin) and isinstance(outer, DelayMargin)
+def _check_end(end: GainEnd, inner: _Verdict | str, K_out: float, loop: _AffineLoop, delta_max: float) -> str | None:
+    """None if ``end`` is confirmed on both sides, else why not.
+
+    Inside, the verdict (:func:`_loop_verdict`) must be admissible. Outside, a certified count
+    proves a zero in ``Re s > 0`` at some delay in ``[0, delta_max]`` (:func:`_unstable_root_near`):
+    at ``delta = 0`` next to a nominal end, at ``delta_max`` next to a crossing, at the birth delay
+    next to a pair birth (between the delays of the newborn pair, ``O(sqrt(tol))`` apart);
+    beyond the strong-stability limit the difference operator is not strongly stable (margin 0).
+    """
+    if isinstance(inner, str):
+        return f"the delay margin inside failed ({inner})"
     if not _tolerates(inner, delta_max):
         return f"inside, the margin is {inner.margin:.12g} (nominally stable: {inner.nominally_stable})"
-    if _tolerates(outer, delta_max):
-        return f"outside, the margin {outer.margin:.12g} still exceeds delta_max"
     if end.kind == "strong_stability":
-        return None if not outer.strongly_stable else "outside, the difference operator is still strongly stable"
-    if end.kind == "nominal":
-        if outer.nominally_stable:
-            return "outside, the nominal loop is still stable"
-        return _unstable_root_near(loop, K_out, 0.0, end.omega)
-    # the event's crossings move by O(tol) (a crossing) or O(sqrt(tol)) (a pair birth) in w
-    reach = max(_OMEGA_RTOL, 10.0 * np.sqrt(tol / max(abs(end.K), tol))) * max(1.0, end.omega)
-    near = [c for c in outer.crossings if abs(abs(c.omega) - end.omega) <= reach and c.delays[0] <= delta_max]
-    if not near:
-        return f"outside, no crossing near w = {end.omega:.10g} with a delay <= delta_max"
-    if end.kind == "crossing":
-        return _unstable_root_near(loop, K_out, delta_max, end.omega)
-    if len(near) < 2:
-        return f"outside, one crossing near w = {end.omega:.10g} where a pair is born"
-    first, second = sorted(near, key=lambda c: c.delays[0])[:2]
-    return _unstable_root_near(loop, K_out, 0.5 * (first.delays[0] + second.delays[0]), end.omega)
+        strong = frequency_bound(loop.A, loop.B(K_out)) is not None
+        return "outside, the difference operator is still strongly stable" if strong else None
+    delay = {"nominal": 0.0, "crossing": delta_max, "pair_birth": end.delay}[end.kind]
+    return _unstable_root_near(loop, K_out, delay, end.omega)
 
 
-def _grid_verdicts(delta_max: float, grid: NDArray, margins: list[DelayMargin | str]) -> tuple[NDArray, NDArray]:
+def _grid_verdicts(
+    delta_max: float, grid: NDArray, margins: list[DelayMargin | str] | list[_Verdict | str]
+) -> tuple[NDArray, NDArray]:
     """Margins and verdicts of the grid gains (a failed margin raises, naming the gain)."""
     for K, dm in zip(grid, margins):
         if isinstance(dm, str):
             raise CertificationError(f"k_region: the delay margin at the grid gain K = {K:.12g} failed: {dm}")
-    checked = [dm for dm in margins if isinstance(dm, DelayMargin)]
+    checked = [dm for dm in margins if not isinstance(dm, str)]
     return np.array([dm.margin for dm in checked]), np.array([_tolerates(dm, delta_max) for dm in checked])
 
 
 def _exact_region(
-    system: Hyperbolic2x2, delta_max: float, kb: float, grid: NDArray, tol: float, executor: Any, max_evals: int
+    system: Hyperbolic2x2,
+    delta_max: float,
+    kb: float,
+    grid: NDArray,
+    tol: float,
+    executor: Any,
+    max_evals: int,
+    progress: bool | None,
 ) -> KRegion:
     """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked."""
     loop = _AffineLoop.of(system)
     pairs = _locate_ends(loop, delta_max, kb, tol, max_evals) if kb > 0 else []
     probes: list[float] = []
     for lo, hi in pairs:
-        probes += [lo.K + tol, lo.K - tol, hi.K - tol, hi.K + tol]
-    results = list(_mapper(executor)(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
+        probes += [lo.K + tol, hi.K - tol]
+    run = _mapper(executor, progress, "k_region: delay margins")
+    results = list(run(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
     margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
     checks = iter(results[grid.size :])
     for lo, hi in pairs:
         for end, sign in ((lo, 1.0), (hi, -1.0)):
-            inner, outer = next(checks), next(checks)
-            why = _check_end(end, inner, outer, end.K - sign * tol, tol, loop, delta_max)
+            why = _check_end(end, next(checks), end.K - sign * tol, loop, delta_max)
             if why is not None:
                 raise CertificationError(
                     f"k_region: the end K = {end.K:.15g} ({end.kind}, w = {end.omega:.10g}) of the admissible "
@@ -933,10 +1101,11 @@ def _bisection_region(
     family: Callable[[float], Any],
     executor: Any,
     max_evals: int,
+    progress: bool | None,
 ) -> KRegion:
     """:func:`k_region` of another ``controller`` family: the grid's changes of verdict bisected to ``tol``."""
     margin_at = _CheckedMargin(system, delta_max, family, max_evals)
-    at_grid = list(_mapper(executor)(margin_at, grid))
+    at_grid = list(_mapper(executor, progress, "k_region: grid margins")(margin_at, grid))
     margins, ok = _grid_verdicts(delta_max, grid, at_grid)
 
     def checked(K: float) -> DelayMargin:
@@ -997,13 +1166,14 @@ def k_region(
     controller: Callable[[float], Any] | None = None,
     executor: Any = "serial",
     max_evals: int = 2_000_000,
+    progress: bool | None = None,
 ) -> KRegion:
     """Gains keeping the loop stable for every delay in ``[0, delta_max]``, with exact ends.
 
-    ``U_BS2(K)`` (eq. (control3)) is admissible when the nominal loop is stable and its
+    ``U_BS2(K)`` (eq. (53)) is admissible when the nominal loop is stable and its
     delay margin exceeds ``delta_max`` (the margin is the *first* delay at which a root
     reaches the axis, so the whole of ``[0, delta_max]`` is checked). Its loop
-    ``A(s) + (B_0(s) + K q e^{-tau s}) e^{-delta s}`` (eq. (delay_eq_alpha_ter)) is affine in
+    ``A(s) + (B_0(s) + K q e^{-tau s}) e^{-delta s}`` (eq. (60)) is affine in
     ``K``, and an end of an admissible interval is one of:
 
     * a *crossing*: ``A(i w) + B(i w; K) e^{-i w delta_max} = 0``, i.e. ``K(w) = -(A(i w)
@@ -1012,15 +1182,20 @@ def k_region(
       (``g = dg/dw = 0``) with crossing delay ``<= delta_max``; ``g`` is quadratic in ``K``,
       its roots ``K_pm(w)`` are explicit, and the birth is an extremum of ``K_pm(w)``;
     * *nominal*: the crossing equation with ``delta = 0`` (the nominal loop loses stability);
-    * the *strong-stability* limit ``|rho q| + |K q| = 1`` (the paper's bound, eq. (boun_K2)).
+    * the *strong-stability* limit ``|rho q| + |K q| = 1`` (the paper's bound, eq. (54)).
 
     A scan of the imaginary axis up to the frequency bound finds these critical gains
     (between two of them the verdict is constant), each is solved from its own equation to
-    ``1e-14`` in ``w``, and each end is then verified independently: :func:`delay_margin` at
-    ``K -+ tol`` (admissible inside, not outside) and a certified root count in
-    ``Re s > 0`` outside, about the root of the end's event (:func:`nrobust.count_roots`). An
-    end that cannot be verified raises :class:`~nrobust.errors.CertificationError`. The grid
-    ``Ks`` is checked the same way: its certified verdicts must agree with the intervals.
+    ``1e-14`` in ``w``, and each end is then verified independently: ``tol`` inside, the
+    certified crossing search of :func:`delay_margin` finds the loop admissible; ``tol``
+    outside, a certified root count (:func:`nrobust.count_roots`) finds a zero in ``Re s > 0``
+    about the root of the end's event, at a delay in ``[0, delta_max]``. An end that cannot be
+    verified raises :class:`~nrobust.errors.CertificationError`. The grid ``Ks`` is checked the
+    same way: its certified verdicts must agree with the intervals. The crossing searches of
+    the scan and of the checks stop at a second-order frequency bound (the kernels' boundary
+    terms, integrated by parts twice): near the paper's bound ``k`` it grows like
+    ``1/sqrt(k - |K|)`` where :func:`nrobust.crossings.frequency_bound` grows like
+    ``1/(k - |K|)``.
     Features narrower than the scan step ``pi / (4 (2 tau + delta_max))`` in frequency can
     be missed; a verified end is exact whatever happens between ends.
 
@@ -1052,6 +1227,9 @@ def k_region(
     max_evals : int, optional
         Work bound of each delay margin (:func:`nrobust.margins.delay_margin`) and of the
         scan of the axis.
+    progress : bool, optional
+        A progress bar over the delay margins on stderr; by default only when stderr is a
+        terminal or Jupyter.
 
     Returns
     -------
@@ -1077,8 +1255,8 @@ def k_region(
         Ks = kb * np.linspace(-1.0, 1.0, n_gains + 2)[1:-1]
     grid = np.sort(_grid("Ks", Ks))
     if controller is None or controller is ReflectionController:
-        return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals)
-    return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals)
+        return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals, progress)
+    return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)
 
 
 @dataclass(frozen=True)
@@ -1093,16 +1271,33 @@ class _PartialMargin:
         return _margin_for(K, self.system, self.delta_max, self.family)
 
 
+#: Largest filter coefficient ``max(|a|, b)`` that :func:`ab_region` uses as it is (:class:`_PartialFilter`).
+_FILTER_SCALE = 2.0**32
+
+
 @dataclass(frozen=True)
 class _PartialFilter:
-    """Picklable ``(a, b) -> delay_margin(system, FilteredController(a, b))``."""
+    """Picklable ``(a, b) -> delay_margin(system, FilteredController(a, b))``.
+
+    Filter coefficients beyond ``_FILTER_SCALE`` make ``|A(i w)|^2`` overflow: the loop
+    ``(1 + b s)(1 - Phi) + (1 + a s) Phi e^{-delta s}`` is then divided by the power of two
+    ``c`` just above ``max(|a|, b)`` (exact in floating point; the zeros, hence the margin,
+    do not change), i.e. ``(1 - Phi)`` and ``Phi`` multiply ``(c + c b s)`` and ``(c + c a s)``.
+    """
 
     system: Any
     delta_max: float
 
     def __call__(self, ab: tuple[float, float]) -> DelayMargin:
-
-        return delay_margin(self.system, FilteredController(*ab), delta_max=self.delta_max, verify=False)
+        a, b = ab
+        big = max(abs(a), b)
+        if big <= _FILTER_SCALE:
+            return delay_margin(self.system, FilteredController(a, b), delta_max=self.delta_max, verify=False)
+        FilteredController(a, b)  # the same validation of (a, b)
+        c = float(2.0 ** -np.ceil(np.log2(big)))
+        A, B = loop_factors(self.system, FiniteTimeController())  # (1 - Phi, Phi)
+        A, B = A.times_poly([c, c * b]), B.times_poly([c, c * a])
+        return factor_delay_margin(A, B, delta_max=self.delta_max, verify=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1124,7 +1319,7 @@ class ABRegion:
         ``1 - rho q e^{-tau s} + (a/b) rho q e^{-(tau+delta) s}`` is strongly stable
         (necessary for a positive margin).
     paper_conditions : ndarray of bool
-        The paper's eq. (cond_a_b): ``a/b < (1 - |rho q|)/|rho q|`` and
+        The paper's eq. (17): ``a/b < (1 - |rho q|)/|rho q|`` and
         ``a < (1 - |rho q|)/|rho q|``.
     delta_max : float
     """
@@ -1140,7 +1335,7 @@ class ABRegion:
     def __repr__(self) -> str:
         return (
             f"ABRegion(delta_max={self.delta_max:.6g}, {int(self.admissible.sum())}/{self.admissible.size} admissible, "
-            f"{int((self.paper_conditions & ~self.admissible).sum())} meet eq. (cond_a_b) but are not)"
+            f"{int((self.paper_conditions & ~self.admissible).sum())} meet eq. (17) but are not)"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -1152,11 +1347,11 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     """Admissible filter coefficients of the filtered finite-time controller (section 2.3.2).
 
     With ``U_1(s) = -(1 + a s)/(1 + b s) U_BS``, the loop is
-    ``(1 + b s)(1 - Phi) + (1 + a s) Phi e^{-delta s}`` (eq. (delay_transport3) for a
+    ``(1 + b s)(1 - Phi) + (1 + a s) Phi e^{-delta s}`` (eq. (16) for a
     transport system). Its difference operator (the ``s`` terms divided by ``b``) is
     ``1 - rho q e^{-tau s} + (a/b) rho q e^{-(tau + delta) s}``, strongly stable iff
     ``|rho q| (1 + |a|/b) < 1``; this, not the one-sided ``a/b < (1 - |rho q|)/|rho q|``
-    of eq. (cond_a_b), is necessary for a positive margin. Each grid point is decided by
+    of eq. (17), is necessary for a positive margin. Each grid point is decided by
     :func:`delay_margin` (nominal stability and ``delta* > delta_max``).
 
     Parameters
@@ -1257,6 +1452,7 @@ def stability_chart(
     quantity: str = "count",
     controller: Callable[[float], Any] | None = None,
     executor: Any = "serial",
+    progress: bool | None = None,
 ) -> StabilityChart:
     """Stability chart of ``U_BS2(K)`` in the ``(K, delta)`` plane (section 4.2.1).
 
@@ -1279,6 +1475,9 @@ def stability_chart(
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
         Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
+    progress : bool, optional
+        A progress bar over the gains (and grid points for ``"abscissa"``) on stderr; by
+        default only when stderr is a terminal or Jupyter.
 
     Returns
     -------
@@ -1292,7 +1491,7 @@ def stability_chart(
         raise ParameterError("quantity", "'count' or 'abscissa'", quantity)
     family = _reflection if controller is None else controller
     dmax = float(np.max(dv)) if np.max(dv) > 0 else None
-    results = list(_mapper(executor)(_PartialMargin(system, dmax, family), kv))
+    results = list(_mapper(executor, progress, "stability chart: gains")(_PartialMargin(system, dmax, family), kv))
     margins = np.array([r.margin for r in results])
     boundaries = tuple(
         np.array([(d, c.omega, c.direction) for c in r.crossings for d in c.delays if d <= np.max(dv)]).reshape(-1, 3)
@@ -1300,7 +1499,8 @@ def stability_chart(
     )
     if quantity == "abscissa":
         pts = [(float(K), float(d)) for K in kv for d in dv]
-        values = np.array(list(_mapper(executor)(_PartialAbscissa(system, family), pts))).reshape(kv.size, dv.size)
+        run = _mapper(executor, progress, "stability chart: abscissae")
+        values = np.array(list(run(_PartialAbscissa(system, family), pts))).reshape(kv.size, dv.size)
     else:
         values = np.empty((kv.size, dv.size))
         for i, r in enumerate(results):
@@ -1365,7 +1565,12 @@ class _PartialTradeoff:
 
 
 def tradeoff(
-    system: Any, Ks: ArrayLike, *, controller: Callable[[float], Any] | None = None, executor: Any = "serial"
+    system: Any,
+    Ks: ArrayLike,
+    *,
+    controller: Callable[[float], Any] | None = None,
+    executor: Any = "serial",
+    progress: bool | None = None,
 ) -> Tradeoff:
     """Decay rate of the nominal loop against the delay margin, over ``K``.
 
@@ -1384,6 +1589,9 @@ def tradeoff(
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
         Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
+    progress : bool, optional
+        A progress bar over the gains on stderr; by default only when stderr is a terminal
+        or Jupyter.
 
     Returns
     -------
@@ -1392,5 +1600,6 @@ def tradeoff(
     _check_system(system)
     kv = _grid("Ks", Ks)
     family = _reflection if controller is None else controller
-    rows = np.array(list(_mapper(executor)(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
+    run = _mapper(executor, progress, "tradeoff: gains")
+    rows = np.array(list(run(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
     return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2])

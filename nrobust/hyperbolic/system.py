@@ -1,19 +1,19 @@
 """Boundary-controlled 2x2 heterodirectional hyperbolic systems.
 
-The plant of the reference paper, eqs. (u_pde)-(IC)::
+The plant of the reference paper, eqs. (18)-(20)::
 
     u_t + lam u_x = sigma_pm(x) v,      u(t, 0) = q v(t, 0),
     v_t - mu  v_x = sigma_mp(x) u,      v(t, 1) = rho u(t, 1) + U(t),
 
 on ``x in [0, 1]`` with ``lam, mu > 0`` and ``q != 0``. The in-domain couplings are
 numbers or callables on ``[0, 1]``; :class:`TransportSystem` is the uncoupled case of
-Section 2 (eqs. (u_pde_no_cou)-(IC_no_cou)).
+Section 2 (eqs. (1)-(3)).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, is_dataclass
 from typing import Any
 
 import numpy as np
@@ -33,8 +33,11 @@ _SAMPLES = np.linspace(0.0, 1.0, 11)
 
 
 def _coupling_name(value: Coupling) -> str:
-    """Readable name of a coupling for ``repr``: the number, or the callable's name."""
+    """Readable name of a coupling for ``repr``: the number, a callable dataclass's own ``repr``
+    (its definition, e.g. ``PiecewiseLinear(x=..., values=...)``), or a function's name."""
     if callable(value):
+        if is_dataclass(value):
+            return repr(value)
         return f"<function {getattr(value, '__qualname__', type(value).__name__)}>"
     return repr(value)
 
@@ -114,7 +117,7 @@ def _make_evaluator(name: str, value: Any) -> tuple[Coupling, _Evaluator]:
 
 @dataclass(frozen=True, repr=False)
 class Hyperbolic2x2:
-    """Two heterodirectional transport equations coupled in the domain, eqs. (u_pde)-(IC).
+    """Two heterodirectional transport equations coupled in the domain, eqs. (18)-(20).
 
     Parameters
     ----------
@@ -159,7 +162,7 @@ class Hyperbolic2x2:
 
     @property
     def tau(self) -> float:
-        """Round-trip transport time ``1/lam + 1/mu``, eq. (eq_tau)."""
+        """Round-trip transport time ``1/lam + 1/mu``, eq. (5)."""
         return 1.0 / self.lam + 1.0 / self.mu
 
     @property
@@ -222,10 +225,10 @@ class Hyperbolic2x2:
 
 @dataclass(frozen=True, repr=False)
 class TransportSystem(Hyperbolic2x2):
-    """Uncoupled transport equations, eqs. (u_pde_no_cou)-(IC_no_cou).
+    """Uncoupled transport equations, eqs. (1)-(3).
 
     A :class:`Hyperbolic2x2` with ``sigma_pm = sigma_mp = 0``; its kernels vanish and
-    its delay form is ``1 - rho q e^{-tau s}`` (eq. (delay_eq_no_couplings)).
+    its delay form is ``1 - rho q e^{-tau s}`` (eq. (6)).
 
     Parameters
     ----------

@@ -10,12 +10,14 @@ from numpy.typing import ArrayLike
 
 from .._json import fields_dict
 from .._validate import positive, positive_int
-from ..bounds import TailBound, joint_degree, principal_gap, radius_where
+from ..balls import ball_abs_moment, ball_function, ball_variation_bound, working_precision
+from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
+from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
-from .finder import RootSet, _find_counted, _Finder, find_roots
-from .winding import Region, _Budget, _check_function, _count_with_shifts
+from .finder import RootSet, _find_counted, _Finder, _prove, find_roots
+from .winding import Region, _ball_count_with_shifts, _Budget, _check_function, _check_rigorous, _count_with_shifts
 
 __all__ = ["SpectralAbscissa", "spectral_abscissa"]
 
@@ -60,6 +62,15 @@ class SpectralAbscissa:
         perturbations of the delays (equal to ``chain_value`` for rationally independent
         delays; ``-inf`` for retarded ``F``). A loop is robust to small delays only if
         ``C_D < 0`` (Hale and Verduyn Lunel, 2002).
+    rigorous : bool
+        True if proven in ball arithmetic (``spectral_abscissa(..., rigorous=True)``):
+        ``upper_bound`` (``F`` has no root right of it), the root counts of every box
+        searched and ``root_box``.
+    root_box : tuple of float or None
+        With ``rigorous``, the rectangle proven to hold ``root`` (alone, for a simple root,
+        or with its cluster: ``multiplicity`` roots of :class:`~nrobust.roots.RootSet`);
+        None for ``F = p(s) e^{-tau s}``, whose roots are isolated exactly (rational
+        coefficients, FLINT).
     """
 
     value: float
@@ -70,13 +81,16 @@ class SpectralAbscissa:
     certified: bool
     region: Region
     strong_bound: float = -np.inf
+    rigorous: bool = False
+    root_box: tuple[float, float, float, float] | None = None
 
     def __repr__(self) -> str:
         root = "None" if self.root is None else f"{self.root.real:.12g}{self.root.imag:+.12g}j"
         tail = ", approached as Im s -> infinity" if self.approached_at_infinity else ""
         return (
             f"SpectralAbscissa(value={self.value:.12g}, root={root}{tail}, chain_value={self.chain_value:.6g}, "
-            f"strong_bound={self.strong_bound:.6g}, upper_bound={self.upper_bound:.6g}, certified={self.certified})"
+            f"strong_bound={self.strong_bound:.6g}, upper_bound={self.upper_bound:.6g}, certified={self.certified}"
+            + (", rigorous=True)" if self.rigorous else ")")
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -90,6 +104,8 @@ _EDGE_BISECTIONS = 30
 _MAX_STEPS = 200
 # Smallest half-height of the boxes of that march.
 _MIN_HALF_HEIGHT = 1.0
+# Radii (relative to the floating-point one) at which ball arithmetic tries to confirm a far field.
+_RADIUS_FACTORS = (1.0, 1.0 + 1e-6, 1.01, 1.1, 1.5, 2.0, 4.0)
 # Edge shifts allowed when a box edge lands on a root (a multiple root needs a wide berth).
 _ABSCISSA_SHIFTS = 8
 
@@ -113,27 +129,39 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
 
 
 def spectral_abscissa(
-    F: QuasiPolynomial,
+    F: QuasiPolynomial | CharacteristicFunction,
     region: ArrayLike | None = None,
     *,
     im_max: float | None = None,
     cluster_tol: float = 1e-6,
     max_evals: int = 5_000_000,
+    rigorous: bool = False,
+    prec: int = 53,
 ) -> SpectralAbscissa:
     """The supremum of the real parts of the roots of ``F``, with its rightmost root.
 
     Parameters
     ----------
-    F : QuasiPolynomial
+    F : QuasiPolynomial or QuasiPolynomialMatrix
         Retarded or neutral (an advanced ``F`` has roots with arbitrarily large real part).
     region : (re_min, re_max, im_min, im_max), optional
         Search only this rectangle. By default the search region is built so that the
         answer is certified: a half-plane ``Re s >= x`` is root-free outside a disc
-        (:func:`_root_free_radius`), the rest is counted and searched.
+        (:func:`_root_free_radius`), the rest is counted and searched. Required for a
+        QuasiPolynomialMatrix, whose far-field bound is not implemented (its
+        ``expand()``, when it exists, is the scalar form).
     im_max : float, optional
         Height of the band searched near the chains of a neutral ``F``.
     cluster_tol, max_evals
         As in :func:`find_roots`.
+    rigorous : bool, optional
+        Prove the result in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
+        the root-free far field (the dominance of the principal part, the
+        difference-operator bound of the chains included, re-evaluated in balls at the
+        abscissa and radius used), the count of every box searched and the box of the
+        rightmost root (:func:`find_roots` with ``rigorous=True``). Quasi-polynomials only.
+    prec : int, optional
+        Working precision in bits of the ball arithmetic.
 
     Returns
     -------
@@ -145,7 +173,10 @@ def spectral_abscissa(
         An advanced ``F``, or a bad option.
     CertificationError
         The work bound ``max_evals`` (shared by every step of the search) was exhausted,
-        or ``F`` overflows on a contour: the message says what would help.
+        or ``F`` overflows on a contour: the message says what would help. With
+        ``rigorous=True`` also when ball arithmetic cannot confirm a step.
+    ImportError
+        ``rigorous=True`` without python-flint.
 
     Notes
     -----
@@ -159,33 +190,109 @@ def spectral_abscissa(
     approached only as ``|Im s| -> infinity`` (``approached_at_infinity``).
     """
     F = _check_function(F)
+    if region is None and not isinstance(F, QuasiPolynomial):
+        raise ParameterError(
+            "region", "a rectangle for a matrix F (or pass F.expand(): the root-free far field needs a scalar)", None
+        )
     if F.kind == "advanced":
         raise ParameterError("F", "retarded or neutral (an advanced quasi-polynomial has unbounded root real parts)", F)
     cluster_tol = positive("cluster_tol", cluster_tol)
     im_max = None if im_max is None else positive("im_max", im_max)
     max_evals = positive_int("max_evals", max_evals)
+    proof = prec if _check_rigorous(F, rigorous) else None
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals)
+        return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals, proof)
 
 
 def _spectral_abscissa(
-    F: QuasiPolynomial, region: ArrayLike | None, im_max: float | None, cluster_tol: float, max_evals: int
+    F: QuasiPolynomial,
+    region: ArrayLike | None,
+    im_max: float | None,
+    cluster_tol: float,
+    max_evals: int,
+    proof: int | None = None,
 ) -> SpectralAbscissa:
+    """``proof`` is the precision of the ball arithmetic that proves each step, or None (floating point)."""
     D = F.principal_part()
     chain_value = D.spectral_bound().upper
     c_strong = D.strong_spectral_bound()
     if region is not None:
-        roots = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals)
+        roots = _roots(F, region, cluster_tol, max_evals, proof)
         result = _abscissa_from(roots, chain_value, np.inf, roots.certified)
     elif np.isfinite(c_strong):
         margin = 0.1 * (1.0 + abs(c_strong))
         x_min, radius = _right_half_plane(F, c_strong + margin, margin)
+        x_min, radius = _confirm_far_field(F, [(x_min, radius * f) for f in _RADIUS_FACTORS], proof)
         real = F.is_real
-        result = _neutral_abscissa(F, D, x_min, radius, real, im_max, chain_value, cluster_tol, max_evals)
+        result = _neutral_abscissa(F, D, x_min, radius, real, im_max, chain_value, cluster_tol, max_evals, proof)
     else:
         x_right, radius = _right_half_plane(F, 0.0, 1.0)
-        result = _retarded_abscissa(F, x_right, radius, F.is_real, cluster_tol, max_evals)
-    return replace(result, strong_bound=float(c_strong))
+        result = _retarded_abscissa(F, x_right, radius, F.is_real, cluster_tol, max_evals, proof)
+    return replace(result, strong_bound=float(c_strong), rigorous=proof is not None)
+
+
+def _roots(F: QuasiPolynomial, region: ArrayLike, cluster_tol: float, max_evals: int, proof: int | None) -> RootSet:
+    """:func:`find_roots`, proven in ball arithmetic when ``proof`` (a precision) is given."""
+    rigorous = proof is not None
+    return find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals, rigorous=rigorous, prec=proof or 53)
+
+
+def _ball_far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float, prec: int) -> bool:
+    """True if ``{Re s >= x, |s| >= R}`` is proven root-free in ball arithmetic.
+
+    The inequality of :func:`_root_free_radius` (:func:`~nrobust.bounds.principal_gap`
+    against :class:`~nrobust.bounds.TailBound`), every term enclosed in balls: with ``t0``
+    the delay of the first principal term (no delay of ``F`` below it) and ``r_k = tau_k - t0``,
+    ``|a_0| - sum_k |a_k| e^{-r_k x}`` (the difference-operator bound, which also proves
+    ``x > C_D``) exceeds ``sum |p_kj| R^(j-n) e^{-r_k x} + sum |q_j| R^(j-n) e^{t0 x} min(M_0, V / R)``
+    (:func:`~nrobust.balls.ball_abs_moment`, :func:`~nrobust.balls.ball_variation_bound`).
+    Each term is monotone in ``|s|`` and ``Re s``, so the strict inequality at ``(x, R)``
+    holds on the whole set, where ``|e^{t0 s} F(s)| / |s|^n`` is then positive.
+    """
+    lead = F.leading_terms(n)
+    if not lead or min_delay(F) < lead[0][1] or not (np.isfinite(x) and np.isfinite(R) and R > 0):
+        return False
+    t0 = lead[0][1]
+    with working_precision(prec) as flint:
+        arb, acb = flint.arb, flint.acb
+        X, Rb, T0 = arb(float(x)), arb(float(R)), arb(float(t0))
+
+        def weight(tau: float) -> Any:
+            return (-(arb(float(tau)) - T0) * X).exp()
+
+        gap = abs(acb(complex(lead[0][0]))) - sum((abs(acb(complex(a))) * weight(t) for a, t in lead[1:]), arb(0))
+        tail = arb(0)
+        for p, t in F.point_terms:
+            for j in range(min(p.size, n)):
+                if p[j] != 0:
+                    tail += abs(acb(complex(p[j]))) / Rb ** (n - j) * weight(t)
+        for d in F.distributed:
+            qpow = sum((abs(acb(complex(c))) / Rb ** (n - j) for j, c in enumerate(d.poly) if c != 0), arb(0))
+            bound = ball_abs_moment(d, x, 0, prec=prec) * (T0 * X).exp()
+            if d.moment == 0:
+                bound = arb.min(bound, ball_variation_bound(d, x, prec=prec) * (T0 * X).exp() / Rb)
+            tail += qpow * bound
+        return bool(gap - tail > 0)
+
+
+def _confirm_far_field(F: QuasiPolynomial, points: list[tuple[float, float]], proof: int | None) -> tuple[float, float]:
+    """The first ``(x, R)`` of ``points`` at which :func:`_ball_far_field_holds`; ``points[0]`` without ``proof``.
+
+    The floating-point search stops where the bound just holds (a bisection), where the
+    slightly looser ball bounds of ``|N|`` may not: the callers offer a few points
+    further inside the region (larger ``x`` or ``R``) for which their search stays valid.
+    """
+    if proof is None:
+        return points[0]
+    n = joint_degree(F)
+    for x, R in points:
+        if _ball_far_field_holds(F, n, x, R, proof):
+            return x, R
+    x, R = points[-1]
+    raise CertificationError(
+        f"ball arithmetic cannot confirm that F has no root with Re s >= {x:.12g} and |s| >= {R:.12g}; "
+        "raise prec or give a region"
+    )
 
 
 def _right_half_plane(F: QuasiPolynomial, x0: float, step: float) -> tuple[float, float]:
@@ -213,11 +320,12 @@ def _neutral_abscissa(
     chain_value: float,
     cluster_tol: float,
     max_evals: int,
+    proof: int | None = None,
 ) -> SpectralAbscissa:
     """Exhaustive search of ``Re s >= x_min`` (inside the disc of ``radius``), then of a
     band below ``x_min`` near the chains."""
     right = (x_min, max(x_min, radius) + 1.0, *_band(radius, real))
-    roots = find_roots(F, right, cluster_tol=cluster_tol, max_evals=max_evals)
+    roots = _roots(F, right, cluster_tol, max_evals, proof)
     if roots.count > 0:
         return _abscissa_from(roots, chain_value, x_min, roots.certified, upper_from_roots=roots.certified)
     chains = D.chains()
@@ -226,7 +334,7 @@ def _neutral_abscissa(
     # roots left of c_D do not change the value: a shallow band (e^{tau s} overflows far left for long delays)
     depth = min(0.5, 16.0 / max(F.max_delay, 1e-300))
     low = (min(chain_value, x_min) - depth, x_min, *_band(height, real))
-    band = find_roots(F, low, cluster_tol=cluster_tol, max_evals=max_evals)
+    band = _roots(F, low, cluster_tol, max_evals, proof)
     return _abscissa_from(band, chain_value, x_min, band.certified and roots.certified)
 
 
@@ -299,6 +407,7 @@ def _retarded_abscissa(
     real: bool,
     cluster_tol: float,
     max_evals: int,
+    proof: int | None = None,
 ) -> SpectralAbscissa:
     """The rightmost root of a retarded ``F`` by a march on the root-free far field.
 
@@ -345,8 +454,19 @@ def _retarded_abscissa(
                 roots = _find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
                 # a root left of x_far (in an edge shift) may have unseen roots to its right
                 if len(roots) and np.max(roots.roots.real) >= x_far:
+                    if proof is not None:  # the two far fields and the box, proven
+                        # every root has Re s < x_max: |s| < radius + 1 where Re s >= x_right
+                        _confirm_far_field(F, [(x_right, radius + f) for f in (0.0, 1e-6, 0.01, 0.5, 1.0)], proof)
+                        if not whole:  # every root with Re s >= x lies in the box, if x > x_far
+                            top = float(np.max(roots.roots.real))
+                            _confirm_far_field(
+                                F, [(x_far + f * (top - x_far), R) for f in (0, 1e-6, 0.01, 0.5, 1)], proof
+                            )
+                        roots = _prove(F, roots, ball_function(F, proof), _Budget(max_evals), _ABSCISSA_SHIFTS)
                     return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
+                if proof is not None and _ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
+                    raise CertificationError(f"ball arithmetic does not confirm that {reg} holds no root")
                 return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
         R *= 2.0
     raise CertificationError(f"spectral_abscissa: no root found with |s| < {R:.6g}; raise max_evals or give a region")
@@ -362,13 +482,19 @@ def _abscissa_from(
         z = complex(roots.roots[i])
         root: complex | None = z
         # every entry's roots lie within its radius: the disc reaching furthest right bounds them all
-        best = float(np.max(roots.roots.real + roots.radii)) if upper_from_roots else z.real
+        # (proven boxes: their right edges, which the discs contain)
+        reach = roots.boxes[:, 1] if roots.rigorous else roots.roots.real + roots.radii
+        best = float(np.max(reach)) if upper_from_roots else z.real
     else:
         root, best = None, -np.inf
     found = -np.inf if root is None else root.real
     at_inf = bool(np.isfinite(chain_value) and chain_value > found + 1e-12 * (1 + abs(chain_value)))
     value = chain_value if at_inf else found
     upper_bound = best if upper_from_roots else max(upper, value)
+    box = None
+    if roots.rigorous and root is not None:
+        b = roots.boxes[int(np.flatnonzero(roots.roots == root)[0])]
+        box = (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
     return SpectralAbscissa(
-        float(value), root, at_inf, float(chain_value), float(upper_bound), bool(certified), roots.region
+        float(value), root, at_inf, float(chain_value), float(upper_bound), bool(certified), roots.region, root_box=box
     )

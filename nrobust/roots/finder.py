@@ -10,6 +10,7 @@ disjoint boxes add up to the certified count of the whole region.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -22,7 +23,9 @@ from .._json import fields_dict
 from .._newton import newton
 from .._validate import number_array, positive, positive_int
 from .._validate import region as _check_region
+from ..balls import acb_box, ball_function, require_flint, working_precision
 from ..errors import CertificationError, ParameterError
+from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 from .winding import (
     _EPS,
@@ -33,8 +36,11 @@ from .winding import (
     _STALLED,
     METHODS,
     Region,
+    _ball_count_with_shifts,
+    _ball_winding,
     _Budget,
     _check_function,
+    _check_rigorous,
     _count_with_shifts,
     _Counter,
     _magnitude,
@@ -177,7 +183,13 @@ class RootSet:
     shifted : bool
         True if an edge of the requested region was moved off a root.
     evaluations : int
-        Work spent (evaluations of ``F``, ``F'`` and derivative bounds).
+        Work spent (evaluations of ``F``, ``F'`` and derivative bounds, and ball enclosures).
+    rigorous : bool
+        True if ``count``, ``boxes`` and ``box_counts`` are proven in ball arithmetic
+        (``find_roots(..., rigorous=True)``); False for the floating-point certification.
+    proofs : tuple of str
+        With ``rigorous``, how each entry is proven: ``"krawczyk"`` (a simple root, alone
+        in its box: Krawczyk's test) or ``"winding"`` (the proven winding number of its box).
     """
 
     roots: NDArray[np.complex128]
@@ -191,6 +203,8 @@ class RootSet:
     certified: bool
     shifted: bool
     evaluations: int
+    rigorous: bool = False
+    proofs: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return int(self.roots.size)
@@ -199,7 +213,8 @@ class RootSet:
         r = ", ".join(f"{v:.6g}" for v in self.region)
         return (
             f"RootSet({self.roots.size} roots, {int(np.sum(self.multiplicities))} with multiplicity, "
-            f"count={self.count}, region=({r}), certified={self.certified})"
+            f"count={self.count}, region=({r}), certified={self.certified}"
+            + (", rigorous=True)" if self.rigorous else ")")
         )
 
     def __str__(self) -> str:
@@ -208,6 +223,7 @@ class RootSet:
         for i, (z, m, res, rad) in enumerate(zip(self.roots, self.multiplicities, self.residuals, self.radii)):
             rows.append(f"{i:>4}  {z.real:>22.15g}  {z.imag:>22.15g}  {m:>4d}  {res:>9.2e}  {rad:>9.2e}")
         status = "certified" if self.certified else "NOT certified"
+        status += " (proven in ball arithmetic)" if self.rigorous else ""
         rows.append(
             f"{int(np.sum(self.multiplicities))} roots with multiplicity, certified count {self.count}: {status}"
         )
@@ -650,20 +666,118 @@ class _Finder:
         self.found.add(center, c, box)
 
 
+# ====================================================================== proofs in ball arithmetic
+# Half-widths (relative to 1 + |z|) of the squares tried by the Krawczyk test, smallest first.
+_KRAWCZYK_WIDTHS = (1e-11, 1e-9, 1e-7, 1e-5)
+
+
+def _krawczyk(balls: Any, z: complex, box: NDArray[np.float64], budget: _Budget) -> tuple[float, ...] | None:
+    """A rectangle about ``z`` inside ``box`` proven to hold exactly one root, simple; or None.
+
+    Krawczyk's test in ball arithmetic: with ``X`` the rectangle, ``c`` a point of it and
+    ``y ~ 1/F'(c)``, ``K(X) = c - y F(c) + (1 - y F'(X)) (X - c)`` contains every zero of
+    ``F`` in ``X``; if ``K(X)`` lies in the interior of ``X``, ``X`` holds exactly one zero
+    and ``F'`` does not vanish on ``X`` (the zero is simple). Squares of growing
+    half-width (:data:`_KRAWCZYK_WIDTHS`) are tried, clipped to ``box``.
+    """
+    flint = require_flint()
+    scale = 1.0 + abs(z)
+    for w in _KRAWCZYK_WIDTHS:
+        x0, x1 = max(z.real - w * scale, box[0]), min(z.real + w * scale, box[1])
+        y0, y1 = max(z.imag - w * scale, box[2]), min(z.imag + w * scale, box[3])
+        if not (x0 < x1 and y0 < y1):
+            return None
+        budget.spend(2, "proving a root by Krawczyk's test")
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        c = flint.acb(cx, cy)
+        X = acb_box(x0, x1, y0, y1)
+        fc, dfx = balls(c), balls(X, 1)
+        slope = complex(float(dfx.real.mid()), float(dfx.imag.mid()))
+        if slope == 0 or not (fc.is_finite() and dfx.is_finite()):
+            continue
+        y = flint.acb(1.0 / slope)
+        with working_precision(balls.prec):
+            K = c - y * fc + (1 - y * dfx) * (X - c)
+        re, im = K.real, K.imag
+        if re > x0 and re < x1 and im > y0 and im < y1:
+            return (x0, x1, y0, y1)
+    return None
+
+
+def _prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: _Budget, max_shifts: int) -> RootSet:
+    """``found`` (a floating-point result) proven in ball arithmetic, or CertificationError.
+
+    The count of the region is proven by :func:`_ball_winding` (its edges moved outwards
+    when a root is too close, as in floating point); each simple root by Krawczyk's test in
+    a rectangle inside its box (exactly one zero there), falling back to the proven
+    winding number of its box; each cluster by the proven winding number of its box. The
+    boxes are disjoint and inside the region, so when their proven counts add up to the
+    proven count of the region, every root is accounted for.
+    """
+    if not found.certified:
+        raise CertificationError(
+            "the floating-point search did not account for every root, so there is nothing to prove; "
+            "raise max_evals or use a smaller region"
+        )
+    total, reg, shifted = _ball_count_with_shifts(balls, found.region, max_shifts, budget)
+    if reg != found.region or total != found.count:
+        raise CertificationError(
+            f"ball arithmetic counts {total} roots in {reg}, the floating-point search {found.count} in "
+            f"{found.region}: a root lies within rounding of the region's edge; move the edge"
+        )
+    boxes = found.boxes.copy()
+    proofs = []
+    for i, (z, m) in enumerate(zip(found.roots, found.multiplicities)):
+        proven = _krawczyk(balls, complex(z), found.boxes[i], budget) if m == 1 else None
+        if proven is not None:
+            boxes[i] = proven
+            proofs.append("krawczyk")
+            continue
+        n, _ = _ball_winding(balls, tuple(float(v) for v in found.boxes[i]), budget)
+        if n != m:
+            what = "cannot exclude 0 on its edges" if n is None else f"counts {n} roots"
+            raise CertificationError(
+                f"ball arithmetic {what} in the box {tuple(float(v) for v in found.boxes[i])} of the root {complex(z)} "
+                f"(multiplicity {int(m)} in floating point): roots closer than rounding; try a higher prec"
+            )
+        proofs.append("winding")
+    inside = np.all(
+        (boxes[:, 0] >= reg[0]) & (boxes[:, 1] <= reg[1]) & (boxes[:, 2] >= reg[2]) & (boxes[:, 3] <= reg[3])
+    )
+    if not (inside and _disjoint(boxes) and int(found.multiplicities.sum()) == total):
+        raise CertificationError("the proven boxes do not tile the roots of the region (overlap or outside it)")
+    z = found.roots
+    dx = np.maximum(np.abs(boxes[:, 0] - z.real), np.abs(boxes[:, 1] - z.real))
+    dy = np.maximum(np.abs(boxes[:, 2] - z.imag), np.abs(boxes[:, 3] - z.imag))
+    return dataclasses.replace(
+        found,
+        radii=np.hypot(dx, dy),
+        boxes=boxes,
+        box_counts=found.multiplicities.copy(),
+        shifted=shifted or found.shifted,
+        evaluations=found.evaluations + budget.used,
+        rigorous=True,
+        proofs=tuple(proofs),
+    )
+
+
 def find_roots(
-    F: QuasiPolynomial,
+    F: QuasiPolynomial | CharacteristicFunction,
     region: ArrayLike,
     *,
     cluster_tol: float = 1e-6,
     seeds: ArrayLike | None = None,
     method: str = "auto",
     max_evals: int = 5_000_000,
+    rigorous: bool = False,
+    prec: int = 53,
 ) -> RootSet:
     """All roots of ``F`` in a rectangle, certified complete.
 
     Parameters
     ----------
-    F : QuasiPolynomial
+    F : QuasiPolynomial or QuasiPolynomialMatrix
+        The function (a matrix stands for its determinant, never expanded).
     region : (re_min, re_max, im_min, im_max)
     cluster_tol : float, optional
         Roots closer than this are reported as one entry with their multiplicity (a
@@ -676,7 +790,15 @@ def find_roots(
         Newton's method in every box that holds roots not yet accepted (slower; both
         are certified).
     max_evals : int, optional
-        Work bound (evaluations of ``F``, ``F'`` and derivative bounds).
+        Work bound (evaluations of ``F``, ``F'`` and derivative bounds); with
+        ``rigorous=True`` the proof has a work bound of its own of the same size.
+    rigorous : bool, optional
+        Prove the result in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
+        the count of the region by a proven winding number, each simple root by
+        Krawczyk's test (existence and uniqueness in a small rectangle), each cluster by
+        the proven winding number of its box (``RootSet.proofs``). Quasi-polynomials only.
+    prec : int, optional
+        Working precision in bits of the ball arithmetic.
 
     Returns
     -------
@@ -687,7 +809,11 @@ def find_roots(
     RegionError
         Empty or non-finite region.
     CertificationError
-        The work bound was exhausted or a root could not be separated from a contour.
+        The work bound was exhausted or a root could not be separated from a contour;
+        with ``rigorous=True`` also when ball arithmetic cannot confirm a count (roots
+        within rounding of an edge, or closer together than its precision resolves).
+    ImportError
+        ``rigorous=True`` without python-flint.
 
     Notes
     -----
@@ -712,10 +838,14 @@ def find_roots(
         if seeds is None
         else number_array("seeds", seeds, ndim=None, min_size=0).astype(complex).ravel()
     )
+    rigorous = _check_rigorous(F, rigorous)
     finder = _Finder(F, box, cluster_tol, _Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
-        return _find_counted(finder, total, reg, shifted, extra, method)
+        found = _find_counted(finder, total, reg, shifted, extra, method)
+    if not rigorous:
+        return found
+    return _prove(F, found, ball_function(F, prec), _Budget(max_evals), 4)
 
 
 def _find_counted(

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,7 +21,9 @@ from numpy.typing import ArrayLike, NDArray
 from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
+from ..balls import ball_function, require_flint
 from ..errors import CertificationError, ParameterError
+from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 
 __all__ = ["Region", "RootCount", "count_roots"]
@@ -69,18 +71,9 @@ class _Budget:
 
 
 def _magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.float64]:
-    """Sum of the moduli of the monomials of ``F`` at ``s``: the scale of its rounding error."""
-    out = np.zeros(s.shape)
-    r = np.abs(s)
-    for p, t in F.point_terms:
-        out += np.polynomial.polynomial.polyval(r, np.abs(p)) * np.exp(-t * s.real)
-    if F.distributed:
-        # int |N| nu^k e^{-nu x} decreases in x (nu >= 0): rounding x down to 1/64 keeps an
-        # upper bound and lets the samples of a contour share a few evaluations
-        xs, inv = np.unique(np.floor(s.real * 64.0) / 64.0, return_inverse=True)
-        for d in F.distributed:
-            out += np.polynomial.polynomial.polyval(r, np.abs(d.poly)) * d.abs_moment(xs, 0)[inv.reshape(s.shape)]
-    return out
+    """The scale of the rounding error of ``F(s)`` (:meth:`QuasiPolynomial.magnitude`: the sum
+    of the moduli of the monomials; for a matrix, :meth:`~nrobust.qpmatrix.QuasiPolynomialMatrix.magnitude`)."""
+    return F.magnitude(s)
 
 
 @dataclass
@@ -297,6 +290,149 @@ class _Counter:
         return counts, box_blocked
 
 
+# ====================================================================== counting in ball arithmetic
+# Initial number of pieces per edge of a contour proven in ball arithmetic.
+_BALL_PIECES = 16
+# Margin (radians) by which a lifted argument interval must miss the other lifts.
+_LIFT_MARGIN = 1e-9
+
+
+def _arg_interval(value: Any) -> tuple[float, float] | None:
+    """An interval ``[lo, hi]`` (radians, width < pi) holding ``arg z`` for every ``z`` of the ``acb`` rectangle.
+
+    None if the rectangle contains 0, is not finite, or subtends an angle of pi or more
+    (a rectangle that misses 0 is convex, so it subtends less than pi, but its enclosure
+    of the argument may be wider). A rectangle in the left half-plane is rotated by pi
+    first, so that the enclosure never straddles the branch cut.
+    """
+    re, im = value.real, value.imag
+    if not (value.is_finite() and (not re.contains(0) or not im.contains(0))):
+        return None
+    if float(re.upper()) < 0:
+        arg, shift = (-value).arg(), np.pi
+    else:
+        arg, shift = value.arg(), 0.0
+    lo, hi = float(arg.lower()), float(arg.upper())
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo >= 3.0:
+        return None
+    # outward rounding of the conversions to double and of the shift by pi
+    pad = 4 * _EPS * (abs(lo) + abs(hi) + np.pi)
+    return lo + shift - pad, hi + shift + pad
+
+
+def _intersect(u: Any, v: Any) -> Any:
+    """The ``acb`` rectangle ``u ∩ v`` (both enclose the same values, so they overlap)."""
+    return type(u)(u.real.intersection(v.real), u.imag.intersection(v.imag))
+
+
+def _lift(interval: tuple[float, float], previous: tuple[float, float]) -> tuple[float, float] | None:
+    """The unique ``interval + 2 pi n`` that meets ``previous``; None if not unique (with a margin)."""
+    lo, hi = interval
+    plo, phi = previous
+    n = round((plo + phi - lo - hi) / (4 * np.pi))
+    meets = [
+        lo + 2 * np.pi * k <= phi + _LIFT_MARGIN and hi + 2 * np.pi * k >= plo - _LIFT_MARGIN for k in (n - 1, n, n + 1)
+    ]
+    if meets != [False, True, False]:
+        return None
+    return lo + 2 * np.pi * n, hi + 2 * np.pi * n
+
+
+def _ball_winding(balls: Any, box: Sequence[float], budget: _Budget) -> tuple[int | None, NDArray[np.bool_]]:
+    """Winding number of ``F`` around the boundary of ``box``, proven in ball arithmetic.
+
+    The boundary is cut into pieces; on each, ``F`` is enclosed in an ``acb`` rectangle
+    (:meth:`nrobust.balls.BallQuasiPolynomial.on_segment`: the ball evaluation on the piece, and where
+    that contains 0 its intersection with the mean-value form ``F(c) + F'(B) (B - c)``, which
+    near a multiple root shrinks with the piece) and the piece is accepted when the rectangle
+    misses 0: ``F`` maps the piece into a convex set without 0, so the continuous argument
+    along the piece stays in one lift of the rectangle's argument interval (width < pi).
+    Consecutive pieces share a point, so their lifts meet; when exactly one lift of the
+    next interval meets the previous one (each is narrower than pi, and a margin is
+    demanded) it is the lift the continuous argument takes. After the whole boundary the
+    lift of the first interval that meets the last one is ``first + 2 pi n``: ``n`` is the
+    winding number, a theorem about ``F`` as represented. Failing pieces are halved;
+    a piece shorter than ``_MIN_STEP (1 + |s|)`` blocks its side.
+
+    Returns
+    -------
+    (count or None, blocked sides (bottom, right, top, left))
+    """
+    blocked = np.zeros(4, dtype=bool)
+    first: tuple[float, float] | None = None
+    prev: tuple[float, float] | None = None
+    for side, (a, b) in enumerate(_box_edges(box)):
+        t = np.linspace(0.0, 1.0, _BALL_PIECES + 1)
+        pts = [a + (b - a) * v for v in t[:-1]] + [b]
+        stack = [(pts[i], pts[i + 1]) for i in range(_BALL_PIECES - 1, -1, -1)]
+        while stack:
+            p, q = stack.pop()
+            budget.spend(1, f"proving the {_describe_edge(box, side)} in ball arithmetic")
+            value = balls.on_segment(p, q)
+            iv = _arg_interval(value)
+            if iv is None:  # near a root: the mean-value form, intersected with the direct enclosure
+                budget.spend(2, f"proving the {_describe_edge(box, side)} in ball arithmetic")
+                iv = _arg_interval(_intersect(value, balls.on_segment(p, q, centered=True)))
+            lifted = iv if iv is None or prev is None else _lift(iv, prev)
+            if lifted is not None:
+                prev = lifted
+                first = lifted if first is None else first
+                continue
+            if abs(q - p) < _MIN_STEP * (1.0 + abs(p)):
+                blocked[side] = True
+                prev = None  # the chain is broken: the count is void, the other sides are still probed
+                break
+            m = 0.5 * (p + q)
+            m = complex(p.real if p.real == q.real else m.real, p.imag if p.imag == q.imag else m.imag)
+            stack += [(m, q), (p, m)]
+    if blocked.any() or first is None or prev is None:
+        return None, blocked
+    closing = _lift(first, prev)
+    if closing is None:
+        return None, np.ones(4, dtype=bool)
+    return round((closing[0] - first[0]) / (2 * np.pi)), blocked
+
+
+def _check_rigorous(F: Any, rigorous: Any) -> bool:
+    """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` scalar."""
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if rigorous:
+        require_flint()
+        if not isinstance(F, QuasiPolynomial):
+            raise ParameterError(
+                "F", "a QuasiPolynomial for rigorous=True (ball evaluation is scalar)", type(F).__name__
+            )
+    return bool(rigorous)
+
+
+def _ball_count_with_shifts(balls: Any, box: Region, max_shifts: int, budget: _Budget) -> tuple[int, Region, bool]:
+    """As :func:`_count_with_shifts`, with the count proven by :func:`_ball_winding`."""
+    reg = list(box)
+    size = max(reg[1] - reg[0], reg[3] - reg[2])
+    for attempt in range(max_shifts + 1):
+        n, blocked = _ball_winding(balls, reg, budget)
+        if n is not None:
+            return n, tuple(reg), attempt > 0  # type: ignore[return-value]
+        if attempt == max_shifts:
+            sides = "; ".join(_describe_edge(reg, int(k)) for k in np.flatnonzero(blocked))
+            raise CertificationError(
+                f"ball arithmetic cannot prove the winding number: a root lies on or within rounding of the {sides} "
+                f"after {max_shifts} shifts (move the region's edges away from the roots, or raise prec)"
+            )
+        delta = size * 1e-7 * 10.0**attempt * 1.618
+        for k in np.flatnonzero(blocked):
+            if k == 0:
+                reg[2] -= delta
+            elif k == 1:
+                reg[1] += delta
+            elif k == 2:
+                reg[3] += delta
+            else:
+                reg[0] -= delta
+    raise AssertionError("unreachable")
+
+
 # ====================================================================== count_roots
 class RootCount(int):
     """A certified number of roots (with multiplicity) in a rectangle; behaves as an ``int``.
@@ -309,44 +445,66 @@ class RootCount(int):
     shifted : bool
         True if ``region`` differs from the requested rectangle.
     evaluations : int
-        Number of evaluations of ``F`` and of its derivative bound.
+        Number of evaluations of ``F`` and of its derivative bound (or ball enclosures).
+    rigorous : bool
+        True if the count is proven in ball arithmetic (``count_roots(..., rigorous=True)``);
+        False for the floating-point certification with a rounding allowance.
     """
 
     region: Region
     shifted: bool
     evaluations: int
+    rigorous: bool
 
-    def __new__(cls, count: int, region: Region, shifted: bool, evaluations: int) -> RootCount:
+    def __new__(cls, count: int, region: Region, shifted: bool, evaluations: int, rigorous: bool = False) -> RootCount:
         obj = super().__new__(cls, count)
         object.__setattr__(obj, "region", tuple(float(v) for v in region))
         object.__setattr__(obj, "shifted", bool(shifted))
         object.__setattr__(obj, "evaluations", int(evaluations))
+        object.__setattr__(obj, "rigorous", bool(rigorous))
         return obj
+
+    @property
+    def method(self) -> str:
+        """``"ball arithmetic"`` (proven) or ``"floating point"`` (checked with a rounding allowance)."""
+        return "ball arithmetic" if self.rigorous else "floating point"
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"RootCount is immutable (cannot set {name!r})")
 
-    def __reduce__(self) -> tuple[type[RootCount], tuple[int, Region, bool, int]]:
+    def __reduce__(self) -> tuple[type[RootCount], tuple[int, Region, bool, int, bool]]:
         """Rebuild from the count and the attributes (for ``copy`` and ``pickle``)."""
-        return (type(self), (int(self), self.region, self.shifted, self.evaluations))
+        return (type(self), (int(self), self.region, self.shifted, self.evaluations, self.rigorous))
 
     def __repr__(self) -> str:
         r = ", ".join(f"{v:.12g}" for v in self.region)
-        return f"RootCount({int(self)}, region=({r}), shifted={self.shifted}, evaluations={self.evaluations})"
+        proven = ", rigorous=True" if self.rigorous else ""
+        return f"RootCount({int(self)}, region=({r}), shifted={self.shifted}, evaluations={self.evaluations}{proven})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return json_safe(
-            {"count": int(self), "region": self.region, "shifted": self.shifted, "evaluations": self.evaluations}
+            {
+                "count": int(self),
+                "region": self.region,
+                "shifted": self.shifted,
+                "evaluations": self.evaluations,
+                "rigorous": self.rigorous,
+                "method": self.method,
+            }
         )
 
 
 def _check_function(F: Any) -> QuasiPolynomial:
-    if not isinstance(F, QuasiPolynomial):
-        raise ParameterError("F", "a QuasiPolynomial", type(F).__name__)
-    if not F.point_terms and not F.distributed:
-        raise ParameterError("F", "not identically zero (every point would be a root)", F)
-    return F
+    """``F`` itself; a QuasiPolynomialMatrix (or another CharacteristicFunction) is used
+    through the members of the protocol only, which the counting engine restricts itself to."""
+    if isinstance(F, QuasiPolynomial):
+        if not F.point_terms and not F.distributed:
+            raise ParameterError("F", "not identically zero (every point would be a root)", F)
+        return F
+    if not isinstance(F, CharacteristicFunction):
+        raise ParameterError("F", "a QuasiPolynomial or QuasiPolynomialMatrix", type(F).__name__)
+    return cast(QuasiPolynomial, F)
 
 
 def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple[int, Region, bool]:
@@ -373,12 +531,21 @@ def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple
     raise AssertionError("unreachable")
 
 
-def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000_000, max_shifts: int = 4) -> RootCount:
+def count_roots(
+    F: QuasiPolynomial | CharacteristicFunction,
+    region: ArrayLike,
+    *,
+    max_evals: int = 2_000_000,
+    max_shifts: int = 4,
+    rigorous: bool = False,
+    prec: int = 53,
+) -> RootCount:
     """Certified number of roots of ``F`` (with multiplicity) in a rectangle.
 
     Parameters
     ----------
-    F : QuasiPolynomial
+    F : QuasiPolynomial or QuasiPolynomialMatrix
+        The function (a matrix stands for its determinant, never expanded).
     region : (re_min, re_max, im_min, im_max)
         The rectangle; an edge through or within rounding of a root is moved outwards
         and the rectangle actually counted is reported in the result.
@@ -386,11 +553,19 @@ def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000
         Work bound: evaluations of ``F`` and of its derivative bound.
     max_shifts : int, optional
         How many times an edge may be moved before giving up.
+    rigorous : bool, optional
+        Prove the count in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
+        every piece of the boundary is accepted only when a ball enclosure of ``F`` on the
+        whole piece misses 0, so the winding number is a theorem about ``F`` as represented
+        (:mod:`nrobust.balls`). Quasi-polynomials only.
+    prec : int, optional
+        Working precision in bits of the ball arithmetic (``rigorous=True``).
 
     Returns
     -------
     RootCount
-        An ``int`` with the attributes ``region``, ``shifted`` and ``evaluations``.
+        An ``int`` with the attributes ``region``, ``shifted``, ``evaluations`` and
+        ``rigorous``.
 
     Raises
     ------
@@ -398,7 +573,10 @@ def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000
         Empty or non-finite region.
     CertificationError
         The work bound was exhausted (the message names the edge), or a root stays on an
-        edge after ``max_shifts`` shifts.
+        edge after ``max_shifts`` shifts (with ``rigorous=True``: the ball enclosures
+        cannot exclude 0 there).
+    ImportError
+        ``rigorous=True`` without python-flint.
 
     Examples
     --------
@@ -412,6 +590,9 @@ def count_roots(F: QuasiPolynomial, region: ArrayLike, *, max_evals: int = 2_000
     max_evals = positive_int("max_evals", max_evals)
     max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
     budget = _Budget(max_evals)
+    if _check_rigorous(F, rigorous):
+        n, reg, shifted = _ball_count_with_shifts(ball_function(F, prec), box, max_shifts, budget)
+        return RootCount(n, reg, shifted, budget.used, rigorous=True)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         n, reg, shifted = _count_with_shifts(_Counter(F, budget), box, max_shifts)
     return RootCount(n, reg, shifted, budget.used)

@@ -1,0 +1,800 @@
+"""``n + m`` heterodirectional hyperbolic systems with constant coefficients (the paper's open problem).
+
+The plant (paper, Section 5, "Systems with multiple equations")::
+
+    u_t + Lambda+ u_x = Sigma++ u + Sigma+- v,     u(t, 0) = Q v(t, 0),
+    v_t - Lambda- v_x = Sigma-+ u + Sigma-- v,     v(t, 1) = R u(t, 1) + U(t),
+
+with ``u`` in ``R^n`` (speeds ``lam_i > 0``), ``v`` in ``R^m`` (speeds ``mu_j > 0``) and a
+static boundary feedback with the same delay ``delta`` on every actuator,
+``U(t) = K u(t - delta, 1)``.
+
+**Laplace route.** With ``w = (u, v)`` and ``Lambda = diag(lam, -mu)``, the Laplace
+transform in ``t`` (zero initial data) is the ODE ``w_x = Lambda^{-1} (Sigma - s I) w``, so
+``w(1) = Phi(s) w(0)``, ``Phi(s) = exp(Lambda^{-1} (Sigma - s I))``. The distal condition
+gives ``w(0) = [Q; I] v(0)``, hence ``u(1) = Phi_u(s) v(0)``, ``v(1) = Phi_v(s) v(0)`` with
+``[Phi_u; Phi_v] = Phi(s) [Q; I]``, and the proximal condition with the delayed feedback
+gives the closed-loop characteristic equation
+
+    det( E(s) (Phi_v(s) - (R + K e^{-delta s}) Phi_u(s)) ) = 0,   E(s) = diag(e^{-s/mu_j}),
+
+the scaling ``E`` keeping the function bounded on vertical lines. It is a *matrix*
+neutral equation; for one actuator (``m = 1``) it is scalar,
+``F(s; delta) = A(s) + B(s) e^{-delta s}`` with ``A = e^{-s/mu} (Phi_v - R Phi_u)`` and
+``B = -e^{-s/mu} K Phi_u``: the form of the paper's Section 3, with ``A`` and ``B`` entire
+functions given by a matrix exponential instead of kernels.
+
+**Principal part.** Couplings between components of different speeds contribute
+``O(1/|s|)`` on vertical lines; the couplings inside a group of equal (signed) speed and
+the diagonal ones scale the point terms. With ``U_a = exp(Sigma_aa / lam_a)`` on a group
+``a`` of ``u`` and ``V_b = exp(-Sigma_bb / mu_b)`` on a group ``b`` of ``v``, the principal
+part is the matrix difference operator
+
+    D(s) = I - sum_{a, b} P_b V^{-1} (R + K e^{-delta s}) P_a U_a Q e^{-(1/lam_a + 1/mu_b) s}
+
+(``P`` the projections on the groups): for ``delta -> 0`` the delays ``tau_ab`` and
+``tau_ab + delta`` separate, and delay-robustness needs ``gamma_0 < 1`` with the
+coefficients of ``R + K`` and ``K`` counted apart (Hale and Verduyn Lunel). For ``m = 1``
+and a full cancellation ``K = -R``, ``gamma_0 = 2 sum_a |R_a U_a Q_a| / |V|``: the
+cancellation the paper warns against.
+
+**Certified counts.** :class:`NPlusMCharacteristic` is a
+:class:`~nrobust.qpmatrix.CharacteristicFunction` for any ``m``: row ``j`` of the loop
+matrix is ``l_j(s)^T G_j(s) W`` with ``G_j(s) = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
+``C = Lambda^{-1} Sigma``, ``P_j = Lambda^{-1} + I/mu_j`` diagonal,
+``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and ``W = [Q; I]``. Every derivative of
+``exp(C - s P)`` obeys ``||G^{(k)}(s)|| <= ||P||^k e^{beta(Re s)}`` (Dyson's expansion),
+``beta(x) = lambda_max(Herm(C) - x P)`` the logarithmic 2-norm, convex in ``x``; Jacobi's
+formula and Hadamard's inequality turn the row bounds into the bounds of ``|F'|`` and
+``|F''|`` on a segment that the step rule of :mod:`nrobust.roots.winding` needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import expm
+from scipy.optimize import brentq
+from scipy.sparse import csr_matrix
+
+from .._json import fields_dict
+from .._validate import nonnegative, positive, positive_int, real_array
+from ..difference import DifferenceOperator
+from ..errors import ParameterError
+from ..matrix_difference import MatrixDifferenceOperator
+from ..qpmatrix import QuasiPolynomialMatrix
+from ..quasipoly import QuasiPolynomial
+from ..roots import spectral_abscissa
+from .system import Hyperbolic2x2
+
+__all__ = [
+    "CancellationCase",
+    "NPlusMCharacteristic",
+    "NPlusMMargin",
+    "NPlusMSimulation",
+    "NPlusMSystem",
+    "cancellation_study",
+    "nplusm_delay_margin",
+    "simulate_nplusm",
+]
+
+# Rounding scale of F(s) relative to ||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||): the
+# error of a scaling-and-squaring matrix exponential grows with the norm of its argument.
+_EXPM_ROUNDING = 16.0
+# Frequency grid of the crossing search: points per unit of w times the longest delay.
+_GRID_PER_PERIOD = 32
+
+
+def _matrix(name: str, value: Any, shape: tuple[int, int]) -> NDArray[np.float64]:
+    a = real_array(name, value, ndim=None)
+    if a.shape != shape:
+        raise ParameterError(name, f"a real matrix of shape {shape}", a.shape)
+    return a
+
+
+def _groups(speeds: NDArray[np.float64]) -> list[NDArray[np.intp]]:
+    """Indices of the components sharing each distinct speed."""
+    return [np.flatnonzero(speeds == v) for v in np.unique(speeds)]
+
+
+@dataclass(frozen=True, eq=False)
+class NPlusMSystem:
+    """``u_t + Lambda+ u_x = Sigma++ u + Sigma+- v``, ``v_t - Lambda- v_x = Sigma-+ u + Sigma-- v``.
+
+    Parameters
+    ----------
+    lam : array_like, shape (n,)
+        Speeds ``> 0`` of ``u`` (rightward).
+    mu : array_like, shape (m,)
+        Speeds ``> 0`` of ``v`` (leftward).
+    sigma : array_like, shape (n + m, n + m)
+        Constant couplings ``[[Sigma++, Sigma+-], [Sigma-+, Sigma--]]``.
+    q : array_like, shape (n, m)
+        Distal reflection: ``u(t, 0) = Q v(t, 0)``.
+    r : array_like, shape (m, n)
+        Proximal reflection: ``v(t, 1) = R u(t, 1) + U(t)``.
+
+    Examples
+    --------
+    >>> sys = NPlusMSystem([1.0], [1.0], [[0.0, 1.0], [1.0, 0.0]], [[1.0]], [[0.85]])
+    >>> sys.n, sys.m
+    (1, 1)
+    """
+
+    lam: NDArray[np.float64]
+    mu: NDArray[np.float64]
+    sigma: NDArray[np.float64]
+    q: NDArray[np.float64]
+    r: NDArray[np.float64]
+
+    def __init__(self, lam: ArrayLike, mu: ArrayLike, sigma: ArrayLike, q: ArrayLike, r: ArrayLike) -> None:
+        la = real_array("lam", lam)
+        mu_ = real_array("mu", mu)
+        if np.any(la <= 0):
+            raise ParameterError("lam", "speeds > 0", lam)
+        if np.any(mu_ <= 0):
+            raise ParameterError("mu", "speeds > 0", mu)
+        n, m = la.size, mu_.size
+        object.__setattr__(self, "lam", la)
+        object.__setattr__(self, "mu", mu_)
+        object.__setattr__(self, "sigma", _matrix("sigma", sigma, (n + m, n + m)))
+        object.__setattr__(self, "q", _matrix("q", q, (n, m)))
+        object.__setattr__(self, "r", _matrix("r", r, (m, n)))
+
+    @classmethod
+    def from_2x2(cls, system: Hyperbolic2x2) -> NPlusMSystem:
+        """The ``1 + 1`` form of a 2x2 plant with constant couplings (eqs. (18)-(20))."""
+        if not system.constant_couplings:
+            raise ParameterError("system", "constant couplings (the n+m route is for constant coefficients)", system)
+        s_pm, s_mp = float(system.sigma_pm), float(system.sigma_mp)  # type: ignore[arg-type]
+        return cls([system.lam], [system.mu], [[0.0, s_pm], [s_mp, 0.0]], [[system.q]], [[system.rho]])
+
+    @property
+    def n(self) -> int:
+        """Number of rightward components ``u``."""
+        return int(self.lam.size)
+
+    @property
+    def m(self) -> int:
+        """Number of leftward components ``v`` (actuated ones)."""
+        return int(self.mu.size)
+
+    @property
+    def signed_speeds(self) -> NDArray[np.float64]:
+        """``diag(Lambda) = (lam, -mu)``."""
+        return np.concatenate([self.lam, -self.mu])
+
+    def gain(self, K: ArrayLike | None) -> NDArray[np.float64]:
+        """The feedback gain ``K`` (``m x n``; None is the open loop ``K = 0``), validated."""
+        if K is None:
+            return np.zeros((self.m, self.n))
+        k = real_array("K", K, ndim=None)
+        if k.size == self.m * self.n and k.ndim <= 2 and (k.ndim < 2 or k.shape == (self.m, self.n)):
+            return k.reshape(self.m, self.n)
+        raise ParameterError("K", f"a real gain of shape ({self.m}, {self.n})", k.shape)
+
+    # ------------------------------------------------------------------ Laplace route
+    def transition(self, s: ArrayLike, shift: float = 0.0) -> NDArray[np.complex128]:
+        """``e^{-shift s} Phi(s) = exp(Lambda^{-1} (Sigma - s I) - shift s I)``, shape ``s.shape + (n+m, n+m)``."""
+        s = np.asarray(s, dtype=complex)
+        inv = 1.0 / self.signed_speeds
+        c = inv[:, None] * self.sigma
+        a = c[None] - s.reshape(-1)[:, None, None] * np.diag(inv + shift)[None]
+        return np.asarray(expm(a), dtype=complex).reshape(*s.shape, self.n + self.m, self.n + self.m)
+
+    def loop_matrix(self, s: ArrayLike, K: ArrayLike | None = None, delta: float = 0.0) -> NDArray[np.complex128]:
+        """``E(s) (Phi_v - (R + K e^{-delta s}) Phi_u)``: the ``m x m`` closed-loop matrix at ``s``."""
+        s = np.asarray(s, dtype=complex)
+        k = self.gain(K)
+        delta = nonnegative("delta", delta)
+        g = self.transition(s)
+        w0 = np.vstack([self.q, np.eye(self.m)])
+        phi = g @ w0
+        phi_u, phi_v = phi[..., : self.n, :], phi[..., self.n :, :]
+        gain = self.r[None] + np.exp(-delta * s.reshape(-1))[:, None, None] * k[None]
+        gain = gain.reshape(*s.shape, self.m, self.n)
+        scale = np.exp(-s[..., None] / self.mu)[..., :, None]
+        return np.asarray(scale * (phi_v - gain @ phi_u), dtype=complex)
+
+    def characteristic_value(
+        self, s: ArrayLike, K: ArrayLike | None = None, delta: float = 0.0
+    ) -> NDArray[np.complex128]:
+        """``det`` of :meth:`loop_matrix`: the closed-loop characteristic function at ``s``."""
+        return np.asarray(np.linalg.det(self.loop_matrix(s, K, delta)), dtype=complex)
+
+    def principal_terms(self, K: ArrayLike | None = None) -> tuple[NDArray, list[tuple[float, NDArray, NDArray]]]:
+        """``(V, [(tau_ab, P_b R P_a U_a Q, P_b K P_a U_a Q), ...])``: the point terms of the loop.
+
+        ``E(s) (Phi_v - (R + K e^{-delta s}) Phi_u) = V - sum (R_ab + K_ab e^{-delta s})
+        e^{-tau_ab s} + O(1/|s|)`` on vertical lines (module notes).
+        """
+        k = self.gain(K)
+        sig, n = self.sigma, self.n
+        u_block = np.zeros((n, n))
+        for g in _groups(self.lam):
+            u_block[np.ix_(g, g)] = expm(sig[np.ix_(g, g)] / self.lam[g][0])
+        v_block = np.zeros((self.m, self.m))
+        for g in _groups(self.mu):
+            v_block[np.ix_(g, g)] = expm(-sig[np.ix_(g + n, g + n)] / self.mu[g][0])
+        terms = []
+        for ga in _groups(self.lam):
+            pa = np.zeros((n, n))
+            pa[ga, ga] = 1.0
+            for gb in _groups(self.mu):
+                pb = np.zeros((self.m, self.m))
+                pb[gb, gb] = 1.0
+                tau = float(1.0 / self.lam[ga][0] + 1.0 / self.mu[gb][0])
+                terms.append((tau, pb @ self.r @ pa @ u_block @ self.q, pb @ k @ pa @ u_block @ self.q))
+        return v_block, terms
+
+    def principal_operator(self, K: ArrayLike | None = None, delta: float = 0.0) -> MatrixDifferenceOperator:
+        """The principal part ``D(s) = I - sum_k A_k e^{-tau_k s}`` (module notes).
+
+        For ``delta > 0`` the coefficients of ``R`` (delay ``tau_ab``) and of ``K`` (delay
+        ``tau_ab + delta``) are kept apart; with ``delta = 0`` they merge into ``R + K``.
+
+        Raises
+        ------
+        ParameterError
+            ``R Q = K Q = 0`` (no chains), or more than four distinct delays.
+        """
+        delta = nonnegative("delta", delta)
+        v_block, point = self.principal_terms(K)
+        v_inv = np.linalg.inv(v_block)
+        terms: dict[float, NDArray[np.float64]] = {}
+        for tau, rq, kq in point:
+            for t, a in ((tau, rq), (tau + delta, kq)):
+                terms[t] = terms.get(t, np.zeros((self.m, self.m))) + v_inv @ a
+        delays = sorted(t for t, a in terms.items() if np.any(a != 0))
+        if not delays:
+            raise ParameterError("r", "a nonzero reflection R Q or gain K Q (else D = I has no chains)", self.r)
+        return MatrixDifferenceOperator(np.array([terms[t] for t in delays]), delays)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+class NPlusMCharacteristic:
+    """``F(s) = det(E(s) (Phi_v - (R + K e^{-delta s}) Phi_u))``: the closed loop of an ``n + m`` system.
+
+    A :class:`~nrobust.qpmatrix.CharacteristicFunction`: ``count_roots``, ``find_roots``
+    and ``spectral_abscissa`` (with a region) certify its roots. Row ``j`` of the
+    ``m x m`` matrix is ``l_j(s)^T G_j(s) W`` with ``G_j = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
+    ``P_j = Lambda^{-1} + I/mu_j`` diagonal, ``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and
+    ``W = [Q; I]``; each derivative of ``G_j`` is bounded through the logarithmic norm
+    (module notes), and the determinant through Jacobi's formula and Hadamard's
+    inequality, as for :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix`.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n), optional
+        The feedback gain (default: open loop).
+    delta : float, optional
+        The loop delay ``>= 0``, the same on every actuator.
+    """
+
+    def __init__(self, system: NPlusMSystem, K: ArrayLike | None = None, delta: float = 0.0) -> None:
+        if not isinstance(system, NPlusMSystem):
+            raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+        self.system = system
+        self.K = system.gain(K)
+        self.delta = nonnegative("delta", delta)
+        inv = 1.0 / system.signed_speeds
+        self._c = inv[:, None] * system.sigma
+        self._herm = 0.5 * (self._c + self._c.T)
+        self._p = inv[None, :] + 1.0 / system.mu[:, None]  # row j: the diagonal of P_j
+        self._w = np.vstack([system.q, np.eye(system.m)])
+        self._w_norm = float(np.linalg.norm(self._w, 2))
+        self._r_rows = np.linalg.norm(system.r, axis=1)
+        self._k_rows = np.linalg.norm(self.K, axis=1)
+        self._c_norm = float(np.linalg.norm(self._c, 2))
+
+    # ------------------------------------------------------------------ rows of the loop matrix
+    def _ell(self, j: int, s: NDArray[np.complex128]) -> tuple[NDArray, NDArray]:
+        """``l_j(s)`` and ``l_j'(s)`` as arrays of shape ``(s.size, n + m)``."""
+        sys = self.system
+        ed = np.exp(-self.delta * s)[:, None]
+        unit = np.zeros(sys.m)
+        unit[j] = 1.0
+        ell = np.concatenate([-(sys.r[j][None] + ed * self.K[j][None]), np.broadcast_to(unit, (s.size, sys.m))], axis=1)
+        dell = np.concatenate([self.delta * ed * self.K[j][None], np.zeros((s.size, sys.m))], axis=1)
+        return ell, dell
+
+    def _matrices(self, s: NDArray[np.complex128], derivative: bool) -> tuple[NDArray, NDArray | None]:
+        """The loop matrix (``(s.size, m, m)``) and, if asked, the matrix of its row derivatives."""
+        N = self.system.n + self.system.m
+        rows, drows = [], []
+        for j in range(self.system.m):
+            a = self._c[None] - s[:, None, None] * np.diag(self._p[j])[None]
+            ell, dell = self._ell(j, s)
+            if not derivative:
+                g = expm(a)
+                rows.append(np.einsum("ni,nij,jk->nk", ell, g, self._w))
+                continue
+            big = np.zeros((s.size, 2 * N, 2 * N), dtype=complex)
+            big[:, :N, :N] = a
+            big[:, N:, N:] = a
+            big[:, :N, N:] = -np.diag(self._p[j])  # exp([[A, -P], [0, A]]) = [[G, G'], [0, G]] (Van Loan)
+            e = expm(big)
+            g, dg = e[:, :N, :N], e[:, :N, N:]
+            rows.append(np.einsum("ni,nij,jk->nk", ell, g, self._w))
+            drows.append(np.einsum("ni,nij,jk->nk", dell, g, self._w) + np.einsum("ni,nij,jk->nk", ell, dg, self._w))
+        return np.stack(rows, axis=1), (np.stack(drows, axis=1) if derivative else None)
+
+    # ------------------------------------------------------------------ protocol
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        s = np.asarray(s, dtype=complex)
+        m, _ = self._matrices(s.reshape(-1), derivative=False)
+        return np.asarray(np.linalg.det(m), dtype=complex).reshape(s.shape)
+
+    def factors(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``A(s)`` and ``B(s)`` of ``F = A + B e^{-delta s}`` (one actuator)."""
+        sys = self.system
+        if sys.m != 1:
+            raise ParameterError("system", "one actuator (m = 1) for the factors A, B", sys.m)
+        s = np.asarray(s, dtype=complex)
+        g = sys.transition(s, shift=1.0 / float(sys.mu[0]))
+        col = g @ self._w[:, 0]
+        phi_u, phi_v = col[..., : sys.n], col[..., sys.n]
+        return phi_v - phi_u @ sys.r[0], -(phi_u @ self.K[0])
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``F'(s)``: Jacobi's formula on the rows, ``G_j'`` from Van Loan's block exponential."""
+        s = np.asarray(s, dtype=complex)
+        m, dm = self._matrices(s.reshape(-1), derivative=True)
+        assert dm is not None
+        out = np.zeros(m.shape[0], dtype=complex)
+        for i in range(self.system.m):
+            mi = m.copy()
+            mi[:, i, :] = dm[:, i, :]
+            out += np.linalg.det(mi)
+        return out.reshape(s.shape)
+
+    def _beta(self, j: int, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``lambda_max(Herm(C) - x P_j)`` (plus rounding), the logarithmic norm of ``C - s P_j``."""
+        xs, inv = np.unique(x, return_inverse=True)
+        mats = self._herm[None] - xs[:, None, None] * np.diag(self._p[j])[None]
+        top = np.linalg.eigvalsh(mats)[:, -1]
+        slack = 1e-12 * (1.0 + self._c_norm + np.abs(xs) * float(np.abs(self._p[j]).max()))
+        return (top + slack)[inv.reshape(x.shape)]
+
+    def _row_bounds(self, a: ArrayLike, b: ArrayLike) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Bounds of the row norms of the loop matrix and of its first two derivatives on segments,
+        and the rounding scales ``l_j e^{beta_j} ||W||``: arrays of shape ``a.shape + (m,)``."""
+        a = np.asarray(a, dtype=complex)
+        b = np.asarray(b, dtype=complex)
+        xmin = np.minimum(a.real, b.real)
+        r0, r1, r2 = [], [], []
+        for j in range(self.system.m):
+            g = np.exp(np.maximum(self._beta(j, a.real), self._beta(j, b.real))) * self._w_norm  # convex in x
+            ek = self._k_rows[j] * np.exp(-self.delta * xmin)
+            ell = np.sqrt((self._r_rows[j] + ek) ** 2 + 1.0)
+            p, d = float(np.abs(self._p[j]).max()), self.delta
+            r0.append(ell * g)
+            r1.append((d * ek + ell * p) * g)
+            r2.append((d * d * ek + 2 * d * ek * p + ell * p * p) * g)
+        slack = 1.0 + 1e-12
+        return np.stack(r0, -1) * slack, np.stack(r1, -1) * slack, np.stack(r2, -1) * slack, np.stack(r0, -1)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """``|F'| <= sum_i ||row_i'|| prod_{k != i} ||row_k||`` on each segment (module notes)."""
+        r0, r1, _, _ = self._row_bounds(a, b)
+        m = self.system.m
+        return np.asarray(sum(r1[..., i] * _prod_except(r0, [i]) for i in range(m)), dtype=float)
+
+    def second_deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Bound of ``|F''|`` on each segment.
+
+        ``sum_i ||row_i''|| prod_{k != i} ||row_k|| + sum_{i != k} ||row_i'|| ||row_k'|| prod_{l != i, k} ||row_l||``.
+        """
+        r0, r1, r2, _ = self._row_bounds(a, b)
+        m = self.system.m
+        out = sum(r2[..., i] * _prod_except(r0, [i]) for i in range(m))
+        for i in range(m):
+            for k in range(m):
+                if i != k:
+                    out = out + r1[..., i] * r1[..., k] * _prod_except(r0, [i, k])
+        return np.asarray(out, dtype=float)
+
+    def derivative(self) -> _CharacteristicDerivative:
+        """``F'`` with the bound of ``|F''|`` (the order-2 step rule)."""
+        return _CharacteristicDerivative(self)
+
+    def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
+        """Rounding scale ``m 2^(m-1) prod_j 16 ||l_j|| e^{beta_j} ||W|| (1 + ||C|| + |s| ||P_j||)`` of ``F(s)``."""
+        s = np.asarray(s, dtype=complex)
+        _, _, _, scale = self._row_bounds(s, s)
+        m = self.system.m
+        growth = 1.0 + self._c_norm + np.abs(s)[..., None] * np.abs(self._p).max(axis=1)
+        return np.asarray(m * 2.0 ** (m - 1) * np.prod(_EXPM_ROUNDING * scale * growth, axis=-1), dtype=float)
+
+    def principal_part(self) -> DifferenceOperator:
+        """The principal part of ``F``: ``det(V - sum (R_ab + K_ab e^{-delta s}) e^{-tau_ab s})`` (module notes)."""
+        v_block, point = self.system.principal_terms(self.K)
+        m = self.system.m
+        entries = []
+        for j in range(m):
+            row = []
+            for k in range(m):
+                coefs, delays = [[float(v_block[j, k])]], [0.0]
+                for tau, rq, kq in point:
+                    coefs += [[-float(rq[j, k])], [-float(kq[j, k])]]
+                    delays += [tau, tau + self.delta]
+                row.append(QuasiPolynomial(coefs, delays))
+            entries.append(row)
+        return QuasiPolynomialMatrix(entries).point_determinant().principal_part()
+
+    @property
+    def kind(self) -> str:
+        """``"neutral"`` when the principal part has a delayed term (chains of roots), else ``"retarded"``."""
+        return "neutral" if self.principal_part().coefs.size > 1 else "retarded"
+
+    @property
+    def is_real(self) -> bool:
+        """True: real coefficients, roots in conjugate pairs."""
+        return True
+
+    @property
+    def max_delay(self) -> float:
+        """Longest round trip ``1/lam_i + 1/mu_j`` plus the loop delay."""
+        return float(np.max(1.0 / self.system.lam) + np.max(1.0 / self.system.mu) + self.delta)
+
+
+class _CharacteristicDerivative:
+    """``F'`` of an :class:`NPlusMCharacteristic` for the order-2 step rule."""
+
+    def __init__(self, F: NPlusMCharacteristic) -> None:
+        self.F = F
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        return self.F.deriv_at(s)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        return self.F.second_deriv_bound(a, b)
+
+
+def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:
+    """Product over the last axis of ``x`` leaving out the indices ``skip``."""
+    keep = [j for j in range(x.shape[-1]) if j not in skip]
+    return np.prod(x[..., keep], axis=-1)
+
+
+# ====================================================================== delay margin (m = 1)
+@dataclass(frozen=True)
+class NPlusMMargin:
+    """The smallest loop delay that puts a root of a one-actuator ``n + 1`` loop on the axis.
+
+    Attributes
+    ----------
+    margin : float
+        ``0`` when the principal part with the delay is not strongly stable
+        (``gamma_0 >= 1``: arbitrarily small delays destabilise), ``inf`` when no crossing
+        frequency was found below ``frequency_bound``, else the smallest
+        ``(arg(-B/A)(i w) mod 2 pi) / w`` over the crossing frequencies.
+    omega : float or None
+        The crossing frequency of ``margin``.
+    crossings : tuple of (float, float)
+        Every crossing frequency ``w > 0`` found with its first delay.
+    gamma_0 : float
+        ``sum |R_a U_a Q_a| / |V| + sum |K_a U_a Q_a| / |V|`` of the delayed principal part
+        (exact for one actuator).
+    frequency_bound : float
+        The search ran on ``(0, frequency_bound]``.
+    certified : bool
+        False: the frequency bound rests on the sampled decay ``w |F - F_principal|`` of the
+        coupling terms and the crossings on a grid refined by Brent's method, not on proven
+        bounds (the strong-stability decision ``gamma_0 < 1`` is exact).
+    """
+
+    margin: float
+    omega: float | None
+    crossings: tuple[tuple[float, float], ...]
+    gamma_0: float
+    frequency_bound: float
+    certified: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
+    """Delay margin of ``U(t) = K u(t - delta, 1)`` on a one-actuator ``n + 1`` system.
+
+    ``F(s; delta) = A(s) + B(s) e^{-delta s}`` (module notes): a root reaches ``s = i w``
+    only where ``g(w) = |A(i w)|^2 - |B(i w)|^2`` vanishes, at the delays
+    ``(arg(-B/A) mod 2 pi + 2 pi k) / w``. Above the frequency bound the principal parts
+    dominate, ``| |A| - |B| | >= |V| (1 - gamma_0) - |F - F_principal|``, so the search runs
+    on a grid of ``(0, W]`` with ``W`` where the coupling remainder, sampled and fitted as
+    ``c / w``, is below a quarter of that gap.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+        With ``m = 1``; the loop with ``K`` and no delay should be stable (the margin is
+        then the delay margin).
+    K : array_like, shape (1, n)
+        The gain.
+    max_points : int, optional
+        Work bound on the frequency grid, checked before it is allocated.
+
+    Returns
+    -------
+    NPlusMMargin
+    """
+    F = NPlusMCharacteristic(system, K, 0.0)
+    if system.m != 1:
+        raise ParameterError("system", "one actuator (m = 1): the loop is then A + B e^{-delta s}", system.m)
+    max_points = positive_int("max_points", max_points)
+    v_block, point = system.principal_terms(F.K)
+    v = float(v_block[0, 0])
+    rho = np.array([float(rq[0, 0]) for _, rq, _ in point])
+    kap = np.array([float(kq[0, 0]) for _, _, kq in point])
+    taus = np.array([tau for tau, _, _ in point])
+    gamma = float((np.sum(np.abs(rho)) + np.sum(np.abs(kap))) / abs(v))
+    if gamma >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
+    gap = abs(v) * (1.0 - gamma)
+
+    def remainder(w: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = 1j * w
+        a, b = F.factors(s)
+        e = np.exp(-np.outer(s, taus))
+        return np.asarray(np.abs(a - (v - e @ rho)) + np.abs(b + e @ kap), dtype=float)
+
+    w1 = 8.0 * np.pi / float(np.min(taus))
+    probe = w1 * np.geomspace(1.0, 32.0, 257)
+    c = float(np.max(probe * remainder(probe)))
+    W = max(w1, 4.0 * c / gap)
+    step = 2.0 * np.pi / (_GRID_PER_PERIOD * float(np.max(taus)))
+    count = int(np.ceil(W / step)) + 1
+    if count > max_points:
+        raise ParameterError("max_points", f">= {count} (the frequency grid up to W = {W:.6g})", max_points)
+    w = np.linspace(step * 1e-3, W, count)
+
+    def g(x: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        a, b = F.factors(1j * np.atleast_1d(np.asarray(x, dtype=float)))
+        return np.asarray(np.abs(a) ** 2 - np.abs(b) ** 2, dtype=float)
+
+    gw = g(w)
+    found: list[tuple[float, float]] = []
+    for i in np.flatnonzero(np.sign(gw[:-1]) * np.sign(gw[1:]) <= 0):
+        wc = float(brentq(lambda x: float(g(x)[0]), w[i], w[i + 1], xtol=1e-14, rtol=1e-14))
+        a, b = F.factors(np.array([1j * wc]))
+        found.append((wc, float(np.mod(np.angle(-b[0] / a[0]), 2 * np.pi) / wc)))
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, W, False)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, False)
+
+
+# ====================================================================== simulation
+def _coupling_operator(sigma: NDArray[np.float64], xs: list[NDArray[np.float64]], off: NDArray[np.intp]) -> Any:
+    """Sparse map of the stacked grid values to ``Sigma w`` on every grid (linear interpolation between grids)."""
+    rows, cols, vals = [], [], []
+    for i, xi in enumerate(xs):
+        for j, xj in enumerate(xs):
+            if sigma[i, j] == 0:
+                continue
+            nj = xj.size - 1
+            pos = np.minimum(np.floor(xi * nj).astype(int), nj - 1)
+            frac = xi * nj - pos
+            node = np.arange(xi.size) + off[i]
+            rows += [node, node]
+            cols += [pos + off[j], pos + 1 + off[j]]
+            vals += [sigma[i, j] * (1 - frac), sigma[i, j] * frac]
+    size = int(off[-1])
+    if not rows:
+        return csr_matrix((size, size))
+    return csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
+
+
+@dataclass(frozen=True, eq=False)
+class NPlusMSimulation:
+    """Result of :func:`simulate_nplusm`.
+
+    Attributes
+    ----------
+    times : ndarray
+        Sampled times ``j dt``.
+    norm : ndarray
+        ``||w(t)||_{L2}`` (trapezoidal rule on each component's grid).
+    dt : float
+        Time step (one cell per step for every component).
+    cells : tuple of int
+        Cells of each component's grid (``round(1 / (c_i dt))`` for speed ``c_i``).
+    """
+
+    times: NDArray[np.float64]
+    norm: NDArray[np.float64]
+    dt: float
+    cells: tuple[int, ...]
+
+    def growth_rate(self, t_start: float | None = None) -> float:
+        """Slope of ``log ||w||`` fitted by least squares on ``[t_start, t_end]`` (default: the second half)."""
+        t0 = self.times[-1] / 2 if t_start is None else nonnegative("t_start", t_start)
+        keep = (self.times >= t0) & (self.norm > 0)
+        return float(np.polyfit(self.times[keep], np.log(self.norm[keep]), 1)[0])
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def simulate_nplusm(
+    system: NPlusMSystem,
+    K: ArrayLike | None,
+    delta: float,
+    t_end: float,
+    w0: Any,
+    cells: int = 200,
+    *,
+    max_updates: int = 200_000_000,
+) -> NPlusMSimulation:
+    """Simulate the ``n + m`` system under ``U(t) = K u(t - delta, 1)`` (``U = 0`` for ``t < delta``).
+
+    Each component lives on its own grid of ``N_i = round(1 / (c_i dt))`` cells with
+    ``dt = 1 / (cells max c_i)``, so that one time step moves it exactly one cell along
+    its characteristic (CFL 1 per speed; the transport times ``1/c_i`` are rounded to
+    multiples of ``dt``). The couplings are integrated along the characteristics by
+    Heun's method (second order), reading the other components by linear interpolation
+    between the grids; the boundary conditions close each step, the delayed output
+    ``u(t - delta, 1)`` is interpolated linearly in the stored history.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like or None
+        The gain (``m x n``; None for the open loop).
+    delta : float
+        Loop delay ``>= 0``.
+    t_end : float
+        Final time ``> 0``.
+    w0 : callable
+        ``w0(x)`` returns the ``n + m`` initial profiles as an array of shape ``(n + m, x.size)``.
+    cells : int, optional
+        Cells of the fastest component.
+    max_updates : int, optional
+        Work bound on node updates, checked before allocating.
+
+    Returns
+    -------
+    NPlusMSimulation
+    """
+    k = system.gain(K)
+    delta = nonnegative("delta", delta)
+    t_end = positive("t_end", t_end)
+    cells = positive_int("cells", cells, minimum=4)
+    max_updates = positive_int("max_updates", max_updates)
+    if not callable(w0):
+        raise ParameterError("w0", "a callable x -> array of shape (n + m, x.size)", w0)
+    speeds = np.abs(system.signed_speeds)
+    dt = 1.0 / (cells * float(speeds.max()))
+    ncell = [max(1, round(1.0 / (c * dt))) for c in speeds]
+    steps = int(np.ceil(t_end / dt - 1e-9))
+    if steps * (sum(ncell) + len(ncell)) > max_updates:
+        raise ParameterError("max_updates", f">= {steps * (sum(ncell) + len(ncell))} (steps x nodes)", max_updates)
+    xs = [np.linspace(0.0, 1.0, nc + 1) for nc in ncell]
+    off = np.cumsum([0] + [x.size for x in xs])
+    state = np.empty(int(off[-1]))
+    for i, x in enumerate(xs):
+        prof = np.asarray(w0(x), dtype=float)
+        if prof.shape != (system.n + system.m, x.size) or not np.all(np.isfinite(prof)):
+            raise ParameterError("w0", f"finite profiles of shape ({system.n + system.m}, x.size)", prof.shape)
+        state[off[i] : off[i + 1]] = prof[i]
+    n = system.n
+    coupling = _coupling_operator(system.sigma, xs, off)
+    # one cell per step along each characteristic: rightward u, leftward v
+    dest = np.concatenate(
+        [np.arange(off[i] + 1, off[i + 1]) if i < n else np.arange(off[i], off[i + 1] - 1) for i in range(len(xs))]
+    )
+    src = np.concatenate(
+        [np.arange(off[i], off[i + 1] - 1) if i < n else np.arange(off[i] + 1, off[i + 1]) for i in range(len(xs))]
+    )
+    u_in, u_out = off[:n], off[1 : n + 1] - 1  # u(0), u(1)
+    v_in, v_out = off[n + 1 :] - 1, off[n:-1]  # v(1), v(0)
+    weights = np.concatenate([np.full(x.size, 1.0 / (x.size - 1)) * np.r_[0.5, np.ones(x.size - 2), 0.5] for x in xs])
+    lag = delta / dt
+    hist = np.zeros((steps + 1, n))
+    hist[0] = state[u_out]
+
+    def delayed(j: int) -> NDArray[np.float64]:
+        """``u(t_j - delta, 1)`` (zero before the start), linear in the history."""
+        tj = j - lag
+        if tj < 0:
+            return np.zeros(n)
+        lo = int(np.floor(tj))
+        frac = tj - lo
+        return hist[lo] if frac == 0 or lo + 1 > j else (1 - frac) * hist[lo] + frac * hist[lo + 1]
+
+    def close(w: NDArray[np.float64], j: int) -> None:
+        w[u_in] = system.q @ w[v_out]
+        hist[j] = w[u_out]
+        w[v_in] = system.r @ hist[j] + k @ delayed(j)
+
+    norms = np.empty(steps + 1)
+    norms[0] = np.sqrt(weights @ state**2)
+    pred = np.empty_like(state)
+    for j in range(1, steps + 1):
+        s_old = coupling @ state
+        pred[dest] = state[src] + dt * s_old[src]
+        close(pred, j)
+        s_new = coupling @ pred
+        new = np.empty_like(state)
+        new[dest] = state[src] + 0.5 * dt * (s_old[src] + s_new[dest])
+        close(new, j)
+        state = new
+        norms[j] = np.sqrt(weights @ state**2)
+    return NPlusMSimulation(np.arange(steps + 1, dtype=float) * dt, norms, dt, tuple(ncell))
+
+
+# ====================================================================== cancellation study (m = 1)
+@dataclass(frozen=True)
+class CancellationCase:
+    """One static feedback ``K = -diag(c) R`` cancelling a fraction ``c_i`` of each reflection ``R_i``.
+
+    Attributes
+    ----------
+    fractions : tuple of float
+        ``c_i``: 0 keeps the reflection of ``u_i``, 1 cancels it.
+    gain : tuple of float
+        ``K = -(c_i R_i)``.
+    gamma_0 : float
+        Of the delayed principal part: delay-robust iff below 1.
+    abscissa : float
+        Spectral abscissa of the delay-free loop in ``region`` (the rightmost root, or the
+        chain value of the principal part when larger).
+    abscissa_certified : bool
+        Every root of ``region`` was found.
+    margin : NPlusMMargin
+        The delay margin search.
+    """
+
+    fractions: tuple[float, ...]
+    gain: tuple[float, ...]
+    gamma_0: float
+    abscissa: float
+    abscissa_certified: bool
+    margin: NPlusMMargin
+
+    @property
+    def robust(self) -> bool:
+        """True if the delay-free loop is stable in ``region`` and the margin is positive."""
+        return self.abscissa < 0 and self.margin.margin > 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return {**fields_dict(self), "robust": self.robust}
+
+
+def cancellation_study(
+    system: NPlusMSystem, cancellations: Any, region: tuple[float, float, float, float]
+) -> tuple[CancellationCase, ...]:
+    """Delay robustness of the partial cancellations ``K = -diag(c) R`` of a one-actuator system.
+
+    For each row ``c`` of ``cancellations`` (one fraction per ``u`` component): the exact
+    ``gamma_0`` of the principal part with a loop delay, the certified spectral abscissa
+    of the delay-free loop in ``region`` (:func:`~nrobust.roots.spectral_abscissa` on
+    :class:`NPlusMCharacteristic`) and :func:`nplusm_delay_margin`. The paper's
+    conclusion (Section 5) is that cancelling every reflection (finite-time convergence)
+    is not delay-robust: full cancellation doubles ``gamma_0``.
+    """
+    if system.m != 1:
+        raise ParameterError("system", "one actuator (m = 1)", system.m)
+    rows = real_array("cancellations", cancellations, ndim=2)
+    if rows.shape[1] != system.n:
+        raise ParameterError("cancellations", f"rows of {system.n} fractions", rows.shape)
+    out = []
+    for c in rows:
+        K = -(c * system.r[0])[None, :] + 0.0  # + 0.0: no signed zeros in the gains
+        ab = spectral_abscissa(NPlusMCharacteristic(system, K, 0.0), region)
+        m = nplusm_delay_margin(system, K)
+        out.append(
+            CancellationCase(tuple(map(float, c)), tuple(map(float, K[0])), m.gamma_0, float(ab.value), ab.certified, m)
+        )
+    return tuple(out)

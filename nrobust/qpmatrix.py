@@ -1,0 +1,367 @@
+"""Square matrices of quasi-polynomials: the determinant as a characteristic function.
+
+A matrix neutral equation with distributed delays (the characteristic equation of an
+``n + m`` hyperbolic system, or of a state-space time-delay system) has a characteristic
+function ``det M(s)`` with quasi-polynomial entries ``M_ij``. Expanding the determinant
+multiplies distributed terms together, which the quasi-polynomial type does not
+represent, so :class:`QuasiPolynomialMatrix` never expands it:
+
+* ``det M(s)`` is computed from the evaluated entries (LU, ``numpy.linalg.det``);
+* ``(det M)'(s) = tr(adj M(s) M'(s)) = sum_i det M^{(i)}(s)`` (Jacobi's formula), with
+  ``M^{(i)}`` the matrix whose row ``i`` is replaced by the row of derivatives: ``n``
+  determinants, valid where ``M`` is singular;
+* bounds of ``|(det M)'|`` and ``|(det M)''|`` on a segment come from Hadamard's
+  inequality ``|det X| <= prod_i ||X_i||_2`` applied to the terms of Jacobi's formula,
+  with the entry bounds ``|M_ij^{(k)}| <= B^k_ij`` of :meth:`QuasiPolynomial.abs_bound`
+  (``k = 0``) and :meth:`QuasiPolynomial.deriv_bound` (``k = 1, 2``).
+
+That is the interface (:class:`CharacteristicFunction`) that the certified root counting
+of :mod:`nrobust.roots` uses, so ``count_roots``, ``find_roots`` and ``spectral_abscissa``
+take a matrix with the same guarantees as a scalar. The principal part of ``det M``
+(for chains, strong stability, the spectral abscissa) is read from the determinant of
+the point terms, expanded symbolically; it is refused when a distributed term could
+reach the highest power of ``s``.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .difference import DifferenceOperator
+from .errors import ParameterError
+from .quasipoly import QuasiPolynomial, as_quasipolynomial
+
+__all__ = ["CharacteristicFunction", "QuasiPolynomialMatrix"]
+
+# Largest matrix size: the principal part expands n! products of point parts.
+_MAX_SIZE = 8
+
+
+@runtime_checkable
+class CharacteristicFunction(Protocol):
+    """What certified root counting needs of an analytic characteristic function ``F``.
+
+    :class:`~nrobust.quasipoly.QuasiPolynomial` and :class:`QuasiPolynomialMatrix`
+    (its determinant) implement it.
+    """
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``F(s)`` on an array of complex ``s``."""
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``F'(s)``."""
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Upper bound of ``|F'|`` on each segment ``[a, b]``."""
+
+    def derivative(self) -> Any:
+        """An object whose ``deriv_bound`` bounds ``|F''|`` on segments."""
+
+    def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
+        """Scale of the rounding error of ``F(s)`` (64 eps of it is the allowance)."""
+
+    def principal_part(self) -> DifferenceOperator:
+        """The difference operator of the highest power of ``s``."""
+
+    @property
+    def kind(self) -> str:
+        """``"retarded"``, ``"neutral"`` or ``"advanced"``."""
+
+    @property
+    def is_real(self) -> bool:
+        """True if ``F`` is real on the real axis (roots in conjugate pairs)."""
+
+    @property
+    def max_delay(self) -> float:
+        """Largest delay."""
+
+
+def _point_part(q: QuasiPolynomial) -> QuasiPolynomial:
+    return QuasiPolynomial._from_parts(q.point_terms, ())
+
+
+def _degree(q: QuasiPolynomial) -> float:
+    """Highest power of ``s`` in ``q`` (point or distributed), ``-inf`` for zero."""
+    degs = [p.size - 1 for p, _ in q.point_terms] + [d.poly.size - 1 for d in q.distributed]
+    return float(max(degs)) if degs else -np.inf
+
+
+def _row_norms(bounds: NDArray[np.float64]) -> NDArray[np.float64]:
+    """2-norms of the rows of entry bounds ``(..., n, n)``: ``(..., n)``."""
+    return np.sqrt(np.sum(bounds * bounds, axis=-1))
+
+
+def _prod_except(x: NDArray[np.float64], skip: Sequence[int]) -> NDArray[np.float64]:
+    """Product over the last axis of ``x`` leaving out the indices ``skip``."""
+    keep = [j for j in range(x.shape[-1]) if j not in skip]
+    return np.prod(x[..., keep], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class QuasiPolynomialMatrix:
+    """A square matrix ``M(s)`` of quasi-polynomials, standing for ``det M(s)``.
+
+    Calling it evaluates the determinant; ``deriv_at``, ``deriv_bound``,
+    ``derivative()``, ``magnitude``, ``principal_part``, ``kind`` make it a
+    :class:`CharacteristicFunction` for :func:`~nrobust.roots.count_roots`,
+    :func:`~nrobust.roots.find_roots` and :func:`~nrobust.roots.spectral_abscissa`.
+
+    Parameters
+    ----------
+    entries : sequence of sequences
+        ``entries[i][j]``: a :class:`~nrobust.quasipoly.QuasiPolynomial` or a finite
+        number (a constant), ``n x n`` with ``1 <= n <= 8``.
+
+    Raises
+    ------
+    ParameterError
+        Not square, empty, larger than ``8 x 8``, or an entry that is neither.
+
+    Examples
+    --------
+    >>> from nrobust import QuasiPolynomial
+    >>> s = QuasiPolynomial([[0, 1]], [0])
+    >>> M = QuasiPolynomialMatrix([[s + 1, QuasiPolynomial([[1]], [1])], [0, s + 2]])
+    >>> complex(M(0.0))
+    (2+0j)
+    """
+
+    entries: tuple[tuple[QuasiPolynomial, ...], ...]
+
+    def __init__(self, entries: Sequence[Sequence[Any]]) -> None:
+        if isinstance(entries, (str, bytes)) or not isinstance(entries, Sequence | np.ndarray):
+            raise ParameterError("entries", "a square sequence of rows", entries)
+        rows = list(entries)
+        n = len(rows)
+        if not 1 <= n <= _MAX_SIZE:
+            raise ParameterError("entries", f"1 to {_MAX_SIZE} rows", n)
+        out = []
+        for i, row in enumerate(rows):
+            if isinstance(row, (str, bytes)) or not isinstance(row, Sequence | np.ndarray) or len(row) != n:
+                raise ParameterError(f"entries[{i}]", f"a row of {n} entries (a square matrix)", row)
+            out.append(tuple(as_quasipolynomial(f"entries[{i}][{j}]", e) for j, e in enumerate(row)))
+        object.__setattr__(self, "entries", tuple(out))
+
+    @classmethod
+    def diagonal(cls, entries: Sequence[Any]) -> QuasiPolynomialMatrix:
+        """The diagonal matrix with the given entries."""
+        n = len(entries)
+        return cls([[entries[i] if i == j else 0.0 for j in range(n)] for i in range(n)])
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def size(self) -> int:
+        """The order ``n`` of the matrix."""
+        return len(self.entries)
+
+    def _flat(self) -> list[QuasiPolynomial]:
+        return [e for row in self.entries for e in row]
+
+    @property
+    def is_real(self) -> bool:
+        """True if every entry is real: ``det M`` is real on the real axis."""
+        return all(e.is_real for e in self._flat())
+
+    @property
+    def max_delay(self) -> float:
+        """Largest delay of an entry."""
+        return float(max(e.max_delay for e in self._flat()))
+
+    def point_determinant(self) -> QuasiPolynomial:
+        """``det`` of the point parts of the entries, expanded (Leibniz): a quasi-polynomial."""
+        n = self.size
+        points = [[_point_part(e) for e in row] for row in self.entries]
+        total = QuasiPolynomial([[0.0]], [0.0])
+        for perm in itertools.permutations(range(n)):
+            factors = [points[i][perm[i]] for i in range(n)]
+            if any(not f.point_terms for f in factors):
+                continue
+            term = factors[0]
+            for f in factors[1:]:
+                term = term * f
+            total = total + term * float(np.linalg.det(np.eye(n)[list(perm)]))
+        return total
+
+    def expand(self) -> QuasiPolynomial:
+        """``det M`` expanded as one quasi-polynomial (Leibniz formula).
+
+        Raises
+        ------
+        ParameterError
+            A product of the expansion holds two entries with distributed terms (the
+            product of two distributed terms is not a quasi-polynomial of this type).
+        """
+        n = self.size
+        total = QuasiPolynomial([[0.0]], [0.0])
+        for perm in itertools.permutations(range(n)):
+            factors = [self.entries[i][perm[i]] for i in range(n)]
+            if any(not f.point_terms and not f.distributed for f in factors):
+                continue
+            if sum(bool(f.distributed) for f in factors) > 1:
+                raise ParameterError(
+                    "entries", "at most one entry with distributed terms in each product of det (to expand it)", perm
+                )
+            term = factors[0]
+            for f in factors[1:]:
+                term = term * f
+            total = total + term * float(np.linalg.det(np.eye(n)[list(perm)]))
+        return total
+
+    def _principal_source(self) -> QuasiPolynomial:
+        """The expanded point determinant, checked to carry the highest power of ``s`` of ``det M``.
+
+        A product of the Leibniz expansion with a distributed factor ``q(s) int N e^{-nu s}``
+        is ``O(|s|^(e - 1))`` in a vertical strip, with ``e`` the sum of the entry degrees
+        ``max(deg p, deg q)`` along the permutation (``int N e^{-nu s} = O(1/|s|)`` for
+        ``N`` of bounded variation); so if the point determinant has degree at least the
+        largest such sum, the distributed terms stay out of its principal part.
+        """
+        P = self.point_determinant()
+        if not P.point_terms:
+            raise ParameterError(
+                "entries", "a point determinant not identically zero (it defines the principal part)", 0
+            )
+        deg = np.array([[_degree(e) for e in row] for row in self.entries])
+        n = self.size
+        if any(e.distributed for e in self._flat()):
+            top = max(sum(deg[i, p[i]] for i in range(n)) for p in itertools.permutations(range(n)))
+            if P.degree < top:
+                raise ParameterError(
+                    "entries",
+                    f"a point determinant of degree >= {top:g} (the degree bound of det M): "
+                    "otherwise a distributed term may enter the principal part",
+                    P.degree,
+                )
+        return P
+
+    @property
+    def kind(self) -> str:
+        """``"retarded"``, ``"neutral"`` or ``"advanced"``: the type of ``det M``."""
+        return self._principal_source().kind
+
+    def principal_part(self) -> DifferenceOperator:
+        """Principal part of ``det M``: that of the expanded point determinant.
+
+        For a matrix difference operator ``I - sum_k A_k e^{-tau_k s}`` times ``s`` this is
+        ``det(I - sum_k A_k e^{-tau_k s})`` (Hale and Verduyn Lunel).
+        """
+        return self._principal_source().principal_part()
+
+    # ------------------------------------------------------------------ evaluation
+    def values(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """The entries ``M_ij(s)``: an array of shape ``s.shape + (n, n)``."""
+        s = np.asarray(s, dtype=complex)
+        return np.stack([np.stack([e(s) for e in row], axis=-1) for row in self.entries], axis=-2)
+
+    def _derivative_values(self, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+        return np.stack([np.stack([e.deriv_at(s) for e in row], axis=-1) for row in self.entries], axis=-2)
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``det M(s)`` on an array of complex ``s``."""
+        s = np.asarray(s, dtype=complex)
+        return np.asarray(np.linalg.det(self.values(s)), dtype=complex).reshape(s.shape)
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``(det M)'(s) = sum_i det M^{(i)}(s)`` (Jacobi's formula, row by row)."""
+        s = np.asarray(s, dtype=complex)
+        m = self.values(s)
+        dm = self._derivative_values(s)
+        out = np.zeros(s.shape, dtype=complex)
+        for i in range(self.size):
+            mi = m.copy()
+            mi[..., i, :] = dm[..., i, :]
+            out += np.linalg.det(mi)
+        return out
+
+    def _entry_bounds(self, a: NDArray, b: NDArray, order: int) -> NDArray[np.float64]:
+        """Bounds of ``|M_ij^{(order)}|`` on the segments: shape ``a.shape + (n, n)``."""
+
+        def bound(e: QuasiPolynomial) -> NDArray[np.float64]:
+            if order == 0:
+                return e.abs_bound(a, b)
+            f = e if order == 1 else e.derivative()
+            return f.deriv_bound(a, b)
+
+        return np.stack([np.stack([bound(e) for e in row], axis=-1) for row in self.entries], axis=-2)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Upper bound of ``|(det M)'|`` on each segment ``[a, b]``.
+
+        ``|(det M)'| <= sum_i ||B1_i|| prod_{k != i} ||B0_k||`` (Hadamard's inequality on each
+        term of Jacobi's formula), ``B0``, ``B1`` the entry bounds of ``|M|``, ``|M'|``
+        on the segment and ``||.||`` the 2-norm of a row.
+        """
+        a = np.asarray(a, dtype=complex)
+        b = np.asarray(b, dtype=complex)
+        r0 = _row_norms(self._entry_bounds(a, b, 0))
+        r1 = _row_norms(self._entry_bounds(a, b, 1))
+        return np.asarray(sum(r1[..., i] * _prod_except(r0, [i]) for i in range(self.size)), dtype=float)
+
+    def second_deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Upper bound of ``|(det M)''|`` on each segment ``[a, b]``.
+
+        ``(det M)'' = sum_i det M^{(ii)} + sum_{i != k} det M^{(ik)}``: row ``i`` replaced
+        by second derivatives, or rows ``i`` and ``k`` by first derivatives; each term is
+        bounded by Hadamard's inequality as in :meth:`deriv_bound`.
+        """
+        a = np.asarray(a, dtype=complex)
+        b = np.asarray(b, dtype=complex)
+        r0 = _row_norms(self._entry_bounds(a, b, 0))
+        r1 = _row_norms(self._entry_bounds(a, b, 1))
+        r2 = _row_norms(self._entry_bounds(a, b, 2))
+        n = self.size
+        out = sum(r2[..., i] * _prod_except(r0, [i]) for i in range(n))
+        for i, k in itertools.permutations(range(n), 2):
+            out = out + r1[..., i] * r1[..., k] * _prod_except(r0, [i, k])
+        return np.asarray(out, dtype=float)
+
+    def derivative(self) -> _DeterminantDerivative:
+        """``(det M)'`` as a function with a bound of its own derivative (for the order-2 step rule)."""
+        return _DeterminantDerivative(self)
+
+    def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
+        """Rounding scale of ``det M(s)``: ``n 2^(n-1) prod_i sum_j m_ij(s)``, ``m_ij`` the entry scales.
+
+        ``prod_i sum_j m_ij`` bounds the sum of the moduli of all products of the Leibniz
+        expansion; ``2^(n-1)`` is the growth factor bound of LU with partial pivoting.
+        """
+        s = np.asarray(s, dtype=complex)
+        mags = np.stack([np.stack([e.magnitude(s) for e in row], axis=-1) for row in self.entries], axis=-2)
+        n = self.size
+        return np.asarray(n * 2.0 ** (n - 1) * np.prod(np.sum(mags, axis=-1), axis=-1), dtype=float)
+
+    # ------------------------------------------------------------------ output
+    def __repr__(self) -> str:
+        rows = "; ".join(", ".join(repr(e)[len("QuasiPolynomial(") : -1] for e in row) for row in self.entries)
+        return f"QuasiPolynomialMatrix([{rows}])"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, QuasiPolynomialMatrix):
+            return NotImplemented
+        return self.entries == other.entries
+
+    def __hash__(self) -> int:
+        return hash(self.entries)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the entries as quasi-polynomials."""
+        return {"entries": [[e.to_dict() for e in row] for row in self.entries]}
+
+
+class _DeterminantDerivative:
+    """``(det M)'`` for the order-2 step rule of the root counter: values and ``|(det M)''|`` bounds."""
+
+    def __init__(self, matrix: QuasiPolynomialMatrix) -> None:
+        self.matrix = matrix
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        return self.matrix.deriv_at(s)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        return self.matrix.second_deriv_bound(a, b)

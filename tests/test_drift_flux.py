@@ -1,0 +1,58 @@
+"""The drift-flux example (2 + 1) from its TOML file through `nrobust analyze`: which cancellation is robust."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nrobust import ParameterError, spectral_abscissa
+from nrobust.analyze import run_analyze
+from nrobust.config import load_system_file
+from nrobust.hyperbolic.nplusm import NPlusMCharacteristic, nplusm_delay_margin
+
+TOML = Path(__file__).resolve().parents[1] / "examples" / "drift_flux.toml"
+
+
+def test_file_reads_the_plant() -> None:
+    spec = load_system_file(TOML)
+    assert spec["kind"] == "NPlusMSystem" and spec["system"].n == 2 and spec["system"].m == 1
+    assert len(spec["cancellations"]) == 5
+
+
+@pytest.mark.slow
+def test_analyze_full_cancellation_is_not_delay_robust(tmp_path: Path) -> None:
+    files, verdict = run_analyze(TOML, tmp_path, progress=False)
+    cases = {tuple(c["fractions"]): c for c in json.loads(files.json[0].read_text())["cases"]}
+    none, full = cases[(0.0, 0.0)], cases[(1.0, 1.0)]
+    # full cancellation doubles gamma_0 of the delayed principal part (paper, Section 5)
+    np.testing.assert_allclose(full["gamma_0"], 2 * none["gamma_0"], rtol=1e-12)
+    assert full["gamma_0"] > 1 and full["margin"]["margin"] == 0 and not full["robust"]
+    # cancelling the pressure wave's reflection alone is not robust either; the void wave's is
+    assert not cases[(1.0, 0.0)]["robust"] and cases[(0.0, 1.0)]["robust"]
+    assert "(0, 1)" in verdict and "(1, 1)" not in verdict
+    assert files.markdown.read_text().count("|") > 30 and files.html.exists()
+
+
+@pytest.mark.slow
+def test_margin_of_the_void_wave_cancellation() -> None:
+    """Certified abscissae on both sides of the margin (independent of the frequency search)."""
+    system = load_system_file(TOML)["system"]
+    K = [[0.0, -0.4]]
+    m = nplusm_delay_margin(system, K)
+    band = (-0.5, 0.5, -0.25, 3.0)
+    below = spectral_abscissa(NPlusMCharacteristic(system, K, 0.95 * m.margin), band)
+    above = spectral_abscissa(NPlusMCharacteristic(system, K, 1.05 * m.margin), band)
+    assert below.certified and above.certified and below.value < 0 < above.value
+
+
+def test_bad_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TOML.read_text().replace("[[0.0, 0.0], [1.0, 1.0]", "[[0.0], [1.0, 1.0]"))
+    with pytest.raises(ParameterError, match=r"controller\.fractions"):
+        load_system_file(bad)
+    bad.write_text(TOML.read_text().replace("mu = [1.0]", "mu = [-1.0]"))
+    with pytest.raises(ParameterError, match=r"system\.mu"):
+        load_system_file(bad)
