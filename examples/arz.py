@@ -1,11 +1,15 @@
 """Congested freeway traffic (Aw-Rascle-Zhang model) from its physics to delay margins
 ===================================================================================
 
-The ARZ model of Yu and Krstic, "Traffic congestion control for Aw-Rascle-Zhang model",
-Automatica 100 (2019): p(rho) = v_m (rho/rho_m)^gamma, V(rho) = v_m - p(rho), on a road of
-L = 500 m with v_m = 40 m/s, rho_m = 160 veh/km, gamma = 0.5, relaxation time tau = 60 s and
-the congested equilibrium rho* = 120 veh/km; constant inflow, outflow actuated at x = L
-(ramp metering). The numbers the model fixes in closed form are reproduced:
+The ARZ model as set up by Yu and Krstic, "Traffic congestion control for Aw-Rascle-Zhang
+model", Automatica 100 (2019): p(rho) = v_m (rho/rho_m)^gamma, V(rho) = v_m - p(rho),
+constant inflow, outflow actuated at x = L (ramp metering), on a road of L = 500 m with
+v_m = 40 m/s, rho_m = 160 veh/km, gamma = 0.5, relaxation time tau = 60 s and the congested
+equilibrium rho* = 120 veh/km. These values are of the kind that paper's simulation uses, but
+the paper itself could not be consulted when this example was written, so they are not
+checked against it and no figure of it is claimed to be reproduced. What is reproduced, and
+checked in tests/test_frontends.py, are the numbers the model fixes in closed form for these
+parameters:
 
 - the equilibrium velocity V(rho*) = v_m (1 - (3/4)^(1/2)) = 5.359 m/s (19.29 km/h);
 - the characteristic speeds lam_1 = v* = 5.359 m/s and lam_2 = v* - gamma p* = -11.96 m/s

@@ -15,7 +15,13 @@ actuated. The classical numbers of this channel are reproduced from their defini
 The uniform flow is then linearised, its Riemann coordinates brought to the paper's normal
 form (time in minutes, ``time_unit = 60``), and the loop analysed: the delay margin of U_BS2(K) and of the
 proportional feedback U = k xi_1(t, L) on the downstream Riemann invariant, the latter
-checked against the kernel-free Laplace route.
+checked against the kernel-free Laplace route. Last, the pool held at 3.5 m (the M1
+curve): there lam/mu varies, so no normal form exists and the margin (46.37 min for
+U = 0.6 xi_1(L)) and the certificate take the characteristic route, checked on the
+Laplace route.
+
+These are the numbers of the model's own definitions (Manning's formula, the critical
+depth, the backwater ODE); no published figure of this canal is reproduced.
 
 Run: python examples/saint_venant.py [OUT_DIR]
 """
@@ -64,7 +70,20 @@ A, B_ = laplace_loop_factors(canal.system, 0.6, 0.0, 0.0, np.array([1j * omega])
 residual = abs(A[0] + B_[0] * np.exp(-1j * omega * margin.margin))
 print(f"U = 0.6 xi_1(L): delay margin {margin.margin:.6g} min = {60 * margin.margin:.6g} s")
 print(f"|F(i w*; delta*)| by the kernel-free Laplace route: {residual:.1e}")
+
+# The same pool held at 3.5 m by the gate: the M1 profile above, lam/mu varies along the pool and no
+# normal form exists. Margin and certificate take the characteristic route (varying_delay_form),
+# checked on the kernel-free Laplace route (examples/saint_venant_backwater.toml: the same by TOML).
+pool = saint_venant(L, B, S0, Q, manning=N, downstream_depth=3.5, time_unit=60.0).system
+print(nrobust.classify(pool).statement)
+held = nrobust.delay_margin(pool, feedback)
+assert held.omega is not None
+A, B_ = laplace_loop_factors(pool, 0.6, 0.0, 0.0, np.array([1j * held.omega]), steps=2000)
+held_residual = abs(A[0] + B_[0] * np.exp(-1j * held.omega * held.margin))
+print(f"backwater pool, U = 0.6 xi_1(L): delay margin {held.margin:.6g} min (Laplace residual {held_residual:.1e})")
+print(nrobust.certify(pool, feedback, delta_max=10.0, k_region=False).verdict)
 print(f"total {time.perf_counter() - start:.2f} s")
 (out / "saint_venant.txt").write_text(
     f"h_n {hn:.9g}\nh_c {hc:.9g}\nFroude {canal.froude[0]:.9g}\nmargin_state_feedback {margin.margin:.9g}\n"
+    f"margin_backwater {held.margin:.9g}\n"
 )

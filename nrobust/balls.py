@@ -56,7 +56,9 @@ rectangles of ball arithmetic geometrically (the wrapping effect).
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from fractions import Fraction
@@ -68,9 +70,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._validate import positive_int
 from .errors import ParameterError
+from .qpmatrix import QuasiPolynomialMatrix
 from .quasipoly import DistributedDelay, QuasiPolynomial
 
 __all__ = [
+    "BallDeterminant",
     "BallQuasiPolynomial",
     "acb_box",
     "acb_to_disc",
@@ -158,10 +162,6 @@ def _as_acb(flint: ModuleType, s: Any) -> Any:
     if not (math.isfinite(z.real) and math.isfinite(z.imag)):
         raise ParameterError("s", "finite", s)
     return flint.acb(z.real, z.imag)
-
-
-def _check_derivative(derivative: Any) -> int:
-    return positive_int("derivative", derivative, minimum=0, maximum=_MAX_DERIVATIVE)
 
 
 def _falling(n: int, j: int) -> int:
@@ -297,7 +297,76 @@ def _phi_balls(flint: ModuleType, z: Any, lmax: int, prec: int) -> list[Any]:
     return out
 
 
-class BallQuasiPolynomial:
+class _BallFunction(ABC):
+    """Public evaluation shared by the compiled functions: subclasses set ``flint`` and ``prec``."""
+
+    flint: ModuleType
+    prec: int
+    max_derivative: int = _MAX_DERIVATIVE
+
+    @abstractmethod
+    def _eval(self, s: Any, k: int) -> Any:
+        """Enclosure of the ``k``-th derivative on the ``acb`` ball ``s`` (at the working precision)."""
+
+    def _order(self, derivative: Any) -> int:
+        return positive_int("derivative", derivative, minimum=0, maximum=self.max_derivative)
+
+    def __call__(self, s: Any, derivative: int = 0) -> Any:
+        """Enclosure of ``F^{(derivative)}`` over the ball ``s`` (an ``acb``, ``arb`` or number)."""
+        k = self._order(derivative)
+        with _precision(self.flint, self.prec):
+            return self._eval(_as_acb(self.flint, s), k)
+
+    def many(self, points: Iterable[Any], derivative: int = 0) -> list[Any]:
+        """Enclosures at many balls or numbers (one Python loop of python-flint calls)."""
+        k = self._order(derivative)
+        flint = self.flint
+        with _precision(flint, self.prec):
+            return [self._eval(_as_acb(flint, s), k) for s in points]
+
+    def values(self, s: ArrayLike, derivative: int = 0) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+        """Midpoints and radii as numpy arrays: ``|F^{(derivative)}(s) - mid| <= rad`` at float points ``s``.
+
+        The radius covers the ball's own radius and the rounding of its midpoint to a
+        double (see :func:`acb_to_disc`).
+        """
+        arr = np.asarray(s, dtype=complex)
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError("s", "finite complex numbers", s)
+        balls = self.many(arr.ravel().tolist(), derivative)
+        mid = np.empty(arr.size, dtype=complex)
+        rad = np.empty(arr.size)
+        for i, b in enumerate(balls):
+            mid[i], rad[i] = acb_to_disc(b)
+        return mid.reshape(arr.shape), rad.reshape(arr.shape)
+
+    def on_box(self, box: Sequence[float], derivative: int = 0, *, centered: bool = False) -> Any:
+        """Enclosure of ``F^{(derivative)}`` on the rectangle ``box = (x0, x1, y0, y1)``.
+
+        ``centered=False`` evaluates on the box ball (one evaluation). ``centered=True``
+        uses the mean-value form ``F(c) + F'(B) (B - c)`` (two evaluations), tighter when
+        the box is small against the scale on which ``F'`` varies, e.g. near a root.
+        """
+        k = self._order(derivative)
+        x0, x1, y0, y1 = (float(v) for v in box)
+        if not (x0 <= x1 and y0 <= y1) or not all(map(math.isfinite, (x0, x1, y0, y1))):
+            raise ParameterError("box", "finite (x0, x1, y0, y1) with x0 <= x1 and y0 <= y1", box)
+        flint = self.flint
+        with _precision(flint, self.prec):
+            ball = acb_box(x0, x1, y0, y1)
+            if not centered:
+                return self._eval(ball, k)
+            c = flint.acb(ball.real.mid(), ball.imag.mid())
+            return self._eval(c, k) + self._eval(ball, k + 1) * (ball - c)
+
+    def on_segment(self, a: complex, b: complex, derivative: int = 0, *, centered: bool = False) -> Any:
+        """Enclosure of ``F^{(derivative)}`` on the segment ``[a, b]`` (through its bounding box)."""
+        a, b = complex(a), complex(b)
+        box = (min(a.real, b.real), max(a.real, b.real), min(a.imag, b.imag), max(a.imag, b.imag))
+        return self.on_box(box, derivative, centered=centered)
+
+
+class BallQuasiPolynomial(_BallFunction):
     """A :class:`QuasiPolynomial` compiled for evaluation in ball arithmetic.
 
     Parameters
@@ -369,60 +438,58 @@ class BallQuasiPolynomial:
                 out += sign * math.comb(k, j) * qj(s) * dist.moment(s, dist.d.moment + k - j, cache, lmax, self.prec)
         return out
 
-    # ------------------------------------------------------------------ public evaluation
-    def __call__(self, s: Any, derivative: int = 0) -> Any:
-        """Enclosure of ``F^{(derivative)}`` over the ball ``s`` (an ``acb``, ``arb`` or number)."""
-        k = _check_derivative(derivative)
-        with _precision(self.flint, self.prec):
-            return self._eval(_as_acb(self.flint, s), k)
 
-    def many(self, points: Iterable[Any], derivative: int = 0) -> list[Any]:
-        """Enclosures at many balls or numbers (one Python loop of python-flint calls)."""
-        k = _check_derivative(derivative)
+@functools.lru_cache(maxsize=64)
+def _compositions(n: int, k: int) -> tuple[tuple[tuple[int, ...], int], ...]:
+    """``(k_1, ..., k_n)`` with ``sum k_i = k`` and their multinomial weights ``k! / (k_1! ... k_n!)``."""
+    return tuple(
+        (ks, math.factorial(k) // math.prod(math.factorial(v) for v in ks))
+        for ks in itertools.product(range(k + 1), repeat=n)
+        if sum(ks) == k
+    )
+
+
+class BallDeterminant(_BallFunction):
+    """``det M`` of a :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix` compiled for ball arithmetic.
+
+    The entries are enclosed by :class:`BallQuasiPolynomial` (each as represented) and the
+    determinant of the ``acb_mat`` of the enclosures is FLINT's (``acb_mat.det``, an
+    enclosure of the determinant of every matrix in the ball matrix). Derivatives follow
+    the generalised Jacobi formula
+    ``(det M)^{(k)} = sum_{k_1 + ... + k_n = k} k! / (k_1! ... k_n!) det M^{(k_1, ..., k_n)}``,
+    with row ``i`` of ``M^{(k_1, ..., k_n)}`` differentiated ``k_i`` times (for ``k = 1``:
+    ``sum_i det M^{(i)}``). Orders up to 4 (``C(k + n - 1, n - 1)`` determinants each).
+
+    Parameters
+    ----------
+    M : QuasiPolynomialMatrix
+    prec : int, optional
+        Working precision in bits.
+    """
+
+    max_derivative = 4
+
+    def __init__(self, M: QuasiPolynomialMatrix, prec: int = 53) -> None:
+        if not isinstance(M, QuasiPolynomialMatrix):
+            raise ParameterError("M", "a QuasiPolynomialMatrix", type(M).__name__)
+        self.M = M
+        self.prec = positive_int("prec", prec, minimum=16, maximum=4096)
+        self.flint = require_flint()
+        self._entries = [[BallQuasiPolynomial(e, self.prec) for e in row] for row in M.entries]
+
+    def _eval(self, s: Any, k: int) -> Any:
         flint = self.flint
-        with _precision(flint, self.prec):
-            return [self._eval(_as_acb(flint, s), k) for s in points]
-
-    def values(self, s: ArrayLike, derivative: int = 0) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
-        """Midpoints and radii as numpy arrays: ``|F^{(derivative)}(s) - mid| <= rad`` at float points ``s``.
-
-        The radius covers the ball's own radius and the rounding of its midpoint to a
-        double (see :func:`acb_to_disc`).
-        """
-        arr = np.asarray(s, dtype=complex)
-        if not np.all(np.isfinite(arr)):
-            raise ParameterError("s", "finite complex numbers", s)
-        balls = self.many(arr.ravel().tolist(), derivative)
-        mid = np.empty(arr.size, dtype=complex)
-        rad = np.empty(arr.size)
-        for i, b in enumerate(balls):
-            mid[i], rad[i] = acb_to_disc(b)
-        return mid.reshape(arr.shape), rad.reshape(arr.shape)
-
-    def on_box(self, box: Sequence[float], derivative: int = 0, *, centered: bool = False) -> Any:
-        """Enclosure of ``F^{(derivative)}`` on the rectangle ``box = (x0, x1, y0, y1)``.
-
-        ``centered=False`` evaluates on the box ball (one evaluation). ``centered=True``
-        uses the mean-value form ``F(c) + F'(B) (B - c)`` (two evaluations), tighter when
-        the box is small against the scale on which ``F'`` varies, e.g. near a root.
-        """
-        k = _check_derivative(derivative)
-        x0, x1, y0, y1 = (float(v) for v in box)
-        if not (x0 <= x1 and y0 <= y1) or not all(map(math.isfinite, (x0, x1, y0, y1))):
-            raise ParameterError("box", "finite (x0, x1, y0, y1) with x0 <= x1 and y0 <= y1", box)
-        flint = self.flint
-        with _precision(flint, self.prec):
-            ball = acb_box(x0, x1, y0, y1)
-            if not centered:
-                return self._eval(ball, k)
-            c = flint.acb(ball.real.mid(), ball.imag.mid())
-            return self._eval(c, k) + self._eval(ball, k + 1) * (ball - c)
-
-    def on_segment(self, a: complex, b: complex, derivative: int = 0, *, centered: bool = False) -> Any:
-        """Enclosure of ``F^{(derivative)}`` on the segment ``[a, b]`` (through its bounding box)."""
-        a, b = complex(a), complex(b)
-        box = (min(a.real, b.real), max(a.real, b.real), min(a.imag, b.imag), max(a.imag, b.imag))
-        return self.on_box(box, derivative, centered=centered)
+        n = self.M.size
+        rows: dict[tuple[int, int], list[Any]] = {}  # (row, order) -> enclosures of the row's entries
+        out = flint.acb(0)
+        for ks, weight in _compositions(n, k):
+            entries: list[Any] = []
+            for i, ki in enumerate(ks):
+                if (i, ki) not in rows:
+                    rows[(i, ki)] = [e._eval(s, ki) for e in self._entries[i]]
+                entries.extend(rows[(i, ki)])
+            out += weight * flint.acb_mat(n, n, entries).det()
+        return out
 
 
 def acb_to_disc(ball: Any) -> tuple[complex, float]:
@@ -442,17 +509,21 @@ def acb_to_disc(ball: Any) -> tuple[complex, float]:
 
 
 @functools.lru_cache(maxsize=32)
-def ball_function(F: QuasiPolynomial, prec: int = 53) -> BallQuasiPolynomial:
-    """The compiled :class:`BallQuasiPolynomial` of ``F`` (cached on ``F`` and ``prec``)."""
+def ball_function(F: QuasiPolynomial | QuasiPolynomialMatrix, prec: int = 53) -> BallQuasiPolynomial | BallDeterminant:
+    """The compiled :class:`BallQuasiPolynomial` of ``F``, or :class:`BallDeterminant` of a matrix
+    (cached on ``F`` and ``prec``)."""
+    if isinstance(F, QuasiPolynomialMatrix):
+        return BallDeterminant(F, prec)
     return BallQuasiPolynomial(F, prec)
 
 
-def ball_eval(F: QuasiPolynomial, s: Any, *, derivative: int = 0, prec: int = 53) -> Any:
+def ball_eval(F: QuasiPolynomial | QuasiPolynomialMatrix, s: Any, *, derivative: int = 0, prec: int = 53) -> Any:
     """Enclosure of ``F(s)`` (or ``F^{(derivative)}(s)``) for a ball or number ``s``.
 
     Parameters
     ----------
-    F : QuasiPolynomial
+    F : QuasiPolynomial or QuasiPolynomialMatrix
+        A matrix stands for its determinant (:class:`BallDeterminant`).
     s : acb, arb or complex
         A point or a complex ball; for a ball the result contains ``F`` of every point.
     derivative : int, optional
@@ -474,20 +545,27 @@ def ball_eval(F: QuasiPolynomial, s: Any, *, derivative: int = 0, prec: int = 53
     return ball_function(F, prec)(s, derivative)
 
 
-def ball_eval_many(F: QuasiPolynomial, points: Iterable[Any], *, derivative: int = 0, prec: int = 53) -> list[Any]:
+def ball_eval_many(
+    F: QuasiPolynomial | QuasiPolynomialMatrix, points: Iterable[Any], *, derivative: int = 0, prec: int = 53
+) -> list[Any]:
     """Enclosures of ``F^{(derivative)}`` at many balls or numbers (a list of ``acb``)."""
     return ball_function(F, prec).many(points, derivative)
 
 
 def ball_values(
-    F: QuasiPolynomial, s: ArrayLike, *, derivative: int = 0, prec: int = 53
+    F: QuasiPolynomial | QuasiPolynomialMatrix, s: ArrayLike, *, derivative: int = 0, prec: int = 53
 ) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
     """Midpoints and radii (numpy arrays) with ``|F^{(derivative)}(s) - mid| <= rad`` at float points ``s``."""
     return ball_function(F, prec).values(s, derivative)
 
 
 def enclose_box(
-    F: QuasiPolynomial, box: Sequence[float], *, derivative: int = 0, centered: bool = False, prec: int = 53
+    F: QuasiPolynomial | QuasiPolynomialMatrix,
+    box: Sequence[float],
+    *,
+    derivative: int = 0,
+    centered: bool = False,
+    prec: int = 53,
 ) -> Any:
     """Enclosure of ``F^{(derivative)}`` on the rectangle ``box = (x0, x1, y0, y1)``.
 
@@ -498,7 +576,13 @@ def enclose_box(
 
 
 def enclose_segment(
-    F: QuasiPolynomial, a: complex, b: complex, *, derivative: int = 0, centered: bool = False, prec: int = 53
+    F: QuasiPolynomial | QuasiPolynomialMatrix,
+    a: complex,
+    b: complex,
+    *,
+    derivative: int = 0,
+    centered: bool = False,
+    prec: int = 53,
 ) -> Any:
     """Enclosure of ``F^{(derivative)}`` on the segment ``[a, b]`` (see :meth:`BallQuasiPolynomial.on_box`)."""
     return ball_function(F, prec).on_segment(a, b, derivative, centered=centered)

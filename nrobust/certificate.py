@@ -40,10 +40,12 @@ from .hyperbolic.controllers import (
     classify,
     normalize,
 )
+from .hyperbolic.general import GeneralHyperbolic2x2
 from .hyperbolic.kernels import DEFAULT_KERNEL_GRID
 from .hyperbolic.robustness import rouche_delay_bound
 from .hyperbolic.studies import DEFAULT_N_GAINS, KRegion, delay_margin
 from .hyperbolic.system import Hyperbolic2x2
+from .hyperbolic.varying import DEFAULT_CHARACTERISTIC_GRID
 from .margins import DelayMargin
 from .quasipoly import QuasiPolynomial
 from .roots import RootSet, SpectralAbscissa, count_roots, find_roots, spectral_abscissa
@@ -175,10 +177,24 @@ class ModelError:
         return fields_dict(self)
 
 
-def _model_error(system: Hyperbolic2x2, controller: Controller, margin: DelayMargin) -> ModelError:
+def _model_error(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin
+) -> ModelError:
     """The delay margin on the default kernel grid and on one half as fine (floating point)."""
     grid = DEFAULT_KERNEL_GRID
     coarse = (grid - 1) // 2 + 1
+    if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
+        steps = DEFAULT_CHARACTERISTIC_GRID
+        return ModelError(
+            steps,
+            steps,
+            margin.margin,
+            margin.margin,
+            float("nan"),
+            f"N~ is the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} nodes, "
+            f"Richardson-extrapolated from {steps} steps (fourth order); its distance to the exact N~ is not "
+            "estimated here",
+        )
     if getattr(system, "uncoupled", False):
         return ModelError(
             grid, grid, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
@@ -413,7 +429,7 @@ class Certificate:
         With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
     """
 
-    system: Hyperbolic2x2
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2
     controller: Controller
     delta_max: float
     classification: Classification
@@ -516,7 +532,7 @@ class Certificate:
 
 @renamed_keywords(k_grid="n_gains")
 def certify(
-    system: Hyperbolic2x2,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     controller: Controller,
     delta_max: float = 0.1,
     region: tuple[float, float, float, float] | None = None,
@@ -528,8 +544,10 @@ def certify(
 
     Parameters
     ----------
-    system : Hyperbolic2x2 or TransportSystem
-        The plant, eqs. (18)-(20).
+    system : Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2
+        The plant, eqs. (18)-(20); a general plant through its normal form, or, with a
+        varying ``lam/mu``, as it is (every analysis by its characteristic route,
+        :func:`~nrobust.hyperbolic.varying.varying_delay_form`).
     controller : OpenLoop, FiniteTimeController, ReflectionController or FilteredController
         The control law (U_BS eq. (47), U_BS2(K) eq. (53), ...).
     delta_max : float
@@ -566,7 +584,7 @@ def certify(
         raise ParameterError("delta_max", "finite", delta_max)
     classification = classify(system)  # also checks the system
     if region is None:
-        tau = float(system.tau)
+        tau = float(system.tau) / getattr(system, "time_unit", 1.0)  # a varying lam/mu: in its time unit
         box = (_DEFAULT_REGION[0] / tau, _DEFAULT_REGION[1] / tau, _DEFAULT_REGION[2] / tau, _DEFAULT_REGION[3] / tau)
     else:
         box = check_region(region)

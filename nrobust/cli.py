@@ -23,10 +23,9 @@ one-line summary (for a sweep: the points done and where they are kept).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
-
-import matplotlib
 
 from ._version import __version__
 from .analyze import run_analyze
@@ -80,9 +79,21 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def _draw_off_screen() -> None:
+    """Select matplotlib's Agg backend without importing matplotlib before a figure is drawn.
+
+    Importing matplotlib takes a good part of a second; an input error must be reported
+    before that.
+    """
+    if "matplotlib" in sys.modules:
+        sys.modules["matplotlib"].use("Agg")
+    else:
+        os.environ["MPLBACKEND"] = "Agg"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``nrobust`` command; returns the exit code."""
-    matplotlib.use("Agg")
+    _draw_off_screen()
     args = _parser().parse_args(argv)
     progress = args.progress
     try:

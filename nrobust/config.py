@@ -324,14 +324,7 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
     controller = _wrap("controller", lambda: CONTROLLER_TYPES[kind](**values))
-    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
-        raise ParameterError(
-            "system",
-            "a plant with a constant lam/mu for nrobust analyze (the certificate is built on the normal form; "
-            "for a varying ratio, e.g. a backwater profile, use nrobust.delay_margin in Python)",
-            system,
-        )
-    system, controller = normalize(system, controller)
+    system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
 
     analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
     if analysis["delta_max"] is None:

@@ -587,6 +587,18 @@ def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, floa
     return _radius_below(tail, level), gap
 
 
+def _required_frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
+    """:func:`frequency_bound`, or a ParameterError where there is none (crossings accumulate at infinity)."""
+    w_bound = frequency_bound(A, B)
+    if w_bound is None:
+        raise ParameterError(
+            "A, B",
+            "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)",
+            None,
+        )
+    return w_bound
+
+
 def _radius_below(tail: Callable[[NDArray], NDArray], level: float) -> float:
     """A radius ``R`` with ``tail(R) < level``, within ``1e-7`` of the smallest (``tail`` non-increasing).
 
@@ -1038,14 +1050,7 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
         if not isinstance(P, QuasiPolynomial):
             raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
     max_evals = positive_int("max_evals", max_evals)
-    w_bound = frequency_bound(A, B)
-    if w_bound is None:
-        raise ParameterError(
-            "A, B",
-            "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)",
-            None,
-        )
-    return _crossing_search(A, B, w_bound, max_evals)[0]
+    return _crossing_search(A, B, _required_frequency_bound(A, B), max_evals)[0]
 
 
 def _crossing_search(

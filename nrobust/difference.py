@@ -30,7 +30,7 @@ import numbers
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
-from math import lcm
+from math import gcd, lcm
 from typing import Any
 
 import numpy as np
@@ -39,8 +39,8 @@ from scipy.optimize import brentq
 
 from ._json import fields_dict, json_safe
 from ._newton import newton
-from ._validate import number_array, real_array
-from .errors import ParameterError
+from ._validate import number_array, positive_int, real_array
+from .errors import CertificationError, ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
 
@@ -194,12 +194,16 @@ class SpectralBound:
         True for commensurate delays (``c_D`` from the roots of ``P(z)``).
     step : float or None
         The common step ``h`` when exact.
+    proven : bool
+        True if ``lower <= c_D <= upper`` is proven in ball arithmetic for ``D`` as represented
+        (:meth:`DifferenceOperator.proven_spectral_bound`).
     """
 
     lower: float
     upper: float
     exact: bool
     step: float | None
+    proven: bool = False
 
     @property
     def value(self) -> float:
@@ -324,16 +328,7 @@ class DifferenceOperator:
         r = self.relative_delays
         if r.size == 1:
             return None
-        rmax = float(r[-1])
-        fracs = [Fraction(float(x / rmax)).limit_denominator(_MAX_DENOMINATOR) for x in r]
-        if any(abs(float(f) - x / rmax) > _COMMENSURATE_RTOL for f, x in zip(fracs, r)):
-            return None
-        den = lcm(*(f.denominator for f in fracs))
-        if den > _MAX_DEGREE:
-            return None
-        n = np.array([f.numerator * (den // f.denominator) for f in fracs], dtype=np.int64)
-        h = float(np.dot(n, r) / np.dot(n, n))
-        return h, n
+        return _commensurate(r, _MAX_DEGREE)
 
     def _z_roots(self, h: float, n: NDArray[np.int64]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
         """Roots of ``P(z) = sum_k a_k z^{n_k}`` (clustered, with multiplicities)."""
@@ -354,14 +349,7 @@ class DifferenceOperator:
             sb = self.spectral_bound()
             return Chains(False, None, (), (sb.lower, sb.upper))
         h, n = found
-        z, mult = self._z_roots(h, n)
-        chains = [
-            Chain(float(-np.log(abs(zi)) / h), float(-np.angle(zi) / h), float(2 * np.pi / h), int(m), complex(zi))
-            for zi, m in zip(z, mult)
-        ]
-        chains.sort(key=lambda c: (-c.real, c.offset))
-        c = chains[0].real
-        return Chains(True, h, tuple(chains), (c, c))
+        return _chains_of(h, *self._z_roots(h, n))
 
     # ------------------------------------------------------------------ spectral bound
     def spectral_bound(self) -> SpectralBound:
@@ -434,6 +422,63 @@ class DifferenceOperator:
                 return float(min(cand.real - r, upper))
         return -np.inf
 
+    def proven_spectral_bound(self, prec: int = 53) -> SpectralBound:
+        """``c_D`` of ``D`` as represented, bracketed in ball arithmetic (python-flint).
+
+        The stored floats of the coefficients and delays are taken as exact numbers.
+
+        * Delays exactly commensurate as stored (every ``r_k`` an integer multiple
+          ``n_k H`` of one rational ``H``, e.g. dyadic delays ``0, 1, 2.5``; ``n_k <= 1000``):
+          the roots of ``P(z) = sum_k a_k z^{n_k}`` are isolated by FLINT (exact rational
+          coefficients, multiplicities included) and ``c_D = max_i -ln|z_i| / H`` is enclosed
+          in ``arb``: a tight bracket, ``exact=True``.
+        * Otherwise (incommensurate, or commensurate only to the 1e-10 of
+          :meth:`commensurate_step`, as ``2.0, 2.1`` are: their ratio as stored is not
+          ``20/21``): ``upper`` is a proven ``C_D``, a ``c`` with
+          ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` in ``arb`` (no zero with ``Re s >= c``), and
+          ``lower`` the left edge of a square proven by Krawczyk's test to hold a zero of
+          ``D`` (Newton from the chain seeds), ``-inf`` if none is proven. For stored delays
+          that are not exactly commensurate ``c_D`` may lie anywhere in ``[c_D(h), C_D]``
+          (the chain abscissa of a neutral equation is not continuous in the delays: Hale and
+          Verduyn Lunel), so no tighter statement about ``D`` as represented is available.
+
+        Parameters
+        ----------
+        prec : int, optional
+            Working precision in bits.
+
+        Returns
+        -------
+        SpectralBound
+            With ``proven=True``; the ends are rounded outwards to doubles.
+
+        Raises
+        ------
+        ParameterError
+            ``prec`` outside 16..4096.
+        CertificationError
+            The ball enclosures cannot confirm ``C_D`` (non-finite values).
+        ImportError
+            python-flint is not installed (``pip install nrobust[rigorous]``).
+        """
+        if self.coefs.size == 1:
+            return SpectralBound(-np.inf, -np.inf, True, None, proven=True)
+        flint = _flint()
+        prec = positive_int("prec", prec, minimum=16, maximum=4096)
+        old = flint.ctx.prec
+        flint.ctx.prec = prec
+        try:
+            exact = _exact_commensurate(self.delays)
+            if exact is not None:
+                bracket = _ball_chain_bound(flint, self.coefs, *exact)
+                if bracket is not None:
+                    return SpectralBound(*bracket, True, float(exact[0]), proven=True)
+            upper = _ball_strong_bound(flint, self, self.strong_spectral_bound())
+            lower = _ball_zero_lower_bound(flint, self)
+            return SpectralBound(min(lower, upper), upper, False, None, proven=True)
+        finally:
+            flint.ctx.prec = old
+
     # ------------------------------------------------------------------ output
     def __repr__(self) -> str:
         terms = " + ".join(
@@ -453,6 +498,37 @@ class DifferenceOperator:
                 "strong_spectral_bound": self.strong_spectral_bound(),
             }
         )
+
+
+def _commensurate(delays: NDArray[np.float64], max_degree: int) -> tuple[float, NDArray[np.int64]] | None:
+    """``(h, n)`` with ``delays_k = n_k h``, integers ``n_k <= max_degree``, or None.
+
+    ``delays`` positive and increasing; each ratio ``delays_k / delays_max`` must agree with a
+    fraction of denominator at most 1000 within a relative 1e-10; ``h`` is the least-squares
+    fit of ``delays_k = n_k h``.
+    """
+    rmax = float(delays[-1])
+    fracs = [Fraction(float(x / rmax)).limit_denominator(_MAX_DENOMINATOR) for x in delays]
+    if any(abs(float(f) - x / rmax) > _COMMENSURATE_RTOL for f, x in zip(fracs, delays)):
+        return None
+    den = lcm(*(f.denominator for f in fracs))
+    if den > max_degree:
+        return None
+    n = np.array([f.numerator * (den // f.denominator) for f in fracs], dtype=np.int64)
+    return float(np.dot(n, delays) / np.dot(n, n)), n
+
+
+def _chains_of(h: float, z: NDArray[np.complex128], mult: NDArray[np.int64]) -> Chains:
+    """The chains ``s = (-ln|z_i| + i(2 pi m - arg z_i)) / h`` of the roots ``z_i`` (rightmost first)."""
+    chains = [
+        Chain(float(-np.log(abs(zi)) / h), float(-np.angle(zi) / h), float(2 * np.pi / h), int(m), complex(zi))
+        for zi, m in zip(z, mult)
+    ]
+    chains.sort(key=lambda c: (-c.real, c.offset))
+    if not chains:
+        return Chains(True, h, (), (-np.inf, -np.inf))
+    c = chains[0].real
+    return Chains(True, h, tuple(chains), (c, c))
 
 
 def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: int = 60) -> NDArray[np.complex128]:
@@ -499,3 +575,118 @@ def _kantorovich_radius(D: DifferenceOperator, c: complex) -> float | None:
     if not np.isfinite(h) or h > 0.5:
         return None
     return float(eta if h == 0 else (1.0 - np.sqrt(1.0 - 2.0 * h)) * eta / h)
+
+
+# ---------------------------------------------------------------------- proofs in ball arithmetic
+# Candidate zeros of D tried by Krawczyk's test (rightmost first), and the half-widths of its squares.
+_PROVEN_CANDIDATES = 8
+_KRAWCZYK_WIDTHS = (1e-12, 1e-10, 1e-8, 1e-6)
+
+
+def _flint() -> Any:
+    try:
+        import flint
+    except ImportError as exc:
+        raise ImportError("proven_spectral_bound needs python-flint: pip install nrobust[rigorous]") from exc
+    return flint
+
+
+def _exact_commensurate(delays: NDArray[np.float64]) -> tuple[Fraction, list[int]] | None:
+    """``(H, n)`` with ``tau_k - tau_0 = n_k H`` exactly (rationals), ``n_k <= _MAX_DEGREE``; or None."""
+    r = [Fraction(float(t)) - Fraction(float(delays[0])) for t in delays]
+    den = lcm(*(x.denominator for x in r))
+    nums = [int(x * den) for x in r]
+    g = gcd(*nums)
+    if g == 0:
+        return None
+    n = [v // g for v in nums]
+    if n[-1] > _MAX_DEGREE:
+        return None
+    return Fraction(g, den), n
+
+
+def _outward(lo: Any, hi: Any) -> tuple[float, float]:
+    """Doubles ``a <= lo`` and ``b >= hi`` for the ends of ``arb`` values."""
+    a, b = float(lo), float(hi)
+    return float(np.nextafter(a, -np.inf)), float(np.nextafter(b, np.inf))
+
+
+def _ball_chain_bound(flint: Any, coefs: NDArray, H: Fraction, n: list[int]) -> tuple[float, float] | None:
+    """Bracket of ``max_i -ln|z_i| / H`` over the roots of ``sum_k a_k z^{n_k}``, or None if not isolated."""
+    poly = [0.0 + 0.0j] * (n[-1] + 1)
+    for a, k in zip(coefs, n):
+        poly[k] += complex(a)
+    if all(c.imag == 0 for c in poly):
+        roots = [z for z, _ in flint.fmpq_poly([flint.fmpq(*c.real.as_integer_ratio()) for c in poly]).complex_roots()]
+    else:
+        try:
+            roots = flint.acb_poly([flint.acb(c.real, c.imag) for c in poly]).roots()
+        except ValueError:  # a multiple root of complex P: not isolated by acb_poly
+            return None
+    h = flint.arb(flint.fmpq(H.numerator, H.denominator))
+    reals = [-(abs(z).log()) / h for z in roots]
+    if not reals or not all(x.is_finite() for x in reals):
+        return None
+    return _outward(max(float(x.lower()) for x in reals), max(float(x.upper()) for x in reals))
+
+
+def _ball_strong_bound(flint: Any, D: DifferenceOperator, guess: float) -> float:
+    """A double ``c >= guess`` with ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` proven (``r_k`` as stored)."""
+    a = [abs(flint.acb(complex(v).real, complex(v).imag)) for v in D.coefs]
+    t0 = flint.arb(float(D.delays[0]))
+    r = [flint.arb(float(t)) - t0 for t in D.delays[1:]]
+    c = float(guess)
+    for j in range(200):
+        x = flint.arb(c)
+        if sum((ak * (-rk * x).exp() for ak, rk in zip(a[1:], r)), flint.arb(0)) < a[0]:
+            return c
+        c = float(c + 2.0**j * np.finfo(float).eps * (1.0 + abs(c)))
+    raise CertificationError(f"ball arithmetic cannot confirm the strong spectral bound near {guess!r}; raise prec")
+
+
+def _ball_zero_lower_bound(flint: Any, D: DifferenceOperator) -> float:
+    """The largest ``Re s`` of a square proven by Krawczyk's test to hold a zero of ``D``, minus its half-width.
+
+    Krawczyk's test on ``X``: with ``c`` its center and ``y ~ 1/D'(c)``,
+    ``K = c - y D(c) + (1 - y D'(X)) (X - c)`` in the interior of ``X`` proves a zero of ``D``
+    in ``X`` (``D`` and ``D'`` enclosed in ``acb`` with the stored coefficients and delays).
+    """
+    seeds = _zero_candidates(D)
+    a = [flint.acb(complex(v).real, complex(v).imag) for v in D.coefs]
+    tau = [flint.arb(float(t)) for t in D.delays]
+
+    def value(s: Any, k: int) -> Any:
+        return sum((ai * (-ti) ** k * (-ti * s).exp() for ai, ti in zip(a, tau)), flint.acb(0))
+
+    best = -np.inf
+    for z in seeds[np.argsort(-seeds.real)][:_PROVEN_CANDIDATES]:
+        for w in _KRAWCZYK_WIDTHS:
+            half = w * (1.0 + abs(z))
+            x0, x1, y0, y1 = z.real - half, z.real + half, z.imag - half, z.imag + half
+            c = flint.acb(z.real, z.imag)
+            X = flint.acb(flint.arb(x0).union(flint.arb(x1)), flint.arb(y0).union(flint.arb(y1)))
+            slope = value(c, 1)
+            mid = complex(float(slope.real.mid()), float(slope.imag.mid()))
+            if mid == 0:
+                continue
+            y = flint.acb(1.0 / mid.real if mid.imag == 0 else 1.0 / mid)
+            K = c - y * value(c, 0) + (1 - y * value(X, 1)) * (X - c)
+            if K.real > x0 and K.real < x1 and K.imag > y0 and K.imag < y1:
+                best = max(best, float(np.nextafter(x0, -np.inf)))
+                break
+    return best
+
+
+def _zero_candidates(D: DifferenceOperator) -> NDArray[np.complex128]:
+    """Approximate zeros of ``D`` near its rightmost chains (Newton from the chain points)."""
+    rel = DifferenceOperator(D.coefs, D.relative_delays)
+    try:
+        chains = rel.chains() if rel.commensurate_step() is not None else rel.commensurate_approximation().chains()
+    except ParameterError:  # delays too close to seed from a commensurate approximation
+        return np.zeros(0, dtype=complex)
+    right = chains.chains[:_LOWER_BOUND_CHAINS]
+    if not right:
+        return np.zeros(0, dtype=complex)
+    seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + 4 * c.spacing) for c in right])
+    s = _newton_difference(rel, seeds)
+    return s[np.isfinite(s)]

@@ -35,8 +35,6 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from fractions import Fraction
-from math import lcm
 from typing import Any
 
 import numpy as np
@@ -45,7 +43,7 @@ from scipy.linalg import schur
 
 from ._json import fields_dict
 from ._validate import is_real_number, number_array, positive, positive_int, real_array
-from .difference import Chain, Chains, _cluster_polynomial_roots
+from .difference import Chains, _chains_of, _cluster_polynomial_roots, _commensurate
 from .errors import CertificationError, ParameterError
 
 __all__ = ["Gamma0", "MatrixDifferenceOperator"]
@@ -60,9 +58,7 @@ _SCALINGS = (1.0, 0.3, 0.1, 0.03, 0.01, 1e-3)
 _NORM_SLACK = 1e-12
 # A sampled spectral radius decides "gamma_0 >= 1" only above 1 + this (eigenvalue rounding).
 _DECIDE_SLACK = 1e-12
-# Commensurability: as in nrobust.difference.
-_COMMENSURATE_RTOL = 1e-10
-_MAX_DENOMINATOR = 1000
+# Largest block companion matrix (rows) of commensurate delays (nrobust.difference's test).
 _MAX_COMPANION = 4000
 
 
@@ -286,16 +282,14 @@ class MatrixDifferenceOperator:
 
         Tolerances as :meth:`~nrobust.difference.DifferenceOperator.commensurate_step`.
         """
-        tmax = float(self.delays[-1])
-        fracs = [Fraction(float(x / tmax)).limit_denominator(_MAX_DENOMINATOR) for x in self.delays]
-        if any(abs(float(f) - x / tmax) > _COMMENSURATE_RTOL for f, x in zip(fracs, self.delays)):
-            return None
-        den = lcm(*(f.denominator for f in fracs))
-        n = np.array([f.numerator * (den // f.denominator) for f in fracs], dtype=np.int64)
-        if int(n[-1]) * self.size > _MAX_COMPANION:
-            return None
-        h = float(np.dot(n, self.delays) / np.dot(n, n))
-        return h, n
+        return _commensurate(self.delays, _MAX_COMPANION // self.size)
+
+    def _step(self) -> tuple[float, NDArray[np.int64]]:
+        """:meth:`commensurate_step`, or a ParameterError for incommensurate delays."""
+        found = self.commensurate_step()
+        if found is None:
+            raise ParameterError("delays", "commensurate (tau_k = n_k h with small integers n_k)", self.delays)
+        return found
 
     def z_roots(self) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
         """Roots ``z`` of ``det(I - sum_k A_k z^{n_k})`` (clustered, with multiplicities).
@@ -308,10 +302,7 @@ class MatrixDifferenceOperator:
         ParameterError
             Incommensurate delays.
         """
-        found = self.commensurate_step()
-        if found is None:
-            raise ParameterError("delays", "commensurate (tau_k = n_k h with small integers n_k)", self.delays)
-        _, n = found
+        n = self._step()[1]
         N, p = int(n[-1]), self.size
         comp = np.zeros((N * p, N * p), dtype=complex)
         comp[p:, :-p] = np.eye((N - 1) * p)
@@ -331,20 +322,7 @@ class MatrixDifferenceOperator:
         ParameterError
             Incommensurate delays.
         """
-        found = self.commensurate_step()
-        if found is None:
-            raise ParameterError("delays", "commensurate (tau_k = n_k h with small integers n_k)", self.delays)
-        h, _ = found
-        z, mult = self.z_roots()
-        chains = [
-            Chain(float(-np.log(abs(zi)) / h), float(-np.angle(zi) / h), float(2 * np.pi / h), int(m), complex(zi))
-            for zi, m in zip(z, mult)
-        ]
-        chains.sort(key=lambda c: (-c.real, c.offset))
-        if not chains:
-            return Chains(True, h, (), (-np.inf, -np.inf))
-        c = chains[0].real
-        return Chains(True, h, tuple(chains), (c, c))
+        return _chains_of(self._step()[0], *self.z_roots())
 
     def __repr__(self) -> str:
         return f"MatrixDifferenceOperator(p={self.size}, delays={np.round(self.delays, 6).tolist()})"

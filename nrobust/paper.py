@@ -9,7 +9,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 
 from ._json import json_float, json_safe
@@ -178,6 +177,8 @@ def _run_paper(
     fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
     cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
     chart, trade = res["chart"], res["tradeoff"]
+
+    import matplotlib.pyplot as plt  # lazily: the command line checks its input before drawing anything
 
     figures = [
         ("Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)", paper_figure(1, fig1_runs)),

@@ -68,7 +68,7 @@ from ._json import fields_dict
 from ._validate import positive_int
 from .balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint
 from .bounds import joint_degree, principal_gap
-from .crossings import CrossingSearch, _is_zero, _Kernels, frequency_bound
+from .crossings import CrossingSearch, _is_zero, _Kernels, _required_frequency_bound
 from .errors import CertificationError, ParameterError
 from .quasipoly import DistributedDelay, QuasiPolynomial
 
@@ -724,14 +724,7 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
         raise ParameterError("A, B", "both not identically zero", (A, B))
     max_evals = positive_int("max_evals", max_evals)
     flint = require_flint()
-    w_bound = frequency_bound(A, B)
-    if w_bound is None:
-        raise ParameterError(
-            "A, B",
-            "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)",
-            None,
-        )
-    W = w_bound[0]
+    W = _required_frequency_bound(A, B)[0]
     proof = None
     for _ in range(8):
         proof = _proven_bound(flint, A, B, W)

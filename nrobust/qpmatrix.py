@@ -103,6 +103,31 @@ def _prod_except(x: NDArray[np.float64], skip: Sequence[int]) -> NDArray[np.floa
     return np.prod(x[..., keep], axis=-1)
 
 
+def _leibniz(rows: Sequence[Sequence[QuasiPolynomial]]) -> QuasiPolynomial:
+    """``det`` of a matrix of quasi-polynomials expanded by the Leibniz formula.
+
+    Raises
+    ------
+    ParameterError
+        A product holds two entries with distributed terms (not a quasi-polynomial of this type).
+    """
+    n = len(rows)
+    total = QuasiPolynomial([[0.0]], [0.0])
+    for perm in itertools.permutations(range(n)):
+        factors = [rows[i][perm[i]] for i in range(n)]
+        if any(not f.point_terms and not f.distributed for f in factors):
+            continue
+        if sum(bool(f.distributed) for f in factors) > 1:
+            raise ParameterError(
+                "entries", "at most one entry with distributed terms in each product of det (to expand it)", perm
+            )
+        term = factors[0]
+        for f in factors[1:]:
+            term = term * f
+        total = total + term * float(np.linalg.det(np.eye(n)[list(perm)]))
+    return total
+
+
 @dataclass(frozen=True, eq=False)
 class QuasiPolynomialMatrix:
     """A square matrix ``M(s)`` of quasi-polynomials, standing for ``det M(s)``.
@@ -175,18 +200,7 @@ class QuasiPolynomialMatrix:
 
     def point_determinant(self) -> QuasiPolynomial:
         """``det`` of the point parts of the entries, expanded (Leibniz): a quasi-polynomial."""
-        n = self.size
-        points = [[_point_part(e) for e in row] for row in self.entries]
-        total = QuasiPolynomial([[0.0]], [0.0])
-        for perm in itertools.permutations(range(n)):
-            factors = [points[i][perm[i]] for i in range(n)]
-            if any(not f.point_terms for f in factors):
-                continue
-            term = factors[0]
-            for f in factors[1:]:
-                term = term * f
-            total = total + term * float(np.linalg.det(np.eye(n)[list(perm)]))
-        return total
+        return _leibniz([[_point_part(e) for e in row] for row in self.entries])
 
     def expand(self) -> QuasiPolynomial:
         """``det M`` expanded as one quasi-polynomial (Leibniz formula).
@@ -197,21 +211,7 @@ class QuasiPolynomialMatrix:
             A product of the expansion holds two entries with distributed terms (the
             product of two distributed terms is not a quasi-polynomial of this type).
         """
-        n = self.size
-        total = QuasiPolynomial([[0.0]], [0.0])
-        for perm in itertools.permutations(range(n)):
-            factors = [self.entries[i][perm[i]] for i in range(n)]
-            if any(not f.point_terms and not f.distributed for f in factors):
-                continue
-            if sum(bool(f.distributed) for f in factors) > 1:
-                raise ParameterError(
-                    "entries", "at most one entry with distributed terms in each product of det (to expand it)", perm
-                )
-            term = factors[0]
-            for f in factors[1:]:
-                term = term * f
-            total = total + term * float(np.linalg.det(np.eye(n)[list(perm)]))
-        return total
+        return _leibniz(self.entries)
 
     def _principal_source(self) -> QuasiPolynomial:
         """The expanded point determinant, checked to carry the highest power of ``s`` of ``det M``.

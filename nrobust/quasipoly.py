@@ -14,18 +14,21 @@ closed form (Filon-type), so its error does not grow with ``|Im s|``.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from math import comb, factorial
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
+from scipy.fft import fft as _fft
+from scipy.fft import ifft as _ifft
+from scipy.fft import next_fast_len as _next_fast_len
 from scipy.interpolate import CubicSpline
-from scipy.signal import czt
 
 from ._json import fields_dict, json_safe
 from ._validate import is_real_number, nonnegative, number_array, real_array
@@ -51,34 +54,60 @@ _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 
 
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
-    """Return ``phi_k(z) = int_0^1 t^k e^{-z t} dt`` for ``k = 0..kmax``, stacked on axis 0."""
+    """Return ``phi_k(z) = int_0^1 t^k e^{-z t} dt`` for ``k = 0..kmax``, stacked on axis 0.
+
+    ``|z| < 1``: the Taylor series ``sum_m (-z)^m / (m! (m + k + 1))`` as one matrix product
+    of the powers ``(-z)^m`` with the table ``1 / (m! (m + k + 1))``; elsewhere the forward recursion
+    ``phi_k = (k phi_{k-1} - e^{-z}) / z`` from ``phi_0 = (1 - e^{-z}) / z``.
+    """
     z = np.asarray(z, dtype=complex)
-    out = np.empty((kmax + 1, *z.shape), dtype=complex)
-    small = np.abs(z) < _SERIES_RADIUS
-    if np.any(small):
-        zs = z[small]
+    if z.size == 0:
+        return np.zeros((kmax + 1, *z.shape), dtype=complex)
+    mod = np.abs(z)
+    small = mod < _SERIES_RADIUS
+    n_small = int(np.count_nonzero(small))
+    if n_small:
+        zs = z if n_small == z.size else z[small]
         # Terms until the remainder r^m / m! (r = max |z| < 1) is below 1e-17.
-        r, bound, terms = float(np.max(np.abs(zs))), 1.0, 1
+        r, bound, terms = float(np.max(mod if n_small == z.size else mod[small])), 1.0, 1
         while terms < _SERIES_TERMS and bound > 1e-17:
             bound *= r / terms
             terms += 1
-        ks = np.arange(kmax + 1)[:, None]
-        term = np.ones_like(zs)  # (-z)^m / m!
-        acc = np.zeros((kmax + 1, *zs.shape), dtype=complex)
-        for m in range(terms):
-            acc += term / (m + ks + 1)
-            term = term * (-zs) / (m + 1)
+        powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m
+        powers[0] = 1.0
+        np.negative(zs.ravel(), out=powers[1])
+        for m in range(2, terms):
+            np.multiply(powers[m - 1], powers[1], out=powers[m])
+        # a real matrix times complex columns, as one real product on the (re, im) pairs
+        acc = (_series_table(kmax, terms) @ powers.view(float)).view(complex).reshape(kmax + 1, *zs.shape)
+        if n_small == z.size:
+            return acc
+        out = np.empty((kmax + 1, *z.shape), dtype=complex)
         out[:, small] = acc
-    big = ~small
-    if np.any(big):
-        zb = z[big]
+    if n_small < z.size:
+        big = ~small
+        zb = z if not n_small else z[big]
         e = np.exp(-zb)
         cur = (1.0 - e) / zb
-        out[0, big] = cur
+        rows = [cur]
         for k in range(1, kmax + 1):
             cur = (k * cur - e) / zb
-            out[k, big] = cur
+            rows.append(cur)
+        if not n_small:
+            return np.stack(rows)
+        out[:, big] = np.stack(rows)
     return out
+
+
+@functools.lru_cache(maxsize=32)
+def _series_table(kmax: int, terms: int) -> NDArray[np.float64]:
+    """``1 / (m! (m + k + 1))`` for ``k = 0..kmax`` (rows) and ``m = 0..terms-1`` (columns)."""
+    m = np.arange(terms)
+    table = 1.0 / (
+        np.array([float(factorial(j)) for j in m])[None, :] * (m[None, :] + np.arange(kmax + 1)[:, None] + 1.0)
+    )
+    table.flags.writeable = False
+    return table
 
 
 def _uniform_line(s: NDArray[np.complex128]) -> tuple[float, float, float] | None:
@@ -103,16 +132,19 @@ def _arithmetic_step(nu: NDArray[np.float64]) -> float | None:
     return d
 
 
-def _exp_sums(s: NDArray[np.complex128], nu: NDArray[np.float64], coef: NDArray) -> NDArray[np.complex128]:
+def _exp_sums(
+    s: NDArray[np.complex128], nu: NDArray[np.float64], coef: NDArray, step: float | None = None
+) -> NDArray[np.complex128]:
     """``exp(-outer(s, nu)) @ coef``, shape ``(len(s), coef.shape[1])``.
 
+    ``step``: the spacing ``d`` of ``nu`` if uniform (:func:`_arithmetic_step`), else None.
     On a vertical line with uniform frequency steps and uniformly spaced ``nu`` this is a
     chirp-z transform (``O((N + M) log(N + M))`` instead of ``N M`` exponentials):
-    ``sum_n c_n e^{-(nu_0 + n d) s_k} = e^{-nu_0 s_k} sum_n (c_n e^{-n d x}) A^{-n} W^{n k}``
-    with ``A = e^{i d w0}`` and ``W = e^{-i d dw}``.
+    ``sum_n c_n e^{-(nu_0 + n d) s_k} = e^{-nu_0 s_k} sum_n (c_n e^{-n d (x + i w0)}) e^{-i n k d dw}``,
+    by Bluestein's identity ``n k = (n^2 + k^2 - (k - n)^2) / 2`` a convolution
+    (:func:`_chirp_plan`), on blocks of :data:`_CZT_BLOCK` frequencies.
     """
-    line = _uniform_line(s)
-    step = _arithmetic_step(nu) if line is not None else None
+    line = _uniform_line(s) if step is not None else None
     if line is None or step is None:
         out = np.empty((s.size, coef.shape[1]), dtype=complex)
         rows = max(1, _BLOCK // max(nu.size, 1))
@@ -120,12 +152,43 @@ def _exp_sums(s: NDArray[np.complex128], nu: NDArray[np.float64], coef: NDArray)
             out[lo : lo + rows] = np.exp(-np.outer(s[lo : lo + rows], nu)) @ coef
         return out
     x, w0, dw = line
-    weighted = coef * np.exp(-step * x * np.arange(nu.size))[:, None]
+    n, m = nu.size, min(_CZT_BLOCK, s.size)
+    theta = step * dw
+    nfft, filt, chirp_in, chirp_out = _chirp_plan(n, m, theta)
+    idx = np.arange(n)
     out = np.empty((s.size, coef.shape[1]), dtype=complex)
-    for lo in range(0, s.size, _CZT_BLOCK):
-        m = min(_CZT_BLOCK, s.size - lo)
-        out[lo : lo + m] = czt(weighted, m=m, w=np.exp(-1j * step * dw), a=np.exp(1j * step * (w0 + lo * dw)), axis=0)
+    # blocks of frequencies w0 + (lo + k) dw, k < m, transformed together within the memory bound
+    per_round = max(1, _BLOCK // (nfft * coef.shape[1]))
+    starts = np.arange(0, s.size, m)
+    for r in range(0, starts.size, per_round):
+        firsts = starts[r : r + per_round]
+        shift = np.exp(-step * np.outer(x + 1j * (w0 + firsts * dw), idx)) * chirp_in  # (blocks, n)
+        u = shift[:, None, :] * coef.T[None, :, :]  # (blocks, columns, n)
+        y = _ifft(_fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
+        for b, first in enumerate(firsts.tolist()):
+            size = min(m, s.size - first)
+            out[first : first + size] = y[b, :, :size].T
     return out * np.exp(-nu[0] * s)[:, None]
+
+
+@functools.lru_cache(maxsize=64)
+def _chirp_plan(n: int, m: int, theta: float) -> tuple[int, NDArray, NDArray, NDArray]:
+    """Bluestein's plan for ``y_k = sum_{j < n} u_j e^{-i theta j k}``, ``k < m``.
+
+    ``y_k = e^{-i theta k^2 / 2} sum_j (u_j e^{-i theta j^2 / 2}) e^{i theta (k - j)^2 / 2}``:
+    returns the FFT length, the FFT of the filter ``e^{i theta l^2 / 2}``,
+    ``l = 1 - n .. m - 1``, and the chirps ``e^{-i theta j^2 / 2}`` (``j < n``) and
+    ``e^{-i theta k^2 / 2}`` (``k < m``). The phases are taken from ``theta`` itself (not
+    from powers of a rounded ``e^{-i theta}``), exact to rounding for every ``l``.
+    """
+    nfft = _next_fast_len(n + m - 1)
+    lag = np.arange(1 - n, m, dtype=float)
+    filt = _fft(np.exp(0.5j * theta * lag**2), nfft)
+    chirp_in = np.exp(-0.5j * theta * np.arange(n, dtype=float) ** 2)
+    chirp_out = np.exp(-0.5j * theta * np.arange(m, dtype=float) ** 2)
+    for arr in (filt, chirp_in, chirp_out):
+        arr.flags.writeable = False
+    return nfft, filt, chirp_in, chirp_out
 
 
 def _as_poly(name: str, coefs: ArrayLike) -> NDArray[np.complex128] | NDArray[np.float64]:
@@ -220,6 +283,15 @@ def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray,
 _INTERPOLATIONS = {"linear": _linear_pieces, "cubic": _cubic_pieces}
 
 
+class _SegmentGroup(NamedTuple):
+    """Segments of one length ``h``: starts ``nu_i``, coefficients ``c[i, l]``, spacing of the starts if uniform."""
+
+    h: float
+    start: NDArray[np.float64]
+    coef: NDArray
+    step: float | None
+
+
 @dataclass(frozen=True, eq=False)
 class DistributedDelay:
     """A distributed-delay term ``q(s) int_a^b nu^m N(nu) e^{-nu s} dnu``.
@@ -265,6 +337,8 @@ class DistributedDelay:
     interpolation: str = "linear"
     if TYPE_CHECKING:  # set by __init__, not a dataclass field: the interpolant's per-segment pieces
         _pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
+        # built on first use by _segment_groups
+        _groups: dict[tuple[int, bool], tuple[_SegmentGroup, ...]] = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -301,6 +375,7 @@ class DistributedDelay:
         object.__setattr__(self, "moment", int(moment))
         object.__setattr__(self, "interpolation", interpolation)
         object.__setattr__(self, "_pieces", _INTERPOLATIONS[interpolation](x, self.values))
+        object.__setattr__(self, "_groups", {})
 
     def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
@@ -347,18 +422,34 @@ class DistributedDelay:
             return start, h, np.stack([left, np.abs(poly_t[:, 0] + poly_t[:, 1]) - left], axis=1)
         return start, h, np.sum(np.abs(poly_t), axis=1, keepdims=True)
 
-    def _moment_integral(
-        self, s: NDArray[np.complex128], extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None
-    ) -> NDArray[np.complex128]:
-        """``int nu^(m+extra) N(nu) e^{-nu s} dnu`` for the interpolant, exact, at flat ``s``."""
-        start, h, coef = self._local_coefficients(extra, pieces)
+    def _segment_groups(self, extra: int, absolute: bool = False) -> tuple[_SegmentGroup, ...]:
+        """The segments grouped by length, with their coefficients for moment ``m + extra``.
+
+        ``absolute``: the pieces of :meth:`_abs_pieces` instead of the interpolant's.
+        Depends on the nodes and values only, so it is built once per ``(extra, absolute)``.
+        """
+        key = (extra, absolute)
+        groups = self._groups.get(key)
+        if groups is None:
+            start, h, coef = self._local_coefficients(extra, self._abs_pieces() if absolute else None)
+            hs, inverse = np.unique(np.round(h, 14), return_inverse=True)
+            built = []
+            for g in range(hs.size):
+                idx = np.flatnonzero(inverse == g)
+                nu = start[idx]
+                built.append(_SegmentGroup(float(np.mean(h[idx])), nu, coef[idx], _arithmetic_step(nu)))
+            groups = self._groups[key] = tuple(built)
+        return groups
+
+    def _moment_integral(self, s: NDArray[np.complex128], extra: int, absolute: bool = False) -> NDArray[np.complex128]:
+        """``int nu^(m+extra) N(nu) e^{-nu s} dnu`` for the interpolant, exact, at flat ``s``.
+
+        ``absolute``: for the piecewise polynomial bound of ``|N|`` (:meth:`_abs_pieces`).
+        """
         out = np.zeros(s.shape, dtype=complex)
-        hs, inverse = np.unique(np.round(h, 14), return_inverse=True)
-        for g, hg in enumerate(hs):
-            idx = np.flatnonzero(inverse == g)
-            hg = float(np.mean(h[idx]))
-            phi = _phi(s * hg, coef.shape[1] - 1)  # (L, S)
-            out += np.einsum("sl,ls->s", _exp_sums(s, start[idx], coef[idx]), phi)
+        for group in self._segment_groups(extra, absolute):
+            phi = _phi(s * group.h, group.coef.shape[1] - 1)  # (L, S)
+            out += np.einsum("sl,ls->s", _exp_sums(s, group.start, group.coef, group.step), phi)
         return out
 
     # ------------------------------------------------------------------ evaluation
@@ -394,7 +485,7 @@ class DistributedDelay:
         """
         x = np.asarray(x, dtype=float)
         flat = x.ravel().astype(complex)
-        return np.abs(self._moment_integral(flat, k, self._abs_pieces())).reshape(x.shape)
+        return np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
 
     def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
         """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).

@@ -151,7 +151,8 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     )
 
     A, B = loop_factors(cert.system, cert.controller)
-    w_max = 20.0 * 2 * np.pi / float(cert.system.tau)  # 20 periods of the principal part
+    # 20 periods of the principal part (a varying lam/mu plant: tau in its time unit)
+    w_max = 20.0 * 2 * np.pi * getattr(cert.system, "time_unit", 1.0) / float(cert.system.tau)
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
     resp = nyquist_response(
         A, B, cert.delta_max, omega_max=w_max, n_freq=2001, principal_bound=cert.principal_delayed.spectral_bound
@@ -413,7 +414,9 @@ def write_report(
     system = certs[0].system
     blocks: list[Any] = [_Heading(1, title)]
     blocks += [_Paragraph(p) for p in intro]
-    blocks.append(_Paragraph(f"**System.** `{system!r}`, tau = {_fmt(system.tau)}."))
+    blocks.append(
+        _Paragraph(f"**System.** `{system!r}`, tau = {_fmt(system.tau / getattr(system, 'time_unit', 1.0))}.")
+    )
     all_figs: list[tuple[str, Figure]] = []
     for k, cert in enumerate(certs):
         section, figs = _certificate_blocks(cert, None if len(certs) == 1 else k)

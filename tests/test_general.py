@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from nrobust import find_roots, spectral_abscissa
+from nrobust.certificate import certify
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import (
     FiniteTimeController,
@@ -33,9 +34,10 @@ from nrobust.hyperbolic import (
 from nrobust.hyperbolic.controllers import StateFeedback, normalize
 from nrobust.hyperbolic.feedback import feedback_factor, laplace_loop_factors
 from nrobust.hyperbolic.general import GeneralHyperbolic2x2, as_general
+from nrobust.hyperbolic.robustness import _varying_bound, rouche_delay_bound
 from nrobust.hyperbolic.simulate import simulate
 from nrobust.hyperbolic.simulate_general import simulate_general
-from nrobust.hyperbolic.studies import delay_margin
+from nrobust.hyperbolic.studies import ab_region, delay_margin, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.varying import varying_delay_form
 
 LN2 = np.log(2.0)
@@ -394,3 +396,176 @@ def test_sampled_coefficients_and_json():
     text = json.dumps(general_plant().to_dict(), allow_nan=False)
     assert '"callable"' in text and '"time_unit": 1.0' in text
     assert json.loads(json.dumps(sampled.to_dict(), allow_nan=False))["lam"]["x"][-1] == 2.0
+
+
+# ------------------------------------------------------------------ simulate() and the studies on general plants
+def _trapezoid(nodes):
+    w = np.zeros(nodes.size)
+    w[:-1] += np.diff(nodes) / 2.0
+    w[1:] += np.diff(nodes) / 2.0
+    return w
+
+
+def test_simulate_a_general_plant_equals_the_hand_normalised_plant():
+    """simulate(general plant): the hand plant's states, weighted by the closed-form maps, give the same norm."""
+    plant, hand = general_plant(), hand_plant()
+
+    def u0(x):
+        return np.sin(np.pi * np.asarray(x) / 2.0)
+
+    def v0(x):
+        return np.full(np.shape(x), 0.5)
+
+    ctl = ReflectionController(0.1)
+    a = simulate(plant, ctl, 0.05, 4.0, u0, v0, cells=100)
+    b = simulate(
+        hand,
+        ctl,
+        0.05,
+        4.0,
+        lambda y: u0(x_of_y(y)) * np.exp(0.7 - 0.3 * x_of_y(y)),
+        lambda y: v0(x_of_y(y)) * np.exp(0.4 * x_of_y(y)),
+        cells=100,
+        snapshot_every=1,
+    )
+    # u = e^{0.3 x - 0.7} u~, v = e^{-0.4 x} v~, dx = 2 ln 2 (1 + x/2) dy (module notes)
+    X, XV = x_of_y(b.x), x_of_y(b.x_v)
+    wu = _trapezoid(b.x) * np.exp(0.6 * X - 1.4) * 2.0 * LN2 * (1.0 + X / 2.0)
+    wv = _trapezoid(b.x_v) * np.exp(-0.8 * XV) * 2.0 * LN2 * (1.0 + XV / 2.0)
+    # Same scheme on plants equal to 1e-11: measured 9e-15.
+    np.testing.assert_allclose(a.norm, np.sqrt(b.u**2 @ wu + b.v**2 @ wv), rtol=1e-9)
+    np.testing.assert_allclose(a.x, X, atol=1e-12)
+    np.testing.assert_allclose(a.control, np.exp(-0.8) * b.control, rtol=1e-9, atol=1e-14)  # U = e^{D(L)} U~
+    np.testing.assert_allclose(a.u[-1], b.u[-1] * np.exp(0.3 * X - 0.7), rtol=1e-9, atol=1e-12)
+
+
+def test_simulate_through_the_normal_form_converges_to_the_time_of_flight_scheme():
+    """Two schemes sharing nothing but the plant (normal form and kernels against the physical grids): 2nd order."""
+    plant, feedback = general_plant(), StateFeedback(-0.2)
+
+    def u0(x):  # compatible: u(0) = q v(0), v(L) = rho u(L) + k u(L) = 0
+        return Q * np.cos(np.pi * np.asarray(x) / 4.0)
+
+    def v0(x):
+        return np.cos(np.pi * np.asarray(x) / 4.0)
+
+    times = np.linspace(0.0, 4.0, 9)
+    errs = []
+    for cells in (50, 100, 200):
+        a = simulate(plant, feedback, 0.05, 4.0, u0, v0, cells=cells)
+        b = simulate_general(plant, feedback, 0.05, 4.0, u0, v0, cells=cells)
+        errs.append(np.max(np.abs(np.interp(times, a.times, a.norm) - np.interp(times, b.times, b.norm))))
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    # Measured: 1.2e-3, 3.1e-4, 7.6e-5 (orders 1.95, 2.04).
+    assert np.all(orders > 1.8), (errs, orders)
+    assert errs[-1] < 1.5e-4
+
+
+def test_simulated_growth_rate_of_a_paper_controller_on_a_general_plant():
+    """U_BS2(0.4) beyond its margin: the fitted growth rate against the spectral abscissa of the general loop."""
+    plant, ctl, delta = general_plant(), ReflectionController(0.4), 2.0
+    abscissa = spectral_abscissa(characteristic(plant, ctl, delta)).value
+    assert abscissa > 0.2  # the pair 0.2143 +- 0.5788i
+    run = simulate(plant, ctl, delta, 40.0, lambda x: 1.0 + np.sin(3.0 * x), lambda x: 0.5 + 0.0 * x, cells=25)
+    # Measured 2.1e-4 (cells 25), 3.7e-4 (50, 100): the bias of a log-linear fit of an oscillating norm
+    # (period 10.9) over [10, 40], not the grid's error.
+    assert abs(run.growth_rate(10.0, 40.0) - abscissa) < 2e-3
+
+
+def test_simulate_a_varying_ratio_plant_and_refusals():
+    feedback = StateFeedback(-0.3)
+    a = simulate(VARYING, feedback, 0.1, 2.0, lambda x: 1.0 + 0.0 * x, lambda x: 0.5 + 0.0 * x, cells=40)
+    b = simulate_general(VARYING, feedback, 0.1, 2.0, 1.0, 0.5, 40)
+    np.testing.assert_array_equal(a.norm, b.norm)
+    assert a.scheme == "time-of-flight grids" and a.u.shape == (1, b.x_u.size)
+    with pytest.raises(ParameterError, match="normal form") as err:
+        simulate(VARYING, ReflectionController(0.1), 0.1, 2.0, 1.0, 0.5)
+    assert err.value.name == "controller"
+    with pytest.raises(ParameterError) as err:
+        simulate(VARYING, feedback, 0.1, 2.0, 1.0, 0.5, snapshot_every=2)
+    assert err.value.name == "snapshot_every"
+    with pytest.raises(ParameterError) as err:  # the work bound, before any grid is allocated
+        simulate(general_plant(), ReflectionController(0.1), 0.0, 1e6, np.sin, np.cos, cells=10**8)
+    assert err.value.name == "(cells, t_end)"
+    law = ReflectionController(0.1).feedback_law(hand_plant(), solve_kernels(hand_plant(), 21))
+    with pytest.raises(ParameterError) as err:
+        simulate(general_plant(), law, 0.1, 2.0, np.sin, np.cos)
+    assert err.value.name == "controller"
+
+
+@pytest.mark.slow
+def test_studies_of_a_general_plant_equal_those_of_the_hand_plant():
+    plant, hand = general_plant(), hand_plant()
+    a = stability_chart(plant, [0.0, 0.1], [0.0, 0.5, 1.5])
+    b = stability_chart(hand, [0.0, 0.1], [0.0, 0.5, 1.5])
+    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-8)  # measured equal to 1e-12
+    np.testing.assert_array_equal(a.values, b.values)
+    a = ab_region(plant, 0.1, [0.0, 0.5], [0.2])
+    b = ab_region(hand, 0.1, [0.0, 0.5], [0.2])
+    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-8)
+    np.testing.assert_array_equal(a.strongly_stable, b.strongly_stable)
+    for ctl in (ReflectionController(0.1), FiniteTimeController()):
+        np.testing.assert_allclose(rouche_delay_bound(plant, ctl).delta_0, rouche_delay_bound(hand, ctl).delta_0)
+    # A family in physical coordinates: StateFeedback(k) acts on u(t, L), mapped to the normal form.
+    form = plant.normal_form()
+    physical = tradeoff(plant, [-0.2, 0.2], controller=StateFeedback)
+    by_hand = [delay_margin(hand, StateFeedback(form.feedback_to_normal(k, 0.0, 0.0)[0])).margin for k in (-0.2, 0.2)]
+    np.testing.assert_allclose(physical.margins, by_hand, rtol=1e-8)
+    assert np.all(np.isnan(physical.rouche_bounds))
+
+
+@pytest.mark.slow
+def test_k_region_of_a_general_plant_equals_the_hand_plant():
+    a, b = k_region(general_plant(), 0.1, n_gains=3), k_region(hand_plant(), 0.1, n_gains=3)
+    np.testing.assert_allclose(np.array(a.intervals), np.array(b.intervals), rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_k_region_of_a_varying_ratio_plant_ends_are_zeros_of_the_laplace_route():
+    """U = k u(t, L) on a varying lam/mu: at each end's root on the axis, the Laplace route solves for k."""
+    region = k_region(VARYING, 0.5, controller=StateFeedback, Ks=[-0.4, -0.3], tol=1e-3)
+    ((lower, upper),) = region.ends
+    # lower: a crossing at w = 9.156 for delta = 0.324; upper: the nominal loop's real root through s = 0.
+    assert np.isfinite(lower.omega) and upper.omega == np.inf and upper.delay == 0.0
+    for end, w in ((lower, lower.omega), (upper, 0.0)):
+        # F = A + k B_1 e^{-i w delay} is affine in k: the gain that puts a root at i w, without the delay form.
+        A, B1 = laplace_loop_factors(VARYING, 1.0, 0.0, 0.0, np.array([1j * w]), steps=1600)
+        k = -A[0] * np.exp(1j * w * end.delay) / B1[0]
+        # The end is bisected to tol; its root is that of the gain just outside (measured 2.9e-4 from k).
+        assert abs(k.imag) < 1e-8 and abs(k.real - end.K) < 2.0 * region.tol, (end, k)
+
+
+def test_studies_refuse_u_bs2_on_a_varying_ratio_plant_by_name():
+    for study in (lambda: k_region(VARYING, 0.5), lambda: stability_chart(VARYING, [0.1], [0.0, 1.0])):
+        with pytest.raises(ParameterError, match="normal form") as err:
+            study()
+        assert err.value.name == "controller"
+    with pytest.raises(ParameterError, match="FiniteTimeController") as err:
+        rouche_delay_bound(VARYING, ReflectionController(0.1))
+    assert err.value.name == "controller"
+
+
+def test_rouche_bound_of_a_varying_ratio_plant():
+    """U_BS, characteristic route: delta_0 below the delay margin, and equal to the kernel route's at constant ratio."""
+    plant = GeneralHyperbolic2x2(lambda x: 1.0 + x, lambda x: 2.0 - x, 0.2, np.cos, 0.5, -0.3, 0.9, 0.3)
+    bound = rouche_delay_bound(plant, FiniteTimeController())
+    np.testing.assert_allclose(bound.epsilon_0, 1.0 - 2.0 * abs(plant.rho_q), rtol=1e-14)
+    margin = delay_margin(plant, FiniteTimeController())
+    assert 0.0 < bound.delta_0 < margin.margin  # 0.5656 < 1.5777
+    proven = rouche_delay_bound(plant, FiniteTimeController(), rigorous=True)
+    assert proven.rigorous and proven.delta_0 < margin.margin
+    np.testing.assert_allclose(proven.delta_0, bound.delta_0, rtol=1e-6)  # two marches: measured 1.7e-8 apart
+    # Constant ratio: N~ of the characteristic route against the kernels' (measured 1.4e-6 apart: 6e-6 relative).
+    by_characteristics = _varying_bound(general_plant(), FiniteTimeController(), False).delta_0
+    by_kernels = rouche_delay_bound(hand_plant(), FiniteTimeController()).delta_0
+    np.testing.assert_allclose(by_characteristics, by_kernels, rtol=3e-5)
+
+
+def test_certify_a_varying_ratio_plant():
+    cert = certify(VARYING, StateFeedback(-0.3), delta_max=0.5, k_region=False)
+    margin = delay_margin(VARYING, StateFeedback(-0.3))
+    np.testing.assert_allclose(cert.delay_margin, margin.margin, rtol=1e-12)
+    assert cert.system is VARYING and "lam/mu varies" in cert.classification.statement
+    np.testing.assert_allclose(cert.classification.rho_q, VARYING.rho_q, rtol=1e-15)
+    assert cert.region[3] == pytest.approx(40.0 / VARYING.tau)
+    json.loads(cert.to_json())

@@ -33,14 +33,22 @@ from nrobust.crossings import crossing_frequencies
 from nrobust.difference import DifferenceOperator
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
-from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, classify
+from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, StateFeedback, classify
 from nrobust.hyperbolic.delay_form import delay_form
+from nrobust.hyperbolic.frontends import arz, saint_venant
+from nrobust.hyperbolic.general import GeneralHyperbolic2x2
 from nrobust.hyperbolic.kernels import solve_kernels
+from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
 from nrobust.hyperbolic.simulate import simulate
+from nrobust.hyperbolic.simulate_general import simulate_general
 from nrobust.hyperbolic.studies import ab_region, k_region, stability_chart, tradeoff
+from nrobust.hyperbolic.varying import varying_delay_form
 from nrobust.margins import delay_margin
+from nrobust.matrix_difference import MatrixDifferenceOperator
 from nrobust.outputs import Manifest
 from nrobust.plots import nyquist_response, root_locus_response
+from nrobust.proven_crossings import proven_crossings
+from nrobust.qpmatrix import QuasiPolynomialMatrix
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
 from nrobust.report import ReportFiles
 from nrobust.roots import count_roots, find_roots, spectral_abscissa
@@ -51,6 +59,8 @@ F = QuasiPolynomial([[1, 1], [0.5]], [0, 1])  # s + 1 + 0.5 e^{-s}
 A, B = QuasiPolynomial([[1, 1]], [0]), QuasiPolynomial([[2]], [0])  # s + 1 + 2 e^{-delta s}
 TRANSPORT = TransportSystem(1, 1, 0.5, 0.5)  # |rho q| = 0.25: U_BS2(0.1) tolerates every delay
 COUPLED = Hyperbolic2x2(1.0, 1.0, 0.2, 0.1, 0.5, 0.5)
+GENERAL = GeneralHyperbolic2x2(lambda x: 1.0 + x, lambda x: 2.0 - x, 0.2, np.cos, 0.5, -0.3, 0.9, 0.6)  # any speeds
+ONE_PLUS_ONE = NPlusMSystem([1.0], [1.0], [[0.0, 0.5], [0.4, 0.0]], [[0.8]], [[0.5]])
 
 
 def margin_at(b: float) -> dict[str, Any]:
@@ -73,6 +83,10 @@ def root_family(p: float) -> QuasiPolynomial:
     return QuasiPolynomial([[p, 1], [0.5]], [0, 1])
 
 
+def two_profiles(x: np.ndarray) -> np.ndarray:
+    return np.vstack([np.sin(x), np.cos(x)])
+
+
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """One instance of every result class with ``to_dict``, keyed by a name."""
@@ -82,6 +96,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     N = DistributedDelay([0.0, 0.5, 1.0], [1.0, 2.0 + 1.0j, 0.5])
     sweep = nrobust.sweep(margin_at, [{"b": 0.5}, {"b": 2.0}, {"b": -2.0}], "serial")
     cert = certify(TRANSPORT, ReflectionController(0.1), delta_max=0.1, k_region=False)
+    proven = certify(TRANSPORT, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True)
+    assert proven.model_error is not None
+    MD = MatrixDifferenceOperator([[[0.0, 0.6], [0.0, 0.0]], [[0.0, 0.0], [0.9, 0.0]]], [1.0, 2.0])
     return {
         "RootFreeRegion": root_free_region(F),
         "RoucheDelayBound": delay_bound_from_kernel(None, 0.5),  # N~ = 0: delta_0 = inf
@@ -122,6 +139,22 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "NyquistResponse": nyquist_response(A, B, n_freq=101),  # retarded loop: principal bound -inf
         "RootLocusData": root_locus_response(root_family, [0.5, 1.0], (-3, 1, -10, 10)),
         "Manifest": Manifest("sweep", "0", "2026-01-01T00:00:00Z", ({"path": "a.csv", "size": 1, "sha256": "0" * 64},)),
+        "Claim": proven.claims[0],
+        "ModelError": proven.model_error,
+        "StateFeedback": StateFeedback(-0.3, np.cos, 0.5),  # a callable gain: its repr
+        "SaintVenant": saint_venant(3000.0, 7.0, 1e-4, 14.0, manning=0.02),
+        "ARZ": arz(500.0, 40.0, 0.16, 0.5, 60.0, 0.12),
+        "GeneralHyperbolic2x2": GENERAL,
+        "GeneralSimulation": simulate_general(GENERAL, StateFeedback(-0.3), 0.5, 2.0, 1.0, 0.5, 10),
+        "VaryingDelayForm": varying_delay_form(GENERAL, 50),
+        "NPlusMSystem": ONE_PLUS_ONE,
+        "NPlusMMargin": nplusm_delay_margin(ONE_PLUS_ONE, [[-0.2]]),
+        "NPlusMSimulation": simulate_nplusm(ONE_PLUS_ONE, [[-0.2]], 0.5, 2.0, two_profiles, cells=8),
+        "CancellationCase": cancellation_study(ONE_PLUS_ONE, [[0.5]], (-2.0, 1.0, -0.25, 6.0))[0],
+        "MatrixDifferenceOperator": MD,
+        "Gamma0": MD.gamma_0(rtol=1e-3),
+        "ProvenCrossings": proven_crossings(A, B),
+        "QuasiPolynomialMatrix": QuasiPolynomialMatrix([[F, QuasiPolynomial([[0.0, 0.2]], [0.5])], [0.0, A]]),
     }
 
 
@@ -163,6 +196,22 @@ NAMES = [
     "NyquistResponse",
     "RootLocusData",
     "Manifest",
+    "Claim",
+    "ModelError",
+    "StateFeedback",
+    "SaintVenant",
+    "ARZ",
+    "GeneralHyperbolic2x2",
+    "GeneralSimulation",
+    "VaryingDelayForm",
+    "NPlusMSystem",
+    "NPlusMMargin",
+    "NPlusMSimulation",
+    "CancellationCase",
+    "MatrixDifferenceOperator",
+    "Gamma0",
+    "ProvenCrossings",
+    "QuasiPolynomialMatrix",
 ]
 
 
@@ -318,6 +367,13 @@ IDENTITY = [
     "NyquistResponse",
     "RootLocusData",
     "DifferenceOperator",
+    "SaintVenant",
+    "GeneralHyperbolic2x2",
+    "GeneralSimulation",
+    "VaryingDelayForm",
+    "NPlusMSystem",
+    "NPlusMSimulation",
+    "MatrixDifferenceOperator",
 ]
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import pickle
 import sys
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import mpmath
@@ -28,7 +29,9 @@ from nrobust.balls import (
     ball_variation_bound,
     enclose_box,
 )
+from nrobust.difference import DifferenceOperator
 from nrobust.errors import CertificationError, ParameterError
+from nrobust.qpmatrix import QuasiPolynomialMatrix
 from nrobust.roots import count_roots, find_roots, spectral_abscissa
 from nrobust.roots.winding import _arg_interval, _lift
 
@@ -42,7 +45,13 @@ SPLINE = DistributedDelay(
 )
 MOMENT = DistributedDelay(SPLINE.nodes, SPLINE.values, poly=[0.3, 1.0], moment=1, interpolation="cubic")
 WITH_KERNEL = QuasiPolynomial([[1.0, 1.0], [-0.4]], [0.0, 1.5], [SPLINE, MOMENT])
-mpmath.mp.dps = 40
+
+
+@pytest.fixture(autouse=True)
+def _forty_digits() -> Iterator[None]:
+    """The mpmath oracles of this module work at 40 digits (other modules change ``mp.dps``)."""
+    with mpmath.workdps(40):
+        yield
 
 
 def _poly(coefs: list, t: Any) -> Any:
@@ -440,3 +449,135 @@ def test_proven_counts_match_the_closed_form(
         if gap.min() > 1e-12:
             truth = int(np.sum((roots.real > r0) & (roots.real < r1) & (roots.imag > i0) & (roots.imag < i1)))
             assert int(n) == truth, (rigorous, n, truth)
+
+
+# ---------------------------------------------------------------- matrices (det M, never expanded)
+LAMBERT = QuasiPolynomial([[1.0, 1.0], [2.0]], [0.0, 1.0])
+COUPLED = QuasiPolynomialMatrix(
+    [
+        [QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[0.5]], [1.0])],
+        [QuasiPolynomial([[0.3]], [0.5]), QuasiPolynomial([[2.0, 1.0], [-0.4]], [0.0, 1.0])],
+    ]
+)
+
+
+def _exact_coupled(s: complex, k: int) -> mpmath.mpc:
+    """``(det COUPLED)^{(k)}(s)`` at 40 digits (the determinant written out, mpmath's derivative)."""
+
+    def det(z: mpmath.mpc) -> mpmath.mpc:
+        e = mpmath.exp
+        return (z + 1) * (z + 2 - mpmath.mpf(0.4) * e(-z)) - mpmath.mpf(0.5) * e(-z) * mpmath.mpf(0.3) * e(-z / 2)
+
+    return mpmath.diff(det, mpmath.mpc(s.real, s.imag), k)
+
+
+@pytest.mark.parametrize("k", [0, 1, 2])
+def test_matrix_determinant_encloses_the_closed_form(k: int) -> None:
+    for s in (0.3 + 5j, -1.0 + 0.2j, 2.0 - 30j):
+        ball = ball_eval(COUPLED, s, derivative=k)
+        assert _in_disc(ball, _exact_coupled(s, k))
+        assert acb_to_disc(ball)[1] < 1e-12 * (1.0 + abs(complex(_exact_coupled(s, k))))
+    with pytest.raises(ParameterError, match="derivative"):
+        ball_eval(COUPLED, 0.0, derivative=5)
+
+
+@pytest.mark.parametrize("upper", [0.0, 0.7], ids=["diagonal", "triangular"])
+def test_matrix_counts_and_roots_are_those_of_the_diagonal(upper: float) -> None:
+    # det of a triangular matrix is the product of its diagonal: its roots are the union, 10 roots of
+    # NEUTRAL (its z-polynomial) and 5 of s + 1 + 2 e^{-s} (Lambert W branches) in the region
+    M = QuasiPolynomialMatrix([[NEUTRAL, QuasiPolynomial([[upper]], [0.3])], [0.0, LAMBERT]])
+    region = (-3.0, 1.0, -0.5, 30.0)
+    n = count_roots(M, region, rigorous=True)
+    parts = [find_roots(F, region, rigorous=True) for F in (NEUTRAL, LAMBERT)]
+    assert n.rigorous and int(n) == sum(p.count for p in parts) == int(count_roots(M, region)) == 15
+    proven = find_roots(M, region, rigorous=True)
+    assert proven.rigorous and proven.count == int(n) and set(proven.proofs) == {"krawczyk"}
+    scalar = np.concatenate([p.roots for p in parts])
+    assert np.all(_inside(scalar, proven.boxes).sum(axis=1) == 1)
+
+
+def test_coupled_matrix_agrees_with_its_expansion() -> None:
+    # point delays only: det M expands to a quasi-polynomial, proven by the scalar path
+    region = (-4.0, 1.0, -0.5, 25.0)
+    F = COUPLED.expand()
+    proven = find_roots(COUPLED, region, rigorous=True)
+    scalar = find_roots(F, region, rigorous=True)
+    assert proven.rigorous and proven.count == scalar.count == int(count_roots(COUPLED, region, rigorous=True)) > 0
+    assert np.all(_inside(scalar.roots, proven.boxes).sum(axis=1) == 1)
+    assert np.all(_inside(proven.roots, scalar.boxes).sum(axis=1) == 1)
+    sa = spectral_abscissa(COUPLED, region, rigorous=True)
+    assert sa.rigorous and sa.root_box is not None
+    np.testing.assert_allclose(sa.value, np.max(scalar.roots.real), rtol=0, atol=1e-12)
+
+
+# ---------------------------------------------------------------- the chain abscissa, proven
+def _z_poly_abscissa(coefs: list[float], powers: list[int], h: float) -> mpmath.mpf:
+    """``max -ln|z| / h`` over the roots of ``sum coefs_k z^powers_k`` (mpmath, 40 digits)."""
+    poly = [mpmath.mpf(0)] * (powers[-1] + 1)
+    for c, k in zip(coefs, powers):
+        poly[k] += mpmath.mpf(c)
+    roots = mpmath.polyroots(poly, maxsteps=200, extraprec=200, asc=True)
+    return max(-mpmath.log(abs(z)) / mpmath.mpf(h) for z in roots)
+
+
+@pytest.mark.parametrize(
+    "coefs, delays, powers, h",
+    [([1.0, -0.5], [0.0, 1.0], [0, 1], 1.0), ([1.0, -0.85, 0.1], [0.0, 2.0, 2.5], [0, 4, 5], 0.5)],
+    ids=["1 - e^-s / 2", "dyadic delays"],
+)
+def test_chain_bound_of_exactly_commensurate_delays(coefs: list, delays: list, powers: list, h: float) -> None:
+    D = DifferenceOperator(coefs, delays)
+    sb = D.proven_spectral_bound()
+    exact = float(_z_poly_abscissa(coefs, powers, h))
+    assert sb.proven and sb.exact and sb.step == h
+    assert sb.lower <= exact <= sb.upper and sb.upper - sb.lower < 1e-14  # measured ~1e-16
+    np.testing.assert_allclose(D.spectral_bound().value, exact, rtol=0, atol=1e-14)
+    with pytest.raises(ParameterError, match="prec"):
+        D.proven_spectral_bound(prec=4)
+    assert DifferenceOperator([2.0], [1.0]).proven_spectral_bound().upper == -np.inf  # one term: no zero
+
+
+def test_chain_bound_of_delays_commensurate_to_rounding() -> None:
+    # 2.0 and 2.1 as stored are not 20:21, so c_D of D as represented is only bracketed: by a proven
+    # zero of D (Krawczyk) and the proven C_D, around the value of the commensurate floating-point path
+    for D in (NEUTRAL.principal_part(), DifferenceOperator([1.0, 0.6, 0.3], [0.0, 1.0, np.sqrt(2.0)])):
+        sb = D.proven_spectral_bound()
+        assert sb.proven and not sb.exact
+        assert sb.upper >= D.strong_spectral_bound() and sb.lower > -np.inf
+        # the floating-point c_D (numpy's companion-matrix roots) is good to ~1e-14: measured 6.5e-15 above
+        # the proven C_D for NEUTRAL, which no exact c_D can exceed
+        assert sb.lower - 1e-13 <= D.spectral_bound().value <= sb.upper + 1e-13
+        # the zero behind the lower end, found again by mpmath at 40 digits
+        a = [mpmath.mpf(float(v)) for v in D.coefs.real]
+        t = [mpmath.mpf(float(v)) for v in D.delays]
+
+        def d(s: mpmath.mpc, a: list = a, t: list = t) -> mpmath.mpc:
+            return mpmath.fsum(ak * mpmath.exp(-tk * s) for ak, tk in zip(a, t))
+
+        chains = D.commensurate_approximation().chains() if D.commensurate_step() is None else D.chains()
+        first = chains.chains[0]
+        zeros = [mpmath.findroot(d, mpmath.mpc(x)) for x in first.points(0.0, 8 * first.spacing)]
+        assert all(abs(d(z)) < 1e-30 and float(z.real) <= sb.upper for z in zeros)
+        # a zero at least as far right as the proven one (lower is its box's left edge)
+        assert sb.lower <= max(float(z.real) for z in zeros) <= sb.upper
+
+
+def test_abscissa_value_brackets_are_proven() -> None:
+    # neutral: the chain value c_D (z-polynomial at 40 digits) inside both brackets
+    proven = spectral_abscissa(NEUTRAL, rigorous=True)
+    exact = float(_z_poly_abscissa([1.0, -0.85, 0.1], [0, 20, 21], 0.1))
+    assert proven.chain_bracket is not None and proven.value_bracket is not None
+    assert proven.chain_bracket[0] <= exact <= proven.chain_bracket[1]
+    assert proven.value_bracket[0] <= exact <= proven.value_bracket[1] == proven.upper_bound
+    assert proven.to_dict()["value_bracket"] == list(proven.value_bracket)
+    # retarded: Lambert W inside a bracket 1e-10 wide (the proven box of the rightmost root)
+    F = QuasiPolynomial([[1.0, 1.0], [2.0]], [0.0, 1.0])
+    w = float((mpmath.lambertw(-2.0 * mpmath.e, 0) - 1).real)
+    r = spectral_abscissa(F, rigorous=True)
+    assert r.chain_bracket is None and r.value_bracket is not None
+    assert r.value_bracket[0] <= w <= r.value_bracket[1] and r.value_bracket[1] - r.value_bracket[0] < 1e-9
+    # a polynomial: FLINT's isolating ball is the proven box
+    p = spectral_abscissa(QuasiPolynomial([[3000.0, 1.0]], [0.0]), rigorous=True)
+    assert p.root_box is not None and p.root_box[0] <= -3000.0 <= p.root_box[1]
+    assert p.value_bracket == (p.root_box[0], p.upper_bound)
+    assert spectral_abscissa(NEUTRAL).value_bracket is None and spectral_abscissa(F).root_box is None

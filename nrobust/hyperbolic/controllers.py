@@ -31,6 +31,8 @@ the last one, derived again from ``U_1 = -(1 + a s)/(1 + b s) rho u(1, s)``, has
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -48,7 +50,7 @@ from .delay_form import delay_form
 from .feedback import feedback_factor
 from .general import GeneralHyperbolic2x2
 from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
-from .system import Hyperbolic2x2
+from .system import Hyperbolic2x2, TransportSystem
 from .varying import VaryingDelayForm, varying_delay_form
 
 __all__ = [
@@ -270,9 +272,12 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     (:meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`). The paper's
     controllers are defined on the normal form and pass unchanged. The characteristic
     function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
-    those of the general plant. Any other plant (and its controller) passes unchanged.
+    those of the general plant. A general plant with a varying ``lam/mu`` has no normal form
+    and passes unchanged with its controller: every analysis takes it by the characteristic
+    route (:func:`~nrobust.hyperbolic.varying.varying_delay_form`). Any other plant (and
+    its controller) passes unchanged.
     """
-    if isinstance(system, GeneralHyperbolic2x2):
+    if isinstance(system, GeneralHyperbolic2x2) and system.constant_ratio:
         form = system.normal_form()
         if isinstance(controller, StateFeedback):
             controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
@@ -453,16 +458,36 @@ class Classification:
         return fields_dict(self)
 
 
-def classify(system: Hyperbolic2x2, atol: float = 1e-12) -> Classification:
+def classify(system: Hyperbolic2x2 | GeneralHyperbolic2x2, atol: float = 1e-12) -> Classification:
     """Classify a system by its open-loop gain ``|rho q|`` (paper, sections 2 and 3).
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant. A general plant is classified by its normal form; with a varying
+        ``lam/mu`` by the principal part of its characteristic route,
+        ``1 - rho_q e^{-tau s}`` (``rho_q = rho q e^{A(L) - D(L)}``): Theorems 2 and 3
+        read on it unchanged, U_BS2(K) is not defined (no normal form), and ``k_bound``
+        is the bound ``(1 - |rho_q|)/|q e^{A(L) - D(L)}|`` of ``|k|`` for the proportional
+        feedback ``U = k u(t, L)`` (its delayed principal part
+        ``1 - rho_q e^{-tau s} - k q e^{A(L) - D(L)} e^{-(tau + delta) s}`` is strongly
+        stable below it).
     atol : float, optional
         Distance to ``1`` or ``1/2`` under which ``|rho q|`` counts as a critical case.
     """
+    if isinstance(system, GeneralHyperbolic2x2):
+        if system.constant_ratio:
+            return classify(system.normal_form().system, atol)
+        end = system.length
+        u_gain = system.q * float(np.exp(system.A(end) - system.D(end)))
+        cls = classify(TransportSystem(1.0, 1.0, u_gain, system.rho_q / u_gain), atol)
+        statement = re.sub(
+            r"U_BS2\(K\) is delay-robust for \|K\| < ([0-9.eE+-]+)(?: \(Theorem 4\))?\.",
+            r"U_BS2(K) needs the normal form (lam/mu varies); the proportional feedback U = k u(t, L) keeps a "
+            r"strongly stable principal part for |k| < \1.",
+            cls.statement,
+        )
+        return dataclasses.replace(cls, statement=statement)
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     atol = nonnegative("atol", atol)

@@ -47,6 +47,17 @@ matrix is ``l_j(s)^T G_j(s) W`` with ``G_j(s) = e^{-s/mu_j} Phi(s) = exp(C - s P
 ``beta(x) = lambda_max(Herm(C) - x P)`` the logarithmic 2-norm, convex in ``x``; Jacobi's
 formula and Hadamard's inequality turn the row bounds into the bounds of ``|F'|`` and
 ``|F''|`` on a segment that the step rule of :mod:`nrobust.roots.winding` needs.
+
+**Certified delay margin** (``m = 1``). Split ``C = C_d + C_o`` (``C_d`` the couplings
+inside groups of equal round-trip rate ``p_i``); the gauge ``Y = (I + N/s) Z`` with
+``[P, N] = C_o`` and Gronwall's lemma bound ``||exp(C - s P) - exp(C_d - s P)||`` by a
+non-increasing ``r(|s|) = O(1/|s|)`` on ``Re s >= 0``
+(:meth:`NPlusMCharacteristic.coupling_remainder`), which gives a proven frequency bound
+``W`` beyond which ``|A| - |B e^{-delta s}| > 0`` (:meth:`NPlusMCharacteristic.frequency_bound`).
+On ``[0, W]`` the crossings of ``|A(i w)| = |B(i w)|`` are found completely from a
+Lipschitz bound of ``|A| - |B|`` and a bound of ``|g''|``, ``g = |A|^2 - |B|^2``
+(:meth:`NPlusMCharacteristic.crossing_frequencies`); ``docs/theory.md``, "Beyond 2x2",
+has the derivation.
 """
 
 from __future__ import annotations
@@ -56,18 +67,18 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import expm
+from scipy.linalg import eigvals, expm
 from scipy.optimize import brentq
 from scipy.sparse import csr_matrix
 
 from .._json import fields_dict
 from .._validate import nonnegative, positive, positive_int, real_array
 from ..difference import DifferenceOperator
-from ..errors import ParameterError
+from ..errors import CertificationError, ParameterError
 from ..matrix_difference import MatrixDifferenceOperator
 from ..qpmatrix import QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
-from ..roots import spectral_abscissa
+from ..roots import count_roots, spectral_abscissa
 from .system import Hyperbolic2x2
 
 __all__ = [
@@ -77,6 +88,7 @@ __all__ = [
     "NPlusMSimulation",
     "NPlusMSystem",
     "cancellation_study",
+    "multi_actuator_margin",
     "nplusm_delay_margin",
     "simulate_nplusm",
 ]
@@ -86,6 +98,7 @@ __all__ = [
 _EXPM_ROUNDING = 16.0
 # Frequency grid of the crossing search: points per unit of w times the longest delay.
 _GRID_PER_PERIOD = 32
+_EPS = float(np.finfo(float).eps)
 
 
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> NDArray[np.float64]:
@@ -444,6 +457,198 @@ class NPlusMCharacteristic:
         """Longest round trip ``1/lam_i + 1/mu_j`` plus the loop delay."""
         return float(np.max(1.0 / self.system.lam) + np.max(1.0 / self.system.mu) + self.delta)
 
+    # ------------------------------------------------------------------ one actuator: the axis
+    def _one_actuator(self, what: str) -> None:
+        if self.system.m != 1:
+            raise ParameterError("system", f"one actuator (m = 1) for {what}", self.system.m)
+
+    def gamma_0(self) -> float:
+        """``(sum_a |R_a U_a Q_a| + sum_a |K_a U_a Q_a|) / |V|``: the principal part with a loop delay (``m = 1``)."""
+        self._one_actuator("gamma_0")
+        v_block, point = self.system.principal_terms(self.K)
+        total = sum(abs(float(rq[0, 0])) + abs(float(kq[0, 0])) for _, rq, kq in point)
+        return float(total / abs(float(v_block[0, 0])))
+
+    def coupling_remainder(self, w: ArrayLike) -> NDArray[np.float64]:
+        """``r(|s|)`` with ``||e^{-s/mu} Phi(s) - e^{-s/mu} Phi_0(s)|| <= r(|s|)`` on ``Re s >= 0`` (``m = 1``).
+
+        ``Phi_0 = exp(C_d - s P)`` is the principal transition (``C_d`` the couplings inside
+        groups of equal ``p_i``, ``P`` the diagonal of round-trip rates). With ``N`` solving
+        ``[P, N] = C_o`` (the other couplings) and ``H = C N - N C_d``, the gauge
+        ``Y = (I + N/s) Z`` turns ``Y' = (C - s P) Y`` into ``Z' = (C_d - s P + E/s) Z``,
+        ``||E|| <= e = ||H|| / (1 - ||N||/|s|)``, and Gronwall's lemma with the logarithmic
+        norm ``beta_d = lambda_max(Herm C_d)`` (``P >= 0`` for one actuator) gives, for
+        ``|s| > ||N||``, with ``t = 1 / (1 - ||N||/|s|)``, ::
+
+            r = ((1 + ||N||/|s|) t e e^{beta_d + e/|s|} + 2 ||N|| t e^{beta_d}) / |s|,
+
+        non-increasing in ``|s|``; ``inf`` for ``|s| <= ||N||``. Includes ``1e-9`` relative slack.
+        """
+        self._one_actuator("the coupling remainder")
+        nN, nH, beta_d = self._gauge()
+        x: NDArray[np.float64] = np.abs(np.asarray(w, dtype=np.float64))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            t = 1.0 / (1.0 - nN / x)
+            e = t * nH
+            r = ((1.0 + nN / x) * t * e * np.exp(beta_d + e / x) + 2.0 * nN * t * np.exp(beta_d)) / x
+        return np.asarray(np.where(x > nN, r * (1.0 + 1e-9), np.inf), dtype=np.float64)
+
+    def _gauge(self) -> tuple[float, float, float]:
+        """``(||N||, ||H||, beta_d)`` of :meth:`coupling_remainder`."""
+        p = self._p[0]
+        same = p[:, None] == p[None, :]
+        c_d = np.where(same, self._c, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            N = np.where(same, 0.0, self._c / (p[:, None] - p[None, :]))
+        H = self._c @ N - N @ c_d
+        beta_d = float(np.linalg.eigvalsh(0.5 * (c_d + c_d.T))[-1])
+        slack = 1e-12 * (1.0 + float(np.abs(self._c).sum()))
+        return float(np.linalg.norm(N, 2)), float(np.linalg.norm(H, 2)), beta_d + slack
+
+    def frequency_bound(self) -> float:
+        """Proven ``W`` (``m = 1``, ``gamma_0 < 1``): ``|A(i w)| != |B(i w)|`` for ``w >= W``, and
+        ``F(s; delta) != 0`` for ``Re s >= 0``, ``|s| >= W``, every ``delta >= 0``.
+
+        On ``Re s >= 0``, ``|A_0(s)| - |B_0(s) e^{-delta s}| >= gap = |V| (1 - gamma_0)``
+        for the principal parts, and ``|A - A_0| + |B - B_0| <= (||l_A|| + ||K||) ||W|| r(|s|)``
+        (:meth:`coupling_remainder`, ``l_A = (-R, 1)``, ``W = [Q; 1]``); ``W`` is the
+        smallest radius (to ``1e-7``, rounded up) where the latter is below the gap less
+        its rounding room.
+
+        Raises
+        ------
+        CertificationError
+            ``gamma_0 >= 1`` (no such bound), or the remainder stays above the gap up to ``2^200``.
+        """
+        self._one_actuator("the frequency bound")
+        v_block, point = self.system.principal_terms(self.K)
+        total = abs(float(v_block[0, 0])) + sum(abs(float(rq[0, 0])) + abs(float(kq[0, 0])) for _, rq, kq in point)
+        gap = abs(float(v_block[0, 0])) * (1.0 - self.gamma_0())
+        level = gap * (1.0 - 1e-9) - 1e-12 * total
+        if level <= 0.0:
+            raise CertificationError(f"frequency_bound: gamma_0 = {self.gamma_0():.12g} is not below 1 beyond rounding")
+        scale = (
+            float(np.hypot(np.linalg.norm(self.system.r, 2), 1.0)) + float(np.linalg.norm(self.K, 2))
+        ) * self._w_norm
+        nN, _, _ = self._gauge()
+        if nN == 0.0:
+            return 0.0
+        return _smallest_radius(lambda R: scale * self.coupling_remainder(R), level, nN)
+
+    def axis_jet(self, w: ArrayLike) -> tuple[NDArray[np.complex128], ...]:
+        """``A(i w)``, ``B(i w)``, ``A'(i w)``, ``B'(i w)`` (derivatives in ``s``) and the rounding
+        levels of the first two and of the last two (``m = 1``; Van Loan's block exponential)."""
+        self._one_actuator("the factors")
+        w = np.asarray(w, dtype=float).reshape(-1)
+        N = self.system.n + 1
+        a = self._c[None] - (1j * w)[:, None, None] * np.diag(self._p[0])[None]
+        big = np.zeros((w.size, 2 * N, 2 * N), dtype=complex)
+        big[:, :N, :N] = a
+        big[:, N:, N:] = a
+        big[:, :N, N:] = -np.diag(self._p[0])
+        e = expm(big) if w.size else big
+        col, dcol = e[:, :N, :N] @ self._w[:, 0], e[:, :N, N:] @ self._w[:, 0]
+        ell_a = np.concatenate([-self.system.r[0], [1.0]])
+        ell_b = np.concatenate([-self.K[0], [0.0]])
+        A, B, dA, dB = col @ ell_a, col @ ell_b, dcol @ ell_a, dcol @ ell_b
+        beta = float(np.linalg.eigvalsh(self._herm)[-1])
+        p = float(np.abs(self._p[0]).max())
+        level = _EXPM_ROUNDING * _EPS * np.exp(beta) * self._w_norm * (1.0 + self._c_norm + w * p)
+        norms = np.array([np.linalg.norm(ell_a), np.linalg.norm(ell_b)])
+        return A, B, dA, dB, level[None] * norms[:, None], level[None] * norms[:, None] * p
+
+    def crossing_frequencies(self, W: float, *, max_points: int = 2_000_000) -> tuple[float, ...]:
+        """Every ``w`` in ``(0, W]`` with ``|A(i w)| = |B(i w)|``, certified complete (``m = 1``).
+
+        ``h = |A| - |B|`` has ``|h'| <= L = (||l_A|| + ||K||) ||W|| ||P|| e^{beta}`` on the axis
+        (``beta = lambda_max(Herm C)``, Dyson's expansion), and ``g = |A|^2 - |B|^2`` has
+        ``|g''| <= M_2 = 4 (||l_A||^2 + ||K||^2) ||W||^2 ||P||^2 e^{2 beta}``. A segment
+        ``[a, b]`` holds no zero when ``|h(a)| + |h(b)| - err > L (b - a)``; otherwise, when
+        ``|g'(c)| - err' > M_2 (b - a) / 2`` at its centre ``c``, ``g`` is monotone there and
+        has one zero iff the certified end signs differ (located by Brent's method); else
+        the segment is cut in eight, down to ``1e-12 max(1, W)``.
+
+        Raises
+        ------
+        CertificationError
+            A work bound hit, a zero at ``w = 0`` to rounding, or a segment narrowed to
+            rounding without a decision (a double zero: a tangency).
+        """
+        self._one_actuator("the crossing search")
+        W = float(W)
+        max_points = positive_int("max_points", max_points)
+        beta = float(np.linalg.eigvalsh(self._herm)[-1]) + 1e-12 * (1.0 + self._c_norm)
+        p = float(np.abs(self._p[0]).max())
+        na = float(np.hypot(np.linalg.norm(self.system.r, 2), 1.0))
+        nk = float(np.linalg.norm(self.K, 2))
+        lip = (na + nk) * self._w_norm * p * np.exp(beta) * (1.0 + 1e-12)
+        m2 = 4.0 * (na**2 + nk**2) * self._w_norm**2 * p**2 * np.exp(2.0 * beta) * (1.0 + 1e-12)
+        level = _EXPM_ROUNDING * _EPS * np.exp(beta) * self._w_norm  # rounding of A, B per unit ||l||
+        spent = 0
+
+        def h(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            nonlocal spent
+            if spent + x.size > max_points:
+                raise CertificationError(
+                    f"crossing search: {x.size} more evaluations of A and B after {spent} exceed max_points="
+                    f"{max_points} (raise max_points)"
+                )
+            spent += x.size
+            A, B = self.factors(1j * x)
+            return np.abs(A) - np.abs(B), level * (na + nk) * (1.0 + self._c_norm + x * p)
+
+        step = 2.0 * np.pi / (_GRID_PER_PERIOD * self.max_delay)
+        count = int(np.ceil(W / step)) + 1
+        if count > max_points:
+            raise ParameterError("max_points", f">= {count} (the first grid up to W = {W:.6g})", max_points)
+        x = np.linspace(0.0, W, max(count, 2))
+        hx, ex = h(x)
+        if abs(hx[0]) <= ex[0]:
+            raise CertificationError("crossing search: |A(0)| = |B(0)| to rounding (a root at s = 0 for some delay)")
+        segments = list(zip(x[:-1], x[1:], hx[:-1], hx[1:], ex[:-1], ex[1:]))
+        brackets: list[tuple[float, float]] = []
+        min_width = 1e-12 * max(1.0, W)
+        while segments:
+            open_ = [sg for sg in segments if abs(sg[2]) + abs(sg[3]) - sg[4] - sg[5] <= lip * (sg[1] - sg[0])]
+            if not open_:
+                break
+            c = np.array([0.5 * (sg[0] + sg[1]) for sg in open_])
+            A, B, dA, dB, e, de = self.axis_jet(c)
+            spent += c.size
+            dg = -2.0 * np.imag(np.conj(A) * dA) + 2.0 * np.imag(np.conj(B) * dB)
+            derr = 2.0 * (np.abs(A) * de[0] + np.abs(dA) * e[0] + e[0] * de[0])
+            derr += 2.0 * (np.abs(B) * de[1] + np.abs(dB) * e[1] + e[1] * de[1])
+            cut = []
+            for sg, dgk, derk in zip(open_, dg, derr):
+                a, b, ha, hb, ea, eb = sg
+                sure = abs(ha) > ea and abs(hb) > eb
+                if sure and abs(dgk) - derk > m2 * 0.5 * (b - a):
+                    if np.sign(ha) != np.sign(hb):
+                        brackets.append((a, b))
+                    continue
+                if b - a <= min_width:
+                    raise CertificationError(
+                        f"crossing search: cannot decide |A(i w)| = |B(i w)| on [{a:.17g}, {b:.17g}] (a double zero "
+                        "of |A|^2 - |B|^2 to rounding: a tangency); a slight change of the gain would decide it"
+                    )
+                cut.append(sg)
+            if not cut:
+                break
+            pts = np.concatenate([np.linspace(a, b, 9)[1:-1] for a, b, *_ in cut])
+            hp, ep = h(pts)
+            segments = []
+            for k, (a, b, ha, hb, ea, eb) in enumerate(cut):
+                xs = np.r_[a, pts[7 * k : 7 * k + 7], b]
+                hs = np.r_[ha, hp[7 * k : 7 * k + 7], hb]
+                es = np.r_[ea, ep[7 * k : 7 * k + 7], eb]
+                segments += list(zip(xs[:-1], xs[1:], hs[:-1], hs[1:], es[:-1], es[1:]))
+
+        def h1(v: float) -> float:
+            A, B, *_ = self.axis_jet(np.array([v]))
+            return float(abs(A[0]) - abs(B[0]))
+
+        return tuple(float(brentq(h1, a, b, xtol=1e-14, rtol=4 * _EPS)) for a, b in sorted(brackets))
+
 
 class _CharacteristicDerivative:
     """``F'`` of an :class:`NPlusMCharacteristic` for the order-2 step rule."""
@@ -456,6 +661,24 @@ class _CharacteristicDerivative:
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         return self.F.second_deriv_bound(a, b)
+
+
+def _smallest_radius(tail: Any, level: float, floor: float) -> float:
+    """A radius ``R > floor`` with ``tail(R) < level`` within ``1e-7`` (relative) of the smallest
+    (``tail`` non-increasing on ``(floor, inf)``): doubling, then bisection."""
+    hi = max(2.0 * floor, 1.0)
+    while not float(tail(np.array([hi]))[0]) < level:
+        hi *= 2.0
+        if hi > 2.0**200:
+            raise CertificationError(f"frequency_bound: the coupling remainder stays above the gap {level:.3g}")
+    lo = floor
+    while hi - lo > 1e-7 * hi:
+        mid = 0.5 * (lo + hi)
+        if float(tail(np.array([mid]))[0]) < level:
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:
@@ -473,22 +696,31 @@ class NPlusMMargin:
     ----------
     margin : float
         ``0`` when the principal part with the delay is not strongly stable
-        (``gamma_0 >= 1``: arbitrarily small delays destabilise), ``inf`` when no crossing
-        frequency was found below ``frequency_bound``, else the smallest
+        (``gamma_0 >= 1``: arbitrarily small delays destabilise), ``inf`` when
+        ``|A(i w)| != |B(i w)|`` for every ``w >= 0``, else the smallest
         ``(arg(-B/A)(i w) mod 2 pi) / w`` over the crossing frequencies.
     omega : float or None
         The crossing frequency of ``margin``.
     crossings : tuple of (float, float)
-        Every crossing frequency ``w > 0`` found with its first delay.
+        Every crossing frequency ``w > 0`` with its first delay.
     gamma_0 : float
         ``sum |R_a U_a Q_a| / |V| + sum |K_a U_a Q_a| / |V|`` of the delayed principal part
         (exact for one actuator).
     frequency_bound : float
-        The search ran on ``(0, frequency_bound]``.
+        ``W``: proven ``|A(i w)| != |B(i w)|`` for ``w >= W``, and no zero of
+        ``F(.; delta)`` with ``Re s >= 0``, ``|s| >= W``, for any ``delta >= 0``
+        (:meth:`NPlusMCharacteristic.frequency_bound`).
     certified : bool
-        False: the frequency bound rests on the sampled decay ``w |F - F_principal|`` of the
-        coupling terms and the crossings on a grid refined by Brent's method, not on proven
-        bounds (the strong-stability decision ``gamma_0 < 1`` is exact).
+        True: the frequency bound is proven (gauge transformation and Gronwall's lemma,
+        module notes), every crossing on ``[0, W]`` is found by a search with a certified
+        exclusion and monotonicity test, the delay-free loop's unstable roots are counted
+        (:func:`~nrobust.roots.count_roots` on ``[0, W] x [-W, W]``), and ``gamma_0 >= 1``
+        is decided with room above rounding. False for ``gamma_0`` within ``1e-12`` of 1,
+        or when a root of the delay-free loop lies within rounding of the axis.
+    nominal_unstable : int or None
+        Certified number of roots of the delay-free loop in ``Re s >= 0`` (None: not
+        counted, ``gamma_0 >= 1``, or a root within rounding of the axis). When it is not
+        0 the margin is 0: the loop is not stable to begin with.
     """
 
     margin: float
@@ -497,6 +729,7 @@ class NPlusMMargin:
     gamma_0: float
     frequency_bound: float
     certified: bool
+    nominal_unstable: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -504,73 +737,131 @@ class NPlusMMargin:
 
 
 def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
-    """Delay margin of ``U(t) = K u(t - delta, 1)`` on a one-actuator ``n + 1`` system.
+    """Certified delay margin of ``U(t) = K u(t - delta, 1)`` on a one-actuator ``n + 1`` system.
 
     ``F(s; delta) = A(s) + B(s) e^{-delta s}`` (module notes): a root reaches ``s = i w``
     only where ``g(w) = |A(i w)|^2 - |B(i w)|^2`` vanishes, at the delays
-    ``(arg(-B/A) mod 2 pi + 2 pi k) / w``. Above the frequency bound the principal parts
-    dominate, ``| |A| - |B| | >= |V| (1 - gamma_0) - |F - F_principal|``, so the search runs
-    on a grid of ``(0, W]`` with ``W`` where the coupling remainder, sampled and fitted as
-    ``c / w``, is below a quarter of that gap.
+    ``(arg(-B/A) mod 2 pi + 2 pi k) / w``. Beyond the proven frequency bound ``W``
+    (:meth:`NPlusMCharacteristic.frequency_bound`) there is no crossing; on ``[0, W]``
+    the search is complete (:meth:`NPlusMCharacteristic.crossing_frequencies`: Lipschitz
+    exclusion of ``|A| - |B|``, then monotonicity of ``g`` from a bound of ``|g''|``).
 
     Parameters
     ----------
     system : NPlusMSystem
         With ``m = 1``; the loop with ``K`` and no delay should be stable (the margin is
-        then the delay margin).
+        then the delay margin: the loop stays stable for every ``delta < margin``).
     K : array_like, shape (1, n)
         The gain.
     max_points : int, optional
-        Work bound on the frequency grid, checked before it is allocated.
+        Work bound on evaluations of ``A`` and ``B`` on the axis, checked before each grid
+        is allocated.
 
     Returns
     -------
     NPlusMMargin
+
+    Raises
+    ------
+    CertificationError
+        The work bound was hit, or ``g`` has a zero of even multiplicity (a tangency) to
+        rounding that the search cannot decide.
     """
     F = NPlusMCharacteristic(system, K, 0.0)
     if system.m != 1:
         raise ParameterError("system", "one actuator (m = 1): the loop is then A + B e^{-delta s}", system.m)
     max_points = positive_int("max_points", max_points)
-    v_block, point = system.principal_terms(F.K)
-    v = float(v_block[0, 0])
-    rho = np.array([float(rq[0, 0]) for _, rq, _ in point])
-    kap = np.array([float(kq[0, 0]) for _, _, kq in point])
-    taus = np.array([tau for tau, _, _ in point])
-    gamma = float((np.sum(np.abs(rho)) + np.sum(np.abs(kap))) / abs(v))
+    gamma = F.gamma_0()
     if gamma >= 1.0:
-        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
-    gap = abs(v) * (1.0 - gamma)
-
-    def remainder(w: NDArray[np.float64]) -> NDArray[np.float64]:
-        s = 1j * w
-        a, b = F.factors(s)
-        e = np.exp(-np.outer(s, taus))
-        return np.asarray(np.abs(a - (v - e @ rho)) + np.abs(b + e @ kap), dtype=float)
-
-    w1 = 8.0 * np.pi / float(np.min(taus))
-    probe = w1 * np.geomspace(1.0, 32.0, 257)
-    c = float(np.max(probe * remainder(probe)))
-    W = max(w1, 4.0 * c / gap)
-    step = 2.0 * np.pi / (_GRID_PER_PERIOD * float(np.max(taus)))
-    count = int(np.ceil(W / step)) + 1
-    if count > max_points:
-        raise ParameterError("max_points", f">= {count} (the frequency grid up to W = {W:.6g})", max_points)
-    w = np.linspace(step * 1e-3, W, count)
-
-    def g(x: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        a, b = F.factors(1j * np.atleast_1d(np.asarray(x, dtype=float)))
-        return np.asarray(np.abs(a) ** 2 - np.abs(b) ** 2, dtype=float)
-
-    gw = g(w)
-    found: list[tuple[float, float]] = []
-    for i in np.flatnonzero(np.sign(gw[:-1]) * np.sign(gw[1:]) <= 0):
-        wc = float(brentq(lambda x: float(g(x)[0]), w[i], w[i + 1], xtol=1e-14, rtol=1e-14))
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, gamma > 1.0 + 1e-12)
+    W = F.frequency_bound()
+    radius = max(W, 1.0)  # the bound holds for every radius >= W
+    count = count_roots(F, (0.0, radius, -radius, radius))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), gamma, W, nominal is not None, nominal)
+    found = []
+    for wc in F.crossing_frequencies(W, max_points=max_points):
         a, b = F.factors(np.array([1j * wc]))
         found.append((wc, float(np.mod(np.angle(-b[0] / a[0]), 2 * np.pi) / wc)))
+    certified = gamma < 1.0 - 1e-12
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, W, False)
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0)
     best = min(found, key=lambda p: p[1])
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, False)
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0)
+
+
+def multi_actuator_margin(
+    system: NPlusMSystem, K: ArrayLike, omega_max: float, *, points: int = 4000, max_points: int = 1_000_000
+) -> NPlusMMargin:
+    """Delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m`` actuators (not certified).
+
+    ``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` with ``M_0`` the loop matrix of
+    ``K = 0`` and ``M_1 = -E K Phi_u``. A root sits at ``s = i w`` iff
+    ``z = e^{-i w delta}`` is an eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit
+    circle; the delays are ``(-arg z mod 2 pi) / w``. The number of eigenvalues inside the
+    unit disk is tracked on a grid of ``(0, omega_max]``; each change is located by
+    bisection and gives one crossing frequency. Not certified (``certified=False``): two
+    eigenvalues crossing the circle in opposite directions between grid points, or a
+    crossing above ``omega_max``, would be missed; ``gamma_0`` is the upper end of the
+    certified bracket of the delayed principal part, the margin 0 when its lower end is at
+    least 1, and ``nominal_unstable`` the certified count of the delay-free loop in
+    ``[0, omega_max] x [-omega_max, omega_max]`` only.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    omega_max : float
+        Upper end ``> 0`` of the frequency search.
+    points : int, optional
+        Grid points (``>= 16``).
+    max_points : int, optional
+        Work bound on pencil evaluations, checked before the grid is allocated.
+    """
+    k = system.gain(K)
+    omega_max = positive("omega_max", omega_max)
+    points = positive_int("points", points, minimum=16)
+    max_points = positive_int("max_points", max_points)
+    if points + 64 * system.m * max(1, points // 8) > max_points:
+        raise ParameterError("max_points", f">= {points + 64 * system.m * max(1, points // 8)}", max_points)
+    bracket = system.principal_operator(k, 1e-3 * np.sqrt(2.0)).gamma_0()  # a delay separating every term
+    if bracket.lower >= 1.0:
+        return NPlusMMargin(0.0, None, (), float(bracket.upper), 0.0, False)
+    count = count_roots(NPlusMCharacteristic(system, k, 0.0), (0.0, omega_max, -omega_max, omega_max))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), float(bracket.upper), omega_max, False, nominal)
+
+    def pencil(w: NDArray[np.float64]) -> NDArray[np.complex128]:
+        s = 1j * np.asarray(w, dtype=float)
+        m0 = system.loop_matrix(s)
+        m1 = system.loop_matrix(s, k) - m0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.array([eigvals(a, -b) for a, b in zip(m0, m1)])
+
+    def inside(w: NDArray[np.float64]) -> NDArray[np.int64]:
+        return np.sum(np.abs(pencil(w)) < 1.0, axis=-1)
+
+    w = np.linspace(omega_max / points, omega_max, points)
+    n_in = inside(w)
+    found = []
+    for i in np.flatnonzero(n_in[:-1] != n_in[1:]):
+        lo, hi, n_lo = float(w[i]), float(w[i + 1]), int(n_in[i])
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if int(inside(np.array([mid]))[0]) == n_lo:
+                lo = mid
+            else:
+                hi = mid
+        wc = 0.5 * (lo + hi)
+        z = pencil(np.array([wc]))[0]
+        zc = z[np.argmin(np.abs(np.abs(z) - 1.0))]
+        found.append((wc, float(np.mod(-np.angle(zc), 2 * np.pi) / wc)))
+    if not found:
+        return NPlusMMargin(np.inf, None, (), float(bracket.upper), omega_max, False, 0)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), float(bracket.upper), omega_max, False, 0)
 
 
 # ====================================================================== simulation

@@ -23,8 +23,9 @@ from fractions import Fraction
 from .._validate import positive_int, renamed_keywords
 from ..bounds import RoucheDelayBound, delay_bound_from_kernel
 from ..errors import ParameterError
-from .controllers import Controller, FiniteTimeController, ReflectionController
+from .controllers import Controller, FiniteTimeController, ReflectionController, _varying_form
 from .delay_form import delay_form
+from .general import GeneralHyperbolic2x2
 from .kernels import DEFAULT_KERNEL_GRID
 from .system import Hyperbolic2x2
 
@@ -33,7 +34,10 @@ __all__ = ["rouche_delay_bound"]
 
 @renamed_keywords(n="kernel_grid")
 def rouche_delay_bound(
-    system: Hyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID, rigorous: bool = False
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: Controller,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
 ) -> RoucheDelayBound:
     """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
 
@@ -47,9 +51,14 @@ def rouche_delay_bound(
 
     Parameters
     ----------
-    system : Hyperbolic2x2
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The plant (a :class:`~nrobust.hyperbolic.TransportSystem` has ``N~ = 0`` and ``delta_0 = inf``
-        whenever ``epsilon_0 > 0``).
+        whenever ``epsilon_0 > 0``). A general plant is taken through its normal form; with a
+        varying ``lam/mu`` only U_BS applies (U_BS2(K) needs the normal form), with
+        ``epsilon_0 = 1 - 2 |rho_q|`` and ``N~`` of the characteristic route
+        (:func:`~nrobust.hyperbolic.varying.varying_delay_form`, the same ``N~`` as its loop
+        factors; ``kernel_grid`` is not used): its U_BS loop
+        ``1 - rho_q e^{-tau s} + rho_q e^{-(tau + delta) s} + I(s, delta)`` has the form above.
     controller : ReflectionController or FiniteTimeController
         ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
@@ -64,8 +73,12 @@ def rouche_delay_bound(
     -------
     RoucheDelayBound
     """
+    if isinstance(system, GeneralHyperbolic2x2):
+        if not system.constant_ratio:
+            return _varying_bound(system, controller, rigorous)
+        system = system.normal_form().system
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
     if isinstance(controller, ReflectionController):
         K = float(controller.K)
     elif isinstance(controller, FiniteTimeController):
@@ -86,5 +99,30 @@ def rouche_delay_bound(
     N = None if system.uncoupled else delay_form(system, grid).N_tilde
     bound = delay_bound_from_kernel(N, eps0, K, rigorous=rigorous)
     if rigorous and not bound.rigorous:  # N~ = 0 or epsilon_0 <= 0: exact comparisons of the stored numbers
+        bound = dataclasses.replace(bound, rigorous=True)
+    return bound
+
+
+def _epsilon_0(exact: Fraction, rigorous: bool) -> float:
+    """``float(exact)``, rounded down when ``rigorous`` (the bound must not exceed the exact value)."""
+    eps0 = float(exact)
+    if rigorous and Fraction(eps0) > exact:
+        eps0 = math.nextafter(eps0, -math.inf)
+    return eps0
+
+
+def _varying_bound(system: GeneralHyperbolic2x2, controller: Controller, rigorous: bool) -> RoucheDelayBound:
+    """The Rouché bound of U_BS on a plant with a varying ``lam/mu`` (characteristic route)."""
+    if not isinstance(controller, FiniteTimeController):
+        raise ParameterError(
+            "controller",
+            "a FiniteTimeController on a plant with a varying lam/mu (U_BS2(K) is defined on the normal form, "
+            "which needs a constant lam/mu)",
+            controller,
+        )
+    form = _varying_form(system)
+    eps0 = _epsilon_0(1 - 2 * abs(Fraction(float(form.rho_q))), rigorous)
+    bound = delay_bound_from_kernel(form.characteristic.distributed[0], eps0, system.rho, rigorous=rigorous)
+    if rigorous and not bound.rigorous:  # epsilon_0 <= 0: exact comparisons of the stored numbers
         bound = dataclasses.replace(bound, rigorous=True)
     return bound

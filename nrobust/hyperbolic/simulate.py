@@ -58,6 +58,7 @@ See ``docs/simulation.md``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -70,7 +71,10 @@ from scipy import sparse
 from .._json import fields_dict
 from .._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
 from ..errors import ParameterError
+from .controllers import Controller, OpenLoop, StateFeedback
+from .general import GeneralHyperbolic2x2
 from .kernels import solve_kernels
+from .simulate_general import simulate_general
 from .system import Hyperbolic2x2
 
 __all__ = ["DEFAULT_CELLS", "Simulation", "simulate", "v_nodes"]
@@ -117,9 +121,10 @@ class Simulation:
         Number of cells.
     delay_interpolation : str
         ``"exact shift"`` when ``delta`` is a multiple of ``dt`` (or zero), otherwise
-        ``"Lagrange-4"``.
+        ``"Lagrange-4"`` (``"linear"`` on the time-of-flight grids).
     scheme : str
-        ``"characteristic lattice"`` (``lam == mu``) or ``"two characteristic grids"``.
+        ``"characteristic lattice"`` (``lam == mu``), ``"two characteristic grids"``, or
+        ``"time-of-flight grids"`` (a general plant with a varying ``lam/mu``).
     """
 
     times: Array
@@ -566,7 +571,7 @@ def _march_two_grids(
 
 @renamed_keywords(n="cells", kernel_n="kernel_grid")
 def simulate(
-    system: Hyperbolic2x2,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     controller: Any,
     delta: float,
     t_end: float,
@@ -583,9 +588,9 @@ def simulate(
 
     Parameters
     ----------
-    system : Hyperbolic2x2
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The plant, eqs. (18)-(20) (or (1)-(3) for a
-        ``TransportSystem``).
+        ``TransportSystem``), or a general plant (see the end of this docstring).
     controller : Controller or FeedbackLaw
         An object with ``feedback_law(system, kernels)`` (``OpenLoop``,
         ``FiniteTimeController`` = U_BS eq. (47), ``ReflectionController(K)`` = U_BS2
@@ -632,9 +637,43 @@ def simulate(
     interpolation, and a partial last cell at ``x = 0`` for ``v`` when ``1/(mu dt)`` is
     not an integer.
     See ``docs/simulation.md``.
+
+    A :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` with a constant ``lam/mu`` is
+    simulated through its normal form (:func:`_simulate_normal_form`): the initial state is
+    carried to it, the paper's plant simulated as above under the controller (a
+    ``StateFeedback``'s gains mapped from the physical coordinates), and the states, the
+    control ``U = e^{D(L)} U~`` and the norm ``sqrt(int_0^L u^2 + v^2 dx)`` are those of the
+    physical plant (``x``, ``x_v``: the physical nodes; times in ``time_unit``). With a
+    varying ``lam/mu`` it is simulated on its own time-of-flight grids
+    (:func:`~nrobust.hyperbolic.simulate_general.simulate_general`: ``StateFeedback`` or
+    ``OpenLoop``, final state only, ``scheme = "time-of-flight grids"``).
     """
+    if isinstance(system, GeneralHyperbolic2x2):
+        if not system.constant_ratio:
+            return _simulate_varying(system, controller, delta, t_end, u0, v0, cells, snapshot_every)
+        return _simulate_normal_form(
+            system, controller, delta, t_end, u0, v0, cells, snapshot_every, kernels, kernel_grid, max_updates
+        )
+    return _simulate(system, controller, delta, t_end, u0, v0, cells, snapshot_every, kernels, kernel_grid, max_updates)
+
+
+def _simulate(
+    system: Hyperbolic2x2,
+    controller: Any,
+    delta: float,
+    t_end: float,
+    u0: InitialState,
+    v0: InitialState,
+    cells: int,
+    snapshot_every: int | None,
+    kernels: Any,
+    kernel_grid: int | None,
+    max_updates: int,
+    norm_weights: tuple[Callable[[Array], Array], Callable[[Array], Array]] | None = None,
+) -> Simulation:
+    """:func:`simulate` on the paper's plant; ``norm_weights`` (functions of the nodes) weight ``u^2``, ``v^2``."""
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
     delta = nonnegative("delta", delta)
     t_end = positive("t_end", t_end)
     n = positive_int("cells", cells, minimum=2)
@@ -676,6 +715,8 @@ def simulate(
         dt,
         steps,
     )
+    if norm_weights is not None:
+        w_x, w_v = w_x * norm_weights[0](x), w_v * norm_weights[1](xv)
     record = _Recorder(steps, snapshot_every, w_x, w_v)
     loop.start(u, v)
     record(0, u, v)
@@ -699,6 +740,121 @@ def simulate(
         n=n,
         delay_interpolation="exact shift" if loop.exact else "Lagrange-4",
         scheme="characteristic lattice" if lattice else "two characteristic grids",
+    )
+
+
+def _simulate_normal_form(
+    plant: GeneralHyperbolic2x2,
+    controller: Any,
+    delta: float,
+    t_end: float,
+    u0: InitialState,
+    v0: InitialState,
+    cells: int,
+    snapshot_every: int | None,
+    kernels: Any,
+    kernel_grid: int | None,
+    max_updates: int,
+) -> Simulation:
+    """A general plant with a constant ``lam/mu``, simulated as its normal form and mapped back.
+
+    ``u = e^{A + k} u~``, ``v = e^{D} v~`` at ``y(x)`` (:class:`~nrobust.hyperbolic.general.NormalForm`);
+    with ``dx = t_u lam(x(y)) dy`` the physical norm is the normal form's with the weights
+    ``e^{2(A + k)} t_u lam`` and ``e^{2D} t_u lam`` on the squares.
+    """
+    if not isinstance(controller, Controller):
+        raise ParameterError(
+            "controller",
+            "a Controller for a general plant (a FeedbackLaw's gains would be in the normal form's coordinates: "
+            "simulate plant.normal_form().system with it)",
+            controller,
+        )
+    form = plant.normal_form()
+    system = form.system
+    if isinstance(controller, StateFeedback):
+        controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
+    t_u = plant.transport_times[0]
+
+    def physical(nodes: Array) -> Array:
+        at = form.x_of_y(nodes)
+        at[0], at[-1] = 0.0, plant.length
+        return at
+
+    # The initial state is sampled on the nodes by _simulate, after its work bound is checked.
+    def un(nodes: Array) -> Array:
+        at = physical(nodes)
+        return np.asarray(form.to_normal(at, _initial("u0", u0, at), 0.0)[1])
+
+    def vn(nodes: Array) -> Array:
+        at = physical(nodes)
+        return np.asarray(form.to_normal(at, 0.0, _initial("v0", v0, at))[2])
+
+    def weight_u(nodes: Array) -> Array:
+        at = form.x_of_y(nodes)
+        return np.exp(2.0 * (plant.A(at) + form.balance)) * t_u * plant.coefficient("lam", at)
+
+    def weight_v(nodes: Array) -> Array:
+        at = form.x_of_y(nodes)
+        return np.exp(2.0 * plant.D(at)) * t_u * plant.coefficient("lam", at)
+
+    run = _simulate(
+        system,
+        controller,
+        delta,
+        t_end,
+        un,
+        vn,
+        cells,
+        snapshot_every,
+        kernels,
+        kernel_grid,
+        max_updates,
+        (weight_u, weight_v),
+    )
+    _, u, _ = form.from_normal(run.x, run.u, 0.0)
+    _, _, v = form.from_normal(run.x_v, 0.0, run.v)
+    x, xv = physical(run.x), physical(run.x_v)
+    return dataclasses.replace(run, x=x, x_v=xv, u=u, v=v, control=run.control * form.control_gain)
+
+
+def _simulate_varying(
+    plant: GeneralHyperbolic2x2,
+    controller: Any,
+    delta: float,
+    t_end: float,
+    u0: InitialState,
+    v0: InitialState,
+    cells: int,
+    snapshot_every: int | None,
+) -> Simulation:
+    """A general plant with a varying ``lam/mu``: :func:`~nrobust.hyperbolic.simulate_general.simulate_general`."""
+    if not isinstance(controller, (StateFeedback, OpenLoop)):
+        raise ParameterError(
+            "controller",
+            "a StateFeedback or OpenLoop on a plant with a varying lam/mu (the paper's controllers are built on the "
+            "kernels of a normal form, which needs a constant lam/mu)",
+            controller,
+        )
+    if snapshot_every is not None:
+        raise ParameterError(
+            "snapshot_every", "left out for a plant with a varying lam/mu (its simulation keeps the final state)"
+        )
+    n = positive_int("cells", cells, minimum=4)
+    run = simulate_general(plant, controller, delta, t_end, u0, v0, n)
+    return Simulation(
+        times=run.times,
+        norm=run.norm,
+        control=run.control,
+        x=run.x_u,
+        x_v=run.x_v,
+        snapshot_times=run.times[-1:],
+        u=run.u[None, :],
+        v=run.v[None, :],
+        delta=nonnegative("delta", delta),
+        dt=run.dt,
+        n=n,
+        delay_interpolation="linear",
+        scheme="time-of-flight grids",
     )
 
 

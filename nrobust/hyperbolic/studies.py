@@ -35,11 +35,13 @@ from .controllers import (
     FilteredController,
     FiniteTimeController,
     ReflectionController,
+    StateFeedback,
     characteristic,
     classify,
     loop_factors,
+    normalize,
 )
-from .general import GeneralHyperbolic2x2
+from .general import GeneralHyperbolic2x2, NormalForm
 from .kernels import DEFAULT_KERNEL_GRID
 from .robustness import rouche_delay_bound
 from .system import Hyperbolic2x2
@@ -196,9 +198,57 @@ def _tolerates(margin: DelayMargin | _Verdict, delta_max: float) -> bool:
 
 def _check_system(system: Any) -> None:
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
     if system.q == 0:
         raise ParameterError("system.q", "non-zero (otherwise the loop does not depend on K)", system.q)
+
+
+@dataclass(frozen=True)
+class _OnNormalForm:
+    """Picklable ``K -> family(K)`` acting on the normal form of a general plant.
+
+    A :class:`~nrobust.hyperbolic.controllers.StateFeedback` has its gains mapped from the
+    physical coordinates (:meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`);
+    the paper's controllers are defined on the normal form and pass unchanged.
+    """
+
+    form: NormalForm
+    family: Callable[[float], Any]
+
+    def __call__(self, K: float) -> Any:
+        ctrl = self.family(K)
+        if isinstance(ctrl, StateFeedback):
+            return StateFeedback(*self.form.feedback_to_normal(ctrl.k, ctrl.g_u, ctrl.g_v))
+        return ctrl
+
+
+def _study_plant(
+    system: Any, family: Callable[[float], Any] | None, study: str
+) -> tuple[Any, Callable[[float], Any] | None]:
+    """The plant and gain family a study runs on.
+
+    A general plant with a constant ``lam/mu`` is replaced by its normal form (once: its
+    kernels are then shared by every gain) and a custom ``family`` mapped onto it
+    (:class:`_OnNormalForm`). With a varying ``lam/mu`` the plant stays as it is (loop
+    factors by the characteristic route), which needs a ``family`` other than U_BS2(K),
+    a normal-form controller.
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        if system.constant_ratio:
+            form = system.normal_form()
+            if family is None or family is ReflectionController:
+                return form.system, None
+            return form.system, _OnNormalForm(form, family)
+        if family is None or family is ReflectionController:
+            raise ParameterError(
+                "controller",
+                f"a gain family K -> controller (e.g. StateFeedback) for {study} of a plant with a varying lam/mu: "
+                "U_BS2(K) is defined on the normal form, which needs a constant lam/mu",
+                family,
+            )
+        return system, family
+    _check_system(system)
+    return system, family
 
 
 def _grid(name: str, values: ArrayLike) -> NDArray[np.float64]:
@@ -1204,8 +1254,12 @@ def k_region(
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant through its normal form (a ``controller`` family then acts
+        in its physical coordinates), with a varying ``lam/mu`` only with a ``controller``
+        family other than U_BS2(K) (e.g. ``StateFeedback``: its loop by the characteristic
+        route; the default grid then spans the strong-stability bound of ``|k|`` of
+        ``U = k u(t, L)``, :func:`~nrobust.hyperbolic.classify`).
     delta_max : float
         Delay range to tolerate (``> 0``, finite).
     Ks : array_like, optional
@@ -1241,7 +1295,7 @@ def k_region(
         An end could not be verified (the message names its bracket), a delay margin
         failed, or the scan would exceed ``max_evals``.
     """
-    _check_system(system)
+    system, controller = _study_plant(system, controller, "k_region")
     delta_max = positive("delta_max", delta_max)
     max_evals = positive_int("max_evals", max_evals)
     exact = controller is None or controller is ReflectionController
@@ -1356,8 +1410,9 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant through its normal form, or with a varying ``lam/mu`` by
+        its characteristic route (U_BS is defined on both, :mod:`~nrobust.hyperbolic.controllers`).
     delta_max : float
         Delay range to tolerate.
     a, b : array_like
@@ -1370,7 +1425,10 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     -------
     ABRegion
     """
-    _check_system(system)
+    if isinstance(system, GeneralHyperbolic2x2):  # U_BS: the normal form, or the characteristic route
+        system = normalize(system, None)[0]
+    else:
+        _check_system(system)
     delta_max = positive("delta_max", delta_max)
     av, bv = _grid("a", a), _grid("b", b)
     if np.any(bv <= 0):
@@ -1380,7 +1438,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     shape = (av.size, bv.size)
     margins = np.array([r.margin for r in results]).reshape(shape)
     ok = np.array([_tolerates(r, delta_max) for r in results]).reshape(shape)
-    g = abs(system.rho * system.q)
+    g = abs(system.rho_q)
     A_, B_ = np.meshgrid(av, bv, indexing="ij")
     strong = g * (1.0 + np.abs(A_) / B_) < 1.0
     bound = (1.0 - g) / g if g > 0 else np.inf
@@ -1464,8 +1522,10 @@ def stability_chart(
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant through its normal form (a ``controller`` family then acts
+        in its physical coordinates), with a varying ``lam/mu`` only with a ``controller``
+        family other than U_BS2(K) (its loops by the characteristic route).
     Ks, deltas : array_like
         Grid axes (``deltas >= 0``).
     quantity : {"count", "abscissa"}
@@ -1483,7 +1543,7 @@ def stability_chart(
     -------
     StabilityChart
     """
-    _check_system(system)
+    system, controller = _study_plant(system, controller, "stability_chart")
     kv, dv = _grid("Ks", Ks), _grid("deltas", deltas)
     if np.any(dv < 0):
         raise ParameterError("deltas", ">= 0", deltas)
@@ -1580,8 +1640,8 @@ def tradeoff(
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The plant.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant as for :func:`stability_chart`.
     Ks : array_like
         Gains.
     controller : callable, optional
@@ -1597,7 +1657,7 @@ def tradeoff(
     -------
     Tradeoff
     """
-    _check_system(system)
+    system, controller = _study_plant(system, controller, "tradeoff")
     kv = _grid("Ks", Ks)
     family = _reflection if controller is None else controller
     run = _mapper(executor, progress, "tradeoff: gains")

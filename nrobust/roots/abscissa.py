@@ -65,12 +65,23 @@ class SpectralAbscissa:
     rigorous : bool
         True if proven in ball arithmetic (``spectral_abscissa(..., rigorous=True)``):
         ``upper_bound`` (``F`` has no root right of it), the root counts of every box
-        searched and ``root_box``.
+        searched, ``root_box``, ``chain_bracket`` and ``value_bracket``. ``value``,
+        ``chain_value`` and ``strong_bound`` themselves are floating-point numbers.
     root_box : tuple of float or None
         With ``rigorous``, the rectangle proven to hold ``root`` (alone, for a simple root,
-        or with its cluster: ``multiplicity`` roots of :class:`~nrobust.roots.RootSet`);
-        None for ``F = p(s) e^{-tau s}``, whose roots are isolated exactly (rational
-        coefficients, FLINT).
+        or with its cluster: ``multiplicity`` roots of :class:`~nrobust.roots.RootSet`;
+        for ``F = p(s) e^{-tau s}`` the ball of FLINT's exact isolation of the roots of ``p``).
+    chain_bracket : tuple of float or None
+        With ``rigorous`` and a neutral ``F``: ``(lo, hi)`` proven to hold the chain abscissa
+        ``c_D`` of the principal part as represented
+        (:meth:`~nrobust.difference.DifferenceOperator.proven_spectral_bound`: tight for
+        delays exactly commensurate as stored, else ``[a proven zero of D, proven C_D]``).
+    value_bracket : tuple of float or None
+        With ``rigorous``: ``(lo, hi)`` proven to hold ``sup {Re s : F(s) = 0}`` for ``F`` as
+        represented (in ``region``, when one is given). ``hi = upper_bound``; ``lo`` the larger
+        of the left edge of ``root_box`` (a root lies there) and ``chain_bracket[0]`` (every
+        zero of ``D`` is a limit of real parts of roots of ``F`` high up: ``D`` is almost
+        periodic in ``Im s`` and ``F(s) / s^n - D(s) -> 0``, Rouche; Henry, 1974).
     """
 
     value: float
@@ -83,6 +94,8 @@ class SpectralAbscissa:
     strong_bound: float = -np.inf
     rigorous: bool = False
     root_box: tuple[float, float, float, float] | None = None
+    chain_bracket: tuple[float, float] | None = None
+    value_bracket: tuple[float, float] | None = None
 
     def __repr__(self) -> str:
         root = "None" if self.root is None else f"{self.root.real:.12g}{self.root.imag:+.12g}j"
@@ -159,7 +172,7 @@ def spectral_abscissa(
         the root-free far field (the dominance of the principal part, the
         difference-operator bound of the chains included, re-evaluated in balls at the
         abscissa and radius used), the count of every box searched and the box of the
-        rightmost root (:func:`find_roots` with ``rigorous=True``). Quasi-polynomials only.
+        rightmost root (:func:`find_roots` with ``rigorous=True``).
     prec : int, optional
         Working precision in bits of the ball arithmetic.
 
@@ -228,7 +241,33 @@ def _spectral_abscissa(
     else:
         x_right, radius = _right_half_plane(F, 0.0, 1.0)
         result = _retarded_abscissa(F, x_right, radius, F.is_real, cluster_tol, max_evals, proof)
-    return replace(result, strong_bound=float(c_strong), rigorous=proof is not None)
+    result = replace(result, strong_bound=float(c_strong), rigorous=proof is not None)
+    if proof is None:
+        return replace(result, root_box=None)
+    return _proven_brackets(result, D, region is None, proof)
+
+
+def _proven_brackets(result: SpectralAbscissa, D: DifferenceOperator, whole: bool, prec: int) -> SpectralAbscissa:
+    """``result`` with ``chain_bracket`` and ``value_bracket`` proven in ball arithmetic.
+
+    The lower end of the chain bracket bounds the supremum from below only when the whole
+    plane is searched (``whole``) or the chains are the value's source anyway; with a
+    ``region`` the supremum is over the roots in it, and only ``root_box`` bounds it below.
+    """
+    chain = None
+    if np.isfinite(result.strong_bound):
+        sb = D.proven_spectral_bound(prec)
+        chain = (sb.lower, sb.upper)
+    lows = []
+    if result.root_box is not None:
+        lows.append(result.root_box[0])
+    if chain is not None and whole:
+        lows.append(chain[0])
+    if result.root is None and not lows:  # no root at all (c e^{-tau s}, or none in the region)
+        value = (-np.inf, result.upper_bound) if result.value == -np.inf else None
+    else:
+        value = (max(lows), result.upper_bound) if lows else None
+    return replace(result, chain_bracket=chain, value_bracket=value)
 
 
 def _roots(F: QuasiPolynomial, region: ArrayLike, cluster_tol: float, max_evals: int, proof: int | None) -> RootSet:
@@ -397,7 +436,14 @@ def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa
     best = np.flatnonzero(re == re.max())
     i = int(best[np.argmax(im[best])])  # of a conjugate pair, the root with Im s >= 0
     upper = float(np.nextafter(top.max(), np.inf))
-    return SpectralAbscissa(float(re[i]), complex(re[i], im[i]), False, -np.inf, upper, True, region)
+    z = roots[i][0]  # its ball, as the proven box of the rightmost root (kept with rigorous=True)
+    box = (
+        float(np.nextafter(float(z.real.lower()), -np.inf)),
+        float(np.nextafter(float(z.real.upper()), np.inf)),
+        float(np.nextafter(float(z.imag.lower()), -np.inf)),
+        float(np.nextafter(float(z.imag.upper()), np.inf)),
+    )
+    return SpectralAbscissa(float(re[i]), complex(re[i], im[i]), False, -np.inf, upper, True, region, root_box=box)
 
 
 def _retarded_abscissa(

@@ -235,6 +235,12 @@ class RootSet:
 
 
 # ====================================================================== find_roots
+# Each pass over the accepted boxes (n of them) is charged n / _BOOKKEEPING evaluations of
+# the work bound: with tens of thousands of roots that pass, not the evaluations of F,
+# dominates the time, and an uncharged pass let a refusal take minutes.
+_BOOKKEEPING = 4
+
+
 class _Found:
     """Accepted roots with their disjoint certified boxes."""
 
@@ -303,6 +309,7 @@ class _Finder:
             cap = 0.3 * dist[:, 1]
         old = self.found.array()
         if old.size:
+            self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
             c, r = _centers(old)
             k = min(8, c.shape[0])
             dist, idx = cKDTree(c).query(_xy(pts), k=k, p=np.inf)
@@ -454,6 +461,7 @@ class _Finder:
         cand = cand[np.isfinite(cand)]
         old = self.found.array()
         if cand.size and old.size:
+            self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
             c, r = _centers(old)
             dist, idx = cKDTree(c).query(_xy(cand), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
@@ -796,7 +804,7 @@ def find_roots(
         Prove the result in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
         the count of the region by a proven winding number, each simple root by
         Krawczyk's test (existence and uniqueness in a small rectangle), each cluster by
-        the proven winding number of its box (``RootSet.proofs``). Quasi-polynomials only.
+        the proven winding number of its box (``RootSet.proofs``). Matrices too (ball determinant).
     prec : int, optional
         Working precision in bits of the ball arithmetic.
 

@@ -23,7 +23,7 @@ from .._validate import positive_int
 from .._validate import region as _check_region
 from ..balls import ball_function, require_flint
 from ..errors import CertificationError, ParameterError
-from ..qpmatrix import CharacteristicFunction
+from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
 
 __all__ = ["Region", "RootCount", "count_roots"]
@@ -246,6 +246,19 @@ def _describe_edge(box: Sequence[float], side: int) -> str:
     return f"{_SIDES[side]} edge (Re s = {x:.12g}, Im s in [{y0:.12g}, {y1:.12g}])"
 
 
+def _move_edges_out(box: list[float], blocked: np.ndarray, delta: float) -> None:
+    """Move the ``blocked`` sides of ``box`` (bottom, right, top, left) outwards by ``delta``, in place."""
+    for k in np.flatnonzero(blocked):
+        if k == 0:
+            box[2] -= delta
+        elif k == 1:
+            box[1] += delta
+        elif k == 2:
+            box[3] += delta
+        else:
+            box[0] -= delta
+
+
 class _Counter:
     """Certified counts of many boxes at once; edges shared between boxes are computed once."""
 
@@ -394,14 +407,15 @@ def _ball_winding(balls: Any, box: Sequence[float], budget: _Budget) -> tuple[in
 
 
 def _check_rigorous(F: Any, rigorous: Any) -> bool:
-    """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` scalar."""
+    """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` a
+    QuasiPolynomial or a QuasiPolynomialMatrix (the types :func:`nrobust.balls.ball_function` encloses)."""
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
     if rigorous:
         require_flint()
-        if not isinstance(F, QuasiPolynomial):
+        if not isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix):
             raise ParameterError(
-                "F", "a QuasiPolynomial for rigorous=True (ball evaluation is scalar)", type(F).__name__
+                "F", "a QuasiPolynomial or QuasiPolynomialMatrix for rigorous=True (ball evaluation)", type(F).__name__
             )
     return bool(rigorous)
 
@@ -420,16 +434,7 @@ def _ball_count_with_shifts(balls: Any, box: Region, max_shifts: int, budget: _B
                 f"ball arithmetic cannot prove the winding number: a root lies on or within rounding of the {sides} "
                 f"after {max_shifts} shifts (move the region's edges away from the roots, or raise prec)"
             )
-        delta = size * 1e-7 * 10.0**attempt * 1.618
-        for k in np.flatnonzero(blocked):
-            if k == 0:
-                reg[2] -= delta
-            elif k == 1:
-                reg[1] += delta
-            elif k == 2:
-                reg[3] += delta
-            else:
-                reg[0] -= delta
+        _move_edges_out(reg, blocked, size * 1e-7 * 10.0**attempt * 1.618)
     raise AssertionError("unreachable")
 
 
@@ -518,16 +523,7 @@ def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple
         if attempt == max_shifts:
             sides = "; ".join(_describe_edge(reg, int(k)) for k in np.flatnonzero(blocked[0]))
             raise CertificationError(f"a root lies on or within rounding of the {sides} after {max_shifts} shifts")
-        delta = size * 1e-7 * 10.0**attempt * 1.618
-        for k in np.flatnonzero(blocked[0]):
-            if k == 0:
-                reg[2] -= delta
-            elif k == 1:
-                reg[1] += delta
-            elif k == 2:
-                reg[3] += delta
-            else:
-                reg[0] -= delta
+        _move_edges_out(reg, blocked[0], size * 1e-7 * 10.0**attempt * 1.618)
     raise AssertionError("unreachable")
 
 
@@ -557,7 +553,7 @@ def count_roots(
         Prove the count in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
         every piece of the boundary is accepted only when a ball enclosure of ``F`` on the
         whole piece misses 0, so the winding number is a theorem about ``F`` as represented
-        (:mod:`nrobust.balls`). Quasi-polynomials only.
+        (:mod:`nrobust.balls`); a matrix through the determinant of its enclosed entries.
     prec : int, optional
         Working precision in bits of the ball arithmetic (``rigorous=True``).
 
