@@ -570,6 +570,9 @@ def test_abscissa_value_brackets_are_proven() -> None:
     assert proven.chain_bracket[0] <= exact <= proven.chain_bracket[1]
     assert proven.value_bracket[0] <= exact <= proven.value_bracket[1] == proven.upper_bound
     assert proven.to_dict()["value_bracket"] == list(proven.value_bracket)
+    # the half-plane right of the value is proven root-free, not only right of the search edge:
+    # the upper end sits just right of C_D (measured: width 9.5e-8; the search edge is 0.077)
+    assert proven.value_bracket[1] - proven.value_bracket[0] < 1e-6
     # retarded: Lambert W inside a bracket 1e-10 wide (the proven box of the rightmost root)
     F = QuasiPolynomial([[1.0, 1.0], [2.0]], [0.0, 1.0])
     w = float((mpmath.lambertw(-2.0 * mpmath.e, 0) - 1).real)
@@ -581,3 +584,33 @@ def test_abscissa_value_brackets_are_proven() -> None:
     assert p.root_box is not None and p.root_box[0] <= -3000.0 <= p.root_box[1]
     assert p.value_bracket == (p.root_box[0], p.upper_bound)
     assert spectral_abscissa(NEUTRAL).value_bracket is None and spectral_abscissa(F).root_box is None
+
+
+def _chain_roots_mpmath(y_max: float) -> list[complex]:
+    """Roots of ``(s + 2) + (0.9 s - 1) e^{-s}`` up to ``Im s = y_max`` by mpmath alone.
+
+    High up, ``e^{-s} = -(s + 2)/(0.9 s - 1) -> -1/0.9``: one root near each
+    ``ln 0.9 + i (2k + 1) pi``, refined from there by Newton's method at 30 digits.
+    """
+    with mpmath.workdps(30):
+        f = lambda s: (s + 2) + (0.9 * s - 1) * mpmath.exp(-s)  # noqa: E731
+        seeds = [mpmath.mpc(mpmath.log(0.9), (2 * k + 1) * mpmath.pi) for k in range(int(y_max / (2 * np.pi)))]
+        return [complex(mpmath.findroot(f, z)) for z in seeds]
+
+
+def test_abscissa_approached_at_infinity_has_a_proven_upper_end() -> None:
+    # the value is the chain abscissa ln 0.9, approached from the right as |Im s| -> infinity
+    # (Re s = ln 0.9 + O(1/|s|^2)): the proven upper end bounds every root, and comes down
+    # towards ln 0.9 as the band searched grows (the far field closes at radius height)
+    F = QuasiPolynomial([[2.0, 1.0], [-1.0, 0.9]], [0.0, 1.0])
+    oracle = _chain_roots_mpmath(3000.0)
+    ends = []
+    for height in (100.0, 1000.0):
+        r = spectral_abscissa(F, rigorous=True, im_max=height)
+        assert r.approached_at_infinity and r.value_bracket is not None
+        lo, hi = r.value_bracket
+        assert lo <= np.log(0.9) <= hi and hi == r.upper_bound
+        assert max(z.real for z in oracle) < hi
+        ends.append(hi)
+    assert ends[1] < ends[0] < 0.0  # measured: -0.0741 and -0.1022 (the search edge was 0.077)
+    np.testing.assert_allclose(ends[1], np.log(0.9), atol=5e-3)

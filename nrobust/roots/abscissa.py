@@ -374,7 +374,37 @@ def _neutral_abscissa(
     depth = min(0.5, 16.0 / max(F.max_delay, 1e-300))
     low = (min(chain_value, x_min) - depth, x_min, *_band(height, real))
     band = _roots(F, low, cluster_tol, max_evals, proof)
-    return _abscissa_from(band, chain_value, x_min, band.certified and roots.certified)
+    upper = _band_edge(F, low[0], x_min, height, proof)
+    if len(band):  # a root near or right of the edge: its disc (proven: its box) bounds the value
+        reach = band.boxes[:, 1] if band.rigorous else band.roots.real + band.radii
+        upper = min(max(upper, float(np.max(reach))), x_min)  # the right region holds no root
+    return _abscissa_from(band, chain_value, upper, band.certified and roots.certified)
+
+
+def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, proof: int | None) -> float:
+    """The least ``x`` in ``[x_lo, x_min]`` right of which every root of ``F`` was searched.
+
+    Right of ``x_min`` the right region holds every root. The band ``[x_lo, x_min] x
+    [-height, height]`` holds the others of ``|s| < height``, and the far field at radius
+    ``height`` excludes ``{Re s >= x, |s| >= height}`` for ``x`` right of the edge
+    :func:`_far_field_edge` (just right of ``C_D`` for a neutral ``F``: the dominance gap
+    of the difference operator closes there). So no root right of that edge lies outside
+    the boxes searched, and ``upper_bound`` comes down from the search edge ``x_min`` to
+    it. Proven in ball arithmetic with ``proof`` (a few points towards ``x_min`` are
+    offered, :func:`_confirm_far_field`); ``x_min`` if the far field does not hold at
+    ``(x_min, height)`` (a band lower than the disc of the right region).
+    """
+    n = joint_degree(F)
+    if not _far_field_holds(F, n, x_min, height):
+        return x_min
+    edge = _far_field_edge(F, n, height, x_min, x_lo)
+    if proof is None:
+        return edge
+    offers = [(edge + f * (x_min - edge), height) for f in (0.0, 1e-9, 1e-6, 1e-3, 0.01, 0.1)]
+    try:
+        return _confirm_far_field(F, offers, proof)[0]
+    except CertificationError:  # the ball bound is looser than the floating-point one near C_D
+        return x_min
 
 
 def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
@@ -383,14 +413,14 @@ def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
     return g is not None and g.gap > 0.0 and bool(TailBound(F, n, x, g.t0)(R) < g.gap)
 
 
-def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float) -> float:
-    """The smallest ``x`` in ``[-R, x_hi]`` (up to bisection, rounded to the right) with
-    ``{Re s >= x, |s| >= R}`` proven root-free; the far field must hold at ``x_hi``.
+def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float, x_lo: float | None = None) -> float:
+    """The smallest ``x`` in ``[x_lo, x_hi]`` (default ``x_lo = -R``; up to bisection, rounded
+    to the right) with ``{Re s >= x, |s| >= R}`` proven root-free; the far field must hold at ``x_hi``.
 
     The dominance gap of the principal part increases and :class:`~nrobust.bounds.TailBound`
     decreases with ``x``, so the set of such ``x`` is a half-line.
     """
-    lo, hi = -R, x_hi
+    lo, hi = -R if x_lo is None else x_lo, x_hi
     if _far_field_holds(F, n, lo, R):
         return lo
     for _ in range(_EDGE_BISECTIONS):
