@@ -172,17 +172,14 @@ def _number(key: str, value: Any) -> float:
 
 def _profile(key: str, value: Any) -> float | PiecewiseLinear:
     """A number or a piecewise-linear table ``{x = [...], values = [...]}`` on [0, 1]."""
-    if not isinstance(value, dict):
-        return _number(key, value)
-    if set(value) != {"x", "values"}:
-        raise ParameterError(key, "a number or a table with exactly the keys x and values", value)
-    x, v = value["x"], value["values"]
-    if not isinstance(x, list) or not isinstance(v, list) or len(x) != len(v) or len(x) < 2:
-        raise ParameterError(f"{key}.x", "a list of at least 2 nodes, as long as values", x)
-    xs = tuple(_number(f"{key}.x", t) for t in x)
-    vs = tuple(_number(f"{key}.values", t) for t in v)
+    table = _samples(key, value)
+    if not isinstance(table, tuple):
+        return table
+    xs, vs = table
+    if len(xs) != len(vs) or len(xs) < 2:
+        raise ParameterError(f"{key}.x", "a list of at least 2 nodes, as long as values", list(xs))
     if xs[0] != 0.0 or xs[-1] != 1.0 or any(b <= a for a, b in itertools.pairwise(xs)):
-        raise ParameterError(f"{key}.x", "increasing from 0 to 1", x)
+        raise ParameterError(f"{key}.x", "increasing from 0 to 1", list(xs))
     return PiecewiseLinear(xs, vs)
 
 
