@@ -1,9 +1,11 @@
 """Physical plants: the delay margin of the Saint-Venant example from scratch, stage by stage.
 
-The canal pool of ``examples/saint_venant.py`` (L = 3000 m, B = 7 m, S0 = 1e-4, Manning
-n = 0.02, Q = 14 m^3/s, gate downstream, time in minutes) with the feedback
-U = 0.6 xi_1(t, L), the same canal behind a gate holding 3.5 m (an M1 backwater curve:
-``lam/mu`` varies, the characteristic route replaces the normal form and its kernels),
+The canal pool of ``examples/saint_venant.py``, pool 2 of the Corning canal of Litrico and
+Fromion (2004) (L = 3000 m, trapezoidal: bottom width 7 m, side slope 1.5; S0 = 1e-4, Manning
+n = 0.02, Q = 10 m^3/s, gate downstream, time in minutes), in uniform flow with the feedback
+U = xi_1(t, L), the same pool at its published operating point, 2.1 m held by the gate (an
+M1 backwater curve: ``lam/mu`` varies, the characteristic route replaces the normal form and
+its kernels),
 then the ARZ road of ``examples/arz.py`` with U_BS2(0). Each stage is
 timed on its own (best of ``--repeat`` runs, every cache cleared between runs):
 
@@ -57,16 +59,18 @@ def main() -> None:
     parser.add_argument("--kernel-grid", type=int, default=201)
     args = parser.parse_args()
     cases = {
-        "Saint-Venant, U = 0.6 xi_1(L)": (
-            lambda: saint_venant(3000.0, 7.0, 1e-4, 14.0, manning=0.02, time_unit=60.0),
-            StateFeedback(0.6),
+        "Saint-Venant, U = xi_1(L)": (
+            lambda: saint_venant(3000.0, 7.0, 1e-4, 10.0, side_slope=1.5, manning=0.02, time_unit=60.0),
+            StateFeedback(1.0),
         ),
-        "Saint-Venant, M1 backwater (varying lam/mu), U = 0.6 xi_1(L)": (
-            lambda: saint_venant(3000.0, 7.0, 1e-4, 14.0, manning=0.02, downstream_depth=3.5, time_unit=60.0),
-            StateFeedback(0.6),
+        "Saint-Venant, M1 backwater (varying lam/mu), U = xi_1(L)": (
+            lambda: saint_venant(
+                3000.0, 7.0, 1e-4, 10.0, side_slope=1.5, manning=0.02, downstream_depth=2.1, time_unit=60.0
+            ),
+            StateFeedback(1.0),
         ),
         "ARZ, U_BS2(0)": (
-            lambda: arz(500.0, 40.0, 0.16, 0.5, 60.0, 0.12, time_unit=60.0),
+            lambda: arz(500.0, 40.0, 0.16, 1.0, 60.0, 0.12, time_unit=60.0),
             ReflectionController(0.0),
         ),
     }

@@ -9,8 +9,10 @@ malformed docstring fails it.
 
 from __future__ import annotations
 
+import inspect
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -37,11 +39,14 @@ root_doc = "index"
 exclude_patterns = ["_build", "auto_examples/*.ipynb", "auto_examples/*.py", "auto_examples/*.zip", "**.codeobj.json"]
 suppress_warnings = ["myst.header"]
 
-# Not nitpicky: the docstrings cite many objects by the name a package re-exports them under
-# (``nrobust.roots.find_roots`` for ``nrobust.roots.finder.find_roots``), which Sphinx documents
-# once, where defined (93 such references when this was written). That every reference names
-# an existing object of the right kind is checked instead by tests/test_docs.py
-# (test_docstring_references_resolve), which runs with `make test`.
+# Nitpicky: every reference must resolve. The docstrings cite objects by the name a package
+# re-exports them under (``nrobust.roots.find_roots`` for ``nrobust.roots.finder.find_roots``)
+# or by the short name their module imports (``QuasiPolynomial``); Sphinx documents each
+# object once, where it is defined, and _resolve_by_import (below) sends such a reference
+# there. A reference to an object that exists but has no page by design (a private helper,
+# a standard-library function: the build is offline, without intersphinx) is set as code,
+# unlinked; a name that does not exist stays an error.
+nitpicky = True
 
 # Markdown: GitHub-style anchors for the headings the pages link to.
 myst_heading_anchors = 3
@@ -81,12 +86,126 @@ sphinx_gallery_conf = {
 
 
 def _skip_foreign(app: object, what: str, name: str, obj: object, skip: bool, options: object) -> bool | None:
-    """Document nrobust's own objects only (not a class a module imports, such as scipy's cKDTree)."""
+    """Document nrobust's own classes and functions only (not a class a module imports, such as
+    scipy's cKDTree); module data with a ``#:`` comment, such as a type alias, is documented."""
     module = getattr(obj, "__module__", None)
-    if isinstance(module, str) and not module.startswith("nrobust") and what == "module":
+    foreign = isinstance(module, str) and not module.startswith("nrobust")
+    if foreign and what == "module" and (inspect.isclass(obj) or inspect.isroutine(obj)):
         return True
     return None
 
 
-def setup(app: object) -> None:
-    app.connect("autodoc-skip-member", _skip_foreign)  # type: ignore[attr-defined]
+def _find(dotted: str) -> tuple[bool, object]:
+    """``(True, obj)`` for the object named ``dotted`` (a module, then attributes), else ``(False, None)``.
+
+    A dataclass field without a default (``Certificate.claims``) is found as its class.
+    """
+    import dataclasses
+    import importlib
+
+    parts = dotted.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj: object = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for k, name in enumerate(parts[cut:]):
+            if hasattr(obj, name):
+                obj = getattr(obj, name)
+            elif dataclasses.is_dataclass(obj) and k == len(parts) - cut - 1 and name in obj.__dataclass_fields__:
+                return True, obj
+            else:
+                return False, None
+        return True, obj
+    return False, None
+
+
+def _canonical(obj: object) -> str | None:
+    """``module.qualname`` where Sphinx documents a class or function, or None (data)."""
+    module, qualname = getattr(obj, "__module__", None), getattr(obj, "__qualname__", None)
+    if isinstance(module, str) and isinstance(qualname, str) and "<" not in qualname:
+        return f"{module}.{qualname}"
+    return None
+
+
+def _resolve_by_import(app: Any, env: Any, node: Any, contnode: Any) -> Any:
+    """Resolve a Python reference by importing what it names (``missing-reference``).
+
+    The name is looked up as Python would see it from the docstring (the class and the
+    module the reference is written in), then as written, then in every nrobust module
+    (a function documented under the name of its package); the reference goes to the
+    object's defining module. An object that exists but has no page of its own (private,
+    or outside nrobust) is set as code without a link; a name that does not exist is left
+    unresolved, so that nitpicky reports it.
+    """
+    if node.get("refdomain") != "py":
+        return None
+    target = node["reftarget"].lstrip("~.")
+    module, cls = node.get("py:module"), node.get("py:class")
+    tries = ([f"{module}.{cls}.{target}"] if module and cls else []) + ([f"{module}.{target}"] if module else [])
+    tries.append(target)
+    tries += [f"{name}.{target}" for name in sorted(sys.modules) if name.startswith("nrobust")]
+    domain = env.get_domain("py")
+    for dotted in tries:
+        exists, obj = _find(dotted)
+        if not exists:
+            continue
+        names = [n for n in (_canonical(obj), dotted) if n is not None]
+        parent_found, parent = _find(dotted.rpartition(".")[0])
+        if parent_found and inspect.isclass(parent) and _canonical(parent):
+            names.append(str(_canonical(parent)))  # an attribute without a page of its own: its class
+        for name in dict.fromkeys(names):
+            ref = domain.resolve_xref(env, node["refdoc"], app.builder, "obj", name, node, contnode)
+            if ref is not None:
+                return ref
+        canonical = _canonical(obj) or dotted
+        if not canonical.startswith("nrobust.") or any(part.startswith("_") for part in canonical.split(".")):
+            return contnode
+    return None
+
+
+def _write_shadowed_modules(app: Any, config: Any = None) -> None:
+    """Write ``generated/shadowed_modules.rst``: the members of the modules named like a function.
+
+    ``nrobust.hyperbolic.delay_form`` is a module and, as an attribute of its package, the
+    function ``delay_form``; autosummary's walk of the package documents the function under
+    that name and never enters the module. This page documents the module's own classes and
+    functions (found by walking the package, so that it cannot drift), written before
+    Sphinx lists the sources, so that autosummary generates the pages it lists.
+    """
+    import importlib
+    import pkgutil
+
+    lines = ["Modules named like a function", "=============================", ""]
+    lines += [
+        "Each of these modules bears the name of the function its package re-exports, which the",
+        "reference documents under that name; the module's own classes and functions are these.",
+        "",
+    ]
+    for info in pkgutil.walk_packages(nrobust.__path__, "nrobust."):
+        module = importlib.import_module(info.name)
+        package, _, last = info.name.rpartition(".")
+        if getattr(importlib.import_module(package), last, None) is module:
+            continue
+        own = [
+            name
+            for name, obj in vars(module).items()
+            if not name.startswith("_")
+            and (inspect.isclass(obj) or inspect.isfunction(obj))
+            and obj.__module__ == info.name
+        ]
+        if own:
+            title = f"``{info.name}``"
+            lines += [title, "-" * len(title), "", f".. currentmodule:: {info.name}", "", ".. autosummary::"]
+            lines += ["   :toctree: .", "", *(f"   {name}" for name in own), ""]
+    page = Path(app.srcdir) / "generated" / "shadowed_modules.rst"
+    page.parent.mkdir(exist_ok=True)
+    text = "\n".join(lines)
+    if not page.exists() or page.read_text() != text:
+        page.write_text(text)
+
+
+def setup(app: Any) -> None:
+    app.connect("config-inited", _write_shadowed_modules)  # before the sources are listed
+    app.connect("autodoc-skip-member", _skip_foreign)
+    app.connect("missing-reference", _resolve_by_import)

@@ -3,12 +3,12 @@
 
 The paper's Section 5 ("Systems with multiple equations") names the drift-flux model of
 gas-liquid flow in a well (Aarsnes, Di Meglio, Evje and Aamo, "Control-oriented
-drift-flux modeling of single and two-phase flow for drilling", ASME DSCC 2014; its
-linearisation as an ``n + m`` system: Aarsnes, Di Meglio, Aamo and Kaasa, "Fit-for-purpose
-modeling for automation of underbalanced drilling operations", SPE/IADC 2014, and
-Aarsnes et al., "A methodology for classifying operating regimes in underbalanced-drilling
-operations", SPE J. 2016). In Riemann coordinates, with ``x`` from the bottom hole (0) to
-the choke (1):
+drift-flux modeling of single and two-phase flow for drilling", ASME DSCC 2014, paper
+DSCC2014-6121) and, for its linearisation about an equilibrium profile as an ``n + m``
+system with ``n = 2``, ``m = 1``, Aarsnes, Di Meglio, Graham and Aamo, "A methodology for
+classifying operating regimes in underbalanced-drilling operations", SPE Journal 21(2),
+2016 (doi:10.2118/178920-PA). In Riemann coordinates, with ``x`` from the bottom hole (0)
+to the choke (1):
 
 * ``u_1``: the upward pressure wave (speed ``c + v``), ``u_2``: the void (gas fraction)
   wave carried by the gas (speed ``v_g``), ``v``: the downward pressure wave (``c - v``);
@@ -17,11 +17,26 @@ the choke (1):
   ``v(t, 1) = R u(t, 1) + U(t)``, ``U`` the choke actuation;
 * the friction and gravity source terms couple all three.
 
-The numbers below are illustrative, in units of length ``L`` (the well) and of the
-pressure wave's travel time: speeds ``(1, 0.5 | 1)`` (the void wave taken slower than sound
-by a factor 2 only, and the round trips rounded to 2 and 3, which keeps the chains
-commensurate), ``Q = (0.9, 0.3)``, ``R = (0.6, 0.4)``, couplings of size 0.02-0.1. They are
-not fitted to a well; the structure, and the conclusion, are what the paper anticipates.
+**The numbers are illustrative, not published.** No source with numerical values of the
+linearised ``2 + 1`` system (speeds, in-domain couplings, reflection coefficients ``Q`` and
+``R``) could be found for this example: the drift-flux papers above give the nonlinear
+model, its slip law and its steady states, and the control papers that treat ``n + m``
+systems (Di Meglio, Vazquez, Krstic and Petit, ACC 2012; Hu, Di Meglio, Vazquez and
+Krstic, IEEE TAC 61(11), 2016; Auriol and Di Meglio, Automatica 71, 2016) were not
+available here with their simulation parameters. Nothing below is therefore a reproduced
+number. The values are in units of the well length and of the pressure wave's travel
+time: speeds ``(1, 0.5 | 1)`` (the void wave taken slower than sound by a factor 2 only,
+far from a real well, where sound is much faster than the gas; the round trips 2 and 3
+keep the chains commensurate), ``Q = (0.9, 0.3)``, ``R = (0.6, 0.4)``, couplings of size
+0.02-0.1.
+
+The conclusion does not rest on them. For one actuator the delayed principal part has
+``gamma_0 = sum_a (1 + c_a) g_a`` with ``g_a = |R_a U_a Q_a| / |V|`` (``docs/theory.md``,
+"Beyond 2x2"), so for *any* parameters full cancellation doubles the open loop's
+``gamma_0`` and has no delay margin as soon as ``gamma_0 > 1/2``, and cancelling the
+reflection of wave ``a`` alone keeps the principal part strongly stable iff
+``gamma_0 + g_a < 1``: the reflection to cancel is the one with the smaller ``g_a``. With
+the numbers here ``g = (0.489, 0.110)``: the void wave's.
 
 The script compares static choke feedbacks ``U = K u(t - delta, 1)`` that cancel a
 fraction ``c_i`` of each top reflection, ``K = -(c_1 R_1, c_2 R_2)``: for each, the exact

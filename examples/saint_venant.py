@@ -1,27 +1,36 @@
-"""An open channel from its physics: steady flow, Riemann coordinates, normal form, delay margins
-==============================================================================================
+"""An open channel from its physics: a published canal pool, its delays and its delay margins
+==========================================================================================
 
-A rectangular canal pool, L = 3000 m, B = 7 m, bed slope S0 = 1e-4, Manning n = 0.02 s/m^(1/3),
-discharge Q = 14 m^3/s, constant inflow upstream, the discharge at the downstream gate
-actuated. The classical numbers of this channel are reproduced from their definitions:
+Pool 2 of the Corning canal (ASCE test canal 2) as given by X. Litrico and V. Fromion,
+"Simplified modeling of irrigation canals for controller design", Journal of Irrigation and
+Drainage Engineering 130(5):373-383, 2004 (doi:10.1061/(ASCE)0733-9437(2004)130:5(373)),
+Table 2: length 3000 m, trapezoidal section of bottom width 7 m and side slope 1.5, bed slope
+1e-4, Manning n = 0.02 s/m^(1/3), the depth 2.1 m held at the downstream gate; constant
+inflow upstream, the discharge at the downstream gate actuated. Their tables of the
+integrator-delay-zero (IDZ) model give, for this pool, the "theoretical" delay and backwater
+area of the Saint-Venant equations linearised about the backwater curve, at high flow
+(Q = 10 m^3/s) and at low flow (Q = 2.5 m^3/s). Reproduced here from the model alone:
 
-- the normal depth h_n, which satisfies Manning's formula Q = (1/n) B h (R^(2/3)) S0^(1/2)
-  with R = B h/(B + 2h) (printed with its residual): 2.9302 m;
-- the critical depth h_c = (q^2/g)^(1/3), q = Q/B: 0.7415 m, and the Froude number of the
-  uniform flow, V/sqrt(g h_n) = 0.1273 (subcritical);
-- the backwater (M1) curve behind a gate holding 3.5 m: the depth decreases upstream
-  towards h_n, as every M1 profile does.
+- the delay of the downstream wave, tau_1 = int_0^L dx/(V + C): 681.49 s (published 681.5 s)
+  and 754.57 s (published 754.6 s), to the published rounding;
+- the backwater area A_d = dVol/dY_X at constant discharge, the storage the downstream level
+  integrates: 33 860 m^2 (published 33 868 m^2) and 38 198 m^2 (published 38 199 m^2), within
+  0.03 % but not to the last printed digit (the source's numerical route to A_d is not known).
 
-The uniform flow is then linearised, its Riemann coordinates brought to the paper's normal
-form (time in minutes, ``time_unit = 60``), and the loop analysed: the delay margin of U_BS2(K) and of the
-proportional feedback U = k xi_1(t, L) on the downstream Riemann invariant, the latter
-checked against the kernel-free Laplace route. Last, the pool held at 3.5 m (the M1
-curve): there lam/mu varies, so no normal form exists and the margin (46.37 min for
-U = 0.6 xi_1(L)) and the certificate take the characteristic route, checked on the
-Laplace route.
+The published values were read in the transcription of the paper's tables in the public
+repository Adilbaygh/fair-canal-delivery (src/faircanal/idz.py); tests/test_frontends.py
+checks all 32 published delays of both ASCE test canals. Numbers of the model with no
+published counterpart: the normal depth (1.7644 m at Q = 10 m^3/s, below 2.1 m: the pool lies
+on an M1 backwater curve), the critical depth, the Froude number and the upstream delay
+tau_2 = int_0^L dx/(C - V).
 
-These are the numbers of the model's own definitions (Manning's formula, the critical
-depth, the backwater ODE); no published figure of this canal is reproduced.
+The same pool in uniform flow at its normal depth is brought to the paper's normal form (time
+in minutes, ``time_unit = 60``) and its loops analysed: the delay margins of U_BS2(K) and of the
+proportional feedback U = k xi_1(t, L) on the downstream Riemann invariant, the latter checked
+against the kernel-free Laplace route. Last, the published operating point (the backwater
+curve): lam/mu varies, no normal form exists, and the margin of U = xi_1(L) and the
+certificate take the characteristic route, checked on the Laplace route
+(examples/saint_venant_backwater.toml: the same by ``nrobust analyze``).
 
 Run: python examples/saint_venant.py [OUT_DIR]
 """
@@ -37,53 +46,62 @@ import numpy as np
 import nrobust
 from nrobust.hyperbolic.controllers import ReflectionController, StateFeedback
 from nrobust.hyperbolic.feedback import laplace_loop_factors
-from nrobust.hyperbolic.frontends import GRAVITY, saint_venant
+from nrobust.hyperbolic.frontends import saint_venant
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)
 
-L, B, S0, N, Q = 3000.0, 7.0, 1e-4, 0.02, 14.0
+# Litrico and Fromion (2004), Table 2 (pool 2 of the Corning canal) and their IDZ tables.
+L, B, M, S0, N = 3000.0, 7.0, 1.5, 1e-4, 0.02  # m, m, side slope, bed slope, Manning (s/m^(1/3))
+Y_X = 2.1  # m, the depth held at the downstream gate
+PUBLISHED = {10.0: (681.5, 33868.0), 2.5: (754.6, 38199.0)}  # Q (m^3/s): (tau_1 in s, A_d in m^2)
+
 start = time.perf_counter()
-canal = saint_venant(L, B, S0, Q, manning=N, time_unit=60.0)
-hn, hc = canal.normal_depth, canal.critical_depth
-R = B * hn / (B + 2.0 * hn)
-manning_residual = Q - B * hn * R ** (2.0 / 3.0) * np.sqrt(S0) / N
-print(f"normal depth h_n = {hn:.6f} m (Manning residual {manning_residual:.1e} m^3/s)")
-print(f"critical depth h_c = {hc:.6f} m (q^2/g)^(1/3) = {((Q / B) ** 2 / GRAVITY) ** (1 / 3):.6f} m")
-print(f"Froude number of the uniform flow: {canal.froude[0]:.6f}")
+for Q, (tau_pub, area_pub) in PUBLISHED.items():
+    pool = saint_venant(L, B, S0, Q, side_slope=M, manning=N, downstream_depth=Y_X)
+    tau_1, tau_2 = pool.transport_delays
+    print(f"Q = {Q:g} m^3/s: normal depth {pool.normal_depth:.4f} m, critical depth {pool.critical_depth:.4f} m")
+    print(f"  backwater curve: depth {pool.depth[0]:.4f} m upstream, {pool.depth[-1]:.4f} m at the gate")
+    print(f"  Froude number {pool.froude[0]:.4f} upstream, {pool.froude[-1]:.4f} at the gate")
+    print(f"  tau_1 = int dx/(V + C) = {tau_1:.2f} s (published {tau_pub} s), tau_2 = int dx/(C - V) = {tau_2:.2f} s")
+    print(
+        f"  backwater area A_d = {pool.backwater_area:.0f} m^2 (published {area_pub:.0f} m^2, "
+        f"{100 * (pool.backwater_area / area_pub - 1):+.3f} %)"
+    )
+    assert abs(tau_1 - tau_pub) <= 0.05 and abs(pool.backwater_area / area_pub - 1) < 5e-4
 
-backwater = saint_venant(L, B, S0, Q, manning=N, downstream_depth=3.5)
-print("M1 backwater curve, depth every 500 m from upstream:", np.round(backwater.depth[::33], 4))
-assert np.all(np.diff(backwater.depth) > 0) and backwater.depth[0] > hn
-
+# Uniform flow at the normal depth: constant lam/mu, the normal form and its kernels.
+Q = 10.0
+canal = saint_venant(L, B, S0, Q, side_slope=M, manning=N, time_unit=60.0)
 form = canal.system.normal_form()
-print("normal form:", form.system)
+print("uniform flow, normal form:", form.system)
 print(nrobust.classify(form.system).statement)
 for K in (0.0, 0.3):
     margin = nrobust.delay_margin(canal.system, ReflectionController(K))
     print(f"U_BS2(K = {K}): delay margin {margin.margin:.6g} min at w = {margin.omega:.6g} rad/min")
-feedback = StateFeedback(0.6)
+feedback = StateFeedback(1.0)
 margin = nrobust.delay_margin(canal.system, feedback)
 omega = margin.omega
 assert omega is not None  # the loop has a crossing
-A, B_ = laplace_loop_factors(canal.system, 0.6, 0.0, 0.0, np.array([1j * omega]))
+A, B_ = laplace_loop_factors(canal.system, 1.0, 0.0, 0.0, np.array([1j * omega]))
 residual = abs(A[0] + B_[0] * np.exp(-1j * omega * margin.margin))
-print(f"U = 0.6 xi_1(L): delay margin {margin.margin:.6g} min = {60 * margin.margin:.6g} s")
+print(f"U = 1.0 xi_1(L): delay margin {margin.margin:.6g} min = {60 * margin.margin:.6g} s")
 print(f"|F(i w*; delta*)| by the kernel-free Laplace route: {residual:.1e}")
 
-# The same pool held at 3.5 m by the gate: the M1 profile above, lam/mu varies along the pool and no
-# normal form exists. Margin and certificate take the characteristic route (varying_delay_form),
-# checked on the kernel-free Laplace route (examples/saint_venant_backwater.toml: the same by TOML).
-pool = saint_venant(L, B, S0, Q, manning=N, downstream_depth=3.5, time_unit=60.0).system
-print(nrobust.classify(pool).statement)
-held = nrobust.delay_margin(pool, feedback)
+# The published operating point: the backwater curve, lam/mu varies and no normal form exists.
+# Margin and certificate take the characteristic route (varying_delay_form), checked on the
+# kernel-free Laplace route.
+held_pool = saint_venant(L, B, S0, Q, side_slope=M, manning=N, downstream_depth=Y_X, time_unit=60.0).system
+print(nrobust.classify(held_pool).statement)
+held = nrobust.delay_margin(held_pool, feedback)
 assert held.omega is not None
-A, B_ = laplace_loop_factors(pool, 0.6, 0.0, 0.0, np.array([1j * held.omega]), steps=2000)
+A, B_ = laplace_loop_factors(held_pool, 1.0, 0.0, 0.0, np.array([1j * held.omega]), steps=2000)
 held_residual = abs(A[0] + B_[0] * np.exp(-1j * held.omega * held.margin))
-print(f"backwater pool, U = 0.6 xi_1(L): delay margin {held.margin:.6g} min (Laplace residual {held_residual:.1e})")
-print(nrobust.certify(pool, feedback, delta_max=10.0, k_region=False).verdict)
+print(f"backwater pool, U = 1.0 xi_1(L): delay margin {held.margin:.6g} min (Laplace residual {held_residual:.1e})")
+print(nrobust.certify(held_pool, feedback, delta_max=10.0, k_region=False).verdict)
 print(f"total {time.perf_counter() - start:.2f} s")
 (out / "saint_venant.txt").write_text(
-    f"h_n {hn:.9g}\nh_c {hc:.9g}\nFroude {canal.froude[0]:.9g}\nmargin_state_feedback {margin.margin:.9g}\n"
+    f"h_n {canal.normal_depth:.9g}\nh_c {canal.critical_depth:.9g}\nFroude {canal.froude[0]:.9g}\n"
+    f"tau_1 {canal.transport_delays[0]:.9g}\nmargin_state_feedback {margin.margin:.9g}\n"
     f"margin_backwater {held.margin:.9g}\n"
 )

@@ -9,18 +9,30 @@ turns them off.
 
 from __future__ import annotations
 
+import functools
 import sys
+from typing import TYPE_CHECKING
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm as ProgressBar
 
 __all__ = ["ProgressBar", "progress_bar", "show_progress"]
 
 
-class ProgressBar(tqdm):
+@functools.cache
+def _bar_class() -> type[ProgressBar]:
     """tqdm without its monitor thread, so that no helper thread is alive (and copied
-    half-way through a lock) when a fork-based pool forks its workers."""
+    half-way through a lock) when a fork-based pool forks its workers.
 
-    monitor_interval = 0
+    tqdm is imported on the first bar, not with nrobust: the command line checks its
+    input and output directory before it loads anything it does not need.
+    """
+    from tqdm import tqdm
+
+    class _Bar(tqdm):
+        monitor_interval = 0
+
+    return _Bar
 
 
 def show_progress(progress: bool | None) -> bool:
@@ -34,4 +46,4 @@ def show_progress(progress: bool | None) -> bool:
 def progress_bar(total: int, progress: bool | None, desc: str, unit: str = "it", leave: bool = False) -> ProgressBar:
     """A bar of ``total`` steps on stderr, shown by the rule of :func:`show_progress` (disabled otherwise)."""
     show = show_progress(progress)
-    return ProgressBar(total=total, disable=not show, desc=desc, unit=unit, leave=leave, file=sys.stderr)
+    return _bar_class()(total=total, disable=not show, desc=desc, unit=unit, leave=leave, file=sys.stderr)

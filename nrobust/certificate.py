@@ -36,6 +36,7 @@ from .hyperbolic.controllers import (
     Controller,
     FiniteTimeController,
     ReflectionController,
+    StateFeedback,
     characteristic,
     classify,
     normalize,
@@ -217,6 +218,26 @@ def _model_error(
             f"{coarse} to {grid} points (floating point; third-order convergence: error about {diff / 7.0:.2g})"
         )
     return ModelError(grid, coarse, float(margin.margin), float(other), float(diff), statement)
+
+
+def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller) -> str:
+    """How ``N~`` (and a state feedback's kernel) is represented in the certified ``F``, per kind of plant."""
+    if isinstance(system, GeneralHyperbolic2x2):  # normalize() leaves only a varying lam/mu general
+        steps = DEFAULT_CHARACTERISTIC_GRID
+        text = (
+            f"N~ the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} "
+            f"nodes, Richardson-extrapolated from {steps} steps"
+        )
+        gains = (getattr(controller, "g_u", 0.0), getattr(controller, "g_v", 0.0))
+        if isinstance(controller, StateFeedback) and any(callable(g) or g != 0.0 for g in gains):
+            text += (
+                f", and the feedback's kernel M the cubic spline of the kernels with varying speeds on "
+                f"{DEFAULT_KERNEL_GRID} points"
+            )
+        return text
+    if getattr(system, "uncoupled", False):
+        return "N~ = 0 exactly (uncoupled plant: no kernel)"
+    return f"N~ the cubic spline of the kernels on the kernel grid ({DEFAULT_KERNEL_GRID} points)"
 
 
 def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float, float, float, float], int] | None:
@@ -459,8 +480,9 @@ class Certificate:
             )
         return (
             "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
-            "N~ the cubic spline of the kernels on the kernel grid; they are proven in ball arithmetic "
-            "(python-flint). The distance of N~ to the exact kernel (the model error) is not part of the proofs: "
+            + _representation(self.system, self.controller)
+            + "; they are proven in ball arithmetic (python-flint). The distance of N~ to the exact one (the model "
+            "error) is not part of the proofs: "
             + (self.model_error.statement if self.model_error is not None else "not estimated")
             + "."
         )

@@ -94,6 +94,7 @@ _SYSTEM_KEYS = {
 _SYSTEM_OPTIONAL: dict[str, tuple[str, ...]] = {
     "GeneralHyperbolic2x2": ("length", "time_unit"),
     "SaintVenant": (
+        "side_slope",
         "manning",
         "chezy",
         "downstream",

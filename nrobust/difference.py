@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import brentq
 
 from ._json import fields_dict, json_safe
 from ._newton import newton
@@ -58,6 +57,10 @@ _LOWER_BOUND_SEEDS = 32
 _LOWER_BOUND_CHAINS = 4
 # Largest degree of the commensurate approximation that seeds the lower bound.
 _APPROX_DEGREE = 128
+# Delays too close for a commensurate approximation of degree <= _MAX_DEGREE seed the lower
+# bound from a grid over one beat period 2 pi / g of the closest pair (gap g), pi / r_max
+# apart (half the spacing of the roots of the longest delay): at most this many seeds.
+_BEAT_SEEDS = 10_000
 
 
 @lru_cache(maxsize=128)
@@ -314,6 +317,8 @@ class DifferenceOperator:
             hi += 1e-9 * (1 + abs(hi))
         if g(lo) <= 0:
             return lo
+        from scipy.optimize import brentq  # lazily: scipy.optimize costs half a second to import
+
         return float(brentq(g, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
 
     # ------------------------------------------------------------------ commensurate delays
@@ -411,9 +416,14 @@ class DifferenceOperator:
         try:
             approx = rel.commensurate_approximation().chains()
         except ParameterError:  # delays too close to seed from a commensurate approximation
+            seeds = _beat_seeds(rel, upper)
+        else:
+            right = approx.chains[:_LOWER_BOUND_CHAINS]
+            seeds = np.concatenate(
+                [c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right]
+            )
+        if seeds.size == 0:
             return -np.inf
-        right = approx.chains[:_LOWER_BOUND_CHAINS]
-        seeds = np.concatenate([c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right])
         s = _newton_difference(rel, seeds)
         s = s[np.isfinite(s)]
         for cand in s[np.argsort(-s.real)][:8]:
@@ -531,6 +541,26 @@ def _chains_of(h: float, z: NDArray[np.complex128], mult: NDArray[np.int64]) -> 
     return Chains(True, h, tuple(chains), (c, c))
 
 
+def _beat_seeds(D: DifferenceOperator, upper: float) -> NDArray[np.complex128]:
+    """Seeds on ``Re s = upper`` over one beat period of the closest delays (none past the work bound).
+
+    Two delays ``g`` apart turn their terms' relative phase once per ``2 pi / g`` in ``Im s``;
+    over one such period every alignment of the phases (where the rightmost roots are,
+    e.g. near ``Im s = pi / delta`` for U_BS with a loop delay ``delta``) is met. The seeds
+    are ``pi / r_max`` apart, half the spacing of the roots along the longest delay.
+    """
+    r = D.relative_delays
+    gap = float(np.min(np.diff(r)))
+    n = int(np.ceil(2.0 * r[-1] / gap)) + 1
+    real = not np.any(np.imag(D.coefs))  # then the roots come in conjugate pairs: Im s >= 0 suffices
+    if (n if real else 2 * n) > _BEAT_SEEDS:
+        return np.empty(0, dtype=complex)
+    w = np.arange(n) * (np.pi / r[-1])
+    if not real:
+        w = np.concatenate([-w[:0:-1], w])
+    return upper + 1j * w
+
+
 def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: int = 60) -> NDArray[np.complex128]:
     """Newton's method on ``D`` from the seeds ``s`` (nan where a step was not finite).
 
@@ -570,8 +600,9 @@ def _kantorovich_radius(D: DifferenceOperator, c: complex) -> float | None:
         return None
     eta = max(f / d, 1e-300)
     rho = 4.0 * eta
-    L = float(np.sum(a * tau**2 * np.exp(-tau * (c.real - rho))))
-    h = L * eta / d
+    with np.errstate(over="ignore"):  # a far candidate: L = inf, not proven
+        L = float(np.sum(a * tau**2 * np.exp(-tau * (c.real - rho))))
+        h = L * eta / d
     if not np.isfinite(h) or h > 0.5:
         return None
     return float(eta if h == 0 else (1.0 - np.sqrt(1.0 - 2.0 * h)) * eta / h)

@@ -14,6 +14,7 @@ __all__ = [
     "ConvergenceError",
     "CertificationError",
     "SweepError",
+    "SpuriousPoleWarning",
 ]
 
 
@@ -60,3 +61,11 @@ class CertificationError(NrobustError, RuntimeError):
 
 class SweepError(NrobustError, RuntimeError):
     """A point of a parallel grid computation raised; the message names the point and the error."""
+
+
+class SpuriousPoleWarning(UserWarning):
+    """A rational model had poles in ``Re s > 0`` that the modelled function does not have.
+
+    Issued by :func:`nrobust.transfer.pade_approximation` when it replaces such poles (the
+    message names them); filter it with ``warnings.simplefilter("ignore", SpuriousPoleWarning)``.
+    """

@@ -26,20 +26,32 @@ robustness to the delays:
 ``rho(X + E) <= ||T^{-1} X(c) T||_2 + kappa(T) ||E||_2``. With the Schur form
 ``X(c) = Q U Q^*`` and ``T = Q diag(d^j)`` the first term is ``||D^{-1} U D||_2``, which
 tends to ``rho(X(c))`` as ``d -> 0`` while ``kappa(T) = d^{-(p-1)}`` grows; the best of a
-few ``d`` is used. Cells whose bound exceeds the largest sampled ``rho`` by more than the
-tolerance are quartered (halved per dimension) until the bracket is tight or the work
-bound is reached: the upper end is a bound for every ``theta``, not a sample.
+few ``d`` is used. That bound is first order in the cell's width; near a maximiser of
+``rho`` a second-order one takes over (:func:`_disc_bounds`): in the eigenvector basis of
+``X(c)`` the cell is exactly ``Y_0 + sum_k (e^{i d_k} - 1) B_k``, and scaled Gershgorin
+discs isolate each eigenvalue (when they are simple and apart) in a disc whose centre
+moves tangentially, to first order, where ``|lambda_j|`` is maximal. Cells sit in a
+best-first queue keyed by their bound; the worst are halved along their most sensitive
+dimension (a direction an eigenvalue does not depend on is never cut) until every bound
+is within ``rtol`` of the largest sampled ``rho``, or the work bound ``max_cells`` (checked
+before each batch) is reached: then :meth:`MatrixDifferenceOperator.gamma_0` raises
+:class:`~nrobust.errors.CertificationError`. The upper end is a bound for every
+``theta``, not a sample. Measured: relative width ``1e-6`` in 100 to 5500 cells for
+random ``2 x 2`` coefficients with two to four delays and ``3 x 3`` ones with two or three;
+where eigenvalues of
+``X(theta)`` collide near the maximum (a defective ``X``) the bound is only ``O(h^{1/2})``
+and a bracket that tight may not close within the default work bound.
 """
 
 from __future__ import annotations
 
+import heapq
 import itertools
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import schur
 
 from ._json import fields_dict
 from ._validate import is_real_number, number_array, positive, positive_int, real_array
@@ -58,6 +70,8 @@ _SCALINGS = (1.0, 0.3, 0.1, 0.03, 0.01, 1e-3)
 _NORM_SLACK = 1e-12
 # A sampled spectral radius decides "gamma_0 >= 1" only above 1 + this (eigenvalue rounding).
 _DECIDE_SLACK = 1e-12
+# Cells halved per round of the branch and bound (best first).
+_BATCH = 256
 # Largest block companion matrix (rows) of commensurate delays (nrobust.difference's test).
 _MAX_COMPANION = 4000
 
@@ -106,6 +120,8 @@ def _norm2(x: NDArray[np.complex128]) -> NDArray[np.float64]:
 
 def _schur_bound(x: NDArray[np.complex128], eps: float, xnorm: float) -> float:
     """``min_d ||D^{-1} U D||_2 + d^{-(p-1)} eps`` over the scaled Schur bases ``Q diag(d^j)``."""
+    from scipy.linalg import schur  # lazily: a slow import
+
     p = x.shape[0]
     u, _ = schur(x, output="complex")
     j = np.arange(p)
@@ -332,12 +348,90 @@ class MatrixDifferenceOperator:
         return fields_dict(self)
 
 
-def _gamma0(coefs: NDArray[np.complex128], rtol: float, max_cells: int, threshold: float | None = None) -> Gamma0:
-    """The certified cover of the torus behind :meth:`MatrixDifferenceOperator.gamma_0`.
+def _disc_bounds(
+    x: NDArray[np.complex128], arcs: NDArray[np.complex128], h: NDArray[np.float64], norms: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Second-order bounds of ``rho`` on cells by isolated Gershgorin discs, and the split sensitivities.
 
-    A cell is split while its bound exceeds the largest sampled ``rho`` by more than
-    ``rtol (1 + rho)``. With a ``threshold`` the cover only decides ``gamma_0 < threshold``:
-    cells bounded below it are final, and the search stops once a sample reaches it.
+    ``x``: ``X(c)`` at the centres (``(n, p, p)``); ``arcs``: ``e^{i c_k} A_k`` (``(n, K - 1, p, p)``);
+    ``h``: half-widths. In the eigenvector basis ``V`` of ``X(c)``,
+    ``V^{-1} X(c + d) V = Y_0 + sum_k (e^{i d_k} - 1) B_k`` exactly, ``B_k = V^{-1} e^{i c_k} A_k V``.
+    With the scaling ``diag(1, .., 1/t_j, .., 1)`` the Gershgorin disc ``j`` has radius
+    ``t_j sum_{l != j} |M_jl|`` and the others grow by ``|M_ij| / t_j``; when disc ``j`` is
+    disjoint from them for every ``d`` of the cell it holds exactly one eigenvalue, and when the
+    ``p`` discs so isolated are pairwise disjoint they hold them all. Its centre
+    ``Y_0,jj + sum_k (e^{i d_k} - 1) B_k,jj`` has modulus at most ``max_vertices |Y_0,jj + i
+    sum_k d_k B_k,jj| + sum_k |B_k,jj| h_k^2 / 2`` (a convex function of ``d`` and
+    ``|e^{i d} - 1 - i d| <= d^2 / 2``): at a maximiser of ``|lambda_j|`` the first-order term is
+    tangent, so the bound exceeds ``rho`` by ``O(h^2)`` and the cover near the maximum stays small.
+    Cells where ``V`` is ill conditioned or the discs touch get ``inf`` (the caller's first-order
+    bound stands). Rounding of ``V^{-1} (.) V``: ``1e-12 kappa(V)`` times the norms, per entry.
+
+    The sensitivity of dimension ``k`` is ``h_k`` times the weight of ``B_k`` in the disc that
+    attains the bound: the cell is halved along the largest (flat directions are never cut).
+    """
+    n, p = x.shape[0], x.shape[1]
+    dim = h.shape[1]
+    bound = np.full(n, np.inf)
+    sens = h * norms[None]
+    _, v = np.linalg.eig(x)
+    kappa = np.linalg.cond(v)
+    good = np.flatnonzero(np.isfinite(kappa) & (kappa < 1e8))
+    if not good.size:
+        return bound, sens
+    vg, hg = v[good], h[good]
+    y0 = np.linalg.solve(vg, x[good] @ vg)
+    b = np.linalg.solve(vg[:, None], arcs[good] @ vg[:, None])  # (g, dim, p, p)
+    err = _NORM_SLACK * kappa[good] * (_norm2(x[good]) + hg @ norms)  # (g,)
+    eye = np.eye(p, dtype=bool)
+    off = np.abs(y0) + np.einsum("gk,gkij->gij", hg, np.abs(b)) + err[:, None, None]
+    off[:, eye] = 0.0
+    diag = np.einsum("gjj->gj", y0)
+    bdiag = np.einsum("gkjj->gkj", b)
+    shift = np.einsum("gk,gkj->gj", hg, np.abs(bdiag)) + err[:, None]  # |centre_j(d) - Y_0,jj|
+    signs = np.array(list(itertools.product((-1.0, 1.0), repeat=dim)))  # (2^dim, dim)
+    tangent = np.einsum("vk,gk,gkj->gjv", signs, hg, bdiag)
+    top = np.abs(diag[:, :, None] + 1j * tangent).max(axis=-1)
+    top += np.einsum("gk,gkj->gj", 0.5 * hg**2, np.abs(bdiag)) + err[:, None]
+    rows = off.sum(axis=2)  # sum_{l != j} |M_jl|
+    gaps = np.abs(diag[:, :, None] - diag[:, None, :]) - shift[:, :, None] - shift[:, None, :]
+    # room for the column j of disc i (scaling j): the gap less disc i's other entries and disc j's row at t = 1
+    room = gaps - (rows[:, None, :] - off.transpose(0, 2, 1)) - rows[:, :, None]
+    room[:, eye] = np.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.where(eye[None], 0.0, 2.0 * off.transpose(0, 2, 1) / room)  # [g, j, i]: O_ij / room_ji, doubled
+    t = np.max(np.where(room > 0, need, np.inf), axis=2)
+    ok = np.all(np.isfinite(t) & (t <= 1.0), axis=1)
+    t = np.where(np.isfinite(t), np.maximum(t, 1e-300), 1.0)
+    radius = t * rows
+    reach = shift + radius
+    apart = gaps + shift[:, :, None] + shift[:, None, :] - reach[:, :, None] - reach[:, None, :]
+    apart[:, eye] = np.inf
+    ok &= np.all(apart > 0, axis=(1, 2))
+    disc = top + radius
+    jstar = np.argmax(disc, axis=1)
+    idx = np.arange(good.size)
+    weight = np.abs(b[idx, :, jstar, :]).sum(axis=-1) + np.abs(b[idx, :, :, jstar]).sum(axis=-1)
+    bound[good[ok]] = (disc.max(axis=1) * (1.0 + _NORM_SLACK))[ok]
+    sens[good[ok]] = (hg * weight)[ok]
+    return bound, sens
+
+
+def _gamma0(coefs: NDArray[np.complex128], rtol: float, max_cells: int, threshold: float | None = None) -> Gamma0:
+    """The certified branch and bound behind :meth:`MatrixDifferenceOperator.gamma_0`.
+
+    Cells of the torus (``theta_1 = 0``) sit in a best-first queue keyed by their bound (the
+    smaller of :func:`_disc_bounds` and the first-order :func:`_cell_bounds`); the worst cells
+    are halved along their most sensitive dimension, in batches, until every bound is within
+    ``rtol rho`` of the largest sampled ``rho`` (``rho`` at the cell centres). The work bound
+    is checked before each batch is allocated. With a ``threshold`` the search only decides
+    ``gamma_0 < threshold``: cells bounded below it are final, and it stops once a sample
+    reaches it.
+
+    Raises
+    ------
+    CertificationError
+        Without a threshold: the work bound is reached before the bracket is within ``rtol``.
     """
     K = coefs.shape[0]
     if K == 1:
@@ -345,36 +439,60 @@ def _gamma0(coefs: NDArray[np.complex128], rtol: float, max_cells: int, threshol
     norms = np.array([np.linalg.norm(a, 2) for a in coefs[1:]]) * (1.0 + _NORM_SLACK)
     dim = K - 1
     n0 = _INITIAL_CELLS if dim == 1 else (16 if dim == 2 else 8)
+    if n0**dim > max_cells:
+        raise ParameterError("max_cells", f">= {n0**dim} (the first cover of the torus)", max_cells)
     grid = np.array(list(itertools.product(range(n0), repeat=dim)), dtype=float)
     centers = (grid + 0.5) * (2 * np.pi / n0)
     widths = np.full(centers.shape, np.pi / n0)
-    offsets = np.array(list(itertools.product((-1.0, 1.0), repeat=dim)))
+    scale = float(np.linalg.norm(coefs[0], 2) + norms.sum())
     used = 0
     best, best_theta = -np.inf, np.zeros(dim)
-    upper = -np.inf
-    while centers.size:
-        if used + centers.shape[0] > max_cells:
-            # the cells left are bounded crudely: rho <= sum_k ||A_k||
-            upper = max(upper, float(np.linalg.norm(coefs[0], 2) * (1.0 + _NORM_SLACK) + norms.sum()))
-            break
+    final = -np.inf  # largest bound of the cells settled below the threshold
+    queue: list[tuple[float, int]] = []
+    store: dict[int, tuple[NDArray[np.float64], NDArray[np.float64], int, float]] = {}
+    serial = 0
+    while True:
         used += centers.shape[0]
-        x = coefs[0][None] + np.einsum("nk,kij->nij", np.exp(1j * centers), coefs[1:])
+        arcs = np.exp(1j * centers)[:, :, None, None] * coefs[None, 1:]
+        x = coefs[0][None] + arcs.sum(axis=1)
         rho = _spectral_radius(x)
         i = int(np.argmax(rho))
         if rho[i] > best:
             best, best_theta = float(rho[i]), centers[i]
         if threshold is not None and best >= threshold * (1.0 + _DECIDE_SLACK):
-            upper = np.inf  # decided: gamma_0 >= threshold; no upper bound was needed
+            return Gamma0(best, np.inf, (0.0, *(float(t) for t in best_theta)), used)  # decided: >= threshold
+        disc, sens = _disc_bounds(x, arcs, widths, norms)
+        bounds = np.minimum(disc, _cell_bounds(x, widths @ norms))
+        for bd, c, w, k in zip(bounds, centers, widths, np.argmax(sens, axis=1)):
+            if threshold is not None and bd < threshold:
+                final = max(final, float(bd))
+                continue
+            heapq.heappush(queue, (-float(bd), serial))
+            store[serial] = (c, w, int(k), float(bd))
+            serial += 1
+        target = best + rtol * max(best, 0.0) + 1e-15 * scale
+        if not queue or -queue[0][0] <= target:
             break
-        eps = widths @ norms
-        bounds = _cell_bounds(x, eps)
-        split = bounds > best + rtol * (1.0 + best)
-        if threshold is not None:
-            split &= bounds >= threshold
-        upper = max(upper, float(np.max(bounds[~split], initial=-np.inf)))
-        if not np.any(split):
-            break
-        c, w = centers[split], widths[split] / 2
-        centers = (c[:, None, :] + offsets[None, :, :] * w[:, None, :]).reshape(-1, dim)
-        widths = np.repeat(w, offsets.shape[0], axis=0)
-    return Gamma0(best, max(upper, best), (0.0, *(float(t) for t in best_theta)), used)
+        batch: list[tuple[NDArray[np.float64], NDArray[np.float64], int, float]] = []
+        while queue and -queue[0][0] > target and len(batch) < _BATCH:
+            batch.append(store.pop(heapq.heappop(queue)[1]))
+        if used + 2 * len(batch) > max_cells:
+            upper = max(max(cell[3] for cell in batch), final, best)  # the batch holds the worst cells
+            if threshold is None:
+                raise CertificationError(
+                    f"gamma_0 in [{best:.15g}, {upper:.15g}] after {used} cells: the bracket is not within "
+                    f"rtol={rtol:g} (raise max_cells or rtol)"
+                )
+            return Gamma0(best, float(upper), (0.0, *(float(t) for t in best_theta)), used)
+        cs, ws = [], []
+        for c, w, k, _ in batch:
+            half = w.copy()
+            half[k] /= 2.0
+            for sgn in (-1.0, 1.0):
+                child = c.copy()
+                child[k] += sgn * half[k]
+                cs.append(child)
+                ws.append(half)
+        centers, widths = np.array(cs), np.array(ws)
+    upper = max(-queue[0][0] if queue else -np.inf, final, best)
+    return Gamma0(best, float(upper), (0.0, *(float(t) for t in best_theta)), used)

@@ -40,9 +40,11 @@ __all__ = [
 
 #: The paper's numerical example (section 5): lam = mu = sigma+- = sigma-+ = q = 1, rho = 0.85.
 PAPER_SYSTEM = {"lam": 1.0, "mu": 1.0, "sigma_pm": 1.0, "sigma_mp": 1.0, "q": 1.0, "rho": 0.85}
-#: The tuning gain of figure 3 and the loop delays of figures 1 and 3.
+#: The tuning gain of figure 3 (U_BS2(K), eq. (53)).
 PAPER_K = 0.1
+#: The loop delays of figure 1 (U_BS).
 PAPER_DELAYS_FIG1 = (0.0, 0.01)
+#: The loop delays of figure 3 (U_BS2(K)).
 PAPER_DELAYS_FIG3 = (0.0, 0.01, 0.1)
 #: Horizon of the simulations of figures 1 and 3.
 PAPER_T_END = 15.0

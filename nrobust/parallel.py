@@ -29,7 +29,7 @@ from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, overload
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -37,8 +37,11 @@ from threadpoolctl import threadpool_limits
 from ._atomic import atomic_write
 from ._journal import Journal, definition_hash, describe
 from ._json import decode_floats, json_safe
-from ._progress import ProgressBar, progress_bar
+from ._progress import progress_bar
 from .errors import ParameterError, SweepError
+
+if TYPE_CHECKING:
+    from ._progress import ProgressBar
 
 __all__ = [
     "MAX_POINTS",

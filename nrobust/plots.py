@@ -25,16 +25,17 @@ a zero lies on the imaginary axis or the count exceeds its work bound.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from tqdm import tqdm
 
 from ._json import fields_dict, json_safe
-from ._validate import nonnegative, positive, positive_int, renamed_keywords
+from ._progress import progress_bar
+from ._validate import nonnegative, number_array, positive, positive_int, renamed_keywords
 from ._validate import region as check_region
 from .bounds import root_free_region
 from .errors import CertificationError, ParameterError
@@ -58,6 +59,8 @@ __all__ = [
     "nyquist_plot",
     "root_map_region",
     "root_map_plot",
+    "HiddenUnstableRoots",
+    "hidden_unstable_roots",
     "RootLocusData",
     "root_locus_response",
     "root_locus_plot",
@@ -378,7 +381,10 @@ def root_map_region(
     for a neutral ``F`` the high-frequency roots approach it), each with a margin of
     ``0.5 / T`` in ``Re s`` and ``10 / T`` in ``Im s``. An unstable root of an open loop
     (``+0.923`` for the paper's plant) or of a loop destabilised by a small delay (the
-    U_BS chains at ``Im s ~ 311`` for ``delta = 0.01``) is therefore on the map.
+    U_BS chains at ``Im s ~ 311`` for ``delta = 0.01``) is therefore on the map, unless
+    it lies above the height bound ``max_roots``; :func:`root_map_plot` then says so on
+    the figure. When the chains are not resolved (delays not commensurate within the
+    degree bound), the real range holds the upper end of their abscissa's bracket.
 
     Parameters
     ----------
@@ -386,8 +392,9 @@ def root_map_region(
     base : tuple of float, optional
         ``(re_min, re_max, im_min, im_max)`` always contained in the result.
     abscissa : SpectralAbscissa, optional
-        The spectral abscissa of ``F`` if already computed; by default it is computed here
-        (when that fails, only the chains and ``base`` are used).
+        The spectral abscissa of ``F`` if already computed; by default it is computed here,
+        its band near the chains no higher than the map can reach (``max_roots``; when
+        that fails, only the chains and ``base`` are used).
     max_roots : int
         Work bound: the widening in height stops where the map would hold about
         ``max_roots`` roots (``|Im s| T / pi`` roots per unit of ``Re s`` width, the density
@@ -406,17 +413,22 @@ def root_map_region(
     points: list[complex] = []
     if abscissa is None and F.kind != "advanced":
         try:
-            abscissa = spectral_abscissa(F)
+            # roots above the height the map can hold are not drawn: search no higher
+            reach = max(abs(base_box[2]), abs(base_box[3]), max_roots * np.pi / T)
+            abscissa = spectral_abscissa(F, im_max=reach)
         except CertificationError:
             abscissa = None
     if abscissa is not None and abscissa.root is not None:
         points.append(complex(abscissa.root))
     if F.is_neutral:
-        chains = F.principal_part().chains().chains
-        if chains:
-            top = max(chains, key=lambda c: c.real)
+        found = F.principal_part().chains()
+        if found.chains:
+            top = max(found.chains, key=lambda c: c.real)
             first = (top.offset + 0.5 * top.spacing) % top.spacing - 0.5 * top.spacing
             points.append(complex(top.real, abs(first)))
+        elif np.isfinite(found.bracket[1]):  # chains not resolved: their abscissa's upper bound in Re s
+            box[0] = min(box[0], found.bracket[1] - 0.5 / T)
+            box[1] = max(box[1], found.bracket[1] + 0.5 / T)
     for z in points:
         box[0] = min(box[0], z.real - 0.5 / T)
         box[1] = max(box[1], z.real + 0.5 / T)
@@ -438,7 +450,11 @@ def root_map_plot(
     """Roots of ``F`` in a rectangle, the chain asymptotes of its principal part, the axis.
 
     Roots in ``Re s > 0`` (unstable) are circled in red and counted in the legend; chain
-    asymptotes in ``Re s >= 0`` are drawn in red.
+    asymptotes in ``Re s >= 0`` are drawn in red. Unstable roots the map cannot show (a
+    chain in ``Re s > 0`` whose roots all lie above the rectangle, as those of U_BS near
+    ``Im s = pi / delta`` for a small loop delay ``delta``) are named in a note on the
+    figure (:func:`hidden_unstable_roots`): a map without red circles is not a claim of
+    stability.
 
     Parameters
     ----------
@@ -464,7 +480,8 @@ def root_map_plot(
     NrobustPlot
         ``lines["roots"]`` (one marker artist whose data are the roots),
         ``lines["unstable"]`` (one marker artist on the roots with ``Re s > 0``; no data
-        when there is none), ``lines["chains"]`` (one line per chain), ``lines["axis"]``.
+        when there is none), ``lines["chains"]`` (one line per chain), ``lines["axis"]``,
+        ``lines["note"]`` (the text on unstable roots not drawn; empty when there is none).
     """
     F = as_quasipolynomial("F", F)
     box = root_map_region(F) if region is None else check_region(region)
@@ -501,12 +518,122 @@ def root_map_plot(
         mew=1.5,
         label=f"{bad.size} unstable (Re s > 0)" if bad.size else None,
     )
+    hidden = hidden_unstable_roots(F, box, values)
+    lines["note"] = []
+    if hidden is not None:
+        if not any(c.get_xdata()[0] == hidden.real for c in lines["chains"]):
+            lines["chains"].append(
+                ax.axvline(hidden.real, color="tab:red", ls="--", lw=0.9, label="unstable chain (above the map)")
+            )
+        lines["note"].append(
+            ax.text(
+                0.02,
+                0.02,
+                textwrap.fill(hidden.note, 48),
+                transform=ax.transAxes,
+                ha="left",
+                va="bottom",
+                fontsize="x-small",
+                color="tab:red",
+                bbox={"facecolor": "white", "edgecolor": "tab:red", "alpha": 0.9},
+            )
+        )
     ax.set_xlim(box[0], box[1])
     ax.set_ylim(box[2], box[3])
     ax.set_xlabel("Re s")
     ax.set_ylabel("Im s")
-    ax.legend(fontsize="x-small", loc="best")
+    ax.legend(fontsize="x-small", loc="upper left" if hidden is not None else "best")
     return NrobustPlot(lines, ax, ax.figure)
+
+
+@dataclass(frozen=True)
+class HiddenUnstableRoots:
+    """Unstable roots of ``F`` above a root map's rectangle.
+
+    Attributes
+    ----------
+    real : float
+        ``Re s`` of the rightmost such chain (exact for commensurate delays; else the
+        upper end of the bracket of the chains' abscissa ``c_D``).
+    lower : float
+        A certified lower bound of that abscissa, ``> 0``: ``F`` has roots with
+        ``Re s > 0`` (the roots of a neutral ``F`` approach the chains of its difference
+        operator as ``|Im s|`` grows, Hale and Verduyn Lunel).
+    height : float
+        The map's ``max(|Im s|)``: the chain has no root (asymptotically) up to it.
+    first : float or None
+        ``|Im s|`` of the chain's zero nearest the real axis (commensurate delays), None
+        when the chains are not resolved.
+    chains : int
+        Number of chains in ``Re s > 0`` with no root in the map (1 when not resolved).
+    note : str
+        The sentence written on the figure.
+    """
+
+    real: float
+    lower: float
+    height: float
+    first: float | None
+    chains: int
+    note: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def hidden_unstable_roots(
+    F: QuasiPolynomial, region: tuple[float, float, float, float], roots: ArrayLike = ()
+) -> HiddenUnstableRoots | None:
+    """The chain of unstable roots of a neutral ``F`` that a root map of ``region`` misses.
+
+    A chain ``Re s = c > 0`` of the difference operator ``F.principal_part()`` carries
+    infinitely many roots of ``F`` with ``Re s -> c`` (Hale and Verduyn Lunel). It is
+    missed when none of its zeros ``c + i (offset + m spacing)`` lies in ``region``'s
+    height (commensurate delays) or, when the chains are not resolved, when the certified
+    bracket ``[lower, upper]`` of their abscissa has ``lower > 0`` and no root of
+    ``roots`` (those drawn) lies in ``Re s > 0``.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+    region : tuple of float
+        ``(re_min, re_max, im_min, im_max)`` of the map.
+    roots : array_like of complex
+        The roots drawn on the map.
+
+    Returns
+    -------
+    HiddenUnstableRoots or None
+        None for a retarded ``F``, or when no unstable chain is missed.
+    """
+    F = as_quasipolynomial("F", F)
+    box = check_region(region)
+    drawn = number_array("roots", roots, ndim=None, min_size=0).ravel()
+    if not F.is_neutral:
+        return None
+    found = F.principal_part().chains()
+    height = float(max(abs(box[2]), abs(box[3])))
+    if found.chains:
+        missed = [c for c in found.chains if c.real > 0 and c.points(box[2], box[3]).size == 0]
+        if not missed:
+            return None
+        top = max(missed, key=lambda c: c.real)
+        first = abs((top.offset + 0.5 * top.spacing) % top.spacing - 0.5 * top.spacing)
+        more = f" (and {len(missed) - 1} more chain(s) in Re s > 0)" if len(missed) > 1 else ""
+        note = (
+            f"Unstable roots not drawn: the chain at Re s = {top.real:.4g}{more} has its roots above "
+            f"|Im s| = {height:.4g}, the first near Im s = +-{first:.5g}."
+        )
+        return HiddenUnstableRoots(float(top.real), float(top.real), height, float(first), len(missed), note)
+    lower, upper = found.bracket
+    if not lower > 0 or np.any(drawn.real > 0):
+        return None
+    note = (
+        f"Unstable roots not drawn: chains with Re s -> c_D in [{lower:.4g}, {upper:.4g}] (certified) "
+        f"have their roots above |Im s| = {height:.4g}."
+    )
+    return HiddenUnstableRoots(float(upper), float(lower), height, None, 1, note)
 
 
 # ---------------------------------------------------------------------- root locus
@@ -573,13 +700,12 @@ def root_locus_response(
     p = np.atleast_1d(np.asarray(params, dtype=float))
     if p.ndim != 1 or p.size == 0 or not np.all(np.isfinite(p)):
         raise ParameterError("params", "a non-empty 1-D array of finite numbers", params)
-    it: Sequence[float] | Any = p
-    if progress:
-        it = tqdm(p, desc=f"root locus in {name}", leave=False)
-    roots = tuple(
-        np.asarray(find_roots(as_quasipolynomial("family(p)", family(float(x))), box).roots, dtype=complex) for x in it
-    )
-    return RootLocusData(name, p, roots, box)
+    roots = []
+    with progress_bar(p.size, progress, f"root locus in {name}") as bar:
+        for x in p.tolist():
+            roots.append(np.asarray(find_roots(as_quasipolynomial("family(p)", family(x)), box).roots, dtype=complex))
+            bar.update(1)
+    return RootLocusData(name, p, tuple(roots), box)
 
 
 def root_locus_plot(

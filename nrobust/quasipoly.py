@@ -25,10 +25,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
-from scipy.fft import fft as _fft
-from scipy.fft import ifft as _ifft
-from scipy.fft import next_fast_len as _next_fast_len
-from scipy.interpolate import CubicSpline
 
 from ._json import fields_dict, json_safe
 from ._validate import is_real_number, nonnegative, number_array, real_array
@@ -151,6 +147,8 @@ def _exp_sums(
         for lo in range(0, s.size, rows):
             out[lo : lo + rows] = np.exp(-np.outer(s[lo : lo + rows], nu)) @ coef
         return out
+    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
+
     x, w0, dw = line
     n, m = nu.size, min(_CZT_BLOCK, s.size)
     theta = step * dw
@@ -164,7 +162,7 @@ def _exp_sums(
         firsts = starts[r : r + per_round]
         shift = np.exp(-step * np.outer(x + 1j * (w0 + firsts * dw), idx)) * chirp_in  # (blocks, n)
         u = shift[:, None, :] * coef.T[None, :, :]  # (blocks, columns, n)
-        y = _ifft(_fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
+        y = scipy.fft.ifft(scipy.fft.fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
         for b, first in enumerate(firsts.tolist()):
             size = min(m, s.size - first)
             out[first : first + size] = y[b, :, :size].T
@@ -181,9 +179,11 @@ def _chirp_plan(n: int, m: int, theta: float) -> tuple[int, NDArray, NDArray, ND
     ``e^{-i theta k^2 / 2}`` (``k < m``). The phases are taken from ``theta`` itself (not
     from powers of a rounded ``e^{-i theta}``), exact to rounding for every ``l``.
     """
-    nfft = _next_fast_len(n + m - 1)
+    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
+
+    nfft = scipy.fft.next_fast_len(n + m - 1)
     lag = np.arange(1 - n, m, dtype=float)
-    filt = _fft(np.exp(0.5j * theta * lag**2), nfft)
+    filt = scipy.fft.fft(np.exp(0.5j * theta * lag**2), nfft)
     chirp_in = np.exp(-0.5j * theta * np.arange(n, dtype=float) ** 2)
     chirp_out = np.exp(-0.5j * theta * np.arange(m, dtype=float) ** 2)
     for arr in (filt, chirp_in, chirp_out):
@@ -232,6 +232,25 @@ def _polyadd(a: NDArray, b: NDArray) -> NDArray:
     return out
 
 
+def _segments(
+    a: ArrayLike, b: ArrayLike, grid: bool
+) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+    """Midpoints, half-lengths and least real parts of the segments ``[a, b]``, with the
+    least real parts rounded down to the grid ``1/_XMIN_GRID`` if ``grid`` (``xs``, distinct,
+    and ``where``, the index of each segment's value in ``xs``; empty otherwise).
+
+    ``abs_moment`` decreases in ``x``: evaluated at ``x`` rounded down it stays an upper
+    bound, and needs one evaluation per distinct value (a vertical edge has one).
+    """
+    a = np.asarray(a, dtype=complex)
+    b = np.asarray(b, dtype=complex)
+    xmin = np.minimum(a.real, b.real)
+    if not grid:
+        return 0.5 * (a + b), 0.5 * np.abs(b - a), xmin, np.zeros(0), np.zeros(0, dtype=np.intp)
+    xs, where = np.unique(np.floor(xmin * _XMIN_GRID) / _XMIN_GRID, return_inverse=True)
+    return 0.5 * (a + b), 0.5 * np.abs(b - a), xmin, xs, where.reshape(xmin.shape)
+
+
 def _poly_abs_bound(coefs: NDArray, center: NDArray, radius: NDArray) -> NDArray[np.float64]:
     """Upper bound of ``|p(s)|`` on discs ``|s - center| <= radius`` (exact Taylor sum)."""
     bound = np.zeros(center.shape)
@@ -271,6 +290,8 @@ def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray,
             p = Polynomial(np.polynomial.polynomial.polyfit(x - x[0], y, x.size - 1))
             pc = np.array([np.pad(p(Polynomial([x[i] - x[0], h[i]])).coef, (0, 4))[:4] for i in range(h.size)])
         else:
+            from scipy.interpolate import CubicSpline  # lazily: a slow import, needed by splines only
+
             spline = CubicSpline(x, y, bc_type="not-a-knot")
             # spline.c[k, i] multiplies (nu - x_i)^(3-k); with nu - x_i = h_i t:
             pc = np.stack([spline.c[3 - j] * h**j for j in range(4)], axis=1)
@@ -816,21 +837,11 @@ class QuasiPolynomial:
         where ``x_min`` is the smallest real part on the segment and the polynomial
         maxima are bounded by the Taylor sum about the midpoint.
         """
-        a = np.asarray(a, dtype=complex)
-        b = np.asarray(b, dtype=complex)
-        center = 0.5 * (a + b)
-        radius = 0.5 * np.abs(b - a)
-        xmin = np.minimum(a.real, b.real)
+        center, radius, xmin, xs, where = _segments(a, b, bool(self.distributed))
         out = np.zeros(center.shape)
         for p, t in self.point_terms:
             dp = _polyder(p)
             out += (_poly_abs_bound(dp, center, radius) + t * _poly_abs_bound(p, center, radius)) * np.exp(-t * xmin)
-        if self.distributed:
-            # abs_moment decreases in x: evaluating it at x rounded down to a 1/64 grid keeps
-            # the bound valid and needs one evaluation per distinct value (a vertical edge
-            # has one).
-            xs, where = np.unique(np.floor(xmin * _XMIN_GRID) / _XMIN_GRID, return_inverse=True)
-            where = where.reshape(xmin.shape)
         for d in self.distributed:
             m0, m1 = d.abs_moment(xs, 0)[where], d.abs_moment(xs, 1)[where]
             out += _poly_abs_bound(_polyder(d.poly), center, radius) * m0
@@ -843,17 +854,10 @@ class QuasiPolynomial:
         Closed form as :meth:`deriv_bound`: a point term contributes
         ``max|p_k| e^{-tau_k x_min}``, a distributed term ``max|q| int nu^m |N| e^{-nu x_min}``.
         """
-        a = np.asarray(a, dtype=complex)
-        b = np.asarray(b, dtype=complex)
-        center = 0.5 * (a + b)
-        radius = 0.5 * np.abs(b - a)
-        xmin = np.minimum(a.real, b.real)
+        center, radius, xmin, xs, where = _segments(a, b, bool(self.distributed))
         out = np.zeros(center.shape)
         for p, t in self.point_terms:
             out += _poly_abs_bound(p, center, radius) * np.exp(-t * xmin)
-        if self.distributed:
-            xs, where = np.unique(np.floor(xmin * _XMIN_GRID) / _XMIN_GRID, return_inverse=True)
-            where = where.reshape(xmin.shape)
         for d in self.distributed:
             out += _poly_abs_bound(d.poly, center, radius) * d.abs_moment(xs, 0)[where]
         return out

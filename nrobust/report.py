@@ -133,19 +133,21 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         (axes[0], 0.0, cert.roots_nominal, cert.principal_nominal, cert.abscissa),
         (axes[1], cert.delta_max, cert.roots_delayed, cert.principal_delayed, None),
     )
+    notes = []
     for ax, delta, roots, principal, abscissa in panels:
         F = characteristic(cert.system, cert.controller, delta)
         # the certified region, widened to hold the rightmost roots (an unstable root must show)
         box = root_map_region(F, base=cert.region, abscissa=abscissa)
         if box != tuple(cert.region):
             roots = find_roots(F, box)
-        root_map_plot(F, box, roots=roots, ax=ax, chains=principal.chains)
+        drawn = root_map_plot(F, box, roots=roots, ax=ax, chains=principal.chains)
+        notes += [f" At delta = {delta:g}: {note.get_text()}".replace("\n", " ") for note in drawn.lines["note"]]
         ax.set_title(f"delta = {delta:g}: {roots.count} roots (certified: {_fmt(roots.certified)})", fontsize="small")
     fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
     out.append(
         (
             "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
-            "with the chain asymptotes of the difference operator",
+            "with the chain asymptotes of the difference operator" + ("." + "".join(notes) if notes else ""),
             fig,
         )
     )

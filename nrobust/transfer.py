@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._json import fields_dict
 from ._validate import nonnegative, number_array, positive_int, real_array
 from .bounds import root_free_region
-from .errors import CertificationError, ParameterError
+from .errors import CertificationError, ParameterError, SpuriousPoleWarning
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 from .roots import RootSet, find_roots
 
@@ -306,8 +306,11 @@ def pade_approximation(
     finds them), each must be matched by a pole of the model, and a further unstable pole
     of the model, an artefact of the Pade approximants far out on the positive real axis
     (``+91.6`` for the open loop of the paper's plant at order 6, where the one unstable
-    pole is ``0.923``), is mirrored to ``-conj(p)``: ``|model(i w)|`` is unchanged and the
-    phase moves (by ``2 arctan(w / p)`` for a real ``p``), which the returned error includes.
+    pole is ``0.923``), is replaced by a stable section that agrees with its factor
+    ``1/(s - p)`` to first order at ``s = 0`` (:func:`_replace_spurious_poles`); a
+    :class:`~nrobust.errors.SpuriousPoleWarning` names the poles replaced. On the paper's
+    open loop and ``omega`` in ``[0, 2]`` the returned error is 0.18, 2.7e-3, 9.5e-4 for
+    orders 2, 4, 6 (mirroring the pole to ``-conj(p)`` gave 0.38, 0.065, 0.030).
     python-control's count of the model's poles in ``Re s > 0`` (``model.poles()``) is
     checked against the certified count; when they differ (a model of high degree whose
     polynomial coefficients span too many orders of magnitude for its roots), or when
@@ -336,6 +339,11 @@ def pade_approximation(
         denominator is not strongly stable, or a pole lies on the imaginary axis), a
         certified unstable pole has no counterpart in the model (raise ``order``), or
         python-control's verdict on the model disagrees with the certified count.
+
+    Warns
+    -----
+    SpuriousPoleWarning
+        The Pade model had poles in ``Re s > 0`` that ``tf`` does not have (mirrored).
     """
     import control
 
@@ -350,7 +358,7 @@ def pade_approximation(
     den = _rational(tf.den, order, n_quad)
     model = control.TransferFunction(np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0]))
     truth = _unstable_poles(tf.den)
-    model = _mirror_spurious_poles(model, truth)
+    model, spurious = _replace_spurious_poles(model, truth)
     verdict = int(np.sum(np.real(model.poles()) > 0.0))
     if verdict != truth.size:
         raise CertificationError(
@@ -361,7 +369,19 @@ def pade_approximation(
         )
     exact = tf.frequency_response(w)
     approx = np.asarray(model(1j * w), dtype=complex)
-    return model, np.abs(exact - approx)
+    error = np.abs(exact - approx)
+    if spurious.size:
+        where = ", ".join(
+            f"{complex(p).real:.4g}" if abs(p.imag) < 1e-9 * abs(p) else f"{complex(p):.4g}" for p in spurious
+        )
+        warnings.warn(
+            f"the Pade model (order {order}) had {spurious.size} false pole(s) in Re s > 0 at {where}, which the "
+            f"transfer function does not have ({truth.size} certified unstable pole(s)); replaced by stable "
+            f"sections that agree to first order at s = 0: max error on omega {error.max():.3g}",
+            SpuriousPoleWarning,
+            stacklevel=2,
+        )
+    return model, error
 
 
 def _span(model: control.TransferFunction) -> float:
@@ -392,17 +412,22 @@ def _unstable_poles(den: QuasiPolynomial) -> NDArray[np.complex128]:
     return np.repeat(np.asarray(found.roots, dtype=complex), np.asarray(found.multiplicities, dtype=int))
 
 
-def _mirror_spurious_poles(model: control.TransferFunction, truth: NDArray[np.complex128]) -> control.TransferFunction:
-    """``model`` with its unstable poles that match no pole of ``truth`` mirrored to ``-conj(p)``.
+def _replace_spurious_poles(
+    model: control.TransferFunction, truth: NDArray[np.complex128]
+) -> tuple[control.TransferFunction, NDArray[np.complex128]]:
+    """``model`` with its unstable poles that match no pole of ``truth`` replaced, and those poles.
 
     A Pade approximant of ``e^{-tau s}`` tends to ``(-1)^order``, not 0, as ``s -> +inf``, so
     the rational model can vanish far out on the positive real axis: a false unstable pole
-    (``+91.6`` for the open loop of the paper's plant at order 6). Replacing each factor
-    ``s - p`` of such a pole by ``s + conj(p)`` keeps ``|model(i w)|`` exactly (the factor
-    ``(i w - p)/(i w + conj(p))`` has modulus 1) and, with the sign of the gain restored at
-    ``w = 0``, changes the phase (by ``2 arctan(w / p)`` for a real ``p``): small in the band
-    where the model is valid, and counted in the returned error. Each true unstable pole must be
-    matched by one of the model, else the order is too low.
+    (``+91.6`` for the open loop of the paper's plant at order 6). Each factor ``1/(s - p)``
+    of such a pole is replaced by the stable section ``k (s + z) / (s + r)^2`` with
+    ``r = 3 p`` and ``k``, ``z`` chosen so that the two agree to first order at ``s = 0``
+    (value ``-1/p`` and logarithmic derivative ``1/p``: ``1/z = 1/p + 2/r``,
+    ``k = -r^2 / (p z)``); the relative difference is ``O((w / p)^2)`` in the band, not
+    ``O(w / p)`` as for the mirror image ``-conj(p)``, and the model stays biproper. A
+    conjugate pair gives conjugate sections (real coefficients). ``r = 3 p`` was measured
+    best of ``3 p, 10 p, 30 p`` (9.5e-4, 9.8e-4, 9.9e-4 on the paper's open loop, order 6).
+    Each true unstable pole must be matched by one of the model, else the order is too low.
     """
     import control
 
@@ -421,13 +446,13 @@ def _mirror_spurious_poles(model: control.TransferFunction, truth: NDArray[np.co
             )
         unstable.remove(best)
     if not unstable:
-        return model
-    mirrored = poles.copy()
-    mirrored[unstable] = -np.conj(poles[unstable])
-    zeros = np.asarray(model.zeros(), dtype=complex)
-    num = np.real_if_close(np.poly(zeros)) if zeros.size else np.ones(1)
-    den = np.real_if_close(np.poly(mirrored))
-    gain = model.num[0][0][np.flatnonzero(model.num[0][0])[0]] / model.den[0][0][np.flatnonzero(model.den[0][0])[0]]
-    # (0 - p)/(0 + conj p) is -1 for a real p and 1 for a conjugate pair: the sign at w = 0 is kept
-    sign = (-1.0) ** int(np.sum(np.abs(poles[unstable].imag) <= 1e-12 * np.abs(poles[unstable])))
-    return control.TransferFunction(np.real(num) * float(np.real(gain)) * sign, np.real(den))
+        return model, np.empty(0, dtype=complex)
+    spurious = poles[unstable]
+    r = 3.0 * spurious
+    z = 1.0 / (1.0 / spurious + 2.0 / r)
+    k = -(r**2) / (spurious * z)
+    num, den = model.num[0][0], model.den[0][0]
+    gain = num[np.flatnonzero(num)[0]] / den[np.flatnonzero(den)[0]] * np.prod(k)
+    zeros = np.concatenate([np.asarray(model.zeros(), dtype=complex), -z])
+    kept = np.concatenate([np.delete(poles, unstable), -r, -r])
+    return control.TransferFunction(np.real(np.poly(zeros) * gain), np.real(np.poly(kept))), spurious

@@ -191,3 +191,21 @@ def test_tall_box_against_the_closed_form() -> None:
     exact = exact[np.lexsort((exact.real, exact.imag))]
     np.testing.assert_allclose(found, exact, rtol=0, atol=1e-9)
     assert np.all(np.abs(found - exact) <= rs.radii[np.lexsort((rs.roots.real, rs.roots.imag))])
+
+
+def test_unresolved_chain_value_is_not_certified() -> None:
+    # delays 1 and 1 + 3.1e-5: not commensurate within the degree bound, so c_D is only bracketed
+    # ([-inf, ln 0.8]); the value is then the bracket's upper end, an upper bound, not certified
+    F = QuasiPolynomial([[1.0, 1.0], [0.5, 0.5], [0.3, 0.3]], [0.0, 1.0, 1.0 + 1e-5 * np.pi])
+    bound = F.principal_part().spectral_bound()
+    assert not bound.exact and bound.lower < bound.upper - 1e-6
+    r = spectral_abscissa(F)
+    assert r.approached_at_infinity and not r.certified and r.value == bound.upper <= r.upper_bound
+    # |0.5 e^{-s} + 0.3 e^{-(1 + eps) s}| <= 0.5 e^{-x} + 0.3 e^{-(1 + eps) x}: no zero of D right of
+    # the x where that equals 1 (Hale's bound, by mpmath; ln 0.8 + 2.6e-6)
+    eps = 1e-5 * mpmath.pi
+    x = mpmath.findroot(lambda x: 0.5 * mpmath.exp(-x) + 0.3 * mpmath.exp(-(1 + eps) * x) - 1, -0.22)
+    np.testing.assert_allclose(r.value, float(x), rtol=0, atol=1e-9)
+    # delays 1 and pi: the bracket closes to 1.5e-10, and the value counts as resolved
+    G = QuasiPolynomial([[1.0, 1.0], [0.5, 0.5], [0.3, 0.3]], [0.0, 1.0, np.pi])
+    assert spectral_abscissa(G).certified

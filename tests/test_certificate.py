@@ -11,9 +11,9 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
-from nrobust.certificate import Certificate, certify
+from nrobust.certificate import Certificate, _representation, certify
 from nrobust.errors import ParameterError
-from nrobust.hyperbolic import TransportSystem
+from nrobust.hyperbolic import GeneralHyperbolic2x2, Hyperbolic2x2, StateFeedback, TransportSystem
 from nrobust.hyperbolic.controllers import (
     FilteredController,
     FiniteTimeController,
@@ -130,3 +130,19 @@ def test_report_counts_unstable_zeros_by_two_routes(tmp_path):
     assert expected > 0
     md = write_report(cert, tmp_path).markdown.read_text()
     assert f"| {expected} (crossings); {expected} (Nyquist winding) |" in md
+
+
+@pytest.mark.slow
+def test_scope_says_how_each_plant_kind_represents_n_tilde():
+    """The rigorous scope names the representation of N~ actually certified: kernels, none, or the
+    characteristic route of a varying lam/mu (whose N~ has no kernel)."""
+    varying = GeneralHyperbolic2x2(lambda x: 1.0 + x, lambda x: 2.0 - x, 0.2, np.cos, 0.5, -0.3, 0.9, 0.6)
+    scope = certify(varying, StateFeedback(-0.3), delta_max=0.5, k_region=False, rigorous=True).scope
+    assert "characteristic route" in scope and "spline of the kernels" not in scope
+    scope = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True).scope
+    assert "N~ = 0 exactly" in scope and "kernels on the kernel grid" not in scope
+    coupled = Hyperbolic2x2(1.0, 1.0, 0.5, 0.5, 0.9, 0.6)
+    assert "kernels on the kernel grid (201 points)" in _representation(coupled, StateFeedback(-0.3, 0.1))
+    assert "varying speeds" in _representation(varying, StateFeedback(-0.3, np.cos))
+    assert "varying speeds" not in _representation(varying, StateFeedback(-0.3))
+    assert not certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False).rigorous

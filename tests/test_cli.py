@@ -229,33 +229,58 @@ def test_unwritable_output_fails_before_computing(tmp_path, capsys, command, whe
     )
 
 
-@pytest.mark.slow  # the interpreter's start-up and imports: seconds on a loaded machine
 @pytest.mark.parametrize("command", ["analyze", "paper", "sweep"])
 def test_unwritable_output_from_the_shell(tmp_path, command):
-    """The same through the installed command: exit 2, one line, no traceback, in under 2 s.
+    """The same through the command itself: exit 2 and one line naming the directory, with
+    nothing computed or written, in under 2 s of wall time.
 
-    The time is the command's start-up: the imports (matplotlib, python-control and
-    scipy.signal are not imported at start-up). It is read as the CPU time of the child
-    (user + system), which a loaded machine does not inflate as it does the wall time;
-    measured ~0.9 s here (1.3 s on a machine loaded 3x over its cores). The command runs
-    once before it is timed, so that the file cache is warm.
+    The time is the interpreter's start-up and nrobust's imports (scipy's submodules,
+    tqdm, matplotlib and python-control are imported where they are used, not at
+    start-up): measured 0.35-0.5 s wall on a quiet machine with the bytecode cached as an
+    installed package has it (0.8 s compiling every module), 0.9-1.2 s on a machine
+    loaded 5x over its cores. The bytecode is cached outside the tree by an untimed first
+    run; then the best of up to three runs is taken (stopping at the first under 2 s).
+    Certify alone takes seconds and the paper's run minutes, so a run that computed could
+    not pass.
     """
-    (tmp_path / "SWEEP.toml").write_text(SWEEP_SMALL)
-    args = {"analyze": [str(_write(tmp_path, SMALL))], "paper": [], "sweep": [str(tmp_path / "SWEEP.toml")]}
-    cmd = [sys.executable, "-m", "nrobust", command, *args[command], "-o", "/proc/nrobust-out"]
-    subprocess.run(cmd, capture_output=True, timeout=120)
-    before = os.times()
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    after = os.times()
-    cpu = (after.children_user - before.children_user) + (after.children_system - before.children_system)
-    assert run.returncode == 2 and run.stdout == ""
-    assert run.stderr.startswith("nrobust: error: out must be") and run.stderr.count("\n") == 1
-    assert cpu < 2.0, f"{command}: {cpu:.2f} s of CPU before the error"
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "SWEEP.toml").write_text(SWEEP_SMALL)
+    args = {"analyze": [str(_write(work, SMALL))], "paper": [], "sweep": [str(work / "SWEEP.toml")]}
+    out = "/proc/nrobust-out"
+    cmd = [sys.executable, "-m", "nrobust", command, *args[command], "-o", out]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(tmp_path / "pycache")
+    before = sorted(p.name for p in work.iterdir())
+    subprocess.run(cmd, capture_output=True, timeout=120, cwd=work, env=env)
+    walls = []
+    for _ in range(3):
+        start = time.perf_counter()
+        run = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=work, env=env)
+        walls.append(time.perf_counter() - start)
+        assert run.returncode == 2 and run.stdout == ""
+        assert run.stderr == (
+            "nrobust: error: out must be a directory that can be created and written "
+            f"(No such file or directory) (got '{out}')\n"
+        )
+        if walls[-1] < 2.0:
+            break
+    assert sorted(p.name for p in work.iterdir()) == before  # nothing written beside the input
+    assert min(walls) < 2.0, f"{command}: {', '.join(f'{w:.2f}' for w in walls)} s of wall time before the error"
 
 
 def test_start_up_imports_no_plotting_or_signal_processing():
     """The heavy optional imports wait until they are used (the start-up time of every command)."""
-    heavy = "('matplotlib', 'scipy.signal', 'scipy.stats', 'control')"
+    heavy = (
+        "matplotlib",
+        "control",
+        "tqdm",
+        "mpmath",
+        "flint",
+        "dask",
+        *(f"scipy.{name}" for name in ("signal", "stats", "interpolate", "optimize", "integrate", "spatial")),
+        *(f"scipy.{name}" for name in ("sparse", "fft", "linalg", "special")),
+    )
     code = f"import sys, nrobust.cli; print(sorted(m for m in {heavy} if m in sys.modules))"
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and run.stdout.strip() == "[]", run.stdout + run.stderr

@@ -153,6 +153,14 @@ def test_close_delays_of_a_small_loop_delay_are_bracketed():
     sb = D.spectral_bound()
     assert sb.upper == pytest.approx(D.strong_spectral_bound(), abs=1e-12)
     assert 0.0 < sb.lower <= sb.upper  # a certified root to the right of the axis
-    # Closer still: no commensurate seeding within the degree bound; the bracket stays honest.
-    sb = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.0007]).spectral_bound()
+    # Closer still (delta = 0.0007, 0.001): no commensurate approximation within the degree
+    # bound; seeds over one beat period 2 pi / delta find the rightmost roots near
+    # Im s = pi / delta, where |1 - e^{-delta s}| ~ 2 and the root's Re s is C_D to ~1e-6.
+    for delta in (0.0007, 0.001):
+        D = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.0 + delta])
+        sb = D.spectral_bound()
+        assert sb.upper == pytest.approx(D.strong_spectral_bound(), abs=1e-12)
+        assert sb.upper - 1e-4 < sb.lower <= sb.upper
+    # A beat period past the seeds' work bound: the bracket stays honest.
+    sb = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.00004]).spectral_bound()
     assert sb.lower == -np.inf and sb.upper > 0.26

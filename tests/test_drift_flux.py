@@ -48,6 +48,24 @@ def test_margin_of_the_void_wave_cancellation() -> None:
     assert below.certified and above.certified and below.value < 0 < above.value
 
 
+@pytest.mark.parametrize("fractions", [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)])
+def test_gamma_0_closed_form(fractions: tuple[float, float]) -> None:
+    """gamma_0 = sum_a (1 + c_a) |R_a U_a Q_a| / |V| (scalar groups) inside the certified torus bracket.
+
+    The criterion behind the example's conclusion, valid for any parameters: cancelling
+    reflection a alone is strongly stable iff gamma_0(open loop) + g_a < 1.
+    """
+    system = load_system_file(TOML)["system"]
+    sig, lam, mu = system.sigma, system.lam, system.mu
+    g = np.array([abs(system.r[0, a] * np.exp(sig[a, a] / lam[a]) * system.q[a, 0]) for a in range(2)])
+    g /= np.exp(-sig[2, 2] / mu[0])
+    closed = float(np.sum((1.0 + np.array(fractions)) * g))
+    K = [[-c * r for c, r in zip(fractions, system.r[0])]]
+    bracket = system.principal_operator(K, delta=0.01).gamma_0()
+    assert bracket.lower - 1e-12 <= closed <= bracket.upper
+    assert (closed < 1.0) == (fractions != (1.0, 0.0))  # g = (0.489, 0.110): the void wave's is the one to cancel
+
+
 def test_bad_file(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text(TOML.read_text().replace("[[0.0, 0.0], [1.0, 1.0]", "[[0.0], [1.0, 1.0]"))

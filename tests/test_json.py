@@ -39,14 +39,16 @@ from nrobust.hyperbolic.frontends import arz, saint_venant
 from nrobust.hyperbolic.general import GeneralHyperbolic2x2
 from nrobust.hyperbolic.kernels import solve_kernels
 from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
+from nrobust.hyperbolic.nplusm_kernels import NPlusMBackstepping, solve_nplusm_kernels
 from nrobust.hyperbolic.simulate import simulate
 from nrobust.hyperbolic.simulate_general import simulate_general
 from nrobust.hyperbolic.studies import ab_region, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.varying import varying_delay_form
+from nrobust.hyperbolic.varying_kernels import solve_varying_kernels
 from nrobust.margins import delay_margin
 from nrobust.matrix_difference import MatrixDifferenceOperator
 from nrobust.outputs import Manifest
-from nrobust.plots import nyquist_response, root_locus_response
+from nrobust.plots import hidden_unstable_roots, nyquist_response, root_locus_response
 from nrobust.proven_crossings import proven_crossings
 from nrobust.qpmatrix import QuasiPolynomialMatrix
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
@@ -138,6 +140,10 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         ),
         "NyquistResponse": nyquist_response(A, B, n_freq=101),  # retarded loop: principal bound -inf
         "RootLocusData": root_locus_response(root_family, [0.5, 1.0], (-3, 1, -10, 10)),
+        # the transport line's U = -rho u(t, 1) with delta = 0.01: its unstable chain is above |Im s| = 60
+        "HiddenUnstableRoots": hidden_unstable_roots(
+            QuasiPolynomial([[1.0], [-0.85], [0.85]], [0.0, 2.0, 2.01]), (-1.5, 0.6, -60.0, 60.0)
+        ),
         "Manifest": Manifest("sweep", "0", "2026-01-01T00:00:00Z", ({"path": "a.csv", "size": 1, "sha256": "0" * 64},)),
         "Claim": proven.claims[0],
         "ModelError": proven.model_error,
@@ -147,11 +153,14 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "GeneralHyperbolic2x2": GENERAL,
         "GeneralSimulation": simulate_general(GENERAL, StateFeedback(-0.3), 0.5, 2.0, 1.0, 0.5, 10),
         "VaryingDelayForm": varying_delay_form(GENERAL, 50),
+        "VaryingKernels": solve_varying_kernels(GENERAL, 11),
         "NPlusMSystem": ONE_PLUS_ONE,
         "NPlusMMargin": nplusm_delay_margin(ONE_PLUS_ONE, [[-0.2]]),
         "NPlusMSimulation": simulate_nplusm(ONE_PLUS_ONE, [[-0.2]], 0.5, 2.0, two_profiles, cells=8),
         "CancellationCase": cancellation_study(ONE_PLUS_ONE, [[0.5]], (-2.0, 1.0, -0.25, 6.0))[0],
         "MatrixDifferenceOperator": MD,
+        "NPlusMKernels": solve_nplusm_kernels(ONE_PLUS_ONE, 11),
+        "NPlusMBackstepping": NPlusMBackstepping.for_system(ONE_PLUS_ONE, 11),
         "Gamma0": MD.gamma_0(rtol=1e-3),
         "ProvenCrossings": proven_crossings(A, B),
         "QuasiPolynomialMatrix": QuasiPolynomialMatrix([[F, QuasiPolynomial([[0.0, 0.2]], [0.5])], [0.0, A]]),
@@ -195,6 +204,7 @@ NAMES = [
     "SweepFileResult",
     "NyquistResponse",
     "RootLocusData",
+    "HiddenUnstableRoots",
     "Manifest",
     "Claim",
     "ModelError",
@@ -204,11 +214,14 @@ NAMES = [
     "GeneralHyperbolic2x2",
     "GeneralSimulation",
     "VaryingDelayForm",
+    "VaryingKernels",
     "NPlusMSystem",
     "NPlusMMargin",
     "NPlusMSimulation",
     "CancellationCase",
     "MatrixDifferenceOperator",
+    "NPlusMKernels",
+    "NPlusMBackstepping",
     "Gamma0",
     "ProvenCrossings",
     "QuasiPolynomialMatrix",
@@ -371,6 +384,7 @@ IDENTITY = [
     "GeneralHyperbolic2x2",
     "GeneralSimulation",
     "VaryingDelayForm",
+    "VaryingKernels",
     "NPlusMSystem",
     "NPlusMSimulation",
     "MatrixDifferenceOperator",

@@ -117,3 +117,65 @@ def test_undecidable_and_bad_input() -> None:
         MatrixDifferenceOperator([[[0.5]]], [0.0])
     with pytest.raises(ParameterError, match="delays"):
         MatrixDifferenceOperator([[[0.5]], [[0.2]]], [1.0, np.sqrt(2.0)]).chains()
+
+
+# ---------------------------------------------------------------- tight brackets (second-order discs)
+def test_tight_single_delay_is_the_spectral_radius() -> None:
+    """One delay: gamma_0 = rho(A_1); a diagonalisable non-normal A_1 gives a bracket of width ~1e-12."""
+    A = _similar((0.4, -0.7))
+    g = MatrixDifferenceOperator(A, [0.7]).gamma_0(rtol=1e-6)
+    np.testing.assert_allclose([g.lower, g.upper], 0.7, rtol=1e-9)
+
+
+@pytest.mark.parametrize("delays", [[1.0, 2.3], [1.0, 1.7, 2.9], [0.5, 1.0, 1.6, 2.2]])
+def test_tight_diagonal_is_the_largest_row_sum(delays: list[float]) -> None:
+    """Diagonal A_k: gamma_0 = max_i sum_k |a_k,ii| exactly, bracketed to rtol = 1e-6. Each eigenvalue
+    depends on its own phases only: the disc bounds see the flat directions and never cut them."""
+    rng = np.random.default_rng(len(delays))
+    diag = rng.uniform(-0.5, 0.5, (len(delays), 3))
+    D = MatrixDifferenceOperator(np.array([np.diag(d) for d in diag]), delays)
+    g = D.gamma_0(rtol=1e-6)
+    exact = float(np.max(np.abs(diag).sum(axis=0)))
+    assert g.lower <= exact * (1 + 1e-12) and exact <= g.upper
+    assert g.upper - g.lower <= 1e-6 * g.lower
+    np.testing.assert_allclose(g.upper, exact, rtol=1e-6)
+
+
+def test_tight_nonnegative_is_the_perron_root() -> None:
+    """Entrywise nonnegative A_k: |sum_k A_k e^{i theta_k}| <= sum_k A_k entrywise, so
+    gamma_0 = rho(sum_k A_k) (Perron-Frobenius), attained at theta = 0."""
+    rng = np.random.default_rng(7)
+    A = rng.uniform(0.0, 0.2, (3, 3, 3))
+    g = MatrixDifferenceOperator(A, [1.0, 1.4, 2.5]).gamma_0(rtol=1e-6)
+    exact = float(np.max(np.abs(np.linalg.eigvals(A.sum(axis=0)))))
+    np.testing.assert_allclose([g.lower, g.upper], exact, rtol=1e-6)
+    assert g.lower <= exact * (1 + 1e-12) <= g.upper * (1 + 2e-12)
+
+
+def test_tight_off_diagonal_closed_form() -> None:
+    """rho(a e^{i t1} E12 + b e^{i t2} E21) = sqrt(ab) for every phase: a flat maximum over the whole torus."""
+    a, b = 0.6, 0.9
+    g = MatrixDifferenceOperator([[[0.0, a], [0.0, 0.0]], [[0.0, 0.0], [b, 0.0]]], [1.0, 2.0]).gamma_0(rtol=1e-6)
+    np.testing.assert_allclose([g.lower, g.upper], np.sqrt(a * b), rtol=1e-6)
+
+
+@pytest.mark.parametrize("K, p", [(2, 2), (3, 2), (3, 3), pytest.param(4, 2, marks=pytest.mark.slow)])
+def test_tight_bracket_holds_dense_samples(K: int, p: int) -> None:
+    """Random coefficients: the bracket is within 1e-6 and no sampled rho exceeds its upper end."""
+    rng = np.random.default_rng(10 * K + p)
+    A = rng.normal(size=(K, p, p)) * 0.3
+    g = MatrixDifferenceOperator(A, 1.0 + np.arange(K) * 0.7).gamma_0(rtol=1e-6)
+    assert g.upper - g.lower <= 1e-6 * g.lower
+    theta = np.vstack([np.zeros(K), rng.uniform(0, 2 * np.pi, (5000, K))])
+    x = np.einsum("nk,kij->nij", np.exp(1j * theta), A)
+    assert float(np.max(np.abs(np.linalg.eigvals(x)))) <= g.upper
+
+
+def test_tight_work_bound() -> None:
+    """The work bound is checked before a round is allocated; a bracket that cannot close raises."""
+    A = np.random.default_rng(3).normal(size=(3, 3, 3)) * 0.3
+    D = MatrixDifferenceOperator(A, [1.0, 1.5, 2.7])
+    with pytest.raises(CertificationError, match="max_cells"):
+        D.gamma_0(rtol=1e-9, max_cells=300)
+    with pytest.raises(ParameterError, match="max_cells"):
+        D.gamma_0(max_cells=100)  # below the first cover (16 x 16 cells)

@@ -316,6 +316,72 @@ def test_sweep_chart_leaves_gaps_at_infinite_margins():
     assert len(infinite.get_xdata()) == 9
 
 
+def test_root_map_names_an_unstable_chain_above_its_height():
+    """U = -rho u(t, 1) on the transport line with delta = 0.01, the map capped below the chain's
+    roots: the chain at Re s = c, its zero nearest the axis at Im s = pi / 0.01 (z = e^{-0.01 s}
+    = -r with r^200 (1 + r) = 1 / 0.85, so c = -100 ln r), is written on the figure."""
+    from scipy.optimize import brentq
+
+    F = Q([[1.0], [-0.85], [0.85]], [0.0, 2.0, 2.01])
+    r = brentq(lambda x: 200 * np.log(x) + np.log1p(x) + np.log(0.85), 0.5, 1.0, xtol=1e-15)
+    box = (-1.5, 0.6, -60.0, 60.0)
+    hidden = plots.hidden_unstable_roots(F, box)
+    np.testing.assert_allclose(hidden.real, -100.0 * np.log(r), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(hidden.first, np.pi / 0.01, rtol=1e-12, atol=0)
+    assert hidden.height == 60.0 and hidden.chains > 1
+    out = plots.root_map_plot(F, box)
+    assert out.lines["unstable"][0].get_xdata().size == 0  # no unstable root in the map
+    (note,) = out.lines["note"]
+    text = note.get_text().replace("\n", " ")
+    assert text.startswith("Unstable roots not drawn: the chain at Re s = 0.2647") and "+-314.16" in text
+    assert any(line.get_xdata()[0] == hidden.real and line.get_color() == "tab:red" for line in out.lines["chains"])
+    # the same map tall enough to hold the chain's first roots: no note
+    assert plots.hidden_unstable_roots(F, (-1.5, 0.6, -330.0, 330.0)) is None
+    assert plots.root_map_plot(A_TRANSPORT, (-1.0, 0.5, -10.0, 10.0), roots=[]).lines["note"] == []
+    with pytest.raises(ParameterError, match="roots must be an array of finite numbers"):
+        plots.hidden_unstable_roots(F, box, [np.nan])
+
+
+@pytest.mark.slow
+def test_root_map_of_u_bs_at_delta_0001_says_where_the_unstable_roots_are():
+    """U_BS at delta = 0.001 on the paper's plant: the chains (delays 2 and 2.001, not resolved
+    within the degree bound) reach Re s = 0.26525 near Im s = pi / 0.001, far above the map.
+    The figure says so; three of those roots are found there independently."""
+    from nrobust.hyperbolic.controllers import FiniteTimeController
+
+    F = _paper_loop(FiniteTimeController(), 0.001)
+    box = plots.root_map_region(F)
+    out = plots.root_map_plot(F, box)
+    # the map reaches the rightmost roots below its height bound, all stable; none is circled
+    drawn = out.lines["roots"][0].get_xdata()
+    assert drawn.size > 0 and drawn.max() < 0.0 and out.lines["unstable"][0].get_xdata().size == 0
+    assert int(count_roots(F, (0.0, *box[1:]))) == 0
+    hidden = plots.hidden_unstable_roots(F, box, [])
+    assert hidden.first is None and 0.265 < hidden.lower <= hidden.real < 0.2653
+    assert box[0] < hidden.real < box[1]
+    (note,) = out.lines["note"]
+    assert "Unstable roots not drawn" in note.get_text() and f"{box[3]:.4g}" in note.get_text()
+    assert any(line.get_xdata()[0] == hidden.real and line.get_color() == "tab:red" for line in out.lines["chains"])
+    above = find_roots(F, (0.2, 0.4, 3136.0, 3146.0))
+    assert above.count == 3 and above.certified
+    np.testing.assert_allclose(above.roots.real, hidden.real, rtol=0, atol=1e-5)
+
+
+@pytest.mark.slow  # a certificate and its figures: ~4 s
+def test_report_caption_names_the_unstable_roots_above_the_root_map():
+    """The report repeats the figure's note: U_BS on the transport line at delta_max = 0.001."""
+    from nrobust import TransportSystem
+    from nrobust.certificate import certify
+    from nrobust.hyperbolic.controllers import FiniteTimeController
+    from nrobust.report import certificate_figures
+
+    cert = certify(TransportSystem(1.0, 1.0, 1.0, 0.85), FiniteTimeController(), delta_max=0.001)
+    caption = certificate_figures(cert)[0][0]
+    assert caption.startswith("Closed-loop roots in a region holding the rightmost roots")
+    assert "At delta = 0.001: Unstable roots not drawn: chains with Re s -> c_D in [0.2652, 0.2652]" in caption
+    assert "At delta = 0:" not in caption  # U_BS without delay: F = 1, no root at all
+
+
 def test_root_map_region_work_bound_keeps_the_base():
     """U = -rho u(t, 1) on the transport line with delta = 0.01: the rightmost chain (Re s = 0.265)
     first meets the roots near Im s = 311; a small work bound stops the widening, never the base."""

@@ -6,10 +6,12 @@
 ``delay_form``: the neutral distributed-delay equation (39) and its
 characteristic quasi-polynomial; ``controllers``: the paper's control laws and the loop
 factors ``F = A + B e^{-delta s}``; ``loops``: open- and closed-loop transfer functions;
-``general``: general plants (varying speeds, diagonal terms, any length) and their normal
+``nplusm_kernels``: the backstepping kernels and full-state controller of ``n + m``
+systems (Hu et al. 2016); ``general``: general plants (varying speeds, diagonal terms, any length) and their normal
 form; ``feedback``: any linear boundary state feedback by kernels and by the Laplace route;
 ``frontends``: open channels (Saint-Venant), ARZ traffic and characteristic forms;
-``varying``: the delay form of a general plant with any speeds; ``simulate_general``: the
+``varying``: the delay form of a general plant with any speeds; ``varying_kernels``: its
+backstepping kernels and U_BS with varying speeds; ``simulate_general``: the
 general plant simulated along its characteristics;
 ``robustness``: the Rouché delay bound; ``studies``: delay margins of a plant with a
 controller and the gain studies; ``simulate``: the PDE itself with a delayed control.
@@ -35,9 +37,11 @@ from .frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
 from .general import GeneralHyperbolic2x2, NormalForm
 from .kernels import Kernels, solve_kernels
 from .laplace import boundary_function, general_solution
+from .nplusm_kernels import NPlusMBackstepping, NPlusMKernels, backstepping_delay_margin, solve_nplusm_kernels
 from .simulate_general import GeneralSimulation, simulate_general
 from .system import Hyperbolic2x2, TransportSystem
 from .varying import VaryingDelayForm, varying_delay_form
+from .varying_kernels import VaryingKernels, solve_varying_kernels
 
 __all__ = [
     "Classification",
@@ -51,6 +55,8 @@ __all__ = [
     "GeneralSimulation",
     "Hyperbolic2x2",
     "Kernels",
+    "NPlusMBackstepping",
+    "NPlusMKernels",
     "NormalForm",
     "OpenLoop",
     "ReflectionController",
@@ -58,7 +64,9 @@ __all__ = [
     "StateFeedback",
     "TransportSystem",
     "VaryingDelayForm",
+    "VaryingKernels",
     "arz",
+    "backstepping_delay_margin",
     "boundary_function",
     "characteristic",
     "classify",
@@ -72,5 +80,7 @@ __all__ = [
     "saint_venant",
     "simulate_general",
     "solve_kernels",
+    "solve_nplusm_kernels",
+    "solve_varying_kernels",
     "varying_delay_form",
 ]

@@ -47,11 +47,12 @@ from .._validate import finite_real, nonnegative, positive, positive_int, rename
 from ..errors import ParameterError
 from ..quasipoly import QuasiPolynomial
 from .delay_form import delay_form
-from .feedback import feedback_factor
+from .feedback import FeedbackLaw, feedback_factor
 from .general import GeneralHyperbolic2x2
 from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
 from .system import Hyperbolic2x2, TransportSystem
 from .varying import VaryingDelayForm, varying_delay_form
+from .varying_kernels import VaryingKernels, solve_varying_kernels
 
 __all__ = [
     "Classification",
@@ -73,20 +74,6 @@ Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.zeros_like(np.asarray(xi, dtype=float))
-
-
-@dataclass(frozen=True)
-class FeedbackLaw:
-    """A boundary feedback as a functional of the state, for the simulator.
-
-    ``U(t) = boundary_gain * u(t, 1) + int_0^1 gain_u(xi) u(t, xi) + gain_v(xi) v(t, xi) dxi``,
-    passed through the proper filter ``(1 + a s)/(1 + b s)`` when ``filter = (a, b)``.
-    """
-
-    boundary_gain: float
-    gain_u: Gain
-    gain_v: Gain
-    filter: tuple[float, float] | None = None
 
 
 class Controller(ABC):
@@ -308,12 +295,16 @@ def _distributed_part(system: Hyperbolic2x2, kernel_grid: int) -> QuasiPolynomia
     return QuasiPolynomial([], [], [delay_form(system, kernels=_kernels(system, kernel_grid)).N_tilde])
 
 
-def _varying_factors(system: GeneralHyperbolic2x2, controller: Controller) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+def _varying_factors(
+    system: GeneralHyperbolic2x2, controller: Controller, kernel_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` of a plant with a varying speed ratio, from its characteristic delay form.
 
-    ``Phi = rho_q e^{-tau s} - I_N`` as for the paper's plant; no normal form exists, so the
-    controllers defined on it (U_BS2(K): its ``K q`` is a normal-form quantity) and the
-    integral gains of a state feedback are refused.
+    ``Phi = rho_q e^{-tau s} - I_N`` as for the paper's plant; a proportional feedback
+    ``StateFeedback(k)`` takes ``B`` from the same route, a state feedback with integral gains
+    from the kernels with varying speeds
+    (:meth:`~nrobust.hyperbolic.varying_kernels.VaryingKernels.feedback_factor`, on
+    ``kernel_grid`` points). U_BS2(K), whose ``K q`` is a normal-form quantity, is refused.
     """
     _check_controller(controller)
     form = _varying_form(system)
@@ -321,21 +312,23 @@ def _varying_factors(system: GeneralHyperbolic2x2, controller: Controller) -> tu
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
         if callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0:
-            raise ParameterError(
-                "controller",
-                "a proportional feedback StateFeedback(k) on a plant with a varying lam/mu (integral gains need "
-                "the normal form, i.e. a constant lam/mu)",
-                controller,
-            )
+            kernels = _varying_kernels(system, positive_int("kernel_grid", kernel_grid, 5))
+            return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
         return 1.0 - phi, form.u_factor() * (-controller.k)
     if isinstance(controller, ReflectionController):
         raise ParameterError(
             "controller",
-            "OpenLoop, FiniteTimeController, FilteredController or StateFeedback(k) on a plant with a varying "
+            "OpenLoop, FiniteTimeController, FilteredController or StateFeedback on a plant with a varying "
             "lam/mu (U_BS2(K) is defined on the normal form, which needs a constant lam/mu)",
             controller,
         )
     return controller.factors(phi, i_n, QuasiPolynomial([[0.0]], [0.0]))
+
+
+@lru_cache(maxsize=8)
+def _varying_kernels(system: GeneralHyperbolic2x2, kernel_grid: int) -> VaryingKernels:
+    """The kernels with varying speeds of a plant with a varying speed ratio (cached)."""
+    return solve_varying_kernels(system, kernel_grid)
 
 
 @lru_cache(maxsize=8)
@@ -372,7 +365,9 @@ def loop_factors(
         Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
         carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
         grid (extrapolated kernels), second order for an even one
-        (``docs/numerics_kernels.md``).
+        (``docs/numerics_kernels.md``). A plant with a varying ``lam/mu`` takes ``N~`` from the
+        characteristic route, and uses ``kernel_grid`` only for the integral gains of a
+        :class:`StateFeedback` (kernels with varying speeds, second order).
 
     Returns
     -------
@@ -380,7 +375,7 @@ def loop_factors(
         ``A`` and ``B`` as in the module's table.
     """
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
-        return _varying_factors(system, controller)
+        return _varying_factors(system, controller, kernel_grid)
     plant: Hyperbolic2x2
     plant, controller = normalize(system, controller)
     _check(plant, controller)

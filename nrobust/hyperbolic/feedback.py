@@ -26,11 +26,12 @@ for any :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import simpson
 
 from .._validate import finite_real, positive_int
 from ..errors import ParameterError
@@ -41,9 +42,25 @@ from .kernels import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
 from .laplace import general_solution
 from .system import Hyperbolic2x2
 
-__all__ = ["feedback_factor", "laplace_loop_factors"]
+__all__ = ["FeedbackLaw", "feedback_factor", "laplace_loop_factors"]
 
 Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FeedbackLaw:
+    """A boundary feedback as a functional of the state, for the simulator.
+
+    ``U(t) = boundary_gain * u(t, 1) + int_0^1 gain_u(xi) u(t, xi) + gain_v(xi) v(t, xi) dxi``
+    (on ``[0, L]`` in the physical coordinates of a general plant), passed through the proper
+    filter ``(1 + a s)/(1 + b s)`` when ``filter = (a, b)``. Also importable from
+    :mod:`nrobust.hyperbolic.controllers`, whose controllers return it.
+    """
+
+    boundary_gain: float
+    gain_u: Callable[[Array], Array]
+    gain_v: Callable[[Array], Array]
+    filter: tuple[float, float] | None = None
 
 
 def _gain(name: str, value: Any, length: float = 1.0) -> _Profile:
@@ -58,6 +75,8 @@ def _gain(name: str, value: Any, length: float = 1.0) -> _Profile:
 
 def _column_integrals(weight: Array, table: Array) -> Array:
     """``int_{xi_j}^1 weight(x) table(x, xi_j) dx`` on the grid (Simpson, per column)."""
+    from scipy.integrate import simpson  # lazily: scipy.integrate is slow to import
+
     n = weight.size
     h = 1.0 / (n - 1)
     out = np.zeros(n)
@@ -162,6 +181,8 @@ def laplace_loop_factors(
     t_v = plant.transport_times[1]
     shift = np.exp(-np.multiply.outer((t_v - plant.psi(x)) / plant.time_unit, s_arr))
     integrand = shift * (gu(x).reshape(-1, *([1] * s_arr.ndim)) * zu + gv(x).reshape(-1, *([1] * s_arr.ndim)) * zv)
+    from scipy.integrate import simpson  # lazily: scipy.integrate is slow to import
+
     integral = simpson(integrand, x=x, axis=0)
     norm = float(np.exp(-plant.D(plant.length)))
     A = norm * (zv[-1] - plant.rho * zu[-1])

@@ -8,14 +8,14 @@ gain from the physical actuator to the Riemann boundary input ``U``. The derivat
 
 - :func:`from_riemann`: ``xi_t + diag(lam_1, lam_2) xi_x = M(x) xi`` with
   ``lam_1 > 0 > lam_2``, the usual characteristic form.
-- :func:`saint_venant`: a rectangular open channel (width, bed slope, Manning or Chezy
-  friction, discharge) linearised about its steady (backwater) profile, fed at a
-  constant discharge upstream, controlled downstream through the discharge (a gate) or
-  the crest of an overflow weir.
+- :func:`saint_venant`: a rectangular or trapezoidal open channel (bottom width, side
+  slope, bed slope, Manning or Chezy friction, discharge) linearised about its steady
+  (backwater) profile, fed at a constant discharge upstream, controlled downstream
+  through the discharge (a gate) or the crest of an overflow weir.
 - :func:`arz`: the Aw-Rascle-Zhang traffic model linearised about a uniform congested
   equilibrium, constant inflow upstream, outflow actuated downstream (ramp metering),
   as in Yu and Krstic, "Traffic congestion control for Aw-Rascle-Zhang model",
-  Automatica 100 (2019).
+  Automatica 100 (2019) 38-51.
 """
 
 from __future__ import annotations
@@ -25,8 +25,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from .._json import fields_dict
 from .._validate import finite_real, positive
@@ -109,19 +107,28 @@ class SaintVenant:
     Attributes
     ----------
     system : GeneralHyperbolic2x2
-        The plant in Riemann coordinates ``xi_1 = w + (g/c) h`` (downstream wave,
-        ``lam = V + c``) and ``xi_2 = w - (g/c) h`` (upstream wave, ``mu = c - V``), with
-        ``h, w`` the depth and velocity perturbations and ``c = sqrt(g H)``.
+        The plant in Riemann coordinates ``xi_1 = w + (g/C) h`` (downstream wave,
+        ``lam = V + C``) and ``xi_2 = w - (g/C) h`` (upstream wave, ``mu = C - V``), with
+        ``h, w`` the depth and velocity perturbations and ``C = sqrt(g A/T)`` the celerity
+        (``sqrt(g H)`` in a rectangular channel).
     x, depth, velocity : ndarray
         The steady profile on 201 points of ``[0, L]``.
     normal_depth, critical_depth : float
         Depth of uniform flow (the friction slope equals the bed slope) and depth at
-        which the Froude number is 1 (``(q^2/g)^{1/3}``, ``q = Q/B``).
+        which the Froude number is 1 (``Q^2 T = g A^3``; ``(q^2/g)^{1/3}``, ``q = Q/B``, in
+        a rectangular channel).
     froude : ndarray
-        ``V / sqrt(g H)`` along the steady profile.
+        ``V / C`` along the steady profile.
     actuator_gain : float
         ``U = actuator_gain * (physical input)`` at ``x = L``: the discharge perturbation
         (m^3/s) for a gate, the crest-height perturbation (m) for a weir.
+    transport_delays : tuple of float
+        ``(int_0^L dx/(V + C), int_0^L dx/(C - V))`` in seconds: the times a wave takes
+        downstream (``tau_1``, the delay of the inflow on the downstream level) and upstream
+        (``tau_2``).
+    backwater_area : float
+        ``A_d = dVol/dH(L)`` at constant discharge (m^2): the storage the downstream level
+        integrates, ``H(L)' = (Q(0) - Q(L))/A_d`` at low frequency (docs/theory.md).
     """
 
     system: GeneralHyperbolic2x2
@@ -132,6 +139,8 @@ class SaintVenant:
     critical_depth: float
     froude: Array
     actuator_gain: float
+    transport_delays: tuple[float, float]
+    backwater_area: float
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -140,24 +149,59 @@ class SaintVenant:
 
 @dataclass(frozen=True)
 class _Channel:
-    """Friction of a rectangular channel: ``Sf(H, V)`` and its partial derivatives."""
+    """A prismatic trapezoidal channel (bottom width, side slope, friction) carrying ``Q``.
+
+    Area ``A = (B + m H) H``, top width ``T = B + 2 m H``, wetted perimeter
+    ``P = B + 2 H sqrt(1 + m^2)``; ``m = 0`` is the rectangular channel.
+    """
 
     width: float
+    side_slope: float
     friction: str
     coefficient: float
+    discharge: float
+    bed_slope: float
 
-    def radius(self, H: Any) -> Array:
-        return self.width * H / (self.width + 2.0 * H)
+    def area(self, H: Any) -> Array:
+        return (self.width + self.side_slope * H) * H
+
+    def top(self, H: Any) -> Array:
+        return self.width + 2.0 * self.side_slope * H
+
+    def depth(self, H: Any) -> Array:
+        """Hydraulic depth ``D = A/T`` (``C^2 = g D``)."""
+        return self.area(H) / self.top(H)
+
+    def velocity(self, H: Any) -> Array:
+        return self.discharge / self.area(H)
 
     def slope(self, H: Any, V: Any) -> tuple[Array, Array, Array]:
         """``(Sf, dSf/dH, dSf/dV)`` (Manning ``n^2 V^2 / R^{4/3}``, Chezy ``V^2 / (C^2 R)``)."""
-        R = self.radius(H)
-        dR = self.width**2 / (self.width + 2.0 * H) ** 2
+        A, dP = self.area(H), 2.0 * np.sqrt(1.0 + self.side_slope**2)
+        P = self.width + dP * H
+        R = A / P
+        dR = (self.top(H) * P - A * dP) / P**2
         if self.friction == "manning":
             Sf = self.coefficient**2 * V * np.abs(V) / R ** (4.0 / 3.0)
             return Sf, -4.0 / 3.0 * Sf * dR / R, 2.0 * Sf / V
         Sf = V * np.abs(V) / (self.coefficient**2 * R)
         return Sf, -Sf * dR / R, 2.0 * Sf / V
+
+    def froude2(self, H: Any) -> Array:
+        """``F^2 = V^2/(g D) = Q^2 T/(g A^3)``."""
+        return self.velocity(H) ** 2 / (GRAVITY * self.depth(H))
+
+    def rise(self, H: Any) -> Array:
+        """``H'`` of the backwater ODE ``H' = (S_0 - S_f)/(1 - F^2)``."""
+        return (self.bed_slope - self.slope(H, self.velocity(H))[0]) / (1.0 - self.froude2(H))
+
+    def rise_derivative(self, H: Any) -> Array:
+        """``d(H')/dH`` at constant discharge: the variational equation of the backwater ODE."""
+        V, F2 = self.velocity(H), self.froude2(H)
+        Sf, Sf_H, Sf_V = self.slope(H, V)
+        dSf = Sf_H - Sf_V * V / self.depth(H)  # dV/dH = -V T/A = -V/D
+        dF2 = F2 * (2.0 * self.side_slope / self.top(H) - 3.0 / self.depth(H))
+        return (-dSf * (1.0 - F2) + (self.bed_slope - Sf) * dF2) / (1.0 - F2) ** 2
 
 
 @dataclass(frozen=True)
@@ -180,29 +224,28 @@ class _SVCoefficient:
 
     channel: _Channel
     profile: _Profile
-    discharge: float  # per unit width
-    slope: float
     entry: tuple[int, int]
 
     def __call__(self, x: Any) -> Array:
-        return _sv_matrix(self.channel, self.profile, self.discharge, self.slope, x)[self.entry]
+        return _sv_matrix(self.channel, self.profile, x)[self.entry]
 
 
-def _sv_matrix(channel: _Channel, profile: _Profile, qs: float, S0: float, x: Any) -> Array:
-    """``M(x)`` of ``xi_t + diag(V + c, V - c) xi_x = M xi`` (docs/theory.md)."""
+def _sv_matrix(channel: _Channel, profile: _Profile, x: Any) -> Array:
+    """``M(x)`` of ``xi_t + diag(V + C, V - C) xi_x = M xi`` (docs/theory.md)."""
     g = GRAVITY
     H = profile(x)
-    V = qs / H
-    c = np.sqrt(g * H)
+    D, V = channel.depth(H), channel.velocity(H)
+    c = np.sqrt(g * D)
     Sf, Sf_H, Sf_V = channel.slope(H, V)
-    dH = (S0 - Sf) / (1.0 - V**2 / (g * H))  # the backwater ODE
-    dV = -V * dH / H
+    dH = (channel.bed_slope - Sf) / (1.0 - V**2 / (g * D))  # the backwater ODE
+    dV = -V * dH / D
+    D_H = 1.0 - 2.0 * channel.side_slope * channel.area(H) / channel.top(H) ** 2  # dD/dH
     G = g / c
-    dG = -0.5 * g * g * dH / c**3  # (g/c)' with c' = g H'/(2c)
+    dG = -0.5 * G * D_H * dH / D  # (g/C)' with C = sqrt(g D(H))
     lam1, lam2 = V + c, V - c
-    alpha1 = lam1 * dG - g * Sf_H - G * dV
+    alpha1 = lam1 * dG - g * Sf_H - G * D_H * dV
     beta1 = -dV - g * Sf_V - G * dH
-    alpha2 = -lam2 * dG - g * Sf_H + G * dV
+    alpha2 = -lam2 * dG - g * Sf_H + G * D_H * dV
     beta2 = -dV - g * Sf_V + G * dH
     return np.array(
         [
@@ -214,15 +257,15 @@ def _sv_matrix(channel: _Channel, profile: _Profile, qs: float, S0: float, x: An
 
 @dataclass(frozen=True)
 class _Speed:
-    """``V + c`` (sign +1) or ``c - V`` (sign -1) along the steady profile."""
+    """``V + C`` (sign +1) or ``C - V`` (sign -1) along the steady profile."""
 
+    channel: _Channel
     profile: _Profile
-    discharge: float
     sign: float
 
     def __call__(self, x: Any) -> Array:
         H = self.profile(x)
-        return np.sqrt(GRAVITY * H) + self.sign * self.discharge / H
+        return np.sqrt(GRAVITY * self.channel.depth(H)) + self.sign * self.channel.velocity(H)
 
 
 def saint_venant(
@@ -231,6 +274,7 @@ def saint_venant(
     slope: float,
     discharge: float,
     *,
+    side_slope: float = 0.0,
     manning: float | None = None,
     chezy: float | None = None,
     downstream: str = "gate",
@@ -239,29 +283,38 @@ def saint_venant(
     weir_coefficient: float = 1.7,
     time_unit: float = 1.0,
 ) -> SaintVenant:
-    """A rectangular open channel linearised about its steady flow (Saint-Venant equations).
+    """An open channel (rectangular or trapezoidal) linearised about its steady flow.
 
-    ``H_t + (H V)_x = 0``, ``V_t + V V_x + g H_x = g (S_0 - S_f)`` with ``S_f`` from
-    Manning (``n^2 V^2 / R^{4/3}``) or Chezy (``V^2 / (C^2 R)``), ``R = B H/(B + 2H)``.
-    The steady profile solves the backwater ODE ``H' = (S_0 - S_f)/(1 - F^2)`` upstream
-    from ``x = L`` (DOP853, ``rtol = 1e-11``); the flow must stay subcritical (``F < 1``).
-    Upstream the discharge is constant (``Q(t, 0) = Q``: ``q = -(c - V)/(c + V)`` at 0).
+    The Saint-Venant equations of a prismatic channel, ``A(H)_t + Q_x = 0`` and
+    ``V_t + V V_x + g H_x = g (S_0 - S_f)``, with the trapezoidal section of bottom width
+    ``B`` and side slope ``m`` (``A = (B + m H) H``, top width ``T = B + 2 m H``, wetted
+    perimeter ``P = B + 2 H sqrt(1 + m^2)``; ``m = 0``: rectangular) and ``S_f`` from
+    Manning (``n^2 V^2 / R^{4/3}``) or Chezy (``V^2 / (C^2 R)``), ``R = A/P``. The
+    steady profile solves the backwater ODE ``H' = (S_0 - S_f)/(1 - F^2)``,
+    ``F^2 = Q^2 T/(g A^3)``, upstream from ``x = L`` (DOP853, ``rtol = 1e-11``); the flow
+    must stay subcritical (``F < 1``). The characteristic speeds are ``V +- C``,
+    ``C = sqrt(g A/T)``. Upstream the discharge is constant (``Q(t, 0) = Q``:
+    ``q = -(C - V)/(C + V)`` at 0).
 
     Parameters
     ----------
     length, width : float
-        ``L`` and ``B`` (m), positive.
+        ``L`` and the bottom width ``B`` (m), positive.
     slope : float
         Bed slope ``S_0 > 0``.
     discharge : float
         Steady discharge ``Q > 0`` (m^3/s).
+    side_slope : float, default 0
+        ``m >= 0``, horizontal over vertical (1.5: the bank rises 1 m over 1.5 m); 0 is
+        the rectangular channel.
     manning, chezy : float
         Exactly one: Manning's ``n`` (s/m^{1/3}) or Chezy's ``C`` (m^{1/2}/s).
     downstream : {"gate", "weir"}
         ``"gate"``: the control is the discharge at ``x = L``; the steady depth there is
         ``downstream_depth`` (default: the normal depth, i.e. uniform flow).
-        ``"weir"``: free overflow ``Q = C_w B (H - p)^{3/2}``, the control is the crest
-        height ``p``; the steady depth at ``L`` follows from the weir law.
+        ``"weir"``: free overflow ``Q = C_w B (H - p)^{3/2}`` over a crest as wide as the
+        bottom, the control is the crest height ``p``; the steady depth at ``L`` follows
+        from the weir law.
     downstream_depth : float, optional
         Steady depth at ``x = L`` for a gate (m).
     weir_height, weir_coefficient : float
@@ -280,21 +333,31 @@ def saint_venant(
         A parameter out of range (named), both or neither friction laws, a supercritical
         or drying steady profile.
     """
+    from scipy.integrate import solve_ivp  # lazily: slow imports
+    from scipy.optimize import brentq
+
     L, B = positive("length", length), positive("width", width)
     S0, Q = positive("slope", slope), positive("discharge", discharge)
+    m = finite_real("side_slope", side_slope)
+    if m < 0:
+        raise ParameterError("side_slope", ">= 0 (horizontal over vertical; 0: rectangular)", side_slope)
     if (manning is None) == (chezy is None):
         raise ParameterError("manning", "exactly one of manning and chezy given", (manning, chezy))
     channel = (
-        _Channel(B, "manning", positive("manning", manning))
+        _Channel(B, m, "manning", positive("manning", manning), Q, S0)
         if manning is not None
-        else _Channel(B, "chezy", positive("chezy", chezy))
+        else _Channel(B, m, "chezy", positive("chezy", chezy), Q, S0)
     )
     qs = Q / B
     g = GRAVITY
-    critical = float((qs * qs / g) ** (1.0 / 3.0))
+    if m == 0.0:
+        critical = float((qs * qs / g) ** (1.0 / 3.0))
+    else:  # F = 1; F^2 decreases from +inf to 0 as H grows, and F^2 < 1 at (q^2/g)^{1/3}
+        top_c = float((qs * qs / g) ** (1.0 / 3.0))
+        critical = float(brentq(lambda H: float(channel.froude2(H)) - 1.0, 1e-9 * top_c, top_c, xtol=1e-15))
 
     def excess(H: float) -> float:
-        return float(channel.slope(H, qs / H)[0]) - S0
+        return float(channel.slope(H, channel.velocity(H))[0]) - S0
 
     top = max(critical, 1.0)
     while excess(top) > 0:
@@ -324,37 +387,42 @@ def saint_venant(
         )
     if abs(end - normal) <= 1e-12 * normal:
         profile = _Profile(normal)
+        k = float(channel.rise_derivative(normal))  # phi = e^{-k (L - x)} solves the variational equation
+        area = float(channel.top(normal) * -np.expm1(-k * L) / k)
     else:
 
-        def rhs(_x: float, H: Array) -> Array:
-            V = qs / H
-            return (S0 - channel.slope(H, V)[0]) / (1.0 - V * V / (g * H))
+        def rhs(_x: float, y: Array) -> Array:
+            # the depth H, its sensitivity phi = dH/dH(L) at constant Q, and int_x^L T phi
+            return np.array([channel.rise(y[0]), channel.rise_derivative(y[0]) * y[1], -channel.top(y[0]) * y[1]])
 
-        def dry(_x: float, H: Array) -> float:
-            return float(H[0] - 1.001 * critical)
+        def dry(_x: float, y: Array) -> float:
+            return float(y[0] - 1.001 * critical)
 
         dry.terminal = True  # type: ignore[attr-defined]
-        sol = solve_ivp(rhs, (L, 0.0), [end], method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True, events=dry)
+        sol = solve_ivp(
+            rhs, (L, 0.0), [end, 1.0, 0.0], method="DOP853", rtol=1e-11, atol=1e-12, dense_output=True, events=dry
+        )
         if sol.status != 0:
             raise ParameterError("downstream_depth", "a steady profile that stays subcritical on [0, L] (F < 1)", end)
         profile = _Profile(end, sol.sol)
-    coefs = [[_SVCoefficient(channel, profile, qs, S0, (i, j)) for j in range(2)] for i in range(2)]
+        area = float(sol.y[2, -1])
+    coefs = [[_SVCoefficient(channel, profile, (i, j)) for j in range(2)] for i in range(2)]
     H0, HL = float(profile(0.0)), float(profile(L))
-    V0, VL = qs / H0, qs / HL
-    c0, cL = np.sqrt(g * H0), np.sqrt(g * HL)
+    V0, VL = float(channel.velocity(H0)), float(channel.velocity(HL))
+    c0, cL = float(np.sqrt(g * channel.depth(H0))), float(np.sqrt(g * channel.depth(HL)))
     q = -(c0 - V0) / (c0 + V0)
     G = g / cL
     if downstream == "gate":
-        # V h + H w = U_Q / B at x = L, in xi: xi_2 = -(V + c)/(c - V) xi_1 + 2 g U_Q /(B c (c - V)).
+        # T V h + A w = U_Q at x = L, in xi: xi_2 = -(V + C)/(C - V) xi_1 + 2 g U_Q /(T C (C - V)).
         rho = -(VL + cL) / (cL - VL)
-        gain = 2.0 * g / (B * cL * (cL - VL))
+        gain = 2.0 * g / (float(channel.top(HL)) * cL * (cL - VL))
     else:
-        kappa = 1.5 * VL * HL / (HL - p)
+        kappa = 1.5 * VL * float(channel.depth(HL)) / (HL - p)
         rho = -(VL + cL - kappa) / (cL - VL + kappa)
         gain = -2.0 * G * kappa / (cL - VL + kappa)
     system = GeneralHyperbolic2x2(
-        _Speed(profile, qs, 1.0),
-        _Speed(profile, qs, -1.0),
+        _Speed(channel, profile, 1.0),
+        _Speed(channel, profile, -1.0),
         coefs[0][0],
         coefs[0][1],
         coefs[1][0],
@@ -366,7 +434,9 @@ def saint_venant(
     )
     x = np.linspace(0.0, L, 201)
     H = profile(x)
-    return SaintVenant(system, x, H, qs / H, normal, critical, qs / H / np.sqrt(g * H), float(gain))
+    V = channel.velocity(H)
+    froude = V / np.sqrt(g * channel.depth(H))
+    return SaintVenant(system, x, H, V, normal, critical, froude, float(gain), system.transport_times, area)
 
 
 # ============================================================================ ARZ traffic
@@ -433,7 +503,10 @@ def arz(
     v_max, rho_max : float
         Maximum speed (m/s) and jam density (vehicles per m).
     gamma : float
-        Exponent of the traffic pressure, ``> 0``.
+        Exponent of the traffic pressure, ``> 0``; ``1`` gives Greenshields'
+        ``V(rho) = v_m (1 - rho/rho_m)``, the setting of ``examples/arz.py`` (the TrafficPDE1D
+        environment of PDE Control Gym: ``v* = 10 m/s`` at ``rho* = 0.12`` veh/m, ``v_m = 40 m/s``,
+        ``rho_m = 0.16`` veh/m).
     relaxation : float
         Relaxation time ``tau`` (s).
     rho_star : float

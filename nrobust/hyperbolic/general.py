@@ -32,16 +32,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import CubicHermiteSpline, make_interp_spline
 
 from .._json import json_safe
 from .._validate import finite_real, is_real_number, positive, real_array
 from ..errors import ParameterError
 from .system import Hyperbolic2x2
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicHermiteSpline
 
 __all__ = ["Coefficient", "GeneralHyperbolic2x2", "NormalForm", "as_general"]
 
@@ -106,6 +108,8 @@ class _Profile:
 
 def _profile(name: str, value: Any, length: float) -> _Profile:
     """Check one coefficient and return its evaluator (samples must span ``[0, L]``)."""
+    from scipy.interpolate import make_interp_spline  # lazily: scipy.interpolate is slow to import
+
     if callable(value):
         return _Profile(name, value)
     if isinstance(value, (tuple, list)) and len(value) == 2 and not is_real_number(value):
@@ -219,6 +223,8 @@ class GeneralHyperbolic2x2:
         object.__setattr__(self, "_tables", self._tabulate())
 
     def _tabulate(self) -> _Tables:
+        from scipy.interpolate import CubicHermiteSpline  # lazily: scipy.interpolate is slow to import
+
         p = self._profiles
         lam, mu, a, d = p["lam"], p["mu"], p["a"], p["d"]
         x, phi = _cumulative(lambda t: 1.0 / lam(t), self.length)
@@ -349,6 +355,8 @@ class _Scaled:
     spline: Any = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        from scipy.interpolate import make_interp_spline  # lazily: scipy.interpolate is slow to import
+
         nodes = np.linspace(0.0, 1.0, _COUPLING_NODES)
         object.__setattr__(self, "spline", make_interp_spline(nodes, self.exact(nodes), k=3))
 

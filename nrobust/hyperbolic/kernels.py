@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from .._json import json_safe
 from .._validate import positive_int, renamed_keywords
@@ -88,15 +87,18 @@ def _lagrange_weights(t: Array, order: int) -> Array:
 
 
 class _CubicFeet:
-    """Cubic Lagrange stencils for the feet ``xi_j + kappa h`` (in units of ``h``: ``j + kappa``).
+    """Cubic Lagrange stencils for the feet of the cross characteristics, in units of ``h``.
 
-    The stencil of foot ``j`` is the four nodes around it; at level ``i - 1`` (nodes
-    ``0, ..., i - 1``) it is shifted inwards where it would pass the last node. The
-    unshifted weights are computed once; only shifted rows are recomputed per level.
+    ``positions[j]`` is the foot of node ``j`` at the previous level: ``j + kappa`` for
+    constant speeds, any increasing sequence for varying ones
+    (:mod:`~nrobust.hyperbolic.varying_kernels`). The stencil of foot ``j`` is the four
+    nodes around it; at level ``i - 1`` (nodes ``0, ..., i - 1``) it is shifted inwards
+    where it would pass the last node. The unshifted weights are computed once; only
+    shifted rows are recomputed per level.
     """
 
-    def __init__(self, n: int, kappa: float) -> None:
-        self.positions = np.arange(n) + kappa
+    def __init__(self, positions: Array) -> None:
+        self.positions = np.asarray(positions, dtype=float)
         self.start = np.maximum(np.floor(self.positions + _FOOT_TOL).astype(int) - 1, 0)
         self.weights = _lagrange_weights(self.positions - self.start, 4)
 
@@ -142,7 +144,7 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
     b_foot = b(np.minimum(x + kappa * h, 1.0))
     # Offsets m = i - j whose characteristic reaches the diagonal within one step.
     n_near = int(np.ceil(1.0 + kappa - _FOOT_TOL))
-    feet = _CubicFeet(n, kappa)
+    feet = _CubicFeet(np.arange(n) + kappa)
 
     A = np.zeros((n, n))
     B = np.zeros((n, n))
@@ -224,6 +226,8 @@ def _resolvent(K: Array) -> Array:
     returns ``Lam_kk = K_kk / 2``). Scaled by the inverse diagonal blocks it is unit
     lower triangular and is solved at once by substitution.
     """
+    from scipy.linalg import solve_triangular  # lazily: a slow import
+
     n = K.shape[-1]
     h = 1.0 / (n - 1)
     eye2 = np.eye(2)

@@ -62,19 +62,18 @@ has the derivation.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import eigvals, expm
-from scipy.optimize import brentq
-from scipy.sparse import csr_matrix
 
 from .._json import fields_dict
 from .._validate import nonnegative, positive, positive_int, real_array
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
+from ..matrix_crossings import GaugeRemainder, circle_crossings, compound_generator, compound_minors
 from ..matrix_difference import MatrixDifferenceOperator
 from ..qpmatrix import QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
@@ -88,6 +87,8 @@ __all__ = [
     "NPlusMSimulation",
     "NPlusMSystem",
     "cancellation_study",
+    "compound_characteristic",
+    "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
     "simulate_nplusm",
@@ -192,6 +193,8 @@ class NPlusMSystem:
     # ------------------------------------------------------------------ Laplace route
     def transition(self, s: ArrayLike, shift: float = 0.0) -> NDArray[np.complex128]:
         """``e^{-shift s} Phi(s) = exp(Lambda^{-1} (Sigma - s I) - shift s I)``, shape ``s.shape + (n+m, n+m)``."""
+        from scipy.linalg import expm  # lazily: a slow import
+
         s = np.asarray(s, dtype=complex)
         inv = 1.0 / self.signed_speeds
         c = inv[:, None] * self.sigma
@@ -224,6 +227,8 @@ class NPlusMSystem:
         ``E(s) (Phi_v - (R + K e^{-delta s}) Phi_u) = V - sum (R_ab + K_ab e^{-delta s})
         e^{-tau_ab s} + O(1/|s|)`` on vertical lines (module notes).
         """
+        from scipy.linalg import expm  # lazily: a slow import
+
         k = self.gain(K)
         sig, n = self.sigma, self.n
         u_block = np.zeros((n, n))
@@ -320,6 +325,8 @@ class NPlusMCharacteristic:
 
     def _matrices(self, s: NDArray[np.complex128], derivative: bool) -> tuple[NDArray, NDArray | None]:
         """The loop matrix (``(s.size, m, m)``) and, if asked, the matrix of its row derivatives."""
+        from scipy.linalg import expm  # lazily: a slow import
+
         N = self.system.n + self.system.m
         rows, drows = [], []
         for j in range(self.system.m):
@@ -485,25 +492,12 @@ class NPlusMCharacteristic:
         non-increasing in ``|s|``; ``inf`` for ``|s| <= ||N||``. Includes ``1e-9`` relative slack.
         """
         self._one_actuator("the coupling remainder")
-        nN, nH, beta_d = self._gauge()
-        x: NDArray[np.float64] = np.abs(np.asarray(w, dtype=np.float64))
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            t = 1.0 / (1.0 - nN / x)
-            e = t * nH
-            r = ((1.0 + nN / x) * t * e * np.exp(beta_d + e / x) + 2.0 * nN * t * np.exp(beta_d)) / x
-        return np.asarray(np.where(x > nN, r * (1.0 + 1e-9), np.inf), dtype=np.float64)
+        return GaugeRemainder(self._c, self._p[0])(w)
 
     def _gauge(self) -> tuple[float, float, float]:
-        """``(||N||, ||H||, beta_d)`` of :meth:`coupling_remainder`."""
-        p = self._p[0]
-        same = p[:, None] == p[None, :]
-        c_d = np.where(same, self._c, 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            N = np.where(same, 0.0, self._c / (p[:, None] - p[None, :]))
-        H = self._c @ N - N @ c_d
-        beta_d = float(np.linalg.eigvalsh(0.5 * (c_d + c_d.T))[-1])
-        slack = 1e-12 * (1.0 + float(np.abs(self._c).sum()))
-        return float(np.linalg.norm(N, 2)), float(np.linalg.norm(H, 2)), beta_d + slack
+        """``(||N||, ||H||, beta_d)`` of :meth:`coupling_remainder` (``GaugeRemainder``)."""
+        g = GaugeRemainder(self._c, self._p[0])
+        return g.floor, g.h_norm, g.beta_d
 
     def frequency_bound(self) -> float:
         """Proven ``W`` (``m = 1``, ``gamma_0 < 1``): ``|A(i w)| != |B(i w)|`` for ``w >= W``, and
@@ -530,14 +524,13 @@ class NPlusMCharacteristic:
         scale = (
             float(np.hypot(np.linalg.norm(self.system.r, 2), 1.0)) + float(np.linalg.norm(self.K, 2))
         ) * self._w_norm
-        nN, _, _ = self._gauge()
-        if nN == 0.0:
-            return 0.0
-        return _smallest_radius(lambda R: scale * self.coupling_remainder(R), level, nN)
+        return GaugeRemainder(self._c, self._p[0]).radius(scale, level)
 
     def axis_jet(self, w: ArrayLike) -> tuple[NDArray[np.complex128], ...]:
         """``A(i w)``, ``B(i w)``, ``A'(i w)``, ``B'(i w)`` (derivatives in ``s``) and the rounding
         levels of the first two and of the last two (``m = 1``; Van Loan's block exponential)."""
+        from scipy.linalg import expm  # lazily: a slow import
+
         self._one_actuator("the factors")
         w = np.asarray(w, dtype=float).reshape(-1)
         N = self.system.n + 1
@@ -574,6 +567,8 @@ class NPlusMCharacteristic:
             A work bound hit, a zero at ``w = 0`` to rounding, or a segment narrowed to
             rounding without a decision (a double zero: a tangency).
         """
+        from scipy.optimize import brentq  # lazily: a slow import
+
         self._one_actuator("the crossing search")
         W = float(W)
         max_points = positive_int("max_points", max_points)
@@ -661,24 +656,6 @@ class _CharacteristicDerivative:
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         return self.F.second_deriv_bound(a, b)
-
-
-def _smallest_radius(tail: Any, level: float, floor: float) -> float:
-    """A radius ``R > floor`` with ``tail(R) < level`` within ``1e-7`` (relative) of the smallest
-    (``tail`` non-increasing on ``(floor, inf)``): doubling, then bisection."""
-    hi = max(2.0 * floor, 1.0)
-    while not float(tail(np.array([hi]))[0]) < level:
-        hi *= 2.0
-        if hi > 2.0**200:
-            raise CertificationError(f"frequency_bound: the coupling remainder stays above the gap {level:.3g}")
-    lo = floor
-    while hi - lo > 1e-7 * hi:
-        mid = 0.5 * (lo + hi)
-        if float(tail(np.array([mid]))[0]) < level:
-            hi = mid
-        else:
-            lo = mid
-    return hi
 
 
 def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:
@@ -792,9 +769,18 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
 
 
 def multi_actuator_margin(
-    system: NPlusMSystem, K: ArrayLike, omega_max: float, *, points: int = 4000, max_points: int = 1_000_000
+    system: NPlusMSystem,
+    K: ArrayLike,
+    omega_max: float | None = None,
+    *,
+    points: int = 4000,
+    max_points: int = 1_000_000,
 ) -> NPlusMMargin:
-    """Delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m`` actuators (not certified).
+    """Delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m`` actuators.
+
+    Without ``omega_max`` this is :func:`multi_actuator_delay_margin` (certified: a proven
+    frequency bound replaces ``omega_max``). With ``omega_max`` the search below runs on
+    ``(0, omega_max]`` only, as a cap, and the result is never certified.
 
     ``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` with ``M_0`` the loop matrix of
     ``K = 0`` and ``M_1 = -E K Phi_u``. A root sits at ``s = i w`` iff
@@ -803,35 +789,40 @@ def multi_actuator_margin(
     unit disk is tracked on a grid of ``(0, omega_max]``; each change is located by
     bisection and gives one crossing frequency. Not certified (``certified=False``): two
     eigenvalues crossing the circle in opposite directions between grid points, or a
-    crossing above ``omega_max``, would be missed; ``gamma_0`` is the upper end of the
-    certified bracket of the delayed principal part, the margin 0 when its lower end is at
-    least 1, and ``nominal_unstable`` the certified count of the delay-free loop in
-    ``[0, omega_max] x [-omega_max, omega_max]`` only.
+    crossing above ``omega_max``, would be missed; ``gamma_0`` is the certified upper bound
+    of the delayed principal part's spectral radius (as in :func:`multi_actuator_delay_margin`),
+    the margin 0 when a sampled value is at least 1, and ``nominal_unstable`` the certified
+    count of the delay-free loop in ``[0, omega_max] x [-omega_max, omega_max]`` only.
 
     Parameters
     ----------
     system : NPlusMSystem
     K : array_like, shape (m, n)
-    omega_max : float
-        Upper end ``> 0`` of the frequency search.
+    omega_max : float, optional
+        Upper end ``> 0`` of a capped, uncertified search; None (default) for the certified margin.
     points : int, optional
-        Grid points (``>= 16``).
+        Grid points (``>= 16``) of the capped search.
     max_points : int, optional
-        Work bound on pencil evaluations, checked before the grid is allocated.
+        Work bound on pencil evaluations (on evaluations of the compound transition without
+        ``omega_max``), checked before the grid is allocated.
     """
+    from scipy.linalg import eigvals  # lazily: a slow import
+
+    if omega_max is None:
+        return multi_actuator_delay_margin(system, K, max_points=max_points)
     k = system.gain(K)
     omega_max = positive("omega_max", omega_max)
     points = positive_int("points", points, minimum=16)
     max_points = positive_int("max_points", max_points)
     if points + 64 * system.m * max(1, points // 8) > max_points:
         raise ParameterError("max_points", f">= {points + 64 * system.m * max(1, points // 8)}", max_points)
-    bracket = system.principal_operator(k, 1e-3 * np.sqrt(2.0)).gamma_0()  # a delay separating every term
-    if bracket.lower >= 1.0:
-        return NPlusMMargin(0.0, None, (), float(bracket.upper), 0.0, False)
+    lower, gamma, _ = _principal_gamma(system, k)
+    if lower >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
     count = count_roots(NPlusMCharacteristic(system, k, 0.0), (0.0, omega_max, -omega_max, omega_max))
     nominal = int(count) if count.region[0] >= 0.0 else None
     if nominal != 0:
-        return NPlusMMargin(0.0, None, (), float(bracket.upper), omega_max, False, nominal)
+        return NPlusMMargin(0.0, None, (), gamma, omega_max, False, nominal)
 
     def pencil(w: NDArray[np.float64]) -> NDArray[np.complex128]:
         s = 1j * np.asarray(w, dtype=float)
@@ -859,14 +850,283 @@ def multi_actuator_margin(
         zc = z[np.argmin(np.abs(np.abs(z) - 1.0))]
         found.append((wc, float(np.mod(-np.angle(zc), 2 * np.pi) / wc)))
     if not found:
-        return NPlusMMargin(np.inf, None, (), float(bracket.upper), omega_max, False, 0)
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, 0)
     best = min(found, key=lambda p: p[1])
-    return NPlusMMargin(best[1], best[0], tuple(found), float(bracket.upper), omega_max, False, 0)
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, 0)
+
+
+# ====================================================================== delay margin (any m)
+def _compound_loop(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """``(D_m(C), p, a, b)``: ``det M(s; z) = sum_d z^d a_d^T exp(D_m(C) - s diag(p)) b`` (module notes of
+    :mod:`nrobust.matrix_crossings`), ``a`` of shape ``(m + 1, binom(n + m, m))``.
+
+    ``p_S = sum_{u_i in S} 1/lam_i + sum_{v_j not in S} 1/mu_j >= 0``: the row scaling
+    ``e^{-s sum 1/mu_j}`` of the loop matrix makes the compound transition bounded on ``Re s >= 0``.
+    """
+    n, m = system.n, system.m
+    inv = 1.0 / system.signed_speeds
+    subsets = list(itertools.combinations(range(n + m), m))
+    p = np.array(
+        [
+            sum(inv[i] for i in S if i < n) + sum(1.0 / system.mu[j - n] for j in range(n, n + m) if j not in S)
+            for S in subsets
+        ]
+    )
+    for i in np.argsort(p):  # rates equal up to the order of a sum are made equal (groups of the gauge)
+        p[np.abs(p - p[i]) <= 1e-13 * max(1.0, abs(p[i]))] = p[i]
+    dc = compound_generator(inv[:, None] * system.sigma, m)
+    b = compound_minors(np.vstack([system.q, np.eye(m)]), axis=0)
+    roots = np.exp(2j * np.pi * np.arange(m + 1) / (m + 1))
+    vals = np.array([compound_minors(np.hstack([-(system.r + z * k), np.eye(m)]), axis=1) for z in roots])
+    return dc, p, np.fft.fft(vals, axis=0) / (m + 1), b
+
+
+class _CompoundCharacteristic:
+    """``F(s; delta) = sum_d e^{-d delta s} a_d^T exp(D_m(C) - s diag(p)) b``: the loop in compound form.
+
+    The same function as :class:`NPlusMCharacteristic` (Cauchy-Binet), written with rates
+    ``p >= 0`` so that ``||d^k/ds^k exp(D_m(C) - s diag(p))|| <= ||p||^k e^{beta(Re s)}``,
+    ``beta(x) = lambda_max(Herm D_m(C) - x diag(p))`` non-increasing and convex: rows growing
+    like ``e^{s (1/mu_i - 1/mu_j)}`` make the loop matrix's own bounds grow on ``Re s > 0``;
+    these do not. A :class:`~nrobust.qpmatrix.CharacteristicFunction`.
+    """
+
+    def __init__(self, F: NPlusMCharacteristic, dc: NDArray, p: NDArray, a: NDArray, b: NDArray) -> None:
+        self.F = F
+        self._dc, self._p, self._a, self._b = dc, p, a, b
+        self._herm = 0.5 * (dc + dc.conj().T)
+        self._rows = np.linalg.norm(a, axis=1) * float(np.linalg.norm(b)) * (1.0 + 1e-12)  # ||a_d|| ||b||
+        self._orders = np.arange(a.shape[0]) * F.delta  # d delta
+        self._pn = float(np.max(p))
+        self._dc_norm = float(np.linalg.norm(dc, 2))
+
+    def _jet(self, s: NDArray[np.complex128], derivative: bool) -> NDArray[np.complex128]:
+        from scipy.linalg import expm  # lazily: a slow import
+
+        size = self._dc.shape[0]
+        shifts = np.exp(-s[:, None] * self._orders[None])  # e^{-d delta s}
+        alpha = shifts @ self._a
+        a = self._dc[None] - s[:, None, None] * np.diag(self._p)[None]
+        if not derivative:
+            return np.asarray(np.einsum("ni,ni->n", expm(a) @ self._b, alpha), dtype=complex)
+        big = np.zeros((s.size, 2 * size, 2 * size), dtype=complex)
+        big[:, :size, :size] = big[:, size:, size:] = a
+        big[:, :size, size:] = -np.diag(self._p)
+        e = expm(big)
+        dalpha = -(shifts * self._orders[None]) @ self._a
+        g, dg = e[:, :size, :size] @ self._b, e[:, :size, size:] @ self._b
+        return np.asarray(np.einsum("ni,ni->n", dg, alpha) + np.einsum("ni,ni->n", g, dalpha), dtype=complex)
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        s = np.asarray(s, dtype=complex)
+        return self._jet(s.reshape(-1), False).reshape(s.shape)
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        s = np.asarray(s, dtype=complex)
+        return self._jet(s.reshape(-1), True).reshape(s.shape)
+
+    def _bound(self, a: ArrayLike, b: ArrayLike, order: int) -> NDArray[np.float64]:
+        """``sum_d ||a_d|| ||b|| e^{-d delta x_min} (d delta + ||p||)^order e^{max beta}`` on segments."""
+        x = np.stack(np.broadcast_arrays(np.asarray(a, dtype=complex).real, np.asarray(b, dtype=complex).real))
+        xs, inv = np.unique(x, return_inverse=True)
+        top = np.linalg.eigvalsh(self._herm[None] - xs[:, None, None] * np.diag(self._p)[None])[:, -1]
+        top = top + 1e-12 * (1.0 + self._dc_norm + np.abs(xs) * self._pn)
+        growth = np.exp(top[inv.reshape(x.shape)].max(axis=0))
+        weights = self._rows * (self._orders + self._pn) ** order
+        shifts = np.exp(-x.min(axis=0)[..., None] * self._orders)
+        return np.asarray(growth * (shifts @ weights), dtype=float)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        return self._bound(a, b, 1)
+
+    def second_deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        return self._bound(a, b, 2)
+
+    def derivative(self) -> _CompoundDerivative:
+        return _CompoundDerivative(self)
+
+    def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
+        s = np.asarray(s, dtype=complex)
+        grow = 1.0 + self._dc_norm + np.abs(s) * self._pn
+        return np.asarray(_EXPM_ROUNDING * self._bound(s, s, 0) * grow, dtype=float)
+
+    def principal_part(self) -> DifferenceOperator:
+        return self.F.principal_part()
+
+    @property
+    def kind(self) -> str:
+        return self.F.kind
+
+    @property
+    def is_real(self) -> bool:
+        return True
+
+    @property
+    def max_delay(self) -> float:
+        return self.F.max_delay
+
+
+class _CompoundDerivative:
+    """``F'`` of a :class:`_CompoundCharacteristic` for the order-2 step rule."""
+
+    def __init__(self, F: _CompoundCharacteristic) -> None:
+        self.F = F
+
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        return self.F.deriv_at(s)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        return self.F.second_deriv_bound(a, b)
+
+
+def compound_characteristic(system: NPlusMSystem, K: ArrayLike | None = None, delta: float = 0.0) -> Any:
+    """The closed loop of :class:`NPlusMCharacteristic` in compound form, for counts far into ``Re s > 0``.
+
+    ``F(s; delta) = sum_d e^{-d delta s} a_d^T exp(D_m(C) - s P_m) b`` (Cauchy-Binet,
+    :mod:`nrobust.matrix_crossings`): the same function, with derivative bounds that stay
+    bounded on ``Re s >= 0`` for any ``m`` (the rates ``P_m`` are ``>= 0``), where the rows of
+    the loop matrix grow like ``e^{s (1/mu_i - 1/mu_j)}``. A
+    :class:`~nrobust.qpmatrix.CharacteristicFunction` for :func:`~nrobust.roots.count_roots`.
+    """
+    F = NPlusMCharacteristic(system, K, delta)
+    dc, p, a, b = _compound_loop(system, F.K)
+    return _CompoundCharacteristic(F, dc, p, a, b)
+
+
+def _principal_gamma(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[float, float, float]:
+    """``(lower, upper, |det V|)``: a sampled and a certified bound of ``sup rho(V^{-1} sum_t C_t e^{i theta_t})``
+    over independent phases of the principal terms ``C_t`` (``R_ab`` and ``K_ab`` apart).
+
+    The upper end is the smaller of the Collatz-Wielandt bound of ``rho(sum_t |V^{-1} C_t|)`` (which bounds
+    ``rho`` on the whole polydisc) and, for at most four distinct delays, the certified
+    :meth:`~nrobust.matrix_difference.MatrixDifferenceOperator.gamma_0` bracket.
+    """
+    v_block, point = system.principal_terms(k)
+    v_inv = np.linalg.inv(v_block)
+    mats = [v_inv @ a for _, rq, kq in point for a in (rq, kq) if np.any(a != 0)]
+    if not mats:
+        return 0.0, 0.0, float(abs(np.linalg.det(v_block)))
+    total = np.sum(np.abs(mats), axis=0)
+    vals, vecs = np.linalg.eig(total)
+    x = np.abs(vecs[:, int(np.argmax(np.abs(vals)))]) + 1e-12 * float(np.abs(vecs).max())
+    upper = float(np.max((total @ x) / x)) * (1.0 + 1e-12)
+    rng = np.random.default_rng(0)
+    theta = np.vstack([np.zeros(len(mats)), rng.uniform(0.0, 2 * np.pi, (2047, len(mats)))])
+    lower = float(np.max(np.abs(np.linalg.eigvals(np.einsum("nt,tij->nij", np.exp(1j * theta), np.array(mats))))))
+    try:
+        bracket = system.principal_operator(k, 1e-3 * np.sqrt(2.0)).gamma_0(rtol=1e-6, max_cells=20_000)
+        lower, upper = max(lower, bracket.lower), min(upper, bracket.upper)
+    except (ParameterError, CertificationError):
+        pass  # more than four delays, or a bracket that did not close: the Collatz-Wielandt bound stands
+    return lower, max(upper, lower), float(abs(np.linalg.det(v_block)))
+
+
+def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
+    """Certified delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m >= 1`` actuators.
+
+    ``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` (``M_0`` the loop matrix of ``K = 0``,
+    ``M_1 = -E K Phi_u``). By Cauchy-Binet, ``f(w, z) = det(M_0(i w) + z M_1(i w)) =
+    sum_d z^d a_d^T exp(D_m(C) - i w P_m) b`` with ``a_d`` the coefficients of the minors of
+    ``[-(R + z K), I]``, ``b`` those of ``[Q; I]`` and ``D_m``, ``P_m >= 0`` the compound
+    generator and rates (:mod:`nrobust.matrix_crossings`). A root reaches ``s = i w`` for some
+    delay iff ``f(w, e^{i phi}) = 0``, at the delays ``((-phi) mod 2 pi + 2 pi k) / w``
+    (an eigenvalue ``e^{-i phi}`` of ``-M_0^{-1} M_1`` on the unit circle).
+
+    1. *Principal part.* ``|F_0(s; z)| = |det V| |det(I - X)| >= |det V| (1 - gamma)^m`` on
+       ``Re s >= 0``, ``|z| <= 1``, with ``gamma`` a certified bound of the spectral radius of
+       ``X = V^{-1} sum (R_ab + z K_ab) e^{-tau_ab s}`` over independent phases (Hale and
+       Verduyn Lunel's ``gamma_0`` of the delayed principal part; the margin is 0 when a
+       sampled ``rho`` is above 1: arbitrarily small delays destabilise).
+    2. *Frequency bound.* ``|F - F_0| <= sum_d ||a_d|| ||b|| r(|s|)`` with ``r`` the
+       :class:`~nrobust.matrix_crossings.GaugeRemainder` of ``(D_m(C), P_m)``: beyond the
+       proven ``W`` where this is below the gap, ``F(s; delta) != 0`` on ``Re s >= 0`` for
+       every ``delta >= 0``, and no eigenvalue of ``-M_0^{-1} M_1`` has modulus 1 on the axis.
+    3. *Nominal stability.* :func:`~nrobust.roots.count_roots` of the delay-free loop on
+       ``[0, W] x [-W, W]``.
+    4. *Crossings.* :func:`~nrobust.matrix_crossings.circle_crossings` on ``[0, W] x [0, 2 pi)``
+       (Lipschitz exclusion, Newton-Kantorovich discs; a tangency raises).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    max_points : int, optional
+        Work bound on evaluations of the compound transition on the axis.
+
+    Returns
+    -------
+    NPlusMMargin
+        ``gamma_0`` is the certified upper bound used in step 1 (exact for ``m = 1``).
+
+    Raises
+    ------
+    CertificationError
+        The bound of step 1 is not below 1 although no sampled ``rho`` exceeds 1, a work bound
+        was hit, or the crossing search met a tangency.
+    """
+    from scipy.linalg import expm  # lazily: a slow import
+
+    k = system.gain(K)
+    max_points = positive_int("max_points", max_points)
+    m = system.m
+    lower, gamma, det_v = _principal_gamma(system, k)
+    if lower >= 1.0 + 1e-12:
+        return NPlusMMargin(0.0, None, (), lower, 0.0, True)
+    if gamma >= 1.0 - 1e-12:
+        raise CertificationError(
+            f"multi-actuator margin: gamma_0 of the delayed principal part in [{lower:.12g}, {gamma:.12g}] is not "
+            "separated from 1 (the certified bound of its spectral radius must be below 1)"
+        )
+    dc, p, a, b = _compound_loop(system, k)
+    a_norm = np.linalg.norm(a, axis=1)
+    b_norm = float(np.linalg.norm(b))
+    scale = float(a_norm.sum()) * b_norm
+    level = det_v * (1.0 - gamma) ** m * (1.0 - 1e-9) - 1e-12 * scale
+    W = GaugeRemainder(dc, p).radius(scale, level)
+    radius = max(W, 1.0)
+    count = count_roots(compound_characteristic(system, k, 0.0), (0.0, radius, -radius, radius))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), gamma, W, nominal is not None, nominal)
+    beta = float(np.linalg.eigvalsh(0.5 * (dc + dc.conj().T))[-1]) + 1e-12 * (1.0 + float(np.abs(dc).sum()))
+    pn = float(np.max(p))
+    growth = np.exp(beta) * b_norm * a_norm * (1.0 + 1e-12)
+    bounds = np.array([growth, growth * pn, growth * pn**2])
+    dc_norm = float(np.linalg.norm(dc, 2))
+    pdiag = np.diag(p)
+
+    def coefs(w: NDArray[np.float64]) -> NDArray[np.complex128]:
+        g = expm(dc[None] - 1j * w[:, None, None] * pdiag[None]) @ b
+        return np.asarray(g @ a.T, dtype=complex)
+
+    def jet(w: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        size = dc.shape[0]
+        big = np.zeros((w.size, 2 * size, 2 * size), dtype=complex)
+        big[:, :size, :size] = big[:, size:, size:] = dc[None] - 1j * w[:, None, None] * pdiag[None]
+        big[:, :size, size:] = -1j * pdiag  # exp([[A, A'], [0, A]]) = [[G, G'], [0, G]] (Van Loan), ' = d/dw
+        e = expm(big)
+        return e[:, :size, :size] @ b @ a.T, e[:, :size, size:] @ b @ a.T
+
+    def rounding(w: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(
+            _EXPM_ROUNDING * _EPS * np.exp(beta) * b_norm * float(a_norm.max()) * (1.0 + dc_norm + w * pn), dtype=float
+        )
+
+    step = 2.0 * np.pi / (_GRID_PER_PERIOD * NPlusMCharacteristic(system, k).max_delay)
+    zeros = circle_crossings(coefs, jet, W, bounds, rounding, step=step, max_points=max_points)
+    found = tuple((w, float(np.mod(-phi, 2 * np.pi) / w)) for w, phi in zeros)
+    certified = gamma < 1.0 - 1e-12
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0)
+    best = min(found, key=lambda c: c[1])
+    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0)
 
 
 # ====================================================================== simulation
 def _coupling_operator(sigma: NDArray[np.float64], xs: list[NDArray[np.float64]], off: NDArray[np.intp]) -> Any:
     """Sparse map of the stacked grid values to ``Sigma w`` on every grid (linear interpolation between grids)."""
+    from scipy.sparse import csr_matrix  # lazily: a slow import
+
     rows, cols, vals = [], [], []
     for i, xi in enumerate(xs):
         for j, xj in enumerate(xs):
@@ -919,7 +1179,7 @@ class NPlusMSimulation:
 
 def simulate_nplusm(
     system: NPlusMSystem,
-    K: ArrayLike | None,
+    K: Any,
     delta: float,
     t_end: float,
     w0: Any,
@@ -935,13 +1195,18 @@ def simulate_nplusm(
     multiples of ``dt``). The couplings are integrated along the characteristics by
     Heun's method (second order), reading the other components by linear interpolation
     between the grids; the boundary conditions close each step, the delayed output
-    ``u(t - delta, 1)`` is interpolated linearly in the stored history.
+    control ``U(t - delta)`` is interpolated linearly in the stored history.
 
     Parameters
     ----------
     system : NPlusMSystem
-    K : array_like or None
-        The gain (``m x n``; None for the open loop).
+    K : array_like, None or state feedback
+        The gain (``m x n``; None for the open loop), or an object whose
+        ``functional(grids)`` returns the control as a row map ``(m, nodes)`` of the
+        stacked nodal values on the component grids (as
+        :class:`~nrobust.hyperbolic.nplusm_kernels.NPlusMBackstepping`): then
+        ``v(t, 1) = R u(t, 1) + U(t - delta)`` with ``U(t)`` that map of the state
+        (solved with ``v(t, 1)`` when the map reads it).
     delta : float
         Loop delay ``>= 0``.
     t_end : float
@@ -957,7 +1222,8 @@ def simulate_nplusm(
     -------
     NPlusMSimulation
     """
-    k = system.gain(K)
+    functional = getattr(K, "functional", None)
+    k = system.gain(None if callable(functional) else K)
     delta = nonnegative("delta", delta)
     t_end = positive("t_end", t_end)
     cells = positive_int("cells", cells, minimum=4)
@@ -991,22 +1257,42 @@ def simulate_nplusm(
     v_in, v_out = off[n + 1 :] - 1, off[n:-1]  # v(1), v(0)
     weights = np.concatenate([np.full(x.size, 1.0 / (x.size - 1)) * np.r_[0.5, np.ones(x.size - 2), 0.5] for x in xs])
     lag = delta / dt
-    hist = np.zeros((steps + 1, n))
-    hist[0] = state[u_out]
+    m = system.m
+    if callable(functional):
+        gain = np.asarray(functional(xs), dtype=float)
+        if gain.shape != (m, state.size) or not np.all(np.isfinite(gain)):
+            raise ParameterError("K", f"a functional of shape ({m}, {state.size}) on the grids", gain.shape)
+    else:
+        gain = np.zeros((m, state.size))
+        gain[:, u_out] = k
+    implicit = gain[:, v_in]  # weight of v(t, 1) in U(t)
+    explicit = gain.copy()
+    explicit[:, v_in] = 0.0
+    hist = np.zeros((steps + 1, m))  # U(t_j)
+    hist[0] = gain @ state
 
-    def delayed(j: int) -> NDArray[np.float64]:
-        """``u(t_j - delta, 1)`` (zero before the start), linear in the history."""
+    def delayed(j: int) -> tuple[NDArray[np.float64], float]:
+        """``U(t_j - delta)`` (zero before the start), linear in the history: the part known
+        before step ``j`` closes, and the weight of ``U(t_j)`` in it."""
         tj = j - lag
         if tj < 0:
-            return np.zeros(n)
+            return np.zeros(m), 0.0
         lo = int(np.floor(tj))
         frac = tj - lo
-        return hist[lo] if frac == 0 or lo + 1 > j else (1 - frac) * hist[lo] + frac * hist[lo + 1]
+        if lo == j:
+            return np.zeros(m), 1.0
+        if frac == 0:
+            return hist[lo], 0.0
+        if lo + 1 == j:
+            return (1 - frac) * hist[lo], frac
+        return (1 - frac) * hist[lo] + frac * hist[lo + 1], 0.0
 
     def close(w: NDArray[np.float64], j: int) -> None:
         w[u_in] = system.q @ w[v_out]
-        hist[j] = w[u_out]
-        w[v_in] = system.r @ hist[j] + k @ delayed(j)
+        known, c = delayed(j)
+        base = system.r @ w[u_out] + known
+        hist[j] = np.linalg.solve(np.eye(m) - c * implicit, explicit @ w + implicit @ base)
+        w[v_in] = base + c * hist[j]
 
     norms = np.empty(steps + 1)
     norms[0] = np.sqrt(weights @ state**2)

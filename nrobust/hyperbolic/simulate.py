@@ -62,20 +62,22 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import sparse
 
 from .._json import fields_dict
 from .._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
 from ..errors import ParameterError
-from .controllers import Controller, OpenLoop, StateFeedback
+from .controllers import Controller, FeedbackLaw, OpenLoop, StateFeedback
 from .general import GeneralHyperbolic2x2
 from .kernels import solve_kernels
 from .simulate_general import simulate_general
 from .system import Hyperbolic2x2
+
+if TYPE_CHECKING:
+    from scipy import sparse
 
 __all__ = ["DEFAULT_CELLS", "Simulation", "simulate", "v_nodes"]
 
@@ -300,6 +302,8 @@ def _stencil(nodes: Array, targets: Array) -> sparse.csr_matrix:
         else:
             weight[row] = _lagrange(nodes[index[row]], float(target))
     rows = np.repeat(np.arange(targets.size), size)
+    from scipy import sparse  # lazily: scipy.sparse is slow to import
+
     return sparse.csr_matrix((weight.ravel(), (rows, index.ravel())), shape=(targets.size, nodes.size))
 
 
@@ -645,8 +649,10 @@ def simulate(
     control ``U = e^{D(L)} U~`` and the norm ``sqrt(int_0^L u^2 + v^2 dx)`` are those of the
     physical plant (``x``, ``x_v``: the physical nodes; times in ``time_unit``). With a
     varying ``lam/mu`` it is simulated on its own time-of-flight grids
-    (:func:`~nrobust.hyperbolic.simulate_general.simulate_general`: ``StateFeedback`` or
-    ``OpenLoop``, final state only, ``scheme = "time-of-flight grids"``).
+    (:func:`~nrobust.hyperbolic.simulate_general.simulate_general`: ``StateFeedback``,
+    ``OpenLoop`` or a ``FeedbackLaw`` in the physical coordinates, such as U_BS of
+    :meth:`~nrobust.hyperbolic.varying_kernels.VaryingKernels.feedback_law`; snapshots as
+    above, ``scheme = "time-of-flight grids"``).
     """
     if isinstance(system, GeneralHyperbolic2x2):
         if not system.constant_ratio:
@@ -828,28 +834,25 @@ def _simulate_varying(
     snapshot_every: int | None,
 ) -> Simulation:
     """A general plant with a varying ``lam/mu``: :func:`~nrobust.hyperbolic.simulate_general.simulate_general`."""
-    if not isinstance(controller, (StateFeedback, OpenLoop)):
+    if not isinstance(controller, (StateFeedback, OpenLoop, FeedbackLaw)):
         raise ParameterError(
             "controller",
-            "a StateFeedback or OpenLoop on a plant with a varying lam/mu (the paper's controllers are built on the "
-            "kernels of a normal form, which needs a constant lam/mu)",
+            "a StateFeedback, OpenLoop or FeedbackLaw on a plant with a varying lam/mu (the paper's controllers are "
+            "built on the kernels of a normal form, which needs a constant lam/mu; U_BS with varying speeds is "
+            "solve_varying_kernels(plant).feedback_law())",
             controller,
         )
-    if snapshot_every is not None:
-        raise ParameterError(
-            "snapshot_every", "left out for a plant with a varying lam/mu (its simulation keeps the final state)"
-        )
     n = positive_int("cells", cells, minimum=4)
-    run = simulate_general(plant, controller, delta, t_end, u0, v0, n)
+    run = simulate_general(plant, controller, delta, t_end, u0, v0, n, snapshot_every=snapshot_every)
     return Simulation(
         times=run.times,
         norm=run.norm,
         control=run.control,
         x=run.x_u,
         x_v=run.x_v,
-        snapshot_times=run.times[-1:],
-        u=run.u[None, :],
-        v=run.v[None, :],
+        snapshot_times=run.snapshot_times,
+        u=run.u_snapshots,
+        v=run.v_snapshots,
         delta=nonnegative("delta", delta),
         dt=run.dt,
         n=n,

@@ -22,12 +22,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import CubicHermiteSpline
 
 from .._json import fields_dict
 from .._validate import nonnegative, positive, positive_int
 from ..errors import ParameterError
-from .controllers import OpenLoop, StateFeedback
+from .controllers import FeedbackLaw, OpenLoop, StateFeedback
 from .general import GeneralHyperbolic2x2, _Profile
 
 __all__ = ["GeneralSimulation", "simulate_general"]
@@ -35,6 +34,8 @@ __all__ = ["GeneralSimulation", "simulate_general"]
 Array = NDArray[np.float64]
 # Work bound on node updates (nodes times steps), checked before any allocation.
 _MAX_UPDATES = 2 * 10**8
+# Memory bound on the stored snapshots (values of u and v), checked before any allocation.
+_MAX_STORED = 2 * 10**7
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +52,13 @@ class GeneralSimulation:
         Final states on them.
     dt : float
         Time step ``t_u / cells`` (in ``time_unit``).
+    u_end, v_start : ndarray
+        The boundary traces ``u(t, L)`` (the measured end) and ``v(t, 0)`` (so
+        ``u(t, 0) = q v(t, 0)``) at ``times``.
+    snapshot_times : ndarray, shape (k,)
+        Times of the stored states (every ``snapshot_every`` steps and the last one).
+    u_snapshots, v_snapshots : ndarray, shapes (k, x_u.size) and (k, x_v.size)
+        The states at ``snapshot_times``.
     """
 
     times: Array
@@ -61,6 +69,11 @@ class GeneralSimulation:
     u: Array
     v: Array
     dt: float
+    u_end: Array
+    v_start: Array
+    snapshot_times: Array
+    u_snapshots: Array
+    v_snapshots: Array
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -91,12 +104,14 @@ def _trapezoid(dx: Array) -> Array:
 
 def simulate_general(
     plant: GeneralHyperbolic2x2,
-    controller: StateFeedback | OpenLoop,
+    controller: StateFeedback | OpenLoop | FeedbackLaw,
     delta: float,
     t_end: float,
     u0: Any,
     v0: Any,
     cells: int = 200,
+    *,
+    snapshot_every: int | None = None,
 ) -> GeneralSimulation:
     """Simulate ``plant`` under ``U(t - delta)`` (module notes); ``U = 0`` for ``t < 0``.
 
@@ -104,8 +119,9 @@ def simulate_general(
     ----------
     plant : GeneralHyperbolic2x2
         Any speeds.
-    controller : StateFeedback or OpenLoop
-        The feedback, gains in the plant's coordinates.
+    controller : StateFeedback, OpenLoop or FeedbackLaw
+        The feedback, gains in the plant's coordinates (a ``FeedbackLaw`` without filter,
+        e.g. U_BS of :meth:`~nrobust.hyperbolic.varying_kernels.VaryingKernels.feedback_law`).
     delta : float
         Loop delay ``>= 0``, in the plant's ``time_unit`` (as the delay margins).
     t_end : float
@@ -114,18 +130,24 @@ def simulate_general(
         Initial state on arrays of ``x`` in ``[0, L]``.
     cells : int, default 200
         Cells of the ``u`` grid; ``v`` has about ``cells t_v / t_u``.
+    snapshot_every : int, optional
+        Store the state every this many steps (and at the end); default: the final state
+        only. The norm, the control and the boundary traces are kept at every step.
 
     Raises
     ------
     ParameterError
-        Bad input, or more than 2e8 node updates (checked before allocating).
+        Bad input, more than 2e8 node updates or more than 2e7 stored snapshot values
+        (both checked before allocating).
     """
     if not isinstance(plant, GeneralHyperbolic2x2):
         raise ParameterError("plant", "a GeneralHyperbolic2x2", plant)
     if isinstance(controller, OpenLoop):
         controller = StateFeedback(0.0)
+    if isinstance(controller, FeedbackLaw) and controller.filter is None:
+        controller = StateFeedback(controller.boundary_gain, controller.gain_u, controller.gain_v)
     if not isinstance(controller, StateFeedback):
-        raise ParameterError("controller", "a StateFeedback or OpenLoop", controller)
+        raise ParameterError("controller", "a StateFeedback, OpenLoop or FeedbackLaw without filter", controller)
     unit = plant.time_unit
     delta, t_end = nonnegative("delta", delta) * unit, positive("t_end", t_end) * unit
     n_u = positive_int("cells", cells, 4)
@@ -135,6 +157,11 @@ def simulate_general(
     steps = int(np.ceil(t_end / dt - 1e-9))
     if (n_u + m_v + 3) * steps > _MAX_UPDATES:
         raise ParameterError("cells", f"small enough for at most {_MAX_UPDATES:.0e} node updates", cells)
+    every = steps if snapshot_every is None else positive_int("snapshot_every", snapshot_every)
+    stored = (steps // every + 1) * (n_u + m_v + 3)
+    if stored > _MAX_STORED:
+        least = int(np.ceil(steps * (n_u + m_v + 3) / (_MAX_STORED - n_u - m_v - 3)))
+        raise ParameterError("snapshot_every", f">= {least} (at most {_MAX_STORED:.0e} stored values)", every)
     tables = plant._tables
     phi_u = np.arange(n_u + 1) * dt
     x_u = np.asarray(tables.x_of_y(phi_u / t_u))
@@ -143,6 +170,8 @@ def simulate_general(
     if t_v - psi_v[-1] > 1e-9 * dt:
         psi_v = np.append(psi_v, t_v)
     x_nodes = tables.x
+    from scipy.interpolate import CubicHermiteSpline  # lazily: scipy.interpolate is slow to import
+
     x_of_psi = CubicHermiteSpline(tables.psi(x_nodes), x_nodes, plant.coefficient("mu", x_nodes))
     x_v = np.asarray(x_of_psi(psi_v))
     x_v[-1] = plant.length
@@ -171,6 +200,15 @@ def simulate_general(
     norm = np.zeros(steps + 1)
     control[0] = control_of(u, v)
     norm[0] = np.sqrt(norm_u @ u**2 + norm_v @ v**2)
+    u_end, v_start = np.zeros(steps + 1), np.zeros(steps + 1)
+    kept = [steps] if snapshot_every is None else sorted({*range(0, steps + 1, every), steps})
+    u_snap, v_snap = np.zeros((len(kept), u.size)), np.zeros((len(kept), v.size))
+    slot = {step: k for k, step in enumerate(kept)}
+
+    def record(n: int, u: Array, v: Array) -> None:
+        u_end[n], v_start[n] = u[-1], v[0]
+        if n in slot:
+            u_snap[slot[n]], v_snap[slot[n]] = u, v
 
     def delayed(n: int, current: float) -> float:
         """``U(t_n - delta)``, linear in the history; ``current`` is ``U(t_n)`` (not yet stored)."""
@@ -185,6 +223,7 @@ def simulate_general(
 
     theta = 1.0 - eps / dt  # the last interior v node's characteristic leaves x = L at t_{n+1} - eps
     boundary_old = rho * u[-1] + delayed(0, control[0])
+    record(0, u, v)
     su, sv = sources(u, v)
     for n in range(steps):
         # predictor: explicit Euler along the characteristics
@@ -211,6 +250,21 @@ def simulate_general(
         control[n + 1] = control_of(u, v)
         v[-1] = rho * u[-1] + delayed(n + 1, control[n + 1])
         norm[n + 1] = np.sqrt(norm_u @ u**2 + norm_v @ v**2)
+        record(n + 1, u, v)
         boundary_old = v[-1]
         su, sv = sources(u, v)
-    return GeneralSimulation(times / unit, norm, control, x_u, x_v, u, v, dt / unit)
+    return GeneralSimulation(
+        times / unit,
+        norm,
+        control,
+        x_u,
+        x_v,
+        u,
+        v,
+        dt / unit,
+        u_end,
+        v_start,
+        times[kept] / unit,
+        u_snap,
+        v_snap,
+    )

@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import CubicHermiteSpline
 
 from .._json import fields_dict
 from .._validate import positive_int
@@ -92,6 +91,8 @@ class VaryingDelayForm:
 
 def _march(plant: GeneralHyperbolic2x2, steps: int) -> tuple[Array, Array, Array, float, float]:
     """``theta`` grid, ``f`` and ``g`` at ``theta = tau`` (all ``nu``), ``alpha(L)``, ``beta(L)``."""
+    from scipy.interpolate import CubicHermiteSpline  # lazily: a slow import
+
     tables = plant._tables
     x_nodes = tables.x
     lam_n, mu_n = plant.coefficient("lam", x_nodes), plant.coefficient("mu", x_nodes)

@@ -54,7 +54,10 @@ class SpectralAbscissa:
         only ``upper_bound`` is certified: for neutral ``F`` the chain roots above
         ``region`` have real parts in ``[c_D - o(1), upper_bound]``. For retarded ``F``
         (no ``region`` given) ``region`` holds every root of ``F`` with ``Re s >= value``,
-        so ``value`` is certified for ``F``.
+        so ``value`` is certified for ``F``. False also when ``value`` is the upper end of
+        a bracket of ``c_D`` wider than ``1e-9 (1 + |c_D|)`` (delays not commensurate within
+        the degree bound, as in the expanded determinant of a matrix loop): it then only
+        bounds the supremum from above.
     region : tuple of float
         The rectangle searched.
     strong_bound : float
@@ -113,6 +116,8 @@ class SpectralAbscissa:
 
 # Bisection steps on the left edge x(R) of the root-free far field.
 _EDGE_BISECTIONS = 30
+# Relative width of the bracket of c_D below which a chain value counts as resolved.
+_CHAIN_TOL = 1e-9
 # Doublings of the far-field radius R in the march of the retarded abscissa.
 _MAX_STEPS = 200
 # Smallest half-height of the boxes of that march.
@@ -227,7 +232,8 @@ def _spectral_abscissa(
 ) -> SpectralAbscissa:
     """``proof`` is the precision of the ball arithmetic that proves each step, or None (floating point)."""
     D = F.principal_part()
-    chain_value = D.spectral_bound().upper
+    bound = D.spectral_bound()
+    chain_value = bound.upper
     c_strong = D.strong_spectral_bound()
     if region is not None:
         roots = _roots(F, region, cluster_tol, max_evals, proof)
@@ -242,6 +248,9 @@ def _spectral_abscissa(
         x_right, radius = _right_half_plane(F, 0.0, 1.0)
         result = _retarded_abscissa(F, x_right, radius, F.is_real, cluster_tol, max_evals, proof)
     result = replace(result, strong_bound=float(c_strong), rigorous=proof is not None)
+    if result.approached_at_infinity and bound.upper - bound.lower > _CHAIN_TOL * (1.0 + abs(bound.upper)):
+        # c_D only bracketed (chains not resolved): the value is an upper bound of the supremum, not it
+        result = replace(result, certified=False)
     if proof is None:
         return replace(result, root_box=None)
     return _proven_brackets(result, D, region is None, proof)
@@ -374,10 +383,10 @@ def _neutral_abscissa(
     depth = min(0.5, 16.0 / max(F.max_delay, 1e-300))
     low = (min(chain_value, x_min) - depth, x_min, *_band(height, real))
     band = _roots(F, low, cluster_tol, max_evals, proof)
-    upper = _band_edge(F, low[0], x_min, height, proof)
-    if len(band):  # a root near or right of the edge: its disc (proven: its box) bounds the value
-        reach = band.boxes[:, 1] if band.rigorous else band.roots.real + band.radii
-        upper = min(max(upper, float(np.max(reach))), x_min)  # the right region holds no root
+    # an uncertified band (never returned today: find_roots raises) would not bound anything
+    upper = _band_edge(F, low[0], x_min, height, proof) if band.certified else x_min
+    if len(band):  # a root near or right of the edge: its certified box (inside its disc) bounds the value
+        upper = min(max(upper, float(np.max(band.boxes[:, 1]))), x_min)  # the right region holds no root
     return _abscissa_from(band, chain_value, upper, band.certified and roots.certified)
 
 
@@ -400,7 +409,7 @@ def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, pro
     edge = _far_field_edge(F, n, height, x_min, x_lo)
     if proof is None:
         return edge
-    offers = [(edge + f * (x_min - edge), height) for f in (0.0, 1e-9, 1e-6, 1e-3, 0.01, 0.1)]
+    offers = [(edge + f * (x_min - edge), height) for f in (0.0, 1e-9, 1e-6, 1e-3, 0.01, 0.1, 0.3, 0.5)]
     try:
         return _confirm_far_field(F, offers, proof)[0]
     except CertificationError:  # the ball bound is looser than the floating-point one near C_D

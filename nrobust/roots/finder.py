@@ -13,11 +13,10 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from .._json import fields_dict
 from .._newton import newton
@@ -45,6 +44,9 @@ from .winding import (
     _Counter,
     _magnitude,
 )
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = ["RootSet", "find_roots"]
 
@@ -74,6 +76,13 @@ def _newton(
 # ====================================================================== boxes
 # A box is a row ``(re_min, re_max, im_min, im_max)``; distances between boxes and points
 # are Chebyshev distances (``p = inf``), the metric in which a box is a ball.
+def _kdtree(points: NDArray[np.float64]) -> cKDTree:
+    """``scipy.spatial.cKDTree(points)``, imported on first use (scipy.spatial is slow to import)."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points)
+
+
 def _xy(z: NDArray[np.complex128]) -> NDArray[np.float64]:
     """Complex points as ``(n, 2)`` rows ``(Re, Im)``."""
     return np.column_stack([z.real, z.imag])
@@ -305,14 +314,14 @@ class _Finder:
         cap = np.full(pts.size, np.inf)
         if pts.size > 1:
             xy = _xy(pts)
-            dist, _ = cKDTree(xy).query(xy, k=2, p=np.inf)
+            dist, _ = _kdtree(xy).query(xy, k=2, p=np.inf)
             cap = 0.3 * dist[:, 1]
         old = self.found.array()
         if old.size:
             self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
             c, r = _centers(old)
             k = min(8, c.shape[0])
-            dist, idx = cKDTree(c).query(_xy(pts), k=k, p=np.inf)
+            dist, idx = _kdtree(c).query(_xy(pts), k=k, p=np.inf)
             dist, idx = dist.reshape(pts.size, k), idx.reshape(pts.size, k)
             cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
         return cap
@@ -340,7 +349,7 @@ class _Finder:
         base = scale.copy()
         if pts.size > 1:
             k = min(16, pts.size)
-            dist, _ = cKDTree(_xy(pts)).query(_xy(pts), k=k, p=np.inf)
+            dist, _ = _kdtree(_xy(pts)).query(_xy(pts), k=k, p=np.inf)
             dist = dist.reshape(pts.size, k)
             distinct = np.where(dist > scale[:, None], dist, np.inf).min(axis=1)
             base = np.minimum(scale, 0.1 * distinct)
@@ -349,7 +358,7 @@ class _Finder:
         parent = np.arange(pts.size)
         if pts.size > 1:
             xy = _xy(pts)
-            pairs = cKDTree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
+            pairs = _kdtree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
             if pairs.size:
                 gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
                 pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
@@ -463,7 +472,7 @@ class _Finder:
         if cand.size and old.size:
             self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
             c, r = _centers(old)
-            dist, idx = cKDTree(c).query(_xy(cand), k=1, p=np.inf)
+            dist, idx = _kdtree(c).query(_xy(cand), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
         cands, owns, flags = [], [], []
         for box in owners:
@@ -908,7 +917,7 @@ def _disjoint(boxes: NDArray[np.float64]) -> bool:
     if boxes.shape[0] < 2:
         return True
     center, half = _centers(boxes)
-    for i, j in cKDTree(center).query_pairs(2 * float(half.max()), p=np.inf):
+    for i, j in _kdtree(center).query_pairs(2 * float(half.max()), p=np.inf):
         a, b = boxes[i], boxes[j]
         if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
             return False
