@@ -12,7 +12,7 @@ from .certificate import certify
 from .config import NPLUSM_TYPE, PiecewiseLinear, _wrap, load_system_file
 from .hyperbolic.simulate import Simulation, simulate
 from .nplusm_report import run_nplusm_analyze
-from .outputs import RunOutputs
+from .outputs import RunOutputs, check_output_dir
 from .plots import simulation_figure
 from .report import ReportFiles, write_report
 
@@ -36,6 +36,7 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
     bar is drawn on stderr when ``progress`` is True, or for None when stderr is a terminal
     or Jupyter.
     """
+    check_output_dir(out_dir)  # before the plant is built (a steady profile, a front end's ODE)
     spec = load_system_file(path)
     if spec.get("kind") == NPLUSM_TYPE:  # an n + m plant: the cancellation study
         return run_nplusm_analyze(spec, out_dir, progress)

@@ -229,7 +229,7 @@ def test_unwritable_output_fails_before_computing(tmp_path, capsys, command, whe
     )
 
 
-@pytest.mark.parametrize("command", ["analyze", "paper", "sweep"])
+@pytest.mark.parametrize("command", ["analyze", "analyze canal", "paper", "sweep"])
 def test_unwritable_output_from_the_shell(tmp_path, command):
     """The same through the command itself: exit 2 and one line naming the directory, with
     nothing computed or written, in under 2 s of wall time.
@@ -241,14 +241,21 @@ def test_unwritable_output_from_the_shell(tmp_path, command):
     loaded 5x over its cores. The bytecode is cached outside the tree by an untimed first
     run; then the best of up to three runs is taken (stopping at the first under 2 s).
     Certify alone takes seconds and the paper's run minutes, so a run that computed could
-    not pass.
+    not pass. ``analyze canal`` is the Saint-Venant front end, whose plant (a steady
+    profile, an ODE solve) is built only after the output directory is checked.
     """
     work = tmp_path / "work"
     work.mkdir()
     (work / "SWEEP.toml").write_text(SWEEP_SMALL)
-    args = {"analyze": [str(_write(work, SMALL))], "paper": [], "sweep": [str(work / "SWEEP.toml")]}
+    canal = Path(__file__).resolve().parents[1] / "examples" / "saint_venant.toml"
+    args = {
+        "analyze": [str(_write(work, SMALL))],
+        "analyze canal": [str(canal)],
+        "paper": [],
+        "sweep": [str(work / "SWEEP.toml")],
+    }
     out = "/proc/nrobust-out"
-    cmd = [sys.executable, "-m", "nrobust", command, *args[command], "-o", out]
+    cmd = [sys.executable, "-m", "nrobust", command.split()[0], *args[command], "-o", out]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = str(tmp_path / "pycache")
     before = sorted(p.name for p in work.iterdir())
