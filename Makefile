@@ -40,7 +40,7 @@ demo: $(STAMP_BASE)
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest -q -n auto -m 'not long'
 
-# The differential harness of issue 11 (tests/test_harness.py) with its long budget: about
+# The differential harness (tests/test_harness.py) with its long budget: about
 # 20 minutes on 2 cores, random examples, a 60 s deadline per example. Prints cases tried,
 # certified claims checked, contradictions (must be 0) and honest refusals; fails on any
 # contradiction. `make test` runs the same file on a small fixed budget.

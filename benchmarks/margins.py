@@ -12,7 +12,7 @@ Measured in this process:
 * the guaranteed delay ``delta_0`` of Theorem 4's proof (:func:`nrobust.rouche_delay_bound`)
   beside ``delta*``;
 * the admissible gains :func:`nrobust.k_region` at ``tol = 1e-9`` for ``delta_max = 0.1`` and
-  ``0.2`` (issue 11's goal: under 1 s on 2 cores): the ends with their kind, the time to
+  ``0.2`` (goal: under 1 s on 2 cores): the ends with their kind, the time to
   locate them by their equations (the frequency scan) and the total with their verification
   (a crossing search inside and a root count outside each end, and the 9 grid margins;
   CPU time beside the wall time, which a loaded machine inflates), serially and on 2

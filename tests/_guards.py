@@ -1,4 +1,4 @@
-"""Guards for calls that may hang or allocate without bound (the harness and the issue 11 reproducers)."""
+"""Guards for calls that may hang or allocate without bound (the harness and ``tests/test_reproducers.py``)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Independent oracles for the differential harness of issue 11 (``tests/test_harness.py``).
+"""Independent oracles for the differential harness (``tests/test_harness.py``).
 
 Nothing here imports nrobust: the answers come from closed forms, exact rational
 arithmetic (:mod:`fractions`), ``scipy.special.lambertw``, ``numpy.roots`` and

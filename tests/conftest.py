@@ -10,6 +10,6 @@ from _fuzzstats import STATS
 def pytest_terminal_summary(terminalreporter: Any) -> None:
     """Print cases, claims, contradictions and refusals when the harness ran."""
     if STATS.counts["cases"]:
-        terminalreporter.section("nrobust differential harness (issue 11)")
+        terminalreporter.section("nrobust differential harness")
         for line in STATS.summary():
             terminalreporter.write_line(line)

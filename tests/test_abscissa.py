@@ -1,4 +1,4 @@
-"""The certified spectral abscissa and root clusters against independent routes (issue 11, items 1, 5, 8).
+"""The certified spectral abscissa and root clusters against independent routes.
 
 Truths: the principal branch of Lambert W for ``s + a + b e^{-tau s}``, the roots of the float
 polynomial taken exactly (``tests/_oracles.py``: rationals, square-free parts, 60 digits), the
@@ -34,12 +34,12 @@ def exact_route(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch)
     return str(request.param)
 
 
-# ---------------------------------------------------------------- item 1: long delays, far roots
+# ---------------------------------------------------------------- long delays, far roots
 @pytest.mark.parametrize(
     "a, b, tau",
     [
-        (1.0, 0.5, 14.0),  # the issue: -inf was reported as certified
-        (1.0, 0.5, 10.0),  # the issue: the work bound was exhausted
+        (1.0, 0.5, 14.0),  # once: -inf was reported as certified
+        (1.0, 0.5, 10.0),  # once: the work bound was exhausted
         (1.0, 0.5, 40.0),
         (1.0, 0.5, 100.0),
         (1.0, -0.99, 50.0),
@@ -159,7 +159,7 @@ def test_work_bound_is_shared_and_named() -> None:
         spectral_abscissa(_lambert(1.0, 0.5, 14.0), max_evals=300)
 
 
-# ---------------------------------------------------------------- item 8: clusters in find_roots
+# ---------------------------------------------------------------- clusters in find_roots
 @pytest.mark.parametrize("center, spacing", [(-1.0, 1e-3), (-1.0, 1e-2), (1.0, 1e-2), (0.3, 1e-3)])
 def test_clusters_are_reported_not_refused(center: float, spacing: float) -> None:
     coefs = [float(v) for v in np.polynomial.polynomial.polyfromroots(center + spacing * np.arange(6))]
@@ -179,7 +179,7 @@ def test_separable_roots_1e3_apart_are_separate() -> None:
     np.testing.assert_allclose(np.sort(rs.roots.real), exact, rtol=0, atol=1e-12)
 
 
-# ---------------------------------------------------------------- item 5: no numpy error escapes
+# ---------------------------------------------------------------- no numpy error escapes
 def test_tall_box_against_the_closed_form() -> None:
     # (s + 1)(1 + 0.5 e^{-s}): -1 and -ln 2 + i pi (2k + 1); 15 916 roots, contour moments overflowed
     F = QP([[1.0, 1.0], [0.5, 0.5]], [0.0, 1.0])

@@ -1,4 +1,4 @@
-"""Property-based, differential harness of issue 11: no certified output of nrobust may
+"""Property-based, differential harness: no certified output of nrobust may
 contradict an independent oracle (``tests/_oracles.py``), and bad input gets a named error.
 
 Every nrobust call runs under a hard per-example deadline (``SIGALRM``) and a memory cap

@@ -1,4 +1,4 @@
-"""Exact ends of the admissible gains of ``U_BS2(K)`` (issue 11: item 3, second half, and item 9).
+"""Exact ends of the admissible gains of ``U_BS2(K)``.
 
 Each end of an admissible interval is checked against a truth that nrobust does not
 compute: a closed form solved with :mod:`mpmath`, the double zero of
@@ -32,7 +32,7 @@ from nrobust.report import write_report
 
 QP = QuasiPolynomial
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
-#: the plant of issue 11, item 9 (k = (1 - 0.63)/0.7 = 0.528571...)
+#: a plant with unequal speeds (k = (1 - 0.63)/0.7 = 0.528571...)
 LAM2 = Hyperbolic2x2(2.0, 0.5, 0.3, -0.4, 0.7, 0.9)
 
 
@@ -105,7 +105,7 @@ def test_transport_region_is_the_strong_stability_interval(system: TransportSyst
 
 # ============================================================ the paper's plant
 def test_paper_pair_birth_end() -> None:
-    """Issue 11, item 3: ``delta_max = 0.2`` ends where a pair of crossings is born near ``w = 4 pi``
+    """``delta_max = 0.2`` ends where a pair of crossings is born near ``w = 4 pi``
     (``delay_margin`` hit the near-touch for ``K`` from 0.13074 to 0.130755)."""
     K_b, w_b, delay_b = pair_birth(PAPER, 0.13075, 4 * np.pi)
     region = k_region(PAPER, 0.2, Ks=[0.12, 0.135], tol=1e-9)
@@ -143,14 +143,14 @@ def test_paper_ends_agree_with_bisection_on_verified_margins(
     np.testing.assert_allclose(hi.K, bisect_end(PAPER, *upper, delta_max, 1e-9), rtol=0, atol=1e-9)
 
 
-# ============================================================ issue 11, item 9: the plant of the report
+# ============================================================ a plant with unequal speeds
 @pytest.mark.slow
 @pytest.mark.parametrize("system, gap", [(PAPER, 1e-3), (LAM2, 1.7e-5)], ids=["paper", "lam2"])
 def test_second_order_frequency_bound_holds(system: Hyperbolic2x2, gap: float) -> None:
     """``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 >= q^2 (k^2 - K^2) - C_2 / w^2`` (``studies._AxisBound``),
     sampled on ``[0.5, 3 W_2]`` from the loop factors of :func:`nrobust.loop_factors`; no crossing
     above ``W_2``, which grows like ``1/sqrt(k - |K|)`` where the first-order bound grows like
-    ``1/(k - |K|)`` (item 9's plant ``1.7e-5`` from ``-k``: 190 against 7.3e4)."""
+    ``1/(k - |K|)`` (the unequal-speed plant ``1.7e-5`` from ``-k``: 190 against 7.3e4)."""
     bound = studies._AxisBound.of(studies._AffineLoop.of(system))
     assert bound is not None
     k = nr.classify(system).k_bound

@@ -1,4 +1,4 @@
-"""Bad input gets a ParameterError naming the parameter, and Nyquist counts are certified (issue 11, items 4-6).
+"""Bad input gets a ParameterError naming the parameter, and Nyquist counts are certified.
 
 * Every public constructor and function below is fed booleans, NaN, infinities, strings,
   complex numbers where reals are expected, ``None``, ragged or empty sequences and
@@ -243,7 +243,7 @@ COUNTED = [
     (QP([[1.0, 1.0]], [0.0]), QP([[0.5]], [0.0]), 1.0, 0),  # s + 1 + 0.5 e^{-s}: retarded, stable
     (QP([[-1.0, 1.0]], [0.0]), QP([[0.5]], [0.0]), 0.5, 1),  # s - 1 + 0.5 e^{-s/2}: one real zero in (0, 1)
     (QP([[2.0, 1.0]], [0.0]), QP([[-3.0, 0.4]], [0.0]), 0.7, 1),  # neutral, D = 1 + 0.4 e^{-0.7 s}
-    (QP([[1.0, 0.0, 1.0]], [0.0]), QP([[0.0, 1.0]], [0.0]), 3.0, 2),  # s^2 + 1 + s e^{-3 s} (issue 11, item 2)
+    (QP([[1.0, 0.0, 1.0]], [0.0]), QP([[0.0, 1.0]], [0.0]), 3.0, 2),  # s^2 + 1 + s e^{-3 s}: crossing on the bound
     (QP([[1.0, 0.0, 1.0]], [0.0]), QP([[0.0, 1.0]], [0.0]), 0.5, 0),  # the same loop below its margin 0.971
     (QP([[900.0, -0.2, 1.0]], [0.0]), 0.0, 0.0, 2),  # zeros 0.1 +- 30i, far outside the plotted band below
 ]

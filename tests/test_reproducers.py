@@ -1,4 +1,4 @@
-"""The reproducers of issue 11, each asserting the correct behaviour against an independent truth.
+"""Reproducers of false certificates and hangs once found, each checked against an independent truth.
 
 Each test is marked ``xfail(strict=True)`` while its defect is open: a fix makes it pass,
 strict mode turns that pass into a failure, and the mark is removed with the fix. The
@@ -45,7 +45,7 @@ PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 
 
 def xfail(item: str) -> pytest.MarkDecorator:
-    return pytest.mark.xfail(strict=True, reason=f"issue 11 {item}")
+    return pytest.mark.xfail(strict=True, reason=f"reproducer {item}")
 
 
 def named_error(fn: Any, *args: Any, name: str, **kwargs: Any) -> None:
@@ -89,7 +89,7 @@ def test_item1_certificate_abscissa_is_finite() -> None:
     cert = nr.certify(Hyperbolic2x2(0.1, 0.1, 0.3, 0.3, 1.0, 0.0), FilteredController(0.5, 1.0), k_region=False)
     sa = cert.abscissa
     assert math.isfinite(sa.value) and sa.certified
-    # the rightmost root found in a box about the reported value agrees with it (the issue: about -0.125)
+    # the rightmost root found in a box about the reported value agrees with it (once reported: about -0.125)
     F = nr.characteristic(cert.system, cert.controller, 0.0)
     box = (sa.value - 0.5, sa.value + 0.5, -1.0 - abs(sa.root.imag), 1.0 + abs(sa.root.imag))
     roots = nr.find_roots(F, box)
@@ -280,7 +280,7 @@ def _newton_zero(system: Hyperbolic2x2, K: float, delta: float, omega: float) ->
 @pytest.mark.timeout(600)
 def test_item9_certificate_carries_exact_gain_ends(tmp_path) -> None:
     """Both ends of item 9's plant at ``delta_max = 0.2`` are pair births just inside ``k = 0.528571``:
-    at ``w = 17.59`` (``K = 0.52834845``, the issue's truth lies in (0.5283, 0.5284)) and at ``w = 32.67``
+    at ``w = 17.59`` (``K = 0.52834845``, the truth lies in (0.5283, 0.5284)) and at ``w = 32.67``
     (``K = -0.52855386``, ``1.7e-5`` from ``-k``), the first touch points ``w ~ 2 pi n / tau`` whose
     crossing delay is below 0.2 (``n = 7`` and ``n = 13``). Each is checked against scipy's solution
     of ``g = dg/dw = 0`` (to 1e-8), and the interval is open at it: ``2e-8`` outside, a certified count
