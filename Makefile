@@ -40,8 +40,8 @@ demo: $(STAMP_BASE)
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest -q -n auto -m 'not long'
 
-# The differential harness (tests/test_harness.py) with its long budget: about
-# 20 minutes on 2 cores, random examples, a 60 s deadline per example. Prints cases tried,
+# The differential harness (tests/test_harness.py) with its long budget (random examples, a
+# 60 s deadline each: about 6 minutes), then the long tests (about 2 minutes). Prints cases tried,
 # certified claims checked, contradictions (must be 0) and honest refusals; fails on any
 # contradiction. `make test` runs the same file on a small fixed budget.
 FUZZ_EXAMPLES ?= 500
