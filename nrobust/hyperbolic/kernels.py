@@ -140,12 +140,40 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
     """
     h = 1.0 / (n - 1)
     x = np.linspace(0.0, 1.0, n)
-    a_x, b_x, g_x = a(x), b(x), g(x)
-    b_foot = b(np.minimum(x + kappa * h, 1.0))
-    # Offsets m = i - j whose characteristic reaches the diagonal within one step.
-    n_near = int(np.ceil(1.0 + kappa - _FOOT_TOL))
-    feet = _CubicFeet(np.arange(n) + kappa)
 
+    def leave(i: int, jn: Array) -> tuple[Array, Array, Array]:
+        t_star = (i - jn) * h / (1.0 + kappa)  # the cross characteristic meets the diagonal at x_i - t_star
+        return t_star, x[i] - t_star, x[i] - t_star
+
+    return _march_levels(x, a, b, g, r, np.arange(n) + kappa, b(np.minimum(x + kappa * h, 1.0)), x, leave)
+
+
+def _march_levels(
+    grid: Array,
+    a: Fun,
+    b: Fun,
+    g: Fun,
+    r: float,
+    positions: Array,
+    b_foot: Array,
+    points: Array,
+    leave: Callable[[int, Array], tuple[Array, Array, Array]],
+) -> tuple[Array, Array]:
+    """The level march of :func:`_march_pair`, its feet and physical points given.
+
+    ``grid`` is the uniform level variable (step ``h``), ``points`` the physical points of
+    its nodes (where ``a``, ``b`` and ``g`` are evaluated), ``positions[j]`` the foot of node
+    ``j`` at the previous level in units of ``h`` (increasing; ``inf`` past the last node),
+    ``b_foot[j]`` the value of ``b`` there, and ``leave(i, jn)`` the step ``t*`` from the
+    diagonal and the point where the cross characteristic of nodes ``jn`` of level ``i``
+    leaves it, in the level variable (to interpolate ``A`` along the diagonal) and as a
+    physical point (where ``g`` and ``b`` are taken). Constant speeds (:func:`_march_pair`) and varying ones
+    (:mod:`~nrobust.hyperbolic.varying_kernels`) share it.
+    """
+    n = grid.size
+    h = float(grid[1] - grid[0])
+    a_x, b_x, g_x = a(points), b(points), g(points)
+    feet = _CubicFeet(np.minimum(positions, n - 1.0))
     A = np.zeros((n, n))
     B = np.zeros((n, n))
     B[0, 0] = g_x[0]
@@ -164,7 +192,7 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
         # characteristic is integrated from the diagonal (length <= 3h, local error O(h^3)).
         beta0 = np.empty(i)
         c2 = np.empty(i)
-        n_reg = max(i - n_near + 1, 0) if i >= 4 else 0
+        n_reg = int(np.searchsorted(positions[:i], i - 1 + _FOOT_TOL, side="right")) if i >= 4 else 0
         if n_reg:
             idx, w = feet.stencil(n_reg, i - 1)
             A_foot = np.sum(A_prev[idx] * w, axis=1)
@@ -172,9 +200,8 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
             beta0[:n_reg] = B_foot + 0.5 * h * b_foot[:n_reg] * A_foot
             c2[:n_reg] = 0.5 * h * b_x[:n_reg]
         jn = np.arange(n_reg, i)
-        t_star = (i - jn) * h / (1.0 + kappa)
-        x_star = x[i] - t_star
-        A_diag = np.interp(x_star, x[: i + 1], np.diagonal(A)[: i + 1])
+        t_star, at, x_star = leave(i, jn)
+        A_diag = np.interp(at, grid[: i + 1], np.diagonal(A)[: i + 1])
         beta0[jn] = g(x_star) + 0.5 * t_star * b(x_star) * A_diag
         c2[jn] = 0.5 * t_star * b_x[jn]
         B[i, :i] = (beta0 + c2 * alpha0) / (1.0 - c1 * c2)

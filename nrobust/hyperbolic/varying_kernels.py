@@ -69,13 +69,11 @@ from ..errors import ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
 from .feedback import FeedbackLaw, _gain
 from .general import GeneralHyperbolic2x2
-from .kernels import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, RESOLUTION, _CubicFeet, _p1_interpolate, _resolvent
+from .kernels import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, RESOLUTION, _march_levels, _p1_interpolate, _resolvent
 
 __all__ = ["VaryingKernels", "solve_varying_kernels"]
 
 Array = NDArray[np.float64]
-# Relative tolerance deciding whether a characteristic foot is inside the previous level.
-_FOOT_TOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -163,7 +161,8 @@ def _pairs(plant: GeneralHyperbolic2x2, maps: _Maps) -> tuple[_Pair, _Pair]:
 def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Array]:
     """``P, Q`` on the uniform grid of ``Y`` with ``n`` points (``P[i, j]`` at ``y_i``, ``eta_j``).
 
-    The scheme of :func:`~nrobust.hyperbolic.kernels._march_pair` with varying feet: node
+    The level march of :func:`~nrobust.hyperbolic.kernels._march_pair`
+    (:func:`~nrobust.hyperbolic.kernels._march_levels`) with varying feet: node
     ``(i, j)`` of ``Q`` comes from its foot at level ``i - 1`` (``Z(xi_foot) = Z(xi_j) + h``,
     cubic interpolation) or, when that foot is past the diagonal (or ``i < 4``), from the
     point ``T(xi*) = y_i + Z(xi_j)`` where its characteristic leaves the diagonal.
@@ -173,48 +172,18 @@ def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Arra
     eta = np.arange(n) * h
     xi = np.asarray(pair.x_of_Y(eta))
     xi[0], xi[-1] = 0.0, length
-    a_x, b_x, g_x = pair.a(xi), pair.b(xi), pair.g(xi)
     z = np.asarray(pair.Z(xi))
     z_end = float(pair.Z(length))
     inside = z + h <= z_end
     xi_foot = np.asarray(pair.x_of_Z(np.minimum(z + h, z_end)))
     positions = np.where(inside, np.asarray(pair.Y(xi_foot)) / h, np.inf)
-    b_foot = pair.b(xi_foot)
-    feet = _CubicFeet(np.where(inside, positions, n - 1.0))
-    P = np.zeros((n, n))
-    Q = np.zeros((n, n))
-    Q[0, 0] = g_x[0]
-    P[0, 0] = pair.r * g_x[0]
-    r = pair.r
-    for i in range(1, n):
-        P_prev, Q_prev = P[i - 1, :i], Q[i - 1, :i]
-        Q[i, i] = g_x[i]
-        P[i, i] = P_prev[i - 1] + 0.5 * h * (a_x[i - 1] * Q_prev[i - 1] + a_x[i] * g_x[i])
-        # Diagonal kernel: P_new = p0 + c1 Q_new (P_new = r Q_new at xi = 0).
-        p0 = np.zeros(i)
-        c1 = np.full(i, r)
-        p0[1:] = P_prev[:-1] + 0.5 * h * a_x[: i - 1] * Q_prev[:-1]
-        c1[1:] = 0.5 * h * a_x[1:i]
-        # Cross kernel: Q_new = q0 + c2 P_new.
-        q0 = np.empty(i)
-        c2 = np.empty(i)
-        n_reg = int(np.searchsorted(positions[:i], i - 1 + _FOOT_TOL, side="right")) if i >= 4 else 0
-        if n_reg:
-            idx, w = feet.stencil(n_reg, i - 1)
-            P_foot = np.sum(P_prev[idx] * w, axis=1)
-            Q_foot = np.sum(Q_prev[idx] * w, axis=1)
-            q0[:n_reg] = Q_foot + 0.5 * h * b_foot[:n_reg] * P_foot
-            c2[:n_reg] = 0.5 * h * b_x[:n_reg]
-        jn = np.arange(n_reg, i)
+
+    def leave(i: int, jn: Array) -> tuple[Array, Array, Array]:
         x_star = np.asarray(maps.x_of_T(i * h + z[jn]))
         y_star = np.minimum(np.asarray(pair.Y(x_star)), i * h)
-        t_star = i * h - y_star
-        P_diag = np.interp(y_star, eta[: i + 1], np.diagonal(P)[: i + 1])
-        q0[jn] = pair.g(x_star) + 0.5 * t_star * pair.b(x_star) * P_diag
-        c2[jn] = 0.5 * t_star * b_x[jn]
-        Q[i, :i] = (q0 + c2 * p0) / (1.0 - c1 * c2)
-        P[i, :i] = p0 + c1 * Q[i, :i]
-    return P, Q
+        return i * h - y_star, y_star, x_star
+
+    return _march_levels(eta, pair.a, pair.b, pair.g, pair.r, positions, pair.b(xi_foot), xi, leave)
 
 
 def _check_grid(plant: GeneralHyperbolic2x2, pairs: tuple[_Pair, _Pair], n: int) -> None:
