@@ -1296,13 +1296,15 @@ def simulate_nplusm(
 
     norms = np.empty(steps + 1)
     norms[0] = np.sqrt(weights @ state**2)
-    pred = np.empty_like(state)
+    # zeros, not empty: close() forms explicit @ w before it sets v(t, 1), and 0 times an
+    # uninitialised NaN is NaN
+    pred = np.zeros_like(state)
     for j in range(1, steps + 1):
         s_old = coupling @ state
         pred[dest] = state[src] + dt * s_old[src]
         close(pred, j)
         s_new = coupling @ pred
-        new = np.empty_like(state)
+        new = np.zeros_like(state)
         new[dest] = state[src] + 0.5 * dt * (s_old[src] + s_new[dest])
         close(new, j)
         state = new
