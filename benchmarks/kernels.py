@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from nrobust import Hyperbolic2x2, solve_kernels
-from nrobust.hyperbolic.kernels import _richardson, _solve_K
+from nrobust.hyperbolic.kernels.constant import _richardson, _solve_K
 
 PLANTS = {
     "paper (lam = mu = 1)": Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85),

@@ -9,8 +9,8 @@ its kernels),
 then the ARZ road of ``examples/arz.py`` with U_BS2(0). Each stage is
 timed on its own (best of ``--repeat`` runs, every cache cleared between runs):
 
-1. steady profile and Riemann coordinates (:func:`nrobust.hyperbolic.frontends.saint_venant`);
-2. normal form (:meth:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2.normal_form`);
+1. steady profile and Riemann coordinates (:func:`nrobust.hyperbolic.plants.frontends.saint_venant`);
+2. normal form (:meth:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2.normal_form`);
 3. kernels and delay form, the loop factors ``A, B`` (``kernel_grid`` points);
 4. the certified delay margin of ``A + B e^{-delta s}``.
 
@@ -25,9 +25,9 @@ from collections.abc import Callable
 from typing import Any
 
 from nrobust.hyperbolic import controllers
-from nrobust.hyperbolic.controllers import ReflectionController, StateFeedback, loop_factors
-from nrobust.hyperbolic.frontends import arz, saint_venant
-from nrobust.margins import delay_margin
+from nrobust.hyperbolic.loops.controllers import ReflectionController, StateFeedback, loop_factors
+from nrobust.hyperbolic.plants.frontends import arz, saint_venant
+from nrobust.margins.margin import delay_margin
 
 
 def stages(build: Callable[[], Any], controller: Any, kernel_grid: int) -> tuple[dict[str, float], float]:

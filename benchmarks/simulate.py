@@ -22,8 +22,8 @@ from collections.abc import Callable
 import numpy as np
 
 from nrobust import FiniteTimeController, ReflectionController, characteristic, simulate, spectral_abscissa
-from nrobust.hyperbolic.kernels import solve_kernels
-from nrobust.hyperbolic.system import Hyperbolic2x2
+from nrobust.hyperbolic.kernels.constant import solve_kernels
+from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 
 SYSTEM = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
 N, T_END = 400, 10.0

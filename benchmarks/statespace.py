@@ -4,7 +4,7 @@ tdcpy (the Python port of TDS-CONTROL, Michiels and Appeltans) computes the root
 ``det(s E - sum_k A_k e^{-h_k s} + s sum_k H_k e^{-hH_k s})`` in a rectangle, or right of a
 line ``Re s >= r``, by a spectral discretisation of the infinitesimal generator with Newton
 corrections (not certified). nrobust takes the same system as a
-:class:`~nrobust.statespace.StateSpaceTDS`, never expands the determinant and certifies the
+:class:`~nrobust.lti.statespace.StateSpaceTDS`, never expands the determinant and certifies the
 count of the rectangle and a box per root.
 
 Systems (tdcpy's ``NDDE`` writes ``x' + sum H x'(t - hH) = ...``, so ``B = -H``):
@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from nrobust.statespace import StateSpaceTDS
+from nrobust.lti.statespace import StateSpaceTDS
 
 REGION = (-3.0, 1.0, -30.0, 30.0)
 A0 = np.array([[-1.0, 0.5], [0.3, -2.0]])

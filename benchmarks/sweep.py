@@ -1,4 +1,4 @@
-"""Throughput of nrobust.sweep: points per second on one worker and on all cores.
+"""Throughput of nrobust.sweeps: points per second on one worker and on all cores.
 
 The per-point analysis is the one a delay-margin study runs: the closed-form delay
 margin of ``F(s) = s + a + b e^{-delta s}`` (``delta* = arccos(-a/b) / sqrt(b^2 - a^2)``
@@ -24,8 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 
 import nrobust
-from nrobust.parallel import _cpu_count
 from nrobust.roots import count_roots
+from nrobust.sweeps.engine import _cpu_count
 
 
 def analyse(a: float, delta: float, b: float = 1.0) -> dict:
@@ -77,7 +77,7 @@ def main() -> None:
         rows.append((f"Dask LocalCluster, {cores} workers", rate_dask, on_dask))
 
     print(
-        f"nrobust.sweep on {len(points)} points, {cores} cores; per point: closed-form margin "
+        f"nrobust.sweeps on {len(points)} points, {cores} cores; per point: closed-form margin "
         f"+ certified right half-plane root count ({1e3 / rate_serial:.2f} ms serially)"
     )
     print(f"  margin and root count agree on {int(consistent.sum())}/{len(points)} points")

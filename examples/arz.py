@@ -46,15 +46,15 @@ from pathlib import Path
 import numpy as np
 
 import nrobust
-from nrobust.hyperbolic.controllers import (
+from nrobust.hyperbolic.loops.controllers import (
     FiniteTimeController,
     OpenLoop,
     ReflectionController,
     StateFeedback,
     characteristic,
 )
-from nrobust.hyperbolic.frontends import arz
-from nrobust.hyperbolic.simulate import simulate
+from nrobust.hyperbolic.plants.frontends import arz
+from nrobust.hyperbolic.simulate.normal_form import simulate
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)

@@ -7,7 +7,7 @@ convergence without delay, instability with the smallest delay (Theorem 3,
 ``rho q = 0.85 > 1/2``). Figure 3: U_BS2 with ``K = 0.1`` (eq. (53)) with
 ``delta = 0, 0.01, 0.1``: stable for every delay, at the rate ``ln(0.75)/2`` without delay.
 
-The figures are those of ``nrobust paper`` (:func:`nrobust.paper.paper_figure`: same
+The figures are those of ``nrobust paper`` (:func:`nrobust.reports.paper.paper_figure`: same
 horizon, initial state and axis); ``docs/figures/`` holds their output.
 
 Usage::
@@ -26,7 +26,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from nrobust.paper import paper_figure
+from nrobust.reports.paper import paper_figure
 
 
 def main(out: str = "out") -> None:

@@ -44,9 +44,9 @@ from pathlib import Path
 import numpy as np
 
 import nrobust
-from nrobust.hyperbolic.controllers import ReflectionController, StateFeedback
-from nrobust.hyperbolic.feedback import laplace_loop_factors
-from nrobust.hyperbolic.frontends import saint_venant
+from nrobust.hyperbolic.loops.controllers import ReflectionController, StateFeedback
+from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
+from nrobust.hyperbolic.plants.frontends import saint_venant
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)

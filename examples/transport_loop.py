@@ -19,12 +19,12 @@ Run: ``python examples/transport_loop.py``
 from __future__ import annotations
 
 import nrobust
-from nrobust.hyperbolic.system import TransportSystem
+from nrobust.hyperbolic.plants.hyperbolic2x2 import TransportSystem
 
 REGION = (-3.0, 1.0, -0.5, 200.0)
 
 
-def analyse(system: TransportSystem, controller: nrobust.hyperbolic.controllers.Controller, delta: float) -> None:
+def analyse(system: TransportSystem, controller: nrobust.hyperbolic.loops.controllers.Controller, delta: float) -> None:
     """Print the difference operator's verdict and the certified roots of one loop."""
     F = nrobust.characteristic(system, controller, delta)
     D = F.principal_part()

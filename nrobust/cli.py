@@ -28,12 +28,12 @@ import sys
 from collections.abc import Sequence
 
 from ._version import __version__
-from .analyze import run_analyze
 from .config import PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
-from .paper import PAPER_SYSTEM, run_paper
-from .parallel import SweepInterrupted
-from .sweepfile import run_sweep_file
+from .reports.analyze import run_analyze
+from .reports.paper import PAPER_SYSTEM, run_paper
+from .sweeps.engine import SweepInterrupted
+from .sweeps.sweepfile import run_sweep_file
 
 __all__ = ["PAPER_SYSTEM", "PiecewiseLinear", "load_system_file", "main", "run_analyze", "run_paper"]
 

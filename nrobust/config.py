@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ParameterError
-from .hyperbolic.controllers import (
+from .hyperbolic.loops.controllers import (
     Controller,
     FilteredController,
     FiniteTimeController,
@@ -31,11 +31,11 @@ from .hyperbolic.controllers import (
     StateFeedback,
     normalize,
 )
-from .hyperbolic.frontends import arz, saint_venant
-from .hyperbolic.general import GeneralHyperbolic2x2
-from .hyperbolic.nplusm import NPlusMSystem
-from .hyperbolic.simulate import DEFAULT_CELLS
-from .hyperbolic.system import Hyperbolic2x2, TransportSystem
+from .hyperbolic.nplusm.system import NPlusMSystem
+from .hyperbolic.plants.frontends import arz, saint_venant
+from .hyperbolic.plants.general import GeneralHyperbolic2x2
+from .hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
+from .hyperbolic.simulate.normal_form import DEFAULT_CELLS
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from nrobust.sweepfile import ANALYSES, _Analysis
+from nrobust.sweeps.sweepfile import ANALYSES, _Analysis
 
 MARKERS_ENV = "NROBUST_TEST_MARKERS"
 

@@ -11,16 +11,16 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
-from nrobust.certificate import Certificate, _representation, certify
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import GeneralHyperbolic2x2, Hyperbolic2x2, StateFeedback, TransportSystem
-from nrobust.hyperbolic.controllers import (
+from nrobust.hyperbolic.loops.controllers import (
     FilteredController,
     FiniteTimeController,
     ReflectionController,
     characteristic,
 )
-from nrobust.report import write_report
+from nrobust.reports.certificate import Certificate, _representation, certify
+from nrobust.reports.report import write_report
 
 SYSTEM = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)
 

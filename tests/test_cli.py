@@ -189,7 +189,7 @@ def test_progress_bars_only_in_a_terminal_or_on_request(tmp_path, capsys):
 def test_gain_studies_follow_the_progress_rule(capsys):
     """k_region, stability_chart and tradeoff draw a bar on request, none by default off a terminal."""
     from nrobust.hyperbolic import TransportSystem
-    from nrobust.hyperbolic.studies import k_region, stability_chart, tradeoff
+    from nrobust.hyperbolic.analyses.studies import k_region, stability_chart, tradeoff
 
     plant = TransportSystem(1.0, 1.0, 1.0, 0.5)
     runs = {
@@ -330,9 +330,9 @@ def test_report_wording_of_boxes_infinite_margins_and_piecewise_couplings():
     such, and a piecewise-linear coupling printed by its definition."""
     import re
 
-    from nrobust.certificate import certify
     from nrobust.hyperbolic import Hyperbolic2x2, ReflectionController, TransportSystem
-    from nrobust.report import _box_text, _certificate_blocks, _Table
+    from nrobust.reports.certificate import certify
+    from nrobust.reports.report import _box_text, _certificate_blocks, _Table
 
     assert _box_text((-0.14582605, -0.14185603, -18.85154093, -18.84757091)) == (
         "Re [-0.1458, -0.1419] x Im [-18.852, -18.848]"

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nrobust import ParameterError
-from nrobust.hyperbolic.controllers import (
+from nrobust.hyperbolic.loops.controllers import (
     FeedbackLaw,
     FilteredController,
     FiniteTimeController,
@@ -16,7 +16,7 @@ from nrobust.hyperbolic.controllers import (
     classify,
     loop_factors,
 )
-from nrobust.hyperbolic.system import Hyperbolic2x2, TransportSystem
+from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
 
 S = np.array([0.3 + 0.2j, -1.0 + 5.0j, 2.0 - 100.0j, 0.05j, 0.7 + 321.0j])
 

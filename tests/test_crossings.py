@@ -21,8 +21,8 @@ from nrobust import (
     delay_margin,
     loop_factors,
 )
-from nrobust.crossings import AxisGap, _axis_count, _Kernels, frequency_bound
-from nrobust.margins import delay_margin as factor_margin
+from nrobust.margins.crossing import AxisGap, _axis_count, _Kernels, frequency_bound
+from nrobust.margins.margin import delay_margin as factor_margin
 from nrobust.quasipoly import DistributedDelay
 
 QP = QuasiPolynomial

@@ -25,7 +25,7 @@ from nrobust import (
     find_roots,
     solve_kernels,
 )
-from nrobust.hyperbolic.laplace import magnus_steps
+from nrobust.hyperbolic.loops.laplace import magnus_steps
 
 PAPER = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
 VARYING = Hyperbolic2x2(1.0, 2.5, lambda x: 1.0 + 0.5 * np.sin(3.0 * x), lambda x: 2.0 * np.exp(-x), 0.7, 0.85)

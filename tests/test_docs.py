@@ -194,18 +194,18 @@ def test_broken_references_are_reported():
     """The resolver rejects what it must (a stale module, a private rename, the wrong kind)."""
     from nrobust import margins
 
-    assert _resolve("func", "nrobust.margins.delay_margin", margins, [])
+    assert _resolve("func", "nrobust.margins.margin.delay_margin", margins, [])
     assert _resolve("func", "~nrobust.hyperbolic.loop_factors", margins, [])
     assert _resolve("meth", "to_dict", margins, ["DelayMargin"])
     assert _resolve("class", "ValueError", margins, [])
     assert not _resolve("func", "nrobust.rouche.rouche_delay_bound", margins, [])
-    assert not _resolve("func", "nrobust.margins.k_region", margins, [])
+    assert not _resolve("func", "nrobust.margins.margin.k_region", margins, [])
     assert not _resolve("func", "k_region", margins, [])
-    assert not _resolve("func", "nrobust.hyperbolic.simulate", margins, [])  # the module, not the function
+    assert not _resolve("func", "nrobust.hyperbolic.simulate.normal_form", margins, [])  # the module, not the function
     assert not _resolve("mod", "nrobust.delay_margin", margins, [])
-    assert not any(True for _ in _candidates("nrobust.sweep._nrobust_function"))
-    assert not any(True for _ in _candidates("nrobust.transfer.open_loop_tf"))  # deprecated alias
-    assert any(True for _ in _candidates("nrobust.sweep.run_sweep_file"))
+    assert not any(True for _ in _candidates("nrobust.sweeps._nrobust_function"))
+    assert not any(True for _ in _candidates("nrobust.lti.transfer.open_loop_tf"))  # deprecated alias
+    assert any(True for _ in _candidates("nrobust.sweeps.run_sweep_file"))
 
 
 def _python_blocks(page: Path) -> list[str]:

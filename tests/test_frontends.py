@@ -15,17 +15,17 @@ from nrobust.cli import main
 from nrobust.config import load_system_file
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, boundary_function
-from nrobust.hyperbolic.controllers import (
+from nrobust.hyperbolic.loops.controllers import (
     FiniteTimeController,
     OpenLoop,
     ReflectionController,
     StateFeedback,
     characteristic,
 )
-from nrobust.hyperbolic.feedback import laplace_loop_factors
-from nrobust.hyperbolic.frontends import GRAVITY, arz, from_riemann, saint_venant
-from nrobust.hyperbolic.general import GeneralHyperbolic2x2
-from nrobust.hyperbolic.simulate import simulate
+from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
+from nrobust.hyperbolic.plants.frontends import GRAVITY, arz, from_riemann, saint_venant
+from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
+from nrobust.hyperbolic.simulate.normal_form import simulate
 
 CANAL = {"length": 3000.0, "width": 7.0, "slope": 1e-4, "discharge": 14.0, "manning": 0.02}
 

@@ -28,34 +28,34 @@ import pytest
 import nrobust
 from nrobust._json import decode_floats, fields_dict, json_safe
 from nrobust.bounds import delay_bound_from_kernel, root_free_region
-from nrobust.certificate import certify
-from nrobust.crossings import crossing_frequencies
 from nrobust.difference import DifferenceOperator
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
-from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, StateFeedback, classify
-from nrobust.hyperbolic.delay_form import delay_form
-from nrobust.hyperbolic.frontends import arz, saint_venant
-from nrobust.hyperbolic.general import GeneralHyperbolic2x2
-from nrobust.hyperbolic.kernels import solve_kernels
-from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
-from nrobust.hyperbolic.nplusm_kernels import NPlusMBackstepping, solve_nplusm_kernels
-from nrobust.hyperbolic.simulate import simulate
-from nrobust.hyperbolic.simulate_general import simulate_general
-from nrobust.hyperbolic.studies import ab_region, k_region, stability_chart, tradeoff
-from nrobust.hyperbolic.varying import varying_delay_form
-from nrobust.hyperbolic.varying_kernels import solve_varying_kernels
-from nrobust.margins import delay_margin
+from nrobust.hyperbolic.analyses.studies import ab_region, k_region, stability_chart, tradeoff
+from nrobust.hyperbolic.kernels.constant import solve_kernels
+from nrobust.hyperbolic.kernels.varying import solve_varying_kernels
+from nrobust.hyperbolic.loops.controllers import FilteredController, ReflectionController, StateFeedback, classify
+from nrobust.hyperbolic.loops.delay_form import delay_form
+from nrobust.hyperbolic.loops.varying_form import varying_delay_form
+from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
+from nrobust.hyperbolic.nplusm.system import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
+from nrobust.hyperbolic.plants.frontends import arz, saint_venant
+from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
+from nrobust.hyperbolic.simulate.general import simulate_general
+from nrobust.hyperbolic.simulate.normal_form import simulate
+from nrobust.lti.transfer import QuasiTransferFunction
+from nrobust.margins.crossing import crossing_frequencies
+from nrobust.margins.margin import delay_margin
+from nrobust.margins.proven import proven_crossings
 from nrobust.matrix_difference import MatrixDifferenceOperator
-from nrobust.outputs import Manifest
-from nrobust.plots import hidden_unstable_roots, nyquist_response, root_locus_response
-from nrobust.proven_crossings import proven_crossings
+from nrobust.plots.figures import hidden_unstable_roots, nyquist_response, root_locus_response
 from nrobust.qpmatrix import QuasiPolynomialMatrix
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
-from nrobust.report import ReportFiles
+from nrobust.reports.certificate import certify
+from nrobust.reports.outputs import Manifest
+from nrobust.reports.report import ReportFiles
 from nrobust.roots import count_roots, find_roots, spectral_abscissa
-from nrobust.sweepfile import SweepFileResult
-from nrobust.transfer import QuasiTransferFunction
+from nrobust.sweeps.sweepfile import SweepFileResult
 
 F = QuasiPolynomial([[1, 1], [0.5]], [0, 1])  # s + 1 + 0.5 e^{-s}
 A, B = QuasiPolynomial([[1, 1]], [0]), QuasiPolynomial([[2]], [0])  # s + 1 + 2 e^{-delta s}

@@ -17,6 +17,7 @@ from _oracles import pair_birth as oracle_pair_birth
 from _oracles import transport_k_interval
 
 import nrobust as nr
+import nrobust.hyperbolic.analyses
 from nrobust import (
     CertificationError,
     Hyperbolic2x2,
@@ -27,8 +28,8 @@ from nrobust import (
     delay_margin,
     k_region,
 )
-from nrobust.hyperbolic import studies
-from nrobust.report import write_report
+from nrobust.hyperbolic.analyses import studies
+from nrobust.reports.report import write_report
 
 QP = QuasiPolynomial
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
@@ -165,9 +166,9 @@ def test_second_order_frequency_bound_holds(system: Hyperbolic2x2, gap: float) -
         C2 = (bound.n_tau - c * bound.n0) ** 2 / p + 2.0 * (1.0 + abs(c)) * bound.v2
         assert np.all(g >= (1.0 - p) ** 2 - (K * system.q) ** 2 - C2 / w**2 - 1e-13)
         assert np.all(g[w > W2] > 0.0)
-        W1 = nr.crossings.frequency_bound(A, B0 + QP([[K * system.q]], [system.tau]))[0]
+        W1 = nr.margins.frequency_bound(A, B0 + QP([[K * system.q]], [system.tau]))[0]
         assert W2 < W1
-    W1 = nr.crossings.frequency_bound(A, B0 + QP([[-(k - gap) * system.q]], [system.tau]))[0]
+    W1 = nr.margins.frequency_bound(A, B0 + QP([[-(k - gap) * system.q]], [system.tau]))[0]
     assert bound.W(-(k - gap), -(k - gap)) < 0.1 * W1
 
 
@@ -210,7 +211,7 @@ def test_item9_certificate_records_why_the_region_is_missing(monkeypatch: pytest
     def refuse(*args: object, **kwargs: object) -> None:
         raise CertificationError("k_region: beyond the work bound max_evals=1")
 
-    monkeypatch.setattr(studies, "k_region", refuse)
+    monkeypatch.setattr(nrobust.hyperbolic.analyses, "k_region", refuse)  # what certify calls
     cert = certify(LAM2, ReflectionController(0.3), delta_max=0.1)
     assert cert.k_region is None and "work bound" in cert.k_region_error
     assert cert.to_dict()["k_region_error"] == cert.k_region_error

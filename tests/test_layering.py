@@ -1,15 +1,26 @@
 """The layers of nrobust, read from the source: every import runs one way.
 
-``docs/architecture.md`` states the rule: the core knows nothing of PDEs, files or
-figures, the plants sit on the core, and the application layer on both. This test parses
-every module (``ast``: module-level and function-level imports alike) and fails on an
-edge the layering forbids, on a cycle, on a function-level import of nrobust itself (the
-way cycles are dodged) and on a lookup of a module by name.
+``docs/architecture.md`` states the rules, and this test reads them off the imports of every
+module (``ast``: module-level and function-level alike, and the ``.pyi`` stubs from which the
+lazy packages load their names):
+
+- a module sits in the layer its path gives (:func:`layer_of`): the base, the core (no PDE, no
+  files, no processes, no figures), the runtime (the executors that start processes), the PDE
+  layer ``nrobust/hyperbolic/`` and the application (sweeps, reports, plots, config, cli);
+  imports run down the layers, and no module imports itself back through a cycle;
+- the core imports nothing, directly or not, that writes files, starts processes or draws;
+- no module imports a private name of another module (a package shares helpers through
+  public names, in one ``_common`` module at most);
+- no function imports nrobust (the way cycles are dodged) and no module looks code up by name;
+- ``import nrobust`` and ``import nrobust.quasipoly`` load the core they need and nothing else:
+  neither the PDE layer, the application nor matplotlib.
 """
 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -17,78 +28,82 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "nrobust"
 
 #: Rank of each layer: a module may import modules of its own rank or below.
-BASE, CORE, HYPERBOLIC, APPLICATION = 0, 1, 2, 3
-LAYER_NAMES = {BASE: "base", CORE: "core", HYPERBOLIC: "hyperbolic", APPLICATION: "application"}
+BASE, CORE, RUNTIME, HYPERBOLIC, APPLICATION = 0, 1, 2, 3, 4
+LAYER_NAMES = {BASE: "base", CORE: "core", RUNTIME: "runtime", HYPERBOLIC: "hyperbolic", APPLICATION: "application"}
 
-#: Every module of the package and its layer; a new module must be placed here.
-LAYERS = {
-    "nrobust.errors": BASE,
-    "nrobust._validate": BASE,
-    "nrobust._progress": BASE,
-    "nrobust._json": BASE,
-    "nrobust._journal": BASE,
-    "nrobust._atomic": BASE,
-    "nrobust._version": BASE,
-    "nrobust._newton": BASE,
-    "nrobust.parallel": BASE,
-    "nrobust.difference": CORE,
-    "nrobust.quasipoly": CORE,
-    "nrobust.qpmatrix": CORE,
-    "nrobust.matrix_difference": CORE,
-    "nrobust.matrix_crossings": CORE,
-    "nrobust.statespace": CORE,
-    "nrobust.bounds": CORE,
-    "nrobust.balls": CORE,
-    "nrobust.roots": CORE,
-    "nrobust.roots.winding": CORE,
-    "nrobust.roots.finder": CORE,
-    "nrobust.roots.abscissa": CORE,
-    "nrobust.crossings": CORE,
-    "nrobust.margins": CORE,
-    "nrobust.proven_crossings": CORE,
-    "nrobust.transfer": CORE,
-    "nrobust.hyperbolic": HYPERBOLIC,
-    "nrobust.hyperbolic.system": HYPERBOLIC,
-    "nrobust.hyperbolic.kernels": HYPERBOLIC,
-    "nrobust.hyperbolic.laplace": HYPERBOLIC,
-    "nrobust.hyperbolic.delay_form": HYPERBOLIC,
-    "nrobust.hyperbolic.controllers": HYPERBOLIC,
-    "nrobust.hyperbolic.loops": HYPERBOLIC,
-    "nrobust.hyperbolic.robustness": HYPERBOLIC,
-    "nrobust.hyperbolic.studies": HYPERBOLIC,
-    "nrobust.hyperbolic.simulate": HYPERBOLIC,
-    "nrobust.hyperbolic.nplusm": HYPERBOLIC,
-    "nrobust.hyperbolic.nplusm_kernels": HYPERBOLIC,
-    "nrobust.hyperbolic.general": HYPERBOLIC,
-    "nrobust.hyperbolic.feedback": HYPERBOLIC,
-    "nrobust.hyperbolic.frontends": HYPERBOLIC,
-    "nrobust.hyperbolic.varying": HYPERBOLIC,
-    "nrobust.hyperbolic.varying_kernels": HYPERBOLIC,
-    "nrobust.hyperbolic.simulate_general": HYPERBOLIC,
-    "nrobust.montecarlo": APPLICATION,
-    "nrobust.config": APPLICATION,
-    "nrobust.sweepfile": APPLICATION,
-    "nrobust.outputs": APPLICATION,
-    "nrobust.sweep": APPLICATION,
-    "nrobust.certificate": APPLICATION,
-    "nrobust.report": APPLICATION,
-    "nrobust.plots": APPLICATION,
-    "nrobust.analyze": APPLICATION,
-    "nrobust.nplusm_report": APPLICATION,
-    "nrobust.paper": APPLICATION,
-    "nrobust.cli": APPLICATION,
-    "nrobust.__main__": APPLICATION,
-    "nrobust": APPLICATION,
+#: The base: errors, argument checks, JSON, Newton, progress bars, atomic writes, moved paths.
+BASE_MODULES = {
+    "nrobust.errors",
+    "nrobust._validate",
+    "nrobust._progress",
+    "nrobust._json",
+    "nrobust._atomic",
+    "nrobust._version",
+    "nrobust._newton",
+    "nrobust._moved",
+}
+#: The core, by package or module: representations, proofs, roots, margins, delay systems, design.
+CORE_PREFIXES = (
+    "nrobust.quasipoly",
+    "nrobust.difference",
+    "nrobust.qpmatrix",
+    "nrobust.matrix_difference",
+    "nrobust.bounds",
+    "nrobust.balls",
+    "nrobust.roots",
+    "nrobust.margins",
+    "nrobust.lti",
+    "nrobust.design",
+)
+#: The executors (process pools, Dask) that the analyses of the PDE layer run their grids on.
+RUNTIME_MODULES = {"nrobust.sweeps.executors"}
+APPLICATION_PREFIXES = ("nrobust.sweeps", "nrobust.reports", "nrobust.plots", "nrobust.config", "nrobust.cli")
+
+#: What the core may not reach, directly or through other modules: files, processes, figures.
+SIDE_EFFECTS = (
+    "nrobust._atomic",
+    "nrobust.sweeps",
+    "nrobust.reports",
+    "nrobust.plots",
+    "multiprocessing",
+    "subprocess",
+    "concurrent.futures",
+    "tempfile",
+    "shutil",
+    "dask",
+    "distributed",
+    "matplotlib",
+    "tqdm",
+)
+
+#: Modules that may look code up by name, with the reason.
+LOOKUP_BY_NAME = {
+    # the deprecated aliases of moved module paths resolve their new home on attribute access
+    "nrobust._moved",
 }
 
 #: Function-level imports of nrobust modules that are deliberate, with the reason.
 #: (module, function, imported module)
-ALLOWED_LAZY = {
-    # PEP 562 deprecated aliases of names that moved up to the plant layer: resolved on
-    # attribute access only, so importing the core never loads the plants.
-    ("nrobust.transfer", "__getattr__", "nrobust.hyperbolic.loops"),
-    ("nrobust.transfer", "__getattr__", "nrobust.hyperbolic"),
-}
+ALLOWED_LAZY: set[tuple[str, str, str]] = set()
+
+
+def _matches(module: str, prefixes: tuple[str, ...] | set[str]) -> bool:
+    return any(module == p or module.startswith(p + ".") for p in prefixes)
+
+
+def layer_of(module: str) -> int | None:
+    """The layer of a module of nrobust, from its path (None: not placed)."""
+    if module in BASE_MODULES:
+        return BASE
+    if module in RUNTIME_MODULES:
+        return RUNTIME
+    if _matches(module, CORE_PREFIXES):
+        return CORE
+    if _matches(module, ("nrobust.hyperbolic",)):
+        return HYPERBOLIC
+    if _matches(module, APPLICATION_PREFIXES) or module in ("nrobust", "nrobust.__main__"):
+        return APPLICATION
+    return None
 
 
 def module_name(path: Path) -> str:
@@ -98,7 +113,15 @@ def module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def resolve(module: str, is_package: bool, node: ast.ImportFrom) -> list[str]:
+def all_modules() -> dict[str, list[Path]]:
+    """Every module of the package with its source files (``__init__.py`` and its ``.pyi`` stub)."""
+    found: dict[str, list[Path]] = {}
+    for p in sorted([*PACKAGE.rglob("*.py"), *PACKAGE.rglob("*.pyi")]):
+        found.setdefault(module_name(p), []).append(p)
+    return found
+
+
+def resolve(module: str, is_package: bool, node: ast.ImportFrom, known: set[str]) -> list[str]:
     """Absolute names of the modules an ``import from`` statement reaches."""
     if node.level:
         base = module.split(".") if is_package else module.split(".")[:-1]
@@ -108,87 +131,111 @@ def resolve(module: str, is_package: bool, node: ast.ImportFrom) -> list[str]:
         target = node.module or ""
     names = [target]
     # ``from . import plots`` imports the submodule nrobust.plots
-    names += [f"{target}.{alias.name}" for alias in node.names if f"{target}.{alias.name}" in LAYERS]
+    names += [f"{target}.{alias.name}" for alias in node.names if f"{target}.{alias.name}" in known]
     return names
 
 
-def imports_of(path: Path) -> list[tuple[str, str | None, int]]:
-    """(imported module, enclosing function or None, line) for every nrobust import of a file."""
-    module = module_name(path)
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    found: list[tuple[str, str | None, int]] = []
+class Import:
+    """One import statement's edge: the module reached, the names taken, where it stands."""
 
-    def visit(node: ast.AST, function: str | None) -> None:
-        for child in ast.iter_child_nodes(node):
-            inner = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
-            if isinstance(child, ast.Import):
-                found.extend((a.name, function, child.lineno) for a in child.names if a.name.startswith("nrobust"))
-            elif isinstance(child, ast.ImportFrom):
-                targets = resolve(module, path.name == "__init__.py", child)
-                found.extend((t, function, child.lineno) for t in targets if t.startswith("nrobust"))
-            visit(child, inner)
+    def __init__(self, target: str, names: list[str], function: str | None, line: int, path: Path) -> None:
+        self.target, self.names, self.function, self.line, self.path = target, names, function, line, path
 
-    visit(tree, None)
+
+def imports_of(module: str, paths: list[Path], known: set[str]) -> list[Import]:
+    """Every import of a module (nrobust and other packages alike)."""
+    found: list[Import] = []
+    for path in paths:
+        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        is_package = path.stem == "__init__"
+
+        def visit(node: ast.AST, function: str | None, path: Path = path, is_package: bool = is_package) -> None:
+            for child in ast.iter_child_nodes(node):
+                inner = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else function
+                if isinstance(child, ast.Import):
+                    found.extend(Import(a.name, [], function, child.lineno, path) for a in child.names)
+                elif isinstance(child, ast.ImportFrom):
+                    targets = resolve(module, is_package, child, known)
+                    names = [a.name for a in child.names]
+                    found.extend(
+                        Import(t, names if i == 0 else [], function, child.lineno, path) for i, t in enumerate(targets)
+                    )
+                visit(child, inner)
+
+        visit(tree, None)
     return found
 
 
-def all_modules() -> dict[str, Path]:
-    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
-
-
-def owning_module(name: str) -> str:
-    """The listed module an imported name belongs to (``nrobust.roots.finder.RootSet`` -> its module)."""
-    while name not in LAYERS and "." in name:
+def owning_module(name: str, known: set[str]) -> str:
+    """The module of nrobust an imported name belongs to (``nrobust.roots.finder.RootSet`` -> its module)."""
+    while name not in known and "." in name:
         name = name.rsplit(".", 1)[0]
     return name
 
 
-def forbidden_edges(layers: dict[str, int]) -> list[str]:
+def module_graph() -> tuple[dict[str, list[Path]], dict[str, list[Import]]]:
+    modules = all_modules()
+    known = set(modules)
+    return modules, {m: imports_of(m, paths, known) for m, paths in modules.items()}
+
+
+def forbidden_edges() -> list[str]:
+    modules, graph = module_graph()
+    known = set(modules)
     errors = []
-    for module, path in all_modules().items():
-        for target, function, line in imports_of(path):
-            target = owning_module(target)
-            if target not in layers:
-                errors.append(f"{module}:{line} imports {target}, which has no layer")
+    for module, edges in graph.items():
+        rank = layer_of(module)
+        if rank is None:
+            errors.append(f"{module} has no layer: place it in tests/test_layering.py and docs/architecture.md")
+            continue
+        for edge in edges:
+            if not edge.target.startswith("nrobust"):
                 continue
-            if (module, function, target) in ALLOWED_LAZY:
+            target = owning_module(edge.target, known)
+            if (module, edge.function, target) in ALLOWED_LAZY:
                 continue
-            if layers[target] > layers[module]:
+            target_rank = layer_of(target)
+            if target_rank is None:
+                continue  # reported on its own line
+            if target_rank > rank:
                 errors.append(
-                    f"{module}:{line} ({LAYER_NAMES[layers[module]]}) imports {target} "
-                    f"({LAYER_NAMES[layers[target]]}): imports must run down the layers"
+                    f"{module}:{edge.line} ({LAYER_NAMES[rank]}) imports {target} "
+                    f"({LAYER_NAMES[target_rank]}): imports must run down the layers"
                 )
-            if function is not None:
-                errors.append(f"{module}:{line} imports {target} inside {function}(): import at module level")
+            if edge.function is not None:
+                errors.append(f"{module}:{edge.line} imports {target} inside {edge.function}(): import at module level")
     return errors
 
 
-def test_every_module_has_a_layer():
-    missing = sorted(set(all_modules()) - set(LAYERS))
+def test_every_module_has_a_layer() -> None:
+    missing = sorted(m for m in all_modules() if layer_of(m) is None)
     assert not missing, f"place these modules in a layer (tests/test_layering.py, docs/architecture.md): {missing}"
-    stale = sorted(set(LAYERS) - set(all_modules()))
-    assert not stale, f"listed modules that no longer exist: {stale}"
 
 
-def test_imports_run_down_the_layers():
-    errors = forbidden_edges(LAYERS)
+def test_imports_run_down_the_layers() -> None:
+    errors = forbidden_edges()
     assert not errors, "\n".join(errors)
 
 
-def test_no_import_cycle_at_module_level():
-    graph: dict[str, set[str]] = {}
-    for module, path in all_modules().items():
-        graph[module] = {
-            owning_module(t) for t, function, _ in imports_of(path) if function is None and owning_module(t) != module
+def test_no_import_cycle_at_module_level() -> None:
+    modules, graph = module_graph()
+    known = set(modules)
+    edges = {
+        module: {
+            owning_module(e.target, known)
+            for e in imports
+            if e.function is None and e.target.startswith("nrobust") and e.path.suffix == ".py"
         }
-        # a package's __init__ runs before its submodules: importing the package is implied
+        - {module}
+        for module, imports in graph.items()
+    }
     state: dict[str, int] = {}
     stack: list[str] = []
 
     def dfs(node: str) -> None:
         state[node] = 1
         stack.append(node)
-        for nxt in sorted(graph.get(node, ())):
+        for nxt in sorted(edges.get(node, ())):
             # importing a submodule first runs its package's __init__; that edge is not a cycle
             if node.startswith(nxt + "."):
                 continue
@@ -200,29 +247,118 @@ def test_no_import_cycle_at_module_level():
         stack.pop()
         state[node] = 2
 
-    for module in sorted(graph):
+    for module in sorted(edges):
         if state.get(module) is None:
             dfs(module)
 
 
-def test_no_lookup_of_code_by_name():
+def reach(module: str, graph: dict[str, list[Import]], known: set[str]) -> dict[str, list[str]]:
+    """Every module a module imports at module level, directly or not, with one path to it."""
+    paths: dict[str, list[str]] = {module: [module]}
+    todo = [module]
+    while todo:
+        here = todo.pop()
+        for edge in graph.get(here, []):
+            if edge.function is not None:
+                continue
+            target = owning_module(edge.target, known) if edge.target.startswith("nrobust") else edge.target
+            if target not in paths:
+                paths[target] = [*paths[here], target]
+                if target in graph:
+                    todo.append(target)
+    return paths
+
+
+def side_effects_of_the_core() -> list[str]:
+    modules, graph = module_graph()
+    known = set(modules)
+    errors = []
+    for module in sorted(modules):
+        if layer_of(module) != CORE:
+            continue
+        for target, path in reach(module, graph, known).items():
+            if _matches(target, SIDE_EFFECTS):
+                errors.append(f"{module} reaches {target}: {' -> '.join(path)}")
+    return errors
+
+
+def test_core_reaches_no_files_processes_or_figures() -> None:
+    errors = side_effects_of_the_core()
+    assert not errors, "the core may not write files, start processes or draw:\n" + "\n".join(errors)
+
+
+def private_imports() -> list[str]:
+    _, graph = module_graph()
+    errors = []
+    for module, edges in graph.items():
+        for edge in edges:
+            if not edge.target.startswith("nrobust") or edge.target == module:
+                continue
+            private = [n for n in edge.names if n.startswith("_") and not n.startswith("__")]
+            if private:
+                errors.append(f"{module}:{edge.line} takes {', '.join(private)} from {edge.target}")
+    return errors
+
+
+def test_no_private_name_crosses_a_module() -> None:
+    errors = private_imports()
+    assert not errors, "make shared helpers public (one _common module per package at most):\n" + "\n".join(errors)
+
+
+def test_at_most_one_common_module_per_package() -> None:
+    commons = [m for m in all_modules() if m.rsplit(".", 1)[-1].startswith("_common")]
+    packages = [m.rsplit(".", 1)[0] for m in commons]
+    assert len(packages) == len(set(packages)), commons
+
+
+def test_no_lookup_of_code_by_name() -> None:
     offenders = [
         f"{module}: {needle}"
-        for module, path in all_modules().items()
+        for module, paths in all_modules().items()
+        if module not in LOOKUP_BY_NAME
+        for path in paths
         for needle in ("importlib.import_module", "__import__(")
         if needle in path.read_text(encoding="utf-8")
     ]
     assert not offenders, offenders
 
 
-def test_the_rule_bites_on_a_forbidden_edge(tmp_path, monkeypatch):
-    """A core module importing the plants is reported (the check is not vacuous)."""
+def _loaded_by(statement: str) -> list[str]:
+    code = f"import sys; {statement}; print(' '.join(sorted(sys.modules)))"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    return run.stdout.split()
+
+
+@pytest.mark.parametrize("statement", ["import nrobust", "import nrobust.quasipoly", "import nrobust.roots"])
+def test_importing_the_core_loads_the_core_only(statement: str) -> None:
+    """The loaded set stands for the import time, which ``benchmarks/imports.py`` measures."""
+    loaded = _loaded_by(statement)
+    ours = [m for m in loaded if m.startswith("nrobust")]
+    wrong = [m for m in ours if layer_of(m) not in (BASE, CORE, None) and m != "nrobust"]
+    assert not wrong, f"{statement} loads {wrong}"
+    heavy = [
+        m for m in loaded if _matches(m, ("matplotlib", "control", "mpmath", "flint", "dask", "tqdm", "threadpoolctl"))
+    ]
+    assert not heavy, f"{statement} loads {heavy}"
+    if statement == "import nrobust":
+        assert ours == ["nrobust", "nrobust._moved", "nrobust._version"], ours
+
+
+def test_the_rules_bite(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A core module importing the plants, a private name or a process pool is reported."""
     fake = tmp_path / "nrobust"
     (fake / "hyperbolic").mkdir(parents=True)
     (fake / "__init__.py").write_text("")
     (fake / "hyperbolic" / "__init__.py").write_text("")
-    (fake / "margins.py").write_text("from .hyperbolic import controllers\n\n\ndef f():\n    from . import plots\n")
-    monkeypatch.setattr(__import__(__name__), "PACKAGE", fake)
-    errors = forbidden_edges(LAYERS)
-    assert any("nrobust.margins:1 (core) imports nrobust.hyperbolic" in e for e in errors), errors
+    (fake / "hyperbolic" / "kernels.py").write_text("")
+    (fake / "sweeps").mkdir()
+    (fake / "sweeps" / "__init__.py").write_text("import multiprocessing\n")
+    (fake / "margins.py").write_text(
+        "from .hyperbolic.kernels import _march\nfrom . import sweeps\n\n\ndef f():\n    from . import plots\n"
+    )
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", fake)
+    errors = forbidden_edges()
+    assert any("nrobust.margins:1 (core) imports nrobust.hyperbolic.kernels" in e for e in errors), errors
     assert any("inside f()" in e for e in errors), errors
+    assert any("takes _march from nrobust.hyperbolic.kernels" in e for e in private_imports())
+    assert any("nrobust.margins reaches multiprocessing" in e for e in side_effects_of_the_core())

@@ -17,8 +17,14 @@ from nrobust import (
     simulate,
     spectral_abscissa,
 )
-from nrobust.hyperbolic.controllers import FeedbackLaw, OpenLoop, ReflectionController, StateFeedback, characteristic
-from nrobust.hyperbolic.nplusm import (
+from nrobust.hyperbolic.loops.controllers import (
+    FeedbackLaw,
+    OpenLoop,
+    ReflectionController,
+    StateFeedback,
+    characteristic,
+)
+from nrobust.hyperbolic.nplusm.system import (
     NPlusMCharacteristic,
     NPlusMSystem,
     multi_actuator_margin,

@@ -15,7 +15,7 @@ import pytest
 from scipy.linalg import expm
 
 from nrobust import CertificationError, count_roots
-from nrobust.hyperbolic.nplusm import (
+from nrobust.hyperbolic.nplusm.system import (
     NPlusMCharacteristic,
     NPlusMSystem,
     compound_characteristic,
@@ -24,7 +24,7 @@ from nrobust.hyperbolic.nplusm import (
     nplusm_delay_margin,
     simulate_nplusm,
 )
-from nrobust.matrix_crossings import GaugeRemainder, circle_crossings, compound_generator, compound_minors
+from nrobust.margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
 
 TWO_ONE = NPlusMSystem(
     [1.0, 0.5], [1.5], [[0.0, 0.0, 0.4], [0.0, 0.0, 0.3], [0.5, -0.4, 0.0]], [[0.6], [0.5]], [[0.5, 0.4]]
@@ -77,7 +77,7 @@ def test_compound_form_is_the_determinant(system: NPlusMSystem, K: list, delta: 
 
 def test_gauge_remainder_on_the_compound_transition() -> None:
     """||exp(D - s P) - exp(D_d - s P)|| <= r(|s|) on the axis and in Re s > 0 (P >= 0 in compound form)."""
-    from nrobust.hyperbolic.nplusm import _compound_loop
+    from nrobust.hyperbolic.nplusm.system import _compound_loop
 
     dc, p, _, _ = _compound_loop(COUPLED, np.array(K_BOTH))
     assert np.all(p >= 0)
@@ -171,7 +171,7 @@ def test_coupled_two_actuators_counts_and_simulation() -> None:
 
 def test_multi_actuator_margin_without_omega_max_is_the_certified_route(monkeypatch: pytest.MonkeyPatch) -> None:
     """``omega_max`` is optional: without it ``multi_actuator_margin`` returns the certified margin."""
-    import nrobust.hyperbolic.nplusm as nplusm
+    import nrobust.hyperbolic.nplusm.system as nplusm
 
     calls: list[tuple[tuple, dict]] = []
 

@@ -13,8 +13,8 @@ import pytest
 from nrobust import plots
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2
-from nrobust.hyperbolic.controllers import ReflectionController
-from nrobust.hyperbolic.simulate import simulate
+from nrobust.hyperbolic.loops.controllers import ReflectionController
+from nrobust.hyperbolic.simulate.normal_form import simulate
 from nrobust.quasipoly import QuasiPolynomial as Q
 from nrobust.roots import count_roots, find_roots
 
@@ -146,7 +146,7 @@ def test_plot_arguments_are_checked():
 
 
 def test_stability_chart_and_tradeoff_plots_draw_their_data():
-    from nrobust.hyperbolic.studies import StabilityChart, Tradeoff
+    from nrobust.hyperbolic.analyses.studies import StabilityChart, Tradeoff
 
     Ks = np.array([-0.1, 0.0, 0.1])
     deltas = np.array([0.0, 0.1, 0.2])
@@ -188,14 +188,14 @@ def test_root_locus_in_delta_and_the_one_call_wrappers():
 
 
 def _paper_loop(controller, delta):
-    from nrobust.hyperbolic.controllers import characteristic
+    from nrobust.hyperbolic.loops.controllers import characteristic
 
     return characteristic(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85), controller, delta)
 
 
 def test_root_map_shows_the_unstable_open_loop_root():
     """Open loop of the paper's plant: one unstable real root, 0.923 (outside the old fixed box [-3, 1]/tau)."""
-    from nrobust.hyperbolic.controllers import OpenLoop
+    from nrobust.hyperbolic.loops.controllers import OpenLoop
     from nrobust.roots import spectral_abscissa
 
     F = _paper_loop(OpenLoop(), 0.0)
@@ -213,7 +213,7 @@ def test_root_map_shows_the_unstable_open_loop_root():
 @pytest.mark.slow
 def test_root_map_shows_the_unstable_roots_of_u_bs_at_a_small_delay():
     """U_BS with delta = 0.01: the unstable roots sit near Im s = +-311 on the chains at Re s = 0.2647."""
-    from nrobust.hyperbolic.controllers import FiniteTimeController
+    from nrobust.hyperbolic.loops.controllers import FiniteTimeController
     from nrobust.roots import spectral_abscissa
 
     F = _paper_loop(FiniteTimeController(), 0.01)
@@ -234,8 +234,8 @@ def test_root_map_shows_the_unstable_roots_of_u_bs_at_a_small_delay():
 def test_figure_1_cuts_its_axis_at_the_residual_and_shows_the_growth():
     """Under U_BS without delay the norm reaches the scheme's residual after t = tau (down to
     1e-40 and below); the axis stops at h^2 max ||.|| so that the delta = 0.01 growth shows."""
-    from nrobust.hyperbolic.controllers import FiniteTimeController
-    from nrobust.paper import PAPER_DELAYS_FIG1, PAPER_SYSTEM, _paper_u0, _paper_v0, paper_figure
+    from nrobust.hyperbolic.loops.controllers import FiniteTimeController
+    from nrobust.reports.paper import PAPER_DELAYS_FIG1, PAPER_SYSTEM, _paper_u0, _paper_v0, paper_figure
 
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     runs = [
@@ -262,8 +262,8 @@ def test_figure_1_cuts_its_axis_at_the_residual_and_shows_the_growth():
 def test_rouche_curve_is_drawn_for_negative_gains_too():
     """delta_0(K) of Theorem 4 depends on |K| only; a curve computed for K >= 0 is mirrored,
     and the mirrored values are the bound computed at -K."""
-    from nrobust.hyperbolic.robustness import rouche_delay_bound
-    from nrobust.hyperbolic.studies import StabilityChart
+    from nrobust.hyperbolic.analyses.rouche import rouche_delay_bound
+    from nrobust.hyperbolic.analyses.studies import StabilityChart
 
     system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
     Ks = np.array([0.0, 0.05, 0.1])
@@ -347,7 +347,7 @@ def test_root_map_of_u_bs_at_delta_0001_says_where_the_unstable_roots_are():
     """U_BS at delta = 0.001 on the paper's plant: the chains (delays 2 and 2.001, not resolved
     within the degree bound) reach Re s = 0.26525 near Im s = pi / 0.001, far above the map.
     The figure says so; three of those roots are found there independently."""
-    from nrobust.hyperbolic.controllers import FiniteTimeController
+    from nrobust.hyperbolic.loops.controllers import FiniteTimeController
 
     F = _paper_loop(FiniteTimeController(), 0.001)
     box = plots.root_map_region(F)
@@ -371,9 +371,9 @@ def test_root_map_of_u_bs_at_delta_0001_says_where_the_unstable_roots_are():
 def test_report_caption_names_the_unstable_roots_above_the_root_map():
     """The report repeats the figure's note: U_BS on the transport line at delta_max = 0.001."""
     from nrobust import TransportSystem
-    from nrobust.certificate import certify
-    from nrobust.hyperbolic.controllers import FiniteTimeController
-    from nrobust.report import certificate_figures
+    from nrobust.hyperbolic.loops.controllers import FiniteTimeController
+    from nrobust.reports.certificate import certify
+    from nrobust.reports.report import certificate_figures
 
     cert = certify(TransportSystem(1.0, 1.0, 1.0, 0.85), FiniteTimeController(), delta_max=0.001)
     caption = certificate_figures(cert)[0][0]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import nrobust.paper
+import nrobust.reports.paper
 from nrobust import (
     DistributedDelay,
     FiniteTimeController,
@@ -37,11 +37,11 @@ from nrobust import (
     solve_kernels,
 )
 from nrobust.config import load_system_file
-from nrobust.hyperbolic.kernels import DEFAULT_KERNEL_GRID
-from nrobust.hyperbolic.simulate import DEFAULT_CELLS, v_nodes
-from nrobust.hyperbolic.studies import DEFAULT_N_GAINS
-from nrobust.plots import nyquist_response
-from nrobust.sweepfile import ANALYSES
+from nrobust.hyperbolic.analyses.studies import DEFAULT_N_GAINS
+from nrobust.hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
+from nrobust.hyperbolic.simulate.normal_form import DEFAULT_CELLS, v_nodes
+from nrobust.plots.figures import nyquist_response
+from nrobust.sweeps.sweepfile import ANALYSES
 
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 UNEQUAL = Hyperbolic2x2(1.0, 2.5, 0.5, 0.3, 0.7, 0.4)
@@ -158,13 +158,13 @@ def test_run_paper_n_is_cells(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
 
         return run
 
-    monkeypatch.setattr(nrobust.paper, "sweep_map", runner)
+    monkeypatch.setattr(nrobust.reports.paper, "sweep_map", runner)
     with pytest.raises(_Stop):
-        nrobust.paper.run_paper(tmp_path, progress=False, workers=0, cells=24)
+        nrobust.reports.paper.run_paper(tmp_path, progress=False, workers=0, cells=24)
     with _warns("cells"), pytest.raises(_Stop):
-        nrobust.paper.run_paper(tmp_path, progress=False, workers=0, n=24)
+        nrobust.reports.paper.run_paper(tmp_path, progress=False, workers=0, n=24)
     with pytest.raises(_Stop):
-        nrobust.paper.run_paper(tmp_path, progress=False, workers=0)
+        nrobust.reports.paper.run_paper(tmp_path, progress=False, workers=0)
     new, old, default = seen
     assert len(new) == 5 and old == new and all(job[-1] == 24 for job in new)
     assert all(job[-1] == DEFAULT_CELLS for job in default)

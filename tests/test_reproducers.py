@@ -38,7 +38,7 @@ from nrobust import (
     ReflectionController,
     TransportSystem,
 )
-from nrobust.report import write_report
+from nrobust.reports.report import write_report
 
 QP = QuasiPolynomial
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)

@@ -19,10 +19,10 @@ from _sweep_helpers import MARKERS_ENV, SLOW, marker_name
 
 import nrobust
 from nrobust.errors import ParameterError
-from nrobust.outputs import MANIFEST, RunOutputs, atomic_write, check_output_dir, read_manifest
-from nrobust.parallel import SweepInterrupted
-from nrobust.sweep import ANALYSES, run_sweep_file
-from nrobust.sweepfile import JOURNAL
+from nrobust.reports.outputs import MANIFEST, RunOutputs, atomic_write, check_output_dir, read_manifest
+from nrobust.sweeps import ANALYSES, run_sweep_file
+from nrobust.sweeps.engine import SweepInterrupted
+from nrobust.sweeps.sweepfile import JOURNAL
 
 TESTS = Path(__file__).resolve().parent
 

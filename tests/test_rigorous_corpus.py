@@ -14,7 +14,7 @@ import pytest
 from _corpus import ABSCISSAE, CROSSINGS, MARGINS, ROOTS
 
 from nrobust import crossing_frequencies, delay_margin
-from nrobust.proven_crossings import proven_crossings
+from nrobust.margins.proven import proven_crossings
 from nrobust.roots import count_roots, find_roots, spectral_abscissa
 
 pytest.importorskip("flint")

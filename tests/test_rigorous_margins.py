@@ -35,14 +35,14 @@ from nrobust import (
 )
 from nrobust import delay_margin as plant_margin
 from nrobust.bounds import delay_bound_from_kernel, l1_modulus
-from nrobust.certificate import CHECKED, PROVEN, _outward
 from nrobust.cli import main
 from nrobust.config import load_system_file
-from nrobust.hyperbolic.delay_form import delay_form
-from nrobust.margins import delay_margin
-from nrobust.paper import PAPER_K, PAPER_SYSTEM
-from nrobust.proven_crossings import proven_crossings, proven_gap, proven_zero_root
+from nrobust.hyperbolic.loops.delay_form import delay_form
+from nrobust.margins.margin import delay_margin
+from nrobust.margins.proven import proven_crossings, proven_gap, proven_zero_root
 from nrobust.quasipoly import DistributedDelay
+from nrobust.reports.certificate import CHECKED, PROVEN, _outward
+from nrobust.reports.paper import PAPER_K, PAPER_SYSTEM
 
 pytest.importorskip("flint")
 

@@ -1,4 +1,4 @@
-"""Tests of the time-domain simulator (nrobust.hyperbolic.simulate).
+"""Tests of the time-domain simulator (nrobust.hyperbolic.simulate.normal_form).
 
 References used here are independent of the simulator: the method of characteristics in
 closed form for transport loops, the exact target-system identity of U_BS2 (eq.
@@ -29,9 +29,9 @@ from nrobust import (
     simulate,
     spectral_abscissa,
 )
-from nrobust.hyperbolic.kernels import solve_kernels
-from nrobust.hyperbolic.simulate import v_nodes
-from nrobust.hyperbolic.system import Hyperbolic2x2, TransportSystem
+from nrobust.hyperbolic.kernels.constant import solve_kernels
+from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
+from nrobust.hyperbolic.simulate.normal_form import v_nodes
 
 PAPER = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
 PAPER_TRANSPORT = TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.85)

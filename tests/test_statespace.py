@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nrobust import DistributedDelay, ParameterError, QuasiPolynomial, count_roots, find_roots
-from nrobust.statespace import StateSpaceTDS
+from nrobust.lti.statespace import StateSpaceTDS
 
 A0 = np.array([[-1.0, 0.5], [0.3, -2.0]])
 A1 = np.array([[-0.8, 0.2], [0.1, -0.5]])

@@ -15,8 +15,8 @@ import pytest
 import nrobust
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import TransportSystem
-from nrobust.sweep import ANALYSES, PointFailure, RobustnessResult, run_sweep_file
-from nrobust.sweepfile import _Analysis
+from nrobust.sweeps import ANALYSES, PointFailure, RobustnessResult, run_sweep_file
+from nrobust.sweeps.sweepfile import _Analysis
 
 distributed = pytest.importorskip("distributed")
 
@@ -466,7 +466,7 @@ def test_process_pool_workers_have_one_blas_thread():
     """Workers of the local pool run their BLAS on one thread, whatever the parent uses."""
     from threadpoolctl import threadpool_limits
 
-    from nrobust.sweep import sweep_map
+    from nrobust.sweeps import sweep_map
 
     with threadpool_limits(2):
         assert sweep_map(2, chunksize=1)(_blas_threads, [0, 1]) == [1, 1]
@@ -474,7 +474,7 @@ def test_process_pool_workers_have_one_blas_thread():
 
 def test_sweep_map_keeps_order_and_names_a_failing_item():
     from nrobust.errors import SweepError
-    from nrobust.sweep import sweep_map
+    from nrobust.sweeps import sweep_map
 
     items = [5, 1, 4, 2]
     assert sweep_map("serial")(_square_or_fail, items) == [25, 1, 16, 4]

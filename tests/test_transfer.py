@@ -9,10 +9,10 @@ from scipy.linalg import expm
 
 from nrobust.errors import CertificationError, ParameterError, SpuriousPoleWarning
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
-from nrobust.hyperbolic.controllers import FilteredController, ReflectionController, characteristic, loop_factors
-from nrobust.hyperbolic.loops import closed_loop_tf, open_loop_tf, output_map
+from nrobust.hyperbolic.loops.controllers import FilteredController, ReflectionController, characteristic, loop_factors
+from nrobust.hyperbolic.loops.transfer import closed_loop_tf, open_loop_tf, output_map
+from nrobust.lti.transfer import QuasiTransferFunction, pade_approximation, to_frd
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
-from nrobust.transfer import QuasiTransferFunction, pade_approximation, to_frd
 
 RNG = np.random.default_rng(7)
 POINTS = RNG.uniform(-0.5, 2.0, 6) + 1j * RNG.uniform(-20.0, 20.0, 6)

@@ -33,10 +33,10 @@ from nrobust import (
 )
 from nrobust.bounds import l1_modulus, root_free_region, total_variation
 from nrobust.errors import ParameterError
-from nrobust.hyperbolic.kernels import MAX_KERNEL_GRID, RESOLUTION, solve_kernels
-from nrobust.plots import nyquist_response
+from nrobust.hyperbolic.kernels.constant import MAX_KERNEL_GRID, RESOLUTION, solve_kernels
+from nrobust.lti.transfer import to_frd
+from nrobust.plots.figures import nyquist_response
 from nrobust.roots import count_roots
-from nrobust.transfer import to_frd
 
 QP = QuasiPolynomial
 NAN, INF = float("nan"), float("inf")

@@ -3,7 +3,7 @@
 Independent checks: the paper's kernels (constant speeds), the normal-form route (constant
 ratio, diagonal terms, ``L = 2``), the kernel-free Laplace route with the same feedback law
 (``A + B = 1`` is the finite-time property of U_BS in the Laplace domain), the characteristic
-route of :mod:`nrobust.hyperbolic.varying`, and simulation (finite time without delay,
+route of :mod:`nrobust.hyperbolic.loops.varying_form`, and simulation (finite time without delay,
 growth rate against the spectral abscissa with a delay).
 """
 
@@ -27,10 +27,10 @@ from nrobust.hyperbolic import (
     solve_varying_kernels,
     varying_delay_form,
 )
-from nrobust.hyperbolic.general import as_general
-from nrobust.hyperbolic.simulate import simulate
-from nrobust.hyperbolic.simulate_general import simulate_general
-from nrobust.hyperbolic.studies import delay_margin
+from nrobust.hyperbolic.analyses.studies import delay_margin
+from nrobust.hyperbolic.plants.general import as_general
+from nrobust.hyperbolic.simulate.general import simulate_general
+from nrobust.hyperbolic.simulate.normal_form import simulate
 
 S = np.array([0.1 + 0.5j, -0.3 + 3.0j, 0.5 + 8.0j, 1.0 + 0.0j, 0.2 + 15.0j])
 # lam/mu varies from 1/2 to 2; diagonal terms a = 0.2, d = -0.3.

@@ -17,7 +17,9 @@ general plant simulated along its characteristics;
 controller and the gain studies; ``simulate``: the PDE itself with a delayed control.
 """
 
-from .controllers import (
+from .kernels.constant import Kernels, solve_kernels
+from .kernels.varying import VaryingKernels, solve_varying_kernels
+from .loops.controllers import (
     Classification,
     Controller,
     FeedbackLaw,
@@ -31,17 +33,15 @@ from .controllers import (
     loop_factors,
     normalize,
 )
-from .delay_form import DelayForm, delay_form
-from .feedback import feedback_factor, laplace_loop_factors
-from .frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
-from .general import GeneralHyperbolic2x2, NormalForm
-from .kernels import Kernels, solve_kernels
-from .laplace import boundary_function, general_solution
-from .nplusm_kernels import NPlusMBackstepping, NPlusMKernels, backstepping_delay_margin, solve_nplusm_kernels
-from .simulate_general import GeneralSimulation, simulate_general
-from .system import Hyperbolic2x2, TransportSystem
-from .varying import VaryingDelayForm, varying_delay_form
-from .varying_kernels import VaryingKernels, solve_varying_kernels
+from .loops.delay_form import DelayForm, delay_form
+from .loops.feedback import feedback_factor, laplace_loop_factors
+from .loops.laplace import boundary_function, general_solution
+from .loops.varying_form import VaryingDelayForm, varying_delay_form
+from .nplusm.kernels import NPlusMBackstepping, NPlusMKernels, backstepping_delay_margin, solve_nplusm_kernels
+from .plants.frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
+from .plants.general import GeneralHyperbolic2x2, NormalForm
+from .plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
+from .simulate.general import GeneralSimulation, simulate_general
 
 __all__ = [
     "Classification",

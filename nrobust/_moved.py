@@ -1,0 +1,108 @@
+"""Module paths that moved when the package was laid out in layers: deprecated aliases.
+
+``import nrobust.crossings`` (say) still works: a finder at the end of ``sys.meta_path``
+answers for the old path with a module that forwards every attribute to the new home and
+emits one ``DeprecationWarning`` naming it. ``CHANGELOG.md`` lists the moves;
+``docs/api.md`` gives the new paths. New code imports from the new homes.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.machinery
+import sys
+import types
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+#: Old module path -> the new homes searched for an attribute, in order.
+MOVED: dict[str, tuple[str, ...]] = {
+    "nrobust.statespace": ("nrobust.lti",),
+    "nrobust.transfer": ("nrobust.lti", "nrobust.hyperbolic.loops"),
+    "nrobust.crossings": ("nrobust.margins",),
+    "nrobust.proven_crossings": ("nrobust.margins",),
+    "nrobust.matrix_crossings": ("nrobust.margins",),
+    "nrobust.hyperbolic.system": ("nrobust.hyperbolic.plants",),
+    "nrobust.hyperbolic.general": ("nrobust.hyperbolic.plants",),
+    "nrobust.hyperbolic.frontends": ("nrobust.hyperbolic.plants",),
+    "nrobust.hyperbolic.varying_kernels": ("nrobust.hyperbolic.kernels",),
+    "nrobust.hyperbolic.nplusm_kernels": ("nrobust.hyperbolic.nplusm",),
+    "nrobust.hyperbolic.laplace": ("nrobust.hyperbolic.loops",),
+    "nrobust.hyperbolic.delay_form": ("nrobust.hyperbolic.loops",),
+    "nrobust.hyperbolic.varying": ("nrobust.hyperbolic.loops",),
+    "nrobust.hyperbolic.controllers": ("nrobust.hyperbolic.loops",),
+    "nrobust.hyperbolic.feedback": ("nrobust.hyperbolic.loops",),
+    "nrobust.hyperbolic.robustness": ("nrobust.hyperbolic.analyses",),
+    "nrobust.hyperbolic.studies": ("nrobust.hyperbolic.analyses",),
+    "nrobust.hyperbolic.simulate_general": ("nrobust.hyperbolic.simulate",),
+    "nrobust.parallel": ("nrobust.sweeps",),
+    "nrobust.montecarlo": ("nrobust.sweeps",),
+    "nrobust.sweepfile": ("nrobust.sweeps",),
+    "nrobust.sweep": ("nrobust.sweeps", "nrobust.hyperbolic.analyses"),
+    "nrobust.certificate": ("nrobust.reports",),
+    "nrobust.report": ("nrobust.reports",),
+    "nrobust.outputs": ("nrobust.reports",),
+    "nrobust.paper": ("nrobust.reports",),
+    "nrobust.analyze": ("nrobust.reports",),
+    "nrobust.nplusm_report": ("nrobust.reports",),
+}
+
+
+class MovedModule(types.ModuleType):
+    """An old module path: every attribute is looked up in the new homes."""
+
+    def __init__(self, name: str, homes: Sequence[str]) -> None:
+        super().__init__(name, f"Deprecated alias of {', '.join(homes)}.")
+        self.__homes = tuple(homes)
+
+    def __getattr__(self, attr: str) -> Any:
+        if attr.startswith("__"):
+            raise AttributeError(attr)
+        for home in self.__homes:
+            module = importlib.import_module(home)
+            if hasattr(module, attr):
+                return getattr(module, attr)
+        raise AttributeError(f"module {self.__name__!r} (now {', '.join(self.__homes)}) has no attribute {attr!r}")
+
+    def __dir__(self) -> list[str]:
+        return sorted({n for home in self.__homes for n in dir(importlib.import_module(home))})
+
+
+def _importer_stacklevel() -> int:
+    """The ``stacklevel`` of the first frame outside the import machinery and this module."""
+    frame = sys._getframe(1)
+    level = 1
+    while frame is not None and (
+        frame.f_code.co_filename.startswith("<frozen") or frame.f_code.co_filename == __file__
+    ):
+        frame = frame.f_back  # type: ignore[assignment]
+        level += 1
+    return level
+
+
+class MovedFinder:
+    """Finder and loader (``importlib.abc`` protocols) of the old paths of :data:`MOVED`, last on ``sys.meta_path``."""
+
+    def find_spec(self, fullname: str, path: Any, target: Any = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname not in MOVED:
+            return None
+        return importlib.machinery.ModuleSpec(fullname, self)
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
+        homes = MOVED[spec.name]
+        warnings.warn(
+            f"{spec.name} moved to {homes[0]}; import from there ({spec.name} is a deprecated alias)",
+            DeprecationWarning,
+            stacklevel=_importer_stacklevel(),
+        )
+        return MovedModule(spec.name, homes)
+
+    def exec_module(self, module: types.ModuleType) -> None:
+        """Nothing to run: attributes are forwarded on access."""
+
+
+def install() -> None:
+    """Put :class:`MovedFinder` last on ``sys.meta_path`` (once)."""
+    if not any(isinstance(f, MovedFinder) for f in sys.meta_path):
+        sys.meta_path.append(MovedFinder())

@@ -1,0 +1,15 @@
+"""Backstepping kernels of 2x2 plants: constant speeds on the paper's triangle
+(``constant``) and varying speeds (``varying``).
+"""
+
+from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, Kernels, solve_kernels
+from .varying import VaryingKernels, solve_varying_kernels
+
+__all__ = [
+    "DEFAULT_KERNEL_GRID",
+    "Kernels",
+    "MAX_KERNEL_GRID",
+    "VaryingKernels",
+    "solve_kernels",
+    "solve_varying_kernels",
+]

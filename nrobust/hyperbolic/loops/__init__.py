@@ -1,0 +1,53 @@
+"""From a plant and a controller to the loop ``F(s; delta) = A(s) + B(s) e^{-delta s}``:
+the controllers (``controllers``), any state feedback (``feedback``), the delay form of
+eq. (39) (``delay_form``; ``varying_form`` for varying speeds), the kernel-free Laplace
+route (``laplace``) and the loops' transfer functions (``transfer``).
+"""
+
+from .controllers import (
+    Classification,
+    Controller,
+    FeedbackLaw,
+    FilteredController,
+    FiniteTimeController,
+    OpenLoop,
+    ReflectionController,
+    StateFeedback,
+    characteristic,
+    classify,
+    loop_factors,
+    normalize,
+)
+from .delay_form import DelayForm, delay_form
+from .feedback import feedback_factor, laplace_loop_factors
+from .laplace import boundary_function, general_solution, magnus_steps
+from .transfer import closed_loop_tf, open_loop_tf, output_map
+from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
+
+__all__ = [
+    "Classification",
+    "Controller",
+    "DEFAULT_CHARACTERISTIC_GRID",
+    "DelayForm",
+    "FeedbackLaw",
+    "FilteredController",
+    "FiniteTimeController",
+    "OpenLoop",
+    "ReflectionController",
+    "StateFeedback",
+    "VaryingDelayForm",
+    "boundary_function",
+    "characteristic",
+    "classify",
+    "closed_loop_tf",
+    "delay_form",
+    "feedback_factor",
+    "general_solution",
+    "laplace_loop_factors",
+    "loop_factors",
+    "magnus_steps",
+    "normalize",
+    "open_loop_tf",
+    "output_map",
+    "varying_delay_form",
+]

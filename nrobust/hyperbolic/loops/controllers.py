@@ -1,0 +1,538 @@
+"""Boundary controllers of the paper and their closed loops with a loop delay.
+
+Write ``Phi(t) = rho u(t, 1) - int_0^1 K^{vu}(1, xi) u + K^{vv}(1, xi) v dxi``, so that the
+actuated boundary condition reads ``beta(t, 1) = Phi(t) + U(t)`` in the backstepping
+coordinates (paper, eq. (34)). Along the characteristics (eqs. (37) to
+(39)), ``Phi`` is a functional of the past of ``beta(., 1)`` whose Laplace
+transform is ``Phi(s) beta(s, 1)`` with
+
+    Phi(s) = rho q e^{-tau s} - I_N(s),    I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu.
+
+A controller with a loop delay ``delta`` then closes the loop as
+``F(s; delta) = A(s) + B(s) e^{-delta s}``:
+
+============================  ======================  =========================
+controller                    A(s)                    B(s)
+============================  ======================  =========================
+open loop, ``U = 0``          ``1 - Phi``             ``0``
+U_BS, eq. (47)                ``1 - Phi``             ``Phi``
+U_BS2(K), eq. (53)            ``1 - Phi``             ``K q e^{-tau s} - I_N``
+filtered U_BS, section 2.3.2  ``(1 + b s)(1 - Phi)``  ``(1 + a s) Phi``
+any state feedback            ``1 - Phi``             ``-P`` (``feedback.py``)
+============================  ======================  =========================
+
+For U_BS this is ``1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s} + I_N (1 - e^{-delta s})``
+(Theorem 3), for U_BS2 ``1 - rho q e^{-tau s} + K q e^{-(tau+delta) s} + I_N (1 - e^{-delta
+s})`` (the proof of Theorem 4, with ``+I(s, delta)``). On a transport system ``I_N = 0``
+and these are eqs. (10), (13) and (16);
+the last one, derived again from ``U_1 = -(1 + a s)/(1 + b s) rho u(1, s)``, has
+``rho q v(t - tau - delta, 1)`` (not ``q rho a``) on its right-hand side.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._json import fields_dict, json_safe
+from ..._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
+from ...errors import ParameterError
+from ...quasipoly import QuasiPolynomial
+from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
+from ..kernels.varying import VaryingKernels, solve_varying_kernels
+from ..plants.general import GeneralHyperbolic2x2
+from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
+from ..plants.law import FeedbackLaw
+from .delay_form import delay_form
+from .feedback import feedback_factor
+from .varying_form import VaryingDelayForm, varying_delay_form
+
+__all__ = [
+    "Classification",
+    "Controller",
+    "FeedbackLaw",
+    "FilteredController",
+    "FiniteTimeController",
+    "OpenLoop",
+    "ReflectionController",
+    "StateFeedback",
+    "characteristic",
+    "classify",
+    "loop_factors",
+    "normalize",
+]
+
+Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+
+def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.zeros_like(np.asarray(xi, dtype=float))
+
+
+class Controller(ABC):
+    """A boundary controller for :class:`~nrobust.hyperbolic.system.Hyperbolic2x2`."""
+
+    @abstractmethod
+    def factors(
+        self, phi: QuasiPolynomial, i_n: QuasiPolynomial, round_trip: QuasiPolynomial
+    ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+        """``(A, B)`` from ``Phi``, ``I_N`` and the round trip ``q e^{-tau s}`` (see the module table)."""
+
+    @abstractmethod
+    def feedback_law(self, system: Hyperbolic2x2, kernels: Any = None) -> FeedbackLaw:
+        """The control law as gains on the state; ``kernels`` from ``solve_kernels``."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the class name under ``"controller"`` and the parameters."""
+        return json_safe({"controller": type(self).__name__, **vars(self)})
+
+
+def _kernel_gains(system: Hyperbolic2x2, kernels: Any, pairs: tuple[tuple[str, float], ...]) -> Gain:
+    """``xi -> sum_k c_k kernel_k(1, xi)``; zero on an uncoupled system without kernels."""
+    if kernels is None:
+        if system.uncoupled:
+            return _zero_gain
+        raise ParameterError("kernels", "the result of solve_kernels(system) for a coupled system", None)
+
+    def gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
+        xi = np.asarray(xi, dtype=float)
+        ones = np.ones_like(xi)
+        return sum(c * getattr(kernels, name)(ones, xi) for name, c in pairs)
+
+    return gain
+
+
+@dataclass(frozen=True)
+class OpenLoop(Controller):
+    """No control, ``U = 0``."""
+
+    def factors(self, phi, i_n, round_trip):
+        return 1.0 - phi, phi * 0.0
+
+    def feedback_law(self, system, kernels=None):
+        return FeedbackLaw(0.0, _zero_gain, _zero_gain)
+
+
+@dataclass(frozen=True)
+class FiniteTimeController(Controller):
+    """U_BS, eq. (47): cancels the proximal reflection; finite time for ``delta = 0``.
+
+    ``U_BS = -rho u(t, 1) + int_0^1 K^{vu}(1, xi) u + K^{vv}(1, xi) v dxi``; on a transport
+    system, ``U = -rho u(t, 1)`` (eq. (9)).
+    """
+
+    def factors(self, phi, i_n, round_trip):
+        return 1.0 - phi, phi
+
+    def feedback_law(self, system, kernels=None):
+        return FeedbackLaw(
+            -system.rho,
+            _kernel_gains(system, kernels, (("Kvu", 1.0),)),
+            _kernel_gains(system, kernels, (("Kvv", 1.0),)),
+        )
+
+
+@dataclass(frozen=True)
+class ReflectionController(Controller):
+    """U_BS2(K), eq. (53): keeps ``rho - K`` of the proximal reflection.
+
+    ``U = -K u(1) - (rho - K) int K^{uu}(1,.) u + K^{uv}(1,.) v + int K^{vu}(1,.) u + K^{vv}(1,.) v``;
+    the target system reflects ``(rho - K)`` at ``x = 1``, exponentially stable when
+    ``|K| < (1 - |rho q|)/|q|`` (eq. (54)). On a transport system, ``U = -K u(t, 1)``
+    (eq. (12)).
+
+    Parameters
+    ----------
+    K : float
+        The tuning gain trading decay rate for delay robustness.
+    """
+
+    K: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "K", finite_real("K", self.K))
+
+    def factors(self, phi, i_n, round_trip):
+        return 1.0 - phi, self.K * round_trip - i_n
+
+    def feedback_law(self, system, kernels=None):
+        r = system.rho - self.K
+        return FeedbackLaw(
+            -self.K,
+            _kernel_gains(system, kernels, (("Kvu", 1.0), ("Kuu", -r))),
+            _kernel_gains(system, kernels, (("Kvv", 1.0), ("Kuv", -r))),
+        )
+
+
+@dataclass(frozen=True)
+class FilteredController(Controller):
+    """U_BS passed through the proper filter ``(1 + a s)/(1 + b s)`` (section 2.3.2).
+
+    On a transport system this is ``U_1(s) = -(1 + a s)/(1 + b s) rho u(1, s)``.
+
+    Parameters
+    ----------
+    a : float
+        Filter zero coefficient.
+    b : float
+        Filter pole coefficient, ``b > 0``.
+    """
+
+    a: float
+    b: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "a", finite_real("a", self.a))
+        object.__setattr__(self, "b", positive("b", self.b))
+
+    def factors(self, phi, i_n, round_trip):
+        return (1.0 - phi).times_poly([1.0, self.b]), phi.times_poly([1.0, self.a])
+
+    def feedback_law(self, system, kernels=None):
+        law = FiniteTimeController().feedback_law(system, kernels)
+        return FeedbackLaw(law.boundary_gain, law.gain_u, law.gain_v, (self.a, self.b))
+
+
+@dataclass(frozen=True)
+class StateFeedback(Controller):
+    """Any linear boundary state feedback ``U = k u(t, L) + int_0^L g_u u + g_v v dx``.
+
+    The gains act on the state of the plant the controller is used with (on a
+    :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2`, its physical coordinates on
+    ``[0, L]``). Its loop factors are ``A = 1 - Phi`` and ``B = -P`` with ``P`` of
+    :func:`~nrobust.hyperbolic.feedback.feedback_factor` (the gains composed with the
+    inverse kernels), so they need the plant: :func:`loop_factors` computes them. The
+    proportional output feedback ``U = -K u(t, L)`` is ``StateFeedback(-K)``; U_BS and
+    U_BS2(K) are the cases whose gains are the kernel traces of their ``feedback_law``.
+
+    Parameters
+    ----------
+    k : float
+        Gain on ``u(t, L)``.
+    g_u, g_v : float or callable, default 0
+        Gains of the integral term, numbers or callables on arrays of ``x``.
+    """
+
+    k: float
+    g_u: Any = 0.0
+    g_v: Any = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "k", finite_real("k", self.k))
+        for name in ("g_u", "g_v"):
+            value = getattr(self, name)
+            if not callable(value):
+                object.__setattr__(self, name, finite_real(name, value))
+
+    def factors(self, phi, i_n, round_trip):
+        raise ParameterError(
+            "controller", "used through loop_factors(system, controller): a state feedback's B needs the plant", self
+        )
+
+    def feedback_law(self, system, kernels=None):
+        def gain(value: Any) -> Gain:
+            if callable(value):
+                return value
+            return lambda xi: np.full(np.shape(xi), float(value))
+
+        return FeedbackLaw(self.k, gain(self.g_u), gain(self.g_v))
+
+    def to_dict(self) -> dict[str, Any]:
+        gains = {
+            n: (getattr(self, n) if not callable(getattr(self, n)) else repr(getattr(self, n))) for n in ("g_u", "g_v")
+        }
+        return json_safe({"controller": "StateFeedback", "k": self.k, **gains})
+
+
+def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
+    """The plant as the paper's plant and the controller acting on it.
+
+    A :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` is replaced by its normal
+    form; a :class:`StateFeedback` on it gets its gains mapped to the normal coordinates
+    (:meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`). The paper's
+    controllers are defined on the normal form and pass unchanged. The characteristic
+    function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
+    those of the general plant. A general plant with a varying ``lam/mu`` has no normal form
+    and passes unchanged with its controller: every analysis takes it by the characteristic
+    route (:func:`~nrobust.hyperbolic.varying.varying_delay_form`). Any other plant (and
+    its controller) passes unchanged.
+    """
+    if isinstance(system, GeneralHyperbolic2x2) and system.constant_ratio:
+        form = system.normal_form()
+        if isinstance(controller, StateFeedback):
+            controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
+        return form.system, controller
+    return system, controller
+
+
+def _check(system: Any, controller: Any) -> None:
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
+    _check_controller(controller)
+
+
+def _check_controller(controller: Any) -> None:
+    if not isinstance(controller, Controller):
+        raise ParameterError(
+            "controller",
+            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController or StateFeedback",
+            controller,
+        )
+
+
+@lru_cache(maxsize=32)
+def _distributed_part(system: Hyperbolic2x2, kernel_grid: int) -> QuasiPolynomial:
+    """``I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu`` (zero on an uncoupled system)."""
+    if system.uncoupled:
+        return QuasiPolynomial([[0.0]], [0.0])
+    return QuasiPolynomial([], [], [delay_form(system, kernels=_kernels(system, kernel_grid)).N_tilde])
+
+
+def _varying_factors(
+    system: GeneralHyperbolic2x2, controller: Controller, kernel_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` of a plant with a varying speed ratio, from its characteristic delay form.
+
+    ``Phi = rho_q e^{-tau s} - I_N`` as for the paper's plant; a proportional feedback
+    ``StateFeedback(k)`` takes ``B`` from the same route, a state feedback with integral gains
+    from the kernels with varying speeds
+    (:meth:`~nrobust.hyperbolic.varying_kernels.VaryingKernels.feedback_factor`, on
+    ``kernel_grid`` points). U_BS2(K), whose ``K q`` is a normal-form quantity, is refused.
+    """
+    _check_controller(controller)
+    form = _varying_form(system)
+    i_n = QuasiPolynomial([], [], form.characteristic.distributed)
+    phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
+    if isinstance(controller, StateFeedback):
+        if callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0:
+            kernels = _varying_kernels(system, positive_int("kernel_grid", kernel_grid, 5))
+            return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
+        return 1.0 - phi, form.u_factor() * (-controller.k)
+    if isinstance(controller, ReflectionController):
+        raise ParameterError(
+            "controller",
+            "OpenLoop, FiniteTimeController, FilteredController or StateFeedback on a plant with a varying "
+            "lam/mu (U_BS2(K) is defined on the normal form, which needs a constant lam/mu)",
+            controller,
+        )
+    return controller.factors(phi, i_n, QuasiPolynomial([[0.0]], [0.0]))
+
+
+@lru_cache(maxsize=8)
+def _varying_kernels(system: GeneralHyperbolic2x2, kernel_grid: int) -> VaryingKernels:
+    """The kernels with varying speeds of a plant with a varying speed ratio (cached)."""
+    return solve_varying_kernels(system, kernel_grid)
+
+
+@lru_cache(maxsize=8)
+def _varying_form(system: GeneralHyperbolic2x2) -> VaryingDelayForm:
+    """The characteristic delay form of a plant with a varying speed ratio (cached)."""
+    return varying_delay_form(system)
+
+
+def _state_feedback_factor(system: Hyperbolic2x2, controller: StateFeedback, kernel_grid: int) -> QuasiPolynomial:
+    """``P`` of a state feedback, on the kernels the delay form of ``system`` was built from."""
+    kernels = None if system.uncoupled else _kernels(system, kernel_grid)
+    return feedback_factor(system, controller.k, controller.g_u, controller.g_v, kernel_grid, kernels)
+
+
+@lru_cache(maxsize=8)
+def _kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
+    """The kernels of ``system`` (shared by ``N~`` and the feedback factor of a state feedback)."""
+    return solve_kernels(system, kernel_grid)
+
+
+@renamed_keywords(n="kernel_grid")
+def loop_factors(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` with the closed-loop characteristic function ``F = A + B e^{-delta s}``.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant, eqs. (18)-(20), or a general plant (through :func:`normalize`).
+    controller : Controller
+        One of the paper's controllers, or a :class:`StateFeedback`.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
+        carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
+        grid (extrapolated kernels), second order for an even one
+        (``docs/numerics_kernels.md``). A plant with a varying ``lam/mu`` takes ``N~`` from the
+        characteristic route, and uses ``kernel_grid`` only for the integral gains of a
+        :class:`StateFeedback` (kernels with varying speeds, second order).
+
+    Returns
+    -------
+    tuple of QuasiPolynomial
+        ``A`` and ``B`` as in the module's table.
+    """
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        return _varying_factors(system, controller, kernel_grid)
+    plant: Hyperbolic2x2
+    plant, controller = normalize(system, controller)
+    _check(plant, controller)
+    i_n = _distributed_part(plant, positive_int("kernel_grid", kernel_grid, 3))
+    round_trip = QuasiPolynomial([[plant.q]], [plant.tau])  # q e^{-tau s}
+    phi = round_trip * plant.rho - i_n
+    if isinstance(controller, StateFeedback):
+        return 1.0 - phi, -_state_feedback_factor(plant, controller, kernel_grid)
+    return controller.factors(phi, i_n, round_trip)
+
+
+@renamed_keywords(n="kernel_grid")
+def characteristic(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: Controller,
+    delta: float = 0.0,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+) -> QuasiPolynomial:
+    """Closed-loop characteristic quasi-polynomial ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+
+    The closed loop is exponentially stable iff ``F`` has no zero with ``Re s >= 0`` and
+    its difference operator is strongly stable (Theorem 3, Theorem 4 of the paper).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The plant.
+    controller : Controller
+        The controller.
+    delta : float, optional
+        Loop delay ``delta >= 0``.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias).
+    """
+    delta = nonnegative("delta", delta)
+    a, b = loop_factors(system, controller, kernel_grid)
+    return a + b.shift(delta)
+
+
+@dataclass(frozen=True)
+class Classification:
+    """The paper's three regimes of the open-loop gain ``|rho q|``.
+
+    Attributes
+    ----------
+    rho_q : float
+        The open-loop gain (product of proximal and distal reflections).
+    regime : str
+        ``"not_stabilizable"`` (``|rho q| > 1``, Theorem 2), ``"critical_one"``
+        (``|rho q| = 1``), ``"no_robust_finite_time"`` (``1/2 < |rho q| < 1``, Theorem 3),
+        ``"critical_half"`` (``|rho q| = 1/2``: the U_BS loop's difference operator has
+        ``gamma_0 = 1``, not strongly stable), ``"robust_finite_time"`` (``|rho q| < 1/2``).
+    delay_robustly_stabilizable : bool or None
+        None in the critical case ``|rho q| = 1`` the paper leaves open.
+    finite_time_delay_robust : bool
+        Whether U_BS keeps a positive delay margin: its delayed loop has the difference
+        operator ``1 - rho q e^{-tau s} + rho q e^{-(tau+delta) s}``, strongly stable iff
+        ``2 |rho q| < 1`` (eq. (11)).
+    k_bound : float
+        ``(1 - |rho q|)/|q|``: every ``|K|`` below it makes U_BS2 delay-robust (eq. (54));
+        0 when ``|rho q| >= 1``.
+    statement : str
+        The verdict in words.
+    """
+
+    rho_q: float
+    regime: str
+    delay_robustly_stabilizable: bool | None
+    finite_time_delay_robust: bool | None
+    k_bound: float
+    statement: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def classify(system: Hyperbolic2x2 | GeneralHyperbolic2x2, atol: float = 1e-12) -> Classification:
+    """Classify a system by its open-loop gain ``|rho q|`` (paper, sections 2 and 3).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant. A general plant is classified by its normal form; with a varying
+        ``lam/mu`` by the principal part of its characteristic route,
+        ``1 - rho_q e^{-tau s}`` (``rho_q = rho q e^{A(L) - D(L)}``): Theorems 2 and 3
+        read on it unchanged, U_BS2(K) is not defined (no normal form), and ``k_bound``
+        is the bound ``(1 - |rho_q|)/|q e^{A(L) - D(L)}|`` of ``|k|`` for the proportional
+        feedback ``U = k u(t, L)`` (its delayed principal part
+        ``1 - rho_q e^{-tau s} - k q e^{A(L) - D(L)} e^{-(tau + delta) s}`` is strongly
+        stable below it).
+    atol : float, optional
+        Distance to ``1`` or ``1/2`` under which ``|rho q|`` counts as a critical case.
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        if system.constant_ratio:
+            return classify(system.normal_form().system, atol)
+        end = system.length
+        u_gain = system.q * float(np.exp(system.A(end) - system.D(end)))
+        cls = classify(TransportSystem(1.0, 1.0, u_gain, system.rho_q / u_gain), atol)
+        statement = re.sub(
+            r"U_BS2\(K\) is delay-robust for \|K\| < ([0-9.eE+-]+)(?: \(Theorem 4\))?\.",
+            r"U_BS2(K) needs the normal form (lam/mu varies); the proportional feedback U = k u(t, L) keeps a "
+            r"strongly stable principal part for |k| < \1.",
+            cls.statement,
+        )
+        return dataclasses.replace(cls, statement=statement)
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    atol = nonnegative("atol", atol)
+    g = abs(system.rho * system.q)
+    k_bound = max(0.0, (1.0 - g) / abs(system.q))
+    if abs(g - 1.0) <= atol:
+        return Classification(
+            system.rho * system.q,
+            "critical_one",
+            None,
+            False,
+            0.0,
+            "|rho q| = 1: critical case; the open-loop chain lies on the imaginary axis.",
+        )
+    if g > 1.0:
+        return Classification(
+            system.rho * system.q,
+            "not_stabilizable",
+            False,
+            False,
+            0.0,
+            f"|rho q| = {g:.6g} > 1: no controller is robust to small loop delays (Theorem 2).",
+        )
+    if abs(g - 0.5) <= atol:
+        return Classification(
+            system.rho * system.q,
+            "critical_half",
+            True,
+            False,
+            k_bound,
+            "|rho q| = 1/2: U_BS has a difference operator with gamma_0 = 1 (not strongly "
+            f"stable); U_BS2(K) is delay-robust for |K| < {k_bound:.6g}.",
+        )
+    if g > 0.5:
+        return Classification(
+            system.rho * system.q,
+            "no_robust_finite_time",
+            True,
+            False,
+            k_bound,
+            f"1/2 < |rho q| = {g:.6g} < 1: finite-time U_BS has zero delay margin (Theorem 3); "
+            f"U_BS2(K) is delay-robust for |K| < {k_bound:.6g} (Theorem 4).",
+        )
+    return Classification(
+        system.rho * system.q,
+        "robust_finite_time",
+        True,
+        True,
+        k_bound,
+        f"|rho q| = {g:.6g} < 1/2: finite-time stabilization can be delay-robust; U_BS2(K) is "
+        f"delay-robust for |K| < {k_bound:.6g}.",
+    )

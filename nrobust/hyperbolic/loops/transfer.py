@@ -1,0 +1,127 @@
+"""Transfer functions of the paper's plants: open loop, output map, closed loop.
+
+The open loop ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` of the transport system (Laplace
+transform of eq. (6)) and
+``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` of the coupled
+system (Laplace transform of eq. (39)), as
+:class:`~nrobust.transfer.QuasiTransferFunction`.
+"""
+
+from __future__ import annotations
+
+from ..._validate import nonnegative, positive_int, renamed_keywords
+from ...errors import ParameterError
+from ...lti.transfer import QuasiTransferFunction, _product
+from ...quasipoly import QuasiPolynomial
+from ..kernels.constant import DEFAULT_KERNEL_GRID, solve_kernels
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .controllers import Controller, FilteredController, loop_factors
+from .delay_form import delay_form, delay_kernel
+
+__all__ = ["closed_loop_tf", "open_loop_tf", "output_map"]
+
+
+@renamed_keywords(n="kernel_grid")
+def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiTransferFunction:
+    """Open-loop transfer function from ``U`` to the boundary output.
+
+    For a :class:`~nrobust.hyperbolic.TransportSystem` (or any uncoupled system) this is
+    ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` (from ``U`` to ``v(t, 1)``, Laplace transform
+    of eq. (6)); for a :class:`~nrobust.hyperbolic.Hyperbolic2x2` it is
+    ``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` (from ``U_0``
+    to ``beta(t, 1)``, Laplace transform of eq. (39)), whose denominator is
+    ``delay_form(system).characteristic``.
+
+    Parameters
+    ----------
+    system : TransportSystem or Hyperbolic2x2
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only;
+        the default is that of the closed-loop functions, so that ``H_1`` and
+        :func:`closed_loop_tf` share the same ``N~``). Formerly ``n``, a deprecated alias.
+    """
+
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    if system.uncoupled:
+        return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
+    form = delay_form(system, positive_int("kernel_grid", kernel_grid, 3))
+    return QuasiTransferFunction(1.0, form.characteristic)
+
+
+@renamed_keywords(n="kernel_grid")
+def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiPolynomial:
+    """``M(s)`` with ``v(s, 1) = M(s) beta(s, 1)`` for zero initial data.
+
+    The inverse transformation (eq. (31)) at ``x = 1`` with
+    ``alpha(s, xi) = q e^{-(xi/lam + 1/mu) s} beta(s, 1)`` and
+    ``beta(s, xi) = e^{-(1 - xi) s / mu} beta(s, 1)`` (eqs. (37)-(38)) gives
+    ``M(s) = 1 + int_0^tau M~(nu) e^{-nu s} dnu`` with
+    ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
+    + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
+    ``N~`` in eq. (40), built by the same function
+    (:func:`~nrobust.hyperbolic.delay_form.delay_kernel`, a cubic spline on each side of
+    the jump at ``nu = 1/mu``). For a transport system ``M = 1``.
+
+    Parameters
+    ----------
+    system : TransportSystem or Hyperbolic2x2
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid (that of the closed-loop functions by default; formerly ``n``, a
+        deprecated alias); ``M~`` is tabulated on its points on each side of the jump.
+    """
+
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+    if system.uncoupled:
+        return QuasiPolynomial([[1.0]], [0.0])
+    kernels = solve_kernels(system, positive_int("kernel_grid", kernel_grid, 3))
+    L1 = kernels.L[:, :, -1, :]  # L^{ab}(1, xi) on the grid, a, b in (alpha, beta)
+    return QuasiPolynomial([[1.0]], [0.0], [delay_kernel(system, kernels.grid, L1[1, 0], L1[1, 1])])
+
+
+def closed_loop_tf(
+    system: Hyperbolic2x2, controller: Controller, delta: float, output: str = "v"
+) -> QuasiTransferFunction:
+    """Closed-loop transfer function from a disturbance at the actuated boundary.
+
+    The disturbance ``d`` enters where the (delayed) control does,
+    ``v(t, 1) = rho u(t, 1) + U(t - delta) + d(t)`` (eq. (20)). With the loop written as
+    ``F(s) = A(s) + B(s) e^{-delta s}`` (:func:`~nrobust.hyperbolic.loop_factors`, the
+    characteristic function of eq. (60) and its variants), ``A = D c_d`` and
+    ``B = -c_n`` where ``D`` is the open-loop denominator of ``H_1`` and ``c_n / c_d`` the
+    controller's map from ``beta(t, 1)`` to ``U``, the transfer to ``beta(t, 1)`` is
+    ``c_d(s) / F(s)``; to ``v(t, 1)`` it is ``M(s) c_d(s) / F(s)`` with ``M`` from
+    :func:`output_map`.
+
+    Parameters
+    ----------
+    system : TransportSystem or Hyperbolic2x2
+    controller : a controller of :mod:`nrobust.hyperbolic`
+    delta : float
+        Loop delay ``>= 0``.
+    output : {"v", "beta"}
+        ``"v"`` for ``v(t, 1)`` (default), ``"beta"`` for the target-system output.
+
+    Returns
+    -------
+    QuasiTransferFunction
+        Its denominator is the closed-loop characteristic function ``F``.
+    """
+
+    delta = nonnegative("delta", delta)
+    if output not in ("v", "beta"):
+        raise ParameterError("output", '"v" or "beta"', output)
+    A, B = loop_factors(system, controller)
+    F = A + B.shift(delta)
+    c_d = _controller_denominator(controller)
+    num = c_d if output == "beta" else _product("output", output_map(system), c_d)
+    return QuasiTransferFunction(num, F)
+
+
+def _controller_denominator(controller: Controller) -> QuasiPolynomial:
+    """``c_d(s)``: ``1 + b s`` for the filtered controller ``(1 + a s)/(1 + b s)``, else 1."""
+
+    if isinstance(controller, FilteredController):
+        return QuasiPolynomial([[1.0, float(controller.b)]], [0.0])
+    return QuasiPolynomial([[1.0]], [0.0])

@@ -1,0 +1,670 @@
+"""Backstepping kernels and the full-state controller of ``n + m`` systems (constant coefficients).
+
+The plant is :class:`~nrobust.hyperbolic.nplusm.NPlusMSystem`::
+
+    u_t + Lambda+ u_x = Sigma++ u + Sigma+- v,     u(t, 0) = Q v(t, 0),
+    v_t - Lambda- v_x = Sigma-+ u + Sigma-- v,     v(t, 1) = R u(t, 1) + U(t).
+
+**Transformation and target.** The design of Hu, Di Meglio, Vazquez and Krstic, "Control of
+homodirectional and general heterodirectional linear coupled hyperbolic PDEs", IEEE
+Trans. Automatic Control 61(11), 3301-3314, 2016: the Volterra transformation ``alpha = u``,
+``beta = v - int_0^x K(x, xi) u(xi) + L(x, xi) v(xi) dxi`` (``K``: ``m x n``, ``L``:
+``m x m``) maps the plant onto the target system ::
+
+    beta_t - Lambda- beta_x = D beta + G(x) beta(t, 0),     beta(t, 1) = 0,
+
+(``alpha`` keeps the plant's equation with Volterra terms in ``alpha`` and ``beta``) when,
+on the triangle ``T = {0 <= xi <= x <= 1}``, with ``Z = [K, L]`` (``m x (n + m)``), ::
+
+    Lambda- K_x - K_xi Lambda+ = K Sigma++ + L Sigma-+ - D K,
+    Lambda- L_x + L_xi Lambda- = K Sigma+- + L Sigma-- - D L,
+    Lambda- K(x, x) + K(x, x) Lambda+ = -Sigma-+,
+    Lambda- L(x, x) - L(x, x) Lambda- = -(Sigma-- - D),
+    L(x, 0) Lambda- - K(x, 0) Lambda+ Q = G(x).
+
+(derived here for this plant by substituting the transformation). ``D`` is the part of
+``Sigma--`` inside groups of equal speed ``mu`` (the diagonal included), which the
+transformation cannot remove (the diagonal relation is void there); it stays in the
+target, where a group still moves as one transport equation. ``K_ij`` is transported
+along ``(mu_i, -lam_j)`` from the diagonal; ``L_ij`` along ``(mu_i, mu_j)``: from
+``xi = 0`` (where ``G_ij = 0`` is imposed) when ``mu_j <= mu_i``, and, when
+``mu_j > mu_i``, from the diagonal with the artificial condition
+``L_ij(1, xi) = L_ij(1, 1)`` on the part of ``x = 1`` the diagonal does not reach (an
+artificial boundary value, chosen constant), ``G_ij(x)`` being then the value the
+boundary relation gives. ``G`` vanishes except where ``mu_j > mu_i``: the target is a
+cascade from the fastest group to the slowest, and ``beta`` vanishes after
+``sum_g 1 / mu_g`` over the groups of equal ``mu``; ``alpha`` follows ``1 / min lam``
+later (:attr:`NPlusMBackstepping.convergence_time`). The shorter time of the Fredholm
+design of Coron, Hu and Olive, "Finite-time boundary stabilization of general linear
+hyperbolic balance laws via Fredholm backstepping transformation" (Automatica, 2017) is
+not built here. When the corner values of an ``L_ij`` with ``mu_j < mu_i`` differ (the
+diagonal relation against ``G_ij = 0`` at the origin), ``L_ij`` jumps across the
+characteristic through the origin: the kernels of ``n + m`` systems may be discontinuous
+(Humaloja and Bekiaris-Liberis, arXiv:2410.22067, 2024, abstract).
+
+**Scheme.** Every entry of ``Z`` obeys ``dZ_ij/dx = (Z Sigma - D Z)_ij / mu_i`` along its
+characteristic. On the uniform grid of ``T`` each node is tied to the foot of its
+characteristic one step back on the previous level (the next level for the entries
+solved from the diagonal) by the trapezoidal rule, with cubic Lagrange interpolation
+along that level, or to the point where the characteristic leaves the diagonal or
+``xi = 0`` (linear interpolation there); all nodes and entries form one sparse linear
+system, solved level by level (block substitution; GMRES when some entries run backwards). Second order for continuous
+kernels (``tests/test_nplusm_kernels.py``: observed 2.0); with a jump, the traces
+converge in ``L^1`` at order 1 and the feedback integral ``J`` at 1.8. For ``n = m = 1``
+the kernels are the paper's ``K^{vu}``, ``K^{vv}`` (:mod:`nrobust.hyperbolic.kernels`,
+eqs. (24)-(29)).
+
+**Controller and loop.** ``beta(t, 1) = 0`` gives the full-state law
+``U(t) = -R u(t, 1) + int_0^1 K(1, xi) u(t, xi) + L(1, xi) v(t, xi) dxi``. With the loop
+delay ``delta`` (``v(t, 1) = R u(t, 1) + U(t - delta)``) the
+Laplace route of :mod:`nrobust.hyperbolic.nplusm` gives, with
+``Phi(xi; s) = exp(xi Lambda^{-1} (Sigma - s I))``, ``W = [Q; I]`` and
+``J(s) = int_0^1 [K, L](1, xi) Phi(xi; s) dxi W``, the closed loop ::
+
+    det( E(s) (Phi_v - R Phi_u + e^{-delta s} (R Phi_u - J(s))) ) = 0,   E = diag(e^{-s/mu_j});
+
+``J`` is computed exactly for the piecewise-linear trace of the kernels (Filon-type
+weights from one block exponential per ``s``). ``E J = O(1/|s|)`` on vertical lines, so
+the principal part is that of the static cancellation ``K = -R``: with a delay the
+cancellation doubles ``gamma_0`` (for 2x2 plants the paper's Theorem 3: unstable for every
+``delta > 0`` when ``|rho q| > 1/2``), and the margin is zero once ``gamma_0 >= 1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import json_safe
+from ..._validate import nonnegative, positive, positive_int
+from ...errors import ConvergenceError, ParameterError
+from ..kernels.constant import _p1_interpolate
+from .system import NPlusMCharacteristic, NPlusMMargin, NPlusMSystem
+
+__all__ = [
+    "MAX_NPLUSM_KERNEL_GRID",
+    "NPlusMBackstepping",
+    "NPlusMKernels",
+    "backstepping_delay_margin",
+    "solve_nplusm_kernels",
+]
+
+#: Largest kernel grid of :func:`solve_nplusm_kernels` (work bound, checked before the
+#: sparse system is built: ``m (n + m) N (N + 1) / 2`` unknowns).
+MAX_NPLUSM_KERNEL_GRID = 801
+#: Grid step times ``max |Sigma| / min(lam, mu)`` must not exceed this (as
+#: :data:`nrobust.hyperbolic.kernels.RESOLUTION`).
+RESOLUTION = 0.25
+_MAX_UNKNOWNS = 3_000_000
+_TOL = 1e-12
+
+
+def _node(i: Any, j: Any) -> Any:
+    """Number ``i (i + 1) / 2 + j`` of the node ``(x_i, xi_j)``, ``j <= i``, of the triangle grid."""
+    return i * (i + 1) // 2 + j
+
+
+def _level_stencil(i: int, pos: NDArray[np.float64]) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Cubic Lagrange stencils on level ``i`` (nodes ``0..i``) at ``xi = pos h``: nodes and weights ``(len, 4)``.
+
+    The four nodes around each point, shifted inwards at the ends of the level; on the
+    levels with fewer than four nodes, all of them (zero weights pad the rest).
+    """
+    if i < 3:
+        idx = np.broadcast_to(np.arange(i + 1), (pos.size, i + 1))
+    else:
+        start = np.clip(np.floor(pos + _TOL).astype(np.int64) - 1, 0, i - 3)
+        idx = start[:, None] + np.arange(4)
+    k = idx.shape[1]
+    w = np.ones(idx.shape)
+    for a in range(k):
+        for b in range(k):
+            if a != b:
+                w[:, a] *= (pos - idx[:, b]) / (idx[:, a] - idx[:, b])
+    nodes = _node(i, idx)
+    if k < 4:
+        nodes = np.concatenate([nodes, np.repeat(nodes[:, :1], 4 - k, axis=1)], axis=1)
+        w = np.concatenate([w, np.zeros((pos.size, 4 - k))], axis=1)
+    return nodes, w
+
+
+def _edge_stencil(pos: NDArray[np.float64], N: int, diagonal: bool) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Linear interpolation at ``x = pos h`` along the diagonal (or ``xi = 0``): nodes and weights ``(len, 2)``."""
+    k = np.minimum(np.floor(pos + _TOL).astype(np.int64), N - 2)
+    f = pos - k
+    nodes = np.stack([_node(k, k if diagonal else 0), _node(k + 1, k + 1 if diagonal else 0)], axis=1)
+    return nodes, np.stack([1.0 - f, f], axis=1)
+
+
+def _solve_by_levels(A: Any, rhs: NDArray[np.float64], bounds: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Solve the kernel system, its unknowns grouped by levels ``x_i`` (``bounds[i]:bounds[i + 1]``).
+
+    The equations of a level read the level itself and the level before (the entries
+    marched in ``x``) or after (those solved from the diagonal). Block forward
+    substitution solves the first kind exactly; with entries of the second kind it is
+    the symmetric block Gauss-Seidel preconditioner of GMRES. Each level's block is
+    factored once (sparse LU).
+
+    Raises
+    ------
+    ConvergenceError
+        GMRES did not reach a relative residual of ``1e-13``.
+    """
+    from scipy.sparse import csr_matrix  # lazily: a slow import
+    from scipy.sparse.linalg import LinearOperator, gmres, splu
+
+    level = np.searchsorted(bounds, np.arange(A.shape[0]), side="right") - 1
+    rl, cl = level[A.row], level[A.col]
+    size = A.shape
+    lower = csr_matrix((A.data[cl < rl], (A.row[cl < rl], A.col[cl < rl])), shape=size)
+    upper = csr_matrix((A.data[cl > rl], (A.row[cl > rl], A.col[cl > rl])), shape=size)
+    same = cl == rl
+    diag = csr_matrix((A.data[same], (A.row[same], A.col[same])), shape=size)
+    spans = list(pairwise(bounds))
+    lus = [splu(diag[s:e, s:e].tocsc()) for s, e in spans]
+    low_rows = [lower[s:e] for s, e in spans]
+    up_rows = [upper[s:e] for s, e in spans]
+
+    def forward(r: NDArray[np.float64]) -> NDArray[np.float64]:
+        y = np.zeros_like(r)
+        for (s, e), lu, low in zip(spans, lus, low_rows):
+            y[s:e] = lu.solve(r[s:e] - low @ y)
+        return y
+
+    if upper.nnz == 0:
+        return forward(rhs)
+
+    def sgs(r: NDArray[np.float64]) -> NDArray[np.float64]:
+        y = forward(r)
+        dy = diag @ y
+        z = np.zeros_like(r)
+        for (s, e), lu, up in reversed(list(zip(spans, lus, up_rows))):
+            z[s:e] = lu.solve(dy[s:e] - up @ z)
+        return z
+
+    matrix = A.tocsr()
+    op = LinearOperator(size, matvec=sgs, dtype=float)
+    sol, info = gmres(matrix, rhs, M=op, rtol=1e-13, atol=0.0, restart=60, maxiter=20)
+    if info != 0:
+        raise ConvergenceError(f"kernel system: GMRES stopped with code {info} (a finer kernel_grid may help)")
+    return np.asarray(sol, dtype=float)
+
+
+def _in_group_part(system: NPlusMSystem) -> NDArray[np.float64]:
+    """``D``: the couplings of ``Sigma--`` between components of equal speed ``mu`` (diagonal included)."""
+    mu = system.mu
+    s_mm = system.sigma[system.n :, system.n :]
+    return np.where(mu[:, None] == mu[None, :], s_mm, 0.0)
+
+
+def _check_grid(system: NPlusMSystem, N: int) -> None:
+    """Refuse a grid too coarse for the couplings, or too large, before anything is allocated."""
+    unknowns = system.m * (system.n + system.m) * N * (N + 1) // 2
+    if unknowns > _MAX_UNKNOWNS:
+        raise ParameterError("kernel_grid", f"at most {N - 1} with m (n + m) N (N + 1) / 2 <= {_MAX_UNKNOWNS}", N)
+    sigma = float(np.max(np.abs(system.sigma)))
+    speed = float(min(system.lam.min(), system.mu.min()))
+    steps = sigma / (speed * RESOLUTION)
+    if steps > N - 1:
+        raise ParameterError(
+            "kernel_grid",
+            f">= {int(np.ceil(steps)) + 1} for couplings up to |sigma| = {sigma:.6g} and min speed {speed:.6g} "
+            f"(grid step times max|sigma| / min speed at most {RESOLUTION:g})",
+            N,
+        )
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class NPlusMKernels:
+    """Kernels ``K`` (``m x n``) and ``L`` (``m x m``) of Hu et al. (2016) on a uniform grid of ``T``.
+
+    Attributes
+    ----------
+    system : NPlusMSystem
+    grid : ndarray, shape (N,)
+        ``x_i = xi_i = i / (N - 1)``.
+    K : ndarray, shape (m, n, N, N)
+        ``K[a, b, i, j] = K_ab(x_i, xi_j)`` for ``j <= i`` (zero above the diagonal).
+    L : ndarray, shape (m, m, N, N)
+        ``L_ab(x_i, xi_j)`` likewise.
+    G : ndarray, shape (m, m, N)
+        ``G(x_i) = L(x_i, 0) Lambda- - K(x_i, 0) Lambda+ Q`` of the target system: nonzero
+        only where ``mu_b > mu_a`` (module notes; zero elsewhere up to the scheme's error).
+    """
+
+    system: NPlusMSystem
+    grid: NDArray[np.float64]
+    K: NDArray[np.float64]
+    L: NDArray[np.float64]
+    G: NDArray[np.float64]
+
+    @property
+    def trace(self) -> NDArray[np.float64]:
+        """``[K, L](1, xi_j)``: shape ``(m, n + m, N)``, the gains of the full-state controller."""
+        return np.concatenate([self.K[:, :, -1, :], self.L[:, :, -1, :]], axis=1)
+
+    def _evaluate(self, table: NDArray[np.float64], x: ArrayLike, xi: ArrayLike) -> NDArray[np.float64]:
+        xa, xia = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(xi, dtype=float))
+        inside = (xia >= -_TOL) & (xia <= xa + _TOL) & (xa <= 1.0 + _TOL)
+        if not np.all(inside):
+            raise ParameterError(
+                "(x, xi)", "in the triangle 0 <= xi <= x <= 1", (xa[~inside].flat[0], xia[~inside].flat[0])
+            )
+        xc = np.clip(xa, 0.0, 1.0)
+        return np.asarray(_p1_interpolate(table, xc, np.clip(xia, 0.0, xc)))
+
+    def K_at(self, x: ArrayLike, xi: ArrayLike) -> NDArray[np.float64]:
+        """``K(x, xi)`` at points of ``T`` (piecewise-linear on the grid): shape ``(m, n) + x.shape``."""
+        return np.array([[self._evaluate(t, x, xi) for t in row] for row in self.K])
+
+    def L_at(self, x: ArrayLike, xi: ArrayLike) -> NDArray[np.float64]:
+        """``L(x, xi)`` at points of ``T``: shape ``(m, m) + x.shape``."""
+        return np.array([[self._evaluate(t, x, xi) for t in row] for row in self.L])
+
+    def __repr__(self) -> str:
+        return f"NPlusMKernels(n={self.system.n}, m={self.system.m}, N={self.grid.size})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: the system, the grid, the traces ``K(1, xi)``, ``L(1, xi)`` and ``G``."""
+        return json_safe(
+            {
+                "type": "NPlusMKernels",
+                "system": self.system,
+                "xi": self.grid,
+                "K_trace": self.K[:, :, -1, :],
+                "L_trace": self.L[:, :, -1, :],
+                "G": self.G,
+            }
+        )
+
+
+def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusMKernels:
+    """Solve the kernel equations of Hu et al. (2016) for an ``n + m`` system (module notes).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    kernel_grid : int, optional
+        Grid points ``N`` per side of the triangle (``>= 3``, at most
+        :data:`MAX_NPLUSM_KERNEL_GRID`, fine enough for the couplings:
+        ``max|Sigma| / min speed <= RESOLUTION (N - 1)``).
+
+    Returns
+    -------
+    NPlusMKernels
+
+    Raises
+    ------
+    ParameterError
+        A system that is not an :class:`NPlusMSystem`, or a grid out of range.
+    ConvergenceError
+        Some ``L_ij`` run from the diagonal and GMRES did not converge on the coupled system.
+
+    Examples
+    --------
+    >>> sys = NPlusMSystem([1.0, 2.0], [1.5], [[0, 0, 1], [0, 0, 0.5], [1, -0.5, 0]], [[1.0], [0.5]], [[0.3, 0.2]])
+    >>> ker = solve_nplusm_kernels(sys, 41)
+    >>> ker.trace.shape
+    (1, 3, 41)
+    """
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+    N = positive_int("kernel_grid", kernel_grid, minimum=3, maximum=MAX_NPLUSM_KERNEL_GRID)
+    _check_grid(system, N)
+    n, m = system.n, system.m
+    lam, mu, sig = system.lam, system.mu, system.sigma
+    D = _in_group_part(system)
+    width = n + m
+    E = m * width
+    # RHS of entry (a, b): (Z Sigma - D Z)_ab = sum_f M[(a, b), f] Z_f
+    M = np.zeros((E, E))
+    for a in range(m):
+        for b in range(width):
+            e = a * width + b
+            for k in range(width):
+                M[e, a * width + k] += sig[k, b]
+            for k in range(m):
+                M[e, k * width + b] -= D[a, k]
+    lq = lam[:, None] * system.q  # Lambda+ Q, (n, m)
+    h, T = 1.0 / (N - 1), N * (N + 1) // 2
+    rows: list[NDArray[np.int64]] = []
+    cols: list[NDArray[np.int64]] = []
+    vals: list[NDArray[np.float64]] = []
+    rhs = np.zeros(E * T)
+
+    def put(row: NDArray[np.int64], f: int, nodes: NDArray[np.int64], w: NDArray[np.float64]) -> None:
+        """Add ``w * Z_f(nodes)`` to the equations ``row`` (``nodes``, ``w``: ``(len(row), k)``)."""
+        rows.append(np.broadcast_to(row[:, None], nodes.shape).ravel())
+        cols.append((nodes * E + f).ravel())
+        vals.append(np.asarray(w, dtype=float).ravel())
+
+    def coupled(row: NDArray[np.int64], e: int, nodes: NDArray[np.int64], w: NDArray[np.float64]) -> None:
+        """Add ``w * sum_f M[e, f] Z_f`` at the interpolated points."""
+        for f in np.flatnonzero(M[e]):
+            put(row, int(f), nodes, w * M[e, f])
+
+    for a in range(m):
+        for b in range(width):
+            e = a * width + b
+            if b < n:
+                kind, slope, diag = "K", -lam[b] / mu[a], -sig[n + a, b] / (mu[a] + lam[b])
+            else:
+                c = b - n
+                slope = mu[c] / mu[a]
+                kind = "low" if mu[c] < mu[a] else ("same" if mu[c] == mu[a] else "reverse")
+                diag = sig[n + a, n + c] / (mu[c] - mu[a]) if kind != "same" else 0.0
+            d = -1 if kind == "reverse" else 1  # the foot lies on level i - d
+            for i in range(N):
+                j = np.arange(i + 1)
+                row = _node(i, j) * E + e  # unknowns numbered node-major: a banded system
+                x = i * h
+                fixed = np.zeros(i + 1, dtype=bool)
+                if kind != "same":
+                    fixed[i] = True
+                if kind == "reverse" and i == N - 1:
+                    fixed[:] = True  # the artificial condition L_ab(1, xi) = L_ab(1, 1)
+                one = np.ones((int(fixed.sum()), 1))
+                put(row[fixed], e, _node(i, j[fixed])[:, None], one)
+                rhs[row[fixed]] = diag
+                bottom = ~fixed & (j == 0) & (kind in ("low", "same"))
+                if bottom.any():  # G_ab = 0: mu_c L_ab(x, 0) = (K(x, 0) Lambda+ Q)_ac
+                    here = np.array([[_node(i, 0)]])
+                    put(row[bottom], e, here, np.array([[mu[b - n]]]))
+                    for k in range(n):
+                        put(row[bottom], a * width + k, here, np.array([[-lq[k, b - n]]]))
+                free = ~fixed & ~bottom
+                if not free.any():
+                    continue
+                jr, rr = j[free], row[free]
+                # the characteristic back (forward for "reverse") by one step, or to where it leaves T
+                t = np.full(jr.size, h)
+                where = np.zeros(jr.size, dtype=int)  # 0: level i - d, 1: diagonal, 2: xi = 0
+                if slope != 1.0:
+                    t_diag = (x - jr * h) / (d * (1.0 - slope))
+                    hit = (t_diag >= -_TOL) & (t_diag < h - _TOL)
+                    t[hit], where[hit] = t_diag[hit], 1
+                if kind == "low":
+                    t_bot = jr * h / slope
+                    hit = t_bot < t - _TOL
+                    t[hit], where[hit] = t_bot[hit], 2
+                step = -(d * t / mu[a] / 2.0)[:, None]
+                here = _node(i, jr)[:, None]
+                put(rr, e, here, np.ones((jr.size, 1)))
+                coupled(rr, e, here, step)
+                for kind_of_foot in (0, 1, 2):
+                    sel = where == kind_of_foot
+                    if not sel.any():
+                        continue
+                    rs, ts = rr[sel], t[sel]
+                    if kind_of_foot == 0:
+                        lev = i - d
+                        pos = np.clip((jr[sel] * h - d * slope * ts) / h, 0.0, lev)
+                        nodes, w = _level_stencil(lev, pos)
+                        put(rs, e, nodes, -w)
+                    else:
+                        nodes, w = _edge_stencil((x - d * ts) / h, N, kind_of_foot == 1)
+                        if kind_of_foot == 1:
+                            rhs[rs] = diag
+                        else:  # Z_e at (x_f, 0) from the boundary relation with G = 0
+                            for k in range(n):
+                                put(rs, a * width + k, nodes, w * (-lq[k, b - n] / mu[b - n]))
+                    coupled(rs, e, nodes, w * step[sel])
+    from scipy.sparse import coo_matrix  # lazily: a slow import
+
+    A = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(E * T, E * T))
+    sol = _solve_by_levels(A, rhs, np.array([E * _node(i, 0) for i in range(N + 1)]))
+    if not np.all(np.isfinite(sol)):
+        raise ParameterError("kernel_grid", "a grid on which the kernel scheme is solvable", N)
+    Z = np.zeros((m, width, N, N))
+    ii, jj = np.tril_indices(N)
+    for a in range(m):
+        for b in range(width):
+            e = a * width + b
+            Z[a, b, ii, jj] = sol[_node(ii, jj) * E + e]
+    K, L = Z[:, :n], Z[:, n:]
+    G = L[:, :, :, 0] * mu[None, :, None] - np.einsum("abi,bc->aci", K[:, :, :, 0], lq)
+    return NPlusMKernels(system, np.linspace(0.0, 1.0, N), K, L, G)
+
+
+class NPlusMBackstepping:
+    """The full-state controller ``U(t) = -R u(t, 1) + int_0^1 K(1, xi) u(t, xi) + L(1, xi) v(t, xi) dxi``.
+
+    The law of Hu et al. (2016), with the kernels of :func:`solve_nplusm_kernels`
+    (piecewise linear in ``xi`` between the grid nodes). Without delay the closed loop
+    reaches zero at :attr:`convergence_time`; with a loop delay ``delta`` its
+    characteristic function is :meth:`characteristic_value` (module notes). It is a
+    feedback :func:`~nrobust.hyperbolic.nplusm.simulate_nplusm` accepts in place of a
+    static gain (through :meth:`functional`).
+
+    Parameters
+    ----------
+    kernels : NPlusMKernels
+
+    Notes
+    -----
+    In :func:`~nrobust.hyperbolic.nplusm.simulate_nplusm`, a ``u`` and a ``v`` component
+    on grids of the same number of cells (equal speeds) split the scheme's lattice into two
+    parities coupled only through the boundary; the integral of their checkerboard
+    difference is ``O(h)``, so that mode sees the plant under ``U = -R u(t, 1)`` alone and
+    may grow from the ``O(h)`` residual: simulate such plants with distinct ``u`` and ``v``
+    speeds (measured: ``lam = mu = 1``, residual 0.65 at 80 cells and ``t = 10`` against
+    ``1.4e-4`` for ``mu = 1.01`` with 81 cells). With two actuators, coarse grids also
+    showed growing modes below the margin that change with the cells (at ``0.7`` times the
+    margin: decay at 60 cells, growth at 90), while beyond the margin the simulated growth
+    is the rightmost root's real part (``tests/test_nplusm_kernels.py``).
+    """
+
+    def __init__(self, kernels: NPlusMKernels) -> None:
+        if not isinstance(kernels, NPlusMKernels):
+            raise ParameterError("kernels", "an NPlusMKernels (solve_nplusm_kernels)", type(kernels).__name__)
+        self.kernels = kernels
+        self.system = kernels.system
+
+    @classmethod
+    def for_system(cls, system: NPlusMSystem, kernel_grid: int = 101) -> NPlusMBackstepping:
+        """The controller of ``system`` with kernels on ``kernel_grid`` points."""
+        return cls(solve_nplusm_kernels(system, kernel_grid))
+
+    @property
+    def convergence_time(self) -> float:
+        """``t_F = 1 / min lam + sum_g 1 / mu_g`` (``mu_g`` the distinct speeds of ``v``): zero from then on.
+
+        The target's ``beta`` is a cascade from the fastest group of ``v`` to the slowest
+        and ``alpha`` is zero ``1 / min lam`` after ``beta`` (module notes).
+        """
+        return float(1.0 / self.system.lam.min() + np.sum(1.0 / np.unique(self.system.mu)))
+
+    def functional(self, grids: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+        """The control as a row map of the stacked nodal values of ``(u_1, ..., u_n, v_1, ..., v_m)``.
+
+        ``grids[i]`` holds the nodes of component ``i`` on ``[0, 1]``; the integrals use the
+        trapezoidal rule on those nodes with the kernel traces interpolated linearly, and
+        ``-R u(1)`` sits on the last node of each ``u`` grid. Returns shape ``(m, sum nodes)``.
+        """
+        sys = self.system
+        if len(grids) != sys.n + sys.m:
+            raise ParameterError("grids", f"{sys.n + sys.m} grids (one per component)", len(grids))
+        trace, xi = self.kernels.trace, self.kernels.grid
+        blocks = []
+        for i, x in enumerate(grids):
+            x = np.asarray(x, dtype=float)
+            w = np.zeros(x.size)
+            dx = np.diff(x)
+            w[:-1] += dx / 2
+            w[1:] += dx / 2
+            blk = np.array([np.interp(x, xi, trace[a, i]) for a in range(sys.m)]) * w[None]
+            if i < sys.n:
+                blk[:, -1] -= sys.r[:, i]
+            blocks.append(blk)
+        return np.concatenate(blocks, axis=1)
+
+    def feedback_integral(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``J(s) = int_0^1 [K, L](1, xi) Phi(xi; s) dxi [Q; I]``, shape ``s.shape + (m, m)``.
+
+        Exact for the piecewise-linear trace: on a cell, ``int_0^h (z_k + t dz/h) e^{(xi_k + t) C} dt
+        = z_k Phi_k I_0 + dz/h Phi_k I_1`` with ``I_0 = int_0^h e^{tC}``, ``I_1 = int_0^h t e^{tC}``
+        read from the exponential of ``h [[C, I, 0], [0, 0, I], [0, 0, 0]]`` (Van Loan).
+        """
+        from scipy.linalg import expm  # lazily: a slow import
+
+        sys = self.system
+        s = np.asarray(s, dtype=complex)
+        flat = s.reshape(-1)
+        N = sys.n + sys.m
+        xi = self.kernels.grid
+        h = float(xi[1] - xi[0])
+        inv = 1.0 / sys.signed_speeds
+        C = inv[:, None] * sys.sigma[None] - flat[:, None, None] * np.diag(inv)[None]
+        big = np.zeros((flat.size, 3 * N, 3 * N), dtype=complex)
+        big[:, :N, :N] = h * C
+        big[:, :N, N : 2 * N] = h * np.eye(N)
+        big[:, N : 2 * N, 2 * N :] = h * np.eye(N)
+        ex = expm(big) if flat.size else big
+        step, i0, e13 = ex[:, :N, :N], ex[:, :N, N : 2 * N], ex[:, :N, 2 * N :]
+        i1 = h * i0 - e13
+        z = self.kernels.trace  # (m, N, cells + 1)
+        phi = np.broadcast_to(np.eye(N, dtype=complex), (flat.size, N, N)).copy()
+        acc = np.zeros((flat.size, sys.m, N), dtype=complex)
+        for k in range(xi.size - 1):
+            zk, dz = z[:, :, k], (z[:, :, k + 1] - z[:, :, k]) / h
+            acc += np.einsum("an,snq,sqp->sap", zk, phi, i0) + np.einsum("an,snq,sqp->sap", dz, phi, i1)
+            phi = phi @ step
+        w0 = np.vstack([sys.q, np.eye(sys.m)])
+        return np.asarray(acc @ w0, dtype=complex).reshape(*s.shape, sys.m, sys.m)
+
+    def loop_matrices(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``M_0 = E (Phi_v - R Phi_u)`` and ``M_1 = E (R Phi_u - J)``: the loop is ``det(M_0 + e^{-delta s} M_1)``."""
+        sys = self.system
+        s = np.asarray(s, dtype=complex)
+        phi = sys.transition(s) @ np.vstack([sys.q, np.eye(sys.m)])
+        phi_u, phi_v = phi[..., : sys.n, :], phi[..., sys.n :, :]
+        scale = np.exp(-s[..., None] / sys.mu)[..., :, None]
+        r_phi = sys.r @ phi_u
+        return scale * (phi_v - r_phi), scale * (r_phi - self.feedback_integral(s))
+
+    def characteristic_value(self, s: ArrayLike, delta: float = 0.0) -> NDArray[np.complex128]:
+        """``det(E (Phi_v - R Phi_u + e^{-delta s} (R Phi_u - J)))`` at ``s``: the delayed closed loop."""
+        delta = nonnegative("delta", delta)
+        s = np.asarray(s, dtype=complex)
+        m0, m1 = self.loop_matrices(s)
+        return np.asarray(np.linalg.det(m0 + np.exp(-delta * s)[..., None, None] * m1), dtype=complex)
+
+    def factors(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``A = e^{-s/mu} (Phi_v - R Phi_u)`` and ``B = e^{-s/mu} (R Phi_u - J)`` (one actuator)."""
+        if self.system.m != 1:
+            raise ParameterError("system", "one actuator (m = 1) for the factors A, B", self.system.m)
+        m0, m1 = self.loop_matrices(s)
+        return m0[..., 0, 0], m1[..., 0, 0]
+
+    def gamma_0(self) -> float:
+        """``gamma_0`` of the delayed principal part: that of the static cancellation ``K = -R`` (``J = O(1/|s|)``).
+
+        Exact for one actuator. For ``m > 1``, the upper end of the certified bracket of
+        :meth:`~nrobust.matrix_difference.MatrixDifferenceOperator.gamma_0` when the
+        principal part has at most four delays; with more, a lower bound: the largest
+        spectral radius of ``sum_k A_k e^{i theta_k}`` over 20 000 points of the torus
+        (seeded, reproducible; the coefficients ``V^{-1} R_ab U_a Q`` at ``tau_ab`` and
+        their negatives at ``tau_ab + delta``, merged over equal delays, the distinct delays
+        taken rationally independent).
+        """
+        sys = self.system
+        if sys.m == 1:
+            return NPlusMCharacteristic(sys, -sys.r, 0.0).gamma_0()
+        v_block, point = sys.principal_terms(-sys.r)
+        v_inv = np.linalg.inv(v_block)
+        merged: dict[tuple[float, int], NDArray[np.float64]] = {}  # (tau, 0 for R / 1 for K): equal delays merge
+        for tau, rq, kq in point:
+            for key, a in (((tau, 0), rq), ((tau, 1), kq)):
+                merged[key] = merged.get(key, np.zeros_like(a)) + v_inv @ a
+        coefs = [a for a in merged.values() if np.any(a != 0)]
+        if len(coefs) <= 4:
+            return float(sys.principal_operator(-sys.r, 1e-3 * np.sqrt(2.0)).gamma_0().upper)
+        theta = np.random.default_rng(0).uniform(0.0, 2 * np.pi, (20_000, len(coefs)))
+        total = np.einsum("pk,kij->pij", np.exp(1j * theta), np.array(coefs))
+        return float(np.max(np.abs(np.linalg.eigvals(total))))
+
+    def __repr__(self) -> str:
+        return f"NPlusMBackstepping({self.kernels!r})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the kernels' summary and the convergence time."""
+        return json_safe(
+            {"type": "NPlusMBackstepping", "kernels": self.kernels, "convergence_time": self.convergence_time}
+        )
+
+
+def backstepping_delay_margin(
+    controller: NPlusMBackstepping, omega_max: float, *, points: int = 800, max_points: int = 200_000
+) -> NPlusMMargin:
+    """Delay margin of the full-state controller ``U(t - delta)`` (not certified: ``certified=False``).
+
+    ``gamma_0 >= 1`` (full cancellation of reflections, :meth:`NPlusMBackstepping.gamma_0`;
+    for ``m > 1`` with more than four principal delays a sampled lower bound):
+    margin 0, arbitrarily small delays destabilise. Otherwise a root of
+    ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff ``z = e^{-i w delta}`` is an
+    eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit circle
+    (:meth:`NPlusMBackstepping.loop_matrices`); the eigenvalues inside the disk are
+    counted on a grid of ``(0, omega_max]``, each change located by bisection, and the
+    delays are ``(-arg z mod 2 pi) / w``. The delay-free loop is finite-time stable by
+    construction (``nominal_unstable`` is None: not counted). Not certified: a crossing
+    above ``omega_max``, or two crossings of opposite directions between grid points,
+    would be missed, and the feedback integral has no proven error bound here.
+
+    Parameters
+    ----------
+    controller : NPlusMBackstepping
+    omega_max : float
+        Upper end ``> 0`` of the frequency search (reported as ``frequency_bound``).
+    points : int, optional
+        Grid points (``>= 16``).
+    max_points : int, optional
+        Work bound on evaluations of the loop: ``points`` plus 48 bisection steps per
+        crossing, checked before each grid is evaluated.
+    """
+    if not isinstance(controller, NPlusMBackstepping):
+        raise ParameterError("controller", "an NPlusMBackstepping", type(controller).__name__)
+    omega_max = positive("omega_max", omega_max)
+    points = positive_int("points", points, minimum=16)
+    max_points = positive_int("max_points", max_points)
+    bisections = 48
+    if points > max_points:
+        raise ParameterError("max_points", f">= points = {points}", max_points)
+    gamma = controller.gamma_0()
+    if gamma >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
+
+    from scipy.linalg import eigvals  # lazily: a slow import
+
+    def pencil(w: NDArray[np.float64]) -> NDArray[np.complex128]:
+        m0, m1 = controller.loop_matrices(1j * np.asarray(w, dtype=float))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.array([eigvals(a, -b) for a, b in zip(m0, m1)])
+
+    def inside(w: NDArray[np.float64]) -> NDArray[np.int64]:
+        return np.sum(np.abs(pencil(w)) < 1.0, axis=-1)
+
+    w = np.linspace(omega_max / points, omega_max, points)
+    n_in = inside(w)
+    change = np.flatnonzero(n_in[:-1] != n_in[1:])
+    need = points + (bisections + 1) * change.size
+    if need > max_points:
+        raise ParameterError("max_points", f">= {need} ({change.size} crossings to bisect)", max_points)
+    lo, hi, n_lo = w[change], w[change + 1], n_in[change]
+    for _ in range(bisections if change.size else 0):  # every bracket at once
+        mid = 0.5 * (lo + hi)
+        same = inside(mid) == n_lo
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    found = []
+    if change.size:
+        wc = 0.5 * (lo + hi)
+        for x, z in zip(wc, pencil(wc)):
+            zc = z[np.argmin(np.abs(np.abs(z) - 1.0))]
+            found.append((float(x), float(np.mod(-np.angle(zc), 2 * np.pi) / x)))
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False)

@@ -1,0 +1,571 @@
+"""The delay margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` and its stability windows.
+
+The number of unstable roots is piecewise constant in ``delta`` and changes only at the
+crossing delays of :mod:`nrobust.crossings`, so a certified count at ``delta = 0`` and the
+signed crossings give it for every ``delta``: stability windows included. The crossing
+search is complete and classifies every crossing (simple, with a certified direction, or
+a tangency), so this count is right by construction, with or without ``verify``; the
+verification is an independent check by the argument principle, and a count that the
+crossings would make negative is reported as an error, never returned. The loops of the
+paper's plants (:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``,
+eq. (60), ``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``) are studied
+with :mod:`nrobust.hyperbolic.studies`.
+
+Tangencies: a tangency at ``(w, delta_c)`` (a double zero in ``w`` of
+``|A(i w)|^2 - |B(i w)|^2``) puts a root on the axis at ``delta_c`` that returns to the
+left half-plane: the count does not change, but the loop is not exponentially stable at
+that single delay. The margin is therefore the first delay at which a root lies on the
+axis, tangencies included, and the stability windows (open intervals) exclude every
+tangency delay: a window ends at it and the next one starts there.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._json import fields_dict
+from .._validate import positive_int
+from ..bounds import joint_degree, principal_gap, root_free_region
+from ..errors import CertificationError, ParameterError
+from ..quasipoly import QuasiPolynomial, as_quasipolynomial
+from ..roots import count_roots
+from .crossing import (
+    _ZERO_TOL,
+    AxisGap,
+    Crossing,
+    _axis_count,
+    _common_axis_zeros,
+    _crossing_search,
+    _crossings,
+    _is_zero,
+    frequency_bound,
+)
+from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
+
+__all__ = ["DelayMargin", "delay_margin"]
+
+
+# ============================================================================ delay margin
+@dataclass(frozen=True)
+class DelayMargin:
+    """Delay margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` and its stability intervals.
+
+    Attributes
+    ----------
+    margin : float
+        ``delta*``: the loop is exponentially stable for every ``delta`` in
+        ``[0, delta*)`` and not at ``delta*``, where a root lies on the imaginary axis
+        (the first destabilising crossing, or an earlier tangency). 0 when the nominal
+        loop is not stable or the difference operator is not strongly stable for small
+        ``delta > 0`` (the paper's zero margin, Theorem 3); ``inf`` when no crossing
+        exists, or when ``A`` or ``B`` is identically zero and the other is stable (the
+        loop does not depend on the delay).
+    omega : float or None
+        Crossing frequency at which the margin is reached.
+    crossings : tuple of Crossing
+        Every crossing frequency with its delays up to ``delta_max``.
+    nominally_stable : bool
+        The loop with ``delta = 0`` is exponentially stable.
+    nominal_unstable : int or None
+        Certified number of zeros of ``F(.; 0)`` with ``Re s > 0`` (None when a zero
+        lies on the imaginary axis or no count was possible).
+    strongly_stable : bool
+        The difference operator of ``F(.; delta)`` is strongly stable for small delays.
+    zero_root : bool
+        ``A(0) + B(0) = 0``: ``s = 0`` is a root for every delta.
+    intervals : tuple of (float, float)
+        Maximal open delay intervals in ``[0, delta_max]`` on which the loop is
+        exponentially stable (``[0, hi)`` when it includes the nominal loop). Crossing
+        delays, tangencies included, are never inside a window.
+    counts : tuple of (float, float, int)
+        Number of zeros with ``Re s > 0`` on each interval between crossing delays.
+    delta_max : float
+        Range of delays covered by ``intervals``.
+    frequency_bound : float or None
+        ``W``: no crossing (and no zero in ``Re s >= 0``) for ``|s| > W``, every delta.
+    gap : float
+        ``|a_0| - sum |others|`` of the principal terms (``> 0`` iff strongly stable).
+    verified : bool
+        The margin was checked independently: a certified count by the argument
+        principle (on the boundary of the half disc of radius ``1.01 W``, the imaginary
+        axis sampled on chirp-z grids; :func:`nrobust.count_roots` where that does not
+        apply) finds no zero in ``Re s > 0`` at ``delta* (1 - 1e-3)``. The residual below
+        is checked with or without verification.
+    residual : float or None
+        ``|F(i w; delta*)| / (|A| + |B|)`` at the margin (at rounding level, else a
+        :class:`CertificationError` is raised).
+    reason : str
+        How the margin was decided, in words.
+    evaluations : int
+        Evaluations of ``A`` and ``B`` spent by the crossing search.
+    rigorous : bool
+        True when the margin is proven in ball arithmetic (``delay_margin(..., rigorous=True)``):
+        the nominal count by :func:`nrobust.count_roots` with ``rigorous=True``, the crossing
+        set by :func:`nrobust.proven_crossings.proven_crossings` and ``delta*`` enclosed in
+        ``margin_ball``; a theorem about ``A`` and ``B`` as represented.
+    margin_ball : (float, float) or None
+        With ``rigorous``: ``(lo, hi)`` with ``lo <= delta* <= hi`` proven (``margin`` lies
+        inside); None otherwise.
+    """
+
+    margin: float
+    omega: float | None
+    crossings: tuple[Crossing, ...]
+    nominally_stable: bool
+    nominal_unstable: int | None
+    strongly_stable: bool
+    zero_root: bool
+    intervals: tuple[tuple[float, float], ...]
+    counts: tuple[tuple[float, float, int], ...]
+    delta_max: float
+    frequency_bound: float | None
+    gap: float
+    verified: bool
+    residual: float | None
+    reason: str
+    evaluations: int = field(default=0)
+    rigorous: bool = False
+    margin_ball: tuple[float, float] | None = None
+
+    @property
+    def method(self) -> str:
+        """``"ball arithmetic"`` (``rigorous=True``: proven) or ``"floating point"`` (checked)."""
+        return "ball arithmetic" if self.rigorous else "floating point"
+
+    @property
+    def nominal_stable(self) -> bool:
+        """Deprecated alias of :attr:`nominally_stable` (the name :class:`nrobust.Certificate` uses)."""
+        warnings.warn(
+            "DelayMargin.nominal_stable is deprecated, use DelayMargin.nominally_stable",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.nominally_stable
+
+    def is_stable(self, delta: ArrayLike) -> NDArray[np.bool_]:
+        """Exponential stability at each ``delta`` in ``[0, delta_max]`` (from the intervals)."""
+        d = np.asarray(delta, dtype=float)
+        if np.any(d < 0) or np.any(d > self.delta_max):
+            raise ParameterError("delta", f"in [0, delta_max = {self.delta_max:.6g}]", delta)
+        out = np.zeros(d.shape, dtype=bool)
+        for lo, hi in self.intervals:
+            closed = hi == self.delta_max and not any(hi in c.delays for c in self.crossings)
+            out |= ((d > lo) | ((lo == 0.0) & (d == 0.0) & self.nominally_stable)) & ((d < hi) | (closed & (d == hi)))
+        return out
+
+    def unstable_count(self, delta: ArrayLike) -> NDArray[np.int64]:
+        """Number of zeros with ``Re s > 0`` at each ``delta`` (-1 on a crossing delay)."""
+        d = np.asarray(delta, dtype=float)
+        if np.any(d < 0) or np.any(d > self.delta_max):
+            raise ParameterError("delta", f"in [0, delta_max = {self.delta_max:.6g}]", delta)
+        out = np.full(d.shape, -1, dtype=np.int64)
+        for lo, hi, n in self.counts:
+            closed = hi == self.delta_max and not any(hi in c.delays for c in self.crossings)
+            out[(d > lo) & ((d < hi) | (closed & (d == hi)))] = n
+        if self.nominal_unstable is not None:
+            out[d == 0.0] = self.nominal_unstable
+        return out
+
+    def __repr__(self) -> str:
+        w = "None" if self.omega is None else f"{self.omega:.10g}"
+        return (
+            f"DelayMargin(margin={self.margin:.10g}, omega={w}, crossings={len(self.crossings)}, "
+            f"nominally_stable={self.nominally_stable}, strongly_stable={self.strongly_stable}, "
+            f"windows={len(self.intervals)}, verified={self.verified}, reason={self.reason!r})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinities as strings)."""
+        return fields_dict(self)
+
+
+def _count_unstable(F: QuasiPolynomial, W: float, rigorous: bool = False) -> int | None:
+    """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``.
+
+    For real coefficients the zeros come in conjugate pairs: the count of the upper box
+    ``(0, r) x (0, r)`` is doubled when no edge had to move (then no zero lies on the
+    positive real axis nor on the imaginary axis), which halves the contour on the
+    imaginary axis, where the count spends most of its work. None when the count had to
+    move its edge off ``Re s = 0`` (a zero on, or within rounding of, the axis): it then
+    counts another region, not ``Re s > 0``. ``rigorous``: counts proven in ball arithmetic.
+    """
+    r = 1.01 * W + 1e-9
+    if F.is_real:
+        upper = count_roots(F, (0.0, r, 0.0, r), rigorous=rigorous)
+        if not upper.shifted:
+            return 2 * int(upper)
+    count = count_roots(F, (0.0, r, -r, r), rigorous=rigorous)
+    return int(count) if count.region[0] == 0.0 else None
+
+
+def _margin_ball(proof: ProvenCrossings, zero_root: bool, nominal: int | None) -> tuple[float, float]:
+    """Enclosure of ``delta*`` from the proven crossings and the proven nominal count; raises what is not proven."""
+    if zero_root:
+        return (0.0, 0.0)
+    if nominal is None:
+        raise CertificationError(
+            "delay_margin(rigorous=True): the number of zeros of A + B in Re s >= 0 is not proven (a zero on or "
+            "within the ball radii of the imaginary axis at delta = 0)"
+        )
+    if nominal > 0:
+        return (0.0, 0.0)
+    ball = proof.margin_ball()
+    first = min((lo for lo, _ in proof.unresolved_delays), default=float("inf"))
+    if ball is None:
+        if proof.unresolved:
+            raise CertificationError(
+                f"delay_margin(rigorous=True): no proven crossing, but tangencies to rounding at w in "
+                f"{list(proof.unresolved)}: whether a root touches the axis there is not decided in ball arithmetic"
+            )
+        return (float("inf"), float("inf"))
+    if first <= ball[1]:
+        raise CertificationError(
+            f"delay_margin(rigorous=True): a tangency to rounding (w in {list(proof.unresolved)}, delays from "
+            f"{first:.12g}) may come before the first proven crossing (delay <= {ball[1]:.12g}); ball arithmetic "
+            "cannot tell a double zero from two close zeros or none"
+        )
+    return ball
+
+
+def _delay_max(value: Any) -> float | None:
+    """``delta_max`` as None, ``inf`` or a positive float; NaN, ``-inf`` and non-positive values raise."""
+    if value is None:
+        return None
+    expected = "a positive number or inf (None: one period past every crossing delay)"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError("delta_max", expected, value)
+    if not float(value) > 0.0:  # NaN, -inf, 0 and negative numbers
+        raise ParameterError("delta_max", expected, value)
+    return float(value)
+
+
+def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: float | None) -> DelayMargin:
+    """The loop ``F = P`` (``which`` factor identically zero): no delay enters, one certified count decides.
+
+    A zero of ``P`` on (or within rounding of) the imaginary axis makes the count move its
+    left edge: the loop is then not exponentially stable and ``nominal_unstable`` is None.
+    """
+    principal = principal_gap({"P": (P, 0)}, joint_degree(P), 0.0)
+    gap = float("-inf") if principal is None else principal.gap
+    nominal: int | None = None
+    radius: float | None = None
+    if principal is not None and gap > 0.0 and not zero_root:
+        try:
+            radius = root_free_region(P).radius
+            r = 1.01 * radius + 1e-9
+            count = count_roots(P, (0.0, r, -r, r))
+            nominal = None if count.region[0] < 0.0 else int(count)
+        except (ParameterError, CertificationError):
+            nominal = None
+    stable = nominal == 0
+    d_max = float("inf") if delta_max is None else delta_max
+    other = "A" if which == "B" else "B e^{-delta s}"
+    return DelayMargin(
+        margin=float("inf") if stable else 0.0,
+        omega=None,
+        crossings=(),
+        nominally_stable=stable,
+        nominal_unstable=nominal,
+        strongly_stable=gap > 0.0,
+        zero_root=zero_root,
+        intervals=((0.0, d_max),) if stable else (),
+        counts=((0.0, d_max, nominal),) if nominal is not None else (),
+        delta_max=d_max,
+        frequency_bound=radius,
+        gap=gap,
+        verified=False,
+        residual=None,
+        reason=(
+            f"{which} is identically zero: the loop {other} does not depend on the delay and is "
+            + ("exponentially stable" if stable else "not exponentially stable")
+        ),
+    )
+
+
+def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> int | None:
+    """Certified count of unstable zeros of ``A + B``, or None if it cannot be certified."""
+    F = A + B
+    if W is None:
+        try:
+            W = root_free_region(F).radius
+        except (ParameterError, CertificationError):
+            return None
+    return _count_unstable(F, W)
+
+
+def delay_margin(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    *,
+    delta_max: float | None = None,
+    verify: bool = True,
+    max_evals: int = 2_000_000,
+    rigorous: bool = False,
+) -> DelayMargin:
+    """Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+
+    For a plant and a controller, :func:`nrobust.delay_margin` builds ``A`` and ``B`` with
+    :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
+    ``U_BS2(K)``) and calls this function.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The loop factors (numbers are taken as constants).
+    delta_max : float, optional
+        Range of delays for the stability intervals; default
+        ``max_c (delta_{c,0} + 2 pi / |w_c|)``, one period of every crossing (``inf``
+        without crossings).
+    verify : bool, optional
+        Check the margin by the residual at ``i w`` and a certified count at
+        ``delta* (1 - 1e-3)``.
+    max_evals : int, optional
+        Work bound of the crossing search.
+    rigorous : bool, optional
+        Prove the margin in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
+        the frequency bound, every zero of ``|A(i w)|^2 - |B(i w)|^2`` with the direction of its
+        crossing and its first delay (:func:`nrobust.proven_crossings.proven_crossings`),
+        and the nominal count (:func:`nrobust.count_roots` with ``rigorous=True``); the
+        result has ``rigorous=True`` and ``margin_ball = (lo, hi)`` enclosing ``delta*``.
+        What cannot be proven raises :class:`CertificationError` (e.g. a tangency to
+        rounding that could come first, a loop in which ``A`` or ``B`` is identically zero).
+
+    Returns
+    -------
+    DelayMargin
+
+    Raises
+    ------
+    ParameterError
+        ``A`` and ``B`` both identically zero, ``delta_max`` not positive (NaN, ``-inf``),
+        or ``max_evals`` not a positive integer.
+    CertificationError
+        A work bound was hit (``max_evals`` is checked before any grid is allocated), a
+        crossing cluster could not be decided, or a check failed: the residual at the
+        margin, a count made negative by the crossing directions, or the verification;
+        with ``rigorous=True``, whatever could not be proven.
+    ImportError
+        ``rigorous=True`` without python-flint.
+
+    Notes
+    -----
+    When ``B`` (or ``A``) is identically zero the loop does not depend on the delay: the
+    margin is ``inf`` if the other factor is exponentially stable (certified count, no
+    zero on the axis), else 0. When ``A`` and ``B`` vanish together at some ``i w`` the
+    loop has that root for every delay: margin 0, like ``A(0) + B(0) = 0``.
+
+    Examples
+    --------
+    >>> from nrobust import QuasiPolynomial
+    >>> A = QuasiPolynomial([[1.0, 1.0]], [0.0])      # s + 1
+    >>> B = QuasiPolynomial([[2.0]], [0.0])           # 2 e^{-delta s}
+    >>> dm = delay_margin(A, B)
+    >>> bool(abs(dm.margin - np.arccos(-0.5) / np.sqrt(3.0)) < 1e-12)
+    True
+    """
+    A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
+    max_evals = positive_int("max_evals", max_evals)
+    delta_max = _delay_max(delta_max)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if _is_zero(A) and _is_zero(B):
+        raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
+    real = A.is_real and B.is_real
+    a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
+    zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    if rigorous:
+        zero_root = proven_zero_root(A, B)
+        if _is_zero(B) or _is_zero(A):
+            raise CertificationError(
+                "delay_margin(rigorous=True): A or B is identically zero, the loop does not depend on the delay; "
+                "prove its stability with count_roots(..., rigorous=True)"
+            )
+        if zero_root:  # proven: s = 0 is a root for every delay, whatever the crossings
+            principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+            gap = float("-inf") if principal is None else principal.gap
+            return DelayMargin(
+                margin=0.0,
+                omega=0.0,
+                crossings=(),
+                nominally_stable=False,
+                nominal_unstable=None,
+                strongly_stable=gap > 0.0,
+                zero_root=True,
+                intervals=(),
+                counts=(),
+                delta_max=float("inf") if delta_max is None else delta_max,
+                frequency_bound=None,
+                gap=gap,
+                verified=False,
+                residual=None,
+                reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
+                rigorous=True,
+                margin_ball=(0.0, 0.0),
+            )
+    if _is_zero(B) or _is_zero(A):
+        return _delay_free(B if _is_zero(A) else A, "A" if _is_zero(A) else "B", zero_root, delta_max)
+    w_bound = frequency_bound(A, B)
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+    gap = float("-inf") if principal is None else principal.gap
+    if w_bound is None:
+        if rigorous and principal is not None and not proven_gap(A, B)[1] < 0.0:
+            raise CertificationError(
+                f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
+                "the boundary of strong stability to rounding): zero margin not proven"
+            )
+        nominal = _nominal_count(A, B, None)
+        reason = (
+            "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
+            if principal is None
+            else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g}"
+            + (" <= 0" if gap <= 0 else ", zero to rounding")
+            + "): zero margin"
+        )
+        return DelayMargin(
+            margin=0.0,
+            omega=None,
+            crossings=(),
+            nominally_stable=nominal == 0 and not zero_root,
+            nominal_unstable=nominal,
+            strongly_stable=False,
+            zero_root=zero_root,
+            intervals=(),
+            counts=(),
+            delta_max=0.0 if delta_max is None else delta_max,
+            frequency_bound=None,
+            gap=gap,
+            verified=False,
+            residual=None,
+            reason=reason,
+            rigorous=rigorous,
+            margin_ball=(0.0, 0.0) if rigorous else None,
+        )
+    proof: ProvenCrossings | None = None
+    if rigorous:
+        proof = proven_crossings(A, B, max_evals=max_evals)
+        search, axis_gap = proof.search(), AxisGap(A, B)
+    else:
+        search, axis_gap = _crossing_search(A, B, w_bound, max_evals)
+    W = search.frequency_bound
+    common = _common_axis_zeros(axis_gap, search)
+    if common.size:
+        return DelayMargin(
+            margin=0.0,
+            omega=float(common[0]),
+            crossings=(),
+            nominally_stable=False,
+            nominal_unstable=None,
+            strongly_stable=True,
+            zero_root=zero_root,
+            intervals=(),
+            counts=(),
+            delta_max=float("inf") if delta_max is None else delta_max,
+            frequency_bound=W,
+            gap=search.gap,
+            verified=False,
+            residual=None,
+            reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
+            evaluations=search.evaluations,
+        )
+    crossings, delta_max = _crossings(A, B, search, delta_max, axis_gap)
+    mult = 2 if real else 1
+    events: dict[float, int] = {}
+    for c in crossings:
+        for d in c.delays:
+            if d <= delta_max:
+                events[d] = events.get(d, 0) + mult * c.direction
+    axis_at_zero = zero_root or (0.0 in events)
+    nominal = None if axis_at_zero else _count_unstable(A + B, W, rigorous)
+    stable_at_zero = nominal == 0
+    marks = sorted(d for d in events if d > 0.0)
+    # Number of unstable zeros on the first interval (0, first positive crossing delay).
+    if nominal is not None:
+        first = nominal
+    elif zero_root:
+        first = None
+    else:
+        probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
+        first = _count_unstable(A + B.shift(probe), W, rigorous)
+    counts: list[tuple[float, float, int]] = []
+    intervals: list[tuple[float, float]] = []
+    if first is not None:
+        bounds = [0.0, *marks, delta_max]
+        cur = first
+        for k in range(len(bounds) - 1):
+            if k > 0:
+                cur += events[bounds[k]]
+                if cur < 0:
+                    raise CertificationError(
+                        f"delay_margin: the crossing directions make the number of unstable roots negative "
+                        f"({cur}) after delta = {bounds[k]:.12g}: certified count {first} on (0, {bounds[1]:.12g}), "
+                        f"changes {[(d, events[d]) for d in marks[:k]]}, crossings {list(crossings)}; "
+                        "this contradicts the certificates (please report it)"
+                    )
+            if bounds[k + 1] > bounds[k]:
+                counts.append((bounds[k], bounds[k + 1], cur))
+        # consecutive intervals are separated by a delay with a zero on the axis: never merged
+        intervals = [(lo, hi) for lo, hi, m in counts if m == 0]
+    if zero_root:
+        margin, omega, reason = 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
+    elif not stable_at_zero:
+        margin, omega = 0.0, None
+        reason = "the nominal loop (delta = 0) is not exponentially stable"
+    elif not crossings:
+        margin, omega, reason = float("inf"), None, "no crossing frequency: stable for every delay"
+    else:
+        first_crossing = crossings[0]
+        margin, omega = first_crossing.delays[0], first_crossing.omega
+        kind = "tangency (a double root touches the axis and returns)" if first_crossing.tangential else "crossing"
+        reason = f"first {kind} at w = {omega:.10g}"
+    verified, residual = False, None
+    if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
+        s = np.array([1j * omega])
+        Fm = A(s) + B(s) * np.exp(-s * margin)
+        residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
+        if residual > 1e-8:
+            raise CertificationError(
+                f"delay_margin: F(i w; delta*) does not vanish at delta* = {margin:.12g}, w = {omega:.12g} "
+                f"(relative residual {residual:.3g})"
+            )
+        if verify:
+            probe = margin * (1 - 1e-3)
+            below = _axis_count(A, B, probe, W, axis_gap._kernels, max_evals)
+            if below is None:
+                below = _count_unstable(A + B.shift(probe), W)
+            if below != 0:
+                raise CertificationError(
+                    f"delay_margin: verification failed at delta* = {margin:.12g}: {below} unstable roots at "
+                    f"delta* (1 - 1e-3), where the crossing analysis finds none"
+                )
+            verified = True
+    ball = None
+    if proof is not None:
+        ball = _margin_ball(proof, zero_root, nominal)
+        if not ball[0] <= margin <= ball[1]:
+            margin = 0.5 * (ball[0] + ball[1])
+        reason += f" (proven in ball arithmetic: delta* in [{ball[0]:.17g}, {ball[1]:.17g}])"
+    return DelayMargin(
+        margin=float(margin),
+        omega=None if omega is None else float(omega),
+        crossings=crossings,
+        nominally_stable=bool(stable_at_zero and not zero_root),
+        nominal_unstable=nominal,
+        strongly_stable=True,
+        zero_root=zero_root,
+        intervals=tuple(intervals),
+        counts=tuple(counts),
+        delta_max=float(delta_max),
+        frequency_bound=W,
+        gap=search.gap,
+        verified=verified,
+        residual=residual,
+        reason=reason,
+        evaluations=search.evaluations,
+        rigorous=rigorous,
+        margin_ball=ball,
+    )

@@ -1,0 +1,790 @@
+"""The crossing set of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` proven in ball arithmetic.
+
+:mod:`nrobust.crossings` finds every zero of ``g(w) = |A(i w)|^2 - |B(i w)|^2`` with
+floating-point evaluations and a fixed rounding allowance. This module proves the same
+set with python-flint's balls (:mod:`nrobust.balls`: every value a midpoint and a radius
+containing every rounding error), for ``A`` and ``B`` *as represented* (stored floats
+exact, ``N~`` the cubic spline on its grid). Each statement below is a theorem about
+those functions.
+
+**Frequency bound.** ``W`` comes from :func:`nrobust.crossings.frequency_bound`; it is
+then proven: the principal gap ``|a_0| - sum |a_k|`` and the tail bound
+``r_A(W) + r_B(W)`` (point terms of lower degree, and kernels by
+``|q|(W) W^-n min(M_0, V_0 / W)`` with ``M_0 >= int nu^m |N|`` and ``V_0`` the variation
+bound of integration by parts, both summed in balls from the stored pieces of ``N``)
+are enclosed and ``r(W) < gap`` is checked on the balls. Then
+``| |A(i w)| - |B(i w)| | > 0`` for ``|w| >= W`` and, on ``Re s >= 0``, every zero of
+``F(.; delta)`` has ``|s| < W`` (the estimate of :mod:`nrobust.crossings`).
+
+**Exclusion.** ``h = |A(i w)| - |B(i w)|`` has ``|h'| <= |A'(i w)| + |B'(i w)| <= L(a, b)``
+on ``[a, b]``, with ``L`` summed in balls from the moduli of the terms (point terms
+``|p'|(b) + tau |p|(b)``; kernels ``|c| (|q'|(b) j_m + |q|(b) j_{m+1})``,
+``j_k = min(M_k, V_k / a)``, ``V_1 = M_0 + b_N V_0``). A segment with
+``|h(a)| + |h(b)| > L (b - a)``, the values enclosed in balls at the end points, holds
+no zero. The grid is planned in floating point (steps ``0.9 |h| / L``, cheap) and every
+segment is then checked in balls; failures are cut, and stretches where ``|h|`` is small
+become clusters.
+
+**Isolation.** On a cluster ``I`` (balls ``A^{(k)}(i I)``, ``B^{(k)}(i I)`` over the whole
+interval): ``g' = -2 Im(conj(A) A') + 2 Im(conj(B) B')``. If ``0`` is not in ``g'(I)`` and
+the proven signs of ``g`` at the ends differ, ``I`` holds exactly one zero, simple, with
+the proven sign of ``g'`` (the direction of the crossing, ``sign(g') sign(w)``); the
+interval Newton operator ``m - g(m) / g'(J)`` shrinks its enclosure ``J`` to a few ulps.
+Same signs: no zero. Otherwise ``I`` is bisected at a point where the sign of ``g`` is
+proven. Down to width ``1e-9 max(1, W)``, the second derivative decides:
+``g'' = 2 (|A'|^2 - Re(conj(A) A'')) - 2 (|B'|^2 - Re(conj(B) B''))``; with ``0`` not in
+``g''(I)``, ``g'`` has at most one zero ``w*`` (enclosed by interval Newton on ``g'``) and
+``sigma g`` (``sigma = sign g''``) is convex: ``sigma g(w*) > 0`` proves ``I`` zero-free,
+``< 0`` proves one simple zero on each side where ``sigma g > 0`` at the end. If ``g(w*)``
+encloses 0, a tangency cannot be told from a near-tangency in ball arithmetic: the
+cluster is kept as *unresolved*, with the interval ``J`` (``|w - w*|^2 <= 2 |g(w*)| / min |g''|``)
+that would hold its zeros, if any, and the enclosure of the delays they would fix.
+Anything else is refused (:class:`~nrobust.errors.CertificationError`).
+
+**Polynomial loops.** When ``A`` and ``B`` have no kernel and one point delay each,
+``g`` is a polynomial in ``w`` with rational coefficients (the stored floats): its real
+zeros are isolated exactly with their multiplicities (FLINT's square-free factorisation
+and root isolation), so tangencies are *proven* double zeros.
+
+**Delays.** At a zero enclosure ``[w]``, ``u = -B(i w)/A(i w)`` is enclosed and the first
+delay with ``e^{i w delta} = u`` is ``phi / w``, ``phi = arg u`` taken in ``[0, 2 pi)``
+(``w > 0``); the branch is chosen from the proven sign of ``Im u`` (or of ``Re u`` where
+``Im u`` encloses 0); a ``u`` that may lie on the positive real axis (a delay near a
+multiple of the period, e.g. ``delta = 0``) is refused.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._json import fields_dict
+from .._validate import positive_int
+from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint
+from ..bounds import joint_degree, principal_gap
+from ..errors import CertificationError, ParameterError
+from ..quasipoly import DistributedDelay, QuasiPolynomial
+from .crossing import CrossingSearch, _is_zero, _Kernels, _required_frequency_bound
+
+__all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_root"]
+
+# Float planning of the exclusion grid: steps of this fraction of |h| / L, and |h| below
+# which (relative to max |h|) a stretch is handed to the isolation as a cluster.
+_PLAN_FRACTION = 0.9
+_PLAN_FLOOR = 2e-2
+# Points of the float planning grid per unit of W (and at least this many).
+_PLAN_POINTS = 2000
+_PLAN_DENSITY = 64.0
+_PLAN_PER_EVAL = 16
+# Blocks of the frequency range with their own Lipschitz bound; failing segments are cut
+# into _CUT pieces, at most _CUT_ROUNDS times, before they join a cluster.
+_BLOCKS = 64
+_CUT = 4
+_CUT_ROUNDS = 4
+# Clusters narrower than this (relative to max(1, W)) are decided by the second derivative.
+_MIN_WIDTH = 1e-9
+# Interval Newton steps (each at least halves a contracting enclosure in practice).
+_NEWTON_STEPS = 60
+# Relative width at which an enclosure of a zero is tight enough.
+_TIGHT = 1e-14
+# Bisection rounds of the isolation.
+_MAX_ROUNDS = 200
+
+
+# ============================================================================ result
+@dataclass(frozen=True)
+class ProvenCrossings:
+    """Every zero of ``|A(i w)|^2 - |B(i w)|^2`` on ``[0, W]`` (``[-W, W]`` for complex loops), proven.
+
+    Intervals are ``(lo, hi)`` floats that contain the exact value (rounded outwards).
+
+    Attributes
+    ----------
+    omegas : tuple of (float, float)
+        Enclosure of each zero, increasing; each holds exactly one zero.
+    multiplicities : tuple of int
+        1 for a simple zero (a crossing), 2 for a proven double zero (a tangency; exact
+        route only); higher multiplicities are crossings when odd, tangencies when even.
+    slopes : tuple of int
+        Proven sign of ``g'`` at each simple zero (0 at a tangency); the direction of
+        the crossing is ``slope * sign(w)``.
+    delays : tuple of (float, float)
+        Enclosure of the first delay ``delta_0 = phi / w`` of each zero.
+    unresolved : tuple of (float, float)
+        Intervals that may hold a tangency (a double zero, two close zeros, or none:
+        indistinguishable in ball arithmetic).
+    unresolved_delays : tuple of (float, float)
+        Enclosure of the delays a zero in each unresolved interval would fix.
+    frequency_bound : float
+        ``W``, proven: no zero with ``|w| >= W``.
+    gap : (float, float)
+        Enclosure of the principal gap ``|a_0| - sum |a_k|``.
+    method : str
+        ``"exact polynomial"`` or ``"ball bisection"``.
+    evaluations : int
+        Ball evaluations of ``A`` and ``B`` (or of their shared kernels).
+    """
+
+    omegas: tuple[tuple[float, float], ...]
+    multiplicities: tuple[int, ...]
+    slopes: tuple[int, ...]
+    delays: tuple[tuple[float, float], ...]
+    unresolved: tuple[tuple[float, float], ...]
+    unresolved_delays: tuple[tuple[float, float], ...]
+    frequency_bound: float
+    gap: tuple[float, float]
+    method: str
+    evaluations: int
+
+    def margin_ball(self) -> tuple[float, float] | None:
+        """Enclosure of the smallest first delay over every zero (None without zeros)."""
+        if not self.delays:
+            return None
+        return (min(lo for lo, _ in self.delays), min(hi for _, hi in self.delays))
+
+    def search(self) -> CrossingSearch:
+        """The zeros as a :class:`~nrobust.crossings.CrossingSearch` (midpoints; unresolved intervals as tangencies)."""
+        rows = [
+            (0.5 * (lo + hi), m % 2 == 0, s) for (lo, hi), m, s in zip(self.omegas, self.multiplicities, self.slopes)
+        ]
+        rows += [(0.5 * (lo + hi), True, 0) for lo, hi in self.unresolved]
+        rows.sort()
+        return CrossingSearch(
+            np.array([w for w, _, _ in rows], dtype=float),
+            np.array([t for _, t, _ in rows], dtype=bool),
+            self.frequency_bound,
+            0.5 * (self.gap[0] + self.gap[1]),
+            self.evaluations,
+            np.array([s for _, _, s in rows], dtype=np.int64),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+# ============================================================================ balls to floats
+def _lo(x: Any) -> float:
+    """A float at or below every point of the arb ``x``."""
+    v = float(x.lower())
+    return math.nextafter(v, -math.inf)
+
+
+def _hi(x: Any) -> float:
+    """A float at or above every point of the arb ``x``."""
+    v = float(x.upper())
+    return math.nextafter(v, math.inf)
+
+
+def _sign(x: Any) -> int:
+    """Proven sign of the arb ``x`` (0 when it encloses 0)."""
+    return 1 if x > 0 else (-1 if x < 0 else 0)
+
+
+def _interval(flint: Any, a: float, b: float) -> Any:
+    """The arb holding ``[a, b]`` (end points exact)."""
+    return flint.arb(a) if a == b else flint.arb(a).union(flint.arb(b))
+
+
+# ============================================================================ term bounds
+class _Moduli:
+    """Proven bounds of a kernel: ``M_k >= int nu^(m+k) |N|`` (``k = 0, 1``), ``V_0`` and ``nu_max``.
+
+    :func:`nrobust.balls.ball_abs_moment` and :func:`nrobust.balls.ball_variation_bound` at
+    ``Re s = 0`` (``N`` as represented: the stored spline pieces); ``V_0`` only for moment 0.
+    """
+
+    def __init__(self, flint: Any, d: DistributedDelay) -> None:
+        start, h, _ = d._pieces
+        self.M = [ball_abs_moment(d, 0.0, k) for k in range(2)]
+        self.V0 = ball_variation_bound(d, 0.0) if d.moment == 0 else None
+        self.nu_max = flint.arb(0)
+        for s0, hv in zip(start, h):
+            self.nu_max = self.nu_max.max(flint.arb(float(s0)) + flint.arb(float(hv)))
+
+
+def _abs_arb(flint: Any, c: complex) -> Any:
+    return abs(_to_acb(flint, c)) if c.imag else abs(flint.arb(c.real))
+
+
+def _to_acb(flint: Any, c: complex) -> Any:
+    c = complex(c)
+    return flint.acb(c.real, c.imag) if c.imag else flint.acb(c.real)
+
+
+def _abs_poly(flint: Any, coefs: NDArray, r: Any, order: int = 0) -> Any:
+    """``sum_j |c_j| (j)_order r^(j - order)``: a bound of ``|p^(order)(s)|`` for ``|s| <= r``."""
+    out = flint.arb(0)
+    for j, c in enumerate(coefs):
+        if j >= order and c != 0:
+            out += _abs_arb(flint, complex(c)) * math.perm(j, order) * r ** (j - order)
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _moduli(d: DistributedDelay) -> _Moduli:
+    """:class:`_Moduli` of ``d``, built once (kernels recur across calls)."""
+    return _Moduli(require_flint(), d)
+
+
+class _Lipschitz:
+    """Proven bound of ``|A'(i w)| + |B'(i w)|`` for ``a <= |w| <= b`` (module notes)."""
+
+    def __init__(self, flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, kernels: _Kernels) -> None:
+        self.flint = flint
+        self.points = [(p, float(t)) for P in (A, B) for p, t in P.point_terms]
+        self.moduli = [_moduli(u) for u in kernels.units]
+        self.terms = [(k, abs(c), q) for side in kernels.terms for k, c, q in side]
+
+    def __call__(self, a: float, b: float) -> Any:
+        flint = self.flint
+        arb = flint.arb
+        r = arb(max(abs(a), abs(b)))
+        r_min = 0.0 if a <= 0.0 <= b else min(abs(a), abs(b))
+        out = arb(0)
+        for p, t in self.points:
+            out += _abs_poly(flint, p, r, 1) + arb(t) * _abs_poly(flint, p, r, 0)
+        for k, c, q in self.terms:
+            mod = self.moduli[k]
+            j0, j1 = mod.M[0], mod.M[1]
+            if mod.V0 is not None and r_min > 0.0:
+                v1 = mod.M[0] + mod.nu_max * mod.V0
+                j0 = j0.min(mod.V0 / arb(r_min))
+                j1 = j1.min(v1 / arb(r_min))
+            out += arb(c) * (_abs_poly(flint, q, r, 1) * j0 + _abs_poly(flint, q, r, 0) * j1)
+        return out
+
+
+# ============================================================================ frequency bound
+def _proven_bound(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, W: float) -> tuple[Any, Any] | None:
+    """``(gap, tail)`` balls at radius ``W`` (delays measured from ``t0``, ``Re s >= 0``)."""
+    arb = flint.arb
+    n = joint_degree(A, B)
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
+    if principal is None:
+        return None
+    lead = [(c, float(t), order) for order, P in enumerate((A, B)) for c, t in P.leading_terms(n)]
+    lead.sort(key=lambda e: (e[1], e[2]))
+    gap = _abs_arb(flint, complex(lead[0][0]))
+    for c, _, _ in lead[1:]:
+        gap -= _abs_arb(flint, complex(c))
+    R = arb(W)
+    tail = arb(0)
+    for P in (A, B):
+        for p, _ in P.point_terms:
+            for j in range(min(p.size, n)):
+                if p[j] != 0:
+                    tail += _abs_arb(flint, complex(p[j])) * R ** (j - n)
+        for d in P.distributed:
+            mod = _moduli(d)
+            qpow = _abs_poly(flint, d.poly, R, 0) / R**n
+            bound = mod.M[0] if mod.V0 is None else mod.M[0].min(mod.V0 / R)
+            tail += qpow * bound
+    return gap, tail
+
+
+# ============================================================================ ball evaluation of the axis functions
+class _Axis:
+    """``A`` and ``B`` on the imaginary axis in balls, with a work bound on the evaluations."""
+
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int) -> None:
+        self.flint = require_flint()
+        self.fa, self.fb = ball_function(A), ball_function(B)
+        self.kernels = _Kernels((A, B))
+        self.points = [None if not P.point_terms else ball_function(QuasiPolynomial(P.coefs, P.delays)) for P in (A, B)]
+        self.units = [ball_function(QuasiPolynomial([], [], [u])) for u in self.kernels.units]
+        self.evals = 0
+        self.max_evals = max_evals
+
+    def spend(self, n: int) -> None:
+        if self.evals + n > self.max_evals:
+            raise CertificationError(
+                f"proven crossing search: {n} more ball evaluations after {self.evals} exceed the work bound "
+                f"max_evals={self.max_evals} (raise max_evals)"
+            )
+        self.evals += n
+
+    def values(self, w: list[float]) -> list[tuple[Any, Any]]:
+        """``(A(i w), B(i w))`` at points, the kernels shared by ``A`` and ``B`` summed once."""
+        flint = self.flint
+        self.spend(len(w))
+        pts = [flint.acb(0, x) for x in w]  # floats or exact arb
+        out = []
+        sums = [u.many(pts) for u in self.units]
+        for i, s in enumerate(pts):
+            vals = []
+            for side in range(2):
+                f = self.points[side]
+                v = f(s) if f is not None else flint.acb(0)
+                for k, c, q in self.kernels.terms[side]:
+                    qv = flint.acb_poly([_to_acb(flint, x) for x in q])(s)
+                    v += _to_acb(flint, c) * qv * sums[k][i]
+                vals.append(v)
+            out.append((vals[0], vals[1]))
+        return out
+
+    def jet(self, s: Any, order: int) -> list[tuple[Any, Any]]:
+        """``[(A^(k)(s), B^(k)(s)) for k = 0..order]`` at a ball ``s``."""
+        self.spend(order + 1)
+        return [(self.fa(s, k), self.fb(s, k)) for k in range(order + 1)]
+
+    def g(self, s: Any) -> Any:
+        """``g`` at a ball ``s`` (points: the shared kernels summed once)."""
+        if s.imag.rad() == 0:
+            ((a, b),) = self.values([s.imag])
+        else:
+            a, b = self.jet(s, 0)[0]
+        return _sq(a) - _sq(b)
+
+    def g1(self, s: Any) -> Any:
+        (a, b), (da, db) = self.jet(s, 1)
+        return -2 * (a.conjugate() * da).imag + 2 * (b.conjugate() * db).imag
+
+    def g2(self, s: Any) -> Any:
+        (a, b), (da, db), (d2a, d2b) = self.jet(s, 2)
+        return 2 * (_sq(da) - (a.conjugate() * d2a).real) - 2 * (_sq(db) - (b.conjugate() * d2b).real)
+
+
+def _sq(z: Any) -> Any:
+    return z.real**2 + z.imag**2
+
+
+# ============================================================================ delays
+def _first_delay(flint: Any, a: Any, b: Any, w: Any, w_sign: int) -> tuple[float, float] | None:
+    """Enclosure of the first delay with ``e^{i w delta} = -B/A`` (None when the branch is not proven)."""
+    if a.contains(0):
+        return None
+    u = -b / a
+    pi2 = 2 * flint.arb.pi()
+    im, re = _sign(u.imag), _sign(u.real)
+    if w_sign > 0:
+        if im > 0:
+            phi = u.arg()
+        elif im < 0:
+            phi = u.arg() + pi2
+        elif re < 0:
+            phi = flint.arb.pi() + (-u).arg()
+        else:
+            return None
+    else:
+        if im < 0:
+            phi = u.arg()
+        elif im > 0:
+            phi = u.arg() - pi2
+        elif re < 0:
+            phi = (-u).arg() - flint.arb.pi()
+        else:
+            return None
+    if w.contains(0):  # a zero of g near w = 0: only a lower bound of its delay
+        low = abs(phi).lower() / abs(w).upper()
+        return (_lo(low), math.inf) if low > 0 else None
+    delay = phi / w
+    if not delay > 0:
+        return None
+    return _lo(delay), _hi(delay)
+
+
+# ============================================================================ exact route (polynomial loops)
+def _fmpq(flint: Any, x: float) -> Any:
+    f = Fraction(float(x))
+    return flint.fmpq(f.numerator, f.denominator)
+
+
+def _axis_square(flint: Any, P: QuasiPolynomial) -> Any:
+    """``|P(i w)|^2`` as an ``fmpq_poly`` in ``w`` (``P`` a polynomial times one delay)."""
+    if not P.point_terms:
+        return flint.fmpq_poly([0])
+    ((p, _),) = P.point_terms
+    re, im = [], []
+    for j, c in enumerate(p):
+        # c i^j = (x + i y) (u + i v) with i^j = u + i v
+        x, y = _fmpq(flint, complex(c).real), _fmpq(flint, complex(c).imag)
+        u, v = ((1, 0), (0, 1), (-1, 0), (0, -1))[j % 4]
+        re.append(x * u - y * v)
+        im.append(x * v + y * u)
+    pr, pi_ = flint.fmpq_poly(re), flint.fmpq_poly(im)
+    return pr * pr + pi_ * pi_
+
+
+def _exact_route(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, real: bool) -> list[tuple[Any, int, int]] | None:
+    """Real zeros ``(ball, multiplicity, slope)`` of ``g`` for polynomial loops, or None."""
+    if A.distributed or B.distributed or len(A.point_terms) > 1 or len(B.point_terms) > 1:
+        return None
+    g = _axis_square(flint, A) - _axis_square(flint, B)
+    if g.is_zero():
+        raise CertificationError("proven crossing search: |A(i w)| = |B(i w)| for every w (g vanishes identically)")
+    out = []
+    _, factors = g.factor_squarefree()
+    for f, mult in factors:
+        if f.degree() < 1:
+            continue
+        for root, _ in flint.fmpz_poly(f.numer()).complex_roots():
+            if not root.imag.is_zero():
+                continue
+            w = root.real
+            if w.is_zero() or (real and not w > 0):
+                continue
+            if mult % 2:
+                d = g
+                for _ in range(mult):
+                    d = d.derivative()
+                slope = _sign(flint.arb_poly([flint.arb(c.p) / flint.arb(c.q) for c in d.coeffs()])(w))
+                if slope == 0:
+                    return None
+            else:
+                slope = 0
+            out.append((w, int(mult), slope))
+    return sorted(out, key=lambda e: float(e[0].mid()))
+
+
+# ============================================================================ ball route
+def _blocks(flint: Any, lip: _Lipschitz, lo: float, hi: float) -> tuple[NDArray, list[Any]]:
+    """Block edges of ``[lo, hi]`` and the proven Lipschitz bound on each block."""
+    edges = np.linspace(lo, hi, _BLOCKS + 1)
+    edges[0], edges[-1] = lo, hi
+    return edges, [lip(float(edges[k]), float(edges[k + 1])) for k in range(_BLOCKS)]
+
+
+def _plan(A: QuasiPolynomial, B: QuasiPolynomial, edges: NDArray, bounds: NDArray, max_evals: int) -> NDArray:
+    """Float planning of the exclusion grid: steps ``0.9 |h| / L``; small stretches of ``|h|`` jumped over.
+
+    A heuristic only: every segment is then checked in balls. The planning grid is
+    checked against ``_PLAN_PER_EVAL * max_evals`` before it is allocated.
+    """
+    lo, hi = float(edges[0]), float(edges[-1])
+    n = max(_PLAN_POINTS, _PLAN_DENSITY * (hi - lo) * max(1.0, A.max_delay, B.max_delay))
+    if n > _PLAN_PER_EVAL * max_evals:
+        raise CertificationError(
+            f"proven crossing search: the frequency range [{lo:.6g}, {hi:.6g}] needs a planning grid of about "
+            f"{n:.3g} points, beyond {_PLAN_PER_EVAL} times the work bound max_evals={max_evals} (raise max_evals)"
+        )
+    n = int(n)
+    w = np.linspace(lo, hi, n)
+    s = 1j * w
+    h = np.abs(A(s)) - np.abs(B(s))
+    floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
+    small = np.abs(h) < floor
+    block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bounds.size - 1)
+    pts = [lo]
+    x, k = lo, 0
+    while x < hi:
+        while k + 1 < w.size and w[k + 1] <= x:
+            k += 1
+        nxt = min(k + 1, w.size - 1)
+        if small[k] or small[nxt]:  # jump over the small stretch: it becomes a cluster
+            j = nxt
+            while j < w.size - 1 and small[j]:
+                j += 1
+            x, k = float(w[j]), j
+            pts.append(x)
+            continue
+        local = min(abs(h[k]), abs(h[nxt]))
+        L = max(bounds[block[k]], bounds[block[nxt]])
+        x = min(x + max(_PLAN_FRACTION * local / L, (w[1] - w[0]) * 1e-3), hi)
+        pts.append(x)
+    return np.unique(np.asarray(pts))
+
+
+def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[list, list]:
+    """Zeros ``(ball, slope)`` and unresolved intervals ``(a, b, ball of w*)`` of ``g`` on ``[lo, hi]``."""
+    flint = axis.flint
+    arb = flint.arb
+    lip = _Lipschitz(flint, A, B, axis.kernels)
+    edges, block_bounds = _blocks(flint, lip, lo, hi)
+    grid = _plan(A, B, edges, np.array([_hi(x) for x in block_bounds]), axis.max_evals)
+
+    def bound(a: float, b: float) -> Any:
+        ka = min(int(np.searchsorted(edges, a, side="right")) - 1, _BLOCKS - 1)
+        kb = min(int(np.searchsorted(edges, b, side="left")) - 1, _BLOCKS - 1)
+        out = block_bounds[max(ka, 0)]
+        for k in range(max(ka, 0) + 1, max(kb, 0) + 1):
+            out = out.max(block_bounds[k])
+        return out
+
+    hv = [abs(x) - abs(y) for x, y in axis.values(grid.tolist())]
+    todo = [(float(grid[i]), float(grid[i + 1]), hv[i], hv[i + 1]) for i in range(grid.size - 1)]
+    failed: list[tuple[float, float, Any, Any]] = []
+    for _ in range(_CUT_ROUNDS):
+        retry: list[tuple[float, float, Any, Any]] = []
+        for a, b, ha, hb in todo:
+            need = bound(a, b) * (arb(b) - arb(a))
+            have = ha.abs_lower() + hb.abs_lower()
+            if have > need:
+                continue
+            if float(need.upper()) > 64.0 * float(have.lower()) or b - a < _MIN_WIDTH * max(1.0, hi):
+                failed.append((a, b, ha, hb))
+            else:
+                retry.append((a, b, ha, hb))
+        if not retry:
+            todo = []
+            break
+        inner = [a + (b - a) * k / _CUT for a, b, _, _ in retry for k in range(1, _CUT)]
+        vin = [abs(x) - abs(y) for x, y in axis.values(inner)]
+        todo = []
+        for i, (a, b, ha, hb) in enumerate(retry):
+            pts = [a, *inner[i * (_CUT - 1) : (i + 1) * (_CUT - 1)], b]
+            hs = [ha, *vin[i * (_CUT - 1) : (i + 1) * (_CUT - 1)], hb]
+            todo.extend((pts[k], pts[k + 1], hs[k], hs[k + 1]) for k in range(_CUT))
+    failed.extend(todo)
+    failed.sort(key=lambda e: e[0])
+    clusters: list[list[Any]] = []
+    for a, b, ha, hb in failed:
+        if clusters and clusters[-1][1] == a:
+            clusters[-1][1], clusters[-1][3] = b, hb
+        else:
+            clusters.append([a, b, ha, hb])
+    zeros: list[tuple[Any, int]] = []
+    unresolved: list[tuple[float, float, Any]] = []
+    work = [(a, b, _sign(ha), _sign(hb)) for a, b, ha, hb in clusters]
+    for _ in range(_MAX_ROUNDS):
+        if not work:
+            break
+        nxt = []
+        for a, b, sa, sb in work:
+            nxt.extend(_decide(axis, a, b, sa, sb, hi, zeros, unresolved))
+        work = nxt
+    if work:
+        a, b, _, _ = work[0]
+        raise CertificationError(f"proven crossing search: [{a:.17g}, {b:.17g}] undecided after {_MAX_ROUNDS} rounds")
+    return zeros, unresolved
+
+
+def _gsign_at(axis: _Axis, w: float) -> int:
+    return _sign(axis.g(axis.flint.acb(0, w)))
+
+
+def _decide(
+    axis: _Axis, a: float, b: float, sa: int, sb: int, scale: float, zeros: list, unresolved: list
+) -> list[tuple[float, float, int, int]]:
+    """One step on the cluster ``[a, b]`` (proven signs ``sa``, ``sb`` of ``g`` at its ends, 0 if unknown)."""
+    flint = axis.flint
+    iv = _interval(flint, a, b)
+    s = flint.acb(0, iv)
+    if sa == 0:
+        sa = _gsign_at(axis, a)
+    if sb == 0:
+        sb = _gsign_at(axis, b)
+    d1 = axis.g1(s)
+    slope = _sign(d1)
+    if slope and sa and sb:
+        if sa != sb:
+            zeros.append((_newton(axis, a, b, sa, slope, d1, order=0), slope))
+        return []
+    c = 0.5 * (a + b)
+    # mean-value exclusion
+    gc = axis.g(flint.acb(0, c))
+    if not (gc + d1 * (iv - flint.arb(c))).contains(0):  # g(w) = g(c) + g'(xi) (w - c)
+        return []
+    if b - a > _MIN_WIDTH * max(1.0, scale):
+        for m in (c, a + 0.375 * (b - a), a + 0.625 * (b - a)):
+            sm = _sign(axis.g(flint.acb(0, m)))
+            if sm:
+                return [(a, m, sa, sm), (m, b, sm, sb)]
+    # second order: g'' of one sign
+    d2 = axis.g2(s)
+    sigma = _sign(d2)
+    if sigma == 0 or not (sa and sb):
+        raise CertificationError(
+            f"proven crossing search: cannot decide whether |A(i w)|^2 - |B(i w)|^2 vanishes on "
+            f"[{a:.17g}, {b:.17g}] (a zero of multiplicity three or more, or g flat at the ball radii); "
+            "a higher working precision or a slight change of the loop would decide it"
+        )
+    ga1, gb1 = axis.g1(flint.acb(0, a)), axis.g1(flint.acb(0, b))
+    if _sign(ga1) == _sign(gb1) != 0:
+        if sa != sb:
+            zeros.append((_newton(axis, a, b, sa, _sign(ga1), None, order=0), _sign(ga1)))
+        return []
+    if not (_sign(ga1) and _sign(gb1)):
+        raise CertificationError(
+            f"proven crossing search: the stationary point of g on [{a:.17g}, {b:.17g}] is an end to ball precision"
+        )
+    wstar = _newton(axis, a, b, _sign(ga1), sigma, d2, order=1)
+    gstar = axis.g(flint.acb(0, wstar)) * sigma
+    if gstar > 0:
+        return []
+    lo_s, hi_s = _lo(wstar), _hi(wstar)
+    if gstar < 0:
+        if sa == sigma:
+            zeros.append((_newton(axis, a, lo_s, sa, -sigma, None, order=0), -sigma))
+        if sb == sigma:
+            zeros.append((_newton(axis, hi_s, b, -sigma, sigma, None, order=0), sigma))
+        return []
+    reach = (2 * gstar.abs_upper() / d2.abs_lower()).sqrt()
+    unresolved.append((max(a, _lo(wstar - reach)), min(b, _hi(wstar + reach)), wstar))
+    return []
+
+
+def _newton(axis: _Axis, a: float, b: float, s_a: int, slope: int, d_iv: Any, order: int) -> Any:
+    """Interval Newton on ``g`` (``order = 0``) or ``g'`` (``order = 1``) on ``[a, b]``: the enclosure of its zero.
+
+    ``s_a`` is the proven sign of the function at ``a``, ``slope`` that of its derivative on
+    ``[a, b]`` (``d_iv``: its enclosure there, recomputed when None).
+    """
+    flint = axis.flint
+    f = axis.g if order == 0 else axis.g1
+    df = axis.g1 if order == 0 else axis.g2
+    x = _interval(flint, a, b)
+    rad_d = float(x.rad())
+    for _ in range(_NEWTON_STEPS):
+        if d_iv is None or float(x.rad()) < 1e-3 * rad_d:  # an enclosure of the derivative on x
+            d_iv, rad_d = df(flint.acb(0, x)), float(x.rad())
+        if d_iv.contains(0):
+            break
+        m = x.mid()
+        fm = f(flint.acb(0, m))
+        new = m - fm / d_iv
+        if not new.overlaps(x):
+            raise CertificationError("proven crossing search: interval Newton left its interval (inconsistent balls)")
+        new = new.intersection(x)
+        done = float(new.rad()) <= _TIGHT * max(1.0, abs(float(new.mid()))) or float(new.rad()) >= float(x.rad())
+        x = new
+        if done:
+            break
+    return x
+
+
+# ============================================================================ entry points
+def proven_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
+    """Enclosure ``(lo, hi)`` of the principal gap ``|a_0| - sum |a_k|`` of the loop (ball arithmetic).
+
+    ``(-inf, -inf)`` for an advanced-type loop (no first principal term dominates).
+    """
+    flint = require_flint()
+    res = _proven_bound(flint, A, B, 1.0)
+    if res is None:
+        return (-math.inf, -math.inf)
+    return _lo(res[0]), _hi(res[0])
+
+
+def proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial) -> bool:
+    """Whether ``A(0) + B(0) = 0`` (``s = 0`` a root for every delay), decided in ball arithmetic.
+
+    Raises
+    ------
+    CertificationError
+        When the enclosure of ``A(0) + B(0)`` contains 0 without being exactly 0.
+    """
+    flint = require_flint()
+    value = ball_function(A)(flint.acb(0)) + ball_function(B)(flint.acb(0))
+    if value.is_zero():
+        return True
+    if value.contains(0):
+        raise CertificationError(
+            f"delay_margin(rigorous=True): A(0) + B(0) = {value} is zero to the ball radius: whether s = 0 is a root "
+            "for every delay is not decided"
+        )
+    return False
+
+
+def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int = 200_000) -> ProvenCrossings:
+    """Every zero of ``|A(i w)|^2 - |B(i w)|^2`` with its first delay, proven in ball arithmetic.
+
+    See the module notes for what is proven and how.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The loop factors of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+    max_evals : int, optional
+        Work bound on the ball evaluations.
+
+    Returns
+    -------
+    ProvenCrossings
+
+    Raises
+    ------
+    ImportError
+        python-flint is not installed (``pip install nrobust[rigorous]``).
+    ParameterError
+        The difference operator of the loop is not strongly stable for small delays.
+    CertificationError
+        Something could not be proven: the frequency bound, the sign of ``g`` on a
+        cluster, a delay's branch, or the work bound was hit.
+
+    Examples
+    --------
+    >>> A = QuasiPolynomial([[1.0, 1.0]], [0.0])      # s + 1
+    >>> B = QuasiPolynomial([[2.0]], [0.0])           # 2 e^{-delta s}
+    >>> res = proven_crossings(A, B)
+    >>> lo, hi = res.omegas[0]
+    >>> bool(lo <= 3.0 ** 0.5 <= hi), res.method
+    (True, 'exact polynomial')
+    """
+    for name, P in (("A", A), ("B", B)):
+        if not isinstance(P, QuasiPolynomial):
+            raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
+    if _is_zero(A) or _is_zero(B):
+        raise ParameterError("A, B", "both not identically zero", (A, B))
+    max_evals = positive_int("max_evals", max_evals)
+    flint = require_flint()
+    W = _required_frequency_bound(A, B)[0]
+    proof = None
+    for _ in range(8):
+        proof = _proven_bound(flint, A, B, W)
+        if proof is not None and proof[1] < proof[0]:
+            break
+        W *= 1.0 + 1e-3
+    if proof is None or not proof[1] < proof[0]:
+        raise CertificationError(
+            "proven crossing search: the frequency bound could not be proven (tail bound not below the principal "
+            "gap in ball arithmetic)"
+        )
+    gap = proof[0]
+    real = A.is_real and B.is_real
+    hi = W * (1.0 + 1e-6)
+    lo = 0.0 if real else -hi
+    axis = _Axis(A, B, max_evals)
+    exact = _exact_route(flint, A, B, real)
+    zeros: list[tuple[Any, int, int]]
+    unresolved: list[tuple[float, float, Any]] = []
+    if exact is not None:
+        zeros = [(w, m, sl) for w, m, sl in exact if _hi(abs(w)) < hi]
+        method = "exact polynomial"
+    else:
+        found, unresolved = _ball_route(axis, lo, hi, A, B)
+        zeros = [(w, 1, sl) for w, sl in found]
+        method = "ball bisection"
+    zeros.sort(key=lambda e: float(e[0].mid()))
+    omegas, mults, slopes, delays = [], [], [], []
+    for w, mult, slope in zeros:
+        s = flint.acb(0, w)
+        a, b = axis.fa(s), axis.fb(s)
+        axis.spend(2)
+        sign = 1 if w > 0 else -1
+        delay = _first_delay(flint, a, b, w, sign)
+        if delay is None:
+            raise CertificationError(
+                f"proven crossing search: the first delay of the crossing at w in [{_lo(w):.17g}, {_hi(w):.17g}] "
+                "is not proven (a root on the imaginary axis at a delay near 0 modulo the period, or A(i w) near 0)"
+            )
+        omegas.append((_lo(w), _hi(w)))
+        mults.append(mult)
+        slopes.append(slope)
+        delays.append(delay)
+    un_delays = []
+    for a_, b_, _ in unresolved:
+        s = flint.acb(0, _interval(flint, a_, b_))
+        a, b = axis.fa(s), axis.fb(s)
+        axis.spend(2)
+        wiv = _interval(flint, a_, b_)
+        delay = _first_delay(flint, a, b, wiv, 1 if a_ > 0 else -1)
+        un_delays.append((0.0, math.inf) if delay is None else delay)
+    return ProvenCrossings(
+        omegas=tuple(omegas),
+        multiplicities=tuple(mults),
+        slopes=tuple(slopes),
+        delays=tuple(delays),
+        unresolved=tuple((a_, b_) for a_, b_, _ in unresolved),
+        unresolved_delays=tuple(un_delays),
+        frequency_bound=float(W),
+        gap=(_lo(gap), _hi(gap)),
+        method=method,
+        evaluations=axis.evals,
+    )

@@ -1,0 +1,75 @@
+"""``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .._progress import progress_bar
+from ..config import NPLUSM_TYPE, PiecewiseLinear, _wrap, load_system_file
+from ..hyperbolic.simulate.normal_form import Simulation, simulate
+from ..plots.figures import simulation_figure
+from .certificate import certify
+from .nplusm import run_nplusm_analyze
+from .outputs import RunOutputs, check_output_dir
+from .report import ReportFiles, write_report
+
+__all__ = ["run_analyze"]
+
+
+def _initial(value: float | PiecewiseLinear) -> Callable[[np.ndarray], np.ndarray]:
+    if isinstance(value, PiecewiseLinear):
+        return value
+    c = float(value)
+    return lambda x: np.full(np.shape(x), c)
+
+
+def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = None) -> tuple[ReportFiles, str]:
+    """``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report.
+
+    The input file is validated and ``out_dir`` checked (created, writable) before any
+    computation; the report's files are written as one set with ``manifest.json``
+    (:class:`~nrobust.outputs.RunOutputs`): a failed or interrupted run leaves ``out_dir``
+    as it was. Returns the :class:`~nrobust.report.ReportFiles` and the certificate's verdict. A progress
+    bar is drawn on stderr when ``progress`` is True, or for None when stderr is a terminal
+    or Jupyter.
+    """
+    check_output_dir(out_dir)  # before the plant is built (a steady profile, a front end's ODE)
+    spec = load_system_file(path)
+    if spec.get("kind") == NPLUSM_TYPE:  # an n + m plant: the cancellation study
+        return run_nplusm_analyze(spec, out_dir, progress)
+    sim = spec["simulation"]
+    outputs = RunOutputs(out_dir, "analyze")  # checked before anything is computed
+    with outputs, progress_bar(2 + (0 if sim is None else len(sim["delays"])), progress, "analyze") as bar:
+        cert = certify(
+            spec["system"],
+            spec["controller"],
+            spec["delta_max"],
+            spec["region"],
+            spec["k_region"],
+            rigorous=spec["rigorous"],
+        )
+        bar.update(1)
+        figures = []
+        if sim is not None:
+            runs: list[Simulation] = []
+            for d in sim["delays"]:
+
+                def run(delta: float = d) -> Simulation:
+                    u0, v0 = _initial(sim["u0"]), _initial(sim["v0"])
+                    return simulate(spec["system"], spec["controller"], delta, sim["t_end"], u0, v0, sim["cells"])
+
+                runs.append(_wrap("simulation", run))
+                bar.update(1)
+            figures.append(
+                (
+                    "L2 norm of the simulated closed loop",
+                    simulation_figure(runs, [f"delta = {d:g}" for d in sim["delays"]], "Simulation of the PDE"),
+                )
+            )
+        files = outputs.final(write_report(cert, outputs.staging, figures=figures))
+        outputs.commit()
+        bar.update(1)
+    return files, cert.verdict

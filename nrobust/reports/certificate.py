@@ -1,0 +1,685 @@
+"""Certificates: every number that decides the delay robustness of one closed loop.
+
+:func:`certify` runs the whole analysis of a plant and a controller and returns a
+:class:`Certificate`: the paper's classification by ``|rho q|`` (sections 2 and 3), the
+closed-loop difference operator with its ``gamma_0`` and strong stability (Hale and
+Verduyn Lunel; eq. (11), eq. (54)), certified root counts per box at
+``delta = 0`` and ``delta = delta_max``, the spectral abscissa, the exact delay margin
+with its crossing frequency, the Rouché bound ``delta_0`` from the proof of Theorem 4,
+and, for ``U_BS2(K)``, the gains ``K`` that keep the loop stable for every delay in
+``[0, delta_max]``. Nothing in a certificate is typed in by hand: each field is the
+output of the function named in its docstring, with the parameters and library versions
+that produced it.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass
+from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
+from typing import Any, TypeVar
+
+import numpy as np
+import scipy
+
+from .._json import fields_dict, json_safe
+from .._validate import positive, positive_int, renamed_keywords
+from .._validate import region as check_region
+from .._version import __version__
+from ..bounds import RoucheDelayBound
+from ..errors import CertificationError, ParameterError
+from ..hyperbolic import analyses
+from ..hyperbolic.analyses.rouche import rouche_delay_bound
+from ..hyperbolic.analyses.studies import DEFAULT_N_GAINS, KRegion, delay_margin
+from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
+from ..hyperbolic.loops.controllers import (
+    Classification,
+    Controller,
+    FiniteTimeController,
+    ReflectionController,
+    StateFeedback,
+    characteristic,
+    classify,
+    normalize,
+)
+from ..hyperbolic.loops.varying_form import DEFAULT_CHARACTERISTIC_GRID
+from ..hyperbolic.plants.general import GeneralHyperbolic2x2
+from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
+from ..margins.margin import DelayMargin
+from ..quasipoly import QuasiPolynomial
+from ..roots import RootSet, SpectralAbscissa, count_roots, find_roots, spectral_abscissa
+
+__all__ = ["CHECKED", "PROVEN", "Certificate", "Claim", "ModelError", "PrincipalPart", "certify"]
+
+#: Default search rectangle for the certified root counts, in units of ``1/tau``.
+_DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
+
+
+@dataclass(frozen=True)
+class PrincipalPart:
+    """The closed-loop difference operator ``D(s) = sum_k a_k e^{-tau_k s}`` at one delay.
+
+    Attributes
+    ----------
+    delta : float
+        The loop delay at which ``F(s; delta)`` was formed.
+    coefs, delays : tuple of float
+        ``a_k`` (real parts; the loops of the paper are real) and ``tau_k``.
+    gamma_0 : float
+        ``sum_{k >= 1} |a_k| / |a_0|``; for U_BS this is ``2 |rho q|`` (eq. (11)), for
+        U_BS2(K) ``|rho q| + |K q|`` (eq. (54)).
+    strongly_stable : bool
+        ``gamma_0 < 1``: the loop's high-frequency chains stay in ``Re s < 0`` for every
+        small delay (Hale and Verduyn Lunel).
+    strong_spectral_bound : float
+        ``C_D``, the supremum of the chains' abscissa over small delay perturbations.
+    spectral_bound : float
+        ``c_D``, the abscissa of the rightmost chain at this very delay (exact for
+        commensurate delays, the certified upper end of its bracket otherwise).
+    chains : tuple of float
+        Abscissae ``Re s`` of the root chains, rightmost first (commensurate delays only).
+    """
+
+    delta: float
+    coefs: tuple[float, ...]
+    delays: tuple[float, ...]
+    gamma_0: float
+    strongly_stable: bool
+    strong_spectral_bound: float
+    spectral_bound: float
+    chains: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinities as strings)."""
+        return fields_dict(self)
+
+
+def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
+    D = F.principal_part()
+    chains = D.chains()
+    bound = chains.bracket[1]  # c_D when commensurate, else the certified upper end
+    return PrincipalPart(
+        float(delta),
+        tuple(float(np.real(a)) for a in D.coefs),
+        tuple(float(t) for t in D.delays),
+        float(D.gamma_0),
+        bool(D.is_strongly_stable()),
+        float(D.strong_spectral_bound()),
+        float(bound),
+        tuple(float(c.real) for c in chains.chains),
+    )
+
+
+#: Status of a claim proven in ball arithmetic (python-flint): a theorem about ``F`` as represented.
+PROVEN = "proven (ball arithmetic)"
+#: Status of a claim computed in floating point with a rounding allowance.
+CHECKED = "checked (floating point)"
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One statement of a certificate and how far it is established.
+
+    Attributes
+    ----------
+    name : str
+        What the claim is about (``"delay margin"``, ``"nominal stability"``, ...).
+    statement : str
+        The claim, with its numbers.
+    status : str
+        :data:`PROVEN` (ball arithmetic, about ``F`` as represented) or :data:`CHECKED`
+        (floating point with a rounding allowance).
+    source : str
+        The function whose result the claim states.
+    """
+
+    name: str
+    statement: str
+    status: str
+    source: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """How far the represented loop is from the model: the kernel ``N~`` on a finite grid.
+
+    The proofs of a rigorous certificate concern ``F`` as represented (``N~`` the cubic
+    spline on ``kernel_grid`` points); this is the separate, floating-point evidence on
+    the distance to the exact kernel: the delay margin on a grid half as fine.
+
+    Attributes
+    ----------
+    kernel_grid, coarse_grid : int
+        The grid of the certificate and the coarser grid of the comparison.
+    margin, coarse_margin : float
+        The delay margins on both grids.
+    difference : float
+        ``|margin - coarse_margin|``; with the margin's observed third-order convergence in
+        the grid (``docs/margins.md``) the error of ``margin`` is about ``difference / 7``.
+    statement : str
+        The evidence in words.
+    """
+
+    kernel_grid: int
+    coarse_grid: int
+    margin: float
+    coarse_margin: float
+    difference: float
+    statement: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (infinities as strings)."""
+        return fields_dict(self)
+
+
+def _model_error(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin
+) -> ModelError:
+    """The delay margin on the default kernel grid and on one half as fine (floating point)."""
+    grid = DEFAULT_KERNEL_GRID
+    coarse = (grid - 1) // 2 + 1
+    if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
+        steps = DEFAULT_CHARACTERISTIC_GRID
+        return ModelError(
+            steps,
+            steps,
+            margin.margin,
+            margin.margin,
+            float("nan"),
+            f"N~ is the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} nodes, "
+            f"Richardson-extrapolated from {steps} steps (fourth order); its distance to the exact N~ is not "
+            "estimated here",
+        )
+    if getattr(system, "uncoupled", False):
+        return ModelError(
+            grid, grid, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
+        )
+    other = delay_margin(system, controller, kernel_grid=coarse).margin
+    if margin.margin == other:
+        diff = 0.0
+    elif np.isfinite(margin.margin) and np.isfinite(other):
+        diff = abs(margin.margin - other)
+    else:
+        diff = float("inf")
+    if diff == 0.0 and not (np.isfinite(other) and other > 0.0):
+        statement = (
+            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin is {other:g} on {coarse} "
+            f"and on {grid} points (decided by the structure of the loop, not by the values of N~)"
+        )
+    else:
+        statement = (
+            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin moves by {diff:.3g} from "
+            f"{coarse} to {grid} points (floating point; third-order convergence: error about {diff / 7.0:.2g})"
+        )
+    return ModelError(grid, coarse, float(margin.margin), float(other), float(diff), statement)
+
+
+def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller) -> str:
+    """How ``N~`` (and a state feedback's kernel) is represented in the certified ``F``, per kind of plant."""
+    if isinstance(system, GeneralHyperbolic2x2):  # normalize() leaves only a varying lam/mu general
+        steps = DEFAULT_CHARACTERISTIC_GRID
+        text = (
+            f"N~ the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} "
+            f"nodes, Richardson-extrapolated from {steps} steps"
+        )
+        gains = (getattr(controller, "g_u", 0.0), getattr(controller, "g_v", 0.0))
+        if isinstance(controller, StateFeedback) and any(callable(g) or g != 0.0 for g in gains):
+            text += (
+                f", and the feedback's kernel M the cubic spline of the kernels with varying speeds on "
+                f"{DEFAULT_KERNEL_GRID} points"
+            )
+        return text
+    if getattr(system, "uncoupled", False):
+        return "N~ = 0 exactly (uncoupled plant: no kernel)"
+    return f"N~ the cubic spline of the kernels on the kernel grid ({DEFAULT_KERNEL_GRID} points)"
+
+
+def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float, float, float, float], int] | None:
+    """A box in ``Re s > 0`` holding zeros of ``F(s; delta_max)`` (count and box), or None.
+
+    The roots of a neutral loop approach the chains of its difference operator (each chain
+    ``Re s = c``, ``Im s = offset + k spacing``): a box of half-width ``min(c/2, 0.1)`` and
+    half-height 1 about a chain point with ``c > 0`` is counted (in ball arithmetic with
+    ``rigorous``); a positive count proves the loop unstable.
+    """
+    try:
+        chains = Fd.principal_part().chains().chains
+    except (ParameterError, CertificationError):
+        return None
+    for chain in [c for c in chains if c.real > 0][:3]:
+        im = chain.offset % chain.spacing if np.isfinite(chain.spacing) and chain.spacing > 0 else chain.offset
+        im = im or chain.spacing
+        r = min(0.5 * chain.real, 0.1)
+        box = (chain.real - r, chain.real + r, im - 1.0, im + 1.0)
+        try:
+            n = count_roots(Fd, box, rigorous=rigorous)
+        except CertificationError:
+            continue
+        if int(n) > 0 and n.region[0] > 0.0:
+            return tuple(float(v) for v in n.region), int(n)  # type: ignore[return-value]
+    return None
+
+
+def _outward(x: float | None, digits: int, up: bool) -> str:
+    """``x`` to ``digits`` significant digits, rounded up (``up``) or down: a displayed bound stays a bound."""
+    if x is None or not np.isfinite(x):
+        return "-" if x is None else str(float(x))
+    if x == 0.0:
+        return "0"
+    exact = Decimal(float(x))
+    quantum = Decimal(1).scaleb(exact.adjusted() - digits + 1)
+    return f"{exact.quantize(quantum, rounding=ROUND_CEILING if up else ROUND_FLOOR).normalize():g}"
+
+
+def _claims(
+    margin: DelayMargin,
+    roots0: RootSet,
+    rootsd: RootSet,
+    abscissa: SpectralAbscissa,
+    rouche: RoucheDelayBound | None,
+    kreg: KRegion | None,
+    delta_max: float,
+    witness: tuple[tuple[float, float, float, float], int] | None = None,
+) -> tuple[Claim, ...]:
+    """Every claim of a certificate with its status (proven in balls or checked in floating point)."""
+
+    def status(proven: bool) -> str:
+        return PROVEN if proven else CHECKED
+
+    main = margin.rigorous and margin.strongly_stable  # the crossing analysis ran in balls
+    out = [
+        Claim(
+            "strong stability",
+            "the difference operator of F(s; delta) is "
+            + ("" if margin.strongly_stable else "not ")
+            + f"strongly stable for small delta > 0 (principal gap {margin.gap:.6g})",
+            status(margin.rigorous),
+            "delay_margin",
+        ),
+        Claim(
+            "nominal stability",
+            "F(s; 0) has "
+            + (
+                "no zero in Re s >= 0"
+                if margin.nominally_stable
+                else ("an unknown number of zeros" if margin.nominal_unstable is None else f"{margin.nominal_unstable}")
+                + " zeros in Re s > 0 (or one on the axis)"
+            ),
+            status(
+                main
+                or (margin.rigorous and margin.zero_root)
+                or (margin.nominally_stable and abscissa.rigorous and abscissa.certified and abscissa.value < 0)
+            ),
+            "delay_margin (count_roots), spectral_abscissa",
+        ),
+    ]
+    if margin.margin_ball is not None and margin.rigorous:
+        lo, hi = margin.margin_ball
+        text = f"delta* in [{_outward(lo, 16, False)}, {_outward(hi, 16, True)}]"
+    else:
+        text = f"delta* = {margin.margin:.12g}"
+    reason = margin.reason.split(" (proven in ball arithmetic")[0]
+    out.append(Claim("delay margin", f"{text}: {reason}", status(margin.rigorous), "delay_margin"))
+    if margin.margin_ball is not None and margin.margin_ball[0] > delta_max:
+        out.append(
+            Claim(
+                "stability up to delta_max",
+                f"F(s; delta) has no zero in Re s >= 0 for every delta in [0, {delta_max:g}] (delta* > delta_max)",
+                status(margin.rigorous),
+                "delay_margin",
+            )
+        )
+    if witness is not None:
+        box, n = witness
+        out.append(
+            Claim(
+                "instability at delta_max",
+                f"F(s; {delta_max:g}) has at least {n} zero(s) in the box Re s in "
+                f"[{_outward(box[0], 6, False)}, {_outward(box[1], 6, True)}], "
+                f"Im s in [{_outward(box[2], 6, False)}, {_outward(box[3], 6, True)}] "
+                "(inside Re s > 0: a chain of the difference operator)",
+                status(margin.rigorous),
+                "count_roots",
+            )
+        )
+    if margin.omega is not None and np.isfinite(margin.margin) and margin.margin > 0:
+        first = next((c for c in margin.crossings if c.omega == margin.omega), None)
+        kind = "a tangency" if first is not None and first.tangential else "a destabilising crossing"
+        out.append(
+            Claim(
+                "crossing that fixes delta*",
+                f"{kind} at w = {margin.omega:.12g}, first of every zero of |A(i w)|^2 - |B(i w)|^2 on "
+                f"[0, W], W = {_outward(margin.frequency_bound, 6, True)}",
+                status(main),
+                "delay_margin (crossings)",
+            )
+        )
+    for name, roots, delta in (("roots at delta = 0", roots0, 0.0), ("roots at delta_max", rootsd, delta_max)):
+        right = int(np.sum(roots.box_counts[roots.boxes[:, 0] > 0.0])) if roots.boxes.size else 0
+        extra = f", {right} of them in boxes inside Re s > 0" if right else ""
+        out.append(
+            Claim(
+                name,
+                f"F(s; {delta:g}) has {roots.count} zeros in the region, each entry in its counted box{extra}",
+                status(roots.rigorous and roots.certified),
+                "find_roots",
+            )
+        )
+    out.append(
+        Claim(
+            "spectral abscissa",
+            f"no zero of F(s; 0) with Re s > {_outward(abscissa.value, 10, True)}",
+            status(abscissa.rigorous and abscissa.certified),
+            "spectral_abscissa",
+        )
+    )
+    if rouche is not None:
+        out.append(
+            Claim(
+                "Rouché delay range",
+                f"every delay in [0, {_outward(rouche.delta_0, 6, False)}] keeps F zero-free on Re s >= 0",
+                status(bool(getattr(rouche, "rigorous", False))),
+                "rouche_delay_bound",
+            )
+        )
+    if kreg is not None:
+        out.append(Claim("admissible gains", "gains K stable on [0, delta_max] (see k_region)", CHECKED, "k_region"))
+    return tuple(out)
+
+
+def _versions() -> dict[str, str]:
+    return {
+        "nrobust": __version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "python": platform.python_version(),
+    }
+
+
+@dataclass(frozen=True, eq=False)
+class Certificate:
+    """The delay-robustness certificate of one closed loop (see :func:`certify`).
+
+    Attributes
+    ----------
+    system, controller : objects
+        The plant and controller analysed (kept to redraw figures; serialised through
+        their ``to_dict``).
+    delta_max : float
+        The range ``[0, delta_max]`` of loop delays covered.
+    classification : Classification
+        :func:`nrobust.hyperbolic.classify`: the regime of ``|rho q|``.
+    principal_nominal, principal_delayed : PrincipalPart
+        The difference operator of ``F(s; 0)`` and of ``F(s; delta_max)``.
+    roots_nominal, roots_delayed : RootSet
+        :func:`nrobust.roots.find_roots` of ``F(s; 0)`` and ``F(s; delta_max)`` in
+        ``region``, with per-box certified counts.
+    abscissa : SpectralAbscissa
+        :func:`nrobust.roots.spectral_abscissa` of ``F(s; 0)`` (the decay rate is its
+        opposite).
+    margin : DelayMargin
+        :func:`nrobust.margins.delay_margin` with the crossing frequency and the stability
+        intervals up to ``delta_max``.
+    rouche : RoucheDelayBound or None
+        :func:`nrobust.hyperbolic.robustness.rouche_delay_bound` (U_BS and U_BS2 only).
+    k_region : object or None
+        :func:`nrobust.hyperbolic.studies.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
+        delay in ``[0, delta_max]`` stable, each end solved from its own equations and verified
+        (``KRegion.ends`` gives its kind: crossing, pair birth, nominal, strong-stability limit).
+    region : tuple of float
+        The rectangle of the root counts.
+    versions : dict
+        nrobust, numpy, scipy and python versions.
+    k_region_error : str
+        Why the admissible gains could not be certified (the
+        :class:`~nrobust.errors.CertificationError` of ``k_region``, which is then None);
+        empty otherwise.
+    rigorous : bool
+        ``certify(..., rigorous=True)``: the claims were proven in ball arithmetic where possible.
+    claims : tuple of Claim
+        Every claim with its status, :data:`PROVEN` or :data:`CHECKED` (see :attr:`scope`).
+    model_error : ModelError or None
+        With ``rigorous``: the floating-point evidence on the distance of ``N~`` to the kernel.
+    unproven : tuple of str
+        With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
+    """
+
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2
+    controller: Controller
+    delta_max: float
+    classification: Classification
+    principal_nominal: PrincipalPart
+    principal_delayed: PrincipalPart
+    roots_nominal: RootSet
+    roots_delayed: RootSet
+    abscissa: SpectralAbscissa
+    margin: DelayMargin
+    rouche: RoucheDelayBound | None
+    k_region: KRegion | None
+    region: tuple[float, float, float, float]
+    versions: dict[str, str]
+    k_region_error: str = ""
+    rigorous: bool = False
+    claims: tuple[Claim, ...] = ()
+    model_error: ModelError | None = None
+    unproven: tuple[str, ...] = ()
+
+    @property
+    def scope(self) -> str:
+        """What the certificate's proofs are about, in words."""
+        if not self.rigorous:
+            return (
+                "Every claim is checked in floating point with a rounding allowance (certify(..., rigorous=True) "
+                "proves them in ball arithmetic)."
+            )
+        return (
+            "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
+            + _representation(self.system, self.controller)
+            + "; they are proven in ball arithmetic (python-flint). The distance of N~ to the exact one (the model "
+            "error) is not part of the proofs: "
+            + (self.model_error.statement if self.model_error is not None else "not estimated")
+            + "."
+        )
+
+    # ------------------------------------------------------------------ verdicts
+    @property
+    def nominally_stable(self) -> bool:
+        """The loop without delay is exponentially stable (from the delay margin's count)."""
+        return bool(self.margin.nominally_stable)
+
+    @property
+    def delay_margin(self) -> float:
+        """``delta*`` (``inf`` when no crossing exists)."""
+        return float(self.margin.margin)
+
+    @property
+    def delay_robust(self) -> bool:
+        """Stable for ``delta = 0`` and for every small ``delta > 0`` (Definition 1)."""
+        return self.nominally_stable and self.delay_margin > 0.0
+
+    @property
+    def stable_up_to_delta_max(self) -> bool:
+        """Stable for every delay in ``[0, delta_max]``."""
+        return self.delay_robust and self.delay_margin > self.delta_max
+
+    @property
+    def verdict(self) -> str:
+        """The conclusion in one sentence."""
+        name = type(self.controller).__name__
+        if not self.nominally_stable:
+            return f"{name}: the loop is not stable even without delay."
+        if not self.delay_robust:
+            return f"{name}: stable without delay but with zero delay margin: not delay-robust."
+        if self.stable_up_to_delta_max:
+            return (
+                f"{name}: delay-robust, stable for every delay in [0, {self.delta_max:g}] "
+                f"(delay margin {self.delay_margin:.6g})."
+            )
+        return f"{name}: delay-robust with margin {self.delay_margin:.6g} < delta_max = {self.delta_max:g}."
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description of every field, the verdicts first (infinities as strings).
+
+        ``abscissa`` is written as ``"spectral_abscissa"``.
+        """
+        verdicts = {
+            "verdict": self.verdict,
+            "nominally_stable": self.nominally_stable,
+            "delay_robust": self.delay_robust,
+            "delay_margin": self.delay_margin,
+            "stable_up_to_delta_max": self.stable_up_to_delta_max,
+            "scope": self.scope,
+        }
+        fields = {("spectral_abscissa" if k == "abscissa" else k): v for k, v in fields_dict(self).items()}
+        return {**json_safe(verdicts), **fields}
+
+    def to_json(self, indent: int | None = 2) -> str:
+        """The certificate as JSON text (strict: no NaN or infinity literals)."""
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+
+    def __repr__(self) -> str:
+        return (
+            f"Certificate({type(self.controller).__name__}, delta_max={self.delta_max:g}, "
+            f"margin={self.delay_margin:.6g}, nominally_stable={self.nominally_stable}, "
+            f"delay_robust={self.delay_robust})"
+        )
+
+
+@renamed_keywords(k_grid="n_gains")
+def certify(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: Controller,
+    delta_max: float = 0.1,
+    region: tuple[float, float, float, float] | None = None,
+    k_region: bool = True,
+    n_gains: int = DEFAULT_N_GAINS,
+    rigorous: bool = False,
+) -> Certificate:
+    """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2
+        The plant, eqs. (18)-(20); a general plant through its normal form, or, with a
+        varying ``lam/mu``, as it is (every analysis by its characteristic route,
+        :func:`~nrobust.hyperbolic.varying.varying_delay_form`).
+    controller : OpenLoop, FiniteTimeController, ReflectionController or FilteredController
+        The control law (U_BS eq. (47), U_BS2(K) eq. (53), ...).
+    delta_max : float
+        Largest loop delay of interest (``> 0``).
+    region : tuple, optional
+        ``(re_min, re_max, im_min, im_max)`` for the certified root counts; default
+        ``(-3, 1, -40, 40) / tau``: about 13 periods ``2 pi / tau`` of the root chains.
+    k_region : bool
+        For ``ReflectionController``, also compute the admissible gains on
+        ``[0, delta_max]`` (:func:`nrobust.hyperbolic.studies.k_region`).
+    n_gains : int, default :data:`~nrobust.hyperbolic.studies.DEFAULT_N_GAINS`
+        Number of gains, evenly spread in ``|K| < (1 - |rho q|)/|q|``, at which that
+        computation also reports (and cross-checks) delay margins (formerly ``k_grid``, a
+        deprecated alias). The interval ends do not depend on it: each is solved from the
+        equations of its kind and verified to ``KRegion.tol`` (``1e-10`` times the paper's
+        bound). When they cannot be verified (e.g. an end so close to the strong-stability
+        limit that the crossing search exceeds its work bound), ``k_region`` is None and
+        ``k_region_error`` says why.
+
+    rigorous : bool
+        Prove the root counts, the spectral abscissa, the delay margin (with its crossing)
+        and the Rouché range in ball arithmetic (python-flint, ``pip install
+        nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
+        Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
+        :data:`PROVEN` or :data:`CHECKED`.
+
+    Returns
+    -------
+    Certificate
+    """
+    delta_max = positive("delta_max", delta_max)
+    system, controller = normalize(system, controller)  # a general plant: its normal form
+    if not np.isfinite(delta_max):
+        raise ParameterError("delta_max", "finite", delta_max)
+    classification = classify(system)  # also checks the system
+    if region is None:
+        tau = float(system.tau) / getattr(system, "time_unit", 1.0)  # a varying lam/mu: in its time unit
+        box = (_DEFAULT_REGION[0] / tau, _DEFAULT_REGION[1] / tau, _DEFAULT_REGION[2] / tau, _DEFAULT_REGION[3] / tau)
+    else:
+        box = check_region(region)
+    # the algebra of QuasiPolynomial merges kernels on equal nodes: the I_N - I_N of the
+    # nominal U_BS and U_BS2 loops cancels exactly
+    F0 = characteristic(system, controller, 0.0)
+    Fd = characteristic(system, controller, delta_max)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    rigorous = bool(rigorous)
+    unproven: list[str] = []
+    roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
+    rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
+    abscissa = _prove("spectral abscissa", rigorous, unproven, lambda r: spectral_abscissa(F0, rigorous=r))
+    margin = _prove(
+        "delay margin",
+        rigorous,
+        unproven,
+        lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r),
+    )
+    rouche = (
+        _prove("Rouché delay range", rigorous, unproven, lambda r: rouche_delay_bound(system, controller, rigorous=r))
+        if isinstance(controller, (ReflectionController, FiniteTimeController))
+        else None
+    )
+    kreg, k_region_error = None, ""
+    if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
+        n_gains = positive_int("n_gains", n_gains, 3)
+        try:
+            kreg = analyses.k_region(system, delta_max, n_gains=n_gains)
+        except CertificationError as exc:
+            k_region_error = str(exc)
+    return Certificate(
+        system=system,
+        controller=controller,
+        delta_max=delta_max,
+        classification=classification,
+        principal_nominal=_principal(F0, 0.0),
+        principal_delayed=_principal(Fd, delta_max),
+        roots_nominal=roots0,
+        roots_delayed=rootsd,
+        abscissa=abscissa,
+        margin=margin,
+        rouche=rouche,
+        k_region=kreg,
+        region=tuple(float(v) for v in box),  # type: ignore[arg-type]
+        versions=_versions(),
+        k_region_error=k_region_error,
+        rigorous=rigorous,
+        claims=_claims(
+            margin,
+            roots0,
+            rootsd,
+            abscissa,
+            rouche,
+            kreg,
+            delta_max,
+            _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
+        ),
+        model_error=_model_error(system, controller, margin) if rigorous else None,
+        unproven=tuple(unproven),
+    )
+
+
+_T = TypeVar("_T")
+
+
+def _prove(name: str, rigorous: bool, unproven: list[str], compute: Callable[[bool], _T]) -> _T:
+    """``compute(rigorous)``; when the proof is refused, the floating-point result, and why in ``unproven``."""
+    if not rigorous:
+        return compute(False)
+    try:
+        return compute(True)
+    except CertificationError as exc:
+        unproven.append(f"{name}: not proven in ball arithmetic ({exc}); checked in floating point")
+        return compute(False)

@@ -1,0 +1,343 @@
+"""``nrobust paper``: the reference paper's example (section 5) end to end."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .._json import json_float, json_safe
+from .._validate import positive_int, renamed_keywords
+from ..errors import ParameterError
+from ..hyperbolic.analyses.studies import stability_chart, tradeoff
+from ..hyperbolic.kernels.constant import solve_kernels
+from ..hyperbolic.loops.controllers import FiniteTimeController, ReflectionController, characteristic, classify
+from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
+from ..hyperbolic.simulate.normal_form import DEFAULT_CELLS, Simulation, simulate
+from ..plots.figures import root_locus_response, simulation_figure, stability_chart_plot, tradeoff_plot
+from ..sweeps.engine import sweep_map
+from .certificate import certify
+from .outputs import RunOutputs
+from .report import write_report
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "PAPER_DELAYS_FIG1",
+    "PAPER_DELAYS_FIG3",
+    "PAPER_K",
+    "PAPER_SYSTEM",
+    "PAPER_T_END",
+    "paper_figure",
+    "run_paper",
+]
+
+#: The paper's numerical example (section 5): lam = mu = sigma+- = sigma-+ = q = 1, rho = 0.85.
+PAPER_SYSTEM = {"lam": 1.0, "mu": 1.0, "sigma_pm": 1.0, "sigma_mp": 1.0, "q": 1.0, "rho": 0.85}
+#: The tuning gain of figure 3 (U_BS2(K), eq. (53)).
+PAPER_K = 0.1
+#: The loop delays of figure 1 (U_BS).
+PAPER_DELAYS_FIG1 = (0.0, 0.01)
+#: The loop delays of figure 3 (U_BS2(K)).
+PAPER_DELAYS_FIG3 = (0.0, 0.01, 0.1)
+#: Horizon of the simulations of figures 1 and 3.
+PAPER_T_END = 15.0
+
+
+#: The certificates are proven in ball arithmetic when python-flint (``nrobust[rigorous]``) is installed.
+_RIGOROUS = importlib.util.find_spec("flint") is not None
+#: The paper's central claims, whose status the report states first.
+_CENTRAL_CLAIMS = (
+    "nominal stability",
+    "stability up to delta_max",
+    "crossing that fixes delta*",
+    "delay margin",
+    "instability at delta_max",
+)
+
+
+def _paper_u0(x: np.ndarray) -> np.ndarray:
+    """Initial ``u``: constant 1 (any L2 datum with energy on both chains would do)."""
+    return np.ones_like(np.asarray(x, dtype=float))
+
+
+def _paper_v0(x: np.ndarray) -> np.ndarray:
+    """Initial ``v``: ``1 + sin(pi x)``."""
+    return 1.0 + np.sin(np.pi * np.asarray(x, dtype=float))
+
+
+def _paper_job(task: tuple[Any, ...]) -> Any:
+    """One independent computation ``(job, *args)`` of :func:`run_paper`, run in a worker process.
+
+    The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker, so a job is sent as its
+    name and a few numbers.
+    """
+    job, *args = task
+    system = Hyperbolic2x2(**PAPER_SYSTEM)
+    if job == "simulate":
+        controller, delta, t_end, cells = args
+        return simulate(system, controller, delta, t_end, _paper_u0, _paper_v0, cells)
+    if job == "certify":
+        controller, delta_max, rigorous = args
+        return certify(system, controller, delta_max=delta_max, k_region=False, rigorous=rigorous)
+    if job == "chart":
+        return stability_chart(system, *args, progress=False)
+    if job == "tradeoff":
+        return tradeoff(system, *args, progress=False)
+    if job == "locus":
+        Ks, delta, region = args
+        return root_locus_response(
+            lambda K: characteristic(system, ReflectionController(K), delta), Ks, region, name="K"
+        )
+    raise ParameterError("job", "one of simulate, certify, chart, tradeoff, locus", job)
+
+
+@renamed_keywords(n="cells")
+def run_paper(
+    out_dir: str | Path,
+    progress: bool | None = None,
+    workers: int = 2,
+    t_end: float = PAPER_T_END,
+    cells: int = DEFAULT_CELLS,
+    n_K: int = 25,
+    n_delta: int = 26,
+) -> dict[str, Any]:
+    """``nrobust paper``: the reference paper's example end to end; returns the summary.
+
+    Simulates the PDE for figures 1 (U_BS, eq. (47), ``delta = 0, 0.01``) and 3
+    (U_BS2 with ``K = 0.1``, eq. (53), ``delta = 0, 0.01, 0.1``), certifies both
+    loops (classification, difference operator, certified roots, spectral abscissa,
+    delay margin, Rouché bound), computes the ``(K, delta)`` stability chart and the
+    decay/margin trade-off and the root locus in ``K`` of U_BS2, writes the report and
+    ``summary.json`` with the headline numbers, each read from a computation.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output directory, checked (created, writable) before anything is computed; the
+        report, its figures and ``summary.json`` are written there as one set with
+        ``manifest.json`` (:class:`~nrobust.outputs.RunOutputs`), so a failed or
+        interrupted run leaves it as it was.
+    progress : bool, optional
+        Show a progress bar on stderr; by default only when stderr is a terminal or Jupyter.
+    workers : int
+        Worker processes for the independent computations (0: all in this process).
+    t_end : float
+        Simulation horizon.
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+        Cells of the simulations' grid (formerly ``n``, a deprecated alias).
+    n_K, n_delta : int
+        Size of the stability chart's grid.
+    """
+    start = time.perf_counter()
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise ParameterError("workers", "an integer >= 0", workers)
+    with RunOutputs(out_dir, "paper") as outputs:  # checked before anything is computed
+        summary = _run_paper(outputs, start, progress, workers, t_end, cells, n_K, n_delta)
+    return summary
+
+
+def _run_paper(
+    outputs: RunOutputs,
+    start: float,
+    progress: bool | None,
+    workers: int,
+    t_end: float,
+    cells: int,
+    n_K: int,
+    n_delta: int,
+) -> dict[str, Any]:
+    """The body of :func:`run_paper`, writing into the staged ``outputs``."""
+    system = Hyperbolic2x2(**PAPER_SYSTEM)
+    classification = classify(system)
+    u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
+    k_max = classification.k_bound
+    Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
+    deltas = np.linspace(0.0, 0.5, n_delta)
+    # longest first, so that two workers finish together
+    tasks: dict[str, tuple[Any, ...]] = {
+        "tradeoff": ("tradeoff", Ks[Ks >= 0]),
+        "chart": ("chart", Ks, deltas),
+        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3), _RIGOROUS),
+        "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1), _RIGOROUS),
+        "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
+    }
+    for d in PAPER_DELAYS_FIG1:
+        tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, cells)
+    for d in PAPER_DELAYS_FIG3:
+        tasks[f"fig3_{d:g}"] = ("simulate", u_bs2, d, t_end, cells)
+    # one task per chunk: the jobs are few and long, and the longest go first
+    run = sweep_map(workers or "serial", chunksize=1, progress=progress)
+    res = dict(zip(tasks, run(_paper_job, tasks.values())))
+    fig1_runs = [res[f"fig1_{d:g}"] for d in PAPER_DELAYS_FIG1]
+    fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
+    cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
+    chart, trade = res["chart"], res["tradeoff"]
+
+    import matplotlib.pyplot as plt  # lazily: the command line checks its input before drawing anything
+
+    figures = [
+        ("Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)", paper_figure(1, fig1_runs)),
+        (f"Figure 3 of the paper: L2 norm under U_BS2 with K = {PAPER_K:g}", paper_figure(3, fig3_runs)),
+    ]
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    stability_chart_plot(chart, ax=ax, k_bound=k_max, rouche=(trade.Ks, trade.rouche_bounds))
+    figures.append(
+        (
+            "Stability chart of U_BS2(K) in (K, delta): grid verdicts, the exact boundary delta*(K), "
+            "the sufficient bound |K| < (1 - |rho q|)/|q| and the Rouche delay range",
+            fig,
+        )
+    )
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    tradeoff_plot(trade, ax=ax)
+    figures.append(("Trade-off between decay rate and delay margin as K varies (labels: K)", fig))
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    res["locus"].plot(ax=ax)
+    figures.append(
+        (
+            f"Root locus of U_BS2 in K at delta = {max(PAPER_DELAYS_FIG3):g} (upper half-plane; "
+            "the roots of a real loop are symmetric)",
+            fig,
+        )
+    )
+
+    def growth(run: Any) -> float:
+        """Least-squares slope of log ||(u, v)|| over the second half of the run."""
+        t = np.asarray(run.times)
+        y = np.log(np.maximum(np.asarray(run.norm), np.finfo(float).tiny))
+        half = t >= 0.5 * t[-1]
+        return float(np.polyfit(t[half], y[half], 1)[0])
+
+    admissible = [
+        float(K)
+        for K, m, v in zip(chart.Ks, chart.margins, chart.values[:, 0])
+        if v == 0 and m > max(PAPER_DELAYS_FIG3)
+    ]
+    summary = {
+        "system": system.to_dict(),
+        "classification": classification.to_dict(),
+        "U_BS": {
+            "delay_margin": cert_bs.to_dict()["delay_margin"],
+            "margin_reason": cert_bs.margin.reason,
+            "gamma_0_delayed": cert_bs.principal_delayed.gamma_0,
+            "chain_abscissa_delayed": cert_bs.principal_delayed.spectral_bound,
+            "simulated_growth_rate": {f"{d:g}": growth(r) for d, r in zip(PAPER_DELAYS_FIG1, fig1_runs)},
+        },
+        f"U_BS2(K={PAPER_K:g})": {
+            "delay_margin": cert_bs2.to_dict()["delay_margin"],
+            "crossing_frequency": cert_bs2.margin.omega,
+            "gamma_0_delayed": cert_bs2.principal_delayed.gamma_0,
+            "spectral_abscissa": cert_bs2.abscissa.value,
+            "rouche_delta_0": None if cert_bs2.rouche is None else cert_bs2.rouche.to_dict()["delta_0"],
+            "simulated_growth_rate": {f"{d:g}": growth(r) for d, r in zip(PAPER_DELAYS_FIG3, fig3_runs)},
+        },
+        "chart": {
+            "Ks": chart.Ks.tolist(),
+            "margins": [json_float(m) for m in chart.margins],
+            f"K_stable_up_to_{max(PAPER_DELAYS_FIG3):g}_on_grid": admissible,
+        },
+        "tradeoff": trade.to_dict(),
+    }
+    bs2 = summary[f"U_BS2(K={PAPER_K:g})"]
+    intro = [
+        "The example of section 5 of Auriol, Aarsnes, Martin and Di Meglio: "
+        + ", ".join(f"{k} = {v:g}" for k, v in PAPER_SYSTEM.items())
+        + ".",
+        f"**Classification.** {classification.statement}",
+        f"**U_BS.** {cert_bs.verdict} ({cert_bs.margin.reason}; rightmost chain of the delayed difference "
+        f"operator at Re s = {cert_bs.principal_delayed.spectral_bound:.4g}.)",
+        f"**U_BS2(K = {PAPER_K:g}).** {cert_bs2.verdict} Crossing frequency {_fmt_num(bs2['crossing_frequency'])}, "
+        f"nominal decay rate {_fmt_num(-cert_bs2.abscissa.value)}, Rouché guaranteed range "
+        f"delta_0 = {_fmt_num(cert_bs2.rouche.delta_0) if cert_bs2.rouche is not None else '-'}.",
+        "Simulated growth rates (slope of log ||(u, v)|| over the second half of each run): "
+        + "; ".join(
+            f"{name} delta = {d}: {g:.3g}"
+            for name, rates in (
+                ("U_BS", summary["U_BS"]["simulated_growth_rate"]),
+                ("U_BS2", bs2["simulated_growth_rate"]),
+            )
+            for d, g in rates.items()
+        )
+        + ".",
+        f"Gains of the chart's grid stable for every delay in [0, {max(PAPER_DELAYS_FIG3):g}]: "
+        + (", ".join(f"{k:.3g}" for k in admissible) or "none")
+        + ".",
+        "**What is proven.** "
+        + "; ".join(
+            f"{name}: {claim.name} {claim.status}"
+            for name, cert in (("U_BS", cert_bs), (f"U_BS2(K = {PAPER_K:g})", cert_bs2))
+            for claim in cert.claims
+            if claim.name in _CENTRAL_CLAIMS
+        )
+        + ". "
+        + cert_bs2.scope,
+    ]
+    files = write_report(
+        [cert_bs, cert_bs2],
+        outputs.staging,
+        figures=figures,
+        title="nrobust: the paper's example, end to end",
+        intro=intro,
+    )
+    summary["elapsed_seconds"] = time.perf_counter() - start
+    summary["workers"] = workers
+    summary["files"] = outputs.final(files).to_dict()
+    outputs.write_text("summary.json", json.dumps(json_safe(summary), indent=2, allow_nan=False))
+    outputs.commit()
+    return summary
+
+
+def _fmt_num(x: Any) -> str:
+    return "-" if x is None else f"{float(x):.6g}"
+
+
+def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: int = DEFAULT_CELLS) -> Figure:
+    """Figure 1 or 3 of the paper: the ``L^2`` norm of the simulated closed loop.
+
+    Figure 1: U_BS (eq. (47)) with ``delta = 0`` and ``0.01`` (:data:`PAPER_DELAYS_FIG1`):
+    finite-time convergence without delay, growth with the smallest delay (Theorem 3,
+    ``rho q = 0.85 > 1/2``). Figure 3: U_BS2 (eq. (53)) with ``K = 0.1`` and ``delta = 0,
+    0.01, 0.1`` (:data:`PAPER_DELAYS_FIG3`): stable for every delay. The plant is
+    :data:`PAPER_SYSTEM` from the initial state ``u = 1``, ``v = 1 + sin(pi x)``, up to
+    :data:`PAPER_T_END`; the log axis is cut at the scheme's ``O(h^2)`` residual
+    (:func:`nrobust.plots.residual_floor`). ``nrobust paper`` and
+    ``examples/paper_figures.py`` (the figures of the documentation) both draw them here.
+
+    Parameters
+    ----------
+    number : {1, 3}
+        Which figure.
+    runs : sequence of Simulation, optional
+        The simulations, one per delay of the figure, if already computed (``run_paper``
+        computes them in parallel); by default they are computed here with ``cells``.
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+        Grid cells of the simulations computed here.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    if number not in (1, 3):
+        raise ParameterError("number", "1 or 3 (the paper's simulation figures)", number)
+    controller, deltas, law = (
+        (FiniteTimeController(), PAPER_DELAYS_FIG1, "U_BS, eq. (47)")
+        if number == 1
+        else (ReflectionController(PAPER_K), PAPER_DELAYS_FIG3, f"U_BS2(K={PAPER_K:g}), eq. (53)")
+    )
+    if runs is None:
+        system = Hyperbolic2x2(**PAPER_SYSTEM)
+        # the kernels simulate() would solve for each run (its default grid), solved once
+        kernels = solve_kernels(system, min(positive_int("cells", cells), DEFAULT_CELLS) + 1)
+        runs = [
+            simulate(system, controller, d, PAPER_T_END, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas
+        ]
+    elif len(runs) != len(deltas):
+        raise ParameterError("runs", f"one simulation per delay {deltas}", runs)
+    return simulation_figure(runs, [f"delta = {d:g}" for d in deltas], f"Figure {number} of the paper: {law}")
