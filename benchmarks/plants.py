@@ -34,7 +34,7 @@ def stages(build: Callable[[], Any], controller: Any, kernel_grid: int) -> tuple
     """Seconds per stage and the margin, caches cleared first."""
     controllers._distributed_part.cache_clear()
     controllers._kernels.cache_clear()
-    controllers._varying_form.cache_clear()
+    controllers.cached_varying_delay_form.cache_clear()
     times: dict[str, float] = {}
     start = time.perf_counter()
     plant = build().system

@@ -21,7 +21,7 @@ from nrobust import (
     delay_margin,
     loop_factors,
 )
-from nrobust.margins.crossing import AxisGap, _axis_count, _Kernels, frequency_bound
+from nrobust.margins.crossing import AxisGap, AxisKernels, axis_count, frequency_bound
 from nrobust.margins.margin import delay_margin as factor_margin
 from nrobust.quasipoly import DistributedDelay
 
@@ -182,7 +182,7 @@ def test_verified_and_unverified_agree() -> None:
 def test_verification_count_against_count_roots(delta: float) -> None:
     A, B = loop_factors(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85), ReflectionController(0.1))
     W, _ = frequency_bound(A, B)
-    n = _axis_count(A, B, delta, W, _Kernels((A, B)), 10**6)
+    n = axis_count(A, B, delta, W, AxisKernels((A, B)), 10**6)
     assert n == count_at(A, B, delta, 1.01 * W)
 
 

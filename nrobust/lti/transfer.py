@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 __all__ = ["QuasiTransferFunction", "pade_approximation", "to_frd"]
 
 
-def _product(name: str, f: QuasiPolynomial, g: QuasiPolynomial) -> QuasiPolynomial:
+def product(name: str, f: QuasiPolynomial, g: QuasiPolynomial) -> QuasiPolynomial:
     """``f * g``, naming the operation when both sides carry distributed terms."""
     if f.distributed and g.distributed:
         raise ParameterError(
@@ -118,15 +118,15 @@ class QuasiTransferFunction:
     def series(self, other: QuasiTransferFunction | QuasiPolynomial | complex | np.number) -> QuasiTransferFunction:
         """``self * other``: the two blocks in cascade."""
         other = _as_tf("other", other)
-        return QuasiTransferFunction(_product("other", self.num, other.num), _product("other", self.den, other.den))
+        return QuasiTransferFunction(product("other", self.num, other.num), product("other", self.den, other.den))
 
     def parallel(self, other: QuasiTransferFunction | QuasiPolynomial | complex | np.number) -> QuasiTransferFunction:
         """``self + other``: the two blocks in parallel."""
         other = _as_tf("other", other)
         if _is_one(self.den) and _is_one(other.den):
             return QuasiTransferFunction(self.num + other.num, 1.0)
-        num = _product("other", self.num, other.den) + _product("other", other.num, self.den)
-        return QuasiTransferFunction(num, _product("other", self.den, other.den))
+        num = product("other", self.num, other.den) + product("other", other.num, self.den)
+        return QuasiTransferFunction(num, product("other", self.den, other.den))
 
     def feedback(
         self, other: QuasiTransferFunction | QuasiPolynomial | complex = 1.0, sign: int = -1
@@ -143,8 +143,8 @@ class QuasiTransferFunction:
         if sign not in (-1, 1):
             raise ParameterError("sign", "-1 (negative feedback) or +1 (positive feedback)", sign)
         other = _as_tf("other", other)
-        num = _product("other", self.num, other.den)
-        den = _product("other", self.den, other.den) - sign * _product("other", self.num, other.num)
+        num = product("other", self.num, other.den)
+        den = product("other", self.den, other.den) - sign * product("other", self.num, other.num)
         return QuasiTransferFunction(num, den)
 
     def delay(self, delta: float) -> QuasiTransferFunction:

@@ -142,7 +142,7 @@ _MAX_REFINE = 200
 _XTOL = 1e-12
 # Relative tolerance under which a crossing delay counts as delta = 0, and under which
 # A(0) + B(0) counts as zero.
-_ZERO_TOL = 1e-12
+ZERO_TOL = 1e-12
 # Largest number of crossing delays enumerated up to delta_max.
 _MAX_EVENTS = 100_000
 # Rounding of h on the search grid relative to the sum of the moduli of the terms (the
@@ -281,7 +281,7 @@ def _point_part(P: QuasiPolynomial) -> QuasiPolynomial | None:
     return QuasiPolynomial(P.coefs, P.delays) if P.point_terms else None
 
 
-def _is_zero(P: QuasiPolynomial) -> bool:
+def is_zero(P: QuasiPolynomial) -> bool:
     """True when ``P`` has no term at all (identically zero)."""
     return not P.point_terms and not P.distributed
 
@@ -295,7 +295,7 @@ def _leading_sign(values: NDArray) -> float:
     return -1.0 if (v.real < 0.0 or (v.real == 0.0 and v.imag < 0.0)) else 1.0
 
 
-class _Kernels:
+class AxisKernels:
     """The distributed terms of ``A`` and ``B`` grouped by kernel up to sign.
 
     A term ``q(s) int nu^m N e^{-nu s}`` is stored as ``c q(s) J(s)``, ``J`` the kernel
@@ -343,7 +343,7 @@ class _TermScale:
     ``|P^{(k)}(i w)|`` and scales its rounding error; it increases with ``r``.
     """
 
-    def __init__(self, P: QuasiPolynomial, kernels: _Kernels, side: int) -> None:
+    def __init__(self, P: QuasiPolynomial, kernels: AxisKernels, side: int) -> None:
         self.coefs = [np.zeros(1) for _ in range(4)]
         for p, tau in P.point_terms:
             for k in range(4):
@@ -387,11 +387,11 @@ class AxisGap:
     (-2.0, 2.0, 2.0)
     """
 
-    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, *, _kernels: _Kernels | None = None) -> None:
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, *, _kernels: AxisKernels | None = None) -> None:
         for name, P in (("A", A), ("B", B)):
             if not isinstance(P, QuasiPolynomial):
                 raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
-        self._kernels = _Kernels((A, B)) if _kernels is None else _kernels
+        self._kernels = AxisKernels((A, B)) if _kernels is None else _kernels
         self._points: list[tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial] | None] = []
         for P in (A, B):
             P0 = _point_part(P)
@@ -481,7 +481,7 @@ class _AxisFunction:
     controller of the paper) are evaluated once per frequency.
     """
 
-    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int, kernels: _Kernels) -> None:
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int, kernels: AxisKernels) -> None:
         self.points = [_point_part(P) for P in (A, B)]
         self.kernels = kernels
         self.scales = [_TermScale(P, self.kernels, side) for side, P in enumerate((A, B))]
@@ -530,7 +530,7 @@ class _AxisFunction:
 class _AxisLipschitz:
     """Bound of ``|A'(i w)| + |B'(i w)|`` on segments ``[a, b]`` of the frequency axis (module notes)."""
 
-    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, kernels: _Kernels) -> None:
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, kernels: AxisKernels) -> None:
         self.points = [P for P in (_point_part(A), _point_part(B)) if P is not None]
         self.kernel_bounds = []
         for unit, moments in zip(kernels.units, kernels.abs_moments):
@@ -587,7 +587,7 @@ def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, floa
     return _radius_below(tail, level), gap
 
 
-def _required_frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
+def required_frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
     """:func:`frequency_bound`, or a ParameterError where there is none (crossings accumulate at infinity)."""
     w_bound = frequency_bound(A, B)
     if w_bound is None:
@@ -1050,15 +1050,15 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
         if not isinstance(P, QuasiPolynomial):
             raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
     max_evals = positive_int("max_evals", max_evals)
-    return _crossing_search(A, B, _required_frequency_bound(A, B), max_evals)[0]
+    return crossing_search(A, B, required_frequency_bound(A, B), max_evals)[0]
 
 
-def _crossing_search(
+def crossing_search(
     A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int
 ) -> tuple[CrossingSearch, AxisGap]:
-    """The search, and the evaluator of ``|A|^2 - |B|^2`` it used (for :func:`_crossings`)."""
+    """The search, and the evaluator of ``|A|^2 - |B|^2`` it used (for :func:`axis_crossings`)."""
     W, gap = w_bound
-    h = _AxisFunction(A, B, max_evals, _Kernels((A, B)))
+    h = _AxisFunction(A, B, max_evals, AxisKernels((A, B)))
     tau = max(A.max_delay, B.max_delay, 1.0 / max(W, 1.0))
     step = np.pi / (8.0 * tau)
     lipschitz = _AxisLipschitz(A, B, h.kernels)
@@ -1067,7 +1067,7 @@ def _crossing_search(
     clusters = _first_stage(h, lo, hi, lipschitz, step)
     axis_gap = AxisGap(A, B, _kernels=h.kernels)
     roots, tangential, slopes = _resolve(axis_gap, h, *clusters)
-    keep = sorted((w, k) for k, w in enumerate(roots) if abs(w) > _ZERO_TOL * max(1.0, W))
+    keep = sorted((w, k) for k, w in enumerate(roots) if abs(w) > ZERO_TOL * max(1.0, W))
     search = CrossingSearch(
         np.array([w for w, _ in keep], dtype=float),
         np.array([tangential[k] for _, k in keep], dtype=bool),
@@ -1079,7 +1079,7 @@ def _crossing_search(
     return search, axis_gap
 
 
-def _common_axis_zeros(axis_gap: AxisGap, search: CrossingSearch) -> NDArray[np.float64]:
+def common_axis_zeros(axis_gap: AxisGap, search: CrossingSearch) -> NDArray[np.float64]:
     """Crossing frequencies where ``A`` and ``B`` vanish together (``F(i w; delta) = 0`` for every delta).
 
     At a common zero ``|A|^2 - |B|^2`` has a double zero, found as a tangency located to
@@ -1092,7 +1092,7 @@ def _common_axis_zeros(axis_gap: AxisGap, search: CrossingSearch) -> NDArray[np.
     return w[np.abs(a) <= 1e-9 * axis_gap._scales[0](w)]
 
 
-def _crossings(
+def axis_crossings(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
     search: CrossingSearch,
@@ -1116,7 +1116,7 @@ def _crossings(
         a, b, da, db = jets[0, 0], jets[1, 0], jets[0, 1], jets[1, 1]
     period = 2.0 * np.pi / np.abs(w)
     base = np.mod(np.angle(-b / a) / w, period)
-    base[(base > period * (1 - _ZERO_TOL)) | (base < period * _ZERO_TOL)] = 0.0
+    base[(base > period * (1 - ZERO_TOL)) | (base < period * ZERO_TOL)] = 0.0
     if delta_max is None:
         delta_max = float(np.max(base + period))
     elif not np.isfinite(delta_max):
@@ -1143,8 +1143,8 @@ def _crossings(
 
 
 # ============================================================================ count by the argument principle
-def _axis_count(
-    A: QuasiPolynomial, B: QuasiPolynomial, delta: float, W: float, kernels: _Kernels, max_evals: int
+def axis_count(
+    A: QuasiPolynomial, B: QuasiPolynomial, delta: float, W: float, kernels: AxisKernels, max_evals: int
 ) -> int | None:
     """Certified number of zeros of ``F = A + B e^{-delta s}`` in ``Re s > 0``, or None.
 

@@ -35,15 +35,15 @@ from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from ..roots import count_roots
 from .crossing import (
-    _ZERO_TOL,
+    ZERO_TOL,
     AxisGap,
     Crossing,
-    _axis_count,
-    _common_axis_zeros,
-    _crossing_search,
-    _crossings,
-    _is_zero,
+    axis_count,
+    axis_crossings,
+    common_axis_zeros,
+    crossing_search,
     frequency_bound,
+    is_zero,
 )
 from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
 
@@ -373,14 +373,14 @@ def delay_margin(
     delta_max = _delay_max(delta_max)
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
-    if _is_zero(A) and _is_zero(B):
+    if is_zero(A) and is_zero(B):
         raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
     real = A.is_real and B.is_real
     a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
-    zero_root = abs(a0 + b0) <= _ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    zero_root = abs(a0 + b0) <= ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
     if rigorous:
         zero_root = proven_zero_root(A, B)
-        if _is_zero(B) or _is_zero(A):
+        if is_zero(B) or is_zero(A):
             raise CertificationError(
                 "delay_margin(rigorous=True): A or B is identically zero, the loop does not depend on the delay; "
                 "prove its stability with count_roots(..., rigorous=True)"
@@ -407,8 +407,8 @@ def delay_margin(
                 rigorous=True,
                 margin_ball=(0.0, 0.0),
             )
-    if _is_zero(B) or _is_zero(A):
-        return _delay_free(B if _is_zero(A) else A, "A" if _is_zero(A) else "B", zero_root, delta_max)
+    if is_zero(B) or is_zero(A):
+        return _delay_free(B if is_zero(A) else A, "A" if is_zero(A) else "B", zero_root, delta_max)
     w_bound = frequency_bound(A, B)
     principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
     gap = float("-inf") if principal is None else principal.gap
@@ -450,9 +450,9 @@ def delay_margin(
         proof = proven_crossings(A, B, max_evals=max_evals)
         search, axis_gap = proof.search(), AxisGap(A, B)
     else:
-        search, axis_gap = _crossing_search(A, B, w_bound, max_evals)
+        search, axis_gap = crossing_search(A, B, w_bound, max_evals)
     W = search.frequency_bound
-    common = _common_axis_zeros(axis_gap, search)
+    common = common_axis_zeros(axis_gap, search)
     if common.size:
         return DelayMargin(
             margin=0.0,
@@ -472,7 +472,7 @@ def delay_margin(
             reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
             evaluations=search.evaluations,
         )
-    crossings, delta_max = _crossings(A, B, search, delta_max, axis_gap)
+    crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
     mult = 2 if real else 1
     events: dict[float, int] = {}
     for c in crossings:
@@ -534,7 +534,7 @@ def delay_margin(
             )
         if verify:
             probe = margin * (1 - 1e-3)
-            below = _axis_count(A, B, probe, W, axis_gap._kernels, max_evals)
+            below = axis_count(A, B, probe, W, axis_gap._kernels, max_evals)
             if below is None:
                 below = _count_unstable(A + B.shift(probe), W)
             if below != 0:

@@ -70,7 +70,7 @@ from ..balls import ball_abs_moment, ball_function, ball_variation_bound, requir
 from ..bounds import joint_degree, principal_gap
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
-from .crossing import CrossingSearch, _is_zero, _Kernels, _required_frequency_bound
+from .crossing import AxisKernels, CrossingSearch, is_zero, required_frequency_bound
 
 __all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_root"]
 
@@ -236,7 +236,7 @@ def _moduli(d: DistributedDelay) -> _Moduli:
 class _Lipschitz:
     """Proven bound of ``|A'(i w)| + |B'(i w)|`` for ``a <= |w| <= b`` (module notes)."""
 
-    def __init__(self, flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, kernels: _Kernels) -> None:
+    def __init__(self, flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, kernels: AxisKernels) -> None:
         self.flint = flint
         self.points = [(p, float(t)) for P in (A, B) for p, t in P.point_terms]
         self.moduli = [_moduli(u) for u in kernels.units]
@@ -296,7 +296,7 @@ class _Axis:
     def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial, max_evals: int) -> None:
         self.flint = require_flint()
         self.fa, self.fb = ball_function(A), ball_function(B)
-        self.kernels = _Kernels((A, B))
+        self.kernels = AxisKernels((A, B))
         self.points = [None if not P.point_terms else ball_function(QuasiPolynomial(P.coefs, P.delays)) for P in (A, B)]
         self.units = [ball_function(QuasiPolynomial([], [], [u])) for u in self.kernels.units]
         self.evals = 0
@@ -720,11 +720,11 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
     for name, P in (("A", A), ("B", B)):
         if not isinstance(P, QuasiPolynomial):
             raise ParameterError(name, "a QuasiPolynomial", type(P).__name__)
-    if _is_zero(A) or _is_zero(B):
+    if is_zero(A) or is_zero(B):
         raise ParameterError("A, B", "both not identically zero", (A, B))
     max_evals = positive_int("max_evals", max_evals)
     flint = require_flint()
-    W = _required_frequency_bound(A, B)[0]
+    W = required_frequency_bound(A, B)[0]
     proof = None
     for _ in range(8):
         proof = _proven_bound(flint, A, B, W)

@@ -24,7 +24,7 @@ from ..._validate import positive_int, renamed_keywords
 from ...bounds import RoucheDelayBound, delay_bound_from_kernel
 from ...errors import ParameterError
 from ..kernels.constant import DEFAULT_KERNEL_GRID
-from ..loops.controllers import Controller, FiniteTimeController, ReflectionController, _varying_form
+from ..loops.controllers import Controller, FiniteTimeController, ReflectionController, cached_varying_delay_form
 from ..loops.delay_form import delay_form
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
@@ -120,7 +120,7 @@ def _varying_bound(system: GeneralHyperbolic2x2, controller: Controller, rigorou
             "which needs a constant lam/mu)",
             controller,
         )
-    form = _varying_form(system)
+    form = cached_varying_delay_form(system)
     eps0 = _epsilon_0(1 - 2 * abs(Fraction(float(form.rho_q))), rigorous)
     bound = delay_bound_from_kernel(form.characteristic.distributed[0], eps0, system.rho, rigorous=rigorous)
     if rigorous and not bound.rigorous:  # epsilon_0 <= 0: exact comparisons of the stored numbers

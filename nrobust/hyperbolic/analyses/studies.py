@@ -24,7 +24,7 @@ from ..._progress import progress_bar
 from ..._validate import is_real_number, positive, positive_int, real_array, renamed_keywords
 from ...bounds import root_free_region
 from ...errors import CertificationError, ParameterError
-from ...margins.crossing import Crossing, _common_axis_zeros, _crossing_search, _crossings, frequency_bound
+from ...margins.crossing import Crossing, axis_crossings, common_axis_zeros, crossing_search, frequency_bound
 from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
@@ -1017,10 +1017,10 @@ def _loop_verdict(loop: _AffineLoop, K: float, delta_max: float, max_evals: int)
         return _Verdict(0.0, False, False, ())
     bound = _AxisBound.of(loop)
     W = first[0] if bound is None else min(first[0], bound.W(K, K))
-    search, axis_gap = _crossing_search(A, B, (W, first[1]), max_evals)
-    if _common_axis_zeros(axis_gap, search).size:  # a root on the axis for every delay
+    search, axis_gap = crossing_search(A, B, (W, first[1]), max_evals)
+    if common_axis_zeros(axis_gap, search).size:  # a root on the axis for every delay
         return _Verdict(0.0, False, True, ())
-    crossings, _ = _crossings(A, B, search, delta_max, axis_gap)
+    crossings, _ = axis_crossings(A, B, search, delta_max, axis_gap)
     if not _nominally_stable(loop, K):
         return _Verdict(0.0, False, True, crossings)
     return _Verdict(crossings[0].delays[0] if crossings else float("inf"), True, True, crossings)

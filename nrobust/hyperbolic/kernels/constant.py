@@ -145,10 +145,10 @@ def _march_pair(n: int, a: Fun, b: Fun, kappa: float, g: Fun, r: float) -> tuple
         t_star = (i - jn) * h / (1.0 + kappa)  # the cross characteristic meets the diagonal at x_i - t_star
         return t_star, x[i] - t_star, x[i] - t_star
 
-    return _march_levels(x, a, b, g, r, np.arange(n) + kappa, b(np.minimum(x + kappa * h, 1.0)), x, leave)
+    return march_levels(x, a, b, g, r, np.arange(n) + kappa, b(np.minimum(x + kappa * h, 1.0)), x, leave)
 
 
-def _march_levels(
+def march_levels(
     grid: Array,
     a: Fun,
     b: Fun,
@@ -238,7 +238,7 @@ def _solve_K(system: Hyperbolic2x2, n: int) -> Array:
     return K
 
 
-def _resolvent(K: Array) -> Array:
+def resolvent(K: Array) -> Array:
     """Inverse kernels from the resolvent identity ``L = K + K o L`` (trapezoidal rule).
 
     For ``i > k`` the trapezoidal rule on ``[xi_k, x_i]`` gives::
@@ -278,7 +278,7 @@ def _resolvent(K: Array) -> Array:
     return L
 
 
-def _p1_interpolate(table: Array, x: Array, xi: Array) -> Array:
+def p1_interpolate(table: Array, x: Array, xi: Array) -> Array:
     """Piecewise-linear interpolation on the triangulated grid (cells split along ``(1, 1)``).
 
     Every triangle used has its three vertices in ``0 <= xi <= x``, so no value above the
@@ -347,7 +347,7 @@ class Kernels:
             raise ParameterError("(x, xi)", "in the triangle 0 <= xi <= x <= 1", bad)
         x_c = np.clip(x_arr, 0.0, 1.0)
         xi_c = np.clip(xi_arr, 0.0, x_c)
-        return _p1_interpolate(table, x_c, xi_c)
+        return p1_interpolate(table, x_c, xi_c)
 
     def Kuu(self, x: Any, xi: Any) -> Array:
         """``K^{uu}(x, xi)`` on arrays of points of the triangle."""
@@ -407,7 +407,7 @@ class Kernels:
 def _solve_grid(system: Hyperbolic2x2, n: int) -> tuple[Array, Array]:
     """``K`` and ``L`` on the grid with ``n`` points, second order."""
     K = _solve_K(system, n)
-    return K, _resolvent(K)
+    return K, resolvent(K)
 
 
 def _richardson(fine: Array, coarse: Array) -> Array:

@@ -69,7 +69,7 @@ from ...errors import ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.law import FeedbackLaw, feedback_gain
-from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, RESOLUTION, _march_levels, _p1_interpolate, _resolvent
+from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, RESOLUTION, march_levels, p1_interpolate, resolvent
 
 __all__ = ["VaryingKernels", "solve_varying_kernels"]
 
@@ -162,7 +162,7 @@ def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Arra
     """``P, Q`` on the uniform grid of ``Y`` with ``n`` points (``P[i, j]`` at ``y_i``, ``eta_j``).
 
     The level march of :func:`~nrobust.hyperbolic.kernels._march_pair`
-    (:func:`~nrobust.hyperbolic.kernels._march_levels`) with varying feet: node
+    (:func:`~nrobust.hyperbolic.kernels.march_levels`) with varying feet: node
     ``(i, j)`` of ``Q`` comes from its foot at level ``i - 1`` (``Z(xi_foot) = Z(xi_j) + h``,
     cubic interpolation) or, when that foot is past the diagonal (or ``i < 4``), from the
     point ``T(xi*) = y_i + Z(xi_j)`` where its characteristic leaves the diagonal.
@@ -183,7 +183,7 @@ def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Arra
         y_star = np.minimum(np.asarray(pair.Y(x_star)), i * h)
         return i * h - y_star, y_star, x_star
 
-    return _march_levels(eta, pair.a, pair.b, pair.g, pair.r, positions, pair.b(xi_foot), xi, leave)
+    return march_levels(eta, pair.a, pair.b, pair.g, pair.r, positions, pair.b(xi_foot), xi, leave)
 
 
 def _check_grid(plant: GeneralHyperbolic2x2, pairs: tuple[_Pair, _Pair], n: int) -> None:
@@ -432,11 +432,11 @@ def solve_varying_kernels(plant: GeneralHyperbolic2x2, kernel_grid: int = DEFAUL
         y, eta = np.asarray(pair.Y(X)) / total, np.asarray(pair.Y(XI)) / total
         eta = np.minimum(eta, y)
         weight_xi = {0: A_xi, 1: D_xi}
-        K[diag][rows, cols] = _p1_interpolate(P, y, eta) / speeds[0] * np.exp(weight_x - weight_xi[diag[1]])
-        K[cross][rows, cols] = _p1_interpolate(Q, y, eta) / speeds[1] * np.exp(weight_x - weight_xi[cross[1]])
+        K[diag][rows, cols] = p1_interpolate(P, y, eta) / speeds[0] * np.exp(weight_x - weight_xi[diag[1]])
+        K[cross][rows, cols] = p1_interpolate(Q, y, eta) / speeds[1] * np.exp(weight_x - weight_xi[cross[1]])
     if not np.all(np.isfinite(K)):
         raise ParameterError("kernel_grid", "large enough for the kernel scheme to be well posed", n)
     # L = K + K o L on [0, L]: the resolvent of kernels.py works on [0, 1]; scale by the length.
-    L = _resolvent(K * length) / length
+    L = resolvent(K * length) / length
     psi_nodes = np.linspace(0.0, plant.transport_times[1], n)
     return VaryingKernels(plant, grid, K, L, psi_nodes, traces[1][1], traces[1][0])

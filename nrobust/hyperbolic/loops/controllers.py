@@ -308,7 +308,7 @@ def _varying_factors(
     ``kernel_grid`` points). U_BS2(K), whose ``K q`` is a normal-form quantity, is refused.
     """
     _check_controller(controller)
-    form = _varying_form(system)
+    form = cached_varying_delay_form(system)
     i_n = QuasiPolynomial([], [], form.characteristic.distributed)
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
@@ -333,7 +333,7 @@ def _varying_kernels(system: GeneralHyperbolic2x2, kernel_grid: int) -> VaryingK
 
 
 @lru_cache(maxsize=8)
-def _varying_form(system: GeneralHyperbolic2x2) -> VaryingDelayForm:
+def cached_varying_delay_form(system: GeneralHyperbolic2x2) -> VaryingDelayForm:
     """The characteristic delay form of a plant with a varying speed ratio (cached)."""
     return varying_delay_form(system)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from ..._validate import nonnegative, positive_int, renamed_keywords
 from ...errors import ParameterError
-from ...lti.transfer import QuasiTransferFunction, _product
+from ...lti.transfer import QuasiTransferFunction, product
 from ...quasipoly import QuasiPolynomial
 from ..kernels.constant import DEFAULT_KERNEL_GRID, solve_kernels
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
@@ -115,7 +115,7 @@ def closed_loop_tf(
     A, B = loop_factors(system, controller)
     F = A + B.shift(delta)
     c_d = _controller_denominator(controller)
-    num = c_d if output == "beta" else _product("output", output_map(system), c_d)
+    num = c_d if output == "beta" else product("output", output_map(system), c_d)
     return QuasiTransferFunction(num, F)
 
 

@@ -82,7 +82,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import json_safe
 from ..._validate import nonnegative, positive, positive_int
 from ...errors import ConvergenceError, ParameterError
-from ..kernels.constant import _p1_interpolate
+from ..kernels.constant import p1_interpolate
 from .system import NPlusMCharacteristic, NPlusMMargin, NPlusMSystem
 
 __all__ = [
@@ -255,7 +255,7 @@ class NPlusMKernels:
                 "(x, xi)", "in the triangle 0 <= xi <= x <= 1", (xa[~inside].flat[0], xia[~inside].flat[0])
             )
         xc = np.clip(xa, 0.0, 1.0)
-        return np.asarray(_p1_interpolate(table, xc, np.clip(xia, 0.0, xc)))
+        return np.asarray(p1_interpolate(table, xc, np.clip(xia, 0.0, xc)))
 
     def K_at(self, x: ArrayLike, xi: ArrayLike) -> NDArray[np.float64]:
         """``K(x, xi)`` at points of ``T`` (piecewise-linear on the grid): shape ``(m, n) + x.shape``."""
