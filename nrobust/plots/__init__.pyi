@@ -1,1 +1,20 @@
 # The public names of nrobust.plots, loaded on first use (nrobust/plots/__init__.py).
+from .figures import (
+    HiddenUnstableRoots as HiddenUnstableRoots,
+    NrobustPlot as NrobustPlot,
+    NyquistResponse as NyquistResponse,
+    RootLocusData as RootLocusData,
+    hidden_unstable_roots as hidden_unstable_roots,
+    nyquist_plot as nyquist_plot,
+    nyquist_response as nyquist_response,
+    residual_floor as residual_floor,
+    root_locus_plot as root_locus_plot,
+    root_locus_response as root_locus_response,
+    root_map_plot as root_map_plot,
+    root_map_region as root_map_region,
+    simulation_figure as simulation_figure,
+    simulation_plot as simulation_plot,
+    stability_chart_plot as stability_chart_plot,
+    sweep_chart as sweep_chart,
+    tradeoff_plot as tradeoff_plot,
+)
