@@ -37,7 +37,7 @@ from .difference import DifferenceOperator
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 
-__all__ = ["CharacteristicFunction", "QuasiPolynomialMatrix"]
+__all__ = ["CharacteristicFunction", "FirstDerivative", "QuasiPolynomialMatrix"]
 
 # Largest matrix size: the principal part expands n! products of point parts.
 _MAX_SIZE = 8
@@ -321,9 +321,9 @@ class QuasiPolynomialMatrix:
             out = out + r1[..., i] * r1[..., k] * _prod_except(r0, [i, k])
         return np.asarray(out, dtype=float)
 
-    def derivative(self) -> _DeterminantDerivative:
+    def derivative(self) -> FirstDerivative:
         """``(det M)'`` as a function with a bound of its own derivative (for the order-2 step rule)."""
-        return _DeterminantDerivative(self)
+        return FirstDerivative(self)
 
     def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
         """Rounding scale of ``det M(s)``: ``n 2^(n-1) prod_i sum_j m_ij(s)``, ``m_ij`` the entry scales.
@@ -354,14 +354,19 @@ class QuasiPolynomialMatrix:
         return {"entries": [[e.to_dict() for e in row] for row in self.entries]}
 
 
-class _DeterminantDerivative:
-    """``(det M)'`` for the order-2 step rule of the root counter: values and ``|(det M)''|`` bounds."""
+class FirstDerivative:
+    """``F'`` of a characteristic function for the order-2 step rule of the root counter.
 
-    def __init__(self, matrix: QuasiPolynomialMatrix) -> None:
-        self.matrix = matrix
+    Values from ``F.deriv_at`` and bounds of ``|F''|`` on segments from
+    ``F.second_deriv_bound``: what :meth:`CharacteristicFunction.derivative` returns for a
+    determinant (:class:`QuasiPolynomialMatrix`) and for the ``n + m`` loops.
+    """
+
+    def __init__(self, F: Any) -> None:
+        self.F = F
 
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
-        return self.matrix.deriv_at(s)
+        return self.F.deriv_at(s)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-        return self.matrix.second_deriv_bound(a, b)
+        return self.F.second_deriv_bound(a, b)

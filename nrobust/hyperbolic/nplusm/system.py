@@ -75,7 +75,7 @@ from ...difference import DifferenceOperator
 from ...errors import CertificationError, ParameterError
 from ...margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
 from ...matrix_difference import MatrixDifferenceOperator
-from ...qpmatrix import QuasiPolynomialMatrix
+from ...qpmatrix import FirstDerivative, QuasiPolynomialMatrix
 from ...quasipoly import QuasiPolynomial
 from ...roots import count_roots, spectral_abscissa
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
@@ -421,9 +421,9 @@ class NPlusMCharacteristic:
                     out = out + r1[..., i] * r1[..., k] * _prod_except(r0, [i, k])
         return np.asarray(out, dtype=float)
 
-    def derivative(self) -> _CharacteristicDerivative:
+    def derivative(self) -> FirstDerivative:
         """``F'`` with the bound of ``|F''|`` (the order-2 step rule)."""
-        return _CharacteristicDerivative(self)
+        return FirstDerivative(self)
 
     def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
         """Rounding scale ``m 2^(m-1) prod_j 16 ||l_j|| e^{beta_j} ||W|| (1 + ||C|| + |s| ||P_j||)`` of ``F(s)``."""
@@ -643,19 +643,6 @@ class NPlusMCharacteristic:
             return float(abs(A[0]) - abs(B[0]))
 
         return tuple(float(brentq(h1, a, b, xtol=1e-14, rtol=4 * _EPS)) for a, b in sorted(brackets))
-
-
-class _CharacteristicDerivative:
-    """``F'`` of an :class:`NPlusMCharacteristic` for the order-2 step rule."""
-
-    def __init__(self, F: NPlusMCharacteristic) -> None:
-        self.F = F
-
-    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
-        return self.F.deriv_at(s)
-
-    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-        return self.F.second_deriv_bound(a, b)
 
 
 def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:
@@ -942,8 +929,8 @@ class _CompoundCharacteristic:
     def second_deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         return self._bound(a, b, 2)
 
-    def derivative(self) -> _CompoundDerivative:
-        return _CompoundDerivative(self)
+    def derivative(self) -> FirstDerivative:
+        return FirstDerivative(self)
 
     def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
         s = np.asarray(s, dtype=complex)
@@ -964,19 +951,6 @@ class _CompoundCharacteristic:
     @property
     def max_delay(self) -> float:
         return self.F.max_delay
-
-
-class _CompoundDerivative:
-    """``F'`` of a :class:`_CompoundCharacteristic` for the order-2 step rule."""
-
-    def __init__(self, F: _CompoundCharacteristic) -> None:
-        self.F = F
-
-    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
-        return self.F.deriv_at(s)
-
-    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
-        return self.F.second_deriv_bound(a, b)
 
 
 def compound_characteristic(system: NPlusMSystem, K: ArrayLike | None = None, delta: float = 0.0) -> Any:
