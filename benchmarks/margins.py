@@ -49,7 +49,8 @@ from nrobust import (
     rouche_delay_bound,
     stability_chart,
 )
-from nrobust.hyperbolic import studies
+from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
+from nrobust.margins.gain import locate_gain_ends
 
 
 def dense_scan_margin(A, B, W: float, step: float = 1e-3) -> tuple[float, int]:
@@ -89,10 +90,10 @@ def bisection_family(K: float) -> ReflectionController:
 def k_region_section(system: Hyperbolic2x2, quick: bool) -> None:
     """Time ``k_region`` at ``tol = 1e-9``: locating the ends, verifying them, on 1 and 2 processes."""
     kb = classify(system).k_bound
-    loop = studies._AffineLoop.of(system)
+    loop = u_bs2_loop(system)
     print("\nadmissible gains, tol = 1e-9 (goal: under 1 s on 2 cores)")
     for delta_max in (0.1, 0.2):
-        t_loc, _ = timed(lambda d=delta_max: studies._locate_ends(loop, d, kb, 1e-9, 2_000_000), repeat=3)
+        t_loc, _ = timed(lambda d=delta_max: locate_gain_ends(loop, d, kb, 1e-9, 2_000_000), repeat=3)
         cpu = time.process_time()
         t_ser, reg = timed(lambda d=delta_max: k_region(system, d, tol=1e-9))
         cpu = time.process_time() - cpu

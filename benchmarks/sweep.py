@@ -25,7 +25,7 @@ import numpy as np
 
 import nrobust
 from nrobust.roots import count_roots
-from nrobust.sweeps.engine import _cpu_count
+from nrobust.sweeps.executors import cpu_count
 
 
 def analyse(a: float, delta: float, b: float = 1.0) -> dict:
@@ -53,7 +53,7 @@ def main() -> None:
     args = parser.parse_args()
     n_a = max(2, round(math.sqrt(args.points / 2)))
     points = nrobust.grid(a=np.linspace(-0.8, 0.8, n_a), delta=np.linspace(0.05, 3.0, max(1, args.points // n_a)))
-    cores = _cpu_count()
+    cores = cpu_count()
 
     rate_serial, reference = _timed(points, "serial", args.repeat)
     consistent = reference.table()["consistent"]

@@ -28,7 +28,7 @@ import numpy as np
 import nrobust
 from nrobust import plots
 from nrobust.hyperbolic import TransportSystem
-from nrobust.hyperbolic.analyses.studies import ab_region
+from nrobust.hyperbolic.analyses import ab_region
 from nrobust.reports.report import write_report
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")

@@ -32,7 +32,7 @@ import numpy as np
 
 import nrobust
 from nrobust import QuasiPolynomial, QuasiTransferFunction, plots
-from nrobust.hyperbolic.analyses.studies import Tradeoff
+from nrobust.hyperbolic.analyses import Tradeoff
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)

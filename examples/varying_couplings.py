@@ -29,7 +29,7 @@ import numpy as np
 import nrobust
 from nrobust import plots
 from nrobust.hyperbolic import Hyperbolic2x2, boundary_function
-from nrobust.hyperbolic.analyses.studies import stability_chart
+from nrobust.hyperbolic.analyses import stability_chart
 from nrobust.reports.report import write_report
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")

@@ -13,7 +13,7 @@ import importlib.machinery
 import sys
 import types
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 #: Old module path -> the new homes searched for an attribute, in order.
@@ -48,6 +48,15 @@ MOVED: dict[str, tuple[str, ...]] = {
     "nrobust.nplusm_report": ("nrobust.reports",),
 }
 
+#: Single names that left a module which stays: module -> {name: its new home}. The module
+#: installs :func:`moved_attribute` as its ``__getattr__`` (PEP 562).
+MOVED_NAMES: dict[str, dict[str, str]] = {
+    "nrobust.hyperbolic.nplusm": {
+        "simulate_nplusm": "nrobust.hyperbolic.simulate",
+        "NPlusMSimulation": "nrobust.hyperbolic.simulate",
+    },
+}
+
 
 class MovedModule(types.ModuleType):
     """An old module path: every attribute is looked up in the new homes."""
@@ -67,6 +76,28 @@ class MovedModule(types.ModuleType):
 
     def __dir__(self) -> list[str]:
         return sorted({n for home in self.__homes for n in dir(importlib.import_module(home))})
+
+
+def moved_attribute(module: str) -> Callable[[str], Any]:
+    """The PEP 562 ``__getattr__`` of ``module`` for its names in :data:`MOVED_NAMES`.
+
+    Each access finds the name in its new home and emits a ``DeprecationWarning`` naming it
+    (the home is imported on first access, so the old module need not import it: no cycle).
+    """
+    names = MOVED_NAMES.get(module, {})
+
+    def __getattr__(attr: str) -> Any:
+        home = names.get(attr)
+        if home is None:
+            raise AttributeError(f"module {module!r} has no attribute {attr!r}")
+        warnings.warn(
+            f"{module}.{attr} moved to {home}.{attr}; import it from there (the old name is a deprecated alias)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(importlib.import_module(home), attr)
+
+    return __getattr__
 
 
 def _importer_stacklevel() -> int:

@@ -4,7 +4,9 @@ Every value returned here is an ``acb`` of python-flint (FLINT's Arb): a complex
 rectangle (a midpoint and a radius for the real and for the imaginary part) that
 contains the exact value, every rounding error of the evaluation included. python-flint
 is the optional extra ``nrobust[rigorous]``; it is imported on first use and its absence
-is reported by :func:`require_flint` with the command that installs it.
+is reported by :func:`require_flint` with the command that installs it (both from
+:mod:`nrobust._flint`, re-exported here with :func:`working_precision`, :func:`acb_box`
+and Krawczyk's test :func:`krawczyk`).
 
 What is enclosed
 ----------------
@@ -59,8 +61,7 @@ import functools
 import itertools
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Iterable, Sequence
 from fractions import Fraction
 from types import ModuleType
 from typing import Any
@@ -68,6 +69,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._flint import INSTALL_HINT as INSTALL_HINT
+from ._flint import acb_box, krawczyk, precision, require_flint, working_precision
 from ._validate import positive_int
 from .errors import ParameterError
 from .qpmatrix import QuasiPolynomialMatrix
@@ -86,12 +89,11 @@ __all__ = [
     "ball_variation_bound",
     "enclose_box",
     "enclose_segment",
+    "krawczyk",
     "require_flint",
     "working_precision",
 ]
 
-#: Message of the error raised when python-flint is missing.
-INSTALL_HINT = "rigorous=True needs python-flint (ball arithmetic): pip install nrobust[rigorous]"
 # |z| at or below which phi_l(z) is summed as a Taylor series; _SERIES_TERMS terms leave a
 # tail below 1/24! ~ 1.6e-24 there (the bound is added to the ball).
 _SERIES_RADIUS = 1.0
@@ -99,55 +101,6 @@ _SERIES_TERMS = 24
 # Largest derivative order (a guard against runaway Leibniz expansions).
 _MAX_DERIVATIVE = 8
 _EPS = 2.0**-52
-
-
-def require_flint() -> ModuleType:
-    """Import python-flint, or raise an ``ImportError`` that says how to install it.
-
-    Raises
-    ------
-    ImportError
-        python-flint is not installed (``pip install nrobust[rigorous]``).
-    """
-    try:
-        import flint
-    except ImportError as exc:
-        raise ImportError(INSTALL_HINT) from exc
-    return flint
-
-
-@contextmanager
-def _precision(flint: ModuleType, prec: int) -> Iterator[None]:
-    old = flint.ctx.prec
-    flint.ctx.prec = prec
-    try:
-        yield
-    finally:
-        flint.ctx.prec = old
-
-
-@contextmanager
-def working_precision(prec: int = 53) -> Iterator[ModuleType]:
-    """Context in which python-flint computes with ``prec`` bits; yields the ``flint`` module.
-
-    The previous precision is restored on exit (python-flint's precision is global).
-    """
-    flint = require_flint()
-    with _precision(flint, positive_int("prec", prec, minimum=16, maximum=4096)):
-        yield flint
-
-
-def acb_box(x0: float, x1: float, y0: float, y1: float) -> Any:
-    """The ``acb`` ball containing the rectangle ``[x0, x1] x [y0, y1]`` (end points exact).
-
-    A degenerate side (``x0 == x1``) is an exact real or imaginary part, so a vertical
-    segment is enclosed with no width in ``Re s``.
-    """
-    flint = require_flint()
-    arb = flint.arb
-    re = arb(x0) if x0 == x1 else arb(x0).union(arb(x1))
-    im = arb(y0) if y0 == y1 else arb(y0).union(arb(y1))
-    return flint.acb(re, im)
 
 
 def _as_acb(flint: ModuleType, s: Any) -> Any:
@@ -262,7 +215,7 @@ def _to_acb(flint: ModuleType, c: Any) -> Any:
 def _series_poly(lmax: int, terms: int, prec: int) -> list[Any]:
     """``acb_poly`` of ``sum_{n<terms} (-z)^n / (n! (n + l + 1))`` for ``l = 0..lmax``."""
     flint = require_flint()
-    with _precision(flint, prec):
+    with precision(flint, prec):
         out = []
         for l_ in range(lmax + 1):
             coefs = [flint.arb((-1) ** n) / (flint.arb.fac_ui(n) * (n + l_ + 1)) for n in range(terms)]
@@ -314,14 +267,14 @@ class _BallFunction(ABC):
     def __call__(self, s: Any, derivative: int = 0) -> Any:
         """Enclosure of ``F^{(derivative)}`` over the ball ``s`` (an ``acb``, ``arb`` or number)."""
         k = self._order(derivative)
-        with _precision(self.flint, self.prec):
+        with precision(self.flint, self.prec):
             return self._eval(_as_acb(self.flint, s), k)
 
     def many(self, points: Iterable[Any], derivative: int = 0) -> list[Any]:
         """Enclosures at many balls or numbers (one Python loop of python-flint calls)."""
         k = self._order(derivative)
         flint = self.flint
-        with _precision(flint, self.prec):
+        with precision(flint, self.prec):
             return [self._eval(_as_acb(flint, s), k) for s in points]
 
     def values(self, s: ArrayLike, derivative: int = 0) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
@@ -352,7 +305,7 @@ class _BallFunction(ABC):
         if not (x0 <= x1 and y0 <= y1) or not all(map(math.isfinite, (x0, x1, y0, y1))):
             raise ParameterError("box", "finite (x0, x1, y0, y1) with x0 <= x1 and y0 <= y1", box)
         flint = self.flint
-        with _precision(flint, self.prec):
+        with precision(flint, self.prec):
             ball = acb_box(x0, x1, y0, y1)
             if not centered:
                 return self._eval(ball, k)
@@ -389,7 +342,7 @@ class BallQuasiPolynomial(_BallFunction):
         self.F = F
         self.prec = positive_int("prec", prec, minimum=16, maximum=4096)
         self.flint = require_flint()
-        with _precision(self.flint, self.prec):
+        with precision(self.flint, self.prec):
             self._delays = [(self.flint.arb(-float(t)), float(t)) for _, t in F.point_terms]
             self._coefs = [[_to_acb(self.flint, c) for c in p] for p, _ in F.point_terms]
             self._dist = [_DistributedBalls(self.flint, d) for d in F.distributed]
@@ -603,7 +556,7 @@ def ball_abs_moment(d: DistributedDelay, x: float, k: int = 0, *, prec: int = 53
     """
     flint = require_flint()
     k = positive_int("k", k, minimum=0)
-    with _precision(flint, prec):
+    with precision(flint, prec):
         X = flint.arb(float(x))
         start, h, poly_t = d._pieces
         power = d.moment + k
@@ -628,7 +581,7 @@ def ball_variation_bound(d: DistributedDelay, x: float, *, prec: int = 53) -> An
     if d.moment != 0:
         raise ParameterError("moment", "0 for ball_variation_bound", d.moment)
     flint = require_flint()
-    with _precision(flint, prec):
+    with precision(flint, prec):
         X = flint.arb(float(x))
         start, h, poly_t = d._pieces
         out = flint.arb(0)

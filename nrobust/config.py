@@ -42,7 +42,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised by the Python 3.10 run of CI
     import tomli as tomllib
 
-__all__ = ["CONTROLLER_TYPES", "SYSTEM_TYPES", "PiecewiseLinear", "load_system_file", "load_toml"]
+__all__ = ["CONTROLLER_TYPES", "SYSTEM_TYPES", "PiecewiseLinear", "build_in_section", "load_system_file", "load_toml"]
 
 
 def _plant_of(build: Callable[..., Any], name: str) -> Callable[..., GeneralHyperbolic2x2]:
@@ -246,8 +246,21 @@ def _options(table: dict[str, Any], section: str, defaults: dict[str, Any]) -> d
     return {**defaults, **table}
 
 
-def _wrap(key: str, build: Callable[[], Any]) -> Any:
-    """Build an object, prefixing the section to the parameter named by its error."""
+def build_in_section(key: str, build: Callable[[], Any]) -> Any:
+    """``build()``, a ParameterError of it renamed ``key.<name>`` (the file's section first).
+
+    Parameters
+    ----------
+    key : str
+        The section of the file the object is built from (``"system"``, ``"controller"``).
+    build : callable
+        Builds the object from the section's values.
+
+    Returns
+    -------
+    object
+        What ``build`` returns.
+    """
     try:
         return build()
     except ParameterError as exc:
@@ -270,7 +283,7 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     for key in keys:
         if key not in table:
             raise ParameterError(f"system.{key}", "given for NPlusMSystem", None)
-    system = _wrap("system", lambda: NPlusMSystem(**table))
+    system = build_in_section("system", lambda: NPlusMSystem(**table))
     controller = _table(spec, "controller", True)
     if controller.get("type") != "Cancellation" or set(controller) != {"type", "fractions"}:
         raise ParameterError("controller", 'type = "Cancellation" and fractions = [[c_1, ..., c_n], ...]', controller)
@@ -317,11 +330,11 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS, _SYSTEM_OPTIONAL)
     values: dict[str, Any] = {k: _system_value(kind, k, v) for k, v in params.items()}
     cls = SYSTEM_TYPES[kind]
-    system = _wrap("system", lambda: cls(**values))
+    system = build_in_section("system", lambda: cls(**values))
 
     kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
-    controller = _wrap("controller", lambda: CONTROLLER_TYPES[kind](**values))
+    controller = build_in_section("controller", lambda: CONTROLLER_TYPES[kind](**values))
     system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
 
     analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)

@@ -36,9 +36,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._flint import krawczyk, working_precision
 from ._json import fields_dict, json_safe
 from ._newton import newton
-from ._validate import number_array, positive_int, real_array
+from ._validate import number_array, real_array
 from .errors import CertificationError, ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
@@ -72,14 +73,14 @@ def _polynomial_roots(
     about a second)."""
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
-    return _cluster_polynomial_roots(np.roots(poly[::-1]).astype(complex))
+    return cluster_polynomial_roots(np.roots(poly[::-1]).astype(complex))
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:
     return a if np.iscomplexobj(a) and np.any(a.imag != 0) else a.real.astype(float)
 
 
-def _cluster_polynomial_roots(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
+def cluster_polynomial_roots(z: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
     """Group numerically coincident polynomial roots; return cluster means and sizes."""
     z = z[np.argsort(-np.abs(z), kind="stable")]
     used = np.zeros(z.size, dtype=bool)
@@ -333,7 +334,7 @@ class DifferenceOperator:
         r = self.relative_delays
         if r.size == 1:
             return None
-        return _commensurate(r, _MAX_DEGREE)
+        return commensurate(r, _MAX_DEGREE)
 
     def _z_roots(self, h: float, n: NDArray[np.int64]) -> tuple[NDArray[np.complex128], NDArray[np.int64]]:
         """Roots of ``P(z) = sum_k a_k z^{n_k}`` (clustered, with multiplicities)."""
@@ -354,7 +355,7 @@ class DifferenceOperator:
             sb = self.spectral_bound()
             return Chains(False, None, (), (sb.lower, sb.upper))
         h, n = found
-        return _chains_of(h, *self._z_roots(h, n))
+        return chains_of(h, *self._z_roots(h, n))
 
     # ------------------------------------------------------------------ spectral bound
     def spectral_bound(self) -> SpectralBound:
@@ -473,11 +474,7 @@ class DifferenceOperator:
         """
         if self.coefs.size == 1:
             return SpectralBound(-np.inf, -np.inf, True, None, proven=True)
-        flint = _flint()
-        prec = positive_int("prec", prec, minimum=16, maximum=4096)
-        old = flint.ctx.prec
-        flint.ctx.prec = prec
-        try:
+        with working_precision(prec) as flint:
             exact = _exact_commensurate(self.delays)
             if exact is not None:
                 bracket = _ball_chain_bound(flint, self.coefs, *exact)
@@ -486,8 +483,6 @@ class DifferenceOperator:
             upper = _ball_strong_bound(flint, self, self.strong_spectral_bound())
             lower = _ball_zero_lower_bound(flint, self)
             return SpectralBound(min(lower, upper), upper, False, None, proven=True)
-        finally:
-            flint.ctx.prec = old
 
     # ------------------------------------------------------------------ output
     def __repr__(self) -> str:
@@ -510,7 +505,7 @@ class DifferenceOperator:
         )
 
 
-def _commensurate(delays: NDArray[np.float64], max_degree: int) -> tuple[float, NDArray[np.int64]] | None:
+def commensurate(delays: NDArray[np.float64], max_degree: int) -> tuple[float, NDArray[np.int64]] | None:
     """``(h, n)`` with ``delays_k = n_k h``, integers ``n_k <= max_degree``, or None.
 
     ``delays`` positive and increasing; each ratio ``delays_k / delays_max`` must agree with a
@@ -528,7 +523,7 @@ def _commensurate(delays: NDArray[np.float64], max_degree: int) -> tuple[float, 
     return float(np.dot(n, delays) / np.dot(n, n)), n
 
 
-def _chains_of(h: float, z: NDArray[np.complex128], mult: NDArray[np.int64]) -> Chains:
+def chains_of(h: float, z: NDArray[np.complex128], mult: NDArray[np.int64]) -> Chains:
     """The chains ``s = (-ln|z_i| + i(2 pi m - arg z_i)) / h`` of the roots ``z_i`` (rightmost first)."""
     chains = [
         Chain(float(-np.log(abs(zi)) / h), float(-np.angle(zi) / h), float(2 * np.pi / h), int(m), complex(zi))
@@ -614,14 +609,6 @@ _PROVEN_CANDIDATES = 8
 _KRAWCZYK_WIDTHS = (1e-12, 1e-10, 1e-8, 1e-6)
 
 
-def _flint() -> Any:
-    try:
-        import flint
-    except ImportError as exc:
-        raise ImportError("proven_spectral_bound needs python-flint: pip install nrobust[rigorous]") from exc
-    return flint
-
-
 def _exact_commensurate(delays: NDArray[np.float64]) -> tuple[Fraction, list[int]] | None:
     """``(H, n)`` with ``tau_k - tau_0 = n_k H`` exactly (rationals), ``n_k <= _MAX_DEGREE``; or None."""
     r = [Fraction(float(t)) - Fraction(float(delays[0])) for t in delays]
@@ -678,9 +665,9 @@ def _ball_strong_bound(flint: Any, D: DifferenceOperator, guess: float) -> float
 def _ball_zero_lower_bound(flint: Any, D: DifferenceOperator) -> float:
     """The largest ``Re s`` of a square proven by Krawczyk's test to hold a zero of ``D``, minus its half-width.
 
-    Krawczyk's test on ``X``: with ``c`` its center and ``y ~ 1/D'(c)``,
-    ``K = c - y D(c) + (1 - y D'(X)) (X - c)`` in the interior of ``X`` proves a zero of ``D``
-    in ``X`` (``D`` and ``D'`` enclosed in ``acb`` with the stored coefficients and delays).
+    Krawczyk's test (:func:`nrobust.balls.krawczyk`) on squares ``X`` about candidate zeros
+    ``c``, with ``y ~ 1/D'(c)`` (``D`` and ``D'`` enclosed in ``acb`` with the stored
+    coefficients and delays).
     """
     seeds = _zero_candidates(D)
     a = [flint.acb(complex(v).real, complex(v).imag) for v in D.coefs]
@@ -695,14 +682,12 @@ def _ball_zero_lower_bound(flint: Any, D: DifferenceOperator) -> float:
             half = w * (1.0 + abs(z))
             x0, x1, y0, y1 = z.real - half, z.real + half, z.imag - half, z.imag + half
             c = flint.acb(z.real, z.imag)
-            X = flint.acb(flint.arb(x0).union(flint.arb(x1)), flint.arb(y0).union(flint.arb(y1)))
             slope = value(c, 1)
             mid = complex(float(slope.real.mid()), float(slope.imag.mid()))
             if mid == 0:
                 continue
             y = flint.acb(1.0 / mid.real if mid.imag == 0 else 1.0 / mid)
-            K = c - y * value(c, 0) + (1 - y * value(X, 1)) * (X - c)
-            if K.real > x0 and K.real < x1 and K.imag > y0 and K.imag < y1:
+            if krawczyk((x0, x1, y0, y1), c, value(c, 0), lambda X: value(X, 1), y):
                 best = max(best, float(np.nextafter(x0, -np.inf)))
                 break
     return best

@@ -55,7 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
 from ._validate import is_real_number, number_array, positive, positive_int, real_array
-from .difference import Chains, _chains_of, _cluster_polynomial_roots, _commensurate
+from .difference import Chains, chains_of, cluster_polynomial_roots, commensurate
 from .errors import CertificationError, ParameterError
 
 __all__ = ["Gamma0", "MatrixDifferenceOperator"]
@@ -298,7 +298,7 @@ class MatrixDifferenceOperator:
 
         Tolerances as :meth:`~nrobust.difference.DifferenceOperator.commensurate_step`.
         """
-        return _commensurate(self.delays, _MAX_COMPANION // self.size)
+        return commensurate(self.delays, _MAX_COMPANION // self.size)
 
     def _step(self) -> tuple[float, NDArray[np.int64]]:
         """:meth:`commensurate_step`, or a ParameterError for incommensurate delays."""
@@ -328,7 +328,7 @@ class MatrixDifferenceOperator:
         mu = np.linalg.eigvals(comp)
         scale = max(1.0, float(np.max(np.abs(mu))))
         mu = mu[np.abs(mu) > 1e-12 * scale]
-        return _cluster_polynomial_roots(np.asarray(1.0 / mu, dtype=complex))
+        return cluster_polynomial_roots(np.asarray(1.0 / mu, dtype=complex))
 
     def chains(self) -> Chains:
         """The zero chains of ``det D`` for commensurate delays (rightmost first).
@@ -338,7 +338,7 @@ class MatrixDifferenceOperator:
         ParameterError
             Incommensurate delays.
         """
-        return _chains_of(self._step()[0], *self.z_roots())
+        return chains_of(self._step()[0], *self.z_roots())
 
     def __repr__(self) -> str:
         return f"MatrixDifferenceOperator(p={self.size}, delays={np.round(self.delays, 6).tolist()})"

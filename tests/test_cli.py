@@ -189,7 +189,7 @@ def test_progress_bars_only_in_a_terminal_or_on_request(tmp_path, capsys):
 def test_gain_studies_follow_the_progress_rule(capsys):
     """k_region, stability_chart and tradeoff draw a bar on request, none by default off a terminal."""
     from nrobust.hyperbolic import TransportSystem
-    from nrobust.hyperbolic.analyses.studies import k_region, stability_chart, tradeoff
+    from nrobust.hyperbolic.analyses import k_region, stability_chart, tradeoff
 
     plant = TransportSystem(1.0, 1.0, 1.0, 0.5)
     runs = {

@@ -21,7 +21,8 @@ from nrobust import (
     delay_margin,
     loop_factors,
 )
-from nrobust.margins.crossing import AxisGap, AxisKernels, axis_count, frequency_bound
+from nrobust.margins.axis import AxisGap, AxisKernels, frequency_bound
+from nrobust.margins.count import axis_count
 from nrobust.margins.margin import delay_margin as factor_margin
 from nrobust.quasipoly import DistributedDelay
 

@@ -10,7 +10,7 @@ import pytest
 
 from nrobust import ParameterError, spectral_abscissa
 from nrobust.config import load_system_file
-from nrobust.hyperbolic.nplusm.system import NPlusMCharacteristic, nplusm_delay_margin
+from nrobust.hyperbolic.nplusm import NPlusMCharacteristic, nplusm_delay_margin
 from nrobust.reports.analyze import run_analyze
 
 TOML = Path(__file__).resolve().parents[1] / "examples" / "drift_flux.toml"

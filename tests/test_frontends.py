@@ -25,7 +25,7 @@ from nrobust.hyperbolic.loops.controllers import (
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
 from nrobust.hyperbolic.plants.frontends import GRAVITY, arz, from_riemann, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
-from nrobust.hyperbolic.simulate.normal_form import simulate
+from nrobust.hyperbolic.simulate import simulate
 
 CANAL = {"length": 3000.0, "width": 7.0, "slope": 1e-4, "discharge": 14.0, "manning": 0.02}
 

@@ -30,14 +30,14 @@ from nrobust.hyperbolic import (
     loop_factors,
     solve_kernels,
 )
+from nrobust.hyperbolic.analyses import ab_region, delay_margin, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.analyses.rouche import _varying_bound, rouche_delay_bound
-from nrobust.hyperbolic.analyses.studies import ab_region, delay_margin, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.loops.controllers import StateFeedback, normalize
 from nrobust.hyperbolic.loops.feedback import feedback_factor, laplace_loop_factors
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2, as_general
+from nrobust.hyperbolic.simulate import simulate
 from nrobust.hyperbolic.simulate.general import simulate_general
-from nrobust.hyperbolic.simulate.normal_form import simulate
 from nrobust.reports.certificate import certify
 
 LN2 = np.log(2.0)

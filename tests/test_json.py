@@ -31,24 +31,27 @@ from nrobust.bounds import delay_bound_from_kernel, root_free_region
 from nrobust.difference import DifferenceOperator
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
-from nrobust.hyperbolic.analyses.studies import ab_region, k_region, stability_chart, tradeoff
+from nrobust.hyperbolic.analyses import ab_region, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.kernels.varying import solve_varying_kernels
 from nrobust.hyperbolic.loops.controllers import FilteredController, ReflectionController, StateFeedback, classify
 from nrobust.hyperbolic.loops.delay_form import delay_form
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
+from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin
 from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
-from nrobust.hyperbolic.nplusm.system import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
 from nrobust.hyperbolic.plants.frontends import arz, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
+from nrobust.hyperbolic.simulate import simulate, simulate_nplusm
 from nrobust.hyperbolic.simulate.general import simulate_general
-from nrobust.hyperbolic.simulate.normal_form import simulate
 from nrobust.lti.transfer import QuasiTransferFunction
+from nrobust.margins.count import unstable_count
 from nrobust.margins.crossing import crossing_frequencies
 from nrobust.margins.margin import delay_margin
 from nrobust.margins.proven import proven_crossings
 from nrobust.matrix_difference import MatrixDifferenceOperator
-from nrobust.plots.figures import hidden_unstable_roots, nyquist_response, root_locus_response
+from nrobust.plots.nyquist import nyquist_response
+from nrobust.plots.rootlocus import root_locus_response
+from nrobust.plots.rootmap import hidden_unstable_roots, root_map_response
 from nrobust.qpmatrix import QuasiPolynomialMatrix
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
 from nrobust.reports.certificate import certify
@@ -111,6 +114,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "DifferenceOperator": D,
         "DelayMargin": margin,
         "DelayMargin(inf)": delay_margin(A, QuasiPolynomial([[0.5]], [0])),
+        "UnstableCount": unstable_count(F),
         "DistributedDelay": N,
         "QuasiPolynomial": QuasiPolynomial([[1, 1], [0.5j]], [0, 1], [N]),
         "QuasiTransferFunction": QuasiTransferFunction(B, F),
@@ -142,6 +146,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "RootLocusData": root_locus_response(root_family, [0.5, 1.0], (-3, 1, -10, 10)),
         # the transport line's U = -rho u(t, 1) with delta = 0.01: its unstable chain is above |Im s| = 60
         "HiddenUnstableRoots": hidden_unstable_roots(
+            QuasiPolynomial([[1.0], [-0.85], [0.85]], [0.0, 2.0, 2.01]), (-1.5, 0.6, -60.0, 60.0)
+        ),
+        "RootMapData": root_map_response(
             QuasiPolynomial([[1.0], [-0.85], [0.85]], [0.0, 2.0, 2.01]), (-1.5, 0.6, -60.0, 60.0)
         ),
         "Manifest": Manifest("sweep", "0", "2026-01-01T00:00:00Z", ({"path": "a.csv", "size": 1, "sha256": "0" * 64},)),
@@ -177,6 +184,7 @@ NAMES = [
     "DifferenceOperator",
     "DelayMargin",
     "DelayMargin(inf)",
+    "UnstableCount",
     "DistributedDelay",
     "QuasiPolynomial",
     "QuasiTransferFunction",
@@ -205,6 +213,7 @@ NAMES = [
     "NyquistResponse",
     "RootLocusData",
     "HiddenUnstableRoots",
+    "RootMapData",
     "Manifest",
     "Claim",
     "ModelError",
@@ -379,6 +388,7 @@ IDENTITY = [
     "Simulation",
     "NyquistResponse",
     "RootLocusData",
+    "RootMapData",
     "DifferenceOperator",
     "SaintVenant",
     "GeneralHyperbolic2x2",

@@ -28,7 +28,8 @@ from nrobust import (
     delay_margin,
     k_region,
 )
-from nrobust.hyperbolic.analyses import studies
+from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
+from nrobust.margins import gain
 from nrobust.reports.report import write_report
 
 QP = QuasiPolynomial
@@ -75,8 +76,8 @@ def test_closed_form_loop_has_a_nominal_and_a_crossing_end(a: float, delta_max: 
     A, B0, R = QP([[a, 1.0]], [0.0]), QP([[0.0]], [0.0]), QP([[1.0]], [0.0])
     K_c = mp.findroot(lambda K: mp.acos(-a / K) / mp.sqrt(K**2 - a**2) - delta_max, 2 * a + 1 / delta_max)
     w_c = mp.sqrt(K_c**2 - a**2)
-    loop = studies._AffineLoop(A, B0, R)
-    ((lo, hi),) = studies._locate_ends(loop, delta_max, 10.0 * (a + 1.0 / delta_max), 1e-12, 2_000_000)
+    loop = gain.AffineGainLoop(A, B0, R)
+    ((lo, hi),) = gain.locate_gain_ends(loop, delta_max, 10.0 * (a + 1.0 / delta_max), 1e-12, 2_000_000)
     assert (lo.kind, hi.kind) == ("nominal", "crossing")
     np.testing.assert_allclose([lo.K, lo.omega], [-a, 0.0], rtol=0, atol=1e-14)
     np.testing.assert_allclose([hi.K, hi.omega, hi.delay], [float(K_c), float(w_c), delta_max], rtol=1e-13)
@@ -148,11 +149,11 @@ def test_paper_ends_agree_with_bisection_on_verified_margins(
 @pytest.mark.slow
 @pytest.mark.parametrize("system, gap", [(PAPER, 1e-3), (LAM2, 1.7e-5)], ids=["paper", "lam2"])
 def test_second_order_frequency_bound_holds(system: Hyperbolic2x2, gap: float) -> None:
-    """``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 >= q^2 (k^2 - K^2) - C_2 / w^2`` (``studies._AxisBound``),
+    """``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 >= q^2 (k^2 - K^2) - C_2 / w^2`` (``gain.AxisBound``),
     sampled on ``[0.5, 3 W_2]`` from the loop factors of :func:`nrobust.loop_factors`; no crossing
     above ``W_2``, which grows like ``1/sqrt(k - |K|)`` where the first-order bound grows like
     ``1/(k - |K|)`` (the unequal-speed plant ``1.7e-5`` from ``-k``: 190 against 7.3e4)."""
-    bound = studies._AxisBound.of(studies._AffineLoop.of(system))
+    bound = gain.AxisBound.of(u_bs2_loop(system))
     assert bound is not None
     k = nr.classify(system).k_bound
     A, B0 = nr.loop_factors(system, ReflectionController(0.0))

@@ -31,7 +31,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "nrobust"
 BASE, CORE, RUNTIME, HYPERBOLIC, APPLICATION = 0, 1, 2, 3, 4
 LAYER_NAMES = {BASE: "base", CORE: "core", RUNTIME: "runtime", HYPERBOLIC: "hyperbolic", APPLICATION: "application"}
 
-#: The base: errors, argument checks, JSON, Newton, progress bars, atomic writes, moved paths.
+#: The base: errors, argument checks, JSON, Newton, progress bars, atomic writes, moved paths,
+#: python-flint access (loading, precision, Krawczyk's test).
 BASE_MODULES = {
     "nrobust.errors",
     "nrobust._validate",
@@ -41,6 +42,7 @@ BASE_MODULES = {
     "nrobust._version",
     "nrobust._newton",
     "nrobust._moved",
+    "nrobust._flint",
 }
 #: The core, by package or module: representations, proofs, roots, margins, delay systems, design.
 CORE_PREFIXES = (

@@ -231,8 +231,8 @@ from nrobust import (  # noqa: E402
     characteristic,
     loop_factors,
 )
+from nrobust.hyperbolic.analyses import ab_region, k_region, stability_chart, tradeoff  # noqa: E402
 from nrobust.hyperbolic.analyses.rouche import rouche_delay_bound  # noqa: E402
-from nrobust.hyperbolic.analyses.studies import ab_region, k_region, stability_chart, tradeoff  # noqa: E402
 
 
 def paper_system() -> Hyperbolic2x2:

@@ -24,13 +24,13 @@ from nrobust.hyperbolic.loops.controllers import (
     StateFeedback,
     characteristic,
 )
-from nrobust.hyperbolic.nplusm.system import (
+from nrobust.hyperbolic.nplusm import (
     NPlusMCharacteristic,
     NPlusMSystem,
     multi_actuator_margin,
     nplusm_delay_margin,
-    simulate_nplusm,
 )
+from nrobust.hyperbolic.simulate import simulate_nplusm
 
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 # a coupled 2 + 1 system (distinct speeds) with one actuator

@@ -19,13 +19,14 @@ from scipy.linalg import expm
 
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, solve_kernels
-from nrobust.hyperbolic.analyses.studies import delay_margin
+from nrobust.hyperbolic.analyses import delay_margin
 from nrobust.hyperbolic.nplusm.kernels import (
     NPlusMBackstepping,
     backstepping_delay_margin,
     solve_nplusm_kernels,
 )
-from nrobust.hyperbolic.nplusm.system import NPlusMSystem, simulate_nplusm
+from nrobust.hyperbolic.nplusm.system import NPlusMSystem
+from nrobust.hyperbolic.simulate import simulate_nplusm
 
 PLANT = Hyperbolic2x2(1.0, 1.5, 1.2, 0.8, 1.0, 0.4)  # 2 rho q = 0.8 < 1: a positive margin
 #: Simulated growth rate against the rightmost root beyond the margin: measured 0.13120 (40 cells) and 0.13135 (80)

@@ -15,15 +15,15 @@ import pytest
 from scipy.linalg import expm
 
 from nrobust import CertificationError, count_roots
-from nrobust.hyperbolic.nplusm.system import (
+from nrobust.hyperbolic.nplusm import (
     NPlusMCharacteristic,
     NPlusMSystem,
     compound_characteristic,
     multi_actuator_delay_margin,
     multi_actuator_margin,
     nplusm_delay_margin,
-    simulate_nplusm,
 )
+from nrobust.hyperbolic.simulate import simulate_nplusm
 from nrobust.margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
 
 TWO_ONE = NPlusMSystem(
@@ -77,9 +77,9 @@ def test_compound_form_is_the_determinant(system: NPlusMSystem, K: list, delta: 
 
 def test_gauge_remainder_on_the_compound_transition() -> None:
     """||exp(D - s P) - exp(D_d - s P)|| <= r(|s|) on the axis and in Re s > 0 (P >= 0 in compound form)."""
-    from nrobust.hyperbolic.nplusm.system import _compound_loop
+    from nrobust.hyperbolic.nplusm.compound import compound_loop
 
-    dc, p, _, _ = _compound_loop(COUPLED, np.array(K_BOTH))
+    dc, p, _, _ = compound_loop(COUPLED, np.array(K_BOTH))
     assert np.all(p >= 0)
     rem = GaugeRemainder(dc, p)
     rng = np.random.default_rng(5)
@@ -171,7 +171,7 @@ def test_coupled_two_actuators_counts_and_simulation() -> None:
 
 def test_multi_actuator_margin_without_omega_max_is_the_certified_route(monkeypatch: pytest.MonkeyPatch) -> None:
     """``omega_max`` is optional: without it ``multi_actuator_margin`` returns the certified margin."""
-    import nrobust.hyperbolic.nplusm.system as nplusm
+    import nrobust.hyperbolic.nplusm.margin as nplusm
 
     calls: list[tuple[tuple, dict]] = []
 

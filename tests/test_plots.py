@@ -14,7 +14,8 @@ from nrobust import plots
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2
 from nrobust.hyperbolic.loops.controllers import ReflectionController
-from nrobust.hyperbolic.simulate.normal_form import simulate
+from nrobust.hyperbolic.simulate import simulate
+from nrobust.margins import delay_margin
 from nrobust.quasipoly import QuasiPolynomial as Q
 from nrobust.roots import count_roots, find_roots
 
@@ -54,15 +55,17 @@ def test_nyquist_finite_time_controller_has_no_finite_count():
     resp = plots.nyquist_response(A_TRANSPORT, B, delta=0.1, omega_max=20.0, n_freq=2001)
     assert resp.rhp_zeros is None and resp.principal_bound > 0
     assert "spectral bound" in resp.note
-    assert resp.crossings.size > 0
-    # crossings: 48 bisection halvings bracket below rounding, |L| = 1 to ~eps w |dL/dw| (measured 6.2e-15)
-    np.testing.assert_allclose(
-        np.abs(B(1j * resp.crossings) / A_TRANSPORT(1j * resp.crossings)), 1.0, rtol=0, atol=1e-13
-    )
+    # |1 - 0.85 e^{-2 i w}| = 0.85 at cos 2w = 1/1.7: the certified search (nrobust.margins) locates
+    # them to its tolerance 1e-12 max(1, w) (measured 8.3e-13 relative), on the band 0 < w <= 20
+    exact = np.sort([(sign * np.arccos(1 / 1.7) + 2 * np.pi * k) / 2 for k in range(8) for sign in (1, -1)])
+    exact = exact[(exact > 0) & (exact <= 20.0)]
+    assert resp.crossings.size == exact.size == 13 and resp.crossing_note == ""
+    np.testing.assert_allclose(resp.crossings, exact, rtol=1e-12, atol=1e-12)
     out = resp.plot()
     pts = resp.crossing_values
     np.testing.assert_allclose(out.lines["crossings"][0].get_xdata(), pts.real, rtol=1e-15, atol=0)
-    np.testing.assert_allclose(np.abs(pts), 1.0, rtol=0, atol=1e-13)
+    # |L| - 1 ~ |d|L|/dw| * (error in w), measured 3.1e-11
+    np.testing.assert_allclose(np.abs(pts), 1.0, rtol=0, atol=1e-10)
 
 
 @pytest.mark.parametrize(
@@ -98,6 +101,22 @@ def test_root_map_markers_are_the_roots_and_chains_are_drawn():
     )
     assert out.lines["axis"][0].get_xdata()[0] == 0.0
     assert out.axes.get_xlim() == (-1.0, 1.0)
+    data = plots.root_map_response(F, box, roots=roots)
+    assert data.count == roots.count and data.unstable == int(np.sum(roots.roots.real > 0))
+    np.testing.assert_array_equal(data.chains, sorted(expected, reverse=True))
+    assert data.hidden is None and data.to_dict()["count"] == roots.count
+
+
+def test_nyquist_crossings_are_those_of_the_certified_search():
+    """The crossings on a Nyquist plot are those of the delay margin (one search, nrobust.margins)."""
+    A, B = Q([[1.0, 1.0]], [0.0]), Q([[2.0]], [0.0])  # s + 1 + 2 e^{-delta s}: |A| = |B| at w = sqrt(3)
+    resp = plots.nyquist_response(A, B, delta=0.2, omega_max=20.0)
+    margin = delay_margin(A, B)
+    np.testing.assert_array_equal(resp.crossings, [c.omega for c in margin.crossings])
+    # s^2 + 1 with B = 0: A and B vanish together at w = 1 (a tangency the sign changes missed)
+    resp = plots.nyquist_response(Q([[1.0, 0.0, 1.0]], [0.0]), Q([[0.0]], [0.0]), omega_max=20.0, n_freq=256)
+    np.testing.assert_allclose(resp.crossings, [1.0], rtol=1e-12, atol=0)
+    resp.plot()  # L = 0/0 there: the point is not labelled
 
 
 def test_root_locus_in_a_gain_matches_closed_form():
@@ -146,7 +165,7 @@ def test_plot_arguments_are_checked():
 
 
 def test_stability_chart_and_tradeoff_plots_draw_their_data():
-    from nrobust.hyperbolic.analyses.studies import StabilityChart, Tradeoff
+    from nrobust.hyperbolic.analyses import StabilityChart, Tradeoff
 
     Ks = np.array([-0.1, 0.0, 0.1])
     deltas = np.array([0.0, 0.1, 0.2])
@@ -262,8 +281,8 @@ def test_figure_1_cuts_its_axis_at_the_residual_and_shows_the_growth():
 def test_rouche_curve_is_drawn_for_negative_gains_too():
     """delta_0(K) of Theorem 4 depends on |K| only; a curve computed for K >= 0 is mirrored,
     and the mirrored values are the bound computed at -K."""
+    from nrobust.hyperbolic.analyses import StabilityChart
     from nrobust.hyperbolic.analyses.rouche import rouche_delay_bound
-    from nrobust.hyperbolic.analyses.studies import StabilityChart
 
     system = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
     Ks = np.array([0.0, 0.05, 0.1])

@@ -37,10 +37,10 @@ from nrobust import (
     solve_kernels,
 )
 from nrobust.config import load_system_file
-from nrobust.hyperbolic.analyses.studies import DEFAULT_N_GAINS
+from nrobust.hyperbolic.analyses import DEFAULT_N_GAINS
 from nrobust.hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
 from nrobust.hyperbolic.simulate.normal_form import DEFAULT_CELLS, v_nodes
-from nrobust.plots.figures import nyquist_response
+from nrobust.plots.nyquist import nyquist_response
 from nrobust.sweeps.sweepfile import ANALYSES
 
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)

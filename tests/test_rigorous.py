@@ -538,9 +538,16 @@ def test_chain_bound_of_delays_commensurate_to_rounding() -> None:
         def d(s: mpmath.mpc, a: list = a, t: list = t) -> mpmath.mpc:
             return mpmath.fsum(ak * mpmath.exp(-tk * s) for ak, tk in zip(a, t))
 
+        # seeds on the six rightmost chains of the approximation: for incommensurate delays the zero
+        # nearest c_D may sit on any of them (here on the second: -0.0924376836, the first reaches -0.0928)
         chains = D.commensurate_approximation().chains() if D.commensurate_step() is None else D.chains()
-        first = chains.chains[0]
-        zeros = [mpmath.findroot(d, mpmath.mpc(x)) for x in first.points(0.0, 8 * first.spacing)]
+        zeros = []
+        for chain in chains.chains[:6]:
+            for x in chain.points(0.0, 8 * chain.spacing):
+                try:
+                    zeros.append(mpmath.findroot(d, mpmath.mpc(x)))
+                except ValueError:  # a seed between two zeros: Newton does not settle
+                    continue
         assert all(abs(d(z)) < 1e-30 and float(z.real) <= sb.upper for z in zeros)
         # a zero at least as far right as the proven one (lower is its box's left edge)
         assert sb.lower <= max(float(z.real) for z in zeros) <= sb.upper

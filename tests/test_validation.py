@@ -35,7 +35,7 @@ from nrobust.bounds import l1_modulus, root_free_region, total_variation
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.kernels.constant import MAX_KERNEL_GRID, RESOLUTION, solve_kernels
 from nrobust.lti.transfer import to_frd
-from nrobust.plots.figures import nyquist_response
+from nrobust.plots.nyquist import nyquist_response
 from nrobust.roots import count_roots
 
 QP = QuasiPolynomial

@@ -27,10 +27,10 @@ from nrobust.hyperbolic import (
     solve_varying_kernels,
     varying_delay_form,
 )
-from nrobust.hyperbolic.analyses.studies import delay_margin
+from nrobust.hyperbolic.analyses import delay_margin
 from nrobust.hyperbolic.plants.general import as_general
+from nrobust.hyperbolic.simulate import simulate
 from nrobust.hyperbolic.simulate.general import simulate_general
-from nrobust.hyperbolic.simulate.normal_form import simulate
 
 S = np.array([0.1 + 0.5j, -0.3 + 3.0j, 0.5 + 8.0j, 1.0 + 0.0j, 0.2 + 15.0j])
 # lam/mu varies from 1/2 to 2; diagonal terms a = 0.2, d = -0.3.

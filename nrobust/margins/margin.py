@@ -1,7 +1,7 @@
 """The delay margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` and its stability windows.
 
 The number of unstable roots is piecewise constant in ``delta`` and changes only at the
-crossing delays of :mod:`nrobust.crossings`, so a certified count at ``delta = 0`` and the
+crossing delays of :mod:`nrobust.margins.crossing`, so a certified count at ``delta = 0`` and the
 signed crossings give it for every ``delta``: stability windows included. The crossing
 search is complete and classifies every crossing (simple, with a certified direction, or
 a tangency), so this count is right by construction, with or without ``verify``; the
@@ -33,18 +33,9 @@ from .._validate import positive_int
 from ..bounds import joint_degree, principal_gap, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
-from ..roots import count_roots
-from .crossing import (
-    ZERO_TOL,
-    AxisGap,
-    Crossing,
-    axis_count,
-    axis_crossings,
-    common_axis_zeros,
-    crossing_search,
-    frequency_bound,
-    is_zero,
-)
+from .axis import AxisGap, frequency_bound, is_zero
+from .count import unstable_count
+from .crossing import ZERO_TOL, Crossing, CrossingSearch, axis_crossings, common_axis_zeros, crossing_search
 from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
 
 __all__ = ["DelayMargin", "delay_margin"]
@@ -184,25 +175,6 @@ class DelayMargin:
         return fields_dict(self)
 
 
-def _count_unstable(F: QuasiPolynomial, W: float, rigorous: bool = False) -> int | None:
-    """Certified number of zeros with ``Re s > 0``; all lie in ``|s| <= W``.
-
-    For real coefficients the zeros come in conjugate pairs: the count of the upper box
-    ``(0, r) x (0, r)`` is doubled when no edge had to move (then no zero lies on the
-    positive real axis nor on the imaginary axis), which halves the contour on the
-    imaginary axis, where the count spends most of its work. None when the count had to
-    move its edge off ``Re s = 0`` (a zero on, or within rounding of, the axis): it then
-    counts another region, not ``Re s > 0``. ``rigorous``: counts proven in ball arithmetic.
-    """
-    r = 1.01 * W + 1e-9
-    if F.is_real:
-        upper = count_roots(F, (0.0, r, 0.0, r), rigorous=rigorous)
-        if not upper.shifted:
-            return 2 * int(upper)
-    count = count_roots(F, (0.0, r, -r, r), rigorous=rigorous)
-    return int(count) if count.region[0] == 0.0 else None
-
-
 def _margin_ball(proof: ProvenCrossings, zero_root: bool, nominal: int | None) -> tuple[float, float]:
     """Enclosure of ``delta*`` from the proven crossings and the proven nominal count; raises what is not proven."""
     if zero_root:
@@ -257,9 +229,7 @@ def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: floa
     if principal is not None and gap > 0.0 and not zero_root:
         try:
             radius = root_free_region(P).radius
-            r = 1.01 * radius + 1e-9
-            count = count_roots(P, (0.0, r, -r, r))
-            nominal = None if count.region[0] < 0.0 else int(count)
+            nominal = unstable_count(P, radius).count
         except (ParameterError, CertificationError):
             nominal = None
     stable = nominal == 0
@@ -287,15 +257,231 @@ def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: floa
     )
 
 
-def _nominal_count(A: QuasiPolynomial, B: QuasiPolynomial, W: float | None) -> int | None:
-    """Certified count of unstable zeros of ``A + B``, or None if it cannot be certified."""
-    F = A + B
-    if W is None:
-        try:
-            W = root_free_region(F).radius
-        except (ParameterError, CertificationError):
-            return None
-    return _count_unstable(F, W)
+def _validated(
+    A: Any, B: Any, delta_max: Any, max_evals: Any, rigorous: Any
+) -> tuple[QuasiPolynomial, QuasiPolynomial, float | None, int]:
+    """Step 1, validation: the factors as quasi-polynomials (not both zero), ``delta_max`` and ``max_evals``."""
+    A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
+    max_evals = positive_int("max_evals", max_evals)
+    delta_max = _delay_max(delta_max)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if is_zero(A) and is_zero(B):
+        raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
+    return A, B, delta_max, max_evals
+
+
+def _zero_root(A: QuasiPolynomial, B: QuasiPolynomial, rigorous: bool) -> bool:
+    """``A(0) + B(0) = 0`` (``s = 0`` a root for every delay): to ``ZERO_TOL``, or proven with ``rigorous``.
+
+    With ``rigorous`` a factor identically zero raises: the loop does not depend on the
+    delay, and its stability is a count (``count_roots(..., rigorous=True)``).
+    """
+    a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
+    zero_root = abs(a0 + b0) <= ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
+    if rigorous:
+        zero_root = proven_zero_root(A, B)
+        if is_zero(B) or is_zero(A):
+            raise CertificationError(
+                "delay_margin(rigorous=True): A or B is identically zero, the loop does not depend on the delay; "
+                "prove its stability with count_roots(..., rigorous=True)"
+            )
+    return zero_root
+
+
+def _principal_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
+    """The principal gap ``|a_0| - sum |others|`` of the loop (``-inf`` for an advanced-type loop)."""
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+    return float("-inf") if principal is None else principal.gap
+
+
+def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float | None) -> DelayMargin:
+    """The rigorous route when ``A(0) + B(0) = 0`` is proven: margin 0 whatever the crossings."""
+    gap = _principal_gap(A, B)
+    return DelayMargin(
+        margin=0.0,
+        omega=0.0,
+        crossings=(),
+        nominally_stable=False,
+        nominal_unstable=None,
+        strongly_stable=gap > 0.0,
+        zero_root=True,
+        intervals=(),
+        counts=(),
+        delta_max=float("inf") if delta_max is None else delta_max,
+        frequency_bound=None,
+        gap=gap,
+        verified=False,
+        residual=None,
+        reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
+        rigorous=True,
+        margin_ball=(0.0, 0.0),
+    )
+
+
+def _not_strongly_stable(
+    A: QuasiPolynomial, B: QuasiPolynomial, zero_root: bool, delta_max: float | None, rigorous: bool
+) -> DelayMargin:
+    """The principal part: no frequency bound, so the difference operator is not strongly stable
+    for small ``delta > 0`` (or the loop is of advanced type) and the margin is 0 (Theorem 3)."""
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+    gap = float("-inf") if principal is None else principal.gap
+    if rigorous and principal is not None and not proven_gap(A, B)[1] < 0.0:
+        raise CertificationError(
+            f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
+            "the boundary of strong stability to rounding): zero margin not proven"
+        )
+    nominal = unstable_count(A + B).count
+    reason = (
+        "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
+        if principal is None
+        else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g}"
+        + (" <= 0" if gap <= 0 else ", zero to rounding")
+        + "): zero margin"
+    )
+    return DelayMargin(
+        margin=0.0,
+        omega=None,
+        crossings=(),
+        nominally_stable=nominal == 0 and not zero_root,
+        nominal_unstable=nominal,
+        strongly_stable=False,
+        zero_root=zero_root,
+        intervals=(),
+        counts=(),
+        delta_max=0.0 if delta_max is None else delta_max,
+        frequency_bound=None,
+        gap=gap,
+        verified=False,
+        residual=None,
+        reason=reason,
+        rigorous=rigorous,
+        margin_ball=(0.0, 0.0) if rigorous else None,
+    )
+
+
+def _search(
+    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int, rigorous: bool
+) -> tuple[ProvenCrossings | None, CrossingSearch, AxisGap]:
+    """The crossing search: certified in floating point, or proven in ball arithmetic (``rigorous``)."""
+    if rigorous:
+        proof = proven_crossings(A, B, max_evals=max_evals)
+        return proof, proof.search(), AxisGap(A, B)
+    search, axis_gap = crossing_search(A, B, w_bound, max_evals)
+    return None, search, axis_gap
+
+
+def _common_zero(search: CrossingSearch, common: NDArray, zero_root: bool, delta_max: float | None) -> DelayMargin:
+    """``A`` and ``B`` vanish together at ``i w`` (``common[0] = w``): a root on the axis for every delay."""
+    return DelayMargin(
+        margin=0.0,
+        omega=float(common[0]),
+        crossings=(),
+        nominally_stable=False,
+        nominal_unstable=None,
+        strongly_stable=True,
+        zero_root=zero_root,
+        intervals=(),
+        counts=(),
+        delta_max=float("inf") if delta_max is None else delta_max,
+        frequency_bound=search.frequency_bound,
+        gap=search.gap,
+        verified=False,
+        residual=None,
+        reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
+        evaluations=search.evaluations,
+    )
+
+
+def _events(crossings: tuple[Crossing, ...], delta_max: float, real: bool) -> dict[float, int]:
+    """Change of the number of unstable zeros at each crossing delay up to ``delta_max``
+    (conjugate pairs count twice for real coefficients; tangencies change nothing)."""
+    mult = 2 if real else 1
+    events: dict[float, int] = {}
+    for c in crossings:
+        for d in c.delays:
+            if d <= delta_max:
+                events[d] = events.get(d, 0) + mult * c.direction
+    return events
+
+
+def _windows(
+    first: int | None, events: dict[float, int], delta_max: float, crossings: tuple[Crossing, ...]
+) -> tuple[list[tuple[float, float, int]], list[tuple[float, float]]]:
+    """The counts between crossing delays from the count ``first`` on the first interval, and the
+    stability windows (intervals with no unstable zero).
+
+    A count made negative by the crossing directions contradicts the certificates and raises.
+    """
+    counts: list[tuple[float, float, int]] = []
+    if first is None:
+        return counts, []
+    marks = sorted(d for d in events if d > 0.0)
+    bounds = [0.0, *marks, delta_max]
+    cur = first
+    for k in range(len(bounds) - 1):
+        if k > 0:
+            cur += events[bounds[k]]
+            if cur < 0:
+                raise CertificationError(
+                    f"delay_margin: the crossing directions make the number of unstable roots negative "
+                    f"({cur}) after delta = {bounds[k]:.12g}: certified count {first} on (0, {bounds[1]:.12g}), "
+                    f"changes {[(d, events[d]) for d in marks[:k]]}, crossings {list(crossings)}; "
+                    "this contradicts the certificates (please report it)"
+                )
+        if bounds[k + 1] > bounds[k]:
+            counts.append((bounds[k], bounds[k + 1], cur))
+    # consecutive intervals are separated by a delay with a zero on the axis: never merged
+    return counts, [(lo, hi) for lo, hi, m in counts if m == 0]
+
+
+def _first_axis_root(
+    crossings: tuple[Crossing, ...], zero_root: bool, stable_at_zero: bool
+) -> tuple[float, float | None, str]:
+    """The margin: ``(delta*, w, reason)``, the first delay with a root on the axis."""
+    if zero_root:
+        return 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
+    if not stable_at_zero:
+        return 0.0, None, "the nominal loop (delta = 0) is not exponentially stable"
+    if not crossings:
+        return float("inf"), None, "no crossing frequency: stable for every delay"
+    first_crossing = crossings[0]
+    kind = "tangency (a double root touches the axis and returns)" if first_crossing.tangential else "crossing"
+    return first_crossing.delays[0], first_crossing.omega, f"first {kind} at w = {first_crossing.omega:.10g}"
+
+
+def _checked(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    margin: float,
+    omega: float,
+    W: float,
+    axis_gap: AxisGap,
+    max_evals: int,
+    verify: bool,
+) -> tuple[bool, float]:
+    """``(verified, residual)``: the residual of ``F(i w; delta*)`` (raises unless at rounding level)
+    and, with ``verify``, no unstable zero at ``delta* (1 - 1e-3)`` (raises otherwise)."""
+    s = np.array([1j * omega])
+    Fm = A(s) + B(s) * np.exp(-s * margin)
+    residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
+    if residual > 1e-8:
+        raise CertificationError(
+            f"delay_margin: F(i w; delta*) does not vanish at delta* = {margin:.12g}, w = {omega:.12g} "
+            f"(relative residual {residual:.3g})"
+        )
+    if not verify:
+        return False, residual
+    probe = margin * (1 - 1e-3)
+    below = unstable_count(
+        A + B.shift(probe), W, loop=(A, B, probe), kernels=axis_gap.kernels, max_evals=max_evals
+    ).count
+    if below != 0:
+        raise CertificationError(
+            f"delay_margin: verification failed at delta* = {margin:.12g}: {below} unstable roots at "
+            f"delta* (1 - 1e-3), where the crossing analysis finds none"
+        )
+    return True, residual
 
 
 def delay_margin(
@@ -368,181 +554,35 @@ def delay_margin(
     >>> bool(abs(dm.margin - np.arccos(-0.5) / np.sqrt(3.0)) < 1e-12)
     True
     """
-    A, B = as_quasipolynomial("A", A), as_quasipolynomial("B", B)
-    max_evals = positive_int("max_evals", max_evals)
-    delta_max = _delay_max(delta_max)
-    if not isinstance(rigorous, (bool, np.bool_)):
-        raise ParameterError("rigorous", "True or False", rigorous)
-    if is_zero(A) and is_zero(B):
-        raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
-    real = A.is_real and B.is_real
-    a0, b0 = complex(A(np.array([0j]))[0]), complex(B(np.array([0j]))[0])
-    zero_root = abs(a0 + b0) <= ZERO_TOL * max(abs(a0) + abs(b0), 1e-300)
-    if rigorous:
-        zero_root = proven_zero_root(A, B)
-        if is_zero(B) or is_zero(A):
-            raise CertificationError(
-                "delay_margin(rigorous=True): A or B is identically zero, the loop does not depend on the delay; "
-                "prove its stability with count_roots(..., rigorous=True)"
-            )
-        if zero_root:  # proven: s = 0 is a root for every delay, whatever the crossings
-            principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
-            gap = float("-inf") if principal is None else principal.gap
-            return DelayMargin(
-                margin=0.0,
-                omega=0.0,
-                crossings=(),
-                nominally_stable=False,
-                nominal_unstable=None,
-                strongly_stable=gap > 0.0,
-                zero_root=True,
-                intervals=(),
-                counts=(),
-                delta_max=float("inf") if delta_max is None else delta_max,
-                frequency_bound=None,
-                gap=gap,
-                verified=False,
-                residual=None,
-                reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
-                rigorous=True,
-                margin_ball=(0.0, 0.0),
-            )
+    A, B, delta_max, max_evals = _validated(A, B, delta_max, max_evals, rigorous)
+    zero_root = _zero_root(A, B, rigorous)
+    if rigorous and zero_root:
+        return _proven_zero_root(A, B, delta_max)
     if is_zero(B) or is_zero(A):
         return _delay_free(B if is_zero(A) else A, "A" if is_zero(A) else "B", zero_root, delta_max)
     w_bound = frequency_bound(A, B)
-    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
-    gap = float("-inf") if principal is None else principal.gap
     if w_bound is None:
-        if rigorous and principal is not None and not proven_gap(A, B)[1] < 0.0:
-            raise CertificationError(
-                f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
-                "the boundary of strong stability to rounding): zero margin not proven"
-            )
-        nominal = _nominal_count(A, B, None)
-        reason = (
-            "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
-            if principal is None
-            else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g}"
-            + (" <= 0" if gap <= 0 else ", zero to rounding")
-            + "): zero margin"
-        )
-        return DelayMargin(
-            margin=0.0,
-            omega=None,
-            crossings=(),
-            nominally_stable=nominal == 0 and not zero_root,
-            nominal_unstable=nominal,
-            strongly_stable=False,
-            zero_root=zero_root,
-            intervals=(),
-            counts=(),
-            delta_max=0.0 if delta_max is None else delta_max,
-            frequency_bound=None,
-            gap=gap,
-            verified=False,
-            residual=None,
-            reason=reason,
-            rigorous=rigorous,
-            margin_ball=(0.0, 0.0) if rigorous else None,
-        )
-    proof: ProvenCrossings | None = None
-    if rigorous:
-        proof = proven_crossings(A, B, max_evals=max_evals)
-        search, axis_gap = proof.search(), AxisGap(A, B)
-    else:
-        search, axis_gap = crossing_search(A, B, w_bound, max_evals)
+        return _not_strongly_stable(A, B, zero_root, delta_max, rigorous)
+    proof, search, axis_gap = _search(A, B, w_bound, max_evals, rigorous)
     W = search.frequency_bound
     common = common_axis_zeros(axis_gap, search)
     if common.size:
-        return DelayMargin(
-            margin=0.0,
-            omega=float(common[0]),
-            crossings=(),
-            nominally_stable=False,
-            nominal_unstable=None,
-            strongly_stable=True,
-            zero_root=zero_root,
-            intervals=(),
-            counts=(),
-            delta_max=float("inf") if delta_max is None else delta_max,
-            frequency_bound=W,
-            gap=search.gap,
-            verified=False,
-            residual=None,
-            reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
-            evaluations=search.evaluations,
-        )
+        return _common_zero(search, common, zero_root, delta_max)
     crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
-    mult = 2 if real else 1
-    events: dict[float, int] = {}
-    for c in crossings:
-        for d in c.delays:
-            if d <= delta_max:
-                events[d] = events.get(d, 0) + mult * c.direction
-    axis_at_zero = zero_root or (0.0 in events)
-    nominal = None if axis_at_zero else _count_unstable(A + B, W, rigorous)
-    stable_at_zero = nominal == 0
-    marks = sorted(d for d in events if d > 0.0)
-    # Number of unstable zeros on the first interval (0, first positive crossing delay).
-    if nominal is not None:
-        first = nominal
-    elif zero_root:
-        first = None
-    else:
+    events = _events(crossings, delta_max, A.is_real and B.is_real)
+    # The nominal count, and the count on the first interval (0, first positive crossing delay).
+    nominal = None if zero_root or 0.0 in events else unstable_count(A + B, W, rigorous=rigorous).count
+    first = nominal
+    if nominal is None and not zero_root:
+        marks = sorted(d for d in events if d > 0.0)
         probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
-        first = _count_unstable(A + B.shift(probe), W, rigorous)
-    counts: list[tuple[float, float, int]] = []
-    intervals: list[tuple[float, float]] = []
-    if first is not None:
-        bounds = [0.0, *marks, delta_max]
-        cur = first
-        for k in range(len(bounds) - 1):
-            if k > 0:
-                cur += events[bounds[k]]
-                if cur < 0:
-                    raise CertificationError(
-                        f"delay_margin: the crossing directions make the number of unstable roots negative "
-                        f"({cur}) after delta = {bounds[k]:.12g}: certified count {first} on (0, {bounds[1]:.12g}), "
-                        f"changes {[(d, events[d]) for d in marks[:k]]}, crossings {list(crossings)}; "
-                        "this contradicts the certificates (please report it)"
-                    )
-            if bounds[k + 1] > bounds[k]:
-                counts.append((bounds[k], bounds[k + 1], cur))
-        # consecutive intervals are separated by a delay with a zero on the axis: never merged
-        intervals = [(lo, hi) for lo, hi, m in counts if m == 0]
-    if zero_root:
-        margin, omega, reason = 0.0, 0.0, "s = 0 is a root for every delay (A(0) + B(0) = 0)"
-    elif not stable_at_zero:
-        margin, omega = 0.0, None
-        reason = "the nominal loop (delta = 0) is not exponentially stable"
-    elif not crossings:
-        margin, omega, reason = float("inf"), None, "no crossing frequency: stable for every delay"
-    else:
-        first_crossing = crossings[0]
-        margin, omega = first_crossing.delays[0], first_crossing.omega
-        kind = "tangency (a double root touches the axis and returns)" if first_crossing.tangential else "crossing"
-        reason = f"first {kind} at w = {omega:.10g}"
+        first = unstable_count(A + B.shift(probe), W, rigorous=rigorous).count
+    counts, intervals = _windows(first, events, delta_max, crossings)
+    stable_at_zero = nominal == 0
+    margin, omega, reason = _first_axis_root(crossings, zero_root, stable_at_zero)
     verified, residual = False, None
     if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
-        s = np.array([1j * omega])
-        Fm = A(s) + B(s) * np.exp(-s * margin)
-        residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
-        if residual > 1e-8:
-            raise CertificationError(
-                f"delay_margin: F(i w; delta*) does not vanish at delta* = {margin:.12g}, w = {omega:.12g} "
-                f"(relative residual {residual:.3g})"
-            )
-        if verify:
-            probe = margin * (1 - 1e-3)
-            below = axis_count(A, B, probe, W, axis_gap._kernels, max_evals)
-            if below is None:
-                below = _count_unstable(A + B.shift(probe), W)
-            if below != 0:
-                raise CertificationError(
-                    f"delay_margin: verification failed at delta* = {margin:.12g}: {below} unstable roots at "
-                    f"delta* (1 - 1e-3), where the crossing analysis finds none"
-                )
-            verified = True
+        verified, residual = _checked(A, B, margin, omega, W, axis_gap, max_evals, verify)
     ball = None
     if proof is not None:
         ball = _margin_ball(proof, zero_root, nominal)

@@ -1,20 +1,20 @@
 """The crossing set of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` proven in ball arithmetic.
 
-:mod:`nrobust.crossings` finds every zero of ``g(w) = |A(i w)|^2 - |B(i w)|^2`` with
+:mod:`nrobust.margins.search` finds every zero of ``g(w) = |A(i w)|^2 - |B(i w)|^2`` with
 floating-point evaluations and a fixed rounding allowance. This module proves the same
 set with python-flint's balls (:mod:`nrobust.balls`: every value a midpoint and a radius
 containing every rounding error), for ``A`` and ``B`` *as represented* (stored floats
 exact, ``N~`` the cubic spline on its grid). Each statement below is a theorem about
 those functions.
 
-**Frequency bound.** ``W`` comes from :func:`nrobust.crossings.frequency_bound`; it is
+**Frequency bound.** ``W`` comes from :func:`nrobust.margins.axis.frequency_bound`; it is
 then proven: the principal gap ``|a_0| - sum |a_k|`` and the tail bound
 ``r_A(W) + r_B(W)`` (point terms of lower degree, and kernels by
 ``|q|(W) W^-n min(M_0, V_0 / W)`` with ``M_0 >= int nu^m |N|`` and ``V_0`` the variation
 bound of integration by parts, both summed in balls from the stored pieces of ``N``)
 are enclosed and ``r(W) < gap`` is checked on the balls. Then
 ``| |A(i w)| - |B(i w)| | > 0`` for ``|w| >= W`` and, on ``Re s >= 0``, every zero of
-``F(.; delta)`` has ``|s| < W`` (the estimate of :mod:`nrobust.crossings`).
+``F(.; delta)`` has ``|s| < W`` (the estimate of :mod:`nrobust.margins.axis`).
 
 **Exclusion.** ``h = |A(i w)| - |B(i w)|`` has ``|h'| <= |A'(i w)| + |B'(i w)| <= L(a, b)``
 on ``[a, b]``, with ``L`` summed in balls from the moduli of the terms (point terms
@@ -70,7 +70,8 @@ from ..balls import ball_abs_moment, ball_function, ball_variation_bound, requir
 from ..bounds import joint_degree, principal_gap
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
-from .crossing import AxisKernels, CrossingSearch, is_zero, required_frequency_bound
+from .axis import AxisKernels, is_zero, required_frequency_bound
+from .crossing import CrossingSearch
 
 __all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_root"]
 
@@ -149,7 +150,7 @@ class ProvenCrossings:
         return (min(lo for lo, _ in self.delays), min(hi for _, hi in self.delays))
 
     def search(self) -> CrossingSearch:
-        """The zeros as a :class:`~nrobust.crossings.CrossingSearch` (midpoints; unresolved intervals as tangencies)."""
+        """The zeros as a :class:`CrossingSearch` (midpoints; unresolved intervals as tangencies)."""
         rows = [
             (0.5 * (lo + hi), m % 2 == 0, s) for (lo, hi), m, s in zip(self.omegas, self.multiplicities, self.slopes)
         ]

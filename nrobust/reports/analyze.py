@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from .._progress import progress_bar
-from ..config import NPLUSM_TYPE, PiecewiseLinear, _wrap, load_system_file
-from ..hyperbolic.simulate.normal_form import Simulation, simulate
-from ..plots.figures import simulation_figure
+from ..config import NPLUSM_TYPE, PiecewiseLinear, build_in_section, load_system_file
+from ..hyperbolic.simulate import Simulation, simulate
+from ..plots.simulation import simulation_figure
 from .certificate import certify
 from .nplusm import run_nplusm_analyze
 from .outputs import RunOutputs, check_output_dir
@@ -61,7 +61,7 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
                     u0, v0 = _initial(sim["u0"]), _initial(sim["v0"])
                     return simulate(spec["system"], spec["controller"], delta, sim["t_end"], u0, v0, sim["cells"])
 
-                runs.append(_wrap("simulation", run))
+                runs.append(build_in_section("simulation", run))
                 bar.update(1)
             figures.append(
                 (

@@ -31,8 +31,8 @@ from .._version import __version__
 from ..bounds import RoucheDelayBound
 from ..errors import CertificationError, ParameterError
 from ..hyperbolic import analyses
+from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion, delay_margin
 from ..hyperbolic.analyses.rouche import rouche_delay_bound
-from ..hyperbolic.analyses.studies import DEFAULT_N_GAINS, KRegion, delay_margin
 from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
 from ..hyperbolic.loops.controllers import (
     Classification,
@@ -561,6 +561,7 @@ def certify(
     k_region: bool = True,
     n_gains: int = DEFAULT_N_GAINS,
     rigorous: bool = False,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
 ) -> Certificate:
     """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
 
@@ -595,6 +596,10 @@ def certify(
         nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
         Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
         :data:`PROVEN` or :data:`CHECKED`.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+        Kernel grid points of every kernel solved here (the characteristic functions, the
+        delay margin and the Rouché range; validated by the first of them,
+        :func:`~nrobust.hyperbolic.kernels.check_kernel_grid`).
 
     Returns
     -------
@@ -612,8 +617,8 @@ def certify(
         box = check_region(region)
     # the algebra of QuasiPolynomial merges kernels on equal nodes: the I_N - I_N of the
     # nominal U_BS and U_BS2 loops cancels exactly
-    F0 = characteristic(system, controller, 0.0)
-    Fd = characteristic(system, controller, delta_max)
+    F0 = characteristic(system, controller, 0.0, kernel_grid=kernel_grid)
+    Fd = characteristic(system, controller, delta_max, kernel_grid=kernel_grid)
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
     rigorous = bool(rigorous)
@@ -625,10 +630,15 @@ def certify(
         "delay margin",
         rigorous,
         unproven,
-        lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r),
+        lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid),
     )
     rouche = (
-        _prove("Rouché delay range", rigorous, unproven, lambda r: rouche_delay_bound(system, controller, rigorous=r))
+        _prove(
+            "Rouché delay range",
+            rigorous,
+            unproven,
+            lambda r: rouche_delay_bound(system, controller, rigorous=r, kernel_grid=kernel_grid),
+        )
         if isinstance(controller, (ReflectionController, FiniteTimeController))
         else None
     )

@@ -17,7 +17,7 @@ from typing import Any
 
 from .._json import json_safe
 from .._progress import progress_bar
-from ..hyperbolic.nplusm.system import CancellationCase, NPlusMSystem, cancellation_study
+from ..hyperbolic.nplusm import CancellationCase, NPlusMSystem, cancellation_study
 from .outputs import RunOutputs
 from .report import ReportFiles
 

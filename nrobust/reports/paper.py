@@ -14,13 +14,15 @@ import numpy as np
 from .._json import json_float, json_safe
 from .._validate import positive_int, renamed_keywords
 from ..errors import ParameterError
-from ..hyperbolic.analyses.studies import stability_chart, tradeoff
+from ..hyperbolic.analyses import stability_chart, tradeoff
 from ..hyperbolic.kernels.constant import solve_kernels
 from ..hyperbolic.loops.controllers import FiniteTimeController, ReflectionController, characteristic, classify
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
-from ..hyperbolic.simulate.normal_form import DEFAULT_CELLS, Simulation, simulate
-from ..plots.figures import root_locus_response, simulation_figure, stability_chart_plot, tradeoff_plot
-from ..sweeps.engine import sweep_map
+from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate
+from ..plots.charts import stability_chart_plot, tradeoff_plot
+from ..plots.rootlocus import root_locus_response
+from ..plots.simulation import simulation_figure
+from ..sweeps.executors import sweep_map
 from .certificate import certify
 from .outputs import RunOutputs
 from .report import write_report

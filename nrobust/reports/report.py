@@ -34,8 +34,8 @@ from ..hyperbolic.loops.controllers import (
     characteristic,
     loop_factors,
 )
-from ..plots.figures import nyquist_response, root_map_plot, root_map_region
-from ..roots import find_roots
+from ..plots.nyquist import nyquist_response
+from ..plots.rootmap import root_map_region, root_map_response
 from .certificate import Certificate
 
 if TYPE_CHECKING:
@@ -138,11 +138,11 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         F = characteristic(cert.system, cert.controller, delta)
         # the certified region, widened to hold the rightmost roots (an unstable root must show)
         box = root_map_region(F, base=cert.region, abscissa=abscissa)
-        if box != tuple(cert.region):
-            roots = find_roots(F, box)
-        drawn = root_map_plot(F, box, roots=roots, ax=ax, chains=principal.chains)
+        # the certificate's roots where the region is the certified one, else those of the wider box
+        data = root_map_response(F, box, roots=roots if box == tuple(cert.region) else None, chains=principal.chains)
+        drawn = data.plot(ax=ax)
         notes += [f" At delta = {delta:g}: {note.get_text()}".replace("\n", " ") for note in drawn.lines["note"]]
-        ax.set_title(f"delta = {delta:g}: {roots.count} roots (certified: {_fmt(roots.certified)})", fontsize="small")
+        ax.set_title(f"delta = {delta:g}: {data.count} roots (certified: {_fmt(data.certified)})", fontsize="small")
     fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
     out.append(
         (

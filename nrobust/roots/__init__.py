@@ -1,5 +1,6 @@
-"""Certified roots of quasi-polynomials: counts (``winding``), roots (``finder``) and
-the spectral abscissa (``abscissa``)."""
+"""Certified roots of quasi-polynomials: counts (``winding``), the search for roots
+(``search``) and the roots with their proofs (``finder``), the spectral abscissa
+(``abscissa``); ``_common`` holds the rounding model, the work budget and the argument checks."""
 
 from .abscissa import SpectralAbscissa, spectral_abscissa
 from .finder import RootSet, find_roots

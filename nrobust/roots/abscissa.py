@@ -10,14 +10,16 @@ from numpy.typing import ArrayLike
 
 from .._json import fields_dict
 from .._validate import positive, positive_int
-from ..balls import ball_abs_moment, ball_function, ball_variation_bound, working_precision
+from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint, working_precision
 from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
-from .finder import RootSet, _find_counted, _Finder, _prove, find_roots
-from .winding import Region, _ball_count_with_shifts, _Budget, _check_function, _check_rigorous, _count_with_shifts
+from ._common import Budget, check_function, check_rigorous
+from .finder import RootSet, find_counted, find_roots, prove
+from .search import Finder
+from .winding import Region, ball_count_with_shifts, count_with_shifts
 
 __all__ = ["SpectralAbscissa", "spectral_abscissa"]
 
@@ -207,7 +209,7 @@ def spectral_abscissa(
     the supremum is ``max(c_D, real part of the rightmost root found)`` and may be
     approached only as ``|Im s| -> infinity`` (``approached_at_infinity``).
     """
-    F = _check_function(F)
+    F = check_function(F)
     if region is None and not isinstance(F, QuasiPolynomial):
         raise ParameterError(
             "region", "a rectangle for a matrix F (or pass F.expand(): the root-free far field needs a scalar)", None
@@ -217,7 +219,7 @@ def spectral_abscissa(
     cluster_tol = positive("cluster_tol", cluster_tol)
     im_max = None if im_max is None else positive("im_max", im_max)
     max_evals = positive_int("max_evals", max_evals)
-    proof = prec if _check_rigorous(F, rigorous) else None
+    proof = prec if check_rigorous(F, rigorous) else None
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals, proof)
 
@@ -459,7 +461,7 @@ def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa
     None without python-flint or for complex coefficients: the caller searches by counts.
     """
     try:
-        import flint
+        flint = require_flint()
     except ImportError:
         return None
     p = F.point_terms[0][0]
@@ -527,16 +529,16 @@ def _retarded_abscissa(
     R = max(radius, _MIN_HALF_HEIGHT)
     while 0.5 * R >= _MIN_HALF_HEIGHT and _far_field_holds(F, n, x_max, 0.5 * R):
         R *= 0.5
-    budget = _Budget(max_evals)
+    budget = Budget(max_evals)
     for _ in range(_MAX_STEPS):
         half = 1.01 * max(R, _MIN_HALF_HEIGHT)  # edges off the disc |s| < R that holds the roots
         x_far = -np.inf if whole else _far_field_edge(F, n, R, x_max)
         box = (max(x_far, -half), min(x_max, half), *_band(half, real))
         if box[0] < box[1]:  # else no root has Re s >= x_far
-            finder = _Finder(F, box, cluster_tol, budget)
-            total, reg, shifted = _count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
+            finder = Finder(F, box, cluster_tol, budget)
+            total, reg, shifted = count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
             if total > 0:
-                roots = _find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
+                roots = find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
                 # a root left of x_far (in an edge shift) may have unseen roots to its right
                 if len(roots) and np.max(roots.roots.real) >= x_far:
                     if proof is not None:  # the two far fields and the box, proven
@@ -547,10 +549,10 @@ def _retarded_abscissa(
                             _confirm_far_field(
                                 F, [(x_far + f * (top - x_far), R) for f in (0, 1e-6, 0.01, 0.5, 1)], proof
                             )
-                        roots = _prove(F, roots, ball_function(F, proof), _Budget(max_evals), _ABSCISSA_SHIFTS)
+                        roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
                     return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
-                if proof is not None and _ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
+                if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
                     raise CertificationError(f"ball arithmetic does not confirm that {reg} holds no root")
                 return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
         R *= 2.0

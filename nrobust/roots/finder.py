@@ -1,164 +1,36 @@
-"""Certified root finding for quasi-polynomials in rectangles.
+"""Certified root finding for quasi-polynomials in rectangles: :func:`find_roots` and its result.
 
-Root finding combines three sources of approximations -- the chains of the principal
-part for neutral quasi-polynomials (paper, Section 3, and Hale and Verduyn Lunel), a
-coarse grid, and moments of boxes that still miss roots -- refines them with Newton's
-method and accepts each one only when a certified count in a small box around it
-confirms it. The roots are certified complete when the certified counts of these
-disjoint boxes add up to the certified count of the whole region.
+The search (:class:`nrobust.roots.search.Finder`) combines three sources of
+approximations -- the chains of the principal part for neutral quasi-polynomials (paper,
+Section 3, and Hale and Verduyn Lunel), a coarse grid, and moments of boxes that still
+miss roots -- refines them with Newton's method and accepts each one only when a
+certified count in a small box around it confirms it. The roots are certified complete
+when the certified counts of these disjoint boxes add up to the certified count of the
+whole region; with ``rigorous=True`` the result is proven in ball arithmetic
+(:func:`prove`: Krawczyk's test and ball winding numbers).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._json import fields_dict
-from .._newton import newton
 from .._validate import number_array, positive, positive_int
 from .._validate import region as _check_region
-from ..balls import acb_box, ball_function, require_flint, working_precision
+from ..balls import ball_function, krawczyk, require_flint
 from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
-from .winding import (
-    _EPS,
-    _MERGE_RTOL,
-    _REACH,
-    _ROUNDING,
-    _SEED_DEGREE,
-    _STALLED,
-    METHODS,
-    Region,
-    _ball_count_with_shifts,
-    _ball_winding,
-    _Budget,
-    _check_function,
-    _check_rigorous,
-    _count_with_shifts,
-    _Counter,
-    _magnitude,
-)
-
-if TYPE_CHECKING:
-    from scipy.spatial import cKDTree
+from ._common import Budget, check_function, check_rigorous
+from .search import Finder, centers, kdtree
+from .winding import METHODS, Region, ball_count_with_shifts, ball_winding, count_with_shifts
 
 __all__ = ["RootSet", "find_roots"]
-
-
-# ====================================================================== refinement
-def _newton(
-    F: QuasiPolynomial, s0: NDArray[np.complex128], budget: _Budget, max_step: float, iters: int = 60
-) -> NDArray[np.complex128]:
-    """Newton's method on ``F`` from the seeds ``s0`` (nan where it did not converge).
-
-    Each step is charged to ``budget``; a point that stops short of the step test (a
-    linearly converging multiple root) is kept when its residual is at rounding level.
-    """
-
-    def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        return F(x), F.deriv_at(x)
-
-    def spend(n: int) -> None:
-        budget.spend(2 * n, "refining roots by Newton's method")
-
-    def residual_at_rounding_level(s: NDArray[np.complex128]) -> NDArray[np.bool_]:
-        return np.abs(F(s)) <= _STALLED * _magnitude(F, s)
-
-    return newton(fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level)
-
-
-# ====================================================================== boxes
-# A box is a row ``(re_min, re_max, im_min, im_max)``; distances between boxes and points
-# are Chebyshev distances (``p = inf``), the metric in which a box is a ball.
-def _kdtree(points: NDArray[np.float64]) -> cKDTree:
-    """``scipy.spatial.cKDTree(points)``, imported on first use (scipy.spatial is slow to import)."""
-    from scipy.spatial import cKDTree
-
-    return cKDTree(points)
-
-
-def _xy(z: NDArray[np.complex128]) -> NDArray[np.float64]:
-    """Complex points as ``(n, 2)`` rows ``(Re, Im)``."""
-    return np.column_stack([z.real, z.imag])
-
-
-def _centers(boxes: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Centres (``(n, 2)`` rows) and Chebyshev radii (half the longer side) of boxes."""
-    center = np.column_stack([(boxes[:, 0] + boxes[:, 1]) / 2, (boxes[:, 2] + boxes[:, 3]) / 2])
-    return center, np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) / 2
-
-
-def _boxes_about(z: NDArray[np.complex128], h: NDArray[np.float64], owners: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Square boxes of half-width ``h`` about ``z``, each clipped to its row of ``owners``."""
-    return np.column_stack(
-        [
-            np.maximum(z.real - h, owners[:, 0]),
-            np.minimum(z.real + h, owners[:, 1]),
-            np.maximum(z.imag - h, owners[:, 2]),
-            np.minimum(z.imag + h, owners[:, 3]),
-        ]
-    )
-
-
-# Largest number of roots resolved by the contour moments of one circle; beyond it the
-# power sums are ill conditioned and the box is seeded and subdivided instead.
-_MAX_MOMENT_ROOTS = 16
-
-
-@dataclass
-class _Moments:
-    """Roots inside a circle estimated from contour moments."""
-
-    points: NDArray[np.complex128]  # roots of the moment polynomial
-    count: float  # zeroth moment: the number of roots inside (not rounded)
-    noise: float  # resolution limit of ``points`` set by rounding errors in F'/F
-
-
-def _circle_moments(
-    F: QuasiPolynomial, center: complex, radius: float, m: int, budget: _Budget, n: int = 64
-) -> _Moments | None:
-    """Estimate the ``m`` roots inside a circle from its contour moments, or None.
-
-    Power sums ``p_k = (1/2 pi i) oint (s - c)^k F'/F ds`` by the trapezoidal rule
-    (spectrally accurate on a circle); Newton's identities turn them into the polynomial
-    whose roots are the roots inside (Delves and Lyness). The sums are taken in the
-    variable ``(s - c) / radius`` (roots inside the unit disc), so that they stay of the
-    order of ``m`` instead of ``radius^k``. With ``d`` the relative rounding error of ``F``
-    on the circle, ``m`` roots are resolved only to ``radius * d^(1/m)``: a multiple root
-    and a cluster below that scale are indistinguishable. None when the estimate cannot
-    be trusted: more than :data:`_MAX_MOMENT_ROOTS` roots (Newton's identities lose all
-    digits), or ``F`` or ``F'`` not finite and nonzero on the circle.
-    """
-    if m > _MAX_MOMENT_ROOTS:
-        return None
-    theta = 2 * np.pi * np.arange(n) / n
-    u = np.exp(1j * theta)
-    budget.spend(2 * n, "computing contour moments")
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        fw = F(center + radius * u)
-        ratio = F.deriv_at(center + radius * u) * radius / fw
-        d = float(np.max(_ROUNDING * _magnitude(F, center + radius * u) / np.abs(fw)))
-    if not (np.all(np.isfinite(ratio)) and np.isfinite(d)):
-        return None
-    p = np.array([np.mean(ratio * u ** (k + 1)) for k in range(0, m + 1)])
-    e = np.zeros(m + 1, dtype=complex)
-    e[0] = 1.0
-    for k in range(1, m + 1):
-        e[k] = sum((-1) ** (i - 1) * e[k - i] * p[i] for i in range(1, k + 1)) / k
-    coeffs = np.array([(-1) ** k * e[k] for k in range(m + 1)])
-    if not np.all(np.isfinite(coeffs)):
-        return None
-    try:
-        points = center + radius * np.asarray(np.roots(coeffs), dtype=np.complex128)
-    except np.linalg.LinAlgError:  # the companion matrix's eigenvalues did not converge
-        return None
-    return _Moments(points, float(p[0].real), 10 * radius * d ** (1.0 / m))
 
 
 # ====================================================================== result types
@@ -243,459 +115,17 @@ class RootSet:
         return fields_dict(self)
 
 
-# ====================================================================== find_roots
-# Each pass over the accepted boxes (n of them) is charged n / _BOOKKEEPING evaluations of
-# the work bound: with tens of thousands of roots that pass, not the evaluations of F,
-# dominates the time, and an uncharged pass let a refusal take minutes.
-_BOOKKEEPING = 4
-
-
-class _Found:
-    """Accepted roots with their disjoint certified boxes."""
-
-    def __init__(self) -> None:
-        self.centers: list[complex] = []
-        self.mults: list[int] = []
-        self.boxes: list[Region] = []
-        self._array: NDArray[np.float64] | None = None
-
-    def add(self, z: complex, m: int, box: Region) -> None:
-        self.centers.append(z)
-        self.mults.append(m)
-        self.boxes.append(box)
-        self._array = None
-
-    def total(self) -> int:
-        return int(sum(self.mults))
-
-    def inside(self, box: Region) -> int:
-        """Multiplicity of accepted roots whose boxes lie inside ``box``."""
-        b = self.array()
-        x0, x1, y0, y1 = box
-        mask = (b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1)
-        return int(np.sum(np.asarray(self.mults, dtype=np.int64)[mask])) if mask.any() else 0
-
-    def clear_cache(self) -> None:
-        """Forget the array of boxes (after boxes were changed in place)."""
-        self._array = None
-
-    def remove_inside(self, box: Region) -> None:
-        """Drop the accepted roots whose boxes lie inside ``box``."""
-        b = self.array()
-        x0, x1, y0, y1 = box
-        keep = ~((b[:, 0] >= x0) & (b[:, 1] <= x1) & (b[:, 2] >= y0) & (b[:, 3] <= y1))
-        self.centers = [z for z, k in zip(self.centers, keep) if k]
-        self.mults = [m for m, k in zip(self.mults, keep) if k]
-        self.boxes = [r for r, k in zip(self.boxes, keep) if k]
-        self._array = None
-
-    def array(self) -> NDArray[np.float64]:
-        """The accepted boxes as an ``(n, 4)`` array."""
-        if self._array is None:
-            self._array = np.array(self.boxes, dtype=float).reshape(-1, 4)
-        return self._array
-
-
-class _Finder:
-    """State of one ``find_roots`` call."""
-
-    def __init__(self, F: QuasiPolynomial, region: Region, cluster_tol: float, budget: _Budget) -> None:
-        self.F = F
-        self.region = region
-        self.cluster_tol = cluster_tol
-        self.budget = budget
-        self.counter = _Counter(F, budget)
-        self.found = _Found()
-
-    # ------------------------------------------------------------ candidate boxes
-    def _half_widths(self, pts: NDArray[np.complex128]) -> NDArray[np.float64]:
-        """Largest half-widths of square boxes about new points, disjoint from each other
-        and from the accepted boxes (Chebyshev distances)."""
-        cap = np.full(pts.size, np.inf)
-        if pts.size > 1:
-            xy = _xy(pts)
-            dist, _ = _kdtree(xy).query(xy, k=2, p=np.inf)
-            cap = 0.3 * dist[:, 1]
-        old = self.found.array()
-        if old.size:
-            self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
-            c, r = _centers(old)
-            k = min(8, c.shape[0])
-            dist, idx = _kdtree(c).query(_xy(pts), k=k, p=np.inf)
-            dist, idx = dist.reshape(pts.size, k), idx.reshape(pts.size, k)
-            cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
-        return cap
-
-    def _merge_clusters(self, pts: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
-        """Merge limit points that may belong to one root or one cluster of roots.
-
-        Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, where
-        its step ``|F/F'|`` is about ``1/m`` of that distance: each point gets the reach
-        ``max(b, 10 |F/F'|)`` with ``b = min(1e-4 (1 + |s|), d / 10)``, ``d`` the distance
-        to the nearest point outside ``1e-4 (1 + |s|)`` (at high frequency the roots of a
-        chain are closer than ``1e-4 |s|``: a relative reach alone would merge the whole
-        chain), and points closer than the sum of their reaches (or than ``cluster_tol``)
-        share one box. The count of that box decides whether they are one multiple root
-        or several roots (resolved by contour moments, then polished). Returns the group
-        means and spreads (largest distance from the mean plus reach beyond ``b``), which
-        size the boxes.
-        """
-        if not pts.size:
-            return pts, np.zeros(0)
-        self.budget.spend(2 * pts.size, "merging limit points")
-        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-            step = np.abs(self.F(pts) / self.F.deriv_at(pts))
-        scale = _MERGE_RTOL * (1.0 + np.abs(pts))
-        base = scale.copy()
-        if pts.size > 1:
-            k = min(16, pts.size)
-            dist, _ = _kdtree(_xy(pts)).query(_xy(pts), k=k, p=np.inf)
-            dist = dist.reshape(pts.size, k)
-            distinct = np.where(dist > scale[:, None], dist, np.inf).min(axis=1)
-            base = np.minimum(scale, 0.1 * distinct)
-        stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * scale), 1e3 * scale)
-        reach = np.maximum(base, stalled)
-        parent = np.arange(pts.size)
-        if pts.size > 1:
-            xy = _xy(pts)
-            pairs = _kdtree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
-            if pairs.size:
-                gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
-                pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
-
-            def root(i: int) -> int:
-                while parent[i] != i:
-                    parent[i] = parent[parent[i]]
-                    i = parent[i]
-                return i
-
-            for i, j in pairs:
-                parent[root(i)] = root(j)
-            parent = np.array([root(i) for i in range(pts.size)])
-        _, group = np.unique(parent, return_inverse=True)
-        size = np.bincount(group)
-        means = np.asarray((np.bincount(group, pts.real) + 1j * np.bincount(group, pts.imag)) / size, dtype=complex)
-        extra = np.where(stalled > base, stalled, 0.0)
-        spread = np.zeros(size.size)
-        np.maximum.at(spread, group, np.abs(pts - means[group]) + extra)
-        return means, spread
-
-    # ------------------------------------------------------------ acceptance
-    def accept(self, cand: NDArray[np.complex128], owners: Sequence[Region] | None = None, depth: int = 0) -> None:
-        """Certify candidate roots by counts in small disjoint boxes about them.
-
-        ``owners`` are disjoint boxes (default: the region); a candidate is kept only
-        inside one of them and its box is clipped to it, so that accepted boxes never
-        straddle the cuts of the subdivision.
-        """
-        cand, own, spread = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
-        if not cand.size:
-            return
-        hard = self._half_widths(cand)
-        # |F| ~ r^m on the box edges of an m-fold root: boxes well wider than the scatter
-        soft = np.minimum(hard, np.maximum(1e-4 * (1.0 + np.abs(cand)), 10.0 * spread))
-        keep = soft > 8 * _EPS * (1.0 + np.abs(cand))
-        cand, own, hard, soft = cand[keep], own[keep], hard[keep], soft[keep]
-        for factor in (1.0, 4.0, 16.0, 64.0, 0.3):  # an edge at rounding level of a root: resize
-            if not cand.size:
-                return
-            h = np.minimum(soft * factor, hard)
-            boxes = _boxes_about(cand, h, own)
-            counts, blocked = self.counter.count([tuple(b) for b in boxes])
-            stuck = blocked.any(axis=1)
-            single = ~stuck & (counts == 1)
-            self._accept_simple(cand[single], h[single], boxes[single])
-            for z, r, b, c in zip(
-                cand[~stuck & ~single], h[~stuck & ~single], boxes[~stuck & ~single], counts[~stuck & ~single]
-            ):
-                self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
-            cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
-
-    def _accept_simple(self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64]) -> None:
-        """Accept boxes holding one root each, polishing the candidates (which may be the
-        mean of merged limit points) by Newton steps that stay in the box."""
-        if not z.size:
-            return
-        w = _newton(self.F, z, self.budget, float(np.min(h)))
-        inside = (
-            np.isfinite(w)
-            & (boxes[:, 0] < w.real)
-            & (w.real < boxes[:, 1])
-            & (boxes[:, 2] < w.imag)
-            & (w.imag < boxes[:, 3])
-        )
-        z = np.where(inside, w, z)
-        boxes = self._tighten(z, np.ones(z.size, dtype=np.int64), boxes, 1e-4 * (1.0 + np.abs(z)))
-        for zi, box in zip(z, boxes):
-            self.found.add(complex(zi), 1, tuple(box))
-
-    def _tighten(
-        self, z: NDArray[np.complex128], m: NDArray[np.int64], boxes: NDArray[np.float64], half: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """Replace boxes by sub-boxes of half-width ``half`` about ``z`` where those still
-        count ``m`` roots (a smaller certified enclosure); keep the others."""
-        wide = np.maximum(boxes[:, 1] - boxes[:, 0], boxes[:, 3] - boxes[:, 2]) > 4.0 * half
-        if not wide.any():
-            return boxes
-        inner = _boxes_about(z[wide], half[wide], boxes[wide])
-        counts, blocked = self.counter.count([tuple(b) for b in inner])
-        good = (counts == m[wide]) & ~blocked.any(axis=1)
-        out = boxes.copy()
-        out[np.flatnonzero(wide)[good]] = inner[good]
-        return out
-
-    def _tighten_cluster(self, center: complex, c: int, box: Region, half: float) -> Region:
-        """The smallest of the boxes of half-width ``half``, ``half / 4``, ... about
-        ``center`` (not below ``1e-4 (1 + |center|)``) that still count the ``c`` roots
-        of ``box``: the rounding limit of a cluster is an estimate, the count decides."""
-        floor = 1e-4 * (1.0 + abs(center))
-        half = max(half, floor)
-        current = np.array([box], dtype=float)
-        for _ in range(12):
-            if max(current[0, 1] - current[0, 0], current[0, 3] - current[0, 2]) > 4.0 * half:
-                tight = self._tighten(np.array([center]), np.array([c]), current, np.array([half]))
-                if np.array_equal(tight, current):  # the smaller box lost roots or met one
-                    break
-                current = tight
-            if half <= floor:
-                break
-            half = max(half / 4.0, floor)
-        return tuple(float(v) for v in current[0])  # type: ignore[return-value]
-
-    def _new_candidates(
-        self, cand: NDArray[np.complex128], owners: list[Region]
-    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
-        """Finite candidates inside an owner box and outside accepted boxes, near ones
-        merged; returned with their owner boxes and the spreads of the merge."""
-        cand = cand[np.isfinite(cand)]
-        old = self.found.array()
-        if cand.size and old.size:
-            self.budget.spend(old.shape[0] // _BOOKKEEPING, "bookkeeping of the accepted boxes")
-            c, r = _centers(old)
-            dist, idx = _kdtree(c).query(_xy(cand), k=1, p=np.inf)
-            cand = cand[dist > r[idx]]
-        cands, owns, flags = [], [], []
-        for box in owners:
-            x0, x1, y0, y1 = box
-            inside, spread = self._merge_clusters(
-                cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)]
-            )
-            cands.append(inside)
-            flags.append(spread)
-            owns.append(np.tile(np.asarray(box, dtype=float), (inside.size, 1)))
-        if not cands:
-            return np.zeros(0, dtype=complex), np.zeros((0, 4)), np.zeros(0)
-        return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4), np.concatenate(flags)
-
-    def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
-        """Accept a box with a certified count ``c != 1``: a cluster, or resolve it."""
-        if c <= 0:
-            return
-        # the roots of this box are resolved inside it, so that their boxes stay disjoint
-        # from the other boxes of the batch being accepted
-        mom = _circle_moments(self.F, z, 0.9 * h, c, self.budget)
-        if mom is None or abs(mom.count - c) > 0.25:  # many roots, roots near the circle or in the box corners
-            if depth < 3:
-                self.accept(_newton(self.F, self.grid_seeds(box, 9), self.budget, h), [box], depth + 1)
-            return
-        spread = float(np.max(np.abs(mom.points[:, None] - mom.points[None, :])))
-        if spread < max(self.cluster_tol, mom.noise):
-            center = complex(np.mean(mom.points))
-            self.found.add(center, c, self._tighten_cluster(center, c, box, 4.0 * max(spread, mom.noise)))
-        elif depth < 3:  # separate roots: polish the moment estimates, certify them one by one
-            self.accept(_newton(self.F, mom.points, self.budget, max(spread, h)), [box], depth + 1)
-
-    # ------------------------------------------------------------ seeds
-    def chain_seeds(self) -> NDArray[np.complex128]:
-        """Zeros of the principal part's chains near the region (neutral ``F``).
-
-        For incommensurate delays these are the chains of
-        :meth:`~nrobust.difference.DifferenceOperator.commensurate_approximation`: approximate seeds only.
-        """
-        if self.F.kind != "neutral":
-            return np.zeros(0, dtype=complex)
-        D = self.F.principal_part()
-        if D.commensurate_step() is not None:
-            ch = D.chains()
-        else:  # the chains of a nearby commensurate operator of low degree are seeds too
-            try:
-                ch = D.commensurate_approximation(max_degree=_SEED_DEGREE).chains()
-            except ParameterError:  # delays too close for a low degree: grid seeds only
-                return np.zeros(0, dtype=complex)
-        x0, x1, y0, y1 = self.region
-        pad = 1.0
-        pts = ch.points(y0 - pad, y1 + pad)
-        pts = pts[(pts.real > x0 - pad) & (pts.real < x1 + pad)]
-        multiple = [c for c in ch.chains if c.multiplicity > 1]
-        if multiple:  # F splits a multiple chain: seed both sides of it
-            extra = np.concatenate([c.points(y0 - pad, y1 + pad) for c in multiple])
-            pts = np.concatenate([pts, extra + 1e-3, extra - 1e-3])
-        return pts
-
-    def grid_seeds(self, box: Region, n: int) -> NDArray[np.complex128]:
-        """About ``n`` points of a grid with square cells in ``box``."""
-        x0, x1, y0, y1 = box
-        w, h = x1 - x0, y1 - y0
-        nx = max(1, round(np.sqrt(n * w / h)))
-        ny = max(1, round(n / nx))
-        xs = x0 + (np.arange(nx) + 0.5) * w / nx
-        ys = y0 + (np.arange(ny) + 0.5) * h / ny
-        return (xs[None, :] + 1j * ys[:, None]).ravel()
-
-    def seed_and_accept(self, seeds: NDArray[np.complex128], max_step: float) -> None:
-        if seeds.size:
-            self.accept(_newton(self.F, seeds, self.budget, max_step))
-
-    # ------------------------------------------------------------ subdivision
-    def _split(self, box: Region) -> tuple[Region, Region]:
-        """Halve a box across its longer side, moving the cut off accepted boxes (or, if
-        every cut meets one, clipping the accepted boxes it meets: :meth:`_clear_cut`)."""
-        x0, x1, y0, y1 = box
-        vertical = (x1 - x0) >= (y1 - y0)
-        lo, hi = (x0, x1) if vertical else (y0, y1)
-        cut = 0.5 * (lo + hi)
-        for frac in (0.5, 0.45, 0.55, 0.4, 0.6, 0.35, 0.65, 0.3, 0.7):
-            cut = lo + frac * (hi - lo)
-            if not self._straddling(box, vertical, cut).size:
-                break
-        else:
-            for frac in (0.5, 0.4, 0.6):
-                cut = lo + frac * (hi - lo)
-                if self._clear_cut(box, vertical, cut):
-                    break
-        if vertical:
-            return (x0, cut, y0, y1), (cut, x1, y0, y1)
-        return (x0, x1, y0, cut), (x0, x1, cut, y1)
-
-    def _straddling(self, box: Region, vertical: bool, cut: float) -> NDArray[np.intp]:
-        """Indices of the accepted boxes that meet ``box`` and that the cut runs through."""
-        old = self.found.array()
-        if not old.size:
-            return np.zeros(0, dtype=np.intp)
-        x0, x1, y0, y1 = box
-        if vertical:
-            hit = (old[:, 0] <= cut) & (old[:, 1] >= cut) & (old[:, 2] < y1) & (old[:, 3] > y0)
-        else:
-            hit = (old[:, 2] <= cut) & (old[:, 3] >= cut) & (old[:, 0] < x1) & (old[:, 1] > x0)
-        return np.flatnonzero(hit)
-
-    def _clear_cut(self, box: Region, vertical: bool, cut: float) -> bool:
-        """Clip every accepted box the cut runs through to the side holding its roots.
-
-        The two parts of such a box are counted; if one holds all of its roots (and no
-        root lies on the cut), the entry keeps that part as its certified box, so that it
-        lies inside one child of the subdivision. False if some box cannot be cleared.
-        """
-        idx = self._straddling(box, vertical, cut)
-        if not idx.size:
-            return True
-        parts: list[Region] = []
-        for i in idx:
-            b0, b1, b2, b3 = self.found.boxes[i]
-            if vertical:
-                parts += [(b0, cut, b2, b3), (cut, b1, b2, b3)]
-            else:
-                parts += [(b0, b1, b2, cut), (b0, b1, cut, b3)]
-        counts, blocked = self.counter.count(parts)
-        new: list[tuple[int, Region]] = []
-        for k, i in enumerate(idx):
-            c0, c1, m = int(counts[2 * k]), int(counts[2 * k + 1]), self.found.mults[i]
-            if blocked[2 * k].any() or blocked[2 * k + 1].any() or sorted((c0, c1)) != [0, m]:
-                return False
-            new.append((int(i), parts[2 * k] if c0 == m else parts[2 * k + 1]))
-        for i, part in new:
-            self.found.boxes[i] = part
-        self.found.clear_cache()
-        return True
-
-    def subdivide(self, total: int, max_depth: int = 60) -> None:
-        """Find the roots not yet accepted: halve every box whose certified count exceeds
-        the multiplicity accepted inside it, seeding Newton's method in each such box."""
-        level: list[tuple[Region, int]] = [(self.region, total)]
-        for _ in range(max_depth):
-            pending = [(box, c) for box, c in level if c != self.found.inside(box)]
-            for box, c in pending:
-                if c < self.found.inside(box):
-                    raise CertificationError(f"box {box} holds more accepted roots than its certified count {c}")
-            if not pending:
-                return
-            seeds = np.concatenate([self.grid_seeds(b, 9) for b, _ in pending])
-            size = max(max(b[1] - b[0], b[3] - b[2]) for b, _ in pending)
-            self.accept(_newton(self.F, seeds, self.budget, size), [b for b, _ in pending])
-            children: list[Region] = []
-            parents: list[tuple[Region, int]] = []
-            for box, c in pending:
-                u = c - self.found.inside(box)
-                if u > 0 and max(box[1] - box[0], box[3] - box[2]) < self.cluster_tol:
-                    self._accept_cluster_box(box, c)
-                elif u > 0:
-                    children.extend(self._split(box))
-                    parents.append((box, c))
-            if not children:
-                return
-            counts, blocked = self.counter.count(children)
-            level = []
-            for k in range(0, len(children), 2):
-                if blocked[k].any() or blocked[k + 1].any():  # the cut runs through a root
-                    level.extend(self._recut(*parents[k // 2]))
-                else:
-                    level.extend([(children[k], int(counts[k])), (children[k + 1], int(counts[k + 1]))])
-        raise CertificationError(f"subdivision reached depth {max_depth} without isolating every root")
-
-    def _recut(self, parent: Region, c: int) -> list[tuple[Region, int]]:
-        """Split a box off its golden sections (the half cut went through a root).
-
-        If every cut runs within rounding of a root, the roots of the box form a cluster
-        that floating point cannot separate: the box is accepted as one entry holding its
-        ``c`` roots (:meth:`_accept_cluster_box`) and nothing is left to split.
-        """
-        x0, x1, y0, y1 = parent
-        vertical = (x1 - x0) >= (y1 - y0)
-        for frac in (0.381966, 0.618034, 0.2763, 0.7236, 0.1459, 0.8541):
-            if vertical:
-                cut = x0 + frac * (x1 - x0)
-                kids = [(x0, cut, y0, y1), (cut, x1, y0, y1)]
-            else:
-                cut = y0 + frac * (y1 - y0)
-                kids = [(x0, x1, y0, cut), (x0, x1, cut, y1)]
-            counts, blocked = self.counter.count(kids)
-            if not blocked.any() and self._clear_cut(parent, vertical, cut):
-                return [(kids[0], int(counts[0])), (kids[1], int(counts[1]))]
-        self._accept_cluster_box(parent, c)
-        return [(parent, c)]
-
-    def _accept_cluster_box(self, box: Region, c: int) -> None:
-        """Accept a box with certified count ``c`` as one cluster entry of multiplicity ``c``.
-
-        The roots accepted inside it so far are merged into the entry. Its centre is the
-        moment centroid when the circle about the box counts ``c`` roots (the mean of a
-        cluster is well conditioned), else the centre of the box; the claim itself, ``c``
-        roots in the box, rests on the certified count only.
-        """
-        self.found.remove_inside(box)
-        x0, x1, y0, y1 = box
-        center = complex(0.5 * (x0 + x1), 0.5 * (y0 + y1))
-        mom = _circle_moments(self.F, center, 0.5 * float(np.hypot(x1 - x0, y1 - y0)), c, self.budget)
-        if mom is not None and abs(mom.count - c) <= 0.25:
-            mean = complex(np.mean(mom.points))
-            if x0 < mean.real < x1 and y0 < mean.imag < y1:
-                center = mean
-        self.found.add(center, c, box)
-
-
 # ====================================================================== proofs in ball arithmetic
 # Half-widths (relative to 1 + |z|) of the squares tried by the Krawczyk test, smallest first.
 _KRAWCZYK_WIDTHS = (1e-11, 1e-9, 1e-7, 1e-5)
 
 
-def _krawczyk(balls: Any, z: complex, box: NDArray[np.float64], budget: _Budget) -> tuple[float, ...] | None:
+def _krawczyk(balls: Any, z: complex, box: NDArray[np.float64], budget: Budget) -> tuple[float, ...] | None:
     """A rectangle about ``z`` inside ``box`` proven to hold exactly one root, simple; or None.
 
-    Krawczyk's test in ball arithmetic: with ``X`` the rectangle, ``c`` a point of it and
-    ``y ~ 1/F'(c)``, ``K(X) = c - y F(c) + (1 - y F'(X)) (X - c)`` contains every zero of
-    ``F`` in ``X``; if ``K(X)`` lies in the interior of ``X``, ``X`` holds exactly one zero
-    and ``F'`` does not vanish on ``X`` (the zero is simple). Squares of growing
-    half-width (:data:`_KRAWCZYK_WIDTHS`) are tried, clipped to ``box``.
+    Squares of growing half-width (:data:`_KRAWCZYK_WIDTHS`), clipped to ``box``, are tried
+    by Krawczyk's test (:func:`nrobust.balls.krawczyk`) about their centres, in the
+    precision of ``balls``.
     """
     flint = require_flint()
     scale = 1.0 + abs(z)
@@ -705,26 +135,16 @@ def _krawczyk(balls: Any, z: complex, box: NDArray[np.float64], budget: _Budget)
         if not (x0 < x1 and y0 < y1):
             return None
         budget.spend(2, "proving a root by Krawczyk's test")
-        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-        c = flint.acb(cx, cy)
-        X = acb_box(x0, x1, y0, y1)
-        fc, dfx = balls(c), balls(X, 1)
-        slope = complex(float(dfx.real.mid()), float(dfx.imag.mid()))
-        if slope == 0 or not (fc.is_finite() and dfx.is_finite()):
-            continue
-        y = flint.acb(1.0 / slope)
-        with working_precision(balls.prec):
-            K = c - y * fc + (1 - y * dfx) * (X - c)
-        re, im = K.real, K.imag
-        if re > x0 and re < x1 and im > y0 and im < y1:
+        c = flint.acb(0.5 * (x0 + x1), 0.5 * (y0 + y1))
+        if krawczyk((x0, x1, y0, y1), c, balls(c), lambda X: balls(X, 1), prec=balls.prec):
             return (x0, x1, y0, y1)
     return None
 
 
-def _prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: _Budget, max_shifts: int) -> RootSet:
+def prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: Budget, max_shifts: int) -> RootSet:
     """``found`` (a floating-point result) proven in ball arithmetic, or CertificationError.
 
-    The count of the region is proven by :func:`_ball_winding` (its edges moved outwards
+    The count of the region is proven by :func:`ball_winding` (its edges moved outwards
     when a root is too close, as in floating point); each simple root by Krawczyk's test in
     a rectangle inside its box (exactly one zero there), falling back to the proven
     winding number of its box; each cluster by the proven winding number of its box. The
@@ -736,7 +156,7 @@ def _prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: _Budget, max_
             "the floating-point search did not account for every root, so there is nothing to prove; "
             "raise max_evals or use a smaller region"
         )
-    total, reg, shifted = _ball_count_with_shifts(balls, found.region, max_shifts, budget)
+    total, reg, shifted = ball_count_with_shifts(balls, found.region, max_shifts, budget)
     if reg != found.region or total != found.count:
         raise CertificationError(
             f"ball arithmetic counts {total} roots in {reg}, the floating-point search {found.count} in "
@@ -750,7 +170,7 @@ def _prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: _Budget, max_
             boxes[i] = proven
             proofs.append("krawczyk")
             continue
-        n, _ = _ball_winding(balls, tuple(float(v) for v in found.boxes[i]), budget)
+        n, _ = ball_winding(balls, tuple(float(v) for v in found.boxes[i]), budget)
         if n != m:
             what = "cannot exclude 0 on its edges" if n is None else f"counts {n} roots"
             raise CertificationError(
@@ -844,7 +264,7 @@ def find_roots(
        shared between siblings are computed once) until every box holds exactly the
        roots accepted in it.
     """
-    F = _check_function(F)
+    F = check_function(F)
     box = _check_region(region)
     cluster_tol = positive("cluster_tol", cluster_tol)
     if method not in METHODS:
@@ -855,18 +275,18 @@ def find_roots(
         if seeds is None
         else number_array("seeds", seeds, ndim=None, min_size=0).astype(complex).ravel()
     )
-    rigorous = _check_rigorous(F, rigorous)
-    finder = _Finder(F, box, cluster_tol, _Budget(max_evals))
+    rigorous = check_rigorous(F, rigorous)
+    finder = Finder(F, box, cluster_tol, Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        total, reg, shifted = _count_with_shifts(finder.counter, box, 4)
-        found = _find_counted(finder, total, reg, shifted, extra, method)
+        total, reg, shifted = count_with_shifts(finder.counter, box, 4)
+        found = find_counted(finder, total, reg, shifted, extra, method)
     if not rigorous:
         return found
-    return _prove(F, found, ball_function(F, prec), _Budget(max_evals), 4)
+    return prove(F, found, ball_function(F, prec), Budget(max_evals), 4)
 
 
-def _find_counted(
-    finder: _Finder, total: int, reg: Region, shifted: bool, extra: NDArray[np.complex128], method: str = "auto"
+def find_counted(
+    finder: Finder, total: int, reg: Region, shifted: bool, extra: NDArray[np.complex128], method: str = "auto"
 ) -> RootSet:
     """Steps 2-4 of :func:`find_roots` on a region ``reg`` already counted (``total`` roots)."""
     finder.region = reg
@@ -884,7 +304,7 @@ def _find_counted(
     return _result(finder, total, reg, shifted)
 
 
-def _result(finder: _Finder, total: int, reg: Region, shifted: bool) -> RootSet:
+def _result(finder: Finder, total: int, reg: Region, shifted: bool) -> RootSet:
     found = finder.found
     z = np.array(found.centers, dtype=complex)
     m = np.array(found.mults, dtype=np.int64)
@@ -916,8 +336,8 @@ def _disjoint(boxes: NDArray[np.float64]) -> bool:
     """True if no two boxes overlap (the certificate adds their counts)."""
     if boxes.shape[0] < 2:
         return True
-    center, half = _centers(boxes)
-    for i, j in _kdtree(center).query_pairs(2 * float(half.max()), p=np.inf):
+    center, half = centers(boxes)
+    for i, j in kdtree(center).query_pairs(2 * float(half.max()), p=np.inf):
         a, b = boxes[i], boxes[j]
         if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
             return False

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,32 +21,20 @@ from numpy.typing import ArrayLike, NDArray
 from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
-from ..balls import ball_function, require_flint
-from ..errors import CertificationError, ParameterError
-from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
+from ..balls import ball_function
+from ..errors import CertificationError
+from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
+from ._common import EPS, ROUNDING, Budget, check_function, check_rigorous, magnitude
 
 __all__ = ["Region", "RootCount", "count_roots"]
 
 Region = tuple[float, float, float, float]
 
-_EPS = float(np.finfo(float).eps)
-# Rounding allowance on |F| at a sample, relative to the sum of the moduli of its terms.
-_ROUNDING = 64 * _EPS
 # A sample with |F| below this (relative to the same sum) is "on a root": shift the edge.
-_NEAR_ZERO = 512 * _EPS
+_NEAR_ZERO = 512 * EPS
 # Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
 _MIN_STEP = 1e-13
-# Limit points of Newton's method closer than this (relative to 1 + |s|) share one box.
-_MERGE_RTOL = 1e-4
-# A stalled Newton iterate is within this many steps |F/F'| of the roots it approaches
-# (an m-fold root is m steps away).
-_REACH = 10.0
-# Newton's method stalls near an m-fold root at |F| ~ eps A; such points are limits too.
-_STALLED = 1e3 * _ROUNDING
-# Largest degree of the commensurate approximation whose chains seed Newton's method
-# for incommensurate principal parts.
-_SEED_DEGREE = 128
 # Initial number of steps per edge.
 _INITIAL_STEPS = 8
 _SIDES = ("bottom", "right", "top", "left")
@@ -55,27 +43,6 @@ METHODS = ("auto", "subdivision")
 
 
 # ====================================================================== counting engine
-class _Budget:
-    """Counts evaluations of ``F`` (and of its derivative bound) against a maximum."""
-
-    def __init__(self, max_evals: int) -> None:
-        self.max_evals = max_evals
-        self.used = 0
-
-    def spend(self, n: int, what: str) -> None:
-        self.used += int(n)
-        if self.used > self.max_evals:
-            raise CertificationError(
-                f"work bound max_evals={self.max_evals} exhausted while {what}; raise max_evals or use a smaller region"
-            )
-
-
-def _magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.float64]:
-    """The scale of the rounding error of ``F(s)`` (:meth:`QuasiPolynomial.magnitude`: the sum
-    of the moduli of the monomials; for a matrix, :meth:`~nrobust.qpmatrix.QuasiPolynomialMatrix.magnitude`)."""
-    return F.magnitude(s)
-
-
 @dataclass
 class _Edges:
     """Result of certifying a batch of oriented segments."""
@@ -92,7 +59,7 @@ class _Steps:
     end: NDArray[np.complex128]
     f_start: NDArray[np.complex128]  # F(start)
     f_end: NDArray[np.complex128]  # F(end)
-    scale_start: NDArray[np.float64]  # rounding scale of F(start) (_magnitude)
+    scale_start: NDArray[np.float64]  # rounding scale of F(start) (magnitude)
     scale_end: NDArray[np.float64]  # rounding scale of F(end)
     df_start: NDArray[np.complex128]  # F'(start); NaN until the order-2 rule needs it
     segment: NDArray[np.intp]  # index of the segment the step belongs to
@@ -122,7 +89,7 @@ class _Steps:
 def _first_order_ok(bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
     """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding)."""
     room = np.minimum(
-        np.abs(steps.f_start) - _ROUNDING * steps.scale_start, np.abs(steps.f_end) - _ROUNDING * steps.scale_end
+        np.abs(steps.f_start) - ROUNDING * steps.scale_start, np.abs(steps.f_end) - ROUNDING * steps.scale_end
     )
     return bound * np.abs(steps.end - steps.start) * 0.5 < room
 
@@ -141,12 +108,12 @@ def _second_order_ok(bound2: NDArray, bound: NDArray, steps: _Steps) -> NDArray[
     with np.errstate(invalid="ignore", divide="ignore"):
         t = np.clip(-np.real(np.conj(v) * p0) / np.abs(v) ** 2, 0.0, 1.0)
     dist = np.abs(p0 + np.nan_to_num(t) * v)
-    slack = _ROUNDING * (steps.scale_start + bound * np.abs(h))
+    slack = ROUNDING * (steps.scale_start + bound * np.abs(h))
     return bound2 * np.abs(h) ** 2 * 0.5 + slack < dist
 
 
 def _wind_segments(
-    F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: _Budget, label: Callable[[int], str]
+    F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: Budget, label: Callable[[int], str]
 ) -> _Edges:
     """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
 
@@ -219,7 +186,7 @@ def _evaluate(
     """``F(s)`` and its rounding scale; an overflow is an error naming the edge."""
     with np.errstate(over="ignore", invalid="ignore"):
         fv = F(s)
-        mag = _magnitude(F, s)
+        mag = magnitude(F, s)
     bad = ~(np.isfinite(fv) & np.isfinite(mag))
     if np.any(bad):
         edge = label(int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
@@ -259,10 +226,10 @@ def _move_edges_out(box: list[float], blocked: np.ndarray, delta: float) -> None
             box[0] -= delta
 
 
-class _Counter:
+class Counter:
     """Certified counts of many boxes at once; edges shared between boxes are computed once."""
 
-    def __init__(self, F: QuasiPolynomial, budget: _Budget) -> None:
+    def __init__(self, F: QuasiPolynomial, budget: Budget) -> None:
         self.F = F
         self.budget = budget
         self.cache: dict[tuple[complex, complex], tuple[float, bool]] = {}
@@ -329,7 +296,7 @@ def _arg_interval(value: Any) -> tuple[float, float] | None:
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo >= 3.0:
         return None
     # outward rounding of the conversions to double and of the shift by pi
-    pad = 4 * _EPS * (abs(lo) + abs(hi) + np.pi)
+    pad = 4 * EPS * (abs(lo) + abs(hi) + np.pi)
     return lo + shift - pad, hi + shift + pad
 
 
@@ -351,7 +318,7 @@ def _lift(interval: tuple[float, float], previous: tuple[float, float]) -> tuple
     return lo + 2 * np.pi * n, hi + 2 * np.pi * n
 
 
-def _ball_winding(balls: Any, box: Sequence[float], budget: _Budget) -> tuple[int | None, NDArray[np.bool_]]:
+def ball_winding(balls: Any, box: Sequence[float], budget: Budget) -> tuple[int | None, NDArray[np.bool_]]:
     """Winding number of ``F`` around the boundary of ``box``, proven in ball arithmetic.
 
     The boundary is cut into pieces; on each, ``F`` is enclosed in an ``acb`` rectangle
@@ -406,26 +373,12 @@ def _ball_winding(balls: Any, box: Sequence[float], budget: _Budget) -> tuple[in
     return round((closing[0] - first[0]) / (2 * np.pi)), blocked
 
 
-def _check_rigorous(F: Any, rigorous: Any) -> bool:
-    """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` a
-    QuasiPolynomial or a QuasiPolynomialMatrix (the types :func:`nrobust.balls.ball_function` encloses)."""
-    if not isinstance(rigorous, (bool, np.bool_)):
-        raise ParameterError("rigorous", "True or False", rigorous)
-    if rigorous:
-        require_flint()
-        if not isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix):
-            raise ParameterError(
-                "F", "a QuasiPolynomial or QuasiPolynomialMatrix for rigorous=True (ball evaluation)", type(F).__name__
-            )
-    return bool(rigorous)
-
-
-def _ball_count_with_shifts(balls: Any, box: Region, max_shifts: int, budget: _Budget) -> tuple[int, Region, bool]:
-    """As :func:`_count_with_shifts`, with the count proven by :func:`_ball_winding`."""
+def ball_count_with_shifts(balls: Any, box: Region, max_shifts: int, budget: Budget) -> tuple[int, Region, bool]:
+    """As :func:`count_with_shifts`, with the count proven by :func:`ball_winding`."""
     reg = list(box)
     size = max(reg[1] - reg[0], reg[3] - reg[2])
     for attempt in range(max_shifts + 1):
-        n, blocked = _ball_winding(balls, reg, budget)
+        n, blocked = ball_winding(balls, reg, budget)
         if n is not None:
             return n, tuple(reg), attempt > 0  # type: ignore[return-value]
         if attempt == max_shifts:
@@ -500,19 +453,7 @@ class RootCount(int):
         )
 
 
-def _check_function(F: Any) -> QuasiPolynomial:
-    """``F`` itself; a QuasiPolynomialMatrix (or another CharacteristicFunction) is used
-    through the members of the protocol only, which the counting engine restricts itself to."""
-    if isinstance(F, QuasiPolynomial):
-        if not F.point_terms and not F.distributed:
-            raise ParameterError("F", "not identically zero (every point would be a root)", F)
-        return F
-    if not isinstance(F, CharacteristicFunction):
-        raise ParameterError("F", "a QuasiPolynomial or QuasiPolynomialMatrix", type(F).__name__)
-    return cast(QuasiPolynomial, F)
-
-
-def _count_with_shifts(counter: _Counter, box: Region, max_shifts: int) -> tuple[int, Region, bool]:
+def count_with_shifts(counter: Counter, box: Region, max_shifts: int) -> tuple[int, Region, bool]:
     """Count a box, moving blocked edges outwards (by 1e-7, 1e-6, ... of its size)."""
     reg = list(box)
     size = max(reg[1] - reg[0], reg[3] - reg[2])
@@ -581,14 +522,14 @@ def count_roots(
     >>> int(count_roots(F, (-3, 1, -0.5, 200)))
     64
     """
-    F = _check_function(F)
+    F = check_function(F)
     box = _check_region(region)
     max_evals = positive_int("max_evals", max_evals)
     max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
-    budget = _Budget(max_evals)
-    if _check_rigorous(F, rigorous):
-        n, reg, shifted = _ball_count_with_shifts(ball_function(F, prec), box, max_shifts, budget)
+    budget = Budget(max_evals)
+    if check_rigorous(F, rigorous):
+        n, reg, shifted = ball_count_with_shifts(ball_function(F, prec), box, max_shifts, budget)
         return RootCount(n, reg, shifted, budget.used, rigorous=True)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-        n, reg, shifted = _count_with_shifts(_Counter(F, budget), box, max_shifts)
+        n, reg, shifted = count_with_shifts(Counter(F, budget), box, max_shifts)
     return RootCount(n, reg, shifted, budget.used)

@@ -1,8 +1,10 @@
 """Parameter sweeps and Monte Carlo studies (the application layer).
 
-``engine``: :func:`sweep` over a :func:`grid` or any points, serially, on local process
-pools or on Dask, journaled and resumable, and :func:`sweep_map` (the executors the
-analyses take as ``executor=``); ``journal``: the append-only result journal;
+``executors``: where points run (serially, on local process pools that die with their
+parent, on any Executor or on Dask) and :func:`sweep_map`, the ``map`` the analyses take
+as ``executor=``; ``grid``: the lazy :func:`grid`; ``result``: :class:`SweepResult`, the
+table of a sweep; ``engine``: :func:`sweep` over a grid or any points, sized before it
+runs, journaled and resumable; ``journal``: the append-only result journal;
 ``montecarlo``: :func:`robustness`, margins under sampled parameters; ``sweepfile``: the
 SWEEP.toml schema and :func:`run_sweep_file`. Names load on first use (PEP 562).
 """

@@ -1,18 +1,24 @@
 # The public names of nrobust.sweeps, loaded on first use (nrobust/sweeps/__init__.py).
 from .engine import (
     MAX_POINTS as MAX_POINTS,
-    Grid as Grid,
-    PointFailure as PointFailure,
     SweepInterrupted as SweepInterrupted,
-    SweepMap as SweepMap,
-    SweepResult as SweepResult,
-    grid as grid,
     sweep as sweep,
+)
+from .executors import (
+    SweepMap as SweepMap,
     sweep_map as sweep_map,
+)
+from .grid import (
+    Grid as Grid,
+    grid as grid,
 )
 from .montecarlo import (
     RobustnessResult as RobustnessResult,
     robustness as robustness,
+)
+from .result import (
+    PointFailure as PointFailure,
+    SweepResult as SweepResult,
 )
 from .sweepfile import (
     ANALYSES as ANALYSES,

@@ -2,7 +2,7 @@
 
 :func:`robustness` draws plants from a user function, analyses each closed loop (by
 default :func:`nrobust.hyperbolic.studies.margin_and_decay`) on the executors of
-:mod:`nrobust.parallel` and summarises the outcomes by quantiles. See ``docs/sweeps.md``.
+:mod:`nrobust.sweeps.executors` and summarises the outcomes by quantiles. See ``docs/sweeps.md``.
 """
 
 from __future__ import annotations
@@ -18,10 +18,12 @@ import numpy as np
 
 from .._json import fields_dict
 from ..errors import ParameterError
-from ..hyperbolic.analyses.studies import margin_and_decay
-from .engine import MAX_POINTS, SweepResult, _flatten, _result_columns, grid, sweep
+from ..hyperbolic.analyses import margin_and_decay
+from .engine import MAX_POINTS, sweep
+from .grid import grid
+from .result import SweepResult, flatten, result_columns
 
-__all__ = ["RobustnessResult", "robustness"]
+__all__ = ["RobustnessResult", "check_levels", "quantile_summary", "robustness"]
 
 
 @dataclass(frozen=True)
@@ -38,19 +40,19 @@ class _SampleTask:
         system = self.sample_system(rng)
         out: dict[str, Any] = {}
         if callable(getattr(system, "to_dict", None)):
-            _flatten(system, "system", out)
-        out.update(_result_columns(self.analysis(system, self.controller)))
+            flatten(system, "system", out)
+        out.update(result_columns(self.analysis(system, self.controller)))
         return out
 
 
-def _quantile_summary(
+def quantile_summary(
     result: SweepResult, levels: tuple[float, ...], skip: Sequence[str] = ()
 ) -> dict[str, tuple[float, ...]]:
     """Empirical quantiles (``inverted_cdf``: always a sample value, so ``inf`` is exact)
     of every numeric result column over the rows that succeeded, NaN values left out."""
     out: dict[str, tuple[float, ...]] = {}
     rows = [r for r in result.results if r is not None]
-    names = result._result_names()
+    names = result.result_names()
     for key, col in names.items():
         if col in skip:
             continue
@@ -64,7 +66,8 @@ def _quantile_summary(
     return out
 
 
-def _check_levels(levels: Sequence[float]) -> tuple[float, ...]:
+def check_levels(levels: Sequence[float]) -> tuple[float, ...]:
+    """The quantile levels as floats in [0, 1]; ParameterError naming ``levels`` otherwise."""
     try:
         out = tuple(float(x) for x in levels)
     except (TypeError, ValueError):
@@ -203,7 +206,7 @@ def robustness(
         seed = int(cast(int, np.random.SeedSequence().entropy))  # a fresh SeedSequence draws an int
     elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError("seed", "a non-negative int or None", seed)
-    lev = _check_levels(levels)
+    lev = check_levels(levels)
     task = _SampleTask(sample_system, controller, analysis or margin_and_decay, int(seed))
     try:
         result = sweep(
@@ -226,4 +229,4 @@ def robustness(
             except Exception:
                 raise ParameterError(name, exc.requirement, getattr(task, name)) from exc
         raise
-    return RobustnessResult(lev, _quantile_summary(result, lev), n, result.n_failed, int(seed), result)
+    return RobustnessResult(lev, quantile_summary(result, lev), n, result.n_failed, int(seed), result)

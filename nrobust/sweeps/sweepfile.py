@@ -2,7 +2,7 @@
 
 :func:`run_sweep_file` reads the file (schema in ``docs/sweeps.md``) and checks all of it
 and the output directory, builds the systems and controllers of :mod:`nrobust.config`,
-runs the named analyses on the executors of :mod:`nrobust.parallel` with a result journal
+runs the named analyses on the executors of :mod:`nrobust.sweeps.executors` with a result journal
 in the output directory (so an interrupted sweep resumes), and writes the table (CSV,
 JSON), its chart (:func:`nrobust.plots.sweep_chart`) and the manifest of
 :mod:`nrobust.outputs`.
@@ -23,13 +23,16 @@ import numpy as np
 from .._json import json_safe
 from ..config import CONTROLLER_TYPES, SYSTEM_TYPES, load_toml
 from ..errors import ParameterError
-from ..hyperbolic.analyses.studies import delay_margin
+from ..hyperbolic.analyses import delay_margin
 from ..hyperbolic.loops.controllers import characteristic, normalize
-from ..plots.figures import sweep_chart
+from ..plots.charts import sweep_chart
 from ..reports.outputs import MANIFEST, RunOutputs
 from ..roots import spectral_abscissa
-from .engine import _DASK_SCHEMES, MAX_POINTS, SweepResult, _classify_executor, grid, sweep
-from .montecarlo import _check_levels, _quantile_summary
+from .engine import MAX_POINTS, sweep
+from .executors import DASK_SCHEMES, classify_executor
+from .grid import grid
+from .montecarlo import check_levels, quantile_summary
+from .result import SweepResult
 
 __all__ = ["ANALYSES", "JOURNAL", "SweepFileResult", "run_sweep_file"]
 
@@ -441,7 +444,7 @@ def run_sweep_file(
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ParameterError("sampling.seed", "a non-negative integer", seed)
         try:
-            levels = _check_levels(table.get("levels", (0.05, 0.25, 0.5, 0.75, 0.95)))
+            levels = check_levels(table.get("levels", (0.05, 0.25, 0.5, 0.75, 0.95)))
         except ParameterError as exc:
             raise ParameterError("sampling.levels", exc.requirement, exc.value) from None
         dists = table.get("distributions")
@@ -463,10 +466,10 @@ def run_sweep_file(
             raise ParameterError(
                 "dask_address", "a Dask scheduler address such as 'tcp://scheduler:8786'", dask_address
             )
-        executor: Any = dask_address if dask_address.startswith(_DASK_SCHEMES) else f"tcp://{dask_address}"
+        executor: Any = dask_address if dask_address.startswith(DASK_SCHEMES) else f"tcp://{dask_address}"
     else:
         executor = spec.get("executor")
-        _classify_executor(executor)
+        classify_executor(executor)
     chunksize = spec.get("chunksize")
     if chunksize is not None and (isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1):
         raise ParameterError("chunksize", "a positive integer", chunksize)
@@ -497,7 +500,7 @@ def run_sweep_file(
             results=outputs.directory / JOURNAL,
             restart=restart,
         )
-        quantiles = _quantile_summary(result, levels, skip=list(routes)) if has_sampling else {}
+        quantiles = quantile_summary(result, levels, skip=list(routes)) if has_sampling else {}
         csv_path = outputs.final(result.to_csv(outputs.path("sweep.csv")))
         extra = {"source": str(path), "levels": list(levels), "quantiles": {k: list(v) for k, v in quantiles.items()}}
         staged_json = result.to_json(outputs.path("sweep.json"), extra=extra if has_sampling else {"source": str(path)})

@@ -2,14 +2,16 @@
 (``constant``) and varying speeds (``varying``).
 """
 
-from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, Kernels, solve_kernels
+from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, MIN_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
 from .varying import VaryingKernels, solve_varying_kernels
 
 __all__ = [
     "DEFAULT_KERNEL_GRID",
     "Kernels",
     "MAX_KERNEL_GRID",
+    "MIN_KERNEL_GRID",
     "VaryingKernels",
+    "check_kernel_grid",
     "solve_kernels",
     "solve_varying_kernels",
 ]

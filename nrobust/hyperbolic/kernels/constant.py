@@ -45,7 +45,7 @@ from ..._validate import positive_int, renamed_keywords
 from ...errors import ParameterError
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["DEFAULT_KERNEL_GRID", "MAX_KERNEL_GRID", "Kernels", "solve_kernels"]
+__all__ = ["DEFAULT_KERNEL_GRID", "MAX_KERNEL_GRID", "MIN_KERNEL_GRID", "Kernels", "check_kernel_grid", "solve_kernels"]
 
 #: Default kernel grid (points per direction on ``[0, 1]``) of every function that solves
 #: kernels. Measured on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)`` with
@@ -57,6 +57,10 @@ DEFAULT_KERNEL_GRID = 201
 #: kernels solve a dense triangular system of size ``2 kernel_grid``, about 0.8 GB of
 #: work arrays at 1601 points (the finest grid of ``benchmarks/kernels.py``).
 MAX_KERNEL_GRID = 1601
+#: Smallest kernel grid of every kernel solver: the cubic interpolation at the feet of the
+#: characteristics reads four nodes of a level, and the default Richardson extrapolation
+#: takes every other node of an odd grid (five points at least).
+MIN_KERNEL_GRID = 5
 #: Resolution bound of the marching scheme: the grid step times the largest source
 #: coefficient ``max |sigma| / min(lam, mu)`` must not exceed this. Measured on
 #: ``Hyperbolic2x2(lam, 1, 1, 1, 1, 0.85)`` against 1601 points: relative error of the
@@ -428,6 +432,33 @@ def _richardson(fine: Array, coarse: Array) -> Array:
     return fine + up * np.tri(n)
 
 
+def check_kernel_grid(kernel_grid: Any, maximum: int = MAX_KERNEL_GRID) -> int:
+    """The kernel grid ``kernel_grid`` validated: an integer in ``[MIN_KERNEL_GRID, maximum]``.
+
+    The one check of the package's kernel grids (constant and varying speeds, ``n + m``
+    systems, and every analysis or simulation that solves kernels), run once at each
+    public entry point.
+
+    Parameters
+    ----------
+    kernel_grid : int
+        Grid points per direction.
+    maximum : int, default :data:`MAX_KERNEL_GRID`
+        Work bound of the solver.
+
+    Raises
+    ------
+    ParameterError
+        Not an integer, below :data:`MIN_KERNEL_GRID` or above ``maximum`` (named ``kernel_grid``).
+
+    Examples
+    --------
+    >>> check_kernel_grid(201)
+    201
+    """
+    return positive_int("kernel_grid", kernel_grid, minimum=MIN_KERNEL_GRID, maximum=maximum)
+
+
 def _check_resolution(system: Hyperbolic2x2, n: int) -> None:
     """Refuse a grid too coarse for the couplings, before any table is allocated.
 
@@ -473,7 +504,7 @@ def solve_kernels(
         The plant, eqs. (18)-(20).
     kernel_grid : int, default :data:`DEFAULT_KERNEL_GRID`
         Grid points per direction on ``[0, 1]`` (step ``h = 1 / (kernel_grid - 1)``),
-        ``>= 3`` and ``<=`` :data:`MAX_KERNEL_GRID`; odd when ``extrapolate`` is True;
+        ``>=`` :data:`MIN_KERNEL_GRID` and ``<=`` :data:`MAX_KERNEL_GRID`; odd when ``extrapolate`` is True;
         fine enough for the couplings (``(kernel_grid - 1) RESOLUTION >= max|sigma| /
         min(lam, mu)``, see :data:`RESOLUTION`). (Formerly ``n``, a deprecated alias.)
     extrapolate : bool, optional
@@ -503,7 +534,7 @@ def solve_kernels(
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2", system)
-    n = positive_int("kernel_grid", kernel_grid, minimum=3, maximum=MAX_KERNEL_GRID)
+    n = check_kernel_grid(kernel_grid)
     _check_resolution(system, n)
     if extrapolate is None:
         extrapolate = n % 2 == 1 and n >= 5

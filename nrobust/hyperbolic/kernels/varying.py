@@ -64,12 +64,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._json import json_safe
-from ..._validate import finite_real, nonnegative, positive_int
+from ..._validate import finite_real, nonnegative
 from ...errors import ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.law import FeedbackLaw, feedback_gain
-from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, RESOLUTION, march_levels, p1_interpolate, resolvent
+from .constant import (
+    DEFAULT_KERNEL_GRID,
+    MAX_KERNEL_GRID,
+    RESOLUTION,
+    check_kernel_grid,
+    march_levels,
+    p1_interpolate,
+    resolvent,
+)
 
 __all__ = ["VaryingKernels", "solve_varying_kernels"]
 
@@ -410,7 +418,7 @@ def solve_varying_kernels(plant: GeneralHyperbolic2x2, kernel_grid: int = DEFAUL
     """
     if not isinstance(plant, GeneralHyperbolic2x2):
         raise ParameterError("plant", "a GeneralHyperbolic2x2", plant)
-    n = positive_int("kernel_grid", kernel_grid, minimum=5, maximum=MAX_KERNEL_GRID)
+    n = check_kernel_grid(kernel_grid)
     maps = _maps(plant)
     pairs = _pairs(plant, maps)
     _check_grid(plant, pairs, n)

@@ -43,10 +43,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._json import fields_dict, json_safe
-from ..._validate import finite_real, nonnegative, positive, positive_int, renamed_keywords
+from ..._validate import finite_real, nonnegative, positive, renamed_keywords
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
-from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
+from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
 from ..kernels.varying import VaryingKernels, solve_varying_kernels
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
@@ -313,7 +313,7 @@ def _varying_factors(
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
         if callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0:
-            kernels = _varying_kernels(system, positive_int("kernel_grid", kernel_grid, 5))
+            kernels = _varying_kernels(system, check_kernel_grid(kernel_grid))
             return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
         return 1.0 - phi, form.u_factor() * (-controller.k)
     if isinstance(controller, ReflectionController):
@@ -380,7 +380,7 @@ def loop_factors(
     plant: Hyperbolic2x2
     plant, controller = normalize(system, controller)
     _check(plant, controller)
-    i_n = _distributed_part(plant, positive_int("kernel_grid", kernel_grid, 3))
+    i_n = _distributed_part(plant, check_kernel_grid(kernel_grid))
     round_trip = QuasiPolynomial([[plant.q]], [plant.tau])  # q e^{-tau s}
     phi = round_trip * plant.rho - i_n
     if isinstance(controller, StateFeedback):

@@ -32,7 +32,7 @@ from ..._json import fields_dict
 from ..._validate import renamed_keywords
 from ...errors import ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
-from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
+from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
@@ -179,6 +179,7 @@ def delay_form(
         error of its Laplace transform is uniform in ``s`` and set by the kernels
         (third order with the default extrapolation, ``docs/numerics_kernels.md``).
     """
+    kernel_grid = check_kernel_grid(kernel_grid)
     if isinstance(system, GeneralHyperbolic2x2):
         system = system.normal_form().system
     if not isinstance(system, Hyperbolic2x2):

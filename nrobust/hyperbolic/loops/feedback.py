@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from ..._validate import finite_real, positive_int
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
-from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, solve_kernels
+from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
 from ..plants.general import GeneralHyperbolic2x2, as_general
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ..plants.law import feedback_gain
@@ -93,7 +93,7 @@ def feedback_factor(
         raise ParameterError("system", "a Hyperbolic2x2 (a general plant: use its normal form)", system)
     k = finite_real("k", k)
     gu, gv = feedback_gain("g_u", g_u), feedback_gain("g_v", g_v)
-    grid_n = positive_int("kernel_grid", kernel_grid, 3)
+    grid_n = check_kernel_grid(kernel_grid)
     point = QuasiPolynomial([[k * system.q]], [system.tau])
     if gu.constant and gv.constant and float(gu.value) == 0.0 and float(gv.value) == 0.0 and system.uncoupled:
         return point

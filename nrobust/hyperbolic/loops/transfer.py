@@ -9,11 +9,11 @@ system (Laplace transform of eq. (39)), as
 
 from __future__ import annotations
 
-from ..._validate import nonnegative, positive_int, renamed_keywords
+from ..._validate import nonnegative, renamed_keywords
 from ...errors import ParameterError
 from ...lti.transfer import QuasiTransferFunction, product
 from ...quasipoly import QuasiPolynomial
-from ..kernels.constant import DEFAULT_KERNEL_GRID, solve_kernels
+from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid, solve_kernels
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .controllers import Controller, FilteredController, loop_factors
 from .delay_form import delay_form, delay_kernel
@@ -45,7 +45,7 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
-    form = delay_form(system, positive_int("kernel_grid", kernel_grid, 3))
+    form = delay_form(system, check_kernel_grid(kernel_grid))
     return QuasiTransferFunction(1.0, form.characteristic)
 
 
@@ -75,7 +75,7 @@ def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) ->
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiPolynomial([[1.0]], [0.0])
-    kernels = solve_kernels(system, positive_int("kernel_grid", kernel_grid, 3))
+    kernels = solve_kernels(system, check_kernel_grid(kernel_grid))
     L1 = kernels.L[:, :, -1, :]  # L^{ab}(1, xi) on the grid, a, b in (alpha, beta)
     return QuasiPolynomial([[1.0]], [0.0], [delay_kernel(system, kernels.grid, L1[1, 0], L1[1, 1])])
 

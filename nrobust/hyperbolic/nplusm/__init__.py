@@ -1,8 +1,17 @@
-"""``n + m`` plants with constant coefficients: the loop by the Laplace route and its
-certified delay margins (``system``), backstepping kernels and the full-state controller
-(``kernels``).
+"""``n + m`` plants with constant coefficients: the plant and its loop (``system``), the certified
+characteristic function (``characteristic``) and its compound form (``compound``), the delay
+margins (``margin``), the partial cancellations (``cancellation``), the backstepping kernels
+and the full-state controller (``kernels``).
+
+The simulation moved to :mod:`nrobust.hyperbolic.simulate` (``simulate_nplusm``,
+``NPlusMSimulation``, the scheme ``"n+m characteristics"`` of ``simulate``); the old names here
+are deprecated aliases (:data:`nrobust._moved.MOVED_NAMES`).
 """
 
+from ..._moved import moved_attribute
+from .cancellation import CancellationCase, cancellation_study
+from .characteristic import NPlusMCharacteristic
+from .compound import compound_characteristic
 from .kernels import (
     MAX_NPLUSM_KERNEL_GRID,
     NPlusMBackstepping,
@@ -10,19 +19,14 @@ from .kernels import (
     backstepping_delay_margin,
     solve_nplusm_kernels,
 )
-from .system import (
-    CancellationCase,
-    NPlusMCharacteristic,
+from .margin import (
     NPlusMMargin,
-    NPlusMSimulation,
-    NPlusMSystem,
-    cancellation_study,
-    compound_characteristic,
     multi_actuator_delay_margin,
     multi_actuator_margin,
     nplusm_delay_margin,
-    simulate_nplusm,
+    pencil_crossings,
 )
+from .system import NPlusMSystem
 
 __all__ = [
     "CancellationCase",
@@ -31,7 +35,6 @@ __all__ = [
     "NPlusMCharacteristic",
     "NPlusMKernels",
     "NPlusMMargin",
-    "NPlusMSimulation",
     "NPlusMSystem",
     "backstepping_delay_margin",
     "cancellation_study",
@@ -39,6 +42,9 @@ __all__ = [
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
-    "simulate_nplusm",
+    "pencil_crossings",
     "solve_nplusm_kernels",
 ]
+
+#: ``simulate_nplusm`` and ``NPlusMSimulation`` (now in :mod:`nrobust.hyperbolic.simulate`), deprecated here.
+__getattr__ = moved_attribute(__name__)

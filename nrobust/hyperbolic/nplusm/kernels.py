@@ -82,8 +82,10 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import json_safe
 from ..._validate import nonnegative, positive, positive_int
 from ...errors import ConvergenceError, ParameterError
-from ..kernels.constant import p1_interpolate
-from .system import NPlusMCharacteristic, NPlusMMargin, NPlusMSystem
+from ..kernels.constant import check_kernel_grid, p1_interpolate
+from .characteristic import NPlusMCharacteristic
+from .margin import NPlusMMargin, pencil_crossings
+from .system import NPlusMSystem
 
 __all__ = [
     "MAX_NPLUSM_KERNEL_GRID",
@@ -313,7 +315,7 @@ def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusM
     """
     if not isinstance(system, NPlusMSystem):
         raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
-    N = positive_int("kernel_grid", kernel_grid, minimum=3, maximum=MAX_NPLUSM_KERNEL_GRID)
+    N = check_kernel_grid(kernel_grid, MAX_NPLUSM_KERNEL_GRID)
     _check_grid(system, N)
     n, m = system.n, system.m
     lam, mu, sig = system.lam, system.mu, system.sigma
@@ -636,34 +638,7 @@ def backstepping_delay_margin(
     gamma = controller.gamma_0()
     if gamma >= 1.0:
         return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
-
-    from scipy.linalg import eigvals  # lazily: a slow import
-
-    def pencil(w: NDArray[np.float64]) -> NDArray[np.complex128]:
-        m0, m1 = controller.loop_matrices(1j * np.asarray(w, dtype=float))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.array([eigvals(a, -b) for a, b in zip(m0, m1)])
-
-    def inside(w: NDArray[np.float64]) -> NDArray[np.int64]:
-        return np.sum(np.abs(pencil(w)) < 1.0, axis=-1)
-
-    w = np.linspace(omega_max / points, omega_max, points)
-    n_in = inside(w)
-    change = np.flatnonzero(n_in[:-1] != n_in[1:])
-    need = points + (bisections + 1) * change.size
-    if need > max_points:
-        raise ParameterError("max_points", f">= {need} ({change.size} crossings to bisect)", max_points)
-    lo, hi, n_lo = w[change], w[change + 1], n_in[change]
-    for _ in range(bisections if change.size else 0):  # every bracket at once
-        mid = 0.5 * (lo + hi)
-        same = inside(mid) == n_lo
-        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-    found = []
-    if change.size:
-        wc = 0.5 * (lo + hi)
-        for x, z in zip(wc, pencil(wc)):
-            zc = z[np.argmin(np.abs(np.abs(z) - 1.0))]
-            found.append((float(x), float(np.mod(-np.angle(zc), 2 * np.pi) / x)))
+    found = pencil_crossings(controller.loop_matrices, omega_max, points, bisections=bisections, max_points=max_points)
     if not found:
         return NPlusMMargin(np.inf, None, (), gamma, omega_max, False)
     best = min(found, key=lambda p: p[1])

@@ -12,7 +12,9 @@ steps, where the boundary value ``rho u(t, L) + U(t - delta)`` is interpolated l
 time; ``U = k u(t, L) + int_0^L g_u u + g_v v dx`` (trapezoidal rule) is delayed by linear
 interpolation of its history. Second order overall (``tests/test_general.py`` measures
 it); the growth rate of the norm matches the spectral abscissa of the characteristic
-route (:mod:`nrobust.hyperbolic.varying`).
+route (:mod:`nrobust.hyperbolic.varying`). Registered as the scheme ``"time-of-flight grids"`` of
+:func:`~nrobust.hyperbolic.simulate.simulate` (:func:`simulate_time_of_flight`, which returns a
+:class:`~nrobust.hyperbolic.simulate.Simulation`).
 """
 
 from __future__ import annotations
@@ -23,13 +25,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._json import fields_dict
-from ..._validate import nonnegative, positive, positive_int
+from ..._validate import nonnegative, positive, positive_int, renamed_keywords
 from ...errors import ParameterError
 from ..loops.controllers import FeedbackLaw, OpenLoop, StateFeedback
 from ..plants.general import GeneralHyperbolic2x2, Profile
+from .base import Scheme, SimulationResult
+from .normal_form import DEFAULT_CELLS, MAX_UPDATES, InitialState, Simulation
 
-__all__ = ["GeneralSimulation", "simulate_general"]
+__all__ = ["TIME_OF_FLIGHT_SCHEME", "GeneralSimulation", "simulate_general", "simulate_time_of_flight"]
 
 Array = NDArray[np.float64]
 # Work bound on node updates (nodes times steps), checked before any allocation.
@@ -39,8 +42,8 @@ _MAX_STORED = 2 * 10**7
 
 
 @dataclass(frozen=True, eq=False)
-class GeneralSimulation:
-    """Result of :func:`simulate_general` (times in the plant's ``time_unit``).
+class GeneralSimulation(SimulationResult):
+    """Result of :func:`simulate_general` (times in the plant's ``time_unit``; a :class:`SimulationResult`).
 
     Attributes
     ----------
@@ -61,8 +64,6 @@ class GeneralSimulation:
         The states at ``snapshot_times``.
     """
 
-    times: Array
-    norm: Array
     control: Array
     x_u: Array
     x_v: Array
@@ -74,10 +75,6 @@ class GeneralSimulation:
     snapshot_times: Array
     u_snapshots: Array
     v_snapshots: Array
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return fields_dict(self)
 
 
 def _initial(name: str, value: Any, x: Array) -> Array:
@@ -268,3 +265,62 @@ def simulate_general(
         u_snap,
         v_snap,
     )
+
+
+@renamed_keywords(n="cells", kernel_n="kernel_grid")
+def simulate_time_of_flight(
+    plant: GeneralHyperbolic2x2,
+    controller: Any,
+    delta: float,
+    t_end: float,
+    u0: InitialState,
+    v0: InitialState,
+    cells: int = DEFAULT_CELLS,
+    *,
+    snapshot_every: int | None = None,
+    kernels: Any = None,
+    kernel_grid: int | None = None,
+    max_updates: int = MAX_UPDATES,
+) -> Simulation:
+    """The scheme ``"time-of-flight grids"``: :func:`simulate_general`, its result as a :class:`Simulation`.
+
+    The default scheme of a general plant with a varying ``lam/mu``; with a constant one it
+    is chosen by name only. ``kernels``, ``kernel_grid`` and ``max_updates`` are those of
+    the other 2x2 schemes and not used here: the controller is a ``StateFeedback``,
+    ``OpenLoop`` or ``FeedbackLaw`` with its gains given, and :func:`simulate_general` has
+    its own work bounds.
+    """
+    if not isinstance(controller, (StateFeedback, OpenLoop, FeedbackLaw)):
+        raise ParameterError(
+            "controller",
+            "a StateFeedback, OpenLoop or FeedbackLaw on a plant with a varying lam/mu (the paper's controllers are "
+            "built on the kernels of a normal form, which needs a constant lam/mu; U_BS with varying speeds is "
+            "solve_varying_kernels(plant).feedback_law())",
+            controller,
+        )
+    n = positive_int("cells", cells, minimum=4)
+    run = simulate_general(plant, controller, delta, t_end, u0, v0, n, snapshot_every=snapshot_every)
+    return Simulation(
+        times=run.times,
+        norm=run.norm,
+        control=run.control,
+        x=run.x_u,
+        x_v=run.x_v,
+        snapshot_times=run.snapshot_times,
+        u=run.u_snapshots,
+        v=run.v_snapshots,
+        delta=nonnegative("delta", delta),
+        dt=run.dt,
+        n=n,
+        delay_interpolation="linear",
+        scheme="time-of-flight grids",
+    )
+
+
+#: A general plant on its time-of-flight grids (any speeds).
+TIME_OF_FLIGHT_SCHEME = Scheme(
+    "time-of-flight grids",
+    (GeneralHyperbolic2x2,),
+    simulate_time_of_flight,
+    description="a general plant (any speeds) on one time-of-flight grid per state (simulate_general)",
+)

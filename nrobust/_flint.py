@@ -1,0 +1,126 @@
+"""Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, and
+Krawczyk's test.
+
+python-flint is the optional extra ``nrobust[rigorous]``. Every module that computes in
+ball arithmetic loads it with :func:`require_flint` (an ``ImportError`` that says how to
+install it) and proves isolated simple zeros with :func:`krawczyk`: the root finder
+(:mod:`nrobust.roots.finder`) and the spectral bound of difference operators
+(:mod:`nrobust.difference`). :mod:`nrobust.balls` re-exports these names; this module
+sits below it because ``nrobust.difference``, which ``nrobust.balls`` depends on through
+``nrobust.quasipoly``, needs them too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from types import ModuleType
+from typing import Any
+
+from ._validate import positive_int
+
+__all__ = ["INSTALL_HINT", "acb_box", "krawczyk", "precision", "require_flint", "working_precision"]
+
+#: Message of the error raised when python-flint is missing.
+INSTALL_HINT = "rigorous=True needs python-flint (ball arithmetic): pip install nrobust[rigorous]"
+
+
+def require_flint() -> ModuleType:
+    """Import python-flint, or raise an ``ImportError`` that says how to install it.
+
+    Raises
+    ------
+    ImportError
+        python-flint is not installed (``pip install nrobust[rigorous]``).
+    """
+    try:
+        import flint
+    except ImportError as exc:
+        raise ImportError(INSTALL_HINT) from exc
+    return flint
+
+
+@contextmanager
+def precision(flint: ModuleType, prec: int) -> Iterator[None]:
+    """Context in which ``flint`` computes with ``prec`` bits (not validated); restored on exit."""
+    old = flint.ctx.prec
+    flint.ctx.prec = prec
+    try:
+        yield
+    finally:
+        flint.ctx.prec = old
+
+
+@contextmanager
+def working_precision(prec: int = 53) -> Iterator[ModuleType]:
+    """Context in which python-flint computes with ``prec`` bits; yields the ``flint`` module.
+
+    The previous precision is restored on exit (python-flint's precision is global).
+    """
+    flint = require_flint()
+    with precision(flint, positive_int("prec", prec, minimum=16, maximum=4096)):
+        yield flint
+
+
+def acb_box(x0: float, x1: float, y0: float, y1: float) -> Any:
+    """The ``acb`` ball containing the rectangle ``[x0, x1] x [y0, y1]`` (end points exact).
+
+    A degenerate side (``x0 == x1``) is an exact real or imaginary part, so a vertical
+    segment is enclosed with no width in ``Re s``.
+    """
+    flint = require_flint()
+    arb = flint.arb
+    re = arb(x0) if x0 == x1 else arb(x0).union(arb(x1))
+    im = arb(y0) if y0 == y1 else arb(y0).union(arb(y1))
+    return flint.acb(re, im)
+
+
+def krawczyk(
+    box: tuple[float, float, float, float],
+    center: Any,
+    value: Any,
+    derivative: Callable[[Any], Any],
+    inverse: Any = None,
+    prec: int | None = None,
+) -> bool:
+    """Krawczyk's test: True when the rectangle ``box`` provably holds exactly one zero of ``F``, simple.
+
+    With ``X`` the rectangle, ``c`` a point of it and ``y ~ 1/F'``,
+    ``K(X) = c - y F(c) + (1 - y F'(X)) (X - c)`` contains every zero of ``F`` in ``X``;
+    if ``K(X)`` lies in the interior of ``X``, ``X`` holds exactly one zero and ``F'`` does
+    not vanish on ``X`` (the zero is simple).
+
+    Parameters
+    ----------
+    box : (x0, x1, y0, y1)
+        The rectangle ``X``.
+    center : acb
+        The point ``c`` (in ``X``).
+    value : acb
+        An enclosure of ``F(c)``.
+    derivative : callable
+        Encloses ``F'`` on an ``acb`` rectangle (called once, on ``X``).
+    inverse : acb, optional
+        The preconditioner ``y``; default the inverse of the midpoint of the enclosure of
+        ``F'(X)`` (the test then fails when that midpoint is 0 or an enclosure is not finite).
+    prec : int, optional
+        Bits of the arithmetic of ``K(X)`` (default: the current precision).
+
+    Returns
+    -------
+    bool
+        True when the test proves the zero; False when it fails or does not apply.
+    """
+    flint = require_flint()
+    x0, x1, y0, y1 = box
+    X = acb_box(x0, x1, y0, y1)
+    dfx = derivative(X)
+    if inverse is None:
+        slope = complex(float(dfx.real.mid()), float(dfx.imag.mid()))
+        if slope == 0 or not (value.is_finite() and dfx.is_finite()):
+            return False
+        inverse = flint.acb(1.0 / slope)
+    with precision(flint, flint.ctx.prec if prec is None else prec):
+        K = center - inverse * value + (1 - inverse * dfx) * (X - center)
+    re, im = K.real, K.imag
+    return bool(re > x0 and re < x1 and im > y0 and im < y1)

@@ -1,0 +1,347 @@
+"""Admissible gains of a plant with ``U_BS2(K)`` or another gain family: :func:`k_region`.
+
+For ``U_BS2(K)`` (eq. (53)) the loop is affine in ``K`` (eq. (60)) and the ends of the
+admissible intervals are solved from their equations by :mod:`nrobust.margins.gain`, then each
+is verified; for any other family the grid's changes of verdict are bisected on delay margins.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import fields_dict, json_safe
+from ..._validate import positive, positive_int, renamed_keywords
+from ...errors import CertificationError, ParameterError
+from ...margins.admissible import GainVerdict, check_gain_end, gain_verdict, tolerates
+from ...margins.gain import AffineGainLoop, GainEnd, locate_gain_ends
+from ...margins.margin import DelayMargin
+from ...quasipoly import QuasiPolynomial
+from ..loops.controllers import ReflectionController, classify, loop_factors
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from ._common import GainMargin, mapper, real_grid, study_plant
+
+__all__ = ["DEFAULT_N_GAINS", "KRegion", "k_region", "u_bs2_loop"]
+
+#: Default number of gains of the grid of :func:`k_region` (and of
+#: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their
+#: equations whatever the grid; its delay margins are reported and must agree with the
+#: intervals (a cross-check, about 0.2 s per gain on the paper's plant). For other
+#: controller families the grid has to put one gain inside each admissible interval, whose
+#: ends are then bisected.
+DEFAULT_N_GAINS = 9
+
+
+@dataclass(frozen=True, eq=False)
+class KRegion:
+    """Gains ``K`` for which ``U_BS2(K)`` is exponentially stable for every delay in ``[0, delta_max]``.
+
+    Compared by identity (``==`` is ``is``): it holds numpy arrays.
+
+    Attributes
+    ----------
+    intervals : tuple of (float, float)
+        The admissible gains, as open intervals (``ends`` gives the event at each end).
+    delta_max : float
+        The delay range that must be tolerated.
+    paper_bound : float
+        ``(1 - |rho q|)/|q|`` of eq. (54). It is also necessary for a positive margin:
+        ``|rho q| + |K q| < 1`` is the strong stability of the loop's difference operator.
+    Ks : ndarray
+        Gain grid on which the margins were computed.
+    margins : ndarray
+        ``delta*(K)`` on the grid.
+    admissible : ndarray of bool
+        ``delta*(K) > delta_max`` and the nominal loop stable, on the grid.
+    tol : float
+        Accuracy of the interval ends: each end was checked ``tol`` inside (admissible: the
+        certified crossing search of :func:`delay_margin`) and ``tol`` outside (not
+        admissible: a certified count of a zero in ``Re s > 0``).
+    ends : tuple of (GainEnd, GainEnd)
+        For each interval, its lower and upper end with their kind (:class:`GainEnd`:
+        ``"crossing"``, ``"pair_birth"``, ``"nominal"``, ``"strong_stability"``, or
+        ``"bisection"`` for a ``controller`` family other than ``U_BS2(K)``).
+    method : str
+        ``"equations"`` (ends solved from the equations of their kind) or ``"bisection"``.
+    """
+
+    intervals: tuple[tuple[float, float], ...]
+    delta_max: float
+    paper_bound: float
+    Ks: NDArray[np.float64]
+    margins: NDArray[np.float64]
+    admissible: NDArray[np.bool_]
+    tol: float
+    ends: tuple[tuple[GainEnd, GainEnd], ...] = ()
+    method: str = "bisection"
+
+    def __repr__(self) -> str:
+        ivs = ", ".join(f"({lo:.6g}, {hi:.6g})" for lo, hi in self.intervals) or "empty"
+        return f"KRegion(delta_max={self.delta_max:.6g}, K in {ivs}, paper bound |K| < {self.paper_bound:.6g})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description; each end as ``{"K", "kind", "omega", "delay"}``."""
+        data = fields_dict(self, exclude=("ends",))
+        data["ends"] = json_safe([[end._asdict() for end in pair] for pair in self.ends])
+        return data
+
+
+def u_bs2_loop(system: Hyperbolic2x2) -> AffineGainLoop:
+    """The loop of ``U_BS2(K)`` on ``system``: ``A + (B_0 + K q e^{-tau s}) e^{-delta s}`` (eq. (60)).
+
+    Raises
+    ------
+    CertificationError
+        The loop factors are not affine in ``K`` with ``R = q e^{-tau s}``.
+    """
+    A, B0 = loop_factors(system, ReflectionController(0.0))
+    A1, B1 = loop_factors(system, ReflectionController(1.0))
+    R = B1 - B0
+    if A1 != A or R.distributed or R != QuasiPolynomial([[system.q]], [system.tau]):
+        raise CertificationError("k_region: the U_BS2(K) loop is not A + (B_0 + K q e^{-tau s}) e^{-delta s}")
+    return AffineGainLoop(A, B0, R)
+
+
+@dataclass(frozen=True)
+class _LoopMargin:
+    """Picklable ``K -> gain_verdict(loop, K)``, or the message of its CertificationError.
+
+    A worker process receives the loop's factors instead of solving the kernels again.
+    """
+
+    loop: AffineGainLoop
+    delta_max: float
+    max_evals: int
+
+    def __call__(self, K: float) -> GainVerdict | str:
+        try:
+            return gain_verdict(self.loop, float(K), self.delta_max, self.max_evals)
+        except CertificationError as exc:
+            return str(exc)
+
+
+def _grid_verdicts(
+    delta_max: float, grid: NDArray, margins: list[DelayMargin | str] | list[GainVerdict | str]
+) -> tuple[NDArray, NDArray]:
+    """Margins and verdicts of the grid gains (a failed margin raises, naming the gain)."""
+    for K, dm in zip(grid, margins):
+        if isinstance(dm, str):
+            raise CertificationError(f"k_region: the delay margin at the grid gain K = {K:.12g} failed: {dm}")
+    checked = [dm for dm in margins if not isinstance(dm, str)]
+    return np.array([dm.margin for dm in checked]), np.array([tolerates(dm, delta_max) for dm in checked])
+
+
+def _exact_region(
+    system: Hyperbolic2x2,
+    delta_max: float,
+    kb: float,
+    grid: NDArray,
+    tol: float,
+    executor: Any,
+    max_evals: int,
+    progress: bool | None,
+) -> KRegion:
+    """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked."""
+    loop = u_bs2_loop(system)
+    pairs = locate_gain_ends(loop, delta_max, kb, tol, max_evals) if kb > 0 else []
+    probes: list[float] = []
+    for lo, hi in pairs:
+        probes += [lo.K + tol, hi.K - tol]
+    run = mapper(executor, progress, "k_region: delay margins")
+    results = list(run(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
+    margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
+    checks = iter(results[grid.size :])
+    for lo, hi in pairs:
+        for end, sign in ((lo, 1.0), (hi, -1.0)):
+            why = check_gain_end(end, next(checks), end.K - sign * tol, loop, delta_max)
+            if why is not None:
+                raise CertificationError(
+                    f"k_region: the end K = {end.K:.15g} ({end.kind}, w = {end.omega:.10g}) of the admissible "
+                    f"interval ({lo.K:.12g}, {hi.K:.12g}) could not be verified on the bracket "
+                    f"[{min(end.K - tol, end.K + tol):.15g}, {max(end.K - tol, end.K + tol):.15g}]: {why}"
+                )
+    intervals = tuple((float(lo.K), float(hi.K)) for lo, hi in pairs)
+    for K, good in zip(grid, ok):
+        near_end = any(min(abs(K - lo), abs(K - hi)) <= 2.0 * tol for lo, hi in intervals)
+        inside = any(lo < K < hi for lo, hi in intervals)
+        if not near_end and inside != bool(good):
+            raise CertificationError(
+                f"k_region: at the grid gain K = {K:.12g} the delay margin says {'' if good else 'not '}admissible, "
+                f"the located intervals {intervals} say the opposite"
+            )
+    return KRegion(intervals, delta_max, kb, grid, margins, ok, tol, tuple(pairs), "equations")
+
+
+def _bisection_region(
+    system: Any,
+    delta_max: float,
+    kb: float,
+    grid: NDArray,
+    tol: float,
+    family: Callable[[float], Any],
+    executor: Any,
+    max_evals: int,
+    progress: bool | None,
+) -> KRegion:
+    """:func:`k_region` of another ``controller`` family: the grid's changes of verdict bisected to ``tol``."""
+    margin_at = GainMargin(system, family, delta_max, max_evals)
+    at_grid = list(mapper(executor, progress, "k_region: grid margins")(margin_at.checked, grid))
+    margins, ok = _grid_verdicts(delta_max, grid, at_grid)
+
+    def checked(K: float) -> DelayMargin:
+        dm = margin_at.checked(K)
+        if isinstance(dm, str):
+            raise CertificationError(f"k_region: the delay margin at K = {K:.12g} failed while bisecting: {dm}")
+        return dm
+
+    def edge(good: float, bad: float, outer: DelayMargin | str | None) -> GainEnd:
+        while abs(good - bad) > tol:
+            mid = 0.5 * (good + bad)
+            dm = checked(mid)
+            if tolerates(dm, delta_max):
+                good = mid
+            else:
+                bad, outer = mid, dm
+        outer = checked(bad) if not isinstance(outer, DelayMargin) else outer
+        first = outer.crossings[0] if outer.crossings else None
+        omega = float("inf") if first is None else abs(first.omega)
+        delay = float(outer.margin) if first is None else float(first.delays[0])
+        return GainEnd(float(good), "bisection", omega, delay)
+
+    ends: list[tuple[GainEnd, GainEnd]] = []
+    k = 0
+    while k < grid.size:
+        if not ok[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < grid.size and ok[j + 1]:
+            j += 1
+        lo_bad, lo_outer = (grid[k - 1], at_grid[k - 1]) if k > 0 else (-kb, None)
+        hi_bad, hi_outer = (grid[j + 1], at_grid[j + 1]) if j + 1 < grid.size else (kb, None)
+        lo = (
+            edge(grid[k], lo_bad, lo_outer)
+            if lo_bad < grid[k]
+            else GainEnd(float(grid[k]), "bisection", float("inf"), 0.0)
+        )
+        hi = (
+            edge(grid[j], hi_bad, hi_outer)
+            if hi_bad > grid[j]
+            else GainEnd(float(grid[j]), "bisection", float("inf"), 0.0)
+        )
+        ends.append((lo, hi))
+        k = j + 1
+    intervals = tuple((lo.K, hi.K) for lo, hi in ends)
+    return KRegion(intervals, delta_max, kb, grid, margins, ok, tol, tuple(ends), "bisection")
+
+
+@renamed_keywords(n="n_gains")
+def k_region(
+    system: Any,
+    delta_max: float,
+    *,
+    Ks: ArrayLike | None = None,
+    n_gains: int = DEFAULT_N_GAINS,
+    tol: float | None = None,
+    controller: Callable[[float], Any] | None = None,
+    executor: Any = "serial",
+    max_evals: int = 2_000_000,
+    progress: bool | None = None,
+) -> KRegion:
+    """Gains keeping the loop stable for every delay in ``[0, delta_max]``, with exact ends.
+
+    ``U_BS2(K)`` (eq. (53)) is admissible when the nominal loop is stable and its
+    delay margin exceeds ``delta_max`` (the margin is the *first* delay at which a root
+    reaches the axis, so the whole of ``[0, delta_max]`` is checked). Its loop
+    ``A(s) + (B_0(s) + K q e^{-tau s}) e^{-delta s}`` (eq. (60)) is affine in
+    ``K``, and an end of an admissible interval is one of:
+
+    * a *crossing*: ``A(i w) + B(i w; K) e^{-i w delta_max} = 0``, i.e. ``K(w) = -(A(i w)
+      e^{i w delta_max} + B_0(i w)) / (q e^{-i w tau})`` with ``Im K(w) = 0``, solved in ``w``;
+    * a *pair birth*: ``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2`` has a double zero in ``w``
+      (``g = dg/dw = 0``) with crossing delay ``<= delta_max``; ``g`` is quadratic in ``K``,
+      its roots ``K_pm(w)`` are explicit, and the birth is an extremum of ``K_pm(w)``;
+    * *nominal*: the crossing equation with ``delta = 0`` (the nominal loop loses stability);
+    * the *strong-stability* limit ``|rho q| + |K q| = 1`` (the paper's bound, eq. (54)).
+
+    A scan of the imaginary axis up to the frequency bound finds these critical gains
+    (between two of them the verdict is constant), each is solved from its own equation to
+    ``1e-14`` in ``w``, and each end is then verified independently: ``tol`` inside, the
+    certified crossing search of :func:`delay_margin` finds the loop admissible; ``tol``
+    outside, a certified root count (:func:`nrobust.count_roots`) finds a zero in ``Re s > 0``
+    about the root of the end's event, at a delay in ``[0, delta_max]``. An end that cannot be
+    verified raises :class:`~nrobust.errors.CertificationError`. The grid ``Ks`` is checked the
+    same way: its certified verdicts must agree with the intervals. The crossing searches of
+    the scan and of the checks stop at a second-order frequency bound (the kernels' boundary
+    terms, integrated by parts twice): near the paper's bound ``k`` it grows like
+    ``1/sqrt(k - |K|)`` where :func:`nrobust.margins.frequency_bound` grows like
+    ``1/(k - |K|)``.
+    Features narrower than the scan step ``pi / (4 (2 tau + delta_max))`` in frequency can
+    be missed; a verified end is exact whatever happens between ends.
+
+    For any other ``controller`` family the grid's changes of verdict are bisected to
+    ``tol`` on delay margins instead (kind ``"bisection"``).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant through its normal form (a ``controller`` family then acts
+        in its physical coordinates), with a varying ``lam/mu`` only with a ``controller``
+        family other than U_BS2(K) (e.g. ``StateFeedback``: its loop by the characteristic
+        route; the default grid then spans the strong-stability bound of ``|k|`` of
+        ``U = k u(t, L)``, :func:`~nrobust.hyperbolic.classify`).
+    delta_max : float
+        Delay range to tolerate (``> 0``, finite).
+    Ks : array_like, optional
+        Gain grid on which margins are reported (and, for other families, bisected); default
+        ``n_gains`` points spanning ``(-k, k)``, ``k`` the paper's bound (gains outside it
+        have zero margin: the difference operator ``1 - rho q e^{-tau s} + K q
+        e^{-(tau+delta) s}`` is not strongly stable).
+    n_gains : int, default :data:`DEFAULT_N_GAINS`
+        Size of the default grid, ``>= 3`` (formerly ``n``, a deprecated alias).
+    tol : float, optional
+        Accuracy of the interval ends (the offset of their verification); default
+        ``1e-10`` times the paper's bound (``1e-4`` times it when bisecting).
+    controller : callable, optional
+        ``K -> controller``; default (or ``ReflectionController``) ``U_BS2(K)``, whose ends
+        are solved from their equations.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the delay margins run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
+    max_evals : int, optional
+        Work bound of each delay margin (:func:`nrobust.margins.delay_margin`) and of the
+        scan of the axis.
+    progress : bool, optional
+        A progress bar over the delay margins on stderr; by default only when stderr is a
+        terminal or Jupyter.
+
+    Returns
+    -------
+    KRegion
+
+    Raises
+    ------
+    CertificationError
+        An end could not be verified (the message names its bracket), a delay margin
+        failed, or the scan would exceed ``max_evals``.
+    """
+    system, controller = study_plant(system, controller, "k_region")
+    delta_max = positive("delta_max", delta_max)
+    max_evals = positive_int("max_evals", max_evals)
+    exact = controller is None or controller is ReflectionController
+    kb = classify(system).k_bound
+    scale = kb if kb > 0 else 1.0
+    tol = positive("tol", tol) if tol is not None else (1e-10 if exact else 1e-4) * scale
+    if Ks is None:
+        n_gains = positive_int("n_gains", n_gains, 3)
+        if kb == 0.0:
+            raise ParameterError("system", "with |rho q| < 1 for the default gain grid (pass Ks)", system)
+        Ks = kb * np.linspace(-1.0, 1.0, n_gains + 2)[1:-1]
+    grid = np.sort(real_grid("Ks", Ks))
+    if controller is None or controller is ReflectionController:
+        return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals, progress)
+    return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)

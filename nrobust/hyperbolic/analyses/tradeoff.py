@@ -1,0 +1,109 @@
+"""The decay-rate/delay-margin trade-off over the gain ``K`` (section 4.2.1): :func:`tradeoff`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import fields_dict
+from ...roots import spectral_abscissa
+from ..loops.controllers import ReflectionController, loop_factors
+from ._common import mapper, real_grid, reflection, study_plant
+from .margin import delay_margin
+from .rouche import rouche_delay_bound
+
+__all__ = ["Tradeoff", "tradeoff"]
+
+
+@dataclass(frozen=True, eq=False)
+class Tradeoff:
+    """Nominal decay rate against delay margin over the gain ``K`` (section 4.2.1).
+
+    Compared by identity (``==`` is ``is``): it holds numpy arrays.
+
+    Attributes
+    ----------
+    Ks : ndarray
+        Gains.
+    decay_rates : ndarray
+        ``-`` spectral abscissa of the nominal loop (``delta = 0``).
+    margins : ndarray
+        Exact delay margins ``delta*(K)``.
+    rouche_bounds : ndarray
+        Guaranteed ``delta_0(K)`` of Theorem 4's proof (:func:`rouche_delay_bound`),
+        ``nan`` when the controller is not ``U_BS2``.
+    """
+
+    Ks: NDArray[np.float64]
+    decay_rates: NDArray[np.float64]
+    margins: NDArray[np.float64]
+    rouche_bounds: NDArray[np.float64]
+
+    def __repr__(self) -> str:
+        return f"Tradeoff({self.Ks.size} gains in [{self.Ks.min():.6g}, {self.Ks.max():.6g}])"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+@dataclass(frozen=True)
+class _PartialTradeoff:
+    """Picklable ``K -> (decay rate, margin, delta_0)``."""
+
+    system: Any
+    family: Callable[[float], Any]
+
+    def __call__(self, K: float) -> tuple[float, float, float]:
+
+        ctrl = self.family(float(K))
+        A, B = loop_factors(self.system, ctrl)
+        rate = -float(spectral_abscissa(A + B).value)
+        margin = delay_margin(A, B, verify=False).margin
+        d0 = rouche_delay_bound(self.system, ctrl).delta_0 if isinstance(ctrl, ReflectionController) else np.nan
+        return rate, float(margin), float(d0)
+
+
+def tradeoff(
+    system: Any,
+    Ks: ArrayLike,
+    *,
+    controller: Callable[[float], Any] | None = None,
+    executor: Any = "serial",
+    progress: bool | None = None,
+) -> Tradeoff:
+    """Decay rate of the nominal loop against the delay margin, over ``K``.
+
+    The paper's remark after Lemma 3: ``K`` trades the convergence rate of the target
+    system (reflection ``rho - K``: decay rate ``-ln|(rho - K) q| / tau`` on a transport
+    system) for robustness to delays.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant; a general plant as for :func:`stability_chart`.
+    Ks : array_like
+        Gains.
+    controller : callable, optional
+        ``K -> controller``; default ``ReflectionController``.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        process. Results are the same whatever the executor.
+    progress : bool, optional
+        A progress bar over the gains on stderr; by default only when stderr is a terminal
+        or Jupyter.
+
+    Returns
+    -------
+    Tradeoff
+    """
+    system, controller = study_plant(system, controller, "tradeoff")
+    kv = real_grid("Ks", Ks)
+    family = reflection if controller is None else controller
+    run = mapper(executor, progress, "tradeoff: gains")
+    rows = np.array(list(run(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
+    return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2])

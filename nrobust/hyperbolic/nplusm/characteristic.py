@@ -1,0 +1,421 @@
+"""The closed loop of an ``n + m`` system as a certified characteristic function.
+
+**Certified counts.** :class:`NPlusMCharacteristic` is a
+:class:`~nrobust.qpmatrix.CharacteristicFunction` for any ``m``: row ``j`` of the loop
+matrix is ``l_j(s)^T G_j(s) W`` with ``G_j(s) = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
+``C = Lambda^{-1} Sigma``, ``P_j = Lambda^{-1} + I/mu_j`` diagonal,
+``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and ``W = [Q; I]``. Every derivative of
+``exp(C - s P)`` obeys ``||G^{(k)}(s)|| <= ||P||^k e^{beta(Re s)}`` (Dyson's expansion),
+``beta(x) = lambda_max(Herm(C) - x P)`` the logarithmic 2-norm, convex in ``x``; Jacobi's
+formula and Hadamard's inequality turn the row bounds into the bounds of ``|F'|`` and
+``|F''|`` on a segment that the step rule of :mod:`nrobust.roots.winding` needs.
+
+**Certified delay margin** (``m = 1``). Split ``C = C_d + C_o`` (``C_d`` the couplings
+inside groups of equal round-trip rate ``p_i``); the gauge ``Y = (I + N/s) Z`` with
+``[P, N] = C_o`` and Gronwall's lemma bound ``||exp(C - s P) - exp(C_d - s P)||`` by a
+non-increasing ``r(|s|) = O(1/|s|)`` on ``Re s >= 0``
+(:meth:`NPlusMCharacteristic.coupling_remainder`), which gives a proven frequency bound
+``W`` beyond which ``|A| - |B e^{-delta s}| > 0`` (:meth:`NPlusMCharacteristic.frequency_bound`).
+On ``[0, W]`` the crossings of ``|A(i w)| = |B(i w)|`` are found completely from a
+Lipschitz bound of ``|A| - |B|`` and a bound of ``|g''|``, ``g = |A|^2 - |B|^2``
+(:meth:`NPlusMCharacteristic.crossing_frequencies`); ``docs/theory.md``, "Beyond 2x2",
+has the derivation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._validate import nonnegative, positive_int
+from ...difference import DifferenceOperator
+from ...errors import CertificationError, ParameterError
+from ...margins.matrix import GaugeRemainder
+from ...qpmatrix import FirstDerivative, QuasiPolynomialMatrix
+from ...quasipoly import QuasiPolynomial
+from .system import NPlusMSystem
+
+__all__ = ["NPlusMCharacteristic"]
+
+#: Rounding scale of F(s) relative to ||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||): the
+#: error of a scaling-and-squaring matrix exponential grows with the norm of its argument.
+EXPM_ROUNDING = 16.0
+#: Frequency grid of the crossing searches: points per unit of w times the longest delay.
+GRID_PER_PERIOD = 32
+#: Machine epsilon of float64.
+EPS = float(np.finfo(float).eps)
+
+
+class NPlusMCharacteristic:
+    """``F(s) = det(E(s) (Phi_v - (R + K e^{-delta s}) Phi_u))``: the closed loop of an ``n + m`` system.
+
+    A :class:`~nrobust.qpmatrix.CharacteristicFunction`: ``count_roots``, ``find_roots``
+    and ``spectral_abscissa`` (with a region) certify its roots. Row ``j`` of the
+    ``m x m`` matrix is ``l_j(s)^T G_j(s) W`` with ``G_j = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
+    ``P_j = Lambda^{-1} + I/mu_j`` diagonal, ``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and
+    ``W = [Q; I]``; each derivative of ``G_j`` is bounded through the logarithmic norm
+    (module notes), and the determinant through Jacobi's formula and Hadamard's
+    inequality, as for :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix`.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n), optional
+        The feedback gain (default: open loop).
+    delta : float, optional
+        The loop delay ``>= 0``, the same on every actuator.
+    """
+
+    def __init__(self, system: NPlusMSystem, K: ArrayLike | None = None, delta: float = 0.0) -> None:
+        if not isinstance(system, NPlusMSystem):
+            raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+        self.system = system
+        self.K = system.gain(K)
+        self.delta = nonnegative("delta", delta)
+        inv = 1.0 / system.signed_speeds
+        self._c = inv[:, None] * system.sigma
+        self._herm = 0.5 * (self._c + self._c.T)
+        self._p = inv[None, :] + 1.0 / system.mu[:, None]  # row j: the diagonal of P_j
+        self._w = np.vstack([system.q, np.eye(system.m)])
+        self._w_norm = float(np.linalg.norm(self._w, 2))
+        self._r_rows = np.linalg.norm(system.r, axis=1)
+        self._k_rows = np.linalg.norm(self.K, axis=1)
+        self._c_norm = float(np.linalg.norm(self._c, 2))
+
+    # ------------------------------------------------------------------ rows of the loop matrix
+    def _ell(self, j: int, s: NDArray[np.complex128]) -> tuple[NDArray, NDArray]:
+        """``l_j(s)`` and ``l_j'(s)`` as arrays of shape ``(s.size, n + m)``."""
+        sys = self.system
+        ed = np.exp(-self.delta * s)[:, None]
+        unit = np.zeros(sys.m)
+        unit[j] = 1.0
+        ell = np.concatenate([-(sys.r[j][None] + ed * self.K[j][None]), np.broadcast_to(unit, (s.size, sys.m))], axis=1)
+        dell = np.concatenate([self.delta * ed * self.K[j][None], np.zeros((s.size, sys.m))], axis=1)
+        return ell, dell
+
+    def _matrices(self, s: NDArray[np.complex128], derivative: bool) -> tuple[NDArray, NDArray | None]:
+        """The loop matrix (``(s.size, m, m)``) and, if asked, the matrix of its row derivatives."""
+        from scipy.linalg import expm  # lazily: a slow import
+
+        N = self.system.n + self.system.m
+        rows, drows = [], []
+        for j in range(self.system.m):
+            a = self._c[None] - s[:, None, None] * np.diag(self._p[j])[None]
+            ell, dell = self._ell(j, s)
+            if not derivative:
+                g = expm(a)
+                rows.append(np.einsum("ni,nij,jk->nk", ell, g, self._w))
+                continue
+            big = np.zeros((s.size, 2 * N, 2 * N), dtype=complex)
+            big[:, :N, :N] = a
+            big[:, N:, N:] = a
+            big[:, :N, N:] = -np.diag(self._p[j])  # exp([[A, -P], [0, A]]) = [[G, G'], [0, G]] (Van Loan)
+            e = expm(big)
+            g, dg = e[:, :N, :N], e[:, :N, N:]
+            rows.append(np.einsum("ni,nij,jk->nk", ell, g, self._w))
+            drows.append(np.einsum("ni,nij,jk->nk", dell, g, self._w) + np.einsum("ni,nij,jk->nk", ell, dg, self._w))
+        return np.stack(rows, axis=1), (np.stack(drows, axis=1) if derivative else None)
+
+    # ------------------------------------------------------------------ protocol
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        s = np.asarray(s, dtype=complex)
+        m, _ = self._matrices(s.reshape(-1), derivative=False)
+        return np.asarray(np.linalg.det(m), dtype=complex).reshape(s.shape)
+
+    def factors(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``A(s)`` and ``B(s)`` of ``F = A + B e^{-delta s}`` (one actuator)."""
+        sys = self.system
+        if sys.m != 1:
+            raise ParameterError("system", "one actuator (m = 1) for the factors A, B", sys.m)
+        s = np.asarray(s, dtype=complex)
+        g = sys.transition(s, shift=1.0 / float(sys.mu[0]))
+        col = g @ self._w[:, 0]
+        phi_u, phi_v = col[..., : sys.n], col[..., sys.n]
+        return phi_v - phi_u @ sys.r[0], -(phi_u @ self.K[0])
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``F'(s)``: Jacobi's formula on the rows, ``G_j'`` from Van Loan's block exponential."""
+        s = np.asarray(s, dtype=complex)
+        m, dm = self._matrices(s.reshape(-1), derivative=True)
+        assert dm is not None
+        out = np.zeros(m.shape[0], dtype=complex)
+        for i in range(self.system.m):
+            mi = m.copy()
+            mi[:, i, :] = dm[:, i, :]
+            out += np.linalg.det(mi)
+        return out.reshape(s.shape)
+
+    def _beta(self, j: int, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``lambda_max(Herm(C) - x P_j)`` (plus rounding), the logarithmic norm of ``C - s P_j``."""
+        xs, inv = np.unique(x, return_inverse=True)
+        mats = self._herm[None] - xs[:, None, None] * np.diag(self._p[j])[None]
+        top = np.linalg.eigvalsh(mats)[:, -1]
+        slack = 1e-12 * (1.0 + self._c_norm + np.abs(xs) * float(np.abs(self._p[j]).max()))
+        return (top + slack)[inv.reshape(x.shape)]
+
+    def _row_bounds(self, a: ArrayLike, b: ArrayLike) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Bounds of the row norms of the loop matrix and of its first two derivatives on segments,
+        and the rounding scales ``l_j e^{beta_j} ||W||``: arrays of shape ``a.shape + (m,)``."""
+        a = np.asarray(a, dtype=complex)
+        b = np.asarray(b, dtype=complex)
+        xmin = np.minimum(a.real, b.real)
+        r0, r1, r2 = [], [], []
+        for j in range(self.system.m):
+            g = np.exp(np.maximum(self._beta(j, a.real), self._beta(j, b.real))) * self._w_norm  # convex in x
+            ek = self._k_rows[j] * np.exp(-self.delta * xmin)
+            ell = np.sqrt((self._r_rows[j] + ek) ** 2 + 1.0)
+            p, d = float(np.abs(self._p[j]).max()), self.delta
+            r0.append(ell * g)
+            r1.append((d * ek + ell * p) * g)
+            r2.append((d * d * ek + 2 * d * ek * p + ell * p * p) * g)
+        slack = 1.0 + 1e-12
+        return np.stack(r0, -1) * slack, np.stack(r1, -1) * slack, np.stack(r2, -1) * slack, np.stack(r0, -1)
+
+    def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """``|F'| <= sum_i ||row_i'|| prod_{k != i} ||row_k||`` on each segment (module notes)."""
+        r0, r1, _, _ = self._row_bounds(a, b)
+        m = self.system.m
+        return np.asarray(sum(r1[..., i] * _prod_except(r0, [i]) for i in range(m)), dtype=float)
+
+    def second_deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Bound of ``|F''|`` on each segment.
+
+        ``sum_i ||row_i''|| prod_{k != i} ||row_k|| + sum_{i != k} ||row_i'|| ||row_k'|| prod_{l != i, k} ||row_l||``.
+        """
+        r0, r1, r2, _ = self._row_bounds(a, b)
+        m = self.system.m
+        out = sum(r2[..., i] * _prod_except(r0, [i]) for i in range(m))
+        for i in range(m):
+            for k in range(m):
+                if i != k:
+                    out = out + r1[..., i] * r1[..., k] * _prod_except(r0, [i, k])
+        return np.asarray(out, dtype=float)
+
+    def derivative(self) -> FirstDerivative:
+        """``F'`` with the bound of ``|F''|`` (the order-2 step rule)."""
+        return FirstDerivative(self)
+
+    def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
+        """Rounding scale ``m 2^(m-1) prod_j 16 ||l_j|| e^{beta_j} ||W|| (1 + ||C|| + |s| ||P_j||)`` of ``F(s)``."""
+        s = np.asarray(s, dtype=complex)
+        _, _, _, scale = self._row_bounds(s, s)
+        m = self.system.m
+        growth = 1.0 + self._c_norm + np.abs(s)[..., None] * np.abs(self._p).max(axis=1)
+        return np.asarray(m * 2.0 ** (m - 1) * np.prod(EXPM_ROUNDING * scale * growth, axis=-1), dtype=float)
+
+    def principal_part(self) -> DifferenceOperator:
+        """The principal part of ``F``: ``det(V - sum (R_ab + K_ab e^{-delta s}) e^{-tau_ab s})`` (module notes)."""
+        v_block, point = self.system.principal_terms(self.K)
+        m = self.system.m
+        entries = []
+        for j in range(m):
+            row = []
+            for k in range(m):
+                coefs, delays = [[float(v_block[j, k])]], [0.0]
+                for tau, rq, kq in point:
+                    coefs += [[-float(rq[j, k])], [-float(kq[j, k])]]
+                    delays += [tau, tau + self.delta]
+                row.append(QuasiPolynomial(coefs, delays))
+            entries.append(row)
+        return QuasiPolynomialMatrix(entries).point_determinant().principal_part()
+
+    @property
+    def kind(self) -> str:
+        """``"neutral"`` when the principal part has a delayed term (chains of roots), else ``"retarded"``."""
+        return "neutral" if self.principal_part().coefs.size > 1 else "retarded"
+
+    @property
+    def is_real(self) -> bool:
+        """True: real coefficients, roots in conjugate pairs."""
+        return True
+
+    @property
+    def max_delay(self) -> float:
+        """Longest round trip ``1/lam_i + 1/mu_j`` plus the loop delay."""
+        return float(np.max(1.0 / self.system.lam) + np.max(1.0 / self.system.mu) + self.delta)
+
+    # ------------------------------------------------------------------ one actuator: the axis
+    def _one_actuator(self, what: str) -> None:
+        if self.system.m != 1:
+            raise ParameterError("system", f"one actuator (m = 1) for {what}", self.system.m)
+
+    def gamma_0(self) -> float:
+        """``(sum_a |R_a U_a Q_a| + sum_a |K_a U_a Q_a|) / |V|``: the principal part with a loop delay (``m = 1``)."""
+        self._one_actuator("gamma_0")
+        v_block, point = self.system.principal_terms(self.K)
+        total = sum(abs(float(rq[0, 0])) + abs(float(kq[0, 0])) for _, rq, kq in point)
+        return float(total / abs(float(v_block[0, 0])))
+
+    def coupling_remainder(self, w: ArrayLike) -> NDArray[np.float64]:
+        """``r(|s|)`` with ``||e^{-s/mu} Phi(s) - e^{-s/mu} Phi_0(s)|| <= r(|s|)`` on ``Re s >= 0`` (``m = 1``).
+
+        ``Phi_0 = exp(C_d - s P)`` is the principal transition (``C_d`` the couplings inside
+        groups of equal ``p_i``, ``P`` the diagonal of round-trip rates). With ``N`` solving
+        ``[P, N] = C_o`` (the other couplings) and ``H = C N - N C_d``, the gauge
+        ``Y = (I + N/s) Z`` turns ``Y' = (C - s P) Y`` into ``Z' = (C_d - s P + E/s) Z``,
+        ``||E|| <= e = ||H|| / (1 - ||N||/|s|)``, and Gronwall's lemma with the logarithmic
+        norm ``beta_d = lambda_max(Herm C_d)`` (``P >= 0`` for one actuator) gives, for
+        ``|s| > ||N||``, with ``t = 1 / (1 - ||N||/|s|)``, ::
+
+            r = ((1 + ||N||/|s|) t e e^{beta_d + e/|s|} + 2 ||N|| t e^{beta_d}) / |s|,
+
+        non-increasing in ``|s|``; ``inf`` for ``|s| <= ||N||``. Includes ``1e-9`` relative slack.
+        """
+        self._one_actuator("the coupling remainder")
+        return GaugeRemainder(self._c, self._p[0])(w)
+
+    def _gauge(self) -> tuple[float, float, float]:
+        """``(||N||, ||H||, beta_d)`` of :meth:`coupling_remainder` (``GaugeRemainder``)."""
+        g = GaugeRemainder(self._c, self._p[0])
+        return g.floor, g.h_norm, g.beta_d
+
+    def frequency_bound(self) -> float:
+        """Proven ``W`` (``m = 1``, ``gamma_0 < 1``): ``|A(i w)| != |B(i w)|`` for ``w >= W``, and
+        ``F(s; delta) != 0`` for ``Re s >= 0``, ``|s| >= W``, every ``delta >= 0``.
+
+        On ``Re s >= 0``, ``|A_0(s)| - |B_0(s) e^{-delta s}| >= gap = |V| (1 - gamma_0)``
+        for the principal parts, and ``|A - A_0| + |B - B_0| <= (||l_A|| + ||K||) ||W|| r(|s|)``
+        (:meth:`coupling_remainder`, ``l_A = (-R, 1)``, ``W = [Q; 1]``); ``W`` is the
+        smallest radius (to ``1e-7``, rounded up) where the latter is below the gap less
+        its rounding room.
+
+        Raises
+        ------
+        CertificationError
+            ``gamma_0 >= 1`` (no such bound), or the remainder stays above the gap up to ``2^200``.
+        """
+        self._one_actuator("the frequency bound")
+        v_block, point = self.system.principal_terms(self.K)
+        total = abs(float(v_block[0, 0])) + sum(abs(float(rq[0, 0])) + abs(float(kq[0, 0])) for _, rq, kq in point)
+        gap = abs(float(v_block[0, 0])) * (1.0 - self.gamma_0())
+        level = gap * (1.0 - 1e-9) - 1e-12 * total
+        if level <= 0.0:
+            raise CertificationError(f"frequency_bound: gamma_0 = {self.gamma_0():.12g} is not below 1 beyond rounding")
+        scale = (
+            float(np.hypot(np.linalg.norm(self.system.r, 2), 1.0)) + float(np.linalg.norm(self.K, 2))
+        ) * self._w_norm
+        return GaugeRemainder(self._c, self._p[0]).radius(scale, level)
+
+    def axis_jet(self, w: ArrayLike) -> tuple[NDArray[np.complex128], ...]:
+        """``A(i w)``, ``B(i w)``, ``A'(i w)``, ``B'(i w)`` (derivatives in ``s``) and the rounding
+        levels of the first two and of the last two (``m = 1``; Van Loan's block exponential)."""
+        from scipy.linalg import expm  # lazily: a slow import
+
+        self._one_actuator("the factors")
+        w = np.asarray(w, dtype=float).reshape(-1)
+        N = self.system.n + 1
+        a = self._c[None] - (1j * w)[:, None, None] * np.diag(self._p[0])[None]
+        big = np.zeros((w.size, 2 * N, 2 * N), dtype=complex)
+        big[:, :N, :N] = a
+        big[:, N:, N:] = a
+        big[:, :N, N:] = -np.diag(self._p[0])
+        e = expm(big) if w.size else big
+        col, dcol = e[:, :N, :N] @ self._w[:, 0], e[:, :N, N:] @ self._w[:, 0]
+        ell_a = np.concatenate([-self.system.r[0], [1.0]])
+        ell_b = np.concatenate([-self.K[0], [0.0]])
+        A, B, dA, dB = col @ ell_a, col @ ell_b, dcol @ ell_a, dcol @ ell_b
+        beta = float(np.linalg.eigvalsh(self._herm)[-1])
+        p = float(np.abs(self._p[0]).max())
+        level = EXPM_ROUNDING * EPS * np.exp(beta) * self._w_norm * (1.0 + self._c_norm + w * p)
+        norms = np.array([np.linalg.norm(ell_a), np.linalg.norm(ell_b)])
+        return A, B, dA, dB, level[None] * norms[:, None], level[None] * norms[:, None] * p
+
+    def crossing_frequencies(self, W: float, *, max_points: int = 2_000_000) -> tuple[float, ...]:
+        """Every ``w`` in ``(0, W]`` with ``|A(i w)| = |B(i w)|``, certified complete (``m = 1``).
+
+        ``h = |A| - |B|`` has ``|h'| <= L = (||l_A|| + ||K||) ||W|| ||P|| e^{beta}`` on the axis
+        (``beta = lambda_max(Herm C)``, Dyson's expansion), and ``g = |A|^2 - |B|^2`` has
+        ``|g''| <= M_2 = 4 (||l_A||^2 + ||K||^2) ||W||^2 ||P||^2 e^{2 beta}``. A segment
+        ``[a, b]`` holds no zero when ``|h(a)| + |h(b)| - err > L (b - a)``; otherwise, when
+        ``|g'(c)| - err' > M_2 (b - a) / 2`` at its centre ``c``, ``g`` is monotone there and
+        has one zero iff the certified end signs differ (located by Brent's method); else
+        the segment is cut in eight, down to ``1e-12 max(1, W)``.
+
+        Raises
+        ------
+        CertificationError
+            A work bound hit, a zero at ``w = 0`` to rounding, or a segment narrowed to
+            rounding without a decision (a double zero: a tangency).
+        """
+        from scipy.optimize import brentq  # lazily: a slow import
+
+        self._one_actuator("the crossing search")
+        W = float(W)
+        max_points = positive_int("max_points", max_points)
+        beta = float(np.linalg.eigvalsh(self._herm)[-1]) + 1e-12 * (1.0 + self._c_norm)
+        p = float(np.abs(self._p[0]).max())
+        na = float(np.hypot(np.linalg.norm(self.system.r, 2), 1.0))
+        nk = float(np.linalg.norm(self.K, 2))
+        lip = (na + nk) * self._w_norm * p * np.exp(beta) * (1.0 + 1e-12)
+        m2 = 4.0 * (na**2 + nk**2) * self._w_norm**2 * p**2 * np.exp(2.0 * beta) * (1.0 + 1e-12)
+        level = EXPM_ROUNDING * EPS * np.exp(beta) * self._w_norm  # rounding of A, B per unit ||l||
+        spent = 0
+
+        def h(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+            nonlocal spent
+            if spent + x.size > max_points:
+                raise CertificationError(
+                    f"crossing search: {x.size} more evaluations of A and B after {spent} exceed max_points="
+                    f"{max_points} (raise max_points)"
+                )
+            spent += x.size
+            A, B = self.factors(1j * x)
+            return np.abs(A) - np.abs(B), level * (na + nk) * (1.0 + self._c_norm + x * p)
+
+        step = 2.0 * np.pi / (GRID_PER_PERIOD * self.max_delay)
+        count = int(np.ceil(W / step)) + 1
+        if count > max_points:
+            raise ParameterError("max_points", f">= {count} (the first grid up to W = {W:.6g})", max_points)
+        x = np.linspace(0.0, W, max(count, 2))
+        hx, ex = h(x)
+        if abs(hx[0]) <= ex[0]:
+            raise CertificationError("crossing search: |A(0)| = |B(0)| to rounding (a root at s = 0 for some delay)")
+        segments = list(zip(x[:-1], x[1:], hx[:-1], hx[1:], ex[:-1], ex[1:]))
+        brackets: list[tuple[float, float]] = []
+        min_width = 1e-12 * max(1.0, W)
+        while segments:
+            open_ = [sg for sg in segments if abs(sg[2]) + abs(sg[3]) - sg[4] - sg[5] <= lip * (sg[1] - sg[0])]
+            if not open_:
+                break
+            c = np.array([0.5 * (sg[0] + sg[1]) for sg in open_])
+            A, B, dA, dB, e, de = self.axis_jet(c)
+            spent += c.size
+            dg = -2.0 * np.imag(np.conj(A) * dA) + 2.0 * np.imag(np.conj(B) * dB)
+            derr = 2.0 * (np.abs(A) * de[0] + np.abs(dA) * e[0] + e[0] * de[0])
+            derr += 2.0 * (np.abs(B) * de[1] + np.abs(dB) * e[1] + e[1] * de[1])
+            cut = []
+            for sg, dgk, derk in zip(open_, dg, derr):
+                a, b, ha, hb, ea, eb = sg
+                sure = abs(ha) > ea and abs(hb) > eb
+                if sure and abs(dgk) - derk > m2 * 0.5 * (b - a):
+                    if np.sign(ha) != np.sign(hb):
+                        brackets.append((a, b))
+                    continue
+                if b - a <= min_width:
+                    raise CertificationError(
+                        f"crossing search: cannot decide |A(i w)| = |B(i w)| on [{a:.17g}, {b:.17g}] (a double zero "
+                        "of |A|^2 - |B|^2 to rounding: a tangency); a slight change of the gain would decide it"
+                    )
+                cut.append(sg)
+            if not cut:
+                break
+            pts = np.concatenate([np.linspace(a, b, 9)[1:-1] for a, b, *_ in cut])
+            hp, ep = h(pts)
+            segments = []
+            for k, (a, b, ha, hb, ea, eb) in enumerate(cut):
+                xs = np.r_[a, pts[7 * k : 7 * k + 7], b]
+                hs = np.r_[ha, hp[7 * k : 7 * k + 7], hb]
+                es = np.r_[ea, ep[7 * k : 7 * k + 7], eb]
+                segments += list(zip(xs[:-1], xs[1:], hs[:-1], hs[1:], es[:-1], es[1:]))
+
+        def h1(v: float) -> float:
+            A, B, *_ = self.axis_jet(np.array([v]))
+            return float(abs(A[0]) - abs(B[0]))
+
+        return tuple(float(brentq(h1, a, b, xtol=1e-14, rtol=4 * EPS)) for a, b in sorted(brackets))
+
+
+def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:
+    """Product over the last axis of ``x`` leaving out the indices ``skip``."""
+    keep = [j for j in range(x.shape[-1]) if j not in skip]
+    return np.prod(x[..., keep], axis=-1)

@@ -1,0 +1,399 @@
+"""Delay margins of ``U(t) = K u(t - delta, 1)`` on ``n + m`` systems, the same delay on every actuator.
+
+One actuator: :func:`nplusm_delay_margin` (certified: proven frequency bound and complete
+crossing search of ``|A(i w)| = |B(i w)|``). Any ``m``: :func:`multi_actuator_delay_margin`
+(certified, in compound form) and :func:`multi_actuator_margin` (with ``omega_max``: a capped
+scan of the pencil ``M_0 v = -z M_1 v``, :func:`pencil_crossings`, which the backstepping
+controller's margin also uses).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import fields_dict
+from ..._validate import positive, positive_int
+from ...errors import CertificationError, ParameterError
+from ...margins.matrix import GaugeRemainder, circle_crossings
+from ...roots import count_roots
+from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
+from .compound import compound_characteristic, compound_loop
+from .system import NPlusMSystem
+
+__all__ = [
+    "NPlusMMargin",
+    "multi_actuator_delay_margin",
+    "multi_actuator_margin",
+    "nplusm_delay_margin",
+    "pencil_crossings",
+]
+
+
+@dataclass(frozen=True)
+class NPlusMMargin:
+    """The smallest loop delay that puts a root of a one-actuator ``n + 1`` loop on the axis.
+
+    Attributes
+    ----------
+    margin : float
+        ``0`` when the principal part with the delay is not strongly stable
+        (``gamma_0 >= 1``: arbitrarily small delays destabilise), ``inf`` when
+        ``|A(i w)| != |B(i w)|`` for every ``w >= 0``, else the smallest
+        ``(arg(-B/A)(i w) mod 2 pi) / w`` over the crossing frequencies.
+    omega : float or None
+        The crossing frequency of ``margin``.
+    crossings : tuple of (float, float)
+        Every crossing frequency ``w > 0`` with its first delay.
+    gamma_0 : float
+        ``sum |R_a U_a Q_a| / |V| + sum |K_a U_a Q_a| / |V|`` of the delayed principal part
+        (exact for one actuator).
+    frequency_bound : float
+        ``W``: proven ``|A(i w)| != |B(i w)|`` for ``w >= W``, and no zero of
+        ``F(.; delta)`` with ``Re s >= 0``, ``|s| >= W``, for any ``delta >= 0``
+        (:meth:`NPlusMCharacteristic.frequency_bound`).
+    certified : bool
+        True: the frequency bound is proven (gauge transformation and Gronwall's lemma,
+        module notes), every crossing on ``[0, W]`` is found by a search with a certified
+        exclusion and monotonicity test, the delay-free loop's unstable roots are counted
+        (:func:`~nrobust.roots.count_roots` on ``[0, W] x [-W, W]``), and ``gamma_0 >= 1``
+        is decided with room above rounding. False for ``gamma_0`` within ``1e-12`` of 1,
+        or when a root of the delay-free loop lies within rounding of the axis.
+    nominal_unstable : int or None
+        Certified number of roots of the delay-free loop in ``Re s >= 0`` (None: not
+        counted, ``gamma_0 >= 1``, or a root within rounding of the axis). When it is not
+        0 the margin is 0: the loop is not stable to begin with.
+    """
+
+    margin: float
+    omega: float | None
+    crossings: tuple[tuple[float, float], ...]
+    gamma_0: float
+    frequency_bound: float
+    certified: bool
+    nominal_unstable: int | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def pencil_crossings(
+    loop_matrices: Callable[[NDArray[np.complex128]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+    omega_max: float,
+    points: int,
+    *,
+    bisections: int,
+    max_points: int | None = None,
+) -> tuple[tuple[float, float], ...]:
+    """Crossings ``(w, delay)`` of the loop ``det(M_0(s) + e^{-delta s} M_1(s))`` on ``(0, omega_max]``, by a scan.
+
+    A root sits at ``s = i w`` iff ``z = e^{-i w delta}`` is an eigenvalue of the pencil
+    ``M_0 v = -z M_1 v`` on the unit circle. The eigenvalues inside the unit disk are
+    counted on ``points`` equally spaced frequencies of ``(0, omega_max]``; each change of
+    the count is bisected ``bisections`` times (every bracket at once), and the eigenvalue
+    closest to the circle at the midpoint gives the delay ``(-arg z mod 2 pi) / w``. Not
+    certified: two eigenvalues crossing in opposite directions between grid points, or a
+    crossing above ``omega_max``, are missed.
+
+    Parameters
+    ----------
+    loop_matrices : callable
+        ``s -> (M_0(s), M_1(s))`` on an array of ``s``, each of shape ``s.shape + (m, m)``.
+    omega_max : float
+        Upper end of the scan (validated by the caller).
+    points : int
+        Grid points (validated by the caller).
+    bisections : int
+        Bisection steps per bracket.
+    max_points : int, optional
+        Work bound on pencil evaluations (``points`` plus ``bisections + 1`` per crossing),
+        checked once the grid is scanned, before bisecting.
+
+    Returns
+    -------
+    tuple of (float, float)
+        ``(w, delay)`` of each change of the count, in increasing ``w``.
+    """
+    from scipy.linalg import eigvals  # lazily: a slow import
+
+    def pencil(w: NDArray[np.float64]) -> NDArray[np.complex128]:
+        m0, m1 = loop_matrices(1j * np.asarray(w, dtype=float))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.array([eigvals(a, -b) for a, b in zip(m0, m1)])
+
+    def inside(w: NDArray[np.float64]) -> NDArray[np.int64]:
+        return np.sum(np.abs(pencil(w)) < 1.0, axis=-1)
+
+    w = np.linspace(omega_max / points, omega_max, points)
+    n_in = inside(w)
+    change = np.flatnonzero(n_in[:-1] != n_in[1:])
+    need = points + (bisections + 1) * change.size
+    if max_points is not None and need > max_points:
+        raise ParameterError("max_points", f">= {need} ({change.size} crossings to bisect)", max_points)
+    if not change.size:
+        return ()
+    lo, hi, n_lo = w[change], w[change + 1], n_in[change]
+    for _ in range(bisections):  # every bracket at once
+        mid = 0.5 * (lo + hi)
+        same = inside(mid) == n_lo
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    wc = 0.5 * (lo + hi)
+    found = []
+    for x, z in zip(wc, pencil(wc)):
+        zc = z[np.argmin(np.abs(np.abs(z) - 1.0))]
+        found.append((float(x), float(np.mod(-np.angle(zc), 2 * np.pi) / x)))
+    return tuple(found)
+
+
+def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
+    """Certified delay margin of ``U(t) = K u(t - delta, 1)`` on a one-actuator ``n + 1`` system.
+
+    ``F(s; delta) = A(s) + B(s) e^{-delta s}`` (module notes): a root reaches ``s = i w``
+    only where ``g(w) = |A(i w)|^2 - |B(i w)|^2`` vanishes, at the delays
+    ``(arg(-B/A) mod 2 pi + 2 pi k) / w``. Beyond the proven frequency bound ``W``
+    (:meth:`NPlusMCharacteristic.frequency_bound`) there is no crossing; on ``[0, W]``
+    the search is complete (:meth:`NPlusMCharacteristic.crossing_frequencies`: Lipschitz
+    exclusion of ``|A| - |B|``, then monotonicity of ``g`` from a bound of ``|g''|``).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+        With ``m = 1``; the loop with ``K`` and no delay should be stable (the margin is
+        then the delay margin: the loop stays stable for every ``delta < margin``).
+    K : array_like, shape (1, n)
+        The gain.
+    max_points : int, optional
+        Work bound on evaluations of ``A`` and ``B`` on the axis, checked before each grid
+        is allocated.
+
+    Returns
+    -------
+    NPlusMMargin
+
+    Raises
+    ------
+    CertificationError
+        The work bound was hit, or ``g`` has a zero of even multiplicity (a tangency) to
+        rounding that the search cannot decide.
+    """
+    F = NPlusMCharacteristic(system, K, 0.0)
+    if system.m != 1:
+        raise ParameterError("system", "one actuator (m = 1): the loop is then A + B e^{-delta s}", system.m)
+    max_points = positive_int("max_points", max_points)
+    gamma = F.gamma_0()
+    if gamma >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, gamma > 1.0 + 1e-12)
+    W = F.frequency_bound()
+    radius = max(W, 1.0)  # the bound holds for every radius >= W
+    count = count_roots(F, (0.0, radius, -radius, radius))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), gamma, W, nominal is not None, nominal)
+    found = []
+    for wc in F.crossing_frequencies(W, max_points=max_points):
+        a, b = F.factors(np.array([1j * wc]))
+        found.append((wc, float(np.mod(np.angle(-b[0] / a[0]), 2 * np.pi) / wc)))
+    certified = gamma < 1.0 - 1e-12
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0)
+
+
+def multi_actuator_margin(
+    system: NPlusMSystem,
+    K: ArrayLike,
+    omega_max: float | None = None,
+    *,
+    points: int = 4000,
+    max_points: int = 1_000_000,
+) -> NPlusMMargin:
+    """Delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m`` actuators.
+
+    Without ``omega_max`` this is :func:`multi_actuator_delay_margin` (certified: a proven
+    frequency bound replaces ``omega_max``). With ``omega_max`` the search below runs on
+    ``(0, omega_max]`` only, as a cap, and the result is never certified.
+
+    ``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` with ``M_0`` the loop matrix of
+    ``K = 0`` and ``M_1 = -E K Phi_u``. A root sits at ``s = i w`` iff
+    ``z = e^{-i w delta}`` is an eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit
+    circle; the delays are ``(-arg z mod 2 pi) / w``. The number of eigenvalues inside the
+    unit disk is tracked on a grid of ``(0, omega_max]``; each change is located by
+    bisection and gives one crossing frequency. Not certified (``certified=False``): two
+    eigenvalues crossing the circle in opposite directions between grid points, or a
+    crossing above ``omega_max``, would be missed; ``gamma_0`` is the certified upper bound
+    of the delayed principal part's spectral radius (as in :func:`multi_actuator_delay_margin`),
+    the margin 0 when a sampled value is at least 1, and ``nominal_unstable`` the certified
+    count of the delay-free loop in ``[0, omega_max] x [-omega_max, omega_max]`` only.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    omega_max : float, optional
+        Upper end ``> 0`` of a capped, uncertified search; None (default) for the certified margin.
+    points : int, optional
+        Grid points (``>= 16``) of the capped search.
+    max_points : int, optional
+        Work bound on pencil evaluations (on evaluations of the compound transition without
+        ``omega_max``), checked before the grid is allocated.
+    """
+    if omega_max is None:
+        return multi_actuator_delay_margin(system, K, max_points=max_points)
+    k = system.gain(K)
+    omega_max = positive("omega_max", omega_max)
+    points = positive_int("points", points, minimum=16)
+    max_points = positive_int("max_points", max_points)
+    if points + 64 * system.m * max(1, points // 8) > max_points:
+        raise ParameterError("max_points", f">= {points + 64 * system.m * max(1, points // 8)}", max_points)
+    lower, gamma, _ = _principal_gamma(system, k)
+    if lower >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
+    count = count_roots(NPlusMCharacteristic(system, k, 0.0), (0.0, omega_max, -omega_max, omega_max))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), gamma, omega_max, False, nominal)
+
+    def loop(s: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        m0 = system.loop_matrix(s)
+        return m0, system.loop_matrix(s, k) - m0
+
+    found = pencil_crossings(loop, omega_max, points, bisections=60)
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, 0)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, 0)
+
+
+def _principal_gamma(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[float, float, float]:
+    """``(lower, upper, |det V|)``: a sampled and a certified bound of ``sup rho(V^{-1} sum_t C_t e^{i theta_t})``
+    over independent phases of the principal terms ``C_t`` (``R_ab`` and ``K_ab`` apart).
+
+    The upper end is the smaller of the Collatz-Wielandt bound of ``rho(sum_t |V^{-1} C_t|)`` (which bounds
+    ``rho`` on the whole polydisc) and, for at most four distinct delays, the certified
+    :meth:`~nrobust.matrix_difference.MatrixDifferenceOperator.gamma_0` bracket.
+    """
+    v_block, point = system.principal_terms(k)
+    v_inv = np.linalg.inv(v_block)
+    mats = [v_inv @ a for _, rq, kq in point for a in (rq, kq) if np.any(a != 0)]
+    if not mats:
+        return 0.0, 0.0, float(abs(np.linalg.det(v_block)))
+    total = np.sum(np.abs(mats), axis=0)
+    vals, vecs = np.linalg.eig(total)
+    x = np.abs(vecs[:, int(np.argmax(np.abs(vals)))]) + 1e-12 * float(np.abs(vecs).max())
+    upper = float(np.max((total @ x) / x)) * (1.0 + 1e-12)
+    rng = np.random.default_rng(0)
+    theta = np.vstack([np.zeros(len(mats)), rng.uniform(0.0, 2 * np.pi, (2047, len(mats)))])
+    lower = float(np.max(np.abs(np.linalg.eigvals(np.einsum("nt,tij->nij", np.exp(1j * theta), np.array(mats))))))
+    try:
+        bracket = system.principal_operator(k, 1e-3 * np.sqrt(2.0)).gamma_0(rtol=1e-6, max_cells=20_000)
+        lower, upper = max(lower, bracket.lower), min(upper, bracket.upper)
+    except (ParameterError, CertificationError):
+        pass  # more than four delays, or a bracket that did not close: the Collatz-Wielandt bound stands
+    return lower, max(upper, lower), float(abs(np.linalg.det(v_block)))
+
+
+def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
+    """Certified delay margin of ``U(t) = K u(t - delta, 1)``, the same delay on all ``m >= 1`` actuators.
+
+    ``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` (``M_0`` the loop matrix of ``K = 0``,
+    ``M_1 = -E K Phi_u``). By Cauchy-Binet, ``f(w, z) = det(M_0(i w) + z M_1(i w)) =
+    sum_d z^d a_d^T exp(D_m(C) - i w P_m) b`` with ``a_d`` the coefficients of the minors of
+    ``[-(R + z K), I]``, ``b`` those of ``[Q; I]`` and ``D_m``, ``P_m >= 0`` the compound
+    generator and rates (:mod:`nrobust.matrix_crossings`). A root reaches ``s = i w`` for some
+    delay iff ``f(w, e^{i phi}) = 0``, at the delays ``((-phi) mod 2 pi + 2 pi k) / w``
+    (an eigenvalue ``e^{-i phi}`` of ``-M_0^{-1} M_1`` on the unit circle).
+
+    1. *Principal part.* ``|F_0(s; z)| = |det V| |det(I - X)| >= |det V| (1 - gamma)^m`` on
+       ``Re s >= 0``, ``|z| <= 1``, with ``gamma`` a certified bound of the spectral radius of
+       ``X = V^{-1} sum (R_ab + z K_ab) e^{-tau_ab s}`` over independent phases (Hale and
+       Verduyn Lunel's ``gamma_0`` of the delayed principal part; the margin is 0 when a
+       sampled ``rho`` is above 1: arbitrarily small delays destabilise).
+    2. *Frequency bound.* ``|F - F_0| <= sum_d ||a_d|| ||b|| r(|s|)`` with ``r`` the
+       :class:`~nrobust.matrix_crossings.GaugeRemainder` of ``(D_m(C), P_m)``: beyond the
+       proven ``W`` where this is below the gap, ``F(s; delta) != 0`` on ``Re s >= 0`` for
+       every ``delta >= 0``, and no eigenvalue of ``-M_0^{-1} M_1`` has modulus 1 on the axis.
+    3. *Nominal stability.* :func:`~nrobust.roots.count_roots` of the delay-free loop on
+       ``[0, W] x [-W, W]``.
+    4. *Crossings.* :func:`~nrobust.matrix_crossings.circle_crossings` on ``[0, W] x [0, 2 pi)``
+       (Lipschitz exclusion, Newton-Kantorovich discs; a tangency raises).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    max_points : int, optional
+        Work bound on evaluations of the compound transition on the axis.
+
+    Returns
+    -------
+    NPlusMMargin
+        ``gamma_0`` is the certified upper bound used in step 1 (exact for ``m = 1``).
+
+    Raises
+    ------
+    CertificationError
+        The bound of step 1 is not below 1 although no sampled ``rho`` exceeds 1, a work bound
+        was hit, or the crossing search met a tangency.
+    """
+    from scipy.linalg import expm  # lazily: a slow import
+
+    k = system.gain(K)
+    max_points = positive_int("max_points", max_points)
+    m = system.m
+    lower, gamma, det_v = _principal_gamma(system, k)
+    if lower >= 1.0 + 1e-12:
+        return NPlusMMargin(0.0, None, (), lower, 0.0, True)
+    if gamma >= 1.0 - 1e-12:
+        raise CertificationError(
+            f"multi-actuator margin: gamma_0 of the delayed principal part in [{lower:.12g}, {gamma:.12g}] is not "
+            "separated from 1 (the certified bound of its spectral radius must be below 1)"
+        )
+    dc, p, a, b = compound_loop(system, k)
+    a_norm = np.linalg.norm(a, axis=1)
+    b_norm = float(np.linalg.norm(b))
+    scale = float(a_norm.sum()) * b_norm
+    level = det_v * (1.0 - gamma) ** m * (1.0 - 1e-9) - 1e-12 * scale
+    W = GaugeRemainder(dc, p).radius(scale, level)
+    radius = max(W, 1.0)
+    count = count_roots(compound_characteristic(system, k, 0.0), (0.0, radius, -radius, radius))
+    nominal = int(count) if count.region[0] >= 0.0 else None
+    if nominal != 0:
+        return NPlusMMargin(0.0, None, (), gamma, W, nominal is not None, nominal)
+    beta = float(np.linalg.eigvalsh(0.5 * (dc + dc.conj().T))[-1]) + 1e-12 * (1.0 + float(np.abs(dc).sum()))
+    pn = float(np.max(p))
+    growth = np.exp(beta) * b_norm * a_norm * (1.0 + 1e-12)
+    bounds = np.array([growth, growth * pn, growth * pn**2])
+    dc_norm = float(np.linalg.norm(dc, 2))
+    pdiag = np.diag(p)
+
+    def coefs(w: NDArray[np.float64]) -> NDArray[np.complex128]:
+        g = expm(dc[None] - 1j * w[:, None, None] * pdiag[None]) @ b
+        return np.asarray(g @ a.T, dtype=complex)
+
+    def jet(w: NDArray[np.float64]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        size = dc.shape[0]
+        big = np.zeros((w.size, 2 * size, 2 * size), dtype=complex)
+        big[:, :size, :size] = big[:, size:, size:] = dc[None] - 1j * w[:, None, None] * pdiag[None]
+        big[:, :size, size:] = -1j * pdiag  # exp([[A, A'], [0, A]]) = [[G, G'], [0, G]] (Van Loan), ' = d/dw
+        e = expm(big)
+        return e[:, :size, :size] @ b @ a.T, e[:, :size, size:] @ b @ a.T
+
+    def rounding(w: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(
+            EXPM_ROUNDING * EPS * np.exp(beta) * b_norm * float(a_norm.max()) * (1.0 + dc_norm + w * pn), dtype=float
+        )
+
+    step = 2.0 * np.pi / (GRID_PER_PERIOD * NPlusMCharacteristic(system, k).max_delay)
+    zeros = circle_crossings(coefs, jet, W, bounds, rounding, step=step, max_points=max_points)
+    found = tuple((w, float(np.mod(-phi, 2 * np.pi) / w)) for w, phi in zeros)
+    certified = gamma < 1.0 - 1e-12
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0)
+    best = min(found, key=lambda c: c[1])
+    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0)

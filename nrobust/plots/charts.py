@@ -1,0 +1,240 @@
+"""Charts of the parameter studies: the stability chart, the trade-off, the chart of a sweep."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..errors import ParameterError
+from ._base import NrobustPlot, get_axes
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from ..sweeps.result import SweepResult
+
+__all__ = ["stability_chart_plot", "sweep_chart", "tradeoff_plot"]
+
+
+def stability_chart_plot(
+    chart: Any,
+    ax: Axes | None = None,
+    k_bound: float | None = None,
+    rouche: tuple[ArrayLike, ArrayLike] | None = None,
+) -> NrobustPlot:
+    """Stability chart in ``(K, delta)``: the grid, the exact boundary, the paper's bound.
+
+    Parameters
+    ----------
+    chart : StabilityChart
+        From :func:`nrobust.hyperbolic.studies.stability_chart` (``quantity="count"``).
+    ax : matplotlib Axes, optional
+    k_bound : float, optional
+        The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (54)
+        (``classify(system).k_bound``), drawn as two vertical lines.
+    rouche : (Ks, delta_0) pair, optional
+        The guaranteed delays ``delta_0(K)`` of Theorem 4's proof
+        (:func:`nrobust.hyperbolic.studies.tradeoff` gives them as ``rouche_bounds``).
+        ``delta_0`` depends on ``K`` through ``|K|`` only (``epsilon_0 = 1 - |q rho| - |K q|``),
+        so a curve given for ``K >= 0`` only is drawn for ``-K`` too.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["stable"]`` (grid points with no unstable zero), ``lines["unstable"]``,
+        ``lines["margin"]`` (the exact boundary ``delta*(K)``), ``lines["crossings"]`` (every
+        crossing delay up to ``max(deltas)``), ``lines["paper_bound"]``, ``lines["rouche"]``.
+    """
+    if getattr(chart, "quantity", None) != "count":
+        raise ParameterError("chart", 'a StabilityChart with quantity "count"', chart)
+    ax = get_axes(ax)
+    Ks, deltas, values = chart.Ks, chart.deltas, chart.values
+    KK, DD = np.meshgrid(Ks, deltas, indexing="ij")
+    stable = values == 0
+    lines: dict[str, list[Any]] = {}
+    lines["stable"] = ax.plot(KK[stable], DD[stable], "s", color="tab:green", ms=3, alpha=0.6, label="stable")
+    lines["unstable"] = ax.plot(KK[~stable], DD[~stable], "s", color="tab:red", ms=3, alpha=0.35, label="unstable")
+    top = float(deltas.max())
+    shown = np.where(np.isfinite(chart.margins), np.minimum(chart.margins, top), top)
+    lines["margin"] = ax.plot(Ks, shown, "-", color="k", lw=1.5, label="delay margin delta*(K)")
+    kc, dc = [], []
+    for K, rows in zip(Ks, chart.boundaries):
+        rows = np.asarray(rows).reshape(-1, 3)
+        kc += [K] * rows.shape[0]
+        dc += list(rows[:, 0])
+    lines["crossings"] = ax.plot(kc, dc, ".", color="0.3", ms=3, label="crossing delays") if kc else []
+    lines["paper_bound"] = []
+    if k_bound is not None:
+        kb = float(k_bound)
+        for k, x in enumerate((-kb, kb)):
+            lines["paper_bound"].append(
+                ax.axvline(
+                    x, color="C0", ls="--", lw=1.0, label="|K| = (1 - |rho q|)/|q|, eq. (54)" if k == 0 else None
+                )
+            )
+    lines["rouche"] = []
+    if rouche is not None:
+        rk, rd = (np.asarray(v, dtype=float).ravel() for v in rouche)
+        if rk.shape != rd.shape:
+            raise ParameterError("rouche", "a pair (Ks, delta_0) of equal lengths", rouche)
+        if rk.size and np.all(rk >= 0.0):  # delta_0 depends on |K| only: mirror the curve to K < 0
+            keep = rk > 0.0
+            rk, rd = np.concatenate([-rk[keep][::-1], rk]), np.concatenate([rd[keep][::-1], rd])
+        order = np.argsort(rk, kind="stable")
+        lines["rouche"] = ax.plot(
+            rk[order], np.minimum(rd[order], top), "-.", color="C1", label="Rouche delta_0(K), Theorem 4"
+        )
+    ax.set_xlabel("K")
+    ax.set_ylabel("delta")
+    ax.set_ylim(0.0, top * 1.02)
+    ax.set_title("Stability chart of U_BS2(K)", fontsize="small")
+    ax.legend(fontsize="x-small", loc="upper right")
+    return NrobustPlot(lines, ax, ax.figure)
+
+
+def tradeoff_plot(tradeoff: Any, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
+    """Decay rate against delay margin as the gain ``K`` varies (the paper's trade-off).
+
+    Parameters
+    ----------
+    tradeoff : Tradeoff
+        From :func:`nrobust.hyperbolic.studies.tradeoff`.
+    ax : matplotlib Axes, optional
+    annotate : bool
+        Write ``K`` next to the points.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["curve"]`` with x = delay margins (finite ones) and y = decay rates.
+    """
+    ax = get_axes(ax)
+    Ks = np.asarray(tradeoff.Ks, dtype=float)
+    m = np.asarray(tradeoff.margins, dtype=float)
+    r = np.asarray(tradeoff.decay_rates, dtype=float)
+    ok = np.isfinite(m) & np.isfinite(r)
+    lines: dict[str, list[Any]] = {}
+    lines["curve"] = ax.plot(m[ok], r[ok], "o-", color="C0", ms=4, label="U_BS2(K)")
+    if annotate:
+        for K, x, y in zip(Ks[ok], m[ok], r[ok]):
+            ax.annotate(f"{K:.3g}", (x, y), textcoords="offset points", xytext=(3, 3), fontsize=6)
+    ax.set_xlabel("delay margin delta*")
+    ax.set_ylabel("decay rate (- spectral abscissa)")
+    ax.set_title("Decay rate against delay margin", fontsize="small")
+    hidden = int(np.sum(~ok))
+    if hidden:
+        ax.text(0.02, 0.02, f"{hidden} gain(s) with infinite margin not shown", transform=ax.transAxes, fontsize=7)
+    return NrobustPlot(lines, ax, ax.figure)
+
+
+def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, str], sampling: bool) -> Figure:
+    """The chart of a sweep: a curve for one swept name, a map for two, histograms for samples.
+
+    Parameters
+    ----------
+    result : SweepResult
+        The table.
+    swept : sequence of str
+        The names varied by the sweep.
+    plot : mapping
+        Optional ``x`` (a swept parameter) and ``y`` (a numeric result column).
+    sampling : bool
+        True for a Monte Carlo study: histograms of the result columns.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        A figure on an Agg canvas (no display needed).
+    """
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    table = result.table()
+    numeric = [c for c in result.result_columns if table.dtype[c].kind == "f"]
+    y = plot.get("y", numeric[0] if numeric else None)
+    if y is not None and y not in numeric:
+        raise ParameterError("plot.y", f"a numeric result column: one of {numeric}", y)
+    varying = [k for k in swept if len({repr(p.get(k)) for p in result.points}) > 1]
+    x = plot.get("x", varying[0] if varying else (swept[0] if swept else None))
+    if x is not None and x not in result.parameter_columns:
+        raise ParameterError("plot.x", f"a swept parameter: one of {list(result.parameter_columns)}", x)
+
+    ok = table["status"] == "ok"
+    title = f"{result.n_ok} ok, {result.n_failed} failed"
+    if sampling and y is not None:
+        shown = [y, *[c for c in numeric if c != y]][:3]
+        fig = Figure(figsize=(4.0 * len(shown), 3.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        for i, col in enumerate(shown):
+            ax = fig.add_subplot(1, len(shown), i + 1)
+            vals = table[col][ok]
+            finite = vals[np.isfinite(vals)]
+            n_inf = int(np.sum(np.isposinf(vals)))
+            if finite.size:
+                ax.hist(finite, bins=max(5, min(50, 2 * int(np.sqrt(finite.size)))), color="C0")
+            else:
+                ax.text(0.5, 0.5, f"no finite {col}", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xlabel(col)
+            ax.set_ylabel("samples")
+            ax.set_title(f"{n_inf} infinite" if n_inf else "", fontsize="small")
+        fig.suptitle(title, fontsize="medium")
+        return fig
+    fig = Figure(figsize=(6.4, 4.4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    if y is None:
+        ax.text(0.5, 0.5, "no numeric result", ha="center", va="center", transform=ax.transAxes)
+    elif x is not None and table.dtype[x].kind in "fiu" and len(varying) == 2 and table.dtype[varying[1]].kind in "fiu":
+        x2 = varying[1] if x == varying[0] else varying[0]
+        xs, ys = np.unique(table[x]), np.unique(table[x2])
+        grid_vals = np.full((ys.size, xs.size), np.nan)
+        for row in table[ok]:
+            grid_vals[np.searchsorted(ys, row[x2]), np.searchsorted(xs, row[x])] = row[y]
+        finite = grid_vals[np.isfinite(grid_vals)]
+        top = finite.max() if finite.size else 1.0
+        cmap = matplotlib.colormaps["viridis"].with_extremes(over="gold", bad="lightgray")
+        capped = np.where(np.isposinf(grid_vals), top + 1.0, grid_vals)
+        mesh = ax.pcolormesh(
+            xs,
+            ys,
+            np.ma.masked_invalid(capped),
+            shading="nearest",
+            cmap=cmap,
+            vmin=finite.min() if finite.size else 0.0,
+            vmax=top,
+        )
+        fig.colorbar(mesh, ax=ax, label=y, extend="max" if np.isposinf(grid_vals).any() else "neither")
+        ax.set_xlabel(x)
+        ax.set_ylabel(x2)
+        title += " (gold: inf, gray: failed)"
+    elif x is not None and table.dtype[x].kind in "fiu":
+        xv, yv = table[x][ok].astype(float), table[y][ok]
+        fin = np.isfinite(yv)
+        # every point in x order, NaN where the value is infinite or failed: the line has a gap
+        # there instead of joining the finite points on either side
+        x_all = table[x].astype(float)
+        y_all = np.where(ok & np.isfinite(table[y]), table[y], np.nan)
+        order = np.argsort(x_all, kind="stable")
+        ax.plot(x_all[order], y_all[order], "o-", ms=3, label=y)
+        edge = ax.get_xaxis_transform()  # x in data, y in axes units: markers on the frame
+        if (~fin).any():
+            ax.plot(xv[~fin], np.full((~fin).sum(), 0.97), "^", color="C1", transform=edge, label=f"{y} = inf")
+        if (~ok).any():
+            ax.plot(
+                table[x][~ok].astype(float), np.full((~ok).sum(), 0.03), "x", color="C3", transform=edge, label="failed"
+            )
+        ax.set_xlabel(x)
+        ax.set_ylabel(y)
+        ax.legend(loc="best", fontsize="small")
+    else:
+        yv = table[y]
+        ax.plot(np.arange(len(yv))[ok], yv[ok], "o", ms=3)
+        ax.set_xlabel("point index")
+        ax.set_ylabel(y)
+    ax.set_title(title, fontsize="medium")
+    return fig

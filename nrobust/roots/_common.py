@@ -1,0 +1,67 @@
+"""What the counting engine, the root finder and the spectral abscissa share: the rounding
+model of a sample of ``F``, the work budget and the checks of the arguments ``F`` and ``rigorous``."""
+
+from __future__ import annotations
+
+from typing import Any, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..balls import require_flint
+from ..errors import CertificationError, ParameterError
+from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
+from ..quasipoly import QuasiPolynomial
+
+__all__ = ["EPS", "ROUNDING", "Budget", "check_function", "check_rigorous", "magnitude"]
+
+EPS = float(np.finfo(float).eps)
+# Rounding allowance on |F| at a sample, relative to the sum of the moduli of its terms.
+ROUNDING = 64 * EPS
+
+
+class Budget:
+    """Counts evaluations of ``F`` (and of its derivative bound) against a maximum."""
+
+    def __init__(self, max_evals: int) -> None:
+        self.max_evals = max_evals
+        self.used = 0
+
+    def spend(self, n: int, what: str) -> None:
+        self.used += int(n)
+        if self.used > self.max_evals:
+            raise CertificationError(
+                f"work bound max_evals={self.max_evals} exhausted while {what}; raise max_evals or use a smaller region"
+            )
+
+
+def magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """The scale of the rounding error of ``F(s)`` (:meth:`QuasiPolynomial.magnitude`: the sum
+    of the moduli of the monomials; for a matrix, :meth:`~nrobust.qpmatrix.QuasiPolynomialMatrix.magnitude`)."""
+    return F.magnitude(s)
+
+
+def check_rigorous(F: Any, rigorous: Any) -> bool:
+    """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` a
+    QuasiPolynomial or a QuasiPolynomialMatrix (the types :func:`nrobust.balls.ball_function` encloses)."""
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if rigorous:
+        require_flint()
+        if not isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix):
+            raise ParameterError(
+                "F", "a QuasiPolynomial or QuasiPolynomialMatrix for rigorous=True (ball evaluation)", type(F).__name__
+            )
+    return bool(rigorous)
+
+
+def check_function(F: Any) -> QuasiPolynomial:
+    """``F`` itself; a QuasiPolynomialMatrix (or another CharacteristicFunction) is used
+    through the members of the protocol only, which the counting engine restricts itself to."""
+    if isinstance(F, QuasiPolynomial):
+        if not F.point_terms and not F.distributed:
+            raise ParameterError("F", "not identically zero (every point would be a root)", F)
+        return F
+    if not isinstance(F, CharacteristicFunction):
+        raise ParameterError("F", "a QuasiPolynomial or QuasiPolynomialMatrix", type(F).__name__)
+    return cast(QuasiPolynomial, F)
