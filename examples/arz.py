@@ -54,7 +54,7 @@ from nrobust.hyperbolic.loops.controllers import (
     characteristic,
 )
 from nrobust.hyperbolic.plants.frontends import arz
-from nrobust.hyperbolic.simulate.normal_form import simulate
+from nrobust.hyperbolic.simulate import simulate
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("example_output")
 out.mkdir(parents=True, exist_ok=True)

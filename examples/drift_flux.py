@@ -53,7 +53,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from nrobust.hyperbolic.nplusm.system import NPlusMSystem, cancellation_study, nplusm_delay_margin, simulate_nplusm
+from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin
+from nrobust.hyperbolic.simulate import simulate_nplusm
 
 SYSTEM = NPlusMSystem(
     lam=[1.0, 0.5],

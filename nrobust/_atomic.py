@@ -1,7 +1,7 @@
 """One file written atomically: a temporary file beside it, then ``os.replace``.
 
 Used by every writer of nrobust (sweep tables and journals, manifests); the set of a
-run's files is the job of :mod:`nrobust.outputs`.
+run's files is the job of :mod:`nrobust.reports.outputs`.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ One place knows how a file names a plant or a controller (:data:`SYSTEM_TYPES`,
 ``tomli`` before) and turns a coupling table ``{x = [...], values = [...]}`` into a
 profile (:class:`PiecewiseLinear`). ``nrobust analyze`` reads SYSTEM.toml with
 :func:`load_system_file`; ``nrobust sweep`` reads SWEEP.toml with
-:mod:`nrobust.sweepfile`. Schemas: ``docs/getting_started.md`` and ``docs/sweeps.md``.
+:mod:`nrobust.sweeps.sweepfile`. Schemas: ``docs/getting_started.md`` and ``docs/sweeps.md``.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def _plant_of(build: Callable[..., Any], name: str) -> Callable[..., GeneralHype
 
 #: The plants a file can name in ``[system] type = ...``: the paper's plants, the general
 #: plant and the physical front ends. The readers pass a general plant and its controller
-#: through :func:`~nrobust.hyperbolic.controllers.normalize` (the normal form, and the
+#: through :func:`~nrobust.hyperbolic.loops.controllers.normalize` (the normal form, and the
 #: gains of a ``StateFeedback`` mapped from the physical coordinates).
 SYSTEM_TYPES: dict[str, Callable[..., Hyperbolic2x2 | GeneralHyperbolic2x2]] = {
     "Hyperbolic2x2": Hyperbolic2x2,

@@ -66,6 +66,6 @@ class SweepError(NrobustError, RuntimeError):
 class SpuriousPoleWarning(UserWarning):
     """A rational model had poles in ``Re s > 0`` that the modelled function does not have.
 
-    Issued by :func:`nrobust.transfer.pade_approximation` when it replaces such poles (the
+    Issued by :func:`nrobust.lti.transfer.pade_approximation` when it replaces such poles (the
     message names them); filter it with ``warnings.simplefilter("ignore", SpuriousPoleWarning)``.
     """

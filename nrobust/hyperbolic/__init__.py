@@ -1,20 +1,16 @@
-"""The paper's plants on top of the core: boundary-controlled 2x2 hyperbolic systems.
+"""The PDE layer: boundary-controlled hyperbolic systems on top of the core.
 
-``system``: the plants :class:`Hyperbolic2x2` and :class:`TransportSystem`;
-``kernels``: the backstepping kernels ``K`` and inverse kernels ``L``;
-``laplace``: the kernel-free boundary function of the Laplace-transformed plant;
-``delay_form``: the neutral distributed-delay equation (39) and its
-characteristic quasi-polynomial; ``controllers``: the paper's control laws and the loop
-factors ``F = A + B e^{-delta s}``; ``loops``: open- and closed-loop transfer functions;
-``nplusm_kernels``: the backstepping kernels and full-state controller of ``n + m``
-systems (Hu et al. 2016); ``general``: general plants (varying speeds, diagonal terms, any length) and their normal
-form; ``feedback``: any linear boundary state feedback by kernels and by the Laplace route;
-``frontends``: open channels (Saint-Venant), ARZ traffic and characteristic forms;
-``varying``: the delay form of a general plant with any speeds; ``varying_kernels``: its
-backstepping kernels and U_BS with varying speeds; ``simulate_general``: the
-general plant simulated along its characteristics;
-``robustness``: the Rouché delay bound; ``studies``: delay margins of a plant with a
-controller and the gain studies; ``simulate``: the PDE itself with a delayed control.
+``plants/``: the paper's 2x2 plant (:class:`Hyperbolic2x2`, :class:`TransportSystem`), general
+2x2 plants (varying speeds, diagonal terms, any length) and their normal form, physical
+front ends (Saint-Venant, ARZ traffic, characteristic forms) and the state feedback a
+controller applies (:class:`FeedbackLaw`); ``kernels/``: the backstepping kernels ``K`` and
+inverse kernels ``L`` (constant and varying speeds); ``loops/``: from a plant and a
+controller to the loop ``F = A + B e^{-delta s}`` (the controllers, any state feedback, the
+delay form of eq. (39), the kernel-free Laplace route, the transfer functions);
+``analyses/``: delay margins of a plant with a controller, admissible gains, charts,
+trade-offs and the Rouché bound; ``nplusm/``: ``n + m`` systems (Hu et al. 2016);
+``simulate/``: the PDE itself with a delayed boundary control, one :func:`simulate` over a
+registry of schemes.
 """
 
 from .kernels.constant import Kernels, solve_kernels

@@ -9,7 +9,7 @@ verification is an independent check by the argument principle, and a count that
 crossings would make negative is reported as an error, never returned. The loops of the
 paper's plants (:func:`nrobust.hyperbolic.loop_factors`: for ``U_BS2(K)``,
 eq. (60), ``A = 1 - Phi`` and ``B = K q e^{-tau s} - I_N``) are studied
-with :mod:`nrobust.hyperbolic.studies`.
+with :mod:`nrobust.hyperbolic.analyses`.
 
 Tangencies: a tangency at ``(w, delta_c)`` (a double zero in ``w`` of
 ``|A(i w)|^2 - |B(i w)|^2``) puts a root on the axis at ``delta_c`` that returns to the
@@ -97,7 +97,7 @@ class DelayMargin:
     rigorous : bool
         True when the margin is proven in ball arithmetic (``delay_margin(..., rigorous=True)``):
         the nominal count by :func:`nrobust.count_roots` with ``rigorous=True``, the crossing
-        set by :func:`nrobust.proven_crossings.proven_crossings` and ``delta*`` enclosed in
+        set by :func:`nrobust.margins.proven.proven_crossings` and ``delta*`` enclosed in
         ``margin_ball``; a theorem about ``A`` and ``B`` as represented.
     margin_ball : (float, float) or None
         With ``rigorous``: ``(lo, hi)`` with ``lo <= delta* <= hi`` proven (``margin`` lies
@@ -515,7 +515,7 @@ def delay_margin(
     rigorous : bool, optional
         Prove the margin in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
         the frequency bound, every zero of ``|A(i w)|^2 - |B(i w)|^2`` with the direction of its
-        crossing and its first delay (:func:`nrobust.proven_crossings.proven_crossings`),
+        crossing and its first delay (:func:`nrobust.margins.proven.proven_crossings`),
         and the nominal count (:func:`nrobust.count_roots` with ``rigorous=True``); the
         result has ``rigorous=True`` and ``margin_ball = (lo, hi)`` enclosing ``delta*``.
         What cannot be proven raises :class:`CertificationError` (e.g. a tangency to

@@ -31,14 +31,14 @@ def stability_chart_plot(
     Parameters
     ----------
     chart : StabilityChart
-        From :func:`nrobust.hyperbolic.studies.stability_chart` (``quantity="count"``).
+        From :func:`nrobust.hyperbolic.analyses.stability_chart` (``quantity="count"``).
     ax : matplotlib Axes, optional
     k_bound : float, optional
         The sufficient bound ``|K| < (1 - |rho q|)/|q|`` of eq. (54)
         (``classify(system).k_bound``), drawn as two vertical lines.
     rouche : (Ks, delta_0) pair, optional
         The guaranteed delays ``delta_0(K)`` of Theorem 4's proof
-        (:func:`nrobust.hyperbolic.studies.tradeoff` gives them as ``rouche_bounds``).
+        (:func:`nrobust.hyperbolic.analyses.tradeoff` gives them as ``rouche_bounds``).
         ``delta_0`` depends on ``K`` through ``|K|`` only (``epsilon_0 = 1 - |q rho| - |K q|``),
         so a curve given for ``K >= 0`` only is drawn for ``-K`` too.
 
@@ -102,7 +102,7 @@ def tradeoff_plot(tradeoff: Any, ax: Axes | None = None, annotate: bool = True) 
     Parameters
     ----------
     tradeoff : Tradeoff
-        From :func:`nrobust.hyperbolic.studies.tradeoff`.
+        From :func:`nrobust.hyperbolic.analyses.tradeoff`.
     ax : matplotlib Axes, optional
     annotate : bool
         Write ``K`` next to the points.

@@ -31,8 +31,8 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
 
     The input file is validated and ``out_dir`` checked (created, writable) before any
     computation; the report's files are written as one set with ``manifest.json``
-    (:class:`~nrobust.outputs.RunOutputs`): a failed or interrupted run leaves ``out_dir``
-    as it was. Returns the :class:`~nrobust.report.ReportFiles` and the certificate's verdict. A progress
+    (:class:`~nrobust.reports.outputs.RunOutputs`): a failed or interrupted run leaves ``out_dir``
+    as it was. Returns the :class:`~nrobust.reports.report.ReportFiles` and the certificate's verdict. A progress
     bar is drawn on stderr when ``progress`` is True, or for None when stderr is a terminal
     or Jupyter.
     """

@@ -179,10 +179,9 @@ class ModelError:
 
 
 def _model_error(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int
 ) -> ModelError:
-    """The delay margin on the default kernel grid and on one half as fine (floating point)."""
-    grid = DEFAULT_KERNEL_GRID
+    """The delay margin on the kernel grid and on one half as fine (floating point)."""
     coarse = (grid - 1) // 2 + 1
     if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
         steps = DEFAULT_CHARACTERISTIC_GRID
@@ -220,7 +219,7 @@ def _model_error(
     return ModelError(grid, coarse, float(margin.margin), float(other), float(diff), statement)
 
 
-def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller) -> str:
+def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, grid: int) -> str:
     """How ``N~`` (and a state feedback's kernel) is represented in the certified ``F``, per kind of plant."""
     if isinstance(system, GeneralHyperbolic2x2):  # normalize() leaves only a varying lam/mu general
         steps = DEFAULT_CHARACTERISTIC_GRID
@@ -231,13 +230,12 @@ def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Co
         gains = (getattr(controller, "g_u", 0.0), getattr(controller, "g_v", 0.0))
         if isinstance(controller, StateFeedback) and any(callable(g) or g != 0.0 for g in gains):
             text += (
-                f", and the feedback's kernel M the cubic spline of the kernels with varying speeds on "
-                f"{DEFAULT_KERNEL_GRID} points"
+                f", and the feedback's kernel M the cubic spline of the kernels with varying speeds on {grid} points"
             )
         return text
     if getattr(system, "uncoupled", False):
         return "N~ = 0 exactly (uncoupled plant: no kernel)"
-    return f"N~ the cubic spline of the kernels on the kernel grid ({DEFAULT_KERNEL_GRID} points)"
+    return f"N~ the cubic spline of the kernels on the kernel grid ({grid} points)"
 
 
 def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float, float, float, float], int] | None:
@@ -427,9 +425,9 @@ class Certificate:
         :func:`nrobust.margins.delay_margin` with the crossing frequency and the stability
         intervals up to ``delta_max``.
     rouche : RoucheDelayBound or None
-        :func:`nrobust.hyperbolic.robustness.rouche_delay_bound` (U_BS and U_BS2 only).
+        :func:`nrobust.hyperbolic.analyses.rouche.rouche_delay_bound` (U_BS and U_BS2 only).
     k_region : object or None
-        :func:`nrobust.hyperbolic.studies.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
+        :func:`nrobust.hyperbolic.analyses.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
         delay in ``[0, delta_max]`` stable, each end solved from its own equations and verified
         (``KRegion.ends`` gives its kind: crossing, pair birth, nominal, strong-stability limit).
     region : tuple of float
@@ -448,6 +446,8 @@ class Certificate:
         With ``rigorous``: the floating-point evidence on the distance of ``N~`` to the kernel.
     unproven : tuple of str
         With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
+    kernel_grid : int
+        Points per direction of the kernel grid every loop of the certificate was built on.
     """
 
     system: Hyperbolic2x2 | GeneralHyperbolic2x2
@@ -469,6 +469,7 @@ class Certificate:
     claims: tuple[Claim, ...] = ()
     model_error: ModelError | None = None
     unproven: tuple[str, ...] = ()
+    kernel_grid: int = DEFAULT_KERNEL_GRID
 
     @property
     def scope(self) -> str:
@@ -480,7 +481,7 @@ class Certificate:
             )
         return (
             "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
-            + _representation(self.system, self.controller)
+            + _representation(self.system, self.controller, self.kernel_grid)
             + "; they are proven in ball arithmetic (python-flint). The distance of N~ to the exact one (the model "
             "error) is not part of the proofs: "
             + (self.model_error.statement if self.model_error is not None else "not estimated")
@@ -570,7 +571,7 @@ def certify(
     system : Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2
         The plant, eqs. (18)-(20); a general plant through its normal form, or, with a
         varying ``lam/mu``, as it is (every analysis by its characteristic route,
-        :func:`~nrobust.hyperbolic.varying.varying_delay_form`).
+        :func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`).
     controller : OpenLoop, FiniteTimeController, ReflectionController or FilteredController
         The control law (U_BS eq. (47), U_BS2(K) eq. (53), ...).
     delta_max : float
@@ -580,8 +581,8 @@ def certify(
         ``(-3, 1, -40, 40) / tau``: about 13 periods ``2 pi / tau`` of the root chains.
     k_region : bool
         For ``ReflectionController``, also compute the admissible gains on
-        ``[0, delta_max]`` (:func:`nrobust.hyperbolic.studies.k_region`).
-    n_gains : int, default :data:`~nrobust.hyperbolic.studies.DEFAULT_N_GAINS`
+        ``[0, delta_max]`` (:func:`nrobust.hyperbolic.analyses.k_region`).
+    n_gains : int, default :data:`~nrobust.hyperbolic.analyses.DEFAULT_N_GAINS`
         Number of gains, evenly spread in ``|K| < (1 - |rho q|)/|q|``, at which that
         computation also reports (and cross-checks) delay margins (formerly ``k_grid``, a
         deprecated alias). The interval ends do not depend on it: each is solved from the
@@ -676,8 +677,9 @@ def certify(
             delta_max,
             _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
         ),
-        model_error=_model_error(system, controller, margin) if rigorous else None,
+        model_error=_model_error(system, controller, margin, kernel_grid) if rigorous else None,
         unproven=tuple(unproven),
+        kernel_grid=kernel_grid,
     )
 
 

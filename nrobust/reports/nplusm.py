@@ -5,7 +5,7 @@ cancellations of the top reflection (``[controller] type = "Cancellation"``); ea
 analysed by :func:`~nrobust.hyperbolic.nplusm.cancellation_study` (exact ``gamma_0`` of the
 delayed principal part, certified abscissa of the delay-free loop, delay margin) and the
 table is written as ``report.md``, ``report.html`` and ``report.json`` in one committed set
-(:class:`~nrobust.outputs.RunOutputs`).
+(:class:`~nrobust.reports.outputs.RunOutputs`).
 """
 
 from __future__ import annotations

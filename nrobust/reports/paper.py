@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._json import json_float, json_safe
-from .._validate import positive_int, renamed_keywords
+from .._validate import renamed_keywords
 from ..errors import ParameterError
 from ..hyperbolic.analyses import stability_chart, tradeoff
 from ..hyperbolic.kernels.constant import solve_kernels
@@ -124,7 +124,7 @@ def run_paper(
     out_dir : path-like
         Output directory, checked (created, writable) before anything is computed; the
         report, its figures and ``summary.json`` are written there as one set with
-        ``manifest.json`` (:class:`~nrobust.outputs.RunOutputs`), so a failed or
+        ``manifest.json`` (:class:`~nrobust.reports.outputs.RunOutputs`), so a failed or
         interrupted run leaves it as it was.
     progress : bool, optional
         Show a progress bar on stderr; by default only when stderr is a terminal or Jupyter.
@@ -336,7 +336,7 @@ def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: i
     if runs is None:
         system = Hyperbolic2x2(**PAPER_SYSTEM)
         # the kernels simulate() would solve for each run (its default grid), solved once
-        kernels = solve_kernels(system, min(positive_int("cells", cells), DEFAULT_CELLS) + 1)
+        kernels = solve_kernels(system)
         runs = [
             simulate(system, controller, d, PAPER_T_END, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas
         ]

@@ -1,6 +1,6 @@
 """Reports: certificates written as Markdown, self-contained HTML and JSON.
 
-:func:`write_report` turns one or several :class:`~nrobust.certificate.Certificate` into
+:func:`write_report` turns one or several :class:`~nrobust.reports.certificate.Certificate` into
 
 * ``report.md`` with the figures as PNG files next to it (``figures/``),
 * ``report.html``, a single file with the same content and the figures embedded as
@@ -289,7 +289,7 @@ def _box_text(box: Any) -> str:
 
 
 def _end_text(end: Any) -> str:
-    """What closes an interval at a :class:`~nrobust.hyperbolic.studies.GainEnd`, in words."""
+    """What closes an interval at a :class:`~nrobust.hyperbolic.analyses.GainEnd`, in words."""
     if end.kind == "crossing":
         return f"crossing (a root at i {_fmt(end.omega, 8)} for delta = delta_max)"
     if end.kind == "pair_birth":
@@ -302,7 +302,7 @@ def _end_text(end: Any) -> str:
 
 
 def _k_region_text(kreg: Any) -> str:
-    """The admissible intervals of a :class:`~nrobust.hyperbolic.studies.KRegion`, the kind of each end
+    """The admissible intervals of a :class:`~nrobust.hyperbolic.analyses.KRegion`, the kind of each end
     and their accuracy."""
     if not kreg.intervals:
         return "none"

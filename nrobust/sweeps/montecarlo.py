@@ -1,7 +1,7 @@
 """Monte Carlo robustness studies: the delay margin and decay rate under uncertain plants.
 
 :func:`robustness` draws plants from a user function, analyses each closed loop (by
-default :func:`nrobust.hyperbolic.studies.margin_and_decay`) on the executors of
+default :func:`nrobust.hyperbolic.analyses.margin_and_decay`) on the executors of
 :mod:`nrobust.sweeps.executors` and summarises the outcomes by quantiles. See ``docs/sweeps.md``.
 """
 

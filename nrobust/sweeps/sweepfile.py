@@ -5,7 +5,7 @@ and the output directory, builds the systems and controllers of :mod:`nrobust.co
 runs the named analyses on the executors of :mod:`nrobust.sweeps.executors` with a result journal
 in the output directory (so an interrupted sweep resumes), and writes the table (CSV,
 JSON), its chart (:func:`nrobust.plots.sweep_chart`) and the manifest of
-:mod:`nrobust.outputs`.
+:mod:`nrobust.reports.outputs`.
 """
 
 from __future__ import annotations

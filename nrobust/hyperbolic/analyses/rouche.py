@@ -56,7 +56,7 @@ def rouche_delay_bound(
         whenever ``epsilon_0 > 0``). A general plant is taken through its normal form; with a
         varying ``lam/mu`` only U_BS applies (U_BS2(K) needs the normal form), with
         ``epsilon_0 = 1 - 2 |rho_q|`` and ``N~`` of the characteristic route
-        (:func:`~nrobust.hyperbolic.varying.varying_delay_form`, the same ``N~`` as its loop
+        (:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`, the same ``N~`` as its loop
         factors; ``kernel_grid`` is not used): its U_BS loop
         ``1 - rho_q e^{-tau s} + rho_q e^{-(tau + delta) s} + I(s, delta)`` has the form above.
     controller : ReflectionController or FiniteTimeController
