@@ -59,11 +59,22 @@ MOVED_NAMES: dict[str, dict[str, str]] = {
 
 
 class MovedModule(types.ModuleType):
-    """An old module path: every attribute is looked up in the new homes."""
+    """An old module path: every attribute is looked up in the new homes.
 
-    def __init__(self, name: str, homes: Sequence[str]) -> None:
+    Importing ``a.b`` binds the module to the attribute ``b`` of ``a``. Where ``a.b`` was also
+    a function of ``a`` (``nrobust.sweep``, ``nrobust.hyperbolic.delay_form``), the alias is
+    callable as that function, so the import of the old path does not break a call of it.
+    """
+
+    def __init__(self, name: str, homes: Sequence[str], function: Any = None) -> None:
         super().__init__(name, f"Deprecated alias of {', '.join(homes)}.")
         self.__homes = tuple(homes)
+        self.__function = function
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if self.__function is None:
+            raise TypeError(f"module {self.__name__!r} is not callable")
+        return self.__function(*args, **kwargs)
 
     def __getattr__(self, attr: str) -> Any:
         if attr.startswith("__"):
@@ -127,7 +138,9 @@ class MovedFinder:
             DeprecationWarning,
             stacklevel=_importer_stacklevel(),
         )
-        return MovedModule(spec.name, homes)
+        parent, _, child = spec.name.rpartition(".")
+        shadowed = getattr(sys.modules[parent], child, None) if parent in sys.modules else None
+        return MovedModule(spec.name, homes, shadowed if callable(shadowed) else None)
 
     def exec_module(self, module: types.ModuleType) -> None:
         """Nothing to run: attributes are forwarded on access."""

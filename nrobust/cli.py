@@ -8,7 +8,7 @@
     simulation of the PDE, delay margins of U_BS and U_BS2(K = 0.1), the ``(K, delta)``
     stability chart with the sufficient bound, the decay/margin trade-off and the report.
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
-    A parameter sweep or Monte Carlo study (:func:`nrobust.sweep.run_sweep_file`); run
+    A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
     again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).
 
 Each command validates its whole input and checks that ``OUT/`` can be created and

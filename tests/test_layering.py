@@ -47,6 +47,7 @@ BASE_MODULES = {
 #: The core, by package or module: representations, proofs, roots, margins, delay systems, design.
 CORE_PREFIXES = (
     "nrobust.quasipoly",
+    "nrobust.distributed_delay",
     "nrobust.difference",
     "nrobust.qpmatrix",
     "nrobust.matrix_difference",

@@ -9,7 +9,7 @@ controller to the loop ``F = A + B e^{-delta s}`` (the controllers, any state fe
 delay form of eq. (39), the kernel-free Laplace route, the transfer functions);
 ``analyses/``: delay margins of a plant with a controller, admissible gains, charts,
 trade-offs and the Rouché bound; ``nplusm/``: ``n + m`` systems (Hu et al. 2016);
-``simulate/``: the PDE itself with a delayed boundary control, one :func:`simulate` over a
+``simulate/``: the PDE itself with a delayed boundary control, one :func:`~nrobust.hyperbolic.simulate.simulate` over a
 registry of schemes.
 """
 

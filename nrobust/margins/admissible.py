@@ -121,7 +121,7 @@ def check_gain_end(
     Parameters
     ----------
     end : GainEnd
-        The end, as :func:`locate_gain_ends` gives it.
+        The end, as :func:`~nrobust.margins.gain.locate_gain_ends` gives it.
     inner : GainVerdict or str
         The verdict just inside the interval (``end.K +- tol``), or the message of its
         :class:`~nrobust.errors.CertificationError`.

@@ -212,6 +212,246 @@ def _wrap(d: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.asarray(np.mod(d + np.pi, 2 * np.pi) - np.pi, dtype=np.float64)
 
 
+class _Evaluator:
+    """The function ``f(w, e^{i phi})`` of one search, its derivative bounds and its work counter.
+
+    Built from the caller's ``coefs``, ``jet``, ``level`` and ``bounds``: ``lip_w``,
+    ``lip_phi`` are the Lipschitz constants of ``f`` in ``w`` and ``phi``, ``second`` bounds
+    the norm of its second derivatives (the ``S`` of the module notes, ``1e-12`` relative
+    slack), ``dscale`` the rounding of a ``w``-derivative relative to that of ``f``. Every
+    evaluation of the coefficients is charged against ``max_points`` before it is made
+    (:meth:`charge`).
+    """
+
+    def __init__(
+        self,
+        coefs: Callable[[NDArray[np.float64]], NDArray[np.complex128]],
+        jet: Callable[[NDArray[np.float64]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+        level: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+        bounds: ArrayLike,
+        max_points: int,
+    ) -> None:
+        self.coefs, self.jet, self.level, self.max_points = coefs, jet, level, max_points
+        b = np.asarray(bounds, dtype=float)
+        deg = np.arange(b.shape[1], dtype=float)
+        self.deg = deg
+        self.lip_w, self.lip_phi = float(b[1].sum()), float((deg * b[0]).sum())
+        s_ww, s_wp, s_pp = float(b[2].sum()), float((deg * b[1]).sum()), float((deg**2 * b[0]).sum())
+        self.second = float(np.sqrt(s_ww**2 + 2.0 * s_wp**2 + s_pp**2)) * (1.0 + 1e-12)
+        self.dscale = 1.0 + self.lip_w / max(float(b[0].sum()), 1e-300)
+        self.spent = 0
+
+    def charge(self, count: int) -> None:
+        """Count ``count`` more evaluations; raise once the total would pass ``max_points``."""
+        if self.spent + count > self.max_points:
+            raise CertificationError(
+                f"circle crossings: {count} more evaluations after {self.spent} exceed max_points={self.max_points} "
+                "(raise max_points)"
+            )
+        self.spent += count
+
+    def values(self, w: NDArray[np.float64], phi: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """``f`` at the points and its rounding bound (the coefficients evaluated once per distinct ``w``)."""
+        deg = self.deg
+        uw, inv = np.unique(w, return_inverse=True)
+        self.charge(uw.size)
+        c = self.coefs(uw)[inv]
+        z = np.exp(1j * phi[:, None] * deg[None, :])
+        err = self.level(uw)[inv] * deg.size + 4e-16 * np.abs(c).sum(axis=1)
+        return np.sum(c * z, axis=1), err
+
+    def gradients(self, w: NDArray[np.float64], phi: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """``df/dw`` and ``df/dphi`` at the points (the jet evaluated once per distinct ``w``)."""
+        deg = self.deg
+        uw, inv = np.unique(w, return_inverse=True)
+        self.charge(uw.size)
+        c, dc = self.jet(uw)
+        z = np.exp(1j * phi[:, None] * deg[None, :])
+        return np.sum(dc[inv] * z, axis=1), np.sum(1j * deg * c[inv] * z, axis=1)
+
+    def newton(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], complex, NDArray[np.float64], float]:
+        """Newton steps on the real 2 x 2 map: the last point evaluated, with ``f``, ``J`` and the rounding
+        of ``f`` there (the Newton correction ``J^{-1} f`` is then small)."""
+        deg = self.deg
+        for it in range(_NEWTON_STEPS + 1):
+            self.charge(1)
+            c, dc = self.jet(np.array([x[0]]))
+            z = np.exp(1j * x[1] * deg)
+            f = complex(np.sum(c[0] * z))
+            fw, fp = complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
+            J = np.array([[fw.real, fp.real], [fw.imag, fp.imag]])
+            try:
+                dx = np.linalg.solve(J, [f.real, f.imag])
+            except np.linalg.LinAlgError:
+                break
+            if it == _NEWTON_STEPS or not np.all(np.isfinite(dx)) or np.hypot(*dx) < 1e-13 * max(1.0, abs(x[0])):
+                break
+            x = x - dx
+        err = float(self.level(np.array([x[0]]))[0]) * deg.size + 4e-16 * float(np.abs(c).sum())
+        return x, f, J, err
+
+    def probe(self, x: NDArray[np.float64]) -> float:
+        """Length of the Newton correction at ``x`` (one evaluation): how far a zero is predicted."""
+        deg = self.deg
+        self.charge(1)
+        c, dc = self.jet(np.array([x[0]]))
+        z = np.exp(1j * x[1] * deg)
+        f, fw, fp = complex(np.sum(c[0] * z)), complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
+        det = fw.real * fp.imag - fp.real * fw.imag
+        return float(abs(f) * np.hypot(abs(fw), abs(fp)) / abs(det)) if det != 0 else np.inf
+
+
+# Cells of the (w, phi) rectangle: centres cw, cp and half-widths hw, hp (four arrays of one size).
+_Cells = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+# A zero x* = (w, phi) and the radius of the disc in which it is proven unique.
+_Zero = tuple[NDArray[np.float64], float]
+
+
+def _select(cells: _Cells, mask: NDArray) -> _Cells:
+    """The cells picked by a boolean mask (or index array)."""
+    cw, cp, hw, hp = cells
+    return cw[mask], cp[mask], hw[mask], hp[mask]
+
+
+def _first_grid(W: float, step: float, max_points: int) -> _Cells:
+    """The initial cells: ``ceil(W / step)`` columns in ``w`` times ``_PHASE_CELLS`` in ``phi``.
+
+    One column when ``W = 0``. Refuses a ``max_points`` below the number of columns (each
+    costs one evaluation of the coefficients), before evaluating anything.
+    """
+    nw = max(1, int(np.ceil(W / step))) if W > 0 else 1
+    if nw > max_points:
+        raise ParameterError("max_points", f">= {nw} (the first grid up to W = {W:.6g})", max_points)
+    hw0 = 0.5 * W / nw if W > 0 else 0.0
+    wc = (np.arange(nw) + 0.5) * (2 * hw0)
+    pc = (np.arange(_PHASE_CELLS) + 0.5) * (2 * np.pi / _PHASE_CELLS)
+    cw, cp = (g.ravel() for g in np.meshgrid(wc, pc, indexing="ij"))
+    return cw, cp, np.full(cw.size, hw0), np.full(cw.size, np.pi / _PHASE_CELLS)
+
+
+def _outside_discs(cells: _Cells, zeros: list[_Zero]) -> _Cells:
+    """The cells not wholly inside a proven disc (those inside are settled: their only zero is listed).
+
+    The farthest corner of a cell from ``x*`` is measured with the phase difference wrapped.
+    """
+    cw, cp, hw, hp = cells
+    keep = np.ones(cw.size, dtype=bool)
+    for x, r in zeros:
+        far_w = np.abs(cw - x[0]) + hw
+        far_p = np.abs(_wrap(cp - x[1])) + hp
+        keep &= np.hypot(far_w, far_p) > r
+    return _select(cells, keep)
+
+
+def _lipschitz_open(cells: _Cells, ev: _Evaluator) -> tuple[_Cells, NDArray, NDArray]:
+    """The cells the first-order test leaves open, with ``f`` and its rounding bound at their centres.
+
+    A cell is excluded (holds no zero) when ``|f(x_0)| - err > L_w h_w + L_phi h_phi``.
+    """
+    cw, cp, hw, hp = cells
+    f, err = ev.values(cw, cp)
+    open_ = np.abs(f) - err <= ev.lip_w * hw + ev.lip_phi * hp
+    return _select(cells, open_), f[open_], err[open_]
+
+
+def _newton_open(cells: _Cells, f: NDArray, err: NDArray, ev: _Evaluator) -> tuple[_Cells, NDArray]:
+    """The cells the second-order test leaves open, with ``f`` at their centres.
+
+    With ``d* = -J_0^{-1} f(x_0)`` the Newton step from the centre,
+    ``|f(x_0 + d)| >= sigma_min(J_0) dist(d*, cell) - e_J |d| - S |d|^2 / 2``, ``e_J`` the
+    rounding of ``J_0`` (and of ``sigma_min``). The test can only decide a cell with
+    ``|f(x_0)| > S |d|^2 / 2``, and ``|f(x_0)| <= L |d|`` on a cell the first-order test
+    left open: it is tried on the cells small enough for that (one evaluation of the jet
+    per distinct ``w``), and excludes those with a positive margin.
+    """
+    cw, cp, hw, hp = cells
+    second = ev.second
+    near = np.flatnonzero(np.hypot(hw, hp) * second < 2.0 * (ev.lip_w + ev.lip_phi))
+    if not near.size:
+        return cells, f
+    nhw, nhp, nf, nerr = hw[near], hp[near], f[near], err[near]
+    fw, fp = ev.gradients(cw[near], cp[near])
+    J = np.stack([np.stack([fw.real, fp.real], -1), np.stack([fw.imag, fp.imag], -1)], -2)
+    sig = np.linalg.svd(J, compute_uv=False)[:, -1]
+    det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dw = -(J[:, 1, 1] * nf.real - J[:, 0, 1] * nf.imag) / det
+        dp = -(-J[:, 1, 0] * nf.real + J[:, 0, 0] * nf.imag) / det
+    dist = np.hypot(np.maximum(np.abs(dw) - nhw, 0.0), np.maximum(np.abs(dp) - nhp, 0.0))
+    reach = np.hypot(nhw, nhp)
+    e_j = 1e-12 * np.hypot(np.abs(fw), np.abs(fp)) + nerr * ev.dscale
+    dist = np.where(np.isfinite(dist), dist, 0.0)
+    margin = (sig - e_j) * dist - nerr - e_j * reach - 0.5 * second * reach**2
+    keep = np.ones(cw.size, dtype=bool)
+    keep[near[margin > 0]] = False
+    return _select(cells, keep), f[keep]
+
+
+def _prove_discs(cells: _Cells, f: NDArray, zeros: list[_Zero], ev: _Evaluator, W: float) -> None:
+    """Try Newton-Kantorovich discs from the open cells of smallest ``|f|``; add the proven ones to ``zeros``.
+
+    At most ``_ATTEMPTS`` proofs per round, from centres apart from each other (an attempt
+    blocks a disc of 8 times its cell's half-diagonal) and outside the proven discs. A disc
+    whose zero is the mirror at ``-w`` or lies beyond ``W`` is dropped; a zero within its
+    radius of ``w = 0`` (a root at ``s = 0`` for some delay) raises
+    :class:`~nrobust.errors.CertificationError`.
+    """
+    cw, cp, hw, hp = cells
+    tried: list[_Zero] = []
+    sizes = np.hypot(hw, hp)
+    for i in np.argsort(np.abs(f)):
+        if len(tried) >= _ATTEMPTS:
+            break
+        size = float(sizes[i])
+        if _near(zeros + tried, cw[i], cp[i], 0.0):
+            continue  # settled, or tried nearby
+        tried.append((np.array([cw[i], cp[i]]), 8.0 * size))
+        proven = _prove_zero(ev.newton, np.array([cw[i], cp[i]]), size, ev.second, ev.probe, ev.dscale)
+        if proven is None or proven[0][0] < -proven[1] or proven[0][0] - proven[1] > W:
+            continue  # no proof, or the mirror zero at -w, or one beyond the caller's bound
+        if proven[0][0] <= proven[1]:
+            raise CertificationError(
+                f"circle crossings: a zero within {proven[1]:.3g} of w = 0 (a root at s = 0 for some delay)"
+            )
+        if not _near(zeros, proven[0][0], proven[0][1], proven[1]):
+            zeros.append(proven)
+
+
+def _refuse_undecided(cells: _Cells, zeros: list[_Zero], width: float, W: float) -> None:
+    """Raise :class:`~nrobust.errors.CertificationError` on a tangency or a multiple crossing.
+
+    Either an open cell narrowed to ``width`` in both directions outside every proven disc,
+    or more than ``_MAX_OPEN`` open cells narrower than ``_FINE max(1, W)`` in ``w`` (a
+    simple zero leaves a few dozen; a tangency leaves ``~ h^{-1/2}``).
+    """
+    cw, cp, hw, hp = cells
+    if np.any((hw <= width) & (hp <= width)):
+        j = int(np.argmax((hw <= width) & (hp <= width)))
+        if not _near(zeros, cw[j], cp[j], 0.0):
+            raise CertificationError(
+                f"circle crossings: cannot decide a zero near w = {cw[j]:.17g}, phi = {cp[j]:.17g} (a tangency "
+                "or a multiple crossing to rounding); a slight change of the gain would decide it"
+            )
+    fine = hw <= _FINE * max(1.0, W)
+    if np.count_nonzero(fine) > _MAX_OPEN:
+        raise CertificationError(
+            f"circle crossings: {np.count_nonzero(fine)} cells narrower than {_FINE:g} max(1, W) near w in "
+            f"[{cw[fine].min():.6g}, {cw[fine].max():.6g}] stay undecided (a "
+            "tangency or a near-double zero); a slight change of the gain would decide it"
+        )
+
+
+def _quarter(cells: _Cells, W: float) -> _Cells:
+    """Each open cell split in four; the quarters starting at or beyond ``W`` are dropped (the caller's bound)."""
+    cw, cp, hw, hp = cells
+    ow, op = np.array([-0.5, 0.5, -0.5, 0.5]), np.array([-0.5, -0.5, 0.5, 0.5])
+    cw = (cw[:, None] + ow[None] * hw[:, None]).ravel()
+    cp = (cp[:, None] + op[None] * hp[:, None]).ravel()
+    hw, hp = np.repeat(hw / 2, 4), np.repeat(hp / 2, 4)
+    inside = cw - hw < W
+    return cw[inside], cp[inside], hw[inside], hp[inside]
+
+
 def circle_crossings(
     coefs: Callable[[NDArray[np.float64]], NDArray[np.complex128]],
     jet: Callable[[NDArray[np.float64]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
@@ -259,148 +499,19 @@ def circle_crossings(
     if not (np.isfinite(step) and step > 0.0):
         raise ParameterError("step", "a width > 0", step)
     max_points = positive_int("max_points", max_points)
-    b = np.asarray(bounds, dtype=float)
-    deg = np.arange(b.shape[1], dtype=float)
-    lip_w, lip_phi = float(b[1].sum()), float((deg * b[0]).sum())
-    s_ww, s_wp, s_pp = float(b[2].sum()), float((deg * b[1]).sum()), float((deg**2 * b[0]).sum())
-    second = float(np.sqrt(s_ww**2 + 2.0 * s_wp**2 + s_pp**2)) * (1.0 + 1e-12)
-    dscale = 1.0 + lip_w / max(float(b[0].sum()), 1e-300)  # rounding of a w-derivative relative to that of f
-    spent = 0
-
-    def charge(count: int) -> None:
-        nonlocal spent
-        if spent + count > max_points:
-            raise CertificationError(
-                f"circle crossings: {count} more evaluations after {spent} exceed max_points={max_points} "
-                "(raise max_points)"
-            )
-        spent += count
-
-    def values(w: NDArray[np.float64], phi: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
-        """``f`` at the points and its rounding bound (the coefficients evaluated once per distinct ``w``)."""
-        uw, inv = np.unique(w, return_inverse=True)
-        charge(uw.size)
-        c = coefs(uw)[inv]
-        z = np.exp(1j * phi[:, None] * deg[None, :])
-        err = level(uw)[inv] * deg.size + 4e-16 * np.abs(c).sum(axis=1)
-        return np.sum(c * z, axis=1), err
-
-    def newton(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], complex, NDArray[np.float64], float]:
-        """Newton steps on the real 2 x 2 map: the last point evaluated, with ``f``, ``J`` and the rounding
-        of ``f`` there (the Newton correction ``J^{-1} f`` is then small)."""
-        for it in range(_NEWTON_STEPS + 1):
-            charge(1)
-            c, dc = jet(np.array([x[0]]))
-            z = np.exp(1j * x[1] * deg)
-            f = complex(np.sum(c[0] * z))
-            fw, fp = complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
-            J = np.array([[fw.real, fp.real], [fw.imag, fp.imag]])
-            try:
-                dx = np.linalg.solve(J, [f.real, f.imag])
-            except np.linalg.LinAlgError:
-                break
-            if it == _NEWTON_STEPS or not np.all(np.isfinite(dx)) or np.hypot(*dx) < 1e-13 * max(1.0, abs(x[0])):
-                break
-            x = x - dx
-        err = float(level(np.array([x[0]]))[0]) * deg.size + 4e-16 * float(np.abs(c).sum())
-        return x, f, J, err
-
-    def probe(x: NDArray[np.float64]) -> float:
-        """Length of the Newton correction at ``x`` (one evaluation): how far a zero is predicted."""
-        charge(1)
-        c, dc = jet(np.array([x[0]]))
-        z = np.exp(1j * x[1] * deg)
-        f, fw, fp = complex(np.sum(c[0] * z)), complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
-        det = fw.real * fp.imag - fp.real * fw.imag
-        return float(abs(f) * np.hypot(abs(fw), abs(fp)) / abs(det)) if det != 0 else np.inf
-
+    ev = _Evaluator(coefs, jet, level, bounds, max_points)
     width = max(1.0, W) * _MIN_WIDTH
-    nw = max(1, int(np.ceil(W / step))) if W > 0 else 1
-    if nw > max_points:
-        raise ParameterError("max_points", f">= {nw} (the first grid up to W = {W:.6g})", max_points)
-    hw0 = 0.5 * W / nw if W > 0 else 0.0
-    wc = (np.arange(nw) + 0.5) * (2 * hw0)
-    pc = (np.arange(_PHASE_CELLS) + 0.5) * (2 * np.pi / _PHASE_CELLS)
-    cw, cp = (g.ravel() for g in np.meshgrid(wc, pc, indexing="ij"))
-    hw, hp = np.full(cw.size, hw0), np.full(cw.size, np.pi / _PHASE_CELLS)
-    zeros: list[tuple[NDArray[np.float64], float]] = []  # (x*, radius of uniqueness)
-    while cw.size:
-        # cells inside a proven disc are settled
-        keep = np.ones(cw.size, dtype=bool)
-        for x, r in zeros:
-            far_w = np.abs(cw - x[0]) + hw
-            far_p = np.abs(_wrap(cp - x[1])) + hp
-            keep &= np.hypot(far_w, far_p) > r
-        cw, cp, hw, hp = cw[keep], cp[keep], hw[keep], hp[keep]
-        if not cw.size:
+    cells = _first_grid(W, step, max_points)
+    zeros: list[_Zero] = []
+    while cells[0].size:
+        cells = _outside_discs(cells, zeros)
+        if not cells[0].size:
             break
-        f, err = values(cw, cp)
-        open_ = np.abs(f) - err <= lip_w * hw + lip_phi * hp
-        cw, cp, hw, hp = cw[open_], cp[open_], hw[open_], hp[open_]
-        f, err = f[open_], err[open_]
-        # second order: |f(x_0 + d)| >= sigma_min(J_0) dist(d*, cell) - e_J |d| - S |d|^2 / 2, d* = -J_0^{-1} f(x_0);
-        # it can only decide a cell with |f(x_0)| > S |d|^2 / 2, and |f(x_0)| <= L |d| on an open cell
-        near = np.flatnonzero(np.hypot(hw, hp) * second < 2.0 * (lip_w + lip_phi))
-        if near.size:
-            nw_, np_, nhw, nhp, nf, nerr = cw[near], cp[near], hw[near], hp[near], f[near], err[near]
-            uw, inv = np.unique(nw_, return_inverse=True)
-            charge(uw.size)
-            c, dc = jet(uw)
-            z = np.exp(1j * np_[:, None] * deg[None, :])
-            fw, fp = np.sum(dc[inv] * z, axis=1), np.sum(1j * deg * c[inv] * z, axis=1)
-            J = np.stack([np.stack([fw.real, fp.real], -1), np.stack([fw.imag, fp.imag], -1)], -2)
-            sig = np.linalg.svd(J, compute_uv=False)[:, -1]
-            det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                dw = -(J[:, 1, 1] * nf.real - J[:, 0, 1] * nf.imag) / det
-                dp = -(-J[:, 1, 0] * nf.real + J[:, 0, 0] * nf.imag) / det
-            dist = np.hypot(np.maximum(np.abs(dw) - nhw, 0.0), np.maximum(np.abs(dp) - nhp, 0.0))
-            reach = np.hypot(nhw, nhp)
-            e_j = 1e-12 * np.hypot(np.abs(fw), np.abs(fp)) + nerr * dscale  # rounding of J_0 (and of sigma_min)
-            dist = np.where(np.isfinite(dist), dist, 0.0)
-            margin = (sig - e_j) * dist - nerr - e_j * reach - 0.5 * second * reach**2
-            keep = np.ones(cw.size, dtype=bool)
-            keep[near[margin > 0]] = False
-            cw, cp, hw, hp, f = cw[keep], cp[keep], hw[keep], hp[keep], f[keep]
-        tried: list[tuple[NDArray[np.float64], float]] = []
-        sizes = np.hypot(hw, hp)
-        for i in np.argsort(np.abs(f)):
-            if len(tried) >= _ATTEMPTS:
-                break
-            size = float(sizes[i])
-            if _near(zeros + tried, cw[i], cp[i], 0.0):
-                continue  # settled, or tried nearby
-            tried.append((np.array([cw[i], cp[i]]), 8.0 * size))
-            proven = _prove_zero(newton, np.array([cw[i], cp[i]]), size, second, probe, dscale)
-            if proven is None or proven[0][0] < -proven[1] or proven[0][0] - proven[1] > W:
-                continue  # no proof, or the mirror zero at -w, or one beyond the caller's bound
-            if proven[0][0] <= proven[1]:
-                raise CertificationError(
-                    f"circle crossings: a zero within {proven[1]:.3g} of w = 0 (a root at s = 0 for some delay)"
-                )
-            if not _near(zeros, proven[0][0], proven[0][1], proven[1]):
-                zeros.append(proven)
-        if np.any((hw <= width) & (hp <= width)):
-            j = int(np.argmax((hw <= width) & (hp <= width)))
-            if not _near(zeros, cw[j], cp[j], 0.0):
-                raise CertificationError(
-                    f"circle crossings: cannot decide a zero near w = {cw[j]:.17g}, phi = {cp[j]:.17g} (a tangency "
-                    "or a multiple crossing to rounding); a slight change of the gain would decide it"
-                )
-        fine = hw <= _FINE * max(1.0, W)
-        if np.count_nonzero(fine) > _MAX_OPEN:
-            raise CertificationError(
-                f"circle crossings: {np.count_nonzero(fine)} cells narrower than {_FINE:g} max(1, W) near w in "
-                f"[{cw[fine].min():.6g}, {cw[fine].max():.6g}] stay undecided (a "
-                "tangency or a near-double zero); a slight change of the gain would decide it"
-            )
-        # quarter the open cells
-        ow, op = np.array([-0.5, 0.5, -0.5, 0.5]), np.array([-0.5, -0.5, 0.5, 0.5])
-        cw = (cw[:, None] + ow[None] * hw[:, None]).ravel()
-        cp = (cp[:, None] + op[None] * hp[:, None]).ravel()
-        hw, hp = np.repeat(hw / 2, 4), np.repeat(hp / 2, 4)
-        inside = cw - hw < W  # cells beyond W are settled by the caller's bound
-        cw, cp, hw, hp = cw[inside], cp[inside], hw[inside], hp[inside]
+        cells, f, err = _lipschitz_open(cells, ev)
+        cells, f = _newton_open(cells, f, err, ev)
+        _prove_discs(cells, f, zeros, ev, W)
+        _refuse_undecided(cells, zeros, width, W)
+        cells = _quarter(cells, W)
     out = sorted((float(x[0]), float(np.mod(x[1], 2 * np.pi))) for x, _ in zeros)
     return tuple(out)
 

@@ -14,16 +14,22 @@ import numpy as np
 from .._json import json_float, json_safe
 from .._validate import renamed_keywords
 from ..errors import ParameterError
-from ..hyperbolic.analyses import stability_chart, tradeoff
+from ..hyperbolic.analyses import StabilityChart, Tradeoff, stability_chart, tradeoff
 from ..hyperbolic.kernels.constant import solve_kernels
-from ..hyperbolic.loops.controllers import FiniteTimeController, ReflectionController, characteristic, classify
+from ..hyperbolic.loops.controllers import (
+    Classification,
+    FiniteTimeController,
+    ReflectionController,
+    characteristic,
+    classify,
+)
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate
 from ..plots.charts import stability_chart_plot, tradeoff_plot
 from ..plots.rootlocus import root_locus_response
 from ..plots.simulation import simulation_figure
 from ..sweeps.executors import sweep_map
-from .certificate import certify
+from .certificate import Certificate, certify
 from .outputs import RunOutputs
 from .report import write_report
 
@@ -158,8 +164,41 @@ def _run_paper(
     """The body of :func:`run_paper`, writing into the staged ``outputs``."""
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     classification = classify(system)
+    tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta)
+    # one task per chunk: the jobs are few and long, and the longest go first
+    run = sweep_map(workers or "serial", chunksize=1, progress=progress)
+    res = dict(zip(tasks, run(_paper_job, tasks.values())))
+    fig1_runs = [res[f"fig1_{d:g}"] for d in PAPER_DELAYS_FIG1]
+    fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
+    cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
+    chart, trade = res["chart"], res["tradeoff"]
+    figures = _paper_figures(fig1_runs, fig3_runs, chart, trade, res["locus"], classification.k_bound)
+    admissible = _stable_gains(chart)
+    summary = _paper_summary(system, classification, cert_bs, cert_bs2, chart, trade, fig1_runs, fig3_runs, admissible)
+    intro = _paper_intro(classification, cert_bs, cert_bs2, summary, admissible)
+    files = write_report(
+        [cert_bs, cert_bs2],
+        outputs.staging,
+        figures=figures,
+        title="nrobust: the paper's example, end to end",
+        intro=intro,
+    )
+    summary["elapsed_seconds"] = time.perf_counter() - start
+    summary["workers"] = workers
+    summary["files"] = outputs.final(files).to_dict()
+    outputs.write_text("summary.json", json.dumps(json_safe(summary), indent=2, allow_nan=False))
+    outputs.commit()
+    return summary
+
+
+def _paper_tasks(k_max: float, t_end: float, cells: int, n_K: int, n_delta: int) -> dict[str, tuple[Any, ...]]:
+    """The independent computations of section 5 as :func:`_paper_job` tasks, by name.
+
+    The trade-off and the ``(K, delta)`` chart of U_BS2 on ``n_K x n_delta`` gains in
+    ``[-1.2, 1.2] k_max`` and delays in ``[0, 0.5]``, the certificates of U_BS2 and U_BS,
+    the root locus of U_BS2 in ``K``, and the simulations of figures 1 and 3.
+    """
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
-    k_max = classification.k_bound
     Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
     deltas = np.linspace(0.0, 0.5, n_delta)
     # longest first, so that two workers finish together
@@ -174,14 +213,18 @@ def _run_paper(
         tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, cells)
     for d in PAPER_DELAYS_FIG3:
         tasks[f"fig3_{d:g}"] = ("simulate", u_bs2, d, t_end, cells)
-    # one task per chunk: the jobs are few and long, and the longest go first
-    run = sweep_map(workers or "serial", chunksize=1, progress=progress)
-    res = dict(zip(tasks, run(_paper_job, tasks.values())))
-    fig1_runs = [res[f"fig1_{d:g}"] for d in PAPER_DELAYS_FIG1]
-    fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
-    cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
-    chart, trade = res["chart"], res["tradeoff"]
+    return tasks
 
+
+def _paper_figures(
+    fig1_runs: list[Simulation],
+    fig3_runs: list[Simulation],
+    chart: StabilityChart,
+    trade: Tradeoff,
+    locus: Any,
+    k_max: float,
+) -> list[tuple[str, Figure]]:
+    """The report's figures with their captions: figures 1 and 3, the chart, the trade-off, the root locus."""
     import matplotlib.pyplot as plt  # lazily: the command line checks its input before drawing anything
 
     figures = [
@@ -201,7 +244,7 @@ def _run_paper(
     tradeoff_plot(trade, ax=ax)
     figures.append(("Trade-off between decay rate and delay margin as K varies (labels: K)", fig))
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    res["locus"].plot(ax=ax)
+    locus.plot(ax=ax)
     figures.append(
         (
             f"Root locus of U_BS2 in K at delta = {max(PAPER_DELAYS_FIG3):g} (upper half-plane; "
@@ -209,20 +252,39 @@ def _run_paper(
             fig,
         )
     )
+    return figures
 
-    def growth(run: Any) -> float:
-        """Least-squares slope of log ||(u, v)|| over the second half of the run."""
-        t = np.asarray(run.times)
-        y = np.log(np.maximum(np.asarray(run.norm), np.finfo(float).tiny))
-        half = t >= 0.5 * t[-1]
-        return float(np.polyfit(t[half], y[half], 1)[0])
 
-    admissible = [
+def _growth(run: Simulation) -> float:
+    """Least-squares slope of log ||(u, v)|| over the second half of the run."""
+    t = np.asarray(run.times)
+    y = np.log(np.maximum(np.asarray(run.norm), np.finfo(float).tiny))
+    half = t >= 0.5 * t[-1]
+    return float(np.polyfit(t[half], y[half], 1)[0])
+
+
+def _stable_gains(chart: StabilityChart) -> list[float]:
+    """The chart's gains nominally stable with a delay margin above the largest delay of figure 3."""
+    return [
         float(K)
         for K, m, v in zip(chart.Ks, chart.margins, chart.values[:, 0])
         if v == 0 and m > max(PAPER_DELAYS_FIG3)
     ]
-    summary = {
+
+
+def _paper_summary(
+    system: Hyperbolic2x2,
+    classification: Classification,
+    cert_bs: Certificate,
+    cert_bs2: Certificate,
+    chart: StabilityChart,
+    trade: Tradeoff,
+    fig1_runs: list[Simulation],
+    fig3_runs: list[Simulation],
+    admissible: list[float],
+) -> dict[str, Any]:
+    """The headline numbers of ``summary.json``, each read from a computation."""
+    return {
         "system": system.to_dict(),
         "classification": classification.to_dict(),
         "U_BS": {
@@ -230,7 +292,7 @@ def _run_paper(
             "margin_reason": cert_bs.margin.reason,
             "gamma_0_delayed": cert_bs.principal_delayed.gamma_0,
             "chain_abscissa_delayed": cert_bs.principal_delayed.spectral_bound,
-            "simulated_growth_rate": {f"{d:g}": growth(r) for d, r in zip(PAPER_DELAYS_FIG1, fig1_runs)},
+            "simulated_growth_rate": {f"{d:g}": _growth(r) for d, r in zip(PAPER_DELAYS_FIG1, fig1_runs)},
         },
         f"U_BS2(K={PAPER_K:g})": {
             "delay_margin": cert_bs2.to_dict()["delay_margin"],
@@ -238,7 +300,7 @@ def _run_paper(
             "gamma_0_delayed": cert_bs2.principal_delayed.gamma_0,
             "spectral_abscissa": cert_bs2.abscissa.value,
             "rouche_delta_0": None if cert_bs2.rouche is None else cert_bs2.rouche.to_dict()["delta_0"],
-            "simulated_growth_rate": {f"{d:g}": growth(r) for d, r in zip(PAPER_DELAYS_FIG3, fig3_runs)},
+            "simulated_growth_rate": {f"{d:g}": _growth(r) for d, r in zip(PAPER_DELAYS_FIG3, fig3_runs)},
         },
         "chart": {
             "Ks": chart.Ks.tolist(),
@@ -247,8 +309,18 @@ def _run_paper(
         },
         "tradeoff": trade.to_dict(),
     }
+
+
+def _paper_intro(
+    classification: Classification,
+    cert_bs: Certificate,
+    cert_bs2: Certificate,
+    summary: dict[str, Any],
+    admissible: list[float],
+) -> list[str]:
+    """The report's opening paragraphs: the example, the two loops, the growth rates, what is proven."""
     bs2 = summary[f"U_BS2(K={PAPER_K:g})"]
-    intro = [
+    return [
         "The example of section 5 of Auriol, Aarsnes, Martin and Di Meglio: "
         + ", ".join(f"{k} = {v:g}" for k, v in PAPER_SYSTEM.items())
         + ".",
@@ -281,22 +353,10 @@ def _run_paper(
         + ". "
         + cert_bs2.scope,
     ]
-    files = write_report(
-        [cert_bs, cert_bs2],
-        outputs.staging,
-        figures=figures,
-        title="nrobust: the paper's example, end to end",
-        intro=intro,
-    )
-    summary["elapsed_seconds"] = time.perf_counter() - start
-    summary["workers"] = workers
-    summary["files"] = outputs.final(files).to_dict()
-    outputs.write_text("summary.json", json.dumps(json_safe(summary), indent=2, allow_nan=False))
-    outputs.commit()
-    return summary
 
 
 def _fmt_num(x: Any) -> str:
+    """``x`` with 6 significant digits, or ``-`` for None."""
     return "-" if x is None else f"{float(x):.6g}"
 
 

@@ -108,7 +108,7 @@ def sweep(
         JSON strings. For process pools it must be picklable (a module-level function or
         a ``functools.partial`` of one; not a lambda or a nested function).
     points : sequence of dict
-        A grid (:func:`grid`) or a sample set: dicts with string keys.
+        A grid (:func:`~nrobust.sweeps.grid.grid`) or a sample set: dicts with string keys.
     executor : None, str, int, Executor or dask.distributed.Client, optional
         Where the points run:
 

@@ -94,7 +94,7 @@ def grid(**axes: Sequence[Any] | np.ndarray) -> Grid:
         size of the product is allocated); the last axis varies fastest
         (``itertools.product`` order), so ``grid(K=[0, 1], delta=[0.1, 0.2])`` is
         ``[{K: 0, delta: 0.1}, {K: 0, delta: 0.2}, {K: 1, delta: 0.1}, {K: 1, delta: 0.2}]``.
-        :func:`sweep` refuses a grid of more than ``max_points`` points before running any.
+        :func:`~nrobust.sweeps.engine.sweep` refuses a grid of more than ``max_points`` points before running any.
 
     Raises
     ------

@@ -129,7 +129,7 @@ def _column_array(values: list[Any]) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """Outcome of :func:`sweep`: one row per point, in input order.
+    """Outcome of :func:`~nrobust.sweeps.engine.sweep`: one row per point, in input order.
 
     Attributes
     ----------

@@ -316,6 +316,208 @@ def _route_names(
     return routes
 
 
+@dataclass(frozen=True)
+class _Points:
+    """The points of a SWEEP.toml: its grid or its Monte Carlo draws.
+
+    ``routes`` says where each swept or sampled name goes (``"system"``, ``"controller"``
+    or ``"options"``); ``levels`` are the quantile levels of a ``[sampling]`` study
+    (empty for a grid).
+    """
+
+    points: Sequence[dict[str, Any]]
+    routes: dict[str, str]
+    levels: tuple[float, ...]
+    sampled: bool
+
+
+def _read_spec(path: Path) -> dict[str, Any]:
+    """Read the SWEEP.toml and check its top-level keys."""
+    spec = load_toml(path, "SWEEP.toml")
+    for key in spec:
+        if key not in _TOP_KEYS:
+            raise ParameterError(key, f"a top-level key of SWEEP.toml: one of {list(_TOP_KEYS)}", spec[key])
+    return spec
+
+
+def _check_analyses(spec: dict[str, Any]) -> tuple[str, ...]:
+    """The analyses named by ``analysis`` (a name or a list of them), in order, without repeats."""
+    names = spec.get("analysis", "delay_margin")
+    names = [names] if isinstance(names, str) else names
+    if not isinstance(names, list) or not names or any(n not in ANALYSES for n in names):
+        raise ParameterError(
+            "analysis", f"an analysis name or a list of them among {sorted(ANALYSES)}", spec.get("analysis")
+        )
+    return tuple(dict.fromkeys(names))
+
+
+def _check_options(spec: dict[str, Any], analyses: tuple[str, ...]) -> tuple[dict[str, Any], set[str] | None]:
+    """Check the ``[options.<analysis>]`` tables.
+
+    Returns the tables and the option names that some selected analysis accepts (``None``:
+    any name, an analysis takes ``**kwargs``).
+    """
+    options = spec.get("options", {})
+    if not isinstance(options, dict):
+        raise ParameterError("options", "a table of [options.<analysis>] tables", options)
+    accepted: dict[str, set[str] | None] = {name: ANALYSES[name].options() for name in analyses}
+    for name, table in options.items():
+        if name not in analyses:
+            raise ParameterError(f"options.{name}", f"options of a selected analysis: one of {list(analyses)}", table)
+        if not isinstance(table, dict):
+            raise ParameterError(f"options.{name}", "a table of keyword options", table)
+        for key in table:
+            allowed = accepted[name]
+            if allowed is not None and key not in allowed:
+                raise ParameterError(
+                    f"options.{name}.{key}", f"an option of {name}: one of {sorted(allowed)}", table[key]
+                )
+    option_names: set[str] | None = set()
+    for allowed in accepted.values():
+        option_names = None if (allowed is None or option_names is None) else option_names | allowed
+    return options, option_names
+
+
+def _check_limits(spec: dict[str, Any], max_points: int | None, timeout: float | None) -> tuple[int, float | None]:
+    """``max_points`` and ``timeout``: the arguments when given, else the file's."""
+    cap = spec.get("max_points", MAX_POINTS) if max_points is None else max_points
+    if isinstance(cap, bool) or not isinstance(cap, int) or cap < 1:
+        raise ParameterError("max_points", "a positive integer", cap)
+    seconds = spec.get("timeout") if timeout is None else timeout
+    if seconds is not None and (
+        isinstance(seconds, bool)
+        or not isinstance(seconds, (int, float))
+        or not (math.isfinite(seconds) and seconds > 0)
+    ):
+        raise ParameterError("timeout", "a finite number of seconds > 0", seconds)
+    return cap, seconds
+
+
+def _grid_points(
+    table: Any, cap: int, sys_names: set[str], ctl_names: set[str], option_names: set[str] | None
+) -> _Points:
+    """The points of ``[grid]``, its size checked against ``max_points`` before it is built."""
+    if not isinstance(table, dict) or not table:
+        raise ParameterError("grid", "a non-empty table name = [values]", table)
+    routes = _route_names(list(table), "grid", sys_names, ctl_names, option_names)
+    sizes = {k: _axis_size(f"grid.{k}", v) for k, v in table.items()}
+    if math.prod(sizes.values()) > cap:
+        shape = " x ".join(str(n) for n in sizes.values())
+        raise ParameterError(
+            "grid",
+            f"at most max_points = {cap} points, but it is a grid of {shape} = {math.prod(sizes.values())} "
+            f"points over {', '.join(sizes)}; shrink it, or raise max_points",
+        )
+    return _Points(grid(**{k: _axis_values(v) for k, v in table.items()}), routes, (), False)
+
+
+def _sampled_points(
+    table: Any, cap: int, sys_names: set[str], ctl_names: set[str], option_names: set[str] | None
+) -> _Points:
+    """The Monte Carlo draws of ``[sampling]`` (``n_samples`` points from ``seed``) and its quantile levels."""
+    if not isinstance(table, dict):
+        raise ParameterError("sampling", "a table with n_samples, seed and [sampling.distributions]", table)
+    for key in table:
+        if key not in ("n_samples", "seed", "levels", "distributions"):
+            raise ParameterError(f"sampling.{key}", "one of n_samples, seed, levels, distributions", table[key])
+    n = table.get("n_samples")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ParameterError("sampling.n_samples", "an integer >= 1", n)
+    if n > cap:
+        raise ParameterError("sampling.n_samples", f"at most max_points = {cap}; shrink it, or raise max_points", n)
+    seed = table.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ParameterError("sampling.seed", "a non-negative integer", seed)
+    try:
+        levels = check_levels(table.get("levels", (0.05, 0.25, 0.5, 0.75, 0.95)))
+    except ParameterError as exc:
+        raise ParameterError("sampling.levels", exc.requirement, exc.value) from None
+    dists = table.get("distributions")
+    if not isinstance(dists, dict) or not dists:
+        raise ParameterError("sampling.distributions", "a non-empty table name = {uniform = [low, high]}", dists)
+    for key, dist in dists.items():
+        _check_distribution(f"sampling.distributions.{key}", dist)
+    routes = _route_names(list(dists), "sampling.distributions", sys_names, ctl_names, option_names)
+    rng = np.random.default_rng(seed)
+    return _Points([{k: _draw(d, rng) for k, d in dists.items()} for _ in range(n)], routes, levels, True)
+
+
+def _build_points(
+    spec: dict[str, Any], cap: int, sys_names: set[str], ctl_names: set[str], option_names: set[str] | None
+) -> _Points:
+    """The points of exactly one of ``[grid]`` and ``[sampling]``."""
+    has_grid, has_sampling = "grid" in spec, "sampling" in spec
+    if has_grid == has_sampling:
+        raise ParameterError("grid", "given, or [sampling] given instead (exactly one of the two)")
+    if has_grid:
+        return _grid_points(spec["grid"], cap, sys_names, ctl_names, option_names)
+    return _sampled_points(spec["sampling"], cap, sys_names, ctl_names, option_names)
+
+
+def _check_required(
+    routes: dict[str, str],
+    sys_required: set[str],
+    sys_params: dict[str, Any],
+    ctl_required: set[str],
+    ctl_params: dict[str, Any],
+) -> None:
+    """Every required parameter of the system and the controller is given or swept."""
+    for section, required, given in (("system", sys_required, sys_params), ("controller", ctl_required, ctl_params)):
+        for name in sorted(required):
+            if name not in given and routes.get(name) != section:
+                raise ParameterError(f"{section}.{name}", f"given in [{section}] or swept in [grid] / [sampling]")
+
+
+def _choose_executor(spec: dict[str, Any], dask_address: str | None) -> tuple[Any, int | None]:
+    """The executor (``dask_address`` if given, else the file's ``executor``) and ``chunksize``."""
+    if dask_address is not None:
+        if not isinstance(dask_address, str) or ":" not in dask_address:
+            raise ParameterError(
+                "dask_address", "a Dask scheduler address such as 'tcp://scheduler:8786'", dask_address
+            )
+        executor: Any = dask_address if dask_address.startswith(DASK_SCHEMES) else f"tcp://{dask_address}"
+    else:
+        executor = spec.get("executor")
+        classify_executor(executor)
+    chunksize = spec.get("chunksize")
+    if chunksize is not None and (isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1):
+        raise ParameterError("chunksize", "a positive integer", chunksize)
+    return executor, chunksize
+
+
+def _check_plot(spec: dict[str, Any], routes: dict[str, str], analyses: tuple[str, ...]) -> dict[str, Any]:
+    """The ``[plot]`` table: ``x`` a swept name, ``y`` a numeric result column (when declared)."""
+    plot = spec.get("plot", {})
+    if not isinstance(plot, dict) or any(k not in ("x", "y") for k in plot):
+        raise ParameterError("plot", "a table with optional keys x and y", plot)
+    if "x" in plot and plot["x"] not in routes:
+        raise ParameterError("plot.x", f"a swept parameter: one of {list(routes)}", plot["x"])
+    declared = [ANALYSES[name].numeric for name in analyses]
+    if "y" in plot and all(d is not None for d in declared):
+        numeric = [c for d in declared for c in (d or ())]
+        if plot["y"] not in numeric:
+            raise ParameterError("plot.y", f"a numeric result column: one of {numeric}", plot["y"])
+    return plot
+
+
+def _write_outputs(
+    outputs: RunOutputs, result: SweepResult, path: Path, points: _Points, plot: dict[str, Any]
+) -> SweepFileResult:
+    """Write the table (CSV, JSON with the quantiles of a ``[sampling]`` study), its chart and the manifest."""
+    sampled, levels, swept = points.sampled, points.levels, list(points.routes)
+    quantiles = quantile_summary(result, levels, skip=swept) if sampled else {}
+    csv_path = outputs.final(result.to_csv(outputs.path("sweep.csv")))
+    extra = {"source": str(path), "levels": list(levels), "quantiles": {k: list(v) for k, v in quantiles.items()}}
+    staged_json = result.to_json(outputs.path("sweep.json"), extra=extra if sampled else {"source": str(path)})
+    json_path = outputs.final(staged_json)
+    png_path = outputs.savefig("sweep.png", sweep_chart(result, swept, plot, sampled), dpi=120)
+    journal = outputs.keep(JOURNAL)
+    outputs.commit()
+    return SweepFileResult(
+        result, csv_path, json_path, png_path, quantiles, levels, journal, outputs.directory / MANIFEST
+    )
+
+
 def run_sweep_file(
     path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -364,134 +566,25 @@ def run_sweep_file(
         On Ctrl-C; the finished points are in ``out_dir/sweep.jsonl``.
     """
     path = Path(path)
-    spec = load_toml(path, "SWEEP.toml")
-    for key in spec:
-        if key not in _TOP_KEYS:
-            raise ParameterError(key, f"a top-level key of SWEEP.toml: one of {list(_TOP_KEYS)}", spec[key])
-
-    names = spec.get("analysis", "delay_margin")
-    names = [names] if isinstance(names, str) else names
-    if not isinstance(names, list) or not names or any(n not in ANALYSES for n in names):
-        raise ParameterError(
-            "analysis", f"an analysis name or a list of them among {sorted(ANALYSES)}", spec.get("analysis")
-        )
-    analyses = tuple(dict.fromkeys(names))
-
+    # every check, of the file then of the output directory, before any point runs
+    spec = _read_spec(path)
+    analyses = _check_analyses(spec)
     sys_type, sys_params, sys_names, sys_required = _typed_table(spec, "system", SYSTEM_TYPES)
     ctl_type, ctl_params, ctl_names, ctl_required = _typed_table(spec, "controller", CONTROLLER_TYPES)
-
-    options = spec.get("options", {})
-    if not isinstance(options, dict):
-        raise ParameterError("options", "a table of [options.<analysis>] tables", options)
-    accepted: dict[str, set[str] | None] = {name: ANALYSES[name].options() for name in analyses}
-    for name, table in options.items():
-        if name not in analyses:
-            raise ParameterError(f"options.{name}", f"options of a selected analysis: one of {list(analyses)}", table)
-        if not isinstance(table, dict):
-            raise ParameterError(f"options.{name}", "a table of keyword options", table)
-        for key in table:
-            allowed = accepted[name]
-            if allowed is not None and key not in allowed:
-                raise ParameterError(
-                    f"options.{name}.{key}", f"an option of {name}: one of {sorted(allowed)}", table[key]
-                )
-    option_names: set[str] | None = set()
-    for allowed in accepted.values():
-        option_names = None if (allowed is None or option_names is None) else option_names | allowed
-
-    cap = spec.get("max_points", MAX_POINTS) if max_points is None else max_points
-    if isinstance(cap, bool) or not isinstance(cap, int) or cap < 1:
-        raise ParameterError("max_points", "a positive integer", cap)
-    seconds = spec.get("timeout") if timeout is None else timeout
-    if seconds is not None and (
-        isinstance(seconds, bool)
-        or not isinstance(seconds, (int, float))
-        or not (math.isfinite(seconds) and seconds > 0)
-    ):
-        raise ParameterError("timeout", "a finite number of seconds > 0", seconds)
-
-    has_grid, has_sampling = "grid" in spec, "sampling" in spec
-    if has_grid == has_sampling:
-        raise ParameterError("grid", "given, or [sampling] given instead (exactly one of the two)")
-    levels: tuple[float, ...] = ()
-    if has_grid:
-        table = spec["grid"]
-        if not isinstance(table, dict) or not table:
-            raise ParameterError("grid", "a non-empty table name = [values]", table)
-        routes = _route_names(list(table), "grid", sys_names, ctl_names, option_names)
-        sizes = {k: _axis_size(f"grid.{k}", v) for k, v in table.items()}
-        if math.prod(sizes.values()) > cap:
-            shape = " x ".join(str(n) for n in sizes.values())
-            raise ParameterError(
-                "grid",
-                f"at most max_points = {cap} points, but it is a grid of {shape} = {math.prod(sizes.values())} "
-                f"points over {', '.join(sizes)}; shrink it, or raise max_points",
-            )
-        points: Sequence[dict[str, Any]] = grid(**{k: _axis_values(v) for k, v in table.items()})
-    else:
-        table = spec["sampling"]
-        if not isinstance(table, dict):
-            raise ParameterError("sampling", "a table with n_samples, seed and [sampling.distributions]", table)
-        for key in table:
-            if key not in ("n_samples", "seed", "levels", "distributions"):
-                raise ParameterError(f"sampling.{key}", "one of n_samples, seed, levels, distributions", table[key])
-        n = table.get("n_samples")
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ParameterError("sampling.n_samples", "an integer >= 1", n)
-        if n > cap:
-            raise ParameterError("sampling.n_samples", f"at most max_points = {cap}; shrink it, or raise max_points", n)
-        seed = table.get("seed", 0)
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ParameterError("sampling.seed", "a non-negative integer", seed)
-        try:
-            levels = check_levels(table.get("levels", (0.05, 0.25, 0.5, 0.75, 0.95)))
-        except ParameterError as exc:
-            raise ParameterError("sampling.levels", exc.requirement, exc.value) from None
-        dists = table.get("distributions")
-        if not isinstance(dists, dict) or not dists:
-            raise ParameterError("sampling.distributions", "a non-empty table name = {uniform = [low, high]}", dists)
-        for key, dist in dists.items():
-            _check_distribution(f"sampling.distributions.{key}", dist)
-        routes = _route_names(list(dists), "sampling.distributions", sys_names, ctl_names, option_names)
-        rng = np.random.default_rng(seed)
-        points = [{k: _draw(d, rng) for k, d in dists.items()} for _ in range(n)]
-
-    for section, required, given in (("system", sys_required, sys_params), ("controller", ctl_required, ctl_params)):
-        for name in sorted(required):
-            if name not in given and routes.get(name) != section:
-                raise ParameterError(f"{section}.{name}", f"given in [{section}] or swept in [grid] / [sampling]")
-
-    if dask_address is not None:
-        if not isinstance(dask_address, str) or ":" not in dask_address:
-            raise ParameterError(
-                "dask_address", "a Dask scheduler address such as 'tcp://scheduler:8786'", dask_address
-            )
-        executor: Any = dask_address if dask_address.startswith(DASK_SCHEMES) else f"tcp://{dask_address}"
-    else:
-        executor = spec.get("executor")
-        classify_executor(executor)
-    chunksize = spec.get("chunksize")
-    if chunksize is not None and (isinstance(chunksize, bool) or not isinstance(chunksize, int) or chunksize < 1):
-        raise ParameterError("chunksize", "a positive integer", chunksize)
-
-    plot = spec.get("plot", {})
-    if not isinstance(plot, dict) or any(k not in ("x", "y") for k in plot):
-        raise ParameterError("plot", "a table with optional keys x and y", plot)
-    if "x" in plot and plot["x"] not in routes:
-        raise ParameterError("plot.x", f"a swept parameter: one of {list(routes)}", plot["x"])
-    declared = [ANALYSES[name].numeric for name in analyses]
-    if "y" in plot and all(d is not None for d in declared):
-        numeric = [c for d in declared for c in (d or ())]
-        if plot["y"] not in numeric:
-            raise ParameterError("plot.y", f"a numeric result column: one of {numeric}", plot["y"])
-
+    options, option_names = _check_options(spec, analyses)
+    cap, seconds = _check_limits(spec, max_points, timeout)
+    points = _build_points(spec, cap, sys_names, ctl_names, option_names)
+    _check_required(points.routes, sys_required, sys_params, ctl_required, ctl_params)
+    executor, chunksize = _choose_executor(spec, dask_address)
+    plot = _check_plot(spec, points.routes, analyses)
     func = _FileAnalysis(
-        sys_type, sys_params, ctl_type, ctl_params, analyses, {k: dict(v) for k, v in options.items()}, routes
+        sys_type, sys_params, ctl_type, ctl_params, analyses, {k: dict(v) for k, v in options.items()}, points.routes
     )
     with RunOutputs(out_dir, "sweep") as outputs:
+        # the journal in out_dir: finished points are not run again unless restart
         result = sweep(
             func,
-            points,
+            points.points,
             executor,
             chunksize=chunksize,
             progress=progress,
@@ -500,14 +593,4 @@ def run_sweep_file(
             results=outputs.directory / JOURNAL,
             restart=restart,
         )
-        quantiles = quantile_summary(result, levels, skip=list(routes)) if has_sampling else {}
-        csv_path = outputs.final(result.to_csv(outputs.path("sweep.csv")))
-        extra = {"source": str(path), "levels": list(levels), "quantiles": {k: list(v) for k, v in quantiles.items()}}
-        staged_json = result.to_json(outputs.path("sweep.json"), extra=extra if has_sampling else {"source": str(path)})
-        json_path = outputs.final(staged_json)
-        png_path = outputs.savefig("sweep.png", sweep_chart(result, list(routes), plot, has_sampling), dpi=120)
-        journal = outputs.keep(JOURNAL)
-        outputs.commit()
-    return SweepFileResult(
-        result, csv_path, json_path, png_path, quantiles, levels, journal, outputs.directory / MANIFEST
-    )
+        return _write_outputs(outputs, result, path, points, plot)

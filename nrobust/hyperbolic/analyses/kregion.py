@@ -59,7 +59,7 @@ class KRegion:
         ``delta*(K) > delta_max`` and the nominal loop stable, on the grid.
     tol : float
         Accuracy of the interval ends: each end was checked ``tol`` inside (admissible: the
-        certified crossing search of :func:`delay_margin`) and ``tol`` outside (not
+        certified crossing search of :func:`~nrobust.hyperbolic.analyses.delay_margin`) and ``tol`` outside (not
         admissible: a certified count of a zero in ``Re s > 0``).
     ends : tuple of (GainEnd, GainEnd)
         For each interval, its lower and upper end with their kind (:class:`GainEnd`:
@@ -271,7 +271,7 @@ def k_region(
     A scan of the imaginary axis up to the frequency bound finds these critical gains
     (between two of them the verdict is constant), each is solved from its own equation to
     ``1e-14`` in ``w``, and each end is then verified independently: ``tol`` inside, the
-    certified crossing search of :func:`delay_margin` finds the loop admissible; ``tol``
+    certified crossing search of :func:`~nrobust.hyperbolic.analyses.delay_margin` finds the loop admissible; ``tol``
     outside, a certified root count (:func:`nrobust.count_roots`) finds a zero in ``Re s > 0``
     about the root of the end's event, at a delay in ``[0, delta_max]``. An end that cannot be
     verified raises :class:`~nrobust.errors.CertificationError`. The grid ``Ks`` is checked the

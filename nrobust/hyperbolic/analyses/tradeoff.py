@@ -85,7 +85,7 @@ def tradeoff(
     Parameters
     ----------
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
-        The plant; a general plant as for :func:`stability_chart`.
+        The plant; a general plant as for :func:`~nrobust.hyperbolic.analyses.stability_chart`.
     Ks : array_like
         Gains.
     controller : callable, optional

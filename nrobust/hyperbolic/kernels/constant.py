@@ -95,7 +95,7 @@ class _CubicFeet:
 
     ``positions[j]`` is the foot of node ``j`` at the previous level: ``j + kappa`` for
     constant speeds, any increasing sequence for varying ones
-    (:mod:`~nrobust.hyperbolic.varying_kernels`). The stencil of foot ``j`` is the four
+    (:mod:`~nrobust.hyperbolic.kernels.varying`). The stencil of foot ``j`` is the four
     nodes around it; at level ``i - 1`` (nodes ``0, ..., i - 1``) it is shifted inwards
     where it would pass the last node. The unshifted weights are computed once; only
     shifted rows are recomputed per level.
@@ -172,7 +172,7 @@ def march_levels(
     diagonal and the point where the cross characteristic of nodes ``jn`` of level ``i``
     leaves it, in the level variable (to interpolate ``A`` along the diagonal) and as a
     physical point (where ``g`` and ``b`` are taken). Constant speeds (:func:`_march_pair`) and varying ones
-    (:mod:`~nrobust.hyperbolic.varying_kernels`) share it.
+    (:mod:`~nrobust.hyperbolic.kernels.varying`) share it.
     """
     n = grid.size
     h = float(grid[1] - grid[0])

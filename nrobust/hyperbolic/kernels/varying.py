@@ -1,6 +1,6 @@
 """Backstepping kernels of a general plant with varying speeds, and U_BS on them.
 
-A :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` with any speeds ``lam(x)``,
+A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with any speeds ``lam(x)``,
 ``mu(x)`` is first freed of its diagonal terms by the exponential scaling of its normal
 form (``u = e^{A} u~``, ``v = e^{D} v~``, ``A = int_0^x a/lam``, ``D = -int_0^x d/mu``), which
 leaves ``u~_t + lam u~_x = s1 v~``, ``v~_t - mu v~_x = s2 u~`` with ``s1 = b e^{D - A}``,
@@ -50,8 +50,8 @@ inverse kernels ``L`` (``L = K + K o L``) at ``x = L`` along the target's charac
     N~(nu) = q e^{A(xi) - D(L)} lam(xi) (L^{beta alpha} - rho L^{alpha alpha})(L, xi), nu = t_v + phi(xi).
 
 This is the paper's delay form (39)-(40) for any speeds; the characteristic route
-(:func:`~nrobust.hyperbolic.varying.varying_delay_form`) and the Laplace route
-(:func:`~nrobust.hyperbolic.feedback.laplace_loop_factors` on :meth:`VaryingKernels.feedback_law`)
+(:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`) and the Laplace route
+(:func:`~nrobust.hyperbolic.loops.feedback.laplace_loop_factors` on :meth:`VaryingKernels.feedback_law`)
 check it in the tests.
 """
 
@@ -169,8 +169,7 @@ def _pairs(plant: GeneralHyperbolic2x2, maps: _Maps) -> tuple[_Pair, _Pair]:
 def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Array]:
     """``P, Q`` on the uniform grid of ``Y`` with ``n`` points (``P[i, j]`` at ``y_i``, ``eta_j``).
 
-    The level march of :func:`~nrobust.hyperbolic.kernels._march_pair`
-    (:func:`~nrobust.hyperbolic.kernels.march_levels`) with varying feet: node
+    The level march of :func:`~nrobust.hyperbolic.kernels.constant.march_levels` with varying feet: node
     ``(i, j)`` of ``Q`` comes from its foot at level ``i - 1`` (``Z(xi_foot) = Z(xi_j) + h``,
     cubic interpolation) or, when that foot is past the diagonal (or ``i < 4``), from the
     point ``T(xi*) = y_i + Z(xi_j)`` where its characteristic leaves the diagonal.
@@ -287,9 +286,9 @@ class VaryingKernels:
         """U_BS in the plant's coordinates: ``-rho u(t, L) + int_0^L K^{vu}(L, .) u + K^{vv}(L, .) v``.
 
         The gains are callables on ``[0, L]`` (cubic splines of the traces in ``psi``), for
-        :func:`~nrobust.hyperbolic.simulate_general.simulate_general`,
-        :class:`~nrobust.hyperbolic.controllers.StateFeedback` and
-        :func:`~nrobust.hyperbolic.feedback.laplace_loop_factors`.
+        :func:`~nrobust.hyperbolic.simulate.general.simulate_general`,
+        :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback` and
+        :func:`~nrobust.hyperbolic.loops.feedback.laplace_loop_factors`.
         """
         return FeedbackLaw(-self.plant.rho, _TraceGain(self, "u"), _TraceGain(self, "v"))
 
@@ -339,7 +338,7 @@ class VaryingKernels:
         (``W_beta`` with ``L^{ab}``, ``L^{bb}`` and ``g_v(xi)``; trapezoidal rule on ``grid``, second
         order like the kernels), so ``P = k q e^{A(L) - D(L)} e^{-tau s} + int M e^{-nu s} dnu``
         with ``M`` the branches ``W_alpha, W_beta`` on the delay axis (as ``N~``; for U_BS,
-        ``P = -Phi``). This is :func:`~nrobust.hyperbolic.feedback.feedback_factor` with varying
+        ``P = -Phi``). This is :func:`~nrobust.hyperbolic.loops.feedback.feedback_factor` with varying
         speeds.
 
         Parameters
@@ -403,7 +402,7 @@ def solve_varying_kernels(plant: GeneralHyperbolic2x2, kernel_grid: int = DEFAUL
         Points per direction of each pair's grid and of the physical grid, ``>= 5`` and
         ``<=`` :data:`~nrobust.hyperbolic.kernels.MAX_KERNEL_GRID`, fine enough for the
         couplings (grid step in transport time times the largest source coefficient at
-        most :data:`~nrobust.hyperbolic.kernels.RESOLUTION`); both checked before any
+        most :data:`~nrobust.hyperbolic.kernels.constant.RESOLUTION`); both checked before any
         table is allocated.
 
     Returns

@@ -78,7 +78,7 @@ def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 class Controller(ABC):
-    """A boundary controller for :class:`~nrobust.hyperbolic.system.Hyperbolic2x2`."""
+    """A boundary controller for :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`."""
 
     @abstractmethod
     def factors(
@@ -206,9 +206,9 @@ class StateFeedback(Controller):
     """Any linear boundary state feedback ``U = k u(t, L) + int_0^L g_u u + g_v v dx``.
 
     The gains act on the state of the plant the controller is used with (on a
-    :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2`, its physical coordinates on
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`, its physical coordinates on
     ``[0, L]``). Its loop factors are ``A = 1 - Phi`` and ``B = -P`` with ``P`` of
-    :func:`~nrobust.hyperbolic.feedback.feedback_factor` (the gains composed with the
+    :func:`~nrobust.hyperbolic.loops.feedback.feedback_factor` (the gains composed with the
     inverse kernels), so they need the plant: :func:`loop_factors` computes them. The
     proportional output feedback ``U = -K u(t, L)`` is ``StateFeedback(-K)``; U_BS and
     U_BS2(K) are the cases whose gains are the kernel traces of their ``feedback_law``.
@@ -255,14 +255,14 @@ class StateFeedback(Controller):
 def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     """The plant as the paper's plant and the controller acting on it.
 
-    A :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` is replaced by its normal
+    A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` is replaced by its normal
     form; a :class:`StateFeedback` on it gets its gains mapped to the normal coordinates
-    (:meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`). The paper's
+    (:meth:`~nrobust.hyperbolic.plants.general.NormalForm.feedback_to_normal`). The paper's
     controllers are defined on the normal form and pass unchanged. The characteristic
     function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
     those of the general plant. A general plant with a varying ``lam/mu`` has no normal form
     and passes unchanged with its controller: every analysis takes it by the characteristic
-    route (:func:`~nrobust.hyperbolic.varying.varying_delay_form`). Any other plant (and
+    route (:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`). Any other plant (and
     its controller) passes unchanged.
     """
     if isinstance(system, GeneralHyperbolic2x2) and system.constant_ratio:
@@ -304,7 +304,7 @@ def _varying_factors(
     ``Phi = rho_q e^{-tau s} - I_N`` as for the paper's plant; a proportional feedback
     ``StateFeedback(k)`` takes ``B`` from the same route, a state feedback with integral gains
     from the kernels with varying speeds
-    (:meth:`~nrobust.hyperbolic.varying_kernels.VaryingKernels.feedback_factor`, on
+    (:meth:`~nrobust.hyperbolic.kernels.varying.VaryingKernels.feedback_factor`, on
     ``kernel_grid`` points). U_BS2(K), whose ``K q`` is a normal-form quantity, is refused.
     """
     _check_controller(controller)

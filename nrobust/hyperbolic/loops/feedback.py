@@ -13,15 +13,15 @@ system (eq. (37): ``alpha(x) = q beta(t - x/lam - 1/mu, 1)``,
     W_beta(xi)  = k L^{ab}(1, xi) + g_v(xi) + int_xi^1 g_u(x) L^{ab}(x, xi) + g_v(x) L^{bb}(x, xi) dx,
 
 with ``M`` made of the two branches ``W_alpha, W_beta`` exactly as ``N~`` is made of
-``N^alpha, N^beta`` (eq. (40), :func:`~nrobust.hyperbolic.delay_form.delay_kernel`).
+``N^alpha, N^beta`` (eq. (40), :func:`~nrobust.hyperbolic.loops.delay_form.delay_kernel`).
 Since ``beta(t, 1) = Phi(t) + U(t - delta)``, the closed loop is
 ``F(s; delta) = A(s) + B(s) e^{-delta s}`` with ``A = 1 - Phi`` (the open-loop
 characteristic function) and ``B = -P``. U_BS and U_BS2(K) are the special cases whose
 gains are kernel traces; there ``M`` reduces to ``N~`` (tests).
 
 :func:`laplace_loop_factors` computes the same ``A, B`` without kernels, from the
-Laplace-domain solution of the plant (:func:`~nrobust.hyperbolic.laplace.general_solution`),
-for any :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2`.
+Laplace-domain solution of the plant (:func:`~nrobust.hyperbolic.loops.laplace.general_solution`),
+for any :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def feedback_factor(
     ----------
     system : Hyperbolic2x2
         The paper's plant (a general plant: through its normal form, see
-        :meth:`~nrobust.hyperbolic.general.NormalForm.feedback_to_normal`).
+        :meth:`~nrobust.hyperbolic.plants.general.NormalForm.feedback_to_normal`).
     k : float
         Gain on ``u(t, 1)``.
     g_u, g_v : float or callable
@@ -119,7 +119,7 @@ def laplace_loop_factors(
     """``A(s)`` and ``B(s)`` of ``U = k u(L) + int_0^L g_u u + g_v v dx`` by the Laplace route.
 
     With ``[u; v](x, s)`` the solution of the transformed plant from ``[q; 1]``
-    (:func:`~nrobust.hyperbolic.laplace.general_solution`, no kernels),
+    (:func:`~nrobust.hyperbolic.loops.laplace.general_solution`, no kernels),
     ``A = e^{-D(L)} e^{-s t_v} (v(L) - rho u(L))`` and
     ``B = -e^{-D(L)} e^{-s t_v} (k u(L) + int_0^L g_u u + g_v v dx)`` (Simpson's rule on the
     Magnus grid, made even). The factor ``e^{-D(L)}`` (``D = -int d/mu``) normalises the
@@ -136,7 +136,7 @@ def laplace_loop_factors(
         Gains of the integral term on ``[0, L]``.
     s : complex or array_like
     steps : int, optional
-        Magnus steps (default as :func:`~nrobust.hyperbolic.laplace.general_solution`).
+        Magnus steps (default as :func:`~nrobust.hyperbolic.loops.laplace.general_solution`).
 
     Returns
     -------

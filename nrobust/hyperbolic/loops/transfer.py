@@ -4,7 +4,7 @@ The open loop ``H_0(s) = 1 / (1 - rho q e^{-tau s})`` of the transport system (L
 transform of eq. (6)) and
 ``H_1(s) = 1 / (1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu)`` of the coupled
 system (Laplace transform of eq. (39)), as
-:class:`~nrobust.transfer.QuasiTransferFunction`.
+:class:`~nrobust.lti.transfer.QuasiTransferFunction`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
     ----------
     system : TransportSystem or Hyperbolic2x2
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
-        Kernel grid passed to :func:`~nrobust.hyperbolic.delay_form` (coupled systems only;
+        Kernel grid passed to :func:`~nrobust.hyperbolic.loops.delay_form` (coupled systems only;
         the default is that of the closed-loop functions, so that ``H_1`` and
         :func:`closed_loop_tf` share the same ``N~``). Formerly ``n``, a deprecated alias.
     """
@@ -60,7 +60,7 @@ def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) ->
     ``M~(nu) = lam q L^{beta alpha}(1, lam nu - lam/mu) h_[1/mu, tau](nu)
     + mu L^{beta beta}(1, 1 - mu nu) h_[0, 1/mu](nu)``, the same change of variables as
     ``N~`` in eq. (40), built by the same function
-    (:func:`~nrobust.hyperbolic.delay_form.delay_kernel`, a cubic spline on each side of
+    (:func:`~nrobust.hyperbolic.loops.delay_form.delay_kernel`, a cubic spline on each side of
     the jump at ``nu = 1/mu``). For a transport system ``M = 1``.
 
     Parameters

@@ -24,7 +24,7 @@ __all__ = ["compound_characteristic", "compound_loop"]
 
 def compound_loop(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """``(D_m(C), p, a, b)``: ``det M(s; z) = sum_d z^d a_d^T exp(D_m(C) - s diag(p)) b`` (module notes of
-    :mod:`nrobust.matrix_crossings`), ``a`` of shape ``(m + 1, binom(n + m, m))``.
+    :mod:`nrobust.margins.matrix`), ``a`` of shape ``(m + 1, binom(n + m, m))``.
 
     ``p_S = sum_{u_i in S} 1/lam_i + sum_{v_j not in S} 1/mu_j >= 0``: the row scaling
     ``e^{-s sum 1/mu_j}`` of the loop matrix makes the compound transition bounded on ``Re s >= 0``.
@@ -136,7 +136,7 @@ def compound_characteristic(system: NPlusMSystem, K: ArrayLike | None = None, de
     """The closed loop of :class:`NPlusMCharacteristic` in compound form, for counts far into ``Re s > 0``.
 
     ``F(s; delta) = sum_d e^{-d delta s} a_d^T exp(D_m(C) - s P_m) b`` (Cauchy-Binet,
-    :mod:`nrobust.matrix_crossings`): the same function, with derivative bounds that stay
+    :mod:`nrobust.margins.matrix`): the same function, with derivative bounds that stay
     bounded on ``Re s >= 0`` for any ``m`` (the rates ``P_m`` are ``>= 0``), where the rows of
     the loop matrix grow like ``e^{s (1/mu_i - 1/mu_j)}``. A
     :class:`~nrobust.qpmatrix.CharacteristicFunction` for :func:`~nrobust.roots.count_roots`.

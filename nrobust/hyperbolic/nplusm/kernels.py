@@ -439,7 +439,7 @@ class NPlusMBackstepping:
     (piecewise linear in ``xi`` between the grid nodes). Without delay the closed loop
     reaches zero at :attr:`convergence_time`; with a loop delay ``delta`` its
     characteristic function is :meth:`characteristic_value` (module notes). It is a
-    feedback :func:`~nrobust.hyperbolic.nplusm.simulate_nplusm` accepts in place of a
+    feedback :func:`~nrobust.hyperbolic.simulate.simulate_nplusm` accepts in place of a
     static gain (through :meth:`functional`).
 
     Parameters
@@ -448,7 +448,7 @@ class NPlusMBackstepping:
 
     Notes
     -----
-    In :func:`~nrobust.hyperbolic.nplusm.simulate_nplusm`, a ``u`` and a ``v`` component
+    In :func:`~nrobust.hyperbolic.simulate.simulate_nplusm`, a ``u`` and a ``v`` component
     on grids of the same number of cells (equal speeds) split the scheme's lattice into two
     parities coupled only through the boundary; the integral of their checkerboard
     difference is ``O(h)``, so that mode sees the plant under ``U = -R u(t, 1)`` alone and

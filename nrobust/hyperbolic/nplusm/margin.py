@@ -305,7 +305,7 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
     ``M_1 = -E K Phi_u``). By Cauchy-Binet, ``f(w, z) = det(M_0(i w) + z M_1(i w)) =
     sum_d z^d a_d^T exp(D_m(C) - i w P_m) b`` with ``a_d`` the coefficients of the minors of
     ``[-(R + z K), I]``, ``b`` those of ``[Q; I]`` and ``D_m``, ``P_m >= 0`` the compound
-    generator and rates (:mod:`nrobust.matrix_crossings`). A root reaches ``s = i w`` for some
+    generator and rates (:mod:`nrobust.margins.matrix`). A root reaches ``s = i w`` for some
     delay iff ``f(w, e^{i phi}) = 0``, at the delays ``((-phi) mod 2 pi + 2 pi k) / w``
     (an eigenvalue ``e^{-i phi}`` of ``-M_0^{-1} M_1`` on the unit circle).
 
@@ -315,12 +315,12 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
        Verduyn Lunel's ``gamma_0`` of the delayed principal part; the margin is 0 when a
        sampled ``rho`` is above 1: arbitrarily small delays destabilise).
     2. *Frequency bound.* ``|F - F_0| <= sum_d ||a_d|| ||b|| r(|s|)`` with ``r`` the
-       :class:`~nrobust.matrix_crossings.GaugeRemainder` of ``(D_m(C), P_m)``: beyond the
+       :class:`~nrobust.margins.matrix.GaugeRemainder` of ``(D_m(C), P_m)``: beyond the
        proven ``W`` where this is below the gap, ``F(s; delta) != 0`` on ``Re s >= 0`` for
        every ``delta >= 0``, and no eigenvalue of ``-M_0^{-1} M_1`` has modulus 1 on the axis.
     3. *Nominal stability.* :func:`~nrobust.roots.count_roots` of the delay-free loop on
        ``[0, W] x [-W, W]``.
-    4. *Crossings.* :func:`~nrobust.matrix_crossings.circle_crossings` on ``[0, W] x [0, 2 pi)``
+    4. *Crossings.* :func:`~nrobust.margins.matrix.circle_crossings` on ``[0, W] x [0, 2 pi)``
        (Lipschitz exclusion, Newton-Kantorovich discs; a tangency raises).
 
     Parameters

@@ -1,6 +1,6 @@
 """Physical front ends: open channels (Saint-Venant), ARZ traffic, and characteristic forms.
 
-Each builds a :class:`~nrobust.hyperbolic.general.GeneralHyperbolic2x2` in Riemann
+Each builds a :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` in Riemann
 (characteristic) coordinates from the physical parameters, with the quantities a user
 checks the model by (steady profile, depths, Froude number, characteristic speeds) and the
 gain from the physical actuator to the Riemann boundary input ``U``. The derivations are in

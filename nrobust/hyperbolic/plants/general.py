@@ -6,7 +6,7 @@ The plant as it comes out of a linearised physical model, on ``x in [0, L]``::
     v_t - mu(x)  v_x = c(x) u + d(x) v,      v(t, L) = rho u(t, L) + U(t),
 
 with ``lam, mu > 0``. :meth:`GeneralHyperbolic2x2.normal_form` brings it to the paper's
-plant (18)-(20) (:class:`~nrobust.hyperbolic.system.Hyperbolic2x2`) in three steps
+plant (18)-(20) (:class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`) in three steps
 (derived in ``docs/theory.md``, section "General plants and their normal form"):
 
 1. the diagonal terms are removed by the exponential scaling ``u = e^{A(x) + k} u~``,
@@ -305,7 +305,7 @@ class GeneralHyperbolic2x2:
             On ``mu`` when ``lam/mu`` varies: one change of the space variable scales both
             speeds by the same factor, so constant speeds need a constant ratio
             (``docs/theory.md``); the characteristic route
-            (:func:`~nrobust.hyperbolic.varying.varying_delay_form`) and the kernel-free route
+            (:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`) and the kernel-free route
             (:func:`~nrobust.hyperbolic.boundary_function`) still apply.
         """
         if not self.constant_ratio:

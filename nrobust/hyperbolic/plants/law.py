@@ -30,7 +30,7 @@ class FeedbackLaw:
     ``U(t) = boundary_gain * u(t, 1) + int_0^1 gain_u(xi) u(t, xi) + gain_v(xi) v(t, xi) dxi``
     (on ``[0, L]`` in the physical coordinates of a general plant), passed through the proper
     filter ``(1 + a s)/(1 + b s)`` when ``filter = (a, b)``. Also importable from
-    :mod:`nrobust.hyperbolic.controllers`, whose controllers return it.
+    :mod:`nrobust.hyperbolic.loops.controllers`, whose controllers return it.
     """
 
     boundary_gain: float

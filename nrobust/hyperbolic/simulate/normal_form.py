@@ -6,7 +6,7 @@ The closed loop simulated is::
     v_t - mu  v_x = sigma_mp(x) u,      v(t, 1) = rho u(t, 1) + U(t - delta),
 
 with ``U(t) = 0`` for ``t < 0`` and ``U`` given by a state feedback
-(:class:`~nrobust.hyperbolic.controllers.FeedbackLaw`): U_BS (eq. (47)),
+(:class:`~nrobust.hyperbolic.loops.controllers.FeedbackLaw`): U_BS (eq. (47)),
 U_BS2(K) (eq. (53)), their filtered versions (section 2.3.2) or any law of the form
 ``boundary_gain * u(t, 1) + int_0^1 gain_u u + gain_v v dxi``.
 
@@ -157,7 +157,7 @@ def _initial(name: str, value: InitialState, x: Array) -> Array:
 
 
 def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_grid: int) -> Any:
-    """The :class:`~nrobust.hyperbolic.controllers.FeedbackLaw` of ``controller`` (itself if it already is one)."""
+    """The :class:`~nrobust.hyperbolic.loops.controllers.FeedbackLaw` of ``controller`` (itself if it already is one)."""
     if hasattr(controller, "boundary_gain") and hasattr(controller, "gain_u"):
         return controller
     if not callable(getattr(controller, "feedback_law", None)):
@@ -309,7 +309,7 @@ def simulate_normal_form(
     ``U = e^{D(L)} U~`` and the norm ``sqrt(int_0^L u^2 + v^2 dx)`` are those of the
     physical plant (``x``, ``x_v``: the physical nodes; times in ``time_unit``).
 
-    ``u = e^{A + k} u~``, ``v = e^{D} v~`` at ``y(x)`` (:class:`~nrobust.hyperbolic.general.NormalForm`);
+    ``u = e^{A + k} u~``, ``v = e^{D} v~`` at ``y(x)`` (:class:`~nrobust.hyperbolic.plants.general.NormalForm`);
     with ``dx = t_u lam(x(y)) dy`` the physical norm is the normal form's with the weights
     ``e^{2(A + k)} t_u lam`` and ``e^{2D} t_u lam`` on the squares.
     """
@@ -370,7 +370,7 @@ def simulate_normal_form(
 
 @renamed_keywords(n="cells")
 def v_nodes(system: Hyperbolic2x2, cells: int) -> Array:
-    """Nodes (ascending) on which :func:`simulate` stores ``v`` for ``cells`` cells of ``u``.
+    """Nodes (ascending) on which :func:`~nrobust.hyperbolic.simulate.simulate` stores ``v`` for ``cells`` cells of ``u``.
 
     Equal speeds: the ``u`` nodes ``k / cells``. Otherwise ``1 - k mu dt``
     (``dt = 1/(lam cells)``) down to the last one in ``[0, 1]``, and ``x = 0`` when that

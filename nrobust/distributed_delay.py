@@ -1,0 +1,579 @@
+"""Distributed-delay terms ``q(s) int_a^b nu^m N(nu) e^{-nu s} dnu`` of quasi-polynomials.
+
+:class:`DistributedDelay` holds a tabulated kernel ``N``, interpolated linearly or by a
+not-a-knot cubic spline on each piece between jumps (``N~`` of the delay form is a cubic
+spline with a jump at ``nu = 1/mu``, paper eq. (40)), and evaluates the term, its
+derivative in ``s`` and bounds of its modulus (moments of ``|N|``, the variation bound of an
+integration by parts).
+
+The integral of the interpolant against ``e^{-nu s}`` is computed in closed form
+(Filon-type): on a segment ``[nu_i, nu_i + h]`` where ``nu^m N(nu)`` is a polynomial in
+``t = (nu - nu_i)/h`` it is ``h e^{-nu_i s} sum_l c_l phi_l(s h)`` with
+``phi_l(z) = int_0^1 t^l e^{-z t} dt`` (:func:`_phi`), so its error does not grow with
+``|Im s|``. The sums over segments of one length are exponential sums
+``sum_i c_i e^{-nu_i s}``; on a vertical line of uniformly spaced frequencies and uniformly
+spaced ``nu_i`` they are chirp-z transforms (Bluestein, :func:`_exp_sums`).
+
+The small polynomial helpers (coefficients in increasing powers) are shared with
+:mod:`nrobust.quasipoly`, whose :class:`~nrobust.quasipoly.QuasiPolynomial` sums point and
+distributed terms.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import warnings
+from dataclasses import dataclass, field
+from math import comb, factorial
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numpy.polynomial import Polynomial
+from numpy.typing import ArrayLike, NDArray
+
+from ._json import fields_dict
+from ._validate import nonnegative, number_array, real_array
+from .errors import ParameterError
+
+__all__ = ["DistributedDelay", "as_poly", "canonical_bytes", "polyder", "polymul", "polyval"]
+
+# |z| below which phi_k(z) = int_0^1 t^k e^{-z t} dt is summed as a Taylor series
+# (the closed-form recursion loses digits by cancellation there); 30 terms at |z| < 1
+# leave a remainder below 1/30! ~ 4e-33.
+_SERIES_RADIUS = 1.0
+_SERIES_TERMS = 30
+# Number of complex entries one block of the (s x nodes) exponential matrix may hold.
+_BLOCK = 1 << 20
+# Chirp-z transforms run on blocks of this many frequencies: the chirp phase error grows
+# like the square of the block length (measured: 2e-11 relative at 20000, ~1e-13 at 1024).
+_CZT_BLOCK = 1024
+# Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
+_CZT_MIN_S, _CZT_MIN_NODES = 64, 16
+
+
+def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
+    """Return ``phi_k(z) = int_0^1 t^k e^{-z t} dt`` for ``k = 0..kmax``, stacked on axis 0.
+
+    ``|z| < 1``: the Taylor series ``sum_m (-z)^m / (m! (m + k + 1))`` as one matrix product
+    of the powers ``(-z)^m`` with the table ``1 / (m! (m + k + 1))``; elsewhere the forward recursion
+    ``phi_k = (k phi_{k-1} - e^{-z}) / z`` from ``phi_0 = (1 - e^{-z}) / z``.
+    """
+    z = np.asarray(z, dtype=complex)
+    if z.size == 0:
+        return np.zeros((kmax + 1, *z.shape), dtype=complex)
+    mod = np.abs(z)
+    small = mod < _SERIES_RADIUS
+    n_small = int(np.count_nonzero(small))
+    if n_small:
+        zs = z if n_small == z.size else z[small]
+        # Terms until the remainder r^m / m! (r = max |z| < 1) is below 1e-17.
+        r, bound, terms = float(np.max(mod if n_small == z.size else mod[small])), 1.0, 1
+        while terms < _SERIES_TERMS and bound > 1e-17:
+            bound *= r / terms
+            terms += 1
+        powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m
+        powers[0] = 1.0
+        np.negative(zs.ravel(), out=powers[1])
+        for m in range(2, terms):
+            np.multiply(powers[m - 1], powers[1], out=powers[m])
+        # a real matrix times complex columns, as one real product on the (re, im) pairs
+        acc = (_series_table(kmax, terms) @ powers.view(float)).view(complex).reshape(kmax + 1, *zs.shape)
+        if n_small == z.size:
+            return acc
+        out = np.empty((kmax + 1, *z.shape), dtype=complex)
+        out[:, small] = acc
+    if n_small < z.size:
+        big = ~small
+        zb = z if not n_small else z[big]
+        e = np.exp(-zb)
+        cur = (1.0 - e) / zb
+        rows = [cur]
+        for k in range(1, kmax + 1):
+            cur = (k * cur - e) / zb
+            rows.append(cur)
+        if not n_small:
+            return np.stack(rows)
+        out[:, big] = np.stack(rows)
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _series_table(kmax: int, terms: int) -> NDArray[np.float64]:
+    """``1 / (m! (m + k + 1))`` for ``k = 0..kmax`` (rows) and ``m = 0..terms-1`` (columns)."""
+    m = np.arange(terms)
+    table = 1.0 / (
+        np.array([float(factorial(j)) for j in m])[None, :] * (m[None, :] + np.arange(kmax + 1)[:, None] + 1.0)
+    )
+    table.flags.writeable = False
+    return table
+
+
+def _uniform_line(s: NDArray[np.complex128]) -> tuple[float, float, float] | None:
+    """``(x, w0, dw)`` if ``s = x + i (w0 + k dw)``, ``k = 0..len-1``, to rounding; else None."""
+    if s.size < _CZT_MIN_S or np.any(s.real != s.real[0]):
+        return None
+    w0, dw = float(s.imag[0]), float(s.imag[1] - s.imag[0])
+    ideal = w0 + dw * np.arange(s.size)
+    if dw == 0 or np.max(np.abs(s.imag - ideal)) > 8 * np.finfo(float).eps * np.max(np.abs(s.imag)):
+        return None
+    return float(s.real[0]), w0, dw
+
+
+def _arithmetic_step(nu: NDArray[np.float64]) -> float | None:
+    """``d`` if ``nu = nu_0 + k d`` to rounding; else None."""
+    if nu.size < _CZT_MIN_NODES:
+        return None
+    d = float((nu[-1] - nu[0]) / (nu.size - 1))
+    ideal = nu[0] + d * np.arange(nu.size)
+    if d <= 0 or np.max(np.abs(nu - ideal)) > 8 * np.finfo(float).eps * max(np.max(np.abs(nu)), 1.0):
+        return None
+    return d
+
+
+def _exp_sums(
+    s: NDArray[np.complex128], nu: NDArray[np.float64], coef: NDArray, step: float | None = None
+) -> NDArray[np.complex128]:
+    """``exp(-outer(s, nu)) @ coef``, shape ``(len(s), coef.shape[1])``.
+
+    ``step``: the spacing ``d`` of ``nu`` if uniform (:func:`_arithmetic_step`), else None.
+    On a vertical line with uniform frequency steps and uniformly spaced ``nu`` this is a
+    chirp-z transform (``O((N + M) log(N + M))`` instead of ``N M`` exponentials):
+    ``sum_n c_n e^{-(nu_0 + n d) s_k} = e^{-nu_0 s_k} sum_n (c_n e^{-n d (x + i w0)}) e^{-i n k d dw}``,
+    by Bluestein's identity ``n k = (n^2 + k^2 - (k - n)^2) / 2`` a convolution
+    (:func:`_chirp_plan`), on blocks of :data:`_CZT_BLOCK` frequencies.
+    """
+    line = _uniform_line(s) if step is not None else None
+    if line is None or step is None:
+        out = np.empty((s.size, coef.shape[1]), dtype=complex)
+        rows = max(1, _BLOCK // max(nu.size, 1))
+        for lo in range(0, s.size, rows):
+            out[lo : lo + rows] = np.exp(-np.outer(s[lo : lo + rows], nu)) @ coef
+        return out
+    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
+
+    x, w0, dw = line
+    n, m = nu.size, min(_CZT_BLOCK, s.size)
+    theta = step * dw
+    nfft, filt, chirp_in, chirp_out = _chirp_plan(n, m, theta)
+    idx = np.arange(n)
+    out = np.empty((s.size, coef.shape[1]), dtype=complex)
+    # blocks of frequencies w0 + (lo + k) dw, k < m, transformed together within the memory bound
+    per_round = max(1, _BLOCK // (nfft * coef.shape[1]))
+    starts = np.arange(0, s.size, m)
+    for r in range(0, starts.size, per_round):
+        firsts = starts[r : r + per_round]
+        shift = np.exp(-step * np.outer(x + 1j * (w0 + firsts * dw), idx)) * chirp_in  # (blocks, n)
+        u = shift[:, None, :] * coef.T[None, :, :]  # (blocks, columns, n)
+        y = scipy.fft.ifft(scipy.fft.fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
+        for b, first in enumerate(firsts.tolist()):
+            size = min(m, s.size - first)
+            out[first : first + size] = y[b, :, :size].T
+    return out * np.exp(-nu[0] * s)[:, None]
+
+
+@functools.lru_cache(maxsize=64)
+def _chirp_plan(n: int, m: int, theta: float) -> tuple[int, NDArray, NDArray, NDArray]:
+    """Bluestein's plan for ``y_k = sum_{j < n} u_j e^{-i theta j k}``, ``k < m``.
+
+    ``y_k = e^{-i theta k^2 / 2} sum_j (u_j e^{-i theta j^2 / 2}) e^{i theta (k - j)^2 / 2}``:
+    returns the FFT length, the FFT of the filter ``e^{i theta l^2 / 2}``,
+    ``l = 1 - n .. m - 1``, and the chirps ``e^{-i theta j^2 / 2}`` (``j < n``) and
+    ``e^{-i theta k^2 / 2}`` (``k < m``). The phases are taken from ``theta`` itself (not
+    from powers of a rounded ``e^{-i theta}``), exact to rounding for every ``l``.
+    """
+    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
+
+    nfft = scipy.fft.next_fast_len(n + m - 1)
+    lag = np.arange(1 - n, m, dtype=float)
+    filt = scipy.fft.fft(np.exp(0.5j * theta * lag**2), nfft)
+    chirp_in = np.exp(-0.5j * theta * np.arange(n, dtype=float) ** 2)
+    chirp_out = np.exp(-0.5j * theta * np.arange(m, dtype=float) ** 2)
+    for arr in (filt, chirp_in, chirp_out):
+        arr.flags.writeable = False
+    return nfft, filt, chirp_in, chirp_out
+
+
+def as_poly(name: str, coefs: ArrayLike) -> NDArray[np.complex128] | NDArray[np.float64]:
+    """Validate polynomial coefficients (increasing powers); trailing zeros are trimmed."""
+    try:
+        arr = np.atleast_1d(np.asarray(coefs))
+    except (TypeError, ValueError):
+        raise ParameterError(name, "a non-empty sequence of finite numbers", coefs) from None
+    if arr.ndim != 1 or arr.size == 0 or not np.issubdtype(arr.dtype, np.number):
+        raise ParameterError(name, "a non-empty 1-D sequence of finite numbers", coefs)
+    if not np.all(np.isfinite(arr)):
+        raise ParameterError(name, "finite (no nan or inf)", coefs)
+    arr = arr.astype(complex if np.iscomplexobj(arr) else float)
+    nz = np.flatnonzero(arr)
+    return arr[: nz[-1] + 1] if nz.size else arr[:1] * 0
+
+
+def polyval(coefs: NDArray, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """Horner evaluation of a polynomial given in increasing powers."""
+    out = np.full(s.shape, coefs[-1], dtype=complex)
+    for c in coefs[-2::-1]:
+        out = out * s + c
+    return out
+
+
+def polyder(coefs: NDArray) -> NDArray:
+    """Coefficients of the derivative (increasing powers); a constant gives ``[0]``."""
+    if coefs.size == 1:
+        return coefs[:1] * 0
+    return coefs[1:] * np.arange(1, coefs.size)
+
+
+def polymul(a: NDArray, b: NDArray) -> NDArray:
+    """Coefficients of the product of two polynomials (increasing powers)."""
+    return np.convolve(a, b)
+
+
+def _linear_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Segments of positive length with ``N = v_i + (v_{i+1} - v_i) t`` on each."""
+    keep = np.diff(nodes) > 0
+    left, right = values[:-1][keep], values[1:][keep]
+    return nodes[:-1][keep], np.diff(nodes)[keep], np.stack([left, right - left], axis=1)
+
+
+def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Not-a-knot cubic splines on the pieces between jumps, as polynomials in ``t``."""
+    breaks = np.r_[0, np.flatnonzero(np.diff(nodes) == 0) + 1, nodes.size]
+    starts, hs, polys = [], [], []
+    for lo, hi in itertools.pairwise(breaks):
+        x, y = nodes[lo:hi], values[lo:hi]
+        h = np.diff(x)
+        if x.size < 2:  # a lone node between two jumps carries no segment
+            continue
+        if x.size < 4:
+            # The line (2 nodes) or parabola (3 nodes) through the piece, expanded in the
+            # local variable t of each segment: p(x_i + h_i t).
+            p = Polynomial(np.polynomial.polynomial.polyfit(x - x[0], y, x.size - 1))
+            pc = np.array([np.pad(p(Polynomial([x[i] - x[0], h[i]])).coef, (0, 4))[:4] for i in range(h.size)])
+        else:
+            from scipy.interpolate import CubicSpline  # lazily: a slow import, needed by splines only
+
+            spline = CubicSpline(x, y, bc_type="not-a-knot")
+            # spline.c[k, i] multiplies (nu - x_i)^(3-k); with nu - x_i = h_i t:
+            pc = np.stack([spline.c[3 - j] * h**j for j in range(4)], axis=1)
+        starts.append(x[:-1])
+        hs.append(h)
+        polys.append(pc)
+    return np.concatenate(starts), np.concatenate(hs), np.concatenate(polys).astype(values.dtype)
+
+
+_INTERPOLATIONS = {"linear": _linear_pieces, "cubic": _cubic_pieces}
+
+
+class _SegmentGroup(NamedTuple):
+    """Segments of one length ``h``: starts ``nu_i``, coefficients ``c[i, l]``, spacing of the starts if uniform."""
+
+    h: float
+    start: NDArray[np.float64]
+    coef: NDArray
+    step: float | None
+
+
+@dataclass(frozen=True, eq=False)
+class DistributedDelay:
+    """A distributed-delay term ``q(s) int_a^b nu^m N(nu) e^{-nu s} dnu``.
+
+    ``N`` is given by its values on non-decreasing ``nodes`` and interpolated linearly or
+    by cubic splines; a node repeated twice marks a jump of ``N`` there (the left value
+    first), as the jump of ``N~`` at ``nu = 1/mu`` in the paper's eq. (40).
+
+    Parameters
+    ----------
+    nodes : array_like
+        Non-decreasing nodes ``a = nodes[0] <= ... <= nodes[-1] = b``, ``a >= 0``; a node
+        may appear at most twice.
+    values : array_like
+        Values of ``N`` at the nodes (real or complex).
+    poly : array_like, optional
+        Coefficients of ``q(s)`` in increasing powers of ``s``; default ``1``.
+    moment : int, optional
+        The power ``m`` of the weight ``nu^m`` (default 0); derivatives in ``s`` of a
+        distributed term are distributed terms of higher moment.
+    interpolation : {"linear", "cubic"}, optional
+        ``"linear"`` (default, second order) or ``"cubic"``: a not-a-knot cubic spline on
+        each piece between jumps (fourth order for smooth ``N``; pieces of 2 or 3 nodes
+        get the line or parabola through them).
+
+    Notes
+    -----
+    On a segment ``[nu_i, nu_i + h]`` with ``nu^m N(nu)`` a polynomial in
+    ``t = (nu - nu_i)/h``, the integral is ``h e^{-nu_i s} sum_l c_l phi_l(s h)`` with
+    ``phi_l(z) = int_0^1 t^l e^{-z t} dt`` in closed form: exact for the interpolant at
+    every ``s``.
+
+    Two terms compare equal (``==``, with a consistent ``hash``) when their nodes, values,
+    polynomials, moments and interpolations are equal after the constructor's canonical
+    form (a constant ``poly`` is moved into the values); real and complex arrays with the
+    same numbers are equal, as ``1.0 == 1 + 0j``.
+    """
+
+    nodes: NDArray[np.float64]
+    values: NDArray
+    poly: NDArray = field(default_factory=lambda: np.ones(1))
+    moment: int = 0
+    interpolation: str = "linear"
+    if TYPE_CHECKING:  # set by __init__, not a dataclass field: the interpolant's per-segment pieces
+        _pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
+        # built on first use by _segment_groups
+        _groups: dict[tuple[int, bool], tuple[_SegmentGroup, ...]] = field(init=False, repr=False, compare=False)
+
+    def __init__(
+        self,
+        nodes: ArrayLike,
+        values: ArrayLike,
+        poly: ArrayLike = (1.0,),
+        moment: int = 0,
+        interpolation: str = "linear",
+    ) -> None:
+        x = real_array("nodes", nodes, min_size=2)
+        if x[0] < 0:
+            raise ParameterError("nodes", "non-negative (delays are >= 0)", nodes)
+        dx = np.diff(x)
+        if np.any(dx < 0):
+            raise ParameterError("nodes", "non-decreasing", nodes)
+        if np.any((dx[:-1] == 0) & (dx[1:] == 0)):
+            raise ParameterError("nodes", "with no node repeated more than twice", nodes)
+        if not np.any(dx > 0):
+            raise ParameterError("nodes", "spanning an interval of positive length", nodes)
+        v = number_array("values", values)
+        if v.shape != x.shape:
+            raise ParameterError("values", f"numbers, one per node ({x.size})", values)
+        if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
+            raise ParameterError("moment", "an integer >= 0", moment)
+        if interpolation not in _INTERPOLATIONS:
+            raise ParameterError("interpolation", f"one of {sorted(_INTERPOLATIONS)}", interpolation)
+        q = as_poly("poly", poly)
+        v = v.astype(np.result_type(v, q, float))
+        if q.size == 1:  # canonical form: a constant factor lives in the values
+            v, q = v * q[0], np.ones(1)
+        object.__setattr__(self, "nodes", x)
+        object.__setattr__(self, "values", v)
+        object.__setattr__(self, "poly", q)
+        object.__setattr__(self, "moment", int(moment))
+        object.__setattr__(self, "interpolation", interpolation)
+        object.__setattr__(self, "_pieces", _INTERPOLATIONS[interpolation](x, self.values))
+        object.__setattr__(self, "_groups", {})
+
+    def replace(self, **changes: Any) -> DistributedDelay:
+        """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
+        args: dict[str, Any] = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
+        args.update(changes)
+        return DistributedDelay(**args, interpolation=self.interpolation)
+
+    # ------------------------------------------------------------------ structure
+    @property
+    def a(self) -> float:
+        """Lower end of the support."""
+        return float(self.nodes[0])
+
+    @property
+    def b(self) -> float:
+        """Upper end of the support."""
+        return float(self.nodes[-1])
+
+    def _local_coefficients(
+        self, extra: int, pieces: tuple[NDArray, NDArray, NDArray] | None = None
+    ) -> tuple[NDArray, NDArray, NDArray]:
+        """Coefficients ``c[i, l]`` of ``h_i nu^(m+extra) N(nu)`` in powers of ``t`` on each segment.
+
+        ``pieces = (start, h, P)`` with ``P[i, j]`` the coefficient of ``t^j`` of ``N`` on
+        segment ``i``; by default the interpolant's.
+        """
+        start, h, poly_t = self._pieces if pieces is None else pieces
+        k = self.moment + extra
+        coef = np.zeros((start.size, k + poly_t.shape[1]), dtype=np.result_type(poly_t, float))
+        for j in range(k + 1):  # (start + h t)^k = sum_j C(k, j) start^(k-j) h^j t^j
+            w = comb(k, j) * start ** (k - j) * h**j
+            coef[:, j : j + poly_t.shape[1]] += w[:, None] * poly_t
+        return start, h, coef * h[:, None]
+
+    def _abs_pieces(self) -> tuple[NDArray, NDArray, NDArray]:
+        """Piecewise polynomials bounding ``|N|`` from above on every segment.
+
+        Linear: the linear interpolant of ``|N|`` (convexity of the modulus). Cubic: the
+        constant ``sum_j |P_ij| >= max_t |P_i(t)|``.
+        """
+        start, h, poly_t = self._pieces
+        if poly_t.shape[1] == 2:
+            left = np.abs(poly_t[:, 0])
+            return start, h, np.stack([left, np.abs(poly_t[:, 0] + poly_t[:, 1]) - left], axis=1)
+        return start, h, np.sum(np.abs(poly_t), axis=1, keepdims=True)
+
+    def _segment_groups(self, extra: int, absolute: bool = False) -> tuple[_SegmentGroup, ...]:
+        """The segments grouped by length, with their coefficients for moment ``m + extra``.
+
+        ``absolute``: the pieces of :meth:`_abs_pieces` instead of the interpolant's.
+        Depends on the nodes and values only, so it is built once per ``(extra, absolute)``.
+        """
+        key = (extra, absolute)
+        groups = self._groups.get(key)
+        if groups is None:
+            start, h, coef = self._local_coefficients(extra, self._abs_pieces() if absolute else None)
+            hs, inverse = np.unique(np.round(h, 14), return_inverse=True)
+            built = []
+            for g in range(hs.size):
+                idx = np.flatnonzero(inverse == g)
+                nu = start[idx]
+                built.append(_SegmentGroup(float(np.mean(h[idx])), nu, coef[idx], _arithmetic_step(nu)))
+            groups = self._groups[key] = tuple(built)
+        return groups
+
+    def _moment_integral(self, s: NDArray[np.complex128], extra: int, absolute: bool = False) -> NDArray[np.complex128]:
+        """``int nu^(m+extra) N(nu) e^{-nu s} dnu`` for the interpolant, exact, at flat ``s``.
+
+        ``absolute``: for the piecewise polynomial bound of ``|N|`` (:meth:`_abs_pieces`).
+        """
+        out = np.zeros(s.shape, dtype=complex)
+        for group in self._segment_groups(extra, absolute):
+            phi = _phi(s * group.h, group.coef.shape[1] - 1)  # (L, S)
+            out += np.einsum("sl,ls->s", _exp_sums(s, group.start, group.coef, group.step), phi)
+        return out
+
+    # ------------------------------------------------------------------ evaluation
+    def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Evaluate ``q(s) int nu^m N(nu) e^{-nu s} dnu`` (vectorised over ``s``)."""
+        s = np.asarray(s, dtype=complex)
+        flat = s.ravel()
+        return (polyval(self.poly, flat) * self._moment_integral(flat, 0)).reshape(s.shape)
+
+    def deriv(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Deprecated alias of :meth:`deriv_at` (it evaluates the derivative, it does not return it)."""
+        warnings.warn(
+            "DistributedDelay.deriv(s) is deprecated, use DistributedDelay.deriv_at(s)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return self.deriv_at(s)
+
+    def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """Evaluate the derivative in ``s``: ``q' J_m - q J_{m+1}`` with ``J_k = int nu^k N e^{-nu s}``."""
+        s = np.asarray(s, dtype=complex)
+        flat = s.ravel()
+        out = polyval(polyder(self.poly), flat) * self._moment_integral(flat, 0)
+        out -= polyval(self.poly, flat) * self._moment_integral(flat, 1)
+        return out.reshape(s.shape)
+
+    # ------------------------------------------------------------------ bounds
+    def abs_moment(self, x: ArrayLike, k: int = 0) -> NDArray[np.float64]:
+        """Upper bound of ``int nu^(m+k) |N(nu)| e^{-nu x} dnu`` for real ``x`` (vectorised).
+
+        ``|N|`` is bounded on each segment by a polynomial (:meth:`_abs_pieces`), whose
+        weighted integral is computed exactly.
+        """
+        x = np.asarray(x, dtype=float)
+        flat = x.ravel().astype(complex)
+        return np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
+
+    def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).
+
+        Integration by parts: ``V(x) = |N(a+)| e^{-a x} + |N(b-)| e^{-b x} + sum over
+        jumps |[N]| e^{-nu x} + int |N'(nu)| e^{-nu x} dnu``, all exact for the interpolant.
+        """
+        if self.moment != 0:
+            raise ParameterError("moment", "0 for variation_bound", self.moment)
+        x = np.asarray(x, dtype=float)
+        start, h, poly_t = self._pieces
+        jumps = np.flatnonzero(np.diff(self.nodes) == 0)
+        out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
+        for j in jumps:
+            out = out + np.abs(self.values[j + 1] - self.values[j]) * np.exp(-self.nodes[j] * x)
+        # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
+        slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
+        xe = x[..., None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            seg = np.where(
+                np.abs(xe * h) < 1e-8,
+                h * np.exp(-start * xe),
+                np.exp(-start * xe) * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
+            )
+        return out + np.sum(slope * seg, axis=-1)
+
+    def total_variation(self) -> float:
+        """Upper bound of the total variation of ``N`` extended by zero (exact if linear).
+
+        End values, jumps, and on each segment ``int_0^1 |P'(t)| dt <= sum_j j |P_j|``.
+        """
+        _, _, poly_t = self._pieces
+        jumps = np.sum(np.abs(np.diff(self.values)[np.diff(self.nodes) == 0]))
+        inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
+        return float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
+
+    def linear_deviation(self) -> float:
+        """Upper bound of ``int |N - N_lin|``, ``N_lin`` the linear interpolant of the values.
+
+        Zero for linear interpolation. On a spline segment the difference is
+        ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)``, whose modulus
+        integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when ``P_3 = 0``).
+        """
+        _, h, poly_t = self._pieces
+        if poly_t.shape[1] == 2:
+            return 0.0
+        p2, p3 = poly_t[:, 2], poly_t[:, 3]
+        return float(np.sum(h * (np.abs(p2 + p3) / 6.0 + np.abs(p3) / 12.0)))
+
+    # ------------------------------------------------------------------ algebra
+    def shift(self, delta: float) -> tuple[DistributedDelay, ...]:
+        """Multiply by ``e^{-delta s}``: the support moves to ``[a + delta, b + delta]``.
+
+        For a moment ``m > 0`` the weight ``(mu - delta)^m`` expands into terms of lower
+        moment, hence a tuple.
+        """
+        delta = nonnegative("delta", delta)
+        m = self.moment
+        return tuple(
+            self.replace(nodes=self.nodes + delta, values=self.values * comb(m, j) * (-delta) ** (m - j), moment=j)
+            for j in range(m + 1)
+            if j == m or delta != 0
+        )
+
+    def scale(self, c: complex) -> DistributedDelay:
+        """Multiply by a constant (applied to the values, so equal supports still merge)."""
+        return self.replace(values=self.values * c)
+
+    def times_poly(self, coefs: ArrayLike) -> DistributedDelay:
+        """Multiply by a polynomial (coefficients in increasing powers)."""
+        return self.replace(poly=polymul(self.poly, as_poly("coefs", coefs)))
+
+    def __repr__(self) -> str:
+        weight = "" if self.moment == 0 else f"nu^{self.moment} "
+        poly = "" if self.poly.size == 1 and self.poly[0] == 1 else f"q(s) of degree {self.poly.size - 1} * "
+        jumps = int(np.sum(np.diff(self.nodes) == 0))
+        return (
+            f"DistributedDelay({poly}int_{self.a:.6g}^{self.b:.6g} {weight}N(nu) e^(-nu s) dnu, "
+            f"{self.nodes.size} nodes, {jumps} jump{'s' if jumps != 1 else ''})"
+        )
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, DistributedDelay):
+            return NotImplemented
+        return (
+            self.moment == other.moment
+            and self.interpolation == other.interpolation
+            and np.array_equal(self.nodes, other.nodes)
+            and np.array_equal(self.poly, other.poly)
+            and np.array_equal(self.values, other.values)
+        )
+
+    def __hash__(self) -> int:
+        arrays = tuple(canonical_bytes(a) for a in (self.nodes, self.poly, self.values))
+        return hash((self.moment, self.interpolation, arrays))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (complex values as ``[real, imag]``)."""
+        return fields_dict(self)
+
+
+def canonical_bytes(a: NDArray) -> bytes:
+    """The numbers of ``a`` as bytes equal for equal arrays (``==`` elementwise, same shape).
+
+    Real and complex arrays holding the same numbers give the same bytes, and ``-0.0``
+    the bytes of ``0.0`` (``-0.0 + 0.0 == +0.0``), so that ``hash`` follows
+    ``np.array_equal``.
+    """
+    return (np.asarray(a, dtype=complex) + 0.0).tobytes()
