@@ -142,7 +142,7 @@ def test_scope_says_how_each_plant_kind_represents_n_tilde():
     scope = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True).scope
     assert "N~ = 0 exactly" in scope and "kernels on the kernel grid" not in scope
     coupled = Hyperbolic2x2(1.0, 1.0, 0.5, 0.5, 0.9, 0.6)
-    assert "kernels on the kernel grid (201 points)" in _representation(coupled, StateFeedback(-0.3, 0.1))
-    assert "varying speeds" in _representation(varying, StateFeedback(-0.3, np.cos))
-    assert "varying speeds" not in _representation(varying, StateFeedback(-0.3))
+    assert "kernels on the kernel grid (201 points)" in _representation(coupled, StateFeedback(-0.3, 0.1), 201)
+    assert "varying speeds" in _representation(varying, StateFeedback(-0.3, np.cos), 201)
+    assert "varying speeds" not in _representation(varying, StateFeedback(-0.3), 201)
     assert not certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False).rigorous

@@ -724,6 +724,8 @@ VALUES: dict[str, tuple[list[Any], list[Any]]] = {
     "pos_or_none": ([v for v in JUNK if v is not None] + [NAN, -INF, -1.0, 0.0], [None, INF, 1e300, 5e-324]),
     "int": ([None, "3", 2.5, NAN, True, -1, 0, [3]], [10**9, 10**18]),
     "int0": ([None, "3", 2.5, NAN, True, -1, [3]], [0, 10**9]),
+    # an int whose None is a documented default (simulate's cells: the scheme's default)
+    "int_or_none": (["3", 2.5, NAN, True, -1, 0, [3]], [None, 10**9, 10**18]),
     "region": (
         [
             None,
@@ -907,7 +909,15 @@ SPECS: list[Spec] = [
         "simulate",
         nr.simulate,
         (T0, C0, 0.1, 1.0, _sin, _sin, 20),
-        params=((0, "system"), (1, "controller"), (2, "nonneg"), (3, "pos"), (4, "state"), (5, "state"), (6, "int")),
+        params=(
+            (0, "system"),
+            (1, "controller"),
+            (2, "nonneg"),
+            (3, "pos"),
+            (4, "state"),
+            (5, "state"),
+            (6, "int_or_none"),
+        ),
     ),
     Spec("rouche_delay_bound", nr.rouche_delay_bound, (T0, C0), params=((0, "system"), (1, "controller"))),
     Spec(

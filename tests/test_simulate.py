@@ -30,7 +30,9 @@ from nrobust import (
     spectral_abscissa,
 )
 from nrobust.hyperbolic.kernels.constant import solve_kernels
+from nrobust.hyperbolic.nplusm import NPlusMSystem
 from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
+from nrobust.hyperbolic.simulate import SCHEMES, SimulationResult, simulate_nplusm
 from nrobust.hyperbolic.simulate.normal_form import v_nodes
 
 PAPER = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
@@ -594,3 +596,31 @@ def test_growth_rate_window_checks():
         sim.growth_rate(5.0)
     with pytest.raises(ParameterError):
         sim.growth_rate(2.5)  # the norm is exactly zero there
+
+
+# ---------------------------------------------------------------------------- the registry
+def test_simulate_picks_the_scheme_by_the_plant_and_by_name() -> None:
+    """One ``simulate`` over the registry: the plant picks the scheme (or ``scheme=`` names it), the
+    result is the scheme's own simulator's, bit for bit, and every result is a SimulationResult."""
+    assert sorted(SCHEMES) == ["characteristics", "n+m characteristics", "normal form", "time-of-flight grids"]
+    system = NPlusMSystem([1.0], [1.5], [[0.0, 0.4], [0.5, 0.0]], [[0.6]], [[0.5]])
+
+    def w0(x: np.ndarray) -> np.ndarray:
+        return np.vstack([np.sin(np.pi * x) + 0.3, 1 + x * x])
+
+    direct = simulate_nplusm(system, [[-0.2]], 0.3, 2.0, w0, cells=10)
+    for run in (
+        simulate(system, [[-0.2]], 0.3, 2.0, w0, cells=10),
+        simulate(system, [[-0.2]], 0.3, 2.0, w0=w0, cells=10, scheme="n+m characteristics"),
+    ):
+        assert isinstance(run, SimulationResult)
+        np.testing.assert_array_equal(run.norm, direct.norm)
+        np.testing.assert_array_equal(run.times, direct.times)
+    with pytest.raises(ParameterError, match="v0"):
+        simulate(system, [[-0.2]], 0.3, 2.0, w0, w0, cells=10)
+    with pytest.raises(ParameterError, match="scheme"):
+        simulate(PAPER, ReflectionController(0.1), 0.1, 1.0, np.sin, np.sin, 20, scheme="upwind")
+    with pytest.raises(ParameterError, match="system"):
+        simulate(PAPER, ReflectionController(0.1), 0.1, 1.0, np.sin, np.sin, 20, scheme="n+m characteristics")
+    paper = simulate(PAPER, ReflectionController(0.1), 0.1, 1.0, np.sin, np.sin, 20)
+    assert isinstance(paper, SimulationResult)

@@ -18,8 +18,9 @@ stable for every delay in ``[0, delta_max]``. The verdict changes with ``K`` onl
 
 A scan of the axis on a uniform grid (quintic Hermite interpolants between samples) locates
 every critical gain; those that decide the region are solved again on the loop itself to
-``1e-14`` in ``w``. :func:`~nrobust.margins.admissible.gain_verdict` decides one gain by the certified crossing search of
-:mod:`nrobust.margins.crossing`, and :func:`~nrobust.margins.admissible.check_gain_end` verifies an end on both sides.
+``1e-14`` in ``w``. :func:`~nrobust.margins.admissible.gain_verdict` decides one gain by the
+certified crossing search of :mod:`nrobust.margins.crossing`, and
+:func:`~nrobust.margins.admissible.check_gain_end` verifies an end on both sides.
 The plant-level study is :func:`nrobust.hyperbolic.analyses.k_region`.
 """
 
@@ -627,7 +628,8 @@ def locate_gain_ends(
     moves towards ``kb``; an interval still admissible within ``tol`` of ``kb`` ends at the
     strong-stability limit.
 
-    The ends are located, not verified: :func:`~nrobust.margins.admissible.check_gain_end` verifies each (``k_region`` does).
+    The ends are located, not verified: :func:`~nrobust.margins.admissible.check_gain_end`
+    verifies each (``k_region`` does).
 
     Parameters
     ----------

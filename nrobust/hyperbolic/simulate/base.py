@@ -85,9 +85,10 @@ class Scheme:
     plants : tuple of type
         The plant classes it takes.
     run : callable
-        ``run(system, controller, delta, t_end, *initial_and_options, **options)`` ->
-        :class:`SimulationResult`: the scheme's own simulator, whose arguments after
-        ``t_end`` (the initial state, the grid, work bounds) ``simulate`` passes through.
+        ``run(system, controller, delta, t_end, u0, v0, **options)`` -> :class:`SimulationResult`:
+        the scheme's own simulator; ``simulate`` passes the initial state ``u0, v0`` as given
+        (None where the caller gave none: the scheme says which it needs) and ``cells`` and
+        the options by keyword.
     condition : callable, optional
         A further test on a plant of ``plants`` (say, a constant ``lam/mu``); None: every one.
     description : str

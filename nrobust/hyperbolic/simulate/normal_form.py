@@ -157,7 +157,7 @@ def _initial(name: str, value: InitialState, x: Array) -> Array:
 
 
 def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_grid: int) -> Any:
-    """The :class:`~nrobust.hyperbolic.loops.controllers.FeedbackLaw` of ``controller`` (itself if it already is one)."""
+    """The :class:`~nrobust.hyperbolic.plants.FeedbackLaw` of ``controller`` (itself if it already is one)."""
     if hasattr(controller, "boundary_gain") and hasattr(controller, "gain_u"):
         return controller
     if not callable(getattr(controller, "feedback_law", None)):
@@ -370,7 +370,7 @@ def simulate_normal_form(
 
 @renamed_keywords(n="cells")
 def v_nodes(system: Hyperbolic2x2, cells: int) -> Array:
-    """Nodes (ascending) on which :func:`~nrobust.hyperbolic.simulate.simulate` stores ``v`` for ``cells`` cells of ``u``.
+    """Nodes (ascending) on which :func:`~nrobust.hyperbolic.simulate.simulate` stores ``v`` (``cells`` cells of ``u``).
 
     Equal speeds: the ``u`` nodes ``k / cells``. Otherwise ``1 - k mu dt``
     (``dt = 1/(lam cells)``) down to the last one in ``[0, 1]``, and ``x = 0`` when that

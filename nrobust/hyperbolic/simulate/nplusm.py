@@ -210,10 +210,23 @@ def simulate_nplusm(
     return NPlusMSimulation(np.arange(steps + 1, dtype=float) * dt, norms, dt, tuple(ncell))
 
 
+def _run(
+    system: NPlusMSystem, K: Any, delta: float, t_end: float, u0: Any, v0: Any, **options: Any
+) -> NPlusMSimulation:
+    """:func:`simulate_nplusm` as the registry calls it: the state ``w0`` given as ``u0`` or ``w0=``."""
+    if v0 is not None:
+        raise ParameterError("v0", "not given for an n + m system (its state is one array w0: u0 or w0=)", v0)
+    if "w0" in options:
+        if u0 is not None:
+            raise ParameterError("w0", "given once (as u0 or as w0=, not both)", options["w0"])
+        u0 = options.pop("w0")
+    return simulate_nplusm(system, K, delta, t_end, u0, **options)
+
+
 #: The scheme of :func:`simulate_nplusm` in the registry: ``simulate(system, K, delta, t_end, w0, cells)``.
 NPLUSM_SCHEME = Scheme(
     "n+m characteristics",
     (NPlusMSystem,),
-    simulate_nplusm,
+    _run,
     description="an n + m system on one grid per component, one cell per step (simulate_nplusm)",
 )

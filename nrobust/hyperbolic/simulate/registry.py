@@ -28,8 +28,10 @@ def simulate(
     controller: Any,
     delta: float,
     t_end: float,
-    *initial: Any,
+    u0: Any = None,
+    v0: Any = None,
     cells: int | None = None,
+    *,
     scheme: str | None = None,
     **options: Any,
 ) -> Simulation: ...
@@ -41,8 +43,10 @@ def simulate(
     controller: Any,
     delta: float,
     t_end: float,
-    *initial: Any,
+    u0: Any = None,
+    v0: Any = None,
     cells: int | None = None,
+    *,
     scheme: str | None = None,
     **options: Any,
 ) -> NPlusMSimulation: ...
@@ -53,20 +57,23 @@ def simulate(
     controller: Any,
     delta: float,
     t_end: float,
-    *initial: Any,
+    u0: Any = None,
+    v0: Any = None,
     cells: int | None = None,
+    *,
     scheme: str | None = None,
     **options: Any,
 ) -> SimulationResult:
     """Simulate ``system`` under the delayed boundary feedback ``U(t - delta)`` (``U = 0`` for ``t < 0``).
 
     The scheme is the first of :data:`SCHEMES` that accepts the plant, or the one named by
-    ``scheme``; the arguments after ``t_end`` go to it unchanged. For the 2x2 plants
-    (``"characteristics"``, ``"normal form"``, ``"time-of-flight grids"``) they are
-    ``u0, v0, cells=DEFAULT_CELLS, *, snapshot_every=None, kernels=None,
-    kernel_grid=DEFAULT_KERNEL_GRID, max_updates=MAX_UPDATES`` and the result is a
+    ``scheme``; the initial state, ``cells`` and the keyword options go to it. For the 2x2
+    plants (``"characteristics"``, ``"normal form"``, ``"time-of-flight grids"``) the options
+    are ``snapshot_every=None, kernels=None, kernel_grid=DEFAULT_KERNEL_GRID,
+    max_updates=MAX_UPDATES`` and the result is a
     :class:`~nrobust.hyperbolic.simulate.Simulation`; for an ``n + m`` system
-    (``"n+m characteristics"``) ``w0, cells=200, *, max_updates`` and the result an
+    (``"n+m characteristics"``) the state is one array ``w0`` (given as ``u0`` or ``w0=``),
+    the option ``max_updates``, and the result an
     :class:`~nrobust.hyperbolic.simulate.NPlusMSimulation`.
 
     Parameters
@@ -84,20 +91,22 @@ def simulate(
         Loop delay ``>= 0``.
     t_end : float
         Final time ``> 0``; the run ends at the first sampled time ``>= t_end``.
-    *initial, **options
-        The scheme's own arguments (above), ``cells`` given by position after the initial
-        state or by keyword: for the 2x2 plants ``u0, v0`` (callables on
-        arrays of ``x``, or values on the nodes: ``cells + 1`` for ``u``, for ``v`` as many
-        as :func:`~nrobust.hyperbolic.simulate.v_nodes` returns), ``cells`` (cells of the
-        ``u`` grid, ``dt = 1 / (lam cells)``; formerly ``n``), ``snapshot_every`` (store the
+    u0, v0 : callable or array_like
+        The initial state of a 2x2 plant: callables on arrays of ``x``, or values on the
+        nodes (``cells + 1`` for ``u``, for ``v`` as many as
+        :func:`~nrobust.hyperbolic.simulate.v_nodes` returns). For an ``n + m`` system,
+        ``u0`` is its state ``w0`` and ``v0`` is not given.
+    cells : int, optional
+        Cells of the grid of the fastest (2x2: the ``u``) component, ``dt = 1 / (lam cells)``
+        (formerly ``n``); None: the scheme's default (2x2: ``DEFAULT_CELLS``; ``n + m``: 200).
+    **options
+        The scheme's own options: for the 2x2 plants ``snapshot_every`` (store the
         state every this many steps and at the end; default the final state only),
         ``kernels`` (backstepping kernels of the controller, else solved on
         ``kernel_grid`` points, formerly ``kernel_n``: the grid of every analysis, so
         that the simulated loop is the analysed one) and ``max_updates`` (bound on node
         updates). The schemes keep the deprecated keywords ``n`` (``cells``) and
         ``kernel_n`` (``kernel_grid``).
-    cells : int, optional
-        Cells of the grid of the fastest (2x2: the ``u``) component; None: the scheme's default.
     scheme : str, optional
         A key of :data:`SCHEMES`; default: picked by the plant.
 
@@ -139,4 +148,4 @@ def simulate(
             raise ParameterError("system", f"a plant the scheme {scheme!r} takes ({chosen.description})", system)
     if cells is not None:
         options["cells"] = cells
-    return chosen.run(system, controller, delta, t_end, *initial, **options)
+    return chosen.run(system, controller, delta, t_end, u0, v0, **options)
