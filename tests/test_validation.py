@@ -129,7 +129,9 @@ def _cases() -> list[tuple[str, Callable[[Any], Any], str, list[Any]]]:
     C = ReflectionController(0.1)
     add("simulate", lambda v: nr.simulate(T, C, v, 1.0, _sin, _sin, 20), "delta", NOT_NONNEGATIVE)
     add("simulate", lambda v: nr.simulate(T, C, 0.1, v, _sin, _sin, 20), "t_end", NOT_POSITIVE)
-    add("simulate", lambda v: nr.simulate(T, C, 0.1, 1.0, _sin, _sin, v), "cells", [*NOT_INT, 1, 10**9, 10**18])
+    # cells=None is the scheme's documented default (simulate: 400 cells of u, n + m: 200)
+    not_int = [v for v in NOT_INT if v is not None]
+    add("simulate", lambda v: nr.simulate(T, C, 0.1, 1.0, _sin, _sin, v), "cells", [*not_int, 1, 10**9, 10**18])
     states = [None, "x", 1j, NAN, [NAN] * 21, lambda x: (1 + 1j) * x, lambda x: x > 0.5, lambda x: np.nan * x]
     add("simulate", lambda v: nr.simulate(T, C, 0.1, 1.0, v, _sin, 20), "u0", states)
     add("simulate", lambda v: nr.simulate(T, C, 0.1, 1.0, _sin, v, 20), "v0", [np.ones(3) * 1j, "abc"])
