@@ -185,11 +185,11 @@ class AffineGainLoop:
 
 @dataclass(frozen=True)
 class AxisBound:
-    """Second-order bound of the crossing frequencies of an affine loop (none above :meth:`W`).
+    """Second-order bound of the crossing frequencies of an affine loop (none above :meth:`AxisBound.W`).
 
     For ``S = 1 - rho q z``, ``R = q z`` (``z = e^{-tau s}``) and ``B_0 = J = int_0^tau n(nu)
     e^{-nu s} dnu`` with ``n`` continuous and ``n'`` of bounded variation (the paper's plants),
-    ``A = S - J`` and ``B = K R + J``, so that on ``s = i w`` (``|J|^2`` cancels)
+    ``A = S - J`` and ``B = K R + J``, so that on ``s = i w`` (``|J|^2`` cancels)::
 
         g = |A|^2 - |B|^2 = |S|^2 - K^2 q^2 - 2 Re(conj(T) J),   T = S + K R = 1 - c z,  c = (rho - K) q.
 
@@ -198,7 +198,7 @@ class AxisBound:
     ``Re(conj(T) (n(0) - n(tau) z)/(i w)) = (n(tau) - c n(0)) sin(theta) / w``, and with
     ``p = |rho q|``, ``phi = theta`` (``rho q > 0``) or ``theta - pi``, ``x = |sin(phi/2)|``:
     ``|S|^2 = (1 - p)^2 + 4 p x^2`` and ``|sin theta| <= 2 x``. Hence, minimising
-    ``4 p x^2 - 4 beta x / w`` over ``x``,
+    ``4 p x^2 - 4 beta x / w`` over ``x``::
 
         g >= (1 - p)^2 - K^2 q^2 - C_2 / w^2,   C_2 = beta^2 / p + 2 (1 + |c|) V_2,  beta = |n(tau) - c n(0)|,
 

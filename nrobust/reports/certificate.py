@@ -582,7 +582,7 @@ def certify(
     k_region : bool
         For ``ReflectionController``, also compute the admissible gains on
         ``[0, delta_max]`` (:func:`nrobust.hyperbolic.analyses.k_region`).
-    n_gains : int, default :data:`~nrobust.hyperbolic.analyses.DEFAULT_N_GAINS`
+    n_gains : int, default :data:`~nrobust.hyperbolic.analyses.kregion.DEFAULT_N_GAINS`
         Number of gains, evenly spread in ``|K| < (1 - |rho q|)/|q|``, at which that
         computation also reports (and cross-checks) delay margins (formerly ``k_grid``, a
         deprecated alias). The interval ends do not depend on it: each is solved from the
@@ -597,7 +597,7 @@ def certify(
         nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
         Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
         :data:`PROVEN` or :data:`CHECKED`.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid points of every kernel solved here (the characteristic functions, the
         delay margin and the Rouché range; validated by the first of them,
         :func:`~nrobust.hyperbolic.kernels.check_kernel_grid`).

@@ -138,7 +138,7 @@ def run_paper(
         Worker processes for the independent computations (0: all in this process).
     t_end : float
         Simulation horizon.
-    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.normal_form.DEFAULT_CELLS`
         Cells of the simulations' grid (formerly ``n``, a deprecated alias).
     n_K, n_delta : int
         Size of the stability chart's grid.
@@ -379,7 +379,7 @@ def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: i
     runs : sequence of Simulation, optional
         The simulations, one per delay of the figure, if already computed (``run_paper``
         computes them in parallel); by default they are computed here with ``cells``.
-    cells : int, default :data:`~nrobust.hyperbolic.simulate.DEFAULT_CELLS`
+    cells : int, default :data:`~nrobust.hyperbolic.simulate.normal_form.DEFAULT_CELLS`
         Grid cells of the simulations computed here.
 
     Returns

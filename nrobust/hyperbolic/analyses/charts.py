@@ -119,7 +119,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     a, b : array_like
         Grid axes (``b > 0``).
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
-        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
 
     Returns
@@ -234,7 +234,7 @@ def stability_chart(
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
-        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
     progress : bool, optional
         A progress bar over the gains (and grid points for ``"abscissa"``) on stderr; by

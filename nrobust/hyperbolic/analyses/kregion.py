@@ -310,7 +310,7 @@ def k_region(
         ``K -> controller``; default (or ``ReflectionController``) ``U_BS2(K)``, whose ends
         are solved from their equations.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
-        Where the delay margins run (:func:`nrobust.sweep`'s executors); default in this
+        Where the delay margins run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
     max_evals : int, optional
         Work bound of each delay margin (:func:`nrobust.margins.delay_margin`) and of the

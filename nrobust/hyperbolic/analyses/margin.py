@@ -51,7 +51,7 @@ def delay_margin(
     delta_max, verify, max_evals, rigorous
         As in :func:`nrobust.margins.delay_margin` (``rigorous=True``: proven in ball
         arithmetic for the loop as represented, ``N~`` the cubic spline on the kernel grid).
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid of the delay form when called with a plant (ignored with ``A, B``;
         formerly ``n``, a deprecated alias); the margin converges at about third order
         in ``1/kernel_grid`` (paper's example: grids of 201 and 401 points differ by

@@ -61,7 +61,7 @@ def rouche_delay_bound(
         ``1 - rho_q e^{-tau s} + rho_q e^{-(tau + delta) s} + I(s, delta)`` has the form above.
     controller : ReflectionController or FiniteTimeController
         ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid of the delay form (formerly ``n``, a deprecated alias).
     rigorous : bool, default False
         Prove ``delta_0`` for ``N~`` as represented (the cubic spline on the kernel grid) in

@@ -91,7 +91,7 @@ def tradeoff(
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
-        Where the grid points run (:func:`nrobust.sweep`'s executors); default in this
+        Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
     progress : bool, optional
         A progress bar over the gains on stderr; by default only when stderr is a terminal

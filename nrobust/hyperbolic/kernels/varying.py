@@ -398,9 +398,9 @@ def solve_varying_kernels(plant: GeneralHyperbolic2x2, kernel_grid: int = DEFAUL
         Any speeds (a constant ratio too: for ``a = d = 0``, ``L = 1`` and constant speeds
         the kernels are those of :func:`~nrobust.hyperbolic.kernels.solve_kernels` without
         extrapolation).
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Points per direction of each pair's grid and of the physical grid, ``>= 5`` and
-        ``<=`` :data:`~nrobust.hyperbolic.kernels.MAX_KERNEL_GRID`, fine enough for the
+        ``<=`` :data:`~nrobust.hyperbolic.kernels.constant.MAX_KERNEL_GRID`, fine enough for the
         couplings (grid step in transport time times the largest source coefficient at
         most :data:`~nrobust.hyperbolic.kernels.constant.RESOLUTION`); both checked before any
         table is allocated.

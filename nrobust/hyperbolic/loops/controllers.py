@@ -362,7 +362,7 @@ def loop_factors(
         The plant, eqs. (18)-(20), or a general plant (through :func:`normalize`).
     controller : Controller
         One of the paper's controllers, or a :class:`StateFeedback`.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
         carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
         grid (extrapolated kernels), second order for an even one
@@ -408,7 +408,7 @@ def characteristic(
         The controller.
     delta : float, optional
         Loop delay ``delta >= 0``.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid for ``N~`` (formerly ``n``, a deprecated alias).
     """
     delta = nonnegative("delta", delta)

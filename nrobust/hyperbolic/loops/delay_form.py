@@ -165,7 +165,7 @@ def delay_form(
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The plant, eqs. (18)-(20); a general plant is replaced by its normal form
         (:meth:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2.normal_form`).
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid points (see :func:`~nrobust.hyperbolic.solve_kernels`); ignored when
         ``kernels`` is given. (Formerly ``n``, a deprecated alias.)
     kernels : Kernels, optional

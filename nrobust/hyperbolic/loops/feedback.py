@@ -77,7 +77,7 @@ def feedback_factor(
         Gain on ``u(t, 1)``.
     g_u, g_v : float or callable
         Gains of the integral term on ``[0, 1]``.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Grid of the inverse kernels ``L``; ``M`` is the cubic spline through the branches
         ``W_alpha, W_beta`` on that grid, the inner integrals by Simpson's rule, so ``M``
         carries the kernels' error (third order with the default odd grid).

@@ -35,7 +35,7 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid passed to :func:`~nrobust.hyperbolic.loops.delay_form` (coupled systems only;
         the default is that of the closed-loop functions, so that ``H_1`` and
         :func:`closed_loop_tf` share the same ``N~``). Formerly ``n``, a deprecated alias.
@@ -66,7 +66,7 @@ def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) ->
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid (that of the closed-loop functions by default; formerly ``n``, a
         deprecated alias); ``M~`` is tabulated on its points on each side of the jump.
     """

@@ -99,7 +99,7 @@ __all__ = [
 #: sparse system is built: ``m (n + m) N (N + 1) / 2`` unknowns).
 MAX_NPLUSM_KERNEL_GRID = 801
 #: Grid step times ``max |Sigma| / min(lam, mu)`` must not exceed this (as
-#: :data:`nrobust.hyperbolic.kernels.RESOLUTION`).
+#: :data:`nrobust.hyperbolic.kernels.constant.RESOLUTION`).
 RESOLUTION = 0.25
 _MAX_UNKNOWNS = 3_000_000
 _TOL = 1e-12

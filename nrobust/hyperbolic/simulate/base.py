@@ -1,7 +1,7 @@
 """The contract of the simulators: the result every scheme returns and the scheme interface.
 
 :func:`~nrobust.hyperbolic.simulate.simulate` runs a :class:`Scheme` of the registry
-:data:`~nrobust.hyperbolic.simulate.SCHEMES` (name -> scheme), picked by the plant or by
+:data:`~nrobust.hyperbolic.simulate.registry.SCHEMES` (name -> scheme), picked by the plant or by
 name, as :func:`scipy.integrate.solve_ivp` picks a method of ``METHODS``. Every scheme
 returns a :class:`SimulationResult`.
 """
@@ -81,7 +81,7 @@ class Scheme:
     Attributes
     ----------
     name : str
-        Its key in :data:`~nrobust.hyperbolic.simulate.SCHEMES` (``scheme=`` of ``simulate``).
+        Its key in :data:`~nrobust.hyperbolic.simulate.registry.SCHEMES` (``scheme=`` of ``simulate``).
     plants : tuple of type
         The plant classes it takes.
     run : callable

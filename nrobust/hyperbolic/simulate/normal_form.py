@@ -196,7 +196,7 @@ def simulate_characteristics(
     ``lam == mu``: the characteristic lattice; otherwise two characteristic grids
     (:mod:`.characteristics`). The parameters are those of
     :func:`~nrobust.hyperbolic.simulate.simulate`; ``kernel_grid`` (default
-    :data:`~nrobust.hyperbolic.kernels.DEFAULT_KERNEL_GRID`, as every analysis) is the grid
+    :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`, as every analysis) is the grid
     of the kernels solved for ``controller`` when ``kernels`` is not given.
     """
     return _simulate(system, controller, delta, t_end, u0, v0, cells, snapshot_every, kernels, kernel_grid, max_updates)
