@@ -1,6 +1,22 @@
 # The public names of nrobust and where they live. nrobust/__init__.py loads each on first
 # use (lazy_loader reads this file), so `import nrobust` loads no numerical module.
-from . import plots as plots
+from . import (
+    balls as balls,
+    bounds as bounds,
+    config as config,
+    difference as difference,
+    errors as errors,
+    hyperbolic as hyperbolic,
+    lti as lti,
+    margins as margins,
+    matrix_difference as matrix_difference,
+    plots as plots,
+    qpmatrix as qpmatrix,
+    quasipoly as quasipoly,
+    reports as reports,
+    roots as roots,
+    sweeps as sweeps,
+)
 from ._version import __version__ as __version__
 from .bounds import (
     RootFreeRegion as RootFreeRegion,

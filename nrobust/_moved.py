@@ -18,34 +18,34 @@ from typing import Any, cast
 
 #: Old module path -> the new homes searched for an attribute, in order.
 MOVED: dict[str, tuple[str, ...]] = {
-    "nrobust.statespace": ("nrobust.lti",),
-    "nrobust.transfer": ("nrobust.lti", "nrobust.hyperbolic.loops"),
-    "nrobust.crossings": ("nrobust.margins",),
-    "nrobust.proven_crossings": ("nrobust.margins",),
-    "nrobust.matrix_crossings": ("nrobust.margins",),
-    "nrobust.hyperbolic.system": ("nrobust.hyperbolic.plants",),
-    "nrobust.hyperbolic.general": ("nrobust.hyperbolic.plants",),
-    "nrobust.hyperbolic.frontends": ("nrobust.hyperbolic.plants",),
-    "nrobust.hyperbolic.varying_kernels": ("nrobust.hyperbolic.kernels",),
-    "nrobust.hyperbolic.nplusm_kernels": ("nrobust.hyperbolic.nplusm",),
-    "nrobust.hyperbolic.laplace": ("nrobust.hyperbolic.loops",),
-    "nrobust.hyperbolic.delay_form": ("nrobust.hyperbolic.loops",),
-    "nrobust.hyperbolic.varying": ("nrobust.hyperbolic.loops",),
-    "nrobust.hyperbolic.controllers": ("nrobust.hyperbolic.loops",),
-    "nrobust.hyperbolic.feedback": ("nrobust.hyperbolic.loops",),
-    "nrobust.hyperbolic.robustness": ("nrobust.hyperbolic.analyses",),
-    "nrobust.hyperbolic.studies": ("nrobust.hyperbolic.analyses",),
-    "nrobust.hyperbolic.simulate_general": ("nrobust.hyperbolic.simulate",),
-    "nrobust.parallel": ("nrobust.sweeps",),
-    "nrobust.montecarlo": ("nrobust.sweeps",),
-    "nrobust.sweepfile": ("nrobust.sweeps",),
+    "nrobust.statespace": ("nrobust.lti", "nrobust.lti.statespace"),
+    "nrobust.transfer": ("nrobust.lti", "nrobust.lti.transfer", "nrobust.hyperbolic.loops"),
+    "nrobust.crossings": ("nrobust.margins", "nrobust.margins.axis", "nrobust.margins.crossing"),
+    "nrobust.proven_crossings": ("nrobust.margins", "nrobust.margins.proven"),
+    "nrobust.matrix_crossings": ("nrobust.margins", "nrobust.margins.matrix"),
+    "nrobust.hyperbolic.system": ("nrobust.hyperbolic.plants", "nrobust.hyperbolic.plants.hyperbolic2x2"),
+    "nrobust.hyperbolic.general": ("nrobust.hyperbolic.plants", "nrobust.hyperbolic.plants.general"),
+    "nrobust.hyperbolic.frontends": ("nrobust.hyperbolic.plants", "nrobust.hyperbolic.plants.frontends"),
+    "nrobust.hyperbolic.varying_kernels": ("nrobust.hyperbolic.kernels", "nrobust.hyperbolic.kernels.varying"),
+    "nrobust.hyperbolic.nplusm_kernels": ("nrobust.hyperbolic.nplusm", "nrobust.hyperbolic.nplusm.kernels"),
+    "nrobust.hyperbolic.laplace": ("nrobust.hyperbolic.loops", "nrobust.hyperbolic.loops.laplace"),
+    "nrobust.hyperbolic.delay_form": ("nrobust.hyperbolic.loops", "nrobust.hyperbolic.loops.delay_form"),
+    "nrobust.hyperbolic.varying": ("nrobust.hyperbolic.loops", "nrobust.hyperbolic.loops.varying_form"),
+    "nrobust.hyperbolic.controllers": ("nrobust.hyperbolic.loops", "nrobust.hyperbolic.loops.controllers"),
+    "nrobust.hyperbolic.feedback": ("nrobust.hyperbolic.loops", "nrobust.hyperbolic.loops.feedback"),
+    "nrobust.hyperbolic.robustness": ("nrobust.hyperbolic.analyses", "nrobust.hyperbolic.analyses.rouche"),
+    "nrobust.hyperbolic.studies": ("nrobust.hyperbolic.analyses", "nrobust.margins.gain"),
+    "nrobust.hyperbolic.simulate_general": ("nrobust.hyperbolic.simulate", "nrobust.hyperbolic.simulate.general"),
+    "nrobust.parallel": ("nrobust.sweeps", "nrobust.sweeps.executors", "nrobust.sweeps.engine"),
+    "nrobust.montecarlo": ("nrobust.sweeps", "nrobust.sweeps.montecarlo"),
+    "nrobust.sweepfile": ("nrobust.sweeps", "nrobust.sweeps.sweepfile"),
     "nrobust.sweep": ("nrobust.sweeps", "nrobust.hyperbolic.analyses"),
-    "nrobust.certificate": ("nrobust.reports",),
-    "nrobust.report": ("nrobust.reports",),
-    "nrobust.outputs": ("nrobust.reports",),
-    "nrobust.paper": ("nrobust.reports",),
-    "nrobust.analyze": ("nrobust.reports",),
-    "nrobust.nplusm_report": ("nrobust.reports",),
+    "nrobust.certificate": ("nrobust.reports", "nrobust.reports.certificate"),
+    "nrobust.report": ("nrobust.reports", "nrobust.reports.report"),
+    "nrobust.outputs": ("nrobust.reports", "nrobust.reports.outputs"),
+    "nrobust.paper": ("nrobust.reports", "nrobust.reports.paper"),
+    "nrobust.analyze": ("nrobust.reports", "nrobust.reports.analyze"),
+    "nrobust.nplusm_report": ("nrobust.reports", "nrobust.reports.nplusm"),
 }
 
 #: Single names that left a module which stays: module -> {name: its new home}. The module
@@ -77,6 +77,8 @@ class MovedModule(types.ModuleType):
         return self.__function(*args, **kwargs)
 
     def __getattr__(self, attr: str) -> Any:
+        if attr == "__all__":  # ``from old import *``: the public names of the new homes
+            return sorted({n for home in self.__homes for n in getattr(importlib.import_module(home), "__all__", ())})
         if attr.startswith("__"):
             raise AttributeError(attr)
         for home in self.__homes:
@@ -111,18 +113,6 @@ def moved_attribute(module: str) -> Callable[[str], Any]:
     return __getattr__
 
 
-def _importer_stacklevel() -> int:
-    """The ``stacklevel`` of the first frame outside the import machinery and this module."""
-    frame = sys._getframe(1)
-    level = 1
-    while frame is not None and (
-        frame.f_code.co_filename.startswith("<frozen") or frame.f_code.co_filename == __file__
-    ):
-        frame = frame.f_back  # type: ignore[assignment]
-        level += 1
-    return level
-
-
 class MovedFinder:
     """Finder and loader (``importlib.abc`` protocols) of the old paths of :data:`MOVED`, last on ``sys.meta_path``."""
 
@@ -136,7 +126,7 @@ class MovedFinder:
         warnings.warn(
             f"{spec.name} moved to {homes[0]}; import from there ({spec.name} is a deprecated alias)",
             DeprecationWarning,
-            stacklevel=_importer_stacklevel(),
+            stacklevel=2,  # the warnings module skips the import machinery's frames: the importer's line
         )
         parent, _, child = spec.name.rpartition(".")
         shadowed = getattr(sys.modules[parent], child, None) if parent in sys.modules else None

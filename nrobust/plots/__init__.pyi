@@ -1,5 +1,5 @@
 # The public names of nrobust.plots, loaded on first use (nrobust/plots/__init__.py).
-from ._base import (
+from .base import (
     NrobustPlot as NrobustPlot,
 )
 from .charts import (

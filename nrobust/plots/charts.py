@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ParameterError
-from ._base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -40,7 +40,7 @@ from ..errors import CertificationError, ParameterError
 from ..margins import frequency_bound, unstable_count
 from ..margins.crossing import crossing_search
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
-from ._base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

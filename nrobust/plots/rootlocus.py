@@ -15,7 +15,7 @@ from .._validate import region as check_region
 from ..errors import ParameterError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from ..roots import find_roots
-from ._base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

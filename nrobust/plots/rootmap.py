@@ -16,7 +16,7 @@ from .._validate import region as check_region
 from ..errors import CertificationError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
-from ._base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -33,7 +33,7 @@ from ..errors import CertificationError, ParameterError
 from ..hyperbolic import analyses
 from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion, delay_margin
 from ..hyperbolic.analyses.rouche import rouche_delay_bound
-from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
+from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID
 from ..hyperbolic.loops.controllers import (
     Classification,
     Controller,
@@ -198,6 +198,16 @@ def _model_error(
     if getattr(system, "uncoupled", False):
         return ModelError(
             grid, grid, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
+        )
+    if coarse < MIN_KERNEL_GRID:  # too few points to halve: no comparison to make
+        return ModelError(
+            grid,
+            grid,
+            margin.margin,
+            margin.margin,
+            float("nan"),
+            f"N~ is the cubic spline of the kernels on {grid} points, too few to compare with a grid half as fine "
+            f"(at least {2 * MIN_KERNEL_GRID - 1} points): the model error is not estimated",
         )
     other = delay_margin(system, controller, kernel_grid=coarse).margin
     if margin.margin == other:
@@ -447,7 +457,8 @@ class Certificate:
     unproven : tuple of str
         With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
     kernel_grid : int
-        Points per direction of the kernel grid every loop of the certificate was built on.
+        Points per direction of the kernel grid of the certificate's loops (the K-region of
+        :func:`~nrobust.hyperbolic.analyses.k_region` is computed on its default grid).
     """
 
     system: Hyperbolic2x2 | GeneralHyperbolic2x2

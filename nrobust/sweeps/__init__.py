@@ -2,7 +2,7 @@
 
 ``executors``: where points run (serially, on local process pools that die with their
 parent, on any Executor or on Dask) and :func:`sweep_map`, the ``map`` the analyses take
-as ``executor=``; ``grid``: the lazy :func:`grid`; ``result``: :class:`SweepResult`, the
+as ``executor=``; ``grids``: the lazy :func:`grid`; ``result``: :class:`SweepResult`, the
 table of a sweep; ``engine``: :func:`sweep` over a grid or any points, sized before it
 runs, journaled and resumable; ``journal``: the append-only result journal;
 ``montecarlo``: :func:`robustness`, margins under sampled parameters; ``sweepfile``: the

@@ -8,7 +8,7 @@ from .executors import (
     SweepMap as SweepMap,
     sweep_map as sweep_map,
 )
-from .grid import (
+from .grids import (
     Grid as Grid,
     grid as grid,
 )

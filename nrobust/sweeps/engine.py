@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from .executors import classify_executor, execute
-from .grid import Grid
+from .grids import Grid
 from .journal import Journal, definition_hash, describe
 from .result import PointFailure, SweepResult, result_columns
 
@@ -108,7 +108,7 @@ def sweep(
         JSON strings. For process pools it must be picklable (a module-level function or
         a ``functools.partial`` of one; not a lambda or a nested function).
     points : sequence of dict
-        A grid (:func:`~nrobust.sweeps.grid.grid`) or a sample set: dicts with string keys.
+        A grid (:func:`~nrobust.sweeps.grids.grid`) or a sample set: dicts with string keys.
     executor : None, str, int, Executor or dask.distributed.Client, optional
         Where the points run:
 

@@ -20,7 +20,7 @@ from .._json import fields_dict
 from ..errors import ParameterError
 from ..hyperbolic.analyses import margin_and_decay
 from .engine import MAX_POINTS, sweep
-from .grid import grid
+from .grids import grid
 from .result import SweepResult, flatten, result_columns
 
 __all__ = ["RobustnessResult", "check_levels", "quantile_summary", "robustness"]

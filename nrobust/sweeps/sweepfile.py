@@ -30,7 +30,7 @@ from ..reports.outputs import MANIFEST, RunOutputs
 from ..roots import spectral_abscissa
 from .engine import MAX_POINTS, sweep
 from .executors import DASK_SCHEMES, classify_executor
-from .grid import grid
+from .grids import grid
 from .montecarlo import check_levels, quantile_summary
 from .result import SweepResult
 

@@ -9,7 +9,7 @@ from .charts import ABRegion, StabilityChart, ab_region, stability_chart
 from .kregion import DEFAULT_N_GAINS, KRegion, k_region
 from .margin import delay_margin, margin_and_decay
 from .rouche import rouche_delay_bound
-from .tradeoff import Tradeoff, tradeoff
+from .tradeoffs import Tradeoff, tradeoff
 
 __all__ = [
     "ABRegion",

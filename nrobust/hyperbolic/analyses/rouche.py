@@ -20,10 +20,10 @@ import dataclasses
 import math
 from fractions import Fraction
 
-from ..._validate import positive_int, renamed_keywords
+from ..._validate import renamed_keywords
 from ...bounds import RoucheDelayBound, delay_bound_from_kernel
 from ...errors import ParameterError
-from ..kernels.constant import DEFAULT_KERNEL_GRID
+from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import Controller, FiniteTimeController, ReflectionController, cached_varying_delay_form
 from ..loops.delay_form import delay_form
 from ..plants.general import GeneralHyperbolic2x2
@@ -85,7 +85,7 @@ def rouche_delay_bound(
         K = float(system.rho)
     else:
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
-    grid = positive_int("kernel_grid", kernel_grid, 3)
+    grid = check_kernel_grid(kernel_grid)
     eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
     if rigorous:  # the float at or below the exact 1 - |q rho| - |K q|
         exact = (

@@ -2,7 +2,15 @@
 (``constant``) and varying speeds (``varying``).
 """
 
-from .constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, MIN_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
+from .constant import (
+    DEFAULT_KERNEL_GRID,
+    MAX_KERNEL_GRID,
+    MIN_KERNEL_GRID,
+    RESOLUTION,
+    Kernels,
+    check_kernel_grid,
+    solve_kernels,
+)
 from .varying import VaryingKernels, solve_varying_kernels
 
 __all__ = [
@@ -10,6 +18,7 @@ __all__ = [
     "Kernels",
     "MAX_KERNEL_GRID",
     "MIN_KERNEL_GRID",
+    "RESOLUTION",
     "VaryingKernels",
     "check_kernel_grid",
     "solve_kernels",

@@ -37,7 +37,7 @@ from .system import NPlusMSystem
 
 __all__ = ["NPlusMCharacteristic"]
 
-#: Rounding scale of F(s) relative to ||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||): the
+#: Rounding scale of ``F(s)`` relative to ``||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||)``: the
 #: error of a scaling-and-squaring matrix exponential grows with the norm of its argument.
 EXPM_ROUNDING = 16.0
 #: Frequency grid of the crossing searches: points per unit of w times the longest delay.

@@ -82,7 +82,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import json_safe
 from ..._validate import nonnegative, positive, positive_int
 from ...errors import ConvergenceError, ParameterError
-from ..kernels.constant import check_kernel_grid, p1_interpolate
+from ..kernels.constant import RESOLUTION, check_kernel_grid, p1_interpolate
 from .characteristic import NPlusMCharacteristic
 from .margin import NPlusMMargin, pencil_crossings
 from .system import NPlusMSystem
@@ -98,9 +98,6 @@ __all__ = [
 #: Largest kernel grid of :func:`solve_nplusm_kernels` (work bound, checked before the
 #: sparse system is built: ``m (n + m) N (N + 1) / 2`` unknowns).
 MAX_NPLUSM_KERNEL_GRID = 801
-#: Grid step times ``max |Sigma| / min(lam, mu)`` must not exceed this (as
-#: :data:`nrobust.hyperbolic.kernels.constant.RESOLUTION`).
-RESOLUTION = 0.25
 _MAX_UNKNOWNS = 3_000_000
 _TOL = 1e-12
 
