@@ -16,7 +16,7 @@ floating-point numbers are taken as exact rationals and nothing else is approxim
 * A point term ``p_k(s) e^{-tau_k s}``: the stored coefficients of ``p_k`` and the stored
   delay ``tau_k``.
 * A distributed term ``q(s) int nu^m N(nu) e^{-nu s} dnu``: ``N`` is the interpolant as
-  stored per segment (``DistributedDelay._pieces``: the start ``nu_i``, the length ``h_i``
+  stored per segment (``DistributedDelay.pieces``: the start ``nu_i``, the length ``h_i``
   and the coefficients ``P_il`` of ``N(nu_i + h_i t) = sum_l P_il t^l``, e.g. the cubic
   spline ``N~`` of the paper's eq. (40) on the kernel grid), so a segment
   contributes exactly
@@ -152,7 +152,7 @@ class _DistributedBalls:
     def __init__(self, flint: ModuleType, d: DistributedDelay) -> None:
         self.flint = flint
         self.d = d
-        start, h, poly_t = d._pieces
+        start, h, poly_t = d.pieces
         self.start = [flint.arb(float(v)) for v in start]
         groups: dict[float, list[int]] = {}
         for i, hv in enumerate(h):
@@ -558,7 +558,7 @@ def ball_abs_moment(d: DistributedDelay, x: float, k: int = 0, *, prec: int = 53
     k = positive_int("k", k, minimum=0)
     with precision(flint, prec):
         X = flint.arb(float(x))
-        start, h, poly_t = d._pieces
+        start, h, poly_t = d.pieces
         power = d.moment + k
         out = flint.arb(0)
         for s0, hv, p in zip(start, h, poly_t):
@@ -583,7 +583,7 @@ def ball_variation_bound(d: DistributedDelay, x: float, *, prec: int = 53) -> An
     flint = require_flint()
     with precision(flint, prec):
         X = flint.arb(float(x))
-        start, h, poly_t = d._pieces
+        start, h, poly_t = d.pieces
         out = flint.arb(0)
         carry = None  # value at the right end of the previous segment, if that end is shared
         for i, (s0, hv, p) in enumerate(zip(start, h, poly_t)):

@@ -522,7 +522,7 @@ def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], 
     """
     nodes = [Fraction(float(x)) for x in N.nodes]
     values = [Fraction(float(v)) for v in N.values]
-    start, h, poly = N._pieces
+    start, h, poly = N.pieces
     segments = [k for k in range(len(nodes) - 1) if nodes[k + 1] > nodes[k]]
     if len(segments) != start.size or any(Fraction(float(start[i])) != nodes[k] for i, k in enumerate(segments)):
         raise CertificationError("delay_bound_from_kernel(rigorous=True): the spline pieces do not match the nodes")

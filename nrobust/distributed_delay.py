@@ -318,7 +318,7 @@ class DistributedDelay:
     moment: int = 0
     interpolation: str = "linear"
     if TYPE_CHECKING:  # set by __init__, not a dataclass field: the interpolant's per-segment pieces
-        _pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
+        pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
         # built on first use by _segment_groups
         _groups: dict[tuple[int, bool], tuple[_SegmentGroup, ...]] = field(init=False, repr=False, compare=False)
 
@@ -356,7 +356,7 @@ class DistributedDelay:
         object.__setattr__(self, "poly", q)
         object.__setattr__(self, "moment", int(moment))
         object.__setattr__(self, "interpolation", interpolation)
-        object.__setattr__(self, "_pieces", _INTERPOLATIONS[interpolation](x, self.values))
+        object.__setattr__(self, "pieces", _INTERPOLATIONS[interpolation](x, self.values))
         object.__setattr__(self, "_groups", {})
 
     def replace(self, **changes: Any) -> DistributedDelay:
@@ -384,7 +384,7 @@ class DistributedDelay:
         ``pieces = (start, h, P)`` with ``P[i, j]`` the coefficient of ``t^j`` of ``N`` on
         segment ``i``; by default the interpolant's.
         """
-        start, h, poly_t = self._pieces if pieces is None else pieces
+        start, h, poly_t = self.pieces if pieces is None else pieces
         k = self.moment + extra
         coef = np.zeros((start.size, k + poly_t.shape[1]), dtype=np.result_type(poly_t, float))
         for j in range(k + 1):  # (start + h t)^k = sum_j C(k, j) start^(k-j) h^j t^j
@@ -398,7 +398,7 @@ class DistributedDelay:
         Linear: the linear interpolant of ``|N|`` (convexity of the modulus). Cubic: the
         constant ``sum_j |P_ij| >= max_t |P_i(t)|``.
         """
-        start, h, poly_t = self._pieces
+        start, h, poly_t = self.pieces
         if poly_t.shape[1] == 2:
             left = np.abs(poly_t[:, 0])
             return start, h, np.stack([left, np.abs(poly_t[:, 0] + poly_t[:, 1]) - left], axis=1)
@@ -478,7 +478,7 @@ class DistributedDelay:
         if self.moment != 0:
             raise ParameterError("moment", "0 for variation_bound", self.moment)
         x = np.asarray(x, dtype=float)
-        start, h, poly_t = self._pieces
+        start, h, poly_t = self.pieces
         jumps = np.flatnonzero(np.diff(self.nodes) == 0)
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
         for j in jumps:
@@ -499,7 +499,7 @@ class DistributedDelay:
 
         End values, jumps, and on each segment ``int_0^1 |P'(t)| dt <= sum_j j |P_j|``.
         """
-        _, _, poly_t = self._pieces
+        _, _, poly_t = self.pieces
         jumps = np.sum(np.abs(np.diff(self.values)[np.diff(self.nodes) == 0]))
         inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
         return float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
@@ -511,7 +511,7 @@ class DistributedDelay:
         ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)``, whose modulus
         integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when ``P_3 = 0``).
         """
-        _, h, poly_t = self._pieces
+        _, h, poly_t = self.pieces
         if poly_t.shape[1] == 2:
             return 0.0
         p2, p3 = poly_t[:, 2], poly_t[:, 3]

@@ -83,7 +83,7 @@ class CharacteristicFunction(Protocol):
 
 
 def _point_part(q: QuasiPolynomial) -> QuasiPolynomial:
-    return QuasiPolynomial._from_parts(q.point_terms, ())
+    return QuasiPolynomial.from_parts(q.point_terms, ())
 
 
 def _degree(q: QuasiPolynomial) -> float:

@@ -159,9 +159,10 @@ class QuasiPolynomial:
         object.__setattr__(self, "distributed", _merge_distributed(dist))
 
     @classmethod
-    def _from_parts(
+    def from_parts(
         cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]
     ) -> QuasiPolynomial:
+        """The quasi-polynomial of point terms ``(coefficients, delay)`` and distributed terms, merged."""
         terms = list(terms)
         dist = tuple(distributed)
         if not terms and not dist:
@@ -291,7 +292,7 @@ class QuasiPolynomial:
             if np.any(dq != 0):
                 dist.append(d.replace(poly=dq))
             dist.append(d.replace(values=-d.values, moment=d.moment + 1))
-        return QuasiPolynomial._from_parts(terms, dist)
+        return QuasiPolynomial.from_parts(terms, dist)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         """Upper bound of ``|F'(s)|`` on each segment ``[a, b]`` of the complex plane.
@@ -348,7 +349,7 @@ class QuasiPolynomial:
             other = QuasiPolynomial([np.array([other])], [0.0])
         if not isinstance(other, QuasiPolynomial):
             return NotImplemented
-        return QuasiPolynomial._from_parts(
+        return QuasiPolynomial.from_parts(
             list(self.point_terms) + list(other.point_terms), self.distributed + other.distributed
         )
 
@@ -366,7 +367,7 @@ class QuasiPolynomial:
     def __mul__(self, other: Any) -> QuasiPolynomial:
         if isinstance(other, (int, float, complex, np.number)):
             c = complex(other) if isinstance(other, complex) or np.iscomplexobj(other) else float(other)
-            return QuasiPolynomial._from_parts(
+            return QuasiPolynomial.from_parts(
                 [(p * c, t) for p, t in self.point_terms], [d.scale(c) for d in self.distributed]
             )
         if not isinstance(other, QuasiPolynomial):
@@ -377,7 +378,7 @@ class QuasiPolynomial:
             return other * self
         terms = [(polymul(p, r), t + u) for p, t in self.point_terms for r, u in other.point_terms]
         dist = [e.times_poly(p) for p, t in self.point_terms for d in other.distributed for e in d.shift(t)]
-        return QuasiPolynomial._from_parts(terms, dist)
+        return QuasiPolynomial.from_parts(terms, dist)
 
     __rmul__ = __mul__
 
@@ -388,7 +389,7 @@ class QuasiPolynomial:
     def shift(self, delta: float) -> QuasiPolynomial:
         """Multiply by ``e^{-delta s}`` (a loop delay ``delta >= 0``)."""
         delta = nonnegative("delta", delta)
-        return QuasiPolynomial._from_parts(
+        return QuasiPolynomial.from_parts(
             [(p, t + delta) for p, t in self.point_terms],
             [e for d in self.distributed for e in d.shift(delta)],
         )

@@ -382,6 +382,43 @@ def test_no_private_name_crosses_a_module() -> None:
     assert not errors, "make shared helpers public (one _common module per package at most):\n" + "\n".join(errors)
 
 
+#: Private attributes of the standard library's own API (``NamedTuple._asdict``, ``os._exit``).
+STDLIB_PRIVATE = {"_asdict", "_replace", "_fields", "_make", "_exit"}
+
+
+def private_attributes() -> list[str]:
+    """``obj._name`` on another object than ``self``/``cls``, where no class of this module defines ``_name``."""
+    errors = []
+    for module, paths in all_modules().items():
+        for path in paths:
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            own = {n.name for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+            own |= {
+                t.attr
+                for n in ast.walk(tree)
+                for t in (
+                    n.targets if isinstance(n, ast.Assign) else [n.target] if isinstance(n, ast.AnnAssign) else []
+                )
+                if isinstance(t, ast.Attribute)
+            }
+            own |= {
+                n.target.id for n in ast.walk(tree) if isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name)
+            }
+            for n in ast.walk(tree):
+                if not (isinstance(n, ast.Attribute) and n.attr.startswith("_") and not n.attr.startswith("__")):
+                    continue
+                if isinstance(n.value, ast.Name) and n.value.id in ("self", "cls"):
+                    continue
+                if n.attr not in own and n.attr not in STDLIB_PRIVATE:
+                    errors.append(f"{module}:{n.lineno} {ast.unparse(n)}")
+    return errors
+
+
+def test_no_private_attribute_crosses_a_module() -> None:
+    errors = private_attributes()
+    assert not errors, "a private attribute is its module's own: make it public or ask its owner:\n" + "\n".join(errors)
+
+
 def test_at_most_one_common_module_per_package() -> None:
     commons = [m for m in all_modules() if m.rsplit(".", 1)[-1].startswith("_common")]
     packages = [m.rsplit(".", 1)[0] for m in commons]
@@ -435,7 +472,8 @@ def test_the_rules_bite(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None
     (fake / "roots" / "_common.py").write_text("")
     (fake / "margins.py").write_text(
         "from .hyperbolic.kernels import _march\nfrom . import sweeps\nfrom .roots._common import x\n"
-        "from concurrent import futures\n\n\ndef f():\n    from . import plots\n    open('a', 'w')\n"
+        "from concurrent import futures\n\n\ndef f(d):\n    from . import plots\n"
+        "    open('a', 'w')\n    return d._pieces\n"
     )
     monkeypatch.setattr(sys.modules[__name__], "PACKAGE", fake)
     errors = forbidden_edges()
@@ -446,3 +484,4 @@ def test_the_rules_bite(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None
     assert any("nrobust.margins reaches concurrent.futures" in e for e in side_effects_of_the_core())
     assert any("private to nrobust.roots" in e for e in private_imports())
     assert any("open(..., 'w')" in e for e in writes_of_the_core())
+    assert any("d._pieces" in e for e in private_attributes())

@@ -297,7 +297,7 @@ def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
         abs(v[0]) + abs(v[-1]) + np.sum(np.abs(np.diff(v))), rel=1e-13, abs=1e-14
     )
     # Dense samples of the spline: its variation and its distance to the linear interpolant.
-    _start, h, P = cub._pieces
+    _start, h, P = cub.pieces
     t = np.linspace(0, 1, 2001)
     seg = np.array([np.polyval(p[::-1], t) for p in P])  # spline values, one row per segment
     tv = abs(v[0]) + abs(v[-1]) + abs(v[9] - v[8]) + np.sum(np.abs(np.diff(seg, axis=1)))

@@ -91,7 +91,7 @@ def _exact_distributed(d: DistributedDelay, s: complex, k: int) -> mpmath.mpc:
     """``d.poly(s) int nu^m N e^{-nu s}`` (k = 0) or its derivative (k = 1) for the represented
     pieces at 40 digits: on each piece ``(a + h t)^j P(t)`` is expanded exactly (rationals) and
     the monomials integrated by the incomplete gamma function."""
-    start, h, poly_t = d._pieces
+    start, h, poly_t = d.pieces
     z = mpmath.mpc(s.real, s.imag)
 
     def moment(j: int) -> mpmath.mpc:
@@ -158,7 +158,7 @@ def test_box_enclosures_contain_sampled_values(centered: bool) -> None:
 
 
 def test_bounds_of_the_kernel_hold() -> None:
-    start, h, poly_t = SPLINE._pieces
+    start, h, poly_t = SPLINE.pieces
     for x in (-1.0, 2.0):
         with mpmath.workdps(20):  # an upper bound is checked: 20 digits are plenty
             exact = sum(

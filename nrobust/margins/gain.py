@@ -230,7 +230,7 @@ class AxisBound:
         d = B0.distributed[0]
         if d.a != 0.0 or d.b != tau or d.moment != 0 or d.poly.size != 1 or np.iscomplexobj(d.values):
             return None
-        start, h, poly = d._pieces
+        start, h, poly = d.pieces
         n = float(d.poly[0]) * np.asarray(poly, dtype=float)
         j = np.arange(n.shape[1])
         value_end, slope_start, slope_end = n.sum(axis=1), n[:, 1] / h, (n * j).sum(axis=1) / h

@@ -202,7 +202,7 @@ class _Moduli:
     """
 
     def __init__(self, flint: Any, d: DistributedDelay) -> None:
-        start, h, _ = d._pieces
+        start, h, _ = d.pieces
         self.M = [ball_abs_moment(d, 0.0, k) for k in range(2)]
         self.V0 = ball_variation_bound(d, 0.0) if d.moment == 0 else None
         self.nu_max = flint.arb(0)

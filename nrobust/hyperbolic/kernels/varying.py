@@ -98,7 +98,7 @@ class _Maps:
 def _maps(plant: GeneralHyperbolic2x2) -> _Maps:
     from scipy.interpolate import CubicHermiteSpline  # lazily: scipy.interpolate is slow to import
 
-    x = plant._tables.x
+    x = plant.tables.x
     lam, mu = plant.coefficient("lam", x), plant.coefficient("mu", x)
     phi, psi = plant.phi(x), plant.psi(x)
     return _Maps(
@@ -131,9 +131,9 @@ class _Pair:
 
 def _pairs(plant: GeneralHyperbolic2x2, maps: _Maps) -> tuple[_Pair, _Pair]:
     """The pairs ``(k^{uu}, k^{uv})`` (in ``phi``) and ``(k^{vv}, k^{vu})`` (in ``psi``)."""
-    lam = plant._profiles["lam"]
-    mu = plant._profiles["mu"]
-    b, c = plant._profiles["b"], plant._profiles["c"]
+    lam = plant.profiles["lam"]
+    mu = plant.profiles["mu"]
+    b, c = plant.profiles["b"], plant.profiles["c"]
     A, D = plant.A, plant.D
 
     def s1(x: Array) -> Array:
@@ -195,7 +195,7 @@ def _march(pair: _Pair, maps: _Maps, n: int, length: float) -> tuple[Array, Arra
 
 def _check_grid(plant: GeneralHyperbolic2x2, pairs: tuple[_Pair, _Pair], n: int) -> None:
     """Refuse a grid too coarse for the couplings (``h max |a|, |b| <= RESOLUTION``) before marching."""
-    probe = plant._tables.x
+    probe = plant.tables.x
     worst = 0.0
     for pair in pairs:
         h = float(pair.Y(plant.length)) / (n - 1)

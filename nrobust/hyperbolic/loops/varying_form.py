@@ -93,7 +93,7 @@ def _march(plant: GeneralHyperbolic2x2, steps: int) -> tuple[Array, Array, Array
     """``theta`` grid, ``f`` and ``g`` at ``theta = tau`` (all ``nu``), ``alpha(L)``, ``beta(L)``."""
     from scipy.interpolate import CubicHermiteSpline  # lazily: a slow import
 
-    tables = plant._tables
+    tables = plant.tables
     x_nodes = tables.x
     lam_n, mu_n = plant.coefficient("lam", x_nodes), plant.coefficient("mu", x_nodes)
     T_nodes = tables.phi(x_nodes) + tables.psi(x_nodes)

@@ -194,8 +194,8 @@ class GeneralHyperbolic2x2:
     rho: float
     length: float = 1.0
     time_unit: float = 1.0
-    _profiles: dict[str, Profile] = field(init=False, repr=False)
-    _tables: _Tables = field(init=False, repr=False)
+    profiles: dict[str, Profile] = field(init=False, repr=False)
+    tables: _Tables = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         length = positive("length", self.length)
@@ -219,13 +219,13 @@ class GeneralHyperbolic2x2:
                 raise ParameterError(name, "positive on [0, L]", f"min {np.min(values):.6g}")
             object.__setattr__(self, name, prof.value)
             profiles[name] = prof
-        object.__setattr__(self, "_profiles", profiles)
-        object.__setattr__(self, "_tables", self._tabulate())
+        object.__setattr__(self, "profiles", profiles)
+        object.__setattr__(self, "tables", self._tabulate())
 
     def _tabulate(self) -> _Tables:
         from scipy.interpolate import CubicHermiteSpline  # lazily: scipy.interpolate is slow to import
 
-        p = self._profiles
+        p = self.profiles
         lam, mu, a, d = p["lam"], p["mu"], p["a"], p["d"]
         x, phi = _cumulative(lambda t: 1.0 / lam(t), self.length)
         _, psi = _cumulative(lambda t: 1.0 / mu(t), self.length)
@@ -247,49 +247,49 @@ class GeneralHyperbolic2x2:
     # ------------------------------------------------------------------ coefficients
     def coefficient(self, name: str, x: Any) -> Array:
         """The coefficient ``name`` (``"lam"``, ``"mu"``, ``"a"``, ``"b"``, ``"c"``, ``"d"``) at ``x``."""
-        if name not in self._profiles:
-            raise ParameterError("name", f"one of {list(self._profiles)}", name)
-        return self._profiles[name](x)
+        if name not in self.profiles:
+            raise ParameterError("name", f"one of {list(self.profiles)}", name)
+        return self.profiles[name](x)
 
     def is_constant(self, name: str) -> bool:
         """True when the coefficient ``name`` was given as a number."""
-        return self._profiles[name].constant
+        return self.profiles[name].constant
 
     @property
     def transport_times(self) -> tuple[float, float]:
         """``(int_0^L 1/lam, int_0^L 1/mu)``: the times of flight of ``u`` and ``v``."""
-        return self._tables.t_u, self._tables.t_v
+        return self.tables.t_u, self.tables.t_v
 
     @property
     def tau(self) -> float:
         """Round-trip time ``int_0^L 1/lam + int_0^L 1/mu``."""
-        return self._tables.t_u + self._tables.t_v
+        return self.tables.t_u + self.tables.t_v
 
     @property
     def rho_q(self) -> float:
         """Open-loop gain of the principal part, ``rho q e^{A(L) - D(L)}`` (the normal form's ``rho~ q``)."""
-        return self.rho * self.q * float(np.exp(self._tables.A(self.length) - self._tables.D(self.length)))
+        return self.rho * self.q * float(np.exp(self.tables.A(self.length) - self.tables.D(self.length)))
 
     def phi(self, x: Any) -> Array:
         """``int_0^x 1/lam``."""
-        return np.asarray(self._tables.phi(np.asarray(x, dtype=float)))
+        return np.asarray(self.tables.phi(np.asarray(x, dtype=float)))
 
     def psi(self, x: Any) -> Array:
         """``int_0^x 1/mu``."""
-        return np.asarray(self._tables.psi(np.asarray(x, dtype=float)))
+        return np.asarray(self.tables.psi(np.asarray(x, dtype=float)))
 
     def A(self, x: Any) -> Array:
         """``int_0^x a/lam``, the exponent of the scaling of ``u``."""
-        return np.asarray(self._tables.A(np.asarray(x, dtype=float)))
+        return np.asarray(self.tables.A(np.asarray(x, dtype=float)))
 
     def D(self, x: Any) -> Array:
         """``-int_0^x d/mu``, the exponent of the scaling of ``v``."""
-        return np.asarray(self._tables.D(np.asarray(x, dtype=float)))
+        return np.asarray(self.tables.D(np.asarray(x, dtype=float)))
 
     @property
     def constant_ratio(self) -> bool:
         """True when ``lam(x)/mu(x)`` is constant (relative variation below 1e-10)."""
-        r = self.coefficient("lam", self._tables.x) / self.coefficient("mu", self._tables.x)
+        r = self.coefficient("lam", self.tables.x) / self.coefficient("mu", self.tables.x)
         return bool(np.ptp(r) <= _RATIO_RTOL * np.max(np.abs(r)))
 
     def normal_form(self) -> NormalForm:
@@ -314,12 +314,12 @@ class GeneralHyperbolic2x2:
                 "proportional to lam on [0, L] for normal_form() (constant lam/mu: one change of space variable "
                 "cannot make both speeds constant otherwise); for any speeds loop_factors and delay_margin use "
                 "varying_delay_form, and boundary_function the Laplace route",
-                self._profiles["mu"].describe(),
+                self.profiles["mu"].describe(),
             )
         return NormalForm(self)
 
     def __repr__(self) -> str:
-        parts = ", ".join(f"{k}={self._profiles[k].describe()!r}" for k in ("lam", "mu", "a", "b", "c", "d"))
+        parts = ", ".join(f"{k}={self.profiles[k].describe()!r}" for k in ("lam", "mu", "a", "b", "c", "d"))
         return (
             f"GeneralHyperbolic2x2({parts}, q={self.q!r}, rho={self.rho!r}, length={self.length!r}, "
             f"time_unit={self.time_unit!r})"
@@ -329,7 +329,7 @@ class GeneralHyperbolic2x2:
         """JSON-ready description; samples listed, callables named and tabulated on 11 points of ``[0, L]``."""
         out: dict[str, Any] = {"type": "GeneralHyperbolic2x2"}
         x = np.linspace(0.0, self.length, 11)
-        for name, prof in self._profiles.items():
+        for name, prof in self.profiles.items():
             plain = prof.constant or isinstance(prof.value, tuple)
             out[name] = prof.describe() if plain else {"callable": prof.describe(), "x": x, "values": prof(x)}
         out.update({"q": self.q, "rho": self.rho, "length": self.length, "time_unit": self.time_unit})
@@ -363,7 +363,7 @@ class _Scaled:
     def exact(self, y: Any) -> Array:
         """The coupling evaluated through the coefficient itself."""
         g = self.general
-        x = np.asarray(g._tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
+        x = np.asarray(g.tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
         exponent = self.sign * (g.D(x) - g.A(x) - self.offset)
         return g.time_unit * g.coefficient(self.coef, x) * np.exp(exponent)
 
@@ -387,7 +387,7 @@ class _MappedGain:
 
     def __call__(self, y: Any) -> Array:
         g = self.general
-        x = np.asarray(g._tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
+        x = np.asarray(g.tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
         w = g.A(x) + self.offset if self.weight == "u" else g.D(x)
         t_u = g.transport_times[0]
         return self.scale * Profile("gain", self.gain)(x) * np.exp(w) * t_u * g.coefficient("lam", x)
@@ -424,7 +424,7 @@ class NormalForm:
         g = self.general
         t_u, t_v = g.transport_times
         end = g.length
-        exponent = g.D(g._tables.x) - g.A(g._tables.x)
+        exponent = g.D(g.tables.x) - g.A(g.tables.x)
         balance = 0.5 * float(np.max(exponent) + np.min(exponent))
         couplings = []
         for coef, sign in (("b", 1.0), ("c", -1.0)):
@@ -449,7 +449,7 @@ class NormalForm:
 
     def x_of_y(self, y: Any) -> Array:
         """Physical coordinate of the points ``y`` of ``[0, 1]``."""
-        return np.asarray(self.general._tables.x_of_y(np.asarray(y, dtype=float)))
+        return np.asarray(self.general.tables.x_of_y(np.asarray(y, dtype=float)))
 
     def to_normal(self, x: Any, u: Any, v: Any) -> tuple[Array, Array, Array]:
         """``(y, u~, v~)`` from a state ``u, v`` sampled at ``x``."""

@@ -139,7 +139,7 @@ def _time_of_flight_grids(plant: GeneralHyperbolic2x2, n_u: int, m_v: int, dt: f
     node of each grid is set to ``L`` exactly.
     """
     t_u, t_v = plant.transport_times
-    tables = plant._tables
+    tables = plant.tables
     phi_u = np.arange(n_u + 1) * dt
     x_u = np.asarray(tables.x_of_y(phi_u / t_u))
     x_u[-1] = plant.length
