@@ -30,6 +30,7 @@ from ...errors import ParameterError
 from ..loops.controllers import FeedbackLaw, OpenLoop, StateFeedback
 from ..plants.general import GeneralHyperbolic2x2, Profile
 from .base import Scheme, SimulationResult
+from .characteristics import trapezoid_weights
 from .normal_form import DEFAULT_CELLS, MAX_UPDATES, InitialState, Simulation
 
 __all__ = ["TIME_OF_FLIGHT_SCHEME", "GeneralSimulation", "simulate_general", "simulate_time_of_flight"]
@@ -89,14 +90,6 @@ def _weights(x: Array, nodes: Array) -> tuple[NDArray[np.intp], Array]:
     idx = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
     w = (x - nodes[idx]) / (nodes[idx + 1] - nodes[idx])
     return idx, np.clip(w, 0.0, 1.0)
-
-
-def _trapezoid(dx: Array) -> Array:
-    """Trapezoidal weights for the cell lengths ``dx``."""
-    w = np.zeros(dx.size + 1)
-    w[:-1] += 0.5 * dx
-    w[1:] += 0.5 * dx
-    return w
 
 
 def _state_feedback(controller: StateFeedback | OpenLoop | FeedbackLaw) -> StateFeedback:
@@ -172,9 +165,9 @@ class _Loop:
         self.iv, self.wv = _weights(x_u, x_v)  # v at the u nodes
         self.iu, self.wu = _weights(x_v, x_u)  # u at the v nodes
         gu, gv = Profile("g_u", controller.g_u), Profile("g_v", controller.g_v)
-        self.quad_u = _trapezoid(np.diff(x_u)) * gu(x_u)
-        self.quad_v = _trapezoid(np.diff(x_v)) * gv(x_v)
-        self.norm_u, self.norm_v = _trapezoid(np.diff(x_u)), _trapezoid(np.diff(x_v))
+        self.quad_u = trapezoid_weights(x_u) * gu(x_u)
+        self.quad_v = trapezoid_weights(x_v) * gv(x_v)
+        self.norm_u, self.norm_v = trapezoid_weights(x_u), trapezoid_weights(x_v)
         self.k_gain, self.q, self.rho = controller.k, plant.q, plant.rho
         self.dt, self.eps, self.theta = dt, eps, 1.0 - eps / dt
 
