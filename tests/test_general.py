@@ -569,3 +569,12 @@ def test_certify_a_varying_ratio_plant():
     np.testing.assert_allclose(cert.classification.rho_q, VARYING.rho_q, rtol=1e-15)
     assert cert.region[3] == pytest.approx(40.0 / VARYING.tau)
     json.loads(cert.to_json())
+
+
+def test_a_run_shorter_than_one_step_makes_one_step() -> None:
+    """``t_end`` below one time step: one step (the first sampled time >= t_end), as ``simulate``
+    does for the paper's plant, not a division by zero."""
+    plant = GeneralHyperbolic2x2(lambda x: 1.0 + x, lambda x: 2.0 - x, 0.2, 0.1, 0.5, -0.3, 0.9, 0.6)
+    sim = simulate_general(plant, StateFeedback(0.0), 0.0, 1e-13, 1.0, 1.0, cells=20)
+    assert sim.times.size == 2 and sim.times[-1] >= 1e-13
+    assert np.all(np.isfinite(sim.norm))

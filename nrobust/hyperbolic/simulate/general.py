@@ -323,7 +323,7 @@ def simulate_general(
     t_u, t_v = plant.transport_times
     dt = t_u / n_u
     m_v = int(np.floor(t_v / dt * (1.0 + 1e-12)))
-    steps = int(np.ceil(t_end / dt - 1e-9))
+    steps = max(1, int(np.ceil(t_end / dt - 1e-9)))  # the first sampled time >= t_end
     every = _snapshot_period(n_u + m_v + 3, steps, cells, snapshot_every)
     x_u, x_v, eps = _time_of_flight_grids(plant, n_u, m_v, dt)
     loop = _Loop(plant, controller, x_u, x_v, dt, eps)

@@ -131,7 +131,7 @@ def simulate_nplusm(
     speeds = np.abs(system.signed_speeds)
     dt = 1.0 / (cells * float(speeds.max()))
     ncell = [max(1, round(1.0 / (c * dt))) for c in speeds]
-    steps = int(np.ceil(t_end / dt - 1e-9))
+    steps = max(1, int(np.ceil(t_end / dt - 1e-9)))  # the first sampled time >= t_end
     if steps * (sum(ncell) + len(ncell)) > max_updates:
         raise ParameterError("max_updates", f">= {steps * (sum(ncell) + len(ncell))} (steps x nodes)", max_updates)
     xs = [np.linspace(0.0, 1.0, nc + 1) for nc in ncell]
