@@ -624,3 +624,15 @@ def test_simulate_picks_the_scheme_by_the_plant_and_by_name() -> None:
         simulate(PAPER, ReflectionController(0.1), 0.1, 1.0, np.sin, np.sin, 20, scheme="n+m characteristics")
     paper = simulate(PAPER, ReflectionController(0.1), 0.1, 1.0, np.sin, np.sin, 20)
     assert isinstance(paper, SimulationResult)
+
+
+def test_initial_states_are_checked_once_for_every_scheme() -> None:
+    """A number is a constant state; a user's callable that raises is a ParameterError naming it."""
+    constant = simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 0.5, 1.0, 0.5, 20)
+    nodes = simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 0.5, np.ones(21), 0.5 * np.ones(21), 20)
+    np.testing.assert_array_equal(constant.norm, nodes.norm)
+    with pytest.raises(ParameterError, match=r"u0.*ZeroDivisionError"):
+        simulate(PAPER_TRANSPORT, ReflectionController(0.1), 0.1, 0.5, lambda x: 1 / 0, 0.5, 20)
+    system = NPlusMSystem([1.0], [1.5], [[0.0, 0.4], [0.5, 0.0]], [[0.6]], [[0.5]])
+    with pytest.raises(ParameterError, match=r"w0.*ZeroDivisionError"):
+        simulate(system, [[-0.2]], 0.3, 1.0, lambda x: 1 / 0, cells=10)

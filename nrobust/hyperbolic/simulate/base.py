@@ -19,7 +19,7 @@ from ..._json import fields_dict
 from ..._validate import finite_real
 from ...errors import ParameterError
 
-__all__ = ["Scheme", "SimulationResult"]
+__all__ = ["Scheme", "SimulationResult", "initial_state"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,6 +72,47 @@ class SimulationResult:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (every field)."""
         return fields_dict(self)
+
+
+def _real_state(name: str, raw: Any, expected: str) -> NDArray[np.float64]:
+    """``raw`` as a float array; complex values with a nonzero imaginary part, booleans,
+    strings and ragged sequences are refused (the simulated state is real)."""
+    try:
+        arr = np.asarray(raw)
+    except (TypeError, ValueError):  # ragged nesting
+        raise ParameterError(name, expected, raw) from None
+    if arr.dtype.kind == "c":
+        if np.any(arr.imag != 0):
+            raise ParameterError(name, "real-valued (simulate evolves real states)", "complex values")
+        arr = arr.real
+    if arr.dtype.kind not in "iuf":
+        raise ParameterError(name, expected, raw)
+    return arr.astype(float)
+
+
+def initial_state(name: str, value: Any, x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """An initial condition sampled on the nodes ``x``: the one check of every scheme.
+
+    ``value`` is a real number (a constant state), a callable on arrays of ``x`` (an error it
+    raises is reported as a :class:`~nrobust.errors.ParameterError` on ``name``, not passed
+    through), or the values on the nodes (one per node). The result is finite and real.
+    """
+    if callable(value):
+        expected = "a callable returning real numbers on arrays of x"
+        try:
+            raw = value(x)
+        except Exception as exc:  # the user's callable: its failure is a bad argument, named
+            raise ParameterError(name, expected, f"{value!r} raised {type(exc).__name__}: {exc}") from None
+        out = _real_state(name, raw, expected)
+    else:
+        out = _real_state(name, value, f"a number, a callable or an array of {x.size} node values")
+    if out.shape == ():
+        out = np.full(x.shape, float(out))
+    if out.shape != x.shape:
+        raise ParameterError(name, f"{x.size} values, one per node", f"shape {out.shape}")
+    if not np.all(np.isfinite(out)):
+        raise ParameterError(name, "finite on the domain", "non-finite values")
+    return out.copy()
 
 
 @dataclass(frozen=True, eq=False)

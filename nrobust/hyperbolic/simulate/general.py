@@ -29,7 +29,7 @@ from ..._validate import nonnegative, positive, positive_int, renamed_keywords
 from ...errors import ParameterError
 from ..loops.controllers import FeedbackLaw, OpenLoop, StateFeedback
 from ..plants.general import GeneralHyperbolic2x2, Profile
-from .base import Scheme, SimulationResult
+from .base import Scheme, SimulationResult, initial_state
 from .characteristics import trapezoid_weights
 from .normal_form import DEFAULT_CELLS, MAX_UPDATES, InitialState, Simulation
 
@@ -76,13 +76,6 @@ class GeneralSimulation(SimulationResult):
     snapshot_times: Array
     u_snapshots: Array
     v_snapshots: Array
-
-
-def _initial(name: str, value: Any, x: Array) -> Array:
-    out = np.asarray(value(x) if callable(value) else np.full(x.shape, value), dtype=float)
-    if out.shape != x.shape or not np.all(np.isfinite(out)):
-        raise ParameterError(name, "a number or a callable returning finite values on arrays of x", value)
-    return out
 
 
 def _weights(x: Array, nodes: Array) -> tuple[NDArray[np.intp], Array]:
@@ -327,8 +320,8 @@ def simulate_general(
     every = _snapshot_period(n_u + m_v + 3, steps, cells, snapshot_every)
     x_u, x_v, eps = _time_of_flight_grids(plant, n_u, m_v, dt)
     loop = _Loop(plant, controller, x_u, x_v, dt, eps)
-    u = _initial("u0", u0, x_u)
-    v = _initial("v0", v0, x_v)
+    u = initial_state("u0", u0, x_u)
+    v = initial_state("v0", v0, x_v)
     kept = [steps] if snapshot_every is None else sorted({*range(0, steps + 1, every), steps})
     history = _History(steps, dt, delta, kept, (u.size, v.size))
     u, v = _march(loop, history, u, v, steps)

@@ -35,7 +35,7 @@ from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid, solve_ker
 from ..loops.controllers import Controller, StateFeedback
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .base import Scheme, SimulationResult
+from .base import Scheme, SimulationResult, initial_state
 from .characteristics import Loop, Recorder, march_lattice, march_two_grids, trapezoid_weights, v_grid
 
 __all__ = [
@@ -118,42 +118,6 @@ class Simulation(SimulationResult):
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (lists of floats; an overflowed state as ``"inf"``/``"nan"``)."""
         return {"type": "Simulation", **fields_dict(self)}
-
-
-def _real_state(name: str, raw: Any, expected: str) -> Array:
-    """``raw`` as a float array; complex values with a nonzero imaginary part, booleans,
-    strings and ragged sequences are refused (the simulated state is real)."""
-    try:
-        arr = np.asarray(raw)
-    except (TypeError, ValueError):  # ragged nesting
-        raise ParameterError(name, expected, raw) from None
-    if arr.dtype.kind == "c":
-        if np.any(arr.imag != 0):
-            raise ParameterError(name, "real-valued (simulate evolves real states)", "complex values")
-        arr = arr.real
-    if arr.dtype.kind not in "iuf":
-        raise ParameterError(name, expected, raw)
-    return arr.astype(float)
-
-
-def _initial(name: str, value: InitialState, x: Array) -> Array:
-    """Sample an initial condition (callable or node values) on the nodes ``x``."""
-    if callable(value):
-        expected = "a callable returning real numbers on arrays of x"
-        try:
-            raw = value(x)
-        except (TypeError, ValueError):
-            raise ParameterError(name, expected, value) from None
-        out = _real_state(name, raw, expected)
-        if out.shape == ():
-            out = np.full(x.shape, float(out))
-    else:
-        out = _real_state(name, value, f"a callable or an array of {x.size} node values")
-    if out.shape != x.shape:
-        raise ParameterError(name, f"{x.size} values, one per node", f"shape {out.shape}")
-    if not np.all(np.isfinite(out)):
-        raise ParameterError(name, "finite on [0, 1]", "non-finite values")
-    return out.copy()
 
 
 def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_grid: int) -> Any:
@@ -245,8 +209,8 @@ def _simulate(
     if updates > max_updates:
         raise ParameterError("(cells, t_end)", f"at most max_updates = {max_updates} node updates", updates)
 
-    u = _initial("u0", u0, x)
-    v = _initial("v0", v0, xv)
+    u = initial_state("u0", u0, x)
+    v = initial_state("v0", v0, xv)
     law = _feedback_law(system, controller, kernels, kernel_grid)
     w_x, w_v = trapezoid_weights(x), trapezoid_weights(xv)
     loop = Loop(
@@ -334,11 +298,11 @@ def simulate_normal_form(
     # The initial state is sampled on the nodes by _simulate, after its work bound is checked.
     def un(nodes: Array) -> Array:
         at = physical(nodes)
-        return np.asarray(form.to_normal(at, _initial("u0", u0, at), 0.0)[1])
+        return np.asarray(form.to_normal(at, initial_state("u0", u0, at), 0.0)[1])
 
     def vn(nodes: Array) -> Array:
         at = physical(nodes)
-        return np.asarray(form.to_normal(at, 0.0, _initial("v0", v0, at))[2])
+        return np.asarray(form.to_normal(at, 0.0, initial_state("v0", v0, at))[2])
 
     def weight_u(nodes: Array) -> Array:
         at = form.x_of_y(nodes)

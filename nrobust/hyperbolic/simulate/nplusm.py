@@ -138,7 +138,12 @@ def simulate_nplusm(
     off = np.cumsum([0] + [x.size for x in xs])
     state = np.empty(int(off[-1]))
     for i, x in enumerate(xs):
-        prof = np.asarray(w0(x), dtype=float)
+        try:
+            prof = np.asarray(w0(x), dtype=float)
+        except Exception as exc:  # the user's callable: its failure is a bad argument, named
+            raise ParameterError(
+                "w0", "a callable x -> real array", f"{w0!r} raised {type(exc).__name__}: {exc}"
+            ) from None
         if prof.shape != (system.n + system.m, x.size) or not np.all(np.isfinite(prof)):
             raise ParameterError("w0", f"finite profiles of shape ({system.n + system.m}, x.size)", prof.shape)
         state[off[i] : off[i + 1]] = prof[i]

@@ -91,9 +91,9 @@ def simulate(
         Loop delay ``>= 0``.
     t_end : float
         Final time ``> 0``; the run ends at the first sampled time ``>= t_end``.
-    u0, v0 : callable or array_like
-        The initial state of a 2x2 plant: callables on arrays of ``x``, or values on the
-        nodes (``cells + 1`` for ``u``, for ``v`` as many as
+    u0, v0 : float, callable or array_like
+        The initial state of a 2x2 plant: numbers (a constant state), callables on arrays of
+        ``x``, or values on the nodes (``cells + 1`` for ``u``, for ``v`` as many as
         :func:`~nrobust.hyperbolic.simulate.v_nodes` returns). For an ``n + m`` system,
         ``u0`` is its state ``w0`` and ``v0`` is not given.
     cells : int, optional
