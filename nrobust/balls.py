@@ -32,9 +32,14 @@ floating-point numbers are taken as exact rationals and nothing else is approxim
   path are not used.
 * Derivatives are those of this function, in ball arithmetic (Leibniz's rule: no
   coefficient of ``F.derivative()`` is rounded).
+* A kernel stored with a proven error bound (``DistributedDelay.radius``: the true kernel,
+  e.g. ``N~`` of a plant with constant coefficients in closed form, is within ``radius``
+  of the stored pieces) widens each moment ``J_k(s)`` by
+  ``radius int_a^b nu^k e^{-nu Re s} dnu``: the enclosure is then of the true ``F``.
 
-How far the represented ``F`` is from a model (``N~`` from a kernel on a finite grid) is a
-separate question, answered by convergence studies, not by these enclosures.
+Without such a bound (``N~`` from a kernel on a finite grid, a cubic spline) the enclosure
+is of ``F`` as represented, and how far that is from the plant is a separate question,
+answered by convergence studies.
 
 Interface
 ---------
@@ -123,10 +128,12 @@ def _falling(n: int, j: int) -> int:
 
 
 class _Group:
-    """Segments of one distributed term with one length (to 12 digits).
+    """Segments of one distributed term with one length (to 44 bits, :func:`_length_key`).
 
     ``phi_l(s h_i)`` is enclosed once, on the ball hull ``H`` of the lengths
-    (``phi_l(s h_i)`` lies in ``phi_l(s H)``); the exponentials ``e^{-nu_i s}`` are
+    (``phi_l(s h_i)`` lies in ``Phi_l = phi_l(s H)``; when the lengths differ, the sum over
+    the segments is enclosed about the midpoint of ``Phi_l`` with the radius weighted by
+    ``sum |a_i|``, since the coefficients ``a_i`` may cancel); the exponentials ``e^{-nu_i s}`` are
     computed one by one (a product of many rotations would widen the rectangles of ball
     arithmetic geometrically: the wrapping effect) and shared by the terms on the same
     nodes, e.g. ``N~`` in ``A``, ``B`` and their derivatives.
@@ -156,7 +163,7 @@ class _DistributedBalls:
         self.start = [flint.arb(float(v)) for v in start]
         groups: dict[float, list[int]] = {}
         for i, hv in enumerate(h):
-            groups.setdefault(float(np.round(hv, 12)), []).append(i)
+            groups.setdefault(_length_key(float(hv)), []).append(i)
         self.groups = [_Group(flint, start, h, idx) for idx in groups.values()]
         self.h = h
         self.poly_t = poly_t
@@ -185,6 +192,13 @@ class _DistributedBalls:
             self._coef[k] = mats
         return self._coef[k]
 
+    def radius_moment(self, s: Any, k: int) -> Any:
+        """Bound of ``radius int_a^b nu^k e^{-nu Re s} dnu`` over the ball ``s``: the error of ``J_k``."""
+        flint = self.flint
+        a, b = flint.arb(self.d.a), flint.arb(self.d.b)
+        x = flint.arb(s.real.lower())
+        return flint.arb(self.d.radius) * (b - a) * b**k * _segment_exp_max(flint, a, b, x)
+
     def moment(self, s: Any, k: int, cache: dict[Any, Any], lmax: int, prec: int) -> Any:
         """``J_k(s) = int nu^k N(nu) e^{-nu s} dnu`` for the represented ``N``; ``cache`` is per point."""
         flint = self.flint
@@ -194,10 +208,34 @@ class _DistributedBalls:
             if phi_key not in cache:
                 cache[phi_key] = _phi_balls(flint, s * g.hull, lmax, prec)
             phi = cache[phi_key]
-            row = flint.acb_mat(1, len(g.idx), g.exponentials(s, cache)) * mat
+            exps = g.exponentials(s, cache)
+            row = flint.acb_mat(1, len(g.idx), exps) * mat
+            if g.hull_key[0] == g.hull_key[1]:  # one length: sum_i a_i phi(s h) = (sum_i a_i) phi(s h)
+                for col in range(mat.ncols()):
+                    out += row[0, col] * phi[col]
+                continue
+            # Lengths that differ (in the last digits): phi_l(s h_i) are different points of the
+            # ball Phi_l, so sum_i a_i phi_l(s h_i) lies in (sum_i a_i) mid(Phi_l) plus a disc of
+            # radius sum_i |a_i| rad(Phi_l), not in (sum_i a_i) Phi_l when the a_i cancel.
+            moduli = [abs(e) for e in exps]
             for col in range(mat.ncols()):
-                out += row[0, col] * phi[col]
+                mid = flint.acb(phi[col].real.mid(), phi[col].imag.mid())
+                spread = abs(phi[col] - mid)
+                weight = sum((m * abs(mat[i, col]) for i, m in enumerate(moduli)), flint.arb(0))
+                out += row[0, col] * mid + _disc(flint, weight * spread)
         return out
+
+
+def _length_key(h: float) -> float:
+    """``h`` rounded to 44 significant bits: segments of one grid (lengths within a few ulps) share a key."""
+    mant, expo = math.frexp(h)
+    return math.ldexp(round(mant * 2**44) / 2**44, expo)
+
+
+def _disc(flint: ModuleType, r: Any) -> Any:
+    """The ``acb`` square ``[-r, r] + i [-r, r]`` (``r`` an ``arb``; its upper end is used)."""
+    u = flint.arb(0, r.upper())
+    return flint.acb(u, u)
 
 
 def _hull(flint: ModuleType, values: NDArray[np.float64]) -> Any:
@@ -388,7 +426,10 @@ class BallQuasiPolynomial(_BallFunction):
                 if qj.degree() < 0:
                     continue
                 sign = -1 if (k - j) % 2 else 1
-                out += sign * math.comb(k, j) * qj(s) * dist.moment(s, dist.d.moment + k - j, cache, lmax, self.prec)
+                weight = math.comb(k, j) * qj(s)
+                out += sign * weight * dist.moment(s, dist.d.moment + k - j, cache, lmax, self.prec)
+                if dist.d.radius:
+                    out += _disc(flint, abs(weight) * dist.radius_moment(s, dist.d.moment + k - j))
         return out
 
 
@@ -552,7 +593,9 @@ def ball_abs_moment(d: DistributedDelay, x: float, k: int = 0, *, prec: int = 53
 
     On segment ``i`` (start ``nu_i``, length ``h_i``, ``N = sum_l P_il t^l``):
     ``|N| <= sum_l |P_il|`` and ``nu^(m+k) e^{-nu x}`` is at most the product of the maxima
-    of its two factors at the segment's ends (each is monotone), times ``h_i``.
+    of its two factors at the segment's ends (each is monotone), times ``h_i``. A kernel
+    known to within ``radius`` (:class:`~nrobust.quasipoly.DistributedDelay`) adds
+    ``radius (b - a) b^(m+k) max e^{-nu x}``: the bound holds for the true kernel.
     """
     flint = require_flint()
     k = positive_int("k", k, minimum=0)
@@ -566,6 +609,9 @@ def ball_abs_moment(d: DistributedDelay, x: float, k: int = 0, *, prec: int = 53
             bound = sum((abs(_to_acb(flint, c)) for c in p), flint.arb(0))
             weight = hi**power if power else flint.arb(1)
             out += flint.arb(float(hv)) * bound * weight * _segment_exp_max(flint, lo, hi, X)
+        if d.radius:
+            a, b = flint.arb(d.a), flint.arb(d.b)
+            out += flint.arb(d.radius) * (b - a) * b**power * _segment_exp_max(flint, a, b, X)
         return out
 
 
@@ -576,7 +622,8 @@ def ball_variation_bound(d: DistributedDelay, x: float, *, prec: int = 53) -> An
     ``|P_i(0)| e^{-nu_i x}``, ``|P_i(1)| e^{-(nu_i + h_i) x}`` (at a node shared exactly by two
     segments, the jump ``|P_{i+1}(0) - P_i(1)|`` instead of both) and
     ``int |N'| e^{-nu x} <= sum_l l |P_il| max e^{-nu x}`` on the segment. Every term
-    decreases as ``x`` grows, so ``V`` holds on the whole half-plane.
+    decreases as ``x`` grows, so ``V`` holds on the whole half-plane. The error bounds of
+    a kernel known to within ``radius`` add ``(2 radius + variation_radius) max e^{-nu x}``.
     """
     if d.moment != 0:
         raise ParameterError("moment", "0 for ball_variation_bound", d.moment)
@@ -603,4 +650,8 @@ def ball_variation_bound(d: DistributedDelay, x: float, *, prec: int = 53) -> An
                 carry = None
             slope = sum((j * abs(c) for j, c in enumerate(coefs)), flint.arb(0))
             out += slope * _segment_exp_max(flint, lo, hi, X)
+        if d.radius or d.variation_radius:
+            a, b = flint.arb(d.a), flint.arb(d.b)
+            err = 2 * flint.arb(d.radius) + flint.arb(d.variation_radius)
+            out += err * _segment_exp_max(flint, a, b, X)
         return out

@@ -518,7 +518,9 @@ def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], 
     and ``N_lin`` the line through the values ``v_k``, ``v_{k+1}``: ``N - N_lin`` is
     ``-t (1 - t) (P_2 + P_3 + P_3 t)`` plus the line through ``P(0) - v_k`` and
     ``P(1) - v_{k+1}`` (zero but for the rounding of the spline fit), so
-    ``int |N - N_lin| <= h (|P_2 + P_3| / 6 + |P_3| / 12 + (|P(0) - v_k| + |P(1) - v_{k+1}|) / 2)``.
+    ``int |N - N_lin| <= h (|P_2 + P_3| / 6 + |P_3| / 12 + (|P(0) - v_k| + |P(1) - v_{k+1}|) / 2)``;
+    a term ``P_l t^l`` of higher degree adds ``h |P_l| (1/2 - 1/(l + 1))``, and a kernel known to
+    within ``radius`` adds ``radius (b - a)``.
     """
     nodes = [Fraction(float(x)) for x in N.nodes]
     values = [Fraction(float(v)) for v in N.values]
@@ -531,12 +533,13 @@ def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], 
         + abs(values[-1])
         + sum((abs(values[k + 1] - values[k]) for k in range(len(nodes) - 1)), Fraction(0))
     )
-    dev = Fraction(0)
+    dev = Fraction(N.radius) * (nodes[-1] - nodes[0])
     for i, k in enumerate(segments):
         p = [Fraction(float(c)) for c in poly[i]] + [Fraction(0)] * 4
         hh = Fraction(float(h[i]))
         ends = abs(p[0] - values[k]) + abs(sum(p, Fraction(0)) - values[k + 1])
-        dev += hh * (abs(p[2] + p[3]) / 6 + abs(p[3]) / 12 + ends / 2)
+        higher = sum((abs(c) * (Fraction(1, 2) - Fraction(1, j + 1)) for j, c in enumerate(p) if j >= 4), Fraction(0))
+        dev += hh * (abs(p[2] + p[3]) / 6 + abs(p[3]) / 12 + higher + ends / 2)
     return nodes, values, tv, dev
 
 

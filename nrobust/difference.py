@@ -415,13 +415,15 @@ class DifferenceOperator:
         """
         rel = DifferenceOperator(self.coefs, self.relative_delays)
         try:
-            approx = rel.commensurate_approximation().chains()
+            approx: Chains | None = rel.commensurate_approximation().chains()
         except ParameterError:  # delays too close to seed from a commensurate approximation
             seeds = _beat_seeds(rel, upper)
-        else:
+            approx = _merged_chains(rel) if seeds.size == 0 else None
+        if approx is not None:
             right = approx.chains[:_LOWER_BOUND_CHAINS]
             seeds = np.concatenate(
                 [c.points(-1e-9, c.offset % c.spacing + _LOWER_BOUND_SEEDS * c.spacing) for c in right]
+                + [np.zeros(0, dtype=complex)]
             )
         if seeds.size == 0:
             return -np.inf
@@ -520,7 +522,21 @@ def commensurate(delays: NDArray[np.float64], max_degree: int) -> tuple[float, N
     if den > max_degree:
         return None
     n = np.array([f.numerator * (den // f.denominator) for f in fracs], dtype=np.int64)
+    if _collide(delays, n):
+        return None
     return float(np.dot(n, delays) / np.dot(n, n)), n
+
+
+def _collide(delays: NDArray[np.float64], n: NDArray[np.int64]) -> bool:
+    """True if two distinct delays share a lattice step ``n_k`` (or a positive delay gets ``n_k = 0``).
+
+    Delays ``1`` and ``1 + 1e-12`` agree to the tolerance of :func:`commensurate`, but they are
+    not one delay: at frequencies near ``pi / 1e-12`` their terms turn against each other,
+    and the zeros of the operator there follow neither of them alone nor their sum.
+    """
+    order = np.argsort(delays, kind="stable")
+    d, k = delays[order], n[order]
+    return bool(np.any((np.diff(d) > 0) & (np.diff(k) <= 0)) or np.any((d > 0) & (k == 0)))
 
 
 def chains_of(h: float, z: NDArray[np.complex128], mult: NDArray[np.int64]) -> Chains:
@@ -554,6 +570,29 @@ def _beat_seeds(D: DifferenceOperator, upper: float) -> NDArray[np.complex128]:
     if not real:
         w = np.concatenate([-w[:0:-1], w])
     return upper + 1j * w
+
+
+def _merged_chains(D: DifferenceOperator) -> Chains | None:
+    """The chains of ``D`` with the delays that share a lattice step merged (seeds), or None.
+
+    Delays ``g <= 2e-10 r_max`` apart (one step of :func:`commensurate`) act as one delay, with
+    the sum of their coefficients, at frequencies small against ``1 / g``: the chains of the
+    merged operator seed the zeros of ``D`` there (Newton's method on ``D`` itself and a
+    proof follow). None when the merged operator has no zero or is not an operator (the
+    coefficients at the smallest delay cancel).
+    """
+    r = D.relative_delays
+    merged = r.copy()
+    for k in range(1, r.size):  # each delay joins the group of its left neighbour when close to it
+        if r[k] - r[k - 1] <= 2.0 * _COMMENSURATE_RTOL * r[-1]:
+            merged[k] = merged[k - 1]
+    try:
+        M = DifferenceOperator(D.coefs, merged)
+        if M.coefs.size == 1:
+            return None
+        return M.chains() if M.commensurate_step() is not None else M.commensurate_approximation().chains()
+    except ParameterError:
+        return None
 
 
 def _newton_difference(D: DifferenceOperator, s: NDArray[np.complex128], iters: int = 60) -> NDArray[np.complex128]:
@@ -699,7 +738,10 @@ def _zero_candidates(D: DifferenceOperator) -> NDArray[np.complex128]:
     try:
         chains = rel.chains() if rel.commensurate_step() is not None else rel.commensurate_approximation().chains()
     except ParameterError:  # delays too close to seed from a commensurate approximation
-        return np.zeros(0, dtype=complex)
+        merged = _merged_chains(rel)
+        if merged is None:
+            return np.zeros(0, dtype=complex)
+        chains = merged
     right = chains.chains[:_LOWER_BOUND_CHAINS]
     if not right:
         return np.zeros(0, dtype=complex)

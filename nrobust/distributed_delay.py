@@ -32,15 +32,16 @@ import numpy as np
 from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
 
-from ._json import fields_dict
+from ._json import fields_dict, json_safe
 from ._validate import nonnegative, number_array, real_array
 from .errors import ParameterError
 
 __all__ = ["DistributedDelay", "as_poly", "canonical_bytes", "polyder", "polymul", "polyval"]
 
 # |z| below which phi_k(z) = int_0^1 t^k e^{-z t} dt is summed as a Taylor series
-# (the closed-form recursion loses digits by cancellation there); 30 terms at |z| < 1
-# leave a remainder below 1/30! ~ 4e-33.
+# (the closed-form recursion loses digits by cancellation there; for order k the radius
+# grows to k/3); 30 terms at |z| < 1 leave a remainder below 1/30! ~ 4e-33, and 4 more
+# terms per order cover the larger radii.
 _SERIES_RADIUS = 1.0
 _SERIES_TERMS = 30
 # Number of complex entries one block of the (s x nodes) exponential matrix may hold.
@@ -55,7 +56,7 @@ _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
     """Return ``phi_k(z) = int_0^1 t^k e^{-z t} dt`` for ``k = 0..kmax``, stacked on axis 0.
 
-    ``|z| < 1``: the Taylor series ``sum_m (-z)^m / (m! (m + k + 1))`` as one matrix product
+    ``|z| < max(1, kmax / 3)``: the Taylor series ``sum_m (-z)^m / (m! (m + k + 1))`` as one matrix product
     of the powers ``(-z)^m`` with the table ``1 / (m! (m + k + 1))``; elsewhere the forward recursion
     ``phi_k = (k phi_{k-1} - e^{-z}) / z`` from ``phi_0 = (1 - e^{-z}) / z``.
     """
@@ -63,13 +64,15 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
     if z.size == 0:
         return np.zeros((kmax + 1, *z.shape), dtype=complex)
     mod = np.abs(z)
-    small = mod < _SERIES_RADIUS
+    # The recursion multiplies the rounding of phi_0 by about k! / |z|^k: high orders (the
+    # piecewise polynomials of exact kernels) take the series further out.
+    small = mod < max(_SERIES_RADIUS, kmax / 3.0)
     n_small = int(np.count_nonzero(small))
     if n_small:
         zs = z if n_small == z.size else z[small]
         # Terms until the remainder r^m / m! (r = max |z| < 1) is below 1e-17.
         r, bound, terms = float(np.max(mod if n_small == z.size else mod[small])), 1.0, 1
-        while terms < _SERIES_TERMS and bound > 1e-17:
+        while terms < _SERIES_TERMS + 4 * kmax and bound > 1e-17:
             bound *= r / terms
             terms += 1
         powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m
@@ -262,7 +265,33 @@ def _cubic_pieces(nodes: NDArray[np.float64], values: NDArray) -> tuple[NDArray,
     return np.concatenate(starts), np.concatenate(hs), np.concatenate(polys).astype(values.dtype)
 
 
-_INTERPOLATIONS = {"linear": _linear_pieces, "cubic": _cubic_pieces}
+_TABULATED = {"linear": _linear_pieces, "cubic": _cubic_pieces}
+_INTERPOLATIONS = (*_TABULATED, "polynomial")
+
+
+def _polynomial_pieces(nodes: NDArray[np.float64], coefficients: Any) -> tuple[NDArray, NDArray, NDArray]:
+    """Segments ``[nodes[i], nodes[i + 1]]`` with the given coefficients ``P[i, l]`` of ``t^l``."""
+    if coefficients is None:
+        raise ParameterError("coefficients", "an array (segments, degree + 1) for interpolation='polynomial'", None)
+    c = number_array("coefficients", coefficients, ndim=2)
+    if c.shape[0] != nodes.size - 1 or c.shape[1] < 1:
+        raise ParameterError("coefficients", f"an array of shape ({nodes.size - 1}, degree + 1)", c.shape)
+    if np.any(np.diff(nodes) <= 0):
+        raise ParameterError("nodes", "increasing for interpolation='polynomial'", nodes)
+    return nodes[:-1].copy(), np.diff(nodes), c
+
+
+def _bound(name: str, value: Any) -> float:
+    """A non-negative finite error bound."""
+    out = nonnegative(name, value)
+    if not np.isfinite(out):
+        raise ParameterError(name, "a finite number >= 0", value)
+    return out
+
+
+def _up(x: float) -> float:
+    """``x`` rounded up by two ulps: products of error bounds stay upper bounds."""
+    return float(np.nextafter(np.nextafter(x, np.inf), np.inf)) if x else 0.0
 
 
 class _SegmentGroup(NamedTuple):
@@ -280,7 +309,17 @@ class DistributedDelay:
 
     ``N`` is given by its values on non-decreasing ``nodes`` and interpolated linearly or
     by cubic splines; a node repeated twice marks a jump of ``N`` there (the left value
-    first), as the jump of ``N~`` at ``nu = 1/mu`` in the paper's eq. (40).
+    first), as the jump of ``N~`` at ``nu = 1/mu`` in the paper's eq. (40). Or ``N`` is a
+    polynomial of any degree on each segment (``interpolation="polynomial"`` with
+    ``coefficients``): the form of a kernel known in closed form, e.g. ``N~`` of a plant
+    with constant coefficients (:mod:`nrobust.hyperbolic.loops.exact_form`).
+
+    The stored ``N`` may stand for a kernel ``N_true`` known only to within proven bounds:
+    ``|N_true - N| <= radius`` on ``[a, b]`` and the total variation of ``N_true - N`` on
+    ``(a, b)`` at most ``variation_radius``. Evaluation (floating point and ball) is of the
+    stored ``N``; every bound (:meth:`abs_moment`, :meth:`variation_bound`,
+    :meth:`total_variation`, :meth:`linear_deviation`, and the enclosures of
+    :mod:`nrobust.balls`) holds for ``N_true``.
 
     Parameters
     ----------
@@ -294,10 +333,18 @@ class DistributedDelay:
     moment : int, optional
         The power ``m`` of the weight ``nu^m`` (default 0); derivatives in ``s`` of a
         distributed term are distributed terms of higher moment.
-    interpolation : {"linear", "cubic"}, optional
+    interpolation : {"linear", "cubic", "polynomial"}, optional
         ``"linear"`` (default, second order) or ``"cubic"``: a not-a-knot cubic spline on
         each piece between jumps (fourth order for smooth ``N``; pieces of 2 or 3 nodes
-        get the line or parabola through them).
+        get the line or parabola through them). ``"polynomial"``: ``N`` is given by
+        ``coefficients`` on the segments between increasing ``nodes``; ``values`` must
+        then be None (they are the values of the pieces at the nodes, computed).
+    coefficients : array_like, optional
+        For ``"polynomial"`` only: ``coefficients[i, l]`` multiplies ``t^l`` on segment
+        ``i``, ``nu = nodes[i] + (nodes[i + 1] - nodes[i]) t``, ``t`` in ``[0, 1]``.
+    radius, variation_radius : float, optional
+        Proven bounds of ``N_true - N`` (sup norm, total variation), default 0: ``N`` is the
+        kernel itself.
 
     Notes
     -----
@@ -317,6 +364,8 @@ class DistributedDelay:
     poly: NDArray = field(default_factory=lambda: np.ones(1))
     moment: int = 0
     interpolation: str = "linear"
+    radius: float = 0.0
+    variation_radius: float = 0.0
     if TYPE_CHECKING:  # set by __init__, not a dataclass field: the interpolant's per-segment pieces
         pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
         # built on first use by _segment_groups
@@ -325,10 +374,14 @@ class DistributedDelay:
     def __init__(
         self,
         nodes: ArrayLike,
-        values: ArrayLike,
+        values: ArrayLike | None,
         poly: ArrayLike = (1.0,),
         moment: int = 0,
         interpolation: str = "linear",
+        *,
+        coefficients: ArrayLike | None = None,
+        radius: float = 0.0,
+        variation_radius: float = 0.0,
     ) -> None:
         x = real_array("nodes", nodes, min_size=2)
         if x[0] < 0:
@@ -340,30 +393,137 @@ class DistributedDelay:
             raise ParameterError("nodes", "with no node repeated more than twice", nodes)
         if not np.any(dx > 0):
             raise ParameterError("nodes", "spanning an interval of positive length", nodes)
-        v = number_array("values", values)
-        if v.shape != x.shape:
-            raise ParameterError("values", f"numbers, one per node ({x.size})", values)
         if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
             raise ParameterError("moment", "an integer >= 0", moment)
         if interpolation not in _INTERPOLATIONS:
             raise ParameterError("interpolation", f"one of {sorted(_INTERPOLATIONS)}", interpolation)
         q = as_poly("poly", poly)
+        radius, variation_radius = _bound("radius", radius), _bound("variation_radius", variation_radius)
+        pieces = None
+        if interpolation == "polynomial":
+            if values is not None:
+                raise ParameterError("values", "None for interpolation='polynomial' (given by coefficients)", values)
+            pieces = _polynomial_pieces(x, coefficients)
+            v = np.append(pieces[2][:, 0], np.sum(pieces[2][-1]))
+        else:
+            if coefficients is not None:
+                raise ParameterError("coefficients", "None unless interpolation='polynomial'", coefficients)
+            v = number_array("values", values)
+            if v.shape != x.shape:
+                raise ParameterError("values", f"numbers, one per node ({x.size})", values)
         v = v.astype(np.result_type(v, q, float))
         if q.size == 1:  # canonical form: a constant factor lives in the values
+            if pieces is not None:
+                pieces = (pieces[0], pieces[1], pieces[2] * q[0])
+            if abs(q[0]) != 1.0:  # a sign or a unit phase is exact
+                radius, variation_radius = _up(radius * abs(q[0])), _up(variation_radius * abs(q[0]))
             v, q = v * q[0], np.ones(1)
+        if pieces is None:
+            pieces = _TABULATED[interpolation](x, v)
+        else:
+            pieces = (pieces[0], pieces[1], pieces[2].astype(np.result_type(pieces[2], v)))
         object.__setattr__(self, "nodes", x)
         object.__setattr__(self, "values", v)
         object.__setattr__(self, "poly", q)
         object.__setattr__(self, "moment", int(moment))
         object.__setattr__(self, "interpolation", interpolation)
-        object.__setattr__(self, "pieces", _INTERPOLATIONS[interpolation](x, self.values))
+        object.__setattr__(self, "radius", radius)
+        object.__setattr__(self, "variation_radius", variation_radius)
+        object.__setattr__(self, "pieces", pieces)
         object.__setattr__(self, "_groups", {})
 
     def replace(self, **changes: Any) -> DistributedDelay:
-        """A copy with some of ``nodes``, ``values``, ``poly``, ``moment`` changed (same interpolation)."""
-        args: dict[str, Any] = {"nodes": self.nodes, "values": self.values, "poly": self.poly, "moment": self.moment}
+        """A copy with some of ``nodes``, ``poly``, ``moment``, ``radius``, ``variation_radius`` changed.
+
+        The interpolation is kept; ``values`` may change for the tabulated interpolations,
+        ``coefficients`` for ``"polynomial"``.
+        """
+        args: dict[str, Any] = {
+            "nodes": self.nodes,
+            "poly": self.poly,
+            "moment": self.moment,
+            "radius": self.radius,
+            "variation_radius": self.variation_radius,
+        }
+        if self.interpolation == "polynomial":
+            args["values"], args["coefficients"] = None, self.pieces[2]
+        else:
+            args["values"] = self.values
         args.update(changes)
         return DistributedDelay(**args, interpolation=self.interpolation)
+
+    def times(self, c: complex, **changes: Any) -> DistributedDelay:
+        """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``."""
+        if self.interpolation == "polynomial":
+            changes["coefficients"] = self.pieces[2] * c
+        else:
+            changes["values"] = self.values * c
+        factor = abs(c)
+        if factor == 1.0:  # exact: a sign or a unit phase
+            return self.replace(**changes)
+        return self.replace(
+            radius=_up(self.radius * factor), variation_radius=_up(self.variation_radius * factor), **changes
+        )
+
+    def plus(self, other: DistributedDelay) -> DistributedDelay:
+        """The sum of two terms with the same nodes, polynomial, moment and interpolation.
+
+        The error bounds add, except when the stored kernels are exact opposites with equal
+        bounds: two such terms are taken to stand for opposite true kernels (they come from
+        one kernel and its negation, e.g. ``I_N - I_N`` in a loop at ``delta = 0``), so their
+        sum is exactly zero.
+        """
+        if not self.mergeable(other):
+            raise ParameterError("other", "a term with the same nodes, polynomial, moment and interpolation", other)
+        opposite = (
+            self.radius == other.radius
+            and self.variation_radius == other.variation_radius
+            and np.array_equal(self._data, -other._data)
+        )
+        radius = 0.0 if opposite else _up(self.radius + other.radius)
+        variation = 0.0 if opposite else _up(self.variation_radius + other.variation_radius)
+        if self.interpolation == "polynomial":
+            return self.replace(
+                coefficients=self.pieces[2] + other.pieces[2], radius=radius, variation_radius=variation
+            )
+        return self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
+
+    def mergeable(self, other: DistributedDelay) -> bool:
+        """True when :meth:`plus` applies: same nodes, polynomial, moment and interpolation."""
+        return (
+            self.moment == other.moment
+            and self.interpolation == other.interpolation
+            and np.array_equal(self.nodes, other.nodes)
+            and np.array_equal(self.poly, other.poly)
+        )
+
+    @property
+    def _data(self) -> NDArray:
+        """The stored numbers that define ``N``: the coefficients (polynomial) or the values."""
+        return self.pieces[2] if self.interpolation == "polynomial" else self.values
+
+    def _radius_integral(self, x: NDArray[np.float64], power: int) -> NDArray[np.float64]:
+        """Upper bound of ``radius int_a^b nu^power e^{-nu x} dnu`` (zero without a radius)."""
+        if not self.radius:
+            return np.zeros_like(x)
+        with np.errstate(over="ignore"):
+            peak = np.maximum(np.exp(-self.a * x), np.exp(-self.b * x))
+        return _up(self.radius * (self.b - self.a) * self.b**power) * peak * (1.0 + 1e-15)
+
+    def _radius_variation(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Bound of the boundary and variation terms of ``N_true - N`` in :meth:`variation_bound`."""
+        if not (self.radius or self.variation_radius):
+            return np.zeros_like(x)
+        with np.errstate(over="ignore"):
+            peak = np.maximum(np.exp(-self.a * x), np.exp(-self.b * x))
+        return _up(2.0 * self.radius + self.variation_radius) * peak * (1.0 + 1e-15)
+
+    @property
+    def is_zero(self) -> bool:
+        """True when the term is identically zero (stored kernel and error bounds)."""
+        return (not np.any(self.poly != 0)) or (
+            not np.any(self.pieces[2] != 0) and self.radius == 0.0 and self.variation_radius == 0.0
+        )
 
     # ------------------------------------------------------------------ structure
     @property
@@ -458,31 +618,93 @@ class DistributedDelay:
         out -= polyval(self.poly, flat) * self._moment_integral(flat, 1)
         return out.reshape(s.shape)
 
+    def kernel_at(self, nu: ArrayLike) -> NDArray:
+        """The stored kernel ``N`` (the interpolant, or the polynomial pieces) at ``nu`` in ``[a, b]``.
+
+        At a node shared by two segments the value of the right one is returned; the weight
+        ``nu^m`` and the polynomial ``q(s)`` are not included.
+        """
+        x = real_array("nu", nu, ndim=None)
+        if np.any((x < self.a) | (x > self.b)):
+            raise ParameterError("nu", f"in [a, b] = [{self.a:.6g}, {self.b:.6g}]", nu)
+        start, h, poly_t = self.pieces
+        idx = np.clip(np.searchsorted(start, x, side="right") - 1, 0, start.size - 1)
+        t = (x - start[idx]) / h[idx]
+        return np.polynomial.polynomial.polyval(t, poly_t[idx].T, tensor=False)
+
+    def linearized(self, points: int) -> DistributedDelay:
+        """The same true kernel, stored as its linear interpolant on ``points`` nodes per piece between jumps.
+
+        The error bound grows by the interpolation error ``D^2 / 8 max |N''|`` (``D`` the node
+        spacing, ``|N''|`` bounded on each stored segment by ``sum_j j (j - 1) |P_j| / h^2``) and by
+        the rounding of the sampled values (``(degree + 2) 2^-52 max sum_j |P_j|``), so every bound
+        of the linear term (e.g. the L1 modulus of :func:`nrobust.bounds.l1_modulus`) holds for the
+        true kernel. Used where a bound is sharp for fine linear kernels only.
+
+        Parameters
+        ----------
+        points : int
+            Nodes per piece between jumps (at least 2).
+        """
+        if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 2:
+            raise ParameterError("points", "an integer >= 2", points)
+        if self.moment != 0 or self.poly.size != 1:
+            raise ParameterError("self", "a kernel of moment 0 without polynomial factor", self)
+        start, h, poly_t = self.pieces
+        degree = poly_t.shape[1] - 1
+        j = np.arange(poly_t.shape[1])
+        curvature = np.max(np.sum(np.abs(poly_t) * j * (j - 1), axis=1) / h**2)
+        rounding = (degree + 2) * 2.0**-52 * float(np.max(np.sum(np.abs(poly_t), axis=1)))
+        breaks = np.r_[0, np.flatnonzero(np.diff(self.nodes) == 0) + 1, self.nodes.size]
+        nodes, values, extra = [], [], 0.0
+        for lo, hi in itertools.pairwise(breaks):
+            a, b = float(self.nodes[lo]), float(self.nodes[hi - 1])
+            if b <= a:
+                continue
+            x = np.linspace(a, b, points)
+            x[-1] = b
+            inner = self.kernel_at(x[:-1])
+            last = np.polynomial.polynomial.polyval(1.0, poly_t[np.searchsorted(start, b, side="left") - 1])
+            nodes.append(x)
+            values.append(np.append(inner, last))
+            extra = max(extra, ((b - a) / (points - 1)) ** 2 / 8.0 * curvature)
+        radius = _up(self.radius + extra + rounding)
+        return DistributedDelay(
+            np.concatenate(nodes),
+            np.concatenate(values),
+            interpolation="linear",
+            radius=radius,
+            variation_radius=_up(self.variation_radius + 2.0 * radius),
+        )
+
     # ------------------------------------------------------------------ bounds
     def abs_moment(self, x: ArrayLike, k: int = 0) -> NDArray[np.float64]:
         """Upper bound of ``int nu^(m+k) |N(nu)| e^{-nu x} dnu`` for real ``x`` (vectorised).
 
         ``|N|`` is bounded on each segment by a polynomial (:meth:`_abs_pieces`), whose
-        weighted integral is computed exactly.
+        weighted integral is computed exactly; the error bound ``radius`` of ``N_true`` adds
+        ``radius int nu^(m+k) e^{-nu x}``.
         """
         x = np.asarray(x, dtype=float)
         flat = x.ravel().astype(complex)
-        return np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
+        stored = np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
+        return stored + self._radius_integral(x, self.moment + k)
 
     def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
         """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).
 
         Integration by parts: ``V(x) = |N(a+)| e^{-a x} + |N(b-)| e^{-b x} + sum over
-        jumps |[N]| e^{-nu x} + int |N'(nu)| e^{-nu x} dnu``, all exact for the interpolant.
+        jumps |[N]| e^{-nu x} + int |N'(nu)| e^{-nu x} dnu``, all exact for the interpolant
+        (for polynomial pieces the jumps are those between adjacent pieces); the error
+        bounds of ``N_true`` add ``(2 radius + variation_radius) max e^{-nu x}``.
         """
         if self.moment != 0:
             raise ParameterError("moment", "0 for variation_bound", self.moment)
         x = np.asarray(x, dtype=float)
         start, h, poly_t = self.pieces
-        jumps = np.flatnonzero(np.diff(self.nodes) == 0)
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
-        for j in jumps:
-            out = out + np.abs(self.values[j + 1] - self.values[j]) * np.exp(-self.nodes[j] * x)
+        for where, size in self._jumps():
+            out = out + size * np.exp(-where * x)
         # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
         slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
         xe = x[..., None]
@@ -492,30 +714,51 @@ class DistributedDelay:
                 h * np.exp(-start * xe),
                 np.exp(-start * xe) * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
             )
-        return out + np.sum(slope * seg, axis=-1)
+        return out + np.sum(slope * seg, axis=-1) + self._radius_variation(x)
+
+    def _jumps(self) -> list[tuple[float, float]]:
+        """``(nu, |[N](nu)|)`` at every jump of the stored ``N`` inside ``(a, b)``."""
+        if self.interpolation == "polynomial":
+            start, _, poly_t = self.pieces
+            sizes = np.abs(poly_t[1:, 0] - np.sum(poly_t[:-1], axis=1))
+            return [(float(nu), float(v)) for nu, v in zip(start[1:], sizes) if v]
+        jumps = np.flatnonzero(np.diff(self.nodes) == 0)
+        return [(float(self.nodes[j]), float(np.abs(self.values[j + 1] - self.values[j]))) for j in jumps]
 
     def total_variation(self) -> float:
-        """Upper bound of the total variation of ``N`` extended by zero (exact if linear).
+        """Upper bound of the total variation of ``N_true`` extended by zero (exact if linear).
 
-        End values, jumps, and on each segment ``int_0^1 |P'(t)| dt <= sum_j j |P_j|``.
+        End values, jumps, on each segment ``int_0^1 |P'(t)| dt <= sum_j j |P_j|``, and the
+        error bounds ``2 radius + variation_radius``.
         """
         _, _, poly_t = self.pieces
-        jumps = np.sum(np.abs(np.diff(self.values)[np.diff(self.nodes) == 0]))
+        jumps = sum(size for _, size in self._jumps())
         inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
-        return float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
+        stored = float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
+        return (
+            _up(stored + 2.0 * self.radius + self.variation_radius) if self.radius or self.variation_radius else stored
+        )
 
     def linear_deviation(self) -> float:
-        """Upper bound of ``int |N - N_lin|``, ``N_lin`` the linear interpolant of the values.
+        """Upper bound of ``int |N_true - N_lin|``, ``N_lin`` the linear interpolant of the values.
 
-        Zero for linear interpolation. On a spline segment the difference is
-        ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)``, whose modulus
-        integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when ``P_3 = 0``).
+        Zero for linear interpolation without error bounds. On a segment the difference is
+        ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)`` for a cubic, whose
+        modulus integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when
+        ``P_3 = 0``); a term ``P_l (t^l - t)`` of higher degree adds ``|P_l| (1/2 - 1/(l + 1))``,
+        and the error bound of ``N_true`` adds ``radius (b - a)``.
         """
         _, h, poly_t = self.pieces
+        extra = self.radius * (self.b - self.a)
         if poly_t.shape[1] == 2:
-            return 0.0
-        p2, p3 = poly_t[:, 2], poly_t[:, 3]
-        return float(np.sum(h * (np.abs(p2 + p3) / 6.0 + np.abs(p3) / 12.0)))
+            return _up(extra) if extra else 0.0
+        p = np.pad(poly_t, ((0, 0), (0, max(0, 4 - poly_t.shape[1]))))
+        p2, p3 = p[:, 2], p[:, 3]
+        per = np.abs(p2 + p3) / 6.0 + np.abs(p3) / 12.0
+        for j in range(4, p.shape[1]):
+            per = per + np.abs(p[:, j]) * (0.5 - 1.0 / (j + 1))
+        out = float(np.sum(h * per))
+        return _up(out + extra) if extra else out
 
     # ------------------------------------------------------------------ algebra
     def shift(self, delta: float) -> tuple[DistributedDelay, ...]:
@@ -527,14 +770,14 @@ class DistributedDelay:
         delta = nonnegative("delta", delta)
         m = self.moment
         return tuple(
-            self.replace(nodes=self.nodes + delta, values=self.values * comb(m, j) * (-delta) ** (m - j), moment=j)
+            self.times(comb(m, j) * (-delta) ** (m - j), nodes=self.nodes + delta, moment=j)
             for j in range(m + 1)
             if j == m or delta != 0
         )
 
     def scale(self, c: complex) -> DistributedDelay:
         """Multiply by a constant (applied to the values, so equal supports still merge)."""
-        return self.replace(values=self.values * c)
+        return self.times(c)
 
     def times_poly(self, coefs: ArrayLike) -> DistributedDelay:
         """Multiply by a polynomial (coefficients in increasing powers)."""
@@ -543,30 +786,34 @@ class DistributedDelay:
     def __repr__(self) -> str:
         weight = "" if self.moment == 0 else f"nu^{self.moment} "
         poly = "" if self.poly.size == 1 and self.poly[0] == 1 else f"q(s) of degree {self.poly.size - 1} * "
-        jumps = int(np.sum(np.diff(self.nodes) == 0))
-        return (
-            f"DistributedDelay({poly}int_{self.a:.6g}^{self.b:.6g} {weight}N(nu) e^(-nu s) dnu, "
-            f"{self.nodes.size} nodes, {jumps} jump{'s' if jumps != 1 else ''})"
-        )
+        if self.interpolation == "polynomial":
+            shape = f"{self.nodes.size - 1} polynomial pieces of degree {self.pieces[2].shape[1] - 1}"
+        else:
+            jumps = int(np.sum(np.diff(self.nodes) == 0))
+            shape = f"{self.nodes.size} nodes, {jumps} jump{'s' if jumps != 1 else ''}"
+        error = f", error <= {self.radius:.1e}" if self.radius or self.variation_radius else ""
+        return f"DistributedDelay({poly}int_{self.a:.6g}^{self.b:.6g} {weight}N(nu) e^(-nu s) dnu, {shape}{error})"
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, DistributedDelay):
             return NotImplemented
         return (
-            self.moment == other.moment
-            and self.interpolation == other.interpolation
-            and np.array_equal(self.nodes, other.nodes)
-            and np.array_equal(self.poly, other.poly)
-            and np.array_equal(self.values, other.values)
+            self.mergeable(other)
+            and np.array_equal(self._data, other._data)
+            and self.radius == other.radius
+            and self.variation_radius == other.variation_radius
         )
 
     def __hash__(self) -> int:
-        arrays = tuple(canonical_bytes(a) for a in (self.nodes, self.poly, self.values))
-        return hash((self.moment, self.interpolation, arrays))
+        arrays = tuple(canonical_bytes(a) for a in (self.nodes, self.poly, self._data))
+        return hash((self.moment, self.interpolation, arrays, self.radius, self.variation_radius))
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description (complex values as ``[real, imag]``)."""
-        return fields_dict(self)
+        """JSON-ready description (complex values as ``[real, imag]``; the coefficients of polynomial pieces)."""
+        out = fields_dict(self)
+        if self.interpolation == "polynomial":
+            out["coefficients"] = json_safe(self.pieces[2])
+        return out
 
 
 def canonical_bytes(a: NDArray) -> bytes:

@@ -92,13 +92,12 @@ def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDe
     merged: list[DistributedDelay] = []
     for d in terms:
         for i, m in enumerate(merged):
-            same = m.moment == d.moment and m.interpolation == d.interpolation
-            if same and np.array_equal(m.nodes, d.nodes) and np.array_equal(m.poly, d.poly):
-                merged[i] = m.replace(values=m.values + d.values)
+            if m.mergeable(d):
+                merged[i] = m.plus(d)
                 break
         else:
             merged.append(d)
-    return tuple(d for d in merged if np.any(d.poly != 0) and np.any(d.values != 0))
+    return tuple(d for d in merged if not d.is_zero)
 
 
 @dataclass(frozen=True, eq=False)
@@ -291,7 +290,7 @@ class QuasiPolynomial:
             dq = polyder(d.poly)
             if np.any(dq != 0):
                 dist.append(d.replace(poly=dq))
-            dist.append(d.replace(values=-d.values, moment=d.moment + 1))
+            dist.append(d.times(-1.0, moment=d.moment + 1))
         return QuasiPolynomial.from_parts(terms, dist)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

@@ -177,12 +177,15 @@ def test_slow_plant_names_lam_with_its_admissible_range() -> None:
 
 
 def test_coarse_kernel_grid_names_the_size_needed() -> None:
-    """``lam = 0.005``: 1 / (0.25 * 0.005) = 800 steps, so 801 points; 201 are refused, 801 solve."""
+    """``lam = 0.005``: 1 / (0.25 * 0.005) = 800 steps, so 801 points; 201 are refused, 801 solve.
+
+    (The default route of ``delay_margin`` needs no grid on this plant: ``N~`` in closed form.)
+    """
     system = Hyperbolic2x2(0.005, 1.0, 1.0, 1.0, 1.0, 0.85)
     with pytest.raises(ParameterError, match=r"^kernel_grid must be >= 801 "):
         solve_kernels(system)
     with pytest.raises(ParameterError, match=r"^kernel_grid must be >= 801 "):
-        nr.delay_margin(system, ReflectionController(0.1))
+        nr.delay_margin(system, ReflectionController(0.1), kernel_grid=201)
     kernels = solve_kernels(system, 801, extrapolate=False)
     assert np.all(np.isfinite(kernels.K)) and np.all(np.isfinite(kernels.L))
     # the paper's plant on a coarse grid stays admissible: h max|sigma| / min(lam, mu) = 0.1 <= 0.25

@@ -225,7 +225,9 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFu
     ``q(s) int N(nu) e^{-nu s} dnu`` is first discretised by the composite midpoint rule
     with ``n_quad`` nodes on each interval of the support between jumps,
     ``sum_i w_i N(nu_i) e^{-nu_i s}`` (``N(nu_i)`` interpolated linearly between the
-    tabulated values), and each point delay of that sum replaced likewise.
+    tabulated values, or the stored polynomial pieces,
+    :meth:`~nrobust.quasipoly.DistributedDelay.kernel_at`), and each point delay of that sum
+    replaced likewise.
     """
     import control
 
@@ -261,7 +263,10 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFu
                 continue
             edges = np.linspace(nodes[0], nodes[-1], n_quad + 1)
             mids = 0.5 * (edges[1:] + edges[:-1])
-            weights = np.diff(edges) * np.interp(mids, nodes, vals)
+            # tabulated kernels: linear interpolation of the values (the figures of docs/lti.md);
+            # polynomial pieces: the pieces themselves (their values at the breaks are too few)
+            sampled = d.kernel_at(mids) if d.interpolation == "polynomial" else np.interp(mids, nodes, vals)
+            weights = np.diff(edges) * sampled
             for nu, wgt in zip(mids, weights):
                 acc = acc + float(wgt) * exp_tf(round(float(nu), 15))
         total = total + poly_tf(d.poly) * acc

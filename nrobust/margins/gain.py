@@ -238,12 +238,14 @@ class AxisBound:
         contiguous = np.abs(start[1:] - (start[:-1] + h[:-1])) <= 1e-12 * tau
         if not np.all(contiguous) or np.any(np.abs(n[1:, 0] - value_end[:-1]) > 1e-12 * scale):
             return None  # a gap or a jump of n: the first-order bound applies
-        # TV of n' on each segment: int |n''| = (1/h) int_0^1 |2 P_2 + 6 P_3 t| dt (cubic; 0 when linear)
+        # TV of n' on each segment: int |n''| = (1/h) int_0^1 |2 P_2 + 6 P_3 t| dt (cubic; 0 when linear);
+        # a term P_j t^j of higher degree adds at most j |P_j| (int_0^1 j (j - 1) t^(j-2) dt = j)
         a2 = 2.0 * n[:, 2] if n.shape[1] > 2 else np.zeros(h.size)
         a3 = 6.0 * n[:, 3] if n.shape[1] > 3 else np.zeros(h.size)
         lo, hi = a2, a2 + a3
         crossing = lo * hi < 0
         inside = np.where(crossing, (lo**2 + hi**2) / (2.0 * np.abs(np.where(crossing, a3, 1.0))), np.abs(lo + hi) / 2)
+        inside = inside + np.sum(np.abs(n[:, 4:]) * j[4:], axis=1)
         v2 = (
             abs(slope_start[0])
             + abs(slope_end[-1])

@@ -36,7 +36,7 @@ from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from .axis import AxisGap, frequency_bound, is_zero
 from .count import unstable_count
 from .crossing import ZERO_TOL, Crossing, CrossingSearch, axis_crossings, common_axis_zeros, crossing_search
-from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
+from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_radius, proven_zero_root
 
 __all__ = ["DelayMargin", "delay_margin"]
 
@@ -102,6 +102,10 @@ class DelayMargin:
     margin_ball : (float, float) or None
         With ``rigorous``: ``(lo, hi)`` with ``lo <= delta* <= hi`` proven (``margin`` lies
         inside); None otherwise.
+    scope : str
+        What the margin is about when it came from a plant (set by the plant-level
+        ``delay_margin``: the PDE itself, or a model of it); empty for ``A, B`` given
+        directly, where it is about ``A`` and ``B`` as represented.
     """
 
     margin: float
@@ -122,6 +126,7 @@ class DelayMargin:
     evaluations: int = field(default=0)
     rigorous: bool = False
     margin_ball: tuple[float, float] | None = None
+    scope: str = ""
 
     @property
     def method(self) -> str:
@@ -257,6 +262,10 @@ def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: floa
     )
 
 
+# Longest delay of A and B: the term scales of the crossing search hold 8 tau^3 (margins/axis.py).
+_MAX_DELAY = float((np.finfo(float).max / 8.0) ** (1.0 / 3.0))
+
+
 def _validated(
     A: Any, B: Any, delta_max: Any, max_evals: Any, rigorous: Any
 ) -> tuple[QuasiPolynomial, QuasiPolynomial, float | None, int]:
@@ -268,6 +277,14 @@ def _validated(
         raise ParameterError("rigorous", "True or False", rigorous)
     if is_zero(A) and is_zero(B):
         raise ParameterError("A, B", "not both identically zero (F(s; delta) would vanish for every s)", (A, B))
+    longest = max(A.max_delay, B.max_delay)
+    if longest > _MAX_DELAY:
+        raise ParameterError(
+            "delays",
+            f"at most {_MAX_DELAY:.3g} (the longest delay of A and B: the bounds of the crossing search hold "
+            "tau^3, which overflows double precision beyond)",
+            longest,
+        )
     return A, B, delta_max, max_evals
 
 
@@ -361,12 +378,14 @@ def _not_strongly_stable(
 
 
 def _search(
-    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int, rigorous: bool
+    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float] | None, max_evals: int, rigorous: bool
 ) -> tuple[ProvenCrossings | None, CrossingSearch, AxisGap]:
-    """The crossing search: certified in floating point, or proven in ball arithmetic (``rigorous``)."""
+    """The crossing search: certified in floating point, or proven in ball arithmetic (``rigorous``,
+    which proves its own frequency bound: ``w_bound`` is None when only the balls prove the gap)."""
     if rigorous:
         proof = proven_crossings(A, B, max_evals=max_evals)
         return proof, proof.search(), AxisGap(A, B)
+    assert w_bound is not None
     search, axis_gap = crossing_search(A, B, w_bound, max_evals)
     return None, search, axis_gap
 
@@ -509,7 +528,8 @@ def delay_margin(
         without crossings).
     verify : bool, optional
         Check the margin by the residual at ``i w`` and a certified count at
-        ``delta* (1 - 1e-3)``.
+        ``delta* (1 - 1e-3)`` (the count is left out when only ball arithmetic proves the
+        principal gap positive: its floating-point frequency bound does not exist).
     max_evals : int, optional
         Work bound of the crossing search.
     rigorous : bool, optional
@@ -561,7 +581,8 @@ def delay_margin(
     if is_zero(B) or is_zero(A):
         return _delay_free(B if is_zero(A) else A, "A" if is_zero(A) else "B", zero_root, delta_max)
     w_bound = frequency_bound(A, B)
-    if w_bound is None:
+    # a gap below the rounding of its floating-point sum may still be proven positive in balls
+    if w_bound is None and not (rigorous and proven_gap(A, B)[0] > 0.0):
         return _not_strongly_stable(A, B, zero_root, delta_max, rigorous)
     proof, search, axis_gap = _search(A, B, w_bound, max_evals, rigorous)
     W = search.frequency_bound
@@ -571,7 +592,8 @@ def delay_margin(
     crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
     events = _events(crossings, delta_max, A.is_real and B.is_real)
     # The nominal count, and the count on the first interval (0, first positive crossing delay).
-    nominal = None if zero_root or 0.0 in events else unstable_count(A + B, W, rigorous=rigorous).count
+    radius = W if proof is None else min(W, proven_zero_radius(A + B) or W)  # W: a bound for every delay
+    nominal = None if zero_root or 0.0 in events else unstable_count(A + B, radius, rigorous=rigorous).count
     first = nominal
     if nominal is None and not zero_root:
         marks = sorted(d for d in events if d > 0.0)
@@ -582,7 +604,7 @@ def delay_margin(
     margin, omega, reason = _first_axis_root(crossings, zero_root, stable_at_zero)
     verified, residual = False, None
     if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
-        verified, residual = _checked(A, B, margin, omega, W, axis_gap, max_evals, verify)
+        verified, residual = _checked(A, B, margin, omega, W, axis_gap, max_evals, verify and w_bound is not None)
     ball = None
     if proof is not None:
         ball = _margin_ball(proof, zero_root, nominal)

@@ -7,8 +7,10 @@ containing every rounding error), for ``A`` and ``B`` *as represented* (stored f
 exact, ``N~`` the cubic spline on its grid). Each statement below is a theorem about
 those functions.
 
-**Frequency bound.** ``W`` comes from :func:`nrobust.margins.axis.frequency_bound`; it is
-then proven: the principal gap ``|a_0| - sum |a_k|`` and the tail bound
+**Frequency bound.** ``W`` comes from :func:`nrobust.margins.axis.frequency_bound` or, when
+the gap is below the rounding of its floating-point sum (``|b_n / a_n| = 1 - 2^-52``), from
+the tail bound at half the gap proven positive in :func:`proven_gap`; it is then proven:
+the principal gap ``|a_0| - sum |a_k|`` (in ``_GAP_PREC`` bits) and the tail bound
 ``r_A(W) + r_B(W)`` (point terms of lower degree, and kernels by
 ``|q|(W) W^-n min(M_0, V_0 / W)`` with ``M_0 >= int nu^m |N|`` and ``V_0`` the variation
 bound of integration by parts, both summed in balls from the stored pieces of ``N``)
@@ -64,16 +66,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._flint import working_precision
 from .._json import fields_dict
 from .._validate import positive_int
 from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint
-from ..bounds import joint_degree, principal_gap
+from ..bounds import TailBound, joint_degree, principal_gap, radius_where, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
-from .axis import AxisKernels, is_zero, required_frequency_bound
+from .axis import AxisKernels, frequency_bound, is_zero
 from .crossing import CrossingSearch
 
-__all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_root"]
+__all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_radius", "proven_zero_root"]
 
 # Float planning of the exclusion grid: steps of this fraction of |h| / L, and |h| below
 # which (relative to max |h|) a stretch is handed to the isolation as a cluster.
@@ -96,6 +99,9 @@ _NEWTON_STEPS = 60
 _TIGHT = 1e-14
 # Bisection rounds of the isolation.
 _MAX_ROUNDS = 200
+# Precision (bits) of the principal gap: the difference of a few stored floats, exact or
+# enclosed to far below their own rounding.
+_GAP_PREC = 256
 
 
 # ============================================================================ result
@@ -263,21 +269,28 @@ class _Lipschitz:
 
 
 # ============================================================================ frequency bound
-def _proven_bound(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, W: float) -> tuple[Any, Any] | None:
-    """``(gap, tail)`` balls at radius ``W`` (delays measured from ``t0``, ``Re s >= 0``)."""
+def _proven_bound(flint: Any, parts: tuple[QuasiPolynomial, ...], W: float) -> tuple[Any, Any] | None:
+    """``(gap, tail)`` balls at radius ``W`` (delays measured from ``t0``, ``Re s >= 0``), in
+    ``_GAP_PREC`` bits, of the loop ``parts = (A, B)`` (``delta -> 0+``) or of one function ``(F,)``."""
+    with working_precision(_GAP_PREC):
+        return _bound_balls(flint, parts, W)
+
+
+def _bound_balls(flint: Any, parts: tuple[QuasiPolynomial, ...], W: float) -> tuple[Any, Any] | None:
+    """:func:`_proven_bound` at the working precision."""
     arb = flint.arb
-    n = joint_degree(A, B)
-    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
+    n = joint_degree(*parts)
+    principal = principal_gap({str(order): (P, order) for order, P in enumerate(parts)}, n, 0.0)
     if principal is None:
         return None
-    lead = [(c, float(t), order) for order, P in enumerate((A, B)) for c, t in P.leading_terms(n)]
+    lead = [(c, float(t), order) for order, P in enumerate(parts) for c, t in P.leading_terms(n)]
     lead.sort(key=lambda e: (e[1], e[2]))
     gap = _abs_arb(flint, complex(lead[0][0]))
     for c, _, _ in lead[1:]:
         gap -= _abs_arb(flint, complex(c))
     R = arb(W)
     tail = arb(0)
-    for P in (A, B):
+    for P in parts:
         for p, _ in P.point_terms:
             for j in range(min(p.size, n)):
                 if p[j] != 0:
@@ -288,6 +301,34 @@ def _proven_bound(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, W: float) 
             bound = mod.M[0] if mod.V0 is None else mod.M[0].min(mod.V0 / R)
             tail += qpow * bound
     return gap, tail
+
+
+def _frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
+    """The radius ``W`` to prove: :func:`~nrobust.margins.axis.frequency_bound`, or, when the gap is
+    below the rounding of its floating-point sum, the radius where the tail falls below half the
+    gap proven positive (:func:`proven_gap`).
+
+    Raises
+    ------
+    ParameterError
+        The gap is not proven positive: the difference operator is not strongly stable for
+        small delays (crossings accumulate at infinity).
+    """
+    w_bound = frequency_bound(A, B)
+    if w_bound is not None:
+        return w_bound[0]
+    low = proven_gap(A, B)[0]
+    if not low > 0.0:
+        raise ParameterError(
+            "A, B",
+            "loop factors whose difference operator is strongly stable for small delays (|a_0| > sum |others|)",
+            None,
+        )
+    n = joint_degree(A, B)
+    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
+    assert principal is not None  # the gap is proven positive
+    tail_a, tail_b = TailBound(A, n, 0.0, principal.t0), TailBound(B, n, 0.0, principal.t0)
+    return radius_where(lambda R: float(tail_a(R) + tail_b(R)), 0.5 * low, "proven crossing search")
 
 
 # ============================================================================ ball evaluation of the axis functions
@@ -657,10 +698,33 @@ def proven_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
     ``(-inf, -inf)`` for an advanced-type loop (no first principal term dominates).
     """
     flint = require_flint()
-    res = _proven_bound(flint, A, B, 1.0)
+    res = _proven_bound(flint, (A, B), 1.0)
     if res is None:
         return (-math.inf, -math.inf)
     return _lo(res[0]), _hi(res[0])
+
+
+def proven_zero_radius(F: QuasiPolynomial) -> float | None:
+    """A radius ``R`` proven in ball arithmetic to hold every zero of ``F`` with ``Re s >= 0``, or None.
+
+    ``R`` is the radius of :func:`~nrobust.bounds.root_free_region` (slightly enlarged if
+    needed), at which the tail bound is proven below the principal gap as for the frequency
+    bound. The nominal count of a loop needs it when the frequency bound of the loop is
+    far larger (a principal gap of the loop near 0, e.g. ``|b_n / a_n| = 1 - 2^-52``).
+    """
+    try:
+        R = root_free_region(F).radius
+    except (ParameterError, CertificationError):
+        return None
+    flint = require_flint()
+    for _ in range(8):
+        res = _proven_bound(flint, (F,), R)
+        if res is None:
+            return None
+        if res[1] < res[0]:
+            return float(R)
+        R *= 1.0 + 1e-3
+    return None
 
 
 def proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial) -> bool:
@@ -725,10 +789,10 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
         raise ParameterError("A, B", "both not identically zero", (A, B))
     max_evals = positive_int("max_evals", max_evals)
     flint = require_flint()
-    W = required_frequency_bound(A, B)[0]
+    W = _frequency_bound(A, B)
     proof = None
     for _ in range(8):
-        proof = _proven_bound(flint, A, B, W)
+        proof = _proven_bound(flint, (A, B), W)
         if proof is not None and proof[1] < proof[0]:
             break
         W *= 1.0 + 1e-3

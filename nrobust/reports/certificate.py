@@ -42,6 +42,7 @@ from ..hyperbolic.loops.controllers import (
     StateFeedback,
     characteristic,
     classify,
+    loop_factors,
     normalize,
 )
 from ..hyperbolic.loops.varying_form import DEFAULT_CHARACTERISTIC_GRID
@@ -55,6 +56,10 @@ __all__ = ["CHECKED", "PROVEN", "Certificate", "Claim", "ModelError", "Principal
 
 #: Default search rectangle for the certified root counts, in units of ``1/tau``.
 _DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
+# Natural logarithm of the largest double: e^x overflows beyond.
+_LOG_MAX = float(np.log(np.finfo(float).max))
+# Bits of a node spacing kept when the nodes are shifted by delta_max (rounding 2^-52 relative).
+_NODE_BITS = 48
 
 
 @dataclass(frozen=True)
@@ -630,6 +635,7 @@ def certify(
     # the algebra of QuasiPolynomial merges kernels on equal nodes: the I_N - I_N of the
     # nominal U_BS and U_BS2 loops cancels exactly
     F0 = characteristic(system, controller, 0.0, kernel_grid=kernel_grid)
+    _check_delta_max(delta_max, loop_factors(system, controller, kernel_grid), box, region is None)
     Fd = characteristic(system, controller, delta_max, kernel_grid=kernel_grid)
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
@@ -692,6 +698,32 @@ def certify(
         unproven=tuple(unproven),
         kernel_grid=kernel_grid,
     )
+
+
+def _check_delta_max(
+    delta_max: float, factors: tuple[QuasiPolynomial, QuasiPolynomial], box: tuple[float, ...], default_region: bool
+) -> None:
+    """Refuse a ``delta_max`` whose loop ``A + B e^{-delta_max s}`` double precision cannot represent on ``box``.
+
+    Two limits: ``e^{-(tau + delta_max) s}`` must stay finite on the left edge of ``box``
+    (``tau`` the longest delay of ``B``), and the nodes of the kernels of ``B``, shifted by
+    ``delta_max``, must stay apart (their spacing above the rounding of ``delta_max``).
+    """
+    B = factors[1]
+    limits = []
+    if box[0] < 0.0:
+        limits.append(_LOG_MAX / -box[0] - B.max_delay)
+    spacings = [np.min(np.diff(d.nodes)[np.diff(d.nodes) > 0.0], initial=np.inf) for d in B.distributed]
+    limits.append(min(spacings, default=np.inf) * 2.0**_NODE_BITS)
+    limit = min(limits)
+    if delta_max > limit:
+        where = "the default region" if default_region else "the region"
+        raise ParameterError(
+            "delta_max",
+            f"in (0, {limit:.6g}] for this loop and {where} (Re s >= {box[0]:.6g}): beyond, the delayed loop "
+            "e^{-(tau + delta_max) s} overflows double precision there, or its kernel nodes merge",
+            delta_max,
+        )
 
 
 _T = TypeVar("_T")

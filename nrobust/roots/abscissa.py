@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -14,10 +14,10 @@ from ..balls import ball_abs_moment, ball_function, ball_variation_bound, requir
 from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
 from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
-from ..qpmatrix import CharacteristicFunction
+from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
 from ._common import Budget, check_function, check_rigorous
-from .finder import RootSet, find_counted, find_roots, prove
+from .finder import RootSet, find_counted, find_roots, prove, separate_clusters
 from .search import Finder
 from .winding import Region, ball_count_with_shifts, count_with_shifts
 
@@ -38,9 +38,12 @@ class SpectralAbscissa:
         (``F = c e^{-tau s}``) or, when a ``region`` is given, none in it.
     root : complex or None
         The rightmost root found in ``region`` (of a conjugate pair, the one with
-        ``Im s >= 0``). It may be the entry of a cluster of roots that floating point
-        cannot separate (multiplicity above 1, :class:`~nrobust.roots.RootSet`): ``root``
-        is then its centroid, and the supremum lies in ``[value, upper_bound]``.
+        ``Im s >= 0``). A cluster of roots that floating point cannot separate
+        (multiplicity above 1, :class:`~nrobust.roots.RootSet`) is separated in ball
+        arithmetic of higher precision when python-flint is installed
+        (:func:`~nrobust.roots.finder.separate_clusters`: each of its roots proven by
+        Krawczyk's test). Otherwise, or if it does not separate (a multiple root), ``root``
+        is its centroid, and the supremum lies in ``[value, upper_bound]``.
     approached_at_infinity : bool
         True if ``value`` is the chain value ``c_D`` of the principal part and no root in
         ``region`` attains it (Hale and Verduyn Lunel: the high-frequency roots of a
@@ -128,6 +131,27 @@ _MIN_HALF_HEIGHT = 1.0
 _RADIUS_FACTORS = (1.0, 1.0 + 1e-6, 1.01, 1.1, 1.5, 2.0, 4.0)
 # Edge shifts allowed when a box edge lands on a root (a multiple root needs a wide berth).
 _ABSCISSA_SHIFTS = 8
+# Longest delay searched without a region: the bound of |F''| of the root count holds tau^2.
+_MAX_DELAY = float(np.sqrt(np.finfo(float).max))
+
+
+@runtime_checkable
+class FarField(Protocol):
+    """A characteristic function that bounds its own root-free far field (as
+    :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic` does): ``spectral_abscissa``
+    needs no region for it. Both answers must be monotone: a far field that holds at
+    ``(x, R)`` holds at every ``(x', R')`` with ``x' >= x``, ``R' >= R``."""
+
+    def far_field_holds(self, x: float, radius: float) -> bool:
+        """True if proven root-free on ``{Re s >= x, |s| >= radius}``."""
+
+    def far_field_radius(self, x: float) -> float | None:
+        """A radius ``R`` with no root in ``{Re s >= x, |s| >= R}``, or None."""
+
+
+def _degree(F: QuasiPolynomial) -> int:
+    """The joint degree of a quasi-polynomial; 0 for a :class:`FarField` (unused by its bounds)."""
+    return 0 if isinstance(F, FarField) else joint_degree(F)
 
 
 def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
@@ -136,7 +160,10 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
     On that set the first principal term dominates when its gap over the other principal
     terms exceeds the remainder of :class:`nrobust.bounds.TailBound` (Rouché,
     :func:`nrobust.bounds.root_free_region`); both are monotone in ``|s|`` and ``Re s``.
+    A :class:`FarField` gives its own.
     """
+    if isinstance(F, FarField):
+        return F.far_field_radius(x)
     n = joint_degree(F)
     g = principal_gap({"F": (F, 0)}, n, x)
     if g is None or g.gap <= 0.0:
@@ -162,14 +189,15 @@ def spectral_abscissa(
 
     Parameters
     ----------
-    F : QuasiPolynomial or QuasiPolynomialMatrix
+    F : QuasiPolynomial, QuasiPolynomialMatrix or another CharacteristicFunction
         Retarded or neutral (an advanced ``F`` has roots with arbitrarily large real part).
     region : (re_min, re_max, im_min, im_max), optional
         Search only this rectangle. By default the search region is built so that the
         answer is certified: a half-plane ``Re s >= x`` is root-free outside a disc
-        (:func:`_root_free_radius`), the rest is counted and searched. Required for a
-        QuasiPolynomialMatrix, whose far-field bound is not implemented (its
-        ``expand()``, when it exists, is the scalar form).
+        (:func:`_root_free_radius`), the rest is counted and searched. Required unless
+        ``F`` is a QuasiPolynomial or bounds its own far field (:class:`FarField`, as the
+        closed loop :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic` does): for a
+        QuasiPolynomialMatrix, ``F.expand()`` is the scalar form.
     im_max : float, optional
         Height of the band searched near the chains of a neutral ``F``.
     cluster_tol, max_evals
@@ -190,7 +218,8 @@ def spectral_abscissa(
     Raises
     ------
     ParameterError
-        An advanced ``F``, or a bad option.
+        An advanced ``F``, a bad option, without a region a delay above ``1.34e154``
+        or coefficients whose root-free radius exceeds ``2^200``.
     CertificationError
         The work bound ``max_evals`` (shared by every step of the search) was exhausted,
         or ``F`` overflows on a contour: the message says what would help. With
@@ -210,9 +239,21 @@ def spectral_abscissa(
     approached only as ``|Im s| -> infinity`` (``approached_at_infinity``).
     """
     F = check_function(F)
-    if region is None and not isinstance(F, QuasiPolynomial):
+    if region is None and not isinstance(F, QuasiPolynomial | FarField):
+        advice = (
+            "or pass F.expand(), its scalar form"
+            if isinstance(F, QuasiPolynomialMatrix)
+            else f"no root-free far field is known for a {type(F).__name__}"
+        )
         raise ParameterError(
-            "region", "a rectangle for a matrix F (or pass F.expand(): the root-free far field needs a scalar)", None
+            "region", f"a rectangle (re_min, re_max, im_min, im_max) holding the roots sought ({advice})", None
+        )
+    if region is None and F.max_delay > _MAX_DELAY:
+        raise ParameterError(
+            "delays",
+            f"at most {_MAX_DELAY:.3g} (the longest delay of F: the bounds of |F''| of the root count hold tau^2, "
+            "which overflows double precision beyond)",
+            F.max_delay,
         )
     if F.kind == "advanced":
         raise ParameterError("F", "retarded or neutral (an advanced quasi-polynomial has unbounded root real parts)", F)
@@ -278,13 +319,50 @@ def _proven_brackets(result: SpectralAbscissa, D: DifferenceOperator, whole: boo
         value = (-np.inf, result.upper_bound) if result.value == -np.inf else None
     else:
         value = (max(lows), result.upper_bound) if lows else None
-    return replace(result, chain_bracket=chain, value_bracket=value)
+    result = replace(result, chain_bracket=chain, value_bracket=value)
+    return result if value is None else _inside_bracket(result, value)
+
+
+def _inside_bracket(result: SpectralAbscissa, bracket: tuple[float, float]) -> SpectralAbscissa:
+    """``result`` with its floating-point ``value`` inside the proven ``bracket``, or CertificationError.
+
+    A value off the bracket by rounding (``_CHAIN_TOL`` relative) is moved to its nearer end;
+    further off, the floating-point search and the proof disagree, and nothing is certified.
+    """
+    lo, hi = bracket
+    v = result.value
+    if lo <= v <= hi:
+        return result
+    end = lo if v < lo else hi
+    if abs(v - end) <= _CHAIN_TOL * (1.0 + abs(end)):
+        return replace(result, value=float(end))
+    raise CertificationError(
+        f"the floating-point spectral abscissa {v!r} lies outside its proven bracket [{lo!r}, {hi!r}]: "
+        "the roots or chains found in floating point miss a proven zero (delays close to but not equal to "
+        "commensurate ones resolve only in ball arithmetic); give a region or separate the delays"
+    )
 
 
 def _roots(F: QuasiPolynomial, region: ArrayLike, cluster_tol: float, max_evals: int, proof: int | None) -> RootSet:
-    """:func:`find_roots`, proven in ball arithmetic when ``proof`` (a precision) is given."""
+    """:func:`find_roots`, proven in ball arithmetic when ``proof`` (a precision) is given, with
+    its rightmost clusters separated (:func:`_separated`)."""
     rigorous = proof is not None
-    return find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals, rigorous=rigorous, prec=proof or 53)
+    found = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals, rigorous=rigorous, prec=proof or 53)
+    return _separated(F, found, max_evals)
+
+
+def _separated(F: QuasiPolynomial, roots: RootSet, max_evals: int) -> RootSet:
+    """``roots`` with the clusters that may hold the rightmost root split into simple roots.
+
+    A cluster's centroid is not its rightmost root: the clusters whose box reaches right of
+    the rightmost centroid are separated in ball arithmetic of higher precision
+    (:func:`~nrobust.roots.finder.separate_clusters`) when they can be.
+    """
+    if isinstance(F, FarField) or not len(roots) or not roots.certified:
+        return roots
+    if int(roots.multiplicities.max()) == 1:
+        return roots
+    return separate_clusters(F, roots, Budget(max_evals), right_of=float(roots.roots.real.max()))
 
 
 def _ball_far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float, prec: int) -> bool:
@@ -347,12 +425,28 @@ def _confirm_far_field(F: QuasiPolynomial, points: list[tuple[float, float]], pr
 
 def _right_half_plane(F: QuasiPolynomial, x0: float, step: float) -> tuple[float, float]:
     """``(x, R)``: no root with ``Re s >= x`` and ``|s| >= R``, for the first
-    ``x = x0 + step (2^j - 1)`` where :func:`_root_free_radius` finds one."""
+    ``x = x0 + step (2^j - 1)`` where :func:`_root_free_radius` finds one.
+
+    If none does though the principal gap is positive at the last ``x`` (``F`` retarded or
+    neutral), the remainder stays above the gap up to ``|s| = 2^200``: the lower-order
+    coefficients dwarf the principal ones, a scale the far-field bound cannot represent.
+    """
+    x = x0
     for j in range(40):
         x = x0 + step * (2.0**j - 1.0)
         R = _root_free_radius(F, x)
         if R is not None:
             return x, R
+    g = None if isinstance(F, FarField) else principal_gap({"F": (F, 0)}, joint_degree(F), x)
+    if g is not None and g.gap > 0.0:
+        raise ParameterError(
+            "F",
+            "a quasi-polynomial whose coefficients keep the root-free radius below 2^200: the lower-order terms "
+            f"sum_kj |p_kj| e^{{-tau_k Re s}} / |s|^(n - j) must fall below the principal gap {g.gap:.3g} for some "
+            "|s| <= 2^200 (with coefficients ~1e60 times the leading ones, the radius exceeds it, and beyond it the "
+            "powers |s|^n of the bound overflow double precision); rescale s or the coefficients",
+            F,
+        )
     raise CertificationError("no root-free right half-plane found: the quasi-polynomial is not retarded or neutral")
 
 
@@ -405,7 +499,7 @@ def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, pro
     offered, :func:`_confirm_far_field`); ``x_min`` if the far field does not hold at
     ``(x_min, height)`` (a band lower than the disc of the right region).
     """
-    n = joint_degree(F)
+    n = _degree(F)
     if not _far_field_holds(F, n, x_min, height):
         return x_min
     edge = _far_field_edge(F, n, height, x_min, x_lo)
@@ -420,6 +514,8 @@ def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, pro
 
 def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
     """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= R}`` (see :func:`_root_free_radius`)."""
+    if isinstance(F, FarField):
+        return F.far_field_holds(x, R)
     g = principal_gap({"F": (F, 0)}, n, x)
     return g is not None and g.gap > 0.0 and bool(TailBound(F, n, x, g.t0)(R) < g.gap)
 
@@ -447,7 +543,7 @@ def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float, x_lo: flo
 
 def _is_exponential_polynomial(F: QuasiPolynomial) -> bool:
     """True if ``F = p(s) e^{-tau s}``: its far-field bound does not depend on ``Re s``."""
-    return len(F.point_terms) == 1 and not F.distributed
+    return not isinstance(F, FarField) and len(F.point_terms) == 1 and not F.distributed
 
 
 def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa | None:
@@ -517,7 +613,7 @@ def _retarded_abscissa(
     march ends with :class:`~nrobust.errors.CertificationError` when the work bound
     ``max_evals`` (shared by all steps) is exhausted.
     """
-    n = joint_degree(F)
+    n = _degree(F)
     x_max = max(x_right, radius) + 1.0
     whole = _is_exponential_polynomial(F)
     if whole:
@@ -550,6 +646,7 @@ def _retarded_abscissa(
                                 F, [(x_far + f * (top - x_far), R) for f in (0, 1e-6, 0.01, 0.5, 1)], proof
                             )
                         roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
+                    roots = _separated(F, roots, max_evals)
                     return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
                 if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:

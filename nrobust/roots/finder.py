@@ -13,6 +13,7 @@ whole region; with ``rigorous=True`` the result is proven in ball arithmetic
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._json import fields_dict
 from .._validate import number_array, positive, positive_int
 from .._validate import region as _check_region
-from ..balls import ball_function, krawczyk, require_flint
+from ..balls import ball_function, krawczyk, require_flint, working_precision
 from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
@@ -30,7 +31,7 @@ from ._common import Budget, check_function, check_rigorous
 from .search import Finder, centers, kdtree
 from .winding import METHODS, Region, ball_count_with_shifts, ball_winding, count_with_shifts
 
-__all__ = ["RootSet", "find_roots"]
+__all__ = ["RootSet", "find_roots", "separate_clusters"]
 
 
 # ====================================================================== result types
@@ -120,16 +121,18 @@ class RootSet:
 _KRAWCZYK_WIDTHS = (1e-11, 1e-9, 1e-7, 1e-5)
 
 
-def _krawczyk(balls: Any, z: complex, box: NDArray[np.float64], budget: Budget) -> tuple[float, ...] | None:
+def _krawczyk(
+    balls: Any, z: complex, box: NDArray[np.float64], budget: Budget, widths: tuple[float, ...] = _KRAWCZYK_WIDTHS
+) -> tuple[float, ...] | None:
     """A rectangle about ``z`` inside ``box`` proven to hold exactly one root, simple; or None.
 
-    Squares of growing half-width (:data:`_KRAWCZYK_WIDTHS`), clipped to ``box``, are tried
-    by Krawczyk's test (:func:`nrobust.balls.krawczyk`) about their centres, in the
-    precision of ``balls``.
+    Squares of growing half-width (``widths``, default :data:`_KRAWCZYK_WIDTHS`), clipped to
+    ``box``, are tried by Krawczyk's test (:func:`nrobust.balls.krawczyk`) about their centres,
+    in the precision of ``balls``.
     """
     flint = require_flint()
     scale = 1.0 + abs(z)
-    for w in _KRAWCZYK_WIDTHS:
+    for w in widths:
         x0, x1 = max(z.real - w * scale, box[0]), min(z.real + w * scale, box[1])
         y0, y1 = max(z.imag - w * scale, box[2]), min(z.imag + w * scale, box[3])
         if not (x0 < x1 and y0 < y1):
@@ -196,6 +199,147 @@ def prove(F: QuasiPolynomial, found: RootSet, balls: Any, budget: Budget, max_sh
         rigorous=True,
         proofs=tuple(proofs),
     )
+
+
+# Precisions (bits) at which a cluster of roots is separated, and the iterations of each attempt.
+_SEPARATION_PRECISIONS = (128, 256, 512)
+_ABERTH_ITERATIONS = 80
+# Half-widths (relative to 1 + |z|) of the Krawczyk squares of the roots of a cluster: the roots
+# are double-rounded (a few ulps off), and the ball enclosure of F' on the square must stay
+# small against |F'|, which is small in a cluster.
+_CLUSTER_WIDTHS = (1e-14, 1e-13, 1e-12, 1e-11, 1e-9)
+
+
+def separate_clusters(F: QuasiPolynomial, found: RootSet, budget: Budget, right_of: float = -np.inf) -> RootSet:
+    """``found`` with each cluster entry reaching right of ``right_of`` split into its proven simple roots.
+
+    Floating point cannot tell ``m`` roots closer than about ``eps^(1/m)`` (relative) from one
+    root of multiplicity ``m``: the stored, rounded coefficients of a quasi-polynomial built
+    to have a multiple root split it into such a cluster, and its centroid is not the
+    rightmost root. In ball arithmetic of growing precision (:data:`_SEPARATION_PRECISIONS`)
+    Aberth's simultaneous iteration from ``m`` points about the centroid approximates the
+    roots, and each is proven by Krawczyk's test (:func:`_krawczyk`) in a rectangle inside
+    the entry's box. When all ``m`` rectangles are proven and disjoint, they hold the ``m``
+    roots the box is counted to hold, so the entry is replaced by ``m`` simple roots with
+    those rectangles as their boxes (``proofs`` ``"krawczyk"`` when ``found`` is rigorous).
+    An entry that does not separate (a multiple root, or a cluster tighter than the
+    precisions resolve) is kept; without python-flint ``found`` is returned as it is.
+
+    Parameters
+    ----------
+    F : QuasiPolynomial
+    found : RootSet
+        A certified result (floating point or proven).
+    budget : Budget
+        Work bound of the ball evaluations.
+    right_of : float, optional
+        Only clusters whose box reaches right of this abscissa are separated.
+
+    Returns
+    -------
+    RootSet
+    """
+    if not len(found):
+        return found
+    pick = np.flatnonzero((found.multiplicities > 1) & (found.boxes[:, 1] >= right_of))
+    if not pick.size:
+        return found
+    try:
+        require_flint()
+    except ImportError:
+        return found
+    roots, mults, boxes = list(found.roots), list(found.multiplicities), list(found.boxes)
+    proofs = list(found.proofs) if found.rigorous else [""] * len(found)
+    for i in sorted(pick, reverse=True):
+        parts = _separate(F, complex(found.roots[i]), int(found.multiplicities[i]), found.boxes[i], budget)
+        if parts is None:
+            continue
+        roots[i : i + 1] = [z for z, _ in parts]
+        mults[i : i + 1] = [1] * len(parts)
+        boxes[i : i + 1] = [np.array(b) for _, b in parts]
+        proofs[i : i + 1] = ["krawczyk"] * len(parts)
+    z, m, b = np.array(roots, dtype=complex), np.array(mults, dtype=np.int64), np.array(boxes, dtype=float)
+    order = np.lexsort((z.real, z.imag))
+    z, m, b = z[order], m[order], b[order]
+    dx = np.maximum(np.abs(b[:, 0] - z.real), np.abs(b[:, 1] - z.real))
+    dy = np.maximum(np.abs(b[:, 2] - z.imag), np.abs(b[:, 3] - z.imag))
+    budget.spend(z.size, "computing residuals")
+    return dataclasses.replace(
+        found,
+        roots=z,
+        multiplicities=m,
+        radii=np.hypot(dx, dy),
+        residuals=np.abs(F(z)),
+        boxes=b,
+        box_counts=m.copy(),
+        evaluations=found.evaluations + budget.used,
+        proofs=tuple(proofs[k] for k in order) if found.rigorous else (),
+    )
+
+
+def _separate(
+    F: QuasiPolynomial, c: complex, m: int, box: NDArray[np.float64], budget: Budget
+) -> list[tuple[complex, tuple[float, ...]]] | None:
+    """The ``m`` roots of ``F`` in ``box`` (a cluster about ``c``), each with its Krawczyk rectangle; or None."""
+    for prec in _SEPARATION_PRECISIONS:
+        balls = ball_function(F, prec)
+        approx = _aberth(balls, c, m, box, budget)
+        if approx is None:
+            continue
+        proven = [_krawczyk(balls, z, box, budget, _CLUSTER_WIDTHS) for z in approx]
+        if all(p is not None for p in proven) and _disjoint(np.array(proven, dtype=float)):
+            return [(z, p) for z, p in zip(approx, proven) if p is not None]
+    return None
+
+
+def _aberth(balls: Any, c: complex, m: int, box: NDArray[np.float64], budget: Budget) -> list[complex] | None:
+    """``m`` distinct zeros of ``F`` in ``box`` near ``c`` by Aberth's iteration at ``balls.prec`` bits, or None.
+
+    The starting points lie on a circle about ``c`` of radius ``(|F(c)| m! / |F^(m)(c)|)^(1/m)``
+    (the geometric mean distance of ``m`` roots about their centroid ``c``); the iteration
+    ``z_i <- z_i - 1 / (F'(z_i) / F(z_i) - sum_{j != i} 1 / (z_i - z_j))`` uses the midpoints
+    of the ball values.
+    """
+    scale = 1.0 + abs(c)
+    half = 0.5 * min(box[1] - box[0], box[3] - box[2])
+    with working_precision(balls.prec) as flint:
+
+        def mid(x: Any) -> Any:
+            return flint.acb(x.real.mid(), x.imag.mid())
+
+        center = flint.acb(c.real, c.imag)
+        radius = 0.25 * half
+        if m <= balls.max_derivative:
+            budget.spend(2, "separating a cluster of roots")
+            f0, fm = abs(complex(balls(center).mid())), abs(complex(balls(center, m).mid()))
+            if fm > 0:
+                radius = min(radius, (f0 * math.factorial(m) / fm) ** (1.0 / m))
+        if not radius > 0:  # F(c) = 0 to the precision: a multiple root at c
+            return None
+        z = [center + radius * flint.acb(0, 0.4 + 2 * np.pi * k / m).exp() for k in range(m)]
+        tol = 2.0 ** (-0.45 * balls.prec) * scale
+        for _ in range(_ABERTH_ITERATIONS):
+            budget.spend(2 * m, "separating a cluster of roots")
+            step = 0.0
+            for i in range(m):
+                f, d = mid(balls(z[i])), mid(balls(z[i], 1))
+                if f == 0:
+                    continue
+                w = 1 / (d / f - sum((1 / (z[i] - z[j]) for j in range(m) if j != i), flint.acb(0)))
+                z[i] = mid(z[i] - w)
+                step = max(step, abs(complex(w.mid())))
+            if step < tol:
+                break
+        else:
+            return None
+        out = [complex(float(x.real.mid()), float(x.imag.mid())) for x in z]
+    pts = np.array(out)
+    inside = (pts.real > box[0]) & (pts.real < box[1]) & (pts.imag > box[2]) & (pts.imag < box[3])
+    gaps = np.abs(pts[:, None] - pts[None, :])
+    np.fill_diagonal(gaps, np.inf)
+    if not (np.all(inside) and float(gaps.min()) > 1e-12 * scale):
+        return None
+    return out
 
 
 def find_roots(

@@ -26,17 +26,21 @@ from ...errors import ParameterError
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import Controller, FiniteTimeController, ReflectionController, cached_varying_delay_form
 from ..loops.delay_form import delay_form
+from ..loops.exact_form import exact_form, has_exact_form
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
 __all__ = ["rouche_delay_bound"]
+
+#: Nodes of the linearised closed-form ``N~`` whose L1 modulus bounds ``|I(s, delta)|``.
+_LINEAR_POINTS = 4001
 
 
 @renamed_keywords(n="kernel_grid")
 def rouche_delay_bound(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     controller: Controller,
-    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    kernel_grid: int | None = None,
     rigorous: bool = False,
 ) -> RoucheDelayBound:
     """Guaranteed delay range of ``U_BS2(K)`` (or ``U_BS``, ``K = rho``), Theorem 4's proof.
@@ -61,13 +65,16 @@ def rouche_delay_bound(
         ``1 - rho_q e^{-tau s} + rho_q e^{-(tau + delta) s} + I(s, delta)`` has the form above.
     controller : ReflectionController or FiniteTimeController
         ``U_BS2(K)``, or ``U_BS`` (the case ``K = rho``).
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid of the delay form (formerly ``n``, a deprecated alias).
+    kernel_grid : int, optional
+        Kernel grid of the delay form (formerly ``n``, a deprecated alias); by default ``N~``
+        in closed form for constant couplings (:mod:`~nrobust.hyperbolic.loops.exact_form`,
+        its proven error bound included in the modulus), else
+        :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points.
     rigorous : bool, default False
-        Prove ``delta_0`` for ``N~`` as represented (the cubic spline on the kernel grid) in
-        exact rational arithmetic: ``epsilon_0`` from the stored ``q``, ``rho``, ``K``
-        (rounded down), then :func:`nrobust.bounds.delay_bound_from_kernel` with
-        ``rigorous=True``.
+        Prove ``delta_0`` in exact rational arithmetic: ``epsilon_0`` from the stored ``q``,
+        ``rho``, ``K`` (rounded down), then :func:`nrobust.bounds.delay_bound_from_kernel` with
+        ``rigorous=True``; for the PDE itself on the exact route, for ``N~`` as represented
+        (the cubic spline on the kernel grid) otherwise.
 
     Returns
     -------
@@ -85,7 +92,7 @@ def rouche_delay_bound(
         K = float(system.rho)
     else:
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
-    grid = check_kernel_grid(kernel_grid)
+    grid = None if kernel_grid is None else check_kernel_grid(kernel_grid)
     eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
     if rigorous:  # the float at or below the exact 1 - |q rho| - |K q|
         exact = (
@@ -96,7 +103,14 @@ def rouche_delay_bound(
         eps0 = float(exact)
         if Fraction(eps0) > exact:
             eps0 = math.nextafter(eps0, -math.inf)
-    N = None if system.uncoupled else delay_form(system, grid).N_tilde
+    if system.uncoupled:
+        N = None
+    elif grid is None and has_exact_form(system):
+        closed = exact_form(system).N_tilde
+        # the L1 modulus is sharp for a fine linear kernel: the closed form's pieces, linearised
+        N = None if closed is None else closed.linearized(_LINEAR_POINTS)
+    else:
+        N = delay_form(system, DEFAULT_KERNEL_GRID if grid is None else grid).N_tilde
     bound = delay_bound_from_kernel(N, eps0, K, rigorous=rigorous)
     if rigorous and not bound.rigorous:  # N~ = 0 or epsilon_0 <= 0: exact comparisons of the stored numbers
         bound = dataclasses.replace(bound, rigorous=True)

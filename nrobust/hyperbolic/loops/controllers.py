@@ -52,6 +52,7 @@ from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
 from ..plants.law import FeedbackLaw
 from .delay_form import delay_form
+from .exact_form import exact_form, has_exact_form
 from .feedback import feedback_factor
 from .varying_form import VaryingDelayForm, varying_delay_form
 
@@ -67,6 +68,8 @@ __all__ = [
     "characteristic",
     "classify",
     "loop_factors",
+    "loop_route",
+    "loop_scope",
     "normalize",
 ]
 
@@ -350,9 +353,76 @@ def _kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
     return solve_kernels(system, kernel_grid)
 
 
+def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
+    """How :func:`loop_factors` builds the loop: ``"exact"`` or ``"kernels"``.
+
+    ``"exact"``: constant coefficients, ``kernel_grid`` not given, and a controller whose
+    gains are the paper's or a proportional :class:`StateFeedback`: ``N~`` in closed form
+    with proven error bounds (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`), so a
+    proof about the loop is a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a
+    state feedback) from kernels on a grid, a model of the plant whose distance to it is
+    measured by convergence studies.
+    """
+    if kernel_grid is not None or not has_exact_form(system):
+        return "kernels"
+    if isinstance(controller, StateFeedback) and (
+        callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0
+    ):
+        return "kernels"
+    return "exact"
+
+
+def loop_scope(
+    system: Any, controller: Any, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+) -> str:
+    """What a proof about the loop ``factors`` of ``system`` is about, in one line.
+
+    Parameters
+    ----------
+    system, controller, kernel_grid
+        As given to :func:`loop_factors`.
+    factors : tuple of QuasiPolynomial
+        Its result ``(A, B)``.
+    """
+    if loop_route(system, controller, kernel_grid) == "exact":
+        radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
+        kernel = (
+            f"N~ in closed form, stored within a proven {radius:.1e} that every enclosure includes"
+            if radius
+            else "N~ = 0"
+        )
+        return f"the PDE itself ({kernel}; tau the double nearest 1/lam + 1/mu)"
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        return (
+            "a model of the PDE: N~ the cubic spline of the characteristic route (varying lam/mu); its distance "
+            "to the PDE is not part of the proof"
+        )
+    if isinstance(system, Hyperbolic2x2) and system.uncoupled:
+        return "the PDE itself (uncoupled: N~ = 0)"
+    grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
+    return (
+        f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
+        "not part of the proof (a convergence study estimates it)"
+    )
+
+
+def _exact_factors(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` on the closed-form delay form (:func:`loop_route` is ``"exact"``)."""
+    _check_controller(controller)
+    form = exact_form(system)
+    i_n = QuasiPolynomial([], [], [form.N_tilde]) if form.N_tilde is not None else QuasiPolynomial([[0.0]], [0.0])
+    round_trip = QuasiPolynomial([[form.q]], [form.tau])
+    phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
+    if isinstance(controller, StateFeedback):
+        return 1.0 - phi, form.u_factor * (-controller.k)
+    return controller.factors(phi, i_n, round_trip)
+
+
 @renamed_keywords(n="kernel_grid")
 def loop_factors(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, kernel_grid: int = DEFAULT_KERNEL_GRID
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, kernel_grid: int | None = None
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` with the closed-loop characteristic function ``F = A + B e^{-delta s}``.
 
@@ -362,9 +432,12 @@ def loop_factors(
         The plant, eqs. (18)-(20), or a general plant (through :func:`normalize`).
     controller : Controller
         One of the paper's controllers, or a :class:`StateFeedback`.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias). The cubic spline ``N~``
-        carries the error of the kernels: about third order in ``1/kernel_grid`` for an odd
+    kernel_grid : int, optional
+        Default: the exact route where :func:`loop_route` allows it (constant
+        coefficients: ``N~`` in closed form, no grid), otherwise kernels on
+        :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points. Given, the
+        kernel grid for ``N~`` (formerly ``n``, a deprecated alias): the cubic spline ``N~``
+        carries the error of the kernels, about third order in ``1/kernel_grid`` for an odd
         grid (extrapolated kernels), second order for an even one
         (``docs/numerics_kernels.md``). A plant with a varying ``lam/mu`` takes ``N~`` from the
         characteristic route, and uses ``kernel_grid`` only for the integral gains of a
@@ -375,12 +448,18 @@ def loop_factors(
     tuple of QuasiPolynomial
         ``A`` and ``B`` as in the module's table.
     """
+    if kernel_grid is not None:
+        kernel_grid = check_kernel_grid(kernel_grid)
+    if loop_route(system, controller, kernel_grid) == "exact":
+        return _exact_factors(system, controller)
+    grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
-        return _varying_factors(system, controller, kernel_grid)
+        return _varying_factors(system, controller, grid)
     plant: Hyperbolic2x2
     plant, controller = normalize(system, controller)
     _check(plant, controller)
-    i_n = _distributed_part(plant, check_kernel_grid(kernel_grid))
+    kernel_grid = grid
+    i_n = _distributed_part(plant, kernel_grid)
     round_trip = QuasiPolynomial([[plant.q]], [plant.tau])  # q e^{-tau s}
     phi = round_trip * plant.rho - i_n
     if isinstance(controller, StateFeedback):
@@ -393,7 +472,7 @@ def characteristic(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     controller: Controller,
     delta: float = 0.0,
-    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    kernel_grid: int | None = None,
 ) -> QuasiPolynomial:
     """Closed-loop characteristic quasi-polynomial ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
@@ -408,8 +487,9 @@ def characteristic(
         The controller.
     delta : float, optional
         Loop delay ``delta >= 0``.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias).
+    kernel_grid : int, optional
+        Kernel grid for ``N~`` (formerly ``n``, a deprecated alias); by default the exact
+        route where it applies (:func:`loop_factors`).
     """
     delta = nonnegative("delta", delta)
     a, b = loop_factors(system, controller, kernel_grid)

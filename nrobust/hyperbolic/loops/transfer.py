@@ -17,12 +17,13 @@ from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid, solve_ker
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .controllers import Controller, FilteredController, loop_factors
 from .delay_form import delay_form, delay_kernel
+from .exact_form import exact_form, exact_output_map, has_exact_form
 
 __all__ = ["closed_loop_tf", "open_loop_tf", "output_map"]
 
 
 @renamed_keywords(n="kernel_grid")
-def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiTransferFunction:
+def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int | None = None) -> QuasiTransferFunction:
     """Open-loop transfer function from ``U`` to the boundary output.
 
     For a :class:`~nrobust.hyperbolic.TransportSystem` (or any uncoupled system) this is
@@ -35,22 +36,26 @@ def open_loop_tf(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) 
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+    kernel_grid : int, optional
         Kernel grid passed to :func:`~nrobust.hyperbolic.loops.delay_form` (coupled systems only;
-        the default is that of the closed-loop functions, so that ``H_1`` and
-        :func:`closed_loop_tf` share the same ``N~``). Formerly ``n``, a deprecated alias.
+        formerly ``n``, a deprecated alias). Default: ``N~`` in closed form for constant
+        couplings (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`), else
+        :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points, as the
+        closed-loop functions, so that ``H_1`` and :func:`closed_loop_tf` share the same ``N~``.
     """
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiTransferFunction(1.0, QuasiPolynomial([[1.0], [-system.rho_q]], [0.0, system.tau]))
-    form = delay_form(system, check_kernel_grid(kernel_grid))
+    if kernel_grid is None and has_exact_form(system):
+        return QuasiTransferFunction(1.0, exact_form(system).characteristic)
+    form = delay_form(system, DEFAULT_KERNEL_GRID if kernel_grid is None else check_kernel_grid(kernel_grid))
     return QuasiTransferFunction(1.0, form.characteristic)
 
 
 @renamed_keywords(n="kernel_grid")
-def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) -> QuasiPolynomial:
+def output_map(system: Hyperbolic2x2, kernel_grid: int | None = None) -> QuasiPolynomial:
     """``M(s)`` with ``v(s, 1) = M(s) beta(s, 1)`` for zero initial data.
 
     The inverse transformation (eq. (31)) at ``x = 1`` with
@@ -66,16 +71,20 @@ def output_map(system: Hyperbolic2x2, kernel_grid: int = DEFAULT_KERNEL_GRID) ->
     Parameters
     ----------
     system : TransportSystem or Hyperbolic2x2
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid (that of the closed-loop functions by default; formerly ``n``, a
-        deprecated alias); ``M~`` is tabulated on its points on each side of the jump.
+    kernel_grid : int, optional
+        Kernel grid (formerly ``n``, a deprecated alias); ``M~`` is tabulated on its points
+        on each side of the jump. Default: as the closed-loop functions, ``M~`` in closed form
+        for constant couplings (:func:`~nrobust.hyperbolic.loops.exact_form.exact_output_map`),
+        else :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points.
     """
 
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
     if system.uncoupled:
         return QuasiPolynomial([[1.0]], [0.0])
-    kernels = solve_kernels(system, check_kernel_grid(kernel_grid))
+    if kernel_grid is None and has_exact_form(system):
+        return exact_output_map(system)
+    kernels = solve_kernels(system, DEFAULT_KERNEL_GRID if kernel_grid is None else check_kernel_grid(kernel_grid))
     L1 = kernels.L[:, :, -1, :]  # L^{ab}(1, xi) on the grid, a, b in (alpha, beta)
     return QuasiPolynomial([[1.0]], [0.0], [delay_kernel(system, kernels.grid, L1[1, 0], L1[1, 1])])
 

@@ -20,9 +20,22 @@ On ``[0, W]`` the crossings of ``|A(i w)| = |B(i w)|`` are found completely from
 Lipschitz bound of ``|A| - |B|`` and a bound of ``|g''|``, ``g = |A|^2 - |B|^2``
 (:meth:`NPlusMCharacteristic.crossing_frequencies`); ``docs/theory.md``, "Beyond 2x2",
 has the derivation.
+
+**Root-free far field** (any ``m``). In compound form (Cauchy-Binet, :func:`compound_loop`)
+``F(s) = sum_d e^{-d delta s} a_d^T exp(D - s P) b`` with rates ``P >= 0``; the gauge
+bound holds on ``Re s >= x`` for any real ``x`` with ``beta_d`` replaced by
+``beta(x) = lambda_max(Herm D_d - x P)`` (the bound is ``e^{beta}`` times a function of
+``|s|``, and Gronwall's lemma needs no sign of ``beta``). So ``|F - F_0| <= sum_d
+e^{-d delta x} ||a_d|| ||b|| r_x(|s|)``, ``F_0`` the principal part, an exponential sum whose
+term of delay 0 is ``det exp(C_vv)``; where that term dominates the others on ``Re s >= x``,
+``F`` has no root with ``Re s >= x`` beyond the radius where the remainder falls below the
+gap (:meth:`NPlusMCharacteristic.far_field_radius`), as for a scalar quasi-polynomial.
 """
 
 from __future__ import annotations
+
+import itertools
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,12 +43,12 @@ from numpy.typing import ArrayLike, NDArray
 from ..._validate import nonnegative, positive_int
 from ...difference import DifferenceOperator
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder
+from ...margins.matrix import GaugeRemainder, compound_generator, compound_minors
 from ...qpmatrix import FirstDerivative, QuasiPolynomialMatrix
 from ...quasipoly import QuasiPolynomial
 from .system import NPlusMSystem
 
-__all__ = ["NPlusMCharacteristic"]
+__all__ = ["NPlusMCharacteristic", "compound_loop"]
 
 #: Rounding scale of ``F(s)`` relative to ``||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||)``: the
 #: error of a scaling-and-squaring matrix exponential grows with the norm of its argument.
@@ -46,11 +59,36 @@ GRID_PER_PERIOD = 32
 EPS = float(np.finfo(float).eps)
 
 
+def compound_loop(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """``(D_m(C), p, a, b)``: ``det M(s; z) = sum_d z^d a_d^T exp(D_m(C) - s diag(p)) b`` (module notes of
+    :mod:`nrobust.margins.matrix`), ``a`` of shape ``(m + 1, binom(n + m, m))``.
+
+    ``p_S = sum_{u_i in S} 1/lam_i + sum_{v_j not in S} 1/mu_j >= 0``: the row scaling
+    ``e^{-s sum 1/mu_j}`` of the loop matrix makes the compound transition bounded on ``Re s >= 0``.
+    """
+    n, m = system.n, system.m
+    inv = 1.0 / system.signed_speeds
+    subsets = list(itertools.combinations(range(n + m), m))
+    p = np.array(
+        [
+            sum(inv[i] for i in S if i < n) + sum(1.0 / system.mu[j - n] for j in range(n, n + m) if j not in S)
+            for S in subsets
+        ]
+    )
+    for i in np.argsort(p):  # rates equal up to the order of a sum are made equal (groups of the gauge)
+        p[np.abs(p - p[i]) <= 1e-13 * max(1.0, abs(p[i]))] = p[i]
+    dc = compound_generator(inv[:, None] * system.sigma, m)
+    b = compound_minors(np.vstack([system.q, np.eye(m)]), axis=0)
+    roots = np.exp(2j * np.pi * np.arange(m + 1) / (m + 1))
+    vals = np.array([compound_minors(np.hstack([-(system.r + z * k), np.eye(m)]), axis=1) for z in roots])
+    return dc, p, np.fft.fft(vals, axis=0) / (m + 1), b
+
+
 class NPlusMCharacteristic:
     """``F(s) = det(E(s) (Phi_v - (R + K e^{-delta s}) Phi_u))``: the closed loop of an ``n + m`` system.
 
     A :class:`~nrobust.qpmatrix.CharacteristicFunction`: ``count_roots``, ``find_roots``
-    and ``spectral_abscissa`` (with a region) certify its roots. Row ``j`` of the
+    and ``spectral_abscissa`` (with no region needed: :meth:`far_field_radius`) certify its roots. Row ``j`` of the
     ``m x m`` matrix is ``l_j(s)^T G_j(s) W`` with ``G_j = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
     ``P_j = Lambda^{-1} + I/mu_j`` diagonal, ``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and
     ``W = [Q; I]``; each derivative of ``G_j`` is bounded through the logarithmic norm
@@ -233,6 +271,73 @@ class NPlusMCharacteristic:
     def max_delay(self) -> float:
         """Longest round trip ``1/lam_i + 1/mu_j`` plus the loop delay."""
         return float(np.max(1.0 / self.system.lam) + np.max(1.0 / self.system.mu) + self.delta)
+
+    # ------------------------------------------------------------------ root-free far field
+    @cached_property
+    def _far(self) -> tuple[GaugeRemainder, NDArray, NDArray, NDArray, NDArray, NDArray]:
+        """``(gauge, Herm D_d, p, sum_d weights, delays, |coefficients|)`` of the far-field bound.
+
+        The compound form's gauge, the Hermitian part of its principal generator, its rates,
+        ``||a_d|| ||b||`` (``1e-12`` relative slack) and the principal part ``F_0`` as an
+        exponential sum (coefficients of equal delays added, delay 0 first).
+        """
+        from scipy.linalg import expm  # lazily: a slow import
+
+        dc, p, a, b = compound_loop(self.system, self.K)
+        gauge = GaugeRemainder(dc, p)
+        weights = np.linalg.norm(a, axis=1) * float(np.linalg.norm(b)) * (1.0 + 1e-12)
+        terms: dict[float, complex] = {0.0: 0j}
+        for rate in np.unique(p):
+            g = np.flatnonzero(p == rate)
+            block = expm(gauge.c_d[np.ix_(g, g)]) @ b[g]
+            for d in range(a.shape[0]):
+                t = float(rate + d * self.delta)
+                terms[t] = terms.get(t, 0j) + complex(a[d, g] @ block)
+        delays = np.array(sorted(terms))
+        coefs = np.abs(np.array([terms[t] for t in delays]))
+        herm = 0.5 * (gauge.c_d + gauge.c_d.conj().T)
+        return gauge, herm, p, weights, delays, coefs
+
+    def _far_terms(self, x: float) -> tuple[float, float]:
+        """``(level, scale)`` on ``Re s >= x``: ``|F_0| >= level`` there (the principal gap less
+        rounding room, ``<= 0`` when the term of delay 0 does not dominate), and
+        ``|F - F_0| <= scale g(|s|)``, ``g`` the gauge bound of ``Re s >= 0`` (``e^{beta_d}`` in it)."""
+        gauge, herm, p, weights, delays, coefs = self._far
+        with np.errstate(over="ignore"):
+            shifted = coefs * np.exp(-delays * x)
+            beta = float(np.linalg.eigvalsh(herm - x * np.diag(p))[-1])
+            beta += 1e-12 * (1.0 + float(np.linalg.norm(herm, 2)) + abs(x) * float(np.max(p)))
+            scale = float(np.sum(weights * np.exp(-np.arange(weights.size) * self.delta * x)))
+            scale *= float(np.exp(beta - gauge.beta_d))
+        gap = float(shifted[0] - np.sum(shifted[1:]))
+        level = gap * (1.0 - 1e-9) - 1e-12 * float(np.sum(shifted))
+        return (level, scale) if np.isfinite(level) and np.isfinite(scale) else (-np.inf, np.inf)
+
+    def far_field_holds(self, x: float, radius: float) -> bool:
+        """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= radius}`` (floating point).
+
+        On that set ``|F_0| >= level(x)`` and ``|F - F_0| <= scale(x) r(|s|)`` (module notes,
+        "Root-free far field"); both bounds improve as ``x`` or ``radius`` grows.
+        """
+        level, scale = self._far_terms(float(x))
+        return level > 0.0 and bool(scale * float(self._far[0](float(radius))) < level)
+
+    def far_field_radius(self, x: float) -> float | None:
+        """A radius ``R`` with no root of ``F`` in ``{Re s >= x, |s| >= R}`` (within ``1e-7`` of the
+        smallest the bound gives), or None.
+
+        ``x`` may be negative: the bound holds on any half-plane where the principal part's
+        term of delay 0 dominates the others, i.e. for ``x`` above the first-term abscissa of
+        :meth:`principal_part` (all ``x`` for a retarded loop). None when it does not
+        dominate at ``x`` or the remainder stays above the gap up to ``|s| = 2^200``.
+        """
+        level, scale = self._far_terms(float(x))
+        if not level > 0.0:
+            return None
+        try:
+            return self._far[0].radius(scale, level)
+        except CertificationError:
+            return None
 
     # ------------------------------------------------------------------ one actuator: the axis
     def _one_actuator(self, what: str) -> None:

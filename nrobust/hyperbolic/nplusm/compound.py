@@ -7,44 +7,17 @@ the form :func:`~nrobust.hyperbolic.nplusm.multi_actuator_delay_margin` certifie
 
 from __future__ import annotations
 
-import itertools
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ...difference import DifferenceOperator
-from ...margins.matrix import compound_generator, compound_minors
 from ...qpmatrix import FirstDerivative
-from .characteristic import EXPM_ROUNDING, NPlusMCharacteristic
+from .characteristic import EXPM_ROUNDING, NPlusMCharacteristic, compound_loop
 from .system import NPlusMSystem
 
 __all__ = ["compound_characteristic", "compound_loop"]
-
-
-def compound_loop(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-    """``(D_m(C), p, a, b)``: ``det M(s; z) = sum_d z^d a_d^T exp(D_m(C) - s diag(p)) b`` (module notes of
-    :mod:`nrobust.margins.matrix`), ``a`` of shape ``(m + 1, binom(n + m, m))``.
-
-    ``p_S = sum_{u_i in S} 1/lam_i + sum_{v_j not in S} 1/mu_j >= 0``: the row scaling
-    ``e^{-s sum 1/mu_j}`` of the loop matrix makes the compound transition bounded on ``Re s >= 0``.
-    """
-    n, m = system.n, system.m
-    inv = 1.0 / system.signed_speeds
-    subsets = list(itertools.combinations(range(n + m), m))
-    p = np.array(
-        [
-            sum(inv[i] for i in S if i < n) + sum(1.0 / system.mu[j - n] for j in range(n, n + m) if j not in S)
-            for S in subsets
-        ]
-    )
-    for i in np.argsort(p):  # rates equal up to the order of a sum are made equal (groups of the gauge)
-        p[np.abs(p - p[i]) <= 1e-13 * max(1.0, abs(p[i]))] = p[i]
-    dc = compound_generator(inv[:, None] * system.sigma, m)
-    b = compound_minors(np.vstack([system.q, np.eye(m)]), axis=0)
-    roots = np.exp(2j * np.pi * np.arange(m + 1) / (m + 1))
-    vals = np.array([compound_minors(np.hstack([-(system.r + z * k), np.eye(m)]), axis=1) for z in roots])
-    return dc, p, np.fft.fft(vals, axis=0) / (m + 1), b
 
 
 class _CompoundCharacteristic:

@@ -475,7 +475,8 @@ class NormalForm:
         g = self.general
         end = g.length
         scale = float(np.exp(-g.D(end)))
-        k_n = finite_real("k", k) * float(np.exp(g.A(end) + self.balance)) * scale
+        # the factor of rho~, to the bit: k = -rho cancels the reflection exactly, as it does physically
+        k_n = finite_real("k", k) * float(np.exp(g.A(end) + self.balance - g.D(end)))
         gains: list[Any] = []
         for gain, weight in ((g_u, "u"), (g_v, "v")):
             if not callable(gain) and finite_real(f"g_{weight}", gain) == 0.0:
