@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 import sys
 import warnings
 from collections.abc import Callable
@@ -115,7 +116,7 @@ _CONTROLLER_KEYS = {
     "StateFeedback": ("k",),
 }
 _CONTROLLER_OPTIONAL: dict[str, tuple[str, ...]] = {"StateFeedback": ("g_u", "g_v")}
-_ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True, "rigorous": False}
+_ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True, "rigorous": False, "accuracy": None}
 _SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0": 1.0, "v0": 1.0}
 #: Deprecated keys of ``[simulation]``, read as their new names with a DeprecationWarning.
 _SIMULATION_RENAMED = {"n": "cells"}
@@ -310,7 +311,9 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     -------
     dict
         ``system``, ``controller``, ``delta_max``, ``region``, ``k_region``, ``rigorous``
-        (``[analysis] rigorous = true``: prove the certificate in ball arithmetic) and
+        (``[analysis] rigorous = true``: prove the certificate in ball arithmetic), ``accuracy``
+        (``[analysis] accuracy = 1e-9``: the delay margin's target accuracy, see
+        :func:`~nrobust.reports.certificate.certify`) and
         ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``).
         The deprecated key ``[simulation] n`` is read as ``cells`` with a
         :class:`DeprecationWarning`.
@@ -356,6 +359,13 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         raise ParameterError("analysis.k_region", "true or false", analysis["k_region"])
     if not isinstance(analysis["rigorous"], bool):
         raise ParameterError("analysis.rigorous", "true or false", analysis["rigorous"])
+    accuracy = analysis["accuracy"]
+    if accuracy is not None:
+        accuracy = _number("analysis.accuracy", accuracy)
+        if not 0.0 < accuracy < math.inf:
+            raise ParameterError(
+                "analysis.accuracy", "a positive number (the delay margin's target accuracy)", accuracy
+            )
 
     simulation = None
     if "simulation" in spec:
@@ -400,5 +410,6 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         "region": region,
         "k_region": analysis["k_region"],
         "rigorous": analysis["rigorous"],
+        "accuracy": accuracy,
         "simulation": simulation,
     }

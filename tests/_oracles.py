@@ -51,6 +51,7 @@ Derivations
 from __future__ import annotations
 
 import inspect
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -582,3 +583,390 @@ def pair_birth(A, B0, q: float, tau: float, K0: float, w0: float) -> tuple[float
     s = np.array([1j * w])
     b = K * q * np.exp(-1j * w * tau) + B0(s)[0]
     return float(K), float(w), float(np.mod(np.angle(-b / A(s)[0]), 2 * np.pi) / w)
+
+
+# ============================================================ 2x2 plants with constant coefficients
+#: Controllers of :class:`PDELoop`: ``("open",)``, ``("finite",)`` (U_BS), ``("reflection", K)``
+#: (U_BS2(K)) and ``("filtered", a, b)`` (U_BS through ``(1 + a s)/(1 + b s)``).
+ControllerSpec = tuple
+
+
+class PDELoop:
+    """``F(s; delta) = A(s) + B(s) e^{-delta s}`` of the plant
+    ``u_t + lam u_x = sigma_pm v``, ``v_t - mu v_x = sigma_mp u``, ``u(t, 0) = q v(t, 0)``,
+    ``v(t, 1) = rho u(t, 1) + U(t)`` with a boundary controller, from the Laplace-domain solution.
+
+    Derivation: along ``x`` the Laplace transforms satisfy ``d/dx [u; v] = M(s) [u; v]``; with
+    ``[u; v](0) = [q; 1]`` and the factor ``e^{-s/mu}`` taken out, ``z = expm(B) [q; 1]`` with
+    ``B = [[-s tau, sigma_pm/lam], [-sigma_mp/mu, 0]]`` and ``tau`` the double nearest
+    ``1/lam + 1/mu`` (the plant nrobust's proofs are about). The open loop is
+    ``A_ol = z_v - rho z_u = 1 - rho q e^{-tau s} + I_N(s)``; ``I_N = A_ol - 1 + rho q e^{-tau s}``,
+    and the controllers close the loop as (``Phi = 1 - A_ol``): open ``(A_ol, 0)``, U_BS
+    ``(A_ol, 1 - A_ol)``, U_BS2(K) ``(A_ol, K q e^{-tau s} - I_N)``, filtered
+    ``((1 + b s) A_ol, (1 + a s)(1 - A_ol))``.
+
+    Values at 30 digits come from ``mpmath.expm``; scans and contour integrals use the same
+    exponential in closed form in double precision (``e^{t/2} (cosh d I + sinh(d)/d (B - t/2 I))``,
+    ``t = -s tau``, ``d^2 = t^2/4 + det``), checked against ``mpmath.expm`` on every refined point.
+    Bounds (far field, derivatives) use ``I_N(s) = int_0^tau N~(nu) e^{-nu s} dnu`` with the kernel
+    ``N~ = h22 - rho q h11 + (m q - rho p)/tau W`` in hypergeometric functions (``p = sigma_pm/lam``,
+    ``m = -sigma_mp/mu``, ``a = p m/tau^2``, ``x = a nu (tau - nu)``, ``W = 0F1(;1;x)``,
+    ``h22 = a (tau - nu) 0F1(;2;x)``, ``h11 = a nu 0F1(;2;x)``), checked once against the
+    ``expm`` route by quadrature: ``|I_N(s)| <= L1 e^{tau max(0, -Re s)}`` and, integrating by parts,
+    ``|I_N(s)| <= V e^{tau max(0, -Re s)}/|s|`` with ``V = |N~(0)| + |N~(tau)| + TV(N~)``.
+    """
+
+    DPS = 30
+
+    def __init__(
+        self, lam: float, mu: float, spm: float, smp: float, q: float, rho: float, controller: ControllerSpec
+    ) -> None:
+        self.args = (lam, mu, spm, smp, q, rho)
+        self.controller = controller
+        self.tau = float(1.0 / lam + 1.0 / mu)
+        self.q, self.rho = q, rho
+        self.p = Fraction(spm) / Fraction(lam)
+        self.m = -Fraction(smp) / Fraction(mu)
+        self._kernel_bounds()
+
+    # ---------------------------------------------------------------- values
+    def _mp_open(self, s):
+        """``(A_ol, e^{-tau s})`` at ``s`` by ``mpmath.expm``."""
+        with mp.workdps(self.DPS + 10):
+            s = mp.mpc(s)
+            tau = mp.mpf(self.tau)
+            p = mp.mpf(self.p.numerator) / self.p.denominator
+            m = mp.mpf(self.m.numerator) / self.m.denominator
+            z = mp.expm(mp.matrix([[-s * tau, p], [m, 0]])) * mp.matrix([mp.mpf(self.q), 1])
+            return z[1] - mp.mpf(self.rho) * z[0], mp.exp(-s * tau)
+
+    def factors_mp(self, s):
+        """``(A(s), B(s))`` at ``DPS`` digits."""
+        aol, e = self._mp_open(s)
+        with mp.workdps(self.DPS + 10):
+            s = mp.mpc(s)
+            kind = self.controller[0]
+            if kind == "open":
+                return aol, mp.mpc(0)
+            if kind == "finite":
+                return aol, 1 - aol
+            if kind == "reflection":
+                i_n = aol - 1 + mp.mpf(self.rho) * mp.mpf(self.q) * e
+                return aol, mp.mpf(self.controller[1]) * mp.mpf(self.q) * e - i_n
+            a, b = (mp.mpf(v) for v in self.controller[1:])
+            return (1 + b * s) * aol, (1 + a * s) * (1 - aol)
+
+    def F_mp(self, s, delta: float):
+        A, B = self.factors_mp(s)
+        with mp.workdps(self.DPS + 10):
+            return A + B * mp.exp(-mp.mpc(s) * mp.mpf(delta))
+
+    def factors_np(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, B)`` in double precision (closed-form 2x2 exponential), vectorised."""
+        s = np.asarray(s, dtype=complex)
+        p, m, q, rho = float(self.p), float(self.m), self.q, self.rho
+        t = -s * self.tau
+        d = np.sqrt(t * t / 4 + p * m + 0j)
+        small = np.abs(d) < 1e-4
+        shd = np.where(small, 1 + d * d / 6, np.sinh(d) / np.where(small, 1.0, d))
+        ch, g = np.cosh(d), np.exp(t / 2)
+        zu = g * (ch * q + shd * (t / 2 * q + p))
+        zv = g * (ch + shd * (m * q - t / 2))
+        aol = zv - rho * zu
+        e = np.exp(-s * self.tau)
+        kind = self.controller[0]
+        if kind == "open":
+            return aol, np.zeros_like(aol)
+        if kind == "finite":
+            return aol, 1 - aol
+        if kind == "reflection":
+            return aol, self.controller[1] * q * e - (aol - 1 + rho * q * e)
+        a, b = self.controller[1:]
+        return (1 + b * s) * aol, (1 + a * s) * (1 - aol)
+
+    def F_np(self, s: np.ndarray, delta: float) -> np.ndarray:
+        A, B = self.factors_np(s)
+        return A + B * np.exp(-delta * np.asarray(s, dtype=complex))
+
+    def _check_np(self, s: complex, delta: float) -> None:
+        """The double-precision closed form against ``mpmath.expm`` (oracle self-consistency)."""
+        with np.errstate(all="ignore"):
+            A, B = self.factors_np(np.array([s]))
+        Am, Bm = self.factors_mp(s)
+        scale = 1.0 + abs(complex(Am)) + abs(complex(Bm))
+        err = abs(complex(A[0]) - complex(Am)) + abs(complex(B[0]) - complex(Bm))
+        if not err <= 1e-9 * scale * (1.0 + abs(s) * self.tau):
+            raise AssertionError(f"oracle: closed-form exponential off by {err:.3g} at s = {s} (expm {complex(Am)})")
+
+    # ---------------------------------------------------------------- kernel bounds
+    def _kernel(self, nu: np.ndarray) -> np.ndarray:
+        from scipy.special import hyp0f1
+
+        p, m, tau, rq = float(self.p), float(self.m), self.tau, self.rho * self.q
+        a = p * m / tau**2
+        x = a * nu * (tau - nu)
+        f2 = hyp0f1(2, x)
+        return a * (tau - nu) * f2 - rq * a * nu * f2 + (m * self.q - self.rho * p) / tau * hyp0f1(1, x)
+
+    def _kernel_bounds(self) -> None:
+        """``L1 >= int |N~|`` and ``V >= |N~(0)| + |N~(tau)| + TV(N~)`` (fine grid, 2% allowance),
+        and the kernel checked against the ``expm`` route by quadrature at one point."""
+        n = 4001
+        nu = np.linspace(0.0, self.tau, n)
+        k = self._kernel(nu)
+        top = float(np.max(np.abs(k)))
+        h = self.tau / (n - 1)
+        self.L1 = 1.02 * float(np.sum(np.abs(k)) * h) + top * h
+        self.V = 1.02 * (abs(k[0]) + abs(k[-1]) + float(np.sum(np.abs(np.diff(k))))) + 1e-12
+        s0 = mp.mpc("0.37", "1.9")
+        aol, e = self._mp_open(s0)
+        with mp.workdps(20):
+            i_n = aol - 1 + mp.mpf(self.rho) * mp.mpf(self.q) * e
+            p, m, tau, rq = (mp.mpf(float(self.p)), mp.mpf(float(self.m)), mp.mpf(self.tau), self.rho * self.q)
+            a = p * m / tau**2
+
+            def kern(v):
+                x = a * v * (tau - v)
+                f2 = mp.hyp0f1(2, x)
+                return a * (tau - v) * f2 - rq * a * v * f2 + (m * self.q - self.rho * p) / tau * mp.hyp0f1(1, x)
+
+            quad = mp.quad(lambda v: kern(v) * mp.exp(-s0 * v), mp.linspace(0, tau, 5))
+            if abs(quad - i_n) > 1e-12 * (1 + abs(i_n) + self.L1):
+                raise AssertionError(f"oracle: kernel quadrature {quad} against expm route {i_n}")
+
+    # ---------------------------------------------------------------- bounds on Re s >= x0
+    def _consts(self, x0: float, delta: float) -> tuple[float, float, float, float]:
+        return (
+            math.exp(-self.tau * x0),
+            math.exp(-delta * x0),
+            math.exp(self.tau * max(0.0, -x0)),
+            abs(self.rho * self.q),
+        )
+
+    def principal_gap(self, x0: float, delta: float) -> float:
+        """Lower bound of ``|principal part|/|s|^n`` on ``Re s >= x0`` (``> 0``: strongly dominated)."""
+        et, ed, _, rq = self._consts(x0, delta)
+        kind = self.controller[0]
+        if kind == "open":
+            return 1 - rq * et
+        if kind == "finite":
+            return 1 - rq * et - rq * et * ed
+        if kind == "reflection":
+            return 1 - rq * et - abs(self.controller[1] * self.q) * et * ed
+        a, b = self.controller[1:]
+        return b * (1 - rq * et) - abs(a) * rq * et * ed
+
+    def _lower(self, x0: float, delta: float, R: float) -> float:
+        """Lower bound of ``|F(s)|/|s|^n`` on ``{Re s >= x0, |s| >= R}``."""
+        et, ed, ei, rq = self._consts(x0, delta)
+        g0, V = self.principal_gap(x0, delta), self.V * ei
+        kind = self.controller[0]
+        if kind == "open":
+            return g0 - V / R
+        if kind in ("finite", "reflection"):
+            return g0 - V * (1 + ed) / R
+        a, b = self.controller[1:]
+        return g0 - (1 - rq * et) / R - rq * et * ed / R - V * (1 / R + b) / R - V * (1 / R + abs(a)) * ed / R
+
+    def far_field(self, x0: float, delta: float, cap: float = 2e4) -> float:
+        """``R``: no zero of ``F(.; delta)`` in ``{Re s >= x0, |s| >= R}``; OracleUnsure beyond ``cap``."""
+        if self.principal_gap(x0, delta) <= 1e-9:
+            raise OracleUnsure(f"principal part not dominant on Re s >= {x0}")
+        R = 1.0
+        while self._lower(x0, delta, R) <= 0.0:
+            R *= 1.25
+            if R > cap:
+                raise OracleUnsure(f"far-field radius above {cap}")
+        return R
+
+    def _derivative_bound(self, x0: float, delta: float, r: np.ndarray) -> np.ndarray:
+        """Bound of ``|F'|`` on ``{Re s >= x0, |s| <= r}``."""
+        et, ed, ei, rq = self._consts(x0, delta)
+        tau, L = self.tau, self.L1 * ei
+        Ab = 1 + rq * et + L
+        dAb = tau * (rq * et + L)
+        kind = self.controller[0]
+        if kind == "open":
+            return np.full_like(r, dAb)
+        if kind == "finite":
+            return dAb + (dAb + delta * (1 + Ab)) * ed + 0 * r
+        if kind == "reflection":
+            kq = abs(self.controller[1] * self.q)
+            Bb, dBb = kq * et + L, tau * (kq * et + L)
+            return dAb + (dBb + delta * Bb) * ed + 0 * r
+        a, b = self.controller[1:]
+        dA = b * Ab + (1 + b * r) * dAb
+        Bb = (1 + abs(a) * r) * (1 + Ab)
+        dB = abs(a) * (1 + Ab) + (1 + abs(a) * r) * dAb
+        return dA + (dB + delta * Bb) * ed
+
+    def _size_bound(self, x0: float, delta: float, r: np.ndarray) -> np.ndarray:
+        """Bound of ``|A| + |B|`` on ``{Re s >= x0, |s| <= r}`` (the rounding allowance)."""
+        et, ed, ei, rq = self._consts(x0, delta)
+        Ab = 1 + rq * et + self.L1 * ei
+        if self.controller[0] == "filtered":
+            a, b = self.controller[1:]
+            return (1 + b * r) * Ab + (1 + abs(a) * r) * (1 + Ab) * ed
+        return Ab + (1 + Ab) * ed + 0 * r
+
+    # ---------------------------------------------------------------- counts and roots
+    def count_in_box(self, box: Region, delta: float, max_pieces: int = 400_000) -> int:
+        """Zeros of ``F(.; delta)`` inside ``box`` by the argument principle (as
+        :meth:`LoopOracle.count_by_argument`: a piece of length ``L`` is accepted when
+        ``|F(s_1)| > M L + rounding`` with ``M`` a bound of ``|F'|``, so that ``F`` has no zero on it
+        and turns by less than ``pi/2``); OracleUnsure beyond ``max_pieces`` (a zero near the edge)."""
+        x0, x1, y0, y1 = box
+        corners = [complex(x0, y0), complex(x1, y0), complex(x1, y1), complex(x0, y1), complex(x0, y0)]
+        total, pieces = 0.0, 0
+        with np.errstate(all="ignore"):
+            for c1, c2 in itertools.pairwise(corners):
+                t = np.linspace(0.0, 1.0, 513)
+                starts, ends = t[:-1], t[1:]
+                pieces += starts.size
+                while starts.size:
+                    s1, s2 = c1 + (c2 - c1) * starts, c1 + (c2 - c1) * ends
+                    length = np.abs(s2 - s1)
+                    r = np.maximum(np.abs(s1), np.abs(s2))
+                    M = self._derivative_bound(x0, delta, r)
+                    f1, f2 = self.F_np(s1, delta), self.F_np(s2, delta)
+                    slack = 1e-11 * self._size_bound(x0, delta, r) * (1 + r * self.tau)
+                    ok = np.isfinite(f1) & np.isfinite(f2) & (np.abs(f1) > M * length + slack)
+                    total += float(np.sum(np.angle(f2[ok] / f1[ok])))
+                    mid = 0.5 * (starts[~ok] + ends[~ok])
+                    starts = np.concatenate([starts[~ok], mid])
+                    ends = np.concatenate([mid, ends[~ok]])
+                    pieces += mid.size
+                    if pieces > max_pieces:
+                        raise OracleUnsure(f"argument principle: more than {max_pieces} pieces (zero near {box})")
+        turns = total / (2.0 * math.pi)
+        n = round(turns)
+        if abs(turns - n) > 1e-6:
+            raise AssertionError(f"oracle: non-integer winding {turns}")
+        return int(n)
+
+    def polish(self, s0: complex, delta: float, steps: int = 60):
+        """A zero of ``F(.; delta)`` by the secant method at ``DPS`` digits from ``s0``; OracleUnsure
+        if it does not converge (``|step| < 1e-25 (1 + |s|)``)."""
+        with mp.workdps(self.DPS + 10):
+            x0 = mp.mpc(s0)
+            x1 = x0 + mp.mpf(10) ** -7 * (1 + abs(x0))
+            f0, f1 = self.F_mp(x0, delta), self.F_mp(x1, delta)
+            for _ in range(steps):
+                if f1 == f0:
+                    break
+                x2 = x1 - f1 * (x1 - x0) / (f1 - f0)
+                if abs(x2 - x1) < mp.mpf(10) ** -25 * (1 + abs(x2)):
+                    return x2
+                x0, f0, x1, f1 = x1, f1, x2, self.F_mp(x2, delta)
+            raise OracleUnsure(f"secant iteration from {s0} did not converge")
+
+    def roots_near(self, box: Region, delta: float, n_re: int = 12, n_im: int = 60) -> list[complex]:
+        """Zeros of ``F(.; delta)`` reached by Newton's method in double precision from a grid of
+        seeds in ``box`` (``Im >= 0`` half: ``F`` is real), then polished at ``DPS`` digits; not
+        a complete search (the counts are :meth:`count_in_box`)."""
+        x0, x1, y0, y1 = box
+        xs, ys = np.linspace(x0, x1, n_re), np.linspace(max(0.0, y0), max(y1, 0.0), n_im)
+        s = (xs[:, None] + 1j * ys[None, :]).ravel()
+        with np.errstate(all="ignore"):
+            for _ in range(40):
+                h = 1e-6 * (1 + np.abs(s))
+                d = (self.F_np(s + h, delta) - self.F_np(s - h, delta)) / (2 * h)
+                step = self.F_np(s, delta) / d
+                step = np.where(np.isfinite(step), step, 0.0)
+                s = s - np.clip(np.abs(step), 0, 1.0) * np.exp(1j * np.angle(step))
+        width = max(x1 - x0, y1 - y0)
+        top = max(abs(y0), abs(y1)) + width
+        keep = np.isfinite(s) & (s.real > x0 - width) & (s.real < x1 + width) & (np.abs(s.imag) < top)
+        with np.errstate(all="ignore"):
+            res = np.abs(self.F_np(s, delta)) / (1 + self._size_bound(min(x0, 0.0), delta, np.abs(s)))
+        cand = s[keep & (res < 1e-6)]
+        out: list[complex] = []
+        for z in cand:
+            if any(abs(z - w) < 1e-6 * (1 + abs(w)) for w in out):
+                continue
+            try:
+                r = complex(self.polish(complex(z), delta))
+            except OracleUnsure:
+                continue
+            self._check_np(r, delta)
+            if not any(abs(r - w) < 1e-12 * (1 + abs(w)) for w in out):
+                out.append(r)
+        return out
+
+    # ---------------------------------------------------------------- delay margin
+    def nominal_unstable(self) -> int:
+        """Zeros of ``F(.; 0)`` with ``Re s > 0`` (argument principle on ``[0, R] x [-R, R]``)."""
+        R = self.far_field(0.0, 0.0)
+        return self.count_in_box((0.0, R, -R, R), 0.0)
+
+    def crossings(self, max_crossings: int = 60) -> list[tuple[float, float]]:
+        """``(w, delta_0)`` of every ``w > 0`` with ``|A(i w)| = |B(i w)|`` (below the far field at
+        ``Re s >= 0``): sign changes of ``g = |A| - |B|`` on a grid of step ``2 pi/(256 tau)``, refined by
+        ``mpmath.findroot`` at ``DPS`` digits; OracleUnsure at a local minimum of ``|g|`` that may touch
+        zero between grid points (tangency), at ``g(0) ~ 0``, or above ``max_crossings``."""
+        if self.controller[0] == "open":
+            return []
+        W = self.far_field(0.0, 0.0)
+        step = 2 * math.pi / (256 * self.tau)
+        if self.controller[0] == "filtered":
+            step = min(step, 0.02 * min(self.controller[2], 1.0 / max(abs(self.controller[1]), 1e-9)))
+        w = np.linspace(0.0, W, int(W / step) + 2)
+        with np.errstate(all="ignore"):
+            A, B = self.factors_np(1j * w)
+        g = np.abs(A) - np.abs(B)
+        size = np.abs(A) + np.abs(B)
+        if not np.all(np.isfinite(g)):
+            raise OracleUnsure("non-finite values on the imaginary axis")
+        if abs(g[0]) <= 1e-9 * size[0]:
+            raise OracleUnsure("|A(0)| = |B(0)| to rounding")
+        if g[-1] <= 0:
+            raise AssertionError("oracle: |A| <= |B| at the far-field bound")
+        # touching zero between grid points: at a discrete local minimum of |g|, the drop of the
+        # parabola through three points plus twice the second difference (the grid resolves the
+        # fastest oscillation, period 2 pi/tau, by 256 points) reaches |g|
+        inner = np.arange(1, g.size - 1)
+        local_min = (np.abs(g[inner]) <= np.abs(g[inner - 1])) & (np.abs(g[inner]) <= np.abs(g[inner + 1]))
+        same = np.sign(g[inner - 1]) == np.sign(g[inner + 1])
+        d1 = g[inner + 1] - g[inner - 1]
+        d2 = np.abs(g[inner + 1] - 2 * g[inner] + g[inner - 1])
+        drop = d1 * d1 / (8 * d2 + 1e-300)
+        near = np.abs(g[inner]) <= drop + 2 * d2 + 1e-9 * size[inner]
+        if np.any(local_min & same & near):
+            raise OracleUnsure(f"|A| - |B| touches zero near w = {w[inner[local_min & same & near]][:3]}")
+        idx = np.flatnonzero(np.sign(g[:-1]) != np.sign(g[1:]))
+        if idx.size > max_crossings:
+            raise OracleUnsure(f"{idx.size} crossings")
+        out = []
+        for i in idx:
+
+            def gm(v):
+                Av, Bv = self.factors_mp(mp.mpc(0, v))
+                return abs(Av) - abs(Bv)
+
+            with mp.workdps(self.DPS + 10):
+                try:
+                    wc = mp.findroot(gm, (mp.mpf(w[i]), mp.mpf(w[i + 1])), solver="anderson")
+                except (ValueError, ZeroDivisionError):
+                    raise OracleUnsure(f"findroot failed in [{w[i]}, {w[i + 1]}]") from None
+                if not (w[i] - step <= wc <= w[i + 1] + step):
+                    raise OracleUnsure(f"findroot left the bracket [{w[i]}, {w[i + 1]}]")
+                Av, Bv = self.factors_mp(mp.mpc(0, wc))
+                phase = (-mp.arg(-Av / Bv)) % (2 * mp.pi)
+                if phase < mp.mpf(10) ** -20 or 2 * mp.pi - phase < mp.mpf(10) ** -20:
+                    raise OracleUnsure(f"a zero on the axis at delta = 0 (w = {wc})")
+                self._check_np(complex(0, float(wc)), 0.0)
+                out.append((float(wc), float(phase / wc)))
+        return out
+
+    def margin(self) -> float:
+        """The delay margin: 0 when the principal part is not dominated on ``Re s >= 0`` or the
+        nominal loop has a zero in ``Re s > 0``; else the smallest crossing delay (``inf`` if none)."""
+        g0 = self.principal_gap(0.0, 0.0)
+        if abs(g0) <= 1e-12:
+            raise OracleUnsure("principal part on the strong-stability boundary")
+        if g0 < 0:
+            return 0.0
+        if self.nominal_unstable() > 0:
+            return 0.0
+        cross = self.crossings()
+        return min((d for _, d in cross), default=math.inf)

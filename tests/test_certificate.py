@@ -73,7 +73,7 @@ def test_report_files(filtered, tmp_path):
     files = write_report(filtered, tmp_path)
     md = files.markdown.read_text()
     page = files.html.read_text()
-    assert f"{filtered.delay_margin:.6g}" in md and f"{filtered.delay_margin:.6g}" in page
+    assert filtered.margin_text in md and filtered.margin_text in page
     assert md.count("![") == len(files.figures) == 2
     assert page.count("data:image/png;base64,") == 2 and "<img" in page
     for fig in files.figures:

@@ -24,6 +24,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, is_dataclass
 from fractions import Fraction
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,7 @@ from _guards import Hang, hard_deadline, memory_cap
 from _oracles import (
     LoopOracle,
     OracleUnsure,
+    PDELoop,
     chain_abscissa,
     chain_roots,
     count_in_box,
@@ -710,6 +712,159 @@ def _prop_coupled_k_region(params: tuple) -> None:
 def test_coupled_k_region() -> None:
     """k_region ends on coupled plants against verified per-gain margins (fuzz budget only)."""
     run(_prop_coupled_k_region, "coupled_k_region")
+
+
+# ============================================================================ 4c. the PDE itself (exact route)
+@st.composite
+def constant_plants(draw: st.DrawFn) -> tuple[tuple[float, float, float, float, float, float], tuple]:
+    """Plants with random constant coefficients and a controller: ``U_BS2(K)`` mostly, with ``K``
+    inside ``|K| < (1 - |rho q|)/|q|`` or outside it, else U_BS, the open loop or the filtered U_BS."""
+    lam, mu = draw(st.floats(0.3, 3.0)), draw(st.floats(0.3, 3.0))
+    spm, smp = draw(st.just(0.0) | st.floats(-4.0, 4.0)), draw(st.just(0.0) | st.floats(-4.0, 4.0))
+    q = draw(st.floats(0.05, 1.0) | st.floats(-1.0, -0.05))
+    rho = draw(st.floats(-1.0, 1.0).filter(lambda r: abs(r * q) < 1.0))
+    kind = draw(st.sampled_from(["reflection"] * 6 + ["finite", "open", "filtered"]))
+    if kind == "reflection":
+        kb = (1.0 - abs(rho * q)) / abs(q)
+        f = draw(st.floats(-0.95, 0.95) | st.floats(1.05, 3.0) | st.floats(-3.0, -1.05))
+        controller: tuple = ("reflection", f * kb)
+    elif kind == "filtered":
+        controller = ("filtered", draw(st.floats(-2.0, 2.0)), draw(st.floats(0.1, 2.0)))
+    else:
+        controller = (kind,)
+    return (lam, mu, spm, smp, q, rho), controller
+
+
+def nrobust_controller(spec: tuple) -> Any:
+    kind = spec[0]
+    if kind == "reflection":
+        return ReflectionController(spec[1])
+    if kind == "filtered":
+        return nr.FilteredController(spec[1], spec[2])
+    return nr.FiniteTimeController() if kind == "finite" else nr.OpenLoop()
+
+
+def ulps(x: float) -> float:
+    """Allowance for the oracle's rounding of a proven end to double: a few ulps."""
+    return 4 * np.spacing(abs(x)) + 1e-300
+
+
+def check_pde_margin(test: str, o: PDELoop, dm: Any, case: str) -> None:
+    """The proven margin of the exact route against the crossing analysis of the PDE's ``F``."""
+    STATS.claim(dm.scope.startswith("the PDE itself"), test, f"delay_margin scope: {dm.scope!r}", case)
+    truth = unsure_guard(o.margin)
+    if truth is None:
+        return
+    lo, hi = dm.margin_ball
+    if dm.margin == 0.0 or truth == 0.0:
+        what = f"delay_margin: proven {dm.margin!r} {dm.margin_ball}, PDE {truth!r}"
+        STATS.claim(dm.margin == truth, test, what, case)
+    elif math.isinf(dm.margin) or math.isinf(truth):
+        STATS.claim(dm.margin == truth, test, f"delay_margin: proven {dm.margin!r}, PDE {truth!r}", case)
+    else:
+        STATS.claim(
+            lo - ulps(lo) <= truth <= hi + ulps(hi),
+            test,
+            f"delay_margin: margin_ball {dm.margin_ball} misses the PDE's margin {truth!r}",
+            case,
+        )
+
+
+def check_pde_abscissa(test: str, o: PDELoop, F: QuasiPolynomial, delta: float, case: str) -> None:
+    """No zero of the PDE's ``F`` right of the proven upper end; the reported root is one of ``F``."""
+    out = call(nr.spectral_abscissa, F, rigorous=True)
+    if not settle(out, test, "spectral_abscissa(rigorous=True)", case):
+        return
+    sa = out.value
+    if sa.value_bracket is None:
+        STATS.refusal(test)
+        return
+    hi = float(sa.value_bracket[1])
+    if not np.isfinite(hi):  # no zero at all (-inf): any box must be empty; +inf claims nothing
+        if hi > 0:
+            return
+        hi = -2.0
+    gap = 1e-3 * (1.0 + abs(hi))
+    y = 10.0 + (abs(sa.root.imag) if sa.root is not None else 0.0)
+    found = unsure_guard(lambda: o.roots_near((hi - 1.0, hi + 2.0, 0.0, y), delta))
+    if found is not None:
+        right = [r for r in found if r.real > hi + ulps(hi) + 1e-12 * (1 + abs(r))]
+        STATS.claim(not right, test, f"spectral_abscissa: bracket ends at {hi!r}, PDE root(s) {right[:3]}", case)
+
+    def box_count() -> int:
+        x0 = hi + gap
+        R = o.far_field(x0, delta, cap=400.0)
+        return o.count_in_box((x0, max(R, x0 + 1.0), -R, R), delta)
+
+    n = unsure_guard(box_count)
+    if n is not None:
+        STATS.claim(n == 0, test, f"spectral_abscissa: {n} PDE roots right of {hi + gap!r} (bracket {hi!r})", case)
+    if sa.root is not None and sa.root_box is not None:
+        r = unsure_guard(lambda: complex(o.polish(sa.root, delta)))
+        if r is not None:
+            x0, x1, y0, y1 = sa.root_box
+            slack = 1e-14 * (1 + abs(r))
+            inside = x0 - slack <= r.real <= x1 + slack and y0 - slack <= abs(r.imag) <= y1 + slack
+            STATS.claim(
+                inside and abs(r - sa.root) <= 1e-6 * (1 + abs(r)),
+                test,
+                f"spectral_abscissa: root {sa.root!r} (box {sa.root_box}), PDE root {r!r}",
+                case,
+            )
+
+
+def check_pde_roots(test: str, o: PDELoop, F: QuasiPolynomial, delta: float, box: tuple, case: str) -> None:
+    """Each proven box of ``find_roots(rigorous=True)`` holds a root of the PDE's ``F``."""
+    out = call(nr.find_roots, F, box, rigorous=True)
+    if not settle(out, test, "find_roots(rigorous=True)", case):
+        return
+    rs = out.value
+    for z, b, proof in zip(rs.roots, rs.boxes, rs.proofs):
+        if proof != "krawczyk":
+            STATS.unsure()  # a cluster: the secant iteration is not the oracle for it
+            continue
+        r = unsure_guard(partial(o.polish, complex(z), delta))
+        if r is None:
+            continue
+        r = complex(r)
+        slack = 1e-14 * (1 + abs(r))
+        STATS.claim(
+            b[0] - slack <= r.real <= b[1] + slack and b[2] - slack <= r.imag <= b[3] + slack,
+            test,
+            f"find_roots: proven box {tuple(b)} of {z!r}, PDE root {r!r}",
+            case + f", box = {box}",
+        )
+
+
+@budget(ci=3, weight=0.15)
+@given(constant_plants(), st.data())
+def _prop_constant_plants(plant: tuple, data: st.DataObject) -> None:
+    test = "pde_exact_route"
+    args, spec = plant
+    STATS.case()
+    case = f"Hyperbolic2x2{args}, {spec}"
+    lam, mu, spm, smp, q, rho = args
+    o = unsure_guard(lambda: PDELoop(lam, mu, spm, smp, q, rho, spec))
+    if o is None:
+        return
+    system, controller = nr.Hyperbolic2x2(*args), nrobust_controller(spec)
+    out = call(nr.delay_margin, system, controller, rigorous=True)
+    dm = out.value if settle(out, test, "delay_margin(rigorous=True)", case) else None
+    if dm is not None:
+        check_pde_margin(test, o, dm, case)
+    first = dm.margin if dm is not None and 0.0 < dm.margin < math.inf else 1.0
+    delta = data.draw(st.sampled_from([0.0, 0.5, 1.0, 1.5])) * first
+    dcase = case + f", delta = {delta!r}"
+    F = nr.characteristic(system, controller, delta)
+    check_pde_abscissa(test, o, F, delta, dcase)
+    x = data.draw(st.floats(-2.0, 0.5))
+    box = (x, x + data.draw(st.floats(0.3, 2.0)), -0.5, data.draw(st.floats(2.0, 20.0)))
+    check_pde_roots(test, o, F, delta, box, dcase)
+
+
+def test_constant_plants_against_the_pde() -> None:
+    """Proven margins, abscissae and root boxes of the exact route against the PDE's Laplace solution."""
+    run(_prop_constant_plants, "pde_exact_route")
 
 
 # ============================================================================ 5. bad input

@@ -50,6 +50,7 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
             spec["region"],
             spec["k_region"],
             rigorous=spec["rigorous"],
+            accuracy=spec.get("accuracy"),
         )
         bar.update(1)
         figures = []

@@ -24,6 +24,7 @@ from typing import Any, TypeVar
 import numpy as np
 import scipy
 
+from .._digits import with_accuracy
 from .._json import fields_dict, json_safe
 from .._validate import positive, positive_int, renamed_keywords
 from .._validate import region as check_region
@@ -33,7 +34,7 @@ from ..errors import CertificationError, ParameterError
 from ..hyperbolic import analyses
 from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion, delay_margin
 from ..hyperbolic.analyses.rouche import rouche_delay_bound
-from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID
+from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID, check_kernel_grid
 from ..hyperbolic.loops.controllers import (
     Classification,
     Controller,
@@ -43,6 +44,8 @@ from ..hyperbolic.loops.controllers import (
     characteristic,
     classify,
     loop_factors,
+    loop_route,
+    loop_scope,
     normalize,
 )
 from ..hyperbolic.loops.varying_form import DEFAULT_CHARACTERISTIC_GRID
@@ -152,21 +155,29 @@ class Claim:
 
 @dataclass(frozen=True)
 class ModelError:
-    """How far the represented loop is from the model: the kernel ``N~`` on a finite grid.
+    """How far the loop of the certificate is from the PDE.
 
-    The proofs of a rigorous certificate concern ``F`` as represented (``N~`` the cubic
-    spline on ``kernel_grid`` points); this is the separate, floating-point evidence on
-    the distance to the exact kernel: the delay margin on a grid half as fine.
+    On the exact route (constant coefficients, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`)
+    there is no model: ``N~`` is in closed form and its proven error bound is inside every
+    enclosure (``difference = 0``). On the kernel route the proofs concern ``F`` as
+    represented (``N~`` the cubic spline on ``kernel_grid`` points), and this is the separate,
+    floating-point evidence on its distance to the PDE: a convergence study of the delay
+    margin on the grid, one half as fine and one a quarter as fine.
 
     Attributes
     ----------
     kernel_grid, coarse_grid : int
-        The grid of the certificate and the coarser grid of the comparison.
+        The grid of the certificate and the grid half as fine (equal when no study was made).
     margin, coarse_margin : float
         The delay margins on both grids.
     difference : float
-        ``|margin - coarse_margin|``; with the margin's observed third-order convergence in
-        the grid (``docs/margins.md``) the error of ``margin`` is about ``difference / 7``.
+        ``|margin - coarse_margin|``: the estimate of the margin's model error. It bounds the
+        error when the convergence is monotone of order at least 1; the kernel route's order is
+        3 asymptotically but lower on coarse grids (``docs/margins.md``: 2.0 between 101 and 201
+        points on one plant), so the difference itself, not the difference over ``2^3 - 1``, is
+        the estimate.
+    order : float or None
+        The observed order ``log2`` of the ratio of the two differences (None when not measured).
     statement : str
         The evidence in words.
     """
@@ -177,6 +188,7 @@ class ModelError:
     coarse_margin: float
     difference: float
     statement: str
+    order: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinities as strings)."""
@@ -184,9 +196,19 @@ class ModelError:
 
 
 def _model_error(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int | None
 ) -> ModelError:
-    """The delay margin on the kernel grid and on one half as fine (floating point)."""
+    """No model on the exact route; on the kernel route, the margin on the grid and on two coarser ones."""
+    if loop_route(system, controller, grid) == "exact":
+        return ModelError(
+            0,
+            0,
+            margin.margin,
+            margin.margin,
+            0.0,
+            "no model: N~ in closed form, its proven error bound in every proof",
+        )
+    grid = DEFAULT_KERNEL_GRID if grid is None else grid
     coarse = (grid - 1) // 2 + 1
     if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
         steps = DEFAULT_CHARACTERISTIC_GRID
@@ -215,23 +237,32 @@ def _model_error(
             f"(at least {2 * MIN_KERNEL_GRID - 1} points): the model error is not estimated",
         )
     other = delay_margin(system, controller, kernel_grid=coarse).margin
-    if margin.margin == other:
-        diff = 0.0
-    elif np.isfinite(margin.margin) and np.isfinite(other):
-        diff = abs(margin.margin - other)
-    else:
-        diff = float("inf")
+    diff = _difference(margin.margin, other)
     if diff == 0.0 and not (np.isfinite(other) and other > 0.0):
         statement = (
             f"N~ is the cubic spline of the kernels on {grid} points; the delay margin is {other:g} on {coarse} "
             f"and on {grid} points (decided by the structure of the loop, not by the values of N~)"
         )
-    else:
-        statement = (
-            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin moves by {diff:.3g} from "
-            f"{coarse} to {grid} points (floating point; third-order convergence: error about {diff / 7.0:.2g})"
-        )
-    return ModelError(grid, coarse, float(margin.margin), float(other), float(diff), statement)
+        return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement)
+    coarsest = (coarse - 1) // 2 + 1
+    order = None
+    if coarsest >= MIN_KERNEL_GRID and np.isfinite(diff) and diff > 0.0:
+        farther = _difference(other, delay_margin(system, controller, kernel_grid=coarsest).margin)
+        order = float(np.log2(farther / diff)) if np.isfinite(farther) and farther > 0.0 else None
+    observed = "" if order is None else f", observed order {order:.2g} from {coarsest}, {coarse} and {grid} points"
+    statement = (
+        f"N~ is the cubic spline of the kernels on {grid} points; the delay margin moves by {diff:.2g} from "
+        f"{coarse} to {grid} points{observed}: its model error is estimated at {diff:.2g} (floating point, "
+        "not proven; the difference bounds the error when the convergence is monotone of order at least 1)"
+    )
+    return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement, order)
+
+
+def _difference(a: float, b: float) -> float:
+    """``|a - b|``, 0 when equal (infinities included), ``inf`` when one is infinite."""
+    if a == b:
+        return 0.0
+    return float(abs(a - b)) if np.isfinite(a) and np.isfinite(b) else float("inf")
 
 
 def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, grid: int) -> str:
@@ -459,11 +490,14 @@ class Certificate:
         Every claim with its status, :data:`PROVEN` or :data:`CHECKED` (see :attr:`scope`).
     model_error : ModelError or None
         With ``rigorous``: the floating-point evidence on the distance of ``N~`` to the kernel.
+    accuracy_target : float or None
+        The target of ``certify(..., accuracy=...)`` (:attr:`accuracy_statement`).
     unproven : tuple of str
         With ``rigorous``: the parts whose proof was refused (then checked in floating point), and why.
-    kernel_grid : int
-        Points per direction of the kernel grid of the certificate's loops (the K-region of
-        :func:`~nrobust.hyperbolic.analyses.k_region` is computed on its default grid).
+    kernel_grid : int or None
+        Points per direction of the kernel grid of the certificate's loops; None on the exact
+        route (no grid: ``N~`` in closed form). The K-region of
+        :func:`~nrobust.hyperbolic.analyses.k_region` is computed on its default route.
     """
 
     system: Hyperbolic2x2 | GeneralHyperbolic2x2
@@ -485,7 +519,30 @@ class Certificate:
     claims: tuple[Claim, ...] = ()
     model_error: ModelError | None = None
     unproven: tuple[str, ...] = ()
-    kernel_grid: int = DEFAULT_KERNEL_GRID
+    kernel_grid: int | None = None
+    accuracy_target: float | None = None
+
+    @property
+    def accuracy_statement(self) -> str:
+        """The delay margin's accuracy against the target of ``certify(..., accuracy=...)``, in words."""
+        achieved = self.margin_accuracy
+        text = "not estimated" if achieved is None else f"{achieved:.1e}"
+        if self.accuracy_target is None:
+            return f"delay margin {self.margin_text}: accuracy {text}"
+        met = achieved is not None and achieved <= self.accuracy_target
+        return (
+            f"delay margin {self.margin_text}: accuracy {text}, target {self.accuracy_target:.1e} "
+            + ("met" if met else "not met")
+            + ("" if met or self.route == "exact" else f" (kernel grid {self.kernel_grid}, the finest tried)")
+        )
+
+    @property
+    def route(self) -> str:
+        """``"exact"`` (the PDE's own loop) or ``"kernels"`` (a model).
+
+        See :func:`~nrobust.hyperbolic.loops.controllers.loop_route`.
+        """
+        return loop_route(self.system, self.controller, self.kernel_grid)
 
     @property
     def scope(self) -> str:
@@ -495,9 +552,15 @@ class Certificate:
                 "Every claim is checked in floating point with a rounding allowance (certify(..., rigorous=True) "
                 "proves them in ball arithmetic)."
             )
+        if self.route == "exact":
+            return (
+                "Claims marked proven hold for "
+                + loop_scope(self.system, self.controller, self.kernel_grid, loop_factors(self.system, self.controller))
+                + "; they are proven in ball arithmetic (python-flint)."
+            )
         return (
             "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
-            + _representation(self.system, self.controller, self.kernel_grid)
+            + _representation(self.system, self.controller, self.kernel_grid or DEFAULT_KERNEL_GRID)
             + "; they are proven in ball arithmetic (python-flint). The distance of N~ to the exact one (the model "
             "error) is not part of the proofs: "
             + (self.model_error.statement if self.model_error is not None else "not estimated")
@@ -514,6 +577,29 @@ class Certificate:
     def delay_margin(self) -> float:
         """``delta*`` (``inf`` when no crossing exists)."""
         return float(self.margin.margin)
+
+    @property
+    def margin_accuracy(self) -> float | None:
+        """A bound of the margin's distance to the plant's: proven, or estimated; None if unknown.
+
+        On the exact route, that of :attr:`DelayMargin.accuracy <nrobust.margins.margin.DelayMargin.accuracy>`
+        (the ball's radius when proven). On the kernel route, the model error of
+        :attr:`model_error` (estimated by a convergence study) plus the margin's own accuracy on
+        the model, when both are known.
+        """
+        if self.route == "exact" or not self.margin.of_model:
+            return self.margin.accuracy
+        if self.model_error is None or not np.isfinite(self.model_error.difference):
+            return None
+        on_model = self.margin.margin_ball
+        own = 0.0 if on_model is None else max(on_model[1] - self.delay_margin, self.delay_margin - on_model[0])
+        own = max(own, 1e-12 * abs(self.delay_margin)) if np.isfinite(self.delay_margin) else 0.0
+        return self.model_error.difference + own
+
+    @property
+    def margin_text(self) -> str:
+        """The margin with the digits its accuracy supports (:attr:`margin_accuracy`)."""
+        return with_accuracy(self.delay_margin, self.margin_accuracy)
 
     @property
     def delay_robust(self) -> bool:
@@ -536,9 +622,9 @@ class Certificate:
         if self.stable_up_to_delta_max:
             return (
                 f"{name}: delay-robust, stable for every delay in [0, {self.delta_max:g}] "
-                f"(delay margin {self.delay_margin:.6g})."
+                f"(delay margin {self.margin_text})."
             )
-        return f"{name}: delay-robust with margin {self.delay_margin:.6g} < delta_max = {self.delta_max:g}."
+        return f"{name}: delay-robust with margin {self.margin_text} < delta_max = {self.delta_max:g}."
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict[str, Any]:
@@ -551,6 +637,7 @@ class Certificate:
             "nominally_stable": self.nominally_stable,
             "delay_robust": self.delay_robust,
             "delay_margin": self.delay_margin,
+            "delay_margin_accuracy": self.margin_accuracy,
             "stable_up_to_delta_max": self.stable_up_to_delta_max,
             "scope": self.scope,
         }
@@ -564,7 +651,7 @@ class Certificate:
     def __repr__(self) -> str:
         return (
             f"Certificate({type(self.controller).__name__}, delta_max={self.delta_max:g}, "
-            f"margin={self.delay_margin:.6g}, nominally_stable={self.nominally_stable}, "
+            f"margin={self.margin_text}, nominally_stable={self.nominally_stable}, "
             f"delay_robust={self.delay_robust})"
         )
 
@@ -578,7 +665,8 @@ def certify(
     k_region: bool = True,
     n_gains: int = DEFAULT_N_GAINS,
     rigorous: bool = False,
-    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    kernel_grid: int | None = None,
+    accuracy: float | None = None,
 ) -> Certificate:
     """Certify the delay robustness of a plant and a controller on ``[0, delta_max]``.
 
@@ -613,17 +701,35 @@ def certify(
         nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
         Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
         :data:`PROVEN` or :data:`CHECKED`.
-    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid points of every kernel solved here (the characteristic functions, the
-        delay margin and the Rouché range; validated by the first of them,
-        :func:`~nrobust.hyperbolic.kernels.check_kernel_grid`).
+    kernel_grid : int, optional
+        Default: the exact route where it applies (constant coefficients: ``N~`` in closed
+        form, every proven claim a claim about the PDE, :attr:`Certificate.scope`), else
+        :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points. Given: the
+        kernel grid of every kernel solved here (the characteristic functions, the delay margin
+        and the Rouché range; validated by the first of them,
+        :func:`~nrobust.hyperbolic.kernels.check_kernel_grid`), a model of the PDE whose
+        distance to it :class:`ModelError` estimates.
+    accuracy : float, optional
+        Target accuracy of the delay margin. On the exact route it is met by the proof or
+        the floating-point estimate (:attr:`Certificate.margin_accuracy`); on the kernel
+        route the grid is refined (each grid ``2 n - 1`` points, up to
+        :data:`MAX_ACCURACY_GRID`) until the margin moves by less than ``accuracy`` from
+        the grid half as fine. :attr:`Certificate.accuracy_statement` says what was
+        achieved.
 
     Returns
     -------
     Certificate
     """
     delta_max = positive("delta_max", delta_max)
-    system, controller = normalize(system, controller)  # a general plant: its normal form
+    if kernel_grid is not None:
+        kernel_grid = check_kernel_grid(kernel_grid)
+    if accuracy is not None:
+        accuracy = positive("accuracy", accuracy)
+        if loop_route(system, controller, kernel_grid) != "exact":
+            kernel_grid = _grid_for(system, controller, kernel_grid or DEFAULT_KERNEL_GRID, accuracy)
+    if loop_route(system, controller, kernel_grid) != "exact":
+        system, controller = normalize(system, controller)  # a general plant: its normal form
     if not np.isfinite(delta_max):
         raise ParameterError("delta_max", "finite", delta_max)
     classification = classify(system)  # also checks the system
@@ -694,10 +800,32 @@ def certify(
             delta_max,
             _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
         ),
-        model_error=_model_error(system, controller, margin, kernel_grid) if rigorous else None,
+        model_error=_model_error(system, controller, margin, kernel_grid) if rigorous or accuracy else None,
         unproven=tuple(unproven),
         kernel_grid=kernel_grid,
+        accuracy_target=accuracy,
     )
+
+
+#: Finest kernel grid :func:`certify` refines to for an ``accuracy`` target on the kernel route.
+MAX_ACCURACY_GRID = 1601
+
+
+def _grid_for(system: Any, controller: Controller, grid: int, accuracy: float) -> int:
+    """The first grid ``n, 2 n - 1, ...`` on which the margin moves by less than ``accuracy`` from ``(n + 1) / 2``."""
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        return grid  # the characteristic route has no kernel grid to refine
+    while True:
+        coarse = (grid - 1) // 2 + 1
+        if coarse < MIN_KERNEL_GRID:
+            grid = 2 * grid - 1
+            continue
+        fine = delay_margin(system, controller, kernel_grid=grid, verify=False).margin
+        if _difference(fine, delay_margin(system, controller, kernel_grid=coarse, verify=False).margin) <= accuracy:
+            return grid
+        if 2 * grid - 1 > MAX_ACCURACY_GRID:
+            return grid
+        grid = 2 * grid - 1
 
 
 def _check_delta_max(

@@ -182,7 +182,8 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),
         ("spectral abscissa, delta = 0", _fmt(cert.abscissa.value), "spectral_abscissa"),
         ("nominally stable", _fmt(cert.nominally_stable), "delay_margin"),
-        ("delay margin delta*", _fmt(cert.delay_margin), "delay_margin"),
+        ("delay margin delta*", cert.margin_text, "delay_margin"),
+        ("accuracy of the delay margin", cert.accuracy_statement.split(": ", 1)[1], "certify"),
         ("crossing frequency at delta*", _fmt(m.omega), "delay_margin"),
         (
             "margin verified (residual and count)",

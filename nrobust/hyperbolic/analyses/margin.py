@@ -17,7 +17,7 @@ from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
 from ...roots import spectral_abscissa
-from ..loops.controllers import Controller, characteristic, loop_factors, loop_scope
+from ..loops.controllers import Controller, characteristic, loop_factors, loop_route, loop_scope
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
@@ -100,7 +100,10 @@ def delay_margin(
             type(system).__name__,
         )
     result = factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
-    return dataclasses.replace(result, scope=scope)
+    of_model = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and (
+        loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
+    )
+    return dataclasses.replace(result, scope=scope, of_model=of_model)
 
 
 def _scope(

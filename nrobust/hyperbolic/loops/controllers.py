@@ -389,7 +389,7 @@ def loop_scope(
         kernel = (
             f"N~ in closed form, stored within a proven {radius:.1e} that every enclosure includes"
             if radius
-            else "N~ = 0"
+            else "N~ = 0 exactly (uncoupled plant: no kernel)"
         )
         return f"the PDE itself ({kernel}; tau the double nearest 1/lam + 1/mu)"
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:

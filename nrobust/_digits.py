@@ -1,0 +1,52 @@
+"""Numbers printed with the digits their accuracy supports: ``0.22953913028 +- 2e-12``."""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["with_accuracy"]
+
+
+def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6) -> str:
+    """``value`` rounded to the decimal place of its accuracy, followed by ``+- accuracy``.
+
+    The accuracy is rounded up to one significant digit and the value to the same decimal
+    place, so the last printed digit is uncertain by at most a few units and no digit beyond
+    the accuracy is printed.
+
+    Parameters
+    ----------
+    value : float
+        The number.
+    accuracy : float or None
+        A bound (proven, or a conservative estimate) of ``|value - truth|``; 0 for an exact
+        value (printed in full); None when it is not known (``significant`` digits, marked).
+    significant : int, default 6
+        Significant digits printed when the accuracy is not known.
+
+    Examples
+    --------
+    >>> with_accuracy(0.22953913027614878, 1.6e-12)
+    '0.229539130276 +- 2e-12'
+    >>> with_accuracy(0.22953913027614878, None)
+    '0.229539 (accuracy not estimated)'
+    """
+    if not math.isfinite(value):
+        return "inf" if value > 0 else ("-inf" if value < 0 else "nan")
+    if accuracy is None or not math.isfinite(accuracy):
+        return f"{value:.{significant}g} (accuracy not estimated)"
+    if accuracy <= 0.0:
+        return repr(float(value))
+    if accuracy <= abs(value) * 2.0**-52 or accuracy < 1e-300:  # below the double's own resolution
+        return f"{float(value)!r} +- {accuracy:.0e}"
+    exponent = math.floor(math.log10(accuracy))
+    lead = math.ceil(accuracy / 10.0**exponent - 1e-9)
+    if lead >= 10:
+        lead, exponent = 1, exponent + 1
+    bound = f"{lead}e{exponent:+03d}".replace("e+0", "e+").replace("e-0", "e-")
+    if abs(value) >= 1e15 or (value != 0.0 and abs(value) < 1e-4):
+        digits = max(0, math.floor(math.log10(abs(value))) - exponent) if value else 0
+        return f"{value:.{digits}e} +- {bound}"
+    decimals = max(0, -exponent)
+    rounded = round(value, -exponent) if exponent > 0 else value
+    return f"{rounded:.{decimals}f} +- {bound}"
