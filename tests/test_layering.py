@@ -34,6 +34,7 @@ LAYER_NAMES = {BASE: "base", CORE: "core", RUNTIME: "runtime", HYPERBOLIC: "hype
 #: The base: errors, argument checks, JSON, Newton, progress bars, atomic writes, moved paths,
 #: python-flint access (loading, precision, Krawczyk's test).
 BASE_MODULES = {
+    "nrobust._digits",
     "nrobust.errors",
     "nrobust._validate",
     "nrobust._progress",

@@ -429,7 +429,11 @@ def test_paper_certificates_prove_the_central_claims() -> None:
     claims = {c.name: c for c in bs2.claims}
     for name in ("nominal stability", "stability up to delta_max", "crossing that fixes delta*", "delay margin"):
         assert claims[name].status == PROVEN, name
-    assert bs2.model_error is not None and 0.0 < bs2.model_error.difference < 1e-8
+    # the exact route: no model between the proofs and the PDE
+    assert bs2.route == "exact" and bs2.model_error is not None and bs2.model_error.difference == 0.0
+    assert bs2.scope.startswith("Claims marked proven hold for the PDE itself")
+    lo, hi = bs2.margin.margin_ball
+    assert lo <= 0.2295391302761485093812871100572 <= hi  # the crossing equations at 40 digits (test_exact_form)
     bs = certify(plant, FiniteTimeController(), 0.01, region=(-1.5, 0.5, -2.0, 2.0), k_region=False, rigorous=True)
     claims = {c.name: c for c in bs.claims}
     assert claims["instability at delta_max"].status == PROVEN

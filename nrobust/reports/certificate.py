@@ -199,6 +199,10 @@ def _model_error(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int | None
 ) -> ModelError:
     """No model on the exact route; on the kernel route, the margin on the grid and on two coarser ones."""
+    if getattr(system, "uncoupled", False):
+        return ModelError(
+            0, 0, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
+        )
     if loop_route(system, controller, grid) == "exact":
         return ModelError(
             0,
