@@ -542,8 +542,10 @@ def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], 
     return nodes, values, tv, dev
 
 
-def _exact_l1_modulus(nodes: list[Fraction], values: list[Fraction], d: Fraction) -> Fraction:
+def _exact_l1_modulus(nodes: list[Any], values: list[Any], d: Any) -> Any:
     """``int |N_lin(nu) - N_lin(nu - d)| dnu`` exactly (``N_lin`` linear, zero outside its support).
+
+    The rationals are ``Fraction`` or FLINT's ``fmpq`` (:func:`_fast_modulus`), all of one type.
 
     The breakpoints (the nodes and the nodes shifted by ``d``) are merged in order and every
     one-sided limit is read by a pointer that only moves forward: linear in the number of
@@ -572,17 +574,17 @@ def _fast_modulus(nodes: list[Fraction], values: list[Fraction]) -> Callable[[Fr
     fv = [flint.fmpq(v.numerator, v.denominator) for v in values]
 
     def modulus(d: Fraction) -> Fraction:
-        out = _exact_l1_modulus(fn, fv, flint.fmpq(d.numerator, d.denominator))
+        out: Any = _exact_l1_modulus(fn, fv, flint.fmpq(d.numerator, d.denominator))
         return Fraction(int(out.p), int(out.q))
 
     return modulus
 
 
-def _differences(a: list[Fraction], b: list[Fraction]) -> list[Fraction]:
+def _differences(a: list[Any], b: list[Any]) -> list[Any]:
     return [x - y for x, y in zip(a, b)]
 
 
-def _limits(nodes: list[Fraction], values: list[Fraction], queries: list[Fraction], right: bool) -> list[Fraction]:
+def _limits(nodes: list[Any], values: list[Any], queries: list[Any], right: bool) -> list[Any]:
     """One-sided limits of the linear interpolant (zero outside the nodes) at increasing ``queries``.
 
     The index is that of :func:`bisect.bisect_right` (``right``) or :func:`bisect.bisect_left`,

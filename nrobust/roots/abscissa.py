@@ -467,11 +467,17 @@ def _neutral_abscissa(
     proof: int | None = None,
 ) -> SpectralAbscissa:
     """Exhaustive search of ``Re s >= x_min`` (inside the disc of ``radius``), then of a
-    band below ``x_min`` near the chains."""
-    right = (x_min, max(x_min, radius) + 1.0, *_band(radius, real))
-    roots = _roots(F, right, cluster_tol, max_evals, proof)
-    if roots.count > 0:
-        return _abscissa_from(roots, chain_value, x_min, roots.certified, upper_from_roots=roots.certified)
+    band below ``x_min`` near the chains.
+
+    Right of ``x_min`` the search is the march of :func:`_march` with ``x_min`` as its
+    floor, from the far field of ``Re s >= max(x_min, 0)``: it ends with the rightmost
+    root, or with a radius ``R <= radius`` such that no root has ``Re s >= x_min``.
+    """
+    x_right, r_right = (x_min, radius) if x_min >= 0.0 else _right_half_plane(F, 0.0, 1.0)
+    marched = _march(F, x_right, r_right, x_min, chain_value, real, cluster_tol, max_evals, proof)
+    if isinstance(marched, SpectralAbscissa):
+        return marched
+    radius = min(radius, marched)
     chains = D.chains()
     period = chains.chains[0].spacing if chains.commensurate and chains.chains else 2 * np.pi / max(F.max_delay, 1e-3)
     height = float(im_max) if im_max is not None else max(radius, 100.0, 2 * period)
@@ -592,19 +598,7 @@ def _retarded_abscissa(
     max_evals: int,
     proof: int | None = None,
 ) -> SpectralAbscissa:
-    """The rightmost root of a retarded ``F`` by a march on the root-free far field.
-
-    No root has ``Re s >= x_max = max(x_right, radius) + 1`` (the roots with
-    ``Re s >= x_right`` lie in ``|s| < radius``). For a radius ``R``, ``F`` has no root in
-    ``{Re s >= x(R), |s| >= R}`` (:func:`_far_field_edge`), so every root with
-    ``Re s >= x(R)`` lies in the box ``[x(R), min(x_max, R)] x [-R, R]``. The march starts
-    from the smallest ``R = radius 2^-k >= 1`` for which the far field holds at ``x_max``
-    (``x(R)`` is then far right and the box small) and doubles ``R``, which moves
-    ``x(R)`` to the left (for long delays by about ``ln 2 / tau`` per step: the rightmost
-    roots of ``s + a + b e^{-tau s}`` sit near the axis, at ``|s| ~ |b| e^{-tau Re s}``). It
-    stops at the first box holding a root with ``Re s >= x(R)``: that root is the
-    rightmost one of ``F``. The boxes grow geometrically, so the work is about twice
-    that of the last box, and only the band that can hold the rightmost root is searched.
+    """The rightmost root of a retarded ``F`` by a march on the root-free far field (:func:`_march`).
 
     A retarded ``F`` of degree ``n >= 1`` has roots (infinitely many if it has a delayed
     term), so the march ends with a root; the abscissa ``-inf`` is certified only for
@@ -613,14 +607,53 @@ def _retarded_abscissa(
     march ends with :class:`~nrobust.errors.CertificationError` when the work bound
     ``max_evals`` (shared by all steps) is exhausted.
     """
-    n = _degree(F)
-    x_max = max(x_right, radius) + 1.0
-    whole = _is_exponential_polynomial(F)
-    if whole:
+    if _is_exponential_polynomial(F):
         half = 1.01 * max(radius, _MIN_HALF_HEIGHT)
         exact = _polynomial_abscissa(F, (-half, half, *_band(half, real)))
         if exact is not None:
             return exact
+    marched = _march(F, x_right, radius, -np.inf, -np.inf, real, cluster_tol, max_evals, proof)
+    if isinstance(marched, SpectralAbscissa):
+        return marched
+    raise AssertionError("unreachable: a march without a floor ends with a root or an error")
+
+
+def _march(
+    F: QuasiPolynomial,
+    x_right: float,
+    radius: float,
+    x_floor: float,
+    chain_value: float,
+    real: bool,
+    cluster_tol: float,
+    max_evals: int,
+    proof: int | None = None,
+) -> SpectralAbscissa | float:
+    """The rightmost root of ``F`` right of ``x_floor`` by a march on the root-free far field.
+
+    No root has ``Re s >= x_max = max(x_right, radius) + 1`` (the roots with
+    ``Re s >= x_right`` lie in ``|s| < radius``). For a radius ``R``, ``F`` has no root in
+    ``{Re s >= x(R), |s| >= R}`` (:func:`_far_field_edge`, not below ``x_floor``), so every
+    root with ``Re s >= x(R)`` lies in the box ``[x(R), min(x_max, R)] x [-R, R]``. The
+    march starts from the smallest ``R = radius 2^-k >= 1`` for which the far field holds at
+    ``x_max`` (``x(R)`` is then far right and the box small) and doubles ``R``, which moves
+    ``x(R)`` to the left (for long delays by about ``ln 2 / tau`` per step: the rightmost
+    roots of ``s + a + b e^{-tau s}`` sit near the axis, at ``|s| ~ |b| e^{-tau Re s}``). It
+    stops at the first box holding a root with ``Re s >= x(R)``: that root is the
+    rightmost one of ``F``. The boxes grow geometrically, so the work is about twice
+    that of the last box, and only the band that can hold the rightmost root is searched.
+
+    For a neutral ``F`` the far field holds only right of ``C_D``: ``x_floor`` is the left
+    edge of a far field already established. When ``x(R)`` reaches it and no root lies
+    right of it, the march returns that ``R``: no root has ``Re s >= x_floor`` and
+    ``|s| >= R``, nor (the box being counted) ``|s| < R``. The far field at ``x_floor``
+    may need an astronomical radius (the distributed terms grow like ``e^{-nu Re s}``
+    left of the axis) where the rightmost root sits near the axis at a moderate
+    ``R``: the march finds it without searching that disc.
+    """
+    n = _degree(F)
+    x_max = max(x_right, radius) + 1.0
+    whole = _is_exponential_polynomial(F)
     # boxes are at least _MIN_HALF_HEIGHT high: start there, or lower while the far field holds at x_max
     R = max(radius, _MIN_HALF_HEIGHT)
     while 0.5 * R >= _MIN_HALF_HEIGHT and _far_field_holds(F, n, x_max, 0.5 * R):
@@ -628,13 +661,15 @@ def _retarded_abscissa(
     budget = Budget(max_evals)
     for _ in range(_MAX_STEPS):
         half = 1.01 * max(R, _MIN_HALF_HEIGHT)  # edges off the disc |s| < R that holds the roots
-        x_far = -np.inf if whole else _far_field_edge(F, n, R, x_max)
+        reg: Region = (0.0, 0.0, 0.0, 0.0)
+        found: RootSet | None = None
+        x_far = -np.inf if whole else _far_field_edge(F, n, R, x_max, max(-R, x_floor))
         box = (max(x_far, -half), min(x_max, half), *_band(half, real))
         if box[0] < box[1]:  # else no root has Re s >= x_far
             finder = Finder(F, box, cluster_tol, budget)
             total, reg, shifted = count_with_shifts(finder.counter, box, _ABSCISSA_SHIFTS)
             if total > 0:
-                roots = find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
+                roots = found = find_counted(finder, total, reg, shifted, np.zeros(0, dtype=complex))
                 # a root left of x_far (in an edge shift) may have unseen roots to its right
                 if len(roots) and np.max(roots.roots.real) >= x_far:
                     if proof is not None:  # the two far fields and the box, proven
@@ -647,13 +682,37 @@ def _retarded_abscissa(
                             )
                         roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
                     roots = _separated(F, roots, max_evals)
-                    return _abscissa_from(roots, -np.inf, x_max, roots.certified, upper_from_roots=roots.certified)
+                    return _abscissa_from(
+                        roots, chain_value, x_max, roots.certified, upper_from_roots=roots.certified
+                    )
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
                 if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
                     raise CertificationError(f"ball arithmetic does not confirm that {reg} holds no root")
                 return SpectralAbscissa(-np.inf, None, False, -np.inf, -np.inf, True, reg)
+        if np.isfinite(x_floor) and x_far <= x_floor:  # no root right of the floor: the caller searches left of it
+            if proof is not None and box[0] < box[1]:
+                _confirm_far_field(F, [(x_floor, R * f) for f in (1.0, 1.0 + 1e-6, 1.0 + 1e-4, 1.005)], proof)
+                _prove_left_of(F, found, reg, x_floor, max_evals, proof)
+            return R
         R *= 2.0
     raise CertificationError(f"spectral_abscissa: no root found with |s| < {R:.6g}; raise max_evals or give a region")
+
+
+def _prove_left_of(
+    F: QuasiPolynomial, found: RootSet | None, reg: Region, x_floor: float, max_evals: int, proof: int
+) -> None:
+    """Prove in ball arithmetic that the box ``reg`` holds no root with ``Re s >= x_floor``
+    (``found``: its roots found in floating point, None if it counted none), or raise CertificationError."""
+    balls = ball_function(F, proof)
+    if found is None:
+        if ball_count_with_shifts(balls, reg, 0, Budget(max_evals))[0] != 0:
+            raise CertificationError(f"ball arithmetic does not confirm that {reg} holds no root")
+        return
+    roots = prove(F, found, balls, Budget(max_evals), _ABSCISSA_SHIFTS)
+    if float(np.max(roots.boxes[:, 1])) >= x_floor:
+        raise CertificationError(
+            f"ball arithmetic cannot place the roots of {reg} left of Re s = {x_floor:.12g}; give a region"
+        )
 
 
 def _abscissa_from(

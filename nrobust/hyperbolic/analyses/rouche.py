@@ -23,6 +23,7 @@ from fractions import Fraction
 from ..._validate import renamed_keywords
 from ...bounds import RoucheDelayBound, delay_bound_from_kernel
 from ...errors import ParameterError
+from ...quasipoly import DistributedDelay
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import Controller, FiniteTimeController, ReflectionController, cached_varying_delay_form
 from ..loops.delay_form import delay_form
@@ -33,7 +34,7 @@ from ..plants.hyperbolic2x2 import Hyperbolic2x2
 __all__ = ["rouche_delay_bound"]
 
 #: Nodes of the linearised closed-form ``N~`` whose L1 modulus bounds ``|I(s, delta)|``.
-_LINEAR_POINTS = 4001
+_LINEAR_POINTS = 1001
 
 
 @renamed_keywords(n="kernel_grid")
@@ -80,35 +81,33 @@ def rouche_delay_bound(
     -------
     RoucheDelayBound
     """
-    if isinstance(system, GeneralHyperbolic2x2):
-        if not system.constant_ratio:
-            return _varying_bound(system, controller, rigorous)
-        system = system.normal_form().system
-    if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
+    grid = None if kernel_grid is None else check_kernel_grid(kernel_grid)
+    closed: DistributedDelay | None = None
+    if grid is None and has_exact_form(system):  # N~ in closed form: a bound for the PDE itself
+        form = exact_form(system)
+        q, rho, closed = form.q, form.rho, form.N_tilde
+    else:
+        if isinstance(system, GeneralHyperbolic2x2):
+            if not system.constant_ratio:
+                return _varying_bound(system, controller, rigorous)
+            system = system.normal_form().system
+        if not isinstance(system, Hyperbolic2x2):
+            raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
+        q, rho = float(system.q), float(system.rho)
     if isinstance(controller, ReflectionController):
         K = float(controller.K)
     elif isinstance(controller, FiniteTimeController):
-        K = float(system.rho)
+        K = rho
     else:
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
-    grid = None if kernel_grid is None else check_kernel_grid(kernel_grid)
-    eps0 = 1.0 - abs(system.q * system.rho) - abs(K * system.q)
+    eps0 = 1.0 - abs(q * rho) - abs(K * q)
     if rigorous:  # the float at or below the exact 1 - |q rho| - |K q|
-        exact = (
-            1
-            - abs(Fraction(float(system.q)) * Fraction(float(system.rho)))
-            - abs(Fraction(K) * Fraction(float(system.q)))
-        )
-        eps0 = float(exact)
-        if Fraction(eps0) > exact:
-            eps0 = math.nextafter(eps0, -math.inf)
-    if system.uncoupled:
-        N = None
-    elif grid is None and has_exact_form(system):
-        closed = exact_form(system).N_tilde
+        eps0 = _epsilon_0(1 - abs(Fraction(q) * Fraction(rho)) - abs(Fraction(K) * Fraction(q)), True)
+    if closed is not None:
         # the L1 modulus is sharp for a fine linear kernel: the closed form's pieces, linearised
-        N = None if closed is None else closed.linearized(_LINEAR_POINTS)
+        N = closed.linearized(_LINEAR_POINTS)
+    elif (grid is None and has_exact_form(system)) or getattr(system, "uncoupled", False):
+        N = None  # N~ = 0
     else:
         N = delay_form(system, DEFAULT_KERNEL_GRID if grid is None else grid).N_tilde
     bound = delay_bound_from_kernel(N, eps0, K, rigorous=rigorous)
