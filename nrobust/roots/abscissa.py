@@ -489,7 +489,7 @@ def _neutral_abscissa(
     upper = _band_edge(F, low[0], x_min, height, proof) if band.certified else x_min
     if len(band):  # a root near or right of the edge: its certified box (inside its disc) bounds the value
         upper = min(max(upper, float(np.max(band.boxes[:, 1]))), x_min)  # the right region holds no root
-    return _abscissa_from(band, chain_value, upper, band.certified and roots.certified)
+    return _abscissa_from(band, chain_value, upper, band.certified)
 
 
 def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, proof: int | None) -> float:
@@ -682,9 +682,7 @@ def _march(
                             )
                         roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
                     roots = _separated(F, roots, max_evals)
-                    return _abscissa_from(
-                        roots, chain_value, x_max, roots.certified, upper_from_roots=roots.certified
-                    )
+                    return _abscissa_from(roots, chain_value, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
                 if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
                     raise CertificationError(f"ball arithmetic does not confirm that {reg} holds no root")

@@ -44,16 +44,35 @@ _SEED_DEGREE = 128
 
 # ====================================================================== refinement
 def _newton(
-    F: QuasiPolynomial, s0: NDArray[np.complex128], budget: Budget, max_step: float, iters: int = 60
+    F: QuasiPolynomial,
+    s0: NDArray[np.complex128],
+    budget: Budget,
+    max_step: float,
+    iters: int = 60,
+    within: Region | None = None,
 ) -> NDArray[np.complex128]:
     """Newton's method on ``F`` from the seeds ``s0`` (nan where it did not converge).
 
     Each step is charged to ``budget``; a point that stops short of the step test (a
     linearly converging multiple root) is kept when its residual is at rounding level.
+    A point that leaves ``within`` (a box, enlarged by half its size on each side) is
+    dropped: the candidates are kept only inside the region searched, and a seed drifting
+    towards a root far outside it would spend up to ``iters`` steps for nothing.
     """
+    if within is not None:
+        x0, x1, y0, y1 = within
+        dx, dy = 0.5 * (x1 - x0), 0.5 * (y1 - y0)
+        lo_x, hi_x, lo_y, hi_y = x0 - dx, x1 + dx, y0 - dy, y1 + dy
 
     def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        return F(x), F.deriv_at(x)
+        if within is None:
+            return F(x), F.deriv_at(x)
+        out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
+        f = np.full(x.size, np.nan, dtype=complex)
+        d = np.full(x.size, np.nan, dtype=complex)
+        keep = ~out
+        f[keep], d[keep] = F(x[keep]), F.deriv_at(x[keep])
+        return f, d
 
     def spend(n: int) -> None:
         budget.spend(2 * n, "refining roots by Newton's method")
@@ -453,7 +472,7 @@ class Finder:
 
     def seed_and_accept(self, seeds: NDArray[np.complex128], max_step: float) -> None:
         if seeds.size:
-            self.accept(_newton(self.F, seeds, self.budget, max_step))
+            self.accept(_newton(self.F, seeds, self.budget, max_step, within=self.region))
 
     # ------------------------------------------------------------ subdivision
     def _split(self, box: Region) -> tuple[Region, Region]:
@@ -530,7 +549,7 @@ class Finder:
                 return
             seeds = np.concatenate([self.grid_seeds(b, 9) for b, _ in pending])
             size = max(max(b[1] - b[0], b[3] - b[2]) for b, _ in pending)
-            self.accept(_newton(self.F, seeds, self.budget, size), [b for b, _ in pending])
+            self.accept(_newton(self.F, seeds, self.budget, size, within=self.region), [b for b, _ in pending])
             children: list[Region] = []
             parents: list[tuple[Region, int]] = []
             for box, c in pending:
