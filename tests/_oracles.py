@@ -53,7 +53,7 @@ from __future__ import annotations
 import inspect
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -488,38 +488,68 @@ class LoopOracle:
             pv = np.polynomial.polynomial.polyval
             return pv(s, a) + pv(s, b) * np.exp(-delta * s)
 
-        # Arc: angle from -pi/2 to pi/2; axis: Im s from R down to -R. Pieces as parameter pairs.
-        total = 0.0
-        for kind in ("arc", "axis"):
-            lo, hi = (-0.5 * math.pi, 0.5 * math.pi) if kind == "arc" else (R, -R)
-            t = np.linspace(lo, hi, 257)
-            starts, ends = t[:-1], t[1:]
-            pieces = starts.size
-            while starts.size:
-                if kind == "arc":
-                    s1, s2 = R * np.exp(1j * starts), R * np.exp(1j * ends)
-                    length = R * np.abs(ends - starts)
-                    rmax = np.full(starts.shape, R)
-                else:
-                    s1, s2 = 1j * starts, 1j * ends
-                    length = np.abs(ends - starts)
-                    rmax = np.maximum(np.abs(starts), np.abs(ends))
-                M = absval(da, rmax) + absval(db, rmax) + delta * absval(b, rmax)
-                f1, f2 = F(s1), F(s2)
-                slack = 1e-12 * (absval(a, rmax) + absval(b, rmax))
-                ok = np.abs(f1) > M * length + slack
-                total += float(np.sum(np.angle(f2[ok] / f1[ok])))
-                mid = 0.5 * (starts[~ok] + ends[~ok])
-                starts = np.concatenate([starts[~ok], mid])
-                ends = np.concatenate([mid, ends[~ok]])
-                pieces += mid.size
-                if pieces > max_pieces:
-                    raise OracleUnsure(f"argument principle: more than {max_pieces} pieces (root near the contour)")
+        def bound(r: np.ndarray) -> np.ndarray:
+            return absval(da, r) + absval(db, r) + delta * absval(b, r)
+
+        def slack(r: np.ndarray) -> np.ndarray:
+            return 1e-12 * (absval(a, r) + absval(b, r))
+
+        # Arc: angle from -pi/2 to pi/2; axis: Im s from R down to -R.
+        arc, arc_pieces = _turn_along(
+            lambda t: R * np.exp(1j * t),
+            R,
+            F,
+            bound,
+            slack,
+            (-0.5 * math.pi, 0.5 * math.pi),
+            257,
+            max_pieces,
+            "contour",
+        )
+        axis, _ = _turn_along(lambda t: 1j * t, 1.0, F, bound, slack, (R, -R), 257, max_pieces - arc_pieces, "contour")
+        total = arc + axis
         turns = total / (2.0 * math.pi)
         n = round(turns)
         if abs(turns - n) > 1e-6:
             raise AssertionError(f"oracle: non-integer winding {turns}")
         return int(n)
+
+
+def _turn_along(
+    point: Callable[[np.ndarray], np.ndarray],
+    speed: float,
+    F: Callable[[np.ndarray], np.ndarray],
+    bound: Callable[[np.ndarray], np.ndarray],
+    slack: Callable[[np.ndarray], np.ndarray],
+    span: tuple[float, float],
+    samples: int,
+    max_pieces: int,
+    where: str,
+) -> tuple[float, int]:
+    """The turn of ``arg F`` along ``point(t)``, ``t`` over ``span`` (``|ds/dt| = speed``), and the pieces used.
+
+    A piece of length ``L`` is accepted when ``|F(s_1)| > bound(r) L + slack(r)`` (``bound`` a bound of
+    ``|F'|`` within radius ``r``): ``F`` has no zero on it and turns by less than ``pi/2``; otherwise it
+    is halved. OracleUnsure beyond ``max_pieces`` (a zero near the path).
+    """
+    t = np.linspace(span[0], span[1], samples)
+    starts, ends = t[:-1], t[1:]
+    total, pieces = 0.0, starts.size
+    with np.errstate(all="ignore"):
+        while starts.size:
+            s1, s2 = point(starts), point(ends)
+            r = np.maximum(np.abs(s1), np.abs(s2))
+            f1, f2 = F(s1), F(s2)
+            length = speed * np.abs(ends - starts)
+            ok = np.isfinite(f1) & np.isfinite(f2) & (np.abs(f1) > bound(r) * length + slack(r))
+            total += float(np.sum(np.angle(f2[ok] / f1[ok])))
+            mid = 0.5 * (starts[~ok] + ends[~ok])
+            starts = np.concatenate([starts[~ok], mid])
+            ends = np.concatenate([mid, ends[~ok]])
+            pieces += mid.size
+            if pieces > max_pieces:
+                raise OracleUnsure(f"argument principle: more than {max_pieces} pieces (a zero near the {where})")
+    return total, pieces
 
 
 def _abs2_on_axis(p: list[Fraction]) -> list[Fraction]:
@@ -820,24 +850,18 @@ class PDELoop:
         total, pieces = 0.0, 0
         with np.errstate(all="ignore"):
             for c1, c2 in itertools.pairwise(corners):
-                t = np.linspace(0.0, 1.0, 513)
-                starts, ends = t[:-1], t[1:]
-                pieces += starts.size
-                while starts.size:
-                    s1, s2 = c1 + (c2 - c1) * starts, c1 + (c2 - c1) * ends
-                    length = np.abs(s2 - s1)
-                    r = np.maximum(np.abs(s1), np.abs(s2))
-                    M = self._derivative_bound(x0, delta, r)
-                    f1, f2 = self.F_np(s1, delta), self.F_np(s2, delta)
-                    slack = 1e-11 * self._size_bound(x0, delta, r) * (1 + r * self.tau)
-                    ok = np.isfinite(f1) & np.isfinite(f2) & (np.abs(f1) > M * length + slack)
-                    total += float(np.sum(np.angle(f2[ok] / f1[ok])))
-                    mid = 0.5 * (starts[~ok] + ends[~ok])
-                    starts = np.concatenate([starts[~ok], mid])
-                    ends = np.concatenate([mid, ends[~ok]])
-                    pieces += mid.size
-                    if pieces > max_pieces:
-                        raise OracleUnsure(f"argument principle: more than {max_pieces} pieces (zero near {box})")
+                turn, used = _turn_along(
+                    lambda t, c1=c1, c2=c2: c1 + (c2 - c1) * t,
+                    abs(c2 - c1),
+                    lambda z: self.F_np(z, delta),
+                    lambda r: self._derivative_bound(x0, delta, r),
+                    lambda r: 1e-11 * self._size_bound(x0, delta, r) * (1 + r * self.tau),
+                    (0.0, 1.0),
+                    513,
+                    max_pieces - pieces,
+                    str(box),
+                )
+                total, pieces = total + turn, pieces + used
         turns = total / (2.0 * math.pi)
         n = round(turns)
         if abs(turns - n) > 1e-6:
