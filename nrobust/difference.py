@@ -73,7 +73,16 @@ def _polynomial_roots(
     about a second)."""
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
-    return cluster_polynomial_roots(np.roots(poly[::-1]).astype(complex))
+    try:
+        with np.errstate(all="ignore"):
+            roots = np.roots(poly[::-1])
+    except np.linalg.LinAlgError as exc:  # the companion matrix overflows (coefficients of extreme ratio)
+        nonzero = np.log10(np.abs(poly[poly != 0]))
+        raise CertificationError(
+            f"the principal part's coefficients span a ratio of 1e{float(np.max(nonzero) - np.min(nonzero)):.0f}, "
+            "beyond double precision: its root chains cannot be located (drop the negligible terms, or rescale)"
+        ) from exc
+    return cluster_polynomial_roots(roots.astype(complex))
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:

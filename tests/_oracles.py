@@ -770,12 +770,15 @@ class PDELoop:
 
     # ---------------------------------------------------------------- bounds on Re s >= x0
     def _consts(self, x0: float, delta: float) -> tuple[float, float, float, float]:
-        return (
-            math.exp(-self.tau * x0),
-            math.exp(-delta * x0),
-            math.exp(self.tau * max(0.0, -x0)),
-            abs(self.rho * self.q),
-        )
+        try:
+            return (
+                math.exp(-self.tau * x0),
+                math.exp(-delta * x0),
+                math.exp(self.tau * max(0.0, -x0)),
+                abs(self.rho * self.q),
+            )
+        except OverflowError:
+            raise OracleUnsure(f"bounds at Re s >= {x0:.4g} overflow double precision") from None
 
     def principal_gap(self, x0: float, delta: float) -> float:
         """Lower bound of ``|principal part|/|s|^n`` on ``Re s >= x0`` (``> 0``: strongly dominated)."""

@@ -192,3 +192,13 @@ def test_cluster_without_flint_is_a_bracket(cluster: list[mpmath.mpc], monkeypat
     coefs, tau = _mazanti()
     sa = spectral_abscissa(QuasiPolynomial(coefs, [0.0, tau]))
     assert sa.value <= truth <= sa.upper_bound
+
+
+def test_principal_part_beyond_double_range_is_refused_by_name() -> None:
+    """Coefficients 1 and 1e-310 (a reflection of 1e-310): the companion matrix overflowed and
+    numpy's ``LinAlgError`` escaped from ``spectral_abscissa``; now a CertificationError says why."""
+    from nrobust.difference import DifferenceOperator
+    from nrobust.errors import CertificationError
+
+    with pytest.raises(CertificationError, match="beyond double precision"):
+        DifferenceOperator([1.0, 1e-310], [0.0, 3.0]).chains()

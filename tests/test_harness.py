@@ -130,8 +130,12 @@ def settle(out: Outcome, test: str, what: str, case: Any) -> bool:
 def run(prop: Callable[[], None], test: str) -> None:
     """Run a property over its budget, then fail if it collected contradictions."""
     before = len(STATS.contradictions)
-    prop()
-    new = [c for c in STATS.contradictions[before:] if c["test"] == test]
+    try:
+        prop()
+    finally:  # the contradictions found before an error of the harness itself are reported too
+        new = [c for c in STATS.contradictions[before:] if c["test"] == test]
+        for c in new:
+            print(f"contradiction in {test}: {c['what']}\n    case: {c['case']}")
     if new:
         lines = [f"{len(new)} contradiction(s) in {test}:"] + [
             f"- {c['what']}\n    case: {c['case']}" for c in new[:40]
