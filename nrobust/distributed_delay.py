@@ -637,7 +637,7 @@ class DistributedDelay:
 
         The error bound grows by the interpolation error ``D^2 / 8 max |N''|`` (``D`` the node
         spacing, ``|N''|`` bounded on each stored segment by ``sum_j j (j - 1) |P_j| / h^2``) and by
-        the rounding of the sampled values (``(degree + 2) 2^-52 max sum_j |P_j|``), so every bound
+        the rounding of the sampled values (``(3 degree + 2) 2^-53 max sum_j |P_j|``), so every bound
         of the linear term (e.g. the L1 modulus of :func:`nrobust.bounds.l1_modulus`) holds for the
         true kernel. Used where a bound is sharp for fine linear kernels only.
 
@@ -654,7 +654,8 @@ class DistributedDelay:
         degree = poly_t.shape[1] - 1
         j = np.arange(poly_t.shape[1])
         curvature = np.max(np.sum(np.abs(poly_t) * j * (j - 1), axis=1) / h**2)
-        rounding = (degree + 2) * 2.0**-52 * float(np.max(np.sum(np.abs(poly_t), axis=1)))
+        # t = (nu - start) / h rounded (up to sum_j j |P_j| 2^-53) and Horner's rounding (2 degree 2^-53)
+        rounding = (3 * degree + 2) * 2.0**-53 * float(np.max(np.sum(np.abs(poly_t), axis=1)))
         breaks = np.r_[0, np.flatnonzero(np.diff(self.nodes) == 0) + 1, self.nodes.size]
         nodes, values, extra = [], [], 0.0
         for lo, hi in itertools.pairwise(breaks):
@@ -669,12 +670,11 @@ class DistributedDelay:
             values.append(np.append(inner, last))
             extra = max(extra, ((b - a) / (points - 1)) ** 2 / 8.0 * curvature)
         radius = _up(self.radius + extra + rounding)
+        x, v = np.concatenate(nodes), np.concatenate(values)
+        # TV(N_true - N_lin) <= TV(N_true) + TV(N_lin) on (a, b), jumps included
+        linear_tv = float(np.sum(np.abs(np.diff(v))))
         return DistributedDelay(
-            np.concatenate(nodes),
-            np.concatenate(values),
-            interpolation="linear",
-            radius=radius,
-            variation_radius=_up(self.variation_radius + 2.0 * radius),
+            x, v, interpolation="linear", radius=radius, variation_radius=_up(self.total_variation() + linear_tv)
         )
 
     # ------------------------------------------------------------------ bounds
@@ -746,7 +746,8 @@ class DistributedDelay:
         ``P_2 (t^2 - t) + P_3 (t^3 - t) = -t (1 - t) (P_2 + P_3 + P_3 t)`` for a cubic, whose
         modulus integrates to at most ``|P_2 + P_3| / 6 + |P_3| / 12`` (exact when
         ``P_3 = 0``); a term ``P_l (t^l - t)`` of higher degree adds ``|P_l| (1/2 - 1/(l + 1))``,
-        and the error bound of ``N_true`` adds ``radius (b - a)``.
+        a jump between polynomial pieces ``h |P_i(1) - P_{i+1}(0)| / 2``, and the error bound of
+        ``N_true`` adds ``radius (b - a)``.
         """
         _, h, poly_t = self.pieces
         extra = self.radius * (self.b - self.a)
@@ -758,6 +759,10 @@ class DistributedDelay:
         for j in range(4, p.shape[1]):
             per = per + np.abs(p[:, j]) * (0.5 - 1.0 / (j + 1))
         out = float(np.sum(h * per))
+        if self.interpolation == "polynomial" and h.size > 1:
+            # N_lin ends segment i at P_{i+1}(0), not P_i(1): the line t (P_i(1) - P_{i+1}(0)) adds h |jump| / 2
+            jumps = np.abs(np.sum(poly_t[:-1], axis=1) - poly_t[1:, 0])
+            out += float(np.sum(h[:-1] * jumps)) / 2.0
         return _up(out + extra) if extra else out
 
     # ------------------------------------------------------------------ algebra

@@ -250,3 +250,16 @@ def test_random_constant_plants_enclose_the_pde(lam, mu, spm, smp, q, rho, w, x)
     assert float(ball.real.lower()) <= truth.real <= float(ball.real.upper())
     assert float(ball.imag.lower()) <= truth.imag <= float(ball.imag.upper())
     assert float(ball.real.rad()) < 1e-9 * max(1.0, abs(truth))
+
+
+def test_linear_deviation_and_linearized_bounds_hold_for_jumps_and_curvature():
+    """Two review findings: a jump between polynomial pieces counts in ``int |N - N_lin|``, and the
+    total variation of ``N_true - N_lin`` after ``linearized`` is that of a bump per segment."""
+    step = DistributedDelay([0.0, 1.0, 2.0], None, interpolation="polynomial", coefficients=[[0.0], [1.0]])
+    assert step.linear_deviation() >= 0.5  # N - N_lin is the line t on [0, 1]: int = 1/2
+    square = DistributedDelay([0.0, 1.0], None, interpolation="polynomial", coefficients=[[0.0, 0.0, 1.0]])
+    lin = square.linearized(11)
+    nu = np.linspace(0.0, 1.0, 100_001)
+    diff = nu**2 - np.interp(nu, lin.nodes, lin.values)
+    assert np.max(np.abs(diff)) <= lin.radius
+    assert np.sum(np.abs(np.diff(diff))) <= lin.variation_radius  # measured 0.05
