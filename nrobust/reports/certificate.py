@@ -819,17 +819,14 @@ def _grid_for(system: Any, controller: Controller, grid: int, accuracy: float) -
     """The first grid ``n, 2 n - 1, ...`` on which the margin moves by less than ``accuracy`` from ``(n + 1) / 2``."""
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return grid  # the characteristic route has no kernel grid to refine
-    while True:
-        coarse = (grid - 1) // 2 + 1
-        if coarse < MIN_KERNEL_GRID:
-            grid = 2 * grid - 1
-            continue
-        fine = delay_margin(system, controller, kernel_grid=grid, verify=False).margin
-        if _difference(fine, delay_margin(system, controller, kernel_grid=coarse, verify=False).margin) <= accuracy:
-            return grid
-        if 2 * grid - 1 > MAX_ACCURACY_GRID:
-            return grid
+    while (grid - 1) // 2 + 1 < MIN_KERNEL_GRID:
         grid = 2 * grid - 1
+    coarse = delay_margin(system, controller, kernel_grid=(grid - 1) // 2 + 1, verify=False).margin
+    while True:
+        fine = delay_margin(system, controller, kernel_grid=grid, verify=False).margin
+        if _difference(fine, coarse) <= accuracy or 2 * grid - 1 > MAX_ACCURACY_GRID:
+            return grid
+        grid, coarse = 2 * grid - 1, fine  # the fine margin is the next grid's coarse one
 
 
 def _check_delta_max(

@@ -81,7 +81,7 @@ def delay_margin(
                 type(controller).__name__,
             )
         A, B = loop_factors(system, controller, kernel_grid)
-        scope = _scope(system, controller, kernel_grid, A, B)
+        scope = loop_scope(system, controller, kernel_grid, (A, B))
     elif isinstance(system, QuasiPolynomial):
         if not isinstance(controller, QuasiPolynomial):
             raise ParameterError(
@@ -104,13 +104,6 @@ def delay_margin(
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )
     return dataclasses.replace(result, scope=scope, of_model=of_model)
-
-
-def _scope(
-    system: object, controller: Controller, kernel_grid: int | None, A: QuasiPolynomial, B: QuasiPolynomial
-) -> str:
-    """What the margin of a plant's loop is about, in one line (:func:`loop_scope`)."""
-    return loop_scope(system, controller, kernel_grid, (A, B))
 
 
 def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str, float]:

@@ -315,7 +315,7 @@ def _varying_factors(
     i_n = QuasiPolynomial([], [], form.characteristic.distributed)
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
-        if callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0:
+        if _integral_gains(controller):
             kernels = _varying_kernels(system, check_kernel_grid(kernel_grid))
             return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
         return 1.0 - phi, form.u_factor() * (-controller.k)
@@ -353,6 +353,11 @@ def _kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
     return solve_kernels(system, kernel_grid)
 
 
+def _integral_gains(controller: StateFeedback) -> bool:
+    """True when the state feedback has an integral term (a callable or a nonzero gain)."""
+    return any(callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v))
+
+
 def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
     """How :func:`loop_factors` builds the loop: ``"exact"`` or ``"kernels"``.
 
@@ -365,9 +370,7 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     """
     if kernel_grid is not None or not has_exact_form(system):
         return "kernels"
-    if isinstance(controller, StateFeedback) and (
-        callable(controller.g_u) or callable(controller.g_v) or controller.g_u != 0.0 or controller.g_v != 0.0
-    ):
+    if isinstance(controller, StateFeedback) and _integral_gains(controller):
         return "kernels"
     return "exact"
 
