@@ -39,10 +39,12 @@ from .hyperbolic.analyses import (
     ABRegion as ABRegion,
     GainEnd as GainEnd,
     KRegion as KRegion,
+    ReflectionDesign as ReflectionDesign,
     StabilityChart as StabilityChart,
     Tradeoff as Tradeoff,
     ab_region as ab_region,
     delay_margin as delay_margin,
+    design_reflection as design_reflection,
     k_region as k_region,
     rouche_delay_bound as rouche_delay_bound,
     stability_chart as stability_chart,
@@ -83,7 +85,9 @@ from .hyperbolic.simulate import (
     simulate as simulate,
 )
 from .lti import (
+    DelayLTI as DelayLTI,
     QuasiTransferFunction as QuasiTransferFunction,
+    allmargin as allmargin,
     pade_approximation as pade_approximation,
     to_frd as to_frd,
 )

@@ -13,6 +13,9 @@ import dataclasses
 
 from ..._validate import renamed_keywords
 from ...errors import ParameterError
+from ...lti.allmargin import loop_delay_margin
+from ...lti.delay_lti import DelayLTI
+from ...lti.transfer import QuasiTransferFunction
 from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
@@ -24,10 +27,22 @@ from ..plants.hyperbolic2x2 import Hyperbolic2x2
 __all__ = ["delay_margin", "margin_and_decay"]
 
 
+def _kinds(*bases: type) -> str:
+    """The classes ``isinstance`` accepts for ``bases`` (their subclasses too), by name, for a message."""
+    seen: dict[str, None] = {}
+    todo = list(bases)
+    while todo:
+        cls = todo.pop(0)
+        if not getattr(cls, "__abstractmethods__", None):
+            seen[cls.__name__] = None
+        todo += cls.__subclasses__()
+    return ", ".join(seen)
+
+
 @renamed_keywords(n="kernel_grid")
 def delay_margin(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2 | QuasiPolynomial,
-    controller: Controller | QuasiPolynomial,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2 | QuasiPolynomial | QuasiTransferFunction | DelayLTI,
+    controller: Controller | QuasiPolynomial | None = None,
     *,
     delta_max: float | None = None,
     verify: bool = True,
@@ -40,15 +55,19 @@ def delay_margin(
     Called as ``delay_margin(system, controller)``: the loop factors of
     :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
     ``U_BS2(K)``) are passed to :func:`nrobust.margins.delay_margin`; called as
-    ``delay_margin(A, B)`` with two :class:`QuasiPolynomial`, it is that function.
+    ``delay_margin(A, B)`` with two :class:`QuasiPolynomial`, it is that function; called as
+    ``delay_margin(L)`` with one SISO loop transfer function (a ``QuasiTransferFunction`` or
+    a ``DelayLTI``, ``L = N / D`` under negative unit feedback), it is
+    :func:`nrobust.lti.allmargin.loop_delay_margin` (``A = D``, ``B = N``).
 
     Parameters
     ----------
-    system : Hyperbolic2x2, GeneralHyperbolic2x2 or QuasiPolynomial
-        The plant (a general plant through its normal form), or the factor ``A`` of
-        ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
-    controller : Controller or QuasiPolynomial
-        The controller of the plant, or the factor ``B`` when ``system`` is ``A``.
+    system : Hyperbolic2x2, GeneralHyperbolic2x2, QuasiPolynomial, QuasiTransferFunction or DelayLTI
+        The plant (a general plant through its normal form), the factor ``A`` of
+        ``F(s; delta) = A(s) + B(s) e^{-delta s}``, or a SISO loop ``L`` (alone).
+    controller : Controller or QuasiPolynomial, optional
+        The controller of the plant, or the factor ``B`` when ``system`` is ``A``; omitted
+        when ``system`` is a loop transfer function.
     delta_max, verify, max_evals, rigorous
         As in :func:`nrobust.margins.delay_margin`. ``rigorous=True`` proves the margin in
         ball arithmetic for the loop as built: for a plant with constant coefficients (and no
@@ -72,12 +91,13 @@ def delay_margin(
     -------
     DelayMargin
     """
+    if controller is None and isinstance(system, (QuasiTransferFunction, DelayLTI)):
+        return loop_delay_margin(system, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
     if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
             raise ParameterError(
                 "controller",
-                "a controller (OpenLoop, FiniteTimeController, ReflectionController or FilteredController) "
-                "when system is a plant",
+                f"a controller ({_kinds(Controller)}) when system is a plant",
                 type(controller).__name__,
             )
         A, B = loop_factors(system, controller, kernel_grid)
@@ -95,8 +115,8 @@ def delay_margin(
     else:
         raise ParameterError(
             "system",
-            "a plant (Hyperbolic2x2 or TransportSystem, with a controller) or a QuasiPolynomial: the factor A of "
-            "F(s; delta) = A(s) + B(s) e^{-delta s}, with B as controller",
+            f"a plant ({_kinds(Hyperbolic2x2, GeneralHyperbolic2x2)}, with a controller) or a QuasiPolynomial: "
+            "the factor A of F(s; delta) = A(s) + B(s) e^{-delta s}, with B as controller",
             type(system).__name__,
         )
     result = factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)

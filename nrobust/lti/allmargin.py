@@ -1,0 +1,284 @@
+"""Stability margins of a loop with delays: :func:`allmargin` (MATLAB's sense) and :func:`loop_delay_margin`.
+
+For a SISO loop ``L = N / D`` under negative unit feedback, every crossing is located on a
+frequency band that provably holds them all, never on a sampled grid:
+
+* **gain crossovers** ``|L(i w)| = 1`` are the zeros of ``|D(i w)|^2 - |N(i w)|^2``,
+  the crossing frequencies of the loop ``D + N e^{-delta s}``
+  (:func:`nrobust.margins.crossing_frequencies`: complete on ``[0, W]`` with ``W`` the
+  proven frequency bound of :mod:`nrobust.margins.axis`, which exists when the loop gain
+  falls below 1 at high frequency). At each, the phase margin
+  ``PM = angle L(i w) + 180 deg`` (in ``(-180, 180]``) and the delay margin
+  ``DM = (PM mod 2 pi) / w``, the smallest extra delay that puts a closed-loop pole at
+  ``i w`` (the first delay of :class:`~nrobust.margins.Crossing`);
+* **phase crossovers** ``L(i w) < 0`` real are the zeros ``w > 0`` of ``Im(N(i w) conj D(i w))``,
+  which equals ``(|D + i N|^2 - |D - i N|^2) / 4``: the crossing search run on the
+  factors ``D - i N`` and ``D + i N`` over ``[-W_g, W_g]`` (complex coefficients; a
+  real pair ``D + (1 +- s) N`` would put a double zero at ``w = 0``), where ``W_g`` is the proven
+  frequency bound of ``|L(i w)| < gain_floor`` (the loop ``D + (N / gain_floor) e^{-delta s}``).
+  With a delay in the loop the phase crossovers are infinitely many, with gains tending
+  to 0: the band holds every one whose gain margin ``1 / |L|`` is below ``1 / gain_floor``
+  (and some above). The gain margins include the factors below 1 (a loop stable only
+  above some gain) as MATLAB's ``allmargin`` lists them.
+
+Each crossing is refined by Brent's method on a bracket of the certified sign change
+(``xtol = 1e-12 (1 + w)``). ``stable`` is the certified verdict on the closed loop
+``D + N`` (:func:`nrobust.margins.unstable_count`). A MIMO loop is taken a loop at a
+time (MATLAB's ``loopmargin``): loop ``i`` broken, the others closed with negative unit
+feedback.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+
+from .._json import fields_dict
+from .._validate import positive, positive_int
+from ..errors import CertificationError, ParameterError
+from ..margins import DelayMargin, crossing_frequencies, delay_margin, frequency_bound, unstable_count
+from ..margins.crossing import crossing_search
+from ..quasipoly import QuasiPolynomial
+from .delay_lti import DelayLTI, as_delay_lti
+from .transfer import QuasiTransferFunction
+
+__all__ = ["AllMargins", "allmargin", "loop_delay_margin", "loop_factors_of"]
+
+# Relative and absolute tolerance of the refined crossing frequencies.
+_XTOL = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class AllMargins:
+    """Every stability margin of a SISO loop under negative unit feedback (MATLAB's ``allmargin``).
+
+    Attributes
+    ----------
+    gain_margins : ndarray
+        ``1 / |L(i w)|`` at each phase crossover (factors above 1 may be gained, below 1
+        lost before instability), ordered by frequency.
+    gm_frequencies : ndarray
+        The phase crossovers ``w`` (rad per unit time), increasing; ``0`` when ``L(0) < 0``.
+    phase_margins : ndarray
+        ``angle L(i w) + 180`` in degrees, in ``(-180, 180]``, at each gain crossover.
+    pm_frequencies : ndarray
+        The gain crossovers ``w``, increasing.
+    delay_margins : ndarray
+        ``(PM mod 360 deg) / w`` in time units (radians over rad per unit time): the
+        smallest extra loop delay that puts a closed-loop pole at ``i w``.
+    dm_frequencies : ndarray
+        The same frequencies as ``pm_frequencies``.
+    stable : bool
+        True when the closed loop is certified exponentially stable (no zero of ``D + N``
+        with ``Re s >= 0``); False otherwise, including when a zero lies within rounding
+        of the imaginary axis.
+    phase_band : float
+        ``W_g``: every phase crossover below it is listed; beyond it ``|L| < gain_floor``.
+    gain_band : float
+        ``W``: no gain crossover at or beyond it (proven).
+    gain_floor : float
+        The loop gain under which phase crossovers beyond ``phase_band`` may be left out.
+    """
+
+    gain_margins: NDArray[np.float64]
+    gm_frequencies: NDArray[np.float64]
+    phase_margins: NDArray[np.float64]
+    pm_frequencies: NDArray[np.float64]
+    delay_margins: NDArray[np.float64]
+    dm_frequencies: NDArray[np.float64]
+    stable: bool
+    phase_band: float
+    gain_band: float
+    gain_floor: float
+
+    def __repr__(self) -> str:
+        def fmt(a: NDArray[np.float64]) -> str:
+            return np.array2string(np.asarray(a), precision=6, separator=", ")
+
+        return (
+            f"AllMargins(gain_margins={fmt(self.gain_margins)} at w={fmt(self.gm_frequencies)}, "
+            f"phase_margins={fmt(self.phase_margins)} deg at w={fmt(self.pm_frequencies)}, "
+            f"delay_margins={fmt(self.delay_margins)}, stable={self.stable})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def loop_factors_of(L: Any) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(N, D)`` with ``L = N / D`` for a SISO loop.
+
+    ``L`` is a :class:`~nrobust.lti.transfer.QuasiTransferFunction`, a SISO
+    :class:`~nrobust.lti.delay_lti.DelayLTI` (:meth:`~nrobust.lti.delay_lti.DelayLTI.to_quasi_transfer`)
+    or a SISO python-control system.
+    """
+    if isinstance(L, QuasiTransferFunction):
+        return L.num, L.den
+    if isinstance(L, QuasiPolynomial):
+        return L, QuasiPolynomial([[1.0]], [0.0])
+    sys = as_delay_lti(L)
+    if not sys.issiso():
+        raise ParameterError("L", "a SISO loop (pick a loop of a MIMO one with loop=i)", sys)
+    H = sys.to_quasi_transfer()
+    return H.num, H.den
+
+
+def _loop(L: Any, i: int) -> DelayLTI:
+    """Loop ``i`` of a square MIMO loop, the others closed by negative unit feedback."""
+    sys = as_delay_lti(L)
+    p = sys.noutputs
+    if sys.ninputs != p:
+        raise ParameterError("L", "a square loop (as many inputs as outputs)", (p, sys.ninputs))
+    i = positive_int("loop", i, minimum=0, maximum=p - 1)
+    others = np.eye(p)
+    others[i, i] = 0.0
+    return sys.feedback(others)[i, i]
+
+
+def _refine(f: Any, w: float, W: float) -> float:
+    """``w`` refined by Brent's method on a bracket where ``f`` changes sign (kept if there is none)."""
+    tol = _XTOL * (1.0 + abs(w))
+    for width in (1e-9, 1e-7, 1e-5):
+        h = width * (1.0 + abs(w))
+        a, b = max(w - h, 0.0), min(w + h, W)
+        fa, fb = f(a), f(b)
+        if fa == 0.0:
+            return a
+        if fb == 0.0:
+            return b
+        if np.sign(fa) != np.sign(fb):
+            return float(brentq(f, a, b, xtol=tol, rtol=4 * np.finfo(float).eps))
+    return w
+
+
+def allmargin(
+    L: Any, loop: int | list[int] | None = None, *, gain_floor: float = 1e-2, max_evals: int = 2_000_000
+) -> Any:
+    """Every gain, phase and delay margin of a loop under negative unit feedback (MATLAB's ``allmargin``).
+
+    Parameters
+    ----------
+    L : QuasiTransferFunction, DelayLTI or python-control system
+        The loop transfer function (SISO, or square MIMO with ``loop``).
+    loop : int or list of int, optional
+        For a MIMO loop: the loop (or loops) broken one at a time, the others closed.
+    gain_floor : float, optional
+        Phase crossovers are listed completely on the band where ``|L(i w)| >= gain_floor``
+        may hold (module notes; default ``1e-2``: every gain margin up to 40 dB).
+    max_evals : int, optional
+        Work bound of each crossing search (evaluations of the loop factors).
+
+    Returns
+    -------
+    AllMargins, or a list of them when ``loop`` is a list
+
+    Raises
+    ------
+    ParameterError
+        A loop whose gain does not fall below 1 (or ``gain_floor``) at high frequency: the
+        crossovers then accumulate at infinity and no finite band holds them.
+    CertificationError
+        A crossing search could not be completed within its work bound.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nrobust.lti.delay_lti import delay, tf
+    >>> m = allmargin(2.0 * delay(0.1) * tf([1.0], [1.0, 1.0]))   # 2 e^{-0.1 s} / (s + 1)
+    >>> w = np.sqrt(3.0)
+    >>> bool(abs(m.pm_frequencies[0] - w) < 1e-12)
+    True
+    >>> bool(abs(np.radians(m.phase_margins[0]) - (np.pi - 0.1 * w - np.arctan(w))) < 1e-12)
+    True
+    """
+    floor = positive("gain_floor", gain_floor)
+    max_evals = positive_int("max_evals", max_evals)
+    if isinstance(loop, list):
+        return [allmargin(_loop(L, i), gain_floor=floor, max_evals=max_evals) for i in loop]
+    if loop is not None:
+        L = _loop(L, loop)
+    N, D = loop_factors_of(L)
+    if not (N.is_real and D.is_real):
+        raise ParameterError("L", "real coefficients", L)
+    try:
+        gains = crossing_frequencies(D, N, max_evals=max_evals)
+    except ParameterError as exc:
+        raise ParameterError(
+            "L", "a loop whose gain falls below 1 at high frequency (|L(i w)| < 1 for large w)", L
+        ) from exc
+    bound = frequency_bound(D, N * (1.0 / floor))
+    if bound is None:
+        raise ParameterError(
+            "gain_floor", "above the high-frequency gain of the loop (|L(i w)| < gain_floor for large w)", floor
+        )
+    W_g = bound[0]
+
+    def loop_at(w: float) -> complex:
+        s = np.array([1j * w])
+        return complex(N(s)[0] / D(s)[0])
+
+    def gain_gap(w: float) -> float:
+        s = np.array([1j * w])
+        return float(abs(D(s)[0]) ** 2 - abs(N(s)[0]) ** 2)
+
+    def phase_gap(w: float) -> float:
+        s = np.array([1j * w])
+        return float(np.imag(N(s)[0] * np.conj(D(s)[0])))
+
+    w_pm = np.array([_refine(gain_gap, float(w), gains.frequency_bound) for w in gains.omegas])
+    at = np.array([loop_at(w) for w in w_pm], dtype=complex)
+    pm = np.angle(-at)  # angle L + pi, in (-pi, pi]
+    dm = np.mod(pm, 2.0 * np.pi) / w_pm if w_pm.size else np.zeros(0)
+    phases, _ = crossing_search(D - N * 1j, D + N * 1j, bound, max_evals)
+    w_gm = [0.0] if _negative_real(loop_at(0.0) if abs(D(np.zeros(1))[0]) > 0 else np.inf) else []
+    for w in phases.omegas:
+        if w > 0:
+            w = _refine(phase_gap, float(w), W_g * (1.0 + 1e-6) + 1e-9)
+            if np.real(loop_at(w)) < 0.0:
+                w_gm.append(w)
+    gm_w = np.array(sorted(w_gm), dtype=float)
+    gm = np.array([1.0 / abs(loop_at(w)) for w in gm_w], dtype=float)
+    count = unstable_count(D + N)
+    if count.radius is None:
+        raise CertificationError(f"allmargin: no bound of the closed-loop poles in Re s >= 0 ({count.method})")
+    return AllMargins(
+        gain_margins=gm,
+        gm_frequencies=gm_w,
+        phase_margins=np.degrees(pm),
+        pm_frequencies=w_pm,
+        delay_margins=dm,
+        dm_frequencies=w_pm.copy(),
+        stable=bool(count.certified and count.stable),
+        phase_band=float(W_g),
+        gain_band=float(gains.frequency_bound),
+        gain_floor=floor,
+    )
+
+
+def _negative_real(z: complex) -> bool:
+    return bool(np.isfinite(z) and z.imag == 0.0 and z.real < 0.0)
+
+
+def loop_delay_margin(L: Any, **options: Any) -> DelayMargin:
+    """Delay margin of a SISO loop ``L = N / D`` under negative unit feedback: the largest
+    ``delta`` with ``1 + L(s) e^{-delta s}`` stable on ``[0, delta)``.
+
+    The closed loop is ``F(s; delta) = D(s) + N(s) e^{-delta s}``:
+    :func:`nrobust.margins.delay_margin` with ``A = D``, ``B = N`` (``options`` are its
+    keywords: ``delta_max``, ``verify``, ``max_evals``, ``rigorous``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from nrobust.lti.delay_lti import tf
+    >>> m = loop_delay_margin(tf([2.0], [1.0, 1.0]))   # 2/(s+1): w = sqrt 3, DM = (pi - atan w)/w
+    >>> bool(abs(m.margin - (np.pi - np.arctan(np.sqrt(3.0))) / np.sqrt(3.0)) < 1e-10)
+    True
+    """
+    N, D = loop_factors_of(L)
+    return delay_margin(D, N, **options)

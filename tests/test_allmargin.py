@@ -1,0 +1,109 @@
+"""allmargin and loop_delay_margin: closed forms of loops with dead time, python-control on delay-free loops."""
+
+from __future__ import annotations
+
+import json
+
+import control
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import nrobust
+from nrobust import QuasiPolynomial
+from nrobust.errors import ParameterError
+from nrobust.lti import DelayLTI, QuasiTransferFunction, allmargin, delay, loop_delay_margin, tf
+
+
+def fopdt(k: float, T: float, L: float) -> DelayLTI:
+    """``k e^{-L s} / (T s + 1)``."""
+    return k * delay(L) * tf([1.0], [T, 1.0])
+
+
+@pytest.mark.parametrize(("k", "T", "L"), [(2.0, 1.0, 0.1), (5.0, 0.5, 0.2), (1.5, 2.0, 0.7), (5.0, 0.5, 0.5)])
+def test_first_order_plus_dead_time_closed_forms(k: float, T: float, L: float) -> None:
+    m = allmargin(fopdt(k, T, L))
+    wc = np.sqrt(k**2 - 1.0) / T  # |L(i w)| = 1
+    pm = np.pi - L * wc - np.arctan(T * wc)  # phase margin, radians
+    np.testing.assert_allclose(m.pm_frequencies, [wc], rtol=1e-12)
+    np.testing.assert_allclose(np.radians(m.phase_margins), [pm], rtol=1e-11)
+    np.testing.assert_allclose(m.delay_margins, [np.mod(pm, 2 * np.pi) / wc], rtol=1e-11)
+    # phase crossovers: L w + atan(T w) = (2j + 1) pi, gain margin sqrt(1 + T^2 w^2) / k
+    w180 = [
+        brentq(lambda w, j=j: L * w + np.arctan(T * w) - (2 * j + 1) * np.pi, 1e-9, 1e9, xtol=1e-15) for j in range(3)
+    ]
+    np.testing.assert_allclose(m.gm_frequencies[:3], w180, rtol=1e-11)
+    np.testing.assert_allclose(m.gain_margins[:3], np.sqrt(1 + (T * np.array(w180)) ** 2) / k, rtol=1e-11)
+    # every listed phase crossover has |L| >= gain_floor or lies inside the proven band
+    assert np.all(m.gm_frequencies <= m.phase_band)
+    # the closed loop is stable iff the dead time is below the delay margin
+    dm0 = (np.pi - np.arctan(T * wc)) / wc  # delay margin of the delay-free loop
+    assert m.stable == bool(L < dm0) == bool(pm > 0)
+    np.testing.assert_allclose(loop_delay_margin(k * tf([1.0], [T, 1.0])).margin, dm0, rtol=1e-10)
+    json.dumps(m.to_dict(), allow_nan=False)
+
+
+def test_delay_free_loops_match_python_control() -> None:
+    for G in (control.tf([4.0], [1.0, 3.0, 3.0, 1.0]), control.tf([30.0, 30.0], [1.0, 2.0, 3.0, 4.0, 0.5])):
+        m = allmargin(G)
+        gms, pms, _, wpcs, wgcs, _ = control.stability_margins(G, returnall=True)
+        keep = np.asarray(wpcs) > 0
+        np.testing.assert_allclose(m.gm_frequencies, np.sort(np.asarray(wpcs)[keep]), rtol=1e-9)
+        np.testing.assert_allclose(m.gain_margins, np.asarray(gms)[keep][np.argsort(np.asarray(wpcs)[keep])], rtol=1e-9)
+        np.testing.assert_allclose(m.pm_frequencies, np.sort(wgcs), rtol=1e-9)
+        np.testing.assert_allclose(m.phase_margins, np.asarray(pms)[np.argsort(wgcs)], rtol=1e-9)
+        gm, pm, wpc, wgc = control.margin(G)  # the margins python-control reports first
+        i, j = int(np.argmin(m.gain_margins)), int(np.argmin(m.phase_margins))
+        np.testing.assert_allclose([m.gain_margins[i], m.gm_frequencies[i]], [gm, wpc], rtol=1e-9)
+        np.testing.assert_allclose([m.phase_margins[j], m.pm_frequencies[j]], [pm, wgc], rtol=1e-9)
+
+
+def test_loop_at_a_time_of_a_diagonal_mimo_loop() -> None:
+    L1, L2 = fopdt(2.0, 1.0, 0.1), fopdt(1.5, 2.0, 0.7)
+    both = allmargin(L1.append(L2), loop=[0, 1])
+    for got, ref in zip(both, (allmargin(L1), allmargin(L2))):
+        np.testing.assert_allclose(got.phase_margins, ref.phase_margins, rtol=1e-12)
+        np.testing.assert_allclose(got.gain_margins[:3], ref.gain_margins[:3], rtol=1e-12)
+
+
+def test_delay_margin_of_one_loop_through_the_top_level_function() -> None:
+    # L = 2 / (s + 1): w = sqrt 3, delay margin (pi - atan sqrt 3) / sqrt 3 = 2 pi / (3 sqrt 3)
+    H = QuasiTransferFunction(2.0, QuasiPolynomial([[1.0, 1.0]], [0.0]))
+    expected = 2 * np.pi / (3 * np.sqrt(3.0))
+    np.testing.assert_allclose(nrobust.delay_margin(H).margin, expected, rtol=1e-10)
+    np.testing.assert_allclose(nrobust.delay_margin(tf([2.0], [1.0, 1.0])).margin, expected, rtol=1e-10)
+
+
+def test_loops_without_high_frequency_roll_off_are_refused() -> None:
+    with pytest.raises(ParameterError, match="falls below 1"):
+        allmargin(2.0 * delay(1.0))
+
+
+def test_delayed_integrator_closed_forms() -> None:
+    # L = k e^{-L s} / s: gain crossover w = k, PM = pi/2 - L k; phase crossovers (pi/2 + 2 pi j) / L, GM = w / k
+    k, lag = 0.5, 1.0
+    m = allmargin(k * delay(lag) * tf([1.0], [1.0, 0.0]))
+    np.testing.assert_allclose(m.pm_frequencies, [k], rtol=1e-12)
+    np.testing.assert_allclose(np.radians(m.phase_margins), [np.pi / 2 - lag * k], rtol=1e-12)
+    np.testing.assert_allclose(m.delay_margins, [(np.pi / 2 - lag * k) / k], rtol=1e-12)
+    w180 = (np.pi / 2 + 2 * np.pi * np.arange(3)) / lag
+    np.testing.assert_allclose(m.gm_frequencies[:3], w180, rtol=1e-12)
+    np.testing.assert_allclose(m.gain_margins[:3], w180 / k, rtol=1e-12)
+    assert m.stable
+
+
+def test_loop_at_a_time_of_a_coupled_mimo_loop() -> None:
+    # loop 0 broken, loop 1 closed: L_eff = L00 - L01 L10 / (1 + L11)
+    P = control.tf([[[2.0], [0.5]], [[0.3], [1.0]]], [[[1.0, 1.0], [1.0, 2.0]], [[1.0, 1.0], [1.0, 3.0]]])
+    L = DelayLTI.from_control(P) * delay(0.1).append(delay(0.2))
+
+    def gap(w: float) -> float:
+        s = 1j * w
+        p = np.asarray(P(s)) * np.array([np.exp(-0.1 * s), np.exp(-0.2 * s)])
+        return abs(p[0, 0] - p[0, 1] * p[1, 0] / (1 + p[1, 1])) - 1.0
+
+    grid = np.linspace(1e-3, 10.0, 2001)
+    values = np.array([gap(w) for w in grid])
+    cross = [brentq(gap, grid[i], grid[i + 1], xtol=1e-15) for i in np.flatnonzero(np.diff(np.sign(values)))]
+    m = allmargin(L, loop=0)
+    np.testing.assert_allclose(m.pm_frequencies, cross, rtol=1e-11)
