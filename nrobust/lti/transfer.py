@@ -12,23 +12,25 @@ poles and zeros are certified root sets of the denominator and numerator, and
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._json import fields_dict
+from .._json import fields_dict, json_safe
 from .._validate import nonnegative, number_array, positive_int, real_array
 from ..bounds import root_free_region
 from ..errors import CertificationError, ParameterError, SpuriousPoleWarning
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from ..roots import RootSet, find_roots
+from .pade import pade, split_integrators, substitution_bound
 
 if TYPE_CHECKING:
     import control
 
-__all__ = ["QuasiTransferFunction", "pade_approximation", "to_frd"]
+__all__ = ["PadeModel", "QuasiTransferFunction", "pade_approximation", "to_frd"]
 
 
 def product(name: str, f: QuasiPolynomial, g: QuasiPolynomial) -> QuasiPolynomial:
@@ -218,10 +220,13 @@ def to_frd(F_or_tf: QuasiPolynomial | QuasiTransferFunction, omega: ArrayLike) -
     return control.FrequencyResponseData(_response(F_or_tf, 1j * w), w, name=name, inputs="u", outputs="y")
 
 
-def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFunction:
+def _rational(
+    f: QuasiPolynomial, orders: Mapping[float, tuple[int, int]], default: tuple[int, int], n_quad: int
+) -> control.TransferFunction:
     """A rational approximation of a quasi-polynomial ``f``.
 
-    Every ``e^{-tau s}`` is replaced by ``control.pade(tau, order)``; a distributed term
+    Every ``e^{-tau s}`` is replaced by its ``(m, n)`` Padé approximant (``orders[tau]``, else
+    ``default``), :func:`nrobust.lti.pade.pade` with ``P(0) = Q(0) = 1``; a distributed term
     ``q(s) int N(nu) e^{-nu s} dnu`` is first discretised by the composite midpoint rule
     with ``n_quad`` nodes on each interval of the support between jumps,
     ``sum_i w_i N(nu_i) e^{-nu_i s}`` (``N(nu_i)`` interpolated linearly between the
@@ -237,7 +242,7 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFu
         if tau == 0.0:
             return control.TransferFunction([1.0], [1.0])
         if tau not in delays:
-            num, den = control.pade(tau, order)
+            num, den = pade(tau, *orders.get(tau, default), normalize="constant")
             delays[tau] = control.TransferFunction(num, den)
         return delays[tau]
 
@@ -273,20 +278,127 @@ def _rational(f: QuasiPolynomial, order: int, n_quad: int) -> control.TransferFu
     return total
 
 
+@dataclass(frozen=True, eq=False)
+class PadeModel:
+    """A rational model of a transfer function with delays and its proven error on a band.
+
+    Attributes
+    ----------
+    model : control.TransferFunction
+        The rational model (integrators of ``tf`` kept exactly: ``s^k`` divides its denominator).
+    omega : ndarray
+        The frequencies given.
+    error : ndarray
+        ``|H(i omega) - model(i omega)|`` sampled on ``omega``.
+    bound : ndarray
+        ``len(omega) - 1`` proven bounds, ``bound[j] >= |H(i w) - model(i w)|`` for every ``w``
+        in ``[omega[j], omega[j+1]]`` (:func:`nrobust.lti.pade.substitution_bound`).
+    orders : tuple of (float, int, int)
+        ``(tau, m, n)``: the Padé degrees of each delay of ``tf``.
+    integrators : int
+        ``k``, the power of ``s`` factored out of the denominator of ``tf`` and kept in the model.
+    """
+
+    model: Any
+    omega: NDArray[np.float64]
+    error: NDArray[np.float64]
+    bound: NDArray[np.float64]
+    orders: tuple[tuple[float, int, int], ...]
+    integrators: int
+
+    @property
+    def band_bound(self) -> float:
+        """Proven bound of ``|H(i w) - model(i w)|`` on the whole band ``[omega[0], omega[-1]]``."""
+        return float(np.max(self.bound))
+
+    def __repr__(self) -> str:
+        degree = len(self.model.den[0][0]) - 1
+        return (
+            f"PadeModel(degree={degree}, integrators={self.integrators}, orders={list(self.orders)}, "
+            f"band=[{self.omega[0]:g}, {self.omega[-1]:g}], max error={float(np.max(self.error)):.3g}, "
+            f"proven bound={self.band_bound:.3g})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (the model as coefficient lists, descending powers of ``s``)."""
+        return json_safe(
+            {
+                "num": np.asarray(self.model.num[0][0], dtype=float),
+                "den": np.asarray(self.model.den[0][0], dtype=float),
+                "omega": self.omega,
+                "error": self.error,
+                "bound": self.bound,
+                "band_bound": self.band_bound,
+                "orders": [list(o) for o in self.orders],
+                "integrators": self.integrators,
+            }
+        )
+
+
+def _order_pair(name: str, value: Any) -> tuple[int, int]:
+    """``order`` as ``(m, n)``: an int ``n >= 1`` is ``(n, n)``; a pair needs ``0 <= m <= n``, ``n >= 1``."""
+    if isinstance(value, (tuple, list)) and len(value) == 2:
+        m = positive_int(name, value[0], minimum=0, maximum=200)
+        n = positive_int(name, value[1], minimum=1, maximum=200)
+        if m > n:
+            raise ParameterError(name, "(m, n) with 0 <= m <= n (a proper model, python-control's range)", value)
+        return m, n
+    n = positive_int(name, value, maximum=200)
+    return n, n
+
+
+def _point_delays(tf: QuasiTransferFunction) -> set[float]:
+    return {t for f in (tf.num, tf.den) for _, t in f.point_terms if t != 0.0}
+
+
+@overload
 def pade_approximation(
     tf: QuasiTransferFunction | QuasiPolynomial,
-    order: int,
+    order: int | tuple[int, int],
+    omega: ArrayLike,
+    n_quad: int = ...,
+    *,
+    orders: Mapping[float, int | tuple[int, int]] | None = ...,
+    return_bound: Literal[False] = ...,
+) -> tuple[control.TransferFunction, NDArray[np.float64]]: ...
+
+
+@overload
+def pade_approximation(
+    tf: QuasiTransferFunction | QuasiPolynomial,
+    order: int | tuple[int, int],
+    omega: ArrayLike,
+    n_quad: int = ...,
+    *,
+    orders: Mapping[float, int | tuple[int, int]] | None = ...,
+    return_bound: Literal[True],
+) -> PadeModel: ...
+
+
+def pade_approximation(
+    tf: QuasiTransferFunction | QuasiPolynomial,
+    order: int | tuple[int, int],
     omega: ArrayLike,
     n_quad: int = 8,
-) -> tuple[control.TransferFunction, NDArray[np.float64]]:
+    *,
+    orders: Mapping[float, int | tuple[int, int]] | None = None,
+    return_bound: bool = False,
+) -> tuple[control.TransferFunction, NDArray[np.float64]] | PadeModel:
     """A rational python-control model of a transfer function with delays.
 
-    Each point delay ``e^{-tau s}`` is replaced by ``control.pade(tau, order)``. A
-    distributed term is replaced by the Pade approximation of its discretisation: the
+    Each point delay ``e^{-tau s}`` is replaced by its ``(m, n)`` Padé approximant
+    (:func:`nrobust.lti.pade.pade`: ``control.pade(tau, n, m)`` scaled to ``P(0) = Q(0) = 1``).
+    A distributed term is replaced by the Padé approximation of its discretisation: the
     composite midpoint rule with ``n_quad`` nodes per smooth piece of the kernel (jumps
     of ``N~`` at ``nu = 1/mu`` are kept as piece boundaries), each node a point delay.
     The model is valid in a band ``|omega| tau_max << order``; the error is returned so
-    that the band can be checked, never assumed.
+    that the band can be checked, never assumed, and for point delays a proven bound of it
+    on the whole band (``return_bound=True``).
+
+    Integrators are kept exactly: the largest power ``s^k`` dividing every term of the
+    denominator (:func:`nrobust.lti.pade.split_integrators`; a PI controller's ``1/s``) is
+    factored out before the delays are replaced and multiplied back into the model's
+    denominator as ``k`` exact zero coefficients, so the model has its poles at 0 exactly.
 
     The model's poles in ``Re s > 0`` are those of ``tf``: its unstable poles are
     certified (:func:`nrobust.bounds.root_free_region` bounds them, :func:`nrobust.roots.find_roots`
@@ -306,12 +418,23 @@ def pade_approximation(
     Parameters
     ----------
     tf : QuasiTransferFunction or QuasiPolynomial
-    order : int
-        Pade order per delay (``>= 1``).
+    order : int or (int, int)
+        Padé degrees of every delay: ``n >= 1`` for the diagonal ``(n, n)`` approximant, or a
+        pair ``(m, n)``, ``0 <= m <= n``, ``n >= 1`` (numerator, denominator degrees).
     omega : array_like
-        Increasing frequencies ``>= 0`` on which the error is measured.
+        Increasing frequencies ``>= 0`` on which the error is measured (``> 0`` when ``tf``
+        has integrators: ``H`` and the model are infinite at 0); the band of the bound.
     n_quad : int, optional
         Midpoint nodes per smooth piece of each distributed kernel (default 8).
+    orders : mapping of float to int or (int, int), optional
+        Degrees of particular point delays of ``tf`` (keys: its delays), overriding ``order``.
+    return_bound : bool, optional
+        False (default): return ``(model, error)``. True: return a :class:`PadeModel`, with
+        the proven bound of ``|H(i w) - model(i w)|`` on every cell of ``omega``
+        (:func:`nrobust.lti.pade.substitution_bound`: the Padé remainder of each delay
+        propagated through ``num / den``, plus the exact distance of the model's rounded
+        coefficients, and of any replaced section, to the exact substitution). Point delays
+        only.
 
     Returns
     -------
@@ -319,32 +442,63 @@ def pade_approximation(
     error : ndarray
         ``|H(i omega) - model(i omega)|`` on ``omega``.
 
+    or, with ``return_bound=True``, a :class:`PadeModel`.
+
     Raises
     ------
     CertificationError
         The unstable poles of ``tf`` cannot be certified (the principal part of its
-        denominator is not strongly stable, or a pole lies on the imaginary axis), a
-        certified unstable pole has no counterpart in the model (raise ``order``), or
-        python-control's verdict on the model disagrees with the certified count.
+        denominator is not strongly stable, or a pole other than the integrators lies on the
+        imaginary axis), a certified unstable pole has no counterpart in the model (raise
+        ``order``), python-control's verdict on the model disagrees with the certified
+        count, or ``return_bound=True`` for a loop with distributed delays (their
+        discretisation error is not bounded).
 
     Warns
     -----
     SpuriousPoleWarning
-        The Pade model had poles in ``Re s > 0`` that ``tf`` does not have (mirrored).
+        The Pade model had poles in ``Re s > 0`` that ``tf`` does not have (replaced).
+
+    Examples
+    --------
+    A PI loop with a delay, ``L = 2 (1 + 1/(4 s)) e^{-s} / (s + 1)``:
+
+    >>> from nrobust import QuasiPolynomial
+    >>> L = QuasiTransferFunction(QuasiPolynomial([[2.0, 8.0]], [1.0]), QuasiPolynomial([[0.0, 4.0, 4.0]], [0.0]))
+    >>> fit = pade_approximation(L, 4, [0.01, 1.0, 2.0], return_bound=True)
+    >>> fit.integrators, bool(fit.model.den[0][0][-1] == 0.0)
+    (1, True)
+    >>> print(f"max sampled error {fit.error.max():.2e}, proven on [0.01, 2]: {fit.band_bound:.2e}")
+    max sampled error 1.61e-05, proven on [0.01, 2]: 2.06e-05
     """
     import control
 
-    order = positive_int("order", order)
+    default = _order_pair("order", order)
     n_quad = positive_int("n_quad", n_quad)
     w = _omega_grid(omega)
     if isinstance(tf, QuasiPolynomial):
         tf = QuasiTransferFunction(tf, 1.0)
     if not isinstance(tf, QuasiTransferFunction):
         raise ParameterError("tf", "a QuasiTransferFunction or a QuasiPolynomial", tf)
-    num = _rational(tf.num, order, n_quad)
-    den = _rational(tf.den, order, n_quad)
+    delays = _point_delays(tf)
+    per_delay: dict[float, tuple[int, int]] = {}
+    for tau, o in (orders or {}).items():
+        if tau not in delays:
+            raise ParameterError("orders", f"keys among the point delays of tf, {sorted(delays)}", tau)
+        per_delay[float(tau)] = _order_pair(f"orders[{tau!r}]", o)
+    k, den1 = split_integrators(tf.den)
+    if k and w[0] == 0.0:
+        raise ParameterError(
+            "omega", f"frequencies > 0 (tf has {k} integrator(s): H and the model are infinite at 0)", omega
+        )
+    for tau in delays:
+        m, n = per_delay.get(tau, default)
+        if m + n + 1 < k:
+            raise ParameterError("order", f"m + n + 1 >= {k}, the number of integrators", (m, n))
+    num = _rational(tf.num, per_delay, default, n_quad)
+    den = _rational(den1, per_delay, default, n_quad)
     model = control.TransferFunction(np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0]))
-    truth = _unstable_poles(tf.den)
+    truth = _unstable_poles(den1)
     model, spurious = _replace_spurious_poles(model, truth)
     verdict = int(np.sum(np.real(model.poles()) > 0.0))
     if verdict != truth.size:
@@ -354,6 +508,8 @@ def pade_approximation(
             f"span {_span(model):.1e}, too wide for its roots; lower order or n_quad, or use to_frd for frequency "
             "analyses"
         )
+    if k:  # the integrators, exactly: k zero coefficients at the end of the denominator
+        model = control.TransferFunction(model.num[0][0], np.concatenate([model.den[0][0], np.zeros(k)]))
     exact = tf.frequency_response(w)
     approx = np.asarray(model(1j * w), dtype=complex)
     error = np.abs(exact - approx)
@@ -368,7 +524,12 @@ def pade_approximation(
             SpuriousPoleWarning,
             stacklevel=2,
         )
-    return model, error
+    if not return_bound:
+        return model, error
+    table = {tau: per_delay.get(tau, default) for tau in delays}
+    bound = substitution_bound(tf.num, tf.den, w, table, model=(model.num[0][0], model.den[0][0]))
+    listed = tuple((tau, *table[tau]) for tau in sorted(table))
+    return PadeModel(model, w, error, bound, listed, k)
 
 
 def _span(model: control.TransferFunction) -> float:
