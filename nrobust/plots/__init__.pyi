@@ -3,9 +3,13 @@ from .base import (
     NrobustPlot as NrobustPlot,
 )
 from .charts import (
+    delay_chart_plot as delay_chart_plot,
     stability_chart_plot as stability_chart_plot,
     sweep_chart as sweep_chart,
     tradeoff_plot as tradeoff_plot,
+)
+from .design import (
+    pareto_plot as pareto_plot,
 )
 from .nyquist import (
     NyquistResponse as NyquistResponse,

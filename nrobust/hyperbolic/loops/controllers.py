@@ -177,9 +177,13 @@ class ReflectionController(Controller):
 
 @dataclass(frozen=True)
 class FilteredController(Controller):
-    """U_BS passed through the proper filter ``(1 + a s)/(1 + b s)`` (section 2.3.2).
+    """U_BS, or U_BS2(K), passed through the proper filter ``(1 + a s)/(1 + b s)`` (section 2.3.2).
 
-    On a transport system this is ``U_1(s) = -(1 + a s)/(1 + b s) rho u(1, s)``.
+    On a transport system this is ``U_1(s) = -(1 + a s)/(1 + b s) rho u(1, s)`` (``K`` not
+    given), or ``-(1 + a s)/(1 + b s) K u(1, s)``. The loop factors are those of the unfiltered
+    law with ``A`` multiplied by ``1 + b s`` and ``B`` by ``1 + a s``; its difference operator
+    ``1 - rho q e^{-tau s} + (a/b) K q e^{-(tau + delta) s}`` (``K = rho`` for U_BS) gives the
+    condition ``|rho q| + |a/b| |K q| < 1`` for a positive delay margin.
 
     Parameters
     ----------
@@ -187,20 +191,29 @@ class FilteredController(Controller):
         Filter zero coefficient.
     b : float
         Filter pole coefficient, ``b > 0``.
+    K : float, optional
+        The reflection gain of U_BS2(K), eq. (53), that is filtered; by default U_BS, eq. (47)
+        (which is U_BS2(rho)). Like :class:`ReflectionController`, it needs a constant ``lam/mu``
+        on a general plant (a normal-form quantity).
     """
 
     a: float
     b: float
+    K: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "a", finite_real("a", self.a))
         object.__setattr__(self, "b", positive("b", self.b))
+        if self.K is not None:
+            object.__setattr__(self, "K", finite_real("K", self.K))
 
     def factors(self, phi, i_n, round_trip):
-        return (1.0 - phi).times_poly([1.0, self.b]), phi.times_poly([1.0, self.a])
+        b_factor = phi if self.K is None else self.K * round_trip - i_n
+        return (1.0 - phi).times_poly([1.0, self.b]), b_factor.times_poly([1.0, self.a])
 
     def feedback_law(self, system, kernels=None):
-        law = FiniteTimeController().feedback_law(system, kernels)
+        unfiltered = FiniteTimeController() if self.K is None else ReflectionController(self.K)
+        law = unfiltered.feedback_law(system, kernels)
         return FeedbackLaw(law.boundary_gain, law.gain_u, law.gain_v, (self.a, self.b))
 
 
@@ -261,7 +274,11 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` is replaced by its normal
     form; a :class:`StateFeedback` on it gets its gains mapped to the normal coordinates
     (:meth:`~nrobust.hyperbolic.plants.general.NormalForm.feedback_to_normal`). The paper's
-    controllers are defined on the normal form and pass unchanged. The characteristic
+    controllers are defined on the normal form and pass unchanged: the ``K`` of
+    :class:`ReflectionController` (and of a :class:`FilteredController`) is read in the normal
+    form's coordinates, not the plant's; its gain on the physical ``u(t, L)`` is
+    ``-K e^{D(L) - A(L) - k_b}`` (``k_b`` = :attr:`~nrobust.hyperbolic.plants.general.NormalForm.balance`),
+    plus the kernel terms of eq. (53). The characteristic
     function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
     those of the general plant. A general plant with a varying ``lam/mu`` has no normal form
     and passes unchanged with its controller: every analysis takes it by the characteristic
@@ -319,10 +336,12 @@ def _varying_factors(
             kernels = _varying_kernels(system, check_kernel_grid(kernel_grid))
             return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
         return 1.0 - phi, form.u_factor() * (-controller.k)
-    if isinstance(controller, ReflectionController):
+    if isinstance(controller, ReflectionController) or (
+        isinstance(controller, FilteredController) and controller.K is not None
+    ):
         raise ParameterError(
             "controller",
-            "OpenLoop, FiniteTimeController, FilteredController or StateFeedback on a plant with a varying "
+            "OpenLoop, FiniteTimeController, FilteredController(a, b) or StateFeedback on a plant with a varying "
             "lam/mu (U_BS2(K) is defined on the normal form, which needs a constant lam/mu)",
             controller,
         )

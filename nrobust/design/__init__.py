@@ -1,0 +1,33 @@
+"""Controller design with certificates, on parametrised loops ``A(s; p) + B(s; p) e^{-delta s}``.
+
+``gain``: one gain of an affine loop (``U_BS2(K)``'s, eq. (60)), exactly: the gain with the
+largest delay margin (:func:`best_margin`: a kink, a pair birth, an interior maximum or an
+end, solved from its equation) or the largest decay rate under a required margin
+(:func:`best_decay_rate`), each design certified by :mod:`nrobust.margins`.
+
+``local``: several parameters of any loop family, a local nonsmooth optimisation of the decay
+rate (under a required margin) or of the margin (:func:`optimize_loop`: BFGS with a weak Wolfe
+line search, then a compass search; every iterate feasible; the design certified).
+``pareto``: the best decay rate under each of a list of required margins
+(:func:`pareto_front`).
+"""
+
+from .gain import DESIGN_KINDS, GainDesign, best_decay_rate, best_margin
+from .local import GAMMA_MAX, OBJECTIVES, LocalRun, LoopDesign, ParametricLoop, delayed_gamma, optimize_loop
+from .pareto import ParetoFront, pareto_front
+
+__all__ = [
+    "DESIGN_KINDS",
+    "GAMMA_MAX",
+    "OBJECTIVES",
+    "GainDesign",
+    "LocalRun",
+    "LoopDesign",
+    "ParametricLoop",
+    "ParetoFront",
+    "best_decay_rate",
+    "best_margin",
+    "delayed_gamma",
+    "optimize_loop",
+    "pareto_front",
+]

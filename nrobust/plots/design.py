@@ -1,0 +1,53 @@
+"""Figures of designs: the trade-off front of certified designs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+
+from .base import NrobustPlot, get_axes
+
+__all__ = ["pareto_plot"]
+
+
+def pareto_plot(front: Any, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
+    """Best decay rate against required delay margin: a front of certified local designs.
+
+    Parameters
+    ----------
+    front : ParetoFront
+        From :func:`nrobust.design.pareto_front` or
+        :func:`nrobust.hyperbolic.analyses.filtered_front`.
+    ax : matplotlib Axes, optional
+    annotate : bool
+        Write each design's parameters next to its point.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["front"]`` with x = the designs' delay margins (the infinite ones at the
+        largest requirement, drawn hollow) and y = their decay rates; ``lines["required"]``
+        the requirements.
+    """
+    ax = get_axes(ax)
+    m = np.asarray(front.margins, dtype=float)
+    r = np.asarray(front.decay_rates, dtype=float)
+    d = np.asarray(front.required, dtype=float)
+    finite = np.isfinite(m)
+    x = np.where(finite, m, d)
+    lines: dict[str, list[Any]] = {}
+    lines["front"] = ax.plot(x, r, "o-", color="C0", ms=5, label="designs (certified, local optima)")
+    lines["required"] = ax.plot(d, r, "|", color="C3", ms=10, label="required margin")
+    if np.any(~finite):
+        ax.plot(x[~finite], r[~finite], "o", mfc="white", color="C0", label="stable for every delay")
+    if annotate:
+        for xi, yi, design in zip(x, r, front.designs):
+            label = ", ".join(f"{v:.3g}" for v in design.parameters)
+            ax.annotate(f"({label})", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=6)
+    ax.set_xlabel("delay margin delta*")
+    ax.set_ylabel("decay rate (- spectral abscissa)")
+    ax.set_title("Best decay rate under a required delay margin", fontsize="small")
+    ax.legend(fontsize="small")
+    return NrobustPlot(lines, ax, ax.figure)

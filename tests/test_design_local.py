@@ -1,0 +1,161 @@
+"""Several-parameter designs (nrobust.design.local, pareto; nrobust.hyperbolic.analyses.filter_design).
+
+Oracles, sharing no code with the optimiser: the decay rate -ln|q (rho - K)|/tau of U_BS2(K) on a
+transport system (its loop 1 - q (rho - K) e^{-tau s} written here), the filter's own root -1/b, the
+strong-stability sum gamma_0 = |rho q| + |a/b| |K q| of the filtered loop's difference operator
+written from the controller's definition, the gradient of the abscissa and of the margin against
+central differences of independently recomputed values, and (long) a brute-force grid of
+certified evaluations that the design must match or beat.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.design.local import delayed_gamma, optimize_loop
+from nrobust.design.pareto import pareto_front
+from nrobust.errors import CertificationError, ParameterError
+from nrobust.hyperbolic.analyses.filter_design import design_filtered, filtered_loop
+from nrobust.margins import delay_margin
+from nrobust.roots import spectral_abscissa
+
+LAM, MU, Q, RHO = 1.0, 2.0, 1.0, 0.6
+TAU = 1.0 / LAM + 1.0 / MU
+
+
+@pytest.fixture(scope="module")
+def transport() -> nr.TransportSystem:
+    return nr.TransportSystem(LAM, MU, Q, RHO)
+
+
+def test_filtered_controller_with_K_rho_is_the_filtered_u_bs(transport: nr.TransportSystem) -> None:
+    a, b = 0.03, 0.1
+    A1, B1 = nr.loop_factors(transport, nr.FilteredController(a, b))
+    A2, B2 = nr.loop_factors(transport, nr.FilteredController(a, b, RHO))
+    s = np.array([0.3 + 2.0j, -0.2 + 11.0j])
+    np.testing.assert_allclose(A1(s), A2(s), rtol=1e-15)
+    np.testing.assert_allclose(B1(s), B2(s), rtol=1e-15)
+    # U_BS2(K) through the filter, written from the definition: (1 - rho q e^{-tau s})(1 + b s), K q e^{-tau s}(1 + a s)
+    K = 0.2
+    A, B = nr.loop_factors(transport, nr.FilteredController(a, b, K))
+    np.testing.assert_allclose(A(s), (1 - RHO * Q * np.exp(-TAU * s)) * (1 + b * s), rtol=1e-14)
+    np.testing.assert_allclose(B(s), K * Q * np.exp(-TAU * s) * (1 + a * s), rtol=1e-14)
+
+
+def test_delayed_gamma_is_the_strong_stability_sum(transport: nr.TransportSystem) -> None:
+    a, b, K = -0.04, 0.1, 0.3
+    A, B = nr.loop_factors(transport, nr.FilteredController(a, b, K))
+    np.testing.assert_allclose(delayed_gamma(A, B), abs(RHO * Q) + abs(a / b) * abs(K * Q), rtol=1e-14)
+    A, B = nr.loop_factors(transport, nr.FilteredController(0.0, b, K))  # a = 0: B is retarded
+    np.testing.assert_allclose(delayed_gamma(A, B), abs(RHO * Q), rtol=1e-14)
+
+
+def test_gradients_match_central_differences() -> None:
+    """The sensitivities of the rightmost root and of the critical crossing vs recomputed values."""
+    from nrobust.design.local import _Problem
+
+    plant = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+    loop = filtered_loop(plant, {"K": None, "a": None, "b": 0.05})
+    problem = _Problem(loop, np.array([(-0.14, 0.14), (-0.1, 0.1)]), "decay_rate", None, 0.999)
+    p = np.array([0.1, 0.01])
+    h = 1e-5
+    for want in ("decay_rate", "margin"):
+        x = problem(p, want=want)
+        fd = []
+        for i in range(2):
+            e = np.zeros(2)
+            e[i] = h
+            fd.append((problem(p + e, want=want).value - problem(p - e, want=want).value) / (2 * h))
+        # central differences of values certified to ~1e-12: error ~1e-12/h + h^2 |f'''|
+        np.testing.assert_allclose(x.gradient, fd, rtol=1e-4, atol=1e-6)
+
+
+def test_design_reaches_the_closed_form_optimum(transport: nr.TransportSystem) -> None:
+    """K free, a = b (no filtering): U_BS2(K) at its bound, decay rate -ln(q (rho - K))/tau."""
+    k_hi = 0.35  # |K q| < 1 - |rho q| = 0.4: stable for every delay, so the bound is the optimum
+    design = design_filtered(
+        transport, parameters={"K": (-k_hi, k_hi), "a": 0.1, "b": 0.1}, margin_at_least=1.0, x0=[0.3], starts=1
+    )
+    expected = -math.log(Q * (RHO - k_hi)) / TAU
+    # the compass search stops within POLISH_TOL * width = 7e-7 of the bound: d rate/dK = 1/(tau (rho - K)) = 2.7
+    np.testing.assert_allclose(design.value, expected, atol=5e-6)
+    assert design.certified and math.isinf(design.design.margin.margin)
+    assert design.controller.K == pytest.approx(k_hi, abs=1e-5)
+    assert design.design.local and "PDE itself" in design.scope
+
+
+def test_every_iterate_is_feasible_and_the_requirement_holds() -> None:
+    """A loop with a margin requirement: the design meets it, and a requirement out of reach is refused."""
+    A0 = nr.QuasiPolynomial([[1.0, 1.0]], [0.0])  # s + 1 + k e^{-delta s}: margin arccos(-1/k)/sqrt(k^2 - 1)
+
+    def loop(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+        return A0, nr.QuasiPolynomial([[p[0]]], [0.0])
+
+    design = optimize_loop(loop, [(0.0, 5.0)], margin_at_least=0.8, x0=[0.5])
+    k = design.parameters[0]
+    margin = math.acos(-1.0 / k) / math.sqrt(k * k - 1.0)
+    # the decay rate of s + 1 + k grows with k (root -1 - k) until the margin binds at 0.8
+    assert margin >= 0.8 - 1e-9 and design.certified
+    np.testing.assert_allclose(design.margin.margin, margin, rtol=1e-9)
+    with pytest.raises(CertificationError, match="no start reached a feasible design"):
+        optimize_loop(loop, [(1.5, 5.0)], margin_at_least=2.0, x0=[3.0], max_iter=5)
+
+
+def test_pareto_front_trades_decay_rate_for_margin() -> None:
+    A0 = nr.QuasiPolynomial([[1.0, 1.0]], [0.0])
+
+    def loop(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+        return A0, nr.QuasiPolynomial([[p[0]]], [0.0])
+
+    front = pareto_front(loop, [(0.0, 5.0)], [0.3, 0.6, 1.2], x0=[0.5])
+    assert front.certified and front.infeasible == ()
+    assert np.all(np.diff(front.decay_rates) <= 1e-9)  # more margin costs decay rate
+    assert np.all(front.margins >= front.required - 1e-9)
+    assert front.to_dict()["required"] == [0.3, 0.6, 1.2]
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from nrobust.plots import pareto_plot
+
+    drawn = pareto_plot(front)
+    x, y = drawn.lines["front"][0].get_data()
+    np.testing.assert_allclose(x, front.margins)
+    np.testing.assert_allclose(y, front.decay_rates)
+
+
+def test_bad_input_is_named(transport: nr.TransportSystem) -> None:
+    loop = filtered_loop(transport, {"K": None, "a": 0.0, "b": 0.1})
+    with pytest.raises(ParameterError, match="bounds"):
+        optimize_loop(loop, [(1.0, 0.0)])
+    with pytest.raises(ParameterError, match="objective"):
+        optimize_loop(loop, [(0.0, 0.1)], objective="speed")
+    with pytest.raises(ParameterError, match="gamma_max"):
+        optimize_loop(loop, [(0.0, 0.1)], gamma_max=1.0)
+    with pytest.raises(ParameterError, match="parameters"):
+        design_filtered(transport, parameters={"k": None})
+    with pytest.raises(ParameterError, match="pole"):
+        design_filtered(transport, parameters={"b": (0.0, 1.0)})
+
+
+@pytest.mark.long
+def test_design_matches_or_beats_a_certified_grid(transport: nr.TransportSystem) -> None:
+    """Two free parameters (K, a), b fixed: the best certified point of a 9 x 9 grid is not better."""
+    bounds = {"K": (-0.35, 0.6), "a": (-0.05, 0.05), "b": 0.1}
+    required = 0.5
+    loop = filtered_loop(transport, {"K": None, "a": None, "b": 0.1})
+    best = -math.inf
+    for K in np.linspace(*bounds["K"], 9):
+        for a in np.linspace(*bounds["a"], 9):
+            A, B = loop(np.array([K, a]))
+            if delayed_gamma(A, B) > 0.98:
+                continue
+            dm = delay_margin(A, B)
+            if dm.margin >= required:
+                best = max(best, -spectral_abscissa(A + B).value)
+    design = design_filtered(transport, parameters=bounds, margin_at_least=required, starts=3)
+    assert design.certified
+    assert design.value >= best - 1e-9
