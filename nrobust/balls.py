@@ -271,14 +271,23 @@ def _phi_balls(flint: ModuleType, z: Any, lmax: int, prec: int) -> list[Any]:
         if not math.isfinite(r) or terms > 4096:
             return [flint.acb(flint.arb.nan(), flint.arb.nan())] * (lmax + 1)
         polys = _series_poly(lmax, terms, prec)
-        out = []
-        for l_ in range(lmax + 1):
+
+        def series(l_: int) -> Any:
             # tail: sum_{n >= N} r^n / (n! (n + l + 1)) <= r^N / (N! (N + l + 1)) (N + 1) / (N + 1 - r)
             tail = flint.arb(r) ** terms / flint.arb.fac_ui(terms) / (terms + l_ + 1)
             tail *= flint.arb(terms + 1) / (terms + 1 - flint.arb(r))
             t = float(tail.upper())
-            out.append(polys[l_](z) + flint.acb(flint.arb(0, t), flint.arb(0, t)))
-        return out
+            return polys[l_](z) + flint.acb(flint.arb(0, t), flint.arb(0, t))
+
+        if r > 1.0:
+            return [series(l_) for l_ in range(lmax + 1)]
+        # |z| <= 1: phi_lmax by its series, then down by phi_{l-1} = (z phi_l + e^{-z}) / l
+        # (integration by parts), which divides an error by l / |z| >= 1 at each step
+        e = (-z).exp()
+        out = [series(lmax)]
+        for l_ in range(lmax, 0, -1):
+            out.append((z * out[-1] + e) / l_)
+        return out[::-1]
     e = (-z).exp()
     cur = (1 - e) / z
     out = [cur]
