@@ -1,28 +1,49 @@
 """Analyses of a plant with a controller: delay margins (``margin``), admissible gains
 (``kregion``, on the core's gain engine :mod:`nrobust.margins.gain`), charts over two
-parameters (``charts``), the decay-rate/margin trade-off (``tradeoff``) and the Rouché delay
-bound (``rouche``).
+parameters (``charts``), the decay-rate/margin trade-off (``tradeoff``), the Rouché delay
+bound (``rouche``), the design of ``U_BS2(K)`` (``design``) and of the filtered law over its
+gain, zero and pole (``filter_design``), and the robustness to a mismatch of
+the transport speeds (``mismatch``).
 """
 
 from ...margins.gain import END_KINDS, GainEnd
-from .charts import ABRegion, StabilityChart, ab_region, stability_chart
-from .kregion import DEFAULT_N_GAINS, KRegion, k_region
+from .charts import MAX_CHART_POINTS, ABRegion, StabilityChart, ab_region, stability_chart
+from .design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
+from .filter_design import FILTER_PARAMETERS, FilteredDesign, FilteredLoop, design_filtered, filtered_front, filtered_loop
+from .kregion import DEFAULT_N_GAINS, MAX_GAINS, KRegion, k_region
 from .margin import delay_margin, margin_and_decay
+from .mismatch import MAX_MISMATCH_POINTS, MismatchEnd, MismatchRegion, mismatch_loop, mismatch_region
 from .rouche import rouche_delay_bound
 from .tradeoffs import Tradeoff, tradeoff
 
 __all__ = [
     "ABRegion",
     "DEFAULT_N_GAINS",
+    "DESIGN_OBJECTIVES",
     "END_KINDS",
+    "FILTER_PARAMETERS",
+    "FilteredDesign",
+    "FilteredLoop",
     "GainEnd",
     "KRegion",
+    "MAX_CHART_POINTS",
+    "MAX_GAINS",
+    "MAX_MISMATCH_POINTS",
+    "MismatchEnd",
+    "MismatchRegion",
+    "ReflectionDesign",
     "StabilityChart",
     "Tradeoff",
     "ab_region",
     "delay_margin",
+    "design_filtered",
+    "design_reflection",
+    "filtered_front",
+    "filtered_loop",
     "k_region",
     "margin_and_decay",
+    "mismatch_loop",
+    "mismatch_region",
     "rouche_delay_bound",
     "stability_chart",
     "tradeoff",

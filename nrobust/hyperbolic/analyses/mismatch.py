@@ -1,0 +1,467 @@
+"""Robustness to a mismatch of the transport speeds: :func:`mismatch_loop`, :func:`mismatch_region`.
+
+A controller is designed for the plant ``system`` (its gains are those of
+``controller.feedback_law(system, kernels of system)``: ``U = k u(t, 1) + int_0^1 g_u u + g_v v
+dx``, for ``U_BS2(K)`` the kernel traces of eq. (53)), but the plant it acts on transports at
+``lam (1 + e_lam)`` and ``mu (1 + e_mu)``. The law is a fixed functional of the state, so the
+mismatched loop is that of :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback` with the
+nominal gains on the perturbed plant: ``A = 1 - Phi`` and ``B = -P`` of the perturbed plant
+(:func:`~nrobust.hyperbolic.loops.feedback.feedback_factor`, its inverse kernels and ``N~`` on
+the kernel grid), times ``1 + b s`` and ``1 + a s`` for a filtered controller (section 2.3.2).
+
+The route is the kernel route of :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`
+whenever a gain has an integral term (every coupled plant): a certificate is then about a model
+of the PDE, the nominal gains and the perturbed plant's ``N~`` and ``M`` being cubic splines of
+kernels on ``kernel_grid`` points (:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`).
+On an uncoupled plant the paper's laws are ``U = k u(t, 1)`` (no kernel), the route is exact
+and a certificate is about the PDE itself.
+
+The delay margin is not a continuous function of the mismatch: where ``|A(i w)|^2 - |B(i w)|^2``
+gains a double zero a pair of crossing frequencies is born and the margin jumps down to its
+first crossing delay. :func:`mismatch_region` therefore brackets each end of the admissible
+set along an axis between two certified evaluations and says whether the margin jumps there.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import fields_dict, json_safe
+from ..._validate import finite_real, positive, positive_int
+from ...errors import CertificationError, ParameterError
+from ...margins.admissible import tolerates
+from ...margins.margin import DelayMargin
+from ...margins.margin import delay_margin as factor_delay_margin
+from ...quasipoly import QuasiPolynomial
+from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
+from ..loops.controllers import Controller, StateFeedback, loop_factors, loop_route, loop_scope
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from ._common import mapper, real_grid
+
+__all__ = ["JUMP_FRACTION", "MAX_MISMATCH_POINTS", "MismatchEnd", "MismatchRegion", "mismatch_loop", "mismatch_region"]
+
+#: Most certified evaluations :func:`mismatch_region` plans: the grid ``len(e_lam) * len(e_mu)``
+#: plus the points of the two axes. One evaluation solves the kernels of the perturbed plant
+#: and a verified delay margin (1 to 5 s on the paper's plant at 201 kernel points on a shared
+#: core), so this bound is a few hours of work; a larger grid is refused before any work.
+MAX_MISMATCH_POINTS = 4096
+
+#: A change of the margin across an end's final bracket larger than this fraction of
+#: ``delta_max`` is reported as a jump (kind ``"jump"``) rather than a continuous crossing of
+#: ``delta_max``; either way the end lies between the two certified points.
+JUMP_FRACTION = 1e-3
+
+
+@lru_cache(maxsize=8)
+def _nominal_kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
+    """The kernels the controller is designed on (cached: every grid point shares them)."""
+    return solve_kernels(system, kernel_grid)
+
+
+def _check_error(name: str, value: Any) -> float:
+    """A relative speed error: finite and ``> -1`` (the perturbed speed stays positive)."""
+    out = finite_real(name, value)
+    if out <= -1.0:
+        raise ParameterError(name, "> -1 (the perturbed speed must stay positive)", value)
+    return out
+
+
+def _check_pair(system: Any, controller: Any) -> None:
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem (constant speeds lam, mu)", system)
+    if not isinstance(controller, Controller):
+        raise ParameterError(
+            "controller",
+            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController or StateFeedback",
+            controller,
+        )
+
+
+def _mismatched(
+    system: Hyperbolic2x2, controller: Controller, e_lam: float, e_mu: float, kernel_grid: int
+) -> tuple[Hyperbolic2x2, StateFeedback, tuple[float, float] | None]:
+    """The perturbed plant, the nominal law as a state feedback on it, and the law's filter."""
+    plant = dataclasses.replace(system, lam=system.lam * (1.0 + e_lam), mu=system.mu * (1.0 + e_mu))
+    if isinstance(controller, StateFeedback):
+        return plant, controller, None
+    kernels = None if system.uncoupled else _nominal_kernels(system, kernel_grid)
+    law = controller.feedback_law(system, kernels)
+    if system.uncoupled:  # the paper's laws without kernels: U = k u(t, 1), no integral term
+        return plant, StateFeedback(law.boundary_gain), law.filter
+    return plant, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v), law.filter
+
+
+def _loop(
+    plant: Hyperbolic2x2, feedback: StateFeedback, filt: tuple[float, float] | None, kernel_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` of the state feedback on ``plant``, through the law's filter ``(1 + a s)/(1 + b s)``."""
+    grid = kernel_grid if loop_route(plant, feedback) == "kernels" else None
+    A, B = loop_factors(plant, feedback, grid)
+    if filt is None:
+        return A, B
+    a, b = filt
+    return A.times_poly([1.0, b]), B.times_poly([1.0, a])
+
+
+def mismatch_loop(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    e_lam: float,
+    e_mu: float,
+    *,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """Loop factors of ``controller`` designed for ``system``, acting on the plant with mismatched speeds.
+
+    The law is ``controller.feedback_law(system, solve_kernels(system, kernel_grid))``, a
+    :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback` ``U = k u(t, 1) + int g_u u +
+    g_v v dx`` with the nominal gains (for ``U_BS2(K)`` the kernel traces of eq. (53)); the plant
+    is ``system`` with ``lam (1 + e_lam)`` and ``mu (1 + e_mu)``. Its loop is ``A = 1 - Phi`` and
+    ``B = -P`` of the perturbed plant (:func:`~nrobust.hyperbolic.loops.feedback.feedback_factor`),
+    with ``A`` times ``1 + b s`` and ``B`` times ``1 + a s`` for a
+    :class:`~nrobust.hyperbolic.loops.controllers.FilteredController`. A ``StateFeedback``
+    controller keeps its own gains.
+
+    Route: on a coupled plant the kernel route (gains with an integral term): the nominal gains,
+    the perturbed ``N~`` and the feedback kernel ``M`` are cubic splines of kernels on
+    ``kernel_grid`` points, so ``F = A + B e^{-delta s}`` is a model of the PDE and a certificate
+    about it is about that model. On an uncoupled plant (or a proportional ``StateFeedback``)
+    the paper's laws are ``U = k u(t, 1)`` and the route is exact: the PDE itself. With
+    ``e_lam = e_mu = 0`` the factors are those of ``loop_factors(system, controller)`` to the
+    accuracy of the kernel route (about ``1e-9`` on the paper's plant at 201 points).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or TransportSystem
+        The plant the controller is designed for (nominal speeds ``lam``, ``mu``).
+    controller : Controller
+        One of the paper's controllers or a ``StateFeedback``.
+    e_lam, e_mu : float
+        Relative errors of the speeds, each ``> -1``.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        Kernel grid of the nominal gains and of the perturbed plant's loop.
+
+    Returns
+    -------
+    tuple of QuasiPolynomial
+        ``A`` and ``B`` with ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+    """
+    _check_pair(system, controller)
+    e_lam, e_mu = _check_error("e_lam", e_lam), _check_error("e_mu", e_mu)
+    kernel_grid = check_kernel_grid(kernel_grid)
+    return _loop(*_mismatched(system, controller, e_lam, e_mu, kernel_grid), kernel_grid)
+
+
+@dataclass(frozen=True)
+class _MismatchMargin:
+    """Picklable ``(e_lam, e_mu) -> certified delay margin of the mismatched loop``, or the message
+    of its :class:`~nrobust.errors.CertificationError`."""
+
+    system: Hyperbolic2x2
+    controller: Controller
+    kernel_grid: int
+    rigorous: bool
+    max_evals: int
+
+    def __call__(self, point: tuple[float, float]) -> DelayMargin | str:
+        try:
+            A, B = _loop(
+                *_mismatched(self.system, self.controller, point[0], point[1], self.kernel_grid), self.kernel_grid
+            )
+            return factor_delay_margin(A, B, verify=True, max_evals=self.max_evals, rigorous=self.rigorous)
+        except CertificationError as exc:
+            return str(exc)
+
+
+class MismatchEnd(NamedTuple):
+    """One end of the admissible mismatch along an axis, bracketed by certified evaluations.
+
+    Attributes
+    ----------
+    e : float
+        The end's estimate: the root of ``margin(e) - delta_max`` by ``brentq`` (kind
+        ``"crossing"``), or the inner, certified admissible point of its bracket (``"jump"``);
+        the last axis point
+        (``"grid_end"``); ``0`` (``"nominal"``: the undisturbed loop is not admissible).
+    inside, outside : float
+        The final bracket: admissible at ``inside`` (certified margin ``> delta_max``, nominal
+        loop stable), not at ``outside``; ``outside`` is ``nan`` for ``"grid_end"``.
+    margin_inside, margin_outside : float
+        The certified margins there (``nan`` where not evaluated).
+    kind : str
+        ``"crossing"`` (the margin passes through ``delta_max`` within the bracket: it changes by
+        at most ``JUMP_FRACTION * delta_max`` across it), ``"jump"`` (the margin jumps within the
+        bracket, e.g. a pair of crossing frequencies is born or the nominal loop loses
+        stability: the end is between the two certified points, no closer), ``"grid_end"``
+        (admissible at every axis point checked) or ``"nominal"``.
+    """
+
+    e: float
+    inside: float
+    outside: float
+    margin_inside: float
+    margin_outside: float
+    kind: str
+
+
+@dataclass(frozen=True, eq=False)
+class MismatchRegion:
+    """Speed mismatches under which a controller stays stable for every delay in ``[0, delta_max]``.
+
+    Compared by identity (``==`` is ``is``): it holds numpy arrays.
+
+    Attributes
+    ----------
+    e_lam, e_mu : ndarray
+        The grid of relative speed errors.
+    margins : ndarray, shape ``(len(e_lam), len(e_mu))``
+        Certified delay margin of the mismatched loop (0 when its nominal loop is unstable).
+    nominally_stable : ndarray of bool
+        The mismatched loop without delay is exponentially stable.
+    admissible : ndarray of bool
+        Nominally stable and ``margin > delta_max``: stable for every delay in ``[0, delta_max]``.
+    delta_max : float
+        The delay range that must be tolerated.
+    extent : dict
+        ``{"e_lam": (lower, upper), "e_mu": (lower, upper)}``: the ends (:class:`MismatchEnd`) of
+        the admissible set along each axis from ``e = 0`` (the other error zero). Each was
+        bracketed by the axis points and refined to ``tol``; an axis point's verdict and the
+        end's bracket are certified, what happens between two axis points before the first
+        change of verdict is not examined.
+    tol : float
+        Width of the final bracket of each end.
+    route, scope : str
+        The route of the mismatched loops (``"kernels"`` or ``"exact"``) and what a certificate
+        is about (:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`).
+    rigorous : bool
+        The margins were proven in ball arithmetic, not only verified.
+    evaluations : int
+        Certified delay margins computed (grid, axes and brackets).
+    """
+
+    e_lam: NDArray[np.float64]
+    e_mu: NDArray[np.float64]
+    margins: NDArray[np.float64]
+    nominally_stable: NDArray[np.bool_]
+    admissible: NDArray[np.bool_]
+    delta_max: float
+    extent: dict[str, tuple[MismatchEnd, MismatchEnd]]
+    tol: float
+    route: str
+    scope: str
+    rigorous: bool
+    evaluations: int
+
+    def __repr__(self) -> str:
+        def axis(name: str) -> str:
+            lo, hi = self.extent[name]
+            return f"{name} in ({lo.e:.6g}, {hi.e:.6g}) [{lo.kind}, {hi.kind}]"
+
+        return (
+            f"MismatchRegion(delta_max={self.delta_max:.6g}, {int(self.admissible.sum())}/{self.admissible.size} "
+            f"grid points admissible, {axis('e_lam')}, {axis('e_mu')})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description; each end of ``extent`` as a dict of the :class:`MismatchEnd` fields."""
+        data = fields_dict(self, exclude=("extent",))
+        data["extent"] = json_safe({k: [end._asdict() for end in pair] for k, pair in self.extent.items()})
+        return data
+
+
+class _Evaluator:
+    """Certified margins at mismatch points, cached, counted; a failed margin raises naming its point."""
+
+    def __init__(self, margin_at: _MismatchMargin) -> None:
+        self.margin_at = margin_at
+        self.known: dict[tuple[float, float], DelayMargin] = {}
+
+    def store(self, point: tuple[float, float], result: DelayMargin | str) -> DelayMargin:
+        if isinstance(result, str):
+            raise CertificationError(
+                f"mismatch_region: the delay margin at (e_lam, e_mu) = ({point[0]:.12g}, {point[1]:.12g}) failed: "
+                f"{result}"
+            )
+        self.known[point] = result
+        return result
+
+    def __call__(self, point: tuple[float, float]) -> DelayMargin:
+        if point not in self.known:
+            self.store(point, self.margin_at(point))
+        return self.known[point]
+
+
+def _axis_end(
+    evaluate: _Evaluator, axis: int, points: NDArray[np.float64], delta_max: float, tol: float
+) -> MismatchEnd:
+    """The end of the admissible set along one half-axis from 0 through ``points`` (``|e|`` increasing)."""
+    from scipy.optimize import brentq  # lazily: scipy.optimize is slow to import
+
+    def at(e: float) -> tuple[float, float]:
+        return (e, 0.0) if axis == 0 else (0.0, e)
+
+    def signed(e: float) -> float:
+        """``margin - delta_max``, clipped to ``(0, delta_max]`` where admissible, ``<= 0`` where not."""
+        dm = evaluate(at(e))
+        if tolerates(dm, delta_max):
+            return min(float(dm.margin), 2.0 * delta_max) - delta_max
+        return min(float(dm.margin), delta_max) - delta_max
+
+    good = 0.0
+    if signed(good) <= 0.0:
+        margin = float(evaluate(at(good)).margin)
+        return MismatchEnd(0.0, math.nan, 0.0, math.nan, margin, "nominal")
+    for e in points:
+        if signed(float(e)) > 0.0:
+            good = float(e)
+            continue
+        root = float(brentq(signed, good, float(e), xtol=tol, rtol=4.0 * np.finfo(float).eps))
+        values = sorted(
+            {p[axis] for p in evaluate.known if p[1 - axis] == 0.0 and min(good, e) <= p[axis] <= max(good, e)}
+        )
+        brackets = [(x, y) for x, y in itertools.pairwise(values) if (signed(x) > 0.0) != (signed(y) > 0.0)]
+        lo, hi = min(brackets, key=lambda pair: pair[1] - pair[0])
+        inside, outside = (lo, hi) if signed(lo) > 0.0 else (hi, lo)
+        m_in, m_out = float(evaluate(at(inside)).margin), float(evaluate(at(outside)).margin)
+        if signed(outside) == 0.0:
+            return MismatchEnd(outside, inside, outside, m_in, m_out, "crossing")
+        jump = abs(m_in - m_out) > JUMP_FRACTION * delta_max
+        return MismatchEnd(inside if jump else root, inside, outside, m_in, m_out, "jump" if jump else "crossing")
+    m_in = float(evaluate(at(good)).margin)
+    return MismatchEnd(good, good, math.nan, m_in, math.nan, "grid_end")
+
+
+def mismatch_region(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    e_lam: ArrayLike,
+    e_mu: ArrayLike,
+    delta_max: float,
+    *,
+    tol: float = 1e-6,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
+    max_evals: int = 2_000_000,
+    executor: Any = "serial",
+    progress: bool | None = None,
+) -> MismatchRegion:
+    """Speed mismatches under which ``controller``, designed for ``system``, tolerates ``[0, delta_max]``.
+
+    At every point of the grid ``e_lam x e_mu`` the mismatched loop (:func:`mismatch_loop`) gets
+    a certified delay margin (:func:`nrobust.margins.delay_margin`, verified by an independent
+    root count, or proven in ball arithmetic with ``rigorous=True``); a point is admissible when
+    the loop without delay is stable and the margin exceeds ``delta_max``. Along each axis (the
+    other error zero) the end of the admissible set reached from ``e = 0`` is located: the axis
+    points (the grid values of that axis) bracket the first change of verdict, ``brentq`` on
+    ``margin(e) - delta_max`` (every evaluation certified) narrows the bracket to ``tol``, and
+    the end is reported with its final bracket and whether the margin jumps across it
+    (:class:`MismatchEnd`): the margin is not continuous where a pair of crossing frequencies is
+    born or the nominal loop loses stability, and there the end is only known to lie between
+    the two certified points. A change of verdict and back between two axis points is not seen.
+
+    What a certificate is about: :attr:`MismatchRegion.scope` (on a coupled plant a model of the
+    PDE with the kernels on ``kernel_grid`` points; on an uncoupled plant the PDE itself).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or TransportSystem
+        The plant the controller is designed for.
+    controller : Controller
+        The controller, designed on ``system`` (its ``feedback_law``).
+    e_lam, e_mu : array_like
+        Relative speed errors (each ``> -1``); the plant transports at ``lam (1 + e_lam)`` and
+        ``mu (1 + e_mu)``.
+    delta_max : float
+        The delay range to tolerate (``> 0``).
+    tol : float, default 1e-6
+        Width of the final bracket of each end of :attr:`MismatchRegion.extent`.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        Kernel grid of the nominal gains and of every perturbed loop.
+    rigorous : bool, default False
+        Prove every margin in ball arithmetic (python-flint) instead of verifying it.
+    max_evals : int, optional
+        Work bound of each delay margin.
+    executor : "serial", None, int, Executor, "dask", address or dask Client, optional
+        Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
+        process. The brackets of the ends are refined in this process.
+    progress : bool, optional
+        A progress bar over the grid points on stderr; by default only when stderr is a
+        terminal or Jupyter.
+
+    Returns
+    -------
+    MismatchRegion
+
+    Raises
+    ------
+    ParameterError
+        A bad argument, e.g. an error ``<= -1`` or more than :data:`MAX_MISMATCH_POINTS`
+        evaluations planned (checked before any work).
+    CertificationError
+        A delay margin failed (the message names its point).
+    """
+    _check_pair(system, controller)
+    lam_axis, mu_axis = real_grid("e_lam", e_lam), real_grid("e_mu", e_mu)
+    planned = lam_axis.size * mu_axis.size + lam_axis.size + mu_axis.size + 1
+    if planned > MAX_MISMATCH_POINTS:
+        raise ParameterError(
+            "e_lam, e_mu",
+            f"grids with len(e_lam) * len(e_mu) + len(e_lam) + len(e_mu) + 1 <= MAX_MISMATCH_POINTS = "
+            f"{MAX_MISMATCH_POINTS}",
+            f"{lam_axis.size} x {mu_axis.size}",
+        )
+    for name, errors in (("e_lam", lam_axis), ("e_mu", mu_axis)):
+        for value in errors:
+            _check_error(name, value)
+    delta_max = positive("delta_max", delta_max)
+    tol = positive("tol", tol)
+    kernel_grid = check_kernel_grid(kernel_grid)
+    max_evals = positive_int("max_evals", max_evals)
+    evaluate = _Evaluator(_MismatchMargin(system, controller, kernel_grid, bool(rigorous), max_evals))
+    points = [(float(a), float(b)) for a in lam_axis for b in mu_axis]
+    axes = [(0.0, 0.0)] + [(float(a), 0.0) for a in lam_axis] + [(0.0, float(b)) for b in mu_axis]
+    todo = list(dict.fromkeys(points + axes))
+    run = mapper(executor, progress, "mismatch_region: delay margins")
+    for point, result in zip(todo, run(evaluate.margin_at, todo)):
+        evaluate.store(point, result)
+    grid = [evaluate(p) for p in points]
+    shape = (lam_axis.size, mu_axis.size)
+    margins = np.array([dm.margin for dm in grid], dtype=float).reshape(shape)
+    stable = np.array([dm.nominally_stable for dm in grid], dtype=bool).reshape(shape)
+    admissible = np.array([tolerates(dm, delta_max) for dm in grid], dtype=bool).reshape(shape)
+    extent: dict[str, tuple[MismatchEnd, MismatchEnd]] = {}
+    for axis, (name, values) in enumerate((("e_lam", lam_axis), ("e_mu", mu_axis))):
+        below, above = np.sort(values[values < 0.0])[::-1], np.sort(values[values > 0.0])
+        extent[name] = (
+            _axis_end(evaluate, axis, below, delta_max, tol),
+            _axis_end(evaluate, axis, above, delta_max, tol),
+        )
+    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    route = loop_route(plant, feedback)
+    scope = loop_scope(
+        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
+    )
+    if route == "kernels" and not isinstance(controller, StateFeedback):
+        scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
+    return MismatchRegion(
+        lam_axis,
+        mu_axis,
+        margins,
+        stable,
+        admissible,
+        delta_max,
+        extent,
+        tol,
+        route,
+        scope,
+        bool(rigorous),
+        len(evaluate.known),
+    )
