@@ -18,7 +18,18 @@ within 1e-8, exact count, largest distance from an exact root to the nearest fou
 root, seconds (best of several runs for the fast solvers), and the time ratio of the
 peer (or of the proven run) to nrobust's floating-point run.
 
+A second table: the distributed delay ``F(s) = s + 1 - 2 (1 - e^{-s}) / s`` (the constant
+kernel 2 on ``[0, 1]``) in ``[-12, 2] x [-0.5, 300]`` (48 roots). nrobust takes ``F`` natively
+(a QuasiPolynomial with a DistributedDelay term); the peers, which have point delays only,
+take ``s F(s) = s^2 + s - 2 + 2 e^{-s}``, whose roots are those of ``F`` and ``s = 0``
+(49 in the region): nrobust on ``s F`` too, qpmr, tdcpy (the retarded system
+``x'' + x' - 2 x + 2 x(t - 1) = 0`` in state-space form, its spectral discretisation with
+Newton corrections in the rectangle) and cxroots on ``F`` itself (skipped with ``--quick``).
+Printed: roots found, the largest distance to nrobust's certified roots of ``F`` (``s = 0`` left
+out), seconds and the ratio of each time to nrobust's native one.
+
 Run: ``python benchmarks/roots.py [--quick]``
+(``--quick`` skips cxroots at H = 200 and on the distributed delay; it takes minutes)
 """
 
 from __future__ import annotations
@@ -31,7 +42,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from nrobust import QuasiPolynomial, find_roots
+from nrobust import DistributedDelay, QuasiPolynomial, find_roots
 
 COEFS = [[1.0], [-0.85], [0.1]]
 DELAYS = [0.0, 2.0, 2.1]
@@ -117,6 +128,97 @@ def timed(fn: Callable[[float], np.ndarray], H: float, repeat: int) -> tuple[np.
     return roots, best
 
 
+DD_REGION = (-12.0, 2.0, -0.5, 300.0)
+
+
+def dd_native() -> np.ndarray:
+    """nrobust on F itself: the DistributedDelay term -2 int_0^1 e^{-nu s} dnu."""
+    F = QuasiPolynomial([[1.0, 1.0]], [0.0], [DistributedDelay([0.0, 1.0], [-2.0, -2.0])])
+    res = find_roots(F, DD_REGION)
+    if not res.certified:
+        raise RuntimeError("nrobust did not certify the region")
+    return np.repeat(res.roots, res.multiplicities)
+
+
+def dd_times_s() -> np.ndarray:
+    """nrobust on s F(s) = s^2 + s - 2 + 2 e^{-s}."""
+    res = find_roots(QuasiPolynomial([[-2.0, 1.0, 1.0], [2.0]], [0.0, 1.0]), DD_REGION)
+    if not res.certified:
+        raise RuntimeError("nrobust did not certify the region")
+    return np.repeat(res.roots, res.multiplicities)
+
+
+def dd_qpmr() -> np.ndarray:
+    import qpmr
+
+    with warnings.catch_warnings():  # qpmr casts complex grid values inside numpy.ma
+        warnings.simplefilter("ignore", np.exceptions.ComplexWarning)
+        roots, _ = qpmr.qpmr(np.array([[-2.0, 1.0, 1.0], [2.0, 0.0, 0.0]]), np.array([0.0, 1.0]), region=DD_REGION)
+    return np.asarray(roots, dtype=complex)
+
+
+def dd_tdcpy() -> np.ndarray:
+    import tdcpy
+
+    sys = tdcpy.RDDE(A=[np.array([[0.0, 1.0], [2.0, -1.0]]), np.array([[0.0, 0.0], [-2.0, 0.0]])], hA=[0.0, 1.0])
+    roots, _ = tdcpy.roots(sys, r=list(DD_REGION))
+    return np.asarray(roots, dtype=complex)
+
+
+def dd_cxroots() -> np.ndarray:
+    from cxroots import Rectangle
+
+    def f(s: complex) -> complex:
+        return s + 1 - 2 * (1 - np.exp(-s)) / s
+
+    def df(s: complex) -> complex:
+        return 1 + 2 * (1 - np.exp(-s)) / s**2 - 2 * np.exp(-s) / s
+
+    logging.getLogger("cxroots").setLevel(logging.ERROR)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = Rectangle(DD_REGION[:2], DD_REGION[2:]).roots(f, df)
+    return np.repeat(np.array(result.roots, dtype=complex), result.multiplicities)
+
+
+def best_of(fn: Callable[[], np.ndarray], repeat: int) -> tuple[np.ndarray, float]:
+    """The roots and the best wall-clock time of ``repeat`` runs."""
+    best, roots = float("inf"), np.zeros(0, dtype=complex)
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        roots = fn()
+        best = min(best, time.perf_counter() - t0)
+    return roots, best
+
+
+def distributed_table(quick: bool) -> None:
+    """The distributed-delay problem: nrobust natively against the peers on s F."""
+    header = f"{'solver':>22} {'found':>6} {'max dist':>10} {'seconds':>9} {'time / nrobust native':>22}"
+    print("\nF(s) = s + 1 - 2 (1 - e^{-s}) / s in [-12, 2] x [-0.5, 300]")
+    print(header)
+    print("-" * len(header))
+    runs: list[tuple[str, Callable[[], np.ndarray], int]] = [
+        ("nrobust native F", dd_native, 5),
+        ("nrobust on s F", dd_times_s, 5),
+        ("qpmr on s F", dd_qpmr, 3),
+        ("tdcpy on s F", dd_tdcpy, 3),
+    ]
+    if not quick:
+        runs.append(("cxroots on F", dd_cxroots, 1))
+    base, reference = float("nan"), np.zeros(0, dtype=complex)
+    for name, fn, repeat in runs:
+        try:
+            roots, seconds = best_of(fn, repeat)
+        except ImportError as exc:
+            print(f"{name:>22}  skipped: {exc}")
+            continue
+        if name == "nrobust native F":
+            base, reference = seconds, roots
+        nonzero = roots[np.abs(roots) > 1e-8]
+        dist = max_error(reference, nonzero) if nonzero.size else float("inf")
+        print(f"{name:>22} {roots.size:6d} {dist:10.2e} {seconds:9.4f} {seconds / base:22.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="skip cxroots at H = 200 (it takes minutes)")
@@ -155,6 +257,7 @@ def main() -> None:
             )
 
     print(f"\nproven / floating-point find_roots, 64 roots (H = 200): {goal:.1f}x (goal: under 20x)")
+    distributed_table(args.quick)
 
 
 if __name__ == "__main__":

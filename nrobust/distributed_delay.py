@@ -49,6 +49,8 @@ _BLOCK = 1 << 20
 # Chirp-z transforms run on blocks of this many frequencies: the chirp phase error grows
 # like the square of the block length (measured: 2e-11 relative at 20000, ~1e-13 at 1024).
 _CZT_BLOCK = 1024
+# Kernels of at most this many pieces are summed in closed form away from s = 0 (_closed_form).
+_CLOSED_FORM_PIECES = 8
 # Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
 _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 
@@ -370,6 +372,10 @@ class DistributedDelay:
         pieces: tuple[NDArray, NDArray, NDArray] = field(init=False, repr=False, compare=False)
         # built on first use by _segment_groups
         _groups: dict[tuple[int, bool], tuple[_SegmentGroup, ...]] = field(init=False, repr=False, compare=False)
+        # built on first use by _end_terms
+        _ends: dict[tuple[int, bool], tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]] = field(
+            init=False, repr=False, compare=False
+        )
 
     def __init__(
         self,
@@ -431,6 +437,7 @@ class DistributedDelay:
         object.__setattr__(self, "variation_radius", variation_radius)
         object.__setattr__(self, "pieces", pieces)
         object.__setattr__(self, "_groups", {})
+        object.__setattr__(self, "_ends", {})
 
     def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``poly``, ``moment``, ``radius``, ``variation_radius`` changed.
@@ -583,11 +590,39 @@ class DistributedDelay:
             groups = self._groups[key] = tuple(built)
         return groups
 
-    def _moment_integral(self, s: NDArray[np.complex128], extra: int, absolute: bool = False) -> NDArray[np.complex128]:
+    def _closed_form(self, s: NDArray[np.complex128], extra: int, absolute: bool) -> NDArray[np.complex128]:
+        """``sum_j s^-(j+1) sum_i J[j, i] e^{-nu_i s}`` (:meth:`_end_terms`) at flat ``s``, all nonzero."""
+        nodes, jump, _ = self._end_terms(extra, absolute)
+        sums = np.exp(-np.outer(s, nodes)) @ jump.T  # (S, degree + 1)
+        inv = 1.0 / s
+        out = sums[:, -1] * inv
+        for j in range(jump.shape[0] - 2, -1, -1):
+            out = (out + sums[:, j]) * inv
+        return out
+
+    def _moment_integral(
+        self, s: NDArray[np.complex128], extra: int, absolute: bool = False, closed: bool = True
+    ) -> NDArray[np.complex128]:
         """``int nu^(m+extra) N(nu) e^{-nu s} dnu`` for the interpolant, exact, at flat ``s``.
 
         ``absolute``: for the piecewise polynomial bound of ``|N|`` (:meth:`_abs_pieces`).
+        A kernel of at most :data:`_CLOSED_FORM_PIECES` pieces is summed by :meth:`_closed_form`
+        where ``|s| h >= max(1, degree / 3)`` (``closed``), the region where :func:`_phi` uses its
+        closed-form recursion.
         """
+        if closed and self.pieces[0].size <= _CLOSED_FORM_PIECES:
+            # the identity of _end_terms where |s h| is large enough for the recursion of _phi,
+            # which it equals: an exponential sum over the nodes and a polynomial in 1/s
+            _, h, poly_t = self._abs_pieces() if absolute else self.pieces
+            kmax = poly_t.shape[1] + self.moment + extra - 1
+            far = np.abs(s) * float(np.min(h)) >= max(_SERIES_RADIUS, kmax / 3.0)
+            if np.all(far):
+                return self._closed_form(s, extra, absolute)
+            if np.any(far):
+                out = np.empty(s.shape, dtype=complex)
+                out[far] = self._closed_form(s[far], extra, absolute)
+                out[~far] = self._moment_integral(s[~far], extra, absolute, closed=False)
+                return out
         out = np.zeros(s.shape, dtype=complex)
         for group in self._segment_groups(extra, absolute):
             phi = _phi(s * group.h, group.coef.shape[1] - 1)  # (L, S)
@@ -599,6 +634,8 @@ class DistributedDelay:
         """Evaluate ``q(s) int nu^m N(nu) e^{-nu s} dnu`` (vectorised over ``s``)."""
         s = np.asarray(s, dtype=complex)
         flat = s.ravel()
+        if self.poly.size == 1:  # the canonical form: q = 1
+            return self._moment_integral(flat, 0).reshape(s.shape)
         return (polyval(self.poly, flat) * self._moment_integral(flat, 0)).reshape(s.shape)
 
     def deriv(self, s: ArrayLike) -> NDArray[np.complex128]:
@@ -614,6 +651,8 @@ class DistributedDelay:
         """Evaluate the derivative in ``s``: ``q' J_m - q J_{m+1}`` with ``J_k = int nu^k N e^{-nu s}``."""
         s = np.asarray(s, dtype=complex)
         flat = s.ravel()
+        if self.poly.size == 1:  # the canonical form: q = 1, q' = 0
+            return -self._moment_integral(flat, 1).reshape(s.shape)
         out = polyval(polyder(self.poly), flat) * self._moment_integral(flat, 0)
         out -= polyval(self.poly, flat) * self._moment_integral(flat, 1)
         return out.reshape(s.shape)
@@ -678,6 +717,89 @@ class DistributedDelay:
         )
 
     # ------------------------------------------------------------------ bounds
+    def _end_terms(
+        self, extra: int, absolute: bool = False
+    ) -> tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]:
+        """Nodes ``nu_i``, jumps ``J[j, i] = g^(j)(nu_i+) - g^(j)(nu_i-)`` of ``g = nu^(m+extra) N``, bounds of ``|J|``.
+
+        ``g`` is extended by zero outside ``[a, b]``; ``j`` runs to the degree of the pieces.
+        Integrating by parts until the polynomial pieces are exhausted gives the exact
+        identity ``int g(nu) e^{-nu s} dnu = sum_j s^-(j+1) sum_i J[j, i] e^{-nu_i s}``
+        (:meth:`decay_bound`, :meth:`_moment_integral`). Each jump is a difference of the
+        one-sided derivatives of adjacent pieces, rounded: the bounds add ``4 eps`` of their moduli.
+        ``absolute``: for the piecewise polynomial bound of ``|N|`` (:meth:`_abs_pieces`).
+        """
+        cached = self._ends.get((extra, absolute))
+        if cached is not None:
+            return cached
+        start, h, coef = self._local_coefficients(extra, self._abs_pieces() if absolute else None)
+        c = coef / h[:, None]  # g on segment i in powers of t = (nu - start_i) / h_i
+        degree = c.shape[1] - 1
+        lo = np.empty((degree + 1, start.size), dtype=c.dtype)  # g^(j)(start_i+)
+        hi = np.empty((degree + 1, start.size), dtype=c.dtype)  # g^(j)(end_i-)
+        powers = np.arange(degree + 1)
+        for j in range(degree + 1):
+            falling = np.array([float(factorial(q)) / factorial(q - j) if q >= j else 0.0 for q in powers])
+            scale = h ** (-float(j))
+            lo[j] = c[:, j] * float(factorial(j)) * scale
+            hi[j] = (c @ falling) * scale
+        ends = np.concatenate([start, start + h])
+        nodes, where = np.unique(ends, return_inverse=True)
+        jump = np.zeros((degree + 1, nodes.size), dtype=c.dtype)
+        size = np.zeros((degree + 1, nodes.size))
+        for j in range(degree + 1):
+            np.add.at(jump[j], where, np.concatenate([lo[j], -hi[j]]))
+            np.add.at(size[j], where, np.abs(np.concatenate([lo[j], hi[j]])))
+        bound = np.abs(jump) + 4.0 * np.finfo(float).eps * size
+        for arr in (nodes, jump, bound):
+            arr.flags.writeable = False
+        self._ends[(extra, absolute)] = (nodes, jump, bound)
+        return nodes, jump, bound
+
+    def asymptotic_terms(self) -> list[tuple[complex, int, float]]:
+        """Leading terms ``c s^e e^{-nu s}`` of the term at each jump ``nu`` of the kernel, as ``(c, e, nu)``.
+
+        By the identity of :meth:`decay_bound`, ``q(s) int nu^m N e^{-nu s} dnu`` is
+        ``q(s) sum_j s^-(j+1) sum_i J[j, i] e^{-nu_i s}``: at each node the first nonzero
+        ``J[j, i]`` gives the leading term, of degree ``deg q - j - 1``, the term a point
+        delay at ``nu_i`` would contribute for large ``|s|`` (the chains of roots of a
+        retarded quasi-polynomial are read from these degrees; the radius is left out).
+        """
+        nodes, jump, _ = self._end_terms(0)
+        out = []
+        for i, nu in enumerate(nodes.tolist()):
+            nonzero = np.flatnonzero(jump[:, i])
+            if nonzero.size:
+                j = int(nonzero[0])
+                out.append((complex(self.poly[-1] * jump[j, i]), self.poly.size - 2 - j, float(nu)))
+        return out
+
+    def decay_bound(self, x: ArrayLike, d: ArrayLike, k: int = 0) -> NDArray[np.float64]:
+        """Upper bound of ``|int nu^(m+k) N_true(nu) e^{-nu s} dnu|`` for ``Re s >= x`` and ``|s| >= d``.
+
+        From the exact identity of :meth:`_end_terms`:
+        ``sum_j d^-(j+1) sum_i |[g^(j)](nu_i)| e^{-nu_i x}``, which decays like ``1/|s|`` where
+        :meth:`abs_moment` does not (the integral of a kernel of bounded variation), plus
+        ``radius int nu^(m+k) e^{-nu x}`` for ``N_true - N``. Infinite where ``d = 0``.
+
+        Parameters
+        ----------
+        x, d : array_like
+            Least real part and least modulus of ``s`` (broadcast together).
+        k : int, optional
+            Extra moment.
+        """
+        x, d = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(d, dtype=float))
+        nodes, _, bound = self._end_terms(k)
+        with np.errstate(over="ignore", divide="ignore"):
+            weights = np.exp(-np.multiply.outer(x, nodes)) @ bound.T  # (..., degree + 1)
+            inv = 1.0 / d
+            out = np.zeros(x.shape)
+            for j in range(bound.shape[0] - 1, -1, -1):
+                out = (out + weights[..., j]) * inv
+        out = np.where((d > 0) & ~np.isnan(out), out, np.inf)  # nan: an overflow met a zero jump
+        return out + self._radius_integral(x, self.moment + k)
+
     def abs_moment(self, x: ArrayLike, k: int = 0) -> NDArray[np.float64]:
         """Upper bound of ``int nu^(m+k) |N(nu)| e^{-nu x} dnu`` for real ``x`` (vectorised).
 

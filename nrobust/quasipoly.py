@@ -16,10 +16,11 @@ error does not grow with ``|Im s|``, are :class:`~nrobust.distributed_delay.Dist
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from math import factorial
+from math import comb, factorial
 from typing import Any
 
 import numpy as np
@@ -66,6 +67,29 @@ def _segments(
     return 0.5 * (a + b), 0.5 * np.abs(b - a), xmin, xs, where.reshape(xmin.shape)
 
 
+def _least_modulus(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Distance from 0 to each segment ``[a, b]``, rounded down by a few ulps."""
+    v = b - a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(-np.real(np.conj(v) * a) / np.abs(v) ** 2, 0.0, 1.0)
+    d = np.abs(a + np.nan_to_num(t) * v)
+    return np.minimum(np.minimum(d, np.abs(a)), np.abs(b)) * (1.0 - 1e-12)
+
+
+def _integral_bounds(
+    d: DistributedDelay, a: ArrayLike, b: ArrayLike, xs: NDArray, where: NDArray, ks: tuple[int, ...]
+) -> list[NDArray[np.float64]]:
+    """Bounds of ``|int nu^(m+k) N e^{-nu s} dnu|`` on the segments for each ``k`` of ``ks``.
+
+    The lesser of :meth:`DistributedDelay.abs_moment` (at ``xs``, the least real parts
+    rounded down) and :meth:`DistributedDelay.decay_bound` (at the same real parts and the
+    least modulus on the segment): both hold, the second decays like ``1/|s|``.
+    """
+    x = xs[where]
+    dmin = _least_modulus(np.asarray(a, dtype=complex), np.asarray(b, dtype=complex))
+    return [np.fmin(d.abs_moment(xs, k)[where], d.decay_bound(x, dmin, k)) for k in ks]
+
+
 def _poly_abs_bound(coefs: NDArray, center: NDArray, radius: NDArray) -> NDArray[np.float64]:
     """Upper bound of ``|p(s)|`` on discs ``|s - center| <= radius`` (exact Taylor sum)."""
     bound = np.zeros(center.shape)
@@ -74,6 +98,56 @@ def _poly_abs_bound(coefs: NDArray, center: NDArray, radius: NDArray) -> NDArray
         bound = bound + np.abs(polyval(deriv, center)) / factorial(j) * radius**j
         deriv = polyder(deriv)
     return bound
+
+
+@dataclass(frozen=True)
+class _PointTensor:
+    """The point terms as arrays, so that one Horner scheme evaluates them all.
+
+    ``taus`` the delays (``K``); ``taylor[d][j]`` (``d = 0``: the ``p_k``, ``d = 1``: the
+    ``p_k' - tau_k p_k`` of ``F'``) the coefficients of ``q^{(j)} / j!`` as rows ``(K, P - j)``,
+    the Taylor coefficients from which the bounds on discs are summed; ``absolute`` the
+    moduli of the ``p_k`` (for the rounding scale).
+    """
+
+    taus: NDArray[np.float64]
+    taylor: tuple[tuple[NDArray, ...], tuple[NDArray, ...]]
+    absolute: NDArray[np.float64]
+
+
+def _point_tensor(terms: tuple[tuple[NDArray, float], ...]) -> _PointTensor:
+    size = max(p.size for p, _ in terms)
+    coef = np.zeros((len(terms), size), dtype=np.result_type(*[p for p, _ in terms], float))
+    for k, (p, _) in enumerate(terms):
+        coef[k, : p.size] = p
+    taus = np.array([t for _, t in terms], dtype=float)
+    deriv = -taus[:, None] * coef  # (p e^{-tau s})' = (p' - tau p) e^{-tau s}
+    deriv[:, :-1] += coef[:, 1:] * np.arange(1, size)
+    taylor = []
+    for c in (coef, deriv):
+        rows = []
+        for j in range(size):  # q^{(j)} / j! = sum_k C(k, j) c_k s^(k - j)
+            rows.append(c[:, j:] * np.array([comb(k, j) for k in range(j, size)], dtype=float))
+        taylor.append(tuple(rows))
+    return _PointTensor(taus, (taylor[0], taylor[1]), np.abs(coef))
+
+
+def _horner_rows(c: NDArray, s: NDArray) -> NDArray:
+    """``sum_p c[k, p] s^p`` for each row ``k`` and flat ``s``: shape ``(N, K)``."""
+    if c.shape[1] == 1:
+        return np.broadcast_to(c[:, 0], (s.size, c.shape[0]))
+    x = s[:, None]
+    out = c[:, -1] * x + c[:, -2]
+    for p in range(c.shape[1] - 3, -1, -1):
+        out = out * x + c[:, p]
+    return out
+
+
+def _exp_rows(taus: NDArray[np.float64], x: NDArray) -> NDArray:
+    """``e^{-tau_k x}`` as ``(N, K)``, exactly 1 for ``tau_k = 0`` (also where ``x`` is not finite)."""
+    out = np.exp(-np.outer(x, taus))
+    out[:, taus == 0] = 1.0
+    return out
 
 
 def _fmt_num(c: complex) -> str:
@@ -256,12 +330,23 @@ class QuasiPolynomial:
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Evaluate ``F(s)`` on an array of complex ``s``."""
         s = np.asarray(s, dtype=complex)
-        out = np.zeros(s.shape, dtype=complex)
-        for p, t in self.point_terms:
-            out += polyval(p, s) * (np.exp(-t * s) if t else 1.0)
+        out = self._point_sum(s, 0)
         for d in self.distributed:
             out += d(s)
         return out
+
+    @functools.cached_property
+    def _tensor(self) -> _PointTensor:
+        return _point_tensor(self.point_terms)
+
+    def _point_sum(self, s: NDArray[np.complex128], order: int) -> NDArray[np.complex128]:
+        """The point terms of ``F`` (``order`` 0) or of ``F'`` (``order`` 1) at ``s``."""
+        if not self.point_terms:
+            return np.zeros(s.shape, dtype=complex)
+        t = self._tensor
+        flat = s.ravel()
+        vals = _horner_rows(t.taylor[order][0], flat) * _exp_rows(t.taus, flat)
+        return np.asarray(np.sum(vals, axis=1), dtype=complex).reshape(s.shape)
 
     def deriv(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Deprecated alias of :meth:`deriv_at`: it evaluates ``F'(s)``; :meth:`derivative` returns ``F'``."""
@@ -275,9 +360,7 @@ class QuasiPolynomial:
     def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Evaluate ``F'(s)`` on an array of complex ``s`` (:meth:`derivative` returns ``F'`` itself)."""
         s = np.asarray(s, dtype=complex)
-        out = np.zeros(s.shape, dtype=complex)
-        for p, t in self.point_terms:
-            out += (polyval(polyder(p), s) - t * polyval(p, s)) * (np.exp(-t * s) if t else 1.0)
+        out = self._point_sum(s, 1)
         for d in self.distributed:
             out += d.deriv_at(s)
         return out
@@ -297,18 +380,16 @@ class QuasiPolynomial:
         """Upper bound of ``|F'(s)|`` on each segment ``[a, b]`` of the complex plane.
 
         Closed form (vectorised over the segments): a point term contributes
-        ``(max|p_k'| + tau_k max|p_k|) e^{-tau_k x_min}``, a distributed term
-        ``max|q'| int nu^m |N| e^{-nu x_min} + max|q| int nu^(m+1) |N| e^{-nu x_min}``,
-        where ``x_min`` is the smallest real part on the segment and the polynomial
-        maxima are bounded by the Taylor sum about the midpoint.
+        ``max|p_k' - tau_k p_k| e^{-tau_k x_min}``, a distributed term
+        ``max|q'| J_m + max|q| J_(m+1)`` with ``J_k`` the lesser of ``int nu^k |N| e^{-nu x_min}``
+        and :meth:`DistributedDelay.decay_bound` (``O(1/|s|)``, by parts), where ``x_min`` is
+        the smallest real part on the segment and the polynomial maxima are bounded by the
+        Taylor sum about the midpoint.
         """
         center, radius, xmin, xs, where = _segments(a, b, bool(self.distributed))
-        out = np.zeros(center.shape)
-        for p, t in self.point_terms:
-            dp = polyder(p)
-            out += (_poly_abs_bound(dp, center, radius) + t * _poly_abs_bound(p, center, radius)) * np.exp(-t * xmin)
+        out = self._point_bound(center, radius, xmin, 1)
         for d in self.distributed:
-            m0, m1 = d.abs_moment(xs, 0)[where], d.abs_moment(xs, 1)[where]
+            m0, m1 = _integral_bounds(d, a, b, xs, where, (0, 1))
             out += _poly_abs_bound(polyder(d.poly), center, radius) * m0
             out += _poly_abs_bound(d.poly, center, radius) * m1
         return out
@@ -317,23 +398,38 @@ class QuasiPolynomial:
         """Upper bound of ``|F(s)|`` on each segment ``[a, b]`` of the complex plane.
 
         Closed form as :meth:`deriv_bound`: a point term contributes
-        ``max|p_k| e^{-tau_k x_min}``, a distributed term ``max|q| int nu^m |N| e^{-nu x_min}``.
+        ``max|p_k| e^{-tau_k x_min}``, a distributed term ``max|q| J_m``.
         """
         center, radius, xmin, xs, where = _segments(a, b, bool(self.distributed))
-        out = np.zeros(center.shape)
-        for p, t in self.point_terms:
-            out += _poly_abs_bound(p, center, radius) * np.exp(-t * xmin)
+        out = self._point_bound(center, radius, xmin, 0)
         for d in self.distributed:
-            out += _poly_abs_bound(d.poly, center, radius) * d.abs_moment(xs, 0)[where]
+            (m0,) = _integral_bounds(d, a, b, xs, where, (0,))
+            out += _poly_abs_bound(d.poly, center, radius) * m0
         return out
+
+    def _point_bound(self, center: NDArray, radius: NDArray, xmin: NDArray, order: int) -> NDArray[np.float64]:
+        """``sum_k max|q_k| e^{-tau_k x_min}`` on the discs about ``center`` (``q_k = p_k``, or
+        ``p_k' - tau_k p_k`` for ``order`` 1): the Taylor sum ``sum_j |q_k^{(j)}(c)| / j! r^j``."""
+        if not self.point_terms:
+            return np.zeros(center.shape)
+        t = self._tensor
+        c, r, x = center.ravel(), radius.ravel(), xmin.ravel()
+        bound = np.abs(_horner_rows(t.taylor[order][0], c))
+        power = np.ones(c.size)
+        for coef in t.taylor[order][1:]:
+            power = power * r
+            bound = bound + np.abs(_horner_rows(coef, c)) * power[:, None]
+        return np.asarray(np.sum(bound * _exp_rows(t.taus, x), axis=1), dtype=float).reshape(center.shape)
 
     def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
         """Sum of the moduli of the monomials of ``F`` at ``s``: the scale of its rounding error."""
         s = np.asarray(s, dtype=complex)
-        out = np.zeros(s.shape)
         r = np.abs(s)
-        for p, t in self.point_terms:
-            out += np.polynomial.polynomial.polyval(r, np.abs(p)) * np.exp(-t * s.real)
+        out = np.zeros(s.shape)
+        if self.point_terms:
+            t = self._tensor
+            rows = _horner_rows(t.absolute, r.ravel()) * _exp_rows(t.taus, s.real.ravel())
+            out += np.sum(rows, axis=1).reshape(s.shape)
         if self.distributed:
             # int |N| nu^k e^{-nu x} decreases in x (nu >= 0): rounding x down to 1/_XMIN_GRID keeps an
             # upper bound and lets the samples of a contour share a few evaluations

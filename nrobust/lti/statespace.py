@@ -30,12 +30,21 @@ Roots right of a vertical line (TDS-CONTROL's ``r``) are finitely many when the 
 part is small there: ``s x = E^{-1}(A(s) + s B(s) + G(s)) x`` gives
 ``|s| (1 - sum_k ||E^{-1} B_k|| e^{-hB_k x}) <= sum_k ||E^{-1} A_k|| e^{-hA_k x} + sum_j
 ||E^{-1} G_j|| int |N_j| e^{-nu x}`` on ``Re s >= x`` (:meth:`StateSpaceTDS.root_radius`),
-so :meth:`StateSpaceTDS.roots_right_of` counts a rectangle that holds them all.
+so :meth:`StateSpaceTDS.roots_right_of` counts a rectangle that holds them all: as this
+radius ``R(x)`` decreases in ``x`` and ``Re s <= |s|``, every such root has
+``Re s <= x*``, the fixed point ``x* = R(x*)``, which closes the rectangle on the right.
+
+Newton's method in :func:`~nrobust.roots.find_roots` is seeded with the eigenvalues of a
+Chebyshev collocation of the infinitesimal generator (Breda, Maset and Vermiglio,
+"Pseudospectral differencing methods for characteristic roots of delay differential
+equations", SIAM J. Sci. Comput. 27(2), 482-495, 2005; the discretisation TDS-CONTROL uses):
+approximations only, each root still accepted by a certified count of a box about it and
+the whole set by the count of the rectangle (the argument principle).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import finite_real, real_array
+from .._validate import region as check_region
 from ..errors import ParameterError
 from ..matrix_difference import MatrixDifferenceOperator
 from ..qpmatrix import QuasiPolynomialMatrix
@@ -50,6 +60,42 @@ from ..quasipoly import DistributedDelay, QuasiPolynomial
 from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
 
 __all__ = ["StateSpaceTDS"]
+
+
+# Collocation points of the generator per unit of |Im s| tau (a Chebyshev grid resolves
+# e^{i w theta} on [-tau, 0] with about w tau / 2 points; seeds within 1e-4 of the roots
+# need fewer), the points added to that, and the largest order of the collocation matrix
+# (its eigenvalues cost O(order^3)); the largest condition number of the first block row
+# of the pencil's right side for the reduction to a standard eigenvalue problem.
+_POINTS_PER_FREQUENCY = 0.3
+_MIN_POINTS = 12
+_MAX_ORDER = 480
+_MAX_CONDITION = 1e8
+# Bisection steps of the abscissa bound x* = R(x*) (each halves the bracket).
+_BISECTIONS = 80
+
+
+def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev extremal points ``theta_j`` on ``[-tau, 0]`` (``theta_0 = 0``) and the differentiation matrix."""
+    j = np.arange(points + 1)
+    x = np.cos(np.pi * j / points)
+    c = np.where((j == 0) | (j == points), 2.0, 1.0) * (-1.0) ** j
+    dx = x[:, None] - x[None, :]
+    d = np.outer(c, 1.0 / c) / (dx + np.eye(points + 1))
+    d -= np.diag(np.sum(d, axis=1))
+    return 0.5 * tau * (x - 1.0), d * (2.0 / tau)
+
+
+def _interpolation_row(theta: NDArray[np.float64], at: float) -> NDArray[np.float64]:
+    """Weights of the polynomial interpolant on the Chebyshev points ``theta`` at ``at`` (barycentric)."""
+    hit = np.flatnonzero(theta == at)
+    row = np.zeros(theta.size)
+    if hit.size:
+        row[hit[0]] = 1.0
+        return row
+    j = np.arange(theta.size)
+    w = np.where((j == 0) | (j == theta.size - 1), 0.5, 1.0) * (-1.0) ** j / (at - theta)
+    return w / np.sum(w)
 
 
 def _stack(name: str, mats: Any, n: int | None) -> NDArray[np.float64]:
@@ -207,6 +253,13 @@ class StateSpaceTDS:
             infinitely many roots may lie right of it).
         """
         x = finite_real("re_min", re_min)
+        neutral, rest = self._radius_terms()
+        if neutral(x) >= 1.0:
+            raise ParameterError("re_min", "a line right of the neutral chains (sum ||E^-1 B_k|| e^{-h x} < 1)", re_min)
+        return rest(x) / (1.0 - neutral(x))
+
+    def _radius_terms(self) -> tuple[Callable[[float], float], Callable[[float], float]]:
+        """``x -> sum_k ||E^{-1} B_k|| e^{-hB_k x}`` and the numerator of :meth:`root_radius`, both decreasing."""
         if np.linalg.matrix_rank(self.E) < self.n:
             raise ParameterError("E", "invertible for a root radius", self.E)
         einv = np.linalg.inv(self.E)
@@ -214,19 +267,84 @@ class StateSpaceTDS:
         def norm(m: NDArray[np.float64]) -> float:
             return float(np.linalg.norm(einv @ m, 2))
 
-        neutral = sum(norm(b) * np.exp(-h * x) for b, h in zip(self.B, self.hB))
-        if neutral >= 1.0:
-            raise ParameterError("re_min", "a line right of the neutral chains (sum ||E^-1 B_k|| e^{-h x} < 1)", re_min)
-        rest = sum(norm(a) * np.exp(-h * x) for a, h in zip(self.A, self.hA))
-        for j, (g, N) in enumerate(self.distributed):
+        for j, (_, N) in enumerate(self.distributed):
             if N.poly.size > 1:
                 raise ParameterError(f"distributed[{j}]", "a kernel without polynomial factor for a root radius", N)
-            rest += norm(g) * float(N.abs_moment(x))
-        return float(rest / (1.0 - neutral))
+        nb = np.array([norm(b) for b in self.B])
+        na = np.array([norm(a) for a in self.A])
+        ng = [(norm(g), N) for g, N in self.distributed]
+
+        def neutral(x: float) -> float:
+            return float(np.sum(nb * np.exp(-self.hB * x)))
+
+        def rest(x: float) -> float:
+            return float(np.sum(na * np.exp(-self.hA * x))) + sum(c * float(N.abs_moment(x)) for c, N in ng)
+
+        return neutral, rest
+
+    def generator_eigenvalues(self, im_max: float) -> NDArray[np.complex128]:
+        """Approximate roots: eigenvalues of a Chebyshev collocation of the generator (not certified).
+
+        The state on ``[-tau, 0]`` (``tau`` the largest point delay) is collocated at
+        ``N + 1`` Chebyshev points, ``N`` growing with ``tau im_max`` (module docstring),
+        and ``s`` solves the pencil ``A v = s B v``: the rows ``j >= 1`` ask
+        ``phi'(theta_j) = s phi(theta_j)``, row 0 asks
+        ``s (E phi(0) - sum_k B_k phi(-hB_k)) = sum_k A_k phi(-hA_k)`` (``phi = e^{s theta} v``
+        is exact). Distributed terms are left out. Accurate for the roots with
+        ``|Im s| tau`` well below ``N``; used by :meth:`roots` as seeds of Newton's method only.
+
+        Parameters
+        ----------
+        im_max : float
+            Largest ``|Im s|`` of the roots wanted.
+
+        Returns
+        -------
+        ndarray of complex
+            The finite eigenvalues.
+        """
+        im_max = finite_real("im_max", im_max)
+        from scipy.linalg import eig  # lazily: a slow import (the generalised problem of a singular E)
+
+        n = self.n
+        tau = float(max(np.max(self.hA, initial=0.0), np.max(self.hB, initial=0.0)))
+        if tau == 0.0:
+            vals = eig(np.sum(self.A, axis=0), self.E, right=False)  # no delay: no neutral term either
+            return np.asarray(vals[np.isfinite(vals)], dtype=complex)
+        points = int(np.clip(_POINTS_PER_FREQUENCY * abs(im_max) * tau + _MIN_POINTS, 4, _MAX_ORDER // n - 1))
+        theta, d = _chebyshev(points, tau)
+        a = np.kron(d, np.eye(n))
+        b = np.eye(n * (points + 1))
+        a[:n] = np.sum([np.kron(_interpolation_row(theta, -h), m) for m, h in zip(self.A, self.hA)], axis=0)
+        b[:n] = np.kron(_interpolation_row(theta, 0.0), self.E)
+        for m, h in zip(self.B, self.hB):
+            b[:n] -= np.kron(_interpolation_row(theta, -h), m)
+        b0 = b[:n, :n]
+        if np.linalg.cond(b0) < _MAX_CONDITION:  # B = [[B0, Br], [0, I]]: the standard problem B^{-1} A
+            a[:n] = np.linalg.solve(b0, a[:n] - b[:n, n:] @ a[n:])
+            vals = np.linalg.eigvals(a)
+        else:
+            vals = eig(a, b, right=False)
+        return np.asarray(vals[np.isfinite(vals)], dtype=complex)
+
+    def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
+        """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""
+        x0, x1, y0, y1 = region
+        seeds = self.generator_eigenvalues(max(abs(y0), abs(y1)))
+        pad = 0.02 * min(x1 - x0, y1 - y0)
+        inside = (seeds.real > x0 - pad) & (seeds.real < x1 + pad) & (seeds.imag > y0 - pad) & (seeds.imag < y1 + pad)
+        user = options.pop("seeds", None)
+        extra = seeds[inside] if user is None else np.concatenate([seeds[inside], np.ravel(user).astype(complex)])
+        return find_roots(self.characteristic_matrix(), region, seeds=extra, **options)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
-        """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`)."""
-        return find_roots(self.characteristic_matrix(), region, **options)
+        """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).
+
+        Newton's method is seeded with :meth:`generator_eigenvalues` (and the ``seeds`` of
+        ``options``); the count and the boxes are certified as by ``find_roots``.
+        """
+        box = check_region(region)
+        return self._find(box, dict(options))
 
     def roots_right_of(self, re_min: float, **options: Any) -> RootSet:
         """Every root with ``Re s >= re_min``, certified: the rectangle of :meth:`root_radius`.
@@ -234,8 +352,34 @@ class StateSpaceTDS:
         TDS-CONTROL's and tdcpy's ``roots(tds, r)`` with a number ``r`` compute the same set
         by a spectral discretisation (not certified).
         """
-        r = self.root_radius(re_min) * (1.0 + 1e-9) + 1e-9
-        return find_roots(self.characteristic_matrix(), (float(re_min), max(r, float(re_min) + 1e-6), -r, r), **options)
+        x = float(re_min)
+        r = self.root_radius(x) * (1.0 + 1e-9) + 1e-9
+        right = self._abscissa_bound(x) * (1.0 + 1e-9) + 1e-9 if r > x else x
+        return self._find((x, max(min(right, r), x + 1e-6), -r, r), dict(options))
+
+    def _abscissa_bound(self, re_min: float) -> float:
+        """``x*`` with ``x* >= R(x*)`` (:meth:`root_radius` ``R``): no root has ``Re s > x*`` (module docstring).
+
+        ``x - R(x)`` increases, so bisection on ``[re_min, R(re_min)]`` keeps an upper end
+        where it is ``>= 0``; a root with ``Re s = x >= re_min`` has ``x <= |s| <= R(x)``.
+        """
+        neutral, rest = self._radius_terms()
+
+        def radius(x: float) -> float:
+            return rest(x) / (1.0 - neutral(x))
+
+        lo, hi = re_min, radius(re_min)
+        if hi <= lo:
+            return lo
+        for _ in range(_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            if mid in (lo, hi):
+                break
+            if mid >= radius(mid):
+                hi = mid
+            else:
+                lo = mid
+        return hi
 
     def abscissa(self, region: ArrayLike, **options: Any) -> SpectralAbscissa:
         """Spectral abscissa of ``det M`` in a rectangle (:func:`~nrobust.roots.spectral_abscissa`)."""

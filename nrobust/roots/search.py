@@ -12,6 +12,7 @@ arithmetic on request.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -37,6 +38,10 @@ _MERGE_RTOL = 1e-4
 _REACH = 10.0
 # Newton's method stalls near an m-fold root at |F| ~ eps A; such points are limits too.
 _STALLED = 1e3 * ROUNDING
+# Newton steps shorter than this (relative to 1 + |s|) are checked for a value at rounding level.
+_NOISE_STEP = 1e-8
+# Fixed-point steps on the asymptotic equation of a retarded chain.
+_CHAIN_STEPS = 8
 # Largest degree of the commensurate approximation whose chains seed Newton's method
 # for incommensurate principal parts.
 _SEED_DEGREE = 128
@@ -66,12 +71,20 @@ def _newton(
 
     def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
         if within is None:
-            return F(x), F.deriv_at(x)
-        out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
-        f = np.full(x.size, np.nan, dtype=complex)
-        d = np.full(x.size, np.nan, dtype=complex)
-        keep = ~out
-        f[keep], d[keep] = F(x[keep]), F.deriv_at(x[keep])
+            f, d = F(x), F.deriv_at(x)
+        else:
+            out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
+            f = np.full(x.size, np.nan, dtype=complex)
+            d = np.full(x.size, np.nan, dtype=complex)
+            keep = ~out
+            f[keep], d[keep] = F(x[keep]), F.deriv_at(x[keep])
+        # |F(x)| below one rounding unit of its scale: no step can improve x (the step would be
+        # rounding noise, longer than the step test when F is ill conditioned, e.g. a
+        # determinant): a zero value ends the iteration of the point where it is.
+        near = np.flatnonzero(np.abs(f) <= _NOISE_STEP * np.abs(d) * (1.0 + np.abs(x)))
+        if near.size:
+            noise = np.abs(f[near]) <= EPS * magnitude(F, x[near])
+            f[near[noise]] = 0.0
         return f, d
 
     def spend(n: int) -> None:
@@ -119,6 +132,56 @@ def _boxes_about(z: NDArray[np.complex128], h: NDArray[np.float64], owners: NDAr
 # Largest number of roots resolved by the contour moments of one circle; beyond it the
 # power sums are ill conditioned and the box is seeded and subdivided instead.
 _MAX_MOMENT_ROOTS = 16
+
+
+def _retarded_chains(F: QuasiPolynomial, region: Region) -> NDArray[np.complex128]:
+    """Asymptotic roots of the chains of a retarded quasi-polynomial near ``region`` (seeds only).
+
+    Each term contributes its leading monomial ``a s^d e^{-tau s}`` (a distributed term, the
+    monomials of :meth:`~nrobust.quasipoly.DistributedDelay.asymptotic_terms`). The chains
+    that go to the left (Bellman and Cooke's distribution diagram) balance the two ends
+    ``(tau_k, d_k)``, ``(tau_l, d_l)`` of an edge of the upper convex hull of the points
+    ``(tau, d)``: ``e^{-(tau_l - tau_k) s} = -(a_k / a_l) s^(d_k - d_l)``, solved for each
+    branch ``2 pi i j`` of the logarithm by a few fixed-point steps.
+    """
+    terms: dict[float, tuple[int, complex]] = {}
+    monomials = [(complex(p[-1]), p.size - 1, t) for p, t in F.point_terms]
+    monomials += [m for d in F.distributed for m in d.asymptotic_terms()]
+    for a, d, t in monomials:
+        if t not in terms or d > terms[t][0]:
+            terms[t] = (d, a)
+        elif d == terms[t][0]:
+            terms[t] = (d, terms[t][1] + a)
+    pts = sorted((t, d, a) for t, (d, a) in terms.items() if a != 0)
+    hull: list[tuple[float, int, complex]] = []
+    for p in pts:  # upper hull, left to right (Andrew's monotone chain)
+        while len(hull) >= 2:
+            (t1, d1, _), (t2, d2, _) = hull[-2], hull[-1]
+            if (t2 - t1) * (p[1] - d1) - (d2 - d1) * (p[0] - t1) >= 0:
+                hull.pop()
+            else:
+                break
+        hull.append(p)
+    x0, x1, y0, y1 = region
+    pad = 1.0
+    out = []
+    for (tk, dk, ak), (tl, dl, al) in itertools.pairwise(hull):
+        gap, mu = tl - tk, dk - dl
+        if mu <= 0:
+            continue
+        log_w = np.log(-ak / al)
+        lo = int(np.floor(-(y1 + pad) * gap / (2 * np.pi))) - 2
+        hi = int(np.ceil(-(y0 - pad) * gap / (2 * np.pi))) + 2
+        branch = 2j * np.pi * np.arange(lo, hi + 1)
+        s = -(log_w + branch) / gap
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for _ in range(_CHAIN_STEPS):
+                s = -(log_w + mu * np.log(s) + branch) / gap
+        out.append(s[np.isfinite(s)])
+    if not out:
+        return np.zeros(0, dtype=complex)
+    s = np.concatenate(out)
+    return s[(s.real > x0 - pad) & (s.real < x1 + pad) & (s.imag > y0 - pad) & (s.imag < y1 + pad)]
 
 
 @dataclass
@@ -283,24 +346,19 @@ class Finder:
             base = np.minimum(scale, 0.1 * distinct)
         stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * scale), 1e3 * scale)
         reach = np.maximum(base, stalled)
-        parent = np.arange(pts.size)
+        group = np.arange(pts.size)
         if pts.size > 1:
             xy = _xy(pts)
             pairs = kdtree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
             if pairs.size:
                 gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
                 pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
+            if pairs.size:
+                from scipy.sparse import coo_array  # lazily, as kdtree: scipy.sparse is slow to import
+                from scipy.sparse.csgraph import connected_components
 
-            def root(i: int) -> int:
-                while parent[i] != i:
-                    parent[i] = parent[parent[i]]
-                    i = parent[i]
-                return i
-
-            for i, j in pairs:
-                parent[root(i)] = root(j)
-            parent = np.array([root(i) for i in range(pts.size)])
-        _, group = np.unique(parent, return_inverse=True)
+                graph = coo_array((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(pts.size, pts.size))
+                group = connected_components(graph, directed=False)[1]
         size = np.bincount(group)
         means = np.asarray((np.bincount(group, pts.real) + 1j * np.bincount(group, pts.imag)) / size, dtype=complex)
         extra = np.where(stalled > base, stalled, 0.0)
@@ -440,6 +498,8 @@ class Finder:
         For incommensurate delays these are the chains of
         :meth:`~nrobust.difference.DifferenceOperator.commensurate_approximation`: approximate seeds only.
         """
+        if self.F.kind == "retarded" and isinstance(self.F, QuasiPolynomial):
+            return _retarded_chains(self.F, self.region)
         if self.F.kind != "neutral":
             return np.zeros(0, dtype=complex)
         D = self.F.principal_part()
