@@ -48,8 +48,14 @@ suppress_warnings = ["myst.header"]
 # unlinked; a name that does not exist stays an error.
 nitpicky = True
 
-# Markdown: GitHub-style anchors for the headings the pages link to.
+# Markdown: GitHub-style anchors for the headings the pages link to; ``$...$`` and ``$$...$$``
+# for mathematics (rendered by MathJax) and bare ``\begin{align}`` environments. Displayed
+# equations carry the published paper's numbers by ``\tag{53}``, not Sphinx's own numbering.
 myst_heading_anchors = 3
+myst_enable_extensions = ["dollarmath", "amsmath"]
+# MathJax 4 breaks long inline formulas across lines; in the narrow columns of the tables
+# of docs/theory.md that cut them mid-term, so inline formulas stay on one line.
+mathjax4_config = {"output": {"linebreaks": {"inline": False}}}
 
 # API reference: one page per module, generated from the docstrings.
 autosummary_generate = True
@@ -62,9 +68,26 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_validation_checks: set[str] = set()
 
-html_theme = "alabaster"
-html_static_path: list[str] = []
+# The theme of NumPy, SciPy and pandas: a top bar for the chapters, the page's sections on
+# the right, and room for the wide tables of the API pages (docs/_static/nrobust.css).
+html_theme = "pydata_sphinx_theme"
+html_static_path = ["_static"]
+templates_path = ["_templates"]
+html_css_files = ["nrobust.css"]
 html_title = f"nrobust {release}"
+html_theme_options = {
+    "navbar_align": "left",
+    "header_links_before_dropdown": 3,
+    "show_toc_level": 2,
+    "navigation_with_keys": False,
+    "show_prev_next": True,
+    "footer_start": ["copyright"],
+    "footer_end": ["sphinx-version", "theme-version"],
+    # the API contract and the generated reference: the whole width for their tables
+    "secondary_sidebar_items": {"**": ["page-toc"], "api": [], "reference": []},
+}
+html_sidebars = {"index": [], "five_minutes": [], "api": [], "reference": []}
+html_context = {"default_mode": "light"}
 
 # ------------------------------------------------------------------ gallery
 # The hooks are named by their import path (docs/gallery_hooks.py), so that the
@@ -82,6 +105,11 @@ sphinx_gallery_conf = {
     "download_all_examples": False,
     "abort_on_example_error": True,
     "write_computation_times": False,
+    # the examples' own figures are shown one per row at the width they were saved at
+    # (gallery_hooks.written_figures), the first one as the thumbnail of the index
+    "thumbnail_size": (400, 280),
+    "remove_config_comments": True,
+    "show_signature": False,
 }
 
 
