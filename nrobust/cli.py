@@ -7,6 +7,10 @@
     The reference paper's example end to end: classification, figures 1 and 3 by
     simulation of the PDE, delay margins of U_BS and U_BS2(K = 0.1), the ``(K, delta)``
     stability chart with the sufficient bound, the decay/margin trade-off and the report.
+``nrobust design SYSTEM.toml -o OUT/ [--objective OBJ] [--margin-at-least D] [--k-bounds LO HI] [--rigorous]``
+    The gain ``K`` of ``U_BS2(K)`` for the file's plant with the largest delay margin
+    (``OBJ = margin``), or the largest decay rate (``decay_rate``) with a margin of at least
+    ``D`` (:func:`nrobust.reports.design.run_design`): ``design.json`` and ``design.md``.
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
     A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
     again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).
@@ -31,6 +35,7 @@ from ._version import __version__
 from .config import PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
 from .reports.analyze import run_analyze
+from .reports.design import run_design
 from .reports.paper import PAPER_SYSTEM, run_paper
 from .sweeps.engine import SweepInterrupted
 from .sweeps.sweepfile import run_sweep_file
@@ -66,6 +71,14 @@ def _parser() -> argparse.ArgumentParser:
     pp = sub.add_parser("paper", help="the reference paper's example end to end")
     pp.add_argument("-o", "--out", required=True, help="output directory")
     _progress_options(pp)
+    d = sub.add_parser("design", help="the gain K of U_BS2(K) for the plant of a SYSTEM.toml file")
+    d.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md); its [system] is the plant")
+    d.add_argument("-o", "--out", required=True, help="output directory")
+    d.add_argument("--objective", choices=("margin", "decay_rate"), default="margin", help="what to maximise")
+    d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")
+    d.add_argument("--k-bounds", type=float, nargs=2, default=None, metavar=("LO", "HI"), help="the gains searched")
+    d.add_argument("--rigorous", action="store_true", help="prove the designed loop's margin in ball arithmetic")
+    d.set_defaults(progress=None)  # no progress bar: one design takes about a second
     s = sub.add_parser("sweep", help="run a SWEEP.toml parameter sweep or Monte Carlo study")
     s.add_argument("file", help="SWEEP.toml (schema: docs/sweeps.md)")
     s.add_argument("-o", "--out", required=True, help="output directory")
@@ -101,6 +114,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             files, verdict = run_analyze(args.file, args.out, progress=progress)
             print(verdict)
             print(f"wrote {files.markdown}, {files.html}, {', '.join(str(p) for p in files.json)}")
+        elif args.command == "design":
+            written, designed = run_design(
+                args.file,
+                args.out,
+                args.objective,
+                args.margin_at_least,
+                None if args.k_bounds is None else tuple(args.k_bounds),
+                args.rigorous,
+            )
+            print(f"K = {designed.K:.15g} ({designed.kind}), {args.objective} = {designed.value:.15g}")
+            print(f"wrote {', '.join(str(p) for p in written)}")
         elif args.command == "paper":
             summary = run_paper(args.out, progress=progress)
             print(
@@ -111,6 +135,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             result = run_sweep_file(
                 args.file, args.out, dask_address=args.dask, progress=progress, restart=args.restart
             )
+            if result.sweep.resumed:
+                print(result.sweep.resumed)
             print(
                 f"wrote {result.csv}, {result.json}, {result.png} "
                 f"({len(result.sweep.points)} points, {result.sweep.n_failed} failed)"
