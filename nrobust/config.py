@@ -10,12 +10,13 @@ profile (:class:`PiecewiseLinear`). ``nrobust analyze`` reads SYSTEM.toml with
 
 from __future__ import annotations
 
+import difflib
 import functools
 import itertools
 import math
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,7 +44,43 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised by the Python 3.10 run of CI
     import tomli as tomllib
 
-__all__ = ["CONTROLLER_TYPES", "SYSTEM_TYPES", "PiecewiseLinear", "build_in_section", "load_system_file", "load_toml"]
+__all__ = [
+    "CONTROLLER_TYPES",
+    "SYSTEM_TYPES",
+    "PiecewiseLinear",
+    "build_in_section",
+    "load_system_file",
+    "load_toml",
+    "unknown_key",
+]
+
+
+def unknown_key(name: str, requirement: str, given: Any, allowed: Iterable[str], value: Any = None) -> ParameterError:
+    """The error of a key (or a type name) that a file may not use, with the closest allowed ones.
+
+    Parameters
+    ----------
+    name : str
+        The key as the file spells it, with its section (``"system.lamda"``).
+    requirement : str
+        What is admissible (``"a key of Hyperbolic2x2: one of [...]"``).
+    given : object
+        The unknown key or type name itself, compared with ``allowed``.
+    allowed : iterable of str
+        The admissible keys or names.
+    value : object, optional
+        The value the file gave the key, echoed in the message.
+
+    Returns
+    -------
+    ParameterError
+        Its requirement ends with ``did you mean 'lam'?`` when some allowed names are close
+        to ``given`` (:func:`difflib.get_close_matches`, default cutoff 0.6).
+    """
+    close = difflib.get_close_matches(given, list(allowed), n=3) if isinstance(given, str) else []
+    if close:
+        requirement += "; did you mean " + " or ".join(repr(c) for c in close) + "?"
+    return ParameterError(name, requirement, value)
 
 
 def _plant_of(build: Callable[..., Any], name: str) -> Callable[..., GeneralHyperbolic2x2]:
@@ -190,7 +227,14 @@ def _samples(key: str, value: Any) -> float | tuple[tuple[float, ...], tuple[flo
     if not isinstance(value, dict):
         return _number(key, value)
     if set(value) != {"x", "values"}:
-        raise ParameterError(key, "a number or a table with exactly the keys x and values", value)
+        stray = sorted(set(value) - {"x", "values"})
+        raise unknown_key(
+            key,
+            "a number or a table with exactly the keys x and values",
+            stray[0] if stray else None,
+            ("x", "values"),
+            value,
+        )
     x, v = value["x"], value["values"]
     if not isinstance(x, list) or not isinstance(v, list):
         raise ParameterError(key, "lists x and values", value)
@@ -228,12 +272,12 @@ def _typed(
 ) -> tuple[str, dict[str, Any]]:
     kind = table.get("type")
     if kind not in keys:
-        raise ParameterError(f"{section}.type", f"one of {list(keys)}", kind)
+        raise unknown_key(f"{section}.type", f"one of {list(keys)}", kind, keys, kind)
     params = {k: v for k, v in table.items() if k != "type"}
     allowed = keys[kind] + (optional or {}).get(kind, ())
     for key in params:
         if key not in allowed:
-            raise ParameterError(f"{section}.{key}", f"a key of {kind}: one of {list(allowed)}", params[key])
+            raise unknown_key(f"{section}.{key}", f"a key of {kind}: one of {list(allowed)}", key, allowed, params[key])
     for key in keys[kind]:
         if key not in params:
             raise ParameterError(f"{section}.{key}", f"given for {kind}", None)
@@ -243,7 +287,9 @@ def _typed(
 def _options(table: dict[str, Any], section: str, defaults: dict[str, Any]) -> dict[str, Any]:
     for key in table:
         if key not in defaults:
-            raise ParameterError(f"{section}.{key}", f"a key of [{section}]: one of {list(defaults)}", table[key])
+            raise unknown_key(
+                f"{section}.{key}", f"a key of [{section}]: one of {list(defaults)}", key, defaults, table[key]
+            )
     return {**defaults, **table}
 
 
@@ -273,14 +319,17 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     ``[controller] type = "Cancellation"`` with ``fractions`` (rows of cancelled fractions of
     ``R``), ``[analysis] region``. Returns ``kind = "NPlusMSystem"``, ``system``,
     ``cancellations`` and ``region``."""
+    sections = ("system", "controller", "analysis")
     for key in spec:
-        if key not in ("system", "controller", "analysis"):
-            raise ParameterError(key, "a section of an NPlusMSystem file: system, controller, analysis", spec[key])
+        if key not in sections:
+            raise unknown_key(
+                key, "a section of an NPlusMSystem file: system, controller, analysis", key, sections, spec[key]
+            )
     table = {k: v for k, v in spec["system"].items() if k != "type"}
     keys = ("lam", "mu", "sigma", "q", "r")
     for key in table:
         if key not in keys:
-            raise ParameterError(f"system.{key}", f"a key of NPlusMSystem: one of {list(keys)}", table[key])
+            raise unknown_key(f"system.{key}", f"a key of NPlusMSystem: one of {list(keys)}", key, keys, table[key])
     for key in keys:
         if key not in table:
             raise ParameterError(f"system.{key}", "given for NPlusMSystem", None)
@@ -314,7 +363,9 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         (``[analysis] rigorous = true``: prove the certificate in ball arithmetic), ``accuracy``
         (``[analysis] accuracy = 1e-9``: the delay margin's target accuracy, see
         :func:`~nrobust.reports.certificate.certify`) and
-        ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``).
+        ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``);
+        ``given_system`` and ``given_controller``: the plant and controller as written, before
+        ``system`` and ``controller`` became their normal form.
         The deprecated key ``[simulation] n`` is read as ``cells`` with a
         :class:`DeprecationWarning`.
 
@@ -328,7 +379,7 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         return _load_nplusm(spec)
     for key in spec:
         if key not in _TOP_KEYS:
-            raise ParameterError(key, f"a section of the file: one of {list(_TOP_KEYS)}", spec[key])
+            raise unknown_key(key, f"a section of the file: one of {list(_TOP_KEYS)}", key, _TOP_KEYS, spec[key])
 
     kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS, _SYSTEM_OPTIONAL)
     values: dict[str, Any] = {k: _system_value(kind, k, v) for k, v in params.items()}
@@ -338,6 +389,7 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
     controller = build_in_section("controller", lambda: CONTROLLER_TYPES[kind](**values))
+    given_system, given_controller = system, controller  # as written, for the report
     system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
 
     analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
@@ -412,4 +464,6 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         "rigorous": analysis["rigorous"],
         "accuracy": accuracy,
         "simulation": simulation,
+        "given_system": given_system,
+        "given_controller": given_controller,
     }

@@ -11,6 +11,7 @@ finished points (:mod:`nrobust.sweeps.journal`) and resumes from the journal. Se
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import sys
@@ -84,6 +85,17 @@ def _definition(func: Callable[..., Any], points: Sequence[Mapping[str, Any]]) -
 #: Failures that are not the point's own: retried when a sweep resumes.
 _RETRIED = ("Timeout", "WorkerDied")
 
+_LOG = logging.getLogger(__name__)
+
+
+def _resume_note(journal: Journal | None, kept: int, total: int) -> str:
+    """``"resumed: kept N of M points from JOURNAL"`` for a sweep that read its journal; ``""`` otherwise."""
+    if journal is None or not journal.resumed:
+        return ""
+    retried = len(journal.done) - kept
+    again = f" ({retried} timed out or lost, run again)" if retried else ""
+    return f"resumed: kept {kept} of {total} points from {journal.path}{again}"
+
 
 def sweep(
     func: Callable[..., Any],
@@ -142,7 +154,9 @@ def sweep(
         it arrives, under a header holding the sweep's definition (``func`` and the
         points) and its SHA-256. If the file holds a journal of the same sweep, its
         points are not run again (failures of type ``"Timeout"`` and ``"WorkerDied"``
-        are retried); a journal of another sweep is refused.
+        are retried), the result's ``resumed`` says ``"resumed: kept N of M points from
+        JOURNAL"`` and the logger ``nrobust.sweeps.engine`` logs it (level INFO); a
+        journal of another sweep is refused.
     restart : bool, default False
         Start ``results`` afresh even if it holds a journal.
 
@@ -203,6 +217,9 @@ def sweep(
     done = (
         {} if journal is None else {i: o for i, o in journal.done.items() if not (o[0] == "error" and o[1] in _RETRIED)}
     )
+    resumed = _resume_note(journal, len(done), len(pts))
+    if resumed:
+        _LOG.info(resumed)
     todo = [i for i in range(len(pts)) if i not in done]
     finished = [len(done)]
 
@@ -245,4 +262,4 @@ def sweep(
         else:
             rows.append(None)
             failures.append(PointFailure(i, point, outcome[1], outcome[2], outcome[3]))
-    return SweepResult(tuple(pts), tuple(rows), tuple(failures), description, elapsed)
+    return SweepResult(tuple(pts), tuple(rows), tuple(failures), description, elapsed, resumed)

@@ -2,9 +2,10 @@
 
 :func:`execute` calls ``func(**point)`` for every point on the executor named by its
 argument (:func:`classify_executor`) and returns the outcomes in input order. The local
-pools are nrobust's own: one BLAS thread per worker, Ctrl-C handled by the parent, and,
-with a timeout, each point run in a forked process that dies with its parent
-(``PR_SET_PDEATHSIG``), so that no hung point outlives the sweep. :func:`sweep_map` is a
+pools are nrobust's own: one BLAS thread per worker, workers that end when the sweep
+process ends (even by SIGKILL), Ctrl-C handled by the parent, and, with a timeout, each
+point run in a forked process that dies with its parent (``PR_SET_PDEATHSIG``), so that no
+hung point outlives the sweep. :func:`sweep_map` is a
 ``map`` on the same executors: the analyses of the PDE layer take it as ``executor=``.
 This module sits in the runtime layer (below the PDE layer, which imports it): it imports
 only nrobust's base modules.
@@ -21,6 +22,7 @@ import pickle
 import select
 import signal
 import sys
+import threading
 import time
 import traceback
 import warnings
@@ -226,18 +228,82 @@ def cpu_count() -> int:
     return os.cpu_count() or 1
 
 
-def _init_pool_worker() -> None:
-    """Worker initializer: one BLAS thread, and point processes killed with the worker.
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks since boot).
+
+    With the process id it names one process for good: a process id is reused, the pair
+    is not. None where ``/proc`` cannot tell (no such process, not Linux).
+    """
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            text = stat.read()
+    except OSError:
+        return None
+    return text[text.rindex(")") + 2 :].split()[19]  # fields 3.. follow the name in parentheses
+
+
+def _exit_with_the_sweep() -> None:
+    """The sweep is gone: kill this worker's point processes and leave at once."""
+    for pid in list(_CHILDREN):
+        with suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    os._exit(1)
+
+
+def _watch_sweep(sweep: int, sweep_start: str | None) -> None:
+    """In a pool worker: leave as soon as the sweep process ``sweep`` is gone.
+
+    A worker of ``concurrent.futures`` waits on its task queue and never learns that the
+    process which owns the pool died: killed by SIGKILL, that process cannot stop it, and
+    the worker (with the forkserver and the resource tracker, which last as long as a
+    worker holds their pipes) would live on. ``prctl(PR_SET_PDEATHSIG)`` does not answer
+    it: the signal follows the death of the *thread* that forked the worker, and a worker
+    may be forked by another process (the forkserver). So a daemon thread watches the
+    sweep process itself: on Linux it waits on a pidfd, which becomes readable when the
+    process exits (the start time in ``/proc`` checks that the process id still names
+    the sweep when the pidfd is opened); elsewhere it polls ``os.kill(sweep, 0)`` twice a
+    second.
+    """
+    if hasattr(os, "pidfd_open") and sweep_start is not None:
+        try:
+            fd = os.pidfd_open(sweep)
+        except ProcessLookupError:
+            _exit_with_the_sweep()
+        if _start_time(sweep) != sweep_start:  # the process id names another process now
+            _exit_with_the_sweep()
+
+        def wait() -> None:
+            select.select([fd], [], [])
+            _exit_with_the_sweep()
+
+    else:
+
+        def wait() -> None:
+            while True:
+                try:
+                    os.kill(sweep, 0)
+                except ProcessLookupError:
+                    _exit_with_the_sweep()
+                time.sleep(0.5)
+
+    threading.Thread(target=wait, name="nrobust-watch-sweep", daemon=True).start()
+
+
+def _init_pool_worker(sweep: int, sweep_start: str | None) -> None:
+    """Worker initializer: one BLAS thread, and the worker killed with the sweep.
 
     On a machine shared by several workers, multithreaded BLAS pools compete for the same
     cores and the small eigenvalue problems of nrobust (the chains of a difference
     operator) slow down tenfold. threadpoolctl changes the limit of the libraries already
-    loaded, so it works in forked workers, which inherit the parent's BLAS. A worker
-    stopped by SIGTERM (an interrupted sweep) kills the point processes it forked for a
-    timeout, so that no hung point outlives the sweep. Ctrl-C in a terminal reaches every
-    process of the group: the workers ignore it (no traceback from each of them) and the
-    parent, which handles it, stops them.
+    loaded, so it works in forked workers, which inherit the parent's BLAS. The worker
+    leaves, taking its point processes along, as soon as the sweep process ``sweep``
+    (started at ``sweep_start``, see :func:`_start_time`) is gone, even killed by SIGKILL
+    (:func:`_watch_sweep`). A worker stopped by SIGTERM (an interrupted sweep) kills the
+    point processes it forked for a timeout, so that no hung point outlives the sweep.
+    Ctrl-C in a terminal reaches every process of the group: the workers ignore it (no
+    traceback from each of them) and the parent, which handles it, stops them.
     """
+    _watch_sweep(sweep, sweep_start)
     threadpool_limits(1)
     signal.signal(signal.SIGTERM, _kill_children_and_exit)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle: it stops the pool
@@ -245,8 +311,14 @@ def _init_pool_worker() -> None:
 
 @contextmanager
 def _process_pool(n_workers: int) -> Iterator[ProcessPoolExecutor]:
-    """A local pool of ``n_workers`` processes (the platform's start method), one BLAS thread each."""
-    with ProcessPoolExecutor(max_workers=n_workers, initializer=_init_pool_worker) as pool:
+    """A local pool of ``n_workers`` processes (the platform's start method), one BLAS thread each.
+
+    The workers end with this process, however it ends (:func:`_init_pool_worker`).
+    """
+    sweep = os.getpid()
+    with ProcessPoolExecutor(
+        max_workers=n_workers, initializer=_init_pool_worker, initargs=(sweep, _start_time(sweep))
+    ) as pool:
         yield pool
 
 

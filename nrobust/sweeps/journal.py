@@ -134,6 +134,9 @@ class Journal:
         ``("error", type, message, traceback)``.
     hash : str
         SHA-256 of the definition.
+    resumed : bool
+        True when ``path`` held a journal of this sweep, read into :attr:`done` (False
+        for a new journal, or with ``restart``).
 
     Raises
     ------
@@ -149,9 +152,10 @@ class Journal:
         self.hash = definition_hash(definition)
         self.n_points = n_points
         self.done: dict[int, tuple[Any, ...]] = {}
+        self.resumed = not restart and self.path.is_file() and self.path.stat().st_size > 0
         header = {"format": _FORMAT, "version": __version__, "hash": self.hash, "n_points": n_points}
         header["definition"] = definition
-        if not restart and self.path.is_file() and self.path.stat().st_size > 0:
+        if self.resumed:
             self._read(definition)
         else:
             with atomic_write(self.path) as fh:

@@ -145,6 +145,11 @@ class SweepResult:
         not compared by ``==``.
     elapsed : float
         Wall-clock seconds of the sweep; not compared by ``==``.
+    resumed : str
+        ``"resumed: kept N of M points from JOURNAL"`` when the sweep took ``N`` finished
+        points from the journal of an earlier run (``results=`` of
+        :func:`~nrobust.sweeps.engine.sweep`) and ran the others; ``""`` when it ran every
+        point. Not compared by ``==``.
 
     Notes
     -----
@@ -157,6 +162,7 @@ class SweepResult:
     failures: tuple[PointFailure, ...]
     executor: str = field(default="serial", compare=False)
     elapsed: float = field(default=0.0, compare=False)
+    resumed: str = field(default="", compare=False)
 
     @property
     def n_ok(self) -> int:
@@ -263,6 +269,7 @@ class SweepResult:
                 "n_failed": self.n_failed,
                 "executor": self.executor,
                 "elapsed": self.elapsed,
+                "resumed": self.resumed,
             }
         )
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from .._json import json_safe
-from ..config import CONTROLLER_TYPES, SYSTEM_TYPES, load_toml
+from ..config import CONTROLLER_TYPES, SYSTEM_TYPES, load_toml, unknown_key
 from ..errors import ParameterError
 from ..hyperbolic.analyses import delay_margin
 from ..hyperbolic.loops.controllers import characteristic, normalize
@@ -34,7 +34,7 @@ from .grids import grid
 from .montecarlo import check_levels, quantile_summary
 from .result import SweepResult
 
-__all__ = ["ANALYSES", "JOURNAL", "SweepFileResult", "run_sweep_file"]
+__all__ = ["ANALYSES", "JOURNAL", "VERIFIED_VALUES", "SweepFileResult", "run_sweep_file"]
 
 
 @dataclass(frozen=True)
@@ -78,12 +78,19 @@ class _Analysis:
         return self.columns(value)
 
 
+#: The values of the ``verified`` column of a ``delay_margin`` sweep, the words of ``nrobust
+#: analyze``: ``"yes"`` (the margin was checked independently), ``"no"`` (it was not), and
+#: ``"not needed"`` (an infinite margin: no crossing frequency, nothing to check).
+VERIFIED_VALUES = ("yes", "no", "not needed")
+
+
 def _margin_columns(result: Any) -> dict[str, Any]:
+    margin = float(result.margin)
     return {
-        "delta_star": float(result.margin),
+        "delta_star": margin,
         "nominally_stable": bool(result.nominally_stable),
         "strongly_stable": bool(result.strongly_stable),
-        "verified": bool(result.verified),
+        "verified": VERIFIED_VALUES[2] if margin == math.inf else VERIFIED_VALUES[0 if result.verified else 1],
     }
 
 
@@ -133,12 +140,14 @@ def _typed_table(
         raise ParameterError(section, f"a [{section}] table with a 'type' key", table)
     kind = table.get("type")
     if not isinstance(kind, str) or kind not in types:
-        raise ParameterError(f"{section}.type", f"one of {list(types)}", kind)
+        raise unknown_key(f"{section}.type", f"one of {list(types)}", kind, types, kind)
     names, required = _signature_names(types[kind])
     params = {k: v for k, v in table.items() if k != "type"}
     for key in params:
         if key not in names:
-            raise ParameterError(f"{section}.{key}", f"a parameter of {kind}: one of {sorted(names)}", params[key])
+            raise unknown_key(
+                f"{section}.{key}", f"a parameter of {kind}: one of {sorted(names)}", key, names, params[key]
+            )
     return kind, params, names, required
 
 
@@ -305,9 +314,11 @@ def _route_names(
             homes.append("options")  # an analysis taking **kwargs receives the names no plant or controller takes
         if not homes:
             allowed = sorted(sys_names | ctl_names | (option_names or set()))
-            raise ParameterError(
+            raise unknown_key(
                 f"{section}.{key}",
                 f"a parameter of [system], [controller] or an analysis option: one of {allowed}",
+                key,
+                allowed,
                 key,
             )
         if len(homes) > 1:
@@ -336,7 +347,9 @@ def _read_spec(path: Path) -> dict[str, Any]:
     spec = load_toml(path, "SWEEP.toml")
     for key in spec:
         if key not in _TOP_KEYS:
-            raise ParameterError(key, f"a top-level key of SWEEP.toml: one of {list(_TOP_KEYS)}", spec[key])
+            raise unknown_key(
+                key, f"a top-level key of SWEEP.toml: one of {list(_TOP_KEYS)}", key, _TOP_KEYS, spec[key]
+            )
     return spec
 
 
@@ -345,8 +358,13 @@ def _check_analyses(spec: dict[str, Any]) -> tuple[str, ...]:
     names = spec.get("analysis", "delay_margin")
     names = [names] if isinstance(names, str) else names
     if not isinstance(names, list) or not names or any(n not in ANALYSES for n in names):
-        raise ParameterError(
-            "analysis", f"an analysis name or a list of them among {sorted(ANALYSES)}", spec.get("analysis")
+        unknown = next((n for n in names if n not in ANALYSES), None) if isinstance(names, list) else None
+        raise unknown_key(
+            "analysis",
+            f"an analysis name or a list of them among {sorted(ANALYSES)}",
+            unknown,
+            ANALYSES,
+            spec.get("analysis"),
         )
     return tuple(dict.fromkeys(names))
 
@@ -363,14 +381,16 @@ def _check_options(spec: dict[str, Any], analyses: tuple[str, ...]) -> tuple[dic
     accepted: dict[str, set[str] | None] = {name: ANALYSES[name].options() for name in analyses}
     for name, table in options.items():
         if name not in analyses:
-            raise ParameterError(f"options.{name}", f"options of a selected analysis: one of {list(analyses)}", table)
+            raise unknown_key(
+                f"options.{name}", f"options of a selected analysis: one of {list(analyses)}", name, analyses, table
+            )
         if not isinstance(table, dict):
             raise ParameterError(f"options.{name}", "a table of keyword options", table)
         for key in table:
             allowed = accepted[name]
             if allowed is not None and key not in allowed:
-                raise ParameterError(
-                    f"options.{name}.{key}", f"an option of {name}: one of {sorted(allowed)}", table[key]
+                raise unknown_key(
+                    f"options.{name}.{key}", f"an option of {name}: one of {sorted(allowed)}", key, allowed, table[key]
                 )
     option_names: set[str] | None = set()
     for allowed in accepted.values():
@@ -417,9 +437,10 @@ def _sampled_points(
     """The Monte Carlo draws of ``[sampling]`` (``n_samples`` points from ``seed``) and its quantile levels."""
     if not isinstance(table, dict):
         raise ParameterError("sampling", "a table with n_samples, seed and [sampling.distributions]", table)
+    sampling_keys = ("n_samples", "seed", "levels", "distributions")
     for key in table:
-        if key not in ("n_samples", "seed", "levels", "distributions"):
-            raise ParameterError(f"sampling.{key}", "one of n_samples, seed, levels, distributions", table[key])
+        if key not in sampling_keys:
+            raise unknown_key(f"sampling.{key}", f"one of {', '.join(sampling_keys)}", key, sampling_keys, table[key])
     n = table.get("n_samples")
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ParameterError("sampling.n_samples", "an integer >= 1", n)

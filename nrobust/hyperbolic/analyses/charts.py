@@ -23,7 +23,23 @@ from ..plants.general import GeneralHyperbolic2x2
 from ._common import GainMargin, check_system, mapper, real_grid, reflection, study_plant
 from .margin import delay_margin
 
-__all__ = ["ABRegion", "StabilityChart", "ab_region", "stability_chart"]
+__all__ = ["MAX_CHART_POINTS", "ABRegion", "StabilityChart", "ab_region", "stability_chart"]
+
+#: Most grid points of a chart: ``len(Ks) * len(deltas)`` for :func:`stability_chart`,
+#: ``len(a) * len(b)`` for :func:`ab_region`. One point is a float of the table (8 MB
+#: here in all) and, for ``quantity="abscissa"`` and :func:`ab_region`, a root search or a
+#: delay margin of its own (0.01 to 1 s each); a larger grid is refused before any work.
+MAX_CHART_POINTS = 1_000_000
+
+
+def _check_chart_size(names: str, n_rows: int, n_cols: int) -> None:
+    """Refuse a chart of more than :data:`MAX_CHART_POINTS` grid points (``names``: its two axes)."""
+    if n_rows * n_cols > MAX_CHART_POINTS:
+        raise ParameterError(
+            names,
+            f"a grid of at most MAX_CHART_POINTS = {MAX_CHART_POINTS} points; split the chart or coarsen it",
+            f"{n_rows} x {n_cols} = {n_rows * n_cols} points",
+        )
 
 
 #: Largest filter coefficient ``max(|a|, b)`` that :func:`ab_region` uses as it is (:class:`_PartialFilter`).
@@ -117,7 +133,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     delta_max : float
         Delay range to tolerate.
     a, b : array_like
-        Grid axes (``b > 0``).
+        Grid axes (``b > 0``), of at most :data:`MAX_CHART_POINTS` pairs.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
         Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
@@ -125,6 +141,11 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     Returns
     -------
     ABRegion
+
+    Raises
+    ------
+    ParameterError
+        A bad argument, e.g. ``b <= 0`` or more than :data:`MAX_CHART_POINTS` pairs.
     """
     if isinstance(system, GeneralHyperbolic2x2):  # U_BS: the normal form, or the characteristic route
         system = normalize(system, None)[0]
@@ -134,6 +155,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     av, bv = real_grid("a", a), real_grid("b", b)
     if np.any(bv <= 0):
         raise ParameterError("b", "> 0", b)
+    _check_chart_size("a, b", av.size, bv.size)
     pairs = [(float(x), float(y)) for x in av for y in bv]
     results = list(mapper(executor)(_PartialFilter(system, delta_max), pairs))
     shape = (av.size, bv.size)
@@ -228,7 +250,8 @@ def stability_chart(
         in its physical coordinates), with a varying ``lam/mu`` only with a ``controller``
         family other than U_BS2(K) (its loops by the characteristic route).
     Ks, deltas : array_like
-        Grid axes (``deltas >= 0``).
+        Grid axes (``deltas >= 0``), of at most :data:`MAX_CHART_POINTS` points
+        (``len(Ks) * len(deltas)``).
     quantity : {"count", "abscissa"}
         What to tabulate.
     controller : callable, optional
@@ -243,6 +266,11 @@ def stability_chart(
     Returns
     -------
     StabilityChart
+
+    Raises
+    ------
+    ParameterError
+        A bad argument, e.g. a negative delay or more than :data:`MAX_CHART_POINTS` grid points.
     """
     system, controller = study_plant(system, controller, "stability_chart")
     kv, dv = real_grid("Ks", Ks), real_grid("deltas", deltas)
@@ -250,6 +278,7 @@ def stability_chart(
         raise ParameterError("deltas", ">= 0", deltas)
     if quantity not in ("count", "abscissa"):
         raise ParameterError("quantity", "'count' or 'abscissa'", quantity)
+    _check_chart_size("Ks, deltas", kv.size, dv.size)
     family = reflection if controller is None else controller
     dmax = float(np.max(dv)) if np.max(dv) > 0 else None
     results = list(mapper(executor, progress, "stability chart: gains")(GainMargin(system, family, dmax), kv))

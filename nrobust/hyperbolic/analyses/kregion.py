@@ -25,7 +25,7 @@ from ..loops.controllers import ReflectionController, classify, loop_factors
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import GainMargin, mapper, real_grid, study_plant
 
-__all__ = ["DEFAULT_N_GAINS", "KRegion", "k_region", "u_bs2_loop"]
+__all__ = ["DEFAULT_N_GAINS", "MAX_GAINS", "KRegion", "k_region", "u_bs2_loop"]
 
 #: Default number of gains of the grid of :func:`k_region` (and of
 #: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their
@@ -34,6 +34,11 @@ __all__ = ["DEFAULT_N_GAINS", "KRegion", "k_region", "u_bs2_loop"]
 #: controller families the grid has to put one gain inside each admissible interval, whose
 #: ends are then bisected.
 DEFAULT_N_GAINS = 9
+
+#: Most gains :func:`k_region` takes (``n_gains`` or the size of ``Ks``): each is a delay
+#: margin (about 0.2 s on the paper's plant), so this bound is about an hour of work on
+#: one core; a larger grid is refused before anything is allocated or computed.
+MAX_GAINS = 20_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -302,7 +307,8 @@ def k_region(
         have zero margin: the difference operator ``1 - rho q e^{-tau s} + K q
         e^{-(tau+delta) s}`` is not strongly stable).
     n_gains : int, default :data:`DEFAULT_N_GAINS`
-        Size of the default grid, ``>= 3`` (formerly ``n``, a deprecated alias).
+        Size of the default grid, in ``[3, MAX_GAINS]`` (:data:`MAX_GAINS`; formerly ``n``,
+        a deprecated alias). ``Ks`` may hold at most :data:`MAX_GAINS` gains too.
     tol : float, optional
         Accuracy of the interval ends (the offset of their verification); default
         ``1e-10`` times the paper's bound (``1e-4`` times it when bisecting).
@@ -325,10 +331,15 @@ def k_region(
 
     Raises
     ------
+    ParameterError
+        A bad argument, e.g. ``n_gains`` outside ``[3, MAX_GAINS]`` or more than
+        :data:`MAX_GAINS` gains in ``Ks`` (checked before any work).
     CertificationError
         An end could not be verified (the message names its bracket), a delay margin
         failed, or the scan would exceed ``max_evals``.
     """
+    if Ks is None:
+        n_gains = positive_int("n_gains", n_gains, 3, MAX_GAINS)
     system, controller = study_plant(system, controller, "k_region")
     delta_max = positive("delta_max", delta_max)
     max_evals = positive_int("max_evals", max_evals)
@@ -337,11 +348,12 @@ def k_region(
     scale = kb if kb > 0 else 1.0
     tol = positive("tol", tol) if tol is not None else (1e-10 if exact else 1e-4) * scale
     if Ks is None:
-        n_gains = positive_int("n_gains", n_gains, 3)
         if kb == 0.0:
             raise ParameterError("system", "with |rho q| < 1 for the default gain grid (pass Ks)", system)
         Ks = kb * np.linspace(-1.0, 1.0, n_gains + 2)[1:-1]
     grid = np.sort(real_grid("Ks", Ks))
+    if grid.size > MAX_GAINS:
+        raise ParameterError("Ks", f"at most MAX_GAINS = {MAX_GAINS} gains long", grid.size)
     if controller is None or controller is ReflectionController:
         return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals, progress)
     return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)

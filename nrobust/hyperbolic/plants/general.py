@@ -91,7 +91,12 @@ class Profile:
         if out is None or out.shape != arr.shape or out.dtype.kind not in "iuf":
             flat = []
             for t in arr.ravel():
-                val = self.value(float(t))
+                try:
+                    val = self.value(float(t))
+                except Exception as exc:
+                    raise ParameterError(
+                        self.name, f"a callable returning real numbers on [0, L]; at x = {t:g} it raised {exc!r}"
+                    ) from exc
                 if not is_real_number(val):
                     raise ParameterError(self.name, "a callable returning real numbers on [0, L]", val)
                 flat.append(float(val))

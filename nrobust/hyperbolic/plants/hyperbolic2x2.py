@@ -61,10 +61,19 @@ def _call_vectorised(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.nd
 
 
 def _pointwise(name: str, fun: Callable[..., Any], x: np.ndarray) -> np.ndarray:
-    """Evaluate a scalar-only callable point by point; each value must be a real number."""
+    """Evaluate a scalar-only callable point by point; each value must be a real number.
+
+    An exception of the callable becomes a ParameterError naming the coupling and the
+    point, with the original exception as its cause.
+    """
     flat = []
     for xi in np.ravel(x):
-        value = np.real_if_close(fun(float(xi)))
+        try:
+            value = np.real_if_close(fun(float(xi)))
+        except Exception as exc:
+            raise ParameterError(
+                name, f"a callable returning real numbers on [0, 1]; at x = {xi:g} it raised {exc!r}"
+            ) from exc
         if not is_real_number(value):
             raise ParameterError(name, "a callable returning real numbers on [0, 1]", fun)
         flat.append(float(value))
@@ -106,10 +115,7 @@ def _make_evaluator(name: str, value: Any) -> tuple[Coupling, _Evaluator]:
     probe = _call_vectorised(name, value, _PROBE)
     evaluator = _Evaluator(name, value, probe is not None)
     if probe is None:
-        try:
-            probe = _pointwise(name, value, _PROBE)
-        except (TypeError, ValueError):
-            raise ParameterError(name, "a callable returning real numbers on [0, 1]", value) from None
+        probe = _pointwise(name, value, _PROBE)
     if not np.all(np.isfinite(probe)):
         raise ParameterError(name, "finite on [0, 1] (checked on a 17-point grid)", value)
     return value, evaluator

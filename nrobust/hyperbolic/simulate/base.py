@@ -96,7 +96,14 @@ def initial_state(name: str, value: Any, x: NDArray[np.float64]) -> NDArray[np.f
     ``value`` is a real number (a constant state), a callable on arrays of ``x`` (an error it
     raises is reported as a :class:`~nrobust.errors.ParameterError` on ``name``, not passed
     through), or the values on the nodes (one per node). The result is finite and real.
+    None (a state left out) is refused, saying what to give.
     """
+    if value is None:
+        raise ParameterError(
+            name,
+            f"given: a number (a constant state, e.g. {name}=1.0, the default of SYSTEM.toml), a callable on "
+            f"arrays of x or {x.size} node values",
+        )
     if callable(value):
         expected = "a callable returning real numbers on arrays of x"
         try:

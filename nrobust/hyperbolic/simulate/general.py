@@ -294,7 +294,7 @@ def simulate_general(
     t_end : float
         Final time ``> 0`` in ``time_unit`` (the run ends at the first step at or after it).
     u0, v0 : float or callable
-        Initial state on arrays of ``x`` in ``[0, L]``.
+        Initial state: a number (a constant state) or a callable on arrays of ``x`` in ``[0, L]``.
     cells : int, default 200
         Cells of the ``u`` grid; ``v`` has about ``cells t_v / t_u``.
     snapshot_every : int, optional

@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-InitialState = Callable[[Array], Any] | Array
+InitialState = Callable[[Array], Any] | Array | float
 
 #: Default number of cells of the ``u`` grid (``dt = 1 / (lam cells)``): the grid of the
 #: paper's figures, 0.1-0.4 s per run of the paper's example to ``t = 10``

@@ -13,12 +13,23 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._validate import nonnegative, positive, positive_int
+from ..._validate import finite_real, is_real_number, nonnegative, positive, positive_int
 from ...errors import ParameterError
 from ..nplusm.system import NPlusMSystem
 from .base import Scheme, SimulationResult
 
 __all__ = ["NPLUSM_SCHEME", "NPlusMSimulation", "simulate_nplusm"]
+
+
+@dataclass(frozen=True)
+class _Constant:
+    """``x -> `` the constant state ``level`` of every one of ``components`` components (a number as ``w0``)."""
+
+    level: float
+    components: int
+
+    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.full((self.components, np.size(x)), self.level)
 
 
 def _coupling_operator(sigma: NDArray[np.float64], xs: list[NDArray[np.float64]], off: NDArray[np.intp]) -> Any:
@@ -109,8 +120,9 @@ def simulate_nplusm(
         Loop delay ``>= 0``.
     t_end : float
         Final time ``> 0``.
-    w0 : callable
-        ``w0(x)`` returns the ``n + m`` initial profiles as an array of shape ``(n + m, x.size)``.
+    w0 : float or callable
+        A number (the same constant state for every component) or a callable: ``w0(x)``
+        returns the ``n + m`` initial profiles as an array of shape ``(n + m, x.size)``.
     cells : int, optional
         Cells of the fastest component.
     max_updates : int, optional
@@ -126,8 +138,10 @@ def simulate_nplusm(
     t_end = positive("t_end", t_end)
     cells = positive_int("cells", cells, minimum=4)
     max_updates = positive_int("max_updates", max_updates)
+    if is_real_number(w0):
+        w0 = _Constant(finite_real("w0", w0), system.n + system.m)
     if not callable(w0):
-        raise ParameterError("w0", "a callable x -> array of shape (n + m, x.size)", w0)
+        raise ParameterError("w0", "a number or a callable x -> array of shape (n + m, x.size)", w0)
     speeds = np.abs(system.signed_speeds)
     dt = 1.0 / (cells * float(speeds.max()))
     ncell = [max(1, round(1.0 / (c * dt))) for c in speeds]

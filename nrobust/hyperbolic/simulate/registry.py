@@ -92,10 +92,11 @@ def simulate(
     t_end : float
         Final time ``> 0``; the run ends at the first sampled time ``>= t_end``.
     u0, v0 : float, callable or array_like
-        The initial state of a 2x2 plant: numbers (a constant state), callables on arrays of
-        ``x``, or values on the nodes (``cells + 1`` for ``u``, for ``v`` as many as
-        :func:`~nrobust.hyperbolic.simulate.v_nodes` returns). For an ``n + m`` system,
-        ``u0`` is its state ``w0`` and ``v0`` is not given.
+        The initial state of a 2x2 plant, both required: numbers (a constant state),
+        callables on arrays of ``x``, or values on the nodes (``cells + 1`` for ``u``, for
+        ``v`` as many as :func:`~nrobust.hyperbolic.simulate.v_nodes` returns). For an
+        ``n + m`` system, ``u0`` is its state ``w0`` (a number or a callable) and ``v0`` is
+        not given.
     cells : int, optional
         Cells of the grid of the fastest (2x2: the ``u``) component, ``dt = 1 / (lam cells)``
         (formerly ``n``); None: the scheme's default (2x2: ``DEFAULT_CELLS``; ``n + m``: 200).
