@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from .._json import fields_dict
 from .._validate import positive, positive_int
@@ -152,6 +151,8 @@ def _refine(f: Any, w: float, W: float) -> float:
         if fb == 0.0:
             return b
         if np.sign(fa) != np.sign(fb):
+            from scipy.optimize import brentq  # scipy.optimize loads in 0.1 s: not at import
+
             return float(brentq(f, a, b, xtol=tol, rtol=4 * np.finfo(float).eps))
     return w
 

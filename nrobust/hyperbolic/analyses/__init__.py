@@ -9,7 +9,14 @@ the transport speeds (``mismatch``).
 from ...margins.gain import END_KINDS, GainEnd
 from .charts import MAX_CHART_POINTS, ABRegion, StabilityChart, ab_region, stability_chart
 from .design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
-from .filter_design import FILTER_PARAMETERS, FilteredDesign, FilteredLoop, design_filtered, filtered_front, filtered_loop
+from .filter_design import (
+    FILTER_PARAMETERS,
+    FilteredDesign,
+    FilteredLoop,
+    design_filtered,
+    filtered_front,
+    filtered_loop,
+)
 from .kregion import DEFAULT_N_GAINS, MAX_GAINS, KRegion, k_region
 from .margin import delay_margin, margin_and_decay
 from .mismatch import MAX_MISMATCH_POINTS, MismatchEnd, MismatchRegion, mismatch_loop, mismatch_region

@@ -207,6 +207,13 @@ class FilteredController(Controller):
         if self.K is not None:
             object.__setattr__(self, "K", finite_real("K", self.K))
 
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (``K`` only when given: U_BS filtered reads as before)."""
+        data = super().to_dict()
+        if self.K is None:
+            del data["K"]
+        return data
+
     def factors(self, phi, i_n, round_trip):
         b_factor = phi if self.K is None else self.K * round_trip - i_n
         return (1.0 - phi).times_poly([1.0, self.b]), b_factor.times_poly([1.0, self.a])
