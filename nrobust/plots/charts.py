@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
     from ..sweeps.result import SweepResult
 
-__all__ = ["stability_chart_plot", "sweep_chart", "tradeoff_plot"]
+__all__ = ["delay_chart_plot", "stability_chart_plot", "sweep_chart", "tradeoff_plot"]
 
 
 def stability_chart_plot(
@@ -96,6 +96,76 @@ def stability_chart_plot(
     return NrobustPlot(lines, ax, ax.figure)
 
 
+def delay_chart_plot(margin: Any, ax: Axes | None = None, margin_text: str | None = None) -> NrobustPlot:
+    """Stability chart in the loop delay: zeros in ``Re s > 0`` against ``delta``, the margin marked.
+
+    Draws what :func:`nrobust.margins.delay_margin` computed: the number of closed-loop zeros
+    in ``Re s > 0`` on each delay window of ``[0, delta_max]`` (:attr:`DelayMargin.counts
+    <nrobust.margins.margin.DelayMargin>`), the stable windows shaded green and the unstable
+    ones red, and the delay margin ``delta*`` as a vertical line. A loop whose difference
+    operator is not strongly stable (no windows: infinitely many zeros in ``Re s > 0`` for
+    every small delay) is shaded red from ``0`` on; an infinite margin is written as such.
+
+    Parameters
+    ----------
+    margin : DelayMargin
+        From :func:`nrobust.margins.delay_margin` or :func:`nrobust.delay_margin` with a
+        finite ``delta_max``.
+    ax : matplotlib Axes, optional
+    margin_text : str, optional
+        The margin as the legend writes it (e.g. ``Certificate.margin_text``, with the digits
+        its accuracy supports); default 6 significant digits.
+
+    Returns
+    -------
+    NrobustPlot
+        ``lines["count"]`` (the step curve of the count; no data without windows),
+        ``lines["stable"]`` and ``lines["unstable"]`` (the shaded windows), ``lines["margin"]``
+        (the line at ``delta*``; empty when ``delta*`` is not in ``(0, delta_max]``),
+        ``lines["note"]`` (the text of an infinite margin, a margin beyond the chart or of a
+        loop destabilised by every delay; empty otherwise).
+    """
+    top = float(getattr(margin, "delta_max", np.nan))
+    if not (np.isfinite(top) and top > 0.0 and hasattr(margin, "counts")):
+        raise ParameterError("margin", "a DelayMargin computed with a finite delta_max > 0", margin)
+    ax = get_axes(ax)
+    value = float(margin.margin)
+    text = margin_text or ("infinity" if np.isposinf(value) else f"{value:.6g}")
+    lines: dict[str, list[Any]] = {"stable": [], "unstable": [], "margin": [], "note": []}
+    xs: list[float] = []
+    ys: list[float] = []
+    for lo, hi, n in margin.counts:
+        xs += [lo, hi]
+        ys += [n, n]
+        key, color = ("stable", "tab:green") if n == 0 else ("unstable", "tab:red")
+        label = None if lines[key] else ("stable" if n == 0 else "unstable")
+        lines[key].append(ax.axvspan(lo, hi, color=color, alpha=0.18, lw=0, label=label))
+    lines["count"] = ax.plot(xs, ys, "-", color="k", lw=1.2, label="zeros in Re s > 0")
+    note = ""
+    if not margin.counts:
+        unstable = not margin.nominally_stable or (value == 0.0 and not margin.strongly_stable)
+        key, color = ("unstable", "tab:red") if unstable else ("stable", "tab:green")
+        lines[key].append(ax.axvspan(0.0, top, color=color, alpha=0.18, lw=0, label=key))
+        if value == 0.0 and not margin.strongly_stable:
+            note = "infinitely many zeros in Re s > 0 for every delay > 0 (root chains): delta* = 0"
+    if np.isposinf(value):
+        note = "delta* = infinity: stable for every delay"
+    elif 0.0 < value <= top:
+        lines["margin"].append(ax.axvline(value, color="tab:red", lw=1.5, label=f"delta* = {text}"))
+    elif value > top:
+        note = f"delta* = {text}, beyond this chart (stable on all of it)"
+    if note:
+        lines["note"].append(
+            ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center", fontsize="small")
+        )
+    ax.set_xlim(0.0, top)
+    ax.set_ylim(-0.2, max([1.0, *ys]) * 1.15)
+    ax.set_xlabel("loop delay delta")
+    ax.set_ylabel("zeros in Re s > 0")
+    ax.legend(fontsize="x-small", loc="upper left")
+    return NrobustPlot(lines, ax, ax.figure)
+
+
 def tradeoff_plot(tradeoff: Any, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
     """Decay rate against delay margin as the gain ``K`` varies (the paper's trade-off).
 
@@ -152,7 +222,9 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
     """
     import matplotlib
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
 
     table = result.table()
     numeric = [c for c in result.result_columns if table.dtype[c].kind == "f"]
@@ -196,22 +268,38 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
         for row in table[ok]:
             grid_vals[np.searchsorted(ys, row[x2]), np.searchsorted(xs, row[x])] = row[y]
         finite = grid_vals[np.isfinite(grid_vals)]
-        top = finite.max() if finite.size else 1.0
-        cmap = matplotlib.colormaps["viridis"].with_extremes(over="gold", bad="lightgray")
-        capped = np.where(np.isposinf(grid_vals), top + 1.0, grid_vals)
+        infinite = np.isposinf(grid_vals)
+        # the finite values on the colour scale; an infinite value is no colour of the scale
+        # (its top would read as the largest finite value): white, hatched, in the legend
         mesh = ax.pcolormesh(
             xs,
             ys,
-            np.ma.masked_invalid(capped),
+            np.ma.masked_invalid(grid_vals),
             shading="nearest",
-            cmap=cmap,
+            cmap=matplotlib.colormaps["viridis"].with_extremes(bad="lightgray"),
             vmin=finite.min() if finite.size else 0.0,
-            vmax=top,
+            vmax=finite.max() if finite.size else 1.0,
         )
-        fig.colorbar(mesh, ax=ax, label=y, extend="max" if np.isposinf(grid_vals).any() else "neither")
+        fig.colorbar(mesh, ax=ax, label=f"{y} (finite)")
+        handles = []
+        if infinite.any():
+            ax.pcolor(
+                xs,
+                ys,
+                np.ma.masked_where(~infinite, np.ones_like(grid_vals)),
+                shading="nearest",
+                cmap=ListedColormap(["white"]),
+                hatch="///",
+                edgecolor="0.25",
+                linewidth=0.0,
+            )
+            handles.append(Patch(facecolor="white", edgecolor="0.25", hatch="///", label=f"{y} = inf"))
+        if (~ok).any() or np.isnan(grid_vals).any():
+            handles.append(Patch(facecolor="lightgray", label="failed or missing"))
+        if handles:
+            ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=2, fontsize="small")
         ax.set_xlabel(x)
         ax.set_ylabel(x2)
-        title += " (gold: inf, gray: failed)"
     elif x is not None and table.dtype[x].kind in "fiu":
         xv, yv = table[x][ok].astype(float), table[y][ok]
         fin = np.isfinite(yv)

@@ -42,6 +42,7 @@ def root_map_region(
     base: tuple[float, float, float, float] | None = None,
     abscissa: SpectralAbscissa | None = None,
     max_roots: int = _MAX_MAP_ROOTS,
+    search: bool = True,
 ) -> tuple[float, float, float, float]:
     """A rectangle for a root map of ``F`` that holds its rightmost roots.
 
@@ -70,6 +71,10 @@ def root_map_region(
         Work bound: the widening in height stops where the map would hold about
         ``max_roots`` roots (``|Im s| T / pi`` roots per unit of ``Re s`` width, the density
         of the chains); the chains above it still show as their asymptotes.
+    search : bool, default True
+        Compute the spectral abscissa when ``abscissa`` is not given. False: the caller knows
+        that ``base`` holds the roots that matter (e.g. every zero in ``Re s > 0``, counted
+        by another route), and only the chains widen it.
 
     Returns
     -------
@@ -82,7 +87,7 @@ def root_map_region(
     base_box = check_region(base) if base is not None else tuple(v / T for v in _BASE_REGION)
     box = list(base_box)
     points: list[complex] = []
-    if abscissa is None and F.kind != "advanced":
+    if search and abscissa is None and F.kind != "advanced":
         try:
             # roots above the height the map can hold are not drawn: search no higher
             reach = max(abs(base_box[2]), abs(base_box[3]), max_roots * np.pi / T)

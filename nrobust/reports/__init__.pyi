@@ -4,6 +4,7 @@ from .analyze import (
 )
 from .certificate import (
     CHECKED as CHECKED,
+    FLOAT_SCOPE as FLOAT_SCOPE,
     PROVEN as PROVEN,
     Certificate as Certificate,
     Claim as Claim,

@@ -55,7 +55,7 @@ from ..margins.margin import DelayMargin
 from ..quasipoly import QuasiPolynomial
 from ..roots import RootSet, SpectralAbscissa, count_roots, find_roots, spectral_abscissa
 
-__all__ = ["CHECKED", "PROVEN", "Certificate", "Claim", "ModelError", "PrincipalPart", "certify"]
+__all__ = ["CHECKED", "FLOAT_SCOPE", "PROVEN", "Certificate", "Claim", "ModelError", "PrincipalPart", "certify"]
 
 #: Default search rectangle for the certified root counts, in units of ``1/tau``.
 _DEFAULT_REGION = (-3.0, 1.0, -40.0, 40.0)
@@ -124,6 +124,14 @@ def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
 PROVEN = "proven (ball arithmetic)"
 #: Status of a claim computed in floating point with a rounding allowance.
 CHECKED = "checked (floating point)"
+#: What a certificate computed without ``rigorous`` guarantees, and how to get proofs.
+FLOAT_SCOPE = (
+    "Without proofs, the root counts are still certified integers: the argument principle with a step "
+    "control that bounds the change of argument between samples. The floating-point values (the delay margin, "
+    "the crossing frequencies, the spectral abscissa, the Rouché range) are checked with a rounding "
+    "allowance, not proven. To prove them in ball arithmetic (python-flint, pip install nrobust[rigorous]): "
+    "rigorous = true in the [analysis] table of SYSTEM.toml, or certify(..., rigorous=True)."
+)
 
 
 @dataclass(frozen=True)
@@ -317,7 +325,7 @@ def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float,
 def _outward(x: float | None, digits: int, up: bool) -> str:
     """``x`` to ``digits`` significant digits, rounded up (``up``) or down: a displayed bound stays a bound."""
     if x is None or not np.isfinite(x):
-        return "-" if x is None else str(float(x))
+        return "-" if x is None else {np.inf: "infinity", -np.inf: "-infinity"}.get(float(x), "nan")
     if x == 0.0:
         return "0"
     exact = Decimal(float(x))
@@ -367,7 +375,9 @@ def _claims(
             "delay_margin (count_roots), spectral_abscissa",
         ),
     ]
-    if margin.margin_ball is not None and margin.rigorous:
+    if np.isposinf(margin.margin):
+        text = "delta* = infinity (stable for every delay)"
+    elif margin.margin_ball is not None and margin.rigorous:
         lo, hi = margin.margin_ball
         text = f"delta* in [{_outward(lo, 16, False)}, {_outward(hi, 16, True)}]"
     else:
@@ -422,7 +432,9 @@ def _claims(
     out.append(
         Claim(
             "spectral abscissa",
-            f"no zero of F(s; 0) with Re s > {_outward(abscissa.value, 10, True)}",
+            "F(s; 0) has no zero at all"
+            if np.isneginf(abscissa.value)
+            else f"no zero of F(s; 0) with Re s > {_outward(abscissa.value, 10, True)}",
             status(abscissa.rigorous and abscissa.certified),
             "spectral_abscissa",
         )
@@ -431,13 +443,25 @@ def _claims(
         out.append(
             Claim(
                 "Rouché delay range",
-                f"every delay in [0, {_outward(rouche.delta_0, 6, False)}] keeps F zero-free on Re s >= 0",
+                (
+                    "every delay"
+                    if np.isposinf(rouche.delta_0)
+                    else f"every delay in [0, {_outward(rouche.delta_0, 6, False)}]"
+                )
+                + " keeps F zero-free on Re s >= 0",
                 status(bool(getattr(rouche, "rigorous", False))),
                 "rouche_delay_bound",
             )
         )
     if kreg is not None:
-        out.append(Claim("admissible gains", "gains K stable on [0, delta_max] (see k_region)", CHECKED, "k_region"))
+        out.append(
+            Claim(
+                "admissible gains",
+                f"the gains K stable for every delay in [0, {delta_max:g}] (admissible gains, above)",
+                CHECKED,
+                "k_region",
+            )
+        )
     return tuple(out)
 
 
@@ -502,6 +526,10 @@ class Certificate:
         Points per direction of the kernel grid of the certificate's loops; None on the exact
         route (no grid: ``N~`` in closed form). The K-region of
         :func:`~nrobust.hyperbolic.analyses.k_region` is computed on its default route.
+    given_system, given_controller : objects or None
+        The plant and controller as passed to :func:`certify` when ``system`` and
+        ``controller`` are their normal form (a :class:`GeneralHyperbolic2x2` with a constant
+        ``lam/mu`` analysed on the kernel route); None when they were analysed as given.
     """
 
     system: Hyperbolic2x2 | GeneralHyperbolic2x2
@@ -525,6 +553,8 @@ class Certificate:
     unproven: tuple[str, ...] = ()
     kernel_grid: int | None = None
     accuracy_target: float | None = None
+    given_system: Any = None
+    given_controller: Any = None
 
     @property
     def accuracy_statement(self) -> str:
@@ -552,10 +582,7 @@ class Certificate:
     def scope(self) -> str:
         """What the certificate's proofs are about, in words."""
         if not self.rigorous:
-            return (
-                "Every claim is checked in floating point with a rounding allowance (certify(..., rigorous=True) "
-                "proves them in ball arithmetic)."
-            )
+            return FLOAT_SCOPE
         if self.route == "exact":
             return (
                 "Claims marked proven hold for "
@@ -602,7 +629,10 @@ class Certificate:
 
     @property
     def margin_text(self) -> str:
-        """The margin with the digits its accuracy supports (:attr:`margin_accuracy`)."""
+        """The margin with the digits its accuracy supports (:attr:`margin_accuracy`); ``"infinity"``
+        when no delay destabilises the loop."""
+        if np.isposinf(self.delay_margin):
+            return "infinity"
         return with_accuracy(self.delay_margin, self.margin_accuracy)
 
     @property
@@ -623,12 +653,17 @@ class Certificate:
             return f"{name}: the loop is not stable even without delay."
         if not self.delay_robust:
             return f"{name}: stable without delay but with zero delay margin: not delay-robust."
+        if np.isposinf(self.delay_margin):
+            return f"{name}: delay-robust, stable for every delay (delay margin infinity)."
         if self.stable_up_to_delta_max:
             return (
                 f"{name}: delay-robust, stable for every delay in [0, {self.delta_max:g}] "
                 f"(delay margin {self.margin_text})."
             )
-        return f"{name}: delay-robust with margin {self.margin_text} < delta_max = {self.delta_max:g}."
+        return (
+            f"{name}: delay-robust with margin {self.margin_text}, below the largest delay examined, "
+            f"{self.delta_max:g}."
+        )
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict[str, Any]:
@@ -732,6 +767,7 @@ def certify(
         accuracy = positive("accuracy", accuracy)
         if loop_route(system, controller, kernel_grid) != "exact":
             kernel_grid = _grid_for(system, controller, kernel_grid or DEFAULT_KERNEL_GRID, accuracy)
+    given_system, given_controller = system, controller
     if loop_route(system, controller, kernel_grid) != "exact":
         system, controller = normalize(system, controller)  # a general plant: its normal form
     if not np.isfinite(delta_max):
@@ -808,6 +844,8 @@ def certify(
         unproven=tuple(unproven),
         kernel_grid=kernel_grid,
         accuracy_target=accuracy,
+        given_system=None if given_system is system else given_system,
+        given_controller=None if given_system is system else given_controller,
     )
 
 

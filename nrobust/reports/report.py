@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from .._json import fields_dict
 from ..errors import ParameterError
@@ -33,10 +34,13 @@ from ..hyperbolic.loops.controllers import (
     ReflectionController,
     characteristic,
     loop_factors,
+    normalize,
 )
+from ..hyperbolic.plants.general import GeneralHyperbolic2x2
+from ..plots.charts import delay_chart_plot
 from ..plots.nyquist import nyquist_response
 from ..plots.rootmap import root_map_region, root_map_response
-from .certificate import Certificate
+from .certificate import PROVEN, Certificate
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -74,6 +78,16 @@ class _Paragraph:
 class _Table:
     header: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
+    code_column: int | None = None  # a column of function names, set as code
+    summary: str = ""  # folded under this line (HTML <details>) when given
+
+
+@dataclass(frozen=True)
+class _Panel:
+    """The answer, set apart at the top of a section: a title and a few lines."""
+
+    title: str
+    lines: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -92,13 +106,25 @@ def _fmt(x: Any, digits: int = 6) -> str:
         return x
     x = float(x)
     if np.isinf(x):
-        return "inf" if x > 0 else "-inf"
+        return "infinity" if x > 0 else "-infinity"
     return f"{x:.{digits}g}"
 
 
 def _png(fig: Figure) -> bytes:
+    """The figure as PNG, 100 dpi; the tight layout unless its subplot parameters were set by hand.
+
+    A figure laid out by ``subplots_adjust`` keeps its layout and has no layout engine, so
+    it is drawn once: any layout engine makes ``savefig`` draw it twice, and the tight layout
+    measures every label.
+    """
+    import matplotlib as mpl
+
     buf = io.BytesIO()
-    if fig.get_layout_engine() is None:
+    pars = fig.subplotpars
+    rc = mpl.rcParams
+    sides = (rc["figure.subplot.left"], rc["figure.subplot.right"], rc["figure.subplot.bottom"])
+    by_hand = (pars.left, pars.right, pars.bottom, pars.top) != (*sides, rc["figure.subplot.top"])
+    if fig.get_layout_engine() is None and not by_hand:
         fig.set_layout_engine("tight")
     fig.savefig(buf, format="png", dpi=100)
     return buf.getvalue()
@@ -115,12 +141,44 @@ def _controller_label(controller: Any) -> str:
 
 
 def certificate_figures(cert: Certificate) -> list[tuple[str, Figure]]:
-    """The standard figures of a certificate: root maps at ``0`` and ``delta_max``, Nyquist.
+    """The standard figures of a certificate: the stability chart in the delay above the root
+    maps at ``0`` and ``delta_max`` (one region for both), then the Nyquist plot.
 
-    Root maps reuse the certificate's root sets; the Nyquist data are computed from the
-    loop factors of the certified loop at ``delta_max``.
+    The chart draws the certificate's delay margin; the root maps reuse its root sets where
+    their region is the certified one; the Nyquist data are computed from the loop factors of
+    the certified loop at ``delta_max``.
     """
     return _figures(cert)[0]
+
+
+def _crossing_count(cert: Certificate) -> int | None:
+    """Zeros in ``Re s > 0`` at ``delta_max`` from the crossing analysis (None when not finite or not known)."""
+    m = cert.margin
+    if not (np.isfinite(m.delta_max) and cert.delta_max <= m.delta_max):
+        return None
+    n = int(m.unstable_count(cert.delta_max))
+    return None if n < 0 else n
+
+
+def _map_region(cert: Certificate, F0: Any, Fd: Any) -> tuple[float, float, float, float]:
+    """One rectangle for both root maps: the certified region, widened only where a root that matters lies outside.
+
+    Without delay, the rightmost root (the certificate's spectral abscissa) unless a root of the
+    certified set is as far right (a vertical chain of roots ties). At ``delta_max``, no search
+    when the certified set already holds every zero in ``Re s > 0`` counted by the crossing
+    analysis, or when a chain of the difference operator lies in ``Re s > 0`` (its roots are
+    drawn, or named in a note); otherwise the spectral abscissa of the delayed loop.
+    """
+    base = (float(cert.region[0]), float(cert.region[1]), float(cert.region[2]), float(cert.region[3]))
+    a = cert.abscissa
+    drawn0 = np.asarray(cert.roots_nominal.roots, dtype=complex)
+    tie = a.root is None or (drawn0.size > 0 and drawn0.real.max() >= a.value - 1e-9 * (1.0 + abs(a.value)))
+    box0 = root_map_region(F0, base=base, abscissa=None if tie else a, search=False)
+    drawn = np.asarray(cert.roots_delayed.roots, dtype=complex)
+    count = _crossing_count(cert)
+    known = count is not None and count == int(np.sum(drawn.real > 0.0))
+    boxd = root_map_region(Fd, base=base, search=not (known or cert.principal_delayed.spectral_bound > 0.0))
+    return (min(box0[0], boxd[0]), max(box0[1], boxd[1]), min(box0[2], boxd[2]), max(box0[3], boxd[3]))
 
 
 def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
@@ -128,31 +186,42 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     import matplotlib.pyplot as plt
 
     out: list[tuple[str, Figure]] = []
-    fig, axes = plt.subplots(1, 2, figsize=(9.0, 4.2))
+    fig = plt.figure(figsize=(9.0, 7.0))
+    grid = fig.add_gridspec(2, 2, height_ratios=(1.0, 1.9))
+    chart_ax = fig.add_subplot(grid[0, :])
+    delay_chart_plot(cert.margin, ax=chart_ax, margin_text=cert.margin_text)
+    chart_ax.set_title("Stability against the loop delay", fontsize="small")
+    F0 = characteristic(cert.system, cert.controller, 0.0, kernel_grid=cert.kernel_grid)
+    Fd = characteristic(cert.system, cert.controller, cert.delta_max, kernel_grid=cert.kernel_grid)
+    box = _map_region(cert, F0, Fd)
+    same = box == tuple(float(v) for v in cert.region)
+    ax0 = fig.add_subplot(grid[1, 0])
+    axes = (ax0, fig.add_subplot(grid[1, 1], sharey=ax0))
     panels = (
-        (axes[0], 0.0, cert.roots_nominal, cert.principal_nominal, cert.abscissa),
-        (axes[1], cert.delta_max, cert.roots_delayed, cert.principal_delayed, None),
+        (axes[0], 0.0, F0, cert.roots_nominal, cert.principal_nominal),
+        (axes[1], cert.delta_max, Fd, cert.roots_delayed, cert.principal_delayed),
     )
     notes = []
-    for ax, delta, roots, principal, abscissa in panels:
-        F = characteristic(cert.system, cert.controller, delta)
-        # the certified region, widened to hold the rightmost roots (an unstable root must show)
-        box = root_map_region(F, base=cert.region, abscissa=abscissa)
+    for ax, delta, F, roots, principal in panels:
         # the certificate's roots where the region is the certified one, else those of the wider box
-        data = root_map_response(F, box, roots=roots if box == tuple(cert.region) else None, chains=principal.chains)
+        data = root_map_response(F, box, roots=roots if same else None, chains=principal.chains)
         drawn = data.plot(ax=ax)
         notes += [f" At delta = {delta:g}: {note.get_text()}".replace("\n", " ") for note in drawn.lines["note"]]
-        ax.set_title(f"delta = {delta:g}: {data.count} roots (certified: {_fmt(data.certified)})", fontsize="small")
-    fig.suptitle(f"Closed-loop roots, {_controller_label(cert.controller)}", fontsize="medium")
+        ax.set_title(f"roots at delta = {delta:g}: {data.count} (certified: {_fmt(data.certified)})", fontsize="small")
+    axes[1].set_ylabel("")
+    fig.suptitle(f"Closed loop under {_controller_label(cert.controller)}", fontsize="medium")
+    fig.subplots_adjust(left=0.08, right=0.96, bottom=0.07, top=0.92, hspace=0.32, wspace=0.22)
     out.append(
         (
             "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
-            "with the chain asymptotes of the difference operator" + ("." + "".join(notes) if notes else ""),
+            "with the chain asymptotes of the difference operator, at delta = 0 and at delta = "
+            f"{cert.delta_max:g} in the same region; above them, the stability chart in the loop delay "
+            "(zeros in Re s > 0 against delta, the delay margin marked)" + ("." + "".join(notes) if notes else ""),
             fig,
         )
     )
 
-    A, B = loop_factors(cert.system, cert.controller)
+    A, B = loop_factors(cert.system, cert.controller, cert.kernel_grid)
     # 20 periods of the principal part (a varying lam/mu plant: tau in its time unit)
     w_max = 20.0 * 2 * np.pi * getattr(cert.system, "time_unit", 1.0) / float(cert.system.tau)
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
@@ -160,30 +229,164 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         A, B, cert.delta_max, omega_max=w_max, n_freq=2001, principal_bound=cert.principal_delayed.spectral_bound
     )
     resp.plot(ax=ax)
+    fig.subplots_adjust(left=0.14, right=0.97, bottom=0.1, top=0.92)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
     return out, resp
 
 
+#: The paper's regimes of ``|rho q|`` (:class:`~nrobust.hyperbolic.loops.controllers.Classification`) in words.
+_REGIMES = {
+    "not_stabilizable": "no controller is delay-robust here (|rho q| > 1, Theorem 2)",
+    "critical_one": "critical case |rho q| = 1 (the open-loop chain on the imaginary axis)",
+    "no_robust_finite_time": "no finite-time controller is delay-robust here (1/2 < |rho q| < 1, Theorem 3)",
+    "critical_half": "critical case |rho q| = 1/2 (finite-time U_BS not strongly stable)",
+    "robust_finite_time": "finite-time control can be delay-robust (|rho q| < 1/2)",
+}
+
+
+def _panel(cert: Certificate) -> _Panel:
+    """The answer first: stability without delay, the delay margin, the range, what is proven."""
+    m = cert.margin
+    lines = []
+    if cert.nominally_stable and np.isneginf(cert.abscissa.value):
+        lines.append("**Without delay (delta = 0):** stable, no closed-loop root at all (finite-time convergence).")
+    elif cert.nominally_stable:
+        lines.append(
+            f"**Without delay (delta = 0):** stable; decay rate {_fmt(-cert.abscissa.value)} "
+            f"(every closed-loop root has Re s <= {_fmt(cert.abscissa.value)})."
+        )
+    else:
+        n = "some" if m.nominal_unstable is None else str(m.nominal_unstable)
+        lines.append(f"**Without delay (delta = 0):** unstable, {n} closed-loop zero(s) in Re s >= 0.")
+    if not cert.nominally_stable:
+        lines.append("**Delay margin:** none (the loop is unstable without delay).")
+    elif np.isposinf(cert.delay_margin):
+        lines.append("**Delay margin:** delta* = infinity (stable for every delay).")
+    elif cert.delay_margin == 0.0:
+        lines.append("**Delay margin:** delta* = 0: the smallest loop delay destabilises the loop (not delay-robust).")
+    else:
+        where = "" if m.omega is None else f", a root crossing the imaginary axis at w = {_fmt(m.omega)}"
+        lines.append(f"**Delay margin:** delta* = {cert.margin_text}{where}.")
+    dmax = f"{cert.delta_max:g}"
+    count = _crossing_count(cert)
+    if cert.stable_up_to_delta_max:
+        lines.append(f"**Delays 0 to {dmax}:** stable for every one of them.")
+    elif cert.delay_robust:
+        zeros = "" if count is None else f"; {count} zero(s) in Re s > 0 at delta = {dmax}"
+        lines.append(f"**Delays 0 to {dmax}:** stable below delta*, not beyond{zeros}.")
+    elif cert.nominally_stable:
+        lines.append(f"**Delays 0 to {dmax}:** unstable for every delay in (0, {dmax}].")
+    if cert.rigorous:
+        proven = sum(c.status == PROVEN for c in cert.claims)
+        checked = [c.name for c in cert.claims if c.status != PROVEN]
+        rest = f"; checked in floating point: {', '.join(checked)}" if checked else ""
+        lines.append(f"**Proven:** {proven} of {len(cert.claims)} claims in ball arithmetic{rest} (details below).")
+    else:
+        lines.append(
+            "**Proven:** the root counts (certified integers, the argument principle with step control); "
+            "the floating-point values are checked, not proven. For proofs: `rigorous = true` in [analysis] "
+            "of SYSTEM.toml, or `certify(..., rigorous=True)`."
+        )
+    return _Panel(cert.verdict, tuple(lines))
+
+
+def _number(value: Any) -> str:
+    """A coefficient as the user wrote it: a number in full (10 digits), else its description."""
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        return f"{float(value):.10g}"
+    return str(value)
+
+
+def _profile_text(plant: GeneralHyperbolic2x2, name: str) -> str:
+    """A coefficient of a general plant: its number, or the range of its values on ``[0, L]`` (101 points, 6 digits)."""
+    profile = plant.profiles[name]
+    if profile.constant:
+        return _number(profile.describe())
+    values = np.asarray(profile(np.linspace(0.0, plant.length, 101)), dtype=float)
+    low, high = _fmt(values.min()), _fmt(values.max())
+    return low if low == high else f"varying in [{low}, {high}]"
+
+
+def _plant_blocks(cert: Certificate, with_controller: bool = True) -> list[_Paragraph]:
+    """The plant in the user's own terms; a general plant's normal form as a secondary "as analysed" line."""
+    given = cert.system if cert.given_system is None else cert.given_system
+    controller = cert.controller if cert.given_controller is None else cert.given_controller
+    tau = _fmt(cert.system.tau / getattr(cert.system, "time_unit", 1.0))
+    law = f"; controller `{_controller_label(controller)}`" if with_controller else ""
+    if not isinstance(given, GeneralHyperbolic2x2):
+        return [_Paragraph(f"**Plant.** `{given!r}`{law}; round trip tau = {tau}.")]
+    terms = ", ".join(f"{k} = {_profile_text(given, k)}" for k in ("lam", "mu", "a", "b", "c", "d"))
+    terms += ", " + ", ".join(f"{k} = {_number(getattr(given, k))}" for k in ("q", "rho", "length", "time_unit"))
+    out = [_Paragraph(f"**Plant.** GeneralHyperbolic2x2 with {terms}{law}; round trip tau = {tau} (in time units).")]
+    if not given.constant_ratio:
+        return out
+    form = given.normal_form()
+    analysed = cert.controller if cert.given_controller is not None else normalize(given, controller)[1]
+    out.append(
+        _Paragraph(
+            "As analysed: its normal form, the paper's plant (18)-(20) on [0, 1] with time in units of time_unit: "
+            + _normal_form_text(form.system)
+            + (f", under `{_controller_label(analysed)}`." if with_controller else ".")
+        )
+    )
+    gain = getattr(controller, "K", None)
+    if isinstance(controller, (ReflectionController, FilteredController)) and gain is not None:
+        factor = form.control_gain * float(np.exp(-float(given.A(given.length)) - form.balance))
+        out.append(
+            _Paragraph(
+                f"{type(controller).__name__} reads K in the normal form's coordinates, not in the plant's: "
+                f"K = {_number(gain)} is the gain {_fmt(-float(gain) * factor)} on the plant's u(t, L) "
+                "(with the kernel terms of eq. (53))."
+            )
+        )
+    return out
+
+
+def _normal_form_text(system: Any) -> str:
+    """The paper's plant ``(lam, mu, sigma_pm, sigma_mp, q, rho)`` with 6 significant digits."""
+    parts = []
+    for name in ("lam", "mu", "sigma_pm", "sigma_mp", "q", "rho"):
+        value = getattr(system, name)
+        parts.append(f"{name} = {_fmt(value) if isinstance(value, (int, float)) else 'varying'}")
+    return ", ".join(parts)
+
+
 def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, Figure]]]:
-    label = _controller_label(cert.controller)
+    label = _controller_label(cert.controller if cert.given_controller is None else cert.given_controller)
     head = f"{label}" if index is None else f"{index + 1}. {label}"
     cls = cert.classification
     m = cert.margin
-    blocks: list[Any] = [_Heading(2, head), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(_opening(cert))]
+    figures, nyquist = _figures(cert)
+    number = 1 if index is None else index + 1
+    pictures = [_Figure(f"{number}_{_slug(caption)[:40]}", caption, _png(fig)) for caption, fig in figures]
+    blocks: list[Any] = [_Heading(2, head), _panel(cert), pictures[0]]
+    if index is None:
+        blocks += _plant_blocks(cert)
+    blocks += [_Heading(3, "Details"), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(_opening(cert))]
+    if isinstance(cert.controller, FiniteTimeController):
+        gamma_source = "principal_part (< 1: eq. (11))"
+    elif isinstance(cert.controller, ReflectionController):
+        gamma_source = "principal_part (< 1: eq. (54))"
+    else:
+        gamma_source = "principal_part (< 1: strongly stable)"
     rows = [
         ("open-loop gain rho q", _fmt(cls.rho_q), "classify (section 2)"),
-        ("regime", cls.regime, "classify"),
+        ("regime", _REGIMES.get(cls.regime, cls.regime), "classify"),
         ("gamma_0 of the difference operator, delta = 0", _fmt(cert.principal_nominal.gamma_0), "principal_part"),
         (
             f"gamma_0 of the difference operator, delta = {cert.delta_max:g}",
             _fmt(cert.principal_delayed.gamma_0),
-            "principal_part (< 1: eq. (11) for U_BS, eq. (54) for U_BS2)",
+            gamma_source,
         ),
         ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),
         ("spectral abscissa, delta = 0", _fmt(cert.abscissa.value), "spectral_abscissa"),
         ("nominally stable", _fmt(cert.nominally_stable), "delay_margin"),
-        ("delay margin delta*", cert.margin_text, "delay_margin"),
-        ("accuracy of the delay margin", cert.accuracy_statement.split(": ", 1)[1], "certify"),
+        (
+            "delay margin delta*",
+            "infinity (stable for every delay)" if np.isposinf(cert.delay_margin) else cert.margin_text,
+            "delay_margin",
+        ),
+        ("accuracy of the delay margin", _accuracy_text(cert), "certify"),
         ("crossing frequency at delta*", _fmt(m.omega), "delay_margin"),
         (
             "margin verified (residual and count)",
@@ -192,14 +395,14 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         ),
         ("how the margin was decided", m.reason, "delay_margin"),
         (
-            "stable delay intervals in [0, delta_max]",
+            f"stable delay intervals in [0, {cert.delta_max:g}]",
             ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in m.intervals) or "none",
             "delay_margin",
         ),
         (
             "Rouché guaranteed range delta_0",
-            "-" if cert.rouche is None else _fmt(cert.rouche.delta_0),
-            "rouche_delay_bound (Theorem 4)",
+            "not applicable (U_BS and U_BS2 only)" if cert.rouche is None else _fmt(cert.rouche.delta_0),
+            "rouche_delay_bound (Theorem 4)" if cert.rouche is not None else "-",
         ),
         (
             "roots in the region, delta = 0",
@@ -213,24 +416,34 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         ),
         ("region (Re min, Re max, Im min, Im max)", ", ".join(_fmt(v, 4) for v in cert.region), "certify"),
     ]
-    figures, nyquist = _figures(cert)
     # the same number by two routes: crossing analysis and winding along the axis
-    crossing_count = (
-        int(m.unstable_count(cert.delta_max)) if np.isfinite(m.delta_max) and cert.delta_max <= m.delta_max else None
-    )
+    crossing_count = _crossing_count(cert)
     rows.append(
         (
             f"closed-loop zeros in Re s > 0 at delta = {cert.delta_max:g}",
-            f"{'-' if crossing_count is None or crossing_count < 0 else crossing_count} (crossings); "
+            f"{'-' if crossing_count is None else crossing_count} (crossings); "
             f"{'no finite count' if nyquist.rhp_zeros is None else nyquist.rhp_zeros} (Nyquist winding)",
             "delay_margin; nyquist_response",
         )
     )
     if cert.k_region is not None:
-        rows.append(("admissible gains K on [0, delta_max]", _k_region_text(cert.k_region), "k_region"))
+        rows.append((f"admissible gains K on [0, {cert.delta_max:g}]", _k_region_text(cert.k_region), "k_region"))
     elif cert.k_region_error:
-        rows.append(("admissible gains K on [0, delta_max]", f"not certified: {cert.k_region_error}", "k_region"))
-    blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows)))
+        rows.append(
+            (f"admissible gains K on [0, {cert.delta_max:g}]", f"not certified: {cert.k_region_error}", "k_region")
+        )
+    blocks.append(_Table(("quantity", "value", "computed by"), tuple(rows), code_column=2))
+    blocks.append(_Paragraph(f"**What is proven.** {cert.scope}"))
+    if cert.claims:
+        blocks.append(
+            _Table(
+                ("claim", "statement", "status", "computed by"),
+                tuple((_at_delta_max(c.name, cert), c.statement, c.status, c.source) for c in cert.claims),
+                code_column=3,
+            )
+        )
+        for note in cert.unproven:
+            blocks.append(_Paragraph(f"Not proven: {note}"))
     box_rows = tuple(
         (f"delta = {_fmt(d)}", _box_text(box), str(int(c)))
         for d, rs in ((0.0, cert.roots_nominal), (cert.delta_max, cert.roots_delayed))
@@ -238,18 +451,23 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
     )
     if box_rows:
         blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
-        blocks.append(_Table(("loop", "box", "roots"), box_rows))
-    if cert.claims:
-        blocks.append(_Paragraph(f"**What is proven.** {cert.scope}"))
-        blocks.append(
-            _Table(
-                ("claim", "statement", "status", "computed by"),
-                tuple((c.name, c.statement, c.status, c.source) for c in cert.claims),
-            )
-        )
-        for note in cert.unproven:
-            blocks.append(_Paragraph(f"Not proven: {note}"))
+        blocks.append(_Table(("loop", "box", "roots"), box_rows, summary=f"{len(box_rows)} boxes, one root count each"))
+    blocks += pictures[1:]
     return blocks, figures
+
+
+def _at_delta_max(text: str, cert: Certificate) -> str:
+    """``text`` with the parameter name ``delta_max`` replaced by its value (``delta = 0.1``)."""
+    return text.replace("delta_max", f"delta = {cert.delta_max:g}")
+
+
+def _accuracy_text(cert: Certificate) -> str:
+    """The accuracy part of :attr:`Certificate.accuracy_statement` (exact for an infinite margin)."""
+    if np.isposinf(cert.delay_margin):
+        return "exact: no crossing, hence no delay to estimate"
+    if cert.margin_accuracy == 0.0:
+        return "exact"
+    return cert.accuracy_statement.split(": ", 1)[1]
 
 
 def _opening(cert: Certificate) -> str:
@@ -322,14 +540,31 @@ def _markdown(blocks: Sequence[Any], fig_paths: Mapping[str, str]) -> str:
             out.append("#" * b.level + " " + b.text)
         elif isinstance(b, _Paragraph):
             out.append(b.text)
+        elif isinstance(b, _Panel):
+            out.append(f"> **{b.title}**")
+            for line in b.lines:
+                out += [">", f"> {line}"]
         elif isinstance(b, _Table):
+            if b.summary:
+                out.append(f"<details><summary>{html.escape(b.summary)}</summary>\n")
             out.append("| " + " | ".join(b.header) + " |")
             out.append("|" + "|".join("---" for _ in b.header) + "|")
-            out += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in b.rows]
+            out += ["| " + " | ".join(c.replace("|", "\\|") for c in _cells(b, row)) + " |" for row in b.rows]
+            if b.summary:
+                out.append("\n</details>")
         elif isinstance(b, _Figure):
             out.append(f"![{b.caption}]({fig_paths[b.name]})\n\n*{b.caption}*")
         out.append("")
     return "\n".join(out)
+
+
+#: Function names of a "computed by" column (``delay_margin``, ``classify``...), set as code.
+_FUNCTION = re.compile(r"\b([a-z][a-z0-9]*(?:_[a-z0-9]+)+|classify|certify)\b")
+
+
+def _cells(table: _Table, row: Sequence[str]) -> list[str]:
+    """A row's cells, the function names of the table's code column as code spans."""
+    return [_FUNCTION.sub(r"`\1`", c) if k == table.code_column else c for k, c in enumerate(row)]
 
 
 def _inline(text: str) -> str:
@@ -344,6 +579,8 @@ _CSS = (
     "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:.25em .6em;"
     "text-align:left;vertical-align:top}th{background:#eee}figure{margin:1.5em 0}"
     "img{max-width:100%}figcaption{font-style:italic;font-size:.9em}"
+    ".answer{border-left:.4em solid #2a6fb0;background:#f2f6fb;padding:.4em 1em;margin:1em 0}"
+    ".answer p{margin:.4em 0}summary{cursor:pointer;margin:.5em 0}"
 )
 
 
@@ -358,10 +595,18 @@ def _html(title: str, blocks: Sequence[Any]) -> str:
             out.append(f"<h{b.level}>{_inline(b.text)}</h{b.level}>")
         elif isinstance(b, _Paragraph):
             out.append(f"<p>{_inline(b.text)}</p>")
+        elif isinstance(b, _Panel):
+            out.append(f'<div class="answer"><p><strong>{_inline(b.title)}</strong></p>')
+            out += [f"<p>{_inline(line)}</p>" for line in b.lines]
+            out.append("</div>")
         elif isinstance(b, _Table):
+            if b.summary:
+                out.append(f"<details><summary>{html.escape(b.summary)}</summary>")
             out.append("<table><tr>" + "".join(f"<th>{_inline(h)}</th>" for h in b.header) + "</tr>")
-            out += ["<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in row) + "</tr>" for row in b.rows]
+            out += ["<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in _cells(b, row)) + "</tr>" for row in b.rows]
             out.append("</table>")
+            if b.summary:
+                out.append("</details>")
         elif isinstance(b, _Figure):
             data = base64.b64encode(b.png).decode("ascii")
             out.append(
@@ -414,19 +659,16 @@ def write_report(
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
 
-    system = certs[0].system
     blocks: list[Any] = [_Heading(1, title)]
     blocks += [_Paragraph(p) for p in intro]
-    blocks.append(
-        _Paragraph(f"**System.** `{system!r}`, tau = {_fmt(system.tau / getattr(system, 'time_unit', 1.0))}.")
-    )
+    if len(certs) > 1:  # one plant, several controllers: the plant once, each controller in its section
+        blocks += _plant_blocks(certs[0], with_controller=False)
     all_figs: list[tuple[str, Figure]] = []
-    for k, cert in enumerate(certs):
-        section, figs = _certificate_blocks(cert, None if len(certs) == 1 else k)
-        blocks += section
-        for caption, fig in figs:
-            blocks.append(_Figure(f"{k + 1}_{_slug(caption)[:40]}", caption, _png(fig)))
-            all_figs.append((caption, fig))
+    with threadpool_limits(1):  # the chains' small eigenvalue problems: competing BLAS threads slow them tenfold
+        for k, cert in enumerate(certs):
+            section, figs = _certificate_blocks(cert, None if len(certs) == 1 else k)
+            blocks += section
+            all_figs += figs
     if figures:
         blocks.append(_Heading(2, "Further figures"))
         for j, (caption, fig) in enumerate(figures):
