@@ -212,6 +212,12 @@ class DelayLTI:
         A ``TransferFunction`` is realised entry by entry (observable canonical form of each
         SISO entry, which must be proper), so no SLICOT is needed; ``StateSpace`` matrices
         are taken as they are.
+
+        Raises
+        ------
+        ParameterError
+            Not a python-control system, discrete time, or an improper entry (the message
+            shows how to group ``delay(h) * (s / (s + 1))``).
         """
         import control
 
@@ -229,6 +235,14 @@ class DelayLTI:
                 den = np.asarray(sys.den_array[i, j], dtype=float)
                 if not np.any(num):
                     continue
+                if np.trim_zeros(num, "f").size > np.trim_zeros(den, "f").size:
+                    raise ParameterError(
+                        "sys",
+                        f"a proper transfer function (entry [{i}, {j}] has a numerator of higher degree than its "
+                        "denominator); with s = tf('s'), Python reads delay(h) * s / (s + 1) as "
+                        "(delay(h) * s) / (s + 1): write delay(h) * (s / (s + 1))",
+                        sys,
+                    )
                 entry = _rational([(num[::-1], 0.0)], den[::-1], [])
                 term = cls.gain(np.eye(p)[:, [i]]) * entry * cls.gain(np.eye(m)[[j], :])
                 total = term if total is None else total + term
@@ -535,6 +549,12 @@ class DelayLTI:
             Passed to :func:`nrobust.roots.find_roots` (``rigorous=True`` proves them in
             ball arithmetic).
 
+        Raises
+        ------
+        ParameterError
+            A neutral system and ``re_min`` at or left of ``C_D``, the strong spectral bound of
+            its difference operator (the message gives ``C_D``): infinitely many poles there.
+
         Examples
         --------
         >>> sys = (delay(1.0) * tf([1.0], [1.0, 0.0])).feedback(1)  # s + e^{-s} = 0
@@ -550,8 +570,12 @@ class DelayLTI:
             try:
                 free = root_free_region(P, x)
             except ParameterError as exc:
+                c_d = P.principal_part().strong_spectral_bound()
                 raise ParameterError(
-                    "re_min", "right of the chains of the neutral part (C_D) for a bounded set of poles", re_min
+                    "re_min",
+                    f"> {c_d:.6g}, right of the chains of the neutral part (C_D = {c_d:.6g}: infinitely many poles "
+                    "accumulate at Re s = C_D or left of it) for a bounded set of poles",
+                    re_min,
                 ) from exc
             R = free.radius * (1.0 + 1e-9) + 1e-9
             region = (x, max(min(free.half_plane, R), x) + 1e-6 * (1.0 + R), -R, R)

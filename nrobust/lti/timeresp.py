@@ -8,7 +8,10 @@ A delay system in linear fractional form (ControlSystems.jl's ``DelayLtiSystem``
     w_i(t) = z_i(t - tau_i),   tau_i > 0 (one delay per channel).
 
 Any object with the attributes ``A, B1, B2, C1, C2, D11, D12, D21, D22`` (2-D arrays) and
-``tau`` (1-D array) is accepted (:class:`LFTSystem`). The functions have python-control's
+``tau`` (1-D array) is accepted (:class:`LFTSystem`), and so are python-control's
+``TransferFunction`` and ``StateSpace`` and a SISO
+:class:`~nrobust.lti.transfer.QuasiTransferFunction` with point delays (realised by
+:func:`~nrobust.lti.delay_lti.as_delay_lti`). The functions have python-control's
 names, arguments and result (:class:`control.TimeResponseData`, MIMO shapes included), so
 plotting code written for python-control keeps working.
 
@@ -67,9 +70,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validate import is_real_number, nonnegative, positive, positive_int
 from ..errors import ConvergenceError, ParameterError
+from .delay_lti import as_delay_lti
 
 if TYPE_CHECKING:
+    from typing import TypeAlias
+
     import control
+
+    from .transfer import QuasiTransferFunction
+
+    #: What the responses accept: an LFT system, or a system :func:`as_delay_lti` converts.
+    System: TypeAlias = "LFTSystem | control.StateSpace | control.TransferFunction | QuasiTransferFunction"
 
 __all__ = [
     "DEGREE",
@@ -173,10 +184,24 @@ def _matrix(name: str, value: Any, shape: tuple[int | None, int | None]) -> Arra
     return a
 
 
-def _check_system(sys: LFTSystem) -> _Mats:
-    missing = [f for f in _FIELDS if not hasattr(sys, f)]
-    if missing:
-        raise ParameterError("sys", f"an object with attributes {', '.join(_FIELDS)} (missing {missing})")
+def _as_lft(system: System) -> LFTSystem:
+    """``system`` itself if it has the LFT attributes, else converted by :func:`as_delay_lti`."""
+    missing = [f for f in _FIELDS if not hasattr(system, f)]
+    if not missing:
+        return system  # type: ignore[return-value]
+    try:  # python-control's systems, QuasiTransferFunction, StateSpaceTDS
+        return as_delay_lti(system)
+    except ParameterError as exc:
+        raise ParameterError(
+            "sys",
+            "a DelayLTI, a python-control system, a QuasiTransferFunction or an object with attributes "
+            f"{', '.join(_FIELDS)} (missing {missing})",
+            type(system).__name__,
+        ) from exc
+
+
+def _check_system(system: System) -> _Mats:
+    sys = _as_lft(system)
     try:
         tau = np.asarray(sys.tau, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
@@ -524,7 +549,7 @@ def _labels(prefix: str, k: int) -> list[str]:
 
 
 def _per_input(
-    sys: LFTSystem,
+    sys: System,
     T: ArrayLike | None,
     X0: ArrayLike,
     impulse: bool,
@@ -573,7 +598,7 @@ def _per_input(
 
 
 def step_response(
-    sys: LFTSystem,
+    sys: System,
     T: ArrayLike | None = None,
     X0: ArrayLike = 0.0,
     *,
@@ -590,9 +615,10 @@ def step_response(
 
     Parameters
     ----------
-    sys : LFTSystem
+    sys : LFTSystem, python-control system or QuasiTransferFunction
         Any object with ``A, B1, B2, C1, C2, D11, D12, D21, D22, tau`` (e.g.
-        ``nrobust.lti.delay_lti.DelayLTI``).
+        ``nrobust.lti.delay_lti.DelayLTI``), or a system
+        :func:`~nrobust.lti.delay_lti.as_delay_lti` converts.
     T : array_like or float, optional
         Strictly increasing output times, or a final time (1000 points from 0); by default
         1000 points on ``[0, 20 max(tau)]``.
@@ -629,7 +655,7 @@ def step_response(
 
 
 def impulse_response(
-    sys: LFTSystem,
+    sys: System,
     T: ArrayLike | None = None,
     X0: ArrayLike = 0.0,
     *,
@@ -668,7 +694,7 @@ def impulse_response(
 
 
 def initial_response(
-    sys: LFTSystem,
+    sys: System,
     T: ArrayLike | None = None,
     X0: ArrayLike = 0.0,
     *,
@@ -780,7 +806,7 @@ def _callable_input(U: InputFunction, t: Array, nu: int, breaks: ArrayLike | Non
 
 
 def forced_response(
-    sys: LFTSystem,
+    sys: System,
     T: ArrayLike,
     U: ArrayLike | InputFunction = 0.0,
     X0: ArrayLike = 0.0,

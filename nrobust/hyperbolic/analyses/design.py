@@ -60,7 +60,7 @@ class ReflectionDesign:
 
     @property
     def kind(self) -> str:
-        """What decides the optimum (:data:`nrobust.design.DESIGN_KINDS`)."""
+        """What decides the optimum (:data:`nrobust.design.gain.DESIGN_KINDS`)."""
         return self.design.kind
 
     def __repr__(self) -> str:
