@@ -152,7 +152,7 @@ _CONTROLLER_KEYS = {
     "FilteredController": ("a", "b"),
     "StateFeedback": ("k",),
 }
-_CONTROLLER_OPTIONAL: dict[str, tuple[str, ...]] = {"StateFeedback": ("g_u", "g_v")}
+_CONTROLLER_OPTIONAL: dict[str, tuple[str, ...]] = {"StateFeedback": ("g_u", "g_v"), "FilteredController": ("K",)}
 _ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True, "rigorous": False, "accuracy": None}
 _SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0": 1.0, "v0": 1.0}
 #: Deprecated keys of ``[simulation]``, read as their new names with a DeprecationWarning.

@@ -26,6 +26,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .._json import fields_dict
+from ..design.local import delayed_gamma
 from ..errors import ParameterError
 from ..hyperbolic.loops.controllers import (
     FilteredController,
@@ -475,6 +476,15 @@ def _opening(cert: Certificate) -> str:
     cls, controller = cert.classification, cert.controller
     if isinstance(controller, (FiniteTimeController, ReflectionController)):
         return cls.statement  # the regimes of |rho q| for U_BS and U_BS2 (Theorems 2 to 4)
+    if isinstance(controller, FilteredController) and controller.K is not None:
+        a, b, K = float(controller.a), float(controller.b), float(controller.K)
+        gamma = delayed_gamma(*loop_factors(cert.system, controller))
+        return (
+            f"Filtered U_BS2(K) with K = {_fmt(K)}, a = {_fmt(a)}, b = {_fmt(b)} (section 2.3.2): its delayed loop's "
+            f"difference operator 1 - rho q e^(-tau s) + (a/b) K q e^(-(tau + delta) s) has gamma_0 = |rho q| + "
+            f"|a/b| |K q| = {_fmt(gamma)}, {'below' if gamma < 1.0 else 'not below'} 1, the condition for a positive "
+            "delay margin."
+        )
     if isinstance(controller, FilteredController):
         a, b = float(controller.a), float(controller.b)
         gamma = abs(cls.rho_q) * (1.0 + abs(a) / b)
