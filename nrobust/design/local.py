@@ -343,22 +343,25 @@ class _Local:
         near = [y for y in samples if np.linalg.norm((y.p - x.p) / width) <= 1e-3]
         return x, self.max_iter, _min_norm_convex(np.array([y.gradient for y in near])), "iteration limit"
 
-    def polish(self, problem: _Problem, x: _Point, counter: list[int]) -> _Point:
+    def polish(
+        self, f: Callable[[NDArray, float], _Point], x: _Point, counter: list[int], stop_below: float = -math.inf
+    ) -> _Point:
         """A compass search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths).
 
         Where the line search stalls (at a kink where two roots meet, whose abscissa is not
         even Lipschitz, or on the margin's boundary) BFGS has no descent step to take; the
-        compass search needs none and only accepts feasible, better points.
+        compass search needs none and only accepts feasible, better points. It stops early
+        once ``value <= stop_below``.
         """
-        width = problem.bounds[:, 1] - problem.bounds[:, 0]
+        width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
         step = POLISH_START * width
-        while np.max(step / width) > POLISH_TOL:
+        while np.max(step / width) > POLISH_TOL and x.value > stop_below:
             moved = False
             for i in range(x.p.size):
                 for sign in (1.0, -1.0):
                     trial = x.p.copy()
                     trial[i] += sign * step[i]
-                    y = problem(trial, above=x.value)
+                    y = f(trial, x.value)
                     counter[0] += 1
                     if y.feasible and y.value < x.value:
                         x, moved = y, True
@@ -378,9 +381,13 @@ class _Local:
             m = problem(x.p, want="margin")  # first phase: raise the margin to the requirement
             counter[0] += 1
             if m.feasible:
-                m, iterations, _, _ = self.minimise(
-                    lambda q, above: problem(q, want="margin"), m, counter, stop_below=-problem.margin_at_least
-                )
+
+                def margin(q: NDArray, above: float) -> _Point:
+                    return problem(q, want="margin")
+
+                target = -problem.margin_at_least
+                m, iterations, _, _ = self.minimise(margin, m, counter, stop_below=target)
+                m = self.polish(margin, m, counter, stop_below=target)
                 x = problem(m.p)
                 counter[0] += 1
         if not x.feasible:
@@ -388,7 +395,7 @@ class _Local:
                 tuple(start), tuple(map(float, x.p)), math.nan, False, iterations, counter[0], math.nan, x.reason
             )
         x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter)
-        polished = self.polish(problem, x, counter)
+        polished = self.polish(lambda q, above: problem(q, above=above), x, counter)
         if polished.value < x.value:
             x, reason = polished, reason + "; then improved by a compass search"
         return LocalRun(
