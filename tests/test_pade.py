@@ -245,3 +245,20 @@ def test_refusals():
     H = QuasiTransferFunction(1.0, QuasiPolynomial([[1.0]], [0.0], distributed=[dist]))
     with pytest.raises(CertificationError, match="distributed"):
         pade_approximation(H, 2, [0.0, 1.0], return_bound=True)
+
+
+def test_an_order_beyond_double_precision_is_refused_by_name() -> None:
+    """Order 100 of a two-delay loop: coefficients spanning beyond the double range, refused clearly."""
+    import warnings
+
+    from nrobust.errors import CertificationError
+    from nrobust.lti.transfer import QuasiTransferFunction, pade_approximation
+    from nrobust.quasipoly import QuasiPolynomial
+
+    H = QuasiTransferFunction(
+        QuasiPolynomial([[1.0, 1.0]], [0.3]), QuasiPolynomial([[1.0, 2.0, 1.0], [0.5]], [0.0, 0.7])
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy's overflow on the way
+        with pytest.raises(CertificationError, match="lower the order"):
+            pade_approximation(H, 100, [0.0, 1.0, 2.0])

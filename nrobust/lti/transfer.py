@@ -499,8 +499,16 @@ def pade_approximation(
     den = _rational(den1, per_delay, default, n_quad)
     model = control.TransferFunction(np.polymul(num.num[0][0], den.den[0][0]), np.polymul(num.den[0][0], den.num[0][0]))
     truth = _unstable_poles(den1)
-    model, spurious = _replace_spurious_poles(model, truth)
-    verdict = int(np.sum(np.real(model.poles()) > 0.0))
+    try:
+        model, spurious = _replace_spurious_poles(model, truth)
+        verdict = int(np.sum(np.real(model.poles()) > 0.0))
+    except np.linalg.LinAlgError:  # the companion matrix of coefficients spanning beyond the double range
+        span = _span(model)
+        raise CertificationError(
+            f"the Pade model (degree {len(model.den[0][0]) - 1}) has polynomial coefficients spanning "
+            f"{f'{span:.1e}' if np.isfinite(span) else 'more than the double range'}, beyond what double precision "
+            "can find roots for: lower the order, or use to_frd for frequency analyses"
+        ) from None
     if verdict != truth.size:
         raise CertificationError(
             f"the Pade model (degree {len(model.den[0][0]) - 1}) has {verdict} poles in Re s > 0 by python-control's "
