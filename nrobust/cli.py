@@ -7,10 +7,14 @@
     The reference paper's example end to end: classification, figures 1 and 3 by
     simulation of the PDE, delay margins of U_BS and U_BS2(K = 0.1), the ``(K, delta)``
     stability chart with the sufficient bound, the decay/margin trade-off and the report.
-``nrobust design SYSTEM.toml -o OUT/ [--objective OBJ] [--margin-at-least D] [--k-bounds LO HI] [--rigorous]``
-    The gain ``K`` of ``U_BS2(K)`` for the file's plant with the largest delay margin
-    (``OBJ = margin``), or the largest decay rate (``decay_rate``) with a margin of at least
-    ``D`` (:func:`nrobust.reports.design.run_design`): ``design.json`` and ``design.md``.
+``nrobust design SYSTEM.toml -o OUT/ [--family F] [--objective OBJ] [--margin-at-least D] [--k-bounds L H]``
+    ``[--rigorous]``:
+    a controller for the file's plant (:func:`nrobust.reports.design.run_design`): ``F =
+    reflection`` (the gain ``K`` of ``U_BS2(K)``, solved exactly) or ``filtered`` (``K`` and the
+    filter's ``a``, ``b``, a certified local optimum), with the largest delay margin
+    (``OBJ = margin``) or the largest decay rate (``decay_rate``) with a margin of at least
+    ``D``; each option defaults to the file's ``[design]`` section. Writes ``design.json``,
+    ``design.md`` and, for ``U_BS2(K)``, ``design.png``.
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
     A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
     again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).
@@ -35,7 +39,7 @@ from ._version import __version__
 from .config import PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
 from .reports.analyze import run_analyze
-from .reports.design import run_design
+from .reports.design import design_summary, run_design
 from .reports.paper import PAPER_SYSTEM, run_paper
 from .sweeps.engine import SweepInterrupted
 from .sweeps.sweepfile import run_sweep_file
@@ -71,13 +75,18 @@ def _parser() -> argparse.ArgumentParser:
     pp = sub.add_parser("paper", help="the reference paper's example end to end")
     pp.add_argument("-o", "--out", required=True, help="output directory")
     _progress_options(pp)
-    d = sub.add_parser("design", help="the gain K of U_BS2(K) for the plant of a SYSTEM.toml file")
+    d = sub.add_parser("design", help="a controller for the plant of a SYSTEM.toml file, designed and certified")
     d.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md); its [system] is the plant")
     d.add_argument("-o", "--out", required=True, help="output directory")
-    d.add_argument("--objective", choices=("margin", "decay_rate"), default="margin", help="what to maximise")
+    d.add_argument(
+        "--family", choices=("reflection", "filtered"), default=None, help="U_BS2(K) or the filtered U_BS2(K)"
+    )
+    d.add_argument("--objective", choices=("margin", "decay_rate"), default=None, help="what to maximise")
     d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")
     d.add_argument("--k-bounds", type=float, nargs=2, default=None, metavar=("LO", "HI"), help="the gains searched")
-    d.add_argument("--rigorous", action="store_true", help="prove the designed loop's margin in ball arithmetic")
+    d.add_argument(
+        "--rigorous", action="store_true", default=None, help="prove the designed loop's margin in ball arithmetic"
+    )
     d.set_defaults(progress=None)  # no progress bar: one design takes about a second
     s = sub.add_parser("sweep", help="run a SWEEP.toml parameter sweep or Monte Carlo study")
     s.add_argument("file", help="SWEEP.toml (schema: docs/sweeps.md)")
@@ -122,8 +131,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 args.margin_at_least,
                 None if args.k_bounds is None else tuple(args.k_bounds),
                 args.rigorous,
+                args.family,
             )
-            print(f"K = {designed.K:.15g} ({designed.kind}), {args.objective} = {designed.value:.15g}")
+            print(design_summary(designed))
             print(f"wrote {', '.join(str(p) for p in written)}")
         elif args.command == "paper":
             summary = run_paper(args.out, progress=progress)

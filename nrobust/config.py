@@ -46,6 +46,7 @@ else:  # pragma: no cover - exercised by the Python 3.10 run of CI
 
 __all__ = [
     "CONTROLLER_TYPES",
+    "DESIGN_FAMILIES",
     "SYSTEM_TYPES",
     "PiecewiseLinear",
     "build_in_section",
@@ -157,7 +158,21 @@ _ANALYSIS_KEYS = {"delta_max": None, "region": None, "k_region": True, "rigorous
 _SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0": 1.0, "v0": 1.0}
 #: Deprecated keys of ``[simulation]``, read as their new names with a DeprecationWarning.
 _SIMULATION_RENAMED = {"n": "cells"}
-_TOP_KEYS = ("system", "controller", "analysis", "simulation")
+_TOP_KEYS = ("system", "controller", "analysis", "simulation", "design")
+#: Keys of ``[design]`` (``nrobust design``) and their defaults; ``K``, ``a``, ``b``: a number (fixed)
+#: or ``[low, high]`` bounds (None: the default bounds of the family).
+_DESIGN_KEYS: dict[str, Any] = {
+    "family": "reflection",
+    "objective": "margin",
+    "margin_at_least": None,
+    "K": None,
+    "a": None,
+    "b": None,
+    "starts": 4,
+    "rigorous": False,
+}
+#: The controller families ``nrobust design`` can design: U_BS2(K) and the filtered U_BS2(K).
+DESIGN_FAMILIES = ("reflection", "filtered")
 
 
 def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
@@ -353,6 +368,46 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box}
 
 
+def _design(table: dict[str, Any]) -> dict[str, Any]:
+    """The ``[design]`` section: the family, the objective, the requirement, the parameters' bounds."""
+    d = _options(table, "design", _DESIGN_KEYS)
+    if d["family"] not in DESIGN_FAMILIES:
+        raise unknown_key(
+            "design.family", f"one of {list(DESIGN_FAMILIES)}", str(d["family"]), DESIGN_FAMILIES, d["family"]
+        )
+    if d["objective"] not in ("margin", "decay_rate"):
+        raise ParameterError("design.objective", '"margin" or "decay_rate"', d["objective"])
+    if d["margin_at_least"] is not None:
+        d["margin_at_least"] = _number("design.margin_at_least", d["margin_at_least"])
+        if d["margin_at_least"] < 0.0:
+            raise ParameterError("design.margin_at_least", ">= 0 (a delay)", d["margin_at_least"])
+    for name in ("K", "a", "b"):
+        value = d[name]
+        if value is None:
+            continue
+        if isinstance(value, list):
+            if len(value) != 2:
+                raise ParameterError(f"design.{name}", "[low, high] bounds or a number (fixed)", value)
+            lo, hi = (_number(f"design.{name}", v) for v in value)
+            if not lo < hi:
+                raise ParameterError(f"design.{name}", "[low, high] with low < high", value)
+            d[name] = (lo, hi)
+        else:
+            d[name] = _number(f"design.{name}", value)
+    if d["family"] == "reflection":
+        for name in ("a", "b"):
+            if d[name] is not None:
+                raise ParameterError(f"design.{name}", 'left out for family = "reflection" (U_BS2(K) has no filter)')
+        if isinstance(d["K"], float):
+            raise ParameterError("design.K", 'bounds [low, high] for family = "reflection" (K is designed)', d["K"])
+    starts = d["starts"]
+    if isinstance(starts, bool) or not isinstance(starts, int) or not 1 <= starts <= 64:
+        raise ParameterError("design.starts", "an integer in [1, 64]", starts)
+    if not isinstance(d["rigorous"], bool):
+        raise ParameterError("design.rigorous", "true or false", d["rigorous"])
+    return d
+
+
 def load_system_file(path: str | Path) -> dict[str, Any]:
     """Read a SYSTEM.toml file (schema in ``docs/getting_started.md``).
 
@@ -365,7 +420,9 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         :func:`~nrobust.reports.certificate.certify`) and
         ``simulation`` (None or a dict of ``delays``, ``t_end``, ``cells``, ``u0``, ``v0``);
         ``given_system`` and ``given_controller``: the plant and controller as written, before
-        ``system`` and ``controller`` became their normal form.
+        ``system`` and ``controller`` became their normal form; ``design``: None or the
+        ``[design]`` section (``family``, ``objective``, ``margin_at_least``, ``K``, ``a``, ``b``,
+        ``starts``, ``rigorous``) that ``nrobust design`` reads.
         The deprecated key ``[simulation] n`` is read as ``cells`` with a
         :class:`DeprecationWarning`.
 
@@ -419,6 +476,8 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
                 "analysis.accuracy", "a positive number (the delay margin's target accuracy)", accuracy
             )
 
+    design = _design(_table(spec, "design", True)) if "design" in spec else None
+
     simulation = None
     if "simulation" in spec:
         table = dict(_table(spec, "simulation", True))
@@ -466,4 +525,5 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         "simulation": simulation,
         "given_system": given_system,
         "given_controller": given_controller,
+        "design": design,
     }

@@ -55,23 +55,31 @@ def test_delayed_gamma_is_the_strong_stability_sum(transport: nr.TransportSystem
 
 
 def test_gradients_match_central_differences() -> None:
-    """The sensitivities of the rightmost root and of the critical crossing vs recomputed values."""
+    """The sensitivities of the rightmost root and of the critical crossing vs recomputed values.
+
+    ``s + p0 + p1 e^{-s}`` (its rightmost root a simple complex pair) and, for the margin,
+    ``A = s + p0``, ``B = p1 (1 + 0.2 s)`` (a neutral loop, one crossing branch).
+    """
     from nrobust.design.local import _Problem
 
-    plant = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
-    loop = filtered_loop(plant, {"K": None, "a": None, "b": 0.05})
-    problem = _Problem(loop, np.array([(-0.14, 0.14), (-0.1, 0.1)]), "decay_rate", None, 0.999)
-    p = np.array([0.1, 0.01])
+    def retarded(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+        return nr.QuasiPolynomial([[p[0], 1.0], [p[1]]], [0.0, 1.0]), nr.QuasiPolynomial([[0.0]], [0.0])
+
+    def neutral(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+        return nr.QuasiPolynomial([[p[0], 1.0]], [0.0]), nr.QuasiPolynomial([[p[1], 0.2 * p[1]]], [0.0])
+
     h = 1e-5
-    for want in ("decay_rate", "margin"):
-        x = problem(p, want=want)
+    for loop, want, p in ((retarded, "decay_rate", [0.5, 1.5]), (neutral, "margin", [1.0, 2.0])):
+        problem = _Problem(loop, np.array([(0.0, 3.0), (0.0, 3.0)]), "decay_rate", None, 0.999)
+        x = problem(np.array(p), want=want)
+        assert x.feasible and np.all(x.gradient != 0.0)
         fd = []
         for i in range(2):
             e = np.zeros(2)
             e[i] = h
             fd.append((problem(p + e, want=want).value - problem(p - e, want=want).value) / (2 * h))
-        # central differences of values certified to ~1e-12: error ~1e-12/h + h^2 |f'''|
-        np.testing.assert_allclose(x.gradient, fd, rtol=1e-4, atol=1e-6)
+        # central differences of values certified to ~1e-12: error ~1e-12/h + h^2 f''' ~ 1e-7
+        np.testing.assert_allclose(x.gradient, fd, rtol=1e-5, atol=1e-7)
 
 
 def test_design_reaches_the_closed_form_optimum(transport: nr.TransportSystem) -> None:
@@ -102,7 +110,8 @@ def test_every_iterate_is_feasible_and_the_requirement_holds() -> None:
     assert margin >= 0.8 - 1e-9 and design.certified
     np.testing.assert_allclose(design.margin.margin, margin, rtol=1e-9)
     with pytest.raises(CertificationError, match="no start reached a feasible design"):
-        optimize_loop(loop, [(1.5, 5.0)], margin_at_least=2.0, x0=[3.0], max_iter=5)
+        # the margin decreases with k: at most arccos(-1/1.5)/sqrt(1.25) = 2.0577 on [1.5, 5]
+        optimize_loop(loop, [(1.5, 5.0)], margin_at_least=2.2, x0=[3.0], max_iter=5)
 
 
 def test_pareto_front_trades_decay_rate_for_margin() -> None:
@@ -151,7 +160,7 @@ def test_design_matches_or_beats_a_certified_grid(transport: nr.TransportSystem)
     for K in np.linspace(*bounds["K"], 9):
         for a in np.linspace(*bounds["a"], 9):
             A, B = loop(np.array([K, a]))
-            if delayed_gamma(A, B) > 0.98:
+            if delayed_gamma(A, B) > 0.999:  # GAMMA_MAX
                 continue
             dm = delay_margin(A, B)
             if dm.margin >= required:

@@ -7,7 +7,7 @@ end, solved from its equation) or the largest decay rate under a required margin
 
 ``local``: several parameters of any loop family, a local nonsmooth optimisation of the decay
 rate (under a required margin) or of the margin (:func:`optimize_loop`: BFGS with a weak Wolfe
-line search, then a compass search; every iterate feasible; the design certified).
+line search, then a pattern search over axes and diagonals; every iterate feasible; the design certified).
 ``pareto``: the best decay rate under each of a list of required margins
 (:func:`pareto_front`).
 """

@@ -29,11 +29,14 @@ functions in practice; it stops when the smallest convex combination of the grad
 sampled near the last iterate (the gradient-sampling stationarity measure of Burke, Lewis and
 Overton, SIAM J. Optim. 15, 2005) is small. Every trial point's feasibility is checked (inside
 the bounds, margin ``>= d``): an infeasible point counts as ``+inf`` for the line search, so
-every iterate is feasible. A start that is not feasible first maximises the margin until it
-reaches ``d``. The optimum is local; several starts (a Halton sequence in the bounds, run
-through any ``map``, e.g. :func:`nrobust.sweep_map` for processes or Dask) make a better one
-likely, not certain. The design found is then certified: its abscissa (certified count of
-the roots right of it) and its delay margin (``rigorous=True``: proven in ball arithmetic).
+every iterate is feasible. Where BFGS stalls (at a kink, or at a corner of the feasible set
+where a crossing pair is born), a pattern search over the coordinate axes, their pairwise
+diagonals and the descent direction continues with shrinking steps. A start that is not
+feasible first maximises the margin until it reaches ``d``. The optimum is local; several
+starts (a Halton sequence in the bounds, run through any ``map``, e.g.
+:func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
+design found is then certified: its abscissa (certified count of the roots right of it) and its
+delay margin (``rigorous=True``: proven in ball arithmetic).
 """
 
 from __future__ import annotations
@@ -64,9 +67,10 @@ OBJECTIVES = ("decay_rate", "margin")
 #: Wolfe constants of the line search (Lewis and Overton, 2013).
 ARMIJO = 1e-4
 WOLFE = 0.5
-#: Default bound on ``gamma_0`` of the delayed loop's difference operator (:func:`delayed_gamma`).
-GAMMA_MAX = 0.98
-#: First and last steps of the compass search that polishes each start, relative to the bounds.
+#: Default bound on ``gamma_0`` of the delayed loop's difference operator (:func:`delayed_gamma`): every gain
+#: of U_BS2(K) within 0.99 of the bound of eq. (54) meets it on the paper's plant.
+GAMMA_MAX = 0.999
+#: First and last steps of the pattern search that polishes each start, relative to the bounds.
 POLISH_START = 1e-2
 POLISH_TOL = 1e-6
 #: Gradients kept for the stationarity measure.
@@ -346,30 +350,34 @@ class _Local:
     def polish(
         self, f: Callable[[NDArray, float], _Point], x: _Point, counter: list[int], stop_below: float = -math.inf
     ) -> _Point:
-        """A compass search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths).
+        """A pattern search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths).
 
         Where the line search stalls (at a kink where two roots meet, whose abscissa is not
-        even Lipschitz, or on the margin's boundary) BFGS has no descent step to take; the
-        compass search needs none and only accepts feasible, better points. It stops early
-        once ``value <= stop_below``.
+        even Lipschitz, or at a corner of the feasible set, where a crossing pair is born) BFGS
+        has no descent step to take; the pattern search needs none and only accepts feasible,
+        better points. Its directions are the coordinate axes, the diagonals of every pair of
+        axes (a corner of the feasible set is often crossed along a diagonal only) and the last
+        gradient's descent direction, each scaled by the bounds' widths. It stops early once
+        ``value <= stop_below``.
         """
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
-        step = POLISH_START * width
-        while np.max(step / width) > POLISH_TOL and x.value > stop_below:
-            moved = False
-            for i in range(x.p.size):
-                for sign in (1.0, -1.0):
-                    trial = x.p.copy()
-                    trial[i] += sign * step[i]
-                    y = f(trial, x.value)
-                    counter[0] += 1
-                    if y.feasible and y.value < x.value:
-                        x, moved = y, True
-                        break
-                if moved:
+        n = x.p.size
+        axes = list(np.eye(n))
+        axes += [(e1 + sign * e2) / 2.0 for i, e1 in enumerate(axes[:n]) for e2 in axes[i + 1 : n] for sign in (1, -1)]
+        step = POLISH_START
+        while step > POLISH_TOL and x.value > stop_below:
+            directions = [sign * a for a in axes for sign in (1.0, -1.0)]
+            g = x.gradient * width
+            if np.any(g != 0.0):
+                directions.insert(0, -g / np.max(np.abs(g)))
+            for d in directions:
+                y = f(x.p + step * d * width, x.value)
+                counter[0] += 1
+                if y.feasible and y.value < x.value:
+                    x = y
                     break
-            if not moved:
-                step = step / 2.0
+            else:
+                step /= 2.0
         return x
 
     def __call__(self, start: Sequence[float]) -> LocalRun:
@@ -397,7 +405,7 @@ class _Local:
         x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter)
         polished = self.polish(lambda q, above: problem(q, above=above), x, counter)
         if polished.value < x.value:
-            x, reason = polished, reason + "; then improved by a compass search"
+            x, reason = polished, reason + "; then improved by a pattern search"
         return LocalRun(
             tuple(map(float, start)),
             tuple(map(float, x.p)),
@@ -436,8 +444,11 @@ class LoopDesign:
     rigorous : bool
         True if the certificate is in ball arithmetic.
     local : bool
-        Always True: the optimum is local (the best of ``runs``); the functions are
-        nonconvex and nonsmooth.
+        Always True: the design is the best of ``runs``, each a point where neither the line
+        search nor the pattern search (:meth:`_Local.polish`) finds a better feasible point, down
+        to a step of ``POLISH_TOL`` of the bounds. That is not a proof of local optimality: the
+        functions are nonconvex and nonsmooth, and the feasible set has corners (where crossing
+        pairs are born) that no finite set of directions is sure to enter.
     runs : tuple of LocalRun
         Every start, the best first.
     """

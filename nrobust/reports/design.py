@@ -1,81 +1,194 @@
-"""``nrobust design``: the gain ``K`` of ``U_BS2(K)`` for the plant of a SYSTEM.toml file.
+"""``nrobust design``: a controller for the plant of a SYSTEM.toml file, designed and certified.
 
 The plant is the ``[system]`` section of the file (the ``[controller]`` and ``[analysis]``
-sections are read and checked as for ``nrobust analyze``, and not used); the design is
-:func:`nrobust.hyperbolic.analyses.design_reflection`. Written: ``design.json`` (the
-:class:`~nrobust.hyperbolic.analyses.design.ReflectionDesign`, with its certificate) and
-``design.md`` (the design in words), as one set with ``manifest.json``.
+sections are read and checked as for ``nrobust analyze``, and not used). The family, the
+objective, the requirement and the parameters' bounds come from the file's ``[design]``
+section (:func:`nrobust.config.load_system_file`), each overridden by the command line's
+options when given:
+
+* ``family = "reflection"``: ``U_BS2(K)`` (eq. (53)), the gain solved from the equation of its
+  kind (:func:`nrobust.hyperbolic.analyses.design_reflection`);
+* ``family = "filtered"``: U_BS2(K) through the filter ``(1 + a s)/(1 + b s)``, a local
+  optimisation over the free ones of ``K``, ``a``, ``b``
+  (:func:`nrobust.hyperbolic.analyses.design_filtered`).
+
+Written: ``design.json`` (the design with its certificate), ``design.md`` (the design in words,
+each number with the digits its accuracy supports) and, for U_BS2(K), ``design.png`` (the
+delay margin against ``K`` with the requirement and the design marked: the trade-off), as one
+set with ``manifest.json``.
 """
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
+from typing import Any
 
+import numpy as np
+
+from .._digits import with_accuracy
 from .._json import json_safe
-from ..config import NPLUSM_TYPE, load_system_file
+from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, load_system_file
 from ..errors import ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
+from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
 from .outputs import RunOutputs, check_output_dir
 
-__all__ = ["run_design"]
+__all__ = ["design_summary", "run_design"]
 
 
-def _markdown(path: Path, result: ReflectionDesign) -> str:
+def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
+    k_acc, v_acc = d.accuracy
     lines = [
         f"# Design of U_BS2(K) for {path.name}",
         "",
-        f"- objective: the largest {what}, K in [{d.bounds[0]:.12g}, {d.bounds[1]:.12g}]",
-        f"- designed gain: K = {d.K:.15g} ({d.kind}); the optimum lies in [{d.K_bracket[0]:.15g}, "
-        f"{d.K_bracket[1]:.15g}]",
-        f"- {what}: {d.value:.15g} (optimum in [{d.value_bracket[0]:.15g}, {d.value_bracket[1]:.15g}])",
-        f"- delay margin of the designed loop: {d.margin:.15g}, {d.certified} ({cert.method}); about {cert.scope}",
+        f"- objective: the largest {what}, K in [{d.bounds[0]:.6g}, {d.bounds[1]:.6g}]",
+        f"- designed gain: K = {with_accuracy(d.K, k_acc)} ({d.kind})",
+        f"- {what}: {with_accuracy(d.value, v_acc)}",
+        f"- delay margin of the designed loop: {with_accuracy(cert.margin, cert.accuracy)}, {d.certified} "
+        f"({cert.method}); about {cert.scope}",
     ]
     if d.objective == "margin":
-        lines.append(f"- decay rate at delta = 0: {d.decay_rate:.15g}")
+        lines.append(f"- decay rate at delta = 0: {d.decay_rate:.6g}")
     if d.end is not None:
         lines.append(
-            f"- the end of the gains with a large enough margin: K = {d.end.K:.15g}, {d.end.kind} at "
-            f"w = {d.end.omega:.12g}, delay {d.end.delay:.12g}"
+            f"- the end of the gains with a large enough margin: K = {d.end.K:.10g}, {d.end.kind} at "
+            f"w = {d.end.omega:.10g}, delay {d.end.delay:.10g}"
         )
-    return "\n".join(lines) + "\n"
+    lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
+    return lines
+
+
+def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
+    d = result.design
+    c = result.controller
+    what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
+    need = "" if d.margin_at_least is None else f", with a delay margin of at least {d.margin_at_least:g}"
+    lines = [
+        f"# Design of the filtered U_BS2(K) for {path.name}",
+        "",
+        f"- objective: the largest {what}{need} (a local optimum: the best of {len(d.runs)} start(s))",
+        f"- designed controller: K = {c.K:.6g}, a = {c.a:.6g}, b = {c.b:.6g} (the filter (1 + a s)/(1 + b s))",
+        f"- decay rate at delta = 0: {d.decay_rate:.6g}; the rightmost root is certified "
+        f"({'certified count' if d.abscissa.certified else 'not certified'})",
+        f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
+        f"about {result.scope}",
+        f"- certified: {'yes' if d.certified else 'no'}",
+    ]
+    for i, run in enumerate(d.runs):
+        lines.append(
+            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
+            f", {run.reason}"
+        )
+    return lines
+
+
+def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> bytes:
+    """The delay margin against ``K`` (the scanned envelope), the requirement and the design marked."""
+    import matplotlib.pyplot as plt
+
+    d = result.design
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(d.gains, d.envelope, label="delay margin delta*(K) (the scan behind the design)")
+    if d.objective == "decay_rate" and margin_at_least is not None:
+        ax.axhline(margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {margin_at_least:g}")
+    ax.plot(
+        [d.K],
+        [d.margin],
+        "o",
+        color="C3",
+        label=f"design: K = {d.K:.6g} ({d.kind}), decay rate {d.decay_rate:.4g}",
+    )
+    ax.set_xlabel("K")
+    ax.set_ylabel("delay")
+    finite = np.asarray(d.envelope)[np.isfinite(d.envelope)]
+    if finite.size:
+        ax.set_ylim(0.0, 1.2 * float(np.max(finite)))
+    ax.legend(fontsize="small")
+    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.95)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
+    """One line: the designed controller and its objective, with the digits their accuracy supports."""
+    if isinstance(result, ReflectionDesign):
+        d = result.design
+        k_acc, v_acc = d.accuracy
+        return f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, v_acc)}"
+    c, local = result.controller, result.design
+    margin = with_accuracy(local.margin.margin, local.margin.accuracy)
+    return (
+        f"FilteredController(a={c.a:.6g}, b={c.b:.6g}, K={c.K:.6g}): decay rate {local.decay_rate:.6g}, delay "
+        f"margin {margin} (a local optimum; certified: {'yes' if local.certified else 'no'})"
+    )
 
 
 def run_design(
     path: str | Path,
     out_dir: str | Path,
-    objective: str = "margin",
+    objective: str | None = None,
     margin_at_least: float | None = None,
     K_bounds: tuple[float, float] | None = None,
-    rigorous: bool = False,
-) -> tuple[tuple[Path, ...], ReflectionDesign]:
-    """``nrobust design``: design ``U_BS2(K)`` for the plant of a SYSTEM.toml file and write the result.
+    rigorous: bool | None = None,
+    family: str | None = None,
+) -> tuple[tuple[Path, ...], ReflectionDesign | FilteredDesign]:
+    """``nrobust design``: design a controller for the plant of a SYSTEM.toml file and write the result.
 
-    The file and ``out_dir`` are checked before any computation; the files are written as one
-    set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the written paths and the design.
+    Each argument left None takes the file's ``[design]`` value (or its default: U_BS2(K),
+    the largest margin). The file and ``out_dir`` are checked before any computation; the
+    files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
+    written paths and the design.
 
     Raises
     ------
     ParameterError
-        A bad file, an ``n + m`` plant (``U_BS2(K)`` is a 2x2 law), or the arguments of
-        :func:`~nrobust.hyperbolic.analyses.design_reflection`.
+        A bad file, an ``n + m`` plant (the families are 2x2 laws), or the arguments of
+        :func:`~nrobust.hyperbolic.analyses.design_reflection` or
+        :func:`~nrobust.hyperbolic.analyses.design_filtered`.
     """
     check_output_dir(out_dir)
-    if objective not in DESIGN_OBJECTIVES:
+    if objective is not None and objective not in DESIGN_OBJECTIVES:
         raise ParameterError("objective", f"one of {DESIGN_OBJECTIVES}", objective)
+    if family is not None and family not in DESIGN_FAMILIES:
+        raise ParameterError("family", f"one of {DESIGN_FAMILIES}", family)
     spec = load_system_file(path)
     if spec.get("kind") == NPLUSM_TYPE:
-        raise ParameterError("system.type", "a 2x2 plant (U_BS2(K) is designed for 2x2 plants)", NPLUSM_TYPE)
+        raise ParameterError("system.type", "a 2x2 plant (the design families are 2x2 laws)", NPLUSM_TYPE)
+    given: dict[str, Any] = spec["design"] or {}
+    family = family or given.get("family", "reflection")
+    objective = objective or given.get("objective", "margin")
+    margin_at_least = margin_at_least if margin_at_least is not None else given.get("margin_at_least")
+    rigorous = rigorous if rigorous is not None else bool(given.get("rigorous", False))
+    bounds = K_bounds if K_bounds is not None else given.get("K")
     outputs = RunOutputs(out_dir, "design")
     with outputs:
-        result = design_reflection(
-            spec["system"], objective, margin_at_least=margin_at_least, K_bounds=K_bounds, rigorous=rigorous
-        )
-        data = {"file": str(path), "plant": repr(spec["given_system"]), **result.to_dict()}
-        written = (
+        result: ReflectionDesign | FilteredDesign
+        if family == "reflection":
+            result = design_reflection(
+                spec["system"], objective, margin_at_least=margin_at_least, K_bounds=bounds, rigorous=rigorous
+            )
+            lines = _reflection_markdown(Path(path), result)
+        else:
+            result = design_filtered(
+                spec["system"],
+                objective=objective,
+                margin_at_least=margin_at_least,
+                parameters={"K": bounds, "a": given.get("a"), "b": given.get("b")},
+                starts=int(given.get("starts", 4)),
+                rigorous=rigorous,
+            )
+            lines = _filtered_markdown(Path(path), result)
+        data = {"file": str(path), "plant": repr(spec["given_system"]), "family": family, **result.to_dict()}
+        written = [
             outputs.write_text("design.json", json.dumps(json_safe(data), indent=2, allow_nan=False)),
-            outputs.write_text("design.md", _markdown(Path(path), result)),
-        )
-    return written, result
+            outputs.write_text("design.md", "\n".join(lines) + "\n"),
+        ]
+        if isinstance(result, ReflectionDesign):
+            written.append(outputs.write_bytes("design.png", _tradeoff_png(result, margin_at_least)))
+    return tuple(written), result

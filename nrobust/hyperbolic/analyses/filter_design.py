@@ -10,6 +10,7 @@ optimiser (:func:`nrobust.design.optimize_loop`), and certifies the design;
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -21,12 +22,13 @@ from ..._json import json_safe
 from ..._validate import is_real_number
 from ...design.local import LoopDesign, optimize_loop
 from ...design.pareto import ParetoFront, pareto_front
-from ...errors import ParameterError
+from ...errors import CertificationError, ParameterError
 from ...quasipoly import QuasiPolynomial
 from ..loops.controllers import FilteredController, ReflectionController, classify, loop_factors, loop_scope
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
+from .design import design_reflection
 
 __all__ = ["FILTER_PARAMETERS", "FilteredDesign", "FilteredLoop", "design_filtered", "filtered_front", "filtered_loop"]
 
@@ -164,6 +166,43 @@ class FilteredDesign:
         )
 
 
+def _warm_start(
+    plant: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    loop: FilteredLoop,
+    bounds: NDArray[np.float64],
+    objective: str,
+    margin_at_least: float | None,
+) -> NDArray[np.float64] | None:
+    """The unfiltered optimum as a start: U_BS2(K*) of :func:`design_reflection` with ``a = b``.
+
+    With ``a = b`` the filter is 1, so the start is the best U_BS2(K) (solved exactly) and the
+    filtered design can only improve on it. None when ``a`` and ``b`` cannot be equal within
+    their bounds, or the exact design fails.
+    """
+    values: dict[str, float] = dict(loop.fixed)
+    if "K" in loop.free:
+        k_bounds = tuple(bounds[loop.free.index("K")])
+        try:
+            best = design_reflection(plant, objective, margin_at_least=margin_at_least, K_bounds=k_bounds)
+        except (CertificationError, ParameterError):
+            return None
+        values["K"] = best.K
+    box = {name: bounds[i] for i, name in enumerate(loop.free)}
+    lo = max(box["a"][0] if "a" in box else -math.inf, box["b"][0] if "b" in box else -math.inf)
+    hi = min(box["a"][1] if "a" in box else math.inf, box["b"][1] if "b" in box else math.inf)
+    for name in ("a", "b"):
+        if name in values:  # a fixed end: the other must equal it
+            lo = hi = values[name]
+    if not lo <= hi or not math.isfinite(lo + hi):
+        return None
+    shared = 0.5 * (lo + hi)
+    values.setdefault("a", shared)
+    values.setdefault("b", shared)
+    if values["a"] != values["b"]:
+        return None
+    return np.array([values[name] for name in loop.free])
+
+
 def design_filtered(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     *,
@@ -192,7 +231,9 @@ def design_filtered(
         None for the default bounds (``|K| <= 0.99 k_bound`` of eq. (54), ``|a| <= tau``,
         ``tau/1000 <= b <= tau``). Default: all three free.
     x0 : sequence of float, optional
-        A start for the free parameters, in the order ``K, a, b``.
+        A start for the free parameters, in the order ``K, a, b``. By default the exact
+        U_BS2(K) design (:func:`~nrobust.hyperbolic.analyses.design.design_reflection`) with
+        ``a = b`` (the filter 1), so the result is at least as good as the best unfiltered law.
     starts, max_iter, rigorous
         As in :func:`nrobust.design.optimize_loop`.
     executor : None, str, int, Executor or dask.distributed.Client
@@ -207,6 +248,8 @@ def design_filtered(
     plant = _plant(system)
     free, bounds = _split(plant, parameters)
     loop = filtered_loop(plant, free)
+    if x0 is None:
+        x0 = _warm_start(plant, loop, bounds, objective, margin_at_least)
     design = optimize_loop(
         loop,
         bounds,
