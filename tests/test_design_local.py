@@ -11,6 +11,7 @@ certified evaluations that the design must match or beat.
 from __future__ import annotations
 
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -168,3 +169,33 @@ def test_design_matches_or_beats_a_certified_grid(transport: nr.TransportSystem)
     design = design_filtered(transport, parameters=bounds, margin_at_least=required, starts=3)
     assert design.certified
     assert design.value >= best - 1e-9
+
+
+def test_design_section_of_system_toml(tmp_path: pathlib.Path) -> None:
+    """[design] is read and checked key by key; nrobust design takes it (flags override)."""
+    from nrobust.config import load_system_file
+    from nrobust.reports.design import run_design
+
+    head = (
+        '[system]\ntype = "TransportSystem"\nlam = 1.0\nmu = 2.0\nq = 1.0\nrho = 0.6\n'
+        '[controller]\ntype = "ReflectionController"\nK = 0.1\n[analysis]\ndelta_max = 0.5\n'
+    )
+    good = tmp_path / "good.toml"
+    good.write_text(head + '[design]\nfamily = "reflection"\nK = [0.0, 0.35]\n')
+    spec = load_system_file(good)
+    assert spec["design"]["K"] == (0.0, 0.35) and spec["design"]["objective"] == "margin"
+    for bad, key in (
+        ('family = "filter"', "did you mean 'filtered'"),
+        ('objective = "speed"', "design.objective"),
+        ("K = [0.3, 0.1]", "design.K"),
+        ("a = 0.1", "design.a"),
+        ("starts = 0", "design.starts"),
+        ("margin_at_least = -1.0", "design.margin_at_least"),
+    ):
+        path = tmp_path / "bad.toml"
+        path.write_text(head + "[design]\n" + bad + "\n")
+        with pytest.raises(ParameterError, match=key):
+            load_system_file(path)
+    # U_BS2(K) on a transport plant with |K q| < 1 - |rho q| = 0.4: stable for every delay
+    written, design = run_design(good, tmp_path / "out")
+    assert math.isinf(design.value) and {p.name for p in written} == {"design.json", "design.md", "design.png"}
