@@ -83,6 +83,7 @@ from .quasipoly import DistributedDelay, QuasiPolynomial
 
 __all__ = [
     "BallDeterminant",
+    "BallFunction",
     "BallQuasiPolynomial",
     "acb_box",
     "acb_to_disc",
@@ -297,8 +298,9 @@ def _phi_balls(flint: ModuleType, z: Any, lmax: int, prec: int) -> list[Any]:
     return out
 
 
-class _BallFunction(ABC):
-    """Public evaluation shared by the compiled functions: subclasses set ``flint`` and ``prec``."""
+class BallFunction(ABC):
+    """Public evaluation shared by the compiled functions: subclasses set ``flint`` and ``prec``
+    and implement ``_eval`` (a characteristic function may compile itself into one: :func:`ball_function`)."""
 
     flint: ModuleType
     prec: int
@@ -366,7 +368,7 @@ class _BallFunction(ABC):
         return self.on_box(box, derivative, centered=centered)
 
 
-class BallQuasiPolynomial(_BallFunction):
+class BallQuasiPolynomial(BallFunction):
     """A :class:`QuasiPolynomial` compiled for evaluation in ball arithmetic.
 
     Parameters
@@ -452,7 +454,7 @@ def _compositions(n: int, k: int) -> tuple[tuple[tuple[int, ...], int], ...]:
     )
 
 
-class BallDeterminant(_BallFunction):
+class BallDeterminant(BallFunction):
     """``det M`` of a :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix` compiled for ball arithmetic.
 
     The entries are enclosed by :class:`BallQuasiPolynomial` (each as represented) and the
@@ -512,11 +514,22 @@ def acb_to_disc(ball: Any) -> tuple[complex, float]:
 
 
 @functools.lru_cache(maxsize=32)
-def ball_function(F: QuasiPolynomial | QuasiPolynomialMatrix, prec: int = 53) -> BallQuasiPolynomial | BallDeterminant:
+def ball_function(F: Any, prec: int = 53) -> BallFunction:
     """The compiled :class:`BallQuasiPolynomial` of ``F``, or :class:`BallDeterminant` of a matrix
-    (cached on ``F`` and ``prec``)."""
+    (cached on ``F`` and ``prec``).
+
+    Another characteristic function that encloses itself (a method ``F.ball_function(prec)``
+    returning a :class:`BallFunction`, e.g. the closed loop of an ``n + m`` system) is compiled
+    by that method.
+    """
     if isinstance(F, QuasiPolynomialMatrix):
         return BallDeterminant(F, prec)
+    own = None if isinstance(F, QuasiPolynomial) else getattr(F, "ball_function", None)
+    if callable(own):
+        balls = own(prec)
+        if not isinstance(balls, BallFunction):
+            raise ParameterError("F.ball_function(prec)", "a BallFunction", type(balls).__name__)
+        return balls
     return BallQuasiPolynomial(F, prec)
 
 

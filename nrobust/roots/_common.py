@@ -43,14 +43,19 @@ def magnitude(F: QuasiPolynomial, s: NDArray[np.complex128]) -> NDArray[np.float
 
 def check_rigorous(F: Any, rigorous: Any) -> bool:
     """Validate the ``rigorous`` switch; with it on, python-flint must be installed and ``F`` a
-    QuasiPolynomial or a QuasiPolynomialMatrix (the types :func:`nrobust.balls.ball_function` encloses)."""
+    QuasiPolynomial, a QuasiPolynomialMatrix or a characteristic function with a method
+    ``ball_function(prec)`` (the functions :func:`nrobust.balls.ball_function` encloses)."""
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
     if rigorous:
         require_flint()
-        if not isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix):
+        own = callable(getattr(F, "ball_function", None))
+        if not (own or isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix)):
             raise ParameterError(
-                "F", "a QuasiPolynomial or QuasiPolynomialMatrix for rigorous=True (ball evaluation)", type(F).__name__
+                "F",
+                "a QuasiPolynomial, a QuasiPolynomialMatrix or a function with a method ball_function(prec) "
+                "for rigorous=True (ball evaluation)",
+                type(F).__name__,
             )
     return bool(rigorous)
 

@@ -494,7 +494,8 @@ def count_roots(
         Prove the count in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``):
         every piece of the boundary is accepted only when a ball enclosure of ``F`` on the
         whole piece misses 0, so the winding number is a theorem about ``F`` as represented
-        (:mod:`nrobust.balls`); a matrix through the determinant of its enclosed entries.
+        (:mod:`nrobust.balls`); a matrix through the determinant of its enclosed entries, another
+        characteristic function through its own enclosure (``F.ball_function(prec)``).
     prec : int, optional
         Working precision in bits of the ball arithmetic (``rigorous=True``).
 

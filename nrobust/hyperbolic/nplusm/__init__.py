@@ -10,7 +10,7 @@ are deprecated aliases (:data:`nrobust._moved.MOVED_NAMES`).
 
 from ..._moved import moved_attribute
 from .cancellation import CancellationCase, cancellation_study
-from .characteristic import NPlusMCharacteristic
+from .characteristic import BallNPlusM, NPlusMCharacteristic
 from .compound import compound_characteristic
 from .kernels import (
     MAX_NPLUSM_KERNEL_GRID,
@@ -29,6 +29,7 @@ from .margin import (
 from .system import NPlusMSystem
 
 __all__ = [
+    "BallNPlusM",
     "CancellationCase",
     "MAX_NPLUSM_KERNEL_GRID",
     "NPlusMBackstepping",
