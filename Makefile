@@ -40,14 +40,14 @@ demo: $(STAMP_BASE)
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest -q -n auto -m 'not long'
 
-# The differential harness (tests/test_harness.py) with its long budget (random examples, a
+# The differential harness (tests/test_harness.py, and tests/test_fuzz_lti.py) with its long budget (random examples, a
 # 60 s deadline each: about 6 minutes), then the long tests (about 2 minutes). Prints cases tried,
 # certified claims checked, contradictions (must be 0) and honest refusals; fails on any
 # contradiction. `make test` runs the same file on a small fixed budget.
 FUZZ_EXAMPLES ?= 500
 fuzz: $(STAMP_TEST)
 	NROBUST_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) NROBUST_FUZZ_EXAMPLE_SECONDS=60 \
-		$(BIN)/python -m pytest -q -p no:cacheprovider tests/test_harness.py
+		$(BIN)/python -m pytest -q -p no:cacheprovider tests/test_harness.py tests/test_fuzz_lti.py
 	$(BIN)/python -m pytest -q -p no:cacheprovider -m long tests
 
 # Lint, format and type checks. All three run; the target fails if any failed.
@@ -84,7 +84,7 @@ docs: $(STAMP_DOCS)
 
 bench: $(STAMP_TEST)
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
-	for b in roots kernels margins exact simulate sweep statespace plants imports timeresp design design_local; do echo "== benchmarks/$$b.py"; $(BIN)/python benchmarks/$$b.py || exit 1; done
+	for b in roots kernels margins exact simulate sweep statespace plants imports timeresp design design_local lti; do echo "== benchmarks/$$b.py"; $(BIN)/python benchmarks/$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) $(VENV310) build *.egg-info .ruff_cache .mypy_cache docs/_build docs/generated docs/auto_examples
