@@ -90,10 +90,10 @@ def test_design_reaches_the_closed_form_optimum(transport: nr.TransportSystem) -
         transport, parameters={"K": (-k_hi, k_hi), "a": 0.1, "b": 0.1}, margin_at_least=1.0, x0=[0.3], starts=1
     )
     expected = -math.log(Q * (RHO - k_hi)) / TAU
-    # the compass search stops within POLISH_TOL * width = 7e-7 of the bound: d rate/dK = 1/(tau (rho - K)) = 2.7
-    np.testing.assert_allclose(design.value, expected, atol=5e-6)
+    # the pattern search stops within POLISH_TOL * width = 7e-6 of the bound: d rate/dK = 1/(tau (rho - K)) = 2.7
+    np.testing.assert_allclose(design.value, expected, atol=5e-5)
     assert design.certified and math.isinf(design.design.margin.margin)
-    assert design.controller.K == pytest.approx(k_hi, abs=1e-5)
+    assert design.controller.K == pytest.approx(k_hi, abs=2e-5)
     assert design.design.local and "PDE itself" in design.scope
 
 

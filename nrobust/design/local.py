@@ -72,7 +72,10 @@ WOLFE = 0.5
 GAMMA_MAX = 0.999
 #: First and last steps of the pattern search that polishes each start, relative to the bounds.
 POLISH_START = 1e-2
-POLISH_TOL = 1e-6
+POLISH_TOL = 1e-5
+#: Trial points of one line search: the step shrinks to about 2^-15 of the first before the search gives up
+#: (near a loop whose difference operator approaches instability each trial can take seconds).
+LINE_SEARCH_TRIALS = 16
 #: Gradients kept for the stationarity measure.
 SAMPLED_GRADIENTS = 8
 
@@ -288,7 +291,7 @@ class _Local:
     ) -> _Point | None:
         slope = float(x.gradient @ d)
         lo, hi, t = 0.0, math.inf, 1.0
-        for _ in range(40):
+        for _ in range(LINE_SEARCH_TRIALS):
             y = f(x.p + t * d, x.value + ARMIJO * t * slope)
             counter[0] += 1
             if not y.feasible or y.value > x.value + ARMIJO * t * slope:
