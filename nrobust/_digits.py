@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
+from decimal import ROUND_FLOOR, Decimal
 
-__all__ = ["with_accuracy"]
+__all__ = ["lower_bound_text", "with_accuracy"]
 
 
 def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6) -> str:
@@ -50,3 +51,34 @@ def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6)
     decimals = max(0, -exponent)
     rounded = round(value, -exponent) if exponent > 0 else value
     return f"{rounded:.{decimals}f} +- {bound}"
+
+
+def lower_bound_text(value: float, digits: int = 6) -> str:
+    """``value`` to ``digits`` significant digits, rounded down: a printed lower bound stays one.
+
+    A proven lower bound (the Rouché ``delta_0``) printed by ordinary rounding may print a
+    number above what is proven (``0.0123456789`` to 6 digits is ``0.0123457``); rounded
+    towards ``-inf`` every printed digit is true: the printed number is at most ``value``.
+    The rounding is done on the exact binary value of the float (:class:`decimal.Decimal`).
+
+    Parameters
+    ----------
+    value : float
+        The lower bound (``inf``, ``-inf`` and 0 are printed as they are).
+    digits : int, default 6
+        Significant digits printed (at least 1).
+
+    Examples
+    --------
+    >>> lower_bound_text(0.0123456789)
+    '0.0123456'
+    >>> lower_bound_text(2.5e-7, 2)
+    '2.4e-7'
+    """
+    if digits < 1:
+        raise ValueError(f"digits must be at least 1, got {digits}")
+    if not math.isfinite(value) or value == 0.0:
+        return repr(float(value)).replace("0.0", "0")
+    exact = Decimal(float(value))
+    down = exact.quantize(Decimal(1).scaleb(exact.adjusted() - digits + 1), rounding=ROUND_FLOOR)
+    return f"{down:.{digits - 1}e}" if abs(value) >= 1e15 or abs(value) < 1e-4 else f"{down:f}"

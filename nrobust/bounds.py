@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._digits import lower_bound_text
 from ._flint import require_flint
 from ._json import fields_dict
 from ._validate import finite_real, positive, positive_int, real_array
@@ -424,9 +425,15 @@ class RoucheDelayBound:
     steps: int
     rigorous: bool = False
 
+    @property
+    def text(self) -> str:
+        """``delta_0`` printed as the lower bound it is: 6 significant digits rounded down
+        (:func:`nrobust._digits.lower_bound_text`), so no printed digit makes it larger than proven."""
+        return lower_bound_text(self.delta_0)
+
     def __repr__(self) -> str:
         return (
-            f"RoucheDelayBound(delta_0={self.delta_0:.6g}, epsilon_0={self.epsilon_0:.6g}, "
+            f"RoucheDelayBound(delta_0={self.text}, epsilon_0={self.epsilon_0:.6g}, "
             f"omega(delta_0)={self.omega_at_delta_0:.6g}, K={self.K:.6g})"
         )
 

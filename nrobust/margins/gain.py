@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from .._digits import with_accuracy
 from ..bounds import root_free_region
 from ..errors import CertificationError
 from ..quasipoly import QuasiPolynomial
@@ -91,12 +92,27 @@ class GainEnd(NamedTuple):
         Frequency of the root on the axis (``inf`` at the strong-stability limit).
     delay : float
         Delay at which it is there: ``delta_max``, the birth delay, or ``0`` (never ``nan``).
+    accuracy : float or None
+        A bound of ``|K - K_end|``, ``K_end`` the exact end, once the end is verified: the
+        half-width ``tol`` of the bracket ``[K - tol, K + tol]`` on whose two sides
+        :func:`~nrobust.hyperbolic.analyses.k_region` confirms the verdicts (admissible inside,
+        a certified unstable root or no strong stability outside; the verdict changes only at
+        the critical gains, so the end lies in that bracket), or the width of the last
+        bisection step. None before verification (:func:`locate_gain_ends` solves ``K`` from
+        its equation to ``1e-14`` in ``w``, a precision not certified by itself) or when not known.
     """
 
     K: float
     kind: str
     omega: float
     delay: float
+    accuracy: float | None = None
+
+    def __repr__(self) -> str:
+        return (
+            f"GainEnd(K={with_accuracy(self.K, self.accuracy)}, kind={self.kind!r}, "
+            f"omega={self.omega:.10g}, delay={self.delay:.10g})"
+        )
 
 
 @dataclass(frozen=True)

@@ -110,6 +110,18 @@ class DelayMargin:
     of_model : bool
         True when ``A`` and ``B`` are a model of the plant (kernels on a grid): the margin's
         distance to the plant's is then not known here (:attr:`accuracy` is None).
+    omega_error : float or None
+        A bound of ``|omega - w|``, ``w`` the exact crossing frequency of ``A`` and ``B`` as
+        represented (:attr:`omega_accuracy` is the one to print): with ``rigorous`` the
+        distance from ``omega`` to the far end of its proven enclosure
+        (:attr:`~nrobust.margins.proven.ProvenCrossings.omegas`); in floating point the estimate
+        ``16 (|g| + eps (M_A^2 + M_B^2)) / |g'| + eps |omega|`` from the residual of
+        ``g(w) = |A(i w)|^2 - |B(i w)|^2`` (``M`` the sums of the moduli of the monomials,
+        :meth:`~nrobust.quasipoly.QuasiPolynomial.magnitude`; the factor 16 is 20 times the
+        largest ratio, 0.76, of the true error, closed form or mpmath at 40 digits, to the
+        unscaled estimate, measured on ``s + a + b e^{-delta s}`` and the paper's plant).
+        0 for ``omega = 0`` at ``s = 0``; None without ``omega`` or at a tangency (``g' = 0``:
+        a double zero).
     """
 
     margin: float
@@ -132,6 +144,14 @@ class DelayMargin:
     margin_ball: tuple[float, float] | None = None
     scope: str = ""
     of_model: bool = False
+    omega_error: float | None = None
+
+    @property
+    def omega_accuracy(self) -> float | None:
+        """A bound of ``|omega - w|`` (proven with ``rigorous``, else an estimate: :attr:`omega_error`);
+        None if unknown or for a model of the plant (:attr:`of_model`: its distance to the
+        plant's crossing comes from a convergence study, :attr:`nrobust.Certificate.margin_accuracy`)."""
+        return None if self.of_model else self.omega_error
 
     @property
     def accuracy(self) -> float | None:
@@ -142,7 +162,10 @@ class DelayMargin:
         the floating-point estimate ``max(1e-12 |margin|, 20 residual / omega)``: the
         crossing's residual turned into a delay through ``|dF/d delta| = omega |B|`` (``|A| =
         |B|`` there), with a floor 1000 times the largest distance to the proven ball measured
-        on the test plants (3e-16 relative). None for a model of the plant (:attr:`of_model`).
+        on the test plants (3e-16 relative). None for a model of the plant (:attr:`of_model`,
+        the kernel route: ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``): its distance to
+        the plant's margin is estimated by the convergence study in the kernel grid of
+        :attr:`nrobust.Certificate.margin_accuracy`, outside the core.
         """
         if self.margin_ball is not None:
             lo, hi = self.margin_ball
@@ -196,7 +219,7 @@ class DelayMargin:
         return out
 
     def __repr__(self) -> str:
-        w = "None" if self.omega is None else f"{self.omega:.10g}"
+        w = "None" if self.omega is None else with_accuracy(self.omega, self.omega_accuracy)
         return (
             f"DelayMargin(margin={with_accuracy(self.margin, self.accuracy)}, omega={w}, "
             f"crossings={len(self.crossings)}, "
@@ -362,6 +385,7 @@ def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float |
         reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
         rigorous=True,
         margin_ball=(0.0, 0.0),
+        omega_error=0.0,
     )
 
 
@@ -659,4 +683,42 @@ def delay_margin(
         evaluations=search.evaluations,
         rigorous=rigorous,
         margin_ball=ball,
+        omega_error=_omega_error(A, B, omega, crossings, proof, zero_root),
     )
+
+
+# Safety factor of the floating-point estimate of omega's error (see DelayMargin.omega_accuracy).
+_OMEGA_SAFETY = 16.0
+
+
+def _omega_error(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    omega: float | None,
+    crossings: tuple[Crossing, ...],
+    proof: ProvenCrossings | None,
+    zero_root: bool,
+) -> float | None:
+    """:attr:`DelayMargin.omega_error`: from the proven enclosure of ``omega`` (``proof``), or
+    the residual of ``g(w) = |A(i w)|^2 - |B(i w)|^2`` over ``|g'(w)|``."""
+    if omega is None:
+        return None
+    if zero_root and omega == 0.0:
+        return 0.0
+    if proof is not None:
+        balls = [*proof.omegas, *proof.unresolved]
+        if not balls:
+            return None
+        lo, hi = min(balls, key=lambda b: max(b[0] - omega, omega - b[1], 0.0))
+        return float(np.nextafter(max(hi - omega, omega - lo, 0.0), np.inf))
+    if any(c.tangential for c in crossings if c.omega == omega):
+        return None
+    s = np.array([1j * omega])
+    a, b = complex(A(s)[0]), complex(B(s)[0])
+    da, db = 1j * complex(A.deriv_at(s)[0]), 1j * complex(B.deriv_at(s)[0])  # d/dw of A(i w), B(i w)
+    slope = abs(2.0 * ((a.conjugate() * da).real - (b.conjugate() * db).real))
+    eps = float(np.finfo(float).eps)
+    noise = abs(abs(a) ** 2 - abs(b) ** 2) + eps * (float(A.magnitude(s)[0]) ** 2 + float(B.magnitude(s)[0]) ** 2)
+    if not slope > 0.0:
+        return None
+    return _OMEGA_SAFETY * noise / slope + eps * abs(omega)

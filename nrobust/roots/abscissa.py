@@ -8,15 +8,16 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import positive, positive_int
 from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint, working_precision
 from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
-from ..difference import DifferenceOperator
+from ..difference import DifferenceOperator, SpectralBound
 from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
-from ._common import Budget, check_function, check_rigorous
+from ._common import EPS, Budget, check_function, check_rigorous, magnitude
 from .finder import RootSet, find_counted, find_roots, prove, separate_clusters
 from .search import Finder
 from .winding import Region, ball_count_with_shifts, count_with_shifts
@@ -83,13 +84,18 @@ class SpectralAbscissa:
         With ``rigorous`` and a neutral ``F``: ``(lo, hi)`` proven to hold the chain abscissa
         ``c_D`` of the principal part as represented
         (:meth:`~nrobust.difference.DifferenceOperator.proven_spectral_bound`: tight for
-        delays exactly commensurate as stored, else ``[a proven zero of D, proven C_D]``).
+        delays exactly commensurate as stored, else ``[a proven zero of D, proven C_D]``);
+        None for a function that encloses itself (``F.ball_function``), whose principal part
+        is computed in floating point.
     value_bracket : tuple of float or None
         With ``rigorous``: ``(lo, hi)`` proven to hold ``sup {Re s : F(s) = 0}`` for ``F`` as
         represented (in ``region``, when one is given). ``hi = upper_bound``; ``lo`` the larger
         of the left edge of ``root_box`` (a root lies there) and ``chain_bracket[0]`` (every
         zero of ``D`` is a limit of real parts of roots of ``F`` high up: ``D`` is almost
         periodic in ``Im s`` and ``F(s) / s^n - D(s) -> 0``, Rouche; Henry, 1974).
+    error_estimate : float or None
+        The floating-point estimate of ``|value - sup {Re s : F(s) = 0}|`` that :attr:`accuracy`
+        falls back on without a proven ``value_bracket`` (see there); None when not known.
     """
 
     value: float
@@ -104,12 +110,73 @@ class SpectralAbscissa:
     root_box: tuple[float, float, float, float] | None = None
     chain_bracket: tuple[float, float] | None = None
     value_bracket: tuple[float, float] | None = None
+    error_estimate: float | None = None
+
+    @property
+    def accuracy(self) -> float | None:
+        """A bound of ``|value - sup {Re s : F(s) = 0}|``: proven, or a conservative estimate; None if unknown.
+
+        It is about ``F`` as represented. For the loop of a model of the PDE (the kernel route,
+        ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``) the model's own
+        error is not included: the core cannot know it (for the margin it is estimated by the
+        convergence study in the kernel grid of :attr:`nrobust.Certificate.margin_accuracy`).
+
+        * With ``rigorous`` and a ``value_bracket``: the distance from ``value`` to the far end
+          of the bracket, rounded up (proven, for ``F`` as represented).
+        * ``value = -inf`` (no root): 0.
+        * Otherwise the floating-point :attr:`error_estimate`, made when the result is built:
+
+          - a simple rightmost root ``z``: ``16 (|F(z)| + eps M(z)) / |F'(z)| + eps |z|`` with
+            ``M(z)`` the sum of the moduli of the monomials of ``F``
+            (:meth:`~nrobust.quasipoly.QuasiPolynomial.magnitude`): the Newton step at ``z``
+            plus the rounding error of ``F`` turned into a distance through ``|F'(z)|``, and the
+            rounding of ``z`` to a double. The largest ratio of the true error (mpmath at 40
+            digits) to ``(|F| + eps M) / |F'|`` measured on the loops of the paper's plant
+            and on ``s + b + a e^{-s}`` (Lambert W) is 0.37: the factor 16 leaves 40 times that;
+          - a cluster that floating point cannot separate (multiplicity above 1): the radius of
+            its disc (:attr:`~nrobust.roots.RootSet.radii`), in which its roots are certified;
+          - ``F = p(s) e^{-tau s}`` (roots of ``p`` isolated by FLINT): the radius of the ball;
+          - the chain value ``c_D`` (``approached_at_infinity``): for commensurate delays the
+            rounding of the root ``z`` of ``P(z) = sum_k a_k z^{n_k}``, ``16 eps sum_k |a_k z^{n_k}|
+            / (|P'(z)| |z| h)`` (None for a multiple root of ``P``); otherwise the width of the
+            certified bracket of ``c_D`` (``value`` is its upper end).
+        """
+        if self.value == -np.inf:
+            return 0.0
+        if self.rigorous and self.value_bracket is not None:
+            lo, hi = self.value_bracket
+            radius = max(hi - self.value, self.value - lo)
+            return float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0
+        return self.error_estimate
+
+    @property
+    def root_accuracy(self) -> tuple[float | None, float | None]:
+        """Bounds of the errors of ``Re root`` and ``Im root``: proven (the distances to the far
+        edges of ``root_box``, with ``rigorous``) or the floating-point :attr:`error_estimate` of
+        the root (both parts); None if unknown or if ``value`` is the chain value."""
+        if self.root is None or self.approached_at_infinity:
+            return None, None
+        if self.rigorous and self.root_box is not None:
+            x0, x1, y0, y1 = self.root_box
+            re, im = self.root.real, self.root.imag
+            return (
+                float(np.nextafter(max(x1 - re, re - x0, 0.0), np.inf)),
+                float(np.nextafter(max(y1 - im, im - y0, 0.0), np.inf)),
+            )
+        return self.error_estimate, self.error_estimate
 
     def __repr__(self) -> str:
-        root = "None" if self.root is None else f"{self.root.real:.12g}{self.root.imag:+.12g}j"
+        if self.root is None:
+            root = "None"
+        elif self.approached_at_infinity:  # not the value's source, a root of the band searched
+            root = f"{self.root.real:.6g}{self.root.imag:+.6g}j"
+        else:
+            re, im = self.root_accuracy
+            root = f"({with_accuracy(self.root.real, re)}) + ({with_accuracy(self.root.imag, im)})j"
         tail = ", approached as Im s -> infinity" if self.approached_at_infinity else ""
         return (
-            f"SpectralAbscissa(value={self.value:.12g}, root={root}{tail}, chain_value={self.chain_value:.6g}, "
+            f"SpectralAbscissa(value={with_accuracy(self.value, self.accuracy)}, root={root}{tail}, "
+            f"chain_value={self.chain_value:.6g}, "
             f"strong_bound={self.strong_bound:.6g}, upper_bound={self.upper_bound:.6g}, certified={self.certified}"
             + (", rigorous=True)" if self.rigorous else ")")
         )
@@ -207,7 +274,9 @@ def spectral_abscissa(
         the root-free far field (the dominance of the principal part, the
         difference-operator bound of the chains included, re-evaluated in balls at the
         abscissa and radius used), the count of every box searched and the box of the
-        rightmost root (:func:`find_roots` with ``rigorous=True``).
+        rightmost root (:func:`find_roots` with ``rigorous=True``). A function other than a
+        QuasiPolynomial (one with ``F.ball_function``) needs a ``region``: its far field is
+        not proven in balls.
     prec : int, optional
         Working precision in bits of the ball arithmetic.
 
@@ -219,7 +288,8 @@ def spectral_abscissa(
     ------
     ParameterError
         An advanced ``F``, a bad option, without a region a delay above ``1.34e154``
-        or coefficients whose root-free radius exceeds ``2^200``.
+        or coefficients whose root-free radius exceeds ``2^200``; ``rigorous=True`` without
+        a region for a function other than a QuasiPolynomial.
     CertificationError
         The work bound ``max_evals`` (shared by every step of the search) was exhausted,
         or ``F`` overflows on a contour: the message says what would help. With
@@ -261,6 +331,13 @@ def spectral_abscissa(
     im_max = None if im_max is None else positive("im_max", im_max)
     max_evals = positive_int("max_evals", max_evals)
     proof = prec if check_rigorous(F, rigorous) else None
+    if proof is not None and region is None and not isinstance(F, QuasiPolynomial):
+        raise ParameterError(
+            "region",
+            f"a rectangle (re_min, re_max, im_min, im_max) with rigorous=True: the root-free far field of a "
+            f"{type(F).__name__} is bounded in floating point only, so the whole plane cannot be searched rigorously",
+            None,
+        )
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         return _spectral_abscissa(F, region, im_max, cluster_tol, max_evals, proof)
 
@@ -291,23 +368,75 @@ def _spectral_abscissa(
         x_right, radius = _right_half_plane(F, 0.0, 1.0)
         result = _retarded_abscissa(F, x_right, radius, F.is_real, cluster_tol, max_evals, proof)
     result = replace(result, strong_bound=float(c_strong), rigorous=proof is not None)
+    result = replace(result, error_estimate=_error_estimate(F, D, bound, result))
     if result.approached_at_infinity and bound.upper - bound.lower > _CHAIN_TOL * (1.0 + abs(bound.upper)):
         # c_D only bracketed (chains not resolved): the value is an upper bound of the supremum, not it
         result = replace(result, certified=False)
     if proof is None:
         return replace(result, root_box=None)
-    return _proven_brackets(result, D, region is None, proof)
+    # the chains only of a principal part with exact coefficients (not computed in floating point)
+    exact = isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix)
+    return _proven_brackets(result, D if exact else None, region is None, proof)
 
 
-def _proven_brackets(result: SpectralAbscissa, D: DifferenceOperator, whole: bool, prec: int) -> SpectralAbscissa:
+# Safety factor of the floating-point error estimates: 40 times the largest ratio (0.37) of the
+# true error (mpmath, 40 digits) to the first-order estimate measured on the loops of the paper's
+# plant and on s + b + a e^{-s} (tests/test_accuracy_digits.py).
+_ESTIMATE_SAFETY = 16.0
+
+
+def _error_estimate(
+    F: QuasiPolynomial, D: DifferenceOperator, bound: SpectralBound, result: SpectralAbscissa
+) -> float | None:
+    """The floating-point estimate of ``|value - sup Re s|`` (:attr:`SpectralAbscissa.accuracy`).
+
+    A cluster's radius or a polynomial root's ball, set when ``result`` was built, is kept.
+    """
+    if result.value == -np.inf:
+        return 0.0
+    if result.approached_at_infinity:
+        return _chain_estimate(D, bound)
+    if result.error_estimate is not None or result.root is None:
+        return result.error_estimate
+    z = np.array([result.root])
+    slope = float(np.abs(F.deriv_at(z))[0])
+    noise = float(np.abs(F(z))[0]) + EPS * float(magnitude(F, z)[0])
+    if not (slope > 0.0 and np.isfinite(noise / slope)):
+        return None
+    return _ESTIMATE_SAFETY * noise / slope + EPS * abs(result.root)
+
+
+def _chain_estimate(D: DifferenceOperator, bound: SpectralBound) -> float | None:
+    """The error of the chain value ``c_D``: the rounding of the root ``z`` of ``P`` that gives it
+    (commensurate delays ``r_k = n_k h``, a simple root), else the width of its bracket."""
+    if not bound.exact:
+        return float(bound.upper - bound.lower)
+    chains = D.chains()
+    if not chains.chains or chains.step is None or chains.chains[0].multiplicity != 1:
+        return None
+    z, h = chains.chains[0].z, chains.step
+    n = np.rint(D.relative_delays / h)
+    terms = np.abs(D.coefs) * np.abs(z) ** n
+    slope = abs(np.sum(n * D.coefs * z ** (n - 1)))
+    if not slope > 0.0:
+        return None
+    return _ESTIMATE_SAFETY * EPS * float(np.sum(terms)) / (slope * abs(z) * h)
+
+
+def _proven_brackets(
+    result: SpectralAbscissa, D: DifferenceOperator | None, whole: bool, prec: int
+) -> SpectralAbscissa:
     """``result`` with ``chain_bracket`` and ``value_bracket`` proven in ball arithmetic.
+
+    ``D`` None: the principal part's coefficients are not exact (computed in floating point,
+    as for :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic`), so no chain bracket.
 
     The lower end of the chain bracket bounds the supremum from below only when the whole
     plane is searched (``whole``) or the chains are the value's source anyway; with a
     ``region`` the supremum is over the roots in it, and only ``root_box`` bounds it below.
     """
     chain = None
-    if np.isfinite(result.strong_bound):
+    if D is not None and np.isfinite(result.strong_bound):
         sb = D.proven_spectral_bound(prec)
         chain = (sb.lower, sb.upper)
     lows = []
@@ -586,7 +715,11 @@ def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa
         float(np.nextafter(float(z.imag.lower()), -np.inf)),
         float(np.nextafter(float(z.imag.upper()), np.inf)),
     )
-    return SpectralAbscissa(float(re[i]), complex(re[i], im[i]), False, -np.inf, upper, True, region, root_box=box)
+    # the root's distance to the far edges of its ball
+    ball = max(box[1] - re[i], re[i] - box[0], box[3] - im[i], im[i] - box[2])
+    return SpectralAbscissa(
+        float(re[i]), complex(re[i], im[i]), False, -np.inf, upper, True, region, root_box=box, error_estimate=ball
+    )
 
 
 def _retarded_abscissa(
@@ -732,10 +865,22 @@ def _abscissa_from(
     at_inf = bool(np.isfinite(chain_value) and chain_value > found + 1e-12 * (1 + abs(chain_value)))
     value = chain_value if at_inf else found
     upper_bound = best if upper_from_roots else max(upper, value)
-    box = None
-    if roots.rigorous and root is not None:
-        b = roots.boxes[int(np.flatnonzero(roots.roots == root)[0])]
-        box = (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
+    box, cluster = None, None
+    if root is not None:
+        k = int(np.flatnonzero(roots.roots == root)[0])
+        if roots.multiplicities[k] > 1:  # its roots lie within the radius of the centroid
+            cluster = float(roots.radii[k])
+        if roots.rigorous:
+            b = roots.boxes[k]
+            box = (float(b[0]), float(b[1]), float(b[2]), float(b[3]))
     return SpectralAbscissa(
-        float(value), root, at_inf, float(chain_value), float(upper_bound), bool(certified), roots.region, root_box=box
+        float(value),
+        root,
+        at_inf,
+        float(chain_value),
+        float(upper_bound),
+        bool(certified),
+        roots.region,
+        root_box=box,
+        error_estimate=cluster,
     )

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import with_accuracy
 from ..._json import fields_dict, json_safe
 from ..._validate import positive, positive_int, renamed_keywords
 from ...errors import CertificationError, ParameterError
@@ -84,12 +85,27 @@ class KRegion:
     ends: tuple[tuple[GainEnd, GainEnd], ...] = ()
     method: str = "bisection"
 
+    @property
+    def end_accuracies(self) -> tuple[tuple[float | None, float | None], ...]:
+        """A bound of the error of each end of each interval
+        (:attr:`nrobust.margins.gain.GainEnd.accuracy`: ``tol`` for a verified end, the last
+        bisection step when bisected; None for an end at a gain of the grid, not bisected)."""
+        if len(self.ends) != len(self.intervals):
+            return tuple((None, None) for _ in self.intervals)
+        return tuple((lo.accuracy, hi.accuracy) for lo, hi in self.ends)
+
     def __repr__(self) -> str:
-        ivs = ", ".join(f"({lo:.6g}, {hi:.6g})" for lo, hi in self.intervals) or "empty"
+        ivs = (
+            ", ".join(
+                f"({with_accuracy(lo, a_lo)}, {with_accuracy(hi, a_hi)})"
+                for (lo, hi), (a_lo, a_hi) in zip(self.intervals, self.end_accuracies)
+            )
+            or "empty"
+        )
         return f"KRegion(delta_max={self.delta_max:.6g}, K in {ivs}, paper bound |K| < {self.paper_bound:.6g})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description; each end as ``{"K", "kind", "omega", "delay"}``."""
+        """JSON-ready description; each end as ``{"K", "kind", "omega", "delay", "accuracy"}``."""
         data = fields_dict(self, exclude=("ends",))
         data["ends"] = json_safe([[end._asdict() for end in pair] for pair in self.ends])
         return data
@@ -169,6 +185,7 @@ def _exact_region(
                     f"interval ({lo.K:.12g}, {hi.K:.12g}) could not be verified on the bracket "
                     f"[{min(end.K - tol, end.K + tol):.15g}, {max(end.K - tol, end.K + tol):.15g}]: {why}"
                 )
+    pairs = [(lo._replace(accuracy=tol), hi._replace(accuracy=tol)) for lo, hi in pairs]  # verified on K +- tol
     intervals = tuple((float(lo.K), float(hi.K)) for lo, hi in pairs)
     for K, good in zip(grid, ok):
         near_end = any(min(abs(K - lo), abs(K - hi)) <= 2.0 * tol for lo, hi in intervals)
@@ -215,7 +232,7 @@ def _bisection_region(
         first = outer.crossings[0] if outer.crossings else None
         omega = float("inf") if first is None else abs(first.omega)
         delay = float(outer.margin) if first is None else float(first.delays[0])
-        return GainEnd(float(good), "bisection", omega, delay)
+        return GainEnd(float(good), "bisection", omega, delay, abs(good - bad))
 
     ends: list[tuple[GainEnd, GainEnd]] = []
     k = 0

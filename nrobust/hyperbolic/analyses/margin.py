@@ -135,9 +135,16 @@ def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str,
     dict
         ``delta_star`` (the ``margin`` of :func:`delay_margin`; ``inf`` when every delay
         is tolerated, 0 when an arbitrarily small delay destabilises), ``abscissa``
-        (spectral abscissa of the delay-free characteristic function) and
-        ``decay_rate = -abscissa``.
+        (spectral abscissa of the delay-free characteristic function),
+        ``decay_rate = -abscissa`` and ``decay_rate_accuracy``, a bound of the error of both:
+        the abscissa's :attr:`~nrobust.roots.SpectralAbscissa.accuracy` (``nan`` when not known).
     """
     margin = delay_margin(system, controller)
-    abscissa = float(spectral_abscissa(characteristic(system, controller, 0.0)).value)
-    return {"delta_star": float(margin.margin), "abscissa": abscissa, "decay_rate": -abscissa}
+    result = spectral_abscissa(characteristic(system, controller, 0.0))
+    abscissa, accuracy = float(result.value), result.accuracy
+    return {
+        "delta_star": float(margin.margin),
+        "abscissa": abscissa,
+        "decay_rate": -abscissa,
+        "decay_rate_accuracy": float("nan") if accuracy is None else float(accuracy),
+    }

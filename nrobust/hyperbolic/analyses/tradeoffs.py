@@ -36,12 +36,17 @@ class Tradeoff:
     rouche_bounds : ndarray
         Guaranteed ``delta_0(K)`` of Theorem 4's proof (:func:`rouche_delay_bound`),
         ``nan`` when the controller is not ``U_BS2``.
+    decay_rate_accuracies : ndarray or None
+        A bound of the error of each decay rate: the :attr:`~nrobust.roots.SpectralAbscissa.accuracy`
+        of its spectral abscissa (a floating-point estimate; ``nan`` where it is not known);
+        None when not computed.
     """
 
     Ks: NDArray[np.float64]
     decay_rates: NDArray[np.float64]
     margins: NDArray[np.float64]
     rouche_bounds: NDArray[np.float64]
+    decay_rate_accuracies: NDArray[np.float64] | None = None
 
     def __repr__(self) -> str:
         return f"Tradeoff({self.Ks.size} gains in [{self.Ks.min():.6g}, {self.Ks.max():.6g}])"
@@ -53,19 +58,20 @@ class Tradeoff:
 
 @dataclass(frozen=True)
 class _PartialTradeoff:
-    """Picklable ``K -> (decay rate, margin, delta_0)``."""
+    """Picklable ``K -> (decay rate, margin, delta_0, accuracy of the decay rate)``."""
 
     system: Any
     family: Callable[[float], Any]
 
-    def __call__(self, K: float) -> tuple[float, float, float]:
+    def __call__(self, K: float) -> tuple[float, float, float, float]:
 
         ctrl = self.family(float(K))
         A, B = loop_factors(self.system, ctrl)
-        rate = -float(spectral_abscissa(A + B).value)
+        abscissa = spectral_abscissa(A + B)
+        rate, accuracy = -float(abscissa.value), abscissa.accuracy
         margin = delay_margin(A, B, verify=False).margin
         d0 = rouche_delay_bound(self.system, ctrl).delta_0 if isinstance(ctrl, ReflectionController) else np.nan
-        return rate, float(margin), float(d0)
+        return rate, float(margin), float(d0), np.nan if accuracy is None else float(accuracy)
 
 
 def tradeoff(
@@ -105,5 +111,5 @@ def tradeoff(
     kv = real_grid("Ks", Ks)
     family = reflection if controller is None else controller
     run = mapper(executor, progress, "tradeoff: gains")
-    rows = np.array(list(run(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 3)
-    return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2])
+    rows = np.array(list(run(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 4)
+    return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])

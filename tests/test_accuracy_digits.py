@@ -1,0 +1,222 @@
+"""Every printed digit of the headline numbers is true: accuracies checked against independent oracles.
+
+Each headline number carries an accuracy (a proven radius, or a conservative floating-point
+estimate) and its repr prints no digit beyond it. The oracles are independent of the code
+checked: Lambert W for ``s + b + a e^{-s}``, the closed form ``ln|rho q| / tau`` of a
+transport system, and mpmath at 40 digits on the stored coefficients (point terms, and the
+polynomial pieces of the distributed kernels integrated in closed form by parts).
+
+The accuracy must not be absurdly loose either: below ``1e-10`` absolute (all the numbers
+checked are of order 0.01 to 100, so that is at least 8 true digits), or within ``1e4`` of
+the true error when the true error is larger than ``1e-14``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from decimal import Decimal
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+import nrobust
+from nrobust import QuasiPolynomial, spectral_abscissa
+from nrobust._digits import lower_bound_text, with_accuracy
+from nrobust.hyperbolic.analyses import k_region, margin_and_decay, tradeoff
+from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
+from nrobust.margins import delay_margin
+
+mp.mp.dps = 40
+PAPER = nrobust.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
+
+
+def _mp_poly(coefs, s):
+    """``sum_j c_j s^j`` in mpmath (coefficients in increasing powers)."""
+    return mp.polyval([mp.mpf(float(c)) for c in np.real(coefs)], s, asc=True)
+
+
+def _piece_integral(poly_t, z):
+    """``int_0^1 P(t) e^{-z t} dt`` for a polynomial ``P`` (mpmath, increasing powers), by parts:
+    ``sum_j (P^(j)(0) - P^(j)(1) e^{-z}) / z^(j+1)``."""
+    total, p, ez = mp.mpc(0), list(poly_t), mp.exp(-z)
+    for j in range(len(p)):
+        total += (p[0] - mp.fsum(p) * ez) / z ** (j + 1)
+        p = [k * p[k] for k in range(1, len(p))]  # P' in increasing powers
+    return total
+
+
+def mp_function(F: QuasiPolynomial):
+    """``F(s)`` in mpmath from its stored point terms and kernel pieces (40 digits)."""
+    points = [(p, mp.mpf(float(t))) for p, t in F.point_terms]
+    dist = []
+    for d in F.distributed:
+        assert d.interpolation == "polynomial"
+        starts, widths, coefs = d.pieces
+        pieces = []
+        for a, h, c in zip(starts, widths, coefs):
+            a, h = mp.mpf(float(a)), mp.mpf(float(h))
+            poly = [mp.mpf(float(x)) for x in np.real(c)]
+            for _ in range(d.moment):  # times nu = a + h t
+                padded = [mp.mpf(0), *poly, mp.mpf(0)]
+                poly = [a * padded[k + 1] + h * padded[k] for k in range(len(poly) + 1)]
+            pieces.append((a, h, poly))
+        dist.append((d.poly, pieces))
+
+    def f(s):
+        out = mp.mpc(0)
+        for p, t in points:
+            out += _mp_poly(p, s) * mp.exp(-t * s)
+        for q, pieces in dist:
+            out += _mp_poly(q, s) * mp.fsum(h * mp.exp(-a * s) * _piece_integral(p, h * s) for a, h, p in pieces)
+        return out
+
+    return f
+
+
+def assert_true_and_tight(value: float, accuracy: float | None, oracle) -> None:
+    """``|value - oracle| <= accuracy`` and the accuracy is not absurdly loose; the printed text too."""
+    assert accuracy is not None
+    error = float(abs(mp.mpf(value) - oracle))
+    assert error <= accuracy, (value, accuracy, error)
+    assert accuracy <= 1e-10 or accuracy <= 1e4 * max(error, 1e-14), (accuracy, error)
+    text = with_accuracy(value, accuracy)
+    printed, bound = text.split(" +- ")
+    # the printed value is the value rounded to the place of the bound's digit: off by half a unit at most
+    assert float(abs(mp.mpf(printed) - oracle)) <= 1.5 * float(bound), text
+
+
+# ---------------------------------------------------------------------------------------- lower bounds
+def test_lower_bound_text_never_rounds_up() -> None:
+    rng = np.random.default_rng(7)
+    values = [0.0123456789, 0.1, 1.0 - 1e-12, 123456789.0, 2.5e-7, 3e20, -0.0123456789]
+    values += list(10.0 ** rng.uniform(-6, 6, 200))
+    for v in values:
+        for digits in (1, 3, 6):
+            printed = Decimal(lower_bound_text(v, digits))
+            assert printed <= Decimal(v)
+            # the floor to `digits` significant digits: less than one unit of the last digit below
+            unit = Decimal(10) ** (Decimal(abs(v)).adjusted() - digits + 1)
+            assert Decimal(v) - printed < unit
+    assert lower_bound_text(0.0123456789) == "0.0123456"  # ordinary rounding would print 0.0123457
+    assert lower_bound_text(math.inf) == "inf"
+
+
+def test_rouche_repr_prints_delta_0_rounded_down() -> None:
+    bound = nrobust.rouche_delay_bound(PAPER, nrobust.ReflectionController(0.1))
+    printed = repr(bound).split("delta_0=")[1].split(",")[0]
+    assert printed == bound.text
+    assert Decimal(printed) <= Decimal(bound.delta_0) < Decimal(printed) + Decimal("1e-7")
+
+
+# ---------------------------------------------------------------------------------------- abscissa
+@pytest.mark.parametrize(("a", "b"), [(0.2, 0.0), (1.0, 0.0), (5.0, 0.0), (0.5, 1.0), (3.0, -0.5), (10.0, 2.0)])
+def test_abscissa_of_lambert_loops(a: float, b: float) -> None:
+    """``s + b + a e^{-s}``: the rightmost root is ``W_0(-a e^b) - b`` (principal branch)."""
+    sa = spectral_abscissa(QuasiPolynomial([[b, 1.0], [a]], [0.0, 1.0]))
+    exact = mp.lambertw(-a * mp.e**b) - b
+    assert_true_and_tight(sa.value, sa.accuracy, exact.real)
+    assert sa.root is not None
+    assert_true_and_tight(abs(sa.root.imag), sa.root_accuracy[1], abs(exact.imag))
+    assert with_accuracy(sa.value, sa.accuracy) in repr(sa)
+
+
+def test_abscissa_proven_bracket_and_polynomial_ball() -> None:
+    sa = spectral_abscissa(QuasiPolynomial([[1.0, 1.0], [0.5]], [0.0, 1.0]), rigorous=True)
+    assert_true_and_tight(sa.value, sa.accuracy, (mp.lambertw(-0.5 * mp.e) - 1).real)
+    # p(s) e^{-s/2} with p = s^2 + 2 s + 5: roots -1 +- 2i, isolated by FLINT
+    poly = spectral_abscissa(QuasiPolynomial([[5.0, 2.0, 1.0]], [0.5]))
+    assert_true_and_tight(poly.value, poly.accuracy, mp.mpf(-1))
+    assert poly.root is not None
+    assert_true_and_tight(poly.root.imag, poly.root_accuracy[1], mp.mpf(2))
+
+
+def test_abscissa_of_a_transport_system() -> None:
+    """``1 - rho q e^{-tau s}``: every root on ``Re s = ln|rho q| / tau``."""
+    system = nrobust.TransportSystem(1.0, 2.0, 0.7, 0.9)
+    sa = spectral_abscissa(nrobust.characteristic(system, nrobust.ReflectionController(0.0), 0.0))
+    assert_true_and_tight(sa.value, sa.accuracy, mp.log(mp.mpf(0.7) * mp.mpf(0.9)) / mp.mpf(system.tau))
+
+
+def test_abscissa_of_the_paper_loop() -> None:
+    """``U_BS2(0.1)`` with the delay 0.3: the rightmost root near ``0.0406 + 3.16 i``."""
+    F = nrobust.characteristic(PAPER, nrobust.ReflectionController(0.1), 0.3)
+    sa = spectral_abscissa(F)
+    assert not sa.approached_at_infinity and sa.root is not None
+    root = mp.findroot(mp_function(F), mp.mpc(sa.root), tol=mp.mpf(10) ** -35)
+    assert abs(mp_function(F)(root)) < 1e-30
+    assert_true_and_tight(sa.value, sa.accuracy, root.real)
+
+
+def test_abscissa_at_the_chain_value() -> None:
+    """``K = 0.1, delta = 1``: the value is ``c_D`` of ``1 - 0.85 e^{-2 s} + 0.1 e^{-3 s}``,
+    ``max -ln|z|`` over the roots of ``1 - 0.85 z^2 + 0.1 z^3``."""
+    sa = spectral_abscissa(nrobust.characteristic(PAPER, nrobust.ReflectionController(0.1), 1.0))
+    assert sa.approached_at_infinity
+    coefs = [1, 0, mp.mpf("-0.85"), mp.mpf("0.1")]  # increasing powers; seeds from numpy, refined at 40 digits
+    roots = [mp.findroot(lambda z: mp.polyval(coefs, z, asc=True), mp.mpc(z0)) for z0 in np.roots([0.1, -0.85, 0, 1])]
+    c_D = max(-mp.log(abs(z)) for z in roots)
+    assert_true_and_tight(sa.value, sa.accuracy, c_D)
+
+
+def test_decay_rate_of_margin_and_decay() -> None:
+    """The nominal loop of ``U_BS2(0.1)`` on the paper's plant is ``1 - 0.75 e^{-2 s}``."""
+    row = margin_and_decay(PAPER, nrobust.ReflectionController(0.1))
+    assert_true_and_tight(row["decay_rate"], row["decay_rate_accuracy"], -mp.log(mp.mpf("0.75")) / 2)
+
+
+def test_decay_rates_of_a_tradeoff() -> None:
+    """On a transport system the target reflection ``rho - K`` decays at ``-ln|(rho - K) q| / tau``."""
+    system = nrobust.TransportSystem(1.0, 2.0, 0.7, 0.9)
+    trade = tradeoff(system, [0.0, 0.3])
+    assert trade.decay_rate_accuracies is not None
+    for K, rate, accuracy in zip(trade.Ks, trade.decay_rates, trade.decay_rate_accuracies):
+        exact = -mp.log(abs((mp.mpf(0.9) - mp.mpf(float(K))) * mp.mpf(0.7))) / mp.mpf(system.tau)
+        assert_true_and_tight(float(rate), float(accuracy), exact)
+
+
+# ---------------------------------------------------------------------------------------- crossing frequency
+@pytest.mark.parametrize(("a", "b", "rigorous"), [(1.0, 2.0, False), (1.0, 2.0, True), (0.1, 3.0, False)])
+def test_crossing_frequency_of_a_scalar_loop(a: float, b: float, rigorous: bool) -> None:
+    """``s + a + b e^{-delta s}``: ``|i w + a| = b`` at ``w = sqrt(b^2 - a^2)``."""
+    A, B = QuasiPolynomial([[a, 1.0]], [0.0]), QuasiPolynomial([[b]], [0.0])
+    dm = delay_margin(A, B, rigorous=rigorous)
+    assert dm.omega is not None
+    assert_true_and_tight(dm.omega, dm.omega_accuracy, mp.sqrt(mp.mpf(b) ** 2 - mp.mpf(a) ** 2))
+    assert f"omega={with_accuracy(dm.omega, dm.omega_accuracy)}" in repr(dm)
+
+
+def test_crossing_frequency_of_the_paper_loop() -> None:
+    """``|A(i w)| = |B(i w)|`` solved in mpmath from the stored loop factors."""
+    A, B = nrobust.hyperbolic.loop_factors(PAPER, nrobust.ReflectionController(0.1))
+    dm = delay_margin(A, B, verify=False)
+    assert dm.omega is not None
+    fa, fb = mp_function(A), mp_function(B)
+    w = mp.findroot(lambda x: abs(fa(1j * x)) ** 2 - abs(fb(1j * x)) ** 2, mp.mpf(dm.omega), tol=mp.mpf(10) ** -35)
+    assert_true_and_tight(dm.omega, dm.omega_accuracy, w)
+    model = dataclasses.replace(dm, of_model=True)  # a model of the plant: no accuracy in the core
+    assert model.omega_accuracy is None and model.accuracy is None
+
+
+# ---------------------------------------------------------------------------------------- gain region ends
+def test_k_region_ends_against_an_independent_solve() -> None:
+    """Each crossing end solves ``A(i w) + (B_0(i w) + K R(i w)) e^{-i w delta_max} = 0`` with ``K`` real:
+    ``K(w) = -(A e^{i w delta_max} + B_0) / R`` at the ``w`` where ``Im K(w) = 0``."""
+    delta_max = 0.05
+    region = k_region(PAPER, delta_max, Ks=[0.0])
+    loop = u_bs2_loop(PAPER)
+    fa, fb, fr = mp_function(loop.A), mp_function(loop.B0), mp_function(loop.R)
+    ends = [end for pair in region.ends for end in pair]
+    assert [e.kind for e in ends] == ["crossing", "crossing"]
+
+    def gain(w):
+        s = 1j * w
+        return -(fa(s) * mp.exp(s * delta_max) + fb(s)) / fr(s)
+
+    for end in ends:
+        w = mp.findroot(lambda x: gain(x).imag, mp.mpf(end.omega), tol=mp.mpf(10) ** -30)
+        assert abs(gain(w).imag) < 1e-30
+        assert_true_and_tight(end.K, end.accuracy, gain(w).real)
+        assert with_accuracy(end.K, end.accuracy) in repr(region)
+    assert region.end_accuracies == ((region.tol, region.tol),)
