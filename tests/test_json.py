@@ -28,10 +28,19 @@ import pytest
 import nrobust
 from nrobust._json import decode_floats, fields_dict, json_safe
 from nrobust.bounds import delay_bound_from_kernel, root_free_region
+from nrobust.design import optimize_loop, pareto_front
 from nrobust.difference import DifferenceOperator
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
-from nrobust.hyperbolic.analyses import ab_region, k_region, stability_chart, tradeoff
+from nrobust.hyperbolic.analyses import (
+    ab_region,
+    design_filtered,
+    design_reflection,
+    k_region,
+    mismatch_region,
+    stability_chart,
+    tradeoff,
+)
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.kernels.varying import solve_varying_kernels
 from nrobust.hyperbolic.loops.controllers import FilteredController, ReflectionController, StateFeedback, classify
@@ -43,7 +52,9 @@ from nrobust.hyperbolic.plants.frontends import arz, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
 from nrobust.hyperbolic.simulate import simulate, simulate_nplusm
 from nrobust.hyperbolic.simulate.general import simulate_general
-from nrobust.lti.transfer import QuasiTransferFunction
+from nrobust.lti.allmargin import allmargin
+from nrobust.lti.delay_lti import delay, tf
+from nrobust.lti.transfer import QuasiTransferFunction, pade_approximation
 from nrobust.margins.count import unstable_count
 from nrobust.margins.crossing import crossing_frequencies
 from nrobust.margins.margin import delay_margin
@@ -92,6 +103,11 @@ def two_profiles(x: np.ndarray) -> np.ndarray:
     return np.vstack([np.sin(x), np.cos(x)])
 
 
+def gain_loop(p: np.ndarray) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``s + 1 + k e^{-delta s}``: a one-parameter loop family for the design results."""
+    return QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[float(p[0])]], [0.0])
+
+
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """One instance of every result class with ``to_dict``, keyed by a name."""
@@ -104,6 +120,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     proven = certify(TRANSPORT, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True)
     assert proven.model_error is not None
     MD = MatrixDifferenceOperator([[[0.0, 0.6], [0.0, 0.0]], [[0.0, 0.0], [0.9, 0.0]]], [1.0, 2.0])
+    reflection = design_reflection(COUPLED, "margin")
+    local = optimize_loop(gain_loop, [(0.0, 5.0)], margin_at_least=0.8, x0=[0.5], max_iter=5)
+    mismatch = mismatch_region(TRANSPORT, ReflectionController(0.1), [0.0, 0.2], [0.0], 0.1)
     return {
         "RootFreeRegion": root_free_region(F),
         "RoucheDelayBound": delay_bound_from_kernel(None, 0.5),  # N~ = 0: delta_0 = inf
@@ -171,6 +190,23 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "Gamma0": MD.gamma_0(rtol=1e-3),
         "ProvenCrossings": proven_crossings(A, B),
         "QuasiPolynomialMatrix": QuasiPolynomialMatrix([[F, QuasiPolynomial([[0.0, 0.2]], [0.5])], [0.0, A]]),
+        "DelayLTI": delay(0.5) * tf([2.0], [1.0, 1.0]),
+        "AllMargins": allmargin(delay(0.5) * tf([2.0], [1.0, 1.0])),
+        "PadeModel": pade_approximation(
+            QuasiTransferFunction(QuasiPolynomial([[1.0]], [0.5]), QuasiPolynomial([[1.0, 1.0]], [0.0])),
+            2,
+            [0.1, 1.0],
+            return_bound=True,
+        ),
+        "ReflectionDesign": reflection,
+        "GainDesign": reflection.design,
+        "LoopDesign": local,
+        "LocalRun": local.runs[0],
+        "ParetoFront": pareto_front(gain_loop, [(0.0, 5.0)], [0.6], x0=[0.5]),
+        "FilteredDesign": design_filtered(
+            TRANSPORT, parameters={"K": (-0.3, 0.3), "a": 0.1, "b": 0.1}, x0=[0.1], starts=1, max_iter=3
+        ),
+        "MismatchRegion": mismatch,
     }
 
 
@@ -234,6 +270,16 @@ NAMES = [
     "Gamma0",
     "ProvenCrossings",
     "QuasiPolynomialMatrix",
+    "DelayLTI",
+    "AllMargins",
+    "PadeModel",
+    "ReflectionDesign",
+    "GainDesign",
+    "LoopDesign",
+    "LocalRun",
+    "ParetoFront",
+    "FilteredDesign",
+    "MismatchRegion",
 ]
 
 
