@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import brentq
 
 from .._json import json_safe
 from .._validate import nonnegative, positive, positive_int, renamed_keywords
@@ -426,6 +425,8 @@ def _real_axis_crossings(
     A sign change of ``Im L`` between consecutive samples on the axis with ``Re L < 0`` at
     both, refined by Brent's method on ``Im L(i w)``.
     """
+    from scipy.optimize import brentq  # scipy.optimize takes a second to load: only when drawing
+
     on_axis = (contour.real == 0.0) & np.isfinite(loop)
     im, re = loop.imag, loop.real
     pick = np.flatnonzero(
