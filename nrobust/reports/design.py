@@ -52,10 +52,11 @@ def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
         f"({cert.method}); about {cert.scope}",
     ]
     if d.objective == "margin":
-        lines.append(f"- decay rate at delta = 0: {d.decay_rate:.6g}")
+        lines.append(f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)}")
     if d.end is not None:
         lines.append(
-            f"- the end of the gains with a large enough margin: K = {d.end.K:.10g}, {d.end.kind} at "
+            f"- the end of the gains with a large enough margin: K = {with_accuracy(d.end.K, d.end.accuracy)}, "
+            f"{d.end.kind} at "
             f"w = {d.end.omega:.10g}, delay {d.end.delay:.10g}"
         )
     lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
@@ -72,8 +73,8 @@ def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
         "",
         f"- objective: the largest {what}{need} (a local optimum: the best of {len(d.runs)} start(s))",
         f"- designed controller: K = {c.K:.6g}, a = {c.a:.6g}, b = {c.b:.6g} (the filter (1 + a s)/(1 + b s))",
-        f"- decay rate at delta = 0: {d.decay_rate:.6g}; the rightmost root is certified "
-        f"({'certified count' if d.abscissa.certified else 'not certified'})",
+        f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)} "
+        f"({'no root right of it: certified count' if d.abscissa.certified else 'not certified'})",
         f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
         f"about {result.scope}",
         f"- certified: {'yes' if d.certified else 'no'}",
@@ -124,7 +125,8 @@ def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
     c, local = result.controller, result.design
     margin = with_accuracy(local.margin.margin, local.margin.accuracy)
     return (
-        f"FilteredController(a={c.a:.6g}, b={c.b:.6g}, K={c.K:.6g}): decay rate {local.decay_rate:.6g}, delay "
+        f"FilteredController(a={c.a:.6g}, b={c.b:.6g}, K={c.K:.6g}): decay rate "
+        f"{with_accuracy(local.decay_rate, local.abscissa.accuracy)}, delay "
         f"margin {margin} (a local optimum; certified: {'yes' if local.certified else 'no'})"
     )
 
