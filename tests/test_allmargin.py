@@ -107,3 +107,33 @@ def test_loop_at_a_time_of_a_coupled_mimo_loop() -> None:
     cross = [brentq(gap, grid[i], grid[i + 1], xtol=1e-15) for i in np.flatnonzero(np.diff(np.sign(values)))]
     m = allmargin(L, loop=0)
     np.testing.assert_allclose(m.pm_frequencies, cross, rtol=1e-11)
+
+
+def test_double_integrator_loops_closed_forms() -> None:
+    # (4 s + 1) / (4 s^2): |L(i w)| = 1 at 16 w^4 = 16 w^2 + 1, phase atan(4 w) - pi.
+    # python-control 0.10 stability_margins(tf([4, 1], [4, 0, 0])) gives PM 76.34541525 deg at 1.02908551.
+    wc = np.sqrt((1.0 + np.sqrt(1.25)) / 2.0)
+    pm = np.arctan(4.0 * wc)
+    m = allmargin(tf([4.0, 1.0], [4.0, 0.0, 0.0]))
+    np.testing.assert_allclose(m.pm_frequencies, [wc], rtol=1e-12)
+    np.testing.assert_allclose(np.radians(m.phase_margins), [pm], rtol=1e-11)
+    np.testing.assert_allclose(m.phase_margins, [76.34541525], rtol=1e-9)
+    assert m.gm_frequencies.size == 0 and m.stable
+    # with a dead time 0.5: the phase atan(4 w) - pi - w / 2; crossovers w / 2 = atan(4 w) - 2 j pi
+    md = allmargin(delay(0.5) * tf([4.0, 1.0], [4.0, 0.0, 0.0]))
+    np.testing.assert_allclose(np.radians(md.phase_margins), [pm - 0.5 * wc], rtol=1e-11)
+    np.testing.assert_allclose(md.delay_margins, [(pm - 0.5 * wc) / wc], rtol=1e-11)
+    w180 = [brentq(lambda w, j=j: np.arctan(4 * w) - 0.5 * w + 2 * j * np.pi, 1.0, 1e3, xtol=1e-15) for j in range(3)]
+    np.testing.assert_allclose(md.gm_frequencies[:3], w180, rtol=1e-11)
+    w = np.array(w180)
+    np.testing.assert_allclose(md.gain_margins[:3], 4 * w**2 / np.sqrt(16 * w**2 + 1), rtol=1e-11)
+    assert md.stable
+
+
+def test_degenerate_loops_are_decided_quickly() -> None:
+    # the zero loop: no crossover, the closed loop is s + 1 (stable)
+    m = allmargin(tf([0.0], [1.0, 1.0]))
+    assert m.pm_frequencies.size == 0 and m.gm_frequencies.size == 0 and m.stable
+    # 1 / (s^2 + 2) is real at every s = i w: no isolated phase crossover
+    with pytest.raises(ParameterError, match="real at every w"):
+        allmargin(tf([1.0], [1.0, 0.0, 2.0]))

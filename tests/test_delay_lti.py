@@ -177,7 +177,7 @@ def test_immutable_and_json() -> None:
 block = st.tuples(st.floats(0.2, 3.0), st.floats(0.1, 2.0), st.floats(0.0, 1.5))  # gain k, pole a, delay h
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=10, deadline=None)
 @given(block, block, block, st.floats(0.05, 5.0))
 def test_feedback_of_series_matches_direct_formula(b1: tuple, b2: tuple, b3: tuple, w: float) -> None:
     def sys(b: tuple) -> DelayLTI:
@@ -196,3 +196,85 @@ def test_feedback_of_series_matches_direct_formula(b1: tuple, b2: tuple, b3: tup
     left, right = (sys(b2) * sys(b1)) * sys(b3), sys(b2) * (sys(b1) * sys(b3))
     np.testing.assert_allclose(G(s), exact, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(left(s), right(s), rtol=1e-12, atol=1e-14)
+
+
+def _lft_value(G: DelayLTI, s: complex) -> np.ndarray:
+    """``P11 + P12 Delta (I - P22 Delta)^-1 P21`` with ``P = D + C (sI - A)^-1 B``, written out here."""
+    n = G.A.shape[0]
+    R = np.linalg.solve(s * np.eye(n) - G.A, np.hstack([G.B1, G.B2]))
+    P = np.block([[G.D11, G.D12], [G.D21, G.D22]]) + np.vstack([G.C1, G.C2]) @ R
+    p, m = G.D11.shape
+    Delta = np.diag(np.exp(-np.asarray(G.tau) * s))
+    P11, P12, P21, P22 = P[:p, :m], P[:p, m:], P[p:, :m], P[p:, m:]
+    return P11 + P12 @ Delta @ np.linalg.solve(np.eye(Delta.shape[0]) - P22 @ Delta, P21)
+
+
+@pytest.mark.parametrize("sign", [-1, 1])
+def test_mimo_feedback_with_both_feedthroughs_against_the_lft(sign: int) -> None:
+    rng = np.random.default_rng(7)
+
+    def system(n: int, k: int) -> DelayLTI:
+        A = -2.0 * np.eye(n) + 0.3 * rng.standard_normal((n, n))
+        B1, B2, C1, C2, D11, D12, D21 = (
+            0.5 * rng.standard_normal(shape) for shape in ((n, 2), (n, k), (2, n), (k, n), (2, 2), (2, k), (k, 2))
+        )
+        D22 = 0.2 * rng.standard_normal((k, k))
+        return DelayLTI(A, B1, B2, C1, C2, D11, D12, D21, D22, rng.uniform(0.2, 1.5, k))
+
+    G1, G2 = system(3, 2), system(2, 1)
+    assert np.all(G1.D11 != 0) and np.all(G2.D11 != 0)
+    closed = G1.feedback(G2, sign=sign)
+    for s in S[1:]:
+        g1, g2 = _lft_value(G1, s), _lft_value(G2, s)
+        exact = np.linalg.solve(np.eye(2) - sign * g1 @ g2, g1)  # y = G1 (r + sign G2 y)
+        # sums of a few dozen products of order-1 numbers, one 2 x 2 solve: 1e-12 leaves a wide margin
+        np.testing.assert_allclose(closed(s), exact, rtol=1e-12, atol=1e-12)
+
+
+def test_neutral_label_from_the_difference_operator() -> None:
+    def channels(D22: list, tau: list) -> DelayLTI:
+        k = len(tau)
+        z = np.zeros
+        return DelayLTI(
+            z((0, 0)),
+            z((0, 1)),
+            z((0, k)),
+            z((1, 0)),
+            z((k, 0)),
+            [[0.0]],
+            z((1, k)),
+            np.ones((k, 1)),
+            np.array(D22, dtype=float),
+            tau,
+        )
+
+    def trivial(G: DelayLTI) -> bool:  # det(I - D22 Delta(s)) == 1 at sample points, by numpy
+        vals = [
+            np.linalg.det(np.eye(len(G.tau)) - G.D22 @ np.diag(np.exp(-np.asarray(G.tau) * s)))
+            for s in (0.3 + 1.7j, -0.4 + 0.2j, 1.1j)
+        ]
+        return bool(np.allclose(vals, 1.0, rtol=0.0, atol=1e-12))
+
+    cases = [
+        ([[1.0, 1.0], [-1.0, -1.0]], [1.0, 1.0]),  # nilpotent cycle, one delay: retarded
+        ([[1.0, 1.0], [-1.0, -1.0]], [1.0, 2.0]),  # the same cycle, two delays: 1 - e^{-s} + e^{-2 s}
+        ([[1.0, 1.0, 1.0], [-1.0, -1.0, -1.0], [1.0, 1.0, 0.0]], [1.0, 1.0, 2.5]),  # terms cancel by delay
+        ([[1.0, 1.0, 1.0], [-1.0, -1.0, -1.0], [1.0, 1.0, 0.0]], [1.0, 2.0, 2.0]),
+        ([[0.0, 1.0], [0.0, 0.0]], [1.0, 2.0]),  # no cycle
+        ([[0.5]], [1.0]),
+    ]
+    labels = [channels(D22, tau).is_neutral for D22, tau in cases]
+    assert labels == [False, True, False, True, False, True]
+    assert labels == [not trivial(channels(D22, tau)) for D22, tau in cases]
+    assert channels(*cases[0]).difference_operator() is None
+
+
+def test_bad_indices_and_division_by_zero_name_the_parameter() -> None:
+    G = tf([1.0], [1.0, 1.0])
+    with pytest.raises(ParameterError, match=r"^key\[0\] \(output index\) must be an integer in \[-1, 0\]"):
+        G[5, 0]
+    with pytest.raises(ParameterError, match=r"^key\[1\] \(input index\) must be"):
+        G[0, [0, 2]]
+    with pytest.raises(ParameterError, match=r"^other must be a nonzero divisor"):
+        G / 0
+    np.testing.assert_allclose((G / 4)(S), 0.25 / (S + 1), rtol=TOL, atol=TOL)

@@ -269,7 +269,7 @@ def test_mimo_shapes_and_incommensurate_delays() -> None:
     np.testing.assert_allclose(response.outputs[:, :, first], open_loop.outputs, rtol=0, atol=1e-10)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=5, deadline=None)
 @given(
     a=st.floats(0.2, 3.0),
     k=st.floats(-1.0, 1.0),
@@ -299,7 +299,7 @@ def test_bad_input_names_the_parameter() -> None:
     with pytest.raises(ParameterError, match=r"^sys\.B2 must be"):
         step_response(Loop(_m(0.0), _m(0.0), np.ones((1, 2)), _m(1.0), _m(1.0), _m(0.0), _m(0.0), _m(1.0), _m(0.0)))
     with pytest.raises(ParameterError, match=r"^sys must be"):
-        step_response(object())  # type: ignore[arg-type]
+        step_response(object())
     with pytest.raises(ParameterError, match=r"^X0 must be"):
         initial_response(loop, 1.0, [1.0, 2.0])
     with pytest.raises(ParameterError, match=r"^rtol must be"):
@@ -327,3 +327,32 @@ def test_work_bound_on_pieces() -> None:
     with pytest.raises(ConvergenceError, match="max_nodes = 3"):
         step_response(fopdt_loop(8.0, 4.0, 2.0), [0.0, 4.0], rtol=1e-12, max_nodes=3)
     assert step_response(fopdt_loop(8.0, 4.0, 2.0), [0.0, 4.0], rtol=1e-12).n_pieces > 3
+
+
+def test_impulse_jump_at_the_final_breakpoint_is_kept() -> None:
+    # x' = -x + z, z = u + c z(t - 1), y = x (B1 = D21 = 1, B2 = D22 = c): the impulse gives
+    # x(t) = sum_{k <= t} c^k e^{-(t - k)} (right-continuous: the Dirac arriving at t = k is
+    # counted at k), including at t = T[-1] = 3, a breakpoint.
+    c = 0.5
+    loop = Loop(_m(-1.0), _m(1.0), _m(c), _m(1.0), _m(0.0), _m(0.0), _m(0.0), _m(1.0), _m(c))
+    for T in (np.linspace(0.0, 3.0, 8), np.linspace(0.0, 2.0, 5)):
+        exact = [sum(c**k * np.exp(-(t - k)) for k in range(4) if k <= t) for t in T]
+        # the step solution is exact to rounding (piecewise exponentials, rtol 1e-10 met)
+        np.testing.assert_allclose(impulse_response(loop, T).outputs, exact, rtol=1e-10, atol=1e-14)
+
+
+def test_user_callables_with_non_finite_values_are_refused() -> None:
+    loop = fopdt_loop(1.0, 1.0, 1.0)
+    T = np.linspace(0.0, 2.0, 5)
+    with pytest.raises(ParameterError, match=r"^U must be a callable returning 1 finite"):
+        forced_response(loop, T, U=lambda t: np.nan)
+    with pytest.raises(ParameterError, match=r"^U must be a callable returning 1 finite"):
+        forced_response(loop, T, U=lambda t: 1.0 if t < 1.0 else np.inf)
+    with pytest.raises(ParameterError, match=r"^history must be a callable returning") as info:
+        initial_response(loop, 2.0, history=lambda t: [np.nan])
+    with pytest.raises(ParameterError, match=r"^U must be a callable returning .* raised") as info:
+        forced_response(loop, T, U=lambda t: 1.0 / 0.0)
+    assert isinstance(info.value.__cause__, ZeroDivisionError)
+    with pytest.raises(ParameterError, match=r"^history must be a callable returning .* raised") as info:
+        initial_response(loop, 2.0, history=lambda t: [{"z": 0.0}[str(t)]])
+    assert isinstance(info.value.__cause__, KeyError)

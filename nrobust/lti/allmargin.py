@@ -21,6 +21,14 @@ frequency band that provably holds them all, never on a sampled grid:
   (and some above). The gain margins include the factors below 1 (a loop stable only
   above some gain) as MATLAB's ``allmargin`` lists them.
 
+Integrators are taken out exactly first (:func:`nrobust.lti.pade.split_integrators`): with
+``N = s^j N_0`` and ``D = s^k D_0``, the gain search runs on the factors without their common
+power of ``s``, and the phase search on ``Im(N conj D) / w^(j + k) = Im(i^j (-i)^k N_0 conj D_0)``
+(the same zeros for ``w > 0``), so a type-2 loop such as a PI controller on an integrating plant
+puts no zero of high order at ``w = 0`` into either search. A zero loop ``N = 0`` has no
+crossover; a loop real at every ``s = i w`` (decided exactly, e.g. ``1 / (s^2 + 2)``) has phase
+crossovers filling whole intervals and is refused.
+
 Each crossing is refined by Brent's method on a bracket of the certified sign change
 (``xtol = 1e-12 (1 + w)``). ``stable`` is the certified verdict on the closed loop
 ``D + N`` (:func:`nrobust.margins.unstable_count`). A MIMO loop is taken a loop at a
@@ -31,6 +39,7 @@ feedback.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -43,6 +52,7 @@ from ..margins import DelayMargin, crossing_frequencies, delay_margin, frequency
 from ..margins.crossing import crossing_search
 from ..quasipoly import QuasiPolynomial
 from .delay_lti import DelayLTI, as_delay_lti
+from .pade import split_integrators
 from .transfer import QuasiTransferFunction
 
 __all__ = ["AllMargins", "allmargin", "loop_delay_margin", "loop_factors_of"]
@@ -182,7 +192,8 @@ def allmargin(
     ------
     ParameterError
         A loop whose gain does not fall below 1 (or ``gain_floor``) at high frequency: the
-        crossovers then accumulate at infinity and no finite band holds them.
+        crossovers then accumulate at infinity and no finite band holds them. A loop real
+        at every ``s = i w`` (no isolated phase crossover).
     CertificationError
         A crossing search could not be completed within its work bound.
 
@@ -206,8 +217,26 @@ def allmargin(
     N, D = loop_factors_of(L)
     if not (N.is_real and D.is_real):
         raise ParameterError("L", "real coefficients", L)
+    if not N.distributed and not any(np.any(p) for p, _ in N.point_terms):
+        return _zero_loop(D, floor)
+    if _real_on_axis(N, D):
+        raise ParameterError(
+            "L",
+            "a loop whose phase varies with frequency (L(i w) is real at every w here, so its phase crossovers "
+            "fill whole intervals and no gain margin is isolated)",
+            L,
+        )
+    # L = s^(j - k) N_0 / D_0 exactly: the searches run on the factors without their common power of
+    # s, and the phase search on Im(N conj D) / w^(j + k), so a loop with integrators puts no
+    # zero of high order at w = 0 into either search.
+    j, N0 = split_integrators(N)
+    k, D0 = split_integrators(D)
+    m = min(j, k)
+    N_gain = N0.times_poly(np.eye(j - m + 1)[-1]) if j > m else N0
+    D_gain = D0.times_poly(np.eye(k - m + 1)[-1]) if k > m else D0
+    rotate = 1j**j * (-1j) ** k  # Im(N conj D) = w^(j + k) Im(rotate N_0 conj D_0) for w > 0
     try:
-        gains = crossing_frequencies(D, N, max_evals=max_evals)
+        gains = crossing_frequencies(D_gain, N_gain, max_evals=max_evals)
     except ParameterError as exc:
         raise ParameterError(
             "L", "a loop whose gain falls below 1 at high frequency (|L(i w)| < 1 for large w)", L
@@ -229,13 +258,14 @@ def allmargin(
 
     def phase_gap(w: float) -> float:
         s = np.array([1j * w])
-        return float(np.imag(N(s)[0] * np.conj(D(s)[0])))
+        return float(np.imag(rotate * N0(s)[0] * np.conj(D0(s)[0])))
 
     w_pm = np.array([_refine(gain_gap, float(w), gains.frequency_bound) for w in gains.omegas])
     at = np.array([loop_at(w) for w in w_pm], dtype=complex)
     pm = np.angle(-at)  # angle L + pi, in (-pi, pi]
     dm = np.mod(pm, 2.0 * np.pi) / w_pm if w_pm.size else np.zeros(0)
-    phases, _ = crossing_search(D - N * 1j, D + N * 1j, bound, max_evals)
+    N_phase = N0 * (1j * rotate)
+    phases, _ = crossing_search(D0 - N_phase, D0 + N_phase, bound, max_evals)
     w_gm = [0.0] if _negative_real(loop_at(0.0) if abs(D(np.zeros(1))[0]) > 0 else np.inf) else []
     for w in phases.omegas:
         if w > 0:
@@ -259,6 +289,52 @@ def allmargin(
         gain_band=float(gains.frequency_bound),
         gain_floor=floor,
     )
+
+
+def _zero_loop(D: QuasiPolynomial, floor: float) -> AllMargins:
+    """The margins of ``L = 0``: no crossover at all; the closed loop is ``D`` itself."""
+    count = unstable_count(D)
+    if count.radius is None:
+        raise CertificationError(f"allmargin: no bound of the closed-loop poles in Re s >= 0 ({count.method})")
+    empty = np.zeros(0)
+    return AllMargins(
+        gain_margins=empty,
+        gm_frequencies=empty.copy(),
+        phase_margins=empty.copy(),
+        pm_frequencies=empty.copy(),
+        delay_margins=empty.copy(),
+        dm_frequencies=empty.copy(),
+        stable=bool(count.certified and count.stable),
+        phase_band=0.0,
+        gain_band=0.0,
+        gain_floor=floor,
+    )
+
+
+def _real_on_axis(N: QuasiPolynomial, D: QuasiPolynomial) -> bool:
+    """Whether ``Im(N(i w) conj D(i w)) = 0`` for every real ``w``, decided in exact rational arithmetic.
+
+    With real coefficients ``N(i w) conj D(i w) = sum_d c_d(i w) e^{-i w d}``, ``c_d(s)`` the sum of
+    ``p(s) q(-s)`` over the terms ``p e^{-a s}`` of ``N`` and ``q e^{-b s}`` of ``D`` with ``a - b = d``.
+    The functions ``w^n e^{-i w d}`` being linearly independent, the sum is real for every ``w``
+    exactly when ``c_d(s) = c_{-d}(-s)`` for every ``d``. A distributed term gives False (not decided
+    here; the phase search then runs as usual).
+    """
+    if N.distributed or D.distributed:
+        return False
+    groups: dict[Fraction, dict[int, Fraction]] = {}
+    for p, a in N.point_terms:
+        for q, b in D.point_terms:
+            c = groups.setdefault(Fraction(float(a)) - Fraction(float(b)), {})
+            for u, pu in enumerate(np.real(p)):
+                for v, qv in enumerate(np.real(q)):
+                    c[u + v] = c.get(u + v, Fraction(0)) + Fraction(float(pu)) * Fraction(float(qv)) * (-1) ** v
+    for d, c in groups.items():
+        mirror = groups.get(-d, {})
+        for n in set(c) | set(mirror):
+            if c.get(n, Fraction(0)) != (-1) ** n * mirror.get(n, Fraction(0)):
+                return False
+    return True
 
 
 def _negative_real(z: complex) -> bool:

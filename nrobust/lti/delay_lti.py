@@ -45,8 +45,10 @@ convention: ``QuasiPolynomial([[2, 1]], [0])`` is ``2 + s``).
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -92,6 +94,67 @@ def _matrix(name: str, value: Any, shape: tuple[int, int]) -> NDArray[np.float64
     if a.shape != shape:
         raise ParameterError(name, f"a real {shape[0]} x {shape[1]} matrix", a.shape)
     return a
+
+
+# Largest strongly connected block of D22 with several delays whose determinant is expanded exactly.
+_EXPANSION_CHANNELS = 12
+
+
+def _cyclic_components(D22: NDArray[np.float64]) -> list[NDArray[np.intp]]:
+    """The strongly connected components of the graph of ``D22`` that contain a cycle."""
+    k = D22.shape[0]
+    reach = D22 != 0  # paths of length >= 1, closed transitively by squaring
+    for _ in range(max(1, int(np.ceil(np.log2(max(k, 2)))) + 1)):
+        reach = reach | ((reach.astype(np.int64) @ reach.astype(np.int64)) > 0)
+    seen = np.zeros(k, dtype=bool)
+    out = []
+    for i in range(k):
+        if reach[i, i] and not seen[i]:
+            comp = np.flatnonzero(reach[i] & reach[:, i])
+            seen[comp] = True
+            out.append(comp)
+    return out
+
+
+def _det(rows: list[list[Fraction]]) -> Fraction:
+    """Exact determinant by Gaussian elimination."""
+    a = [r[:] for r in rows]
+    n, det = len(a), Fraction(1)
+    for j in range(n):
+        p = next((i for i in range(j, n) if a[i][j] != 0), None)
+        if p is None:
+            return Fraction(0)
+        if p != j:
+            a[j], a[p] = a[p], a[j]
+            det = -det
+        det *= a[j][j]
+        for i in range(j + 1, n):
+            f = a[i][j] / a[j][j]
+            if f:
+                a[i] = [x - f * y for x, y in zip(a[i], a[j])]
+    return det
+
+
+def _unit_determinant(M: NDArray[np.float64], tau: NDArray[np.float64]) -> bool:
+    """Whether ``det(I - M diag(e^{-tau_i s})) = 1`` identically (exact; :attr:`DelayLTI.is_neutral`)."""
+    k = M.shape[0]
+    F = [[Fraction(float(x)) for x in row] for row in M]
+    if np.all(tau == tau[0]):  # det(I - z M) = 1 for all z iff M is nilpotent: M^k = 0
+        P = F
+        for _ in range(k - 1):
+            P = [[sum((P[i][t] * F[t][j] for t in range(k)), Fraction(0)) for j in range(k)] for i in range(k)]
+        return all(x == 0 for row in P for x in row)
+    if k > _EXPANSION_CHANNELS:
+        return False
+    terms: dict[Fraction, Fraction] = {}
+    delays = [Fraction(float(t)) for t in tau]
+    for size in range(1, k + 1):
+        for S in itertools.combinations(range(k), size):
+            d = _det([[F[i][j] for j in S] for i in S])
+            if d:
+                total = sum((delays[i] for i in S), Fraction(0))
+                terms[total] = terms.get(total, Fraction(0)) + (-1) ** size * d
+    return all(c == 0 for c in terms.values())
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,17 +433,20 @@ class DelayLTI:
 
     @property
     def is_neutral(self) -> bool:
-        """True if the delay channels form an algebraic loop through ``D22``.
+        """True if the difference operator ``det(I - D22 Delta(s))`` has a term with a delay.
 
-        Read from the pattern of ``D22``: no cycle in its graph (e.g. ``D22 = 0``) means
-        ``det(I - D22 Delta) = 1`` for every delay, a retarded system.
+        Decided exactly (rational arithmetic on the binary values of ``D22`` and ``tau``).
+        The determinant is the product of those of the strongly connected components of the
+        graph of ``D22``; a component without a cycle gives 1. A component whose channels
+        share one delay ``h`` gives ``det(I - e^{-h s} D22_C)``, which is 1 exactly when
+        ``D22_C`` is nilpotent. Otherwise the principal minor expansion
+        ``det(I - D22_C Delta) = sum_S (-1)^|S| det(D22_SS) e^{-s sum_{i in S} tau_i}`` is
+        collected by total delay, for a component of at most :data:`_EXPANSION_CHANNELS`
+        channels; a larger one with several delays is taken as neutral (the conservative
+        side: the neutral checks then run on an operator that may be trivial).
+        So ``D22 = [[1, 1], [-1, -1]]`` with equal delays (nilpotent) is retarded.
         """
-        k = self.ndelays
-        pattern = (self.D22 != 0).astype(float)
-        power = np.eye(k)
-        for _ in range(k):
-            power = np.minimum(power @ pattern, 1.0)
-        return bool(np.any(power))
+        return any(not _unit_determinant(self.D22[np.ix_(c, c)], self.tau[c]) for c in _cyclic_components(self.D22))
 
     def difference_operator(self) -> MatrixDifferenceOperator | None:
         """``I - D22 Delta(s) = I - sum_h D22[:, tau == h] e^{-h s}`` (None for a retarded system)."""
@@ -671,7 +737,17 @@ class DelayLTI:
         """``sys[outputs, inputs]``: integers, slices or index lists select outputs and inputs."""
         if not (isinstance(key, tuple) and len(key) == 2):
             raise ParameterError("key", "a pair (outputs, inputs) of indices or slices", key)
-        rows, cols = (np.atleast_1d(np.arange(size)[k]) for k, size in zip(key, (self.noutputs, self.ninputs)))
+        picked = []
+        for i, (k, size) in enumerate(zip(key, (self.noutputs, self.ninputs))):
+            try:
+                picked.append(np.atleast_1d(np.arange(size)[k]))
+            except (IndexError, TypeError, ValueError):
+                raise ParameterError(
+                    f"key[{i}] ({('output', 'input')[i]} index)",
+                    f"an integer in [{-size}, {size - 1}], a slice or a list of them",
+                    k,
+                ) from None
+        rows, cols = picked
         return DelayLTI(
             self.A,
             self.B1[:, cols],
@@ -704,6 +780,8 @@ class DelayLTI:
     def __truediv__(self, other: Any) -> DelayLTI:
         """``self / other`` for a number or a SISO python-control system (``self * (1 / other)``)."""
         if is_real_number(other):
+            if float(other) == 0.0:
+                raise ParameterError("other", "a nonzero divisor", other)
             return self * (1.0 / float(other))
         if _is_control(other):
             return self * (1 / other)

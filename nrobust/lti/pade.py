@@ -82,6 +82,21 @@ def _orders(m: Any, n: Any) -> tuple[int, int]:
     return m, n
 
 
+def _order_pair(name: str, value: Any) -> tuple[int, int]:
+    """A validated ``(m, n)`` pair given as one value (an entry of an ``orders`` mapping)."""
+    what = "a pair (m, n) of integers in [0, 200]"
+    if isinstance(value, (str, bytes)):
+        raise ParameterError(name, what, value)
+    try:
+        m, n = value
+    except (TypeError, ValueError):
+        raise ParameterError(name, what, value) from None
+    for x in (m, n):
+        if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)) or not 0 <= x <= 200:
+            raise ParameterError(name, what, value)
+    return int(m), int(n)
+
+
 def pade_fractions(m: int, n: int) -> tuple[list[Fraction], list[Fraction]]:
     """Exact coefficients of ``P_{m,n}`` and ``Q_{m,n}`` in ascending powers of ``z`` (module notes)."""
     top = factorial(m + n)
@@ -136,6 +151,15 @@ def pade(
     num = [c * t**j for j, c in enumerate(p)]
     den = [c * t**j for j, c in enumerate(q)]
     scale = den[-1] if normalize == "monic" else Fraction(1)
+    largest = max(abs(c) for c in num + den) / scale
+    if largest > Fraction(np.finfo(float).max):
+        digits = (largest.numerator.bit_length() - largest.denominator.bit_length()) * np.log10(2.0)
+        raise ParameterError(
+            "tau",
+            f"a delay whose ({m}, {n}) Padé coefficients with normalize={normalize!r} are finite in floating "
+            f"point (the largest is about 1e{digits:.0f})",
+            tau,
+        )
     return (
         np.array([float(c / scale) for c in reversed(num)]),
         np.array([float(c / scale) for c in reversed(den)]),
@@ -378,12 +402,17 @@ def substitution_bound(
         raise ParameterError("omega", "an increasing array of at least 2 frequencies >= 0", omega)
     k, den1 = split_integrators(den)
     n_terms, d_terms = _real_terms("num", num), _real_terms("den", den1)
+    if not isinstance(orders, Mapping):
+        raise ParameterError("orders", "a mapping {tau: (m, n)}", orders)
+    checked: dict[float, tuple[int, int]] = {}
     for _, t in n_terms + d_terms:
         if t != 0.0:
             if t not in orders:
                 raise ParameterError("orders", f"an order (m, n) for every delay (missing {t!r})", dict(orders))
-            if sum(orders[t]) + 1 < k:
+            checked[t] = _order_pair(f"orders[{t!r}]", orders[t])
+            if sum(checked[t]) + 1 < k:
                 raise ParameterError("orders", f"m + n + 1 >= {k} (the number of integrators)", orders[t])
+    orders = checked
     flint = require_flint()
     with precision(flint, _PREC):
         approx = {t: _Approximant(flint, t, *orders[t]) for _, t in n_terms + d_terms if t != 0.0}

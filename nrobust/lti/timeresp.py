@@ -53,7 +53,8 @@ Method (Bellen and Zennaro, *Numerical Methods for Delay Differential Equations*
   of the returned output, as python-control leaves out ``D delta``.
 
 Outputs are right-continuous: at a breakpoint ``t``, ``w(t) = z(t - tau)`` is the value just
-after it.
+after it, and at the final time too ``x`` includes the jump of a Dirac of the impulse train
+arriving there.
 """
 
 from __future__ import annotations
@@ -317,6 +318,17 @@ class _Input:
     impulse: Array | None = None
 
 
+def _user_values(name: str, f: Callable[[float], Any], t: float, size: int, what: str) -> Array:
+    """``f(t)`` as a finite vector of ``size`` numbers, or a ParameterError naming ``name``."""
+    try:
+        value = np.asarray(f(t), dtype=float).reshape(-1)
+    except Exception as exc:
+        raise ParameterError(name, f"a callable returning {what} (calling it at t = {t!r} raised)", f) from exc
+    if value.size != size or not np.all(np.isfinite(value)):
+        raise ParameterError(name, f"a callable returning {what}", f"{value!r} at t = {t!r}")
+    return value
+
+
 def _constant_input(u: Array) -> _Input:
     piece = np.tile(u, (DEGREE + 1, 1))
     return _Input(lambda t, left_end: piece if t.size == DEGREE + 1 else np.tile(u, (t.size, 1)), np.zeros(1))
@@ -337,6 +349,8 @@ class _Solution:
         self.region_first: list[int] = []
         self.region_last: list[int] = []
         self.error_estimate = 0.0
+        # The jump of x at t_end itself (an impulse train reaching the last breakpoint): right limit there.
+        self.end_jump = np.zeros(m.n)
 
     def append(self, a: float, b: float, r: int, X: Array, Z: Array) -> None:
         k = self.count
@@ -355,8 +369,9 @@ class _Solution:
         if self.history is None:
             return np.zeros(s.size)
         out = np.empty(s.size)
+        what = f"{self.m.nw} finite value(s)"
         for j, sj in enumerate(s):
-            out[j] = np.asarray(self.history(float(sj)), dtype=float).reshape(self.m.nw)[i]
+            out[j] = _user_values("history", self.history, float(sj), self.m.nw, what)[i]
         return out
 
     def delayed(self, a: float, b: float, t: Array, i: int) -> Array:
@@ -390,7 +405,9 @@ class _Solution:
     def state(self, s: Array) -> Array:
         """``x(s)``, shape ``(len(s), n)``."""
         s = self.snap(s)
-        return self._eval(self.X, self._pieces(s), s)
+        X = self._eval(self.X, self._pieces(s), s)
+        X[s >= self.bps[-1]] += self.end_jump
+        return X
 
     def delayed_at(self, s: Array) -> Array:
         """``w(s) = z(s - tau)`` (right limits), shape ``(len(s), nw)``."""
@@ -447,8 +464,8 @@ def _integrate(
     scale = float(np.abs(x).max()) if x.size else 0.0
     h_min = 1e-10 * max(t_end, 1.0)
     B1T, B2T, C2T, D21T, D22T = m.B1.T.copy(), m.B2.T.copy(), m.C2.T.copy(), m.D21.T.copy(), m.D22.T.copy()
-    for r in range(bps.size - 1):
-        a, b = float(bps[r]), float(bps[r + 1])
+    for r in range(bps.size):
+        a = float(bps[r])
         if zimp is not None:
             w_imp = np.zeros(m.nw)
             for i, ti in enumerate(m.tau):
@@ -457,6 +474,10 @@ def _integrate(
                     w_imp[i] = zimp[j, i]
             zimp[r] = m.D22 @ w_imp + (m.D21 @ u.impulse if r == 0 else 0.0)  # type: ignore[operator]
             x = x + m.B2 @ w_imp
+        if r == bps.size - 1:
+            sol.end_jump = x - sol.X[sol.count - 1, -1] if sol.count else np.zeros(m.n)
+            break
+        b = float(bps[r + 1])
         pieces = max(1, math.ceil((b - a) / h - 1e-9))
         todo = [(a + (b - a) * (j + 1) / pieces, a + (b - a) * j / pieces) for j in range(pieces)][::-1]
         sol.region_first.append(sol.count)
@@ -525,9 +546,9 @@ def _check_history(history: History | None, m: _Mats) -> History | None:
         return None
     if not callable(history):
         raise ParameterError("history", "a callable t -> z(t) for t < 0 (a vector of length nw), or None", history)
-    probe = np.asarray(history(-float(m.tau.max()) if m.nw else -1.0), dtype=float)
-    if probe.size != m.nw:
-        raise ParameterError("history", f"a callable returning vectors of length nw = {m.nw}", probe.shape)
+    _user_values(
+        "history", history, -float(m.tau.max()) if m.nw else -1.0, m.nw, f"vectors of nw = {m.nw} finite values"
+    )
     return history
 
 
@@ -785,9 +806,8 @@ def _callable_input(U: InputFunction, t: Array, nu: int, breaks: ArrayLike | Non
         raise ParameterError("breaks", "finite times", breaks)
     b = np.sort(b[(b > t0) & (b < t[-1])])
     tol = 1e-12 * max(float(t[-1] - t0), 1.0)
-    probe = np.asarray(U(t0), dtype=float)
-    if probe.size != nu:
-        raise ParameterError("U", f"a callable returning {nu} input value(s)", probe.shape)
+    what = f"{nu} finite input value(s)"
+    _user_values("U", U, t0, nu, what)
 
     def values(times: Array, left_end: bool) -> Array:
         at = times + t0
@@ -799,7 +819,7 @@ def _callable_input(U: InputFunction, t: Array, nu: int, breaks: ArrayLike | Non
                 at[-1] = np.nextafter(at[-1], -np.inf)
         out = np.empty((times.size, nu))
         for k, tk in enumerate(at):
-            out[k] = np.asarray(U(float(tk)), dtype=float).reshape(nu)
+            out[k] = _user_values("U", U, float(tk), nu, what)
         return out
 
     return _Input(values, np.concatenate(([0.0], b - t0)))
