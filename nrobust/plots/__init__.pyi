@@ -1,6 +1,7 @@
 # The public names of nrobust.plots, loaded on first use (nrobust/plots/__init__.py).
 from .base import (
     NrobustPlot as NrobustPlot,
+    figure_png as figure_png,
 )
 from .charts import (
     delay_chart_plot as delay_chart_plot,

@@ -11,6 +11,7 @@ it drew, keyed by what they show, so that a test or a user can check and restyle
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -18,7 +19,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
-__all__ = ["NrobustPlot", "get_axes"]
+__all__ = ["NrobustPlot", "figure_png", "get_axes"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,3 +49,24 @@ def get_axes(ax: Axes | None) -> Axes:
 
     _, ax = plt.subplots()
     return ax
+
+
+def figure_png(fig: Figure, dpi: float = 100.0) -> bytes:
+    """``fig`` as PNG bytes; the tight layout unless its subplot parameters were set by hand.
+
+    A figure laid out by ``subplots_adjust`` keeps its layout and has no layout engine, so
+    it is drawn once: any layout engine makes ``savefig`` draw it twice, and the tight layout
+    measures every label. Bytes can be sent between processes, so a worker can draw a
+    figure that the process writing the report only embeds.
+    """
+    import matplotlib as mpl
+
+    buf = io.BytesIO()
+    pars = fig.subplotpars
+    rc = mpl.rcParams
+    sides = (rc["figure.subplot.left"], rc["figure.subplot.right"], rc["figure.subplot.bottom"])
+    by_hand = (pars.left, pars.right, pars.bottom, pars.top) != (*sides, rc["figure.subplot.top"])
+    if fig.get_layout_engine() is None and not by_hand:
+        fig.set_layout_engine("tight")
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()

@@ -110,4 +110,6 @@ def simulation_figure(
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
     simulation_plot(runs, labels=labels, ax=ax, floor=floor)
     ax.set_title(title, fontsize="small")
+    # by hand, as a tight layout would place it: a layout engine makes savefig draw the figure twice
+    fig.subplots_adjust(left=0.12, right=0.975, bottom=0.15, top=0.91)
     return fig

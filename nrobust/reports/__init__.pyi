@@ -33,7 +33,9 @@ from .paper import (
     run_paper as run_paper,
 )
 from .report import (
+    RenderedFigures as RenderedFigures,
     ReportFiles as ReportFiles,
     certificate_figures as certificate_figures,
+    render_certificate_figures as render_certificate_figures,
     write_report as write_report,
 )

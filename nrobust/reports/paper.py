@@ -26,13 +26,14 @@ from ..hyperbolic.loops.controllers import (
 )
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate
+from ..plots.base import figure_png
 from ..plots.charts import stability_chart_plot, tradeoff_plot
-from ..plots.rootlocus import root_locus_response
+from ..plots.rootlocus import RootLocusData, root_locus_response
 from ..plots.simulation import simulation_figure
 from ..sweeps.executors import sweep_map
 from .certificate import Certificate, certify
 from .outputs import RunOutputs
-from .report import write_report
+from .report import render_certificate_figures, write_report
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -85,26 +86,44 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
     """One independent computation ``(job, *args)`` of :func:`run_paper`, run in a worker process.
 
     The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker, so a job is sent as its
-    name and a few numbers.
+    name and a few numbers. Each job also draws its figures, as PNG bytes: the figures are
+    drawn in parallel and the report only embeds them.
     """
     job, *args = task
     system = Hyperbolic2x2(**PAPER_SYSTEM)
-    if job == "simulate":
-        controller, delta, t_end, cells = args
-        return simulate(system, controller, delta, t_end, _paper_u0, _paper_v0, cells)
+    if job == "simulate":  # the runs of figure 1 or 3, and the figure
+        number, t_end, cells = args
+        controller, deltas = _figure_loop(number)
+        # the kernels simulate() would solve for each run (its default grid), solved once
+        kernels = solve_kernels(system)
+        runs = [simulate(system, controller, d, t_end, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas]
+        return runs, _png(paper_figure(number, runs))
     if job == "certify":
         controller, delta_max, rigorous = args
-        return certify(system, controller, delta_max=delta_max, k_region=False, rigorous=rigorous)
-    if job == "chart":
-        return stability_chart(system, *args, progress=False)
-    if job == "tradeoff":
-        return tradeoff(system, *args, progress=False)
+        cert = certify(system, controller, delta_max=delta_max, k_region=False, rigorous=rigorous)
+        return cert, render_certificate_figures(cert)
+    if job == "charts":  # the chart draws the trade-off's Rouché bounds: one job, two figures
+        Ks, deltas, k_max = args
+        chart = stability_chart(system, Ks, deltas, progress=False)
+        trade = tradeoff(system, Ks[Ks >= 0], progress=False)
+        return chart, trade, _png(_chart_figure(chart, trade, k_max)), _png(_tradeoff_figure(trade))
     if job == "locus":
         Ks, delta, region = args
-        return root_locus_response(
+        locus = root_locus_response(
             lambda K: characteristic(system, ReflectionController(K), delta), Ks, region, name="K"
         )
-    raise ParameterError("job", "one of simulate, certify, chart, tradeoff, locus", job)
+        return locus, _png(_locus_figure(locus))
+    raise ParameterError("job", "one of simulate, certify, charts, locus", job)
+
+
+def _png(fig: Figure) -> bytes:
+    """``fig`` as PNG (:func:`nrobust.plots.base.figure_png`), then closed."""
+    import matplotlib.pyplot as plt
+
+    try:
+        return figure_png(fig)
+    finally:
+        plt.close(fig)
 
 
 @renamed_keywords(n="cells")
@@ -168,14 +187,23 @@ def _run_paper(
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     classification = classify(system)
     tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta)
+    if workers:
+        # every job draws figures: matplotlib loaded once, here, rather than by each worker forked from here
+        import matplotlib.pyplot  # noqa: F401
     # one task per chunk: the jobs are few and long, and the longest go first
     run = sweep_map(workers or "serial", chunksize=1, progress=progress)
     res = dict(zip(tasks, run(_paper_job, tasks.values())))
-    fig1_runs = [res[f"fig1_{d:g}"] for d in PAPER_DELAYS_FIG1]
-    fig3_runs = [res[f"fig3_{d:g}"] for d in PAPER_DELAYS_FIG3]
-    cert_bs, cert_bs2 = res["cert_bs"], res["cert_bs2"]
-    chart, trade = res["chart"], res["tradeoff"]
-    figures = _paper_figures(fig1_runs, fig3_runs, chart, trade, res["locus"], classification.k_bound)
+    fig1_runs, fig1_png = res["fig1"]
+    fig3_runs, fig3_png = res["fig3"]
+    (cert_bs, drawn_bs), (cert_bs2, drawn_bs2) = res["cert_bs"], res["cert_bs2"]
+    chart, trade, chart_png, trade_png = res["charts"]
+    figures = [
+        (_FIGURE_CAPTIONS[1], fig1_png),
+        (_FIGURE_CAPTIONS[3], fig3_png),
+        (_CHART_CAPTION, chart_png),
+        (_TRADEOFF_CAPTION, trade_png),
+        (_LOCUS_CAPTION, res["locus"][1]),
+    ]
     admissible = _stable_gains(chart)
     summary = _paper_summary(system, classification, cert_bs, cert_bs2, chart, trade, fig1_runs, fig3_runs, admissible)
     intro = _paper_intro(classification, cert_bs, cert_bs2, summary, admissible)
@@ -185,6 +213,7 @@ def _run_paper(
         figures=figures,
         title="nrobust: the paper's example, end to end",
         intro=intro,
+        rendered=[drawn_bs, drawn_bs2],
     )
     summary["elapsed_seconds"] = time.perf_counter() - start
     summary["workers"] = workers
@@ -197,68 +226,75 @@ def _run_paper(
 def _paper_tasks(k_max: float, t_end: float, cells: int, n_K: int, n_delta: int) -> dict[str, tuple[Any, ...]]:
     """The independent computations of section 5 as :func:`_paper_job` tasks, by name.
 
-    The trade-off and the ``(K, delta)`` chart of U_BS2 on ``n_K x n_delta`` gains in
-    ``[-1.2, 1.2] k_max`` and delays in ``[0, 0.5]``, the certificates of U_BS2 and U_BS,
-    the root locus of U_BS2 in ``K``, and the simulations of figures 1 and 3.
+    The ``(K, delta)`` chart of U_BS2 on ``n_K x n_delta`` gains in ``[-1.2, 1.2] k_max``
+    and delays in ``[0, 0.5]`` with the trade-off on its gains ``K >= 0``, the certificates
+    of U_BS2 and U_BS, the simulations of figures 3 and 1, the root locus of U_BS2 in ``K``.
     """
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
     Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
     deltas = np.linspace(0.0, 0.5, n_delta)
     # longest first, so that two workers finish together
-    tasks: dict[str, tuple[Any, ...]] = {
-        "tradeoff": ("tradeoff", Ks[Ks >= 0]),
-        "chart": ("chart", Ks, deltas),
-        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3), _RIGOROUS),
+    return {
+        "charts": ("charts", Ks, deltas, k_max),
         "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1), _RIGOROUS),
+        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3), _RIGOROUS),
+        "fig3": ("simulate", 3, t_end, cells),
         "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
+        "fig1": ("simulate", 1, t_end, cells),
     }
-    for d in PAPER_DELAYS_FIG1:
-        tasks[f"fig1_{d:g}"] = ("simulate", u_bs, d, t_end, cells)
-    for d in PAPER_DELAYS_FIG3:
-        tasks[f"fig3_{d:g}"] = ("simulate", u_bs2, d, t_end, cells)
-    return tasks
 
 
-def _paper_figures(
-    fig1_runs: list[Simulation],
-    fig3_runs: list[Simulation],
-    chart: StabilityChart,
-    trade: Tradeoff,
-    locus: Any,
-    k_max: float,
-) -> list[tuple[str, Figure]]:
-    """The report's figures with their captions: figures 1 and 3, the chart, the trade-off, the root locus."""
+#: Captions of the report's further figures.
+_FIGURE_CAPTIONS = {
+    1: "Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)",
+    3: f"Figure 3 of the paper: L2 norm under U_BS2 with K = {PAPER_K:g}",
+}
+_CHART_CAPTION = (
+    "Stability chart of U_BS2(K) in (K, delta): grid verdicts, the exact boundary delta*(K), "
+    "the sufficient bound |K| < (1 - |rho q|)/|q| and the Rouche delay range"
+)
+_TRADEOFF_CAPTION = "Trade-off between decay rate and delay margin as K varies (labels: K)"
+_LOCUS_CAPTION = (
+    f"Root locus of U_BS2 in K at delta = {max(PAPER_DELAYS_FIG3):g} (upper half-plane; "
+    "the roots of a real loop are symmetric)"
+)
+
+
+def _chart_figure(chart: StabilityChart, trade: Tradeoff, k_max: float) -> Figure:
+    """The ``(K, delta)`` stability chart with the bound (54) and the trade-off's Rouché range."""
     import matplotlib.pyplot as plt  # lazily: the command line checks its input before drawing anything
 
-    figures = [
-        ("Figure 1 of the paper: L2 norm under U_BS (finite-time backstepping)", paper_figure(1, fig1_runs)),
-        (f"Figure 3 of the paper: L2 norm under U_BS2 with K = {PAPER_K:g}", paper_figure(3, fig3_runs)),
-    ]
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     stability_chart_plot(chart, ax=ax, k_bound=k_max, rouche=(trade.Ks, trade.rouche_bounds))
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
-    figures.append(
-        (
-            "Stability chart of U_BS2(K) in (K, delta): grid verdicts, the exact boundary delta*(K), "
-            "the sufficient bound |K| < (1 - |rho q|)/|q| and the Rouche delay range",
-            fig,
-        )
-    )
+    return fig
+
+
+def _tradeoff_figure(trade: Tradeoff) -> Figure:
+    """Decay rate against delay margin, labelled by ``K``."""
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     tradeoff_plot(trade, ax=ax)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
-    figures.append(("Trade-off between decay rate and delay margin as K varies (labels: K)", fig))
+    return fig
+
+
+def _locus_figure(locus: RootLocusData) -> Figure:
+    """The root locus of U_BS2 in ``K``."""
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     locus.plot(ax=ax)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
-    figures.append(
-        (
-            f"Root locus of U_BS2 in K at delta = {max(PAPER_DELAYS_FIG3):g} (upper half-plane; "
-            "the roots of a real loop are symmetric)",
-            fig,
-        )
-    )
-    return figures
+    return fig
+
+
+def _figure_loop(number: int) -> tuple[FiniteTimeController | ReflectionController, tuple[float, ...]]:
+    """The controller and the loop delays of figure 1 or 3."""
+    if number == 1:
+        return FiniteTimeController(), PAPER_DELAYS_FIG1
+    return ReflectionController(PAPER_K), PAPER_DELAYS_FIG3
 
 
 def _growth(run: Simulation) -> float:
@@ -394,11 +430,8 @@ def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: i
     """
     if number not in (1, 3):
         raise ParameterError("number", "1 or 3 (the paper's simulation figures)", number)
-    controller, deltas, law = (
-        (FiniteTimeController(), PAPER_DELAYS_FIG1, "U_BS, eq. (47)")
-        if number == 1
-        else (ReflectionController(PAPER_K), PAPER_DELAYS_FIG3, f"U_BS2(K={PAPER_K:g}), eq. (53)")
-    )
+    controller, deltas = _figure_loop(number)
+    law = "U_BS, eq. (47)" if number == 1 else f"U_BS2(K={PAPER_K:g}), eq. (53)"
     if runs is None:
         system = Hyperbolic2x2(**PAPER_SYSTEM)
         # the kernels simulate() would solve for each run (its default grid), solved once

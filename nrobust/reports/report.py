@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ from ..hyperbolic.loops.controllers import (
     normalize,
 )
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
+from ..plots.base import figure_png
 from ..plots.charts import delay_chart_plot
 from ..plots.nyquist import nyquist_response
 from ..plots.rootmap import root_map_region, root_map_response
@@ -46,7 +46,7 @@ from .certificate import PROVEN, Certificate
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["ReportFiles", "write_report", "certificate_figures"]
+__all__ = ["RenderedFigures", "ReportFiles", "certificate_figures", "render_certificate_figures", "write_report"]
 
 
 @dataclass(frozen=True)
@@ -111,26 +111,6 @@ def _fmt(x: Any, digits: int = 6) -> str:
     return f"{x:.{digits}g}"
 
 
-def _png(fig: Figure) -> bytes:
-    """The figure as PNG, 100 dpi; the tight layout unless its subplot parameters were set by hand.
-
-    A figure laid out by ``subplots_adjust`` keeps its layout and has no layout engine, so
-    it is drawn once: any layout engine makes ``savefig`` draw it twice, and the tight layout
-    measures every label.
-    """
-    import matplotlib as mpl
-
-    buf = io.BytesIO()
-    pars = fig.subplotpars
-    rc = mpl.rcParams
-    sides = (rc["figure.subplot.left"], rc["figure.subplot.right"], rc["figure.subplot.bottom"])
-    by_hand = (pars.left, pars.right, pars.bottom, pars.top) != (*sides, rc["figure.subplot.top"])
-    if fig.get_layout_engine() is None and not by_hand:
-        fig.set_layout_engine("tight")
-    fig.savefig(buf, format="png", dpi=100)
-    return buf.getvalue()
-
-
 def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_") or "figure"
 
@@ -150,6 +130,40 @@ def certificate_figures(cert: Certificate) -> list[tuple[str, Figure]]:
     the certified loop at ``delta_max``.
     """
     return _figures(cert)[0]
+
+
+@dataclass(frozen=True)
+class RenderedFigures:
+    """A certificate's standard figures drawn as PNG (:func:`render_certificate_figures`).
+
+    Plain bytes and numbers: a worker process can draw them and send them to the process
+    that writes the report (``write_report(..., rendered=...)``), as ``nrobust paper`` does.
+
+    Attributes
+    ----------
+    pngs : tuple of (str, bytes)
+        ``(caption, PNG at 100 dpi)`` of each figure of :func:`certificate_figures`, in order.
+    rhp_zeros : int or None
+        Closed-loop zeros in ``Re s > 0`` at ``delta_max`` by the Nyquist winding
+        (:attr:`NyquistResponse.rhp_zeros <nrobust.plots.nyquist.NyquistResponse>`), which
+        the report's table sets beside the count of the crossing analysis.
+    """
+
+    pngs: tuple[tuple[str, bytes], ...]
+    rhp_zeros: int | None
+
+
+def render_certificate_figures(cert: Certificate) -> RenderedFigures:
+    """The figures of :func:`certificate_figures` drawn as PNG, with the Nyquist count the report reads."""
+    import matplotlib.pyplot as plt
+
+    figures, nyquist = _figures(cert)
+    try:
+        pngs = tuple((caption, figure_png(fig)) for caption, fig in figures)
+    finally:
+        for _, fig in figures:
+            plt.close(fig)
+    return RenderedFigures(pngs, nyquist.rhp_zeros)
 
 
 def _crossing_count(cert: Certificate) -> int | None:
@@ -352,14 +366,21 @@ def _normal_form_text(system: Any) -> str:
     return ", ".join(parts)
 
 
-def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any], list[tuple[str, Figure]]]:
+def _certificate_blocks(
+    cert: Certificate, index: int | None, rendered: RenderedFigures | None = None
+) -> tuple[list[Any], RenderedFigures]:
+    """The section of one certificate (the answer panel, its figures, the details) and its figures as drawn.
+
+    ``rendered``: its standard figures if already drawn (:func:`render_certificate_figures`).
+    """
+    if rendered is None:
+        rendered = render_certificate_figures(cert)
     label = _controller_label(cert.controller if cert.given_controller is None else cert.given_controller)
     head = f"{label}" if index is None else f"{index + 1}. {label}"
     cls = cert.classification
     m = cert.margin
-    figures, nyquist = _figures(cert)
     number = 1 if index is None else index + 1
-    pictures = [_Figure(f"{number}_{_slug(caption)[:40]}", caption, _png(fig)) for caption, fig in figures]
+    pictures = [_Figure(f"{number}_{_slug(caption)[:40]}", caption, png) for caption, png in rendered.pngs]
     blocks: list[Any] = [_Heading(2, head), _panel(cert), pictures[0]]
     if index is None:
         blocks += _plant_blocks(cert)
@@ -423,7 +444,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         (
             f"closed-loop zeros in Re s > 0 at delta = {cert.delta_max:g}",
             f"{'-' if crossing_count is None else crossing_count} (crossings); "
-            f"{'no finite count' if nyquist.rhp_zeros is None else nyquist.rhp_zeros} (Nyquist winding)",
+            f"{'no finite count' if rendered.rhp_zeros is None else rendered.rhp_zeros} (Nyquist winding)",
             "delay_margin; nyquist_response",
         )
     )
@@ -454,7 +475,7 @@ def _certificate_blocks(cert: Certificate, index: int | None) -> tuple[list[Any]
         blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
         blocks.append(_Table(("loop", "box", "roots"), box_rows, summary=f"{len(box_rows)} boxes, one root count each"))
     blocks += pictures[1:]
-    return blocks, figures
+    return blocks, rendered
 
 
 def _at_delta_max(text: str, cert: Certificate) -> str:
@@ -631,9 +652,10 @@ def _html(title: str, blocks: Sequence[Any]) -> str:
 def write_report(
     certificates: Certificate | Sequence[Certificate],
     out_dir: str | Path,
-    figures: Sequence[tuple[str, Figure]] = (),
+    figures: Sequence[tuple[str, Figure | bytes]] = (),
     title: str = "nrobust delay-robustness report",
     intro: Sequence[str] = (),
+    rendered: Sequence[RenderedFigures] | None = None,
 ) -> ReportFiles:
     """Write a Markdown report, a self-contained HTML report and the certificates' JSON.
 
@@ -644,27 +666,37 @@ def write_report(
         (:func:`certificate_figures`).
     out_dir : path-like
         Output directory (created if needed).
-    figures : sequence of (caption, matplotlib Figure), optional
-        Further figures (simulations, stability charts...), appended in order.
+    figures : sequence of (caption, matplotlib Figure or PNG bytes), optional
+        Further figures (simulations, stability charts...), appended in order; a figure
+        given as PNG bytes (:func:`nrobust.plots.base.figure_png`) is embedded as is.
     title : str
         Report title.
     intro : sequence of str
         Paragraphs placed after the title.
+    rendered : sequence of RenderedFigures, optional
+        The standard figures of each certificate, already drawn
+        (:func:`render_certificate_figures`, e.g. in the worker that certified it); by
+        default they are drawn here.
 
     Returns
     -------
     ReportFiles
     """
-    import matplotlib.pyplot as plt
-
     certs = [certificates] if isinstance(certificates, Certificate) else list(certificates)
     if not certs or not all(isinstance(c, Certificate) for c in certs):
         raise ParameterError("certificates", "a Certificate or a non-empty sequence of Certificate", certificates)
     for k, item in enumerate(figures):
         if not (
-            isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and hasattr(item[1], "savefig")
+            isinstance(item, tuple)
+            and len(item) == 2
+            and isinstance(item[0], str)
+            and (isinstance(item[1], bytes) or hasattr(item[1], "savefig"))
         ):
-            raise ParameterError(f"figures[{k}]", "a (caption, matplotlib Figure) pair", item)
+            raise ParameterError(f"figures[{k}]", "a (caption, matplotlib Figure or PNG bytes) pair", item)
+    if rendered is not None and (
+        len(rendered) != len(certs) or not all(isinstance(r, RenderedFigures) for r in rendered)
+    ):
+        raise ParameterError("rendered", f"one RenderedFigures per certificate ({len(certs)})", rendered)
     out = Path(out_dir)
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -673,16 +705,17 @@ def write_report(
     blocks += [_Paragraph(p) for p in intro]
     if len(certs) > 1:  # one plant, several controllers: the plant once, each controller in its section
         blocks += _plant_blocks(certs[0], with_controller=False)
-    all_figs: list[tuple[str, Figure]] = []
     with threadpool_limits(1):  # the chains' small eigenvalue problems: competing BLAS threads slow them tenfold
         for k, cert in enumerate(certs):
-            section, figs = _certificate_blocks(cert, None if len(certs) == 1 else k)
+            section, _ = _certificate_blocks(
+                cert, None if len(certs) == 1 else k, None if rendered is None else rendered[k]
+            )
             blocks += section
-            all_figs += figs
     if figures:
         blocks.append(_Heading(2, "Further figures"))
         for j, (caption, fig) in enumerate(figures):
-            blocks.append(_Figure(f"extra_{j + 1}_{_slug(caption)[:40]}", caption, _png(fig)))
+            png = fig if isinstance(fig, bytes) else figure_png(fig)
+            blocks.append(_Figure(f"extra_{j + 1}_{_slug(caption)[:40]}", caption, png))
     v = certs[0].versions
     blocks.append(_Paragraph("Computed with " + ", ".join(f"{k} {val}" for k, val in v.items()) + "."))
 
@@ -703,6 +736,4 @@ def write_report(
         path = out / ("certificate.json" if len(certs) == 1 else f"certificate_{k + 1}.json")
         path.write_text(cert.to_json(), encoding="utf-8")
         jsons.append(path)
-    for _, fig in all_figs:
-        plt.close(fig)
     return ReportFiles(md, page, tuple(jsons), tuple(written))
