@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from nrobust._digits import with_accuracy
 from nrobust.config import load_system_file
 from nrobust.hyperbolic import (
     FiniteTimeController,
@@ -62,7 +63,7 @@ def test_the_answer_comes_before_any_table(filtered, tmp_path):
     assert panel < md.index("![") < md.index("| quantity |")
     answer = md[panel : md.index("![")]
     assert f"delta* = {filtered.margin_text}" in answer
-    assert f"decay rate {-filtered.abscissa.value:.6g}" in answer
+    assert f"decay rate {with_accuracy(-filtered.abscissa.value, filtered.abscissa.accuracy)}" in answer
     assert "certified integers" in answer and "rigorous = true" in answer
     page = (tmp_path / "report.html").read_text()
     assert page.index('class="answer"') < page.index("<table")

@@ -412,7 +412,8 @@ def _claims(
         out.append(
             Claim(
                 "crossing that fixes delta*",
-                f"{kind} at w = {margin.omega:.12g}, first of every zero of |A(i w)|^2 - |B(i w)|^2 on "
+                f"{kind} at w = {with_accuracy(margin.omega, margin.omega_accuracy)}, first of every zero of "
+                f"|A(i w)|^2 - |B(i w)|^2 on "
                 f"[0, W], W = {_outward(margin.frequency_bound, 6, True)}",
                 status(main),
                 "delay_margin (crossings)",

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .._digits import with_accuracy
 from .._json import json_float, json_safe
 from .._validate import renamed_keywords
 from ..errors import ParameterError
@@ -369,9 +370,10 @@ def _paper_intro(
         f"**Classification.** {classification.statement}",
         f"**U_BS.** {cert_bs.verdict} ({cert_bs.margin.reason}; rightmost chain of the delayed difference "
         f"operator at Re s = {cert_bs.principal_delayed.spectral_bound:.4g}.)",
-        f"**U_BS2(K = {PAPER_K:g}).** {cert_bs2.verdict} Crossing frequency {_fmt_num(bs2['crossing_frequency'])}, "
-        f"nominal decay rate {_fmt_num(-cert_bs2.abscissa.value)}, Rouché guaranteed range "
-        f"delta_0 = {_fmt_num(cert_bs2.rouche.delta_0) if cert_bs2.rouche is not None else '-'}.",
+        f"**U_BS2(K = {PAPER_K:g}).** {cert_bs2.verdict} Crossing frequency "
+        f"{with_accuracy(cert_bs2.margin.omega, cert_bs2.margin.omega_accuracy) if cert_bs2.margin.omega else '-'}, "
+        f"nominal decay rate {with_accuracy(-cert_bs2.abscissa.value, cert_bs2.abscissa.accuracy)}, Rouché "
+        f"guaranteed range delta_0 = {cert_bs2.rouche.text if cert_bs2.rouche is not None else '-'}.",
         "Simulated growth rates (slope of log ||(u, v)|| over the second half of each run): "
         + "; ".join(
             f"{name} delta = {d}: {g:.3g}"

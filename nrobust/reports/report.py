@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .._digits import with_accuracy
 from .._json import fields_dict
 from ..design.local import delayed_gamma
 from ..errors import ParameterError
@@ -267,8 +268,8 @@ def _panel(cert: Certificate) -> _Panel:
         lines.append("**Without delay (delta = 0):** stable, no closed-loop root at all (finite-time convergence).")
     elif cert.nominally_stable:
         lines.append(
-            f"**Without delay (delta = 0):** stable; decay rate {_fmt(-cert.abscissa.value)} "
-            f"(every closed-loop root has Re s <= {_fmt(cert.abscissa.value)})."
+            f"**Without delay (delta = 0):** stable; decay rate "
+            f"{with_accuracy(-cert.abscissa.value, cert.abscissa.accuracy)} (the rightmost closed-loop root)."
         )
     else:
         n = "some" if m.nominal_unstable is None else str(m.nominal_unstable)
@@ -280,7 +281,11 @@ def _panel(cert: Certificate) -> _Panel:
     elif cert.delay_margin == 0.0:
         lines.append("**Delay margin:** delta* = 0: the smallest loop delay destabilises the loop (not delay-robust).")
     else:
-        where = "" if m.omega is None else f", a root crossing the imaginary axis at w = {_fmt(m.omega)}"
+        where = (
+            ""
+            if m.omega is None
+            else f", a root crossing the imaginary axis at w = {with_accuracy(m.omega, m.omega_accuracy)}"
+        )
         lines.append(f"**Delay margin:** delta* = {cert.margin_text}{where}.")
     dmax = f"{cert.delta_max:g}"
     count = _crossing_count(cert)
@@ -409,7 +414,11 @@ def _certificate_blocks(
             "delay_margin",
         ),
         ("accuracy of the delay margin", _accuracy_text(cert), "certify"),
-        ("crossing frequency at delta*", _fmt(m.omega), "delay_margin"),
+        (
+            "crossing frequency at delta*",
+            "none" if m.omega is None else with_accuracy(m.omega, m.omega_accuracy),
+            "delay_margin",
+        ),
         (
             "margin verified (residual and count)",
             "not needed: infinite, no crossing frequency" if np.isposinf(m.margin) else _fmt(m.verified),
@@ -557,7 +566,8 @@ def _k_region_text(kreg: Any) -> str:
     if not kreg.intervals:
         return "none"
     parts = [
-        f"({_fmt(lo.K, 10)}, {_fmt(hi.K, 10)}): lower end {_end_text(lo)}, upper end {_end_text(hi)}"
+        f"({with_accuracy(lo.K, lo.accuracy)}, {with_accuracy(hi.K, hi.accuracy)}): lower end {_end_text(lo)}, "
+        f"upper end {_end_text(hi)}"
         for lo, hi in kreg.ends
     ] or [f"({_fmt(lo, 10)}, {_fmt(hi, 10)})" for lo, hi in kreg.intervals]
     return f"{'; '.join(parts)}; each end verified to {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
