@@ -137,3 +137,18 @@ def test_degenerate_loops_are_decided_quickly() -> None:
     # 1 / (s^2 + 2) is real at every s = i w: no isolated phase crossover
     with pytest.raises(ParameterError, match="real at every w"):
         allmargin(tf([1.0], [1.0, 0.0, 2.0]))
+
+
+def test_axis_pole_with_an_integrator_is_no_phase_crossover() -> None:
+    """``L = 0.1 e^{-0.1 s} / (s (s^2 + 1))``: the pole ``s = i`` (phase jump, ``|L|`` infinite) is not listed.
+
+    ``L(i w) = -0.1 i e^{-0.1 i w} / (w (1 - w^2))`` is a negative real number exactly at
+    ``0.1 w = 2 pi k - pi / 2`` with ``w > 1`` (below 1 it would need ``w = 5 pi (4k + 1) > 1``), i.e.
+    ``w = 15 pi, 35 pi, ...``, with gain margin ``10 w (w^2 - 1)`` (``1e6`` at ``15 pi``); the band of
+    ``gain_floor=1e-7`` ends near ``w = 100``, so ``15 pi`` alone. Tolerance: Brent's ``xtol``.
+    """
+    got = allmargin(0.1 * delay(0.1) * tf([1.0], [1.0, 0.0, 1.0, 0.0]), gain_floor=1e-7)
+    expected = [w for w in (15 * np.pi, 35 * np.pi) if w < got.phase_band]
+    assert expected, got.phase_band
+    np.testing.assert_allclose(got.gm_frequencies, expected, rtol=1e-10)
+    np.testing.assert_allclose(got.gain_margins, [10 * w * (w * w - 1) for w in expected], rtol=1e-10)

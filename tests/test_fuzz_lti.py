@@ -410,37 +410,40 @@ def test_allmargin_matches_python_control_on_the_pade_model(loop: tuple[list[flo
         assert before == 0 and after is not None and after >= 1, (before, after)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=RuntimeWarning,
-    reason="allmargin(tf([1/32], [1, 0, 1/16]) * delay(1/8)) warns 'divide by zero' (RuntimeWarning, an "
-    "error under the test settings) at the open-loop pole w = 1/4, taken for a phase crossover; expected no "
-    "warning, the pole's phase jump listed with gain margin 0 (python-control's stability_margins of the "
-    "Padé(12) model: gm ~ 8e-16 at w = 0.25) or left out",
-)
 def test_allmargin_with_an_undamped_oscillator_in_the_loop() -> None:
-    """A pole pair on the axis (``+-i/4``): the loop gain is infinite there, not a phase crossover to divide at."""
+    """A pole pair on the axis (``+-i/4``): the loop gain is infinite there, not a phase crossover.
+
+    ``L(i w) = e^{-i w/8} / (32 (1/16 - w^2))`` is a negative real number exactly at ``w = 16 pi k``,
+    ``k >= 1`` (``w > 1/4``, ``e^{-i w/8} = 1``; below ``1/4`` it would need ``w = 8 pi (2k + 1)``). There
+    ``|L| < 1.3e-5``, hence ``gain_floor=1e-6``: each is listed iff it lies in the band (the first three,
+    gm 80849.80 at ``w = 50.26548`` as python-control's ``stability_margins`` of the Padé(12) model). The
+    pole itself (where that model gives gm ~ 8e-16 at ``w = 0.25``, a jump of the phase, not a crossover) is
+    not listed, and no division by ``D(i/4) = 0`` warns.
+    """
     num, den, tau = [0.03125], [1.0, 0.0, 0.0625], 0.125
-    got = allmargin(DelayLTI.from_control(control.tf(num, den)) * delay(tau))
-    assert np.all(np.isfinite(got.gain_margins))
-    at_pole = np.abs(got.gm_frequencies - 0.25) < 1e-6
-    assert np.all(got.gain_margins[at_pole] < 1e-6)
+    got = allmargin(DelayLTI.from_control(control.tf(num, den)) * delay(tau), gain_floor=1e-6)
+    expected = [16 * math.pi * k for k in range(1, 100) if 16 * math.pi * k < got.phase_band]
+    assert len(expected) >= 1, got.phase_band
+    np.testing.assert_allclose(got.gm_frequencies, expected, rtol=1e-10)  # Brent's xtol 1e-12 (1 + w)
+    np.testing.assert_allclose(got.gain_margins, [32 * (w * w - 0.0625) for w in expected], rtol=1e-10)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="allmargin(tf([1/32, 0, 3/32], [1, 3/4, 13/64, 0]) * delay(1/8)) lists a phase crossover at the "
-    "loop's zero w = sqrt(3) with gain margin 3.8e17 (rounding: L(i sqrt 3) = 0 exactly, no phase crossover); "
-    "expected the crossovers of python-control's stability_margins of the Padé(12) model below w tau = 5: "
-    "w = 0.430928 (gm 1.585916) and w = 13.02699 (gm 424.56, below the gain floor, may be left out)",
-)
 def test_allmargin_with_a_loop_zero_on_the_axis() -> None:
-    """A zero pair of the loop on the axis (``+-i sqrt 3``): ``L = 0`` there, not a negative real number."""
+    """A zero pair of the loop on the axis (``+-i sqrt 3``): ``L = 0`` there, not a negative real number.
+
+    Oracle: python-control's ``stability_margins`` of the Padé(12) model (Padé error ~1e-20 at these
+    ``w tau < 2``), phase crossovers ``w = 0.430928`` (gm 1.585916) and ``w = 13.02699`` (gm 424.56,
+    ``|L| < 1e-2``: listed with ``gain_floor=1e-3``), quoted to 6 and 7 digits, hence ``rtol=2e-6``.
+    """
     num, den, tau = [0.03125, 0.0, 0.09375], [1.0, 0.75, 0.203125, 0.0], 0.125
-    got = allmargin(DelayLTI.from_control(control.tf(num, den)) * delay(tau))
+    L = DelayLTI.from_control(control.tf(num, den)) * delay(tau)
+    got = allmargin(L)
     assert np.all(np.abs(got.gm_frequencies - math.sqrt(3.0)) > 1e-6), (got.gm_frequencies, got.gain_margins)
-    np.testing.assert_allclose(got.gm_frequencies[0], 0.430928, rtol=1e-6)
+    np.testing.assert_allclose(got.gm_frequencies, [0.430928], rtol=2e-6)
+    np.testing.assert_allclose(got.gain_margins, [1.585916], rtol=2e-6)
+    deep = allmargin(L, gain_floor=1e-3)
+    np.testing.assert_allclose(deep.gm_frequencies, [0.430928, 13.02699], rtol=2e-6)
+    np.testing.assert_allclose(deep.gain_margins, [1.585916, 424.56], rtol=2e-5)
 
 
 # ============================================================================ 4. Padé error bound vs mpmath

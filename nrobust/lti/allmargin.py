@@ -29,6 +29,17 @@ puts no zero of high order at ``w = 0`` into either search. A zero loop ``N = 0`
 crossover; a loop real at every ``s = i w`` (decided exactly, e.g. ``1 / (s^2 + 2)``) has phase
 crossovers filling whole intervals and is refused.
 
+Zeros and poles of the loop on the imaginary axis (``N(i w) = 0`` or ``D(i w) = 0``, e.g. an
+undamped oscillator ``1 / (s^2 + w_0^2)`` or a notch ``s^2 + w_0^2`` in ``N``) make
+``Im(N conj D)`` vanish without ``L(i w)`` being a negative real number: ``L`` is ``0`` (no finite
+gain margin to gain) or infinite there (the phase jumps, no gain margin at all). They are no phase
+crossovers and are left out. Their factor, the exact greatest common divisor of the point terms'
+polynomials restricted to its axis zeros (rational arithmetic), is real on the axis and is divided
+out of the phase search; a zero or pole not found so (one of a quasi-polynomial with distributed
+terms, or not shared by all its terms) is left out when ``N`` or ``D`` vanishes in floating point at
+the refined frequency. Either way the closed loop's stability is still decided by the certified
+pole count of ``D + N`` (``stable``).
+
 Each crossing is refined by Brent's method on a bracket of the certified sign change
 (``xtol = 1e-12 (1 + w)``). ``stable`` is the certified verdict on the closed loop
 ``D + N`` (:func:`nrobust.margins.unstable_count`). A MIMO loop is taken a loop at a
@@ -248,6 +259,10 @@ def allmargin(
         )
     W_g = bound[0]
 
+    # Axis zeros of N_0 and D_0 (zeros and poles of L on the axis) are zeros of Im(N conj D) but no
+    # phase crossover: their exact factors, real on the axis, are taken out of the phase search.
+    N1, D1 = _without_axis_factor(N0), _without_axis_factor(D0)
+
     def loop_at(w: float) -> complex:
         s = np.array([1j * w])
         return complex(N(s)[0] / D(s)[0])
@@ -258,19 +273,23 @@ def allmargin(
 
     def phase_gap(w: float) -> float:
         s = np.array([1j * w])
-        return float(np.imag(rotate * N0(s)[0] * np.conj(D0(s)[0])))
+        return float(np.imag(rotate * N1(s)[0] * np.conj(D1(s)[0])))
 
     w_pm = np.array([_refine(gain_gap, float(w), gains.frequency_bound) for w in gains.omegas])
     at = np.array([loop_at(w) for w in w_pm], dtype=complex)
     pm = np.angle(-at)  # angle L + pi, in (-pi, pi]
     dm = np.mod(pm, 2.0 * np.pi) / w_pm if w_pm.size else np.zeros(0)
-    N_phase = N0 * (1j * rotate)
-    phases, _ = crossing_search(D0 - N_phase, D0 + N_phase, bound, max_evals)
+    N_phase = N1 * (1j * rotate)
+    phases, _ = crossing_search(D1 - N_phase, D1 + N_phase, bound, max_evals)
     w_gm = [0.0] if _negative_real(loop_at(0.0) if abs(D(np.zeros(1))[0]) > 0 else np.inf) else []
     for w in phases.omegas:
         if w > 0:
             w = _refine(phase_gap, float(w), W_g * (1.0 + 1e-6) + 1e-9)
-            if np.real(loop_at(w)) < 0.0:
+            s = np.array([1j * w])
+            n, d = complex(N(s)[0]), complex(D(s)[0])
+            # n or d = 0 in floating point: a zero or pole of L met where it is not factored out
+            # exactly (distributed terms): L is 0 or infinite there, not a negative real number.
+            if n != 0.0 and d != 0.0 and np.real(n / d) < 0.0:
                 w_gm.append(w)
     gm_w = np.array(sorted(w_gm), dtype=float)
     gm = np.array([1.0 / abs(loop_at(w)) for w in gm_w], dtype=float)
@@ -335,6 +354,47 @@ def _real_on_axis(N: QuasiPolynomial, D: QuasiPolynomial) -> bool:
             if c.get(n, Fraction(0)) != (-1) ** n * mirror.get(n, Fraction(0)):
                 return False
     return True
+
+
+def _without_axis_factor(F: QuasiPolynomial) -> QuasiPolynomial:
+    """``F / h`` with ``h`` the exact factor of ``F`` whose zeros are the common zeros of its point terms'
+    polynomials on the imaginary axis (``F`` itself when there is none or ``F`` has distributed terms).
+
+    With ``c`` the exact greatest common divisor of the polynomials ``p_k`` (real, so rational) and
+    ``c(i w) = A(w) + i B(w)``, the axis zeros of ``c`` are the real zeros of ``G = gcd(A, B)``. ``A`` is
+    even and ``B`` odd, so ``G`` is even or odd; it is even when ``c(0) != 0`` (integrators split off
+    first), and then ``h(s) = G(-i s)`` has real coefficients, divides every ``p_k`` and is real on the
+    axis: ``h(i w) = G(w)``. Dividing it out removes from ``Im(N(i w) conj D(i w))`` only the real
+    factor ``G(w)``, whose real zeros are the axis zeros of ``F``, and no other zero.
+    """
+    if F.distributed or not F.point_terms or not F.is_real:
+        return F
+    import flint  # python-flint: exact rational polynomials, not loaded at import
+
+    def exact(coefs: Any) -> Any:
+        return flint.fmpq_poly([flint.fmpq(*float(c).as_integer_ratio()) for c in np.real(coefs)])
+
+    polys = [exact(p) for p, _ in F.point_terms]
+    c = polys[0]
+    for p in polys[1:]:
+        c = c.gcd(p)
+    if c.degree() < 1:
+        return F
+    coefs = c.coeffs()
+    A = flint.fmpq_poly([x * (1 - n % 2) * (-1) ** (n // 2) for n, x in enumerate(coefs)])
+    B = flint.fmpq_poly([x * (n % 2) * (-1) ** (n // 2) for n, x in enumerate(coefs)])
+    G = A.gcd(B)
+    g = G.coeffs()
+    if G.degree() < 1 or any(g[1::2]):
+        return F
+    h = flint.fmpq_poly([x * (1 - n % 2) * (-1) ** (n // 2) for n, x in enumerate(g)])
+    quotients = []
+    for p in polys:
+        q, r = divmod(p, h)
+        if r != 0:
+            return F
+        quotients.append([float(Fraction(int(x.p), int(x.q))) for x in q.coeffs()])
+    return QuasiPolynomial(quotients, [t for _, t in F.point_terms])
 
 
 def _negative_real(z: complex) -> bool:
