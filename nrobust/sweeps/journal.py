@@ -135,7 +135,7 @@ class Journal:
     hash : str
         SHA-256 of the definition.
     resumed : bool
-        True when ``path`` held a journal of this sweep, read into :attr:`done` (False
+        True when ``path`` held a journal of this sweep, read into ``done`` (False
         for a new journal, or with ``restart``).
 
     Raises
