@@ -660,9 +660,13 @@ class PDELoop:
         self._kernel_bounds()
 
     # ---------------------------------------------------------------- values
+    #: Extra digits of the current evaluation (set by :meth:`F_mp` for points far left, where terms of
+    #: size ``e^{-Re s (tau + delta)}`` cancel and ``expm`` errs relative to its largest entry).
+    _boost = 0
+
     def _mp_open(self, s):
         """``(A_ol, e^{-tau s})`` at ``s`` by ``mpmath.expm``."""
-        with mp.workdps(self.DPS + 10):
+        with mp.workdps(self.DPS + 10 + self._boost):
             s = mp.mpc(s)
             tau = mp.mpf(self.tau)
             p = mp.mpf(self.p.numerator) / self.p.denominator
@@ -673,7 +677,7 @@ class PDELoop:
     def factors_mp(self, s):
         """``(A(s), B(s))`` at ``DPS`` digits."""
         aol, e = self._mp_open(s)
-        with mp.workdps(self.DPS + 10):
+        with mp.workdps(self.DPS + 10 + self._boost):
             s = mp.mpc(s)
             kind = self.controller[0]
             if kind == "open":
@@ -686,10 +690,32 @@ class PDELoop:
             a, b = (mp.mpf(v) for v in self.controller[1:])
             return (1 + b * s) * aol, (1 + a * s) * (1 - aol)
 
+    def _F_at(self, s, delta: float, boost: int):
+        self._boost = boost
+        try:
+            A, B = self.factors_mp(s)
+            with mp.workdps(self.DPS + 10 + boost):
+                return A + B * mp.exp(-mp.mpc(s) * mp.mpf(delta))
+        finally:
+            self._boost = 0
+
     def F_mp(self, s, delta: float):
-        A, B = self.factors_mp(s)
+        """``F(s; delta)`` to ``DPS`` digits: the working precision grows with the size of the terms that
+        cancel (``e^{-Re s (2 tau + delta)}``, a tiny ``rho q``), and two precisions 30 digits apart must
+        agree, else OracleUnsure."""
+        x = float(mp.re(mp.mpc(s)))
+        rq = abs(self.rho * self.q)
+        extra = max(0.0, -x) * (2.0 * self.tau + float(delta)) / math.log(10.0)
+        extra += max(0.0, -math.log10(rq)) if rq > 0.0 else 0.0
+        boost = math.ceil(extra) + 5
+        if boost > 2000:
+            raise OracleUnsure(f"terms at s = {s} need more than 2000 extra digits")
+        f1 = self._F_at(s, delta, boost)
+        f2 = self._F_at(s, delta, boost + 30)
         with mp.workdps(self.DPS + 10):
-            return A + B * mp.exp(-mp.mpc(s) * mp.mpf(delta))
+            if abs(f1 - f2) > mp.mpf(10) ** (-self.DPS + 5) * (1 + abs(f2)):
+                raise OracleUnsure(f"F at s = {s} is not settled at {self.DPS + 10 + boost} digits")
+            return +f2
 
     def factors_np(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(A, B)`` in double precision (closed-form 2x2 exponential), vectorised."""
