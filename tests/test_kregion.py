@@ -28,6 +28,7 @@ from nrobust import (
     delay_margin,
     k_region,
 )
+from nrobust._digits import with_accuracy
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import gain
 from nrobust.reports.report import write_report
@@ -205,7 +206,11 @@ def test_item9_report_carries_the_exact_ends(tmp_path) -> None:
         assert admissible(LAM2, K, delta_max) is ok
     files = write_report(cert, tmp_path / "report")
     text = files.markdown.read_text()
-    assert f"({lo.K:.10g}, {hi.K:.10g})" in text and "pair birth" in text and "within 0.0" not in text
+    assert (
+        f"({with_accuracy(lo.K, lo.accuracy)}, {with_accuracy(hi.K, hi.accuracy)})" in text
+        and "pair birth" in text
+        and "within 0.0" not in text
+    )
 
 
 def test_item9_certificate_records_why_the_region_is_missing(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -38,6 +38,7 @@ from nrobust import (
     ReflectionController,
     TransportSystem,
 )
+from nrobust._digits import with_accuracy
 from nrobust.reports.report import write_report
 
 QP = QuasiPolynomial
@@ -305,7 +306,7 @@ def test_item9_certificate_carries_exact_gain_ends(tmp_path) -> None:
         s_in = _newton_zero(LAM2, inside, delay_b, w_b)
         assert s_in.real < 0 and _zeros_near(LAM2, inside, delay_b, w_b, (s_in.real / 2, 1e-3)) == 0
     text = write_report(cert, tmp_path / "report").markdown.read_text()
-    assert f"({lo.K:.10g}, {hi.K:.10g})" in text and "pair birth" in text
+    assert f"({with_accuracy(lo.K, lo.accuracy)}, {with_accuracy(hi.K, hi.accuracy)})" in text and "pair birth" in text
 
 
 # ============================================================ items 10-14: found by the harness
