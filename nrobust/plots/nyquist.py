@@ -61,6 +61,9 @@ if TYPE_CHECKING:
 
 __all__ = ["NyquistResponse", "nyquist_plot", "nyquist_response"]
 
+#: Crossings of the negative real axis refined and labelled, the lowest frequencies first.
+MAX_REAL_CROSSINGS = 32
+
 # Work bound on the initial frequency grid of nyquist_response.
 _MAX_FREQ = 10**6
 # Work bound on the evaluations of the crossing search (that of crossing_frequencies).
@@ -423,7 +426,8 @@ def _real_axis_crossings(
     """Frequencies ``w > 0`` where ``L(i w)`` crosses the negative real axis, and ``L`` there.
 
     A sign change of ``Im L`` between consecutive samples on the axis with ``Re L < 0`` at
-    both, refined by Brent's method on ``Im L(i w)``.
+    both, refined by Brent's method on ``Im L(i w)``: the first :data:`MAX_REAL_CROSSINGS` in
+    frequency (they label the plot; a loop delay of 1e300 makes every sample one).
     """
     from scipy.optimize import brentq  # scipy.optimize takes a second to load: only when drawing
 
@@ -433,7 +437,7 @@ def _real_axis_crossings(
         on_axis[:-1] & on_axis[1:] & (re[:-1] < 0) & (re[1:] < 0) & (np.sign(im[:-1]) * np.sign(im[1:]) < 0)
     )
     found = []
-    for j in pick:
+    for j in pick[:MAX_REAL_CROSSINGS]:
 
         def f(x: float) -> float:
             return float(L(np.array([1j * x]))[0].imag)
