@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import control
 import mpmath as mp
 import numpy as np
 
+from nrobust.lti.delay_lti import DelayLTI
 from nrobust.lti.timeresp import step_response
 
 #: ``(a, k, tau)`` of the two loops.
@@ -35,25 +35,9 @@ CASES = ((1.0, 1.5, 1.0), (8.0, 4.0, 2.0))
 INTERVALS = 100
 
 
-@dataclass
-class Loop:
-    """The FOPDT loop in LFT form."""
-
-    A: np.ndarray
-    B1: np.ndarray
-    B2: np.ndarray
-    C1: np.ndarray
-    C2: np.ndarray
-    D11: np.ndarray
-    D12: np.ndarray
-    D21: np.ndarray
-    D22: np.ndarray
-    tau: np.ndarray
-
-
-def loop(a: float, k: float, tau: float) -> Loop:
+def loop(a: float, k: float, tau: float) -> DelayLTI:
     one = np.ones((1, 1))
-    return Loop(-a * one, 0 * one, k * one, one, -one, 0 * one, 0 * one, one, 0 * one, np.array([tau]))
+    return DelayLTI(-a * one, 0 * one, k * one, one, -one, 0 * one, 0 * one, one, 0 * one, np.array([tau]))
 
 
 def exact(a_: float, k_: float, tau_: float, times: np.ndarray) -> np.ndarray:
