@@ -66,6 +66,7 @@ from .hyperbolic.loops import (
     FilteredController as FilteredController,
     FiniteTimeController as FiniteTimeController,
     OpenLoop as OpenLoop,
+    OutputFeedback as OutputFeedback,
     ReflectionController as ReflectionController,
     StateFeedback as StateFeedback,
     boundary_function as boundary_function,

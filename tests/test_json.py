@@ -43,7 +43,13 @@ from nrobust.hyperbolic.analyses import (
 )
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.kernels.varying import solve_varying_kernels
-from nrobust.hyperbolic.loops.controllers import FilteredController, ReflectionController, StateFeedback, classify
+from nrobust.hyperbolic.loops.controllers import (
+    FilteredController,
+    OutputFeedback,
+    ReflectionController,
+    StateFeedback,
+    classify,
+)
 from nrobust.hyperbolic.loops.delay_form import delay_form
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
 from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin
@@ -174,6 +180,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "Claim": proven.claims[0],
         "ModelError": proven.model_error,
         "StateFeedback": StateFeedback(-0.3, np.cos, 0.5),  # a callable gain: its repr
+        "OutputFeedback": OutputFeedback(ReflectionController(0.1), observer_delay=0.05),
         "SaintVenant": saint_venant(3000.0, 7.0, 1e-4, 14.0, manning=0.02),
         "ARZ": arz(500.0, 40.0, 0.16, 0.5, 60.0, 0.12),
         "GeneralHyperbolic2x2": GENERAL,
@@ -254,6 +261,7 @@ NAMES = [
     "Claim",
     "ModelError",
     "StateFeedback",
+    "OutputFeedback",
     "SaintVenant",
     "ARZ",
     "GeneralHyperbolic2x2",

@@ -49,6 +49,7 @@ BASE_MODULES = {
 CORE_PREFIXES = (
     "nrobust.quasipoly",
     "nrobust.distributed_delay",
+    "nrobust.volterra",
     "nrobust.difference",
     "nrobust.qpmatrix",
     "nrobust.matrix_difference",

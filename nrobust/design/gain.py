@@ -74,6 +74,9 @@ _OFFSET = 1e-10
 # Local maxima of the sampled envelope within this fraction of the largest are solved.
 _NEAR_TOP = 0.05
 _NEWTON_STEPS = 30
+# Relative Newton step below which steps that stop halving are the rounding floor of g (a loop whose
+# distributed terms were computed in floating point, e.g. an output feedback's observer term).
+_NOISE_STEP = 1e-12
 _TWO_PI = 2.0 * np.pi
 
 
@@ -342,15 +345,17 @@ class _Curves:
 
     def at_gain(self, K: float, w0: float, theta0: float | None = None) -> tuple[float, float, float, float]:
         """Newton on ``g(w; K) = 0`` from ``w0``: ``(w, d, dd/dK, dg/dw)`` (``d`` near ``theta0 / w``)."""
-        w = w0
+        w, previous = w0, np.inf
         for _ in range(_NEWTON_STEPS):
             a, b, da, db, r = self._values(np.array([w]), K)
             g = abs(a) ** 2 - abs(b) ** 2
             gw = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
-            step = g / gw
+            step = float(g / gw)
             w -= step
-            if abs(step) <= 4e-16 * w:
+            # converged, or at the rounding floor of g (steps of 1e-12 relative that stop shrinking)
+            if abs(step) <= 4e-16 * w or (abs(step) <= _NOISE_STEP * w and abs(step) > 0.5 * previous):
                 break
+            previous = abs(step)
         else:
             raise CertificationError(f"best_margin: Newton on |A(i w)| = |B(i w)| did not converge at K = {K:.15g}")
         a, b, da, db, r = self._values(np.array([w]), K)

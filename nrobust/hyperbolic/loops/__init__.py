@@ -1,5 +1,6 @@
 """From a plant and a controller to the loop ``F(s; delta) = A(s) + B(s) e^{-delta s}``:
-the controllers (``controllers``), any state feedback (``feedback``), the delay form of
+the controllers (``controllers``), any state feedback (``feedback``), output feedback from the
+unactuated boundary (``output_feedback``), the delay form of
 eq. (39) (``delay_form``; ``varying_form`` for varying speeds), the kernel-free Laplace
 route (``laplace``) and the loops' transfer functions (``transfer``).
 """
@@ -11,6 +12,7 @@ from .controllers import (
     FilteredController,
     FiniteTimeController,
     OpenLoop,
+    OutputFeedback,
     ReflectionController,
     StateFeedback,
     characteristic,
@@ -21,6 +23,7 @@ from .controllers import (
 from .delay_form import DelayForm, delay_form
 from .feedback import feedback_factor, laplace_loop_factors
 from .laplace import boundary_function, general_solution, magnus_steps
+from .output_feedback import observer_term, output_feedback_factors
 from .transfer import closed_loop_tf, open_loop_tf, output_map
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 
@@ -33,6 +36,7 @@ __all__ = [
     "FilteredController",
     "FiniteTimeController",
     "OpenLoop",
+    "OutputFeedback",
     "ReflectionController",
     "StateFeedback",
     "VaryingDelayForm",
@@ -47,7 +51,9 @@ __all__ = [
     "loop_factors",
     "magnus_steps",
     "normalize",
+    "observer_term",
     "open_loop_tf",
+    "output_feedback_factors",
     "output_map",
     "varying_delay_form",
 ]

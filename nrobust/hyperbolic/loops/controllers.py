@@ -54,6 +54,7 @@ from ..plants.law import FeedbackLaw
 from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .feedback import feedback_factor
+from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import VaryingDelayForm, varying_delay_form
 
 __all__ = [
@@ -63,6 +64,7 @@ __all__ = [
     "FilteredController",
     "FiniteTimeController",
     "OpenLoop",
+    "OutputFeedback",
     "ReflectionController",
     "StateFeedback",
     "characteristic",
@@ -275,6 +277,65 @@ class StateFeedback(Controller):
         return json_safe({"controller": "StateFeedback", "k": self.k, **gains})
 
 
+@dataclass(frozen=True)
+class OutputFeedback(Controller):
+    """A state feedback fed by the exact predictor of the state from ``y(t) = v(t, 0)``.
+
+    The measurement is at the unactuated boundary; the observer predicts the output
+    ``beta(., 1)`` of the delay form (39) on the last ``1/mu`` time units from ``y`` and the
+    commands it sent (:mod:`~nrobust.hyperbolic.loops.output_feedback`), and ``controller``
+    acts on the prediction. Without a delay the loop is the state feedback's; with a delay
+    ``delta_a`` on the actuation and ``delta_m`` on the measurement, it depends on
+    ``delta = delta_a + delta_m`` only, and keeps the difference operator (hence the strong
+    stability, Theorem 4) of ``controller``. The collocated measurement ``u(t, 1)`` is not
+    covered.
+
+    Parameters
+    ----------
+    controller : Controller
+        The state feedback (any controller of the package but another output feedback).
+    observer_delay : float, default 0
+        The actuation delay ``delta_o`` the observer assumes (the delay of the commands it
+        replays): at ``delta = delta_o`` the loop is the state feedback's with that delay.
+    """
+
+    controller: Controller
+    observer_delay: float = 0.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.controller, OutputFeedback) or not isinstance(self.controller, Controller):
+            raise ParameterError(
+                "controller",
+                "a state feedback: OpenLoop, FiniteTimeController, ReflectionController, FilteredController or "
+                "StateFeedback",
+                self.controller,
+            )
+        object.__setattr__(self, "observer_delay", nonnegative("observer_delay", self.observer_delay))
+
+    def factors(self, phi, i_n, round_trip):
+        raise ParameterError(
+            "controller", "used through loop_factors(system, controller): the observer needs the plant", self
+        )
+
+    def feedback_law(self, system, kernels=None):
+        raise ParameterError(
+            "controller",
+            "a state feedback (an OutputFeedback is not a law on the state: simulate its controller, or analyse "
+            "its loop with loop_factors)",
+            self,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the state feedback under ``"state_feedback"``."""
+        return json_safe(
+            {
+                "controller": "OutputFeedback",
+                "state_feedback": self.controller.to_dict(),
+                "observer_delay": self.observer_delay,
+            }
+        )
+
+
 def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     """The plant as the paper's plant and the controller acting on it.
 
@@ -296,6 +357,10 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
         form = system.normal_form()
         if isinstance(controller, StateFeedback):
             controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
+        if isinstance(controller, OutputFeedback) and isinstance(controller.controller, StateFeedback):
+            inner = controller.controller
+            mapped = StateFeedback(*form.feedback_to_normal(inner.k, inner.g_u, inner.g_v))
+            controller = OutputFeedback(mapped, controller.observer_delay)
         return form.system, controller
     return system, controller
 
@@ -310,7 +375,7 @@ def _check_controller(controller: Any) -> None:
     if not isinstance(controller, Controller):
         raise ParameterError(
             "controller",
-            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController or StateFeedback",
+            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController, StateFeedback or OutputFeedback",
             controller,
         )
 
@@ -392,13 +457,23 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     with proven error bounds (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`), so a
     proof about the loop is a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a
     state feedback) from kernels on a grid, a model of the plant whose distance to it is
-    measured by convergence studies.
+    measured by convergence studies. ``"observer"``: an :class:`OutputFeedback` whose state
+    feedback takes the exact route; its observer term is computed in floating point with an
+    estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
     """
+    if isinstance(controller, OutputFeedback):
+        inner = loop_route(system, controller.controller, kernel_grid)
+        return "observer" if inner == "exact" and not _uncoupled(system) else inner
     if kernel_grid is not None or not has_exact_form(system):
         return "kernels"
     if isinstance(controller, StateFeedback) and _integral_gains(controller):
         return "kernels"
     return "exact"
+
+
+def _uncoupled(system: Any) -> bool:
+    """True for a plant whose ``N~`` is zero by construction (no in-domain coupling)."""
+    return bool(getattr(system, "uncoupled", False))
 
 
 def loop_scope(
@@ -413,6 +488,8 @@ def loop_scope(
     factors : tuple of QuasiPolynomial
         Its result ``(A, B)``.
     """
+    if isinstance(controller, OutputFeedback):
+        return _output_feedback_scope(system, controller, kernel_grid, factors)
     if loop_route(system, controller, kernel_grid) == "exact":
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         kernel = (
@@ -433,6 +510,64 @@ def loop_scope(
         f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
         "not part of the proof (a convergence study estimates it)"
     )
+
+
+def _output_feedback_scope(
+    system: Any, controller: OutputFeedback, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+) -> str:
+    """:func:`loop_scope` of an output feedback: the state feedback's, and the observer term's accuracy."""
+    term, grid = _observer(system, controller, kernel_grid)
+    inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
+    if term is None:
+        return inner + "; the observer is exact (N~ = 0: the measurement gives every value the law uses)"
+    observer = (
+        f"the observer's term (1 - Phi) H computed in floating point to an estimated {term.accuracy:.0e}, "
+        "which is not part of the proof"
+    )
+    if loop_route(system, controller, kernel_grid) == "observer":
+        radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
+        return f"a model of the PDE: N~ in closed form within a proven {radius:.1e}, and {observer}"
+    return f"{inner}; {observer}"
+
+
+def _observer_grid(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> int | None:
+    """The kernel grid of the state feedback's route (None: the exact route)."""
+    if loop_route(system, controller.controller, kernel_grid) == "exact":
+        return None
+    return DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
+
+
+def _unfiltered(controller: Controller) -> Controller:
+    """The law of a filtered controller without its filter (the controller itself otherwise)."""
+    if isinstance(controller, FilteredController):
+        return FiniteTimeController() if controller.K is None else ReflectionController(controller.K)
+    return controller
+
+
+def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> tuple[Any, int | None]:
+    """The observer term ``G`` of an output feedback on ``system`` and the kernel grid it was built on."""
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
+        raise ParameterError(
+            "system",
+            "a plant with a constant lam/mu for an OutputFeedback (its measurement window is 1/mu of the normal form)",
+            system,
+        )
+    grid = _observer_grid(system, controller, kernel_grid)
+    open_loop, _ = loop_factors(system, OpenLoop(), grid)
+    _, law = loop_factors(system, _unfiltered(controller.controller), grid)
+    plant = normalize(system, OpenLoop())[0]
+    return observer_term(open_loop, law, 1.0 / plant.mu), grid
+
+
+def _output_feedback_loop(
+    system: Any, controller: OutputFeedback, kernel_grid: int | None
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A_o, B_o)`` of an output feedback (:mod:`~nrobust.hyperbolic.loops.output_feedback`)."""
+    term, grid = _observer(system, controller, kernel_grid)
+    A, B = loop_factors(system, controller.controller, grid)
+    inner = controller.controller
+    numerator = (1.0, inner.a) if isinstance(inner, FilteredController) else (1.0,)
+    return output_feedback_factors(A, B, term, numerator, controller.observer_delay)
 
 
 def _exact_factors(
@@ -479,6 +614,8 @@ def loop_factors(
     """
     if kernel_grid is not None:
         kernel_grid = check_kernel_grid(kernel_grid)
+    if isinstance(controller, OutputFeedback):
+        return _output_feedback_loop(system, controller, kernel_grid)
     if loop_route(system, controller, kernel_grid) == "exact":
         return _exact_factors(system, controller)
     grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid

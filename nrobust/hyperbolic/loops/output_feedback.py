@@ -1,0 +1,134 @@
+"""Output feedback from the unactuated boundary: a state feedback fed by an exact predictor of the state.
+
+The measurement is ``y(t) = v(t, 0)``. The backstepping transformation (30)-(31) is a Volterra
+transformation from ``x = 0``, so ``v(t, 0) = beta(t, 0)``, and along the characteristics
+(eq. (37)) ``beta(t, 0) = beta(t - 1/mu, 1)``: with ``z(t) = beta(t, 1)`` the output of the
+delay form (39), the measurement is ``z`` delayed by the window ``w = 1/mu``,
+``y(t) = z(t - w)``. A state feedback of the package is a functional of the past of ``z`` on
+``[t - tau, t]``: ``U = -(n/d) B~ z`` with the loop ``A = d (1 - Phi)``, ``B = n B~`` of
+:mod:`~nrobust.hyperbolic.loops.controllers` (``n/d = (1 + a s)/(1 + b s)`` for a filtered
+law, else 1). Only ``z`` on the last window ``(t - w, t]`` is not measured yet; ``B~`` reads it
+through its kernel ``m`` there (``N~`` for U_BS and U_BS2(K)).
+
+The observer predicts it: on the window the plant obeys the delay form ``z = Phi z + U``
+(eq. (39), ``Phi = rho q e^{-tau s} - I_N``), whose terms reaching before ``t - w`` are
+measured, so the prediction solves the convolution equation of the second kind
+``x + N~_w * x = g`` on the window (``N~_w`` the first ``w`` units of ``N~``, eq. (40)),
+driven by the commands the controller sent. Through the resolvent ``r`` of ``N~`` on the window
+(:func:`~nrobust.volterra.window_resolvent`), the law's window term applied to the prediction is
+``H g`` with ``H(s) = int_0^w h(nu) e^{-nu s} dnu``, ``h = m - m * r``
+(:func:`~nrobust.volterra.window_law`; ``h = r`` for U_BS2), and the controller's output is
+
+    U_c = (n/d) (-B~ z_m + H (U_c - (1 - Phi) z_m)),     z_m = e^{s w} y,
+
+which uses ``y`` only up to time ``t`` (the terms of ``B~ + (1 - Phi) H`` below the delay ``w``
+cancel). The observer is exact: without a delay, the estimated state is the state after one
+window and the loop is the state feedback's.
+
+With a delay ``delta_a`` on the actuation and ``delta_m`` on the measurement, the plant gets
+``e^{-delta_a s} U_c`` and the controller ``e^{-delta_m s} y``, and the closed loop is
+``F = A_o + B_o e^{-delta s}`` with ``delta = delta_a + delta_m`` (only the sum matters) and
+
+    A_o = A - n G e^{-delta_o s},      B_o = B + n G,      G = (1 - Phi) H,
+
+where ``delta_o`` is the actuation delay the observer assumes (the delay of the commands it
+replays; 0 by default). At ``delta = delta_o`` the loop is the state feedback's with that delay,
+``A + B e^{-delta_o s}``; at ``delta = delta_o = 0`` it is the target system (for U_BS2(K),
+``1 - (rho - K) q e^{-tau s}``). ``G`` is a distributed delay on ``[0, tau + w]``, so the
+difference operator, hence strong stability, is the state feedback's: the observer keeps the
+delay robustness of the law (Theorem 4) and changes the margin's value.
+
+The observer has no reflection of its own to keep: its error enters only through the window,
+where the boundary ``x = 0`` reflects the measured ``y`` (``u(t, 0) = q y(t)``). The parameters
+left to design are the law's (``K`` of U_BS2) and ``delta_o``.
+
+:func:`observer_term` computes ``G`` (:func:`~nrobust.volterra.resolvent_product`) in floating
+point, with an estimate of its error: a proof about the loop is a proof about this model.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from ...errors import ParameterError
+from ...quasipoly import QuasiPolynomial
+from ...volterra import (
+    C_DEGREE,
+    C_PIECES,
+    ResolventProduct,
+    WindowKernel,
+    resolvent_product,
+    window_law,
+    window_resolvent,
+)
+
+__all__ = ["observer_term", "output_feedback_factors"]
+
+
+@lru_cache(maxsize=16)
+def observer_term(open_loop: QuasiPolynomial, law: QuasiPolynomial, window: float) -> ResolventProduct | None:
+    """``G = (1 - Phi) H`` of the open loop, the law and the measurement's window (module notes).
+
+    Parameters
+    ----------
+    open_loop : QuasiPolynomial
+        ``1 - Phi = 1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu`` (eq. (39)).
+    law : QuasiPolynomial
+        ``B~``: the unfiltered law is ``U = -B~ beta(., 1)`` (the loop factor ``B`` of the
+        state feedback without its filter's numerator); its kernel on the window is ``m``.
+    window : float
+        ``w``: the transport time of ``v`` (``1/mu``, in the loop's time unit).
+
+    Returns
+    -------
+    ResolventProduct or None
+        None when the law uses no value of the window (``m = 0``: e.g. the open loop, or
+        U_BS2 on an uncoupled plant), where ``G = 0``.
+
+    Raises
+    ------
+    ParameterError
+        A law with a point delay shorter than the window (a value the measurement has not
+        reached and the predictor's formula does not cover).
+    """
+    if any(delay < window and np.any(coefs != 0) for coefs, delay in law.point_terms):
+        raise ParameterError("controller", "a law whose point delays are at least the window 1/mu", law)
+    m = tuple(d.scale(-1.0) for d in law.distributed if d.a < window and not d.is_zero)
+    if not m:
+        return None
+    kernels = [d for d in open_loop.distributed if not d.is_zero]
+    if len(kernels) > 1:
+        raise ParameterError("open_loop", "a delay form with one distributed term N~ (eq. (39))", open_loop)
+    if kernels:
+        h = window_law(m, window_resolvent(kernels[0], window))
+    else:  # N~ = 0: the window's equation is x = f, h = m
+        h = WindowKernel(m, window, np.zeros((C_PIECES, C_DEGREE + 1)), 0.0)
+    return resolvent_product(open_loop, h)
+
+
+def output_feedback_factors(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    term: ResolventProduct | None,
+    numerator: tuple[float, ...] = (1.0,),
+    observer_delay: float = 0.0,
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A_o, B_o)`` of the output feedback from the state feedback's ``(A, B)`` (module notes).
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The state feedback's loop, ``A = d (1 - Phi)``, ``B = n B~``.
+    term : ResolventProduct or None
+        ``G`` from :func:`observer_term` (None: ``G = 0``).
+    numerator : tuple of float
+        ``n``, increasing powers (``(1, a)`` for a law filtered by ``(1 + a s)/(1 + b s)``).
+    observer_delay : float
+        ``delta_o``.
+    """
+    if term is None:
+        return A, B
+    ng = term.product.times_poly(list(numerator))
+    return A - ng.shift(observer_delay), B + ng

@@ -1,0 +1,462 @@
+"""Convolution Volterra equations on a window: the resolvent, a law seen through it, their products.
+
+For a kernel ``N`` (a :class:`~nrobust.distributed_delay.DistributedDelay` term, read on its
+first ``w`` units) the convolution equation of the second kind on the window ``[0, w]``
+
+    x(nu) + int_0^nu N(nu - nu') x(nu') dnu' = f(nu),      0 <= nu <= w,
+
+is solved by ``x = f - r * f`` with the resolvent kernel ``r``: ``r + N * r = N`` on ``[0, w]``.
+Writing ``r = N - c``, the correction ``c = N * r`` solves
+
+    c(nu) + int_0^nu N(nu - nu') c(nu') dnu' = (N * N)(nu),
+
+and is smoother than ``N`` (each convolution adds a derivative, so a cubic-spline ``N`` gives
+a ``c`` with five continuous derivatives, a polynomial-piece ``N`` an analytic one to rounding).
+:func:`window_resolvent` collocates ``c`` at ``n`` Chebyshev points of the first kind, the
+integrals by Gauss-Legendre rules on the sub-intervals between the breakpoints of both factors
+(exact for polynomial pieces), and doubles ``n`` until two solutions agree; the difference is
+part of the stated :attr:`WindowKernel.accuracy`.
+
+A functional ``int_0^w m(nu) x(t - nu) dnu`` of the solution on a moving window
+``(t - w, t]`` is ``int_0^w h(nu) f(t - nu) dnu`` with ``h = m - m * r`` on ``[0, w]`` (swap
+the order of integration); :func:`window_law` returns ``h`` (for ``m = N``, ``h = r``).
+Both are :class:`WindowKernel`: stored kernels minus a smooth correction held as Chebyshev
+series on equal pieces of the window.
+
+:func:`resolvent_product` returns ``A(s) H(s)``, ``H(s) = int_0^w h(nu) e^{-nu s} dnu``,
+for a quasi-polynomial ``A`` with constant point coefficients and plain distributed terms, as
+one distributed-delay term per interval between the breakpoints of ``A``'s terms shifted by ``0``
+and ``w`` (where the product may jump or have a kink; separate terms keep the jumps at the ends
+of supports): polynomials of degree :data:`DEGREE` on short segments, with the largest
+deviation of the stored polynomials from the product between their interpolation points in
+:attr:`ResolventProduct.accuracy`. It is the observer term of an output feedback
+(:mod:`nrobust.hyperbolic.loops.output_feedback`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._validate import positive
+from .distributed_delay import DistributedDelay
+from .errors import CertificationError, ParameterError
+from .quasipoly import QuasiPolynomial
+
+__all__ = ["ResolventProduct", "WindowKernel", "resolvent_product", "window_law", "window_resolvent"]
+
+Array = NDArray[np.float64]
+
+#: Collocation sizes tried in turn (Chebyshev points of the first kind on the window).
+SIZES = (16, 32, 64, 128, 256)
+#: Relative agreement of two successive collocations that stops the doubling.
+TOLERANCE = 1e-12
+#: Relative agreement accepted after the largest collocation (a cubic-spline kernel's resolvent
+#: converges algebraically; the change is then the stated accuracy).
+ACCEPT = 1e-8
+#: Segments of the stored product per window length ``w``, and the degree of its polynomial on each
+#: (interpolated at Chebyshev points).
+SEGMENTS_PER_WINDOW, DEGREE = 24, 11
+#: Gauss-Legendre points per sub-interval between breakpoints, beyond the ``(d + 1) / 2`` that make
+#: the rule exact for the product of two pieces of degree ``d`` (the smooth correction ``c`` of the
+#: resolvent is a polynomial to rounding on the short sub-intervals).
+EXTRA_POINTS = 3
+#: Pieces of the stored correction ``c`` on the window, and their degree (Chebyshev series).
+C_PIECES, C_DEGREE = 32, 15
+#: Relative size below which two pieces of a kernel are taken as continuous (their mismatch is
+#: rounding, as between the closed-form pieces of the exact delay form).
+_CONTINUOUS = 1e-11
+
+
+def _plain(name: str, term: DistributedDelay) -> None:
+    """Refuse a distributed term with a polynomial factor or a moment (not a plain kernel)."""
+    if term.poly.size != 1 or term.poly[0] != 1.0 or term.moment != 0:
+        raise ParameterError(name, "plain kernels int_a^b N(nu) e^{-nu s} dnu (no polynomial factor, no moment)", term)
+    if np.iscomplexobj(term.pieces[2]):
+        raise ParameterError(name, "a real kernel", term)
+
+
+def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
+    """The stored kernel at ``x`` in ``[a, b]``; at a shared node the left piece's value when ``left``."""
+    start, h, poly_t = term.pieces
+    if left:
+        idx = np.searchsorted(start + h, x, side="left")
+    else:
+        idx = np.searchsorted(start, x, side="right") - 1
+    idx = np.clip(idx, 0, start.size - 1)
+    t = (x - start[idx]) / h[idx]
+    return np.polynomial.polynomial.polyval(t, poly_t[idx].T, tensor=False)
+
+
+def _knots(term: DistributedDelay) -> Array:
+    """Every end of a stored segment (where the kernel may change its polynomial)."""
+    start, h, _ = term.pieces
+    return np.unique(np.concatenate([start, start + h]))
+
+
+def _jumps(term: DistributedDelay) -> Array:
+    """The ends of the support and the nodes where the stored kernel jumps."""
+    start, h, poly_t = term.pieces
+    left_end = np.sum(poly_t[:-1], axis=1)
+    right_start = poly_t[1:, 0]
+    scale = float(np.max(np.abs(poly_t))) if poly_t.size else 0.0
+    gap = (start[1:] - (start[:-1] + h[:-1])) > 0
+    jump = gap | (np.abs(left_end - right_start) > _CONTINUOUS * max(scale, 1e-300))
+    inner = np.concatenate([(start[:-1] + h[:-1])[jump], start[1:][gap]])
+    return np.unique(np.concatenate([[term.a, term.b], inner]))
+
+
+@lru_cache(maxsize=16)
+def _gauss(points: int) -> tuple[Array, Array]:
+    """Gauss-Legendre nodes and weights on ``[0, 1]``."""
+    x, w = np.polynomial.legendre.leggauss(points)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def _points(term: DistributedDelay) -> int:
+    """Gauss-Legendre points per sub-interval for products of two pieces of ``term``'s degree."""
+    return (term.pieces[2].shape[1]) // 2 + 1 + EXTRA_POINTS
+
+
+def _rule(lo: float, hi: float, breaks: Array, points: int) -> tuple[Array, Array]:
+    """Gauss-Legendre points and weights on ``[lo, hi]``, split at ``breaks`` inside it."""
+    if hi <= lo:
+        return np.zeros(0), np.zeros(0)
+    inner = breaks[(breaks > lo) & (breaks < hi)]
+    edges = np.concatenate([[lo], np.unique(inner), [hi]])
+    widths = np.diff(edges)
+    keep = widths > 0
+    t, g = _gauss(points)
+    nodes = (edges[:-1][keep, None] + widths[keep, None] * t).ravel()
+    weights = (widths[keep, None] * g).ravel()
+    return nodes, weights
+
+
+def _chebyshev(n: int, window: float) -> tuple[Array, Array]:
+    """First-kind Chebyshev points on ``[0, window]`` (increasing) and their barycentric weights."""
+    theta = (2.0 * np.arange(n) + 1.0) * np.pi / (2.0 * n)
+    nodes = 0.5 * window * (1.0 - np.cos(theta))
+    weights = (-1.0) ** np.arange(n) * np.sin(theta)
+    return nodes, weights
+
+
+def _barycentric(nodes: Array, weights: Array, x: Array) -> Array:
+    """Rows interpolating values at ``nodes`` to the points ``x`` (barycentric formula)."""
+    diff = x[:, None] - nodes[None, :]
+    exact = diff == 0.0
+    diff[exact] = 1.0
+    rows = weights[None, :] / diff
+    rows /= np.sum(rows, axis=1, keepdims=True)
+    hit = np.flatnonzero(np.any(exact, axis=1))
+    rows[hit] = exact[hit].astype(float)
+    return rows
+
+
+def _sum_terms(terms: tuple[DistributedDelay, ...], x: Array, left: bool) -> Array:
+    """The sum of stored kernels at ``x`` (zero outside each one's support)."""
+    out = np.zeros(x.shape)
+    for term in terms:
+        inside = (x >= term.a) & (x <= term.b)
+        if np.any(inside):
+            out[inside] += _evaluate(term, x[inside], left=left)
+    return out
+
+
+def _window_knots(terms: tuple[DistributedDelay, ...], window: float) -> Array:
+    """The breakpoints of the stored kernels inside ``(0, window)``."""
+    if not terms:
+        return np.zeros(0)
+    knots = np.unique(np.concatenate([_knots(t) for t in terms]))
+    return knots[(knots > 0.0) & (knots < window)]
+
+
+@dataclass(frozen=True)
+class WindowKernel:
+    """A kernel on the window ``[0, w]``: stored kernels minus a smooth correction (module notes).
+
+    Attributes
+    ----------
+    terms : tuple of DistributedDelay
+        The stored kernels (read on ``[0, w]``, zero outside their supports): ``N`` for the
+        resolvent, the law's ``m`` for :func:`window_law`.
+    window : float
+        ``w``.
+    coefficients : ndarray
+        The correction as Chebyshev series on :data:`C_PIECES` equal pieces of the window (one
+        row per piece, in the piece's variable mapped to ``[-1, 1]``).
+    accuracy : float
+        An estimate (not a bound) of the largest error of the kernel on the window: the
+        change between the last two collocations and the stored pieces' deviation from them.
+    """
+
+    terms: tuple[DistributedDelay, ...]
+    window: float
+    coefficients: Array
+    accuracy: float
+
+    @property
+    def knots(self) -> Array:
+        """The breakpoints of the stored kernels inside the window."""
+        return _window_knots(self.terms, self.window)
+
+    @property
+    def degree(self) -> int:
+        """The largest degree of the stored kernels' pieces."""
+        return max((t.pieces[2].shape[1] - 1 for t in self.terms), default=0)
+
+    def correction(self, nu: ArrayLike) -> Array:
+        """The smooth correction at ``nu`` in ``[0, w]``."""
+        x = np.asarray(nu, dtype=float)
+        flat = x.ravel()
+        pieces = self.coefficients.shape[0]
+        position = flat / self.window * pieces
+        idx = np.clip(position.astype(int), 0, pieces - 1)
+        t = 2.0 * (position - idx) - 1.0
+        return np.polynomial.chebyshev.chebval(t, self.coefficients[idx].T, tensor=False).reshape(x.shape)
+
+    def __call__(self, nu: ArrayLike) -> Array:
+        """The kernel at ``nu`` in ``[0, w]`` (the stored kernels' left values at ``w``)."""
+        x = np.asarray(nu, dtype=float)
+        flat = x.ravel()
+        return (_sum_terms(self.terms, flat, left=True) - self.correction(flat)).reshape(x.shape)
+
+    def __repr__(self) -> str:
+        return f"WindowKernel(window={self.window:.6g}, terms={len(self.terms)}, accuracy={self.accuracy:.1e})"
+
+
+def _collocate(kernel: DistributedDelay, window: float, n: int, knots: Array) -> tuple[Array, Array]:
+    """``c`` at ``n`` Chebyshev points: ``(I + M) c = (N * N)`` (module notes).
+
+    ``M`` integrates ``N(nu_i - .)`` against the interpolant of ``c`` on sub-intervals split
+    where ``N(nu_i - .)`` changes piece; the right-hand side also where ``N(.)`` does.
+    """
+    nodes, weights = _chebyshev(n, window)
+    points = _points(kernel)
+    matrix = np.eye(n)
+    rhs = np.zeros(n)
+    for i, nu in enumerate(nodes):
+        q, g = _rule(0.0, float(nu), nu - knots, points)
+        matrix[i] += (_evaluate(kernel, nu - q) * g) @ _barycentric(nodes, weights, q)
+        q, g = _rule(0.0, float(nu), np.concatenate([knots, nu - knots]), points)
+        rhs[i] = (_evaluate(kernel, nu - q) * g) @ _evaluate(kernel, q)
+    return nodes, np.asarray(np.linalg.solve(matrix, rhs), dtype=float)
+
+
+def _store(function: Callable[[Array], Array], window: float) -> tuple[Array, float]:
+    """A smooth ``function`` on the window as Chebyshev series on equal pieces, and their largest deviation."""
+    fit_t = np.cos((2.0 * np.arange(C_DEGREE + 1) + 1.0) * np.pi / (2.0 * (C_DEGREE + 1)))
+    check_t = np.linspace(-1.0, 1.0, 2 * C_DEGREE + 1)
+    width = window / C_PIECES
+    left = np.arange(C_PIECES)[:, None] * width
+    values = function((left + 0.5 * width * (fit_t + 1.0)).ravel()).reshape(C_PIECES, -1)
+    exact = function((left + 0.5 * width * (check_t + 1.0)).ravel()).reshape(C_PIECES, -1)
+    rows = np.array([np.polynomial.chebyshev.chebfit(fit_t, v, C_DEGREE) for v in values])
+    stored = np.array([np.polynomial.chebyshev.chebval(check_t, c) for c in rows])
+    return rows, float(np.max(np.abs(stored - exact)))
+
+
+def window_resolvent(kernel: DistributedDelay, window: float) -> WindowKernel:
+    """The resolvent kernel of ``N`` on ``[0, window]``, by collocation of its correction (module notes).
+
+    Parameters
+    ----------
+    kernel : DistributedDelay
+        A plain real kernel (no polynomial factor, no moment) whose support starts at 0 and
+        covers the window.
+    window : float
+        ``w > 0``.
+
+    Returns
+    -------
+    WindowKernel
+        ``r = N - c``.
+
+    Raises
+    ------
+    ParameterError
+        A kernel that is not plain or does not cover ``[0, window]``.
+    CertificationError
+        The collocation does not settle to :data:`ACCEPT` within :data:`SIZES`.
+    """
+    _plain("kernel", kernel)
+    w = positive("window", window)
+    if kernel.a != 0.0 or kernel.b < w:
+        raise ParameterError("kernel", f"a kernel on [0, b] with b >= window = {w:.6g}", kernel)
+    knots = _window_knots((kernel,), w)
+    check = np.linspace(0.0, w, 257)
+    scale = max(float(np.max(np.abs(_evaluate(kernel, check, left=True)))), 1e-300)
+    previous: tuple[Array, Array] | None = None
+    error = np.inf
+    for n in SIZES:
+        nodes, values = _collocate(kernel, w, n, knots)
+        if previous is not None:
+            old = _barycentric(previous[0], _chebyshev(previous[0].size, w)[1], check) @ previous[1]
+            new = _barycentric(nodes, _chebyshev(n, w)[1], check) @ values
+            error = float(np.max(np.abs(new - old)))
+            if error <= TOLERANCE * scale:
+                break
+        previous = (nodes, values)
+    if error > ACCEPT * scale:
+        raise CertificationError(
+            f"window_resolvent: the collocation of the resolvent did not settle to {ACCEPT:g} with "
+            f"{SIZES[-1]} points (last change {error:.1e}); a smoother kernel (a finer kernel grid) would help"
+        )
+    weights = _chebyshev(nodes.size, w)[1]
+    coefficients, deviation = _store(lambda x: _barycentric(nodes, weights, x) @ values, w)
+    return WindowKernel((kernel,), w, coefficients, error + deviation)
+
+
+def window_law(terms: tuple[DistributedDelay, ...], resolvent: WindowKernel) -> WindowKernel:
+    """``h = m - m * r`` on the window: the law ``int_0^w m x`` applied to the solution ``x = f - r * f``.
+
+    Parameters
+    ----------
+    terms : tuple of DistributedDelay
+        The plain kernels whose sum is ``m`` on the window (zero outside their supports).
+    resolvent : WindowKernel
+        ``r`` of the window's equation (:func:`window_resolvent`).
+
+    Returns
+    -------
+    WindowKernel
+        ``h``; its accuracy adds the resolvent's times the L1 norm of ``m`` on the window.
+    """
+    for term in terms:
+        _plain("terms", term)
+    w = resolvent.window
+    m_knots = _window_knots(terms, w)
+    r_knots = resolvent.knots
+    points = max([_points(t) for t in terms] + [resolvent.degree // 2 + 1 + EXTRA_POINTS])
+
+    def convolution(sigma: Array) -> Array:
+        rules = [_rule(0.0, float(x), np.concatenate([m_knots, x - r_knots]), points) for x in sigma]
+        sizes = np.array([q.size for q, _ in rules])
+        out = np.zeros(sigma.size)
+        if np.any(sizes):
+            q = np.concatenate([q for q, _ in rules])
+            g = np.concatenate([g for _, g in rules])
+            lag = np.repeat(sigma, sizes) - q
+            owner = np.repeat(np.arange(sigma.size), sizes)
+            out += np.bincount(
+                owner, weights=g * _sum_terms(terms, q, left=False) * resolvent(lag), minlength=sigma.size
+            )
+        return out
+
+    coefficients, deviation = _store(convolution, w)
+    grid = np.linspace(0.0, w, 513)
+    l1 = float(np.mean(np.abs(_sum_terms(terms, grid, left=True)))) * w
+    return WindowKernel(tuple(terms), w, coefficients, deviation + resolvent.accuracy * (1.0 + l1))
+
+
+@dataclass(frozen=True)
+class ResolventProduct:
+    """``A(s) H(s)`` as distributed-delay terms (module notes).
+
+    Attributes
+    ----------
+    product : QuasiPolynomial
+        The product: one distributed term of polynomial pieces per interval between breakpoints.
+    accuracy : float
+        Estimated sup-norm error of the stored kernels: their largest deviation from the
+        product's kernel between the interpolation points, plus the window kernel's
+        :attr:`WindowKernel.accuracy` times the total weight of ``A`` (point coefficients and
+        the L1 norm of its kernels).
+    kernel : WindowKernel
+        ``h``.
+    """
+
+    product: QuasiPolynomial
+    accuracy: float
+    kernel: WindowKernel
+
+
+def _factor_parts(a: QuasiPolynomial) -> tuple[list[tuple[float, float]], list[DistributedDelay]]:
+    """Constant point terms ``(coefficient, delay)`` and plain distributed terms of ``a``."""
+    points = []
+    for coefs, delay in a.point_terms:
+        if coefs.size != 1 or np.iscomplexobj(coefs):
+            raise ParameterError("factor", "a quasi-polynomial with real constant point coefficients", a)
+        points.append((float(coefs[0]), float(delay)))
+    for term in a.distributed:
+        _plain("factor", term)
+    return points, list(a.distributed)
+
+
+def _product_kernel(
+    points: list[tuple[float, float]], terms: list[DistributedDelay], h: WindowKernel, nu: Array, middle: float
+) -> Array:
+    """The kernel of ``A H`` at ``nu`` in one piece (``middle`` decides the active point terms)."""
+    w = h.window
+    out = np.zeros(nu.size)
+    for c, delay in points:
+        if delay < middle < delay + w:
+            out += c * h(np.clip(nu - delay, 0.0, w))
+    h_knots = h.knots
+    for term in terms:
+        knots = _knots(term)
+        count = max(_points(term), h.degree // 2 + 1 + EXTRA_POINTS)
+        rules = [
+            _rule(max(0.0, x - term.b), min(w, x - term.a), np.concatenate([h_knots, x - knots]), count) for x in nu
+        ]
+        sizes = np.array([q.size for q, _ in rules])
+        if not np.any(sizes):
+            continue
+        q = np.concatenate([q for q, _ in rules])
+        g = np.concatenate([g for _, g in rules])
+        lag = np.repeat(nu, sizes) - q
+        contributions = g * _evaluate(term, lag) * h(q)
+        owner = np.repeat(np.arange(nu.size), sizes)
+        out += np.bincount(owner, weights=contributions, minlength=nu.size)
+    return out
+
+
+def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> ResolventProduct:
+    """``factor(s) H(s)`` with ``H`` the Laplace transform of a window kernel.
+
+    Parameters
+    ----------
+    factor : QuasiPolynomial
+        ``A``: real constant point coefficients and plain distributed terms (an open-loop
+        characteristic function ``1 - Phi`` of the delay form, eq. (39)).
+    kernel : WindowKernel
+        ``h`` on ``[0, w]`` (:func:`window_resolvent`, :func:`window_law`).
+
+    Returns
+    -------
+    ResolventProduct
+    """
+    points, terms = _factor_parts(factor)
+    w = kernel.window
+    breaks = [d + e for _, d in points for e in (0.0, w)]
+    breaks += [j + e for term in terms for j in _jumps(term) for e in (0.0, w)]
+    edges = np.unique(np.round(np.asarray(breaks, dtype=float), 14))
+    if edges.size < 2:
+        raise ParameterError("factor", "a nonzero quasi-polynomial", factor)
+    width = w / SEGMENTS_PER_WINDOW
+    fit_t = 0.5 * (1.0 - np.cos((2.0 * np.arange(DEGREE + 1) + 1.0) * np.pi / (2.0 * (DEGREE + 1))))
+    check_t = (np.arange(DEGREE) + 0.5) / DEGREE
+    pieces, deviation = [], 0.0
+    for lo, hi in itertools.pairwise(edges):
+        count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
+        cuts = np.linspace(lo, hi, count + 1)
+        middle = 0.5 * (lo + hi)
+        step = np.diff(cuts)
+        values = _product_kernel(points, terms, kernel, (cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle)
+        exact = _product_kernel(points, terms, kernel, (cuts[:-1, None] + step[:, None] * check_t).ravel(), middle)
+        coefficients = []
+        for k, row in enumerate(values.reshape(count, -1)):
+            series = np.polynomial.Chebyshev.fit(fit_t, row, DEGREE, domain=[0.0, 1.0])
+            local = series.convert(kind=np.polynomial.Polynomial, domain=[0.0, 1.0], window=[0.0, 1.0]).coef
+            local = np.pad(local, (0, DEGREE + 1 - local.size))
+            stored = np.polynomial.polynomial.polyval(check_t, local)
+            deviation = max(deviation, float(np.max(np.abs(stored - exact[k * DEGREE : (k + 1) * DEGREE]))))
+            coefficients.append(local)
+        pieces.append(DistributedDelay(cuts, None, interpolation="polynomial", coefficients=np.array(coefficients)))
+    weight = sum(abs(c) for c, _ in points) + sum(float(term.abs_moment(0.0)) for term in terms)
+    accuracy = deviation + kernel.accuracy * weight
+    return ResolventProduct(QuasiPolynomial([], [], pieces), accuracy, kernel)
