@@ -21,6 +21,7 @@ from .kernels import (
 )
 from .margin import (
     NPlusMMargin,
+    backstepping_exact_margin,
     multi_actuator_delay_margin,
     multi_actuator_margin,
     nplusm_delay_margin,
@@ -38,6 +39,7 @@ __all__ = [
     "NPlusMMargin",
     "NPlusMSystem",
     "backstepping_delay_margin",
+    "backstepping_exact_margin",
     "cancellation_study",
     "compound_characteristic",
     "multi_actuator_delay_margin",

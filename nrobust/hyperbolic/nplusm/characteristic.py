@@ -30,19 +30,27 @@ e^{-d delta x} ||a_d|| ||b|| r_x(|s|)``, ``F_0`` the principal part, an exponent
 term of delay 0 is ``det exp(C_vv)``; where that term dominates the others on ``Re s >= x``,
 ``F`` has no root with ``Re s >= x`` beyond the radius where the remainder falls below the
 gap (:meth:`NPlusMCharacteristic.far_field_radius`), as for a scalar quasi-polynomial.
-This far field is computed in floating point.
+:meth:`NPlusMCharacteristic.far_field_holds` computes it in floating point;
+:meth:`NPlusMCharacteristic.ball_far_field_holds` proves it in ball arithmetic (the rates
+``p_S`` as exact rationals, so the groups and ``p_S - p_T`` are exact; ``D_m(C)``, the minors
+and ``det exp(D_gg)`` in balls; ``||N||``, ``||H||`` and ``lambda_max(Herm D_gg)`` by proven
+upper bounds), with ``beta(x) = max_g (lambda_max(Herm D_gg) - x p_g)``: ``Herm D_d - x P``
+is block diagonal over the groups of equal rate.
 
 **Proven in ball arithmetic** (any ``m``). :class:`BallNPlusM` encloses ``F`` and its
 derivatives over complex balls with FLINT's proven matrix exponential and determinant, so
 ``count_roots``, ``find_roots`` and ``spectral_abscissa`` (with a region) with
-``rigorous=True`` prove their results for the PDE's characteristic function itself; the
-far field above is not re-proven, hence the region.
+``rigorous=True`` prove their results for the PDE's characteristic function itself.
+:meth:`NPlusMCharacteristic.proven_abscissa` needs no region: the proven far field puts every
+root of ``Re s >= x`` in a rectangle that the rigorous root search then proves (the core's
+``spectral_abscissa(F, rigorous=True)`` without a region is for quasi-polynomials only).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from functools import cached_property
 from typing import Any
 
@@ -56,6 +64,7 @@ from ...errors import CertificationError, ParameterError
 from ...margins.matrix import GaugeRemainder, compound_generator, compound_minors
 from ...qpmatrix import FirstDerivative, QuasiPolynomialMatrix
 from ...quasipoly import QuasiPolynomial
+from ...roots import SpectralAbscissa, find_roots, spectral_abscissa
 from .system import NPlusMSystem
 
 __all__ = ["BallNPlusM", "NPlusMCharacteristic", "compound_loop"]
@@ -98,7 +107,8 @@ class NPlusMCharacteristic:
     """``F(s) = det(E(s) (Phi_v - (R + K e^{-delta s}) Phi_u))``: the closed loop of an ``n + m`` system.
 
     A :class:`~nrobust.qpmatrix.CharacteristicFunction`: ``count_roots``, ``find_roots``
-    and ``spectral_abscissa`` (with no region needed: :meth:`far_field_radius`) certify its roots. Row ``j`` of the
+    and ``spectral_abscissa`` (with no region needed: :meth:`far_field_radius`) certify its roots, and
+    :meth:`proven_abscissa` proves the spectral abscissa in ball arithmetic, also without a region. Row ``j`` of the
     ``m x m`` matrix is ``l_j(s)^T G_j(s) W`` with ``G_j = e^{-s/mu_j} Phi(s) = exp(C - s P_j)``,
     ``P_j = Lambda^{-1} + I/mu_j`` diagonal, ``l_j = (-(R_j + K_j e^{-delta s}), e_j)`` and
     ``W = [Q; I]``; each derivative of ``G_j`` is bounded through the logarithmic norm
@@ -129,6 +139,7 @@ class NPlusMCharacteristic:
         self._r_rows = np.linalg.norm(system.r, axis=1)
         self._k_rows = np.linalg.norm(self.K, axis=1)
         self._c_norm = float(np.linalg.norm(self._c, 2))
+        self._ball_far: dict[int, _BallFarField] = {}
 
     # ------------------------------------------------------------------ rows of the loop matrix
     def _ell(self, j: int, s: NDArray[np.complex128]) -> tuple[NDArray, NDArray]:
@@ -284,7 +295,8 @@ class NPlusMCharacteristic:
 
     def ball_function(self, prec: int = 53) -> BallNPlusM:
         """``F`` compiled for ball arithmetic (:class:`BallNPlusM`): what ``count_roots``,
-        ``find_roots`` and ``spectral_abscissa`` (with a region) use with ``rigorous=True``."""
+        ``find_roots`` and ``spectral_abscissa`` (with a region) use with ``rigorous=True``
+        (without a region: :meth:`proven_abscissa`)."""
         return BallNPlusM(self, prec)
 
     # ------------------------------------------------------------------ root-free far field
@@ -353,6 +365,133 @@ class NPlusMCharacteristic:
             return self._far[0].radius(scale, level)
         except CertificationError:
             return None
+
+    def ball_far_field_holds(self, x: float, radius: float, prec: int = 53) -> bool:
+        """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= radius}`` in ball arithmetic.
+
+        The bound of :meth:`far_field_holds` (module notes, "Root-free far field") with every
+        term enclosed in balls for the stored parameters (each float an exact rational): exact
+        rational rates and groups, ``D_m(C)``, the minors and the principal coefficients in
+        balls (FLINT's proven ``arb_mat.exp``), and proven upper bounds of ``||N||``, ``||H||``
+        and of the logarithmic norms (an ``L D L^T`` factorisation of ``t I - A`` with positive
+        pivots in balls, or Gershgorin's bound). Needs python-flint.
+        """
+        prec = positive_int("prec", prec, minimum=16, maximum=4096)
+        if prec not in self._ball_far:
+            self._ball_far[prec] = _BallFarField(self, prec)
+        return self._ball_far[prec].holds(float(x), float(radius))
+
+    def proven_far_field_radius(self, x: float, prec: int = 53) -> float | None:
+        """A radius ``R`` with ``{Re s >= x, |s| >= R}`` proven root-free (:meth:`ball_far_field_holds`), or None.
+
+        From the floating-point :meth:`far_field_radius`, enlarged until the ball bound holds
+        (up to ``2^20`` times it); None when neither finds one.
+        """
+        start = self.far_field_radius(x)
+        if start is None:
+            return None
+        R = max(start, 1e-3)
+        for factor in (1.0, 1.0 + 1e-6, 1.001, 1.01, 1.1):
+            if self.ball_far_field_holds(x, R * factor, prec):
+                return float(R * factor)
+        for _ in range(20):
+            R *= 2.0
+            if self.ball_far_field_holds(x, R, prec):
+                return float(R)
+        return None
+
+    def proven_abscissa(
+        self, *, prec: int = 53, cluster_tol: float = 1e-6, max_evals: int = 5_000_000
+    ) -> SpectralAbscissa:
+        """The spectral abscissa of the PDE's loop, proven in ball arithmetic without a region.
+
+        1. :func:`~nrobust.roots.spectral_abscissa` in floating point (the root-free far field
+           of :meth:`far_field_radius`) locates the rightmost root, or the chain value ``c_D``.
+        2. A half-plane ``Re s >= x`` is proven root-free outside ``|s| < R``
+           (:meth:`proven_far_field_radius`, ball arithmetic): ``x`` a little left of the
+           rightmost root (or a little right of the floating-point ``upper_bound`` when the
+           value is ``c_D``, approached as ``Im s -> infinity``).
+        3. :func:`~nrobust.roots.find_roots` with ``rigorous=True`` (:class:`BallNPlusM`) on
+           ``[x, 1.01 R] x [-0.25, 1.01 R]`` (``F`` is real: its roots come in conjugate
+           pairs) proves every root there in its box.
+
+        So every root with ``Re s >= x`` is in a proven box: ``upper_bound`` (the largest
+        right edge of the boxes, or ``x`` if none) bounds every root of ``F``, and
+        ``value_bracket = (largest left edge of a box, upper_bound)`` holds the supremum of
+        the real parts of the roots (None when no root lies right of ``x``: then ``value`` is
+        ``c_D`` in floating point, not proven, and only ``upper_bound`` is). ``rigorous`` is
+        True; ``chain_bracket`` is None (the principal part is computed in floating point).
+        This is the proof that ``spectral_abscissa(F, rigorous=True)`` gives for a
+        quasi-polynomial, for the PDE's characteristic function itself.
+
+        Raises
+        ------
+        CertificationError
+            No root-free far field is proven near the value (raise ``prec``), a step of the
+            root search cannot be proven, or the proven search misses the floating-point
+            rightmost root.
+        ImportError
+            Without python-flint.
+        """
+        prec = positive_int("prec", prec, minimum=16, maximum=4096)
+        found = spectral_abscissa(self, cluster_tol=cluster_tol, max_evals=max_evals)
+        chain = found.chain_value
+        rooted = found.root is not None and not found.approached_at_infinity
+        ub = found.upper_bound
+        offers = [ub + 1e-3 * (1.0 + abs(ub)) * 2.0**k for k in range(16)]
+        if rooted:  # left of the root first; a root left of C_D (a chain's) is not reached
+            top = found.root.real  # type: ignore[union-attr]
+            offers = [top - 0.25 * (1.0 + abs(top)) * 2.0**-k for k in range(16)] + offers
+        for x in offers:
+            R = self.proven_far_field_radius(x, prec)
+            if R is not None:
+                break
+        else:
+            raise CertificationError(
+                f"proven_abscissa: no root-free far field proven in ball arithmetic near Re s = {ub:.12g}; raise prec"
+            )
+        half = 1.01 * max(R, 1.0)
+        missed = rooted and found.root.real >= x  # type: ignore[union-attr]
+        roots = None
+        if x < half:  # else every root has |s| < R <= x: none with Re s >= x
+            roots = find_roots(
+                self, (x, half, -0.25, half), cluster_tol=cluster_tol, max_evals=max_evals, rigorous=True, prec=prec
+            )
+            if not roots.certified:
+                raise CertificationError(f"proven_abscissa: the roots of {roots.region} are not all proven")
+        if roots is None or not len(roots):
+            if missed:
+                raise CertificationError(
+                    f"proven_abscissa: no root proven right of Re s = {x:.12g}, where floating point found {found.root}"
+                )
+            return replace(found, upper_bound=float(x), rigorous=True, root_box=None, value_bracket=None)
+        right = float(roots.roots.real.max())
+        near = np.flatnonzero(roots.roots.real >= right - 1e-12 * (1.0 + abs(right)))
+        i = int(near[np.argmax(roots.roots.imag[near])])  # of a conjugate pair, the root with Im s >= 0
+        root = complex(roots.roots[i])
+        at_inf = bool(np.isfinite(chain) and chain > root.real + 1e-12 * (1.0 + abs(chain)))
+        value = chain if at_inf else root.real
+        upper = float(max(x, float(np.max(roots.boxes[:, 1]))))
+        lo = float(np.max(roots.boxes[:, 0]))
+        if not lo - 1e-9 * (1.0 + abs(lo)) <= value <= upper + 1e-9 * (1.0 + abs(upper)):
+            raise CertificationError(
+                f"proven_abscissa: the floating-point value {value!r} lies outside its proven bracket "
+                f"[{lo!r}, {upper!r}]"
+            )
+        box = tuple(float(v) for v in roots.boxes[i])
+        return replace(
+            found,
+            value=float(min(max(value, lo), upper)),
+            root=root,
+            approached_at_infinity=at_inf,
+            upper_bound=upper,
+            certified=found.certified and roots.certified,
+            region=roots.region,
+            rigorous=True,
+            root_box=(box[0], box[1], box[2], box[3]),
+            chain_bracket=None,
+            value_bracket=(lo, upper),
+        )
 
     # ------------------------------------------------------------------ one actuator: the axis
     def _one_actuator(self, what: str) -> None:
@@ -653,6 +792,181 @@ class BallNPlusM(BallFunction):
             if sum(ks) == k:
                 out += flint.acb_mat(m, m, [x for j, b in enumerate(ks) for x in rows[j][b]]).det()
         return out * math.factorial(k)
+
+
+class _BallFarField:
+    """The bound of :meth:`NPlusMCharacteristic.far_field_holds` in ball arithmetic (module notes).
+
+    Every ingredient is an enclosure of the exact quantity for the stored parameters (each
+    float an exact rational): the rates ``p_S`` are exact rationals (so the groups of equal
+    rate, and ``p_S - p_T``, are exact), ``D_m(C)`` is assembled in balls from the exact
+    sign pattern of :func:`~nrobust.margins.matrix.compound_generator`, the minors ``a_d``
+    (inverse DFT over the ``(m + 1)``-th roots of unity, in ``acb``) and ``b`` are ball
+    determinants, the principal coefficients use FLINT's proven ``arb_mat.exp``, and the
+    norms and logarithmic norms are proven upper bounds (:func:`_sym_top`). The remainder
+    is that of :class:`~nrobust.margins.matrix.GaugeRemainder` with ``e^{beta_d}`` replaced
+    by ``e^{beta(x)}``, ``beta(x) = max_g (lambda_max(Herm D_gg) - x p_g)`` (``Herm D_d - x P``
+    is block diagonal over the groups ``g``, ``P = p_g I`` on each).
+    """
+
+    def __init__(self, F: NPlusMCharacteristic, prec: int) -> None:
+        sys = F.system
+        n, m = sys.n, sys.m
+        N = n + m
+        self.prec = prec
+        with working_precision(prec) as flint:
+            self.flint = flint
+            arb, acb, fmpq = flint.arb, flint.acb, flint.fmpq
+
+            def exact(v: float) -> Any:
+                return fmpq(*float(v).as_integer_ratio())
+
+            subsets = list(itertools.combinations(range(N), m))
+            size = len(subsets)
+            inv_q = [1 / exact(v) for v in sys.lam] + [-1 / exact(v) for v in sys.mu]
+            rates = [
+                sum((inv_q[i] for i in S if i < n), fmpq(0))
+                + sum((1 / exact(sys.mu[j - n]) for j in range(n, N) if j not in S), fmpq(0))
+                for S in subsets
+            ]
+            c = [[arb(exact(sys.sigma[i, k]) * inv_q[i]) for k in range(N)] for i in range(N)]
+            d = [[arb(0) for _ in range(size)] for _ in range(size)]
+            for i in range(N):
+                for k in range(N):
+                    if sys.sigma[k, i] == 0:
+                        continue
+                    unit = np.zeros((N, N))
+                    unit[k, i] = 1.0
+                    pattern = compound_generator(unit, m).real  # small integers, exact
+                    for a_, b_ in zip(*np.nonzero(pattern)):
+                        d[a_][b_] += int(pattern[a_, b_]) * c[k][i]
+            groups: dict[Any, list[int]] = {}
+            for S, rate in enumerate(rates):
+                groups.setdefault(rate, []).append(S)
+            self.groups = [(arb(rate), idx, rate) for rate, idx in groups.items()]
+            same = [[rates[S] == rates[T] for T in range(size)] for S in range(size)]
+            zero = arb(0)
+            dd = flint.arb_mat([[d[S][T] if same[S][T] else zero for T in range(size)] for S in range(size)])
+            nn = flint.arb_mat(
+                [[zero if same[S][T] else d[S][T] / arb(rates[S] - rates[T]) for T in range(size)] for S in range(size)]
+            )
+            hh = flint.arb_mat(d) * nn - nn * dd
+            self.n_norm = _norm_bound(flint, nn)
+            self.h_norm = _norm_bound(flint, hh)
+            self.tops = [
+                _sym_top(flint, [[0.5 * (d[S][T] + d[T][S]) for T in idx] for S in idx]) for _, idx, _ in self.groups
+            ]
+            w = np.vstack([sys.q, np.eye(m)])
+            b = [flint.arb_mat([[arb(exact(w[i, j])) for j in range(m)] for i in S]).det() for S in subsets]
+            self.delta = arb(exact(F.delta))
+            lmat = [np.hstack([-sys.r, np.eye(m)]), np.hstack([-F.K, np.zeros((m, m))])]  # [-(R + z K), I]
+            if F.delta == 0.0:  # one term: the minors of [-(R + K), I]
+                terms = [
+                    [
+                        flint.arb_mat(
+                            [[arb(exact(lmat[0][i, j])) + arb(exact(lmat[1][i, j])) for j in S] for i in range(m)]
+                        ).det()
+                        for S in subsets
+                    ]
+                ]
+            else:
+                roots = [acb(fmpq(2 * k, m + 1)).exp_pi_i() for k in range(m + 1)]
+                vals = [
+                    [
+                        flint.acb_mat(
+                            [[acb(exact(lmat[0][i, j])) + z * acb(exact(lmat[1][i, j])) for j in S] for i in range(m)]
+                        ).det()
+                        for S in subsets
+                    ]
+                    for z in roots
+                ]
+                terms = [
+                    [
+                        sum((vals[k][S] / roots[(k * dg) % (m + 1)] for k in range(m + 1)), acb(0)) / (m + 1)
+                        for S in range(size)
+                    ]
+                    for dg in range(m + 1)
+                ]
+            b_norm = sum((abs(x) ** 2 for x in b), arb(0)).sqrt()
+            self.weights = [sum((abs(x) ** 2 for x in t), arb(0)).sqrt() * b_norm for t in terms]
+            coefs: dict[Any, Any] = {}  # exact delay p_g + d delta -> principal coefficient
+            for _, idx, rate in self.groups:
+                g = flint.arb_mat([[d[S][T] for T in idx] for S in idx]).exp()
+                gb = [sum((g[r, k] * b[idx[k]] for k in range(len(idx))), arb(0)) for r in range(len(idx))]
+                for dg, t in enumerate(terms):
+                    key = rate + dg * exact(F.delta)
+                    coefs[key] = coefs.get(key, acb(0)) + sum((t[S] * gb[r] for r, S in enumerate(idx)), acb(0))
+            self.lead = abs(coefs.pop(fmpq(0), acb(0)))
+            self.others = [(arb(key), abs(v)) for key, v in coefs.items()]
+
+    def holds(self, x: float, radius: float) -> bool:
+        """True if ``|F_0| > |F - F_0|`` is proven on ``{Re s >= x, |s| >= radius}``."""
+        if not (np.isfinite(x) and np.isfinite(radius) and radius > 0.0):
+            return False
+        with working_precision(self.prec) as flint:
+            arb = flint.arb
+            X, R = arb(float(x)), arb(float(radius))
+            gap = self.lead - sum((a * (-tau * X).exp() for tau, a in self.others), arb(0))
+            if not gap > 0:
+                return False
+            if self.n_norm == 0 and self.h_norm == 0:
+                return True
+            if not R > self.n_norm:
+                return False
+            beta = _arb_max(flint, [top - X * rate for (rate, _, _), top in zip(self.groups, self.tops)])
+            t = 1 / (1 - self.n_norm / R)
+            e = t * self.h_norm
+            r = ((1 + self.n_norm / R) * t * e * (beta + e / R).exp() + 2 * self.n_norm * t * beta.exp()) / R
+            scale = sum((w * (-(dg * self.delta) * X).exp() for dg, w in enumerate(self.weights)), arb(0))
+            return bool(gap - scale * r > 0)
+
+
+def _arb_max(flint: Any, values: list[Any]) -> Any:
+    """The ball of the largest of ``values`` (arb balls)."""
+    out = values[0]
+    for v in values[1:]:
+        out = flint.arb.max(out, v)
+    return out
+
+
+def _sym_top(flint: Any, a: list[list[Any]]) -> Any:
+    """A proven upper bound (an arb ball) of ``lambda_max`` of the symmetric matrix enclosed by ``a``.
+
+    ``t`` slightly above the floating-point ``lambda_max`` is proven an upper bound when
+    ``t I - A`` has an ``L D L^T`` factorisation with positive pivots in ball arithmetic
+    (then it is positive definite); otherwise Gershgorin's bound ``max_i a_ii + sum_j |a_ij|``.
+    """
+    arb = flint.arb
+    k = len(a)
+    mid = np.array([[float(x.mid()) for x in row] for row in a]).reshape(k, k)
+    spread = float(np.abs(mid).max(initial=0.0)) + max((float(x.rad()) for row in a for x in row), default=0.0)
+    t = arb(float(np.linalg.eigvalsh(0.5 * (mid + mid.T))[-1]) + 1e-9 * (1.0 + spread) + k * spread * 1e-12)
+    piv: list[Any] = []
+    low = [[arb(0)] * k for _ in range(k)]
+    for j in range(k):
+        dj = t - a[j][j] - sum((low[j][q] ** 2 * piv[q] for q in range(j)), arb(0))
+        if not dj > 0:
+            return _arb_max(
+                flint, [a[i][i] + sum((abs(a[i][q]) for q in range(k) if q != i), arb(0)) for i in range(k)]
+            )
+        piv.append(dj)
+        for i in range(j + 1, k):
+            low[i][j] = (-a[i][j] - sum((low[i][q] * low[j][q] * piv[q] for q in range(j)), arb(0))) / dj
+    return t
+
+
+def _norm_bound(flint: Any, x: Any) -> Any:
+    """A proven upper bound of the spectral norm of the arb matrix ``x``: the smaller of
+    ``sqrt(lambda_max(x^T x))`` (:func:`_sym_top`) and the Frobenius norm."""
+    arb = flint.arb
+    rows, cols = x.nrows(), x.ncols()
+    frob = sum((abs(x[i, j]) ** 2 for i in range(rows) for j in range(cols)), arb(0)).sqrt()
+    if not frob > 0:
+        return frob
+    g = x.transpose() * x
+    top = _sym_top(flint, [[g[i, j] for j in range(cols)] for i in range(cols)])
+    spectral = arb.max(top, arb(0)).sqrt()
+    return spectral if spectral.upper() < frob.upper() else frob
 
 
 def _prod_except(x: NDArray[np.float64], skip: list[int]) -> NDArray[np.float64]:

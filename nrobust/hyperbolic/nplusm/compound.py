@@ -92,6 +92,14 @@ class _CompoundCharacteristic:
     def principal_part(self) -> DifferenceOperator:
         return self.F.principal_part()
 
+    def far_field_holds(self, x: float, radius: float) -> bool:
+        """:meth:`NPlusMCharacteristic.far_field_holds` (the same function): ``spectral_abscissa`` needs no region."""
+        return self.F.far_field_holds(x, radius)
+
+    def far_field_radius(self, x: float) -> float | None:
+        """:meth:`NPlusMCharacteristic.far_field_radius` of the same function."""
+        return self.F.far_field_radius(x)
+
     @property
     def kind(self) -> str:
         return self.F.kind

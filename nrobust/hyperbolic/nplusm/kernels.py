@@ -68,6 +68,16 @@ weights from one block exponential per ``s``). ``E J = O(1/|s|)`` on vertical li
 the principal part is that of the static cancellation ``K = -R``: with a delay the
 cancellation doubles ``gamma_0`` (for 2x2 plants the paper's Theorem 3: unstable for every
 ``delta > 0`` when ``|rho q| > 1/2``), and the margin is zero once ``gamma_0 >= 1``.
+
+**Kernel-free loop.** For the exact kernels the transformation maps the Laplace-domain
+solution with ``v(0) = I`` onto the target's, so ``Phi_v - J = T(s)``, the transition of
+``beta_x = Lambda-^{-1} ((s - D) beta - G beta(0))``. With one speed ``mu`` for every ``v``
+(``m = 1`` always) ``G = 0``, ``D = Sigma--`` and ``E (Phi_v - J) = V = exp(-Sigma--/mu)``:
+the loop is ``det(M_0 + e^{-delta s} (V - M_0))``, ``M_0`` the open loop, with no kernel
+(:meth:`NPlusMBackstepping.target_loop_matrices`); its margin is certified by
+:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`. The grid kernels' loop
+converges to it at order 2 (``tests/test_nplusm_proven.py``). With several speeds ``G``
+depends on the kernels and only the grid kernels' loop is available (not certified).
 """
 
 from __future__ import annotations
@@ -84,7 +94,7 @@ from ..._validate import nonnegative, positive, positive_int
 from ...errors import ConvergenceError, ParameterError
 from ..kernels.constant import RESOLUTION, check_kernel_grid, p1_interpolate
 from .characteristic import NPlusMCharacteristic
-from .margin import NPlusMMargin, pencil_crossings
+from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings
 from .system import NPlusMSystem
 
 __all__ = [
@@ -100,6 +110,7 @@ __all__ = [
 MAX_NPLUSM_KERNEL_GRID = 801
 _MAX_UNKNOWNS = 3_000_000
 _TOL = 1e-12
+_KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
 
 
 def _node(i: Any, j: Any) -> Any:
@@ -545,6 +556,26 @@ class NPlusMBackstepping:
         r_phi = sys.r @ phi_u
         return scale * (phi_v - r_phi), scale * (r_phi - self.feedback_integral(s))
 
+    def target_loop_matrices(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``M_0`` and ``M_1 = V - M_0`` of the law with exact kernels, kernel-free (all ``mu`` equal).
+
+        ``E (Phi_v - J) = V = exp(-Sigma--/mu)`` by the target system
+        (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`), so ``M_1 = E (R Phi_u - J)
+        = V - M_0``; :meth:`loop_matrices` (grid kernels) converges to these with the kernel grid.
+
+        Raises
+        ------
+        ParameterError
+            Leftward speeds not all equal (``G != 0``: the loop depends on the kernels).
+        """
+        sys = self.system
+        if np.any(sys.mu != sys.mu[0]):
+            raise ParameterError("system", "leftward speeds mu all equal (the target's G = 0)", sys.mu.tolist())
+        s = np.asarray(s, dtype=complex)
+        m0 = sys.loop_matrix(s)
+        v_block, _ = sys.principal_terms()
+        return m0, v_block - m0
+
     def characteristic_value(self, s: ArrayLike, delta: float = 0.0) -> NDArray[np.complex128]:
         """``det(E (Phi_v - R Phi_u + e^{-delta s} (R Phi_u - J)))`` at ``s``: the delayed closed loop."""
         delta = nonnegative("delta", delta)
@@ -597,18 +628,26 @@ class NPlusMBackstepping:
 
 
 def backstepping_delay_margin(
-    controller: NPlusMBackstepping, omega_max: float, *, points: int = 800, max_points: int = 200_000
+    controller: NPlusMBackstepping,
+    omega_max: float | None = None,
+    *,
+    points: int = 800,
+    max_points: int = 200_000,
 ) -> NPlusMMargin:
-    """Delay margin of the full-state controller ``U(t - delta)`` (not certified: ``certified=False``).
+    """Delay margin of the full-state controller ``U(t - delta)``.
 
-    ``gamma_0 >= 1`` (full cancellation of reflections, :meth:`NPlusMBackstepping.gamma_0`;
-    for ``m > 1`` with more than four principal delays a sampled lower bound):
-    margin 0, arbitrarily small delays destabilise. Otherwise a root of
+    Without ``omega_max`` (all leftward speeds equal): the certified margin of the law with
+    exact kernels, kernel-free (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`;
+    ``max_points`` its work bound, at least 2 000 000 used); the grid kernels are not used.
+
+    With ``omega_max``: the loop of the grid kernels (:meth:`NPlusMBackstepping.loop_matrices`),
+    not certified (``certified=False``). ``gamma_0 >= 1`` (full cancellation of reflections,
+    :meth:`NPlusMBackstepping.gamma_0`; for ``m > 1`` with more than four principal delays a
+    sampled lower bound): margin 0, arbitrarily small delays destabilise. Otherwise a root of
     ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff ``z = e^{-i w delta}`` is an
-    eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit circle
-    (:meth:`NPlusMBackstepping.loop_matrices`); the eigenvalues inside the disk are
-    counted on a grid of ``(0, omega_max]``, each change located by bisection, and the
-    delays are ``(-arg z mod 2 pi) / w``. The delay-free loop is finite-time stable by
+    eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit circle; the eigenvalues inside
+    the disk are counted on a grid of ``(0, omega_max]``, each change located by bisection,
+    and the delays are ``(-arg z mod 2 pi) / w``. The delay-free loop is finite-time stable by
     construction (``nominal_unstable`` is None: not counted). Not certified: a crossing
     above ``omega_max``, or two crossings of opposite directions between grid points,
     would be missed, and the feedback integral has no proven error bound here.
@@ -616,16 +655,32 @@ def backstepping_delay_margin(
     Parameters
     ----------
     controller : NPlusMBackstepping
-    omega_max : float
-        Upper end ``> 0`` of the frequency search (reported as ``frequency_bound``).
+    omega_max : float, optional
+        Upper end ``> 0`` of the scan of the grid kernels' loop (reported as
+        ``frequency_bound``); None (default) for the certified kernel-free margin.
     points : int, optional
-        Grid points (``>= 16``).
+        Grid points (``>= 16``) of the scan.
     max_points : int, optional
         Work bound on evaluations of the loop: ``points`` plus 48 bisection steps per
         crossing, checked before each grid is evaluated.
+
+    Raises
+    ------
+    ParameterError
+        ``omega_max`` None for a plant whose leftward speeds differ (its loop needs the
+        kernels: give ``omega_max``).
     """
     if not isinstance(controller, NPlusMBackstepping):
         raise ParameterError("controller", "an NPlusMBackstepping", type(controller).__name__)
+    if omega_max is None:
+        if np.any(controller.system.mu != controller.system.mu[0]):
+            raise ParameterError(
+                "omega_max",
+                "a positive frequency: leftward speeds that differ make the loop depend on the kernels "
+                "(no kernel-free certified margin)",
+                None,
+            )
+        return backstepping_exact_margin(controller.system, max_points=max(max_points, 2_000_000))
     omega_max = positive("omega_max", omega_max)
     points = positive_int("points", points, minimum=16)
     max_points = positive_int("max_points", max_points)
@@ -634,9 +689,9 @@ def backstepping_delay_margin(
         raise ParameterError("max_points", f">= points = {points}", max_points)
     gamma = controller.gamma_0()
     if gamma >= 1.0:
-        return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False, None, _KERNEL_SCOPE)
     found = pencil_crossings(controller.loop_matrices, omega_max, points, bisections=bisections, max_points=max_points)
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False)
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, None, _KERNEL_SCOPE)
     best = min(found, key=lambda p: p[1])
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False)
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, None, _KERNEL_SCOPE)

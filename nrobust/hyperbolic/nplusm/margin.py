@@ -4,11 +4,13 @@ One actuator: :func:`nplusm_delay_margin` (certified: proven frequency bound and
 crossing search of ``|A(i w)| = |B(i w)|``). Any ``m``: :func:`multi_actuator_delay_margin`
 (certified, in compound form) and :func:`multi_actuator_margin` (with ``omega_max``: a capped
 scan of the pencil ``M_0 v = -z M_1 v``, :func:`pencil_crossings`, which the backstepping
-controller's margin also uses).
+controller's margin with grid kernels also uses). The full-state backstepping law with exact
+kernels, one leftward speed: :func:`backstepping_exact_margin` (certified, kernel-free).
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -19,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import fields_dict
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder, circle_crossings
+from ...margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
 from ...roots import count_roots
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .compound import compound_characteristic, compound_loop
@@ -27,11 +29,17 @@ from .system import NPlusMSystem
 
 __all__ = [
     "NPlusMMargin",
+    "backstepping_exact_margin",
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
     "pencil_crossings",
 ]
+
+_STATIC_SCOPE = "static gain U = K u(t - delta, 1) on the PDE"
+_TARGET_SCOPE = (
+    "full-state backstepping law with exact kernels on the PDE (kernel-free: E (Phi_v - J) = exp(-Sigma--/mu))"
+)
 
 
 @dataclass(frozen=True)
@@ -67,6 +75,12 @@ class NPlusMMargin:
         Certified number of roots of the delay-free loop in ``Re s >= 0`` (None: not
         counted, ``gamma_0 >= 1``, or a root within rounding of the axis). When it is not
         0 the margin is 0: the loop is not stable to begin with.
+    scope : str
+        The loop the result is about (``certified`` certifies it for that loop only): the
+        static gain's loop of the PDE; the full-state backstepping law with exact kernels
+        (:func:`backstepping_exact_margin`, kernel-free); or that law with the grid kernels
+        of :func:`~nrobust.hyperbolic.nplusm.solve_nplusm_kernels` (a model of the law with
+        no error bound).
     """
 
     margin: float
@@ -76,6 +90,7 @@ class NPlusMMargin:
     frequency_bound: float
     certified: bool
     nominal_unstable: int | None = None
+    scope: str = _STATIC_SCOPE
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -341,8 +356,6 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
         The bound of step 1 is not below 1 although no sampled ``rho`` exceeds 1, a work bound
         was hit, or the crossing search met a tangency.
     """
-    from scipy.linalg import expm  # lazily: a slow import
-
     k = system.gain(K)
     max_points = positive_int("max_points", max_points)
     m = system.m
@@ -355,16 +368,132 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
             "separated from 1 (the certified bound of its spectral radius must be below 1)"
         )
     dc, p, a, b = compound_loop(system, k)
+
+    def nominal(radius: float) -> int | None:
+        count = count_roots(compound_characteristic(system, k, 0.0), (0.0, radius, -radius, radius))
+        return int(count) if count.region[0] >= 0.0 else None
+
+    max_delay = NPlusMCharacteristic(system, k).max_delay
+    return _compound_margin(dc, p, a, b, m, gamma, det_v, max_delay, nominal, max_points, _STATIC_SCOPE)
+
+
+def _target_compound(system: NPlusMSystem) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """``(D_m(C^), p, a, b)`` of the backstepping law's loop (:func:`backstepping_exact_margin`) in compound form.
+
+    ``M(s; z) = (1 - z) [-R, I] exp(C - s P) W + z V = L(z) exp(C^ - s P^) W^`` with
+    ``C^ = diag(C, -Sigma--/mu)``, ``P^ = diag(P, 0)`` (``P = Lambda^{-1} + I/mu >= 0``),
+    ``L(z) = [(1 - z) [-R, I], z I]`` and ``W^ = [Q; I; I]``: the augmented block carries
+    ``V = exp(-Sigma--/mu)`` at rate 0 (module notes of :mod:`nrobust.margins.matrix`).
+    """
+    n, m = system.n, system.m
+    size = n + 2 * m
+    inv = 1.0 / system.signed_speeds
+    c = np.zeros((size, size))
+    c[: n + m, : n + m] = inv[:, None] * system.sigma
+    c[n + m :, n + m :] = c[n : n + m, n : n + m]
+    rate = np.concatenate([1.0 / system.lam + 1.0 / float(system.mu[0]), np.zeros(2 * m)])
+    subsets = list(itertools.combinations(range(size), m))
+    p = np.array([sum(rate[i] for i in S) for S in subsets])
+    for i in np.argsort(p):  # rates equal up to the order of a sum are made equal (groups of the gauge)
+        p[np.abs(p - p[i]) <= 1e-13 * max(1.0, abs(p[i]))] = p[i]
+    b = compound_minors(np.vstack([system.q, np.eye(m), np.eye(m)]), axis=0)
+    roots = np.exp(2j * np.pi * np.arange(m + 1) / (m + 1))
+    ell = np.hstack([-system.r, np.eye(m)])
+    vals = np.array([compound_minors(np.hstack([(1.0 - z) * ell, z * np.eye(m)]), axis=1) for z in roots])
+    return compound_generator(c, m), p, np.fft.fft(vals, axis=0) / (m + 1), b
+
+
+def backstepping_exact_margin(system: NPlusMSystem, *, max_points: int = 2_000_000) -> NPlusMMargin:
+    """Certified delay margin of the full-state backstepping law with exact kernels, without kernels.
+
+    The law ``U = -R u(t, 1) + int_0^1 K(1, xi) u + L(1, xi) v dxi`` of Hu et al. (2016)
+    (:class:`~nrobust.hyperbolic.nplusm.NPlusMBackstepping`) maps the plant onto the target
+    ``beta_t - Lambda- beta_x = D beta + G(x) beta(t, 0)``, ``beta(t, 1) = 0``. In the Laplace
+    domain (``v(0) = I``) the transformation gives ``beta(1) = Phi_v(s) - J(s)`` and the
+    target gives ``beta(1) = T(s)``, the transition of ``beta_x = Lambda-^{-1} ((s - D) beta
+    - G beta(0))``. When every ``v`` has the same speed ``mu`` (one group; ``m = 1`` always),
+    ``D = Sigma--`` and ``G = 0``, so ``E (Phi_v - J) = e^{-s/mu} exp((s - D)/mu) =
+    V = exp(-Sigma--/mu)``, a constant: the delayed loop is
+
+        ``det(M_0(s) + e^{-delta s} (V - M_0(s)))``,  ``M_0 = E (Phi_v - R Phi_u)`` (the open loop),
+
+    with no kernel in it. Its delay-free value is ``det V != 0`` (no root: the finite-time
+    convergence), and its principal part is that of the static cancellation ``K = -R``. The
+    margin is then certified as in :func:`multi_actuator_delay_margin`, in compound form
+    with the augmented generator ``diag(C, -Sigma--/mu)``:
+    ``gamma_0`` bound, proven frequency bound, complete crossing search.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+        With all leftward speeds ``mu`` equal.
+    max_points : int, optional
+        Work bound on evaluations of the compound transition on the axis.
+
+    Returns
+    -------
+    NPlusMMargin
+        ``scope`` names the exact law; ``certified`` as in :func:`multi_actuator_delay_margin`
+        (floating-point certificate with rounding bounds; the kernels of a grid are not used,
+        so their error does not enter). ``nominal_unstable`` is 0 by the identity above.
+
+    Raises
+    ------
+    ParameterError
+        Leftward speeds not all equal: then ``G != 0`` depends on the kernels (the target is a
+        cascade) and the loop is not kernel-free.
+    CertificationError
+        As :func:`multi_actuator_delay_margin`.
+    """
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+    if np.any(system.mu != system.mu[0]):
+        raise ParameterError(
+            "system",
+            "leftward speeds mu all equal (one group, so that the target's G = 0 and the loop needs no kernel)",
+            system.mu.tolist(),
+        )
+    max_points = positive_int("max_points", max_points)
+    cancel = -system.r
+    lower, gamma, det_v = _principal_gamma(system, cancel)
+    if lower >= 1.0 + 1e-12:
+        return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _TARGET_SCOPE)
+    if gamma >= 1.0 - 1e-12:
+        raise CertificationError(
+            f"backstepping margin: gamma_0 of the delayed principal part in [{lower:.12g}, {gamma:.12g}] is not "
+            "separated from 1 (the certified bound of its spectral radius must be below 1)"
+        )
+    dc, p, a, b = _target_compound(system)
+    max_delay = NPlusMCharacteristic(system, cancel).max_delay
+    return _compound_margin(dc, p, a, b, system.m, gamma, det_v, max_delay, lambda _: 0, max_points, _TARGET_SCOPE)
+
+
+def _compound_margin(
+    dc: NDArray[np.complex128],
+    p: NDArray[np.float64],
+    a: NDArray[np.complex128],
+    b: NDArray[np.complex128],
+    m: int,
+    gamma: float,
+    det_v: float,
+    max_delay: float,
+    nominal: Callable[[float], int | None],
+    max_points: int,
+    scope: str,
+) -> NPlusMMargin:
+    """Steps 2-4 of :func:`multi_actuator_delay_margin` for a loop ``sum_d z^d a_d^T exp(D - s diag(p)) b``
+    whose principal part obeys ``|F_0| >= det_v (1 - gamma)^m`` on ``Re s >= 0``, ``|z| <= 1``
+    (``gamma < 1``); ``nominal(radius)`` counts the delay-free loop's roots in ``[0, radius] x [-radius, radius]``."""
+    from scipy.linalg import expm  # lazily: a slow import
+
     a_norm = np.linalg.norm(a, axis=1)
     b_norm = float(np.linalg.norm(b))
     scale = float(a_norm.sum()) * b_norm
     level = det_v * (1.0 - gamma) ** m * (1.0 - 1e-9) - 1e-12 * scale
     W = GaugeRemainder(dc, p).radius(scale, level)
-    radius = max(W, 1.0)
-    count = count_roots(compound_characteristic(system, k, 0.0), (0.0, radius, -radius, radius))
-    nominal = int(count) if count.region[0] >= 0.0 else None
-    if nominal != 0:
-        return NPlusMMargin(0.0, None, (), gamma, W, nominal is not None, nominal)
+    count = nominal(max(W, 1.0))
+    if count != 0:
+        return NPlusMMargin(0.0, None, (), gamma, W, count is not None, count, scope)
     beta = float(np.linalg.eigvalsh(0.5 * (dc + dc.conj().T))[-1]) + 1e-12 * (1.0 + float(np.abs(dc).sum()))
     pn = float(np.max(p))
     growth = np.exp(beta) * b_norm * a_norm * (1.0 + 1e-12)
@@ -389,11 +518,11 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
             EXPM_ROUNDING * EPS * np.exp(beta) * b_norm * float(a_norm.max()) * (1.0 + dc_norm + w * pn), dtype=float
         )
 
-    step = 2.0 * np.pi / (GRID_PER_PERIOD * NPlusMCharacteristic(system, k).max_delay)
+    step = 2.0 * np.pi / (GRID_PER_PERIOD * max_delay)
     zeros = circle_crossings(coefs, jet, W, bounds, rounding, step=step, max_points=max_points)
     found = tuple((w, float(np.mod(-phi, 2 * np.pi) / w)) for w, phi in zeros)
     certified = gamma < 1.0 - 1e-12
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0)
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0, scope)
     best = min(found, key=lambda c: c[1])
-    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0)
+    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0, scope)
