@@ -459,6 +459,37 @@ class DistributedDelay:
         args.update(changes)
         return DistributedDelay(**args, interpolation=self.interpolation)
 
+    def restricted(self, lo: float) -> DistributedDelay | None:
+        """The term on ``[max(a, lo), b]``: its pieces there, as polynomial pieces (None if ``lo >= b``).
+
+        The stored kernel is kept exactly (a segment cut by ``lo`` is re-expanded in the variable
+        of its remaining part); the error bounds are kept.
+        """
+        lo = float(lo)
+        if lo >= self.b:
+            return None
+        start, h, poly_t = self.pieces
+        keep = start + h > lo
+        start, h, poly_t = start[keep], h[keep], poly_t[keep].copy()
+        if start[0] < lo:  # t = alpha + beta t' on the part [lo, start + h] of the first segment
+            alpha, beta = (lo - start[0]) / h[0], (start[0] + h[0] - lo) / h[0]
+            local = Polynomial(poly_t[0])(Polynomial([alpha, beta])).coef
+            poly_t[0] = np.pad(local, (0, poly_t.shape[1] - local.size))
+            h = h.copy()
+            h[0] = start[0] + h[0] - lo
+            start = start.copy()
+            start[0] = lo
+        return DistributedDelay(
+            np.append(start, start[-1] + h[-1]),
+            None,
+            self.poly,
+            self.moment,
+            "polynomial",
+            coefficients=poly_t,
+            radius=self.radius,
+            variation_radius=self.variation_radius,
+        )
+
     def times(self, c: complex, **changes: Any) -> DistributedDelay:
         """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``."""
         if self.interpolation == "polynomial":

@@ -165,7 +165,7 @@ def test_simulation_growth_agrees_with_the_verdict() -> None:
     for e_mu, inside in ((-0.1, True), (1.0, False)):
         dm = delay_margin(*mismatch_loop(PAPER, controller, 0.0, e_mu))
         assert dm.nominally_stable and (dm.margin > delta) == inside
-        sim = simulate(Hyperbolic2x2(1.0, 1.0 + e_mu, 1.0, 1.0, 1.0, 0.85), law, delta, 30.0, cells=100)
+        sim = simulate(Hyperbolic2x2(1.0, 1.0 + e_mu, 1.0, 1.0, 1.0, 0.85), law, delta, 30.0, 1.0, 1.0, cells=100)
         times, norm = np.asarray(sim.times), np.asarray(sim.norm)
         late = times > 15.0
         rate = np.polyfit(times[late], np.log(norm[late]), 1)[0]

@@ -18,6 +18,7 @@ import nrobust as nr
 from nrobust.distributed_delay import DistributedDelay
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses.design import design_reflection
+from nrobust.hyperbolic.analyses.mismatch import mismatch_loop
 from nrobust.hyperbolic.loops.controllers import (
     FilteredController,
     FiniteTimeController,
@@ -254,3 +255,34 @@ def test_bad_input():
         design_reflection(PAPER, "margin", observer_delay=0.1)
     with pytest.raises(ParameterError, match="window"):
         window_resolvent(DistributedDelay([0.0, 0.5], [1.0, 1.0]), 1.0)
+
+
+@pytest.mark.parametrize("errors", [(0.05, 0.0), (-0.03, 0.04)])
+def test_speed_mismatch_is_the_literal_predictor_on_the_perturbed_plant(errors):
+    """The controller (nominal model, nominal window) on a plant with speeds lam (1 + e_lam), mu (1 + e_mu)."""
+    e_lam, e_mu = errors
+    controller = OutputFeedback(ReflectionController(0.1))
+    A, B = mismatch_loop(PAPER, controller, e_lam, e_mu)
+    perturbed = nr.Hyperbolic2x2(1.0 + e_lam, 1.0 + e_mu, 1.0, 1.0, 1.0, 0.85)
+    open_loop, law = loop_factors(PAPER, OpenLoop())[0], loop_factors(PAPER, ReflectionController(0.1))[1]
+    plant_loop = loop_factors(perturbed, OpenLoop())[0]
+    w, w_plant = 1.0, 1.0 / (1.0 + e_mu)
+    for s in POINTS:
+        coarse = literal_predictor(open_loop, law, w, s, 150)
+        fine = literal_predictor(open_loop, law, w, s, 300)
+        c_z, c_u = ((4 * b - a) / 3 for a, b in zip(coarse, fine))
+        for delta in (0.0, 0.2):
+            expected = plant_loop(s) * (1 - c_u) - c_z * np.exp(s * (w - w_plant) - delta * s)
+            np.testing.assert_allclose(A(s) + B(s) * np.exp(-delta * s), expected, rtol=0, atol=2e-8)
+    A0, B0 = mismatch_loop(PAPER, controller, 0.0, 0.0)
+    A1, B1 = loop_factors(PAPER, controller)
+    s = np.array(POINTS)
+    np.testing.assert_allclose((A0 + B0.shift(0.2))(s), (A1 + B1.shift(0.2))(s), rtol=0, atol=1e-12)
+
+
+def test_output_feedback_is_fragile_to_the_speed_of_u():
+    """5 % on lam: the output feedback loses stability without any delay; the state feedback keeps a margin."""
+    observed = nr.delay_margin(*mismatch_loop(PAPER, OutputFeedback(ReflectionController(0.1)), 0.05, 0.0))
+    state = nr.delay_margin(*mismatch_loop(PAPER, ReflectionController(0.1), 0.05, 0.0))
+    assert not observed.nominally_stable and observed.margin == 0.0
+    assert state.nominally_stable and state.margin > 0.2

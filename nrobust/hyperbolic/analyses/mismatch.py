@@ -16,6 +16,12 @@ kernels on ``kernel_grid`` points (:func:`~nrobust.hyperbolic.loops.controllers.
 On an uncoupled plant the paper's laws are ``U = k u(t, 1)`` (no kernel), the route is exact
 and a certificate is about the PDE itself.
 
+An :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` is an input-output map from the
+measurement ``v(t, 0)`` and its own commands, designed on the nominal plant: its observer
+predicts with the nominal delay form and window ``1/mu`` while the plant transports at the
+perturbed speeds (:func:`mismatch_loop`; the observer's term is computed in floating point, a
+model as in :mod:`~nrobust.hyperbolic.loops.output_feedback`).
+
 The delay margin is not a continuous function of the mismatch: where ``|A(i w)|^2 - |B(i w)|^2``
 gains a double zero a pair of crossing frequencies is born and the margin jumps down to its
 first crossing delay. :func:`mismatch_region` therefore brackets each end of the admissible
@@ -41,8 +47,20 @@ from ...margins.admissible import tolerates
 from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
+from ...volterra import resolvent_product
 from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
-from ..loops.controllers import Controller, StateFeedback, loop_factors, loop_route, loop_scope
+from ..loops.controllers import (
+    Controller,
+    FilteredController,
+    OpenLoop,
+    OutputFeedback,
+    StateFeedback,
+    loop_factors,
+    loop_route,
+    loop_scope,
+    unfiltered,
+)
+from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
 
@@ -111,6 +129,42 @@ def _loop(
     return A.times_poly([1.0, b]), B.times_poly([1.0, a])
 
 
+def _measured(B: QuasiPolynomial, window: float, move: float) -> QuasiPolynomial:
+    """``B`` on delays ``>= window`` (its part below is zero: it multiplies the measurement), moved by ``move``."""
+    terms = [d.restricted(window) for d in B.distributed]
+    return QuasiPolynomial.from_parts(
+        [(p, t + move) for p, t in B.point_terms],
+        [d.replace(nodes=d.nodes + move) for d in terms if d is not None],
+    )
+
+
+def _observed(
+    system: Hyperbolic2x2, controller: OutputFeedback, e_lam: float, e_mu: float, kernel_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A, B)`` of an output feedback designed for ``system`` on the plant with mismatched speeds.
+
+    The controller is an input-output map designed on the nominal plant: from the measurement
+    ``y = v(t, 0)`` through ``B_o`` (its part on the delays ``>= w = 1/mu``, read as ``z`` delayed
+    by the nominal window) and from its commands through the nominal window kernel ``h``. The
+    plant has ``y = e^{-s w'} z'`` with ``(1 - Phi') z' = U`` for its own window ``w' = 1/mu'``
+    and delay form, so ``A = d (1 - Phi') - n (1 - Phi') H e^{-delta_o s}`` and
+    ``B = B_o e^{-(w' - w) s}``.
+    """
+    inner = controller.controller
+    grid = None if loop_route(system, inner) == "exact" else kernel_grid
+    plant = dataclasses.replace(system, lam=system.lam * (1.0 + e_lam), mu=system.mu * (1.0 + e_mu))
+    _, B_o = loop_factors(system, controller, grid)
+    term = observer_term(
+        loop_factors(system, OpenLoop(), grid)[0], loop_factors(system, unfiltered(inner), grid)[1], 1.0 / system.mu
+    )
+    open_loop = loop_factors(plant, OpenLoop(), None if grid is None or plant.uncoupled else grid)[0]
+    d, n = ((1.0, inner.b), (1.0, inner.a)) if isinstance(inner, FilteredController) else ((1.0,), (1.0,))
+    A = open_loop.times_poly(list(d))
+    if term is not None:
+        A = A - resolvent_product(open_loop, term.kernel).product.times_poly(list(n)).shift(controller.observer_delay)
+    return A, _measured(B_o, 1.0 / system.mu, 1.0 / plant.mu - 1.0 / system.mu)
+
+
 def mismatch_loop(
     system: Hyperbolic2x2,
     controller: Controller,
@@ -157,6 +211,8 @@ def mismatch_loop(
     _check_pair(system, controller)
     e_lam, e_mu = _check_error("e_lam", e_lam), _check_error("e_mu", e_mu)
     kernel_grid = check_kernel_grid(kernel_grid)
+    if isinstance(controller, OutputFeedback):
+        return _observed(system, controller, e_lam, e_mu, kernel_grid)
     return _loop(*_mismatched(system, controller, e_lam, e_mu, kernel_grid), kernel_grid)
 
 
@@ -173,9 +229,13 @@ class _MismatchMargin:
 
     def __call__(self, point: tuple[float, float]) -> DelayMargin | str:
         try:
-            A, B = _loop(
-                *_mismatched(self.system, self.controller, point[0], point[1], self.kernel_grid), self.kernel_grid
-            )
+            if isinstance(self.controller, OutputFeedback):
+                A, B = _observed(self.system, self.controller, point[0], point[1], self.kernel_grid)
+            else:
+                A, B = _loop(
+                    *_mismatched(self.system, self.controller, point[0], point[1], self.kernel_grid),
+                    self.kernel_grid,
+                )
             return factor_delay_margin(A, B, verify=True, max_evals=self.max_evals, rigorous=self.rigorous)
         except CertificationError as exc:
             return str(exc)
@@ -444,13 +504,19 @@ def mismatch_region(
             _axis_end(evaluate, axis, below, delta_max, tol),
             _axis_end(evaluate, axis, above, delta_max, tol),
         )
-    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-    route = loop_route(plant, feedback)
-    scope = loop_scope(
-        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
-    )
-    if route == "kernels" and not isinstance(controller, StateFeedback):
-        scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
+    if isinstance(controller, OutputFeedback):
+        route = loop_route(system, controller)
+        route_grid = kernel_grid if route == "kernels" else None
+        scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
+        scope += "; the observer and the law designed on the nominal plant, acting on the mismatched one"
+    else:
+        plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+        route = loop_route(plant, feedback)
+        scope = loop_scope(
+            plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
+        )
+        if route == "kernels" and not isinstance(controller, StateFeedback):
+            scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
     return MismatchRegion(
         lam_axis,
         mu_axis,

@@ -73,6 +73,7 @@ __all__ = [
     "loop_route",
     "loop_scope",
     "normalize",
+    "unfiltered",
 ]
 
 Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
@@ -537,8 +538,8 @@ def _observer_grid(system: Any, controller: OutputFeedback, kernel_grid: int | N
     return DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
 
 
-def _unfiltered(controller: Controller) -> Controller:
-    """The law of a filtered controller without its filter (the controller itself otherwise)."""
+def unfiltered(controller: Controller) -> Controller:
+    """The law of a :class:`FilteredController` without its filter (any other controller itself)."""
     if isinstance(controller, FilteredController):
         return FiniteTimeController() if controller.K is None else ReflectionController(controller.K)
     return controller
@@ -554,7 +555,7 @@ def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) 
         )
     grid = _observer_grid(system, controller, kernel_grid)
     open_loop, _ = loop_factors(system, OpenLoop(), grid)
-    _, law = loop_factors(system, _unfiltered(controller.controller), grid)
+    _, law = loop_factors(system, unfiltered(controller.controller), grid)
     plant = normalize(system, OpenLoop())[0]
     return observer_term(open_loop, law, 1.0 / plant.mu), grid
 
