@@ -79,7 +79,10 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md); its [system] is the plant")
     d.add_argument("-o", "--out", required=True, help="output directory")
     d.add_argument(
-        "--family", choices=("reflection", "filtered"), default=None, help="U_BS2(K) or the filtered U_BS2(K)"
+        "--family",
+        choices=("reflection", "output_feedback", "filtered"),
+        default=None,
+        help="U_BS2(K), U_BS2(K) on the state predicted from v(t, 0), or the filtered U_BS2(K)",
     )
     d.add_argument("--objective", choices=("margin", "decay_rate"), default=None, help="what to maximise")
     d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")

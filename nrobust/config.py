@@ -170,9 +170,11 @@ _DESIGN_KEYS: dict[str, Any] = {
     "b": None,
     "starts": 4,
     "rigorous": False,
+    "observer_delay": 0.0,
 }
-#: The controller families ``nrobust design`` can design: U_BS2(K) and the filtered U_BS2(K).
-DESIGN_FAMILIES = ("reflection", "filtered")
+#: The controller families ``nrobust design`` can design: U_BS2(K), U_BS2(K) on the state predicted
+#: from ``v(t, 0)`` (output feedback) and the filtered U_BS2(K).
+DESIGN_FAMILIES = ("reflection", "output_feedback", "filtered")
 
 
 def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
@@ -394,12 +396,20 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
             d[name] = (lo, hi)
         else:
             d[name] = _number(f"design.{name}", value)
-    if d["family"] == "reflection":
+    if d["family"] in ("reflection", "output_feedback"):
+        family = d["family"]
         for name in ("a", "b"):
             if d[name] is not None:
-                raise ParameterError(f"design.{name}", 'left out for family = "reflection" (U_BS2(K) has no filter)')
+                raise ParameterError(f"design.{name}", f'left out for family = "{family}" (U_BS2(K) has no filter)')
         if isinstance(d["K"], float):
-            raise ParameterError("design.K", 'bounds [low, high] for family = "reflection" (K is designed)', d["K"])
+            raise ParameterError("design.K", f'bounds [low, high] for family = "{family}" (K is designed)', d["K"])
+    d["observer_delay"] = _number("design.observer_delay", d["observer_delay"])
+    if d["observer_delay"] < 0.0:
+        raise ParameterError("design.observer_delay", ">= 0 (a delay)", d["observer_delay"])
+    if d["observer_delay"] != 0.0 and d["family"] != "output_feedback":
+        raise ParameterError(
+            "design.observer_delay", 'left out unless family = "output_feedback" (an observer\'s)', d["observer_delay"]
+        )
     starts = d["starts"]
     if isinstance(starts, bool) or not isinstance(starts, int) or not 1 <= starts <= 64:
         raise ParameterError("design.starts", "an integer in [1, 64]", starts)

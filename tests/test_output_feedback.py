@@ -11,10 +11,15 @@ the products (:mod:`nrobust.volterra`). Its measured error: Richardson differenc
 
 from __future__ import annotations
 
+import json
+import re
+
 import numpy as np
 import pytest
 
 import nrobust as nr
+from nrobust.cli import main
+from nrobust.config import load_system_file
 from nrobust.distributed_delay import DistributedDelay
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses.design import design_reflection
@@ -286,3 +291,53 @@ def test_output_feedback_is_fragile_to_the_speed_of_u():
     state = nr.delay_margin(*mismatch_loop(PAPER, ReflectionController(0.1), 0.05, 0.0))
     assert not observed.nominally_stable and observed.margin == 0.0
     assert state.nominally_stable and state.margin > 0.2
+
+
+SYSTEM_TOML = """
+[system]
+type = "Hyperbolic2x2"
+lam = 1.0
+mu = 1.0
+sigma_pm = 1.0
+sigma_mp = 1.0
+q = 1.0
+rho = 0.85
+
+[controller]
+type = "ReflectionController"
+K = 0.1
+
+[analysis]
+delta_max = 0.5
+
+[design]
+family = "output_feedback"
+K = [0.1, 0.13]
+"""
+
+
+def test_design_command_for_output_feedback(tmp_path):
+    system = tmp_path / "SYSTEM.toml"
+    system.write_text(SYSTEM_TOML)
+    out = tmp_path / "out"
+    assert main(["design", str(system), "-o", str(out)]) == 0
+    text = (out / "design.md").read_text()
+    assert text.startswith("# Design of U_BS2(K) on the state predicted from v(t, 0)")
+    assert re.search(r"K = 0\.117757776215\d* \+- \de-1[23] \(kink\)", text) and "a model of the PDE" in text
+    data = json.loads((out / "design.json").read_text())
+    assert data["family"] == "output_feedback" and data["controller"]["controller"] == "OutputFeedback"
+
+
+@pytest.mark.parametrize(
+    ("extra", "family", "name"),
+    [
+        ("observer_delay = -0.1", "output_feedback", "design.observer_delay"),
+        ("observer_delay = 0.1", "reflection", "design.observer_delay"),
+        ("a = 0.1", "output_feedback", "design.a"),
+    ],
+)
+def test_design_section_checks_the_observer_keys(tmp_path, extra, family, name):
+    system = tmp_path / "SYSTEM.toml"
+    system.write_text(SYSTEM_TOML.replace('family = "output_feedback"', f'family = "{family}"\n{extra}'))
+    with pytest.raises(ParameterError, match=name):
+        load_system_file(system)

@@ -8,6 +8,9 @@ options when given:
 
 * ``family = "reflection"``: ``U_BS2(K)`` (eq. (53)), the gain solved from the equation of its
   kind (:func:`nrobust.hyperbolic.analyses.design_reflection`);
+* ``family = "output_feedback"``: the same law on the state predicted from the measurement
+  ``v(t, 0)`` (:class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback`, with the
+  observer's assumed actuation delay ``observer_delay``);
 * ``family = "filtered"``: U_BS2(K) through the filter ``(1 + a s)/(1 + b s)``, a local
   optimisation over the free ones of ``K``, ``a``, ``b``
   (:func:`nrobust.hyperbolic.analyses.design_filtered`).
@@ -33,6 +36,7 @@ from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, load_system_file
 from ..errors import ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
 from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
+from ..hyperbolic.loops.controllers import OutputFeedback
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
@@ -42,8 +46,13 @@ def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
     k_acc, v_acc = d.accuracy
+    law = "U_BS2(K)"
+    if isinstance(result.controller, OutputFeedback):
+        law += " on the state predicted from v(t, 0)"
+        if result.controller.observer_delay:
+            law += f" (the observer assumes an actuation delay {result.controller.observer_delay:g})"
     lines = [
-        f"# Design of U_BS2(K) for {path.name}",
+        f"# Design of {law} for {path.name}",
         "",
         f"- objective: the largest {what}, K in [{d.bounds[0]:.6g}, {d.bounds[1]:.6g}]",
         f"- designed gain: K = {with_accuracy(d.K, k_acc)} ({d.kind})",
@@ -171,9 +180,15 @@ def run_design(
     outputs = RunOutputs(out_dir, "design")
     with outputs:
         result: ReflectionDesign | FilteredDesign
-        if family == "reflection":
+        if family in ("reflection", "output_feedback"):
             result = design_reflection(
-                spec["system"], objective, margin_at_least=margin_at_least, K_bounds=bounds, rigorous=rigorous
+                spec["system"],
+                objective,
+                margin_at_least=margin_at_least,
+                K_bounds=bounds,
+                rigorous=rigorous,
+                output_feedback=family == "output_feedback",
+                observer_delay=float(given.get("observer_delay", 0.0)),
             )
             lines = _reflection_markdown(Path(path), result)
         else:
