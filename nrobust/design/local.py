@@ -29,9 +29,15 @@ functions in practice; it stops when the smallest convex combination of the grad
 sampled near the last iterate (the gradient-sampling stationarity measure of Burke, Lewis and
 Overton, SIAM J. Optim. 15, 2005) is small. Every trial point's feasibility is checked (inside
 the bounds, margin ``>= d``): an infeasible point counts as ``+inf`` for the line search, so
-every iterate is feasible. Where BFGS stalls (at a kink, or at a corner of the feasible set
+every iterate is feasible. Most trial points are rejected, and a bound settles most of those
+before any spectral abscissa or crossing search (:class:`_Problem`): ``gamma_0`` in closed
+form, the chains of the principal part (the abscissa is at least their ``c_D``), a zero
+continued by Newton's method from the rightmost roots of earlier points and proven by a
+certified count, a crossing continued from the crossing frequencies of earlier points (its
+delay bounds the margin from above). Where BFGS stalls (at a kink, or at a corner of the feasible set
 where a crossing pair is born), a pattern search over the coordinate axes, their pairwise
-diagonals and the descent direction continues with shrinking steps. A start that is not
+diagonals and the descent direction continues with shrinking steps (and growing ones along a
+direction that keeps improving). A start that is not
 feasible first maximises the margin until it reaches ``d``. The optimum is local; several
 starts (a Halton sequence in the bounds, run through any ``map``, e.g.
 :func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
@@ -50,11 +56,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._json import json_safe
+from .._newton import newton
 from .._validate import finite_real, nonnegative, positive_int
 from ..errors import CertificationError, ParameterError
-from ..margins import DelayMargin, delay_margin
+from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
+from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_search
 from ..quasipoly import QuasiPolynomial
-from ..roots import SpectralAbscissa, spectral_abscissa
+from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
 
 __all__ = ["GAMMA_MAX", "OBJECTIVES", "LoopDesign", "LocalRun", "ParametricLoop", "delayed_gamma", "optimize_loop"]
 
@@ -78,6 +86,30 @@ POLISH_TOL = 1e-5
 LINE_SEARCH_TRIALS = 16
 #: Gradients kept for the stationarity measure.
 SAMPLED_GRADIENTS = 8
+#: Witnesses kept by each process, the newest: rightmost roots of earlier trial points (continued by
+#: Newton's method to a new point, a located root bounds its abscissa from below) and crossing
+#: frequencies with short delays (a crossing found near one bounds the new point's margin from above).
+WITNESSES = 32
+#: A crossing near a witness frequency ``w0`` is sought on ``w0 (1 +- WITNESS_WINDOW)``, sampled at
+#: ``WITNESS_SAMPLES`` points (a sign change of ``|A|^2 - |B|^2`` above its rounding level).
+WITNESS_WINDOW = 0.02
+WITNESS_SAMPLES = 41
+#: Newton seeds on the rightmost chain of the principal part: its zeros with ``0 <= Im s <= CHAIN_SEEDS``
+#: spacings (the low-frequency zeros of a neutral loop leave their chain first).
+CHAIN_SEEDS = 24
+#: A test of ``delta* >= d`` first searches the crossings of ``|w| <= LOW_BAND 2 pi / d`` (every crossing
+#: above ``2 pi / d`` has a delay below ``d``, so most violations are found there), then up to the
+#: frequency bound ``W``; the first stage only when ``W`` exceeds ``LOW_BAND_FROM`` times its band (near
+#: ``gamma_0 = 1``, where ``W`` grows like ``1/(1 - gamma_0)``: on the paper's plant with ``d = 0.2`` the
+#: low band takes 0.3 s and the whole search 0.4 s at ``W = 609``, 5.3 s at ``W = 9139``).
+LOW_BAND = 2.0
+LOW_BAND_FROM = 16.0
+#: Work bound of each crossing search (that of :func:`nrobust.margins.delay_margin`).
+MAX_EVALS = 2_000_000
+#: The reason of a trial point whose margin is below the requirement (it starts the first phase).
+BELOW_REQUIREMENT = "delay margin below the requirement"
+#: The reason of a trial point whose abscissa, computed, is above the line that rejects it.
+ABOVE_LINE = "above the line search's line"
 
 
 def _box(bounds: ArrayLike) -> NDArray[np.float64]:
@@ -112,7 +144,12 @@ def delayed_gamma(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
 
 @dataclass(frozen=True)
 class _Point:
-    """One evaluated parameter vector."""
+    """One evaluated parameter vector.
+
+    ``screened`` points were rejected by a bound without their value: ``value`` is then a lower
+    bound of the function minimised (above the line that rejected them), and they are never
+    feasible, so they can never become an iterate.
+    """
 
     p: NDArray[np.float64]
     feasible: bool
@@ -121,17 +158,176 @@ class _Point:
     abscissa: float
     margin: float
     reason: str = ""
+    screened: bool = False
+
+
+@dataclass(eq=False)
+class _Memo:
+    """What one process learned about the loop family (each process of ``map`` keeps its own).
+
+    ``points`` maps ``(p, objective)`` to complete evaluations, ``floors`` to lower bounds of
+    the function minimised at points rejected early, ``abscissae`` ``p`` to its spectral
+    abscissa; ``roots`` and ``omegas`` are the witnesses (:data:`WITNESSES`); ``screened``
+    counts the evaluations settled by a bound (the gamma of the delayed loop, the chains, a
+    witness) and ``full`` those that ran a spectral abscissa or a crossing search.
+    """
+
+    points: dict[tuple[bytes, str], _Point] = field(default_factory=dict)
+    floors: dict[tuple[bytes, str], float] = field(default_factory=dict)
+    abscissae: dict[bytes, SpectralAbscissa] = field(default_factory=dict)
+    roots: list[complex] = field(default_factory=list)
+    omegas: list[float] = field(default_factory=list)
+    screened: int = 0
+    full: int = 0
+
+    def add_root(self, s: complex | None) -> None:
+        """Keep ``s`` (a rightmost root) as the newest witness, in place of those within ``1e-3 (1 + |s|)``."""
+        if s is None or not np.isfinite(s):
+            return
+        s = complex(s.real, abs(s.imag))
+        self.roots = [s, *(r for r in self.roots if abs(s - r) > 1e-3 * (1.0 + abs(s)))][:WITNESSES]
+
+    def add_crossings(self, crossings: Sequence[Crossing], below: float) -> None:
+        """Keep the frequencies of the crossings whose first delay is below ``below`` as the newest
+        witnesses, each in place of those within a quarter of the window (:data:`WITNESS_WINDOW`)."""
+        for c in crossings:
+            w = abs(float(c.omega))
+            if c.delays[0] < below:
+                near = 0.25 * WITNESS_WINDOW * w
+                self.omegas = [w, *(v for v in self.omegas if abs(w - v) > near)][:WITNESSES]
+
+
+def _newton_roots(F: QuasiPolynomial, seeds: NDArray[np.complex128], max_step: float) -> NDArray[np.complex128]:
+    """The zeros of ``F`` Newton's method reaches from ``seeds`` (nan where it does not converge)."""
+
+    def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        return F(x), F.deriv_at(x)
+
+    return newton(fdf, seeds, max_step=max_step, iters=30)
+
+
+def _proven_root_right_of(F: QuasiPolynomial, s: complex, level: float) -> float | None:
+    """The left edge of a box right of ``level`` that a certified count proves holds a zero of ``F``
+    (about ``s``, a zero located in floating point), or None."""
+    h = min(1e-6 * (1.0 + abs(s)), 0.5 * (s.real - level))
+    if not h > 0.0:
+        return None
+    try:
+        count = count_roots(F, (s.real - h, s.real + h, s.imag - h, s.imag + h))
+    except (CertificationError, ParameterError):
+        return None
+    return count.region[0] if int(count) >= 1 and count.region[0] > level else None
+
+
+def _window_grid(omegas: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Samples of the windows ``w0 (1 +- WITNESS_WINDOW)`` about the witnesses, overlapping windows merged."""
+    if not omegas.size:
+        return omegas
+    lo, hi = np.sort(omegas) * (1.0 - WITNESS_WINDOW), np.sort(omegas) * (1.0 + WITNESS_WINDOW)
+    pieces = []
+    start, end = lo[0], hi[0]
+    for a, b in zip(lo[1:], hi[1:]):
+        if a > end:
+            pieces.append((start, end))
+            start = a
+        end = max(end, b)
+    pieces.append((start, end))
+    spacing = 2.0 * WITNESS_WINDOW / (WITNESS_SAMPLES - 1)
+    return np.concatenate([np.linspace(a, b, 1 + math.ceil((b - a) / (spacing * a))) for a, b in pieces])
+
+
+def _crossing_near(A: QuasiPolynomial, B: QuasiPolynomial, omegas: Sequence[float], level: float) -> float:
+    """A delay below ``level`` at which ``A + B e^{-delta s}`` has a zero ``i w`` with ``w`` near a
+    witness frequency, or ``inf``.
+
+    ``g(w) = |A(i w)|^2 - |B(i w)|^2`` is sampled on ``w0 (1 +- WITNESS_WINDOW)`` about each witness
+    ``w0`` (and at the vertex of the parabola through each local minimum of the samples, where a
+    pair of zeros may lie between two of them); a sign change with ``|g|`` above ``1e-9`` of its
+    rounding scale at both ends brackets a
+    zero ``w*`` of ``g``: ``|A| = |B|`` there, and ``e^{-i w* delta} = -A/B`` at ``delta(w*) =
+    (arg(-B/A) mod 2 pi) / w*``, a delay at which the loop has a zero on the imaginary axis (its
+    margin is at most that delay). The brackets whose ends give delays near or below ``level``
+    are narrowed together (false position with the Illinois modification, every third step a
+    bisection) to ``1e-8 w``; a delay is returned when it is below ``level`` by ``1e-9`` relative
+    at both ends of its bracket (the phase kept ``1e-6`` from the branch cut of ``mod 2 pi``): on
+    so short a bracket the delay ``delta(w)`` departs from the chord through its ends by
+    ``|delta''| h^2 / 8``, about ``1e-14`` for the loops met here.
+    """
+    if not omegas or not level > 0.0:
+        return math.inf
+    w0 = np.abs(np.asarray(omegas, dtype=float))
+    grid = _window_grid(w0[w0 > 0.0])
+    if not grid.size:
+        return math.inf
+
+    def gap(w: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        s = 1j * w
+        a, b = A(s), B(s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            delay = np.mod(np.angle(-b / a), 2.0 * np.pi)
+        delay = np.where((delay > 1e-6) & (delay < 2.0 * np.pi - 1e-6), delay / w, np.inf)
+        return np.abs(a) ** 2 - np.abs(b) ** 2, delay
+
+    g, delay = gap(grid)
+    # a pair of zeros about to be born (or just born) lies between two samples: the vertex of the
+    # parabola through a local minimum and its neighbours is sampled too
+    i = 1 + np.flatnonzero((g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:]))
+    if i.size:
+        x0, x1, x2, y0, y1, y2 = grid[i - 1], grid[i], grid[i + 1], g[i - 1], g[i], g[i + 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            num = (x1 - x0) ** 2 * (y1 - y2) - (x1 - x2) ** 2 * (y1 - y0)
+            den = (x1 - x0) * (y1 - y2) - (x1 - x2) * (y1 - y0)
+            vertex = x1 - 0.5 * num / den
+        vertex = vertex[np.isfinite(vertex) & (vertex > x0) & (vertex < x2)]
+        if vertex.size:
+            g_v, delay_v = gap(vertex)
+            order = np.argsort(np.concatenate([grid, vertex]))
+            grid = np.concatenate([grid, vertex])[order]
+            g, delay = np.concatenate([g, g_v])[order], np.concatenate([delay, delay_v])[order]
+    s = 1j * grid
+    noise = 1e-9 * (A.magnitude(s) ** 2 + B.magnitude(s) ** 2)
+    sign = np.where(g > noise, 1, np.where(g < -noise, -1, 0))
+    k = np.flatnonzero((sign[:-1] * sign[1:] < 0) & (np.minimum(delay[:-1], delay[1:]) < 1.05 * level))
+    if not k.size:
+        return math.inf
+    lo, hi, g_lo, g_hi = grid[k], grid[k + 1], g[k], g[k + 1]
+    for step in range(60):
+        if np.all(hi - lo <= 1e-8 * hi):
+            break
+        w = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+        w = np.where((step % 3 == 2) | ~(w > lo) | ~(w < hi), 0.5 * (lo + hi), w)
+        g_w, _ = gap(w)
+        left = np.sign(g_w) == np.sign(g_lo)  # the zero lies right of w
+        g_hi = np.where(left, 0.5 * g_hi, g_w)  # Illinois: halve the end that stays
+        g_lo = np.where(left, g_w, 0.5 * g_lo)
+        lo, hi = np.where(left, w, lo), np.where(left, hi, w)
+    _, d_lo = gap(lo)
+    _, d_hi = gap(hi)
+    ok = (hi - lo <= 1e-8 * hi) & (np.maximum(d_lo, d_hi) < level * (1.0 - 1e-9))
+    return float(np.min(np.maximum(d_lo, d_hi)[ok])) if np.any(ok) else math.inf
 
 
 @dataclass(frozen=True)
 class _Problem:
-    """The function minimised, its gradient and its feasibility (picklable)."""
+    """The function minimised, its gradient and its feasibility (picklable).
+
+    The work of a trial point is ordered from cheap to costly, and stops as soon as the point
+    is settled: the bounds and ``gamma_0`` (closed form), the memo, then bounds that reject it
+    (a witness crossing below the required margin, the chains of the principal part or a
+    witness root right of the line), then the spectral abscissa, then the margin. A rejection
+    never needs a proof to keep the search sound (it only loses a candidate), but each is one
+    all the same: a certified root count about the located root, a sign change of ``|A|^2 -
+    |B|^2`` above its rounding level. An accepted point is certified as before: its abscissa
+    by :func:`~nrobust.roots.spectral_abscissa`, its margin by the complete certified
+    crossing search (:meth:`_meets`).
+    """
 
     loop: ParametricLoop
     bounds: NDArray[np.float64]
     objective: str
     margin_at_least: float | None
     gamma_max: float = 1.0
+    memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
     def _step(self, p: NDArray[np.float64], i: int) -> float:
         return 1e-6 * max(1.0, abs(float(p[i])), float(self.bounds[i, 1] - self.bounds[i, 0]))
@@ -186,9 +382,10 @@ class _Problem:
     def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> _Point:
         """Evaluate at ``p``; ``want="margin"`` minimises ``-delta*`` whatever the objective.
 
-        With the decay-rate objective, a point whose abscissa exceeds ``above`` (a line
-        search's sufficient-decrease line) is returned as it is, its margin not computed: it is
-        rejected whether feasible or not.
+        A point whose value exceeds ``above`` (a line search's sufficient-decrease line, or the
+        incumbent of the pattern search) is rejected whether feasible or not: it is returned as
+        soon as that is known, with the abscissa (decay-rate objective) or a lower bound of the
+        value (a screened point, never feasible), its margin not computed.
 
         A point where the abscissa or the margin cannot be certified within their work bounds
         (e.g. crossings accumulating as the difference operator nears instability) is treated
@@ -197,32 +394,174 @@ class _Problem:
         p = np.asarray(p, dtype=float)
         if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
             return _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "outside the bounds")
+        objective = want or self.objective
+        key = (p.tobytes(), objective)
+        memo = self.memo
+        if key in memo.points:
+            return memo.points[key]
+        floor = memo.floors.get(key, -math.inf)
+        if floor > above:
+            memo.screened += 1
+            return self._screened(p, floor, objective, "above the line (remembered bound)")
         try:
-            return self._evaluate(p, want or self.objective, above)
+            point = self._evaluate(p, objective, above)
         except CertificationError as exc:
-            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, f"not certified: {exc}")
+            point = _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, f"not certified: {exc}")
+        if point.screened or point.reason == ABOVE_LINE:
+            memo.floors[key] = max(floor, point.value)
+        else:
+            memo.points[key] = point
+        return point
+
+    def _screened(self, p: NDArray[np.float64], floor: float, objective: str, why: str) -> _Point:
+        abscissa = floor if objective == "decay_rate" else math.nan
+        margin = -floor if objective == "margin" else math.nan
+        return _Point(p, False, floor, np.zeros(p.size), abscissa, margin, why, screened=True)
 
     def _evaluate(self, p: NDArray[np.float64], objective: str, above: float) -> _Point:
         A, B = self.loop(p)
         gamma = delayed_gamma(A, B)
+        memo = self.memo
         if not gamma <= self.gamma_max:
+            memo.screened += 1
             reason = f"gamma_0 = {gamma:.6g} of the delayed loop's difference operator above gamma_max"
             return _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
-        F = A + B
-        sa = spectral_abscissa(F)
-        if objective == "decay_rate" and sa.value > above:
-            return _Point(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, "above the line search's line")
-        need_margin = objective == "margin" or self.margin_at_least is not None
-        dm = delay_margin(A, B, verify=False) if need_margin else None
-        margin = dm.margin if dm is not None else math.nan
         if objective == "margin":
-            assert dm is not None
-            if not dm.nominally_stable:
-                return _Point(p, False, math.inf, np.zeros(p.size), sa.value, margin, "not stable at delta = 0")
-            return _Point(p, True, -margin, -self._margin_gradient(p, A, B, dm), sa.value, margin)
-        if self.margin_at_least is not None and not margin >= self.margin_at_least:
-            return _Point(p, False, math.inf, np.zeros(p.size), sa.value, margin, "delay margin below the requirement")
+            return self._margin_point(p, A, B, above)
+        F = A + B
+        pkey = p.tobytes()
+        sa = memo.abscissae.get(pkey)
+        if sa is None and math.isfinite(above):
+            lower = F.principal_part().spectral_bound().lower  # the chains: alpha >= c_D
+            if lower > above:
+                memo.screened += 1
+                return self._screened(p, float(lower), objective, f"above the line (chains at {lower:.6g})")
+        d = self.margin_at_least
+        delay = _crossing_near(A, B, memo.omegas, d) if d else math.inf
+        if d and delay < d:
+            memo.screened += 1
+            reason = f"{BELOW_REQUIREMENT} (a crossing at delay {delay:.6g})"
+            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, delay, reason, screened=True)
+        if sa is None:
+            floor, why = self._abscissa_floor(F, above)
+            if floor > above:
+                memo.screened += 1
+                return self._screened(p, floor, objective, f"above the line ({why})")
+            memo.full += 1
+            sa = memo.abscissae[pkey] = spectral_abscissa(F)
+            memo.add_root(sa.root)
+        if sa.value > above:
+            return _Point(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
+        margin = math.nan
+        if d:
+            ok, margin = self._meets(A, B, sa, d)
+            if not ok:
+                return _Point(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
         return _Point(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+
+    def _abscissa_floor(self, F: QuasiPolynomial, above: float) -> tuple[float, str]:
+        """A lower bound of the spectral abscissa of ``F`` above ``above``, or ``-inf``.
+
+        The zeros Newton's method reaches from the witness roots and from the lowest zeros of
+        the rightmost chain of the principal part, the rightmost of them proven by a certified
+        count in a small box right of ``above`` (:func:`_proven_root_right_of`).
+        """
+        if not math.isfinite(above):
+            return -math.inf, ""
+        chains = F.principal_part().chains().chains
+        spacing = chains[0].spacing if chains else 1.0
+        seeds = [*self.memo.roots]
+        if chains:
+            seeds += list(chains[0].points(0.0, CHAIN_SEEDS * spacing))
+            if not F.is_real:
+                seeds += list(chains[0].points(-CHAIN_SEEDS * spacing, 0.0))
+        if not seeds:
+            return -math.inf, ""
+        roots = _newton_roots(F, np.array(seeds, dtype=complex), 0.25 * spacing)
+        roots = roots[np.isfinite(roots) & (roots.real > above)]
+        for s in roots[np.argsort(-roots.real)][:2]:
+            edge = _proven_root_right_of(F, complex(s), above)
+            if edge is not None:
+                self.memo.add_root(complex(s))
+                return edge, f"a zero at {complex(s):.6g}"
+        return -math.inf, ""
+
+    def _meets(self, A: QuasiPolynomial, B: QuasiPolynomial, sa: SpectralAbscissa, d: float) -> tuple[bool, float]:
+        """``(delta* >= d, delta*)`` for the loop whose abscissa at ``delta = 0`` is ``sa``.
+
+        Stability for every delay in ``[0, d]``: the loop is stable at ``delta = 0`` (``sa``'s
+        certified upper bound is negative), its delayed difference operator is strongly stable
+        (a frequency bound exists: no zero of ``Re s >= 0`` comes from infinity) and no crossing
+        has a delay below ``d`` (so no zero reaches the axis on ``[0, d)``: the steps of
+        :func:`nrobust.margins.delay_margin` without its nominal count). The crossings are
+        searched on ``|w| <= LOW_BAND 2 pi / d`` first, where most violations lie, then up to the
+        frequency bound (the first stage only for a bound above ``LOW_BAND_FROM`` times that band,
+        where it is cheap beside the whole search); the margin returned is exact when the requirement is met (the first
+        crossing delay), an upper bound of it otherwise. Without a negative upper bound the
+        exact margin decides (:func:`nrobust.margins.delay_margin`).
+        """
+        memo = self.memo
+        memo.full += 1
+        if not sa.upper_bound < 0.0:
+            dm = delay_margin(A, B, verify=False)
+            memo.add_crossings(dm.crossings, 1.5 * d)
+            return dm.margin >= d, dm.margin
+        w_bound = frequency_bound(A, B)
+        if w_bound is None:
+            return False, 0.0
+        W, gap = w_bound
+        low = LOW_BAND * 2.0 * math.pi / d
+        first = math.inf
+        for top in (min(low, W), W) if W > LOW_BAND_FROM * low else (W,):
+            try:
+                search, axis_gap = crossing_search(A, B, (top, gap), MAX_EVALS)
+            except CertificationError:
+                if top < W:
+                    continue  # the full search decides
+                raise
+            if common_axis_zeros(axis_gap, search).size:
+                return False, 0.0
+            crossings, _ = axis_crossings(A, B, search, d, axis_gap)
+            memo.add_crossings(crossings, 1.5 * d)
+            first = min((c.delays[0] for c in crossings), default=math.inf)
+            if first < d:
+                return False, first
+        return True, first
+
+    def _margin_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float) -> _Point:
+        """The margin objective: ``-delta*`` and its gradient, or a rejection below the line.
+
+        Below a finite line (``delta* < -above`` rejects), a witness crossing and then the
+        crossings of ``|w| <= LOW_BAND 2 pi / level`` may show a delay with a zero on the axis
+        below the line (an upper bound of the margin) before the complete computation.
+        """
+        memo = self.memo
+        level = -above
+        if math.isfinite(level) and level > 0.0:
+            delay = _crossing_near(A, B, memo.omegas, level)
+            if delay < level:
+                memo.screened += 1
+                return self._screened(p, -delay, "margin", f"below the line (a crossing at delay {delay:.6g})")
+            w_bound = frequency_bound(A, B)
+            low = LOW_BAND * 2.0 * math.pi / level
+            if w_bound is not None and w_bound[0] > LOW_BAND_FROM * low:
+                memo.full += 1
+                try:
+                    search, axis_gap = crossing_search(A, B, (low, w_bound[1]), MAX_EVALS)
+                    crossings, _ = axis_crossings(A, B, search, level, axis_gap)
+                except CertificationError:
+                    crossings = ()
+                memo.add_crossings(crossings, 1.5 * level)
+                first = min((c.delays[0] for c in crossings), default=math.inf)
+                if first < level:
+                    return self._screened(p, -first, "margin", f"below the line (a crossing at delay {first:.6g})")
+        memo.full += 1
+        dm = delay_margin(A, B, verify=False)
+        margin = dm.margin
+        memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
+        if not dm.nominally_stable:
+            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, margin, "not stable at delta = 0")
+        return _Point(p, True, -margin, -self._margin_gradient(p, A, B, dm), math.nan, margin)
 
 
 def _min_norm_convex(G: NDArray[np.float64]) -> float:
@@ -262,6 +601,10 @@ class LocalRun:
         (0 at a smooth stationary point; small at a nonsmooth local optimum).
     reason : str
         Why it stopped.
+    screened : int
+        Evaluations settled by a bound, without a spectral abscissa or a crossing search: the
+        ``gamma_0`` of the delayed loop, the chains of the principal part, a root or a crossing
+        continued from a witness of an earlier evaluation, a value remembered at the same point.
     """
 
     start: tuple[float, ...]
@@ -272,6 +615,7 @@ class LocalRun:
     evaluations: int
     stationarity: float
     reason: str
+    screened: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -360,8 +704,10 @@ class _Local:
         has no descent step to take; the pattern search needs none and only accepts feasible,
         better points. Its directions are the coordinate axes, the diagonals of every pair of
         axes (a corner of the feasible set is often crossed along a diagonal only) and the last
-        gradient's descent direction, each scaled by the bounds' widths. It stops early once
-        ``value <= stop_below``.
+        gradient's descent direction, each scaled by the bounds' widths. A step that improves is
+        followed by steps twice as long in its direction while they improve (a long valley is
+        crossed in a few evaluations, each accepted one costing a complete certification). It
+        stops early once ``value <= stop_below``.
         """
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
         n = x.p.size
@@ -377,24 +723,43 @@ class _Local:
                 y = f(x.p + step * d * width, x.value)
                 counter[0] += 1
                 if y.feasible and y.value < x.value:
-                    x = y
+                    x = self._extrapolate(f, y, step * d * width, counter, stop_below)
                     break
             else:
                 step /= 2.0
         return x
 
+    @staticmethod
+    def _extrapolate(
+        f: Callable[[NDArray, float], _Point],
+        x: _Point,
+        move: NDArray[np.float64],
+        counter: list[int],
+        stop_below: float,
+    ) -> _Point:
+        """From ``x``, reached by ``move``, steps of twice, four times, ... ``move`` while they improve."""
+        while x.value > stop_below:
+            move = 2.0 * move
+            y = f(x.p + move, x.value)
+            counter[0] += 1
+            if not (y.feasible and y.value < x.value):
+                break
+            x = y
+        return x
+
     def __call__(self, start: Sequence[float]) -> LocalRun:
         problem = self.problem
         counter = [1]
+        screened = problem.memo.screened
         x = problem(np.asarray(start, dtype=float))
         iterations = 0
-        if not x.feasible and problem.margin_at_least is not None and x.reason == "delay margin below the requirement":
+        if not x.feasible and problem.margin_at_least is not None and x.reason.startswith(BELOW_REQUIREMENT):
             m = problem(x.p, want="margin")  # first phase: raise the margin to the requirement
             counter[0] += 1
             if m.feasible:
 
                 def margin(q: NDArray, above: float) -> _Point:
-                    return problem(q, want="margin")
+                    return problem(q, want="margin", above=above)
 
                 target = -problem.margin_at_least
                 m, iterations, _, _ = self.minimise(margin, m, counter, stop_below=target)
@@ -403,7 +768,15 @@ class _Local:
                 counter[0] += 1
         if not x.feasible:
             return LocalRun(
-                tuple(start), tuple(map(float, x.p)), math.nan, False, iterations, counter[0], math.nan, x.reason
+                tuple(map(float, start)),
+                tuple(map(float, x.p)),
+                math.nan,
+                False,
+                iterations,
+                counter[0],
+                math.nan,
+                x.reason,
+                problem.memo.screened - screened,
             )
         x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter)
         polished = self.polish(lambda q, above: problem(q, above=above), x, counter)
@@ -418,6 +791,7 @@ class _Local:
             counter[0],
             float(stationarity),
             reason,
+            problem.memo.screened - screened,
         )
 
 
@@ -483,8 +857,6 @@ class LoopDesign:
 
 
 def _starts(bounds: NDArray[np.float64], x0: ArrayLike | None, starts: int) -> list[tuple[float, ...]]:
-    from scipy.stats import qmc
-
     points: list[tuple[float, ...]] = []
     if x0 is not None:
         x = np.asarray(x0, dtype=float)
@@ -493,6 +865,8 @@ def _starts(bounds: NDArray[np.float64], x0: ArrayLike | None, starts: int) -> l
         points.append(tuple(map(float, x)))
     k = starts - len(points)
     if k > 0:
+        from scipy.stats import qmc  # 0.8 s to import: only when a Halton start is wanted
+
         unit = qmc.Halton(d=bounds.shape[0], scramble=False).random(k + 1)[1:]  # skip the corner 0
         points += [tuple(map(float, q)) for q in qmc.scale(unit, bounds[:, 0], bounds[:, 1])]
     return points
