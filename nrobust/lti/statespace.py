@@ -44,7 +44,9 @@ the whole set by the count of the rectangle (the argument principle).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import functools
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,8 +73,31 @@ _POINTS_PER_FREQUENCY = 0.3
 _MIN_POINTS = 12
 _MAX_ORDER = 480
 _MAX_CONDITION = 1e8
+# For a singular E: the shift of the shift-and-invert reduction of the pencil (an arbitrary
+# real number, unlikely to be a root; a singular A - shift B falls back to the QZ algorithm),
+# and the relative size below which 1 / (s - shift) stands for an infinite s.
+_SHIFT = 0.3183098861837907
+_NEGLIGIBLE = 1e-12
 # Bisection steps of the abscissa bound x* = R(x*) (each halves the bracket).
 _BISECTIONS = 80
+
+
+@functools.cache
+def _blas_controller() -> Any:
+    """A threadpoolctl controller of the BLAS libraries numpy and scipy.linalg load (made once: it scans them)."""
+    import scipy.linalg  # noqa: F401  (lazily: a slow import; loaded so that its BLAS is controlled too)
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+@contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """BLAS limited to one thread: the eigenvalue problems of :meth:`StateSpaceTDS.generator_eigenvalues`
+    (order at most 480) and the small batched products of the root search run several times
+    faster without competing BLAS threads (a shared machine slows them tenfold)."""
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        yield
 
 
 def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -96,6 +121,23 @@ def _interpolation_row(theta: NDArray[np.float64], at: float) -> NDArray[np.floa
     j = np.arange(theta.size)
     w = np.where((j == 0) | (j == theta.size - 1), 0.5, 1.0) * (-1.0) ** j / (at - theta)
     return w / np.sum(w)
+
+
+def _shift_and_invert(a: NDArray[Any], b: NDArray[Any]) -> NDArray[np.complex128] | None:
+    """Finite eigenvalues ``s`` of the pencil ``a v = s b v`` (``b`` singular) as ``shift + 1 / mu``.
+
+    ``mu = 1 / (s - shift)`` are the eigenvalues of ``(a - shift b)^{-1} b``, a standard problem
+    (half the work of the QZ algorithm); the infinite ``s`` give ``mu = 0`` and are dropped.
+    None if ``a - shift b`` is singular to working precision (``shift`` is a root).
+    """
+    try:
+        mu = np.linalg.eigvals(np.linalg.solve(a - _SHIFT * b, b))
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(mu)):
+        return None
+    mu = mu[np.abs(mu) > _NEGLIGIBLE * np.max(np.abs(mu), initial=0.0)]
+    return np.asarray(_SHIFT + 1.0 / mu, dtype=complex)
 
 
 def _stack(name: str, mats: Any, n: int | None) -> NDArray[np.float64]:
@@ -180,7 +222,16 @@ class StateSpaceTDS:
         return int(self.E.shape[0])
 
     def characteristic_matrix(self) -> QuasiPolynomialMatrix:
-        """``M(s) = s E - sum A_k e^{-hA_k s} - s sum B_k e^{-hB_k s} - sum G_j int N_j e^{-nu s}``."""
+        """``M(s) = s E - sum A_k e^{-hA_k s} - s sum B_k e^{-hB_k s} - sum G_j int N_j e^{-nu s}``.
+
+        Built once (the system is immutable), so that its compiled coefficients and its
+        principal part are reused by every call of :meth:`roots`, :meth:`roots_right_of`
+        and :meth:`abscissa`.
+        """
+        return self._characteristic_matrix
+
+    @functools.cached_property
+    def _characteristic_matrix(self) -> QuasiPolynomialMatrix:
         n = self.n
         rows = []
         for i in range(n):
@@ -324,18 +375,23 @@ class StateSpaceTDS:
             a[:n] = np.linalg.solve(b0, a[:n] - b[:n, n:] @ a[n:])
             vals = np.linalg.eigvals(a)
         else:
-            vals = eig(a, b, right=False)
+            vals = _shift_and_invert(a, b)
+            if vals is None:
+                vals = eig(a, b, right=False)
         return np.asarray(vals[np.isfinite(vals)], dtype=complex)
 
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
         """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""
         x0, x1, y0, y1 = region
-        seeds = self.generator_eigenvalues(max(abs(y0), abs(y1)))
-        pad = 0.02 * min(x1 - x0, y1 - y0)
-        inside = (seeds.real > x0 - pad) & (seeds.real < x1 + pad) & (seeds.imag > y0 - pad) & (seeds.imag < y1 + pad)
-        user = options.pop("seeds", None)
-        extra = seeds[inside] if user is None else np.concatenate([seeds[inside], np.ravel(user).astype(complex)])
-        return find_roots(self.characteristic_matrix(), region, seeds=extra, **options)
+        with _one_blas_thread():
+            seeds = self.generator_eigenvalues(max(abs(y0), abs(y1)))
+            pad = 0.02 * min(x1 - x0, y1 - y0)
+            inside = (
+                (seeds.real > x0 - pad) & (seeds.real < x1 + pad) & (seeds.imag > y0 - pad) & (seeds.imag < y1 + pad)
+            )
+            user = options.pop("seeds", None)
+            extra = seeds[inside] if user is None else np.concatenate([seeds[inside], np.ravel(user).astype(complex)])
+            return find_roots(self.characteristic_matrix(), region, seeds=extra, **options)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
         """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).
@@ -383,7 +439,8 @@ class StateSpaceTDS:
 
     def abscissa(self, region: ArrayLike, **options: Any) -> SpectralAbscissa:
         """Spectral abscissa of ``det M`` in a rectangle (:func:`~nrobust.roots.spectral_abscissa`)."""
-        return spectral_abscissa(self.characteristic_matrix(), region, **options)
+        with _one_blas_thread():
+            return spectral_abscissa(self.characteristic_matrix(), region, **options)
 
     def is_strongly_stable(self) -> bool:
         """``gamma_0 < 1`` for :meth:`principal_operator` (True when the principal part has no delayed term)."""
