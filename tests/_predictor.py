@@ -37,7 +37,9 @@ def literal_predictor(open_loop, law, window, s, M, observer_delay=0.0):
 
     ``open_loop = 1 - Phi = 1 - rho_q e^{-tau s} + int N e^{-nu s}``; the window is ``(-w, 0]``.
     """
-    (rho_q_coef, tau), *_ = [(-c[0], d) for c, d in open_loop.point_terms if d > 0.0]
+    reflected = [(-c[0], d) for c, d in open_loop.point_terms if d > 0.0]
+    tau = max(d.b for d in open_loop.distributed)  # the support of N~ (with rho q = 0 no point term at tau)
+    rho_q_coef = reflected[0][0] if reflected else 0.0
     w = window
     h = w / M
     theta = -w + h * np.arange(M + 1)
