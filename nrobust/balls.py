@@ -170,6 +170,7 @@ class _DistributedBalls:
         self.poly_t = poly_t
         self.q = [_to_acb(flint, c) for c in d.poly]
         self._coef: dict[int, list[Any]] = {}
+        self._abs_coef: dict[int, list[Any]] = {}
 
     def coefficients(self, k: int) -> list[Any]:
         """Per group, the ``acb_mat`` ``(n_g x L)`` of ``h_i (nu_i + h_i t)^k P_i(t)`` in powers of ``t``."""
@@ -193,6 +194,16 @@ class _DistributedBalls:
             self._coef[k] = mats
         return self._coef[k]
 
+    def abs_coefficients(self, k: int) -> list[Any]:
+        """Per group, the ``arb_mat`` of the moduli of :meth:`coefficients` (balls that contain them)."""
+        if k not in self._abs_coef:
+            flint = self.flint
+            self._abs_coef[k] = [
+                flint.arb_mat(m.nrows(), m.ncols(), [abs(m[i, j]) for i in range(m.nrows()) for j in range(m.ncols())])
+                for m in self.coefficients(k)
+            ]
+        return self._abs_coef[k]
+
     def radius_moment(self, s: Any, k: int) -> Any:
         """Bound of ``radius int_a^b nu^k e^{-nu Re s} dnu`` over the ball ``s``: the error of ``J_k``."""
         flint = self.flint
@@ -201,10 +212,16 @@ class _DistributedBalls:
         return flint.arb(self.d.radius) * (b - a) * b**k * _segment_exp_max(flint, a, b, x)
 
     def moment(self, s: Any, k: int, cache: dict[Any, Any], lmax: int, prec: int) -> Any:
-        """``J_k(s) = int nu^k N(nu) e^{-nu s} dnu`` for the represented ``N``; ``cache`` is per point."""
+        """``J_k(s) = int nu^k N(nu) e^{-nu s} dnu`` for the represented ``N``; ``cache`` is per point.
+
+        Per group, ``sum_i sum_l a_il e^{-nu_i s} phi_l(s h_i)`` as products of FLINT ball
+        matrices: the row of exponentials times the ``(n_g x L)`` coefficients times the
+        column of ``phi_l`` (every product an enclosure of the exact sum).
+        """
         flint = self.flint
         out = flint.acb(0)
-        for g, mat in zip(self.groups, self.coefficients(k)):
+        for g, mat, absmat in zip(self.groups, self.coefficients(k), self.abs_coefficients(k)):
+            width = mat.ncols()
             phi_key = ("phi", g.hull_key, lmax)
             if phi_key not in cache:
                 cache[phi_key] = _phi_balls(flint, s * g.hull, lmax, prec)
@@ -212,18 +229,16 @@ class _DistributedBalls:
             exps = g.exponentials(s, cache)
             row = flint.acb_mat(1, len(g.idx), exps) * mat
             if g.hull_key[0] == g.hull_key[1]:  # one length: sum_i a_i phi(s h) = (sum_i a_i) phi(s h)
-                for col in range(mat.ncols()):
-                    out += row[0, col] * phi[col]
+                out += (row * flint.acb_mat(width, 1, phi[:width]))[0, 0]
                 continue
             # Lengths that differ (in the last digits): phi_l(s h_i) are different points of the
             # ball Phi_l, so sum_i a_i phi_l(s h_i) lies in (sum_i a_i) mid(Phi_l) plus a disc of
             # radius sum_i |a_i| rad(Phi_l), not in (sum_i a_i) Phi_l when the a_i cancel.
-            moduli = [abs(e) for e in exps]
-            for col in range(mat.ncols()):
-                mid = flint.acb(phi[col].real.mid(), phi[col].imag.mid())
-                spread = abs(phi[col] - mid)
-                weight = sum((m * abs(mat[i, col]) for i, m in enumerate(moduli)), flint.arb(0))
-                out += row[0, col] * mid + _disc(flint, weight * spread)
+            mids = [flint.acb(p.real.mid(), p.imag.mid()) for p in phi[:width]]
+            spreads = flint.arb_mat(width, 1, [abs(p - m) for p, m in zip(phi[:width], mids)])
+            moduli = flint.arb_mat(1, len(g.idx), [abs(e) for e in exps])
+            out += (row * flint.acb_mat(width, 1, mids))[0, 0]
+            out += _disc(flint, (moduli * absmat * spreads)[0, 0])
         return out
 
 

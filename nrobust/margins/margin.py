@@ -21,6 +21,7 @@ tangency delay: a window ends at it and the next one starts there.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -439,8 +440,21 @@ def _search(
         proof = proven_crossings(A, B, max_evals=max_evals)
         return proof, proof.search(), AxisGap(A, B)
     assert w_bound is not None
-    search, axis_gap = crossing_search(A, B, w_bound, max_evals)
+    search, axis_gap = _float_search(A, B, w_bound, max_evals)
     return None, search, axis_gap
+
+
+@functools.lru_cache(maxsize=64)
+def _float_search(
+    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int
+) -> tuple[CrossingSearch, AxisGap]:
+    """:func:`~nrobust.margins.crossing.crossing_search`, remembered for equal loops.
+
+    The search does not depend on ``delta_max``: studies that ask for the margin of one loop
+    with different delay ranges (a stability chart and a trade-off on the same gains) search
+    once. The result is read, never changed, by :func:`delay_margin`.
+    """
+    return crossing_search(A, B, w_bound, max_evals)
 
 
 def _common_zero(search: CrossingSearch, common: NDArray, zero_root: bool, delta_max: float | None) -> DelayMargin:

@@ -73,7 +73,7 @@ from ..balls import ball_abs_moment, ball_function, ball_variation_bound, requir
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
-from .axis import AxisKernels, frequency_bound, is_zero
+from .axis import AxisFunction, AxisKernels, frequency_bound, is_zero
 from .crossing import CrossingSearch
 
 __all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_radius", "proven_zero_root"]
@@ -341,6 +341,12 @@ class _Axis:
         self.kernels = AxisKernels((A, B))
         self.points = [None if not P.point_terms else ball_function(QuasiPolynomial(P.coefs, P.delays)) for P in (A, B)]
         self.units = [ball_function(QuasiPolynomial([], [], [u])) for u in self.kernels.units]
+        flint = self.flint
+        # the kernel terms c q(s) J_k(s) of each side, c and q as exact balls (converted once)
+        self.terms = [
+            [(k, _to_acb(flint, c), flint.acb_poly([_to_acb(flint, x) for x in q])) for k, c, q in side]
+            for side in self.kernels.terms
+        ]
         self.evals = 0
         self.max_evals = max_evals
 
@@ -364,9 +370,8 @@ class _Axis:
             for side in range(2):
                 f = self.points[side]
                 v = f(s) if f is not None else flint.acb(0)
-                for k, c, q in self.kernels.terms[side]:
-                    qv = flint.acb_poly([_to_acb(flint, x) for x in q])(s)
-                    v += _to_acb(flint, c) * qv * sums[k][i]
+                for k, c, q in self.terms[side]:
+                    v += c * q(s) * sums[k][i]
                 vals.append(v)
             out.append((vals[0], vals[1]))
         return out
@@ -493,11 +498,14 @@ def _blocks(flint: Any, lip: _Lipschitz, lo: float, hi: float) -> tuple[NDArray,
     return edges, [lip(float(edges[k]), float(edges[k + 1])) for k in range(_BLOCKS)]
 
 
-def _plan(A: QuasiPolynomial, B: QuasiPolynomial, edges: NDArray, bounds: NDArray, max_evals: int) -> NDArray:
+def _plan(
+    A: QuasiPolynomial, B: QuasiPolynomial, kernels: AxisKernels, edges: NDArray, bounds: NDArray, max_evals: int
+) -> NDArray:
     """Float planning of the exclusion grid: steps ``0.9 |h| / L``; small stretches of ``|h|`` jumped over.
 
     A heuristic only: every segment is then checked in balls. The planning grid is
-    checked against ``_PLAN_PER_EVAL * max_evals`` before it is allocated.
+    checked against ``_PLAN_PER_EVAL * max_evals`` before it is allocated. ``h`` is summed
+    with the kernels shared by ``A`` and ``B`` evaluated once (``kernels``).
     """
     lo, hi = float(edges[0]), float(edges[-1])
     n = max(_PLAN_POINTS, _PLAN_DENSITY * (hi - lo) * max(1.0, A.max_delay, B.max_delay))
@@ -508,8 +516,8 @@ def _plan(A: QuasiPolynomial, B: QuasiPolynomial, edges: NDArray, bounds: NDArra
         )
     n = int(n)
     w = np.linspace(lo, hi, n)
-    s = 1j * w
-    h = np.abs(A(s)) - np.abs(B(s))
+    a, b, _, _ = AxisFunction(A, B, n, kernels).factors(w)
+    h = np.abs(a) - np.abs(b)
     floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
     small = np.abs(h) < floor
     block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bounds.size - 1)
@@ -539,7 +547,7 @@ def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiP
     arb = flint.arb
     lip = _Lipschitz(flint, A, B, axis.kernels)
     edges, block_bounds = _blocks(flint, lip, lo, hi)
-    grid = _plan(A, B, edges, np.array([_hi(x) for x in block_bounds]), axis.max_evals)
+    grid = _plan(A, B, axis.kernels, edges, np.array([_hi(x) for x in block_bounds]), axis.max_evals)
 
     def bound(a: float, b: float) -> Any:
         ka = min(int(np.searchsorted(edges, a, side="right")) - 1, _BLOCKS - 1)

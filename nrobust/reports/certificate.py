@@ -23,6 +23,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 import scipy
+from threadpoolctl import threadpool_limits
 
 from .._digits import with_accuracy
 from .._json import fields_dict, json_safe
@@ -787,33 +788,36 @@ def certify(
     if not isinstance(rigorous, (bool, np.bool_)):
         raise ParameterError("rigorous", "True or False", rigorous)
     rigorous = bool(rigorous)
-    unproven: list[str] = []
-    roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
-    rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
-    abscissa = _prove("spectral abscissa", rigorous, unproven, lambda r: spectral_abscissa(F0, rigorous=r))
-    margin = _prove(
-        "delay margin",
-        rigorous,
-        unproven,
-        lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid),
-    )
-    rouche = (
-        _prove(
-            "Rouché delay range",
+    # one BLAS thread: the small eigenvalue problems (the chains of a difference operator) run
+    # slower, and cost more CPU time, when BLAS threads compete for the cores
+    with threadpool_limits(1):
+        unproven: list[str] = []
+        roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
+        rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
+        abscissa = _prove("spectral abscissa", rigorous, unproven, lambda r: spectral_abscissa(F0, rigorous=r))
+        margin = _prove(
+            "delay margin",
             rigorous,
             unproven,
-            lambda r: rouche_delay_bound(system, controller, rigorous=r, kernel_grid=kernel_grid),
+            lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid),
         )
-        if isinstance(controller, (ReflectionController, FiniteTimeController))
-        else None
-    )
-    kreg, k_region_error = None, ""
-    if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
-        n_gains = positive_int("n_gains", n_gains, 3)
-        try:
-            kreg = analyses.k_region(system, delta_max, n_gains=n_gains)
-        except CertificationError as exc:
-            k_region_error = str(exc)
+        rouche = (
+            _prove(
+                "Rouché delay range",
+                rigorous,
+                unproven,
+                lambda r: rouche_delay_bound(system, controller, rigorous=r, kernel_grid=kernel_grid),
+            )
+            if isinstance(controller, (ReflectionController, FiniteTimeController))
+            else None
+        )
+        kreg, k_region_error = None, ""
+        if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
+            n_gains = positive_int("n_gains", n_gains, 3)
+            try:
+                kreg = analyses.k_region(system, delta_max, n_gains=n_gains)
+            except CertificationError as exc:
+                k_region_error = str(exc)
     return Certificate(
         system=system,
         controller=controller,

@@ -11,6 +11,7 @@ halved. The winding number is then an integer by construction, not a rounded int
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
@@ -273,6 +274,11 @@ class Counter:
 # ====================================================================== counting in ball arithmetic
 # Initial number of pieces per edge of a contour proven in ball arithmetic.
 _BALL_PIECES = 16
+# A piece whose enclosures both contain 0 is cut in 2 pieces, or in up to _BALL_SPLIT when the
+# better one has a radius above _BALL_WIDE times the distance of its midpoint to 0 (the radius
+# shrinks about linearly with the piece: the levels of halving that would fail are skipped).
+_BALL_WIDE = 2.0
+_BALL_SPLIT = 4
 # Margin (radians) by which a lifted argument interval must miss the other lifts.
 _LIFT_MARGIN = 1e-9
 
@@ -298,6 +304,13 @@ def _arg_interval(value: Any) -> tuple[float, float] | None:
     # outward rounding of the conversions to double and of the shift by pi
     pad = 4 * EPS * (abs(lo) + abs(hi) + np.pi)
     return lo + shift - pad, hi + shift + pad
+
+
+def _wideness(value: Any) -> float:
+    """Radius of the ``acb`` rectangle over the distance of its midpoint to 0 (``inf``: not finite, or centred at 0)."""
+    rad = float(value.real.rad()) + float(value.imag.rad())
+    dist = math.hypot(float(value.real.mid()), float(value.imag.mid()))
+    return rad / dist if dist > 0.0 and math.isfinite(rad) else math.inf
 
 
 def _intersect(u: Any, v: Any) -> Any:
@@ -331,7 +344,8 @@ def ball_winding(balls: Any, box: Sequence[float], budget: Budget) -> tuple[int 
     next interval meets the previous one (each is narrower than pi, and a margin is
     demanded) it is the lift the continuous argument takes. After the whole boundary the
     lift of the first interval that meets the last one is ``first + 2 pi n``: ``n`` is the
-    winding number, a theorem about ``F`` as represented. Failing pieces are halved;
+    winding number, a theorem about ``F`` as represented. Failing pieces are halved (cut in up
+    to ``_BALL_SPLIT`` pieces when their enclosures are far from excluding 0);
     a piece shorter than ``_MIN_STEP (1 + |s|)`` blocks its side.
 
     Returns
@@ -350,9 +364,14 @@ def ball_winding(balls: Any, box: Sequence[float], budget: Budget) -> tuple[int 
             budget.spend(1, f"proving the {_describe_edge(box, side)} in ball arithmetic")
             value = balls.on_segment(p, q)
             iv = _arg_interval(value)
+            pieces = 2
             if iv is None:  # near a root: the mean-value form, intersected with the direct enclosure
                 budget.spend(2, f"proving the {_describe_edge(box, side)} in ball arithmetic")
-                iv = _arg_interval(_intersect(value, balls.on_segment(p, q, centered=True)))
+                both = _intersect(value, balls.on_segment(p, q, centered=True))
+                iv = _arg_interval(both)
+                wide = min(_wideness(both), _wideness(value))
+                if iv is None and _BALL_WIDE < wide < math.inf:
+                    pieces = min(_BALL_SPLIT, math.ceil(wide / _BALL_WIDE))
             lifted = iv if iv is None or prev is None else _lift(iv, prev)
             if lifted is not None:
                 prev = lifted
@@ -362,9 +381,13 @@ def ball_winding(balls: Any, box: Sequence[float], budget: Budget) -> tuple[int 
                 blocked[side] = True
                 prev = None  # the chain is broken: the count is void, the other sides are still probed
                 break
-            m = 0.5 * (p + q)
-            m = complex(p.real if p.real == q.real else m.real, p.imag if p.imag == q.imag else m.imag)
-            stack += [(m, q), (p, m)]
+            # the pieces share their ends exactly, on the line of the edge
+            cuts = [p + (q - p) * (j / pieces) for j in range(1, pieces)]
+            on_edge = [
+                complex(p.real if p.real == q.real else z.real, p.imag if p.imag == q.imag else z.imag) for z in cuts
+            ]
+            nodes = [p, *on_edge, q]
+            stack += [(nodes[j], nodes[j + 1]) for j in range(pieces - 1, -1, -1)]
     if blocked.any() or first is None or prev is None:
         return None, blocked
     closing = _lift(first, prev)
