@@ -175,3 +175,12 @@ def test_compound_form_needs_no_region_either() -> None:
     oracle = spectral_abscissa(exact_form(PLANT).characteristic)
     assert ours.certified and ours.accuracy is not None and ours.accuracy < 1e-9
     np.testing.assert_allclose(ours.value, oracle.value, atol=2e-9)
+
+
+def test_core_spectral_abscissa_proves_an_n_plus_m_loop_without_a_region() -> None:
+    """The core's rigorous abscissa takes the loop's own ball far field: the same bracket as proven_abscissa."""
+    F = NPlusMCharacteristic(NPlusMSystem.from_2x2(PLANT))
+    core = spectral_abscissa(F, rigorous=True)
+    own = F.proven_abscissa()
+    assert core.rigorous and core.certified and core.value_bracket is not None and own.value_bracket is not None
+    assert max(core.value_bracket[0], own.value_bracket[0]) <= min(core.value_bracket[1], own.value_bracket[1])

@@ -14,7 +14,7 @@ import pytest
 
 from nrobust import characteristic, count_roots, find_roots, spectral_abscissa
 from nrobust.balls import acb_to_disc, ball_function
-from nrobust.errors import CertificationError, ParameterError
+from nrobust.errors import CertificationError
 from nrobust.hyperbolic.loops.controllers import StateFeedback
 from nrobust.hyperbolic.nplusm import BallNPlusM, NPlusMCharacteristic, NPlusMSystem
 from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
@@ -160,11 +160,13 @@ def test_edge_near_a_root_is_never_miscounted(offset: float, side: str) -> None:
         assert int(res) == sum(x0 < w.real < x1 and y0 < w.imag < y1 for w in roots)
 
 
-def test_spectral_abscissa_needs_a_region() -> None:
-    """With rigorous=True the far field (floating point) is not used: a region is required;
-    with one, the proven root box holds the closed-form abscissa ln(b) / 2.5."""
+def test_spectral_abscissa_on_the_chains_needs_a_region() -> None:
+    """Every root of this uncoupled loop lies on its chains (abscissa ln(b) / 2.5 = c_D): the far
+    field cannot be proven right of them, and rigorous=True says so and asks for a region (a
+    loop whose rightmost root lies right of the chains needs none: tests/test_nplusm_proven.py);
+    with one, the proven root box holds the closed-form abscissa."""
     F = NPlusMCharacteristic(UNCOUPLED, K_UNCOUPLED, D_UNCOUPLED)
-    with pytest.raises(ParameterError, match="region"):
+    with pytest.raises(CertificationError, match="give a region"):
         spectral_abscissa(F, rigorous=True)
     res = spectral_abscissa(F, (-0.45, 0.5, -0.1, 1.0), rigorous=True)
     assert res.rigorous and res.root_box is not None and res.chain_bracket is None

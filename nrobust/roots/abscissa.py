@@ -331,7 +331,7 @@ def spectral_abscissa(
     im_max = None if im_max is None else positive("im_max", im_max)
     max_evals = positive_int("max_evals", max_evals)
     proof = prec if check_rigorous(F, rigorous) else None
-    if proof is not None and region is None and not isinstance(F, QuasiPolynomial):
+    if proof is not None and region is None and not _ball_far_field(F):
         raise ParameterError(
             "region",
             f"a rectangle (re_min, re_max, im_min, im_max) with rigorous=True: the root-free far field of a "
@@ -532,8 +532,16 @@ def _ball_far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float, prec: 
         return bool(gap - tail > 0)
 
 
-def _confirm_far_field(F: QuasiPolynomial, points: list[tuple[float, float]], proof: int | None) -> tuple[float, float]:
+def _ball_far_field(F: Any) -> bool:
+    """True if the far field of ``F`` can be proven in ball arithmetic: a QuasiPolynomial, or a
+    :class:`FarField` with its own ``ball_far_field_holds(x, radius, prec)`` (an ``n + m`` loop)."""
+    return isinstance(F, QuasiPolynomial) or callable(getattr(F, "ball_far_field_holds", None))
+
+
+def _confirm_far_field(F: Any, points: list[tuple[float, float]], proof: int | None) -> tuple[float, float]:
     """The first ``(x, R)`` of ``points`` at which :func:`_ball_far_field_holds`; ``points[0]`` without ``proof``.
+
+    A characteristic function with its own ``ball_far_field_holds`` proves its far field itself.
 
     The floating-point search stops where the bound just holds (a bisection), where the
     slightly looser ball bounds of ``|N|`` may not: the callers offer a few points
@@ -541,10 +549,15 @@ def _confirm_far_field(F: QuasiPolynomial, points: list[tuple[float, float]], pr
     """
     if proof is None:
         return points[0]
-    n = joint_degree(F)
-    for x, R in points:
-        if _ball_far_field_holds(F, n, x, R, proof):
-            return x, R
+    if not isinstance(F, QuasiPolynomial):
+        for x, R in points:
+            if F.ball_far_field_holds(x, R, proof):
+                return x, R
+    else:
+        n = joint_degree(F)
+        for x, R in points:
+            if _ball_far_field_holds(F, n, x, R, proof):
+                return x, R
     x, R = points[-1]
     raise CertificationError(
         f"ball arithmetic cannot confirm that F has no root with Re s >= {x:.12g} and |s| >= {R:.12g}; "

@@ -39,11 +39,12 @@ is block diagonal over the groups of equal rate.
 
 **Proven in ball arithmetic** (any ``m``). :class:`BallNPlusM` encloses ``F`` and its
 derivatives over complex balls with FLINT's proven matrix exponential and determinant, so
-``count_roots``, ``find_roots`` and ``spectral_abscissa`` (with a region) with
-``rigorous=True`` prove their results for the PDE's characteristic function itself.
-:meth:`NPlusMCharacteristic.proven_abscissa` needs no region: the proven far field puts every
-root of ``Re s >= x`` in a rectangle that the rigorous root search then proves (the core's
-``spectral_abscissa(F, rigorous=True)`` without a region is for quasi-polynomials only).
+``count_roots``, ``find_roots`` and ``spectral_abscissa`` with ``rigorous=True`` prove their
+results for the PDE's characteristic function itself. Neither the core's
+``spectral_abscissa(F, rigorous=True)`` nor :meth:`NPlusMCharacteristic.proven_abscissa` needs a
+region: the far field proven by :meth:`NPlusMCharacteristic.ball_far_field_holds` puts every root
+of ``Re s >= x`` in a rectangle that the rigorous root search then proves (a loop whose rightmost
+roots lie on its chains is refused by the core, which then asks for a region).
 """
 
 from __future__ import annotations
