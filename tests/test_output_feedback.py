@@ -145,6 +145,8 @@ def test_margin_is_a_crossing_of_the_literal_loop():
     margin = nr.delay_margin(PAPER, controller)
     assert margin.nominally_stable and margin.strongly_stable
     assert 0.16 < margin.margin < nr.delay_margin(PAPER, ReflectionController(0.1)).margin
+    # the observer term's stated accuracy carried to the margin (first order, safety factor 10)
+    assert margin.model_error is not None and margin.accuracy is not None and margin.accuracy < 1e-10
     (value,) = oracle(PAPER, controller, 1j * margin.omega, (margin.margin,))
     np.testing.assert_allclose(abs(value), 0.0, atol=2e-8)
 

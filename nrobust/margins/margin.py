@@ -110,7 +110,8 @@ class DelayMargin:
         directly, where it is about ``A`` and ``B`` as represented.
     of_model : bool
         True when ``A`` and ``B`` are a model of the plant (kernels on a grid): the margin's
-        distance to the plant's is then not known here (:attr:`accuracy` is None).
+        distance to the plant's is then not known here (:attr:`accuracy` is None), unless
+        :attr:`model_error` estimates it.
     omega_error : float or None
         A bound of ``|omega - w|``, ``w`` the exact crossing frequency of ``A`` and ``B`` as
         represented (:attr:`omega_accuracy` is the one to print): with ``rigorous`` the
@@ -123,6 +124,11 @@ class DelayMargin:
         unscaled estimate, measured on ``s + a + b e^{-delta s}`` and the paper's plant).
         0 for ``omega = 0`` at ``s = 0``; None without ``omega`` or at a tangency (``g' = 0``:
         a double zero).
+    model_error : float or None
+        For a model (:attr:`of_model`): an estimate of the margin's change from the model's
+        error, set by the plant-level ``delay_margin`` when the model states its own accuracy
+        (an output feedback's observer term); it is added to :attr:`accuracy`. None: not
+        estimated here.
     """
 
     margin: float
@@ -146,6 +152,7 @@ class DelayMargin:
     scope: str = ""
     of_model: bool = False
     omega_error: float | None = None
+    model_error: float | None = None
 
     @property
     def omega_accuracy(self) -> float | None:
@@ -168,17 +175,18 @@ class DelayMargin:
         the plant's margin is estimated by the convergence study in the kernel grid of
         :attr:`nrobust.Certificate.margin_accuracy`, outside the core.
         """
+        model = self.model_error if self.of_model and self.model_error is not None else 0.0
         if self.margin_ball is not None:
             lo, hi = self.margin_ball
             radius = max(hi - self.margin, self.margin - lo)
-            return float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0
-        if self.of_model:
+            return (float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0) + model
+        if self.of_model and self.model_error is None:
             return None
         if not np.isfinite(self.margin) or self.margin == 0.0:
             return 0.0
         if self.omega is None or self.residual is None:
             return None
-        return max(1e-12 * abs(self.margin), 20.0 * float(self.residual) / max(float(self.omega), 1e-300))
+        return max(1e-12 * abs(self.margin), 20.0 * float(self.residual) / max(float(self.omega), 1e-300)) + model
 
     @property
     def method(self) -> str:

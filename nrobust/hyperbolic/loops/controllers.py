@@ -73,6 +73,7 @@ __all__ = [
     "loop_route",
     "loop_scope",
     "normalize",
+    "observer_of",
     "unfiltered",
 ]
 
@@ -543,6 +544,15 @@ def unfiltered(controller: Controller) -> Controller:
     if isinstance(controller, FilteredController):
         return FiniteTimeController() if controller.K is None else ReflectionController(controller.K)
     return controller
+
+
+def observer_of(system: Any, controller: OutputFeedback, kernel_grid: int | None = None) -> Any:
+    """The observer term ``G`` of an output feedback on ``system`` (a ``ResolventProduct``; None if ``G = 0``).
+
+    Its ``accuracy`` is the estimated sup-norm error of ``G``'s kernel
+    (:func:`~nrobust.hyperbolic.loops.output_feedback.observer_term`).
+    """
+    return _observer(system, controller, kernel_grid)[0]
 
 
 def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> tuple[Any, int | None]:
