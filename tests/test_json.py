@@ -36,6 +36,7 @@ from nrobust.hyperbolic.analyses import (
     ab_region,
     design_filtered,
     design_reflection,
+    design_state_feedback,
     k_region,
     mismatch_region,
     stability_chart,
@@ -214,6 +215,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             TRANSPORT, parameters={"K": (-0.3, 0.3), "a": 0.1, "b": 0.1}, x0=[0.1], starts=1, max_iter=3
         ),
         "MismatchRegion": mismatch,
+        "StateFeedbackDesign": design_state_feedback(
+            TRANSPORT, "decay_rate", k_bounds=(-0.3, 0.3), kernel_grid=None, starts=1
+        ),
     }
 
 
@@ -288,6 +292,7 @@ NAMES = [
     "ParetoFront",
     "FilteredDesign",
     "MismatchRegion",
+    "StateFeedbackDesign",
 ]
 
 

@@ -2,7 +2,8 @@
 (``kregion``, on the core's gain engine :mod:`nrobust.margins.gain`), charts over two
 parameters (``charts``), the decay-rate/margin trade-off (``tradeoff``), the Rouché delay
 bound (``rouche``), the design of ``U_BS2(K)`` (``design``) and of the filtered law over its
-gain, zero and pole (``filter_design``), and the robustness to a mismatch of
+gain, zero and pole (``filter_design``), of a general state feedback over its gains
+(``state_design``), and the robustness to a mismatch of
 the transport speeds (``mismatch``).
 """
 
@@ -21,10 +22,12 @@ from .kregion import DEFAULT_N_GAINS, MAX_GAINS, KRegion, k_region
 from .margin import delay_margin, margin_and_decay
 from .mismatch import MAX_MISMATCH_POINTS, MismatchEnd, MismatchRegion, mismatch_loop, mismatch_region
 from .rouche import rouche_delay_bound
+from .state_design import BasisGain, StateFeedbackDesign, StateFeedbackLoop, design_state_feedback, state_feedback_loop
 from .tradeoffs import Tradeoff, tradeoff
 
 __all__ = [
     "ABRegion",
+    "BasisGain",
     "DEFAULT_N_GAINS",
     "DESIGN_OBJECTIVES",
     "END_KINDS",
@@ -40,11 +43,14 @@ __all__ = [
     "MismatchRegion",
     "ReflectionDesign",
     "StabilityChart",
+    "StateFeedbackDesign",
+    "StateFeedbackLoop",
     "Tradeoff",
     "ab_region",
     "delay_margin",
     "design_filtered",
     "design_reflection",
+    "design_state_feedback",
     "filtered_front",
     "filtered_loop",
     "k_region",
@@ -53,5 +59,6 @@ __all__ = [
     "mismatch_region",
     "rouche_delay_bound",
     "stability_chart",
+    "state_feedback_loop",
     "tradeoff",
 ]
