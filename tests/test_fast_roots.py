@@ -102,6 +102,7 @@ def test_roots_right_of_with_the_abscissa_bound() -> None:
     assert right.certified and right.region[1] < r  # closed well before the radius
     wide = find_roots(sys.characteristic_matrix(), (-1.5, r + 1.0, -r - 1.0, r + 1.0))
     assert wide.certified and wide.count == right.count
+
     def rounded_order(z: np.ndarray) -> np.ndarray:  # a conjugate pair's order is not decided by its last bits
         return z[np.lexsort((np.round(z.imag, 8), np.round(z.real, 8)))]
 
