@@ -517,7 +517,24 @@ def delay_bound_from_kernel(
 
 
 # ---------------------------------------------------------------------------- exact delay bound
-def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], Fraction, Fraction]:
+def _rationals() -> Callable[[float], Any]:
+    """``x -> x`` as an exact rational: FLINT's ``fmpq`` (many times faster), else ``Fraction`` without python-flint."""
+    try:
+        flint = require_flint()  # optional here: exact rationals in Python otherwise
+    except ImportError:
+        return Fraction
+    fmpq = flint.fmpq
+    return lambda x: fmpq(*float(x).as_integer_ratio())
+
+
+def _fraction(x: Any) -> Fraction:
+    """An exact rational (``Fraction`` or ``fmpq``) as a ``Fraction``."""
+    return x if isinstance(x, Fraction) else Fraction(int(x.p), int(x.q))
+
+
+def _exact_pieces(
+    N: DistributedDelay, rational: Callable[[float], Any] = Fraction
+) -> tuple[list[Any], list[Any], Fraction, Fraction]:
     """Nodes, values, ``TV`` of the linear interpolant and the bound of ``int |N - N_lin|``, exactly.
 
     On a segment ``[nu_k, nu_k + h]`` of positive length, ``N = P(t)`` (the stored piece)
@@ -527,91 +544,109 @@ def _exact_pieces(N: DistributedDelay) -> tuple[list[Fraction], list[Fraction], 
     ``int |N - N_lin| <= h (|P_2 + P_3| / 6 + |P_3| / 12 + (|P(0) - v_k| + |P(1) - v_{k+1}|) / 2)``;
     a term ``P_l t^l`` of higher degree adds ``h |P_l| (1/2 - 1/(l + 1))``, and a kernel known to
     within ``radius`` adds ``radius (b - a)``.
+
+    ``rational`` converts a float exactly (``Fraction``, or FLINT's ``fmpq`` from :func:`_rationals`):
+    the nodes and values are returned as such, ``TV`` and the bound as ``Fraction``.
     """
-    nodes = [Fraction(float(x)) for x in N.nodes]
-    values = [Fraction(float(v)) for v in N.values]
+    nodes = [rational(x) for x in N.nodes.tolist()]
+    values = [rational(v) for v in N.values.tolist()]
     start, h, poly = N.pieces
     segments = [k for k in range(len(nodes) - 1) if nodes[k + 1] > nodes[k]]
-    if len(segments) != start.size or any(Fraction(float(start[i])) != nodes[k] for i, k in enumerate(segments)):
+    if len(segments) != start.size or any(rational(s) != nodes[k] for s, k in zip(start.tolist(), segments)):
         raise CertificationError("delay_bound_from_kernel(rigorous=True): the spline pieces do not match the nodes")
-    tv = (
-        abs(values[0])
-        + abs(values[-1])
-        + sum((abs(values[k + 1] - values[k]) for k in range(len(nodes) - 1)), Fraction(0))
-    )
-    dev = Fraction(N.radius) * (nodes[-1] - nodes[0])
-    for i, k in enumerate(segments):
-        p = [Fraction(float(c)) for c in poly[i]] + [Fraction(0)] * 4
-        hh = Fraction(float(h[i]))
-        ends = abs(p[0] - values[k]) + abs(sum(p, Fraction(0)) - values[k + 1])
-        higher = sum((abs(c) * (Fraction(1, 2) - Fraction(1, j + 1)) for j, c in enumerate(p) if j >= 4), Fraction(0))
-        dev += hh * (abs(p[2] + p[3]) / 6 + abs(p[3]) / 12 + higher + ends / 2)
-    return nodes, values, tv, dev
+    zero = rational(0.0)
+    tv = abs(values[0]) + abs(values[-1])
+    for k in range(len(nodes) - 1):
+        tv += abs(values[k + 1] - values[k])
+    dev = rational(N.radius) * (nodes[-1] - nodes[0])
+    # the weights 1/2 - 1/(j + 1) of the terms of degree j >= 4
+    weights = [rational(1.0) / 2 - rational(1.0) / (j + 1) for j in range(poly.shape[1])]
+    for k, hk, row in zip(segments, h.tolist(), poly.tolist()):
+        p = [rational(c) for c in row]
+        p += [zero] * (4 - len(p))
+        total = zero
+        for c in p:
+            total += c
+        ends = abs(p[0] - values[k]) + abs(total - values[k + 1])
+        per = abs(p[2] + p[3]) / 6 + abs(p[3]) / 12 + ends / 2
+        for j in range(4, len(p)):
+            per += abs(p[j]) * weights[j]
+        dev += rational(hk) * per
+    return nodes, values, _fraction(tv), _fraction(dev)
 
 
 def _exact_l1_modulus(nodes: list[Any], values: list[Any], d: Any) -> Any:
     """``int |N_lin(nu) - N_lin(nu - d)| dnu`` exactly (``N_lin`` linear, zero outside its support).
 
-    The rationals are ``Fraction`` or FLINT's ``fmpq`` (:func:`_fast_modulus`), all of one type.
+    The rationals are ``Fraction`` or FLINT's ``fmpq`` (:func:`_rationals`), all of one type.
 
-    The breakpoints (the nodes and the nodes shifted by ``d``) are merged in order and every
-    one-sided limit is read by a pointer that only moves forward: linear in the number of
-    nodes, with no search per breakpoint.
+    The breakpoints (the nodes and the nodes shifted by ``d``) are merged in order, each with
+    its point shifted back by ``d``, and the one-sided limits of ``N_lin`` at both are read by
+    pointers that only move forward (:func:`_sides`): linear in the number of nodes, with no
+    search per breakpoint, and at a node (every breakpoint is one, or one shifted by ``d``)
+    the stored value with no interpolation.
     """
-    br = sorted(set(nodes) | {x + d for x in nodes})
-    lows, highs = br[:-1], br[1:]
-    f0 = _differences(_limits(nodes, values, lows, True), _limits(nodes, values, [x - d for x in lows], True))
-    f1 = _differences(_limits(nodes, values, highs, False), _limits(nodes, values, [x - d for x in highs], False))
-    total = nodes[0] - nodes[0]  # zero of the rationals' type (Fraction, or FLINT's fmpq)
-    for lo, hi, a, b in zip(lows, highs, f0, f1):
+    shifted = [x + d for x in nodes]
+    back = [x - d for x in nodes]
+    # merge the two increasing lists, equal points once; each breakpoint b with b - d beside it
+    br: list[Any] = []
+    br_back: list[Any] = []
+    i = j = 0
+    n = len(nodes)
+    while i < n or j < n:
+        if j >= n or (i < n and nodes[i] < shifted[j]):
+            b, bb = nodes[i], back[i]
+            i += 1
+        else:
+            b, bb = shifted[j], nodes[j]
+            if i < n and nodes[i] == b:
+                i += 1
+            j += 1
+        if not br or b != br[-1]:
+            br.append(b)
+            br_back.append(bb)
+    left, right = _sides(nodes, values, br)
+    left_back, right_back = _sides(nodes, values, br_back)
+    zero = nodes[0] - nodes[0]  # zero of the rationals' type (Fraction, or FLINT's fmpq)
+    same, crossing = zero, zero
+    starts = [x - y for x, y in zip(right, right_back)]  # the difference just right of each breakpoint
+    ends = [x - y for x, y in zip(left[1:], left_back[1:])]  # and just left of the next one
+    for lo, hi, a, b in zip(br, br[1:], starts, ends):
         if a * b >= 0:
-            total += (hi - lo) * (abs(a) + abs(b)) / 2
+            same += (hi - lo) * (abs(a) + abs(b))
         else:
-            total += (hi - lo) * (a * a + b * b) / (2 * (abs(a) + abs(b)))
-    return total
+            crossing += (hi - lo) * (a * a + b * b) / (abs(a) + abs(b))
+    return (same + crossing) / 2
 
 
-def _fast_modulus(nodes: list[Fraction], values: list[Fraction]) -> Callable[[Fraction], Fraction]:
-    """``d -> omega_lin(d)`` exactly, in FLINT's rationals (``fmpq``, 4x faster) when python-flint is installed."""
-    try:
-        flint = require_flint()  # optional here: exact rationals in Python otherwise
-    except ImportError:
-        return lambda d: _exact_l1_modulus(nodes, values, d)
-    fn = [flint.fmpq(x.numerator, x.denominator) for x in nodes]
-    fv = [flint.fmpq(v.numerator, v.denominator) for v in values]
+def _sides(nodes: list[Any], values: list[Any], queries: list[Any]) -> tuple[list[Any], list[Any]]:
+    """Left and right limits of the linear interpolant (zero outside the nodes) at increasing ``queries``.
 
-    def modulus(d: Fraction) -> Fraction:
-        out: Any = _exact_l1_modulus(fn, fv, flint.fmpq(d.numerator, d.denominator))
-        return Fraction(int(out.p), int(out.q))
-
-    return modulus
-
-
-def _differences(a: list[Any], b: list[Any]) -> list[Any]:
-    return [x - y for x, y in zip(a, b)]
-
-
-def _limits(nodes: list[Any], values: list[Any], queries: list[Any], right: bool) -> list[Any]:
-    """One-sided limits of the linear interpolant (zero outside the nodes) at increasing ``queries``.
-
-    The index is that of :func:`bisect.bisect_right` (``right``) or :func:`bisect.bisect_left`,
-    found by a pointer that moves forward only.
+    A query equal to a node takes the stored values (the left one of a repeated node from the
+    left, the right one from the right; zero outside the support); elsewhere both limits are
+    the interpolated value.
     """
-    n, idx, out = len(nodes), 0, []
+    n, idx = len(nodes), 0
     zero = nodes[0] - nodes[0]
+    left: list[Any] = []
+    right: list[Any] = []
     for x in queries:
-        if right:
-            while idx < n and nodes[idx] <= x:
-                idx += 1
-        else:
-            while idx < n and nodes[idx] < x:
-                idx += 1
+        while idx < n and nodes[idx] < x:
+            idx += 1
+        if idx < n and nodes[idx] == x:  # a node: idx its first occurrence
+            last = idx + 1 if idx + 1 < n and nodes[idx + 1] == x else idx
+            left.append(values[idx] if idx > 0 else zero)
+            right.append(values[last] if last < n - 1 else zero)
+            continue
         if idx <= 0 or idx >= n:
-            out.append(zero)
+            left.append(zero)
+            right.append(zero)
             continue
         x0, x1 = nodes[idx - 1], nodes[idx]
-        out.append(values[idx - 1] + (values[idx] - values[idx - 1]) * (x - x0) / (x1 - x0))
-    return out
+        v = values[idx - 1] + (values[idx] - values[idx - 1]) * (x - x0) / (x1 - x0)
+        left.append(v)
+        right.append(v)
+    return left, right
 
 
 def _exact_delay_bound(
@@ -625,8 +660,12 @@ def _exact_delay_bound(
     """
     if np.iscomplexobj(N.values) or N.moment != 0:
         raise ParameterError("N", "a real DistributedDelay kernel of moment 0", N)
-    nodes, values, tv, dev = _exact_pieces(N)
-    modulus = _fast_modulus(nodes, values)
+    rational = _rationals()
+    nodes, values, tv, dev = _exact_pieces(N, rational)
+
+    def modulus(d: float) -> Fraction:
+        return _fraction(_exact_l1_modulus(nodes, values, rational(d)))
+
     budget = Fraction(epsilon_0) - 2 * dev
     if tv == 0:
         return RoucheDelayBound(np.inf, epsilon_0, 0.0, 0.0, K, 0, True)
@@ -640,7 +679,7 @@ def _exact_delay_bound(
         nxt = d + h
         if not om + (Fraction(nxt) - Fraction(d)) * tv < budget:
             break
-        d, om, steps = nxt, modulus(Fraction(nxt)), steps + 1
+        d, om, steps = nxt, modulus(nxt), steps + 1
     return RoucheDelayBound(float(d), epsilon_0, _up(om + 2 * dev), _up(tv), K, steps, True)
 
 

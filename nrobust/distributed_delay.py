@@ -53,6 +53,9 @@ _CZT_BLOCK = 1024
 _CLOSED_FORM_PIECES = 8
 # Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
 _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
+# Results of DistributedDelay.abs_moment kept per term (by their real parts): the root finders
+# bound the segments of their contours at a few recurring real parts.
+_ABS_MOMENTS_KEPT = 256
 
 
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
@@ -376,6 +379,10 @@ class DistributedDelay:
         _ends: dict[tuple[int, bool], tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]] = field(
             init=False, repr=False, compare=False
         )
+        # abs_moment's results by (k, x): the bounds of a contour's segments recur at the same real parts
+        _abs_moments: dict[tuple[int, tuple[int, ...], bytes], NDArray[np.float64]] = field(
+            init=False, repr=False, compare=False
+        )
 
     def __init__(
         self,
@@ -438,6 +445,7 @@ class DistributedDelay:
         object.__setattr__(self, "pieces", pieces)
         object.__setattr__(self, "_groups", {})
         object.__setattr__(self, "_ends", {})
+        object.__setattr__(self, "_abs_moments", {})
 
     def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``poly``, ``moment``, ``radius``, ``variation_radius`` changed.
@@ -823,7 +831,9 @@ class DistributedDelay:
         x, d = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(d, dtype=float))
         nodes, _, bound = self._end_terms(k)
         with np.errstate(over="ignore", divide="ignore"):
-            weights = np.exp(-np.multiply.outer(x, nodes)) @ bound.T  # (..., degree + 1)
+            # the exponentials at the distinct real parts only (the segments of a contour share a few)
+            distinct, where = np.unique(x, return_inverse=True)
+            weights = np.exp(-np.multiply.outer(distinct, nodes))[where.reshape(x.shape)] @ bound.T  # (..., degree + 1)
             inv = 1.0 / d
             out = np.zeros(x.shape)
             for j in range(bound.shape[0] - 1, -1, -1):
@@ -839,9 +849,16 @@ class DistributedDelay:
         ``radius int nu^(m+k) e^{-nu x}``.
         """
         x = np.asarray(x, dtype=float)
-        flat = x.ravel().astype(complex)
-        stored = np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
-        return stored + self._radius_integral(x, self.moment + k)
+        key = (k, x.shape, x.tobytes())
+        cached = self._abs_moments.get(key)
+        if cached is None:
+            flat = x.ravel().astype(complex)
+            stored = np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
+            cached = stored + self._radius_integral(x, self.moment + k)
+            if len(self._abs_moments) >= _ABS_MOMENTS_KEPT:
+                self._abs_moments.clear()
+            self._abs_moments[key] = cached
+        return cached.copy()
 
     def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
         """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).

@@ -56,7 +56,9 @@ of the moduli of the terms (direct sums, never chirp-z).
 
 from __future__ import annotations
 
+import collections
 import functools
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from math import comb
@@ -176,8 +178,58 @@ class AxisKernels:
         self.abs_moments = [np.array([float(u.abs_moment(0.0, k)) for k in range(4)]) for u in self.units]
 
     def sums(self, s: NDArray, extra: int) -> list[NDArray[np.complex128]]:
-        """``J_{m+extra}(s)`` of every kernel."""
-        return [_with_moment(u, extra)(s) for u in self.units]
+        """``J_{m+extra}(s)`` of every kernel (read-only arrays, remembered: :class:`_RememberedSums`)."""
+        return [_remembered_sum(u, extra, s) for u in self.units]
+
+
+class _RememberedSums:
+    """``_with_moment(unit, extra)(s)``, computed once per equal kernel, moment and frequencies.
+
+    The searches of a gain study evaluate one kernel (``I_N``, in loops rebuilt for every gain)
+    on the same grids where they share a gain or a frequency bound: the sums are kept by kernel
+    (equal values, not identity) and frequencies, read-only and the same numbers, up to
+    :data:`_SUMS_KEPT_BYTES` of values (the least recently used go first). ``cache_clear``
+    empties them, as for an ``lru_cache``.
+    """
+
+    def __init__(self) -> None:
+        self._kept: collections.OrderedDict[tuple[DistributedDelay, int, str, tuple[int, ...], bytes], NDArray] = (
+            collections.OrderedDict()
+        )
+        self._bytes = 0
+        self._lock = threading.Lock()
+        # on the instance only, as on an lru_cache (the class itself is no cache to empty)
+        self.cache_clear: Callable[[], None] = self._forget
+
+    def __call__(self, unit: DistributedDelay, extra: int, s: NDArray) -> NDArray[np.complex128]:
+        # equal kernels stored as real and as complex numbers are summed differently: the types enter the key
+        key = (unit, extra, unit.values.dtype.str + s.dtype.str, s.shape, s.tobytes())
+        with self._lock:
+            hit = self._kept.get(key)
+            if hit is not None:
+                self._kept.move_to_end(key)
+                return hit
+        value = _with_moment(unit, extra)(s)
+        value.flags.writeable = False
+        if value.nbytes <= _SUMS_KEPT_BYTES // 4:
+            with self._lock:
+                if key not in self._kept:
+                    self._kept[key] = value
+                    self._bytes += value.nbytes
+                while self._bytes > _SUMS_KEPT_BYTES:
+                    self._bytes -= self._kept.popitem(last=False)[1].nbytes
+        return value
+
+    def _forget(self) -> None:
+        """Forget every kept sum."""
+        with self._lock:
+            self._kept.clear()
+            self._bytes = 0
+
+
+#: Bytes of kernel sums kept by :class:`_RememberedSums`.
+_SUMS_KEPT_BYTES = 1 << 25
+_remembered_sum = _RememberedSums()
 
 
 @functools.lru_cache(maxsize=64)
