@@ -20,7 +20,6 @@ test (the whole file in a few seconds); ``NROBUST_FUZZ_EXAMPLES=N`` (``make fuzz
 from __future__ import annotations
 
 import math
-import os
 from fractions import Fraction
 from types import SimpleNamespace
 
@@ -28,7 +27,8 @@ import control
 import mpmath as mp
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, reject, settings
+from _budget import FUZZ, budget
+from hypothesis import assume, given, reject
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
@@ -39,22 +39,8 @@ from nrobust.margins import unstable_count
 from nrobust.quasipoly import QuasiPolynomial
 
 # ============================================================================ budget
-FUZZ = int(os.environ.get("NROBUST_FUZZ_EXAMPLES", "0") or 0)
 
 pytestmark = pytest.mark.timeout(0 if FUZZ else 120)
-
-
-def budget(ci: int, weight: float = 1.0) -> settings:
-    """``ci`` derandomised examples in CI, ``FUZZ * weight`` random ones under ``make fuzz``
-    (shrinking kept: a failure is reported as its minimal example)."""
-    return settings(
-        max_examples=max(1, int(FUZZ * weight)) if FUZZ else ci,
-        derandomize=not FUZZ,
-        database=None,
-        deadline=None,
-        suppress_health_check=list(HealthCheck),
-        print_blob=False,
-    )
 
 
 def dyadic(lo: float, hi: float, bits: int = 3) -> st.SearchStrategy[float]:

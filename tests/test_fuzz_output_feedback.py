@@ -17,33 +17,18 @@ Budget as in ``tests/test_fuzz_lti.py``: a few derandomised examples in CI,
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
+from _budget import FUZZ, budget
 from _predictor import kernel_sum, literal_predictor
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import nrobust as nr
 from nrobust.hyperbolic.loops.controllers import OpenLoop, OutputFeedback, ReflectionController, loop_factors
 from nrobust.hyperbolic.loops.output_feedback import observer_term
 
-FUZZ = int(os.environ.get("NROBUST_FUZZ_EXAMPLES", "0") or 0)
-
 pytestmark = pytest.mark.timeout(0 if FUZZ else 300)
-
-
-def budget(ci: int, weight: float = 1.0) -> settings:
-    """``ci`` derandomised examples in CI, ``FUZZ * weight`` random ones under ``make fuzz``."""
-    return settings(
-        max_examples=max(1, int(FUZZ * weight)) if FUZZ else ci,
-        derandomize=not FUZZ,
-        database=None,
-        deadline=None,
-        suppress_health_check=list(HealthCheck),
-        print_blob=False,
-    )
 
 
 @st.composite

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _budget import FUZZ
+from _budget import budget as shared_budget
 from _fuzzstats import STATS
 from _guards import Hang, hard_deadline, memory_cap
 from _oracles import (
@@ -46,7 +48,7 @@ from _oracles import (
     transport_margin,
     z_roots,
 )
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import nrobust as nr
@@ -61,26 +63,15 @@ from nrobust import (
 )
 
 # ============================================================================ budget
-FUZZ = int(os.environ.get("NROBUST_FUZZ_EXAMPLES", "0") or 0)
 EXAMPLE_SECONDS = float(os.environ.get("NROBUST_FUZZ_EXAMPLE_SECONDS", "60" if FUZZ else "15"))
 # Address-space cap above the current size for the bad-input test (a request for tens of
 # GiB must fail fast as a named error, not swap the machine).
 MEMORY_HEADROOM = 3 << 30
 
 pytestmark = pytest.mark.timeout(0 if FUZZ else 240)
-
-
-def budget(ci: int, weight: float = 1.0) -> settings:
-    """Hypothesis settings: ``ci`` derandomised examples in CI, ``FUZZ * weight`` random ones under ``make fuzz``."""
-    return settings(
-        max_examples=max(1, int(FUZZ * weight)) if FUZZ else ci,
-        derandomize=not FUZZ,
-        database=None,
-        deadline=None,  # the hard per-example deadline below replaces it (no flaky re-runs)
-        phases=(Phase.explicit, Phase.generate),  # no shrinking: contradictions are collected, not raised
-        suppress_health_check=list(HealthCheck),
-        print_blob=False,
-    )
+#: No shrinking: contradictions are collected, not raised; the hard per-example deadline of
+#: ``EXAMPLE_SECONDS`` replaces hypothesis' own (no flaky re-runs).
+budget = partial(shared_budget, shrink=False)
 
 
 # ============================================================================ running nrobust

@@ -64,7 +64,16 @@ from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_searc
 from ..quasipoly import QuasiPolynomial
 from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
 
-__all__ = ["GAMMA_MAX", "OBJECTIVES", "LoopDesign", "LocalRun", "ParametricLoop", "delayed_gamma", "optimize_loop"]
+__all__ = [
+    "GAMMA_MAX",
+    "OBJECTIVES",
+    "LoopDesign",
+    "LocalRun",
+    "ParametricLoop",
+    "check_objective",
+    "delayed_gamma",
+    "optimize_loop",
+]
 
 #: A family of loops: parameters ``p`` (a 1-D array) to the factors ``(A, B)``.
 ParametricLoop = Callable[[NDArray[np.float64]], tuple[QuasiPolynomial, QuasiPolynomial]]
@@ -872,6 +881,24 @@ def _starts(bounds: NDArray[np.float64], x0: ArrayLike | None, starts: int) -> l
     return points
 
 
+def check_objective(objective: str, margin_at_least: float | None) -> float | None:
+    """The checked ``margin_at_least`` of an ``objective`` of :data:`OBJECTIVES` (a ``ParameterError`` otherwise).
+
+    ``"margin"`` takes no requirement (the margin is maximised); ``"decay_rate"`` takes None or a
+    delay ``>= 0``.
+    """
+    if objective not in OBJECTIVES:
+        raise ParameterError("objective", " or ".join(repr(o) for o in OBJECTIVES), objective)
+    if margin_at_least is None:
+        return None
+    margin_at_least = nonnegative("margin_at_least", margin_at_least)
+    if objective == "margin":
+        raise ParameterError(
+            "margin_at_least", "None with objective='margin' (the margin is maximised)", margin_at_least
+        )
+    return margin_at_least
+
+
 def optimize_loop(
     loop: ParametricLoop,
     bounds: ArrayLike,
@@ -933,14 +960,7 @@ def optimize_loop(
         bounds: widen them or lower ``margin_at_least``).
     """
     box = _box(bounds)
-    if objective not in OBJECTIVES:
-        raise ParameterError("objective", " or ".join(repr(o) for o in OBJECTIVES), objective)
-    if margin_at_least is not None:
-        margin_at_least = nonnegative("margin_at_least", margin_at_least)
-        if objective == "margin":
-            raise ParameterError(
-                "margin_at_least", "None with objective='margin' (the margin is maximised)", margin_at_least
-            )
+    margin_at_least = check_objective(objective, margin_at_least)
     starts = positive_int("starts", starts)
     max_iter = positive_int("max_iter", max_iter)
     tol = finite_real("tol", tol)

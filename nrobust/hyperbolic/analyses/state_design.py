@@ -32,9 +32,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
-from ..._validate import finite_real, nonnegative, positive_int
+from ..._validate import finite_real, positive_int
 from ...design.gain import best_decay_rate, best_margin
-from ...design.local import GAMMA_MAX, OBJECTIVES, LoopDesign, delayed_gamma, optimize_loop
+from ...design.local import GAMMA_MAX, LoopDesign, check_objective, delayed_gamma, optimize_loop
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
@@ -461,14 +461,7 @@ def design_state_feedback(
         If no start reaches a feasible design with a loop exponentially stable at ``delta = 0``.
     """
     plant = _plant(system)
-    if objective not in OBJECTIVES:
-        raise ParameterError("objective", " or ".join(repr(o) for o in OBJECTIVES), objective)
-    if margin_at_least is not None:
-        margin_at_least = nonnegative("margin_at_least", margin_at_least)
-        if objective == "margin":
-            raise ParameterError(
-                "margin_at_least", "None with objective='margin' (the margin is maximised)", margin_at_least
-            )
+    margin_at_least = check_objective(objective, margin_at_least)
     functions = _basis(basis, _length(plant))
     coef = _pair("coefficient_bounds", coefficient_bounds)
     given = None if k_bounds is None else _pair("k_bounds", k_bounds)
