@@ -457,13 +457,13 @@ def true_pade_error(tau: float, m: int, n: int, w: float) -> mp.mpf:
     y = Fraction(tau) * Fraction(w)
     extra = 0
     if y != 0:
-        ay = abs(float(y))
+        log_y = math.log10(abs(y.numerator)) - math.log10(y.denominator)  # exact: |y| may underflow a float
         logs = [
-            math.log10(abs(c.numerator)) - math.log10(c.denominator) + j * math.log10(ay)
+            math.log10(abs(c.numerator)) - math.log10(c.denominator) + j * log_y
             for cs in (p, q)
             for j, c in enumerate(cs)
         ]
-        lead = (m + n + 1) * math.log(ay) + math.lgamma(m + 1) + math.lgamma(n + 1)
+        lead = (m + n + 1) * log_y * math.log(10) + math.lgamma(m + 1) + math.lgamma(n + 1)
         lead -= math.lgamma(m + n + 1) + math.lgamma(m + n + 2)
         extra = max(0, math.ceil(max(logs))) + max(0, math.ceil(-lead / math.log(10)))
     with mp.workdps(40 + 10 + extra):
