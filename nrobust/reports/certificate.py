@@ -49,7 +49,6 @@ from ..hyperbolic.loops.controllers import (
     loop_scope,
     normalize,
 )
-from ..hyperbolic.loops.varying_form import DEFAULT_CHARACTERISTIC_GRID
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..margins.margin import DelayMargin
@@ -180,15 +179,16 @@ class ModelError:
     margin, coarse_margin : float
         The delay margins on both grids.
     difference : float
-        ``|margin - coarse_margin|``: the estimate of the margin's model error. It bounds the
-        error when the convergence is monotone of order at least 1; the kernel route's order is
-        3 asymptotically but lower on coarse grids (``docs/margins.md``: 2.0 between 101 and 201
-        points on one plant), so the difference itself, not the difference over ``2^3 - 1``, is
-        the estimate.
+        ``|margin - coarse_margin|``.
     order : float or None
-        The observed order ``log2`` of the ratio of the two differences (None when not measured).
+        The observed order ``log2`` of the ratio of two successive differences (None when not
+        measured or when the convergence is not monotone).
     statement : str
         The evidence in words.
+    estimate : float or None
+        The estimate of the margin's model error (the convergence study: the last
+        difference when the margins converge monotonically at an observed order of at least 1,
+        else from a grid twice as fine); None means ``difference`` (0 or ``nan``).
     """
 
     kernel_grid: int
@@ -198,6 +198,12 @@ class ModelError:
     difference: float
     statement: str
     order: float | None = None
+    estimate: float | None = None
+
+    @property
+    def error(self) -> float:
+        """The estimated model error of the margin (``estimate``, else ``difference``)."""
+        return self.difference if self.estimate is None else self.estimate
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinities as strings)."""
@@ -223,22 +229,7 @@ def _model_error(
         )
     grid = DEFAULT_KERNEL_GRID if grid is None else grid
     coarse = (grid - 1) // 2 + 1
-    if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
-        steps = DEFAULT_CHARACTERISTIC_GRID
-        return ModelError(
-            steps,
-            steps,
-            margin.margin,
-            margin.margin,
-            float("nan"),
-            f"N~ is the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} nodes, "
-            f"Richardson-extrapolated from {steps} steps (fourth order); its distance to the exact N~ is not "
-            "estimated here",
-        )
-    if getattr(system, "uncoupled", False):
-        return ModelError(
-            grid, grid, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
-        )
+    spline = _spline(system, grid)
     if coarse < MIN_KERNEL_GRID:  # too few points to halve: no comparison to make
         return ModelError(
             grid,
@@ -246,29 +237,91 @@ def _model_error(
             margin.margin,
             margin.margin,
             float("nan"),
-            f"N~ is the cubic spline of the kernels on {grid} points, too few to compare with a grid half as fine "
+            f"{spline}, too few to compare with a grid half as fine "
             f"(at least {2 * MIN_KERNEL_GRID - 1} points): the model error is not estimated",
         )
     other = delay_margin(system, controller, kernel_grid=coarse).margin
     diff = _difference(margin.margin, other)
     if diff == 0.0 and not (np.isfinite(other) and other > 0.0):
         statement = (
-            f"N~ is the cubic spline of the kernels on {grid} points; the delay margin is {other:g} on {coarse} "
+            f"{spline}; the delay margin is {other:g} on {coarse} "
             f"and on {grid} points (decided by the structure of the loop, not by the values of N~)"
         )
         return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement)
+    estimate, order, evidence = _convergence_study(system, controller, grid, float(margin.margin), float(other))
+    statement = f"{spline}; the delay margin moves by {diff:.2g} from {coarse} to {grid} points; {evidence}"
+    return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement, order, estimate)
+
+
+def _spline(system: Hyperbolic2x2 | GeneralHyperbolic2x2, grid: int) -> str:
+    """What ``N~`` is on the kernel route, in words."""
+    if isinstance(system, GeneralHyperbolic2x2):  # a varying lam/mu: no kernels, the characteristic route
+        return (
+            f"N~ is the cubic spline of the characteristic route (varying lam/mu) on {grid} nodes, "
+            f"Richardson-extrapolated from {2 * (grid - 1)} steps"
+        )
+    return f"N~ is the cubic spline of the kernels on {grid} points"
+
+
+def _convergence_study(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, grid: int, margin: float, coarse_margin: float
+) -> tuple[float, float | None, str]:
+    """The estimated model error of the margin on ``grid`` points, its observed order, and the evidence in words.
+
+    With ``m0, m1, m2`` the margins on ``(grid + 3) / 4``, ``(grid + 1) / 2`` and ``grid``
+    points: when ``m1 - m0`` and ``m2 - m1`` have one sign and the second is at most half the
+    first (observed order at least 1), the remaining error of ``m2`` is at most ``|m2 - m1|``
+    (a geometric tail of ratio ``<= 1/2``). Otherwise the grid ``2 grid - 1`` is added and the
+    same test made on ``m1, m2, m3``: the error of ``m2`` is then at most ``2 |m3 - m2|``.
+    When neither holds (convergence not yet monotone), twice the largest difference is the
+    estimate, and the statement says it is rough. Floating point throughout, not proven.
+    """
+    coarse = (grid - 1) // 2 + 1
     coarsest = (coarse - 1) // 2 + 1
-    order = None
-    if coarsest >= MIN_KERNEL_GRID and np.isfinite(diff) and diff > 0.0:
-        farther = _difference(other, delay_margin(system, controller, kernel_grid=coarsest).margin)
-        order = float(np.log2(farther / diff)) if np.isfinite(farther) and farther > 0.0 else None
-    observed = "" if order is None else f", observed order {order:.2g} from {coarsest}, {coarse} and {grid} points"
-    statement = (
-        f"N~ is the cubic spline of the kernels on {grid} points; the delay margin moves by {diff:.2g} from "
-        f"{coarse} to {grid} points{observed}: its model error is estimated at {diff:.2g} (floating point, "
-        "not proven; the difference bounds the error when the convergence is monotone of order at least 1)"
+    d2 = margin - coarse_margin
+    d1 = float("nan")
+    if coarsest >= MIN_KERNEL_GRID:
+        d1 = coarse_margin - delay_margin(system, controller, kernel_grid=coarsest).margin
+    if _contracting(d1, d2):
+        order = float(np.log2(abs(d1) / abs(d2)))
+        return (
+            abs(d2),
+            order,
+            f"monotone at observed order {order:.2g} from {coarsest}, {coarse} and {grid} points: its model error "
+            f"is estimated at {abs(d2):.2g} (floating point, not proven)",
+        )
+    fine = 2 * grid - 1
+    if fine > MAX_ACCURACY_GRID:
+        estimate = 2.0 * max(abs(d2), abs(d1) if np.isfinite(d1) else 0.0)
+        return (
+            estimate,
+            None,
+            f"not yet monotone from {coarsest} points on: its model error is estimated roughly at {estimate:.2g}, "
+            f"twice the largest difference (floating point, not proven)",
+        )
+    d3 = delay_margin(system, controller, kernel_grid=fine).margin - margin
+    if _contracting(d2, d3):
+        order = float(np.log2(abs(d2) / abs(d3)))
+        return (
+            2.0 * abs(d3),
+            order,
+            f"not monotone from {coarsest} points, monotone at observed order {order:.2g} from {coarse}, {grid} "
+            f"and {fine} points (the margin moves by {abs(d3):.2g} to {fine}): its model error is estimated at "
+            f"{2.0 * abs(d3):.2g} (floating point, not proven)",
+        )
+    finite = [abs(d) for d in (d1, d2, d3) if np.isfinite(d)]
+    estimate = 2.0 * max(finite) if finite else float("nan")
+    return (
+        estimate,
+        None,
+        f"not monotone on {coarsest} to {fine} points: its model error is estimated roughly at {estimate:.2g}, "
+        "twice the largest difference (floating point, not proven)",
     )
-    return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement, order)
+
+
+def _contracting(first: float, second: float) -> bool:
+    """True when two successive differences have one sign and the second is at most half the first."""
+    return bool(np.isfinite(first) and np.isfinite(second) and first * second > 0.0 and abs(second) <= 0.5 * abs(first))
 
 
 def _difference(a: float, b: float) -> float:
@@ -281,10 +334,9 @@ def _difference(a: float, b: float) -> float:
 def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, grid: int) -> str:
     """How ``N~`` (and a state feedback's kernel) is represented in the certified ``F``, per kind of plant."""
     if isinstance(system, GeneralHyperbolic2x2):  # normalize() leaves only a varying lam/mu general
-        steps = DEFAULT_CHARACTERISTIC_GRID
         text = (
-            f"N~ the cubic spline of the characteristic route (varying lam/mu) on {steps // 2 + 1} "
-            f"nodes, Richardson-extrapolated from {steps} steps"
+            f"N~ the cubic spline of the characteristic route (varying lam/mu) on {grid} "
+            f"nodes, Richardson-extrapolated from {2 * (grid - 1)} steps"
         )
         gains = (getattr(controller, "g_u", 0.0), getattr(controller, "g_v", 0.0))
         if isinstance(controller, StateFeedback) and any(callable(g) or g != 0.0 for g in gains):
@@ -622,12 +674,12 @@ class Certificate:
         """
         if self.route == "exact" or not self.margin.of_model:
             return self.margin.accuracy
-        if self.model_error is None or not np.isfinite(self.model_error.difference):
+        if self.model_error is None or not np.isfinite(self.model_error.error):
             return None
         on_model = self.margin.margin_ball
         own = 0.0 if on_model is None else max(on_model[1] - self.delay_margin, self.delay_margin - on_model[0])
         own = max(own, 1e-12 * abs(self.delay_margin)) if np.isfinite(self.delay_margin) else 0.0
-        return self.model_error.difference + own
+        return self.model_error.error + own
 
     @property
     def margin_text(self) -> str:
@@ -845,7 +897,7 @@ def certify(
             delta_max,
             _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
         ),
-        model_error=_model_error(system, controller, margin, kernel_grid) if rigorous or accuracy else None,
+        model_error=_model_error(system, controller, margin, kernel_grid),
         unproven=tuple(unproven),
         kernel_grid=kernel_grid,
         accuracy_target=accuracy,
@@ -860,8 +912,6 @@ MAX_ACCURACY_GRID = 1601
 
 def _grid_for(system: Any, controller: Controller, grid: int, accuracy: float) -> int:
     """The first grid ``n, 2 n - 1, ...`` on which the margin moves by less than ``accuracy`` from ``(n + 1) / 2``."""
-    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
-        return grid  # the characteristic route has no kernel grid to refine
     while (grid - 1) // 2 + 1 < MIN_KERNEL_GRID:
         grid = 2 * grid - 1
     coarse = delay_margin(system, controller, kernel_grid=(grid - 1) // 2 + 1, verify=False).margin

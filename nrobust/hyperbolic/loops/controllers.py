@@ -55,7 +55,7 @@ from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .feedback import feedback_factor
 from .output_feedback import observer_term, output_feedback_factors
-from .varying_form import VaryingDelayForm, varying_delay_form
+from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 
 __all__ = [
     "Classification",
@@ -402,7 +402,7 @@ def _varying_factors(
     ``kernel_grid`` points). U_BS2(K), whose ``K q`` is a normal-form quantity, is refused.
     """
     _check_controller(controller)
-    form = cached_varying_delay_form(system)
+    form = cached_varying_delay_form(system, 2 * (kernel_grid - 1))  # N~ on kernel_grid nodes
     i_n = QuasiPolynomial([], [], form.characteristic.distributed)
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
@@ -429,9 +429,11 @@ def _varying_kernels(system: GeneralHyperbolic2x2, kernel_grid: int) -> VaryingK
 
 
 @lru_cache(maxsize=8)
-def cached_varying_delay_form(system: GeneralHyperbolic2x2) -> VaryingDelayForm:
-    """The characteristic delay form of a plant with a varying speed ratio (cached)."""
-    return varying_delay_form(system)
+def cached_varying_delay_form(
+    system: GeneralHyperbolic2x2, steps: int = DEFAULT_CHARACTERISTIC_GRID
+) -> VaryingDelayForm:
+    """The characteristic delay form of a plant with a varying speed ratio on ``steps`` steps (cached)."""
+    return varying_delay_form(system, steps)
 
 
 def _state_feedback_factor(system: Hyperbolic2x2, controller: StateFeedback, kernel_grid: int) -> QuasiPolynomial:
@@ -615,8 +617,9 @@ def loop_factors(
         carries the error of the kernels, about third order in ``1/kernel_grid`` for an odd
         grid (extrapolated kernels), second order for an even one
         (``docs/numerics_kernels.md``). A plant with a varying ``lam/mu`` takes ``N~`` from the
-        characteristic route, and uses ``kernel_grid`` only for the integral gains of a
-        :class:`StateFeedback` (kernels with varying speeds, second order).
+        characteristic route on ``2 (kernel_grid - 1)`` steps (``N~`` on ``kernel_grid``
+        nodes, fourth order), and the integral gains of a :class:`StateFeedback` from
+        kernels with varying speeds on ``kernel_grid`` points (second order).
 
     Returns
     -------

@@ -1,0 +1,83 @@
+"""Every margin a certificate prints carries its accuracy, on the kernel route too.
+
+``certify`` on a loop built from a kernel grid (or from the characteristic route of a plant
+with a varying ``lam/mu``) estimates the model error of its delay margin by a convergence
+study, without being asked. The oracles share no code with that study: the closed-form
+crossing of the paper's plant solved at 40 digits (``tests/test_exact_form.py``), and the
+crossing equation of the kernel-free Laplace route (Magnus steps, no kernel, no
+characteristic grid) solved by Newton's method here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nrobust import GeneralHyperbolic2x2, Hyperbolic2x2, ReflectionController, StateFeedback, certify
+from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
+
+#: delta* of U_BS2(0.1) on the paper's plant, the crossing equations at 40 digits.
+PAPER_MARGIN = 0.2295391302761485093812871100572
+#: delta* of U_BS2(0.1) on Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5), the same equations (the exact route
+#: gives 0.08708699915035, ``docs/margins.md``); 14 digits suffice against errors of 1e-8.
+PDE_MARGIN_STRONG = 0.08708699915035
+
+
+@pytest.mark.parametrize(
+    ("parameters", "truth", "grid"),
+    [
+        ((1.0, 1.0, 1.0, 1.0, 1.0, 0.85), PAPER_MARGIN, 51),
+        ((1.0, 1.0, 1.0, 1.0, 1.0, 0.85), PAPER_MARGIN, 101),
+        ((1.0, 1.0, 1.0, 1.0, 1.0, 0.85), PAPER_MARGIN, 201),
+        # not monotone from 51 points (errors 3.6e-6, -1.9e-7, -4.6e-8 on 51, 101, 201)
+        ((1.0, 1.0, 4.0, 4.0, 0.5, 0.5), PDE_MARGIN_STRONG, 201),
+    ],
+)
+def test_kernel_route_margin_is_within_its_estimated_accuracy(
+    parameters: tuple[float, ...], truth: float, grid: int
+) -> None:
+    """Grids where the study is monotone from the start and where it is not."""
+    plant = Hyperbolic2x2(*parameters)
+    cert = certify(plant, ReflectionController(0.1), kernel_grid=grid, k_region=False, region=(-2, 1, -20, 20))
+    assert cert.route == "kernels" and cert.model_error is not None
+    accuracy = cert.margin_accuracy
+    assert accuracy is not None and accuracy < 1e-5
+    assert abs(cert.delay_margin - truth) <= accuracy
+    assert "estimated" in cert.model_error.statement and "+-" in cert.margin_text
+
+
+def _laplace_crossing(plant: GeneralHyperbolic2x2, k: float, omega: float, delta: float) -> tuple[float, float]:
+    """``(delta, omega)`` with ``A(i w) + B(i w) e^{-i w delta} = 0`` on the Laplace route, by Newton's method."""
+    x = np.array([omega, delta])
+    for _ in range(8):
+
+        def residual(v: np.ndarray) -> np.ndarray:
+            a, b = laplace_loop_factors(plant, k, 0.0, 0.0, np.array([1j * v[0]]), steps=4000)
+            f = complex(a[0] + b[0] * np.exp(-1j * v[0] * v[1]))
+            return np.array([f.real, f.imag])
+
+        f0 = residual(x)
+        h = 1e-6
+        jac = np.column_stack([(residual(x + h * e) - residual(x - h * e)) / (2 * h) for e in np.eye(2)])
+        step = np.linalg.solve(jac, -f0)
+        x = x + step
+        if np.max(np.abs(step)) < 1e-12:
+            break
+    return float(x[1]), float(x[0])
+
+
+@pytest.mark.slow
+def test_varying_speed_ratio_margin_is_within_its_estimated_accuracy() -> None:
+    """The characteristic route (no normal form) is refined as the kernel grid is."""
+    plant = GeneralHyperbolic2x2(
+        lam=lambda x: 1.0 + 0.3 * x, mu=1.0, a=0.0, b=0.5, c=lambda x: 0.4 - 0.2 * x, d=0.0, q=0.7, rho=0.4
+    )
+    k = -1.0
+    cert = certify(plant, StateFeedback(k), delta_max=0.5, k_region=False, region=(-2, 1, -20, 20))
+    assert cert.model_error is not None and "characteristic route" in cert.model_error.statement
+    accuracy = cert.margin_accuracy
+    assert accuracy is not None and accuracy < 1e-5
+    omega = cert.margin.omega
+    assert omega is not None
+    delta, _ = _laplace_crossing(plant, k, omega, cert.delay_margin)
+    assert abs(cert.delay_margin - delta) <= accuracy
