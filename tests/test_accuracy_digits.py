@@ -28,8 +28,14 @@ from nrobust.hyperbolic.analyses import k_region, margin_and_decay, tradeoff
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import delay_margin
 
-mp.mp.dps = 40
 PAPER = nrobust.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
+
+
+@pytest.fixture(autouse=True)
+def _forty_digits():
+    """mpmath at 40 digits in every test here (another module's test may leave the precision at 15)."""
+    with mp.workdps(40):
+        yield
 
 
 def _mp_poly(coefs, s):
