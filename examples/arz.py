@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 import nrobust
+from nrobust import with_accuracy
 from nrobust.hyperbolic.loops.controllers import (
     FiniteTimeController,
     OpenLoop,
@@ -72,6 +73,12 @@ plant = road.system
 print(f"t_F = L/v* + L/|lam_2| = {t_f:.6f} s; rho~ q~ = {plant.rho_q:.6f} = e^(-c t_F), c = {c:.6f} 1/s")
 
 
+def _seconds(margin: nrobust.DelayMargin) -> str:
+    """The margin (in minutes, the plant's time unit) in seconds, with the digits its accuracy supports."""
+    accuracy = None if margin.accuracy is None else 60.0 * margin.accuracy
+    return with_accuracy(60.0 * margin.margin, accuracy)
+
+
 def bump(x: np.ndarray) -> np.ndarray:
     """A density-and-velocity bump vanishing at both ends (compatible with the boundaries)."""
     return 0.01 * np.sin(np.pi * x / L) ** 2
@@ -88,10 +95,10 @@ print(f"chain: -c = {-c:.6f}, spacing 2 pi/t_F = {2 * np.pi / t_f:.6f} (1/s)")
 margins = {"U_BS": FiniteTimeController(), "U_BS2(0)": ReflectionController(0.0)}
 for name, controller in margins.items():
     margin = nrobust.delay_margin(plant, controller)
-    print(f"{name}: delay margin {margin.margin:.6g} min = {60 * margin.margin:.6g} s")
+    print(f"{name}: delay margin {with_accuracy(margin.margin, margin.accuracy)} min = {_seconds(margin)} s")
 bs2 = margin.margin
 print(f"U_BS2(0) in closed form: pi/(2c) = {np.pi / (2 * c):.6g} s")
 for k in (0.2, 0.5):
     margin = nrobust.delay_margin(plant, StateFeedback(k))
-    print(f"U = {k} u(L): delay margin {margin.margin:.6g} min = {60 * margin.margin:.6g} s")
+    print(f"U = {k} u(L): delay margin {with_accuracy(margin.margin, margin.accuracy)} min = {_seconds(margin)} s")
 (out / "arz.txt").write_text(f"v_star {road.v_star:.9g}\nlam_2 {road.speeds[1]:.9g}\nt_F {t_f:.9g}\nmargin {bs2:.9g}\n")

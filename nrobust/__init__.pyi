@@ -17,6 +17,7 @@ from . import (
     roots as roots,
     sweeps as sweeps,
 )
+from ._digits import with_accuracy as with_accuracy
 from ._version import __version__ as __version__
 from .bounds import (
     RootFreeRegion as RootFreeRegion,

@@ -13,8 +13,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nrobust import GeneralHyperbolic2x2, Hyperbolic2x2, ReflectionController, StateFeedback, certify
+from nrobust import (
+    GeneralHyperbolic2x2,
+    Hyperbolic2x2,
+    ReflectionController,
+    StateFeedback,
+    certify,
+    delay_margin,
+    with_accuracy,
+)
+from nrobust.hyperbolic.loops.controllers import loop_route
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
+from nrobust.hyperbolic.plants.frontends import saint_venant
 
 #: delta* of U_BS2(0.1) on the paper's plant, the crossing equations at 40 digits.
 PAPER_MARGIN = 0.2295391302761485093812871100572
@@ -46,13 +56,16 @@ def test_kernel_route_margin_is_within_its_estimated_accuracy(
     assert "estimated" in cert.model_error.statement and "+-" in cert.margin_text
 
 
-def _laplace_crossing(plant: GeneralHyperbolic2x2, k: float, omega: float, delta: float) -> tuple[float, float]:
-    """``(delta, omega)`` with ``A(i w) + B(i w) e^{-i w delta} = 0`` on the Laplace route, by Newton's method."""
+def _laplace_crossing(
+    plant: GeneralHyperbolic2x2, k: float, omega: float, delta: float, steps: int | None = None
+) -> tuple[float, float]:
+    """``(delta, omega)`` with ``A(i w) + B(i w) e^{-i w delta} = 0`` on the Laplace route, by Newton's method
+    (``steps`` Magnus steps for varying speeds; each step is exact for constant coefficients)."""
     x = np.array([omega, delta])
     for _ in range(8):
 
         def residual(v: np.ndarray) -> np.ndarray:
-            a, b = laplace_loop_factors(plant, k, 0.0, 0.0, np.array([1j * v[0]]), steps=4000)
+            a, b = laplace_loop_factors(plant, k, 0.0, 0.0, np.array([1j * v[0]]), steps=steps)
             f = complex(a[0] + b[0] * np.exp(-1j * v[0] * v[1]))
             return np.array([f.real, f.imag])
 
@@ -79,5 +92,19 @@ def test_varying_speed_ratio_margin_is_within_its_estimated_accuracy() -> None:
     assert accuracy is not None and accuracy < 1e-5
     omega = cert.margin.omega
     assert omega is not None
-    delta, _ = _laplace_crossing(plant, k, omega, cert.delay_margin)
+    delta, _ = _laplace_crossing(plant, k, omega, cert.delay_margin, steps=4000)
     assert abs(cert.delay_margin - delta) <= accuracy
+
+
+def test_uniform_flow_canal_takes_the_exact_route_and_prints_its_accuracy() -> None:
+    """Litrico and Fromion's pool in uniform flow: constant coefficients, so no kernel grid, in minutes and seconds."""
+    canal = saint_venant(3000.0, 7.0, 1e-4, 10.0, side_slope=1.5, manning=0.02, time_unit=60.0).system
+    k = 1.0
+    assert loop_route(canal, StateFeedback(k)) == "exact"
+    margin = delay_margin(canal, StateFeedback(k))
+    assert margin.accuracy is not None and margin.accuracy < 1e-9 and margin.omega is not None
+    delta, _ = _laplace_crossing(canal, k, margin.omega, margin.margin)
+    assert abs(margin.margin - delta) <= max(margin.accuracy, 1e-10)  # the Laplace route's own error: 1e-10
+    text = with_accuracy(60.0 * margin.margin, 60.0 * margin.accuracy)
+    value, accuracy = (float(t) for t in text.split(" +- "))
+    assert abs(value - 60.0 * delta) <= 2.0 * accuracy

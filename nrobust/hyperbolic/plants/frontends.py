@@ -420,17 +420,13 @@ def saint_venant(
         kappa = 1.5 * VL * float(channel.depth(HL)) / (HL - p)
         rho = -(VL + cL - kappa) / (cL - VL + kappa)
         gain = -2.0 * G * kappa / (cL - VL + kappa)
+    speeds: list[Any] = [_Speed(channel, profile, 1.0), _Speed(channel, profile, -1.0)]
+    entries: list[Any] = [coefs[0][0], coefs[0][1], coefs[1][0], coefs[1][1]]
+    if profile.solution is None:  # uniform flow: constant coefficients, so the exact route (no kernel grid)
+        speeds = [float(f(0.0)) for f in speeds]
+        entries = [float(f(0.0)) for f in entries]
     system = GeneralHyperbolic2x2(
-        _Speed(channel, profile, 1.0),
-        _Speed(channel, profile, -1.0),
-        coefs[0][0],
-        coefs[0][1],
-        coefs[1][0],
-        coefs[1][1],
-        q,
-        rho,
-        L,
-        time_unit,
+        speeds[0], speeds[1], entries[0], entries[1], entries[2], entries[3], q, rho, L, time_unit
     )
     x = np.linspace(0.0, L, 201)
     H = profile(x)
