@@ -31,6 +31,7 @@ from .hyperbolic.loops.controllers import (
     OpenLoop,
     ReflectionController,
     StateFeedback,
+    loop_route,
     normalize,
 )
 from .hyperbolic.nplusm.system import NPlusMSystem
@@ -457,7 +458,8 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
     controller = build_in_section("controller", lambda: CONTROLLER_TYPES[kind](**values))
     given_system, given_controller = system, controller  # as written, for the report
-    system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
+    if loop_route(system, controller) != "exact":  # constant coefficients: analysed as written, exactly
+        system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
 
     analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
     if analysis["delta_max"] is None:

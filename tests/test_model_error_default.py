@@ -10,6 +10,8 @@ characteristic grid) solved by Newton's method here.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -22,6 +24,7 @@ from nrobust import (
     delay_margin,
     with_accuracy,
 )
+from nrobust.config import load_system_file
 from nrobust.hyperbolic.loops.controllers import loop_route
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
 from nrobust.hyperbolic.plants.frontends import saint_venant
@@ -108,3 +111,23 @@ def test_uniform_flow_canal_takes_the_exact_route_and_prints_its_accuracy() -> N
     text = with_accuracy(60.0 * margin.margin, 60.0 * margin.accuracy)
     value, accuracy = (float(t) for t in text.split(" +- "))
     assert abs(value - 60.0 * delta) <= 2.0 * accuracy
+
+
+def test_a_ball_proven_about_a_model_is_not_printed_as_the_plants_accuracy() -> None:
+    """Varying couplings: the rigorous ball is about N~ on the grid; the plant's accuracy comes from the study."""
+    plant = Hyperbolic2x2(1.0, 2.0, lambda x: 0.5 * (1.0 + x), -0.4, 0.8, 0.9)
+    margin = delay_margin(plant, ReflectionController(0.3), rigorous=True)
+    assert margin.of_model and margin.margin_ball is not None and margin.accuracy is None
+    assert "+-" not in repr(margin).split("omega=")[0]  # no radius of the model's ball printed as the plant's
+    cert = certify(plant, ReflectionController(0.3), k_region=False, region=(-2, 1, -20, 20))
+    assert cert.margin.accuracy is not None and cert.margin.accuracy == cert.margin_accuracy
+    assert "+-" in repr(cert.margin).split("omega=")[0]
+    # the study's estimate holds against a grid four times as fine (third order: 16x closer)
+    fine = delay_margin(plant, ReflectionController(0.3), kernel_grid=801).margin
+    assert abs(cert.delay_margin - fine) <= cert.margin_accuracy
+
+
+def test_the_canal_file_is_analysed_as_written() -> None:
+    """examples/saint_venant.toml: uniform flow, so the certificate is about the plant itself (no normal form)."""
+    spec = load_system_file(Path(__file__).parent.parent / "examples" / "saint_venant.toml")
+    assert spec["system"] is spec["given_system"] and loop_route(spec["system"], spec["controller"]) == "exact"

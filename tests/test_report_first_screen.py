@@ -64,7 +64,7 @@ def test_the_answer_comes_before_any_table(filtered, tmp_path):
     answer = md[panel : md.index("![")]
     assert f"delta* = {filtered.margin_text}" in answer
     assert f"decay rate {with_accuracy(-filtered.abscissa.value, filtered.abscissa.accuracy)}" in answer
-    assert "certified integers" in answer and "rigorous = true" in answer
+    assert "nothing in ball arithmetic" in answer and "argument principle" in answer and "rigorous = true" in answer
     page = (tmp_path / "report.html").read_text()
     assert page.index('class="answer"') < page.index("<table")
 
@@ -168,7 +168,9 @@ def test_general_plant_is_reported_in_the_users_terms(tmp_path):
         first
     )
     assert "StateFeedback(k=-0.8," in first and "normal-form coupling" not in first
-    assert "As analysed: its normal form" in text
+    # constant coefficients: analysed as written (the exact route), not through the normal form
+    assert "Analysed as written: constant coefficients" in text and "As analysed: its normal form" not in text
+    assert spec["system"] is spec["given_system"]
 
 
 def test_reflection_gain_on_a_general_plant_is_said_to_be_a_normal_form_quantity(tmp_path):

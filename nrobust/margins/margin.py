@@ -170,18 +170,19 @@ class DelayMargin:
         the floating-point estimate ``max(1e-12 |margin|, 20 residual / omega)``: the
         crossing's residual turned into a delay through ``|dF/d delta| = omega |B|`` (``|A| =
         |B|`` there), with a floor 1000 times the largest distance to the proven ball measured
-        on the test plants (3e-16 relative). None for a model of the plant (:attr:`of_model`,
-        the kernel route: ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``): its distance to
-        the plant's margin is estimated by the convergence study in the kernel grid of
-        :attr:`nrobust.Certificate.margin_accuracy`, outside the core.
+        on the test plants (3e-16 relative). For a model of the plant (:attr:`of_model`, the
+        kernel route: ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``)
+        :attr:`model_error`, its estimated distance to the plant's margin, is added; None when
+        it is not known, with ``rigorous`` too (the ball is proven about the model, not the
+        plant): :func:`nrobust.certify` estimates it by a convergence study in the kernel grid.
         """
+        if self.of_model and self.model_error is None:
+            return None  # a ball proven about a model says nothing of the plant's margin
         model = self.model_error if self.of_model and self.model_error is not None else 0.0
         if self.margin_ball is not None:
             lo, hi = self.margin_ball
             radius = max(hi - self.margin, self.margin - lo)
             return (float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0) + model
-        if self.of_model and self.model_error is None:
-            return None
         if not np.isfinite(self.margin) or self.margin == 0.0:
             return 0.0
         if self.omega is None or self.residual is None:

@@ -14,6 +14,7 @@ that produced it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import platform
 from collections.abc import Callable
@@ -214,10 +215,6 @@ def _model_error(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int | None
 ) -> ModelError:
     """No model on the exact route; on the kernel route, the margin on the grid and on two coarser ones."""
-    if getattr(system, "uncoupled", False):
-        return ModelError(
-            0, 0, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
-        )
     if loop_route(system, controller, grid) == "exact":
         return ModelError(
             0,
@@ -225,7 +222,14 @@ def _model_error(
             margin.margin,
             margin.margin,
             0.0,
-            "no model: N~ in closed form, its proven error bound in every proof",
+            "no model: N~ (and a state feedback's gain kernels) in closed form, its proven error bound in every proof",
+        )
+    gains = isinstance(controller, StateFeedback) and any(
+        callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v)
+    )
+    if getattr(system, "uncoupled", False) and not gains:  # integral gains: Simpson's rule on the grid
+        return ModelError(
+            0, 0, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
         )
     grid = DEFAULT_KERNEL_GRID if grid is None else grid
     coarse = (grid - 1) // 2 + 1
@@ -260,6 +264,8 @@ def _spline(system: Hyperbolic2x2 | GeneralHyperbolic2x2, grid: int) -> str:
             f"N~ is the cubic spline of the characteristic route (varying lam/mu) on {grid} nodes, "
             f"Richardson-extrapolated from {2 * (grid - 1)} steps"
         )
+    if getattr(system, "uncoupled", False):
+        return f"N~ = 0 (uncoupled plant); the integral gains are integrated by Simpson's rule on {grid} points"
     return f"N~ is the cubic spline of the kernels on {grid} points"
 
 
@@ -433,8 +439,10 @@ def _claims(
     elif margin.margin_ball is not None and margin.rigorous:
         lo, hi = margin.margin_ball
         text = f"delta* in [{_outward(lo, 16, False)}, {_outward(hi, 16, True)}]"
+        if margin.of_model:  # the ball is about the model; the plant's margin to its estimated accuracy
+            text = f"{text} for the model, {with_accuracy(margin.margin, margin.accuracy)} for the plant"
     else:
-        text = f"delta* = {margin.margin:.12g}"
+        text = f"delta* = {with_accuracy(margin.margin, margin.accuracy)}"
     reason = margin.reason.split(" (proven in ball arithmetic")[0]
     out.append(Claim("delay margin", f"{text}: {reason}", status(margin.rigorous), "delay_margin"))
     if margin.margin_ball is not None and margin.margin_ball[0] > delta_max:
@@ -478,7 +486,8 @@ def _claims(
         out.append(
             Claim(
                 name,
-                f"F(s; {delta:g}) has {roots.count} zeros in the region, each entry in its counted box{extra}",
+                f"F(s; {delta:g}) has {roots.count} zero{'' if roots.count == 1 else 's'} in the region, each entry in "
+                f"its counted box{extra}",
                 status(roots.rigorous and roots.certified),
                 "find_roots",
             )
@@ -870,6 +879,9 @@ def certify(
                 kreg = analyses.k_region(system, delta_max, n_gains=n_gains)
             except CertificationError as exc:
                 k_region_error = str(exc)
+    model_error = _model_error(system, controller, margin, kernel_grid)
+    if margin.of_model and margin.model_error is None and np.isfinite(model_error.error):
+        margin = dataclasses.replace(margin, model_error=model_error.error)  # its repr then carries the accuracy
     return Certificate(
         system=system,
         controller=controller,
@@ -897,7 +909,7 @@ def certify(
             delta_max,
             _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
         ),
-        model_error=_model_error(system, controller, margin, kernel_grid),
+        model_error=model_error,
         unproven=tuple(unproven),
         kernel_grid=kernel_grid,
         accuracy_target=accuracy,

@@ -286,7 +286,7 @@ def _panel(cert: Certificate) -> _Panel:
             if m.omega is None
             else f", a root crossing the imaginary axis at w = {with_accuracy(m.omega, m.omega_accuracy)}"
         )
-        lines.append(f"**Delay margin:** delta* = {cert.margin_text}{where}.")
+        lines.append(f"**Delay margin:** delta* = {cert.margin_text}{_unit(cert)}{where}.")
     dmax = f"{cert.delta_max:g}"
     count = _crossing_count(cert)
     if cert.stable_up_to_delta_max:
@@ -303,11 +303,18 @@ def _panel(cert: Certificate) -> _Panel:
         lines.append(f"**Proven:** {proven} of {len(cert.claims)} claims in ball arithmetic{rest} (details below).")
     else:
         lines.append(
-            "**Proven:** the root counts (certified integers, the argument principle with step control); "
-            "the floating-point values are checked, not proven. For proofs: `rigorous = true` in [analysis] "
+            "**Proven:** nothing in ball arithmetic; every claim is checked in floating point (the root counts are "
+            "integers from the argument principle with a step control). For proofs: `rigorous = true` in [analysis] "
             "of SYSTEM.toml, or `certify(..., rigorous=True)`."
         )
     return _Panel(cert.verdict, tuple(lines))
+
+
+def _unit(cert: Certificate) -> str:
+    """`` (time unit: T s)`` for a plant whose delays are in a unit of ``T`` seconds, else empty."""
+    given = cert.system if cert.given_system is None else cert.given_system
+    unit = float(getattr(given, "time_unit", 1.0))
+    return "" if unit == 1.0 else f" (time unit: {unit:g} s)"
 
 
 def _number(value: Any) -> str:
@@ -341,14 +348,17 @@ def _plant_blocks(cert: Certificate, with_controller: bool = True) -> list[_Para
     if not given.constant_ratio:
         return out
     form = given.normal_form()
-    analysed = cert.controller if cert.given_controller is not None else normalize(given, controller)[1]
-    out.append(
-        _Paragraph(
-            "As analysed: its normal form, the paper's plant (18)-(20) on [0, 1] with time in units of time_unit: "
-            + _normal_form_text(form.system)
-            + (f", under `{_controller_label(analysed)}`." if with_controller else ".")
+    if isinstance(cert.system, GeneralHyperbolic2x2):  # constant coefficients: the loop in closed form
+        out.append(_Paragraph("Analysed as written: constant coefficients, the loop in closed form (no kernel grid)."))
+    else:
+        analysed = cert.controller if cert.given_controller is not None else normalize(given, controller)[1]
+        out.append(
+            _Paragraph(
+                "As analysed: its normal form, the paper's plant (18)-(20) on [0, 1] with time in units of time_unit: "
+                + _normal_form_text(form.system)
+                + (f", under `{_controller_label(analysed)}`." if with_controller else ".")
+            )
         )
-    )
     gain = getattr(controller, "K", None)
     if isinstance(controller, (ReflectionController, FilteredController)) and gain is not None:
         factor = form.control_gain * float(np.exp(-float(given.A(given.length)) - form.balance))
@@ -524,11 +534,14 @@ def _opening(cert: Certificate) -> str:
             f"{_fmt(gamma)}, {'below' if gamma < 1.0 else 'not below'} 1, the condition for a positive delay margin "
             "(the paper's eq. (17) states it without the absolute value of a)."
         )
+    given = cert.system if cert.given_system is None else cert.given_system
+    coordinates = " (K in the normal form's coordinates)" if isinstance(given, GeneralHyperbolic2x2) else ""
     if isinstance(controller, OpenLoop):
         return (
-            f"Open loop (U = 0), open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}"
+            f"Open loop (U = 0), open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: "
+            f"{cls.statement}{coordinates}"
         )
-    return f"Open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}"
+    return f"Open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}{coordinates}"
 
 
 def _interval(lo: float, hi: float) -> str:
