@@ -170,9 +170,10 @@ def test_exact_loops_against_the_kernel_route(controller):
     np.testing.assert_allclose(exact, model, rtol=0, atol=1e-9)
 
 
-def test_state_feedback_with_integral_gains_takes_the_kernel_route():
+def test_integral_gains_take_the_exact_route_only_when_they_can_be_evaluated_on_balls():
     plant = Hyperbolic2x2(*PAPER)
-    assert loop_route(plant, StateFeedback(-0.3, 0.1, 0.0)) == "kernels"
+    assert loop_route(plant, StateFeedback(-0.3, 0.1, 0.0)) == "exact"
+    assert loop_route(plant, StateFeedback(-0.3, lambda x: np.where(x < 0.5, 1.0, 0.0), 0.0)) == "kernels"
     assert loop_route(plant, ReflectionController(0.1), kernel_grid=201) == "kernels"
 
 

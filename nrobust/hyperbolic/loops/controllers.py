@@ -53,6 +53,7 @@ from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
 from ..plants.law import FeedbackLaw
 from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
+from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
@@ -239,6 +240,11 @@ class StateFeedback(Controller):
     inverse kernels), so they need the plant: :func:`loop_factors` computes them. The
     proportional output feedback ``U = -K u(t, L)`` is ``StateFeedback(-K)``; U_BS and
     U_BS2(K) are the cases whose gains are the kernel traces of their ``feedback_law``.
+
+    On a plant with constant coefficients the loop is exact (no kernel grid) when the gains
+    can be evaluated in ball arithmetic: numbers, or callables built from arithmetic and numpy's
+    elementary ufuncs (:mod:`~nrobust.hyperbolic.loops.exact_gains`); other callables take
+    the kernel route (:func:`loop_route`).
 
     Parameters
     ----------
@@ -457,11 +463,14 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     """How :func:`loop_factors` builds the loop: ``"exact"`` or ``"kernels"``.
 
     ``"exact"``: constant coefficients, ``kernel_grid`` not given, and a controller whose
-    gains are the paper's or a proportional :class:`StateFeedback`: ``N~`` in closed form
-    with proven error bounds (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`), so a
-    proof about the loop is a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a
-    state feedback) from kernels on a grid, a model of the plant whose distance to it is
-    measured by convergence studies. ``"observer"``: an :class:`OutputFeedback` whose state
+    gains are the paper's or a :class:`StateFeedback` whose integral gains (if any) can be
+    evaluated in ball arithmetic (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_failure`
+    is None): ``N~`` in closed form and the gains' kernel with proven error bounds
+    (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`,
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`), so a proof about the loop is
+    a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
+    kernels on a grid, a model of the plant whose distance to it is measured by convergence
+    studies. ``"observer"``: an :class:`OutputFeedback` whose state
     feedback takes the exact route; its observer term is computed in floating point with an
     estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
     """
@@ -471,7 +480,7 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     if kernel_grid is not None or not has_exact_form(system):
         return "kernels"
     if isinstance(controller, StateFeedback) and _integral_gains(controller):
-        return "kernels"
+        return "kernels" if gain_failure(system, controller.g_u, controller.g_v) is not None else "exact"
     return "exact"
 
 
@@ -501,15 +510,23 @@ def loop_scope(
             if radius
             else "N~ = 0 exactly (uncoupled plant: no kernel)"
         )
+        if isinstance(controller, StateFeedback) and _integral_gains(controller):
+            kernel += "; the integral gains as Taylor models in ball arithmetic, t_v rounded to a multiple of ulp(tau)"
         return f"the PDE itself ({kernel}; tau the double nearest 1/lam + 1/mu)"
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return (
             "a model of the PDE: N~ the cubic spline of the characteristic route (varying lam/mu); its distance "
             "to the PDE is not part of the proof"
         )
+    grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
+    if kernel_grid is None and isinstance(controller, StateFeedback) and has_exact_form(system):
+        reason = gain_failure(system, controller.g_u, controller.g_v)
+        return (
+            f"a model of the PDE: the integral gains have no exact loop ({reason}), so N~ and the gains come from "
+            f"the kernels on {grid} points; its distance to the PDE is not part of the proof"
+        )
     if isinstance(system, Hyperbolic2x2) and system.uncoupled:
         return "the PDE itself (uncoupled: N~ = 0)"
-    grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
     return (
         f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
         "not part of the proof (a convergence study estimates it)"
@@ -593,7 +610,9 @@ def _exact_factors(
     round_trip = QuasiPolynomial([[form.q]], [form.tau])
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
-        return 1.0 - phi, form.u_factor * (-controller.k)
+        B = form.u_factor * (-controller.k)
+        kernel = gain_kernel(system, controller.g_u, controller.g_v) if _integral_gains(controller) else None
+        return 1.0 - phi, B if kernel is None else B - QuasiPolynomial([], [], [kernel])
     return controller.factors(phi, i_n, round_trip)
 
 

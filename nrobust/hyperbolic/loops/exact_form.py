@@ -50,7 +50,16 @@ from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["DEGREE", "ExactForm", "exact_form", "exact_output_map", "has_exact_form"]
+__all__ = [
+    "DEGREE",
+    "ExactForm",
+    "closed_form_parameters",
+    "exact_form",
+    "exact_output_map",
+    "expand_piece",
+    "has_exact_form",
+    "series_tail",
+]
 
 #: Degree of the polynomial pieces of the exact ``N~``.
 DEGREE = 9
@@ -90,7 +99,8 @@ class ExactForm:
         ``e^{-s t_v} u(L, s)`` normalised as the characteristic function, in the plant's own
         coordinates: ``q e^{sigma_0 tau} e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` with
         ``U~ = e^{sigma_0 nu} (q h_11 + p W / tau)``; a proportional feedback
-        ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``.
+        ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``; integral gains subtract
+        their term ``I_g`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`).
     """
 
     tau: float
@@ -107,7 +117,7 @@ def has_exact_form(system: object) -> bool:
     if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
         return abs(float(system.sigma_pm) * float(system.sigma_mp)) <= KAPPA_MAX * system.lam * system.mu  # type: ignore[arg-type]
     if isinstance(system, GeneralHyperbolic2x2) and _constant_general(system):
-        _, p, m, _, _, _ = _parameters(system)
+        _, p, m, _, _, _ = closed_form_parameters(system)
         return abs(p * m) <= KAPPA_MAX
     return False
 
@@ -137,7 +147,7 @@ def exact_form(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> ExactForm:
         Couplings so strong that the kernel's pieces cannot be stored to double precision
         within :data:`MAX_PIECES` pieces (``|kappa|`` in the thousands).
     """
-    tau, p, m, q, rho, shift = _parameters(system)
+    tau, p, m, q, rho, shift = closed_form_parameters(system)
     return _exact_form(tau, p, m, q, rho, shift)
 
 
@@ -153,14 +163,28 @@ def exact_output_map(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> QuasiPolyn
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         A plant with constant coefficients.
     """
-    tau, p, m, q, rho, shift = _parameters(system)
+    tau, p, m, q, rho, shift = closed_form_parameters(system)
     kernel = None if m == 0.0 else _kernel(tau, p, m, shift, ("V", q, rho))  # m = 0: kappa = 0, V~ = 0
     one = QuasiPolynomial([[1.0]], [0.0])
     return one if kernel is None else one + QuasiPolynomial([], [], [kernel])
 
 
-def _parameters(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[float, float, float, float, float, float]:
-    """``(tau, p, m, q, rho, sigma_0 tau)`` of the closed form (module notes)."""
+def closed_form_parameters(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+) -> tuple[float, float, float, float, float, float]:
+    """``(tau, p, m, q, rho, sigma_0 tau)`` of the closed form (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+
+    Returns
+    -------
+    tuple of float
+        ``tau`` (the double the proofs take), ``p``, ``m``, ``q``, ``rho`` and the shift
+        ``sigma_0 tau`` (0 for the paper's plant).
+    """
     if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
         p = float(system.sigma_pm) / system.lam  # type: ignore[arg-type]
         m = -float(system.sigma_mp) / system.mu  # type: ignore[arg-type]
@@ -217,7 +241,7 @@ def _kernel(tau: float, p: float, m: float, shift: float, which: tuple[str, floa
         g = arb_poly([0, T, -1])  # nu (tau - nu)
         nu, rest = arb_poly([0, 1]), arb_poly([T, -1])
         series, k, term_w, term_22, term_11 = arb_poly([0]), 0, arb_poly([1]), rest * a, nu * a
-        tail, slope = _series_tail(flint, abs(kappa), T, abs(c_w), abs(c_22), abs(c_11))
+        tail, slope = series_tail(flint, abs(kappa), T, abs(c_w), abs(c_22), abs(c_11))
         while True:
             fk, fk1 = arb(math.factorial(k)), arb(math.factorial(k + 1))
             series += term_w * (c_w / (fk * fk)) + term_22 * (c_22 / (fk * fk1)) + term_11 * (c_11 / (fk * fk1))
@@ -234,7 +258,7 @@ def _kernel(tau: float, p: float, m: float, shift: float, which: tuple[str, floa
         return _pieces(flint, series, sigma, T, tau, global_sup, global_var)
 
 
-def _series_tail(flint: Any, kappa_abs: Any, T: Any, cw: Any, c22: Any, c11: Any) -> tuple[Any, Any]:
+def series_tail(flint: Any, kappa_abs: Any, T: Any, cw: Any, c22: Any, c11: Any) -> tuple[Any, Any]:
     """Bounds of the tails (from term ``k`` on) of ``N~``'s series and of its derivative on ``[0, tau]``.
 
     With ``r = |kappa| / 4``: ``|a^k (nu (tau - nu))^k| <= r^k``,
@@ -272,7 +296,7 @@ def _dyadic_step(tau: float, pieces: int) -> float:
     return math.ldexp(math.floor(mant * 2**40) / 2**40, expo)
 
 
-def _expand(flint: Any, series: Any, sigma: Any, lo: float, width: float) -> tuple[list[float], Any, Any]:
+def expand_piece(flint: Any, series: Any, sigma: Any, lo: float, width: float) -> tuple[list[float], Any, Any]:
     """One piece: the stored coefficients, a bound of the stored piece's error (sup and variation), ``sum |P_j|``.
 
     ``series(lo + w t) = S(t)`` exactly (ball coefficients) and ``e^{sigma (lo + w t)} =
@@ -333,7 +357,7 @@ def _pieces(
     while len(bounds) <= MAX_PIECES:
         for piece in bounds:
             if piece not in done:
-                done[piece] = _expand(flint, series, sigma, piece[0], piece[1] - piece[0])
+                done[piece] = expand_piece(flint, series, sigma, piece[0], piece[1] - piece[0])
         scale = arb(0)
         for piece in bounds:
             scale = arb.max(scale, done[piece][2])

@@ -1,0 +1,539 @@
+"""Integral gains of a state feedback on a plant with constant coefficients, in closed form.
+
+For ``U(t) = k u(t, L) + int_0^L g_u(x) u(t, x) + g_v(x) v(t, x) dx`` the loop factor is
+``B = -(k u_factor + I_g)`` (``u_factor`` of :func:`~nrobust.hyperbolic.loops.exact_form.exact_form`),
+``I_g`` the integral term ``e^{-s t_v} int_0^L g_u u(x, s) + g_v v(x, s) dx`` normalised as the
+characteristic function. The Laplace-domain state at ``x = xi L`` is the plant's on ``[0, x]``:
+the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form` with ``(tau, p, m)`` replaced
+by ``(tau xi, p xi, m xi)`` (``a = kappa / tau^2`` is unchanged). With ``t_v`` the time of
+flight of ``v``, ``t_u = tau - t_v``, ``sigma = sigma_0`` of the exact form,
+``E = L (a - d) / (lam + mu)`` (0 for the paper's plant) and the effective gains
+``G(xi) = L e^{-E (1 - xi)} g(L xi)``::
+
+    I_g(s) = int_0^tau e^{sigma theta} K(theta) e^{-theta s} dtheta,
+    K(theta) = G_v(1 - theta / t_v) / t_v                          (theta < t_v)
+             + q G_u((theta - t_v) / t_u) / t_u                     (theta > t_v)
+             + int_{xi_0(theta)}^1 G_u(xi) U(xi, theta) + G_v(xi) V(xi, theta) dxi,
+
+``xi_0(theta) = max(1 - theta / t_v, (theta - t_v) / t_u)``. The point delays of
+``e^{-s t_v} [u; v](x, s)``, at ``t_v + t_u xi`` (weight ``q``) and ``t_v (1 - xi)`` (weight 1),
+give the first two terms by a change of variables; its distributed delays, the kernels
+``U~``, ``V~`` of the section (``q h_11 + p W / tau`` and ``h_22 + m q W / tau`` on
+``[0, tau xi]``) delayed by ``t_v (1 - xi)``, give the third by Fubini:
+``U(xi, theta) = U~_xi(theta - t_v (1 - xi))``, a polynomial in ``(xi, theta)`` once the
+series is truncated (``nu = theta - t_v (1 - xi)``, ``tau xi - nu = t_v + t_u xi - theta``).
+
+The gains are enclosed in ball arithmetic: ``g`` is called on a python-flint ``arb_series``
+(``x = L (c + r t)``, in a one-element object array, so that numpy's ufuncs act on it) once at
+the centre ``c`` of each of ``n`` pieces of ``[0, 1]``, giving the
+Taylor polynomial of degree :data:`ORDER` - 1, and once on the ball ``[c - r, c + r]``, whose
+coefficient of ``t^ORDER`` bounds the Lagrange remainder and, times ``ORDER``, the remainder
+of the derivative (a Taylor model: proven for any ``g`` built from arithmetic and the functions
+of ``arb_series``, which numpy's ufuncs call on an object array, e.g. ``lambda x: 1 + x**2`` or
+``lambda x: 0.1 * np.exp(2 * x)``; constants need no call; the series are computed to the order
+:data:`ORDER`, python-flint's ``ctx.cap`` raised for the call). ``n`` doubles up to
+:data:`MAX_GAIN_PIECES` until the remainders are below
+:data:`~nrobust.hyperbolic.loops.exact_form.TARGET` times the gain's size. A ``g`` that fails
+on ``arb_series`` (comparisons, ``np.where``, conversions to float, ...), is not analytic on
+``[0, L]``, or disagrees with its values on arrays at the centres has no exact loop:
+:func:`gain_failure` says why, and :func:`~nrobust.hyperbolic.loops.controllers.loop_route`
+takes the kernel route.
+
+``K`` is then a polynomial in ``theta`` on each of ``2 n`` segments (the images of the ``n``
+pieces under ``xi_0``): the moments ``int_{xi_b}^1 G(xi) xi^i dxi`` of the models above the
+segment, and the integral from ``xi_0(theta)`` to ``xi_b`` of the model of its piece, exact
+polynomial algebra in ball arithmetic. Each segment is expanded into pieces of degree
+:data:`~nrobust.hyperbolic.loops.exact_form.DEGREE` by
+:func:`~nrobust.hyperbolic.loops.exact_form.expand_piece`; the proven sup bound of the
+difference to the true kernel (Taylor remainders times the bounds of ``U``, ``V``; series
+tails times the bounds of the models; expansion and rounding) is the kernel's ``radius``, and
+the bound of its total variation (the same with the derivatives, and twice the sup bound at
+each segment's end) its ``variation_radius``. The nodes are multiples of ``ulp(tau)`` (exact
+differences), with ``t_v`` rounded to one: proofs are about the plant with that ``t_v`` and
+``tau`` the double of the exact form, a relative change of ``t_v`` below ``2^-52 tau / t_v``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..._flint import precision, require_flint
+from ...errors import CertificationError, ParameterError
+from ...quasipoly import DistributedDelay
+from ..plants.general import GeneralHyperbolic2x2
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from ..plants.law import feedback_gain
+from .exact_form import (
+    MAX_PIECES,
+    PRECISION,
+    TARGET,
+    closed_form_parameters,
+    expand_piece,
+    has_exact_form,
+    series_tail,
+)
+
+__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel"]
+
+#: Taylor order of the models of the gains on each piece of ``[0, 1]``.
+ORDER = 20
+#: Most pieces of ``[0, 1]`` tried for the models of the gains.
+MAX_GAIN_PIECES = 64
+# Each model is valid on its piece widened by this much on both sides (the nodes of theta,
+# rounded to multiples of ulp(tau), map slightly outside the pieces).
+_WIDEN = 2.0**-30
+# Relative agreement asked of the ball models with the gain evaluated on arrays.
+_AGREEMENT = 1e-8
+
+
+@dataclass(frozen=True)
+class _Plant:
+    """The numbers of the closed form (module notes), as doubles."""
+
+    tau: float
+    t_v: float
+    p: float
+    m: float
+    q: float
+    shift: float
+    length: float
+    weight: float  # E = L (a - d) / (lam + mu)
+
+
+def _plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> _Plant:
+    if not has_exact_form(system):
+        raise ParameterError("system", "a plant with constant coefficients (has_exact_form)", system)
+    tau, p, m, q, _, shift = closed_form_parameters(system)
+    if isinstance(system, GeneralHyperbolic2x2):
+        c = {k: float(system.coefficient(k, np.zeros(1))[0]) for k in ("lam", "mu", "a", "d")}
+        t_v = 1.0 / (system.time_unit / system.transport_times[1])  # as closed_form_parameters' tau
+        weight = system.length * (c["a"] - c["d"]) / (c["lam"] + c["mu"])
+        return _Plant(tau, t_v, p, m, q, shift, system.length, weight)
+    return _Plant(tau, 1.0 / system.mu, p, m, q, shift, 1.0, 0.0)
+
+
+def gain_kernel(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any) -> DistributedDelay | None:
+    """The kernel ``e^{sigma theta} K(theta)`` of ``I_g`` on ``[0, tau]`` with proven error bounds (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients
+        (:func:`~nrobust.hyperbolic.loops.exact_form.has_exact_form`).
+    g_u, g_v : float or callable
+        The integral gains on ``[0, L]``, in the plant's coordinates; a callable is evaluated
+        on python-flint ``arb_series`` (module notes).
+
+    Returns
+    -------
+    DistributedDelay or None
+        Polynomial pieces with ``radius`` and ``variation_radius`` (None when both gains
+        are 0); the loop factor of ``StateFeedback(k, g_u, g_v)`` is
+        ``B = -(k u_factor + I_g)``.
+
+    Raises
+    ------
+    ParameterError
+        A plant without the closed form, or a gain not finite on ``[0, L]``.
+    CertificationError
+        A gain that cannot be enclosed in ball arithmetic to double precision
+        (:func:`gain_failure` gives the reason).
+    """
+    plant = _plant(system)
+    for name, g in (("g_u", g_u), ("g_v", g_v)):
+        feedback_gain(name, g, plant.length)
+    return _cached(plant, g_u, g_v)
+
+
+def gain_failure(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any) -> str | None:
+    """Why :func:`gain_kernel` cannot build the exact kernel of these gains (None when it can)."""
+    try:
+        gain_kernel(system, g_u, g_v)
+    except CertificationError as exc:
+        return str(exc)
+    return None
+
+
+def _cached(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+    try:
+        hash((g_u, g_v))
+    except TypeError:  # an unhashable callable: built every time
+        return _kernel(plant, g_u, g_v)
+    return _kernel_cached(plant, g_u, g_v)
+
+
+@lru_cache(maxsize=32)
+def _kernel_cached(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+    return _kernel(plant, g_u, g_v)
+
+
+def _is_zero(g: Any) -> bool:
+    return not callable(g) and float(g) == 0.0
+
+
+# --------------------------------------------------------------------------- gain models
+
+
+@dataclass
+class _Models:
+    """Taylor models of one effective gain on ``n`` pieces of ``[0, 1]``."""
+
+    polys: list[Any]  # arb_poly in xi (global powers)
+    remainder: list[Any]  # sup |G - P| on the widened piece
+    derivative: list[Any]  # sup |d/dt (G - P)|, xi = c + r t
+    size: list[Any]  # sup |P|
+
+
+def _call(flint: Any, g: Any, x: Any, name: str) -> Any:
+    """``g`` at the series ``x``, as an ``arb_series`` (CertificationError when it is not one).
+
+    ``g`` is called on a one-element object array holding ``x``: arithmetic and numpy's
+    elementary ufuncs (``np.exp``, ``np.sin``, ``np.sqrt``, ...) then act on the series through its
+    own operations and methods, and ``np.ones_like``/``np.full`` give constants.
+    """
+    arb, arb_series = flint.arb, flint.arb_series
+    if not callable(g):
+        return arb_series([arb(float(g))], prec=ORDER + 1)
+    holder = np.empty(1, dtype=object)
+    holder[0] = x
+    try:
+        out = g(holder)
+    except (TypeError, ValueError, ArithmeticError, AttributeError) as exc:
+        raise CertificationError(
+            f"the gain {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
+        ) from None
+    if isinstance(out, np.ndarray) and out.size == 1:
+        out = out.reshape(-1)[0]
+    if isinstance(out, arb_series):
+        return out
+    if isinstance(out, (int, float, arb)) and not isinstance(out, bool):
+        return arb_series([arb(float(out)) if not isinstance(out, arb) else out], prec=ORDER + 1)
+    raise CertificationError(
+        f"the gain {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series it gave "
+        f"{type(out).__name__})"
+    )
+
+
+def _effective(flint: Any, g: Any, plant: _Plant, xi: Any, name: str) -> list[Any]:
+    """The coefficients of ``G(xi) = L e^{-E (1 - xi)} g(L xi)`` for the series ``xi``, padded to ``ORDER + 1``."""
+    arb = flint.arb
+    cap = flint.ctx.cap
+    flint.ctx.cap = ORDER + 1  # series functions (exp, cos, ...) truncate at the global cap
+    try:
+        out = _call(flint, g, xi * plant.length, name) * plant.length
+        if plant.weight:
+            out = out * ((xi - 1) * plant.weight).exp()
+    finally:
+        flint.ctx.cap = cap
+    if out.prec < ORDER + 1:  # a coefficient not computed is unknown, not zero
+        raise CertificationError(f"the gain {name} gave a series truncated before the order {ORDER} of its model")
+    coefs = list(out.coeffs())[: ORDER + 1]
+    coefs += [arb(0)] * (ORDER + 1 - len(coefs))  # computed to O(t^(ORDER + 1)): the rest are zeros
+    if not all(c.is_finite() for c in coefs):
+        raise CertificationError(
+            f"the gain {name} is not enclosed by finite balls on [0, L] (not analytic there, or too large)"
+        )
+    return coefs
+
+
+def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str) -> _Models:
+    arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
+    out = _Models([], [], [], [])
+    values = feedback_gain(name, g, plant.length)
+    for j in range(n):
+        c, r = (2 * j + 1) / (2 * n), 1 / (2 * n) + _WIDEN
+        head = _effective(flint, g, plant, arb_series([arb(c), arb(r)], prec=ORDER + 1), name)[:ORDER]
+        try:
+            top = _effective(flint, g, plant, arb_series([arb(c, r), arb(r)], prec=ORDER + 1), name)[ORDER]
+        except CertificationError:  # the ball of the whole piece is too wide (e.g. a denominator about 0)
+            top = arb("inf")
+        floating = float(values(np.array([plant.length * c]))[0]) * plant.length * math.exp(-plant.weight * (1 - c))
+        if abs(floating - float(head[0].mid())) > _AGREEMENT * (1.0 + abs(floating)) + float(head[0].rad()):
+            raise CertificationError(
+                f"the gain {name} gives {float(head[0].mid())!r} on balls and {floating!r} on arrays at "
+                f"x = {plant.length * c!r}: not the same function in ball arithmetic"
+            )
+        out.polys.append(arb_poly(head)(arb_poly([-arb(c) / arb(r), 1 / arb(r)])))
+        out.remainder.append(abs(top))
+        out.derivative.append(ORDER * abs(top))
+        out.size.append(sum((abs(x) for x in head), arb(0)))
+    return out
+
+
+def _gain_models(flint: Any, plant: _Plant, g_u: Any, g_v: Any) -> tuple[int, _Models, _Models]:
+    """Models of both gains on a common partition, refined until their remainders reach double precision."""
+    arb = flint.arb
+    n = 4
+    while True:
+        models = (_models(flint, g_u, plant, n, "g_u"), _models(flint, g_v, plant, n, "g_v"))
+        fine = True
+        for mod in models:
+            scale = arb(0)
+            for v in mod.size:
+                scale = arb.max(scale, v)
+            for v in mod.remainder:
+                fine = fine and bool(v < TARGET * scale + arb(2.0**-60))
+        if fine:
+            return n, models[0], models[1]
+        n *= 2
+        if n > MAX_GAIN_PIECES:
+            raise CertificationError(
+                f"the integral gains need more than {MAX_GAIN_PIECES} Taylor models of order {ORDER} on [0, L] to "
+                "reach double precision in ball arithmetic (a gain not analytic on [0, L], or varying too fast)"
+            )
+
+
+# --------------------------------------------------------------------------- sections
+
+
+@dataclass
+class _Section:
+    """``U`` or ``V`` (module notes) as a polynomial in ``(xi, theta)`` and the bounds of its series."""
+
+    rows: list[Any]  # rows[i]: the arb_poly in theta multiplying xi^i
+    sup: Any  # sup |U| (all terms of the series)
+    slope: Any  # sup |dU/dtheta|
+    tail: Any  # sup of the dropped terms
+    tail_slope: Any  # sup of their derivative
+
+
+def _bi_mul(flint: Any, a: list[Any], b: list[Any]) -> list[Any]:
+    out = [flint.arb_poly(0)] * (len(a) + len(b) - 1)
+    for i, x in enumerate(a):
+        for j, y in enumerate(b):
+            out[i + j] = out[i + j] + x * y
+    return out
+
+
+def _bi_axpy(flint: Any, acc: list[Any], c: Any, x: list[Any]) -> list[Any]:
+    acc = acc + [flint.arb_poly(0)] * max(0, len(x) - len(acc))
+    for i, v in enumerate(x):
+        acc[i] = acc[i] + v * c
+    return acc
+
+
+def _sections(flint: Any, plant: _Plant, T: Any, Tv: Any, Tu: Any) -> tuple[_Section, _Section]:
+    arb, arb_poly = flint.arb, flint.arb_poly
+    P, M, Q = arb(plant.p), arb(plant.m), arb(plant.q)
+    kappa = P * M
+    a = kappa / (T * T)
+    nu = [arb_poly([-Tv, 1]), arb_poly([Tv])]  # theta - t_v (1 - xi)
+    rest = [arb_poly([Tv, -1]), arb_poly([Tu])]  # tau xi - nu
+    step = [x * a for x in _bi_mul(flint, nu, rest)]
+    # U = q h_11 + p W / tau: (c_w, c_22, c_11) = (p / tau, 0, q); V = h_22 + m q W / tau
+    coef = {"U": (P / T, arb(0), Q), "V": (M * Q / T, arb(1), arb(0))}
+    rows: dict[str, list[Any]] = {"U": [arb_poly(0)], "V": [arb_poly(0)]}
+    tails = {w: series_tail(flint, abs(kappa), T, *(abs(x) for x in coef[w])) for w in coef}
+    sup = {w: arb(0) for w in coef}
+    slope = {w: arb(0) for w in coef}
+    r = abs(kappa) / 4
+    term_w, term_22, term_11 = [arb_poly(1)], [x * a for x in rest], [x * a for x in nu]
+    k = 0
+    while True:
+        fk, fk1 = arb(math.factorial(k)), arb(math.factorial(k + 1))
+        for w, (cw, c22, c11) in coef.items():
+            rows[w] = _bi_axpy(flint, rows[w], cw / (fk * fk), term_w)
+            rows[w] = _bi_axpy(flint, rows[w], c22 / (fk * fk1), term_22)
+            rows[w] = _bi_axpy(flint, rows[w], c11 / (fk * fk1), term_11)
+            size = abs(cw) * r**k / (fk * fk) + (abs(c22) + abs(c11)) * (abs(kappa) / T) * r**k / (fk * fk1)
+            sup[w] += size
+            slope[w] += arb(4 * (2 * k + 3)) / T * size
+        k += 1
+        if all(bool(tails[w][0](k) < arb(2.0**-90)) and bool(tails[w][1](k) < arb(2.0**-90)) for w in coef):
+            break
+        if k > 400:
+            raise CertificationError("exact_gains: the coupling kappa = p m is too strong for the series of U, V")
+        term_w, term_22, term_11 = (_bi_mul(flint, t, step) for t in (term_w, term_22, term_11))
+    return tuple(  # type: ignore[return-value]
+        _Section(rows[w], sup[w] + tails[w][0](k), slope[w] + tails[w][1](k), tails[w][0](k), tails[w][1](k))
+        for w in ("U", "V")
+    )
+
+
+# --------------------------------------------------------------------------- the kernel
+
+
+def _moments(flint: Any, models: _Models, n: int, rows: int) -> list[list[Any]]:
+    """``out[j][i] = int_{j/n}^1 P(xi) xi^i dxi`` over the models of the pieces above ``j / n``."""
+    arb = flint.arb
+    out = [[arb(0)] * rows for _ in range(n + 1)]
+    for j in range(n - 1, -1, -1):
+        lo, hi = arb(j) / n, arb(j + 1) / n
+        coefs = models.polys[j].coeffs()
+        top = len(coefs) + rows
+        plo, phi = [lo**e for e in range(top + 1)], [hi**e for e in range(top + 1)]
+        for i in range(rows):
+            piece = sum(
+                (c * (phi[e + i + 1] - plo[e + i + 1]) / (e + i + 1) for e, c in enumerate(coefs)),
+                arb(0),
+            )
+            out[j][i] = out[j + 1][i] + piece
+    return out
+
+
+def _partial(flint: Any, rows: list[Any], poly: Any, start: Any, end: Any) -> Any:
+    """``int_{start(theta)}^{end} poly(xi) F(xi, theta) dxi`` (``F = sum_i rows[i] xi^i``, ``start`` affine)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    q = [arb_poly(0)] * (len(rows) + max(1, len(poly.coeffs())) - 1)
+    for k, c in enumerate(poly.coeffs()):
+        for i, f in enumerate(rows):
+            q[i + k] = q[i + k] + f * c
+    upper = arb_poly(0)
+    power = end
+    acc = arb_poly(0)
+    for i, row in enumerate(q):
+        upper = upper + row * (power / arb(i + 1))
+        power = power * end
+    for i in range(len(q) - 1, -1, -1):
+        acc = (acc + q[i] * (1 / arb(i + 1))) * start
+    return upper - acc
+
+
+def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+    if _is_zero(g_u) and _is_zero(g_v):
+        return None
+    flint = require_flint()
+    ulp = math.ulp(plant.tau)
+    n_tau, n_v = round(plant.tau / ulp), round(plant.t_v / ulp)
+    if n_tau * ulp != plant.tau or not 0 < n_v < n_tau:
+        raise CertificationError("exact_gains: the times of flight cannot be placed on a grid of ulp(tau)")
+    kappa = abs(plant.p * plant.m)
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(kappa)) + ORDER * 7 + 64
+    with precision(flint, bits):
+        arb, arb_poly = flint.arb, flint.arb_poly
+        T, Tv = arb(plant.tau), arb(n_v * ulp)
+        Tu = T - Tv
+        n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
+        if min(n_v, n_tau - n_v) < 4 * n:
+            raise CertificationError("exact_gains: t_v or t_u is too short against tau for a grid of ulp(tau)")
+        sec_u, sec_v = _sections(flint, plant, T, Tv, Tu)
+        n_rows = max(len(sec_u.rows), len(sec_v.rows))
+        mom_u, mom_v = _moments(flint, mod_u, n, n_rows), _moments(flint, mod_v, n, n_rows)
+        segments: list[tuple[int, int, Any, Any, Any]] = []  # (lo, hi, K_J, sup error, variation of the error)
+        v_map, u_map = arb_poly([1, -1 / Tv]), arb_poly([-Tv / Tu, 1 / Tu])
+        for branch in ("v", "u"):
+            order = range(n - 1, -1, -1) if branch == "v" else range(n)
+            for j in order:
+                if branch == "v":
+                    lo, hi = (2 * n_v * (n - j - 1) + n) // (2 * n), (2 * n_v * (n - j) + n) // (2 * n)
+                    xi0 = v_map
+                    point = mod_v.polys[j](xi0) * (1 / Tv)
+                    err, var = mod_v.remainder[j] / Tv, 2 * mod_v.derivative[j] / Tv
+                else:
+                    nu = n_tau - n_v
+                    lo, hi = n_v + (2 * nu * j + n) // (2 * n), n_v + (2 * nu * (j + 1) + n) // (2 * n)
+                    xi0 = u_map
+                    point = mod_u.polys[j](xi0) * (arb(plant.q) / Tu)
+                    err, var = (
+                        abs(arb(plant.q)) * mod_u.remainder[j] / Tu,
+                        2 * abs(arb(plant.q)) * mod_u.derivative[j] / Tu,
+                    )
+                _check_segment(flint, xi0, lo * ulp, hi * ulp, j, n)
+                end = arb(j + 1) / n
+                series = point
+                for sec, mod, mom in ((sec_u, mod_u, mom_u), (sec_v, mod_v, mom_v)):
+                    for i, row in enumerate(sec.rows):
+                        series = series + row * mom[j + 1][i]
+                    series = series + _partial(flint, sec.rows, mod.polys[j], xi0, end)
+                segments.append((lo, hi, series, err, var))
+        smooth_sup, smooth_var = arb(0), arb(0)
+        for sec, mod in ((sec_u, mod_u), (sec_v, mod_v)):
+            rem, size = arb(0), arb(0)
+            for x, y in zip(mod.remainder, mod.size):
+                rem, size = arb.max(rem, x), arb.max(size, y)
+            smooth_sup += rem * sec.sup + size * sec.tail
+            smooth_var += 2 * (rem * sec.sup + size * sec.tail) + T * (rem * sec.slope + size * sec.tail_slope)
+        err_max = arb(0)
+        var_total = smooth_var
+        for seg in segments:
+            err_max = arb.max(err_max, seg[3] + smooth_sup)
+            var_total += seg[4]
+        sigma = arb(plant.shift) / T
+        weight_sup = arb.max(arb(1), (sigma * T).exp())
+        global_sup = err_max * weight_sup
+        global_var = weight_sup * (abs(sigma) * T * err_max + var_total)
+        return _store(flint, segments, sigma, ulp, n_tau, global_sup, global_var)
+
+
+def _check_segment(flint: Any, xi0: Any, lo: float, hi: float, j: int, n: int) -> None:
+    """The model of piece ``j`` must hold where ``xi_0`` maps the segment ``[lo, hi]``."""
+    arb = flint.arb
+    low, high = arb(j) / n - arb(_WIDEN), arb(j + 1) / n + arb(_WIDEN)
+    for t in (lo, hi):
+        x = xi0(arb(t))
+        if not (bool(x > low) and bool(x < high)):
+            raise CertificationError("exact_gains: a segment of theta leaves the piece of its gain model")
+
+
+def _store(
+    flint: Any,
+    segments: list[tuple[int, int, Any, Any, Any]],
+    sigma: Any,
+    ulp: float,
+    n_tau: int,
+    global_sup: Any,
+    global_var: Any,
+) -> DistributedDelay | None:
+    """Expand every segment's polynomial into pieces of degree DEGREE, bisecting until each is stored to TARGET."""
+    arb = flint.arb
+    pieces = [[(lo, hi)] for lo, hi, *_ in segments]
+    done: dict[tuple[int, int], tuple[list[float], Any, Any]] = {}
+    while True:
+        for seg, plist in zip(segments, pieces):
+            for lo, hi in plist:
+                if (lo, hi) not in done:
+                    done[(lo, hi)] = expand_piece(flint, seg[2], sigma, lo * ulp, (hi - lo) * ulp)
+        scale = arb(0)
+        for plist in pieces:
+            for piece in plist:
+                scale = arb.max(scale, done[piece][2])
+        threshold = TARGET * scale + arb(2.0**-60)
+        refined, changed = [], False
+        for plist in pieces:
+            new: list[tuple[int, int]] = []
+            for lo, hi in plist:
+                if bool(done[(lo, hi)][1] < threshold):
+                    new.append((lo, hi))
+                elif hi - lo < 2:
+                    raise CertificationError("exact_gains: a piece of the gain kernel cannot be bisected further")
+                else:
+                    mid = (lo + hi) // 2
+                    new.extend([(lo, mid), (mid, hi)])
+                    changed = True
+            refined.append(new)
+        pieces = refined
+        if sum(len(p) for p in pieces) > MAX_PIECES:
+            raise CertificationError(
+                f"exact_gains: the gain kernel needs more than {MAX_PIECES} pieces to reach double precision"
+            )
+        if not changed:
+            break
+    flat = [piece for plist in pieces for piece in plist]
+    coefs = [done[piece][0] for piece in flat]
+    if not np.any(np.asarray(coefs)):
+        return None
+    sup_err, var_err = arb(0), arb(0)
+    for piece in flat:
+        sup_err = arb.max(sup_err, done[piece][1])
+        var_err += done[piece][1]
+    jumps = arb(0)
+    for plist in pieces:  # inside a segment the kernel is continuous: a jump of the pieces is an error
+        for left, right in itertools.pairwise(plist):
+            jumps += abs(sum((arb(v) for v in done[left][0]), arb(0)) - arb(done[right][0][0]))
+    sup = global_sup + sup_err
+    ends = 2 * (len(segments) - 1) * sup  # at a segment's end the error jumps by at most twice its bound
+    nodes = [lo * ulp for lo, _ in flat] + [n_tau * ulp]
+    return DistributedDelay(
+        np.asarray(nodes),
+        None,
+        interpolation="polynomial",
+        coefficients=np.asarray(coefs),
+        radius=float(sup.upper()),
+        variation_radius=float((global_var + var_err + jumps + ends).upper()),
+    )
