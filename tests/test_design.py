@@ -240,3 +240,21 @@ def test_design_command(tmp_path: Path) -> None:
     # an input error: exit code 2, nothing written
     assert main(["design", str(system), "-o", str(tmp_path / "none"), "--objective", "decay_rate"]) == 2
     assert not (tmp_path / "none" / "design.json").exists()
+
+
+def test_design_command_states_the_requirement_and_the_edge(tmp_path: Path) -> None:
+    """A best decay rate under a margin sits where a crossing pair is born: the report says the margin falls past it."""
+    system = tmp_path / "paper.toml"
+    system.write_text(
+        '[system]\ntype = "Hyperbolic2x2"\nlam = 1.0\nmu = 1.0\nsigma_pm = 1.0\nsigma_mp = 1.0\nq = 1.0\n'
+        'rho = 0.85\n\n[controller]\ntype = "ReflectionController"\nK = 0.1\n\n[analysis]\ndelta_max = 0.1\n'
+        '\n[design]\nobjective = "decay_rate"\nmargin_at_least = 0.15\n'
+    )
+    out = tmp_path / "out"
+    assert main(["design", str(system), "-o", str(out), "--k-bounds", "0.12", "0.145"]) == 0
+    text = (out / "design.md").read_text()
+    assert "with a delay margin of at least 0.15" in text and "on the edge" in text
+    data = json.loads((out / "design.json").read_text())
+    assert data["margin_at_least"] == 0.15
+    edge = data["edge"]
+    assert edge["margin_below"] >= 0.15 > edge["margin_above"]  # the pair born past K = 0.1417493386

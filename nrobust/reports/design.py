@@ -36,15 +36,41 @@ from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, load_system_file
 from ..errors import ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
 from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
-from ..hyperbolic.loops.controllers import OutputFeedback
+from ..hyperbolic.analyses.margin import delay_margin
+from ..hyperbolic.loops.controllers import Controller, OutputFeedback, ReflectionController
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
 
 
-def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
+def _edge(system: Any, result: ReflectionDesign) -> dict[str, float] | None:
+    """The margins just inside and just past a design on the end of the admissible gains (None elsewhere).
+
+    A best decay rate under a required margin sits on an end of the gains that meet it: the
+    margin falls below the requirement past it, by a jump where a crossing pair is born. The
+    margins at ``K -+ h`` (``h`` = 1e-6 of the searched interval) show on which side the
+    requirement holds and how steep the edge is.
+    """
+    d = result.design
+    if d.end is None:
+        return None
+    h = 1e-6 * float(d.bounds[1] - d.bounds[0])
+    observed = result.controller.observer_delay if isinstance(result.controller, OutputFeedback) else None
+    margins = {}
+    for name, K in (("below", d.K - h), ("above", d.K + h)):
+        law: Controller = ReflectionController(K)
+        if observed is not None:
+            law = OutputFeedback(law, observed)
+        margins[name] = float(delay_margin(system, law).margin)
+    return {"step": h, "margin_below": margins["below"], "margin_above": margins["above"]}
+
+
+def _reflection_markdown(
+    path: Path, result: ReflectionDesign, margin_at_least: float | None = None, edge: dict[str, float] | None = None
+) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
+    need = "" if margin_at_least is None else f" with a delay margin of at least {margin_at_least:g}"
     k_acc, v_acc = d.accuracy
     law = "U_BS2(K)"
     if isinstance(result.controller, OutputFeedback):
@@ -54,7 +80,7 @@ def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
     lines = [
         f"# Design of {law} for {path.name}",
         "",
-        f"- objective: the largest {what}, K in [{d.bounds[0]:.6g}, {d.bounds[1]:.6g}]",
+        f"- objective: the largest {what}{need}, K in [{d.bounds[0]:.6g}, {d.bounds[1]:.6g}]",
         f"- designed gain: K = {with_accuracy(d.K, k_acc)} ({d.kind})",
         f"- {what}: {with_accuracy(d.value, v_acc)}",
         f"- delay margin of the designed loop: {with_accuracy(cert.margin, cert.accuracy)}, {d.certified} "
@@ -63,10 +89,16 @@ def _reflection_markdown(path: Path, result: ReflectionDesign) -> list[str]:
     if d.objective == "margin":
         lines.append(f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)}")
     if d.end is not None:
+        end_accuracy = d.end.accuracy if d.end.accuracy is not None or d.end.K != d.K else k_acc
         lines.append(
-            f"- the end of the gains with a large enough margin: K = {with_accuracy(d.end.K, d.end.accuracy)}, "
-            f"{d.end.kind} at "
-            f"w = {d.end.omega:.10g}, delay {d.end.delay:.10g}"
+            f"- the end of the gains with a large enough margin: K = {with_accuracy(d.end.K, end_accuracy)}, "
+            f"{d.end.kind.replace('_', ' ')} at w = {d.end.omega:.6g}, delay {d.end.delay:.6g}"
+        )
+    if edge is not None:
+        lines.append(
+            f"- on the edge: the margin is {edge['margin_below']:.6g} at K - {edge['step']:.1g} and "
+            f"{edge['margin_above']:.6g} at K + {edge['step']:.1g}; the requirement holds on one side only, so "
+            "a gain implemented with an error must be chosen inside, away from this end"
         )
     lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
     return lines
@@ -178,6 +210,7 @@ def run_design(
     rigorous = rigorous if rigorous is not None else bool(given.get("rigorous", False))
     bounds = K_bounds if K_bounds is not None else given.get("K")
     outputs = RunOutputs(out_dir, "design")
+    edge: dict[str, float] | None = None
     with outputs:
         result: ReflectionDesign | FilteredDesign
         if family in ("reflection", "output_feedback"):
@@ -190,7 +223,8 @@ def run_design(
                 output_feedback=family == "output_feedback",
                 observer_delay=float(given.get("observer_delay", 0.0)),
             )
-            lines = _reflection_markdown(Path(path), result)
+            edge = _edge(spec["system"], result) if objective == "decay_rate" else None
+            lines = _reflection_markdown(Path(path), result, margin_at_least, edge)
         else:
             result = design_filtered(
                 spec["system"],
@@ -201,7 +235,15 @@ def run_design(
                 rigorous=rigorous,
             )
             lines = _filtered_markdown(Path(path), result)
-        data = {"file": str(path), "plant": repr(spec["given_system"]), "family": family, **result.to_dict()}
+        data = {
+            "file": str(path),
+            "plant": repr(spec["given_system"]),
+            "family": family,
+            "margin_at_least": margin_at_least,
+            **result.to_dict(),
+        }
+        if edge is not None:
+            data["edge"] = edge
         written = [
             outputs.write_text("design.json", json.dumps(json_safe(data), indent=2, allow_nan=False)),
             outputs.write_text("design.md", "\n".join(lines) + "\n"),
