@@ -41,7 +41,19 @@ the refined frequency. Either way the closed loop's stability is still decided b
 pole count of ``D + N`` (``stable``).
 
 Each crossing is refined by Brent's method on a bracket of the certified sign change
-(``xtol = 1e-12 (1 + w)``). ``stable`` is the certified verdict on the closed loop
+(``xtol = 1e-12 (1 + w)``), and every number carries an accuracy (``AllMargins.*_accuracies``):
+a conservative floating-point estimate of its error, not a proof. For a crossing ``w`` of
+``h(w)`` (``h = |D|^2 - |N|^2`` for a gain crossover, ``Im(N conj D)`` for a phase crossover) it
+is ``16 (|h(w)| + eps M_h(w)) / |h'(w)| + eps w``: the Newton step at the refined frequency plus
+the rounding error of ``h`` (``M_h`` from the sums of the moduli of the monomials,
+:meth:`~nrobust.quasipoly.QuasiPolynomial.magnitude`) turned into a distance through the slope,
+with the safety factor 16 of :attr:`nrobust.margins.DelayMargin.omega_accuracy`. The margins take
+it through their derivatives in ``w``: ``d/dw log L(i w) = i (N'/N - D'/D)`` (real part: the log
+gain, imaginary part: the phase), plus the rounding of ``L`` itself, ``4 eps (M_N / |N| + M_D / |D|)``
+relative; the delay margin ``phi / w`` adds ``phi dw / w^2``. A tangential crossing
+(``h' = 0`` within rounding) has no such estimate (NaN, printed "accuracy not estimated").
+:func:`loop_delay_margin` gives the smallest delay margin with its own accuracy, proven in
+ball arithmetic with ``rigorous=True``. ``stable`` is the certified verdict on the closed loop
 ``D + N`` (:func:`nrobust.margins.unstable_count`). A MIMO loop is taken a loop at a
 time (MATLAB's ``loopmargin``): loop ``i`` broken, the others closed with negative unit
 feedback.
@@ -56,6 +68,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import positive, positive_int
 from ..errors import CertificationError, ParameterError
@@ -70,6 +83,9 @@ __all__ = ["AllMargins", "allmargin", "loop_delay_margin", "loop_factors_of"]
 
 # Relative and absolute tolerance of the refined crossing frequencies.
 _XTOL = 1e-12
+# Safety factor of the floating-point error estimates (that of DelayMargin.omega_accuracy).
+_SAFETY = 16.0
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +118,14 @@ class AllMargins:
         ``W``: no gain crossover at or beyond it (proven).
     gain_floor : float
         The loop gain under which phase crossovers beyond ``phase_band`` may be left out.
+    gain_margin_accuracies, gm_frequency_accuracies : ndarray
+        Bounds of the errors of ``gain_margins`` and ``gm_frequencies`` (conservative
+        floating-point estimates, module notes; NaN when not estimated).
+    phase_margin_accuracies, pm_frequency_accuracies : ndarray
+        The same for ``phase_margins`` (degrees) and ``pm_frequencies`` (which are also
+        ``dm_frequencies``).
+    delay_margin_accuracies : ndarray
+        The same for ``delay_margins``.
     """
 
     gain_margins: NDArray[np.float64]
@@ -114,15 +138,22 @@ class AllMargins:
     phase_band: float
     gain_band: float
     gain_floor: float
+    gain_margin_accuracies: NDArray[np.float64]
+    gm_frequency_accuracies: NDArray[np.float64]
+    phase_margin_accuracies: NDArray[np.float64]
+    pm_frequency_accuracies: NDArray[np.float64]
+    delay_margin_accuracies: NDArray[np.float64]
 
     def __repr__(self) -> str:
-        def fmt(a: NDArray[np.float64]) -> str:
-            return np.array2string(np.asarray(a), precision=6, separator=", ")
+        def fmt(a: NDArray[np.float64], acc: NDArray[np.float64]) -> str:
+            return "[" + ", ".join(with_accuracy(float(v), float(e)) for v, e in zip(a, acc)) + "]"
 
         return (
-            f"AllMargins(gain_margins={fmt(self.gain_margins)} at w={fmt(self.gm_frequencies)}, "
-            f"phase_margins={fmt(self.phase_margins)} deg at w={fmt(self.pm_frequencies)}, "
-            f"delay_margins={fmt(self.delay_margins)}, stable={self.stable})"
+            f"AllMargins(gain_margins={fmt(self.gain_margins, self.gain_margin_accuracies)} "
+            f"at w={fmt(self.gm_frequencies, self.gm_frequency_accuracies)}, "
+            f"phase_margins={fmt(self.phase_margins, self.phase_margin_accuracies)} deg "
+            f"at w={fmt(self.pm_frequencies, self.pm_frequency_accuracies)}, "
+            f"delay_margins={fmt(self.delay_margins, self.delay_margin_accuracies)}, stable={self.stable})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -293,6 +324,13 @@ def allmargin(
                 w_gm.append(w)
     gm_w = np.array(sorted(w_gm), dtype=float)
     gm = np.array([1.0 / abs(loop_at(w)) for w in gm_w], dtype=float)
+    dw_pm = np.array([_gain_crossing_error(D_gain, N_gain, w) for w in w_pm], dtype=float)
+    dw_gm = np.array([0.0 if w == 0.0 else _phase_crossing_error(N1, D1, rotate, w) for w in gm_w], dtype=float)
+    slope_pm = [_log_slope(N, D, w) for w in w_pm]
+    slope_gm = [_log_slope(N, D, w) for w in gm_w]
+    pm_acc = np.array([abs(q.real) * e + rel + np.pi * _EPS for (q, rel), e in zip(slope_pm, dw_pm)], dtype=float)
+    dm_acc = pm_acc / w_pm + np.mod(pm, 2.0 * np.pi) * dw_pm / w_pm**2 if w_pm.size else np.zeros(0)
+    gm_acc = np.array([g * (abs(q.imag) * e + rel) for g, (q, rel), e in zip(gm, slope_gm, dw_gm)], dtype=float)
     count = unstable_count(D + N)
     if count.radius is None:
         raise CertificationError(f"allmargin: no bound of the closed-loop poles in Re s >= 0 ({count.method})")
@@ -307,7 +345,48 @@ def allmargin(
         phase_band=float(W_g),
         gain_band=float(gains.frequency_bound),
         gain_floor=floor,
+        gain_margin_accuracies=gm_acc,
+        gm_frequency_accuracies=dw_gm,
+        phase_margin_accuracies=np.degrees(pm_acc),
+        pm_frequency_accuracies=dw_pm,
+        delay_margin_accuracies=dm_acc,
     )
+
+
+def _crossing_error(h: float, noise: float, slope: float, w: float) -> float:
+    """Estimated error of a refined zero ``w`` of ``h`` (module notes); NaN when ``h'`` vanishes."""
+    if not slope > 0.0:
+        return float("nan")
+    return _SAFETY * (abs(h) + noise) / slope + _EPS * abs(w)
+
+
+def _gain_crossing_error(D: QuasiPolynomial, N: QuasiPolynomial, w: float) -> float:
+    """Error estimate of a zero ``w`` of ``g(w) = |D(i w)|^2 - |N(i w)|^2``."""
+    s = np.array([1j * w])
+    a, b = complex(D(s)[0]), complex(N(s)[0])
+    da, db = 1j * complex(D.deriv_at(s)[0]), 1j * complex(N.deriv_at(s)[0])  # d/dw of D(i w), N(i w)
+    slope = abs(2.0 * ((a.conjugate() * da).real - (b.conjugate() * db).real))
+    noise = 2.0 * _EPS * (float(D.magnitude(s)[0]) ** 2 + float(N.magnitude(s)[0]) ** 2)
+    return _crossing_error(abs(a) ** 2 - abs(b) ** 2, noise, slope, w)
+
+
+def _phase_crossing_error(N: QuasiPolynomial, D: QuasiPolynomial, rotate: complex, w: float) -> float:
+    """Error estimate of a zero ``w > 0`` of ``h(w) = Im(rotate N(i w) conj D(i w))``."""
+    s = np.array([1j * w])
+    n, d = complex(N(s)[0]), complex(D(s)[0])
+    dn, dd = 1j * complex(N.deriv_at(s)[0]), 1j * complex(D.deriv_at(s)[0])
+    slope = abs((rotate * (dn * d.conjugate() + n * dd.conjugate())).imag)
+    noise = 2.0 * _EPS * float(N.magnitude(s)[0]) * float(D.magnitude(s)[0])
+    return _crossing_error((rotate * n * d.conjugate()).imag, noise, slope, w)
+
+
+def _log_slope(N: QuasiPolynomial, D: QuasiPolynomial, w: float) -> tuple[complex, float]:
+    """``q = N'/N - D'/D`` at ``i w`` (``d/dw log L(i w) = i q``) and the relative rounding error of ``L(i w)``."""
+    s = np.array([1j * w])
+    n, d = complex(N(s)[0]), complex(D(s)[0])
+    q = complex(N.deriv_at(s)[0]) / n - complex(D.deriv_at(s)[0]) / d
+    rel = 4.0 * _EPS * (float(N.magnitude(s)[0]) / abs(n) + float(D.magnitude(s)[0]) / abs(d))
+    return q, rel
 
 
 def _zero_loop(D: QuasiPolynomial, floor: float) -> AllMargins:
@@ -327,6 +406,11 @@ def _zero_loop(D: QuasiPolynomial, floor: float) -> AllMargins:
         phase_band=0.0,
         gain_band=0.0,
         gain_floor=floor,
+        gain_margin_accuracies=empty.copy(),
+        gm_frequency_accuracies=empty.copy(),
+        phase_margin_accuracies=empty.copy(),
+        pm_frequency_accuracies=empty.copy(),
+        delay_margin_accuracies=empty.copy(),
     )
 
 

@@ -61,9 +61,9 @@ from ..errors import CertificationError, ParameterError
 from ..matrix_difference import MatrixDifferenceOperator
 from ..qpmatrix import QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
-from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
+from ..roots import SpectralAbscissa, find_roots, spectral_abscissa
 from .statespace import StateSpaceTDS
-from .transfer import QuasiTransferFunction
+from .transfer import PoleSet, QuasiTransferFunction
 
 if TYPE_CHECKING:
     import control
@@ -500,14 +500,32 @@ class DelayLTI:
         w = real_array("omega", omega, ndim=None, min_size=0)
         return self(1j * w, squeeze=squeeze)
 
-    def to_frd(self, omega: ArrayLike) -> control.FrequencyResponseData:
-        """``H(i omega)`` tabulated as a python-control ``FrequencyResponseData`` (exact values)."""
+    def to_frd(self, omega: ArrayLike, name: str = "G") -> control.FrequencyResponseData:
+        """``H(i omega)`` tabulated as a python-control ``FrequencyResponseData`` (exact values).
+
+        The way to hand a delay system to python-control's frequency-domain functions
+        (``bode_plot``, ``nyquist_plot``, ``stability_margins``, ...), which do not accept a
+        ``DelayLTI`` itself. The data is named ``name`` (python-control 0.10's ``bode_plot`` titles
+        its figure with the names and fails on an unnamed ``FrequencyResponseData``). Margins read
+        off the grid are only as fine as ``omega``: :func:`nrobust.lti.allmargin` locates every
+        crossing exactly.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import control
+        >>> L = 0.5 * delay(0.5) * tf([1.0], [1.0, 1.0, 0.0])
+        >>> F = L.to_frd(np.logspace(-2, 2, 200), name="L")
+        >>> gm, pm, wpc, wgc = control.margin(F)   # interpolated on the grid
+        >>> bool(abs(pm - 52.4928) < 0.1)
+        True
+        """
         import control
 
         w = real_array("omega", omega, min_size=1)
         if np.any(w < 0) or np.any(np.diff(w) <= 0):
             raise ParameterError("omega", "an increasing array of frequencies >= 0", omega)
-        return control.FrequencyResponseData(self.frequency_response(w, squeeze=False), w)
+        return control.FrequencyResponseData(self.frequency_response(w, squeeze=False), w, name=name)
 
     def to_control(self) -> control.StateSpace:
         """The python-control ``StateSpace(A, B1, C1, D11)`` of a system without delay channels.
@@ -600,8 +618,10 @@ class DelayLTI:
             rows.append([*last, const(self.D11[0, 0])])
         return rows
 
-    def poles(self, region: ArrayLike | None = None, *, re_min: float = -1.0, **options: Any) -> RootSet:
-        """Certified poles: the zeros of :meth:`characteristic_function`.
+    def poles(self, region: ArrayLike | None = None, *, re_min: float = -1.0, **options: Any) -> PoleSet:
+        """Certified poles: the zeros of :meth:`characteristic_function`, as a
+        :class:`~nrobust.lti.transfer.PoleSet` (printed with the floating-point estimate of each pole
+        and, apart, the certified radius about it).
 
         Parameters
         ----------
@@ -632,7 +652,7 @@ class DelayLTI:
         if region is None:
             x = finite_real("re_min", re_min)
             if P.degree == 0 and len(P.point_terms) == 1:  # c e^{-h s}: no pole at all
-                return find_roots(P, (x, x + 1.0, -1.0, 1.0), **options)
+                return PoleSet.of(P, find_roots(P, (x, x + 1.0, -1.0, 1.0), **options))
             try:
                 free = root_free_region(P, x)
             except ParameterError as exc:
@@ -645,7 +665,7 @@ class DelayLTI:
                 ) from exc
             R = free.radius * (1.0 + 1e-9) + 1e-9
             region = (x, max(min(free.half_plane, R), x) + 1e-6 * (1.0 + R), -R, R)
-        return find_roots(P, region, **options)
+        return PoleSet.of(P, find_roots(P, region, **options))
 
     def spectral_abscissa(self, **options: Any) -> SpectralAbscissa:
         """Certified spectral abscissa of :meth:`characteristic_function` (:func:`nrobust.roots.spectral_abscissa`)."""

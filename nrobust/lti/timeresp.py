@@ -70,8 +70,8 @@ from numpy.polynomial import chebyshev as cheb
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import is_real_number, nonnegative, positive, positive_int
-from ..errors import ConvergenceError, ParameterError
-from .delay_lti import as_delay_lti
+from ..errors import ConvergenceError, NrobustError, ParameterError
+from .delay_lti import DelayLTI, as_delay_lti
 
 if TYPE_CHECKING:
     from typing import TypeAlias
@@ -87,6 +87,7 @@ __all__ = [
     "DEGREE",
     "MAX_NODES",
     "LFTSystem",
+    "default_horizon",
     "forced_response",
     "impulse_response",
     "initial_response",
@@ -99,6 +100,11 @@ DEGREE = 14
 MAX_NODES = 100_000
 #: Number of points of the time grid when ``T`` is ``None`` or a final time.
 DEFAULT_POINTS = 1000
+#: Time constants ``1 / |alpha|`` of the slowest mode that the default horizon covers: ``ln 1000``,
+#: the slowest mode decayed to 0.1 % (python-control 0.10's default final time of a delay-free system).
+SETTLING_CONSTANTS = math.log(1000.0)
+#: Longest default horizon, in units of ``max(tau)`` (of 0.5 for a system without delay).
+MAX_HORIZON = 1000.0
 
 Array = NDArray[np.float64]
 History = Callable[[float], ArrayLike]
@@ -231,10 +237,55 @@ def _check_system(system: System) -> _Mats:
     )
 
 
-def _time_grid(T: ArrayLike | None, m: _Mats) -> Array:
+def _abscissa(m: _Mats) -> float:
+    """The spectral abscissa ``alpha`` of the system (nan when it cannot be computed)."""
+    if not m.nw:
+        return float(np.max(np.linalg.eigvals(m.A).real)) if m.n else -np.inf
+    try:
+        sys = DelayLTI(m.A, m.B1, m.B2, m.C1, m.C2, m.D11, m.D12, m.D21, m.D22, m.tau)
+        return float(sys.spectral_abscissa().value)
+    except NrobustError:  # no abscissa within its work bound (or too many channels): no horizon from it
+        return float("nan")
+
+
+def default_horizon(sys: System, max_nodes: int = MAX_NODES) -> float:
+    """The final time of the responses when ``T`` is None.
+
+    With ``h = max(tau)`` (``0.5`` without delay) and ``alpha`` the spectral abscissa
+    (:meth:`~nrobust.lti.delay_lti.DelayLTI.spectral_abscissa`; the eigenvalues of ``A`` without
+    delay): ``max(20 h, ln(1000) / |alpha|)`` when ``alpha < 0`` (:data:`SETTLING_CONSTANTS` time
+    constants of the slowest mode, which has then decayed to 0.1 %: python-control's default final
+    time for a delay-free system), else ``20 h`` (also when ``alpha`` cannot be computed); at most
+    :data:`MAX_HORIZON` ``h``, and halved (not below ``20 h``) while the delay breakpoints up to it
+    exceed ``max_nodes / 10`` (the work bound).
+
+    Examples
+    --------
+    >>> from nrobust.lti import delay, tf
+    >>> T = (0.5 * delay(0.5) * tf([1.0], [1.0, 1.0, 0.0])).feedback(1)   # alpha = -0.353
+    >>> round(default_horizon(T), 2)   # ln(1000) / 0.353, beyond 20 tau = 10
+    19.57
+    """
+    m = _check_system(sys)
+    max_nodes = positive_int("max_nodes", max_nodes)
+    h = float(m.tau.max()) if m.nw else 0.5
+    short = 20.0 * h
+    alpha = _abscissa(m)
+    if not alpha < 0.0:  # unstable, on the axis, or unknown: no settling to cover
+        return short
+    t_end = min(max(short, SETTLING_CONSTANTS / -alpha), MAX_HORIZON * h)
+    while m.nw and t_end > short:
+        try:
+            _breakpoints(np.zeros(1), m.tau, t_end, max(max_nodes // 10, 1), 1e-12 * t_end)
+            break
+        except ParameterError:
+            t_end = max(0.5 * t_end, short)
+    return t_end
+
+
+def _time_grid(T: ArrayLike | None, m: _Mats, max_nodes: int = MAX_NODES) -> Array:
     if T is None:
-        t_end = 20.0 * float(m.tau.max()) if m.nw else 10.0
-        return np.linspace(0.0, t_end, DEFAULT_POINTS)
+        return np.linspace(0.0, default_horizon(m, max_nodes), DEFAULT_POINTS)
     if is_real_number(T):
         return np.linspace(0.0, positive("T", T), DEFAULT_POINTS)
     try:
@@ -582,7 +633,7 @@ def _per_input(
     import control
 
     m = _check_system(sys)
-    t = _time_grid(T, m)
+    t = _time_grid(T, m, max_nodes)
     x0 = _state("X0", X0, m.n)
     opts = _options(rtol, atol, max_nodes)
     yout = np.empty((m.ny, m.nu, t.size))
@@ -642,7 +693,8 @@ def step_response(
         :func:`~nrobust.lti.delay_lti.as_delay_lti` converts.
     T : array_like or float, optional
         Strictly increasing output times, or a final time (1000 points from 0); by default
-        1000 points on ``[0, 20 max(tau)]``.
+        1000 points on ``[0, default_horizon(sys)]``: ``max(20 max(tau), ln(1000) / |alpha|)`` for a
+        spectral abscissa ``alpha < 0``, within a work bound (:func:`default_horizon`).
     X0 : array_like, optional
         Initial state ``x(T[0])``.
     rtol, atol : float, optional
@@ -754,7 +806,7 @@ def initial_response(
     import control
 
     m = _check_system(sys)
-    t = _time_grid(T, m)
+    t = _time_grid(T, m, max_nodes)
     x0 = _state("X0", X0, m.n)
     hist = _check_history(history, m)
     opts = _options(rtol, atol, max_nodes)
@@ -873,7 +925,7 @@ def forced_response(
     m = _check_system(sys)
     if T is None:
         raise ParameterError("T", "a strictly increasing 1-D array of times (the input's sample times)", T)
-    t = _time_grid(T, m)
+    t = _time_grid(T, m, max_nodes)
     x0 = _state("X0", X0, m.n)
     hist = _check_history(history, m)
     opts = _options(rtol, atol, max_nodes)

@@ -11,14 +11,16 @@ poles and zeros are certified root sets of the denominator and numerator, and
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._digits import with_accuracy
 from .._json import fields_dict, json_safe
 from .._validate import nonnegative, number_array, positive_int, real_array
 from ..bounds import root_free_region
@@ -30,7 +32,7 @@ from .pade import pade, split_integrators, substitution_bound
 if TYPE_CHECKING:
     import control
 
-__all__ = ["PadeModel", "QuasiTransferFunction", "pade_approximation", "to_frd"]
+__all__ = ["PadeModel", "PoleSet", "QuasiTransferFunction", "pade_approximation", "to_frd"]
 
 
 def product(name: str, f: QuasiPolynomial, g: QuasiPolynomial) -> QuasiPolynomial:
@@ -54,6 +56,75 @@ def _is_one(f: QuasiPolynomial) -> bool:
         and f.point_terms[0][0].size == 1
         and f.point_terms[0][0][0] == 1
     )
+
+
+# Safety factor of the floating-point error estimate of a simple root (that of SpectralAbscissa.accuracy).
+_ROOT_SAFETY = 16.0
+
+
+def _rounded_up(x: float) -> str:
+    """``x >= 0`` to 2 significant digits, rounded up: a printed bound stays a bound."""
+    text = f"{x:.1e}"
+    if math.isfinite(x) and x > 0.0 and float(text) < x:
+        text = f"{float(text) + 10.0 ** (math.floor(math.log10(x)) - 1):.1e}"
+    return text
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PoleSet(RootSet):
+    """The poles (or zeros) of a system: a :class:`~nrobust.roots.RootSet` whose table says which
+    number is certified and which is a floating-point estimate.
+
+    Attributes
+    ----------
+    estimates : ndarray of float
+        For each entry, an estimate of the error of ``roots[i]`` (each part): for a simple root
+        ``z`` of ``F``, ``16 (|F(z)| + eps M(z)) / |F'(z)| + eps |z|`` (the Newton step plus the
+        rounding of ``F`` turned into a distance, ``M`` the sum of the moduli of the monomials,
+        :meth:`~nrobust.quasipoly.QuasiPolynomial.magnitude`; as
+        :attr:`nrobust.roots.SpectralAbscissa.accuracy`), capped by the certified ``radii[i]``; for
+        a cluster (multiplicity above 1) the certified radius itself.
+
+    Notes
+    -----
+    Two statements are printed per entry: the floating-point root with its estimated error, and
+    the certified one, "a root (``mult`` of them) lies within ``radius`` of it" (``radii``,
+    printed rounded up; proven in ball arithmetic with ``rigorous``). The radius is that of the
+    box in which the root was certified, so it is often much wider than the estimate.
+    """
+
+    estimates: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def of(cls, F: QuasiPolynomial, found: RootSet) -> PoleSet:
+        """``found``, the roots of ``F``, with the error estimates of its entries."""
+        z = np.asarray(found.roots, dtype=complex)
+        eps = float(np.finfo(float).eps)
+        noise = np.abs(F(z)) + eps * F.magnitude(z) if z.size else np.zeros(0)
+        slope = np.abs(F.deriv_at(z)) if z.size else np.zeros(0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = np.where(slope > 0.0, _ROOT_SAFETY * noise / slope + eps * np.abs(z), np.inf)
+        radii = np.asarray(found.radii, dtype=float)
+        estimates = np.where(np.asarray(found.multiplicities) > 1, radii, np.minimum(newton, radii))
+        return cls(**{f.name: getattr(found, f.name) for f in fields(RootSet)}, estimates=estimates)
+
+    def __str__(self) -> str:
+        head = f"{'#':>4}  {'Re s (floating point)':>28}  {'Im s (floating point)':>28}  {'mult':>4}  "
+        head += f"{'|F(s)|':>8}  {'certified radius':>16}"
+        rows = [head, "-" * len(head)]
+        for i, (z, m, res, rad, e) in enumerate(
+            zip(self.roots, self.multiplicities, self.residuals, self.radii, self.estimates)
+        ):
+            re, im = with_accuracy(float(z.real), float(e)), with_accuracy(float(z.imag), float(e))
+            rows.append(f"{i:>4}  {re:>28}  {im:>28}  {m:>4d}  {res:>8.1e}  {_rounded_up(float(rad)):>16}")
+        status = "certified" if self.certified else "NOT certified"
+        status += " (proven in ball arithmetic)" if self.rigorous else ""
+        rows.append(
+            f"{int(np.sum(self.multiplicities))} roots with multiplicity, certified count {self.count}: {status}"
+        )
+        if self.certified:
+            rows.append("certified: each entry's roots lie within its certified radius of the printed root")
+        return "\n".join(rows)
 
 
 @dataclass(frozen=True)
@@ -108,13 +179,13 @@ class QuasiTransferFunction:
         w = real_array("omega", omega, ndim=None, min_size=0)
         return self(1j * w)
 
-    def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
+    def poles(self, region: tuple[float, float, float, float], **kwargs: Any) -> PoleSet:
         """Certified poles in a rectangle: the zeros of ``den`` (see :func:`nrobust.roots.find_roots`)."""
-        return find_roots(self.den, region, **kwargs)
+        return PoleSet.of(self.den, find_roots(self.den, region, **kwargs))
 
-    def zeros(self, region: tuple[float, float, float, float], **kwargs: Any) -> RootSet:
+    def zeros(self, region: tuple[float, float, float, float], **kwargs: Any) -> PoleSet:
         """Certified zeros in a rectangle: the zeros of ``num``."""
-        return find_roots(self.num, region, **kwargs)
+        return PoleSet.of(self.num, find_roots(self.num, region, **kwargs))
 
     # ------------------------------------------------------------------ interconnection
     def series(self, other: QuasiTransferFunction | QuasiPolynomial | complex | np.number) -> QuasiTransferFunction:

@@ -166,19 +166,37 @@ class SpectralAbscissa:
         return self.error_estimate, self.error_estimate
 
     def __repr__(self) -> str:
+        """Each number labelled by what backs it: ``proven`` (ball arithmetic), ``floating point``
+        (its :attr:`accuracy` an estimate), and the certified statement ``no root right of
+        upper_bound`` with the bound printed to 6 digits rounded up (so the printed text is true)."""
+
+        def rounded(x: float, up: bool) -> str:  # 6 digits, rounded outwards: a printed bound stays one
+            unit = 10.0 ** (np.floor(np.log10(abs(x))) - 5.0) if np.isfinite(x) and x != 0.0 else 0.0
+            text, step = f"{x:.6g}", 0.5 * unit * (1.0 if up else -1.0)
+            while np.isfinite(x) and step != 0.0 and (float(text) < x if up else float(text) > x):
+                text, step = f"{x + step:.6g}", 2.0 * step
+            return text
+
+        proven = self.rigorous and self.value_bracket is not None
+        kind = "exact" if self.value == -np.inf else ("proven" if proven else "floating point")
+        value = f"{with_accuracy(self.value, self.accuracy)} ({kind})"
         if self.root is None:
             root = "None"
         elif self.approached_at_infinity:  # not the value's source, a root of the band searched
             root = f"{self.root.real:.6g}{self.root.imag:+.6g}j"
         else:
             re, im = self.root_accuracy
-            root = f"({with_accuracy(self.root.real, re)}) + ({with_accuracy(self.root.imag, im)})j"
+            box = "proven box" if self.rigorous and self.root_box is not None else "floating point"
+            root = f"({with_accuracy(self.root.real, re)}) + ({with_accuracy(self.root.imag, im)})j ({box})"
         tail = ", approached as Im s -> infinity" if self.approached_at_infinity else ""
+        statement = f"certified: no root right of {rounded(self.upper_bound, True)}"
+        if proven and self.value_bracket is not None:
+            lo, hi = self.value_bracket
+            statement += f", proven: sup Re s in [{rounded(lo, False)}, {rounded(hi, True)}]"
         return (
-            f"SpectralAbscissa(value={with_accuracy(self.value, self.accuracy)}, root={root}{tail}, "
-            f"chain_value={self.chain_value:.6g}, "
-            f"strong_bound={self.strong_bound:.6g}, upper_bound={self.upper_bound:.6g}, certified={self.certified}"
-            + (", rigorous=True)" if self.rigorous else ")")
+            f"SpectralAbscissa(value={value}, root={root}{tail}, {statement}, "
+            f"chain_value={self.chain_value:.6g}, strong_bound={self.strong_bound:.6g}, "
+            f"every_root_of_region_found={self.certified}" + (", rigorous=True)" if self.rigorous else ")")
         )
 
     def to_dict(self) -> dict[str, Any]:
