@@ -71,6 +71,18 @@ def _parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="certify the loop described by a SYSTEM.toml file and write a report")
     a.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md)")
     a.add_argument("-o", "--out", required=True, help="output directory")
+    a.add_argument(
+        "--accuracy",
+        type=float,
+        default=None,
+        help="target accuracy of the delay margin (overrides [analysis] accuracy; the kernel grid is refined to it)",
+    )
+    a.add_argument(
+        "--rigorous",
+        action="store_true",
+        default=None,
+        help="prove the certificate's claims in ball arithmetic (overrides [analysis] rigorous)",
+    )
     _progress_options(a)
     pp = sub.add_parser("paper", help="the reference paper's example end to end")
     pp.add_argument("-o", "--out", required=True, help="output directory")
@@ -123,7 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     progress = args.progress
     try:
         if args.command == "analyze":
-            files, verdict = run_analyze(args.file, args.out, progress=progress)
+            files, verdict = run_analyze(
+                args.file, args.out, progress=progress, accuracy=args.accuracy, rigorous=args.rigorous
+            )
             print(verdict)
             print(f"wrote {files.markdown}, {files.html}, {', '.join(str(p) for p in files.json)}")
         elif args.command == "design":

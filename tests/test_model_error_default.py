@@ -10,6 +10,7 @@ characteristic grid) solved by Newton's method here.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ from nrobust import (
     delay_margin,
     with_accuracy,
 )
+from nrobust.cli import main
 from nrobust.config import load_system_file
 from nrobust.hyperbolic.loops.controllers import loop_route
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
@@ -131,3 +133,17 @@ def test_the_canal_file_is_analysed_as_written() -> None:
     """examples/saint_venant.toml: uniform flow, so the certificate is about the plant itself (no normal form)."""
     spec = load_system_file(Path(__file__).parent.parent / "examples" / "saint_venant.toml")
     assert spec["system"] is spec["given_system"] and loop_route(spec["system"], spec["controller"]) == "exact"
+
+
+def test_analyze_takes_an_accuracy_target_on_the_command_line(tmp_path: Path) -> None:
+    """``--accuracy`` overrides the file: the kernel grid is refined until the margin's estimate meets it."""
+    system = tmp_path / "varying.toml"
+    system.write_text(
+        '[system]\ntype = "Hyperbolic2x2"\nlam = 1.0\nmu = 1.0\nsigma_pm = 1.0\nsigma_mp = 1.0\nq = 1.0\nrho = 0.85\n'
+        '\n[controller]\ntype = "ReflectionController"\nK = 0.1\n\n[analysis]\ndelta_max = 0.1\nk_region = false\n'
+    )
+    out = tmp_path / "out"
+    assert main(["analyze", str(system), "-o", str(out), "--no-progress", "--accuracy", "1e-12"]) == 0
+    data = json.loads((out / "certificate.json").read_text())
+    assert data["accuracy_target"] == 1e-12 and "target 1.0e-12 met" in (out / "report.md").read_text()
+    assert main(["analyze", str(system), "-o", str(tmp_path / "bad"), "--accuracy", "-1"]) == 2

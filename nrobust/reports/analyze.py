@@ -10,7 +10,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from .._progress import progress_bar
+from .._validate import positive
 from ..config import NPLUSM_TYPE, PiecewiseLinear, build_in_section, load_system_file
+from ..errors import ParameterError
 from ..hyperbolic.simulate import Simulation, simulate
 from ..plots.simulation import simulation_figure
 from .certificate import certify
@@ -28,8 +30,20 @@ def _initial(value: float | PiecewiseLinear) -> Callable[[np.ndarray], np.ndarra
     return lambda x: np.full(np.shape(x), c)
 
 
-def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = None) -> tuple[ReportFiles, str]:
+def run_analyze(
+    path: str | Path,
+    out_dir: str | Path,
+    progress: bool | None = None,
+    *,
+    accuracy: float | None = None,
+    rigorous: bool | None = None,
+) -> tuple[ReportFiles, str]:
     """``nrobust analyze``: certify the loop of a SYSTEM.toml file and write its report.
+
+    ``accuracy`` and ``rigorous`` (``--accuracy A``, ``--rigorous`` on the command line)
+    override ``[analysis] accuracy`` and ``rigorous`` of the file: the delay margin's target
+    accuracy (:func:`~nrobust.reports.certificate.certify` refines the kernel grid until it is
+    met and the report says what was achieved) and proofs in ball arithmetic.
 
     The input file is validated and ``out_dir`` checked (created, writable) before any
     computation; the report's files are written as one set with ``manifest.json``
@@ -38,9 +52,14 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
     bar is drawn on stderr when ``progress`` is True, or for None when stderr is a terminal
     or Jupyter.
     """
+    if accuracy is not None:
+        accuracy = positive("accuracy", accuracy)
     check_output_dir(out_dir)  # before the plant is built (a steady profile, a front end's ODE)
     spec = load_system_file(path)
     if spec.get("kind") == NPLUSM_TYPE:  # an n + m plant: the cancellation study
+        for name, value in (("accuracy", accuracy), ("rigorous", rigorous)):
+            if value is not None:
+                raise ParameterError(name, "left out for an n + m plant (its cancellation study has none)", value)
         return run_nplusm_analyze(spec, out_dir, progress)
     sim = spec["simulation"]
     outputs = RunOutputs(out_dir, "analyze")  # checked before anything is computed
@@ -54,8 +73,8 @@ def run_analyze(path: str | Path, out_dir: str | Path, progress: bool | None = N
             spec["delta_max"],
             spec["region"],
             spec["k_region"],
-            rigorous=spec["rigorous"],
-            accuracy=spec.get("accuracy"),
+            rigorous=spec["rigorous"] if rigorous is None else rigorous,
+            accuracy=spec.get("accuracy") if accuracy is None else accuracy,
         )
         if spec["given_system"] is not spec["system"]:  # the report speaks of the plant as written
             cert = dataclasses.replace(
