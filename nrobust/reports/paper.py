@@ -17,7 +17,6 @@ from .._json import json_float, json_safe
 from .._validate import renamed_keywords
 from ..errors import ParameterError
 from ..hyperbolic.analyses import StabilityChart, Tradeoff, stability_chart, tradeoff
-from ..hyperbolic.kernels.constant import solve_kernels
 from ..hyperbolic.loops.controllers import (
     Classification,
     FiniteTimeController,
@@ -26,7 +25,7 @@ from ..hyperbolic.loops.controllers import (
     classify,
 )
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
-from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate
+from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate_runs
 from ..plots.base import figure_png
 from ..plots.charts import stability_chart_plot, tradeoff_plot
 from ..plots.rootlocus import RootLocusData, root_locus_response
@@ -61,6 +60,8 @@ PAPER_DELAYS_FIG3 = (0.0, 0.01, 0.1)
 PAPER_T_END = 15.0
 
 
+#: The root locus is computed in this many parts (jobs), which balance the two workers' loads.
+_LOCUS_PARTS = 2
 #: The certificates are proven in ball arithmetic when python-flint (``nrobust[rigorous]``) is installed.
 _RIGOROUS = importlib.util.find_spec("flint") is not None
 #: The paper's central claims, whose status the report states first.
@@ -87,33 +88,40 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
     """One independent computation ``(job, *args)`` of :func:`run_paper`, run in a worker process.
 
     The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker, so a job is sent as its
-    name and a few numbers. Each job also draws its figures, as PNG bytes: the figures are
-    drawn in parallel and the report only embeds them.
+    name and a few numbers. A job draws its figures, as PNG bytes, when it has all they
+    show: the figures are drawn in parallel and the report only embeds them. The root
+    locus is computed in :data:`_LOCUS_PARTS` parts (jobs that balance the workers' loads),
+    drawn by :func:`run_paper` once they are back.
     """
     job, *args = task
     system = Hyperbolic2x2(**PAPER_SYSTEM)
-    if job == "simulate":  # the runs of figure 1 or 3, and the figure
-        number, t_end, cells = args
-        controller, deltas = _figure_loop(number)
-        # the kernels simulate() would solve for each run (its default grid), solved once
-        kernels = solve_kernels(system)
-        runs = [simulate(system, controller, d, t_end, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas]
-        return runs, _png(paper_figure(number, runs))
-    if job == "certify":
-        controller, delta_max, rigorous = args
-        cert = certify(system, controller, delta_max=delta_max, k_region=False, rigorous=rigorous)
-        return cert, render_certificate_figures(cert)
+    if job == "simulate":  # the runs of figures 1 and 3, marched together, and the two figures
+        t_end, cells = args
+        loops = {number: _figure_loop(number) for number in (1, 3)}
+        runs = simulate_runs(
+            system,
+            [(controller, d) for controller, deltas in loops.values() for d in deltas],
+            t_end,
+            _paper_u0,
+            _paper_v0,
+            cells,
+        )
+        fig1, fig3 = runs[: len(PAPER_DELAYS_FIG1)], runs[len(PAPER_DELAYS_FIG1) :]
+        return fig1, fig3, _png(paper_figure(1, fig1)), _png(paper_figure(3, fig3))
+    if job == "certify":  # the loops one after the other: the second reuses what the first left in memory
+        loops, rigorous = args
+        certs = [certify(system, c, delta_max=d, k_region=False, rigorous=rigorous) for c, d in loops]
+        return [(cert, render_certificate_figures(cert)) for cert in certs]
     if job == "charts":  # the chart draws the trade-off's Rouché bounds: one job, two figures
         Ks, deltas, k_max = args
         chart = stability_chart(system, Ks, deltas, progress=False)
         trade = tradeoff(system, Ks[Ks >= 0], progress=False)
         return chart, trade, _png(_chart_figure(chart, trade, k_max)), _png(_tradeoff_figure(trade))
-    if job == "locus":
+    if job == "locus":  # a part of the gains of the root locus (its figure: run_paper)
         Ks, delta, region = args
-        locus = root_locus_response(
+        return root_locus_response(
             lambda K: characteristic(system, ReflectionController(K), delta), Ks, region, name="K"
         )
-        return locus, _png(_locus_figure(locus))
     raise ParameterError("job", "one of simulate, certify, charts, locus", job)
 
 
@@ -189,21 +197,26 @@ def _run_paper(
     classification = classify(system)
     tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta)
     if workers:
-        # every job draws figures: matplotlib loaded once, here, rather than by each worker forked from here
+        # loaded once, here, rather than by each worker forked from here: matplotlib (every
+        # job draws) and scipy.fft (the kernel sums of the chart and of both certificates)
         import matplotlib.pyplot  # noqa: F401
+        import scipy.fft  # noqa: F401
     # one task per chunk: the jobs are few and long, and the longest go first
     run = sweep_map(workers or "serial", chunksize=1, progress=progress)
     res = dict(zip(tasks, run(_paper_job, tasks.values())))
-    fig1_runs, fig1_png = res["fig1"]
-    fig3_runs, fig3_png = res["fig3"]
-    (cert_bs, drawn_bs), (cert_bs2, drawn_bs2) = res["cert_bs"], res["cert_bs2"]
+    parts = [res[f"locus{k}"] for k in range(_LOCUS_PARTS)]
+    locus = RootLocusData(
+        "K", np.concatenate([p.params for p in parts]), tuple(r for p in parts for r in p.roots), parts[0].region
+    )
+    fig1_runs, fig3_runs, fig1_png, fig3_png = res["simulate"]
+    (cert_bs, drawn_bs), (cert_bs2, drawn_bs2) = res["certify"]
     chart, trade, chart_png, trade_png = res["charts"]
     figures = [
         (_FIGURE_CAPTIONS[1], fig1_png),
         (_FIGURE_CAPTIONS[3], fig3_png),
         (_CHART_CAPTION, chart_png),
         (_TRADEOFF_CAPTION, trade_png),
-        (_LOCUS_CAPTION, res["locus"][1]),
+        (_LOCUS_CAPTION, _png(_locus_figure(locus))),
     ]
     admissible = _stable_gains(chart)
     summary = _paper_summary(system, classification, cert_bs, cert_bs2, chart, trade, fig1_runs, fig3_runs, admissible)
@@ -227,21 +240,23 @@ def _run_paper(
 def _paper_tasks(k_max: float, t_end: float, cells: int, n_K: int, n_delta: int) -> dict[str, tuple[Any, ...]]:
     """The independent computations of section 5 as :func:`_paper_job` tasks, by name.
 
-    The ``(K, delta)`` chart of U_BS2 on ``n_K x n_delta`` gains in ``[-1.2, 1.2] k_max``
-    and delays in ``[0, 0.5]`` with the trade-off on its gains ``K >= 0``, the certificates
-    of U_BS2 and U_BS, the simulations of figures 3 and 1, the root locus of U_BS2 in ``K``.
+    The certificates of U_BS and U_BS2 (one job: after the first, in the same process, the
+    second costs a good part less than alone), the ``(K, delta)`` chart of U_BS2 on
+    ``n_K x n_delta`` gains in ``[-1.2, 1.2] k_max`` and delays in ``[0, 0.5]`` with the
+    trade-off on its gains ``K >= 0``, the simulations of figures 1 and 3, the root locus of
+    U_BS2 in ``K`` (seven gains in ``[0, 0.9 k_max]``, in :data:`_LOCUS_PARTS` parts).
     """
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
     Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
     deltas = np.linspace(0.0, 0.5, n_delta)
+    locus_Ks = np.array_split(np.linspace(0.0, 0.9 * k_max, 7), _LOCUS_PARTS)
+    locus_args = (max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0))
     # longest first, so that two workers finish together
     return {
+        "certify": ("certify", ((u_bs, max(PAPER_DELAYS_FIG1)), (u_bs2, max(PAPER_DELAYS_FIG3))), _RIGOROUS),
         "charts": ("charts", Ks, deltas, k_max),
-        "cert_bs": ("certify", u_bs, max(PAPER_DELAYS_FIG1), _RIGOROUS),
-        "cert_bs2": ("certify", u_bs2, max(PAPER_DELAYS_FIG3), _RIGOROUS),
-        "fig3": ("simulate", 3, t_end, cells),
-        "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
-        "fig1": ("simulate", 1, t_end, cells),
+        "simulate": ("simulate", t_end, cells),
+        **{f"locus{k}": ("locus", part, *locus_args) for k, part in enumerate(locus_Ks)},
     }
 
 
@@ -434,13 +449,10 @@ def paper_figure(number: int, runs: Sequence[Simulation] | None = None, cells: i
         raise ParameterError("number", "1 or 3 (the paper's simulation figures)", number)
     controller, deltas = _figure_loop(number)
     law = "U_BS, eq. (47)" if number == 1 else f"U_BS2(K={PAPER_K:g}), eq. (53)"
-    if runs is None:
-        system = Hyperbolic2x2(**PAPER_SYSTEM)
-        # the kernels simulate() would solve for each run (its default grid), solved once
-        kernels = solve_kernels(system)
-        runs = [
-            simulate(system, controller, d, PAPER_T_END, _paper_u0, _paper_v0, cells, kernels=kernels) for d in deltas
-        ]
+    if runs is None:  # the runs of simulate(), marched together (the kernels solved once)
+        runs = simulate_runs(
+            Hyperbolic2x2(**PAPER_SYSTEM), [(controller, d) for d in deltas], PAPER_T_END, _paper_u0, _paper_v0, cells
+        )
     elif len(runs) != len(deltas):
         raise ParameterError("runs", f"one simulation per delay {deltas}", runs)
     return simulation_figure(runs, [f"delta = {d:g}" for d in deltas], f"Figure {number} of the paper: {law}")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,10 +23,8 @@ from .._newton import newton
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, magnitude
+from ._neighbours import ChebyshevIndex, connected_groups
 from .winding import Counter, Region
-
-if TYPE_CHECKING:
-    from scipy.spatial import cKDTree
 
 __all__ = ["Finder", "centers", "kdtree"]
 
@@ -99,11 +96,11 @@ def _newton(
 # ====================================================================== boxes
 # A box is a row ``(re_min, re_max, im_min, im_max)``; distances between boxes and points
 # are Chebyshev distances (``p = inf``), the metric in which a box is a ball.
-def kdtree(points: NDArray[np.float64]) -> cKDTree:
-    """``scipy.spatial.cKDTree(points)``, imported on first use (scipy.spatial is slow to import)."""
-    from scipy.spatial import cKDTree
-
-    return cKDTree(points)
+def kdtree(points: NDArray[np.float64]) -> ChebyshevIndex:
+    """The neighbour search of ``scipy.spatial.cKDTree(points)`` (queries with ``p = inf``, pairs)
+    in numpy (:class:`~nrobust.roots._neighbours.ChebyshevIndex`: the same answers, without
+    importing scipy.spatial, which takes a good part of a second)."""
+    return ChebyshevIndex(points)
 
 
 def _xy(z: NDArray[np.complex128]) -> NDArray[np.float64]:
@@ -354,11 +351,7 @@ class Finder:
                 gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
                 pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
             if pairs.size:
-                from scipy.sparse import coo_array  # lazily, as kdtree: scipy.sparse is slow to import
-                from scipy.sparse.csgraph import connected_components
-
-                graph = coo_array((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(pts.size, pts.size))
-                group = connected_components(graph, directed=False)[1]
+                group = connected_groups(pts.size, pairs)
         size = np.bincount(group)
         means = np.asarray((np.bincount(group, pts.real) + 1j * np.bincount(group, pts.imag)) / size, dtype=complex)
         extra = np.where(stalled > base, stalled, 0.0)

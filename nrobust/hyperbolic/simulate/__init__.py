@@ -9,7 +9,7 @@ constant ``lam/mu`` through its normal form; the marching in ``characteristics``
 
 from .base import Scheme, SimulationResult
 from .general import GeneralSimulation, simulate_general
-from .normal_form import DEFAULT_CELLS, MAX_UPDATES, Simulation, v_nodes
+from .normal_form import DEFAULT_CELLS, MAX_UPDATES, Simulation, simulate_runs, v_nodes
 from .nplusm import NPlusMSimulation, simulate_nplusm
 from .registry import SCHEMES, simulate
 
@@ -25,5 +25,6 @@ __all__ = [
     "simulate",
     "simulate_general",
     "simulate_nplusm",
+    "simulate_runs",
     "v_nodes",
 ]

@@ -59,6 +59,7 @@ See ``docs/simulation.md``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -259,9 +260,27 @@ class Recorder:
 
 
 def march_lattice(
-    system: Hyperbolic2x2, x: Array, u: Array, v: Array, dt: float, steps: int, loop: Loop, record: Recorder
+    system: Hyperbolic2x2,
+    x: Array,
+    u: Array,
+    v: Array,
+    dt: float,
+    steps: int,
+    loop: Loop | Sequence[Loop],
+    record: Recorder | Sequence[Recorder],
 ) -> None:
-    """Equal speeds: the characteristic lattice (nodes at ``t_j``, midpoints at ``t_j + dt/2``)."""
+    """Equal speeds: the characteristic lattice (nodes at ``t_j``, midpoints at ``t_j + dt/2``).
+
+    Several runs of one plant on one grid (other loops, other delays) march together: ``u``
+    and ``v`` then hold one row per run, and ``loop`` and ``record`` are one per run. The
+    interior of the lattice is advanced for all rows at once, by the same elementwise
+    operations as one run, so that each run's values are those it has alone.
+    """
+    loops = [loop] if isinstance(loop, Loop) else list(loop)
+    records = [record] if isinstance(record, Recorder) else list(record)
+    U, V = np.atleast_2d(u), np.atleast_2d(v)  # views: the rows of u and v are marched in place
+    if not (U.shape == V.shape and U.shape[0] == len(loops) == len(records)):
+        raise ParameterError("(u, v)", "one row of u and of v per loop and recorder", (U.shape, V.shape))
     n = x.size - 1
     xm = (np.arange(n) + 0.5) / n
     h4 = dt / 4.0  # trapezoidal factor on a half step
@@ -273,23 +292,25 @@ def march_lattice(
     if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
         raise ParameterError("cells", "large enough for the trapezoidal coupling step to be solvable", n)
     inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
-    wu_in, wv_in = loop.wu[:-1], loop.wv[:-1]
+    runs = [(lp, rec, U[r], V[r], lp.wu[:-1], lp.wv[:-1]) for r, (lp, rec) in enumerate(zip(loops, records))]
+    spm_l, spm_i, smp_r, smp_i = spm[:-1], spm[1:-1], smp[1:], smp[1:-1]
     for j in range(1, steps + 1):
         # Half step: nodes -> midpoints (u from the left node, v from the right node).
-        ru = u[:-1] + spm[:-1] * v[:-1]
-        rv = v[1:] + smp[1:] * u[1:]
+        ru = U[:, :-1] + spm_l * V[:, :-1]
+        rv = V[:, 1:] + smp_r * U[:, 1:]
         um = (ru + spm_m * rv) * inv_m
         vm = (rv + smp_m * ru) * inv_m
         # Half step: midpoints -> nodes.
         ru = um + spm_m * vm  # arrives at nodes 1..n
         rv = vm + smp_m * um  # arrives at nodes 0..n-1
-        u[1:-1] = (ru[:-1] + spm[1:-1] * rv[1:]) * inv_i
-        v[1:-1] = (rv[1:] + smp[1:-1] * ru[:-1]) * inv_i
-        v[0] = rv[0] * inv_0
-        u[0] = system.q * v[0]
-        u[-1], v[-1] = loop.solve(j, ru[-1], spm[-1], float(wu_in @ u[:-1] + wv_in @ v[:-1]))
-        loop.commit(j, u, v)
-        record(j, u, v)
+        U[:, 1:-1] = (ru[:, :-1] + spm_i * rv[:, 1:]) * inv_i
+        V[:, 1:-1] = (rv[:, 1:] + smp_i * ru[:, :-1]) * inv_i
+        V[:, 0] = rv[:, 0] * inv_0
+        U[:, 0] = system.q * V[:, 0]
+        for r, (lp, rec, ur, vr, wu_in, wv_in) in enumerate(runs):
+            ur[-1], vr[-1] = lp.solve(j, ru[r, -1], spm[-1], float(wu_in @ ur[:-1] + wv_in @ vr[:-1]))
+            lp.commit(j, ur, vr)
+            rec(j, ur, vr)
 
 
 def v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
