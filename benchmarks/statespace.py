@@ -25,14 +25,20 @@ Systems (tdcpy's ``NDDE`` writes ``x' + sum H x'(t - hH) = ...``, so ``B = -H``)
 
 Printed per system: roots found by each (nrobust's count is certified; a larger tdcpy
 count reports a root twice), the largest distance from a tdcpy root to the nearest nrobust
-root, the rightmost real part of each and the published value when one is stated, seconds
-(best of 3; 1 for Example 3.1), the time ratio nrobust / tdcpy.
+root, the rightmost real part of each and the published value when one is stated, then the
+wall-clock and CPU (``time.process_time``) milliseconds of each (best of 7; 1 for Example 3.1)
+and their ratios nrobust / tdcpy. nrobust limits BLAS to one thread itself; tdcpy is timed
+both with its default BLAS threads and with one thread (threadpoolctl), and its better figure
+of the two is kept (its best setting: on a shared machine the threads often lose). The load
+average (``os.getloadavg``) is printed before and after: CPU time is the steadier figure on a
+loaded machine.
 
 Run: ``python benchmarks/statespace.py`` (needs ``pip install tdcpy``, GPL-3.0).
 """
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -61,7 +67,7 @@ class Case:
     kind: str  # "RDDE", "NDDE" or "DDAE"
     where: tuple[float, ...] | float  # a rectangle, or tdcpy's r (all roots with Re s >= r)
     published: float | None = None
-    repeat: int = 3
+    repeat: int = 7
 
 
 def ex29() -> StateSpaceTDS:
@@ -126,14 +132,24 @@ CASES = [
 ]
 
 
-def best_time(run: Callable[[], Any], repeat: int = 3) -> tuple[Any, float]:
-    """Result of ``run`` and the best of ``repeat`` wall-clock times."""
-    best, out = np.inf, None
+def best_time(run: Callable[[], Any], repeat: int = 7) -> tuple[Any, float, float]:
+    """Result of ``run`` and the best of ``repeat`` wall-clock and CPU times (seconds)."""
+    wall, cpu, out = np.inf, np.inf, None
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = run()
-        best = min(best, time.perf_counter() - t0)
-    return out, best
+        wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
+    return out, wall, cpu
+
+
+def peer_time(run: Callable[[], Any], repeat: int) -> tuple[Any, float, float]:
+    """:func:`best_time` of a peer with its default BLAS threads and with one, the better of each figure."""
+    from threadpoolctl import threadpool_limits
+
+    out, wall, cpu = best_time(run, repeat)
+    with threadpool_limits(limits=1, user_api="blas"):
+        _, wall1, cpu1 = best_time(run, repeat)
+    return out, min(wall, wall1), min(cpu, cpu1)
 
 
 def tdcpy_system(tdcpy: Any, sys: StateSpaceTDS, kind: str) -> Any:
@@ -145,24 +161,30 @@ def tdcpy_system(tdcpy: Any, sys: StateSpaceTDS, kind: str) -> Any:
     return tdcpy.DDAE(E=sys.E, A=list(sys.A), hA=sys.hA)
 
 
-def compare(tdcpy: Any) -> list[tuple[Case, int, int, float, float, float, float, float]]:
-    """Per case: (case, nrobust roots, tdcpy roots, distance, nrobust max Re, tdcpy max Re, nrobust s, tdcpy s)."""
+Row = tuple[Case, int, int, float, float, float, tuple[float, float], tuple[float, float]]
+
+
+def compare(tdcpy: Any) -> list[Row]:
+    """Per case: (case, nrobust roots, tdcpy roots, distance, nrobust max Re, tdcpy max Re,
+    nrobust (wall s, CPU s), tdcpy (wall s, CPU s))."""
     rows = []
     for case in CASES:
         tds = tdcpy_system(tdcpy, case.system, case.kind)
         if isinstance(case.where, float):
-            ours, t_ours = best_time(partial(case.system.roots_right_of, case.where), case.repeat)
+            ours, wall, cpu = best_time(partial(case.system.roots_right_of, case.where), case.repeat)
             r: Any = case.where
         else:
-            ours, t_ours = best_time(partial(case.system.roots, case.where), case.repeat)
+            ours, wall, cpu = best_time(partial(case.system.roots, case.where), case.repeat)
             r = list(case.where)
-        out, t_theirs = best_time(partial(tdcpy.roots, tds, r=r, max_size_evp=1500), case.repeat)
+        out, wall_t, cpu_t = peer_time(partial(tdcpy.roots, tds, r=r, max_size_evp=1500), case.repeat)
         theirs = out[0]
         assert ours.certified
         z = np.repeat(ours.roots, ours.multiplicities)
         dist = float(np.max(np.min(np.abs(theirs[:, None] - z[None, :]), axis=1))) if theirs.size else 0.0
         top = float(np.max(theirs.real)) if theirs.size else -np.inf
-        rows.append((case, int(z.size), int(theirs.size), dist, float(np.max(z.real)), top, t_ours, t_theirs))
+        rows.append(
+            (case, int(z.size), int(theirs.size), dist, float(np.max(z.real)), top, (wall, cpu), (wall_t, cpu_t))
+        )
     return rows
 
 
@@ -172,16 +194,21 @@ def main() -> None:
     except ImportError:
         print("tdcpy is not installed (pip install tdcpy): nothing to compare")
         return
+    print("load average (1, 5, 15 min) before: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
     print(
         f"{'system':<36} {'nrobust':>7} {'tdcpy':>5} {'max dist':>8} {'max Re nrobust':>15} {'max Re tdcpy':>15} "
-        f"{'stated':>8} {'nrobust s':>9} {'tdcpy s':>8} {'ratio':>6}"
+        f"{'stated':>8} {'wall ms':>15} {'ratio':>5} {'CPU ms':>15} {'ratio':>5}"
     )
     for case, n_ours, n_theirs, dist, re_ours, re_theirs, t_ours, t_theirs in compare(tdcpy):
         stated = "" if case.published is None else f"{case.published:.6g}"
+        times = "".join(
+            f" {1e3 * t_ours[k]:>7.1f} {1e3 * t_theirs[k]:>7.1f} {t_ours[k] / t_theirs[k]:>5.2f}" for k in (0, 1)
+        )
         print(
             f"{case.name:<36} {n_ours:>7d} {n_theirs:>5d} {dist:>8.1e} {re_ours:>15.10f} {re_theirs:>15.10f} "
-            f"{stated:>8} {t_ours:>9.3f} {t_theirs:>8.3f} {t_ours / t_theirs:>6.1f}"
+            f"{stated:>8}{times}"
         )
+    print("load average (1, 5, 15 min) after: {:.2f} {:.2f} {:.2f}".format(*os.getloadavg()))
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@ model of a sample of ``F``, the work budget and the checks of the arguments ``F`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, cast
 
 import numpy as np
@@ -27,9 +28,11 @@ class Budget:
         self.max_evals = max_evals
         self.used = 0
 
-    def spend(self, n: int, what: str) -> None:
+    def spend(self, n: int, what: str | Callable[[], str]) -> None:
+        """Charge ``n`` evaluations; ``what`` (or what it returns, formatted only on failure) names the work."""
         self.used += int(n)
         if self.used > self.max_evals:
+            what = what() if callable(what) else what
             raise CertificationError(
                 f"work bound max_evals={self.max_evals} exhausted while {what}; raise max_evals or use a smaller region"
             )

@@ -37,6 +37,11 @@ _REACH = 10.0
 _STALLED = 1e3 * ROUNDING
 # Newton steps shorter than this (relative to 1 + |s|) are checked for a value at rounding level.
 _NOISE_STEP = 1e-8
+# After this many Newton steps a point whose step is still longer than _WANDER of the step
+# limit is dropped: it is cycling or wandering (a real seed of a real F with no real root
+# near it cycles on the real axis), not converging to a root, even a multiple one.
+_PATIENCE = 12
+_WANDER = 0.25
 # Fixed-point steps on the asymptotic equation of a retarded chain.
 _CHAIN_STEPS = 8
 # Largest degree of the commensurate approximation whose chains seed Newton's method
@@ -59,12 +64,16 @@ def _newton(
     linearly converging multiple root) is kept when its residual is at rounding level.
     A point that leaves ``within`` (a box, enlarged by half its size on each side) is
     dropped: the candidates are kept only inside the region searched, and a seed drifting
-    towards a root far outside it would spend up to ``iters`` steps for nothing.
+    towards a root far outside it would spend up to ``iters`` steps for nothing. So is a
+    point whose step after ``_PATIENCE`` steps is still above ``_WANDER`` times
+    ``max_step`` (it cycles instead of converging). The seeds only propose candidates: a
+    dropped one costs no root, which the grid seeds and the subdivision still find.
     """
     if within is not None:
         x0, x1, y0, y1 = within
         dx, dy = 0.5 * (x1 - x0), 0.5 * (y1 - y0)
         lo_x, hi_x, lo_y, hi_y = x0 - dx, x1 + dx, y0 - dy, y1 + dy
+    calls = [0]  # steps taken: fdf is called once per step
 
     def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
         if within is None:
@@ -82,6 +91,10 @@ def _newton(
         if near.size:
             noise = np.abs(f[near]) <= EPS * magnitude(F, x[near])
             f[near[noise]] = 0.0
+        calls[0] += 1
+        if calls[0] > _PATIENCE:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f[np.abs(f) > _WANDER * max_step * np.abs(d)] = np.nan
         return f, d
 
     def spend(n: int) -> None:

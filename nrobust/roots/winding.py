@@ -37,7 +37,11 @@ _NEAR_ZERO = 512 * EPS
 # Steps shorter than this (relative to 1 + |s|) are not refined further: shift the edge.
 _MIN_STEP = 1e-13
 # Initial number of steps per edge.
-_INITIAL_STEPS = 8
+_INITIAL_STEPS = 1
+# A failing step is cut into as many pieces as its step rule predicts (the factor by which
+# it fails: the bound of order 1 is linear in the step, that of order 2 quadratic), at least
+# 2 and at most _MAX_PIECES: fewer rounds of refinement than halving.
+_MAX_PIECES = 16
 _SIDES = ("bottom", "right", "top", "left")
 # Root-finding strategies of find_roots (see its docstring).
 METHODS = ("auto", "subdivision")
@@ -71,20 +75,49 @@ class _Steps:
 
     def take(self, mask: NDArray[np.bool_]) -> _Steps:
         """The steps selected by ``mask``."""
-        return _Steps(*(getattr(self, f.name)[mask] for f in fields(self)))
+        return _Steps(*(getattr(self, name)[mask] for name in _STEP_FIELDS))
 
-    def halve(self, mid: NDArray[np.complex128], f_mid: NDArray, scale_mid: NDArray) -> _Steps:
-        """Every step split at its midpoint ``mid`` (first halves, then second halves)."""
+    def cut_points(self, pieces: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.complex128]]:
+        """The owners and positions of the interior points that cut step ``i`` into ``pieces[i]`` equal pieces."""
+        owner = np.repeat(np.arange(self.size), pieces - 1)
+        first = np.repeat(np.cumsum(pieces - 1) - (pieces - 1), pieces - 1)
+        frac = (np.arange(owner.size) - first + 1) / pieces[owner]
+        return owner, self.start[owner] + (self.end - self.start)[owner] * frac
+
+    def split(self, pieces: NDArray[np.intp], cut: NDArray, f_cut: NDArray, scale_cut: NDArray) -> _Steps:
+        """Every step cut at its :meth:`cut_points` ``cut`` (with ``F`` and its rounding scale there), in order."""
+        # the nodes of step i: its start, its cut points, its end, at offsets base[i] .. base[i] + pieces[i]
+        base = np.cumsum(pieces + 1) - (pieces + 1)
+        inner = np.ones(int(np.sum(pieces + 1)), dtype=bool)
+        inner[base] = inner[base + pieces] = False
+
+        def nodes(ends: tuple[NDArray, NDArray], mid: NDArray) -> NDArray:
+            out = np.empty(inner.size, dtype=mid.dtype)
+            out[base], out[base + pieces], out[inner] = ends[0], ends[1], mid
+            return out
+
+        z = nodes((self.start, self.end), cut)
+        f = nodes((self.f_start, self.f_end), f_cut)
+        m = nodes((self.scale_start, self.scale_end), scale_cut)
+        df = np.full(inner.size, np.nan, dtype=complex)
+        df[base] = self.df_start
+        head = np.ones(inner.size, dtype=bool)  # the nodes that start a piece
+        head[base + pieces] = False
+        tail = np.ones(inner.size, dtype=bool)  # the nodes that end one
+        tail[base] = False
         return _Steps(
-            start=np.concatenate([self.start, mid]),
-            end=np.concatenate([mid, self.end]),
-            f_start=np.concatenate([self.f_start, f_mid]),
-            f_end=np.concatenate([f_mid, self.f_end]),
-            scale_start=np.concatenate([self.scale_start, scale_mid]),
-            scale_end=np.concatenate([scale_mid, self.scale_end]),
-            df_start=np.concatenate([self.df_start, np.full(mid.size, np.nan, dtype=complex)]),
-            segment=np.concatenate([self.segment, self.segment]),
+            start=z[head],
+            end=z[tail],
+            f_start=f[head],
+            f_end=f[tail],
+            scale_start=m[head],
+            scale_end=m[tail],
+            df_start=df[head],
+            segment=np.repeat(self.segment, pieces),
         )
+
+
+_STEP_FIELDS = tuple(f.name for f in fields(_Steps))
 
 
 def _first_order_ok(bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
@@ -95,8 +128,9 @@ def _first_order_ok(bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
     return bound * np.abs(steps.end - steps.start) * 0.5 < room
 
 
-def _second_order_ok(bound2: NDArray, bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
-    """Step rule of order 2, for steps near a root where order 1 needs tiny steps.
+def _second_order_terms(bound2: NDArray, bound: NDArray, steps: _Steps) -> tuple[NDArray, NDArray]:
+    """Step rule of order 2, for steps near a root where order 1 needs tiny steps: it holds where
+    the first array returned (the radius, with the rounding slack) is below the second (the distance).
 
     With ``M2`` a bound of ``|F''|`` on the step, ``F(a + t) = F(a) + F'(a) t + R(t)`` with
     ``|R| <= M2 |t|^2 / 2``: ``F`` stays in the tube of that radius about the segment
@@ -108,9 +142,9 @@ def _second_order_ok(bound2: NDArray, bound: NDArray, steps: _Steps) -> NDArray[
     p0, v = steps.f_start, steps.df_start * h
     with np.errstate(invalid="ignore", divide="ignore"):
         t = np.clip(-np.real(np.conj(v) * p0) / np.abs(v) ** 2, 0.0, 1.0)
-    dist = np.abs(p0 + np.nan_to_num(t) * v)
+    dist = np.abs(p0 + np.where(np.isnan(t), 0.0, t) * v)
     slack = ROUNDING * (steps.scale_start + bound * np.abs(h))
-    return bound2 * np.abs(h) ** 2 * 0.5 + slack < dist
+    return bound2 * np.abs(h) ** 2 * 0.5 + slack, dist
 
 
 def _wind_segments(
@@ -119,7 +153,9 @@ def _wind_segments(
     """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
 
     All segments are refined together; only the steps that fail both step rules
-    (:func:`_first_order_ok`, :func:`_second_order_ok`) are halved. The order-2 rule
+    (:func:`_first_order_ok`, :func:`_second_order_terms`) are cut, each into the number of
+    pieces its rules predict (the factor by which the bound of order 1 exceeds the room,
+    or the square root of that of order 2; 2 to ``_MAX_PIECES``). The order-2 rule
     (one evaluation of ``F'`` and a bound of ``|F''|``) is tried only on steps that fail
     the order-1 rule by a factor above 8, i.e. close to a root. When the work bound is
     hit, the error names the edge that holds the most unfinished steps.
@@ -145,39 +181,55 @@ def _wind_segments(
     near = (np.abs(steps.f_start) <= _NEAR_ZERO * steps.scale_start) | (
         np.abs(steps.f_end) <= _NEAR_ZERO * steps.scale_end
     )
-    blocked[np.unique(steps.segment[near])] = True
+    blocked[steps.segment[near]] = True
     dF: QuasiPolynomial | None = None
+
+    def about(work: str, segment: NDArray) -> Callable[[], str]:
+        """The work on the edge with the most steps, named only if the budget runs out."""
+        return lambda: f"{work} the {label(int(np.bincount(segment).argmax()))}"
+
     while steps.size:
-        steps = steps.take(~blocked[steps.segment])
-        if not steps.size:
-            break
-        what = f"bounding |F'| on the {label(int(np.bincount(steps.segment).argmax()))}"
-        budget.spend(steps.size, what)
+        if blocked.any():
+            steps = steps.take(~blocked[steps.segment])
+            if not steps.size:
+                break
+        budget.spend(steps.size, about("bounding |F'| on", steps.segment))
         bound = F.deriv_bound(steps.start, steps.end) * (1.0 + 1e-12)
         ok = _first_order_ok(bound, steps)
         room = np.minimum(np.abs(steps.f_start), np.abs(steps.f_end))
         close = ~ok & (bound * np.abs(steps.end - steps.start) > 8.0 * room)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            excess = (
+                0.5
+                * bound
+                * np.abs(steps.end - steps.start)
+                / (room - ROUNDING * np.maximum(steps.scale_start, steps.scale_end))
+            )
         if np.any(close):
             dF = F.derivative() if dF is None else dF
             idx = np.flatnonzero(close)
             need = idx[np.isnan(steps.df_start[idx])]
-            budget.spend(2 * idx.size, what.replace("|F'|", "|F''|"))
+            budget.spend(2 * idx.size, about("bounding |F''| on", steps.segment))
             steps.df_start[need] = F.deriv_at(steps.start[need])
             sub = steps.take(close)
-            ok[idx] = _second_order_ok(dF.deriv_bound(sub.start, sub.end) * (1.0 + 1e-12), bound[idx], sub)
+            radius, dist = _second_order_terms(dF.deriv_bound(sub.start, sub.end) * (1.0 + 1e-12), bound[idx], sub)
+            ok[idx] = radius < dist
+            with np.errstate(divide="ignore", invalid="ignore"):
+                excess[idx] = np.fmin(excess[idx], np.sqrt(radius / dist))
         turns += np.bincount(
             steps.segment[ok], weights=np.angle(steps.f_end[ok] / steps.f_start[ok]), minlength=n_edges
         )
-        steps = steps.take(~ok)
+        steps, excess = steps.take(~ok), excess[~ok]
         if not steps.size:
             break
         a, b = steps.start, steps.end
-        blocked[np.unique(steps.segment[np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))])] = True
-        mid = 0.5 * (a + b)
-        budget.spend(mid.size, f"refining the {label(int(np.bincount(steps.segment).argmax()))}")
-        fm, mm = _evaluate(F, mid, label, steps.segment)
-        blocked[np.unique(steps.segment[np.abs(fm) <= _NEAR_ZERO * mm])] = True
-        steps = steps.halve(mid, fm, mm)
+        blocked[steps.segment[np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))]] = True
+        pieces = np.fmin(np.fmax(np.ceil(excess), 2.0), _MAX_PIECES).astype(np.intp)  # nan: 2
+        owner, cut = steps.cut_points(pieces)
+        budget.spend(cut.size, about("refining", steps.segment))
+        fm, mm = _evaluate(F, cut, label, steps.segment[owner])
+        blocked[steps.segment[owner][np.abs(fm) <= _NEAR_ZERO * mm]] = True
+        steps = steps.split(pieces, cut, fm, mm)
     return _Edges(turns / (2 * np.pi), blocked)
 
 
