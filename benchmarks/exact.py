@@ -27,7 +27,12 @@ paper's example (``lam = mu = sigma+- = sigma-+ = q = 1``, ``rho = 0.85``), ``mu
   CPU times beside the wall times show what a loaded machine adds.
 
 Run: ``python benchmarks/exact.py [--quick]`` (``--quick``: the certificate of the paper's
-plant only).
+plant only). ``python benchmarks/exact.py --cold 5``: only the paper's certificate
+(``rigorous=True``), each run in a fresh Python process (nothing remembered between runs): the
+first call and the second, CPU (``time.process_time``) and wall time, with the load average
+beside each run, median and spread; once with the modules that the first call imports loaded
+beforehand (what the call itself costs), once after ``import nrobust`` and python-flint alone
+(``import nrobust`` is lazy: the first call then also imports the modules it uses).
 """
 
 from __future__ import annotations
@@ -35,7 +40,9 @@ from __future__ import annotations
 import argparse
 import functools
 import inspect
+import json
 import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -265,10 +272,56 @@ def _k_region(plant: nr.Hyperbolic2x2) -> Any:
         return exc
 
 
+#: One fresh-process run of the paper's certificate: the first and the second call, as JSON.
+_COLD_RUN = """
+import importlib, json, sys, time
+import nrobust as nr
+import flint
+if sys.argv[1] == "loaded":  # the modules the first call imports (nrobust is imported lazily)
+    for name in ("nrobust.reports.certificate", "scipy.spatial", "scipy.optimize", "scipy.fft", "numpy.ma"):
+        importlib.import_module(name)
+plant, controller, times = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85), nr.ReflectionController(0.1), []
+for _ in range(2):
+    t0, c0 = time.perf_counter(), time.process_time()
+    nr.certify(plant, controller, delta_max=0.1, rigorous=True)
+    times.append((time.perf_counter() - t0, time.process_time() - c0))
+print(json.dumps(times))
+"""
+
+
+def cold_section(runs: int) -> None:
+    """``certify(paper plant, U_BS2(0.1), rigorous=True)`` in ``runs`` fresh processes per import mode."""
+    print(
+        f"certify(paper plant, U_BS2(0.1), rigorous=True), {runs} fresh processes per mode; load = 1-min load average"
+    )
+    for mode, what in (("loaded", "modules loaded beforehand"), ("lazy", "after import nrobust, flint only")):
+        rows = []
+        for _ in range(runs):
+            load = os.getloadavg()[0]
+            out = subprocess.run(
+                [sys.executable, "-c", _COLD_RUN, mode], capture_output=True, text=True, check=True
+            ).stdout
+            (first_wall, first_cpu), (second_wall, second_cpu) = json.loads(out.splitlines()[-1])
+            rows.append((first_cpu, first_wall, second_cpu, second_wall, load))
+            print(
+                f"  {mode:<6} first call {first_cpu:.3f} s CPU, {first_wall:.3f} s wall; "
+                f"second {second_cpu:.3f} s CPU, {second_wall:.3f} s wall; load {load:.2f}"
+            )
+        table = np.array(rows)
+        print(f"  {what}: median (min - max) over {runs} runs")
+        for k, label in enumerate(("first call, CPU ", "first call, wall", "second call, CPU ", "second call, wall")):
+            col = table[:, k]
+            print(f"    {label:<18} {np.median(col):.3f} s ({np.min(col):.3f} - {np.max(col):.3f})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the certificate of the paper's plant only")
+    parser.add_argument("--cold", type=int, metavar="N", help="only the paper's certificate in N fresh processes")
     args = parser.parse_args()
+    if args.cold:
+        cold_section(args.cold)
+        return
     # first use in the process: modules and FLINT load here, not in a measured call
     warm_plant = next(iter(PLANTS.values()))
     gain = nr.ReflectionController(0.05)

@@ -40,15 +40,24 @@ def require_flint() -> ModuleType:
     return flint
 
 
-@contextmanager
-def precision(flint: ModuleType, prec: int) -> Iterator[None]:
-    """Context in which ``flint`` computes with ``prec`` bits (not validated); restored on exit."""
-    old = flint.ctx.prec
-    flint.ctx.prec = prec
-    try:
-        yield
-    finally:
-        flint.ctx.prec = old
+class precision:
+    """Context in which ``flint`` computes with ``prec`` bits (not validated); restored on exit.
+
+    A class rather than a generator: every ball evaluation enters it, and this costs a third as much.
+    """
+
+    __slots__ = ("_ctx", "_old", "_prec")
+
+    def __init__(self, flint: ModuleType, prec: int) -> None:
+        self._ctx = flint.ctx
+        self._prec = prec
+
+    def __enter__(self) -> None:
+        self._old = self._ctx.prec
+        self._ctx.prec = self._prec
+
+    def __exit__(self, *exc: object) -> None:
+        self._ctx.prec = self._old
 
 
 @contextmanager

@@ -169,8 +169,15 @@ class _DistributedBalls:
         self.h = h
         self.poly_t = poly_t
         self.q = [_to_acb(flint, c) for c in d.poly]
+        # q and its derivatives (the last of degree 0), formed once at the working precision
+        self.q_derivatives = [flint.acb_poly(self.q)]
+        while self.q_derivatives[-1].degree() > 0:
+            self.q_derivatives.append(self.q_derivatives[-1].derivative())
         self._coef: dict[int, list[Any]] = {}
         self._abs_coef: dict[int, list[Any]] = {}
+        # radius_moment: radius (b - a) b^k per k, and the result per k and exact real part
+        self._radius_scale: dict[int, Any] = {}
+        self._radius_moments: dict[tuple[int, tuple[int, int]], Any] = {}
 
     def coefficients(self, k: int) -> list[Any]:
         """Per group, the ``acb_mat`` ``(n_g x L)`` of ``h_i (nu_i + h_i t)^k P_i(t)`` in powers of ``t``."""
@@ -205,11 +212,23 @@ class _DistributedBalls:
         return self._abs_coef[k]
 
     def radius_moment(self, s: Any, k: int) -> Any:
-        """Bound of ``radius int_a^b nu^k e^{-nu Re s} dnu`` over the ball ``s``: the error of ``J_k``."""
+        """Bound of ``radius int_a^b nu^k e^{-nu Re s} dnu`` over the ball ``s``: the error of ``J_k``.
+
+        It depends on ``k`` and the lower end of ``Re s`` only: kept per both (contours and the
+        axis evaluate many points with one real part).
+        """
         flint = self.flint
-        a, b = flint.arb(self.d.a), flint.arb(self.d.b)
         x = flint.arb(s.real.lower())
-        return flint.arb(self.d.radius) * (b - a) * b**k * _segment_exp_max(flint, a, b, x)
+        key = (k, x.man_exp()) if x.is_finite() else None
+        out = self._radius_moments.get(key) if key is not None else None
+        if out is None:
+            a, b = flint.arb(self.d.a), flint.arb(self.d.b)
+            if k not in self._radius_scale:
+                self._radius_scale[k] = flint.arb(self.d.radius) * (b - a) * b**k
+            out = self._radius_scale[k] * _segment_exp_max(flint, a, b, x)
+            if key is not None:
+                self._radius_moments[key] = out
+        return out
 
     def moment(self, s: Any, k: int, cache: dict[Any, Any], lmax: int, prec: int) -> Any:
         """``J_k(s) = int nu^k N(nu) e^{-nu s} dnu`` for the represented ``N``; ``cache`` is per point.
@@ -326,6 +345,8 @@ class BallFunction(ABC):
         """Enclosure of the ``k``-th derivative on the ``acb`` ball ``s`` (at the working precision)."""
 
     def _order(self, derivative: Any) -> int:
+        if type(derivative) is int and 0 <= derivative <= self.max_derivative:  # the usual case, checked fast
+            return derivative
         return positive_int("derivative", derivative, minimum=0, maximum=self.max_derivative)
 
     def __call__(self, s: Any, derivative: int = 0) -> Any:
@@ -410,6 +431,8 @@ class BallQuasiPolynomial(BallFunction):
             self._delays = [(self.flint.arb(-float(t)), float(t)) for _, t in F.point_terms]
             self._coefs = [[_to_acb(self.flint, c) for c in p] for p, _ in F.point_terms]
             self._dist = [_DistributedBalls(self.flint, d) for d in F.distributed]
+        # highest l of phi_l(s h) at k = 0 (``lmax + k`` for the k-th derivative)
+        self._lmax = max((d.moment + d.pieces[2].shape[1] - 1 for d in F.distributed), default=0)
         self._point_polys: dict[int, list[Any]] = {}
 
     # ------------------------------------------------------------------ compiled pieces
@@ -442,13 +465,9 @@ class BallQuasiPolynomial(BallFunction):
         flint = self.flint
         out = flint.acb(0)
         cache: dict[Any, Any] = {}  # exponentials and phi_l shared by the terms on the same nodes
-        lmax = max(dist.d.moment + k + dist.poly_t.shape[1] - 1 for dist in self._dist)
+        lmax = self._lmax + k
         for dist in self._dist:
-            q = flint.acb_poly(dist.q)
-            for j in range(k + 1):
-                qj = q
-                for _ in range(j):
-                    qj = qj.derivative()
+            for j, qj in enumerate(dist.q_derivatives[: k + 1]):  # q^{(j)} = 0 beyond them
                 if qj.degree() < 0:
                     continue
                 sign = -1 if (k - j) % 2 else 1

@@ -532,10 +532,8 @@ def _fraction(x: Any) -> Fraction:
     return x if isinstance(x, Fraction) else Fraction(int(x.p), int(x.q))
 
 
-def _exact_pieces(
-    N: DistributedDelay, rational: Callable[[float], Any] = Fraction
-) -> tuple[list[Any], list[Any], Fraction, Fraction]:
-    """Nodes, values, ``TV`` of the linear interpolant and the bound of ``int |N - N_lin|``, exactly.
+def _exact_pieces(N: DistributedDelay, rational: Callable[[float], Any] = Fraction) -> tuple[Fraction, Fraction]:
+    """``TV`` of the linear interpolant and the bound of ``int |N - N_lin|``, exactly.
 
     On a segment ``[nu_k, nu_k + h]`` of positive length, ``N = P(t)`` (the stored piece)
     and ``N_lin`` the line through the values ``v_k``, ``v_{k+1}``: ``N - N_lin`` is
@@ -545,8 +543,8 @@ def _exact_pieces(
     a term ``P_l t^l`` of higher degree adds ``h |P_l| (1/2 - 1/(l + 1))``, and a kernel known to
     within ``radius`` adds ``radius (b - a)``.
 
-    ``rational`` converts a float exactly (``Fraction``, or FLINT's ``fmpq`` from :func:`_rationals`):
-    the nodes and values are returned as such, ``TV`` and the bound as ``Fraction``.
+    ``rational`` converts a float exactly (``Fraction``, or FLINT's ``fmpq`` from :func:`_rationals`);
+    both results are returned as ``Fraction``.
     """
     nodes = [rational(x) for x in N.nodes.tolist()]
     values = [rational(v) for v in N.values.tolist()]
@@ -572,78 +570,113 @@ def _exact_pieces(
         for j in range(4, len(p)):
             per += abs(p[j]) * weights[j]
         dev += rational(hk) * per
-    return nodes, values, _fraction(tv), _fraction(dev)
+    return _fraction(tv), _fraction(dev)
 
 
-def _exact_l1_modulus(nodes: list[Any], values: list[Any], d: Any) -> Any:
+def _dyadic(xs: list[float]) -> tuple[list[int], int]:
+    """Integers ``X_k`` and an exponent ``e`` with ``x_k = X_k / 2^e`` exactly (floats are dyadic rationals)."""
+    pairs = [float(x).as_integer_ratio() for x in xs]
+    e = max((q.bit_length() - 1 for _, q in pairs), default=0)
+    return [p << (e - (q.bit_length() - 1)) for p, q in pairs], e
+
+
+def _exact_l1_modulus(nodes: list[int], values: list[int], e: int, f: int, d: float) -> Fraction:
     """``int |N_lin(nu) - N_lin(nu - d)| dnu`` exactly (``N_lin`` linear, zero outside its support).
 
-    The rationals are ``Fraction`` or FLINT's ``fmpq`` (:func:`_rationals`), all of one type.
+    The nodes are ``X_k / 2^e`` and the values ``V_k / 2^f`` (integers, :func:`_dyadic`), ``d`` a
+    float: every breakpoint (a node, or a node shifted by ``d``) and every stored value is a
+    dyadic rational, and so is everything but the interpolated values and the integrals of
+    ``|.|`` across a sign change, all summed in integers.
 
-    The breakpoints (the nodes and the nodes shifted by ``d``) are merged in order, each with
-    its point shifted back by ``d``, and the one-sided limits of ``N_lin`` at both are read by
-    pointers that only move forward (:func:`_sides`): linear in the number of nodes, with no
-    search per breakpoint, and at a node (every breakpoint is one, or one shifted by ``d``)
-    the stored value with no interpolation.
+    The breakpoints are merged in order, each with its point shifted back by ``d``, and the
+    one-sided limits of ``N_lin`` at both are read by pointers that only move forward
+    (:func:`_sides`): linear in the number of nodes, with no search per breakpoint, and at a
+    node (every breakpoint is one, or one shifted by ``d``) the stored value. On each interval
+    between breakpoints the difference is linear, from ``a`` to ``b``: its integral of ``|.|``
+    is ``(hi - lo) (|a| + |b|) / 2`` when ``a b >= 0``, else ``(hi - lo) (a^2 + b^2) / (2 (|a| + |b|))``.
     """
-    shifted = [x + d for x in nodes]
-    back = [x - d for x in nodes]
-    # merge the two increasing lists, equal points once; each breakpoint b with b - d beside it
-    br: list[Any] = []
-    br_back: list[Any] = []
+    p, q = float(d).as_integer_ratio()
+    e_d = q.bit_length() - 1
+    scale = max(e, e_d)  # breakpoints are B / 2^scale
+    X = nodes if scale == e else [x << (scale - e) for x in nodes]
+    D = p << (scale - e_d)
+    n = len(X)
+    # merge the nodes and the shifted nodes, equal points once; each breakpoint b with b - d beside it
+    br: list[int] = []
+    br_back: list[int] = []
     i = j = 0
-    n = len(nodes)
     while i < n or j < n:
-        if j >= n or (i < n and nodes[i] < shifted[j]):
-            b, bb = nodes[i], back[i]
+        if j >= n or (i < n and X[i] < X[j] + D):
+            b, bb = X[i], X[i] - D
             i += 1
         else:
-            b, bb = shifted[j], nodes[j]
-            if i < n and nodes[i] == b:
+            b, bb = X[j] + D, X[j]
+            if i < n and X[i] == b:
                 i += 1
             j += 1
         if not br or b != br[-1]:
             br.append(b)
             br_back.append(bb)
-    left, right = _sides(nodes, values, br)
-    left_back, right_back = _sides(nodes, values, br_back)
-    zero = nodes[0] - nodes[0]  # zero of the rationals' type (Fraction, or FLINT's fmpq)
-    same, crossing = zero, zero
-    starts = [x - y for x, y in zip(right, right_back)]  # the difference just right of each breakpoint
-    ends = [x - y for x, y in zip(left[1:], left_back[1:])]  # and just left of the next one
-    for lo, hi, a, b in zip(br, br[1:], starts, ends):
-        if a * b >= 0:
-            same += (hi - lo) * (abs(a) + abs(b))
+    left, right = _sides(X, values, br)
+    left_back, right_back = _sides(X, values, br_back)
+    # a value P / (L 2^f) is the pair (P, L); the integral's terms are summed per denominator L
+    same: dict[int, int] = {}
+    crossing = Fraction(0)
+    starts = [_minus(u, v) for u, v in zip(right, right_back)]  # the difference just right of each breakpoint
+    ends = [_minus(u, v) for u, v in zip(left[1:], left_back[1:])]  # and just left of the next one
+    for lo, hi, (pa, la), (pb, lb) in zip(br, br[1:], starts, ends):
+        width = hi - lo
+        if (pa > 0 > pb) or (pa < 0 < pb):
+            crossing += Fraction(
+                width * (pa * pa * lb * lb + pb * pb * la * la), la * lb * (abs(pa) * lb + abs(pb) * la)
+            )
         else:
-            crossing += (hi - lo) * (a * a + b * b) / (abs(a) + abs(b))
-    return (same + crossing) / 2
+            same[la] = same.get(la, 0) + width * abs(pa)
+            same[lb] = same.get(lb, 0) + width * abs(pb)
+    total = sum((Fraction(v, den) for den, v in same.items()), crossing)
+    return total / (1 << (scale + f + 1))
 
 
-def _sides(nodes: list[Any], values: list[Any], queries: list[Any]) -> tuple[list[Any], list[Any]]:
+def _minus(u: tuple[int, int], v: tuple[int, int]) -> tuple[int, int]:
+    """``u - v`` for values ``P / L`` given as pairs ``(P, L)``, ``L > 0``."""
+    (pu, lu), (pv, lv) = u, v
+    if lu == lv:
+        return pu - pv, lu
+    if lv == 1:
+        return pu - pv * lu, lu
+    if lu == 1:
+        return pu * lv - pv, lv
+    return pu * lv - pv * lu, lu * lv
+
+
+def _sides(
+    nodes: list[int], values: list[int], queries: list[int]
+) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
     """Left and right limits of the linear interpolant (zero outside the nodes) at increasing ``queries``.
 
+    Nodes and queries are integers on one scale, values integers; a limit is returned as
+    ``(P, L)`` for the value ``P / L`` (``L = 1`` at a node, else the length of the segment).
     A query equal to a node takes the stored values (the left one of a repeated node from the
     left, the right one from the right; zero outside the support); elsewhere both limits are
     the interpolated value.
     """
     n, idx = len(nodes), 0
-    zero = nodes[0] - nodes[0]
-    left: list[Any] = []
-    right: list[Any] = []
+    left: list[tuple[int, int]] = []
+    right: list[tuple[int, int]] = []
     for x in queries:
         while idx < n and nodes[idx] < x:
             idx += 1
         if idx < n and nodes[idx] == x:  # a node: idx its first occurrence
             last = idx + 1 if idx + 1 < n and nodes[idx + 1] == x else idx
-            left.append(values[idx] if idx > 0 else zero)
-            right.append(values[last] if last < n - 1 else zero)
+            left.append((values[idx] if idx > 0 else 0, 1))
+            right.append((values[last] if last < n - 1 else 0, 1))
             continue
         if idx <= 0 or idx >= n:
-            left.append(zero)
-            right.append(zero)
+            left.append((0, 1))
+            right.append((0, 1))
             continue
         x0, x1 = nodes[idx - 1], nodes[idx]
-        v = values[idx - 1] + (values[idx] - values[idx - 1]) * (x - x0) / (x1 - x0)
+        v = (values[idx - 1] * (x1 - x0) + (values[idx] - values[idx - 1]) * (x - x0), x1 - x0)
         left.append(v)
         right.append(v)
     return left, right
@@ -660,11 +693,11 @@ def _exact_delay_bound(
     """
     if np.iscomplexobj(N.values) or N.moment != 0:
         raise ParameterError("N", "a real DistributedDelay kernel of moment 0", N)
-    rational = _rationals()
-    nodes, values, tv, dev = _exact_pieces(N, rational)
+    tv, dev = _exact_pieces(N, _rationals())
+    (nodes, e), (values, f) = _dyadic(N.nodes.tolist()), _dyadic(N.values.tolist())
 
     def modulus(d: float) -> Fraction:
-        return _fraction(_exact_l1_modulus(nodes, values, rational(d)))
+        return _exact_l1_modulus(nodes, values, e, f, d)
 
     budget = Fraction(epsilon_0) - 2 * dev
     if tv == 0:

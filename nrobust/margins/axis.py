@@ -176,10 +176,27 @@ class AxisKernels:
                 k, unit_sign = index[key]
                 self.terms[side].append((k, complex(sign * unit_sign), d.poly))
         self.abs_moments = [np.array([float(u.abs_moment(0.0, k)) for k in range(4)]) for u in self.units]
+        self.contents = [_content(u) for u in self.units]
 
     def sums(self, s: NDArray, extra: int) -> list[NDArray[np.complex128]]:
         """``J_{m+extra}(s)`` of every kernel (read-only arrays, remembered: :class:`_RememberedSums`)."""
-        return [_remembered_sum(u, extra, s) for u in self.units]
+        return [_remembered_sum(u, c, extra, s) for u, c in zip(self.units, self.contents)]
+
+
+def _content(unit: DistributedDelay) -> tuple:
+    """Every stored number of ``unit`` as bytes (with types and shapes): equal for kernels summed alike.
+
+    Formed once per kernel, it keys :class:`_RememberedSums` without hashing and comparing the
+    kernel's arrays at every look-up.
+    """
+    arrays = (unit.nodes, unit.poly, unit.values, unit.pieces[2])
+    return (
+        unit.moment,
+        unit.interpolation,
+        unit.radius,
+        unit.variation_radius,
+        *(f"{a.dtype.str}{a.shape}".encode() + a.tobytes() for a in arrays),
+    )
 
 
 class _RememberedSums:
@@ -193,7 +210,7 @@ class _RememberedSums:
     """
 
     def __init__(self) -> None:
-        self._kept: collections.OrderedDict[tuple[DistributedDelay, int, str, tuple[int, ...], bytes], NDArray] = (
+        self._kept: collections.OrderedDict[tuple[tuple, int, str, tuple[int, ...], bytes], NDArray] = (
             collections.OrderedDict()
         )
         self._bytes = 0
@@ -201,9 +218,10 @@ class _RememberedSums:
         # on the instance only, as on an lru_cache (the class itself is no cache to empty)
         self.cache_clear: Callable[[], None] = self._forget
 
-    def __call__(self, unit: DistributedDelay, extra: int, s: NDArray) -> NDArray[np.complex128]:
+    def __call__(self, unit: DistributedDelay, content: tuple, extra: int, s: NDArray) -> NDArray[np.complex128]:
+        """The sum of ``unit`` (stored numbers ``content``, :func:`_content`) with ``extra`` more powers at ``s``."""
         # equal kernels stored as real and as complex numbers are summed differently: the types enter the key
-        key = (unit, extra, unit.values.dtype.str + s.dtype.str, s.shape, s.tobytes())
+        key = (content, extra, s.dtype.str, s.shape, s.tobytes())
         with self._lock:
             hit = self._kept.get(key)
             if hit is not None:

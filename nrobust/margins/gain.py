@@ -321,28 +321,38 @@ def _solve(
     """
     lo, hi, flo, fhi = (np.array(v, dtype=float) for v in (lo, hi, flo, fhi))
     out = np.where(flo == 0, lo, np.where(fhi == 0, hi, np.nan))
-    side = np.zeros(lo.size, dtype=int)
+    # the open brackets only (their indices k), each with the side of its last step (-1, 0, 1)
+    k = np.flatnonzero(np.isnan(out))
+    a, b, fa, fb, side = lo[k], hi[k], flo[k], fhi[k], np.zeros(k.size, dtype=int)
     for it in range(_MAX_SOLVE):
-        active = np.flatnonzero(np.isnan(out) & (hi - lo > rtol * np.maximum(np.abs(lo), np.abs(hi))))
-        if not active.size:
+        wide = b - a > rtol * np.maximum(np.abs(a), np.abs(b))
+        if not wide.all():  # narrow enough: the midpoint
+            out[k[~wide]] = 0.5 * (a[~wide] + b[~wide])
+            k, side = k[wide], side[wide]
+            a, b, fa, fb = a[wide], b[wide], fa[wide], fb[wide]
+        if not k.size:
             break
-        a, b, fa, fb = lo[active], hi[active], flo[active], fhi[active]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x = (a * fb - b * fa) / (fb - fa)
-        bisect = ~np.isfinite(x) | (x <= a) | (x >= b) | (it % 4 == 3)
-        x[bisect] = 0.5 * (a + b)[bisect]
-        fx = f(x, active)
-        out[active[fx == 0]] = x[fx == 0]
+        if it % 4 == 3:
+            x = 0.5 * (a + b)
+        else:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                x = (a * fb - b * fa) / (fb - fa)
+            bisect = ~np.isfinite(x) | (x <= a) | (x >= b)
+            x[bisect] = 0.5 * (a + b)[bisect]
+        fx = f(x, k)
         left = fx * fa < 0
-        right = ~left & (fx != 0)
-        i, j = active[left], active[right]
-        hi[i], fhi[i] = x[left], fx[left]
-        flo[i] = np.where(side[i] == 1, 0.5 * flo[i], flo[i])
-        side[i] = 1
-        lo[j], flo[j] = x[right], fx[right]
-        fhi[j] = np.where(side[j] == -1, 0.5 * fhi[j], fhi[j])
-        side[j] = -1
-    return np.where(np.isnan(out), 0.5 * (lo + hi), out)
+        zero = fx == 0
+        right = ~left & ~zero
+        fa = np.where(right, fx, np.where(left & (side == 1), 0.5 * fa, fa))
+        fb = np.where(left, fx, np.where(right & (side == -1), 0.5 * fb, fb))
+        a, b = np.where(right, x, a), np.where(left, x, b)
+        side = np.where(left, 1, np.where(right, -1, side))
+        if zero.any():  # an exact zero
+            out[k[zero]] = x[zero]
+            k, side = k[~zero], side[~zero]
+            a, b, fa, fb = a[~zero], b[~zero], fa[~zero], fb[~zero]
+    out[k] = 0.5 * (a + b)
+    return out
 
 
 def _sign_changes(f: NDArray[np.float64], valid: NDArray[np.bool_] | None = None) -> NDArray[np.intp]:
@@ -376,8 +386,11 @@ class _AxisGrid:
         self.loop, self.dw = loop, dw
         self.w = np.zeros(0)
         self.parts: tuple[NDArray[np.complex128], ...] = tuple(np.zeros(0, dtype=complex) for _ in range(9))
+        # the same samples as one array (S, B_0, R) x (value, two w-derivatives) x samples, so that
+        # the interpolants of the three functions take one operation per basis function
+        self._stack = np.zeros((3, 3, 0), dtype=complex)
         self._first = tuple(P.derivative() for P in (loop.S, loop.B0, loop.R))
-        self.roots: dict[tuple, NDArray[np.float64]] = {}  # the scans' roots of the interpolants
+        self.roots: dict[tuple, dict[int, float]] = {}  # the scans' roots of the interpolants, per cell
         sixth = sum(_sixth_derivative_bound(P) for P in (loop.S, loop.B0, loop.B0, loop.R))
         #: Bound of the interpolation error of ``|A| + |B_0| + |R|`` between samples.
         self.error = float(sixth * dw**6 / 46080.0)
@@ -392,6 +405,7 @@ class _AxisGrid:
         for P, P1 in zip((self.loop.S, self.loop.B0, self.loop.R), self._first):
             new += [P(s), 1j * P1(s), -P1.deriv_at(s)]  # P(i w) and its first two w-derivatives
         self.parts = tuple(np.concatenate([old, part]) for old, part in zip(self.parts, new))
+        self._stack = np.reshape(np.stack(self.parts), (3, 3, -1))
         self.w = np.concatenate([self.w, s.imag])
 
     def samples(self, n: int) -> _Axis:
@@ -412,11 +426,21 @@ class _AxisGrid:
             (t3 - 2 * t4 + t5) * h**2 / 2,
         )
 
-        def interp(f: NDArray, df: NDArray, ddf: NDArray, b: tuple) -> NDArray[np.complex128]:
-            return b[0] * f[j] + b[1] * df[j] + b[2] * ddf[j] + b[3] * f[j + 1] + b[4] * df[j + 1] + b[5] * ddf[j + 1]
+        # rows S, B_0, R at the left and right samples of each cell; the sums run in the order
+        # b_0 f_j + b_1 f'_j + b_2 f''_j + b_3 f_{j+1} + b_4 f'_{j+1} + b_5 f''_{j+1}
+        left, right = self._stack[:, :, j], self._stack[:, :, j + 1]
 
-        S, dS, ddS, B0, dB0, ddB0, R, dR, ddR = self.parts
-        s, b0, r = interp(S, dS, ddS, basis), interp(B0, dB0, ddB0, basis), interp(R, dR, ddR, basis)
+        def interp(b: tuple) -> NDArray[np.complex128]:
+            return (
+                b[0] * left[:, 0]
+                + b[1] * left[:, 1]
+                + b[2] * left[:, 2]
+                + b[3] * right[:, 0]
+                + b[4] * right[:, 1]
+                + b[5] * right[:, 2]
+            )
+
+        s, b0, r = interp(basis)
         if not slopes:
             return _Axis(x, s - b0, b0, r)
         slope = (
@@ -427,8 +451,8 @@ class _AxisGrid:
             -12 * t2 + 28 * t3 - 15 * t4,
             (3 * t2 - 8 * t3 + 5 * t4) * h / 2,
         )
-        ds, db0 = interp(S, dS, ddS, slope), interp(B0, dB0, ddB0, slope)
-        return _Axis(x, s - b0, b0, r, ds - db0, db0, interp(R, dR, ddR, slope))
+        ds, db0, dr = interp(slope)
+        return _Axis(x, s - b0, b0, r, ds - db0, db0, dr)
 
 
 class _Scan:
@@ -528,16 +552,18 @@ class _Scan:
     ) -> NDArray[np.float64]:
         """Zeros of ``f`` of the interpolated loop in the cells ``[w_j, w_{j+1}]`` (a sign change each).
 
-        Kept by the grid under ``key`` and the cells: a later window on the same grid reuses them.
+        Kept by the grid under ``key``, per cell: a later window on the same (longer) grid solves
+        its new cells only (each cell is solved on its own, elementwise: the same root whatever
+        the other cells solved with it).
         """
-        memo = (key, j.tobytes())
-        if memo not in self.grid.roots:
+        memo = self.grid.roots.setdefault(key, {})
+        new = np.array([c for c in j.tolist() if c not in memo], dtype=np.intp)
+        if new.size:
             w, model = self.grid.w, self.grid.model
-            f_lo, f_hi = f(model(j, w[j], slopes)), f(model(j, w[j + 1], slopes))
-            self.grid.roots[memo] = _solve(
-                lambda x, k: f(model(j[k], x, slopes)), w[j], w[j + 1], f_lo, f_hi, _MODEL_RTOL
-            )
-        return self.grid.roots[memo]
+            f_lo, f_hi = f(model(new, w[new], slopes)), f(model(new, w[new + 1], slopes))
+            roots = _solve(lambda x, k: f(model(new[k], x, slopes)), w[new], w[new + 1], f_lo, f_hi, _MODEL_RTOL)
+            memo.update(zip(new.tolist(), roots.tolist()))
+        return np.array([memo[c] for c in j.tolist()], dtype=float)
 
     def _exact(
         self,

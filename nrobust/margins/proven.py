@@ -365,11 +365,12 @@ class _Axis:
         pts = [flint.acb(0, x) for x in w]  # floats or exact arb
         out = []
         sums = [u.many(pts) for u in self.units]
+        points = [None if f is None else f.many(pts) for f in self.points]
         for i, s in enumerate(pts):
             vals = []
             for side in range(2):
-                f = self.points[side]
-                v = f(s) if f is not None else flint.acb(0)
+                at = points[side]
+                v = at[i] if at is not None else flint.acb(0)
                 for k, c, q in self.terms[side]:
                     v += c * q(s) * sums[k][i]
                 vals.append(v)
@@ -520,23 +521,27 @@ def _plan(
     h = np.abs(a) - np.abs(b)
     floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
     small = np.abs(h) < floor
-    block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bounds.size - 1)
+    # the walk below reads single entries: Python lists of the same doubles (the same arithmetic)
+    lip = bounds[np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bounds.size - 1)].tolist()
+    step_min = float((w[1] - w[0]) * 1e-3)
+    size = w.size
+    small_at, w_at, h_at = small.tolist(), w.tolist(), np.abs(h).tolist()
     pts = [lo]
     x, k = lo, 0
     while x < hi:
-        while k + 1 < w.size and w[k + 1] <= x:
+        while k + 1 < size and w_at[k + 1] <= x:
             k += 1
-        nxt = min(k + 1, w.size - 1)
-        if small[k] or small[nxt]:  # jump over the small stretch: it becomes a cluster
+        nxt = min(k + 1, size - 1)
+        if small_at[k] or small_at[nxt]:  # jump over the small stretch: it becomes a cluster
             j = nxt
-            while j < w.size - 1 and small[j]:
+            while j < size - 1 and small_at[j]:
                 j += 1
-            x, k = float(w[j]), j
+            x, k = w_at[j], j
             pts.append(x)
             continue
-        local = min(abs(h[k]), abs(h[nxt]))
-        L = max(bounds[block[k]], bounds[block[nxt]])
-        x = min(x + max(_PLAN_FRACTION * local / L, (w[1] - w[0]) * 1e-3), hi)
+        local = min(h_at[k], h_at[nxt])
+        L = max(lip[k], lip[nxt])
+        x = min(x + max(_PLAN_FRACTION * local / L if L > 0.0 else math.inf, step_min), hi)
         pts.append(x)
     return np.unique(np.asarray(pts))
 

@@ -215,6 +215,13 @@ def _model_error(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int | None
 ) -> ModelError:
     """No model on the exact route; on the kernel route, the margin on the grid and on two coarser ones."""
+    gains = isinstance(controller, StateFeedback) and any(
+        callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v)
+    )
+    if getattr(system, "uncoupled", False) and not gains:  # integral gains: Simpson's rule on the grid
+        return ModelError(
+            0, 0, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
+        )
     if loop_route(system, controller, grid) == "exact":
         return ModelError(
             0,
@@ -223,13 +230,6 @@ def _model_error(
             margin.margin,
             0.0,
             "no model: N~ (and a state feedback's gain kernels) in closed form, its proven error bound in every proof",
-        )
-    gains = isinstance(controller, StateFeedback) and any(
-        callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v)
-    )
-    if getattr(system, "uncoupled", False) and not gains:  # integral gains: Simpson's rule on the grid
-        return ModelError(
-            0, 0, margin.margin, margin.margin, 0.0, "no kernel (uncoupled plant, N~ = 0): the loop is exact"
         )
     grid = DEFAULT_KERNEL_GRID if grid is None else grid
     coarse = (grid - 1) // 2 + 1
