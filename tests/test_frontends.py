@@ -21,6 +21,8 @@ from nrobust.hyperbolic.loops.controllers import (
     ReflectionController,
     StateFeedback,
     characteristic,
+    loop_route,
+    normalize,
 )
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
 from nrobust.hyperbolic.plants.frontends import GRAVITY, arz, from_riemann, saint_venant
@@ -446,15 +448,19 @@ def test_from_riemann_matches_general_plant():
 
 # ------------------------------------------------------------------ files and examples
 @pytest.mark.parametrize("name", ["saint_venant.toml", "arz.toml"])
-def test_toml_files_load_through_the_normal_form(name):
+def test_toml_files_with_constant_coefficients_are_analysed_as_written(name):
+    """Uniform flow and the ARZ equilibrium: constant coefficients, so the exact route, no normal form."""
     spec = load_system_file(EXAMPLES / name)
-    assert isinstance(spec["system"], Hyperbolic2x2)
+    assert spec["system"] is spec["given_system"] and isinstance(spec["system"], GeneralHyperbolic2x2)
+    assert loop_route(spec["system"], spec["controller"]) == "exact"
 
 
 def test_toml_state_feedback_gains_are_physical():
     spec = load_system_file(EXAMPLES / "saint_venant.toml")
+    assert spec["controller"].k == 1.0  # analysed as written (the exact route): the file's physical gain
     form = saint_venant(**POOL, discharge=10.0, time_unit=60.0).system.normal_form()
-    assert spec["controller"].k == pytest.approx(form.feedback_to_normal(1.0, 0.0, 0.0)[0], rel=1e-14)
+    law = normalize(spec["system"], spec["controller"])[1]
+    assert law.k == pytest.approx(form.feedback_to_normal(1.0, 0.0, 0.0)[0], rel=1e-14)
 
 
 @pytest.mark.slow
