@@ -38,6 +38,7 @@ from .errors import (
 )
 from .hyperbolic.analyses import (
     ABRegion as ABRegion,
+    ExactFilteredDesign as ExactFilteredDesign,
     FilteredDesign as FilteredDesign,
     GainEnd as GainEnd,
     KRegion as KRegion,
@@ -49,6 +50,7 @@ from .hyperbolic.analyses import (
     ab_region as ab_region,
     delay_margin as delay_margin,
     design_filtered as design_filtered,
+    design_filtered_exact as design_filtered_exact,
     design_reflection as design_reflection,
     design_state_feedback as design_state_feedback,
     filtered_front as filtered_front,

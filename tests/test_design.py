@@ -258,3 +258,14 @@ def test_design_command_states_the_requirement_and_the_edge(tmp_path: Path) -> N
     assert data["margin_at_least"] == 0.15
     edge = data["edge"]
     assert edge["margin_below"] >= 0.15 > edge["margin_above"]  # the pair born past K = 0.1417493386
+
+
+def test_a_requirement_above_the_best_margin_is_a_bad_input() -> None:
+    """No gain reaches 0.3 on the paper's plant (the best is 0.2322925, a kink): a ParameterError that says so."""
+    loop = u_bs2_loop(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85))
+    with pytest.raises(ParameterError, match=r"margin_at_least must be at most 0\.232292") as info:
+        best_decay_rate(loop, BOUNDS, margin_at_least=0.3)
+    assert "kink" in str(info.value)
+    design = best_margin(loop, BOUNDS)
+    assert repr(design).startswith("GainDesign(K=0.0785529300") and "+-" in repr(design)
+    assert all(type(a) is float for a in design.accuracy)

@@ -35,6 +35,7 @@ from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
 from nrobust.hyperbolic.analyses import (
     ab_region,
     design_filtered,
+    design_filtered_exact,
     design_reflection,
     design_state_feedback,
     k_region,
@@ -53,7 +54,7 @@ from nrobust.hyperbolic.loops.controllers import (
 )
 from nrobust.hyperbolic.loops.delay_form import delay_form
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
-from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, nplusm_delay_margin
+from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, design_nplusm_gains, nplusm_delay_margin
 from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
 from nrobust.hyperbolic.plants.frontends import arz, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
@@ -214,7 +215,18 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "FilteredDesign": design_filtered(
             TRANSPORT, parameters={"K": (-0.3, 0.3), "a": 0.1, "b": 0.1}, x0=[0.1], starts=1, max_iter=3
         ),
+        "ExactFilteredDesign": design_filtered_exact(
+            TRANSPORT, "margin", parameters={"b": (0.3, 1.5), "K": 0.1, "a": 0.0}
+        ),
         "MismatchRegion": mismatch,
+        "NPlusMGainDesign": design_nplusm_gains(
+            NPlusMSystem.from_2x2(Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)),
+            "margin",
+            K_bounds=(-0.8, -0.5),
+            x0=[[-0.6]],
+            starts=1,
+            max_iter=3,
+        ),
         "StateFeedbackDesign": design_state_feedback(
             TRANSPORT, "decay_rate", k_bounds=(-0.3, 0.3), kernel_grid=None, starts=1
         ),
@@ -291,7 +303,9 @@ NAMES = [
     "LocalRun",
     "ParetoFront",
     "FilteredDesign",
+    "ExactFilteredDesign",
     "MismatchRegion",
+    "NPlusMGainDesign",
     "StateFeedbackDesign",
 ]
 

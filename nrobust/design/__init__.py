@@ -1,6 +1,7 @@
 """Controller design with certificates, on parametrised loops ``A(s; p) + B(s; p) e^{-delta s}``.
 
-``gain``: one gain of an affine loop (``U_BS2(K)``'s, eq. (60)), exactly: the gain with the
+``gain``: one gain of an affine loop (``U_BS2(K)``'s, eq. (60)), or one parameter of a loop
+affine in it in both factors (:class:`AffineLoop`: the filtered law's zero or pole), exactly: the gain with the
 largest delay margin (:func:`best_margin`: a kink, a pair birth, an interior maximum or an
 end, solved from its equation) or the largest decay rate under a required margin
 (:func:`best_decay_rate`), each design certified by :mod:`nrobust.margins`.
@@ -12,22 +13,37 @@ line search, then a pattern search over axes and diagonals; every iterate feasib
 (:func:`pareto_front`).
 """
 
-from .gain import DESIGN_KINDS, GainDesign, best_decay_rate, best_margin
-from .local import GAMMA_MAX, OBJECTIVES, LocalRun, LoopDesign, ParametricLoop, delayed_gamma, optimize_loop
+from .gain import DESIGN_KINDS, AffineLoop, GainDesign, best_decay_rate, best_margin
+from .local import (
+    GAMMA_MAX,
+    OBJECTIVES,
+    LocalProblem,
+    LocalRun,
+    LoopDesign,
+    ParametricLoop,
+    TrialPoint,
+    delayed_gamma,
+    local_runs,
+    optimize_loop,
+)
 from .pareto import ParetoFront, pareto_front
 
 __all__ = [
     "DESIGN_KINDS",
     "GAMMA_MAX",
     "OBJECTIVES",
+    "AffineLoop",
     "GainDesign",
+    "LocalProblem",
     "LocalRun",
     "LoopDesign",
     "ParametricLoop",
     "ParetoFront",
+    "TrialPoint",
     "best_decay_rate",
     "best_margin",
     "delayed_gamma",
+    "local_runs",
     "optimize_loop",
     "pareto_front",
 ]

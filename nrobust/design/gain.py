@@ -1,13 +1,19 @@
 """One gain, exactly: the gain of an affine loop that maximises its delay margin or its decay rate.
 
 The loop is an :class:`~nrobust.margins.AffineGainLoop`,
-``F(s; delta, K) = A(s) + (B_0(s) + K R(s)) e^{-delta s}`` (``U_BS2(K)``'s, eq. (60), is one).
+``F(s; delta, K) = A(s) + (B_0(s) + K R(s)) e^{-delta s}`` (``U_BS2(K)``'s, eq. (60), is one), or
+an :class:`AffineLoop`, affine in its parameter in both factors,
+``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` (the filtered law's pole ``b`` enters ``A``):
+``g`` below is then ``c_0 + 2 h K + c_2 K^2`` with ``c_2 = |A_1|^2 - |B_1|^2``, its roots
+``K_pm = m +- sqrt(D)`` as explicit, and the same equations apply with ``A`` depending on ``K``
+(a branch passes through ``K = inf`` where ``c_2`` changes sign: the curves are cut there too).
 Its delay margin ``delta*(K)`` is the lower envelope of the *crossing curves*: on
 ``s = i w`` a root lies on the axis when ``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 = 0``, which
 is quadratic in ``K`` with the explicit roots ``K_pm(w) = m(w) +- sqrt(D(w))``
 (:mod:`nrobust.margins.gain`), at the delay ``d(w) = theta(w) / w``,
 ``theta = arg(-B(i w; K)/A(i w)) in [0, 2 pi)``. Each branch, cut where ``K_pm(w)`` turns
-(a *pair birth*: ``g = dg/dw = 0``), where ``D < 0`` or where ``theta`` wraps, is a curve
+(a *pair birth*: ``g = dg/dw = 0``), where ``D < 0`` or where ``theta`` wraps (solved between
+the samples: the nominal loop changes stability there), is a curve
 ``w -> (K(w), d(w))`` with ``K`` monotone, and ``delta*(K)`` is the smallest ``d`` over the
 curves that reach ``K`` (zero where the nominal loop is unstable). It is neither smooth nor
 continuous, and its maximum over ``[K_lo, K_hi]`` is one of:
@@ -49,15 +55,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import finite_real, positive, positive_int
+from ..bounds import root_free_region
 from ..errors import CertificationError, ParameterError
 from ..margins.axis import frequency_bound
+from ..margins.count import unstable_count
 from ..margins.gain import AffineGainLoop, AxisBound, GainEnd, nominally_stable
 from ..margins.margin import DelayMargin, delay_margin
+from ..quasipoly import QuasiPolynomial
 from ..roots import SpectralAbscissa, spectral_abscissa
 
-__all__ = ["DESIGN_KINDS", "GainDesign", "best_decay_rate", "best_margin"]
+__all__ = ["DESIGN_KINDS", "AffineLoop", "GainDesign", "best_decay_rate", "best_margin"]
 
 #: Kinds of an optimal gain (:attr:`GainDesign.kind`).
 DESIGN_KINDS = ("kink", "pair birth", "end", "interior smooth max", "margin constraint", "no crossing")
@@ -89,7 +99,7 @@ class GainDesign:
     Attributes
     ----------
     K : float
-        The designed gain.
+        The designed gain (the designed parameter ``p`` of an :class:`AffineLoop`).
     objective : str
         ``"margin"`` or ``"decay_rate"``.
     value : float
@@ -149,13 +159,15 @@ class GainDesign:
     def accuracy(self) -> tuple[float, float]:
         """``(width of K_bracket, width of value_bracket)``: how tightly the optimum is known."""
         (k_lo, k_hi), (v_lo, v_hi) = self.K_bracket, self.value_bracket
-        return (k_hi - k_lo, 0.0 if v_hi == v_lo else v_hi - v_lo)
+        return (float(k_hi - k_lo), 0.0 if v_hi == v_lo else float(v_hi - v_lo))
 
     def __repr__(self) -> str:
+        k_acc, v_acc = self.accuracy
+        margin_acc = v_acc if self.objective == "margin" else self.certificate.accuracy
         return (
-            f"GainDesign(K={self.K:.12g}, objective={self.objective!r}, kind={self.kind!r}, "
-            f"margin={self.margin:.12g}, decay_rate={self.decay_rate:.12g}, accuracy=({self.accuracy[0]:.2g}, "
-            f"{self.accuracy[1]:.2g}), certified={self.certified!r})"
+            f"GainDesign(K={with_accuracy(self.K, k_acc)}, objective={self.objective!r}, kind={self.kind!r}, "
+            f"margin={with_accuracy(self.margin, margin_acc)}, "
+            f"decay_rate={with_accuracy(self.decay_rate, self.abscissa.accuracy)}, certified={self.certified!r})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -164,6 +176,216 @@ class GainDesign:
         data["end"] = None if self.end is None else self.end._asdict()
         data["accuracy"] = list(self.accuracy)
         return data
+
+
+@dataclass(frozen=True)
+class AffineLoop:
+    """A loop affine in one parameter in both factors: ``(A_0 + p A_1) + (B_0 + p B_1) e^{-delta s}``.
+
+    :class:`~nrobust.margins.AffineGainLoop` is the case ``A_1 = 0`` (``B_1 = R``). The filtered
+    law ``FilteredController(a, b, K)`` (eq. (60) with ``A`` multiplied by ``1 + b s`` and ``B``
+    by ``1 + a s``) is affine in each of its parameters: in ``K`` and in ``a`` with ``A_1 = 0``,
+    in the pole ``b`` with ``A_1 = s A_0`` and ``B_1 = 0``. On ``s = i w``,
+    ``g(w; p) = |A|^2 - |B|^2 = c_0 + 2 h p + c_2 p^2`` is quadratic in ``p``
+    (``c_2 = |A_1|^2 - |B_1|^2``), so the crossing curves are explicit as for a gain.
+
+    Parameters
+    ----------
+    A0, A1, B0, B1 : QuasiPolynomial
+        The factors at ``p = 0`` and their changes per unit ``p`` (a zero change is
+        ``QuasiPolynomial([[0.0]], [0.0])``).
+    """
+
+    A0: QuasiPolynomial
+    A1: QuasiPolynomial
+    B0: QuasiPolynomial
+    B1: QuasiPolynomial
+
+    @classmethod
+    def of(cls, loop: AffineGainLoop) -> AffineLoop:
+        """``A + (B_0 + K R) e^{-delta s}`` as ``A_0 = A``, ``A_1 = 0``, ``B_0``, ``B_1 = R``."""
+        return cls(loop.A, QuasiPolynomial([[0.0]], [0.0]), loop.B0, loop.R)
+
+    def A(self, p: float) -> QuasiPolynomial:
+        """The factor without delay ``A_0 + p A_1``."""
+        return self.A0 + self.A1 * p
+
+    def B(self, p: float) -> QuasiPolynomial:
+        """The delayed factor ``B_0 + p B_1``."""
+        return self.B0 + self.B1 * p
+
+    def loop_at(self, p: float, delta: float) -> QuasiPolynomial:
+        """``F(.; delta, p)``."""
+        B = self.B(p)
+        return self.A(p) + (B.shift(delta) if delta > 0 else B)
+
+
+def _is_zero(P: QuasiPolynomial) -> bool:
+    return not P.point_terms and not P.distributed
+
+
+@dataclass(frozen=True)
+class _Axis:
+    """``A_0, A_1, B_0, B_1`` at ``s = i w`` and their ``w``-derivatives (``None``: not computed)."""
+
+    w: NDArray[np.float64]
+    a0: NDArray[np.complex128]
+    a1: NDArray[np.complex128]
+    b0: NDArray[np.complex128]
+    b1: NDArray[np.complex128]
+    da0: Any = None
+    da1: Any = None
+    db0: Any = None
+    db1: Any = None
+
+    def branches(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(D, m, sqrt D)``: ``g = 0`` at ``p = m +- sqrt D`` (``D >= 0``; ``D = -inf`` where ``c_2 = 0``).
+
+        With ``x = conj(A_0) A_1``, ``y = conj(B_0) B_1``: ``h = Re x - Re y``, ``m = -h / c_2`` and
+        ``c_2^2 D = h^2 - c_2 c_0 = |A_1 B_0|^2 + |A_0 B_1|^2 - (Im x)^2 - (Im y)^2 - 2 Re x Re y``
+        (for a gain, ``A_1 = 0``: ``|A R|^2 - (Im conj(B_0) R)^2``, no cancellation of ``|B_0 R|^2``).
+        """
+        x, y = np.conj(self.a0) * self.a1, np.conj(self.b0) * self.b1
+        c2 = np.abs(self.a1) ** 2 - np.abs(self.b1) ** 2
+        disc = (
+            np.abs(self.a1 * self.b0) ** 2
+            + np.abs(self.a0 * self.b1) ** 2
+            - x.imag**2
+            - y.imag**2
+            - 2.0 * x.real * y.real
+        )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            D = np.where(c2 != 0.0, disc / np.where(c2 != 0.0, c2, 1.0) ** 2, -np.inf)
+            m = np.where(c2 != 0.0, -(x.real - y.real) / np.where(c2 != 0.0, c2, 1.0), 0.0)
+        return D, m, np.sqrt(np.maximum(D, 0.0))
+
+    def curvature(self) -> NDArray[np.float64]:
+        """``c_2 = |A_1|^2 - |B_1|^2``: where it changes sign a branch passes through ``p = inf``."""
+        return np.abs(self.a1) ** 2 - np.abs(self.b1) ** 2
+
+    def slopes(self, K: NDArray[np.float64], sigma: float) -> NDArray[np.float64]:
+        """``dp/dw = -g_w / g_p`` on the branch ``p = m + sigma sqrt D`` (zero at a pair birth)."""
+        A, B = self.a0 + K * self.a1, self.b0 + K * self.b1
+        dA, dB = self.da0 + K * self.da1, self.db0 + K * self.db1
+        g_w = 2.0 * ((np.conj(A) * dA).real - (np.conj(B) * dB).real)
+        g_p = 2.0 * ((np.conj(A) * self.a1).real - (np.conj(B) * self.b1).real)  # 2 c_2 sigma sqrt(D)
+        tiny = np.where(g_p >= 0.0, 1e-300, -1e-300)
+        return -g_w / np.where(np.abs(g_p) > 1e-300, g_p, tiny)
+
+    def theta(self, K: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        """``arg(-B/A)`` in ``[0, 2 pi)`` at the parameter ``K``."""
+        return np.mod(np.angle(-(self.b0 + K * self.b1) / (self.a0 + K * self.a1)), _TWO_PI)
+
+
+class _Family:
+    """The loop being designed, :class:`AffineGainLoop` or :class:`AffineLoop`, behind one interface."""
+
+    def __init__(self, loop: AffineGainLoop | AffineLoop) -> None:
+        self.loop = loop
+        self.gain = isinstance(loop, AffineGainLoop)
+        # A_1 = s A_0 or B_1 = s B_0 (a filter's pole or zero): evaluated from A_0, B_0
+        self.a1_times_s = self.b1_times_s = False
+        self.S0: QuasiPolynomial | None = None
+        if isinstance(loop, AffineGainLoop):
+            self.parts: tuple[QuasiPolynomial, ...] = (loop.A, loop.B0, loop.R)
+            self.a1_zero, self.b1_zero = True, False
+        else:
+            self.parts = (loop.A0, loop.A1, loop.B0, loop.B1)
+            self.a1_zero, self.b1_zero = _is_zero(loop.A1), _is_zero(loop.B1)
+            self.a1_times_s = not self.a1_zero and loop.A1 == loop.A0.times_poly([0.0, 1.0])
+            self.b1_times_s = not self.b1_zero and loop.B1 == loop.B0.times_poly([0.0, 1.0])
+            # A_0 + B_0 when distributed terms cancel in it (the unfiltered law's I_N - I_N): A_0 = S_0 - B_0
+            S0 = loop.A0 + loop.B0
+            self.S0 = S0 if len(S0.distributed) < len(loop.A0.distributed) else None
+        cheap = self.a1_zero + self.b1_zero + self.a1_times_s + self.b1_times_s
+        # evaluations of quasi-polynomials per sample of the axis (values and slopes)
+        self.evals_per_sample = _EVALS_PER_SAMPLE if self.gain else 2 * (4 - cheap)
+        self.max_delay = max(P.max_delay for P in self.parts)
+
+    def axis(self, w: NDArray[np.float64], slopes: bool = False) -> _Axis:
+        """The factors at ``s = i w`` (with their ``w``-derivatives when ``slopes``)."""
+        if isinstance(self.loop, AffineGainLoop):
+            at = self.loop.axis(w, slopes)
+            zero = np.zeros(at.w.shape, dtype=complex)
+            d = (at.da, zero if slopes else None, at.db0, at.dr)
+            return _Axis(at.w, at.a, zero, at.b0, at.r, *d)
+        s = 1j * np.asarray(w, dtype=float)
+        loop, zero = self.loop, np.zeros(s.shape, dtype=complex)
+        b0 = loop.B0(s)
+        a0 = loop.A0(s) if self.S0 is None else self.S0(s) - b0
+        a1 = zero if self.a1_zero else s * a0 if self.a1_times_s else loop.A1(s)
+        b1 = zero if self.b1_zero else s * b0 if self.b1_times_s else loop.B1(s)
+        if not slopes:
+            return _Axis(s.imag, a0, a1, b0, b1)
+        db0 = 1j * loop.B0.deriv_at(s)
+        da0 = 1j * loop.A0.deriv_at(s) if self.S0 is None else 1j * self.S0.deriv_at(s) - db0
+        # d/dw of (i w) P(i w) = i P + i w dP/dw
+        da1 = zero if self.a1_zero else 1j * a0 + s * da0 if self.a1_times_s else 1j * loop.A1.deriv_at(s)
+        db1 = zero if self.b1_zero else 1j * b0 + s * db0 if self.b1_times_s else 1j * loop.B1.deriv_at(s)
+        return _Axis(s.imag, a0, a1, b0, b1, da0, da1, db0, db1)
+
+    def A(self, p: float) -> QuasiPolynomial:
+        return self.loop.A if isinstance(self.loop, AffineGainLoop) else self.loop.A(p)
+
+    def B(self, p: float) -> QuasiPolynomial:
+        return self.loop.B(p)
+
+    def nominal(self, p: float) -> QuasiPolynomial:
+        """``F(.; 0, p)``."""
+        return self.loop.loop_at(p, 0.0)
+
+    def nominally_stable(self, p: float) -> bool:
+        """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``."""
+        if isinstance(self.loop, AffineGainLoop):
+            return nominally_stable(self.loop, p)
+        F = self.nominal(p)
+        return unstable_count(F, root_free_region(F).radius).stable
+
+    def zero_root(self) -> float | None:
+        """The parameter at which ``s = 0`` is a root for every delay (``F(0; ., p) = 0``), or None."""
+        s0 = np.array([0j])
+        if isinstance(self.loop, AffineGainLoop):
+            f0, f1 = complex(self.loop.S(s0)[0]), complex(self.loop.R(s0)[0])
+        else:
+            lp = self.loop
+            f0 = complex(lp.A0(s0)[0] + lp.B0(s0)[0])
+            f1 = complex(lp.A1(s0)[0] + lp.B1(s0)[0])
+        if f1 == 0.0:
+            return None
+        p0 = -f0 / f1
+        return p0.real if abs(p0.imag) <= 1e-12 * max(abs(p0), 1.0) else None
+
+    def crossing_bound(self, lo: float, hi: float) -> float:
+        """A frequency above every crossing of every parameter in ``[lo, hi]``.
+
+        For a gain (``A_1 = 0``) ``g`` is concave in ``p`` (``c_2 = -|B_1|^2``): the bounds at
+        the ends hold inside (:class:`~nrobust.margins.gain.AxisBound` when it applies, else
+        :func:`~nrobust.margins.frequency_bound`). Otherwise the largest bound at the ends and
+        at the point of ``[lo, hi]`` nearest 0; it holds inside when ``g`` is concave in ``p``
+        (``|A_1| <= |B_1|`` on the axis) or, for the filter's pole (``A = A_0 (1 + p s)``,
+        ``B_1 = 0``), because ``|A(i w)|^2 = |A_0|^2 (1 + p^2 w^2)`` grows with ``|p|``. For other
+        families a crossing above it is not scanned, and the certificate at the design catches
+        one that lowers the margin there.
+        """
+        if isinstance(self.loop, AffineGainLoop):
+            second = AxisBound.of(self.loop)
+            if second is not None:
+                W = second.W(lo, hi)
+                if np.isfinite(W):
+                    return W
+        points = [lo, hi] if self.a1_zero else [lo, hi, min(max(0.0, lo), hi)]
+        out = 0.0
+        for p in points:
+            b = frequency_bound(self.A(p), self.B(p))
+            if b is None:
+                raise ParameterError(
+                    "bounds",
+                    "parameters where the loop's difference operator is strongly stable (no frequency bound at "
+                    f"p = {p:.12g})",
+                    (lo, hi),
+                )
+            out = max(out, float(b[0]))
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,40 +409,81 @@ class _Piece:
 
 
 class _Curves:
-    """The crossing curves of an affine loop for the gains ``[K_lo, K_hi]``, sampled and exact."""
+    """The crossing curves of an affine loop for the parameters ``[K_lo, K_hi]``, sampled and exact."""
 
-    def __init__(self, loop: AffineGainLoop, K_lo: float, K_hi: float, max_evals: int) -> None:
+    def __init__(self, loop: _Family, K_lo: float, K_hi: float, max_evals: int) -> None:
         self.loop, self.K_lo, self.K_hi = loop, K_lo, K_hi
-        W = _crossing_bound(loop, K_lo, K_hi)
-        T = max(loop.A.max_delay, loop.B0.max_delay, loop.R.max_delay, 1e-3)
+        W = loop.crossing_bound(K_lo, K_hi)
+        T = max(loop.max_delay, 1e-3)
         # a power of two (exact uniform samples), at least _MIN_SAMPLES up to W
         dw = float(2.0 ** np.floor(np.log2(min(np.pi / (_STEPS * T), W / _MIN_SAMPLES))))
         self.W, self.dw = W, dw
         n = max(int(np.ceil(W / dw)), 16)
-        if n > max_evals // _EVALS_PER_SAMPLE:
+        if n > max_evals // loop.evals_per_sample:
             raise CertificationError(
                 f"the crossing curves of the gains [{K_lo:.12g}, {K_hi:.12g}] extend to W = {W:.6g}: sampling them "
-                f"needs about {_EVALS_PER_SAMPLE * n:.3g} evaluations, beyond max_evals={max_evals} (gains closer "
+                f"needs about {loop.evals_per_sample * n:.3g} evaluations, beyond max_evals={max_evals} (gains closer "
                 "to the strong-stability bound need more)"
             )
         w = dw * np.arange(1, n + 1, dtype=float)
-        D, m, root, dm, dD, at = self._sample(w)
+        D, m, root, at = self._sample(w)
         junctions = self._junctions(w, D)
+        pole = np.sign(at.curvature())
         self.pieces: list[_Piece] = []
         for sigma in (1.0, -1.0):
             K = m + sigma * root
-            slope = dm + sigma * dD / (2.0 * np.maximum(root, 1e-300))
-            theta = np.mod(np.angle(-(at.b0 + K * at.r) / at.a), _TWO_PI)
-            self._cut(sigma, w, K, slope, theta / w, theta, D, junctions)
+            slope = at.slopes(K, sigma)
+            theta = at.theta(K)
+            wraps = self._wraps(sigma, w, K, theta, D)
+            births = self._births(sigma, w, K, slope, theta / w, D)
+            self._cut(sigma, w, K, slope, theta / w, theta, D, junctions, pole, wraps, births)
         self.gains = np.linspace(K_lo, K_hi, _N_GAINS)
         self.envelope, self.active = self._envelope(self.gains)
 
-    def _sample(self, w: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray, Any]:
-        """``D, m, sqrt D, m', D'`` and the loop on the axis at ``w``."""
+    def _wraps(
+        self, sigma: float, w: NDArray, K: NDArray, theta: NDArray, D: NDArray
+    ) -> dict[int, tuple[float, float]]:
+        """``(w, K)`` where the branch's ``theta`` passes ``0 mod 2 pi`` (a root on the axis at ``delta = 0``).
+
+        Keyed by ``j``, the wrap in ``[w_j, w_{j+1}]``; only those with a parameter near the
+        bounds. Eight Illinois steps on the principal ``arg(-B/A)``, vectorised over the wraps:
+        the nominal stability changes there, and both pieces end there (the delay ``0`` on one
+        side, ``2 pi / w`` on the other).
+        """
+        if self.loop.gain:  # an AffineGainLoop keeps the sampled wraps
+            return {}
+        valid = D >= 0.0
+        span = self.K_hi - self.K_lo
+        near = (np.minimum(K[:-1], K[1:]) <= self.K_hi + span) & (np.maximum(K[:-1], K[1:]) >= self.K_lo - span)
+        j = np.flatnonzero(valid[:-1] & valid[1:] & (np.abs(np.diff(theta)) > np.pi) & near)
+        if not j.size:
+            return {}
+
+        def f(x: NDArray) -> NDArray:
+            _, m, root, at = self._sample(x)
+            return np.angle(-(at.b0 + (m + sigma * root) * at.b1) / (at.a0 + (m + sigma * root) * at.a1))
+
+        a, b = w[j].copy(), w[j + 1].copy()
+        fa, fb = f(a), f(b)
+        keep = fa * fb < 0
+        j, a, b, fa, fb = j[keep], a[keep], b[keep], fa[keep], fb[keep]
+        for _ in range(8):  # Illinois, as in _junctions
+            x = np.clip(a - fa * (b - a) / (fb - fa), np.minimum(a, b), np.maximum(a, b))
+            fx = f(x)
+            left = np.sign(fx) == np.sign(fa)
+            fb = np.where(left, 0.5 * fb, fb)
+            fa = np.where(left, fa, 0.5 * fa)
+            a, fa = np.where(left, x, a), np.where(left, fx, fa)
+            b, fb = np.where(left, b, x), np.where(left, fb, fx)
+        wx = np.where(np.abs(fa) < np.abs(fb), a, b)
+        _, m, root, _ = self._sample(wx)
+        return {int(k): (float(x), float(mk + sigma * rk)) for k, x, mk, rk in zip(j, wx, m, root)}
+
+    def _sample(self, w: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, _Axis]:
+        """``D, m, sqrt D`` and the loop on the axis at ``w`` (with slopes)."""
         at = self.loop.axis(w, slopes=True)
         D, m, root = at.branches()
-        dm, dD = at.branch_slopes()
-        return D, m, root, dm, dD, at
+        return D, m, root, at
 
     def _junctions(self, w: NDArray[np.float64], D: NDArray[np.float64]) -> dict[int, NDArray[np.float64]]:
         """Points of the branches between each junction (``D = 0``, in ``[w_j, w_{j+1}]``) and the valid sample.
@@ -256,12 +519,19 @@ class _Curves:
         theta: NDArray,
         D: NDArray,
         junctions: dict[int, NDArray[np.float64]],
+        pole: NDArray,
+        wraps: dict[int, tuple[float, float]],
+        births: dict[int, tuple[float, float, float]],
     ) -> None:
-        """Cut the branch into monotone pieces at extrema (births), junctions and phase wraps."""
+        """Cut the branch into monotone pieces at extrema (births), junctions, phase wraps and poles.
+
+        At a pole ``c_2`` changes sign: the branch leaves through ``p = +-inf`` and comes back
+        from the other side (never for a gain, ``c_2 = -|R|^2``).
+        """
         valid = D >= 0.0
         turn = valid[:-1] & valid[1:] & (np.sign(slope[:-1]) * np.sign(slope[1:]) < 0)
         wrap = valid[:-1] & valid[1:] & (np.abs(np.diff(theta)) > np.pi)
-        gap = valid[:-1] != valid[1:]
+        gap = (valid[:-1] != valid[1:]) | (pole[:-1] != pole[1:])
         cuts = np.flatnonzero(turn | wrap | gap)
         start, how = 0, "edge"
         for c in [*cuts.tolist(), w.size - 1]:
@@ -272,43 +542,137 @@ class _Curves:
                 stop = "birth"
             elif wrap[c]:
                 stop = "wrap"
+            elif pole[c] != pole[c + 1]:
+                stop = "pole"
             else:
                 stop = "junction"
             if valid[lo] and valid[hi]:
                 ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
-                if how == "birth":  # the extremum between the samples, from the linear slope
-                    ws, Ks, ds = self._extremum(w, K, slope, d, lo - 1, ws, Ks, ds, first=True)
+                if how == "birth":  # the extremum between the samples
+                    wb, Kb, db = births[lo - 1]
+                    ws, Ks, ds = np.r_[wb, ws], np.r_[Kb, Ks], np.r_[db, ds]
                 if stop == "birth":
-                    ws, Ks, ds = self._extremum(w, K, slope, d, hi, ws, Ks, ds, first=False)
+                    wb, Kb, db = births[hi]
+                    ws, Ks, ds = np.r_[ws, wb], np.r_[Ks, Kb], np.r_[ds, db]
                 if how == "junction" and lo - 1 in junctions:
                     wx, Kx, dx = self._on_branch_many(junctions[lo - 1], sigma)
                     ws, Ks, ds = np.r_[wx, ws], np.r_[Kx, Ks], np.r_[dx, ds]
                 if stop == "junction" and hi in junctions:
                     wx, Kx, dx = self._on_branch_many(junctions[hi], sigma)
                     ws, Ks, ds = np.r_[ws, wx[::-1]], np.r_[Ks, Kx[::-1]], np.r_[ds, dx[::-1]]
-                self.pieces.append(_Piece(sigma, ws, Ks, ds, how, stop))
+                if how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
+                    w_wrap, K_wrap = wraps[lo - 1]
+                    d_wrap = (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap
+                    ws, Ks, ds = np.r_[w_wrap, ws], np.r_[K_wrap, Ks], np.r_[d_wrap, ds]
+                if stop == "wrap" and hi in wraps:
+                    w_wrap, K_wrap = wraps[hi]
+                    d_wrap = (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap
+                    ws, Ks, ds = np.r_[ws, w_wrap], np.r_[Ks, K_wrap], np.r_[ds, d_wrap]
+                self.pieces.extend(self._split_at_wraps(sigma, ws, Ks, ds, how, stop))
             start, how = c + 1, stop
 
     def _on_branch_many(self, w: NDArray[np.float64], sigma: float) -> tuple[NDArray, NDArray, NDArray]:
         """``(w, K, d)`` on the branch ``sigma`` at the points ``w`` from a junction (``w[0]``, where ``K = m``)."""
-        _, m, root, _, _, at = self._sample(w)
+        _, m, root, at = self._sample(w)
         root[0] = 0.0  # both branches meet at the same gain
         K = m + sigma * root
-        theta = np.mod(np.angle(-(at.b0 + K * at.r) / at.a), _TWO_PI)
-        return w, K, theta / w
+        return w, K, at.theta(K) / w
 
-    @staticmethod
-    def _extremum(
-        w: NDArray, K: NDArray, slope: NDArray, d: NDArray, j: int, ws: NDArray, Ks: NDArray, ds: NDArray, first: bool
-    ) -> tuple[NDArray, NDArray, NDArray]:
-        """Add the estimated turning point on ``[w_j, w_{j+1}]`` to a piece."""
+    def _split_at_wraps(self, sigma: float, ws: NDArray, Ks: NDArray, ds: NDArray, how: str, stop: str) -> list[_Piece]:
+        """The piece, cut where its phase wraps between points added near a junction (not between samples).
+
+        Each such wrap is solved by ``brentq`` on the principal ``arg(-B/A)`` along the branch and
+        ends both parts (the delay ``0`` on one side, ``2 pi / w`` on the other).
+        """
+        from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+        theta = ds * ws
+        jumps = np.flatnonzero(np.abs(np.diff(theta)) > np.pi)
+        span = self.K_hi - self.K_lo
+        far = Ks.size and (np.min(Ks) > self.K_hi + span or np.max(Ks) < self.K_lo - span)
+        if not jumps.size or far or self.loop.gain:  # (a piece away from the bounds is never on the envelope)
+            return [_Piece(sigma, ws, Ks, ds, how, stop)]
+
+        def phase(x: float) -> float:
+            _, m, root, at = self._sample(np.array([x]))
+            K = m + sigma * root
+            return float(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1))[0])
+
+        out, start, start_how = [], 0, how
+        w_prev, K_prev, d_prev = np.zeros(0), np.zeros(0), np.zeros(0)
+        for c in jumps:
+            wa, wb = float(ws[c]), float(ws[c + 1])
+            fa, fb = phase(wa), phase(wb)
+            if fa * fb > 0:
+                continue
+            wx = brentq(phase, min(wa, wb), max(wa, wb), xtol=1e-15 * max(wa, wb), rtol=1e-15)
+            _, m, root, _ = self._sample(np.array([wx]))
+            Kx = float(m[0] + sigma * root[0])
+            end = (_TWO_PI if theta[c] > np.pi else 0.0) / wx
+            out.append(
+                _Piece(
+                    sigma,
+                    np.r_[w_prev, ws[start : c + 1], wx],
+                    np.r_[K_prev, Ks[start : c + 1], Kx],
+                    np.r_[d_prev, ds[start : c + 1], end],
+                    start_how,
+                    "wrap",
+                )
+            )
+            begin = (_TWO_PI if theta[c + 1] > np.pi else 0.0) / wx
+            w_prev, K_prev, d_prev = np.array([wx]), np.array([Kx]), np.array([begin])
+            start, start_how = c + 1, "wrap"
+        out.append(
+            _Piece(
+                sigma, np.r_[w_prev, ws[start:]], np.r_[K_prev, Ks[start:]], np.r_[d_prev, ds[start:]], start_how, stop
+            )
+        )
+        return out
+
+    def _births(
+        self, sigma: float, w: NDArray, K: NDArray, slope: NDArray, d: NDArray, D: NDArray
+    ) -> dict[int, tuple[float, float, float]]:
+        """``(w, K, d)`` at each extremum of the branch's ``K(w)`` (a pair birth) in ``[w_j, w_{j+1}]``, keyed by ``j``.
+
+        For an :class:`AffineLoop`, those with a parameter near the bounds are solved by twelve
+        Illinois steps on ``dK/dw`` (vectorised over the births); the others, and those of an
+        :class:`~nrobust.margins.AffineGainLoop`, are estimated from the linear slope (the
+        candidates near the top are solved exactly in any case).
+        """
+        valid = D >= 0.0
+        j = np.flatnonzero(valid[:-1] & valid[1:] & (np.sign(slope[:-1]) * np.sign(slope[1:]) < 0))
+        if not j.size:
+            return {}
         t = slope[j] / (slope[j] - slope[j + 1])
-        we = w[j] + t * (w[j + 1] - w[j])
-        Ke = K[j] + 0.5 * slope[j] * (we - w[j])
-        de = d[j] + t * (d[j + 1] - d[j])
-        if first:
-            return np.r_[we, ws], np.r_[Ke, Ks], np.r_[de, ds]
-        return np.r_[ws, we], np.r_[Ks, Ke], np.r_[ds, de]
+        wb = w[j] + t * (w[j + 1] - w[j])
+        Kb = K[j] + 0.5 * slope[j] * (wb - w[j])
+        db = d[j] + t * (d[j + 1] - d[j])
+        span = self.K_hi - self.K_lo
+        near = np.flatnonzero((Kb <= self.K_hi + span) & (Kb >= self.K_lo - span))
+        if near.size and not self.loop.gain:  # an AffineGainLoop keeps the estimates
+
+            def f(x: NDArray) -> NDArray:
+                _, m, root, at = self._sample(x)
+                return at.slopes(m + sigma * root, sigma)
+
+            a, b = w[j[near]].copy(), w[j[near] + 1].copy()
+            fa, fb = slope[j[near]].copy(), slope[j[near] + 1].copy()
+            for _ in range(12):  # Illinois, as in _junctions
+                x = np.clip(a - fa * (b - a) / (fb - fa), np.minimum(a, b), np.maximum(a, b))
+                fx = f(x)
+                left = np.sign(fx) == np.sign(fa)
+                fb = np.where(left, 0.5 * fb, fb)
+                fa = np.where(left, fa, 0.5 * fa)
+                a, fa = np.where(left, x, a), np.where(left, fx, fa)
+                b, fb = np.where(left, b, x), np.where(left, fb, fx)
+            wx = np.where(np.abs(fa) < np.abs(fb), a, b)
+            _, m, root, at = self._sample(wx)
+            Kx = m + sigma * root
+            theta = at.theta(Kx)
+            # the branch of the phase of the neighbouring sample
+            theta += _TWO_PI * np.round((d[j[near]] * w[j[near]] - theta) / _TWO_PI)
+            wb[near], Kb[near], db[near] = wx, Kx, theta / wx
+        return {int(k): (float(x), float(y), float(z)) for k, x, y, z in zip(j, wb, Kb, db)}
 
     def _envelope(self, gains: NDArray) -> tuple[NDArray, NDArray]:
         """The smallest interpolated delay over the pieces at each gain, and the piece that gives it."""
@@ -331,23 +695,20 @@ class _Curves:
         """Exact ``(K, d, dK/dw, dd/dw)`` on the branch ``sigma`` at ``w``."""
         at = self.loop.axis(np.array([w]), slopes=True)
         _, m, root = at.branches()
-        dm, dD = at.branch_slopes()
         K = float(m[0] + sigma * root[0])
-        dK = float(dm[0] + sigma * dD[0] / (2.0 * max(float(root[0]), 1e-300)))
-        a, da = complex(at.a[0]), complex(at.da[0])  # type: ignore[index]
-        b = complex(at.b0[0] + K * at.r[0])
-        db = complex(at.db0[0] + K * at.dr[0])  # type: ignore[index]
+        dK = float(at.slopes(np.array([K]), sigma)[0])
+        a, b, da, db, a1, b1 = self._values(np.array([w]), K, at)
         theta = float(np.mod(np.angle(-b / a), _TWO_PI))
         d = theta / w
         theta_w = (db / b - da / a).imag
-        theta_K = complex(at.r[0] / b).imag
+        theta_K = (b1 / b - a1 / a).imag
         return K, d, dK, ((theta_w + theta_K * dK) / w - d / w)
 
     def at_gain(self, K: float, w0: float, theta0: float | None = None) -> tuple[float, float, float, float]:
         """Newton on ``g(w; K) = 0`` from ``w0``: ``(w, d, dd/dK, dg/dw)`` (``d`` near ``theta0 / w``)."""
         w, previous = w0, np.inf
         for _ in range(_NEWTON_STEPS):
-            a, b, da, db, r = self._values(np.array([w]), K)
+            a, b, da, db, _, _ = self._values(np.array([w]), K)
             g = abs(a) ** 2 - abs(b) ** 2
             gw = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
             step = float(g / gw)
@@ -358,26 +719,31 @@ class _Curves:
             previous = abs(step)
         else:
             raise CertificationError(f"best_margin: Newton on |A(i w)| = |B(i w)| did not converge at K = {K:.15g}")
-        a, b, da, db, r = self._values(np.array([w]), K)
+        a, b, da, db, a1, b1 = self._values(np.array([w]), K)
         theta = float(np.mod(np.angle(-b / a), _TWO_PI))
         if theta0 is not None and abs(theta - theta0) > np.pi:  # the same branch of the phase
             theta += _TWO_PI * np.round((theta0 - theta) / _TWO_PI)
         g_w = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
-        g_K = -2.0 * (np.conj(b) * r).real
+        g_K = 2.0 * ((np.conj(a) * a1).real - (np.conj(b) * b1).real)
         theta_w = (db / b - da / a).imag
-        theta_K = (r / b).imag
+        theta_K = (b1 / b - a1 / a).imag
         dw_dK = -g_K / g_w
         d = theta / w
         return w, d, (theta_K + theta_w * dw_dK) / w - d * dw_dK / w, g_w
 
-    def _values(self, w: NDArray, K: float) -> tuple[complex, complex, complex, complex, complex]:
-        at = self.loop.axis(w, slopes=True)
+    def _values(
+        self, w: NDArray, K: float, at: _Axis | None = None
+    ) -> tuple[complex, complex, complex, complex, complex, complex]:
+        """``A, B, A', B'`` (``w``-derivatives) at ``i w[0]`` and the parameter ``K``, and ``A_1, B_1``."""
+        at = self.loop.axis(w, slopes=True) if at is None else at
+        a1, b1 = complex(at.a1[0]), complex(at.b1[0])
         return (
-            complex(at.a[0]),
-            complex(at.b0[0] + K * at.r[0]),
-            complex(at.da[0]),  # type: ignore[index]
-            complex(at.db0[0] + K * at.dr[0]),  # type: ignore[index]
-            complex(at.r[0]),
+            complex(at.a0[0]) + K * a1,
+            complex(at.b0[0]) + K * b1,
+            complex(at.da0[0] + K * at.da1[0]),
+            complex(at.db0[0] + K * at.db1[0]),
+            a1,
+            b1,
         )
 
     def kink(self, starts: list[float], p: _Piece, q: _Piece) -> tuple[float, float, float, float]:
@@ -398,16 +764,16 @@ class _Curves:
             rows, rhs = [], []
             ds = []
             for k, (wk, t0) in enumerate(zip(x[1:], th)):
-                a, b, da, db, r = self._values(np.array([wk]), x[0])
+                a, b, da, db, a1, b1 = self._values(np.array([wk]), x[0])
                 theta = float(np.mod(np.angle(-b / a), _TWO_PI))
                 theta += _TWO_PI * np.round((t0 - theta) / _TWO_PI)
                 g_w = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
-                g_K = -2.0 * (np.conj(b) * r).real
+                g_K = 2.0 * ((np.conj(a) * a1).real - (np.conj(b) * b1).real)
                 row = [g_K, 0.0, 0.0]
                 row[1 + k] = g_w
                 rows.append(row)
                 rhs.append(abs(a) ** 2 - abs(b) ** 2)
-                ds.append((theta / wk, (r / b).imag / wk, ((db / b - da / a).imag - theta / wk) / wk))
+                ds.append((theta / wk, (b1 / b - a1 / a).imag / wk, ((db / b - da / a).imag - theta / wk) / wk))
             (d1, d1K, d1w), (d2, d2K, d2w) = ds
             J = np.array([*rows, [d1K - d2K, d1w, -d2w]])
             step = np.linalg.solve(J, np.array([*rhs, d1 - d2]))
@@ -423,37 +789,32 @@ class _Curves:
     def value(self, K: float) -> float:
         """The envelope at ``K`` with each curve reaching it solved exactly (inf: none)."""
         best = float("inf")
+        cell = 4.0 * (self.K_hi - self.K_lo) / (_N_GAINS - 1)
         for piece in self.pieces:
             s = piece.at(K)
             if s is not None and s[1] < 1.05 * best:  # a curve that may be the lowest (5 %: the scan interpolates it)
-                best = min(best, self.at_gain(K, s[0], s[1] * s[0])[1])
+                try:
+                    best = min(best, self.at_gain(K, s[0], s[1] * s[0])[1])
+                except CertificationError:
+                    if self.loop.gain:
+                        raise
+                    # past the exact birth of a pair that the interpolated curve still reaches: no root to follow
+                    births = [k for k, how in ((piece.K[0], piece.start), (piece.K[-1], piece.stop)) if how == "birth"]
+                    if not any(abs(k - K) <= cell for k in births):
+                        raise
         return best
 
 
-def _crossing_bound(loop: AffineGainLoop, K_lo: float, K_hi: float) -> float:
-    """A frequency above every crossing of every gain in ``[K_lo, K_hi]`` (the bounds are convex in ``K``)."""
-    second = AxisBound.of(loop)
-    if second is not None:
-        W = second.W(K_lo, K_hi)
-        if np.isfinite(W):
-            return W
-    out = 0.0
-    for K in (K_lo, K_hi):
-        b = frequency_bound(loop.A, loop.B(K))
-        if b is None:
-            raise ParameterError(
-                "bounds",
-                f"gains where the loop's difference operator is strongly stable (no frequency bound at K = {K:.12g})",
-                (K_lo, K_hi),
-            )
-        out = max(out, float(b[0]))
-    return out
-
-
 def _checked_loop(loop: Any, bounds: Any) -> tuple[float, float]:
-    if not isinstance(loop, AffineGainLoop):
-        raise ParameterError("loop", "an AffineGainLoop A + (B_0 + K R) e^{-delta s}", type(loop).__name__)
-    if not (loop.A.is_real and loop.B0.is_real and loop.R.is_real):
+    if not isinstance(loop, (AffineGainLoop, AffineLoop)):
+        raise ParameterError(
+            "loop",
+            "an AffineGainLoop A + (B_0 + K R) e^{-delta s} or an AffineLoop (A_0 + p A_1) + (B_0 + p B_1) "
+            "e^{-delta s}",
+            type(loop).__name__,
+        )
+    parts = (loop.A, loop.B0, loop.R) if isinstance(loop, AffineGainLoop) else (loop.A0, loop.A1, loop.B0, loop.B1)
+    if not all(isinstance(P, QuasiPolynomial) and P.is_real for P in parts):
         raise ParameterError("loop", "real coefficients (crossings in conjugate pairs)", loop)
     try:
         lo, hi = (finite_real("bounds", b) for b in bounds)
@@ -464,9 +825,9 @@ def _checked_loop(loop: Any, bounds: Any) -> tuple[float, float]:
     return lo, hi
 
 
-def _certify(loop: AffineGainLoop, K: float, rigorous: bool, max_evals: int) -> tuple[DelayMargin, str]:
+def _certify(loop: _Family, K: float, rigorous: bool, max_evals: int) -> tuple[DelayMargin, str]:
     """The delay margin at ``K``: proven when asked and possible, else checked."""
-    A, B = loop.A, loop.B(K)
+    A, B = loop.A(K), loop.B(K)
     if rigorous:
         try:
             return delay_margin(A, B, max_evals=max_evals, rigorous=True), "proven"
@@ -475,25 +836,23 @@ def _certify(loop: AffineGainLoop, K: float, rigorous: bool, max_evals: int) -> 
     return delay_margin(A, B, max_evals=max_evals), "checked"
 
 
-def _nominal_mask(curves: _Curves, loop: AffineGainLoop) -> NDArray[np.bool_]:
+def _nominal_mask(curves: _Curves) -> NDArray[np.bool_]:
     """Nominal stability of ``F(.; 0, K)`` on the envelope grid: it changes only where a curve's delay wraps
     through 0 (a root on the axis at ``delta = 0``) or at ``s = 0``; decided once between two such gains."""
+    loop = curves.loop
     cuts = [float(p.K[-1]) for p in curves.pieces if p.stop == "wrap"]
-    s0 = np.array([0j])
-    r0 = complex(loop.R(s0)[0])
-    if r0 != 0.0:  # s = 0 is a root at K0 = -S(0)/R(0), for every delay
-        K0 = -complex(loop.S(s0)[0]) / r0
-        if abs(K0.imag) <= 1e-12 * max(abs(K0), 1.0):
-            cuts.append(K0.real)
+    K0 = loop.zero_root()  # s = 0 is a root there, for every delay
+    if K0 is not None:
+        cuts.append(K0)
     edges = sorted(c for c in cuts if curves.K_lo < c < curves.K_hi)
     bounds = [curves.K_lo, *edges, curves.K_hi]
     mask = np.zeros(curves.gains.size, dtype=bool)
     for lo, hi in itertools.pairwise(bounds):
         inside = (curves.gains > lo) & (curves.gains < hi) if hi > lo else np.zeros_like(mask)
-        if inside.any() and nominally_stable(loop, 0.5 * (lo + hi)):
+        if inside.any() and loop.nominally_stable(0.5 * (lo + hi)):
             mask |= inside
-    mask[0] = mask[0] or (curves.gains.size > 1 and mask[1] and nominally_stable(loop, curves.K_lo))
-    mask[-1] = mask[-1] or (curves.gains.size > 1 and mask[-2] and nominally_stable(loop, curves.K_hi))
+    mask[0] = mask[0] or (curves.gains.size > 1 and mask[1] and loop.nominally_stable(curves.K_lo))
+    mask[-1] = mask[-1] or (curves.gains.size > 1 and mask[-2] and loop.nominally_stable(curves.K_hi))
     return mask
 
 
@@ -645,12 +1004,12 @@ def _scale(curves: _Curves) -> float:
     return max(abs(curves.K_lo), abs(curves.K_hi))
 
 
-def _abscissa(loop: AffineGainLoop, K: float) -> SpectralAbscissa:
-    return spectral_abscissa(loop.loop_at(K, 0.0))
+def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
+    return spectral_abscissa(loop.nominal(K))
 
 
 def best_margin(
-    loop: AffineGainLoop,
+    loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
     *,
     rigorous: bool = False,
@@ -668,12 +1027,15 @@ def best_margin(
 
     Parameters
     ----------
-    loop : AffineGainLoop
+    loop : AffineGainLoop or AffineLoop
         ``A + (B_0 + K R) e^{-delta s}`` with real coefficients (``U_BS2(K)``'s, eq. (60):
-        :func:`nrobust.hyperbolic.analyses.kregion.u_bs2_loop`).
+        :func:`nrobust.hyperbolic.analyses.kregion.u_bs2_loop`), or
+        ``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` (``K`` any real parameter: the filtered
+        law's zero or pole, :meth:`nrobust.hyperbolic.analyses.filter_design.FilteredLoop.affine`).
     bounds : (float, float)
         ``K_lo < K_hi``, where the difference operator is strongly stable (for ``U_BS2(K)``:
-        ``|K| < (1 - |rho q|)/|q|``, eq. (54)).
+        ``|K| < (1 - |rho q|)/|q|``, eq. (54); for an :class:`AffineLoop` it is checked at the ends
+        and, when ``A_1 != 0``, at the point nearest 0).
     rigorous : bool, optional
         Prove the margin at the design in ball arithmetic (``certified == "proven"``); when
         the proof fails the margin is checked in floating point and ``certified`` says why.
@@ -688,42 +1050,42 @@ def best_margin(
     Raises
     ------
     ParameterError
-        ``loop`` not an ``AffineGainLoop`` with real coefficients, ``bounds`` not increasing or
-        reaching gains without a frequency bound.
+        ``loop`` not an ``AffineGainLoop`` or ``AffineLoop`` with real coefficients, ``bounds`` not
+        increasing or reaching gains without a frequency bound.
     CertificationError
         The sampling would exceed ``max_evals``, an equation did not converge, or the certified
         margin at the design disagrees with the equations (a crossing curve missed by the scan).
     """
     lo, hi = _checked_loop(loop, bounds)
     max_evals = positive_int("max_evals", max_evals)
-    curves = _Curves(loop, lo, hi, max_evals)
-    env = np.where(_nominal_mask(curves, loop), curves.envelope, 0.0)
+    curves = _Curves(_Family(loop), lo, hi, max_evals)
+    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
     scan = (curves.gains, env)
     if np.any(np.isinf(env)):  # gains that no crossing curve reaches, nominally stable: delta* = inf
         idx = np.flatnonzero(np.isinf(env))
         run = max(np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1), key=len)
         K = float(curves.gains[run[run.size // 2]])  # the middle of the longest run
-        cert, how = _certify(loop, K, rigorous, max_evals)
+        cert, how = _certify(curves.loop, K, rigorous, max_evals)
         if not np.isinf(cert.margin):
             raise CertificationError(
                 f"best_margin: no crossing curve reaches K = {K:.12g}, but its delay margin is {cert.margin}"
             )
         inf = float("inf")
-        sa = _abscissa(loop, K)
+        sa = _abscissa(curves.loop, K)
         return GainDesign(
             K, "margin", inf, inf, -sa.value, "no crossing", (K, K), (inf, inf), (lo, hi), cert, how, sa, *scan
         )
     finite = env
     solved = [_solve_candidate(curves, i) for i in _candidates(finite)]
     K, value, kind, K_br, v_br = max(solved, key=lambda c: c[1])
-    cert, how = _certify(loop, K, rigorous, max_evals)
+    cert, how = _certify(curves.loop, K, rigorous, max_evals)
     tol = 1e-9 * max(value, 1e-300) + (cert.accuracy or 0.0)
     if abs(cert.margin - value) > tol:
         raise CertificationError(
             f"best_margin: the {kind} at K = {K:.15g} gives delta* = {value:.15g} by its equations, the certified "
             f"delay margin there is {cert.margin:.15g}: a crossing curve was missed by the scan"
         )
-    sa = _abscissa(loop, K)
+    sa = _abscissa(curves.loop, K)
     return GainDesign(
         K, "margin", cert.margin, cert.margin, -sa.value, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan
     )
@@ -769,7 +1131,7 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
 
 
 def best_decay_rate(
-    loop: AffineGainLoop,
+    loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
     *,
     margin_at_least: float,
@@ -820,14 +1182,24 @@ def best_decay_rate(
     d = positive("margin_at_least", margin_at_least)
     n_rates = positive_int("n_rates", n_rates, 2)
     max_evals = positive_int("max_evals", max_evals)
-    curves = _Curves(loop, lo, hi, max_evals)
-    env = np.where(_nominal_mask(curves, loop), curves.envelope, 0.0)
+    curves = _Curves(_Family(loop), lo, hi, max_evals)
+    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
     scan = (curves.gains, env)
     ok = env >= d
     if not ok.any():
+        top = best_margin(loop, (lo, hi), max_evals=max_evals)
+        where = f"at K = {with_accuracy(top.K, top.accuracy[0])}, a {top.kind}"
+        if top.value < d:  # the requirement itself cannot be met: the user's input, not the method
+            raise ParameterError(
+                "margin_at_least",
+                f"at most {with_accuracy(top.value, top.accuracy[1])}, the largest delay margin of a gain in "
+                f"[{lo:.6g}, {hi:.6g}] ({where})",
+                d,
+            )
         raise CertificationError(
-            f"best_decay_rate: no gain in [{lo:.12g}, {hi:.12g}] has a delay margin >= {d:.12g} "
-            f"(largest on the scan: {float(np.max(env)):.12g})"
+            f"best_decay_rate: the scan of [{lo:.6g}, {hi:.6g}] found no gain with a delay margin >= {d:g}, "
+            f"though the largest margin, {with_accuracy(top.value, top.accuracy[1])} {where}, meets it: the gains "
+            "that do lie in a narrower interval than the scan resolves; narrow the bounds about that K"
         )
     scale = max(abs(lo), abs(hi))
     best: tuple[float, float, str, GainEnd | None, SpectralAbscissa] | None = None
@@ -843,7 +1215,7 @@ def best_decay_rate(
             ends.append((event.K - side * _OFFSET * scale, event))
         (K_a, _), (K_b, _) = ends
         Ks = np.linspace(K_a, K_b, n_rates)
-        sas = [_abscissa(loop, float(K)) for K in Ks]
+        sas = [_abscissa(curves.loop, float(K)) for K in Ks]
         rates = np.array([-sa.value for sa in sas])
         k = int(np.argmax(rates))
         if k in (0, n_rates - 1):
@@ -857,18 +1229,18 @@ def best_decay_rate(
             )
         else:
             res = minimize_scalar(
-                lambda K: _abscissa(loop, K).value,
+                lambda K: _abscissa(curves.loop, K).value,
                 bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
                 method="bounded",
                 options={"xatol": 1e-10 * max(scale, 1e-300)},
             )
-            sa = _abscissa(loop, float(res.x))
+            sa = _abscissa(curves.loop, float(res.x))
             cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
         if best is None or cand[1] > best[1]:
             best = cand
     assert best is not None
     K, rate, kind, end, sa = best
-    cert, how = _certify(loop, K, rigorous, max_evals)
+    cert, how = _certify(curves.loop, K, rigorous, max_evals)
     if not cert.margin >= d:
         raise CertificationError(
             f"best_decay_rate: the certified delay margin at the design K = {K:.15g} is {cert.margin:.15g} < {d:.15g}"
@@ -876,7 +1248,7 @@ def best_decay_rate(
     K_br, v_br = (K, K), (rate, rate)
     if end is not None:  # the supremum: the rate at the end itself (not feasible at a pair birth)
         K_br = (min(K, end.K), max(K, end.K))
-        at_end = -_abscissa(loop, end.K).value
+        at_end = -_abscissa(curves.loop, end.K).value
         v_br = (min(rate, at_end), max(rate, at_end))
     elif kind == "interior smooth max":
         K_br = (K - 1e-10 * max(scale, 1e-300), K + 1e-10 * max(scale, 1e-300))

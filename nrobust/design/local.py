@@ -43,6 +43,11 @@ starts (a Halton sequence in the bounds, run through any ``map``, e.g.
 :func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
 design found is then certified: its abscissa (certified count of the roots right of it) and its
 delay margin (``rigorous=True``: proven in ball arithmetic).
+
+The optimiser itself (:func:`local_runs`) takes any :class:`LocalProblem`: a function of the
+parameters returning :class:`TrialPoint` s (value, gradient, feasibility), so a loop that is not
+``A + B e^{-delta s}`` (the determinant of an ``n + m`` system with ``m`` actuators,
+:mod:`nrobust.hyperbolic.nplusm.design`) is optimised by the same searches.
 """
 
 from __future__ import annotations
@@ -50,7 +55,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -67,11 +72,14 @@ from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
 __all__ = [
     "GAMMA_MAX",
     "OBJECTIVES",
+    "LocalProblem",
     "LoopDesign",
     "LocalRun",
     "ParametricLoop",
+    "TrialPoint",
     "check_objective",
     "delayed_gamma",
+    "local_runs",
     "optimize_loop",
 ]
 
@@ -152,12 +160,15 @@ def delayed_gamma(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
 
 
 @dataclass(frozen=True)
-class _Point:
-    """One evaluated parameter vector.
+class TrialPoint:
+    """One evaluated parameter vector: what a :class:`LocalProblem` returns to the optimiser.
 
-    ``screened`` points were rejected by a bound without their value: ``value`` is then a lower
-    bound of the function minimised (above the line that rejected them), and they are never
-    feasible, so they can never become an iterate.
+    ``value`` is the function minimised (``alpha``, or ``-delta*``), ``gradient`` its gradient
+    (zeros where none is needed: an infeasible or rejected point), ``abscissa`` and ``margin``
+    what was computed of them (``nan`` otherwise), ``reason`` why a point is infeasible or
+    rejected. ``screened`` points were rejected by a bound without their value: ``value`` is
+    then a lower bound of the function minimised (above the line that rejected them), and they
+    are never feasible, so they can never become an iterate.
     """
 
     p: NDArray[np.float64]
@@ -168,6 +179,37 @@ class _Point:
     margin: float
     reason: str = ""
     screened: bool = False
+
+
+class LocalProblem(Protocol):
+    """What :func:`local_runs` optimises: a function of the parameters with its feasibility.
+
+    ``problem(p)`` evaluates the objective at ``p`` (``want="margin"``: ``-delta*`` whatever the
+    objective, for the first phase of a start below the required margin); ``above`` is the line
+    a trial point must stay under (the line search's sufficient decrease, or the incumbent of the
+    pattern search), so a point found above it may be returned early, without its gradient. A
+    point outside ``bounds``, below ``margin_at_least`` (its ``reason`` starting with
+    :data:`BELOW_REQUIREMENT`) or not certified must be returned infeasible: the optimiser
+    never moves to an infeasible point. ``screened`` counts the evaluations settled by a bound
+    so far (reported per start by :class:`LocalRun`). The loop families ``p -> (A, B)`` of
+    :func:`optimize_loop` are one such problem; a PDE whose loop is not ``A + B e^{-delta s}``
+    (:mod:`nrobust.hyperbolic.nplusm.design`) brings its own. Picklable if ``map`` runs processes.
+    """
+
+    @property
+    def bounds(self) -> NDArray[np.float64]:
+        """One ``(low, high)`` row per parameter."""
+
+    @property
+    def margin_at_least(self) -> float | None:
+        """The required delay margin, or None."""
+
+    @property
+    def screened(self) -> int:
+        """Evaluations settled by a bound so far (in this process)."""
+
+    def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> TrialPoint:
+        """The evaluation at ``p``."""
 
 
 @dataclass(eq=False)
@@ -181,7 +223,7 @@ class _Memo:
     witness) and ``full`` those that ran a spectral abscissa or a crossing search.
     """
 
-    points: dict[tuple[bytes, str], _Point] = field(default_factory=dict)
+    points: dict[tuple[bytes, str], TrialPoint] = field(default_factory=dict)
     floors: dict[tuple[bytes, str], float] = field(default_factory=dict)
     abscissae: dict[bytes, SpectralAbscissa] = field(default_factory=dict)
     roots: list[complex] = field(default_factory=list)
@@ -338,6 +380,11 @@ class _Problem:
     gamma_max: float = 1.0
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
+    @property
+    def screened(self) -> int:
+        """Evaluations settled by a bound so far (:class:`LocalProblem`)."""
+        return self.memo.screened
+
     def _step(self, p: NDArray[np.float64], i: int) -> float:
         return 1e-6 * max(1.0, abs(float(p[i])), float(self.bounds[i, 1] - self.bounds[i, 0]))
 
@@ -388,7 +435,7 @@ class _Problem:
             grad[i] = -(theta_p + theta_w * w_p + dm.margin * w_p) / w
         return grad
 
-    def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> _Point:
+    def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> TrialPoint:
         """Evaluate at ``p``; ``want="margin"`` minimises ``-delta*`` whatever the objective.
 
         A point whose value exceeds ``above`` (a line search's sufficient-decrease line, or the
@@ -402,7 +449,7 @@ class _Problem:
         """
         p = np.asarray(p, dtype=float)
         if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
-            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "outside the bounds")
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "outside the bounds")
         objective = want or self.objective
         key = (p.tobytes(), objective)
         memo = self.memo
@@ -415,26 +462,26 @@ class _Problem:
         try:
             point = self._evaluate(p, objective, above)
         except CertificationError as exc:
-            point = _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, f"not certified: {exc}")
+            point = TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, f"not certified: {exc}")
         if point.screened or point.reason == ABOVE_LINE:
             memo.floors[key] = max(floor, point.value)
         else:
             memo.points[key] = point
         return point
 
-    def _screened(self, p: NDArray[np.float64], floor: float, objective: str, why: str) -> _Point:
+    def _screened(self, p: NDArray[np.float64], floor: float, objective: str, why: str) -> TrialPoint:
         abscissa = floor if objective == "decay_rate" else math.nan
         margin = -floor if objective == "margin" else math.nan
-        return _Point(p, False, floor, np.zeros(p.size), abscissa, margin, why, screened=True)
+        return TrialPoint(p, False, floor, np.zeros(p.size), abscissa, margin, why, screened=True)
 
-    def _evaluate(self, p: NDArray[np.float64], objective: str, above: float) -> _Point:
+    def _evaluate(self, p: NDArray[np.float64], objective: str, above: float) -> TrialPoint:
         A, B = self.loop(p)
         gamma = delayed_gamma(A, B)
         memo = self.memo
         if not gamma <= self.gamma_max:
             memo.screened += 1
             reason = f"gamma_0 = {gamma:.6g} of the delayed loop's difference operator above gamma_max"
-            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
         if objective == "margin":
             return self._margin_point(p, A, B, above)
         F = A + B
@@ -450,7 +497,7 @@ class _Problem:
         if d and delay < d:
             memo.screened += 1
             reason = f"{BELOW_REQUIREMENT} (a crossing at delay {delay:.6g})"
-            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, delay, reason, screened=True)
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, delay, reason, screened=True)
         if sa is None:
             floor, why = self._abscissa_floor(F, above)
             if floor > above:
@@ -460,13 +507,13 @@ class _Problem:
             sa = memo.abscissae[pkey] = spectral_abscissa(F)
             memo.add_root(sa.root)
         if sa.value > above:
-            return _Point(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
+            return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
         margin = math.nan
         if d:
             ok, margin = self._meets(A, B, sa, d)
             if not ok:
-                return _Point(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
-        return _Point(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+                return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
+        return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
 
     def _abscissa_floor(self, F: QuasiPolynomial, above: float) -> tuple[float, str]:
         """A lower bound of the spectral abscissa of ``F`` above ``above``, or ``-inf``.
@@ -537,7 +584,7 @@ class _Problem:
                 return False, first
         return True, first
 
-    def _margin_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float) -> _Point:
+    def _margin_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float) -> TrialPoint:
         """The margin objective: ``-delta*`` and its gradient, or a rejection below the line.
 
         Below a finite line (``delta* < -above`` rejects), a witness crossing and then the
@@ -569,8 +616,8 @@ class _Problem:
         margin = dm.margin
         memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
         if not dm.nominally_stable:
-            return _Point(p, False, math.inf, np.zeros(p.size), math.nan, margin, "not stable at delta = 0")
-        return _Point(p, True, -margin, -self._margin_gradient(p, A, B, dm), math.nan, margin)
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, "not stable at delta = 0")
+        return TrialPoint(p, True, -margin, -self._margin_gradient(p, A, B, dm), math.nan, margin)
 
 
 def _min_norm_convex(G: NDArray[np.float64]) -> float:
@@ -635,13 +682,13 @@ class LocalRun:
 class _Local:
     """BFGS with the weak Wolfe line search from one start (picklable, for ``map``)."""
 
-    problem: _Problem
+    problem: LocalProblem
     max_iter: int
     tol: float
 
     def _line_search(
-        self, f: Callable[[NDArray, float], _Point], x: _Point, d: NDArray[np.float64], counter: list[int]
-    ) -> _Point | None:
+        self, f: Callable[[NDArray, float], TrialPoint], x: TrialPoint, d: NDArray[np.float64], counter: list[int]
+    ) -> TrialPoint | None:
         slope = float(x.gradient @ d)
         lo, hi, t = 0.0, math.inf, 1.0
         for _ in range(LINE_SEARCH_TRIALS):
@@ -659,8 +706,12 @@ class _Local:
         return None
 
     def minimise(
-        self, f: Callable[[NDArray, float], _Point], x: _Point, counter: list[int], stop_below: float = -math.inf
-    ) -> tuple[_Point, int, float, str]:
+        self,
+        f: Callable[[NDArray, float], TrialPoint],
+        x: TrialPoint,
+        counter: list[int],
+        stop_below: float = -math.inf,
+    ) -> tuple[TrialPoint, int, float, str]:
         """Minimise from the feasible ``x``; stop early once ``value <= stop_below``."""
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
         scale = 0.05 * float(np.linalg.norm(width))
@@ -704,8 +755,12 @@ class _Local:
         return x, self.max_iter, _min_norm_convex(np.array([y.gradient for y in near])), "iteration limit"
 
     def polish(
-        self, f: Callable[[NDArray, float], _Point], x: _Point, counter: list[int], stop_below: float = -math.inf
-    ) -> _Point:
+        self,
+        f: Callable[[NDArray, float], TrialPoint],
+        x: TrialPoint,
+        counter: list[int],
+        stop_below: float = -math.inf,
+    ) -> TrialPoint:
         """A pattern search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths).
 
         Where the line search stalls (at a kink where two roots meet, whose abscissa is not
@@ -740,12 +795,12 @@ class _Local:
 
     @staticmethod
     def _extrapolate(
-        f: Callable[[NDArray, float], _Point],
-        x: _Point,
+        f: Callable[[NDArray, float], TrialPoint],
+        x: TrialPoint,
         move: NDArray[np.float64],
         counter: list[int],
         stop_below: float,
-    ) -> _Point:
+    ) -> TrialPoint:
         """From ``x``, reached by ``move``, steps of twice, four times, ... ``move`` while they improve."""
         while x.value > stop_below:
             move = 2.0 * move
@@ -759,7 +814,7 @@ class _Local:
     def __call__(self, start: Sequence[float]) -> LocalRun:
         problem = self.problem
         counter = [1]
-        screened = problem.memo.screened
+        screened = problem.screened
         x = problem(np.asarray(start, dtype=float))
         iterations = 0
         if not x.feasible and problem.margin_at_least is not None and x.reason.startswith(BELOW_REQUIREMENT):
@@ -767,7 +822,7 @@ class _Local:
             counter[0] += 1
             if m.feasible:
 
-                def margin(q: NDArray, above: float) -> _Point:
+                def margin(q: NDArray, above: float) -> TrialPoint:
                     return problem(q, want="margin", above=above)
 
                 target = -problem.margin_at_least
@@ -785,7 +840,7 @@ class _Local:
                 counter[0],
                 math.nan,
                 x.reason,
-                problem.memo.screened - screened,
+                problem.screened - screened,
             )
         x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter)
         polished = self.polish(lambda q, above: problem(q, above=above), x, counter)
@@ -800,7 +855,7 @@ class _Local:
             counter[0],
             float(stationarity),
             reason,
-            problem.memo.screened - screened,
+            problem.screened - screened,
         )
 
 
@@ -899,6 +954,51 @@ def check_objective(objective: str, margin_at_least: float | None) -> float | No
     return margin_at_least
 
 
+def local_runs(
+    problem: LocalProblem,
+    *,
+    x0: ArrayLike | None = None,
+    starts: int = 1,
+    max_iter: int = 60,
+    tol: float = 1e-6,
+    map: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = map,
+) -> list[LocalRun]:
+    """The local optimisation of :func:`optimize_loop` on any :class:`LocalProblem`, one run per start.
+
+    From each start (``x0`` first, then a Halton sequence in ``problem.bounds``): a start below
+    the required margin first maximises the margin up to it, then BFGS with the weak Wolfe line
+    search, then the pattern search (module notes). Nothing is certified here: the caller
+    certifies the best run's parameters.
+
+    Parameters
+    ----------
+    problem : LocalProblem
+    x0 : sequence of float, optional
+        The first start.
+    starts : int
+        Number of starts (``>= 1``).
+    max_iter : int
+        BFGS iterations per start (``>= 1``).
+    tol : float
+        Stationarity at which a start stops (see :class:`LocalRun`).
+    map : callable
+        ``map(func, starts)``; :func:`nrobust.sweep_map` runs the starts on processes or Dask.
+
+    Returns
+    -------
+    list of LocalRun
+        Every start's run, the feasible ones first, best value first.
+    """
+    box = _box(problem.bounds)
+    starts = positive_int("starts", starts)
+    max_iter = positive_int("max_iter", max_iter)
+    tol = finite_real("tol", tol)
+    return sorted(
+        map(_Local(problem, max_iter, tol), _starts(box, x0, starts)),
+        key=lambda r: (not r.feasible, -r.value if r.feasible else 0.0),
+    )
+
+
 def optimize_loop(
     loop: ParametricLoop,
     bounds: ArrayLike,
@@ -970,10 +1070,7 @@ def optimize_loop(
     if not 0.0 <= gamma_max < 1.0:
         raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
     problem = _Problem(loop, box, objective, margin_at_least, gamma_max)
-    runs = sorted(
-        map(_Local(problem, max_iter, tol), _starts(box, x0, starts)),
-        key=lambda r: (not r.feasible, -r.value if r.feasible else 0.0),
-    )
+    runs = local_runs(problem, x0=x0, starts=starts, max_iter=max_iter, tol=tol, map=map)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
         raise CertificationError(

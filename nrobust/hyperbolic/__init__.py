@@ -34,6 +34,7 @@ from .loops.delay_form import DelayForm, delay_form
 from .loops.feedback import feedback_factor, laplace_loop_factors
 from .loops.laplace import boundary_function, general_solution
 from .loops.varying_form import VaryingDelayForm, varying_delay_form
+from .nplusm.design import NPlusMGainDesign, design_nplusm_gains
 from .nplusm.kernels import NPlusMBackstepping, NPlusMKernels, backstepping_delay_margin, solve_nplusm_kernels
 from .plants.frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
 from .plants.general import GeneralHyperbolic2x2, NormalForm
@@ -53,6 +54,7 @@ __all__ = [
     "Hyperbolic2x2",
     "Kernels",
     "NPlusMBackstepping",
+    "NPlusMGainDesign",
     "NPlusMKernels",
     "NormalForm",
     "OpenLoop",
@@ -69,6 +71,7 @@ __all__ = [
     "characteristic",
     "classify",
     "delay_form",
+    "design_nplusm_gains",
     "feedback_factor",
     "from_riemann",
     "general_solution",

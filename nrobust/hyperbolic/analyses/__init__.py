@@ -12,9 +12,11 @@ from .charts import MAX_CHART_POINTS, ABRegion, StabilityChart, ab_region, stabi
 from .design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
 from .filter_design import (
     FILTER_PARAMETERS,
+    ExactFilteredDesign,
     FilteredDesign,
     FilteredLoop,
     design_filtered,
+    design_filtered_exact,
     filtered_front,
     filtered_loop,
 )
@@ -31,6 +33,7 @@ __all__ = [
     "DEFAULT_N_GAINS",
     "DESIGN_OBJECTIVES",
     "END_KINDS",
+    "ExactFilteredDesign",
     "FILTER_PARAMETERS",
     "FilteredDesign",
     "FilteredLoop",
@@ -49,6 +52,7 @@ __all__ = [
     "ab_region",
     "delay_margin",
     "design_filtered",
+    "design_filtered_exact",
     "design_reflection",
     "design_state_feedback",
     "filtered_front",

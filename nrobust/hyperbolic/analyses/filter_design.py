@@ -6,6 +6,10 @@
 margin, over any of the three parameters (the others fixed) with the core's local nonsmooth
 optimiser (:func:`nrobust.design.optimize_loop`), and certifies the design;
 :func:`filtered_front` is the trade-off of decay rate against delay margin over all three.
+With one free parameter the loop is affine in it (``K`` and ``a`` in ``B``, the pole ``b``
+in ``A``), and :func:`design_filtered_exact` finds the global optimum over its interval from
+the equations of its kind (a kink of ``delta*(p)``, a pair birth, a smooth maximum, an end, or
+where ``delta*(p)`` equals a required margin) with the core's :mod:`nrobust.design.gain`.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._validate import is_real_number
+from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin
 from ...design.local import LoopDesign, optimize_loop
 from ...design.pareto import ParetoFront, pareto_front
 from ...errors import CertificationError, ParameterError
@@ -30,10 +35,21 @@ from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
 from .design import design_reflection
 
-__all__ = ["FILTER_PARAMETERS", "FilteredDesign", "FilteredLoop", "design_filtered", "filtered_front", "filtered_loop"]
+__all__ = [
+    "FILTER_PARAMETERS",
+    "ExactFilteredDesign",
+    "FilteredDesign",
+    "FilteredLoop",
+    "design_filtered",
+    "design_filtered_exact",
+    "filtered_front",
+    "filtered_loop",
+]
 
 #: The parameters of ``FilteredController(a, b, K)`` a design may vary, in this order.
 FILTER_PARAMETERS = ("K", "a", "b")
+# Default bounds of design_filtered_exact: this fraction of the strong-stability limit |a K| = |b| k.
+_SS_FRACTION = 0.9
 
 
 @dataclass(frozen=True)
@@ -72,6 +88,33 @@ class FilteredLoop:
         v = self.values(p)
         B = self.B0 + self.round_trip * v["K"]
         return self.A0.times_poly([1.0, v["b"]]), B.times_poly([1.0, v["a"]])
+
+    def affine(self) -> AffineLoop:
+        """The loop as affine in its one free parameter (eq. (60) with the filter).
+
+        An :class:`~nrobust.design.AffineLoop` ``(A_0 + p A_1) + (B_0 + p B_1) e^{-delta s}``:
+        ``K``: ``A_0 = (1 - Phi)(1 + b s)``, ``A_1 = 0``, ``B_0 = -I_N (1 + a s)``,
+        ``B_1 = q e^{-tau s} (1 + a s)``; ``a``: ``A_1 = 0``, ``B_0 = B_K``, ``B_1 = s B_K``
+        (``B_K = K q e^{-tau s} - I_N``); ``b``: ``A_0 = 1 - Phi``, ``A_1 = s (1 - Phi)``,
+        ``B_0 = B_K (1 + a s)``, ``B_1 = 0``.
+
+        Raises
+        ------
+        ParameterError
+            Not exactly one free parameter.
+        """
+        if len(self.free) != 1:
+            raise ParameterError("free", "exactly one free parameter among ('K', 'a', 'b')", self.free)
+        v, zero, name = self.fixed, QuasiPolynomial([[0.0]], [0.0]), self.free[0]
+        if name == "K":
+            zero_a = [1.0, v["a"]]
+            return AffineLoop(
+                self.A0.times_poly([1.0, v["b"]]), zero, self.B0.times_poly(zero_a), self.round_trip.times_poly(zero_a)
+            )
+        B = self.B0 + self.round_trip * v["K"]
+        if name == "a":
+            return AffineLoop(self.A0.times_poly([1.0, v["b"]]), zero, B, B.times_poly([0.0, 1.0]))
+        return AffineLoop(self.A0, self.A0.times_poly([0.0, 1.0]), B.times_poly([1.0, v["a"]]), zero)
 
 
 def _plant(system: Any) -> Hyperbolic2x2 | GeneralHyperbolic2x2:
@@ -218,6 +261,9 @@ def design_filtered(
 ) -> FilteredDesign:
     """The filtered reflection controller with the best decay rate (or margin), certified.
 
+    A local optimum; with one free parameter, :func:`design_filtered_exact` finds the global one on
+    its interval from the equations of its kind.
+
     Parameters
     ----------
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
@@ -293,4 +339,184 @@ def filtered_front(
         max_iter=max_iter,
         rigorous=rigorous,
         map=mapper(executor, progress, "trade-off front"),
+    )
+
+
+@dataclass(frozen=True)
+class ExactFilteredDesign:
+    """``FilteredController(a, b, K)`` with one parameter designed exactly, with its certificate.
+
+    Attributes
+    ----------
+    controller : FilteredController
+        The design.
+    parameter : str
+        The designed parameter: ``"K"``, ``"a"`` or ``"b"``.
+    design : GainDesign
+        The core's result (:func:`nrobust.design.best_margin` or
+        :func:`nrobust.design.best_decay_rate` on the loop affine in ``parameter``):
+        ``design.K`` is the parameter's value, with its kind, the brackets of the optimum and
+        the certified delay margin of the designed loop.
+    scope : str
+        What the certificate is about: the PDE itself (constant coefficients) or a model.
+    """
+
+    controller: FilteredController
+    parameter: str
+    design: GainDesign
+    scope: str
+
+    @property
+    def optimum(self) -> float:
+        """The designed value of :attr:`parameter`."""
+        return self.design.K
+
+    @property
+    def value(self) -> float:
+        """The objective at the design: the delay margin or the decay rate."""
+        return self.design.value
+
+    @property
+    def kind(self) -> str:
+        """What decides the optimum (:data:`nrobust.design.gain.DESIGN_KINDS`)."""
+        return self.design.kind
+
+    @property
+    def certified(self) -> str:
+        """``"proven"`` or ``"checked"`` (``GainDesign.certified``)."""
+        return self.design.certified
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return json_safe(
+            {
+                "controller": self.controller.to_dict(),
+                "parameter": self.parameter,
+                "design": self.design.to_dict(),
+                "scope": self.scope,
+            }
+        )
+
+    def __repr__(self) -> str:
+        return f"ExactFilteredDesign({self.controller!r}, parameter={self.parameter!r}, {self.design!r})"
+
+
+def _exact_bounds(
+    plant: Hyperbolic2x2 | GeneralHyperbolic2x2, name: str, fixed: Mapping[str, float]
+) -> tuple[float, float]:
+    """Default interval of the free parameter: :func:`design_filtered`'s, where the loop is strongly stable.
+
+    The delayed loop's difference operator ``b (1 - rho q e^{-tau s}) + a K q e^{-(tau + delta) s}``
+    (``1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` without a filter) is strongly stable iff
+    ``|a K| < |b| k`` (``|K| < k`` when ``a = b = 0``), ``k = (1 - |rho q|)/|q|`` of eq. (54);
+    the default keeps ``|a K| <= 0.9 |b| k`` (``b >= |a K| / (0.9 k)``): the crossing curves reach
+    frequencies growing like ``1/(|b| k - |a K|)`` (the first-order bound of
+    :func:`nrobust.margins.frequency_bound`), each a sample of the scan.
+    """
+    k = classify(plant).k_bound
+    lo, hi = _default_bounds(plant)[name]
+    K, a, b = fixed.get("K", 0.0), fixed.get("a", 0.0), fixed.get("b", 0.0)
+    if name == "K" and a != 0.0:
+        hi = min(hi, _SS_FRACTION * abs(b) * k / abs(a))
+        lo = -hi
+    elif name == "a":
+        if b == 0.0:
+            raise ParameterError("parameters['b']", "b > 0 with a free zero a (else the loop is advanced)", b)
+        if K != 0.0:
+            hi = min(hi, _SS_FRACTION * abs(b) * k / abs(K))
+            lo = -hi
+    elif name == "b" and a * K != 0.0:
+        lo = max(lo, abs(a * K) / (_SS_FRACTION * k)) if k > 0.0 else math.inf
+    if not lo < hi:
+        raise ParameterError(
+            f"parameters[{name!r}]",
+            f"bounds given explicitly: the default interval of {name} is empty where the loop is strongly stable",
+            (lo, hi),
+        )
+    return lo, hi
+
+
+def design_filtered_exact(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    objective: str = "margin",
+    *,
+    parameters: Mapping[str, Any],
+    margin_at_least: float | None = None,
+    rigorous: bool = False,
+    max_evals: int = 2_000_000,
+) -> ExactFilteredDesign:
+    """One parameter of ``FilteredController(a, b, K)`` designed exactly: the global optimum on its interval.
+
+    The loop (eq. (60) with ``A`` multiplied by ``1 + b s`` and ``B`` by ``1 + a s``) is affine in
+    each parameter (:meth:`FilteredLoop.affine`); its delay margin ``delta*(p)`` is the lower
+    envelope of explicit crossing curves, and the largest margin (``objective="margin"``,
+    :func:`nrobust.design.best_margin`) or the largest decay rate at ``delta = 0`` among the
+    parameters with ``delta*(p) >= margin_at_least`` (``objective="decay_rate"``,
+    :func:`nrobust.design.best_decay_rate`) is solved from the equation of its kind (a kink,
+    a pair birth, a smooth maximum, an end, a margin constraint) and certified.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The plant (constant ``lam/mu``).
+    objective : {"margin", "decay_rate"}
+        What to maximise.
+    parameters : mapping
+        ``"K"``, ``"a"``, ``"b"``: exactly one free, given as ``(low, high)`` or None (default
+        bounds: those of :func:`design_filtered`, narrowed to where the delayed loop stays strongly
+        stable, ``|a K| < b (1 - |rho q|)/|q|``), the other two numbers.
+    margin_at_least : float, optional
+        The delay margin required (``> 0``); required with ``objective="decay_rate"``.
+    rigorous : bool, optional
+        Prove the delay margin of the design in ball arithmetic.
+    max_evals : int, optional
+        Work bound of the scan of the crossing curves and of the certificate.
+
+    Returns
+    -------
+    ExactFilteredDesign
+
+    Raises
+    ------
+    ParameterError
+        Not exactly one free parameter, the others not numbers, an unknown ``objective``,
+        ``margin_at_least`` missing or not positive, bounds where the loop is not strongly stable.
+    CertificationError
+        As :func:`nrobust.design.best_margin` and :func:`nrobust.design.best_decay_rate`.
+    """
+    if objective not in ("margin", "decay_rate"):
+        raise ParameterError("objective", "'margin' or 'decay_rate'", objective)
+    if objective == "margin" and margin_at_least is not None:
+        raise ParameterError(
+            "margin_at_least", "None with objective='margin' (it constrains the decay rate)", margin_at_least
+        )
+    if objective == "decay_rate" and margin_at_least is None:
+        raise ParameterError("margin_at_least", "a positive delay margin with objective='decay_rate'", None)
+    plant = _plant(system)
+    given = dict(parameters)
+    unknown = set(given) - set(FILTER_PARAMETERS)
+    free_names = [n for n in FILTER_PARAMETERS if not is_real_number(given.get(n))]
+    if unknown or len(free_names) != 1:
+        raise ParameterError(
+            "parameters",
+            "a mapping of 'K', 'a', 'b': one of them free ((low, high) or None), the other two numbers",
+            parameters,
+        )
+    name = free_names[0]
+    fixed = {n: float(given[n]) for n in FILTER_PARAMETERS if n != name}
+    if given.get(name) is None:
+        bounds = _exact_bounds(plant, name, fixed)
+    else:
+        _, box = _split(plant, {**fixed, name: given[name]})
+        bounds = (float(box[0, 0]), float(box[0, 1]))
+    family = filtered_loop(plant, {**fixed, name: None})
+    loop = family.affine()
+    if objective == "margin":
+        design = best_margin(loop, bounds, rigorous=rigorous, max_evals=max_evals)
+    else:
+        assert margin_at_least is not None
+        design = best_decay_rate(loop, bounds, margin_at_least=margin_at_least, rigorous=rigorous, max_evals=max_evals)
+    controller = family.controller([design.K])
+    return ExactFilteredDesign(
+        controller, name, design, loop_scope(plant, controller, None, family(np.array([design.K])))
     )

@@ -1,7 +1,7 @@
 """``n + m`` plants with constant coefficients: the plant and its loop (``system``), the certified
 characteristic function (``characteristic``) and its compound form (``compound``), the delay
 margins (``margin``), the partial cancellations (``cancellation``), the backstepping kernels
-and the full-state controller (``kernels``).
+and the full-state controller (``kernels``), the design of the gain matrix ``K`` (``design``).
 
 The simulation moved to :mod:`nrobust.hyperbolic.simulate` (``simulate_nplusm``,
 ``NPlusMSimulation``, the scheme ``"n+m characteristics"`` of ``simulate``); the old names here
@@ -12,6 +12,14 @@ from ..._moved import moved_attribute
 from .cancellation import CancellationCase, cancellation_study
 from .characteristic import BallNPlusM, NPlusMCharacteristic
 from .compound import compound_characteristic
+from .design import (
+    NPlusMGainDesign,
+    NPlusMGainProblem,
+    default_gain_bounds,
+    design_nplusm_gains,
+    gain_gradient,
+    principal_gamma,
+)
 from .kernels import (
     MAX_NPLUSM_KERNEL_GRID,
     NPlusMBackstepping,
@@ -35,6 +43,8 @@ __all__ = [
     "MAX_NPLUSM_KERNEL_GRID",
     "NPlusMBackstepping",
     "NPlusMCharacteristic",
+    "NPlusMGainDesign",
+    "NPlusMGainProblem",
     "NPlusMKernels",
     "NPlusMMargin",
     "NPlusMSystem",
@@ -42,10 +52,14 @@ __all__ = [
     "backstepping_exact_margin",
     "cancellation_study",
     "compound_characteristic",
+    "default_gain_bounds",
+    "design_nplusm_gains",
+    "gain_gradient",
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
     "pencil_crossings",
+    "principal_gamma",
     "solve_nplusm_kernels",
 ]
 

@@ -1,0 +1,678 @@
+"""Design of the gain matrix ``K`` of ``U(t) = K u(t - delta, 1)`` on an ``n + m`` system: a local optimisation.
+
+The loop of :mod:`~nrobust.hyperbolic.nplusm.system` is a determinant,
+``F(s; delta, K) = det M(s; delta, K)``, ``M = E (Phi_v - (R + K e^{-delta s}) Phi_u)``, not
+a scalar ``A + B e^{-delta s}`` with quasi-polynomial factors, so the core's loop families do
+not describe it; the core's optimiser (:func:`nrobust.design.local_runs`: BFGS with the weak
+Wolfe line search of Lewis and Overton, then a pattern search, several starts through any
+``map``) runs on :class:`NPlusMGainProblem`, which evaluates the ``m n`` entries of ``K``:
+
+* ``"decay_rate"``: minimise ``alpha(K)``, the spectral abscissa of the delay-free loop
+  (:func:`~nrobust.roots.spectral_abscissa` of
+  :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic`: certified with its proven far
+  field), optionally under a delay margin ``delta*(K) >= d``;
+* ``"margin"``: maximise ``delta*(K)``, the certified delay margin
+  (:func:`~nrobust.hyperbolic.nplusm.nplusm_delay_margin` for one actuator,
+  :func:`~nrobust.hyperbolic.nplusm.multi_actuator_delay_margin` for several).
+
+**Gradients.** Jacobi's formula ``dF = tr(adj(M) dM)`` with
+``dM/dK_ij = -e^{-delta s} E e_i e_j^T Phi_u`` gives ``dF/dK = -e^{-delta s} (Phi_u adj(M) E)^T``;
+the adjugate (not ``F M^{-1}``) keeps it exact at a root, where ``M`` is singular.
+
+* A simple rightmost root ``s0`` of the delay-free loop moves by ``ds0/dK_ij = -F_K_ij / F_s``
+  (implicit function theorem), so ``d alpha/dK = Re(-F_K / F_s)``. Where the abscissa is the
+  chain value ``c_D`` of the principal part (approached as ``|Im s| -> infinity``), ``c_D(K)``
+  is differentiated by central differences.
+* The critical crossing ``(omega*, delta*)`` solves ``F(i omega, delta; K) = 0``, two real
+  equations; with ``F_omega = i F_s`` and ``F_delta = tr(adj(M) s e^{-delta s} E K Phi_u)``,
+  ``[Re, Im] [F_omega, F_delta] [d omega; d delta] = -[Re, Im] F_K`` gives ``d delta*/dK``.
+
+Both are nonsmooth where two roots (or two crossing branches) are active at once; the
+optimiser is built for that (:mod:`nrobust.design.local`).
+
+**Feasibility of every iterate.** A trial point is feasible only inside ``K_bounds``, with the
+delayed principal part strongly stable with room, ``gamma <= gamma_max`` (``gamma`` the
+Collatz-Wielandt bound ``rho(sum_t |V^{-1} C_t|)`` over the principal terms ``C_t``, those of
+``R`` and of ``K`` counted apart: Hale and Verduyn Lunel's ``gamma_0`` for one actuator, an
+upper bound of it for several; :meth:`~nrobust.hyperbolic.nplusm.NPlusMSystem.principal_terms`),
+and, under a requirement ``d``, with a certified margin ``>= d``; a point whose abscissa or
+margin cannot be certified is infeasible too. A trial point is rejected without its
+abscissa when a zero right of the line search's line is found first: Newton's method from the
+rightmost roots of earlier points, the zero proven by a certified count in a small box.
+
+**Local.** The optimum is local: the best of the starts, each ending where neither the line
+search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
+bounds (:class:`~nrobust.design.LoopDesign` says the same of the scalar designs). For one
+entry (``n = m = 1``) the exact scalar engine is the check (:func:`nrobust.design.best_margin`
+on the affine loop of ``StateFeedback(k)``, the same law): tests.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._json import json_safe
+from ..._newton import newton
+from ..._validate import finite_real, positive_int
+from ...design.local import (
+    ABOVE_LINE,
+    BELOW_REQUIREMENT,
+    GAMMA_MAX,
+    LocalRun,
+    TrialPoint,
+    check_objective,
+    local_runs,
+)
+from ...errors import CertificationError, ParameterError
+from ...roots import SpectralAbscissa, count_roots, spectral_abscissa
+from ...sweeps.executors import sweep_map
+from .characteristic import EPS, NPlusMCharacteristic
+from .margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin
+from .system import NPlusMSystem
+
+__all__ = [
+    "NPlusMGainDesign",
+    "NPlusMGainProblem",
+    "default_gain_bounds",
+    "design_nplusm_gains",
+    "gain_gradient",
+    "principal_gamma",
+]
+
+#: Default bounds of each entry of ``K``: this fraction of the entry that alone (the others 0)
+#: brings the delayed principal part's ``gamma`` to 1.
+K_BOUND_FRACTION = 0.99
+#: Rightmost roots of earlier points kept per process (newest first) as Newton seeds.
+WITNESSES = 16
+#: Relative step of the central differences of the chain value ``c_D(K)``.
+CHAIN_STEP = 1e-6
+#: What every design says of its optimality.
+LOCAL_STATEMENT = (
+    "local: the best of the starts, each ending where neither the BFGS line search nor the pattern search "
+    "finds a better feasible point down to steps of 1e-5 of the bounds; not proven locally optimal (the "
+    "objective is nonsmooth and nonconvex) and not global"
+)
+
+
+def principal_gamma(system: NPlusMSystem, K: ArrayLike) -> float:
+    """``rho(sum_t |V^{-1} C_t|)``: a bound of ``gamma_0`` of the delayed principal part (module notes).
+
+    ``C_t`` are the point terms of :meth:`NPlusMSystem.principal_terms`, those of ``R``
+    (delay ``tau_ab``) and of ``K`` (delay ``tau_ab + delta``) counted apart, so the bound holds
+    for every loop delay ``delta > 0``; exact for one actuator, where it is
+    ``(sum |R_a U_a Q_a| + sum |K_a U_a Q_a|) / |V|``. Below 1: the delayed loop's principal
+    part is strongly stable (Hale and Verduyn Lunel).
+    """
+    v_block, point = system.principal_terms(K)
+    v_inv = np.linalg.inv(v_block)
+    total = np.zeros((system.m, system.m))
+    for _, rq, kq in point:
+        total += np.abs(v_inv @ rq) + np.abs(v_inv @ kq)
+    return float(np.max(np.abs(np.linalg.eigvals(total))))
+
+
+def _adjugate(M: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """The adjugate of a square matrix by cofactors (exact at a singular ``M``)."""
+    m = M.shape[0]
+    if m == 1:
+        return np.ones((1, 1), dtype=complex)
+    out = np.zeros((m, m), dtype=complex)
+    for i in range(m):
+        for j in range(m):
+            minor = np.delete(np.delete(M, j, axis=0), i, axis=1)
+            out[i, j] = (-1) ** (i + j) * np.linalg.det(minor)
+    return out
+
+
+def _jacobi_terms(
+    system: NPlusMSystem, K: NDArray[np.float64], s: complex, delta: float
+) -> tuple[complex, NDArray[np.complex128], complex]:
+    """``(F, dF/dK, dF/ddelta)`` at ``s``: ``F = det M``, Jacobi's formula with the adjugate (module notes)."""
+    n, m = system.n, system.m
+    phi = system.transition(np.array([s]))[0] @ np.vstack([system.q, np.eye(m)])
+    phi_u, phi_v = phi[:n], phi[n:]
+    e = np.exp(-s / system.mu)
+    z = np.exp(-delta * s)
+    M = e[:, None] * (phi_v - (system.r + z * K) @ phi_u)
+    adj = _adjugate(M)
+    d_k = -z * (phi_u @ adj @ np.diag(e)).T
+    d_delta = s * z * np.trace(adj @ np.diag(e) @ K @ phi_u)
+    return complex(np.linalg.det(M)), d_k, complex(d_delta)
+
+
+def gain_gradient(system: NPlusMSystem, K: ArrayLike, s: complex, delta: float = 0.0) -> NDArray[np.complex128]:
+    """``ds/dK``: how a simple zero ``s`` of ``F(.; delta, K)`` moves with the entries of ``K``.
+
+    ``ds/dK_ij = -(dF/dK_ij) / F'(s)`` (implicit function theorem) with ``dF/dK`` from Jacobi's
+    formula, ``dF/dK = -e^{-delta s} (Phi_u adj(M) E)^T`` (module notes). The real part is the
+    gradient of the spectral abscissa where ``s`` is the only rightmost root.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    s : complex
+        A simple zero of the loop (not checked).
+    delta : float
+        The loop delay of the loop ``s`` is a zero of.
+
+    Returns
+    -------
+    ndarray of complex, shape (m, n)
+    """
+    F = NPlusMCharacteristic(system, K, delta)
+    _, d_k, _ = _jacobi_terms(system, F.K, complex(s), F.delta)
+    return np.asarray(-d_k / complex(F.deriv_at(np.array([complex(s)]))[0]), dtype=complex)
+
+
+def _margin_sensitivity(
+    system: NPlusMSystem, K: NDArray[np.float64], omega: float, delta: float
+) -> tuple[NDArray[np.float64], float]:
+    """``(d delta*/dK, estimated error of delta*)`` at the crossing ``F(i omega, delta; K) = 0``.
+
+    The implicit function theorem on the two real equations (module notes); the error is the
+    delay part of the Newton step from ``(omega, delta)`` with ``|F|`` raised by its rounding
+    scale (a floating-point estimate). A singular system (a tangency) gives a zero gradient and
+    an infinite error.
+    """
+    s = 1j * omega
+    value, d_k, d_delta = _jacobi_terms(system, K, s, delta)
+    F = NPlusMCharacteristic(system, K, delta)
+    d_omega = 1j * complex(F.deriv_at(np.array([s]))[0])
+    J = np.array([[d_omega.real, d_delta.real], [d_omega.imag, d_delta.imag]])
+    if not np.linalg.cond(J) < 1e12:
+        return np.zeros(K.shape), math.inf
+    rhs = -np.vstack([d_k.real.ravel(), d_k.imag.ravel()])
+    grad = np.linalg.solve(J, rhs)[1].reshape(K.shape)
+    slack = abs(value) + EPS * float(F.magnitude(np.array([s]))[0])
+    error = slack * float(np.abs(np.linalg.inv(J)[1]).sum())
+    return grad, error
+
+
+def _margin(system: NPlusMSystem, K: NDArray[np.float64]) -> NPlusMMargin:
+    """The certified delay margin: :func:`nplusm_delay_margin` for one actuator, else the compound form."""
+    if system.m == 1:
+        return nplusm_delay_margin(system, K)
+    return multi_actuator_delay_margin(system, K)
+
+
+@dataclass(eq=False)
+class _Memo:
+    """What one process learned: complete evaluations by ``(K, objective)``, lower bounds of rejected points,
+    abscissae and margins by ``K``, the rightmost roots of earlier points, and the evaluations settled by a bound."""
+
+    points: dict[tuple[bytes, str], TrialPoint] = field(default_factory=dict)
+    floors: dict[tuple[bytes, str], float] = field(default_factory=dict)
+    abscissae: dict[bytes, SpectralAbscissa] = field(default_factory=dict)
+    margins: dict[bytes, NPlusMMargin] = field(default_factory=dict)
+    roots: list[complex] = field(default_factory=list)
+    screened: int = 0
+
+    def add_root(self, s: complex | None) -> None:
+        if s is None or not np.isfinite(s):
+            return
+        s = complex(s.real, abs(s.imag))
+        self.roots = [s, *(r for r in self.roots if abs(s - r) > 1e-3 * (1.0 + abs(s)))][:WITNESSES]
+
+
+@dataclass(frozen=True)
+class NPlusMGainProblem:
+    """The gain design of an ``n + m`` system as a :class:`~nrobust.design.LocalProblem` (picklable).
+
+    The parameters are the entries of ``K`` row by row (``p = K.ravel()``). Called at ``p``, it
+    returns a :class:`~nrobust.design.TrialPoint`: the function minimised (``alpha``, or
+    ``-delta*``), its gradient (module notes), and whether ``p`` is feasible.
+
+    Attributes
+    ----------
+    system : NPlusMSystem
+    bounds : ndarray, shape (m n, 2)
+    objective : {"decay_rate", "margin"}
+    margin_at_least : float or None
+    gamma_max : float
+        Feasible only with :func:`principal_gamma` ``<= gamma_max``.
+    """
+
+    system: NPlusMSystem
+    bounds: NDArray[np.float64]
+    objective: str
+    margin_at_least: float | None
+    gamma_max: float = GAMMA_MAX
+    memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
+
+    @property
+    def screened(self) -> int:
+        """Evaluations settled by a bound so far (in this process)."""
+        return self.memo.screened
+
+    def gain(self, p: ArrayLike) -> NDArray[np.float64]:
+        """``K`` of the parameters ``p``."""
+        return np.asarray(p, dtype=float).reshape(self.system.m, self.system.n)
+
+    def margin(self, K: NDArray[np.float64]) -> NPlusMMargin:
+        """The certified delay margin at ``K`` (remembered in this process)."""
+        key = K.tobytes()
+        if key not in self.memo.margins:
+            self.memo.margins[key] = _margin(self.system, K)
+        return self.memo.margins[key]
+
+    def abscissa(self, K: NDArray[np.float64]) -> SpectralAbscissa:
+        """The certified spectral abscissa of the delay-free loop at ``K`` (remembered in this process)."""
+        key = K.tobytes()
+        if key not in self.memo.abscissae:
+            self.memo.abscissae[key] = spectral_abscissa(NPlusMCharacteristic(self.system, K, 0.0))
+        return self.memo.abscissae[key]
+
+    def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> TrialPoint:
+        p = np.asarray(p, dtype=float)
+        none = np.zeros(p.size)
+        if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
+            return TrialPoint(p, False, math.inf, none, math.nan, math.nan, "outside the bounds")
+        objective = want or self.objective
+        key = (p.tobytes(), objective)
+        memo = self.memo
+        if key in memo.points:
+            return memo.points[key]
+        floor = memo.floors.get(key, -math.inf)
+        if floor > above:
+            memo.screened += 1
+            return TrialPoint(p, False, floor, none, floor, math.nan, "above the line (remembered bound)", True)
+        K = self.gain(p)
+        gamma = principal_gamma(self.system, K)
+        if not gamma <= self.gamma_max:
+            memo.screened += 1
+            reason = f"gamma = {gamma:.6g} of the delayed principal part above gamma_max"
+            return TrialPoint(p, False, math.inf, none, math.nan, math.nan, reason)
+        try:
+            point = self._margin_point(p, K) if objective == "margin" else self._abscissa_point(p, K, above)
+        except CertificationError as exc:
+            point = TrialPoint(p, False, math.inf, none, math.nan, math.nan, f"not certified: {exc}")
+        if point.screened or point.reason == ABOVE_LINE:
+            memo.floors[key] = max(floor, point.value)
+        else:
+            memo.points[key] = point
+        return point
+
+    def _abscissa_point(self, p: NDArray[np.float64], K: NDArray[np.float64], above: float) -> TrialPoint:
+        memo = self.memo
+        none = np.zeros(p.size)
+        F = NPlusMCharacteristic(self.system, K, 0.0)
+        sa = memo.abscissae.get(K.tobytes())
+        if sa is None:  # the cheap rejections first: a zero right of the line, then the margin
+            floor, why = self._floor(F, above)
+            if floor > above:
+                memo.screened += 1
+                return TrialPoint(p, False, floor, none, floor, math.nan, f"above the line ({why})", True)
+        margin = math.nan
+        d = self.margin_at_least
+        if d:  # before the abscissa, which costs several margins
+            dm = self.margin(K)
+            margin = dm.margin
+            if not dm.certified:
+                return TrialPoint(p, False, math.inf, none, math.nan, margin, "margin not certified")
+            if not margin >= d:
+                return TrialPoint(p, False, math.inf, none, math.nan, margin, BELOW_REQUIREMENT)
+        if sa is None:
+            sa = self.abscissa(K)
+            memo.add_root(sa.root)
+        if sa.value > above:
+            return TrialPoint(p, True, sa.value, none, sa.value, margin, ABOVE_LINE)
+        return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+
+    def _floor(self, F: NPlusMCharacteristic, above: float) -> tuple[float, str]:
+        """A lower bound of the abscissa of ``F`` above ``above``, or ``-inf``: the chains of the
+        principal part, or a zero Newton's method reaches from the witnesses, proven by a
+        certified count in a small box right of ``above``."""
+        if not math.isfinite(above):
+            return -math.inf, ""
+        chain = F.principal_part().spectral_bound().lower
+        if chain > above:
+            return float(chain), f"chains at {chain:.6g}"
+        if not self.memo.roots:
+            return -math.inf, ""
+
+        def fdf(x: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+            return F(x), F.deriv_at(x)
+
+        roots = newton(fdf, np.array(self.memo.roots, dtype=complex), max_step=0.25, iters=30)
+        roots = roots[np.isfinite(roots) & (roots.real > above)]
+        for s in roots[np.argsort(-roots.real)][:2]:
+            h = min(1e-6 * (1.0 + abs(s)), 0.5 * (s.real - above))
+            try:
+                count = count_roots(F, (s.real - h, s.real + h, s.imag - h, s.imag + h))
+            except (CertificationError, ParameterError):
+                continue
+            if int(count) >= 1 and count.region[0] > above:
+                self.memo.add_root(complex(s))
+                return float(count.region[0]), f"a zero at {complex(s):.6g}"
+        return -math.inf, ""
+
+    def _abscissa_gradient(
+        self, p: NDArray[np.float64], F: NPlusMCharacteristic, sa: SpectralAbscissa
+    ) -> NDArray[np.float64]:
+        if sa.root is not None and not sa.approached_at_infinity:
+            return np.asarray(gain_gradient(self.system, F.K, complex(sa.root)).real.ravel(), dtype=float)
+        grad = np.zeros(p.size)
+        for i in range(p.size):  # the chain value c_D(K), by central differences
+            h = CHAIN_STEP * max(1.0, abs(float(p[i])), float(self.bounds[i, 1] - self.bounds[i, 0]))
+            lo, hi = p.copy(), p.copy()
+            lo[i], hi[i] = max(p[i] - h, self.bounds[i, 0]), min(p[i] + h, self.bounds[i, 1])
+            c = [
+                NPlusMCharacteristic(self.system, self.gain(x)).principal_part().spectral_bound().value
+                for x in (lo, hi)
+            ]
+            grad[i] = (c[1] - c[0]) / (hi[i] - lo[i])
+        return grad
+
+    def _margin_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
+        none = np.zeros(p.size)
+        dm = self.margin(K)
+        if dm.nominal_unstable != 0:
+            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "not stable at delta = 0")
+        if not dm.certified:
+            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "margin not certified")
+        if dm.omega is None or not math.isfinite(dm.margin):
+            return TrialPoint(p, True, -dm.margin, none, math.nan, dm.margin)
+        grad, _ = _margin_sensitivity(self.system, K, float(dm.omega), dm.margin)
+        return TrialPoint(p, True, -dm.margin, -grad.ravel(), math.nan, dm.margin)
+
+
+@dataclass(frozen=True)
+class NPlusMGainDesign:
+    """A gain matrix ``K`` of ``U(t) = K u(t - delta, 1)`` designed on an ``n + m`` system, certified.
+
+    Attributes
+    ----------
+    K : tuple of tuple of float
+        The design, ``m`` rows of ``n`` entries (:attr:`gain` as an array).
+    objective : str
+        ``"decay_rate"`` or ``"margin"``.
+    value : float
+        The objective at ``K``: the decay rate ``-alpha`` of the delay-free loop, or ``delta*``.
+    accuracy : float
+        A bound of the error of ``value``: for the decay rate the abscissa's
+        (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`: proven with ``rigorous``, else its
+        floating-point estimate); for the margin a floating-point estimate (the Newton step of
+        the crossing equation from the reported crossing, ``|F|`` raised by its rounding scale).
+    abscissa : SpectralAbscissa
+        Of the delay-free loop at ``K``: certified (no root right of ``upper_bound``), proven in
+        ball arithmetic with ``rigorous`` (:meth:`NPlusMCharacteristic.proven_abscissa`).
+    margin : NPlusMMargin or None
+        The certified delay margin at ``K`` when the objective is the margin or one is required.
+    margin_at_least : float or None
+        The requirement.
+    K_bounds : tuple of (float, float)
+        The bounds of the entries of ``K``, row by row (given, or :func:`default_gain_bounds`).
+    gamma : float
+        :func:`principal_gamma` at ``K`` (below 1: the delayed principal part is strongly stable).
+    certified : bool
+        True if the abscissa is certified, and the margin (when computed) is certified, of a loop
+        stable at ``delta = 0``, and meets the requirement. It certifies the values at ``K``, not
+        that ``K`` is optimal.
+    rigorous : bool
+        True if the abscissa is proven in ball arithmetic (the margin is the floating-point
+        certificate of :mod:`~nrobust.hyperbolic.nplusm.margin` either way).
+    starts, evaluations : int
+        Starts run, and evaluations of the objective over all of them.
+    runs : tuple of LocalRun
+        Every start, the best first (parameters are ``K`` row by row).
+    local : bool
+        Always True: the optimum is local (:attr:`optimality`).
+    optimality : str
+        What is known of the optimality of ``K``.
+    """
+
+    K: tuple[tuple[float, ...], ...]
+    objective: str
+    value: float
+    accuracy: float
+    abscissa: SpectralAbscissa
+    margin: NPlusMMargin | None
+    margin_at_least: float | None
+    K_bounds: tuple[tuple[float, float], ...]
+    gamma: float
+    certified: bool
+    rigorous: bool
+    starts: int
+    evaluations: int
+    runs: tuple[LocalRun, ...] = field(repr=False)
+    local: bool = True
+    optimality: str = LOCAL_STATEMENT
+
+    @property
+    def gain(self) -> NDArray[np.float64]:
+        """``K`` as an ``(m, n)`` array."""
+        return np.array(self.K, dtype=float)
+
+    @property
+    def decay_rate(self) -> float:
+        """``-alpha`` of the delay-free loop at ``K``."""
+        return float(-self.abscissa.value)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
+        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs")}
+        data["K"] = [list(row) for row in self.K]
+        data["abscissa"] = {
+            "value": self.abscissa.value,
+            "upper_bound": self.abscissa.upper_bound,
+            "certified": self.abscissa.certified,
+            "value_bracket": self.abscissa.value_bracket,
+        }
+        data["margin"] = None if self.margin is None else self.margin.to_dict()
+        data["runs"] = [run.to_dict() for run in self.runs]
+        return json_safe(data)
+
+
+def default_gain_bounds(system: NPlusMSystem) -> NDArray[np.float64]:
+    """The default ``K_bounds`` of :func:`design_nplusm_gains`: one ``(low, high)`` row per entry of ``K``.
+
+    Entry ``(i, j)`` within :data:`K_BOUND_FRACTION` ``= 0.99`` of the value ``t`` at which
+    ``K = t e_i e_j^T`` alone brings :func:`principal_gamma` to 1 (bisected to ``2^-60``
+    relative; ``gamma`` is nondecreasing in ``|t|``), on each side: for one actuator
+    ``t = |V| (1 - gamma_R) / |U_a Q|`` (``gamma_R`` the reflection's part).
+
+    Raises
+    ------
+    ParameterError
+        ``R`` alone has ``gamma >= 1`` (no gain makes the delayed loop robust), or an entry of
+        ``K`` does not reach the principal part (then give ``K_bounds``).
+    """
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+    m, n = system.m, system.n
+    base = principal_gamma(system, np.zeros((m, n)))
+    if not base < 1.0:
+        raise ParameterError("system", "R alone with gamma < 1 (no gain makes the delayed loop robust)", base)
+    rows = []
+    for i in range(m * n):
+        unit = np.zeros((m, n))
+        unit[divmod(i, n)] = 1.0
+        hi = 1.0
+        while principal_gamma(system, hi * unit) < 1.0:
+            hi *= 2.0
+            if hi > 1e12:
+                raise ParameterError(
+                    "K_bounds", f"explicit bounds: entry {divmod(i, n)} of K leaves the principal part unchanged", None
+                )
+        lo = 0.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if principal_gamma(system, mid * unit) < 1.0 else (lo, mid)
+        rows.append((-K_BOUND_FRACTION * lo, K_BOUND_FRACTION * lo))
+    return np.array(rows)
+
+
+def _gain_bounds(system: NPlusMSystem, K_bounds: Any) -> NDArray[np.float64]:
+    """``K_bounds`` as ``(m n, 2)`` rows, checked (None: :func:`default_gain_bounds`)."""
+    m, n = system.m, system.n
+    what = f"None, a pair (low, high) for every entry, or ({m}, {n}, 2) pairs; finite, low < high"
+    if K_bounds is None:
+        return default_gain_bounds(system)
+    try:
+        b = np.asarray(K_bounds, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError("K_bounds", what, K_bounds) from None
+    if b.shape == (2,):
+        b = np.tile(b, (m * n, 1))
+    elif b.shape in ((m, n, 2), (m * n, 2)):
+        b = b.reshape(m * n, 2)
+    else:
+        raise ParameterError("K_bounds", what, K_bounds)
+    if not np.all(np.isfinite(b)) or np.any(b[:, 0] >= b[:, 1]):
+        raise ParameterError("K_bounds", what, K_bounds)
+    return b
+
+
+def _x0(x0: Any, system: NPlusMSystem, bounds: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    if x0 is None:
+        return None
+    try:
+        k = np.asarray(x0, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError("x0", f"a real gain of shape ({system.m}, {system.n}) inside K_bounds", x0) from None
+    if k.size != system.m * system.n or not np.all(np.isfinite(k)):
+        raise ParameterError("x0", f"a real gain of shape ({system.m}, {system.n}) inside K_bounds", x0)
+    p = k.reshape(-1)
+    if np.any(p < bounds[:, 0]) or np.any(p > bounds[:, 1]):
+        raise ParameterError("x0", f"a real gain of shape ({system.m}, {system.n}) inside K_bounds", x0)
+    return p
+
+
+def design_nplusm_gains(
+    system: NPlusMSystem,
+    objective: str = "decay_rate",
+    *,
+    margin_at_least: float | None = None,
+    K_bounds: Any = None,
+    x0: ArrayLike | None = None,
+    starts: int = 4,
+    gamma_max: float = GAMMA_MAX,
+    max_iter: int = 60,
+    tol: float = 1e-6,
+    rigorous: bool = False,
+    executor: Any = "serial",
+) -> NPlusMGainDesign:
+    """The gain matrix ``K`` of ``U(t) = K u(t - delta, 1)`` with the best decay rate or delay margin, certified.
+
+    A local nonsmooth optimisation (module notes) of the ``m n`` entries of ``K``: the core's
+    BFGS with weak Wolfe line search and pattern search (:func:`nrobust.design.local_runs`)
+    on :class:`NPlusMGainProblem`, gradients from the rightmost root's or the critical
+    crossing's sensitivity (Jacobi's formula on ``det M``), every iterate feasible; the best
+    start's ``K`` is then certified.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    objective : {"decay_rate", "margin"}
+        Maximise ``-alpha`` (the spectral abscissa of the delay-free loop) or the delay margin
+        (the same delay on every actuator).
+    margin_at_least : float, optional
+        With ``"decay_rate"``: require ``delta* >= margin_at_least``. A start below it first
+        maximises the margin.
+    K_bounds : pair, or array of shape (m, n, 2) or (m n, 2), optional
+        ``(low, high)`` for every entry, or one pair per entry (row by row). Default
+        (:func:`default_gain_bounds`): each entry within ``0.99`` of the value that alone (the
+        others 0) brings :func:`principal_gamma` to 1.
+    x0 : array_like, shape (m, n), optional
+        The first start (inside ``K_bounds``); the others follow a Halton sequence in the bounds.
+    starts : int
+        Number of starts (``>= 1``).
+    gamma_max : float
+        Require :func:`principal_gamma` ``<= gamma_max < 1`` (strong stability of the delayed
+        loop's principal part, with room) at every iterate.
+    max_iter : int
+        BFGS iterations per start.
+    tol : float
+        Stationarity at which a start stops (:class:`~nrobust.design.LocalRun`).
+    rigorous : bool
+        Prove the design's abscissa in ball arithmetic (python-flint).
+    executor : "serial", None, str, int, Executor or dask.distributed.Client
+        Where the starts run (``"serial"``: in this process; otherwise :func:`nrobust.sweep_map`).
+
+    Returns
+    -------
+    NPlusMGainDesign
+
+    Raises
+    ------
+    ParameterError
+        For bad input, before any work.
+    CertificationError
+        No start reached a feasible ``K`` (widen ``K_bounds``, give a feasible ``x0``, add starts
+        or lower ``margin_at_least``), or the design's abscissa cannot be proven (``rigorous``).
+
+    Examples
+    --------
+    >>> sys = NPlusMSystem([1.0], [1.0], [[0.0, 0.5], [0.4, 0.0]], [[0.8]], [[0.5]])
+    >>> d = design_nplusm_gains(sys, "margin", K_bounds=(-0.6, -0.2), starts=1)  # doctest: +SKIP
+    """
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+    margin_at_least = check_objective(objective, margin_at_least)
+    gamma_max = finite_real("gamma_max", gamma_max)
+    if not 0.0 <= gamma_max < 1.0:
+        raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
+    starts = positive_int("starts", starts)
+    max_iter = positive_int("max_iter", max_iter)
+    tol = finite_real("tol", tol)
+    if not tol > 0.0:
+        raise ParameterError("tol", "> 0", tol)
+    if not isinstance(rigorous, bool):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    bounds = _gain_bounds(system, K_bounds)
+    start = _x0(x0, system, bounds)
+    map_: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = (
+        map if isinstance(executor, str) and executor == "serial" else sweep_map(executor, progress=False)
+    )
+    problem = NPlusMGainProblem(system, bounds, objective, margin_at_least, gamma_max)
+    runs = local_runs(problem, x0=start, starts=starts, max_iter=max_iter, tol=tol, map=map_)
+    if not runs or not runs[0].feasible:
+        reasons = "; ".join(sorted({r.reason for r in runs}))
+        raise CertificationError(
+            f"design_nplusm_gains: no start reached a feasible gain ({reasons}); widen K_bounds, give a feasible x0, "
+            "add starts or lower margin_at_least"
+        )
+    return _certify(system, problem, runs, rigorous)
+
+
+def _certify(
+    system: NPlusMSystem, problem: NPlusMGainProblem, runs: list[LocalRun], rigorous: bool
+) -> NPlusMGainDesign:
+    K = problem.gain(runs[0].parameters)
+    F = NPlusMCharacteristic(system, K, 0.0)
+    sa = F.proven_abscissa() if rigorous else problem.abscissa(K)
+    d = problem.margin_at_least
+    dm = problem.margin(K) if (problem.objective == "margin" or d is not None) else None
+    met = dm is None or (dm.certified and dm.nominal_unstable == 0 and (d is None or dm.margin >= d))
+    if problem.objective == "decay_rate":
+        value = -sa.value
+        accuracy = sa.accuracy if sa.accuracy is not None else math.inf
+    else:
+        assert dm is not None
+        value = dm.margin
+        accuracy = 0.0
+        if dm.omega is not None and math.isfinite(dm.margin):
+            _, accuracy = _margin_sensitivity(system, K, float(dm.omega), dm.margin)
+    return NPlusMGainDesign(
+        tuple(tuple(map(float, row)) for row in K),
+        problem.objective,
+        float(value),
+        float(accuracy),
+        sa,
+        dm,
+        d,
+        tuple((float(lo), float(hi)) for lo, hi in problem.bounds),
+        principal_gamma(system, K),
+        bool(sa.certified and met),
+        rigorous,
+        len(runs),
+        sum(r.evaluations for r in runs),
+        tuple(runs),
+    )
