@@ -86,6 +86,7 @@ def _parser() -> argparse.ArgumentParser:
     _progress_options(a)
     pp = sub.add_parser("paper", help="the reference paper's example end to end")
     pp.add_argument("-o", "--out", required=True, help="output directory")
+    pp.add_argument("--accuracy", type=float, default=None, help="target accuracy of the certificates' delay margins")
     _progress_options(pp)
     d = sub.add_parser("design", help="a controller for the plant of a SYSTEM.toml file, designed and certified")
     d.add_argument("file", help="SYSTEM.toml (schema: docs/getting_started.md); its [system] is the plant")
@@ -153,7 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(design_summary(designed))
             print(f"wrote {', '.join(str(p) for p in written)}")
         elif args.command == "paper":
-            summary = run_paper(args.out, progress=progress)
+            summary = run_paper(args.out, progress=progress, accuracy=args.accuracy)
             print(
                 f"wrote {summary['files']['markdown']} and {summary['files']['html']} "
                 f"in {summary['elapsed_seconds']:.1f} s"

@@ -148,7 +148,7 @@ def test_paper_end_to_end_small(tmp_path):
     """The paper's pipeline on a coarse chart and short simulations, on two workers."""
     from nrobust.cli import run_paper
 
-    summary = run_paper(tmp_path, progress=False, workers=2, t_end=2.0, cells=20, n_K=5, n_delta=4)
+    summary = run_paper(tmp_path, progress=False, workers=2, t_end=2.0, cells=20, n_K=5, n_delta=4, accuracy=1e-9)
     data = json.loads((tmp_path / "summary.json").read_text())
     assert data["classification"]["regime"] == "no_robust_finite_time"
     assert data["U_BS"]["delay_margin"] == 0.0 and data["U_BS"]["gamma_0_delayed"] == pytest.approx(
@@ -160,6 +160,7 @@ def test_paper_end_to_end_small(tmp_path):
     page = (tmp_path / "report.html").read_text()
     assert page.count("data:image/png;base64,") == 9  # 2 x (root maps, Nyquist) + 5 further figures
     assert len(list((tmp_path / "figures").glob("*.png"))) == 9
+    assert "target 1.0e-09 met" in (tmp_path / "report.md").read_text()  # --accuracy reaches the certificates
 
 
 def test_version(capsys):

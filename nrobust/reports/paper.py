@@ -14,7 +14,7 @@ from threadpoolctl import threadpool_limits
 
 from .._digits import with_accuracy
 from .._json import json_float, json_safe
-from .._validate import renamed_keywords
+from .._validate import positive, renamed_keywords
 from ..errors import ParameterError
 from ..hyperbolic.analyses import StabilityChart, Tradeoff, stability_chart, tradeoff
 from ..hyperbolic.loops.controllers import (
@@ -109,8 +109,10 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
         fig1, fig3 = runs[: len(PAPER_DELAYS_FIG1)], runs[len(PAPER_DELAYS_FIG1) :]
         return fig1, fig3, _png(paper_figure(1, fig1)), _png(paper_figure(3, fig3))
     if job == "certify":  # the loops one after the other: the second reuses what the first left in memory
-        loops, rigorous = args
-        certs = [certify(system, c, delta_max=d, k_region=False, rigorous=rigorous) for c, d in loops]
+        loops, rigorous, accuracy = args
+        certs = [
+            certify(system, c, delta_max=d, k_region=False, rigorous=rigorous, accuracy=accuracy) for c, d in loops
+        ]
         return [(cert, render_certificate_figures(cert)) for cert in certs]
     if job == "charts":  # the chart draws the trade-off's Rouché bounds: one job, two figures
         Ks, deltas, k_max = args
@@ -144,6 +146,7 @@ def run_paper(
     cells: int = DEFAULT_CELLS,
     n_K: int = 25,
     n_delta: int = 26,
+    accuracy: float | None = None,
 ) -> dict[str, Any]:
     """``nrobust paper``: the reference paper's example end to end; returns the summary.
 
@@ -171,14 +174,20 @@ def run_paper(
         Cells of the simulations' grid (formerly ``n``, a deprecated alias).
     n_K, n_delta : int
         Size of the stability chart's grid.
+    accuracy : float, optional
+        Target accuracy of the certificates' delay margins (``nrobust paper --accuracy A``,
+        :func:`~nrobust.reports.certificate.certify`): the paper's plant takes the exact route,
+        whose margins are known to about ``1e-13``; the report says what was achieved.
     """
     start = time.perf_counter()
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise ParameterError("workers", "an integer >= 0", workers)
+    if accuracy is not None:
+        accuracy = positive("accuracy", accuracy)
     # one BLAS thread, as in the workers: the small eigenvalue problems of the report (the chains of a
     # difference operator) run tens of times slower when BLAS threads compete for the cores
     with threadpool_limits(1), RunOutputs(out_dir, "paper") as outputs:  # checked before anything is computed
-        summary = _run_paper(outputs, start, progress, workers, t_end, cells, n_K, n_delta)
+        summary = _run_paper(outputs, start, progress, workers, t_end, cells, n_K, n_delta, accuracy)
     return summary
 
 
@@ -191,11 +200,12 @@ def _run_paper(
     cells: int,
     n_K: int,
     n_delta: int,
+    accuracy: float | None = None,
 ) -> dict[str, Any]:
     """The body of :func:`run_paper`, writing into the staged ``outputs``."""
     system = Hyperbolic2x2(**PAPER_SYSTEM)
     classification = classify(system)
-    tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta)
+    tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta, accuracy)
     if workers:
         # loaded once, here, rather than by each worker forked from here: matplotlib (every
         # job draws) and scipy.fft (the kernel sums of the chart and of both certificates)
@@ -237,7 +247,9 @@ def _run_paper(
     return summary
 
 
-def _paper_tasks(k_max: float, t_end: float, cells: int, n_K: int, n_delta: int) -> dict[str, tuple[Any, ...]]:
+def _paper_tasks(
+    k_max: float, t_end: float, cells: int, n_K: int, n_delta: int, accuracy: float | None = None
+) -> dict[str, tuple[Any, ...]]:
     """The independent computations of section 5 as :func:`_paper_job` tasks, by name.
 
     The certificates of U_BS and U_BS2 (one job: after the first, in the same process, the
@@ -253,7 +265,12 @@ def _paper_tasks(k_max: float, t_end: float, cells: int, n_K: int, n_delta: int)
     locus_args = (max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0))
     # longest first, so that two workers finish together
     return {
-        "certify": ("certify", ((u_bs, max(PAPER_DELAYS_FIG1)), (u_bs2, max(PAPER_DELAYS_FIG3))), _RIGOROUS),
+        "certify": (
+            "certify",
+            ((u_bs, max(PAPER_DELAYS_FIG1)), (u_bs2, max(PAPER_DELAYS_FIG3))),
+            _RIGOROUS,
+            accuracy,
+        ),
         "charts": ("charts", Ks, deltas, k_max),
         "simulate": ("simulate", t_end, cells),
         **{f"locus{k}": ("locus", part, *locus_args) for k, part in enumerate(locus_Ks)},
