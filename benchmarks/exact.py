@@ -278,7 +278,7 @@ import importlib, json, sys, time
 import nrobust as nr
 import flint
 if sys.argv[1] == "loaded":  # the modules the first call imports (nrobust is imported lazily)
-    for name in ("nrobust.reports.certificate", "scipy.spatial", "scipy.optimize", "scipy.fft", "numpy.ma"):
+    for name in ("nrobust.reports.certificate", "tqdm"):
         importlib.import_module(name)
 plant, controller, times = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85), nr.ReflectionController(0.1), []
 for _ in range(2):

@@ -158,8 +158,6 @@ def _exp_sums(
         for lo in range(0, s.size, rows):
             out[lo : lo + rows] = np.exp(-np.outer(s[lo : lo + rows], nu)) @ coef
         return out
-    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
-
     x, w0, dw = line
     n, m = nu.size, min(_CZT_BLOCK, s.size)
     theta = step * dw
@@ -173,11 +171,25 @@ def _exp_sums(
         firsts = starts[r : r + per_round]
         shift = np.exp(-step * np.outer(x + 1j * (w0 + firsts * dw), idx)) * chirp_in  # (blocks, n)
         u = shift[:, None, :] * coef.T[None, :, :]  # (blocks, columns, n)
-        y = scipy.fft.ifft(scipy.fft.fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
+        y = np.fft.ifft(np.fft.fft(u, nfft, axis=-1) * filt, axis=-1)[..., n - 1 : n - 1 + m] * chirp_out
         for b, first in enumerate(firsts.tolist()):
             size = min(m, s.size - first)
             out[first : first + size] = y[b, :, :size].T
     return out * np.exp(-nu[0] * s)[:, None]
+
+
+def _fast_length(n: int) -> int:
+    """The least ``2^a 3^b 5^c >= n``: a transform length that the FFT factors into small primes."""
+    best = 1 << max(0, (n - 1).bit_length())
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            length = p35 << max(0, (-(-n // p35) - 1).bit_length())  # p35 times the least power of 2 reaching n
+            best = min(best, length)
+            p35 *= 3
+        p5 *= 5
+    return best
 
 
 @functools.lru_cache(maxsize=64)
@@ -190,11 +202,9 @@ def _chirp_plan(n: int, m: int, theta: float) -> tuple[int, NDArray, NDArray, ND
     ``e^{-i theta k^2 / 2}`` (``k < m``). The phases are taken from ``theta`` itself (not
     from powers of a rounded ``e^{-i theta}``), exact to rounding for every ``l``.
     """
-    import scipy.fft  # lazily: scipy.fft costs a quarter of a second to import
-
-    nfft = scipy.fft.next_fast_len(n + m - 1)
+    nfft = _fast_length(n + m - 1)
     lag = np.arange(1 - n, m, dtype=float)
-    filt = scipy.fft.fft(np.exp(0.5j * theta * lag**2), nfft)
+    filt = np.fft.fft(np.exp(0.5j * theta * lag**2), nfft)
     chirp_in = np.exp(-0.5j * theta * np.arange(n, dtype=float) ** 2)
     chirp_out = np.exp(-0.5j * theta * np.arange(m, dtype=float) ** 2)
     for arr in (filt, chirp_in, chirp_out):

@@ -42,6 +42,7 @@ BASE_MODULES = {
     "nrobust._atomic",
     "nrobust._version",
     "nrobust._newton",
+    "nrobust._bracket",
     "nrobust._moved",
     "nrobust._flint",
 }

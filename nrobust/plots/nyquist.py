@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._bracket import illinois
 from .._json import json_safe
 from .._validate import nonnegative, positive, positive_int, renamed_keywords
 from ..bounds import root_free_region
@@ -426,24 +427,15 @@ def _real_axis_crossings(
     """Frequencies ``w > 0`` where ``L(i w)`` crosses the negative real axis, and ``L`` there.
 
     A sign change of ``Im L`` between consecutive samples on the axis with ``Re L < 0`` at
-    both, refined by Brent's method on ``Im L(i w)``: the first :data:`MAX_REAL_CROSSINGS` in
-    frequency (they label the plot; a loop delay of 1e300 makes every sample one).
+    both, refined by regula falsi (:func:`nrobust._bracket.illinois`) on ``Im L(i w)``: the
+    first :data:`MAX_REAL_CROSSINGS` in frequency (they label the plot; a loop delay of 1e300 makes every sample one).
     """
-    from scipy.optimize import brentq  # scipy.optimize takes a second to load: only when drawing
-
     on_axis = (contour.real == 0.0) & np.isfinite(loop)
     im, re = loop.imag, loop.real
     pick = np.flatnonzero(
         on_axis[:-1] & on_axis[1:] & (re[:-1] < 0) & (re[1:] < 0) & (np.sign(im[:-1]) * np.sign(im[1:]) < 0)
-    )
-    found = []
-    for j in pick[:MAX_REAL_CROSSINGS]:
-
-        def f(x: float) -> float:
-            return float(L(np.array([1j * x]))[0].imag)
-
-        found.append(brentq(f, contour[j].imag, contour[j + 1].imag, xtol=1e-14, rtol=4 * np.finfo(float).eps))
-    w = np.asarray(found, dtype=float)
+    )[:MAX_REAL_CROSSINGS]
+    w = illinois(lambda x: L(1j * x).imag, contour[pick].imag, contour[pick + 1].imag, im[pick], im[pick + 1])
     values = L(1j * w) if w.size else np.zeros(0, dtype=complex)
     keep = values.real < 0
     return w[keep], values[keep]

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._validate import positive
 from ..errors import ParameterError
-from .base import NrobustPlot, get_axes
+from .base import NrobustPlot, decade_ticks, get_axes
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -93,6 +93,7 @@ def simulation_plot(
                     0.01, 0.02, f"axis cut at {bottom:.1e} ({what})", transform=ax.transAxes, fontsize=7, color="0.35"
                 )
             )
+    decade_ticks(ax)
     ax.set_xlabel("t")
     ax.set_ylabel("||(u, v)(t)||_L2")
     ax.grid(True, which="major", alpha=0.3)

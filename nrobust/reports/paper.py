@@ -207,10 +207,8 @@ def _run_paper(
     classification = classify(system)
     tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta, accuracy)
     if workers:
-        # loaded once, here, rather than by each worker forked from here: matplotlib (every
-        # job draws) and scipy.fft (the kernel sums of the chart and of both certificates)
+        # loaded once, here, rather than by each worker forked from here: matplotlib (every job draws)
         import matplotlib.pyplot  # noqa: F401
-        import scipy.fft  # noqa: F401
     # one task per chunk: the jobs are few and long, and the longest go first
     run = sweep_map(workers or "serial", chunksize=1, progress=progress)
     res = dict(zip(tasks, run(_paper_job, tasks.values())))

@@ -225,11 +225,44 @@ class Loop:
 
     def commit(self, j: int, u: Array, v: Array) -> None:
         """Store ``U(t_j)`` from the final state at ``t_j`` and advance the filter."""
-        v_now = float(self.wu @ u + self.wv @ v) + self.bg * u[-1]
+        self.advance(j, float(self.wu @ u + self.wv @ v) + self.bg * u[-1])
+
+    def advance(self, j: int, v_now: float) -> None:
+        """Store ``U(t_j)`` from ``V(t_j) = v_now`` and advance the filter (:meth:`commit`'s second half)."""
         base = self.decay * self.w_state + self.phi1 * self.v_prev
         self.control[j] = base + self.gain * v_now
         self.w_state = self.control[j] - self.ratio * v_now
         self.v_prev = v_now
+
+
+def _row_dots(A: Array, W: Array) -> Array:
+    """``sum_k A[r, k] W[r, k]`` for every row ``r``, each row summed alone (as many rows or one)."""
+    return np.einsum("ij,ij->i", A, W)
+
+
+def l2_norms(wu: Array, wv: Array, U: Array, V: Array) -> Array:
+    """Discrete ``L^2`` norms of the states ``(U[r], V[r])`` (rows) with the quadrature weights ``wu, wv``.
+
+    A state whose squares overflow (``|state|`` above about ``1e154``) is scaled first, so that
+    its norm is still computed when it is finite; an overflowed state has norm ``inf``.
+    """
+    WU = wu if wu.shape == U.shape else np.broadcast_to(wu, U.shape)
+    WV = wv if wv.shape == V.shape else np.broadcast_to(wv, V.shape)
+    with np.errstate(over="ignore"):
+        square = _row_dots(U * U, WU) + _row_dots(V * V, WV)
+    norms = np.sqrt(square)
+    for r in np.flatnonzero(np.isinf(square)):
+        scale = float(max(np.max(np.abs(U[r])), np.max(np.abs(V[r]))))
+        if math.isfinite(scale):
+            norms[r] = scale * math.sqrt(
+                float(
+                    _row_dots((U[r : r + 1] / scale) ** 2, WU[r : r + 1])[0]
+                    + _row_dots((V[r : r + 1] / scale) ** 2, WV[r : r + 1])[0]
+                )
+            )
+        else:
+            norms[r] = scale  # an overflowed state
+    return norms
 
 
 class Recorder:
@@ -243,16 +276,11 @@ class Recorder:
         self.v: list[Array] = []
 
     def __call__(self, j: int, u: Array, v: Array) -> None:
-        with np.errstate(over="ignore"):
-            square = float(self.wu @ (u * u) + self.wv @ (v * v))
-        if math.isinf(square):  # |state| above ~1e154: the squares overflow, the norm may not
-            scale = float(max(np.max(np.abs(u)), np.max(np.abs(v))))
-            if math.isfinite(scale):
-                self.norm[j] = scale * math.sqrt(float(self.wu @ (u / scale) ** 2 + self.wv @ (v / scale) ** 2))
-            else:
-                self.norm[j] = scale  # an overflowed state
-        else:
-            self.norm[j] = math.sqrt(square)
+        self.store(j, float(l2_norms(self.wu, self.wv, u[None, :], v[None, :])[0]), u, v)
+
+    def store(self, j: int, norm: float, u: Array, v: Array) -> None:
+        """Record the norm ``norm`` of the state ``(u, v)`` at step ``j`` (:meth:`__call__`'s second half)."""
+        self.norm[j] = norm
         if (self.every is not None and j % self.every == 0) or j == self.steps:
             self.index.append(j)
             self.u.append(u.copy())
@@ -292,7 +320,10 @@ def march_lattice(
     if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
         raise ParameterError("cells", "large enough for the trapezoidal coupling step to be solvable", n)
     inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
-    runs = [(lp, rec, U[r], V[r], lp.wu[:-1], lp.wv[:-1]) for r, (lp, rec) in enumerate(zip(loops, records))]
+    # the weights of every run stacked: the sums over the nodes are taken for all runs at once
+    WU, WV = np.stack([lp.wu for lp in loops]), np.stack([lp.wv for lp in loops])
+    WU_in, WV_in, BG = WU[:, :-1], WV[:, :-1], np.array([lp.bg for lp in loops])
+    NU, NV = np.stack([rec.wu for rec in records]), np.stack([rec.wv for rec in records])
     spm_l, spm_i, smp_r, smp_i = spm[:-1], spm[1:-1], smp[1:], smp[1:-1]
     for j in range(1, steps + 1):
         # Half step: nodes -> midpoints (u from the left node, v from the right node).
@@ -307,10 +338,14 @@ def march_lattice(
         V[:, 1:-1] = (rv[:, 1:] + smp_i * ru[:, :-1]) * inv_i
         V[:, 0] = rv[:, 0] * inv_0
         U[:, 0] = system.q * V[:, 0]
-        for r, (lp, rec, ur, vr, wu_in, wv_in) in enumerate(runs):
-            ur[-1], vr[-1] = lp.solve(j, ru[r, -1], spm[-1], float(wu_in @ ur[:-1] + wv_in @ vr[:-1]))
-            lp.commit(j, ur, vr)
-            rec(j, ur, vr)
+        inner = _row_dots(U[:, :-1], WU_in) + _row_dots(V[:, :-1], WV_in)
+        for r, lp in enumerate(loops):
+            U[r, -1], V[r, -1] = lp.solve(j, ru[r, -1], spm[-1], float(inner[r]))
+        v_now = _row_dots(U, WU) + _row_dots(V, WV) + BG * U[:, -1]
+        norms = l2_norms(NU, NV, U, V)
+        for r, (lp, rec) in enumerate(zip(loops, records)):
+            lp.advance(j, float(v_now[r]))
+            rec.store(j, float(norms[r]), U[r], V[r])
 
 
 def v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
