@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import mpmath
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from nrobust import ParameterError, QuasiPolynomial
 from nrobust.difference import DifferenceOperator
@@ -63,6 +66,33 @@ def test_strong_spectral_bound_solves_its_equation(coefs: list[float], delays: l
     lhs = np.sum(np.abs(D.coefs[1:]) * np.exp(-r * c))
     assert lhs == pytest.approx(abs(D.coefs[0]), rel=1e-13)
     assert (c < 0) == D.is_strongly_stable()
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    a0=st.floats(0.1, 3.0),
+    terms=st.lists(st.tuples(st.floats(-2.0, 2.0), st.floats(-3.0, 2.0), st.floats(0.01, 5.0)), min_size=1, max_size=5),
+)
+def test_strong_spectral_bound_against_mpmath(a0: float, terms: list[tuple[float, float, float]]) -> None:
+    """``C_D`` against mpmath's root of ``sum |a_k| e^{-r_k c} = |a_0|`` at 40 digits (bisection, no shared code)."""
+    coefs = [a0] + [sign_mag[0] * 10.0 ** sign_mag[1] for sign_mag in terms]
+    coefs = [c if c != 0.0 else 1e-3 for c in coefs]
+    delays = [0.0] + [t[2] for t in terms]
+    D = DifferenceOperator(coefs, delays)
+    with mpmath.workdps(40):
+        mags = [abs(mpmath.mpf(float(c))) for c in D.coefs[1:]]
+        rs = [mpmath.mpf(float(r)) for r in D.relative_delays[1:]]
+        lhs = abs(mpmath.mpf(float(D.coefs[0])))
+
+        def g(c: mpmath.mpf) -> mpmath.mpf:
+            return mpmath.fsum(m * mpmath.exp(-r * c) for m, r in zip(mags, rs)) - lhs
+
+        lo, hi = mpmath.mpf(-1e8), mpmath.mpf(1e8)  # g(lo) > 0 > g(hi): |ln(|a_k|/|a_0|)| / r_k < 1e4 here
+        for _ in range(200):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if g(mid) > 0 else (lo, mid)
+        root = float(lo)
+    np.testing.assert_allclose(D.strong_spectral_bound(), root, rtol=4e-15, atol=4e-15)
 
 
 def test_two_terms_closed_form() -> None:
