@@ -10,11 +10,12 @@ has the characteristic matrix
 
 taken here as a :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix` (the determinant is
 not expanded in floating point), so its roots, spectral abscissa and root counts are
-certified by :mod:`nrobust.roots`. From ``n = 4`` without distributed terms, :meth:`StateSpaceTDS.roots`
+certified by :mod:`nrobust.roots`. Without distributed terms, :meth:`StateSpaceTDS.roots`
 counts on ``det M`` expanded in exact rational arithmetic and rounded once, with a proven bound of
 the rounding that keeps every count one of ``det M``
 (:meth:`~nrobust.qpmatrix.QuasiPolynomialMatrix.exact_expansion`): the bounds of the matrix form
-miss the cancellations of the determinant (of a descriptor system above all). The distributed
+miss the cancellations of the determinant (of a descriptor system above all), and one scalar
+quasi-polynomial costs less to evaluate and to bound than ``n`` determinants. The distributed
 kernel ``G(nu) = sum_j G_j N_j(nu)`` is a sum of constant matrices times scalar tabulated
 kernels (:class:`~nrobust.quasipoly.DistributedDelay`).
 For an invertible ``E``, the neutral part gives the matrix difference operator
@@ -44,7 +45,10 @@ Chebyshev collocation of the infinitesimal generator (Breda, Maset and Vermiglio
 "Pseudospectral differencing methods for characteristic roots of delay differential
 equations", SIAM J. Sci. Comput. 27(2), 482-495, 2005; the discretisation TDS-CONTROL uses):
 approximations only, each root still accepted by a certified count of a box about it and
-the whole set by the count of the rectangle (the argument principle).
+the whole set by the count of the rectangle (the argument principle). Only the components
+that a delayed term reads keep a history in the collocation, and the algebraic equations of a
+singular ``E`` are eliminated, so that the eigenvalue problem is a standard one of the order
+of the delayed states (Example 2.9: 47 instead of 72).
 """
 
 from __future__ import annotations
@@ -87,10 +91,10 @@ _MAX_CONDITION = 1e8
 # and the relative size below which 1 / (s - shift) stands for an infinite s.
 _SHIFT = 0.3183098861837907
 _NEGLIGIBLE = 1e-12
+# Machine epsilon: singular values of E below n eps times the largest are zero (its rank).
+_EPS = float(np.finfo(float).eps)
 # Bisection steps of the abscissa bound x* = R(x*) (each halves the bracket).
 _BISECTIONS = 80
-# Smallest state dimension whose roots are counted on the exactly expanded determinant.
-_EXPAND_FROM = 4
 
 
 @functools.cache
@@ -149,6 +153,49 @@ def _shift_and_invert(a: NDArray[Any], b: NDArray[Any]) -> NDArray[np.complex128
         return None
     mu = mu[np.abs(mu) > _NEGLIGIBLE * np.max(np.abs(mu), initial=0.0)]
     return np.asarray(_SHIFT + 1.0 / mu, dtype=complex)
+
+
+def _block_row(rows: NDArray[np.float64], mats: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sum_k kron(rows[k], mats[k])`` for ``rows`` ``(K, m)`` and ``mats`` ``(K, n, p)``: shape ``(n, m p)``."""
+    return np.einsum("kl,kab->alb", rows, mats).reshape(mats.shape[1], rows.shape[1] * mats.shape[2])
+
+
+def _eliminate_algebraic(
+    top: NDArray[np.float64], rest: NDArray[np.float64], svd: tuple[NDArray[np.float64], ...]
+) -> NDArray[np.complex128] | None:
+    """Finite eigenvalues ``s`` of ``[top; rest] v = s [[b0, 0], [0, I]] v`` for a singular ``b0``.
+
+    With ``svd`` the singular value decomposition ``b0 = U S V^T`` (rank ``r``), ``v = (v_0, w)`` and
+    ``y = V^T v_0``: the rows ``U_2^T top v = 0`` of the zero singular values are algebraic
+    constraints, solved for ``y_2 = V_2^T v_0`` when ``U_2^T top_0 V_2`` (``top_0`` the columns
+    of ``v_0``) is invertible (index 1); what remains,
+    ``S_1^{-1} U_1^T top v = s y_1`` and ``rest v = s w``, is a standard problem in ``z = (y_1, w)``
+    (``w`` the collocated history), whose eigenvalues are the finite ones of the pencil. None when
+    that block is ill conditioned or ``b0 = 0``.
+    """
+    u, sig, vt = svd
+    n = sig.size
+    r = int(np.sum(sig > n * _EPS * sig[0]))
+    if r == 0:
+        return None
+    v1, v2 = vt[:r].T, vt[r:].T
+    c = u[:, r:].T @ top  # the constraints c v = 0
+    cy = c[:, :n] @ v2
+    if np.linalg.cond(cy) >= _MAX_CONDITION:
+        return None
+    x = -np.linalg.solve(cy, np.hstack([c[:, :n] @ v1, c[:, n:]]))  # y_2 = x z
+    t0 = v2 @ x  # v_0 = t0 z
+    t0[:, :r] += v1
+
+    def reduced(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``rows @ T`` with ``v = T z``: ``v_0 = t0 z``, ``w = z[r:]``."""
+        out = rows[:, :n] @ t0
+        out[:, r:] += rows[:, n:]
+        return out
+
+    return np.asarray(
+        np.linalg.eigvals(np.vstack([reduced((u[:, :r].T @ top) / sig[:r, None]), reduced(rest)])), dtype=complex
+    )
 
 
 def _stack(name: str, mats: Any, n: int | None) -> NDArray[np.float64]:
@@ -352,7 +399,11 @@ class StateSpaceTDS:
         and ``s`` solves the pencil ``A v = s B v``: the rows ``j >= 1`` ask
         ``phi'(theta_j) = s phi(theta_j)``, row 0 asks
         ``s (E phi(0) - sum_k B_k phi(-hB_k)) = sum_k A_k phi(-hA_k)`` (``phi = e^{s theta} v``
-        is exact). Distributed terms are left out. Accurate for the roots with
+        is exact); only the components read by a delayed term are collocated at ``theta_j < 0``
+        (the others' histories enter no equation), and for a singular ``E`` with no neutral
+        term the algebraic rows are solved for their components first (index 1; otherwise
+        the pencil is reduced by a shift and invert, or the QZ algorithm). Distributed terms
+        are left out. Accurate for the roots with
         ``|Im s| tau`` well below ``N`` (``N = 0.3 tau im_max + 12``); :meth:`roots` seeds
         Newton's method with the eigenvalues of ``N = 0.3 tau im_max + 8`` points (seeds only).
 
@@ -379,20 +430,45 @@ class StateSpaceTDS:
             return np.asarray(vals[np.isfinite(vals)], dtype=complex)
         points = int(np.clip(_POINTS_PER_FREQUENCY * abs(im_max) * tau + min_points, 4, _MAX_ORDER // n - 1))
         theta, d = _chebyshev(points, tau)
-        a = np.kron(d, np.eye(n))
-        b = np.eye(n * (points + 1))
-        a[:n] = np.sum([np.kron(_interpolation_row(theta, -h), m) for m, h in zip(self.A, self.hA)], axis=0)
-        b[:n] = np.kron(_interpolation_row(theta, 0.0), self.E)
-        for m, h in zip(self.B, self.hB):
-            b[:n] -= np.kron(_interpolation_row(theta, -h), m)
-        b0 = b[:n, :n]
-        if np.linalg.cond(b0) < _MAX_CONDITION:  # B = [[B0, Br], [0, I]]: the standard problem B^{-1} A
-            a[:n] = np.linalg.solve(b0, a[:n] - b[:n, n:] @ a[n:])
-            vals = np.linalg.eigvals(a)
+        # Only the components that some delayed term reads (the nonzero columns of the delayed A_k and
+        # of the B_k) need their history: the unknowns are phi(0) (all n components) and phi(theta_j),
+        # j >= 1, of those nd components. The pencil A v = s B v: the rows j >= 1 ask
+        # (D phi)_j = s phi(theta_j), the first block row sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
+        # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h.
+        delayed = np.flatnonzero(np.any(self.A[self.hA > 0] != 0, axis=(0, 1)) | np.any(self.B != 0, axis=(0, 1)))
+        nd = delayed.size
+        pick = np.eye(n)[delayed]  # phi(0) -> its delayed components
+        rest = np.hstack(
+            [
+                (d[1:, 0, None, None] * pick[None]).reshape(points * nd, n),
+                (d[1:, None, 1:, None] * np.eye(nd)[None, :, None, :]).reshape(points * nd, points * nd),
+            ]
+        )
+        rows_a = np.array([_interpolation_row(theta, -h) for h in self.hA])
+        top = np.hstack(
+            [np.einsum("k,kab->ab", rows_a[:, 0], self.A), _block_row(rows_a[:, 1:], self.A[:, :, delayed])]
+        )
+        rows_b = np.array([_interpolation_row(theta, -h) for h in self.hB]).reshape(self.hB.size, points + 1)
+        right = np.hstack(
+            [
+                self.E - np.einsum("k,kab->ab", rows_b[:, 0], self.B),
+                -_block_row(rows_b[:, 1:], self.B[:, :, delayed]),
+            ]
+        )
+        b0 = right[:, :n]
+        svd = np.linalg.svd(b0)
+        sig = svd[1]
+        if sig[-1] * _MAX_CONDITION > sig[0]:  # B = [[B0, Br], [0, I]]: the standard problem B^{-1} A
+            vals = np.linalg.eigvals(np.vstack([np.linalg.solve(b0, top - right[:, n:] @ rest), rest]))
         else:
-            vals = _shift_and_invert(a, b)
-            if vals is None:
-                vals = eig(a, b, right=False)
+            found = None if np.any(right[:, n:]) else _eliminate_algebraic(top, rest, svd)
+            if found is None:
+                a, b = np.vstack([top, rest]), np.eye(n + points * nd)
+                b[:n] = right
+                found = _shift_and_invert(a, b)
+                if found is None:
+                    found = eig(a, b, right=False)
+            vals = found
         return np.asarray(vals[np.isfinite(vals)], dtype=complex)
 
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
@@ -410,16 +486,15 @@ class StateSpaceTDS:
 
     def _counted(self, rigorous: bool) -> QuasiPolynomialMatrix | ExpandedDeterminant:
         """What :meth:`roots` counts: ``det M`` expanded exactly (:meth:`QuasiPolynomialMatrix.exact_expansion`)
-        for ``n >= 4`` without distributed terms, else the matrix; the matrix for proofs in ball arithmetic.
+        without distributed terms, else the matrix; the matrix for proofs in ball arithmetic.
 
-        Below ``n = 4`` the matrix's determinant is a written-out Leibniz sum (a few array operations);
-        from ``n = 4`` it is ``n`` LU factorisations per derivative, and the bounds of its derivatives
-        (Hadamard's inequality on the rows) miss the cancellations that the exact expansion makes
-        (measured in ``benchmarks/statespace.py``: 1.7x fewer evaluations for Example 2.9, 17x for
-        Example 3.1).
+        The bounds of the matrix's derivatives (Hadamard's inequality on the rows) miss the
+        cancellations that the exact expansion makes, and the expansion's values, derivatives and
+        Taylor forms are a few matrix products where the matrix needs ``n`` determinants per
+        derivative (``benchmarks/statespace.py`` measures both).
         """
         matrix = self.characteristic_matrix()
-        if rigorous or self.n < _EXPAND_FROM:
+        if rigorous:
             return matrix
         expanded = matrix.exact_expansion()
         return matrix if expanded is None else expanded

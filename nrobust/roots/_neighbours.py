@@ -31,6 +31,10 @@ __all__ = ["ChebyshevIndex", "connected_groups"]
 #: Relative widening of the sweep windows: a few roundings, so that no point within the
 #: distance is left out by the rounding of a window's end (extra points are only examined).
 _SLACK = 4.0 * np.finfo(float).eps
+#: Largest number of distances computed all at once instead of by the sweep (a query of ``m``
+#: points among ``n``: ``m n``; the pairs of ``n`` points: ``n^2``): few points, where the
+#: sweep's bookkeeping costs more than the distances it avoids. The answers are the same.
+_ALL_PAIRS = 4096
 
 
 def _spans(starts: NDArray[np.intp], stops: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -94,6 +98,13 @@ class ChebyshevIndex:
         if not np.all(np.isfinite(q)):
             raise ParameterError("x", "finite query points", q.shape)
         k, m, n = int(k), q.shape[0], self.n
+        if m * n <= _ALL_PAIRS:  # every distance; a stable sort puts the lower index first among equal ones
+            full = np.maximum(
+                np.abs(q[:, 0, None] - self.points[None, :, 0]), np.abs(q[:, 1, None] - self.points[None, :, 1])
+            )
+            near_i = np.argsort(full, axis=1, kind="stable")[:, :k].astype(np.intp)
+            near_d = np.take_along_axis(full, near_i, axis=1)
+            return (near_d[:, 0], near_i[:, 0]) if k == 1 else (near_d, near_i)
         # an upper bound of the k-th distance: the k-th nearest of the 2k + 1 nearest in the sorted coordinate
         width = min(n, 2 * k + 1)
         at = np.searchsorted(self.keys, q[:, self.axis])
@@ -137,20 +148,29 @@ class ChebyshevIndex:
         if output_type not in ("set", "ndarray"):
             raise ParameterError("output_type", "'set' or 'ndarray'", output_type)
         r = float(r)
-        # both distances are at least the gap in the sorted coordinate
-        hi = np.searchsorted(self.keys, self.keys + r + _SLACK * (np.abs(self.keys) + r), side="right")
-        owner, pos = _spans(np.arange(self.n) + 1, hi)
-        a, b = self.order[owner], self.order[pos]
+        every = self.n * self.n <= _ALL_PAIRS
+        a, b = np.triu_indices(self.n, 1) if every else self._candidate_pairs(r)
         if p == np.inf:
             close = self._distance(self.points[a], b) <= r
         else:
             dx, dy = self.points[a, 0] - self.points[b, 0], self.points[a, 1] - self.points[b, 1]
             close = dx * dx + dy * dy <= r * r
-        pairs = np.column_stack([np.minimum(a, b)[close], np.maximum(a, b)[close]]).astype(np.intp)
-        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if pairs.size else pairs.reshape(0, 2)
+        if every:  # already in the order of i, then j
+            pairs = np.column_stack([a[close], b[close]]).astype(np.intp)
+        else:
+            pairs = np.column_stack([np.minimum(a, b)[close], np.maximum(a, b)[close]]).astype(np.intp)
+            pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if pairs.size else pairs.reshape(0, 2)
         if output_type == "ndarray":
             return pairs
         return {(int(i), int(j)) for i, j in pairs}
+
+    def _candidate_pairs(self, r: float) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """The pairs of points within ``r`` of each other in the sorted coordinate (a superset of the pairs
+        within ``r``), as two index arrays."""
+        # both distances are at least the gap in the sorted coordinate
+        hi = np.searchsorted(self.keys, self.keys + r + _SLACK * (np.abs(self.keys) + r), side="right")
+        owner, pos = _spans(np.arange(self.n) + 1, hi)
+        return self.order[owner], self.order[pos]
 
 
 def connected_groups(n: int, pairs: ArrayLike) -> NDArray[np.intp]:

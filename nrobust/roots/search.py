@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._newton import newton
+from ..difference import DifferenceOperator
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, magnitude
@@ -192,6 +193,16 @@ def _retarded_chains(F: QuasiPolynomial, region: Region) -> NDArray[np.complex12
         return np.zeros(0, dtype=complex)
     s = np.concatenate(out)
     return s[(s.real > x0 - pad) & (s.real < x1 + pad) & (s.imag > y0 - pad) & (s.imag < y1 + pad)]
+
+
+def _zeros_left_of(D: DifferenceOperator) -> float:
+    """An abscissa right of every zero of ``D(s) = sum_k a_k e^{-tau_k s}``: ``max_k ln(K |a_k| / |a_0|) / r_k``
+    over the ``K`` delayed terms (``r_k`` their delays relative to the first). Right of it each
+    ``|a_k| e^{-r_k Re s}`` is below ``|a_0| / K``, so the delayed terms cannot cancel the first."""
+    if D.coefs.size == 1:
+        return -np.inf
+    mags = np.abs(D.coefs)
+    return float(np.max(np.log((mags.size - 1) * mags[1:] / mags[0]) / D.relative_delays[1:]))
 
 
 @dataclass
@@ -509,6 +520,11 @@ class Finder:
         if self.F.kind != "neutral":
             return np.zeros(0, dtype=complex)
         D = self.F.principal_part()
+        x0, x1, y0, y1 = self.region
+        pad = 1.0
+        if _zeros_left_of(D) < x0 - 0.5 * (x1 - x0) - pad:
+            # the chains lie left of the box in which Newton's method keeps a seed: no seed of theirs survives
+            return np.zeros(0, dtype=complex)
         if D.commensurate_step() is not None:
             ch = D.chains()
         else:  # the chains of a nearby commensurate operator of low degree are seeds too
@@ -516,8 +532,6 @@ class Finder:
                 ch = D.commensurate_approximation(max_degree=_SEED_DEGREE).chains()
             except ParameterError:  # delays too close for a low degree: grid seeds only
                 return np.zeros(0, dtype=complex)
-        x0, x1, y0, y1 = self.region
-        pad = 1.0
         pts = ch.points(y0 - pad, y1 + pad)
         pts = pts[(pts.real > x0 - pad) & (pts.real < x1 + pad)]
         multiple = [c for c in ch.chains if c.multiplicity > 1]

@@ -38,6 +38,8 @@ _NEAR_ZERO = 512 * EPS
 _MIN_STEP = 1e-13
 # Initial number of steps per edge.
 _INITIAL_STEPS = 1
+# Most initial steps per edge that a function may propose (F.initial_steps).
+_MAX_INITIAL = 256
 # A failing step is cut into as many pieces as its step rule predicts (the factor by which
 # it fails: the bound of order 1 is linear in the step, that of order 2 quadratic), at least
 # 2 and at most _MAX_PIECES: fewer rounds of refinement than halving.
@@ -161,20 +163,26 @@ def _wind_segments(
     hit, the error names the edge that holds the most unfinished steps.
     """
     n_edges = starts.size
-    t = np.linspace(0.0, 1.0, _INITIAL_STEPS + 1)
-    pts = starts[:, None] + (ends - starts)[:, None] * t[None, :]
-    pts[:, -1] = ends  # exact corners, so that adjacent edges close the contour
+    pieces = _initial_pieces(F, starts, ends)
+    base = np.cumsum(pieces + 1) - (pieces + 1)  # the nodes of segment i at offsets base[i] .. base[i] + pieces[i]
+    owner = np.repeat(np.arange(n_edges), pieces + 1)
+    pts = starts[owner] + (ends - starts)[owner] * ((np.arange(owner.size) - base[owner]) / pieces[owner])
+    pts[base + pieces] = ends  # exact corners, so that adjacent edges close the contour
     budget.spend(pts.size, "sampling contour edges")
-    fv, mag = _evaluate(F, pts, label, np.repeat(np.arange(n_edges)[:, None], pts.shape[1], axis=1))
+    fv, mag = _evaluate(F, pts, label, owner)
+    head = np.ones(pts.size, dtype=bool)  # the nodes that start a step
+    head[base + pieces] = False
+    tail = np.ones(pts.size, dtype=bool)  # the nodes that end one
+    tail[base] = False
     steps = _Steps(
-        start=pts[:, :-1].ravel(),
-        end=pts[:, 1:].ravel(),
-        f_start=fv[:, :-1].ravel(),
-        f_end=fv[:, 1:].ravel(),
-        scale_start=mag[:, :-1].ravel(),
-        scale_end=mag[:, 1:].ravel(),
-        df_start=np.full(n_edges * _INITIAL_STEPS, np.nan, dtype=complex),
-        segment=np.repeat(np.arange(n_edges), _INITIAL_STEPS),
+        start=pts[head],
+        end=pts[tail],
+        f_start=fv[head],
+        f_end=fv[tail],
+        scale_start=mag[head],
+        scale_end=mag[tail],
+        df_start=np.full(int(pieces.sum()), np.nan, dtype=complex),
+        segment=np.repeat(np.arange(n_edges), pieces),
     )
     turns = np.zeros(n_edges)
     blocked = np.zeros(n_edges, dtype=bool)
@@ -245,6 +253,16 @@ def _evaluate(
         edge = label(int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
         raise CertificationError(f"F overflows on the {edge}: move the region to the right or shrink it")
     return fv, mag
+
+
+def _initial_pieces(F: QuasiPolynomial, starts: NDArray, ends: NDArray) -> NDArray[np.intp]:
+    """Steps per segment to start from: ``_INITIAL_STEPS``, or what ``F.initial_steps(starts, ends)``
+    proposes when ``F`` has that method (a function that knows the scale on which it turns), 1 to
+    ``_MAX_INITIAL``. Only the work depends on it: every step is still certified by the step rules."""
+    propose = getattr(F, "initial_steps", None)
+    if propose is None:
+        return np.full(starts.size, _INITIAL_STEPS, dtype=np.intp)
+    return np.clip(np.asarray(propose(starts, ends)), 1, _MAX_INITIAL).astype(np.intp)
 
 
 def _box_edges(box: Sequence[float]) -> list[tuple[complex, complex]]:
