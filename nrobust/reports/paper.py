@@ -60,8 +60,6 @@ PAPER_DELAYS_FIG3 = (0.0, 0.01, 0.1)
 PAPER_T_END = 15.0
 
 
-#: The root locus is computed in this many parts (jobs), which balance the two workers' loads.
-_LOCUS_PARTS = 2
 #: The certificates are proven in ball arithmetic when python-flint (``nrobust[rigorous]``) is installed.
 _RIGOROUS = importlib.util.find_spec("flint") is not None
 #: The paper's central claims, whose status the report states first.
@@ -89,9 +87,7 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
 
     The plant is rebuilt from :data:`PAPER_SYSTEM` in the worker, so a job is sent as its
     name and a few numbers. A job draws its figures, as PNG bytes, when it has all they
-    show: the figures are drawn in parallel and the report only embeds them. The root
-    locus is computed in :data:`_LOCUS_PARTS` parts (jobs that balance the workers' loads),
-    drawn by :func:`run_paper` once they are back.
+    show: the figures are drawn in parallel and the report only embeds them.
     """
     job, *args = task
     system = Hyperbolic2x2(**PAPER_SYSTEM)
@@ -119,11 +115,12 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
         chart = stability_chart(system, Ks, deltas, progress=False)
         trade = tradeoff(system, Ks[Ks >= 0], progress=False)
         return chart, trade, _png(_chart_figure(chart, trade, k_max)), _png(_tradeoff_figure(trade))
-    if job == "locus":  # a part of the gains of the root locus (its figure: run_paper)
+    if job == "locus":  # the root locus of U_BS2 in K and its figure
         Ks, delta, region = args
-        return root_locus_response(
+        locus = root_locus_response(
             lambda K: characteristic(system, ReflectionController(K), delta), Ks, region, name="K"
         )
+        return _png(_locus_figure(locus))
     raise ParameterError("job", "one of simulate, certify, charts, locus", job)
 
 
@@ -212,10 +209,6 @@ def _run_paper(
     # one task per chunk: the jobs are few and long, and the longest go first
     run = sweep_map(workers or "serial", chunksize=1, progress=progress)
     res = dict(zip(tasks, run(_paper_job, tasks.values())))
-    parts = [res[f"locus{k}"] for k in range(_LOCUS_PARTS)]
-    locus = RootLocusData(
-        "K", np.concatenate([p.params for p in parts]), tuple(r for p in parts for r in p.roots), parts[0].region
-    )
     fig1_runs, fig3_runs, fig1_png, fig3_png = res["simulate"]
     (cert_bs, drawn_bs), (cert_bs2, drawn_bs2) = res["certify"]
     chart, trade, chart_png, trade_png = res["charts"]
@@ -224,7 +217,7 @@ def _run_paper(
         (_FIGURE_CAPTIONS[3], fig3_png),
         (_CHART_CAPTION, chart_png),
         (_TRADEOFF_CAPTION, trade_png),
-        (_LOCUS_CAPTION, _png(_locus_figure(locus))),
+        (_LOCUS_CAPTION, res["locus"]),
     ]
     admissible = _stable_gains(chart)
     summary = _paper_summary(system, classification, cert_bs, cert_bs2, chart, trade, fig1_runs, fig3_runs, admissible)
@@ -254,14 +247,12 @@ def _paper_tasks(
     second costs a good part less than alone), the ``(K, delta)`` chart of U_BS2 on
     ``n_K x n_delta`` gains in ``[-1.2, 1.2] k_max`` and delays in ``[0, 0.5]`` with the
     trade-off on its gains ``K >= 0``, the simulations of figures 1 and 3, the root locus of
-    U_BS2 in ``K`` (seven gains in ``[0, 0.9 k_max]``, in :data:`_LOCUS_PARTS` parts).
+    U_BS2 in ``K`` (seven gains in ``[0, 0.9 k_max]``).
     """
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
     Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
     deltas = np.linspace(0.0, 0.5, n_delta)
-    locus_Ks = np.array_split(np.linspace(0.0, 0.9 * k_max, 7), _LOCUS_PARTS)
-    locus_args = (max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0))
-    # longest first, so that two workers finish together
+    # longest first, so that the workers finish together
     return {
         "certify": (
             "certify",
@@ -271,7 +262,7 @@ def _paper_tasks(
         ),
         "charts": ("charts", Ks, deltas, k_max),
         "simulate": ("simulate", t_end, cells),
-        **{f"locus{k}": ("locus", part, *locus_args) for k, part in enumerate(locus_Ks)},
+        "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
     }
 
 
