@@ -67,6 +67,7 @@ from .hyperbolic.kernels import (
 )
 from .hyperbolic.loops import (
     Classification as Classification,
+    CollocatedOutputFeedback as CollocatedOutputFeedback,
     DelayForm as DelayForm,
     FilteredController as FilteredController,
     FiniteTimeController as FiniteTimeController,

@@ -8,12 +8,13 @@
     simulation of the PDE, delay margins of U_BS and U_BS2(K = 0.1), the ``(K, delta)``
     stability chart with the sufficient bound, the decay/margin trade-off and the report.
 ``nrobust design SYSTEM.toml -o OUT/ [--family F] [--objective OBJ] [--margin-at-least D] [--k-bounds L H]``
-    ``[--rigorous]``:
+    ``[--delays D_MIN D_MAX] [--speed-tolerance EPS] [--rigorous]``:
     a controller for the file's plant (:func:`nrobust.reports.design.run_design`): ``F =
     reflection`` (the gain ``K`` of ``U_BS2(K)``, solved exactly) or ``filtered`` (``K`` and the
     filter's ``a``, ``b``, a certified local optimum), with the largest delay margin
     (``OBJ = margin``) or the largest decay rate (``decay_rate``) with a margin of at least
-    ``D``; each option defaults to the file's ``[design]`` section. Writes ``design.json``,
+    ``D``, or stable for every delay in ``[D_MIN, D_MAX]`` (and under a relative error ``EPS``
+    of both speeds); each option defaults to the file's ``[design]`` section. Writes ``design.json``,
     ``design.md`` and, for ``U_BS2(K)``, ``design.png``.
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
     A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
@@ -101,6 +102,17 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")
     d.add_argument("--k-bounds", type=float, nargs=2, default=None, metavar=("LO", "HI"), help="the gains searched")
     d.add_argument(
+        "--delays",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("D_MIN", "D_MAX"),
+        help="the window of delays on which the design must be stable",
+    )
+    d.add_argument(
+        "--speed-tolerance", type=float, default=None, metavar="EPS", help="relative error of lam and mu, in (0, 1)"
+    )
+    d.add_argument(
         "--rigorous", action="store_true", default=None, help="prove the designed loop's margin in ball arithmetic"
     )
     d.set_defaults(progress=None)  # no progress bar: one design takes about a second
@@ -150,6 +162,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 None if args.k_bounds is None else tuple(args.k_bounds),
                 args.rigorous,
                 args.family,
+                None if args.delays is None else tuple(args.delays),
+                args.speed_tolerance,
             )
             print(design_summary(designed))
             print(f"wrote {', '.join(str(p) for p in written)}")

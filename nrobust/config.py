@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from .design.gain import check_delays
 from .errors import ParameterError
 from .hyperbolic.loops.controllers import (
     Controller,
@@ -161,7 +162,8 @@ _SIMULATION_KEYS = {"delays": None, "t_end": 10.0, "cells": DEFAULT_CELLS, "u0":
 _SIMULATION_RENAMED = {"n": "cells"}
 _TOP_KEYS = ("system", "controller", "analysis", "simulation", "design")
 #: Keys of ``[design]`` (``nrobust design``) and their defaults; ``K``, ``a``, ``b``: a number (fixed)
-#: or ``[low, high]`` bounds (None: the default bounds of the family).
+#: or ``[low, high]`` bounds (None: the default bounds of the family); ``delays = [d_min, d_max]``: the
+#: window of delays to be stable on; ``speed_tolerance``: the relative error of ``lam`` and ``mu`` in (0, 1).
 _DESIGN_KEYS: dict[str, Any] = {
     "family": "reflection",
     "objective": "margin",
@@ -172,6 +174,8 @@ _DESIGN_KEYS: dict[str, Any] = {
     "starts": 4,
     "rigorous": False,
     "observer_delay": 0.0,
+    "delays": None,
+    "speed_tolerance": None,
 }
 #: The controller families ``nrobust design`` can design: U_BS2(K), U_BS2(K) on the state predicted
 #: from ``v(t, 0)`` (output feedback) and the filtered U_BS2(K).
@@ -411,6 +415,29 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
         raise ParameterError(
             "design.observer_delay", 'left out unless family = "output_feedback" (an observer\'s)', d["observer_delay"]
         )
+    if d["delays"] is not None:
+        if not isinstance(d["delays"], list) or any(isinstance(v, bool) for v in d["delays"]):
+            raise ParameterError(
+                "design.delays", "a pair [d_min, d_max] of delays with 0 <= d_min <= d_max and d_max > 0", d["delays"]
+            )
+        d["delays"] = check_delays(d["delays"], "design.delays")
+        if d["margin_at_least"] is not None:
+            raise ParameterError(
+                "design.margin_at_least", "left out with design.delays (the window [0, d] is a margin > d)"
+            )
+    if d["speed_tolerance"] is not None:
+        eps = _number("design.speed_tolerance", d["speed_tolerance"])
+        if not 0.0 < eps < 1.0:
+            raise ParameterError(
+                "design.speed_tolerance", "a relative error of the speeds lam and mu in (0, 1)", d["speed_tolerance"]
+            )
+        d["speed_tolerance"] = eps
+        if d["family"] != "reflection":
+            raise ParameterError(
+                "design.speed_tolerance", 'left out unless family = "reflection"', d["speed_tolerance"]
+            )
+    if d["delays"] is not None and d["family"] == "filtered":
+        raise ParameterError("design.delays", 'left out for family = "filtered" (use margin_at_least)', d["delays"])
     starts = d["starts"]
     if isinstance(starts, bool) or not isinstance(starts, int) or not 1 <= starts <= 64:
         raise ParameterError("design.starts", "an integer in [1, 64]", starts)

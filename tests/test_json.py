@@ -28,7 +28,7 @@ import pytest
 import nrobust
 from nrobust._json import decode_floats, fields_dict, json_safe
 from nrobust.bounds import delay_bound_from_kernel, root_free_region
-from nrobust.design import optimize_loop, pareto_front
+from nrobust.design import optimize_loop, pareto_front, window_stability
 from nrobust.difference import DifferenceOperator
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, TransportSystem
@@ -40,12 +40,14 @@ from nrobust.hyperbolic.analyses import (
     design_state_feedback,
     k_region,
     mismatch_region,
+    speed_tolerance,
     stability_chart,
     tradeoff,
 )
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.kernels.varying import solve_varying_kernels
 from nrobust.hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
     FilteredController,
     OutputFeedback,
     ReflectionController,
@@ -183,6 +185,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "ModelError": proven.model_error,
         "StateFeedback": StateFeedback(-0.3, np.cos, 0.5),  # a callable gain: its repr
         "OutputFeedback": OutputFeedback(ReflectionController(0.1), observer_delay=0.05),
+        "CollocatedOutputFeedback": CollocatedOutputFeedback(ReflectionController(0.1)),
         "SaintVenant": saint_venant(3000.0, 7.0, 1e-4, 14.0, manning=0.02),
         "ARZ": arz(500.0, 40.0, 0.16, 0.5, 60.0, 0.12),
         "GeneralHyperbolic2x2": GENERAL,
@@ -219,6 +222,8 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             TRANSPORT, "margin", parameters={"b": (0.3, 1.5), "K": 0.1, "a": 0.0}
         ),
         "MismatchRegion": mismatch,
+        "DelayWindow": window_stability(A, B, (0.1, 0.2)),
+        "SpeedTolerance": speed_tolerance(TRANSPORT, ReflectionController(0.1), 0.1, (0.0, 0.1), grid=2),
         "NPlusMGainDesign": design_nplusm_gains(
             NPlusMSystem.from_2x2(Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)),
             "margin",
@@ -278,6 +283,7 @@ NAMES = [
     "ModelError",
     "StateFeedback",
     "OutputFeedback",
+    "CollocatedOutputFeedback",
     "SaintVenant",
     "ARZ",
     "GeneralHyperbolic2x2",
@@ -305,6 +311,8 @@ NAMES = [
     "FilteredDesign",
     "ExactFilteredDesign",
     "MismatchRegion",
+    "DelayWindow",
+    "SpeedTolerance",
     "NPlusMGainDesign",
     "StateFeedbackDesign",
 ]

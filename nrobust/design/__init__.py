@@ -4,7 +4,8 @@
 affine in it in both factors (:class:`AffineLoop`: the filtered law's zero or pole), exactly: the gain with the
 largest delay margin (:func:`best_margin`: a kink, a pair birth, an interior maximum or an
 end, solved from its equation) or the largest decay rate under a required margin
-(:func:`best_decay_rate`), each design certified by :mod:`nrobust.margins`.
+(:func:`best_decay_rate`), each design certified by :mod:`nrobust.margins`; either under a
+window of delays on which the loop must be stable (``delays``, :func:`window_stability`).
 
 ``local``: several parameters of any loop family, a local nonsmooth optimisation of the decay
 rate (under a required margin) or of the margin (:func:`optimize_loop`: BFGS with a weak Wolfe
@@ -13,7 +14,16 @@ line search, then a pattern search over axes and diagonals; every iterate feasib
 (:func:`pareto_front`).
 """
 
-from .gain import DESIGN_KINDS, AffineLoop, GainDesign, best_decay_rate, best_margin
+from .gain import (
+    DESIGN_KINDS,
+    AffineLoop,
+    DelayWindow,
+    GainDesign,
+    best_decay_rate,
+    best_margin,
+    check_delays,
+    window_stability,
+)
 from .local import (
     GAMMA_MAX,
     OBJECTIVES,
@@ -33,6 +43,7 @@ __all__ = [
     "GAMMA_MAX",
     "OBJECTIVES",
     "AffineLoop",
+    "DelayWindow",
     "GainDesign",
     "LocalProblem",
     "LocalRun",
@@ -42,8 +53,10 @@ __all__ = [
     "TrialPoint",
     "best_decay_rate",
     "best_margin",
+    "check_delays",
     "delayed_gamma",
     "local_runs",
     "optimize_loop",
     "pareto_front",
+    "window_stability",
 ]

@@ -64,13 +64,32 @@ from ..margins.axis import frequency_bound
 from ..margins.count import unstable_count
 from ..margins.gain import AffineGainLoop, AxisBound, GainEnd, nominally_stable
 from ..margins.margin import DelayMargin, delay_margin
+from ..margins.proven import proven_crossings
 from ..quasipoly import QuasiPolynomial
 from ..roots import SpectralAbscissa, spectral_abscissa
 
-__all__ = ["DESIGN_KINDS", "AffineLoop", "GainDesign", "best_decay_rate", "best_margin"]
+__all__ = [
+    "DESIGN_KINDS",
+    "AffineLoop",
+    "DelayWindow",
+    "GainDesign",
+    "best_decay_rate",
+    "best_margin",
+    "check_delays",
+    "window_stability",
+]
 
 #: Kinds of an optimal gain (:attr:`GainDesign.kind`).
-DESIGN_KINDS = ("kink", "pair birth", "end", "interior smooth max", "margin constraint", "no crossing")
+DESIGN_KINDS = (
+    "kink",
+    "pair birth",
+    "end",
+    "interior smooth max",
+    "margin constraint",
+    "no crossing",
+    "window end",
+    "window",
+)
 # Samples of the axis per half period pi / T of the fastest oscillation of the factors.
 _STEPS = 32
 # Samples of the axis up to the frequency bound, at least.
@@ -136,7 +155,18 @@ class GainDesign:
         certificate (to draw ``delta*(K)``).
     end : GainEnd or None
         For ``"margin constraint"``: the end of the feasible gains (``"crossing"``: a crossing
-        delay equals ``d``; ``"pair_birth"``: a pair born with delay below ``d``).
+        delay equals ``d``; ``"pair_birth"``: a pair born with delay below ``d``); for
+        ``"window end"`` the event that ends the gains stable on the window (``"crossing"``: a
+        branch of crossing delays through ``d_min`` or ``d_max``, given as ``delay``;
+        ``"pair_birth"``; ``"nominal"``: ``s = 0`` a root for every delay).
+    delays : (float, float) or None
+        The window ``[d_min, d_max]`` required (:func:`best_decay_rate`'s ``delays``).
+    windows : tuple of DelayWindow
+        The window certified at ``K`` for the loop and then for each scenario
+        (:func:`window_stability`); empty without ``delays``.
+    feasible : tuple of (float, float)
+        The intervals of gains meeting the window for every loop, their ends solved from their
+        equations and moved ``1e-10`` (relative) inside.
     """
 
     K: float
@@ -154,6 +184,21 @@ class GainDesign:
     gains: NDArray[np.float64]
     envelope: NDArray[np.float64]
     end: GainEnd | None = None
+    delays: tuple[float, float] | None = None
+    windows: tuple[DelayWindow, ...] = ()
+    feasible: tuple[tuple[float, float], ...] = ()
+
+    @property
+    def requirement(self) -> str:
+        """The window requirement and its verdict in words: met and proven, met and checked, or not met."""
+        if self.delays is None:
+            return "none"
+        d_lo, d_hi = self.delays
+        met = all(w.stable for w in self.windows)
+        proven = met and all(w.certified == "proven" for w in self.windows)
+        loops = "the loop" if len(self.windows) == 1 else f"the loop and its {len(self.windows) - 1} scenarios"
+        verdict = "met, proven" if proven else "met, checked" if met else "not met"
+        return f"stable for every delay in [{d_lo:.6g}, {d_hi:.6g}] ({loops}): {verdict}"
 
     @property
     def accuracy(self) -> tuple[float, float]:
@@ -997,6 +1042,604 @@ def _scale(curves: _Curves) -> float:
     return max(abs(curves.K_lo), abs(curves.K_hi))
 
 
+# ============================================================================ delay windows
+def check_delays(delays: Any, name: str = "delays") -> tuple[float, float]:
+    """``(d_min, d_max)``: finite, ``0 <= d_min <= d_max`` and ``d_max > 0``; a :class:`ParameterError`
+    naming ``name`` otherwise."""
+    what = "a pair [d_min, d_max] of finite delays with 0 <= d_min <= d_max and d_max > 0"
+    try:
+        d_lo, d_hi = (float(finite_real(name, d)) for d in delays)
+    except (TypeError, ValueError):
+        raise ParameterError(name, what, delays) from None
+    if not 0.0 <= d_lo <= d_hi or d_hi <= 0.0:
+        raise ParameterError(name, what, delays)
+    return d_lo, d_hi
+
+
+@dataclass(frozen=True)
+class DelayWindow:
+    """Whether ``F(s; delta) = A(s) + B(s) e^{-delta s}`` is exponentially stable for every delay in a window.
+
+    The number of zeros in ``Re s > 0`` changes only at the crossing delays
+    ``tau_k(w) = (theta(w) + 2 pi k) / w`` (:mod:`nrobust.margins.margin`), and with a strongly
+    stable difference operator no zero comes from infinity: a zero count at one delay of
+    ``[d_min, d_max]`` and no crossing delay in it give exponential stability on the whole
+    window (for ``d_min = 0`` this is ``delta* > d_max``).
+
+    Attributes
+    ----------
+    delays : (float, float)
+        The window ``[d_min, d_max]``.
+    stable : bool
+        Exponentially stable for every delay of the window (closed), as certified by
+        :attr:`certified`.
+    certified : str
+        ``"proven"``: the count and the crossing directions proven in ball arithmetic
+        (:func:`nrobust.margins.delay_margin` with ``rigorous=True``) and every crossing delay's
+        enclosure (from :func:`nrobust.margins.proven_crossings`: ``[t_lo + 2 pi k / w_hi,
+        t_hi + 2 pi k / w_lo]``) outside the window; ``"checked"``: the same in floating point
+        (with the reason when a proof was asked and failed); ``"refuted"`` when not stable.
+    probe : float
+        The middle of the window, where the zeros in ``Re s > 0`` were also counted directly.
+    count : int or None
+        That count (the argument principle, :func:`nrobust.margins.unstable_count`); None when
+        not made (no strong stability, ``s = 0`` a root for every delay).
+    enclosing : (float, float) or None
+        The stability window of :attr:`DelayMargin.intervals` that contains ``[d_min, d_max]``.
+    clearance : float
+        The distance from the window to the nearest crossing delay (``inf`` without one; 0 when
+        a crossing delay lies inside).
+    margin : DelayMargin
+        The delay margin and the windows up to ``2 d_max + 1``.
+    reason : str
+        The verdict in words.
+    """
+
+    delays: tuple[float, float]
+    stable: bool
+    certified: str
+    probe: float
+    count: int | None
+    enclosing: tuple[float, float] | None
+    clearance: float
+    margin: DelayMargin
+    reason: str
+
+    def __repr__(self) -> str:
+        d_lo, d_hi = self.delays
+        return (
+            f"DelayWindow(delays=[{d_lo:.6g}, {d_hi:.6g}], stable={self.stable}, certified={self.certified!r}, "
+            f"count={self.count}, clearance={self.clearance:.3g})"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (the delay margin as its dictionary)."""
+        return fields_dict(self)
+
+
+def _window_margin(
+    A: QuasiPolynomial, B: QuasiPolynomial, horizon: float, rigorous: bool, max_evals: int
+) -> tuple[DelayMargin, str]:
+    """The delay margin with its windows up to ``horizon``: proven when asked and possible, else checked."""
+    if rigorous:
+        try:
+            return delay_margin(A, B, delta_max=horizon, max_evals=max_evals, rigorous=True), "proven"
+        except CertificationError as exc:
+            return delay_margin(A, B, delta_max=horizon, max_evals=max_evals), f"checked (the proof failed: {exc})"
+    return delay_margin(A, B, delta_max=horizon, max_evals=max_evals), "checked"
+
+
+def _proven_clear(A: QuasiPolynomial, B: QuasiPolynomial, d_lo: float, d_hi: float) -> str:
+    """Empty when every crossing delay's proven enclosure lies outside ``[d_lo, d_hi]``, else why not."""
+    if not (A.is_real and B.is_real):
+        return "the enclosures of the delays are taken for real loops only"
+    proof = proven_crossings(A, B)
+    pairs = [*zip(proof.omegas, proof.delays), *zip(proof.unresolved, proof.unresolved_delays)]
+    for (w_lo, w_hi), (t_lo, t_hi) in pairs:
+        if not w_lo > 0.0:
+            return f"a crossing frequency enclosure [{w_lo:.6g}, {w_hi:.6g}] reaches 0"
+        for k in range(int(np.ceil(max(d_hi - t_lo, 0.0) * w_hi / _TWO_PI)) + 1):
+            lo = (t_lo + _TWO_PI * k / w_hi) * (1.0 - 4.0 * np.finfo(float).eps)
+            hi = (t_hi + _TWO_PI * k / w_lo) * (1.0 + 4.0 * np.finfo(float).eps)
+            if hi >= d_lo and lo <= d_hi:
+                return f"the enclosure [{lo:.17g}, {hi:.17g}] of a crossing delay meets the window"
+    return ""
+
+
+def window_stability(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    delays: tuple[float, float],
+    *,
+    rigorous: bool = False,
+    max_evals: int = 2_000_000,
+) -> DelayWindow:
+    """Certified exponential stability of ``A + B e^{-delta s}`` for every delay in ``[d_min, d_max]``.
+
+    The delay margin with its windows (:func:`nrobust.margins.delay_margin`, ``delta_max =
+    2 d_max + 1``) gives the count between crossing delays from a certified count and the
+    crossing directions; the loop is stable on the window when one of its stability windows
+    contains ``[d_min, d_max]`` (for ``d_min = 0``: the nominal loop stable and ``delta* >
+    d_max``). The count at the middle of the window is made again, independently, by the
+    argument principle; a disagreement raises. With ``rigorous=True`` the margin is proven in
+    ball arithmetic and every crossing delay's enclosure must miss the window.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The loop factors.
+    delays : (float, float)
+        ``[d_min, d_max]``, ``0 <= d_min <= d_max``, ``d_max > 0``.
+    rigorous : bool, optional
+        Prove the verdict in ball arithmetic (``certified == "proven"``), else check it in
+        floating point; a failed proof leaves ``"checked"`` with the reason.
+    max_evals : int, optional
+        Work bound of the delay margin and of the count.
+
+    Returns
+    -------
+    DelayWindow
+
+    Raises
+    ------
+    ParameterError
+        ``delays`` not such a pair.
+    CertificationError
+        The count at the middle of the window contradicts the windows of the delay margin, or
+        a work bound was hit.
+
+    Examples
+    --------
+    >>> A = QuasiPolynomial([[1.0, -0.1, 1.0]], [0.0])    # s^2 - 0.1 s + 1: unstable alone
+    >>> B = QuasiPolynomial([[0.5]], [0.0])                # + 0.5 e^{-delta s}
+    >>> window_stability(A, B, (4.7, 4.9)).stable
+    True
+    """
+    d_lo, d_hi = check_delays(delays)
+    max_evals = positive_int("max_evals", max_evals)
+    dm, how = _window_margin(A, B, 2.0 * d_hi + 1.0, rigorous, max_evals)
+    probe = 0.5 * (d_lo + d_hi)
+    if not dm.strongly_stable or dm.zero_root:
+        why = "s = 0 is a root for every delay" if dm.zero_root else "the difference operator is not strongly stable"
+        return DelayWindow((d_lo, d_hi), False, "refuted", probe, None, None, 0.0, dm, why)
+    marks = [d for c in dm.crossings for d in c.delays]
+    clearance = min((max(d_lo - d, d - d_hi, 0.0) for d in marks), default=float("inf"))
+    enclosing = next(
+        (
+            (lo, hi)
+            for lo, hi in dm.intervals
+            if (lo < d_lo or (lo == 0.0 == d_lo and dm.nominally_stable)) and d_hi < hi
+        ),
+        None,
+    )
+    W = dm.frequency_bound
+    count = unstable_count(A + B.shift(probe), W, loop=(A, B, probe), max_evals=max_evals).count
+    if enclosing is not None and count != 0:
+        raise CertificationError(
+            f"window_stability: the windows of the delay margin make [{d_lo:.12g}, {d_hi:.12g}] stable, but the "
+            f"count at delta = {probe:.12g} is {count}"
+        )
+    if enclosing is None:
+        why = (
+            f"a crossing delay lies in the window (clearance {clearance:.3g})"
+            if clearance == 0.0
+            else f"{count} zeros in Re s > 0 at delta = {probe:.6g}"
+        )
+        return DelayWindow((d_lo, d_hi), False, "refuted", probe, count, None, clearance, dm, why)
+    reason = f"stable on the window ({enclosing[0]:.10g}, {enclosing[1]:.10g}) of the crossing delays"
+    if how == "proven":
+        unproven = _proven_clear(A, B, d_lo, d_hi)
+        how = f"checked (the proof failed: {unproven})" if unproven else "proven"
+    return DelayWindow((d_lo, d_hi), True, how, probe, count, enclosing, clearance, dm, reason)
+
+
+def _window_mask(curves: _Curves, d_lo: float, d_hi: float) -> NDArray[np.bool_]:
+    """Grid parameters at which no crossing delay ``d + 2 pi k / w`` of a sampled curve lies in ``[d_lo, d_hi]``.
+
+    Interpolated on each curve; a cell whose two interpolated delays straddle any part of the
+    window marks both its gains (a branch crossing the window between them), and the cell of
+    the parameter with ``s = 0`` a root for every delay is marked too. The certificate at the
+    design catches a curve narrower than a cell.
+    """
+    gains = curves.gains
+    hit = np.zeros(gains.size, dtype=bool)
+    for piece in curves.pieces:
+        if piece.K.size < 2:
+            continue
+        order = np.argsort(piece.K)
+        Ks, ws, ds = piece.K[order], piece.w[order], piece.d[order]
+        inside_gains = np.flatnonzero((gains >= Ks[0]) & (gains <= Ks[-1]))
+        if not inside_gains.size:
+            continue
+        at = gains[inside_gains]
+        for k in range(int(np.ceil(max(d_hi - float(ds.min()), 0.0) * float(ws.max()) / _TWO_PI)) + 1):
+            dk = ds + _TWO_PI * k / ws
+            if dk.min() > d_hi or dk.max() < d_lo:
+                continue
+            val = np.interp(at, Ks, dk)
+            inside = (val >= d_lo) & (val <= d_hi)
+            if val.size > 1:  # a branch through the window between two gains
+                a, b = np.minimum(val[:-1], val[1:]), np.maximum(val[:-1], val[1:])
+                cross = (a <= d_hi) & (b >= d_lo)
+                inside[:-1] |= cross
+                inside[1:] |= cross
+            # a sample inside the window between two gains (a curve dipping in between them)
+            dipped = Ks[(dk >= d_lo) & (dk <= d_hi) & (Ks >= at[0]) & (Ks <= at[-1])]
+            cells = np.searchsorted(at, dipped)
+            inside[np.clip(cells, 0, at.size - 1)] = True
+            inside[np.clip(cells - 1, 0, at.size - 1)] = True
+            hit[inside_gains] |= inside
+    K0 = curves.loop.zero_root()
+    if K0 is not None and curves.K_lo <= K0 <= curves.K_hi:
+        j = int(np.searchsorted(gains, K0))
+        hit[max(j - 1, 0) : j + 1] = True
+    return ~hit
+
+
+def _exact_birth(curves: _Curves, piece: _Piece, at_start: bool) -> tuple[float, float] | None:
+    """The pair birth that starts (or ends) ``piece``: ``dK/dw = 0`` by ``brentq`` in ``w`` about its sampled
+    end, the bracket widened until the slope changes sign (the sampled estimate of a gain loop's birth
+    can be cells away from the exact one); ``(K, w)`` or None."""
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+    we = float(piece.w[0] if at_start else piece.w[-1])
+
+    def slope(x: float) -> float:
+        return curves.on_branch(x, piece.sigma)[2]
+
+    for cells in (1, 2, 4, 8):
+        a, b = max(we - cells * curves.dw, 0.5 * curves.dw), we + cells * curves.dw
+        if slope(a) * slope(b) < 0:
+            wb = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
+            return curves.on_branch(wb, piece.sigma)[0], wb
+    return None
+
+
+_Birth = tuple[float, _Piece, bool, range]
+
+
+def _window_events(curves: _Curves, i: int, j: int, d_lo: float, d_hi: float) -> tuple[list[GainEnd], list[_Birth]]:
+    """The events within 64 cells of the grid parameters ``i`` (feasible on the scan) and ``j`` (not):
+    solved from their equations, a branch of crossing delays through ``d_lo > 0`` or ``d_hi``
+    (``"crossing"``), ``s = 0`` a root for every delay or, with ``d_lo = 0``, a root on the axis at
+    ``delta = 0`` (``"nominal"``); and the pair births, as ``(sampled K, piece, at_start, branches k)``,
+    to be solved when needed (:func:`_solved_birth`: a pair born with a delay in the window)."""
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+    lo, hi = sorted((curves.gains[i], curves.gains[j]))
+    width = 64.0 * (hi - lo)  # the sampled curves' events may be cells away from the exact ones
+    events: list[GainEnd] = []
+    births: list[_Birth] = []
+    K0 = curves.loop.zero_root()
+    if K0 is not None and lo - width <= K0 <= hi + width:
+        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0))
+    for piece in curves.pieces:
+        if piece.K.size < 2 or np.max(piece.K) < lo - width or np.min(piece.K) > hi + width:
+            continue
+        ks = range(int(np.ceil(max(d_hi - float(piece.d.min()), 0.0) * float(piece.w.max()) / _TWO_PI)) + 1)
+        for at_start, how in ((True, piece.start), (False, piece.stop)):
+            end_K = float(piece.K[0] if at_start else piece.K[-1])
+            if not lo - width <= end_K <= hi + width:
+                continue
+            if how == "birth":
+                births.append((end_K, piece, at_start, ks))
+            elif how == "wrap" and d_lo == 0.0:  # a root on the axis at delta = 0: the nominal loop changes
+                events.append(GainEnd(end_K, "nominal", float(piece.w[0] if at_start else piece.w[-1]), 0.0))
+        for k in ks:
+            for level in (d_lo, d_hi) if d_lo > 0.0 else (d_hi,):
+                f_s = piece.d + _TWO_PI * k / piece.w - level
+                for c in np.flatnonzero(np.sign(f_s[:-1]) * np.sign(f_s[1:]) < 0):
+                    Ka, Kc = sorted((piece.K[c], piece.K[c + 1]))
+                    if Kc < lo - width or Ka > hi + width:
+                        continue
+
+                    def f(x: float, sigma: float = piece.sigma, k: int = k, level: float = level) -> float:
+                        return curves.on_branch(x, sigma)[1] + _TWO_PI * k / x - level
+
+                    wa, wc = piece.w[c], piece.w[c + 1]
+                    if f(wa) * f(wc) > 0:
+                        continue
+                    wx = brentq(f, wa, wc, xtol=1e-15 * wc, rtol=1e-15)
+                    events.append(GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level))
+    return events, births
+
+
+def _solved_birth(curves: _Curves, birth: _Birth, d_lo: float, d_hi: float) -> GainEnd | None:
+    """The exact pair birth of a piece (:func:`_exact_birth`), when a delay of the pair lies in the window."""
+    _, piece, at_start, ks = birth
+    found = _exact_birth(curves, piece, at_start)
+    if found is None:
+        return None
+    Kb, wb = found
+    db = curves.on_branch(wb, piece.sigma)[1]
+    if any(d_lo <= db + _TWO_PI * k / wb <= d_hi for k in ks):
+        return GainEnd(float(Kb), "pair_birth", float(wb), float(db))
+    return None
+
+
+class _Requirement:
+    """The parameters of one loop stable on the window ``[d_lo, d_hi]``, on the envelope grid, and their ends.
+
+    With ``d_lo = 0`` the requirement is ``delta* > d_hi`` (the nominal loop stable, the envelope
+    above ``d_hi``); with ``d_lo > 0`` no crossing delay in the window (:func:`_window_mask`) and,
+    checked per interval, no zero in ``Re s > 0`` inside it; :func:`_window_events` gives the ends.
+    """
+
+    def __init__(self, curves: _Curves, d_lo: float, d_hi: float) -> None:
+        self.curves, self.d_lo, self.d_hi = curves, d_lo, d_hi
+        if d_lo == 0.0:
+            self.mask = np.where(_nominal_mask(curves), curves.envelope, 0.0) > d_hi
+        else:
+            self.mask = _window_mask(curves, d_lo, d_hi)
+
+    def end(self, i: int, j: int, scale: float) -> GainEnd:
+        """The end between the grid parameters ``i`` (feasible on the scan) and ``j`` (not): the event nearest
+        ``i`` whose inner side (``1e-10`` relative inside) is feasible by a delay margin, the events
+        further in tried in turn (the interpolated scan can misplace the end by cells near a birth)."""
+        curves = self.curves
+        events, births = _window_events(curves, i, j, self.d_lo, self.d_hi)
+        side = 1.0 if j > i else -1.0
+        x0 = float(curves.gains[i])
+        cell = float(curves.gains[1] - curves.gains[0])
+        births.sort(key=lambda b: abs(b[0] - x0))
+        # the births solved lazily: those sampled nearer x0 than the nearest event found (8 cells of slack)
+        while births and (not events or abs(births[0][0] - x0) <= min(abs(e.K - x0) for e in events) + 8 * cell):
+            solved = _solved_birth(curves, births.pop(0), self.d_lo, self.d_hi)
+            if solved is not None:
+                events.append(solved)
+        if not events:
+            raise CertificationError(
+                f"no equation found for the end of the parameters stable on [{self.d_lo:.6g}, {self.d_hi:.6g}] near "
+                f"K = {x0:.12g}"
+            )
+        first = min(events, key=lambda e: abs(e.K - x0))
+        # further in: every event, the births sampled inward of the first too
+        for birth in births:
+            if side * (birth[0] - first.K) < 8 * cell:
+                solved = _solved_birth(curves, birth, self.d_lo, self.d_hi)
+                if solved is not None:
+                    events.append(solved)
+        inward = sorted((e for e in events if side * (e.K - first.K) < 0.0), key=lambda e: -side * e.K)
+        for event in [first, *inward]:
+            if self.feasible_at(event.K - side * _OFFSET * max(scale, 1e-300)):
+                return event
+        raise CertificationError(
+            f"no end of the parameters stable on [{self.d_lo:.6g}, {self.d_hi:.6g}] near {x0:.12g} has a feasible "
+            "inner side: the scan misplaces the feasible set there (narrower bounds would help)"
+        )
+
+    def feasible_at(self, K: float) -> bool:
+        """The loop at ``K`` meets the window, in floating point (the design is certified afterwards)."""
+        loop = self.curves.loop
+        A, B = loop.A(K), loop.B(K)
+        if self.d_lo == 0.0:
+            dm = delay_margin(A, B, verify=False)
+            return bool(dm.nominally_stable and dm.margin > self.d_hi)
+        return window_stability(A, B, (self.d_lo, self.d_hi)).stable
+
+    def count(self, K: float) -> int | None:
+        """Zeros in ``Re s > 0`` at the middle of the window for the parameter ``K`` (``d_lo > 0``)."""
+        loop = self.curves.loop
+        A, B = loop.A(K), loop.B(K)
+        bound = frequency_bound(A, B)
+        if bound is None:
+            return None
+        probe = 0.5 * (self.d_lo + self.d_hi)
+        return unstable_count(A + B.shift(probe), float(bound[0]), loop=(A, B, probe)).count
+
+
+_Interval = tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None], NDArray[np.intp]]
+
+
+def _feasible_intervals(reqs: list[_Requirement], scale: float) -> list[_Interval]:
+    """The parameter intervals where every loop meets the window: runs of the grid, each run's count checked
+    at its middle (``d_lo > 0``), their ends solved from their equations, checked on their inner side and
+    moved ``1e-10`` (relative) inside."""
+    gains = reqs[0].curves.gains
+    mask = np.logical_and.reduce([r.mask for r in reqs])
+    idx = np.flatnonzero(mask)
+    out: list[_Interval] = []
+    if not idx.size:
+        return out
+    for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
+        middle = float(gains[run[run.size // 2]])
+        if not all(r.d_lo == 0.0 or r.count(middle) == 0 for r in reqs):
+            continue  # no crossing delay in the window, but zeros in Re s > 0 there
+        ends: list[tuple[float, GainEnd | None]] = []
+        for k, side in ((int(run[0]), -1), (int(run[-1]), 1)):
+            j = k + side
+            if j < 0 or j >= gains.size:
+                ends.append((float(gains[k]), None))
+                continue
+            events = [r.end(k, j, scale) for r in reqs if not r.mask[j]]
+            event = min(events, key=lambda e: side * e.K)  # the innermost of the loops' ends
+            inner = event.K - side * _OFFSET * max(scale, 1e-300)
+            # a loop feasible at j on the scan may still end before: its own end, when its inner side fails
+            late = [r.end(k, j, scale) for r in reqs if r.mask[j] and not r.feasible_at(inner)]
+            event = min([event, *late], key=lambda e: side * e.K)
+            ends.append((event.K - side * _OFFSET * max(scale, 1e-300), event))
+        (K_a, _), (K_b, _) = ends
+        if K_a < K_b:
+            out.append((ends[0], ends[1], run))
+    return out
+
+
+def _best_margin_in(
+    curves: _Curves, env: NDArray, intervals: list[_Interval], max_evals: int
+) -> tuple[float, float, str, tuple, tuple]:
+    """The largest delay margin over the feasible intervals: the solved local maxima of the envelope inside
+    them and their ends (``"window end"``); all zero: the middle of the widest interval (``"window"``)."""
+    best: tuple[float, float, str, tuple, tuple] | None = None
+    for (K_a, _), (K_b, _), run in intervals:
+        cands: list[tuple[float, float, str, tuple, tuple]] = []
+        sub = env[run]
+        if sub.size >= 3 and np.max(sub) > 0.0:
+            for local in _candidates(sub):
+                i = int(run[local])
+                if 0 < local < sub.size - 1 and env[i] > 0.0:
+                    K, v, kind, K_br, v_br = _solve_candidate(curves, i)
+                    if K_a <= K <= K_b:
+                        cands.append((K, v, kind, K_br, v_br))
+        for K in (K_a, K_b):  # the margin at an end, which may be a pair birth (no Newton on the double root)
+            v = float(delay_margin(curves.loop.A(K), curves.loop.B(K), max_evals=max_evals).margin)
+            cands.append((K, v, "window end", (K, K), (v, v)))
+        top = max(cands, key=lambda c: c[1])
+        if best is None or top[1] > best[1]:
+            best = top
+    assert best is not None
+    if best[1] == 0.0:
+        (K_a, _), (K_b, _), _ = max(intervals, key=lambda r: r[1][0] - r[0][0])
+        K = 0.5 * (K_a + K_b)
+        return K, 0.0, "window", (K_a, K_b), (0.0, 0.0)
+    return best
+
+
+def _window_infeasible(
+    curves: _Curves, d_lo: float, d_hi: float, scenarios: int, max_evals: int
+) -> ParameterError | CertificationError:
+    """The error for a window that no parameter meets on the scan, naming the best achievable (a
+    :class:`CertificationError` when the best margin does meet a window from 0: the scan missed it)."""
+    lo, hi = curves.K_lo, curves.K_hi
+    if scenarios:
+        return ParameterError(
+            "delays",
+            f"a window that some parameter of [{lo:.6g}, {hi:.6g}] meets for the loop and its {scenarios} scenarios "
+            "together (none does: a narrower window, or scenarios closer to the loop)",
+            (d_lo, d_hi),
+        )
+    if d_lo == 0.0:
+        top = best_margin(curves.loop.loop, (lo, hi), max_evals=max_evals)
+        if top.value > d_hi:
+            return CertificationError(
+                f"the scan of [{lo:.6g}, {hi:.6g}] found no parameter with a delay margin > {d_hi:g}, though the "
+                f"largest margin, {with_accuracy(top.value, top.accuracy[1])} at K = "
+                f"{with_accuracy(top.K, top.accuracy[0])}, meets it: narrow the bounds about that K"
+            )
+        return ParameterError(
+            "delays",
+            f"d_max below {with_accuracy(top.value, top.accuracy[1])}, the largest delay margin of a parameter in "
+            f"[{lo:.6g}, {hi:.6g}] (at K = {with_accuracy(top.K, top.accuracy[0])}, a {top.kind}) when d_min = 0",
+            (d_lo, d_hi),
+        )
+    # the stability window from d_lo at each scanned parameter reaches the next crossing delay above it
+    reach = np.full(curves.gains.size, np.inf)
+    for piece in curves.pieces:
+        if piece.K.size < 2:
+            continue
+        order = np.argsort(piece.K)
+        Ks, ws, ds = piece.K[order], piece.w[order], piece.d[order]
+        inside = (curves.gains >= Ks[0]) & (curves.gains <= Ks[-1])
+        for k in range(int(np.ceil(max(2.0 * d_hi - float(ds.min()), 0.0) * float(ws.max()) / _TWO_PI)) + 1):
+            val = np.interp(curves.gains[inside], Ks, ds + _TWO_PI * k / ws)
+            reach[inside] = np.where(val > d_lo, np.minimum(reach[inside], val), reach[inside])
+    req = _Requirement(curves, d_lo, d_lo + 1e-9 * max(d_lo, 1.0))
+    sample = np.unique(np.linspace(0, curves.gains.size - 1, 33).astype(int))  # counts at d_min on 33 gains
+    stable = [int(i) for i in sample if np.isfinite(reach[i]) and req.count(float(curves.gains[i])) == 0]
+    if stable:
+        i = max(stable, key=lambda k: reach[k])
+        return ParameterError(
+            "delays",
+            f"d_max below about {reach[i]:.6g}, the end of the stability window from d_min = {d_lo:.6g} at "
+            f"K = {curves.gains[i]:.6g} (the largest of 33 gains of [{lo:.6g}, {hi:.6g}] stable at d_min)",
+            (d_lo, d_hi),
+        )
+    return ParameterError(
+        "delays",
+        f"a d_min at which some parameter of [{lo:.6g}, {hi:.6g}] is stable (on the scan none is stable at "
+        f"delta = {d_lo:.6g})",
+        (d_lo, d_hi),
+    )
+
+
+def _window_design(
+    loop: AffineGainLoop | AffineLoop,
+    lo: float,
+    hi: float,
+    objective: str,
+    delays: Any,
+    scenarios: Any,
+    n_rates: int,
+    max_evals: int,
+    rigorous: bool,
+) -> GainDesign:
+    """:func:`best_margin` or :func:`best_decay_rate` under the window ``delays`` for the loop and ``scenarios``."""
+    d_lo, d_hi = check_delays(delays)
+    n_rates = positive_int("n_rates", n_rates, 2)
+    max_evals = positive_int("max_evals", max_evals)
+    try:
+        others = tuple(scenarios)
+    except TypeError:
+        raise ParameterError("scenarios", "a tuple of AffineGainLoop or AffineLoop", scenarios) from None
+    for other in others:
+        _checked_loop(other, (lo, hi))
+    curves = _Curves(_Family(loop), lo, hi, max_evals)
+    all_curves = [curves, *(_Curves(_Family(other), lo, hi, max_evals) for other in others)]
+    reqs = [_Requirement(c, d_lo, d_hi) for c in all_curves]
+    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
+    scan = (curves.gains, env)
+    intervals = _feasible_intervals(reqs, _scale(curves))
+    if not intervals:
+        raise _window_infeasible(curves, d_lo, d_hi, len(others), max_evals)
+    end: GainEnd | None = None
+    if objective == "decay_rate":
+        K, value, kind, end, sa = _best_rate(curves, [(a, b) for a, b, _ in intervals], n_rates, "window end")
+        K_br, v_br = (K, K), (value, value)
+        if end is not None:
+            K_br = (min(K, end.K), max(K, end.K))
+            at_end = -_abscissa(curves.loop, end.K).value
+            v_br = (min(value, at_end), max(value, at_end))
+        elif kind == "interior smooth max":
+            K_br = (K - 1e-10 * max(_scale(curves), 1e-300), K + 1e-10 * max(_scale(curves), 1e-300))
+    else:
+        K, value, kind, K_br, v_br = _best_margin_in(curves, env, intervals, max_evals)
+        if kind == "window end":
+            end = min((e for a, b, _ in intervals for e in (a, b)), key=lambda e: abs(e[0] - K))[1]
+            if end is not None:  # the end itself is not feasible: the design is 1e-10 (relative) inside
+                K_br = (min(K, end.K), max(K, end.K))
+        sa = _abscissa(curves.loop, K)
+    cert, how = _certify(curves.loop, K, rigorous, max_evals)
+    if objective == "margin" and np.isfinite(value):
+        tol = 1e-9 * max(value, 1e-300) + (cert.accuracy or 0.0)
+        if abs(cert.margin - value) > tol:
+            raise CertificationError(
+                f"best_margin: the {kind} at K = {K:.15g} gives delta* = {value:.15g} by its equations, the certified "
+                f"delay margin there is {cert.margin:.15g}: a crossing curve was missed by the scan"
+            )
+        value = cert.margin
+    windows = tuple(
+        window_stability(c.loop.A(K), c.loop.B(K), (d_lo, d_hi), rigorous=rigorous, max_evals=max_evals)
+        for c in all_curves
+    )
+    for n, window in enumerate(windows):
+        if not window.stable:
+            which = "the loop" if n == 0 else f"scenario {n - 1}"
+            raise CertificationError(
+                f"the design K = {K:.15g} is not certified stable on [{d_lo:.6g}, {d_hi:.6g}] for {which}: "
+                f"{window.reason} (a crossing curve narrower than the scan; narrower bounds about K would help)"
+            )
+    rate = -sa.value
+    feasible = tuple((float(a[0]), float(b[0])) for a, b, _ in intervals)
+    return GainDesign(
+        K,
+        objective,
+        value,
+        cert.margin,
+        rate,
+        kind,
+        K_br,
+        v_br,
+        (lo, hi),
+        cert,
+        how,
+        sa,
+        *scan,
+        end,
+        (d_lo, d_hi),
+        windows,
+        feasible,
+    )
+
+
 def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
     return spectral_abscissa(loop.nominal(K))
 
@@ -1005,6 +1648,8 @@ def best_margin(
     loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
     *,
+    delays: tuple[float, float] | None = None,
+    scenarios: tuple[AffineGainLoop | AffineLoop, ...] = (),
     rigorous: bool = False,
     max_evals: int = 2_000_000,
 ) -> GainDesign:
@@ -1029,6 +1674,14 @@ def best_margin(
         ``K_lo < K_hi``, where the difference operator is strongly stable (for ``U_BS2(K)``:
         ``|K| < (1 - |rho q|)/|q|``, eq. (54); for an :class:`AffineLoop` it is checked at the ends
         and, when ``A_1 != 0``, at the point nearest 0).
+    delays : (float, float), optional
+        A window ``[d_min, d_max]`` on which the loop must also be exponentially stable (the
+        feasible gains of :func:`best_decay_rate`): the margin is maximised over them, a
+        candidate outside them dropped and their ends (``kind`` ``"window end"``) compared; a
+        margin of 0 everywhere (``d_min > 0`` and the nominal loop unstable) gives the middle of
+        the widest interval (``kind`` ``"window"``).
+    scenarios : tuple of AffineGainLoop or AffineLoop, optional
+        Further loops that must be stable on the window (with ``delays``).
     rigorous : bool, optional
         Prove the margin at the design in ball arithmetic (``certified == "proven"``); when
         the proof fails the margin is checked in floating point and ``certified`` says why.
@@ -1050,6 +1703,10 @@ def best_margin(
         margin at the design disagrees with the equations (a crossing curve missed by the scan).
     """
     lo, hi = _checked_loop(loop, bounds)
+    if delays is not None or scenarios:
+        if delays is None:
+            raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
+        return _window_design(loop, lo, hi, "margin", delays, scenarios, 5, max_evals, rigorous)
     max_evals = positive_int("max_evals", max_evals)
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
@@ -1082,6 +1739,46 @@ def best_margin(
     return GainDesign(
         K, "margin", cert.margin, cert.margin, -sa.value, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan
     )
+
+
+_Candidate = tuple[float, float, str, GainEnd | None, SpectralAbscissa]
+
+
+def _best_rate(
+    curves: _Curves,
+    intervals: list[tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]],
+    n_rates: int,
+    end_kind: str,
+) -> _Candidate:
+    """The largest decay rate over the intervals ``((K_a, event_a), (K_b, event_b))``: ``n_rates`` samples
+    of each, ends included; an end (``end_kind``, or ``"end"`` at a bound) when its sample is the largest,
+    else Brent's bounded search about the largest interior sample."""
+    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
+
+    scale = _scale(curves)
+    best: _Candidate | None = None
+    for ends in intervals:
+        (K_a, _), (K_b, _) = ends
+        Ks = np.linspace(K_a, K_b, n_rates)
+        sas = [_abscissa(curves.loop, float(K)) for K in Ks]
+        rates = np.array([-sa.value for sa in sas])
+        k = int(np.argmax(rates))
+        if k in (0, n_rates - 1):
+            K_end, event_end = ends[0 if k == 0 else 1]
+            cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sas[k])
+        else:
+            res = minimize_scalar(
+                lambda K: _abscissa(curves.loop, K).value,
+                bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
+                method="bounded",
+                options={"xatol": 1e-10 * max(scale, 1e-300)},
+            )
+            sa = _abscissa(curves.loop, float(res.x))
+            cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
+        if best is None or cand[1] > best[1]:
+            best = cand
+    assert best is not None
+    return best
 
 
 def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
@@ -1127,7 +1824,9 @@ def best_decay_rate(
     loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
     *,
-    margin_at_least: float,
+    margin_at_least: float | None = None,
+    delays: tuple[float, float] | None = None,
+    scenarios: tuple[AffineGainLoop | AffineLoop, ...] = (),
     rigorous: bool = False,
     n_rates: int = 5,
     max_evals: int = 2_000_000,
@@ -1147,12 +1846,30 @@ def best_decay_rate(
     sample is an end, that end is the design (``kind`` ``"margin constraint"`` or ``"end"``),
     otherwise Brent's bounded search refines the interior maximum.
 
+    With ``delays = (d_min, d_max)`` instead, the requirement is exponential stability for every
+    delay of the window (:func:`window_stability`; for ``d_min = 0`` that is ``delta*(K) > d_max``,
+    the constraint above): with ``d_min > 0`` the loop may be unstable at ``delta = 0``, and the
+    feasible gains are those where no branch ``tau_k(K) = (theta + 2 pi k) / w`` of crossing delays
+    lies in ``[d_min, d_max]`` and the count of zeros in ``Re s > 0`` there is 0. Each end of them is
+    solved from its equation (a branch through ``d_min`` or ``d_max``: ``"crossing"``; a pair born
+    with a delay in the window: ``"pair_birth"``; ``s = 0`` a root for every delay:
+    ``"nominal"``), the count checked once per interval, and the decay rate at ``delta = 0``
+    maximised over them as above (``kind`` ``"window end"`` at an end). Every loop of
+    ``scenarios`` (the same parameter, e.g. the loop on a plant with mismatched data) must meet
+    the window too: the feasible set is the intersection, and the design is certified on each
+    (:attr:`GainDesign.windows`).
+
     Parameters
     ----------
     loop, bounds, rigorous, max_evals
         As in :func:`best_margin`.
-    margin_at_least : float
-        ``d > 0``: the delay margin required.
+    margin_at_least : float, optional
+        ``d > 0``: the delay margin required (or ``delays``).
+    delays : (float, float), optional
+        ``[d_min, d_max]``: the window of delays on which the loop must be stable
+        (``0 <= d_min <= d_max``, ``d_max > 0``); not with ``margin_at_least``.
+    scenarios : tuple of AffineGainLoop or AffineLoop, optional
+        Further loops of the same parameter that must be stable on the window (with ``delays``).
     n_rates : int, optional
         Gains at which the decay rate is sampled in each feasible interval (``>= 2``).
 
@@ -1164,14 +1881,24 @@ def best_decay_rate(
     Raises
     ------
     ParameterError
-        As :func:`best_margin`; ``margin_at_least`` not positive.
+        As :func:`best_margin`; ``margin_at_least`` not positive, ``delays`` not a window, both or
+        neither given; a requirement no gain of the bounds meets (naming the best achievable:
+        the largest margin, or the end of the stability window from ``d_min`` on the scan).
     CertificationError
         No gain in the bounds has ``delta*(K) >= d``, an end could not be solved, or the
-        certified margin at the design is below ``d``.
+        certified margin at the design is below ``d`` (the window not certified, with ``delays``).
     """
-    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
-
     lo, hi = _checked_loop(loop, bounds)
+    if delays is not None or scenarios:
+        if margin_at_least is not None:
+            raise ParameterError(
+                "margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least
+            )
+        if delays is None:
+            raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
+        return _window_design(loop, lo, hi, "decay_rate", delays, scenarios, n_rates, max_evals, rigorous)
+    if margin_at_least is None:
+        raise ParameterError("margin_at_least", "a positive delay margin, or delays=(d_min, d_max)", None)
     d = positive("margin_at_least", margin_at_least)
     n_rates = positive_int("n_rates", n_rates, 2)
     max_evals = positive_int("max_evals", max_evals)
@@ -1195,10 +1922,9 @@ def best_decay_rate(
             "that do lie in a narrower interval than the scan resolves; narrow the bounds about that K"
         )
     scale = max(abs(lo), abs(hi))
-    best: tuple[float, float, str, GainEnd | None, SpectralAbscissa] | None = None
     idx = np.flatnonzero(ok)
-    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
-    for run in runs:
+    intervals: list[tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]] = []
+    for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
         ends: list[tuple[float, GainEnd | None]] = []
         for k, side in ((run[0], -1), (run[-1], 1)):
             if k + side < 0 or k + side >= curves.gains.size:
@@ -1206,32 +1932,8 @@ def best_decay_rate(
                 continue
             event = _level_end(curves, k, k + side, d)
             ends.append((event.K - side * _OFFSET * scale, event))
-        (K_a, _), (K_b, _) = ends
-        Ks = np.linspace(K_a, K_b, n_rates)
-        sas = [_abscissa(curves.loop, float(K)) for K in Ks]
-        rates = np.array([-sa.value for sa in sas])
-        k = int(np.argmax(rates))
-        if k in (0, n_rates - 1):
-            K_end, event_end = ends[0 if k == 0 else 1]
-            cand: tuple[float, float, str, GainEnd | None, SpectralAbscissa] = (
-                K_end,
-                float(rates[k]),
-                "end" if event_end is None else "margin constraint",
-                event_end,
-                sas[k],
-            )
-        else:
-            res = minimize_scalar(
-                lambda K: _abscissa(curves.loop, K).value,
-                bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
-                method="bounded",
-                options={"xatol": 1e-10 * max(scale, 1e-300)},
-            )
-            sa = _abscissa(curves.loop, float(res.x))
-            cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
-        if best is None or cand[1] > best[1]:
-            best = cand
-    assert best is not None
+        intervals.append((ends[0], ends[1]))
+    best = _best_rate(curves, intervals, n_rates, "margin constraint")
     K, rate, kind, end, sa = best
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     if not cert.margin >= d:

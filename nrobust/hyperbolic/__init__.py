@@ -17,6 +17,7 @@ from .kernels.constant import Kernels, solve_kernels
 from .kernels.varying import VaryingKernels, solve_varying_kernels
 from .loops.controllers import (
     Classification,
+    CollocatedOutputFeedback,
     Controller,
     FeedbackLaw,
     FilteredController,
@@ -52,6 +53,7 @@ __all__ = [
     "GeneralHyperbolic2x2",
     "GeneralSimulation",
     "Hyperbolic2x2",
+    "CollocatedOutputFeedback",
     "Kernels",
     "NPlusMBackstepping",
     "NPlusMGainDesign",

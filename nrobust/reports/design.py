@@ -90,10 +90,29 @@ def _reflection_markdown(
         lines.append(f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)}")
     if d.end is not None:
         end_accuracy = d.end.accuracy if d.end.accuracy is not None or d.end.K != d.K else k_acc
+        which = "meeting the requirement" if d.delays is not None else "with a large enough margin"
         lines.append(
-            f"- the end of the gains with a large enough margin: K = {with_accuracy(d.end.K, end_accuracy)}, "
+            f"- the end of the gains {which}: K = {with_accuracy(d.end.K, end_accuracy)}, "
             f"{d.end.kind.replace('_', ' ')} at w = {d.end.omega:.6g}, delay {d.end.delay:.6g}"
         )
+    if d.delays is not None:
+        d_lo, d_hi = d.delays
+        met = all(w.stable for w in d.windows)
+        proven = met and all(w.certified == "proven" for w in d.windows)
+        lines.append(
+            f"- requirement: exponentially stable for every delay in [{d_lo:.6g}, {d_hi:.6g}]: "
+            + ("met, proven in ball arithmetic" if proven else "met, checked in floating point" if met else "not met")
+        )
+        for n, w in enumerate(d.windows):
+            which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
+            lines.append(f"  - {which}: {w.reason}, {w.certified}")
+        if d.feasible:
+            spans = ", ".join(f"({a:.10g}, {b:.10g})" for a, b in d.feasible)
+            lines.append(f"- gains meeting the requirement: {spans} (ends solved from their equations)")
+    if result.tolerance is not None:
+        t = result.tolerance
+        lines.append(f"- speed tolerance {t.eps:.6g} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}")
+        lines.append(f"  - {t.statement}; about {t.scope}")
     if edge is not None:
         lines.append(
             f"- on the edge: the margin is {edge['margin_below']:.6g} at K - {edge['step']:.1g} and "
@@ -102,6 +121,14 @@ def _reflection_markdown(
         )
     lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
     return lines
+
+
+def _corner(result: ReflectionDesign, n: int) -> str:
+    """The ``n``-th corner of the speed tolerance's square as ``(e_lam, e_mu)``."""
+    if result.tolerance is None:
+        return f"of scenario {n}"
+    a, b = result.tolerance.points[n]
+    return f"(e_lam, e_mu) = ({a:+.6g}, {b:+.6g})"
 
 
 def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
@@ -137,6 +164,8 @@ def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> by
     ax.plot(d.gains, d.envelope, label="delay margin delta*(K) (the scan behind the design)")
     if d.objective == "decay_rate" and margin_at_least is not None:
         ax.axhline(margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {margin_at_least:g}")
+    if d.delays is not None:
+        ax.axhspan(d.delays[0], d.delays[1], color="0.85", label=f"required window [{d.delays[0]:g}, {d.delays[1]:g}]")
     ax.plot(
         [d.K],
         [d.margin],
@@ -180,11 +209,16 @@ def run_design(
     K_bounds: tuple[float, float] | None = None,
     rigorous: bool | None = None,
     family: str | None = None,
+    delays: tuple[float, float] | None = None,
+    speed_tolerance: float | None = None,
 ) -> tuple[tuple[Path, ...], ReflectionDesign | FilteredDesign]:
     """``nrobust design``: design a controller for the plant of a SYSTEM.toml file and write the result.
 
     Each argument left None takes the file's ``[design]`` value (or its default: U_BS2(K),
-    the largest margin). The file and ``out_dir`` are checked before any computation; the
+    the largest margin; ``delays = (d_min, d_max)``: the window of delays to be stable on,
+    ``speed_tolerance``: the relative error of the speeds it must hold under, both with
+    ``family = "reflection"``, ``delays`` with ``"output_feedback"`` too). The report states each
+    requirement and whether it is met and proven. The file and ``out_dir`` are checked before any computation; the
     files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
     written paths and the design.
 
@@ -209,6 +243,12 @@ def run_design(
     margin_at_least = margin_at_least if margin_at_least is not None else given.get("margin_at_least")
     rigorous = rigorous if rigorous is not None else bool(given.get("rigorous", False))
     bounds = K_bounds if K_bounds is not None else given.get("K")
+    delays = delays if delays is not None else given.get("delays")
+    speed_tolerance = speed_tolerance if speed_tolerance is not None else given.get("speed_tolerance")
+    if delays is not None and family == "filtered":
+        raise ParameterError("delays", 'left out for family = "filtered" (use margin_at_least)', delays)
+    if delays is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "left out with delays (the window [0, d] is a margin > d)")
     outputs = RunOutputs(out_dir, "design")
     edge: dict[str, float] | None = None
     with outputs:
@@ -222,6 +262,8 @@ def run_design(
                 rigorous=rigorous,
                 output_feedback=family == "output_feedback",
                 observer_delay=float(given.get("observer_delay", 0.0)),
+                delays=delays,
+                speed_tolerance=speed_tolerance,
             )
             edge = _edge(spec["system"], result) if objective == "decay_rate" else None
             lines = _reflection_markdown(Path(path), result, margin_at_least, edge)
@@ -240,6 +282,8 @@ def run_design(
             "plant": repr(spec["given_system"]),
             "family": family,
             "margin_at_least": margin_at_least,
+            "delays": delays,
+            "speed_tolerance": speed_tolerance,
             **result.to_dict(),
         }
         if edge is not None:

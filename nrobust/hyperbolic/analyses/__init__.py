@@ -22,7 +22,16 @@ from .filter_design import (
 )
 from .kregion import DEFAULT_N_GAINS, MAX_GAINS, KRegion, k_region
 from .margin import delay_margin, margin_and_decay
-from .mismatch import MAX_MISMATCH_POINTS, MismatchEnd, MismatchRegion, mismatch_loop, mismatch_region
+from .mismatch import (
+    MAX_MISMATCH_POINTS,
+    MismatchEnd,
+    MismatchRegion,
+    SpeedTolerance,
+    mismatch_gain_loop,
+    mismatch_loop,
+    mismatch_region,
+    speed_tolerance,
+)
 from .rouche import rouche_delay_bound
 from .state_design import BasisGain, StateFeedbackDesign, StateFeedbackLoop, design_state_feedback, state_feedback_loop
 from .tradeoffs import Tradeoff, tradeoff
@@ -45,6 +54,7 @@ __all__ = [
     "MismatchEnd",
     "MismatchRegion",
     "ReflectionDesign",
+    "SpeedTolerance",
     "StabilityChart",
     "StateFeedbackDesign",
     "StateFeedbackLoop",
@@ -59,9 +69,11 @@ __all__ = [
     "filtered_loop",
     "k_region",
     "margin_and_decay",
+    "mismatch_gain_loop",
     "mismatch_loop",
     "mismatch_region",
     "rouche_delay_bound",
+    "speed_tolerance",
     "stability_chart",
     "state_feedback_loop",
     "tradeoff",

@@ -19,9 +19,10 @@ from typing import Any
 
 from ..._json import fields_dict
 from ..._validate import nonnegative, positive
-from ...design.gain import GainDesign, best_decay_rate, best_margin
+from ...design.gain import GainDesign, best_decay_rate, best_margin, check_delays
 from ...errors import ParameterError
 from ...margins.gain import AffineGainLoop
+from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import (
     Controller,
     OutputFeedback,
@@ -35,6 +36,8 @@ from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import study_plant
 from .kregion import u_bs2_loop
+from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
+from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = ["DESIGN_OBJECTIVES", "ReflectionDesign", "design_reflection"]
 
@@ -58,11 +61,24 @@ class ReflectionDesign:
     design : GainDesign
         The core's result: the objective value, its kind, the brackets of the optimum and the
         certified delay margin of the designed loop (``design.certificate``, whose ``scope``
-        says whether the proof is about the PDE itself or a model of it).
+        says whether the proof is about the PDE itself or a model of it); with ``delays`` its
+        ``windows`` certify the window for the loop (and the corners of a speed tolerance).
+    tolerance : SpeedTolerance or None
+        With ``speed_tolerance``: the verdicts on the square of speed mismatches (the corners
+        certified, the other points of a grid checked; :func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
     """
 
     controller: Controller
     design: GainDesign
+    tolerance: SpeedTolerance | None = None
+
+    @property
+    def requirement(self) -> str:
+        """The requirements and their verdicts in words (the delay window; the speed tolerance)."""
+        parts = [self.design.requirement]
+        if self.tolerance is not None:
+            parts.append(f"speed tolerance {self.tolerance.eps:.6g}: {self.tolerance.statement}")
+        return "; ".join(parts)
 
     @property
     def K(self) -> float:
@@ -87,6 +103,19 @@ class ReflectionDesign:
         return fields_dict(self)
 
 
+def _tolerance_error(exc: ParameterError, eps: float | None, window: tuple[float, float] | None) -> ParameterError:
+    """A window that no gain meets at the corners of the speed tolerance: the tolerance is what to lower."""
+    if eps is None or window is None or exc.name != "delays":
+        return exc
+    return ParameterError(
+        "speed_tolerance",
+        f"smaller: no gain meets the window [{window[0]:.6g}, {window[1]:.6g}] on the nominal plant and the plants "
+        f"with speed errors (+-{eps:.6g}, +-{eps:.6g}) together (the largest tolerance met is not searched; "
+        "design_reflection without speed_tolerance gives the nominal design)",
+        eps,
+    )
+
+
 def design_reflection(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
@@ -96,6 +125,9 @@ def design_reflection(
     rigorous: bool = False,
     output_feedback: bool = False,
     observer_delay: float = 0.0,
+    delays: tuple[float, float] | None = None,
+    speed_tolerance: float | None = None,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
 ) -> ReflectionDesign:
     """The gain ``K`` of ``U_BS2(K)`` (eq. (53)) that maximises the delay margin or the decay rate.
 
@@ -103,6 +135,17 @@ def design_reflection(
     (:func:`nrobust.design.best_margin`); ``objective="decay_rate"``: the largest nominal decay
     rate (``delta = 0``: ``-ln|(rho - K) q| / tau`` for the paper's plant, Lemma 3) among the
     gains with ``delta*(K) >= margin_at_least`` (:func:`nrobust.design.best_decay_rate`).
+
+    ``delays = (d_min, d_max)`` requires exponential stability for every delay of the window
+    (:func:`nrobust.design.window_stability`; ``d_min = 0`` is ``delta* > d_max``, ``d_min > 0``
+    allows a loop unstable at ``delta = 0``): with ``"decay_rate"`` it replaces
+    ``margin_at_least``, with ``"margin"`` it constrains the gains searched. ``speed_tolerance
+    = eps`` requires the window too on the plants with speeds ``lam (1 + e_lam)``, ``mu (1 +
+    e_mu)`` at the four corners ``|e_lam| = |e_mu| = eps`` (the law designed on ``system``:
+    :func:`~nrobust.hyperbolic.analyses.mismatch_gain_loop`, four more loops affine in ``K``
+    whose feasible gains are intersected exactly); the design is then checked at the other
+    points of a 3 x 3 grid of the square (:attr:`ReflectionDesign.tolerance`, which says what is
+    proven: the corners, never the continuum between the points).
 
     Parameters
     ----------
@@ -124,6 +167,15 @@ def design_reflection(
         the observer's term is computed in floating point, ``design.certificate.scope``).
     observer_delay : float, optional
         The actuation delay the observer assumes (with ``output_feedback`` only).
+    delays : (float, float), optional
+        ``[d_min, d_max]``, ``0 <= d_min <= d_max``, ``d_max > 0``: the window of delays on which
+        the designed loop must be exponentially stable.
+    speed_tolerance : float, optional
+        ``eps`` in ``(0, 1)``: the relative error of ``lam`` and ``mu`` (both signs, together) under
+        which the window (or ``[0, margin_at_least]``) must hold too; not with
+        ``output_feedback``.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        Kernel grid of the mismatched loops (with ``speed_tolerance`` on a coupled plant).
 
     Returns
     -------
@@ -133,20 +185,38 @@ def design_reflection(
     ------
     ParameterError
         An unknown ``objective``, ``margin_at_least`` missing or not positive, or a plant
-        without strongly stable gains (``|rho q| >= 1``).
+        without strongly stable gains (``|rho q| >= 1``); ``delays`` not a window or given with
+        ``margin_at_least``; ``speed_tolerance`` outside ``(0, 1)``, without a delay requirement
+        or with ``output_feedback``; a requirement no gain meets (naming the best achievable).
     CertificationError
         As :func:`nrobust.design.best_margin` and :func:`nrobust.design.best_decay_rate`.
     """
     if objective not in DESIGN_OBJECTIVES:
         raise ParameterError("objective", f"one of {DESIGN_OBJECTIVES}", objective)
-    if objective == "decay_rate":
+    window = None if delays is None else check_delays(delays)
+    if window is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    if objective == "decay_rate" and window is None:
         if margin_at_least is None:
-            raise ParameterError("margin_at_least", "a positive delay margin with objective='decay_rate'", None)
+            raise ParameterError(
+                "margin_at_least", "a positive delay margin with objective='decay_rate' (or delays)", None
+            )
         d = positive("margin_at_least", margin_at_least)
     elif margin_at_least is not None:
         raise ParameterError(
             "margin_at_least", "None with objective='margin' (it constrains the decay rate)", margin_at_least
         )
+    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    if eps is not None:
+        if output_feedback:
+            raise ParameterError("speed_tolerance", "None with output_feedback=True", speed_tolerance)
+        if window is None:
+            if objective == "margin":
+                raise ParameterError(
+                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
+                )
+            window = (0.0, d)
+    kernel_grid = check_kernel_grid(kernel_grid)
     plant: Hyperbolic2x2 = study_plant(system, None, "design_reflection")[0]  # a general plant: its normal form
     kb = classify(plant).k_bound
     if K_bounds is None:
@@ -162,8 +232,20 @@ def design_reflection(
         loop = AffineGainLoop(*loop_factors(plant, observed), loop.R)
     elif observer_delay != 0.0:
         raise ParameterError("observer_delay", "0 unless output_feedback=True", observer_delay)
+    scenarios: tuple[AffineGainLoop, ...] = ()
+    if eps is not None:
+        corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
+        scenarios = tuple(mismatch_gain_loop(plant, a, b, kernel_grid=kernel_grid) for a, b in corners)
     if objective == "margin":
-        design = best_margin(loop, K_bounds, rigorous=rigorous)
+        try:
+            design = best_margin(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
+        except ParameterError as exc:
+            raise _tolerance_error(exc, eps, window) from exc
+    elif window is not None:
+        try:
+            design = best_decay_rate(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
+        except ParameterError as exc:
+            raise _tolerance_error(exc, eps, window) from exc
     else:
         design = best_decay_rate(loop, K_bounds, margin_at_least=d, rigorous=rigorous)
     controller: Controller = ReflectionController(design.K)
@@ -175,4 +257,15 @@ def design_reflection(
         scope=loop_scope(plant, controller, None, factors),
         of_model=loop_route(plant, controller, None) != "exact" and not plant.uncoupled,
     )
-    return ReflectionDesign(controller, dataclasses.replace(design, certificate=certificate))
+    tolerance = None
+    if eps is not None and window is not None:
+        tolerance = tolerance_on_square(
+            plant,
+            controller,
+            eps,
+            window,
+            kernel_grid=kernel_grid,
+            rigorous=rigorous,
+            corner_windows=design.windows[1:],
+        )
+    return ReflectionDesign(controller, dataclasses.replace(design, certificate=certificate), tolerance)

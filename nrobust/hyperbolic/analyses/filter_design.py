@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._validate import is_real_number
-from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin
+from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin, check_delays
 from ...design.local import LoopDesign, optimize_loop
 from ...design.pareto import ParetoFront, pareto_front
 from ...errors import CertificationError, ParameterError
@@ -442,6 +442,7 @@ def design_filtered_exact(
     *,
     parameters: Mapping[str, Any],
     margin_at_least: float | None = None,
+    delays: tuple[float, float] | None = None,
     rigorous: bool = False,
     max_evals: int = 2_000_000,
 ) -> ExactFilteredDesign:
@@ -466,7 +467,12 @@ def design_filtered_exact(
         bounds: those of :func:`design_filtered`, narrowed to where the delayed loop stays strongly
         stable, ``|a K| < b (1 - |rho q|)/|q|``), the other two numbers.
     margin_at_least : float, optional
-        The delay margin required (``> 0``); required with ``objective="decay_rate"``.
+        The delay margin required (``> 0``); required with ``objective="decay_rate"`` unless
+        ``delays`` is given.
+    delays : (float, float), optional
+        ``[d_min, d_max]``: the window of delays on which the design must be exponentially stable
+        (``delays`` of :func:`nrobust.design.best_decay_rate` and :func:`nrobust.design.best_margin`;
+        ``d_min > 0`` allows a loop unstable at ``delta = 0``); not with ``margin_at_least``.
     rigorous : bool, optional
         Prove the delay margin of the design in ball arithmetic.
     max_evals : int, optional
@@ -490,8 +496,9 @@ def design_filtered_exact(
         raise ParameterError(
             "margin_at_least", "None with objective='margin' (it constrains the decay rate)", margin_at_least
         )
-    if objective == "decay_rate" and margin_at_least is None:
-        raise ParameterError("margin_at_least", "a positive delay margin with objective='decay_rate'", None)
+    if objective == "decay_rate" and margin_at_least is None and delays is None:
+        raise ParameterError("margin_at_least", "a positive delay margin with objective='decay_rate' (or delays)", None)
+    window = None if delays is None else check_delays(delays)
     plant = _plant(system)
     given = dict(parameters)
     unknown = set(given) - set(FILTER_PARAMETERS)
@@ -512,10 +519,11 @@ def design_filtered_exact(
     family = filtered_loop(plant, {**fixed, name: None})
     loop = family.affine()
     if objective == "margin":
-        design = best_margin(loop, bounds, rigorous=rigorous, max_evals=max_evals)
+        design = best_margin(loop, bounds, delays=window, rigorous=rigorous, max_evals=max_evals)
     else:
-        assert margin_at_least is not None
-        design = best_decay_rate(loop, bounds, margin_at_least=margin_at_least, rigorous=rigorous, max_evals=max_evals)
+        design = best_decay_rate(
+            loop, bounds, margin_at_least=margin_at_least, delays=window, rigorous=rigorous, max_evals=max_evals
+        )
     controller = family.controller([design.K])
     return ExactFilteredDesign(
         controller, name, design, loop_scope(plant, controller, None, family(np.array([design.K])))

@@ -42,8 +42,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, positive, positive_int
+from ...design.gain import DelayWindow, check_delays, window_stability
 from ...errors import CertificationError, ParameterError
 from ...margins.admissible import tolerates
+from ...margins.gain import AffineGainLoop
 from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
@@ -54,6 +56,7 @@ from ..loops.controllers import (
     FilteredController,
     OpenLoop,
     OutputFeedback,
+    ReflectionController,
     StateFeedback,
     loop_factors,
     loop_route,
@@ -64,7 +67,18 @@ from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
 
-__all__ = ["JUMP_FRACTION", "MAX_MISMATCH_POINTS", "MismatchEnd", "MismatchRegion", "mismatch_loop", "mismatch_region"]
+__all__ = [
+    "JUMP_FRACTION",
+    "MAX_MISMATCH_POINTS",
+    "MismatchEnd",
+    "MismatchRegion",
+    "SpeedTolerance",
+    "check_speed_tolerance",
+    "mismatch_gain_loop",
+    "mismatch_loop",
+    "mismatch_region",
+    "speed_tolerance",
+]
 
 #: Most certified evaluations :func:`mismatch_region` plans: the grid ``len(e_lam) * len(e_mu)``
 #: plus the points of the two axes. One evaluation solves the kernels of the perturbed plant
@@ -531,3 +545,190 @@ def mismatch_region(
         bool(rigorous),
         len(evaluate.known),
     )
+
+
+def check_speed_tolerance(value: Any, name: str = "speed_tolerance") -> float:
+    """A relative speed tolerance ``eps`` in ``(0, 1)``; a :class:`ParameterError` naming ``name`` otherwise."""
+    what = "a relative error of the speeds lam and mu in (0, 1) (the perturbed speeds stay positive)"
+    try:
+        eps = finite_real(name, value)
+    except ParameterError:
+        raise ParameterError(name, what, value) from None
+    if not 0.0 < eps < 1.0:
+        raise ParameterError(name, what, value)
+    return eps
+
+
+def mismatch_gain_loop(
+    system: Hyperbolic2x2, e_lam: float, e_mu: float, *, kernel_grid: int = DEFAULT_KERNEL_GRID
+) -> AffineGainLoop:
+    """``U_BS2(K)`` (eq. (53)) designed for ``system`` on the plant with mismatched speeds, affine in ``K``.
+
+    The law of ``ReflectionController(K)`` is affine in ``K`` (boundary gain ``-K``, integral
+    gains ``K^{vu} - (rho - K) K^{uu}`` and ``K^{vv} - (rho - K) K^{uv}`` on the nominal
+    kernels) and the mismatched loop's ``B`` is linear in the law's gains, so
+    ``B(K) = B_0 + K R`` with ``B_0`` the loop of :func:`mismatch_loop` at ``K = 0`` and ``R``
+    the difference of those at ``K = 1`` and ``K = 0`` (``A`` does not depend on the law).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or TransportSystem
+        The plant the law is designed for.
+    e_lam, e_mu : float
+        Relative errors of the speeds, each ``> -1``.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        As in :func:`mismatch_loop`.
+
+    Returns
+    -------
+    AffineGainLoop
+    """
+    A, B0 = mismatch_loop(system, ReflectionController(0.0), e_lam, e_mu, kernel_grid=kernel_grid)
+    _, B1 = mismatch_loop(system, ReflectionController(1.0), e_lam, e_mu, kernel_grid=kernel_grid)
+    return AffineGainLoop(A, B0, B1 - B0)
+
+
+@dataclass(frozen=True, eq=False)
+class SpeedTolerance:
+    """What is known of a controller on the square of speed mismatches ``[-eps, eps]^2`` with a delay window.
+
+    Compared by identity (``==`` is ``is``).
+
+    Attributes
+    ----------
+    eps : float
+        The tolerance: ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` with ``|e_lam|, |e_mu| <= eps``.
+    delays : (float, float)
+        The window ``[d_min, d_max]`` of delays required at every mismatch.
+    points : tuple of (float, float)
+        The mismatches examined: the ``grid x grid`` points of the square, corners first.
+    windows : tuple of DelayWindow
+        The verdict at each point (:func:`nrobust.design.window_stability`): at the four corners
+        with the rigour asked (proven in ball arithmetic with ``rigorous=True``), elsewhere in
+        floating point.
+    met : bool
+        Stable on the window at every point examined.
+    certified : str
+        What is certified: ``"proven at the corners"`` or ``"checked at the corners"``, the other
+        points always checked; the square between the points is never certified (:attr:`statement`).
+    statement : str
+        The tolerance in words, with what is proven and what is only checked.
+    route, scope : str
+        The route of the mismatched loops and what a certificate is about
+        (:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`: on a coupled plant a model
+        with the kernels on a grid).
+    """
+
+    eps: float
+    delays: tuple[float, float]
+    points: tuple[tuple[float, float], ...]
+    windows: tuple[DelayWindow, ...]
+    met: bool
+    certified: str
+    statement: str
+    route: str
+    scope: str
+
+    def __repr__(self) -> str:
+        return f"SpeedTolerance(eps={self.eps:.6g}, met={self.met}, certified={self.certified!r})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (each window as its dictionary)."""
+        return fields_dict(self)
+
+
+def speed_tolerance(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    eps: float,
+    delays: tuple[float, float],
+    *,
+    grid: int = 3,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
+    max_evals: int = 2_000_000,
+    corner_windows: tuple[DelayWindow, ...] | None = None,
+) -> SpeedTolerance:
+    """Stability on a delay window of ``controller`` under speed mismatches ``(e_lam, e_mu)`` in ``[-eps, eps]^2``.
+
+    At the four corners ``(+-eps, +-eps)`` the mismatched loop (:func:`mismatch_loop`) gets a
+    window certificate (:func:`nrobust.design.window_stability`: no crossing delay in
+    ``[d_min, d_max]`` and no zero in ``Re s > 0`` at its middle; proven in ball arithmetic with
+    ``rigorous=True``); at the other points of a ``grid x grid`` grid of the square the same
+    verdict in floating point. Nothing is claimed between the points: the delay margin, and the
+    stability windows, are not continuous in the mismatch (a pair of crossing frequencies is
+    born where ``|A(i w)|^2 - |B(i w)|^2`` gains a double zero, :func:`mismatch_region`), and no
+    bound of the loop's change with the speeds is proven here, so the square as a whole is
+    *checked* at those points, never certified.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or TransportSystem
+        The plant the controller is designed for.
+    controller : Controller
+        The controller (its ``feedback_law`` on ``system``).
+    eps : float
+        The tolerance, in ``(0, 1)``.
+    delays : (float, float)
+        The window ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``).
+    grid : int, default 3
+        Points per side of the checked grid (``>= 2``; 3 adds the edge midpoints and ``e = 0``).
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        As in :func:`mismatch_loop`.
+    rigorous : bool, default False
+        Prove the corners' verdicts in ball arithmetic.
+    max_evals : int, optional
+        Work bound of each delay margin.
+    corner_windows : tuple of DelayWindow, optional
+        The corners' verdicts when already certified (by a design under this tolerance), in
+        the order ``(-eps, -eps), (-eps, eps), (eps, -eps), (eps, eps)``.
+
+    Returns
+    -------
+    SpeedTolerance
+
+    Raises
+    ------
+    ParameterError
+        A bad argument (``eps`` outside ``(0, 1)``, ``delays`` not a window, ``grid < 2``).
+    CertificationError
+        A delay margin or count failed.
+    """
+    _check_pair(system, controller)
+    eps = check_speed_tolerance(eps, "eps")
+    d_lo, d_hi = check_delays(delays)
+    grid = positive_int("grid", grid, 2, 33)
+    kernel_grid = check_kernel_grid(kernel_grid)
+    max_evals = positive_int("max_evals", max_evals)
+    corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
+    axis = np.linspace(-eps, eps, grid)
+    inner = [(float(a), float(b)) for a in axis for b in axis if (float(a), float(b)) not in corners]
+    windows: list[DelayWindow] = []
+    for n, point in enumerate([*corners, *inner]):
+        if n < 4 and corner_windows is not None:
+            windows.append(corner_windows[n])
+            continue
+        A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid)
+        windows.append(window_stability(A, B, (d_lo, d_hi), rigorous=rigorous and n < 4, max_evals=max_evals))
+    met = all(w.stable for w in windows)
+    proven = all(w.certified == "proven" for w in windows[:4])
+    certified = "proven at the corners" if met and proven else "checked at the corners" if met else "not met"
+    if met:
+        statement = (
+            f"stable for every delay in [{d_lo:.6g}, {d_hi:.6g}] at the 4 corners (e_lam, e_mu) = (+-{eps:.6g}, "
+            f"+-{eps:.6g}) ({'proven in ball arithmetic' if proven else 'checked in floating point'}) and at the "
+            f"{len(inner)} other points of a {grid} x {grid} grid of the square (checked in floating point); between "
+            "the points not certified (the stability windows are not continuous in the mismatch)"
+        )
+    else:
+        bad = [p for p, w in zip([*corners, *inner], windows) if not w.stable]
+        statement = f"not stable on [{d_lo:.6g}, {d_hi:.6g}] at (e_lam, e_mu) = " + ", ".join(
+            f"({a:.6g}, {b:.6g})" for a, b in bad
+        )
+    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    route = loop_route(plant, feedback)
+    scope = loop_scope(
+        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
+    )
+    points = tuple([*corners, *inner])
+    return SpeedTolerance(eps, (d_lo, d_hi), points, tuple(windows), met, certified, statement, route, scope)

@@ -1,12 +1,14 @@
 """From a plant and a controller to the loop ``F(s; delta) = A(s) + B(s) e^{-delta s}``:
 the controllers (``controllers``), any state feedback (``feedback``), output feedback from the
-unactuated boundary (``output_feedback``), the delay form of
+unactuated boundary (``output_feedback``) and from the actuated one (``collocated``), the delay form of
 eq. (39) (``delay_form``; ``varying_form`` for varying speeds), the kernel-free Laplace
 route (``laplace``) and the loops' transfer functions (``transfer``).
 """
 
+from .collocated import CollocatedObserver, collocated_observer, command_response, dual_plant, observer_gains
 from .controllers import (
     Classification,
+    CollocatedOutputFeedback,
     Controller,
     FeedbackLaw,
     FilteredController,
@@ -17,6 +19,7 @@ from .controllers import (
     StateFeedback,
     characteristic,
     classify,
+    collocated_observer_of,
     loop_factors,
     normalize,
 )
@@ -29,6 +32,8 @@ from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying
 
 __all__ = [
     "Classification",
+    "CollocatedObserver",
+    "CollocatedOutputFeedback",
     "Controller",
     "DEFAULT_CHARACTERISTIC_GRID",
     "DelayForm",
@@ -44,13 +49,18 @@ __all__ = [
     "characteristic",
     "classify",
     "closed_loop_tf",
+    "collocated_observer",
+    "collocated_observer_of",
+    "command_response",
     "delay_form",
+    "dual_plant",
     "feedback_factor",
     "general_solution",
     "laplace_loop_factors",
     "loop_factors",
     "magnus_steps",
     "normalize",
+    "observer_gains",
     "observer_term",
     "open_loop_tf",
     "output_feedback_factors",

@@ -51,6 +51,7 @@ from ..kernels.varying import VaryingKernels, solve_varying_kernels
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
 from ..plants.law import FeedbackLaw
+from .collocated import CollocatedObserver, collocated_observer
 from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .exact_gains import gain_failure, gain_kernel
@@ -60,6 +61,7 @@ from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying
 
 __all__ = [
     "Classification",
+    "CollocatedOutputFeedback",
     "Controller",
     "FeedbackLaw",
     "FilteredController",
@@ -70,6 +72,7 @@ __all__ = [
     "StateFeedback",
     "characteristic",
     "classify",
+    "collocated_observer_of",
     "loop_factors",
     "loop_route",
     "loop_scope",
@@ -295,8 +298,8 @@ class OutputFeedback(Controller):
     acts on the prediction. Without a delay the loop is the state feedback's; with a delay
     ``delta_a`` on the actuation and ``delta_m`` on the measurement, it depends on
     ``delta = delta_a + delta_m`` only, and keeps the difference operator (hence the strong
-    stability, Theorem 4) of ``controller``. The collocated measurement ``u(t, 1)`` is not
-    covered.
+    stability, Theorem 4) of ``controller``. The collocated measurement ``u(t, 1)``:
+    :class:`CollocatedOutputFeedback`.
 
     Parameters
     ----------
@@ -338,6 +341,72 @@ class OutputFeedback(Controller):
         return json_safe(
             {
                 "controller": "OutputFeedback",
+                "state_feedback": self.controller.to_dict(),
+                "observer_delay": self.observer_delay,
+            }
+        )
+
+
+@dataclass(frozen=True)
+class CollocatedOutputFeedback(Controller):
+    """A state feedback fed by the collocated observer from ``y(t) = u(t, 1)``.
+
+    The measurement is at the actuated boundary; the observer is the backstepping observer of
+    Vazquez, Krstic and Coron (output injection ``p_u(x), p_v(x)`` times ``y - u^(t, 1)``,
+    ``v^(t, 1) = rho y + U``), whose error is zero after ``tau``
+    (:mod:`~nrobust.hyperbolic.loops.collocated`), and ``controller`` acts on its estimate.
+    Without a delay the loop is the state feedback's; with ``delta_a`` on the actuation and
+    ``delta_m`` on the measurement it depends on ``delta = delta_a + delta_m`` only. Its
+    difference operator is not the state feedback's: for U_BS2(K) and ``observer_delay = 0``,
+    ``1 - (rho - K) q e^{-tau s} - K rho q^2 e^{-2 tau s} + K rho q^2 e^{-(2 tau + delta) s}``,
+    strongly stable iff ``|rho - K| |q| + 2 |K rho| q^2 < 1`` (with ``observer_delay > 0``:
+    ``|rho q| + |K q| + 2 |K rho| q^2 < 1``). On
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` plants only; the loop is
+    not affine in ``K`` with a fixed ``A`` (the observer's term, in ``A``, depends on the law), so
+    :func:`~nrobust.hyperbolic.analyses.design.design_reflection` does not design it.
+
+    Parameters
+    ----------
+    controller : Controller
+        The state feedback (any controller of the package but an output feedback).
+    observer_delay : float, default 0
+        The delay ``delta_o`` of the commands the observer replays: at ``delta = delta_o`` the
+        loop is the state feedback's with that delay.
+    """
+
+    controller: Controller
+    observer_delay: float = 0.0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.controller, (OutputFeedback, CollocatedOutputFeedback)) or not isinstance(
+            self.controller, Controller
+        ):
+            raise ParameterError(
+                "controller",
+                "a state feedback: OpenLoop, FiniteTimeController, ReflectionController, FilteredController or "
+                "StateFeedback",
+                self.controller,
+            )
+        object.__setattr__(self, "observer_delay", nonnegative("observer_delay", self.observer_delay))
+
+    def factors(self, phi, i_n, round_trip):
+        raise ParameterError(
+            "controller", "used through loop_factors(system, controller): the observer needs the plant", self
+        )
+
+    def feedback_law(self, system, kernels=None):
+        raise ParameterError(
+            "controller",
+            "a state feedback (a CollocatedOutputFeedback is not a law on the state: analyse its loop with "
+            "loop_factors)",
+            self,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the state feedback under ``"state_feedback"``."""
+        return json_safe(
+            {
+                "controller": "CollocatedOutputFeedback",
                 "state_feedback": self.controller.to_dict(),
                 "observer_delay": self.observer_delay,
             }
@@ -477,11 +546,20 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     if isinstance(controller, OutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
         return "observer" if inner == "exact" and not _uncoupled(system) else inner
+    if isinstance(controller, CollocatedOutputFeedback):
+        inner = loop_route(system, controller.controller, kernel_grid)
+        return "observer" if inner == "exact" and not _exact_collocated(system, controller) else inner
     if kernel_grid is not None or not has_exact_form(system):
         return "kernels"
     if isinstance(controller, StateFeedback) and _integral_gains(controller):
         return "kernels" if gain_failure(system, controller.g_u, controller.g_v) is not None else "exact"
     return "exact"
+
+
+def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
+    """True when the collocated observer's term is exact: an uncoupled plant and a law without integral gains."""
+    inner = controller.controller
+    return _uncoupled(system) and not (isinstance(inner, StateFeedback) and _integral_gains(inner))
 
 
 def _uncoupled(system: Any) -> bool:
@@ -503,6 +581,8 @@ def loop_scope(
     """
     if isinstance(controller, OutputFeedback):
         return _output_feedback_scope(system, controller, kernel_grid, factors)
+    if isinstance(controller, CollocatedOutputFeedback):
+        return _collocated_scope(system, controller, kernel_grid)
     if loop_route(system, controller, kernel_grid) == "exact":
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         kernel = (
@@ -551,7 +631,28 @@ def _output_feedback_scope(
     return f"{inner}; {observer}"
 
 
-def _observer_grid(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> int | None:
+def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None) -> str:
+    """:func:`loop_scope` of a collocated output feedback: the state feedback's, and the observer's."""
+    grid = _observer_grid(system, controller, kernel_grid)
+    inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
+    if _exact_collocated(system, controller):
+        return inner + "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s})"
+    observer = collocated_observer_of(system, controller, kernel_grid)
+    return (
+        f"a model of the PDE: the state feedback's loop is {inner}; the collocated observer's term (1 - Phi) C_u "
+        f"comes from the kernels of the dual plant on {_collocated_grid(grid)} points, to an estimated "
+        f"{observer.accuracy:.0e}, which is not part of the proof"
+    )
+
+
+def _collocated_grid(grid: int | None) -> int:
+    """The kernel grid of the collocated observer (the default grid on the exact route)."""
+    return DEFAULT_KERNEL_GRID if grid is None else grid
+
+
+def _observer_grid(
+    system: Any, controller: OutputFeedback | CollocatedOutputFeedback, kernel_grid: int | None
+) -> int | None:
     """The kernel grid of the state feedback's route (None: the exact route)."""
     if loop_route(system, controller.controller, kernel_grid) == "exact":
         return None
@@ -572,6 +673,54 @@ def observer_of(system: Any, controller: OutputFeedback, kernel_grid: int | None
     (:func:`~nrobust.hyperbolic.loops.output_feedback.observer_term`).
     """
     return _observer(system, controller, kernel_grid)[0]
+
+
+def collocated_observer_of(
+    system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None = None
+) -> CollocatedObserver:
+    """The collocated observer of ``controller`` on ``system``: its gains, ``C_u`` and ``G``.
+
+    Its ``accuracy`` is the estimated sup-norm error of ``G``'s kernel
+    (:func:`~nrobust.hyperbolic.loops.collocated.collocated_observer`).
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
+    return _collocated(system, controller.controller, _observer_grid(system, controller, kernel_grid))
+
+
+@lru_cache(maxsize=16)
+def _collocated(system: Hyperbolic2x2, inner: Controller, route_grid: int | None) -> CollocatedObserver:
+    """The collocated observer for the law of ``inner`` (cached: the scope and the loop ask for it).
+
+    ``route_grid``: the kernel grid of the state feedback's route (None: the exact route, whose
+    ``1 - Phi`` is used, the observer's kernels on the default grid).
+    """
+    law = unfiltered(inner)
+
+    def law_on(n: int) -> FeedbackLaw:
+        if isinstance(law, StateFeedback) or system.uncoupled:
+            return law.feedback_law(system)
+        return law.feedback_law(system, _kernels(system, n))
+
+    open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
+    return collocated_observer(system, law_on, open_loop, _collocated_grid(route_grid))
+
+
+def _collocated_loop(
+    system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(A_o, B_o)`` of a collocated output feedback (:mod:`~nrobust.hyperbolic.loops.collocated`)."""
+    grid = _observer_grid(system, controller, kernel_grid)
+    inner = controller.controller
+    A, B = loop_factors(system, inner, grid)
+    numerator = (1.0, inner.a) if isinstance(inner, FilteredController) else (1.0,)
+    if _exact_collocated(system, controller):
+        k = unfiltered(inner).feedback_law(system).boundary_gain
+        open_loop = loop_factors(system, OpenLoop(), grid)[0]
+        G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
+    else:
+        G = collocated_observer_of(system, controller, kernel_grid).product
+    return output_feedback_factors(A, B, G, numerator, controller.observer_delay)
 
 
 def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> tuple[Any, int | None]:
@@ -649,6 +798,8 @@ def loop_factors(
         kernel_grid = check_kernel_grid(kernel_grid)
     if isinstance(controller, OutputFeedback):
         return _output_feedback_loop(system, controller, kernel_grid)
+    if isinstance(controller, CollocatedOutputFeedback):
+        return _collocated_loop(system, controller, kernel_grid)
     if loop_route(system, controller, kernel_grid) == "exact":
         return _exact_factors(system, controller)
     grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid

@@ -111,18 +111,21 @@ def observer_term(open_loop: QuasiPolynomial, law: QuasiPolynomial, window: floa
 def output_feedback_factors(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
-    term: ResolventProduct | None,
+    term: ResolventProduct | QuasiPolynomial | None,
     numerator: tuple[float, ...] = (1.0,),
     observer_delay: float = 0.0,
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A_o, B_o)`` of the output feedback from the state feedback's ``(A, B)`` (module notes).
 
+    The collocated observer's loop has the same form
+    (:mod:`~nrobust.hyperbolic.loops.collocated`), its ``G`` given as a quasi-polynomial.
+
     Parameters
     ----------
     A, B : QuasiPolynomial
         The state feedback's loop, ``A = d (1 - Phi)``, ``B = n B~``.
-    term : ResolventProduct or None
-        ``G`` from :func:`observer_term` (None: ``G = 0``).
+    term : ResolventProduct, QuasiPolynomial or None
+        ``G`` from :func:`observer_term`, or ``G`` itself (None: ``G = 0``).
     numerator : tuple of float
         ``n``, increasing powers (``(1, a)`` for a law filtered by ``(1 + a s)/(1 + b s)``).
     observer_delay : float
@@ -130,5 +133,6 @@ def output_feedback_factors(
     """
     if term is None:
         return A, B
-    ng = term.product.times_poly(list(numerator))
+    G = term if isinstance(term, QuasiPolynomial) else term.product
+    ng = G.times_poly(list(numerator))
     return A - ng.shift(observer_delay), B + ng

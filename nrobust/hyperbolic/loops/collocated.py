@@ -1,0 +1,348 @@
+"""Output feedback from the actuated boundary: the collocated observer of Vazquez, Krstic and Coron.
+
+The measurement is ``y(t) = u(t, 1)``, at the boundary where ``U`` acts. The observer is the
+backstepping observer of Vazquez, Krstic and Coron ("Backstepping boundary stabilization and
+state estimation of a 2x2 linear hyperbolic system", CDC 2011), a copy of the plant (18)-(20)
+corrected by the output error:
+
+    u^_t + lam u^_x = sigma^{+-} v^ + p_u(x) (y - u^(t, 1)),     u^(t, 0) = q v^(t, 0),
+    v^_t - mu v^_x  = sigma^{-+} u^ + p_v(x) (y - u^(t, 1)),     v^(t, 1) = rho y + U_o(t),
+
+and the controller applies a state feedback of the package to ``(u^, v^)``. ``U_o`` is the
+command the observer assumes reached the plant (the controller's output delayed by
+``delta_o``).
+
+**The error and its gains.** Let ``W = U_p - U_o`` be the difference between the command the
+plant received and the one the observer replays. The error ``(u~, v~) = (u, v) - (u^, v^)``
+obeys the plant's equations with ``- p_u u~(t, 1)``, ``- p_v u~(t, 1)`` added,
+``u~(t, 0) = q v~(t, 0)`` and ``v~(t, 1) = W`` (the reflection ``rho`` is read from ``y``, so it
+leaves the error). The Volterra map ``(u~, v~) = (I - P)(a~, b~)`` from ``x = 1``
+(``P`` on ``x <= xi``) takes it, for ``W = 0``, to the transport system ``a~_t + lam a~_x = 0``,
+``b~_t - mu b~_x = 0``, ``a~(0) = q b~(0)``, ``b~(1) = 0``, which is zero after ``tau`` (eq. (5)),
+when ``P`` solves the Goursat problem
+
+    lam (P^{uu}_x + P^{uu}_xi) = sigma^{+-}(x) P^{vu},   mu P^{vu}_x - lam P^{vu}_xi = -sigma^{-+}(x) P^{uu},
+    P^{vu}(x, x) = -sigma^{-+}(x) / (lam + mu),           P^{uu}(0, xi) = q P^{vu}(0, xi)
+
+(and its second column, with ``P^{uv}(x, x) = sigma^{+-}/(lam + mu)``,
+``P^{uv}(0, xi) = q P^{vv}(0, xi)``), with ``p_u(x) = -lam P^{uu}(x, 1)``,
+``p_v(x) = -lam P^{vu}(x, 1)``. The gains are those of a dual controller: by the Lagrange
+identity of the error equations in the Laplace domain (below), the adjoint of the error system
+is the paper's plant (18)-(20) with
+
+    lam' = mu,  mu' = lam,  sigma'^{+-} = sigma^{+-},  sigma'^{-+} = sigma^{-+},  q' = lam q / mu,  rho' = 0,
+
+under the state feedback ``U' = -(1/lam) int_0^1 p_v a + p_u b dx``. The finite-time law U_BS
+of that plant (eq. (47) with ``rho' = 0``) has a nilpotent closed loop (its target system is
+zero after ``tau``), so its adjoint is a nilpotent error system: ``p_u = -lam K'^{vv}(1, .)``,
+``p_v = -lam K'^{vu}(1, .)`` with the kernels ``K'`` (eqs. (22)-(29)) of the dual plant. A
+finite-time law is unique (its closed loop's characteristic function is ``1``), so these are the
+gains of the Goursat problem above.
+
+**Separation with delays.** With ``delta_a`` on the actuation and ``delta_m`` on the
+measurement, write ``xi(t) = x(t - delta_m)`` for the plant's state as the measurement sees it:
+it obeys the plant with the command delayed by ``delta = delta_a + delta_m`` and
+``y(t - delta_m) = xi_u(t, 1)``. The error ``e = xi - x^`` is driven by
+``W = (e^{-delta s} - e^{-delta_o s}) U_c``, and ``U_c = K xi - K e`` (``K`` the law). In the
+Laplace domain, with ``T = K (s - A)^{-1} B`` the law seen through the plant and
+``C_u = K (s - A + L C)^{-1} B`` the law seen through the error system,
+``U_c (1 - T e^{-delta s} + C_u (e^{-delta s} - e^{-delta_o s})) = 0``. The delay form (39)
+gives ``T = L_K / (1 - Phi)`` with ``-L_K`` the factor ``B`` of the state feedback
+(:mod:`~nrobust.hyperbolic.loops.controllers`), so, multiplying by ``d (1 - Phi)`` for a law
+filtered by ``n/d``, the closed loop is
+
+    F(s; delta) = A_o + B_o e^{-delta s},   A_o = A - n G e^{-delta_o s},   B_o = B + n G,
+    G = (1 - Phi) C_u,
+
+the form of the output feedback from ``v(t, 0)``
+(:func:`~nrobust.hyperbolic.loops.output_feedback.output_feedback_factors`). Only the sum
+``delta`` matters; at ``delta = delta_o`` the loop is the state feedback's with that delay (the
+observer is exact there), at ``delta = delta_o = 0`` the target system (for U_BS2(K),
+``1 - (rho - K) q e^{-tau s}``, eqs. (56)-(58)). The modes of the error system would be
+factors of ``F``; it has none (nilpotent).
+
+**The command response ``C_u``.** With ``(phi, psi)`` the adjoint of the error equations at
+``s`` (``s phi - lam phi' - sigma^{-+} psi = -g_u``, ``s psi + mu psi' - sigma^{+-} phi = -g_v``,
+``mu psi(0) = lam q phi(0)``, ``lam phi(1) = -k - int p_u phi + p_v psi``) for the law
+``U = k u(1) + int g_u u + g_v v``, the Lagrange identity gives ``C_u(s) = -mu psi(s, 1)``. In
+time, ``(a, b) = (psi, phi)`` is the dual plant under U_BS' driven by an impulse ``w``
+entering distributed as ``(-g_v, -g_u) w`` and at ``x = 1`` as ``-(k/lam) w``. Its target
+coordinates ``(a', b') = (I - K')(a, b)`` are transported: ``a'(0+) = F_a``, ``b'(0+) = F_b``
+with ``(F_a, F_b) = (I - K')(-g_v, -g_u)``, ``b'(t, 1) = -(k/lam) delta(t)``,
+``a'(t, 0) = q' b'(t, 0)``, and ``a(t, 1) = a'(t, 1) + int_0^1 L'^{aa}(1, xi) a' + L'^{ab}(1, xi) b'``.
+Hence ``C_u(s) = k q e^{-tau s} + int_0^tau c(nu) e^{-nu s} dnu`` with
+
+    -c(t)/mu = a'_s(t, 1) + int_0^1 L'^{aa}(1, xi) a'_s(t, xi) + L'^{ab}(1, xi) b'_s(t, xi) dxi
+               - k L'^{ab}(1, 1 - lam t) [t < 1/lam] - q k L'^{aa}(1, mu (t - 1/lam)) [1/lam < t < tau],
+
+``b'_s(t, xi) = F_b(xi + lam t)`` (zero past ``x = 1``), ``a'_s(t, xi) = F_a(xi - mu t)`` for
+``xi >= mu t`` and ``q' F_b(lam (t - xi/mu))`` below (zero past ``lam t - lam xi/mu = 1``). ``c``
+is smooth between ``0``, ``1/lam``, ``1/mu`` and ``tau``; on a transport system ``K' = L' = 0``.
+
+**What the observer changes.** ``G`` has the point terms ``k q e^{-tau s} - k rho q^2 e^{-2 tau s}``,
+so the difference operator is not the state feedback's: for U_BS2(K) (``k = -K``) and
+``delta_o = 0`` it is ``1 - (rho - K) q e^{-tau s} - K rho q^2 e^{-2 tau s} + K rho q^2
+e^{-(2 tau + delta) s}``, strongly stable (Theorem 4's condition) iff
+``|rho - K| |q| + 2 |K rho| q^2 < 1``, not ``|rho q| + |K q| < 1``. The observer reads the
+reflection ``rho u(t, 1)`` from the measurement and predicts ``u(t, 1)`` from the commands, so
+U_BS (``K = rho``) keeps a positive margin up to ``|rho q| < 1/sqrt(2)`` instead of the
+``1/2`` of Theorem 3. With ``delta_o > 0`` the terms at ``tau`` and ``tau + delta_o`` no longer
+merge: the condition becomes ``|rho q| + |K q| + 2 |K rho| q^2 < 1``, stricter than the state
+feedback's (the paper's example, ``rho q = 0.85``, ``K = 0.1``: ``1.12``, no robustness to a
+mismatch ``delta != delta_o``), so the observer should replay the commands undelayed.
+
+:func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's
+gains on the kernel grid (cubic splines, composite Gauss-Legendre rules), stores it as
+polynomial pieces, and ``G`` by :func:`~nrobust.volterra.resolvent_product`; its accuracy is
+estimated by the change of ``c`` from the grid with ``(kernel_grid + 1) / 2`` points. It is a
+model of the PDE, as the kernel route is.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ...distributed_delay import DistributedDelay
+from ...errors import ParameterError
+from ...quasipoly import QuasiPolynomial
+from ...volterra import WindowKernel, resolvent_product
+from ..kernels.constant import MIN_KERNEL_GRID, Kernels, solve_kernels
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from ..plants.law import FeedbackLaw
+
+__all__ = ["CollocatedObserver", "collocated_observer", "command_response", "dual_plant", "observer_gains"]
+
+Array = NDArray[np.float64]
+
+#: Segments of the stored ``c`` per unit of time (at least one per smooth piece) and the degree of
+#: its polynomial on each (interpolated at Chebyshev points).
+SEGMENTS_PER_UNIT, DEGREE = 16, 11
+#: Gauss-Legendre sub-intervals per unit length of ``xi`` and points on each (the integrands are
+#: cubic splines of grid values: composite rules of low order on short sub-intervals).
+QUADRATURE_CELLS, QUADRATURE_POINTS = 96, 4
+
+
+def dual_plant(system: Hyperbolic2x2) -> Hyperbolic2x2:
+    """The plant whose finite-time law gives the observer's gains (module notes).
+
+    ``Hyperbolic2x2(mu, lam, sigma^{+-}, sigma^{-+}, lam q / mu, 0)``.
+    """
+    return Hyperbolic2x2(
+        system.mu, system.lam, system.sigma_pm, system.sigma_mp, system.lam * system.q / system.mu, 0.0
+    )
+
+
+def observer_gains(kernels: Kernels, lam: float) -> tuple[Array, Array, Array]:
+    """``(x, p_u(x), p_v(x))`` on the kernel grid from the kernels of :func:`dual_plant`.
+
+    ``p_u = -lam K'^{vv}(1, .)``, ``p_v = -lam K'^{vu}(1, .)`` (module notes); ``lam`` is the
+    speed of ``u`` in the observed plant.
+    """
+    return kernels.grid.copy(), -lam * kernels.K[1, 1, -1, :], -lam * kernels.K[1, 0, -1, :]
+
+
+def _trapezoid_weights(n: int) -> Array:
+    """Rows ``i``: the trapezoidal rule on ``[0, x_i]`` of the uniform grid with ``n`` points."""
+    h = 1.0 / (n - 1)
+    w = np.tril(np.full((n, n), h))
+    w[:, 0] *= 0.5
+    w[np.arange(n), np.arange(n)] *= 0.5
+    w[0, 0] = 0.0
+    return w
+
+
+def _composite_rule(lo: Array, hi: Array) -> tuple[Array, Array]:
+    """Composite Gauss-Legendre nodes and weights on each ``[lo_j, hi_j]`` (rows; empty where ``hi <= lo``)."""
+    t, g = np.polynomial.legendre.leggauss(QUADRATURE_POINTS)
+    cells = np.linspace(0.0, 1.0, QUADRATURE_CELLS + 1)
+    ref = (cells[:-1, None] + (0.5 * (t + 1.0))[None, :] / QUADRATURE_CELLS).ravel()
+    weight = np.tile(0.5 * g / QUADRATURE_CELLS, QUADRATURE_CELLS)
+    width = np.maximum(hi - lo, 0.0)
+    return lo[:, None] + width[:, None] * ref[None, :], width[:, None] * weight[None, :]
+
+
+def _response_sampler(
+    system: Hyperbolic2x2, law: FeedbackLaw, kernels: Kernels | None, n: int
+) -> Callable[[Array, float], Array]:
+    """``(t, middle) -> c(t)`` on one smooth piece of ``[0, tau]`` (``middle`` picks its branches)."""
+    from scipy.interpolate import CubicSpline  # lazily: a slow import
+
+    lam, mu, q, k = system.lam, system.mu, system.q, law.boundary_gain
+    q_dual = lam * q / mu
+    x = np.linspace(0.0, 1.0, n)
+    f_a, f_b = -np.asarray(law.gain_v(x), dtype=float), -np.asarray(law.gain_u(x), dtype=float)
+    if kernels is None:
+        F_a, F_b, L_aa, L_ab = f_a, f_b, np.zeros(n), np.zeros(n)
+    else:
+        w = _trapezoid_weights(n)
+        K = kernels.K
+        F_a = f_a - (w * K[0, 0]) @ f_a - (w * K[0, 1]) @ f_b
+        F_b = f_b - (w * K[1, 0]) @ f_a - (w * K[1, 1]) @ f_b
+        L_aa, L_ab = kernels.L[0, 0, -1, :], kernels.L[0, 1, -1, :]
+    Fa, Fb, Laa, Lab = (CubicSpline(x, v) for v in (F_a, F_b, L_aa, L_ab))
+    t_v, t_u, tau = 1.0 / mu, 1.0 / lam, system.tau
+
+    def sample(t: Array, middle: float) -> Array:
+        tt = t[:, None]
+        end = Fa(np.clip(1.0 - mu * t, 0.0, 1.0)) if middle < t_v else q_dual * Fb(np.clip(lam * (t - t_v), 0.0, 1.0))
+        front = np.minimum(mu * t, 1.0)  # a' left x = 0 at speed mu: transported F_a above, reflected b' below
+        xi, g = _composite_rule(front, np.ones_like(t))
+        total = end + np.sum(g * Laa(xi) * Fa(np.clip(xi - mu * tt, 0.0, 1.0)), axis=1)
+        xi, g = _composite_rule(np.maximum(mu * (t - t_u), 0.0), front)
+        total += np.sum(g * Laa(xi) * q_dual * Fb(np.clip(lam * (tt - xi / mu), 0.0, 1.0)), axis=1)
+        xi, g = _composite_rule(np.zeros_like(t), np.maximum(1.0 - lam * t, 0.0))
+        total += np.sum(g * Lab(xi) * Fb(np.clip(xi + lam * tt, 0.0, 1.0)), axis=1)
+        if middle < t_u:
+            total -= k * Lab(np.clip(1.0 - lam * t, 0.0, 1.0))
+        elif middle < tau:
+            total -= q * k * Laa(np.clip(mu * (t - t_u), 0.0, 1.0))
+        return -mu * total
+
+    return sample
+
+
+def _breaks(system: Hyperbolic2x2) -> Array:
+    """``0 < 1/lam, 1/mu < tau``: the ends of the smooth pieces of ``c``."""
+    points = np.array([0.0, 1.0 / system.lam, 1.0 / system.mu, system.tau])
+    return np.unique(np.round(points, 14))
+
+
+def _pieces(sample: Callable[[Array, float], Array], breaks: Array) -> tuple[list[DistributedDelay], float]:
+    """``c`` as polynomial pieces, one term per smooth piece starting at 0, and their largest deviation."""
+    fit_t = 0.5 * (1.0 - np.cos((2.0 * np.arange(DEGREE + 1) + 1.0) * np.pi / (2.0 * (DEGREE + 1))))
+    check_t = (np.arange(DEGREE) + 0.5) / DEGREE
+    terms, deviation = [], 0.0
+    for lo, hi in itertools.pairwise(breaks):
+        count = max(1, int(np.ceil((hi - lo) * SEGMENTS_PER_UNIT)))
+        cuts = np.linspace(lo, hi, count + 1)
+        step = np.diff(cuts)
+        middle = 0.5 * (lo + hi)
+        values = sample((cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle).reshape(count, -1)
+        exact = sample((cuts[:-1, None] + step[:, None] * check_t).ravel(), middle).reshape(count, -1)
+        coefficients = []
+        for row, check in zip(values, exact, strict=True):
+            series = np.polynomial.Chebyshev.fit(fit_t, row, DEGREE, domain=[0.0, 1.0])
+            local = series.convert(kind=np.polynomial.Polynomial, domain=[0.0, 1.0], window=[0.0, 1.0]).coef
+            local = np.pad(local, (0, DEGREE + 1 - local.size))
+            deviation = max(deviation, float(np.max(np.abs(np.polynomial.polynomial.polyval(check_t, local) - check))))
+            coefficients.append(local)
+        terms.append(DistributedDelay(cuts - lo, None, interpolation="polynomial", coefficients=np.array(coefficients)))
+    return terms, deviation
+
+
+def command_response(
+    system: Hyperbolic2x2, law: FeedbackLaw, kernels: Kernels | None, kernel_grid: int
+) -> tuple[QuasiPolynomial, list[DistributedDelay], float]:
+    """``C_u(s) = k q e^{-tau s} + int_0^tau c(nu) e^{-nu s} dnu`` (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The observed plant.
+    law : FeedbackLaw
+        The unfiltered law ``U = k u(1) + int g_u u + g_v v`` on ``system``'s state.
+    kernels : Kernels or None
+        The kernels of :func:`dual_plant` (None on an uncoupled plant: ``K' = L' = 0``).
+    kernel_grid : int
+        The grid on which the law's gains are read (the kernels' grid when given).
+
+    Returns
+    -------
+    tuple
+        ``C_u``; the pieces of ``c``, each supported from 0 (the piece on ``[t_j, t_{j+1}]``
+        shifted by ``-t_j``, the breakpoints ``0, 1/lam, 1/mu, tau`` in increasing order); their
+        storage deviation.
+    """
+    n = kernel_grid if kernels is None else kernels.n
+    pieces, deviation = _pieces(_response_sampler(system, law, kernels, n), _breaks(system))
+    point = QuasiPolynomial([[law.boundary_gain * system.q]], [system.tau])
+    shifted = [e for lo, term in zip(_breaks(system)[:-1], pieces, strict=True) for e in term.shift(float(lo))]
+    return point + QuasiPolynomial([], [], shifted), pieces, deviation
+
+
+@dataclass(frozen=True)
+class CollocatedObserver:
+    """The collocated observer on a plant, for a law: its gains, ``C_u`` and ``G = (1 - Phi) C_u``.
+
+    Attributes
+    ----------
+    grid : ndarray
+        The kernel grid of ``[0, 1]``.
+    p_u, p_v : ndarray
+        The output-injection gains on the grid (module notes).
+    response : QuasiPolynomial
+        ``C_u``: the law applied to the error driven by a command mismatch.
+    product : QuasiPolynomial
+        ``G = (1 - Phi) C_u``.
+    accuracy : float
+        An estimate (not a bound) of the sup-norm error of ``G``'s kernel: the change of ``c``
+        from the grid with ``(kernel_grid + 1) / 2`` points times the weight of ``1 - Phi``, plus
+        the storage deviations.
+    """
+
+    grid: Array
+    p_u: Array
+    p_v: Array
+    response: QuasiPolynomial
+    product: QuasiPolynomial
+    accuracy: float
+
+
+def collocated_observer(
+    system: Hyperbolic2x2,
+    law_on: Callable[[int], FeedbackLaw],
+    open_loop: QuasiPolynomial,
+    kernel_grid: int,
+) -> CollocatedObserver:
+    """The collocated observer's term ``G`` for the law ``law_on(grid)`` (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The observed plant (the paper's plant; a general plant is refused by the caller).
+    law_on : callable
+        ``grid -> FeedbackLaw``: the unfiltered law with its gains from kernels on ``grid`` points.
+    open_loop : QuasiPolynomial
+        ``1 - Phi`` (eq. (39)) of ``system``.
+    kernel_grid : int
+        Points of the kernel grids (the coarser grid of the accuracy estimate has
+        ``(kernel_grid + 1) // 2`` points, at least
+        :data:`~nrobust.hyperbolic.kernels.constant.MIN_KERNEL_GRID`).
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a collocated observer", system)
+    lam = system.lam
+    coupled = not system.uncoupled
+    coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
+    fine = solve_kernels(dual_plant(system), kernel_grid) if coupled else None
+    law = law_on(kernel_grid)
+    response, pieces, deviation = command_response(system, law, fine, kernel_grid)
+    coarse = solve_kernels(dual_plant(system), coarse_grid) if coupled else None
+    _, coarse_pieces, _ = command_response(system, law_on(coarse_grid), coarse, coarse_grid)
+    change = 0.0
+    for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
+        nu = np.linspace(0.0, hi - lo, 65)
+        change = max(change, float(np.max(np.abs(a.kernel_at(nu) - b.kernel_at(nu)))))
+    accuracy = change + deviation
+    product = open_loop * QuasiPolynomial([[law.boundary_gain * system.q]], [system.tau])
+    total_accuracy = 0.0
+    empty = np.zeros((1, 1))  # no correction: the stored pieces are the kernel
+    for lo, hi, term in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, strict=True):
+        if term.is_zero:
+            continue
+        window = WindowKernel((term,), float(hi - lo), empty, accuracy)
+        part = resolvent_product(open_loop.shift(float(lo)), window)
+        product = product + part.product
+        total_accuracy += part.accuracy
+    if coupled:
+        assert fine is not None
+        grid, p_u, p_v = observer_gains(fine, lam)
+    else:
+        grid = np.linspace(0.0, 1.0, kernel_grid)
+        p_u = p_v = np.zeros(kernel_grid)
+    return CollocatedObserver(grid, p_u, p_v, response, product, total_accuracy)
