@@ -55,6 +55,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._bracket import illinois
 from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import finite_real, positive, positive_int
@@ -263,23 +264,6 @@ class AffineLoop:
         """``F(.; delta, p)``."""
         B = self.B(p)
         return self.A(p) + (B.shift(delta) if delta > 0 else B)
-
-
-def _illinois(
-    f: Any, a: NDArray[np.float64], b: NDArray[np.float64], fa: NDArray, fb: NDArray, steps: int
-) -> NDArray[np.float64]:
-    """Zeros of ``f`` bracketed by ``[a, b]`` (``f(a) f(b) < 0``), vectorised: ``steps`` regula falsi
-    steps of the Illinois kind (the end kept twice has its value halved); the end with the smaller
-    ``|f|`` of each final bracket."""
-    for _ in range(steps):
-        x = np.clip(a - fa * (b - a) / (fb - fa), np.minimum(a, b), np.maximum(a, b))
-        fx = f(x)
-        left = np.sign(fx) == np.sign(fa)
-        fb = np.where(left, 0.5 * fb, fb)
-        fa = np.where(left, fa, 0.5 * fa)
-        a, fa = np.where(left, x, a), np.where(left, fx, fa)
-        b, fb = np.where(left, b, x), np.where(left, fb, fx)
-    return np.where(np.abs(fa) < np.abs(fb), a, b)
 
 
 def _is_zero(P: QuasiPolynomial) -> bool:
@@ -529,7 +513,7 @@ class _Curves:
         fa, fb = f(a), f(b)
         keep = fa * fb < 0
         j, a, b, fa, fb = j[keep], a[keep], b[keep], fa[keep], fb[keep]
-        wx = _illinois(f, a, b, fa, fb, 8)
+        wx = illinois(f, a, b, fa, fb, steps=8)
         _, m, root, _ = self._sample(wx)
         return {int(k): (float(x), float(mk + sigma * rk)) for k, x, mk, rk in zip(j, wx, m, root)}
 
@@ -550,7 +534,7 @@ class _Curves:
         if not j.size:
             return {}
         a, b, fa, fb = w[j].copy(), w[j + 1].copy(), D[j].copy(), D[j + 1].copy()
-        wj = _illinois(lambda x: self._sample(x)[0], a, b, fa, fb, 8)  # K = m there: sqrt(D) is clipped at 0
+        wj = illinois(lambda x: self._sample(x)[0], a, b, fa, fb, steps=8)  # K = m there: sqrt(D) is clipped at 0
         valid_end = np.where(D[j] >= 0.0, w[j], w[j + 1])
         t = np.linspace(0.0, 1.0, 10)[:-1] ** 2
         return {int(k): wj_k + (v - wj_k) * t for k, wj_k, v in zip(j, wj, valid_end)}
@@ -703,7 +687,7 @@ class _Curves:
 
             a, b = w[j[near]].copy(), w[j[near] + 1].copy()
             fa, fb = slope[j[near]].copy(), slope[j[near] + 1].copy()
-            wx = _illinois(f, a, b, fa, fb, 12)
+            wx = illinois(f, a, b, fa, fb, steps=12)
             _, m, root, at = self._sample(wx)
             Kx = m + sigma * root
             theta = at.theta(Kx)
