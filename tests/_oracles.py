@@ -752,7 +752,9 @@ class PDELoop:
         scale = 1.0 + abs(complex(Am)) + abs(complex(Bm))
         err = abs(complex(A[0]) - complex(Am)) + abs(complex(B[0]) - complex(Bm))
         if not err <= 1e-9 * scale * (1.0 + abs(s) * self.tau):
-            if -s.real * self.tau > 30.0:  # terms of size e^{-Re s tau} > 1e13 cancel: doubles cannot say
+            # terms of size e^{-Re s tau} cancel, each with a rounding error of a few eps of its size: beyond
+            # e^{-Re s tau} 16 eps = 1e-9 (-Re s tau > 12.6) doubles cannot meet the tolerance above
+            if math.exp(min(-s.real * self.tau, 700.0)) * 16.0 * np.finfo(float).eps > 1e-9:
                 raise OracleUnsure(
                     f"the double-precision closed form cancels e^{{{-s.real * self.tau:.0f}}} at s = {s}"
                 )
