@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import math
-from decimal import ROUND_FLOOR, Decimal
+from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
 
-__all__ = ["lower_bound_text", "with_accuracy"]
+__all__ = ["inner_interval_text", "lower_bound_text", "upper_bound_text", "with_accuracy"]
 
 
 def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6) -> str:
@@ -75,10 +75,40 @@ def lower_bound_text(value: float, digits: int = 6) -> str:
     >>> lower_bound_text(2.5e-7, 2)
     '2.4e-7'
     """
+    return _directed_text(value, digits, ROUND_FLOOR)
+
+
+def upper_bound_text(value: float, digits: int = 6) -> str:
+    """``value`` to ``digits`` significant digits, rounded up: a printed upper bound stays one.
+
+    Examples
+    --------
+    >>> upper_bound_text(0.01234561)
+    '0.0123457'
+    """
+    return _directed_text(value, digits, ROUND_CEILING)
+
+
+def inner_interval_text(lo: float, hi: float, digits: int = 10) -> str:
+    """``(lo, hi)`` printed inside itself: ``lo`` rounded up, ``hi`` rounded down, to ``digits`` digits.
+
+    What is claimed of every point of ``(lo, hi)`` (a stability window, gains meeting a
+    requirement) then holds for every printed point.
+
+    Examples
+    --------
+    >>> inner_interval_text(0.60459978807807, 1.2345678901234, 6)
+    '(0.604600, 1.23456)'
+    """
+    return f"({upper_bound_text(lo, digits)}, {lower_bound_text(hi, digits)})"
+
+
+def _directed_text(value: float, digits: int, rounding: str) -> str:
+    """``value`` to ``digits`` significant digits in the direction ``rounding`` (on its exact binary value)."""
     if digits < 1:
         raise ValueError(f"digits must be at least 1, got {digits}")
     if not math.isfinite(value) or value == 0.0:
         return repr(float(value)).replace("0.0", "0")
     exact = Decimal(float(value))
-    down = exact.quantize(Decimal(1).scaleb(exact.adjusted() - digits + 1), rounding=ROUND_FLOOR)
-    return f"{down:.{digits - 1}e}" if abs(value) >= 1e15 or abs(value) < 1e-4 else f"{down:f}"
+    rounded = exact.quantize(Decimal(1).scaleb(exact.adjusted() - digits + 1), rounding=rounding)
+    return f"{rounded:.{digits - 1}e}" if abs(value) >= 1e15 or abs(value) < 1e-4 else f"{rounded:f}"

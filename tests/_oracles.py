@@ -707,6 +707,8 @@ class PDELoop:
         rq = abs(self.rho * self.q)
         extra = max(0.0, -x) * (2.0 * self.tau + float(delta)) / math.log(10.0)
         extra += max(0.0, -math.log10(rq)) if rq > 0.0 else 0.0
+        if not extra <= 2000.0:  # also infinite (a point at Re s = -inf) or nan
+            raise OracleUnsure(f"terms at s = {s} need more than 2000 extra digits")
         boost = math.ceil(extra) + 5
         if boost > 2000:
             raise OracleUnsure(f"terms at s = {s} need more than 2000 extra digits")

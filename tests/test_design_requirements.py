@@ -23,7 +23,7 @@ from nrobust import delay_margin as plant_margin
 from nrobust.cli import main
 from nrobust.config import load_system_file
 from nrobust.design import DESIGN_KINDS, best_decay_rate, best_margin, window_stability
-from nrobust.errors import ParameterError
+from nrobust.errors import CertificationError, ParameterError
 from nrobust.hyperbolic.analyses import design_filtered_exact, design_reflection, speed_tolerance
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.hyperbolic.kernels.constant import solve_kernels
@@ -280,3 +280,47 @@ def test_filtered_window_design_ends_at_the_pair_birth() -> None:
     assert 0.1 <= d.end.delay <= 0.4
     np.testing.assert_allclose(d.end.K, 0.6298503342, rtol=0, atol=1e-9)  # the mpmath value to 10 digits
     assert d.accuracy[0] < 1e-9 and d.windows[0].stable
+
+
+# s - 1 + 2 e^{-delta s}: |i w - 1| = 2 at w = sqrt(3), where e^{-i w delta} = (1 - i sqrt 3) / 2 = e^{-i pi / 3}:
+# delta* = pi / (3 sqrt 3); stable on [0, delta*), a zero on the axis at delta*, unstable just past it.
+EDGE_A, EDGE_B = QuasiPolynomial([[-1.0, 1.0]], [0.0]), QuasiPolynomial([[2.0]], [0.0])
+
+
+def _edge_delay() -> mp.mpf:
+    with mp.workdps(40):
+        return mp.pi / (3 * mp.sqrt(3))
+
+
+def test_a_window_ending_at_the_crossing_delay_is_not_refuted() -> None:
+    """A window whose end is the crossing delay to rounding: undecided (CertificationError), never 'refuted'."""
+    d_star = float(_edge_delay())
+    assert abs(d_star - _edge_delay()) < 1e-16  # the float is the crossing to rounding
+    for rigorous in (False, True):
+        try:
+            w = window_stability(EDGE_A, EDGE_B, (0.0, d_star), rigorous=rigorous)
+        except CertificationError as exc:
+            assert "end of the window" in str(exc) or "could not be counted" in str(exc)
+        else:  # the float may lie below the true crossing: stable is then right, refuted never is
+            assert w.stable and w.certified != "refuted"
+    with pytest.raises(CertificationError, match=r"could not be counted|end of the window"):
+        window_stability(EDGE_A, EDGE_B, (d_star, d_star))
+    w = window_stability(EDGE_A, EDGE_B, (0.0, 0.7), rigorous=True)
+    assert not w.stable and w.certified == "refuted"  # a crossing well inside
+
+
+def test_the_printed_stability_window_lies_inside_the_true_one() -> None:
+    """The reason prints the enclosing window rounded inwards: its upper end is below the crossing delay."""
+    w = window_stability(EDGE_A, EDGE_B, (0.0, 0.5), rigorous=True)
+    assert w.stable and w.certified == "proven"
+    printed_hi = mp.mpf(w.reason.split("(")[1].split(")")[0].split(",")[1])
+    assert printed_hi <= _edge_delay()
+    assert _edge_delay() - printed_hi < 1e-9  # ten digits
+
+
+def test_requirements_print_the_window_exactly() -> None:
+    """A window of many digits is printed as given, not rounded outwards (0.12345678 is not 0.123457)."""
+    A, B = QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[0.5]], [0.0])  # s + 1 + 0.5 e^{-delta s}
+    loop = AffineGainLoop(A, QuasiPolynomial([[0.0]], [0.0]), B)
+    design = best_margin(loop, (0.5, 0.9), delays=(0.0, 0.12345678))
+    assert "[0.0, 0.12345678]" in design.requirement

@@ -56,7 +56,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._bracket import illinois
-from .._digits import with_accuracy
+from .._digits import inner_interval_text, with_accuracy
 from .._json import fields_dict
 from .._validate import finite_real, positive, positive_int
 from ..bounds import root_free_region
@@ -199,7 +199,7 @@ class GainDesign:
         proven = met and all(w.certified == "proven" for w in self.windows)
         loops = "the loop" if len(self.windows) == 1 else f"the loop and its {len(self.windows) - 1} scenarios"
         verdict = "met, proven" if proven else "met, checked" if met else "not met"
-        return f"stable for every delay in [{d_lo:.6g}, {d_hi:.6g}] ({loops}): {verdict}"
+        return f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] ({loops}): {verdict}"
 
     @property
     def accuracy(self) -> tuple[float, float]:
@@ -1130,6 +1130,15 @@ def _proven_clear(A: QuasiPolynomial, B: QuasiPolynomial, d_lo: float, d_hi: flo
     return ""
 
 
+def _delay_uncertainty(dm: DelayMargin, d_hi: float) -> float:
+    """How far the crossing delays up to ``d_hi`` may be from their computed values: the margin's accuracy
+    (its proven ball, or its estimate) taken relative to the margin, at ``d_hi``; 0 when not known."""
+    acc = dm.accuracy
+    if acc is None or not np.isfinite(acc) or not (np.isfinite(dm.margin) and dm.margin > 0.0):
+        return 0.0
+    return float(acc) * max(1.0, d_hi / dm.margin)
+
+
 def window_stability(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
@@ -1196,8 +1205,25 @@ def window_stability(
         ),
         None,
     )
+    # a crossing delay at an end of the window to rounding (or within its proven enclosure's width): the
+    # verdict at that end is not decided by these numbers either way
+    tol = 8.0 * np.finfo(float).eps * max(1.0, d_hi) + _delay_uncertainty(dm, d_hi)
+    at_end = [d for d in marks if d_lo - tol <= d <= d_hi + tol and min(abs(d - d_lo), abs(d - d_hi)) <= tol]
+    inside = [d for d in marks if d_lo + tol < d < d_hi - tol]
+    if enclosing is None and at_end and not inside:
+        raise CertificationError(
+            f"window_stability: a crossing delay {at_end[0]!r} lies at an end of the window [{d_lo!r}, {d_hi!r}] "
+            f"to within {tol:.2g} (a zero on the imaginary axis there): the verdict at that end is not decided; a "
+            "window ending clear of the crossing delays decides"
+        )
     W = dm.frequency_bound
     count = unstable_count(A + B.shift(probe), W, loop=(A, B, probe), max_evals=max_evals).count
+    if count is None:
+        raise CertificationError(
+            f"window_stability: the zeros in Re s > 0 at delta = {probe!r}, the middle of the window, could not be "
+            "counted (a zero on or near the imaginary axis there); a window whose middle is clear of the crossing "
+            "delays decides"
+        )
     if enclosing is not None and count != 0:
         raise CertificationError(
             f"window_stability: the windows of the delay margin make [{d_lo:.12g}, {d_hi:.12g}] stable, but the "
@@ -1207,10 +1233,10 @@ def window_stability(
         why = (
             f"a crossing delay lies in the window (clearance {clearance:.3g})"
             if clearance == 0.0
-            else f"{count} zeros in Re s > 0 at delta = {probe:.6g}"
+            else f"{count} zeros in Re s > 0 at delta = {probe!r}"
         )
         return DelayWindow((d_lo, d_hi), False, "refuted", probe, count, None, clearance, dm, why)
-    reason = f"stable on the window ({enclosing[0]:.10g}, {enclosing[1]:.10g}) of the crossing delays"
+    reason = f"stable on the window {inner_interval_text(*enclosing)} of the crossing delays"
     if how == "proven":
         unproven = _proven_clear(A, B, d_lo, d_hi)
         how = f"checked (the proof failed: {unproven})" if unproven else "proven"

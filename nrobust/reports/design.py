@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .._digits import with_accuracy
+from .._digits import inner_interval_text, with_accuracy
 from .._json import json_safe
 from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, load_system_file
 from ..errors import ParameterError
@@ -100,18 +100,19 @@ def _reflection_markdown(
         met = all(w.stable for w in d.windows)
         proven = met and all(w.certified == "proven" for w in d.windows)
         lines.append(
-            f"- requirement: exponentially stable for every delay in [{d_lo:.6g}, {d_hi:.6g}]: "
+            f"- requirement: exponentially stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}]: "
             + ("met, proven in ball arithmetic" if proven else "met, checked in floating point" if met else "not met")
         )
         for n, w in enumerate(d.windows):
             which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
             lines.append(f"  - {which}: {w.reason}, {w.certified}")
         if d.feasible:
-            spans = ", ".join(f"({a:.10g}, {b:.10g})" for a, b in d.feasible)
+            spans = ", ".join(inner_interval_text(a, b) for a, b in d.feasible)
             lines.append(f"- gains meeting the requirement: {spans} (ends solved from their equations)")
     if result.tolerance is not None:
         t = result.tolerance
-        lines.append(f"- speed tolerance {t.eps:.6g} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}")
+        verdict = "met" if t.met else "not met"
+        lines.append(f"- speed tolerance {float(t.eps)!r} on lam and mu: {verdict}, {t.certified}")
         lines.append(f"  - {t.statement}; about {t.scope}")
     if edge is not None:
         lines.append(

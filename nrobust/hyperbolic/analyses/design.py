@@ -77,7 +77,7 @@ class ReflectionDesign:
         """The requirements and their verdicts in words (the delay window; the speed tolerance)."""
         parts = [self.design.requirement]
         if self.tolerance is not None:
-            parts.append(f"speed tolerance {self.tolerance.eps:.6g}: {self.tolerance.statement}")
+            parts.append(f"speed tolerance {float(self.tolerance.eps)!r}: {self.tolerance.statement}")
         return "; ".join(parts)
 
     @property

@@ -630,7 +630,7 @@ class SpeedTolerance:
     scope: str
 
     def __repr__(self) -> str:
-        return f"SpeedTolerance(eps={self.eps:.6g}, met={self.met}, certified={self.certified!r})"
+        return f"SpeedTolerance(eps={float(self.eps)!r}, met={self.met}, certified={self.certified!r})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (each window as its dictionary)."""
@@ -715,15 +715,16 @@ def speed_tolerance(
     certified = "proven at the corners" if met and proven else "checked at the corners" if met else "not met"
     if met:
         statement = (
-            f"stable for every delay in [{d_lo:.6g}, {d_hi:.6g}] at the 4 corners (e_lam, e_mu) = (+-{eps:.6g}, "
-            f"+-{eps:.6g}) ({'proven in ball arithmetic' if proven else 'checked in floating point'}) and at the "
+            f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] at the 4 corners (e_lam, e_mu) = "
+            f"(+-{float(eps)!r}, +-{float(eps)!r}) "
+            f"({'proven in ball arithmetic' if proven else 'checked in floating point'}) and at the "
             f"{len(inner)} other points of a {grid} x {grid} grid of the square (checked in floating point); between "
             "the points not certified (the stability windows are not continuous in the mismatch)"
         )
     else:
         bad = [p for p, w in zip([*corners, *inner], windows) if not w.stable]
-        statement = f"not stable on [{d_lo:.6g}, {d_hi:.6g}] at (e_lam, e_mu) = " + ", ".join(
-            f"({a:.6g}, {b:.6g})" for a, b in bad
+        statement = f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = " + ", ".join(
+            f"({float(a)!r}, {float(b)!r})" for a, b in bad
         )
     plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
     route = loop_route(plant, feedback)
