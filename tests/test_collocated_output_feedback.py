@@ -416,3 +416,13 @@ def test_simulated_observer_error_vanishes_after_tau():
     assert errors[times < 1.0].max() > 0.3
     # measured at most 1.1e-4 after tau (the scheme's error)
     assert errors[times > 2.05].max() < 1e-3
+
+
+@pytest.mark.long
+def test_certificate_scope_names_the_observer_model():
+    """A proven certificate of the collocated loop says what it is about: the observer's term is a model."""
+    cert = nr.certify(
+        PAPER, CollocatedOutputFeedback(ReflectionController(0.1)), delta_max=0.1, k_region=False, rigorous=True
+    )
+    assert "collocated observer's term" in cert.scope and "not part of the proof" in cert.scope
+    assert "cubic spline of the kernels on the kernel grid" not in cert.scope

@@ -646,7 +646,7 @@ class Certificate:
         """What the certificate's proofs are about, in words."""
         if not self.rigorous:
             return FLOAT_SCOPE
-        if self.route == "exact":
+        if self.route in ("exact", "observer"):  # loop_scope says what the observer's term is (a model)
             return (
                 "Claims marked proven hold for "
                 + loop_scope(self.system, self.controller, self.kernel_grid, loop_factors(self.system, self.controller))
