@@ -418,7 +418,9 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
     if d["delays"] is not None:
         if not isinstance(d["delays"], list) or any(isinstance(v, bool) for v in d["delays"]):
             raise ParameterError(
-                "design.delays", "a pair [d_min, d_max] of delays with 0 <= d_min <= d_max and d_max > 0", d["delays"]
+                "design.delays",
+                "a pair [d_min, d_max] of finite delays with 0 <= d_min <= d_max and d_max > 0",
+                d["delays"],
             )
         d["delays"] = check_delays(d["delays"], "design.delays")
         if d["margin_at_least"] is not None:
@@ -435,6 +437,12 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
         if d["family"] != "reflection":
             raise ParameterError(
                 "design.speed_tolerance", 'left out unless family = "reflection"', d["speed_tolerance"]
+            )
+        if d["delays"] is None and d["margin_at_least"] is None:
+            raise ParameterError(
+                "design.speed_tolerance",
+                "given with a delay requirement (design.delays or design.margin_at_least) that the speeds must keep",
+                d["speed_tolerance"],
             )
     if d["delays"] is not None and d["family"] == "filtered":
         raise ParameterError("design.delays", 'left out for family = "filtered" (use margin_at_least)', d["delays"])

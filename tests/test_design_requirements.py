@@ -207,6 +207,8 @@ def test_bad_requirements_are_parameter_errors(tmp_path: Path) -> None:
         ("delays = 0.1\n", "design.delays"),
         ("speed_tolerance = 1.0\n", "design.speed_tolerance"),
         ('family = "filtered"\nspeed_tolerance = 0.1\n', "design.speed_tolerance"),
+        ("speed_tolerance = 0.1\n", "design.speed_tolerance"),  # no delay requirement for the speeds to keep
+        ("delays = [true, 0.2]\n", "design.delays"),
     ):
         path = tmp_path / "bad.toml"
         path.write_text(head + body)
