@@ -319,9 +319,10 @@ class DifferenceOperator:
         # each term alone bounds the root: |a_k| e^{-r_k c} = |a_0| at c_k, so C_D >= max c_k.
         # Newton's method from that bound climbs monotonically to the root (a tangent of a convex
         # function lies below it), by steps of at most 1/r_min, and converges quadratically.
-        c = float(np.max(np.log(mags / a0) / r))
+        log_mags = np.log(mags)  # the terms as exp(log |a_k| - r_k c): no overflow of e^{-r_k c} alone
+        c = float(np.max((log_mags - np.log(a0)) / r))
         for _ in range(200):
-            terms = mags * np.exp(-r * c)
+            terms = np.exp(log_mags - r * c)
             value = float(np.sum(terms)) - a0
             if value <= 0.0:
                 return c
