@@ -10,22 +10,13 @@ from __future__ import annotations
 import mpmath
 import numpy as np
 import pytest
+from _statespace_examples import example_2_9
 
 from nrobust import DistributedDelay, QuasiPolynomial, count_roots
 from nrobust.lti.statespace import StateSpaceTDS
 from nrobust.qpmatrix import ExpandedDeterminant, QuasiPolynomialMatrix
 from nrobust.roots._common import Budget
 from nrobust.roots.search import _PATIENCE, _newton
-
-
-def _example_2_9() -> StateSpaceTDS:
-    """TDS-CONTROL manual Example 2.9 closed loop (descriptor, n = 6), as benchmarks/statespace.py builds it."""
-    m0, m1 = np.zeros((6, 6)), np.zeros((6, 6))
-    m0[:2, :2], m0[2, :2], m0[2, 2] = [[0.2, 0.1], [-0.5, 1.0]], [1.0, 1.0], -1.0
-    m0[3, 2], m0[3, 3] = 3.1, -3.48
-    m0[4:, 2], m0[4:, 3], m0[4:, 4:] = [-1.86, -1.4], [1.79, -0.09], -np.eye(2)
-    m1[:2, :2], m1[:2, 4:], m1[2, 4:] = [[0.5, 0.3], [0.1, -0.1]], np.eye(2), [0.01, 0.01]
-    return StateSpaceTDS([m0, m1], [0.0, 1.0], E=np.diag([1.0, 1.0, 0.0, 1.0, 0.0, 0.0]))
 
 
 def _four_by_four() -> StateSpaceTDS:
@@ -59,7 +50,7 @@ def _mp_poly(Q: ExpandedDeterminant, s: complex) -> mpmath.mpc:
     )
 
 
-@pytest.mark.parametrize("make", [_example_2_9, _four_by_four])
+@pytest.mark.parametrize("make", [example_2_9, _four_by_four])
 def test_gap_bounds_the_rounding_of_the_expansion(make: object) -> None:
     """|det M - Q| <= gap at points far out (|s| up to 300, where the rounded delays matter most)."""
     sys = make()  # type: ignore[operator]
@@ -77,7 +68,7 @@ def test_gap_bounds_the_rounding_of_the_expansion(make: object) -> None:
 
 def test_counts_agree_with_the_matrix() -> None:
     """The counts of the expansion (transferred to det M by Rouche) equal those of the matrix; so do the roots."""
-    sys = _example_2_9()
+    sys = example_2_9()
     M = sys.characteristic_matrix()
     Q = M.exact_expansion()
     assert isinstance(Q, ExpandedDeterminant)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _statespace_examples import example_2_9
 from scipy.linalg import eig
 
 from nrobust import DifferenceOperator, find_roots
@@ -19,16 +20,6 @@ from nrobust.lti.statespace import _MIN_POINTS, _POINTS_PER_FREQUENCY, StateSpac
 from nrobust.qpmatrix import ExpandedDeterminant
 from nrobust.roots._common import Budget, check_function
 from nrobust.roots.search import Finder, _zeros_left_of
-
-
-def _example_2_9() -> StateSpaceTDS:
-    """TDS-CONTROL manual Example 2.9 closed loop (descriptor, n = 6), as benchmarks/statespace.py builds it."""
-    m0, m1 = np.zeros((6, 6)), np.zeros((6, 6))
-    m0[:2, :2], m0[2, :2], m0[2, 2] = [[0.2, 0.1], [-0.5, 1.0]], [1.0, 1.0], -1.0
-    m0[3, 2], m0[3, 3] = 3.1, -3.48
-    m0[4:, 2], m0[4:, 3], m0[4:, 4:] = [-1.86, -1.4], [1.79, -0.09], -np.eye(2)
-    m1[:2, :2], m1[:2, 4:], m1[2, 4:] = [[0.5, 0.3], [0.1, -0.1]], np.eye(2), [0.01, 0.01]
-    return StateSpaceTDS([m0, m1], [0.0, 1.0], E=np.diag([1.0, 1.0, 0.0, 1.0, 0.0, 0.0]))
 
 
 def _michiels_13() -> StateSpaceTDS:
@@ -47,7 +38,7 @@ def _expanded(sys: StateSpaceTDS) -> ExpandedDeterminant:
     return Q
 
 
-@pytest.mark.parametrize("make", [_example_2_9, _retarded_2x2])
+@pytest.mark.parametrize("make", [example_2_9, _retarded_2x2])
 def test_derivative_bounds_hold_and_are_tight(make: object) -> None:
     """On segments from 1e-3 to 4 long, the bounds of |Q'| and |Q''| exceed the largest of 400 samples
     of Q.poly's derivatives; on the short ones (the steps near roots) they are within a factor 3 of it."""
@@ -88,7 +79,7 @@ def _full_pencil(sys: StateSpaceTDS, im_max: float) -> np.ndarray:
     return vals[np.isfinite(vals)]
 
 
-@pytest.mark.parametrize("make", [_example_2_9, _michiels_13])
+@pytest.mark.parametrize("make", [example_2_9, _michiels_13])
 def test_reduced_generator_matches_the_full_pencil(make: object) -> None:
     """The reduced problem (delayed components only, algebraic rows eliminated) has eigenvalues of the
     full pencil (QZ), up to the rounding of a pencil with a singular E (1e-8 relative), and fewer
@@ -109,7 +100,7 @@ def test_chains_left_of_the_region_give_no_seeds() -> None:
     """Example 2.9's principal part 1 + 0.0326 e^{-s} has its chain at Re s = ln 0.0326 = -3.42: left of
     the box [-1.75, 1.25] in which Newton's method keeps a seed of the region [-1, 0.5], so no chain
     seed is computed; the neutral 2 x 2 system's chains cross its region and seed it."""
-    Q = _expanded(_example_2_9())
+    Q = _expanded(example_2_9())
     D = Q.principal_part()
     assert np.max(D.chains().points(-11.0, 11.0).real) < -1.75 - 1.0
     assert Finder(check_function(Q), (-1.0, 0.5, -10.0, 10.0), 1e-6, Budget(1000)).chain_seeds().size == 0
@@ -133,7 +124,7 @@ def test_abscissa_right_of_every_zero(coefs: list[float], delays: list[float]) -
     assert max(real_parts) <= bound
 
 
-@pytest.mark.parametrize("make", [_retarded_2x2, _example_2_9])
+@pytest.mark.parametrize("make", [_retarded_2x2, example_2_9])
 def test_roots_as_on_the_matrix(make: object) -> None:
     """The roots counted on the expansion equal those found on the matrix form (Hadamard's bounds)."""
     sys = make()  # type: ignore[operator]

@@ -289,7 +289,50 @@ class StateFeedback(Controller):
 
 
 @dataclass(frozen=True)
-class OutputFeedback(Controller):
+class _ObserverFeedback(Controller):
+    """What :class:`OutputFeedback` and :class:`CollocatedOutputFeedback` share: a state feedback
+    ``controller`` on an observer's estimate, whose commands the observer replays ``observer_delay`` late."""
+
+    controller: Controller
+    observer_delay: float = 0.0
+    #: Why it is not a law on the state (the end of :meth:`feedback_law`'s message).
+    _not_a_law = "analyse its loop with loop_factors"
+
+    def __post_init__(self) -> None:
+        if isinstance(self.controller, _ObserverFeedback) or not isinstance(self.controller, Controller):
+            raise ParameterError(
+                "controller",
+                "a state feedback: OpenLoop, FiniteTimeController, ReflectionController, FilteredController or "
+                "StateFeedback",
+                self.controller,
+            )
+        object.__setattr__(self, "observer_delay", nonnegative("observer_delay", self.observer_delay))
+
+    def factors(self, phi, i_n, round_trip):
+        raise ParameterError(
+            "controller", "used through loop_factors(system, controller): the observer needs the plant", self
+        )
+
+    def feedback_law(self, system, kernels=None):
+        raise ParameterError(
+            "controller",
+            f"a state feedback ({type(self).__name__} is not a law on the state: {self._not_a_law})",
+            self,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description: the state feedback under ``"state_feedback"``."""
+        return json_safe(
+            {
+                "controller": type(self).__name__,
+                "state_feedback": self.controller.to_dict(),
+                "observer_delay": self.observer_delay,
+            }
+        )
+
+
+@dataclass(frozen=True)
+class OutputFeedback(_ObserverFeedback):
     """A state feedback fed by the exact predictor of the state from ``y(t) = v(t, 0)``.
 
     The measurement is at the unactuated boundary; the observer predicts the output
@@ -310,45 +353,11 @@ class OutputFeedback(Controller):
         replays): at ``delta = delta_o`` the loop is the state feedback's with that delay.
     """
 
-    controller: Controller
-    observer_delay: float = 0.0
-
-    def __post_init__(self) -> None:
-        if isinstance(self.controller, OutputFeedback) or not isinstance(self.controller, Controller):
-            raise ParameterError(
-                "controller",
-                "a state feedback: OpenLoop, FiniteTimeController, ReflectionController, FilteredController or "
-                "StateFeedback",
-                self.controller,
-            )
-        object.__setattr__(self, "observer_delay", nonnegative("observer_delay", self.observer_delay))
-
-    def factors(self, phi, i_n, round_trip):
-        raise ParameterError(
-            "controller", "used through loop_factors(system, controller): the observer needs the plant", self
-        )
-
-    def feedback_law(self, system, kernels=None):
-        raise ParameterError(
-            "controller",
-            "a state feedback (an OutputFeedback is not a law on the state: simulate its controller, or analyse "
-            "its loop with loop_factors)",
-            self,
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description: the state feedback under ``"state_feedback"``."""
-        return json_safe(
-            {
-                "controller": "OutputFeedback",
-                "state_feedback": self.controller.to_dict(),
-                "observer_delay": self.observer_delay,
-            }
-        )
+    _not_a_law = "simulate its controller, or analyse its loop with loop_factors"
 
 
 @dataclass(frozen=True)
-class CollocatedOutputFeedback(Controller):
+class CollocatedOutputFeedback(_ObserverFeedback):
     """A state feedback fed by the collocated observer from ``y(t) = u(t, 1)``.
 
     The measurement is at the actuated boundary; the observer is the backstepping observer of
@@ -374,43 +383,7 @@ class CollocatedOutputFeedback(Controller):
         loop is the state feedback's with that delay.
     """
 
-    controller: Controller
-    observer_delay: float = 0.0
-
-    def __post_init__(self) -> None:
-        if isinstance(self.controller, (OutputFeedback, CollocatedOutputFeedback)) or not isinstance(
-            self.controller, Controller
-        ):
-            raise ParameterError(
-                "controller",
-                "a state feedback: OpenLoop, FiniteTimeController, ReflectionController, FilteredController or "
-                "StateFeedback",
-                self.controller,
-            )
-        object.__setattr__(self, "observer_delay", nonnegative("observer_delay", self.observer_delay))
-
-    def factors(self, phi, i_n, round_trip):
-        raise ParameterError(
-            "controller", "used through loop_factors(system, controller): the observer needs the plant", self
-        )
-
-    def feedback_law(self, system, kernels=None):
-        raise ParameterError(
-            "controller",
-            "a state feedback (a CollocatedOutputFeedback is not a law on the state: analyse its loop with "
-            "loop_factors)",
-            self,
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description: the state feedback under ``"state_feedback"``."""
-        return json_safe(
-            {
-                "controller": "CollocatedOutputFeedback",
-                "state_feedback": self.controller.to_dict(),
-                "observer_delay": self.observer_delay,
-            }
-        )
+    _not_a_law = "analyse its loop with loop_factors"
 
 
 def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
