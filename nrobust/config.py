@@ -434,9 +434,11 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
                 "design.speed_tolerance", "a relative error of the speeds lam and mu in (0, 1)", d["speed_tolerance"]
             )
         d["speed_tolerance"] = eps
-        if d["family"] != "reflection":
+        if d["family"] == "output_feedback":
             raise ParameterError(
-                "design.speed_tolerance", 'left out unless family = "reflection"', d["speed_tolerance"]
+                "design.speed_tolerance",
+                'left out for family = "output_feedback" (family "reflection" or "filtered" takes it)',
+                d["speed_tolerance"],
             )
         if d["delays"] is None and d["margin_at_least"] is None:
             raise ParameterError(
@@ -444,8 +446,6 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
                 "given with a delay requirement (design.delays or design.margin_at_least) that the speeds must keep",
                 d["speed_tolerance"],
             )
-    if d["delays"] is not None and d["family"] == "filtered":
-        raise ParameterError("design.delays", 'left out for family = "filtered" (use margin_at_least)', d["delays"])
     starts = d["starts"]
     if isinstance(starts, bool) or not isinstance(starts, int) or not 1 <= starts <= 64:
         raise ParameterError("design.starts", "an integer in [1, 64]", starts)

@@ -10,6 +10,21 @@ Two objectives:
   ``[0, d]``;
 * ``"margin"``: maximise ``delta*(p)``.
 
+Instead of a margin, a window of delays ``[d_min, d_max]`` may be required (``delays``: stable
+for every delay of the window, :func:`nrobust.design.window_stability`; ``d_min > 0`` allows a
+loop unstable at ``delta = 0``), of the loop and of further loops of the same parameters
+(``scenarios``: the loop on plants with mismatched data). The zeros in ``Re s > 0`` change in
+number only at the crossing delays ``tau_k(w) = (theta(w) + 2 pi k)/w``, so the window is met
+iff it lies inside one of the loop's stability windows ``(l, h)`` (:attr:`DelayMargin.intervals`:
+no crossing delay in ``[d_min, d_max]``, no zero in ``Re s > 0`` between). Its violation measure
+is the *window clearance* ``c(p) = max_(l, h) min(d_min - l, h - d_max)`` over the stability
+windows (``d_min - l`` taken as ``+inf`` for a window ``[0, h)`` holding the nominal loop, or
+``(0, h)`` when ``d_min > 0``), minimised over the loops: the requirement is ``c(p) > 0``, and
+``d_max + c(p)`` (the *window margin*) is ``delta*(p)`` when ``d_min = 0``, so the margin
+requirement ``delta* > d`` is the window ``[0, d]``. ``c`` is differentiable where one end
+``tau`` binds, with the gradient of that crossing delay (below), and a start that misses the
+window first maximises ``c`` up to 0, as a start below a required margin maximises the margin.
+
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
 (and it jumps where a crossing pair is born). They are differentiable almost everywhere, with
@@ -19,7 +34,8 @@ gradients from the sensitivity of what is active:
 * a chain of the difference operator ``D`` of a neutral loop (the abscissa approached as
   ``|Im s| -> infinity``): the derivative of its spectral bound ``c_D(p)`` (the roots of a
   polynomial in ``z = e^{-h s}``), by central differences;
-* the critical crossing ``(w*, delta*)`` of the margin: with ``g(w, p) = |A(iw)|^2 - |B(iw)|^2``
+* the critical crossing ``(w*, delta*)`` of the margin (any crossing delay ``tau`` of a window
+  end alike, on its own branch): with ``g(w, p) = |A(iw)|^2 - |B(iw)|^2``
   and ``w delta = -arg(-A(iw)/B(iw)) + 2 pi k`` on the branch ``k`` of ``delta*``,
   ``dw/dp = -g_p/g_w`` and ``d delta/dp = -(theta_p + theta_w dw/dp + delta dw/dp)/w``.
 
@@ -41,8 +57,9 @@ direction that keeps improving). A start that is not
 feasible first maximises the margin until it reaches ``d``. The optimum is local; several
 starts (a Halton sequence in the bounds, run through any ``map``, e.g.
 :func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
-design found is then certified: its abscissa (certified count of the roots right of it) and its
-delay margin (``rigorous=True``: proven in ball arithmetic).
+design found is then certified: its abscissa (certified count of the roots right of it), its
+delay margin (``rigorous=True``: proven in ball arithmetic) and, with a window, the window of
+each loop (:func:`nrobust.design.window_stability`).
 
 The optimiser itself (:func:`local_runs`) takes any :class:`LocalProblem`: a function of the
 parameters returning :class:`TrialPoint` s (value, gradient, feasibility), so a loop that is not
@@ -54,7 +71,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -68,6 +85,7 @@ from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
 from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_search
 from ..quasipoly import QuasiPolynomial
 from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
+from .gain import DelayWindow, check_delays, window_stability
 
 __all__ = [
     "GAMMA_MAX",
@@ -185,7 +203,8 @@ class LocalProblem(Protocol):
     """What :func:`local_runs` optimises: a function of the parameters with its feasibility.
 
     ``problem(p)`` evaluates the objective at ``p`` (``want="margin"``: ``-delta*`` whatever the
-    objective, for the first phase of a start below the required margin); ``above`` is the line
+    objective, for the first phase of a start below the required margin; under a window of
+    delays, minus the window margin, which the first phase raises to ``d_max``); ``above`` is the line
     a trial point must stay under (the line search's sufficient decrease, or the incumbent of the
     pattern search), so a point found above it may be returned early, without its gradient. A
     point outside ``bounds``, below ``margin_at_least`` (its ``reason`` starting with
@@ -202,7 +221,8 @@ class LocalProblem(Protocol):
 
     @property
     def margin_at_least(self) -> float | None:
-        """The required delay margin, or None."""
+        """The level the first phase raises ``problem(p, want="margin")`` to: the required delay margin
+        (``d_max`` under a window of delays), or None."""
 
     @property
     def screened(self) -> int:
@@ -218,9 +238,11 @@ class _Memo:
 
     ``points`` maps ``(p, objective)`` to complete evaluations, ``floors`` to lower bounds of
     the function minimised at points rejected early, ``abscissae`` ``p`` to its spectral
-    abscissa; ``roots`` and ``omegas`` are the witnesses (:data:`WITNESSES`); ``screened``
-    counts the evaluations settled by a bound (the gamma of the delayed loop, the chains, a
-    witness) and ``full`` those that ran a spectral abscissa or a crossing search.
+    abscissa; ``roots`` and ``omegas`` are the witnesses (:data:`WITNESSES`, the crossings of the
+    scenarios' loops among them); ``screened`` counts the evaluations settled by a bound (the
+    gamma of the delayed loop, the chains, a witness) and ``full`` those that ran a spectral
+    abscissa or a crossing search; ``binding`` is the scenario that last missed the window
+    (checked first).
     """
 
     points: dict[tuple[bytes, str], TrialPoint] = field(default_factory=dict)
@@ -230,6 +252,7 @@ class _Memo:
     omegas: list[float] = field(default_factory=list)
     screened: int = 0
     full: int = 0
+    binding: int = 0
 
     def add_root(self, s: complex | None) -> None:
         """Keep ``s`` (a rightmost root) as the newest witness, in place of those within ``1e-3 (1 + |s|)``."""
@@ -371,6 +394,10 @@ class _Problem:
     |B|^2`` above its rounding level. An accepted point is certified as before: its abscissa
     by :func:`~nrobust.roots.spectral_abscissa`, its margin by the complete certified
     crossing search (:meth:`_meets`).
+
+    ``margin_at_least`` is the required margin, or with ``window`` its ``d_max`` (the level the
+    first phase raises the window margin to); ``window`` the required window of delays, which
+    every loop of ``scenarios`` must meet too (:meth:`_window_clearance`).
     """
 
     loop: ParametricLoop
@@ -378,6 +405,8 @@ class _Problem:
     objective: str
     margin_at_least: float | None
     gamma_max: float = 1.0
+    window: tuple[float, float] | None = None
+    scenarios: tuple[ParametricLoop, ...] = ()
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
     @property
@@ -415,10 +444,15 @@ class _Problem:
     def _margin_gradient(
         self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, dm: DelayMargin
     ) -> NDArray:
-        grad = np.zeros(p.size)
         if dm.omega is None or not math.isfinite(dm.margin) or dm.margin <= 0.0:
-            return grad
-        w = float(dm.omega)
+            return np.zeros(p.size)
+        return self._delay_gradient(p, self.loop, A, B, float(dm.omega), dm.margin)
+
+    def _delay_gradient(
+        self, p: NDArray[np.float64], loop: ParametricLoop, A: QuasiPolynomial, B: QuasiPolynomial, w: float, tau: float
+    ) -> NDArray:
+        """The gradient of the crossing delay ``tau`` of the loop ``(A, B) = loop(p)`` at the frequency ``w``."""
+        grad = np.zeros(p.size)
         s = np.array([1j * w])
         a, b = complex(A(s)[0]), complex(B(s)[0])
         da, db = 1j * complex(A.deriv_at(s)[0]), 1j * complex(B.deriv_at(s)[0])  # d/dw of A(iw), B(iw)
@@ -426,13 +460,13 @@ class _Problem:
         theta_w = (da / a - db / b).imag  # d/dw of arg(-A/B)
         for i in range(p.size):
             lo, hi, h = self._pair(p, i)
-            vals = [(complex(x(s)[0]), complex(y(s)[0])) for x, y in (self.loop(lo), self.loop(hi))]
+            vals = [(complex(x(s)[0]), complex(y(s)[0])) for x, y in (loop(lo), loop(hi))]
             g = [abs(x) ** 2 - abs(y) ** 2 for x, y in vals]
             th = [np.angle(-x / y) for x, y in vals]
             g_p = (g[1] - g[0]) / h
             theta_p = float(np.angle(np.exp(1j * (th[1] - th[0])))) / h
             w_p = -g_p / g_w if g_w != 0.0 else 0.0
-            grad[i] = -(theta_p + theta_w * w_p + dm.margin * w_p) / w
+            grad[i] = -(theta_p + theta_w * w_p + tau * w_p) / w
         return grad
 
     def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> TrialPoint:
@@ -450,7 +484,7 @@ class _Problem:
         p = np.asarray(p, dtype=float)
         if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "outside the bounds")
-        objective = want or self.objective
+        objective = "window" if want == "margin" and self.window is not None else want or self.objective
         key = (p.tobytes(), objective)
         memo = self.memo
         if key in memo.points:
@@ -476,12 +510,14 @@ class _Problem:
 
     def _evaluate(self, p: NDArray[np.float64], objective: str, above: float) -> TrialPoint:
         A, B = self.loop(p)
-        gamma = delayed_gamma(A, B)
+        gamma = max([delayed_gamma(A, B), *(delayed_gamma(*loop(p)) for loop in self.scenarios)])
         memo = self.memo
         if not gamma <= self.gamma_max:
             memo.screened += 1
             reason = f"gamma_0 = {gamma:.6g} of the delayed loop's difference operator above gamma_max"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
+        if objective == "window":
+            return self._window_point(p, A, B)
         if objective == "margin":
             return self._margin_point(p, A, B, above)
         F = A + B
@@ -493,6 +529,8 @@ class _Problem:
                 memo.screened += 1
                 return self._screened(p, float(lower), objective, f"above the line (chains at {lower:.6g})")
         d = self.margin_at_least
+        if self.window is not None and self.window[0] > 0.0:
+            d = None  # a crossing delay below d_min may leave the window stable: no screening by witnesses
         delay = _crossing_near(A, B, memo.omegas, d) if d else math.inf
         if d and delay < d:
             memo.screened += 1
@@ -509,11 +547,105 @@ class _Problem:
         if sa.value > above:
             return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
         margin = math.nan
-        if d:
+        if self.window is not None:
+            why = self._window_missed(p, A, B, sa)
+            if why:
+                return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, f"{BELOW_REQUIREMENT}: {why}")
+        elif d:
             ok, margin = self._meets(A, B, sa, d)
             if not ok:
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
         return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+
+    def _window_clearance(
+        self, A: QuasiPolynomial, B: QuasiPolynomial
+    ) -> tuple[float, tuple[float, float, int] | None, DelayMargin]:
+        """``(c, end, dm)``: the window clearance of the loop (module notes) and the delay that binds it.
+
+        ``dm`` is the delay margin with its stability windows up to ``2 d_max + 1`` (as
+        :func:`nrobust.design.window_stability` takes them), not verified; ``end`` is ``(w, tau, side)``
+        for the crossing delay ``tau`` at the frequency ``w`` that binds (``side`` -1 for the lower end,
+        ``c = d_min - tau``; +1 for the upper, ``c = tau - d_max``), None when no crossing binds (an end
+        at the horizon); ``c = -inf`` without a stability window (or without strong stability, or with
+        ``s = 0`` a root for every delay).
+        """
+        assert self.window is not None
+        d_lo, d_hi = self.window
+        dm = delay_margin(A, B, delta_max=2.0 * d_hi + 1.0, verify=False)
+        if not dm.strongly_stable or dm.zero_root:
+            return -math.inf, None, dm
+        best, binding = -math.inf, (0.0, 0)
+        for lo, hi in dm.intervals:
+            below = math.inf if lo == 0.0 and (d_lo > 0.0 or dm.nominally_stable) else d_lo - lo
+            c = min(below, hi - d_hi)
+            if c > best:
+                best, binding = c, ((lo, -1) if below <= hi - d_hi else (hi, 1))
+        tau, side = binding
+        w = next((float(x.omega) for x in dm.crossings if tau in x.delays and x.omega), None)
+        return best, (None if w is None else (w, tau, side)), dm
+
+    def _window_missed(
+        self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, sa: SpectralAbscissa
+    ) -> str:
+        """Why the loop (abscissa ``sa`` at ``delta = 0``) or a scenario is not stable on the window, or "".
+
+        The loop by :meth:`_meets` when ``d_min = 0`` (``delta* > d_max``), else by its window
+        clearance; each scenario by its window clearance. In floating point: the design is
+        certified afterwards (:func:`nrobust.design.window_stability`).
+        """
+        assert self.window is not None
+        d_lo, d_hi = self.window
+        memo = self.memo
+        if d_lo == 0.0:
+            ok, first = self._meets(A, B, sa, d_hi)
+            if not (ok and first > d_hi):
+                return f"the loop's delay margin {first:.6g} is not above d_max"
+        elif not self._window_clearance(A, B)[0] > 0.0:
+            return "the loop is not stable on the window"
+        for n in sorted(range(len(self.scenarios)), key=lambda n: n != memo.binding):
+            A_n, B_n = self.scenarios[n](p)
+            # with d_min = 0 a crossing delay below d_max near a witness frequency settles it
+            delay = _crossing_near(A_n, B_n, memo.omegas, d_hi) if d_lo == 0.0 else math.inf
+            if delay < d_hi:
+                memo.screened += 1
+                memo.binding = n
+                return f"scenario {n} has a crossing at delay {delay:.6g}"
+            c, _, dm = self._window_clearance(A_n, B_n)
+            memo.add_crossings(dm.crossings, 1.5 * d_hi)
+            if not c > 0.0:
+                memo.binding = n
+                return f"scenario {n} is not stable on the window"
+        return ""
+
+    def _window_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial) -> TrialPoint:
+        """Minus the window margin ``d_max + min_j c_j(p)`` over the loop and the scenarios, with its gradient.
+
+        Feasible (for the first phase) where every loop has a stability window; the requirement
+        is met where the value is below ``-d_max``.
+        """
+        assert self.window is not None
+        self.memo.full += 1
+        worst: tuple[float, tuple[float, float, int] | None, ParametricLoop, QuasiPolynomial, QuasiPolynomial] = (
+            math.inf,
+            None,
+            self.loop,
+            A,
+            B,
+        )
+        for loop in (self.loop, *self.scenarios):
+            A_j, B_j = (A, B) if loop is self.loop else loop(p)
+            c, end, _ = self._window_clearance(A_j, B_j)
+            if c < worst[0]:
+                worst = (c, end, loop, A_j, B_j)
+        c, end, loop, A_j, B_j = worst
+        if not math.isfinite(c):
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "no stability window")
+        grad = np.zeros(p.size)
+        if end is not None:
+            w, tau, side = end
+            grad = side * self._delay_gradient(p, loop, A_j, B_j, w, tau)
+        value = self.window[1] + c
+        return TrialPoint(p, True, -value, -grad, math.nan, value)
 
     def _abscissa_floor(self, F: QuasiPolynomial, above: float) -> tuple[float, str]:
         """A lower bound of the spectral abscissa of ``F`` above ``above``, or ``-inf``.
@@ -612,11 +744,23 @@ class _Problem:
                 if first < level:
                     return self._screened(p, -first, "margin", f"below the line (a crossing at delay {first:.6g})")
         memo.full += 1
-        dm = delay_margin(A, B, verify=False)
+        c = math.inf
+        if self.window is not None:
+            c, _, dm = self._window_clearance(A, B)
+        else:
+            dm = delay_margin(A, B, verify=False)
         margin = dm.margin
         memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
         if not dm.nominally_stable:
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, "not stable at delta = 0")
+        if self.window is not None:
+            bad = "" if c > 0.0 else "the loop"
+            for n, loop in enumerate(self.scenarios):
+                if not bad and not self._window_clearance(*loop(p))[0] > 0.0:
+                    bad = f"scenario {n}"
+            if bad:
+                reason = f"{BELOW_REQUIREMENT}: {bad} is not stable on the window"
+                return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, reason)
         return TrialPoint(p, True, -margin, -self._margin_gradient(p, A, B, dm), math.nan, margin)
 
 
@@ -830,6 +974,12 @@ class _Local:
                 m = self.polish(margin, m, counter, stop_below=target)
                 x = problem(m.p)
                 counter[0] += 1
+                if not x.feasible and m.value > target:
+                    reached = (
+                        f"; the first phase raised the margin (with a window: d_max plus the window clearance) to "
+                        f"{-m.value:.6g}, {problem.margin_at_least:.6g} required"
+                    )
+                    x = replace(x, reason=x.reason + reached)
         if not x.feasible:
             return LocalRun(
                 tuple(map(float, start)),
@@ -881,7 +1031,8 @@ class LoopDesign:
         The requirement.
     certified : bool
         True if the abscissa is certified, the margin verified (proven when ``rigorous``) and
-        the requirement met by the margin (by the lower end of its ball when ``rigorous``).
+        the requirement met by the margin (by the lower end of its ball when ``rigorous``); with
+        ``delays``, every window certified stable (proven when ``rigorous``).
     rigorous : bool
         True if the certificate is in ball arithmetic.
     local : bool
@@ -892,6 +1043,11 @@ class LoopDesign:
         pairs are born) that no finite set of directions is sure to enter.
     runs : tuple of LocalRun
         Every start, the best first.
+    delays : (float, float) or None
+        The window ``[d_min, d_max]`` required (:func:`optimize_loop`'s ``delays``).
+    windows : tuple of DelayWindow
+        The window certified at the design for the loop and then for each scenario
+        (:func:`nrobust.design.window_stability`); empty without ``delays``.
     """
 
     parameters: tuple[float, ...]
@@ -905,6 +1061,20 @@ class LoopDesign:
     rigorous: bool
     runs: tuple[LocalRun, ...] = field(repr=False)
     local: bool = True
+    delays: tuple[float, float] | None = None
+    windows: tuple[DelayWindow, ...] = field(default=(), repr=False)
+
+    @property
+    def requirement(self) -> str:
+        """The window requirement and its verdict in words: met and proven, met and checked, or not met."""
+        if self.delays is None:
+            return "none"
+        d_lo, d_hi = self.delays
+        met = all(w.stable for w in self.windows)
+        proven = met and all(w.certified == "proven" for w in self.windows)
+        loops = "the loop" if len(self.windows) == 1 else f"the loop and its {len(self.windows) - 1} scenarios"
+        verdict = "met, proven" if proven else "met, checked" if met else "not met"
+        return f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] ({loops}): {verdict}"
 
     @property
     def stationarity(self) -> float:
@@ -913,10 +1083,12 @@ class LoopDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs")}
+        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs", "windows")}
         data["abscissa"] = {"value": self.abscissa.value, "upper_bound": self.abscissa.upper_bound}
         data["margin"] = self.margin.to_dict()
         data["runs"] = [run.to_dict() for run in self.runs]
+        data["windows"] = [w.to_dict() for w in self.windows]
+        data["requirement"] = self.requirement
         return json_safe(data)
 
 
@@ -1005,6 +1177,8 @@ def optimize_loop(
     *,
     objective: str = "decay_rate",
     margin_at_least: float | None = None,
+    delays: tuple[float, float] | None = None,
+    scenarios: Sequence[ParametricLoop] = (),
     gamma_max: float = GAMMA_MAX,
     x0: ArrayLike | None = None,
     starts: int = 1,
@@ -1027,6 +1201,18 @@ def optimize_loop(
     margin_at_least : float, optional
         With ``"decay_rate"``: require ``delta* >= margin_at_least`` (stability for every
         delay in ``[0, margin_at_least]``). A start below it first maximises the margin.
+    delays : (float, float), optional
+        ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``): require exponential stability
+        for every delay of the window, of every iterate (its window clearance positive, module
+        notes; ``d_min > 0`` allows a loop unstable at ``delta = 0``, the decay rate then that of
+        the loop without delay, negative); with either objective, not with ``margin_at_least``
+        (the window ``[0, d]`` is ``delta* > d``). A start that misses it first maximises its
+        window clearance. The design's windows are certified by
+        :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`).
+    scenarios : sequence of callable, optional
+        Further loop families ``p -> (A, B)`` of the same parameters that must be stable on the
+        window too (with ``delays``): e.g. the loop on plants with mismatched speeds. Each is
+        held to ``gamma_max`` as well, and certified on the window at the design.
     gamma_max : float
         Require ``gamma_0 <= gamma_max`` for the delayed loop's difference operator
         (:func:`delayed_gamma`; below 1: strongly stable). As ``gamma_0 -> 1`` the chains of
@@ -1057,10 +1243,21 @@ def optimize_loop(
         For bad input.
     CertificationError
         If no start reaches a feasible point (the requirement may be out of reach in the
-        bounds: widen them or lower ``margin_at_least``).
+        bounds: widen them or lower ``margin_at_least``, narrow the window), or the design is
+        not certified stable on the window (:func:`nrobust.design.window_stability`, for the
+        loop or a scenario).
     """
     box = _box(bounds)
     margin_at_least = check_objective(objective, margin_at_least)
+    window = None if delays is None else check_delays(delays)
+    if window is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    scenarios = tuple(scenarios)
+    if scenarios and window is None:
+        raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
+    for n, scenario in enumerate(scenarios):
+        if not callable(scenario):
+            raise ParameterError(f"scenarios[{n}]", "a callable p -> (A, B)", scenario)
     starts = positive_int("starts", starts)
     max_iter = positive_int("max_iter", max_iter)
     tol = finite_real("tol", tol)
@@ -1069,22 +1266,41 @@ def optimize_loop(
     gamma_max = finite_real("gamma_max", gamma_max)
     if not 0.0 <= gamma_max < 1.0:
         raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
-    problem = _Problem(loop, box, objective, margin_at_least, gamma_max)
+    level = window[1] if window is not None else margin_at_least
+    problem = _Problem(loop, box, objective, level, gamma_max, window, scenarios)
     runs = local_runs(problem, x0=x0, starts=starts, max_iter=max_iter, tol=tol, map=map)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
         raise CertificationError(
             f"no start reached a feasible design ({reasons}); widen the bounds, give a feasible x0, "
-            "add starts or lower margin_at_least"
+            "add starts or " + ("narrow the window" if window is not None else "lower margin_at_least")
         )
-    return _certify(loop, runs, objective, margin_at_least, rigorous)
+    return _certify(loop, runs, objective, margin_at_least, rigorous, window, scenarios)
 
 
 def _certify(
-    loop: ParametricLoop, runs: list[LocalRun], objective: str, margin_at_least: float | None, rigorous: bool
+    loop: ParametricLoop,
+    runs: list[LocalRun],
+    objective: str,
+    margin_at_least: float | None,
+    rigorous: bool,
+    window: tuple[float, float] | None = None,
+    scenarios: tuple[ParametricLoop, ...] = (),
 ) -> LoopDesign:
     best = runs[0]
-    A, B = loop(np.asarray(best.parameters))
+    p = np.asarray(best.parameters)
+    A, B = loop(p)
+    windows: tuple[DelayWindow, ...] = ()
+    if window is not None:
+        windows = tuple(window_stability(*f, window, rigorous=rigorous) for f in ((A, B), *(s(p) for s in scenarios)))
+        for n, w in enumerate(windows):
+            if not w.stable:
+                which = "the loop" if n == 0 else f"scenario {n - 1}"
+                raise CertificationError(
+                    f"optimize_loop: the design {best.parameters} is not certified stable on the window "
+                    f"[{window[0]!r}, {window[1]!r}] for {which} ({w.reason}), though its floating-point check "
+                    "passed: a window end at a crossing delay; narrow the window or add starts"
+                )
     sa = spectral_abscissa(A + B, rigorous=rigorous)
     dm = delay_margin(A, B, rigorous=rigorous)
     lowest = dm.margin_ball[0] if (rigorous and dm.margin_ball is not None) else dm.margin
@@ -1092,7 +1308,11 @@ def _certify(
     # an infinite margin is decided by the proven frequency bound and the complete crossing
     # search (no crossing at all): there is no crossing delay to check a count at
     decided = dm.verified or (math.isinf(dm.margin) and dm.nominally_stable and dm.strongly_stable)
-    certified = bool(sa.certified and decided and met)
+    if window is not None and window[0] > 0.0 and not dm.nominally_stable:
+        # unstable at delta = 0 (a certified count of its zeros in Re s > 0): the margin is 0, the windows certify
+        decided = bool(dm.strongly_stable and dm.nominal_unstable)
+    proven = not rigorous or all(w.certified == "proven" for w in windows)
+    certified = bool(sa.certified and decided and met and proven)
     value = -sa.value if objective == "decay_rate" else dm.margin
     return LoopDesign(
         best.parameters,
@@ -1105,4 +1325,6 @@ def _certify(
         certified,
         rigorous,
         tuple(runs),
+        delays=window,
+        windows=windows,
     )

@@ -124,7 +124,7 @@ def _reflection_markdown(
     return lines
 
 
-def _corner(result: ReflectionDesign, n: int) -> str:
+def _corner(result: ReflectionDesign | FilteredDesign, n: int) -> str:
     """The ``n``-th corner of the speed tolerance's square as ``(e_lam, e_mu)``."""
     if result.tolerance is None:
         return f"of scenario {n}"
@@ -148,6 +148,17 @@ def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
         f"about {result.scope}",
         f"- certified: {'yes' if d.certified else 'no'}",
     ]
+    if d.delays is not None:
+        lines.append(f"- requirement: {d.requirement}")
+        for n, w in enumerate(d.windows):
+            which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
+            lines.append(f"  - {which}: {w.reason}, {w.certified}")
+    if result.tolerance is not None:
+        t = result.tolerance
+        lines.append(
+            f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
+        )
+        lines.append(f"  - {t.statement}; about {t.scope}")
     for i, run in enumerate(d.runs):
         lines.append(
             f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
@@ -218,7 +229,7 @@ def run_design(
     Each argument left None takes the file's ``[design]`` value (or its default: U_BS2(K),
     the largest margin; ``delays = (d_min, d_max)``: the window of delays to be stable on,
     ``speed_tolerance``: the relative error of the speeds it must hold under, both with
-    ``family = "reflection"``, ``delays`` with ``"output_feedback"`` too). The report states each
+    ``family = "reflection"`` or ``"filtered"``, ``delays`` with ``"output_feedback"`` too). The report states each
     requirement and whether it is met and proven. The file and ``out_dir`` are checked before any computation; the
     files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
     written paths and the design.
@@ -246,8 +257,6 @@ def run_design(
     bounds = K_bounds if K_bounds is not None else given.get("K")
     delays = delays if delays is not None else given.get("delays")
     speed_tolerance = speed_tolerance if speed_tolerance is not None else given.get("speed_tolerance")
-    if delays is not None and family == "filtered":
-        raise ParameterError("delays", 'left out for family = "filtered" (use margin_at_least)', delays)
     if delays is not None and margin_at_least is not None:
         raise ParameterError("margin_at_least", "left out with delays (the window [0, d] is a margin > d)")
     outputs = RunOutputs(out_dir, "design")
@@ -273,6 +282,8 @@ def run_design(
                 spec["system"],
                 objective=objective,
                 margin_at_least=margin_at_least,
+                delays=delays,
+                speed_tolerance=speed_tolerance,
                 parameters={"K": bounds, "a": given.get("a"), "b": given.get("b")},
                 starts=int(given.get("starts", 4)),
                 rigorous=rigorous,

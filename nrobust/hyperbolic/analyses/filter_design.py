@@ -4,8 +4,11 @@
 (section 2.3.2); its loop is eq. (60) with ``A`` multiplied by ``1 + b s`` and ``B`` by
 ``1 + a s``. :func:`design_filtered` maximises the decay rate subject to a delay margin, or the
 margin, over any of the three parameters (the others fixed) with the core's local nonsmooth
-optimiser (:func:`nrobust.design.optimize_loop`), and certifies the design;
-:func:`filtered_front` is the trade-off of decay rate against delay margin over all three.
+optimiser (:func:`nrobust.design.optimize_loop`), and certifies the design, optionally
+under a window of delays (``delays``) and a tolerance on the transport speeds
+(``speed_tolerance``: the four corner plants with mismatched speeds, the law designed on the
+nominal one, must meet the window too); :func:`filtered_front` is the trade-off of decay rate
+against delay margin over all three.
 With one free parameter the loop is affine in it (``K`` and ``a`` in ``B``, the pole ``b``
 in ``A``), and :func:`design_filtered_exact` finds the global optimum over its interval from
 the equations of its kind (a kink of ``delta*(p)``, a pair birth, a smooth maximum, an end, or
@@ -25,15 +28,18 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import json_safe
 from ..._validate import is_real_number
 from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin, check_delays
-from ...design.local import LoopDesign, optimize_loop
+from ...design.local import LoopDesign, check_objective, optimize_loop
 from ...design.pareto import ParetoFront, pareto_front
 from ...errors import CertificationError, ParameterError
+from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
+from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import FilteredController, ReflectionController, classify, loop_factors, loop_scope
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
-from .design import design_reflection
+from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
+from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = [
     "FILTER_PARAMETERS",
@@ -88,6 +94,13 @@ class FilteredLoop:
         v = self.values(p)
         B = self.B0 + self.round_trip * v["K"]
         return self.A0.times_poly([1.0, v["b"]]), B.times_poly([1.0, v["a"]])
+
+    def reflection(self) -> AffineGainLoop:
+        """U_BS2(K)'s loop ``A_0 + (B_0 + K q e^{-tau s}) e^{-delta s}`` (eq. (60)).
+
+        The filtered loop with ``a = b``, less the common factor ``1 + a s`` (its zero ``-1/a``).
+        """
+        return AffineGainLoop(self.A0, self.B0, self.round_trip)
 
     def affine(self) -> AffineLoop:
         """The loop as affine in its one free parameter (eq. (60) with the filter).
@@ -183,14 +196,21 @@ class FilteredDesign:
     controller : FilteredController
         The design.
     design : LoopDesign
-        The core's result: objective value, certified abscissa and delay margin, the runs.
+        The core's result: objective value, certified abscissa and delay margin, the runs (with
+        ``delays``: the requirement, its windows certified for the loop and the corners of a
+        speed tolerance, ``design.requirement``).
     scope : str
         What the certificate is about: the PDE itself (constant coefficients) or a model.
+    tolerance : SpeedTolerance or None
+        With ``speed_tolerance``: the verdicts on the square of speed mismatches (the corners
+        certified with the design, the other points of a 3 x 3 grid checked;
+        :func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
     """
 
     controller: FilteredController
     design: LoopDesign
     scope: str
+    tolerance: SpeedTolerance | None = None
 
     @property
     def value(self) -> float:
@@ -202,39 +222,82 @@ class FilteredDesign:
         """Whether the design's abscissa and margin are certified (see :class:`LoopDesign`)."""
         return self.design.certified
 
+    @property
+    def requirement(self) -> str:
+        """The requirements and their verdicts in words (the delay window; the speed tolerance)."""
+        parts = [self.design.requirement]
+        if self.tolerance is not None:
+            parts.append(f"speed tolerance {float(self.tolerance.eps)!r}: {self.tolerance.statement}")
+        return "; ".join(parts)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return json_safe(
-            {"controller": self.controller.to_dict(), "design": self.design.to_dict(), "scope": self.scope}
+            {
+                "controller": self.controller.to_dict(),
+                "design": self.design.to_dict(),
+                "scope": self.scope,
+                "tolerance": None if self.tolerance is None else self.tolerance.to_dict(),
+                "requirement": self.requirement,
+            }
         )
 
 
+def _exact_optimum(
+    loop: AffineGainLoop | AffineLoop,
+    others: tuple[AffineGainLoop | AffineLoop, ...],
+    bounds: tuple[float, float],
+    objective: str,
+    margin_at_least: float | None,
+    window: tuple[float, float] | None,
+) -> float | None:
+    """The parameter of :func:`~nrobust.design.best_margin` or :func:`~nrobust.design.best_decay_rate`
+    under the requirement (a margin, or a window met by ``loop`` and ``others`` alike); None when it fails."""
+    try:
+        if objective == "margin":
+            return best_margin(loop, bounds, delays=window, scenarios=others).K
+        return best_decay_rate(loop, bounds, margin_at_least=margin_at_least, delays=window, scenarios=others).K
+    except (CertificationError, ParameterError):
+        return None
+
+
 def _warm_start(
-    plant: Hyperbolic2x2 | GeneralHyperbolic2x2,
     loop: FilteredLoop,
     bounds: NDArray[np.float64],
     objective: str,
     margin_at_least: float | None,
+    window: tuple[float, float] | None = None,
+    scenarios: tuple[FilteredLoop, ...] = (),
 ) -> NDArray[np.float64] | None:
-    """The unfiltered optimum as a start: U_BS2(K*) of :func:`design_reflection` with ``a = b``.
+    """A start solved exactly by the one-parameter engine (:mod:`nrobust.design.gain`), under the same requirement.
 
-    With ``a = b`` the filter is 1, so the start is the best U_BS2(K) (solved exactly) and the
-    filtered design can only improve on it. None when ``a`` and ``b`` cannot be equal within
-    their bounds, or the exact design fails.
+    One free parameter: the global optimum on its interval (the loop is affine in it,
+    :meth:`FilteredLoop.affine`, as :func:`design_filtered_exact` solves it). Otherwise the
+    unfiltered optimum, the best U_BS2(K*) with ``a = b`` (as
+    :func:`~nrobust.hyperbolic.analyses.design.design_reflection` solves it): with ``a = b`` the
+    filter is 1, so the filtered design can only improve on it. None when the exact design fails,
+    or ``a`` and ``b`` cannot be equal within their bounds.
     """
+    requirement = (objective, margin_at_least, window)
+    if len(loop.free) == 1:
+        one = (float(bounds[0, 0]), float(bounds[0, 1]))
+        best = _exact_optimum(loop.affine(), tuple(s.affine() for s in scenarios), one, *requirement)
+        if best is not None:
+            return np.array([best])
     values: dict[str, float] = dict(loop.fixed)
     if "K" in loop.free:
-        k_bounds = tuple(bounds[loop.free.index("K")])
-        try:
-            best = design_reflection(plant, objective, margin_at_least=margin_at_least, K_bounds=k_bounds)
-        except (CertificationError, ParameterError):
+        k_bounds = (float(bounds[loop.free.index("K"), 0]), float(bounds[loop.free.index("K"), 1]))
+        K = _exact_optimum(loop.reflection(), tuple(s.reflection() for s in scenarios), k_bounds, *requirement)
+        if K is None:
             return None
-        values["K"] = best.K
+        values["K"] = K
     box = {name: bounds[i] for i, name in enumerate(loop.free)}
     lo = max(box["a"][0] if "a" in box else -math.inf, box["b"][0] if "b" in box else -math.inf)
     hi = min(box["a"][1] if "a" in box else math.inf, box["b"][1] if "b" in box else math.inf)
     for name in ("a", "b"):
-        if name in values:  # a fixed end: the other must equal it
+        if name in values:  # a fixed end: the other must equal it, inside its bounds
+            if not lo <= values[name] <= hi:
+                return None
             lo = hi = values[name]
     if not lo <= hi or not math.isfinite(lo + hi):
         return None
@@ -246,16 +309,36 @@ def _warm_start(
     return np.array([values[name] for name in loop.free])
 
 
+def _corner_loops(plant: Hyperbolic2x2, loop: FilteredLoop, eps: float, kernel_grid: int) -> tuple[FilteredLoop, ...]:
+    """The loop family on the plants with speeds ``lam (1 +- eps)``, ``mu (1 +- eps)``, the law designed on ``plant``.
+
+    The law of ``FilteredController(a, b, K)`` is U_BS2(K)'s (affine in ``K``) through the filter,
+    so on a mismatched plant the loop is ``A (1 + b s) + (B_0 + K R)(1 + a s) e^{-delta s}`` with
+    ``A``, ``B_0``, ``R`` of :func:`~nrobust.hyperbolic.analyses.mismatch_gain_loop`; in the order
+    ``(-eps, -eps), (-eps, eps), (eps, -eps), (eps, eps)`` of
+    :func:`~nrobust.hyperbolic.analyses.speed_tolerance`.
+    """
+    out = []
+    for e_lam in (-eps, eps):
+        for e_mu in (-eps, eps):
+            g = mismatch_gain_loop(plant, e_lam, e_mu, kernel_grid=kernel_grid)
+            out.append(FilteredLoop(g.A, g.B0, g.R, loop.free, loop.fixed))
+    return tuple(out)
+
+
 def design_filtered(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     *,
     objective: str = "decay_rate",
     margin_at_least: float | None = None,
+    delays: tuple[float, float] | None = None,
+    speed_tolerance: float | None = None,
     parameters: Mapping[str, Any] | None = None,
     x0: ArrayLike | None = None,
     starts: int = 4,
     max_iter: int = 60,
     rigorous: bool = False,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
     executor: Any = "serial",
     progress: bool | None = None,
 ) -> FilteredDesign:
@@ -264,6 +347,15 @@ def design_filtered(
     A local optimum; with one free parameter, :func:`design_filtered_exact` finds the global one on
     its interval from the equations of its kind.
 
+    ``delays = (d_min, d_max)`` requires exponential stability for every delay of the window at
+    every iterate (:func:`nrobust.design.optimize_loop`'s ``delays``; certified at the design by
+    :func:`nrobust.design.window_stability`). ``speed_tolerance = eps`` requires it too on the
+    plants with speeds ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` at the four corners ``|e_lam| =
+    |e_mu| = eps``, the law designed on ``system`` (four more loops of the same parameters,
+    :func:`~nrobust.hyperbolic.analyses.mismatch_gain_loop` through the filter); the design is then
+    checked at the other points of a 3 x 3 grid of the square (:attr:`FilteredDesign.tolerance`,
+    which says what is proven: the corners, never the continuum between the points).
+
     Parameters
     ----------
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
@@ -271,17 +363,30 @@ def design_filtered(
     objective : {"decay_rate", "margin"}
         As in :func:`nrobust.design.optimize_loop`.
     margin_at_least : float, optional
-        Required delay margin (with ``"decay_rate"``).
+        Required delay margin (with ``"decay_rate"``); with ``speed_tolerance`` it is the window
+        ``[0, margin_at_least]`` (``delta* > margin_at_least``) on every plant.
+    delays : (float, float), optional
+        ``[d_min, d_max]``, ``0 <= d_min <= d_max``, ``d_max > 0``: the window of delays on which
+        the designed loop must be exponentially stable; not with ``margin_at_least``.
+    speed_tolerance : float, optional
+        ``eps`` in ``(0, 1)``: the relative error of ``lam`` and ``mu`` (both signs, together) under
+        which the window (or ``[0, margin_at_least]``) must hold too; a
+        :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` or ``TransportSystem``
+        plant only (constant speeds).
     parameters : mapping, optional
         For each of ``"K"``, ``"a"``, ``"b"``: a number (fixed), ``(low, high)`` bounds, or
         None for the default bounds (``|K| <= 0.99 k_bound`` of eq. (54), ``|a| <= tau``,
         ``tau/1000 <= b <= tau``). Default: all three free.
     x0 : sequence of float, optional
-        A start for the free parameters, in the order ``K, a, b``. By default the exact
-        U_BS2(K) design (:func:`~nrobust.hyperbolic.analyses.design.design_reflection`) with
-        ``a = b`` (the filter 1), so the result is at least as good as the best unfiltered law.
+        A start for the free parameters, in the order ``K, a, b``. By default, with one free
+        parameter, its exact optimum on the interval (as :func:`design_filtered_exact` finds it,
+        under the same requirement); otherwise the exact U_BS2(K) design (as
+        :func:`~nrobust.hyperbolic.analyses.design.design_reflection` finds it) with ``a = b``
+        (the filter 1), so the result is at least as good as the best unfiltered law.
     starts, max_iter, rigorous
         As in :func:`nrobust.design.optimize_loop`.
+    kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
+        Kernel grid of the mismatched loops (with ``speed_tolerance`` on a coupled plant).
     executor : None, str, int, Executor or dask.distributed.Client
         Where the starts run (:func:`nrobust.sweep_map`); ``"serial"`` in this process.
     progress : bool, optional
@@ -290,17 +395,52 @@ def design_filtered(
     Returns
     -------
     FilteredDesign
+
+    Raises
+    ------
+    ParameterError
+        For bad input: ``delays`` not a window or given with ``margin_at_least``;
+        ``speed_tolerance`` outside ``(0, 1)``, without a delay requirement, or on a
+        :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`.
+    CertificationError
+        As :func:`nrobust.design.optimize_loop` (no start feasible, or the design's window not
+        certified).
     """
     plant = _plant(system)
+    margin_at_least = check_objective(objective, margin_at_least)
+    window = None if delays is None else check_delays(delays)
+    if window is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    if eps is not None:
+        if not isinstance(plant, Hyperbolic2x2):
+            raise ParameterError(
+                "speed_tolerance",
+                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
+                "TransportSystem (constant speeds lam, mu)",
+                speed_tolerance,
+            )
+        if window is None:
+            if margin_at_least is None:
+                raise ParameterError(
+                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
+                )
+            window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
+        kernel_grid = check_kernel_grid(kernel_grid)
     free, bounds = _split(plant, parameters)
     loop = filtered_loop(plant, free)
+    scenarios: tuple[FilteredLoop, ...] = ()
+    if eps is not None and isinstance(plant, Hyperbolic2x2):
+        scenarios = _corner_loops(plant, loop, eps, kernel_grid)
     if x0 is None:
-        x0 = _warm_start(plant, loop, bounds, objective, margin_at_least)
+        x0 = _warm_start(loop, bounds, objective, margin_at_least, window, scenarios)
     design = optimize_loop(
         loop,
         bounds,
         objective=objective,
         margin_at_least=margin_at_least,
+        delays=window,
+        scenarios=scenarios,
         x0=x0,
         starts=starts,
         max_iter=max_iter,
@@ -308,7 +448,19 @@ def design_filtered(
         map=mapper(executor, progress, "filtered design"),
     )
     controller = loop.controller(design.parameters)
-    return FilteredDesign(controller, design, loop_scope(plant, controller, None, loop(np.asarray(design.parameters))))
+    scope = loop_scope(plant, controller, None, loop(np.asarray(design.parameters)))
+    tolerance = None
+    if eps is not None and window is not None and isinstance(plant, Hyperbolic2x2):
+        tolerance = tolerance_on_square(
+            plant,
+            controller,
+            eps,
+            window,
+            kernel_grid=kernel_grid,
+            rigorous=rigorous,
+            corner_windows=design.windows[1:],
+        )
+    return FilteredDesign(controller, design, scope, tolerance)
 
 
 def filtered_front(

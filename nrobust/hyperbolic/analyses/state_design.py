@@ -8,7 +8,10 @@
 ``B`` of one unit gain, all on one kernel grid so that they share one ``A``
 (:class:`StateFeedbackLoop`). :func:`design_state_feedback` maximises the delay margin, or the
 decay rate (optionally under a required margin), over ``p`` with the core's local nonsmooth
-optimiser (:func:`nrobust.design.optimize_loop`) and certifies the design.
+optimiser (:func:`nrobust.design.optimize_loop`) and certifies the design, optionally under a
+window of delays (``delays``) and a tolerance on the transport speeds (``speed_tolerance``: the
+gains, fixed functions of ``x``, acting on the four corner plants with mismatched speeds, whose
+loops are linear in ``p`` too: :func:`state_feedback_loop` of each).
 
 Unlike U_BS2(K), whose target system is exponentially stable for every ``|K|`` below the
 bound of eq. (54), a state feedback can leave the nominal loop unstable (``k = 0`` on the
@@ -33,7 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._validate import finite_real, positive_int
-from ...design.gain import best_decay_rate, best_margin
+from ...design.gain import best_decay_rate, best_margin, check_delays
 from ...design.local import GAMMA_MAX, LoopDesign, check_objective, delayed_gamma, optimize_loop
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
@@ -45,6 +48,8 @@ from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
 from .design import design_reflection
+from .mismatch import SpeedTolerance, check_speed_tolerance
+from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = ["BasisGain", "StateFeedbackDesign", "StateFeedbackLoop", "design_state_feedback", "state_feedback_loop"]
 
@@ -226,16 +231,22 @@ def _k_bounds(loop: StateFeedbackLoop) -> tuple[float, float]:
 
 
 def _proportional_starts(
-    loop: StateFeedbackLoop, bounds: tuple[float, float], objective: str, margin_at_least: float | None
+    loop: StateFeedbackLoop,
+    bounds: tuple[float, float],
+    objective: str,
+    margin_at_least: float | None,
+    window: tuple[float, float] | None = None,
+    scenarios: tuple[StateFeedbackLoop, ...] = (),
 ) -> tuple[list[float], bool]:
     """Starting gains ``k`` with ``g_u = g_v = 0``, and whether the first is the exact optimum.
 
     The spectral abscissa is sampled at :data:`PROPORTIONAL_SAMPLES` gains of ``bounds`` (those
     whose delayed loop meets ``gamma_0 <= GAMMA_MAX``). When a sampled gain is stable at
-    ``delta = 0``, the margin (or the decay rate under a positive margin) is solved exactly by the
-    one-gain engine (:mod:`nrobust.design.gain`; the loop is affine in ``k``): its gain alone,
-    the global optimum over ``k``. Otherwise (no margin asked, no stable sample, or the engine
-    cannot certify) the local minima of the sampled abscissa, the smallest first.
+    ``delta = 0`` (or a window of delays is required), the margin (or the decay rate under a
+    positive margin, or under the window met by the loop and the ``scenarios`` alike) is solved
+    exactly by the one-gain engine (:mod:`nrobust.design.gain`; the loop is affine in ``k``): its
+    gain alone, the global optimum over ``k``. Otherwise (no margin asked, no stable sample, or
+    the engine cannot certify) the local minima of the sampled abscissa, the smallest first.
     """
     ks, alphas = [], []
     for k in np.linspace(bounds[0], bounds[1], PROPORTIONAL_SAMPLES):
@@ -243,11 +254,14 @@ def _proportional_starts(
         if delayed_gamma(loop.A, B) <= GAMMA_MAX:
             ks.append(float(k))
             alphas.append(spectral_abscissa(loop.A + B).value)
-    if min(alphas, default=math.inf) < 0.0 and (objective == "margin" or margin_at_least):
+    if window is not None or (min(alphas, default=math.inf) < 0.0 and (objective == "margin" or margin_at_least)):
         affine = AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0])
+        others = tuple(AffineGainLoop(f.A, f.units[0] * 0.0, f.units[0]) for f in scenarios)
         try:
             if objective == "margin":
-                return [float(best_margin(affine, bounds).K)], True
+                return [float(best_margin(affine, bounds, delays=window, scenarios=others).K)], True
+            if window is not None:
+                return [float(best_decay_rate(affine, bounds, delays=window, scenarios=others).K)], True
             required = float(margin_at_least or 0.0)
             return [float(best_decay_rate(affine, bounds, margin_at_least=required).K)], True
         except (CertificationError, ParameterError):
@@ -310,13 +324,17 @@ class _FromStart:
     objective: str
     margin_at_least: float | None
     rigorous: bool
+    window: tuple[float, float] | None = None
+    scenarios: tuple[StateFeedbackLoop, ...] = ()
 
-    def _run(self, x0: tuple[float, ...], objective: str, margin_at_least: float | None) -> LoopDesign:
+    def _run(self, x0: tuple[float, ...], objective: str, margin_at_least: float | None, required: bool) -> LoopDesign:
         return optimize_loop(
             self.loop,
             self.bounds,
             objective=objective,
             margin_at_least=margin_at_least,
+            delays=self.window if required else None,
+            scenarios=self.scenarios if required else (),
             x0=x0,
             starts=1,
             rigorous=self.rigorous,
@@ -325,22 +343,24 @@ class _FromStart:
     def __call__(self, x0: tuple[float, ...]) -> LoopDesign | str:
         """The design from ``x0``; a start unstable at ``delta = 0`` first maximises the decay rate.
 
-        The core rejects a nominally unstable point for a margin (objective or requirement),
-        so such a start would end there; its decay rate (without requirement) is maximised
-        first, and the design continues from the first stable point it reaches.
+        The core rejects a nominally unstable point for a margin (objective or requirement, a
+        window from ``d_min = 0``), so such a start would end there; its decay rate (without
+        requirement) is maximised first, and the design continues from the first stable point it
+        reaches.
         """
+        from_zero = self.window is not None and self.window[0] == 0.0
         try:
-            if (self.objective == "margin" or self.margin_at_least) and not (
+            if (self.objective == "margin" or self.margin_at_least or from_zero) and not (
                 spectral_abscissa(self.loop.A + self.loop.B(x0)).upper_bound < 0.0
             ):
-                first = self._run(x0, "decay_rate", None)
+                first = self._run(x0, "decay_rate", None, False)
                 if not _stable(first):
                     return (
                         f"from {x0}: the best decay rate reached, {first.decay_rate:.6g}, leaves the loop unstable "
                         "at delta = 0"
                     )
                 x0 = first.parameters
-            return self._run(x0, self.objective, self.margin_at_least)
+            return self._run(x0, self.objective, self.margin_at_least, True)
         except CertificationError as exc:
             return f"from {x0}: {exc}"
 
@@ -369,12 +389,18 @@ class StateFeedbackDesign:
     scope : str
         What the certificate is about: the PDE itself (exact route or an uncoupled plant) or a
         model of it (kernels on a grid).
+    tolerance : SpeedTolerance or None
+        With ``speed_tolerance``: the verdicts on the square of speed mismatches, the corners
+        certified again on loops built by :func:`~nrobust.hyperbolic.analyses.mismatch_loop`
+        (:func:`~nrobust.hyperbolic.analyses.speed_tolerance`), the other points of a 3 x 3 grid
+        checked.
     """
 
     controller: StateFeedback
     parameters: tuple[float, ...]
     design: LoopDesign
     scope: str
+    tolerance: SpeedTolerance | None = None
 
     @property
     def value(self) -> float:
@@ -386,6 +412,14 @@ class StateFeedbackDesign:
         """Whether the design's abscissa and margin are certified (see :class:`LoopDesign`)."""
         return self.design.certified
 
+    @property
+    def requirement(self) -> str:
+        """The requirements and their verdicts in words (the delay window; the speed tolerance)."""
+        parts = [self.design.requirement]
+        if self.tolerance is not None:
+            parts.append(f"speed tolerance {float(self.tolerance.eps)!r}: {self.tolerance.statement}")
+        return "; ".join(parts)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return json_safe(
@@ -394,6 +428,8 @@ class StateFeedbackDesign:
                 "parameters": list(self.parameters),
                 "design": self.design.to_dict(),
                 "scope": self.scope,
+                "tolerance": None if self.tolerance is None else self.tolerance.to_dict(),
+                "requirement": self.requirement,
             }
         )
 
@@ -403,6 +439,8 @@ def design_state_feedback(
     objective: str = "margin",
     *,
     margin_at_least: float | None = None,
+    delays: tuple[float, float] | None = None,
+    speed_tolerance: float | None = None,
     k_bounds: tuple[float, float] | None = None,
     basis: Sequence[Callable[[NDArray[np.float64]], NDArray[np.float64]]] = (),
     coefficient_bounds: tuple[float, float] = (-1.0, 1.0),
@@ -421,7 +459,21 @@ def design_state_feedback(
         Maximise the delay margin, or the decay rate ``-alpha`` at ``delta = 0``.
     margin_at_least : float, optional
         With ``"decay_rate"``: the delay margin required (stability for every delay in
-        ``[0, margin_at_least]``).
+        ``[0, margin_at_least]``); with ``speed_tolerance`` it is the window ``[0, margin_at_least]``
+        (``delta* > margin_at_least``) on every plant.
+    delays : (float, float), optional
+        ``[d_min, d_max]``, ``0 <= d_min <= d_max``, ``d_max > 0``: the window of delays on which
+        the designed loop must be exponentially stable, at every iterate
+        (:func:`nrobust.design.optimize_loop`'s ``delays``; ``d_min > 0`` allows a loop unstable
+        at ``delta = 0``); with either objective, not with ``margin_at_least``.
+    speed_tolerance : float, optional
+        ``eps`` in ``(0, 1)``: the window (or ``[0, margin_at_least]``) must hold too on the plants
+        with speeds ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` at the four corners ``|e_lam| = |e_mu| =
+        eps``, the gains unchanged (four more loops, :func:`state_feedback_loop` of each plant); the
+        design is then certified at the corners on loops built independently and checked at the
+        other points of a 3 x 3 grid (:attr:`StateFeedbackDesign.tolerance`). A
+        :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` or ``TransportSystem``
+        plant only (constant speeds).
     k_bounds : (float, float), optional
         Bounds of ``k``. Default: ``0.99 (1 - |rho q|)/|q|`` on each side, read from the
         principal terms of ``A`` and of the unit gain's ``B`` (the delayed loop is strongly
@@ -456,12 +508,34 @@ def design_state_feedback(
     Raises
     ------
     ParameterError
-        For bad input, naming the argument.
+        For bad input, naming the argument: ``delays`` not a window or given with
+        ``margin_at_least``; ``speed_tolerance`` outside ``(0, 1)``, without a delay requirement,
+        or on a :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`.
     CertificationError
-        If no start reaches a feasible design with a loop exponentially stable at ``delta = 0``.
+        If no start reaches a feasible design with a loop exponentially stable at ``delta = 0``
+        (on the window, with ``d_min > 0``), or the design fails the independent certificate at
+        a corner of the speed tolerance.
     """
     plant = _plant(system)
     margin_at_least = check_objective(objective, margin_at_least)
+    window = None if delays is None else check_delays(delays)
+    if window is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    if eps is not None:
+        if not isinstance(plant, Hyperbolic2x2):
+            raise ParameterError(
+                "speed_tolerance",
+                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
+                "TransportSystem (constant speeds lam, mu)",
+                speed_tolerance,
+            )
+        if window is None:
+            if margin_at_least is None:
+                raise ParameterError(
+                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
+                )
+            window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
     functions = _basis(basis, _length(plant))
     coef = _pair("coefficient_bounds", coefficient_bounds)
     given = None if k_bounds is None else _pair("k_bounds", k_bounds)
@@ -470,10 +544,19 @@ def design_state_feedback(
     map_ = mapper(executor, False, "state feedback design")
 
     loop = state_feedback_loop(plant, functions, grid)
+    scenarios: tuple[StateFeedbackLoop, ...] = ()
+    if eps is not None and isinstance(plant, Hyperbolic2x2):
+        corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
+        scenarios = tuple(
+            state_feedback_loop(
+                dataclasses.replace(plant, lam=plant.lam * (1 + a), mu=plant.mu * (1 + b)), functions, grid
+            )
+            for a, b in corners
+        )
     kb = given if given is not None else _k_bounds(loop)
     bounds = (kb, *([coef] * (2 * len(functions))))
     box = np.array(bounds)
-    ks, exact = _proportional_starts(loop, kb, objective, margin_at_least)
+    ks, exact = _proportional_starts(loop, kb, objective, margin_at_least, window, scenarios)
     zeros = np.zeros(2 * len(functions))
     proportional = [np.concatenate([[k], zeros]) for k in ks]
     candidates = proportional if not exact else proportional[:1]  # the exact optimum over k needs no other
@@ -492,9 +575,10 @@ def design_state_feedback(
             points.append(point)
     points = points[:starts]
 
-    results = list(map_(_FromStart(loop, bounds, objective, margin_at_least, rigorous), points))
+    results = list(map_(_FromStart(loop, bounds, objective, margin_at_least, rigorous, window, scenarios), points))
     designs = [r for r in results if isinstance(r, LoopDesign)]
-    stable = [r for r in designs if _stable(r)]
+    # from d_min > 0 the loop may be unstable at delta = 0: its certified windows decide
+    stable = [r for r in designs if _stable(r) or (window is not None and window[0] > 0.0 and r.windows)]
     if not stable:
         reasons = sorted({r for r in results if isinstance(r, str)})
         reasons += [f"a design with spectral abscissa {r.abscissa.value:.6g} (not stable)" for r in designs]
@@ -512,4 +596,22 @@ def design_state_feedback(
     controller = _controller(best.parameters, functions)
     factors = loop(np.asarray(best.parameters))
     scope = loop_scope(plant, controller, grid, factors)
-    return StateFeedbackDesign(controller, tuple(best.parameters), best, scope)
+    tolerance = None
+    if eps is not None and window is not None and isinstance(plant, Hyperbolic2x2):
+        tolerance = tolerance_on_square(
+            plant,
+            controller,
+            eps,
+            window,
+            kernel_grid=grid if grid is not None else DEFAULT_KERNEL_GRID,
+            rigorous=rigorous,
+        )
+        missed = [p for p, w in zip(tolerance.points[:4], tolerance.windows[:4]) if not w.stable]
+        if missed:
+            raise CertificationError(
+                f"design_state_feedback: the design {tuple(best.parameters)} is not stable on the window at the "
+                f"corners {missed} of the speed tolerance when their loops are built by mismatch_loop (route "
+                f"{tolerance.route!r}): the design's own loops and these differ; give kernel_grid=None for an "
+                "exact route, or a finer grid"
+            )
+    return StateFeedbackDesign(controller, tuple(best.parameters), best, scope, tolerance)

@@ -1,0 +1,199 @@
+"""Requirements of the several-parameter designs: a window of delays and a tolerance on the speeds.
+
+Oracles, sharing no code with the optimiser: the crossing delays of the delayed oscillator
+s^2 + c s + 1 + K (1 + BETA s) e^{-delta s} in closed form (|A(i w)| = |B(i w)| is a quadratic in
+w^2, the delays theta / w + 2 pi k / w), a brute-force grid of window_stability verdicts over the
+parameters, and the loops of the filtered law on transport plants with mismatched speeds written
+here from the controller's definition, (1 - rho q e^{-tau' s})(1 + b s) + K q e^{-tau' s}(1 + a s)
+e^{-delta s} with tau' = 1/lam' + 1/mu', whose delay margins are computed directly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.design import optimize_loop, window_stability
+from nrobust.errors import CertificationError, ParameterError
+from nrobust.hyperbolic.analyses import SpeedTolerance
+from nrobust.hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
+from nrobust.hyperbolic.analyses.state_design import design_state_feedback
+from nrobust.margins import delay_margin
+from nrobust.reports.design import run_design
+
+# the delayed oscillator x'' + c x' + x + K (x + BETA x')(t - delta) = 0, parameters p = (c, K)
+BETA = 0.3
+WINDOW = (4.7, 4.85)
+OSC_BOUNDS = [(-0.2, 0.2), (0.0, 0.9)]
+# the transport plant of the filtered design: u_t + lam u_x = 0, v_t - mu v_x = 0, u(0) = q v(0)
+LAM, MU, Q, RHO = 1.0, 2.0, 1.0, 0.6
+A_ZERO, B_POLE = 0.05, 0.1
+
+
+def oscillator(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+    return nr.QuasiPolynomial([[1.0, p[0], 1.0]], [0.0]), nr.QuasiPolynomial([[p[1], BETA * p[1]]], [0.0])
+
+
+def _crossing_delays(c: float, K: float, up_to: float) -> list[float]:
+    """Every delay up to ``up_to`` at which the oscillator has a zero i w, in closed form.
+
+    ``|1 - w^2 + i c w|^2 = K^2 |1 + i BETA w|^2`` is ``u^2 + (c^2 - 2 - K^2 BETA^2) u + 1 - K^2 = 0``
+    in ``u = w^2``; at a positive root ``e^{-i w delta} = -A/B``: ``delta = (arg(-B/A) mod 2 pi + 2 pi k)/w``.
+    """
+    out = []
+    for u in np.roots([1.0, c * c - 2.0 - K * K * BETA * BETA, 1.0 - K * K]):
+        if abs(u.imag) > 1e-12 or u.real <= 0.0:
+            continue
+        w = math.sqrt(u.real)
+        theta = np.mod(np.angle(-K * (1 + 1j * BETA * w) / (1 - w * w + 1j * c * w)), 2 * np.pi)
+        out += [(theta + 2 * np.pi * k) / w for k in range(int(up_to * w / (2 * np.pi)) + 2)]
+    return sorted(d for d in out if d <= up_to)
+
+
+def test_window_changes_the_optimum_against_a_grid() -> None:
+    """The decay rate (c + BETA K)/2 grows to the corner (0.2, 0.9); the window stops K well before it."""
+    free = optimize_loop(oscillator, OSC_BOUNDS, x0=[0.0, 0.3])
+    design = optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, x0=[0.0, 0.3])
+    assert design.certified and design.delays == WINDOW and len(design.windows) == 1
+    assert design.requirement.endswith("(the loop): met, checked")
+    # the closed-form crossing delays at the design miss the window, and one lies within 1e-3 of
+    # its ends: the requirement binds (a pattern step of POLISH_TOL * 0.9 = 9e-6 in K moves a
+    # crossing delay by about 1e-4 here)
+    c, K = design.parameters
+    delays = _crossing_delays(c, K, 10.0)
+    assert not any(WINDOW[0] <= d <= WINDOW[1] for d in delays)
+    assert min(min(abs(d - WINDOW[0]), abs(d - WINDOW[1])) for d in delays) < 1e-3
+    # the window costs decay rate: the free optimum is the corner, 0.2/2 + BETA 0.9/2 = 0.235
+    np.testing.assert_allclose(free.value, 0.235, atol=1e-5)  # POLISH_TOL of the widths: 9e-6 in K
+    assert design.value < free.value - 0.04
+    # brute force: no grid point stable on the window beats the design; the rate is (c + BETA K)/2
+    # in closed form (complex roots: (c + BETA K)^2 < 4 (1 + K) on the bounds), and the pattern
+    # search stops within 1e-5 of the widths: 0.5 * 0.4e-5 + 0.15 * 0.9e-5 < 1e-5 of rate
+    best, verdicts = -math.inf, []
+    for cg in np.linspace(-0.2, 0.2, 5):
+        for Kg in np.linspace(0.1, 0.9, 9):  # K = 0, c = 0: the zeros +-i for every delay (undecided)
+            A, B = oscillator(np.array([cg, Kg]))
+            stable = window_stability(A, B, WINDOW).stable
+            verdicts.append(stable)
+            if stable:
+                best = max(best, (cg + BETA * Kg) / 2.0)
+    assert any(verdicts) and not all(verdicts)
+    np.testing.assert_allclose(design.value, (c + BETA * K) / 2.0, rtol=1e-9)
+    assert design.value >= best - 1e-5
+    json.dumps(design.to_dict(), allow_nan=False)
+
+
+def test_an_unreachable_window_is_refused() -> None:
+    """With K >= 0.6 no damping c in [-0.2, 0.2] meets the window; bad requirements are ParameterErrors."""
+    bounds = [(-0.2, 0.2), (0.6, 0.9)]
+    for cg in np.linspace(-0.2, 0.2, 5):  # brute force: no grid point is stable on the window
+        for Kg in (0.6, 0.75, 0.9):
+            assert not window_stability(*oscillator(np.array([cg, Kg])), WINDOW).stable
+    with pytest.raises(CertificationError, match=r"first phase raised the margin.*narrow the window"):
+        optimize_loop(oscillator, bounds, delays=WINDOW, x0=[0.1, 0.8], max_iter=5)
+    with pytest.raises(ParameterError, match="margin_at_least"):
+        optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, margin_at_least=0.5)
+    with pytest.raises(ParameterError, match="delays"):
+        optimize_loop(oscillator, OSC_BOUNDS, delays=(4.85, 4.7))
+    with pytest.raises(ParameterError, match="delays"):
+        optimize_loop(oscillator, OSC_BOUNDS, scenarios=[oscillator])
+    transport = nr.TransportSystem(LAM, MU, Q, RHO)
+    with pytest.raises(ParameterError, match=r"speed_tolerance.*delay requirement"):
+        design_filtered(transport, speed_tolerance=0.1)
+    with pytest.raises(ParameterError, match="speed_tolerance"):
+        design_filtered(transport, margin_at_least=0.5, speed_tolerance=1.5)
+    general = nr.GeneralHyperbolic2x2(lam=1.0, mu=1.0, a=0.0, b=0.5, c=0.5, d=0.0, q=0.5, rho=0.5)
+    for design in (design_filtered, design_state_feedback):
+        with pytest.raises(ParameterError, match=r"speed_tolerance.*Hyperbolic2x2 or TransportSystem"):
+            design(general, margin_at_least=0.2, speed_tolerance=0.1, objective="decay_rate")
+    with pytest.raises(ParameterError, match="margin_at_least"):
+        design_state_feedback(transport, "decay_rate", margin_at_least=0.2, delays=(0.0, 0.2))
+
+
+def _corner_loop(K: float, e_lam: float, e_mu: float) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+    """The filtered law designed on the nominal transport plant, acting on speeds lam (1 + e_lam), mu (1 + e_mu)."""
+    tau = 1.0 / (LAM * (1.0 + e_lam)) + 1.0 / (MU * (1.0 + e_mu))
+    A = nr.QuasiPolynomial([[1.0, B_POLE], [-RHO * Q, -RHO * Q * B_POLE]], [0.0, tau])
+    B = nr.QuasiPolynomial([[K * Q, K * Q * A_ZERO]], [tau])
+    return A, B
+
+
+def test_filtered_design_under_a_speed_tolerance(tmp_path: Path) -> None:
+    """[design] of a TOML file, family "filtered", margin 0.5 under 20 % speed errors: the corners hold.
+
+    Read by ``nrobust design`` (the requirement and the tolerance pass through to design_filtered); the
+    margin at each corner is recomputed here on the loop written from the controller's definition.
+    """
+    system = tmp_path / "transport.toml"
+    system.write_text(
+        f'[system]\ntype = "TransportSystem"\nlam = {LAM}\nmu = {MU}\nq = {Q}\nrho = {RHO}\n'
+        '[controller]\ntype = "ReflectionController"\nK = 0.1\n[analysis]\ndelta_max = 0.5\n'
+        f'[design]\nfamily = "filtered"\nobjective = "decay_rate"\nmargin_at_least = 0.5\nspeed_tolerance = 0.2\n'
+        f"K = [-0.35, 0.6]\na = {A_ZERO}\nb = {B_POLE}\nstarts = 1\n"
+    )
+    _, result = run_design(system, tmp_path / "out")
+    assert isinstance(result, FilteredDesign) and isinstance(result.tolerance, SpeedTolerance)
+    assert result.tolerance.met and result.design.delays == (0.0, 0.5) and len(result.design.windows) == 5
+    assert result.certified and "speed tolerance 0.2" in result.requirement
+    K = result.controller.K
+    assert K is not None
+    margins = []
+    for e_lam, e_mu in result.tolerance.points[:4]:
+        dm = delay_margin(*_corner_loop(K, e_lam, e_mu))
+        assert dm.nominally_stable and dm.verified
+        margins.append(dm.margin)
+    assert min(margins) > 0.5
+    # the tolerance binds: 1e-3 past the design (100 times the pattern search's last step, 1e-5 of the
+    # bounds' width) a corner's margin falls below 0.5 while the nominal loop's stays above it
+    past = K + 1e-3
+    assert min(delay_margin(*_corner_loop(past, a, b)).margin for a, b in result.tolerance.points[:4]) < 0.5
+    assert delay_margin(*_corner_loop(past, 0.0, 0.0)).margin > 0.5
+    text = (tmp_path / "out" / "design.md").read_text()
+    assert "stable for every delay in [0.0, 0.5] (the loop and its 4 scenarios): met, checked" in text
+    data = json.loads((tmp_path / "out" / "design.json").read_text())
+    assert data["speed_tolerance"] == 0.2 and data["tolerance"]["met"] is True
+
+
+def test_state_feedback_takes_a_window_and_a_tolerance() -> None:
+    """A proportional law on a transport plant, stable on [0.2, 0.5] under 20 % speed errors.
+
+    ``1 - rho q e^{-tau s} - k q e^{-(tau + delta) s}`` is stable for every delay and every tau iff
+    ``|rho q| + |k q| < 1``, which the default k bounds keep: the window and the corners hold, and the
+    corners are certified again on loops built by mismatch_loop.
+    """
+    design = design_state_feedback(
+        nr.TransportSystem(LAM, MU, Q, RHO),
+        "decay_rate",
+        delays=(0.2, 0.5),
+        speed_tolerance=0.2,
+        kernel_grid=None,
+        starts=1,
+    )
+    assert design.tolerance is not None and design.tolerance.met and design.tolerance.route == "exact"
+    assert design.design.delays == (0.2, 0.5) and all(w.stable for w in design.design.windows)
+    assert abs(RHO * Q) + abs(design.controller.k * Q) < 1.0
+    json.dumps(design.to_dict(), allow_nan=False)
+
+
+@pytest.mark.long
+def test_local_window_design_finds_the_exact_pair_birth() -> None:
+    """The filter's pole b with K = 0.1, a = 0 on the paper's plant, margin maximised, stable on [0.1, 0.4].
+
+    The exact one-parameter design ends at the pair birth b = 0.6298503342 (mpmath at 40 digits in
+    tests/test_filter_cutoff.py, to 1e-10): past it towards smaller b a crossing pair is born with a
+    delay inside the window. The local design (about 10 s of CPU) must stay on the feasible side and
+    reach it to the pattern search's last step, 1e-5 of the width 1.2 (the margin falls as b grows).
+    """
+    plant = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+    design = design_filtered(
+        plant, objective="margin", parameters={"K": 0.1, "a": 0.0, "b": (0.3, 1.5)}, delays=(0.1, 0.4), starts=1
+    )
+    assert design.certified and design.design.windows[0].stable
+    b = design.controller.b
+    assert 0.6298503342 - 1e-9 <= b <= 0.6298503342 + 5e-5
+    assert "stable for every delay in [0.1, 0.4] (the loop): met" in design.requirement
