@@ -300,6 +300,22 @@ def test_tradeoff_transport_closed_form() -> None:
     assert tr.to_dict()["margins"] == ["inf"] * 3
 
 
+def test_tradeoff_reuses_known_margins_and_computes_the_others() -> None:
+    """Margins given are used as they are (a wrong one shows through); nan entries are computed."""
+    system = paper_system()
+    Ks = np.array([0.0, 0.1])
+    computed = tradeoff(system, Ks)
+    reused = tradeoff(system, Ks, margins=[0.5, np.nan])  # 0.5 is not delta*(0): it must be taken as given
+    np.testing.assert_array_equal(reused.margins, [0.5, computed.margins[1]])
+    np.testing.assert_array_equal(reused.decay_rates, computed.decay_rates)
+    chart = stability_chart(system, Ks, [0.0, 0.5])
+    from_chart = tradeoff(system, Ks, margins=chart.margins)
+    np.testing.assert_allclose(from_chart.margins, computed.margins, rtol=1e-13)
+    for bad in ([0.1], [True, True], ["0.1", "0.2"], [-1.0, 0.1], "ab"):
+        with pytest.raises(ParameterError, match="margins"):
+            tradeoff(system, Ks, margins=bad)
+
+
 def test_stability_chart_transport_on_executors() -> None:
     system = TransportSystem(1.0, 1.0, 1.0, 0.85)
     Ks, deltas = np.array([-0.2, 0.0, 0.1, 0.2]), np.array([0.0, 0.3, 1.0])

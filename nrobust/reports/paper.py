@@ -113,7 +113,9 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
     if job == "charts":  # the chart draws the trade-off's Rouché bounds: one job, two figures
         Ks, deltas, k_max = args
         chart = stability_chart(system, Ks, deltas, progress=False)
-        trade = tradeoff(system, Ks[Ks >= 0], progress=False)
+        # the chart's margins up to its largest delay are the trade-off's: only the others are computed
+        margins = np.where(chart.margins <= deltas.max(), chart.margins, np.nan)[Ks >= 0]
+        trade = tradeoff(system, Ks[Ks >= 0], margins=margins, progress=False)
         return chart, trade, _png(_chart_figure(chart, trade, k_max)), _png(_tradeoff_figure(trade))
     if job == "locus":  # the root locus of U_BS2 in K and its figure
         Ks, delta, region = args

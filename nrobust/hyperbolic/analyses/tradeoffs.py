@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import fields_dict
+from ...errors import ParameterError
 from ...roots import spectral_abscissa
 from ..loops.controllers import ReflectionController, loop_factors
 from ._common import mapper, real_grid, reflection, study_plant
@@ -58,20 +59,33 @@ class Tradeoff:
 
 @dataclass(frozen=True)
 class _PartialTradeoff:
-    """Picklable ``K -> (decay rate, margin, delta_0, accuracy of the decay rate)``."""
+    """Picklable ``(K, known margin or nan) -> (decay rate, margin, delta_0, accuracy of the decay rate)``."""
 
     system: Any
     family: Callable[[float], Any]
 
-    def __call__(self, K: float) -> tuple[float, float, float, float]:
-
+    def __call__(self, point: tuple[float, float]) -> tuple[float, float, float, float]:
+        K, known = point
         ctrl = self.family(float(K))
         A, B = loop_factors(self.system, ctrl)
         abscissa = spectral_abscissa(A + B)
         rate, accuracy = -float(abscissa.value), abscissa.accuracy
-        margin = delay_margin(A, B, verify=False).margin
+        margin = known if not np.isnan(known) else delay_margin(A, B, verify=False).margin
         d0 = rouche_delay_bound(self.system, ctrl).delta_0 if isinstance(ctrl, ReflectionController) else np.nan
         return rate, float(margin), float(d0), np.nan if accuracy is None else float(accuracy)
+
+
+def _known_margins(margins: ArrayLike, size: int) -> NDArray[np.float64]:
+    """``margins`` as ``size`` floats ``>= 0`` (``inf`` allowed, ``nan``: not known), or raise ParameterError."""
+    admissible = f"{size} delay margins >= 0 (inf allowed, nan where not known), one per gain"
+    try:
+        raw = np.asarray(margins)
+    except (TypeError, ValueError):
+        raise ParameterError("margins", admissible, margins) from None
+    known = raw.astype(float) if raw.dtype.kind in "iuf" else np.full(size, -1.0)  # no booleans, strings or None
+    if known.shape != (size,) or np.any(known < 0):
+        raise ParameterError("margins", admissible, margins)
+    return known
 
 
 def tradeoff(
@@ -79,6 +93,7 @@ def tradeoff(
     Ks: ArrayLike,
     *,
     controller: Callable[[float], Any] | None = None,
+    margins: ArrayLike | None = None,
     executor: Any = "serial",
     progress: bool | None = None,
 ) -> Tradeoff:
@@ -96,6 +111,10 @@ def tradeoff(
         Gains.
     controller : callable, optional
         ``K -> controller``; default ``ReflectionController``.
+    margins : array_like, optional
+        Delay margins ``delta*(K)`` already known at ``Ks`` (``nan`` where not known), e.g.
+        the :attr:`StabilityChart.margins` of the same plant and family at these gains where they
+        are at most the chart's largest delay; the others are computed.
     executor : "serial", None, int, Executor, "dask", address or dask Client, optional
         Where the grid points run (:func:`nrobust.sweeps.sweep`'s executors); default in this
         process. Results are the same whatever the executor.
@@ -110,6 +129,8 @@ def tradeoff(
     system, controller = study_plant(system, controller, "tradeoff")
     kv = real_grid("Ks", Ks)
     family = reflection if controller is None else controller
+    known = np.full(kv.size, np.nan) if margins is None else _known_margins(margins, kv.size)
     run = mapper(executor, progress, "tradeoff: gains")
-    rows = np.array(list(run(_PartialTradeoff(system, family), kv)), dtype=float).reshape(kv.size, 4)
+    points = list(zip(kv.tolist(), known.tolist()))
+    rows = np.array(list(run(_PartialTradeoff(system, family), points)), dtype=float).reshape(kv.size, 4)
     return Tradeoff(kv, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])
