@@ -60,23 +60,27 @@ def newton(
     s = np.array(s0, dtype=complex).ravel()
     done = np.zeros(s.size, dtype=bool)
     alive = np.ones(s.size, dtype=bool)
-    for _ in range(iters):
-        act = np.flatnonzero(alive & ~done)
-        if not act.size:
-            break
-        if on_step is not None:
-            on_step(act.size)
-        x = s[act]
-        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # f / d: inf or nan marks a bad step
+        for _ in range(iters):
+            act = np.flatnonzero(alive & ~done)
+            if not act.size:
+                break
+            if on_step is not None:
+                on_step(act.size)
+            x = s[act]
             f, d = fdf(x)
             step = f / d
-        bad = ~np.isfinite(step)
-        alive[act[bad]] = False
-        step = np.where(bad, 0, step)
-        big = np.abs(step) > max_step
-        step[big] *= max_step / np.abs(step[big])
-        s[act] = x - step
-        done[act] = np.abs(step) <= STEP_RTOL * (1.0 + np.abs(x))
+            bad = ~np.isfinite(step)
+            if bad.any():
+                alive[act[bad]] = False
+                step[bad] = 0
+            length = np.abs(step)
+            big = length > max_step
+            if big.any():
+                step[big] *= max_step / length[big]
+                length = np.abs(step)
+            s[act] = x - step
+            done[act] = length <= STEP_RTOL * (1.0 + np.abs(x))
     stalled = np.flatnonzero(alive & ~done)
     if stalled.size and accept_stalled is not None:
         done[stalled[accept_stalled(s[stalled])]] = True

@@ -95,6 +95,8 @@ _NEGLIGIBLE = 1e-12
 _EPS = float(np.finfo(float).eps)
 # Bisection steps of the abscissa bound x* = R(x*) (each halves the bracket).
 _BISECTIONS = 80
+# Eigenvalue problems of the collocated generator a system keeps (one per number of points, the last ones).
+_KEPT_COLLOCATIONS = 4
 
 
 @functools.cache
@@ -138,17 +140,22 @@ def _interpolation_row(theta: NDArray[np.float64], at: float) -> NDArray[np.floa
     return w / np.sum(w)
 
 
-def _shift_and_invert(a: NDArray[Any], b: NDArray[Any]) -> NDArray[np.complex128] | None:
-    """Finite eigenvalues ``s`` of the pencil ``a v = s b v`` (``b`` singular) as ``shift + 1 / mu``.
-
-    ``mu = 1 / (s - shift)`` are the eigenvalues of ``(a - shift b)^{-1} b``, a standard problem
-    (half the work of the QZ algorithm); the infinite ``s`` give ``mu = 0`` and are dropped.
-    None if ``a - shift b`` is singular to working precision (``shift`` is a root).
-    """
+def _inverted(a: NDArray[Any], b: NDArray[Any]) -> NDArray[np.float64] | None:
+    """``(a - shift b)^{-1} b`` for the pencil ``a v = s b v`` (``b`` singular), or None if ``a - shift b``
+    is singular to working precision (``shift`` is a root): its eigenvalues ``mu = 1 / (s - shift)``
+    are a standard problem (half the work of the QZ algorithm), :func:`_uninverted` maps them back."""
     try:
-        mu = np.linalg.eigvals(np.linalg.solve(a - _SHIFT * b, b))
+        return np.asarray(np.linalg.solve(a - _SHIFT * b, b), dtype=float)
     except np.linalg.LinAlgError:
         return None
+
+
+def _uninverted(inverted: NDArray[np.float64]) -> NDArray[np.complex128] | None:
+    """Finite eigenvalues ``s = shift + 1 / mu`` of the pencil from the eigenvalues ``mu`` of :func:`_inverted`.
+
+    The infinite ``s`` give ``mu = 0`` and are dropped; None if some ``mu`` is not finite.
+    """
+    mu = np.linalg.eigvals(inverted)
     if not np.all(np.isfinite(mu)):
         return None
     mu = mu[np.abs(mu) > _NEGLIGIBLE * np.max(np.abs(mu), initial=0.0)]
@@ -162,8 +169,8 @@ def _block_row(rows: NDArray[np.float64], mats: NDArray[np.float64]) -> NDArray[
 
 def _eliminate_algebraic(
     top: NDArray[np.float64], rest: NDArray[np.float64], svd: tuple[NDArray[np.float64], ...]
-) -> NDArray[np.complex128] | None:
-    """Finite eigenvalues ``s`` of ``[top; rest] v = s [[b0, 0], [0, I]] v`` for a singular ``b0``.
+) -> NDArray[np.float64] | None:
+    """A matrix whose eigenvalues are the finite ``s`` of ``[top; rest] v = s [[b0, 0], [0, I]] v`` (``b0`` singular).
 
     With ``svd`` the singular value decomposition ``b0 = U S V^T`` (rank ``r``), ``v = (v_0, w)`` and
     ``y = V^T v_0``: the rows ``U_2^T top v = 0`` of the zero singular values are algebraic
@@ -193,9 +200,36 @@ def _eliminate_algebraic(
         out[:, r:] += rows[:, n:]
         return out
 
-    return np.asarray(
-        np.linalg.eigvals(np.vstack([reduced((u[:, :r].T @ top) / sig[:r, None]), reduced(rest)])), dtype=complex
-    )
+    return np.vstack([reduced((u[:, :r].T @ top) / sig[:r, None]), reduced(rest)])
+
+
+@dataclass(frozen=True)
+class _Collocation:
+    """The eigenvalue problem ``a v = s b v`` of a collocated generator (:meth:`StateSpaceTDS.generator_eigenvalues`).
+
+    ``b`` None: the standard problem ``a v = s v`` (the pencil reduced to it). Otherwise the finite
+    eigenvalues are found from ``inverted``, the shift and invert of the pencil (:func:`_uninverted`),
+    or, failing that, by the QZ algorithm. The matrices depend on the system and the number of
+    points only, so the system keeps them (``StateSpaceTDS._collocations``) and each call of
+    :meth:`eigenvalues` is one eigenvalue computation.
+    """
+
+    a: NDArray[np.float64]
+    b: NDArray[np.float64] | None = None
+    inverted: NDArray[np.float64] | None = None
+
+    def eigenvalues(self) -> NDArray[np.complex128]:
+        """The finite eigenvalues."""
+        if self.b is None:
+            vals = np.linalg.eigvals(self.a)
+        else:
+            found = None if self.inverted is None else _uninverted(self.inverted)
+            if found is None:
+                from scipy.linalg import eig  # lazily: a slow import
+
+                found = eig(self.a, self.b, right=False)
+            vals = found
+        return np.asarray(vals[np.isfinite(vals)], dtype=complex)
 
 
 def _stack(name: str, mats: Any, n: int | None) -> NDArray[np.float64]:
@@ -421,14 +455,30 @@ class StateSpaceTDS:
 
     def _generator_eigenvalues(self, im_max: float, min_points: int) -> NDArray[np.complex128]:
         """:meth:`generator_eigenvalues` with ``min_points`` added to the points per frequency."""
-        from scipy.linalg import eig  # lazily: a slow import (the generalised problem of a singular E)
-
-        n = self.n
         tau = float(max(np.max(self.hA, initial=0.0), np.max(self.hB, initial=0.0)))
         if tau == 0.0:
+            from scipy.linalg import eig  # lazily: a slow import (the generalised problem of a singular E)
+
             vals = eig(np.sum(self.A, axis=0), self.E, right=False)  # no delay: no neutral term either
             return np.asarray(vals[np.isfinite(vals)], dtype=complex)
-        points = int(np.clip(_POINTS_PER_FREQUENCY * abs(im_max) * tau + min_points, 4, _MAX_ORDER // n - 1))
+        points = int(np.clip(_POINTS_PER_FREQUENCY * abs(im_max) * tau + min_points, 4, _MAX_ORDER // self.n - 1))
+        problems = self._collocations
+        problem = problems.get(points)
+        if problem is None:
+            problem = self._collocation(points, tau)
+            if len(problems) >= _KEPT_COLLOCATIONS:
+                del problems[next(iter(problems))]
+            problems[points] = problem
+        return problem.eigenvalues()
+
+    @functools.cached_property
+    def _collocations(self) -> dict[int, _Collocation]:
+        """The eigenvalue problems of :meth:`_collocation` built so far, by number of points (the last few)."""
+        return {}
+
+    def _collocation(self, points: int, tau: float) -> _Collocation:
+        """The eigenvalue problem of the generator collocated at ``points + 1`` Chebyshev points on ``[-tau, 0]``."""
+        n = self.n
         theta, d = _chebyshev(points, tau)
         # Only the components that some delayed term reads (the nonzero columns of the delayed A_k and
         # of the B_k) need their history: the unknowns are phi(0) (all n components) and phi(theta_j),
@@ -459,17 +509,13 @@ class StateSpaceTDS:
         svd = np.linalg.svd(b0)
         sig = svd[1]
         if sig[-1] * _MAX_CONDITION > sig[0]:  # B = [[B0, Br], [0, I]]: the standard problem B^{-1} A
-            vals = np.linalg.eigvals(np.vstack([np.linalg.solve(b0, top - right[:, n:] @ rest), rest]))
-        else:
-            found = None if np.any(right[:, n:]) else _eliminate_algebraic(top, rest, svd)
-            if found is None:
-                a, b = np.vstack([top, rest]), np.eye(n + points * nd)
-                b[:n] = right
-                found = _shift_and_invert(a, b)
-                if found is None:
-                    found = eig(a, b, right=False)
-            vals = found
-        return np.asarray(vals[np.isfinite(vals)], dtype=complex)
+            return _Collocation(np.vstack([np.linalg.solve(b0, top - right[:, n:] @ rest), rest]))
+        reduced = None if np.any(right[:, n:]) else _eliminate_algebraic(top, rest, svd)
+        if reduced is not None:
+            return _Collocation(reduced)
+        a, b = np.vstack([top, rest]), np.eye(n + points * nd)
+        b[:n] = right
+        return _Collocation(a, b, _inverted(a, b))
 
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
         """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ..balls import require_flint
 from ..errors import CertificationError, ParameterError
-from ..qpmatrix import CharacteristicFunction, QuasiPolynomialMatrix
+from ..qpmatrix import CharacteristicFunction, ExpandedDeterminant, QuasiPolynomialMatrix
 from ..quasipoly import QuasiPolynomial
 
 __all__ = ["EPS", "ROUNDING", "Budget", "check_function", "check_rigorous", "magnitude"]
@@ -70,6 +70,7 @@ def check_function(F: Any) -> QuasiPolynomial:
         if not F.point_terms and not F.distributed:
             raise ParameterError("F", "not identically zero (every point would be a root)", F)
         return F
-    if not isinstance(F, CharacteristicFunction):
+    # the classes of nrobust that implement the protocol first (the check of a runtime protocol is slow)
+    if not isinstance(F, (QuasiPolynomialMatrix, ExpandedDeterminant)) and not isinstance(F, CharacteristicFunction):
         raise ParameterError("F", "a QuasiPolynomial or QuasiPolynomialMatrix", type(F).__name__)
     return cast(QuasiPolynomial, F)

@@ -19,6 +19,7 @@ the points that follow it in the sorted order within ``r``. Both are exact.
 
 from __future__ import annotations
 
+import functools
 from typing import Literal, overload
 
 import numpy as np
@@ -45,6 +46,15 @@ def _spans(starts: NDArray[np.intp], stops: NDArray[np.intp]) -> tuple[NDArray[n
     return owner, starts[owner] + (np.arange(owner.size) - first[owner])
 
 
+@functools.lru_cache(maxsize=64)
+def _upper_pairs(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """``np.triu_indices(n, 1)`` (every pair ``i < j``, by ``i`` then ``j``), kept per ``n``, read-only."""
+    a, b = np.triu_indices(n, 1)
+    a.flags.writeable = False
+    b.flags.writeable = False
+    return a, b
+
+
 class ChebyshevIndex:
     """Points of the plane searched in the Chebyshev distance (a ``cKDTree`` with ``p = inf``).
 
@@ -56,14 +66,25 @@ class ChebyshevIndex:
 
     def __init__(self, points: ArrayLike) -> None:
         pts = np.asarray(points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2 or not np.all(np.isfinite(pts)):
+        if pts.ndim != 2 or pts.shape[1] != 2 or not np.isfinite(pts).all():
             raise ParameterError("points", "an (n, 2) array of finite coordinates", pts.shape)
         self.points = pts
-        spread = np.ptp(pts, axis=0) if pts.shape[0] else np.zeros(2)
-        # sweep along the coordinate of larger spread (the roots of a chain share their real part)
-        self.axis = int(spread[1] > spread[0])
-        self.order = np.argsort(pts[:, self.axis], kind="stable")
-        self.keys = pts[self.order, self.axis]
+
+    @functools.cached_property
+    def axis(self) -> int:
+        """The coordinate of the sweep: that of larger spread (the roots of a chain share their real part)."""
+        spread = np.ptp(self.points, axis=0) if self.points.shape[0] else np.zeros(2)
+        return int(spread[1] > spread[0])
+
+    @functools.cached_property
+    def order(self) -> NDArray[np.intp]:
+        """The points' indices sorted by the :attr:`axis` coordinate (sorted once, when a sweep first needs it)."""
+        return np.argsort(self.points[:, self.axis], kind="stable")
+
+    @functools.cached_property
+    def keys(self) -> NDArray[np.float64]:
+        """The sorted :attr:`axis` coordinates."""
+        return self.points[self.order, self.axis]
 
     @property
     def n(self) -> int:
@@ -99,12 +120,12 @@ class ChebyshevIndex:
             raise ParameterError("x", "finite query points", q.shape)
         k, m, n = int(k), q.shape[0], self.n
         if m * n <= _ALL_PAIRS:  # every distance; a stable sort puts the lower index first among equal ones
-            full = np.maximum(
-                np.abs(q[:, 0, None] - self.points[None, :, 0]), np.abs(q[:, 1, None] - self.points[None, :, 1])
-            )
+            full = np.abs(q[:, None, :] - self.points[None, :, :]).max(axis=2)  # max(|dx|, |dy|)
+            if k == 1:  # the first of the least distances: the lowest index among equal ones
+                first = np.argmin(full, axis=1).astype(np.intp)
+                return full[np.arange(m), first], first
             near_i = np.argsort(full, axis=1, kind="stable")[:, :k].astype(np.intp)
-            near_d = np.take_along_axis(full, near_i, axis=1)
-            return (near_d[:, 0], near_i[:, 0]) if k == 1 else (near_d, near_i)
+            return full[np.arange(m)[:, None], near_i], near_i
         # an upper bound of the k-th distance: the k-th nearest of the 2k + 1 nearest in the sorted coordinate
         width = min(n, 2 * k + 1)
         at = np.searchsorted(self.keys, q[:, self.axis])
@@ -149,7 +170,7 @@ class ChebyshevIndex:
             raise ParameterError("output_type", "'set' or 'ndarray'", output_type)
         r = float(r)
         every = self.n * self.n <= _ALL_PAIRS
-        a, b = np.triu_indices(self.n, 1) if every else self._candidate_pairs(r)
+        a, b = _upper_pairs(self.n) if every else self._candidate_pairs(r)
         if p == np.inf:
             close = self._distance(self.points[a], b) <= r
         else:

@@ -476,10 +476,19 @@ def _result(finder: Finder, total: int, reg: Region, shifted: bool) -> RootSet:
     )
 
 
+# Up to this many boxes, :func:`_disjoint` compares every pair directly (no neighbour search).
+_ALL_BOXES = 64
+
+
 def _disjoint(boxes: NDArray[np.float64]) -> bool:
     """True if no two boxes overlap (the certificate adds their counts)."""
     if boxes.shape[0] < 2:
         return True
+    if boxes.shape[0] <= _ALL_BOXES:  # every pair at once: fewer operations than the neighbour search
+        x0, x1, y0, y1 = boxes.T
+        meet = (x0[:, None] < x1) & (x0 < x1[:, None]) & (y0[:, None] < y1) & (y0 < y1[:, None])
+        np.fill_diagonal(meet, False)
+        return not bool(meet.any())
     center, half = centers(boxes)
     for i, j in kdtree(center).query_pairs(2 * float(half.max()), p=np.inf):
         a, b = boxes[i], boxes[j]

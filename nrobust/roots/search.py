@@ -81,10 +81,13 @@ def _newton(
             f, d = F(x), F.deriv_at(x)
         else:
             out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
-            f = np.full(x.size, np.nan, dtype=complex)
-            d = np.full(x.size, np.nan, dtype=complex)
-            keep = ~out
-            f[keep], d[keep] = F(x[keep]), F.deriv_at(x[keep])
+            if out.any():
+                f = np.full(x.size, np.nan, dtype=complex)
+                d = np.full(x.size, np.nan, dtype=complex)
+                keep = ~out
+                f[keep], d[keep] = F(x[keep]), F.deriv_at(x[keep])
+            else:  # every point inside (f a copy: it is changed below, F may keep the array it returns)
+                f, d = np.array(F(x), dtype=complex), np.asarray(F.deriv_at(x), dtype=complex)
         # |F(x)| below one rounding unit of its scale: no step can improve x (the step would be
         # rounding noise, longer than the step test when F is ill conditioned, e.g. a
         # determinant): a zero value ends the iteration of the point where it is.
@@ -360,8 +363,10 @@ class Finder:
         scale = _MERGE_RTOL * (1.0 + np.abs(pts))
         base = scale.copy()
         if pts.size > 1:
+            xy = _xy(pts)
+            index = kdtree(xy)
             k = min(16, pts.size)
-            dist, _ = kdtree(_xy(pts)).query(_xy(pts), k=k, p=np.inf)
+            dist, _ = index.query(xy, k=k, p=np.inf)
             dist = dist.reshape(pts.size, k)
             distinct = np.where(dist > scale[:, None], dist, np.inf).min(axis=1)
             base = np.minimum(scale, 0.1 * distinct)
@@ -369,8 +374,7 @@ class Finder:
         reach = np.maximum(base, stalled)
         group = np.arange(pts.size)
         if pts.size > 1:
-            xy = _xy(pts)
-            pairs = kdtree(xy).query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
+            pairs = index.query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
             if pairs.size:
                 gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
                 pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]

@@ -213,7 +213,7 @@ def _wind_segments(
                 * np.abs(steps.end - steps.start)
                 / (room - ROUNDING * np.maximum(steps.scale_start, steps.scale_end))
             )
-        if np.any(close):
+        if close.any():
             dF = F.derivative() if dF is None else dF
             idx = np.flatnonzero(close)
             need = idx[np.isnan(steps.df_start[idx])]
@@ -227,9 +227,9 @@ def _wind_segments(
         turns += np.bincount(
             steps.segment[ok], weights=np.angle(steps.f_end[ok] / steps.f_start[ok]), minlength=n_edges
         )
-        steps, excess = steps.take(~ok), excess[~ok]
-        if not steps.size:
+        if ok.all():
             break
+        steps, excess = steps.take(~ok), excess[~ok]
         a, b = steps.start, steps.end
         blocked[steps.segment[np.abs(b - a) < _MIN_STEP * (1.0 + np.abs(a))]] = True
         pieces = np.fmin(np.fmax(np.ceil(excess), 2.0), _MAX_PIECES).astype(np.intp)  # nan: 2
@@ -248,8 +248,8 @@ def _evaluate(
     with np.errstate(over="ignore", invalid="ignore"):
         fv = F(s)
         mag = magnitude(F, s)
-    bad = ~(np.isfinite(fv) & np.isfinite(mag))
-    if np.any(bad):
+    if not (np.isfinite(fv).all() and np.isfinite(mag).all()):
+        bad = ~(np.isfinite(fv) & np.isfinite(mag))
         edge = label(int(np.ravel(owner)[np.flatnonzero(bad.ravel())[0]]))
         raise CertificationError(f"F overflows on the {edge}: move the region to the right or shrink it")
     return fv, mag
@@ -262,7 +262,7 @@ def _initial_pieces(F: QuasiPolynomial, starts: NDArray, ends: NDArray) -> NDArr
     propose = getattr(F, "initial_steps", None)
     if propose is None:
         return np.full(starts.size, _INITIAL_STEPS, dtype=np.intp)
-    return np.clip(np.asarray(propose(starts, ends)), 1, _MAX_INITIAL).astype(np.intp)
+    return np.minimum(np.maximum(np.asarray(propose(starts, ends)), 1), _MAX_INITIAL).astype(np.intp)
 
 
 def _box_edges(box: Sequence[float]) -> list[tuple[complex, complex]]:
