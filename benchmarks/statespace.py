@@ -26,7 +26,8 @@ Systems (tdcpy's ``NDDE`` writes ``x' + sum H x'(t - hH) = ...``, so ``B = -H``)
 Printed per system: roots found by each (nrobust's count is certified; a larger tdcpy
 count reports a root twice), the largest distance from a tdcpy root to the nearest nrobust
 root, the rightmost real part of each and the published value when one is stated, then the
-wall-clock and CPU (``time.process_time``) milliseconds of each (best of 7; 1 for Example 3.1)
+wall-clock and CPU (``time.process_time``) milliseconds of each (best of 7; 1 for Example 3.1;
+nrobust on a fresh copy of the system each time, so that nothing an earlier call kept is reused)
 and their ratios nrobust / tdcpy. nrobust limits BLAS to one thread itself; tdcpy is timed
 both with its default BLAS threads and with one thread (threadpoolctl), and its better figure
 of the two is kept (its best setting: on a shared machine the threads often lose). The load
@@ -38,6 +39,7 @@ Run: ``python benchmarks/statespace.py`` (needs ``pip install tdcpy``, GPL-3.0).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Callable
@@ -142,6 +144,13 @@ def best_time(run: Callable[[], Any], repeat: int = 7) -> tuple[Any, float, floa
     return out, wall, cpu
 
 
+def _on_fresh_copies(system: StateSpaceTDS, method: str, where: Any, n: int) -> Callable[[], Any]:
+    """``method(where)`` of a new copy of ``system`` at each of ``n`` calls (the copies made beforehand):
+    nothing that an earlier call kept on the object is reused."""
+    copies = iter([dataclasses.replace(system) for _ in range(n)])
+    return lambda: getattr(next(copies), method)(where)
+
+
 def peer_time(run: Callable[[], Any], repeat: int) -> tuple[Any, float, float]:
     """:func:`best_time` of a peer with its default BLAS threads and with one, the better of each figure."""
     from threadpoolctl import threadpool_limits
@@ -171,10 +180,12 @@ def compare(tdcpy: Any) -> list[Row]:
     for case in CASES:
         tds = tdcpy_system(tdcpy, case.system, case.kind)
         if isinstance(case.where, float):
-            ours, wall, cpu = best_time(partial(case.system.roots_right_of, case.where), case.repeat)
+            ours, wall, cpu = best_time(
+                _on_fresh_copies(case.system, "roots_right_of", case.where, case.repeat), case.repeat
+            )
             r: Any = case.where
         else:
-            ours, wall, cpu = best_time(partial(case.system.roots, case.where), case.repeat)
+            ours, wall, cpu = best_time(_on_fresh_copies(case.system, "roots", case.where, case.repeat), case.repeat)
             r = list(case.where)
         out, wall_t, cpu_t = peer_time(partial(tdcpy.roots, tds, r=r, max_size_evp=1500), case.repeat)
         theirs = out[0]

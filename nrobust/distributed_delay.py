@@ -445,17 +445,58 @@ class DistributedDelay:
             pieces = _TABULATED[interpolation](x, v)
         else:
             pieces = (pieces[0], pieces[1], pieces[2].astype(np.result_type(pieces[2], v)))
-        object.__setattr__(self, "nodes", x)
-        object.__setattr__(self, "values", v)
-        object.__setattr__(self, "poly", q)
-        object.__setattr__(self, "moment", int(moment))
-        object.__setattr__(self, "interpolation", interpolation)
-        object.__setattr__(self, "radius", radius)
-        object.__setattr__(self, "variation_radius", variation_radius)
-        object.__setattr__(self, "pieces", pieces)
-        object.__setattr__(self, "_groups", {})
-        object.__setattr__(self, "_ends", {})
-        object.__setattr__(self, "_abs_moments", {})
+        self._store(x, v, q, int(moment), interpolation, radius, variation_radius, pieces)
+
+    def _store(
+        self,
+        nodes: NDArray[np.float64],
+        values: NDArray,
+        poly: NDArray,
+        moment: int,
+        interpolation: str,
+        radius: float,
+        variation_radius: float,
+        pieces: tuple[NDArray, NDArray, NDArray],
+    ) -> None:
+        """Set every attribute (the fields, the pieces and empty caches) of a frozen instance."""
+        for name, value in (
+            ("nodes", nodes),
+            ("values", values),
+            ("poly", poly),
+            ("moment", moment),
+            ("interpolation", interpolation),
+            ("radius", radius),
+            ("variation_radius", variation_radius),
+            ("pieces", pieces),
+            ("_groups", {}),
+            ("_ends", {}),
+            ("_abs_moments", {}),
+        ):
+            object.__setattr__(self, name, value)
+
+    def _combined(
+        self, values: NDArray, coefficients: NDArray, radius: float, variation_radius: float, moment: int
+    ) -> DistributedDelay:
+        """A term on the same nodes, polynomial and interpolation with the given values and piece coefficients.
+
+        For :meth:`times` and :meth:`plus`: every interpolant is linear in the values (the
+        not-a-knot spline too: a linear system in them), so the pieces of ``c N`` and of
+        ``N_1 + N_2`` are ``c`` times and the sum of the pieces, without solving the spline again.
+        """
+        out = object.__new__(DistributedDelay)
+        dtype = np.result_type(values, coefficients)
+        pieces = (self.pieces[0], self.pieces[1], coefficients.astype(dtype, copy=False))
+        out._store(
+            self.nodes,
+            values.astype(dtype, copy=False),
+            self.poly,
+            moment,
+            self.interpolation,
+            radius,
+            variation_radius,
+            pieces,
+        )
+        return out
 
     def replace(self, **changes: Any) -> DistributedDelay:
         """A copy with some of ``nodes``, ``poly``, ``moment``, ``radius``, ``variation_radius`` changed.
@@ -510,11 +551,21 @@ class DistributedDelay:
 
     def times(self, c: complex, **changes: Any) -> DistributedDelay:
         """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``."""
+        factor = abs(c)
+        if set(changes) <= {"moment"}:  # the same kernel scaled: its pieces scaled
+            radius, variation = (
+                (self.radius, self.variation_radius)
+                if factor == 1.0
+                else (_up(self.radius * factor), _up(self.variation_radius * factor))
+            )
+            moment = changes.get("moment", self.moment)
+            if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
+                raise ParameterError("moment", "an integer >= 0", moment)
+            return self._combined(self.values * c, self.pieces[2] * c, radius, variation, int(moment))
         if self.interpolation == "polynomial":
             changes["coefficients"] = self.pieces[2] * c
         else:
             changes["values"] = self.values * c
-        factor = abs(c)
         if factor == 1.0:  # exact: a sign or a unit phase
             return self.replace(**changes)
         return self.replace(
@@ -538,11 +589,9 @@ class DistributedDelay:
         )
         radius = 0.0 if opposite else _up(self.radius + other.radius)
         variation = 0.0 if opposite else _up(self.variation_radius + other.variation_radius)
-        if self.interpolation == "polynomial":
-            return self.replace(
-                coefficients=self.pieces[2] + other.pieces[2], radius=radius, variation_radius=variation
-            )
-        return self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
+        return self._combined(
+            self.values + other.values, self.pieces[2] + other.pieces[2], radius, variation, self.moment
+        )
 
     def mergeable(self, other: DistributedDelay) -> bool:
         """True when :meth:`plus` applies: same nodes, polynomial, moment and interpolation."""
