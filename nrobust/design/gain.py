@@ -6,7 +6,8 @@ an :class:`AffineLoop`, affine in its parameter in both factors,
 ``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` (the filtered law's pole ``b`` enters ``A``):
 ``g`` below is then ``c_0 + 2 h K + c_2 K^2`` with ``c_2 = |A_1|^2 - |B_1|^2``, its roots
 ``K_pm = m +- sqrt(D)`` as explicit, and the same equations apply with ``A`` depending on ``K``
-(a branch passes through ``K = inf`` where ``c_2`` changes sign: the curves are cut there too).
+(a branch passes through ``K = inf`` where ``c_2`` changes sign, and the finite root, ``-c_0 / (2 h)``
+there, moves to the other branch: the curves are cut there too, both pieces ending at that root).
 Its delay margin ``delta*(K)`` is the lower envelope of the *crossing curves*: on
 ``s = i w`` a root lies on the axis when ``g(w; K) = |A(i w)|^2 - |B(i w; K)|^2 = 0``, which
 is quadratic in ``K`` with the explicit roots ``K_pm(w) = m(w) +- sqrt(D(w))``
@@ -442,7 +443,7 @@ class _Piece:
     w: NDArray[np.float64]
     K: NDArray[np.float64]
     d: NDArray[np.float64]
-    start: str  # how it begins and ends: "birth", "junction", "wrap", "edge"
+    start: str  # how it begins and ends: "birth", "junction", "wrap", "pole", "edge"
     stop: str
 
     def at(self, K: float) -> tuple[float, float] | None:
@@ -452,6 +453,10 @@ class _Piece:
         if self.K.size < 2 or not Ks[0] <= K <= Ks[-1]:
             return None
         return float(np.interp(K, Ks, self.w[order])), float(np.interp(K, Ks, self.d[order]))
+
+
+# Points (w, K, d) of a branch.
+_Points = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 
 class _Curves:
@@ -475,19 +480,20 @@ class _Curves:
         D, m, root, at = self._sample(w)
         junctions = self._junctions(w, D)
         pole = np.sign(at.curvature())
+        poles = self._poles(w, D, m, root, pole)
         self.pieces: list[_Piece] = []
         for sigma in (1.0, -1.0):
             K = m + sigma * root
             slope = at.slopes(K, sigma)
             theta = at.theta(K)
-            wraps = self._wraps(sigma, w, K, theta, D)
-            births = self._births(sigma, w, K, slope, theta / w, D)
-            self._cut(sigma, w, K, slope, theta / w, theta, D, junctions, pole, wraps, births)
+            wraps = self._wraps(sigma, w, K, theta, D, pole)
+            births = self._births(sigma, w, K, slope, theta / w, D, pole)
+            self._cut(sigma, w, K, slope, theta / w, theta, D, junctions, pole, wraps, births, poles)
         self.gains = np.linspace(K_lo, K_hi, _N_GAINS)
         self.envelope, self.active = self._envelope(self.gains)
 
     def _wraps(
-        self, sigma: float, w: NDArray, K: NDArray, theta: NDArray, D: NDArray
+        self, sigma: float, w: NDArray, K: NDArray, theta: NDArray, D: NDArray, pole: NDArray
     ) -> dict[int, tuple[float, float]]:
         """``(w, K)`` where the branch's ``theta`` passes ``0 mod 2 pi`` (a root on the axis at ``delta = 0``).
 
@@ -501,7 +507,7 @@ class _Curves:
         valid = D >= 0.0
         span = self.K_hi - self.K_lo
         near = (np.minimum(K[:-1], K[1:]) <= self.K_hi + span) & (np.maximum(K[:-1], K[1:]) >= self.K_lo - span)
-        j = np.flatnonzero(valid[:-1] & valid[1:] & (np.abs(np.diff(theta)) > np.pi) & near)
+        j = np.flatnonzero(valid[:-1] & valid[1:] & (np.abs(np.diff(theta)) > np.pi) & near & (pole[:-1] == pole[1:]))
         if not j.size:
             return {}
 
@@ -517,27 +523,79 @@ class _Curves:
         _, m, root, _ = self._sample(wx)
         return {int(k): (float(x), float(mk + sigma * rk)) for k, x, mk, rk in zip(j, wx, m, root)}
 
+    def _poles(
+        self, w: NDArray, D: NDArray, m: NDArray, root: NDArray, pole: NDArray
+    ) -> dict[int, tuple[float, float, float, float, float]]:
+        """``(w, K, theta, sigma_before, sigma_after)`` where ``c_2`` changes sign in ``[w_j, w_{j+1}]`` (key ``j``).
+
+        There ``g = c_0 + 2 h p`` is linear in ``p``: one root ``K = -c_0 / (2 h)`` stays finite
+        while the other passes through ``p = inf``, and the finite one changes branch (``sigma``
+        is the sign of ``sqrt D`` relative to ``m = -h / c_2``, which flips with ``c_2``). The
+        point is located by twelve Illinois steps on ``c_2`` (vectorised over the poles); the
+        finite branch on each side is the one nearer ``K`` at the neighbouring sample. Its
+        ``dK/dw`` changes sign through infinity there, which is not a pair birth.
+        """
+        if self.loop.gain:  # c_2 = -|R|^2: no pole
+            return {}
+        valid = D >= 0.0
+        j = np.flatnonzero(valid[:-1] & valid[1:] & (pole[:-1] * pole[1:] < 0))
+        if not j.size:
+            return {}
+
+        def c2(x: NDArray) -> NDArray:
+            return self.loop.axis(x).curvature()
+
+        wx = illinois(c2, w[j].copy(), w[j + 1].copy(), steps=12)
+        at = self.loop.axis(wx)
+        c0 = np.abs(at.a0) ** 2 - np.abs(at.b0) ** 2
+        h = (np.conj(at.a0) * at.a1).real - (np.conj(at.b0) * at.b1).real
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Kx = np.where(h != 0.0, -c0 / (2.0 * np.where(h != 0.0, h, 1.0)), np.inf)
+        theta = at.theta(np.where(np.isfinite(Kx), Kx, 0.0))
+        out: dict[int, tuple[float, float, float, float, float]] = {}
+        for k, x, K, th in zip(j, wx, Kx, theta):
+            if not np.isfinite(K):
+                continue
+            side = [1.0 if abs(m[i] + root[i] - K) <= abs(m[i] - root[i] - K) else -1.0 for i in (k, k + 1)]
+            out[int(k)] = (float(x), float(K), float(th), side[0], side[1])
+        return out
+
     def _sample(self, w: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, _Axis]:
         """``D, m, sqrt D`` and the loop on the axis at ``w`` (with slopes)."""
         at = self.loop.axis(w, slopes=True)
         D, m, root = at.branches()
         return D, m, root, at
 
-    def _junctions(self, w: NDArray[np.float64], D: NDArray[np.float64]) -> dict[int, NDArray[np.float64]]:
-        """Points of the branches between each junction (``D = 0``, in ``[w_j, w_{j+1}]``) and the valid sample.
+    def _junctions(self, w: NDArray[np.float64], D: NDArray[np.float64]) -> dict[int, dict[float, _Points]]:
+        """Points ``(w, K, d)`` of each branch between each junction (``D = 0``, in ``[w_j, w_{j+1}]``) and the
+        valid sample.
 
         Near a junction ``K_pm - m ~ sqrt(D)``: the points are spaced quadratically towards
-        the junction, located by eight Illinois steps on ``D`` (vectorised over the junctions).
-        Keyed by ``j``; each array runs from the junction to the valid sample.
+        the junction, located by eight Illinois steps on ``D``, and evaluated in one batch
+        (vectorised over the junctions). Keyed by ``j``, then by the branch ``sigma``; each
+        array runs from the junction (where both branches meet at ``K = m``) to the valid sample.
         """
         j = np.flatnonzero((D[:-1] >= 0.0) != (D[1:] >= 0.0))
         if not j.size:
             return {}
         a, b, fa, fb = w[j].copy(), w[j + 1].copy(), D[j].copy(), D[j + 1].copy()
-        wj = illinois(lambda x: self._sample(x)[0], a, b, fa, fb, steps=8)  # K = m there: sqrt(D) is clipped at 0
+        wj = illinois(lambda x: self.loop.axis(x).branches()[0], a, b, fa, fb, steps=8)
         valid_end = np.where(D[j] >= 0.0, w[j], w[j + 1])
         t = np.linspace(0.0, 1.0, 10)[:-1] ** 2
-        return {int(k): wj_k + (v - wj_k) * t for k, wj_k, v in zip(j, wj, valid_end)}
+        points = (wj[:, None] + (valid_end - wj)[:, None] * t[None, :]).ravel()
+        at = self.loop.axis(points)
+        _, m, root = at.branches()
+        root = root.reshape(j.size, t.size)
+        root[:, 0] = 0.0  # both branches meet at the same gain (sqrt(D) is clipped at 0 there)
+        root = root.ravel()
+        out: dict[int, dict[float, _Points]] = {int(k): {} for k in j}
+        for sigma in (1.0, -1.0):
+            K = m + sigma * root
+            d = at.theta(K) / points
+            for n, k in enumerate(j):
+                part = slice(n * t.size, (n + 1) * t.size)
+                out[int(k)][sigma] = (points[part], K[part], d[part])
+        return out
 
     def _cut(
         self,
@@ -548,18 +606,22 @@ class _Curves:
         d: NDArray,
         theta: NDArray,
         D: NDArray,
-        junctions: dict[int, NDArray[np.float64]],
+        junctions: dict[int, dict[float, _Points]],
         pole: NDArray,
         wraps: dict[int, tuple[float, float]],
         births: dict[int, tuple[float, float, float]],
+        poles: dict[int, tuple[float, float, float, float, float]],
     ) -> None:
         """Cut the branch into monotone pieces at extrema (births), junctions, phase wraps and poles.
 
-        At a pole ``c_2`` changes sign: the branch leaves through ``p = +-inf`` and comes back
-        from the other side (never for a gain, ``c_2 = -|R|^2``).
+        At a pole ``c_2`` changes sign: one root leaves through ``p = +-inf`` and comes back
+        from the other side (never for a gain, ``c_2 = -|R|^2``), the other stays finite and
+        moves to the other branch; the pieces of the finite root on both sides end at its point
+        at the pole (:meth:`_poles`), so that no gain between the samples is left uncovered.
         """
         valid = D >= 0.0
-        turn = valid[:-1] & valid[1:] & (np.sign(slope[:-1]) * np.sign(slope[1:]) < 0)
+        same = pole[:-1] == pole[1:]  # dK/dw changes sign through infinity at a pole: not a birth
+        turn = valid[:-1] & valid[1:] & (np.sign(slope[:-1]) * np.sign(slope[1:]) < 0) & same
         wrap = valid[:-1] & valid[1:] & (np.abs(np.diff(theta)) > np.pi)
         gap = (valid[:-1] != valid[1:]) | (pole[:-1] != pole[1:])
         cuts = np.flatnonzero(turn | wrap | gap)
@@ -570,10 +632,10 @@ class _Curves:
                 stop = "edge"
             elif turn[c]:
                 stop = "birth"
-            elif wrap[c]:
-                stop = "wrap"
             elif pole[c] != pole[c + 1]:
                 stop = "pole"
+            elif wrap[c]:
+                stop = "wrap"
             else:
                 stop = "junction"
             if valid[lo] and valid[hi]:
@@ -585,10 +647,10 @@ class _Curves:
                     wb, Kb, db = births[hi]
                     ws, Ks, ds = np.r_[ws, wb], np.r_[Ks, Kb], np.r_[ds, db]
                 if how == "junction" and lo - 1 in junctions:
-                    wx, Kx, dx = self._on_branch_many(junctions[lo - 1], sigma)
+                    wx, Kx, dx = junctions[lo - 1][sigma]
                     ws, Ks, ds = np.r_[wx, ws], np.r_[Kx, Ks], np.r_[dx, ds]
                 if stop == "junction" and hi in junctions:
-                    wx, Kx, dx = self._on_branch_many(junctions[hi], sigma)
+                    wx, Kx, dx = junctions[hi][sigma]
                     ws, Ks, ds = np.r_[ws, wx[::-1]], np.r_[Ks, Kx[::-1]], np.r_[ds, dx[::-1]]
                 if how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
                     w_wrap, K_wrap = wraps[lo - 1]
@@ -598,15 +660,22 @@ class _Curves:
                     w_wrap, K_wrap = wraps[hi]
                     d_wrap = (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap
                     ws, Ks, ds = np.r_[ws, w_wrap], np.r_[Ks, K_wrap], np.r_[ds, d_wrap]
+                if how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
+                    w_pole, K_pole = poles[lo - 1][:2]
+                    d_pole = self._pole_delay(poles[lo - 1], theta[lo])
+                    ws, Ks, ds = np.r_[w_pole, ws], np.r_[K_pole, Ks], np.r_[d_pole, ds]
+                if stop == "pole" and hi in poles and poles[hi][3] == sigma:
+                    w_pole, K_pole = poles[hi][:2]
+                    d_pole = self._pole_delay(poles[hi], theta[hi])
+                    ws, Ks, ds = np.r_[ws, w_pole], np.r_[Ks, K_pole], np.r_[ds, d_pole]
                 self.pieces.extend(self._split_at_wraps(sigma, ws, Ks, ds, how, stop))
             start, how = c + 1, stop
 
-    def _on_branch_many(self, w: NDArray[np.float64], sigma: float) -> tuple[NDArray, NDArray, NDArray]:
-        """``(w, K, d)`` on the branch ``sigma`` at the points ``w`` from a junction (``w[0]``, where ``K = m``)."""
-        _, m, root, at = self._sample(w)
-        root[0] = 0.0  # both branches meet at the same gain
-        K = m + sigma * root
-        return w, K, at.theta(K) / w
+    @staticmethod
+    def _pole_delay(pole: tuple[float, float, float, float, float], theta_near: float) -> float:
+        """The crossing delay at the finite root of a pole (:meth:`_poles`) on the phase branch of ``theta_near``."""
+        w, theta = pole[0], pole[2]
+        return (theta + _TWO_PI * np.round((theta_near - theta) / _TWO_PI)) / w
 
     def _split_at_wraps(self, sigma: float, ws: NDArray, Ks: NDArray, ds: NDArray, how: str, stop: str) -> list[_Piece]:
         """The piece, cut where its phase wraps between points added near a junction (not between samples).
@@ -660,7 +729,7 @@ class _Curves:
         return out
 
     def _births(
-        self, sigma: float, w: NDArray, K: NDArray, slope: NDArray, d: NDArray, D: NDArray
+        self, sigma: float, w: NDArray, K: NDArray, slope: NDArray, d: NDArray, D: NDArray, pole: NDArray
     ) -> dict[int, tuple[float, float, float]]:
         """``(w, K, d)`` at each extremum of the branch's ``K(w)`` (a pair birth) in ``[w_j, w_{j+1}]``, keyed by ``j``.
 
@@ -670,7 +739,8 @@ class _Curves:
         candidates near the top are solved exactly in any case).
         """
         valid = D >= 0.0
-        j = np.flatnonzero(valid[:-1] & valid[1:] & (np.sign(slope[:-1]) * np.sign(slope[1:]) < 0))
+        turn = np.sign(slope[:-1]) * np.sign(slope[1:]) < 0
+        j = np.flatnonzero(valid[:-1] & valid[1:] & turn & (pole[:-1] == pole[1:]))
         if not j.size:
             return {}
         t = slope[j] / (slope[j] - slope[j + 1])

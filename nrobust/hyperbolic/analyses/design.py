@@ -8,22 +8,31 @@ maximum, or where ``delta*(K)`` equals a required margin) and certifies the desi
 With ``output_feedback=True`` the law acts on the state predicted from ``y = v(t, 0)``
 (:class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback`): its loop is affine in ``K``
 too, with the observer's term in ``A`` and ``B_0``
-(:mod:`~nrobust.hyperbolic.loops.output_feedback`), and the same equations design it.
+(:mod:`~nrobust.hyperbolic.loops.output_feedback`), and the same equations design it. With
+``collocated=True`` the law acts on the estimate of the collocated observer from ``y = u(t, 1)``
+(:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback`): the observer's term
+depends on the law, so ``A`` depends on ``K`` too, and the loop is affine in ``K`` in both
+factors (:class:`nrobust.design.AffineLoop`, built from the loops at ``K = 0`` and ``K = 1``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..._json import fields_dict
 from ..._validate import nonnegative, positive
-from ...design.gain import GainDesign, best_decay_rate, best_margin, check_delays
-from ...errors import ParameterError
+from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin, check_delays
+from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
+from ...quasipoly import QuasiPolynomial
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import (
+    CollocatedOutputFeedback,
     Controller,
     OutputFeedback,
     ReflectionController,
@@ -47,6 +56,9 @@ DESIGN_OBJECTIVES = ("margin", "decay_rate")
 # feedback a smaller one: the observer's term starts with a jump at the window w = 1/mu, so the
 # crossing curves reach frequencies growing like 1/(bound - |K|), not its square root.
 _BOUND_FRACTION, _OUTPUT_BOUND_FRACTION = 0.99, 0.9
+# The affine model of a collocated loop (from K = 0 and K = 1) and its factors at the design agree on the
+# axis to this relative error (the loop is affine in K up to rounding).
+_AFFINE_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -55,9 +67,9 @@ class ReflectionDesign:
 
     Attributes
     ----------
-    controller : ReflectionController or OutputFeedback
+    controller : ReflectionController, OutputFeedback or CollocatedOutputFeedback
         ``ReflectionController(K)`` at the designed gain (an :class:`OutputFeedback` of it when
-        designed for output feedback).
+        designed for output feedback, a :class:`CollocatedOutputFeedback` with ``collocated``).
     design : GainDesign
         The core's result: the objective value, its kind, the brackets of the optimum and the
         certified delay margin of the designed loop (``design.certificate``, whose ``scope``
@@ -116,6 +128,71 @@ def _tolerance_error(exc: ParameterError, eps: float | None, window: tuple[float
     )
 
 
+def _collocated_k_bounds(plant: Hyperbolic2x2, observer_delay: float) -> tuple[float, float]:
+    """The gains for which the collocated output feedback's difference operator is strongly stable.
+
+    For U_BS2(K) the condition is ``|rho - K| |q| + 2 |K rho| q^2 < 1`` with ``observer_delay = 0``,
+    ``|rho q| + |K q| + 2 |K rho| q^2 < 1`` otherwise
+    (:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback`): a convex piecewise
+    linear function of ``K``, below 1 on an open interval about ``K = 0`` when ``|rho q| < 1``,
+    whose ends are solved in closed form on the linear piece where it reaches 1.
+
+    Parameters
+    ----------
+    plant : Hyperbolic2x2
+        The paper's plant (``q != 0``, ``|rho q| < 1``).
+    observer_delay : float
+        The delay of the commands the observer replays (``>= 0``).
+
+    Returns
+    -------
+    (float, float)
+        The ends ``K_- < 0 < K_+`` of the interval.
+    """
+    rho, q = plant.rho, abs(plant.q)
+    if q == 0.0 or not abs(rho) * q < 1.0:
+        raise ParameterError("plant", "q != 0 and |rho q| < 1", plant)
+    observer_delay = nonnegative("observer_delay", observer_delay)
+
+    def level(K: float) -> float:
+        if observer_delay > 0.0:
+            return abs(rho) * q + abs(K) * q + 2.0 * abs(K * rho) * q * q
+        return abs(rho - K) * q + 2.0 * abs(K * rho) * q * q
+
+    ends = []
+    for side in (-1.0, 1.0):
+        # the kinks of level() on this side (K = 0, K = rho) and a point beyond every root (level > 1 + q there)
+        far = side * (abs(rho) + 2.0 / q)
+        points = sorted({0.0, far, *([rho] if side * rho > 0.0 else [])}, key=abs)
+        for a, b in itertools.pairwise(points):
+            fa, fb = level(a) - 1.0, level(b) - 1.0
+            if fa < 0.0 <= fb:  # linear on [a, b]: the root in closed form
+                ends.append(a + (b - a) * (-fa) / (fb - fa))
+                break
+    return ends[0], ends[1]
+
+
+def _collocated_loop(plant: Hyperbolic2x2, observer_delay: float) -> AffineLoop:
+    """The collocated loop as ``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` from its factors at ``K = 0, 1``."""
+    A0, B0 = loop_factors(plant, CollocatedOutputFeedback(ReflectionController(0.0), observer_delay))
+    A1, B1 = loop_factors(plant, CollocatedOutputFeedback(ReflectionController(1.0), observer_delay))
+    return AffineLoop(A0, A1 - A0, B0, B1 - B0)
+
+
+def _check_affine(loop: AffineLoop, K: float, factors: tuple[QuasiPolynomial, QuasiPolynomial], top: float) -> None:
+    """The affine model at ``K`` is the loop built at ``K`` on the axis up to ``top`` (else the design is not
+    about that loop)."""
+    s = 1j * np.linspace(0.0, top, 257)
+    for model, built in ((loop.A(K), factors[0]), (loop.B(K), factors[1])):
+        a, b = model(s), built(s)
+        err = float(np.max(np.abs(a - b)))
+        if err > _AFFINE_RTOL * max(float(np.max(np.abs(b))), 1.0):
+            raise CertificationError(
+                f"design_reflection: the collocated loop is not affine in K to rounding ({err:.2e} at K = {K:.15g} "
+                "between the model from K = 0, 1 and the loop built at K), so the design is not about that loop"
+            )
+
+
 def design_reflection(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
@@ -125,6 +202,7 @@ def design_reflection(
     rigorous: bool = False,
     output_feedback: bool = False,
     observer_delay: float = 0.0,
+    collocated: bool = False,
     delays: tuple[float, float] | None = None,
     speed_tolerance: float | None = None,
     kernel_grid: int = DEFAULT_KERNEL_GRID,
@@ -157,7 +235,10 @@ def design_reflection(
         The delay margin required (``> 0``); required with ``objective="decay_rate"``.
     K_bounds : (float, float), optional
         The gains searched; default ``0.99`` times the strong-stability bound
-        ``(1 - |rho q|)/|q|`` of eq. (54) on each side (``0.9`` with ``output_feedback``).
+        ``(1 - |rho q|)/|q|`` of eq. (54) on each side (``0.9`` with ``output_feedback``;
+        with ``collocated``, of the ends of the interval where its difference operator is strongly
+        stable: ``|rho - K| |q| + 2 |K rho| q^2 < 1``, or ``|rho q| + |K q| + 2 |K rho| q^2 < 1``
+        with ``observer_delay > 0``).
     rigorous : bool, optional
         Prove the delay margin of the designed loop in ball arithmetic (else checked in
         floating point; ``design.certified`` says which).
@@ -167,6 +248,12 @@ def design_reflection(
         the observer's term is computed in floating point, ``design.certificate.scope``).
     observer_delay : float, optional
         The actuation delay the observer assumes (with ``output_feedback`` only).
+    collocated : bool, optional
+        With ``output_feedback``: design ``CollocatedOutputFeedback(ReflectionController(K),
+        observer_delay)``, the law on the estimate of the collocated observer from ``u(t, 1)``
+        (a model too: its term comes from kernels of the dual plant). Its loop is affine in ``K``
+        in both factors; the default ``K_bounds`` are those of its own strong stability, not
+        eq. (54)'s.
     delays : (float, float), optional
         ``[d_min, d_max]``, ``0 <= d_min <= d_max``, ``d_max > 0``: the window of delays on which
         the designed loop must be exponentially stable.
@@ -187,7 +274,8 @@ def design_reflection(
         An unknown ``objective``, ``margin_at_least`` missing or not positive, or a plant
         without strongly stable gains (``|rho q| >= 1``); ``delays`` not a window or given with
         ``margin_at_least``; ``speed_tolerance`` outside ``(0, 1)``, without a delay requirement
-        or with ``output_feedback``; a requirement no gain meets (naming the best achievable).
+        or with ``output_feedback``; ``collocated`` without ``output_feedback``; a requirement no
+        gain meets (naming the best achievable).
     CertificationError
         As :func:`nrobust.design.best_margin` and :func:`nrobust.design.best_decay_rate`.
     """
@@ -217,6 +305,8 @@ def design_reflection(
                 )
             window = (0.0, d)
     kernel_grid = check_kernel_grid(kernel_grid)
+    if collocated and not output_feedback:
+        raise ParameterError("collocated", "False unless output_feedback=True", collocated)
     plant: Hyperbolic2x2 = study_plant(system, None, "design_reflection")[0]  # a general plant: its normal form
     kb = classify(plant).k_bound
     if K_bounds is None:
@@ -224,14 +314,21 @@ def design_reflection(
             raise ParameterError(
                 "system", "|rho q| < 1 (no gain K makes the difference operator strongly stable)", plant
             )
+        if collocated and plant.q == 0.0:
+            raise ParameterError("K_bounds", "given when q = 0 (every gain is strongly stable)", None)
         fraction = _OUTPUT_BOUND_FRACTION if output_feedback else _BOUND_FRACTION
-        K_bounds = (-fraction * kb, fraction * kb)
-    loop = u_bs2_loop(plant)
-    if output_feedback:
-        observed = OutputFeedback(ReflectionController(0.0), nonnegative("observer_delay", observer_delay))
-        loop = AffineGainLoop(*loop_factors(plant, observed), loop.R)
-    elif observer_delay != 0.0:
-        raise ParameterError("observer_delay", "0 unless output_feedback=True", observer_delay)
+        k_lo, k_hi = _collocated_k_bounds(plant, observer_delay) if collocated else (-kb, kb)
+        K_bounds = (fraction * k_lo, fraction * k_hi)
+    loop: AffineGainLoop | AffineLoop
+    if collocated:
+        loop = _collocated_loop(plant, nonnegative("observer_delay", observer_delay))
+    else:
+        loop = u_bs2_loop(plant)
+        if output_feedback:
+            observed = OutputFeedback(ReflectionController(0.0), nonnegative("observer_delay", observer_delay))
+            loop = AffineGainLoop(*loop_factors(plant, observed), loop.R)
+        elif observer_delay != 0.0:
+            raise ParameterError("observer_delay", "0 unless output_feedback=True", observer_delay)
     scenarios: tuple[AffineGainLoop, ...] = ()
     if eps is not None:
         corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
@@ -249,9 +346,15 @@ def design_reflection(
     else:
         design = best_decay_rate(loop, K_bounds, margin_at_least=d, rigorous=rigorous)
     controller: Controller = ReflectionController(design.K)
-    if output_feedback:
+    if collocated:
+        controller = CollocatedOutputFeedback(controller, observer_delay)
+    elif output_feedback:
         controller = OutputFeedback(controller, observer_delay)
-    factors = (loop.A, loop.B(design.K))
+    if isinstance(loop, AffineLoop):
+        factors = loop_factors(plant, controller)
+        _check_affine(loop, design.K, factors, 2.0 * max(float(design.certificate.omega or 0.0), 1.0))
+    else:
+        factors = (loop.A, loop.B(design.K))
     certificate = dataclasses.replace(
         design.certificate,
         scope=loop_scope(plant, controller, None, factors),

@@ -23,6 +23,7 @@ from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
 from ...roots import spectral_abscissa
 from ..loops.controllers import (
+    CollocatedOutputFeedback,
     Controller,
     FilteredController,
     OutputFeedback,
@@ -30,6 +31,7 @@ from ..loops.controllers import (
     loop_factors,
     loop_route,
     loop_scope,
+    normalize,
     observer_of,
 )
 from ..plants.general import GeneralHyperbolic2x2
@@ -111,6 +113,8 @@ def delay_margin(
                 f"a controller ({_kinds(Controller)}) when system is a plant",
                 type(controller).__name__,
             )
+        if isinstance(controller, CollocatedOutputFeedback) and isinstance(system, GeneralHyperbolic2x2):
+            system, controller = _collocated_on_normal_form(system, controller)
         A, B = loop_factors(system, controller, kernel_grid)
         scope = loop_scope(system, controller, kernel_grid, (A, B))
     elif isinstance(system, QuasiPolynomial):
@@ -143,6 +147,25 @@ def delay_margin(
     ):
         model_error = _observer_margin_error(system, controller, B, result)
     return dataclasses.replace(result, scope=scope, of_model=of_model, model_error=model_error)
+
+
+def _collocated_on_normal_form(
+    system: GeneralHyperbolic2x2, controller: CollocatedOutputFeedback
+) -> tuple[Hyperbolic2x2, CollocatedOutputFeedback]:
+    """A collocated output feedback on a general plant as the same feedback on its normal form.
+
+    The collocated observer is built on the paper's plant; a general plant with a constant
+    ``lam/mu`` has the characteristic function of its normal form up to a constant factor
+    (:func:`~nrobust.hyperbolic.loops.controllers.normalize`), and the state feedback is mapped to
+    the normal coordinates as :func:`~nrobust.hyperbolic.loops.controllers.normalize` maps it. A
+    varying ``lam/mu`` has no normal form: refused.
+    """
+    if not system.constant_ratio:
+        raise ParameterError(
+            "system", "a plant with a constant lam/mu for a CollocatedOutputFeedback (through its normal form)", system
+        )
+    plant, inner = normalize(system, controller.controller)
+    return plant, CollocatedOutputFeedback(inner, controller.observer_delay)
 
 
 #: Safety factor of the first-order estimate of an output feedback's margin error (its observer
