@@ -43,6 +43,7 @@ from nrobust.hyperbolic.loops.controllers import (
     loop_factors,
     loop_route,
     loop_scope,
+    normalize,
 )
 from nrobust.roots import spectral_abscissa
 
@@ -426,3 +427,28 @@ def test_certificate_scope_names_the_observer_model():
     )
     assert "collocated observer's term" in cert.scope and "not part of the proof" in cert.scope
     assert "cubic spline of the kernels on the kernel grid" not in cert.scope
+
+
+def test_a_state_feedback_in_an_observer_is_mapped_to_the_normal_form_of_a_general_plant() -> None:
+    """``normalize`` maps the gains of a StateFeedback inside either output feedback as it maps a bare one.
+
+    The collocated one was passed through unmapped: ``certify`` then read the physical gains as
+    normal-form ones (spectral abscissa 0.28953 instead of 0.29438 on the plant below, k = -0.2).
+    """
+    general = nr.GeneralHyperbolic2x2(lam=2.0, mu=1.0, a=0.3, b=1.0, c=1.0, d=-0.2, q=0.8, rho=0.5)
+    form = general.normal_form()
+    want = StateFeedback(*form.feedback_to_normal(-0.2, 0.0, 0.0))
+    assert want.k != -0.2
+    for kind in (OutputFeedback, CollocatedOutputFeedback):
+        plant, mapped = normalize(general, kind(StateFeedback(-0.2), observer_delay=0.05))
+        assert plant == form.system and type(mapped) is kind
+        assert mapped.controller == want and mapped.observer_delay == 0.05
+
+
+@pytest.mark.long
+def test_certify_of_a_collocated_state_feedback_on_a_general_plant_is_its_normal_forms() -> None:
+    general = nr.GeneralHyperbolic2x2(lam=2.0, mu=1.0, a=0.3, b=1.0, c=1.0, d=-0.2, q=0.8, rho=0.5)
+    mapped = StateFeedback(*general.normal_form().feedback_to_normal(-0.2, 0.0, 0.0))
+    on_general = nr.certify(general, CollocatedOutputFeedback(StateFeedback(-0.2)), delta_max=0.05, k_region=False)
+    A, B = loop_factors(general.normal_form().system, CollocatedOutputFeedback(mapped))
+    np.testing.assert_allclose(on_general.abscissa.value, nr.spectral_abscissa(A + B).value, rtol=1e-9)

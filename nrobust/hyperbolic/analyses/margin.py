@@ -114,7 +114,14 @@ def delay_margin(
                 type(controller).__name__,
             )
         if isinstance(controller, CollocatedOutputFeedback) and isinstance(system, GeneralHyperbolic2x2):
-            system, controller = _collocated_on_normal_form(system, controller)
+            if not system.constant_ratio:  # the collocated observer is built on the normal form
+                raise ParameterError(
+                    "system",
+                    "a plant with a constant lam/mu for a CollocatedOutputFeedback (through its normal form)",
+                    system,
+                )
+            normal: tuple[Hyperbolic2x2, Controller] = normalize(system, controller)
+            system, controller = normal
         A, B = loop_factors(system, controller, kernel_grid)
         scope = loop_scope(system, controller, kernel_grid, (A, B))
     elif isinstance(system, QuasiPolynomial):
@@ -147,25 +154,6 @@ def delay_margin(
     ):
         model_error = _observer_margin_error(system, controller, B, result)
     return dataclasses.replace(result, scope=scope, of_model=of_model, model_error=model_error)
-
-
-def _collocated_on_normal_form(
-    system: GeneralHyperbolic2x2, controller: CollocatedOutputFeedback
-) -> tuple[Hyperbolic2x2, CollocatedOutputFeedback]:
-    """A collocated output feedback on a general plant as the same feedback on its normal form.
-
-    The collocated observer is built on the paper's plant; a general plant with a constant
-    ``lam/mu`` has the characteristic function of its normal form up to a constant factor
-    (:func:`~nrobust.hyperbolic.loops.controllers.normalize`), and the state feedback is mapped to
-    the normal coordinates as :func:`~nrobust.hyperbolic.loops.controllers.normalize` maps it. A
-    varying ``lam/mu`` has no normal form: refused.
-    """
-    if not system.constant_ratio:
-        raise ParameterError(
-            "system", "a plant with a constant lam/mu for a CollocatedOutputFeedback (through its normal form)", system
-        )
-    plant, inner = normalize(system, controller.controller)
-    return plant, CollocatedOutputFeedback(inner, controller.observer_delay)
 
 
 #: Safety factor of the first-order estimate of an output feedback's margin error (its observer

@@ -370,9 +370,10 @@ class CollocatedOutputFeedback(_ObserverFeedback):
     ``1 - (rho - K) q e^{-tau s} - K rho q^2 e^{-2 tau s} + K rho q^2 e^{-(2 tau + delta) s}``,
     strongly stable iff ``|rho - K| |q| + 2 |K rho| q^2 < 1`` (with ``observer_delay > 0``:
     ``|rho q| + |K q| + 2 |K rho| q^2 < 1``). On
-    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` plants only; the loop is
-    not affine in ``K`` with a fixed ``A`` (the observer's term, in ``A``, depends on the law), so
-    :func:`~nrobust.hyperbolic.analyses.design.design_reflection` does not design it.
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` plants (a general plant with a
+    constant ``lam/mu`` through its normal form); for U_BS2(K) the loop is affine in ``K`` in both
+    factors (the observer's term, in ``A``, depends on the law), and
+    :func:`~nrobust.hyperbolic.analyses.design.design_reflection` with ``collocated=True`` designs it.
 
     Parameters
     ----------
@@ -390,7 +391,8 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     """The plant as the paper's plant and the controller acting on it.
 
     A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` is replaced by its normal
-    form; a :class:`StateFeedback` on it gets its gains mapped to the normal coordinates
+    form; a :class:`StateFeedback` on it, alone or inside an :class:`OutputFeedback` or a
+    :class:`CollocatedOutputFeedback`, gets its gains mapped to the normal coordinates
     (:meth:`~nrobust.hyperbolic.plants.general.NormalForm.feedback_to_normal`). The paper's
     controllers are defined on the normal form and pass unchanged: the ``K`` of
     :class:`ReflectionController` (and of a :class:`FilteredController`) is read in the normal
@@ -407,10 +409,10 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
         form = system.normal_form()
         if isinstance(controller, StateFeedback):
             controller = StateFeedback(*form.feedback_to_normal(controller.k, controller.g_u, controller.g_v))
-        if isinstance(controller, OutputFeedback) and isinstance(controller.controller, StateFeedback):
+        if isinstance(controller, _ObserverFeedback) and isinstance(controller.controller, StateFeedback):
             inner = controller.controller
             mapped = StateFeedback(*form.feedback_to_normal(inner.k, inner.g_u, inner.g_v))
-            controller = OutputFeedback(mapped, controller.observer_delay)
+            controller = type(controller)(mapped, controller.observer_delay)
         return form.system, controller
     return system, controller
 
