@@ -474,28 +474,19 @@ class DistributedDelay:
         ):
             object.__setattr__(self, name, value)
 
-    def _combined(
-        self, values: NDArray, coefficients: NDArray, radius: float, variation_radius: float, moment: int
-    ) -> DistributedDelay:
-        """A term on the same nodes, polynomial and interpolation with the given values and piece coefficients.
+    def _combined(self, coefficients: NDArray, radius: float, variation_radius: float, moment: int) -> DistributedDelay:
+        """A polynomial-piece term on the same segments and polynomial with the given coefficients.
 
-        For :meth:`times` and :meth:`plus`: every interpolant is linear in the values (the
-        not-a-knot spline too: a linear system in them), so the pieces of ``c N`` and of
-        ``N_1 + N_2`` are ``c`` times and the sum of the pieces, without solving the spline again.
+        For :meth:`times` and :meth:`plus` of ``"polynomial"`` terms, whose coefficients are their
+        data: the constructor's checks are those of ``self``. The values at the nodes are derived
+        from the coefficients as the constructor derives them. A spline's pieces are not combined
+        this way: they are always the spline of the values, so that equal terms (``==``, which
+        compares the values) evaluate alike, as the caches keyed by terms need.
         """
         out = object.__new__(DistributedDelay)
-        dtype = np.result_type(values, coefficients)
-        pieces = (self.pieces[0], self.pieces[1], coefficients.astype(dtype, copy=False))
-        out._store(
-            self.nodes,
-            values.astype(dtype, copy=False),
-            self.poly,
-            moment,
-            self.interpolation,
-            radius,
-            variation_radius,
-            pieces,
-        )
+        values = np.append(coefficients[:, 0], np.sum(coefficients[-1]))
+        pieces = (self.pieces[0], self.pieces[1], coefficients)
+        out._store(self.nodes, values, self.poly, moment, self.interpolation, radius, variation_radius, pieces)
         return out
 
     def replace(self, **changes: Any) -> DistributedDelay:
@@ -552,7 +543,7 @@ class DistributedDelay:
     def times(self, c: complex, **changes: Any) -> DistributedDelay:
         """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``."""
         factor = abs(c)
-        if set(changes) <= {"moment"}:  # the same kernel scaled: its pieces scaled
+        if self.interpolation == "polynomial" and set(changes) <= {"moment"}:  # the coefficients scaled
             radius, variation = (
                 (self.radius, self.variation_radius)
                 if factor == 1.0
@@ -561,7 +552,7 @@ class DistributedDelay:
             moment = changes.get("moment", self.moment)
             if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
                 raise ParameterError("moment", "an integer >= 0", moment)
-            return self._combined(self.values * c, self.pieces[2] * c, radius, variation, int(moment))
+            return self._combined(self.pieces[2] * c, radius, variation, int(moment))
         if self.interpolation == "polynomial":
             changes["coefficients"] = self.pieces[2] * c
         else:
@@ -589,9 +580,9 @@ class DistributedDelay:
         )
         radius = 0.0 if opposite else _up(self.radius + other.radius)
         variation = 0.0 if opposite else _up(self.variation_radius + other.variation_radius)
-        return self._combined(
-            self.values + other.values, self.pieces[2] + other.pieces[2], radius, variation, self.moment
-        )
+        if self.interpolation == "polynomial":
+            return self._combined(self.pieces[2] + other.pieces[2], radius, variation, self.moment)
+        return self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
 
     def mergeable(self, other: DistributedDelay) -> bool:
         """True when :meth:`plus` applies: same nodes, polynomial, moment and interpolation."""

@@ -1,5 +1,6 @@
-"""``DistributedDelay.times`` and ``plus`` scale and add the interpolants' pieces instead of solving
-the spline again: the pieces must be those the constructor builds from the scaled or summed values."""
+"""``DistributedDelay.times`` and ``plus``: the pieces of ``c N`` and ``N_1 + N_2`` are those the constructor
+builds from the scaled or summed data (polynomial pieces combined directly, splines solved again from the values,
+so that equal terms evaluate alike)."""
 
 from __future__ import annotations
 
