@@ -242,34 +242,6 @@ def _solve_K(system: Hyperbolic2x2, n: int) -> Array:
     return K
 
 
-#: Size under which :func:`_lower_solve` hands a diagonal block to LAPACK's dense solver.
-_LOWER_BLOCK = 128
-
-
-def _lower_solve(M: Array, R: Array, lower: bool = False) -> Array:
-    """``M^-1 R`` for a lower-triangular ``M``, by recursive block substitution.
-
-    ``[[M11, 0], [M21, M22]] [X1; X2] = [R1; R2]`` gives ``X1 = M11^-1 R1`` and
-    ``X2 = M22^-1 (R2 - M21 X1)``: the work is in matrix products, as in LAPACK's ``trsm``,
-    without importing ``scipy.linalg`` (a few tenths of a second, which the simulations would
-    pay only for this). With ``lower``, ``R`` is block lower triangular in the 2 x 2 blocks, and
-    so is the solution: its upper-right quarter is not computed. Blocks of at most
-    :data:`_LOWER_BLOCK` rows go to ``numpy.linalg.solve``.
-    """
-    n = M.shape[0]
-    if n <= _LOWER_BLOCK:
-        return np.linalg.solve(M, R)
-    h = 2 * (n // 4)  # even: the split falls between 2 x 2 blocks
-    if not lower:
-        top = _lower_solve(M[:h, :h], R[:h])
-        return np.concatenate([top, _lower_solve(M[h:, h:], R[h:] - M[h:, :h] @ top)])
-    X = np.zeros_like(R)
-    X[:h, :h] = _lower_solve(M[:h, :h], R[:h, :h], True)
-    X[h:, :h] = _lower_solve(M[h:, h:], R[h:, :h] - M[h:, :h] @ X[:h, :h])
-    X[h:, h:] = _lower_solve(M[h:, h:], R[h:, h:], True)
-    return X
-
-
 def resolvent(K: Array) -> Array:
     """Inverse kernels from the resolvent identity ``L = K + K o L`` (trapezoidal rule).
 
@@ -283,8 +255,10 @@ def resolvent(K: Array) -> Array:
     ``(I - K_h) Lam = R``, ``K_h[i, m] = h K_im`` for ``m < i`` and ``h/2 K_ii`` for
     ``m = i``, ``R_ik = K_ik`` for ``i > k`` and ``R_kk = (I - h/2 K_kk) K_kk / 2`` (which
     returns ``Lam_kk = K_kk / 2``). Scaled by the inverse diagonal blocks it is unit
-    lower triangular and is solved at once by block substitution (:func:`_lower_solve`).
+    lower triangular and is solved at once by substitution.
     """
+    from scipy.linalg import solve_triangular  # lazily: a slow import
+
     n = K.shape[-1]
     h = 1.0 / (n - 1)
     eye2 = np.eye(2)
@@ -302,7 +276,7 @@ def resolvent(K: Array) -> Array:
     D_inv = np.linalg.inv(eye2 - 0.5 * h * Kd)
     M = np.einsum("kab,kbj->kaj", D_inv, (np.eye(2 * n) - Kb * Wb).reshape(n, 2, 2 * n))
     R = np.einsum("kab,kbj->kaj", D_inv, R.reshape(n, 2, 2 * n))
-    Lam = _lower_solve(M.reshape(2 * n, 2 * n), R.reshape(2 * n, 2 * n), lower=True)
+    Lam = solve_triangular(M.reshape(2 * n, 2 * n), R.reshape(2 * n, 2 * n), lower=True, unit_diagonal=True)
     L = Lam.reshape(n, 2, n, 2).transpose(1, 3, 0, 2) * np.tri(n)
     L[:, :, diag, diag] = K[:, :, diag, diag]
     return L
