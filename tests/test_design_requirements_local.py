@@ -102,11 +102,16 @@ def test_an_unreachable_window_is_refused() -> None:
         optimize_loop(oscillator, OSC_BOUNDS, delays=(4.85, 4.7))
     with pytest.raises(ParameterError, match="delays"):
         optimize_loop(oscillator, OSC_BOUNDS, scenarios=[oscillator])
+    for bad in (oscillator, 3.0, "oscillator"):  # one callable, not a sequence of them
+        with pytest.raises(ParameterError, match="scenarios"):
+            optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, scenarios=bad)
     transport = nr.TransportSystem(LAM, MU, Q, RHO)
     with pytest.raises(ParameterError, match=r"speed_tolerance.*delay requirement"):
         design_filtered(transport, speed_tolerance=0.1)
     with pytest.raises(ParameterError, match="speed_tolerance"):
         design_filtered(transport, margin_at_least=0.5, speed_tolerance=1.5)
+    with pytest.raises(ParameterError, match="kernel_grid"):  # checked without a tolerance too
+        design_filtered(transport, margin_at_least=0.5, kernel_grid=-3)
     general = nr.GeneralHyperbolic2x2(lam=1.0, mu=1.0, a=0.0, b=0.5, c=0.5, d=0.0, q=0.5, rho=0.5)
     for design in (design_filtered, design_state_feedback):
         with pytest.raises(ParameterError, match=r"speed_tolerance.*Hyperbolic2x2 or TransportSystem"):

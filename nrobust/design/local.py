@@ -24,6 +24,8 @@ windows (``d_min - l`` taken as ``+inf`` for a window ``[0, h)`` holding the nom
 requirement ``delta* > d`` is the window ``[0, d]``. ``c`` is differentiable where one end
 ``tau`` binds, with the gradient of that crossing delay (below), and a start that misses the
 window first maximises ``c`` up to 0, as a start below a required margin maximises the margin.
+``c = -inf`` where a loop has no stability window up to ``2 d_max + 1``: such a start (and one
+unstable at ``delta = 0`` when ``d_min = 0``) is not improved, and only other starts can succeed.
 
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
@@ -1252,7 +1254,12 @@ def optimize_loop(
     window = None if delays is None else check_delays(delays)
     if window is not None and margin_at_least is not None:
         raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
-    scenarios = tuple(scenarios)
+    if callable(scenarios) or isinstance(scenarios, (str, bytes)):
+        raise ParameterError("scenarios", "a sequence of callables p -> (A, B) (a tuple, even of one)", scenarios)
+    try:
+        scenarios = tuple(scenarios)
+    except TypeError:
+        raise ParameterError("scenarios", "a sequence of callables p -> (A, B)", scenarios) from None
     if scenarios and window is None:
         raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
     for n, scenario in enumerate(scenarios):

@@ -426,7 +426,7 @@ def design_filtered(
                     "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
                 )
             window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
-        kernel_grid = check_kernel_grid(kernel_grid)
+    kernel_grid = check_kernel_grid(kernel_grid)  # checked whether or not a tolerance uses it
     free, bounds = _split(plant, parameters)
     loop = filtered_loop(plant, free)
     scenarios: tuple[FilteredLoop, ...] = ()
