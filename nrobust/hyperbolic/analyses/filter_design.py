@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import json_safe
 from ..._validate import is_real_number
 from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin, check_delays
-from ...design.local import LoopDesign, check_objective, optimize_loop
+from ...design.local import LoopDesign, optimize_loop
 from ...design.pareto import ParetoFront, pareto_front
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
@@ -38,7 +38,7 @@ from ..loops.controllers import FilteredController, ReflectionController, classi
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
-from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
+from .mismatch import SpeedTolerance, check_local_requirements, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = [
@@ -407,25 +407,7 @@ def design_filtered(
         certified).
     """
     plant = _plant(system)
-    margin_at_least = check_objective(objective, margin_at_least)
-    window = None if delays is None else check_delays(delays)
-    if window is not None and margin_at_least is not None:
-        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
-    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
-    if eps is not None:
-        if not isinstance(plant, Hyperbolic2x2):
-            raise ParameterError(
-                "speed_tolerance",
-                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
-                "TransportSystem (constant speeds lam, mu)",
-                speed_tolerance,
-            )
-        if window is None:
-            if margin_at_least is None:
-                raise ParameterError(
-                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
-                )
-            window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
+    margin_at_least, window, eps = check_local_requirements(plant, objective, margin_at_least, delays, speed_tolerance)
     kernel_grid = check_kernel_grid(kernel_grid)  # checked whether or not a tolerance uses it
     free, bounds = _split(plant, parameters)
     loop = filtered_loop(plant, free)

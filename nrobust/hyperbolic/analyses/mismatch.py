@@ -43,6 +43,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, positive, positive_int
 from ...design.gain import DelayWindow, check_delays, window_stability
+from ...design.local import check_objective
 from ...errors import CertificationError, ParameterError
 from ...margins.admissible import tolerates
 from ...margins.gain import AffineGainLoop
@@ -73,6 +74,7 @@ __all__ = [
     "MismatchEnd",
     "MismatchRegion",
     "SpeedTolerance",
+    "check_local_requirements",
     "check_speed_tolerance",
     "mismatch_gain_loop",
     "mismatch_loop",
@@ -557,6 +559,38 @@ def check_speed_tolerance(value: Any, name: str = "speed_tolerance") -> float:
     if not 0.0 < eps < 1.0:
         raise ParameterError(name, what, value)
     return eps
+
+
+def check_local_requirements(
+    plant: Any, objective: str, margin_at_least: Any, delays: Any, speed_tolerance: Any
+) -> tuple[float | None, tuple[float, float] | None, float | None]:
+    """``(margin_at_least, window, eps)`` of a local design's requirements, checked.
+
+    For :func:`~nrobust.hyperbolic.analyses.design_filtered` and
+    :func:`~nrobust.hyperbolic.analyses.design_state_feedback`: a window of delays or a margin,
+    not both; a speed tolerance needs a ``Hyperbolic2x2`` (constant speeds) and a delay
+    requirement, and turns a required margin ``d`` into the window ``[0, d]``.
+    """
+    margin_at_least = check_objective(objective, margin_at_least)
+    window = None if delays is None else check_delays(delays)
+    if window is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    if eps is not None:
+        if not isinstance(plant, Hyperbolic2x2):
+            raise ParameterError(
+                "speed_tolerance",
+                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
+                "TransportSystem (constant speeds lam, mu)",
+                speed_tolerance,
+            )
+        if window is None:
+            if margin_at_least is None:
+                raise ParameterError(
+                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
+                )
+            window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
+    return margin_at_least, window, eps
 
 
 def mismatch_gain_loop(

@@ -36,8 +36,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._validate import finite_real, positive_int
-from ...design.gain import best_decay_rate, best_margin, check_delays
-from ...design.local import GAMMA_MAX, LoopDesign, check_objective, delayed_gamma, optimize_loop
+from ...design.gain import best_decay_rate, best_margin
+from ...design.local import GAMMA_MAX, LoopDesign, delayed_gamma, optimize_loop
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
@@ -48,7 +48,7 @@ from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
 from .design import design_reflection
-from .mismatch import SpeedTolerance, check_speed_tolerance
+from .mismatch import SpeedTolerance, check_local_requirements
 from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = ["BasisGain", "StateFeedbackDesign", "StateFeedbackLoop", "design_state_feedback", "state_feedback_loop"]
@@ -517,25 +517,7 @@ def design_state_feedback(
         a corner of the speed tolerance.
     """
     plant = _plant(system)
-    margin_at_least = check_objective(objective, margin_at_least)
-    window = None if delays is None else check_delays(delays)
-    if window is not None and margin_at_least is not None:
-        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
-    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
-    if eps is not None:
-        if not isinstance(plant, Hyperbolic2x2):
-            raise ParameterError(
-                "speed_tolerance",
-                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
-                "TransportSystem (constant speeds lam, mu)",
-                speed_tolerance,
-            )
-        if window is None:
-            if margin_at_least is None:
-                raise ParameterError(
-                    "speed_tolerance", "given with a delay requirement (delays, or margin_at_least)", speed_tolerance
-                )
-            window, margin_at_least = check_delays((0.0, margin_at_least), "margin_at_least"), None
+    margin_at_least, window, eps = check_local_requirements(plant, objective, margin_at_least, delays, speed_tolerance)
     functions = _basis(basis, _length(plant))
     coef = _pair("coefficient_bounds", coefficient_bounds)
     given = None if k_bounds is None else _pair("k_bounds", k_bounds)
