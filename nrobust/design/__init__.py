@@ -22,6 +22,7 @@ from .gain import (
     best_decay_rate,
     best_margin,
     check_delays,
+    window_requirement,
     window_stability,
 )
 from .local import (
@@ -58,5 +59,6 @@ __all__ = [
     "local_runs",
     "optimize_loop",
     "pareto_front",
+    "window_requirement",
     "window_stability",
 ]

@@ -50,6 +50,7 @@ samples, and a missed curve that would lower it is caught by the certificate
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,6 +79,7 @@ __all__ = [
     "best_decay_rate",
     "best_margin",
     "check_delays",
+    "window_requirement",
     "window_stability",
 ]
 
@@ -193,14 +195,7 @@ class GainDesign:
     @property
     def requirement(self) -> str:
         """The window requirement and its verdict in words: met and proven, met and checked, or not met."""
-        if self.delays is None:
-            return "none"
-        d_lo, d_hi = self.delays
-        met = all(w.stable for w in self.windows)
-        proven = met and all(w.certified == "proven" for w in self.windows)
-        loops = "the loop" if len(self.windows) == 1 else f"the loop and its {len(self.windows) - 1} scenarios"
-        verdict = "met, proven" if proven else "met, checked" if met else "not met"
-        return f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] ({loops}): {verdict}"
+        return window_requirement(self.delays, self.windows)
 
     @property
     def accuracy(self) -> tuple[float, float]:
@@ -1097,6 +1092,21 @@ def _scale(curves: _Curves) -> float:
 
 
 # ============================================================================ delay windows
+def window_requirement(delays: tuple[float, float] | None, windows: Sequence[DelayWindow]) -> str:
+    """A window requirement ``delays`` and its verdict from ``windows`` (the loop's, then its scenarios') in words.
+
+    ``"none"`` without a requirement; else met and proven, met and checked, or not met.
+    """
+    if delays is None:
+        return "none"
+    d_lo, d_hi = delays
+    met = all(w.stable for w in windows)
+    proven = met and all(w.certified == "proven" for w in windows)
+    loops = "the loop" if len(windows) == 1 else f"the loop and its {len(windows) - 1} scenarios"
+    verdict = "met, proven" if proven else "met, checked" if met else "not met"
+    return f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] ({loops}): {verdict}"
+
+
 def check_delays(delays: Any, name: str = "delays") -> tuple[float, float]:
     """``(d_min, d_max)``: finite, ``0 <= d_min <= d_max`` and ``d_max > 0``; a :class:`ParameterError`
     naming ``name`` otherwise."""

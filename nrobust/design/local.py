@@ -87,7 +87,7 @@ from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
 from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_search
 from ..quasipoly import QuasiPolynomial
 from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
-from .gain import DelayWindow, check_delays, window_stability
+from .gain import DelayWindow, check_delays, window_requirement, window_stability
 
 __all__ = [
     "GAMMA_MAX",
@@ -1069,14 +1069,7 @@ class LoopDesign:
     @property
     def requirement(self) -> str:
         """The window requirement and its verdict in words: met and proven, met and checked, or not met."""
-        if self.delays is None:
-            return "none"
-        d_lo, d_hi = self.delays
-        met = all(w.stable for w in self.windows)
-        proven = met and all(w.certified == "proven" for w in self.windows)
-        loops = "the loop" if len(self.windows) == 1 else f"the loop and its {len(self.windows) - 1} scenarios"
-        verdict = "met, proven" if proven else "met, checked" if met else "not met"
-        return f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] ({loops}): {verdict}"
+        return window_requirement(self.delays, self.windows)
 
     @property
     def stationarity(self) -> float:
