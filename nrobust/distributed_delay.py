@@ -215,14 +215,19 @@ def _chirp_plan(n: int, m: int, theta: float) -> tuple[int, NDArray, NDArray, ND
 def as_poly(name: str, coefs: ArrayLike) -> NDArray[np.complex128] | NDArray[np.float64]:
     """Validate polynomial coefficients (increasing powers); trailing zeros are trimmed."""
     try:
-        arr = np.atleast_1d(np.asarray(coefs))
+        arr = np.asarray(coefs)
     except (TypeError, ValueError):
         raise ParameterError(name, "a non-empty sequence of finite numbers", coefs) from None
-    if arr.ndim != 1 or arr.size == 0 or not np.issubdtype(arr.dtype, np.number):
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    kind = arr.dtype.kind
+    if arr.ndim != 1 or arr.size == 0 or kind not in "iufc":
         raise ParameterError(name, "a non-empty 1-D sequence of finite numbers", coefs)
-    if not np.all(np.isfinite(arr)):
+    arr = arr.astype(complex if kind == "c" else float)  # a copy: the caller's array may change
+    if not np.isfinite(arr).all():
         raise ParameterError(name, "finite (no nan or inf)", coefs)
-    arr = arr.astype(complex if np.iscomplexobj(arr) else float)
+    if arr[-1] != 0:
+        return arr
     nz = np.flatnonzero(arr)
     return arr[: nz[-1] + 1] if nz.size else arr[:1] * 0
 

@@ -41,8 +41,7 @@ import functools
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from fractions import Fraction
-from math import comb
+from math import comb, prod
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -67,8 +66,8 @@ _KEPT = 4096
 _TAYLOR_GAIN = 0.5
 # Largest number of monomials ``c s^p e^{-tau s}`` of a minor in the exact expansion of a
 # determinant (:meth:`QuasiPolynomialMatrix.exact_expansion`): beyond it the determinant is not
-# expanded (the rational arithmetic would cost more than it saves); and the largest number of
-# products of monomials (rational multiplications, about a microsecond each) of the whole expansion.
+# expanded (the exact arithmetic would cost more than it saves); and the largest number of
+# products of monomials (integer multiplications) of the whole expansion.
 _MAX_MONOMIALS = 4000
 _MAX_PRODUCTS = 200_000
 # Unit roundoff of double precision (round to nearest).
@@ -257,45 +256,72 @@ def _point_expansion(rows: Sequence[Sequence[QuasiPolynomial]]) -> QuasiPolynomi
     return QuasiPolynomial(list(polys.values()), list(polys))
 
 
-_Exact = dict[tuple[Fraction, int], Fraction]
+@dataclass(frozen=True)
+class _Exact:
+    """``det M`` expanded exactly: the monomial ``(c / scale) s^p e^{-(t / unit) s}`` for each ``(t, p) -> c``.
+
+    Every double is a dyadic rational, so with the delays in units of ``1 / unit`` and the
+    entries of row ``i`` in units of ``1 / d_i`` (``unit`` and the ``d_i`` the largest
+    denominators, powers of two) all numbers are integers and ``scale = prod d_i``.
+    """
+
+    terms: dict[tuple[int, int], int]
+    unit: int
+    scale: int
 
 
 def _exact_expansion(rows: Sequence[Sequence[QuasiPolynomial]]) -> _Exact | None:
-    """``det`` of a matrix of real point quasi-polynomials expanded in exact rational arithmetic.
+    """``det`` of a matrix of real point quasi-polynomials expanded in exact arithmetic.
 
-    The monomials ``c s^p e^{-tau s}`` map ``(tau, p)`` to ``c``; the floating-point
-    coefficients and delays of the entries are exact rationals, so are their products and
-    sums (Laplace expansion along the rows, minors memoised by their column sets, as
+    The floating-point coefficients and delays of the entries are dyadic rationals: scaled
+    to integers (:class:`_Exact`), their products and sums are exact in Python's integers
+    (Laplace expansion along the rows, minors memoised by their column sets, as
     :func:`_point_expansion`). None if an entry has a distributed term or a complex
     coefficient, a minor exceeds ``_MAX_MONOMIALS`` monomials or the expansion
     ``_MAX_PRODUCTS`` products.
     """
     n = len(rows)
-    entries: list[list[_Exact]] = []
+    raw: list[list[list[tuple[int, int, int, int, int]]]] = []
+    unit, dens, degree = 1, [], 0
     for row in rows:
-        out_row = []
+        den, top = 1, 0
+        raw_row = []
         for q in row:
             if q.distributed:
                 return None
-            terms: _Exact = {}
+            monomials = []
             for p, t in q.point_terms:
-                if np.iscomplexobj(p) and np.any(np.imag(p) != 0):
+                if p.dtype.kind == "c" and np.any(p.imag != 0):
                     return None
-                for k, c in enumerate(np.real(p).tolist()):
+                tn, td = float(t).as_integer_ratio()
+                unit = max(unit, td)
+                top = max(top, p.size - 1)
+                for k, c in enumerate(p.real.tolist()):
                     if c != 0:
-                        terms[(Fraction(t), k)] = Fraction(c)
-            out_row.append(terms)
-        entries.append(out_row)
-    memo: dict[tuple[int, int], _Exact | None] = {}
+                        cn, cd = c.as_integer_ratio()
+                        den = max(den, cd)
+                        monomials.append((tn, td, k, cn, cd))
+            raw_row.append(monomials)
+        raw.append(raw_row)
+        dens.append(den)
+        degree += top
+    # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits);
+    # denominators are powers of two, the largest is a multiple of the others
+    bits = degree.bit_length()
+    entries = [
+        [{(tn * (unit // td) << bits) + k: cn * (den // cd) for tn, td, k, cn, cd in mono} for mono in raw_row]
+        for raw_row, den in zip(raw, dens)
+    ]
+    memo: dict[tuple[int, int], dict[int, int] | None] = {}
     products = [0]
 
-    def minor(r: int, cols: int) -> _Exact | None:
+    def minor(r: int, cols: int) -> dict[int, int] | None:
         """The expanded determinant of rows ``r..n-1`` and the columns of the bit set ``cols``."""
         if r == n:
-            return {(Fraction(0), 0): Fraction(1)}
+            return {0: 1}
         if (r, cols) in memo:
             return memo[(r, cols)]
-        total: _Exact = {}
+        total: dict[int, int] = {}
         sign = 1
         for j in range(n):
             if not cols >> j & 1:
@@ -306,16 +332,20 @@ def _exact_expansion(rows: Sequence[Sequence[QuasiPolynomial]]) -> _Exact | None
                 products[0] += len(entry) * len(rest or ())
                 if rest is None or products[0] > _MAX_PRODUCTS:
                     return None
-                for (t, k), c in entry.items():
-                    for (u, m), d in rest.items():
-                        key = (t + u, k + m)
-                        total[key] = total.get(key, 0) + sign * c * d
+                for key, c in entry.items():
+                    c *= sign
+                    for other, d in rest.items():
+                        total[key + other] = total.get(key + other, 0) + c * d
             sign = -sign
         out = {key: c for key, c in total.items() if c != 0}
         memo[(r, cols)] = out if len(out) <= _MAX_MONOMIALS else None
         return memo[(r, cols)]
 
-    return minor(0, (1 << n) - 1)
+    packed = minor(0, (1 << n) - 1)
+    if packed is None:
+        return None
+    mask = (1 << bits) - 1
+    return _Exact({(key >> bits, key & mask): c for key, c in packed.items()}, unit, prod(dens))
 
 
 @dataclass(frozen=True)
@@ -481,12 +511,18 @@ class QuasiPolynomialMatrix:
         return float(max(e.max_delay for e in self._flat()))
 
     def point_determinant(self) -> QuasiPolynomial:
-        """``det`` of the point parts of the entries, expanded (Leibniz): a quasi-polynomial."""
+        """``det`` of the point parts of the entries, expanded (Leibniz): a quasi-polynomial.
+
+        Where :meth:`exact_expansion` applies (real point entries), its rounding: every
+        cancellation exact (a principal coefficient that cancels is 0, not a rounding residue);
+        otherwise expanded in floating point.
+        """
         return self._point_determinant
 
     @functools.cached_property
     def _point_determinant(self) -> QuasiPolynomial:
-        return _point_expansion(self.entries)
+        exact = self.exact_expansion()
+        return _point_expansion(self.entries) if exact is None else exact.poly
 
     @functools.cached_property
     def _compiled(self) -> _Compiled:
@@ -837,15 +873,15 @@ class ExpandedDeterminant:
     ----------
     matrix : QuasiPolynomialMatrix
         The matrix ``M``.
-    terms : dict
-        The exact expansion: ``(tau, p) -> c`` as :class:`fractions.Fraction`.
+    exact : _Exact
+        The exact expansion (:func:`_exact_expansion`): integer monomials with their units.
     """
 
-    def __init__(self, matrix: QuasiPolynomialMatrix, terms: _Exact) -> None:
-        groups: dict[tuple[float, int], tuple[Fraction, Fraction]] = {}
-        for (t, k), c in terms.items():
-            key = (float(t), k)
-            total, size = groups.get(key, (Fraction(0), Fraction(0)))
+    def __init__(self, matrix: QuasiPolynomialMatrix, exact: _Exact) -> None:
+        groups: dict[tuple[float, int], tuple[int, int]] = {}
+        for (t, k), c in exact.terms.items():
+            key = (t / exact.unit, k)  # int / int: correctly rounded
+            total, size = groups.get(key, (0, 0))
             groups[key] = (total + c, size + abs(c))
         taus = sorted({t for t, _ in groups} | {0.0})
         power = max((k for _, k in groups), default=0) + 1
@@ -853,8 +889,8 @@ class ExpandedDeterminant:
         weight = np.zeros((len(taus), power))
         where = {t: i for i, t in enumerate(taus)}
         for (tau, k), (total, size) in groups.items():
-            coef[where[tau], k] = float(total)
-            weight[where[tau], k] = float(size) * (1.0 + 4.0 * _UNIT)  # rounded up
+            coef[where[tau], k] = total / exact.scale
+            weight[where[tau], k] = size / exact.scale * (1.0 + 4.0 * _UNIT)  # rounded up
         self.matrix = matrix
         self.poly = QuasiPolynomial(list(coef), taus) if np.any(coef) else QuasiPolynomial([[0.0]], [0.0])
         self._taus = np.array(taus)
@@ -872,7 +908,6 @@ class ExpandedDeterminant:
         self._values = stack.astype(complex)
         # |W| @ _moduli: the sums of the moduli of the monomials of Q^{(j)}, then the two sums of the gap
         self._moduli = np.column_stack([np.abs(stack), weight.ravel(), (self._taus[:, None] * weight).ravel()])
-        self._both = np.hstack([self._values, self._moduli])
         # rounding allowance of a value (relative to the sum of the moduli of its terms, times 1 + tau |s|):
         # the weights (P products and an exponential) and the sum of K P products
         self._allowance = max(_ROUNDING, 2.0 * _UNIT * (K * P + 2 * P + 8))
@@ -936,8 +971,8 @@ class ExpandedDeterminant:
         """Bound of ``|Q^{(order)}|`` (``order`` 1 or 2) on each segment ``[a, b]``: the least of the
         closed form and the Taylor forms (class docstring), plus the margin ``2 gap / |b - a|^order``.
 
-        One matrix product gives the values at the midpoints ``c`` (rows ``W(c)``) and the closed
-        forms and ``G`` (rows ``e^{-tau_k x} (|c| + r)^p``, ``G`` at ``|s| <= |c| + r``). A value at
+        Two matrix products give the values at the midpoints ``c`` (rows ``W(c)``, complex) and the
+        closed forms and ``G`` (rows ``e^{-tau_k x} (|c| + r)^p``, real; ``G`` at ``|s| <= |c| + r``). A value at
         ``c`` is raised by its rounding allowance times the closed form, which exceeds the sum of
         the moduli of its terms.
         """
@@ -948,15 +983,15 @@ class ExpandedDeterminant:
         N, (K, P), J, L = a.size, self._weight.shape, _TAYLOR_TERMS + 3, _TAYLOR_TERMS
         center, half = 0.5 * (a + b), 0.5 * np.abs(b - a)
         big = np.abs(center) + half  # |s| <= big on the segment
-        exponent = np.concatenate([center, np.minimum(a.real, b.real)])  # real rows: e^{-tau x} exactly
-        weights = (
-            np.exp(-exponent[:, None] * self._taus)[:, :, None] * _powers(np.concatenate([center, big]), P)[:, None, :]
-        )
-        both = weights.reshape(2 * N, K * P) @ self._both
-        closed = both[N:, J : 2 * J].real * (1.0 + self._allowance)  # B_j, j < J
-        sums = both[N:, 2 * J :].real  # the two sums of G
+        xmin = np.minimum(a.real, b.real)
+        at = (np.exp(-center[:, None] * self._taus)[:, :, None] * _powers(center, P)[:, None, :]).reshape(N, K * P)
+        # real rows e^{-tau_k x} big^p: the closed forms B_j (j < J) and the two sums of G
+        bounds = (np.exp(-xmin[:, None] * self._taus)[:, :, None] * _powers(big, P)[:, None, :]).reshape(N, K * P)
+        moduli = bounds @ self._moduli
+        closed = moduli[:, :J] * (1.0 + self._allowance)
+        sums = moduli[:, J:]
         # Q^{(j)}(c) (j = order .. order + L - 1) raised by its rounding allowance
-        at_center = np.abs(both[:N, order : order + L])
+        at_center = np.abs(at @ self._values[:, order : order + L])
         at_center += (self._allowance * (1.0 + self._taus[-1] * big))[:, None] * closed[:, order : order + L]
         # partial Taylor sums plus the closed form of the remainder: r^m / m! for m <= L
         factor = _powers(half, L + 1) * self._inverse_factorials

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import json_safe
-from ._validate import is_real_number, nonnegative, real_array
+from ._validate import is_real_number, nonnegative, number_array, real_array
 from .difference import DifferenceOperator
 from .distributed_delay import DistributedDelay, as_poly, canonical_bytes, polyder, polymul, polyval
 from .errors import ParameterError
@@ -224,10 +224,17 @@ class QuasiPolynomial:
         if len(coefs) == 0 and not dist:
             raise ParameterError("coefs", "non-empty (or at least one distributed term)", coefs)
         merged: dict[float, NDArray] = {}
-        for k, (c, t) in enumerate(zip(coefs, taus)):
+        summed = set()
+        for k, (c, t) in enumerate(zip(coefs, taus.tolist())):
             p = as_poly(f"coefs[{k}]", c)
-            merged[float(t)] = _polyadd(merged[float(t)], p) if float(t) in merged else p
-        terms = tuple((as_poly("coefs", p), t) for t, p in sorted(merged.items()) if np.any(p != 0))
+            if t in merged:
+                merged[t] = _polyadd(merged[t], p)
+                summed.add(t)
+            else:
+                merged[t] = p
+        for t in summed:  # a sum may end in zeros
+            merged[t] = as_poly("coefs", merged[t])
+        terms = tuple((p, t) for t, p in sorted(merged.items()) if p[-1] != 0)
         object.__setattr__(self, "point_terms", terms)
         object.__setattr__(self, "distributed", _merge_distributed(dist))
 
@@ -241,6 +248,66 @@ class QuasiPolynomial:
         if not terms and not dist:
             return cls([[0.0]], [0.0])
         return cls([p for p, _ in terms], [t for _, t in terms], dist)
+
+    @classmethod
+    def from_coefficient_array(cls, coefs: ArrayLike, delays: ArrayLike) -> list[Any]:
+        """The quasi-polynomials ``sum_k coefs[..., k, p] s^p e^{-delays[k] s}`` of an array, as nested lists.
+
+        One validation of the whole array instead of one per entry: a matrix
+        ``M(s) = sum_k C_k(s) e^{-tau_k s}`` of ``n^2`` entries sharing delays is
+        ``from_coefficient_array(C, tau)`` with ``C`` of shape ``(n, n, K, P)`` (powers
+        increasing). Each entry equals ``QuasiPolynomial(coefs[i, j], delays)``: equal delays
+        summed in their order, zero terms dropped.
+
+        Parameters
+        ----------
+        coefs : array_like
+            Finite real or complex numbers, shape ``(..., K, P)`` with at least one leading axis.
+        delays : array_like
+            ``K`` finite delays ``>= 0``.
+
+        Returns
+        -------
+        list
+            Nested lists of :class:`QuasiPolynomial` of the shape ``coefs.shape[:-2]``.
+        """
+        arr = number_array("coefs", coefs, ndim=None)
+        taus = real_array("delays", delays, min_size=1)
+        if arr.ndim < 3 or arr.shape[-2] != taus.size or arr.shape[-1] == 0:
+            raise ParameterError(
+                "coefs", f"an array of shape (..., K, P) with K = {taus.size} (one row per delay), P >= 1", arr.shape
+            )
+        if np.any(taus < 0):
+            raise ParameterError("delays", ">= 0 (delays, not advances)", delays)
+        order = sorted(set(taus.tolist()))
+        rows = []
+        for t in order:  # equal delays summed in their order, as QuasiPolynomial does
+            at = np.flatnonzero(taus == t)
+            total = arr[..., at[0], :].copy()
+            for k in at[1:]:
+                total += arr[..., k, :]
+            rows.append(total)
+        merged = np.stack(rows, axis=-2)  # (..., K', P)
+        nonzero = merged != 0
+        ends = merged.shape[-1] - np.argmax(nonzero[..., ::-1], axis=-1)  # one past the last nonzero power
+        present = nonzero.any(axis=-1)
+        lead = merged.shape[:-2]
+        flat, flat_ends, flat_present = (
+            merged.reshape(-1, *merged.shape[-2:]),
+            ends.reshape(-1, len(order)),
+            present.reshape(-1, len(order)),
+        )
+        entries = []
+        for c, e, keep in zip(flat, flat_ends.tolist(), flat_present.tolist()):
+            F = object.__new__(cls)
+            terms = tuple((c[k, : e[k]].copy(), t) for k, t in enumerate(order) if keep[k])
+            object.__setattr__(F, "point_terms", terms)
+            object.__setattr__(F, "distributed", ())
+            entries.append(F)
+        nested: list[Any] = entries
+        for size in reversed(lead[1:]):
+            nested = [nested[i : i + size] for i in range(0, len(nested), size)]
+        return nested
 
     # ------------------------------------------------------------------ structure
     @property

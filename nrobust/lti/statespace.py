@@ -324,22 +324,17 @@ class StateSpaceTDS:
 
     @functools.cached_property
     def _characteristic_matrix(self) -> QuasiPolynomialMatrix:
-        n = self.n
-        rows = []
+        n, ka = self.n, self.A.shape[0]
+        coefs = np.zeros((n, n, 1 + ka + self.B.shape[0], 2))  # M_ij(s) = sum_k (c_k0 + c_k1 s) e^{-h_k s}
+        coefs[:, :, 0, 1] = self.E
+        coefs[:, :, 1 : 1 + ka, 0] = -self.A.transpose(1, 2, 0)
+        coefs[:, :, 1 + ka :, 1] = -self.B.transpose(1, 2, 0)
+        rows = QuasiPolynomial.from_coefficient_array(coefs, np.concatenate([[0.0], self.hA, self.hB]))
         for i in range(n):
-            row = []
             for j in range(n):
-                coefs: list[list[float]] = [[0.0, float(self.E[i, j])]]
-                delays = [0.0]
-                for a, h in zip(self.A, self.hA):
-                    coefs.append([-float(a[i, j])])
-                    delays.append(float(h))
-                for b, h in zip(self.B, self.hB):
-                    coefs.append([0.0, -float(b[i, j])])
-                    delays.append(float(h))
                 dist = [N.scale(-float(g[i, j])) for g, N in self.distributed if g[i, j] != 0]
-                row.append(QuasiPolynomial(coefs, delays, dist))
-            rows.append(row)
+                if dist:
+                    rows[i][j] = QuasiPolynomial.from_parts(rows[i][j].point_terms, dist)
         return QuasiPolynomialMatrix(rows)
 
     def _difference_terms(self) -> list[tuple[NDArray[np.float64], float]]:

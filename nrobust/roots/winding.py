@@ -304,14 +304,33 @@ class Counter:
         self.F = F
         self.budget = budget
         self.cache: dict[tuple[complex, complex], tuple[float, bool]] = {}
+        self.real = bool(F.is_real)
+
+    def _pieces(self, p: complex, q: complex) -> list[tuple[complex, complex, float]]:
+        """Segments ``(a, b, sign)`` whose turns, times their signs, add up to those of ``[p, q]``.
+
+        For a real ``F`` (``F(conj s) = conj F(s)``) the argument of ``F`` along the mirror
+        image of a path is minus its argument along the path: a segment below the real axis
+        is its mirror image above with the opposite sign, and a vertical segment crossing the
+        axis is cut there. Only segments in the closed upper half-plane are then computed
+        (half of the contour of a box symmetric about the axis, and of the boxes about the
+        lower roots of conjugate pairs).
+        """
+        if not self.real or (p.imag >= 0.0 and q.imag >= 0.0):
+            return [(p, q, 1.0)]
+        if p.imag <= 0.0 and q.imag <= 0.0:
+            return [(p.conjugate(), q.conjugate(), -1.0)]
+        r = complex(p.real, 0.0)  # a vertical segment through the axis
+        return [piece for half in ((p, r), (r, q)) for piece in self._pieces(*half)]
 
     def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them."""
-        edges = [e for box in boxes for e in _box_edges(box)]
+        pieces = [self._pieces(p, q) for box in boxes for p, q in _box_edges(box)]
         todo: dict[tuple[complex, complex], int] = {}
-        for i, (p, q) in enumerate(edges):
-            if (p, q) not in self.cache and (q, p) not in self.cache and (p, q) not in todo:
-                todo[(p, q)] = i
+        for i, edge in enumerate(pieces):
+            for p, q, _ in edge:
+                if not ((p, q) in self.cache or (q, p) in self.cache or (p, q) in todo or (q, p) in todo):
+                    todo[(p, q)] = i
         if todo:
             keys = list(todo)
             res = _wind_segments(
@@ -323,15 +342,17 @@ class Counter:
             )
             for k, tr, bl in zip(keys, res.turns, res.blocked):
                 self.cache[k] = (float(tr), bool(bl))
-        turns = np.empty(len(edges))
-        blocked = np.empty(len(edges), dtype=bool)
-        for i, (p, q) in enumerate(edges):
-            if (p, q) in self.cache:
-                tr, bl = self.cache[(p, q)]
-            else:
-                tr, bl = self.cache[(q, p)]
-                tr = -tr
-            turns[i], blocked[i] = tr, bl
+        turns = np.zeros(len(pieces))
+        blocked = np.zeros(len(pieces), dtype=bool)
+        for i, edge in enumerate(pieces):
+            for p, q, sign in edge:
+                if (p, q) in self.cache:
+                    tr, bl = self.cache[(p, q)]
+                else:
+                    tr, bl = self.cache[(q, p)]
+                    tr = -tr
+                turns[i] += sign * tr
+                blocked[i] |= bl
         box_turns = turns.reshape(-1, 4).sum(axis=1)
         box_blocked = blocked.reshape(-1, 4)
         counts = np.rint(box_turns).astype(np.int64)
