@@ -10,8 +10,10 @@
 ``nrobust design SYSTEM.toml -o OUT/ [--family F] [--objective OBJ] [--margin-at-least D] [--k-bounds L H]``
     ``[--delays D_MIN D_MAX] [--speed-tolerance EPS] [--rigorous]``:
     a controller for the file's plant (:func:`nrobust.reports.design.run_design`): ``F =
-    reflection`` (the gain ``K`` of ``U_BS2(K)``, solved exactly) or ``filtered`` (``K`` and the
-    filter's ``a``, ``b``, a certified local optimum), with the largest delay margin
+    reflection`` (the gain ``K`` of ``U_BS2(K)``, solved exactly; ``output_feedback``: on the state
+    predicted from ``v(t, 0)``, ``collocated_output_feedback``: on the collocated observer's estimate
+    from ``u(t, 1)``) or ``filtered`` (``K`` and the filter's ``a``, ``b``, a certified local
+    optimum), with the largest delay margin
     (``OBJ = margin``) or the largest decay rate (``decay_rate``) with a margin of at least
     ``D``, or stable for every delay in ``[D_MIN, D_MAX]`` (and under a relative error ``EPS``
     of both speeds); each option defaults to the file's ``[design]`` section. Writes ``design.json``,
@@ -37,7 +39,7 @@ import sys
 from collections.abc import Sequence
 
 from ._version import __version__
-from .config import PiecewiseLinear, load_system_file
+from .config import DESIGN_FAMILIES, PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
 from .reports.analyze import run_analyze
 from .reports.design import design_summary, run_design
@@ -94,9 +96,10 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("-o", "--out", required=True, help="output directory")
     d.add_argument(
         "--family",
-        choices=("reflection", "output_feedback", "filtered"),
+        choices=DESIGN_FAMILIES,
         default=None,
-        help="U_BS2(K), U_BS2(K) on the state predicted from v(t, 0), or the filtered U_BS2(K)",
+        help="U_BS2(K), U_BS2(K) on the state predicted from v(t, 0), U_BS2(K) on the collocated observer's "
+        "estimate from u(t, 1), or the filtered U_BS2(K)",
     )
     d.add_argument("--objective", choices=("margin", "decay_rate"), default=None, help="what to maximise")
     d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")

@@ -49,6 +49,7 @@ else:  # pragma: no cover - exercised by the Python 3.10 run of CI
 __all__ = [
     "CONTROLLER_TYPES",
     "DESIGN_FAMILIES",
+    "OBSERVER_FAMILIES",
     "SYSTEM_TYPES",
     "PiecewiseLinear",
     "build_in_section",
@@ -178,8 +179,11 @@ _DESIGN_KEYS: dict[str, Any] = {
     "speed_tolerance": None,
 }
 #: The controller families ``nrobust design`` can design: U_BS2(K), U_BS2(K) on the state predicted
-#: from ``v(t, 0)`` (output feedback) and the filtered U_BS2(K).
-DESIGN_FAMILIES = ("reflection", "output_feedback", "filtered")
+#: from ``v(t, 0)`` (output feedback), U_BS2(K) on the collocated observer's estimate from ``u(t, 1)``
+#: (collocated output feedback) and the filtered U_BS2(K).
+DESIGN_FAMILIES = ("reflection", "output_feedback", "collocated_output_feedback", "filtered")
+#: The families whose gain K is designed on an observer's estimate (they take ``observer_delay``).
+OBSERVER_FAMILIES = ("output_feedback", "collocated_output_feedback")
 
 
 def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
@@ -401,7 +405,7 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
             d[name] = (lo, hi)
         else:
             d[name] = _number(f"design.{name}", value)
-    if d["family"] in ("reflection", "output_feedback"):
+    if d["family"] in ("reflection", *OBSERVER_FAMILIES):
         family = d["family"]
         for name in ("a", "b"):
             if d[name] is not None:
@@ -411,9 +415,11 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
     d["observer_delay"] = _number("design.observer_delay", d["observer_delay"])
     if d["observer_delay"] < 0.0:
         raise ParameterError("design.observer_delay", ">= 0 (a delay)", d["observer_delay"])
-    if d["observer_delay"] != 0.0 and d["family"] != "output_feedback":
+    if d["observer_delay"] != 0.0 and d["family"] not in OBSERVER_FAMILIES:
         raise ParameterError(
-            "design.observer_delay", 'left out unless family = "output_feedback" (an observer\'s)', d["observer_delay"]
+            "design.observer_delay",
+            'left out unless family = "output_feedback" or "collocated_output_feedback" (an observer\'s)',
+            d["observer_delay"],
         )
     if d["delays"] is not None:
         if not isinstance(d["delays"], list) or any(isinstance(v, bool) for v in d["delays"]):
@@ -434,10 +440,10 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
                 "design.speed_tolerance", "a relative error of the speeds lam and mu in (0, 1)", d["speed_tolerance"]
             )
         d["speed_tolerance"] = eps
-        if d["family"] == "output_feedback":
+        if d["family"] in OBSERVER_FAMILIES:
             raise ParameterError(
                 "design.speed_tolerance",
-                'left out for family = "output_feedback" (family "reflection" or "filtered" takes it)',
+                f'left out for family = "{d["family"]}" (family "reflection" or "filtered" takes it)',
                 d["speed_tolerance"],
             )
         if d["delays"] is None and d["margin_at_least"] is None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from nrobust.errors import CertificationError, ParameterError
 from nrobust.hyperbolic.analyses import SpeedTolerance
 from nrobust.hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
 from nrobust.hyperbolic.analyses.state_design import design_state_feedback
+from nrobust.hyperbolic.loops.controllers import loop_factors
 from nrobust.margins import delay_margin
 from nrobust.reports.design import run_design
 
@@ -164,24 +166,147 @@ def test_filtered_design_under_a_speed_tolerance(tmp_path: Path) -> None:
     assert data["speed_tolerance"] == 0.2 and data["tolerance"]["met"] is True
 
 
-def test_state_feedback_takes_a_window_and_a_tolerance() -> None:
-    """A proportional law on a transport plant, stable on [0.2, 0.5] under 20 % speed errors.
+def _unstable_count(c: float, K: float, delta: float) -> int:
+    """Zeros of the oscillator in Re s > 0 at ``delta``, in closed form (``delta`` not a crossing delay).
 
-    ``1 - rho q e^{-tau s} - k q e^{-(tau + delta) s}`` is stable for every delay and every tau iff
-    ``|rho q| + |k q| < 1``, which the default k bounds keep: the window and the corners hold, and the
-    corners are certified again on loops built by mismatch_loop.
+    At ``delta = 0``, ``s^2 + (c + BETA K) s + 1 + K`` (``K > -1``) has 0 or 2 of them by the sign of
+    ``c + BETA K``; at each crossing delay a pair crosses, to the right on the branch of the larger
+    root ``u`` of ``P(u) = u^2 + (c^2 - 2 - K^2 BETA^2) u + 1 - K^2`` (``P'(u) > 0``), to the left on the
+    smaller (Cooke and van den Driessche, Funkcial. Ekvac. 29, 1986: the direction is the sign of ``P'``).
     """
-    design = design_state_feedback(
-        nr.TransportSystem(LAM, MU, Q, RHO),
-        "decay_rate",
-        delays=(0.2, 0.5),
-        speed_tolerance=0.2,
-        kernel_grid=None,
-        starts=1,
+    count = 0 if c + BETA * K > 0.0 else 2
+    roots = np.roots([1.0, c * c - 2.0 - K * K * BETA * BETA, 1.0 - K * K])
+    real = sorted(u.real for u in roots if abs(u.imag) <= 1e-12 and u.real > 0.0)
+    for u in real:
+        direction = 1 if 2.0 * u + c * c - 2.0 - K * K * BETA * BETA > 0.0 else -1
+        w = math.sqrt(u)
+        theta = np.mod(np.angle(-K * (1 + 1j * BETA * w) / (1 - w * w + 1j * c * w)), 2 * np.pi)
+        count += (
+            2
+            * direction
+            * sum(1 for k in range(int(delta * w / (2 * np.pi)) + 2) if (theta + 2 * np.pi * k) / w < delta)
+        )
+    return count
+
+
+@pytest.mark.parametrize(
+    ("x0", "window"),
+    [
+        ([-0.2, 0.05], WINDOW),  # unstable for every delay: no crossing at all, two zeros right
+        ([-0.1, 0.05], (0.0, 1.0)),  # unstable at delta = 0 with d_min = 0
+    ],
+)
+def test_a_start_without_a_stability_window_is_stabilised_first(x0: list[float], window: tuple[float, float]) -> None:
+    """A start whose loop is unstable at ``delta = d_min`` (no stability window holds the window) is not refused.
+
+    The phase before the first lowers the abscissa at ``delta = d_min`` below 0; the design is then certified,
+    and the closed-form count (:func:`_unstable_count`) confirms the start unstable and the design stable on
+    the window, with no crossing delay in it. Before, such a start was refused (``CertificationError``).
+    """
+    d_lo, d_hi = window
+    c0, K0 = x0
+    assert _unstable_count(c0, K0, d_lo) == 2 and not _crossing_delays(c0, K0, 2.0 * d_hi + 1.0)
+    design = optimize_loop(oscillator, OSC_BOUNDS, delays=window, x0=x0)
+    assert design.certified and design.windows[0].stable
+    c, K = design.parameters
+    assert _unstable_count(c, K, d_lo if d_lo > 0.0 else 0.0) == 0
+    assert not any(d_lo <= d <= d_hi for d in _crossing_delays(c, K, d_hi + 1.0))
+    # the decay rate -alpha at delta = 0 is (c + BETA K)/2 in closed form (complex roots on the bounds)
+    np.testing.assert_allclose(design.decay_rate, (c + BETA * K) / 2.0, rtol=1e-9)
+
+
+def neutral(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+    """The filtered law's loop on a transport plant (``tau = 1.5``, ``rho q = 0.6``, ``a = 0.05``, ``b = 0.1``)."""
+    return (
+        nr.QuasiPolynomial([[1.0, 0.1], [-0.6, -0.06]], [0.0, 1.5]),
+        nr.QuasiPolynomial([[p[0], 0.05 * p[0]]], [1.5]),
     )
-    assert design.tolerance is not None and design.tolerance.met and design.tolerance.route == "exact"
-    assert design.design.delays == (0.2, 0.5) and all(w.stable for w in design.design.windows)
-    assert abs(RHO * Q) + abs(design.controller.k * Q) < 1.0
+
+
+def test_a_neutral_start_unstable_for_every_delay_is_stabilised_first() -> None:
+    """A neutral loop: from ``K = -0.6``, ``F(0) = 0.4 + K < 0`` and ``F(s) -> +inf`` along the real axis, a real
+    zero in ``Re s > 0`` for every delay (no stability window at all); the design is certified on [0.2, 0.6].
+
+    Strong stability (``gamma_0 = 0.6 + 0.5 |K| < 1``, kept by ``gamma_max``) makes the window of ``d_min`` open.
+    Oracle for the crossings: ``|A(i w)|^2 - |B(i w)|^2 >= 0.16 (1 + 0.01 w^2) - K^2 (1 + 0.0025 w^2)`` is positive
+    above ``w^2 = (K^2 - 0.16) / (0.0016 - 0.0025 K^2)``, so its sign changes below that bound, bracketed on a
+    grid and refined by brentq, give every crossing delay ``(arg(-B/A) mod 2 pi + 2 pi k) / w``.
+    """
+    from scipy.optimize import brentq
+
+    window = (0.2, 0.6)
+    design = optimize_loop(neutral, [(-0.75, 0.75)], delays=window, x0=[-0.6])
+    assert design.certified and design.windows[0].stable
+    (K,) = design.parameters
+    assert 0.4 + K > 0.0 and 0.6 + 0.5 * abs(K) < 1.0  # F(0) > 0; strongly stable
+
+    def parts(w: Any) -> tuple[Any, Any]:
+        e = np.exp(-1.5j * w)
+        return (1 + 0.1j * w) * (1 - 0.6 * e), K * (1 + 0.05j * w) * e
+
+    def g(w: Any) -> Any:
+        a, b = parts(w)
+        return np.abs(a) ** 2 - np.abs(b) ** 2
+
+    top = math.sqrt(max(K * K - 0.16, 0.0) / (0.0016 - 0.0025 * K * K)) + 1.0
+    grid = np.linspace(1e-9, top, 200_001)
+    values = g(grid)
+    delays = []
+    for i in np.flatnonzero(np.sign(values[:-1]) * np.sign(values[1:]) < 0):
+        w = brentq(g, grid[i], grid[i + 1], xtol=1e-14)
+        a, b = parts(w)
+        theta = np.mod(np.angle(-b / a), 2 * np.pi)
+        delays += [(theta + 2 * np.pi * k) / w for k in range(3)]
+    assert delays and not any(window[0] <= d <= window[1] for d in delays)
+    # the requirement binds: the first crossing delay lies just past d_max (1e-3: 100 times the last pattern step)
+    np.testing.assert_allclose(min(delays), design.margin.margin, rtol=1e-9)
+    assert window[1] < min(delays) < window[1] + 1e-3
+
+
+def test_a_scenario_returning_no_pair_is_a_parameter_error() -> None:
+    """A scenario (or the loop) returning anything but a pair (A, B) of QuasiPolynomials: a ParameterError at once."""
+    calls = []
+
+    def single(p: np.ndarray) -> nr.QuasiPolynomial:
+        calls.append(p)
+        return oscillator(p)[0]
+
+    with pytest.raises(ParameterError, match=r"scenarios\[1\] must be .*returning a pair of QuasiPolynomials.*"):
+        optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, x0=[0.0, 0.3], scenarios=[oscillator, single])  # type: ignore[list-item]
+    assert len(calls) == 1  # the first call raised
+    for bad, got in (
+        (lambda p: (*oscillator(p), 1.0), "tuple of QuasiPolynomial, QuasiPolynomial, float"),
+        (lambda p: (1.0, 2.0), "tuple of float, float"),
+    ):
+        with pytest.raises(ParameterError, match=rf"scenarios\[0\] .*it returned a {got}"):
+            optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, x0=[0.0, 0.3], scenarios=[bad])  # type: ignore[list-item]
+    with pytest.raises(ParameterError, match=r"loop must be .*returned a QuasiPolynomial"):
+        optimize_loop(single, OSC_BOUNDS, x0=[0.0, 0.3])  # type: ignore[arg-type]
+
+
+def test_state_feedback_window_binds() -> None:
+    """A proportional law k u(t, 1) on a coupled plant: the window [0, 3] changes the design of the decay rate.
+
+    The free design (decay rate 1.128 at k = -0.405) has a crossing delay 2.64 inside the window; the design
+    under ``delays=(0, 3)`` trades decay rate for it. Both verdicts are made again on the loop built directly
+    from the returned controller (``nr.delay_margin`` of the plant and the controller, and
+    ``window_stability`` of ``loop_factors``), not from the design's unit-gain loop family.
+    """
+    plant = nr.Hyperbolic2x2(1.0, 1.0, 0.5, 0.5, 1.0, 0.3)
+    free = design_state_feedback(plant, "decay_rate", kernel_grid=None, starts=1)
+    design = design_state_feedback(plant, "decay_rate", delays=(0.0, 3.0), kernel_grid=None, starts=1)
+    assert design.certified and design.design.delays == (0.0, 3.0) and design.design.windows[0].stable
+    assert "stable for every delay in [0.0, 3.0] (the loop): met" in design.requirement
+    assert design.value < free.value - 0.3
+    free_margin = nr.delay_margin(plant, free.controller)
+    assert free_margin.verified and free_margin.margin < 3.0 - 0.3
+    assert not window_stability(*loop_factors(plant, free.controller), (0.0, 3.0)).stable
+    margin = nr.delay_margin(plant, design.controller)
+    assert margin.verified and margin.nominally_stable and margin.margin > 3.0
+    assert window_stability(*loop_factors(plant, design.controller), (0.0, 3.0)).stable
+    # the requirement binds: the margin is 3 to the pattern search's last step (1e-5 of the k bounds' width
+    # 1.39 moves it by about 1e-4 here)
+    assert margin.margin < 3.0 + 1e-3
     json.dumps(design.to_dict(), allow_nan=False)
 
 

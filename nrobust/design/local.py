@@ -24,8 +24,13 @@ windows (``d_min - l`` taken as ``+inf`` for a window ``[0, h)`` holding the nom
 requirement ``delta* > d`` is the window ``[0, d]``. ``c`` is differentiable where one end
 ``tau`` binds, with the gradient of that crossing delay (below), and a start that misses the
 window first maximises ``c`` up to 0, as a start below a required margin maximises the margin.
-``c = -inf`` where a loop has no stability window up to ``2 d_max + 1``: such a start (and one
-unstable at ``delta = 0`` when ``d_min = 0``) is not improved, and only other starts can succeed.
+``c = -inf`` where a loop has no stability window up to ``2 d_max + 1`` (with ``d_min = 0``: no
+window ``[0, h)``, the loop unstable at ``delta = 0``): from such a start a phase before the first
+minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``A + B e^{-d_min s}``;
+``A + B`` when ``d_min = 0``) until it is negative. Each loop is then stable at ``d_min``, which a
+stability window holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly
+stable, so for a neutral loop too a negative abscissa at one delay opens a window of delays), and
+the first phase continues from there.
 
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
@@ -56,7 +61,8 @@ delay bounds the margin from above). Where BFGS stalls (at a kink, or at a corne
 where a crossing pair is born), a pattern search over the coordinate axes, their pairwise
 diagonals and the descent direction continues with shrinking steps (and growing ones along a
 direction that keeps improving). A start that is not
-feasible first maximises the margin until it reaches ``d``. The optimum is local; several
+feasible first maximises the margin until it reaches ``d`` (under a window, after the phase that
+makes a window exist when it has none). The optimum is local; several
 starts (a Halton sequence in the bounds, run through any ``map``, e.g.
 :func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
 design found is then certified: its abscissa (certified count of the roots right of it), its
@@ -147,6 +153,12 @@ MAX_EVALS = 2_000_000
 BELOW_REQUIREMENT = "delay margin below the requirement"
 #: The reason of a trial point whose abscissa, computed, is above the line that rejects it.
 ABOVE_LINE = "above the line search's line"
+#: The reason of a first-phase point without a stability window that can hold the required window (it starts
+#: the phase before: the largest abscissa at ``delta = d_min`` lowered below 0).
+NO_WINDOW = "no stability window"
+#: The phase before the first stops once the largest abscissa at ``d_min`` is below ``-STABLE_BY`` times its
+#: value at the start (any negative value makes a stability window exist; a little more keeps it from the edge).
+STABLE_BY = 1e-2
 
 
 def _box(bounds: ArrayLike) -> NDArray[np.float64]:
@@ -156,6 +168,27 @@ def _box(bounds: ArrayLike) -> NDArray[np.float64]:
             "bounds", "a sequence of finite (low, high) pairs with low < high, one per parameter", bounds
         )
     return b
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """A loop family ``p -> (A, B)`` whose every value is checked to be a pair of QuasiPolynomials
+    (a ``ParameterError`` naming ``name`` at the first call that returns anything else; picklable)."""
+
+    family: ParametricLoop
+    name: str
+
+    def __call__(self, p: NDArray[np.float64]) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+        value = self.family(p)
+        pair = isinstance(value, (tuple, list)) and len(value) == 2
+        if not (pair and all(isinstance(f, QuasiPolynomial) for f in value)):
+            got = type(value).__name__
+            if isinstance(value, (tuple, list)):
+                got += " of " + (", ".join(type(f).__name__ for f in value) or "nothing")
+            raise ParameterError(
+                self.name, f"a callable p -> (A, B) returning a pair of QuasiPolynomials; it returned a {got}"
+            )
+        return value[0], value[1]
 
 
 def delayed_gamma(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
@@ -206,7 +239,10 @@ class LocalProblem(Protocol):
 
     ``problem(p)`` evaluates the objective at ``p`` (``want="margin"``: ``-delta*`` whatever the
     objective, for the first phase of a start below the required margin; under a window of
-    delays, minus the window margin, which the first phase raises to ``d_max``); ``above`` is the line
+    delays, minus the window margin, which the first phase raises to ``d_max``; a problem whose
+    ``want="margin"`` point can be infeasible with a reason starting with :data:`NO_WINDOW` takes
+    ``want="abscissa"`` too: the largest spectral abscissa at ``delta = d_min`` of its loops, which
+    the phase before the first lowers below 0); ``above`` is the line
     a trial point must stay under (the line search's sufficient decrease, or the incumbent of the
     pattern search), so a point found above it may be returned early, without its gradient. A
     point outside ``bounds``, below ``margin_at_least`` (its ``reason`` starting with
@@ -427,19 +463,33 @@ class _Problem:
         hi[i] = min(p[i] + h, self.bounds[i, 1])
         return lo, hi, float(hi[i] - lo[i])
 
-    def _abscissa_gradient(self, p: NDArray[np.float64], F: QuasiPolynomial, sa: SpectralAbscissa) -> NDArray:
+    def _abscissa_gradient(
+        self,
+        p: NDArray[np.float64],
+        F: QuasiPolynomial,
+        sa: SpectralAbscissa,
+        loop: ParametricLoop | None = None,
+        delay: float = 0.0,
+    ) -> NDArray:
+        """The gradient of the abscissa ``sa`` of ``F = A + B e^{-delay s}``, ``(A, B) = loop(p)``."""
+        family = self.loop if loop is None else loop
+
+        def at(q: NDArray[np.float64]) -> QuasiPolynomial:
+            a, b = family(q)
+            return a + (b.shift(delay) if delay else b)
+
         grad = np.zeros(p.size)
         if sa.root is None or sa.approached_at_infinity:
             for i in range(p.size):  # the chain's abscissa c_D(p)
                 lo, hi, h = self._pair(p, i)
-                c = [(a + b).principal_part().spectral_bound().value for a, b in (self.loop(lo), self.loop(hi))]
+                c = [at(q).principal_part().spectral_bound().value for q in (lo, hi)]
                 grad[i] = (c[1] - c[0]) / h
             return grad
         s = np.array([sa.root])
         dF = complex(F.deriv_at(s)[0])
         for i in range(p.size):
             lo, hi, h = self._pair(p, i)
-            f = [complex((a + b)(s)[0]) for a, b in (self.loop(lo), self.loop(hi))]
+            f = [complex(at(q)(s)[0]) for q in (lo, hi)]
             grad[i] = (-(f[1] - f[0]) / h / dF).real
         return grad
 
@@ -520,6 +570,8 @@ class _Problem:
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
         if objective == "window":
             return self._window_point(p, A, B)
+        if objective == "abscissa":
+            return self._abscissa_point(p, A, B, above)
         if objective == "margin":
             return self._margin_point(p, A, B, above)
         F = A + B
@@ -569,7 +621,9 @@ class _Problem:
         for the crossing delay ``tau`` at the frequency ``w`` that binds (``side`` -1 for the lower end,
         ``c = d_min - tau``; +1 for the upper, ``c = tau - d_max``), None when no crossing binds (an end
         at the horizon); ``c = -inf`` without a stability window (or without strong stability, or with
-        ``s = 0`` a root for every delay).
+        ``s = 0`` a root for every delay); with ``d_min = 0`` only the window ``[0, h)`` of a stable
+        nominal loop counts (no other can ever hold the window: no path of windows ``(l, h)``, ``l > 0``,
+        leads to it but through a jump).
         """
         assert self.window is not None
         d_lo, d_hi = self.window
@@ -578,7 +632,9 @@ class _Problem:
             return -math.inf, None, dm
         best, binding = -math.inf, (0.0, 0)
         for lo, hi in dm.intervals:
-            below = math.inf if lo == 0.0 and (d_lo > 0.0 or dm.nominally_stable) else d_lo - lo
+            if d_lo == 0.0 and not (lo == 0.0 and dm.nominally_stable):
+                continue
+            below = math.inf if lo == 0.0 else d_lo - lo
             c = min(below, hi - d_hi)
             if c > best:
                 best, binding = c, ((lo, -1) if below <= hi - d_hi else (hi, 1))
@@ -622,8 +678,10 @@ class _Problem:
     def _window_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial) -> TrialPoint:
         """Minus the window margin ``d_max + min_j c_j(p)`` over the loop and the scenarios, with its gradient.
 
-        Feasible (for the first phase) where every loop has a stability window; the requirement
-        is met where the value is below ``-d_max``.
+        Feasible (for the first phase) where every loop has a stability window that can hold the
+        required one (:meth:`_window_clearance`; infeasible with the reason :data:`NO_WINDOW`
+        otherwise, which starts the phase before, :meth:`_abscissa_point`); the requirement is met
+        where the value is below ``-d_max``.
         """
         assert self.window is not None
         self.memo.full += 1
@@ -634,20 +692,59 @@ class _Problem:
             A,
             B,
         )
-        for loop in (self.loop, *self.scenarios):
+        which = ""
+        for n, loop in enumerate((self.loop, *self.scenarios)):
             A_j, B_j = (A, B) if loop is self.loop else loop(p)
             c, end, _ = self._window_clearance(A_j, B_j)
             if c < worst[0]:
                 worst = (c, end, loop, A_j, B_j)
+                which = "the loop" if n == 0 else f"scenario {n - 1}"
         c, end, loop, A_j, B_j = worst
         if not math.isfinite(c):
-            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "no stability window")
+            d_lo, d_hi = self.window
+            held = "[0, h) of a stable nominal loop" if d_lo == 0.0 else f"up to {2.0 * d_hi + 1.0:.6g}"
+            reason = f"{NO_WINDOW} {held} for {which}"
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
         grad = np.zeros(p.size)
         if end is not None:
             w, tau, side = end
             grad = side * self._delay_gradient(p, loop, A_j, B_j, w, tau)
         value = self.window[1] + c
         return TrialPoint(p, True, -value, -grad, math.nan, value)
+
+    def _abscissa_point(
+        self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float
+    ) -> TrialPoint:
+        """The phase before the first: the largest spectral abscissa of ``A_j + B_j e^{-d_min s}`` over the
+        loop and the scenarios, with its gradient (the rightmost root's or chain's, module notes).
+
+        Below 0 every loop is exponentially stable at ``delta = d_min`` (at ``delta = 0`` when ``d_min =
+        0``): ``d_min`` lies in a stability window of each, whose ends the first phase then moves past the
+        window. That window is not lost to the difference operator: ``gamma_0 <= gamma_max < 1``
+        (checked before) makes it strongly stable, so no delay near ``d_min`` brings zeros from
+        infinity. A point whose chains (a lower bound, :meth:`QuasiPolynomial.principal_part`) or
+        abscissa lie above ``above`` is rejected as soon as that is known.
+        """
+        assert self.window is not None
+        d = self.window[0]
+        memo = self.memo
+        worst: tuple[SpectralAbscissa, ParametricLoop, QuasiPolynomial] | None = None
+        for loop in (self.loop, *self.scenarios):
+            A_j, B_j = (A, B) if loop is self.loop else loop(p)
+            F = A_j + (B_j.shift(d) if d else B_j)
+            lower = F.principal_part().spectral_bound().lower
+            if lower > above:
+                memo.screened += 1
+                return self._screened(p, float(lower), "abscissa", f"above the line (chains at {lower:.6g})")
+            memo.full += 1
+            sa = spectral_abscissa(F)
+            if sa.value > above:
+                return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
+            if worst is None or sa.value > worst[0].value:
+                worst = (sa, loop, F)
+        assert worst is not None
+        sa, loop, F = worst
+        return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa, loop, d), sa.value, math.nan)
 
     def _abscissa_floor(self, F: QuasiPolynomial, above: float) -> tuple[float, str]:
         """A lower bound of the spectral abscissa of ``F`` above ``above``, or ``-inf``.
@@ -754,7 +851,11 @@ class _Problem:
         margin = dm.margin
         memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
         if not dm.nominally_stable:
-            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, "not stable at delta = 0")
+            # with d_min = 0 the window requires it: the first phases make it so
+            reason = "not stable at delta = 0"
+            if self.window is not None and self.window[0] == 0.0:
+                reason = f"{BELOW_REQUIREMENT}: {reason}"
+            return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, reason)
         if self.window is not None:
             bad = "" if c > 0.0 else "the loop"
             for n, loop in enumerate(self.scenarios):
@@ -796,7 +897,7 @@ class LocalRun:
     feasible : bool
         True if ``parameters`` meets the bounds and the margin requirement.
     iterations, evaluations : int
-        BFGS iterations and evaluations of the loop (line searches and the first phase
+        BFGS iterations and evaluations of the loop (line searches and the first phases
         included).
     stationarity : float
         The smallest convex combination of the gradients sampled at the last iterates
@@ -957,6 +1058,33 @@ class _Local:
             x = y
         return x
 
+    def stabilise(self, m: TrialPoint, counter: list[int]) -> tuple[TrialPoint, int]:
+        """The phase before the first, from ``m`` (a first-phase point without a stability window, :data:`NO_WINDOW`).
+
+        Minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``want="abscissa"``)
+        by BFGS and the pattern search until it is below ``-STABLE_BY`` times its value at ``m`` (or
+        to a local minimum), and returns the first phase's point there with the BFGS iterations: a
+        stability window holds ``d_min`` once that abscissa is negative. Not negative: the first-phase
+        point, infeasible, says how far the abscissa came down.
+        """
+        problem = self.problem
+
+        def abscissa(q: NDArray, above: float) -> TrialPoint:
+            return problem(q, want="abscissa", above=above)
+
+        a = abscissa(m.p, math.inf)
+        counter[0] += 1
+        if not a.feasible:
+            return replace(m, reason=f"{m.reason}; the abscissa at d_min not lowered: {a.reason}"), 0
+        target = -STABLE_BY * abs(a.value) if a.value != 0.0 else -STABLE_BY
+        a, iterations, _, _ = self.minimise(abscissa, a, counter, stop_below=target)
+        a = self.polish(abscissa, a, counter, stop_below=target)
+        m = problem(a.p, want="margin")
+        counter[0] += 1
+        if not m.feasible and a.value >= 0.0:
+            m = replace(m, reason=f"{m.reason}; the largest abscissa at d_min came down to {a.value:.6g} only")
+        return m, iterations
+
     def __call__(self, start: Sequence[float]) -> LocalRun:
         problem = self.problem
         counter = [1]
@@ -966,13 +1094,16 @@ class _Local:
         if not x.feasible and problem.margin_at_least is not None and x.reason.startswith(BELOW_REQUIREMENT):
             m = problem(x.p, want="margin")  # first phase: raise the margin to the requirement
             counter[0] += 1
+            if not m.feasible and m.reason.startswith(NO_WINDOW):
+                m, iterations = self.stabilise(m, counter)
             if m.feasible:
 
                 def margin(q: NDArray, above: float) -> TrialPoint:
                     return problem(q, want="margin", above=above)
 
                 target = -problem.margin_at_least
-                m, iterations, _, _ = self.minimise(margin, m, counter, stop_below=target)
+                m, its, _, _ = self.minimise(margin, m, counter, stop_below=target)
+                iterations += its
                 m = self.polish(margin, m, counter, stop_below=target)
                 x = problem(m.p)
                 counter[0] += 1
@@ -1133,7 +1264,9 @@ def local_runs(
     """The local optimisation of :func:`optimize_loop` on any :class:`LocalProblem`, one run per start.
 
     From each start (``x0`` first, then a Halton sequence in ``problem.bounds``): a start below
-    the required margin first maximises the margin up to it, then BFGS with the weak Wolfe line
+    the required margin first maximises the margin up to it (from a first-phase point without a
+    stability window, :data:`NO_WINDOW`, after a phase that lowers ``want="abscissa"`` below 0),
+    then BFGS with the weak Wolfe line
     search, then the pattern search (module notes). Nothing is certified here: the caller
     certifies the best run's parameters.
 
@@ -1188,7 +1321,8 @@ def optimize_loop(
     ----------
     loop : callable
         ``p -> (A, B)``: ``F(s; delta) = A(s) + B(s) e^{-delta s}`` at the parameters ``p``
-        (e.g. :func:`nrobust.hyperbolic.analyses.filter_design.filtered_loop`); picklable if ``map`` runs processes.
+        (e.g. :func:`nrobust.hyperbolic.analyses.filter_design.filtered_loop`), a pair of
+        :class:`~nrobust.quasipoly.QuasiPolynomial`; picklable if ``map`` runs processes.
     bounds : sequence of (low, high)
         One interval per parameter; every iterate stays inside.
     objective : {"decay_rate", "margin"}
@@ -1202,12 +1336,16 @@ def optimize_loop(
         notes; ``d_min > 0`` allows a loop unstable at ``delta = 0``, the decay rate then that of
         the loop without delay, negative); with either objective, not with ``margin_at_least``
         (the window ``[0, d]`` is ``delta* > d``). A start that misses it first maximises its
-        window clearance. The design's windows are certified by
-        :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`).
+        window clearance; when the start or a scenario at it has no stability window up to
+        ``2 d_max + 1`` (with ``d_min = 0``: is unstable at ``delta = 0``), a phase before lowers
+        the largest spectral abscissa at ``delta = d_min`` below 0 (module notes). The design's
+        windows are certified by :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`).
     scenarios : sequence of callable, optional
         Further loop families ``p -> (A, B)`` of the same parameters that must be stable on the
         window too (with ``delays``): e.g. the loop on plants with mismatched speeds. Each is
-        held to ``gamma_max`` as well, and certified on the window at the design.
+        held to ``gamma_max`` as well, and certified on the window at the design. Each must return
+        a pair ``(A, B)`` of :class:`~nrobust.quasipoly.QuasiPolynomial` (a ``ParameterError``
+        naming it at the first call that returns anything else, as for ``loop``).
     gamma_max : float
         Require ``gamma_0 <= gamma_max`` for the delayed loop's difference operator
         (:func:`delayed_gamma`; below 1: strongly stable). As ``gamma_0 -> 1`` the chains of
@@ -1235,7 +1373,8 @@ def optimize_loop(
     Raises
     ------
     ParameterError
-        For bad input.
+        For bad input (``loop`` or a scenario returning anything but a pair of QuasiPolynomials
+        included, at its first such call).
     CertificationError
         If no start reaches a feasible point (the requirement may be out of reach in the
         bounds: widen them or lower ``margin_at_least``, narrow the window), or the design is
@@ -1267,6 +1406,8 @@ def optimize_loop(
     if not 0.0 <= gamma_max < 1.0:
         raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
     level = window[1] if window is not None else margin_at_least
+    loop = _Checked(loop, "loop")
+    scenarios = tuple(_Checked(scenario, f"scenarios[{n}]") for n, scenario in enumerate(scenarios))
     problem = _Problem(loop, box, objective, level, gamma_max, window, scenarios)
     runs = local_runs(problem, x0=x0, starts=starts, max_iter=max_iter, tol=tol, map=map)
     if not runs or not runs[0].feasible:

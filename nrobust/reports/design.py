@@ -11,6 +11,10 @@ options when given:
 * ``family = "output_feedback"``: the same law on the state predicted from the measurement
   ``v(t, 0)`` (:class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback`, with the
   observer's assumed actuation delay ``observer_delay``);
+* ``family = "collocated_output_feedback"``: the same law on the estimate of the collocated
+  observer from the measurement ``u(t, 1)``
+  (:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback`, ``observer_delay``
+  likewise; ``design_reflection(..., output_feedback=True, collocated=True)``);
 * ``family = "filtered"``: U_BS2(K) through the filter ``(1 + a s)/(1 + b s)``, a local
   optimisation over the free ones of ``K``, ``a``, ``b``
   (:func:`nrobust.hyperbolic.analyses.design_filtered`).
@@ -32,12 +36,12 @@ import numpy as np
 
 from .._digits import inner_interval_text, with_accuracy
 from .._json import json_safe
-from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, load_system_file
+from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, load_system_file
 from ..errors import ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
 from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
 from ..hyperbolic.analyses.margin import delay_margin
-from ..hyperbolic.loops.controllers import Controller, OutputFeedback, ReflectionController
+from ..hyperbolic.loops.controllers import CollocatedOutputFeedback, Controller, OutputFeedback, ReflectionController
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
@@ -55,12 +59,12 @@ def _edge(system: Any, result: ReflectionDesign) -> dict[str, float] | None:
     if d.end is None:
         return None
     h = 1e-6 * float(d.bounds[1] - d.bounds[0])
-    observed = result.controller.observer_delay if isinstance(result.controller, OutputFeedback) else None
+    observer = result.controller if isinstance(result.controller, (OutputFeedback, CollocatedOutputFeedback)) else None
     margins = {}
     for name, K in (("below", d.K - h), ("above", d.K + h)):
         law: Controller = ReflectionController(K)
-        if observed is not None:
-            law = OutputFeedback(law, observed)
+        if observer is not None:
+            law = type(observer)(law, observer.observer_delay)
         margins[name] = float(delay_margin(system, law).margin)
     return {"step": h, "margin_below": margins["below"], "margin_above": margins["above"]}
 
@@ -73,8 +77,11 @@ def _reflection_markdown(
     need = "" if margin_at_least is None else f" with a delay margin of at least {margin_at_least:g}"
     k_acc, v_acc = d.accuracy
     law = "U_BS2(K)"
-    if isinstance(result.controller, OutputFeedback):
-        law += " on the state predicted from v(t, 0)"
+    if isinstance(result.controller, (OutputFeedback, CollocatedOutputFeedback)):
+        if isinstance(result.controller, OutputFeedback):
+            law += " on the state predicted from v(t, 0)"
+        else:
+            law += " on the collocated observer's estimate from u(t, 1)"
         if result.controller.observer_delay:
             law += f" (the observer assumes an actuation delay {result.controller.observer_delay:g})"
     lines = [
@@ -229,7 +236,8 @@ def run_design(
     Each argument left None takes the file's ``[design]`` value (or its default: U_BS2(K),
     the largest margin; ``delays = (d_min, d_max)``: the window of delays to be stable on,
     ``speed_tolerance``: the relative error of the speeds it must hold under, both with
-    ``family = "reflection"`` or ``"filtered"``, ``delays`` with ``"output_feedback"`` too). The report states each
+    ``family = "reflection"`` or ``"filtered"``, ``delays`` with ``"output_feedback"`` and
+    ``"collocated_output_feedback"`` too). The report states each
     requirement and whether it is met and proven. The file and ``out_dir`` are checked before any computation; the
     files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
     written paths and the design.
@@ -263,14 +271,15 @@ def run_design(
     edge: dict[str, float] | None = None
     with outputs:
         result: ReflectionDesign | FilteredDesign
-        if family in ("reflection", "output_feedback"):
+        if family in ("reflection", *OBSERVER_FAMILIES):
             result = design_reflection(
                 spec["system"],
                 objective,
                 margin_at_least=margin_at_least,
                 K_bounds=bounds,
                 rigorous=rigorous,
-                output_feedback=family == "output_feedback",
+                output_feedback=family in OBSERVER_FAMILIES,
+                collocated=family == "collocated_output_feedback",
                 observer_delay=float(given.get("observer_delay", 0.0)),
                 delays=delays,
                 speed_tolerance=speed_tolerance,
