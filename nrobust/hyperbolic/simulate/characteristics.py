@@ -325,6 +325,8 @@ def march_lattice(
     WU_in, WV_in, BG = WU[:, :-1], WV[:, :-1], np.array([lp.bg for lp in loops])
     NU, NV = np.stack([rec.wu for rec in records]), np.stack([rec.wv for rec in records])
     spm_l, spm_i, smp_r, smp_i = spm[:-1], spm[1:-1], smp[1:], smp[1:-1]
+    spm_last, q = float(spm[-1]), float(system.q)
+    WU_last, WV_last = WU[:, -1] + BG, WV[:, -1]  # V(t_j) = inner + the terms of x = 1 (bg: the u(1) feedthrough)
     for j in range(1, steps + 1):
         # Half step: nodes -> midpoints (u from the left node, v from the right node).
         ru = U[:, :-1] + spm_l * V[:, :-1]
@@ -337,12 +339,15 @@ def march_lattice(
         U[:, 1:-1] = (ru[:, :-1] + spm_i * rv[:, 1:]) * inv_i
         V[:, 1:-1] = (rv[:, 1:] + smp_i * ru[:, :-1]) * inv_i
         V[:, 0] = rv[:, 0] * inv_0
-        U[:, 0] = system.q * V[:, 0]
+        U[:, 0] = q * V[:, 0]
         inner = _row_dots(U[:, :-1], WU_in) + _row_dots(V[:, :-1], WV_in)
         for r, lp in enumerate(loops):
-            U[r, -1], V[r, -1] = lp.solve(j, ru[r, -1], spm[-1], float(inner[r]))
-        v_now = _row_dots(U, WU) + _row_dots(V, WV) + BG * U[:, -1]
-        norms = l2_norms(NU, NV, U, V)
+            U[r, -1], V[r, -1] = lp.solve(j, ru[r, -1], spm_last, float(inner[r]))
+        v_now = inner + WU_last * U[:, -1] + WV_last * V[:, -1]
+        # einsum sums the squares without floating-point checks: an overflow shows as inf, rescaled by l2_norms
+        norms = np.sqrt(np.einsum("ij,ij,ij->i", U, U, NU) + np.einsum("ij,ij,ij->i", V, V, NV))
+        if not np.isfinite(norms).all():
+            norms = l2_norms(NU, NV, U, V)
         for r, (lp, rec) in enumerate(zip(loops, records)):
             lp.advance(j, float(v_now[r]))
             rec.store(j, float(norms[r]), U[r], V[r])
