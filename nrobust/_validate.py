@@ -71,19 +71,22 @@ def positive_int(name: str, value: Any, minimum: int = 1, maximum: int | None = 
 def _numeric_array(name: str, value: Any, kinds: str, what: str, ndim: int | None, min_size: int) -> NDArray:
     """``np.asarray(value)`` if its dtype kind is one of ``kinds`` and it is finite, of
     ``ndim`` dimensions and at least ``min_size`` entries; ParameterError otherwise."""
-    shape = "a sequence" if ndim == 1 else "an array" if ndim is None else f"a {ndim}-D array"
-    size = {0: "", 1: "at least one "}.get(min_size, f"at least {min_size} ")
-    expected = f"{shape} of {size}finite {what}"
+
+    def expected() -> str:
+        shape = "a sequence" if ndim == 1 else "an array" if ndim is None else f"a {ndim}-D array"
+        size = {0: "", 1: "at least one "}.get(min_size, f"at least {min_size} ")
+        return f"{shape} of {size}finite {what}"
+
     if isinstance(value, (str, bytes)) or value is None:
-        raise ParameterError(name, expected, value)
+        raise ParameterError(name, expected(), value)
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError):  # ragged nesting
-        raise ParameterError(name, expected, value) from None
+        raise ParameterError(name, expected(), value) from None
     if arr.dtype.kind not in kinds or (ndim is not None and arr.ndim != ndim) or arr.size < min_size:
-        raise ParameterError(name, expected, value)
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(name, f"{expected} (no nan or inf)", value)
+        raise ParameterError(name, expected(), value)
+    if not np.isfinite(arr).all():
+        raise ParameterError(name, f"{expected()} (no nan or inf)", value)
     return arr
 
 

@@ -116,7 +116,7 @@ class ChebyshevIndex:
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= self.n:
             raise ParameterError("k", f"an integer in [1, {self.n}] (the number of points)", k)
         q = np.asarray(x, dtype=float).reshape(-1, 2)
-        if not np.all(np.isfinite(q)):
+        if not np.isfinite(q).all():
             raise ParameterError("x", "finite query points", q.shape)
         k, m, n = int(k), q.shape[0], self.n
         if m * n <= _ALL_PAIRS:  # every distance; a stable sort puts the lower index first among equal ones

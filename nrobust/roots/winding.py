@@ -357,7 +357,7 @@ class Counter:
         box_blocked = blocked.reshape(-1, 4)
         counts = np.rint(box_turns).astype(np.int64)
         good = ~box_blocked.any(axis=1)
-        if np.any(np.abs(box_turns[good] - counts[good]) > 1e-6):
+        if (np.abs(box_turns[good] - counts[good]) > 1e-6).any():
             raise CertificationError("a certified winding number is not an integer: floating-point failure")
         return counts, box_blocked
 
