@@ -194,3 +194,19 @@ def test_close_delays_of_a_small_loop_delay_are_bracketed():
     # A beat period past the seeds' work bound: the bracket stays honest.
     sb = DifferenceOperator([1.0, -0.85, 0.85], [0.0, 2.0, 2.00004]).spectral_bound()
     assert sb.lower == -np.inf and sb.upper > 0.26
+
+
+@pytest.mark.parametrize("tiny", [5.5e-18, 1e-12, -3e-15])
+def test_a_negligible_top_coefficient_keeps_the_chains(tiny: float) -> None:
+    """``0.1 - 0.06 e^{-1.5 s} + tiny e^{-1.6 s}`` (the principal part of a loop at a gain of 1e-16):
+    the companion matrix normalised by ``tiny`` has entries near 1e16 and put the fifteen roots
+    of modulus about 1 at 0 (``c_D = +inf``). The chains' abscissa against mpmath's roots of the
+    same polynomial at 40 digits."""
+    D = DifferenceOperator([0.1, -0.06, tiny], [0.0, 1.5, 1.6])
+    with mpmath.workdps(40):
+        coefs = [mpmath.mpf(0.1)] + [0] * 14 + [mpmath.mpf(-0.06), mpmath.mpf(tiny)]
+        roots = mpmath.polyroots(coefs, maxsteps=500, extraprec=500, asc=True)
+        expected = float(max(-mpmath.log(abs(z)) / mpmath.mpf(0.1) for z in roots))
+    bound = D.spectral_bound()
+    np.testing.assert_allclose([bound.lower, bound.upper], expected, rtol=1e-12)
+    assert bound.upper < D.strong_spectral_bound() + 1e-12  # c_D <= C_D
