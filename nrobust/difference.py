@@ -73,19 +73,23 @@ def _polynomial_roots(
     about a second).
 
     The companion matrix is that of the polynomial made monic by the larger of its end
-    coefficients (of ``z^N P(1/z)`` when the constant term is the larger, its roots
-    inverted): its entries are then ``a_k / a_end`` with ``|a_end|`` the larger, so a
-    negligible top coefficient (``0.1 - 0.06 z^15 + 5.5e-18 z^16``) does not blow the matrix
-    up to ``1e16`` and bury the fifteen roots of modulus about 1 in its rounding.
+    coefficients (of ``z^N P(1/z)``, its roots inverted, when the constant term is the
+    larger): its entries ``a_k / a_end`` are then the smaller, so a negligible top coefficient
+    (``0.1 - 0.06 z^15 + 5.5e-18 z^16``) does not make them ``1e16`` and bury the fifteen roots
+    of modulus about 1 in their rounding. A root 0 of the matrix so chosen (``P`` and its
+    reverse have none) is rounding too, of a root of extreme modulus: then the other matrix is
+    used if it has none, else the matrix of ``P`` (the moduli span more than double precision).
     """
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
     try:
         with np.errstate(all="ignore"):
-            if abs(poly[-1]) < abs(poly[0]):
-                roots = 1.0 / np.roots(poly)  # the roots w = 1/z of w^N P(1/w), coefficients descending
+            forward = np.roots(poly[::-1]) if abs(poly[-1]) >= abs(poly[0]) else None
+            inverse = np.roots(poly) if forward is None or np.any(forward == 0) else None  # w = 1/z of w^N P(1/w)
+            if inverse is not None and inverse.size == powers[-1] and np.all(inverse != 0):
+                roots = 1.0 / inverse
             else:
-                roots = np.roots(poly[::-1])
+                roots = np.roots(poly[::-1]) if forward is None else forward
     except np.linalg.LinAlgError as exc:  # the companion matrix overflows (coefficients of extreme ratio)
         nonzero = np.log10(np.abs(poly[poly != 0]))
         raise CertificationError(

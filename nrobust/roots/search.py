@@ -555,8 +555,27 @@ class Finder:
         return (xs[None, :] + 1j * ys[:, None]).ravel()
 
     def seed_and_accept(self, seeds: NDArray[np.complex128], max_step: float) -> None:
-        if seeds.size:
-            self.accept(_newton(self.F, seeds, self.budget, max_step, within=self.region))
+        """Newton's method from ``seeds``, then :meth:`accept` of the limit points.
+
+        For a real ``F`` (``F(conj s) = conj F(s)``: its roots come in conjugate pairs) a seed
+        below the real axis whose mirror image lies in the region is replaced by that image,
+        and each limit point above the axis is accepted with its mirror image: Newton's method
+        runs on the upper seeds only, and the boxes about a pair are mirror images, whose
+        edges the counter computes once (:class:`~nrobust.roots.winding.Counter`). The seeds
+        only propose candidates: the counts still certify every box.
+        """
+        if not seeds.size:
+            return
+        real = self.F.is_real
+        y0, y1 = self.region[2:]
+        if real:
+            flip = (seeds.imag < 0.0) & (-seeds.imag < y1)
+            seeds = np.unique(np.where(flip, seeds.conj(), seeds))
+        found = _newton(self.F, seeds, self.budget, max_step, within=self.region)
+        if real:
+            found = found[np.isfinite(found)]
+            found = np.concatenate([found, found[(found.imag > 0.0) & (-found.imag > y0)].conj()])
+        self.accept(found)
 
     # ------------------------------------------------------------ subdivision
     def _split(self, box: Region) -> tuple[Region, Region]:
