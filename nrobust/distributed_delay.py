@@ -868,7 +868,9 @@ class DistributedDelay:
                 out.append((complex(self.poly[-1] * jump[j, i]), self.poly.size - 2 - j, float(nu)))
         return out
 
-    def decay_bound(self, x: ArrayLike, d: ArrayLike, k: int = 0) -> NDArray[np.float64]:
+    def decay_bound(
+        self, x: ArrayLike, d: ArrayLike, k: int = 0, *, where: ArrayLike | None = None
+    ) -> NDArray[np.float64]:
         """Upper bound of ``|int nu^(m+k) N_true(nu) e^{-nu s} dnu|`` for ``Re s >= x`` and ``|s| >= d``.
 
         From the exact identity of :meth:`_end_terms`:
@@ -882,13 +884,23 @@ class DistributedDelay:
             Least real part and least modulus of ``s`` (broadcast together).
         k : int, optional
             Extra moment.
+        where : array_like of int, optional
+            ``x`` holds distinct real parts and ``x[where]`` those of the points, with the shape of
+            ``d`` (the segments of a contour share a few real parts: their exponentials are then
+            formed once each).
         """
-        x, d = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(d, dtype=float))
+        if where is None:
+            x, d = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(d, dtype=float))
+            distinct, index = np.unique(x, return_inverse=True)
+            index = index.reshape(x.shape)
+        else:
+            distinct, index = np.asarray(x, dtype=float), np.asarray(where)
+            d = np.broadcast_to(np.asarray(d, dtype=float), index.shape)
+            x = distinct[index]
         nodes, _, bound = self._end_terms(k)
         with np.errstate(over="ignore", divide="ignore"):
-            # the exponentials at the distinct real parts only (the segments of a contour share a few)
-            distinct, where = np.unique(x, return_inverse=True)
-            weights = np.exp(-np.multiply.outer(distinct, nodes))[where.reshape(x.shape)] @ bound.T  # (..., degree + 1)
+            # the exponentials at the distinct real parts only
+            weights = np.exp(-np.multiply.outer(distinct, nodes))[index] @ bound.T  # (..., degree + 1)
             inv = 1.0 / d
             out = np.zeros(x.shape)
             for j in range(bound.shape[0] - 1, -1, -1):

@@ -85,9 +85,8 @@ def _integral_bounds(
     rounded down) and :meth:`DistributedDelay.decay_bound` (at the same real parts and the
     least modulus on the segment): both hold, the second decays like ``1/|s|``.
     """
-    x = xs[where]
     dmin = _least_modulus(np.asarray(a, dtype=complex), np.asarray(b, dtype=complex))
-    return [np.fmin(d.abs_moment(xs, k)[where], d.decay_bound(x, dmin, k)) for k in ks]
+    return [np.fmin(d.abs_moment(xs, k)[where], d.decay_bound(xs, dmin, k, where=where)) for k in ks]
 
 
 def _poly_abs_bound(coefs: NDArray, center: NDArray, radius: NDArray) -> NDArray[np.float64]:

@@ -381,3 +381,18 @@ def test_comparison_with_other_types_is_not_implemented(other):
     F = QuasiPolynomial([[1]], [0])
     assert F.__eq__(other) is NotImplemented and d1.__eq__(other) is NotImplemented
     assert F != other and d1 != other and F != d1
+
+
+def test_decay_bound_at_distinct_real_parts_is_the_same_bound() -> None:
+    """``decay_bound(xs, d, k, where=idx)`` (the contour's distinct real parts given) equals
+    ``decay_bound(xs[idx], d, k)`` bit for bit, zero moduli (infinite bounds) included."""
+    N = DistributedDelay(np.linspace(0.0, 2.0, 9), np.cos(np.linspace(0.0, 3.0, 9)), moment=1)
+    rng = np.random.default_rng(3)
+    xs = np.unique(np.round(rng.uniform(-3.0, 1.0, 30) * 64.0) / 64.0)
+    idx = rng.integers(0, xs.size, size=(5, 7))
+    d = rng.uniform(0.0, 40.0, size=(5, 7))
+    d[0, 0] = 0.0
+    for k in (0, 1, 2):
+        expected = N.decay_bound(xs[idx], d, k)
+        assert np.isinf(expected[0, 0])
+        np.testing.assert_array_equal(N.decay_bound(xs, d, k, where=idx), expected)
