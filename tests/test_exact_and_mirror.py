@@ -152,3 +152,21 @@ def test_a_complex_function_is_counted_on_the_whole_contour() -> None:
     F = QuasiPolynomial([[-(0.3 + 0.5j), 1.0]], [0.0])
     assert int(count_roots(F, (0.0, 1.0, 0.2, 1.0))) == 1
     assert int(count_roots(F, (0.0, 1.0, -1.0, -0.2))) == 0
+
+
+def test_prefetched_boxes_are_computed_with_the_next_count() -> None:
+    """``Counter.prefetch``: the boxes' edges are computed in the batch of the next count, which
+    returns the counts of its own boxes only; counting them next costs no evaluation."""
+    F, every = _placed([complex(0.3, 1.2), complex(-0.4, 2.3)])
+    region = (-1.0, 1.0, -3.0, 3.0)
+    boxes = [(0.2, 0.4, 1.1, 1.3), (-0.5, -0.3, 2.2, 2.4), (-0.5, -0.3, -2.4, -2.2)]
+    budget = Budget(10**6)
+    counter = Counter(F, budget)
+    counter.prefetch = list(boxes)
+    counts, _ = counter.count([region])
+    inside = (every.real > -1) & (every.real < 1) & (np.abs(every.imag) < 3)
+    assert counts.tolist() == [int(np.sum(inside))] and counter.prefetch == []
+    used = budget.used
+    counts, blocked = counter.count(boxes)
+    assert counts.tolist() == [1, 1, 1] and not blocked.any()
+    assert budget.used == used  # every edge was computed with the region's

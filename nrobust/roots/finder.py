@@ -422,21 +422,38 @@ def find_roots(
     rigorous = check_rigorous(F, rigorous)
     finder = Finder(F, box, cluster_tol, Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
+        early = None
+        if method == "auto" and extra.size:  # seeds given: the boxes about their limits counted with the region
+            early = finder.limit_points(np.concatenate([finder.chain_seeds(), extra]), 1.0)
+            finder.counter.prefetch = finder.first_boxes(early)
         total, reg, shifted = count_with_shifts(finder.counter, box, 4)
-        found = find_counted(finder, total, reg, shifted, extra, method)
+        found = find_counted(finder, total, reg, shifted, extra, method, early)
     if not rigorous:
         return found
     return prove(F, found, ball_function(F, prec), Budget(max_evals), 4)
 
 
 def find_counted(
-    finder: Finder, total: int, reg: Region, shifted: bool, extra: NDArray[np.complex128], method: str = "auto"
+    finder: Finder,
+    total: int,
+    reg: Region,
+    shifted: bool,
+    extra: NDArray[np.complex128],
+    method: str = "auto",
+    limit_points: NDArray[np.complex128] | None = None,
 ) -> RootSet:
-    """Steps 2-4 of :func:`find_roots` on a region ``reg`` already counted (``total`` roots)."""
+    """Steps 2-4 of :func:`find_roots` on a region ``reg`` already counted (``total`` roots).
+
+    ``limit_points``: those of Newton's method from the chain seeds and ``extra``, when already
+    found (:meth:`Finder.limit_points`).
+    """
     finder.region = reg
     if total > 0:
         if method == "auto":
-            finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
+            if limit_points is None:
+                finder.seed_and_accept(np.concatenate([finder.chain_seeds(), extra]), 1.0)
+            elif limit_points.size:
+                finder.accept(limit_points)
             if finder.found.total() < total:
                 n_grid = 4 * total + 16
                 cell = np.sqrt((reg[1] - reg[0]) * (reg[3] - reg[2]) / n_grid)

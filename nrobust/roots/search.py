@@ -395,14 +395,7 @@ class Finder:
         inside one of them and its box is clipped to it, so that accepted boxes never
         straddle the cuts of the subdivision.
         """
-        cand, own, spread = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
-        if not cand.size:
-            return
-        hard = self._half_widths(cand)
-        # |F| ~ r^m on the box edges of an m-fold root: boxes well wider than the scatter
-        soft = np.minimum(hard, np.maximum(1e-4 * (1.0 + np.abs(cand)), 10.0 * spread))
-        keep = soft > 8 * EPS * (1.0 + np.abs(cand))
-        cand, own, hard, soft = cand[keep], own[keep], hard[keep], soft[keep]
+        cand, own, hard, soft = self._sized(cand, owners)
         for factor in (1.0, 4.0, 16.0, 64.0, 0.3):  # an edge at rounding level of a root: resize
             if not cand.size:
                 return
@@ -417,6 +410,25 @@ class Finder:
             ):
                 self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
             cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
+
+    def _sized(
+        self, cand: NDArray[np.complex128], owners: Sequence[Region] | None
+    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The candidates :meth:`accept` boxes (merged, inside an owner, outside the accepted boxes),
+        their owner boxes and the half-widths ``hard`` (disjoint boxes) and ``soft`` (the first tried)."""
+        cand, own, spread = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
+        if not cand.size:
+            return cand, own, spread, spread
+        hard = self._half_widths(cand)
+        # |F| ~ r^m on the box edges of an m-fold root: boxes well wider than the scatter
+        soft = np.minimum(hard, np.maximum(1e-4 * (1.0 + np.abs(cand)), 10.0 * spread))
+        keep = soft > 8 * EPS * (1.0 + np.abs(cand))
+        return cand[keep], own[keep], hard[keep], soft[keep]
+
+    def first_boxes(self, cand: NDArray[np.complex128]) -> list[Region]:
+        """The boxes that :meth:`accept` of ``cand`` counts first (for :attr:`Counter.prefetch`)."""
+        cand, own, hard, soft = self._sized(cand, None)
+        return [tuple(b) for b in _boxes_about(cand, np.minimum(soft, hard), own)]  # type: ignore[misc]
 
     def _accept_simple(self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64]) -> None:
         """Accept boxes holding one root each, polishing the candidates (which may be the
@@ -555,7 +567,13 @@ class Finder:
         return (xs[None, :] + 1j * ys[:, None]).ravel()
 
     def seed_and_accept(self, seeds: NDArray[np.complex128], max_step: float) -> None:
-        """Newton's method from ``seeds``, then :meth:`accept` of the limit points.
+        """:meth:`accept` of the limit points of :meth:`limit_points`."""
+        found = self.limit_points(seeds, max_step)
+        if found.size:
+            self.accept(found)
+
+    def limit_points(self, seeds: NDArray[np.complex128], max_step: float) -> NDArray[np.complex128]:
+        """Newton's method from ``seeds`` (steps up to ``max_step``): the candidate roots.
 
         For a real ``F`` (``F(conj s) = conj F(s)``: its roots come in conjugate pairs) a seed
         below the real axis whose mirror image lies in the region is replaced by that image,
@@ -565,7 +583,7 @@ class Finder:
         only propose candidates: the counts still certify every box.
         """
         if not seeds.size:
-            return
+            return seeds
         real = self.F.is_real
         y0, y1 = self.region[2:]
         if real:
@@ -575,7 +593,7 @@ class Finder:
         if real:
             found = found[np.isfinite(found)]
             found = np.concatenate([found, found[(found.imag > 0.0) & (-found.imag > y0)].conj()])
-        self.accept(found)
+        return found
 
     # ------------------------------------------------------------ subdivision
     def _split(self, box: Region) -> tuple[Region, Region]:

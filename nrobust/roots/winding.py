@@ -305,6 +305,9 @@ class Counter:
         self.budget = budget
         self.cache: dict[tuple[complex, complex], tuple[float, bool]] = {}
         self.real = bool(F.is_real)
+        # boxes whose edges the next count computes with its own (one batch): boxes about candidate
+        # roots known before the region is counted, which the search counts next
+        self.prefetch: list[tuple[float, float, float, float]] = []
 
     def _pieces(self, p: complex, q: complex) -> list[tuple[complex, complex, float]]:
         """Segments ``(a, b, sign)`` whose turns, times their signs, add up to those of ``[p, q]``.
@@ -324,8 +327,13 @@ class Counter:
         return [piece for half in ((p, r), (r, q)) for piece in self._pieces(*half)]
 
     def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
-        """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them."""
-        pieces = [self._pieces(p, q) for box in boxes for p, q in _box_edges(box)]
+        """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them.
+
+        The edges of :attr:`prefetch` are computed in the same batch (and the list emptied);
+        only ``boxes`` are counted.
+        """
+        extra, self.prefetch = self.prefetch, []
+        pieces = [self._pieces(p, q) for box in [*boxes, *extra] for p, q in _box_edges(box)]
         todo: dict[tuple[complex, complex], int] = {}
         for i, edge in enumerate(pieces):
             for p, q, _ in edge:
@@ -338,10 +346,11 @@ class Counter:
                 np.array([k[0] for k in keys]),
                 np.array([k[1] for k in keys]),
                 self.budget,
-                lambda j: _describe_edge(boxes[todo[keys[j]] // 4], todo[keys[j]] % 4),
+                lambda j: _describe_edge([*boxes, *extra][todo[keys[j]] // 4], todo[keys[j]] % 4),
             )
             for k, tr, bl in zip(keys, res.turns, res.blocked):
                 self.cache[k] = (float(tr), bool(bl))
+        pieces = pieces[: 4 * len(boxes)]
         turns = np.zeros(len(pieces))
         blocked = np.zeros(len(pieces), dtype=bool)
         for i, edge in enumerate(pieces):
