@@ -428,7 +428,7 @@ class Finder:
     def first_boxes(self, cand: NDArray[np.complex128]) -> list[Region]:
         """The boxes that :meth:`accept` of ``cand`` counts first (for :attr:`Counter.prefetch`)."""
         cand, own, hard, soft = self._sized(cand, None)
-        return [tuple(b) for b in _boxes_about(cand, np.minimum(soft, hard), own)]  # type: ignore[misc]
+        return [tuple(b) for b in _boxes_about(cand, np.minimum(soft, hard), own)]
 
     def _accept_simple(self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64]) -> None:
         """Accept boxes holding one root each, polishing the candidates (which may be the
