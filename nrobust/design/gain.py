@@ -61,7 +61,8 @@ from .._bracket import illinois
 from .._digits import inner_interval_text, with_accuracy
 from .._json import fields_dict
 from .._validate import finite_real, positive, positive_int
-from ..bounds import root_free_region
+from ..bounds import TailBound, joint_degree, principal_gap, radius_where
+from ..distributed_delay import DistributedDelay, polyder, polyval
 from ..errors import CertificationError, ParameterError
 from ..margins.axis import frequency_bound
 from ..margins.count import unstable_count
@@ -69,7 +70,7 @@ from ..margins.gain import AffineGainLoop, AxisBound, GainEnd, nominally_stable
 from ..margins.margin import DelayMargin, delay_margin
 from ..margins.proven import proven_crossings
 from ..quasipoly import QuasiPolynomial
-from ..roots import SpectralAbscissa, spectral_abscissa
+from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
 
 __all__ = [
     "DESIGN_KINDS",
@@ -266,6 +267,60 @@ def _is_zero(P: QuasiPolynomial) -> bool:
     return not P.point_terms and not P.distributed
 
 
+def _merged(F: QuasiPolynomial) -> QuasiPolynomial:
+    """``F`` with each pair of distributed terms whose stored kernels are exact opposites written as one term.
+
+    ``q_1(s) N + q_2(s) (-N) = (q_1 - q_2)(s) N``: the filtered law's nominal loop holds
+    ``(1 + b s) I_N - (1 + a s) I_N = (b - a) s I_N`` (eq. (60) with the filter), which
+    :class:`~nrobust.quasipoly.QuasiPolynomial` keeps as two terms (it merges terms with equal
+    polynomials only). Two such terms (same nodes, moment, interpolation, error bounds, and stored
+    kernels that are exact negatives) stand for one kernel and its negation, as
+    :meth:`~nrobust.distributed_delay.DistributedDelay.plus` takes them, so the error bound of the
+    sum is that of one kernel. The function is the same; each kernel is evaluated and bounded
+    once instead of twice.
+    """
+    terms = list(F.distributed)
+    out = []
+    while terms:
+        d = terms.pop(0)
+        for i, e in enumerate(terms):
+            if (
+                d.moment == e.moment
+                and d.interpolation == e.interpolation
+                and d.radius == e.radius
+                and d.variation_radius == e.variation_radius
+                and np.array_equal(d.nodes, e.nodes)
+                and np.array_equal(d.values, -e.values)
+                and np.array_equal(d.pieces[2], -e.pieces[2])
+            ):
+                d = d.replace(poly=np.polynomial.polynomial.polysub(d.poly, e.poly))
+                del terms[i]
+                break
+        out.append(d)
+    if len(out) == len(F.distributed):
+        return F
+    return QuasiPolynomial.from_parts(F.point_terms, out)
+
+
+def _zero_free_radius(F: QuasiPolynomial) -> float:
+    """The radius of :func:`nrobust.bounds.root_free_region` ``(F, 0)``, with its errors, without its half-plane.
+
+    No zero with ``Re s >= 0`` and ``|s| > R``: the first principal term's gap on ``Re s >= 0``
+    exceeds :class:`~nrobust.bounds.TailBound` at ``|s| = R``. (The half-plane of
+    ``root_free_region`` exists whenever this radius does: both bounds are monotone in ``Re s``.)
+    """
+    n = joint_degree(F)
+    g = principal_gap({"F": (F, 0)}, n, 0.0)
+    if g is None:
+        raise ParameterError("F", "of retarded or neutral type (its first principal term has the smallest delay)", F)
+    if g.gap <= 0.0:
+        raise ParameterError(
+            "x0", "to the right of the strong spectral bound of the principal part (positive dominance gap)", 0.0
+        )
+    tail = TailBound(F, n, 0.0, g.t0)
+    return radius_where(lambda R: float(tail(R)), g.gap, "root_free_region")
+
+
 @dataclass(frozen=True)
 class _Axis:
     """``A_0, A_1, B_0, B_1`` at ``s = i w`` and their ``w``-derivatives (``None``: not computed)."""
@@ -319,6 +374,68 @@ class _Axis:
         return np.mod(np.angle(-(self.b0 + K * self.b1) / (self.a0 + K * self.a1)), _TWO_PI)
 
 
+def _kernel_sign(base: DistributedDelay, d: DistributedDelay) -> float:
+    """``1`` or ``-1`` when ``d`` stores the kernel of ``base`` or its negation (same segments and moment), else 0."""
+    if d.moment != base.moment or not all(np.array_equal(u, v) for u, v in zip(d.pieces[:2], base.pieces[:2])):
+        return 0.0
+    if np.array_equal(d.pieces[2], base.pieces[2]):
+        return 1.0
+    return -1.0 if np.array_equal(d.pieces[2], -base.pieces[2]) else 0.0
+
+
+class _SharedKernels:
+    """Quasi-polynomials evaluated together, each stored kernel of their distributed terms integrated once.
+
+    The factors of a filtered law hold one kernel several times (``I_N`` in ``A_0 = (1 - Phi)(1 + b s)`` and,
+    negated, in ``B_0 = (K q e^{-tau s} - I_N)(1 + a s)``). A term is ``q(s) J_m(s)``,
+    ``J_k = int nu^k N e^{-nu s} dnu``, and its derivative ``q' J_m - q J_{m+1}``
+    (:class:`~nrobust.distributed_delay.DistributedDelay`): ``J_m`` and ``J_{m+1}`` are computed once per
+    kernel (its term with ``q = 1``, negated for a negated kernel, which is exact) and combined as the terms
+    combine them, so the values are those of each quasi-polynomial's own evaluation, bit for bit.
+    """
+
+    def __init__(self, parts: Sequence[QuasiPolynomial]) -> None:
+        self.points = [QuasiPolynomial.from_parts(P.point_terms, ()) for P in parts]
+        self.kernels: list[DistributedDelay] = []
+        self.terms: list[list[tuple[int, float, NDArray]]] = []  # per part: (kernel, sign, q)
+        for P in parts:
+            row = []
+            for d in P.distributed:
+                k, sign = next(((k, g) for k, b in enumerate(self.kernels) if (g := _kernel_sign(b, d))), (-1, 1.0))
+                if k < 0:
+                    k = len(self.kernels)
+                    self.kernels.append(d.replace(poly=[1.0]))
+                row.append((k, sign, d.poly))
+            self.terms.append(row)
+
+    def __call__(self, s: NDArray[np.complex128], slopes: bool) -> tuple[list[NDArray], list[NDArray] | None]:
+        """The values of the parts at ``s`` (1-d), and their derivatives when ``slopes``."""
+        j0 = [b(s) for b in self.kernels]
+        values = []
+        for points, row in zip(self.points, self.terms):
+            out = points(s) if points.point_terms else np.zeros(s.shape, dtype=complex)
+            for k, sign, q in row:
+                J0 = j0[k] if sign > 0 else -j0[k]
+                out += J0 if q.size == 1 else polyval(q, s) * J0
+            values.append(out)
+        if not slopes:
+            return values, None
+        j1 = [-b.deriv_at(s) for b in self.kernels]
+        derivs = []
+        for points, row in zip(self.points, self.terms):
+            out = points.deriv_at(s) if points.point_terms else np.zeros(s.shape, dtype=complex)
+            for k, sign, q in row:
+                J0, J1 = (j0[k], j1[k]) if sign > 0 else (-j0[k], -j1[k])
+                if q.size == 1:
+                    out += -J1
+                else:
+                    term = polyval(polyder(q), s) * J0
+                    term -= polyval(q, s) * J1
+                    out += term
+            derivs.append(out)
+        return values, derivs
+
+
 class _Family:
     """The loop being designed, :class:`AffineGainLoop` or :class:`AffineLoop`, behind one interface."""
 
@@ -339,6 +456,16 @@ class _Family:
             # A_0 + B_0 when distributed terms cancel in it (the unfiltered law's I_N - I_N): A_0 = S_0 - B_0
             S0 = loop.A0 + loop.B0
             self.S0 = S0 if len(S0.distributed) < len(loop.A0.distributed) else None
+            # B_0, A_0 (or S_0), then A_1 and B_1 when evaluated: a kernel they share is integrated once
+            own = [
+                P
+                for P, evaluated in (
+                    (loop.A1, not (self.a1_zero or self.a1_times_s)),
+                    (loop.B1, not (self.b1_zero or self.b1_times_s)),
+                )
+                if evaluated
+            ]
+            self.shared = _SharedKernels([loop.B0, loop.A0 if self.S0 is None else self.S0, *own])
         cheap = self.a1_zero + self.b1_zero + self.a1_times_s + self.b1_times_s
         # evaluations of quasi-polynomials per sample of the axis (values and slopes)
         self.evals_per_sample = _EVALS_PER_SAMPLE if self.gain else 2 * (4 - cheap)
@@ -352,36 +479,51 @@ class _Family:
             d = (at.da, zero if slopes else None, at.db0, at.dr)
             return _Axis(at.w, at.a, zero, at.b0, at.r, *d)
         s = 1j * np.asarray(w, dtype=float)
-        loop, zero = self.loop, np.zeros(s.shape, dtype=complex)
-        b0 = loop.B0(s)
-        a0 = loop.A0(s) if self.S0 is None else self.S0(s) - b0
-        a1 = zero if self.a1_zero else s * a0 if self.a1_times_s else loop.A1(s)
-        b1 = zero if self.b1_zero else s * b0 if self.b1_times_s else loop.B1(s)
-        if not slopes:
+        zero = np.zeros(s.shape, dtype=complex)
+        values, derivs = self.shared(s, slopes)
+        b0 = values[0]
+        a0 = values[1] if self.S0 is None else values[1] - b0
+        rest = iter(values[2:])
+        a1 = zero if self.a1_zero else s * a0 if self.a1_times_s else next(rest)
+        b1 = zero if self.b1_zero else s * b0 if self.b1_times_s else next(rest)
+        if derivs is None:
             return _Axis(s.imag, a0, a1, b0, b1)
-        db0 = 1j * loop.B0.deriv_at(s)
-        da0 = 1j * loop.A0.deriv_at(s) if self.S0 is None else 1j * self.S0.deriv_at(s) - db0
+        db0 = 1j * derivs[0]
+        da0 = 1j * derivs[1] if self.S0 is None else 1j * derivs[1] - db0
+        slope = iter(derivs[2:])
         # d/dw of (i w) P(i w) = i P + i w dP/dw
-        da1 = zero if self.a1_zero else 1j * a0 + s * da0 if self.a1_times_s else 1j * loop.A1.deriv_at(s)
-        db1 = zero if self.b1_zero else 1j * b0 + s * db0 if self.b1_times_s else 1j * loop.B1.deriv_at(s)
+        da1 = zero if self.a1_zero else 1j * a0 + s * da0 if self.a1_times_s else 1j * next(slope)
+        db1 = zero if self.b1_zero else 1j * b0 + s * db0 if self.b1_times_s else 1j * next(slope)
         return _Axis(s.imag, a0, a1, b0, b1, da0, da1, db0, db1)
 
     def A(self, p: float) -> QuasiPolynomial:
-        return self.loop.A if isinstance(self.loop, AffineGainLoop) else self.loop.A(p)
+        """``A_0 + p A_1``; ``A_0 (1 + p s)`` when ``A_1 = s A_0`` (a filter's pole: each kernel of ``A_0`` once)."""
+        if isinstance(self.loop, AffineGainLoop):
+            return self.loop.A
+        return self.loop.A0.times_poly([1.0, p]) if self.a1_times_s else self.loop.A(p)
 
     def B(self, p: float) -> QuasiPolynomial:
+        """``B_0 + p B_1``; ``B_0 (1 + p s)`` when ``B_1 = s B_0`` (a filter's zero)."""
+        if isinstance(self.loop, AffineLoop) and self.b1_times_s:
+            return self.loop.B0.times_poly([1.0, p])
         return self.loop.B(p)
 
     def nominal(self, p: float) -> QuasiPolynomial:
-        """``F(.; 0, p)``."""
-        return self.loop.loop_at(p, 0.0)
+        """``F(.; 0, p) = A + B``, each kernel shared by ``A`` and ``B`` with opposite signs written once
+        (:func:`_merged`)."""
+        return _merged(self.A(p) + self.B(p))
 
     def nominally_stable(self, p: float) -> bool:
-        """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``."""
+        """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``.
+
+        The zeros with ``Re s >= 0`` are counted in the radius of
+        :func:`nrobust.bounds.root_free_region` (its half-plane, which the count does not use, is not
+        computed: :func:`_zero_free_radius`).
+        """
         if isinstance(self.loop, AffineGainLoop):
             return nominally_stable(self.loop, p)
         F = self.nominal(p)
-        return unstable_count(F, root_free_region(F).radius).stable
+        return unstable_count(F, _zero_free_radius(F)).stable
 
     def zero_root(self) -> float | None:
         """The parameter at which ``s = 0`` is a root for every delay (``F(0; ., p) = 0``), or None."""
@@ -450,6 +592,11 @@ class _Piece:
         return float(np.interp(K, Ks, self.w[order])), float(np.interp(K, Ks, self.d[order]))
 
 
+def _cat(*parts: Any) -> NDArray[np.float64]:
+    """The numbers and arrays ``parts`` joined into one array (``np.r_`` without its parsing)."""
+    return np.concatenate([np.ravel(p) for p in parts])
+
+
 # Points (w, K, d) of a branch.
 _Points = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -507,7 +654,7 @@ class _Curves:
             return {}
 
         def f(x: NDArray) -> NDArray:
-            _, m, root, at = self._sample(x)
+            _, m, root, at = self._sample(x, slopes=False)
             return np.angle(-(at.b0 + (m + sigma * root) * at.b1) / (at.a0 + (m + sigma * root) * at.a1))
 
         a, b = w[j].copy(), w[j + 1].copy()
@@ -515,7 +662,7 @@ class _Curves:
         keep = fa * fb < 0
         j, a, b, fa, fb = j[keep], a[keep], b[keep], fa[keep], fb[keep]
         wx = illinois(f, a, b, fa, fb, steps=8)
-        _, m, root, _ = self._sample(wx)
+        _, m, root, _ = self._sample(wx, slopes=False)
         return {int(k): (float(x), float(mk + sigma * rk)) for k, x, mk, rk in zip(j, wx, m, root)}
 
     def _poles(
@@ -555,9 +702,9 @@ class _Curves:
             out[int(k)] = (float(x), float(K), float(th), side[0], side[1])
         return out
 
-    def _sample(self, w: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray, _Axis]:
-        """``D, m, sqrt D`` and the loop on the axis at ``w`` (with slopes)."""
-        at = self.loop.axis(w, slopes=True)
+    def _sample(self, w: NDArray[np.float64], slopes: bool = True) -> tuple[NDArray, NDArray, NDArray, _Axis]:
+        """``D, m, sqrt D`` and the loop on the axis at ``w`` (with slopes unless ``slopes`` is False)."""
+        at = self.loop.axis(w, slopes=slopes)
         D, m, root = at.branches()
         return D, m, root, at
 
@@ -637,32 +784,32 @@ class _Curves:
                 ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
                 if how == "birth":  # the extremum between the samples
                     wb, Kb, db = births[lo - 1]
-                    ws, Ks, ds = np.r_[wb, ws], np.r_[Kb, Ks], np.r_[db, ds]
+                    ws, Ks, ds = _cat(wb, ws), _cat(Kb, Ks), _cat(db, ds)
                 if stop == "birth":
                     wb, Kb, db = births[hi]
-                    ws, Ks, ds = np.r_[ws, wb], np.r_[Ks, Kb], np.r_[ds, db]
+                    ws, Ks, ds = _cat(ws, wb), _cat(Ks, Kb), _cat(ds, db)
                 if how == "junction" and lo - 1 in junctions:
                     wx, Kx, dx = junctions[lo - 1][sigma]
-                    ws, Ks, ds = np.r_[wx, ws], np.r_[Kx, Ks], np.r_[dx, ds]
+                    ws, Ks, ds = _cat(wx, ws), _cat(Kx, Ks), _cat(dx, ds)
                 if stop == "junction" and hi in junctions:
                     wx, Kx, dx = junctions[hi][sigma]
-                    ws, Ks, ds = np.r_[ws, wx[::-1]], np.r_[Ks, Kx[::-1]], np.r_[ds, dx[::-1]]
+                    ws, Ks, ds = _cat(ws, wx[::-1]), _cat(Ks, Kx[::-1]), _cat(ds, dx[::-1])
                 if how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
                     w_wrap, K_wrap = wraps[lo - 1]
                     d_wrap = (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = np.r_[w_wrap, ws], np.r_[K_wrap, Ks], np.r_[d_wrap, ds]
+                    ws, Ks, ds = _cat(w_wrap, ws), _cat(K_wrap, Ks), _cat(d_wrap, ds)
                 if stop == "wrap" and hi in wraps:
                     w_wrap, K_wrap = wraps[hi]
                     d_wrap = (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = np.r_[ws, w_wrap], np.r_[Ks, K_wrap], np.r_[ds, d_wrap]
+                    ws, Ks, ds = _cat(ws, w_wrap), _cat(Ks, K_wrap), _cat(ds, d_wrap)
                 if how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
                     w_pole, K_pole = poles[lo - 1][:2]
                     d_pole = self._pole_delay(poles[lo - 1], theta[lo])
-                    ws, Ks, ds = np.r_[w_pole, ws], np.r_[K_pole, Ks], np.r_[d_pole, ds]
+                    ws, Ks, ds = _cat(w_pole, ws), _cat(K_pole, Ks), _cat(d_pole, ds)
                 if stop == "pole" and hi in poles and poles[hi][3] == sigma:
                     w_pole, K_pole = poles[hi][:2]
                     d_pole = self._pole_delay(poles[hi], theta[hi])
-                    ws, Ks, ds = np.r_[ws, w_pole], np.r_[Ks, K_pole], np.r_[ds, d_pole]
+                    ws, Ks, ds = _cat(ws, w_pole), _cat(Ks, K_pole), _cat(ds, d_pole)
                 self.pieces.extend(self._split_at_wraps(sigma, ws, Ks, ds, how, stop))
             start, how = c + 1, stop
 
@@ -678,17 +825,16 @@ class _Curves:
         Each such wrap is solved by ``brentq`` on the principal ``arg(-B/A)`` along the branch and
         ends both parts (the delay ``0`` on one side, ``2 pi / w`` on the other).
         """
+        theta = ds * ws
+        jumps = np.flatnonzero(np.abs(np.diff(theta)) > np.pi) if not self.loop.gain else ()
+        span = self.K_hi - self.K_lo
+        # (a piece away from the bounds is never on the envelope)
+        if not len(jumps) or (Ks.size and (Ks.min() > self.K_hi + span or Ks.max() < self.K_lo - span)):
+            return [_Piece(sigma, ws, Ks, ds, how, stop)]
         from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
 
-        theta = ds * ws
-        jumps = np.flatnonzero(np.abs(np.diff(theta)) > np.pi)
-        span = self.K_hi - self.K_lo
-        far = Ks.size and (np.min(Ks) > self.K_hi + span or np.max(Ks) < self.K_lo - span)
-        if not jumps.size or far or self.loop.gain:  # (a piece away from the bounds is never on the envelope)
-            return [_Piece(sigma, ws, Ks, ds, how, stop)]
-
         def phase(x: float) -> float:
-            _, m, root, at = self._sample(np.array([x]))
+            _, m, root, at = self._sample(np.array([x]), slopes=False)
             K = m + sigma * root
             return float(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1))[0])
 
@@ -700,15 +846,15 @@ class _Curves:
             if fa * fb > 0:
                 continue
             wx = brentq(phase, min(wa, wb), max(wa, wb), xtol=1e-15 * max(wa, wb), rtol=1e-15)
-            _, m, root, _ = self._sample(np.array([wx]))
+            _, m, root, _ = self._sample(np.array([wx]), slopes=False)
             Kx = float(m[0] + sigma * root[0])
             end = (_TWO_PI if theta[c] > np.pi else 0.0) / wx
             out.append(
                 _Piece(
                     sigma,
-                    np.r_[w_prev, ws[start : c + 1], wx],
-                    np.r_[K_prev, Ks[start : c + 1], Kx],
-                    np.r_[d_prev, ds[start : c + 1], end],
+                    _cat(w_prev, ws[start : c + 1], wx),
+                    _cat(K_prev, Ks[start : c + 1], Kx),
+                    _cat(d_prev, ds[start : c + 1], end),
                     start_how,
                     "wrap",
                 )
@@ -717,9 +863,7 @@ class _Curves:
             w_prev, K_prev, d_prev = np.array([wx]), np.array([Kx]), np.array([begin])
             start, start_how = c + 1, "wrap"
         out.append(
-            _Piece(
-                sigma, np.r_[w_prev, ws[start:]], np.r_[K_prev, Ks[start:]], np.r_[d_prev, ds[start:]], start_how, stop
-            )
+            _Piece(sigma, _cat(w_prev, ws[start:]), _cat(K_prev, Ks[start:]), _cat(d_prev, ds[start:]), start_how, stop)
         )
         return out
 
@@ -753,7 +897,7 @@ class _Curves:
             a, b = w[j[near]].copy(), w[j[near] + 1].copy()
             fa, fb = slope[j[near]].copy(), slope[j[near] + 1].copy()
             wx = illinois(f, a, b, fa, fb, steps=12)
-            _, m, root, at = self._sample(wx)
+            _, m, root, at = self._sample(wx, slopes=False)
             Kx = m + sigma * root
             theta = at.theta(Kx)
             # the branch of the phase of the neighbouring sample
@@ -1734,6 +1878,76 @@ def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
     return spectral_abscissa(loop.nominal(K))
 
 
+# A sample's decay rate is left out when a bound puts it below a computed one by this much (relative): far
+# above the errors of the rates (~1e-14) and of the bounds, far below the differences between samples.
+_RATE_GAP = 1e-9
+# Half-width (relative to 1 + |z|) of the box about a root followed by Newton's method in which it is counted.
+_ROOT_BOX = 1e-6
+
+
+def _root_bound(F: QuasiPolynomial, z0: complex) -> float:
+    """``-x_0`` for a box ``[x_0, x_1] x [y_0, y_1]`` in which a certified count finds a root of ``F``, about the
+    limit of Newton's method from ``z0``; ``inf`` when Newton does not converge or the count finds none.
+
+    A root with ``Re s >= x_0`` makes the spectral abscissa at least ``x_0``: the decay rate is at most ``-x_0``.
+    """
+    z = complex(z0)
+    with np.errstate(all="ignore"):  # far from a root F may overflow: no bound then
+        for _ in range(_NEWTON_STEPS):
+            s = np.array([z])
+            step = complex(F(s)[0] / F.deriv_at(s)[0])
+            z -= step
+            if not np.isfinite(z):
+                return np.inf
+            if abs(step) <= 1e-12 * (1.0 + abs(z)):
+                break
+        else:
+            return np.inf
+    h = _ROOT_BOX * (1.0 + abs(z))
+    try:
+        count = count_roots(F, (z.real - h, z.real + h, z.imag - h, z.imag + h))
+    except CertificationError:
+        return np.inf
+    return -count.region[0] if count > 0 else np.inf
+
+
+def _sampled_abscissas(loop: _Family, Ks: NDArray[np.float64], first: int) -> list[SpectralAbscissa | None]:
+    """The spectral abscissas of ``F(.; 0, K)`` at the samples ``Ks``; None at a sample whose decay rate is
+    proven smaller than a computed one (so the first largest rate of the samples is that of the full list).
+
+    The decay rate ``-alpha(K)`` is at most ``-c_D + 1e-12 (1 + |c_D|)``, ``c_D`` the chain value of the
+    principal part (:func:`~nrobust.roots.spectral_abscissa` returns the rightmost root, or ``c_D`` when
+    it lies further right than that root by more than ``1e-12 (1 + |c_D|)``), and at most ``-x_0`` when a
+    certified count finds a root in a box ``[x_0, x_1] x [y_0, y_1]`` (:func:`_root_bound`, from the
+    rightmost root of the nearest computed sample). A sample is computed unless a bound lies ``1e-9``
+    (relative) below the largest rate computed; the end ``first`` first (the likely largest), then the
+    other end, then the interior samples.
+    """
+    n = Ks.size
+    Fs = [loop.nominal(float(K)) for K in Ks]
+    chains = [float(F.principal_part().spectral_bound().upper) for F in Fs]
+    bounds = [-c + 2e-12 * (1.0 + abs(c)) if np.isfinite(c) else np.inf for c in chains]
+    order = [first, n - 1 - first, *range(1, n - 1)]
+    out: list[SpectralAbscissa | None] = [None] * n
+    best = -np.inf
+
+    def below(bound: float) -> bool:
+        return bound + _RATE_GAP * (1.0 + abs(bound)) < best
+
+    for j in order:
+        if below(bounds[j]):
+            continue
+        computed = [i for i in range(n) if out[i] is not None]
+        if computed:
+            near = out[min(computed, key=lambda i: abs(Ks[i] - Ks[j]))]
+            if near is not None and near.root is not None and below(_root_bound(Fs[j], near.root)):
+                continue
+        sa = spectral_abscissa(Fs[j])
+        out[j] = sa
+        best = max(best, -sa.value)
+    return out
+
+
 def best_margin(
     loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
@@ -1848,14 +2062,17 @@ def _best_rate(
     scale = _scale(curves)
     best: _Candidate | None = None
     for ends in intervals:
-        (K_a, _), (K_b, _) = ends
+        (K_a, event_a), (K_b, event_b) = ends
         Ks = np.linspace(K_a, K_b, n_rates)
-        sas = [_abscissa(curves.loop, float(K)) for K in Ks]
-        rates = np.array([-sa.value for sa in sas])
-        k = int(np.argmax(rates))
+        # an end set by an event (the other at a bound) is the likely best: computed first
+        sas = _sampled_abscissas(curves.loop, Ks, 0 if event_a is not None and event_b is None else n_rates - 1)
+        rates = np.array([-np.inf if sa is None else -sa.value for sa in sas])
+        k = int(np.argmax(rates))  # a sample left out has a smaller rate than a computed one: never the first largest
+        sa_k = sas[k]
+        assert sa_k is not None
         if k in (0, n_rates - 1):
             K_end, event_end = ends[0 if k == 0 else 1]
-            cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sas[k])
+            cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sa_k)
         else:
             res = minimize_scalar(
                 lambda K: _abscissa(curves.loop, K).value,
