@@ -532,14 +532,20 @@ class QuasiPolynomialMatrix:
         """``det M`` expanded exactly and rounded once, with the bound of the rounding (:class:`ExpandedDeterminant`).
 
         None when ``det M`` has no such expansion here: a distributed term, a complex
-        coefficient, or more than ``_MAX_MONOMIALS`` monomials in a minor. Computed once.
+        coefficient, more than ``_MAX_MONOMIALS`` monomials in a minor, or a coefficient beyond
+        the largest double. Computed once.
         """
         return self._exact
 
     @functools.cached_property
     def _exact(self) -> ExpandedDeterminant | None:
         terms = _exact_expansion(self.entries)
-        return None if terms is None else ExpandedDeterminant(self, terms)
+        if terms is None:
+            return None
+        try:
+            return ExpandedDeterminant(self, terms)
+        except OverflowError:  # a coefficient beyond the doubles: no rounding of the expansion
+            return None
 
     def expand(self) -> QuasiPolynomial:
         """``det M`` expanded as one quasi-polynomial (Leibniz formula).

@@ -170,3 +170,43 @@ def test_prefetched_boxes_are_computed_with_the_next_count() -> None:
     counts, blocked = counter.count(boxes)
     assert counts.tolist() == [1, 1, 1] and not blocked.any()
     assert budget.used == used  # every edge was computed with the region's
+
+
+def test_a_box_thin_about_the_real_axis_gets_a_row_of_seeds() -> None:
+    """``[-0.895, 2.96] x [-4.2e-12, 4.2e-12]``: the grid of about ``n`` square cells had 4.4 million
+    points (sorted, then refused by the work bound); now a row of at most ``n``, and the real root
+    is found, at mpmath's value (40 digits) of ``0.0722 + 0.498 s + 0.0205 s^2 + s^3 - 0.0693 e^{-1.77 s}``."""
+    import mpmath
+
+    from nrobust import find_roots
+    from nrobust.roots.search import Finder
+
+    F = QuasiPolynomial([[0.0722, 0.498, 0.0205, 1.0], [-0.0693]], [0.0, 1.77])
+    box = (-0.895, 2.96, -4.2e-12, 4.2e-12)
+    assert Finder(F, box, 1e-6, Budget(10**6)).grid_seeds(box, 20).size <= 20
+    found = find_roots(F, box, max_evals=100_000)
+    with mpmath.workdps(40):
+        f = lambda s: (  # noqa: E731
+            mpmath.mpf(0.0722)
+            + mpmath.mpf(0.498) * s
+            + mpmath.mpf(0.0205) * s**2
+            + s**3
+            - mpmath.mpf(0.0693) * mpmath.exp(-mpmath.mpf(1.77) * s)
+        )
+        root = float(mpmath.findroot(f, -0.0047))
+    assert found.count == 1
+    np.testing.assert_allclose(found.roots.real, [root], rtol=1e-10)
+
+
+def test_a_determinant_beyond_the_doubles_is_a_parameter_error() -> None:
+    """Entries ``1e300 + s + 0.5 e^{-s}``: the exact expansion's coefficients round beyond the
+    doubles; the point determinant falls back to the floating-point expansion and its check
+    (a ParameterError naming the coefficients), not a bare OverflowError."""
+
+    def entry(c: float) -> QuasiPolynomial:
+        return QuasiPolynomial([[c, 1.0], [0.5]], [0.0, 1.0])
+
+    M = QuasiPolynomialMatrix([[entry(1e300), entry(2.0)], [entry(3.0), entry(1e300)]])
+    assert M.exact_expansion() is None
+    with pytest.raises(ParameterError, match="coefs"):
+        M.point_determinant()

@@ -557,11 +557,12 @@ class Finder:
         return pts
 
     def grid_seeds(self, box: Region, n: int) -> NDArray[np.complex128]:
-        """About ``n`` points of a grid with square cells in ``box``."""
+        """About ``n`` points of a grid with cells as square as ``n`` allows in ``box`` (at most ``n``
+        along a side: a box thin about the real axis gets a row of ``n`` points, not millions)."""
         x0, x1, y0, y1 = box
         w, h = x1 - x0, y1 - y0
-        nx = max(1, round(np.sqrt(n * w / h)))
-        ny = max(1, round(n / nx))
+        nx = min(n, max(1, round(np.sqrt(n * w / h))))
+        ny = min(n, max(1, round(n / nx)))
         xs = x0 + (np.arange(nx) + 0.5) * w / nx
         ys = y0 + (np.arange(ny) + 0.5) * h / ny
         return (xs[None, :] + 1j * ys[:, None]).ravel()
