@@ -122,3 +122,40 @@ def test_the_family_is_read_with_its_observer_delay(tmp_path: Path) -> None:
     design = load_system_file(system)["design"]
     assert design["family"] == "collocated_output_feedback" and design["observer_delay"] == 0.1
     assert design["K"] == (-0.05, 0.1) and design["delays"] == (0.0, 0.5)
+
+
+def test_design_report_prints_true_digits_and_names_the_ends(tmp_path: Path) -> None:
+    """The headline numbers of ``design.md`` carry their accuracy, and the window's and the gains' ends are named
+    for what they are: ``delta = 0`` and the end ``2 d_max + 1 = 2`` of the delays searched (the margin is
+    infinite: no crossing delay), and the bounds of ``K`` (every gain of the bounds meets the window)."""
+    text, data = _run(tmp_path, SYSTEM_TOML)
+    K = data["controller"]["state_feedback"]["K"]
+    line = next(x for x in text.splitlines() if x.startswith("- decay rate at delta = 0: "))
+    value, accuracy = (float(v) for v in line.split(": ")[1].split(" +- "))
+    # the closed form -ln(rho - K)/2 lies within the printed accuracy (1e-16 for its own rounding), which
+    # is not below the double's resolution (no digit beyond what the abscissa's computation supports)
+    assert 1e-16 < accuracy < 1e-9
+    np.testing.assert_allclose(value, -math.log(RHO - K) / 2.0, rtol=0.0, atol=accuracy + 1e-16)
+    assert (
+        "the designed loop: stable on the window (0, 2.000000000), from delta = 0 (stable without delay) to the "
+        "end 2 d_max + 1 of the delays searched (no crossing delay up to it), checked"
+    ) in text
+    assert "of the crossing delays" not in text
+    assert "- gains meeting the requirement: (-0.05000000000, 0.1928571428) (both ends the bounds of K)" in text
+    bounds = data["design"]["bounds"]
+    assert f"K in [{bounds[0]!r}, {bounds[1]!r}]" in text
+
+
+@pytest.mark.parametrize("family", ["collocated_output_feedback", "output_feedback"])
+def test_speed_tolerance_option_is_refused_for_the_observer_families(
+    tmp_path: Path, family: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--speed-tolerance`` with an observer's family: an error naming the ``[design]`` key, the option and the
+    family (as the file's key is refused), not the Python argument, and nothing written."""
+    system = tmp_path / "SYSTEM.toml"
+    system.write_text(SYSTEM_TOML)
+    out = tmp_path / "out"
+    assert main(["design", str(system), "-o", str(out), "--family", family, "--speed-tolerance", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert f'design.speed_tolerance (--speed-tolerance) must be left out for family = "{family}"' in err
+    assert "output_feedback=True" not in err and not (out / "design.md").exists()

@@ -27,7 +27,10 @@ window first maximises ``c`` up to 0, as a start below a required margin maximis
 ``c = -inf`` where a loop has no stability window up to ``2 d_max + 1`` (with ``d_min = 0``: no
 window ``[0, h)``, the loop unstable at ``delta = 0``): from such a start a phase before the first
 minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``A + B e^{-d_min s}``;
-``A + B`` when ``d_min = 0``) until it is negative. Each loop is then stable at ``d_min``, which a
+``A + B`` when ``d_min = 0``) until it is negative. The margin objective also requires the loop stable
+at ``delta = 0`` (the margin is the end of its window ``[0, h)``): with ``d_min > 0`` a start unstable
+there goes through the same phase with the loop's ``A + B`` among the abscissae lowered, and the first
+phase keeps it stable at ``delta = 0``. Each loop is then stable at ``d_min``, which a
 stability window holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly
 stable, so for a neutral loop too a negative abscissa at one delay opens a window of delays), and
 the first phase continues from there.
@@ -77,6 +80,7 @@ parameters returning :class:`TrialPoint` s (value, gradient, feasibility), so a 
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
@@ -178,6 +182,21 @@ class _Checked:
     family: ParametricLoop
     name: str
 
+    def __post_init__(self) -> None:
+        """A ``ParameterError`` naming ``name`` when the family cannot be called with one argument ``p``."""
+        try:
+            signature = inspect.signature(self.family)
+        except (TypeError, ValueError):  # no signature to read (some builtins): the first call decides
+            return
+        try:
+            signature.bind(np.zeros(1))
+        except TypeError:
+            raise ParameterError(
+                self.name,
+                "a callable p -> (A, B) of one argument (the parameters); its signature is "
+                f"({', '.join(signature.parameters)})",
+            ) from None
+
     def __call__(self, p: NDArray[np.float64]) -> tuple[QuasiPolynomial, QuasiPolynomial]:
         value = self.family(p)
         pair = isinstance(value, (tuple, list)) and len(value) == 2
@@ -241,8 +260,9 @@ class LocalProblem(Protocol):
     objective, for the first phase of a start below the required margin; under a window of
     delays, minus the window margin, which the first phase raises to ``d_max``; a problem whose
     ``want="margin"`` point can be infeasible with a reason starting with :data:`NO_WINDOW` takes
-    ``want="abscissa"`` too: the largest spectral abscissa at ``delta = d_min`` of its loops, which
-    the phase before the first lowers below 0); ``above`` is the line
+    ``want="abscissa"`` too: the largest spectral abscissa of its loops at the delays a feasible point
+    must be stable at, ``delta = d_min`` (and, for :func:`optimize_loop`'s margin objective, the loop's
+    at ``delta = 0``), which the phase before the first lowers below 0); ``above`` is the line
     a trial point must stay under (the line search's sufficient decrease, or the incumbent of the
     pattern search), so a point found above it may be returned early, without its gradient. A
     point outside ``bounds``, below ``margin_at_least`` (its ``reason`` starting with
@@ -562,11 +582,16 @@ class _Problem:
 
     def _evaluate(self, p: NDArray[np.float64], objective: str, above: float) -> TrialPoint:
         A, B = self.loop(p)
-        gamma = max([delayed_gamma(A, B), *(delayed_gamma(*loop(p)) for loop in self.scenarios)])
+        gammas = [delayed_gamma(A, B), *(delayed_gamma(*loop(p)) for loop in self.scenarios)]
+        n = int(np.argmax(gammas))
+        gamma = gammas[n]
         memo = self.memo
         if not gamma <= self.gamma_max:
             memo.screened += 1
-            reason = f"gamma_0 = {gamma:.6g} of the delayed loop's difference operator above gamma_max"
+            which = "the loop" if n == 0 else f"scenario {n - 1}"
+            reason = f"gamma_0 = {gamma:.6g} of the delayed loop's difference operator above gamma_max for {which}"
+            if math.isinf(gamma):
+                reason += " (advanced: B of higher degree than A, or A without an undelayed leading term)"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
         if objective == "window":
             return self._window_point(p, A, B)
@@ -679,9 +704,10 @@ class _Problem:
         """Minus the window margin ``d_max + min_j c_j(p)`` over the loop and the scenarios, with its gradient.
 
         Feasible (for the first phase) where every loop has a stability window that can hold the
-        required one (:meth:`_window_clearance`; infeasible with the reason :data:`NO_WINDOW`
-        otherwise, which starts the phase before, :meth:`_abscissa_point`); the requirement is met
-        where the value is below ``-d_max``.
+        required one (:meth:`_window_clearance`) and, under the margin objective, the loop is stable at
+        ``delta = 0`` (its window ``[0, h)`` exists: the design must have it); infeasible with the reason
+        :data:`NO_WINDOW` otherwise, which starts the phase before (:meth:`_abscissa_point`). The
+        requirement is met where the value is below ``-d_max``.
         """
         assert self.window is not None
         self.memo.full += 1
@@ -693,15 +719,18 @@ class _Problem:
             B,
         )
         which = ""
+        d_lo, d_hi = self.window
         for n, loop in enumerate((self.loop, *self.scenarios)):
             A_j, B_j = (A, B) if loop is self.loop else loop(p)
-            c, end, _ = self._window_clearance(A_j, B_j)
+            c, end, dm = self._window_clearance(A_j, B_j)
+            if n == 0 and self._nominal and not dm.nominally_stable:
+                reason = f"{NO_WINDOW} [0, h) for the loop: not stable at delta = 0, as the margin objective requires"
+                return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
             if c < worst[0]:
                 worst = (c, end, loop, A_j, B_j)
                 which = "the loop" if n == 0 else f"scenario {n - 1}"
         c, end, loop, A_j, B_j = worst
         if not math.isfinite(c):
-            d_lo, d_hi = self.window
             held = "[0, h) of a stable nominal loop" if d_lo == 0.0 else f"up to {2.0 * d_hi + 1.0:.6g}"
             reason = f"{NO_WINDOW} {held} for {which}"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
@@ -712,24 +741,33 @@ class _Problem:
         value = self.window[1] + c
         return TrialPoint(p, True, -value, -grad, math.nan, value)
 
+    @property
+    def _nominal(self) -> bool:
+        """True when the loop must be stable at ``delta = 0`` beyond the window: the margin objective with
+        ``d_min > 0`` (with ``d_min = 0`` the window requires it anyway)."""
+        return self.objective == "margin" and self.window is not None and self.window[0] > 0.0
+
     def _abscissa_point(
         self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float
     ) -> TrialPoint:
         """The phase before the first: the largest spectral abscissa of ``A_j + B_j e^{-d_min s}`` over the
-        loop and the scenarios, with its gradient (the rightmost root's or chain's, module notes).
+        loop and the scenarios, and under the margin objective with ``d_min > 0`` of the loop's ``A + B``
+        too (at ``delta = 0``), with its gradient (the rightmost root's or chain's, module notes).
 
         Below 0 every loop is exponentially stable at ``delta = d_min`` (at ``delta = 0`` when ``d_min =
         0``): ``d_min`` lies in a stability window of each, whose ends the first phase then moves past the
-        window. That window is not lost to the difference operator: ``gamma_0 <= gamma_max < 1``
+        window; under the margin objective the loop is stable at ``delta = 0`` as well (its window ``[0, h)``
+        exists), as every design of that objective must be. Each is a necessary condition of a feasible
+        point. That window is not lost to the difference operator: ``gamma_0 <= gamma_max < 1``
         (checked before) makes it strongly stable, so no delay near ``d_min`` brings zeros from
         infinity. A point whose chains (a lower bound, :meth:`QuasiPolynomial.principal_part`) or
         abscissa lie above ``above`` is rejected as soon as that is known.
         """
         assert self.window is not None
-        d = self.window[0]
         memo = self.memo
-        worst: tuple[SpectralAbscissa, ParametricLoop, QuasiPolynomial] | None = None
-        for loop in (self.loop, *self.scenarios):
+        worst: tuple[SpectralAbscissa, ParametricLoop, QuasiPolynomial, float] | None = None
+        loops = [(loop, self.window[0]) for loop in (self.loop, *self.scenarios)]
+        for loop, d in [(self.loop, 0.0), *loops] if self._nominal else loops:
             A_j, B_j = (A, B) if loop is self.loop else loop(p)
             F = A_j + (B_j.shift(d) if d else B_j)
             lower = F.principal_part().spectral_bound().lower
@@ -741,9 +779,9 @@ class _Problem:
             if sa.value > above:
                 return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
             if worst is None or sa.value > worst[0].value:
-                worst = (sa, loop, F)
+                worst = (sa, loop, F, d)
         assert worst is not None
-        sa, loop, F = worst
+        sa, loop, F, d = worst
         return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa, loop, d), sa.value, math.nan)
 
     def _abscissa_floor(self, F: QuasiPolynomial, above: float) -> tuple[float, str]:
@@ -851,10 +889,13 @@ class _Problem:
         margin = dm.margin
         memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
         if not dm.nominally_stable:
-            # with d_min = 0 the window requires it: the first phases make it so
+            # the margin objective requires it (and with d_min = 0 the window too): under a window the phases
+            # before the first make it so (:meth:`_window_point`, :meth:`_abscissa_point`)
             reason = "not stable at delta = 0"
-            if self.window is not None and self.window[0] == 0.0:
+            if self.window is not None:
                 reason = f"{BELOW_REQUIREMENT}: {reason}"
+            else:
+                reason += " (give an x0 stable at delta = 0, or a window of delays: its phases stabilise a start)"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, reason)
         if self.window is not None:
             bad = "" if c > 0.0 else "the loop"
@@ -1061,8 +1102,9 @@ class _Local:
     def stabilise(self, m: TrialPoint, counter: list[int]) -> tuple[TrialPoint, int]:
         """The phase before the first, from ``m`` (a first-phase point without a stability window, :data:`NO_WINDOW`).
 
-        Minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``want="abscissa"``)
-        by BFGS and the pattern search until it is below ``-STABLE_BY`` times its value at ``m`` (or
+        Minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``want="abscissa"``;
+        with :func:`optimize_loop`'s margin objective and ``d_min > 0``, the loop's at ``delta = 0`` among
+        them) by BFGS and the pattern search until it is below ``-STABLE_BY`` times its value at ``m`` (or
         to a local minimum), and returns the first phase's point there with the BFGS iterations: a
         stability window holds ``d_min`` once that abscissa is negative. Not negative: the first-phase
         point, infeasible, says how far the abscissa came down.
@@ -1075,14 +1117,19 @@ class _Local:
         a = abscissa(m.p, math.inf)
         counter[0] += 1
         if not a.feasible:
-            return replace(m, reason=f"{m.reason}; the abscissa at d_min not lowered: {a.reason}"), 0
+            return replace(m, reason=f"{m.reason}; the abscissa of the phase before not lowered: {a.reason}"), 0
         target = -STABLE_BY * abs(a.value) if a.value != 0.0 else -STABLE_BY
         a, iterations, _, _ = self.minimise(abscissa, a, counter, stop_below=target)
         a = self.polish(abscissa, a, counter, stop_below=target)
         m = problem(a.p, want="margin")
         counter[0] += 1
         if not m.feasible and a.value >= 0.0:
-            m = replace(m, reason=f"{m.reason}; the largest abscissa at d_min came down to {a.value:.6g} only")
+            m = replace(
+                m,
+                reason=f"{m.reason}; the phase before lowered the largest abscissa (at d_min, and at delta = 0 "
+                f"under the margin objective) to {a.value:.6g} only, a local minimum: a start nearer stability "
+                "would help",
+            )
         return m, iterations
 
     def __call__(self, start: Sequence[float]) -> LocalRun:
@@ -1165,7 +1212,8 @@ class LoopDesign:
     certified : bool
         True if the abscissa is certified, the margin verified (proven when ``rigorous``) and
         the requirement met by the margin (by the lower end of its ball when ``rigorous``); with
-        ``delays``, every window certified stable (proven when ``rigorous``).
+        ``delays``, every window certified stable (proven when ``rigorous``); with the margin
+        objective, the loop stable at ``delta = 0`` (its certified count).
     rigorous : bool
         True if the certificate is in ball arithmetic.
     local : bool
@@ -1337,8 +1385,11 @@ def optimize_loop(
         the loop without delay, negative); with either objective, not with ``margin_at_least``
         (the window ``[0, d]`` is ``delta* > d``). A start that misses it first maximises its
         window clearance; when the start or a scenario at it has no stability window up to
-        ``2 d_max + 1`` (with ``d_min = 0``: is unstable at ``delta = 0``), a phase before lowers
-        the largest spectral abscissa at ``delta = d_min`` below 0 (module notes). The design's
+        ``2 d_max + 1`` (with ``d_min = 0``, or the margin objective: is unstable at ``delta = 0``), a
+        phase before lowers the largest spectral abscissa at ``delta = d_min`` (and with the margin
+        objective the loop's at ``delta = 0``) below 0 (module notes); a start is refused when that
+        phase stops at a local minimum above 0 (another ``x0`` or more ``starts`` help), and without
+        ``delays`` a margin-objective start unstable at ``delta = 0``. The design's
         windows are certified by :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`).
     scenarios : sequence of callable, optional
         Further loop families ``p -> (A, B)`` of the same parameters that must be stable on the
@@ -1373,8 +1424,8 @@ def optimize_loop(
     Raises
     ------
     ParameterError
-        For bad input (``loop`` or a scenario returning anything but a pair of QuasiPolynomials
-        included, at its first such call).
+        For bad input (``loop`` or a scenario that cannot be called with one argument ``p``, before
+        any evaluation, or returning anything but a pair of QuasiPolynomials, at its first such call).
     CertificationError
         If no start reaches a feasible point (the requirement may be out of reach in the
         bounds: widen them or lower ``margin_at_least``, narrow the window), or the design is
@@ -1449,7 +1500,10 @@ def _certify(
     # an infinite margin is decided by the proven frequency bound and the complete crossing
     # search (no crossing at all): there is no crossing delay to check a count at
     decided = dm.verified or (math.isinf(dm.margin) and dm.nominally_stable and dm.strongly_stable)
-    if window is not None and window[0] > 0.0 and not dm.nominally_stable:
+    if objective == "margin":
+        # the margin is that of a loop stable at delta = 0: an unstable one is no design of this objective
+        decided = decided and dm.nominally_stable
+    elif window is not None and window[0] > 0.0 and not dm.nominally_stable:
         # unstable at delta = 0 (a certified count of its zeros in Re s > 0): the margin is 0, the windows certify
         decided = bool(dm.strongly_stable and dm.nominal_unstable)
     proven = not rigorous or all(w.certified == "proven" for w in windows)

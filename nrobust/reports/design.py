@@ -37,6 +37,7 @@ import numpy as np
 from .._digits import inner_interval_text, with_accuracy
 from .._json import json_safe
 from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, load_system_file
+from ..design import DelayWindow, GainDesign
 from ..errors import ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
 from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
@@ -69,13 +70,60 @@ def _edge(system: Any, result: ReflectionDesign) -> dict[str, float] | None:
     return {"step": h, "margin_below": margins["below"], "margin_above": margins["above"]}
 
 
+def _value_accuracy(d: GainDesign) -> float | None:
+    """The accuracy of ``d.value``: the width of its bracket plus the accuracy of its computation at the design
+    (the abscissa's for the decay rate, the certified margin's for the margin; None when that is not known).
+
+    A design on a bound of ``K`` has a bracket of width 0, but its value is still a computed abscissa or margin.
+    """
+    _, v_acc = d.accuracy
+    own = d.abscissa.accuracy if d.objective == "decay_rate" else d.certificate.accuracy
+    return None if own is None else v_acc + own
+
+
+def _window_text(window: DelayWindow) -> str:
+    """The verdict of ``window`` in words, each end of the stability window holding it named for what it is.
+
+    :attr:`DelayWindow.reason` calls both ends crossing delays; an end is also ``delta = 0`` (the loop stable
+    without delay) or the end ``2 d_max + 1`` of the delays searched (no crossing delay up to it).
+    """
+    if not window.stable or window.enclosing is None:
+        return f"{window.reason}, {window.certified}"
+    lo, hi = window.enclosing
+    dm = window.margin
+    crossing = {t for c in dm.crossings for t in c.delays}
+    low = "delta = 0 (stable without delay)" if lo == 0.0 else "a crossing delay"
+    if hi in crossing:
+        high = "a crossing delay"
+    elif hi == dm.delta_max:
+        high = "the end 2 d_max + 1 of the delays searched (no crossing delay up to it)"
+    else:
+        high = "the end of the stability window"
+    return f"stable on the window {inner_interval_text(lo, hi)}, from {low} to {high}, {window.certified}"
+
+
+def _feasible_text(d: GainDesign) -> str:
+    """The intervals of gains meeting the requirement, each end said to be a bound of ``K`` or solved."""
+    spans = []
+    for a, b in d.feasible:
+        bound = (a == d.bounds[0], b == d.bounds[1])
+        how = {
+            (True, True): "both ends the bounds of K",
+            (True, False): "the lower end the bound of K, the upper solved from its equation",
+            (False, True): "the lower end solved from its equation, the upper the bound of K",
+            (False, False): "both ends solved from their equations",
+        }[bound]
+        spans.append(f"{inner_interval_text(a, b)} ({how})")
+    return ", ".join(spans)
+
+
 def _reflection_markdown(
     path: Path, result: ReflectionDesign, margin_at_least: float | None = None, edge: dict[str, float] | None = None
 ) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
     need = "" if margin_at_least is None else f" with a delay margin of at least {margin_at_least:g}"
-    k_acc, v_acc = d.accuracy
+    k_acc, _ = d.accuracy
     law = "U_BS2(K)"
     if isinstance(result.controller, (OutputFeedback, CollocatedOutputFeedback)):
         if isinstance(result.controller, OutputFeedback):
@@ -87,9 +135,9 @@ def _reflection_markdown(
     lines = [
         f"# Design of {law} for {path.name}",
         "",
-        f"- objective: the largest {what}{need}, K in [{d.bounds[0]:.6g}, {d.bounds[1]:.6g}]",
+        f"- objective: the largest {what}{need}, K in [{float(d.bounds[0])!r}, {float(d.bounds[1])!r}]",
         f"- designed gain: K = {with_accuracy(d.K, k_acc)} ({d.kind})",
-        f"- {what}: {with_accuracy(d.value, v_acc)}",
+        f"- {what}: {with_accuracy(d.value, _value_accuracy(d))}",
         f"- delay margin of the designed loop: {with_accuracy(cert.margin, cert.accuracy)}, {d.certified} "
         f"({cert.method}); about {cert.scope}",
     ]
@@ -112,10 +160,9 @@ def _reflection_markdown(
         )
         for n, w in enumerate(d.windows):
             which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
-            lines.append(f"  - {which}: {w.reason}, {w.certified}")
+            lines.append(f"  - {which}: {_window_text(w)}")
         if d.feasible:
-            spans = ", ".join(inner_interval_text(a, b) for a, b in d.feasible)
-            lines.append(f"- gains meeting the requirement: {spans} (ends solved from their equations)")
+            lines.append(f"- gains meeting the requirement: {_feasible_text(d)}")
     if result.tolerance is not None:
         t = result.tolerance
         verdict = "met" if t.met else "not met"
@@ -159,7 +206,7 @@ def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
         lines.append(f"- requirement: {d.requirement}")
         for n, w in enumerate(d.windows):
             which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
-            lines.append(f"  - {which}: {w.reason}, {w.certified}")
+            lines.append(f"  - {which}: {_window_text(w)}")
     if result.tolerance is not None:
         t = result.tolerance
         lines.append(
@@ -209,8 +256,10 @@ def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
     """One line: the designed controller and its objective, with the digits their accuracy supports."""
     if isinstance(result, ReflectionDesign):
         d = result.design
-        k_acc, v_acc = d.accuracy
-        return f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, v_acc)}"
+        k_acc, _ = d.accuracy
+        return (
+            f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
+        )
     c, local = result.controller, result.design
     margin = with_accuracy(local.margin.margin, local.margin.accuracy)
     return (
@@ -267,6 +316,13 @@ def run_design(
     speed_tolerance = speed_tolerance if speed_tolerance is not None else given.get("speed_tolerance")
     if delays is not None and margin_at_least is not None:
         raise ParameterError("margin_at_least", "left out with delays (the window [0, d] is a margin > d)")
+    if speed_tolerance is not None and family in OBSERVER_FAMILIES:
+        # as the file's [design] section is checked (the observer's laws take no speed tolerance)
+        raise ParameterError(
+            "design.speed_tolerance (--speed-tolerance)",
+            f'left out for family = "{family}" (family "reflection" or "filtered" takes it)',
+            speed_tolerance,
+        )
     outputs = RunOutputs(out_dir, "design")
     edge: dict[str, float] | None = None
     with outputs:
