@@ -176,7 +176,8 @@ CASES = [
     ("a", {"K": -0.0832482936, "b": 1.008729291}, (0.0, 1.0)),
     ("b", {"K": -0.0832482936, "a": 0.341}, (0.8, 1.2)),
 ]
-# about 3.5 s of CPU each: the cut-off in the fast suite, the gain and the zero with the long tests
+# under 1 s of CPU each (benchmarks/design_onepar.py): the cut-off in the fast suite, the gain and the zero with the
+# long tests
 FAST_CASES = [pytest.param(*case, marks=[] if case[0] == "b" else [pytest.mark.long]) for case in CASES]
 
 
