@@ -170,8 +170,9 @@ class GainDesign:
         The window certified at ``K`` for the loop and then for each scenario
         (:func:`window_stability`); empty without ``delays``.
     feasible : tuple of (float, float)
-        The intervals of gains meeting the window for every loop, their ends solved from their
-        equations and moved ``1e-10`` (relative) inside.
+        The intervals of gains meeting the window for every loop: an end inside the bounds of the
+        gain is solved from its equation and moved ``1e-10`` (relative) inside, an end at a bound
+        is that bound.
     """
 
     K: float
@@ -1460,7 +1461,11 @@ def window_stability(
             else f"{count} zeros in Re s > 0 at delta = {probe!r}"
         )
         return DelayWindow((d_lo, d_hi), False, "refuted", probe, count, None, clearance, dm, why)
-    reason = f"stable on the window {inner_interval_text(*enclosing)} of the crossing delays"
+    lo, hi = enclosing
+    horizon = 2.0 * d_hi + 1.0  # the delays searched (_window_margin)
+    start = "delta = 0" if lo == 0.0 else "a crossing delay"
+    end = "a crossing delay" if hi < horizon else "the end of the delays searched"
+    reason = f"stable on the window {inner_interval_text(lo, hi)} (from {start} to {end})"
     if how == "proven":
         unproven = _proven_clear(A, B, d_lo, d_hi)
         how = f"checked (the proof failed: {unproven})" if unproven else "proven"
