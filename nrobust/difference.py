@@ -78,7 +78,8 @@ def _polynomial_roots(
     (``0.1 - 0.06 z^15 + 5.5e-18 z^16``) does not make them ``1e16`` and bury the fifteen roots
     of modulus about 1 in their rounding. A root 0 of the matrix so chosen (``P`` and its
     reverse have none) is rounding too, of a root of extreme modulus: then the other matrix is
-    used if it has none, else the matrix of ``P`` (the moduli span more than double precision).
+    used if it has none and its inverted roots are doubles, else the matrix of ``P`` (the moduli
+    span more than double precision; an overflow of that matrix is a CertificationError).
     """
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
@@ -86,9 +87,8 @@ def _polynomial_roots(
         with np.errstate(all="ignore"):
             forward = np.roots(poly[::-1]) if abs(poly[-1]) >= abs(poly[0]) else None
             inverse = np.roots(poly) if forward is None or np.any(forward == 0) else None  # w = 1/z of w^N P(1/w)
-            if inverse is not None and inverse.size == powers[-1] and np.all(inverse != 0):
-                roots = 1.0 / inverse
-            else:
+            roots = 1.0 / inverse if inverse is not None and inverse.size == powers[-1] else None
+            if roots is None or not np.all(np.isfinite(roots)):  # a root w = 0, or 1/w beyond the doubles
                 roots = np.roots(poly[::-1]) if forward is None else forward
     except np.linalg.LinAlgError as exc:  # the companion matrix overflows (coefficients of extreme ratio)
         nonzero = np.log10(np.abs(poly[poly != 0]))
