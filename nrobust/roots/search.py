@@ -426,7 +426,7 @@ class Finder:
         return cand[keep], own[keep], hard[keep], soft[keep]
 
     def first_boxes(self, cand: NDArray[np.complex128]) -> list[Region]:
-        """The boxes that :meth:`accept` of ``cand`` counts first (for :attr:`Counter.prefetch`)."""
+        """The boxes that :meth:`accept` of ``cand`` counts first (for ``Counter.prefetch``)."""
         cand, own, hard, soft = self._sized(cand, None)
         return [tuple(b) for b in _boxes_about(cand, np.minimum(soft, hard), own)]
 

@@ -329,7 +329,7 @@ class Counter:
     def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them.
 
-        The edges of :attr:`prefetch` are computed in the same batch (and the list emptied);
+        The edges of ``prefetch`` are computed in the same batch (and the list emptied);
         only ``boxes`` are counted.
         """
         extra, self.prefetch = self.prefetch, []
