@@ -45,6 +45,7 @@ BASE_MODULES = {
     "nrobust._bracket",
     "nrobust._moved",
     "nrobust._flint",
+    "nrobust._threads",
 }
 #: The core, by package or module: representations, proofs, roots, margins, delay systems, design.
 CORE_PREFIXES = (

@@ -60,6 +60,7 @@ from numpy.typing import NDArray
 from .._bracket import illinois
 from .._digits import inner_interval_text, with_accuracy
 from .._json import fields_dict
+from .._threads import one_blas_thread
 from .._validate import finite_real, positive, positive_int
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where
 from ..distributed_delay import DistributedDelay, polyder, polyval
@@ -1953,6 +1954,7 @@ def _sampled_abscissas(loop: _Family, Ks: NDArray[np.float64], first: int) -> li
     return out
 
 
+@one_blas_thread()  # the scan's many small products: competing BLAS threads only cost time
 def best_margin(
     loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],
@@ -2132,6 +2134,7 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     return min(events, key=lambda e: abs(e.K - feasible))
 
 
+@one_blas_thread()
 def best_decay_rate(
     loop: AffineGainLoop | AffineLoop,
     bounds: tuple[float, float],

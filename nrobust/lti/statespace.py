@@ -54,14 +54,14 @@ of the delayed states (Example 2.9: 47 instead of 72).
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._threads import one_blas_thread
 from .._validate import finite_real, real_array
 from .._validate import region as check_region
 from ..errors import ParameterError
@@ -97,24 +97,6 @@ _EPS = float(np.finfo(float).eps)
 _BISECTIONS = 80
 # Eigenvalue problems of the collocated generator a system keeps (one per number of points, the last ones).
 _KEPT_COLLOCATIONS = 4
-
-
-@functools.cache
-def _blas_controller() -> Any:
-    """A threadpoolctl controller of the BLAS libraries numpy and scipy.linalg load (made once: it scans them)."""
-    import scipy.linalg  # noqa: F401  (lazily: a slow import; loaded so that its BLAS is controlled too)
-    from threadpoolctl import ThreadpoolController
-
-    return ThreadpoolController()
-
-
-@contextmanager
-def _one_blas_thread() -> Iterator[None]:
-    """BLAS limited to one thread: the eigenvalue problems of :meth:`StateSpaceTDS.generator_eigenvalues`
-    (order at most 480) and the small batched products of the root search run several times
-    faster without competing BLAS threads (a shared machine slows them tenfold)."""
-    with _blas_controller().limit(limits=1, user_api="blas"):
-        yield
 
 
 def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -515,7 +497,7 @@ class StateSpaceTDS:
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
         """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""
         x0, x1, y0, y1 = region
-        with _one_blas_thread():
+        with one_blas_thread():
             seeds = self._generator_eigenvalues(max(abs(y0), abs(y1)), _SEED_MIN_POINTS)
             pad = 0.02 * min(x1 - x0, y1 - y0)
             inside = (
@@ -586,7 +568,7 @@ class StateSpaceTDS:
 
     def abscissa(self, region: ArrayLike, **options: Any) -> SpectralAbscissa:
         """Spectral abscissa of ``det M`` in a rectangle (:func:`~nrobust.roots.spectral_abscissa`)."""
-        with _one_blas_thread():
+        with one_blas_thread():
             return spectral_abscissa(self.characteristic_matrix(), region, **options)
 
     def is_strongly_stable(self) -> bool:
