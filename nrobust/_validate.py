@@ -108,6 +108,24 @@ def number_array(name: str, value: Any, *, ndim: int | None = 1, min_size: int =
     return arr.astype(complex if arr.dtype.kind == "c" else float)
 
 
+def callables(name: str, value: Any, what: str, item: str) -> tuple[Any, ...]:
+    """``value`` as a tuple of callables, or raise :class:`ParameterError`.
+
+    ``what`` describes the sequence and ``item`` one entry (an entry that is not callable is
+    named ``name[j]``). One callable, a string or a non-iterable is refused, not wrapped.
+    """
+    if callable(value) or isinstance(value, (str, bytes)):
+        raise ParameterError(name, what, value)
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise ParameterError(name, what, value) from None
+    for j, entry in enumerate(items):
+        if not callable(entry):
+            raise ParameterError(f"{name}[{j}]", item, entry)
+    return items
+
+
 def region(value: Any, name: str = "region") -> tuple[float, float, float, float]:
     """Validate a rectangle ``(re_min, re_max, im_min, im_max)`` with positive area."""
     try:

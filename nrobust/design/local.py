@@ -91,7 +91,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._json import json_safe
 from .._newton import newton
-from .._validate import finite_real, nonnegative, positive_int
+from .._validate import callables, finite_real, nonnegative, positive_int
 from ..errors import CertificationError, ParameterError
 from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
 from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_search
@@ -1437,17 +1437,11 @@ def optimize_loop(
     window = None if delays is None else check_delays(delays)
     if window is not None and margin_at_least is not None:
         raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
-    if callable(scenarios) or isinstance(scenarios, (str, bytes)):
-        raise ParameterError("scenarios", "a sequence of callables p -> (A, B) (a tuple, even of one)", scenarios)
-    try:
-        scenarios = tuple(scenarios)
-    except TypeError:
-        raise ParameterError("scenarios", "a sequence of callables p -> (A, B)", scenarios) from None
+    scenarios = callables(
+        "scenarios", scenarios, "a sequence of callables p -> (A, B) (a tuple, even of one)", "a callable p -> (A, B)"
+    )
     if scenarios and window is None:
         raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
-    for n, scenario in enumerate(scenarios):
-        if not callable(scenario):
-            raise ParameterError(f"scenarios[{n}]", "a callable p -> (A, B)", scenario)
     starts = positive_int("starts", starts)
     max_iter = positive_int("max_iter", max_iter)
     tol = finite_real("tol", tol)

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
-from ..._validate import finite_real, positive_int
+from ..._validate import callables, finite_real, positive_int
 from ...design.gain import best_decay_rate, best_margin
 from ...design.local import GAMMA_MAX, LoopDesign, delayed_gamma, optimize_loop
 from ...errors import CertificationError, ParameterError
@@ -127,17 +127,15 @@ def _length(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> float:
 
 def _basis(basis: Any, length: float) -> tuple[Callable[[NDArray[np.float64]], NDArray[np.float64]], ...]:
     """The basis as a tuple of callables, each finite on ``[0, L]``, linearly independent there."""
-    if callable(basis) or isinstance(basis, (str, bytes)):
-        raise ParameterError("basis", "a sequence of callables phi_j(x) on arrays of x in [0, L]", basis)
-    try:
-        items = tuple(basis)
-    except TypeError:
-        raise ParameterError("basis", "a sequence of callables phi_j(x) on arrays of x in [0, L]", basis) from None
+    items = callables(
+        "basis",
+        basis,
+        "a sequence of callables phi_j(x) on arrays of x in [0, L]",
+        "a callable phi(x) on arrays of x in [0, L]",
+    )
     x = np.linspace(0.0, length, PROJECTION_POINTS)
     columns = []
     for j, phi in enumerate(items):
-        if not callable(phi):
-            raise ParameterError(f"basis[{j}]", "a callable phi(x) on arrays of x in [0, L]", phi)
         try:
             values = np.asarray(phi(x), dtype=float)
         except (TypeError, ValueError):
