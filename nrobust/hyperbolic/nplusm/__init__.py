@@ -21,6 +21,7 @@ from .design import (
     principal_gamma,
 )
 from .kernels import (
+    BACKSTEPPING_ROUTES,
     MAX_NPLUSM_KERNEL_GRID,
     NPlusMBackstepping,
     NPlusMKernels,
@@ -38,6 +39,7 @@ from .margin import (
 from .system import NPlusMSystem
 
 __all__ = [
+    "BACKSTEPPING_ROUTES",
     "BallNPlusM",
     "CancellationCase",
     "MAX_NPLUSM_KERNEL_GRID",

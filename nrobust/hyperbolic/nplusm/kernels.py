@@ -76,8 +76,40 @@ solution with ``v(0) = I`` onto the target's, so ``Phi_v - J = T(s)``, the trans
 the loop is ``det(M_0 + e^{-delta s} (V - M_0))``, ``M_0`` the open loop, with no kernel
 (:meth:`NPlusMBackstepping.target_loop_matrices`); its margin is certified by
 :func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`. The grid kernels' loop
-converges to it at order 2 (``tests/test_nplusm_proven.py``). With several speeds ``G``
-depends on the kernels and only the grid kernels' loop is available (not certified).
+converges to it at order 2 (``tests/test_nplusm_proven.py``).
+
+**Cascade loop (several speeds).** The identity above, derived: with
+``Psi(x; s) = int_0^x Z(x, xi) Phi(xi; s) dxi W`` (so ``J = Psi(1; s)``), differentiate in
+``x``, replace ``Lambda- Z_x`` by the kernel equation, integrate ``Z_xi Lambda Phi`` by parts
+(``Lambda Phi_xi = (Sigma - s) Phi``) and use the diagonal relations and
+``Z(x, 0) Lambda W = -G(x)`` (``Lambda = diag(Lambda+, -Lambda-)``): ::
+
+    Lambda- (Phi_v - Psi)_x = (s - D) (Phi_v - Psi) - G(x),     (Phi_v - Psi)(0) = I,
+
+the target's equation with ``beta(0) = I``; at ``x = 1``, ``Phi_v - J = T(s)``. ``D`` lives
+inside groups of equal speed, so it commutes with ``Lambda-`` and with ``E(s) =
+exp(-s Lambda-^{-1})``; solving the linear equation and multiplying by ``E`` gives ::
+
+    E(s) T(s) = V (I - int_0^1 e^{x C(s)} Lambda-^{-1} G(x) dx),
+    C(s) = Lambda-^{-1} (D - s I),     V = exp(-Lambda-^{-1} D),
+
+and the loop ``det(M_0 + e^{-delta s} (E T - M_0))``
+(:meth:`NPlusMBackstepping.cascade_loop_matrices`). Three consequences. (i) ``G_ac = 0``
+unless ``mu_c > mu_a`` and ``e^{x C}`` is block diagonal on the groups, so the integral is
+strictly block triangular in the order of the speeds: ``det(E T) = det V != 0``, the
+delay-free loop has no root at all (the finite-time convergence). (ii) On ``Re s >= 0``,
+``||e^{x C(s)}|| <= ||e^{x Lambda-^{-1} D}||`` (``|e^{-s x / mu}| <= 1``): an error ``dG`` of
+``G`` moves ``E T`` by at most ``||V|| int_0^1 ||e^{x Lambda-^{-1} D}|| ||Lambda-^{-1} dG(x)|| dx``,
+the same bound at every frequency, and ``E T - V = O(1/|s|)`` for ``G`` of bounded
+variation (the principal part is still that of ``K = -R``). (iii) With one speed ``E T = V``:
+the kernel-free loop. With several speeds the loop is not kernel-free: ``G`` is the value at
+``xi = 0`` of kernels whose entries ``L_ac``, ``mu_c > mu_a``, carry the artificial boundary
+values at ``x = 1`` (a design choice) through the kernel equations; it has a closed form in
+special cases only (one coupling ``Sigma--_ac``: ``L_ac = Sigma--_ac / (mu_c - mu_a)``
+throughout and ``G_ac = mu_c L_ac``, ``tests/test_nplusm_unequal_speeds.py``). The grid's
+``G`` converges at order 2 and the ``J`` route to the ``G`` route at order 2 (same test
+file); no proven bound of ``int ||Lambda-^{-1} (G - G_grid)||`` is built (the kernels may
+jump across characteristics at ``xi = 0``), so margins with several speeds are not certified.
 """
 
 from __future__ import annotations
@@ -98,6 +130,7 @@ from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings
 from .system import NPlusMSystem
 
 __all__ = [
+    "BACKSTEPPING_ROUTES",
     "MAX_NPLUSM_KERNEL_GRID",
     "NPlusMBackstepping",
     "NPlusMKernels",
@@ -111,6 +144,12 @@ MAX_NPLUSM_KERNEL_GRID = 801
 _MAX_UNKNOWNS = 3_000_000
 _TOL = 1e-12
 _KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
+_CASCADE_SCOPE = (
+    "full-state backstepping law, loop through the target's G of the grid kernels "
+    "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, no error bound)"
+)
+#: The loops :func:`backstepping_delay_margin` scans: the feedback integral ``J`` or the target's ``G``.
+BACKSTEPPING_ROUTES = ("integral", "cascade")
 
 
 def _node(i: Any, j: Any) -> Any:
@@ -226,6 +265,24 @@ def _check_grid(system: NPlusMSystem, N: int) -> None:
             f"(grid step times max|sigma| / min speed at most {RESOLUTION:g})",
             N,
         )
+
+
+def _cell_moments(C: NDArray[Any], h: float) -> tuple[NDArray, NDArray, NDArray]:
+    """``(e^{h C}, int_0^h e^{t C} dt, int_0^h t e^{t C} dt)`` for a stack ``C`` of ``(k, N, N)`` matrices.
+
+    Read from the exponential of ``h [[C, I, 0], [0, 0, I], [0, 0, 0]]`` (Van Loan): its blocks
+    ``(1, 1)``, ``(1, 2)`` and ``(1, 3)`` are ``e^{h C}``, ``I_0`` and ``h I_0 - I_1``.
+    """
+    from scipy.linalg import expm  # lazily: a slow import
+
+    k, N = C.shape[0], C.shape[-1]
+    big = np.zeros((k, 3 * N, 3 * N), dtype=complex)
+    big[:, :N, :N] = h * C
+    big[:, :N, N : 2 * N] = h * np.eye(N)
+    big[:, N : 2 * N, 2 * N :] = h * np.eye(N)
+    ex = expm(big) if k else big
+    i0 = ex[:, :N, N : 2 * N]
+    return ex[:, :N, :N], i0, h * i0 - ex[:, :N, 2 * N :]
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -519,8 +576,6 @@ class NPlusMBackstepping:
         = z_k Phi_k I_0 + dz/h Phi_k I_1`` with ``I_0 = int_0^h e^{tC}``, ``I_1 = int_0^h t e^{tC}``
         read from the exponential of ``h [[C, I, 0], [0, 0, I], [0, 0, 0]]`` (Van Loan).
         """
-        from scipy.linalg import expm  # lazily: a slow import
-
         sys = self.system
         s = np.asarray(s, dtype=complex)
         flat = s.reshape(-1)
@@ -529,13 +584,7 @@ class NPlusMBackstepping:
         h = float(xi[1] - xi[0])
         inv = 1.0 / sys.signed_speeds
         C = inv[:, None] * sys.sigma[None] - flat[:, None, None] * np.diag(inv)[None]
-        big = np.zeros((flat.size, 3 * N, 3 * N), dtype=complex)
-        big[:, :N, :N] = h * C
-        big[:, :N, N : 2 * N] = h * np.eye(N)
-        big[:, N : 2 * N, 2 * N :] = h * np.eye(N)
-        ex = expm(big) if flat.size else big
-        step, i0, e13 = ex[:, :N, :N], ex[:, :N, N : 2 * N], ex[:, :N, 2 * N :]
-        i1 = h * i0 - e13
+        step, i0, i1 = _cell_moments(C, h)
         z = self.kernels.trace  # (m, N, cells + 1)
         phi = np.broadcast_to(np.eye(N, dtype=complex), (flat.size, N, N)).copy()
         acc = np.zeros((flat.size, sys.m, N), dtype=complex)
@@ -566,7 +615,8 @@ class NPlusMBackstepping:
         Raises
         ------
         ParameterError
-            Leftward speeds not all equal (``G != 0``: the loop depends on the kernels).
+            Leftward speeds not all equal (``G != 0``: the loop depends on the kernels, through
+            ``G`` alone in :meth:`cascade_loop_matrices`).
         """
         sys = self.system
         if np.any(sys.mu != sys.mu[0]):
@@ -575,6 +625,52 @@ class NPlusMBackstepping:
         m0 = sys.loop_matrix(s)
         v_block, _ = sys.principal_terms()
         return m0, v_block - m0
+
+    def target_transition(self, s: ArrayLike) -> NDArray[np.complex128]:
+        """``E(s) T(s) = V (I - int_0^1 e^{x C(s)} Lambda-^{-1} G(x) dx)``: the loop's kernel part through ``G`` alone.
+
+        ``C(s) = Lambda-^{-1} (D - s I)`` and ``V = exp(-Lambda-^{-1} D)``; ``T(s)`` is the
+        transition ``beta(1)`` of the target ``Lambda- beta_x = (s - D) beta - G(x) beta(0)``,
+        ``beta(0) = I`` (module notes, *Cascade loop*), equal to ``Phi_v - J`` for the exact
+        kernels. ``G`` is the grid's (:attr:`NPlusMKernels.G`, linear between the nodes) on the
+        entries ``mu_c > mu_a`` and zero on the others, where the kernel equations impose
+        ``G_ac = 0``; the integral is exact for that ``G`` (a Filon rule, as in
+        :meth:`feedback_integral`). With one speed ``mu`` this is ``V`` exactly.
+        Shape ``s.shape + (m, m)``.
+        """
+        sys = self.system
+        s = np.asarray(s, dtype=complex)
+        flat = s.reshape(-1)
+        m = sys.m
+        v_block, _ = sys.principal_terms()
+        mask = sys.mu[None, :] > sys.mu[:, None]  # (a, c): mu_c > mu_a
+        if not mask.any():
+            return np.asarray(np.broadcast_to(v_block, (*s.shape, m, m)), dtype=complex)
+        g = self.kernels.G * mask[:, :, None] / sys.mu[:, None, None]  # Lambda-^{-1} G(x_k), (m, m, N)
+        xi = self.kernels.grid
+        h = float(xi[1] - xi[0])
+        C = (_in_group_part(sys) / sys.mu[:, None])[None] - flat[:, None, None] * np.diag(1.0 / sys.mu)[None]
+        step, i0, i1 = _cell_moments(C, h)
+        phi = np.broadcast_to(np.eye(m, dtype=complex), (flat.size, m, m)).copy()
+        acc = np.zeros((flat.size, m, m), dtype=complex)
+        for k in range(xi.size - 1):
+            gk, dg = g[:, :, k], (g[:, :, k + 1] - g[:, :, k]) / h
+            acc += phi @ (i0 @ gk + i1 @ dg)
+            phi = phi @ step
+        return np.asarray(v_block @ (np.eye(m) - acc), dtype=complex).reshape(*s.shape, m, m)
+
+    def cascade_loop_matrices(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """``M_0 = E (Phi_v - R Phi_u)`` and ``M_1 = E T - M_0`` (:meth:`target_transition`): the loop through ``G``.
+
+        For the exact kernels ``E (R Phi_u - J) = E T - M_0``, so this is :meth:`loop_matrices`
+        with the feedback integral ``J`` replaced by the target's transition: the kernels enter
+        through ``G`` alone, and an error ``dG`` of ``G`` moves ``M_1`` by at most
+        ``||V|| int_0^1 ||e^{x Lambda-^{-1} D}|| ||Lambda-^{-1} dG(x)|| dx`` on all of
+        ``Re s >= 0`` (module notes). With one speed ``mu`` it is :meth:`target_loop_matrices`.
+        """
+        s = np.asarray(s, dtype=complex)
+        m0 = self.system.loop_matrix(s)
+        return m0, self.target_transition(s) - m0
 
     def characteristic_value(self, s: ArrayLike, delta: float = 0.0) -> NDArray[np.complex128]:
         """``det(E (Phi_v - R Phi_u + e^{-delta s} (R Phi_u - J)))`` at ``s``: the delayed closed loop."""
@@ -633,6 +729,7 @@ def backstepping_delay_margin(
     *,
     points: int = 800,
     max_points: int = 200_000,
+    route: str = "integral",
 ) -> NPlusMMargin:
     """Delay margin of the full-state controller ``U(t - delta)``.
 
@@ -640,17 +737,20 @@ def backstepping_delay_margin(
     exact kernels, kernel-free (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`;
     ``max_points`` its work bound, at least 2 000 000 used); the grid kernels are not used.
 
-    With ``omega_max``: the loop of the grid kernels (:meth:`NPlusMBackstepping.loop_matrices`),
-    not certified (``certified=False``). ``gamma_0 >= 1`` (full cancellation of reflections,
-    :meth:`NPlusMBackstepping.gamma_0`; for ``m > 1`` with more than four principal delays a
-    sampled lower bound): margin 0, arbitrarily small delays destabilise. Otherwise a root of
-    ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff ``z = e^{-i w delta}`` is an
-    eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit circle; the eigenvalues inside
-    the disk are counted on a grid of ``(0, omega_max]``, each change located by bisection,
-    and the delays are ``(-arg z mod 2 pi) / w``. The delay-free loop is finite-time stable by
-    construction (``nominal_unstable`` is None: not counted). Not certified: a crossing
-    above ``omega_max``, or two crossings of opposite directions between grid points,
-    would be missed, and the feedback integral has no proven error bound here.
+    With ``omega_max``: the loop of the grid kernels, through the feedback integral
+    (``route="integral"``, :meth:`NPlusMBackstepping.loop_matrices`) or through the target's
+    ``G`` (``route="cascade"``, :meth:`NPlusMBackstepping.cascade_loop_matrices`: the same loop
+    for the exact kernels, module notes), not certified (``certified=False``). ``gamma_0 >= 1``
+    (full cancellation of reflections, :meth:`NPlusMBackstepping.gamma_0`; for ``m > 1`` with
+    more than four principal delays a sampled lower bound): margin 0, arbitrarily small delays
+    destabilise. Otherwise a root of ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff
+    ``z = e^{-i w delta}`` is an eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit
+    circle; the eigenvalues inside the disk are counted on a grid of ``(0, omega_max]``, each
+    change located by bisection, and the delays are ``(-arg z mod 2 pi) / w``. The delay-free
+    loop is finite-time stable by construction (``nominal_unstable`` is None: not counted).
+    Not certified: a crossing above ``omega_max``, or two crossings of opposite directions
+    between grid points, would be missed, and neither ``J`` nor ``G`` of the grid has a proven
+    error bound here.
 
     Parameters
     ----------
@@ -663,15 +763,21 @@ def backstepping_delay_margin(
     max_points : int, optional
         Work bound on evaluations of the loop: ``points`` plus 48 bisection steps per
         crossing, checked before each grid is evaluated.
+    route : {"integral", "cascade"}, optional
+        The grid kernels' loop scanned with ``omega_max`` (:data:`BACKSTEPPING_ROUTES`): through
+        ``J`` (default) or through ``G``, whose error moves the loop by the same bound at
+        every frequency; ``scope`` names it.
 
     Raises
     ------
     ParameterError
         ``omega_max`` None for a plant whose leftward speeds differ (its loop needs the
-        kernels: give ``omega_max``).
+        kernels: give ``omega_max``), or an unknown ``route``.
     """
     if not isinstance(controller, NPlusMBackstepping):
         raise ParameterError("controller", "an NPlusMBackstepping", type(controller).__name__)
+    if route not in BACKSTEPPING_ROUTES:
+        raise ParameterError("route", f"one of {BACKSTEPPING_ROUTES}", route)
     if omega_max is None:
         if np.any(controller.system.mu != controller.system.mu[0]):
             raise ParameterError(
@@ -687,11 +793,13 @@ def backstepping_delay_margin(
     bisections = 48
     if points > max_points:
         raise ParameterError("max_points", f">= points = {points}", max_points)
+    scope = _KERNEL_SCOPE if route == "integral" else _CASCADE_SCOPE
+    loop = controller.loop_matrices if route == "integral" else controller.cascade_loop_matrices
     gamma = controller.gamma_0()
     if gamma >= 1.0:
-        return NPlusMMargin(0.0, None, (), gamma, 0.0, False, None, _KERNEL_SCOPE)
-    found = pencil_crossings(controller.loop_matrices, omega_max, points, bisections=bisections, max_points=max_points)
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False, None, scope)
+    found = pencil_crossings(loop, omega_max, points, bisections=bisections, max_points=max_points)
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, None, _KERNEL_SCOPE)
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, None, scope)
     best = min(found, key=lambda p: p[1])
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, None, _KERNEL_SCOPE)
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, None, scope)

@@ -441,7 +441,9 @@ def backstepping_exact_margin(system: NPlusMSystem, *, max_points: int = 2_000_0
     ------
     ParameterError
         Leftward speeds not all equal: then ``G != 0`` depends on the kernels (the target is a
-        cascade) and the loop is not kernel-free.
+        cascade) and the loop is not kernel-free
+        (:meth:`~nrobust.hyperbolic.nplusm.NPlusMBackstepping.cascade_loop_matrices`: that loop
+        with the grid kernels' ``G``, no error bound).
     CertificationError
         As :func:`multi_actuator_delay_margin`.
     """
