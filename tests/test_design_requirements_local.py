@@ -100,7 +100,7 @@ def test_an_unreachable_window_is_refused() -> None:
     with pytest.raises(CertificationError, match=r"first phase raised the margin.*narrow the window"):
         optimize_loop(oscillator, bounds, delays=WINDOW, x0=[0.1, 0.8], max_iter=5)
     with pytest.raises(ParameterError, match="margin_at_least"):
-        optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, margin_at_least=0.5)
+        optimize_loop(oscillator, OSC_BOUNDS, delays=WINDOW, margin_at_least=-0.5)
     with pytest.raises(ParameterError, match="delays"):
         optimize_loop(oscillator, OSC_BOUNDS, delays=(4.85, 4.7))
     with pytest.raises(ParameterError, match="delays"):

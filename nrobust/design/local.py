@@ -10,30 +10,34 @@ Two objectives:
   ``[0, d]``;
 * ``"margin"``: maximise ``delta*(p)``.
 
-Instead of a margin, a window of delays ``[d_min, d_max]`` may be required (``delays``: stable
-for every delay of the window, :func:`nrobust.design.window_stability`; ``d_min > 0`` allows a
-loop unstable at ``delta = 0``), of the loop and of further loops of the same parameters
-(``scenarios``: the loop on plants with mismatched data). The zeros in ``Re s > 0`` change in
-number only at the crossing delays ``tau_k(w) = (theta(w) + 2 pi k)/w``, so the window is met
-iff it lies inside one of the loop's stability windows ``(l, h)`` (:attr:`DelayMargin.intervals`:
-no crossing delay in ``[d_min, d_max]``, no zero in ``Re s > 0`` between). Its violation measure
-is the *window clearance* ``c(p) = max_(l, h) min(d_min - l, h - d_max)`` over the stability
-windows (``d_min - l`` taken as ``+inf`` for a window ``[0, h)`` holding the nominal loop, or
-``(0, h)`` when ``d_min > 0``), minimised over the loops: the requirement is ``c(p) > 0``, and
-``d_max + c(p)`` (the *window margin*) is ``delta*(p)`` when ``d_min = 0``, so the margin
-requirement ``delta* > d`` is the window ``[0, d]``. ``c`` is differentiable where one end
+Windows of delays ``[d_min, d_max]`` may be required too (``delays``: one window or several,
+stable for every delay of each, :func:`nrobust.design.window_stability`; ``d_min > 0`` allows a
+loop unstable at ``delta = 0``), with or without a margin, of the loop and of further loops of the
+same parameters (``scenarios``: the loop on plants with mismatched data, held to every requirement
+of the loop). The requirement is then stability on a union of closed intervals of delays: the
+windows and the margin's ``[0, d]``, merged where they meet, ``[l_1, h_1] < ... < [l_m, h_m]``.
+The zeros in ``Re s > 0`` change in number only at the crossing delays ``tau_k(w) = (theta(w) + 2 pi
+k)/w``, so an interval is met iff it lies inside one of the loop's stability windows ``(l, h)``
+(:attr:`DelayMargin.intervals`: no crossing delay in ``[l_j, h_j]``, no zero in ``Re s > 0``
+between). Its violation measure is the *window clearance* ``c_j(p) = max_(l, h) min(l_j - l, h -
+h_j)`` over the stability windows (``l_j - l`` taken as ``+inf`` for a window ``[0, h)`` holding the
+nominal loop, or ``(0, h)`` when ``l_j > 0``; with ``l_j = 0`` only the window ``[0, h)`` of a stable
+nominal loop counts), minimised over the intervals and the loops: the requirement is ``c(p) > 0``,
+and ``h_m + c(p)`` (the *window margin*) is ``delta*(p)`` for the one interval ``[0, h_1]``, so the
+margin requirement ``delta* > d`` is the window ``[0, d]``. ``c`` is differentiable where one end
 ``tau`` binds, with the gradient of that crossing delay (below), and a start that misses the
-window first maximises ``c`` up to 0, as a start below a required margin maximises the margin.
-``c = -inf`` where a loop has no stability window up to ``2 d_max + 1`` (with ``d_min = 0``: no
-window ``[0, h)``, the loop unstable at ``delta = 0``): from such a start a phase before the first
-minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``A + B e^{-d_min s}``;
-``A + B`` when ``d_min = 0``) until it is negative. The margin objective also requires the loop stable
-at ``delta = 0`` (the margin is the end of its window ``[0, h)``): with ``d_min > 0`` a start unstable
-there goes through the same phase with the loop's ``A + B`` among the abscissae lowered, and the first
-phase keeps it stable at ``delta = 0``. Each loop is then stable at ``d_min``, which a
-stability window holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly
-stable, so for a neutral loop too a negative abscissa at one delay opens a window of delays), and
-the first phase continues from there.
+requirement first maximises ``c`` up to 0, as a start below a required margin maximises the margin.
+``c = -inf`` where a loop has no stability window up to ``2 h_m + 1`` that can hold an interval
+(with ``l_1 = 0``: no window ``[0, h)``, the loop unstable at ``delta = 0``): from such a start a
+phase before the first minimises the largest spectral abscissa of the loops at the starts ``l_j``
+of the intervals (``A + B e^{-l_j s}``; ``A + B`` at ``l_1 = 0``) until it is negative: every
+feasible point is stable there. The margin objective also requires the loop stable at ``delta =
+0`` (the margin is the end of its window ``[0, h)``): with ``l_1 > 0`` a start unstable there goes
+through the same phase with the loop's ``A + B`` among the abscissae lowered, and the first phase
+keeps it stable at ``delta = 0``. Each loop is then stable at each ``l_j``, which a stability window
+holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly stable, so for a neutral
+loop too a negative abscissa at one delay opens a window of delays), and the first phase continues
+from there.
 
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
@@ -64,13 +68,14 @@ delay bounds the margin from above). Where BFGS stalls (at a kink, or at a corne
 where a crossing pair is born), a pattern search over the coordinate axes, their pairwise
 diagonals and the descent direction continues with shrinking steps (and growing ones along a
 direction that keeps improving). A start that is not
-feasible first maximises the margin until it reaches ``d`` (under a window, after the phase that
-makes a window exist when it has none). The optimum is local; several
+feasible first maximises the margin until it reaches ``d`` (under windows, the window margin
+until it reaches ``h_m``, after the phase that makes a window exist when it has none). The optimum is local; several
 starts (a Halton sequence in the bounds, run through any ``map``, e.g.
 :func:`nrobust.sweep_map` for processes or Dask) make a better one likely, not certain. The
 design found is then certified: its abscissa (certified count of the roots right of it), its
-delay margin (``rigorous=True``: proven in ball arithmetic) and, with a window, the window of
-each loop (:func:`nrobust.design.window_stability`).
+delay margin (``rigorous=True``: proven in ball arithmetic) and, with windows, each window of
+each loop, and each scenario's ``[0, d]`` under a margin (:func:`nrobust.design.window_stability`,
+whose delay margin is verified, or proven).
 
 The optimiser itself (:func:`local_runs`) takes any :class:`LocalProblem`: a function of the
 parameters returning :class:`TrialPoint` s (value, gradient, feasibility), so a loop that is not
@@ -91,7 +96,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._json import json_safe
 from .._newton import newton
-from .._validate import callables, finite_real, nonnegative, positive_int
+from .._validate import callables, finite_real, is_real_number, nonnegative, positive_int
 from ..errors import CertificationError, ParameterError
 from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
 from ..margins.crossing import axis_crossings, common_axis_zeros, crossing_search
@@ -108,6 +113,7 @@ __all__ = [
     "ParametricLoop",
     "TrialPoint",
     "check_objective",
+    "check_windows",
     "delayed_gamma",
     "local_runs",
     "optimize_loop",
@@ -158,9 +164,9 @@ BELOW_REQUIREMENT = "delay margin below the requirement"
 #: The reason of a trial point whose abscissa, computed, is above the line that rejects it.
 ABOVE_LINE = "above the line search's line"
 #: The reason of a first-phase point without a stability window that can hold the required window (it starts
-#: the phase before: the largest abscissa at ``delta = d_min`` lowered below 0).
+#: the phase before: the largest abscissa at the windows' ``delta = d_min`` lowered below 0).
 NO_WINDOW = "no stability window"
-#: The phase before the first stops once the largest abscissa at ``d_min`` is below ``-STABLE_BY`` times its
+#: The phase before the first stops once the largest abscissa at the ``d_min`` is below ``-STABLE_BY`` times its
 #: value at the start (any negative value makes a stability window exist; a little more keeps it from the edge).
 STABLE_BY = 1e-2
 
@@ -172,6 +178,49 @@ def _box(bounds: ArrayLike) -> NDArray[np.float64]:
             "bounds", "a sequence of finite (low, high) pairs with low < high, one per parameter", bounds
         )
     return b
+
+
+#: Windows of delays ``((d_min, d_max), ...)``.
+_Windows = tuple[tuple[float, float], ...]
+
+
+def check_windows(delays: Any, name: str = "delays") -> _Windows:
+    """``delays`` (None, one window ``(d_min, d_max)`` or a sequence of them) as a tuple of checked windows.
+
+    Each window as :func:`nrobust.design.check_delays` checks it (``0 <= d_min <= d_max``,
+    ``d_max > 0``; ``d_min = d_max``: one delay); the empty tuple for None. A
+    :class:`ParameterError` naming ``name`` (or ``name[j]`` for the ``j``-th window) otherwise.
+    """
+    if delays is None:
+        return ()
+    what = "a window (d_min, d_max) with 0 <= d_min <= d_max, d_max > 0, or a sequence of such windows"
+    if isinstance(delays, (str, bytes)):
+        raise ParameterError(name, what, delays)
+    try:
+        items = list(delays)
+    except TypeError:
+        raise ParameterError(name, what, delays) from None
+    if not items:
+        raise ParameterError(name, what, delays)
+    if all(is_real_number(x) for x in items):
+        return (check_delays(items, name),)
+    return tuple(check_delays(w, f"{name}[{n}]") for n, w in enumerate(items))
+
+
+def _merged(windows: _Windows, margin_at_least: float | None = None) -> _Windows:
+    """The windows and ``[0, margin_at_least]`` (when given and ``> 0``) merged into disjoint closed intervals.
+
+    Stability on every window is stability on their union; intervals that meet (an end of one in
+    the other) are one interval. Ascending.
+    """
+    pieces = sorted([*windows, *([(0.0, margin_at_least)] if margin_at_least else [])])
+    merged: list[tuple[float, float]] = []
+    for lo, hi in pieces:
+        if merged and lo <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
+        else:
+            merged.append((lo, hi))
+    return tuple(merged)
 
 
 @dataclass(frozen=True)
@@ -257,12 +306,12 @@ class LocalProblem(Protocol):
     """What :func:`local_runs` optimises: a function of the parameters with its feasibility.
 
     ``problem(p)`` evaluates the objective at ``p`` (``want="margin"``: ``-delta*`` whatever the
-    objective, for the first phase of a start below the required margin; under a window of
-    delays, minus the window margin, which the first phase raises to ``d_max``; a problem whose
-    ``want="margin"`` point can be infeasible with a reason starting with :data:`NO_WINDOW` takes
-    ``want="abscissa"`` too: the largest spectral abscissa of its loops at the delays a feasible point
-    must be stable at, ``delta = d_min`` (and, for :func:`optimize_loop`'s margin objective, the loop's
-    at ``delta = 0``), which the phase before the first lowers below 0); ``above`` is the line
+    objective, for the first phase of a start below the required margin; under windows of
+    delays, minus the window margin, which the first phase raises to ``h_m``, the end of the last; a
+    problem whose ``want="margin"`` point can be infeasible with a reason starting with :data:`NO_WINDOW`
+    takes ``want="abscissa"`` too: the largest spectral abscissa of its loops at the delays a feasible
+    point must be stable at, the start of each window (and, for :func:`optimize_loop`'s margin
+    objective, the loop's at ``delta = 0``), which the phase before the first lowers below 0); ``above`` is the line
     a trial point must stay under (the line search's sufficient decrease, or the incumbent of the
     pattern search), so a point found above it may be returned early, without its gradient. A
     point outside ``bounds``, below ``margin_at_least`` (its ``reason`` starting with
@@ -280,7 +329,7 @@ class LocalProblem(Protocol):
     @property
     def margin_at_least(self) -> float | None:
         """The level the first phase raises ``problem(p, want="margin")`` to: the required delay margin
-        (``d_max`` under a window of delays), or None."""
+        (under windows of delays the end of the last), or None."""
 
     @property
     def screened(self) -> int:
@@ -299,7 +348,7 @@ class _Memo:
     abscissa; ``roots`` and ``omegas`` are the witnesses (:data:`WITNESSES`, the crossings of the
     scenarios' loops among them); ``screened`` counts the evaluations settled by a bound (the
     gamma of the delayed loop, the chains, a witness) and ``full`` those that ran a spectral
-    abscissa or a crossing search; ``binding`` is the scenario that last missed the window
+    abscissa or a crossing search; ``binding`` is the scenario that last missed the windows
     (checked first).
     """
 
@@ -453,8 +502,9 @@ class _Problem:
     by :func:`~nrobust.roots.spectral_abscissa`, its margin by the complete certified
     crossing search (:meth:`_meets`).
 
-    ``margin_at_least`` is the required margin, or with ``window`` its ``d_max`` (the level the
-    first phase raises the window margin to); ``window`` the required window of delays, which
+    ``margin_at_least`` is the required margin, or with ``windows`` the end ``h_m`` of the last (the
+    level the first phase raises the window margin to); ``windows`` the required intervals of
+    delays (disjoint, ascending: the windows and the margin's ``[0, d]`` merged, module notes), which
     every loop of ``scenarios`` must meet too (:meth:`_window_clearance`).
     """
 
@@ -463,7 +513,7 @@ class _Problem:
     objective: str
     margin_at_least: float | None
     gamma_max: float = 1.0
-    window: tuple[float, float] | None = None
+    windows: _Windows = ()
     scenarios: tuple[ParametricLoop, ...] = ()
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
@@ -556,7 +606,7 @@ class _Problem:
         p = np.asarray(p, dtype=float)
         if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, "outside the bounds")
-        objective = "window" if want == "margin" and self.window is not None else want or self.objective
+        objective = "window" if want == "margin" and self.windows else want or self.objective
         key = (p.tobytes(), objective)
         memo = self.memo
         if key in memo.points:
@@ -607,9 +657,7 @@ class _Problem:
             if lower > above:
                 memo.screened += 1
                 return self._screened(p, float(lower), objective, f"above the line (chains at {lower:.6g})")
-        d = self.margin_at_least
-        if self.window is not None and self.window[0] > 0.0:
-            d = None  # a crossing delay below d_min may leave the window stable: no screening by witnesses
+        d = self._from_zero  # a crossing delay below l_1 > 0 may leave the windows stable: no screening by witnesses
         delay = _crossing_near(A, B, memo.omegas, d) if d else math.inf
         if d and delay < d:
             memo.screened += 1
@@ -626,7 +674,7 @@ class _Problem:
         if sa.value > above:
             return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
         margin = math.nan
-        if self.window is not None:
+        if self.windows:
             why = self._window_missed(p, A, B, sa)
             if why:
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, f"{BELOW_REQUIREMENT}: {why}")
@@ -636,80 +684,96 @@ class _Problem:
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
         return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
 
+    @property
+    def _from_zero(self) -> float | None:
+        """The delay up to which every loop must be stable from ``delta = 0``: the required margin, or with
+        ``windows`` the end of the first interval when it starts at 0 (else None)."""
+        if not self.windows:
+            return self.margin_at_least
+        lo, hi = self.windows[0]
+        return hi if lo == 0.0 else None
+
     def _window_clearance(
-        self, A: QuasiPolynomial, B: QuasiPolynomial
+        self, A: QuasiPolynomial, B: QuasiPolynomial, skip_first: bool = False
     ) -> tuple[float, tuple[float, float, int] | None, DelayMargin]:
         """``(c, end, dm)``: the window clearance of the loop (module notes) and the delay that binds it.
 
-        ``dm`` is the delay margin with its stability windows up to ``2 d_max + 1`` (as
-        :func:`nrobust.design.window_stability` takes them), not verified; ``end`` is ``(w, tau, side)``
-        for the crossing delay ``tau`` at the frequency ``w`` that binds (``side`` -1 for the lower end,
-        ``c = d_min - tau``; +1 for the upper, ``c = tau - d_max``), None when no crossing binds (an end
-        at the horizon); ``c = -inf`` without a stability window (or without strong stability, or with
-        ``s = 0`` a root for every delay); with ``d_min = 0`` only the window ``[0, h)`` of a stable
-        nominal loop counts (no other can ever hold the window: no path of windows ``(l, h)``, ``l > 0``,
-        leads to it but through a jump).
+        ``c`` is the least clearance ``c_j`` over the intervals (over all but the first with
+        ``skip_first``); ``dm`` is the delay margin with its stability windows up to ``2 h_m + 1`` (as
+        :func:`nrobust.design.window_stability` takes them for the last interval), not verified; ``end``
+        is ``(w, tau, side)`` for the crossing delay ``tau`` at the frequency ``w`` that binds (``side``
+        -1 for a lower end, ``c = l_j - tau``; +1 for an upper, ``c = tau - h_j``), None when no crossing
+        binds (an end at the horizon); ``c = -inf`` when an interval has no stability window that can hold
+        it (or without strong stability, or with ``s = 0`` a root for every delay); for ``l_j = 0`` only
+        the window ``[0, h)`` of a stable nominal loop counts (no other can ever hold the interval: no path
+        of windows ``(l, h)``, ``l > 0``, leads to it but through a jump).
         """
-        assert self.window is not None
-        d_lo, d_hi = self.window
-        dm = delay_margin(A, B, delta_max=2.0 * d_hi + 1.0, verify=False)
+        assert self.windows
+        dm = delay_margin(A, B, delta_max=2.0 * self.windows[-1][1] + 1.0, verify=False)
         if not dm.strongly_stable or dm.zero_root:
             return -math.inf, None, dm
-        best, binding = -math.inf, (0.0, 0)
-        for lo, hi in dm.intervals:
-            if d_lo == 0.0 and not (lo == 0.0 and dm.nominally_stable):
-                continue
-            below = math.inf if lo == 0.0 else d_lo - lo
-            c = min(below, hi - d_hi)
-            if c > best:
-                best, binding = c, ((lo, -1) if below <= hi - d_hi else (hi, 1))
+        worst, binding = math.inf, (0.0, 0)
+        for d_lo, d_hi in self.windows[1:] if skip_first else self.windows:
+            best, here = -math.inf, (0.0, 0)
+            for lo, hi in dm.intervals:
+                if d_lo == 0.0 and not (lo == 0.0 and dm.nominally_stable):
+                    continue
+                below = math.inf if lo == 0.0 else d_lo - lo
+                c = min(below, hi - d_hi)
+                if c > best:
+                    best, here = c, ((lo, -1) if below <= hi - d_hi else (hi, 1))
+            if best < worst:
+                worst, binding = best, here
+        if not math.isfinite(worst):
+            return worst, None, dm
         tau, side = binding
         w = next((float(x.omega) for x in dm.crossings if tau in x.delays and x.omega), None)
-        return best, (None if w is None else (w, tau, side)), dm
+        return worst, (None if w is None else (w, tau, side)), dm
 
     def _window_missed(
         self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, sa: SpectralAbscissa
     ) -> str:
-        """Why the loop (abscissa ``sa`` at ``delta = 0``) or a scenario is not stable on the window, or "".
+        """Why the loop (abscissa ``sa`` at ``delta = 0``) or a scenario is not stable on the intervals, or "".
 
-        The loop by :meth:`_meets` when ``d_min = 0`` (``delta* > d_max``), else by its window
-        clearance; each scenario by its window clearance. In floating point: the design is
+        The loop on a first interval ``[0, h_1]`` by :meth:`_meets` (``delta* > h_1``), on the others by
+        its window clearance; each scenario by its window clearance. In floating point: the design is
         certified afterwards (:func:`nrobust.design.window_stability`).
         """
-        assert self.window is not None
-        d_lo, d_hi = self.window
+        assert self.windows
+        first = self._from_zero
         memo = self.memo
-        if d_lo == 0.0:
-            ok, first = self._meets(A, B, sa, d_hi)
-            if not (ok and first > d_hi):
-                return f"the loop's delay margin {first:.6g} is not above d_max"
-        elif not self._window_clearance(A, B)[0] > 0.0:
-            return "the loop is not stable on the window"
+        if first is not None:
+            ok, margin = self._meets(A, B, sa, first)
+            if not (ok and margin > first):
+                return f"the loop's delay margin {margin:.6g} is not above {first!r}"
+        if (first is None or len(self.windows) > 1) and not self._window_clearance(A, B, first is not None)[0] > 0.0:
+            return "the loop is not stable on the windows"
         for n in sorted(range(len(self.scenarios)), key=lambda n: n != memo.binding):
             A_n, B_n = self.scenarios[n](p)
-            # with d_min = 0 a crossing delay below d_max near a witness frequency settles it
-            delay = _crossing_near(A_n, B_n, memo.omegas, d_hi) if d_lo == 0.0 else math.inf
-            if delay < d_hi:
+            # a crossing delay below h_1 near a witness frequency settles it
+            delay = _crossing_near(A_n, B_n, memo.omegas, first) if first is not None else math.inf
+            if first is not None and delay < first:
                 memo.screened += 1
                 memo.binding = n
                 return f"scenario {n} has a crossing at delay {delay:.6g}"
             c, _, dm = self._window_clearance(A_n, B_n)
-            memo.add_crossings(dm.crossings, 1.5 * d_hi)
+            memo.add_crossings(dm.crossings, 1.5 * self.windows[-1][1])
             if not c > 0.0:
                 memo.binding = n
-                return f"scenario {n} is not stable on the window"
+                return f"scenario {n} is not stable on the windows"
         return ""
 
     def _window_point(self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial) -> TrialPoint:
-        """Minus the window margin ``d_max + min_j c_j(p)`` over the loop and the scenarios, with its gradient.
+        """Minus the window margin ``h_m + c(p)`` (the least clearance over the intervals, the loop and the
+        scenarios), with its gradient.
 
-        Feasible (for the first phase) where every loop has a stability window that can hold the
-        required one (:meth:`_window_clearance`) and, under the margin objective, the loop is stable at
+        Feasible (for the first phase) where every loop has, for each interval, a stability window that
+        can hold it (:meth:`_window_clearance`) and, under the margin objective, the loop is stable at
         ``delta = 0`` (its window ``[0, h)`` exists: the design must have it); infeasible with the reason
         :data:`NO_WINDOW` otherwise, which starts the phase before (:meth:`_abscissa_point`). The
-        requirement is met where the value is below ``-d_max``.
+        requirement is met where the value is below ``-h_m``.
         """
-        assert self.window is not None
+        assert self.windows
         self.memo.full += 1
         worst: tuple[float, tuple[float, float, int] | None, ParametricLoop, QuasiPolynomial, QuasiPolynomial] = (
             math.inf,
@@ -719,7 +783,6 @@ class _Problem:
             B,
         )
         which = ""
-        d_lo, d_hi = self.window
         for n, loop in enumerate((self.loop, *self.scenarios)):
             A_j, B_j = (A, B) if loop is self.loop else loop(p)
             c, end, dm = self._window_clearance(A_j, B_j)
@@ -731,55 +794,61 @@ class _Problem:
                 which = "the loop" if n == 0 else f"scenario {n - 1}"
         c, end, loop, A_j, B_j = worst
         if not math.isfinite(c):
-            held = "[0, h) of a stable nominal loop" if d_lo == 0.0 else f"up to {2.0 * d_hi + 1.0:.6g}"
+            horizon = f"up to {2.0 * self.windows[-1][1] + 1.0:.6g}"
+            if len(self.windows) > 1:
+                held = f"{horizon} for each interval of {[list(w) for w in self.windows]}"
+            else:
+                held = "[0, h) of a stable nominal loop" if self.windows[0][0] == 0.0 else horizon
             reason = f"{NO_WINDOW} {held} for {which}"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, math.nan, reason)
         grad = np.zeros(p.size)
         if end is not None:
             w, tau, side = end
             grad = side * self._delay_gradient(p, loop, A_j, B_j, w, tau)
-        value = self.window[1] + c
+        value = self.windows[-1][1] + c
         return TrialPoint(p, True, -value, -grad, math.nan, value)
 
     @property
     def _nominal(self) -> bool:
-        """True when the loop must be stable at ``delta = 0`` beyond the window: the margin objective with
-        ``d_min > 0`` (with ``d_min = 0`` the window requires it anyway)."""
-        return self.objective == "margin" and self.window is not None and self.window[0] > 0.0
+        """True when the loop must be stable at ``delta = 0`` beyond the intervals: the margin objective with
+        ``l_1 > 0`` (with ``l_1 = 0`` the first interval requires it anyway)."""
+        return self.objective == "margin" and bool(self.windows) and self.windows[0][0] > 0.0
 
     def _abscissa_point(
         self, p: NDArray[np.float64], A: QuasiPolynomial, B: QuasiPolynomial, above: float
     ) -> TrialPoint:
-        """The phase before the first: the largest spectral abscissa of ``A_j + B_j e^{-d_min s}`` over the
-        loop and the scenarios, and under the margin objective with ``d_min > 0`` of the loop's ``A + B``
-        too (at ``delta = 0``), with its gradient (the rightmost root's or chain's, module notes).
+        """The phase before the first: the largest spectral abscissa of ``A_j + B_j e^{-l_k s}`` over the
+        loop and the scenarios and the starts ``l_k`` of the intervals, and under the margin objective with
+        ``l_1 > 0`` of the loop's ``A + B`` too (at ``delta = 0``), with its gradient (the rightmost root's or
+        chain's, module notes).
 
-        Below 0 every loop is exponentially stable at ``delta = d_min`` (at ``delta = 0`` when ``d_min =
-        0``): ``d_min`` lies in a stability window of each, whose ends the first phase then moves past the
-        window; under the margin objective the loop is stable at ``delta = 0`` as well (its window ``[0, h)``
-        exists), as every design of that objective must be. Each is a necessary condition of a feasible
+        Below 0 every loop is exponentially stable at each ``delta = l_k`` (at ``delta = 0`` when ``l_1 =
+        0``): ``l_k`` lies in a stability window of each, whose ends the first phase then moves past the
+        interval; under the margin objective the loop is stable at ``delta = 0`` as well (its window ``[0,
+        h)`` exists), as every design of that objective must be. Each is a necessary condition of a feasible
         point. That window is not lost to the difference operator: ``gamma_0 <= gamma_max < 1``
-        (checked before) makes it strongly stable, so no delay near ``d_min`` brings zeros from
+        (checked before) makes it strongly stable, so no delay near ``l_k`` brings zeros from
         infinity. A point whose chains (a lower bound, :meth:`QuasiPolynomial.principal_part`) or
         abscissa lie above ``above`` is rejected as soon as that is known.
         """
-        assert self.window is not None
+        assert self.windows
         memo = self.memo
         worst: tuple[SpectralAbscissa, ParametricLoop, QuasiPolynomial, float] | None = None
-        loops = [(loop, self.window[0]) for loop in (self.loop, *self.scenarios)]
-        for loop, d in [(self.loop, 0.0), *loops] if self._nominal else loops:
+        starts = [lo for lo, _ in self.windows]
+        for loop in (self.loop, *self.scenarios):
             A_j, B_j = (A, B) if loop is self.loop else loop(p)
-            F = A_j + (B_j.shift(d) if d else B_j)
-            lower = F.principal_part().spectral_bound().lower
-            if lower > above:
-                memo.screened += 1
-                return self._screened(p, float(lower), "abscissa", f"above the line (chains at {lower:.6g})")
-            memo.full += 1
-            sa = spectral_abscissa(F)
-            if sa.value > above:
-                return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
-            if worst is None or sa.value > worst[0].value:
-                worst = (sa, loop, F, d)
+            for d in [0.0, *starts] if self._nominal and loop is self.loop else starts:
+                F = A_j + (B_j.shift(d) if d else B_j)
+                lower = F.principal_part().spectral_bound().lower
+                if lower > above:
+                    memo.screened += 1
+                    return self._screened(p, float(lower), "abscissa", f"above the line (chains at {lower:.6g})")
+                memo.full += 1
+                sa = spectral_abscissa(F)
+                if sa.value > above:
+                    return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
+                if worst is None or sa.value > worst[0].value:
+                    worst = (sa, loop, F, d)
         assert worst is not None
         sa, loop, F, d = worst
         return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa, loop, d), sa.value, math.nan)
@@ -882,28 +951,28 @@ class _Problem:
                     return self._screened(p, -first, "margin", f"below the line (a crossing at delay {first:.6g})")
         memo.full += 1
         c = math.inf
-        if self.window is not None:
+        if self.windows:
             c, _, dm = self._window_clearance(A, B)
         else:
             dm = delay_margin(A, B, verify=False)
         margin = dm.margin
         memo.add_crossings(dm.crossings, 1.5 * margin if math.isfinite(margin) else math.inf)
         if not dm.nominally_stable:
-            # the margin objective requires it (and with d_min = 0 the window too): under a window the phases
+            # the margin objective requires it (and with l_1 = 0 the intervals too): under windows the phases
             # before the first make it so (:meth:`_window_point`, :meth:`_abscissa_point`)
             reason = "not stable at delta = 0"
-            if self.window is not None:
+            if self.windows:
                 reason = f"{BELOW_REQUIREMENT}: {reason}"
             else:
                 reason += " (give an x0 stable at delta = 0, or a window of delays: its phases stabilise a start)"
             return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, reason)
-        if self.window is not None:
+        if self.windows:
             bad = "" if c > 0.0 else "the loop"
             for n, loop in enumerate(self.scenarios):
                 if not bad and not self._window_clearance(*loop(p))[0] > 0.0:
                     bad = f"scenario {n}"
             if bad:
-                reason = f"{BELOW_REQUIREMENT}: {bad} is not stable on the window"
+                reason = f"{BELOW_REQUIREMENT}: {bad} is not stable on the windows"
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), math.nan, margin, reason)
         return TrialPoint(p, True, -margin, -self._margin_gradient(p, A, B, dm), math.nan, margin)
 
@@ -1102,11 +1171,11 @@ class _Local:
     def stabilise(self, m: TrialPoint, counter: list[int]) -> tuple[TrialPoint, int]:
         """The phase before the first, from ``m`` (a first-phase point without a stability window, :data:`NO_WINDOW`).
 
-        Minimises the largest spectral abscissa of the loops at ``delta = d_min`` (``want="abscissa"``;
-        with :func:`optimize_loop`'s margin objective and ``d_min > 0``, the loop's at ``delta = 0`` among
+        Minimises the largest spectral abscissa of the loops at each window's ``delta = d_min`` (``want="abscissa"``;
+        with :func:`optimize_loop`'s margin objective and every ``d_min > 0``, the loop's at ``delta = 0`` among
         them) by BFGS and the pattern search until it is below ``-STABLE_BY`` times its value at ``m`` (or
         to a local minimum), and returns the first phase's point there with the BFGS iterations: a
-        stability window holds ``d_min`` once that abscissa is negative. Not negative: the first-phase
+        stability window holds each ``d_min`` once that abscissa is negative. Not negative: the first-phase
         point, infeasible, says how far the abscissa came down.
         """
         problem = self.problem
@@ -1156,7 +1225,7 @@ class _Local:
                 counter[0] += 1
                 if not x.feasible and m.value > target:
                     reached = (
-                        f"; the first phase raised the margin (with a window: d_max plus the window clearance) to "
+                        f"; the first phase raised the margin (with windows: the last d_max plus the clearance) to "
                         f"{-m.value:.6g}, {problem.margin_at_least:.6g} required"
                     )
                     x = replace(x, reason=x.reason + reached)
@@ -1208,12 +1277,12 @@ class LoopDesign:
     margin : DelayMargin
         Of the design (verified; ``rigorous=True``: proven, with ``margin_ball``).
     margin_at_least : float or None
-        The requirement.
+        The required margin.
     certified : bool
         True if the abscissa is certified, the margin verified (proven when ``rigorous``) and
-        the requirement met by the margin (by the lower end of its ball when ``rigorous``); with
-        ``delays``, every window certified stable (proven when ``rigorous``); with the margin
-        objective, the loop stable at ``delta = 0`` (its certified count).
+        the required margin met by it (by the lower end of its ball when ``rigorous``); with
+        ``delays`` or ``scenarios``, every window of :attr:`windows` certified stable (proven when
+        ``rigorous``); with the margin objective, the loop stable at ``delta = 0`` (its certified count).
     rigorous : bool
         True if the certificate is in ball arithmetic.
     local : bool
@@ -1224,11 +1293,15 @@ class LoopDesign:
         pairs are born) that no finite set of directions is sure to enter.
     runs : tuple of LocalRun
         Every start, the best first.
-    delays : (float, float) or None
-        The window ``[d_min, d_max]`` required (:func:`optimize_loop`'s ``delays``).
+    delays : (float, float) or tuple of (float, float) or None
+        The window ``[d_min, d_max]`` required (:func:`optimize_loop`'s ``delays``), or the windows
+        when several (:attr:`required_windows`: always a tuple of windows).
     windows : tuple of DelayWindow
-        The window certified at the design for the loop and then for each scenario
-        (:func:`nrobust.design.window_stability`); empty without ``delays``.
+        The certificates of the requirements at the design (:func:`nrobust.design.window_stability`,
+        each with its delay margin, verified or proven), for the loop and then for each scenario
+        (:attr:`loop_windows` groups them): the loop's, one per window of :attr:`required_windows`
+        (its margin is :attr:`margin`); each scenario's, with a required margin ``d > 0`` first its
+        ``[0, d]`` (``delta* > d``), then one per window. Empty without ``delays`` and ``scenarios``.
     """
 
     parameters: tuple[float, ...]
@@ -1242,13 +1315,48 @@ class LoopDesign:
     rigorous: bool
     runs: tuple[LocalRun, ...] = field(repr=False)
     local: bool = True
-    delays: tuple[float, float] | None = None
+    delays: tuple[float, float] | _Windows | None = None
     windows: tuple[DelayWindow, ...] = field(default=(), repr=False)
 
     @property
+    def required_windows(self) -> _Windows:
+        """The windows of delays required, one ``(d_min, d_max)`` each (empty without ``delays``)."""
+        if self.delays is None:
+            return ()
+        first = self.delays[0]
+        if isinstance(first, tuple):
+            return tuple((float(lo), float(hi)) for lo, hi in self.delays)  # type: ignore[misc]
+        return ((float(first), float(self.delays[1])),)  # type: ignore[arg-type]
+
+    @property
+    def loop_windows(self) -> tuple[tuple[DelayWindow, ...], ...]:
+        """:attr:`windows` grouped by loop: the loop's, then each scenario's (its ``[0, d]`` first under a
+        required margin ``d > 0``, then one per window)."""
+        m = len(self.required_windows)
+        size = m + (1 if self.margin_at_least else 0)
+        rest = self.windows[m:] if size else ()
+        return (self.windows[:m], *(rest[k : k + size] for k in range(0, len(rest), max(size, 1))))
+
+    @property
     def requirement(self) -> str:
-        """The window requirement and its verdict in words: met and proven, met and checked, or not met."""
-        return window_requirement(self.delays, self.windows)
+        """Each requirement and its verdict in words (met and proven, met and checked, or not met): the
+        required margin (of the loop and the scenarios), then each window; ``"none"`` without one."""
+        groups = self.loop_windows
+        parts = []
+        d = self.margin_at_least
+        if d:
+            dm = self.margin
+            ball = dm.margin_ball if self.rigorous else None
+            others = [g[0] for g in groups[1:]]
+            met = (ball[0] if ball is not None else dm.margin) >= d and all(w.stable for w in others)
+            proven = met and ball is not None and all(w.certified == "proven" for w in others)
+            loops = "the loop" if not others else f"the loop and its {len(others)} scenarios"
+            verdict = "met, proven" if proven else "met, checked" if met else "not met"
+            parts.append(f"delay margin >= {float(d)!r} ({loops}): {verdict}")
+        skip = 1 if d else 0
+        for j, window in enumerate(self.required_windows):
+            parts.append(window_requirement(window, [groups[0][j], *(g[skip + j] for g in groups[1:])]))
+        return "; ".join(parts) or "none"
 
     @property
     def stationarity(self) -> float:
@@ -1353,7 +1461,7 @@ def optimize_loop(
     *,
     objective: str = "decay_rate",
     margin_at_least: float | None = None,
-    delays: tuple[float, float] | None = None,
+    delays: tuple[float, float] | Sequence[tuple[float, float]] | None = None,
     scenarios: Sequence[ParametricLoop] = (),
     gamma_max: float = GAMMA_MAX,
     x0: ArrayLike | None = None,
@@ -1377,24 +1485,28 @@ def optimize_loop(
         Maximise ``-alpha`` (the spectral abscissa at ``delta = 0``) or the delay margin.
     margin_at_least : float, optional
         With ``"decay_rate"``: require ``delta* >= margin_at_least`` (stability for every
-        delay in ``[0, margin_at_least]``). A start below it first maximises the margin.
-    delays : (float, float), optional
-        ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``): require exponential stability
-        for every delay of the window, of every iterate (its window clearance positive, module
-        notes; ``d_min > 0`` allows a loop unstable at ``delta = 0``, the decay rate then that of
-        the loop without delay, negative); with either objective, not with ``margin_at_least``
-        (the window ``[0, d]`` is ``delta* > d``). A start that misses it first maximises its
+        delay in ``[0, margin_at_least]``). A start below it first maximises the margin. With
+        ``delays`` or ``scenarios`` it is the window ``[0, margin_at_least]`` (``delta* > d``) merged
+        with the windows, held by every loop.
+    delays : (float, float) or sequence of (float, float), optional
+        A window ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``; ``d_min = d_max``: one
+        delay) or several: require exponential stability for every delay of each window, of every
+        iterate (its window clearance positive, module notes; ``d_min > 0`` allows a loop unstable at
+        ``delta = 0``, the decay rate then that of the loop without delay, negative); with either
+        objective, and with ``margin_at_least``. A start that misses them first maximises its
         window clearance; when the start or a scenario at it has no stability window up to
-        ``2 d_max + 1`` (with ``d_min = 0``, or the margin objective: is unstable at ``delta = 0``), a
-        phase before lowers the largest spectral abscissa at ``delta = d_min`` (and with the margin
-        objective the loop's at ``delta = 0``) below 0 (module notes); a start is refused when that
-        phase stops at a local minimum above 0 (another ``x0`` or more ``starts`` help), and without
-        ``delays`` a margin-objective start unstable at ``delta = 0``. The design's
-        windows are certified by :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`).
+        ``2 h + 1`` (``h`` the largest ``d_max`` or margin) that can hold each window (with ``d_min =
+        0``, or the margin objective: is unstable at ``delta = 0``), a phase before lowers the largest
+        spectral abscissa at the windows' ``d_min`` (and with the margin objective the loop's at ``delta
+        = 0``) below 0 (module notes); a start is refused when that phase stops at a local minimum
+        above 0 (another ``x0`` or more ``starts`` help), and without ``delays`` a margin-objective start
+        unstable at ``delta = 0``. The design's windows are certified by
+        :func:`nrobust.design.window_stability` (:attr:`LoopDesign.windows`), each window as given.
     scenarios : sequence of callable, optional
-        Further loop families ``p -> (A, B)`` of the same parameters that must be stable on the
-        window too (with ``delays``): e.g. the loop on plants with mismatched speeds. Each is
-        held to ``gamma_max`` as well, and certified on the window at the design. Each must return
+        Further loop families ``p -> (A, B)`` of the same parameters held to every requirement of the
+        loop (with ``delays`` or ``margin_at_least > 0``): stable on each window and for every delay in
+        ``[0, margin_at_least]``; e.g. the loop on plants with mismatched speeds. Each is held to
+        ``gamma_max`` as well, and certified at the design (:attr:`LoopDesign.windows`). Each must return
         a pair ``(A, B)`` of :class:`~nrobust.quasipoly.QuasiPolynomial` (a ``ParameterError``
         naming it at the first call that returns anything else, as for ``loop``).
     gamma_max : float
@@ -1428,20 +1540,18 @@ def optimize_loop(
         any evaluation, or returning anything but a pair of QuasiPolynomials, at its first such call).
     CertificationError
         If no start reaches a feasible point (the requirement may be out of reach in the
-        bounds: widen them or lower ``margin_at_least``, narrow the window), or the design is
-        not certified stable on the window (:func:`nrobust.design.window_stability`, for the
-        loop or a scenario).
+        bounds: widen them or lower ``margin_at_least``, narrow the windows), or the design is
+        not certified stable on a window (:func:`nrobust.design.window_stability`, for the
+        loop or a scenario; a scenario's ``[0, margin_at_least]`` too).
     """
     box = _box(bounds)
     margin_at_least = check_objective(objective, margin_at_least)
-    window = None if delays is None else check_delays(delays)
-    if window is not None and margin_at_least is not None:
-        raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
+    windows = check_windows(delays)
     scenarios = callables(
         "scenarios", scenarios, "a sequence of callables p -> (A, B) (a tuple, even of one)", "a callable p -> (A, B)"
     )
-    if scenarios and window is None:
-        raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
+    if scenarios and not windows and not margin_at_least:
+        raise ParameterError("delays", "a window [d_min, d_max], or margin_at_least > 0, with scenarios", None)
     starts = positive_int("starts", starts)
     max_iter = positive_int("max_iter", max_iter)
     tol = finite_real("tol", tol)
@@ -1450,18 +1560,23 @@ def optimize_loop(
     gamma_max = finite_real("gamma_max", gamma_max)
     if not 0.0 <= gamma_max < 1.0:
         raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
-    level = window[1] if window is not None else margin_at_least
+    # the windows, and the margin's [0, d] with them, as disjoint intervals (a margin alone keeps delta* >= d)
+    intervals = _merged(windows, margin_at_least) if windows or scenarios else ()
+    level = intervals[-1][1] if intervals else margin_at_least
     loop = _Checked(loop, "loop")
     scenarios = tuple(_Checked(scenario, f"scenarios[{n}]") for n, scenario in enumerate(scenarios))
-    problem = _Problem(loop, box, objective, level, gamma_max, window, scenarios)
+    problem = _Problem(loop, box, objective, level, gamma_max, intervals, scenarios)
     runs = local_runs(problem, x0=x0, starts=starts, max_iter=max_iter, tol=tol, map=map)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
+        remedies = ["lower margin_at_least"] if margin_at_least or not windows else []
+        remedies += ["narrow the window" + ("s" if len(windows) > 1 else "")] if windows else []
         raise CertificationError(
             f"no start reached a feasible design ({reasons}); widen the bounds, give a feasible x0, "
-            "add starts or " + ("narrow the window" if window is not None else "lower margin_at_least")
+            "add starts or " + " or ".join(remedies)
         )
-    return _certify(loop, runs, objective, margin_at_least, rigorous, window, scenarios)
+    required = windows[0] if len(windows) == 1 else windows or None
+    return _certify(loop, runs, objective, margin_at_least, rigorous, required, scenarios)
 
 
 def _certify(
@@ -1470,16 +1585,20 @@ def _certify(
     objective: str,
     margin_at_least: float | None,
     rigorous: bool,
-    window: tuple[float, float] | None = None,
+    delays: tuple[float, float] | _Windows | None = None,
     scenarios: tuple[ParametricLoop, ...] = (),
 ) -> LoopDesign:
+    """The best run's design with its certificates (:class:`LoopDesign`); ``delays`` as the record keeps it."""
     best = runs[0]
     p = np.asarray(best.parameters)
     A, B = loop(p)
-    windows: tuple[DelayWindow, ...] = ()
-    if window is not None:
-        windows = tuple(window_stability(*f, window, rigorous=rigorous) for f in ((A, B), *(s(p) for s in scenarios)))
-        for n, w in enumerate(windows):
+    windows = check_windows(delays)
+    certificates: list[DelayWindow] = []
+    for n, (A_n, B_n) in enumerate(((A, B), *(s(p) for s in scenarios))):
+        # a scenario's margin is certified as the window [0, d]: its delay margin verified (or proven) above d
+        need = [*([(0.0, margin_at_least)] if n and margin_at_least else []), *windows]
+        for window in need:
+            w = window_stability(A_n, B_n, window, rigorous=rigorous)
             if not w.stable:
                 which = "the loop" if n == 0 else f"scenario {n - 1}"
                 raise CertificationError(
@@ -1487,6 +1606,7 @@ def _certify(
                     f"[{window[0]!r}, {window[1]!r}] for {which} ({w.reason}), though its floating-point check "
                     "passed: a window end at a crossing delay; narrow the window or add starts"
                 )
+            certificates.append(w)
     sa = spectral_abscissa(A + B, rigorous=rigorous)
     dm = delay_margin(A, B, rigorous=rigorous)
     lowest = dm.margin_ball[0] if (rigorous and dm.margin_ball is not None) else dm.margin
@@ -1497,10 +1617,10 @@ def _certify(
     if objective == "margin":
         # the margin is that of a loop stable at delta = 0: an unstable one is no design of this objective
         decided = decided and dm.nominally_stable
-    elif window is not None and window[0] > 0.0 and not dm.nominally_stable:
+    elif windows and not margin_at_least and min(lo for lo, _ in windows) > 0.0 and not dm.nominally_stable:
         # unstable at delta = 0 (a certified count of its zeros in Re s > 0): the margin is 0, the windows certify
         decided = bool(dm.strongly_stable and dm.nominal_unstable)
-    proven = not rigorous or all(w.certified == "proven" for w in windows)
+    proven = not rigorous or all(w.certified == "proven" for w in certificates)
     certified = bool(sa.certified and decided and met and proven)
     value = -sa.value if objective == "decay_rate" else dm.margin
     return LoopDesign(
@@ -1514,6 +1634,6 @@ def _certify(
         certified,
         rigorous,
         tuple(runs),
-        delays=window,
-        windows=windows,
+        delays=delays,
+        windows=tuple(certificates),
     )

@@ -29,7 +29,9 @@ def pareto_plot(front: Any, ax: Axes | None = None, annotate: bool = True) -> Nr
     NrobustPlot
         ``lines["front"]`` with x = the designs' delay margins (the infinite ones at the
         largest requirement, drawn hollow) and y = their decay rates; ``lines["required"]``
-        the requirements.
+        the requirements; ``lines["windows"]`` the windows of delays every design is stable on
+        too (shaded; :attr:`ParetoFront.delays`). The title names the scenarios held to the
+        requirements (:attr:`ParetoFront.scenarios`).
     """
     ax = get_axes(ax)
     m = np.asarray(front.margins, dtype=float)
@@ -40,6 +42,11 @@ def pareto_plot(front: Any, ax: Axes | None = None, annotate: bool = True) -> Nr
     lines: dict[str, list[Any]] = {}
     lines["front"] = ax.plot(x, r, "o-", color="C0", ms=5, label="designs (certified, local optima)")
     lines["required"] = ax.plot(d, r, "|", color="C3", ms=10, label="required margin")
+    windows = tuple(front.delays)
+    lines["windows"] = [
+        ax.axvspan(lo, hi, color="0.85", zorder=0, label="required window" if n == 0 else None)
+        for n, (lo, hi) in enumerate(windows)
+    ]
     if np.any(~finite):
         ax.plot(x[~finite], r[~finite], "o", mfc="white", color="C0", label="stable for every delay")
     if annotate:
@@ -48,6 +55,12 @@ def pareto_plot(front: Any, ax: Axes | None = None, annotate: bool = True) -> Nr
             ax.annotate(f"({label})", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=6)
     ax.set_xlabel("delay margin delta*")
     ax.set_ylabel("decay rate (- spectral abscissa)")
-    ax.set_title("Best decay rate under a required delay margin", fontsize="small")
+    title = "Best decay rate under a required delay margin"
+    if windows:
+        title += " and stable on " + ", ".join(f"[{float(lo)!r}, {float(hi)!r}]" for lo, hi in windows)
+    scenarios = tuple(front.scenarios)
+    if scenarios:
+        title += f"\n(the loop and {len(scenarios)} scenarios)"
+    ax.set_title(title, fontsize="small")
     ax.legend(fontsize="small")
     return NrobustPlot(lines, ax, ax.figure)

@@ -18,7 +18,7 @@ where ``delta*(p)`` equals a required margin) with the core's :mod:`nrobust.desi
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,7 +38,7 @@ from ..loops.controllers import FilteredController, ReflectionController, classi
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper
-from .mismatch import SpeedTolerance, check_local_requirements, mismatch_gain_loop
+from .mismatch import SpeedTolerance, check_local_requirements, check_speed_tolerance, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = [
@@ -449,25 +449,76 @@ def filtered_front(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     required: ArrayLike,
     *,
+    delays: tuple[float, float] | Sequence[tuple[float, float]] | None = None,
+    speed_tolerance: float | None = None,
     parameters: Mapping[str, Any] | None = None,
     x0: ArrayLike | None = None,
     starts: int = 1,
     max_iter: int = 60,
     rigorous: bool = False,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
     executor: Any = "serial",
     progress: bool | None = None,
 ) -> ParetoFront:
     """Best decay rate of the filtered reflection controller under each required margin.
 
-    Parameters are as in :func:`design_filtered`; ``required`` the delay margins (each point
-    a certified local design, :func:`nrobust.design.pareto_front`).
+    Each point a certified local design (:func:`nrobust.design.pareto_front`), under its required
+    delay margin and, at every point, the further requirements of :func:`design_filtered`:
+    ``delays``, windows of delays on which the loop must be exponentially stable too, and
+    ``speed_tolerance = eps``: the four corner plants with speeds ``lam (1 +- eps)``, ``mu (1 +-
+    eps)``, the law designed on ``system``, held to every requirement of the loop (stable for every
+    delay in ``[0, d_j]`` and in each window), as ``scenarios`` of the front named by their
+    mismatch ``(e_lam, e_mu)``. Only the corners are certified, as by :func:`design_filtered`
+    (:func:`~nrobust.hyperbolic.analyses.speed_tolerance` checks the square between them).
+
+    Parameters
+    ----------
+    system, parameters, x0, starts, max_iter, rigorous, kernel_grid, executor, progress
+        As in :func:`design_filtered`.
+    required : sequence of float
+        The required delay margins (``>= 0``; ``> 0`` with ``speed_tolerance`` unless ``delays``
+        is given).
+    delays : (float, float) or sequence of (float, float), optional
+        Windows ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``) on which every
+        design must be stable too.
+    speed_tolerance : float, optional
+        ``eps`` in ``(0, 1)``; a :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`
+        or ``TransportSystem`` plant only (constant speeds).
+
+    Returns
+    -------
+    ParetoFront
+
+    Raises
+    ------
+    ParameterError
+        For bad input (``speed_tolerance`` outside ``(0, 1)`` or on a
+        :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`; as
+        :func:`nrobust.design.pareto_front` for ``required`` and ``delays``).
     """
     plant = _plant(system)
+    kernel_grid = check_kernel_grid(kernel_grid)
     free, bounds = _split(plant, parameters)
+    loop = filtered_loop(plant, free)
+    scenarios: dict[str, FilteredLoop] = {}
+    if speed_tolerance is not None:
+        eps = check_speed_tolerance(speed_tolerance)
+        if not isinstance(plant, Hyperbolic2x2):
+            raise ParameterError(
+                "speed_tolerance",
+                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
+                "TransportSystem (constant speeds lam, mu)",
+                speed_tolerance,
+            )
+        corners = [(e_lam, e_mu) for e_lam in (-eps, eps) for e_mu in (-eps, eps)]  # _corner_loops' order
+        names = [f"(e_lam, e_mu) = ({e_lam!r}, {e_mu!r})" for e_lam, e_mu in corners]
+        scenarios = dict(zip(names, _corner_loops(plant, loop, eps, kernel_grid)))
     return pareto_front(
-        filtered_loop(plant, free),
+        loop,
         bounds,
         required,
+        delays=delays,
+        scenarios=scenarios,
         x0=x0,
         starts=starts,
         max_iter=max_iter,
