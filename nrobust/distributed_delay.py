@@ -80,11 +80,11 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
         while terms < _SERIES_TERMS + 4 * kmax and bound > 1e-17:
             bound *= r / terms
             terms += 1
-        powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m
+        powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m: a running product, one call
         powers[0] = 1.0
         np.negative(zs.ravel(), out=powers[1])
-        for m in range(2, terms):
-            np.multiply(powers[m - 1], powers[1], out=powers[m])
+        powers[2:] = powers[1]
+        np.cumprod(powers[1:], axis=0, out=powers[1:])
         # a real matrix times complex columns, as one real product on the (re, im) pairs
         acc = (_series_table(kmax, terms) @ powers.view(float)).view(complex).reshape(kmax + 1, *zs.shape)
         if n_small == z.size:
