@@ -37,7 +37,9 @@ arithmetic with ``rigorous=True``) must equal the value of the equations, else a
 :func:`best_decay_rate` maximises the decay rate ``-alpha(K)`` (``alpha`` the spectral
 abscissa at ``delta = 0``) subject to ``delta*(K) >= d``: the feasible gains are where the
 envelope is at least ``d``, ended by a curve crossing the level ``d`` (the *crossing* end of
-:func:`~nrobust.margins.locate_gain_ends`) or a pair birth below it.
+:func:`~nrobust.margins.locate_gain_ends`) or a pair birth below it. A feasible gain at which the
+nominal loop is one term ``c e^{-h s}`` (no zero: finite-time convergence, ``U_BS2(K)`` at
+``K = rho``) has an infinite decay rate, unbounded about it: it is the design (*finite time*).
 
 Features of the curves narrower than the scan step (``pi / (32 T)``, ``T`` the longest delay
 of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near the
@@ -95,6 +97,7 @@ DESIGN_KINDS = (
     "no crossing",
     "window end",
     "window",
+    "finite time",
 )
 # Samples of the axis per half period pi / T of the fastest oscillation of the factors.
 _STEPS = 32
@@ -140,7 +143,9 @@ class GainDesign:
         not attained, ``K`` is ``1e-10`` (relative) on the good side), ``"interior smooth max"``,
         ``"end"`` (an end of the gain bounds), ``"margin constraint"`` (the decay rate is
         largest where ``delta*(K) = d``: :attr:`end` gives the event), ``"no crossing"``
-        (an infinite margin).
+        (an infinite margin), ``"finite time"`` (the nominal loop has no zero at ``K``: one term
+        ``c e^{-h s}``, e.g. ``U_BS2(rho)`` = ``U_BS``; the decay rate is ``inf``, unbounded and not
+        smooth about ``K``).
     K_bracket : (float, float)
         The optimal gain lies in it (for a pair birth: the birth and ``K``).
     value_bracket : (float, float)
@@ -1884,6 +1889,89 @@ def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
     return spectral_abscissa(loop.nominal(K))
 
 
+# A coefficient of the nominal loop is a rounding residue at a parameter when it is below this many units of
+# rounding of the two parts of its affine expression there.
+_RESIDUE_ULPS = 64
+# Floating-point neighbours tried on each side of a parameter where the other coefficients vanish.
+_NEIGHBOURS = 4
+
+
+def _single_term(F: QuasiPolynomial) -> bool:
+    """``F = c e^{-h s}`` with a constant ``c != 0``: a quasi-polynomial without any zero."""
+    return not F.distributed and len(F.point_terms) == 1 and F.point_terms[0][0].size == 1
+
+
+def _distributed_residue(loop: _Family, F: QuasiPolynomial, p: float) -> bool:
+    """Every distributed term of ``F``, the nominal loop at ``p``, a rounding residue: its size (largest coefficient
+    of its kernel's pieces times largest of its polynomial, plus its error radius) below ``_RESIDUE_ULPS`` units of
+    rounding of the sizes of the distributed terms of the family's parts (weighted by ``1`` and ``|p|``)."""
+
+    def size(d: DistributedDelay) -> float:
+        return float(np.abs(d.pieces[2]).max() * np.abs(d.poly).max()) + d.radius
+
+    weights = (1.0, 1.0, abs(p)) if loop.gain else (1.0, abs(p), 1.0, abs(p))
+    scale = sum(w * size(d) for w, P in zip(weights, loop.parts, strict=True) for d in P.distributed)
+    return all(size(d) <= _RESIDUE_ULPS * np.finfo(float).eps * scale for d in F.distributed)
+
+
+def _finite_time_gains(loop: _Family, lo: float, hi: float) -> tuple[list[float], list[float]]:
+    """The parameters of ``[lo, hi]`` at which the nominal loop ``F(.; 0, p)`` has no zero at all.
+
+    A quasi-polynomial has no zero iff it is one term ``c e^{-h s}`` with a constant ``c != 0`` (a
+    nonconstant polynomial, or two terms, have zeros): the loop converges in finite time and its decay rate
+    is infinite. For ``U_BS2(K)`` that is ``K = rho``, the finite-time law ``U_BS`` (eq. (47)): the target
+    system ``1 - (rho - K) q e^{-tau s}`` (eqs. (56)-(58)) is ``1``. The decay rate tends to ``+inf`` there
+    (``-ln|(rho - K) q| / tau``): neither smooth nor bounded near it, so a search of its maximum stops a
+    rounding-sized step away with a large finite value.
+
+    The point coefficients of ``F(.; 0, p) = N_0 + p N_1`` are affine in ``p`` (``N_1`` the sum of the parts
+    multiplied by ``p``, not ``F(.; 0, 1) - N_0``, which loses the digits of ``N_1`` that ``N_0`` outweighs);
+    each vanishes at one ``p* = -c_0 / c_1``, where the other coefficients are checked: every one but a
+    constant a rounding residue (``_RESIDUE_ULPS`` units of its two parts). The loop is then built at ``p*``
+    and its floating-point neighbours (``_NEIGHBOURS`` on each side) and kept where it is one term exactly;
+    otherwise ``p*`` is one up to rounding when the distributed terms left at ``p*`` are rounding residues
+    too (:func:`_distributed_residue`: kernels that cancel to within rounding only).
+
+    Returns
+    -------
+    (list of float, list of float)
+        The parameters at which the loop built is one term (its decay rate ``inf``, exactly), and the ``p*``
+        at which it is one term up to rounding only (no floating-point parameter reaches it).
+    """
+    F0 = loop.nominal(0.0)
+    F1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
+    at0 = {(t, j): complex(c) for p, t in F0.point_terms for j, c in enumerate(p)}
+    at1 = {(t, j): complex(c) for p, t in F1.point_terms for j, c in enumerate(p)}
+    keys = sorted(set(at0) | set(at1))
+    c0 = np.array([at0.get(k, 0.0) for k in keys])
+    c1 = np.array([at1.get(k, 0.0) for k in keys])
+    constant = np.array([j == 0 for _, j in keys])
+    exact: list[float] = []
+    near: list[float] = []
+    for c_0, c_1 in zip(c0, c1, strict=True):
+        if c_1 == 0.0:
+            continue
+        p_star = float((-c_0 / c_1).real) + 0.0  # 0.0, not -0.0
+        if not lo <= p_star <= hi or any(abs(p_star - p) <= 1e-12 * (1.0 + abs(p)) for p in exact + near):
+            continue
+        value = np.abs(c0 + p_star * c1)
+        left = value > _RESIDUE_ULPS * np.finfo(float).eps * (np.abs(c0) + abs(p_star) * np.abs(c1))
+        if np.count_nonzero(left) != 1 or not constant[left][0]:
+            continue
+        tries = [p_star]
+        for direction in (-np.inf, np.inf):
+            p = p_star
+            for _ in range(_NEIGHBOURS):
+                p = float(np.nextafter(p, direction))
+                tries.append(p)
+        hit = next((p for p in tries if lo <= p <= hi and _single_term(loop.nominal(p))), None)
+        if hit is not None:
+            exact.append(hit)
+        elif _distributed_residue(loop, loop.nominal(p_star), p_star):
+            near.append(p_star)
+    return exact, near
+
+
 # A sample's decay rate is left out when a bound puts it below a computed one by this much (relative): far
 # above the errors of the rates (~1e-14) and of the bounds, far below the differences between samples.
 _RATE_GAP = 1e-9
@@ -2055,6 +2143,15 @@ def best_margin(
 _Candidate = tuple[float, float, str, GainEnd | None, SpectralAbscissa]
 
 
+def _up_to_events(p: float, ends: tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]) -> bool:
+    """``p`` in the interval ``ends`` or between one of its ends and the event it was moved ``1e-10`` inside from
+    (the gains there meet the requirement too), the event excluded."""
+    (K_a, event_a), (K_b, event_b) = ends
+    above = p > event_a.K if event_a is not None else p >= K_a
+    below = p < event_b.K if event_b is not None else p <= K_b
+    return above and below
+
+
 def _best_rate(
     curves: _Curves,
     intervals: list[tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]],
@@ -2063,13 +2160,30 @@ def _best_rate(
 ) -> _Candidate:
     """The largest decay rate over the intervals ``((K_a, event_a), (K_b, event_b))``: ``n_rates`` samples
     of each, ends included; an end (``end_kind``, or ``"end"`` at a bound) when its sample is the largest,
-    else Brent's bounded search about the largest interior sample."""
+    else Brent's bounded search about the largest interior sample (a :class:`~nrobust.errors.CertificationError`
+    when it ends below that sample). A gain of an interval (up to the events
+    its ends were moved inside from: :func:`_up_to_events`) at which the nominal loop has no zero
+    (:func:`_finite_time_gains`) is the design, its rate ``inf`` (``"finite time"``); one where that holds
+    up to rounding only is a :class:`~nrobust.errors.CertificationError`
+    (the rate is unbounded there, and no sampled maximum is its supremum)."""
     from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
 
     scale = _scale(curves)
+    exact, near = _finite_time_gains(curves.loop, curves.K_lo, curves.K_hi)
+    finite_time = [p for p in exact if any(_up_to_events(p, ends) for ends in intervals)]
+    if finite_time:
+        return (finite_time[0], np.inf, "finite time", None, _abscissa(curves.loop, finite_time[0]))
     best: _Candidate | None = None
     for ends in intervals:
         (K_a, event_a), (K_b, event_b) = ends
+        unreached = [p for p in near if _up_to_events(p, ends)]
+        if unreached:
+            raise CertificationError(
+                f"best_decay_rate: the decay rate grows without bound toward K = {unreached[0]!r}, where the nominal "
+                "loop is one term c e^{-h s} (no zero: finite-time convergence) up to the rounding of its "
+                "coefficients, but no floating-point gain makes it one term exactly; a loop whose coefficients "
+                "cancel exactly there, or bounds that leave that gain out, would give a design"
+            )
         Ks = np.linspace(K_a, K_b, n_rates)
         # an end set by an event (the other at a bound) is the likely best: computed first
         sas = _sampled_abscissas(curves.loop, Ks, 0 if event_a is not None and event_b is None else n_rates - 1)
@@ -2088,6 +2202,13 @@ def _best_rate(
                 options={"xatol": 1e-10 * max(scale, 1e-300)},
             )
             sa = _abscissa(curves.loop, float(res.x))
+            if -sa.value + _RATE_GAP * (1.0 + abs(rates[k])) < rates[k]:  # not a smooth maximum about the sample
+                raise CertificationError(
+                    f"best_decay_rate: the search about K = {float(Ks[k])!r} (decay rate {rates[k]:.6g}) ended at "
+                    f"K = {float(res.x)!r} with the smaller rate {-sa.value:.6g}: the rate is not smooth there (a "
+                    "spike, or gains where the loop is unstable between the samples); bounds about that K, or more "
+                    "samples (n_rates), would help"
+                )
             cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
         if best is None or cand[1] > best[1]:
             best = cand
@@ -2159,7 +2280,12 @@ def best_decay_rate(
     delay below ``d``: ``"pair_birth"``) and moved ``1e-10`` (relative) inside. The rate is
     sampled at ``n_rates`` gains of each feasible interval, ends included; when the largest
     sample is an end, that end is the design (``kind`` ``"margin constraint"`` or ``"end"``),
-    otherwise Brent's bounded search refines the interior maximum.
+    otherwise Brent's bounded search refines the interior maximum. A feasible gain at which the
+    nominal loop has no zero at all (one term ``c e^{-h s}``: finite-time convergence, as
+    ``U_BS2(K)``'s target system ``1 - (rho - K) q e^{-tau s}`` at ``K = rho``, eqs. (47), (56)-(58))
+    has the decay rate ``inf`` and is the design (``kind`` ``"finite time"``): the rate tends to
+    ``+inf`` there and is not smooth, so no sampled maximum would be its supremum; one found only up
+    to the rounding of the loop's coefficients raises a :class:`~nrobust.errors.CertificationError`.
 
     With ``delays = (d_min, d_max)`` instead, the requirement is exponential stability for every
     delay of the window (:func:`window_stability`; for ``d_min = 0`` that is ``delta*(K) > d_max``,
@@ -2200,8 +2326,10 @@ def best_decay_rate(
         neither given; a requirement no gain of the bounds meets (naming the best achievable:
         the largest margin, or the end of the stability window from ``d_min`` on the scan).
     CertificationError
-        No gain in the bounds has ``delta*(K) >= d``, an end could not be solved, or the
-        certified margin at the design is below ``d`` (the window not certified, with ``delays``).
+        No gain in the bounds has ``delta*(K) >= d``, an end could not be solved, the
+        certified margin at the design is below ``d`` (the window not certified, with ``delays``),
+        the decay rate is unbounded toward a gain no floating-point number reaches, or the search
+        about the largest interior sample ends at a smaller rate (the rate not smooth there).
     """
     lo, hi = _checked_loop(loop, bounds)
     if delays is not None or scenarios:

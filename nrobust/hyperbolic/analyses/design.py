@@ -212,7 +212,11 @@ def design_reflection(
     ``objective="margin"``: the largest delay margin ``delta*(K)`` over ``K_bounds``
     (:func:`nrobust.design.best_margin`); ``objective="decay_rate"``: the largest nominal decay
     rate (``delta = 0``: ``-ln|(rho - K) q| / tau`` for the paper's plant, Lemma 3) among the
-    gains with ``delta*(K) >= margin_at_least`` (:func:`nrobust.design.best_decay_rate`).
+    gains with ``delta*(K) >= margin_at_least`` (:func:`nrobust.design.best_decay_rate`). That
+    rate is infinite at ``K = rho`` (``U_BS``, eq. (47): the loop at ``delta = 0`` is ``1``,
+    finite-time convergence, for the state feedback and either observer) and unbounded about it:
+    when ``rho`` lies in ``K_bounds`` and meets the requirement it is the design, ``kind``
+    ``"finite time"``.
 
     ``delays = (d_min, d_max)`` requires exponential stability for every delay of the window
     (:func:`nrobust.design.window_stability`; ``d_min = 0`` is ``delta* > d_max``, ``d_min > 0``
@@ -223,7 +227,9 @@ def design_reflection(
     :func:`~nrobust.hyperbolic.analyses.mismatch_gain_loop`, four more loops affine in ``K``
     whose feasible gains are intersected exactly); the design is then checked at the other
     points of a 3 x 3 grid of the square (:attr:`ReflectionDesign.tolerance`, which says what is
-    proven: the corners, never the continuum between the points).
+    proven: the corners, and with ``rigorous=True`` the whole square where the loop is the PDE
+    itself, an uncoupled plant under ``U = k u(t, 1)``; elsewhere never the continuum between the
+    points).
 
     Parameters
     ----------
