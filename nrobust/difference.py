@@ -77,26 +77,46 @@ def _polynomial_roots(
     larger): its entries ``a_k / a_end`` are then the smaller, so a negligible top coefficient
     (``0.1 - 0.06 z^15 + 5.5e-18 z^16``) does not make them ``1e16`` and bury the fifteen roots
     of modulus about 1 in their rounding. A root 0 of the matrix so chosen (``P`` and its
-    reverse have none) is rounding too, of a root of extreme modulus: then the other matrix is
-    used if it has none and its inverted roots are doubles, else the matrix of ``P`` (the moduli
-    span more than double precision; an overflow of that matrix is a CertificationError).
+    reverse have none) is rounding too, of a root of extreme modulus. A root ``w = 0`` of the
+    reverse (``|z|`` beyond its resolution: a chain far left) is taken from the matrix of ``P``,
+    its largest roots, which resolve it; a root ``z = 0`` of ``P``'s matrix (a chain far right)
+    from the reverse's inverted roots when they are all doubles. When neither resolves the
+    extreme roots (the moduli span more than double precision; an overflow of a matrix too), a
+    CertificationError: a root 0 would put a chain at ``+inf``, a root ``inf`` one at ``-inf``.
     """
     poly = np.zeros(powers[-1] + 1, dtype=complex)
     poly[list(powers)] = coefs
+    degree = powers[-1]
     try:
         with np.errstate(all="ignore"):
             forward = np.roots(poly[::-1]) if abs(poly[-1]) >= abs(poly[0]) else None
-            inverse = np.roots(poly) if forward is None or np.any(forward == 0) else None  # w = 1/z of w^N P(1/w)
-            roots = 1.0 / inverse if inverse is not None and inverse.size == powers[-1] else None
-            if roots is None or not np.all(np.isfinite(roots)):  # a root w = 0, or 1/w beyond the doubles
-                roots = np.roots(poly[::-1]) if forward is None else forward
+            roots = forward
+            if forward is None:  # w = 1/z of w^N P(1/w); its roots w = 0 from P's own matrix, largest first
+                inverse = np.roots(poly)
+                zero = inverse == 0
+                roots = 1.0 / inverse[~zero]
+                if np.any(zero):
+                    full = np.roots(poly[::-1])
+                    roots = np.concatenate([roots, full[np.argsort(-np.abs(full), kind="stable")][: int(zero.sum())]])
+            elif np.any(forward == 0):
+                inverse = np.roots(poly)
+                inverted = 1.0 / inverse
+                if inverse.size == degree and np.all(np.isfinite(inverted)):
+                    roots = inverted
     except np.linalg.LinAlgError as exc:  # the companion matrix overflows (coefficients of extreme ratio)
-        nonzero = np.log10(np.abs(poly[poly != 0]))
-        raise CertificationError(
-            f"the principal part's coefficients span a ratio of 1e{float(np.max(nonzero) - np.min(nonzero)):.0f}, "
-            "beyond double precision: its root chains cannot be located (drop the negligible terms, or rescale)"
-        ) from exc
+        raise _unresolved(poly) from exc
+    if roots is None or roots.size != degree or not np.all(np.isfinite(roots)) or np.any(roots == 0):
+        raise _unresolved(poly)
     return cluster_polynomial_roots(roots.astype(complex))
+
+
+def _unresolved(poly: NDArray[np.complex128]) -> CertificationError:
+    """The error of a principal part whose extreme root chains double precision cannot locate."""
+    nonzero = np.log10(np.abs(poly[poly != 0]))
+    return CertificationError(
+        f"the principal part's coefficients span a ratio of 1e{float(np.max(nonzero) - np.min(nonzero)):.0f}, "
+        "beyond double precision: its root chains cannot be located (drop the negligible terms, or rescale)"
+    )
 
 
 def _complex_if_needed(a: NDArray) -> NDArray:

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nrobust import ParameterError, QuasiPolynomial
+from nrobust import CertificationError, ParameterError, QuasiPolynomial, spectral_abscissa
 from nrobust.difference import DifferenceOperator
 
 # 1 - 0.85 e^{-2 s} + 0.1 e^{-2.1 s}: commensurate with h = 0.1, P(z) = 1 - 0.85 z^20 + 0.1 z^21.
@@ -212,3 +212,20 @@ def test_a_negligible_top_coefficient_keeps_the_chains(tiny: float) -> None:
     bound = D.spectral_bound()
     np.testing.assert_allclose([bound.lower, bound.upper], expected, rtol=1e-12)
     assert bound.upper < D.strong_spectral_bound() + 1e-12  # c_D <= C_D
+
+
+def test_reverse_root_beyond_its_resolution_is_taken_from_the_forward_matrix() -> None:
+    """``1 - 1.26e-4 z^2 + 1e-100 z^3`` (``z = e^{-s}``): the reverse's companion matrix (chosen:
+    the constant term is the larger) computes the root ``w = 1/z ~ 8e-97`` as 0. Its roots
+    ``z = +-1/sqrt(1.26e-4)`` put the chains at ``Re s = ln(1.26e-4) / 2`` (closed form), the third
+    (``|z| ~ 1.26e96``) one far left; a root 0 taken as it is gave ``c_D = +inf`` and a
+    spectral abscissa of ``-inf`` marked exact."""
+    D = DifferenceOperator([1.0, -1.26e-4, 1e-100], [0.0, 2.0, 3.0])
+    expected = np.log(1.26e-4) / 2.0
+    np.testing.assert_allclose(D.spectral_bound().value, expected, rtol=1e-12)
+    F = QuasiPolynomial([[1.0], [-1.26e-4], [1e-100]], [0.0, 2.0, 3.0])
+    sa = spectral_abscissa(F)
+    np.testing.assert_allclose(sa.value, expected, rtol=1e-10)
+    # the roots of extreme modulus double precision cannot resolve at all: refused, not a chain at +-inf
+    with pytest.raises(CertificationError, match="beyond double precision"):
+        DifferenceOperator([1.0, 1e-310], [0.0, 1.0]).spectral_bound()

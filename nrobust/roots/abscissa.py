@@ -892,6 +892,11 @@ def _abscissa_from(
         best = float(np.max(reach)) if upper_from_roots else z.real
     else:
         root, best = None, -np.inf
+    if chain_value == np.inf:  # a chain at +inf: the principal part's roots were not located
+        raise CertificationError(
+            "spectral abscissa: the chains of the principal part were not located (a root of its polynomial at 0); "
+            "drop negligible terms of the principal part, or rescale"
+        )
     found = -np.inf if root is None else root.real
     at_inf = bool(np.isfinite(chain_value) and chain_value > found + 1e-12 * (1 + abs(chain_value)))
     value = chain_value if at_inf else found
