@@ -32,6 +32,7 @@ from .mismatch import (
     mismatch_region,
     speed_tolerance,
 )
+from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
 from .rouche import rouche_delay_bound
 from .state_design import BasisGain, StateFeedbackDesign, StateFeedbackLoop, design_state_feedback, state_feedback_loop
 from .tradeoffs import Tradeoff, tradeoff
@@ -51,10 +52,12 @@ __all__ = [
     "MAX_CHART_POINTS",
     "MAX_GAINS",
     "MAX_MISMATCH_POINTS",
+    "MAX_SQUARE_BOXES",
     "MismatchEnd",
     "MismatchRegion",
     "ReflectionDesign",
     "SpeedTolerance",
+    "SquareProof",
     "StabilityChart",
     "StateFeedbackDesign",
     "StateFeedbackLoop",
@@ -72,6 +75,7 @@ __all__ = [
     "mismatch_gain_loop",
     "mismatch_loop",
     "mismatch_region",
+    "prove_transport_square",
     "rouche_delay_bound",
     "speed_tolerance",
     "stability_chart",

@@ -203,7 +203,8 @@ class FilteredDesign:
         What the certificate is about: the PDE itself (constant coefficients) or a model.
     tolerance : SpeedTolerance or None
         With ``speed_tolerance``: the verdicts on the square of speed mismatches (the corners
-        certified with the design, the other points of a 3 x 3 grid checked;
+        certified with the design, the other points of a 3 x 3 grid checked, the whole square
+        proven on an uncoupled plant with ``rigorous=True``;
         :func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
     """
 
@@ -354,7 +355,8 @@ def design_filtered(
     |e_mu| = eps``, the law designed on ``system`` (four more loops of the same parameters,
     :func:`~nrobust.hyperbolic.analyses.mismatch_gain_loop` through the filter); the design is then
     checked at the other points of a 3 x 3 grid of the square (:attr:`FilteredDesign.tolerance`,
-    which says what is proven: the corners, never the continuum between the points).
+    which says what is proven: the corners, and with ``rigorous=True`` the whole square where the
+    loop is the PDE itself, an uncoupled plant; elsewhere never the continuum between the points).
 
     Parameters
     ----------

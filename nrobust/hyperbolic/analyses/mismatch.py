@@ -67,6 +67,7 @@ from ..loops.controllers import (
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
+from .mismatch_proof import MAX_SQUARE_BOXES, prove_transport_square
 
 __all__ = [
     "JUMP_FRACTION",
@@ -635,18 +636,24 @@ class SpeedTolerance:
     delays : (float, float)
         The window ``[d_min, d_max]`` of delays required at every mismatch.
     points : tuple of (float, float)
-        The mismatches examined: the ``grid x grid`` points of the square, corners first.
+        The mismatches examined: the ``grid x grid`` points of the square, corners first, then
+        the mismatch where the square's proof stopped when the verdict there is refuted.
     windows : tuple of DelayWindow
         The verdict at each point (:func:`nrobust.design.window_stability`): at the four corners
         with the rigour asked (proven in ball arithmetic with ``rigorous=True``), elsewhere in
         floating point.
     met : bool
-        Stable on the window at every point examined.
+        Stable on the window at every point examined (and on the whole square when
+        ``certified`` is ``"proven on the square"``).
     certified : str
-        What is certified: ``"proven at the corners"`` or ``"checked at the corners"``, the other
-        points always checked; the square between the points is never certified (:attr:`statement`).
+        What is certified: ``"proven on the square"`` (every mismatch of the square and every
+        delay of the window, in ball arithmetic, on an uncoupled plant with ``rigorous=True``:
+        :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square`),
+        ``"proven at the corners"`` or ``"checked at the corners"`` (the other points checked,
+        the square between the points not certified), or ``"not met"``.
     statement : str
-        The tolerance in words, with what is proven and what is only checked.
+        The tolerance in words: what is proven, what is only checked, and why the square is not
+        proven when it is not.
     route, scope : str
         The route of the mismatched loops and what a certificate is about
         (:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`: on a coupled plant a model
@@ -671,6 +678,29 @@ class SpeedTolerance:
         return fields_dict(self)
 
 
+def _square_scope(system: Hyperbolic2x2, feedback: StateFeedback, rigorous: bool) -> str | None:
+    """Why the square is not proven for this loop (None: :func:`prove_transport_square` applies)."""
+    if not system.uncoupled:
+        gains = " and the law's integral gains" if _integral_gains(feedback) else ""
+        return (
+            f"the mismatched loops of a coupled plant hold the perturbed plant's N~{gains}, whose dependence on the "
+            "speeds has no proven enclosure here: only the corners are certified"
+        )
+    if _integral_gains(feedback):
+        return (
+            "the law has integral gains, whose loop's dependence on the speeds has no proven enclosure here: only "
+            "the corners are certified"
+        )
+    if not rigorous:
+        return "rigorous=True proves it (uncoupled plant: the loop is the PDE itself)"
+    return None
+
+
+def _integral_gains(feedback: StateFeedback) -> bool:
+    """True when a state feedback has an integral term (a callable or a nonzero gain)."""
+    return any(callable(g) or g != 0.0 for g in (feedback.g_u, feedback.g_v))
+
+
 def speed_tolerance(
     system: Hyperbolic2x2,
     controller: Controller,
@@ -682,6 +712,7 @@ def speed_tolerance(
     rigorous: bool = False,
     max_evals: int = 2_000_000,
     corner_windows: tuple[DelayWindow, ...] | None = None,
+    max_boxes: int = MAX_SQUARE_BOXES,
 ) -> SpeedTolerance:
     """Stability on a delay window of ``controller`` under speed mismatches ``(e_lam, e_mu)`` in ``[-eps, eps]^2``.
 
@@ -689,11 +720,23 @@ def speed_tolerance(
     window certificate (:func:`nrobust.design.window_stability`: no crossing delay in
     ``[d_min, d_max]`` and no zero in ``Re s > 0`` at its middle; proven in ball arithmetic with
     ``rigorous=True``); at the other points of a ``grid x grid`` grid of the square the same
-    verdict in floating point. Nothing is claimed between the points: the delay margin, and the
-    stability windows, are not continuous in the mismatch (a pair of crossing frequencies is
-    born where ``|A(i w)|^2 - |B(i w)|^2`` gains a double zero, :func:`mismatch_region`), and no
-    bound of the loop's change with the speeds is proven here, so the square as a whole is
-    *checked* at those points, never certified.
+    verdict in floating point.
+
+    Between the points: the delay margin, and the stability windows, are not continuous in the
+    mismatch (a pair of crossing frequencies is born where ``|A(i w)|^2 - |B(i w)|^2`` gains a
+    double zero, :func:`mismatch_region`), so the points alone certify nothing in between. On an
+    uncoupled plant (the loop is the PDE itself, eqs. (10), (13), (16): ``U = k u(t, 1)``, filtered
+    or not) with ``rigorous=True`` the whole square is proven
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square`: the mismatch
+    moves only the round trip ``tau``; a strongly stable difference operator keeps the zeros off
+    infinity, no zero crosses the imaginary axis for any ``tau`` of the square and delay of the
+    window, proven on boxes in ball arithmetic, and a corner is proven stable), ``certified ==
+    "proven on the square"``. When that proof stops at a box, the mismatch of that box is
+    checked in floating point and joins :attr:`SpeedTolerance.points`: refuted there, the
+    tolerance is ``"not met"``; otherwise the corners' certificate stands and
+    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant (the
+    kernel route: the loops are models whose dependence on the speeds has no proven enclosure)
+    the corners' certificate is all there is.
 
     Parameters
     ----------
@@ -710,12 +753,16 @@ def speed_tolerance(
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         As in :func:`mismatch_loop`.
     rigorous : bool, default False
-        Prove the corners' verdicts in ball arithmetic.
+        Prove the corners' verdicts in ball arithmetic, and on an uncoupled plant the square.
     max_evals : int, optional
         Work bound of each delay margin.
     corner_windows : tuple of DelayWindow, optional
         The corners' verdicts when already certified (by a design under this tolerance), in
-        the order ``(-eps, -eps), (-eps, eps), (eps, -eps), (eps, eps)``.
+        the order ``(-eps, -eps), (-eps, eps), (eps, -eps), (eps, eps)``: four verdicts of the
+        corners' loops on windows containing ``delays``.
+    max_boxes : int, optional
+        Work bound of the square's proof: boxes of ``(w, tau)``
+        (:data:`~nrobust.hyperbolic.analyses.mismatch_proof.MAX_SQUARE_BOXES`).
 
     Returns
     -------
@@ -724,9 +771,17 @@ def speed_tolerance(
     Raises
     ------
     ParameterError
-        A bad argument (``eps`` outside ``(0, 1)``, ``delays`` not a window, ``grid < 2``).
+        A bad argument (``eps`` outside ``(0, 1)``, ``delays`` not a window, ``grid < 2``,
+        ``max_boxes < 1``, ``corner_windows`` not four verdicts on windows containing ``delays``).
     CertificationError
         A delay margin or count failed.
+
+    Examples
+    --------
+    >>> from nrobust import TransportSystem
+    >>> plant = TransportSystem(1.0, 2.0, 1.0, 0.5)     # |rho q| + |K q| = 0.7 < 1
+    >>> speed_tolerance(plant, ReflectionController(0.2), 0.3, (0.0, 2.0), grid=2, rigorous=True).certified
+    'proven on the square'
     """
     _check_pair(system, controller)
     eps = check_speed_tolerance(eps, "eps")
@@ -734,6 +789,14 @@ def speed_tolerance(
     grid = positive_int("grid", grid, 2, 33)
     kernel_grid = check_kernel_grid(kernel_grid)
     max_evals = positive_int("max_evals", max_evals)
+    max_boxes = positive_int("max_boxes", max_boxes)
+    if corner_windows is not None and (
+        len(corner_windows) != 4
+        or not all(isinstance(w, DelayWindow) and w.delays[0] <= d_lo and d_hi <= w.delays[1] for w in corner_windows)
+    ):
+        raise ParameterError(
+            "corner_windows", f"four DelayWindow verdicts on windows containing [{d_lo!r}, {d_hi!r}]", corner_windows
+        )
     corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
     axis = np.linspace(-eps, eps, grid)
     inner = [(float(a), float(b)) for a in axis for b in axis if (float(a), float(b)) not in corners]
@@ -744,26 +807,66 @@ def speed_tolerance(
             continue
         A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid)
         windows.append(window_stability(A, B, (d_lo, d_hi), rigorous=rigorous and n < 4, max_evals=max_evals))
+    points = [*corners, *inner]
     met = all(w.stable for w in windows)
     proven = all(w.certified == "proven" for w in windows[:4])
-    certified = "proven at the corners" if met and proven else "checked at the corners" if met else "not met"
-    if met:
+    plant, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    why_not = _square_scope(system, feedback, rigorous) if met else None
+    proof = None
+    if met and why_not is None:
+        loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
+        proof = prove_transport_square(
+            system,
+            feedback.k,
+            filt,
+            eps,
+            (d_lo, d_hi),
+            [(A, B, w) for (A, B), w in zip(loops, windows[:4])],
+            max_boxes=max_boxes,
+        )
+        if not proof.proven and not math.isnan(proof.candidate):
+            # the mismatch whose round trip is the box's: e_lam = e_mu = e, tau_0 / (1 + e) = tau
+            e = min(max(system.tau / proof.candidate - 1.0, -eps), eps)
+            A, B = mismatch_loop(system, controller, e, e, kernel_grid=kernel_grid)
+            try:
+                probe = window_stability(A, B, (d_lo, d_hi), max_evals=max_evals)
+            except CertificationError:
+                probe = None
+            if probe is not None and not probe.stable:
+                points.append((e, e))
+                windows.append(probe)
+                met = False
+        why_not = None if proof.proven else proof.reason
+    if not met:
+        certified = "not met"
+        bad = [p for p, w in zip(points, windows) if not w.stable]
+        statement = f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = " + ", ".join(
+            f"({float(a)!r}, {float(b)!r})" for a, b in bad
+        )
+    elif proof is not None and proof.proven:
+        certified = "proven on the square"
+        statement = (
+            f"exponentially stable for every (e_lam, e_mu) in [-{float(eps)!r}, {float(eps)!r}]^2 and every delay in "
+            f"[{float(d_lo)!r}, {float(d_hi)!r}], proven in ball arithmetic on the loop of the PDE "
+            f"d(s) (1 - rho q e^{{-tau s}}) - k q n(s) e^{{-(tau + delta) s}} with k = {float(feedback.k)!r}, "
+            f"d = {'1 + ' + repr(float(filt[1])) + ' s' if filt else '1'}, "
+            f"n = {'1 + ' + repr(float(filt[0])) + ' s' if filt else '1'}: {proof.reason}"
+        )
+        if proof.base >= 0:
+            a, b = points[proof.base]
+            statement += f" (corners[{proof.base}]: (e_lam, e_mu) = ({float(a)!r}, {float(b)!r}))"
+    else:
+        certified = "proven at the corners" if proven else "checked at the corners"
         statement = (
             f"stable for every delay in [{float(d_lo)!r}, {float(d_hi)!r}] at the 4 corners (e_lam, e_mu) = "
             f"(+-{float(eps)!r}, +-{float(eps)!r}) "
             f"({'proven in ball arithmetic' if proven else 'checked in floating point'}) and at the "
-            f"{len(inner)} other points of a {grid} x {grid} grid of the square (checked in floating point); between "
-            "the points not certified (the stability windows are not continuous in the mismatch)"
+            f"{len(points) - 4} other points of a {grid} x {grid} grid of the square (checked in floating point); "
+            f"between the points not certified (the stability windows are not continuous in the mismatch; the square "
+            f"is not proven: {why_not})"
         )
-    else:
-        bad = [p for p, w in zip([*corners, *inner], windows) if not w.stable]
-        statement = f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = " + ", ".join(
-            f"({float(a)!r}, {float(b)!r})" for a, b in bad
-        )
-    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
     route = loop_route(plant, feedback)
     scope = loop_scope(
         plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
     )
-    points = tuple([*corners, *inner])
-    return SpeedTolerance(eps, (d_lo, d_hi), points, tuple(windows), met, certified, statement, route, scope)
+    return SpeedTolerance(eps, (d_lo, d_hi), tuple(points), tuple(windows), met, certified, statement, route, scope)
