@@ -47,6 +47,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._validate import real_array
 from .difference import DifferenceOperator
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
@@ -75,6 +76,7 @@ _UNIT = 0.5 * float(np.finfo(float).eps)
 # Terms L of the Taylor forms of the bounds of an expanded determinant's derivatives (ExpandedDeterminant):
 # Example 2.9 finds its roots in 480 evaluations with 3, in 629, 516, 476 with 1, 2, 4.
 _TAYLOR_TERMS = 3
+_INVERSE_FACTORIALS = 1.0 / np.cumprod([1.0, *range(1, _TAYLOR_TERMS + 1)])
 # Length over which the phase of e^{-tau s} may turn by 1 + tau in one initial step of the root counter
 # (ExpandedDeterminant.initial_steps): steps this short spare the counter rounds of refinement.
 _TURN = 1.0
@@ -123,6 +125,11 @@ def _degree(q: QuasiPolynomial) -> float:
     """Highest power of ``s`` in ``q`` (point or distributed), ``-inf`` for zero."""
     degs = [p.size - 1 for p, _ in q.point_terms] + [d.poly.size - 1 for d in q.distributed]
     return float(max(degs)) if degs else -np.inf
+
+
+def _zero_determinant() -> ParameterError:
+    """The refusal of a principal part when the point determinant is identically zero."""
+    return ParameterError("entries", "a point determinant not identically zero (it defines the principal part)", 0)
 
 
 def _row_norms(bounds: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -270,76 +277,109 @@ class _Exact:
     scale: int
 
 
+# The monomials ``(t, p, c)`` of ``c s^p e^{-t s}`` of each entry of a matrix, row by row.
+_Monomials = list[list[list[tuple[float, int, float]]]]
+
+
 def _exact_expansion(rows: Sequence[Sequence[QuasiPolynomial]]) -> _Exact | None:
     """``det`` of a matrix of real point quasi-polynomials expanded in exact arithmetic.
 
-    The floating-point coefficients and delays of the entries are dyadic rationals: scaled
-    to integers (:class:`_Exact`), their products and sums are exact in Python's integers
-    (Laplace expansion along the rows, minors memoised by their column sets, as
-    :func:`_point_expansion`). None if an entry has a distributed term or a complex
-    coefficient, a minor exceeds ``_MAX_MONOMIALS`` monomials or the expansion
-    ``_MAX_PRODUCTS`` products.
+    The monomials ``c s^p e^{-t s}`` of the entries, expanded by :func:`_expand_monomials`.
+    None if an entry has a distributed term or a complex coefficient, or when
+    :func:`_expand_monomials` gives up.
     """
-    n = len(rows)
-    raw: list[list[list[tuple[int, int, int, int, int]]]] = []
-    unit, dens, degree = 1, [], 0
+    monomials: _Monomials = []
     for row in rows:
-        den, top = 1, 0
-        raw_row = []
+        out_row = []
         for q in row:
             if q.distributed:
                 return None
-            monomials = []
+            mono = []
             for p, t in q.point_terms:
                 if p.dtype.kind == "c" and np.any(p.imag != 0):
                     return None
+                mono += [(t, k, c) for k, c in enumerate(p.real.tolist()) if c != 0]
+            out_row.append(mono)
+        monomials.append(out_row)
+    return _expand_monomials(monomials)
+
+
+def _array_monomials(coefs: NDArray[np.float64], delays: NDArray[np.float64]) -> _Monomials:
+    """The monomials ``(t, p, c)`` (``c != 0``) of ``M_ij(s) = sum_k sum_p coefs[i, j, k, p] s^p e^{-delays[k] s}``."""
+    n = coefs.shape[0]
+    out: _Monomials = [[[] for _ in range(n)] for _ in range(n)]
+    i, j, k, p = np.nonzero(coefs)
+    for a, b, t, m, c in zip(i.tolist(), j.tolist(), delays[k].tolist(), p.tolist(), coefs[i, j, k, p].tolist()):
+        out[a][b].append((t, m, c))
+    return out
+
+
+def _expand_monomials(entries: _Monomials) -> _Exact | None:
+    """``det`` of the matrix whose entry ``(i, j)`` is the sum of the monomials ``c s^p e^{-t s}`` of ``entries[i][j]``.
+
+    The floating-point coefficients and delays are dyadic rationals: scaled to integers
+    (:class:`_Exact`), their products and sums are exact in Python's integers (Laplace
+    expansion along the rows, minors memoised by their column sets, as
+    :func:`_point_expansion`). None if a minor exceeds ``_MAX_MONOMIALS`` monomials or the
+    expansion ``_MAX_PRODUCTS`` products.
+    """
+    n = len(entries)
+    unit, dens, degree = 1, [], 0
+    raw: list[list[list[tuple[int, int, int, int, int]]]] = []
+    for row in entries:
+        den, top = 1, 0
+        raw_row = []
+        for mono in row:
+            ratios = []
+            for t, k, c in mono:
                 tn, td = float(t).as_integer_ratio()
-                unit = max(unit, td)
-                top = max(top, p.size - 1)
-                for k, c in enumerate(p.real.tolist()):
-                    if c != 0:
-                        cn, cd = c.as_integer_ratio()
-                        den = max(den, cd)
-                        monomials.append((tn, td, k, cn, cd))
-            raw_row.append(monomials)
+                cn, cd = float(c).as_integer_ratio()
+                unit, den, top = max(unit, td), max(den, cd), max(top, k)
+                ratios.append((tn, td, k, cn, cd))
+            raw_row.append(ratios)
         raw.append(raw_row)
         dens.append(den)
         degree += top
     # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits);
     # denominators are powers of two, the largest is a multiple of the others
     bits = degree.bit_length()
-    entries = [
-        [{(tn * (unit // td) << bits) + k: cn * (den // cd) for tn, td, k, cn, cd in mono} for mono in raw_row]
+    rows = [
+        [[((tn * (unit // td) << bits) + k, cn * (den // cd)) for tn, td, k, cn, cd in mono] for mono in raw_row]
         for raw_row, den in zip(raw, dens)
     ]
-    memo: dict[tuple[int, int], dict[int, int] | None] = {}
-    products = [0]
+    # the minor of rows r..n-1 is keyed by its column set alone (r = n - the number of its columns)
+    memo: dict[int, dict[int, int] | None] = {0: {0: 1}}
+    products = 0
 
     def minor(r: int, cols: int) -> dict[int, int] | None:
         """The expanded determinant of rows ``r..n-1`` and the columns of the bit set ``cols``."""
-        if r == n:
-            return {0: 1}
-        if (r, cols) in memo:
-            return memo[(r, cols)]
+        nonlocal products
+        if cols in memo:
+            return memo[cols]
         total: dict[int, int] = {}
+        get = total.get
         sign = 1
+        row = rows[r]
         for j in range(n):
             if not cols >> j & 1:
                 continue
-            entry = entries[r][j]
+            entry = row[j]
             if entry:
                 rest = minor(r + 1, cols & ~(1 << j))
-                products[0] += len(entry) * len(rest or ())
-                if rest is None or products[0] > _MAX_PRODUCTS:
+                if rest is None:
                     return None
-                for key, c in entry.items():
+                products += len(entry) * len(rest)
+                if products > _MAX_PRODUCTS:
+                    return None
+                for key, c in entry:
                     c *= sign
                     for other, d in rest.items():
-                        total[key + other] = total.get(key + other, 0) + c * d
+                        at = key + other
+                        total[at] = get(at, 0) + c * d
             sign = -sign
         out = {key: c for key, c in total.items() if c != 0}
-        memo[(r, cols)] = out if len(out) <= _MAX_MONOMIALS else None
-        return memo[(r, cols)]
+        memo[cols] = out if len(out) <= _MAX_MONOMIALS else None
+        return memo[cols]
 
     packed = minor(0, (1 << n) - 1)
     if packed is None:
@@ -573,12 +613,10 @@ class QuasiPolynomialMatrix:
     def _principal(self) -> QuasiPolynomial:
         P = self.point_determinant()
         if not P.point_terms:
-            raise ParameterError(
-                "entries", "a point determinant not identically zero (it defines the principal part)", 0
-            )
-        deg = np.array([[_degree(e) for e in row] for row in self.entries])
-        n = self.size
+            raise _zero_determinant()
         if any(e.distributed for e in self._flat()):
+            deg = np.array([[_degree(e) for e in row] for row in self.entries])
+            n = self.size
             top = max(sum(deg[i, p[i]] for i in range(n)) for p in itertools.permutations(range(n)))
             if P.degree < top:
                 raise ParameterError(
@@ -881,9 +919,71 @@ class ExpandedDeterminant:
         The matrix ``M``.
     exact : _Exact
         The exact expansion (:func:`_exact_expansion`): integer monomials with their units.
+
+    :meth:`from_coefficients` expands ``det M`` from the coefficient array of ``M`` instead,
+    without building the matrix of quasi-polynomials (built on first use of :attr:`matrix`).
     """
 
     def __init__(self, matrix: QuasiPolynomialMatrix, exact: _Exact) -> None:
+        self._matrix: QuasiPolynomialMatrix | None = matrix
+        self._source: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._setup(exact)
+
+    @classmethod
+    def from_coefficients(cls, coefs: ArrayLike, delays: ArrayLike) -> ExpandedDeterminant | None:
+        """``det M`` of ``M_ij(s) = sum_k sum_p coefs[i, j, k, p] s^p e^{-delays[k] s}``, expanded exactly.
+
+        The same expansion as ``QuasiPolynomialMatrix(QuasiPolynomial.from_coefficient_array(coefs,
+        delays)).exact_expansion()``, from the array itself: the quasi-polynomial entries are
+        not built (:attr:`matrix` builds them when asked for).
+
+        Parameters
+        ----------
+        coefs : array_like, shape (n, n, K, P)
+            Finite real coefficients (powers of ``s`` increasing), ``1 <= n <= 8``.
+        delays : array_like, shape (K,)
+            Distinct finite delays ``>= 0``.
+
+        Returns
+        -------
+        ExpandedDeterminant or None
+            None when :meth:`QuasiPolynomialMatrix.exact_expansion` would give None (too many
+            monomials, or a coefficient beyond the largest double).
+
+        Raises
+        ------
+        ParameterError
+            ``coefs`` not of shape ``(n, n, K, P)`` with ``1 <= n <= 8``, ``P >= 1``, or
+            ``delays`` not ``K`` distinct numbers ``>= 0``.
+        """
+        c = real_array("coefs", coefs, ndim=4)
+        t = real_array("delays", delays)
+        n = c.shape[0]
+        if not (1 <= n <= _MAX_SIZE and c.shape[1] == n and c.shape[3] >= 1):
+            raise ParameterError("coefs", f"an array of shape (n, n, K, P), 1 <= n <= {_MAX_SIZE}, P >= 1", c.shape)
+        if t.shape != (c.shape[2],) or np.any(t < 0) or len(set(t.tolist())) != t.size:
+            raise ParameterError("delays", f"{c.shape[2]} distinct delays >= 0 (one per row of coefs)", delays)
+        exact = _expand_monomials(_array_monomials(c, t))
+        if exact is None:
+            return None
+        obj = cls.__new__(cls)
+        obj._matrix, obj._source = None, (c, t)
+        try:
+            obj._setup(exact)
+        except OverflowError:  # a coefficient beyond the doubles: no rounding of the expansion
+            return None
+        return obj
+
+    @property
+    def matrix(self) -> QuasiPolynomialMatrix:
+        """The matrix ``M`` (built on first use after :meth:`from_coefficients`)."""
+        if self._matrix is None:
+            assert self._source is not None  # one of the two is set by the constructors
+            self._matrix = QuasiPolynomialMatrix(QuasiPolynomial.from_coefficient_array(*self._source))
+        return self._matrix
+
+    def _setup(self, exact: _Exact) -> None:
+        """The rounded coefficients, their derivatives and the sums of moduli of the bounds, from ``exact``."""
         groups: dict[tuple[float, int], tuple[int, int]] = {}
         for (t, k), c in exact.terms.items():
             key = (t / exact.unit, k)  # int / int: correctly rounded
@@ -894,11 +994,10 @@ class ExpandedDeterminant:
         coef = np.zeros((len(taus), power))
         weight = np.zeros((len(taus), power))
         where = {t: i for i, t in enumerate(taus)}
-        for (tau, k), (total, size) in groups.items():
-            coef[where[tau], k] = total / exact.scale
-            weight[where[tau], k] = size / exact.scale * (1.0 + 4.0 * _UNIT)  # rounded up
-        self.matrix = matrix
-        self.poly = QuasiPolynomial(list(coef), taus) if np.any(coef) else QuasiPolynomial([[0.0]], [0.0])
+        at = ([where[tau] for tau, _ in groups], [k for _, k in groups])
+        coef[at] = [total / exact.scale for total, _ in groups.values()]
+        weight[at] = [size / exact.scale * (1.0 + 4.0 * _UNIT) for _, size in groups.values()]  # rounded up
+        self._coef = coef
         self._taus = np.array(taus)
         self._weight = weight
         K, P = coef.shape
@@ -917,7 +1016,6 @@ class ExpandedDeterminant:
         # rounding allowance of a value (relative to the sum of the moduli of its terms, times 1 + tau |s|):
         # the weights (P products and an exponential) and the sum of K P products
         self._allowance = max(_ROUNDING, 2.0 * _UNIT * (K * P + 2 * P + 8))
-        self._inverse_factorials = 1.0 / np.cumprod([1.0, *range(1, _TAYLOR_TERMS + 1)])
         self._last: tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]] | None = None
 
     def _weights(self, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
@@ -1000,14 +1098,15 @@ class ExpandedDeterminant:
         at_center = np.abs(at @ self._values[:, order : order + L])
         at_center += (self._allowance * (1.0 + self._taus[-1] * big))[:, None] * closed[:, order : order + L]
         # partial Taylor sums plus the closed form of the remainder: r^m / m! for m <= L
-        factor = _powers(half, L + 1) * self._inverse_factorials
+        factor = _powers(half, L + 1) * _INVERSE_FACTORIALS
         taylor = np.cumsum(at_center * factor[:, :L], axis=1) + closed[:, order + 1 : order + L + 1] * factor[:, 1:]
         best = np.minimum(closed[:, order], taylor.min(axis=1) * (1.0 + self._allowance))
         gap = 2.02 * _UNIT * (sums[:, 0] + big * sums[:, 1])
         gap[_UNIT * self._taus[-1] * big > 1.0] = np.inf
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out = best + 2.0 * gap / (2.0 * half) ** order
-        return np.asarray(out, dtype=float).reshape(shape)
+        length = (2.0 * half) ** order
+        # a segment of length 0 gets no bound (inf): its step is refused, as by the division by 0 it replaces
+        out = best + np.divide(2.0 * gap, length, out=np.full(N, np.inf), where=length > 0.0)
+        return out.reshape(shape)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         """A bound of ``|Q'|`` on each segment plus ``2 gap / |b - a|`` (the margin of the class docstring)."""
@@ -1021,14 +1120,42 @@ class ExpandedDeterminant:
         """``Q'`` with the bounds of :meth:`second_deriv_bound` on segments (for the order-2 step rule)."""
         return FirstDerivative(self)
 
+    @functools.cached_property
+    def poly(self) -> QuasiPolynomial:
+        """``Q``: the rounded expansion as a quasi-polynomial (built on first use)."""
+        coef = self._coef
+        return QuasiPolynomial(list(coef), self._taus.tolist()) if np.any(coef) else QuasiPolynomial([[0.0]], [0.0])
+
     def principal_part(self) -> DifferenceOperator:
-        """The principal part of ``det M`` (:meth:`QuasiPolynomialMatrix.principal_part`)."""
-        return self.matrix.principal_part()
+        """The principal part of ``det M`` (:meth:`QuasiPolynomialMatrix.principal_part`: that of :attr:`poly`)."""
+        return self._principal_operator
+
+    @functools.cached_property
+    def _principal_operator(self) -> DifferenceOperator:
+        """:meth:`QuasiPolynomial.principal_part` of :attr:`poly`, from its coefficients: the
+        ``s^p`` coefficients (``p`` the highest power) with their delays."""
+        nonzero = self._coef != 0
+        if not nonzero.any():
+            raise _zero_determinant()
+        lead = self._coef[:, np.flatnonzero(nonzero.any(axis=0))[-1]]
+        keep = lead != 0
+        return DifferenceOperator(lead[keep], self._taus[keep])
 
     @functools.cached_property
     def kind(self) -> str:
-        """The type of ``det M`` (found once: the root search asks for it several times)."""
-        return self.matrix.kind
+        """The type of ``det M`` (:attr:`QuasiPolynomial.kind` of :attr:`poly`, read from its coefficients).
+
+        With ``p`` the highest power of ``s``: only the smallest delay carries ``s^p``
+        (retarded), the smallest and others (neutral), or not the smallest (advanced).
+        """
+        nonzero = self._coef != 0  # (delays, powers)
+        if not nonzero.any():
+            raise _zero_determinant()
+        top = int(np.flatnonzero(nonzero.any(axis=0))[-1])
+        lead = np.flatnonzero(nonzero[:, top])
+        if lead[0] != np.flatnonzero(nonzero.any(axis=1))[0]:
+            return "advanced"
+        return "neutral" if lead.size > 1 else "retarded"
 
     @property
     def is_real(self) -> bool:
@@ -1038,4 +1165,7 @@ class ExpandedDeterminant:
     @property
     def max_delay(self) -> float:
         """Largest delay of an entry of ``M``."""
-        return self.matrix.max_delay
+        if self._source is None:
+            return self.matrix.max_delay
+        c, t = self._source
+        return float(np.max(t[np.any(c != 0, axis=(0, 1, 3))], initial=0.0))

@@ -48,7 +48,7 @@ approximations only, each root still accepted by a certified count of a box abou
 the whole set by the count of the rectangle (the argument principle). Only the components
 that a delayed term reads keep a history in the collocation, and the algebraic equations of a
 singular ``E`` are eliminated, so that the eigenvalue problem is a standard one of the order
-of the delayed states (Example 2.9: 47 instead of 72).
+of the delayed states (the seeds of Example 2.9: order 31 instead of 48).
 """
 
 from __future__ import annotations
@@ -70,6 +70,10 @@ from ..qpmatrix import ExpandedDeterminant, QuasiPolynomialMatrix
 from ..quasipoly import DistributedDelay, QuasiPolynomial
 from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
 
+#: Largest state dimension whose roots are certified: the order of the matrices of
+#: :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix` and of the exact expansion of ``det M``.
+_MAX_COUNTED_STATES = 8
+
 __all__ = ["StateSpaceTDS"]
 
 
@@ -81,10 +85,14 @@ __all__ = ["StateSpaceTDS"]
 _POINTS_PER_FREQUENCY = 0.3
 _MIN_POINTS = 12
 _MAX_ORDER = 480
-# The points added for the seeds of roots(): Newton's method needs seeds in its basin, not
-# the 1e-8 of generator_eigenvalues (4e-7 at |Im s| < 10 for x' = -x(t - 1)); the order
-# (n + n points) sets the cost, cubic (Example 2.9, n = 6: 72 instead of 96).
+# The points of the seeds of roots(): Newton's method needs seeds in its basin, not the 1e-8 of
+# generator_eigenvalues (4e-7 at |Im s| < 10 for x' = -x(t - 1)); the order (about n + nd points)
+# sets the cost, cubic. About w tau / 2 points resolve e^{i w theta} on [-tau, 0]: the seeds take
+# _SEED_EXTRA_POINTS more (Example 2.9, w tau = 10: 7 points, seeds within 2e-7 of the roots, order
+# 31 instead of 47), at most the 0.3 w tau + _SEED_MIN_POINTS of the seeds of a wide region, which
+# need not resolve the highest frequencies to land in the basins of the roots.
 _SEED_MIN_POINTS = 8
+_SEED_EXTRA_POINTS = 2
 _MAX_CONDITION = 1e8
 # For a singular E: the shift of the shift-and-invert reduction of the pencil (an arbitrary
 # real number, unlikely to be a root; a singular A - shift B falls back to the QZ algorithm),
@@ -106,7 +114,7 @@ def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np
     c = np.where((j == 0) | (j == points), 2.0, 1.0) * (-1.0) ** j
     dx = x[:, None] - x[None, :]
     d = np.outer(c, 1.0 / c) / (dx + np.eye(points + 1))
-    d -= np.diag(np.sum(d, axis=1))
+    d.flat[:: points + 2] -= d.sum(axis=1)  # the diagonal: the rows of a differentiation matrix sum to 0
     return 0.5 * tau * (x - 1.0), d * (2.0 / tau)
 
 
@@ -146,7 +154,14 @@ def _uninverted(inverted: NDArray[np.float64]) -> NDArray[np.complex128] | None:
 
 def _block_row(rows: NDArray[np.float64], mats: NDArray[np.float64]) -> NDArray[np.float64]:
     """``sum_k kron(rows[k], mats[k])`` for ``rows`` ``(K, m)`` and ``mats`` ``(K, n, p)``: shape ``(n, m p)``."""
-    return np.einsum("kl,kab->alb", rows, mats).reshape(mats.shape[1], rows.shape[1] * mats.shape[2])
+    K, n, p = mats.shape
+    m = rows.shape[1]
+    return (rows.T @ mats.reshape(K, n * p)).reshape(m, n, p).transpose(1, 0, 2).reshape(n, m * p)
+
+
+def _combination(weights: NDArray[np.float64], mats: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sum_k weights[k] mats[k]`` for ``mats`` ``(K, n, p)``."""
+    return (weights @ mats.reshape(mats.shape[0], -1)).reshape(mats.shape[1:])
 
 
 def _eliminate_algebraic(
@@ -160,19 +175,20 @@ def _eliminate_algebraic(
     of ``v_0``) is invertible (index 1); what remains,
     ``S_1^{-1} U_1^T top v = s y_1`` and ``rest v = s w``, is a standard problem in ``z = (y_1, w)``
     (``w`` the collocated history), whose eigenvalues are the finite ones of the pencil. None when
-    that block is ill conditioned or ``b0 = 0``.
+    that block is ill conditioned, ``b0 = 0``, or no singular value of ``b0`` is at rounding level
+    (an ill-conditioned ``b0`` of full numerical rank: no algebraic constraint to solve).
     """
     u, sig, vt = svd
     n = sig.size
     r = int(np.sum(sig > n * _EPS * sig[0]))
-    if r == 0:
+    if r in (0, n):
         return None
     v1, v2 = vt[:r].T, vt[r:].T
     c = u[:, r:].T @ top  # the constraints c v = 0
-    cy = c[:, :n] @ v2
-    if np.linalg.cond(cy) >= _MAX_CONDITION:
+    uc, sc, vct = np.linalg.svd(c[:, :n] @ v2)  # its condition number and its solution at once
+    if not sc[-1] * _MAX_CONDITION > sc[0]:
         return None
-    x = -np.linalg.solve(cy, np.hstack([c[:, :n] @ v1, c[:, n:]]))  # y_2 = x z
+    x = -vct.T @ ((uc.T @ np.hstack([c[:, :n] @ v1, c[:, n:]])) / sc[:, None])  # y_2 = x z
     t0 = v2 @ x  # v_0 = t0 z
     t0[:, :r] += v1
 
@@ -305,13 +321,29 @@ class StateSpaceTDS:
         return self._characteristic_matrix
 
     @functools.cached_property
-    def _characteristic_matrix(self) -> QuasiPolynomialMatrix:
+    def _coefficients(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The point part of ``M``: ``M_ij(s) = sum_k (c[i, j, k, 0] + c[i, j, k, 1] s) e^{-h_k s}``, as ``(c, h)``.
+
+        The ``h_k`` distinct and increasing, the terms of equal delays summed in their order
+        (as :meth:`~nrobust.quasipoly.QuasiPolynomial.from_coefficient_array` sums them).
+        """
         n, ka = self.n, self.A.shape[0]
-        coefs = np.zeros((n, n, 1 + ka + self.B.shape[0], 2))  # M_ij(s) = sum_k (c_k0 + c_k1 s) e^{-h_k s}
+        coefs = np.zeros((n, n, 1 + ka + self.B.shape[0], 2))
         coefs[:, :, 0, 1] = self.E
         coefs[:, :, 1 : 1 + ka, 0] = -self.A.transpose(1, 2, 0)
         coefs[:, :, 1 + ka :, 1] = -self.B.transpose(1, 2, 0)
-        rows = QuasiPolynomial.from_coefficient_array(coefs, np.concatenate([[0.0], self.hA, self.hB]))
+        delays = [0.0, *self.hA.tolist(), *self.hB.tolist()]
+        order = sorted(set(delays))
+        where = {h: k for k, h in enumerate(order)}
+        merged = np.zeros((n, n, len(order), 2))
+        for k, h in enumerate(delays):
+            merged[:, :, where[h]] += coefs[:, :, k]
+        return merged, np.array(order)
+
+    @functools.cached_property
+    def _characteristic_matrix(self) -> QuasiPolynomialMatrix:
+        n = self.n
+        rows = QuasiPolynomial.from_coefficient_array(*self._coefficients)
         for i in range(n):
             for j in range(n):
                 dist = [N.scale(-float(g[i, j])) for g, N in self.distributed if g[i, j] != 0]
@@ -416,7 +448,8 @@ class StateSpaceTDS:
         the pencil is reduced by a shift and invert, or the QZ algorithm). Distributed terms
         are left out. Accurate for the roots with
         ``|Im s| tau`` well below ``N`` (``N = 0.3 tau im_max + 12``); :meth:`roots` seeds
-        Newton's method with the eigenvalues of ``N = 0.3 tau im_max + 8`` points (seeds only).
+        Newton's method with the eigenvalues of ``N = min(0.3 tau im_max + 8, tau im_max / 2 + 2)``
+        points (seeds only: about ``tau im_max / 2`` points resolve ``e^{i im_max theta}`` on ``[-tau, 0]``).
 
         Parameters
         ----------
@@ -430,15 +463,22 @@ class StateSpaceTDS:
         """
         return self._generator_eigenvalues(finite_real("im_max", im_max), _MIN_POINTS)
 
-    def _generator_eigenvalues(self, im_max: float, min_points: int) -> NDArray[np.complex128]:
-        """:meth:`generator_eigenvalues` with ``min_points`` added to the points per frequency."""
+    def _generator_eigenvalues(
+        self, im_max: float, min_points: int, extra: int | None = None
+    ) -> NDArray[np.complex128]:
+        """:meth:`generator_eigenvalues` with ``min_points`` added to the points per frequency; with ``extra``,
+        at most ``w tau / 2 + extra`` points (``w = im_max``: about those that resolve ``e^{i w theta}``)."""
         tau = float(max(np.max(self.hA, initial=0.0), np.max(self.hB, initial=0.0)))
         if tau == 0.0:
             from scipy.linalg import eig  # lazily: a slow import (the generalised problem of a singular E)
 
             vals = eig(np.sum(self.A, axis=0), self.E, right=False)  # no delay: no neutral term either
             return np.asarray(vals[np.isfinite(vals)], dtype=complex)
-        points = int(np.clip(_POINTS_PER_FREQUENCY * abs(im_max) * tau + min_points, 4, _MAX_ORDER // self.n - 1))
+        wide = abs(im_max) * tau
+        points = _POINTS_PER_FREQUENCY * wide + min_points
+        if extra is not None:
+            points = min(points, 0.5 * wide + extra)
+        points = int(min(max(points, 4), _MAX_ORDER // self.n - 1))
         problems = self._collocations
         problem = problems.get(points)
         if problem is None:
@@ -447,6 +487,11 @@ class StateSpaceTDS:
                 del problems[next(iter(problems))]
             problems[points] = problem
         return problem.eigenvalues()
+
+    @functools.cached_property
+    def _unit_E(self) -> bool:
+        """True if ``E`` is the identity."""
+        return bool(np.array_equal(self.E, np.eye(self.n)))
 
     @functools.cached_property
     def _collocations(self) -> dict[int, _Collocation]:
@@ -462,7 +507,7 @@ class StateSpaceTDS:
         # j >= 1, of those nd components. The pencil A v = s B v: the rows j >= 1 ask
         # (D phi)_j = s phi(theta_j), the first block row sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
         # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h.
-        delayed = np.flatnonzero(np.any(self.A[self.hA > 0] != 0, axis=(0, 1)) | np.any(self.B != 0, axis=(0, 1)))
+        delayed = np.flatnonzero((self.A[self.hA > 0] != 0).any(axis=(0, 1)) | (self.B != 0).any(axis=(0, 1)))
         nd = delayed.size
         pick = np.eye(n)[delayed]  # phi(0) -> its delayed components
         rest = np.hstack(
@@ -471,34 +516,35 @@ class StateSpaceTDS:
                 (d[1:, None, 1:, None] * np.eye(nd)[None, :, None, :]).reshape(points * nd, points * nd),
             ]
         )
-        rows_a = np.array([_interpolation_row(theta, -h) for h in self.hA])
-        top = np.hstack(
-            [np.einsum("k,kab->ab", rows_a[:, 0], self.A), _block_row(rows_a[:, 1:], self.A[:, :, delayed])]
-        )
-        rows_b = np.array([_interpolation_row(theta, -h) for h in self.hB]).reshape(self.hB.size, points + 1)
-        right = np.hstack(
-            [
-                self.E - np.einsum("k,kab->ab", rows_b[:, 0], self.B),
-                -_block_row(rows_b[:, 1:], self.B[:, :, delayed]),
-            ]
-        )
-        b0 = right[:, :n]
+        rows_a = np.array([_interpolation_row(theta, -h) for h in self.hA.tolist()])
+        top = np.hstack([_combination(rows_a[:, 0], self.A), _block_row(rows_a[:, 1:], self.A[:, :, delayed])])
+        br = None  # the history columns of the first block row of B (none without neutral terms)
+        if self.B.shape[0]:
+            rows_b = np.array([_interpolation_row(theta, -h) for h in self.hB.tolist()])
+            b0 = self.E - _combination(rows_b[:, 0], self.B)
+            br = -_block_row(rows_b[:, 1:], self.B[:, :, delayed])
+        elif self._unit_E:  # E = I and no neutral term: B = I, the standard problem A v = s v
+            return _Collocation(np.vstack([top, rest]))
+        else:
+            b0 = self.E
         svd = np.linalg.svd(b0)
         sig = svd[1]
         if sig[-1] * _MAX_CONDITION > sig[0]:  # B = [[B0, Br], [0, I]]: the standard problem B^{-1} A
-            return _Collocation(np.vstack([np.linalg.solve(b0, top - right[:, n:] @ rest), rest]))
-        reduced = None if np.any(right[:, n:]) else _eliminate_algebraic(top, rest, svd)
+            return _Collocation(np.vstack([np.linalg.solve(b0, top if br is None else top - br @ rest), rest]))
+        reduced = _eliminate_algebraic(top, rest, svd) if br is None or not br.any() else None
         if reduced is not None:
             return _Collocation(reduced)
         a, b = np.vstack([top, rest]), np.eye(n + points * nd)
-        b[:n] = right
+        b[:n, :n] = b0
+        if br is not None:
+            b[:n, n:] = br
         return _Collocation(a, b, _inverted(a, b))
 
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
         """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""
         x0, x1, y0, y1 = region
         with one_blas_thread():
-            seeds = self._generator_eigenvalues(max(abs(y0), abs(y1)), _SEED_MIN_POINTS)
+            seeds = self._generator_eigenvalues(max(abs(y0), abs(y1)), _SEED_MIN_POINTS, _SEED_EXTRA_POINTS)
             pad = 0.02 * min(x1 - x0, y1 - y0)
             inside = (
                 (seeds.real > x0 - pad) & (seeds.real < x1 + pad) & (seeds.imag > y0 - pad) & (seeds.imag < y1 + pad)
@@ -508,19 +554,32 @@ class StateSpaceTDS:
             return find_roots(self._counted(bool(options.get("rigorous", False))), region, seeds=extra, **options)
 
     def _counted(self, rigorous: bool) -> QuasiPolynomialMatrix | ExpandedDeterminant:
-        """What :meth:`roots` counts: ``det M`` expanded exactly (:meth:`QuasiPolynomialMatrix.exact_expansion`)
-        without distributed terms, else the matrix; the matrix for proofs in ball arithmetic.
+        """What :meth:`roots` counts: ``det M`` expanded exactly (:meth:`QuasiPolynomialMatrix.exact_expansion`,
+        here from the coefficient array, :meth:`ExpandedDeterminant.from_coefficients`, without building the
+        matrix) without distributed terms, else the matrix; the matrix for proofs in ball arithmetic.
 
         The bounds of the matrix's derivatives (Hadamard's inequality on the rows) miss the
         cancellations that the exact expansion makes, and the expansion's values, derivatives and
         Taylor forms are a few matrix products where the matrix needs ``n`` determinants per
         derivative (``benchmarks/statespace.py`` measures both).
         """
-        matrix = self.characteristic_matrix()
-        if rigorous:
-            return matrix
-        expanded = matrix.exact_expansion()
-        return matrix if expanded is None else expanded
+        if self.n > _MAX_COUNTED_STATES:
+            raise ParameterError(
+                "A",
+                f"at most {_MAX_COUNTED_STATES} states for roots (det M is expanded, or counted from its "
+                f"{_MAX_COUNTED_STATES} x {_MAX_COUNTED_STATES} at most matrix of quasi-polynomials); "
+                "generator_eigenvalues approximates the rightmost roots of larger systems",
+                f"{self.n} states",
+            )
+        if rigorous or self.distributed:
+            return self.characteristic_matrix()
+        expanded = self._expanded
+        return self.characteristic_matrix() if expanded is None else expanded
+
+    @functools.cached_property
+    def _expanded(self) -> ExpandedDeterminant | None:
+        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`)."""
+        return ExpandedDeterminant.from_coefficients(*self._coefficients)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
         """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).

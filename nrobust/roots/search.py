@@ -120,6 +120,15 @@ def kdtree(points: NDArray[np.float64]) -> ChebyshevIndex:
     return ChebyshevIndex(points)
 
 
+# Up to this many points, distances between them are computed all at once (no neighbour search).
+_DENSE = 16
+
+
+def _chebyshev_distances(z: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """The matrix of Chebyshev distances ``max(|Re (z_i - z_j)|, |Im (z_i - z_j)|)``."""
+    return np.maximum(np.abs(z.real[:, None] - z.real), np.abs(z.imag[:, None] - z.imag))
+
+
 def _xy(z: NDArray[np.complex128]) -> NDArray[np.float64]:
     """Complex points as ``(n, 2)`` rows ``(Re, Im)``."""
     return np.column_stack([z.real, z.imag])
@@ -259,6 +268,11 @@ def _circle_moments(
 
 
 # ====================================================================== find_roots
+# Candidates with their owner boxes, half-widths and settled flags (Finder._sized).
+_Sized = tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]
+# A limit point alone in its group whose Newton step |F/F'| is below this (relative to 1 + |s|) is
+# settled: the polishing Newton steps of an accepted simple root would not move it further.
+_SETTLED = 1e-12
 # Each pass over the accepted boxes (n of them) is charged n / _BOOKKEEPING evaluations of
 # the work bound: with tens of thousands of roots that pass, not the evaluations of F,
 # dominates the time, and an uncharged pass let a refusal take minutes.
@@ -321,13 +335,19 @@ class Finder:
         self.budget = budget
         self.counter = Counter(F, budget)
         self.found = _Found()
+        # what :meth:`first_boxes` sized (its candidates, the region, the result), for the accept that follows
+        self._first: tuple[NDArray[np.complex128], Region, _Sized] | None = None
 
     # ------------------------------------------------------------ candidate boxes
     def _half_widths(self, pts: NDArray[np.complex128]) -> NDArray[np.float64]:
         """Largest half-widths of square boxes about new points, disjoint from each other
         and from the accepted boxes (Chebyshev distances)."""
         cap = np.full(pts.size, np.inf)
-        if pts.size > 1:
+        if 1 < pts.size <= _DENSE:  # every distance: fewer operations than the neighbour search
+            dist = _chebyshev_distances(pts)
+            np.fill_diagonal(dist, np.inf)
+            cap = 0.3 * dist.min(axis=1)
+        elif pts.size > 1:
             xy = _xy(pts)
             dist, _ = kdtree(xy).query(xy, k=2, p=np.inf)
             cap = 0.3 * dist[:, 1]
@@ -341,7 +361,9 @@ class Finder:
             cap = np.minimum(cap, 0.9 * np.min(dist - r[idx], axis=1))
         return cap
 
-    def _merge_clusters(self, pts: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.float64]]:
+    def _merge_clusters(
+        self, pts: NDArray[np.complex128]
+    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.bool_]]:
         """Merge limit points that may belong to one root or one cluster of roots.
 
         Newton's method stalls at a distance ``~eps^(1/m)`` from an ``m``-fold root, where
@@ -353,31 +375,38 @@ class Finder:
         share one box. The count of that box decides whether they are one multiple root
         or several roots (resolved by contour moments, then polished). Returns the group
         means and spreads (largest distance from the mean plus reach beyond ``b``), which
-        size the boxes.
+        size the boxes, and which groups are settled (one point, its step below
+        ``_SETTLED (1 + |s|)``).
         """
         if not pts.size:
-            return pts, np.zeros(0)
+            return pts, np.zeros(0), np.zeros(0, dtype=bool)
         self.budget.spend(2 * pts.size, "merging limit points")
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             step = np.abs(self.F(pts) / self.F.deriv_at(pts))
         scale = _MERGE_RTOL * (1.0 + np.abs(pts))
         base = scale.copy()
+        dense = pts.size <= _DENSE  # every distance (the 16 nearest are all): no neighbour search
         if pts.size > 1:
-            xy = _xy(pts)
-            index = kdtree(xy)
-            k = min(16, pts.size)
-            dist, _ = index.query(xy, k=k, p=np.inf)
-            dist = dist.reshape(pts.size, k)
+            if dense:
+                dist = _chebyshev_distances(pts)
+            else:
+                xy = _xy(pts)
+                index = kdtree(xy)
+                dist, _ = index.query(xy, k=16, p=np.inf)
             distinct = np.where(dist > scale[:, None], dist, np.inf).min(axis=1)
             base = np.minimum(scale, 0.1 * distinct)
         stalled = np.where(np.isfinite(step), np.minimum(_REACH * step, 1e3 * scale), 1e3 * scale)
         reach = np.maximum(base, stalled)
         group = np.arange(pts.size)
         if pts.size > 1:
-            pairs = index.query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
-            if pairs.size:
-                gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
-                pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
+            if dense:  # the pairs i < j closer than the larger of cluster_tol and their reaches
+                near = np.abs(pts[:, None] - pts) <= np.maximum(self.cluster_tol, reach[:, None] + reach)
+                pairs = np.argwhere(np.triu(near, 1))
+            else:
+                pairs = index.query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
+                if pairs.size:
+                    gap = np.abs(pts[pairs[:, 0]] - pts[pairs[:, 1]])
+                    pairs = pairs[gap <= np.maximum(self.cluster_tol, reach[pairs[:, 0]] + reach[pairs[:, 1]])]
             if pairs.size:
                 group = connected_groups(pts.size, pairs)
         size = np.bincount(group)
@@ -385,7 +414,10 @@ class Finder:
         extra = np.where(stalled > base, stalled, 0.0)
         spread = np.zeros(size.size)
         np.maximum.at(spread, group, np.abs(pts - means[group]) + extra)
-        return means, spread
+        member = np.zeros(size.size, dtype=np.intp)
+        member[group] = np.arange(pts.size)  # the point of a group of one
+        settled = (size == 1) & (step[member] <= _SETTLED * (1.0 + np.abs(means)))
+        return means, spread, settled
 
     # ------------------------------------------------------------ acceptance
     def accept(self, cand: NDArray[np.complex128], owners: Sequence[Region] | None = None, depth: int = 0) -> None:
@@ -395,7 +427,7 @@ class Finder:
         inside one of them and its box is clipped to it, so that accepted boxes never
         straddle the cuts of the subdivision.
         """
-        cand, own, hard, soft = self._sized(cand, owners)
+        cand, own, hard, soft, settled = self._sized(cand, owners)
         for factor in (1.0, 4.0, 16.0, 64.0, 0.3):  # an edge at rounding level of a root: resize
             if not cand.size:
                 return
@@ -404,38 +436,57 @@ class Finder:
             counts, blocked = self.counter.count([tuple(b) for b in boxes])
             stuck = blocked.any(axis=1)
             single = ~stuck & (counts == 1)
-            self._accept_simple(cand[single], h[single], boxes[single])
+            self._accept_simple(cand[single], h[single], boxes[single], settled[single])
             for z, r, b, c in zip(
                 cand[~stuck & ~single], h[~stuck & ~single], boxes[~stuck & ~single], counts[~stuck & ~single]
             ):
                 self._accept_box(complex(z), float(r), tuple(b), int(c), depth)
-            cand, own, hard, soft = cand[stuck], own[stuck], hard[stuck], soft[stuck]
+            cand, own, hard, soft, settled = cand[stuck], own[stuck], hard[stuck], soft[stuck], settled[stuck]
 
-    def _sized(
-        self, cand: NDArray[np.complex128], owners: Sequence[Region] | None
-    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    def _sized(self, cand: NDArray[np.complex128], owners: Sequence[Region] | None) -> _Sized:
         """The candidates :meth:`accept` boxes (merged, inside an owner, outside the accepted boxes),
-        their owner boxes and the half-widths ``hard`` (disjoint boxes) and ``soft`` (the first tried)."""
-        cand, own, spread = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
+        their owner boxes and the half-widths ``hard`` (disjoint boxes) and ``soft`` (the first tried).
+
+        The result of :meth:`first_boxes` is reused for the same candidates (the same array) while
+        nothing is accepted and the region is unchanged: it depends on nothing else.
+        """
+        first = self._first
+        if (
+            owners is None
+            and first is not None
+            and first[0] is cand
+            and first[1] == self.region
+            and not self.found.centers
+        ):
+            return first[2]
+        cand, own, spread, settled = self._new_candidates(cand, list(owners) if owners is not None else [self.region])
         if not cand.size:
-            return cand, own, spread, spread
+            return cand, own, spread, spread, settled
         hard = self._half_widths(cand)
         # |F| ~ r^m on the box edges of an m-fold root: boxes well wider than the scatter
         soft = np.minimum(hard, np.maximum(1e-4 * (1.0 + np.abs(cand)), 10.0 * spread))
         keep = soft > 8 * EPS * (1.0 + np.abs(cand))
-        return cand[keep], own[keep], hard[keep], soft[keep]
+        return cand[keep], own[keep], hard[keep], soft[keep], settled[keep]
 
     def first_boxes(self, cand: NDArray[np.complex128]) -> list[Region]:
         """The boxes that :meth:`accept` of ``cand`` counts first (for ``Counter.prefetch``)."""
-        cand, own, hard, soft = self._sized(cand, None)
+        sized = self._sized(cand, None)
+        self._first = (cand, self.region, sized)
+        cand, own, hard, soft, _ = sized
         return [tuple(b) for b in _boxes_about(cand, np.minimum(soft, hard), own)]
 
-    def _accept_simple(self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64]) -> None:
+    def _accept_simple(
+        self, z: NDArray[np.complex128], h: NDArray[np.float64], boxes: NDArray[np.float64], settled: NDArray[np.bool_]
+    ) -> None:
         """Accept boxes holding one root each, polishing the candidates (which may be the
-        mean of merged limit points) by Newton steps that stay in the box."""
+        mean of merged limit points) by Newton steps that stay in the box; ``settled``
+        candidates (:meth:`_merge_clusters`) are kept as they are."""
         if not z.size:
             return
-        w = _newton(self.F, z, self.budget, float(np.min(h)))
+        w = z.copy()
+        todo = np.flatnonzero(~settled)
+        if todo.size:
+            w[todo] = _newton(self.F, z[todo], self.budget, float(np.min(h)))
         inside = (
             np.isfinite(w)
             & (boxes[:, 0] < w.real)
@@ -483,9 +534,9 @@ class Finder:
 
     def _new_candidates(
         self, cand: NDArray[np.complex128], owners: list[Region]
-    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.complex128], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
         """Finite candidates inside an owner box and outside accepted boxes, near ones
-        merged; returned with their owner boxes and the spreads of the merge."""
+        merged; returned with their owner boxes, the spreads of the merge and the settled flags."""
         cand = cand[np.isfinite(cand)]
         old = self.found.array()
         if cand.size and old.size:
@@ -493,18 +544,24 @@ class Finder:
             c, r = centers(old)
             dist, idx = kdtree(c).query(_xy(cand), k=1, p=np.inf)
             cand = cand[dist > r[idx]]
-        cands, owns, flags = [], [], []
+        cands, owns, flags, settled = [], [], [], []
         for box in owners:
             x0, x1, y0, y1 = box
-            inside, spread = self._merge_clusters(
+            inside, spread, done = self._merge_clusters(
                 cand[(cand.real > x0) & (cand.real < x1) & (cand.imag > y0) & (cand.imag < y1)]
             )
             cands.append(inside)
             flags.append(spread)
+            settled.append(done)
             owns.append(np.tile(np.asarray(box, dtype=float), (inside.size, 1)))
         if not cands:
-            return np.zeros(0, dtype=complex), np.zeros((0, 4)), np.zeros(0)
-        return np.concatenate(cands), np.concatenate(owns).reshape(-1, 4), np.concatenate(flags)
+            return np.zeros(0, dtype=complex), np.zeros((0, 4)), np.zeros(0), np.zeros(0, dtype=bool)
+        return (
+            np.concatenate(cands),
+            np.concatenate(owns).reshape(-1, 4),
+            np.concatenate(flags),
+            np.concatenate(settled),
+        )
 
     def _accept_box(self, z: complex, h: float, box: Region, c: int, depth: int) -> None:
         """Accept a box with a certified count ``c != 1``: a cluster, or resolve it."""

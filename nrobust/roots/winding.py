@@ -122,12 +122,11 @@ class _Steps:
 _STEP_FIELDS = tuple(f.name for f in fields(_Steps))
 
 
-def _first_order_ok(bound: NDArray, steps: _Steps) -> NDArray[np.bool_]:
-    """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding)."""
-    room = np.minimum(
-        np.abs(steps.f_start) - ROUNDING * steps.scale_start, np.abs(steps.f_end) - ROUNDING * steps.scale_end
-    )
-    return bound * np.abs(steps.end - steps.start) * 0.5 < room
+def _first_order_ok(reach: NDArray, f_start: NDArray, f_end: NDArray, steps: _Steps) -> NDArray[np.bool_]:
+    """Step rule of order 1: ``M |h| / 2 < min(|F(a)|, |F(b)|)`` (minus rounding), with ``reach = M |h|``
+    and the moduli ``|F(a)|``, ``|F(b)|``."""
+    room = np.minimum(f_start - ROUNDING * steps.scale_start, f_end - ROUNDING * steps.scale_end)
+    return reach * 0.5 < room
 
 
 def _second_order_terms(bound2: NDArray, bound: NDArray, steps: _Steps) -> tuple[NDArray, NDArray]:
@@ -203,16 +202,13 @@ def _wind_segments(
                 break
         budget.spend(steps.size, about("bounding |F'| on", steps.segment))
         bound = F.deriv_bound(steps.start, steps.end) * (1.0 + 1e-12)
-        ok = _first_order_ok(bound, steps)
-        room = np.minimum(np.abs(steps.f_start), np.abs(steps.f_end))
-        close = ~ok & (bound * np.abs(steps.end - steps.start) > 8.0 * room)
+        reach = bound * np.abs(steps.end - steps.start)  # M |h|
+        f_start, f_end = np.abs(steps.f_start), np.abs(steps.f_end)
+        ok = _first_order_ok(reach, f_start, f_end, steps)
+        room = np.minimum(f_start, f_end)
+        close = ~ok & (reach > 8.0 * room)
         with np.errstate(divide="ignore", invalid="ignore"):
-            excess = (
-                0.5
-                * bound
-                * np.abs(steps.end - steps.start)
-                / (room - ROUNDING * np.maximum(steps.scale_start, steps.scale_end))
-            )
+            excess = 0.5 * reach / (room - ROUNDING * np.maximum(steps.scale_start, steps.scale_end))
         if close.any():
             dF = F.derivative() if dF is None else dF
             idx = np.flatnonzero(close)
@@ -304,6 +300,8 @@ class Counter:
         self.F = F
         self.budget = budget
         self.cache: dict[tuple[complex, complex], tuple[float, bool]] = {}
+        # the turns and blocked sides of each box counted (or prefetched), by its corners
+        self.boxes: dict[tuple[float, ...], tuple[float, NDArray[np.bool_]]] = {}
         self.real = bool(F.is_real)
         # boxes whose edges the next count computes with its own (one batch): boxes about candidate
         # roots known before the region is counted, which the search counts next
@@ -329,11 +327,27 @@ class Counter:
     def count(self, boxes: Sequence[Sequence[float]]) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Counts of the boxes, and a (boxes x 4) mask of sides with a root on or near them.
 
-        The edges of ``prefetch`` are computed in the same batch (and the list emptied);
-        only ``boxes`` are counted.
+        The boxes of ``prefetch`` are counted in the same batch (and the list emptied), their
+        results kept for the count that asks for them; a box counted before is not counted again.
         """
         extra, self.prefetch = self.prefetch, []
-        pieces = [self._pieces(p, q) for box in [*boxes, *extra] for p, q in _box_edges(box)]
+        keys = [tuple(float(v) for v in box) for box in boxes]
+        new = list(
+            dict.fromkeys(box for box in [*keys, *(tuple(float(v) for v in b) for b in extra)] if box not in self.boxes)
+        )
+        if new:
+            self._count_new(new)
+        turns = np.array([self.boxes[box][0] for box in keys], dtype=float)
+        box_blocked = np.array([self.boxes[box][1] for box in keys], dtype=bool).reshape(len(keys), 4)
+        counts = np.rint(turns).astype(np.int64)
+        good = ~box_blocked.any(axis=1)
+        if (np.abs(turns[good] - counts[good]) > 1e-6).any():
+            raise CertificationError("a certified winding number is not an integer: floating-point failure")
+        return counts, box_blocked
+
+    def _count_new(self, boxes: list[tuple[float, ...]]) -> None:
+        """Winding numbers (in turns, not rounded) and blocked sides of ``boxes`` into :attr:`boxes`."""
+        pieces = [self._pieces(p, q) for box in boxes for p, q in _box_edges(box)]
         todo: dict[tuple[complex, complex], int] = {}
         for i, edge in enumerate(pieces):
             for p, q, _ in edge:
@@ -346,13 +360,12 @@ class Counter:
                 np.array([k[0] for k in keys]),
                 np.array([k[1] for k in keys]),
                 self.budget,
-                lambda j: _describe_edge([*boxes, *extra][todo[keys[j]] // 4], todo[keys[j]] % 4),
+                lambda j: _describe_edge(boxes[todo[keys[j]] // 4], todo[keys[j]] % 4),
             )
             for k, tr, bl in zip(keys, res.turns, res.blocked):
                 self.cache[k] = (float(tr), bool(bl))
-        pieces = pieces[: 4 * len(boxes)]
-        turns = np.zeros(len(pieces))
-        blocked = np.zeros(len(pieces), dtype=bool)
+        turns = [0.0] * len(pieces)
+        blocked = [False] * len(pieces)
         for i, edge in enumerate(pieces):
             for p, q, sign in edge:
                 if (p, q) in self.cache:
@@ -362,13 +375,9 @@ class Counter:
                     tr = -tr
                 turns[i] += sign * tr
                 blocked[i] |= bl
-        box_turns = turns.reshape(-1, 4).sum(axis=1)
-        box_blocked = blocked.reshape(-1, 4)
-        counts = np.rint(box_turns).astype(np.int64)
-        good = ~box_blocked.any(axis=1)
-        if (np.abs(box_turns[good] - counts[good]) > 1e-6).any():
-            raise CertificationError("a certified winding number is not an integer: floating-point failure")
-        return counts, box_blocked
+        sides = np.array(blocked).reshape(-1, 4)
+        for box, tr, bl in zip(boxes, np.array(turns).reshape(-1, 4).sum(axis=1).tolist(), sides):
+            self.boxes[box] = (tr, bl)
 
 
 # ====================================================================== counting in ball arithmetic
