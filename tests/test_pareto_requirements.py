@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
+from _design_loops import BETA, K_BOUNDS, OSC_BOUNDS, RATE_TOL, best_k, first_order, late, margin, oscillator
 
 import nrobust as nr
 from nrobust.design import ParetoFront, pareto_front
@@ -35,40 +35,11 @@ from nrobust.hyperbolic.analyses import filtered_front
 from nrobust.margins import delay_margin
 from nrobust.roots import SpectralAbscissa, spectral_abscissa
 
-A1 = nr.QuasiPolynomial([[1.0, 1.0]], [0.0])  # s + 1
-K_BOUNDS = [(0.0, 5.0)]
-RATE_TOL = 1e-4  # two last pattern steps of 5e-5 in k (module notes)
-# the delayed oscillator x'' + c x' + x + K (x + BETA x')(t - delta) = 0, parameters p = (c, K)
-BETA = 0.3
 WINDOW = (4.7, 4.85)
-OSC_BOUNDS = [(-0.2, 0.2), (0.0, 0.9)]
 # the transport plant of the filtered law: |rho q| = 0.6, tau = 1.5; the filter's zero and pole fixed
 LAM, MU, Q, RHO = 1.0, 2.0, 1.0, 0.6
 A_ZERO, B_POLE = 0.05, 0.1
 FILTER = {"K": (-0.35, 0.6), "a": A_ZERO, "b": B_POLE}
-
-
-def first_order(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
-    return A1, nr.QuasiPolynomial([[p[0]]], [0.0])
-
-
-def late(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
-    """The first-order loop with 0.1 more delay: ``s + 1 + k e^{-(0.1 + delta) s}``."""
-    return A1, nr.QuasiPolynomial([[p[0]]], [0.1])
-
-
-def margin(k: float) -> float:
-    """The delay margin of ``s + 1 + k e^{-delta s}``, ``k > 1``, in closed form."""
-    return math.acos(-1.0 / k) / math.sqrt(k * k - 1.0)
-
-
-def best_k(d: float) -> float:
-    """The largest ``k`` whose loop is stable on ``[0, d]``: ``margin(k) = d``."""
-    return float(brentq(lambda k: margin(k) - d, 1.0 + 1e-9, 1e3, xtol=1e-14))
-
-
-def oscillator(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
-    return nr.QuasiPolynomial([[1.0, p[0], 1.0]], [0.0]), nr.QuasiPolynomial([[p[1], BETA * p[1]]], [0.0])
 
 
 def crossing_delays(c: float, K: float, up_to: float) -> list[float]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -504,17 +504,11 @@ def filtered_front(
     loop = filtered_loop(plant, free)
     scenarios: dict[str, FilteredLoop] = {}
     if speed_tolerance is not None:
-        eps = check_speed_tolerance(speed_tolerance)
-        if not isinstance(plant, Hyperbolic2x2):
-            raise ParameterError(
-                "speed_tolerance",
-                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
-                "TransportSystem (constant speeds lam, mu)",
-                speed_tolerance,
-            )
+        eps = check_speed_tolerance(speed_tolerance, plant=plant)
         corners = [(e_lam, e_mu) for e_lam in (-eps, eps) for e_mu in (-eps, eps)]  # _corner_loops' order
         names = [f"(e_lam, e_mu) = ({e_lam!r}, {e_mu!r})" for e_lam, e_mu in corners]
-        scenarios = dict(zip(names, _corner_loops(plant, loop, eps, kernel_grid)))
+        # a Hyperbolic2x2: check_speed_tolerance refuses any other plant
+        scenarios = dict(zip(names, _corner_loops(cast(Hyperbolic2x2, plant), loop, eps, kernel_grid)))
     return pareto_front(
         loop,
         bounds,

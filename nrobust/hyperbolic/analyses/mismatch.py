@@ -550,8 +550,12 @@ def mismatch_region(
     )
 
 
-def check_speed_tolerance(value: Any, name: str = "speed_tolerance") -> float:
-    """A relative speed tolerance ``eps`` in ``(0, 1)``; a :class:`ParameterError` naming ``name`` otherwise."""
+def check_speed_tolerance(value: Any, name: str = "speed_tolerance", plant: Any = None) -> float:
+    """A relative speed tolerance ``eps`` in ``(0, 1)``; a :class:`ParameterError` naming ``name`` otherwise.
+
+    With ``plant``: also refused unless it is a ``Hyperbolic2x2`` or ``TransportSystem`` (constant
+    speeds, whose mismatched plants are built here).
+    """
     what = "a relative error of the speeds lam and mu in (0, 1) (the perturbed speeds stay positive)"
     try:
         eps = finite_real(name, value)
@@ -559,6 +563,13 @@ def check_speed_tolerance(value: Any, name: str = "speed_tolerance") -> float:
         raise ParameterError(name, what, value) from None
     if not 0.0 < eps < 1.0:
         raise ParameterError(name, what, value)
+    if plant is not None and not isinstance(plant, Hyperbolic2x2):
+        raise ParameterError(
+            name,
+            "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
+            "TransportSystem (constant speeds lam, mu)",
+            value,
+        )
     return eps
 
 
@@ -576,15 +587,8 @@ def check_local_requirements(
     window = None if delays is None else check_delays(delays)
     if window is not None and margin_at_least is not None:
         raise ParameterError("margin_at_least", "None with delays (the window [0, d] is delta* > d)", margin_at_least)
-    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance, plant=plant)
     if eps is not None:
-        if not isinstance(plant, Hyperbolic2x2):
-            raise ParameterError(
-                "speed_tolerance",
-                "None for a GeneralHyperbolic2x2: the mismatched plants are built for a Hyperbolic2x2 or "
-                "TransportSystem (constant speeds lam, mu)",
-                speed_tolerance,
-            )
         if window is None:
             if margin_at_least is None:
                 raise ParameterError(
