@@ -52,10 +52,16 @@ from .difference import DifferenceOperator
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
 
-__all__ = ["CharacteristicFunction", "ExpandedDeterminant", "FirstDerivative", "QuasiPolynomialMatrix"]
+__all__ = [
+    "MAX_MATRIX_SIZE",
+    "CharacteristicFunction",
+    "ExpandedDeterminant",
+    "FirstDerivative",
+    "QuasiPolynomialMatrix",
+]
 
-# Largest matrix size: the principal part expands n! products of point parts.
-_MAX_SIZE = 8
+#: Largest matrix size: the principal part expands n! products of point parts.
+MAX_MATRIX_SIZE = 8
 # Rounding allowance of a computed value relative to its rounding scale: the root counter's
 # (nrobust.roots) allowance on the samples of F, used here on the samples of F'.
 _ROUNDING = 64 * float(np.finfo(float).eps)
@@ -516,8 +522,8 @@ class QuasiPolynomialMatrix:
             raise ParameterError("entries", "a square sequence of rows", entries)
         rows = list(entries)
         n = len(rows)
-        if not 1 <= n <= _MAX_SIZE:
-            raise ParameterError("entries", f"1 to {_MAX_SIZE} rows", n)
+        if not 1 <= n <= MAX_MATRIX_SIZE:
+            raise ParameterError("entries", f"1 to {MAX_MATRIX_SIZE} rows", n)
         out = []
         for i, row in enumerate(rows):
             if isinstance(row, (str, bytes)) or not isinstance(row, Sequence | np.ndarray) or len(row) != n:
@@ -959,8 +965,10 @@ class ExpandedDeterminant:
         c = real_array("coefs", coefs, ndim=4)
         t = real_array("delays", delays)
         n = c.shape[0]
-        if not (1 <= n <= _MAX_SIZE and c.shape[1] == n and c.shape[3] >= 1):
-            raise ParameterError("coefs", f"an array of shape (n, n, K, P), 1 <= n <= {_MAX_SIZE}, P >= 1", c.shape)
+        if not (1 <= n <= MAX_MATRIX_SIZE and c.shape[1] == n and c.shape[3] >= 1):
+            raise ParameterError(
+                "coefs", f"an array of shape (n, n, K, P), 1 <= n <= {MAX_MATRIX_SIZE}, P >= 1", c.shape
+            )
         if t.shape != (c.shape[2],) or np.any(t < 0) or len(set(t.tolist())) != t.size:
             raise ParameterError("delays", f"{c.shape[2]} distinct delays >= 0 (one per row of coefs)", delays)
         exact = _expand_monomials(_array_monomials(c, t))

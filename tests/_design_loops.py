@@ -42,3 +42,19 @@ def best_k(d: float) -> float:
 
 def oscillator(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
     return nr.QuasiPolynomial([[1.0, p[0], 1.0]], [0.0]), nr.QuasiPolynomial([[p[1], BETA * p[1]]], [0.0])
+
+
+def crossing_delays(c: float, K: float, up_to: float) -> list[float]:
+    """Every delay up to ``up_to`` at which the oscillator has a zero ``i w``, in closed form.
+
+    ``|1 - w^2 + i c w|^2 = K^2 |1 + i BETA w|^2`` is ``u^2 + (c^2 - 2 - K^2 BETA^2) u + 1 - K^2 = 0`` in
+    ``u = w^2``; at a positive root ``e^{-i w delta} = -A/B``: ``delta = (arg(-B/A) mod 2 pi + 2 pi k)/w``.
+    """
+    out = []
+    for u in np.roots([1.0, c * c - 2.0 - K * K * BETA * BETA, 1.0 - K * K]):
+        if abs(u.imag) > 1e-12 or u.real <= 0.0:
+            continue
+        w = math.sqrt(u.real)
+        theta = np.mod(np.angle(-K * (1 + 1j * BETA * w) / (1 - w * w + 1j * c * w)), 2 * np.pi)
+        out += [(theta + 2 * np.pi * k) / w for k in range(int(up_to * w / (2 * np.pi)) + 2)]
+    return sorted(d for d in out if d <= up_to)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _design_loops import BETA, OSC_BOUNDS, crossing_delays
 
 import nrobust as nr
 from nrobust.design import optimize_loop, window_stability
@@ -29,10 +30,7 @@ from nrobust.hyperbolic.loops.controllers import loop_factors
 from nrobust.margins import delay_margin
 from nrobust.reports.design import run_design
 
-# the delayed oscillator x'' + c x' + x + K (x + BETA x')(t - delta) = 0, parameters p = (c, K)
-BETA = 0.3
 WINDOW = (4.7, 4.85)
-OSC_BOUNDS = [(-0.2, 0.2), (0.0, 0.9)]
 # the transport plant of the filtered design: u_t + lam u_x = 0, v_t - mu v_x = 0, u(0) = q v(0)
 LAM, MU, Q, RHO = 1.0, 2.0, 1.0, 0.6
 A_ZERO, B_POLE = 0.05, 0.1
@@ -40,22 +38,6 @@ A_ZERO, B_POLE = 0.05, 0.1
 
 def oscillator(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
     return nr.QuasiPolynomial([[1.0, p[0], 1.0]], [0.0]), nr.QuasiPolynomial([[p[1], BETA * p[1]]], [0.0])
-
-
-def _crossing_delays(c: float, K: float, up_to: float) -> list[float]:
-    """Every delay up to ``up_to`` at which the oscillator has a zero i w, in closed form.
-
-    ``|1 - w^2 + i c w|^2 = K^2 |1 + i BETA w|^2`` is ``u^2 + (c^2 - 2 - K^2 BETA^2) u + 1 - K^2 = 0``
-    in ``u = w^2``; at a positive root ``e^{-i w delta} = -A/B``: ``delta = (arg(-B/A) mod 2 pi + 2 pi k)/w``.
-    """
-    out = []
-    for u in np.roots([1.0, c * c - 2.0 - K * K * BETA * BETA, 1.0 - K * K]):
-        if abs(u.imag) > 1e-12 or u.real <= 0.0:
-            continue
-        w = math.sqrt(u.real)
-        theta = np.mod(np.angle(-K * (1 + 1j * BETA * w) / (1 - w * w + 1j * c * w)), 2 * np.pi)
-        out += [(theta + 2 * np.pi * k) / w for k in range(int(up_to * w / (2 * np.pi)) + 2)]
-    return sorted(d for d in out if d <= up_to)
 
 
 def test_window_changes_the_optimum_against_a_grid() -> None:
@@ -68,7 +50,7 @@ def test_window_changes_the_optimum_against_a_grid() -> None:
     # its ends: the requirement binds (a pattern step of POLISH_TOL * 0.9 = 9e-6 in K moves a
     # crossing delay by about 1e-4 here)
     c, K = design.parameters
-    delays = _crossing_delays(c, K, 10.0)
+    delays = crossing_delays(c, K, 10.0)
     assert not any(WINDOW[0] <= d <= WINDOW[1] for d in delays)
     assert min(min(abs(d - WINDOW[0]), abs(d - WINDOW[1])) for d in delays) < 1e-3
     # the window costs decay rate: the free optimum is the corner, 0.2/2 + BETA 0.9/2 = 0.235
@@ -206,12 +188,12 @@ def test_a_start_without_a_stability_window_is_stabilised_first(x0: list[float],
     """
     d_lo, d_hi = window
     c0, K0 = x0
-    assert _unstable_count(c0, K0, d_lo) == 2 and not _crossing_delays(c0, K0, 2.0 * d_hi + 1.0)
+    assert _unstable_count(c0, K0, d_lo) == 2 and not crossing_delays(c0, K0, 2.0 * d_hi + 1.0)
     design = optimize_loop(oscillator, OSC_BOUNDS, delays=window, x0=x0)
     assert design.certified and design.windows[0].stable
     c, K = design.parameters
     assert _unstable_count(c, K, d_lo if d_lo > 0.0 else 0.0) == 0
-    assert not any(d_lo <= d <= d_hi for d in _crossing_delays(c, K, d_hi + 1.0))
+    assert not any(d_lo <= d <= d_hi for d in crossing_delays(c, K, d_hi + 1.0))
     # the decay rate -alpha at delta = 0 is (c + BETA K)/2 in closed form (complex roots on the bounds)
     np.testing.assert_allclose(design.decay_rate, (c + BETA * K) / 2.0, rtol=1e-9)
 
@@ -341,7 +323,7 @@ def test_margin_objective_from_a_start_unstable_at_zero_delay() -> None:
 
     The margin objective requires a loop stable at ``delta = 0``: the phase before the first lowers the abscissa
     at ``delta = 0`` and at ``d_min`` below 0, and the design is certified. The closed-form oracle
-    (:func:`_unstable_count`, :func:`_crossing_delays`) confirms the start unstable at both delays and the design
+    (:func:`_unstable_count`, :func:`crossing_delays`) confirms the start unstable at both delays and the design
     stable at ``delta = 0`` and on the window, with no crossing delay in it (its margin agrees: infinite when the
     oracle finds no crossing at all). Without a window, such a start is refused with what would help.
     """
@@ -351,7 +333,7 @@ def test_margin_objective_from_a_start_unstable_at_zero_delay() -> None:
     assert design.certified and design.windows[0].stable and design.margin.nominally_stable
     c, K = design.parameters
     assert _unstable_count(c, K, 0.0) == 0 and _unstable_count(c, K, WINDOW[0]) == 0
-    delays = _crossing_delays(c, K, 10.0)
+    delays = crossing_delays(c, K, 10.0)
     assert not any(WINDOW[0] <= d <= WINDOW[1] for d in delays)
     if delays:
         np.testing.assert_allclose(design.value, delays[0], rtol=1e-9)

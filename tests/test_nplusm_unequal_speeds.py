@@ -16,6 +16,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+# n = m = 2, mu = (1.5, 0.7): G_10 lives, D = diag(0.3, 0.1) != 0 and L_01 jumps across the characteristic
+# from the origin
+from test_nplusm_kernels import TWO_TWO
+
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.nplusm import (
     BACKSTEPPING_ROUTES,
@@ -42,15 +46,6 @@ ONE_COUPLING = NPlusMSystem(
     [1.5], [1.0, 2.0], [[0.0, 0.0, 0.0], [0.0, 0.0, SIGMA_01], [0.0, 0.0, 0.0]], [[0.6, 0.4]], [[0.5], [0.3]]
 )
 G_01 = SIGMA_01 * 2.0 / (2.0 - 1.0)
-#: ``n = m = 2``, ``mu = (1.5, 0.7)``: ``G_10`` lives, ``D = diag(0.3, 0.1) != 0`` and ``L_01`` jumps across the
-#: characteristic from the origin (``tests/test_nplusm_kernels.py``).
-TWO_TWO = NPlusMSystem(
-    [1.0, 2.0],
-    [1.5, 0.7],
-    [[0.2, 0.3, 1.0, 0.5], [0.4, -0.1, 0.8, 0.2], [1.2, -0.6, 0.3, 0.4], [0.5, 0.3, -0.4, 0.1]],
-    [[1.0, 0.2], [0.5, 0.1]],
-    [[0.5, 0.4], [0.1, 0.3]],
-)
 BS_PLANT = NPlusMSystem.from_2x2(Hyperbolic2x2(1.0, 1.5, 1.2, 0.8, 1.0, 0.4))
 S = np.array([0.3 + 2j, -0.5 + 7j, 3j, 20j])
 

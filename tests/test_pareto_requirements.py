@@ -22,11 +22,21 @@ compared to ``1e-4``.
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import pytest
-from _design_loops import BETA, K_BOUNDS, OSC_BOUNDS, RATE_TOL, best_k, first_order, late, margin, oscillator
+from _design_loops import (
+    BETA,
+    K_BOUNDS,
+    OSC_BOUNDS,
+    RATE_TOL,
+    best_k,
+    crossing_delays,
+    first_order,
+    late,
+    margin,
+    oscillator,
+)
 
 import nrobust as nr
 from nrobust.design import ParetoFront, pareto_front
@@ -40,22 +50,6 @@ WINDOW = (4.7, 4.85)
 LAM, MU, Q, RHO = 1.0, 2.0, 1.0, 0.6
 A_ZERO, B_POLE = 0.05, 0.1
 FILTER = {"K": (-0.35, 0.6), "a": A_ZERO, "b": B_POLE}
-
-
-def crossing_delays(c: float, K: float, up_to: float) -> list[float]:
-    """Every delay up to ``up_to`` at which the oscillator has a zero ``i w``, in closed form.
-
-    ``|1 - w^2 + i c w|^2 = K^2 |1 + i BETA w|^2`` is ``u^2 + (c^2 - 2 - K^2 BETA^2) u + 1 - K^2 = 0`` in
-    ``u = w^2``; at a positive root ``e^{-i w delta} = -A/B``: ``delta = (arg(-B/A) mod 2 pi + 2 pi k)/w``.
-    """
-    out = []
-    for u in np.roots([1.0, c * c - 2.0 - K * K * BETA * BETA, 1.0 - K * K]):
-        if abs(u.imag) > 1e-12 or u.real <= 0.0:
-            continue
-        w = math.sqrt(u.real)
-        theta = np.mod(np.angle(-K * (1 + 1j * BETA * w) / (1 - w * w + 1j * c * w)), 2 * np.pi)
-        out += [(theta + 2 * np.pi * k) / w for k in range(int(up_to * w / (2 * np.pi)) + 2)]
-    return sorted(d for d in out if d <= up_to)
 
 
 def corner_loop(K: float, e_lam: float, e_mu: float) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:

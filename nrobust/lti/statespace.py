@@ -66,13 +66,9 @@ from .._validate import finite_real, real_array
 from .._validate import region as check_region
 from ..errors import ParameterError
 from ..matrix_difference import MatrixDifferenceOperator
-from ..qpmatrix import ExpandedDeterminant, QuasiPolynomialMatrix
+from ..qpmatrix import MAX_MATRIX_SIZE, ExpandedDeterminant, QuasiPolynomialMatrix
 from ..quasipoly import DistributedDelay, QuasiPolynomial
 from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
-
-#: Largest state dimension whose roots are certified: the order of the matrices of
-#: :class:`~nrobust.qpmatrix.QuasiPolynomialMatrix` and of the exact expansion of ``det M``.
-_MAX_COUNTED_STATES = 8
 
 __all__ = ["StateSpaceTDS"]
 
@@ -563,11 +559,11 @@ class StateSpaceTDS:
         Taylor forms are a few matrix products where the matrix needs ``n`` determinants per
         derivative (``benchmarks/statespace.py`` measures both).
         """
-        if self.n > _MAX_COUNTED_STATES:
+        if self.n > MAX_MATRIX_SIZE:
             raise ParameterError(
                 "A",
-                f"at most {_MAX_COUNTED_STATES} states for roots (det M is expanded, or counted from its "
-                f"{_MAX_COUNTED_STATES} x {_MAX_COUNTED_STATES} at most matrix of quasi-polynomials); "
+                f"at most {MAX_MATRIX_SIZE} states for roots (det M is expanded, or counted from its "
+                f"{MAX_MATRIX_SIZE} x {MAX_MATRIX_SIZE} at most matrix of quasi-polynomials); "
                 "generator_eigenvalues approximates the rightmost roots of larger systems",
                 f"{self.n} states",
             )
