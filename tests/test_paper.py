@@ -103,11 +103,13 @@ def test_theorem_2_open_loop_gain_above_one():
 @pytest.mark.slow
 def test_the_paper_job_at_full_size(tmp_path):
     """`nrobust paper` (the README's main job) with its default sizes, numbers included."""
+    import gc
     import json
 
     from nrobust.cli import run_paper
 
     run_paper(tmp_path, progress=False)
+    assert gc.get_freeze_count() == 0  # the objects frozen for the workers are collected again here
     data = json.loads((tmp_path / "summary.json").read_text())
     bs, bs2 = data["U_BS"], data["U_BS2(K=0.1)"]
     assert bs["delay_margin"] == 0.0 and bs["gamma_0_delayed"] == pytest.approx(1.7, rel=1e-13, abs=1e-14)
