@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrobust import QuasiPolynomial
-from nrobust.design.gain import AffineLoop, _strong_stability_failures, best_decay_rate, best_margin
-from nrobust.errors import ParameterError
+from nrobust.design.gain import AffineLoop, _Family, _strong_stability_failures, best_decay_rate, best_margin
+from nrobust.errors import CertificationError, ParameterError
 from nrobust.margins import delay_margin
 
 ZERO = QuasiPolynomial([[0.0]], [0.0])
@@ -107,3 +107,27 @@ def test_failures_match_a_grid_of_gamma_0(c: list[float], lo: float, width: floa
             assert stable, (p, failures)  # never a parameter called strongly stable that is not
         elif inside and all(not (abs(p - a) <= slack or abs(p - b) <= slack) for a, b, _ in failures):
             assert not stable, (p, failures)  # and the failures are real, not conservative
+
+
+def test_uniform_crossing_bound_closed_form() -> None:
+    # (s + 2 + p e^{-s}) + 0.5 s e^{-delta s}: the gap 1 - 0.5 at every p, the tails (2 + |p|) / R, so no
+    # crossing above R = (2 + 3) / 0.5 = 10 for |p| <= 3 (|A| - |B| >= |w| (0.5 - (2 + |p|) / |w|))
+    loop = AffineLoop(_q([[2.0, 1.0]], [0.0]), _q([[1.0]], [1.0]), _q([[0.0, 0.5]], [0.0]), ZERO)
+    W = _Family(loop).crossing_bound(-1.0, 3.0)
+    # the bound is found by bisection and kept above the root, with a 1e-9 relative room on the gap
+    np.testing.assert_allclose(W, 10.0, rtol=1e-6)
+    assert W >= 10.0
+    for p in np.linspace(-1.0, 3.0, 9):
+        crossings = delay_margin(loop.A(float(p)), loop.B(float(p))).crossings
+        assert all(abs(c.omega) < W for c in crossings)
+
+
+def test_degree_drop_of_a_general_family_is_not_bounded_uniformly() -> None:
+    # A = 1 + p s (1 + 0.3 e^{-s}), B = 0.2: strongly stable at every p (the operator 1 + 0.3 e^{-s} for
+    # p != 0, 1 against 0.2 at p = 0), but the gap |p| (1 - 0.3) tends to 0 at p = 0: no uniform bound there
+    loop = AffineLoop(_q([[1.0]], [0.0]), _q([[0.0, 1.0], [0.0, 0.3]], [0.0, 1.0]), _q([[0.2]], [0.0]), ZERO)
+    parts = (loop.A0, loop.A1, loop.B0, loop.B1)
+    assert _strong_stability_failures(parts, -1.0, 1.0) == []
+    with pytest.raises(CertificationError, match="degree drops"):
+        best_margin(loop, (-1.0, 1.0))
+    assert _Family(loop).crossing_bound(0.1, 1.0) > 0.0  # away from p = 0 the gap is at least 0.07
