@@ -1572,6 +1572,31 @@ def _proven_clear(A: QuasiPolynomial, B: QuasiPolynomial, d_lo: float, d_hi: flo
     return ""
 
 
+def _zero_frequency_error(A: QuasiPolynomial, B: QuasiPolynomial) -> ParameterError | None:
+    """The error for ``|A(0)| = |B(0)|`` (to ``64`` units of rounding), else None.
+
+    ``g(w) = |A(i w)|^2 - |B(i w)|^2`` is even for a real loop: ``g(0) = 0`` makes ``w = 0`` a double zero at
+    least, which a crossing search in floating point cannot tell from a pair of zeros near it. With
+    ``A(0) + B(0) = 0``, ``s = 0`` is a root for every delay (no window is stable); otherwise ``s = 0`` is a root
+    for no delay (``arg(-B/A) = pi`` there: the crossing delay ``pi / w`` is infinite) and the crossings away
+    from ``w = 0`` decide.
+    """
+    s0 = np.zeros(1, dtype=complex)
+    a, b = complex(A(s0)[0]), complex(B(s0)[0])
+    if abs(abs(a) - abs(b)) > 64.0 * np.finfo(float).eps * max(abs(a), abs(b)):
+        return None
+    if abs(a + b) <= 64.0 * np.finfo(float).eps * max(abs(a), abs(b)):
+        what = "A(0) + B(0) = 0 here to rounding, not proven: s = 0 would be a root for every delay"
+    else:
+        what = "A(0) = B(0) here: s = 0 is a root for no delay, but the search cannot tell the double zero at w = 0"
+    return ParameterError(
+        "A, B",
+        "loop factors with |A(0)| != |B(0)|: |A(i w)|^2 - |B(i w)|^2 vanishes at w = 0, which the crossing search "
+        f"of the delay margin cannot decide in floating point ({what}); a slight change of the loop decides",
+        (a, b),
+    )
+
+
 def _delay_uncertainty(dm: DelayMargin, d_hi: float) -> float:
     """How far the crossing delays up to ``d_hi`` may be from their computed values: the margin's accuracy
     (its proven ball, or its estimate) taken relative to the margin, at ``d_hi``; 0 when not known."""
@@ -1618,7 +1643,10 @@ def window_stability(
     Raises
     ------
     ParameterError
-        ``delays`` not such a pair.
+        ``delays`` not such a pair; ``|A(0)| = |B(0)|`` (to rounding) where the crossing search of the
+        delay margin cannot decide ``|A(i w)| = |B(i w)|`` about ``w = 0`` (:func:`_zero_frequency_error`),
+        unless ``A(0) + B(0) = 0`` is proven in ball arithmetic: ``s = 0`` a root for every delay, the
+        window refuted.
     CertificationError
         The count at the middle of the window contradicts the windows of the delay margin, or
         a work bound was hit.
@@ -1632,7 +1660,19 @@ def window_stability(
     """
     d_lo, d_hi = check_delays(delays)
     max_evals = positive_int("max_evals", max_evals)
-    dm, how = _window_margin(A, B, 2.0 * d_hi + 1.0, rigorous, max_evals)
+    try:
+        dm, how = _window_margin(A, B, 2.0 * d_hi + 1.0, rigorous, max_evals)
+    except CertificationError as exc:
+        zero = _zero_frequency_error(A, B)
+        if zero is None:
+            raise
+        # A(0) + B(0) = 0: the proof of the root s = 0 for every delay decides (the window refuted)
+        try:
+            dm, how = delay_margin(A, B, delta_max=2.0 * d_hi + 1.0, max_evals=max_evals, rigorous=True), "proven"
+        except (CertificationError, ImportError):
+            raise zero from exc
+        if not dm.zero_root:
+            raise zero from exc
     probe = 0.5 * (d_lo + d_hi)
     if not dm.strongly_stable or dm.zero_root:
         why = "s = 0 is a root for every delay" if dm.zero_root else "the difference operator is not strongly stable"
