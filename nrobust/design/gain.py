@@ -54,6 +54,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -328,6 +329,206 @@ def _zero_free_radius(F: QuasiPolynomial) -> float:
     return radius_where(lambda R: float(tail(R)), g.gap, "root_free_region")
 
 
+# Units of rounding of the sum of moduli of the s^n coefficients below which a gap of the principal part is
+# not taken as positive (as :func:`~nrobust.margins.frequency_bound` does).
+_GAP_ULPS = 8.0
+
+
+def _top_coefficients(parts: tuple[QuasiPolynomial, ...], n: int) -> dict[tuple[float, int], tuple[float, float]]:
+    """The ``s^n`` coefficients of the loop's point terms as ``(alpha, beta)``, ``a(p) = alpha + p beta``.
+
+    ``parts`` is ``(A_0, A_1, B_0, B_1)``; keyed by ``(delay, order)`` with ``order`` 1 for the terms of
+    ``B`` (delayed by ``delta -> 0+``: after the terms of ``A`` at the same delay, as in
+    :func:`nrobust.bounds.principal_gap`). Terms with ``alpha = beta = 0`` are left out.
+    """
+    out: dict[tuple[float, int], list[float]] = {}
+    for P, order, which in zip(parts, (0, 0, 1, 1), (0, 1, 0, 1), strict=True):
+        for a, t in P.leading_terms(n):
+            out.setdefault((t, order), [0.0, 0.0])[which] += a.real
+    return {key: (a, b) for key, (a, b) in out.items() if a != 0.0 or b != 0.0}
+
+
+def _degree_drop(top: dict[tuple[float, int], tuple[float, float]]) -> Fraction | None:
+    """The parameter ``p_0`` at which every ``s^n`` coefficient vanishes (exactly, as stored), or None.
+
+    Every ``alpha_k + p beta_k`` vanishes at one ``p_0`` iff all ``beta_k != 0`` and the pairs are
+    proportional: decided in rational arithmetic on the stored doubles.
+    """
+    pairs = [(Fraction(a), Fraction(b)) for a, b in top.values()]
+    if not pairs or any(b == 0 for _, b in pairs):
+        return None
+    a0, b0 = pairs[0]
+    if any(a * b0 != a0 * b for a, b in pairs[1:]):
+        return None
+    return -a0 / b0
+
+
+def _truncated(P: QuasiPolynomial, n: int) -> QuasiPolynomial:
+    """``P`` without its ``s^n`` coefficients (its point terms cut to degree ``n - 1``)."""
+    terms = [(p[:n], t) for p, t in P.point_terms if np.any(p[:n] != 0.0)]
+    return QuasiPolynomial.from_parts(terms, P.distributed)
+
+
+def _interval_text(intervals: Sequence[tuple[float, float, bool, bool]]) -> str:
+    """Intervals ``(a, b, closed at a, closed at b)`` in words (a point where ``a == b``)."""
+    out = []
+    for a, b, left, right in intervals:
+        if a == b:
+            out.append(f"p = {a:.12g}")
+        else:
+            out.append(f"{'[' if left else '('}{a:.12g}, {b:.12g}{']' if right else ')'}")
+    return ", ".join(out)
+
+
+def _piece_gap(
+    top: dict[tuple[float, int], tuple[float, float]], signs: dict[tuple[float, int], float], p: float
+) -> tuple[float, float]:
+    """``G(p) = |a_first(p)| - sum_{k != first} |a_k(p)|`` with the signs of ``a_k`` on a piece (affine in ``p``
+    there), and the rounding of its sums (``_GAP_ULPS`` units of ``sum |a_k|``)."""
+    first = min(top)
+    values = {key: signs[key] * (al + p * be) for key, (al, be) in top.items()}
+    room = _GAP_ULPS * float(np.finfo(float).eps) * sum(abs(al) + abs(p * be) for al, be in top.values())
+    return values[first] - sum(v for key, v in values.items() if key != first), room
+
+
+def _strong_stability_failures(
+    parts: tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial], lo: float, hi: float
+) -> list[tuple[float, float, str]]:
+    """Where in ``[lo, hi]`` the difference operator of ``(A_0 + p A_1) + (B_0 + p B_1) e^{-delta s}`` is not
+    strongly stable: ``(from, to, why)``, closed, disjoint and increasing (a point where ``from == to``).
+
+    The principal part for ``delta -> 0+`` is ``sum_k a_k(p) e^{-tau_k s}``, ``a_k(p) = alpha_k + p beta_k`` the
+    ``s^n`` coefficients (the terms of ``B`` after those of ``A`` at one delay); it is strongly stable iff
+    ``G(p) = |a_first(p)| - sum_{k != first} |a_k(p)| > 0`` (Hale and Verduyn Lunel, the delay ``delta`` free;
+    :func:`~nrobust.margins.frequency_bound`), ``a_first`` the coefficient at the smallest delay. Between two
+    consecutive zeros of the ``a_k`` (and the ends) every sign, and so the first term, is fixed: ``G`` is affine
+    on the closed piece, positive on it iff positive (above the rounding of its sums) at both ends. A zero of
+    ``a_first`` alone is not strongly stable nearby, whatever the operator at that point (a pure shift there has
+    lower-degree terms before the first principal one on each side). Where every ``a_k`` vanishes (``p_0``, a
+    drop of the degree) ``G = 0`` on both sides: the pieces are checked at their other ends (``G`` is affine
+    with ``G(p_0) = 0``) and the operator at ``p_0`` is that of degree ``n - 1``, checked by
+    :func:`~nrobust.margins.frequency_bound`. A piece whose middle is of advanced type (a term before the
+    first principal one) fails whole.
+    """
+    A0, A1, B0, B1 = parts
+    try:
+        n = joint_degree(*parts)
+    except ParameterError:
+        return [(lo, hi, "a distributed term of higher degree than the point terms (it enters the principal part)")]
+    top = _top_coefficients(parts, n)
+    if not top:
+        return [(lo, hi, "no principal part")]
+    drop = _degree_drop(top)
+    p0 = None if drop is None else float(drop)
+    zeros = {-a / b for a, b in top.values() if b != 0.0}
+    points = sorted({lo, hi, *(z for z in zeros if lo < z < hi)})
+    failures: list[tuple[float, float, str]] = []
+    for a, b in itertools.pairwise(points):
+        mid = 0.5 * (a + b)
+        A_mid, B_mid = A0 + A1 * mid, B0 + B1 * mid
+        if principal_gap({"A": (A_mid, 0), "B": (B_mid, 1)}, joint_degree(A_mid, B_mid), 0.0) is None:
+            failures.append((a, b, "of advanced type (a term precedes the first principal one)"))
+            continue
+        signs = {key: float(np.sign(al + mid * be)) for key, (al, be) in top.items()}
+        (g_a, r_a), (g_b, r_b) = _piece_gap(top, signs, a), _piece_gap(top, signs, b)
+        bad_a = g_a <= r_a and a != p0
+        bad_b = g_b <= r_b and b != p0
+        why = "|a_0(p)| <= sum |a_k(p)|"
+        if bad_a and bad_b:
+            failures.append((a, b, why))
+        elif bad_a or bad_b:
+            root = a + g_a * (b - a) / (g_a - g_b) if g_a != g_b else mid
+            failures.append((a, min(max(root, a), b), why) if bad_a else (min(max(root, a), b), b, why))
+    if p0 is not None and lo <= p0 <= hi:
+        at_drop = "of degree n - 1 where every s^n coefficient vanishes, and that operator is not strongly stable"
+        try:
+            ok = frequency_bound(_truncated(A0 + A1 * p0, n), _truncated(B0 + B1 * p0, n)) is not None
+        except ParameterError:
+            ok = False
+        if not ok:
+            failures.append((p0, p0, at_drop))
+    merged: list[tuple[float, float, str]] = []
+    for a, b, why in sorted(failures):
+        if merged and a <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], b), merged[-1][2])
+        else:
+            merged.append((a, b, why))
+    return [(float(a), float(b), why) for a, b, why in merged]
+
+
+def _uniform_crossing_bound(
+    parts: tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial], lo: float, hi: float
+) -> float:
+    """A frequency ``W`` with ``|A(i w; p)| != |B(i w; p)|`` for ``|w| >= W`` and every ``p`` in ``[lo, hi]``.
+
+    On the axis ``| |A| - |B| | >= |w|^n (G(p) - T_A(|w|) - T_B(|w|))``, ``G`` the principal gap
+    (:func:`_piece_gap`, affine between the zeros of the ``s^n`` coefficients: its least value on a piece is
+    at an end) and ``T`` the :class:`~nrobust.bounds.TailBound` of the lower powers and distributed terms,
+    at most ``T_{P_0} + |p| T_{P_1}`` for ``P_0 + p P_1`` (the triangle inequality on each coefficient and
+    kernel). On each piece ``W`` is where that sum, with ``|p|`` its largest on the piece, falls below the
+    least gap (less the rounding of the sums, as :func:`~nrobust.margins.frequency_bound`); the largest over
+    the pieces is returned. The interval is strongly stable (:func:`_check_strongly_stable`).
+
+    Raises
+    ------
+    CertificationError
+        A piece ends where every ``s^n`` coefficient vanishes (the degree drops: the gap tends to 0 and no
+        bound holds uniformly about it).
+    """
+    n = joint_degree(*parts)
+    top = _top_coefficients(parts, n)
+    tails = [TailBound(P, n, 0.0, 0.0) for P in parts]
+    zeros = {-a / b for a, b in top.values() if b != 0.0}
+    points = sorted({lo, hi, *(z for z in zeros if lo < z < hi)})
+    out = 0.0
+    for a, b in itertools.pairwise(points):
+        mid = 0.5 * (a + b)
+        signs = {key: float(np.sign(al + mid * be)) for key, (al, be) in top.items()}
+        (g_a, r_a), (g_b, r_b) = _piece_gap(top, signs, a), _piece_gap(top, signs, b)
+        level = min(g_a, g_b) * (1.0 - 1e-9) - max(r_a, r_b)
+        if level <= 0.0:
+            raise CertificationError(
+                f"the crossing frequencies of the parameters in [{a:.12g}, {b:.12g}] are not bounded uniformly: the "
+                "principal gap of the loop tends to 0 where every s^n coefficient vanishes (the degree drops); bounds "
+                "that leave that parameter out would help"
+            )
+        P = max(abs(a), abs(b))
+
+        def tail(R: float, P: float = P) -> float:
+            with np.errstate(over="ignore"):
+                return float(tails[0](R) + P * tails[1](R) + tails[2](R) + P * tails[3](R))
+
+        out = max(out, radius_where(tail, level, "crossing bound"))
+    return out
+
+
+def _check_strongly_stable(
+    parts: tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial], lo: float, hi: float
+) -> None:
+    """A :class:`ParameterError` naming ``bounds`` unless the loop's difference operator is strongly stable at every
+    parameter of ``[lo, hi]`` (:func:`_strong_stability_failures`), saying where it is not and where it is."""
+    merged = _strong_stability_failures(parts, lo, hi)
+    if not merged:
+        return
+    bad = [(a, b, True, True) for a, b, _ in merged]
+    good: list[tuple[float, float, bool, bool]] = []
+    start, closed = lo, True
+    for a, b, _ in merged:
+        if a > start:
+            good.append((start, a, closed, False))
+        start, closed = b, False
+    if start < hi:
+        good.append((start, hi, closed, True))
+    where = "; ".join(f"on {_interval_text([interval])} ({why})" for interval, (_, _, why) in zip(bad, merged))
+    inside = f"it is on {_interval_text(good)}" if good else "it is nowhere in them"
+    raise ParameterError(
+        "bounds",
+        "parameters where the loop's difference operator is strongly stable (Hale and Verduyn Lunel: "
+        f"|a_0(p)| > sum |a_k(p)| over its principal part); it is not {where}; {inside}",
+        (lo, hi),
+    )
+
+
 @dataclass(frozen=True)
 class _Axis:
     """``A_0, A_1, B_0, B_1`` at ``s = i w`` and their ``w``-derivatives (``None``: not computed)."""
@@ -454,9 +655,11 @@ class _Family:
         self.S0: QuasiPolynomial | None = None
         if isinstance(loop, AffineGainLoop):
             self.parts: tuple[QuasiPolynomial, ...] = (loop.A, loop.B0, loop.R)
+            self.affine = (loop.A, QuasiPolynomial([[0.0]], [0.0]), loop.B0, loop.R)
             self.a1_zero, self.b1_zero = True, False
         else:
             self.parts = (loop.A0, loop.A1, loop.B0, loop.B1)
+            self.affine = (loop.A0, loop.A1, loop.B0, loop.B1)
             self.a1_zero, self.b1_zero = _is_zero(loop.A1), _is_zero(loop.B1)
             self.a1_times_s = not self.a1_zero and loop.A1 == loop.A0.times_poly([0.0, 1.0])
             self.b1_times_s = not self.b1_zero and loop.B1 == loop.B0.times_poly([0.0, 1.0])
@@ -551,19 +754,27 @@ class _Family:
 
         For a gain (``A_1 = 0``) ``g`` is concave in ``p`` (``c_2 = -|B_1|^2``): the bounds at
         the ends hold inside (:class:`~nrobust.margins.gain.AxisBound` when it applies, else
-        :func:`~nrobust.margins.frequency_bound`). Otherwise the largest bound at the ends and
-        at the point of ``[lo, hi]`` nearest 0; it holds inside when ``g`` is concave in ``p``
-        (``|A_1| <= |B_1|`` on the axis) or, for the filter's pole (``A = A_0 (1 + p s)``,
-        ``B_1 = 0``), because ``|A(i w)|^2 = |A_0|^2 (1 + p^2 w^2)`` grows with ``|p|``. For other
-        families a crossing above it is not scanned, and the certificate at the design catches
-        one that lowers the margin there.
+        :func:`~nrobust.margins.frequency_bound`); so for any family with ``A_1 = 0``. For the
+        filter's pole (``A = A_0 (1 + p s)``, ``B_1 = 0``) the largest bound at the ends and at the
+        point of ``[lo, hi]`` nearest 0, which holds inside because
+        ``|A(i w)|^2 = |A_0|^2 (1 + p^2 w^2)`` grows with ``|p|``. For other families a bound
+        uniform over the interval (:func:`_uniform_crossing_bound`).
+
+        Raises
+        ------
+        ParameterError
+            Naming ``bounds``: the difference operator is not strongly stable at every parameter of
+            ``[lo, hi]`` (:func:`_strong_stability_failures`; the message says where it is).
         """
+        _check_strongly_stable(self.affine, lo, hi)
         if isinstance(self.loop, AffineGainLoop):
             second = AxisBound.of(self.loop)
             if second is not None:
                 W = second.W(lo, hi)
                 if np.isfinite(W):
                     return W
+        if not (self.a1_zero or (self.a1_times_s and self.b1_zero)):
+            return _uniform_crossing_bound(self.affine, lo, hi)
         points = [lo, hi] if self.a1_zero else [lo, hi, min(max(0.0, lo), hi)]
         out = 0.0
         for p in points:
@@ -1361,6 +1572,31 @@ def _proven_clear(A: QuasiPolynomial, B: QuasiPolynomial, d_lo: float, d_hi: flo
     return ""
 
 
+def _zero_frequency_error(A: QuasiPolynomial, B: QuasiPolynomial) -> ParameterError | None:
+    """The error for ``|A(0)| = |B(0)|`` (to ``64`` units of rounding), else None.
+
+    ``g(w) = |A(i w)|^2 - |B(i w)|^2`` is even for a real loop: ``g(0) = 0`` makes ``w = 0`` a double zero at
+    least, which a crossing search in floating point cannot tell from a pair of zeros near it. With
+    ``A(0) + B(0) = 0``, ``s = 0`` is a root for every delay (no window is stable); otherwise ``s = 0`` is a root
+    for no delay (``arg(-B/A) = pi`` there: the crossing delay ``pi / w`` is infinite) and the crossings away
+    from ``w = 0`` decide.
+    """
+    s0 = np.zeros(1, dtype=complex)
+    a, b = complex(A(s0)[0]), complex(B(s0)[0])
+    if abs(abs(a) - abs(b)) > 64.0 * np.finfo(float).eps * max(abs(a), abs(b)):
+        return None
+    if abs(a + b) <= 64.0 * np.finfo(float).eps * max(abs(a), abs(b)):
+        what = "A(0) + B(0) = 0 here to rounding, not proven: s = 0 would be a root for every delay"
+    else:
+        what = "A(0) = B(0) here: s = 0 is a root for no delay, but the search cannot tell the double zero at w = 0"
+    return ParameterError(
+        "A, B",
+        "loop factors with |A(0)| != |B(0)|: |A(i w)|^2 - |B(i w)|^2 vanishes at w = 0, which the crossing search "
+        f"of the delay margin cannot decide in floating point ({what}); a slight change of the loop decides",
+        (a, b),
+    )
+
+
 def _delay_uncertainty(dm: DelayMargin, d_hi: float) -> float:
     """How far the crossing delays up to ``d_hi`` may be from their computed values: the margin's accuracy
     (its proven ball, or its estimate) taken relative to the margin, at ``d_hi``; 0 when not known."""
@@ -1407,7 +1643,10 @@ def window_stability(
     Raises
     ------
     ParameterError
-        ``delays`` not such a pair.
+        ``delays`` not such a pair; ``|A(0)| = |B(0)|`` (to rounding) where the crossing search of the
+        delay margin cannot decide ``|A(i w)| = |B(i w)|`` about ``w = 0`` (:func:`_zero_frequency_error`),
+        unless ``A(0) + B(0) = 0`` is proven in ball arithmetic: ``s = 0`` a root for every delay, the
+        window refuted.
     CertificationError
         The count at the middle of the window contradicts the windows of the delay margin, or
         a work bound was hit.
@@ -1421,7 +1660,19 @@ def window_stability(
     """
     d_lo, d_hi = check_delays(delays)
     max_evals = positive_int("max_evals", max_evals)
-    dm, how = _window_margin(A, B, 2.0 * d_hi + 1.0, rigorous, max_evals)
+    try:
+        dm, how = _window_margin(A, B, 2.0 * d_hi + 1.0, rigorous, max_evals)
+    except CertificationError as exc:
+        zero = _zero_frequency_error(A, B)
+        if zero is None:
+            raise
+        # A(0) + B(0) = 0: the proof of the root s = 0 for every delay decides (the window refuted)
+        try:
+            dm, how = delay_margin(A, B, delta_max=2.0 * d_hi + 1.0, max_evals=max_evals, rigorous=True), "proven"
+        except (CertificationError, ImportError):
+            raise zero from exc
+        if not dm.zero_root:
+            raise zero from exc
     probe = 0.5 * (d_lo + d_hi)
     if not dm.strongly_stable or dm.zero_root:
         why = "s = 0 is a root for every delay" if dm.zero_root else "the difference operator is not strongly stable"
@@ -2071,8 +2322,11 @@ def best_margin(
         law's zero or pole, :meth:`nrobust.hyperbolic.analyses.filter_design.FilteredLoop.affine`).
     bounds : (float, float)
         ``K_lo < K_hi``, where the difference operator is strongly stable (for ``U_BS2(K)``:
-        ``|K| < (1 - |rho q|)/|q|``, eq. (54); for an :class:`AffineLoop` it is checked at the ends
-        and, when ``A_1 != 0``, at the point nearest 0).
+        ``|K| < (1 - |rho q|)/|q|``, eq. (54)) at every parameter of ``[K_lo, K_hi]``: the
+        ``s^n`` coefficients ``a_k(p)`` of the principal part are affine in ``p``, so
+        ``|a_0(p)| - sum_{k>=1} |a_k(p)|`` is affine between their zeros and is checked there and
+        at the ends (a drop of the degree, where every ``a_k`` vanishes, by the operator of lower
+        degree at that point).
     delays : (float, float), optional
         A window ``[d_min, d_max]`` on which the loop must also be exponentially stable (the
         feasible gains of :func:`best_decay_rate`): the margin is maximised over them, a
@@ -2096,7 +2350,8 @@ def best_margin(
     ------
     ParameterError
         ``loop`` not an ``AffineGainLoop`` or ``AffineLoop`` with real coefficients, ``bounds`` not
-        increasing or reaching gains without a frequency bound.
+        increasing, or containing a parameter where the difference operator is not strongly
+        stable (the message gives where it is not, and where it is).
     CertificationError
         The sampling would exceed ``max_evals``, an equation did not converge, or the certified
         margin at the design disagrees with the equations (a crossing curve missed by the scan).

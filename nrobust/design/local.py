@@ -1035,6 +1035,82 @@ class LocalRun:
         return json_safe(vars(self))
 
 
+# A gradient whose change over the bounds' width exceeds this many times 1 + |value| marks a steep fall.
+_STEEP = 1e6
+
+
+def _stalled_search(
+    x: TrialPoint,
+    d: NDArray[np.float64],
+    slope: float,
+    lo: float,
+    hi: float,
+    steep: TrialPoint | None,
+    last: str,
+    width: float,
+) -> str:
+    """What stopped a line search from ``x`` along ``d`` (initial slope ``slope``) with no Wolfe step.
+
+    ``lo`` is the longest step below Armijo's line (``steep`` its point, whose slope was still too steep),
+    ``hi`` the shortest step too long (``last`` why: infeasible, or above Armijo's line), ``width`` the size of
+    the bounds: a gradient whose change over it exceeds ``_STEEP`` times ``1 + |value|`` is a steep fall, not
+    a kink.
+    """
+    singular = (
+        "e.g. where the loop at delta = 0 tends to one term c e^{-h s}, which has no zero: finite-time "
+        "convergence, an infinite decay rate"
+    )
+    if steep is not None:
+        ratio = float(steep.gradient @ d) / slope
+        at = f"p = {_vector_text(steep.p)} (the value {steep.value:.6g} against {x.value:.6g})"
+        if ratio > 1.0:
+            falls = (
+                f"the objective falls ever more steeply along the search direction (its slope {ratio:.3g} times the "
+                f"iterate's at {at})"
+            )
+        else:
+            falls = f"the objective still falls at {at}, its slope {ratio:.3g} times the iterate's"
+        if not math.isfinite(hi):
+            return f"{falls}, over steps up to {lo:.3g} times the first: it may be unbounded that way"
+        beyond = f"p = {_vector_text(x.p + hi * d)}"
+        if last.startswith("infeasible"):
+            past = f"may be unbounded past that edge ({singular})" if ratio > 1.0 else "is best at that edge"
+            return (
+                f"{falls}, and the longer step to {beyond} is {last}: along the search direction the objective "
+                f"{past} (a bound or a requirement)"
+            )
+        if ratio > 1.0:
+            return (
+                f"{falls}, and the longer step to {beyond} rises above Armijo's line: no step between meets the "
+                f"Wolfe conditions, the objective is unbounded or not Lipschitz between them ({singular})"
+            )
+        return (
+            f"{falls}, and the longer step to {beyond} rises above Armijo's line: no step between meets the Wolfe "
+            "conditions, a kink between them (the objective not smooth there)"
+        )
+    if last.startswith("infeasible"):
+        return (
+            f"every step down to {hi:.3g} times the first was too long, the shortest {last}: the iterate is at the "
+            "edge of the feasible set along the search direction (a bound or a requirement)"
+        )
+    rises = f"every step down to {hi:.3g} times the first rose above Armijo's line"
+    change = float(np.linalg.norm(x.gradient)) * width
+    if change > _STEEP * (1.0 + abs(x.value)):
+        return (
+            f"{rises}, the gradient at the iterate {change / (1.0 + abs(x.value)):.3g} times (1 + |value|) per width "
+            f"of the bounds: the objective falls steeply toward a point where it is unbounded or not Lipschitz, "
+            f"and the steps overshoot it ({singular})"
+        )
+    return (
+        f"{rises}: the objective is not smooth at the iterate (a kink: a nonsmooth local optimum, or where two "
+        "rightmost roots meet)"
+    )
+
+
+def _vector_text(p: NDArray[np.float64]) -> str:
+    return "[" + ", ".join(f"{float(v):.12g}" for v in np.ravel(p)) + "]"
+
+
 @dataclass(frozen=True)
 class _Local:
     """BFGS with the weak Wolfe line search from one start (picklable, for ``map``)."""
@@ -1045,22 +1121,28 @@ class _Local:
 
     def _line_search(
         self, f: Callable[[NDArray, float], TrialPoint], x: TrialPoint, d: NDArray[np.float64], counter: list[int]
-    ) -> TrialPoint | None:
+    ) -> tuple[TrialPoint | None, str]:
+        """A step along ``d`` meeting the weak Wolfe conditions, or None and what stopped the search."""
         slope = float(x.gradient @ d)
         lo, hi, t = 0.0, math.inf, 1.0
+        steep: TrialPoint | None = None  # the last step below Armijo's line, its slope too steep for Wolfe's
+        last = ""  # why the last step too long was
         for _ in range(LINE_SEARCH_TRIALS):
             y = f(x.p + t * d, x.value + ARMIJO * t * slope)
             counter[0] += 1
             if not y.feasible or y.value > x.value + ARMIJO * t * slope:
                 hi = t
+                # a screened point lies above the line by a bound, without its value
+                last = f"infeasible: {y.reason}" if not (y.feasible or y.screened) else "above Armijo's line"
             elif float(y.gradient @ d) < WOLFE * slope:
-                lo = t
+                lo, steep = t, y
             else:
-                return y
+                return y, ""
             t = 0.5 * (lo + hi) if math.isfinite(hi) else 2.0 * lo
             if math.isfinite(hi) and hi - lo < 1e-14 * max(1.0, hi):
                 break
-        return None
+        width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
+        return None, _stalled_search(x, d, slope, lo, hi, steep, last, float(np.linalg.norm(width)))
 
     def minimise(
         self,
@@ -1092,14 +1174,9 @@ class _Local:
             if float(x.gradient @ d) >= 0.0:
                 H = np.eye(n) * (scale / max(float(np.linalg.norm(x.gradient)), 1e-300))
                 d = -H @ x.gradient
-            y = self._line_search(f, x, d, counter)
+            y, why = self._line_search(f, x, d, counter)
             if y is None:
-                return (
-                    x,
-                    it,
-                    stationarity,
-                    "the line search found no better point (a nonsmooth local optimum, or a bound)",
-                )
+                return x, it, stationarity, f"the line search stopped: {why}"
             s, yy = y.p - x.p, y.gradient - x.gradient
             sy = float(s @ yy)
             if sy > 1e-16 * float(np.linalg.norm(s) * np.linalg.norm(yy)):
