@@ -426,6 +426,7 @@ def find_roots(
         if method == "auto" and extra.size:  # seeds given: the boxes about their limits counted with the region
             early = finder.limit_points(np.concatenate([finder.chain_seeds(), extra]), 1.0)
             finder.counter.prefetch = finder.first_boxes(early)
+            finder.counter.approx = early[np.isfinite(early)]
         total, reg, shifted = count_with_shifts(finder.counter, box, 4)
         found = find_counted(finder, total, reg, shifted, extra, method, early)
     if not rigorous:
