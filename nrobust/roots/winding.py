@@ -218,6 +218,9 @@ def _wind_segments(
         reach = bound * np.abs(steps.end - steps.start)  # M |h|
         f_start, f_end = np.abs(steps.f_start), np.abs(steps.f_end)
         ok = _first_order_ok(reach, f_start, f_end, steps)
+        if ok.all():  # the last round (often the only one): every step certified by the order-1 rule
+            turns += np.bincount(steps.segment, weights=np.angle(steps.f_end / steps.f_start), minlength=n_edges)
+            break
         room = np.minimum(f_start, f_end)
         close = ~ok & (reach > 8.0 * room)
         with np.errstate(divide="ignore", invalid="ignore"):
