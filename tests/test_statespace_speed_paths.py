@@ -195,8 +195,13 @@ def test_approximate_roots_spare_the_counter_a_round(
     assert int(count_roots(system._counted(False), region)) == count
 
 
-def test_initial_steps_near_approximate_roots() -> None:
+@pytest.mark.parametrize("pairs", [1 << 16, 0])
+def test_initial_steps_near_approximate_roots(monkeypatch: pytest.MonkeyPatch, pairs: int) -> None:
+    from nrobust.roots import winding
     from nrobust.roots.winding import _initial_pieces
+
+    # every (segment, root) distance, and (pairs = 0) only the root nearest to each midpoint, as for many roots
+    monkeypatch.setattr(winding, "_NEAR_PAIRS", pairs)
 
     F = QuasiPolynomial([[1.0, 1.0], [-0.5]], [0.0, 1.0])  # no initial_steps of its own: one step per segment
     starts = np.array([-1.0 + 10.0j, 0.1001 - 1e-4j, 5.0 + 0.0j, 2.0 + 2.0j])

@@ -27,6 +27,7 @@ from ..errors import CertificationError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, check_function, check_rigorous, magnitude
+from ._neighbours import ChebyshevIndex
 
 __all__ = ["Region", "RootCount", "count_roots"]
 
@@ -46,6 +47,9 @@ _NEAR_STEP = 0.8
 # Only segments longer than this many times that distance: the side of a box about a root (a
 # step of twice the distance, the root facing its middle) passes the rules in one step.
 _NEAR_LONG = 4.0
+# Up to this many (segment, approximate root) pairs every distance is computed; beyond, the root
+# nearest to each segment's midpoint stands for them.
+_NEAR_PAIRS = 1 << 16
 # A failing step is cut into as many pieces as its step rule predicts (the factor by which
 # it fails: the bound of order 1 is linear in the step, that of order 2 quadratic), at least
 # 2 and at most _MAX_PIECES: fewer rounds of refinement than halving.
@@ -285,7 +289,14 @@ def _initial_pieces(
     if approx is not None and approx.size:
         h = ends - starts
         length = np.abs(h)
-        rel = approx[None, :] - starts[:, None]
+        if starts.size * approx.size <= _NEAR_PAIRS:  # every segment with every root
+            rel = approx[None, :] - starts[:, None]
+        else:  # the root nearest to each segment's midpoint only: memory and time linear in the segments
+            mid = starts + 0.5 * h
+            _, idx = ChebyshevIndex(np.column_stack([approx.real, approx.imag])).query(
+                np.column_stack([mid.real, mid.imag])
+            )
+            rel = (approx[idx] - starts)[:, None]
         square = length**2
         square[square == 0.0] = 1.0  # a segment of length 0: its start is its nearest point
         t = np.clip((rel * np.conj(h)[:, None]).real / square[:, None], 0.0, 1.0)
