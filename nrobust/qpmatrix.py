@@ -353,6 +353,8 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
         [[((tn * (unit // td) << bits) + k, cn * (den // cd)) for tn, td, k, cn, cd in mono] for mono in raw_row]
         for raw_row, den in zip(raw, dens)
     ]
+    # the nonzero entries of each row with the bits of their columns
+    nonzero = [[(1 << j, entry) for j, entry in enumerate(row) if entry] for row in rows]
     # the minor of rows r..n-1 is keyed by its column set alone (r = n - the number of its columns)
     memo: dict[int, dict[int, int] | None] = {0: {0: 1}}
     products = 0
@@ -364,25 +366,22 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
             return memo[cols]
         total: dict[int, int] = {}
         get = total.get
-        sign = 1
-        row = rows[r]
-        for j in range(n):
-            if not cols >> j & 1:
+        for bit, entry in nonzero[r]:
+            if not cols & bit:
                 continue
-            entry = row[j]
-            if entry:
-                rest = minor(r + 1, cols & ~(1 << j))
-                if rest is None:
-                    return None
-                products += len(entry) * len(rest)
-                if products > _MAX_PRODUCTS:
-                    return None
-                for key, c in entry:
-                    c *= sign
-                    for other, d in rest.items():
-                        at = key + other
-                        total[at] = get(at, 0) + c * d
-            sign = -sign
+            rest = minor(r + 1, cols ^ bit)
+            if rest is None:
+                return None
+            products += len(entry) * len(rest)
+            if products > _MAX_PRODUCTS:
+                return None
+            odd = (cols & (bit - 1)).bit_count() & 1  # the column's place among cols: the cofactor's sign
+            for key, c in entry:
+                if odd:
+                    c = -c
+                for other, d in rest.items():
+                    at = key + other
+                    total[at] = get(at, 0) + c * d
         out = {key: c for key, c in total.items() if c != 0}
         memo[cols] = out if len(out) <= _MAX_MONOMIALS else None
         return memo[cols]

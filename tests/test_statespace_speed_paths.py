@@ -165,3 +165,51 @@ def test_a_prefetched_box_is_counted_with_the_batch_and_not_again() -> None:
     assert budget.used == used  # both known: nothing evaluated
     np.testing.assert_array_equal(again, [int(count_roots(F, box)), int(counts[0])])
     assert again[0] == 1 and not blocked.any() and not blocked_again.any()
+
+
+@pytest.mark.parametrize(
+    "system, region, count",
+    [
+        (example_2_9(), (-1.0, 0.5, -10.0, 10.0), 4),
+        (StateSpaceTDS([A0, A1], [0.0, 1.0]), (-3.0, 1.0, -30.0, 30.0), 10),
+    ],
+)
+def test_approximate_roots_spare_the_counter_a_round(
+    monkeypatch: pytest.MonkeyPatch, system: StateSpaceTDS, region: tuple[float, ...], count: int
+) -> None:
+    # Newton's limit points set the first steps of the edges that pass near them: the region and the boxes
+    # about the roots are counted in one round of derivative bounds (two when the edges start uniform)
+    rounds: list[int] = []
+    bounds = ExpandedDeterminant._bounds
+
+    def counted(self: ExpandedDeterminant, a: Any, b: Any, order: int) -> Any:
+        rounds.append(order)
+        return bounds(self, a, b, order)
+
+    monkeypatch.setattr(ExpandedDeterminant, "_bounds", counted)
+    found = system.roots(region)
+    assert found.certified and found.count == count
+    assert rounds == [1]
+    # the count is that of the plain counter, which knows no approximate roots
+    monkeypatch.setattr(ExpandedDeterminant, "_bounds", bounds)
+    assert int(count_roots(system._counted(False), region)) == count
+
+
+@pytest.mark.parametrize("pairs", [1 << 16, 0])
+def test_initial_steps_near_approximate_roots(monkeypatch: pytest.MonkeyPatch, pairs: int) -> None:
+    from nrobust.roots import winding
+    from nrobust.roots.winding import _initial_pieces
+
+    # every (segment, root) distance, and (pairs = 0) only the root nearest to each midpoint, as for many roots
+    monkeypatch.setattr(winding, "_NEAR_PAIRS", pairs)
+
+    F = QuasiPolynomial([[1.0, 1.0], [-0.5]], [0.0, 1.0])  # no initial_steps of its own: one step per segment
+    starts = np.array([-1.0 + 10.0j, 0.1001 - 1e-4j, 5.0 + 0.0j, 2.0 + 2.0j])
+    ends = np.array([-1.0 + 0.0j, 0.1001 + 1e-4j, 5.0 + 0.0j, 3.0 + 2.0j])
+    approx = np.array([-0.855 + 0.66j, 0.1])
+    pieces = _initial_pieces(F, starts, ends, approx)
+    # a long edge at distance 0.145 from a root: steps of at most 0.8 times that distance; the side of a
+    # box about a root (the root facing its middle), a segment of length 0 and a far segment: one step
+    np.testing.assert_array_equal(pieces, [int(np.ceil(10.0 / (0.8 * 0.145))), 1, 1, 1])
+    np.testing.assert_array_equal(_initial_pieces(F, starts, ends), [1, 1, 1, 1])
+    assert _initial_pieces(F, starts[:1], ends[:1], np.array([-1.0 + 5.0j]))[0] == 256  # a root on it: the most

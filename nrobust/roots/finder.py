@@ -426,6 +426,7 @@ def find_roots(
         if method == "auto" and extra.size:  # seeds given: the boxes about their limits counted with the region
             early = finder.limit_points(np.concatenate([finder.chain_seeds(), extra]), 1.0)
             finder.counter.prefetch = finder.first_boxes(early)
+            finder.counter.approx = early[np.isfinite(early)]
         total, reg, shifted = count_with_shifts(finder.counter, box, 4)
         found = find_counted(finder, total, reg, shifted, extra, method, early)
     if not rigorous:
@@ -470,13 +471,14 @@ def _result(finder: Finder, total: int, reg: Region, shifted: bool) -> RootSet:
     z = np.array(found.centers, dtype=complex)
     m = np.array(found.mults, dtype=np.int64)
     b = found.array()
+    finder.budget.spend(z.size, "computing residuals")
+    # |F| at the roots in the order found: often the points of the last evaluation, which F keeps
+    residuals = np.abs(finder.F(z)) if z.size else np.zeros(0)
     order = np.lexsort((z.real, z.imag)) if z.size else np.zeros(0, dtype=int)
-    z, m, b = z[order], m[order], b[order]
+    z, m, b, residuals = z[order], m[order], b[order], residuals[order]
     dx = np.maximum(np.abs(b[:, 0] - z.real), np.abs(b[:, 1] - z.real)) if b.size else np.zeros(0)
     dy = np.maximum(np.abs(b[:, 2] - z.imag), np.abs(b[:, 3] - z.imag)) if b.size else np.zeros(0)
     radii = np.hypot(dx, dy)
-    finder.budget.spend(z.size, "computing residuals")
-    residuals = np.abs(finder.F(z)) if z.size else np.zeros(0)
     certified = int(m.sum()) == total and _disjoint(b)
     return RootSet(
         roots=z,

@@ -27,6 +27,7 @@ from ..errors import CertificationError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, check_function, check_rigorous, magnitude
+from ._neighbours import ChebyshevIndex
 
 __all__ = ["Region", "RootCount", "count_roots"]
 
@@ -40,6 +41,15 @@ _MIN_STEP = 1e-13
 _INITIAL_STEPS = 1
 # Most initial steps per edge that a function may propose (F.initial_steps).
 _MAX_INITIAL = 256
+# Longest initial step on a segment, relative to its distance to the nearest approximate root
+# (Counter.approx): a step of about that distance fails the order-1 rule near a simple root.
+_NEAR_STEP = 0.8
+# Only segments longer than this many times that distance: the side of a box about a root (a
+# step of twice the distance, the root facing its middle) passes the rules in one step.
+_NEAR_LONG = 4.0
+# Up to this many (segment, approximate root) pairs every distance is computed; beyond, the root
+# nearest to each segment's midpoint stands for them.
+_NEAR_PAIRS = 1 << 16
 # A failing step is cut into as many pieces as its step rule predicts (the factor by which
 # it fails: the bound of order 1 is linear in the step, that of order 2 quadratic), at least
 # 2 and at most _MAX_PIECES: fewer rounds of refinement than halving.
@@ -149,7 +159,12 @@ def _second_order_terms(bound2: NDArray, bound: NDArray, steps: _Steps) -> tuple
 
 
 def _wind_segments(
-    F: QuasiPolynomial, starts: NDArray, ends: NDArray, budget: Budget, label: Callable[[int], str]
+    F: QuasiPolynomial,
+    starts: NDArray,
+    ends: NDArray,
+    budget: Budget,
+    label: Callable[[int], str],
+    approx: NDArray[np.complex128] | None = None,
 ) -> _Edges:
     """Certified change of argument of ``F`` along each segment ``[starts[i], ends[i]]``.
 
@@ -159,10 +174,12 @@ def _wind_segments(
     or the square root of that of order 2; 2 to ``_MAX_PIECES``). The order-2 rule
     (one evaluation of ``F'`` and a bound of ``|F''|``) is tried only on steps that fail
     the order-1 rule by a factor above 8, i.e. close to a root. When the work bound is
-    hit, the error names the edge that holds the most unfinished steps.
+    hit, the error names the edge that holds the most unfinished steps. ``approx``: approximate
+    roots, which set the initial steps of the segments that pass close to them
+    (:func:`_initial_pieces`).
     """
     n_edges = starts.size
-    pieces = _initial_pieces(F, starts, ends)
+    pieces = _initial_pieces(F, starts, ends, approx)
     base = np.cumsum(pieces + 1) - (pieces + 1)  # the nodes of segment i at offsets base[i] .. base[i] + pieces[i]
     owner = np.repeat(np.arange(n_edges), pieces + 1)
     pts = starts[owner] + (ends - starts)[owner] * ((np.arange(owner.size) - base[owner]) / pieces[owner])
@@ -205,6 +222,9 @@ def _wind_segments(
         reach = bound * np.abs(steps.end - steps.start)  # M |h|
         f_start, f_end = np.abs(steps.f_start), np.abs(steps.f_end)
         ok = _first_order_ok(reach, f_start, f_end, steps)
+        if ok.all():  # the last round (often the only one): every step certified by the order-1 rule
+            turns += np.bincount(steps.segment, weights=np.angle(steps.f_end / steps.f_start), minlength=n_edges)
+            break
         room = np.minimum(f_start, f_end)
         close = ~ok & (reach > 8.0 * room)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -251,14 +271,42 @@ def _evaluate(
     return fv, mag
 
 
-def _initial_pieces(F: QuasiPolynomial, starts: NDArray, ends: NDArray) -> NDArray[np.intp]:
+def _initial_pieces(
+    F: QuasiPolynomial, starts: NDArray, ends: NDArray, approx: NDArray[np.complex128] | None = None
+) -> NDArray[np.intp]:
     """Steps per segment to start from: ``_INITIAL_STEPS``, or what ``F.initial_steps(starts, ends)``
     proposes when ``F`` has that method (a function that knows the scale on which it turns), 1 to
-    ``_MAX_INITIAL``. Only the work depends on it: every step is still certified by the step rules."""
+    ``_MAX_INITIAL``. With approximate roots ``approx``, a segment at distance ``d`` from the nearest
+    one gets steps of at most ``_NEAR_STEP d`` when longer than ``_NEAR_LONG d``: near a simple root
+    ``|F|`` grows like the distance to it, and longer steps fail the order-1 rule there and cost a
+    round of refinement. Only the work depends on it: every step is still certified by the step rules."""
     propose = getattr(F, "initial_steps", None)
-    if propose is None:
-        return np.full(starts.size, _INITIAL_STEPS, dtype=np.intp)
-    return np.minimum(np.maximum(np.asarray(propose(starts, ends)), 1), _MAX_INITIAL).astype(np.intp)
+    pieces = (
+        np.full(starts.size, float(_INITIAL_STEPS))
+        if propose is None
+        else np.maximum(np.asarray(propose(starts, ends), dtype=float), 1.0)
+    )
+    if approx is not None and approx.size:
+        h = ends - starts
+        length = np.abs(h)
+        if starts.size * approx.size <= _NEAR_PAIRS:  # every segment with every root
+            rel = approx[None, :] - starts[:, None]
+        else:  # the root nearest to each segment's midpoint only: memory and time linear in the segments
+            mid = starts + 0.5 * h
+            _, idx = ChebyshevIndex(np.column_stack([approx.real, approx.imag])).query(
+                np.column_stack([mid.real, mid.imag])
+            )
+            rel = (approx[idx] - starts)[:, None]
+        square = length**2
+        square[square == 0.0] = 1.0  # a segment of length 0: its start is its nearest point
+        t = np.clip((rel * np.conj(h)[:, None]).real / square[:, None], 0.0, 1.0)
+        gap = np.abs(rel - t * h[:, None]).min(axis=1)
+        long = np.flatnonzero(length > _NEAR_LONG * gap)
+        if long.size:
+            with np.errstate(divide="ignore"):  # a root on the segment: the most steps
+                want = np.ceil(length[long] / (_NEAR_STEP * gap[long]))
+            pieces[long] = np.maximum(pieces[long], np.minimum(want, _MAX_INITIAL))
+    return np.minimum(pieces, _MAX_INITIAL).astype(np.intp)
 
 
 def _box_edges(box: Sequence[float]) -> list[tuple[complex, complex]]:
@@ -306,6 +354,8 @@ class Counter:
         # boxes whose edges the next count computes with its own (one batch): boxes about candidate
         # roots known before the region is counted, which the search counts next
         self.prefetch: list[tuple[float, float, float, float]] = []
+        # approximate roots (Newton's limit points) near which the contour steps start short
+        self.approx: NDArray[np.complex128] | None = None
 
     def _pieces(self, p: complex, q: complex) -> list[tuple[complex, complex, float]]:
         """Segments ``(a, b, sign)`` whose turns, times their signs, add up to those of ``[p, q]``.
@@ -361,6 +411,7 @@ class Counter:
                 np.array([k[1] for k in keys]),
                 self.budget,
                 lambda j: _describe_edge(boxes[todo[keys[j]] // 4], todo[keys[j]] % 4),
+                self.approx,
             )
             for k, tr, bl in zip(keys, res.turns, res.blocked):
                 self.cache[k] = (float(tr), bool(bl))
