@@ -1,0 +1,253 @@
+"""A proven bound of the grid kernels' error in ``G`` and of the cascade loop it moves (``n + m`` systems).
+
+The kernels ``Z = [K, L]`` of :mod:`nrobust.hyperbolic.nplusm.kernels` solve, entry by entry
+``e = (a, b)``, the integral equations along their characteristics ``dxi/dx = slope_e``::
+
+    Z_e(P) = B_e(Z)(P_f) + int_{P_f}^{P} (M Z)_e / mu_a dx,     (M Z)_e = (Z Sigma - D Z)_e,
+
+``P_f`` the foot of the characteristic through ``P`` on the boundary the entry starts from: the
+diagonal (a constant ``B_e``), ``x = 1`` (the artificial constant of the entries ``mu_c > mu_a``)
+or ``xi = 0``, where ``B_e(Z) = sum_k (Lambda+ Q)_kc K_ak(x_f, 0) / mu_c`` (``G_ac = 0``).
+
+**Residual.** ``Z_h`` is the grid solution, linear on the triangles of the grid (the
+interpolation of :class:`~nrobust.hyperbolic.nplusm.NPlusMKernels`). On a triangle its
+derivative along the characteristic is constant and ``(M Z_h)_e`` is linear, so the defect
+``delta_e = d Z_h,e / dx - (M Z_h)_e / mu_a`` is linear there and its maximum modulus is at a
+vertex: ``Delta_e = max |delta_e|`` over ``T`` is computed exactly (up to rounding, bounded).
+Along each boundary ``Z_h`` is linear between nodes, so the boundary defect
+``beta_e = max |Z_h,e - B_e(Z_h)|`` is a maximum over nodes. The residual of the integral
+equation is at most ``rho_e = beta_e + Delta_e`` everywhere (characteristics are shorter
+than 1 in ``x``).
+
+**Volterra structure.** Along every characteristic, from its foot to ``P``, the potential
+``phi = x - xi`` grows at the rate ``r_e = |1 - slope_e|`` per unit of ``x``, and the foot
+``(x_f, 0)`` of a boundary relation has ``phi = x_f <= phi(P)``; only the entries ``L_ac`` with
+``mu_c = mu_a`` (``r_e = 0``) integrate at constant ``phi``. With ``u_f(phi)`` the supremum of
+``|Z_f - Z_h,f|`` over ``phi(P) <= phi``, the error ``Z - Z_h`` obeys ::
+
+    u(phi) <= rho + N u(phi) + V int_0^phi u,
+
+``N_ef = |(Lambda+ Q)_kc| / mu_c`` (boundary relation, ``f = K_ak``) plus ``|M_ef| / mu_a`` on the
+rows ``r_e = 0``, and ``V_ef = |M_ef| / (mu_a r_e)`` on the rows ``r_e > 0``. When the spectral
+radius of ``N`` is below 1 (always for distinct leftward speeds: ``N`` is then nilpotent, the
+diagonal ``(Sigma--)_aa - D_aa`` cancelling), ``(I - N)^{-1} >= 0`` and Gronwall's lemma gives ::
+
+    u(phi) <= exp(phi (I - N)^{-1} V) (I - N)^{-1} rho.
+
+At ``xi = 0``, ``phi = x``: ``|G_ac - G_h,ac|(x) <= mu_c u_{L_ac}(x) + sum_k |(Lambda+ Q)_kc| u_{K_ak}(x)``
+on the entries ``mu_c > mu_a`` (the others are exactly 0 for the exact kernels and the loop
+uses 0 there).
+
+**The loop.** On ``Re s >= 0``, ``||e^{x C(s)}|| <= e^{x mu_2}`` with ``mu_2`` the logarithmic
+norm of ``Lambda-^{-1} D`` (``D`` commutes with ``Lambda-``), so ``E T`` of the exact kernels
+lies within ``||V|| int_0^1 e^{x max(mu_2, 0)} ||Lambda-^{-1} (G - G_h)(x)|| dx`` of
+:meth:`~nrobust.hyperbolic.nplusm.NPlusMBackstepping.target_transition` at every such ``s``
+(module notes of :mod:`nrobust.hyperbolic.nplusm.kernels`); the integrand is bounded by its
+value at the right end of each of ``pieces`` intervals (both factors are nondecreasing).
+
+The small matrices (``(I - N)^{-1}``, the exponentials, the sum) are computed in ball
+arithmetic (python-flint); the defects in floating point with a bound of their rounding. The
+bound is first order in the grid step (the defect of a piecewise-linear interpolant), and it
+is large when a kernel jumps across a characteristic (the interpolant's slope there).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._flint import precision, require_flint
+from ..._json import fields_dict
+from ..._validate import positive_int
+from ...errors import CertificationError, ParameterError
+from .kernels import NPlusMKernels, _entry, _in_group_part, _rhs_matrix
+
+__all__ = ["KernelErrorBound", "kernel_error_bound"]
+
+_EPS = float(np.finfo(float).eps)
+_PREC = 80  # bits of the ball arithmetic
+
+
+@dataclass(frozen=True)
+class KernelErrorBound:
+    """Proven bounds of the error of the grid kernels (module notes).
+
+    Attributes
+    ----------
+    kernel_grid : int
+        Grid points ``N`` per side of the triangle.
+    residual : ndarray, shape (m (n + m),)
+        ``rho_e``: the residual of the integral equations of each entry ``e = a (n + m) + b``
+        of ``Z = [K, L]`` (boundary defect plus maximal characteristic defect).
+    growth : ndarray, shape (m (n + m), m (n + m))
+        Upper bound of ``(I - N)^{-1} V``, the rate of Gronwall's exponential in ``phi = x - xi``.
+    kernel_error : ndarray, shape (m (n + m),)
+        ``sup_T |Z_e - Z_h,e|`` (its value at ``phi = 1``).
+    g_error : ndarray, shape (m, m)
+        ``sup_x |G_ac - G_h,ac|`` on the entries ``mu_c > mu_a`` (0 on the others: exact).
+    transition_error : float
+        ``eps``: ``||E T - E T_h||_2 <= eps`` at every ``s`` with ``Re s >= 0``, ``E T`` of the
+        exact kernels and ``E T_h`` of :meth:`~nrobust.hyperbolic.nplusm.NPlusMBackstepping.target_transition`.
+    """
+
+    kernel_grid: int
+    residual: NDArray[np.float64]
+    growth: NDArray[np.float64]
+    kernel_error: NDArray[np.float64]
+    g_error: NDArray[np.float64]
+    transition_error: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return fields_dict(self)
+
+
+def _up(ball: Any) -> float:
+    """A float ``>=`` every point of the real ball ``ball``."""
+    return math.nextafter(float(ball.upper()), math.inf)
+
+
+def _triangle_defects(
+    Z: NDArray[np.float64], MZ: NDArray[np.float64], scale: NDArray[np.float64], slopes: NDArray, mu_row: NDArray
+) -> NDArray[np.float64]:
+    """``max |delta_e| + rounding`` over the triangles of the grid, per entry (module notes)."""
+    E, N = Z.shape[0], Z.shape[1]
+    h = 1.0 / (N - 1)
+    ii, jj = np.tril_indices(N - 1)  # lower triangles (i, j), (i + 1, j), (i + 1, j + 1)
+    up = jj < ii  # upper triangles (i, j), (i, j + 1), (i + 1, j + 1)
+    iu, ju = ii[up], jj[up]
+    tri = [
+        ((ii, jj), (ii + 1, jj), (ii + 1, jj + 1), 1),  # d/dx: v1 - v0, d/dxi: v2 - v1
+        ((iu, ju), (iu, ju + 1), (iu + 1, ju + 1), 0),  # d/dxi: v1 - v0, d/dx: v2 - v1
+    ]
+    out = np.zeros(E)
+    for e in range(E):
+        z, mz, sc = Z[e], MZ[e] / mu_row[e], scale[e] / mu_row[e]
+        for v0, v1, v2, lower in tri:
+            d01, d12 = (z[v1] - z[v0]) / h, (z[v2] - z[v1]) / h
+            zx, zxi = (d01, d12) if lower else (d12, d01)
+            dd = zx + slopes[e] * zxi
+            size = (np.abs(z[v0]) + 2 * np.abs(z[v1]) + np.abs(z[v2])) / h * (1 + abs(slopes[e]))
+            for v in (v0, v1, v2):
+                err = 16 * _EPS * (size + np.abs(mz[v]) + sc[v])
+                out[e] = max(out[e], float(np.max(np.abs(dd - mz[v]) + err)))
+    return out
+
+
+def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelErrorBound:
+    """Proven bound of ``sup |G - G_h|`` and of the cascade loop's ``E T`` error on ``Re s >= 0``.
+
+    Parameters
+    ----------
+    kernels : NPlusMKernels
+        The grid kernels (:func:`~nrobust.hyperbolic.nplusm.solve_nplusm_kernels`).
+    pieces : int, optional
+        Intervals (``>= 1``) of the upper sum of the integral over ``x`` (module notes).
+
+    Returns
+    -------
+    KernelErrorBound
+
+    Raises
+    ------
+    CertificationError
+        The couplings inside a group of equal leftward speeds make the spectral radius of
+        ``N`` not provably below 1 (the bound needs it).
+    ImportError
+        python-flint is missing (``pip install nrobust[rigorous]``).
+    """
+    if not isinstance(kernels, NPlusMKernels):
+        raise ParameterError("kernels", "an NPlusMKernels (solve_nplusm_kernels)", type(kernels).__name__)
+    pieces = positive_int("pieces", pieces)
+    flint = require_flint()
+    sys = kernels.system
+    n, m, mu = sys.n, sys.m, sys.mu
+    width = n + m
+    E = m * width
+    N = kernels.grid.size
+    Z = np.concatenate([kernels.K, kernels.L], axis=1).reshape(E, N, N)
+    M = _rhs_matrix(sys)
+    lq = sys.lam[:, None] * sys.q
+    entries = [_entry(sys, a, b) for a in range(m) for b in range(width)]
+    slopes = np.array([sl for _, sl, _ in entries])
+    rates = np.abs(1.0 - slopes)
+    mu_row = np.repeat(mu, width)
+    MZ = np.tensordot(M, Z, axes=(1, 0))
+    scale = np.tensordot(np.abs(M), np.abs(Z), axes=(1, 0)) * E
+
+    defect = _triangle_defects(Z, MZ, scale, slopes, mu_row)
+    beta = np.zeros(E)
+    diag_idx = np.arange(N)
+    for e, (kind, _, diag) in enumerate(entries):
+        a, b = divmod(e, width)
+        if kind != "same":
+            on_diag = Z[e, diag_idx, diag_idx]
+            beta[e] = float(np.max(np.abs(on_diag - diag) + 4 * _EPS * (np.abs(on_diag) + abs(diag))))
+        if kind == "reverse":
+            top = Z[e, -1, :]
+            beta[e] = max(beta[e], float(np.max(np.abs(top - diag) + 4 * _EPS * (np.abs(top) + abs(diag)))))
+        if kind in ("low", "same"):
+            c = b - n
+            terms = Z[a * width : a * width + n, :, 0] * (lq[:, c] / mu[c])[:, None]
+            rel = Z[e, :, 0] - terms.sum(axis=0)
+            err = 4 * (n + 2) * _EPS * (np.abs(Z[e, :, 0]) + np.abs(terms).sum(axis=0))
+            beta[e] = max(beta[e], float(np.max(np.abs(rel) + err)))
+    rho = beta + defect
+
+    Nm = np.zeros((E, E))
+    Vm = np.zeros((E, E))
+    for e, (kind, _, _) in enumerate(entries):
+        a, b = divmod(e, width)
+        if kind in ("low", "same"):
+            Nm[e, a * width : a * width + n] += np.abs(lq[:, b - n]) / mu[b - n]
+        if kind == "same":
+            Nm[e] += np.abs(M[e]) / mu[a]
+        else:
+            Vm[e] = np.abs(M[e]) / (mu[a] * rates[e])
+
+    with precision(flint, _PREC):
+
+        def mat(x: NDArray[Any]) -> Any:
+            return flint.arb_mat([[flint.arb(float(v)) for v in row] for row in np.atleast_2d(x)])
+
+        w = np.linalg.solve(np.eye(E) - Nm, np.ones(E))  # rho(N) < 1 iff some w > 0 has N w < w
+        nw = mat(Nm) * mat(w[:, None])
+        if not (np.all(w > 0) and all((nw[i, 0] < flint.arb(float(w[i]))) for i in range(E))):
+            raise CertificationError(
+                "kernel error bound: the couplings of Sigma-- inside groups of equal leftward speed are too strong "
+                "(spectral radius of N not proven below 1); no bound of the grid kernels' G"
+            )
+        inv = (flint.arb_mat(E, E, [flint.arb(int(i == j)) for i in range(E) for j in range(E)]) - mat(Nm)).inv()
+        growth = inv * mat(Vm)
+        u = inv * mat(rho[:, None])
+        step = (growth * (flint.arb(1) / pieces)).exp()
+        a_mat = np.diag(1.0 / mu) @ _in_group_part(sys)
+        sym = 0.5 * (a_mat + a_mat.T)
+        lognorm = max(0.0, max(sym[i, i] + np.abs(sym[i]).sum() - abs(sym[i, i]) for i in range(m)))
+        lognorm = lognorm * (1 + 4 * _EPS) + 4 * _EPS
+        v_norm = flint.arb(0)
+        for x in (-mat(a_mat)).exp().entries():
+            v_norm += x * x
+        v_norm = v_norm.sqrt()
+        used = [(a, c) for a in range(m) for c in range(m) if mu[c] > mu[a]]
+        total = flint.arb(0)
+        g_sup = np.zeros((m, m))
+        for k in range(1, pieces + 1):
+            u = step * u
+            norm2 = flint.arb(0)
+            for a, c in used:
+                g = mu[c] * u[a * width + n + c, 0]
+                for j in range(n):
+                    g += abs(float(lq[j, c])) * u[a * width + j, 0]
+                if k == pieces:
+                    g_sup[a, c] = _up(g)
+                norm2 += (g / float(mu[a])) ** 2
+            total += norm2.sqrt() * (flint.arb(lognorm) * k / pieces).exp()
+        eps = _up(v_norm * total / pieces)
+        kernel_error = np.array([_up(u[e, 0]) for e in range(E)])
+        growth_up = np.array([[_up(growth[i, j]) for j in range(E)] for i in range(E)])
+    return KernelErrorBound(N, rho, growth_up, kernel_error, g_sup, eps)
