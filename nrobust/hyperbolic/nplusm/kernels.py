@@ -108,8 +108,10 @@ values at ``x = 1`` (a design choice) through the kernel equations; it has a clo
 special cases only (one coupling ``Sigma--_ac``: ``L_ac = Sigma--_ac / (mu_c - mu_a)``
 throughout and ``G_ac = mu_c L_ac``, ``tests/test_nplusm_unequal_speeds.py``). The grid's
 ``G`` converges at order 2 and the ``J`` route to the ``G`` route at order 2 (same test
-file); no proven bound of ``int ||Lambda-^{-1} (G - G_grid)||`` is built (the kernels may
-jump across characteristics at ``xi = 0``), so margins with several speeds are not certified.
+file). :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound` proves a bound of
+``||V|| int ||e^{x Lambda-^{-1} D}|| ||Lambda-^{-1} (G - G_grid)|| dx`` (first order in the grid
+step); the margins with several speeds are not certified yet: the crossing search and the
+frequency bound do not carry that bound.
 """
 
 from __future__ import annotations
