@@ -32,7 +32,9 @@ cross those of ``e``; the change of variables ``(t, tau) -> c_f(t) - tau (1, slo
 Jacobian ``|slope_f - slope_e|``, so that integral is at most
 ``chi_e (beta_e + min(Delta_e, ||delta_e||_1 / |slope_f - slope_e|))``, first order in the grid step
 when the kernels are continuous. The boundary relation reads ``rho_h`` of ``K`` at a point
-(``sup``; ``K`` is continuously differentiable, its data on the diagonal being constant).
+(``sup``: first order when ``K`` has no kink, which a jump of another kernel would give it).
+The bound degrades when two slopes are close (the rates ``1 / |slope_f - slope_e|`` and
+``1 / r_e`` below).
 ``Z~ - Z_h`` at ``xi = 0`` is ``-rho_h``, bounded likewise in ``L^1(0, 1)`` (Jacobian
 ``|slope_e|``).
 
