@@ -70,7 +70,7 @@ nondecreasing), for ``G~ - G_h`` by the ``L^1`` bound times ``e^{max(mu_2, 0)}``
 The small matrices (``(I - N)^{-1}``, the exponentials, the sum) are computed in ball
 arithmetic (python-flint); the defects in floating point with a bound of their rounding. The
 loop's bound is first order in the grid step (``tests/test_nplusm_kernel_proof.py``: 0.092,
-0.047, 0.023 on 21, 41, 81 points where the true error is of order 2, 1e-4 to 6e-6); the
+0.047, 0.023 on 21, 41, 81 points where the error of ``G`` is of order 2, 4.7e-4 to 3.0e-5); the
 supremum ``g_error`` is not (a kink smeared over one cell at ``xi = 0``).
 """
 
