@@ -148,7 +148,7 @@ _TOL = 1e-12
 _KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
 _CASCADE_SCOPE = (
     "full-state backstepping law, loop through the target's G of the grid kernels "
-    "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, no error bound)"
+    "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, its error not carried by the scan)"
 )
 #: The loops :func:`backstepping_delay_margin` scans: the feedback integral ``J`` or the target's ``G``.
 BACKSTEPPING_ROUTES = ("integral", "cascade")
@@ -768,8 +768,9 @@ def backstepping_delay_margin(
     change located by bisection, and the delays are ``(-arg z mod 2 pi) / w``. The delay-free
     loop is finite-time stable by construction (``nominal_unstable`` is None: not counted).
     Not certified: a crossing above ``omega_max``, or two crossings of opposite directions
-    between grid points, would be missed, and neither ``J`` nor ``G`` of the grid has a proven
-    error bound here.
+    between grid points, would be missed, and the scan does not carry the error of the grid's
+    ``J`` or ``G`` (for ``G`` a proven bound of its effect on the loop is
+    :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`).
 
     Parameters
     ----------
