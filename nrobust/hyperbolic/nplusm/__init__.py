@@ -1,7 +1,8 @@
 """``n + m`` plants with constant coefficients: the plant and its loop (``system``), the certified
 characteristic function (``characteristic``) and its compound form (``compound``), the delay
 margins (``margin``), the partial cancellations (``cancellation``), the backstepping kernels
-and the full-state controller (``kernels``), the design of the gain matrix ``K`` (``design``).
+and the full-state controller (``kernels``), the proven bound of the grid kernels' error
+(``kernel_error``), the design of the gain matrix ``K`` (``design``).
 
 The simulation moved to :mod:`nrobust.hyperbolic.simulate` (``simulate_nplusm``,
 ``NPlusMSimulation``, the scheme ``"n+m characteristics"`` of ``simulate``); the old names here
@@ -20,6 +21,7 @@ from .design import (
     gain_gradient,
     principal_gamma,
 )
+from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import (
     BACKSTEPPING_ROUTES,
     MAX_NPLUSM_KERNEL_GRID,
@@ -42,6 +44,7 @@ __all__ = [
     "BACKSTEPPING_ROUTES",
     "BallNPlusM",
     "CancellationCase",
+    "KernelErrorBound",
     "MAX_NPLUSM_KERNEL_GRID",
     "NPlusMBackstepping",
     "NPlusMCharacteristic",
@@ -57,6 +60,7 @@ __all__ = [
     "default_gain_bounds",
     "design_nplusm_gains",
     "gain_gradient",
+    "kernel_error_bound",
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",

@@ -108,8 +108,10 @@ values at ``x = 1`` (a design choice) through the kernel equations; it has a clo
 special cases only (one coupling ``Sigma--_ac``: ``L_ac = Sigma--_ac / (mu_c - mu_a)``
 throughout and ``G_ac = mu_c L_ac``, ``tests/test_nplusm_unequal_speeds.py``). The grid's
 ``G`` converges at order 2 and the ``J`` route to the ``G`` route at order 2 (same test
-file); no proven bound of ``int ||Lambda-^{-1} (G - G_grid)||`` is built (the kernels may
-jump across characteristics at ``xi = 0``), so margins with several speeds are not certified.
+file). :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound` proves a bound of
+``||V|| int ||e^{x Lambda-^{-1} D}|| ||Lambda-^{-1} (G - G_grid)|| dx`` (first order in the grid
+step); the margins with several speeds are not certified yet: the crossing search and the
+frequency bound do not carry that bound.
 """
 
 from __future__ import annotations
@@ -146,7 +148,7 @@ _TOL = 1e-12
 _KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
 _CASCADE_SCOPE = (
     "full-state backstepping law, loop through the target's G of the grid kernels "
-    "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, no error bound)"
+    "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, its error not carried by the scan)"
 )
 #: The loops :func:`backstepping_delay_margin` scans: the feedback integral ``J`` or the target's ``G``.
 BACKSTEPPING_ROUTES = ("integral", "cascade")
@@ -248,6 +250,38 @@ def _in_group_part(system: NPlusMSystem) -> NDArray[np.float64]:
     mu = system.mu
     s_mm = system.sigma[system.n :, system.n :]
     return np.where(mu[:, None] == mu[None, :], s_mm, 0.0)
+
+
+def _rhs_matrix(system: NPlusMSystem) -> NDArray[np.float64]:
+    """``M`` with ``(Z Sigma - D Z)_e = sum_f M[e, f] Z_f``, the entries ``e = a (n + m) + b`` of ``Z = [K, L]``."""
+    n, m = system.n, system.m
+    D = _in_group_part(system)
+    width = n + m
+    M = np.zeros((m * width, m * width))
+    for a in range(m):
+        for b in range(width):
+            e = a * width + b
+            for k in range(width):
+                M[e, a * width + k] += system.sigma[k, b]
+            for k in range(m):
+                M[e, k * width + b] -= D[a, k]
+    return M
+
+
+def _entry(system: NPlusMSystem, a: int, b: int) -> tuple[str, float, float]:
+    """``(kind, slope, diagonal value)`` of the entry ``Z_ab``: its characteristic ``dxi/dx = slope``.
+
+    ``kind`` is ``"K"`` (``b < n``), and for ``L_ac`` (``c = b - n``) ``"low"`` (``mu_c < mu_a``: from
+    ``xi = 0`` or the diagonal), ``"same"`` (from ``xi = 0``) or ``"reverse"`` (``mu_c > mu_a``: from the
+    diagonal or ``x = 1``), module notes.
+    """
+    n, lam, mu, sig = system.n, system.lam, system.mu, system.sigma
+    if b < n:
+        return "K", float(-lam[b] / mu[a]), float(-sig[n + a, b] / (mu[a] + lam[b]))
+    c = b - n
+    kind = "low" if mu[c] < mu[a] else ("same" if mu[c] == mu[a] else "reverse")
+    diag = float(sig[n + a, n + c] / (mu[c] - mu[a])) if kind != "same" else 0.0
+    return kind, float(mu[c] / mu[a]), diag
 
 
 def _check_grid(system: NPlusMSystem, N: int) -> None:
@@ -383,19 +417,10 @@ def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusM
     N = check_kernel_grid(kernel_grid, MAX_NPLUSM_KERNEL_GRID)
     _check_grid(system, N)
     n, m = system.n, system.m
-    lam, mu, sig = system.lam, system.mu, system.sigma
-    D = _in_group_part(system)
+    lam, mu = system.lam, system.mu
     width = n + m
     E = m * width
-    # RHS of entry (a, b): (Z Sigma - D Z)_ab = sum_f M[(a, b), f] Z_f
-    M = np.zeros((E, E))
-    for a in range(m):
-        for b in range(width):
-            e = a * width + b
-            for k in range(width):
-                M[e, a * width + k] += sig[k, b]
-            for k in range(m):
-                M[e, k * width + b] -= D[a, k]
+    M = _rhs_matrix(system)
     lq = lam[:, None] * system.q  # Lambda+ Q, (n, m)
     h, T = 1.0 / (N - 1), N * (N + 1) // 2
     rows: list[NDArray[np.int64]] = []
@@ -417,13 +442,7 @@ def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusM
     for a in range(m):
         for b in range(width):
             e = a * width + b
-            if b < n:
-                kind, slope, diag = "K", -lam[b] / mu[a], -sig[n + a, b] / (mu[a] + lam[b])
-            else:
-                c = b - n
-                slope = mu[c] / mu[a]
-                kind = "low" if mu[c] < mu[a] else ("same" if mu[c] == mu[a] else "reverse")
-                diag = sig[n + a, n + c] / (mu[c] - mu[a]) if kind != "same" else 0.0
+            kind, slope, diag = _entry(system, a, b)
             d = -1 if kind == "reverse" else 1  # the foot lies on level i - d
             for i in range(N):
                 j = np.arange(i + 1)
@@ -749,8 +768,9 @@ def backstepping_delay_margin(
     change located by bisection, and the delays are ``(-arg z mod 2 pi) / w``. The delay-free
     loop is finite-time stable by construction (``nominal_unstable`` is None: not counted).
     Not certified: a crossing above ``omega_max``, or two crossings of opposite directions
-    between grid points, would be missed, and neither ``J`` nor ``G`` of the grid has a proven
-    error bound here.
+    between grid points, would be missed, and the scan does not carry the error of the grid's
+    ``J`` or ``G`` (for ``G`` a proven bound of its effect on the loop is
+    :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`).
 
     Parameters
     ----------
