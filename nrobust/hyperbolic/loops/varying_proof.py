@@ -1,0 +1,413 @@
+"""``N~`` of eq. (40) with a proven error bound for couplings that vary with ``x`` (constant speeds).
+
+For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
+``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
+:mod:`~nrobust.hyperbolic.loops.varying_form` (``docs/theory.md``, "Varying speed ratio") has
+``T(x) = tau x``, so ``x`` itself is the characteristic time in units of ``tau``. In the
+coordinates ``A = (theta - nu) / tau``, ``V = nu / tau`` of the triangle
+``A, V >= 0``, ``A + V <= 1`` (``A + V = x``), with ``k_r = sigma_pm / lam``,
+``k_w = -sigma_mp / mu`` (the ``p, m`` of :mod:`~nrobust.hyperbolic.loops.exact_form`) and the
+scaled unknowns ``F = tau f``, ``G = tau g``, the Goursat system is the Volterra system::
+
+    F(A, V) = k_r(A)   + int_0^V k_r(A + S) G(A, S) dS,
+    G(A, V) = q k_w(V) + int_0^A k_w(A' + V) F(A', V) dA',
+
+and ``N~(nu) = (G - rho F)(1 - V, V) / tau`` at ``V = nu / tau`` (for constant couplings it is
+the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
+
+**The bound (a posteriori).** The couplings are Taylor models on ``[0, 1]``: a polynomial
+``P_r`` (ball coefficients) with ``|k_r - P_r| <= eps_r`` and ``|k_r' - P_r'| <= eps_r'``,
+from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` and one on the ball
+``[0, 1]`` (as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for integral gains). A
+Picard iteration in floating point gives polynomials ``F^, G^`` of total degree
+:data:`DEGREE`. Their residual ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with
+the true couplings) is the polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball
+arithmetic, plus the models' remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
+``|R_G| <= eps_w (|q| + sup |F^|)``. The error ``E = (F, G) - (F^, G^)`` solves ``E = R + L E``,
+``L`` the linear part of ``T``; the integrals of ``L`` at a point with ``A + V = x`` run once
+over points with ``A + V`` from ``0`` to ``x``, so with ``m(x)`` the largest ``|E|`` on
+``A + V <= x`` and ``C = max(sup |k_r|, sup |k_w|)``, ``m(x) <= sup |R| + C int_0^x m``, and by
+Gronwall's lemma::
+
+    |E| <= M = sup |R| e^C.
+
+Differentiating the Volterra system gives the derivatives of ``E``:
+``|d_V E_F| <= sup |d_V R_F| + C M``, ``|d_A E_G| <= sup |d_A R_G| + C M``,
+``|d_A E_F| <= sup |d_A R_F| + C' M + C (sup |d_A R_G| + C M)`` and the same with ``F, G``,
+``A, V`` exchanged, ``C' = max(sup |k_r'|, sup |k_w'|)``. Along ``A = 1 - V``,
+``|N~ - N^| <= (1 + |rho|) M / tau`` and the total variation of ``N~ - N^`` on ``[0, tau]`` is at
+most ``sup |(d_V - d_A)(E_G - rho E_F)| / tau``. The sups of polynomials on the triangle are
+bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` there).
+``N^`` is then stored as polynomial pieces by
+:func:`~nrobust.hyperbolic.loops.exact_form.expand_piece` (the rounding of each piece added to
+the bounds): a ball enclosure built on it holds for the PDE itself.
+
+A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
+analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
+double precision, or a coupling too strong for :data:`DEGREE` has no proof:
+:func:`varying_failure` says why and the kernel route (a model of the PDE) is used.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..._flint import precision, require_flint
+from ...errors import CertificationError, ParameterError
+from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .exact_form import _pieces
+
+__all__ = ["DEGREE", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
+
+#: Order of the Taylor model of each coupling on ``[0, 1]``.
+ORDER = 40
+#: Total degree of the polynomials ``F^, G^`` of the Picard iteration.
+DEGREE = 56
+# Working precision (bits) of the residual.
+_PRECISION = 192
+# Relative agreement asked of the ball model with the coupling evaluated on arrays at x = 1/2.
+_AGREEMENT = 1e-8
+# Largest residual accepted, relative to the size of N~ (beyond it the proof would say little).
+_RESIDUAL = 2.0**-40
+# Balls covering [0, 1] in the bounds of univariate polynomials.
+_SUP_BALLS = 64
+
+
+class VaryingProof:
+    """``N~`` and ``U~`` of a plant with varying couplings, with proven error bounds (module notes).
+
+    Attributes
+    ----------
+    tau, q, rho_q : float
+        ``1/lam + 1/mu``, ``q`` and ``rho q``.
+    N_tilde, U_tilde : DistributedDelay or None
+        Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
+        to the PDE's kernels (sup and total variation). ``U~ = f(tau, .)``: the
+        ``u`` row of the fundamental matrix applied to ``[q; 1]``, as for the closed form.
+    characteristic : QuasiPolynomial
+        ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
+    u_factor : QuasiPolynomial
+        ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
+        ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu``.
+    """
+
+    __slots__ = ("N_tilde", "U_tilde", "characteristic", "q", "rho_q", "tau", "u_factor")
+
+    def __init__(
+        self, tau: float, q: float, rho_q: float, N_tilde: DistributedDelay | None, U_tilde: DistributedDelay | None
+    ) -> None:
+        self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
+        self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
+        self.u_factor = QuasiPolynomial([[q]], [tau], [U_tilde] if U_tilde is not None else [])
+
+
+def has_varying_proof(system: object) -> bool:
+    """True for a :class:`Hyperbolic2x2` with a coupling given as a function whose ``N~`` is proven."""
+    return isinstance(system, Hyperbolic2x2) and not system.constant_couplings and varying_failure(system) is None
+
+
+def varying_failure(system: Hyperbolic2x2) -> str | None:
+    """Why :func:`varying_proof` cannot prove ``N~`` of this plant (None when it can)."""
+    out = _attempt(system)
+    return out if isinstance(out, str) else None
+
+
+def varying_proof(system: Hyperbolic2x2) -> VaryingProof:
+    """``N~`` of a plant with couplings that vary with ``x``, with a proven error (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
+        of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate.
+
+    Returns
+    -------
+    VaryingProof
+
+    Raises
+    ------
+    ParameterError
+        Not a :class:`Hyperbolic2x2`.
+    CertificationError
+        A coupling that cannot be enclosed, or a residual too large to be useful
+        (:func:`varying_failure` gives the reason).
+    """
+    out = _attempt(system)
+    if isinstance(out, str):
+        raise CertificationError(out)
+    return out
+
+
+def _attempt(system: Hyperbolic2x2) -> VaryingProof | str:
+    """The proof, or why there is none (cached for hashable plants: routes ask several times)."""
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 (constant speeds)", system)
+    try:
+        hash(system)
+    except TypeError:
+        return _attempt_uncached(system)
+    return _attempt_cached(system)
+
+
+@lru_cache(maxsize=16)
+def _attempt_cached(system: Hyperbolic2x2) -> VaryingProof | str:
+    return _attempt_uncached(system)
+
+
+def _attempt_uncached(system: Hyperbolic2x2) -> VaryingProof | str:
+    try:
+        return _proof(system)
+    except CertificationError as exc:
+        return str(exc)
+
+
+# --------------------------------------------------------------------------- coupling models
+
+
+def _model(flint: Any, value: Any, at: Any, scale: float, name: str) -> tuple[Any, Any, Any]:
+    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]``: ``P`` an arb_poly in ``x`` (module notes)."""
+    arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
+    if not callable(value):
+        return arb_poly([arb(float(value)) * arb(scale)]), arb(0), arb(0)
+
+    def call(centre: Any) -> list[Any]:
+        holder = np.empty(1, dtype=object)
+        holder[0] = arb_series([centre, arb(0.5)], prec=ORDER + 1)
+        cap = flint.ctx.cap
+        flint.ctx.cap = ORDER + 1  # series functions truncate at the global cap
+        try:
+            out = value(holder)
+        except (TypeError, ValueError, ArithmeticError, AttributeError) as exc:
+            raise CertificationError(
+                f"the coupling {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
+            ) from None
+        finally:
+            flint.ctx.cap = cap
+        if isinstance(out, np.ndarray) and out.size == 1:
+            out = out.reshape(-1)[0]
+        if isinstance(out, (int, float)) and not isinstance(out, bool):
+            out = arb_series([arb(float(out))], prec=ORDER + 1)
+        if not isinstance(out, arb_series):
+            raise CertificationError(
+                f"the coupling {name} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})"
+            )
+        if out.prec < ORDER + 1:
+            raise CertificationError(f"the coupling {name} gave a series truncated before the order {ORDER}")
+        coefs = list(out.coeffs())[: ORDER + 1]
+        coefs += [arb(0)] * (ORDER + 1 - len(coefs))
+        return coefs
+
+    head = call(arb(0.5))[:ORDER]
+    top = call(arb(0.5, 0.5 + 2.0**-30))[ORDER]
+    if not (all(c.is_finite() for c in head) and top.is_finite()):
+        raise CertificationError(f"the coupling {name} is not enclosed by finite balls on [0, 1] (not analytic there)")
+    floating = float(at(np.array([0.5]))[0])
+    if abs(floating - float(head[0].mid())) > _AGREEMENT * (1.0 + abs(floating)) + float(head[0].rad()):
+        raise CertificationError(
+            f"the coupling {name} gives {float(head[0].mid())!r} on balls and {floating!r} on arrays at x = 0.5"
+        )
+    # x = 1/2 + t/2: the model in t, then in x (t = 2 x - 1); the remainder is |top| |t|^ORDER.
+    poly = arb_poly(head)(arb_poly([-1, 2])) * arb(scale)
+    eps = abs(top) * abs(arb(scale))
+    return poly, eps, 2 * ORDER * eps
+
+
+# --------------------------------------------------------------------------- bivariate polynomials
+
+
+def _shift(coef: np.ndarray) -> np.ndarray:
+    """Coefficients ``c[i, j]`` of ``P(A + V)`` (``A^i V^j``) from those of ``P(x)``, total degree <= DEGREE."""
+    out = np.zeros((DEGREE + 1, DEGREE + 1))
+    for k, c in enumerate(coef[: DEGREE + 1]):
+        for i in range(k + 1):
+            out[i, k - i] = c * math.comb(k, i)
+    return out
+
+
+def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Product truncated to total degree DEGREE (floating point)."""
+    from scipy.signal import fftconvolve  # lazily: a slow import
+
+    full = fftconvolve(a, b)[: DEGREE + 1, : DEGREE + 1]
+    i, j = np.indices(full.shape)
+    full[i + j > DEGREE] = 0.0
+    return full
+
+
+def _integrate(c: np.ndarray, axis: int) -> np.ndarray:
+    """Antiderivative from 0 along ``axis`` (0: ``A``, 1: ``V``), truncated to total degree DEGREE."""
+    out = np.zeros_like(c)
+    k = np.arange(1, DEGREE + 1, dtype=float)
+    if axis == 1:
+        out[:, 1:] = c[:, :-1] / k
+    else:
+        out[1:, :] = c[:-1, :] / k[:, None]
+    i, j = np.indices(out.shape)
+    out[i + j > DEGREE] = 0.0
+    return out
+
+
+def _picard(kr: np.ndarray, kw: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """``F^, G^``: the Picard iteration of the Volterra system in floating point (module notes)."""
+    KR, KW = _shift(kr), _shift(kw)
+    base_f = np.zeros((DEGREE + 1, DEGREE + 1))
+    base_f[: len(kr[: DEGREE + 1]), 0] = kr[: DEGREE + 1]
+    base_g = np.zeros((DEGREE + 1, DEGREE + 1))
+    base_g[0, : len(kw[: DEGREE + 1])] = q * kw[: DEGREE + 1]
+    F, G = base_f, base_g
+    for _ in range(4 * DEGREE):
+        F_new = base_f + _integrate(_mul(KR, G), 1)
+        G_new = base_g + _integrate(_mul(KW, F), 0)
+        change = np.max(np.abs(F_new - F)) + np.max(np.abs(G_new - G))
+        F, G = F_new, G_new
+        if change <= 1e-18 * (1.0 + np.max(np.abs(F)) + np.max(np.abs(G))):
+            break
+    return F, G
+
+
+class _Bi:
+    """Bivariate polynomials in ball arithmetic: ``A^i V^j`` at ``y^(i + K j)`` of an arb_poly (Kronecker)."""
+
+    def __init__(self, flint: Any) -> None:
+        self.flint = flint
+        self.K = DEGREE + ORDER + 2  # above the degree in A of every product formed
+
+    def from_array(self, c: np.ndarray) -> Any:
+        coefs = [0.0] * (self.K * c.shape[1])
+        for i, j in zip(*np.nonzero(c)):
+            coefs[i + self.K * j] = float(c[i, j])
+        return self.flint.arb_poly(coefs)
+
+    def shifted(self, p: Any) -> Any:
+        """``P(A + V)`` from the arb_poly ``P(x)``."""
+        y = [0] * (self.K + 1)
+        y[1] = y[self.K] = 1
+        return p(self.flint.arb_poly(y))
+
+    def terms(self, p: Any) -> dict[tuple[int, int], Any]:
+        out = {}
+        for n, c in enumerate(p.coeffs()):
+            if not c.is_zero():
+                out[(n % self.K, n // self.K)] = c
+        return out
+
+    def from_terms(self, terms: dict[tuple[int, int], Any]) -> Any:
+        arb = self.flint.arb
+        size = 1 + max((i + self.K * j for i, j in terms), default=0)
+        coefs = [arb(0)] * size
+        for (i, j), c in terms.items():
+            coefs[i + self.K * j] = c
+        return self.flint.arb_poly(coefs)
+
+    def integrate(self, p: Any, axis: int) -> Any:
+        arb = self.flint.arb
+        return self.from_terms(
+            {(i + 1 - axis, j + axis): c / arb(j + 1 if axis else i + 1) for (i, j), c in self.terms(p).items()}
+        )
+
+    def derivative(self, p: Any, axis: int) -> Any:
+        return self.from_terms(
+            {
+                (i - 1 + axis, j - axis): c * (j if axis else i)
+                for (i, j), c in self.terms(p).items()
+                if (j if axis else i)
+            }
+        )
+
+    def sup(self, p: Any) -> Any:
+        """A bound of ``|P|`` on the triangle ``A, V >= 0, A + V <= 1``."""
+        arb = self.flint.arb
+        total = arb(0)
+        for (i, j), c in self.terms(p).items():
+            n = i + j
+            peak = arb(1) if 0 in (i, j) else (arb(i) ** i * arb(j) ** j) / arb(n) ** n
+            total += abs(c) * peak
+        return total
+
+
+# --------------------------------------------------------------------------- the proof
+
+
+def _proof(system: Hyperbolic2x2) -> VaryingProof:
+    flint = require_flint()
+    arb, arb_poly = flint.arb, flint.arb_poly
+    lam, mu, q, rho = system.lam, system.mu, system.q, system.rho
+    tau = system.tau
+    with precision(flint, _PRECISION):
+        Pr, er, er1 = _model(flint, system.sigma_pm, system.sigma_pm_at, 1.0 / lam, "sigma_pm")
+        Pw, ew, ew1 = _model(flint, system.sigma_mp, system.sigma_mp_at, -1.0 / mu, "sigma_mp")
+        kr = np.array([float(c.mid()) for c in Pr.coeffs()] or [0.0])
+        kw = np.array([float(c.mid()) for c in Pw.coeffs()] or [0.0])
+        F_hat, G_hat = _picard(kr, kw, q)
+        bi = _Bi(flint)
+        F, G = bi.from_array(F_hat), bi.from_array(G_hat)
+        Q = arb(q)
+        # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic
+        RF = Pr - F  # k_r(A): P_r in the variable A = y
+        RF += bi.integrate(bi.shifted(Pr) * G, 1)
+        RG = Pw(arb_poly([0] * bi.K + [1])) * Q - G  # q k_w(V): V = y^K
+        RG += bi.integrate(bi.shifted(Pw) * F, 0)
+        sup_F, sup_G = bi.sup(F), bi.sup(G)
+        sF_A, sF_V = bi.sup(bi.derivative(F, 0)), bi.sup(bi.derivative(F, 1))
+        sG_A, sG_V = bi.sup(bi.derivative(G, 0)), bi.sup(bi.derivative(G, 1))
+        res = arb.max(bi.sup(RF) + er * (1 + sup_G), bi.sup(RG) + ew * (abs(Q) + sup_F))
+        rF_V = bi.sup(bi.derivative(RF, 1)) + er * sup_G
+        rF_A = bi.sup(bi.derivative(RF, 0)) + er1 * (1 + sup_G) + er * sG_A
+        rG_A = bi.sup(bi.derivative(RG, 0)) + ew * sup_F
+        rG_V = bi.sup(bi.derivative(RG, 1)) + ew1 * (abs(Q) + sup_F) + ew * sF_V
+        C = arb.max(_poly_sup(flint, Pr) + er, _poly_sup(flint, Pw) + ew)
+        C1 = arb.max(_poly_sup(flint, Pr.derivative()) + er1, _poly_sup(flint, Pw.derivative()) + ew1)
+        M = res * C.exp()
+        eF_V, eG_A = rF_V + C * M, rG_A + C * M
+        eF_A = rF_A + C1 * M + C * eG_A
+        eG_V = rG_V + C1 * M + C * eF_V
+        T, R = arb(tau), arb(rho)
+        # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau
+        n_tilde = _store(
+            flint, G_hat - rho * F_hat, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T
+        )
+        u_tilde = _store(flint, F_hat, T, M / T, (eF_V + eF_A) / T)
+    return VaryingProof(tau, q, rho * q, n_tilde, u_tilde)
+
+
+def _store(flint: Any, H: np.ndarray, T: Any, sup_err: Any, var_err: Any) -> DistributedDelay | None:
+    """``H(1 - V, V) / tau`` at ``V = nu / tau`` as pieces, the proven bounds added to their own."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    one_minus = arb_poly([1, -1])
+    series = arb_poly(0)
+    for i in range(H.shape[0] - 1, -1, -1):
+        series = series * one_minus + arb_poly([float(v) for v in H[i]])
+    series = series(arb_poly([0, 1 / T])) * (1 / T)
+    size = _poly_sup(flint, series(arb_poly([0, T])))
+    if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + arb(2.0**-60))):
+        raise CertificationError(
+            f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
+            f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
+            f"{DEGREE}; the kernel route (kernel_grid=...) gives a model of the PDE"
+        )
+    stored = _pieces(flint, series, arb(0), T, float(T.mid()), arb(0), arb(0))
+    if stored is None:
+        return None
+    return DistributedDelay(
+        stored.nodes,
+        None,
+        interpolation="polynomial",
+        coefficients=stored.pieces[2],
+        radius=float((arb(stored.radius) + sup_err).upper()),
+        variation_radius=float((arb(stored.variation_radius) + var_err).upper()),
+    )
+
+
+def _poly_sup(flint: Any, p: Any) -> Any:
+    """A bound of ``|p(x)|`` on ``[0, 1]`` (``p`` an arb_poly), from its values on 64 balls covering it."""
+    arb = flint.arb
+    out = arb(0)
+    for k in range(_SUP_BALLS):
+        out = arb.max(out, abs(p(arb((2 * k + 1) / (2 * _SUP_BALLS), 1 / (2 * _SUP_BALLS)))))
+    return out
