@@ -20,7 +20,7 @@ the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
 from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` and one on the ball
 ``[0, 1]`` (as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for integral gains). A
 Picard iteration in floating point gives polynomials ``F^, G^`` of total degree
-:data:`DEGREE`. Their residual ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with
+:data:`DEGREES`. Their residual ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with
 the true couplings) is the polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball
 arithmetic, plus the models' remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
 ``|R_G| <= eps_w (|q| + sup |F^|)``. The error ``E = (F, G) - (F^, G^)`` solves ``E = R + L E``,
@@ -44,7 +44,7 @@ the bounds): a ball enclosure built on it holds for the PDE itself.
 
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
-double precision, or a coupling too strong for :data:`DEGREE` has no proof:
+double precision, or a coupling too strong for :data:`DEGREES` has no proof:
 :func:`varying_failure` says why and the kernel route (a model of the PDE) is used.
 """
 
@@ -62,18 +62,20 @@ from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import _pieces
 
-__all__ = ["DEGREE", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
+__all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
 
 #: Order of the Taylor model of each coupling on ``[0, 1]``.
 ORDER = 40
-#: Total degree of the polynomials ``F^, G^`` of the Picard iteration.
-DEGREE = 56
+#: Total degrees of the polynomials ``F^, G^`` of the Picard iteration, tried in turn.
+DEGREES = (48, 96)
 # Working precision (bits) of the residual.
 _PRECISION = 192
 # Relative agreement asked of the ball model with the coupling evaluated on arrays at x = 1/2.
 _AGREEMENT = 1e-8
 # Largest residual accepted, relative to the size of N~ (beyond it the proof would say little).
-_RESIDUAL = 2.0**-40
+_RESIDUAL = 2.0**-27
+# Balls covering [0, 1] on which the coefficient of order ORDER of a coupling's model is bounded.
+_TOP_BALLS = 64
 # Balls covering [0, 1] in the bounds of univariate polynomials.
 _SUP_BALLS = 64
 
@@ -170,11 +172,11 @@ def _attempt_uncached(system: Hyperbolic2x2) -> VaryingProof | str:
 # --------------------------------------------------------------------------- coupling models
 
 
-def _model(flint: Any, value: Any, at: Any, scale: float, name: str) -> tuple[Any, Any, Any]:
-    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]``: ``P`` an arb_poly in ``x`` (module notes)."""
+def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any, Any, Any]:
+    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``."""
     arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
     if not callable(value):
-        return arb_poly([arb(float(value)) * arb(scale)]), arb(0), arb(0)
+        return arb_poly([arb(float(value)) * scale]), arb(0), arb(0)
 
     def call(centre: Any) -> list[Any]:
         holder = np.empty(1, dtype=object)
@@ -204,7 +206,10 @@ def _model(flint: Any, value: Any, at: Any, scale: float, name: str) -> tuple[An
         return coefs
 
     head = call(arb(0.5))[:ORDER]
-    top = call(arb(0.5, 0.5 + 2.0**-30))[ORDER]
+    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball)
+    top = arb(0)
+    for k in range(_TOP_BALLS):
+        top = arb.max(top, abs(call(arb((2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS) + 2.0**-30))[ORDER]))
     if not (all(c.is_finite() for c in head) and top.is_finite()):
         raise CertificationError(f"the coupling {name} is not enclosed by finite balls on [0, 1] (not analytic there)")
     floating = float(at(np.array([0.5]))[0])
@@ -213,70 +218,78 @@ def _model(flint: Any, value: Any, at: Any, scale: float, name: str) -> tuple[An
             f"the coupling {name} gives {float(head[0].mid())!r} on balls and {floating!r} on arrays at x = 0.5"
         )
     # x = 1/2 + t/2: the model in t, then in x (t = 2 x - 1); the remainder is |top| |t|^ORDER.
-    poly = arb_poly(head)(arb_poly([-1, 2])) * arb(scale)
-    eps = abs(top) * abs(arb(scale))
+    poly = arb_poly(head)(arb_poly([-1, 2])) * scale
+    eps = abs(top) * abs(scale)
     return poly, eps, 2 * ORDER * eps
 
 
 # --------------------------------------------------------------------------- bivariate polynomials
 
 
-def _shift(coef: np.ndarray) -> np.ndarray:
-    """Coefficients ``c[i, j]`` of ``P(A + V)`` (``A^i V^j``) from those of ``P(x)``, total degree <= DEGREE."""
-    out = np.zeros((DEGREE + 1, DEGREE + 1))
-    for k, c in enumerate(coef[: DEGREE + 1]):
+def _shift(coef: np.ndarray, n: int) -> np.ndarray:
+    """Coefficients ``c[i, j]`` of ``P(A + V)`` (``A^i V^j``) from those of ``P(x)``, total degree <= n."""
+    out = np.zeros((n + 1, n + 1))
+    for k, c in enumerate(coef[: n + 1]):
         for i in range(k + 1):
             out[i, k - i] = c * math.comb(k, i)
     return out
 
 
 def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Product truncated to total degree DEGREE (floating point)."""
+    """Product truncated to the total degree of ``a`` (floating point)."""
+    n = a.shape[0] - 1
     from scipy.signal import fftconvolve  # lazily: a slow import
 
-    full = fftconvolve(a, b)[: DEGREE + 1, : DEGREE + 1]
+    full = fftconvolve(a, b)[: n + 1, : n + 1]
     i, j = np.indices(full.shape)
-    full[i + j > DEGREE] = 0.0
+    full[i + j > n] = 0.0
     return full
 
 
 def _integrate(c: np.ndarray, axis: int) -> np.ndarray:
-    """Antiderivative from 0 along ``axis`` (0: ``A``, 1: ``V``), truncated to total degree DEGREE."""
+    """Antiderivative from 0 along ``axis`` (0: ``A``, 1: ``V``), truncated to the total degree of ``c``."""
+    n = c.shape[0] - 1
     out = np.zeros_like(c)
-    k = np.arange(1, DEGREE + 1, dtype=float)
+    k = np.arange(1, n + 1, dtype=float)
     if axis == 1:
         out[:, 1:] = c[:, :-1] / k
     else:
         out[1:, :] = c[:-1, :] / k[:, None]
     i, j = np.indices(out.shape)
-    out[i + j > DEGREE] = 0.0
+    out[i + j > n] = 0.0
     return out
 
 
-def _picard(kr: np.ndarray, kw: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+def _picard(kr: np.ndarray, kw: np.ndarray, q: float, n: int) -> tuple[np.ndarray, np.ndarray]:
     """``F^, G^``: the Picard iteration of the Volterra system in floating point (module notes)."""
-    KR, KW = _shift(kr), _shift(kw)
-    base_f = np.zeros((DEGREE + 1, DEGREE + 1))
-    base_f[: len(kr[: DEGREE + 1]), 0] = kr[: DEGREE + 1]
-    base_g = np.zeros((DEGREE + 1, DEGREE + 1))
-    base_g[0, : len(kw[: DEGREE + 1])] = q * kw[: DEGREE + 1]
+    KR, KW = _shift(kr, n), _shift(kw, n)
+    base_f = np.zeros((n + 1, n + 1))
+    base_f[: len(kr[: n + 1]), 0] = kr[: n + 1]
+    base_g = np.zeros((n + 1, n + 1))
+    base_g[0, : len(kw[: n + 1])] = q * kw[: n + 1]
     F, G = base_f, base_g
-    for _ in range(4 * DEGREE):
-        F_new = base_f + _integrate(_mul(KR, G), 1)
-        G_new = base_g + _integrate(_mul(KW, F), 0)
-        change = np.max(np.abs(F_new - F)) + np.max(np.abs(G_new - G))
-        F, G = F_new, G_new
-        if change <= 1e-18 * (1.0 + np.max(np.abs(F)) + np.max(np.abs(G))):
-            break
+    with np.errstate(all="ignore"):  # a divergent iteration is caught below
+        for _ in range(4 * n):
+            F_new = base_f + _integrate(_mul(KR, G), 1)
+            G_new = base_g + _integrate(_mul(KW, F), 0)
+            change = np.max(np.abs(F_new - F)) + np.max(np.abs(G_new - G))
+            F, G = F_new, G_new
+            if not np.isfinite(change) or change <= 1e-18 * (1.0 + np.max(np.abs(F)) + np.max(np.abs(G))):
+                break
+    if not (np.all(np.isfinite(F)) and np.all(np.isfinite(G))):
+        raise CertificationError(
+            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong); the "
+            "kernel route (kernel_grid=...) gives a model of the PDE"
+        )
     return F, G
 
 
 class _Bi:
     """Bivariate polynomials in ball arithmetic: ``A^i V^j`` at ``y^(i + K j)`` of an arb_poly (Kronecker)."""
 
-    def __init__(self, flint: Any) -> None:
+    def __init__(self, flint: Any, n: int) -> None:
         self.flint = flint
-        self.K = DEGREE + ORDER + 2  # above the degree in A of every product formed
+        self.K = n + ORDER + 2  # above the degree in A of every product formed (total degree n)
 
     def from_array(self, c: np.ndarray) -> Any:
         coefs = [0.0] * (self.K * c.shape[1])
@@ -336,60 +349,87 @@ class _Bi:
 
 def _proof(system: Hyperbolic2x2) -> VaryingProof:
     flint = require_flint()
-    arb, arb_poly = flint.arb, flint.arb_poly
+    arb = flint.arb
     lam, mu, q, rho = system.lam, system.mu, system.q, system.rho
     tau = system.tau
     with precision(flint, _PRECISION):
-        Pr, er, er1 = _model(flint, system.sigma_pm, system.sigma_pm_at, 1.0 / lam, "sigma_pm")
-        Pw, ew, ew1 = _model(flint, system.sigma_mp, system.sigma_mp_at, -1.0 / mu, "sigma_mp")
-        kr = np.array([float(c.mid()) for c in Pr.coeffs()] or [0.0])
-        kw = np.array([float(c.mid()) for c in Pw.coeffs()] or [0.0])
-        F_hat, G_hat = _picard(kr, kw, q)
-        bi = _Bi(flint)
-        F, G = bi.from_array(F_hat), bi.from_array(G_hat)
-        Q = arb(q)
-        # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic
-        RF = Pr - F  # k_r(A): P_r in the variable A = y
-        RF += bi.integrate(bi.shifted(Pr) * G, 1)
-        RG = Pw(arb_poly([0] * bi.K + [1])) * Q - G  # q k_w(V): V = y^K
-        RG += bi.integrate(bi.shifted(Pw) * F, 0)
-        sup_F, sup_G = bi.sup(F), bi.sup(G)
-        sF_A, sF_V = bi.sup(bi.derivative(F, 0)), bi.sup(bi.derivative(F, 1))
-        sG_A, sG_V = bi.sup(bi.derivative(G, 0)), bi.sup(bi.derivative(G, 1))
-        res = arb.max(bi.sup(RF) + er * (1 + sup_G), bi.sup(RG) + ew * (abs(Q) + sup_F))
-        rF_V = bi.sup(bi.derivative(RF, 1)) + er * sup_G
-        rF_A = bi.sup(bi.derivative(RF, 0)) + er1 * (1 + sup_G) + er * sG_A
-        rG_A = bi.sup(bi.derivative(RG, 0)) + ew * sup_F
-        rG_V = bi.sup(bi.derivative(RG, 1)) + ew1 * (abs(Q) + sup_F) + ew * sF_V
-        C = arb.max(_poly_sup(flint, Pr) + er, _poly_sup(flint, Pw) + ew)
-        C1 = arb.max(_poly_sup(flint, Pr.derivative()) + er1, _poly_sup(flint, Pw.derivative()) + ew1)
-        M = res * C.exp()
-        eF_V, eG_A = rF_V + C * M, rG_A + C * M
-        eF_A = rF_A + C1 * M + C * eG_A
-        eG_V = rG_V + C1 * M + C * eF_V
-        T, R = arb(tau), arb(rho)
-        # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau
-        n_tilde = _store(
-            flint, G_hat - rho * F_hat, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T
-        )
-        u_tilde = _store(flint, F_hat, T, M / T, (eF_V + eF_A) / T)
+        Pr, er, er1 = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(lam), "sigma_pm")
+        Pw, ew, ew1 = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(mu), "sigma_mp")
+        for P, eps, name in ((Pr, er, "sigma_pm"), (Pw, ew, "sigma_mp")):
+            if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
+                raise CertificationError(
+                    f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
+                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1]; the kernel route "
+                    "(kernel_grid=...) gives a model of the PDE"
+                )
+        for n in DEGREES:
+            try:
+                n_tilde, u_tilde = _kernels(flint, (Pr, er, er1), (Pw, ew, ew1), q, rho, tau, n)
+                break
+            except CertificationError:
+                if n == DEGREES[-1]:
+                    raise
     return VaryingProof(tau, q, rho * q, n_tilde, u_tilde)
 
 
-def _store(flint: Any, H: np.ndarray, T: Any, sup_err: Any, var_err: Any) -> DistributedDelay | None:
-    """``H(1 - V, V) / tau`` at ``V = nu / tau`` as pieces, the proven bounds added to their own."""
+def _kernels(
+    flint: Any, model_r: tuple[Any, Any, Any], model_w: tuple[Any, Any, Any], q: float, rho: float, tau: float, n: int
+) -> tuple[DistributedDelay | None, DistributedDelay | None]:
+    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes)."""
     arb, arb_poly = flint.arb, flint.arb_poly
+    (Pr, er, er1), (Pw, ew, ew1) = model_r, model_w
+    kr = np.array([float(c.mid()) for c in Pr.coeffs()] or [0.0])
+    kw = np.array([float(c.mid()) for c in Pw.coeffs()] or [0.0])
+    F_hat, G_hat = _picard(kr, kw, q, n)
+    bi = _Bi(flint, n)
+    F, G = bi.from_array(F_hat), bi.from_array(G_hat)
+    Q = arb(q)
+    # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic
+    RF = Pr - F  # k_r(A): P_r in the variable A = y
+    RF += bi.integrate(bi.shifted(Pr) * G, 1)
+    RG = Pw(arb_poly([0] * bi.K + [1])) * Q - G  # q k_w(V): V = y^K
+    RG += bi.integrate(bi.shifted(Pw) * F, 0)
+    sup_F, sup_G = bi.sup(F), bi.sup(G)
+    sF_V, sG_A = bi.sup(bi.derivative(F, 1)), bi.sup(bi.derivative(G, 0))
+    res = arb.max(bi.sup(RF) + er * (1 + sup_G), bi.sup(RG) + ew * (abs(Q) + sup_F))
+    rF_V = bi.sup(bi.derivative(RF, 1)) + er * sup_G
+    rF_A = bi.sup(bi.derivative(RF, 0)) + er1 * (1 + sup_G) + er * sG_A
+    rG_A = bi.sup(bi.derivative(RG, 0)) + ew * sup_F
+    rG_V = bi.sup(bi.derivative(RG, 1)) + ew1 * (abs(Q) + sup_F) + ew * sF_V
+    C = arb.max(_poly_sup(flint, Pr) + er, _poly_sup(flint, Pw) + ew)
+    C1 = arb.max(_poly_sup(flint, Pr.derivative()) + er1, _poly_sup(flint, Pw.derivative()) + ew1)
+    M = res * C.exp()
+    eF_V, eG_A = rF_V + C * M, rG_A + C * M
+    eF_A = rF_A + C1 * M + C * eG_A
+    eG_V = rG_V + C1 * M + C * eF_V
+    T, R = arb(tau), arb(rho)
+    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau
+    F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
+    n_tilde = _store(flint, G_line - F_line * R, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T)
+    u_tilde = _store(flint, F_line, T, M / T, (eF_V + eF_A) / T)
+    return n_tilde, u_tilde
+
+
+def _along(flint: Any, c: np.ndarray) -> Any:
+    """``P(1 - V, V)`` as an arb_poly in ``V``, exactly, for the coefficients ``c[i, j]`` of ``A^i V^j``."""
+    arb_poly = flint.arb_poly
     one_minus = arb_poly([1, -1])
-    series = arb_poly(0)
-    for i in range(H.shape[0] - 1, -1, -1):
-        series = series * one_minus + arb_poly([float(v) for v in H[i]])
-    series = series(arb_poly([0, 1 / T])) * (1 / T)
+    out = arb_poly(0)
+    for i in range(c.shape[0] - 1, -1, -1):
+        out = out * one_minus + arb_poly([float(v) for v in c[i]])
+    return out
+
+
+def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any) -> DistributedDelay | None:
+    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    series = line(arb_poly([0, 1 / T])) * (1 / T)
     size = _poly_sup(flint, series(arb_poly([0, T])))
     if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + arb(2.0**-60))):
         raise CertificationError(
             f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
-            f"{DEGREE}; the kernel route (kernel_grid=...) gives a model of the PDE"
+            f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
     stored = _pieces(flint, series, arb(0), T, float(T.mid()), arb(0), arb(0))
     if stored is None:
