@@ -513,7 +513,10 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     is None): ``N~`` in closed form and the gains' kernel with proven error bounds
     (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`,
     :func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`), so a proof about the loop is
-    a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
+    a proof about the PDE; also a :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`
+    whose couplings are functions of ``x`` with a proven ``N~`` and ``U~``
+    (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
+    a state feedback with integral gains. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
     studies. ``"observer"``: an :class:`OutputFeedback` whose state
     feedback takes the exact route; its observer term is computed in floating point with an
@@ -775,7 +778,8 @@ def loop_factors(
         One of the paper's controllers, or a :class:`StateFeedback`.
     kernel_grid : int, optional
         Default: the exact route where :func:`loop_route` allows it (constant
-        coefficients: ``N~`` in closed form, no grid), otherwise kernels on
+        coefficients: ``N~`` in closed form, no grid; couplings that are functions of ``x``:
+        ``N~`` with a proven error bound), otherwise kernels on
         :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points. Given, the
         kernel grid for ``N~`` (formerly ``n``, a deprecated alias): the cubic spline ``N~``
         carries the error of the kernels, about third order in ``1/kernel_grid`` for an odd
