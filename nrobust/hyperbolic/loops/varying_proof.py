@@ -67,7 +67,7 @@ __all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_fai
 #: Order of the Taylor model of each coupling on ``[0, 1]``.
 ORDER = 40
 #: Total degrees of the polynomials ``F^, G^`` of the Picard iteration, tried in turn.
-DEGREES = (48, 96)
+DEGREES = (56, 96)
 # Working precision (bits) of the residual.
 _PRECISION = 192
 # Relative agreement asked of the ball model with the coupling evaluated on arrays at x = 1/2.
