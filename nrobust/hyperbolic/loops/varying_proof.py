@@ -17,12 +17,15 @@ the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
 
 **The bound (a posteriori).** The couplings are Taylor models on ``[0, 1]``: a polynomial
 ``P_r`` (ball coefficients) with ``|k_r - P_r| <= eps_r`` and ``|k_r' - P_r'| <= eps_r'``,
-from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` and one on the ball
-``[0, 1]`` (as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for integral gains). A
-Picard iteration in floating point gives polynomials ``F^, G^`` of total degree
-:data:`DEGREES`. Their residual ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with
-the true couplings) is the polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball
-arithmetic, plus the models' remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
+from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` (``x = 1/2 + t/2``,
+the Taylor polynomial of order :data:`ORDER` - 1 in ``t``) and calls on 64 balls covering
+``[0, 1]``, whose coefficients of ``t^ORDER`` bound the Lagrange remainder (and, times
+``2 ORDER``, that of the derivative), as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for
+integral gains. A Picard iteration in floating point gives polynomials ``F^, G^`` of total
+degree ``n`` (the first of :data:`DEGREES` whose bound is small enough). Their residual
+``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
+polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
+remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
 ``|R_G| <= eps_w (|q| + sup |F^|)``. The error ``E = (F, G) - (F^, G^)`` solves ``E = R + L E``,
 ``L`` the linear part of ``T``; the integrals of ``L`` at a point with ``A + V = x`` run once
 over points with ``A + V`` from ``0`` to ``x``, so with ``m(x)`` the largest ``|E|`` on
