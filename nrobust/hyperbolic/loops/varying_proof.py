@@ -53,6 +53,7 @@ double precision, or a coupling too strong for :data:`DEGREES` has no proof:
 
 from __future__ import annotations
 
+import itertools
 import math
 from functools import lru_cache
 from typing import Any
@@ -63,7 +64,7 @@ from ..._flint import precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .exact_form import _pieces
+from .exact_form import MAX_PIECES, TARGET, expand_piece
 
 __all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
 
@@ -434,16 +435,36 @@ def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any) -> Distrib
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
-    stored = _pieces(flint, series, arb(0), T, float(T.mid()), arb(0), arb(0))
-    if stored is None:
+    tau = float(T.mid())
+    pieces = 8
+    while True:
+        mant, expo = math.frexp(tau / pieces)
+        h = math.ldexp(math.floor(mant * 2**40) / 2**40, expo)  # i h exact: nodes and widths are exact
+        nodes = [i * h for i in range(pieces)] + [tau]
+        done = [expand_piece(flint, series, arb(0), lo, hi - lo) for lo, hi in itertools.pairwise(nodes)]
+        scale = arb(0)
+        for _, _, size_j in done:
+            scale = arb.max(scale, size_j)
+        if all(bool(err < TARGET * scale + arb(2.0**-60)) for _, err, _ in done):
+            break
+        pieces *= 2
+        if pieces > MAX_PIECES:
+            raise CertificationError(f"the kernel needs more than {MAX_PIECES} pieces to reach double precision")
+    coefs = [c for c, _, _ in done]
+    if not np.any(np.asarray(coefs)):
         return None
+    piece_sup, piece_var = arb(0), arb(0)
+    for _, err, _ in done:
+        piece_sup, piece_var = arb.max(piece_sup, err), piece_var + err
+    for left, right in itertools.pairwise(coefs):  # the jumps of the stored pieces at the nodes
+        piece_var += abs(sum((arb(v) for v in left), arb(0)) - arb(right[0]))
     return DistributedDelay(
-        stored.nodes,
+        np.asarray(nodes),
         None,
         interpolation="polynomial",
-        coefficients=stored.pieces[2],
-        radius=float((arb(stored.radius) + sup_err).upper()),
-        variation_radius=float((arb(stored.variation_radius) + var_err).upper()),
+        coefficients=np.asarray(coefs),
+        radius=float((piece_sup + sup_err).upper()),
+        variation_radius=float((piece_var + var_err).upper()),
     )
 
 
