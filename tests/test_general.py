@@ -32,6 +32,7 @@ from nrobust.hyperbolic import (
 )
 from nrobust.hyperbolic.analyses import ab_region, delay_margin, k_region, stability_chart, tradeoff
 from nrobust.hyperbolic.analyses.rouche import _varying_bound, rouche_delay_bound
+from nrobust.hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID
 from nrobust.hyperbolic.loops.controllers import StateFeedback, normalize
 from nrobust.hyperbolic.loops.feedback import feedback_factor, laplace_loop_factors
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
@@ -243,7 +244,7 @@ def test_paper_controllers_are_state_feedbacks():
     for controller in (ReflectionController(0.1), FiniteTimeController()):
         law = controller.feedback_law(plant, kernels)
         P = feedback_factor(plant, law.boundary_gain, law.gain_u, law.gain_v)
-        _, B = loop_factors(plant, controller)
+        _, B = loop_factors(plant, controller, kernel_grid=DEFAULT_KERNEL_GRID)  # the kernels of the law
         # The kernel gains are P1 interpolants of the same tables: measured 4e-10.
         np.testing.assert_allclose(-P(S), B(S), atol=1e-8)
 
@@ -498,19 +499,24 @@ def test_studies_of_a_general_plant_equal_those_of_the_hand_plant():
     plant, hand = general_plant(), hand_plant()
     a = stability_chart(plant, [0.0, 0.1], [0.0, 0.5, 1.5])
     b = stability_chart(hand, [0.0, 0.1], [0.0, 0.5, 1.5])
-    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-8)  # measured equal to 1e-12
+    # The hand plant's couplings are functions with a proven N~ (exact route); the general plant's normal form
+    # has tabulated couplings (kernel route, 101 points, third order): measured apart by 2.2e-7 relative
+    # (here and below).
+    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-6)
     np.testing.assert_array_equal(a.values, b.values)
     a = ab_region(plant, 0.1, [0.0, 0.5], [0.2])
     b = ab_region(hand, 0.1, [0.0, 0.5], [0.2])
-    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-8)
+    np.testing.assert_allclose(a.margins, b.margins, rtol=1e-6)
     np.testing.assert_array_equal(a.strongly_stable, b.strongly_stable)
     for ctl in (ReflectionController(0.1), FiniteTimeController()):
-        np.testing.assert_allclose(rouche_delay_bound(plant, ctl).delta_0, rouche_delay_bound(hand, ctl).delta_0)
+        np.testing.assert_allclose(
+            rouche_delay_bound(plant, ctl).delta_0, rouche_delay_bound(hand, ctl).delta_0, rtol=1e-6
+        )
     # A family in physical coordinates: StateFeedback(k) acts on u(t, L), mapped to the normal form.
     form = plant.normal_form()
     physical = tradeoff(plant, [-0.2, 0.2], controller=StateFeedback)
     by_hand = [delay_margin(hand, StateFeedback(form.feedback_to_normal(k, 0.0, 0.0)[0])).margin for k in (-0.2, 0.2)]
-    np.testing.assert_allclose(physical.margins, by_hand, rtol=1e-8)
+    np.testing.assert_allclose(physical.margins, by_hand, rtol=1e-6)
     assert np.all(np.isnan(physical.rouche_bounds))
 
 

@@ -58,6 +58,7 @@ from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
+from .varying_proof import has_varying_proof, varying_proof
 
 __all__ = [
     "Classification",
@@ -512,7 +513,10 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     is None): ``N~`` in closed form and the gains' kernel with proven error bounds
     (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`,
     :func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`), so a proof about the loop is
-    a proof about the PDE. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
+    a proof about the PDE; also a :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`
+    whose couplings are functions of ``x`` with a proven ``N~`` and ``U~``
+    (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
+    a state feedback with integral gains. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
     studies. ``"observer"``: an :class:`OutputFeedback` whose state
     feedback takes the exact route; its observer term is computed in floating point with an
@@ -524,11 +528,24 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     if isinstance(controller, CollocatedOutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
         return "observer" if inner == "exact" and not _exact_collocated(system, controller) else inner
+    if kernel_grid is None and _proven_varying(system, controller):
+        return "exact"
     if kernel_grid is not None or not has_exact_form(system):
         return "kernels"
     if isinstance(controller, StateFeedback) and _integral_gains(controller):
         return "kernels" if gain_failure(system, controller.g_u, controller.g_v) is not None else "exact"
     return "exact"
+
+
+def _proven_varying(system: Any, controller: Any) -> bool:
+    """True for couplings that vary with ``x`` whose ``N~`` (and ``U~``) are proven, and a controller using only them.
+
+    :func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`: the paper's controllers and
+    a :class:`StateFeedback` without integral gains.
+    """
+    if isinstance(controller, StateFeedback) and _integral_gains(controller):
+        return False
+    return has_varying_proof(system)
 
 
 def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
@@ -558,6 +575,13 @@ def loop_scope(
         return _output_feedback_scope(system, controller, kernel_grid, factors)
     if isinstance(controller, CollocatedOutputFeedback):
         return _collocated_scope(system, controller, kernel_grid)
+    if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
+        radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
+        return (
+            "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
+            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; tau the double "
+            "nearest 1/lam + 1/mu)"
+        )
     if loop_route(system, controller, kernel_grid) == "exact":
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         kernel = (
@@ -729,7 +753,7 @@ def _exact_factors(
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` on the closed-form delay form (:func:`loop_route` is ``"exact"``)."""
     _check_controller(controller)
-    form = exact_form(system)
+    form = exact_form(system) if has_exact_form(system) else varying_proof(system)  # type: ignore[arg-type]
     i_n = QuasiPolynomial([], [], [form.N_tilde]) if form.N_tilde is not None else QuasiPolynomial([[0.0]], [0.0])
     round_trip = QuasiPolynomial([[form.q]], [form.tau])
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
@@ -754,7 +778,8 @@ def loop_factors(
         One of the paper's controllers, or a :class:`StateFeedback`.
     kernel_grid : int, optional
         Default: the exact route where :func:`loop_route` allows it (constant
-        coefficients: ``N~`` in closed form, no grid), otherwise kernels on
+        coefficients: ``N~`` in closed form, no grid; couplings that are functions of ``x``:
+        ``N~`` with a proven error bound), otherwise kernels on
         :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points. Given, the
         kernel grid for ``N~`` (formerly ``n``, a deprecated alias): the cubic spline ``N~``
         carries the error of the kernels, about third order in ``1/kernel_grid`` for an odd

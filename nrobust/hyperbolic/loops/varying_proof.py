@@ -1,0 +1,477 @@
+"""``N~`` of eq. (40) with a proven error bound for couplings that vary with ``x`` (constant speeds).
+
+For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
+``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
+:mod:`~nrobust.hyperbolic.loops.varying_form` (``docs/theory.md``, "Varying speed ratio") has
+``T(x) = tau x``, so ``x`` itself is the characteristic time in units of ``tau``. In the
+coordinates ``A = (theta - nu) / tau``, ``V = nu / tau`` of the triangle
+``A, V >= 0``, ``A + V <= 1`` (``A + V = x``), with ``k_r = sigma_pm / lam``,
+``k_w = -sigma_mp / mu`` (the ``p, m`` of :mod:`~nrobust.hyperbolic.loops.exact_form`) and the
+scaled unknowns ``F = tau f``, ``G = tau g``, the Goursat system is the Volterra system::
+
+    F(A, V) = k_r(A)   + int_0^V k_r(A + S) G(A, S) dS,
+    G(A, V) = q k_w(V) + int_0^A k_w(A' + V) F(A', V) dA',
+
+and ``N~(nu) = (G - rho F)(1 - V, V) / tau`` at ``V = nu / tau`` (for constant couplings it is
+the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
+
+**The bound (a posteriori).** The couplings are Taylor models on ``[0, 1]``: a polynomial
+``P_r`` (ball coefficients) with ``|k_r - P_r| <= eps_r`` and ``|k_r' - P_r'| <= eps_r'``,
+from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` (``x = 1/2 + t/2``,
+the Taylor polynomial of order :data:`ORDER` - 1 in ``t``) and calls on 64 balls covering
+``[0, 1]``, whose coefficients of ``t^ORDER`` bound the Lagrange remainder (and, times
+``2 ORDER``, that of the derivative), as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for
+integral gains. A Picard iteration in floating point gives polynomials ``F^, G^`` of total
+degree ``n`` (the first of :data:`DEGREES` whose bound is small enough). Their residual
+``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
+polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
+remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
+``|R_G| <= eps_w (|q| + sup |F^|)``. The error ``E = (F, G) - (F^, G^)`` solves ``E = R + L E``,
+``L`` the linear part of ``T``; the integrals of ``L`` at a point with ``A + V = x`` run once
+over points with ``A + V`` from ``0`` to ``x``, so with ``m(x)`` the largest ``|E|`` on
+``A + V <= x`` and ``C = max(sup |k_r|, sup |k_w|)``, ``m(x) <= sup |R| + C int_0^x m``, and by
+Gronwall's lemma::
+
+    |E| <= M = sup |R| e^C.
+
+Differentiating the Volterra system gives the derivatives of ``E``:
+``|d_V E_F| <= sup |d_V R_F| + C M``, ``|d_A E_G| <= sup |d_A R_G| + C M``,
+``|d_A E_F| <= sup |d_A R_F| + C' M + C (sup |d_A R_G| + C M)`` and the same with ``F, G``,
+``A, V`` exchanged, ``C' = max(sup |k_r'|, sup |k_w'|)``. Along ``A = 1 - V``,
+``|N~ - N^| <= (1 + |rho|) M / tau`` and the total variation of ``N~ - N^`` on ``[0, tau]`` is at
+most ``sup |(d_V - d_A)(E_G - rho E_F)| / tau``. The sups of polynomials on the triangle are
+bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` there).
+``N^`` is then stored as polynomial pieces by
+:func:`~nrobust.hyperbolic.loops.exact_form.expand_piece` (the rounding of each piece added to
+the bounds): a ball enclosure built on it holds for the PDE itself.
+
+A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
+analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
+double precision, or a coupling too strong for :data:`DEGREES` has no proof:
+:func:`varying_failure` says why and the kernel route (a model of the PDE) is used.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..._flint import precision, require_flint
+from ...errors import CertificationError, ParameterError
+from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .exact_form import MAX_PIECES, TARGET, expand_piece
+
+__all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
+
+#: Order of the Taylor model of each coupling on ``[0, 1]``.
+ORDER = 40
+#: Total degrees of the polynomials ``F^, G^`` of the Picard iteration, tried in turn.
+DEGREES = (56, 96)
+# Working precision (bits) of the residual.
+_PRECISION = 192
+# Relative agreement asked of the ball model with the coupling evaluated on arrays at x = 1/2.
+_AGREEMENT = 1e-8
+# Largest residual accepted, relative to the size of N~ (beyond it the proof would say little).
+_RESIDUAL = 2.0**-27
+# Balls covering [0, 1] on which the coefficient of order ORDER of a coupling's model is bounded.
+_TOP_BALLS = 64
+# Balls covering [0, 1] in the bounds of univariate polynomials.
+_SUP_BALLS = 64
+
+
+class VaryingProof:
+    """``N~`` and ``U~`` of a plant with varying couplings, with proven error bounds (module notes).
+
+    Attributes
+    ----------
+    tau, q, rho_q : float
+        ``1/lam + 1/mu``, ``q`` and ``rho q``.
+    N_tilde, U_tilde : DistributedDelay or None
+        Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
+        to the PDE's kernels (sup and total variation). ``U~ = f(tau, .)``: the
+        ``u`` row of the fundamental matrix applied to ``[q; 1]``, as for the closed form.
+    characteristic : QuasiPolynomial
+        ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
+    u_factor : QuasiPolynomial
+        ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
+        ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu``.
+    """
+
+    __slots__ = ("N_tilde", "U_tilde", "characteristic", "q", "rho_q", "tau", "u_factor")
+
+    def __init__(
+        self, tau: float, q: float, rho_q: float, N_tilde: DistributedDelay | None, U_tilde: DistributedDelay | None
+    ) -> None:
+        self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
+        self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
+        self.u_factor = QuasiPolynomial([[q]], [tau], [U_tilde] if U_tilde is not None else [])
+
+
+def has_varying_proof(system: object) -> bool:
+    """True for a :class:`Hyperbolic2x2` with a coupling given as a function whose ``N~`` is proven."""
+    return isinstance(system, Hyperbolic2x2) and not system.constant_couplings and varying_failure(system) is None
+
+
+def varying_failure(system: Hyperbolic2x2) -> str | None:
+    """Why :func:`varying_proof` cannot prove ``N~`` of this plant (None when it can)."""
+    out = _attempt(system)
+    return out if isinstance(out, str) else None
+
+
+def varying_proof(system: Hyperbolic2x2) -> VaryingProof:
+    """``N~`` of a plant with couplings that vary with ``x``, with a proven error (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
+        of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate.
+
+    Returns
+    -------
+    VaryingProof
+
+    Raises
+    ------
+    ParameterError
+        Not a :class:`Hyperbolic2x2`.
+    CertificationError
+        A coupling that cannot be enclosed, or a residual too large to be useful
+        (:func:`varying_failure` gives the reason).
+    """
+    out = _attempt(system)
+    if isinstance(out, str):
+        raise CertificationError(out)
+    return out
+
+
+def _attempt(system: Hyperbolic2x2) -> VaryingProof | str:
+    """The proof, or why there is none (cached for hashable plants: routes ask several times)."""
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 (constant speeds)", system)
+    try:
+        hash(system)
+    except TypeError:
+        return _attempt_uncached(system)
+    return _attempt_cached(system)
+
+
+@lru_cache(maxsize=16)
+def _attempt_cached(system: Hyperbolic2x2) -> VaryingProof | str:
+    return _attempt_uncached(system)
+
+
+def _attempt_uncached(system: Hyperbolic2x2) -> VaryingProof | str:
+    try:
+        return _proof(system)
+    except CertificationError as exc:
+        return str(exc)
+
+
+# --------------------------------------------------------------------------- coupling models
+
+
+def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any, Any, Any]:
+    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``."""
+    arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
+    if not callable(value):
+        return arb_poly([arb(float(value)) * scale]), arb(0), arb(0)
+
+    def call(centre: Any) -> list[Any]:
+        holder = np.empty(1, dtype=object)
+        holder[0] = arb_series([centre, arb(0.5)], prec=ORDER + 1)
+        cap = flint.ctx.cap
+        flint.ctx.cap = ORDER + 1  # series functions truncate at the global cap
+        try:
+            out = value(holder)
+        except (TypeError, ValueError, ArithmeticError, AttributeError) as exc:
+            raise CertificationError(
+                f"the coupling {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
+            ) from None
+        finally:
+            flint.ctx.cap = cap
+        if isinstance(out, np.ndarray) and out.size == 1:
+            out = out.reshape(-1)[0]
+        if isinstance(out, (int, float)) and not isinstance(out, bool):
+            out = arb_series([arb(float(out))], prec=ORDER + 1)
+        if not isinstance(out, arb_series):
+            raise CertificationError(
+                f"the coupling {name} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})"
+            )
+        if out.prec < ORDER + 1:
+            raise CertificationError(f"the coupling {name} gave a series truncated before the order {ORDER}")
+        coefs = list(out.coeffs())[: ORDER + 1]
+        coefs += [arb(0)] * (ORDER + 1 - len(coefs))
+        return coefs
+
+    head = call(arb(0.5))[:ORDER]
+    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball)
+    top = arb(0)
+    for k in range(_TOP_BALLS):
+        top = arb.max(top, abs(call(arb((2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS) + 2.0**-30))[ORDER]))
+    if not (all(c.is_finite() for c in head) and top.is_finite()):
+        raise CertificationError(f"the coupling {name} is not enclosed by finite balls on [0, 1] (not analytic there)")
+    floating = float(at(np.array([0.5]))[0])
+    if abs(floating - float(head[0].mid())) > _AGREEMENT * (1.0 + abs(floating)) + float(head[0].rad()):
+        raise CertificationError(
+            f"the coupling {name} gives {float(head[0].mid())!r} on balls and {floating!r} on arrays at x = 0.5"
+        )
+    # x = 1/2 + t/2: the model in t, then in x (t = 2 x - 1); the remainder is |top| |t|^ORDER.
+    poly = arb_poly(head)(arb_poly([-1, 2])) * scale
+    eps = abs(top) * abs(scale)
+    return poly, eps, 2 * ORDER * eps
+
+
+# --------------------------------------------------------------------------- bivariate polynomials
+
+
+def _shift(coef: np.ndarray, n: int) -> np.ndarray:
+    """Coefficients ``c[i, j]`` of ``P(A + V)`` (``A^i V^j``) from those of ``P(x)``, total degree <= n."""
+    out = np.zeros((n + 1, n + 1))
+    for k, c in enumerate(coef[: n + 1]):
+        for i in range(k + 1):
+            out[i, k - i] = c * math.comb(k, i)
+    return out
+
+
+def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Product truncated to the total degree of ``a`` (floating point)."""
+    n = a.shape[0] - 1
+    from scipy.signal import fftconvolve  # lazily: a slow import
+
+    full = fftconvolve(a, b)[: n + 1, : n + 1]
+    i, j = np.indices(full.shape)
+    full[i + j > n] = 0.0
+    return full
+
+
+def _integrate(c: np.ndarray, axis: int) -> np.ndarray:
+    """Antiderivative from 0 along ``axis`` (0: ``A``, 1: ``V``), truncated to the total degree of ``c``."""
+    n = c.shape[0] - 1
+    out = np.zeros_like(c)
+    k = np.arange(1, n + 1, dtype=float)
+    if axis == 1:
+        out[:, 1:] = c[:, :-1] / k
+    else:
+        out[1:, :] = c[:-1, :] / k[:, None]
+    i, j = np.indices(out.shape)
+    out[i + j > n] = 0.0
+    return out
+
+
+def _picard(kr: np.ndarray, kw: np.ndarray, q: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``F^, G^``: the Picard iteration of the Volterra system in floating point (module notes)."""
+    KR, KW = _shift(kr, n), _shift(kw, n)
+    base_f = np.zeros((n + 1, n + 1))
+    base_f[: len(kr[: n + 1]), 0] = kr[: n + 1]
+    base_g = np.zeros((n + 1, n + 1))
+    base_g[0, : len(kw[: n + 1])] = q * kw[: n + 1]
+    F, G = base_f, base_g
+    with np.errstate(all="ignore"):  # a divergent iteration is caught below
+        for _ in range(4 * n):
+            F_new = base_f + _integrate(_mul(KR, G), 1)
+            G_new = base_g + _integrate(_mul(KW, F), 0)
+            change = np.max(np.abs(F_new - F)) + np.max(np.abs(G_new - G))
+            F, G = F_new, G_new
+            if not np.isfinite(change) or change <= 1e-18 * (1.0 + np.max(np.abs(F)) + np.max(np.abs(G))):
+                break
+    if not (np.all(np.isfinite(F)) and np.all(np.isfinite(G))):
+        raise CertificationError(
+            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong); the "
+            "kernel route (kernel_grid=...) gives a model of the PDE"
+        )
+    return F, G
+
+
+class _Bi:
+    """Bivariate polynomials in ball arithmetic: ``A^i V^j`` at ``y^(i + K j)`` of an arb_poly (Kronecker)."""
+
+    def __init__(self, flint: Any, n: int) -> None:
+        self.flint = flint
+        self.K = n + ORDER + 2  # above the degree in A of every product formed (total degree n)
+
+    def from_array(self, c: np.ndarray) -> Any:
+        coefs = [0.0] * (self.K * c.shape[1])
+        for i, j in zip(*np.nonzero(c)):
+            coefs[i + self.K * j] = float(c[i, j])
+        return self.flint.arb_poly(coefs)
+
+    def shifted(self, p: Any) -> Any:
+        """``P(A + V)`` from the arb_poly ``P(x)``."""
+        y = [0] * (self.K + 1)
+        y[1] = y[self.K] = 1
+        return p(self.flint.arb_poly(y))
+
+    def terms(self, p: Any) -> dict[tuple[int, int], Any]:
+        out = {}
+        for n, c in enumerate(p.coeffs()):
+            if not c.is_zero():
+                out[(n % self.K, n // self.K)] = c
+        return out
+
+    def from_terms(self, terms: dict[tuple[int, int], Any]) -> Any:
+        arb = self.flint.arb
+        size = 1 + max((i + self.K * j for i, j in terms), default=0)
+        coefs = [arb(0)] * size
+        for (i, j), c in terms.items():
+            coefs[i + self.K * j] = c
+        return self.flint.arb_poly(coefs)
+
+    def integrate(self, p: Any, axis: int) -> Any:
+        arb = self.flint.arb
+        return self.from_terms(
+            {(i + 1 - axis, j + axis): c / arb(j + 1 if axis else i + 1) for (i, j), c in self.terms(p).items()}
+        )
+
+    def derivative(self, p: Any, axis: int) -> Any:
+        return self.from_terms(
+            {
+                (i - 1 + axis, j - axis): c * (j if axis else i)
+                for (i, j), c in self.terms(p).items()
+                if (j if axis else i)
+            }
+        )
+
+    def sup(self, p: Any) -> Any:
+        """A bound of ``|P|`` on the triangle ``A, V >= 0, A + V <= 1``."""
+        arb = self.flint.arb
+        total = arb(0)
+        for (i, j), c in self.terms(p).items():
+            n = i + j
+            peak = arb(1) if 0 in (i, j) else (arb(i) ** i * arb(j) ** j) / arb(n) ** n
+            total += abs(c) * peak
+        return total
+
+
+# --------------------------------------------------------------------------- the proof
+
+
+def _proof(system: Hyperbolic2x2) -> VaryingProof:
+    flint = require_flint()
+    arb = flint.arb
+    lam, mu, q, rho = system.lam, system.mu, system.q, system.rho
+    tau = system.tau
+    with precision(flint, _PRECISION):
+        Pr, er, er1 = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(lam), "sigma_pm")
+        Pw, ew, ew1 = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(mu), "sigma_mp")
+        for P, eps, name in ((Pr, er, "sigma_pm"), (Pw, ew, "sigma_mp")):
+            if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
+                raise CertificationError(
+                    f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
+                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1]; the kernel route "
+                    "(kernel_grid=...) gives a model of the PDE"
+                )
+        for n in DEGREES:
+            try:
+                n_tilde, u_tilde = _kernels(flint, (Pr, er, er1), (Pw, ew, ew1), q, rho, tau, n)
+                break
+            except CertificationError:
+                if n == DEGREES[-1]:
+                    raise
+    return VaryingProof(tau, q, rho * q, n_tilde, u_tilde)
+
+
+def _kernels(
+    flint: Any, model_r: tuple[Any, Any, Any], model_w: tuple[Any, Any, Any], q: float, rho: float, tau: float, n: int
+) -> tuple[DistributedDelay | None, DistributedDelay | None]:
+    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    (Pr, er, er1), (Pw, ew, ew1) = model_r, model_w
+    kr = np.array([float(c.mid()) for c in Pr.coeffs()] or [0.0])
+    kw = np.array([float(c.mid()) for c in Pw.coeffs()] or [0.0])
+    F_hat, G_hat = _picard(kr, kw, q, n)
+    bi = _Bi(flint, n)
+    F, G = bi.from_array(F_hat), bi.from_array(G_hat)
+    Q = arb(q)
+    # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic
+    RF = Pr - F  # k_r(A): P_r in the variable A = y
+    RF += bi.integrate(bi.shifted(Pr) * G, 1)
+    RG = Pw(arb_poly([0] * bi.K + [1])) * Q - G  # q k_w(V): V = y^K
+    RG += bi.integrate(bi.shifted(Pw) * F, 0)
+    sup_F, sup_G = bi.sup(F), bi.sup(G)
+    sF_V, sG_A = bi.sup(bi.derivative(F, 1)), bi.sup(bi.derivative(G, 0))
+    res = arb.max(bi.sup(RF) + er * (1 + sup_G), bi.sup(RG) + ew * (abs(Q) + sup_F))
+    rF_V = bi.sup(bi.derivative(RF, 1)) + er * sup_G
+    rF_A = bi.sup(bi.derivative(RF, 0)) + er1 * (1 + sup_G) + er * sG_A
+    rG_A = bi.sup(bi.derivative(RG, 0)) + ew * sup_F
+    rG_V = bi.sup(bi.derivative(RG, 1)) + ew1 * (abs(Q) + sup_F) + ew * sF_V
+    C = arb.max(_poly_sup(flint, Pr) + er, _poly_sup(flint, Pw) + ew)
+    C1 = arb.max(_poly_sup(flint, Pr.derivative()) + er1, _poly_sup(flint, Pw.derivative()) + ew1)
+    M = res * C.exp()
+    eF_V, eG_A = rF_V + C * M, rG_A + C * M
+    eF_A = rF_A + C1 * M + C * eG_A
+    eG_V = rG_V + C1 * M + C * eF_V
+    T, R = arb(tau), arb(rho)
+    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau
+    F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
+    n_tilde = _store(flint, G_line - F_line * R, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T)
+    u_tilde = _store(flint, F_line, T, M / T, (eF_V + eF_A) / T)
+    return n_tilde, u_tilde
+
+
+def _along(flint: Any, c: np.ndarray) -> Any:
+    """``P(1 - V, V)`` as an arb_poly in ``V``, exactly, for the coefficients ``c[i, j]`` of ``A^i V^j``."""
+    arb_poly = flint.arb_poly
+    one_minus = arb_poly([1, -1])
+    out = arb_poly(0)
+    for i in range(c.shape[0] - 1, -1, -1):
+        out = out * one_minus + arb_poly([float(v) for v in c[i]])
+    return out
+
+
+def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any) -> DistributedDelay | None:
+    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    series = line(arb_poly([0, 1 / T])) * (1 / T)
+    size = _poly_sup(flint, series(arb_poly([0, T])))
+    if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + arb(2.0**-60))):
+        raise CertificationError(
+            f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
+            f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
+            f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
+        )
+    tau = float(T.mid())
+    pieces = 8
+    while True:
+        mant, expo = math.frexp(tau / pieces)
+        h = math.ldexp(math.floor(mant * 2**40) / 2**40, expo)  # i h exact: nodes and widths are exact
+        nodes = [i * h for i in range(pieces)] + [tau]
+        done = [expand_piece(flint, series, arb(0), lo, hi - lo) for lo, hi in itertools.pairwise(nodes)]
+        scale = arb(0)
+        for _, _, size_j in done:
+            scale = arb.max(scale, size_j)
+        if all(bool(err < TARGET * scale + arb(2.0**-60)) for _, err, _ in done):
+            break
+        pieces *= 2
+        if pieces > MAX_PIECES:
+            raise CertificationError(f"the kernel needs more than {MAX_PIECES} pieces to reach double precision")
+    coefs = [c for c, _, _ in done]
+    if not np.any(np.asarray(coefs)):
+        return None
+    piece_sup, piece_var = arb(0), arb(0)
+    for _, err, _ in done:
+        piece_sup, piece_var = arb.max(piece_sup, err), piece_var + err
+    for left, right in itertools.pairwise(coefs):  # the jumps of the stored pieces at the nodes
+        piece_var += abs(sum((arb(v) for v in left), arb(0)) - arb(right[0]))
+    return DistributedDelay(
+        np.asarray(nodes),
+        None,
+        interpolation="polynomial",
+        coefficients=np.asarray(coefs),
+        radius=float((piece_sup + sup_err).upper()),
+        variation_radius=float((piece_var + var_err).upper()),
+    )
+
+
+def _poly_sup(flint: Any, p: Any) -> Any:
+    """A bound of ``|p(x)|`` on ``[0, 1]`` (``p`` an arb_poly), from its values on 64 balls covering it."""
+    arb = flint.arb
+    out = arb(0)
+    for k in range(_SUP_BALLS):
+        out = arb.max(out, abs(p(arb((2 * k + 1) / (2 * _SUP_BALLS), 1 / (2 * _SUP_BALLS)))))
+    return out
