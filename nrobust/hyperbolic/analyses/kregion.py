@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._digits import with_accuracy
 from ..._json import fields_dict, json_safe
+from ..._progress import show_progress
 from ..._validate import positive, positive_int, renamed_keywords
 from ...errors import CertificationError, ParameterError
 from ...margins.admissible import GainVerdict, check_gain_end, gain_verdict, tolerates
@@ -172,8 +173,11 @@ def _exact_region(
     probes: list[float] = []
     for lo, hi in pairs:
         probes += [lo.K + tol, hi.K - tol]
-    run = mapper(executor, progress, "k_region: delay margins")
-    results = list(run(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
+    verdict = _LoopMargin(loop, delta_max, max_evals)
+    if isinstance(executor, str) and executor == "serial" and not show_progress(progress):
+        results = [verdict(K) for K in [*grid, *probes]]  # no bar to draw: tqdm is not even imported
+    else:
+        results = list(mapper(executor, progress, "k_region: delay margins")(verdict, [*grid, *probes]))
     margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
     checks = iter(results[grid.size :])
     for lo, hi in pairs:
