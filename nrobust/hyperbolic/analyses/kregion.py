@@ -32,14 +32,15 @@ __all__ = ["DEFAULT_N_GAINS", "MAX_GAINS", "KRegion", "k_region", "u_bs2_loop"]
 #: Default number of gains of the grid of :func:`k_region` (and of
 #: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their
 #: equations whatever the grid; its delay margins are reported and must agree with the
-#: intervals (a cross-check, about 0.2 s per gain on the paper's plant). For other
+#: intervals (a cross-check, a few hundredths of a second per gain on the paper's plant). For other
 #: controller families the grid has to put one gain inside each admissible interval, whose
 #: ends are then bisected.
 DEFAULT_N_GAINS = 9
 
 #: Most gains :func:`k_region` takes (``n_gains`` or the size of ``Ks``): each is a delay
-#: margin (about 0.2 s on the paper's plant), so this bound is about an hour of work on
-#: one core; a larger grid is refused before anything is allocated or computed.
+#: margin (a few hundredths of a second on the paper's plant, more near the strong-stability
+#: limit), so this bound is minutes of work on one core; a larger grid is refused before
+#: anything is allocated or computed.
 MAX_GAINS = 20_000
 
 
