@@ -19,6 +19,7 @@ from .axis import frequency_bound
 from .crossing import Crossing, axis_crossings, common_axis_zeros, crossing_search
 from .gain import AffineGainLoop, AxisBound, GainEnd, nominally_stable
 from .margin import DelayMargin
+from .search import SPARE_SEGMENTS
 
 __all__ = ["GainVerdict", "check_gain_end", "gain_verdict", "tolerates"]
 
@@ -72,7 +73,7 @@ def gain_verdict(loop: AffineGainLoop, K: float, delta_max: float, max_evals: in
         return GainVerdict(0.0, False, False, ())
     bound = AxisBound.of(loop)
     W = first[0] if bound is None else min(first[0], bound.W(K, K))
-    search, axis_gap = crossing_search(A, B, (W, first[1]), max_evals)
+    search, axis_gap = crossing_search(A, B, (W, first[1]), max_evals, SPARE_SEGMENTS)
     if common_axis_zeros(axis_gap, search).size:  # a root on the axis for every delay
         return GainVerdict(0.0, False, True, ())
     crossings, _ = axis_crossings(A, B, search, delta_max, axis_gap)

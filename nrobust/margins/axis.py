@@ -177,10 +177,20 @@ class AxisKernels:
                 self.terms[side].append((k, complex(sign * unit_sign), d.poly))
         self.abs_moments = [np.array([float(u.abs_moment(0.0, k)) for k in range(4)]) for u in self.units]
         self.contents = [_content(u) for u in self.units]
+        # the units with extra powers, looked up in _with_moment's cache once per evaluator (a look-up
+        # hashes and compares the kernel's arrays)
+        self._shifted: dict[tuple[int, int], DistributedDelay] = {}
 
     def sums(self, s: NDArray, extra: int) -> list[NDArray[np.complex128]]:
         """``J_{m+extra}(s)`` of every kernel (read-only arrays, remembered: :class:`_RememberedSums`)."""
-        return [_remembered_sum(u, c, extra, s) for u, c in zip(self.units, self.contents)]
+        return [_remembered_sum(self._shift(k, extra), c, extra, s) for k, c in enumerate(self.contents)]
+
+    def _shift(self, k: int, extra: int) -> DistributedDelay:
+        """Unit ``k`` with ``extra`` more powers of ``nu`` (:func:`_with_moment`)."""
+        shifted = self._shifted.get((k, extra))
+        if shifted is None:
+            shifted = self._shifted[(k, extra)] = _with_moment(self.units[k], extra)
+        return shifted
 
 
 def _content(unit: DistributedDelay) -> tuple:
@@ -200,7 +210,7 @@ def _content(unit: DistributedDelay) -> tuple:
 
 
 class _RememberedSums:
-    """``_with_moment(unit, extra)(s)``, computed once per equal kernel, moment and frequencies.
+    """``shifted(s)``, ``shifted = _with_moment(unit, extra)``, computed once per equal kernel, moment and frequencies.
 
     The searches of a gain study evaluate one kernel (``I_N``, in loops rebuilt for every gain)
     on the same grids where they share a gain or a frequency bound: the sums are kept by kernel
@@ -218,8 +228,9 @@ class _RememberedSums:
         # on the instance only, as on an lru_cache (the class itself is no cache to empty)
         self.cache_clear: Callable[[], None] = self._forget
 
-    def __call__(self, unit: DistributedDelay, content: tuple, extra: int, s: NDArray) -> NDArray[np.complex128]:
-        """The sum of ``unit`` (stored numbers ``content``, :func:`_content`) with ``extra`` more powers at ``s``."""
+    def __call__(self, shifted: DistributedDelay, content: tuple, extra: int, s: NDArray) -> NDArray[np.complex128]:
+        """The sum at ``s`` of ``shifted``, a unit (stored numbers ``content``, :func:`_content`) with
+        ``extra`` more powers (:func:`_with_moment`)."""
         # equal kernels stored as real and as complex numbers are summed differently: the types enter the key
         key = (content, extra, s.dtype.str, s.shape, s.tobytes())
         with self._lock:
@@ -227,7 +238,7 @@ class _RememberedSums:
             if hit is not None:
                 self._kept.move_to_end(key)
                 return hit
-        value = _with_moment(unit, extra)(s)
+        value = shifted(s)
         value.flags.writeable = False
         if value.nbytes <= _SUMS_KEPT_BYTES // 4:
             with self._lock:
@@ -341,9 +352,15 @@ class AxisGap:
                         out[side, k, lo : lo + part.size] = parts[k](part)
                 for unit, c, q in self.kernels.terms[side]:
                     j0, j1, j2 = sums[0][unit], sums[1][unit], sums[2][unit]
-                    q1 = npoly.polyder(q) if q.size > 1 else np.zeros(1)
-                    q2 = npoly.polyder(q1) if q1.size > 1 else np.zeros(1)
-                    v0, v1, v2 = (npoly.polyval(part, p) for p in (q, q1, q2))
+                    v0: complex | NDArray
+                    v1: complex | NDArray
+                    v2: complex | NDArray
+                    if q.size == 1:  # the usual term: q constant, its derivatives zero
+                        v0, v1, v2 = complex(q[0]), 0.0, 0.0
+                    else:
+                        q1 = npoly.polyder(q)
+                        q2 = npoly.polyder(q1) if q1.size > 1 else np.zeros(1)
+                        v0, v1, v2 = (npoly.polyval(part, p) for p in (q, q1, q2))
                     out[side, 0, lo : lo + part.size] += c * v0 * j0
                     out[side, 1, lo : lo + part.size] += c * (v1 * j0 - v0 * j1)
                     out[side, 2, lo : lo + part.size] += c * (v2 * j0 - 2.0 * v1 * j1 + v0 * j2)

@@ -175,9 +175,10 @@ def crossing_frequencies(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: i
 
 
 def crossing_search(
-    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int
+    A: QuasiPolynomial, B: QuasiPolynomial, w_bound: tuple[float, float], max_evals: int, spare: int = 0
 ) -> tuple[CrossingSearch, AxisGap]:
-    """The search, and the evaluator of ``|A|^2 - |B|^2`` it used (for :func:`axis_crossings`)."""
+    """The search, and the evaluator of ``|A|^2 - |B|^2`` it used (for :func:`axis_crossings`);
+    ``spare``: see :func:`~nrobust.margins.search.first_stage`."""
     W, gap = w_bound
     h = AxisFunction(A, B, max_evals, AxisKernels((A, B)))
     tau = max(A.max_delay, B.max_delay, 1.0 / max(W, 1.0))
@@ -185,7 +186,7 @@ def crossing_search(
     lipschitz = AxisLipschitz(A, B, h.kernels)
     hi = W * (1.0 + _EXTEND_REL) + _EXTEND_ABS
     lo = 0.0 if (A.is_real and B.is_real) else -hi
-    clusters = first_stage(h, lo, hi, lipschitz, step)
+    clusters = first_stage(h, lo, hi, lipschitz, step, spare)
     axis_gap = AxisGap(A, B, kernels=h.kernels)
     roots, tangential, slopes = resolve(axis_gap, h, *clusters)
     keep = sorted((w, k) for k, w in enumerate(roots) if abs(w) > ZERO_TOL * max(1.0, W))

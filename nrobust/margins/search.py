@@ -16,10 +16,11 @@ the moduli of the terms (the chirp-z sums err by up to about ``1e4 eps S``), and
 no zero on ``[w_i, w_{i+1}]`` and fixes its sign there. The grid starts at
 ``pi / (8 tau_max)``; the work bound ``max_evals`` is checked against its size before it
 is allocated, and each refinement is sized by what the bound leaves. It is refined
-uniformly (chirp-z evaluation) until 99 % of the segments pass, then clusters of
-unresolved segments are cut eightfold per round until at most 32 clusters of at most 128
-segments remain (one chunk of direct evaluations for the next stage) or the segments are
-narrower than ``1e-7 W``.
+uniformly (chirp-z evaluation) until 99 % of the segments pass (all but
+:data:`SPARE_SEGMENTS` on the short grids of a gain study), then clusters of unresolved
+segments are cut eightfold per round until at most 32 clusters of at most 128 segments
+remain (one chunk of direct evaluations for the next stage) or the segments are narrower
+than ``1e-7 W``.
 
 **Second-order resolution.** Each remaining cluster ``I`` (centre ``c``, radius ``r``)
 is decided on the smooth ``g``, with the bounds ``M_2``, ``M_3`` of ``|g''|``, ``|g'''|``
@@ -59,7 +60,7 @@ from numpy.typing import NDArray
 from ..errors import CertificationError, ConvergenceError
 from .axis import AxisFunction, AxisGap, AxisJet
 
-__all__ = ["UNIFORM_MAX", "UNIFORM_PASSES", "UNIFORM_QUANTILE", "first_stage", "resolve"]
+__all__ = ["SPARE_SEGMENTS", "UNIFORM_MAX", "UNIFORM_PASSES", "UNIFORM_QUANTILE", "first_stage", "resolve"]
 
 _EPS = float(np.finfo(float).eps)
 # Blocks of the frequency range, each with its own bound of |A'| + |B'|.
@@ -72,6 +73,10 @@ _MIN_WIDTH = 1e-7
 # Lipschitz block.
 UNIFORM_QUANTILE = 0.99
 UNIFORM_PASSES = 3
+#: Segments the uniform refinements of a gain study's search may leave to the cluster
+#: refinement (one chunk of the second stage): on a short range the 99 % quantile is the
+#: hardest segment, next to a crossing, and would refine the whole range for it.
+SPARE_SEGMENTS = 32
 UNIFORM_MAX = 1024
 # Each unresolved segment is cut into at least this many pieces per round, and a cluster
 # of contiguous segments into at least _LINE_POINTS (the evaluator sums the kernels as a
@@ -93,11 +98,20 @@ _NEWTON_STEPS = 40
 
 # ============================================================================ first-order search
 def first_stage(
-    h: AxisFunction, lo: float, hi: float, lipschitz: Callable[[NDArray, NDArray], NDArray], step: float
+    h: AxisFunction,
+    lo: float,
+    hi: float,
+    lipschitz: Callable[[NDArray, NDArray], NDArray],
+    step: float,
+    spare: int = 0,
 ) -> tuple[NDArray, NDArray, NDArray, NDArray]:
     """Clusters ``[p, q]`` where the exclusion test leaves a zero of ``h`` possible, with the
     certified signs of ``h`` at their ends (0 where the value is at rounding level and no
-    excluded neighbour fixes it)."""
+    excluded neighbour fixes it).
+
+    ``spare``: the uniform refinements leave up to that many segments to the cluster
+    refinement (:data:`SPARE_SEGMENTS` for the short ranges of a gain study) where their
+    quantile would leave fewer."""
     n_blocks = _LIPSCHITZ_BLOCKS
     per_block = max(1.0, np.ceil((hi - lo) / n_blocks / step))
     n_points = n_blocks * per_block + 1
@@ -118,7 +132,8 @@ def first_stage(
     for _ in range(UNIFORM_PASSES):
         room = np.maximum(np.abs(h_grid[:-1]) + np.abs(h_grid[1:]) - e_grid[:-1] - e_grid[1:], 1e-300)
         need = np.repeat(block_lipschitz, per_block) * np.diff(grid) / room
-        factor = int(np.clip(np.ceil(np.quantile(need, UNIFORM_QUANTILE)), 1, UNIFORM_MAX // per_block))
+        quantile = min(UNIFORM_QUANTILE, max(0.0, 1.0 - spare / need.size))
+        factor = int(np.clip(np.ceil(np.quantile(need, quantile)), 1, UNIFORM_MAX // per_block))
         factor = min(factor, 1 + (h.room() // 2) // (n_blocks * per_block))
         if factor <= 1:
             break

@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._digits import with_accuracy
 from ..._json import fields_dict, json_safe
+from ..._progress import show_progress
 from ..._validate import positive, positive_int, renamed_keywords
 from ...errors import CertificationError, ParameterError
 from ...margins.admissible import GainVerdict, check_gain_end, gain_verdict, tolerates
@@ -31,14 +32,15 @@ __all__ = ["DEFAULT_N_GAINS", "MAX_GAINS", "KRegion", "k_region", "u_bs2_loop"]
 #: Default number of gains of the grid of :func:`k_region` (and of
 #: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their
 #: equations whatever the grid; its delay margins are reported and must agree with the
-#: intervals (a cross-check, about 0.2 s per gain on the paper's plant). For other
+#: intervals (a cross-check, a few hundredths of a second per gain on the paper's plant). For other
 #: controller families the grid has to put one gain inside each admissible interval, whose
 #: ends are then bisected.
 DEFAULT_N_GAINS = 9
 
 #: Most gains :func:`k_region` takes (``n_gains`` or the size of ``Ks``): each is a delay
-#: margin (about 0.2 s on the paper's plant), so this bound is about an hour of work on
-#: one core; a larger grid is refused before anything is allocated or computed.
+#: margin (a few hundredths of a second on the paper's plant, more near the strong-stability
+#: limit), so this bound is minutes of work on one core; a larger grid is refused before
+#: anything is allocated or computed.
 MAX_GAINS = 20_000
 
 
@@ -172,8 +174,11 @@ def _exact_region(
     probes: list[float] = []
     for lo, hi in pairs:
         probes += [lo.K + tol, hi.K - tol]
-    run = mapper(executor, progress, "k_region: delay margins")
-    results = list(run(_LoopMargin(loop, delta_max, max_evals), [*grid, *probes]))
+    verdict = _LoopMargin(loop, delta_max, max_evals)
+    if isinstance(executor, str) and executor == "serial" and not show_progress(progress):
+        results = [verdict(K) for K in [*grid, *probes]]  # no bar to draw: tqdm is not even imported
+    else:
+        results = list(mapper(executor, progress, "k_region: delay margins")(verdict, [*grid, *probes]))
     margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
     checks = iter(results[grid.size :])
     for lo, hi in pairs:
