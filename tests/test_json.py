@@ -56,7 +56,13 @@ from nrobust.hyperbolic.loops.controllers import (
 )
 from nrobust.hyperbolic.loops.delay_form import delay_form
 from nrobust.hyperbolic.loops.varying_form import varying_delay_form
-from nrobust.hyperbolic.nplusm import NPlusMSystem, cancellation_study, design_nplusm_gains, nplusm_delay_margin
+from nrobust.hyperbolic.nplusm import (
+    NPlusMSystem,
+    cancellation_study,
+    design_nplusm_gains,
+    kernel_error_bound,
+    nplusm_delay_margin,
+)
 from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
 from nrobust.hyperbolic.plants.frontends import arz, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
@@ -198,6 +204,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "CancellationCase": cancellation_study(ONE_PLUS_ONE, [[0.5]], (-2.0, 1.0, -0.25, 6.0))[0],
         "MatrixDifferenceOperator": MD,
         "NPlusMKernels": solve_nplusm_kernels(ONE_PLUS_ONE, 11),
+        "KernelErrorBound": kernel_error_bound(solve_nplusm_kernels(ONE_PLUS_ONE, 11)),
         "NPlusMBackstepping": NPlusMBackstepping.for_system(ONE_PLUS_ONE, 11),
         "Gamma0": MD.gamma_0(rtol=1e-3),
         "ProvenCrossings": proven_crossings(A, B),
@@ -297,6 +304,7 @@ NAMES = [
     "MatrixDifferenceOperator",
     "NPlusMKernels",
     "NPlusMBackstepping",
+    "KernelErrorBound",
     "Gamma0",
     "ProvenCrossings",
     "QuasiPolynomialMatrix",
