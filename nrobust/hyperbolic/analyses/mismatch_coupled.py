@@ -50,7 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
-from ..._flint import precision, working_precision
+from ..._flint import precision, require_flint, working_precision
 from ..._validate import finite_real, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
@@ -58,7 +58,7 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, _hi, crossing_free
+from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, ball_upper, crossing_free
 
 __all__ = ["prove_coupled_square"]
 
@@ -83,8 +83,8 @@ class _Box:
         # radius of the kernel next to it (on Re z = 0, where the factors are evaluated, a radius r of a
         # kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
         rq, kq = system.rho * system.q, -k * system.q
-        err_a = _hi(abs(arb(system.rho) * arb(system.q) - arb(rq)))
-        err_b = _hi(abs(arb(k) * arb(system.q) + arb(kq)))
+        err_a = ball_upper(abs(arb(system.rho) * arb(system.q) - arb(rq)))
+        err_b = ball_upper(abs(arb(k) * arb(system.q) + arb(kq)))
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
         self.B = BallQuasiPolynomial(QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b))
         self.eta = (T.lower(), T.upper())  # tau over the box
@@ -98,8 +98,6 @@ class _Box:
 
 def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> tuple[Any, Any, Any, Any]:
     """python-flint and the balls of ``p``, ``m`` and ``tau`` over a box of relative speed errors."""
-    from ..._flint import require_flint
-
     flint = require_flint()
     arb = flint.arb
     a0, a1, b0, b1 = box
@@ -114,7 +112,7 @@ def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str)
     """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
     radius holding the kernel of every ``(p, m)`` of the balls."""
     arb = flint.arb
-    bits = PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
     with precision(flint, bits):
         series, bound, _ = closed_form_series(flint, arb(1), P, M, (which, q, rho))
         width = 1.0 / _PIECES
@@ -123,7 +121,7 @@ def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str)
             head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
             heads.append(head)
             err = arb.max(err, e)
-        return np.asarray(heads), _hi(bound + err)
+        return np.asarray(heads), ball_upper(bound + err)
 
 
 def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float, extra: float) -> QuasiPolynomial:
@@ -144,7 +142,7 @@ def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float
 def _variation(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> Any:
     """``V(G) = |G(0)| + |G(1)| + sup |G'|`` on ``[0, 1]`` for every ``(p, m)`` of the balls (step 1)."""
     arb = flint.arb
-    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))):
+    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))):
         series, bound, slope = closed_form_series(flint, arb(1), P, M, (which, q, rho))
         derivative = series.derivative()
         sup = arb(0)
@@ -219,13 +217,13 @@ def prove_coupled_square(
     with working_precision(53) as flint:
         arb = flint.arb
         _, P, M, T = _parameters(system, square)
-        taus = (math.nextafter(float(T.lower()), -math.inf), _hi(T.upper()))
+        taus = (math.nextafter(float(T.lower()), -math.inf), ball_upper(T.upper()))
         c_d = abs(arb(system.rho) * arb(system.q)) + abs(arb(k) * arb(system.q))
         if not c_d < 1:
             return SquareProof(
                 False,
                 f"the difference operator is not proven strongly stable (|rho q| + |k q| <= "
-                f"{upper_bound_text(_hi(c_d))}, not < 1): the loop is not stable for every delay of a window (Hale's "
+                f"{upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every delay of a window (Hale's "
                 "condition); a smaller gain |k| decides",
                 taus,
                 nan,
@@ -238,8 +236,8 @@ def prove_coupled_square(
                 flint, P, M, system.q, system.rho, "U"
             )
         except CertificationError as exc:
-            return SquareProof(False, str(exc), taus, nan, _hi(c_d), 0, nan)
-        W = _hi(v / (1 - c_d)) * (1.0 + 1e-6)
+            return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
+        W = ball_upper(v / (1 - c_d)) * (1.0 + 1e-6)
         if base is None:
             return SquareProof(
                 False,
@@ -247,7 +245,7 @@ def prove_coupled_square(
                 "them): the argument needs one point of the family",
                 taus,
                 W,
-                _hi(c_d),
+                ball_upper(c_d),
                 0,
                 nan,
             )
@@ -264,8 +262,8 @@ def prove_coupled_square(
             else f"the work bound max_boxes = {max_boxes} was reached (at tau w in [{w0:.6g}, {w1:.6g}], e_lam in "
             f"[{a0:.6g}, {a1:.6g}], e_mu in [{b0:.6g}, {b1:.6g}]); a larger max_boxes or a smaller tolerance decides"
         )
-        return SquareProof(False, why, taus, W, _hi(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
-    w_text, cd_text = upper_bound_text(W), upper_bound_text(_hi(c_d))
+        return SquareProof(False, why, taus, W, ball_upper(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
+    w_text, cd_text = upper_bound_text(W), upper_bound_text(ball_upper(c_d))
     return SquareProof(
         True,
         f"no zero on i [0, {w_text}] in the scaled frequency z = tau s for any (e_lam, e_mu) of the square and delay "
@@ -274,7 +272,7 @@ def prove_coupled_square(
         f"loop of corners[{base}] proven stable on the window: the count in Re s > 0 is 0 on the whole connected set",
         taus,
         W,
-        _hi(c_d),
+        ball_upper(c_d),
         boxes,
         nan,
         base,

@@ -87,7 +87,7 @@ from ..._flint import precision, require_flint
 from ..._json import fields_dict
 from ..._validate import positive_int
 from ...errors import ParameterError
-from .kernels import NPlusMKernels, _entry, _in_group_part, _rhs_matrix
+from .kernels import NPlusMKernels, entry_kind, in_group_part, rhs_matrix
 
 __all__ = ["KernelErrorBound", "kernel_error_bound"]
 
@@ -197,9 +197,9 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
     E = m * width
     N = kernels.grid.size
     Z = np.concatenate([kernels.K, kernels.L], axis=1).reshape(E, N, N)
-    M = _rhs_matrix(sys)
+    M = rhs_matrix(sys)
     lq = sys.lam[:, None] * sys.q
-    entries = [_entry(sys, a, b) for a in range(m) for b in range(width)]
+    entries = [entry_kind(sys, a, b) for a in range(m) for b in range(width)]
     slopes = np.array([sl for _, sl, _ in entries])
     rates = np.abs(1.0 - slopes)
     mu_row = np.repeat(mu, width)
@@ -268,7 +268,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
         growth = inv * mat(Vm)
         u = inv * mat(rho[:, None])
         step = (growth * (flint.arb(1) / pieces)).exp()
-        a_mat = np.diag(1.0 / mu) @ _in_group_part(sys)
+        a_mat = np.diag(1.0 / mu) @ in_group_part(sys)
         sym = 0.5 * (a_mat + a_mat.T)
         lognorm = max(0.0, max(sym[i, i] + np.abs(sym[i]).sum() - abs(sym[i, i]) for i in range(m)))
         lognorm = lognorm * (1 + 4 * _EPS) + 4 * _EPS

@@ -245,17 +245,17 @@ def _solve_by_levels(A: Any, rhs: NDArray[np.float64], bounds: NDArray[np.int64]
     return np.asarray(sol, dtype=float)
 
 
-def _in_group_part(system: NPlusMSystem) -> NDArray[np.float64]:
+def in_group_part(system: NPlusMSystem) -> NDArray[np.float64]:
     """``D``: the couplings of ``Sigma--`` between components of equal speed ``mu`` (diagonal included)."""
     mu = system.mu
     s_mm = system.sigma[system.n :, system.n :]
     return np.where(mu[:, None] == mu[None, :], s_mm, 0.0)
 
 
-def _rhs_matrix(system: NPlusMSystem) -> NDArray[np.float64]:
+def rhs_matrix(system: NPlusMSystem) -> NDArray[np.float64]:
     """``M`` with ``(Z Sigma - D Z)_e = sum_f M[e, f] Z_f``, the entries ``e = a (n + m) + b`` of ``Z = [K, L]``."""
     n, m = system.n, system.m
-    D = _in_group_part(system)
+    D = in_group_part(system)
     width = n + m
     M = np.zeros((m * width, m * width))
     for a in range(m):
@@ -268,7 +268,7 @@ def _rhs_matrix(system: NPlusMSystem) -> NDArray[np.float64]:
     return M
 
 
-def _entry(system: NPlusMSystem, a: int, b: int) -> tuple[str, float, float]:
+def entry_kind(system: NPlusMSystem, a: int, b: int) -> tuple[str, float, float]:
     """``(kind, slope, diagonal value)`` of the entry ``Z_ab``: its characteristic ``dxi/dx = slope``.
 
     ``kind`` is ``"K"`` (``b < n``), and for ``L_ac`` (``c = b - n``) ``"low"`` (``mu_c < mu_a``: from
@@ -420,7 +420,7 @@ def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusM
     lam, mu = system.lam, system.mu
     width = n + m
     E = m * width
-    M = _rhs_matrix(system)
+    M = rhs_matrix(system)
     lq = lam[:, None] * system.q  # Lambda+ Q, (n, m)
     h, T = 1.0 / (N - 1), N * (N + 1) // 2
     rows: list[NDArray[np.int64]] = []
@@ -442,7 +442,7 @@ def solve_nplusm_kernels(system: NPlusMSystem, kernel_grid: int = 101) -> NPlusM
     for a in range(m):
         for b in range(width):
             e = a * width + b
-            kind, slope, diag = _entry(system, a, b)
+            kind, slope, diag = entry_kind(system, a, b)
             d = -1 if kind == "reverse" else 1  # the foot lies on level i - d
             for i in range(N):
                 j = np.arange(i + 1)
@@ -668,7 +668,7 @@ class NPlusMBackstepping:
         g = self.kernels.G * mask[:, :, None] / sys.mu[:, None, None]  # Lambda-^{-1} G(x_k), (m, m, N)
         xi = self.kernels.grid
         h = float(xi[1] - xi[0])
-        C = (_in_group_part(sys) / sys.mu[:, None])[None] - flat[:, None, None] * np.diag(1.0 / sys.mu)[None]
+        C = (in_group_part(sys) / sys.mu[:, None])[None] - flat[:, None, None] * np.diag(1.0 / sys.mu)[None]
         step, i0, i1 = _cell_moments(C, h)
         phi = np.broadcast_to(np.eye(m, dtype=complex), (flat.size, m, m)).copy()
         acc = np.zeros((flat.size, m, m), dtype=complex)
