@@ -223,7 +223,8 @@ def prove_coupled_square(
             return SquareProof(
                 False,
                 f"the difference operator is not proven strongly stable (|rho q| + |k q| <= "
-                f"{upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every delay of a window (Hale's "
+                f"{upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every delay of a window "
+                "(Hale's "
                 "condition); a smaller gain |k| decides",
                 taus,
                 nan,

@@ -183,7 +183,8 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
             return 0.0, ball_upper(c_d)
         return (
             "the difference operator 1 - rho q e^{-tau s} - k q e^{-(tau + delta) s} is not proven strongly stable "
-            f"(|rho q| + |k q| <= {upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every delay "
+            f"(|rho q| + |k q| <= {upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every "
+            "delay "
             "of a window and every speed of the square (Hale's condition); a smaller gain |k| decides"
         )
     # |1 + b s|^2 = 1 + 2 b Re s + b^2 |s|^2 >= L(|s|)^2 = 1 + b^2 |s|^2 on Re s >= 0, and
@@ -194,8 +195,8 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
     if not c_d < 1:
         return (
             "the difference operator is not proven strongly stable (c_D = |rho q| + |k q a / b| <= "
-            f"{upper_bound_text(ball_upper(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller against b "
-            "decides"
+            f"{upper_bound_text(ball_upper(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller "
+            "against b decides"
         )
     # L^2 - U^2 = h(r) = (p01^2 - u1^2) r^2 - 2 u0 u1 r + p00^2 - u0^2, convex: L > U on [W, inf)
     # once h(W) > 0 and h'(W) > 0 (or h has no real root)
