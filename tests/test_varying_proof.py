@@ -165,3 +165,63 @@ def test_a_coupling_with_a_pole_near_the_interval_is_refused():
     assert reason is not None and loop_route(plant, OpenLoop()) == "kernels"
     with pytest.raises(CertificationError):
         varying_proof(plant)
+
+
+def test_a_coupling_changed_since_its_proof_is_proven_again():
+    # A function reading a variable the user changed: a new plant built on the same function object
+    # equals the old one, and a cached proof of the old couplings would be called the PDE's.
+    scale = [1.0]
+
+    def pm(x):
+        return scale[0] * np.sin(3.0 * x)
+
+    first = varying_proof(Hyperbolic2x2(LAM, MU, pm, _mp, Q, RHO))
+    scale[0] = 2.0
+    again = varying_proof(Hyperbolic2x2(LAM, MU, pm, _mp, Q, RHO))
+    fresh = varying_proof(Hyperbolic2x2(LAM, MU, lambda x: 2.0 * np.sin(3.0 * x), _mp, Q, RHO))
+    s = np.array([0.3 + 2.0j, 5.0j])
+    # the same function evaluated twice (proof radius about 1e-13); the stale proof differs at O(1)
+    np.testing.assert_allclose(again.characteristic(s), fresh.characteristic(s), rtol=0, atol=1e-12)
+    assert np.max(np.abs(first.characteristic(s) - fresh.characteristic(s))) > 1e-2
+
+
+def test_a_coupling_that_raises_on_balls_takes_the_kernel_route():
+    class Table:  # acts on float arrays only, raising its own exception on anything else
+        def __call__(self, x):
+            if np.asarray(x).dtype == object:
+                raise NotImplementedError("floats only")
+            return 1.0 + 0.5 * np.sin(3.0 * x)
+
+    plant = Hyperbolic2x2(LAM, MU, Table(), _mp, Q, RHO)
+    assert "floats only" in varying_failure(plant)
+    assert loop_route(plant, ReflectionController(K)) == "kernels"
+
+
+def test_a_coupling_acting_differently_on_balls_is_refused():
+    def pm(x):  # agrees with its array values at x = 1/2 only
+        bump = (x - 0.5) ** 2 if np.asarray(x).dtype == object else 0.0 * x
+        return np.sin(3.0 * x) + bump
+
+    reason = varying_failure(Hyperbolic2x2(LAM, MU, pm, _mp, Q, RHO))
+    assert reason is not None and "on balls and" in reason
+
+
+def test_speeds_other_than_one_against_the_ode():
+    # lam = 2.3, mu = 0.7: the 1/lam and 1/mu of the Volterra form against mpmath's ODE solution
+    lam, mu = 2.3, 0.7
+    proof = varying_proof(Hyperbolic2x2(lam, mu, _pm, _mp, Q, RHO))
+    for s in (0.7j, 1.0 + 10.0j):
+        with mp.workdps(20):
+            z = mp.mpc(s)
+
+            def rhs(x, y, z=z):
+                return [
+                    (-z * y[0] + (1 + mp.mpf(0.5) * mp.sin(3 * x)) * y[1]) / lam,
+                    (z * y[1] - 2 * mp.exp(-x) * y[0]) / mu,
+                ]
+
+            u, v = mp.odefun(rhs, 0, [mp.mpf(Q), mp.mpf(1)])(1)
+            want = complex(mp.exp(-z / mu) * (v - RHO * u))
+        # normalised as the characteristic function (1 at s = inf along the real axis)
+        got = complex(proof.characteristic(np.array([s]))[0])
+        np.testing.assert_allclose(got, want, rtol=1e-10)  # proof radius ~1e-13, mpmath at 20 digits
