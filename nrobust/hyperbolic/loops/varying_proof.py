@@ -23,7 +23,8 @@ the Taylor polynomial of order :data:`ORDER` - 1 in ``t``) and calls on 64 balls
 ``2 ORDER``, that of the derivative), as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for
 integral gains; the model must agree with the coupling evaluated on arrays at 17 points of
 ``[0, 1]`` (a function that acts differently on balls is refused). A Picard iteration in
-floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of :data:`DEGREES` whose bound is small enough). Their residual
+floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
+:data:`DEGREES` whose bound is small enough). Their residual
 ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
 polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
 remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
