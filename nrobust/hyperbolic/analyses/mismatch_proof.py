@@ -95,10 +95,6 @@ class SquareProof(NamedTuple):
     base : int
         The index in ``corners`` of the loop the argument starts from (``-1`` when none is used:
         the tail bound alone, or not proven).
-    point : (float, float)
-        The mismatch ``(e_lam, e_mu)`` of the box the subdivision stopped at on a coupled plant
-        (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``nan``
-        otherwise).
     """
 
     proven: bool
@@ -109,15 +105,14 @@ class SquareProof(NamedTuple):
     boxes: int
     candidate: float
     base: int = -1
-    point: tuple[float, float] = (math.nan, math.nan)
 
 
-def ball_lower(x: Any) -> float:
+def _lo(x: Any) -> float:
     """A float at or below every point of the arb ``x``."""
     return math.nextafter(float(x.lower()), -math.inf)
 
 
-def ball_upper(x: Any) -> float:
+def _hi(x: Any) -> float:
     """A float at or above every point of the arb ``x``."""
     return math.nextafter(float(x.upper()), math.inf)
 
@@ -180,11 +175,10 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
     if len(fam.P0) == 1:  # a difference equation: |F| >= |p00| - |p10| - |q0| on Re s >= 0
         c_d = (up[1][0] + up[2][0]) / low0[0]
         if c_d < 1:
-            return 0.0, ball_upper(c_d)
+            return 0.0, _hi(c_d)
         return (
             "the difference operator 1 - rho q e^{-tau s} - k q e^{-(tau + delta) s} is not proven strongly stable "
-            f"(|rho q| + |k q| <= {upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every "
-            "delay "
+            f"(|rho q| + |k q| <= {upper_bound_text(_hi(c_d))}, not < 1): the loop is not stable for every delay "
             "of a window and every speed of the square (Hale's condition); a smaller gain |k| decides"
         )
     # |1 + b s|^2 = 1 + 2 b Re s + b^2 |s|^2 >= L(|s|)^2 = 1 + b^2 |s|^2 on Re s >= 0, and
@@ -195,20 +189,20 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
     if not c_d < 1:
         return (
             "the difference operator is not proven strongly stable (c_D = |rho q| + |k q a / b| <= "
-            f"{upper_bound_text(ball_upper(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller "
-            "against b decides"
+            f"{upper_bound_text(_hi(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller against b "
+            "decides"
         )
     # L^2 - U^2 = h(r) = (p01^2 - u1^2) r^2 - 2 u0 u1 r + p00^2 - u0^2, convex: L > U on [W, inf)
     # once h(W) > 0 and h'(W) > 0 (or h has no real root)
     a2, a1, a0 = lead * lead - u1 * u1, -2 * u0 * u1, low0[0] * low0[0] - u0 * u0
     if a1 * a1 - 4 * a2 * a0 < 0 or (a0 > 0 and a1 >= 0):
-        return 0.0, ball_upper(c_d)
+        return 0.0, _hi(c_d)
     root = (-a1 + (a1 * a1 - 4 * a2 * a0).nonnegative_part().sqrt()) / (2 * a2)
-    W = max(ball_upper(root), 0.0) * (1.0 + 1e-6) + 1e-9
+    W = max(_hi(root), 0.0) * (1.0 + 1e-6) + 1e-9
     r = arb(W)
     if a2 * r * r + a1 * r + a0 > 0 and 2 * a2 * r + a1 > 0:
-        return W, ball_upper(c_d)
-    return f"the tail bound of |F| on Re s >= 0 could not be proven (c_D <= {upper_bound_text(ball_upper(c_d))})"
+        return W, _hi(c_d)
+    return f"the tail bound of |F| on Re s >= 0 could not be proven (c_D <= {upper_bound_text(_hi(c_d))})"
 
 
 class _Axis:
@@ -217,53 +211,43 @@ class _Axis:
     def __init__(self, flint: Any, fam: _Family, d_lo: float, d_hi: float) -> None:
         self.flint, self.fam = flint, fam
         self.d_lo, self.d_hi = d_lo, d_hi
+        arb = flint.arb
+        self.delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
+        self.two_pi = 2 * arb.pi()
 
     def clear(self, w0: float, w1: float, t0: float, t1: float) -> bool:
         """True when no ``F(i w; tau, delta)`` with ``w, tau`` in the box and ``delta`` in the window is 0."""
-        arb = self.flint.arb
+        arb, acb = self.flint.arb, self.flint.acb
         w = arb(w0).union(arb(w1))
         A, B = self.fam.factors(w, arb(t0).union(arb(t1)))
-        return crossing_free(self.flint, A, B, w, self.d_lo, self.d_hi)
-
-
-def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) -> bool:
-    """True when ``A + B e^{-i w delta} != 0`` for every ``w`` in the ball ``w >= 0`` and ``delta`` in ``[d_lo, d_hi]``.
-
-    ``A``, ``B`` are ``acb`` enclosures of the factors on the box (every point of it): cleared by
-    the sign of ``|A|^2 - |B|^2``, or by every crossing delay ``(2 pi k - arg(-A/B))/w`` lying
-    outside the window.
-    """
-    arb, acb = flint.arb, flint.acb
-    gap = abs(A) ** 2 - abs(B) ** 2
-    if gap > 0 or gap < 0:  # |A| != |B|: A + B e^{-i w delta} != 0 for every real delta
-        return True
-    if B.contains(0) or not B.is_finite():
-        return False
-    Q = -A / B  # F = 0 iff e^{-i w delta} = Q
-    mid = complex(float(Q.real.mid()), float(Q.imag.mid()))
-    if mid == 0:
-        return False
-    turn = float(cmath.phase(mid))
-    rotated = Q * acb(0, -arb(turn)).exp()
-    if not rotated.real > 0:
-        return False
-    phase = arb(turn) + rotated.arg()
-    two_pi = 2 * arb.pi()
-    delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
-    # w delta + phase must be a multiple of 2 pi: the crossing delays (2 pi k - phase) / w
-    span = (w * delays + phase) / two_pi
-    if not span.contains_integer():
-        return True
-    if not w.lower() > 0:
-        return False
-    k_lo, k_hi = math.floor(ball_lower(span)), math.ceil(ball_upper(span))
-    if k_hi - k_lo > 10_000:
-        return False
-    for k in range(k_lo, k_hi + 1):
-        delay = (two_pi * k - phase) / w
-        if not (delay < d_lo or delay > d_hi):
+        gap = abs(A) ** 2 - abs(B) ** 2
+        if gap > 0 or gap < 0:  # |A| != |B|: A + B e^{-i w delta} != 0 for every real delta
+            return True
+        if B.contains(0) or not B.is_finite():
             return False
-    return True
+        Q = -A / B  # F = 0 iff e^{-i w delta} = Q
+        mid = complex(float(Q.real.mid()), float(Q.imag.mid()))
+        if mid == 0:
+            return False
+        turn = float(cmath.phase(mid))
+        rotated = Q * acb(0, -arb(turn)).exp()
+        if not rotated.real > 0:
+            return False
+        phase = arb(turn) + rotated.arg()
+        # w delta + phase must be a multiple of 2 pi: the crossing delays (2 pi k - phase) / w
+        span = (w * self.delays + phase) / self.two_pi
+        if not span.contains_integer():
+            return True
+        if w0 <= 0.0:
+            return False
+        k_lo, k_hi = math.floor(_lo(span)), math.ceil(_hi(span))
+        if k_hi - k_lo > 10_000:
+            return False
+        for k in range(k_lo, k_hi + 1):
+            delay = (self.two_pi * k - phase) / w
+            if not (delay < self.d_lo or delay > self.d_hi):
+                return False
+        return True
 
 
 def _hull(flint: Any, exact: Any, stored: Sequence[float]) -> Any:
@@ -375,7 +359,7 @@ def prove_transport_square(
         tau = taus[0]
         for t in taus[1:]:
             tau = tau.union(t)
-        t_lo, t_hi = ball_lower(tau), ball_upper(tau)
+        t_lo, t_hi = _lo(tau), _hi(tau)
         fam = _Family(flint, P0, P1, Q1, tau)
         tail = _tail(flint, fam)
         if isinstance(tail, str):
