@@ -124,7 +124,8 @@ def _distinct(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
     if z.size < 2:
         return z
     q = np.exp2(np.floor(np.log2(1.0 + np.abs(z))) - 40.0)
-    key = np.stack([np.round(z.real / q), np.round(z.imag / q), q], axis=1)
+    # the sign of the imaginary part keeps a point and its mirror image apart: their mean is real
+    key = np.stack([np.round(z.real / q), np.round(z.imag / q), np.sign(z.imag), q], axis=1)
     _, first = np.unique(key, axis=0, return_index=True)
     return z[np.sort(first)]
 
