@@ -131,3 +131,66 @@ def test_degree_drop_of_a_general_family_is_not_bounded_uniformly() -> None:
     with pytest.raises(CertificationError, match="degree drops"):
         best_margin(loop, (-1.0, 1.0))
     assert _Family(loop).crossing_bound(0.1, 1.0) > 0.0  # away from p = 0 the gap is at least 0.07
+
+
+def _covers(failures: list[tuple[float, float, str]], p: float) -> bool:
+    return any(a <= p <= b for a, b, _ in failures)
+
+
+def test_advanced_everywhere_but_the_middle_fails_whole() -> None:
+    # (s + 1) e^{-s} + p + 0.3 s e^{-(1 + delta) s}: for p != 0 the constant p precedes the principal term
+    # s e^{-s} (advanced type); only p = 0, the middle of [-1, 1], is not
+    loop = AffineLoop(_q([[1.0, 1.0]], [1.0]), _q([[1.0]], [0.0]), _q([[0.0, 0.3]], [1.0]), ZERO)
+    failures = _strong_stability_failures((loop.A0, loop.A1, loop.B0, loop.B1), -1.0, 1.0)
+    for p in (-1.0, -0.5, 0.5, 1.0):
+        assert _covers(failures, p)
+        assert not delay_margin(loop.A(p), loop.B(p)).strongly_stable
+    with pytest.raises(ParameterError, match=r"bounds.*advanced"):
+        best_margin(loop, (-1.0, 1.0))
+
+
+def test_marginal_gap_beside_a_degree_drop_fails_the_whole_piece() -> None:
+    # 2 + p s (1 + e^{-s}) against 0.5: for p != 0 the principal part 1 + e^{-s} has the gap 1 - 1 = 0 (not
+    # strongly stable anywhere but at p = 0, where the degree drops); once half of each piece was reported
+    loop = AffineLoop(_q([[2.0]], [0.0]), _q([[0.0, 1.0], [0.0, 1.0]], [0.0, 1.0]), _q([[0.5]], [0.0]), ZERO)
+    parts = (loop.A0, loop.A1, loop.B0, loop.B1)
+    for lo, hi in ((0.0, 1.0), (-1.0, 1.0)):
+        failures = _strong_stability_failures(parts, lo, hi)
+        for p in np.linspace(lo, hi, 11):
+            if p != 0.0:
+                assert _covers(failures, float(p))
+    assert not delay_margin(loop.A(0.3), loop.B(0.3)).strongly_stable
+
+
+def test_failure_ends_are_rounded_outward() -> None:
+    # (2 + p) + e^{-s} - e^{-(1 + delta) s}: the gap |2 + p| - 2 is exactly 0 at p = 0, which must fail
+    loop = AffineLoop(_q([[2.0], [1.0]], [0.0, 1.0]), _q([[1.0]], [0.0]), _q([[-1.0]], [1.0]), ZERO)
+    failures = _strong_stability_failures((loop.A0, loop.A1, loop.B0, loop.B1), -0.4, 0.6)
+    assert len(failures) == 1
+    assert failures[0][0] == -0.4
+    assert 0.0 <= failures[0][1] < 1e-13  # the closed-form end 0, moved outward by a few roundings
+
+
+def test_the_first_term_of_a_for_large_delays() -> None:
+    # (1 + p + 0.5 s) e^{-s} + s e^{-delta s}: for delta < 1 the principal part is s (1 + 0.5 e^{-(1 - delta) s})
+    # (strongly stable), for delta > 1 it is s e^{-s} (0.5 + e^{-(delta - 1) s}): roots at Re s = ln 2 / (delta - 1)
+    loop = AffineLoop(_q([[1.0, 0.5]], [1.0]), _q([[1.0]], [1.0]), _q([[0.0, 1.0]], [0.0]), ZERO)
+    failures = _strong_stability_failures((loop.A0, loop.A1, loop.B0, loop.B1), 0.0, 1.0)
+    assert [f[:2] for f in failures] == [(0.0, 1.0)]
+    assert "comes first once delta passes" in failures[0][2]
+    with pytest.raises(ParameterError, match="bounds"):
+        best_decay_rate(loop, (0.0, 1.0), delays=(1.5, 2.0))
+
+
+def test_a_loop_without_delayed_factor_has_no_best_margin() -> None:
+    loop = AffineLoop(_q([[1.0, 1.0]], [0.0]), _q([[1.0]], [0.0]), ZERO, ZERO)
+    with pytest.raises(ParameterError, match=r"loop.*delayed factor"):
+        best_margin(loop, (0.0, 1.0))
+
+
+def test_bounds_without_a_nominally_stable_parameter_are_refused() -> None:
+    # s - 1 + p e^{-delta s} on [0, 0.5]: at delta = 0 the root s = 1 - p > 0 for every p (the margin was
+    # returned as 0 with the bracket (inf, inf))
+    loop = AffineLoop(_q([[-1.0, 1.0]], [0.0]), ZERO, ZERO, _q([[1.0]], [0.0]))
+    with pytest.raises(ParameterError, match=r"bounds.*stable loop without delay"):
+        best_margin(loop, (0.0, 0.5))

@@ -65,7 +65,7 @@ from .._digits import inner_interval_text, with_accuracy
 from .._json import fields_dict
 from .._threads import one_blas_thread
 from .._validate import finite_real, positive, positive_int
-from ..bounds import TailBound, joint_degree, principal_gap, radius_where
+from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
 from ..distributed_delay import DistributedDelay, polyder, polyval
 from ..errors import CertificationError, ParameterError
 from ..margins.axis import frequency_bound
@@ -332,6 +332,11 @@ def _zero_free_radius(F: QuasiPolynomial) -> float:
 # Units of rounding of the sum of moduli of the s^n coefficients below which a gap of the principal part is
 # not taken as positive (as :func:`~nrobust.margins.frequency_bound` does).
 _GAP_ULPS = 8.0
+# Why a parameter fails when the first term of ``A`` does not dominate (it comes first for large delays).
+_LATER_FIRST = (
+    "|a_0(p)| <= sum |a_k(p)| with a_0 the first term of A, which comes first once delta passes the delay of "
+    "B's first term"
+)
 
 
 def _top_coefficients(parts: tuple[QuasiPolynomial, ...], n: int) -> dict[tuple[float, int], tuple[float, float]]:
@@ -381,14 +386,73 @@ def _interval_text(intervals: Sequence[tuple[float, float, bool, bool]]) -> str:
 
 
 def _piece_gap(
-    top: dict[tuple[float, int], tuple[float, float]], signs: dict[tuple[float, int], float], p: float
+    top: dict[tuple[float, int], tuple[float, float]],
+    signs: dict[tuple[float, int], float],
+    p: float,
+    first: tuple[float, int] | None = None,
 ) -> tuple[float, float]:
     """``G(p) = |a_first(p)| - sum_{k != first} |a_k(p)|`` with the signs of ``a_k`` on a piece (affine in ``p``
-    there), and the rounding of its sums (``_GAP_ULPS`` units of ``sum |a_k|``)."""
-    first = min(top)
+    there), and the rounding of its sums (``_GAP_ULPS`` units of ``sum |a_k|``); ``first`` the first term (by
+    default the first for ``delta -> 0+``)."""
+    first = min(top) if first is None else first
     values = {key: signs[key] * (al + p * be) for key, (al, be) in top.items()}
     room = _GAP_ULPS * float(np.finfo(float).eps) * sum(abs(al) + abs(p * be) for al, be in top.values())
     return values[first] - sum(v for key, v in values.items() if key != first), room
+
+
+def _first_terms(top: dict[tuple[float, int], tuple[float, float]]) -> list[tuple[float, int]]:
+    """The terms that come first in the principal part for some ``delta >= 0``.
+
+    The first term of ``B``'s delayed by ``delta -> 0+`` (when it precedes those of ``A``) and the first of
+    ``A``'s, which comes first once ``delta`` is large: the principal part must be strongly stable with each.
+    """
+    firsts = [min(top)]
+    of_a = [key for key in top if key[1] == 0]
+    if of_a and min(of_a) != firsts[0]:
+        firsts.append(min(of_a))
+    return firsts
+
+
+def _advanced(A: QuasiPolynomial, B: QuasiPolynomial) -> bool:
+    """Whether a term of lower degree precedes the first principal term of ``A + B e^{-delta s}`` for some
+    ``delta >= 0``: for ``delta -> 0+`` (:func:`~nrobust.bounds.principal_gap`), or for ``delta`` large, when
+    the terms of ``B`` come after all of ``A``'s (a term of ``A`` before ``A``'s first principal one, or ``A``
+    with terms but none of the top degree)."""
+    n = joint_degree(A, B)
+    if principal_gap({"A": (A, 0), "B": (B, 1)}, n) is None:
+        return True
+    if not A.leading_terms(n):
+        return min_delay(A) < np.inf
+    return principal_gap({"A": (A, 0)}, n) is None
+
+
+def _bad_part(
+    top: dict[tuple[float, int], tuple[float, float]],
+    signs: dict[tuple[float, int], float],
+    first: tuple[float, int],
+    a: float,
+    b: float,
+    p0: float | None,
+) -> tuple[float, float] | None:
+    """The closed part of the piece ``[a, b]`` where the gap with ``first`` is not positive, rounded outward.
+
+    The gap is affine on the piece: its set ``G <= 0`` is empty, the piece, or a part touching one end, whose
+    other end is the zero of ``G`` moved outward by the rounding of both end values (``_piece_gap``) and a few
+    ulps of the interpolation. At a degree drop ``p_0`` every ``a_k`` vanishes: ``G(p_0) = 0``, so the piece
+    fails whole if its other end fails.
+    """
+    (g_a, r_a), (g_b, r_b) = _piece_gap(top, signs, a, first), _piece_gap(top, signs, b, first)
+    bad_a, bad_b = g_a <= r_a and a != p0, g_b <= r_b and b != p0
+    if (bad_a and bad_b) or (a == p0 and bad_b) or (b == p0 and bad_a):
+        return (a, b)
+    if not (bad_a or bad_b):
+        return None
+    slack = 4.0 * float(np.finfo(float).eps) * (abs(a) + abs(b) + (b - a))
+    if bad_a:  # G(a) <= r_a < ... , G(b) > r_b: the zero is at most a + (b - a) (r_a - g_a) / (g_b - r_b + r_a - g_a)
+        share = (r_a - g_a) / ((g_b - r_b) + (r_a - g_a))
+        return (a, min(b, a + (b - a) * share + slack))
+    share = (r_b - g_b) / ((g_a - r_a) + (r_b - g_b))
+    return (max(a, b - (b - a) * share - slack), b)
 
 
 def _strong_stability_failures(
@@ -407,8 +471,11 @@ def _strong_stability_failures(
     lower-degree terms before the first principal one on each side). Where every ``a_k`` vanishes (``p_0``, a
     drop of the degree) ``G = 0`` on both sides: the pieces are checked at their other ends (``G`` is affine
     with ``G(p_0) = 0``) and the operator at ``p_0`` is that of degree ``n - 1``, checked by
-    :func:`~nrobust.margins.frequency_bound`. A piece whose middle is of advanced type (a term before the
-    first principal one) fails whole.
+    :func:`~nrobust.margins.frequency_bound`. A piece of advanced type (a term before the first principal one,
+    for ``delta -> 0+`` or for large ``delta``) at one of two inner points fails whole (the coefficients of
+    such terms are affine in ``p``). When the first principal term of ``B`` precedes ``A``'s, ``A``'s comes
+    first once ``delta`` passes it: the gap must hold with either first. The ends of a failing part are
+    rounded outward.
     """
     A0, A1, B0, B1 = parts
     try:
@@ -423,22 +490,20 @@ def _strong_stability_failures(
     zeros = {-a / b for a, b in top.values() if b != 0.0}
     points = sorted({lo, hi, *(z for z in zeros if lo < z < hi)})
     failures: list[tuple[float, float, str]] = []
+    firsts = _first_terms(top)
     for a, b in itertools.pairwise(points):
-        mid = 0.5 * (a + b)
-        A_mid, B_mid = A0 + A1 * mid, B0 + B1 * mid
-        if principal_gap({"A": (A_mid, 0), "B": (B_mid, 1)}, joint_degree(A_mid, B_mid), 0.0) is None:
+        # a term before the first principal one has a coefficient affine in p: if it vanishes at two points of
+        # the piece it vanishes on all of it, otherwise it is there on all of the piece but one point
+        if any(_advanced(A0 + A1 * inner, B0 + B1 * inner) for inner in (a + (b - a) / 3.0, b - (b - a) / 3.0)):
             failures.append((a, b, "of advanced type (a term precedes the first principal one)"))
             continue
+        mid = 0.5 * (a + b)
         signs = {key: float(np.sign(al + mid * be)) for key, (al, be) in top.items()}
-        (g_a, r_a), (g_b, r_b) = _piece_gap(top, signs, a), _piece_gap(top, signs, b)
-        bad_a = g_a <= r_a and a != p0
-        bad_b = g_b <= r_b and b != p0
-        why = "|a_0(p)| <= sum |a_k(p)|"
-        if bad_a and bad_b:
-            failures.append((a, b, why))
-        elif bad_a or bad_b:
-            root = a + g_a * (b - a) / (g_a - g_b) if g_a != g_b else mid
-            failures.append((a, min(max(root, a), b), why) if bad_a else (min(max(root, a), b), b, why))
+        for first in firsts:
+            part = _bad_part(top, signs, first, a, b, p0)
+            if part is not None:
+                why = "|a_0(p)| <= sum |a_k(p)|" if first == firsts[0] else _LATER_FIRST
+                failures.append((*part, why))
     if p0 is not None and lo <= p0 <= hi:
         at_drop = "of degree n - 1 where every s^n coefficient vanishes, and that operator is not strongly stable"
         try:
@@ -2362,8 +2427,23 @@ def best_margin(
             raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
         return _window_design(loop, lo, hi, "margin", delays, scenarios, 5, max_evals, rigorous)
     max_evals = positive_int("max_evals", max_evals)
+    if isinstance(loop, AffineLoop) and _is_zero(loop.B0) and _is_zero(loop.B1):
+        raise ParameterError(
+            "loop",
+            "a loop whose delayed factor B_0 + p B_1 is not zero (without it the delay does not enter the loop: "
+            "every parameter stable without delay has an infinite margin; best_decay_rate designs such a loop)",
+            loop,
+        )
     curves = _Curves(_Family(loop), lo, hi, max_evals)
-    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
+    mask = _nominal_mask(curves)
+    if not mask.any():
+        raise ParameterError(
+            "bounds",
+            "parameters of which some give a stable loop without delay (certified: F(s; 0, p) has zeros with "
+            f"Re s >= 0 for every p in [{lo:.12g}, {hi:.12g}], so every delay margin there is 0)",
+            bounds,
+        )
+    env = np.where(mask, curves.envelope, 0.0)
     scan = (curves.gains, env)
     if np.any(np.isinf(env)):  # gains that no crossing curve reaches, nominally stable: delta* = inf
         idx = np.flatnonzero(np.isinf(env))
