@@ -30,6 +30,8 @@ from nrobust import (
     k_region,
 )
 from nrobust._digits import with_accuracy
+from nrobust.design.gain import _Family
+from nrobust.distributed_delay import DistributedDelay
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import gain
 from nrobust.margins.crossing import crossing_search
@@ -278,3 +280,30 @@ def test_item9_certificate_records_why_the_region_is_missing(monkeypatch: pytest
     cert = certify(LAM2, ReflectionController(0.3), delta_max=0.1)
     assert cert.k_region is None and "work bound" in cert.k_region_error
     assert cert.to_dict()["k_region_error"] == cert.k_region_error
+
+
+def test_axis_bound_of_a_constant_kernel() -> None:
+    # n = 0.2 on [0, 1] (degree-0 pieces): an IndexError before; the third-order constants vanish
+    d = DistributedDelay([0.0, 1.0], None, interpolation="polynomial", coefficients=[[0.2]])
+    B0 = QuasiPolynomial([[0.0]], [0.0], [d])
+    loop = gain.AffineGainLoop(QuasiPolynomial([[1.0], [-0.5]], [0.0, 1.0]) - B0, B0, QuasiPolynomial([[1.0]], [1.0]))
+    bound = gain.AxisBound.of(loop)
+    assert bound is not None
+    W = bound.W(0.1, 0.1)
+    # g(w) = |A|^2 - |B|^2 on a fine grid above W, from the factors: positive
+    w = np.linspace(W, 50.0 * W, 20001)
+    g = np.abs(loop.A(1j * w)) ** 2 - np.abs(loop.B(0.1)(1j * w)) ** 2
+    assert np.all(g > 0.0)
+
+
+def test_crossing_bound_with_a_tiny_proximal_reflection() -> None:
+    # |rho q| = 7e-10: the second- and third-order bounds grow like 1 / sqrt(|rho q|) (8466 at K = 0), the
+    # first-order bound stays near 1 (g is concave in K: its values at the ends hold inside); the smaller
+    loop = u_bs2_loop(Hyperbolic2x2(lam=2.0, mu=0.5, sigma_pm=0.3, sigma_mp=-0.4, q=0.7, rho=1e-9))
+    assert gain.AxisBound.of(loop).W(0.0, 0.25) > 1000.0  # type: ignore[union-attr]
+    W = _Family(loop).crossing_bound(0.0, 0.25)
+    assert W < 10.0
+    w = np.linspace(W, 50.0 * W, 20001)
+    for K in np.linspace(0.0, 0.25, 11):
+        g = np.abs(loop.A(1j * w)) ** 2 - np.abs(loop.B(float(K))(1j * w)) ** 2
+        assert np.all(g > 0.0)

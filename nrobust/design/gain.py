@@ -832,12 +832,11 @@ class _Family:
             ``[lo, hi]`` (:func:`_strong_stability_failures`; the message says where it is).
         """
         _check_strongly_stable(self.affine, lo, hi)
+        W = float("inf")
         if isinstance(self.loop, AffineGainLoop):
             second = AxisBound.of(self.loop)
             if second is not None:
                 W = second.W(lo, hi)
-                if np.isfinite(W):
-                    return W
         if not (self.a1_zero or (self.a1_times_s and self.b1_zero)):
             return _uniform_crossing_bound(self.affine, lo, hi)
         points = [lo, hi] if self.a1_zero else [lo, hi, min(max(0.0, lo), hi)]
@@ -852,7 +851,7 @@ class _Family:
                     (lo, hi),
                 )
             out = max(out, float(b[0]))
-        return out
+        return min(W, out)
 
 
 @dataclass(frozen=True, eq=False)

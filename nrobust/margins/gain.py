@@ -220,7 +220,10 @@ class AxisBound:
 
         g >= (1 - p)^2 - K^2 q^2 - C_2 / w^2,   C_2 = beta^2 / p + 2 (1 + |c|) V_2,  beta = |n(tau) - c n(0)|,
 
-    no crossing above ``W_2 = sqrt(C_2 / (q^2 (k^2 - K^2)))``, ``k = (1 - p)/|q|``.
+    no crossing above ``W_2 = sqrt(C_2 / (q^2 (k^2 - K^2)))``, ``k = (1 - p)/|q|``; with the term
+    ``C_1 / w`` of the jumps below (and of the stored kernel's distance to the true one, sup ``r`` and
+    variation ``V``: it moves ``J`` by at most ``(2 r + V) / w``, counted in ``D_0``), above the larger
+    root of ``q^2 (k^2 - K^2) w^2 - C_1 w - C_2``.
 
     *Third order.* Once more: ``J = (n(0) - n(tau) z)/(i w) - (n'(0) - n'(tau) z)/w^2 + E_3``,
     ``|E_3| <= V_3 / w^3``, ``V_3 = |n''(0)| + |n''(tau)| + TV(n'')``, the jumps of ``n`` and ``n'``
@@ -275,6 +278,8 @@ class AxisBound:
             return None
         start, h, poly = d.pieces
         n = float(d.poly[0]) * np.asarray(poly, dtype=float)
+        if n.shape[1] < 4:  # constant, linear or quadratic pieces: the terms up to t^3 read below are 0
+            n = np.pad(n, ((0, 0), (0, 4 - n.shape[1])))
         j = np.arange(n.shape[1])
         value_end, slope_start, slope_end = n.sum(axis=1), n[:, 1] / h, (n * j).sum(axis=1) / h
         scale = float(np.max(np.abs(n[:, 0]))) + 1e-300
@@ -300,7 +305,10 @@ class AxisBound:
             + float(np.sum(third))
             + float(np.sum(np.abs(curve_start[1:] - curve_end[:-1])))
         )
-        jumps0 = float(np.sum(np.abs(n[1:, 0] - value_end[:-1])))
+        # the stored kernel's distance to the true one (sup ``r``, variation ``V``) moves ``J`` by at most
+        # ``(2 r + V) / w`` (integration by parts once): counted with the jumps of ``n``
+        model = abs(float(d.poly[0])) * (2.0 * d.radius + d.variation_radius)
+        jumps0 = float(np.sum(np.abs(n[1:, 0] - value_end[:-1]))) + model
 
         # the bound carries its own rounding: the sums a little larger (they err by ~ n_segments eps)
         def up(v: float) -> float:
@@ -340,7 +348,10 @@ class AxisBound:
             room = min(room, gap * ((1.0 - p) + abs(K) * q))
         if room <= 0.0:
             return float("inf")
-        second = float(np.sqrt(c2 * (1.0 + 1e-9) / room) * (1.0 + 1e-9))
+        # with the jumps (and the kernel's error) g >= room - c1 / w - C_2 / w^2: positive above the larger root
+        c1 = 2.0 * max(1.0 + abs(c) for c in cs) * self.jumps0
+        c2 *= 1.0 + 1e-9
+        second = float((c1 + np.sqrt(c1 * c1 + 4.0 * room * c2)) / (2.0 * room) * (1.0 + 1e-9))
         return min(second, self._third(cs, room))
 
     def _third(self, cs: list[float], room: float) -> float:
@@ -791,10 +802,12 @@ def locate_gain_ends(
     def crossing_bound(lo: float, hi: float) -> float:
         """Above every crossing frequency of the gains in ``[lo, hi]`` (``lo <= 0 <= hi``; 0: none):
         :class:`AxisBound`'s, else the first-order bound of the largest ``|K|``."""
-        if second is not None:
-            return second.W(lo, hi)
         first = [frequency_bound(loop.A, loop.B(c)) for c in (lo, hi)]
-        return max(0.0 if b is None else b[0] for b in first)
+        W1 = max(0.0 if b is None else b[0] for b in first)
+        if second is None:
+            return W1
+        # g is concave in K: the first-order bounds at the ends hold inside (smaller where |rho q| is small)
+        return second.W(lo, hi) if any(b is None for b in first) else min(second.W(lo, hi), W1)
 
     caps = [-kb * (1.0 - _FIRST_CAP), kb * (1.0 - _FIRST_CAP)]
     open_end = [False, False]
