@@ -103,14 +103,23 @@ _BISECTIONS = 80
 _KEPT_COLLOCATIONS = 4
 
 
-def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Chebyshev extremal points ``theta_j`` on ``[-tau, 0]`` (``theta_0 = 0``) and the differentiation matrix."""
+@functools.lru_cache(maxsize=16)
+def _chebyshev_unit(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev extremal points ``x_j = cos(pi j / points)`` on ``[-1, 1]`` and their differentiation matrix
+    (kept for the last few numbers of points: a table, the same for every system; read only)."""
     j = np.arange(points + 1)
     x = np.cos(np.pi * j / points)
     c = np.where((j == 0) | (j == points), 2.0, 1.0) * (-1.0) ** j
     dx = x[:, None] - x[None, :]
     d = np.outer(c, 1.0 / c) / (dx + np.eye(points + 1))
     d.flat[:: points + 2] -= d.sum(axis=1)  # the diagonal: the rows of a differentiation matrix sum to 0
+    x.flags.writeable = d.flags.writeable = False
+    return x, d
+
+
+def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev extremal points ``theta_j`` on ``[-tau, 0]`` (``theta_0 = 0``) and the differentiation matrix."""
+    x, d = _chebyshev_unit(points)
     return 0.5 * tau * (x - 1.0), d * (2.0 / tau)
 
 
@@ -574,8 +583,13 @@ class StateSpaceTDS:
 
     @functools.cached_property
     def _expanded(self) -> ExpandedDeterminant | None:
-        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`)."""
-        return ExpandedDeterminant.from_coefficients(*self._coefficients)
+        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`,
+        without checking again the arrays that the constructor checked; terms of equal delays summed
+        beyond the largest double are refused by that check)."""
+        coefs, delays = self._coefficients
+        if not np.isfinite(coefs).all():
+            return ExpandedDeterminant.from_coefficients(coefs, delays)
+        return ExpandedDeterminant._from_checked(coefs, delays)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
         """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).

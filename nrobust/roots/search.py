@@ -107,7 +107,9 @@ def _newton(
     def residual_at_rounding_level(s: NDArray[np.complex128]) -> NDArray[np.bool_]:
         return np.abs(F(s)) <= _STALLED * magnitude(F, s)
 
-    return newton(fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level)
+    return newton(
+        fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level, predict=True
+    )
 
 
 # ====================================================================== boxes
@@ -420,7 +422,8 @@ class Finder:
         if pts.size > 1:
             if dense:  # the pairs i < j closer than the larger of cluster_tol and their reaches
                 near = np.abs(pts[:, None] - pts) <= np.maximum(self.cluster_tol, reach[:, None] + reach)
-                pairs = np.argwhere(np.triu(near, 1))
+                i, j = np.nonzero(near)
+                pairs = np.column_stack([i, j])[i < j]
             else:
                 pairs = index.query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
                 if pairs.size:
@@ -665,7 +668,8 @@ class Finder:
         y0, y1 = self.region[2:]
         if real:
             flip = (seeds.imag < 0.0) & (-seeds.imag < y1)
-            seeds = np.unique(np.where(flip, seeds.conj(), seeds))
+            seeds = np.sort(np.where(flip, seeds.conj(), seeds))
+            seeds = seeds[np.concatenate([[True], seeds[1:] != seeds[:-1]])]  # np.unique without its overhead
         found = _newton(self.F, seeds, self.budget, max_step, within=self.region)
         if real:
             found = found[np.isfinite(found)]
