@@ -510,6 +510,8 @@ def test_one_blas_thread_limits_and_restores():
     def blas() -> list[int]:
         return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
 
+    import scipy.linalg  # noqa: F401  (its BLAS too, which one_blas_thread loads)
+
     with threadpool_limits(2, user_api="blas"):
         before = blas()
         with one_blas_thread():
