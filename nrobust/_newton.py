@@ -100,7 +100,7 @@ def newton(
                 prev = last[act]
                 # the point's error after this step: the step's own error plus the next step C L_2^2
                 done[act] |= (length * 8.0 < prev) & (_STEP_ERROR * length + length**3 / prev**2 <= tol)
-                last[act] = np.where(big, 0.0, length)
+                last[act] = length * ~big  # 0 where the step was cut
     stalled = np.flatnonzero(alive & ~done)
     if stalled.size and accept_stalled is not None:
         done[stalled[accept_stalled(s[stalled])]] = True

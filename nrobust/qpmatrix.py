@@ -1040,7 +1040,7 @@ class ExpandedDeterminant:
         asks ``Q`` and ``Q'`` at the same points, the root counter ``Q`` and its rounding scale)."""
         flat = np.asarray(s, dtype=complex).ravel()
         last = self._last
-        if last is not None and last[0].shape == flat.shape and bool((last[0] == flat).all()):
+        if last is not None and last[0].shape == flat.shape and np.logical_and.reduce(last[0] == flat):
             return last
         w = self._weights(flat)
         kept = (flat.copy(), w, w @ self._values[:, :2])

@@ -512,7 +512,9 @@ class StateSpaceTDS:
         # j >= 1, of those nd components. The pencil A v = s B v: the rows j >= 1 ask
         # (D phi)_j = s phi(theta_j), the first block row sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
         # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h.
-        delayed = np.flatnonzero((self.A[self.hA > 0] != 0).any(axis=(0, 1)) | (self.B != 0).any(axis=(0, 1)))
+        # (the reductions of the ufunc itself: ndarray.any's Python wrapper costs more than these small arrays)
+        any_term = np.logical_or.reduce
+        delayed = (any_term(self.A[self.hA > 0] != 0, axis=(0, 1)) | any_term(self.B != 0, axis=(0, 1))).nonzero()[0]
         nd = delayed.size
         pick = np.eye(n)[delayed]  # phi(0) -> its delayed components
         rest = np.hstack(

@@ -81,7 +81,7 @@ def _newton(
             f, d = F(x), F.deriv_at(x)
         else:
             out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
-            if out.any():
+            if np.logical_or.reduce(out):  # (not out.any(): its Python wrapper, at every Newton step)
                 f = np.full(x.size, np.nan, dtype=complex)
                 d = np.full(x.size, np.nan, dtype=complex)
                 keep = ~out
