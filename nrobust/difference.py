@@ -315,15 +315,6 @@ class DifferenceOperator:
         object.__setattr__(self, "coefs", _complex_if_needed(merged[keep]))
         object.__setattr__(self, "delays", uniq[keep])
 
-    @classmethod
-    def _from_terms(cls, coefs: NDArray[np.float64], delays: NDArray[np.float64]) -> DifferenceOperator:
-        """The operator of real nonzero finite ``coefs`` at distinct increasing finite delays ``>= 0``
-        (what the constructor makes of them), without its checks: for callers that hold such terms."""
-        obj = cls.__new__(cls)
-        object.__setattr__(obj, "coefs", coefs)
-        object.__setattr__(obj, "delays", delays)
-        return obj
-
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Evaluate ``D(s)`` on an array of complex ``s``."""

@@ -970,11 +970,6 @@ class ExpandedDeterminant:
             )
         if t.shape != (c.shape[2],) or np.any(t < 0) or len(set(t.tolist())) != t.size:
             raise ParameterError("delays", f"{c.shape[2]} distinct delays >= 0 (one per row of coefs)", delays)
-        return cls._from_checked(c, t)
-
-    @classmethod
-    def _from_checked(cls, c: NDArray[np.float64], t: NDArray[np.float64]) -> ExpandedDeterminant | None:
-        """:meth:`from_coefficients` of arrays already checked (float, finite, of its shapes; kept, not copied)."""
         exact = _expand_monomials(_array_monomials(c, t))
         if exact is None:
             return None
@@ -1152,8 +1147,7 @@ class ExpandedDeterminant:
             raise _zero_determinant()
         lead = self._coef[:, np.flatnonzero(nonzero.any(axis=0))[-1]]
         keep = lead != 0
-        # real nonzero finite coefficients at distinct increasing delays: nothing for the constructor to check
-        return DifferenceOperator._from_terms(lead[keep], self._taus[keep])
+        return DifferenceOperator(lead[keep], self._taus[keep])
 
     @functools.cached_property
     def kind(self) -> str:

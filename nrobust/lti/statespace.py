@@ -585,13 +585,8 @@ class StateSpaceTDS:
 
     @functools.cached_property
     def _expanded(self) -> ExpandedDeterminant | None:
-        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`,
-        without checking again the arrays that the constructor checked; terms of equal delays summed
-        beyond the largest double are refused by that check)."""
-        coefs, delays = self._coefficients
-        if not np.isfinite(coefs).all():
-            return ExpandedDeterminant.from_coefficients(coefs, delays)
-        return ExpandedDeterminant._from_checked(coefs, delays)
+        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`)."""
+        return ExpandedDeterminant.from_coefficients(*self._coefficients)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
         """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).
