@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from tqdm import tqdm as ProgressBar
 
-__all__ = ["ProgressBar", "progress_bar", "show_progress"]
+__all__ = ["HiddenBar", "ProgressBar", "progress_bar", "show_progress"]
 
 
 @functools.cache
@@ -43,7 +43,36 @@ def show_progress(progress: bool | None) -> bool:
     return bool(progress)
 
 
-def progress_bar(total: int, progress: bool | None, desc: str, unit: str = "it", leave: bool = False) -> ProgressBar:
-    """A bar of ``total`` steps on stderr, shown by the rule of :func:`show_progress` (disabled otherwise)."""
-    show = show_progress(progress)
-    return _bar_class()(total=total, disable=not show, desc=desc, unit=unit, leave=leave, file=sys.stderr)
+class HiddenBar:
+    """The bar that is not shown: it counts the steps and draws nothing.
+
+    tqdm (with ``importlib.metadata`` and ``email``, which it loads) is imported only for a
+    bar that is drawn: the workers of ``nrobust paper`` and every computation run without a
+    terminal do not load it.
+    """
+
+    def __init__(self, total: int) -> None:
+        self.total = total
+        self.n = 0
+
+    def update(self, n: int = 1) -> None:
+        """Count ``n`` more steps."""
+        self.n += n
+
+    def close(self) -> None:
+        """Nothing to clear."""
+
+    def __enter__(self) -> HiddenBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def progress_bar(
+    total: int, progress: bool | None, desc: str, unit: str = "it", leave: bool = False
+) -> ProgressBar | HiddenBar:
+    """A bar of ``total`` steps on stderr, shown by the rule of :func:`show_progress`; else a :class:`HiddenBar`."""
+    if not show_progress(progress):
+        return HiddenBar(total)
+    return _bar_class()(total=total, desc=desc, unit=unit, leave=leave, file=sys.stderr)

@@ -19,16 +19,28 @@ __all__ = ["one_blas_thread"]
 
 
 @functools.cache
-def _blas_controller() -> Any:
-    """A threadpoolctl controller of the BLAS libraries numpy and scipy.linalg load (made once: it scans them)."""
+def _blas_libraries() -> tuple[Any, ...]:
+    """threadpoolctl's controllers of the BLAS libraries numpy and scipy.linalg load (found once: a scan)."""
     import scipy.linalg  # noqa: F401  (lazily: a slow import; loaded so that its BLAS is controlled too)
     from threadpoolctl import ThreadpoolController
 
-    return ThreadpoolController()
+    return tuple(lib for lib in ThreadpoolController().lib_controllers if lib.user_api == "blas")
 
 
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """BLAS limited to one thread inside the block (or the decorated function)."""
-    with _blas_controller().limit(limits=1, user_api="blas"):
+    """BLAS limited to one thread inside the block (or the decorated function).
+
+    Each library's own limit is read and, where it is not 1 already, set and restored after:
+    a quarter of the work of ``ThreadpoolController.limit``, which reads every property of every
+    library (this block encloses each root search, a few milliseconds).
+    """
+    libs = [(lib, lib.get_num_threads()) for lib in _blas_libraries()]
+    changed = [(lib, n) for lib, n in libs if n != 1]
+    for lib, _ in changed:
+        lib.set_num_threads(1)
+    try:
         yield
+    finally:
+        for lib, n in changed:
+            lib.set_num_threads(n)

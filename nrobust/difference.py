@@ -303,9 +303,12 @@ class DifferenceOperator:
             raise ParameterError("delays", f"one delay per coefficient ({a.size})", delays)
         if np.any(t < 0):
             raise ParameterError("delays", ">= 0", delays)
-        uniq, inverse = np.unique(t, return_inverse=True)
-        merged = np.zeros(uniq.size, dtype=complex)
-        np.add.at(merged, inverse, a)
+        if np.all(t[1:] > t[:-1]):  # distinct increasing delays (principal parts): nothing to merge or sort
+            uniq, merged = t, a
+        else:
+            uniq, inverse = np.unique(t, return_inverse=True)
+            merged = np.zeros(uniq.size, dtype=complex)
+            np.add.at(merged, inverse, a)
         if merged[0] == 0:
             raise ParameterError("coefs", f"nonzero at the smallest delay {uniq[0]:g} (a_0 != 0)", coefs)
         keep = merged != 0

@@ -1023,7 +1023,7 @@ class ExpandedDeterminant:
         # rounding allowance of a value (relative to the sum of the moduli of its terms, times 1 + tau |s|):
         # the weights (P products and an exponential) and the sum of K P products
         self._allowance = max(_ROUNDING, 2.0 * _UNIT * (K * P + 2 * P + 8))
-        self._last: tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]] | None = None
+        self._last: list[tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]]] = []
 
     def _weights(self, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
         """``W(s)``: ``e^{-tau_k s} s^p`` for flat ``s``, shape ``(N, K P)``."""
@@ -1031,16 +1031,17 @@ class ExpandedDeterminant:
         return (np.exp(-s[:, None] * self._taus)[:, :, None] * _powers(s, P)[:, None, :]).reshape(s.size, K * P)
 
     def _batch(self, s: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[np.complex128], NDArray[np.complex128]]:
-        """Flat ``s``, ``W(s)`` and ``(Q(s), Q'(s))`` as ``(N, 2)``; the last batch is kept (Newton's method
-        asks ``Q`` and ``Q'`` at the same points, the root counter ``Q`` and its rounding scale)."""
+        """Flat ``s``, ``W(s)`` and ``(Q(s), Q'(s))`` as ``(N, 2)``; the last two batches are kept (Newton's
+        method asks ``Q`` and ``Q'`` at the same points, the root counter ``Q`` and its rounding scale, the
+        root finder ``|Q|`` at the roots it merged two batches before)."""
         flat = np.asarray(s, dtype=complex).ravel()
-        last = self._last
-        if last is not None and last[0].shape == flat.shape and bool((last[0] == flat).all()):
-            return last
+        for kept in self._last:
+            if kept[0].shape == flat.shape and np.logical_and.reduce(kept[0] == flat):
+                return kept
         w = self._weights(flat)
         kept = (flat.copy(), w, w @ self._values[:, :2])
         if flat.size <= _KEPT:
-            self._last = kept
+            self._last = [kept, *self._last[:1]]
         return kept
 
     def initial_steps(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.intp]:

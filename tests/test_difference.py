@@ -229,3 +229,34 @@ def test_reverse_root_beyond_its_resolution_is_taken_from_the_forward_matrix() -
     # the roots of extreme modulus double precision cannot resolve at all: refused, not a chain at +-inf
     with pytest.raises(CertificationError, match="beyond double precision"):
         DifferenceOperator([1.0, 1e-310], [0.0, 1.0]).spectral_bound()
+
+
+def test_operator_the_same_from_ordered_and_shuffled_terms() -> None:
+    """Distinct increasing delays skip the merge; the operator is the one of the same terms in any order."""
+    ordered = DifferenceOperator([1.0, -0.5, 0.25, 0.1], [0.0, 1.0, 1.5, 3.0])
+    shuffled = DifferenceOperator([0.25, 1.0, 0.1, -0.5], [1.5, 0.0, 3.0, 1.0])
+    split = DifferenceOperator([1.0, -0.3, 0.25, -0.2, 0.1], [0.0, 1.0, 1.5, 1.0, 3.0])  # -0.5 in two terms
+    for other in (shuffled, split):
+        np.testing.assert_array_equal(other.delays, ordered.delays)
+        np.testing.assert_allclose(other.coefs, ordered.coefs, rtol=0, atol=1e-16)  # -0.3 - 0.2: one rounding
+
+
+def test_principal_part_of_an_expanded_determinant_is_the_merged_operator() -> None:
+    """The principal part of the expansion (distinct increasing delays: no merge) is the operator
+    the constructor makes of shuffled terms, and that of the quasi-polynomial of the same determinant."""
+    from nrobust.lti.statespace import StateSpaceTDS
+
+    m0, m1 = np.zeros((6, 6)), np.zeros((6, 6))  # TDS-CONTROL manual Example 2.9 (benchmarks/statespace.py)
+    m0[:2, :2], m0[2, :2], m0[2, 2] = [[0.2, 0.1], [-0.5, 1.0]], [1.0, 1.0], -1.0
+    m0[3, 2], m0[3, 3] = 3.1, -3.48
+    m0[4:, 2], m0[4:, 3], m0[4:, 4:] = [-1.86, -1.4], [1.79, -0.09], -np.eye(2)
+    m1[:2, :2], m1[:2, 4:], m1[2, 4:] = [[0.5, 0.3], [0.1, -0.1]], np.eye(2), [0.01, 0.01]
+    sys = StateSpaceTDS([m0, m1], [0.0, 1.0], E=np.diag([1.0, 1.0, 0.0, 1.0, 0.0, 0.0]))
+    D = sys._expanded.principal_part()
+    checked = DifferenceOperator(D.coefs[::-1], D.delays[::-1])  # decreasing delays: merged and sorted
+    np.testing.assert_array_equal(D.coefs, checked.coefs)
+    np.testing.assert_array_equal(D.delays, checked.delays)
+    assert D.coefs.dtype == checked.coefs.dtype == np.float64
+    Q = sys._expanded.poly.principal_part()  # the route through the quasi-polynomial
+    np.testing.assert_array_equal(D.delays, Q.delays)
+    np.testing.assert_allclose(D.coefs, Q.coefs, rtol=1e-15, atol=0)  # the same rounded coefficients

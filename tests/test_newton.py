@@ -44,3 +44,36 @@ def test_non_finite_step_gives_nan():
     s = newton(fdf, [0.0, 0.1 + 0.9j], max_step=1.0)
     assert np.isnan(s[0])
     np.testing.assert_allclose(s[1], 1j, rtol=0, atol=1e-14)
+
+
+def test_predicted_convergence_saves_the_confirming_step_only():
+    """``predict=True`` ends a point whose next step is predicted below the step test: one step
+    fewer from a seed within 1e-6 of the root (the second step, 1e-13, ends it; without the
+    prediction a third step of rounding size confirms it), the same root to rounding."""
+    fdf = _poly([-2.0, 0.0, 1.0])  # s^2 - 2
+    for seed in (1.414213, 1.4142135 + 1e-7j):
+        plain: list[int] = []
+        fast: list[int] = []
+        s0 = newton(fdf, [seed], max_step=1.0, on_step=plain.append)
+        s1 = newton(fdf, [seed], max_step=1.0, on_step=fast.append, predict=True)
+        # the step test of both is 4 eps (1 + |s|): the roots agree to that, and to sqrt(2)
+        np.testing.assert_allclose(s1, s0, rtol=0, atol=4 * np.finfo(float).eps * 3)
+        np.testing.assert_allclose(s1, [np.sqrt(2.0)], rtol=0, atol=4 * np.finfo(float).eps * 3)
+        assert len(fast) == len(plain) - 1
+
+
+def test_prediction_waits_for_a_superlinear_contraction():
+    """At a double root (steps halving, linear convergence) nothing is predicted while the steps
+    halve: the point reaches the root as far as without the prediction (a double root of a
+    rounded function is resolved to about sqrt(eps), 1.5e-8)."""
+    fdf = _poly([1.0, -2.0, 1.0])  # (s - 1)^2
+    kept = dict(accept_stalled=lambda x: np.abs(x - 1.0) < 1e-6)
+    plain = newton(fdf, [3.0 + 1.0j], max_step=1.0, iters=40, **kept)
+    fast = newton(fdf, [3.0 + 1.0j], max_step=1.0, iters=40, predict=True, **kept)
+    np.testing.assert_allclose(fast, plain, rtol=0, atol=1.5e-8)
+    np.testing.assert_allclose(fast, [1.0], rtol=0, atol=1.5e-8)
+    # a first step cut to max_step predicts nothing: from 10 the steps are 0.5, ... as without it
+    fdf = _poly([-1.0, 0.0, 1.0])
+    counts: list[int] = []
+    assert np.isnan(newton(fdf, [10.0], max_step=0.5, iters=3, on_step=counts.append, predict=True)[0])
+    assert counts == [1, 1, 1]

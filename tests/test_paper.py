@@ -110,6 +110,7 @@ def test_the_paper_job_at_full_size(tmp_path):
 
     run_paper(tmp_path, progress=False)
     assert gc.get_freeze_count() == 0  # the objects frozen for the workers are collected again here
+    assert gc.isenabled()  # collections are off in the workers only
     data = json.loads((tmp_path / "summary.json").read_text())
     bs, bs2 = data["U_BS"], data["U_BS2(K=0.1)"]
     assert bs["delay_margin"] == 0.0 and bs["gamma_0_delayed"] == pytest.approx(1.7, rel=1e-13, abs=1e-14)
@@ -121,3 +122,22 @@ def test_the_paper_job_at_full_size(tmp_path):
     stable = data["chart"]["K_stable_up_to_0.1_on_grid"]
     assert min(stable) > -0.15 and max(stable) < 0.15  # inside the paper's bound (54)
     assert (tmp_path / "report.html").stat().st_size > 100_000
+
+
+def test_a_hidden_progress_bar_does_not_load_tqdm():
+    """The paper's jobs and every computation off a terminal run without tqdm (and the
+    ``importlib.metadata`` and ``email`` it loads): a hidden bar only counts."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from nrobust._progress import progress_bar\n"
+        "from nrobust.hyperbolic import TransportSystem\n"
+        "from nrobust.hyperbolic.analyses import stability_chart\n"
+        "with progress_bar(3, False, 'x') as bar:\n"
+        "    bar.update(2)\n"
+        "stability_chart(TransportSystem(1.0, 1.0, 1.0, 0.5), [0.1, 0.3], [0.0, 0.1], progress=False)\n"
+        "assert 'tqdm' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

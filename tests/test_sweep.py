@@ -499,3 +499,21 @@ def test_timeout_on_dask_and_thread_pools(dask_client):
             assert [(f.index, f.type) for f in res.failures] == [(2, "Timeout")]
             np.testing.assert_array_equal(res.table()["a2"][[0, 1, 3]], [0, 1, 9])
     assert nrobust.sweep(_hang_at_two, nrobust.grid(a=[0, 1]), dask_client, timeout=0.5).n_ok == 2
+
+
+def test_one_blas_thread_limits_and_restores():
+    """Every BLAS library runs one thread inside the block; the limits from before are restored after."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from nrobust._threads import one_blas_thread
+
+    def blas() -> list[int]:
+        return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+
+    import scipy.linalg  # noqa: F401  (its BLAS too, which one_blas_thread loads)
+
+    with threadpool_limits(2, user_api="blas"):
+        before = blas()
+        with one_blas_thread():
+            assert blas() == [1] * len(before)
+        assert blas() == before

@@ -103,14 +103,23 @@ _BISECTIONS = 80
 _KEPT_COLLOCATIONS = 4
 
 
-def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Chebyshev extremal points ``theta_j`` on ``[-tau, 0]`` (``theta_0 = 0``) and the differentiation matrix."""
+@functools.lru_cache(maxsize=16)
+def _chebyshev_unit(points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev extremal points ``x_j = cos(pi j / points)`` on ``[-1, 1]`` and their differentiation matrix
+    (kept for the last few numbers of points: a table, the same for every system; read only)."""
     j = np.arange(points + 1)
     x = np.cos(np.pi * j / points)
     c = np.where((j == 0) | (j == points), 2.0, 1.0) * (-1.0) ** j
     dx = x[:, None] - x[None, :]
     d = np.outer(c, 1.0 / c) / (dx + np.eye(points + 1))
     d.flat[:: points + 2] -= d.sum(axis=1)  # the diagonal: the rows of a differentiation matrix sum to 0
+    x.flags.writeable = d.flags.writeable = False
+    return x, d
+
+
+def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Chebyshev extremal points ``theta_j`` on ``[-tau, 0]`` (``theta_0 = 0``) and the differentiation matrix."""
+    x, d = _chebyshev_unit(points)
     return 0.5 * tau * (x - 1.0), d * (2.0 / tau)
 
 
@@ -503,7 +512,9 @@ class StateSpaceTDS:
         # j >= 1, of those nd components. The pencil A v = s B v: the rows j >= 1 ask
         # (D phi)_j = s phi(theta_j), the first block row sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
         # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h.
-        delayed = np.flatnonzero((self.A[self.hA > 0] != 0).any(axis=(0, 1)) | (self.B != 0).any(axis=(0, 1)))
+        # (the reductions of the ufunc itself: ndarray.any's Python wrapper costs more than these small arrays)
+        any_term = np.logical_or.reduce
+        delayed = (any_term(self.A[self.hA > 0] != 0, axis=(0, 1)) | any_term(self.B != 0, axis=(0, 1))).nonzero()[0]
         nd = delayed.size
         pick = np.eye(n)[delayed]  # phi(0) -> its delayed components
         rest = np.hstack(

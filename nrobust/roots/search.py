@@ -81,7 +81,7 @@ def _newton(
             f, d = F(x), F.deriv_at(x)
         else:
             out = (x.real < lo_x) | (x.real > hi_x) | (x.imag < lo_y) | (x.imag > hi_y)
-            if out.any():
+            if np.logical_or.reduce(out):  # (not out.any(): its Python wrapper, at every Newton step)
                 f = np.full(x.size, np.nan, dtype=complex)
                 d = np.full(x.size, np.nan, dtype=complex)
                 keep = ~out
@@ -107,7 +107,9 @@ def _newton(
     def residual_at_rounding_level(s: NDArray[np.complex128]) -> NDArray[np.bool_]:
         return np.abs(F(s)) <= _STALLED * magnitude(F, s)
 
-    return newton(fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level)
+    return newton(
+        fdf, s0, max_step=max_step, iters=iters, on_step=spend, accept_stalled=residual_at_rounding_level, predict=True
+    )
 
 
 # ====================================================================== boxes
@@ -126,8 +128,10 @@ def _distinct(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
     q = np.exp2(np.floor(np.log2(1.0 + np.abs(z))) - 40.0)
     # the sign of the imaginary part keeps a point and its mirror image apart: their mean is real
     key = np.stack([np.round(z.real / q), np.round(z.imag / q), np.sign(z.imag), q], axis=1)
-    _, first = np.unique(key, axis=0, return_index=True)
-    return z[np.sort(first)]
+    first: dict[tuple[float, ...], int] = {}  # the first point of each key (a dict: np.unique's sort is slower)
+    for k, row in enumerate(map(tuple, key.tolist())):
+        first.setdefault(row, k)
+    return z[list(first.values())]
 
 
 def kdtree(points: NDArray[np.float64]) -> ChebyshevIndex:
@@ -418,7 +422,8 @@ class Finder:
         if pts.size > 1:
             if dense:  # the pairs i < j closer than the larger of cluster_tol and their reaches
                 near = np.abs(pts[:, None] - pts) <= np.maximum(self.cluster_tol, reach[:, None] + reach)
-                pairs = np.argwhere(np.triu(near, 1))
+                i, j = np.nonzero(near)
+                pairs = np.column_stack([i, j])[i < j]
             else:
                 pairs = index.query_pairs(max(self.cluster_tol, 2 * float(reach.max())), output_type="ndarray")
                 if pairs.size:
@@ -663,7 +668,8 @@ class Finder:
         y0, y1 = self.region[2:]
         if real:
             flip = (seeds.imag < 0.0) & (-seeds.imag < y1)
-            seeds = np.unique(np.where(flip, seeds.conj(), seeds))
+            seeds = np.sort(np.where(flip, seeds.conj(), seeds))
+            seeds = seeds[np.concatenate([[True], seeds[1:] != seeds[:-1]])]  # np.unique without its overhead
         found = _newton(self.F, seeds, self.budget, max_step, within=self.region)
         if real:
             found = found[np.isfinite(found)]

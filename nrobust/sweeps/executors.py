@@ -38,7 +38,7 @@ from .._progress import progress_bar
 from ..errors import ParameterError, SweepError
 
 if TYPE_CHECKING:
-    from .._progress import ProgressBar
+    from .._progress import HiddenBar, ProgressBar
 
 __all__ = ["DASK_SCHEMES", "SweepMap", "classify_executor", "cpu_count", "execute", "sweep_map"]
 
@@ -461,7 +461,7 @@ def classify_executor(executor: Any) -> str:
     raise ParameterError("executor", _EXECUTOR_REQUIREMENT, executor)
 
 
-def _progress_bar(total: int, progress: bool | None) -> ProgressBar:
+def _progress_bar(total: int, progress: bool | None) -> ProgressBar | HiddenBar:
     """A text progress bar on stderr; by default shown in terminals and notebooks only."""
     return progress_bar(total, progress, desc="sweep", unit="pt", leave=True)
 
