@@ -1,4 +1,4 @@
-"""``N~`` of eq. (40) with a proven error bound for couplings that vary with ``x`` (constant speeds).
+"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x`` (constant speeds).
 
 For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
 ``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
@@ -46,6 +46,28 @@ bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` the
 ``N^`` is then stored as polynomial pieces by
 :func:`~nrobust.hyperbolic.loops.exact_form.expand_piece` (the rounding of each piece added to
 the bounds): a ball enclosure built on it holds for the PDE itself.
+
+**General plants.** A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with
+constant ``lam, mu`` (numbers) and ``a, b, c, d`` numbers or functions is proven through its
+normal form (:mod:`~nrobust.hyperbolic.plants.general`) enclosed rigorously instead of
+tabulated: with ``x = L y`` (the space change is linear for constant speeds),
+``alpha = L a / lam`` and ``delta = -L d / mu`` are Taylor models as above, and
+``A(L y) = int_0^y alpha``, ``D(L y) = int_0^y delta`` their exact integrals within
+``e_E = eps_alpha + eps_delta`` (the derivative of the error of ``E = D - A`` within ``e_E``
+too). The balance ``k`` is read as ``log(q / q~)``, ``q~`` the normal form's double, so ``q~``
+and ``e^{-k} = q~ / q`` are exact. Then ``k_r = (L / lam) b e^{E} e^{-k}`` and
+``k_w = -(L / mu) c e^{-E} e^{k}`` are Taylor models of the function with ``E`` replaced by its
+polynomial, evaluated on ``arb_series`` and checked against the normal form's tabulated
+couplings, their remainders grown by ``sup |P| (e^{e_E} - 1)`` (and
+``sup |P'| (e^{e_E} - 1) + sup |P| e_E e^{e_E}`` for the derivative);
+``rho~ = rho e^{-E(L)} e^{k}`` is a ball whose radius enters the residual and the pieces of
+``N~``. ``U~`` is returned in the plant's coordinates, times the ball ``e^{A(L) + k - D(L)}``, so a
+feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays a double: ``tau``,
+the double nearest ``(L / lam + L / mu) / time_unit``, and the principal gains
+``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
+so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
+given as samples (the cubic spline is the model the user gave) and varying speeds are refused
+with a reason (:func:`varying_failure`): the kernel route, a model.
 
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
