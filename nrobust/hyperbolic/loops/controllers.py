@@ -753,7 +753,7 @@ def _exact_factors(
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """``(A, B)`` on the closed-form delay form (:func:`loop_route` is ``"exact"``)."""
     _check_controller(controller)
-    form = exact_form(system) if has_exact_form(system) else varying_proof(system)  # type: ignore[arg-type]
+    form = exact_form(system) if has_exact_form(system) else varying_proof(system)
     i_n = QuasiPolynomial([], [], [form.N_tilde]) if form.N_tilde is not None else QuasiPolynomial([[0.0]], [0.0])
     round_trip = QuasiPolynomial([[form.q]], [form.tau])
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n

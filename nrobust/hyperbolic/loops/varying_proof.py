@@ -1,4 +1,4 @@
-"""``N~`` of eq. (40) with a proven error bound for couplings that vary with ``x`` (constant speeds).
+"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x`` (constant speeds).
 
 For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
 ``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
@@ -47,6 +47,28 @@ bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` the
 :func:`~nrobust.hyperbolic.loops.exact_form.expand_piece` (the rounding of each piece added to
 the bounds): a ball enclosure built on it holds for the PDE itself.
 
+**General plants.** A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with
+constant ``lam, mu`` (numbers) and ``a, b, c, d`` numbers or functions is proven through its
+normal form (:mod:`~nrobust.hyperbolic.plants.general`) enclosed rigorously instead of
+tabulated: with ``x = L y`` (the space change is linear for constant speeds),
+``alpha = L a / lam`` and ``delta = -L d / mu`` are Taylor models as above, and
+``A(L y) = int_0^y alpha``, ``D(L y) = int_0^y delta`` their exact integrals within
+``e_E = eps_alpha + eps_delta`` (the derivative of the error of ``E = D - A`` within ``e_E``
+too). The balance ``k`` is read as ``log(q / q~)``, ``q~`` the normal form's double, so ``q~``
+and ``e^{-k} = q~ / q`` are exact. Then ``k_r = (L / lam) b e^{E} e^{-k}`` and
+``k_w = -(L / mu) c e^{-E} e^{k}`` are Taylor models of the function with ``E`` replaced by its
+polynomial, evaluated on ``arb_series`` and checked against the normal form's tabulated
+couplings, their remainders grown by ``sup |P| (e^{e_E} - 1)`` (and
+``sup |P'| (e^{e_E} - 1) + sup |P| e_E e^{e_E}`` for the derivative);
+``rho~ = rho e^{-E(L)} e^{k}`` is a ball whose radius enters the residual and the pieces of
+``N~``. ``U~`` is returned in the plant's coordinates, times the ball ``e^{A(L) + k - D(L)}``, so a
+feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays a double: ``tau``,
+the double nearest ``(L / lam + L / mu) / time_unit``, and the principal gains
+``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
+so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
+given as samples (the cubic spline is the model the user gave) and varying speeds are refused
+with a reason (:func:`varying_failure`): the kernel route, a model.
+
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
 double precision, or a coupling too strong for :data:`DEGREES` has no proof:
@@ -57,14 +79,16 @@ from __future__ import annotations
 
 import itertools
 import math
+from fractions import Fraction
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..._flint import precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import MAX_PIECES, TARGET, expand_piece
 
@@ -86,6 +110,8 @@ _TOP_BALLS = 64
 _CHECK_POINTS = np.linspace(0.0, 1.0, 17)
 # Balls covering [0, 1] in the bounds of univariate polynomials.
 _SUP_BALLS = 64
+# The in-domain coefficients of a general plant.
+_GENERAL = ("a", "b", "c", "d")
 
 
 class VaryingProof:
@@ -94,47 +120,70 @@ class VaryingProof:
     Attributes
     ----------
     tau, q, rho_q : float
-        ``1/lam + 1/mu``, ``q`` and ``rho q``.
+        The round trip ``1/lam + 1/mu`` (for a general plant the double nearest
+        ``(L/lam + L/mu) / time_unit``), ``q`` of the normal form and the principal gain
+        ``rho q`` (``rho q e^{A(L) - D(L)}`` rounded to a double for a general plant).
     N_tilde, U_tilde : DistributedDelay or None
         Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
         to the PDE's kernels (sup and total variation). ``U~ = f(tau, .)``: the
-        ``u`` row of the fundamental matrix applied to ``[q; 1]``, as for the closed form.
+        ``u`` row of the fundamental matrix applied to ``[q; 1]``, as for the closed form (in
+        the plant's own coordinates for a general plant).
     characteristic : QuasiPolynomial
         ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
     u_factor : QuasiPolynomial
         ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
-        ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu``.
+        ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` (``q e^{A(L) - D(L)}`` rounded to a
+        double for a general plant: a proportional feedback ``U = k u(t, L)`` closes the loop
+        with ``B = -k u_factor``).
     """
 
     __slots__ = ("N_tilde", "U_tilde", "characteristic", "q", "rho_q", "tau", "u_factor")
 
     def __init__(
-        self, tau: float, q: float, rho_q: float, N_tilde: DistributedDelay | None, U_tilde: DistributedDelay | None
+        self,
+        tau: float,
+        q: float,
+        rho_q: float,
+        N_tilde: DistributedDelay | None,
+        U_tilde: DistributedDelay | None,
+        u_point: float | None = None,
     ) -> None:
         self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
         self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
-        self.u_factor = QuasiPolynomial([[q]], [tau], [U_tilde] if U_tilde is not None else [])
+        point = q if u_point is None else u_point
+        self.u_factor = QuasiPolynomial([[point]], [tau], [U_tilde] if U_tilde is not None else [])
 
 
 def has_varying_proof(system: object) -> bool:
-    """True for a :class:`Hyperbolic2x2` with a coupling given as a function whose ``N~`` is proven."""
-    return isinstance(system, Hyperbolic2x2) and not system.constant_couplings and varying_failure(system) is None
+    """True for a plant with coefficients given as functions whose ``N~`` is proven.
+
+    A :class:`Hyperbolic2x2` with a coupling given as a function, or a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant speeds and
+    one of ``a, b, c, d`` a function (module notes, "General plants").
+    """
+    if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
+        return False
+    if isinstance(system, GeneralHyperbolic2x2) and all(system.is_constant(k) for k in _GENERAL):
+        return False
+    return isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and varying_failure(system) is None
 
 
-def varying_failure(system: Hyperbolic2x2) -> str | None:
+def varying_failure(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> str | None:
     """Why :func:`varying_proof` cannot prove ``N~`` of this plant (None when it can)."""
     out = _attempt(system)
     return out if isinstance(out, str) else None
 
 
-def varying_proof(system: Hyperbolic2x2) -> VaryingProof:
+def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     """``N~`` of a plant with couplings that vary with ``x``, with a proven error (module notes).
 
     Parameters
     ----------
-    system : Hyperbolic2x2
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
-        of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate.
+        of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate; or a general
+        plant with constant ``lam, mu`` and ``a, b, c, d`` numbers or such functions on
+        ``[0, L]``.
 
     Returns
     -------
@@ -143,10 +192,10 @@ def varying_proof(system: Hyperbolic2x2) -> VaryingProof:
     Raises
     ------
     ParameterError
-        Not a :class:`Hyperbolic2x2`.
+        Not a :class:`Hyperbolic2x2` or :class:`GeneralHyperbolic2x2`.
     CertificationError
-        A coupling that cannot be enclosed, or a residual too large to be useful
-        (:func:`varying_failure` gives the reason).
+        A coefficient that cannot be enclosed (samples, varying speeds, no ball arithmetic),
+        or a residual too large to be useful (:func:`varying_failure` gives the reason).
     """
     out = _attempt(system)
     if isinstance(out, str):
@@ -154,10 +203,18 @@ def varying_proof(system: Hyperbolic2x2) -> VaryingProof:
     return out
 
 
-def _attempt(system: Hyperbolic2x2) -> VaryingProof | str:
+def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str:
     """The proof, or why there is none (cached for hashable plants: routes ask several times)."""
+    if isinstance(system, GeneralHyperbolic2x2):
+        reason = _general_failure(system)
+        if reason is not None:
+            return reason
+        # the coefficients' values at the check points key the cache, as the couplings' below
+        points = system.length * _CHECK_POINTS
+        key = tuple(float(v) for name in _GENERAL for v in system.coefficient(name, points))
+        return _attempt_cached(system, key)
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 (constant speeds)", system)
+        raise ParameterError("system", "a Hyperbolic2x2 (constant speeds) or GeneralHyperbolic2x2", system)
     try:
         hash(system)
     except TypeError:
@@ -169,12 +226,29 @@ def _attempt(system: Hyperbolic2x2) -> VaryingProof | str:
     return _attempt_cached(system, key)
 
 
+def _general_failure(system: GeneralHyperbolic2x2) -> str | None:
+    """Why a general plant is outside the proof before any enclosure is tried (None: it is not)."""
+    for name in ("lam", "mu"):
+        if not system.is_constant(name):
+            return (
+                f"the speed {name} varies: the proof covers constant speeds; the kernel route (kernel_grid=...) "
+                "gives a model of the PDE"
+            )
+    for name in _GENERAL:
+        if isinstance(getattr(system, name), tuple):
+            return (
+                f"the coefficient {name} is given as samples: its cubic spline is the model of the plant, which "
+                "the kernel route (kernel_grid=...) takes"
+            )
+    return None
+
+
 @lru_cache(maxsize=16)
-def _attempt_cached(system: Hyperbolic2x2, values: tuple[float, ...]) -> VaryingProof | str:
+def _attempt_cached(system: Hyperbolic2x2 | GeneralHyperbolic2x2, values: tuple[float, ...]) -> VaryingProof | str:
     return _attempt_uncached(system)
 
 
-def _attempt_uncached(system: Hyperbolic2x2) -> VaryingProof | str:
+def _attempt_uncached(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str:
     try:
         return _proof(system)
     except CertificationError as exc:
@@ -363,15 +437,26 @@ class _Bi:
 # --------------------------------------------------------------------------- the proof
 
 
-def _proof(system: Hyperbolic2x2) -> VaryingProof:
+class _Setup(NamedTuple):
+    """What the proof needs of a plant: the models of ``k_r, k_w`` and the boundary gains as balls."""
+
+    model_r: tuple[Any, Any, Any]
+    model_w: tuple[Any, Any, Any]
+    Q: Any  # q (of the normal form) as a ball
+    R: Any  # rho (of the normal form) as a ball
+    tau: float  # the principal delay (a double)
+    q: float  # the double of the point delay of the round trip q e^{-tau s}
+    rho_q: float  # the double of the open loop's principal gain
+    u_point: float  # the double of the point delay of u_factor
+    u_weight: Any  # the ball by which U~ of the normal form is multiplied in u_factor
+
+
+def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     flint = require_flint()
     arb = flint.arb
-    lam, mu, q, rho = system.lam, system.mu, system.q, system.rho
-    tau = system.tau
     with precision(flint, _PRECISION):
-        Pr, er, er1 = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(lam), "sigma_pm")
-        Pw, ew, ew1 = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(mu), "sigma_mp")
-        for P, eps, name in ((Pr, er, "sigma_pm"), (Pw, ew, "sigma_mp")):
+        setup = _general_setup(flint, system) if isinstance(system, GeneralHyperbolic2x2) else _setup(flint, system)
+        for (P, eps, _), name in ((setup.model_r, "k_r"), (setup.model_w, "k_w")):
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
@@ -380,27 +465,93 @@ def _proof(system: Hyperbolic2x2) -> VaryingProof:
                 )
         for n in DEGREES:
             try:
-                n_tilde, u_tilde = _kernels(flint, (Pr, er, er1), (Pw, ew, ew1), q, rho, tau, n)
+                n_tilde, u_tilde = _kernels(flint, setup, n)
                 break
             except CertificationError:
                 if n == DEGREES[-1]:
                     raise
-    return VaryingProof(tau, q, rho * q, n_tilde, u_tilde)
+    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point)
 
 
-def _kernels(
-    flint: Any, model_r: tuple[Any, Any, Any], model_w: tuple[Any, Any, Any], q: float, rho: float, tau: float, n: int
-) -> tuple[DistributedDelay | None, DistributedDelay | None]:
+def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
+    """The paper's plant: ``k_r = sigma_pm / lam``, ``k_w = -sigma_mp / mu``, ``q, rho`` exact."""
+    arb = flint.arb
+    model_r = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(system.lam), "sigma_pm")
+    model_w = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(system.mu), "sigma_mp")
+    q, rho = system.q, system.rho
+    return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1))
+
+
+def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
+    """The normal form of a general plant with constant speeds, enclosed (module notes, "General plants")."""
+    arb = flint.arb
+    length, lam, mu = g.length, float(g.lam), float(g.mu)  # type: ignore[arg-type]
+    L = arb(length)
+
+    def physical(name: str) -> tuple[Any, Any]:
+        """The coefficient ``name`` as a function of ``y`` (``x = L y``): on balls and on arrays."""
+        value = getattr(g, name)
+        if not callable(value):
+            return float(value), None
+        return (lambda y: value(y * L)), (lambda y: g.coefficient(name, length * np.asarray(y)))
+
+    # A(L y) = int_0^y alpha, D(L y) = int_0^y delta: alpha = L a / lam, delta = -L d / mu at x = L y
+    a_value, a_at = physical("a")
+    d_value, d_at = physical("d")
+    P_a, e_a, _ = _model(flint, a_value, a_at, L / arb(lam), "a")
+    P_d, e_d, _ = _model(flint, d_value, d_at, -L / arb(mu), "d")
+    E = P_d.integral() - P_a.integral()  # D - A at x = L y, within e_E (and its derivative too)
+    e_E = e_a + e_d
+    q_n = g.normal_form().system.q  # the normal form's q~ = q e^{-k}: k is read as log(q / q~), q~ exact
+    ek = arb(q_n) / arb(g.q)  # e^{-k}
+    E_end = E(arb(1)) + arb(0, float(e_E.upper()))
+    weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
+
+    def coupling(name: str, sign: int, scale: Any) -> tuple[Any, Any, Any]:
+        value, at = physical(name)
+        factor = ek if sign > 0 else 1 / ek
+
+        def on_balls(y: Any) -> Any:
+            x = y.reshape(-1)[0]
+            exponent = arb(0)
+            for c in reversed(E.coeffs()):  # Horner: E(x) on an arb_series
+                exponent = exponent * x + c
+            own = value(y) if callable(value) else value
+            if isinstance(own, np.ndarray):
+                own = own.reshape(-1)[0]
+            return own * (sign * exponent).exp() * factor
+
+        def on_arrays(y: Any) -> Any:
+            y = np.asarray(y, dtype=float)
+            own = at(y) if at is not None else np.full(y.shape, value)
+            exponent = sign * (g.D(length * y) - g.A(length * y))
+            return own * np.exp(exponent) * (q_n / g.q) ** sign
+
+        P, eps, eps1 = _model(flint, on_balls, on_arrays, scale, name)
+        # the true coupling is the model's times e^{sign r}, |r| <= e_E, |r'| <= e_E
+        grow = e_E.exp() - 1
+        size, slope = _poly_sup(flint, P) + eps, _poly_sup(flint, P.derivative()) + eps1
+        return P, eps + size * grow, eps1 + slope * grow + size * e_E * e_E.exp()
+
+    model_r = coupling("b", 1, L / arb(lam))
+    model_w = coupling("c", -1, -L / arb(mu))
+    rho = g.rho
+    u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
+    tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
+    return _Setup(model_r, model_w, arb(q_n), arb(rho) * weight, tau, q_n, rho * u_point, u_point, weight)
+
+
+def _kernels(flint: Any, setup: _Setup, n: int) -> tuple[DistributedDelay | None, DistributedDelay | None]:
     """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes)."""
     arb, arb_poly = flint.arb, flint.arb_poly
-    (Pr, er, er1), (Pw, ew, ew1) = model_r, model_w
+    (Pr, er, er1), (Pw, ew, ew1) = setup.model_r, setup.model_w
+    Q, R = setup.Q, setup.R
     kr = np.array([float(c.mid()) for c in Pr.coeffs()] or [0.0])
     kw = np.array([float(c.mid()) for c in Pw.coeffs()] or [0.0])
-    F_hat, G_hat = _picard(kr, kw, q, n)
+    F_hat, G_hat = _picard(kr, kw, float(Q.mid()), n)
     bi = _Bi(flint, n)
     F, G = bi.from_array(F_hat), bi.from_array(G_hat)
-    Q = arb(q)
-    # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic
+    # residual polynomials T_P(F^, G^) - (F^, G^), exact in ball arithmetic (q a ball: its radius counts)
     RF = Pr - F  # k_r(A): P_r in the variable A = y
     RF += bi.integrate(bi.shifted(Pr) * G, 1)
     RG = Pw(arb_poly([0] * bi.K + [1])) * Q - G  # q k_w(V): V = y^K
@@ -418,11 +569,12 @@ def _kernels(
     eF_V, eG_A = rF_V + C * M, rG_A + C * M
     eF_A = rF_A + C1 * M + C * eG_A
     eG_V = rG_V + C1 * M + C * eF_V
-    T, R = arb(tau), arb(rho)
-    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau
+    T, W = arb(setup.tau), abs(setup.u_weight)
+    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau (rho a ball: its radius
+    # goes into the pieces' rounding)
     F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
     n_tilde = _store(flint, G_line - F_line * R, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T)
-    u_tilde = _store(flint, F_line, T, M / T, (eF_V + eF_A) / T)
+    u_tilde = _store(flint, F_line * setup.u_weight, T, W * M / T, W * (eF_V + eF_A) / T)
     return n_tilde, u_tilde
 
 
