@@ -332,8 +332,9 @@ class DifferenceOperator:
     # ------------------------------------------------------------------ strong stability
     @property
     def gamma_0(self) -> float:
-        """``sum_{k>=1} |a_k| / |a_0|`` (Hale and Verduyn Lunel's ``gamma_0``)."""
-        return float(np.sum(np.abs(self.coefs[1:])) / abs(self.coefs[0]))
+        """``sum_{k>=1} |a_k| / |a_0|`` (Hale and Verduyn Lunel's ``gamma_0``; ``inf`` when it overflows)."""
+        with np.errstate(over="ignore"):
+            return float(np.sum(np.abs(self.coefs[1:])) / abs(self.coefs[0]))
 
     def is_strongly_stable(self) -> bool:
         """True iff ``gamma_0 < 1``: exponentially stable for all small delay perturbations."""

@@ -260,3 +260,10 @@ def test_principal_part_of_an_expanded_determinant_is_the_merged_operator() -> N
     Q = sys._expanded.poly.principal_part()  # the route through the quasi-polynomial
     np.testing.assert_array_equal(D.delays, Q.delays)
     np.testing.assert_allclose(D.coefs, Q.coefs, rtol=1e-15, atol=0)  # the same rounded coefficients
+
+
+def test_gamma_0_overflows_to_inf() -> None:
+    # a_0 = 5e-309 against 1: the ratio is above the largest double (a RuntimeWarning escaped)
+    op = DifferenceOperator([5e-309, 1.0], [0.0, 1.0])
+    assert op.gamma_0 == np.inf
+    assert not op.is_strongly_stable()
