@@ -13,6 +13,7 @@ from __future__ import annotations
 import mpmath as mp
 import numpy as np
 import pytest
+from _convergence import assert_kernel_route_converges
 
 import nrobust as nr
 from nrobust.hyperbolic import GeneralHyperbolic2x2, OpenLoop, ReflectionController, StateFeedback
@@ -119,15 +120,7 @@ def test_proven_margin_contains_the_pde_margin_and_says_so():
 def test_kernel_route_converges_to_the_proven_margin():
     """The kernel route on 101, 201, 401 points converges to the proven margin at its observed order."""
     proven = nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, rigorous=True)
-    margins = [
-        nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, kernel_grid=n).margin for n in (101, 201, 401)
-    ]
-    d1, d2 = margins[1] - margins[0], margins[2] - margins[1]
-    order = np.log2(d1 / d2)
-    assert 2.5 < order < 3.5
-    extrapolated = margins[2] + d2 / (2.0**order - 1.0)
-    # the extrapolation's own error: a fraction of the last difference (an order known to +-0.5)
-    np.testing.assert_allclose(extrapolated, proven.margin, rtol=0, atol=0.2 * abs(d2))
+    assert_kernel_route_converges(PLANT, ReflectionController(K), proven.margin)
 
 
 @pytest.mark.long

@@ -12,6 +12,7 @@ from __future__ import annotations
 import mpmath as mp
 import numpy as np
 import pytest
+from _convergence import assert_kernel_route_converges
 
 import nrobust as nr
 from nrobust.errors import CertificationError
@@ -104,15 +105,7 @@ def test_proven_margin_contains_the_pde_margin():
 def test_proven_margin_contains_the_kernel_route_extrapolated():
     """The kernel route converges to the proven margin at its observed order (about 3)."""
     proven = nr.delay_margin(VARYING, ReflectionController(K), delta_max=20.0, rigorous=True)
-    margins = [
-        nr.delay_margin(VARYING, ReflectionController(K), delta_max=20.0, kernel_grid=n).margin for n in (101, 201, 401)
-    ]
-    d1, d2 = margins[1] - margins[0], margins[2] - margins[1]
-    order = np.log2(d1 / d2)
-    assert 2.5 < order < 3.5
-    extrapolated = margins[2] + d2 / (2.0**order - 1.0)
-    # the extrapolation's own error: a fraction of the last difference (an order known to +-0.5)
-    np.testing.assert_allclose(extrapolated, proven.margin, rtol=0, atol=0.2 * abs(d2))
+    margins = assert_kernel_route_converges(VARYING, ReflectionController(K), proven.margin)
     assert abs(margins[2] - proven.margin) > 10 * (proven.margin_ball[1] - proven.margin_ball[0])
 
 
