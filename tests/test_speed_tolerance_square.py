@@ -26,6 +26,7 @@ import pytest
 from scipy.optimize import brentq
 
 from nrobust import FilteredController, Hyperbolic2x2, ParameterError, ReflectionController, TransportSystem
+from nrobust.hyperbolic import OutputFeedback
 from nrobust.hyperbolic.analyses import prove_transport_square, speed_tolerance
 
 # the pocket: rho q = 0.5, K q = 0.7, filter 1/(1 + 0.2 s); lam = 10 makes the mixed corners'
@@ -137,3 +138,14 @@ def test_bad_arguments() -> None:
         prove_transport_square(POCKET, -0.7, (0.0, 0.2), 1.0, (0.0, 0.44), [])
     with pytest.raises(ParameterError, match="b must be > 0"):
         prove_transport_square(POCKET, -0.7, (0.0, -0.2), EPS, (0.0, 0.44), [])
+
+
+def test_an_output_feedback_keeps_the_corners_certificate() -> None:
+    # the square proof needs the law on the state; an output feedback raised a ParameterError from it
+    result = speed_tolerance(
+        TransportSystem(1, 1, 1, 0.5), OutputFeedback(ReflectionController(0.2)), 0.1, (0.0, 0.1), rigorous=True
+    )
+    assert result.met and result.certified == "proven at the corners"
+    assert "an output feedback" in result.statement
+    assert all(w.stable for w in result.windows)
+    assert result.scope.endswith("acting on the mismatched one")

@@ -521,19 +521,7 @@ def mismatch_region(
             _axis_end(evaluate, axis, below, delta_max, tol),
             _axis_end(evaluate, axis, above, delta_max, tol),
         )
-    if isinstance(controller, OutputFeedback):
-        route = loop_route(system, controller)
-        route_grid = kernel_grid if route == "kernels" else None
-        scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
-        scope += "; the observer and the law designed on the nominal plant, acting on the mismatched one"
-    else:
-        plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-        route = loop_route(plant, feedback)
-        scope = loop_scope(
-            plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
-        )
-        if route == "kernels" and not isinstance(controller, StateFeedback):
-            scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
+    route, scope = _route_scope(system, controller, kernel_grid)
     return MismatchRegion(
         lam_axis,
         mu_axis,
@@ -700,6 +688,23 @@ def _square_scope(system: Hyperbolic2x2, feedback: StateFeedback, rigorous: bool
     return None
 
 
+def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> tuple[str, str]:
+    """The route and the scope of the mismatched loops (as :func:`loop_route`, :func:`loop_scope` say)."""
+    if isinstance(controller, OutputFeedback):
+        route = loop_route(system, controller)
+        route_grid = kernel_grid if route == "kernels" else None
+        scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
+        return route, scope + "; the observer and the law designed on the nominal plant, acting on the mismatched one"
+    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    route = loop_route(plant, feedback)
+    scope = loop_scope(
+        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
+    )
+    if route == "kernels" and not isinstance(controller, StateFeedback):
+        scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
+    return route, scope
+
+
 def _integral_gains(feedback: StateFeedback) -> bool:
     """True when a state feedback has an integral term (a callable or a nonzero gain)."""
     return any(callable(g) or g != 0.0 for g in (feedback.g_u, feedback.g_v))
@@ -814,8 +819,15 @@ def speed_tolerance(
     points = [*corners, *inner]
     met = all(w.stable for w in windows)
     proven = all(w.certified == "proven" for w in windows[:4])
-    plant, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-    why_not = _square_scope(system, feedback, rigorous) if met else None
+    why_not: str | None
+    if isinstance(controller, OutputFeedback):
+        why_not = (
+            "an output feedback: the loop of the observer and the law has no proven enclosure in the speeds here: "
+            "only the corners are certified"
+        )
+    else:
+        _, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+        why_not = _square_scope(system, feedback, rigorous) if met else None
     proof = None
     if met and why_not is None:
         loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
@@ -869,8 +881,5 @@ def speed_tolerance(
             f"between the points not certified (the stability windows are not continuous in the mismatch; the square "
             f"is not proven: {why_not})"
         )
-    route = loop_route(plant, feedback)
-    scope = loop_scope(
-        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
-    )
+    route, scope = _route_scope(system, controller, kernel_grid)
     return SpeedTolerance(eps, (d_lo, d_hi), tuple(points), tuple(windows), met, certified, statement, route, scope)
