@@ -448,7 +448,7 @@ def _bad_part(
     if not (bad_a or bad_b):
         return None
     slack = 4.0 * float(np.finfo(float).eps) * (abs(a) + abs(b) + (b - a))
-    if bad_a:  # G(a) <= r_a < ... , G(b) > r_b: the zero is at most a + (b - a) (r_a - g_a) / (g_b - r_b + r_a - g_a)
+    if bad_a:  # G(a) <= r_a, G(b) > r_b: the zero of G is at most a + (b - a) (r_a - g_a) / (g_b - r_b + r_a - g_a)
         share = (r_a - g_a) / ((g_b - r_b) + (r_a - g_a))
         return (a, min(b, a + (b - a) * share + slack))
     share = (r_b - g_b) / ((g_a - r_a) + (r_b - g_b))

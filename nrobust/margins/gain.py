@@ -800,8 +800,8 @@ def locate_gain_ends(
     second = AxisBound.of(loop)
 
     def crossing_bound(lo: float, hi: float) -> float:
-        """Above every crossing frequency of the gains in ``[lo, hi]`` (``lo <= 0 <= hi``; 0: none):
-        :class:`AxisBound`'s, else the first-order bound of the largest ``|K|``."""
+        """Above every crossing frequency of the gains in ``[lo, hi]`` (``lo <= 0 <= hi``; 0: none): the smaller
+        of :class:`AxisBound`'s and the first-order bounds at the ends (the latter alone without the former)."""
         first = [frequency_bound(loop.A, loop.B(c)) for c in (lo, hi)]
         W1 = max(0.0 if b is None else b[0] for b in first)
         if second is None:
