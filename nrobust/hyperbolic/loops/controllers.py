@@ -84,6 +84,14 @@ __all__ = [
 
 Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
+# What a proof "of the PDE itself" takes from floating point: the loop's point delays and gains are
+# products and sums of the user's doubles (tau = L/lam + L/mu, b L/lam, rho q, q e^{A(L) - D(L)},
+# the law's gain times them), rounded in a few operations (exact for the paper's plant).
+_ROUNDED = (
+    "tau, the couplings' ratios and the principal gains as doubles computed from the parameters, rounded "
+    "where not exact (a few ulps)"
+)
+
 
 def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.zeros_like(np.asarray(xi, dtype=float))
@@ -579,8 +587,7 @@ def loop_scope(
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         return (
             "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
-            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; tau the double "
-            "nearest 1/lam + 1/mu)"
+            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; {_ROUNDED})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
@@ -591,7 +598,7 @@ def loop_scope(
         )
         if isinstance(controller, StateFeedback) and _integral_gains(controller):
             kernel += "; the integral gains as Taylor models in ball arithmetic, t_v rounded to a multiple of ulp(tau)"
-        return f"the PDE itself ({kernel}; tau the double nearest 1/lam + 1/mu)"
+        return f"the PDE itself ({kernel}; {_ROUNDED})"
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return (
             "a model of the PDE: N~ the cubic spline of the characteristic route (varying lam/mu); its distance "
@@ -605,7 +612,7 @@ def loop_scope(
             f"the kernels on {grid} points; its distance to the PDE is not part of the proof"
         )
     if isinstance(system, Hyperbolic2x2) and system.uncoupled:
-        return "the PDE itself (uncoupled: N~ = 0)"
+        return f"the PDE itself (uncoupled: N~ = 0; {_ROUNDED})"
     return (
         f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
         "not part of the proof (a convergence study estimates it)"
