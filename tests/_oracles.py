@@ -1031,3 +1031,178 @@ class PDELoop:
             return 0.0
         cross = self.crossings()
         return min((d for _, d in cross), default=math.inf)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A coefficient ``c0 + c1 sin(w x + phi)`` (``kind == "sin"``) or ``c0 e^{w x}`` (``"exp"``):
+    the same formula as a numpy/ball callable for nrobust and in mpmath for the oracle."""
+
+    kind: str
+    c0: float
+    c1: float = 0.0
+    w: float = 0.0
+    phi: float = 0.0
+
+    def numpy(self) -> Callable[[np.ndarray], np.ndarray]:
+        c0, c1, w, phi = self.c0, self.c1, self.w, self.phi
+        if self.kind == "exp":
+            return lambda x: c0 * np.exp(w * x)
+        return lambda x: c0 + c1 * np.sin(w * x + phi)
+
+    def mp(self, x):
+        c0, c1, w, phi = (mp.mpf(v) for v in (self.c0, self.c1, self.w, self.phi))
+        return c0 * mp.exp(w * x) if self.kind == "exp" else c0 + c1 * mp.sin(w * x + phi)
+
+
+class VaryingPDELoop:
+    """``F(s; delta) = A(s) + B(s) e^{-delta s}`` of the plant with varying coefficients
+    ``u_t + lam u_x = a(x) u + b(x) v``, ``v_t - mu v_x = c(x) u + d(x) v`` on ``[0, L]``,
+    ``u(t, 0) = q v(t, 0)``, ``v(t, L) = rho u(t, L) + U(t)``, from the Laplace-domain ODE.
+
+    Derivation: the Laplace transforms satisfy ``u_x = ((a - s) u + b v)/lam``,
+    ``v_x = ((s - d) v - c u)/mu``; from ``[u; v](0) = [q; 1]`` (the solution is determined up to
+    the value ``v(0)``) the boundary condition at ``L`` gives the characteristic function
+    ``A = w (v(L) - rho u(L))``, normalised by ``w = e^{-s L/mu - D(L)}``, ``D(L) = -int_0^L d/mu``
+    (so that its principal part is ``1 - rho q e^{A(L) - D(L)} e^{-tau s}``, ``A(L) = int_0^L
+    a/lam``, ``tau = L/lam + L/mu``). A law ``U = k u(t, L)`` closes the loop with
+    ``B = -k w u(L)``; the backstepping laws of the paper (its normal form, eqs. (10)-(16)):
+    U_BS ``B = 1 - A``, U_BS2(K) ``B = 1 - A + (K q~ - rho q e^{A(L) - D(L)}) e^{-tau s}`` with
+    ``q~`` the normal form's ``q`` (``K`` is read in its coordinates).
+
+    Values at ``DPS`` digits come from ``mpmath.odefun`` (a Taylor integrator), ``A(L)`` and
+    ``D(L)`` from ``mpmath.quad``; scans use scipy's DOP853 at ``rtol = 1e-12``. Frequency scans
+    cover a band, not the whole axis: a crossing above it is not looked for.
+    """
+
+    DPS = 20
+
+    def __init__(
+        self,
+        lam: float,
+        mu: float,
+        length: float,
+        coefs: dict[str, Profile],
+        q: float,
+        rho: float,
+        controller: tuple,
+        q_normal: float | None = None,
+    ) -> None:
+        self.lam, self.mu, self.L, self.coefs, self.q, self.rho = lam, mu, length, coefs, q, rho
+        self.controller, self.q_normal = controller, q if q_normal is None else q_normal
+        self.tau = length / lam + length / mu
+        with mp.workdps(self.DPS + 10):
+            L = mp.mpf(length)
+            self.A_L = mp.quad(lambda x: coefs["a"].mp(x), [0, L]) / lam
+            self.D_L = -mp.quad(lambda x: coefs["d"].mp(x), [0, L]) / mu
+            self.principal = mp.mpf(rho) * mp.mpf(q) * mp.exp(self.A_L - self.D_L)
+
+    def _end(self, s):
+        """``(w u(L), w v(L))`` at ``DPS`` digits."""
+        lam, mu, co = mp.mpf(self.lam), mp.mpf(self.mu), self.coefs
+        with mp.workdps(self.DPS + 5):
+            s = mp.mpc(s)
+
+            def rhs(x, y):
+                return [
+                    ((co["a"].mp(x) - s) * y[0] + co["b"].mp(x) * y[1]) / lam,
+                    ((s - co["d"].mp(x)) * y[1] - co["c"].mp(x) * y[0]) / mu,
+                ]
+
+            u, v = mp.odefun(rhs, 0, [mp.mpf(self.q), mp.mpf(1)])(mp.mpf(self.L))
+            w = mp.exp(-s * mp.mpf(self.L) / mu - self.D_L)
+            return w * u, w * v
+
+    def factors_mp(self, s):
+        """``(A(s), B(s), w u(L, s))``."""
+        u, v = self._end(s)
+        with mp.workdps(self.DPS + 5):
+            s = mp.mpc(s)
+            A = v - mp.mpf(self.rho) * u
+            kind = self.controller[0]
+            if kind == "open":
+                B = mp.mpc(0)
+            elif kind == "finite":
+                B = 1 - A
+            elif kind == "reflection":
+                gain = mp.mpf(self.controller[1]) * mp.mpf(self.q_normal) - self.principal
+                B = 1 - A + gain * mp.exp(-s * mp.mpf(self.tau))
+            else:  # ("state", k): U = k u(t, L)
+                B = -mp.mpf(self.controller[1]) * u
+            return A, B, u
+
+    def gap_np(self, w: np.ndarray) -> np.ndarray:
+        """``|A(i w)| - |B(i w)|`` in double precision (DOP853), one ODE per frequency."""
+        from scipy.integrate import solve_ivp
+
+        co = {k: p.numpy() for k, p in self.coefs.items()}
+        out = np.empty(len(w))
+        D_L, prin = float(self.D_L), float(self.principal)
+        for i, wi in enumerate(w):
+            s = 1j * wi
+
+            def rhs(x: float, y: np.ndarray, s: complex = s) -> np.ndarray:
+                return np.array(
+                    [
+                        ((co["a"](x) - s) * y[0] + co["b"](x) * y[1]) / self.lam,
+                        ((s - co["d"](x)) * y[1] - co["c"](x) * y[0]) / self.mu,
+                    ]
+                )
+
+            sol = solve_ivp(
+                rhs, (0.0, self.L), np.array([self.q, 1.0], dtype=complex), "DOP853", rtol=1e-12, atol=1e-14
+            )
+            u, v = sol.y[:, -1] * np.exp(-s * self.L / self.mu - D_L)
+            A = v - self.rho * u
+            kind = self.controller[0]
+            if kind == "open":
+                B = 0.0
+            elif kind == "finite":
+                B = 1 - A
+            elif kind == "reflection":
+                B = 1 - A + (self.controller[1] * self.q_normal - prin) * np.exp(-s * self.tau)
+            else:
+                B = -self.controller[1] * u
+            out[i] = abs(A) - abs(B)
+        return out
+
+    def crossing_near(self, w0: float) -> tuple[float, float]:
+        """``(w, delta)`` of the crossing ``|A(i w)| = |B(i w)|`` nearest ``w0`` (mpmath.findroot, secant),
+        ``delta`` the smallest delay of that crossing; OracleUnsure if it does not settle."""
+
+        def g(w):
+            A, B, _ = self.factors_mp(mp.mpc(0, w))
+            return abs(A) ** 2 - abs(B) ** 2
+
+        with mp.workdps(self.DPS):
+            try:
+                w = mp.findroot(g, mp.mpf(w0), tol=mp.mpf(10) ** (-2 * self.DPS + 8))
+            except (ValueError, ZeroDivisionError):
+                raise OracleUnsure(f"findroot did not settle near w = {w0}") from None
+            if abs(w - w0) > 1e-6 * (1 + abs(w0)):
+                raise OracleUnsure(f"findroot went from {w0} to {w}")
+            A, B, _ = self.factors_mp(mp.mpc(0, w))
+            return float(w), float(((-mp.arg(-A / B)) % (2 * mp.pi)) / w)
+
+    def crossings_in_band(self, w_max: float) -> list[tuple[float, float]]:
+        """``(w, delta)`` of the sign changes of ``|A| - |B|`` on ``(0, w_max]`` (step ``2 pi/(64 tau)``,
+        refined by bisection in double precision); a local minimum of ``||A| - |B||`` below ``1e-6``
+        between grid points raises OracleUnsure (a tangency the grid cannot resolve)."""
+        from scipy.optimize import brentq
+
+        if self.controller[0] == "open":
+            return []
+        n = int(w_max / (2 * math.pi / (64 * self.tau))) + 2
+        w = np.linspace(1e-3, w_max, n)
+        g = self.gap_np(w)
+        inner = np.arange(1, n - 1)
+        low = (np.abs(g[inner]) <= np.abs(g[inner - 1])) & (np.abs(g[inner]) <= np.abs(g[inner + 1]))
+        if np.any(low & (np.abs(g[inner]) < 1e-6) & (np.sign(g[inner - 1]) == np.sign(g[inner + 1]))):
+            raise OracleUnsure("|A| - |B| nearly touches zero between grid points")
+        out = []
+        for i in np.flatnonzero(np.sign(g[:-1]) != np.sign(g[1:])):
+            wc = brentq(lambda x: float(self.gap_np(np.array([x]))[0]), w[i], w[i + 1], xtol=1e-13)
+            A, B, _ = self.factors_mp(mp.mpc(0, wc))
+            with mp.workdps(self.DPS):
+                out.append((wc, float(((-mp.arg(-A / B)) % (2 * mp.pi)) / wc)))
+        return out

@@ -216,3 +216,32 @@ def test_a_coefficient_changed_since_its_proof_is_not_proven_with_its_old_values
     fresh = varying_proof(GeneralHyperbolic2x2(LAM, MU, a, _b, _c, _d, Q, RHO))
     s = np.array([0.3 + 2.0j, 5.0j])
     assert np.max(np.abs(first.characteristic(s) - fresh.characteristic(s))) > 1e-2
+
+
+def test_a_tiny_kernel_is_proven_with_its_absolute_error():
+    """``c = 0`` with ``a != 0``: the kernels are tiny, their proven error (1e-17) is not small against
+    them but is against the loop (constant term 1): proven, and the balls contain the ODE's values.
+
+    The error bound was refused as "too large" (7e-18 against a kernel of 1e-10): the kernel route's
+    model replaced a proof of radius 1e-16.
+    """
+    from nrobust.balls import ball_eval
+
+    lam, mu, length, q = 1.1778448343497503, 1.522910399583671, 0.7813067766026055, 0.25616938770202446
+    plant = GeneralHyperbolic2x2(
+        lam, mu, lambda x: 1e-4 + 0 * x, lambda x: 0.65 + 0 * x, 0.0, 0.0, q, 0.0, length=length
+    )
+    assert varying_failure(plant) is None and loop_route(plant, ReflectionController(K)) == "exact"
+    proof = varying_proof(plant)
+    for s in (0.3j, 0.5 + 7.0j, -0.3 + 15.0j):
+        with mp.workdps(20):
+            z = mp.mpc(s)
+
+            def rhs(x, y, z=z):
+                return [((mp.mpf("1e-4") - z) * y[0] + mp.mpf(0.65) * y[1]) / lam, z * y[1] / mu]
+
+            u, v = mp.odefun(rhs, 0, [mp.mpf(q), mp.mpf(1)])(mp.mpf(length))
+            weight = mp.exp(-z * length / mu)  # D = 0
+        for F, value in ((proof.characteristic, weight * v), (proof.u_factor, weight * u)):
+            # slack: the doubles of tau and of q e^{A(L)} (a few ulps, times |e^{-tau s}| <= e^{0.4})
+            _inside(ball_eval(F, flint.acb(s.real, s.imag)), complex(value), 1e-15)

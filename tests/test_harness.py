@@ -37,6 +37,8 @@ from _oracles import (
     LoopOracle,
     OracleUnsure,
     PDELoop,
+    Profile,
+    VaryingPDELoop,
     chain_abscissa,
     chain_roots,
     count_in_box,
@@ -48,7 +50,7 @@ from _oracles import (
     transport_margin,
     z_roots,
 )
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import nrobust as nr
@@ -61,6 +63,9 @@ from nrobust import (
     ReflectionController,
     TransportSystem,
 )
+from nrobust.balls import ball_eval
+from nrobust.hyperbolic.loops.controllers import loop_route
+from nrobust.hyperbolic.loops.varying_proof import has_varying_proof, varying_proof
 
 # ============================================================================ budget
 EXAMPLE_SECONDS = float(os.environ.get("NROBUST_FUZZ_EXAMPLE_SECONDS", "60" if FUZZ else "15"))
@@ -860,6 +865,139 @@ def _prop_constant_plants(plant: tuple, data: st.DataObject) -> None:
 def test_constant_plants_against_the_pde() -> None:
     """Proven margins, abscissae and root boxes of the exact route against the PDE's Laplace solution."""
     run(_prop_constant_plants, "pde_exact_route")
+
+
+# ============================================================================ 4d. varying coefficients (the PDE itself)
+@st.composite
+def profiles(draw: st.DrawFn, scale: float) -> Profile:
+    """A coefficient: a constant given as a function, ``c0 + c1 sin(w x + phi)`` or ``c0 e^{w x}``."""
+    kind = draw(st.sampled_from(["const", "sin", "sin", "exp"]))
+    c0 = draw(st.floats(-scale, scale))
+    if kind == "const":
+        return Profile("sin", c0)
+    if kind == "sin":
+        return Profile(
+            "sin", c0, draw(st.floats(-scale / 2, scale / 2)), draw(st.floats(0.5, 4.0)), draw(st.floats(0, 3))
+        )
+    return Profile("exp", c0, 0.0, draw(st.floats(-1.5, 1.5)))
+
+
+@st.composite
+def varying_plants(draw: st.DrawFn) -> tuple[Any, VaryingPDELoop, Any, str]:
+    """The paper's plant with varying couplings, or a general plant with varying ``a, b, c, d`` and a
+    length ``L``, with U_BS2(K) (``K`` inside or outside ``(1 - |rho~ q~|)/|q~|``), U_BS, the open loop
+    or ``U = k u(t, L)``; returned with its ODE oracle."""
+    zero = Profile("sin", 0.0)
+    q = draw(st.floats(0.1, 1.0) | st.floats(-1.0, -0.1))
+    rho = draw(st.floats(-1.0, 1.0))
+    if draw(st.booleans()):
+        lam, mu, length = draw(st.floats(0.5, 3.0)), draw(st.floats(0.5, 3.0)), 1.0
+        coefs = {"a": zero, "b": draw(profiles(1.5)), "c": draw(profiles(1.5)), "d": zero}
+        plant = nr.Hyperbolic2x2(lam, mu, coefs["b"].numpy(), coefs["c"].numpy(), q, rho)
+        q_normal = q
+    else:
+        lam, mu, length = draw(st.floats(0.5, 2.0)), draw(st.floats(0.5, 2.0)), draw(st.floats(0.5, 2.0))
+        coefs = {"a": draw(profiles(0.6)), "b": draw(profiles(1.5)), "c": draw(profiles(1.5)), "d": draw(profiles(0.6))}
+        plant = nr.GeneralHyperbolic2x2(
+            lam,
+            mu,
+            *(coefs[k].numpy() for k in "abcd"),
+            q,
+            rho,
+            length=length,  # type: ignore[arg-type]
+        )
+        q_normal = plant.normal_form().system.q
+    o = VaryingPDELoop(lam, mu, length, coefs, q, rho, ("open",), q_normal)
+    principal = float(abs(o.principal))
+    assume(principal < 0.95)
+    kind = draw(st.sampled_from(["reflection"] * 4 + ["finite", "open", "state"]))
+    if kind == "reflection":
+        f = draw(st.floats(-0.95, 0.95) | st.floats(1.05, 2.0) | st.floats(-2.0, -1.05))
+        spec: tuple = ("reflection", f * (1.0 - principal) / abs(q_normal))
+        controller: Any = ReflectionController(spec[1])
+    elif kind == "state":
+        spec = ("state", -rho + draw(st.floats(-0.3, 0.3)))
+        controller = nr.StateFeedback(spec[1])
+    else:
+        spec = (kind,)
+        controller = nr.FiniteTimeController() if kind == "finite" else nr.OpenLoop()
+    o.controller = spec
+    what = f"{type(plant).__name__}(lam={lam!r}, mu={mu!r}, L={length!r}, {coefs}, q={q!r}, rho={rho!r}), {spec}"
+    return plant, o, controller, what
+
+
+def _inside_ball(ball: Any, value: complex, slack: float) -> bool:
+    re, im = ball.real, ball.imag
+    return bool(
+        float(re.lower()) - slack <= value.real <= float(re.upper()) + slack
+        and float(im.lower()) - slack <= value.imag <= float(im.upper()) + slack
+    )
+
+
+@budget(ci=2, weight=0.05)
+@given(varying_plants(), st.data())
+def _prop_varying_plants(case: tuple, data: st.DataObject) -> None:
+    test = "pde_varying"
+    plant, o, controller, what = case
+    STATS.case()
+    flint = pytest.importorskip("flint")
+    if not has_varying_proof(plant):
+        STATS.refusal(test)
+        return
+    out = call(varying_proof, plant)
+    if not settle(out, test, "varying_proof", what):
+        return
+    proof = out.value
+    for _ in range(2):
+        s = complex(data.draw(st.floats(-0.4, 1.0)), data.draw(st.floats(0.0, 25.0)))
+        truth = unsure_guard(lambda s=s: o.factors_mp(s))
+        if truth is None:
+            continue
+        A, _, u = (complex(v) for v in truth)
+        # tau and the principal gains are doubles rounded from their values (the scope says so): a
+        # few ulps times |s| tau and the gains' size; the ODE's 20 digits
+        grow = math.exp(o.tau * max(0.0, -s.real))
+        slack = (1e-17 + 8 * 2.0**-52 * (1 + abs(s) * o.tau)) * (2 + abs(A) + abs(u)) * grow
+        for name, F, value in (("open loop", proof.characteristic, A), ("u(L, s)", proof.u_factor, u)):
+            ball = ball_eval(F, flint.acb(s.real, s.imag))
+            STATS.claim(
+                _inside_ball(ball, value, slack), test, f"{name} at s = {s!r}: ball {ball} misses {value!r}", what
+            )
+    if o.controller[0] == "open" or loop_route(plant, controller) != "exact":
+        return  # the open loop does not depend on the delay
+    out = call(nr.delay_margin, plant, controller, delta_max=20.0, rigorous=True)
+    if not settle(out, test, "delay_margin(rigorous=True)", what):
+        return
+    dm = out.value
+    STATS.claim(dm.scope.startswith("the PDE itself"), test, f"delay_margin scope: {dm.scope!r}", what)
+    if dm.margin == 0.0 or dm.margin_ball is None:
+        return
+    lo, hi = dm.margin_ball
+    band = min(max(1.5 * (dm.omega or 0.0), 20.0 / o.tau), 40.0 / o.tau)
+    if math.isfinite(dm.margin):
+        found = unsure_guard(lambda: o.crossing_near(dm.omega))
+        if found is not None:
+            slack = ulps(hi) + 1e-15 * (1 + found[1])  # the rounded tau and gains, as above
+            STATS.claim(
+                lo - slack <= found[1] <= hi + slack,
+                test,
+                f"delay_margin: ball {dm.margin_ball} misses the PDE's crossing delay {found[1]!r} at w = {found[0]!r}",
+                what,
+            )
+    crossings = unsure_guard(lambda: o.crossings_in_band(band))
+    if crossings is not None:
+        early = [c for c in crossings if c[1] < lo - 1e-8 * (1 + lo)]  # the double-precision scan's accuracy
+        STATS.claim(
+            not early,
+            test,
+            f"delay_margin: ball {dm.margin_ball}, the PDE crosses at (w, delta) = {early[:3]} (band {band:.3g})",
+            what,
+        )
+
+
+def test_varying_plants_against_the_pde() -> None:
+    """Proofs about plants with varying coefficients against the Laplace-domain ODE of the original plant."""
+    run(_prop_varying_plants, "pde_varying")
 
 
 # ============================================================================ 5. bad input

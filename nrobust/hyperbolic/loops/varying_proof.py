@@ -102,7 +102,8 @@ DEGREES = (56, 96)
 _PRECISION = 192
 # Relative agreement asked of the ball model with the coupling evaluated on arrays at _CHECK_POINTS.
 _AGREEMENT = 1e-8
-# Largest residual accepted, relative to the size of N~ (beyond it the proof would say little).
+# Largest residual accepted, relative to the size of N~ (beyond it the proof would say little); at the
+# last degree also an absolute one (the loop's constant term is 1: a tiny kernel's rounding floor).
 _RESIDUAL = 2.0**-27
 # Balls covering [0, 1] on which the coefficient of order ORDER of a coupling's model is bounded.
 _TOP_BALLS = 64
@@ -465,7 +466,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
                 )
         for n in DEGREES:
             try:
-                n_tilde, u_tilde = _kernels(flint, setup, n)
+                n_tilde, u_tilde = _kernels(flint, setup, n, n == DEGREES[-1])
                 break
             except CertificationError:
                 if n == DEGREES[-1]:
@@ -541,8 +542,12 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     return _Setup(model_r, model_w, arb(q_n), arb(rho) * weight, tau, q_n, rho * u_point, u_point, weight)
 
 
-def _kernels(flint: Any, setup: _Setup, n: int) -> tuple[DistributedDelay | None, DistributedDelay | None]:
-    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes)."""
+def _kernels(flint: Any, setup: _Setup, n: int, last: bool) -> tuple[DistributedDelay | None, DistributedDelay | None]:
+    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes).
+
+    ``last``: the last degree tried, where an error below :data:`_RESIDUAL` of the loop's scale (its
+    constant term 1) is accepted even when it is not below that fraction of a small kernel.
+    """
     arb, arb_poly = flint.arb, flint.arb_poly
     (Pr, er, er1), (Pw, ew, ew1) = setup.model_r, setup.model_w
     Q, R = setup.Q, setup.R
@@ -573,8 +578,10 @@ def _kernels(flint: Any, setup: _Setup, n: int) -> tuple[DistributedDelay | None
     # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau (rho a ball: its radius
     # goes into the pieces' rounding)
     F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
-    n_tilde = _store(flint, G_line - F_line * R, T, (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T)
-    u_tilde = _store(flint, F_line * setup.u_weight, T, W * M / T, W * (eF_V + eF_A) / T)
+    floor = arb(_RESIDUAL if last else 2.0**-60)
+    n_err, n_var = (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T
+    n_tilde = _store(flint, G_line - F_line * R, T, n_err, n_var, floor)
+    u_tilde = _store(flint, F_line * setup.u_weight, T, W * M / T, W * (eF_V + eF_A) / T, floor)
     return n_tilde, u_tilde
 
 
@@ -588,12 +595,13 @@ def _along(flint: Any, c: np.ndarray) -> Any:
     return out
 
 
-def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any) -> DistributedDelay | None:
-    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own."""
+def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any) -> DistributedDelay | None:
+    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
+    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``."""
     arb, arb_poly = flint.arb, flint.arb_poly
     series = line(arb_poly([0, 1 / T])) * (1 / T)
     size = _poly_sup(flint, series(arb_poly([0, T])))
-    if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + arb(2.0**-60))):
+    if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + floor)):
         raise CertificationError(
             f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
