@@ -7,6 +7,8 @@ a condition that can fail inside bounds whose ends satisfy it.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -194,3 +196,27 @@ def test_bounds_without_a_nominally_stable_parameter_are_refused() -> None:
     loop = AffineLoop(_q([[-1.0, 1.0]], [0.0]), ZERO, ZERO, _q([[1.0]], [0.0]))
     with pytest.raises(ParameterError, match=r"bounds.*stable loop without delay"):
         best_margin(loop, (0.0, 0.5))
+
+
+def test_best_margin_at_the_gain_where_s_0_becomes_a_root() -> None:
+    """Left of ``K_0 = -(A_0(0) + B_0(0))/B_1(0)`` the nominal loop is unstable (margin 0) and no
+    crossing curve exists; right of it the margin is about 0.80. The maximum is the supremum at
+    ``K_0`` from the right (kind ``"end"``). Brent's search ran into the unstable side, where the
+    curves give ``inf``, returned NaN (a RuntimeWarning) and a design with margin 0 at K = 0.425.
+    """
+    A0 = QuasiPolynomial([[0.564, 1.0], [-1.537, 0.0]], [0.0, 0.975])
+    B0 = QuasiPolynomial([[0.494]], [0.65])
+    B1 = QuasiPolynomial([[1.107]], [2.916])
+    loop = AffineLoop(A0, QuasiPolynomial([[0.0]], [0.0]), B0, B1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        design = best_margin(loop, (-1.0, 1.0))
+    K0 = (1.537 - 0.564 - 0.494) / 1.107  # F(0; delta, K_0) = 0 for every delay
+    assert design.kind == "end" and 0.0 < design.K - K0 < 1e-8
+    # a grid of margins certified one by one (delay_margin, not the design's curves): none above the design's
+    grid = np.linspace(-1.0, 1.0, 41)
+    margins = [delay_margin(loop.A(K), loop.B(K)).margin for K in grid]
+    assert max(margins) <= design.margin * (1 + 1e-9)
+    right = delay_margin(loop.A(K0 + 1e-7), loop.B(K0 + 1e-7)).margin
+    np.testing.assert_allclose(design.margin, right, rtol=1e-5)  # the envelope's slope there is about 5
+    assert delay_margin(loop.A(K0 - 1e-3), loop.B(K0 - 1e-3)).margin == 0.0

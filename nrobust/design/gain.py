@@ -1382,8 +1382,9 @@ def _candidates(env: NDArray) -> list[int]:
     return out
 
 
-def _solve_candidate(curves: _Curves, i: int) -> tuple[float, float, str, tuple, tuple]:
-    """The exact optimum near the grid index ``i``: ``(K_design, value, kind, K_bracket, value_bracket)``."""
+def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, str, tuple, tuple]:
+    """The exact optimum near the grid index ``i``: ``(K_design, value, kind, K_bracket, value_bracket)``;
+    ``env`` the sampled envelope with 0 where the nominal loop is unstable (:func:`_nominal_mask`)."""
     gains, active = curves.gains, curves.active
     n = gains.size
     scale = max(abs(curves.K_lo), abs(curves.K_hi))
@@ -1416,7 +1417,7 @@ def _solve_candidate(curves: _Curves, i: int) -> tuple[float, float, str, tuple,
         K = float(gains[i])
         v = curves.value(K)
         return K, v, "end", (K, K), (v, v)
-    return _smooth_max(curves, i)
+    return _smooth_max(curves, i, env)
 
 
 def _bracketed_kink(curves: _Curves, p: _Piece, q: _Piece, lo: float, hi: float) -> tuple[float, float]:
@@ -1476,8 +1477,15 @@ def _birth_in(curves: _Curves, piece: _Piece, lo: float, hi: float) -> tuple[flo
     return None
 
 
-def _smooth_max(curves: _Curves, i: int) -> tuple[float, float, str, tuple, tuple]:
-    """An interior maximum of one curve: ``d(d)/dw = 0`` along its branch (``brentq`` between samples)."""
+def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, str, tuple, tuple]:
+    """An interior maximum of one curve: ``d(d)/dw = 0`` along its branch (``brentq`` between samples).
+
+    Across a junction, Brent's search runs on the exact envelope between the samples next to ``i``
+    where the nominal loop is stable (``env > 0``): beyond them ``curves.value`` knows no crossing
+    (``inf``) although every margin is 0. A maximum at the gain where ``s = 0`` becomes a root (the
+    nominal loop's stability ends there, the margin jumps to 0) is not attained: that gain moved by
+    :data:`_OFFSET` to the stable side, kind ``"end"``.
+    """
     from scipy.optimize import (
         brentq,
         minimize_scalar,
@@ -1500,11 +1508,35 @@ def _smooth_max(curves: _Curves, i: int) -> tuple[float, float, str, tuple, tupl
             K, d, dK, _ = curves.on_branch(w, piece.sigma)
             half = abs(dK) * 4e-15 * w  # the bracket of w mapped to K; the value is flat there
             return K, d, "interior smooth max", (K - half, K + half), (d, d)
-    # across a junction: Brent's bounded search on the exact envelope
+    # across a junction: Brent's bounded search on the exact envelope, where the nominal loop is stable
+    gains, n = curves.gains, curves.gains.size
+    j_lo, j_hi = i, i
+    while j_lo > max(i - 8, 0) and 0.0 < env[j_lo - 1] < np.inf:
+        j_lo -= 1
+    while j_hi < min(i + 8, n - 1) and 0.0 < env[j_hi + 1] < np.inf:
+        j_hi += 1
+    K_zero = curves.loop.zero_root()
+    for j, side in ((j_lo, -1), (j_hi, 1)):  # the nominal loop loses stability at K_zero just past a sample
+        k = j + side
+        if (
+            K_zero is not None
+            and 0 <= k < n
+            and env[k] == 0.0
+            and min(gains[j], gains[k]) < K_zero < max(gains[j], gains[k])
+        ):
+            edge = float(K_zero) - side * _OFFSET * max(_scale(curves), 1e-300)
+            if curves.value(edge) >= float(np.max(env[j_lo : j_hi + 1])):
+                v = curves.value(edge)
+                return edge, v, "end", tuple(sorted((edge, float(K_zero)))), (v, v)
+    if j_lo == j_hi:
+        v = curves.value(K0)
+        return K0, v, "interior smooth max", (K0, K0), (v, v)
     res = minimize_scalar(
-        lambda K: -curves.value(K), bounds=(K0 - 8 * dg, K0 + 8 * dg), method="bounded", options={"xatol": 1e-12}
+        lambda K: -curves.value(K), bounds=(gains[j_lo], gains[j_hi]), method="bounded", options={"xatol": 1e-12}
     )
     K, v = float(res.x), float(-res.fun)
+    if not np.isfinite(v):
+        raise CertificationError(f"best_margin: the envelope near K = {K0:.12g} is not finite at K = {K:.12g}")
     # Brent's search locates a smooth maximum to about sqrt(eps): the value may be higher by f''/2 width^2
     width = float(np.sqrt(2.2e-16) * max(abs(K), 1.0)) + 1e-12
     h = 1e-4 * max(_scale(curves), 1e-300)
@@ -2037,7 +2069,7 @@ def _best_margin_in(
             for local in _candidates(sub):
                 i = int(run[local])
                 if 0 < local < sub.size - 1 and env[i] > 0.0:
-                    K, v, kind, K_br, v_br = _solve_candidate(curves, i)
+                    K, v, kind, K_br, v_br = _solve_candidate(curves, i, env)
                     if K_a <= K <= K_b:
                         cands.append((K, v, kind, K_br, v_br))
         for K in (K_a, K_b):  # the margin at an end, which may be a pair birth (no Newton on the double root)
@@ -2459,11 +2491,11 @@ def best_margin(
             K, "margin", inf, inf, -sa.value, "no crossing", (K, K), (inf, inf), (lo, hi), cert, how, sa, *scan
         )
     finite = env
-    solved = [_solve_candidate(curves, i) for i in _candidates(finite)]
+    solved = [_solve_candidate(curves, i, finite) for i in _candidates(finite)]
     K, value, kind, K_br, v_br = max(solved, key=lambda c: c[1])
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     tol = 1e-9 * max(value, 1e-300) + (cert.accuracy or 0.0)
-    if abs(cert.margin - value) > tol:
+    if not abs(cert.margin - value) <= tol:  # a NaN from the equations fails too
         raise CertificationError(
             f"best_margin: the {kind} at K = {K:.15g} gives delta* = {value:.15g} by its equations, the certified "
             f"delay margin there is {cert.margin:.15g}: a crossing curve was missed by the scan"
