@@ -220,3 +220,19 @@ def test_delta_max_is_positive_or_inf(delta_max: object) -> None:
         delay_margin(QP([[1.0, 1.0]], [0.0]), QP([[0.5]], [0.0]), delta_max=delta_max)
     dm = delay_margin(QP([[1.0, 1.0]], [0.0]), QP([[0.5]], [0.0]), delta_max=float("inf"))
     assert dm.margin == np.inf
+
+
+def test_a_crossing_of_tiny_frequency_does_not_blow_up_the_default_range() -> None:
+    """Near ``A(0) + B(0) = 0`` a crossing has a tiny frequency and a period of 2e6: the default range (one
+    period past every first delay) made a faster crossing enumerate millions of delays, and ``delay_margin``
+    without ``delta_max`` raised a ParameterError naming ``delta_max``, which the caller never gave."""
+    K = 1.134 / 1.225 + 1e-10  # A(0) + B(0) = 0 at 1.134/1.225: s = 0 is then a root for every delay
+    A = QuasiPolynomial([[0.753, 1.0], [-1.187, 0.3]], [0.0, 2.181])
+    B = QuasiPolynomial([[-0.7, 0.2]], [0.203]) + QuasiPolynomial([[1.225 * K]], [1.609])
+    dm = delay_margin(A, B)
+    assert 0.0 < dm.margin < dm.delta_max < np.inf
+    w = dm.omega
+    s = 1j * w
+    # the reported crossing solves the crossing equation (residual at rounding level)
+    assert abs(A(np.array([s]))[0] + B(np.array([s]))[0] * np.exp(-s * dm.margin)) < 1e-9
+    assert abs(abs(A(np.array([s]))[0]) - abs(B(np.array([s]))[0])) < 1e-9

@@ -224,7 +224,8 @@ def axis_crossings(
     """Delay sequences and directions at every crossing frequency; returns ``delta_max`` too.
 
     ``delta_max = None`` selects one full period past the first delay of every crossing,
-    ``max_c (delta_{c,0} + 2 pi / |w_c|)`` (``inf`` without crossings). The direction is
+    ``max_c (delta_{c,0} + 2 pi / |w_c|)`` (``inf`` without crossings), or less where a crossing
+    of long period would make another one enumerate more than ``_MAX_EVENTS`` delays. The direction is
     ``slope * sign(w)`` with the certified slope of the search (0 at a tangency).
     """
     w = search.omegas
@@ -240,7 +241,9 @@ def axis_crossings(
     base = np.mod(np.angle(-b / a) / w, period)
     base[(base > period * (1 - ZERO_TOL)) | (base < period * ZERO_TOL)] = 0.0
     if delta_max is None:
-        delta_max = float(np.max(base + period))
+        # a crossing of tiny frequency has a long period: the range ends where a faster crossing reaches
+        # _MAX_EVENTS delays (each crossing keeps its first delay, which the margin needs)
+        delta_max = min(float(np.max(base + period)), float(np.min(base + (_MAX_EVENTS - 1) * period)))
     elif not np.isfinite(delta_max):
         raise ParameterError(
             "delta_max", "finite: the loop has crossing frequencies, hence infinitely many crossing delays", delta_max
