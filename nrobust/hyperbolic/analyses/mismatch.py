@@ -64,9 +64,11 @@ from ..loops.controllers import (
     loop_scope,
     unfiltered,
 )
+from ..loops.exact_form import has_exact_form
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
+from .mismatch_coupled import prove_coupled_square
 from .mismatch_proof import MAX_SQUARE_BOXES, prove_transport_square
 
 __all__ = [
@@ -671,20 +673,22 @@ class SpeedTolerance:
 
 
 def _square_scope(system: Hyperbolic2x2, feedback: StateFeedback, rigorous: bool) -> str | None:
-    """Why the square is not proven for this loop (None: :func:`prove_transport_square` applies)."""
-    if not system.uncoupled:
-        gains = " and the law's integral gains" if _integral_gains(feedback) else ""
-        return (
-            f"the mismatched loops of a coupled plant hold the perturbed plant's N~{gains}, whose dependence on the "
-            "speeds has no proven enclosure here: only the corners are certified"
-        )
+    """Why the square is not proven for this loop (None: :func:`prove_transport_square` or
+    :func:`prove_coupled_square` applies)."""
     if _integral_gains(feedback):
+        where = "the mismatched loops of a coupled plant hold" if not system.uncoupled else "the law has"
         return (
-            "the law has integral gains, whose loop's dependence on the speeds has no proven enclosure here: only "
-            "the corners are certified"
+            f"{where} the law's integral gains (the kernels of the nominal plant), whose dependence on the speeds has "
+            "no proven enclosure here: only the corners are certified (a proportional law U = k u(t, 1) is proven on "
+            "the square)"
+        )
+    if not system.uncoupled and not has_exact_form(system):
+        return (
+            "the mismatched loops of a plant with varying couplings (or |kappa| > KAPPA_MAX) are kernel-route models: "
+            "only the corners are certified"
         )
     if not rigorous:
-        return "rigorous=True proves it (uncoupled plant: the loop is the PDE itself)"
+        return "rigorous=True proves it (a proportional law: the loop is the PDE itself)"
     return None
 
 
@@ -831,25 +835,27 @@ def speed_tolerance(
     proof = None
     if met and why_not is None:
         loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
-        proof = prove_transport_square(
-            system,
-            feedback.k,
-            filt,
-            eps,
-            (d_lo, d_hi),
-            [(A, B, w) for (A, B), w in zip(loops, windows[:4])],
-            max_boxes=max_boxes,
-        )
+        corner_loops = [(A, B, w) for (A, B), w in zip(loops, windows[:4])]
+        if system.uncoupled:
+            proof = prove_transport_square(
+                system, feedback.k, filt, eps, (d_lo, d_hi), corner_loops, max_boxes=max_boxes
+            )
+        else:  # a proportional law, not filtered (_square_scope): the corners' loops take the exact route
+            proof = prove_coupled_square(system, feedback.k, eps, (d_lo, d_hi), corner_loops, max_boxes=max_boxes)
         if not proof.proven and not math.isnan(proof.candidate):
-            # the mismatch whose round trip is the box's: e_lam = e_mu = e, tau_0 / (1 + e) = tau
-            e = min(max(system.tau / proof.candidate - 1.0, -eps), eps)
-            A, B = mismatch_loop(system, controller, e, e, kernel_grid=kernel_grid)
+            if math.isnan(proof.point[0]):
+                # the mismatch whose round trip is the box's: e_lam = e_mu = e, tau_0 / (1 + e) = tau
+                e = min(max(system.tau / proof.candidate - 1.0, -eps), eps)
+                e_lam, e_mu = e, e
+            else:
+                e_lam, e_mu = (min(max(e, -eps), eps) for e in proof.point)
+            A, B = mismatch_loop(system, controller, e_lam, e_mu, kernel_grid=kernel_grid)
             try:
                 probe = window_stability(A, B, (d_lo, d_hi), max_evals=max_evals)
             except CertificationError:
                 probe = None
             if probe is not None and not probe.stable:
-                points.append((e, e))
+                points.append((e_lam, e_mu))
                 windows.append(probe)
                 met = False
         why_not = None if proof.proven else proof.reason
@@ -861,12 +867,17 @@ def speed_tolerance(
         )
     elif proof is not None and proof.proven:
         certified = "proven on the square"
-        statement = (
-            f"exponentially stable for every (e_lam, e_mu) in [-{float(eps)!r}, {float(eps)!r}]^2 and every delay in "
-            f"[{float(d_lo)!r}, {float(d_hi)!r}], proven in ball arithmetic on the loop of the PDE "
+        loop_text = (
             f"d(s) (1 - rho q e^{{-tau s}}) - k q n(s) e^{{-(tau + delta) s}} with k = {float(feedback.k)!r}, "
             f"d = {'1 + ' + repr(float(filt[1])) + ' s' if filt else '1'}, "
-            f"n = {'1 + ' + repr(float(filt[0])) + ' s' if filt else '1'}: {proof.reason}"
+            f"n = {'1 + ' + repr(float(filt[0])) + ' s' if filt else '1'}"
+            if system.uncoupled
+            else f"of the coupled plant (N~ and U~ in closed form) under U = k u(t, 1), k = {float(feedback.k)!r}"
+        )
+        statement = (
+            f"exponentially stable for every (e_lam, e_mu) in [-{float(eps)!r}, {float(eps)!r}]^2 and every delay in "
+            f"[{float(d_lo)!r}, {float(d_hi)!r}], proven in ball arithmetic on the loop of the PDE {loop_text}: "
+            f"{proof.reason}"
         )
         if proof.base >= 0:
             a, b = points[proof.base]

@@ -95,6 +95,10 @@ class SquareProof(NamedTuple):
     base : int
         The index in ``corners`` of the loop the argument starts from (``-1`` when none is used:
         the tail bound alone, or not proven).
+    point : (float, float)
+        The mismatch ``(e_lam, e_mu)`` of the box the subdivision stopped at on a coupled plant
+        (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``nan``
+        otherwise).
     """
 
     proven: bool
@@ -105,6 +109,7 @@ class SquareProof(NamedTuple):
     boxes: int
     candidate: float
     base: int = -1
+    point: tuple[float, float] = (math.nan, math.nan)
 
 
 def _lo(x: Any) -> float:
@@ -211,43 +216,53 @@ class _Axis:
     def __init__(self, flint: Any, fam: _Family, d_lo: float, d_hi: float) -> None:
         self.flint, self.fam = flint, fam
         self.d_lo, self.d_hi = d_lo, d_hi
-        arb = flint.arb
-        self.delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
-        self.two_pi = 2 * arb.pi()
 
     def clear(self, w0: float, w1: float, t0: float, t1: float) -> bool:
         """True when no ``F(i w; tau, delta)`` with ``w, tau`` in the box and ``delta`` in the window is 0."""
-        arb, acb = self.flint.arb, self.flint.acb
+        arb = self.flint.arb
         w = arb(w0).union(arb(w1))
         A, B = self.fam.factors(w, arb(t0).union(arb(t1)))
-        gap = abs(A) ** 2 - abs(B) ** 2
-        if gap > 0 or gap < 0:  # |A| != |B|: A + B e^{-i w delta} != 0 for every real delta
-            return True
-        if B.contains(0) or not B.is_finite():
-            return False
-        Q = -A / B  # F = 0 iff e^{-i w delta} = Q
-        mid = complex(float(Q.real.mid()), float(Q.imag.mid()))
-        if mid == 0:
-            return False
-        turn = float(cmath.phase(mid))
-        rotated = Q * acb(0, -arb(turn)).exp()
-        if not rotated.real > 0:
-            return False
-        phase = arb(turn) + rotated.arg()
-        # w delta + phase must be a multiple of 2 pi: the crossing delays (2 pi k - phase) / w
-        span = (w * self.delays + phase) / self.two_pi
-        if not span.contains_integer():
-            return True
-        if w0 <= 0.0:
-            return False
-        k_lo, k_hi = math.floor(_lo(span)), math.ceil(_hi(span))
-        if k_hi - k_lo > 10_000:
-            return False
-        for k in range(k_lo, k_hi + 1):
-            delay = (self.two_pi * k - phase) / w
-            if not (delay < self.d_lo or delay > self.d_hi):
-                return False
+        return crossing_free(self.flint, A, B, w, self.d_lo, self.d_hi)
+
+
+def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) -> bool:
+    """True when ``A + B e^{-i w delta} != 0`` for every ``w`` in the ball ``w >= 0`` and ``delta`` in ``[d_lo, d_hi]``.
+
+    ``A``, ``B`` are ``acb`` enclosures of the factors on the box (every point of it): cleared by
+    the sign of ``|A|^2 - |B|^2``, or by every crossing delay ``(2 pi k - arg(-A/B))/w`` lying
+    outside the window.
+    """
+    arb, acb = flint.arb, flint.acb
+    gap = abs(A) ** 2 - abs(B) ** 2
+    if gap > 0 or gap < 0:  # |A| != |B|: A + B e^{-i w delta} != 0 for every real delta
         return True
+    if B.contains(0) or not B.is_finite():
+        return False
+    Q = -A / B  # F = 0 iff e^{-i w delta} = Q
+    mid = complex(float(Q.real.mid()), float(Q.imag.mid()))
+    if mid == 0:
+        return False
+    turn = float(cmath.phase(mid))
+    rotated = Q * acb(0, -arb(turn)).exp()
+    if not rotated.real > 0:
+        return False
+    phase = arb(turn) + rotated.arg()
+    two_pi = 2 * arb.pi()
+    delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
+    # w delta + phase must be a multiple of 2 pi: the crossing delays (2 pi k - phase) / w
+    span = (w * delays + phase) / two_pi
+    if not span.contains_integer():
+        return True
+    if not w.lower() > 0:
+        return False
+    k_lo, k_hi = math.floor(_lo(span)), math.ceil(_hi(span))
+    if k_hi - k_lo > 10_000:
+        return False
+    for k in range(k_lo, k_hi + 1):
+        delay = (two_pi * k - phase) / w
+        if not (delay < d_lo or delay > d_hi):
+            return False
+    return True
 
 
 def _hull(flint: Any, exact: Any, stored: Sequence[float]) -> Any:

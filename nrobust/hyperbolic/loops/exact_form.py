@@ -54,6 +54,7 @@ __all__ = [
     "DEGREE",
     "ExactForm",
     "closed_form_parameters",
+    "closed_form_series",
     "exact_form",
     "exact_output_map",
     "expand_piece",
@@ -226,36 +227,54 @@ def _kernel(tau: float, p: float, m: float, shift: float, which: tuple[str, floa
     """``N~``, ``U~`` or ``V~`` (``which = ("N" | "U" | "V", q, rho)``) as pieces with proven error bounds."""
     flint = require_flint()
     with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(abs(p * m)))):
-        arb, arb_poly = flint.arb, flint.arb_poly
-        T, P, M = (arb(v) for v in (tau, p, m))
-        Q, R = arb(which[1]), arb(which[2])
-        kappa = P * M
-        a = kappa / (T * T)
+        arb = flint.arb
+        T = arb(tau)
+        series, bound, dbound = closed_form_series(flint, T, arb(p), arb(m), which)
         sigma = arb(shift) / T  # e^{sigma nu}: the weight of a general plant
-        if which[0] == "N":  # h_22 - rho q h_11 + (m q - rho p) W / tau
-            c_w, c_22, c_11 = (M * Q - R * P) / T, arb(1), -R * Q
-        elif which[0] == "V":  # the v row of the fundamental matrix: h_22 + m q W / tau
-            c_w, c_22, c_11 = M * Q / T, arb(1), arb(0)
-        else:  # the u row of the fundamental matrix: q h_11 + p W / tau
-            c_w, c_22, c_11 = P / T, arb(0), Q
-        g = arb_poly([0, T, -1])  # nu (tau - nu)
-        nu, rest = arb_poly([0, 1]), arb_poly([T, -1])
-        series, k, term_w, term_22, term_11 = arb_poly([0]), 0, arb_poly([1]), rest * a, nu * a
-        tail, slope = series_tail(flint, abs(kappa), T, abs(c_w), abs(c_22), abs(c_11))
-        while True:
-            fk, fk1 = arb(math.factorial(k)), arb(math.factorial(k + 1))
-            series += term_w * (c_w / (fk * fk)) + term_22 * (c_22 / (fk * fk1)) + term_11 * (c_11 / (fk * fk1))
-            k += 1
-            bound, dbound = tail(k), slope(k)
-            if (bound.upper() < arb(2.0**-90) and dbound.upper() < arb(2.0**-90)) or k > 400:
-                break
-            term_w, term_22, term_11 = term_w * g * a, term_22 * g * a, term_11 * g * a
-        if k > 400:
-            raise CertificationError("exact_form: the coupling kappa = p m is too strong for the series of N~")
         weight_sup = arb.max(arb(1), (sigma * T).exp())
         global_sup = bound * weight_sup
         global_var = T * weight_sup * (abs(sigma) * bound + dbound)
         return _pieces(flint, series, sigma, T, tau, global_sup, global_var)
+
+
+def closed_form_series(flint: Any, T: Any, P: Any, M: Any, which: tuple[str, Any, Any]) -> tuple[Any, Any, Any]:
+    """The truncated series of ``N~``, ``U~`` or ``V~`` on ``[0, tau]`` and the bounds of its tail (sup, derivative).
+
+    ``T``, ``P``, ``M`` are balls (``tau``, ``p``, ``m`` of the module notes; a ball wider than
+    a point holds every kernel with parameters in it), ``which = ("N" | "U" | "V", q, rho)``.
+    Returns the ``arb_poly`` in ``nu`` and bounds of ``|kernel - series|`` and of its
+    derivative on ``[0, tau]`` (:func:`series_tail`), valid for every parameter in the balls.
+
+    Raises
+    ------
+    CertificationError
+        A coupling ``kappa = p m`` too strong for 400 terms.
+    """
+    arb, arb_poly = flint.arb, flint.arb_poly
+    Q, R = arb(which[1]), arb(which[2])
+    kappa = P * M
+    a = kappa / (T * T)
+    if which[0] == "N":  # h_22 - rho q h_11 + (m q - rho p) W / tau
+        c_w, c_22, c_11 = (M * Q - R * P) / T, arb(1), -R * Q
+    elif which[0] == "V":  # the v row of the fundamental matrix: h_22 + m q W / tau
+        c_w, c_22, c_11 = M * Q / T, arb(1), arb(0)
+    else:  # the u row of the fundamental matrix: q h_11 + p W / tau
+        c_w, c_22, c_11 = P / T, arb(0), Q
+    g = arb_poly([0, T, -1])  # nu (tau - nu)
+    nu, rest = arb_poly([0, 1]), arb_poly([T, -1])
+    series, k, term_w, term_22, term_11 = arb_poly([0]), 0, arb_poly([1]), rest * a, nu * a
+    tail, slope = series_tail(flint, abs(kappa), T, abs(c_w), abs(c_22), abs(c_11))
+    while True:
+        fk, fk1 = arb(math.factorial(k)), arb(math.factorial(k + 1))
+        series += term_w * (c_w / (fk * fk)) + term_22 * (c_22 / (fk * fk1)) + term_11 * (c_11 / (fk * fk1))
+        k += 1
+        bound, dbound = tail(k), slope(k)
+        if (bound.upper() < arb(2.0**-90) and dbound.upper() < arb(2.0**-90)) or k > 400:
+            break
+        term_w, term_22, term_11 = term_w * g * a, term_22 * g * a, term_11 * g * a
+    if k > 400:
+        raise CertificationError("exact_form: the coupling kappa = p m is too strong for the series of N~")
+    return series, bound, dbound
 
 
 def series_tail(flint: Any, kappa_abs: Any, T: Any, cw: Any, c22: Any, c11: Any) -> tuple[Any, Any]:

@@ -1,0 +1,335 @@
+"""The square of speed mismatches proven on a coupled plant with constant couplings: :func:`prove_coupled_square`.
+
+The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
+no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
+(18)-(20) transporting at ``lam' = lam (1 + e_lam)`` and ``mu' = mu (1 + e_mu)``. Its loop is exact
+(:mod:`~nrobust.hyperbolic.loops.exact_form`): ``F(s) = A(s) + B(s) e^{-delta s}`` with
+``A = 1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu`` and ``B = -k (q e^{-tau s} + int_0^tau
+U~(nu) e^{-nu s} dnu)``, ``tau = 1/lam' + 1/mu'``. In the scaled frequency ``z = tau s`` the kernels
+depend on the speeds only through ``p = sigma_pm / lam'`` and ``m = -sigma_mp / mu'``
+(``tau N~(tau theta)`` is the ``N~`` of the plant with ``tau = 1``, the same ``p`` and ``m``: the
+series of the module notes of ``exact_form`` in ``theta``, with ``a = kappa``)::
+
+    F = A1(z; p, m) + B1(z; p, m) e^{-eta z},   eta = delta / tau,
+    A1 = 1 - rho q e^{-z} + int_0^1 G_N(theta) e^{-z theta} dtheta,
+    B1 = -k (q e^{-z} + int_0^1 G_U(theta) e^{-z theta} dtheta).
+
+A box of speeds ``E`` gives balls of ``p`` and ``m``: the series with those balls
+(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`) holds every kernel of the box, and
+its pieces stored with that radius give enclosures of ``A1`` and ``B1`` (:mod:`nrobust.balls`) for
+every speed of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
+the no-crossing argument of :mod:`~nrobust.hyperbolic.analyses.mismatch_proof` on the connected union
+of the boxes ``(p, m, eta)``:
+
+1. *No zero from infinity.* On ``Re z >= 0``, integrating by parts,
+   ``|int_0^1 G e^{-z theta}| <= V(G) / |z|`` with ``V(G) = |G(0)| + |G(1)| + sup |G'|``, so
+   ``|F| >= 1 - c_D - (V(G_N) + |k| V(G_U)) / |z|``, ``c_D = |rho q| + |k q|``. When the difference
+   operator is strongly stable (``c_D < 1``) no zero has ``Re z >= 0`` and
+   ``|z| >= W = (V(G_N) + |k| V(G_U)) / (1 - c_D)`` (``V`` bounded on the whole square).
+2. *No zero on the imaginary axis.* Boxes of ``(w, e_lam, e_mu)`` covering ``[0, W] x`` the square
+   are cleared in ball arithmetic by the sign of ``|A1|^2 - |B1|^2`` or by every crossing ``eta`` of the
+   box lying outside its range (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free`); an
+   undecided box is halved in ``w``, or in a speed when the enclosure at the middle ``w`` alone does not
+   decide either, up to ``max_boxes`` boxes.
+3. *One point.* The loop of a corner, proven stable on a window meeting the delays asked, lies in the
+   family (the square is widened by ``1e-12`` so that the corners' rounded speeds are in it).
+
+The number of zeros in ``Re z >= 0`` is then the same on the whole family, zero at the corner, and a
+strongly stable difference operator makes the loop exponentially stable (the criterion of the paper's
+Theorems 3 and 4) for every ``(e_lam, e_mu)`` of the square and every delay of the window.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._digits import upper_bound_text
+from ..._flint import precision, working_precision
+from ..._validate import finite_real, positive_int
+from ...balls import BallQuasiPolynomial
+from ...design.gain import DelayWindow, check_delays
+from ...errors import CertificationError, ParameterError
+from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, _hi, crossing_free
+
+__all__ = ["prove_coupled_square"]
+
+#: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
+_PIECES = 16
+#: Relative widening of the square: the corners' speeds, rounded to doubles, lie in it.
+_WIDEN = 1e-12
+#: Width below which a box is not halved again, relative to ``W`` (frequency) or ``eps`` (speeds).
+_MIN_WIDTH = 1e-9
+
+
+class _Box:
+    """``A1`` and ``B1`` (module notes) for every speed of ``[a0, a1] x [b0, b1]``, in ball arithmetic."""
+
+    def __init__(self, system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> None:
+        self.box = box
+        flint, P, M, T = _parameters(system, box)
+        self.flint = flint
+        (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
+        arb = flint.arb
+        # the point coefficients -rho q and -k q as stored are rounded: the error of each joins the
+        # radius of the kernel next to it (on Re z = 0, where the factors are evaluated, a radius r of a
+        # kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
+        rq, kq = system.rho * system.q, -k * system.q
+        err_a = _hi(abs(arb(system.rho) * arb(system.q) - arb(rq)))
+        err_b = _hi(abs(arb(k) * arb(system.q) + arb(kq)))
+        self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
+        self.B = BallQuasiPolynomial(QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b))
+        self.eta = (T.lower(), T.upper())  # tau over the box
+
+    def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
+        """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box."""
+        box = (0.0, 0.0, w0, w1)
+        centered = w1 > w0
+        return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
+
+
+def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> tuple[Any, Any, Any, Any]:
+    """python-flint and the balls of ``p``, ``m`` and ``tau`` over a box of relative speed errors."""
+    from ..._flint import require_flint
+
+    flint = require_flint()
+    arb = flint.arb
+    a0, a1, b0, b1 = box
+    lam = arb(system.lam) * (1 + arb(a0).union(arb(a1)))
+    mu = arb(system.mu) * (1 + arb(b0).union(arb(b1)))
+    P = arb(float(system.sigma_pm)) / lam  # type: ignore[arg-type]
+    M = -arb(float(system.sigma_mp)) / mu  # type: ignore[arg-type]
+    return flint, P, M, 1 / lam + 1 / mu
+
+
+def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[NDArray[np.float64], float]:
+    """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
+    radius holding the kernel of every ``(p, m)`` of the balls."""
+    arb = flint.arb
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))
+    with precision(flint, bits):
+        series, bound, _ = closed_form_series(flint, arb(1), P, M, (which, q, rho))
+        width = 1.0 / _PIECES
+        heads, err = [], arb(0)
+        for i in range(_PIECES):
+            head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
+            heads.append(head)
+            err = arb.max(err, e)
+        return np.asarray(heads), _hi(bound + err)
+
+
+def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float, extra: float) -> QuasiPolynomial:
+    """``factor int_0^1 G e^{-z theta}`` (``G`` the pieces ``coefficients`` within ``radius``), the radius
+    ``|factor| radius`` widened for the rounding of the product and by ``extra``."""
+    coefs = factor * coefficients
+    slack = 4 * float(np.finfo(float).eps) * float(np.abs(coefs).sum(axis=1).max())
+    kernel = DistributedDelay(
+        np.linspace(0.0, 1.0, coefficients.shape[0] + 1),
+        None,
+        interpolation="polynomial",
+        coefficients=coefs,
+        radius=abs(factor) * radius * (1 + 4 * float(np.finfo(float).eps)) + slack + extra,
+    )
+    return QuasiPolynomial([], [], [kernel])
+
+
+def _variation(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> Any:
+    """``V(G) = |G(0)| + |G(1)| + sup |G'|`` on ``[0, 1]`` for every ``(p, m)`` of the balls (step 1)."""
+    arb = flint.arb
+    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))):
+        series, bound, slope = closed_form_series(flint, arb(1), P, M, (which, q, rho))
+        derivative = series.derivative()
+        sup = arb(0)
+        for i in range(_PIECES):  # |G'| on each piece [i/n, (i+1)/n] of [0, 1], a ball each
+            theta = arb((i + 0.5) / _PIECES, 0.5 / _PIECES)
+            sup = arb.max(sup, abs(derivative(theta)))
+        return abs(series(arb(0))) + abs(series(arb(1))) + 2 * bound + sup + slope
+
+
+def prove_coupled_square(
+    system: Hyperbolic2x2,
+    k: float,
+    eps: float,
+    delays: tuple[float, float],
+    corners: Sequence[tuple[QuasiPolynomial, QuasiPolynomial, DelayWindow]],
+    *,
+    max_boxes: int = MAX_SQUARE_BOXES,
+) -> SquareProof:
+    """Prove ``U = k u(t, 1)`` on ``system`` stable for every speed error of the square and delay of the window.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The nominal plant, with constant couplings and the closed form
+        (:func:`~nrobust.hyperbolic.loops.exact_form.has_exact_form`).
+    k : float
+        The law's gain on ``u(t, 1)``.
+    eps : float
+        The tolerance, ``0 < eps < 1``.
+    delays : (float, float)
+        The window ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``).
+    corners : sequence of (QuasiPolynomial, QuasiPolynomial, DelayWindow)
+        The exact loops of the corners (:func:`~nrobust.hyperbolic.analyses.mismatch_loop`) and
+        their verdicts; one proven stable on a window meeting ``[d_min, d_max]`` is the point the
+        argument starts from.
+    max_boxes : int, optional
+        Work bound: boxes of ``(w, e_lam, e_mu)`` examined.
+
+    Returns
+    -------
+    SquareProof
+        As :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square`; ``tau``
+        encloses the round trips of the square, ``frequency_bound`` is ``W`` in the scaled frequency
+        ``z = tau s`` (``|s| >= W / tau_min`` is free of zeros), and ``point`` is the mismatch of the
+        box the subdivision stopped at.
+
+    Raises
+    ------
+    ParameterError
+        ``system`` without constant couplings or the closed form, ``eps`` outside ``(0, 1)``,
+        ``delays`` not a window, or ``max_boxes`` not a positive integer.
+    """
+    max_boxes = positive_int("max_boxes", max_boxes)
+    if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
+        raise ParameterError("system", "a Hyperbolic2x2 with constant couplings (has_exact_form)", system)
+    k = finite_real("k", k)
+    eps = finite_real("eps", eps)
+    if not 0.0 < eps < 1.0:
+        raise ParameterError("eps", "in (0, 1) (the perturbed speeds stay positive)", eps)
+    d_lo, d_hi = check_delays(delays)
+    nan = math.nan
+    edge = min(eps * (1.0 + _WIDEN) + _WIDEN, 0.5 * (1.0 + eps))
+    square = (-edge, edge, -edge, edge)
+    base = next(
+        (
+            n
+            for n, (_, _, window) in enumerate(corners)
+            if window.stable and window.certified == "proven" and window.delays[0] <= d_hi and window.delays[1] >= d_lo
+        ),
+        None,
+    )
+    with working_precision(53) as flint:
+        arb = flint.arb
+        _, P, M, T = _parameters(system, square)
+        taus = (math.nextafter(float(T.lower()), -math.inf), _hi(T.upper()))
+        c_d = abs(arb(system.rho) * arb(system.q)) + abs(arb(k) * arb(system.q))
+        if not c_d < 1:
+            return SquareProof(
+                False,
+                f"the difference operator is not proven strongly stable (|rho q| + |k q| <= "
+                f"{upper_bound_text(_hi(c_d))}, not < 1): the loop is not stable for every delay of a window (Hale's "
+                "condition); a smaller gain |k| decides",
+                taus,
+                nan,
+                nan,
+                0,
+                nan,
+            )
+        try:
+            v = _variation(flint, P, M, system.q, system.rho, "N") + abs(arb(k)) * _variation(
+                flint, P, M, system.q, system.rho, "U"
+            )
+        except CertificationError as exc:
+            return SquareProof(False, str(exc), taus, nan, _hi(c_d), 0, nan)
+        W = _hi(v / (1 - c_d)) * (1.0 + 1e-6)
+        if base is None:
+            return SquareProof(
+                False,
+                "no corner is proven stable on a window meeting the delays asked (rigorous=True on this window proves "
+                "them): the argument needs one point of the family",
+                taus,
+                W,
+                _hi(c_d),
+                0,
+                nan,
+            )
+        boxes, stuck = _clear(system, k, square, W, d_lo, d_hi, max_boxes)
+    if stuck is not None:
+        (w0, w1, (a0, a1, b0, b1)), small = stuck
+        point = (0.5 * (a0 + a1), 0.5 * (b0 + b1))
+        why = (
+            f"a zero of F on the imaginary axis near tau w = {0.5 * (w0 + w1):.9g} at (e_lam, e_mu) = "
+            f"({point[0]:.9g}, {point[1]:.9g}) for a delay of the window (or a crossing delay at an end of the "
+            "window): not stable there, or not decided; a smaller tolerance or a window clear of the crossing "
+            "delays decides"
+            if small
+            else f"the work bound max_boxes = {max_boxes} was reached (at tau w in [{w0:.6g}, {w1:.6g}], e_lam in "
+            f"[{a0:.6g}, {a1:.6g}], e_mu in [{b0:.6g}, {b1:.6g}]); a larger max_boxes or a smaller tolerance decides"
+        )
+        return SquareProof(False, why, taus, W, _hi(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
+    w_text, cd_text = upper_bound_text(W), upper_bound_text(_hi(c_d))
+    return SquareProof(
+        True,
+        f"no zero on i [0, {w_text}] in the scaled frequency z = tau s for any (e_lam, e_mu) of the square and delay "
+        f"of the window ({boxes} boxes of (tau w, e_lam, e_mu) in ball arithmetic, the kernels N~ and U~ in closed "
+        f"form with the speeds as balls), none with Re z >= 0 and |z| >= {w_text} (c_D <= {cd_text} < 1), and the "
+        f"loop of corners[{base}] proven stable on the window: the count in Re s > 0 is 0 on the whole connected set",
+        taus,
+        W,
+        _hi(c_d),
+        boxes,
+        nan,
+        base,
+    )
+
+
+@lru_cache(maxsize=4096)
+def _box(system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> _Box:
+    return _Box(system, k, box)
+
+
+def _clear(
+    system: Hyperbolic2x2,
+    k: float,
+    square: tuple[float, float, float, float],
+    W: float,
+    d_lo: float,
+    d_hi: float,
+    max_boxes: int,
+) -> tuple[int, tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None]:
+    """Clear ``[0, W] x`` the square (step 2): the boxes examined, and the box it stopped at (None: cleared)."""
+    stack = [(0.0, W, square)]
+    boxes = 0
+    span = square[1] - square[0]
+    while stack:
+        w0, w1, box = stack.pop()
+        boxes += 1
+        part = _box(system, k, box)
+        flint = part.flint
+        arb = flint.arb
+        t_lo, t_hi = part.eta
+        # eta = delta / tau over the box: [d_lo / tau_max, d_hi / tau_min]
+        eta = (float((arb(d_lo) / t_hi).lower()), float((arb(d_hi) / t_lo).upper()))
+        w = arb(w0).union(arb(w1))
+        A, B = part.factors(w0, w1)
+        if crossing_free(flint, A, B, w, *eta):
+            continue
+        a0, a1, b0, b1 = box
+        speed_small = max(a1 - a0, b1 - b0) <= _MIN_WIDTH * span
+        w_small = (w1 - w0) <= _MIN_WIDTH * max(1.0, W)
+        if (speed_small and w_small) or boxes >= max_boxes:
+            return boxes, ((w0, w1, box), speed_small and w_small)
+        split_speed = w_small
+        if not split_speed and not speed_small:  # does the speed box alone keep the middle w undecided?
+            wm = 0.5 * (w0 + w1)
+            Am, Bm = part.factors(wm, wm)
+            split_speed = not crossing_free(flint, Am, Bm, arb(wm), *eta)
+        if split_speed:
+            if a1 - a0 >= b1 - b0:
+                am = 0.5 * (a0 + a1)
+                stack += [(w0, w1, (a0, am, b0, b1)), (w0, w1, (am, a1, b0, b1))]
+            else:
+                bm = 0.5 * (b0 + b1)
+                stack += [(w0, w1, (a0, a1, b0, bm)), (w0, w1, (a0, a1, bm, b1))]
+        else:
+            wm = 0.5 * (w0 + w1)
+            stack += [(w0, wm, box), (wm, w1, box)]
+    return boxes, None
