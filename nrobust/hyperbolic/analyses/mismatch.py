@@ -540,6 +540,21 @@ def mismatch_region(
     )
 
 
+def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> tuple[str, str]:
+    """The route of the mismatched loops and what a certificate is about (at the nominal speeds)."""
+    if isinstance(controller, OutputFeedback):
+        route = loop_route(system, controller)
+        route_grid = kernel_grid if route == "kernels" else None
+        scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
+        return route, scope + "; the observer and the law designed on the nominal plant, acting on the mismatched one"
+    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    route = loop_route(plant, feedback)
+    scope = loop_scope(
+        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
+    )
+    return route, scope
+
+
 def check_speed_tolerance(value: Any, name: str = "speed_tolerance", plant: Any = None) -> float:
     """A relative speed tolerance ``eps`` in ``(0, 1)``; a :class:`ParameterError` naming ``name`` otherwise.
 
@@ -672,7 +687,9 @@ class SpeedTolerance:
         return fields_dict(self)
 
 
-def _square_scope(system: Hyperbolic2x2, feedback: StateFeedback, rigorous: bool) -> str | None:
+def _square_scope(
+    system: Hyperbolic2x2, feedback: StateFeedback, filt: tuple[float, float] | None, rigorous: bool
+) -> str | None:
     """Why the square is not proven for this loop (None: :func:`prove_transport_square` or
     :func:`prove_coupled_square` applies)."""
     if _integral_gains(feedback):
@@ -686,6 +703,11 @@ def _square_scope(system: Hyperbolic2x2, feedback: StateFeedback, rigorous: bool
         return (
             "the mismatched loops of a plant with varying couplings (or |kappa| > KAPPA_MAX) are kernel-route models: "
             "only the corners are certified"
+        )
+    if not system.uncoupled and filt is not None:
+        return (
+            "a filtered law on a coupled plant has no proven enclosure over the square here: only the corners are "
+            "certified"
         )
     if not rigorous:
         return "rigorous=True proves it (a proportional law: the loop is the PDE itself)"
@@ -823,16 +845,17 @@ def speed_tolerance(
     points = [*corners, *inner]
     met = all(w.stable for w in windows)
     proven = all(w.certified == "proven" for w in windows[:4])
+    proof = None
     why_not: str | None
     if isinstance(controller, OutputFeedback):
+        # the observer designed on the nominal plant is in every mismatched loop (a model in floating point)
         why_not = (
-            "an output feedback: the loop of the observer and the law has no proven enclosure in the speeds here: "
-            "only the corners are certified"
+            "an output feedback's mismatched loops hold its observer, designed on the nominal plant and computed in "
+            "floating point (a model): only the corners are certified"
         )
     else:
         _, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-        why_not = _square_scope(system, feedback, rigorous) if met else None
-    proof = None
+        why_not = _square_scope(system, feedback, filt, rigorous)
     if met and why_not is None:
         loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
         corner_loops = [(A, B, w) for (A, B), w in zip(loops, windows[:4])]

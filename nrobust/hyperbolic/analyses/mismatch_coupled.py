@@ -32,7 +32,16 @@ of the boxes ``(p, m, eta)``:
    undecided box is halved in ``w``, or in a speed when the enclosure at the middle ``w`` alone does not
    decide either, up to ``max_boxes`` boxes.
 3. *One point.* The loop of a corner, proven stable on a window meeting the delays asked, lies in the
-   family (the square is widened by ``1e-12`` so that the corners' rounded speeds are in it).
+   family: it must be the exact loop of the corner plant under ``U = k u(t, 1)`` (checked: a loop on
+   the kernel route is a model, not a point of the family); the square is widened by ``1e-12`` so
+   that the corners' rounded speeds are in it, each ball of ``tau`` by ``2^-50`` relative so that
+   the corners' stored round trips (the doubles nearest ``1/lam' + 1/mu'``) are in it, and the
+   point coefficients ``rho q``, ``k q`` range over balls holding the exact products and the
+   doubles the corners store.
+
+The family is the connected set of ``(e_lam, e_mu, eta, c_A, c_B)``: a speed error of the widened
+square, ``eta`` between ``d_min`` and ``d_max`` divided by that error's ``tau`` (widened), the
+point coefficients in their balls; every box clears it for every ``w`` of its range.
 
 The number of zeros in ``Re z >= 0`` is then the same on the whole family, zero at the corner, and a
 strongly stable difference operator makes the loop exponentially stable (the criterion of the paper's
@@ -41,6 +50,7 @@ Theorems 3 and 4) for every ``(e_lam, e_mu)`` of the square and every delay of t
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from functools import lru_cache
@@ -50,15 +60,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
-from ..._flint import precision, working_precision
+from ..._flint import precision, require_flint, working_precision
 from ..._validate import finite_real, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..loops.controllers import StateFeedback, loop_factors, loop_route
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, _hi, crossing_free
+from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, ball_lower, ball_upper, crossing_free
 
 __all__ = ["prove_coupled_square"]
 
@@ -68,6 +79,9 @@ _PIECES = 16
 _WIDEN = 1e-12
 #: Width below which a box is not halved again, relative to ``W`` (frequency) or ``eps`` (speeds).
 _MIN_WIDTH = 1e-9
+#: Relative widening of each ball of ``tau``: the corners' stored round trips (``tau`` of a
+#: :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`, three roundings) lie in it.
+_TAU_SLACK = 2.0**-50
 
 
 class _Box:
@@ -78,16 +92,13 @@ class _Box:
         flint, P, M, T = _parameters(system, box)
         self.flint = flint
         (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
-        arb = flint.arb
-        # the point coefficients -rho q and -k q as stored are rounded: the error of each joins the
-        # radius of the kernel next to it (on Re z = 0, where the factors are evaluated, a radius r of a
-        # kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
-        rq, kq = system.rho * system.q, -k * system.q
-        err_a = _hi(abs(arb(system.rho) * arb(system.q) - arb(rq)))
-        err_b = _hi(abs(arb(k) * arb(system.q) + arb(kq)))
+        # the point coefficients rho q and -k q range over [c - err, c + err] (c the double): the error
+        # of each joins the radius of the kernel next to it (on Re z = 0, where the factors are
+        # evaluated, a radius r of a kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
+        rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
         self.B = BallQuasiPolynomial(QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b))
-        self.eta = (T.lower(), T.upper())  # tau over the box
+        self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
     def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
         """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box."""
@@ -96,10 +107,19 @@ class _Box:
         return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
 
 
-def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> tuple[Any, Any, Any, Any]:
-    """python-flint and the balls of ``p``, ``m`` and ``tau`` over a box of relative speed errors."""
-    from ..._flint import require_flint
+def _point_coefficients(flint: Any, system: Hyperbolic2x2, k: float) -> tuple[float, float, float, float]:
+    """``(rho q, -k q)`` as doubles and bounds of their distance to the exact products: the balls
+    ``[c - err, c + err]`` hold the PDE's coefficients and those a corner's loop stores."""
+    arb = flint.arb
+    rq, kq = system.rho * system.q, -k * system.q
+    err_a = ball_upper(abs(arb(system.rho) * arb(system.q) - arb(rq)))
+    err_b = ball_upper(abs(arb(k) * arb(system.q) + arb(kq)))
+    return rq, kq, err_a, err_b
 
+
+def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> tuple[Any, Any, Any, Any]:
+    """python-flint and the balls of ``p``, ``m`` and ``tau`` (widened by :data:`_TAU_SLACK`) over a box of
+    relative speed errors."""
     flint = require_flint()
     arb = flint.arb
     a0, a1, b0, b1 = box
@@ -107,14 +127,14 @@ def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -
     mu = arb(system.mu) * (1 + arb(b0).union(arb(b1)))
     P = arb(float(system.sigma_pm)) / lam  # type: ignore[arg-type]
     M = -arb(float(system.sigma_mp)) / mu  # type: ignore[arg-type]
-    return flint, P, M, 1 / lam + 1 / mu
+    return flint, P, M, (1 / lam + 1 / mu) * (1 + arb(0, _TAU_SLACK))
 
 
 def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[NDArray[np.float64], float]:
     """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
     radius holding the kernel of every ``(p, m)`` of the balls."""
     arb = flint.arb
-    bits = PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
     with precision(flint, bits):
         series, bound, _ = closed_form_series(flint, arb(1), P, M, (which, q, rho))
         width = 1.0 / _PIECES
@@ -123,7 +143,7 @@ def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str)
             head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
             heads.append(head)
             err = arb.max(err, e)
-        return np.asarray(heads), _hi(bound + err)
+        return np.asarray(heads), ball_upper(bound + err)
 
 
 def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float, extra: float) -> QuasiPolynomial:
@@ -144,7 +164,7 @@ def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float
 def _variation(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> Any:
     """``V(G) = |G(0)| + |G(1)| + sup |G'|`` on ``[0, 1]`` for every ``(p, m)`` of the balls (step 1)."""
     arb = flint.arb
-    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(_hi(abs(P * M))))):
+    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))):
         series, bound, slope = closed_form_series(flint, arb(1), P, M, (which, q, rho))
         derivative = series.derivative()
         sup = arb(0)
@@ -177,9 +197,11 @@ def prove_coupled_square(
     delays : (float, float)
         The window ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``).
     corners : sequence of (QuasiPolynomial, QuasiPolynomial, DelayWindow)
-        The exact loops of the corners (:func:`~nrobust.hyperbolic.analyses.mismatch_loop`) and
-        their verdicts; one proven stable on a window meeting ``[d_min, d_max]`` is the point the
-        argument starts from.
+        The loops of the corners ``(e_lam, e_mu)`` = ``(-eps, -eps), (-eps, eps), (eps, -eps),
+        (eps, eps)`` (:func:`~nrobust.hyperbolic.analyses.mismatch_loop`) and their verdicts; the
+        first that is the exact loop of ``U = k u(t, 1)`` on its corner plant (compared with
+        :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`) and proven stable on a window
+        meeting ``[d_min, d_max]`` is the point the argument starts from.
     max_boxes : int, optional
         Work bound: boxes of ``(w, e_lam, e_mu)`` examined.
 
@@ -211,22 +233,27 @@ def prove_coupled_square(
     base = next(
         (
             n
-            for n, (_, _, window) in enumerate(corners)
-            if window.stable and window.certified == "proven" and window.delays[0] <= d_hi and window.delays[1] >= d_lo
+            for n, ((A, B, window), corner) in enumerate(zip(corners, _corners(eps)))
+            if window.stable
+            and window.certified == "proven"
+            and window.delays[0] <= d_hi
+            and window.delays[1] >= d_lo
+            and _exact_corner(system, k, corner, A, B)
         ),
         None,
     )
     with working_precision(53) as flint:
         arb = flint.arb
         _, P, M, T = _parameters(system, square)
-        taus = (math.nextafter(float(T.lower()), -math.inf), _hi(T.upper()))
-        c_d = abs(arb(system.rho) * arb(system.q)) + abs(arb(k) * arb(system.q))
+        taus = (ball_lower(T), ball_upper(T))
+        rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
+        c_d = abs(arb(rq)) + arb(err_a) + abs(arb(kq)) + arb(err_b)  # every c_A, c_B of the family
         if not c_d < 1:
             return SquareProof(
                 False,
                 f"the difference operator is not proven strongly stable (|rho q| + |k q| <= "
-                f"{upper_bound_text(_hi(c_d))}, not < 1): the loop is not stable for every delay of a window (Hale's "
-                "condition); a smaller gain |k| decides",
+                f"{upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every delay of a window "
+                "(Hale's condition); a smaller gain |k| decides",
                 taus,
                 nan,
                 nan,
@@ -238,16 +265,17 @@ def prove_coupled_square(
                 flint, P, M, system.q, system.rho, "U"
             )
         except CertificationError as exc:
-            return SquareProof(False, str(exc), taus, nan, _hi(c_d), 0, nan)
-        W = _hi(v / (1 - c_d)) * (1.0 + 1e-6)
+            return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
+        W = ball_upper(v / (1 - c_d)) * (1.0 + 1e-6)
         if base is None:
             return SquareProof(
                 False,
-                "no corner is proven stable on a window meeting the delays asked (rigorous=True on this window proves "
-                "them): the argument needs one point of the family",
+                "no corner is proven stable on a window meeting the delays asked with its exact loop (rigorous=True "
+                "on this window proves them; a corner plant beyond the closed form takes the kernel route, a model): "
+                "the argument needs one point of the family",
                 taus,
                 W,
-                _hi(c_d),
+                ball_upper(c_d),
                 0,
                 nan,
             )
@@ -264,8 +292,8 @@ def prove_coupled_square(
             else f"the work bound max_boxes = {max_boxes} was reached (at tau w in [{w0:.6g}, {w1:.6g}], e_lam in "
             f"[{a0:.6g}, {a1:.6g}], e_mu in [{b0:.6g}, {b1:.6g}]); a larger max_boxes or a smaller tolerance decides"
         )
-        return SquareProof(False, why, taus, W, _hi(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
-    w_text, cd_text = upper_bound_text(W), upper_bound_text(_hi(c_d))
+        return SquareProof(False, why, taus, W, ball_upper(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
+    w_text, cd_text = upper_bound_text(W), upper_bound_text(ball_upper(c_d))
     return SquareProof(
         True,
         f"no zero on i [0, {w_text}] in the scaled frequency z = tau s for any (e_lam, e_mu) of the square and delay "
@@ -274,11 +302,25 @@ def prove_coupled_square(
         f"loop of corners[{base}] proven stable on the window: the count in Re s > 0 is 0 on the whole connected set",
         taus,
         W,
-        _hi(c_d),
+        ball_upper(c_d),
         boxes,
         nan,
         base,
     )
+
+
+def _corners(eps: float) -> list[tuple[float, float]]:
+    """The corners of the square in the order of ``corners``."""
+    return [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
+
+
+def _exact_corner(system: Hyperbolic2x2, k: float, corner: tuple[float, float], A: Any, B: Any) -> bool:
+    """True when ``(A, B)`` is the exact loop of ``U = k u(t, 1)`` on the plant at ``corner``: a point of the family."""
+    plant = dataclasses.replace(system, lam=system.lam * (1.0 + corner[0]), mu=system.mu * (1.0 + corner[1]))
+    law = StateFeedback(k)
+    if not has_exact_form(plant) or loop_route(plant, law) != "exact":
+        return False
+    return bool(loop_factors(plant, law) == (A, B))
 
 
 @lru_cache(maxsize=4096)
@@ -305,9 +347,9 @@ def _clear(
         part = _box(system, k, box)
         flint = part.flint
         arb = flint.arb
-        t_lo, t_hi = part.eta
-        # eta = delta / tau over the box: [d_lo / tau_max, d_hi / tau_min]
-        eta = (float((arb(d_lo) / t_hi).lower()), float((arb(d_hi) / t_lo).upper()))
+        t_lo, t_hi = part.tau
+        # eta = delta / tau over the box: [d_lo / tau_max, d_hi / tau_min], rounded outwards
+        eta = (ball_lower(arb(d_lo) / t_hi), ball_upper(arb(d_hi) / t_lo))
         w = arb(w0).union(arb(w1))
         A, B = part.factors(w0, w1)
         if crossing_free(flint, A, B, w, *eta):

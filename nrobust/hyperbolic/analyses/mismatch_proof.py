@@ -60,7 +60,7 @@ from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["MAX_SQUARE_BOXES", "SquareProof", "prove_transport_square"]
+__all__ = ["MAX_SQUARE_BOXES", "SquareProof", "ball_lower", "ball_upper", "crossing_free", "prove_transport_square"]
 
 #: Default work bound of :func:`prove_transport_square`: boxes of ``(w, tau)`` examined (about
 #: 60 us each on a shared core; a filtered loop at ``eps = 0.2`` takes a few thousand).
@@ -112,12 +112,12 @@ class SquareProof(NamedTuple):
     point: tuple[float, float] = (math.nan, math.nan)
 
 
-def _lo(x: Any) -> float:
+def ball_lower(x: Any) -> float:
     """A float at or below every point of the arb ``x``."""
     return math.nextafter(float(x.lower()), -math.inf)
 
 
-def _hi(x: Any) -> float:
+def ball_upper(x: Any) -> float:
     """A float at or above every point of the arb ``x``."""
     return math.nextafter(float(x.upper()), math.inf)
 
@@ -180,11 +180,11 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
     if len(fam.P0) == 1:  # a difference equation: |F| >= |p00| - |p10| - |q0| on Re s >= 0
         c_d = (up[1][0] + up[2][0]) / low0[0]
         if c_d < 1:
-            return 0.0, _hi(c_d)
+            return 0.0, ball_upper(c_d)
         return (
             "the difference operator 1 - rho q e^{-tau s} - k q e^{-(tau + delta) s} is not proven strongly stable "
-            f"(|rho q| + |k q| <= {upper_bound_text(_hi(c_d))}, not < 1): the loop is not stable for every delay "
-            "of a window and every speed of the square (Hale's condition); a smaller gain |k| decides"
+            f"(|rho q| + |k q| <= {upper_bound_text(ball_upper(c_d))}, not < 1): the loop is not stable for every "
+            "delay of a window and every speed of the square (Hale's condition); a smaller gain |k| decides"
         )
     # |1 + b s|^2 = 1 + 2 b Re s + b^2 |s|^2 >= L(|s|)^2 = 1 + b^2 |s|^2 on Re s >= 0, and
     # |P1(s)| + |Q1(s)| <= U(|s|) = u0 + u1 |s|
@@ -194,20 +194,20 @@ def _tail(flint: Any, fam: _Family) -> tuple[float, float] | str:
     if not c_d < 1:
         return (
             "the difference operator is not proven strongly stable (c_D = |rho q| + |k q a / b| <= "
-            f"{upper_bound_text(_hi(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller against b "
-            "decides"
+            f"{upper_bound_text(ball_upper(c_d))}, not < 1): zeros come from infinity; a filter with |a| smaller "
+            "against b decides"
         )
     # L^2 - U^2 = h(r) = (p01^2 - u1^2) r^2 - 2 u0 u1 r + p00^2 - u0^2, convex: L > U on [W, inf)
     # once h(W) > 0 and h'(W) > 0 (or h has no real root)
     a2, a1, a0 = lead * lead - u1 * u1, -2 * u0 * u1, low0[0] * low0[0] - u0 * u0
     if a1 * a1 - 4 * a2 * a0 < 0 or (a0 > 0 and a1 >= 0):
-        return 0.0, _hi(c_d)
+        return 0.0, ball_upper(c_d)
     root = (-a1 + (a1 * a1 - 4 * a2 * a0).nonnegative_part().sqrt()) / (2 * a2)
-    W = max(_hi(root), 0.0) * (1.0 + 1e-6) + 1e-9
+    W = max(ball_upper(root), 0.0) * (1.0 + 1e-6) + 1e-9
     r = arb(W)
     if a2 * r * r + a1 * r + a0 > 0 and 2 * a2 * r + a1 > 0:
-        return W, _hi(c_d)
-    return f"the tail bound of |F| on Re s >= 0 could not be proven (c_D <= {upper_bound_text(_hi(c_d))})"
+        return W, ball_upper(c_d)
+    return f"the tail bound of |F| on Re s >= 0 could not be proven (c_D <= {upper_bound_text(ball_upper(c_d))})"
 
 
 class _Axis:
@@ -255,7 +255,7 @@ def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) 
         return True
     if not w.lower() > 0:
         return False
-    k_lo, k_hi = math.floor(_lo(span)), math.ceil(_hi(span))
+    k_lo, k_hi = math.floor(ball_lower(span)), math.ceil(ball_upper(span))
     if k_hi - k_lo > 10_000:
         return False
     for k in range(k_lo, k_hi + 1):
@@ -374,7 +374,7 @@ def prove_transport_square(
         tau = taus[0]
         for t in taus[1:]:
             tau = tau.union(t)
-        t_lo, t_hi = _lo(tau), _hi(tau)
+        t_lo, t_hi = ball_lower(tau), ball_upper(tau)
         fam = _Family(flint, P0, P1, Q1, tau)
         tail = _tail(flint, fam)
         if isinstance(tail, str):
