@@ -540,21 +540,6 @@ def mismatch_region(
     )
 
 
-def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> tuple[str, str]:
-    """The route of the mismatched loops and what a certificate is about (at the nominal speeds)."""
-    if isinstance(controller, OutputFeedback):
-        route = loop_route(system, controller)
-        route_grid = kernel_grid if route == "kernels" else None
-        scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
-        return route, scope + "; the observer and the law designed on the nominal plant, acting on the mismatched one"
-    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-    route = loop_route(plant, feedback)
-    scope = loop_scope(
-        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
-    )
-    return route, scope
-
-
 def check_speed_tolerance(value: Any, name: str = "speed_tolerance", plant: Any = None) -> float:
     """A relative speed tolerance ``eps`` in ``(0, 1)``; a :class:`ParameterError` naming ``name`` otherwise.
 

@@ -51,6 +51,8 @@ Theorems 3 and 4) for every ``(e_lam, e_mu)`` of the square and every delay of t
 from __future__ import annotations
 
 import dataclasses
+import heapq
+import itertools
 import math
 from collections.abc import Sequence
 from functools import lru_cache
@@ -338,11 +340,13 @@ def _clear(
     max_boxes: int,
 ) -> tuple[int, tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None]:
     """Clear ``[0, W] x`` the square (step 2): the boxes examined, and the box it stopped at (None: cleared)."""
-    stack = [(0.0, W, square)]
+    # lowest frequencies first: a crossing of the family lies there, the high ones only cost boxes
+    pending: list[tuple[float, int, float, tuple[float, float, float, float]]] = [(0.0, 0, W, square)]
+    order = itertools.count(1)  # ties in w broken by age
     boxes = 0
     span = square[1] - square[0]
-    while stack:
-        w0, w1, box = stack.pop()
+    while pending:
+        w0, _, w1, box = heapq.heappop(pending)
         boxes += 1
         part = _box(system, k, box)
         flint = part.flint
@@ -367,11 +371,13 @@ def _clear(
         if split_speed:
             if a1 - a0 >= b1 - b0:
                 am = 0.5 * (a0 + a1)
-                stack += [(w0, w1, (a0, am, b0, b1)), (w0, w1, (am, a1, b0, b1))]
+                children = [(w0, w1, (a0, am, b0, b1)), (w0, w1, (am, a1, b0, b1))]
             else:
                 bm = 0.5 * (b0 + b1)
-                stack += [(w0, w1, (a0, a1, b0, bm)), (w0, w1, (a0, a1, bm, b1))]
+                children = [(w0, w1, (a0, a1, b0, bm)), (w0, w1, (a0, a1, bm, b1))]
         else:
             wm = 0.5 * (w0 + w1)
-            stack += [(w0, wm, box), (wm, w1, box)]
+            children = [(w0, wm, box), (wm, w1, box)]
+        for lo, hi, child in children:
+            heapq.heappush(pending, (lo, next(order), hi, child))
     return boxes, None
