@@ -45,10 +45,11 @@ Chebyshev collocation of the infinitesimal generator (Breda, Maset and Vermiglio
 "Pseudospectral differencing methods for characteristic roots of delay differential
 equations", SIAM J. Sci. Comput. 27(2), 482-495, 2005; the discretisation TDS-CONTROL uses):
 approximations only, each root still accepted by a certified count of a box about it and
-the whole set by the count of the rectangle (the argument principle). Only the components
-that a delayed term reads keep a history in the collocation, and the algebraic equations of a
-singular ``E`` are eliminated, so that the eigenvalue problem is a standard one of the order
-of the delayed states (the seeds of Example 2.9: order 31 instead of 48).
+the whole set by the count of the rectangle (the argument principle). Only what the delayed
+terms read (their nonzero columns, or their nonzero rows when fewer) keeps a history in the
+collocation, and the algebraic equations of a singular ``E`` are eliminated, so that the
+eigenvalue problem is a standard one of that order (the seeds of Example 2.9: order 24
+instead of 48).
 """
 
 from __future__ import annotations
@@ -85,7 +86,7 @@ _MAX_ORDER = 480
 # generator_eigenvalues (4e-7 at |Im s| < 10 for x' = -x(t - 1)); the order (about n + nd points)
 # sets the cost, cubic. About w tau / 2 points resolve e^{i w theta} on [-tau, 0]: the seeds take
 # _SEED_EXTRA_POINTS more (Example 2.9, w tau = 10: 7 points, seeds within 2e-7 of the roots, order
-# 31 instead of 47), at most the 0.3 w tau + _SEED_MIN_POINTS of the seeds of a wide region, which
+# 24 instead of 47), at most the 0.3 w tau + _SEED_MIN_POINTS of the seeds of a wide region, which
 # need not resolve the highest frequencies to land in the basins of the roots.
 _SEED_MIN_POINTS = 8
 _SEED_EXTRA_POINTS = 2
@@ -447,8 +448,8 @@ class StateSpaceTDS:
         and ``s`` solves the pencil ``A v = s B v``: the rows ``j >= 1`` ask
         ``phi'(theta_j) = s phi(theta_j)``, row 0 asks
         ``s (E phi(0) - sum_k B_k phi(-hB_k)) = sum_k A_k phi(-hA_k)`` (``phi = e^{s theta} v``
-        is exact); only the components read by a delayed term are collocated at ``theta_j < 0``
-        (the others' histories enter no equation), and for a singular ``E`` with no neutral
+        is exact); only the combinations of the state read by a delayed term are collocated at
+        ``theta_j < 0`` (the rest of the history enters no equation), and for a singular ``E`` with no neutral
         term the algebraic rows are solved for their components first (index 1; otherwise
         the pencil is reduced by a shift and invert, or the QZ algorithm). Distributed terms
         are left out. Accurate for the roots with
@@ -503,20 +504,44 @@ class StateSpaceTDS:
         """The eigenvalue problems of :meth:`_collocation` built so far, by number of points (the last few)."""
         return {}
 
+    @functools.cached_property
+    def _history(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(P, S, T)``: the ``nd`` combinations ``y = P x`` of the state that the delayed terms read, with
+        ``A_k = S_k P`` for every delayed ``A_k`` (``S_k = 0`` for the undelayed ones) and ``B_k = T_k P``.
+
+        ``P`` selects the nonzero columns of the delayed matrices (``S_k``, ``T_k`` their columns), or, when
+        fewer, stacks their nonzero rows (``S_k``, ``T_k`` select them): Example 2.9 reads 4 columns
+        but only 3 rows, so its collocation keeps the history of 3 combinations instead of 4 states.
+        Exact either way (no product is formed), so the collocated generator is that of the same system.
+        """
+        # (the reductions of the ufunc itself: ndarray.any's Python wrapper costs more than these small arrays)
+        any_term = np.logical_or.reduce
+        delayed_a = self.hA > 0
+        mats = np.concatenate([self.A[delayed_a], self.B])
+        nonzero = mats != 0
+        columns = any_term(nonzero, axis=(0, 1)).nonzero()[0]
+        rows = any_term(nonzero, axis=2)  # (matrix, row)
+        if np.count_nonzero(rows) >= columns.size:
+            return np.eye(self.n)[columns], self.A[:, :, columns], self.B[:, :, columns]
+        which, row = rows.nonzero()
+        select = np.zeros((mats.shape[0], self.n, which.size))
+        select[which, row, np.arange(which.size)] = 1.0
+        hist_a = np.zeros((self.A.shape[0], self.n, which.size))
+        hist_a[delayed_a] = select[: np.count_nonzero(delayed_a)]
+        return mats[which, row], hist_a, select[np.count_nonzero(delayed_a) :]
+
     def _collocation(self, points: int, tau: float) -> _Collocation:
         """The eigenvalue problem of the generator collocated at ``points + 1`` Chebyshev points on ``[-tau, 0]``."""
         n = self.n
         theta, d = _chebyshev(points, tau)
-        # Only the components that some delayed term reads (the nonzero columns of the delayed A_k and
-        # of the B_k) need their history: the unknowns are phi(0) (all n components) and phi(theta_j),
-        # j >= 1, of those nd components. The pencil A v = s B v: the rows j >= 1 ask
-        # (D phi)_j = s phi(theta_j), the first block row sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
-        # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h.
-        # (the reductions of the ufunc itself: ndarray.any's Python wrapper costs more than these small arrays)
-        any_term = np.logical_or.reduce
-        delayed = (any_term(self.A[self.hA > 0] != 0, axis=(0, 1)) | any_term(self.B != 0, axis=(0, 1))).nonzero()[0]
-        nd = delayed.size
-        pick = np.eye(n)[delayed]  # phi(0) -> its delayed components
+        # Only what the delayed terms read needs a history (:meth:`_history`): the unknowns are phi(0) (all n
+        # components) and y(theta_j) = P phi(theta_j), j >= 1, of the nd combinations y = P x that the delayed
+        # terms read (A_k = S_k P for each delayed A_k, and B_k = T_k P). The pencil A v = s B v: the rows
+        # j >= 1 ask (D y)_j = s y(theta_j), with y(theta_0) = P phi(0), the first block row
+        # sum_k A_k phi(-hA_k) = s (E phi(0) - sum_k B_k phi(-hB_k)),
+        # phi(-h) = sum_l l_h[l] phi(theta_l) by the interpolation rows l_h (A_k phi(theta_l) = S_k y(theta_l)).
+        pick, hist_a, hist_b = self._history
+        nd = pick.shape[0]
         rest = np.hstack(
             [
                 (d[1:, 0, None, None] * pick[None]).reshape(points * nd, n),
@@ -524,12 +549,12 @@ class StateSpaceTDS:
             ]
         )
         rows_a = np.array([_interpolation_row(theta, -h) for h in self.hA.tolist()])
-        top = np.hstack([_combination(rows_a[:, 0], self.A), _block_row(rows_a[:, 1:], self.A[:, :, delayed])])
+        top = np.hstack([_combination(rows_a[:, 0], self.A), _block_row(rows_a[:, 1:], hist_a)])
         br = None  # the history columns of the first block row of B (none without neutral terms)
         if self.B.shape[0]:
             rows_b = np.array([_interpolation_row(theta, -h) for h in self.hB.tolist()])
             b0 = self.E - _combination(rows_b[:, 0], self.B)
-            br = -_block_row(rows_b[:, 1:], self.B[:, :, delayed])
+            br = -_block_row(rows_b[:, 1:], hist_b)
         elif self._unit_E:  # E = I and no neutral term: B = I, the standard problem A v = s v
             return _Collocation(np.vstack([top, rest]))
         else:
