@@ -68,7 +68,7 @@ from ..loops.exact_form import has_exact_form
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
-from .mismatch_coupled import prove_coupled_square
+from .mismatch_coupled import MAX_COUPLED_BOXES, prove_coupled_square
 from .mismatch_proof import MAX_SQUARE_BOXES, prove_transport_square
 
 __all__ = [
@@ -732,7 +732,7 @@ def speed_tolerance(
     rigorous: bool = False,
     max_evals: int = 2_000_000,
     corner_windows: tuple[DelayWindow, ...] | None = None,
-    max_boxes: int = MAX_SQUARE_BOXES,
+    max_boxes: int | None = None,
 ) -> SpeedTolerance:
     """Stability on a delay window of ``controller`` under speed mismatches ``(e_lam, e_mu)`` in ``[-eps, eps]^2``.
 
@@ -781,8 +781,10 @@ def speed_tolerance(
         the order ``(-eps, -eps), (-eps, eps), (eps, -eps), (eps, eps)``: four verdicts of the
         corners' loops on windows containing ``delays``.
     max_boxes : int, optional
-        Work bound of the square's proof: boxes of ``(w, tau)``
-        (:data:`~nrobust.hyperbolic.analyses.mismatch_proof.MAX_SQUARE_BOXES`).
+        Work bound of the square's proof: boxes of ``(w, tau)`` on an uncoupled plant
+        (default :data:`~nrobust.hyperbolic.analyses.mismatch_proof.MAX_SQUARE_BOXES`), of
+        ``(tau w, e_lam, e_mu)`` on a coupled one (default
+        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_COUPLED_BOXES`, each box far dearer).
 
     Returns
     -------
@@ -809,6 +811,8 @@ def speed_tolerance(
     grid = positive_int("grid", grid, 2, 33)
     kernel_grid = check_kernel_grid(kernel_grid)
     max_evals = positive_int("max_evals", max_evals)
+    if max_boxes is None:
+        max_boxes = MAX_SQUARE_BOXES if system.uncoupled else MAX_COUPLED_BOXES
     max_boxes = positive_int("max_boxes", max_boxes)
     if corner_windows is not None and (
         len(corner_windows) != 4
