@@ -232,8 +232,8 @@ def _general_failure(system: GeneralHyperbolic2x2) -> str | None:
     for name in ("lam", "mu"):
         if not system.is_constant(name):
             return (
-                f"the speed {name} varies: the proof covers constant speeds; the kernel route (kernel_grid=...) "
-                "gives a model of the PDE"
+                f"the speed {name} is a function: the proof covers constant speeds given as numbers; the kernel "
+                "route (kernel_grid=...) gives a model of the PDE"
             )
     for name in _GENERAL:
         if isinstance(getattr(system, name), tuple):
@@ -461,8 +461,8 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
-                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1]; the kernel route "
-                    "(kernel_grid=...) gives a model of the PDE"
+                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], or a coupling that "
+                    "varies too fast for that order; the kernel route (kernel_grid=...) gives a model of the PDE"
                 )
         for n in DEGREES:
             try:
