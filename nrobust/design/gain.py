@@ -1525,8 +1525,8 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
             and min(gains[j], gains[k]) < K_zero < max(gains[j], gains[k])
         ):
             edge = float(K_zero) - side * _OFFSET * max(_scale(curves), 1e-300)
-            if curves.value(edge) >= float(np.max(env[j_lo : j_hi + 1])):
-                v = curves.value(edge)
+            v = curves.value(edge)
+            if v >= float(np.max(env[j_lo : j_hi + 1])):
                 return edge, v, "end", tuple(sorted((edge, float(K_zero)))), (v, v)
     if j_lo == j_hi:
         v = curves.value(K0)
