@@ -104,6 +104,11 @@ DESIGN_KINDS = (
 _STEPS = 32
 # Samples of the axis up to the frequency bound, at least.
 _MIN_SAMPLES = 256
+# Below the uniform step ``dw``: geometric samples, this many per octave over this many octaves (a crossing
+# curve ends at ``w = 0`` where ``|A(0)| = |B(0)|``, its gain moving as ``w^2``: the last octaves cover gains
+# within about ``4^-_LOW_OCTAVES`` of that end, relative).
+_PER_OCTAVE = 4
+_LOW_OCTAVES = 26
 # Evaluations of the factors per sample of the axis (values and slopes of A, B_0, R).
 _EVALS_PER_SAMPLE = 6
 # Gains of the envelope grid.
@@ -893,14 +898,15 @@ class _Curves:
         # a power of two (exact uniform samples), at least _MIN_SAMPLES up to W
         dw = float(2.0 ** np.floor(np.log2(min(np.pi / (_STEPS * T), W / _MIN_SAMPLES))))
         self.W, self.dw = W, dw
-        n = max(int(np.ceil(W / dw)), 16)
+        n = max(int(np.ceil(W / dw)), 16) + _PER_OCTAVE * _LOW_OCTAVES
         if n > max_evals // loop.evals_per_sample:
             raise CertificationError(
                 f"the crossing curves of the gains [{K_lo:.12g}, {K_hi:.12g}] extend to W = {W:.6g}: sampling them "
                 f"needs about {loop.evals_per_sample * n:.3g} evaluations, beyond max_evals={max_evals} (gains closer "
                 "to the strong-stability bound need more)"
             )
-        w = dw * np.arange(1, n + 1, dtype=float)
+        low = dw * 2.0 ** (-np.arange(_PER_OCTAVE * _LOW_OCTAVES, 0, -1) / _PER_OCTAVE)
+        w = np.concatenate([low, dw * np.arange(1, n - low.size + 1, dtype=float)])
         D, m, root, at = self._sample(w)
         junctions = self._junctions(w, D)
         pole = np.sign(at.curvature())
@@ -915,6 +921,11 @@ class _Curves:
             self._cut(sigma, w, K, slope, theta / w, theta, D, junctions, pole, wraps, births, poles)
         self.gains = np.linspace(K_lo, K_hi, _N_GAINS)
         self.envelope, self.active = self._envelope(self.gains)
+        self.edges = _stability_edges(self)
+
+    def cell(self, w: float) -> float:
+        """The spacing of the samples about the frequency ``w``: ``dw``, or less below it (geometric samples)."""
+        return self.dw if w >= self.dw else w * (2.0 ** (1.0 / _PER_OCTAVE) - 1.0)
 
     def _wraps(
         self, sigma: float, w: NDArray, K: NDArray, theta: NDArray, D: NDArray, pole: NDArray
@@ -1225,9 +1236,15 @@ class _Curves:
             g = abs(a) ** 2 - abs(b) ** 2
             gw = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
             step = float(g / gw)
+            # near w = 0 (a curve ending where |A(0)| = |B(0)|) g is flat, w known to ~eps/w^2 only, but the
+            # delay theta / w tends to a limit: the step's change of the delay is what must be at rounding
+            theta = float(np.angle(-b / a))
+            d_step = abs(step * ((db / b - da / a).imag - theta / w) / w)
             w -= step
             # converged, or at the rounding floor of g (steps of 1e-12 relative that stop shrinking)
             if abs(step) <= 4e-16 * w or (abs(step) <= _NOISE_STEP * w and abs(step) > 0.5 * previous):
+                break
+            if abs(step) <= 1e-3 * w and d_step <= 4e-15 * abs(theta) / w:
                 break
             previous = abs(step)
         else:
@@ -1307,7 +1324,10 @@ class _Curves:
             s = piece.at(K)
             if s is not None and s[1] < 1.05 * best:  # a curve that may be the lowest (5 %: the scan interpolates it)
                 try:
-                    best = min(best, self.at_gain(K, s[0], s[1] * s[0])[1])
+                    w, d = self.at_gain(K, s[0], s[1] * s[0])[:2]
+                    if d < 0.0:  # past a wrap (a root on the axis at delta = 0): the next branch of the phase
+                        d += _TWO_PI / w * np.ceil(-d * w / _TWO_PI)
+                    best = min(best, d)
                 except CertificationError:
                     if self.loop.gain:
                         raise
@@ -1349,16 +1369,47 @@ def _certify(loop: _Family, K: float, rigorous: bool, max_evals: int) -> tuple[D
     return delay_margin(A, B, max_evals=max_evals), "checked"
 
 
-def _nominal_mask(curves: _Curves) -> NDArray[np.bool_]:
-    """Nominal stability of ``F(.; 0, K)`` on the envelope grid: it changes only where a curve's delay wraps
-    through 0 (a root on the axis at ``delta = 0``) or at ``s = 0``; decided once between two such gains."""
+def _stability_edges(curves: _Curves) -> list[float]:
+    """The gains inside the bounds where the nominal loop ``F(.; 0, K)`` may change stability, increasing.
+
+    Where a curve's delay wraps through 0 (a root on the axis at ``delta = 0``), solved by ``brentq``
+    on the principal ``arg(-B/A)`` along the branch about the scan's wrap (located to a few cells
+    only: an edge is where a supremum that is not attained sits, moved :data:`_OFFSET` off it), and
+    where ``s = 0`` is a root for every delay.
+    """
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
     loop = curves.loop
-    cuts = [float(p.K[-1]) for p in curves.pieces if p.stop == "wrap"]
+    cuts = []
+    for piece in curves.pieces:
+        if piece.stop != "wrap":
+            continue
+        we, sigma = float(piece.w[-1]), piece.sigma
+
+        def phase(x: float, sigma: float = sigma) -> float:
+            _, m, root, at = curves._sample(np.array([x]), slopes=False)
+            K = m + sigma * root
+            return float(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1))[0])
+
+        K_wrap = float(piece.K[-1])
+        for width in (1e-6, 1e-3, 1.0):
+            a, b = we - width * curves.cell(we), we + width * curves.cell(we)
+            fa, fb = phase(a), phase(b)
+            if fa * fb <= 0.0 and max(abs(fa), abs(fb)) < 1.0:  # through 0, not the jump at pi
+                K_wrap = curves.on_branch(brentq(phase, a, b, xtol=1e-15 * b, rtol=1e-15), sigma)[0]
+                break
+        cuts.append(K_wrap)
     K0 = loop.zero_root()  # s = 0 is a root there, for every delay
     if K0 is not None:
         cuts.append(K0)
-    edges = sorted(c for c in cuts if curves.K_lo < c < curves.K_hi)
-    bounds = [curves.K_lo, *edges, curves.K_hi]
+    return sorted(c for c in cuts if curves.K_lo < c < curves.K_hi)
+
+
+def _nominal_mask(curves: _Curves) -> NDArray[np.bool_]:
+    """Nominal stability of ``F(.; 0, K)`` on the envelope grid: it changes only at the
+    :func:`_stability_edges`; decided once between two of them."""
+    loop = curves.loop
+    bounds = [curves.K_lo, *curves.edges, curves.K_hi]
     mask = np.zeros(curves.gains.size, dtype=bool)
     for lo, hi in itertools.pairwise(bounds):
         inside = (curves.gains > lo) & (curves.gains < hi) if hi > lo else np.zeros_like(mask)
@@ -1389,8 +1440,8 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
     n = gains.size
     scale = max(abs(curves.K_lo), abs(curves.K_hi))
     for j in (i - 1, i + 1):
-        if not 0 <= j < n or active[j] == active[i] or active[j] < 0 or active[i] < 0:
-            continue
+        if not 0 <= j < n or active[j] == active[i] or active[j] < 0 or active[i] < 0 or env[j] == 0.0:
+            continue  # (env 0: the nominal loop is unstable there, no kink with its curves)
         p, q = curves.pieces[active[i]], curves.pieces[active[j]]
         lo, hi = sorted((gains[i], gains[j]))
         birth = _birth_in(curves, q, lo, hi) if "birth" in (q.start, q.stop) else None
@@ -1404,7 +1455,9 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
             sup = curves.at_gain(Kb, w_p[0], w_p[1] * w_p[0])[1] if w_p is not None else v
             return K, v, "pair birth", tuple(sorted((Kb, K))), (min(v, sup), max(v, sup))
         if p.start == "junction" or p.stop == "junction" or q.start == "junction" or q.stop == "junction":
-            if p.sigma != q.sigma and abs(p.w[-1] - q.w[-1]) + abs(p.w[0] - q.w[0]) < 4 * curves.dw:
+            if p.sigma != q.sigma and abs(p.w[-1] - q.w[-1]) + abs(p.w[0] - q.w[0]) < 4 * curves.cell(
+                float(max(p.w[0], q.w[0]))
+            ):
                 continue  # the same curve through a junction: smooth
         try:
             K, d, _, _ = curves.kink([0.5 * (lo + hi), float(gains[i]), float(gains[j])], p, q)
@@ -1465,7 +1518,7 @@ def _birth_in(curves: _Curves, piece: _Piece, lo: float, hi: float) -> tuple[flo
         we = piece.w[0] if at_start else piece.w[-1]
         if not lo - width <= (piece.K[0] if at_start else piece.K[-1]) <= hi + width:
             continue  # the estimated birth (the interpolated turning point) is elsewhere
-        a, b = we - curves.dw, we + curves.dw
+        a, b = we - curves.cell(we), we + curves.cell(we)
         slope = lambda x: curves.on_branch(x, piece.sigma)[2]  # noqa: E731
         fa, fb = slope(a), slope(b)
         if fa * fb > 0:
@@ -1478,13 +1531,18 @@ def _birth_in(curves: _Curves, piece: _Piece, lo: float, hi: float) -> tuple[flo
 
 
 def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, str, tuple, tuple]:
-    """An interior maximum of one curve: ``d(d)/dw = 0`` along its branch (``brentq`` between samples).
+    """An interior maximum of one curve, or an end of the nominal loop's stability, about the grid gain ``i``.
 
-    Across a junction, Brent's search runs on the exact envelope between the samples next to ``i``
-    where the nominal loop is stable (``env > 0``): beyond them ``curves.value`` knows no crossing
-    (``inf``) although every margin is 0. A maximum at the gain where ``s = 0`` becomes a root (the
-    nominal loop's stability ends there, the margin jumps to 0) is not attained: that gain moved by
-    :data:`_OFFSET` to the stable side, kind ``"end"``.
+    The scanned curve is linear between its samples, so its largest value sits at a sample and the
+    exact maximum may lie up to a sample's spacing in ``w`` away (many cells of gains where ``K``
+    moves fast with ``w``): ``d(d)/dw = 0`` is bracketed between the piece's samples about ``i``,
+    widened, and solved by ``brentq`` (kept when the curve is the lowest there). Otherwise (across a
+    junction, or a curve still rising where the nominal stability ends) Brent's bounded search runs
+    on the exact envelope over the stable gains about ``i``, its window moved while the maximum sits
+    at one of its ends: beyond the stable gains ``curves.value`` knows no crossing (``inf``) although
+    every margin is 0. A maximum at a stability edge (:func:`_stability_edges`: ``s = 0`` becomes a
+    root, or a root crosses the axis without delay, and the margin drops to 0) is not attained: that
+    gain moved by :data:`_OFFSET` to the stable side, kind ``"end"``.
     """
     from scipy.optimize import (
         brentq,
@@ -1493,50 +1551,59 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
 
     piece = curves.pieces[curves.active[i]]
     K0 = float(curves.gains[i])
-    dg = curves.gains[1] - curves.gains[0]
+    gains, n = curves.gains, curves.gains.size
+    dg = float(gains[1] - gains[0])
 
     def slope(x: float) -> float:
-        return curves.on_branch(x, piece.sigma)[3]
+        with np.errstate(all="ignore"):  # NaN at a junction's end sample: not a bracket
+            return curves.on_branch(x, piece.sigma)[3]
 
-    for cells in (2, 8, 32):  # the sampled curve's maximum is off by its interpolation error
-        s_lo, s_hi = piece.at(K0 - cells * dg), piece.at(K0 + cells * dg)
-        if s_lo is None or s_hi is None:
-            break
-        a, b = sorted((s_lo[0], s_hi[0]))
-        if slope(a) * slope(b) < 0:
+    k, last = int(np.argmin(np.abs(piece.K - K0))), piece.w.size - 1
+    for reach in (1, 2, 4, 8, 32):  # samples on each side of the one nearest K0
+        a, b = sorted((float(piece.w[max(k - reach, 0)]), float(piece.w[min(k + reach, last)])))
+        fa, fb = slope(a), slope(b)
+        if a < b and fa * fb < 0:  # (False for NaN)
             w = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
             K, d, dK, _ = curves.on_branch(w, piece.sigma)
-            half = abs(dK) * 4e-15 * w  # the bracket of w mapped to K; the value is flat there
-            return K, d, "interior smooth max", (K - half, K + half), (d, d)
-    # across a junction: Brent's bounded search on the exact envelope, where the nominal loop is stable
-    gains, n = curves.gains, curves.gains.size
-    j_lo, j_hi = i, i
-    while j_lo > max(i - 8, 0) and 0.0 < env[j_lo - 1] < np.inf:
-        j_lo -= 1
-    while j_hi < min(i + 8, n - 1) and 0.0 < env[j_hi + 1] < np.inf:
-        j_hi += 1
-    K_zero = curves.loop.zero_root()
-    for j, side in ((j_lo, -1), (j_hi, 1)):  # the nominal loop loses stability at K_zero just past a sample
-        k = j + side
-        if (
-            K_zero is not None
-            and 0 <= k < n
-            and env[k] == 0.0
-            and min(gains[j], gains[k]) < K_zero < max(gains[j], gains[k])
-        ):
-            edge = float(K_zero) - side * _OFFSET * max(_scale(curves), 1e-300)
-            v = curves.value(edge)
-            if v >= float(np.max(env[j_lo : j_hi + 1])):
-                return edge, v, "end", tuple(sorted((edge, float(K_zero)))), (v, v)
-    if j_lo == j_hi:
-        v = curves.value(K0)
-        return K0, v, "interior smooth max", (K0, K0), (v, v)
-    res = minimize_scalar(
-        lambda K: -curves.value(K), bounds=(gains[j_lo], gains[j_hi]), method="bounded", options={"xatol": 1e-12}
-    )
-    K, v = float(res.x), float(-res.fun)
-    if not np.isfinite(v):
+            if curves.K_lo <= K <= curves.K_hi and abs(curves.value(K) - d) <= 1e-12 * d:
+                half = abs(dK) * 4e-15 * w  # the bracket of w mapped to K; the value is flat there
+                return K, d, "interior smooth max", (K - half, K + half), (d, d)
+            break
+    # Brent's bounded search on the exact envelope, where the nominal loop is stable
+    run_lo, run_hi = i, i
+    while run_lo > 0 and 0.0 < env[run_lo - 1] < np.inf:
+        run_lo -= 1
+    while run_hi < n - 1 and 0.0 < env[run_hi + 1] < np.inf:
+        run_hi += 1
+    j_lo, j_hi = max(i - 8, run_lo), min(i + 8, run_hi)
+    K, v = K0, curves.value(K0)
+    for _ in range(n // 16 + 1):
+        if j_lo == j_hi:
+            break
+        res = minimize_scalar(
+            lambda K: -curves.value(K), bounds=(gains[j_lo], gains[j_hi]), method="bounded", options={"xatol": 1e-12}
+        )
+        K, v = float(res.x), float(-res.fun)
+        if K - gains[j_lo] <= 1e-3 * dg and j_lo > run_lo:  # still rising at the window's end: move it
+            j_lo, j_hi = max(j_lo - 16, run_lo), j_lo + 1
+        elif gains[j_hi] - K <= 1e-3 * dg and j_hi < run_hi:
+            j_lo, j_hi = j_hi - 1, min(j_hi + 16, run_hi)
+        else:
+            break
+    if run_lo < run_hi and not np.isfinite(v):
         raise CertificationError(f"best_margin: the envelope near K = {K0:.12g} is not finite at K = {K:.12g}")
+    for j, side in ((run_lo, -1), (run_hi, 1)):  # the nominal loop loses stability at an edge past the run
+        beyond = j + side
+        if not (0 <= beyond < n and env[beyond] == 0.0):
+            continue
+        for K_edge in curves.edges:
+            if min(gains[j], gains[beyond]) < K_edge < max(gains[j], gains[beyond]):
+                edge = K_edge - side * _OFFSET * max(_scale(curves), 1e-300)
+                v_edge = curves.value(edge)
+                if v_edge >= v:
+                    return edge, v_edge, "end", tuple(sorted((edge, K_edge))), (v_edge, v_edge)
+    if j_lo == j_hi:
+        return K, v, "interior smooth max", (K, K), (v, v)
     # Brent's search locates a smooth maximum to about sqrt(eps): the value may be higher by f''/2 width^2
     width = float(np.sqrt(2.2e-16) * max(abs(K), 1.0)) + 1e-12
     h = 1e-4 * max(_scale(curves), 1e-300)
@@ -1880,7 +1947,8 @@ def _exact_birth(curves: _Curves, piece: _Piece, at_start: bool) -> tuple[float,
         return curves.on_branch(x, piece.sigma)[2]
 
     for cells in (1, 2, 4, 8):
-        a, b = max(we - cells * curves.dw, 0.5 * curves.dw), we + cells * curves.dw
+        step = curves.cell(we)
+        a, b = max(we - cells * step, 0.5 * we), we + cells * step
         if slope(a) * slope(b) < 0:
             wb = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
             return curves.on_branch(wb, piece.sigma)[0], wb

@@ -1,0 +1,111 @@
+"""``best_margin`` where its optimum sits at the end of the nominal loop's stability.
+
+Two kinds of end, each solved here by mpmath from the loop written out by hand (no code of the
+package): a crossing curve that ends at ``w = 0`` where ``s = 0`` becomes a root for every delay
+(``A(0) + B(0) = 0``, the gain ``K_0``; the curve's frequency falls below any uniform scan's first
+sample as ``K -> K_0``, its delay tends to ``B'(0)/B(0) - A'(0)/A(0)``), and a root crossing the axis
+at ``delta = 0`` (``A(i w) + B(i w) = 0``): the margin is 0 on one side and jumps to another curve's
+delay on the other, a supremum not attained. Both loops were refused ("no crossing curve reaches
+K", "the two crossing curves do not change order") before the scan sampled frequencies below its
+uniform step and the wraps were solved exactly.
+"""
+
+from __future__ import annotations
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+from nrobust import QuasiPolynomial
+from nrobust.design.gain import AffineLoop, best_margin
+from nrobust.margins import delay_margin
+
+mp.mp.dps = 30
+
+
+def _loop(t1: float, t2: float, t3: float, a0: float, a1: float, b0: float, c: float, a2: float, neutral: bool):
+    """``A = (a0 + s) + (a1 + n s) e^{-t1 s} + p a2``, ``B = (b0 + m s) e^{-t2 s} + p c e^{-t3 s}``: the
+    loop for the package, and ``A, B`` as mpmath functions of ``(s, p)``."""
+    n, m = (0.3, 0.2) if neutral else (0.0, 0.0)
+    loop = AffineLoop(
+        QuasiPolynomial([[a0, 1.0], [a1, n]], [0.0, t1]),
+        QuasiPolynomial([[a2]], [0.0]),
+        QuasiPolynomial([[b0, m]], [t2]),
+        QuasiPolynomial([[c]], [t3]),
+    )
+
+    def A(s, p):
+        return (a0 + s) + (a1 + n * s) * mp.exp(-t1 * s) + p * a2
+
+    def B(s, p):
+        return (b0 + m * s) * mp.exp(-t2 * s) + p * c * mp.exp(-t3 * s)
+
+    return loop, A, B
+
+
+def _grid_best(loop: AffineLoop, lo: float, hi: float) -> float:
+    return max(delay_margin(loop.A(K), loop.B(K)).margin for K in np.linspace(lo, hi, 21))
+
+
+def test_optimum_where_s_zero_becomes_a_root() -> None:
+    loop, A, B = _loop(0.447, 2.005, 1.237, 0.503, -0.658, 0.536, 0.273, 0.1404, True)
+    # K_0: A(0) + B(0) = 0, linear in p
+    K0 = -(A(0, 0) + B(0, 0)) / ((A(0, 1) - A(0, 0)) + (B(0, 1) - B(0, 0)))
+    limit = mp.diff(lambda s: B(s, K0), 0) / B(0, K0) - mp.diff(lambda s: A(s, K0), 0) / A(0, K0)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "end"
+    # the design sits 1e-10 (relative) off K_0 on the stable side; the delay moves by O(1) per unit of gain
+    np.testing.assert_allclose(design.K, float(K0), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(design.margin, float(limit), rtol=1e-8)
+    assert design.margin >= _grid_best(loop, -1.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("params", "start"),
+    [
+        ((2.271, 0.318, 2.762, 0.649, 1.281, -0.896, -0.496, 0.0, False), (0.6466, 0.9179, 1.1057)),
+        ((1.293, 2.434, 1.265, 1.353, 0.45, 1.764, 1.967, 0.2685, False), None),
+    ],
+)
+def test_optimum_where_a_root_crosses_the_axis_without_delay(params: tuple, start: tuple | None) -> None:
+    loop, A, B = _loop(*params)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "end"
+    assert design.margin >= _grid_best(loop, -1.0, 1.0)
+    # margin 0 just past the end: the nominal loop has a root on the axis there
+    K_edge = design.K_bracket[1] if design.K_bracket[1] != design.K else design.K_bracket[0]
+    past = 2.0 * K_edge - design.K
+    assert delay_margin(loop.A(past), loop.B(past)).margin == 0.0
+    if start is None:
+        return
+    w0, K_start, w1 = start
+    # the root on the axis at delta = 0: A(i w) + B(i w) = 0, two real equations in (w, K)
+    w_axis, K_w = mp.findroot(
+        lambda w, K: [mp.re(A(1j * w, K) + B(1j * w, K)), mp.im(A(1j * w, K) + B(1j * w, K))], (w0, K_start)
+    )
+    assert abs(w_axis - w0) < 1e-3  # the root found is the one the scan's wrap is at
+    np.testing.assert_allclose(design.K, float(K_w), rtol=0, atol=1e-9)
+    # the other curve's crossing at K_w: |A(i w)| = |B(i w)|, delay arg(-B/A) / w on [0, 2 pi)
+    w_c = mp.findroot(lambda w: abs(A(1j * w, K_w)) ** 2 - abs(B(1j * w, K_w)) ** 2, w1)
+    theta = mp.arg(-B(1j * w_c, K_w) / A(1j * w_c, K_w)) % (2 * mp.pi)
+    # the design's delay at 1e-10 off K_w: the curve's slope there is about 0.7 per unit of gain
+    np.testing.assert_allclose(design.margin, float(theta / w_c), rtol=1e-9)
+
+
+def test_interior_maximum_far_from_the_largest_sample() -> None:
+    """The scan's curve is linear between samples whose gains lie 50 cells apart: its largest value
+    (K = 0.777) is far from the exact maximum (K = 0.72), which the design must find, not the end of
+    a search window about the sample (it returned 1.77732 at K = 0.769, below 1.77795 at K = 0.7)."""
+    loop, A, B = _loop(1.81, 1.45, 2.301, 1.738, 1.658, -1.131, 1.076, -0.519, False)
+
+    def delay(K):
+        w = mp.findroot(lambda w: abs(A(1j * w, K)) ** 2 - abs(B(1j * w, K)) ** 2, 1.6028)
+        return (mp.arg(-B(1j * w, K) / A(1j * w, K)) % (2 * mp.pi)) / w
+
+    K_star = mp.findroot(lambda K: mp.diff(delay, K), 0.72)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "interior smooth max"
+    # a smooth maximum: the value to rounding, the gain to about sqrt(eps) of the curvature's scale
+    np.testing.assert_allclose(design.margin, float(delay(K_star)), rtol=1e-13)
+    np.testing.assert_allclose(design.K, float(K_star), rtol=0, atol=1e-7)
+    assert design.margin >= _grid_best(loop, -1.0, 1.0)
