@@ -954,7 +954,7 @@ class _Curves:
         fa, fb = f(a), f(b)
         keep = fa * fb < 0
         j, a, b, fa, fb = j[keep], a[keep], b[keep], fa[keep], fb[keep]
-        wx = illinois(f, a, b, fa, fb, steps=8)
+        wx = illinois(f, a, b, fa, fb)  # to rounding: the nominal stability changes there (:func:`_stability_edges`)
         _, m, root, _ = self._sample(wx, slopes=False)
         return {int(k): (float(x), float(mk + sigma * rk)) for k, x, mk, rk in zip(j, wx, m, root)}
 
@@ -1370,36 +1370,12 @@ def _certify(loop: _Family, K: float, rigorous: bool, max_evals: int) -> tuple[D
 
 
 def _stability_edges(curves: _Curves) -> list[float]:
-    """The gains inside the bounds where the nominal loop ``F(.; 0, K)`` may change stability, increasing.
-
-    Where a curve's delay wraps through 0 (a root on the axis at ``delta = 0``), solved by ``brentq``
-    on the principal ``arg(-B/A)`` along the branch about the scan's wrap (located to a few cells
-    only: an edge is where a supremum that is not attained sits, moved :data:`_OFFSET` off it), and
-    where ``s = 0`` is a root for every delay.
-    """
-    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
-
-    loop = curves.loop
-    cuts = []
-    for piece in curves.pieces:
-        if piece.stop != "wrap":
-            continue
-        we, sigma = float(piece.w[-1]), piece.sigma
-
-        def phase(x: float, sigma: float = sigma) -> float:
-            _, m, root, at = curves._sample(np.array([x]), slopes=False)
-            K = m + sigma * root
-            return float(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1))[0])
-
-        K_wrap = float(piece.K[-1])
-        for width in (1e-6, 1e-3, 1.0):
-            a, b = we - width * curves.cell(we), we + width * curves.cell(we)
-            fa, fb = phase(a), phase(b)
-            if fa * fb <= 0.0 and max(abs(fa), abs(fb)) < 1.0:  # through 0, not the jump at pi
-                K_wrap = curves.on_branch(brentq(phase, a, b, xtol=1e-15 * b, rtol=1e-15), sigma)[0]
-                break
-        cuts.append(K_wrap)
-    K0 = loop.zero_root()  # s = 0 is a root there, for every delay
+    """The gains inside the bounds where the nominal loop ``F(.; 0, K)`` may change stability, increasing:
+    where a curve's delay wraps through 0 (a root on the axis at ``delta = 0``, solved to rounding by
+    :meth:`_Curves._wraps`) and where ``s = 0`` is a root for every delay. An edge is where a supremum
+    that is not attained sits (moved :data:`_OFFSET` off it)."""
+    cuts = [float(p.K[-1]) for p in curves.pieces if p.stop == "wrap"]
+    K0 = curves.loop.zero_root()  # s = 0 is a root there, for every delay
     if K0 is not None:
         cuts.append(K0)
     return sorted(c for c in cuts if curves.K_lo < c < curves.K_hi)
@@ -1536,7 +1512,8 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
     The scanned curve is linear between its samples, so its largest value sits at a sample and the
     exact maximum may lie up to a sample's spacing in ``w`` away (many cells of gains where ``K``
     moves fast with ``w``): ``d(d)/dw = 0`` is bracketed between the piece's samples about ``i``,
-    widened, and solved by ``brentq`` (kept when the curve is the lowest there). Otherwise (across a
+    widened, and solved by ``brentq`` (kept when the curve is the lowest there and the nominal loop
+    stable). Otherwise (across a
     junction, or a curve still rising where the nominal stability ends) Brent's bounded search runs
     on the exact envelope over the stable gains about ``i``, its window moved while the maximum sits
     at one of its ends: beyond the stable gains ``curves.value`` knows no crossing (``inf``) although
@@ -1565,7 +1542,8 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
         if a < b and fa * fb < 0:  # (False for NaN)
             w = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
             K, d, dK, _ = curves.on_branch(w, piece.sigma)
-            if curves.K_lo <= K <= curves.K_hi and abs(curves.value(K) - d) <= 1e-12 * d:
+            lowest = curves.K_lo <= K <= curves.K_hi and abs(curves.value(K) - d) <= 1e-12 * d
+            if lowest and curves.loop.nominally_stable(K):
                 half = abs(dK) * 4e-15 * w  # the bracket of w mapped to K; the value is flat there
                 return K, d, "interior smooth max", (K - half, K + half), (d, d)
             break
