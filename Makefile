@@ -44,15 +44,16 @@ test: $(STAMP_TEST)
 	$(BIN)/python -m compileall -q nrobust
 	$(BIN)/python -m pytest -q -n auto -m 'not long'
 
-# The differential harness (tests/test_harness.py, tests/test_fuzz_lti.py, tests/test_fuzz_output_feedback.py) with
-# its long budget (random examples, a 60 s deadline each: about 8 minutes), then the long tests (about 2 minutes). Prints cases tried,
+# The differential harness (tests/test_harness.py, tests/test_fuzz_lti.py, tests/test_fuzz_output_feedback.py,
+# tests/test_fuzz_design.py) with its long budget (random examples, a 60 s deadline each: about 10 minutes), then
+# the long tests (about 2 minutes). Prints cases tried,
 # certified claims checked, contradictions (must be 0) and honest refusals; fails on any
 # contradiction. `make test` runs the same file on a small fixed budget.
 FUZZ_EXAMPLES ?= 500
 fuzz: $(STAMP_TEST)
 	NROBUST_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) NROBUST_FUZZ_EXAMPLE_SECONDS=60 \
 		$(BIN)/python -m pytest -q -p no:cacheprovider tests/test_harness.py tests/test_fuzz_lti.py \
-			tests/test_fuzz_output_feedback.py
+			tests/test_fuzz_output_feedback.py tests/test_fuzz_design.py
 	$(BIN)/python -m pytest -q -p no:cacheprovider -m long tests
 
 # Lint, format and type checks. All three run; the target fails if any failed.

@@ -429,7 +429,7 @@ def _claims(
             status(
                 main
                 or (margin.rigorous and margin.zero_root)
-                or (margin.nominally_stable and abscissa.rigorous and abscissa.certified and abscissa.value < 0)
+                or (margin.nominally_stable and abscissa.rigorous and abscissa.certified and abscissa.upper_bound < 0)
             ),
             "delay_margin (count_roots), spectral_abscissa",
         ),
@@ -497,7 +497,7 @@ def _claims(
             "spectral abscissa",
             "F(s; 0) has no zero at all"
             if np.isneginf(abscissa.value)
-            else f"no zero of F(s; 0) with Re s > {_outward(abscissa.value, 10, True)}",
+            else f"no zero of F(s; 0) with Re s > {_outward(abscissa.upper_bound, 10, True)}",
             status(abscissa.rigorous and abscissa.certified),
             "spectral_abscissa",
         )

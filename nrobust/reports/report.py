@@ -416,7 +416,13 @@ def _certificate_blocks(
             gamma_source,
         ),
         ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),
-        ("spectral abscissa, delta = 0", _fmt(cert.abscissa.value), "spectral_abscissa"),
+        (
+            "spectral abscissa, delta = 0",
+            _fmt(cert.abscissa.value)
+            if np.isinf(cert.abscissa.value)
+            else with_accuracy(cert.abscissa.value, cert.abscissa.accuracy),
+            "spectral_abscissa",
+        ),
         ("nominally stable", _fmt(cert.nominally_stable), "delay_margin"),
         (
             "delay margin delta*",
