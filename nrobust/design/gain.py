@@ -219,7 +219,10 @@ class GainDesign:
 
     def __repr__(self) -> str:
         k_acc, v_acc = self.accuracy
-        margin_acc = v_acc if self.objective == "margin" else self.certificate.accuracy
+        # the margin at K is known to its certificate's accuracy; as the optimum, to the value bracket too
+        margin_acc = self.certificate.accuracy
+        if self.objective == "margin" and margin_acc is not None:
+            margin_acc += v_acc
         return (
             f"GainDesign(K={with_accuracy(self.K, k_acc)}, objective={self.objective!r}, kind={self.kind!r}, "
             f"margin={with_accuracy(self.margin, margin_acc)}, "
