@@ -150,3 +150,44 @@ def test_a_proof_out_of_boxes_falls_back_to_the_corners() -> None:
     result = speed_tolerance(PLANT, StateFeedback(K), EPS, WINDOW, grid=2, rigorous=True, max_boxes=20)
     assert result.met and result.certified == "proven at the corners"
     assert "box" in result.statement and "proven on the square" not in result.statement
+
+
+@pytest.mark.parametrize(
+    "system",
+    [PLANT, Hyperbolic2x2(1.0, 1.0, 8.0, -6.0, 0.5, 0.3), Hyperbolic2x2(1.3, 0.8, 5.0, 4.0, 0.7, -0.2)],
+)
+def test_kernel_bounds_hold_against_the_pde(system: Hyperbolic2x2) -> None:
+    """Step 1's bounds ``|int_0^1 G e^{-z theta}| <= V_0 / |z|`` and ``<= V_1 / |z| + V_2 / |z|^2`` for every
+    speed of a box, with the integrals read off the PDE's loop (``A - 1 + rho q e^{-z}`` for ``G_N``,
+    ``u(1) - q e^{-z}`` for ``G_U``, ``z = tau s``); kappa from -25 to +48 (Bessel-like growth)."""
+    from nrobust.hyperbolic.analyses.mismatch_coupled import _parameters, _variation
+
+    box = (-0.05, 0.05, -0.04, 0.06)
+    flint_, P, M, _ = _parameters(system, box)
+    v = {w: [float(x.upper()) for x in _variation(flint_, P, M, system.q, system.rho, w)] for w in "NU"}
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        e_lam, e_mu = rng.uniform(box[0], box[1]), rng.uniform(box[2], box[3])
+        lam, mu, spm, smp, q, rho, _k = _params(system, e_lam, e_mu, 1.0)
+        tau = 1 / lam + 1 / mu
+        z = np.r_[1j * rng.uniform(0.5, 300.0, 20), rng.uniform(0.0, 40.0, 10) + 1j * rng.uniform(-60, 60, 10)]
+        A, B = _factors(z / tau, lam, mu, spm, smp, q, rho, 1.0)
+        integrals = {"N": A - 1 + rho * q * np.exp(-z), "U": -B - q * np.exp(-z)}
+        for w in "NU":
+            v0, v1, v2 = v[w]
+            bound = np.minimum(v0 / np.abs(z), v1 / np.abs(z) + v2 / np.abs(z) ** 2)
+            # the loop in double precision: values of size up to e^{2 sqrt(kappa)} ~ 1e6, rounding 1e-9 absolute
+            assert np.all(np.abs(integrals[w]) <= bound * (1 + 1e-9) + 1e-9), w
+
+
+def test_frequency_bound_of_a_strong_coupling() -> None:
+    """kappa = 48: ``sup |G'|`` is about 1e4 times ``|G(0)| + |G(1)|``; the two-term bound puts W near its
+    square root (376 on this box; the one-term bound with the series in monomials gave 1.4e10)."""
+    from nrobust.hyperbolic.analyses.mismatch_coupled import _frequency_bound, _parameters, _variation
+
+    system, k = Hyperbolic2x2(1.0, 1.0, 8.0, -6.0, 0.5, 0.3), -0.1
+    flint_, P, M, _ = _parameters(system, (-0.05, 0.05, -0.05, 0.05))
+    v_n, v_u = (_variation(flint_, P, M, system.q, system.rho, w) for w in "NU")
+    v0, v1, v2 = (a + abs(flint_.arb(k)) * b for a, b in zip(v_n, v_u))
+    W = _frequency_bound(v0, v1, v2, 1 - flint_.arb(0.2))
+    assert W < 1e3 < float(v0.upper()) / 0.8

@@ -21,11 +21,16 @@ every speed of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_m
 the no-crossing argument of :mod:`~nrobust.hyperbolic.analyses.mismatch_proof` on the connected union
 of the boxes ``(p, m, eta)``:
 
-1. *No zero from infinity.* On ``Re z >= 0``, integrating by parts,
-   ``|int_0^1 G e^{-z theta}| <= V(G) / |z|`` with ``V(G) = |G(0)| + |G(1)| + sup |G'|``, so
-   ``|F| >= 1 - c_D - (V(G_N) + |k| V(G_U)) / |z|``, ``c_D = |rho q| + |k q|``. When the difference
-   operator is strongly stable (``c_D < 1``) no zero has ``Re z >= 0`` and
-   ``|z| >= W = (V(G_N) + |k| V(G_U)) / (1 - c_D)`` (``V`` bounded on the whole square).
+1. *No zero from infinity.* On ``Re z >= 0``, integrating by parts once,
+   ``|int_0^1 G e^{-z theta}| <= V_0(G) / |z|`` with ``V_0(G) = |G(0)| + |G(1)| + sup |G'|``, and twice,
+   ``<= V_1(G) / |z| + V_2(G) / |z|^2`` with ``V_1(G) = |G(0)| + |G(1)|``, ``V_2(G) = |G'(0)| +
+   |G'(1)| + sup |G''|`` (the series' tail integrated once: :func:`_variation`), so
+   ``|F| >= 1 - c_D - (V_0(G_N) + |k| V_0(G_U)) / |z|``, ``c_D = |rho q| + |k q|``, and the same with
+   the two-term bound. When the difference operator is strongly stable (``c_D < 1``) no zero has
+   ``Re z >= 0`` and ``|z| >= W``, the smaller of ``(V_0(G_N) + |k| V_0(G_U)) / (1 - c_D)`` and the
+   positive root of ``(1 - c_D) W^2 - V_1 W - V_2`` (``V_1 = V_1(G_N) + |k| V_1(G_U)``, ``V_2`` alike;
+   the ``V`` bounded on the whole square). For strong couplings ``sup |G'|`` and ``sup |G''|`` grow like
+   ``e^{2 sqrt|kappa|}``: the second ``W`` grows like its square root.
 2. *No zero on the imaginary axis.* Boxes of ``(w, e_lam, e_mu)`` covering ``[0, W] x`` the square
    are cleared in ball arithmetic by the sign of ``|A1|^2 - |B1|^2`` or by every crossing ``eta`` of the
    box lying outside its range (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free`); an
@@ -166,17 +171,67 @@ def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float
     return QuasiPolynomial([], [], [kernel])
 
 
-def _variation(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> Any:
-    """``V(G) = |G(0)| + |G(1)| + sup |G'|`` on ``[0, 1]`` for every ``(p, m)`` of the balls (step 1)."""
+def _kernel_jet(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, theta: Any) -> tuple[Any, Any, Any]:
+    """``(G, G', G'')`` at the ball ``theta`` of ``[0, 1]`` for every ``(p, m)`` of the balls, in closed form.
+
+    With ``tau = 1`` (:mod:`~nrobust.hyperbolic.loops.exact_form`) and ``x = kappa theta (1 - theta)``,
+    ``kappa = p m``: ``W = 0F1(; 1; x)``, ``h_22 = kappa (1 - theta) 0F1(; 2; x)``,
+    ``h_11 = kappa theta 0F1(; 2; x)``; ``G_N = h_22 - rho q h_11 + (m q - rho p) W`` and
+    ``G_U = q h_11 + p W``. Derivatives by ``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b``. Each ``0F1`` is
+    enclosed by Arb on the ball of ``x`` (no series in the monomials of ``theta``, whose ball
+    coefficients overestimate the kernel by orders of magnitude when ``p, m`` are wide balls).
+    """
     arb = flint.arb
-    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))):
-        series, bound, slope = closed_form_series(flint, arb(1), P, M, (which, q, rho))
-        derivative = series.derivative()
-        sup = arb(0)
-        for i in range(_PIECES):  # |G'| on each piece [i/n, (i+1)/n] of [0, 1], a ball each
-            theta = arb((i + 0.5) / _PIECES, 0.5 / _PIECES)
-            sup = arb.max(sup, abs(derivative(theta)))
-        return abs(series(arb(0))) + abs(series(arb(1))) + 2 * bound + sup + slope
+    kappa = P * M
+    lo, hi = float(theta.lower()), float(theta.upper())
+    ends = [arb(lo) * (1 - arb(lo)), arb(hi) * (1 - arb(hi))]
+    u = ends[0].union(ends[1])
+    if lo <= 0.5 <= hi:  # theta (1 - theta) is largest at 1/2
+        u = u.union(arb(0.25))
+    x, dx, d2x = kappa * u, kappa * (1 - 2 * theta), -2 * kappa
+    f = [x.hypgeom_0f1(b) for b in (1, 2, 3, 4)]  # 0F1(; b; x), b = 1..4
+    w = (f[0], f[1] * dx, f[2] / 2 * dx * dx + f[1] * d2x)  # W and its derivatives
+    g = (f[1], f[2] / 2 * dx, f[3] / 6 * dx * dx + f[2] / 2 * d2x)  # 0F1(; 2; x) and its derivatives
+    rest, at = 1 - theta, theta  # h_22 = kappa rest g, h_11 = kappa at g (rest' = -1, at' = 1)
+    h22 = (kappa * rest * g[0], kappa * (rest * g[1] - g[0]), kappa * (rest * g[2] - 2 * g[1]))
+    h11 = (kappa * at * g[0], kappa * (at * g[1] + g[0]), kappa * (at * g[2] + 2 * g[1]))
+    Q, R = arb(q), arb(rho)
+    if which == "N":
+        c_w, c_22, c_11 = M * Q - R * P, arb(1), -R * Q
+    else:
+        c_w, c_22, c_11 = P, arb(0), Q
+    return tuple(c_w * w[j] + c_22 * h22[j] + c_11 * h11[j] for j in range(3))
+
+
+def _variation(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[Any, Any, Any]:
+    """``(V_0, V_1, V_2)`` of ``G`` on ``[0, 1]`` for every ``(p, m)`` of the balls (step 1).
+
+    For ``Re z >= 0``, integrating by parts once, ``|int_0^1 G e^{-z theta}| <= V_0 / |z|`` with
+    ``V_0 = |G(0)| + |G(1)| + sup |G'|``, and twice, ``<= V_1 / |z| + V_2 / |z|^2`` with
+    ``V_1 = |G(0)| + |G(1)|`` and ``V_2 = |G'(0)| + |G'(1)| + sup |G''|``; the values from
+    :func:`_kernel_jet`, the sups over ``_PIECES`` balls covering ``[0, 1]``.
+    """
+    arb = flint.arb
+    with precision(flint, PRECISION):
+        g0, d0, _ = _kernel_jet(flint, P, M, q, rho, which, arb(0))
+        g1, d1, _ = _kernel_jet(flint, P, M, q, rho, which, arb(1))
+        sup1, sup2 = arb(0), arb(0)
+        for i in range(_PIECES):
+            _, first, second = _kernel_jet(flint, P, M, q, rho, which, arb((i + 0.5) / _PIECES, 0.5 / _PIECES))
+            sup1, sup2 = arb.max(sup1, abs(first)), arb.max(sup2, abs(second))
+        v1 = abs(g0) + abs(g1)
+        out = (v1 + sup1, v1, abs(d0) + abs(d1) + sup2)
+        if not all(v.is_finite() for v in out):
+            raise CertificationError("the kernels' bounds on the square are not finite (couplings too strong)")
+        return out
+
+
+def _frequency_bound(v0: Any, v1: Any, v2: Any, gap: Any) -> float:
+    """The smaller ``W`` of step 1: beyond it ``gap > V_0 / |z|``, or ``gap > V_1 / |z| + V_2 / |z|^2``
+    (the positive root of ``gap W^2 - V_1 W - V_2``), in ball arithmetic (an upper bound)."""
+    first = ball_upper(v0 / gap)
+    second = ball_upper((v1 + (v1 * v1 + 4 * gap * v2).sqrt()) / (2 * gap))
+    return min(first, second) * (1.0 + 1e-6)
 
 
 def prove_coupled_square(
@@ -266,12 +321,12 @@ def prove_coupled_square(
                 nan,
             )
         try:
-            v = _variation(flint, P, M, system.q, system.rho, "N") + abs(arb(k)) * _variation(
-                flint, P, M, system.q, system.rho, "U"
-            )
+            v_n = _variation(flint, P, M, system.q, system.rho, "N")
+            v_u = _variation(flint, P, M, system.q, system.rho, "U")
         except CertificationError as exc:
             return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
-        W = ball_upper(v / (1 - c_d)) * (1.0 + 1e-6)
+        v0, v1, v2 = (a + abs(arb(k)) * b for a, b in zip(v_n, v_u))
+        W = _frequency_bound(v0, v1, v2, 1 - c_d)
         if base is None:
             return SquareProof(
                 False,
