@@ -191,3 +191,39 @@ def test_frequency_bound_of_a_strong_coupling() -> None:
     v0, v1, v2 = (a + abs(flint_.arb(k)) * b for a, b in zip(v_n, v_u))
     W = _frequency_bound(v0, v1, v2, 1 - flint_.arb(0.2))
     assert W < 1e3 < float(v0.upper()) / 0.8
+
+
+@pytest.mark.parametrize(("spm", "smp"), [(0.4, 0.5), (2.0, -1.5), (8.0, -6.0), (5.0, 4.0)])
+def test_box_kernels_hold_every_kernel_of_the_box(spm: float, smp: float) -> None:
+    """The pieces of a box (the midpoint's series) within their radius of the kernel of every speed of the box:
+    the kernel from its Bessel form in mpmath (``W = 0F1(; 1; x)``, ``h = kappa 0F1(; 2; x)`` times
+    ``1 - theta`` or ``theta``, ``x = kappa theta (1 - theta)``: the module notes of ``exact_form``).
+    The radius is first order in the box (kappa = 48, a box of 0.25 %: 11, where the series with the
+    speeds as balls gave 9e6)."""
+    import mpmath
+
+    from nrobust.hyperbolic.analyses.mismatch_coupled import _PIECES, _parameters, _scaled_kernel
+
+    q, rho = 0.5, 0.3
+    system = Hyperbolic2x2(1.0, 1.0, spm, smp, q, rho)
+    rng = np.random.default_rng(11)
+    for box in ((-0.05, 0.05, -0.05, 0.05), (0.01, 0.0125, -0.02, -0.0175)):
+        flint_, P, M, _ = _parameters(system, box)
+        for which in "NU":
+            heads, radius = _scaled_kernel(flint_, P, M, q, rho, which)
+            if box[1] - box[0] < 0.01 and spm == 8.0:
+                assert radius < 20.0
+            for _ in range(40):
+                e_lam, e_mu = rng.uniform(box[0], box[1]), rng.uniform(box[2], box[3])
+                p, m = spm / (1 + e_lam), -smp / (1 + e_mu)
+                t = rng.uniform(0.0, 1.0)
+                x = p * m * t * (1 - t)
+                f1, f2 = mpmath.hyp0f1(1, x), mpmath.hyp0f1(2, x)
+                if which == "N":
+                    g = p * m * (1 - t) * f2 - rho * q * p * m * t * f2 + (m * q - rho * p) * f1
+                else:
+                    g = q * p * m * t * f2 + p * f1
+                i = min(int(t * _PIECES), _PIECES - 1)
+                local = t * _PIECES - i
+                stored = sum(c * local**j for j, c in enumerate(heads[i]))
+                assert abs(float(g) - stored) <= radius, (which, box, t)

@@ -14,10 +14,11 @@ series of the module notes of ``exact_form`` in ``theta``, with ``a = kappa``)::
     A1 = 1 - rho q e^{-z} + int_0^1 G_N(theta) e^{-z theta} dtheta,
     B1 = -k (q e^{-z} + int_0^1 G_U(theta) e^{-z theta} dtheta).
 
-A box of speeds ``E`` gives balls of ``p`` and ``m``: the series with those balls
-(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`) holds every kernel of the box, and
-its pieces stored with that radius give enclosures of ``A1`` and ``B1`` (:mod:`nrobust.balls`) for
-every speed of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
+A box of speeds ``E`` gives balls of ``p`` and ``m``: the series at the midpoint
+(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`) within the mean-value bound of the
+kernels' slopes in ``(p, m)`` holds every kernel of the box (:func:`_scaled_kernel`), and its pieces
+stored with that radius give enclosures of ``A1`` and ``B1`` (:mod:`nrobust.balls`) for every speed
+of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
 the no-crossing argument of :mod:`~nrobust.hyperbolic.analyses.mismatch_proof` on the connected union
 of the boxes ``(p, m, eta)``:
 
@@ -85,6 +86,8 @@ __all__ = ["MAX_COUPLED_BOXES", "prove_coupled_square"]
 MAX_COUPLED_BOXES = 5_000
 #: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
 _PIECES = 16
+#: Balls covering ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are bounded (:func:`_scaled_kernel`).
+_SLOPE_BALLS = 64
 #: Relative widening of the square: the corners' speeds, rounded to doubles, lie in it.
 _WIDEN = 1e-12
 #: Width below which a box is not halved again, relative to ``W`` (frequency) or ``eps`` (speeds).
@@ -142,18 +145,56 @@ def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -
 
 def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[NDArray[np.float64], float]:
     """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
-    radius holding the kernel of every ``(p, m)`` of the balls."""
+    radius holding the kernel of every ``(p, m)`` of the balls.
+
+    The pieces are those of the midpoint ``(p_0, m_0)`` (the series at a point: tight); every kernel of
+    the box is within ``sup |dG/dp| rad(P) + sup |dG/dm| rad(M)`` of it (:func:`_parameter_slopes`, the
+    mean-value theorem), a bound first order in the box's width (the series with the balls themselves
+    overestimates by orders of magnitude when the coupling is strong).
+    """
     arb = flint.arb
     bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
     with precision(flint, bits):
-        series, bound, _ = closed_form_series(flint, arb(1), P, M, (which, q, rho))
+        p0, m0 = arb(P.mid()), arb(M.mid())
+        series, bound, _ = closed_form_series(flint, arb(1), p0, m0, (which, q, rho))
         width = 1.0 / _PIECES
         heads, err = [], arb(0)
         for i in range(_PIECES):
             head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
             heads.append(head)
             err = arb.max(err, e)
-        return np.asarray(heads), ball_upper(bound + err)
+        spread = arb(0)
+        for i in range(_SLOPE_BALLS):
+            theta = arb((i + 0.5) / _SLOPE_BALLS, 0.5 / _SLOPE_BALLS)
+            d_p, d_m = _parameter_slopes(flint, P, M, q, rho, which, theta)
+            spread = arb.max(spread, abs(d_p) * abs(P - p0).upper() + abs(d_m) * abs(M - m0).upper())
+        return np.asarray(heads), ball_upper(bound + err + spread)
+
+
+def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, theta: Any) -> tuple[Any, Any]:
+    """``(dG/dp, dG/dm)`` at the ball ``theta`` for every ``(p, m)`` of the balls (closed form of
+    :func:`_kernel_jet`: ``d/dkappa 0F1(; b; kappa u) = u 0F1(; b + 1; kappa u) / b``, ``u = theta (1 - theta)``)."""
+    arb = flint.arb
+    kappa, u = P * M, _theta_product(flint, theta)
+    x = kappa * u
+    f1, f2, f3 = (x.hypgeom_0f1(b) for b in (1, 2, 3))
+    dw = u * f2  # dW/dkappa
+    dg = f2 + kappa * u * f3 / 2  # d(kappa 0F1(; 2; x))/dkappa
+    dh22, dh11 = (1 - theta) * dg, theta * dg
+    Q, R = arb(q), arb(rho)
+    if which == "N":  # G = (m q - rho p) W + h_22 - rho q h_11
+        dk = (M * Q - R * P) * dw + dh22 - R * Q * dh11
+        return dk * M - R * f1, dk * P + Q * f1
+    dk = Q * dh11 + P * dw  # G = q h_11 + p W
+    return dk * M + f1, dk * P
+
+
+def _theta_product(flint: Any, theta: Any) -> Any:
+    """The ball of ``theta (1 - theta)`` over the ball ``theta`` (concave, largest at 1/2: no dependency)."""
+    arb = flint.arb
+    lo, hi = float(theta.lower()), float(theta.upper())
+    u = (arb(lo) * (1 - arb(lo))).union(arb(hi) * (1 - arb(hi)))
+    return u.union(arb(0.25)) if lo <= 0.5 <= hi else u
 
 
 def _distributed(coefficients: NDArray[np.float64], radius: float, factor: float, extra: float) -> QuasiPolynomial:
@@ -183,12 +224,7 @@ def _kernel_jet(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, th
     """
     arb = flint.arb
     kappa = P * M
-    lo, hi = float(theta.lower()), float(theta.upper())
-    ends = [arb(lo) * (1 - arb(lo)), arb(hi) * (1 - arb(hi))]
-    u = ends[0].union(ends[1])
-    if lo <= 0.5 <= hi:  # theta (1 - theta) is largest at 1/2
-        u = u.union(arb(0.25))
-    x, dx, d2x = kappa * u, kappa * (1 - 2 * theta), -2 * kappa
+    x, dx, d2x = kappa * _theta_product(flint, theta), kappa * (1 - 2 * theta), -2 * kappa
     f = [x.hypgeom_0f1(b) for b in (1, 2, 3, 4)]  # 0F1(; b; x), b = 1..4
     w = (f[0], f[1] * dx, f[2] / 2 * dx * dx + f[1] * d2x)  # W and its derivatives
     g = (f[1], f[2] / 2 * dx, f[3] / 6 * dx * dx + f[2] / 2 * d2x)  # 0F1(; 2; x) and its derivatives
