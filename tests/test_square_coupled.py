@@ -159,7 +159,7 @@ def test_a_proof_out_of_boxes_falls_back_to_the_corners() -> None:
 def test_kernel_bounds_hold_against_the_pde(system: Hyperbolic2x2) -> None:
     """Step 1's bounds ``|int_0^1 G e^{-z theta}| <= V_0 / |z|`` and ``<= V_1 / |z| + V_2 / |z|^2`` for every
     speed of a box, with the integrals read off the PDE's loop (``A - 1 + rho q e^{-z}`` for ``G_N``,
-    ``u(1) - q e^{-z}`` for ``G_U``, ``z = tau s``); kappa from -25 to +48 (Bessel-like growth)."""
+    ``u(1) - q e^{-z}`` for ``G_U``, ``z = tau s``); kappa from -19 to +48 (Bessel-like growth)."""
     from nrobust.hyperbolic.analyses.mismatch_coupled import _parameters, _variation
 
     box = (-0.05, 0.05, -0.04, 0.06)

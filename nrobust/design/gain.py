@@ -1516,13 +1516,13 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
     exact maximum may lie up to a sample's spacing in ``w`` away (many cells of gains where ``K``
     moves fast with ``w``): ``d(d)/dw = 0`` is bracketed between the piece's samples about ``i``,
     widened, and solved by ``brentq`` (kept when the curve is the lowest there and the nominal loop
-    stable). Otherwise (across a
-    junction, or a curve still rising where the nominal stability ends) Brent's bounded search runs
-    on the exact envelope over the stable gains about ``i``, its window moved while the maximum sits
-    at one of its ends: beyond the stable gains ``curves.value`` knows no crossing (``inf``) although
-    every margin is 0. A maximum at a stability edge (:func:`_stability_edges`: ``s = 0`` becomes a
-    root, or a root crosses the axis without delay, and the margin drops to 0) is not attained: that
-    gain moved by :data:`_OFFSET` to the stable side, kind ``"end"``.
+    stable). Otherwise (across a junction, or a curve still rising where the nominal stability ends)
+    Brent's bounded search runs on the exact envelope over the stable gains about ``i``, its window
+    moved while the maximum sits at one of its ends: beyond the stable gains ``curves.value`` knows
+    no crossing (``inf``) although every margin is 0. A maximum at a stability edge
+    (:func:`_stability_edges`: ``s = 0`` becomes a root, or a root crosses the axis without delay,
+    and the margin drops to 0) is not attained: that gain moved by :data:`_OFFSET` to the stable
+    side, kind ``"end"``.
     """
     from scipy.optimize import (
         brentq,
@@ -1929,7 +1929,7 @@ def _exact_birth(curves: _Curves, piece: _Piece, at_start: bool) -> tuple[float,
 
     for cells in (1, 2, 4, 8):
         step = curves.cell(we)
-        a, b = max(we - cells * step, 0.5 * we), we + cells * step
+        a, b = max(we - cells * step, 0.5 * min(we, curves.dw)), we + cells * step
         if slope(a) * slope(b) < 0:
             wb = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
             return curves.on_branch(wb, piece.sigma)[0], wb

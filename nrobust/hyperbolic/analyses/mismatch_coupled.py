@@ -25,7 +25,7 @@ of the boxes ``(p, m, eta)``:
 1. *No zero from infinity.* On ``Re z >= 0``, integrating by parts once,
    ``|int_0^1 G e^{-z theta}| <= V_0(G) / |z|`` with ``V_0(G) = |G(0)| + |G(1)| + sup |G'|``, and twice,
    ``<= V_1(G) / |z| + V_2(G) / |z|^2`` with ``V_1(G) = |G(0)| + |G(1)|``, ``V_2(G) = |G'(0)| +
-   |G'(1)| + sup |G''|`` (the series' tail integrated once: :func:`_variation`), so
+   |G'(1)| + sup |G''|`` (the kernels and their derivatives in closed form: :func:`_variation`), so
    ``|F| >= 1 - c_D - (V_0(G_N) + |k| V_0(G_U)) / |z|``, ``c_D = |rho q| + |k q|``, and the same with
    the two-term bound. When the difference operator is strongly stable (``c_D < 1``) no zero has
    ``Re z >= 0`` and ``|z| >= W``, the smaller of ``(V_0(G_N) + |k| V_0(G_U)) / (1 - c_D)`` and the
