@@ -330,27 +330,31 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
     expansion ``_MAX_PRODUCTS`` products.
     """
     n = len(entries)
-    unit, dens, degree = 1, [], 0
-    raw: list[list[list[tuple[int, int, int, int, int]]]] = []
-    for row in entries:
-        den, top = 1, 0
-        raw_row = []
-        for mono in row:
-            ratios = []
-            for t, k, c in mono:
-                tn, td = float(t).as_integer_ratio()
-                cn, cd = float(c).as_integer_ratio()
-                unit, den, top = max(unit, td), max(den, cd), max(top, k)
-                ratios.append((tn, td, k, cn, cd))
-            raw_row.append(ratios)
-        raw.append(raw_row)
-        dens.append(den)
-        degree += top
-    # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits);
-    # denominators are powers of two, the largest is a multiple of the others
+    # the rows in an order that keeps the columns they reach few (each next row adds the fewest new
+    # columns): the minors of the rows below are keyed by column sets within the columns not yet reached
+    # (Example 2.9: 25 minors instead of 40); the permutation's sign is that of the determinant
+    support = [sum(1 << j for j, entry in enumerate(row) if entry) for row in entries]
+    order: list[int] = []
+    reached = 0
+    for _ in range(n):
+        i = min(
+            (i for i in range(n) if i not in order),
+            key=lambda i: ((reached | support[i]).bit_count(), support[i].bit_count(), i),
+        )
+        order.append(i)
+        reached |= support[i]
+    # the delays in units of 1 / unit and the coefficients of each row in units of 1 / den (den the row's
+    # largest denominator): integers, since the denominators are powers of two (each divides the largest)
+    delay_ratio = {t: float(t).as_integer_ratio() for row in entries for mono in row for t, _, _ in mono}
+    unit = max((td for _, td in delay_ratio.values()), default=1)
+    delay_int = {t: tn * (unit // td) for t, (tn, td) in delay_ratio.items()}
+    raw = [[[(t, k, *float(c).as_integer_ratio()) for t, k, c in mono] for mono in entries[i]] for i in order]
+    dens = [max((cd for mono in row for _, _, _, cd in mono), default=1) for row in raw]
+    degree = sum(max((k for mono in row for _, k, _, _ in mono), default=0) for row in raw)
+    # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits)
     bits = degree.bit_length()
     rows = [
-        [[((tn * (unit // td) << bits) + k, cn * (den // cd)) for tn, td, k, cn, cd in mono] for mono in raw_row]
+        [[((delay_int[t] << bits) + k, cn * (den // cd)) for t, k, cn, cd in mono] for mono in raw_row]
         for raw_row, den in zip(raw, dens)
     ]
     # the nonzero entries of each row with the bits of their columns
@@ -390,7 +394,9 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
     if packed is None:
         return None
     mask = (1 << bits) - 1
-    return _Exact({(key >> bits, key & mask): c for key, c in packed.items()}, unit, prod(dens))
+    odd = sum(order[i] > order[j] for i in range(n) for j in range(i + 1, n)) & 1  # inversions of the permutation
+    sign = -1 if odd else 1
+    return _Exact({(key >> bits, key & mask): sign * c for key, c in packed.items()}, unit, prod(dens))
 
 
 @dataclass(frozen=True)
@@ -970,6 +976,11 @@ class ExpandedDeterminant:
             )
         if t.shape != (c.shape[2],) or np.any(t < 0) or len(set(t.tolist())) != t.size:
             raise ParameterError("delays", f"{c.shape[2]} distinct delays >= 0 (one per row of coefs)", delays)
+        return cls._from_checked(c, t)
+
+    @classmethod
+    def _from_checked(cls, c: NDArray[np.float64], t: NDArray[np.float64]) -> ExpandedDeterminant | None:
+        """:meth:`from_coefficients` of arrays already known to be admissible (float arrays of its shapes)."""
         exact = _expand_monomials(_array_monomials(c, t))
         if exact is None:
             return None
