@@ -1021,10 +1021,11 @@ class ExpandedDeterminant:
         K, P = coef.shape
         J = _TAYLOR_TERMS + 3  # Q, Q', ..., Q^{(L + 2)}
         derivs = [coef]
+        minus_tau, powers = -self._taus[:, None], np.arange(1.0, P)
         for _ in range(J - 1):  # (q e^{-tau s})' = (q' - tau q) e^{-tau s}
             last = derivs[-1]
-            nxt = -self._taus[:, None] * last
-            nxt[:, :-1] += last[:, 1:] * np.arange(1, P)
+            nxt = minus_tau * last
+            nxt[:, :-1] += last[:, 1:] * powers
             derivs.append(nxt)
         stack = np.array(derivs).transpose(1, 2, 0).reshape(K * P, J)  # row k P + p, column j
         # W(s) @ _values: Q^{(j)}(s) for j < J, with W(s)[k P + p] = e^{-tau_k s} s^p

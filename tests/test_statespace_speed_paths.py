@@ -213,3 +213,51 @@ def test_initial_steps_near_approximate_roots(monkeypatch: pytest.MonkeyPatch, p
     np.testing.assert_array_equal(pieces, [int(np.ceil(10.0 / (0.8 * 0.145))), 1, 1, 1])
     np.testing.assert_array_equal(_initial_pieces(F, starts, ends), [1, 1, 1, 1])
     assert _initial_pieces(F, starts[:1], ends[:1], np.array([-1.0 + 5.0j]))[0] == 256  # a root on it: the most
+
+
+def _sparse_coefficients(seed: int, n: int) -> np.ndarray:
+    """A random ``(n, n, 2, 2)`` array (delays 0 and 1, powers 0 and 1) with about half its entries zero, an
+    ``s`` only on some diagonal entries (a descriptor matrix) and dyadic and non-dyadic coefficients."""
+    rng = np.random.default_rng(seed)
+    c = np.round(rng.normal(size=(n, n, 2, 2)), 3) * (rng.random(size=(n, n, 2, 2)) < 0.35)
+    c[:, :, :, 1] = 0.0
+    c[np.arange(n), np.arange(n), 0, 1] = rng.random(n) < 0.6
+    c[np.arange(n), rng.permutation(n), 0, 0] += 0.5  # no identically zero row
+    return c
+
+
+def _det_mpmath(c: np.ndarray, s: complex) -> mpmath.mpc:
+    """``det M(s)`` of ``M_ij(s) = sum_k (c_ij,k,0 + c_ij,k,1 s) e^{-k s}`` (delays 0, 1) at 40 digits."""
+    with mpmath.workdps(40):
+        z = mpmath.mpc(s)
+        e = [mpmath.mpf(1), mpmath.exp(-z)]
+        n = c.shape[0]
+        m = mpmath.matrix(n, n)
+        for i in range(n):
+            for j in range(n):
+                m[i, j] = sum((mpmath.mpf(c[i, j, k, 0]) + mpmath.mpf(c[i, j, k, 1]) * z) * e[k] for k in range(2))
+        return mpmath.det(m)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_expansion_in_any_row_order_is_det_m(seed: int) -> None:
+    """The expansion orders the rows by the columns they reach (and keeps the permutation's sign): on sparse
+    matrices whose best order is not the given one, the rounded expansion is det M (mpmath), and the
+    expansion of the matrix with its rows permuted is the same up to the sign of the permutation, exactly."""
+    n = 6
+    c = _sparse_coefficients(seed, n)
+    delays = np.array([0.0, 1.0])
+    expanded = ExpandedDeterminant.from_coefficients(c, delays)
+    assert expanded is not None
+    s = np.array([0.3 + 0.7j, -0.8 + 2.5j, 1.1 - 4.0j])
+    want = np.array([complex(_det_mpmath(c, z)) for z in s])
+    # Q is det M's exact expansion rounded once to doubles and evaluated in doubles: relative error a few
+    # hundred eps of the sum of the moduli of its monomials (the rounding scale, ExpandedDeterminant.magnitude)
+    np.testing.assert_allclose(expanded(s), want, rtol=0, atol=1e-13 * float(np.max(expanded.magnitude(s))))
+    rng = np.random.default_rng(100 + seed)
+    for _ in range(3):
+        perm = rng.permutation(n)
+        sign = round(float(np.linalg.det(np.eye(n)[perm])))
+        swapped = ExpandedDeterminant.from_coefficients(c[perm], delays)
+        assert swapped is not None
+        np.testing.assert_array_equal(swapped._coef, sign * expanded._coef)  # exact integers, rounded once
