@@ -330,35 +330,38 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
     expansion ``_MAX_PRODUCTS`` products.
     """
     n = len(entries)
-    # the rows in an order that keeps the columns they reach few (each next row adds the fewest new
-    # columns): the minors of the rows below are keyed by column sets within the columns not yet reached
-    # (Example 2.9: 25 minors instead of 40); the permutation's sign is that of the determinant
-    support = [sum(1 << j for j, entry in enumerate(row) if entry) for row in entries]
-    order: list[int] = []
-    reached = 0
-    for _ in range(n):
-        i = min(
-            (i for i in range(n) if i not in order),
-            key=lambda i: ((reached | support[i]).bit_count(), support[i].bit_count(), i),
-        )
-        order.append(i)
-        reached |= support[i]
-    # the delays in units of 1 / unit and the coefficients of each row in units of 1 / den (den the row's
-    # largest denominator): integers, since the denominators are powers of two (each divides the largest)
-    delay_ratio = {t: float(t).as_integer_ratio() for row in entries for mono in row for t, _, _ in mono}
-    unit = max((td for _, td in delay_ratio.values()), default=1)
-    delay_int = {t: tn * (unit // td) for t, (tn, td) in delay_ratio.items()}
-    raw = [[[(t, k, *float(c).as_integer_ratio()) for t, k, c in mono] for mono in entries[i]] for i in order]
-    dens = [max((cd for mono in row for _, _, _, cd in mono), default=1) for row in raw]
-    degree = sum(max((k for mono in row for _, k, _, _ in mono), default=0) for row in raw)
-    # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits)
+    unit, dens, degree = 1, [], 0
+    raw: list[list[list[tuple[int, int, int, int, int]]]] = []
+    for row in entries:
+        den, top = 1, 0
+        raw_row = []
+        for mono in row:
+            ratios = []
+            for t, k, c in mono:
+                tn, td = float(t).as_integer_ratio()
+                cn, cd = float(c).as_integer_ratio()
+                if td > unit:  # (comparisons, not max(): a call per monomial)
+                    unit = td
+                if cd > den:
+                    den = cd
+                if k > top:
+                    top = k
+                ratios.append((tn, td, k, cn, cd))
+            raw_row.append(ratios)
+        raw.append(raw_row)
+        dens.append(den)
+        degree += top
+    # a monomial's key packs (t, p) into t 2^bits + p: products add keys (the powers of a minor stay below 2^bits);
+    # denominators are powers of two, the largest is a multiple of the others
     bits = degree.bit_length()
     rows = [
-        [[((delay_int[t] << bits) + k, cn * (den // cd)) for t, k, cn, cd in mono] for mono in raw_row]
+        [[((tn * (unit // td) << bits) + k, cn * (den // cd)) for tn, td, k, cn, cd in mono] for mono in raw_row]
         for raw_row, den in zip(raw, dens)
     ]
-    # the nonzero entries of each row with the bits of their columns
-    nonzero = [[(1 << j, entry) for j, entry in enumerate(row) if entry] for row in rows]
+    # the nonzero entries of each row with the bits of their columns, and the entries negated (odd cofactors)
+    nonzero = [
+        [(1 << j, entry, [(key, -c) for key, c in entry]) for j, entry in enumerate(row) if entry] for row in rows
+    ]
     # the minor of rows r..n-1 is keyed by its column set alone (r = n - the number of its columns)
     memo: dict[int, dict[int, int] | None] = {0: {0: 1}}
     products = 0
@@ -370,7 +373,7 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
             return memo[cols]
         total: dict[int, int] = {}
         get = total.get
-        for bit, entry in nonzero[r]:
+        for bit, entry, negated in nonzero[r]:
             if not cols & bit:
                 continue
             rest = minor(r + 1, cols ^ bit)
@@ -379,14 +382,12 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
             products += len(entry) * len(rest)
             if products > _MAX_PRODUCTS:
                 return None
-            odd = (cols & (bit - 1)).bit_count() & 1  # the column's place among cols: the cofactor's sign
-            for key, c in entry:
-                if odd:
-                    c = -c
+            # the column's place among cols: the cofactor's sign
+            for key, c in negated if (cols & (bit - 1)).bit_count() & 1 else entry:
                 for other, d in rest.items():
                     at = key + other
                     total[at] = get(at, 0) + c * d
-        out = {key: c for key, c in total.items() if c != 0}
+        out = {key: c for key, c in total.items() if c != 0} if 0 in total.values() else total
         memo[cols] = out if len(out) <= _MAX_MONOMIALS else None
         return memo[cols]
 
@@ -394,9 +395,7 @@ def _expand_monomials(entries: _Monomials) -> _Exact | None:
     if packed is None:
         return None
     mask = (1 << bits) - 1
-    odd = sum(order[i] > order[j] for i in range(n) for j in range(i + 1, n)) & 1  # inversions of the permutation
-    sign = -1 if odd else 1
-    return _Exact({(key >> bits, key & mask): sign * c for key, c in packed.items()}, unit, prod(dens))
+    return _Exact({(key >> bits, key & mask): c for key, c in packed.items()}, unit, prod(dens))
 
 
 @dataclass(frozen=True)

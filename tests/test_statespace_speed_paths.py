@@ -241,9 +241,9 @@ def _det_mpmath(c: np.ndarray, s: complex) -> mpmath.mpc:
 
 @pytest.mark.parametrize("seed", range(6))
 def test_expansion_in_any_row_order_is_det_m(seed: int) -> None:
-    """The expansion orders the rows by the columns they reach (and keeps the permutation's sign): on sparse
-    matrices whose best order is not the given one, the rounded expansion is det M (mpmath), and the
-    expansion of the matrix with its rows permuted is the same up to the sign of the permutation, exactly."""
+    """On sparse descriptor matrices the rounded exact expansion is det M (mpmath), and the expansion of the
+    matrix with its rows permuted is the same up to the sign of the permutation, exactly (the cofactor signs
+    of the Laplace expansion, whichever columns the minors keep)."""
     n = 6
     c = _sparse_coefficients(seed, n)
     delays = np.array([0.0, 1.0])
