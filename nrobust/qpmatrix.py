@@ -1153,12 +1153,19 @@ class ExpandedDeterminant:
     def _principal_operator(self) -> DifferenceOperator:
         """:meth:`QuasiPolynomial.principal_part` of :attr:`poly`, from its coefficients: the
         ``s^p`` coefficients (``p`` the highest power) with their delays."""
+        nonzero, top = self._leading
+        keep = nonzero[:, top]
+        return DifferenceOperator(self._coef[keep, top], self._taus[keep])
+
+    @functools.cached_property
+    def _leading(self) -> tuple[NDArray[np.bool_], int]:
+        """The nonzero coefficients (delays, powers) and the highest power ``p`` of ``s`` (for :attr:`kind` and
+        :meth:`principal_part`; the ufuncs' own reductions: the Python wrappers cost more on these small arrays)."""
         nonzero = self._coef != 0
-        if not nonzero.any():
+        powers = np.logical_or.reduce(nonzero, axis=0).nonzero()[0]
+        if not powers.size:
             raise _zero_determinant()
-        lead = self._coef[:, np.flatnonzero(nonzero.any(axis=0))[-1]]
-        keep = lead != 0
-        return DifferenceOperator(lead[keep], self._taus[keep])
+        return nonzero, int(powers[-1])
 
     @functools.cached_property
     def kind(self) -> str:
@@ -1167,12 +1174,9 @@ class ExpandedDeterminant:
         With ``p`` the highest power of ``s``: only the smallest delay carries ``s^p``
         (retarded), the smallest and others (neutral), or not the smallest (advanced).
         """
-        nonzero = self._coef != 0  # (delays, powers)
-        if not nonzero.any():
-            raise _zero_determinant()
-        top = int(np.flatnonzero(nonzero.any(axis=0))[-1])
-        lead = np.flatnonzero(nonzero[:, top])
-        if lead[0] != np.flatnonzero(nonzero.any(axis=1))[0]:
+        nonzero, top = self._leading  # (delays, powers)
+        lead = nonzero[:, top].nonzero()[0]
+        if lead[0] != np.logical_or.reduce(nonzero, axis=1).nonzero()[0][0]:
             return "advanced"
         return "neutral" if lead.size > 1 else "retarded"
 

@@ -126,7 +126,7 @@ def _chebyshev(points: int, tau: float) -> tuple[NDArray[np.float64], NDArray[np
 
 def _interpolation_row(theta: NDArray[np.float64], at: float) -> NDArray[np.float64]:
     """Weights of the polynomial interpolant on the Chebyshev points ``theta`` at ``at`` (barycentric)."""
-    hit = np.flatnonzero(theta == at)
+    hit = (theta == at).nonzero()[0]
     row = np.zeros(theta.size)
     if hit.size:
         row[hit[0]] = 1.0
