@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import pickle
 
 import matplotlib
@@ -9,7 +10,9 @@ import matplotlib
 matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
+import numpy as np
 import pytest
+from PIL import Image
 
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import ReflectionController, TransportSystem
@@ -50,3 +53,17 @@ def test_rendered_figures_are_checked(cert, tmp_path):
         write_report(cert, tmp_path, rendered=[RenderedFigures((), None), RenderedFigures((), None)])
     with pytest.raises(ParameterError, match=r"figures\[0\]"):
         write_report(cert, tmp_path, figures=[("not a figure", "image.png")])
+
+
+def test_figure_png_is_lossless():
+    # the faster zlib level changes the bytes, never the pixels: figure_png decodes to the canvas drawn
+    fig, ax = plt.subplots(figsize=(3.0, 2.0))
+    ax.plot([0.0, 1.0, 2.0], [1.0, 0.0, 0.5], label="a line")
+    ax.legend(loc="upper right")
+    fig.subplots_adjust(left=0.15, right=0.95, bottom=0.15, top=0.9)
+    png = figure_png(fig)
+    drawn = np.asarray(fig.canvas.buffer_rgba())
+    plt.close(fig)
+    decoded = np.asarray(Image.open(io.BytesIO(png)).convert("RGBA"))
+    assert decoded.shape == drawn.shape
+    assert np.array_equal(decoded, drawn)  # exact: PNG is lossless at every zlib level
