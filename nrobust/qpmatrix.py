@@ -975,11 +975,6 @@ class ExpandedDeterminant:
             )
         if t.shape != (c.shape[2],) or np.any(t < 0) or len(set(t.tolist())) != t.size:
             raise ParameterError("delays", f"{c.shape[2]} distinct delays >= 0 (one per row of coefs)", delays)
-        return cls._from_checked(c, t)
-
-    @classmethod
-    def _from_checked(cls, c: NDArray[np.float64], t: NDArray[np.float64]) -> ExpandedDeterminant | None:
-        """:meth:`from_coefficients` of arrays already known to be admissible (float arrays of its shapes)."""
         exact = _expand_monomials(_array_monomials(c, t))
         if exact is None:
             return None

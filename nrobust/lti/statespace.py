@@ -610,9 +610,8 @@ class StateSpaceTDS:
 
     @functools.cached_property
     def _expanded(self) -> ExpandedDeterminant | None:
-        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`,
-        without its checks: the arrays are built admissible, ``n <= 8`` checked by :meth:`_counted`)."""
-        return ExpandedDeterminant._from_checked(*self._coefficients)
+        """``det M`` expanded exactly from :attr:`_coefficients` (:meth:`ExpandedDeterminant.from_coefficients`)."""
+        return ExpandedDeterminant.from_coefficients(*self._coefficients)
 
     def roots(self, region: ArrayLike, **options: Any) -> RootSet:
         """Certified roots of ``det M`` in a rectangle (:func:`~nrobust.roots.find_roots`).
