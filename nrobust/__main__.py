@@ -3,9 +3,7 @@
 Importing the module (as documentation tools that walk the package do) runs nothing.
 """
 
-import sys
-
-from .cli import main
+from .cli import run
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -34,9 +34,11 @@ one-line summary (for a sweep: the points done and where they are kept).
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from ._version import __version__
 from .config import DESIGN_FAMILIES, PiecewiseLinear, load_system_file
@@ -47,7 +49,7 @@ from .reports.paper import PAPER_SYSTEM, run_paper
 from .sweeps.engine import SweepInterrupted
 from .sweeps.sweepfile import run_sweep_file
 
-__all__ = ["PAPER_SYSTEM", "PiecewiseLinear", "load_system_file", "main", "run_analyze", "run_paper"]
+__all__ = ["PAPER_SYSTEM", "PiecewiseLinear", "load_system_file", "main", "run", "run_analyze", "run_paper"]
 
 
 # ---------------------------------------------------------------------- main
@@ -199,3 +201,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"nrobust: interrupted: nothing written, {args.out} holds what it held before", file=sys.stderr)
         return 130
     return 0
+
+
+def run() -> NoReturn:
+    """The ``nrobust`` command (and ``python -m nrobust``): :func:`main`, then exit at once.
+
+    Once :func:`main` has returned, every output is written and committed, the worker
+    processes are gone and nothing is left to do but the interpreter's teardown, which frees
+    each object of numpy, scipy, matplotlib and FLINT one by one: 0.3-0.4 s of wall time
+    after ``nrobust paper`` (about a tenth of its run). So the exit handlers run, the standard
+    streams are flushed, and the process exits without that teardown. An exception (and
+    ``SystemExit`` from a bad command line) leaves as usual.
+    """
+    code = main()
+    atexit._run_exitfuncs()  # what the interpreter runs at exit: multiprocessing's and logging's handlers
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

@@ -144,6 +144,26 @@ def test_python_dash_m(tmp_path):
     assert help_run.returncode == 0 and "analyze" in help_run.stdout and "paper" in help_run.stdout
 
 
+def test_command_exits_after_its_handlers_and_output(tmp_path):
+    """``nrobust`` (``cli.run``) skips the interpreter's teardown, not the exit handlers or buffered output."""
+    path = _write(tmp_path, SMALL)
+    out = tmp_path / "o"
+    script = (
+        "import atexit, sys\n"
+        "atexit.register(lambda: print('handler ran'))\n"
+        "from nrobust.cli import run\n"
+        f"sys.argv = ['nrobust', 'analyze', {str(path)!r}, '-o', {str(out)!r}]\n"
+        "run()\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"MPLBACKEND": "Agg"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    # stdout is a pipe, so block-buffered: every line arrives, the handler's last
+    lines = done.stdout.strip().splitlines()
+    assert lines[-2].startswith("wrote ") and lines[-1] == "handler ran"
+    assert (out / "report.md").is_file() and (out / "certificate.json").is_file()
+
+
 def test_paper_end_to_end_small(tmp_path):
     """The paper's pipeline on a coarse chart and short simulations, on two workers."""
     from nrobust.cli import run_paper

@@ -255,10 +255,9 @@ def resolvent(K: Array) -> Array:
     ``(I - K_h) Lam = R``, ``K_h[i, m] = h K_im`` for ``m < i`` and ``h/2 K_ii`` for
     ``m = i``, ``R_ik = K_ik`` for ``i > k`` and ``R_kk = (I - h/2 K_kk) K_kk / 2`` (which
     returns ``Lam_kk = K_kk / 2``). Scaled by the inverse diagonal blocks it is unit
-    lower triangular and is solved at once by substitution.
+    lower triangular and is solved at once by numpy's LU solve: 15 ms at the default 201
+    points, where scipy's triangular solve would add its 0.15-0.4 s import to a simulation.
     """
-    from scipy.linalg import solve_triangular  # lazily: a slow import
-
     n = K.shape[-1]
     h = 1.0 / (n - 1)
     eye2 = np.eye(2)
@@ -276,7 +275,7 @@ def resolvent(K: Array) -> Array:
     D_inv = np.linalg.inv(eye2 - 0.5 * h * Kd)
     M = np.einsum("kab,kbj->kaj", D_inv, (np.eye(2 * n) - Kb * Wb).reshape(n, 2, 2 * n))
     R = np.einsum("kab,kbj->kaj", D_inv, R.reshape(n, 2, 2 * n))
-    Lam = solve_triangular(M.reshape(2 * n, 2 * n), R.reshape(2 * n, 2 * n), lower=True, unit_diagonal=True)
+    Lam = np.linalg.solve(M.reshape(2 * n, 2 * n), R.reshape(2 * n, 2 * n))
     L = Lam.reshape(n, 2, n, 2).transpose(1, 3, 0, 2) * np.tri(n)
     L[:, :, diag, diag] = K[:, :, diag, diag]
     return L
