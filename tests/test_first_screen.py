@@ -9,6 +9,7 @@ import json
 import logging
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -32,11 +33,18 @@ from nrobust.hyperbolic.analyses import (
     k_region,
     stability_chart,
 )
-from nrobust.hyperbolic.loops.controllers import OpenLoop
+from nrobust.hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
+    OpenLoop,
+    OutputFeedback,
+    characteristic,
+    classify,
+)
 from nrobust.hyperbolic.nplusm import NPlusMSystem
 from nrobust.hyperbolic.plants import GeneralHyperbolic2x2, Hyperbolic2x2, TransportSystem
 from nrobust.hyperbolic.simulate import simulate
 from nrobust.plots.charts import sweep_chart
+from nrobust.reports.certificate import certify
 from nrobust.sweeps import grid, sweep
 from nrobust.sweeps.sweepfile import run_sweep_file
 
@@ -289,6 +297,28 @@ def test_the_types_a_plant_and_a_controller_may_be_are_all_listed():
     for build in SYSTEM_TYPES.values():
         if isinstance(build, type):  # the front ends are functions returning a GeneralHyperbolic2x2
             assert build.__name__ in str(info.value)
+
+
+# every entry point that takes a plant and a controller (the observer-based laws included)
+_ENTRY_POINTS = {"delay_margin": delay_margin, "characteristic": characteristic, "certify": certify}
+
+
+@pytest.mark.parametrize("name", sorted(_ENTRY_POINTS))
+def test_a_refused_controller_is_told_every_public_controller_and_no_private_name(name):
+    with pytest.raises(ParameterError) as info:
+        _ENTRY_POINTS[name](_plant(), 3)
+    message = str(info.value)
+    for cls in (*CONTROLLER_TYPES.values(), OutputFeedback, CollocatedOutputFeedback):
+        assert cls.__name__ in message
+    assert not re.search(r"\b_[A-Za-z]", message), message
+
+
+@pytest.mark.parametrize("call", [classify, lambda system: certify(system, OpenLoop())])
+def test_a_refused_plant_is_told_the_general_plant_too(call):
+    """classify and certify take a GeneralHyperbolic2x2 (through its normal form): their refusal says so."""
+    with pytest.raises(ParameterError, match="GeneralHyperbolic2x2") as info:
+        call(3)
+    assert info.value.name == "system"
 
 
 # ---------------------------------------------------------------------------------------

@@ -41,12 +41,12 @@ __all__ = ["delay_margin", "margin_and_decay"]
 
 
 def _kinds(*bases: type) -> str:
-    """The classes ``isinstance`` accepts for ``bases`` (their subclasses too), by name, for a message."""
+    """The public classes ``isinstance`` accepts for ``bases`` (their subclasses too), by name, for a message."""
     seen: dict[str, None] = {}
     todo = list(bases)
     while todo:
         cls = todo.pop(0)
-        if not getattr(cls, "__abstractmethods__", None):
+        if not getattr(cls, "__abstractmethods__", None) and not cls.__name__.startswith("_"):
             seen[cls.__name__] = None
         todo += cls.__subclasses__()
     return ", ".join(seen)

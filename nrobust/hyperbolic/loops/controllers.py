@@ -436,7 +436,8 @@ def _check_controller(controller: Any) -> None:
     if not isinstance(controller, Controller):
         raise ParameterError(
             "controller",
-            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController, StateFeedback or OutputFeedback",
+            "OpenLoop, FiniteTimeController, ReflectionController, FilteredController, StateFeedback, OutputFeedback "
+            "or CollocatedOutputFeedback",
             controller,
         )
 
@@ -922,7 +923,7 @@ def classify(system: Hyperbolic2x2 | GeneralHyperbolic2x2, atol: float = 1e-12) 
         )
         return dataclasses.replace(cls, statement=statement)
     if not isinstance(system, Hyperbolic2x2):
-        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem", system)
+        raise ParameterError("system", "a Hyperbolic2x2, TransportSystem or GeneralHyperbolic2x2", system)
     atol = nonnegative("atol", atol)
     g = abs(system.rho * system.q)
     k_bound = max(0.0, (1.0 - g) / abs(system.q))
