@@ -295,10 +295,13 @@ def _typed(
     section: str,
     keys: dict[str, tuple[str, ...]],
     optional: dict[str, tuple[str, ...]] | None = None,
+    others: tuple[str, ...] = (),
 ) -> tuple[str, dict[str, Any]]:
+    """The type of ``table`` and its other keys, checked against ``keys`` (``others``: types read elsewhere)."""
     kind = table.get("type")
     if kind not in keys:
-        raise unknown_key(f"{section}.type", f"one of {list(keys)}", kind, keys, kind)
+        types = [*keys, *others]
+        raise unknown_key(f"{section}.type", f"one of {types}", kind, types, kind)
     params = {k: v for k, v in table.items() if k != "type"}
     allowed = keys[kind] + (optional or {}).get(kind, ())
     for key in params:
@@ -490,7 +493,7 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         if key not in _TOP_KEYS:
             raise unknown_key(key, f"a section of the file: one of {list(_TOP_KEYS)}", key, _TOP_KEYS, spec[key])
 
-    kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS, _SYSTEM_OPTIONAL)
+    kind, params = _typed(_table(spec, "system", True), "system", _SYSTEM_KEYS, _SYSTEM_OPTIONAL, (NPLUSM_TYPE,))
     values: dict[str, Any] = {k: _system_value(kind, k, v) for k, v in params.items()}
     cls = SYSTEM_TYPES[kind]
     system = build_in_section("system", lambda: cls(**values))

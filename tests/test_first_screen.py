@@ -265,6 +265,7 @@ delta_max = 0.1
         ("[analysis]\ndelta_max", "[analysis]\ndelta_mx", "analysis.delta_mx", "delta_max"),
         ("[analysis]", "[simulaton]\nt_end = 1.0\n[analysis]", "simulaton", "simulation"),
         ("sigma_pm = 0.5", "sigma_pm = {x = [0.0, 1.0], value = [1.0, 1.0]}", "system.sigma_pm", "values"),
+        ('type = "Hyperbolic2x2"', 'type = "NPlusMSytem"', "system.type", "NPlusMSystem"),
     ],
 )
 def test_an_unknown_key_of_system_toml_suggests_the_close_ones(tmp_path, old, new, key, suggestion):
