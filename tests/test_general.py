@@ -584,3 +584,14 @@ def test_a_run_shorter_than_one_step_makes_one_step() -> None:
     sim = simulate_general(plant, StateFeedback(0.0), 0.0, 1e-13, 1.0, 1.0, cells=20)
     assert sim.times.size == 2 and sim.times[-1] >= 1e-13
     assert np.all(np.isfinite(sim.norm))
+
+
+def test_normal_form_coupling_repr_reads_its_offset_with_one_sign():
+    """The repr of a normal-form coupling (in certificate.json) writes ``D - A + 0.1``, not ``D - A - -0.1``."""
+    plant = GeneralHyperbolic2x2(
+        lam=1.0, mu=2.0, a=lambda x: 0.3 - 0.1 * x, b=0.5, c=0.4, d=-0.2, q=0.9, rho=0.6, length=2.0
+    )
+    form = plant.normal_form()
+    assert form.balance < 0
+    text = repr(form.system.sigma_pm)
+    assert "- -" not in text and f"D - A + {-form.balance:.6g}" in text

@@ -380,7 +380,8 @@ class _Scaled:
 
     def __repr__(self) -> str:
         sign = "" if self.sign > 0 else "-"
-        return f"<normal-form coupling T {self.coef} e^({sign}(D - A - {self.offset:.6g}))>"
+        offset = f"- {self.offset:.6g}" if self.offset >= 0 else f"+ {-self.offset:.6g}"
+        return f"<normal-form coupling T {self.coef} e^({sign}(D - A {offset}))>"
 
 
 @dataclass(frozen=True)
