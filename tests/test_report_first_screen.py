@@ -180,3 +180,23 @@ def test_reflection_gain_on_a_general_plant_is_said_to_be_a_normal_form_quantity
     # so U~ = -K u~(1) is the physical gain -K / e^{A(L) + k_b - D(L)}
     scale = spec["given_system"].normal_form().feedback_to_normal(1.0, 0.0, 0.0)[0]
     assert f"is the gain {-0.05 / scale:.6g} on the plant's u(t, L)" in text
+
+
+def test_a_root_map_wider_than_the_certified_region_says_its_rectangle():
+    """Delayed chains in Re s > 0 (c_D > 0 at delta_max) widen the maps beyond the certified region of the
+    tables, whose counts then differ from the maps' own: the caption gives both rectangles."""
+    plant = GeneralHyperbolic2x2(lam=1.0, mu=2.0, a=0.3, b=0.5, c=0.4, d=-0.2, q=0.9, rho=0.6, length=2.0)
+    cert = certify(plant, StateFeedback(-0.8), delta_max=0.5, k_region=False)
+    assert cert.principal_delayed.spectral_bound > 0.0
+    caption, fig = certificate_figures(cert)[0]
+    _, nominal, _ = fig.axes
+    re_lo, re_hi = nominal.get_xlim()
+    im_lo, im_hi = nominal.get_ylim()
+    assert im_hi > 2.0 * cert.region[3]  # wider than the certified region
+    said = re.search(r"The maps' rectangle, Re s in \[(\S+), (\S+)\], Im s in \[(\S+), (\S+)\], is wider", caption)
+    assert said is not None, caption
+    # 4 significant digits of the rectangle drawn (the map's limits are the rectangle's)
+    np.testing.assert_allclose([float(v) for v in said.groups()], [re_lo, re_hi, im_lo, im_hi], rtol=5e-4)
+    region = re.search(r"certified region of the tables, Re s in \[(\S+), (\S+)\], Im s in \[(\S+), (\S+)\]", caption)
+    assert region is not None
+    np.testing.assert_allclose([float(v.rstrip(",")) for v in region.groups()], cert.region, rtol=5e-4)

@@ -197,6 +197,12 @@ def _map_region(cert: Certificate, F0: Any, Fd: Any) -> tuple[float, float, floa
     return (min(box0[0], boxd[0]), max(box0[1], boxd[1]), min(box0[2], boxd[2]), max(box0[3], boxd[3]))
 
 
+def _rectangle(box: Sequence[float]) -> str:
+    """``Re s in [a, b], Im s in [c, d]`` to 4 significant digits."""
+    a, b, c, d = (f"{float(v):.4g}" for v in box)
+    return f"Re s in [{a}, {b}], Im s in [{c}, {d}]"
+
+
 def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     """The standard figures and the Nyquist data behind the last one."""
     import matplotlib.pyplot as plt
@@ -227,12 +233,18 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     axes[1].set_ylabel("")
     fig.suptitle(f"Closed loop under {_controller_label(cert.controller)}", fontsize="medium")
     fig.subplots_adjust(left=0.08, right=0.96, bottom=0.07, top=0.92, hspace=0.32, wspace=0.22)
+    wider = (
+        ""
+        if same
+        else f" The maps' rectangle, {_rectangle(box)}, is wider than the certified region of the tables, "
+        f"{_rectangle(cert.region)}, so that the rightmost roots and the chains show: its counts are its own."
+    )
     out.append(
         (
             "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
             "with the chain asymptotes of the difference operator, at delta = 0 and at delta = "
             f"{cert.delta_max:g} in the same region; above them, the stability chart in the loop delay "
-            "(zeros in Re s > 0 against delta, the delay margin marked)" + ("." + "".join(notes) if notes else ""),
+            "(zeros in Re s > 0 against delta, the delay margin marked)." + wider + "".join(notes),
             fig,
         )
     )
