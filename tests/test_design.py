@@ -201,10 +201,13 @@ def test_design_reflection_wrapper(best: tuple[GainDesign, float]) -> None:
         ({"objective": "decay_rate"}, "margin_at_least"),
         ({"objective": "decay_rate", "margin_at_least": -0.1}, "margin_at_least"),
         ({"objective": "margin", "margin_at_least": 0.1}, "margin_at_least"),
+        # the gains' bounds are named as the caller gave them, not as the core's ``bounds``
+        ({"K_bounds": (0.1, 0.0)}, "K_bounds"),
+        ({"K_bounds": (0.0, 0.3)}, "K_bounds"),  # past eq. (54)'s 0.15: not strongly stable
     ],
 )
 def test_design_reflection_refuses_bad_arguments(kwargs: dict, name: str) -> None:
-    with pytest.raises(ParameterError, match=name):
+    with pytest.raises(ParameterError, match=f"^{name} must be"):
         nrobust.design_reflection(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, RHO), **kwargs)
 
 

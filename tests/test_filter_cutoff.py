@@ -25,7 +25,12 @@ from scipy.optimize import brentq
 from nrobust import Hyperbolic2x2
 from nrobust.design import AffineLoop, best_margin
 from nrobust.errors import ParameterError
-from nrobust.hyperbolic.analyses.filter_design import ExactFilteredDesign, design_filtered_exact, filtered_loop
+from nrobust.hyperbolic.analyses.filter_design import (
+    ExactFilteredDesign,
+    design_filtered,
+    design_filtered_exact,
+    filtered_loop,
+)
 from nrobust.margins import delay_margin
 from nrobust.roots import spectral_abscissa
 
@@ -248,7 +253,13 @@ def test_refuses_bad_arguments() -> None:
         design_filtered_exact(PLANT, "decay_rate", parameters={"K": None, "a": 0.0, "b": 0.1})
     with pytest.raises(ParameterError, match="parameters\\['b'\\]"):
         design_filtered_exact(PLANT, parameters={"K": 0.1, "a": 0.0, "b": (0.0, 1.0)})
-    with pytest.raises(ParameterError, match="bounds"):  # past |a K| = b k: no frequency bound
+    with pytest.raises(ParameterError, match=r"^parameters\['a'\] must be"):  # past |a K| = b k: no frequency bound
         design_filtered_exact(PLANT, parameters={"K": 0.1, "a": (0.0, 0.5), "b": 0.1})
+    # bounds that are not a pair low < high are named by their parameter
+    for bad in ((0.1, 0.0), (0.1,), (0.0, 0.1, 0.2), "K", (0.0, np.inf)):
+        with pytest.raises(ParameterError, match=r"^parameters\['K'\] must be"):
+            design_filtered_exact(PLANT, parameters={"K": bad, "a": 0.0, "b": 0.05})
+        with pytest.raises(ParameterError, match=r"^parameters\['K'\] must be"):
+            design_filtered(PLANT, parameters={"K": bad, "a": 0.0, "b": 0.05})
     with pytest.raises(ParameterError, match="free"):
         filtered_loop(PLANT, {"K": None, "a": None, "b": 0.1}).affine()

@@ -115,8 +115,11 @@ class ReflectionDesign:
         return fields_dict(self)
 
 
-def _tolerance_error(exc: ParameterError, eps: float | None, window: tuple[float, float] | None) -> ParameterError:
-    """A window that no gain meets at the corners of the speed tolerance: the tolerance is what to lower."""
+def _design_error(exc: ParameterError, eps: float | None, window: tuple[float, float] | None) -> ParameterError:
+    """The core's refusal in the caller's words: its ``bounds`` are ``K_bounds``; a window that no gain
+    meets at the corners of the speed tolerance: the tolerance is what to lower."""
+    if exc.name == "bounds":
+        return ParameterError("K_bounds", exc.requirement, exc.value)
     if eps is None or window is None or exc.name != "delays":
         return exc
     return ParameterError(
@@ -339,18 +342,15 @@ def design_reflection(
     if eps is not None:
         corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
         scenarios = tuple(mismatch_gain_loop(plant, a, b, kernel_grid=kernel_grid) for a, b in corners)
-    if objective == "margin":
-        try:
+    try:
+        if objective == "margin":
             design = best_margin(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
-        except ParameterError as exc:
-            raise _tolerance_error(exc, eps, window) from exc
-    elif window is not None:
-        try:
+        elif window is not None:
             design = best_decay_rate(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
-        except ParameterError as exc:
-            raise _tolerance_error(exc, eps, window) from exc
-    else:
-        design = best_decay_rate(loop, K_bounds, margin_at_least=d, rigorous=rigorous)
+        else:
+            design = best_decay_rate(loop, K_bounds, margin_at_least=d, rigorous=rigorous)
+    except ParameterError as exc:
+        raise _design_error(exc, eps, window) from exc
     controller: Controller = ReflectionController(design.K)
     if collocated:
         controller = CollocatedOutputFeedback(controller, observer_delay)

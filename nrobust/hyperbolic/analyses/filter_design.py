@@ -161,6 +161,18 @@ def filtered_loop(system: Hyperbolic2x2 | GeneralHyperbolic2x2, free: Mapping[st
     return FilteredLoop(A0, B0, B1 - B0, names, fixed)
 
 
+def _given_bounds(name: str, value: Any) -> tuple[float, float]:
+    """The bounds ``(low, high)`` given for the parameter ``name``, checked."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        lo = hi = math.nan
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        requirement = "a number (fixed), bounds (low, high) of finite reals with low < high, or None"
+        raise ParameterError(f"parameters[{name!r}]", requirement, value)
+    return lo, hi
+
+
 def _split(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2, parameters: Mapping[str, Any] | None
 ) -> tuple[dict[str, Any], NDArray[np.float64]]:
@@ -177,7 +189,7 @@ def _split(
         if is_real_number(value):
             free[name] = float(value)  # type: ignore[arg-type]
             continue
-        lo, hi = default[name] if value is None else value
+        lo, hi = default[name] if value is None else _given_bounds(name, value)
         if name == "b" and not lo > 0.0:
             raise ParameterError("parameters['b']", "bounds (low, high) with 0 < low < high (the filter's pole)", value)
         free[name] = None
@@ -699,12 +711,17 @@ def design_filtered_exact(
         bounds = (float(box[0, 0]), float(box[0, 1]))
     family = filtered_loop(plant, {**fixed, name: None})
     loop = family.affine()
-    if objective == "margin":
-        design = best_margin(loop, bounds, delays=window, rigorous=rigorous, max_evals=max_evals)
-    else:
-        design = best_decay_rate(
-            loop, bounds, margin_at_least=margin_at_least, delays=window, rigorous=rigorous, max_evals=max_evals
-        )
+    try:
+        if objective == "margin":
+            design = best_margin(loop, bounds, delays=window, rigorous=rigorous, max_evals=max_evals)
+        else:
+            design = best_decay_rate(
+                loop, bounds, margin_at_least=margin_at_least, delays=window, rigorous=rigorous, max_evals=max_evals
+            )
+    except ParameterError as exc:
+        if exc.name != "bounds":
+            raise
+        raise ParameterError(f"parameters[{name!r}]", exc.requirement, exc.value) from exc
     controller = family.controller([design.K])
     return ExactFilteredDesign(
         controller, name, design, loop_scope(plant, controller, None, family(np.array([design.K])))
