@@ -199,3 +199,20 @@ def test_design_section_of_system_toml(tmp_path: pathlib.Path) -> None:
     # U_BS2(K) on a transport plant with |K q| < 1 - |rho q| = 0.4: stable for every delay
     written, design = run_design(good, tmp_path / "out")
     assert math.isinf(design.value) and {p.name for p in written} == {"design.json", "design.md", "design.png"}
+
+
+def test_an_optimum_on_a_bound_at_a_double_root_is_reached():
+    """``A = s^2 + c_1 s + 1``, ``B = c_2``: the decay rate is ``c_1 / 2`` while the roots are complex and
+    ``1 - sqrt(-c_2)`` below ``c_2 = 0`` at ``c_1 = 2``, so the best (1) is the double root ``-1`` at the bound
+    ``c_1 = 2`` (a 15 x 15 certified grid finds it). The pattern search stopped 1.4e-5 short of the bound (steps
+    past it were rejected, not clipped), and at the double root the abscissa's sensitivity divided by F' = 0."""
+
+    def family(p):
+        c1, c2 = p
+        return nr.QuasiPolynomial([[1.0, c1, 1.0]], [0.0]), nr.QuasiPolynomial([[c2]], [0.0])
+
+    d = optimize_loop(family, [(0.1, 2.0), (-0.5, 0.5)], margin_at_least=1.0, x0=[1.0, 0.0], starts=2)
+    assert d.certified and d.margin.margin >= 1.0
+    assert d.parameters[0] == 2.0
+    # the abscissa of a double root, known to about sqrt(eps) (the root's own conditioning)
+    np.testing.assert_allclose(d.value, 1.0, rtol=0, atol=1e-7)

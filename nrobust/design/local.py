@@ -559,6 +559,9 @@ class _Problem:
         dF = complex(F.deriv_at(s)[0])
         for i in range(p.size):
             lo, hi, h = self._pair(p, i)
+            if dF == 0.0:  # a multiple root (roots meeting): no sensitivity, a difference of the abscissae
+                grad[i] = (spectral_abscissa(at(hi)).value - spectral_abscissa(at(lo)).value) / h
+                continue
             f = [complex(at(q)(s)[0]) for q in (lo, hi)]
             grad[i] = (-(f[1] - f[0]) / h / dF).real
         return grad
@@ -1218,10 +1221,14 @@ class _Local:
             if np.any(g != 0.0):
                 directions.insert(0, -g / np.max(np.abs(g)))
             for d in directions:
-                y = f(x.p + step * d * width, x.value)
+                # a step past a bound stops on it: an optimum on the boundary is reached, not only approached
+                trial = np.clip(x.p + step * d * width, self.problem.bounds[:, 0], self.problem.bounds[:, 1])
+                if np.array_equal(trial, x.p):
+                    continue
+                y = f(trial, x.value)
                 counter[0] += 1
                 if y.feasible and y.value < x.value:
-                    x = self._extrapolate(f, y, step * d * width, counter, stop_below)
+                    x = self._extrapolate(f, self.problem.bounds, y, step * d * width, counter, stop_below)
                     break
             else:
                 step /= 2.0
@@ -1230,15 +1237,19 @@ class _Local:
     @staticmethod
     def _extrapolate(
         f: Callable[[NDArray, float], TrialPoint],
+        bounds: NDArray[np.float64],
         x: TrialPoint,
         move: NDArray[np.float64],
         counter: list[int],
         stop_below: float,
     ) -> TrialPoint:
-        """From ``x``, reached by ``move``, steps of twice, four times, ... ``move`` while they improve."""
+        """From ``x``, reached by ``move``: steps of 2, 4, ... ``move`` (clipped to ``bounds``) while they improve."""
         while x.value > stop_below:
             move = 2.0 * move
-            y = f(x.p + move, x.value)
+            trial = np.clip(x.p + move, bounds[:, 0], bounds[:, 1])
+            if np.array_equal(trial, x.p):
+                break
+            y = f(trial, x.value)
             counter[0] += 1
             if not (y.feasible and y.value < x.value):
                 break
