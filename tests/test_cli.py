@@ -145,7 +145,7 @@ def test_python_dash_m(tmp_path):
 
 
 def test_command_exits_after_its_handlers_and_output(tmp_path):
-    """``nrobust`` (``cli.run``) skips the interpreter's teardown, not the exit handlers or buffered output."""
+    """``nrobust`` (``cli.run``) freezes its objects before the exit: exit handlers and buffered output still run."""
     path = _write(tmp_path, SMALL)
     out = tmp_path / "o"
     script = (
