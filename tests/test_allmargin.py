@@ -152,3 +152,31 @@ def test_axis_pole_with_an_integrator_is_no_phase_crossover() -> None:
     assert expected, got.phase_band
     np.testing.assert_allclose(got.gm_frequencies, expected, rtol=1e-10)
     np.testing.assert_allclose(got.gain_margins, [10 * w * (w * w - 1) for w in expected], rtol=1e-10)
+
+
+def test_matlab_documented_allmargin_example() -> None:
+    # MATLAB Control System Toolbox, allmargin reference page (mathworks.com/help/control/ref/
+    # dynamicsystem.allmargin.html), first example: L = tf(25, [1 10 10 10]) gives GainMargin 3.6000
+    # at GMFrequency 3.1623, PhaseMargin 29.1104 at PMFrequency 1.7844, DelayMargin 0.2847, Stable 1
+    # (four decimals printed). Closed forms: the phase crossover is w^2 = 10 (the real part of the
+    # denominator 10 - 10 w^2 + i w (10 - w^2) vanishes there with its imaginary part), |L| = 25 / 90.
+    m = allmargin(control.tf(25.0, [1.0, 10.0, 10.0, 10.0]))
+    np.testing.assert_allclose(m.gm_frequencies, [np.sqrt(10.0)], rtol=1e-12)  # refined to 1e-12
+    np.testing.assert_allclose(m.gain_margins, [3.6], rtol=1e-12)
+    # MATLAB's printed values, to their last digit (half a unit of the fourth decimal)
+    np.testing.assert_allclose(m.phase_margins, [29.1104], rtol=0, atol=5e-5)
+    np.testing.assert_allclose(m.pm_frequencies, [1.7844], rtol=0, atol=5e-5)
+    np.testing.assert_allclose(m.delay_margins, [0.2847], rtol=0, atol=5e-5)
+    assert m.stable
+
+
+def test_delay_margin_of_a_python_control_loop_alone() -> None:
+    # nrobust.delay_margin(L) with python-control's loop 2 / (s + 1): w_c = sqrt 3 and the margin
+    # (pi - atan sqrt 3) / sqrt 3 = 2 pi / (3 sqrt 3) in closed form; the same as loop_delay_margin
+    for L in (control.tf([2.0], [1.0, 1.0]), control.ss(-1.0, 1.0, 2.0, 0.0)):
+        got = nrobust.delay_margin(L)
+        # the margin is refined by Newton to rounding; 1e-10 leaves room for its stopping rule
+        np.testing.assert_allclose(got.margin, 2 * np.pi / (3 * np.sqrt(3.0)), rtol=1e-10)
+        np.testing.assert_allclose(got.margin, loop_delay_margin(L).margin, rtol=0, atol=0)
+    with pytest.raises(ParameterError, match="loop transfer function alone"):
+        nrobust.delay_margin([1.0, 2.0])

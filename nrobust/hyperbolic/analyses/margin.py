@@ -69,13 +69,14 @@ def delay_margin(
     :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
     ``U_BS2(K)``) are passed to :func:`nrobust.margins.delay_margin`; called as
     ``delay_margin(A, B)`` with two :class:`QuasiPolynomial`, it is that function; called as
-    ``delay_margin(L)`` with one SISO loop transfer function (a ``QuasiTransferFunction`` or
-    a ``DelayLTI``, ``L = N / D`` under negative unit feedback), it is
+    ``delay_margin(L)`` with one SISO loop transfer function (a ``QuasiTransferFunction``,
+    a ``DelayLTI`` or a python-control ``TransferFunction`` or ``StateSpace``, ``L = N / D``
+    under negative unit feedback), it is
     :func:`nrobust.lti.allmargin.loop_delay_margin` (``A = D``, ``B = N``).
 
     Parameters
     ----------
-    system : Hyperbolic2x2, GeneralHyperbolic2x2, QuasiPolynomial, QuasiTransferFunction or DelayLTI
+    system : Hyperbolic2x2, GeneralHyperbolic2x2, QuasiPolynomial, QuasiTransferFunction, DelayLTI or control.LTI
         The plant (a general plant through its normal form), the factor ``A`` of
         ``F(s; delta) = A(s) + B(s) e^{-delta s}``, or a SISO loop ``L`` (alone).
     controller : Controller or QuasiPolynomial, optional
@@ -104,7 +105,8 @@ def delay_margin(
     -------
     DelayMargin
     """
-    if controller is None and isinstance(system, (QuasiTransferFunction, DelayLTI)):
+    if controller is None and (isinstance(system, QuasiTransferFunction) or hasattr(system, "ninputs")):
+        # a loop transfer function: a QuasiTransferFunction, a DelayLTI or a python-control system
         return loop_delay_margin(system, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
     if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
@@ -137,8 +139,9 @@ def delay_margin(
     else:
         raise ParameterError(
             "system",
-            f"a plant ({_kinds(Hyperbolic2x2, GeneralHyperbolic2x2)}, with a controller) or a QuasiPolynomial: "
-            "the factor A of F(s; delta) = A(s) + B(s) e^{-delta s}, with B as controller",
+            f"a plant ({_kinds(Hyperbolic2x2, GeneralHyperbolic2x2)}, with a controller), a QuasiPolynomial: "
+            "the factor A of F(s; delta) = A(s) + B(s) e^{-delta s}, with B as controller, or a SISO loop "
+            "transfer function alone (QuasiTransferFunction, DelayLTI, python-control system)",
             type(system).__name__,
         )
     result = factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
