@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 
 import json
 
+import control
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from scipy.optimize import brentq
 
 from nrobust import plots
 from nrobust.errors import ParameterError
+from nrobust.lti import delay
 from nrobust.quasipoly import QuasiPolynomial as Q
 
 A_INT = Q([[0.0, 1.0, 1.0]], [0.0])  # s (s + 1)
@@ -156,3 +158,20 @@ def test_loops_without_axis_poles_are_unchanged_and_bad_options_are_refused():
         plots.nyquist_response(A_INT, B_ONE, delta=1.0, omega_max=20.0, indent_radius=5.0)
     out = plots.nyquist_plot(A_INT, B_ONE, delta=1.0, omega_max=10.0, max_curve_magnitude=4.0, arrows=1)
     assert max(np.abs(out.axes.get_xlim()).max(), np.abs(out.axes.get_ylim()).max()) <= 1.1 * 4.0 * (1 + OFFSET)
+
+
+def test_a_python_control_loop_alone_is_its_factors(response):
+    # e^{-s} / (s (s + 1)) built as python-control users do: the same contour, curve and count as
+    # its factors (the DelayLTI's quotient is these factors times a constant, the same loop)
+    L = delay(1.0) * control.tf([1.0], [1.0, 1.0, 0.0])
+    alone = plots.nyquist_response(L, omega_max=20.0, n_freq=1001)
+    assert alone.rhp_zeros == response.rhp_zeros == 0
+    # the same samples of the same function, evaluated through differently scaled factors
+    np.testing.assert_allclose(alone.loop, response.loop, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(alone.crossings, response.crossings, rtol=1e-12)
+    out = plots.nyquist_plot(L, omega_max=20.0)
+    x0, x1 = out.axes.get_xlim()
+    assert x0 < -1.0 < x1  # the critical point is in view, the curve clipped at |L| = 10
+    assert list(out.lines["critical"][0].get_xdata()) == [-1.0]
+    with pytest.raises(ParameterError, match="B"):
+        plots.nyquist_response(A_INT)

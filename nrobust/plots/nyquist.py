@@ -50,6 +50,7 @@ from .._json import json_safe
 from .._validate import nonnegative, positive, positive_int, renamed_keywords
 from ..bounds import root_free_region
 from ..errors import CertificationError, ParameterError
+from ..lti.allmargin import loop_factors_of
 from ..lti.pade import split_integrators
 from ..margins import frequency_bound, unstable_count
 from ..margins.crossing import crossing_search
@@ -266,8 +267,8 @@ class NyquistResponse:
 
 @renamed_keywords(n="n_freq")
 def nyquist_response(
-    A: QuasiPolynomial,
-    B: QuasiPolynomial,
+    A: Any,
+    B: QuasiPolynomial | None = None,
     delta: float = 0.0,
     omega_max: float = 200.0,
     n_freq: int = 4001,
@@ -283,7 +284,10 @@ def nyquist_response(
         The loop factors, ``F(s) = A(s) + B(s) e^{-delta s}`` (e.g. from
         :func:`nrobust.hyperbolic.loop_factors`; for U_BS2 ``F`` is the characteristic
         function of the paper's eq. (60)). ``A`` must not vanish
-        identically (``L = B/A``).
+        identically (``L = B/A``). Or a SISO loop transfer function ``L`` alone as ``A``
+        (a ``DelayLTI``, a ``QuasiTransferFunction`` or a python-control system) and no
+        ``B``: its factors ``L = N / D`` (:func:`nrobust.lti.loop_factors_of`) are ``B = N``,
+        ``A = D``.
     delta : float
         Loop delay ``>= 0``.
     omega_max : float
@@ -314,6 +318,10 @@ def nyquist_response(
         Bad input; ``A`` identically zero, or ``F`` identically zero (``B = -A`` at
         ``delta = 0``).
     """
+    if B is None:
+        if isinstance(A, (QuasiPolynomial, int, float)):
+            raise ParameterError("B", "given with the factor A (or A a loop transfer function alone)", B)
+        B, A = loop_factors_of(A)
     A = as_quasipolynomial("A", A)
     B = as_quasipolynomial("B", B)
     if not A.point_terms and not A.distributed:
@@ -598,8 +606,8 @@ def _band_crossings(A: QuasiPolynomial, B: QuasiPolynomial, W: float) -> tuple[N
 
 
 def nyquist_plot(
-    A: QuasiPolynomial,
-    B: QuasiPolynomial,
+    A: Any,
+    B: QuasiPolynomial | None = None,
     delta: float = 0.0,
     omega_max: float = 200.0,
     ax: Axes | None = None,
