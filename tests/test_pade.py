@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrobust.errors import CertificationError, ParameterError
-from nrobust.lti import PadeModel, QuasiTransferFunction, pade_approximation
+from nrobust.lti import PadeModel, QuasiTransferFunction, delay, pade_approximation
 from nrobust.lti.pade import pade, pade_band_bound, pade_error_bound, split_integrators, substitution_bound
 from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
 
@@ -280,3 +280,19 @@ def test_coefficients_beyond_double_range_are_refused() -> None:
         pade(1e200, 3, normalize="constant")  # tau^3 / 120 overflows
     # in range: the closed form 120 / tau^3 of the monic denominator's constant term, to rounding
     np.testing.assert_allclose(pade(1e-100, 3)[1][-1], 120.0 / 1e-300, rtol=4e-16)
+
+
+def test_a_delay_lti_pi_loop_built_from_python_control_is_taken_as_is():
+    """The PI loop as a python-control user writes it, K (1 + 1/(T s)) / (s + 1) * delay(1): the same
+    model class, integrator and proven bound as its quasi-polynomial form, and the bound above the
+    mpmath error of the model against the closed form of _pi_loop."""
+    L = control.tf([K * T, K], [T, 0.0]) * control.tf([1.0], [1.0, 1.0]) * delay(1.0)
+    w = np.linspace(1e-3, 2.0, 60)
+    fit = pade_approximation(L, 3, w, return_bound=True)
+    assert isinstance(fit, PadeModel) and fit.integrators == 1
+    true = _model_error(fit.model, w)
+    assert np.all(fit.bound >= np.maximum(true[:-1], true[1:]))
+    reference = pade_approximation(_pi_loop(), 3, w, return_bound=True)
+    # the DelayLTI's quotient is _pi_loop's factors up to a constant: the same model to rounding
+    np.testing.assert_allclose(fit.band_bound, reference.band_bound, rtol=1e-9)
+    np.testing.assert_allclose(fit.error, reference.error, rtol=0, atol=1e-12)

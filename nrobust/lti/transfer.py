@@ -488,7 +488,9 @@ def pade_approximation(
 
     Parameters
     ----------
-    tf : QuasiTransferFunction or QuasiPolynomial
+    tf : QuasiTransferFunction, QuasiPolynomial or DelayLTI
+        The transfer function; a SISO :class:`~nrobust.lti.delay_lti.DelayLTI` is taken as its
+        :meth:`~nrobust.lti.delay_lti.DelayLTI.to_quasi_transfer`.
     order : int or (int, int)
         Padé degrees of every delay: ``n >= 1`` for the diagonal ``(n, n)`` approximant, or a
         pair ``(m, n)``, ``0 <= m <= n``, ``n >= 1`` (numerator, denominator degrees).
@@ -549,8 +551,10 @@ def pade_approximation(
     w = _omega_grid(omega)
     if isinstance(tf, QuasiPolynomial):
         tf = QuasiTransferFunction(tf, 1.0)
+    elif hasattr(tf, "to_quasi_transfer"):  # a SISO DelayLTI (delay_lti imports this module)
+        tf = tf.to_quasi_transfer()
     if not isinstance(tf, QuasiTransferFunction):
-        raise ParameterError("tf", "a QuasiTransferFunction or a QuasiPolynomial", tf)
+        raise ParameterError("tf", "a QuasiTransferFunction, a QuasiPolynomial or a SISO DelayLTI", tf)
     delays = _point_delays(tf)
     per_delay: dict[float, tuple[int, int]] = {}
     for tau, o in (orders or {}).items():
