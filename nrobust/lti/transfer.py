@@ -137,6 +137,10 @@ class QuasiTransferFunction:
         Numerator and denominator; numbers are constant quasi-polynomials. ``den`` must
         not be identically zero.
 
+    The interconnections (``*``, ``+``, ``-``, :meth:`series`, :meth:`parallel`,
+    :meth:`feedback`) also take a SISO continuous-time python-control ``TransferFunction``
+    (its coefficients in descending powers, as python-control writes them).
+
     Notes
     -----
     No cancellation is attempted: the poles are the zeros of ``den`` and the zeros those
@@ -226,14 +230,14 @@ class QuasiTransferFunction:
         return QuasiTransferFunction(self.num.shift(delta), self.den)
 
     def __mul__(self, other: Any) -> QuasiTransferFunction:
-        if not isinstance(other, (QuasiTransferFunction, QuasiPolynomial, int, float, complex, np.number)):
+        if not isinstance(other, _OPERANDS) and not _is_control(other):
             return NotImplemented
         return self.series(other)
 
     __rmul__ = __mul__
 
     def __add__(self, other: Any) -> QuasiTransferFunction:
-        if not isinstance(other, (QuasiTransferFunction, QuasiPolynomial, int, float, complex, np.number)):
+        if not isinstance(other, _OPERANDS) and not _is_control(other):
             return NotImplemented
         return self.parallel(other)
 
@@ -254,9 +258,29 @@ class QuasiTransferFunction:
         return fields_dict(self)
 
 
+_OPERANDS = (QuasiTransferFunction, QuasiPolynomial, int, float, complex, np.number)
+
+
+def _is_control(obj: Any) -> bool:
+    """True for a python-control object (checked by module, without importing python-control)."""
+    return type(obj).__module__.split(".")[0] == "control"
+
+
 def _as_tf(name: str, value: Any) -> QuasiTransferFunction:
+    """``value`` as a transfer function: itself, a quasi-polynomial or a number over 1, or a SISO
+    continuous-time python-control ``TransferFunction`` (its descending coefficients reversed)."""
     if isinstance(value, QuasiTransferFunction):
         return value
+    if _is_control(value):
+        if not hasattr(value, "num") or value.ninputs != 1 or value.noutputs != 1 or value.isdtime(strict=True):
+            raise ParameterError(
+                name,
+                "a SISO continuous-time python-control TransferFunction (other systems: nrobust.lti.as_delay_lti, "
+                "a DelayLTI)",
+                value,
+            )
+        num, den = (QuasiPolynomial([np.asarray(c[0][0], dtype=float)[::-1]], [0.0]) for c in (value.num, value.den))
+        return QuasiTransferFunction(num, den)
     return QuasiTransferFunction(as_quasipolynomial(name, value), 1.0)
 
 
