@@ -180,3 +180,21 @@ def test_delay_margin_of_a_python_control_loop_alone() -> None:
         np.testing.assert_allclose(got.margin, loop_delay_margin(L).margin, rtol=0, atol=0)
     with pytest.raises(ParameterError, match="loop transfer function alone"):
         nrobust.delay_margin([1.0, 2.0])
+
+
+def test_a_neutral_loop_gets_its_gain_floor_from_its_high_frequency_gain():
+    """``L = (0.5 s + 1) e^{-s} / (s + 2) = 0.5 e^{-s}``: |L| = 0.5 at every frequency, phase crossovers at the odd
+    multiples of pi, each with gain margin 2 exactly, and no gain crossover. The default ``gain_floor`` (1e-2)
+    lies below the high-frequency gain, which refused the loop until a floor above 0.5 was guessed; now the
+    floor is 1.25 times that gain and the refusal of a given floor states the gain."""
+    L = control.tf([0.5, 1.0], [1.0, 2.0]) * delay(1.0)
+    m = allmargin(L)
+    np.testing.assert_allclose(m.gain_floor, 1.25 * 0.5, rtol=2e-3)  # the bisection's 0.1 %, rounded up
+    w = np.asarray(m.gm_frequencies, dtype=float)
+    assert w.size >= 1
+    # Brent's xtol on the frequencies, the loop's rounding on the margins
+    np.testing.assert_allclose(w, np.pi * (2 * np.arange(w.size) + 1), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(m.gain_margins, dtype=float), 2.0, rtol=1e-12)
+    assert len(m.phase_margins) == 0 and len(m.delay_margins) == 0
+    with pytest.raises(ParameterError, match=r"high-frequency gain of the loop, 0\.50"):
+        allmargin(L, gain_floor=0.1)

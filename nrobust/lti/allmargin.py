@@ -61,6 +61,7 @@ feedback.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -210,7 +211,7 @@ def _refine(f: Any, w: float, W: float) -> float:
 
 
 def allmargin(
-    L: Any, loop: int | list[int] | None = None, *, gain_floor: float = 1e-2, max_evals: int = 2_000_000
+    L: Any, loop: int | list[int] | None = None, *, gain_floor: float | None = None, max_evals: int = 2_000_000
 ) -> Any:
     """Every gain, phase and delay margin of a loop under negative unit feedback (MATLAB's ``allmargin``).
 
@@ -222,7 +223,10 @@ def allmargin(
         For a MIMO loop: the loop (or loops) broken one at a time, the others closed.
     gain_floor : float, optional
         Phase crossovers are listed completely on the band where ``|L(i w)| >= gain_floor``
-        may hold (module notes; default ``1e-2``: every gain margin up to 40 dB).
+        may hold (module notes). Default ``1e-2`` (every gain margin up to 40 dB), or, for a
+        neutral loop whose gain tends to ``g_inf >= 1e-2`` at high frequency (the bound that the
+        principal parts give), ``1.25 g_inf`` (``sqrt(g_inf)`` when that is not below 1): its
+        phase crossovers never end, and those with ``|L| >= gain_floor`` are listed.
     max_evals : int, optional
         Work bound of each crossing search (evaluations of the loop factors).
 
@@ -233,8 +237,9 @@ def allmargin(
     Raises
     ------
     ParameterError
-        A loop whose gain does not fall below 1 (or ``gain_floor``) at high frequency: the
-        crossovers then accumulate at infinity and no finite band holds them. A loop real
+        A loop whose gain does not fall below 1 (or a given ``gain_floor``, the message then
+        giving the loop's high-frequency gain) at high frequency: the crossovers then
+        accumulate at infinity and no finite band holds them. A loop real
         at every ``s = i w`` (no isolated phase crossover).
     CertificationError
         A crossing search could not be completed within its work bound.
@@ -250,7 +255,7 @@ def allmargin(
     >>> bool(abs(np.radians(m.phase_margins[0]) - (np.pi - 0.1 * w - np.arctan(w))) < 1e-12)
     True
     """
-    floor = positive("gain_floor", gain_floor)
+    floor = None if gain_floor is None else positive("gain_floor", gain_floor)
     max_evals = positive_int("max_evals", max_evals)
     if isinstance(loop, list):
         return [allmargin(_loop(L, i), gain_floor=floor, max_evals=max_evals) for i in loop]
@@ -260,7 +265,7 @@ def allmargin(
     if not (N.is_real and D.is_real):
         raise ParameterError("L", "real coefficients", L)
     if not N.distributed and not any(np.any(p) for p, _ in N.point_terms):
-        return _zero_loop(D, floor)
+        return _zero_loop(D, _DEFAULT_FLOOR if floor is None else floor)
     if _real_on_axis(N, D):
         raise ParameterError(
             "L",
@@ -283,10 +288,18 @@ def allmargin(
         raise ParameterError(
             "L", "a loop whose gain falls below 1 at high frequency (|L(i w)| < 1 for large w)", L
         ) from exc
+    if floor is None:
+        floor = _DEFAULT_FLOOR
+        if frequency_bound(D, N * (1.0 / floor)) is None:  # a neutral loop: |L| tends to g_inf >= floor
+            g_inf = _high_frequency_gain(N, D)
+            floor = 1.25 * g_inf if 1.25 * g_inf < 1.0 else math.sqrt(g_inf)
     bound = frequency_bound(D, N * (1.0 / floor))
     if bound is None:
+        g_inf = _high_frequency_gain(N, D)
         raise ParameterError(
-            "gain_floor", "above the high-frequency gain of the loop (|L(i w)| < gain_floor for large w)", floor
+            "gain_floor",
+            f"above the high-frequency gain of the loop, {g_inf:.4g} (|L(i w)| < gain_floor for large w)",
+            floor,
         )
     W_g = bound[0]
 
@@ -387,6 +400,24 @@ def _log_slope(N: QuasiPolynomial, D: QuasiPolynomial, w: float) -> tuple[comple
     q = complex(N.deriv_at(s)[0]) / n - complex(D.deriv_at(s)[0]) / d
     rel = 4.0 * _EPS * (float(N.magnitude(s)[0]) / abs(n) + float(D.magnitude(s)[0]) / abs(d))
     return q, rel
+
+
+#: ``gain_floor`` of :func:`allmargin` when the loop's gain falls below it at high frequency.
+_DEFAULT_FLOOR = 1e-2
+
+
+def _high_frequency_gain(N: QuasiPolynomial, D: QuasiPolynomial) -> float:
+    """The least ``g`` (to 0.1 %, rounded up) with a proven frequency bound of ``|N / D| < g``: the
+    high-frequency gain of the loop as the principal parts bound it (:func:`frequency_bound`);
+    called on a loop whose gain falls below 1 (``g = 1`` has one)."""
+    lo, hi = 0.0, 1.0
+    while hi - lo > 1e-3 * hi:
+        mid = 0.5 * (lo + hi)
+        if mid > 0.0 and frequency_bound(D, N * (1.0 / mid)) is not None:
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _zero_loop(D: QuasiPolynomial, floor: float) -> AllMargins:
