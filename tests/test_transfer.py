@@ -303,3 +303,16 @@ def test_python_control_transfer_functions_combine_with_quasi_transfer_functions
     np.testing.assert_allclose(H.feedback(P).frequency_response(w), h / (1 + h * p), rtol=1e-13, atol=0)
     with pytest.raises(ParameterError, match="as_delay_lti"):
         H * control.ss(-1.0, 1.0, 1.0, 0.0)
+
+
+def test_a_number_or_a_python_control_system_minus_a_transfer_function():
+    """``2 - H`` and ``G - H`` (G from control.tf) against the closed forms at three frequencies (``2 - H`` raised
+    TypeError: no reflected subtraction)."""
+    from nrobust import QuasiPolynomial
+
+    H = QuasiTransferFunction(QuasiPolynomial([[1.0]], [0.5]), QuasiPolynomial([[1.0, 1.0]], [0.0]))  # e^{-s/2}/(1+s)
+    G = control.tf([1.0], [1.0, 2.0])
+    s = np.array([0.3j, 2.0j, 0.5 + 7.0j])
+    h = np.exp(-0.5 * s) / (1.0 + s)
+    np.testing.assert_allclose((2 - H)(s), 2.0 - h, rtol=1e-14)
+    np.testing.assert_allclose((G - H)(s), 1.0 / (s + 2.0) - h, rtol=1e-14)

@@ -249,6 +249,11 @@ class QuasiTransferFunction:
     def __sub__(self, other: Any) -> QuasiTransferFunction:
         return self + (-_as_tf("other", other))
 
+    def __rsub__(self, other: Any) -> QuasiTransferFunction:
+        if not isinstance(other, _OPERANDS) and not _is_control(other):
+            return NotImplemented
+        return (-self).parallel(other)
+
     # ------------------------------------------------------------------ display
     def __repr__(self) -> str:
         return f"QuasiTransferFunction(\n  num={self.num!r},\n  den={self.den!r})"
