@@ -3,6 +3,11 @@ from .base import (
     NrobustPlot as NrobustPlot,
     figure_png as figure_png,
 )
+from .bode import (
+    BodeResponse as BodeResponse,
+    bode_plot as bode_plot,
+    bode_response as bode_response,
+)
 from .charts import (
     delay_chart_plot as delay_chart_plot,
     stability_chart_plot as stability_chart_plot,
