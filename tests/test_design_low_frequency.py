@@ -109,3 +109,19 @@ def test_interior_maximum_far_from_the_largest_sample() -> None:
     np.testing.assert_allclose(design.margin, float(delay(K_star)), rtol=1e-13)
     np.testing.assert_allclose(design.K, float(K_star), rtol=0, atol=1e-7)
     assert design.margin >= _grid_best(loop, -1.0, 1.0)
+
+
+def test_optimum_where_s_zero_becomes_a_root_at_a_grid_gain() -> None:
+    """As above, with ``K_0 = 0.094`` where the curve ends at ``w = 0`` and ``|A|^2 - |B|^2 ~ c w^2`` sinks into
+    its rounding at ``w ~ 1e-8``: Newton at ``K_0`` took noise for steps and refused ("did not converge")."""
+    loop, A, B = _loop(1.0, 1.0, 2.0, 0.5, -1.5, 0.906, 1.0, 0.0, False)
+    K0 = -(A(0, 0) + B(0, 0)) / ((A(0, 1) - A(0, 0)) + (B(0, 1) - B(0, 0)))
+    np.testing.assert_allclose(float(K0), 0.094, rtol=1e-12)
+    limit = mp.diff(lambda s: B(s, K0), 0) / B(0, K0) - mp.diff(lambda s: A(s, K0), 0) / A(0, K0)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "end"
+    np.testing.assert_allclose(design.K, float(K0), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(design.margin, float(limit), rtol=1e-8)
+    # the grid gains but K_0 itself, where the oracle cannot decide (a double zero of |A|^2 - |B|^2 at w = 0)
+    grid = [K for K in np.linspace(-1.0, 1.0, 21) if abs(K - 0.094) > 1e-6]
+    assert design.margin >= max(delay_margin(loop.A(K), loop.B(K)).margin for K in grid)

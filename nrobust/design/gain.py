@@ -122,6 +122,7 @@ _NEWTON_STEPS = 30
 # distributed terms were computed in floating point, e.g. an output feedback's observer term).
 _NOISE_STEP = 1e-12
 _TWO_PI = 2.0 * np.pi
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True, eq=False)
@@ -1243,6 +1244,11 @@ class _Curves:
             # delay theta / w tends to a limit: the step's change of the delay is what must be at rounding
             theta = float(np.angle(-b / a))
             d_step = abs(step * ((db / b - da / a).imag - theta / w) / w)
+            # at the gain where the curve ends at w = 0 (|A(0)| = |B(0)| exactly) g ~ c w^2 sinks into its
+            # rounding while w is still about sqrt(eps / c), and Newton's steps are noise; the delay, near its
+            # limit there, is kept once a step would not change it
+            if abs(g) <= 8.0 * _EPS * (abs(a) ** 2 + abs(b) ** 2) and d_step <= 4e-15 * abs(theta) / w:
+                break
             w -= step
             # converged, or at the rounding floor of g (steps of 1e-12 relative that stop shrinking)
             if abs(step) <= 4e-16 * w or (abs(step) <= _NOISE_STEP * w and abs(step) > 0.5 * previous):
