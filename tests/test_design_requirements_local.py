@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -147,6 +148,13 @@ def test_filtered_design_under_a_speed_tolerance(tmp_path: Path) -> None:
     assert "stable for every delay in [0.0, 0.5] (the loop and its 4 scenarios): met, checked" in text
     data = json.loads((tmp_path / "out" / "design.json").read_text())
     assert data["speed_tolerance"] == 0.2 and data["tolerance"]["met"] is True
+    # the trade-off in K with the designed filter: its figure, and its best margin recomputed on the loop above
+    assert (tmp_path / "out" / "design.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # here some gains have no crossing at all: the scan says so and names one
+    found = re.search(r"largest delay margin on the gains' bounds is infinite \(no crossing\) .* at K = (\S+)\.", text)
+    assert found is not None, text
+    K_best = float(found.group(1))
+    assert -0.35 <= K_best <= 0.6 and delay_margin(*_corner_loop(K_best, 0.0, 0.0)).margin == math.inf
 
 
 def _unstable_count(c: float, K: float, delta: float) -> int:

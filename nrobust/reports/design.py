@@ -20,9 +20,9 @@ options when given:
   (:func:`nrobust.hyperbolic.analyses.design_filtered`).
 
 Written: ``design.json`` (the design with its certificate), ``design.md`` (the design in words,
-each number with the digits its accuracy supports) and, for U_BS2(K), ``design.png`` (the
-delay margin against ``K`` with the requirement and the design marked: the trade-off), as one
-set with ``manifest.json``.
+each number with the digits its accuracy supports) and ``design.png`` (the delay margin against
+``K`` with the requirement and the design marked: the trade-off; for the filtered law, with the
+designed filter), as one set with ``manifest.json``.
 """
 
 from __future__ import annotations
@@ -37,12 +37,18 @@ import numpy as np
 from .._digits import inner_interval_text, with_accuracy
 from .._json import json_safe
 from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, load_system_file
-from ..design import DelayWindow, GainDesign
-from ..errors import ParameterError
+from ..design import DelayWindow, GainDesign, best_margin
+from ..errors import CertificationError, ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
-from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered
+from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered, filtered_loop
 from ..hyperbolic.analyses.margin import delay_margin
-from ..hyperbolic.loops.controllers import CollocatedOutputFeedback, Controller, OutputFeedback, ReflectionController
+from ..hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
+    Controller,
+    OutputFeedback,
+    ReflectionController,
+    classify,
+)
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
@@ -252,6 +258,66 @@ def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> by
     return buf.getvalue()
 
 
+def _filtered_slice(system: Any, result: FilteredDesign, bounds: Any) -> GainDesign | str:
+    """``delta*(K)`` with the design's filter ``(a, b)`` on the gains' bounds, or why it could not be computed."""
+    c = result.controller
+    if bounds is None:
+        k = 0.99 * classify(system).k_bound
+        bounds = (-k, k)
+    loop = filtered_loop(system, {"K": None, "a": c.a, "b": c.b}).affine()
+    try:
+        return best_margin(loop, (float(bounds[0]), float(bounds[1])))
+    except (CertificationError, ParameterError) as exc:
+        return str(exc)
+
+
+def _filtered_png(result: FilteredDesign, scan: GainDesign) -> bytes:
+    """The delay margin against ``K`` with the design's filter, the design marked: its trade-off in ``K``."""
+    import matplotlib.pyplot as plt
+
+    c, d = result.controller, result.design
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(scan.gains, scan.envelope, label=f"delay margin delta*(K), filter a = {c.a:.4g}, b = {c.b:.4g}")
+    if d.margin_at_least is not None:
+        ax.axhline(d.margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {d.margin_at_least:g}")
+    K = float(c.K if c.K is not None else np.nan)  # a designed law has its gain
+    margin = float(d.margin.margin)
+    ax.plot(
+        [K],
+        [margin if np.isfinite(margin) else np.nan],
+        "o",
+        color="C3",
+        label=f"design: K = {K:.6g}, decay rate {d.decay_rate:.4g}",
+    )
+    ax.set_xlabel("K")
+    ax.set_ylabel("delay")
+    envelope = np.asarray(scan.envelope, dtype=float)
+    finite = envelope[np.isfinite(envelope)]
+    # the design and its requirement in view (a margin that grows without bound near a gain would flatten them)
+    levels = [v for v in (margin, d.margin_at_least) if v is not None and np.isfinite(v) and v > 0.0]
+    top = 1.2 * float(np.max(finite)) if finite.size else 1.0
+    if levels:
+        top = min(top, 4.0 * max(levels)) if finite.size else 4.0 * max(levels)
+    ax.set_ylim(0.0, top)
+    if not np.all(np.isfinite(envelope)):
+        ax.fill_between(
+            scan.gains,
+            0.0,
+            top,
+            where=~np.isfinite(envelope),
+            color="C0",
+            alpha=0.12,
+            lw=0,
+            label="no crossing: delta* infinite",
+        )
+    ax.legend(fontsize="small")
+    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.95)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
 def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
     """One line: the designed controller and its objective, with the digits their accuracy supports."""
     if isinstance(result, ReflectionDesign):
@@ -325,6 +391,7 @@ def run_design(
         )
     outputs = RunOutputs(out_dir, "design")
     edge: dict[str, float] | None = None
+    scan: GainDesign | str = "not a filtered design"
     with outputs:
         result: ReflectionDesign | FilteredDesign
         if family in ("reflection", *OBSERVER_FAMILIES):
@@ -354,6 +421,24 @@ def run_design(
                 rigorous=rigorous,
             )
             lines = _filtered_markdown(Path(path), result)
+            scan = _filtered_slice(spec["system"], result, bounds)
+            if isinstance(scan, str):
+                lines += ["", f"No trade-off figure: the delay margin in K with this filter was not scanned ({scan})."]
+            else:
+                k_acc, v_acc = scan.accuracy
+                m_acc = None if scan.certificate.accuracy is None else scan.certificate.accuracy + v_acc
+                best = (
+                    f"is {with_accuracy(scan.margin, m_acc)} at K = {with_accuracy(scan.K, k_acc)} ({scan.kind})"
+                    if np.isfinite(scan.margin)
+                    else f"is infinite (no crossing) on part of them, e.g. at K = {scan.K:.6g}"
+                )
+                lines += [
+                    "",
+                    f"The trade-off in K with the designed filter (a, b): the largest delay margin on the gains' "
+                    f"bounds {best}.",
+                    "",
+                    "![delay margin against K with the designed filter, the design marked](design.png)",
+                ]
         data = {
             "file": str(path),
             "plant": repr(spec["given_system"]),
@@ -371,4 +456,6 @@ def run_design(
         ]
         if isinstance(result, ReflectionDesign):
             written.append(outputs.write_bytes("design.png", _tradeoff_png(result, margin_at_least)))
+        elif not isinstance(scan, str):
+            written.append(outputs.write_bytes("design.png", _filtered_png(result, scan)))
     return tuple(written), result
