@@ -278,3 +278,36 @@ def test_bad_indices_and_division_by_zero_name_the_parameter() -> None:
     with pytest.raises(ParameterError, match=r"^other must be a nonzero divisor"):
         G / 0
     np.testing.assert_allclose((G / 4)(S), 0.25 / (S + 1), rtol=TOL, atol=TOL)
+
+
+def test_descriptor_statespace_of_index_one_becomes_a_delay_lti() -> None:
+    """TDS-CONTROL's Example 2.9 closed loop (E singular, n = 6; algebraic variables feed their own delays): the
+    realisation has 3 states and a D_22 that makes it neutral. Its resolvent against ``(s E - A_0 - A_1 e^{-s})^{-1}``
+    (rounding, amplified by the conditioning of M near w = 0), its abscissa against the StateSpaceTDS route
+    (the determinant of the characteristic matrix, an independent computation) and the manual's -0.2845, its
+    chains against the difference operator ``1 - 0.0326 e^{-s}`` (C_D = ln 0.0326). A singular E was refused."""
+    from _statespace_examples import example_2_9
+
+    sys = example_2_9()
+    L = DelayLTI.from_statespace_tds(sys)
+    assert L.nstates == 3
+    for w in (0.0, 0.7, 3.0, 11.0):
+        s = 1j * w
+        M = s * sys.E - sys.A[0] - sys.A[1] * np.exp(-s)
+        inverse = np.linalg.inv(M)
+        scale = np.max(np.abs(inverse))  # 6e-14 of it measured at w = 0
+        np.testing.assert_allclose(L.frequency_response([w])[:, :, 0], inverse, rtol=0, atol=1e-12 * scale)
+    sa = L.spectral_abscissa()
+    reference = sys.abscissa((-1.0, 0.5, -10.0, 10.0))
+    np.testing.assert_allclose(sa.value, reference.value, rtol=0, atol=1e-7)  # the reference's 2e-8, rounded up
+    np.testing.assert_allclose(sa.value, -0.2845, atol=5e-5)  # the manual's 4 digits
+    np.testing.assert_allclose(sa.chain_value, np.log(0.0326), rtol=1e-3)
+
+
+def test_descriptor_with_a_neutral_term_or_higher_index_is_refused() -> None:
+    A0 = np.array([[-1.0, 1.0], [1.0, 0.0]])
+    E = np.diag([1.0, 0.0])
+    with pytest.raises(ParameterError, match="index one"):  # A_22 = 0: x_2 is not determined (index two)
+        DelayLTI.from_statespace_tds(StateSpaceTDS([A0, 0.1 * np.eye(2)], [0.0, 1.0], E=E))
+    with pytest.raises(ParameterError, match="neutral terms"):
+        DelayLTI.from_statespace_tds(StateSpaceTDS([A0 - np.diag([0.0, 2.0])], [0.0], [0.2 * np.eye(2)], [1.0], E=E))

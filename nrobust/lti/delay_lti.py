@@ -366,7 +366,8 @@ class DelayLTI:
         ``xi = x - sum_k B_k x(t - hB_k)``, so ``xi' = A_0 x + sum_k A_k x(t - hA_k) + B u`` and
         ``x = xi + sum_k B_k x(t - hB_k)``; each distinct delay is one group of channels
         carrying the components of ``x`` that its matrices use. An invertible ``E`` is
-        multiplied out (``E^{-1}``); a singular ``E`` or distributed terms are refused.
+        multiplied out (``E^{-1}``). A singular ``E`` (a descriptor system of index one, without
+        neutral terms) is reduced by :meth:`_from_descriptor`; distributed terms are refused.
         """
         if not isinstance(sys, StateSpaceTDS):
             raise ParameterError("sys", "a StateSpaceTDS", type(sys).__name__)
@@ -374,7 +375,7 @@ class DelayLTI:
             raise ParameterError("sys", "no distributed delay (no finite LFT realisation)", sys.distributed)
         n = sys.n
         if np.linalg.matrix_rank(sys.E) < n:
-            raise ParameterError("sys", "an invertible E (descriptor systems have no realisation in this form)", sys.E)
+            return cls._from_descriptor(sys, B, C, D)
         einv = np.linalg.inv(sys.E)
         b = einv @ (np.eye(n) if B is None else real_array("B", np.atleast_2d(B), ndim=2))
         if b.shape[0] != n:
@@ -405,6 +406,74 @@ class DelayLTI:
         An = np.array(cols_n).T.reshape(n, k)  # x = xi + An w
         S = np.eye(n)[sel].reshape(k, n)  # z = S x
         return cls(a0, b, a0 @ An + Ar, c, S, d, c @ An, np.zeros((k, m)), S @ An, taus)
+
+    @classmethod
+    def _from_descriptor(
+        cls, sys: StateSpaceTDS, B: ArrayLike | None, C: ArrayLike | None, D: ArrayLike | None
+    ) -> DelayLTI:
+        """:meth:`from_statespace_tds` of a singular ``E``: the algebraic part solved for, index one.
+
+        With ``E = U diag(Sigma, 0) V^T`` (SVD, ``Sigma`` of size ``r``) and ``x = V (x_1, x_2)``, the
+        rows ``U^T`` of the equations split into ``Sigma x_1' = A_11 x_1 + A_12 x_2 + G_1 w + B_1 u``
+        and ``0 = A_21 x_1 + A_22 x_2 + G_2 w + B_2 u`` (``w`` the delayed components of ``x``, the
+        channels of :meth:`from_statespace_tds`, ``G = U^T`` their matrices). ``A_22`` invertible
+        (index one): ``x_2 = P_1 x_1 + P_w w + P_u u`` with ``P = -A_22^{-1} (A_21, G_2, B_2)``, so ``x``,
+        ``y`` and the channels ``z = S x`` are affine in ``(x_1, u, w)``: a realisation with ``r``
+        states whose ``D_22 = S V_2 P_w`` makes the loop neutral when an algebraic variable feeds its
+        own delays. Neutral terms ``B_k x'(t - h)`` (the derivative of an algebraic variable) are refused.
+        """
+        n = sys.n
+        if np.any(sys.B != 0):
+            raise ParameterError(
+                "sys",
+                "an invertible E, or a singular E without neutral terms (x'(t - h) of an algebraic variable)",
+                sys.E,
+            )
+        u_, sv, vt = np.linalg.svd(sys.E)
+        r = int(np.sum(sv > n * np.finfo(float).eps * max(float(sv[0]), 1.0)))
+        V = vt.T
+        b = np.eye(n) if B is None else real_array("B", np.atleast_2d(B), ndim=2)
+        if b.shape[0] != n:
+            raise ParameterError("B", f"a real matrix with {n} rows", b.shape)
+        m = b.shape[1]
+        c = np.eye(n) if C is None else real_array("C", np.atleast_2d(C), ndim=2)
+        if c.shape[1] != n:
+            raise ParameterError("C", f"a real matrix with {n} columns", c.shape)
+        d = np.zeros((c.shape[0], m)) if D is None else _matrix("D", np.atleast_2d(D), (c.shape[0], m))
+        a0 = sum((a for a, h in zip(sys.A, sys.hA) if h == 0), np.zeros((n, n)))
+        delayed: dict[float, NDArray[np.float64]] = {}
+        for a, h in zip(sys.A, sys.hA):
+            if h > 0:
+                delayed[float(h)] = delayed.get(float(h), np.zeros((n, n))) + a
+        cols, taus, sel = [], [], []
+        for h in sorted(delayed):
+            for j in np.flatnonzero(np.any(delayed[h] != 0, axis=0)):
+                cols.append(delayed[h][:, j])
+                taus.append(h)
+                sel.append(j)
+        k = len(taus)
+        G = u_.T @ np.array(cols).T.reshape(n, k)
+        At, Bt = u_.T @ a0 @ V, u_.T @ b
+        A22 = At[r:, r:]
+        if np.linalg.cond(A22) > 1e12:
+            raise ParameterError("sys", "a descriptor system of index one (the algebraic block A_22 invertible)", A22)
+        P1, Pw, Pu = (-np.linalg.solve(A22, M) for M in (At[r:, :r], G[r:], Bt[r:]))
+        sigma_inv = 1.0 / sv[:r]
+        V1, V2 = V[:, :r], V[:, r:]
+        X1, Xw, Xu = V1 + V2 @ P1, V2 @ Pw, V2 @ Pu  # x = X1 x_1 + Xw w + Xu u
+        S = np.eye(n)[sel].reshape(k, n)  # z = S x
+        return cls(
+            sigma_inv[:, None] * (At[:r, :r] + At[:r, r:] @ P1),
+            sigma_inv[:, None] * (Bt[:r] + At[:r, r:] @ Pu),
+            sigma_inv[:, None] * (G[:r] + At[:r, r:] @ Pw),
+            c @ X1,
+            S @ X1,
+            d + c @ Xu,
+            c @ Xw,
+            S @ Xu,
+            S @ Xw,
+            taus,
+        )
 
     # ------------------------------------------------------------------ structure
     @property
