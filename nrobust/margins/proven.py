@@ -23,7 +23,15 @@ on ``[a, b]``, with ``L`` summed in balls from the moduli of the terms (point te
 ``|p'|(b) + tau |p|(b)``; kernels ``|c| (|q'|(b) j_m + |q|(b) j_{m+1})``,
 ``j_k = min(M_k, V_k / a)``, ``V_1 = M_0 + b_N V_0``). A segment with
 ``|h(a)| + |h(b)| > L (b - a)``, the values enclosed in balls at the end points, holds
-no zero. The grid is planned in floating point (steps ``0.9 |h| / L``, cheap) and every
+no zero (first order). Second order: ``g = |A|^2 - |B|^2 = Re(D conj(S))``, ``D = A - B``,
+``S = A + B``, has ``|g''| <= M(a, b)``, summed in balls over the pairs of point terms
+(``p(i w) conj(q(i w)) e^{-i w (t - u)}``: only the difference of the delays enters) and
+by the product rule for the kernel parts (``j_2``, ``V_2 = 2 M_1 + b_N^2 V_0``); with
+``g(a)``, ``g(b)`` of one proven sign ``sigma``, ``sigma g`` is at least its chord less
+``M (w - a) (b - w) / 2``, positive on ``[a, b]`` when
+``sqrt|g(a)| + sqrt|g(b)| > sqrt(M / 2) (b - a)``. A segment is accepted by either test.
+The grid is planned in floating point (from each point, the farthest point of a dense
+planning grid at which either test passes on the float values; cheap) and every
 segment is then checked in balls; failures are cut, and stretches where ``|h|`` is small
 become clusters.
 
@@ -81,6 +89,8 @@ __all__ = ["ProvenCrossings", "proven_crossings", "proven_gap", "proven_zero_rad
 # Float planning of the exclusion grid: steps of this fraction of |h| / L, and |h| below
 # which (relative to max |h|) a stretch is handed to the isolation as a cluster.
 _PLAN_FRACTION = 0.9
+# Margin of the planned segments over the exclusion tests on the floating-point values.
+_PLAN_MARGIN = 1.02
 _PLAN_FLOOR = 2e-2
 # Points of the float planning grid per unit of W (and at least this many).
 _PLAN_POINTS = 2000
@@ -201,7 +211,7 @@ def _interval(flint: Any, a: float, b: float) -> Any:
 
 # ============================================================================ term bounds
 class _Moduli:
-    """Proven bounds of a kernel: ``M_k >= int nu^(m+k) |N|`` (``k = 0, 1``), ``V_0`` and ``nu_max``.
+    """Proven bounds of a kernel: ``M_k >= int nu^(m+k) |N|`` (``k = 0, 1, 2``), ``V_0`` and ``nu_max``.
 
     :func:`nrobust.balls.ball_abs_moment` and :func:`nrobust.balls.ball_variation_bound` at
     ``Re s = 0`` (``N`` as represented: the stored spline pieces); ``V_0`` only for moment 0.
@@ -209,7 +219,7 @@ class _Moduli:
 
     def __init__(self, flint: Any, d: DistributedDelay) -> None:
         start, h, _ = d.pieces
-        self.M = [ball_abs_moment(d, 0.0, k) for k in range(2)]
+        self.M = [ball_abs_moment(d, 0.0, k) for k in range(3)]
         self.V0 = ball_variation_bound(d, 0.0) if d.moment == 0 else None
         self.nu_max = flint.arb(0)
         for s0, hv in zip(start, h):
@@ -240,32 +250,145 @@ def _moduli(d: DistributedDelay) -> _Moduli:
     return _Moduli(require_flint(), d)
 
 
-class _Lipschitz:
-    """Proven bound of ``|A'(i w)| + |B'(i w)|`` for ``a <= |w| <= b`` (module notes)."""
+class _Slopes:
+    """Proven bounds on ``a <= |w| <= b`` of ``|h'|`` and ``|g''|`` (module notes), from those of the moduli.
+
+    ``|h'| <= |A'| + |B'|``, and ``g = |A|^2 - |B|^2 = Re(D conj(S))`` with ``D = A - B``,
+    ``S = A + B`` (the cross terms ``A conj(B) - B conj(A)`` are imaginary), so
+    ``|g''| <= |D''| |S| + 2 |D'| |S'| + |D| |S''|``: kernels that enter ``A`` and ``B`` with
+    opposite signs (``+-I_N`` in the paper's loops) cancel in ``S`` instead of being counted twice.
+    For a factor ``P``, ``P_k >= |P^(k)(i w)|`` (``k = 0, 1, 2``) is summed in balls over its terms
+    (coefficients of equal delays, and of equal kernels, combined in balls): a point term
+    ``p(s) e^{-t s}`` gives ``|p|``, ``|p'| + |t| |p|`` and ``|p''| + 2 |t| |p'| + t^2 |p|``
+    (moduli of the polynomials at ``|s| = b``); a kernel term ``q(s) J(s)``,
+    ``J^(k)(s) = (-1)^k int nu^(m+k) N e^{-nu s}``, gives ``|q| j_0``, ``|q'| j_0 + |q| j_1`` and
+    ``|q''| j_0 + 2 |q'| j_1 + |q| j_2`` with ``j_k = min(M_k, V_k / a)``: ``V_0`` the variation
+    bound, ``V_1 = M_0 + nu_max V_0`` and ``V_2 = 2 M_1 + nu_max^2 V_0`` (integration by parts
+    of ``nu N`` and ``nu^2 N``).
+    """
 
     def __init__(self, flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, kernels: AxisKernels) -> None:
         self.flint = flint
-        self.points = [(p, float(t)) for P in (A, B) for p, t in P.point_terms]
-        self.moduli = [_moduli(u) for u in kernels.units]
-        self.terms = [(k, abs(c), q) for side in kernels.terms for k, c, q in side]
-
-    def __call__(self, a: float, b: float) -> Any:
-        flint = self.flint
         arb = flint.arb
+        # per kernel unit: M_k and V_k (None without a variation bound)
+        self.units = []
+        for u in kernels.units:
+            mod = _moduli(u)
+            V = None
+            if mod.V0 is not None:
+                V = [mod.V0, mod.M[0] + mod.nu_max * mod.V0, 2 * mod.M[1] + mod.nu_max**2 * mod.V0]
+            self.units.append((mod.M, V))
+        # per side: coefficients (balls) of the point terms by delay and of the kernel terms by unit
+        points: list[dict[float, list[Any]]] = [{}, {}]
+        units: list[dict[int, list[Any]]] = [{}, {}]
+        for side, P in enumerate((A, B)):
+            for p, t in P.point_terms:
+                _accumulate(points[side], float(t), [_to_acb(flint, c) for c in p])
+            for k, c, q in kernels.terms[side]:
+                _accumulate(units[side], k, [_to_acb(flint, c) * _to_acb(flint, x) for x in q])
+        self.degree = 0
+        self.factors = {}
+        for name, sign in (("A", 0), ("B", 0), ("D", -1), ("S", 1)):
+            pts, uts = dict(points[name == "B"]), dict(units[name == "B"])
+            if sign:
+                for t, cs in points[1].items():
+                    _accumulate(pts, t, [sign * c for c in cs])
+                for k, cs in units[1].items():
+                    _accumulate(uts, k, [sign * c for c in cs])
+            self.factors[name] = (
+                [(arb(t), _derivative_moduli(cs)) for t, cs in pts.items()],
+                [(k, _derivative_moduli(cs)) for k, cs in uts.items()],
+            )
+            self.degree = max([self.degree] + [len(cs) for cs in (*pts.values(), *uts.values())])
+
+    def moduli_bounds(self, name: str, a: float, b: float) -> tuple[list[tuple[Any, list[Any]]], list[Any]]:
+        """Bounds on ``a <= |w| <= b`` of the factor ``name`` (``"A"``, ``"B"``, ``"D"``, ``"S"``): its point
+        terms ``(t, [|p|, |p'|, |p''|])`` (delays ``t >= 0``) and ``[K_0, K_1, K_2]`` of its kernel terms."""
+        arb = self.flint.arb
         r = arb(max(abs(a), abs(b)))
+        powers = [arb(1)]
+        for _ in range(self.degree):
+            powers.append(powers[-1] * r)
         r_min = 0.0 if a <= 0.0 <= b else min(abs(a), abs(b))
-        out = arb(0)
-        for p, t in self.points:
-            out += _abs_poly(flint, p, r, 1) + arb(t) * _abs_poly(flint, p, r, 0)
-        for k, c, q in self.terms:
-            mod = self.moduli[k]
-            j0, j1 = mod.M[0], mod.M[1]
-            if mod.V0 is not None and r_min > 0.0:
-                v1 = mod.M[0] + mod.nu_max * mod.V0
-                j0 = j0.min(mod.V0 / arb(r_min))
-                j1 = j1.min(v1 / arb(r_min))
-            out += arb(c) * (_abs_poly(flint, q, r, 1) * j0 + _abs_poly(flint, q, r, 0) * j1)
-        return out
+        pts, uts = self.factors[name]
+        points = [(t, _poly_jet(arb, p, powers)) for t, p in pts]
+        d = [arb(0), arb(0), arb(0)]
+        for k, q in uts:
+            M, V = self.units[k]
+            j = M if V is None or r_min == 0.0 else [m.min(v / r_min) for m, v in zip(M, V)]
+            q0, q1, q2 = _poly_jet(arb, q, powers)
+            d[0] += q0 * j[0]
+            d[1] += q1 * j[0] + q0 * j[1]
+            d[2] += q2 * j[0] + 2 * q1 * j[1] + q0 * j[2]
+        return points, d
+
+    def total(self, name: str, a: float, b: float) -> list[Any]:
+        """``[P_0, P_1, P_2]``: bounds of ``|P^(k)(i w)|`` of the factor ``name`` on ``a <= |w| <= b``."""
+        points, d = self.moduli_bounds(name, a, b)
+        return _sum_jets(points, d)
+
+    def __call__(self, a: float, b: float) -> tuple[Any, Any]:
+        """``(L, M)``: ``|h'| <= L`` and ``|g''| <= M`` on ``a <= |w| <= b``."""
+        arb = self.flint.arb
+        L = self.total("A", a, b)[1] + self.total("B", a, b)[1]
+        d_points, d_kernels = self.moduli_bounds("D", a, b)
+        s_points, s_kernels = self.moduli_bounds("S", a, b)
+        M = arb(0)
+        for t, p in d_points:
+            for u, q in s_points:  # p(i w) conj(q(i w)) e^{-i w (t - u)}
+                r = _product_jet(p, q)
+                gap = abs(t - u)
+                M += r[2] + 2 * gap * r[1] + gap * gap * r[0]
+        zero = [arb(0)] * 3
+        d_total, s_total = _sum_jets(d_points, zero), _sum_jets(s_points, zero)
+        for x, y in ((d_total, s_kernels), (d_kernels, s_total), (d_kernels, s_kernels)):
+            M += _product_jet(x, y)[2]
+        return L, M
+
+
+def _derivative_moduli(coefs: list[Any]) -> list[list[tuple[int, Any]]]:
+    """``[[(j - k, |c_j| (j)_k) for j >= k] for k = 0, 1, 2]``: the moduli of the coefficients of ``p^(k)``."""
+    return [[(j - k, abs(c) * math.perm(j, k)) for j, c in enumerate(coefs) if j >= k] for k in range(3)]
+
+
+def _poly_jet(arb: Any, moduli: list[list[tuple[int, Any]]], powers: list[Any]) -> list[Any]:
+    """Bounds ``[|p|, |p'|, |p''|]`` at ``|s| <= r`` (``powers[e] = r^e``) from :func:`_derivative_moduli`."""
+    out = []
+    for terms in moduli:
+        acc = arb(0)
+        for e, m in terms:
+            acc += m * powers[e]
+        out.append(acc)
+    return out
+
+
+def _sum_jets(points: list[tuple[Any, list[Any]]], kernels: list[Any]) -> list[Any]:
+    """Bounds of ``|P|``, ``|P'|``, ``|P''|``: ``P = sum p(s) e^{-t s}`` (``points``: ``(t, [|p|, |p'|, |p''|])``,
+    ``t >= 0``) plus terms bounded by ``kernels``."""
+    out = list(kernels)
+    for T, (p0, p1, p2) in points:
+        out[0] += p0
+        out[1] += p1 + T * p0
+        out[2] += p2 + 2 * T * p1 + T * T * p0
+    return out
+
+
+def _product_jet(x: list[Any], y: list[Any]) -> list[Any]:
+    """Bounds ``[|f g|, |(f g)'|, |(f g)''|]`` from those of ``f`` (``x``) and ``g`` (``y``): the product rule."""
+    return [x[0] * y[0], x[1] * y[0] + x[0] * y[1], x[2] * y[0] + 2 * x[1] * y[1] + x[0] * y[2]]
+
+
+def _accumulate(terms: dict, key: Any, coefs: list[Any]) -> None:
+    """Add the ball coefficients ``coefs`` to ``terms[key]`` (into a new list: copies of ``terms`` share the old)."""
+    old = terms.get(key)
+    if old is None:
+        terms[key] = list(coefs)
+        return
+    n = max(len(old), len(coefs))
+    zero = 0 * coefs[0] if coefs else 0 * old[0]
+    old = old + [zero] * (n - len(old))
+    new = list(coefs) + [zero] * (n - len(coefs))
+    terms[key] = [x + y for x, y in zip(old, new)]
 
 
 # ============================================================================ frequency bound
@@ -492,21 +615,32 @@ def _exact_route(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, real: bool)
 
 
 # ============================================================================ ball route
-def _blocks(flint: Any, lip: _Lipschitz, lo: float, hi: float) -> tuple[NDArray, list[Any]]:
-    """Block edges of ``[lo, hi]`` and the proven Lipschitz bound on each block."""
+def _blocks(flint: Any, slopes: _Slopes, lo: float, hi: float) -> tuple[NDArray, list[Any], list[Any]]:
+    """Block edges of ``[lo, hi]`` and the proven bounds ``L >= |h'|`` and ``M >= |g''|`` on each block."""
     edges = np.linspace(lo, hi, _BLOCKS + 1)
     edges[0], edges[-1] = lo, hi
-    return edges, [lip(float(edges[k]), float(edges[k + 1])) for k in range(_BLOCKS)]
+    both = [slopes(float(edges[k]), float(edges[k + 1])) for k in range(_BLOCKS)]
+    return edges, [L for L, _ in both], [M for _, M in both]
 
 
 def _plan(
-    A: QuasiPolynomial, B: QuasiPolynomial, kernels: AxisKernels, edges: NDArray, bounds: NDArray, max_evals: int
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    kernels: AxisKernels,
+    edges: NDArray,
+    lips: NDArray,
+    curvs: NDArray,
+    max_evals: int,
 ) -> NDArray:
-    """Float planning of the exclusion grid: steps ``0.9 |h| / L``; small stretches of ``|h|`` jumped over.
+    """Float planning of the exclusion grid; small stretches of ``|h|`` jumped over.
 
-    A heuristic only: every segment is then checked in balls. The planning grid is
-    checked against ``_PLAN_PER_EVAL * max_evals`` before it is allocated. ``h`` is summed
-    with the kernels shared by ``A`` and ``B`` evaluated once (``kernels``).
+    From each point, the segment reaches the farthest point of the planning grid at which
+    either exclusion test (:func:`_excluded`) passes on the floating-point values, by the
+    margin ``_PLAN_MARGIN``; where none does, steps ``0.9 |h| / L`` (each passes the first
+    test) lead to the next point of the planning grid. A heuristic only: every segment is
+    then checked in balls. The planning grid is checked against ``_PLAN_PER_EVAL * max_evals``
+    before it is allocated. ``h`` is summed with the kernels shared by ``A`` and ``B``
+    evaluated once (``kernels``).
     """
     lo, hi = float(edges[0]), float(edges[-1])
     n = max(_PLAN_POINTS, _PLAN_DENSITY * (hi - lo) * max(1.0, A.max_delay, B.max_delay))
@@ -519,59 +653,115 @@ def _plan(
     w = np.linspace(lo, hi, n)
     a, b, _, _ = AxisFunction(A, B, n, kernels).factors(w)
     h = np.abs(a) - np.abs(b)
+    g = np.abs(a) ** 2 - np.abs(b) ** 2
     floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
-    small = np.abs(h) < floor
+    block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, lips.size - 1)
     # the walk below reads single entries: Python lists of the same doubles (the same arithmetic)
-    lip = bounds[np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bounds.size - 1)].tolist()
+    small_at = (np.abs(h) < floor).tolist()
+    w_at, h_at, root_at, sign_at = w.tolist(), np.abs(h).tolist(), np.sqrt(np.abs(g)).tolist(), np.sign(g).tolist()
+    block_at, lip_at, curv_at = block.tolist(), lips.tolist(), np.sqrt(0.5 * curvs).tolist()
+
+    def passes(i: int, j: int) -> bool:
+        """Either exclusion test on ``[w_i, w_j]`` with the floating-point values, by ``_PLAN_MARGIN``."""
+        width = _PLAN_MARGIN * (w_at[j] - w_at[i])
+        ka, kb = block_at[i], block_at[j]
+        if h_at[i] + h_at[j] > max(lip_at[ka : kb + 1]) * width:
+            return True
+        return sign_at[i] == sign_at[j] != 0 and root_at[i] + root_at[j] > max(curv_at[ka : kb + 1]) * width
+
     step_min = float((w[1] - w[0]) * 1e-3)
-    size = w.size
-    small_at, w_at, h_at = small.tolist(), w.tolist(), np.abs(h).tolist()
     pts = [lo]
-    x, k = lo, 0
-    while x < hi:
-        while k + 1 < size and w_at[k + 1] <= x:
-            k += 1
-        nxt = min(k + 1, size - 1)
-        if small_at[k] or small_at[nxt]:  # jump over the small stretch: it becomes a cluster
-            j = nxt
-            while j < size - 1 and small_at[j]:
+    i, stride = 0, 16
+    while i < n - 1:
+        if small_at[i] or small_at[i + 1]:  # jump over the small stretch: it becomes a cluster
+            j = i + 1
+            while j < n - 1 and small_at[j]:
                 j += 1
-            x, k = w_at[j], j
-            pts.append(x)
+            pts.append(w_at[j])
+            i = j
             continue
-        local = min(h_at[k], h_at[nxt])
-        L = max(lip[k], lip[nxt])
-        x = min(x + max(_PLAN_FRACTION * local / L if L > 0.0 else math.inf, step_min), hi)
-        pts.append(x)
+        if passes(i, i + 1):  # the farthest passing point: doubling, then bisection
+            good, bad = i + 1, None
+            while bad is None and good < n - 1:
+                j = min(i + stride, n - 1)
+                if passes(i, j):
+                    good, stride = j, 2 * stride
+                else:
+                    bad = j
+            while bad is not None and bad - good > 1:
+                j = (good + bad) // 2
+                good, bad = (j, bad) if passes(i, j) else (good, j)
+            stride = max(2, good - i)
+            i = good
+            pts.append(w_at[i])
+            continue
+        # no point of the planning grid is reached: steps 0.9 |h| / L to the next one
+        x, end = w_at[i], w_at[i + 1]
+        L = max(lip_at[block_at[i] : block_at[i + 1] + 1])
+        local = min(h_at[i], h_at[i + 1])
+        while x < end:
+            x = min(x + max(_PLAN_FRACTION * local / L if L > 0.0 else math.inf, step_min), end)
+            pts.append(x)
+        i += 1
     return np.unique(np.asarray(pts))
+
+
+def _excluded(flint: Any, a: float, b: float, pa: tuple[Any, Any], pb: tuple[Any, Any], L: Any, M: Any) -> bool:
+    """Whether ``[a, b]`` is proven free of zeros of ``g`` from ``(h, g)`` balls at its ends (module notes).
+
+    First order: ``|h(a)| + |h(b)| > L (b - a)`` with ``|h'| <= L``. Second order: ``g(a)``,
+    ``g(b)`` of one proven sign and ``sqrt|g(a)| + sqrt|g(b)| > sqrt(M / 2) (b - a)`` with
+    ``|g''| <= M``: ``sigma g`` (``sigma`` that sign) is at least its chord less
+    ``M (w - a) (b - w) / 2``, positive on ``[a, b]`` under that condition.
+    """
+    width = flint.arb(b) - flint.arb(a)
+    if pa[0].abs_lower() + pb[0].abs_lower() > L * width:
+        return True
+    ga, gb = pa[1], pb[1]
+    if not ((ga > 0 and gb > 0) or (ga < 0 and gb < 0)):
+        return False
+    return bool(ga.abs_lower().sqrt() + gb.abs_lower().sqrt() > (M / 2).sqrt() * width)
+
+
+def _hg(values: list[tuple[Any, Any]]) -> list[tuple[Any, Any]]:
+    """``(h, g) = (|A| - |B|, |A|^2 - |B|^2)`` balls from ``(A, B)`` balls."""
+    return [(abs(x) - abs(y), _sq(x) - _sq(y)) for x, y in values]
 
 
 def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[list, list]:
     """Zeros ``(ball, slope)`` and unresolved intervals ``(a, b, ball of w*)`` of ``g`` on ``[lo, hi]``."""
     flint = axis.flint
-    arb = flint.arb
-    lip = _Lipschitz(flint, A, B, axis.kernels)
-    edges, block_bounds = _blocks(flint, lip, lo, hi)
-    grid = _plan(A, B, axis.kernels, edges, np.array([_hi(x) for x in block_bounds]), axis.max_evals)
+    slopes = _Slopes(flint, A, B, axis.kernels)
+    edges, lips, curvs = _blocks(flint, slopes, lo, hi)
+    grid = _plan(
+        A,
+        B,
+        axis.kernels,
+        edges,
+        np.array([_hi(x) for x in lips]),
+        np.array([_hi(x) for x in curvs]),
+        axis.max_evals,
+    )
 
-    def bound(a: float, b: float) -> Any:
-        ka = min(int(np.searchsorted(edges, a, side="right")) - 1, _BLOCKS - 1)
-        kb = min(int(np.searchsorted(edges, b, side="left")) - 1, _BLOCKS - 1)
-        out = block_bounds[max(ka, 0)]
-        for k in range(max(ka, 0) + 1, max(kb, 0) + 1):
-            out = out.max(block_bounds[k])
-        return out
+    def bound(a: float, b: float) -> tuple[Any, Any]:
+        ka = max(min(int(np.searchsorted(edges, a, side="right")) - 1, _BLOCKS - 1), 0)
+        kb = max(min(int(np.searchsorted(edges, b, side="left")) - 1, _BLOCKS - 1), 0)
+        L, M = lips[ka], curvs[ka]
+        for k in range(ka + 1, kb + 1):
+            L, M = L.max(lips[k]), M.max(curvs[k])
+        return L, M
 
-    hv = [abs(x) - abs(y) for x, y in axis.values(grid.tolist())]
+    hv = _hg(axis.values(grid.tolist()))
     todo = [(float(grid[i]), float(grid[i + 1]), hv[i], hv[i + 1]) for i in range(grid.size - 1)]
     failed: list[tuple[float, float, Any, Any]] = []
     for _ in range(_CUT_ROUNDS):
         retry: list[tuple[float, float, Any, Any]] = []
         for a, b, ha, hb in todo:
-            need = bound(a, b) * (arb(b) - arb(a))
-            have = ha.abs_lower() + hb.abs_lower()
-            if have > need:
+            L, M = bound(a, b)
+            if _excluded(flint, a, b, ha, hb, L, M):
                 continue
+            need = L * (b - a)
+            have = ha[0].abs_lower() + hb[0].abs_lower()
             if float(need.upper()) > 64.0 * float(have.lower()) or b - a < _MIN_WIDTH * max(1.0, hi):
                 failed.append((a, b, ha, hb))
             else:
@@ -580,7 +770,7 @@ def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiP
             todo = []
             break
         inner = [a + (b - a) * k / _CUT for a, b, _, _ in retry for k in range(1, _CUT)]
-        vin = [abs(x) - abs(y) for x, y in axis.values(inner)]
+        vin = _hg(axis.values(inner))
         todo = []
         for i, (a, b, ha, hb) in enumerate(retry):
             pts = [a, *inner[i * (_CUT - 1) : (i + 1) * (_CUT - 1)], b]
@@ -596,7 +786,7 @@ def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiP
             clusters.append([a, b, ha, hb])
     zeros: list[tuple[Any, int]] = []
     unresolved: list[tuple[float, float, Any]] = []
-    work = [(a, b, _sign(ha), _sign(hb)) for a, b, ha, hb in clusters]
+    work = [(a, b, _sign(ha[0]), _sign(hb[0])) for a, b, ha, hb in clusters]
     for _ in range(_MAX_ROUNDS):
         if not work:
             break
