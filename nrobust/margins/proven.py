@@ -523,7 +523,8 @@ class _Axis:
 
 
 def _sq(z: Any) -> Any:
-    return z.real**2 + z.imag**2
+    """``|z|^2`` (products: ``x**2`` of a ball holding 0 is not finite in python-flint)."""
+    return z.real * z.real + z.imag * z.imag
 
 
 # ============================================================================ delays
