@@ -76,6 +76,7 @@ from nrobust.margins.crossing import crossing_frequencies
 from nrobust.margins.margin import delay_margin
 from nrobust.margins.proven import proven_crossings
 from nrobust.matrix_difference import MatrixDifferenceOperator
+from nrobust.plots.bode import bode_response
 from nrobust.plots.nyquist import nyquist_response
 from nrobust.plots.rootlocus import root_locus_response
 from nrobust.plots.rootmap import hidden_unstable_roots, root_map_response
@@ -178,6 +179,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             sweep, tmp / "s.csv", tmp / "s.json", tmp / "s.png", {"delta_star": (math.inf,)}, (0.5,)
         ),
         "NyquistResponse": nyquist_response(A, B, n_freq=101),  # retarded loop: principal bound -inf
+        "BodeResponse": bode_response(2.0 * delay(0.1) * tf([1.0], [1.0, 1.0])),
         "RootLocusData": root_locus_response(root_family, [0.5, 1.0], (-3, 1, -10, 10)),
         # the transport line's U = -rho u(t, 1) with delta = 0.01: its unstable chain is above |Im s| = 60
         "HiddenUnstableRoots": hidden_unstable_roots(
