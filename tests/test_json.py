@@ -284,6 +284,7 @@ NAMES = [
     "ReportFiles",
     "SweepFileResult",
     "NyquistResponse",
+    "BodeResponse",
     "RootLocusData",
     "HiddenUnstableRoots",
     "RootMapData",
