@@ -374,10 +374,7 @@ class DelayLTI:
         if sys.distributed:
             raise ParameterError("sys", "no distributed delay (no finite LFT realisation)", sys.distributed)
         n = sys.n
-        if np.linalg.matrix_rank(sys.E) < n:
-            return cls._from_descriptor(sys, B, C, D)
-        einv = np.linalg.inv(sys.E)
-        b = einv @ (np.eye(n) if B is None else real_array("B", np.atleast_2d(B), ndim=2))
+        b = np.eye(n) if B is None else real_array("B", np.atleast_2d(B), ndim=2)
         if b.shape[0] != n:
             raise ParameterError("B", f"a real matrix with {n} rows", b.shape)
         m = b.shape[1]
@@ -385,6 +382,10 @@ class DelayLTI:
         if c.shape[1] != n:
             raise ParameterError("C", f"a real matrix with {n} columns", c.shape)
         d = np.zeros((c.shape[0], m)) if D is None else _matrix("D", np.atleast_2d(D), (c.shape[0], m))
+        if np.linalg.matrix_rank(sys.E) < n:
+            return cls._from_descriptor(sys, b, c, d)
+        einv = np.linalg.inv(sys.E)
+        b = einv @ b
         a0 = sum((einv @ a for a, h in zip(sys.A, sys.hA) if h == 0), np.zeros((n, n)))
         retarded: dict[float, NDArray[np.float64]] = {}
         neutral: dict[float, NDArray[np.float64]] = {}
@@ -409,7 +410,7 @@ class DelayLTI:
 
     @classmethod
     def _from_descriptor(
-        cls, sys: StateSpaceTDS, B: ArrayLike | None, C: ArrayLike | None, D: ArrayLike | None
+        cls, sys: StateSpaceTDS, b: NDArray[np.float64], c: NDArray[np.float64], d: NDArray[np.float64]
     ) -> DelayLTI:
         """:meth:`from_statespace_tds` of a singular ``E``: the algebraic part solved for, index one.
 
@@ -421,6 +422,7 @@ class DelayLTI:
         ``y`` and the channels ``z = S x`` are affine in ``(x_1, u, w)``: a realisation with ``r``
         states whose ``D_22 = S V_2 P_w`` makes the loop neutral when an algebraic variable feeds its
         own delays. Neutral terms ``B_k x'(t - h)`` (the derivative of an algebraic variable) are refused.
+        ``b``, ``c``, ``d``: the input and output matrices, checked.
         """
         n = sys.n
         if np.any(sys.B != 0):
@@ -432,14 +434,6 @@ class DelayLTI:
         u_, sv, vt = np.linalg.svd(sys.E)
         r = int(np.sum(sv > n * np.finfo(float).eps * max(float(sv[0]), 1.0)))
         V = vt.T
-        b = np.eye(n) if B is None else real_array("B", np.atleast_2d(B), ndim=2)
-        if b.shape[0] != n:
-            raise ParameterError("B", f"a real matrix with {n} rows", b.shape)
-        m = b.shape[1]
-        c = np.eye(n) if C is None else real_array("C", np.atleast_2d(C), ndim=2)
-        if c.shape[1] != n:
-            raise ParameterError("C", f"a real matrix with {n} columns", c.shape)
-        d = np.zeros((c.shape[0], m)) if D is None else _matrix("D", np.atleast_2d(D), (c.shape[0], m))
         a0 = sum((a for a, h in zip(sys.A, sys.hA) if h == 0), np.zeros((n, n)))
         delayed: dict[float, NDArray[np.float64]] = {}
         for a, h in zip(sys.A, sys.hA):

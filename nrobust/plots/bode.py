@@ -97,17 +97,17 @@ class BodeResponse:
         m = self.margins
         lo, hi = float(self.omega[0]), float(self.omega[-1])
         if m is not None:
-            for k, (w, pm) in enumerate(zip(m.pm_frequencies, m.phase_margins)):
-                if lo <= w <= hi:
-                    label = f"PM {pm:.4g} deg at w = {w:.4g}" if k < _LABELS else None
-                    for ax in (ax_mag, ax_ph):
-                        lines["gain_crossovers"].append(ax.axvline(w, color="C2", lw=0.9, ls="--", label=label))
-                        label = None
-            for k, (w, gm) in enumerate(zip(m.gm_frequencies, m.gain_margins)):
-                if lo <= w <= hi:
-                    label = f"GM {gm:.4g} at w = {w:.4g}" if k < _LABELS else None
-                    for ax in (ax_mag, ax_ph):
-                        lines["phase_crossovers"].append(ax.axvline(w, color="C3", lw=0.9, ls=":", label=label))
+            marks = (
+                ("gain_crossovers", m.pm_frequencies, m.phase_margins, "PM {:.4g} deg", ("C2", "--")),
+                ("phase_crossovers", m.gm_frequencies, m.gain_margins, "GM {:.4g}", ("C3", ":")),
+            )
+            for key, freqs, values, text, (color, style) in marks:
+                for k, (w, v) in enumerate(zip(freqs, values)):
+                    if not lo <= w <= hi:
+                        continue
+                    label = f"{text.format(v)} at w = {w:.4g}" if k < _LABELS else None
+                    for ax in (ax_mag, ax_ph):  # the label once, on the magnitude panel's legend
+                        lines[key].append(ax.axvline(w, color=color, lw=0.9, ls=style, label=label))
                         label = None
         ax_mag.set_ylabel("|L(i w)| (dB)")
         ax_ph.set_ylabel("arg L(i w) (deg)")

@@ -250,6 +250,13 @@ def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> by
     finite = np.asarray(d.envelope)[np.isfinite(d.envelope)]
     if finite.size:
         ax.set_ylim(0.0, 1.2 * float(np.max(finite)))
+    return _png(fig, ax)
+
+
+def _png(fig: Any, ax: Any) -> bytes:
+    """The trade-off figure ``fig`` (its legend on ``ax``) as PNG bytes, then closed."""
+    import matplotlib.pyplot as plt
+
     ax.legend(fontsize="small")
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.95)
     buf = io.BytesIO()
@@ -310,12 +317,7 @@ def _filtered_png(result: FilteredDesign, scan: GainDesign) -> bytes:
             lw=0,
             label="no crossing: delta* infinite",
         )
-    ax.legend(fontsize="small")
-    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.95)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    return _png(fig, ax)
 
 
 def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
