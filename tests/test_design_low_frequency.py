@@ -18,6 +18,7 @@ import pytest
 
 from nrobust import QuasiPolynomial
 from nrobust.design.gain import AffineLoop, best_margin
+from nrobust.errors import CertificationError
 from nrobust.margins import delay_margin
 
 mp.mp.dps = 30
@@ -125,3 +126,19 @@ def test_optimum_where_s_zero_becomes_a_root_at_a_grid_gain() -> None:
     # the grid gains but K_0 itself, where the oracle cannot decide (a double zero of |A|^2 - |B|^2 at w = 0)
     grid = [K for K in np.linspace(-1.0, 1.0, 21) if abs(K - 0.094) > 1e-6]
     assert design.margin >= max(delay_margin(loop.A(K), loop.B(K)).margin for K in grid)
+
+
+def test_a_margin_without_bound_at_a_common_zero_of_a_and_b_is_refused() -> None:
+    """``A = 0.5 + s - 0.5 e^{-s}`` (``A(0) = 0``), ``B = (0.25 + 0.375 K) e^{-s}``: at ``K_0 = -2/3``
+    ``s = 0`` is a zero of both. At ``K = K_0 + h`` the crossing is where ``|A(i w)| ~ 1.5 w`` meets
+    ``|B| = 0.375 h``, ``w = h/4``, with the phase ``arg(-B/A) ~ pi/2``: ``delta* ~ (pi/2)/w = 2 pi/h``, without
+    bound. best_margin returned margin 0 at ``K_0`` (its limit formula gave inf, the certificate 0, and
+    ``|0 - inf| <= inf`` passed its check)."""
+    loop, _, _ = _loop(1.0, 1.0, 1.0, 0.5, -0.5, 0.25, 0.375, 0.0, False)
+    with pytest.raises(CertificationError, match=r"grows without bound toward K = -0\.66666666"):
+        best_margin(loop, (-1.0, 1.0))
+    # the oracle: the margin just above K_0 against 2 pi / h, growing past any grid value
+    for h in (1e-2, 1e-3):
+        m = delay_margin(loop.A(-2.0 / 3.0 + h), loop.B(-2.0 / 3.0 + h)).margin
+        np.testing.assert_allclose(m, 2.0 * np.pi / h, rtol=0.01)  # first order in h: 1.3e-3 measured at 1e-2
+    assert best_margin(loop, (-0.6, 1.0)).margin > 90.0  # bounds that leave K_0 out: a design (93.4 at -0.6)

@@ -2548,6 +2548,11 @@ def best_margin(
     finite = env
     solved = [_solve_candidate(curves, i, finite) for i in _candidates(finite)]
     K, value, kind, K_br, v_br = max(solved, key=lambda c: c[1])
+    if not np.isfinite(value):  # a supremum the equations put at infinity (the check below cannot compare it)
+        _unbounded_at_zero(curves.loop, K)
+        raise CertificationError(
+            f"best_margin: the {kind} at K = {K:.15g} gives delta* = {value} by its equations, not a finite optimum"
+        )
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     tol = 1e-9 * max(value, 1e-300) + (cert.accuracy or 0.0)
     if not abs(cert.margin - value) <= tol:  # a NaN from the equations fails too
@@ -2559,6 +2564,21 @@ def best_margin(
     return GainDesign(
         K, "margin", cert.margin, cert.margin, -sa.value, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan
     )
+
+
+def _unbounded_at_zero(loop: _Family, K: float) -> None:
+    """Raise when ``s = 0`` is a zero of both factors at ``K`` (to rounding): the delay margin then grows without
+    bound toward ``K`` (the limit ``B'(0)/B(0) - A'(0)/A(0)`` of the crossing delay at the end of nominal
+    stability has ``A(0) = 0``), and no gain has the largest margin."""
+    zero = np.zeros(1)
+    A, B = loop.A(K), loop.B(K)
+    size = max((float(np.max(np.abs(p))) for P in (A, B) for p, _ in P.point_terms), default=1.0)
+    if abs(complex(A(zero)[0])) <= 1e-12 * size and abs(complex(B(zero)[0])) <= 1e-9 * size:
+        raise CertificationError(
+            f"best_margin: the delay margin grows without bound toward K = {K:.15g}, where s = 0 is a zero of both "
+            "A and B (the nominal loop has a root at s = 0 for every delay there): no gain has the largest margin; "
+            "bounds that leave that gain out give one"
+        )
 
 
 _Candidate = tuple[float, float, str, GainEnd | None, SpectralAbscissa]
