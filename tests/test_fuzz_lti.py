@@ -325,6 +325,11 @@ def test_allmargin_matches_python_control_on_the_pade_model(loop: tuple[list[flo
 
     # well-conditioned crossings only: |L| and arg L cross 1 and -180 deg transversally
     assume(all(abs(slopes(w)[1]) > 1e-3 * (1 + w) for w in wc[wc * tau < Y_MAX + Y_EDGE]))
+    # and those found here (|L| touching 1, e.g. 1.25 s/(s^2 + 1.25 s + 0.453125) at w^2 = 0.453125, is a tangency
+    # that allmargin lists with its accuracy and python-control's roots miss)
+    assume(
+        all(abs(slopes(w)[1]) > 1e-3 * (1 + w) for w in got.pm_frequencies[got.pm_frequencies * tau < Y_MAX + Y_EDGE])
+    )
     assume(all(abs(slopes(w)[2]) > 1e-3 * (1 + w) for w in w180[(w180 > 0) & (w180 * tau < Y_MAX + Y_EDGE)]))
 
     # gain crossovers and phase margins: the model's are the loop's (all-pass Padé), PM off by its phase error
