@@ -20,6 +20,7 @@ from nrobust import QuasiPolynomial
 from nrobust.design.gain import AffineLoop, best_margin
 from nrobust.errors import CertificationError
 from nrobust.margins import delay_margin
+from nrobust.roots import spectral_abscissa
 
 mp.mp.dps = 30
 
@@ -142,3 +143,24 @@ def test_a_margin_without_bound_at_a_common_zero_of_a_and_b_is_refused() -> None
         m = delay_margin(loop.A(-2.0 / 3.0 + h), loop.B(-2.0 / 3.0 + h)).margin
         np.testing.assert_allclose(m, 2.0 * np.pi / h, rtol=0.01)  # first order in h: 1.3e-3 measured at 1e-2
     assert best_margin(loop, (-0.6, 1.0)).margin > 90.0  # bounds that leave K_0 out: a design (93.4 at -0.6)
+
+
+def test_no_claim_of_instability_everywhere_when_a_gain_is_stable() -> None:
+    """``A = 0.625 + s + e^{-2.625 s}``, ``B = -0.5 e^{-0.375 s} + p e^{-0.5 s}``: stable without delay for
+    ``p`` above about 0.498 (the abscissa -0.069 at ``p = 1``: below, and the margin 0.509 there), but the scan
+    misses the root that crosses the axis there, and best_margin claimed "certified: F(s; 0, p) has zeros with
+    Re s >= 0 for every p in [-1, 1]". Now it refuses without that claim."""
+    loop = AffineLoop(
+        QuasiPolynomial([[0.625, 1.0], [1.0]], [0.0, 2.625]),
+        QuasiPolynomial([[0.0]], [0.0]),
+        QuasiPolynomial([[-0.5]], [0.375]),
+        QuasiPolynomial([[1.0]], [0.5]),
+    )
+    # the rightmost root at p = 1, refined by mpmath on F written by hand: in Re s < 0
+    sa = spectral_abscissa(loop.A(1.0) + loop.B(1.0))
+    F = lambda s: 0.625 + s + mp.exp(-2.625 * s) - 0.5 * mp.exp(-0.375 * s) + mp.exp(-0.5 * s)  # noqa: E731
+    root = mp.findroot(F, mp.mpc(sa.root))
+    np.testing.assert_allclose(float(root.real), sa.value, rtol=1e-10)
+    assert sa.value < -0.06
+    with pytest.raises(CertificationError, match=r"stable at p = "):
+        best_margin(loop, (-1.0, 1.0))

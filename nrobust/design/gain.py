@@ -1405,6 +1405,23 @@ def _nominal_mask(curves: _Curves) -> NDArray[np.bool_]:
     return mask
 
 
+#: Parameters (evenly spread, ends included) at which a refusal "unstable without delay everywhere" is checked.
+_UNSTABLE_CHECKS = 17
+
+
+def _check_unstable_everywhere(curves: _Curves) -> None:
+    """Before the claim that ``F(.; 0, p)`` is unstable for every ``p`` of the bounds (a :func:`_nominal_mask`
+    with no stable interval): the nominal verdict at :data:`_UNSTABLE_CHECKS` parameters, each certified; a stable
+    one means a stability edge was missed by the scan, and the claim is not made."""
+    for p in np.linspace(curves.K_lo, curves.K_hi, _UNSTABLE_CHECKS):
+        if curves.loop.nominally_stable(float(p)):
+            raise CertificationError(
+                f"best_margin: the loop without delay is stable at p = {float(p):.12g}, but the scan found no gain "
+                "where its stability changes (a root crossing the axis at delta = 0 was missed); narrower bounds "
+                "around that gain may give a design"
+            )
+
+
 def _candidates(env: NDArray) -> list[int]:
     """Grid indices of the local maxima of the sampled envelope near its top."""
     top = float(np.max(env))
@@ -2523,6 +2540,7 @@ def best_margin(
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     mask = _nominal_mask(curves)
     if not mask.any():
+        _check_unstable_everywhere(curves)
         raise ParameterError(
             "bounds",
             "parameters of which some give a stable loop without delay (certified: F(s; 0, p) has zeros with "
