@@ -58,7 +58,9 @@ def test_best_margin_beats_a_grid_of_certified_margins(loop: AffineLoop) -> None
         assert all(_margin_or_none(loop, K) in (0.0, None) for K in np.linspace(-1.0, 1.0, 21))
         return
     except CertificationError as exc:
-        # a refusal only where the margin has no largest value: it grows without bound toward the gain named
+        if "cannot decide" in str(exc):  # an honest refusal: |A|^2 - |B|^2 flat within rounding (a multiple zero)
+            return
+        # otherwise a refusal only where the margin has no largest value: it grows without bound toward the gain
         found = re.search(r"grows without bound toward K = (\S+),", str(exc))
         assert found is not None, str(exc)
         K0 = float(found.group(1))
