@@ -189,7 +189,10 @@ def test_a_neutral_loop_gets_its_gain_floor_from_its_high_frequency_gain():
     floor is 1.25 times that gain and the refusal of a given floor states the gain."""
     L = control.tf([0.5, 1.0], [1.0, 2.0]) * delay(1.0)
     m = allmargin(L)
-    np.testing.assert_allclose(m.gain_floor, 1.25 * 0.5, rtol=2e-3)  # the bisection's 0.1 %, rounded up
+    np.testing.assert_allclose(
+        m.gain_floor, 1.25 * 0.5 * (1 + 5e-4), rtol=5e-4
+    )  # above by at most the bisection's 0.1 %
+    assert m.gain_floor >= 1.25 * 0.5
     w = np.asarray(m.gm_frequencies, dtype=float)
     assert w.size >= 1
     # Brent's xtol on the frequencies, the loop's rounding on the margins

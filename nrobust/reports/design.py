@@ -40,14 +40,18 @@ from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, load_syste
 from ..design import DelayWindow, GainDesign, best_margin
 from ..errors import CertificationError, ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
-from ..hyperbolic.analyses.filter_design import FilteredDesign, design_filtered, filtered_loop
+from ..hyperbolic.analyses.filter_design import (
+    FilteredDesign,
+    default_filter_bounds,
+    design_filtered,
+    filtered_loop,
+)
 from ..hyperbolic.analyses.margin import delay_margin
 from ..hyperbolic.loops.controllers import (
     CollocatedOutputFeedback,
     Controller,
     OutputFeedback,
     ReflectionController,
-    classify,
 )
 from .outputs import RunOutputs, check_output_dir
 
@@ -269,8 +273,7 @@ def _filtered_slice(system: Any, result: FilteredDesign, bounds: Any) -> GainDes
     """``delta*(K)`` with the design's filter ``(a, b)`` on the gains' bounds, or why it could not be computed."""
     c = result.controller
     if bounds is None:
-        k = 0.99 * classify(system).k_bound
-        bounds = (-k, k)
+        bounds = default_filter_bounds(system)["K"]  # those of the design
     loop = filtered_loop(system, {"K": None, "a": c.a, "b": c.b}).affine()
     try:
         return best_margin(loop, (float(bounds[0]), float(bounds[1])))

@@ -46,6 +46,7 @@ __all__ = [
     "ExactFilteredDesign",
     "FilteredDesign",
     "FilteredLoop",
+    "default_filter_bounds",
     "design_filtered",
     "design_filtered_exact",
     "filtered_front",
@@ -138,7 +139,9 @@ def _plant(system: Any) -> Hyperbolic2x2 | GeneralHyperbolic2x2:
     return system
 
 
-def _default_bounds(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> dict[str, tuple[float, float]]:
+def default_filter_bounds(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> dict[str, tuple[float, float]]:
+    """The bounds :func:`design_filtered` takes for a parameter left free without bounds: ``K`` within 0.99 of
+    the paper's ``|K| < (1 - |rho q|)/|q|`` (eq. (54)), ``a`` in ``[-tau, tau]``, ``b`` in ``[1e-3 tau, tau]``."""
     k = 0.99 * classify(system).k_bound
     return {"K": (-k, k), "a": (-system.tau, system.tau), "b": (1e-3 * system.tau, system.tau)}
 
@@ -181,7 +184,7 @@ def _split(
     unknown = set(given) - set(FILTER_PARAMETERS)
     if unknown:
         raise ParameterError("parameters", f"a mapping with keys among {FILTER_PARAMETERS}", sorted(unknown))
-    default = _default_bounds(system)
+    default = default_filter_bounds(system)
     bounds = []
     free: dict[str, Any] = {}
     for name in FILTER_PARAMETERS:
@@ -607,7 +610,7 @@ def _exact_bounds(
     :func:`nrobust.margins.frequency_bound`), each a sample of the scan.
     """
     k = classify(plant).k_bound
-    lo, hi = _default_bounds(plant)[name]
+    lo, hi = default_filter_bounds(plant)[name]
     K, a, b = fixed.get("K", 0.0), fixed.get("a", 0.0), fixed.get("b", 0.0)
     if name == "K" and a != 0.0:
         hi = min(hi, _SS_FRACTION * abs(b) * k / abs(a))
