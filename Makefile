@@ -78,7 +78,8 @@ test-py310: $(STAMP_310)
 
 # The documentation site into docs/_build/html: the Markdown pages, the API reference from
 # the docstrings and the gallery of examples/ (every example runs: about 3 minutes on two
-# cores). Warnings are errors, so a broken reference or a malformed docstring fails the build.
+# cores). Warnings are errors, so a broken reference or a malformed docstring fails the build,
+# and so does a page that loads a script from the network.
 STAMP_DOCS := $(VENV)/.installed-docs
 $(STAMP_DOCS): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[docs]'
@@ -86,6 +87,8 @@ $(STAMP_DOCS): pyproject.toml | $(BIN)/python
 
 docs: $(STAMP_DOCS)
 	$(BIN)/sphinx-build -b html -W --keep-going -q docs docs/_build/html
+	@# the site loads no script from the network (MathJax is served from _static/mathjax)
+	@! grep -rl --include='*.html' '<script[^>]*src="http' docs/_build/html
 	@echo "docs/_build/html/index.html"
 
 bench: $(STAMP_TEST)

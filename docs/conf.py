@@ -31,6 +31,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax served from the site itself (_static/mathjax), not from a CDN: the pages render
+    # their equations offline and from a local build
+    "sphinx-mathjax-offline",
     "sphinx_gallery.gen_gallery",
 ]
 
@@ -53,9 +56,8 @@ nitpicky = True
 # equations carry the published paper's numbers by ``\tag{53}``, not Sphinx's own numbering.
 myst_heading_anchors = 3
 myst_enable_extensions = ["dollarmath", "amsmath"]
-# MathJax 4 breaks long inline formulas across lines; in the narrow columns of the tables
-# of docs/theory.md that cut them mid-term, so inline formulas stay on one line.
-mathjax4_config = {"output": {"linebreaks": {"inline": False}}}
+# The local MathJax is version 3, which keeps inline formulas on one line (the narrow columns
+# of the tables of docs/theory.md would otherwise cut them mid-term).
 
 # API reference: one page per module, generated from the docstrings.
 autosummary_generate = True
