@@ -137,6 +137,47 @@ def test_pareto_front_trades_decay_rate_for_margin() -> None:
     np.testing.assert_allclose(y, front.decay_rates)
 
 
+def test_pareto_response_is_the_front_with_plot() -> None:
+    """``pareto_response(...).plot()``: the front as data with ``.plot()``, against the closed form.
+
+    ``s + 1 + k e^{-delta s}`` (``k > 1``) has the margin ``arccos(-1/k) / sqrt(k^2 - 1)``,
+    decreasing in ``k``, and the decay rate ``1 + k``: the best rate under a margin ``d`` is
+    ``1 + k_d`` with ``k_d`` the gain of margin ``d`` (Brent's method on the closed form), or the
+    bound ``k = 5`` where the margin there exceeds ``d``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from scipy.optimize import brentq
+
+    from nrobust.plots import ParetoResponse, pareto_response
+
+    A0 = nr.QuasiPolynomial([[1.0, 1.0]], [0.0])
+
+    def loop(p: np.ndarray) -> tuple[nr.QuasiPolynomial, nr.QuasiPolynomial]:
+        return A0, nr.QuasiPolynomial([[p[0]]], [0.0])
+
+    required = [0.3, 0.6, 1.2]
+    response = pareto_response(loop, [(0.0, 5.0)], required, x0=[0.5])
+    assert isinstance(response, ParetoResponse) and response.front.certified
+
+    def margin(k: float) -> float:
+        return math.acos(-1.0 / k) / math.sqrt(k * k - 1.0)
+
+    # the bound k = 5 where its margin (0.3617) exceeds d
+    k_d = [5.0 if margin(5.0) >= d else brentq(lambda k, d=d: margin(k) - d, 1.0 + 1e-12, 5.0) for d in required]
+    assert k_d[0] == 5.0 and k_d[1] < 5.0
+    best = 1.0 + np.array(k_d)
+    # feasible designs cannot beat the optimum; the local search stops at its last pattern step
+    # (2^-11 in k here: 2.1e-5 below the optimum measured), so within 1e-4
+    assert np.all(response.front.decay_rates <= best * (1.0 + 1e-12))
+    np.testing.assert_allclose(response.front.decay_rates, best, rtol=1e-4)
+    assert response.to_dict() == response.front.to_dict()
+    drawn = response.plot()
+    x, y = drawn.lines["front"][0].get_data()
+    np.testing.assert_allclose(x, response.front.margins)
+    np.testing.assert_allclose(y, response.front.decay_rates)
+
+
 def test_bad_input_is_named(transport: nr.TransportSystem) -> None:
     loop = filtered_loop(transport, {"K": None, "a": 0.0, "b": 0.1})
     with pytest.raises(ParameterError, match="bounds"):

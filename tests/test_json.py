@@ -77,6 +77,7 @@ from nrobust.margins.margin import delay_margin
 from nrobust.margins.proven import proven_crossings
 from nrobust.matrix_difference import MatrixDifferenceOperator
 from nrobust.plots.bode import bode_response
+from nrobust.plots.design import pareto_response
 from nrobust.plots.nyquist import nyquist_response
 from nrobust.plots.rootlocus import root_locus_response
 from nrobust.plots.rootmap import hidden_unstable_roots, root_map_response
@@ -224,6 +225,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "LoopDesign": local,
         "LocalRun": local.runs[0],
         "ParetoFront": pareto_front(gain_loop, [(0.0, 5.0)], [0.6], x0=[0.5]),
+        "ParetoResponse": pareto_response(gain_loop, [(0.0, 5.0)], [0.6], x0=[0.5]),
         "FilteredDesign": design_filtered(
             TRANSPORT, parameters={"K": (-0.3, 0.3), "a": 0.1, "b": 0.1}, x0=[0.1], starts=1, max_iter=3
         ),
@@ -285,6 +287,7 @@ NAMES = [
     "SweepFileResult",
     "NyquistResponse",
     "BodeResponse",
+    "ParetoResponse",
     "RootLocusData",
     "HiddenUnstableRoots",
     "RootMapData",

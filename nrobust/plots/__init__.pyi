@@ -15,7 +15,9 @@ from .charts import (
     tradeoff_plot as tradeoff_plot,
 )
 from .design import (
+    ParetoResponse as ParetoResponse,
     pareto_plot as pareto_plot,
+    pareto_response as pareto_response,
 )
 from .nyquist import (
     NyquistResponse as NyquistResponse,

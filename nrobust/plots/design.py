@@ -1,18 +1,93 @@
-"""Figures of designs: the trade-off front of certified designs."""
+"""Figures of designs: the trade-off front of certified designs.
+
+:func:`pareto_response` is the front as data with ``.plot()`` (the pattern of
+python-control's ``pole_zero_map(sys).plot()``): it computes nothing itself, the front is
+:func:`nrobust.design.pareto_front`'s; :func:`pareto_plot` draws any
+:class:`~nrobust.design.pareto.ParetoFront` (also
+:func:`nrobust.hyperbolic.analyses.filtered_front`'s).
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
+from numpy.typing import ArrayLike
 
+from ..design.local import ParametricLoop
+from ..design.pareto import ParetoFront, pareto_front
 from .base import NrobustPlot, get_axes
 
-__all__ = ["pareto_plot"]
+__all__ = ["ParetoResponse", "pareto_plot", "pareto_response"]
 
 
-def pareto_plot(front: Any, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
+@dataclass(frozen=True, eq=False)
+class ParetoResponse:
+    """A front of certified designs with ``.plot()`` (:func:`pareto_response`).
+
+    Attributes
+    ----------
+    front : ParetoFront
+        The designs, their decay rates and margins, and what was certified
+        (:class:`~nrobust.design.pareto.ParetoFront`).
+    """
+
+    front: ParetoFront
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary: the front's (:meth:`ParetoFront.to_dict`)."""
+        return self.front.to_dict()
+
+    def plot(self, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
+        """Best decay rate against delay margin, the requirements and windows marked (:func:`pareto_plot`)."""
+        return pareto_plot(self.front, ax, annotate)
+
+
+def pareto_response(
+    loop: ParametricLoop,
+    bounds: ArrayLike,
+    required: ArrayLike,
+    *,
+    delays: tuple[float, float] | Sequence[tuple[float, float]] | None = None,
+    scenarios: Sequence[ParametricLoop] | Mapping[str, ParametricLoop] = (),
+    x0: ArrayLike | None = None,
+    starts: int = 1,
+    max_iter: int = 60,
+    rigorous: bool = False,
+    map: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = map,
+) -> ParetoResponse:
+    """The trade-off front of decay rate against delay margin, as data with ``.plot()``.
+
+    The front of :func:`nrobust.design.pareto_front` (same parameters: the best certified
+    decay rate of ``loop`` under each required margin of ``required``, within ``bounds``, with
+    the windows ``delays`` and the ``scenarios``), wrapped so that
+    ``pareto_response(loop, bounds, required).plot()`` draws it (:func:`pareto_plot`).
+
+    Returns
+    -------
+    ParetoResponse
+        ``front`` (the :class:`~nrobust.design.pareto.ParetoFront`) and ``.plot(ax=None,
+        annotate=True)``.
+    """
+    front = pareto_front(
+        loop,
+        bounds,
+        required,
+        delays=delays,
+        scenarios=scenarios,
+        x0=x0,
+        starts=starts,
+        max_iter=max_iter,
+        rigorous=rigorous,
+        map=map,
+    )
+    return ParetoResponse(front)
+
+
+def pareto_plot(front: ParetoFront, ax: Axes | None = None, annotate: bool = True) -> NrobustPlot:
     """Best decay rate against required delay margin: a front of certified local designs.
 
     Parameters
