@@ -50,6 +50,8 @@ __all__ = [
     "CONTROLLER_TYPES",
     "DESIGN_FAMILIES",
     "OBSERVER_FAMILIES",
+    "PLANT_FAMILIES",
+    "Monomial",
     "SYSTEM_TYPES",
     "PiecewiseLinear",
     "build_in_section",
@@ -165,6 +167,10 @@ _TOP_KEYS = ("system", "controller", "analysis", "simulation", "design")
 #: Keys of ``[design]`` (``nrobust design``) and their defaults; ``K``, ``a``, ``b``: a number (fixed)
 #: or ``[low, high]`` bounds (None: the default bounds of the family); ``delays = [d_min, d_max]``: the
 #: window of delays to be stable on; ``speed_tolerance``: the relative error of ``lam`` and ``mu`` in (0, 1).
+#: ``k_bounds``, ``basis``, ``coefficient_bounds``, ``kernel_grid``: family ``"state_feedback"``
+#: (:func:`~nrobust.hyperbolic.analyses.design_state_feedback`'s parameters; ``basis``: powers ``j`` of
+#: the functions ``(x / L)^j``; ``kernel_grid`` left out: the exact route without a basis, else 201
+#: points). An ``NPlusMSystem`` file's ``[design]`` has :data:`_NPLUSM_DESIGN_KEYS`.
 _DESIGN_KEYS: dict[str, Any] = {
     "family": "reflection",
     "objective": "margin",
@@ -177,13 +183,44 @@ _DESIGN_KEYS: dict[str, Any] = {
     "observer_delay": 0.0,
     "delays": None,
     "speed_tolerance": None,
+    "k_bounds": None,
+    "basis": [],
+    "coefficient_bounds": [-1.0, 1.0],
+    "kernel_grid": None,
+}
+#: The keys only family ``"state_feedback"`` takes, and those it does not.
+_STATE_FEEDBACK_KEYS = ("k_bounds", "basis", "coefficient_bounds", "kernel_grid")
+_GAIN_KEYS = ("K", "a", "b", "observer_delay")
+#: Keys of ``[design]`` in an ``NPlusMSystem`` file (family ``"nplusm"``,
+#: :func:`~nrobust.hyperbolic.nplusm.design_nplusm_gains`'s parameters) and their defaults.
+_NPLUSM_DESIGN_KEYS: dict[str, Any] = {
+    "family": "nplusm",
+    "objective": "decay_rate",
+    "margin_at_least": None,
+    "delays": None,
+    "K_bounds": None,
+    "x0": None,
+    "starts": 4,
+    "max_iter": 60,
+    "rigorous": False,
 }
 #: The controller families ``nrobust design`` can design: U_BS2(K), U_BS2(K) on the state predicted
 #: from ``v(t, 0)`` (output feedback), U_BS2(K) on the collocated observer's estimate from ``u(t, 1)``
-#: (collocated output feedback) and the filtered U_BS2(K).
-DESIGN_FAMILIES = ("reflection", "output_feedback", "collocated_output_feedback", "filtered")
+#: (collocated output feedback), the filtered U_BS2(K), the general state feedback
+#: ``U = k u(t, L) + int g_u u + g_v v`` and, for an ``NPlusMSystem``, the gain matrix of
+#: ``U = K u(t - delta, 1)``.
+DESIGN_FAMILIES = (
+    "reflection",
+    "output_feedback",
+    "collocated_output_feedback",
+    "filtered",
+    "state_feedback",
+    "nplusm",
+)
 #: The families whose gain K is designed on an observer's estimate (they take ``observer_delay``).
 OBSERVER_FAMILIES = ("output_feedback", "collocated_output_feedback")
+#: The families of a 2x2 plant (``"nplusm"`` takes an ``NPlusMSystem``).
+PLANT_FAMILIES = DESIGN_FAMILIES[:-1]
 
 
 def load_toml(path: str | Path, what: str = "TOML file") -> dict[str, Any]:
@@ -227,6 +264,29 @@ class PiecewiseLinear:
     @property
     def __name__(self) -> str:  # used by the systems' repr
         return "piecewise_linear"
+
+
+@dataclass(frozen=True)
+class Monomial:
+    """``x -> (x / length)^power``: a function of a state feedback's basis, named in a file by its power.
+
+    Parameters
+    ----------
+    power : int
+        ``>= 0``.
+    length : float
+        The plant's length ``L`` (``> 0``).
+    """
+
+    power: int
+    length: float = 1.0
+
+    def __call__(self, x: Any) -> np.ndarray:
+        return np.asarray(np.asarray(x, dtype=float) / self.length, dtype=float) ** self.power
+
+    @property
+    def __name__(self) -> str:  # used by BasisGain's repr
+        return f"(x/{self.length:g})^{self.power}" if self.length != 1.0 else f"x^{self.power}"
 
 
 def _number(key: str, value: Any) -> float:
@@ -346,13 +406,18 @@ def build_in_section(key: str, build: Callable[[], Any]) -> Any:
 def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     """An ``n + m`` file: ``[system] type = "NPlusMSystem"`` (``lam``, ``mu``, ``sigma``, ``q``, ``r``),
     ``[controller] type = "Cancellation"`` with ``fractions`` (rows of cancelled fractions of
-    ``R``), ``[analysis] region``. Returns ``kind = "NPlusMSystem"``, ``system``,
-    ``cancellations`` and ``region``."""
-    sections = ("system", "controller", "analysis")
+    ``R``), ``[analysis] region``, optionally ``[design]`` (family ``"nplusm"``, read by ``nrobust
+    design``). Returns ``kind = "NPlusMSystem"``, ``system``, ``cancellations``, ``region`` and
+    ``design`` (None without the section)."""
+    sections = ("system", "controller", "analysis", "design")
     for key in spec:
         if key not in sections:
             raise unknown_key(
-                key, "a section of an NPlusMSystem file: system, controller, analysis", key, sections, spec[key]
+                key,
+                "a section of an NPlusMSystem file: system, controller, analysis, design",
+                key,
+                sections,
+                spec[key],
             )
     table = {k: v for k, v in spec["system"].items() if k != "type"}
     keys = ("lam", "mu", "sigma", "q", "r")
@@ -379,16 +444,124 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     box = tuple(_number("analysis.region", v) for v in region)
     if not (box[0] < box[1] and box[2] < box[3]):
         raise ParameterError("analysis.region", "a non-empty rectangle: re_min < re_max, im_min < im_max", region)
-    return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box}
+    design = _nplusm_design(spec["design"], system) if "design" in spec else None
+    return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box, "design": design}
+
+
+def _bounds(key: str, value: Any) -> tuple[float, float]:
+    """``[low, high]`` with ``low < high``, finite."""
+    if not isinstance(value, list) or len(value) != 2:
+        raise ParameterError(key, "[low, high] bounds of finite numbers with low < high", value)
+    lo, hi = (_number(key, v) for v in value)
+    if not lo < hi:
+        raise ParameterError(key, "[low, high] with low < high", value)
+    return lo, hi
+
+
+def _state_feedback_keys(d: dict[str, Any]) -> None:
+    """``k_bounds``, ``basis``, ``coefficient_bounds``, ``kernel_grid`` of family ``"state_feedback"``, checked."""
+    if d["k_bounds"] is not None:
+        d["k_bounds"] = _bounds("design.k_bounds", d["k_bounds"])
+    d["coefficient_bounds"] = _bounds("design.coefficient_bounds", d["coefficient_bounds"])
+    basis = d["basis"]
+    powers = "a list of distinct integer powers j >= 0 of the basis functions (x / L)^j, e.g. [0, 1]"
+    if not isinstance(basis, list) or any(isinstance(j, bool) or not isinstance(j, int) or j < 0 for j in basis):
+        raise ParameterError("design.basis", powers, basis)
+    if len(set(basis)) != len(basis):
+        raise ParameterError("design.basis", powers, basis)
+    grid = d["kernel_grid"]
+    if grid is not None and (isinstance(grid, bool) or not isinstance(grid, int)):
+        raise ParameterError(
+            "design.kernel_grid",
+            "an integer number of kernel grid points (e.g. 201); left out: the exact route without a basis, "
+            "else 201 points",
+            grid,
+        )
+
+
+def _nplusm_design(table: Any, system: NPlusMSystem) -> dict[str, Any]:
+    """The ``[design]`` section of an ``NPlusMSystem`` file (family ``"nplusm"``), checked."""
+    if not isinstance(table, dict):
+        raise ParameterError("design", "a [design] table", table)
+    d = _options(table, "design", _NPLUSM_DESIGN_KEYS)
+    if d["family"] != "nplusm":
+        raise unknown_key(
+            "design.family",
+            'family = "nplusm" for an NPlusMSystem (the gain matrix K of U = K u(t - delta, 1))',
+            str(d["family"]),
+            ("nplusm",),
+            d["family"],
+        )
+    if d["objective"] not in ("margin", "decay_rate"):
+        raise ParameterError("design.objective", '"margin" or "decay_rate"', d["objective"])
+    if d["margin_at_least"] is not None:
+        d["margin_at_least"] = _number("design.margin_at_least", d["margin_at_least"])
+    if d["delays"] is not None:
+        d["delays"] = _windows(d["delays"])
+        if d["margin_at_least"] is not None:
+            raise ParameterError(
+                "design.margin_at_least", "left out with design.delays (the window [0, d] is a margin > d)"
+            )
+    m, n = system.m, system.n
+    if d["K_bounds"] is not None:
+        what = f"[low, high] for every entry of K, or {m} rows of {n} pairs [low, high]"
+        value = d["K_bounds"]
+        if isinstance(value, list) and len(value) == 2 and all(not isinstance(v, list) for v in value):
+            d["K_bounds"] = _bounds("design.K_bounds", value)
+        elif isinstance(value, list) and len(value) == m and all(isinstance(r, list) and len(r) == n for r in value):
+            d["K_bounds"] = [[_bounds("design.K_bounds", pair) for pair in row] for row in value]
+        else:
+            raise ParameterError("design.K_bounds", what, value)
+    if d["x0"] is not None:
+        value = d["x0"]
+        if not (
+            isinstance(value, list) and len(value) == m and all(isinstance(r, list) and len(r) == n for r in value)
+        ):
+            raise ParameterError("design.x0", f"the first start: {m} rows of {n} numbers (a gain K)", value)
+        d["x0"] = [[_number("design.x0", v) for v in row] for row in value]
+    for key, low in (("starts", 1), ("max_iter", 1)):
+        v = d[key]
+        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1000:
+            raise ParameterError(f"design.{key}", "an integer in [1, 1000]", v)
+    if not isinstance(d["rigorous"], bool):
+        raise ParameterError("design.rigorous", "true or false", d["rigorous"])
+    return d
+
+
+def _windows(value: Any) -> tuple[tuple[float, float], ...]:
+    """``design.delays``: ``[d_min, d_max]`` or a list of such windows."""
+    what = "a window [d_min, d_max] with 0 <= d_min <= d_max, d_max > 0, or a list of such windows"
+    if not isinstance(value, list) or not value:
+        raise ParameterError("design.delays", what, value)
+    items = value if all(isinstance(w, list) for w in value) else [value]
+    out = []
+    for j, w in enumerate(items):
+        name = "design.delays" if items is not value else f"design.delays[{j}]"
+        if not isinstance(w, list) or any(isinstance(v, bool) for v in w):
+            raise ParameterError(name, what, w)
+        out.append(check_delays(w, name))
+    return tuple(out)
 
 
 def _design(table: dict[str, Any]) -> dict[str, Any]:
     """The ``[design]`` section: the family, the objective, the requirement, the parameters' bounds."""
     d = _options(table, "design", _DESIGN_KEYS)
-    if d["family"] not in DESIGN_FAMILIES:
-        raise unknown_key(
-            "design.family", f"one of {list(DESIGN_FAMILIES)}", str(d["family"]), DESIGN_FAMILIES, d["family"]
+    if d["family"] == "nplusm":
+        raise ParameterError(
+            "design.family", f'one of {list(PLANT_FAMILIES)} ("nplusm" takes [system] type = "NPlusMSystem")', "nplusm"
         )
+    if d["family"] not in PLANT_FAMILIES:
+        raise unknown_key(
+            "design.family", f"one of {list(PLANT_FAMILIES)}", str(d["family"]), PLANT_FAMILIES, d["family"]
+        )
+    family = d["family"]
+    own = _STATE_FEEDBACK_KEYS if family != "state_feedback" else _GAIN_KEYS
+    for key in own:
+        if key in table:
+            takes = 'family = "state_feedback"' if family != "state_feedback" else "the families of U_BS2(K)"
+            raise ParameterError(f"design.{key}", f'left out for family = "{family}" ({takes} takes it)', table[key])
+    if family == "state_feedback":
+        _state_feedback_keys(d)
     if d["objective"] not in ("margin", "decay_rate"):
         raise ParameterError("design.objective", '"margin" or "decay_rate"', d["objective"])
     if d["margin_at_least"] is not None:
@@ -397,7 +570,7 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
             raise ParameterError("design.margin_at_least", ">= 0 (a delay)", d["margin_at_least"])
     for name in ("K", "a", "b"):
         value = d[name]
-        if value is None:
+        if value is None or family == "state_feedback":
             continue
         if isinstance(value, list):
             if len(value) != 2:
@@ -446,7 +619,7 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
         if d["family"] in OBSERVER_FAMILIES:
             raise ParameterError(
                 "design.speed_tolerance",
-                f'left out for family = "{d["family"]}" (family "reflection" or "filtered" takes it)',
+                f'left out for family = "{d["family"]}" (family "reflection", "filtered" or "state_feedback" takes it)',
                 d["speed_tolerance"],
             )
         if d["delays"] is None and d["margin_at_least"] is None:

@@ -17,12 +17,19 @@ options when given:
   likewise; ``design_reflection(..., output_feedback=True, collocated=True)``);
 * ``family = "filtered"``: U_BS2(K) through the filter ``(1 + a s)/(1 + b s)``, a local
   optimisation over the free ones of ``K``, ``a``, ``b``
-  (:func:`nrobust.hyperbolic.analyses.design_filtered`).
+  (:func:`nrobust.hyperbolic.analyses.design_filtered`);
+* ``family = "state_feedback"``: ``U = k u(t, L) + int_0^L g_u u + g_v v dx`` with ``g_u``, ``g_v`` on
+  the basis ``(x / L)^j`` of the powers ``basis``, a local optimisation over ``k`` and the
+  coefficients (:func:`nrobust.hyperbolic.analyses.design_state_feedback`), on the plant as written;
+* ``family = "nplusm"`` (an ``NPlusMSystem`` file): the gain matrix ``K`` of ``U = K u(t - delta, 1)``,
+  a local optimisation of its entries (:func:`nrobust.hyperbolic.nplusm.design_nplusm_gains`).
 
 Written: ``design.json`` (the design with its certificate), ``design.md`` (the design in words,
 each number with the digits its accuracy supports) and ``design.png`` (the delay margin against
 ``K`` with the requirement and the design marked: the trade-off; for the filtered law, with the
-designed filter), as one set with ``manifest.json``.
+designed filter; for the state feedback, the designed integral gains and the margin against ``k``
+with them; for ``n + m``, the certified margin along the gains ``t K``), as one set with
+``manifest.json``.
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ import numpy as np
 
 from .._digits import inner_interval_text, with_accuracy
 from .._json import json_safe
-from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, load_system_file
+from ..config import DESIGN_FAMILIES, NPLUSM_TYPE, OBSERVER_FAMILIES, Monomial, load_system_file
 from ..design import DelayWindow, GainDesign, best_margin
 from ..errors import CertificationError, ParameterError
 from ..hyperbolic.analyses.design import DESIGN_OBJECTIVES, ReflectionDesign, design_reflection
@@ -47,12 +54,23 @@ from ..hyperbolic.analyses.filter_design import (
     filtered_loop,
 )
 from ..hyperbolic.analyses.margin import delay_margin
+from ..hyperbolic.analyses.state_design import (
+    StateFeedbackDesign,
+    _k_bounds,  # the design's own default bounds of k, for its trade-off figure
+    design_state_feedback,
+    state_feedback_loop,
+)
 from ..hyperbolic.loops.controllers import (
     CollocatedOutputFeedback,
     Controller,
     OutputFeedback,
     ReflectionController,
 )
+from ..hyperbolic.nplusm.design import NPlusMGainDesign, design_nplusm_gains, principal_gamma
+from ..hyperbolic.nplusm.margin import multi_actuator_delay_margin, nplusm_delay_margin
+from ..hyperbolic.nplusm.system import NPlusMSystem
+from ..hyperbolic.plants.general import GeneralHyperbolic2x2
+from ..margins.gain import AffineGainLoop
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
@@ -188,7 +206,7 @@ def _reflection_markdown(
     return lines
 
 
-def _corner(result: ReflectionDesign | FilteredDesign, n: int) -> str:
+def _corner(result: ReflectionDesign | FilteredDesign | StateFeedbackDesign, n: int) -> str:
     """The ``n``-th corner of the speed tolerance's square as ``(e_lam, e_mu)``."""
     if result.tolerance is None:
         return f"of scenario {n}"
@@ -323,13 +341,209 @@ def _filtered_png(result: FilteredDesign, scan: GainDesign) -> bytes:
     return _png(fig, ax)
 
 
-def design_summary(result: ReflectionDesign | FilteredDesign) -> str:
+def _state_feedback_markdown(path: Path, result: StateFeedbackDesign, powers: list[int]) -> list[str]:
+    d, c = result.design, result.controller
+    what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
+    need = "" if d.margin_at_least is None else f", with a delay margin of at least {d.margin_at_least:g}"
+    n = len(powers)
+    p = result.parameters
+    basis = ", ".join(f"(x/L)^{j}" for j in powers) or "none (the proportional law)"
+    lines = [
+        f"# Design of the state feedback U = k u(t, L) + int g_u u + g_v v dx for {path.name}",
+        "",
+        f"- objective: the largest {what}{need} (a local optimum: the best of {len(d.runs)} start(s))",
+        f"- basis of g_u and g_v: {basis}",
+        f"- designed gain: k = {p[0]!r}",
+        f"- g_u coefficients: {[float(v) for v in p[1 : 1 + n]]}",
+        f"- g_v coefficients: {[float(v) for v in p[1 + n :]]}",
+        f"- controller: {c!r}",
+        f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)} "
+        f"({'no root right of it: certified count' if d.abscissa.certified else 'not certified'})",
+        f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
+        f"about {result.scope}",
+        f"- certified: {'yes' if d.certified else 'no'}",
+    ]
+    if d.delays is not None:
+        lines.append(f"- requirement: {d.requirement}")
+        for i, w in enumerate(d.windows):
+            which = "the designed loop" if i == 0 else f"the plant with speed errors {_corner(result, i - 1)}"
+            lines.append(f"  - {which}: {_window_text(w)}")
+    if result.tolerance is not None:
+        t = result.tolerance
+        lines.append(
+            f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
+        )
+        lines.append(f"  - {t.statement}; about {t.scope}")
+    for i, run in enumerate(d.runs):
+        lines.append(
+            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
+            f", {run.reason}"
+        )
+    return lines
+
+
+def _state_feedback_slice(
+    system: Any, result: StateFeedbackDesign, powers: list[int], k_bounds: Any, kernel_grid: int | None
+) -> GainDesign | str:
+    """``delta*(k)`` with the designed integral gains fixed, on the bounds of ``k``, or why it was not computed."""
+    length = float(system.length) if isinstance(system, GeneralHyperbolic2x2) else 1.0
+    basis = [Monomial(j, length) for j in powers]
+    try:
+        loop = state_feedback_loop(system, basis, kernel_grid)  # the design's own loop
+        bounds = tuple(k_bounds) if k_bounds is not None else _k_bounds(loop)
+        p = np.array(result.parameters, dtype=float)
+        fixed = loop.B(np.concatenate([[0.0], p[1:]]))
+        return best_margin(AffineGainLoop(loop.A, fixed, loop.units[0]), (float(bounds[0]), float(bounds[1])))
+    except (CertificationError, ParameterError) as exc:
+        return str(exc)
+
+
+def _state_feedback_png(system: Any, result: StateFeedbackDesign, scan: GainDesign | str) -> bytes:
+    """The designed integral gains on ``[0, L]`` and, when scanned, the delay margin against ``k`` with them."""
+    import matplotlib.pyplot as plt
+
+    c, d = result.controller, result.design
+    if callable(c.g_u) or callable(c.g_v):  # with a basis: the integral gains on the left
+        fig, (ax_g, ax) = plt.subplots(1, 2, figsize=(10.0, 4.0))
+        length = float(system.length) if isinstance(system, GeneralHyperbolic2x2) else 1.0
+        x = np.linspace(0.0, length, 201)
+        for name, g in (("g_u", c.g_u), ("g_v", c.g_v)):
+            y = np.asarray(g(x), dtype=float) if callable(g) else np.full_like(x, float(g))
+            ax_g.plot(x, y, label=name)
+        ax_g.set_xlabel("x")
+        ax_g.set_title(f"designed integral gains, k = {c.k:.6g}", fontsize="small")
+        ax_g.legend(fontsize="small")
+    else:
+        fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    margin = float(d.margin.margin)
+    if isinstance(scan, str):
+        ax.text(0.5, 0.5, "delay margin against k not scanned", ha="center", va="center", transform=ax.transAxes)
+    else:
+        envelope = np.asarray(scan.envelope, dtype=float)
+        ax.plot(scan.gains, envelope, label="delay margin delta*(k), integral gains fixed")
+        finite = envelope[np.isfinite(envelope)]
+        levels = [v for v in (margin, d.margin_at_least) if v is not None and np.isfinite(v) and v > 0.0]
+        top = 1.2 * float(np.max(finite)) if finite.size else 1.0
+        if levels:
+            top = min(top, 4.0 * max(levels)) if finite.size else 4.0 * max(levels)
+        ax.set_ylim(0.0, top)
+    if d.margin_at_least is not None:
+        ax.axhline(d.margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {d.margin_at_least:g}")
+    for j, (lo, hi) in enumerate(d.required_windows):
+        ax.axhspan(lo, hi, color="0.85", label="required window" if j == 0 else None)
+    ax.plot(
+        [c.k],
+        [margin if np.isfinite(margin) else np.nan],
+        "o",
+        color="C3",
+        label=f"design: k = {c.k:.6g}, decay rate {d.decay_rate:.4g}",
+    )
+    ax.set_xlabel("k")
+    ax.set_ylabel("delay")
+    return _png(fig, ax)
+
+
+def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
+    what = "delay margin" if result.objective == "margin" else "decay rate at delta = 0"
+    need = "" if result.margin_at_least is None else f", with a delay margin of at least {result.margin_at_least:g}"
+    if result.delays:
+        need += ", stable for every delay in " + ", ".join(f"[{lo!r}, {hi!r}]" for lo, hi in result.delays)
+    dm = result.margin
+    lines = [
+        f"# Design of the gain matrix K of U = K u(t - delta, 1) for {path.name}",
+        "",
+        f"- objective: the largest {what}{need} (a local optimum: the best of {result.starts} start(s))",
+        f"- designed gain: K = {[list(row) for row in result.K]}",
+        *([f"- {what}: {with_accuracy(result.value, result.accuracy)}"] if result.objective == "margin" else []),
+        f"- decay rate at delta = 0: {with_accuracy(result.decay_rate, result.abscissa.accuracy)} "
+        f"({'certified' if result.abscissa.certified else 'not certified'}"
+        f"{', proven in ball arithmetic' if result.rigorous else ''})",
+        f"- gamma of the delayed principal part: {result.gamma:.6g} (below 1: strongly stable for every delay)",
+    ]
+    if dm is not None:
+        lines.append(
+            f"- delay margin: {dm.margin:.10g} ({'certified' if dm.certified else 'not certified'}); about {dm.scope}"
+        )
+    for w in result.windows:
+        verdict = "stable" if w.stable else "not stable"
+        proof = "certified" if w.certified else "not certified"
+        extra = f", crossing delay {w.crossing:.6g} inside" if w.crossing is not None else ""
+        lines.append(f"  - window [{w.window[0]!r}, {w.window[1]!r}]: {verdict}, {proof} ({w.how}{extra})")
+    lines.append(f"- certified: {'yes' if result.certified else 'no'}")
+    lines.append(f"- optimality: {result.optimality}")
+    for i, run in enumerate(result.runs):
+        lines.append(
+            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
+            f", {run.reason}"
+        )
+    return lines
+
+
+#: Gains ``t K`` of the n + m figure.
+NPLUSM_SECTION = np.linspace(0.0, 1.25, 26)
+
+
+def _nplusm_png(system: NPlusMSystem, result: NPlusMGainDesign) -> bytes:
+    """The certified delay margin along the gains ``t K`` (the design at ``t = 1``), the windows shaded; the
+    gains unstable at ``delta = 0`` (or with ``gamma >= 1``) marked on the axis, those not certified left out."""
+    import matplotlib.pyplot as plt
+
+    K = result.gain
+    margins, unstable = [], []
+    for t in NPLUSM_SECTION:
+        margin = np.nan
+        try:
+            if principal_gamma(system, t * K) < 1.0:
+                dm = nplusm_delay_margin(system, t * K) if system.m == 1 else multi_actuator_delay_margin(system, t * K)
+                if dm.certified and dm.nominal_unstable == 0:
+                    margin = dm.margin
+                elif dm.certified:
+                    unstable.append(t)
+            else:
+                unstable.append(t)
+        except CertificationError:
+            pass
+        margins.append(margin)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    ax.plot(NPLUSM_SECTION, margins, ".-", label="certified delay margin at t K")
+    if unstable:
+        ax.plot(unstable, np.zeros(len(unstable)), "x", color="0.4", label="unstable at delta = 0, or gamma >= 1")
+    for j, (lo, hi) in enumerate(result.delays):
+        ax.axhspan(lo, hi, color="0.85", label="required window" if j == 0 else None)
+    if result.margin_at_least is not None:
+        ax.axhline(result.margin_at_least, color="0.5", lw=0.8, ls="--", label="required margin")
+    own = result.margin.margin if result.margin is not None else np.nan
+    ax.plot([1.0], [own], "o", color="C3", label=f"design (t = 1), decay rate {result.decay_rate:.4g}")
+    ax.set_xlabel("t (gain t K)")
+    ax.set_ylabel("delay")
+    values = np.asarray(margins, dtype=float)
+    finite = values[np.isfinite(values)]
+    if finite.size:
+        ax.set_ylim(0.0, 1.2 * float(np.max(finite)) + 1e-9)
+    return _png(fig, ax)
+
+
+def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesign | NPlusMGainDesign) -> str:
     """One line: the designed controller and its objective, with the digits their accuracy supports."""
     if isinstance(result, ReflectionDesign):
         d = result.design
         k_acc, _ = d.accuracy
         return (
             f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
+        )
+    if isinstance(result, NPlusMGainDesign):
+        return (
+            f"K = {[list(row) for row in result.K]}: {result.objective} = "
+            f"{with_accuracy(result.value, result.accuracy)} (a local optimum; certified: "
+            f"{'yes' if result.certified else 'no'})"
+        )
+    if isinstance(result, StateFeedbackDesign):
+        sf = result.design
+        return (
+            f"StateFeedback parameters {tuple(round(v, 6) for v in result.parameters)}: decay rate "
+            f"{with_accuracy(sf.decay_rate, sf.abscissa.accuracy)}, delay margin "
+            f"{with_accuracy(sf.margin.margin, sf.margin.accuracy)} (a local optimum; certified: "
+            f"{'yes' if sf.certified else 'no'})"
         )
     c, local = result.controller, result.design
     margin = with_accuracy(local.margin.margin, local.margin.accuracy)
@@ -350,14 +564,16 @@ def run_design(
     family: str | None = None,
     delays: tuple[float, float] | None = None,
     speed_tolerance: float | None = None,
-) -> tuple[tuple[Path, ...], ReflectionDesign | FilteredDesign]:
+) -> tuple[tuple[Path, ...], ReflectionDesign | FilteredDesign | StateFeedbackDesign | NPlusMGainDesign]:
     """``nrobust design``: design a controller for the plant of a SYSTEM.toml file and write the result.
 
     Each argument left None takes the file's ``[design]`` value (or its default: U_BS2(K),
     the largest margin; ``delays = (d_min, d_max)``: the window of delays to be stable on,
     ``speed_tolerance``: the relative error of the speeds it must hold under, both with
     ``family = "reflection"`` or ``"filtered"``, ``delays`` with ``"output_feedback"`` and
-    ``"collocated_output_feedback"`` too). The report states each
+    ``"collocated_output_feedback"`` too; ``"state_feedback"`` takes both, and ``K_bounds`` are its
+    ``k_bounds``; an ``NPlusMSystem`` file's family is ``"nplusm"``, ``K_bounds`` a pair for every
+    entry of ``K``, ``delays`` its windows, no speed tolerance). The report states each
     requirement and whether it is met and proven. The file and ``out_dir`` are checked before any computation; the
     files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
     written paths and the design.
@@ -365,9 +581,8 @@ def run_design(
     Raises
     ------
     ParameterError
-        A bad file, an ``n + m`` plant (the families are 2x2 laws), or the arguments of
-        :func:`~nrobust.hyperbolic.analyses.design_reflection` or
-        :func:`~nrobust.hyperbolic.analyses.design_filtered`.
+        A bad file, a family that does not take the file's plant (``"nplusm"`` an ``NPlusMSystem``,
+        the others a 2x2 plant), or the arguments of the design function of the family.
     """
     check_output_dir(out_dir)
     if objective is not None and objective not in DESIGN_OBJECTIVES:
@@ -376,7 +591,13 @@ def run_design(
         raise ParameterError("family", f"one of {DESIGN_FAMILIES}", family)
     spec = load_system_file(path)
     if spec.get("kind") == NPLUSM_TYPE:
-        raise ParameterError("system.type", "a 2x2 plant (the design families are 2x2 laws)", NPLUSM_TYPE)
+        return _run_nplusm(
+            Path(path), spec, out_dir, objective, margin_at_least, K_bounds, rigorous, family, delays, speed_tolerance
+        )
+    if family == "nplusm":
+        raise ParameterError(
+            "family (--family)", 'a family of a 2x2 plant ("nplusm" takes an NPlusMSystem file)', family
+        )
     given: dict[str, Any] = spec["design"] or {}
     family = family or given.get("family", "reflection")
     objective = objective or given.get("objective", "margin")
@@ -398,8 +619,32 @@ def run_design(
     edge: dict[str, float] | None = None
     scan: GainDesign | str = "not a filtered design"
     with outputs:
-        result: ReflectionDesign | FilteredDesign
-        if family in ("reflection", *OBSERVER_FAMILIES):
+        result: ReflectionDesign | FilteredDesign | StateFeedbackDesign
+        if family == "state_feedback":
+            powers = list(given.get("basis", []))
+            plant = spec["given_system"]  # the gains act on the state as written
+            length = float(plant.length) if isinstance(plant, GeneralHyperbolic2x2) else 1.0
+            grid = given.get("kernel_grid")  # None: the exact route without a basis, else 201 points
+            k_bounds = bounds if bounds is not None else given.get("k_bounds")
+            result = design_state_feedback(
+                plant,
+                objective,
+                margin_at_least=margin_at_least,
+                delays=delays,
+                speed_tolerance=speed_tolerance,
+                k_bounds=k_bounds,
+                basis=[Monomial(j, length) for j in powers],
+                coefficient_bounds=tuple(given.get("coefficient_bounds", (-1.0, 1.0))),
+                starts=int(given.get("starts", 4)),
+                rigorous=rigorous,
+                kernel_grid=grid,
+            )
+            lines = _state_feedback_markdown(Path(path), result, powers)
+            scan = _state_feedback_slice(plant, result, powers, k_bounds, grid)
+            if isinstance(scan, str):
+                lines += ["", f"The delay margin against k with the designed g_u, g_v was not scanned ({scan})."]
+            lines += ["", "![the designed gains, and the delay margin against k with them](design.png)"]
+        elif family in ("reflection", *OBSERVER_FAMILIES):
             result = design_reflection(
                 spec["system"],
                 objective,
@@ -461,6 +706,67 @@ def run_design(
         ]
         if isinstance(result, ReflectionDesign):
             written.append(outputs.write_bytes("design.png", _tradeoff_png(result, margin_at_least)))
+        elif isinstance(result, StateFeedbackDesign):
+            written.append(outputs.write_bytes("design.png", _state_feedback_png(spec["given_system"], result, scan)))
         elif not isinstance(scan, str):
             written.append(outputs.write_bytes("design.png", _filtered_png(result, scan)))
+    return tuple(written), result
+
+
+def _run_nplusm(
+    path: Path,
+    spec: dict[str, Any],
+    out_dir: str | Path,
+    objective: str | None,
+    margin_at_least: float | None,
+    K_bounds: tuple[float, float] | None,
+    rigorous: bool | None,
+    family: str | None,
+    delays: tuple[float, float] | None,
+    speed_tolerance: float | None,
+) -> tuple[tuple[Path, ...], NPlusMGainDesign]:
+    """``nrobust design`` on an ``NPlusMSystem`` file: the gain matrix ``K`` (family ``"nplusm"``)."""
+    if family is not None and family != "nplusm":
+        raise ParameterError("family (--family)", '"nplusm" for an NPlusMSystem file', family)
+    if speed_tolerance is not None:
+        raise ParameterError(
+            "speed_tolerance (--speed-tolerance)", 'left out for family = "nplusm" (not supported)', speed_tolerance
+        )
+    given: dict[str, Any] = spec.get("design") or {}
+    objective = objective or given.get("objective", "decay_rate")
+    margin_at_least = margin_at_least if margin_at_least is not None else given.get("margin_at_least")
+    windows: Any = delays if delays is not None else given.get("delays")
+    if delays is not None and margin_at_least is not None:
+        raise ParameterError("margin_at_least", "left out with delays (the window [0, d] is a margin > d)")
+    rigorous = rigorous if rigorous is not None else bool(given.get("rigorous", False))
+    system = spec["system"]
+    outputs = RunOutputs(out_dir, "design")
+    with outputs:
+        result = design_nplusm_gains(
+            system,
+            objective,
+            margin_at_least=margin_at_least,
+            delays=windows,
+            K_bounds=K_bounds if K_bounds is not None else given.get("K_bounds"),
+            x0=given.get("x0"),
+            starts=int(given.get("starts", 4)),
+            max_iter=int(given.get("max_iter", 60)),
+            rigorous=rigorous,
+        )
+        lines = _nplusm_markdown(path, result)
+        lines += ["", "![the certified delay margin along the gains t K, the design at t = 1](design.png)"]
+        data = {
+            "file": str(path),
+            "plant": repr(system),
+            "family": "nplusm",
+            "margin_at_least": margin_at_least,
+            "delays": windows,
+            "speed_tolerance": None,
+            **result.to_dict(),
+        }
+        written = [
+            outputs.write_text("design.json", json.dumps(json_safe(data), indent=2, allow_nan=False)),
+            outputs.write_text("design.md", "\n".join(lines) + "\n"),
+            outputs.write_bytes("design.png", _nplusm_png(system, result)),
+        ]
     return tuple(written), result

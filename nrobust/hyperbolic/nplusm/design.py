@@ -40,6 +40,24 @@ margin cannot be certified is infeasible too. A trial point is rejected without 
 abscissa when a zero right of the line search's line is found first: Newton's method from the
 rightmost roots of earlier points, the zero proven by a certified count in a small box.
 
+**Windows of delays.** ``delays`` (one window ``[d_min, d_max]`` or several) requires the loop
+exponentially stable for every delay of each window. The loop must be stable at ``delta = 0`` too
+(the certified margins list the crossings of a nominally stable loop only). The crossing delays are
+``tau_k = tau_0 + 2 pi k / w`` on each crossing frequency ``w`` of the certified margin (every
+crossing on ``[0, W]``, none beyond), and each crossing moves ``2`` zeros (a conjugate pair) right or
+left as ``Re ds/ddelta = Re(-F_delta / F_s)`` says; the stability windows are the intervals between
+crossing delays where no zero is left in ``Re s >= 0``. As in :mod:`nrobust.design.local`, the
+requirement's violation measure is the window clearance ``c = min_j max_(l, h) min(d_min,j - l,
+h - d_max,j)`` over the windows and the stability windows (``d_min - l`` taken as ``+inf`` for the
+window ``[0, h)``; a window from ``d_min = 0`` held only by it), differentiable where one crossing
+delay binds (the critical crossing's sensitivity above, on that crossing's branch); a start missing
+the requirement first raises the window margin ``d_max,m + c`` to ``d_max,m``, after lowering the
+largest spectral abscissa at ``delta = 0`` and at every ``d_min`` below 0 when no window holds. The
+design is then checked with certified tools only (:class:`NPlusMWindow`): no crossing delay in the
+window, and no zero in ``Re s >= 0`` at ``delta = d_min`` (the nominal count when no crossing delay
+lies below ``d_min``, else :func:`~nrobust.roots.count_roots` of ``F(.; d_min)`` on ``[0, W] x
+[-W, W]``: ``W`` bounds the zeros in ``Re s >= 0`` for every delay).
+
 **Local.** The optimum is local: the best of the starts, each ending where neither the line
 search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
 bounds (:class:`~nrobust.design.LoopDesign` says the same of the scalar designs). For one
@@ -64,9 +82,11 @@ from ...design.local import (
     ABOVE_LINE,
     BELOW_REQUIREMENT,
     GAMMA_MAX,
+    NO_WINDOW,
     LocalRun,
     TrialPoint,
     check_objective,
+    check_windows,
     local_runs,
 )
 from ...errors import CertificationError, ParameterError
@@ -78,11 +98,14 @@ from .system import NPlusMSystem
 
 __all__ = [
     "NPlusMGainDesign",
+    "NPlusMWindow",
     "NPlusMGainProblem",
     "default_gain_bounds",
     "design_nplusm_gains",
+    "check_window",
     "gain_gradient",
     "principal_gamma",
+    "window_clearance",
 ]
 
 #: Default bounds of each entry of ``K``: this fraction of the entry that alone (the others 0)
@@ -195,6 +218,176 @@ def _margin_sensitivity(
     return grad, error
 
 
+def _crossing_delays(
+    system: NPlusMSystem, K: NDArray[np.float64], dm: NPlusMMargin, horizon: float
+) -> list[tuple[float, float, int]]:
+    """Every crossing delay ``tau <= horizon`` of the loop as ``(tau, w, direction)``, ascending.
+
+    ``tau = tau_0 + 2 pi k / w`` on each crossing ``(w, tau_0)`` of ``dm``; ``direction`` is the sign of
+    ``Re ds/ddelta = Re(-F_delta / F_s)`` at ``s = i w`` (+1: a pair of zeros enters ``Re s > 0``, -1: it
+    leaves, 0: not decided in floating point).
+    """
+    out = []
+    for w, tau0 in dm.crossings:
+        tau = tau0
+        while tau <= horizon:
+            s = 1j * w
+            _, _, d_delta = _jacobi_terms(system, K, s, tau)
+            d_s = complex(NPlusMCharacteristic(system, K, tau).deriv_at(np.array([s]))[0])
+            rate = (-d_delta / d_s).real if d_s != 0 else 0.0
+            out.append((float(tau), float(w), int(np.sign(rate))))
+            tau += 2.0 * np.pi / w
+    return sorted(out)
+
+
+def _stability_windows(
+    crossings: list[tuple[float, float, int]], horizon: float
+) -> list[tuple[float, float, float | None, float | None]]:
+    """The intervals ``(l, h)`` of delays up to ``horizon`` with no zero in ``Re s >= 0``, each end's crossing
+    frequency (None: ``delta = 0`` or the horizon), from the zeros counted at each crossing (none at
+    ``delta = 0``: the loop is nominally stable); an undecided direction ends the count."""
+    windows: list[tuple[float, float, float | None, float | None]] = []
+    count: int | None = 0
+    lo, w_lo = 0.0, None
+    for tau, w, direction in crossings:
+        if count == 0:
+            windows.append((lo, tau, w_lo, w))
+        if count is None or direction == 0:
+            count = None
+            continue
+        count += 2 * direction
+        if count == 0:
+            lo, w_lo = tau, w
+    if count == 0:
+        windows.append((lo, horizon, w_lo, None))
+    return windows
+
+
+def window_clearance(
+    system: NPlusMSystem, K: ArrayLike, dm: NPlusMMargin, windows: Iterable[tuple[float, float]]
+) -> tuple[float, tuple[float, float, int] | None]:
+    """The window clearance of the loop at ``K`` (module notes) and the crossing ``(w, tau, side)`` that binds it.
+
+    ``c = min_j max_(l, h) min(d_min,j - l, h - d_max,j)`` over the windows ``(d_min,j, d_max,j)`` and the
+    stability windows ``(l, h)`` up to ``2 d_max,m + 1`` (``d_min - l = +inf`` for ``l = 0``; a window from
+    ``d_min = 0`` held by ``[0, h)`` only), in floating point; ``side`` is -1 for a lower end, +1 for an
+    upper; None when no crossing binds. ``c = -inf`` when a window has no stability window holding it.
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    dm : NPlusMMargin
+        The certified margin at ``K`` of a nominally stable loop (its crossings).
+    windows : iterable of (float, float)
+
+    Returns
+    -------
+    (float, (float, float, int) or None)
+    """
+    k = system.gain(K)
+    windows = tuple(windows)
+    horizon = 2.0 * max(hi for _, hi in windows) + 1.0
+    stable = _stability_windows(_crossing_delays(system, k, dm, horizon), horizon)
+    worst, binding = math.inf, None
+    for d_lo, d_hi in windows:
+        best, here = -math.inf, None
+        for lo, hi, w_lo, w_hi in stable:
+            if d_lo == 0.0 and lo != 0.0:
+                continue
+            below = math.inf if lo == 0.0 else d_lo - lo
+            c = min(below, hi - d_hi)
+            if c > best:
+                end = (w_lo, lo, -1) if below <= hi - d_hi else (w_hi, hi, 1)
+                best, here = c, (None if end[0] is None else (float(end[0]), end[1], end[2]))
+        if best < worst:
+            worst, binding = best, here
+    return worst, (binding if math.isfinite(worst) else None)
+
+
+@dataclass(frozen=True)
+class NPlusMWindow:
+    """The verdict on one window of delays of a designed ``K``, from certified tools only.
+
+    Attributes
+    ----------
+    window : (float, float)
+        ``(d_min, d_max)``.
+    stable : bool
+        True: no crossing delay in the window and no zero in ``Re s >= 0`` at ``delta = d_min``, so the
+        loop is exponentially stable for every delay of the window.
+    certified : bool
+        True when ``stable`` rests on the certified margin (complete crossing search) and a certified
+        count; False when a count could not be decided or the margin is not certified.
+    crossing : float or None
+        A crossing delay inside the window (why it is missed), or None.
+    count : int or None
+        The zeros in ``Re s >= 0`` at ``delta = d_min`` (None: not decided).
+    how : str
+        How the count was obtained.
+    """
+
+    window: tuple[float, float]
+    stable: bool
+    certified: bool
+    crossing: float | None
+    count: int | None
+    how: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description."""
+        return json_safe(dict(vars(self)))
+
+
+def check_window(system: NPlusMSystem, K: ArrayLike, dm: NPlusMMargin, window: tuple[float, float]) -> NPlusMWindow:
+    """Whether the loop at ``K`` is exponentially stable for every delay of ``window``, with certified tools.
+
+    No crossing delay ``tau_0 + 2 pi k / w`` of ``dm`` (every crossing, :func:`nplusm_delay_margin` or
+    :func:`multi_actuator_delay_margin`) lies in ``[d_min, d_max]``, and no zero lies in ``Re s >= 0`` at
+    ``delta = d_min``: the nominal count when no crossing delay is below ``d_min``, else
+    :func:`~nrobust.roots.count_roots` of ``F(.; d_min)`` on ``[0, W] x [-W, W]`` (``W`` of ``dm``: no zero in
+    ``Re s >= 0`` beyond it, for any delay).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    dm : NPlusMMargin
+        The certified margin at ``K``.
+    window : (float, float)
+
+    Returns
+    -------
+    NPlusMWindow
+    """
+    k = system.gain(K)
+    lo, hi = (float(v) for v in window)
+    if dm.nominal_unstable != 0:
+        why = (
+            f"the loop has {dm.nominal_unstable} zero(s) in Re s >= 0 at delta = 0"
+            if dm.nominal_unstable
+            else "the delayed loop is not strongly stable (gamma_0 >= 1), or its zeros at delta = 0 are not counted"
+        )
+        return NPlusMWindow((lo, hi), False, dm.certified, None, dm.nominal_unstable, why)
+    taus = [tau for tau, _, _ in _crossing_delays(system, k, dm, hi)]
+    inside = [tau for tau in taus if tau >= lo]
+    if inside:
+        return NPlusMWindow((lo, hi), False, dm.certified, inside[0], None, "a crossing delay in the window")
+    if not any(tau < lo for tau in taus):
+        how = "no crossing delay below d_min: the certified count at delta = 0"
+        return NPlusMWindow((lo, hi), True, dm.certified, None, 0, how)
+    radius = max(dm.frequency_bound, 1.0)
+    try:
+        count = count_roots(NPlusMCharacteristic(system, k, lo), (0.0, radius, -radius, radius))
+    except CertificationError as exc:
+        return NPlusMWindow((lo, hi), False, False, None, None, f"the count at d_min not decided: {exc}")
+    if count.region[0] < 0.0:
+        return NPlusMWindow((lo, hi), False, False, None, None, "the count at d_min not decided (a zero near the axis)")
+    n = int(count)
+    how = f"certified count of the zeros of F(.; d_min) on [0, {radius:.6g}] x [-{radius:.6g}, {radius:.6g}]"
+    return NPlusMWindow((lo, hi), n == 0, dm.certified, None, n, how)
+
+
 def _margin(system: NPlusMSystem, K: NDArray[np.float64]) -> NPlusMMargin:
     """The certified delay margin: :func:`nplusm_delay_margin` for one actuator, else the compound form."""
     if system.m == 1:
@@ -235,8 +428,14 @@ class NPlusMGainProblem:
     bounds : ndarray, shape (m n, 2)
     objective : {"decay_rate", "margin"}
     margin_at_least : float or None
+        The required margin; with ``windows``, the end of the last window (the level to which the
+        first phase raises the window margin, :class:`~nrobust.design.LocalProblem`).
     gamma_max : float
         Feasible only with :func:`principal_gamma` ``<= gamma_max``.
+    windows : tuple of (float, float)
+        Windows of delays (ascending, disjoint) on which a feasible ``K`` is stable (module notes);
+        ``want="margin"`` is then minus the window margin, ``want="abscissa"`` the largest spectral
+        abscissa at ``delta = 0`` and at each ``d_min``.
     """
 
     system: NPlusMSystem
@@ -244,6 +443,7 @@ class NPlusMGainProblem:
     objective: str
     margin_at_least: float | None
     gamma_max: float = GAMMA_MAX
+    windows: tuple[tuple[float, float], ...] = ()
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
     @property
@@ -275,6 +475,8 @@ class NPlusMGainProblem:
         if np.any(p < self.bounds[:, 0]) or np.any(p > self.bounds[:, 1]):
             return TrialPoint(p, False, math.inf, none, math.nan, math.nan, "outside the bounds")
         objective = want or self.objective
+        if self.windows and want == "margin":
+            objective = "window"
         key = (p.tobytes(), objective)
         memo = self.memo
         if key in memo.points:
@@ -290,7 +492,14 @@ class NPlusMGainProblem:
             reason = f"gamma = {gamma:.6g} of the delayed principal part above gamma_max"
             return TrialPoint(p, False, math.inf, none, math.nan, math.nan, reason)
         try:
-            point = self._margin_point(p, K) if objective == "margin" else self._abscissa_point(p, K, above)
+            if objective == "window":
+                point = self._window_point(p, K)
+            elif objective == "abscissa":
+                point = self._delayed_abscissa_point(p, K)
+            elif objective == "margin":
+                point = self._margin_point(p, K)
+            else:
+                point = self._abscissa_point(p, K, above)
         except CertificationError as exc:
             point = TrialPoint(p, False, math.inf, none, math.nan, math.nan, f"not certified: {exc}")
         if point.screened or point.reason == ABOVE_LINE:
@@ -311,7 +520,11 @@ class NPlusMGainProblem:
                 return TrialPoint(p, False, floor, none, floor, math.nan, f"above the line ({why})", True)
         margin = math.nan
         d = self.margin_at_least
-        if d:  # before the abscissa, which costs several margins
+        if self.windows:  # before the abscissa, which costs several margins
+            missed, margin = self._windows_missed(K)
+            if missed:
+                return TrialPoint(p, False, math.inf, none, math.nan, margin, f"{BELOW_REQUIREMENT}: {missed}")
+        elif d:  # before the abscissa, which costs several margins
             dm = self.margin(K)
             margin = dm.margin
             if not dm.certified:
@@ -357,18 +570,61 @@ class NPlusMGainProblem:
         self, p: NDArray[np.float64], F: NPlusMCharacteristic, sa: SpectralAbscissa
     ) -> NDArray[np.float64]:
         if sa.root is not None and not sa.approached_at_infinity:
-            return np.asarray(gain_gradient(self.system, F.K, complex(sa.root)).real.ravel(), dtype=float)
+            return np.asarray(gain_gradient(self.system, F.K, complex(sa.root), F.delta).real.ravel(), dtype=float)
         grad = np.zeros(p.size)
         for i in range(p.size):  # the chain value c_D(K), by central differences
             h = CHAIN_STEP * max(1.0, abs(float(p[i])), float(self.bounds[i, 1] - self.bounds[i, 0]))
             lo, hi = p.copy(), p.copy()
             lo[i], hi[i] = max(p[i] - h, self.bounds[i, 0]), min(p[i] + h, self.bounds[i, 1])
             c = [
-                NPlusMCharacteristic(self.system, self.gain(x)).principal_part().spectral_bound().value
+                NPlusMCharacteristic(self.system, self.gain(x), F.delta).principal_part().spectral_bound().value
                 for x in (lo, hi)
             ]
             grad[i] = (c[1] - c[0]) / (hi[i] - lo[i])
         return grad
+
+    def _windows_missed(self, K: NDArray[np.float64]) -> tuple[str, float]:
+        """Why ``K`` misses the windows (empty if it meets them, in floating point), and its delay margin."""
+        dm = self.margin(K)
+        if dm.nominal_unstable != 0 or not dm.certified:
+            return "the loop is not stable at delta = 0 (or its margin is not certified)", dm.margin
+        c, _ = window_clearance(self.system, K, dm, self.windows)
+        if not c > 0.0:
+            return f"the loop is not stable on the windows (clearance {c:.6g})", dm.margin
+        return "", dm.margin
+
+    def _window_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
+        """Minus the window margin ``d_max,m + c`` with its gradient (module notes); :data:`NO_WINDOW` when
+        the loop is unstable at ``delta = 0`` or no stability window holds a window."""
+        none = np.zeros(p.size)
+        dm = self.margin(K)
+        if dm.nominal_unstable != 0 or not dm.certified:
+            reason = f"{NO_WINDOW} [0, h): the loop is not stable at delta = 0 (or its margin is not certified)"
+            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, reason)
+        c, end = window_clearance(self.system, K, dm, self.windows)
+        if not math.isfinite(c):
+            reason = f"{NO_WINDOW} holding each of {[list(w) for w in self.windows]} for the loop"
+            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, reason)
+        grad = np.zeros(p.size)
+        if end is not None:
+            w, tau, side = end
+            g, _ = _margin_sensitivity(self.system, K, w, tau)
+            grad = side * g.ravel()
+        value = self.windows[-1][1] + c
+        return TrialPoint(p, True, -value, -grad, math.nan, value)
+
+    def _delayed_abscissa_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
+        """The phase before the first: the largest spectral abscissa of ``F(.; delta, K)`` over ``delta = 0`` and
+        the windows' ``d_min``, with the gradient of the rightmost root (or chain) of the largest."""
+        worst: tuple[float, float, SpectralAbscissa | None] = (-math.inf, 0.0, None)
+        for delta in sorted({0.0, *(lo for lo, _ in self.windows)}):
+            sa = self.abscissa(K) if delta == 0.0 else spectral_abscissa(NPlusMCharacteristic(self.system, K, delta))
+            if sa.value > worst[0]:
+                worst = (sa.value, delta, sa)
+        value, delta, rightmost = worst
+        assert rightmost is not None
+        F = NPlusMCharacteristic(self.system, K, delta)
+        return TrialPoint(p, True, value, self._abscissa_gradient(p, F, rightmost), value, math.nan)
 
     def _margin_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
         none = np.zeros(p.size)
@@ -377,6 +633,10 @@ class NPlusMGainProblem:
             return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "not stable at delta = 0")
         if not dm.certified:
             return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "margin not certified")
+        if self.windows:
+            missed, _ = self._windows_missed(K)
+            if missed:
+                return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, f"{BELOW_REQUIREMENT}: {missed}")
         if dm.omega is None or not math.isfinite(dm.margin):
             return TrialPoint(p, True, -dm.margin, none, math.nan, dm.margin)
         grad, _ = _margin_sensitivity(self.system, K, float(dm.omega), dm.margin)
@@ -426,6 +686,11 @@ class NPlusMGainDesign:
         Always True: the optimum is local (:attr:`optimality`).
     optimality : str
         What is known of the optimality of ``K``.
+    delays : tuple of (float, float)
+        The required windows of delays (merged, ascending; empty without ``delays``).
+    windows : tuple of NPlusMWindow
+        The verdict on each window (:func:`check_window`); ``certified`` requires each stable and
+        certified.
     """
 
     K: tuple[tuple[float, ...], ...]
@@ -444,6 +709,8 @@ class NPlusMGainDesign:
     runs: tuple[LocalRun, ...] = field(repr=False)
     local: bool = True
     optimality: str = LOCAL_STATEMENT
+    delays: tuple[tuple[float, float], ...] = ()
+    windows: tuple[NPlusMWindow, ...] = ()
 
     @property
     def gain(self) -> NDArray[np.float64]:
@@ -457,7 +724,9 @@ class NPlusMGainDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs")}
+        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs", "windows")}
+        data["delays"] = [list(w) for w in self.delays]
+        data["windows"] = [w.to_dict() for w in self.windows]
         data["K"] = [list(row) for row in self.K]
         data["abscissa"] = {
             "value": self.abscissa.value,
@@ -550,6 +819,7 @@ def design_nplusm_gains(
     objective: str = "decay_rate",
     *,
     margin_at_least: float | None = None,
+    delays: Any = None,
     K_bounds: Any = None,
     x0: ArrayLike | None = None,
     starts: int = 4,
@@ -576,6 +846,11 @@ def design_nplusm_gains(
     margin_at_least : float, optional
         With ``"decay_rate"``: require ``delta* >= margin_at_least``. A start below it first
         maximises the margin.
+    delays : (float, float) or sequence of them, optional
+        Windows ``[d_min, d_max]`` (``0 <= d_min <= d_max``, ``d_max > 0``) on which the loop must
+        be exponentially stable for every delay, at every iterate (module notes), with either
+        objective, not with ``margin_at_least``; the loop must be stable at ``delta = 0`` too. The
+        design is checked on each window with certified tools (:attr:`NPlusMGainDesign.windows`).
     K_bounds : pair, or array of shape (m, n, 2) or (m n, 2), optional
         ``(low, high)`` for every entry, or one pair per entry (row by row). Default
         (:func:`default_gain_bounds`): each entry within ``0.99`` of the value that alone (the
@@ -616,6 +891,11 @@ def design_nplusm_gains(
     if not isinstance(system, NPlusMSystem):
         raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
     margin_at_least = check_objective(objective, margin_at_least)
+    windows = _merged(check_windows(delays))
+    if windows and margin_at_least is not None:
+        raise ParameterError(
+            "margin_at_least", "left out with delays (the window [0, d] is a margin above d)", margin_at_least
+        )
     gamma_max = finite_real("gamma_max", gamma_max)
     if not 0.0 <= gamma_max < 1.0:
         raise ParameterError("gamma_max", "in [0, 1) (strong stability of the delayed loop)", gamma_max)
@@ -631,15 +911,27 @@ def design_nplusm_gains(
     map_: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = (
         map if isinstance(executor, str) and executor == "serial" else sweep_map(executor, progress=False)
     )
-    problem = NPlusMGainProblem(system, bounds, objective, margin_at_least, gamma_max)
+    level = windows[-1][1] if windows else margin_at_least
+    problem = NPlusMGainProblem(system, bounds, objective, level, gamma_max, windows)
     runs = local_runs(problem, x0=start, starts=starts, max_iter=max_iter, tol=tol, map=map_)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
         raise CertificationError(
             f"design_nplusm_gains: no start reached a feasible gain ({reasons}); widen K_bounds, give a feasible x0, "
-            "add starts or lower margin_at_least"
+            "add starts or lower margin_at_least (or narrow delays)"
         )
     return _certify(system, problem, runs, rigorous)
+
+
+def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
+    """The windows as disjoint closed intervals, ascending (windows that meet are one)."""
+    merged: list[tuple[float, float]] = []
+    for lo, hi in sorted(windows):
+        if merged and lo <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
+        else:
+            merged.append((lo, hi))
+    return tuple(merged)
 
 
 def _certify(
@@ -648,9 +940,11 @@ def _certify(
     K = problem.gain(runs[0].parameters)
     F = NPlusMCharacteristic(system, K, 0.0)
     sa = F.proven_abscissa() if rigorous else problem.abscissa(K)
-    d = problem.margin_at_least
-    dm = problem.margin(K) if (problem.objective == "margin" or d is not None) else None
+    d = None if problem.windows else problem.margin_at_least
+    dm = problem.margin(K) if (problem.objective == "margin" or problem.margin_at_least is not None) else None
     met = dm is None or (dm.certified and dm.nominal_unstable == 0 and (d is None or dm.margin >= d))
+    verdicts = tuple(check_window(system, K, dm, w) for w in problem.windows) if dm is not None else ()
+    met = met and all(v.stable and v.certified for v in verdicts)
     if problem.objective == "decay_rate":
         value = -sa.value
         accuracy = sa.accuracy if sa.accuracy is not None else math.inf
@@ -675,4 +969,6 @@ def _certify(
         len(runs),
         sum(r.evaluations for r in runs),
         tuple(runs),
+        delays=problem.windows,
+        windows=verdicts,
     )
