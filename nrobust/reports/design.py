@@ -480,7 +480,7 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
 
 
 #: Gains ``t K`` of the n + m figure.
-NPLUSM_SECTION = np.linspace(0.0, 1.25, 26)
+NPLUSM_SECTION = np.linspace(0.0, 1.2, 13)
 
 
 def _nplusm_png(system: NPlusMSystem, result: NPlusMGainDesign) -> bytes:
