@@ -12,12 +12,14 @@
     a controller for the file's plant (:func:`nrobust.reports.design.run_design`): ``F =
     reflection`` (the gain ``K`` of ``U_BS2(K)``, solved exactly; ``output_feedback``: on the state
     predicted from ``v(t, 0)``, ``collocated_output_feedback``: on the collocated observer's estimate
-    from ``u(t, 1)``) or ``filtered`` (``K`` and the filter's ``a``, ``b``, a certified local
-    optimum), with the largest delay margin
+    from ``u(t, 1)``), ``filtered`` (``K`` and the filter's ``a``, ``b``, a certified local
+    optimum), ``state_feedback`` (``k`` and the integral gains on a basis, a certified local
+    optimum) or, for an ``NPlusMSystem`` file, ``nplusm`` (the gain matrix ``K``), with the largest
+    delay margin
     (``OBJ = margin``) or the largest decay rate (``decay_rate``) with a margin of at least
     ``D``, or stable for every delay in ``[D_MIN, D_MAX]`` (and under a relative error ``EPS``
     of both speeds); each option defaults to the file's ``[design]`` section. Writes ``design.json``,
-    ``design.md`` and ``design.png`` (the delay margin against ``K``, the design marked).
+    ``design.md`` and ``design.png`` (the delay margin against the gain, the design marked).
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
     A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
     again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).
@@ -101,11 +103,19 @@ def _parser() -> argparse.ArgumentParser:
         choices=DESIGN_FAMILIES,
         default=None,
         help="U_BS2(K), U_BS2(K) on the state predicted from v(t, 0), U_BS2(K) on the collocated observer's "
-        "estimate from u(t, 1), or the filtered U_BS2(K)",
+        "estimate from u(t, 1), the filtered U_BS2(K), the state feedback k u(t, L) + int g_u u + g_v v, "
+        "or the gain matrix K of an NPlusMSystem",
     )
     d.add_argument("--objective", choices=("margin", "decay_rate"), default=None, help="what to maximise")
     d.add_argument("--margin-at-least", type=float, default=None, help="the delay margin required (decay_rate)")
-    d.add_argument("--k-bounds", type=float, nargs=2, default=None, metavar=("LO", "HI"), help="the gains searched")
+    d.add_argument(
+        "--k-bounds",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("LO", "HI"),
+        help="the gains searched (K; k of state_feedback; every entry of K for nplusm)",
+    )
     d.add_argument(
         "--delays",
         type=float,
