@@ -56,6 +56,24 @@ def test_decay_rate_on_a_window_agrees_with_the_exact_scalar_design() -> None:
     assert spectral_abscissa(NPlusMCharacteristic(SYSTEM, below, 1.2)).value > 0.0
 
 
+@pytest.mark.slow
+def test_a_start_unstable_at_delta_zero_reaches_the_window() -> None:
+    """From ``k = -0.15`` (the loop unstable at ``delta = 0``: the law stabilises for ``k`` in about
+    ``(-0.84, -0.23)``) the phase before the first lowers the abscissa, the first phase raises the window
+    margin, and the design ends at the same optimum as from a stable start: ``k`` to ``3e-5`` of the exact
+    ``-0.46758262`` (pattern steps of ``1e-5`` of the width 0.7, and the last line-search step; measured
+    1.2e-5), the decay rate to ``2e-4`` (slope about 6.3; measured 8e-5). About 90 s of CPU time."""
+    loop = state_feedback_loop(PLANT)
+    exact = best_decay_rate(AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0]), (-0.8, -0.1), delays=(0.5, 1.2))
+    design = design_nplusm_gains(
+        SYSTEM, "decay_rate", delays=(0.5, 1.2), K_bounds=(-0.8, -0.1), x0=[[-0.15]], starts=1, max_iter=10
+    )
+    assert design.certified and design.windows[0].stable and design.windows[0].certified
+    np.testing.assert_allclose(design.K[0][0], exact.K, atol=3e-5)
+    np.testing.assert_allclose(design.value, exact.decay_rate, atol=2e-4)
+    assert design.value <= exact.decay_rate + 1e-9
+
+
 def test_a_window_past_crossings_is_counted() -> None:
     """At ``k = -0.8`` the crossing delays up to 1.5 are 0.5027 (a pair enters ``Re s > 0``), 0.6024 (enters)
     and 0.9592 (leaves): on ``[1.0, 1.5]`` there is no crossing delay, and the certified count at

@@ -630,7 +630,9 @@ class NPlusMGainProblem:
         none = np.zeros(p.size)
         dm = self.margin(K)
         if dm.nominal_unstable != 0:
-            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "not stable at delta = 0")
+            # under windows the first phase (after the phase before it) makes the loop stable at delta = 0
+            prefix = f"{BELOW_REQUIREMENT}: " if self.windows else ""
+            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, f"{prefix}not stable at delta = 0")
         if not dm.certified:
             return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, "margin not certified")
         if self.windows:
