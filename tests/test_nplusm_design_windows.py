@@ -33,7 +33,8 @@ def test_decay_rate_on_a_window_agrees_with_the_exact_scalar_design() -> None:
     end). The local design stops with pattern steps of ``1e-5`` of the width 0.5, so ``k`` agrees to
     ``1e-5`` (measured 4.5e-6) and the decay rate, whose slope in ``k`` is about 6.3 there, to ``1e-4``
     (measured 2.9e-5); being feasible, it is never better than the optimum. The designed loop's
-    spectral abscissa at 8 delays of the window is negative (each certified). About 13 s of CPU time."""
+    spectral abscissa at 3 delays of the window is negative (each certified). About 40 s of CPU time on a
+    loaded machine (the design about 13 s, each abscissa at a delay 1-20 s)."""
     loop = state_feedback_loop(PLANT)
     exact = best_decay_rate(AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0]), (-0.8, -0.3), delays=(0.5, 1.2))
     design = design_nplusm_gains(SYSTEM, "decay_rate", delays=(0.5, 1.2), K_bounds=(-0.8, -0.3), x0=[[-0.3]], starts=1)
@@ -45,7 +46,7 @@ def test_decay_rate_on_a_window_agrees_with_the_exact_scalar_design() -> None:
     assert design.value <= exact.decay_rate + 1e-9
     # the window binds: the design's margin is just above its end (the same 1e-5 of the gains, slope ~2.6)
     assert design.margin is not None and 1.2 < design.margin.margin < 1.2 + 1e-4
-    for delta in np.linspace(0.5, 1.2, 8):
+    for delta in (0.5, 0.85, 1.2):  # the ends and the middle (the abscissa at 1.2 is -3.4e-6: the end binds)
         sa = spectral_abscissa(NPlusMCharacteristic(SYSTEM, design.gain, delta))
         assert sa.certified and sa.value < 0.0
     # the requirement binds: a gain 1e-3 below the design has a crossing delay in the window, and its loop at
