@@ -63,6 +63,7 @@ from nrobust.hyperbolic.nplusm import (
     kernel_error_bound,
     nplusm_delay_margin,
 )
+from nrobust.hyperbolic.nplusm.design import check_window
 from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
 from nrobust.hyperbolic.plants.frontends import arz, saint_venant
 from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
@@ -235,6 +236,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "MismatchRegion": mismatch,
         "DelayWindow": window_stability(A, B, (0.1, 0.2)),
         "SpeedTolerance": speed_tolerance(TRANSPORT, ReflectionController(0.1), 0.1, (0.0, 0.1), grid=2),
+        "NPlusMWindow": check_window(ONE_PLUS_ONE, [[-0.2]], nplusm_delay_margin(ONE_PLUS_ONE, [[-0.2]]), (0.1, 0.2)),
         "NPlusMGainDesign": design_nplusm_gains(
             NPlusMSystem.from_2x2(Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)),
             "margin",
@@ -327,6 +329,7 @@ NAMES = [
     "MismatchRegion",
     "DelayWindow",
     "SpeedTolerance",
+    "NPlusMWindow",
     "NPlusMGainDesign",
     "StateFeedbackDesign",
 ]

@@ -56,7 +56,7 @@ from ..hyperbolic.analyses.filter_design import (
 from ..hyperbolic.analyses.margin import delay_margin
 from ..hyperbolic.analyses.state_design import (
     StateFeedbackDesign,
-    _k_bounds,  # the design's own default bounds of k, for its trade-off figure
+    default_state_k_bounds,  # the design's own default bounds of k, for its trade-off figure
     design_state_feedback,
     state_feedback_loop,
 )
@@ -390,7 +390,7 @@ def _state_feedback_slice(
     basis = [Monomial(j, length) for j in powers]
     try:
         loop = state_feedback_loop(system, basis, kernel_grid)  # the design's own loop
-        bounds = tuple(k_bounds) if k_bounds is not None else _k_bounds(loop)
+        bounds = tuple(k_bounds) if k_bounds is not None else default_state_k_bounds(loop)
         p = np.array(result.parameters, dtype=float)
         fixed = loop.B(np.concatenate([[0.0], p[1:]]))
         return best_margin(AffineGainLoop(loop.A, fixed, loop.units[0]), (float(bounds[0]), float(bounds[1])))

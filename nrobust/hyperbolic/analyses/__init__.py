@@ -35,7 +35,14 @@ from .mismatch import (
 )
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
 from .rouche import rouche_delay_bound
-from .state_design import BasisGain, StateFeedbackDesign, StateFeedbackLoop, design_state_feedback, state_feedback_loop
+from .state_design import (
+    BasisGain,
+    StateFeedbackDesign,
+    StateFeedbackLoop,
+    default_state_k_bounds,
+    design_state_feedback,
+    state_feedback_loop,
+)
 from .tradeoffs import Tradeoff, tradeoff
 
 __all__ = [
@@ -72,6 +79,7 @@ __all__ = [
     "filtered_front",
     "filtered_loop",
     "default_filter_bounds",
+    "default_state_k_bounds",
     "k_region",
     "margin_and_decay",
     "mismatch_gain_loop",

@@ -51,7 +51,14 @@ from .design import design_reflection
 from .mismatch import SpeedTolerance, check_local_requirements
 from .mismatch import speed_tolerance as tolerance_on_square
 
-__all__ = ["BasisGain", "StateFeedbackDesign", "StateFeedbackLoop", "design_state_feedback", "state_feedback_loop"]
+__all__ = [
+    "BasisGain",
+    "StateFeedbackDesign",
+    "StateFeedbackLoop",
+    "default_state_k_bounds",
+    "design_state_feedback",
+    "state_feedback_loop",
+]
 
 #: Default ``|k|`` bound: this fraction of ``(1 - |rho q|)/|q|`` (strong stability of the delayed loop).
 K_BOUND_FRACTION = 0.99
@@ -208,8 +215,11 @@ def _controller(p: ArrayLike, basis: tuple[Any, ...]) -> StateFeedback:
     return StateFeedback(float(p[0]), BasisGain(c, basis), BasisGain(d, basis))
 
 
-def _k_bounds(loop: StateFeedbackLoop) -> tuple[float, float]:
-    """``0.99 (1 - |rho q|)/|q|`` each side, ``rho q`` and ``q`` the principal terms of ``A`` and ``B_k``.
+def default_state_k_bounds(loop: StateFeedbackLoop) -> tuple[float, float]:
+    """The default bounds of ``k`` of :func:`design_state_feedback`: ``0.99 (1 - |rho q|)/|q|`` each side.
+
+    ``rho q`` and ``q`` are the principal terms of ``A`` and ``B_k`` of ``loop``
+    (:func:`state_feedback_loop`).
 
     The delayed loop's difference operator is ``1 - rho q e^{-tau s} - k q e^{-(tau + delta) s}``
     (normalised by the undelayed coefficient of ``A``): strongly stable iff ``|rho q| + |k q| < 1``.
@@ -533,7 +543,7 @@ def design_state_feedback(
             )
             for a, b in corners
         )
-    kb = given if given is not None else _k_bounds(loop)
+    kb = given if given is not None else default_state_k_bounds(loop)
     bounds = (kb, *([coef] * (2 * len(functions))))
     box = np.array(bounds)
     ks, exact = _proportional_starts(loop, kb, objective, margin_at_least, window, scenarios)
