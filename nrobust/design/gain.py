@@ -831,8 +831,11 @@ class _Family:
         :func:`~nrobust.margins.frequency_bound`); so for any family with ``A_1 = 0``. For the
         filter's pole (``A = A_0 (1 + p s)``, ``B_1 = 0``) the largest bound at the ends and at the
         point of ``[lo, hi]`` nearest 0, which holds inside because
-        ``|A(i w)|^2 = |A_0|^2 (1 + p^2 w^2)`` grows with ``|p|``. For other families a bound
-        uniform over the interval (:func:`_uniform_crossing_bound`).
+        ``|A(i w)|^2 = |A_0|^2 (1 + p^2 w^2)`` grows with ``|p|``; for the same reason the bound at
+        ``p = 0`` holds for every ``p`` when ``A_0`` dominates there (``|A_0| > |B|`` beyond it), and
+        the least of the two is taken (a filter without a zero on a strongly stable law: the bound at a
+        small pole grows like ``1/|p|``, the one at 0 does not). For other families a bound uniform
+        over the interval (:func:`_uniform_crossing_bound`).
 
         Raises
         ------
@@ -860,6 +863,12 @@ class _Family:
                     (lo, hi),
                 )
             out = max(out, float(b[0]))
+        if not self.a1_zero and points[2] != 0.0:
+            A, B = self.A(0.0), self.B(0.0)
+            at_zero = frequency_bound(A, B)
+            first = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
+            if at_zero is not None and first is not None and first.first == "A":  # |A_0| > |B| beyond it
+                out = min(out, float(at_zero[0]))
         return min(W, out)
 
 

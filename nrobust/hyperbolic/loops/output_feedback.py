@@ -48,10 +48,13 @@ point, with an estimate of its error: a proof about the loop is a proof about th
 
 from __future__ import annotations
 
+import itertools
 from functools import lru_cache
 
 import numpy as np
+from numpy.polynomial import Polynomial
 
+from ...distributed_delay import DistributedDelay
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
 from ...volterra import (
@@ -67,7 +70,6 @@ from ...volterra import (
 __all__ = ["observer_term", "output_feedback_factors"]
 
 
-@lru_cache(maxsize=16)
 def observer_term(open_loop: QuasiPolynomial, law: QuasiPolynomial, window: float) -> ResolventProduct | None:
     """``G = (1 - Phi) H`` of the open loop, the law and the measurement's window (module notes).
 
@@ -98,6 +100,13 @@ def observer_term(open_loop: QuasiPolynomial, law: QuasiPolynomial, window: floa
     m = tuple(d.scale(-1.0) for d in law.distributed if d.a < window and not d.is_zero)
     if not m:
         return None
+    return _observer_term(open_loop, m, window)
+
+
+@lru_cache(maxsize=16)
+def _observer_term(open_loop: QuasiPolynomial, m: tuple[DistributedDelay, ...], window: float) -> ResolventProduct:
+    """:func:`observer_term` from the law's kernel ``m`` on the window (cached: the law's terms that the window
+    does not reach, such as U_BS2's ``K q e^{-tau s}``, do not change it)."""
     kernels = [d for d in open_loop.distributed if not d.is_zero]
     if len(kernels) > 1:
         raise ParameterError("open_loop", "a delay form with one distributed term N~ (eq. (39))", open_loop)
@@ -119,6 +128,11 @@ def output_feedback_factors(
 
     The collocated observer's loop has the same form
     (:mod:`~nrobust.hyperbolic.loops.collocated`), its ``G`` given as a quasi-polynomial.
+    The observer's ``G`` (a :class:`~nrobust.volterra.ResolventProduct`) is stored as one term
+    (:func:`_joined`), and the kernels of ``A`` and ``B`` that its segments refine are stored on
+    them (:func:`_refined_onto`, its rounding added to their error bounds), so that each factor
+    holds one kernel where it held several: the loop's values agree with the sum of the separate
+    terms to rounding, and each evaluation integrates one kernel instead of four.
 
     Parameters
     ----------
@@ -133,6 +147,110 @@ def output_feedback_factors(
     """
     if term is None:
         return A, B
-    G = term if isinstance(term, QuasiPolynomial) else term.product
+    if isinstance(term, QuasiPolynomial):
+        G = term
+    else:
+        G = _joined(term.product)
     ng = G.times_poly(list(numerator))
-    return A - ng.shift(observer_delay), B + ng
+    shifted = ng.shift(observer_delay)
+    if not isinstance(term, QuasiPolynomial):
+        A, B = _refined_onto(A, shifted), _refined_onto(B, ng)
+    return A - shifted, B + ng
+
+
+def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
+    """``G`` of :func:`observer_term` with its kernels on consecutive intervals stored as one term.
+
+    The product holds one term of polynomial pieces per interval between breakpoints
+    (:func:`~nrobust.volterra.resolvent_product`), all of one segment length on the paper's plants.
+    As one term of the same pieces (the same stored kernel, coefficients zero-padded to one degree),
+    the loop integrates them as one exponential sum over all the segments instead of one per interval
+    (the values agree to rounding). Terms that are not plain polynomial pieces on consecutive
+    intervals are left as they are.
+    """
+    terms = G.distributed
+    plain = all(
+        d.interpolation == "polynomial" and d.moment == 0 and d.poly.size == 1 and d.poly[0] == 1.0 for d in terms
+    )
+    if len(terms) < 2 or G.point_terms or not plain:
+        return G
+    if any(d.radius or d.variation_radius for d in terms) or any(u.b != v.a for u, v in itertools.pairwise(terms)):
+        return G
+    degree = max(d.pieces[2].shape[1] for d in terms)
+    nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
+    coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
+    joined = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=coefficients)
+    return QuasiPolynomial([], [], [joined])
+
+
+# Rounding of the refinement (_refined_piece): a multiple of eps large enough for the composition P(alpha + beta t)
+# of degree d (Horner in polynomial arithmetic, gamma_{2d+2}) and the rounding of alpha, beta (<= 4 eps each).
+_REFINE_ULPS = 8.0
+_EPS = float(np.finfo(float).eps)
+
+
+def _refined_onto(P: QuasiPolynomial, G: QuasiPolynomial) -> QuasiPolynomial:
+    """``P`` with each distributed term that ``G``'s one term refines stored on ``G``'s segments.
+
+    A term of ``P`` (polynomial pieces, the same ``q(s)`` and moment as ``G``'s term, degree at most
+    its degree) whose nodes are nodes of ``G``'s term, inside its support, is re-expanded on the finer
+    segments (zero beyond its support) so that the sum with ``G`` is one term of ``G``'s segments
+    (:meth:`~nrobust.distributed_delay.DistributedDelay.plus`): on the paper's plant ``N~`` of the
+    delay form (16 pieces on ``[0, tau]``) and ``G`` (72 pieces on ``[0, tau + 1/mu]``) become one
+    kernel, integrated once per evaluation of the loop instead of twice. The re-expansion
+    ``P_i(alpha + beta t)`` is computed in floating point; its error is added to the term's bounds:
+    ``radius`` grows by ``8 (d + 2) eps sum_k (k + 1) |P_ik|`` on each piece (the composition and the
+    rounding of ``alpha``, ``beta``; ``|P_i'| <= sum_k k |P_ik|`` on ``[0, 1]``) and
+    ``variation_radius`` by ``d + 2`` times its sum over the fine segments (the variation of the error
+    on each, ``d`` times its coefficients' sum, and its jumps between them). Other terms are kept.
+    """
+    if len(G.distributed) != 1 or not P.distributed:
+        return P
+    (target,) = G.distributed
+    if target.interpolation != "polynomial":
+        return P
+    terms = [_refined_term(d, target) for d in P.distributed]
+    if all(t is None for t in terms):
+        return P
+    kept = [d if t is None else t for d, t in zip(P.distributed, terms)]
+    return QuasiPolynomial.from_parts(P.point_terms, kept)
+
+
+def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedDelay | None:
+    """``d`` on the segments of ``target`` (see :func:`_refined_onto`), or None when they do not refine it."""
+    if d.interpolation != "polynomial" or d.moment != target.moment or not np.array_equal(d.poly, target.poly):
+        return None
+    start, h, coefs = d.pieces
+    fine = target.nodes
+    degree = target.pieces[2].shape[1] - 1
+    if coefs.shape[1] - 1 > degree or np.iscomplexobj(coefs) or d.a != fine[0] or d.b > fine[-1]:
+        return None
+    at = np.searchsorted(fine, d.nodes)
+    if np.any(at >= fine.size) or not np.array_equal(fine[np.minimum(at, fine.size - 1)], d.nodes):
+        return None  # a node of d that is not a node of the target
+    d_deg = coefs.shape[1] - 1
+    out = np.zeros((fine.size - 1, degree + 1))
+    error = np.zeros(fine.size - 1)
+    weight = _REFINE_ULPS * (d_deg + 2) * _EPS * np.sum(np.abs(coefs) * (np.arange(d_deg + 1) + 1.0), axis=1)
+    for i in range(start.size):
+        for k in range(int(at[i]), int(at[i + 1])):
+            # t = (nu - start_i) / h_i = alpha + beta t' on the fine segment [fine_k, fine_k+1]
+            alpha, beta = (fine[k] - start[i]) / h[i], (fine[k + 1] - fine[k]) / h[i]
+            local = Polynomial(coefs[i])(Polynomial([alpha, beta])).coef
+            out[k, : local.size] = local
+            error[k] = weight[i]
+    return DistributedDelay(
+        fine,
+        None,
+        d.poly,
+        d.moment,
+        "polynomial",
+        coefficients=out,
+        radius=_up(d.radius + float(np.max(error))),
+        variation_radius=_up(d.variation_radius + (d_deg + 2) * float(np.sum(error))),
+    )
+
+
+def _up(x: float) -> float:
+    """``x`` rounded up by two ulps (a sum of error bounds stays an upper bound)."""
+    return float(np.nextafter(np.nextafter(x, np.inf), np.inf))
