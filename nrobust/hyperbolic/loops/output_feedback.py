@@ -52,7 +52,6 @@ import itertools
 from functools import lru_cache
 
 import numpy as np
-from numpy.polynomial import Polynomial
 
 from ...distributed_delay import DistributedDelay
 from ...errors import ParameterError
@@ -229,16 +228,21 @@ def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedD
     if np.any(at >= fine.size) or not np.array_equal(fine[np.minimum(at, fine.size - 1)], d.nodes):
         return None  # a node of d that is not a node of the target
     d_deg = coefs.shape[1] - 1
+    # the fine segments of each piece i, and t = (nu - start_i) / h_i = alpha + beta t' on each
+    piece = np.repeat(np.arange(start.size), np.diff(at))
+    k = np.arange(int(at[0]), int(at[-1]))
+    alpha, beta = (fine[k] - start[piece]) / h[piece], (fine[k + 1] - fine[k]) / h[piece]
+    P = coefs[piece]
+    local = np.zeros((k.size, d_deg + 1))  # P_i(alpha + beta t') by Horner's rule in polynomial arithmetic
+    local[:, 0] = P[:, d_deg]
+    for j in range(d_deg - 1, -1, -1):
+        local[:, 1:] = alpha[:, None] * local[:, 1:] + beta[:, None] * local[:, :-1]
+        local[:, 0] = alpha * local[:, 0] + P[:, j]
     out = np.zeros((fine.size - 1, degree + 1))
-    error = np.zeros(fine.size - 1)
+    out[k, : d_deg + 1] = local
     weight = _REFINE_ULPS * (d_deg + 2) * _EPS * np.sum(np.abs(coefs) * (np.arange(d_deg + 1) + 1.0), axis=1)
-    for i in range(start.size):
-        for k in range(int(at[i]), int(at[i + 1])):
-            # t = (nu - start_i) / h_i = alpha + beta t' on the fine segment [fine_k, fine_k+1]
-            alpha, beta = (fine[k] - start[i]) / h[i], (fine[k + 1] - fine[k]) / h[i]
-            local = Polynomial(coefs[i])(Polynomial([alpha, beta])).coef
-            out[k, : local.size] = local
-            error[k] = weight[i]
+    error = np.zeros(fine.size - 1)
+    error[k] = weight[piece]
     return DistributedDelay(
         fine,
         None,
