@@ -1,0 +1,94 @@
+"""How the output feedback's loop stores its kernels: one term per factor, the same function as the separate terms.
+
+``output_feedback_factors`` stores the observer's ``G`` (one term per interval of the
+resolvent product) as one term and re-expands the delay form's ``N~`` onto its segments, so that
+``A_o = A - G`` and ``B_o = B + G`` hold one kernel each. The oracles are the separate terms
+themselves: the state feedback's factors and the pieces of ``G`` as :func:`observer_of` returns
+them, summed only on evaluation, and each stored kernel read point by point (``kernel_at``) against
+the sum of the kernels it replaces, which must lie within the error bound the refinement adds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.hyperbolic.loops.controllers import (
+    FilteredController,
+    OutputFeedback,
+    ReflectionController,
+    loop_factors,
+    observer_of,
+)
+
+PAPER = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+#: Unequal speeds: the window 1/mu = 2, the round trip tau = 2.5.
+SLOW_V = nr.Hyperbolic2x2(2.0, 0.5, 0.4, 0.7, 0.8, 0.6)
+
+
+def _separate(plant, controller: OutputFeedback):
+    """``(A - n G e^{-delta_o s}, B + n G)`` as lists of terms, each kept as it was built."""
+    inner = controller.controller
+    A, B = loop_factors(plant, inner)
+    numerator = [1.0, inner.a] if isinstance(inner, FilteredController) else [1.0]
+    G = observer_of(plant, controller).product.times_poly(numerator)
+    return [A, -G.shift(controller.observer_delay)], [B, G]
+
+
+@pytest.mark.parametrize(
+    "plant, controller",
+    [
+        (PAPER, OutputFeedback(ReflectionController(0.1))),
+        (PAPER, OutputFeedback(ReflectionController(-0.05), 0.3)),
+        (PAPER, OutputFeedback(FilteredController(0.3, 0.5, 0.05))),
+        (SLOW_V, OutputFeedback(ReflectionController(0.1))),
+    ],
+)
+def test_the_stored_loop_is_the_sum_of_its_terms(plant, controller) -> None:
+    A, B = loop_factors(plant, controller)
+    parts_A, parts_B = _separate(plant, controller)
+    s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 2000), 0.3 + 5.0j, -0.2 + 40.0j]
+    for stored, parts in ((A, parts_A), (B, parts_B)):
+        value = stored(s)
+        reference = sum(P(s) for P in parts)
+        # evaluation by a different sum over segments (of length 1/24 instead of 1/8 for N~): rounding only,
+        # measured 4e-14 at |s| = 400 (8e-13 with the filter's numerator 1 + 0.3 s); a term lost or counted
+        # twice would be O(0.1)
+        tolerance = 1e-11 * (1.0 + np.abs(s))
+        np.testing.assert_array_less(np.abs(value - reference), tolerance)
+        np.testing.assert_array_less(np.abs(stored.deriv_at(s) - sum(P.deriv_at(s) for P in parts)), tolerance)
+
+
+def test_each_factor_holds_one_kernel_and_their_sum_none() -> None:
+    A, B = loop_factors(PAPER, OutputFeedback(ReflectionController(0.1)))
+    assert len(A.distributed) == len(B.distributed) == 1  # N~ and the three pieces of G were four terms
+    assert not (A + B).distributed  # A + B = 1 - (rho - K) q e^{-tau s}: the kernels cancel exactly
+    # with a delay the observer assumes, G in A_o is shifted off N~'s segments: A_o keeps two terms
+    A, B = loop_factors(PAPER, OutputFeedback(ReflectionController(0.1), 0.3))
+    assert len(A.distributed) == 2 and len(B.distributed) == 1
+
+
+def test_the_refined_kernel_is_within_its_bound_of_the_kernels_it_replaces() -> None:
+    controller = OutputFeedback(ReflectionController(0.1))
+    (stored,) = loop_factors(PAPER, controller)[1].distributed
+    _, parts = _separate(PAPER, controller)
+    terms = [d for P in parts for d in P.distributed]
+    rng = np.random.default_rng(7)
+    nu = np.sort(rng.uniform(stored.a, stored.b, 4000))
+    reference = np.zeros(nu.size)
+    for d in terms:
+        inside = (nu > d.a) & (nu < d.b)
+        reference[inside] += d.kernel_at(nu[inside])
+    error = np.max(np.abs(stored.kernel_at(nu) - reference))
+    # the bound of the re-expansion of N~ (its own radius excluded, as N~ is the reference here)
+    added = stored.radius - max(d.radius for d in terms)
+    assert 0.0 < added < 1e-12
+    assert error <= added, (error, added)
+
+
+def test_the_observer_term_is_shared_by_every_gain() -> None:
+    # U_BS2(K)'s window kernel does not depend on K: one observer term for every gain (the design reuses it)
+    one = observer_of(PAPER, OutputFeedback(ReflectionController(0.1)))
+    other = observer_of(PAPER, OutputFeedback(ReflectionController(0.117757776)))
+    assert one is other
