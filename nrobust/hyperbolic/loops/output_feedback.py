@@ -68,6 +68,17 @@ from ...volterra import (
 
 __all__ = ["observer_term", "output_feedback_factors"]
 
+# Segments joined only when their starts are uniformly spaced to this many ulps: the exponential sums over
+# uniform starts are chirp-z transforms (nrobust.distributed_delay), else one exponential per segment and frequency.
+_UNIFORM_ULPS = 8.0
+# Rounding of the refinement (_refined_term): a multiple of eps large enough for the composition P(alpha + beta t)
+# of degree d (Horner in polynomial arithmetic, gamma_{2d+1} sum |P_k|) and the rounding of alpha, beta (<= 3 eps
+# each, times |P'| <= sum k |P_k|): 8 (d + 2) eps sum (k + 1) |P_k| bounds their sum; d + 2 times it bounds the
+# variation of the error on a segment (6 eps sum k (k - 1) |P_k| from |P''|, d gamma_{2d+1} from the coefficients)
+# and its jumps at the segment's ends.
+_REFINE_ULPS = 8.0
+_EPS = float(np.finfo(float).eps)
+
 
 def observer_term(open_loop: QuasiPolynomial, law: QuasiPolynomial, window: float) -> ResolventProduct | None:
     """``G = (1 - Phi) H`` of the open loop, the law and the measurement's window (module notes).
@@ -165,7 +176,7 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
     As one term of the same pieces (the same stored kernel, coefficients zero-padded to one degree),
     the loop integrates them as one exponential sum over all the segments instead of one per interval
     (the values agree to rounding). Terms that are not plain polynomial pieces on consecutive
-    intervals are left as they are.
+    intervals, or whose segments together are not uniform (several lengths), are left as they are.
     """
     terms = G.distributed
     plain = all(
@@ -175,17 +186,15 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
         return G
     if any(d.radius or d.variation_radius for d in terms) or any(u.b != v.a for u, v in itertools.pairwise(terms)):
         return G
-    degree = max(d.pieces[2].shape[1] for d in terms)
     nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
+    starts = nodes[:-1]
+    ideal = starts[0] + (starts[-1] - starts[0]) / max(starts.size - 1, 1) * np.arange(starts.size)
+    if np.max(np.abs(starts - ideal)) > _UNIFORM_ULPS * _EPS * max(float(np.max(np.abs(starts))), 1.0):
+        return G  # segments of several lengths: one sum per length either way, and each interval's is uniform
+    degree = max(d.pieces[2].shape[1] for d in terms)
     coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
     joined = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=coefficients)
     return QuasiPolynomial([], [], [joined])
-
-
-# Rounding of the refinement (_refined_piece): a multiple of eps large enough for the composition P(alpha + beta t)
-# of degree d (Horner in polynomial arithmetic, gamma_{2d+2}) and the rounding of alpha, beta (<= 4 eps each).
-_REFINE_ULPS = 8.0
-_EPS = float(np.finfo(float).eps)
 
 
 def _refined_onto(P: QuasiPolynomial, G: QuasiPolynomial) -> QuasiPolynomial:
