@@ -50,6 +50,7 @@ from ..hyperbolic.loops.controllers import (
     loop_scope,
     normalize,
 )
+from ..hyperbolic.loops.given_plant import given_plant_scale, to_given_plant
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..margins.margin import DelayMargin
@@ -651,6 +652,7 @@ class Certificate:
                 "Claims marked proven hold for "
                 + loop_scope(self.system, self.controller, self.kernel_grid, loop_factors(self.system, self.controller))
                 + "; they are proven in ball arithmetic (python-flint)."
+                + self._counts_scope
             )
         return (
             "Claims marked proven hold for F as represented: the stored floating-point numbers taken as exact, "
@@ -659,6 +661,19 @@ class Certificate:
             "error) is not part of the proofs: "
             + (self.model_error.statement if self.model_error is not None else "not estimated")
             + "."
+        )
+
+    @property
+    def _counts_scope(self) -> str:
+        """The root counts' exception to a scope of the plant as given: ``tau`` not a double."""
+        r = given_plant_scale(self.system, self.controller, self.kernel_grid)
+        if r is None or r == 1:
+            return ""
+        return (
+            " The root counts (roots at delta = 0 and at delta_max, instability at delta_max) are proven for the "
+            f"loop with tau the double {self.system.tau!r} (relative change {float(abs(r - 1)):.1e}); the delay "
+            "margin, its crossing, the spectral abscissa and the Rouché range are mapped from it to tau = 1/lam + "
+            "1/mu exactly."
         )
 
     # ------------------------------------------------------------------ verdicts
@@ -855,7 +870,12 @@ def certify(
         unproven: list[str] = []
         roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
         rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
-        abscissa = _prove("spectral abscissa", rigorous, unproven, lambda r: spectral_abscissa(F0, rigorous=r))
+        abscissa = _prove(
+            "spectral abscissa",
+            rigorous,
+            unproven,
+            lambda r: to_given_plant(spectral_abscissa(F0, rigorous=r), system, controller, kernel_grid),
+        )
         margin = _prove(
             "delay margin",
             rigorous,
@@ -867,7 +887,12 @@ def certify(
                 "Rouché delay range",
                 rigorous,
                 unproven,
-                lambda r: rouche_delay_bound(system, controller, rigorous=r, kernel_grid=kernel_grid),
+                lambda r: to_given_plant(
+                    rouche_delay_bound(system, controller, rigorous=r, kernel_grid=kernel_grid),
+                    system,
+                    controller,
+                    kernel_grid,
+                ),
             )
             if isinstance(controller, (ReflectionController, FiniteTimeController))
             else None

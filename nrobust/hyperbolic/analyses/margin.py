@@ -34,6 +34,7 @@ from ..loops.controllers import (
     normalize,
     observer_of,
 )
+from ..loops.given_plant import to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
@@ -86,8 +87,11 @@ def delay_margin(
         As in :func:`nrobust.margins.delay_margin`. ``rigorous=True`` proves the margin in
         ball arithmetic for the loop as built: for a plant with constant coefficients (and no
         ``kernel_grid``) that is the PDE itself (``N~`` in closed form with a proven error
-        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`); otherwise the model,
-        ``N~`` the cubic spline on the kernel grid (``DelayMargin.scope`` says which).
+        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`), as given for an
+        unfiltered law with exact principal gains (the ball mapped from the loop with ``tau``
+        rounded to a double, :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`);
+        otherwise the model, ``N~`` the cubic spline on the kernel grid (``DelayMargin.scope``
+        says which).
     kernel_grid : int, optional
         Kernel grid of the delay form when called with a plant (ignored with ``A, B``;
         formerly ``n``, a deprecated alias). Default: the exact route where it applies, else
@@ -145,6 +149,8 @@ def delay_margin(
             type(system).__name__,
         )
     result = factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
+    if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):  # the proof about the plant as given
+        result = to_given_plant(result, system, controller, kernel_grid)
     of_model = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and (
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )

@@ -56,6 +56,7 @@ from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
+from .given_plant import rounded_parts
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -83,14 +84,6 @@ __all__ = [
 ]
 
 Gain = Callable[[NDArray[np.float64]], NDArray[np.float64]]
-
-# What a proof "of the PDE itself" takes from floating point: the loop's point delays and gains are
-# products and sums of the user's doubles (tau = L/lam + L/mu, b L/lam, rho q, q e^{A(L) - D(L)},
-# the law's gain times them), rounded in a few operations (exact for the paper's plant).
-_ROUNDED = (
-    "tau, the couplings' ratios and the principal gains as doubles computed from the parameters, rounded "
-    "where not exact (a few ulps)"
-)
 
 
 def _zero_gain(xi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -580,15 +573,19 @@ def loop_scope(
     factors : tuple of QuasiPolynomial
         Its result ``(A, B)``.
     """
-    if isinstance(controller, OutputFeedback):
-        return _output_feedback_scope(system, controller, kernel_grid, factors)
-    if isinstance(controller, CollocatedOutputFeedback):
-        return _collocated_scope(system, controller, kernel_grid)
+    if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):  # its law's scope, with its own numbers
+        scope = (
+            _output_feedback_scope(system, controller, kernel_grid, factors)
+            if isinstance(controller, OutputFeedback)
+            else _collocated_scope(system, controller, kernel_grid)
+        )
+        return scope.replace(_AS_GIVEN, rounded_parts(system, controller, kernel_grid))
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         return (
             "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
-            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; {_ROUNDED})"
+            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; "
+            f"{rounded_parts(system, controller, kernel_grid)})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
@@ -599,7 +596,7 @@ def loop_scope(
         )
         if isinstance(controller, StateFeedback) and _integral_gains(controller):
             kernel += "; the integral gains as Taylor models in ball arithmetic, t_v rounded to a multiple of ulp(tau)"
-        return f"the PDE itself ({kernel}; {_ROUNDED})"
+        return f"the PDE itself ({kernel}; {_given(system, controller, kernel_grid)})"
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return (
             "a model of the PDE: N~ the cubic spline of the characteristic route (varying lam/mu); its distance "
@@ -613,11 +610,23 @@ def loop_scope(
             f"the kernels on {grid} points; its distance to the PDE is not part of the proof"
         )
     if isinstance(system, Hyperbolic2x2) and system.uncoupled:
-        return f"the PDE itself (uncoupled: N~ = 0; {_ROUNDED})"
+        return f"the PDE itself (uncoupled: N~ = 0; {_given(system, controller, kernel_grid)})"
     return (
         f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
         "not part of the proof (a convergence study estimates it)"
     )
+
+
+def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
+    """The part of :func:`loop_scope` on the plant's numbers: exact, or what is rounded."""
+    rounded = rounded_parts(system, controller, kernel_grid)
+    if rounded:
+        return rounded
+    return _AS_GIVEN
+
+
+#: :func:`loop_scope`'s words for a loop whose proofs map to the plant as given (``given_plant_scale``).
+_AS_GIVEN = "the plant as given: its numbers exact, tau = 1/lam + 1/mu included (given_plant_scale)"
 
 
 def _output_feedback_scope(

@@ -26,11 +26,16 @@ uniform partition of ``[0, tau]``, expanded in ball arithmetic (python-flint) fr
 truncated series, with a proven bound of the difference to the true kernel (the series'
 tail, the truncation of each piece's expansion and the rounding of its coefficients to
 double precision) in :attr:`~nrobust.quasipoly.DistributedDelay.radius`, and of its total
-variation in ``variation_radius``. Every ball enclosure of a loop built on it
-(:mod:`nrobust.balls`) is then an enclosure for the PDE itself. Only the transport time
-``tau = 1/lam + 1/mu`` is the double nearest it (the principal delays of
-:class:`~nrobust.quasipoly.QuasiPolynomial` are doubles): proofs hold for the plant with that
-``tau``, a relative change below ``2^-52``.
+variation in ``variation_radius``. The ratios ``p``, ``m`` and the shift ``sigma_0 tau`` enter
+the series as balls of the exact quotients of the user's numbers (:func:`exact_ratios`), so
+their rounding is part of that bound. Every ball enclosure of a loop built on it
+(:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with one exception: the
+transport time is the double ``tau_d`` nearest ``tau = 1/lam + 1/mu`` (the principal delays of
+:class:`~nrobust.quasipoly.QuasiPolynomial` are doubles). Since ``tau N~(tau t)`` depends on
+``p``, ``m``, ``q``, ``rho`` and ``sigma_0 tau`` only, the loop of an unfiltered law is a
+function of ``z = tau s`` and of ``delta / tau``:
+:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale` maps the proofs for ``tau_d``
+to the plant as given.
 """
 
 from __future__ import annotations
@@ -56,6 +61,7 @@ __all__ = [
     "closed_form_parameters",
     "closed_form_series",
     "exact_form",
+    "exact_ratios",
     "exact_output_map",
     "expand_piece",
     "has_exact_form",
@@ -148,7 +154,8 @@ def exact_form(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> ExactForm:
         Couplings so strong that the kernel's pieces cannot be stored to double precision
         within :data:`MAX_PIECES` pieces (``|kappa|`` in the thousands).
     """
-    tau, p, m, q, rho, shift = closed_form_parameters(system)
+    tau, _, _, q, rho, _ = closed_form_parameters(system)
+    p, m, shift = exact_ratios(system)
     return _exact_form(tau, p, m, q, rho, shift)
 
 
@@ -164,8 +171,9 @@ def exact_output_map(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> QuasiPolyn
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         A plant with constant coefficients.
     """
-    tau, p, m, q, rho, shift = closed_form_parameters(system)
-    kernel = None if m == 0.0 else _kernel(tau, p, m, shift, ("V", q, rho))  # m = 0: kappa = 0, V~ = 0
+    tau, _, _, q, rho, _ = closed_form_parameters(system)
+    p, m, shift = exact_ratios(system)
+    kernel = None if m == 0 else _kernel(tau, p, m, shift, ("V", q, rho))  # m = 0: kappa = 0, V~ = 0
     one = QuasiPolynomial([[1.0]], [0.0])
     return one if kernel is None else one + QuasiPolynomial([], [], [kernel])
 
@@ -200,18 +208,46 @@ def closed_form_parameters(
     raise ParameterError("system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients", system)
 
 
+def exact_ratios(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[Fraction, Fraction, Fraction]:
+    """``(p, m, sigma_0 tau)`` of the closed form as exact fractions of the plant's numbers (module notes).
+
+    ``p = sigma_pm / lam``, ``m = -sigma_mp / mu`` and ``0`` for the paper's plant;
+    ``b L / lam``, ``-c L / mu`` and ``L (a / lam + d / mu)`` for a general plant with constant
+    coefficients, each double taken as the rational it is.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+    """
+    if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
+        p = Fraction(float(system.sigma_pm)) / Fraction(system.lam)  # type: ignore[arg-type]
+        return p, -Fraction(float(system.sigma_mp)) / Fraction(system.mu), Fraction(0)  # type: ignore[arg-type]
+    if isinstance(system, GeneralHyperbolic2x2) and _constant_general(system):
+        c = {k: Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu", "a", "b", "c", "d")}
+        length = Fraction(system.length)
+        shift = length * (c["a"] / c["lam"] + c["d"] / c["mu"])
+        return length * c["b"] / c["lam"], -length * c["c"] / c["mu"], shift
+    raise ParameterError("system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients", system)
+
+
+def _ball(flint: Any, x: Fraction) -> Any:
+    """The arb ball of the rational ``x`` (exact integers, one outward-rounded division)."""
+    return flint.arb(x.numerator) / flint.arb(x.denominator)
+
+
 @lru_cache(maxsize=64)
-def _exact_form(tau: float, p: float, m: float, q: float, rho: float, shift: float) -> ExactForm:
-    weight = math.exp(shift)
+def _exact_form(tau: float, p: Fraction, m: Fraction, q: float, rho: float, shift: Fraction) -> ExactForm:
+    weight = math.exp(float(shift))
     q_round = q * weight
     rho_q = rho * q_round  # the product B of StateFeedback(-rho) forms: the natural gain cancels exactly
-    half = math.exp(0.5 * shift)
+    half = math.exp(0.5 * float(shift))
     principal = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau])
     u_point = QuasiPolynomial([[q_round]], [tau])
-    uncoupled = p == 0.0 or m == 0.0  # kappa = 0: W = 1, h_11 = h_22 = 0
-    n_zero = uncoupled and Fraction(m) * Fraction(q) == Fraction(rho) * Fraction(p)
+    uncoupled = p == 0 or m == 0  # kappa = 0: W = 1, h_11 = h_22 = 0
+    n_zero = uncoupled and m * Fraction(q) == Fraction(rho) * p
     n_tilde = None if n_zero else _kernel(tau, p, m, shift, ("N", q, rho))
-    u_tilde = None if uncoupled and p == 0.0 else _kernel(tau, p, m, shift, ("U", q, rho))
+    u_tilde = None if uncoupled and p == 0 else _kernel(tau, p, m, shift, ("U", q, rho))
     return ExactForm(
         tau,
         q * half,
@@ -223,14 +259,20 @@ def _exact_form(tau: float, p: float, m: float, q: float, rho: float, shift: flo
     )
 
 
-def _kernel(tau: float, p: float, m: float, shift: float, which: tuple[str, float, float]) -> DistributedDelay | None:
-    """``N~``, ``U~`` or ``V~`` (``which = ("N" | "U" | "V", q, rho)``) as pieces with proven error bounds."""
+def _kernel(
+    tau: float, p: Fraction, m: Fraction, shift: Fraction, which: tuple[str, float, float]
+) -> DistributedDelay | None:
+    """``N~``, ``U~`` or ``V~`` (``which = ("N" | "U" | "V", q, rho)``) as pieces with proven error bounds.
+
+    ``p``, ``m`` and ``shift`` are exact (:func:`exact_ratios`): their balls hold them, and the
+    bounds hold for every value in the balls.
+    """
     flint = require_flint()
-    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(abs(p * m)))):
+    with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
         arb = flint.arb
         T = arb(tau)
-        series, bound, dbound = closed_form_series(flint, T, arb(p), arb(m), which)
-        sigma = arb(shift) / T  # e^{sigma nu}: the weight of a general plant
+        series, bound, dbound = closed_form_series(flint, T, _ball(flint, p), _ball(flint, m), which)
+        sigma = _ball(flint, shift) / T  # e^{sigma nu}: the weight of a general plant
         weight_sup = arb.max(arb(1), (sigma * T).exp())
         global_sup = bound * weight_sup
         global_var = T * weight_sup * (abs(sigma) * bound + dbound)

@@ -1,0 +1,215 @@
+"""Proofs about the plant as given, from proofs about its loop with ``tau`` rounded to a double.
+
+The loop of a plant with constant coefficients is built with the transport time ``tau_d``,
+the double nearest ``tau = 1/lam + 1/mu`` (the delays of
+:class:`~nrobust.quasipoly.QuasiPolynomial` are doubles), and the ratios ``p``, ``m`` exact
+(:func:`~nrobust.hyperbolic.loops.exact_form.exact_ratios`). Since ``tau N~(tau t)`` depends on
+``p``, ``m``, ``q`` and ``rho`` only (:mod:`~nrobust.hyperbolic.loops.exact_form`), the
+characteristic function of an unfiltered law (open loop, U_BS, U_BS2(K), a proportional
+state feedback) is ``G(tau s) + H(tau s) e^{-(delta / tau) tau s}`` with ``G``, ``H`` free of
+``tau``. Its zeros for the plant as given (``tau``, delay ``delta``) are those for ``tau_d``
+(delay ``delta tau_d / tau``) times ``tau_d / tau``. With ``r = tau / tau_d`` (a rational of
+the user's doubles): delays (``delta*``, crossing delays, the Rouché ``delta_0``) scale by
+``r``, frequencies, real parts and decay rates by ``1/r``, counts in half-planes are unchanged.
+:func:`to_given_plant` applies the map to a proven result, each ball end rounded outward.
+
+The principal gains (``rho q``, ``K q``, ``k q``) are products of doubles: the map applies when
+they are exact (the paper's values), otherwise the proof keeps a scope naming what is rounded
+(:func:`rounded_parts`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from fractions import Fraction
+from typing import Any, TypeVar
+
+from ...bounds import RoucheDelayBound
+from ...margins.margin import DelayMargin
+from ...roots.abscissa import SpectralAbscissa
+from ..plants.general import GeneralHyperbolic2x2
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .exact_form import has_exact_form
+
+__all__ = ["given_plant_scale", "rounded_parts", "to_given_plant"]
+
+_R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
+
+
+def _exact_product(*factors: float) -> bool:
+    """True when the floating-point product of ``factors`` (left to right) is the exact one."""
+    value, exact = 1.0, Fraction(1)
+    for f in factors:
+        value, exact = value * f, exact * Fraction(f)
+    return Fraction(value) == exact
+
+
+def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
+    """What the exact-route loop takes rounded from the user's numbers; ``""`` if nothing.
+
+    Empty when a proof about the loop maps to the plant as given (:func:`given_plant_scale`);
+    otherwise the quantities computed in floating point, in words, for a proof's scope.
+    """
+    from .controllers import FiniteTimeController, OpenLoop, ReflectionController, StateFeedback, loop_route
+
+    if isinstance(system, GeneralHyperbolic2x2):
+        return (
+            "tau and the principal gains q e^{sigma_0 tau}, rho q e^{sigma_0 tau} (and the law's gain times them) "
+            "as doubles computed from the coefficients (a few ulps)"
+        )
+    if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
+        return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
+    if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
+        return "tau = 1/lam + 1/mu as a double"
+    gains: tuple[float, ...] = ()
+    if isinstance(controller, ReflectionController):
+        gains = (controller.K,)
+    elif isinstance(controller, StateFeedback) and not _integral(controller):
+        gains = (-controller.k,)
+    elif not isinstance(controller, (OpenLoop, FiniteTimeController)):
+        return (
+            f"tau = 1/lam + 1/mu as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on "
+            "tau otherwise than through tau s) and the principal gains as products of doubles"
+        )
+    inexact = [name for name, ok in (("rho q", _exact_product(system.rho, system.q)),) if not ok]
+    inexact += [f"{g!r} q" for g in gains if not _exact_product(g, system.q)]
+    if inexact:
+        return f"tau = 1/lam + 1/mu as the double {system.tau!r} and the principal gains {', '.join(inexact)} rounded"
+    return ""
+
+
+def _integral(controller: Any) -> bool:
+    return any(callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v))
+
+
+def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = None) -> Fraction | None:
+    """``r = tau / tau_d``: the factor mapping proofs about the loop as built to the plant as given.
+
+    ``tau = 1/lam + 1/mu`` exactly (the user's doubles as rationals), ``tau_d`` the double
+    :attr:`Hyperbolic2x2.tau` the loop is built with. None when the loop is not a function of
+    ``tau s`` and ``delta / tau`` with exact gains (:func:`rounded_parts` says what is rounded):
+    then the proofs hold for the loop as built.
+
+    Parameters
+    ----------
+    system, controller, kernel_grid
+        As given to :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`.
+    """
+    if rounded_parts(system, controller, kernel_grid):
+        return None
+    return (Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)) / Fraction(system.tau)
+
+
+def _near(x: Fraction) -> float:
+    return float(x)
+
+
+def _down(x: Fraction) -> float:
+    f = float(x)
+    return math.nextafter(f, -math.inf) if Fraction(f) > x else f
+
+
+def _up(x: Fraction) -> float:
+    f = float(x)
+    return math.nextafter(f, math.inf) if Fraction(f) < x else f
+
+
+def _map(x: float | None, factor: Fraction, rounding: Any = _near) -> Any:
+    """``x * factor`` rounded by ``rounding``; infinities, nan and None pass unchanged."""
+    if x is None or not math.isfinite(x):
+        return x
+    return rounding(Fraction(x) * factor)
+
+
+def _ball(ball: tuple[float, ...] | None, factor: Fraction) -> Any:
+    """``(lo, hi[, lo, hi])`` times ``factor > 0``, each end rounded outward."""
+    if ball is None:
+        return None
+    return tuple(_map(v, factor, _down if i % 2 == 0 else _up) for i, v in enumerate(ball))
+
+
+def _margin(result: DelayMargin, r: Fraction) -> DelayMargin:
+    ball = _ball(result.margin_ball, r)
+    margin = _map(result.margin, r)
+    if ball is not None and math.isfinite(margin):
+        margin = min(max(margin, ball[0]), ball[1])
+
+    def delay(x: float) -> float:  # a delay of the analysis: the range's end stays the range's end
+        return x if x == result.delta_max else min(_map(x, r), result.delta_max)
+
+    crossings = tuple(
+        dataclasses.replace(
+            c,
+            omega=_map(c.omega, 1 / r),
+            delays=tuple(_map(d, r) for d in c.delays),
+            ds_ddelta=complex(c.ds_ddelta) / float(r * r),
+        )
+        for c in result.crossings
+    )
+    return dataclasses.replace(
+        result,
+        margin=margin,
+        margin_ball=ball,
+        omega=_map(result.omega, 1 / r),
+        omega_error=_map(result.omega_error, 1 / r, _up) if result.omega_error else result.omega_error,
+        frequency_bound=_map(result.frequency_bound, 1 / r, _up),
+        crossings=crossings,
+        intervals=tuple((delay(lo), delay(hi)) for lo, hi in result.intervals),
+        counts=tuple((delay(lo), delay(hi), n) for lo, hi, n in result.counts),
+    )
+
+
+def _abscissa(result: SpectralAbscissa, r: Fraction) -> SpectralAbscissa:
+    f = 1 / r
+    region = result.region
+    inner = (_map(region[0], f, _up), _map(region[1], f, _down), _map(region[2], f, _up), _map(region[3], f, _down))
+    root = None if result.root is None else complex(_map(result.root.real, f), _map(result.root.imag, f))
+    return dataclasses.replace(
+        result,
+        value=_map(result.value, f),
+        root=root,
+        chain_value=_map(result.chain_value, f),
+        upper_bound=_map(result.upper_bound, f, _up),
+        region=inner,
+        strong_bound=_map(result.strong_bound, f),
+        root_box=_ball(result.root_box, f),
+        chain_bracket=_ball(result.chain_bracket, f),
+        value_bracket=_ball(result.value_bracket, f),
+        error_estimate=_map(result.error_estimate, f, _up),
+    )
+
+
+def _rouche(result: RoucheDelayBound, r: Fraction) -> RoucheDelayBound:
+    return dataclasses.replace(
+        result, delta_0=_map(result.delta_0, r, _down), total_variation=_map(result.total_variation, 1 / r, _up)
+    )
+
+
+def to_given_plant(result: _R, system: Any, controller: Any, kernel_grid: int | None = None) -> _R:
+    """A proven result about the loop as built, mapped to the plant as given (module notes).
+
+    Parameters
+    ----------
+    result : DelayMargin, SpectralAbscissa or RoucheDelayBound
+        Proven (``rigorous``) for the loop of ``system`` and ``controller`` (delay ``0`` for an
+        abscissa): delays are multiplied by :func:`given_plant_scale`, frequencies and real
+        parts divided by it, each ball end rounded outward (a region searched inward).
+    system, controller, kernel_grid
+        As given to :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`.
+
+    Returns
+    -------
+    The same type: ``result`` itself when it is not proven, when the scale is 1 (``tau`` a
+    double) or None (:func:`rounded_parts`: then its scope says what it is about).
+    """
+    if not result.rigorous:
+        return result
+    r = given_plant_scale(system, controller, kernel_grid)
+    if r is None or r == 1:
+        return result
+    if isinstance(result, DelayMargin):
+        return _margin(result, r)  # type: ignore[return-value]
+    if isinstance(result, SpectralAbscissa):
+        return _abscissa(result, r)  # type: ignore[return-value]
+    return _rouche(result, r)
