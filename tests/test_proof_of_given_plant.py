@@ -128,7 +128,8 @@ def test_the_certificate_proves_the_abscissa_of_the_plant_as_given():
     # 1e-12: the floating-point root the bracket is built about, relative to |root| ~ 1
     np.testing.assert_allclose(ab.value, float(root.real), rtol=0, atol=1e-12)
     assert "the plant as given" in cert.scope and "root counts" in cert.scope
-    assert cert.margin.margin_ball[0] <= _pde_margin(args, controller, cert.margin.omega)[1] <= cert.margin.margin_ball[1]
+    lo, hi = cert.margin.margin_ball
+    assert mp.mpf(lo) <= _pde_margin(args, controller, cert.margin.omega)[1] <= mp.mpf(hi)
 
 
 def test_the_ratios_are_exact_rationals():

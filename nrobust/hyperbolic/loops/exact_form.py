@@ -62,6 +62,7 @@ __all__ = [
     "closed_form_series",
     "exact_form",
     "exact_ratios",
+    "rational_ball",
     "exact_output_map",
     "expand_piece",
     "has_exact_form",
@@ -231,7 +232,7 @@ def exact_ratios(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[Fraction
     raise ParameterError("system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients", system)
 
 
-def _ball(flint: Any, x: Fraction) -> Any:
+def rational_ball(flint: Any, x: Fraction) -> Any:
     """The arb ball of the rational ``x`` (exact integers, one outward-rounded division)."""
     return flint.arb(x.numerator) / flint.arb(x.denominator)
 
@@ -271,8 +272,8 @@ def _kernel(
     with precision(flint, PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
         arb = flint.arb
         T = arb(tau)
-        series, bound, dbound = closed_form_series(flint, T, _ball(flint, p), _ball(flint, m), which)
-        sigma = _ball(flint, shift) / T  # e^{sigma nu}: the weight of a general plant
+        series, bound, dbound = closed_form_series(flint, T, rational_ball(flint, p), rational_ball(flint, m), which)
+        sigma = rational_ball(flint, shift) / T  # e^{sigma nu}: the weight of a general plant
         weight_sup = arb.max(arb(1), (sigma * T).exp())
         global_sup = bound * weight_sup
         global_var = T * weight_sup * (abs(sigma) * bound + dbound)

@@ -58,6 +58,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import lru_cache
 from typing import Any
 
@@ -74,8 +75,10 @@ from .exact_form import (
     PRECISION,
     TARGET,
     closed_form_parameters,
+    exact_ratios,
     expand_piece,
     has_exact_form,
+    rational_ball,
     series_tail,
 )
 
@@ -94,14 +97,14 @@ _AGREEMENT = 1e-8
 
 @dataclass(frozen=True)
 class _Plant:
-    """The numbers of the closed form (module notes), as doubles."""
+    """The numbers of the closed form: ``p``, ``m`` and ``shift`` exact (``exact_ratios``), the rest doubles."""
 
     tau: float
     t_v: float
-    p: float
-    m: float
+    p: Fraction
+    m: Fraction
     q: float
-    shift: float
+    shift: Fraction
     length: float
     weight: float  # E = L (a - d) / (lam + mu)
 
@@ -109,7 +112,8 @@ class _Plant:
 def _plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> _Plant:
     if not has_exact_form(system):
         raise ParameterError("system", "a plant with constant coefficients (has_exact_form)", system)
-    tau, p, m, q, _, shift = closed_form_parameters(system)
+    tau, _, _, q, _, _ = closed_form_parameters(system)
+    p, m, shift = exact_ratios(system)
     if isinstance(system, GeneralHyperbolic2x2):
         c = {k: float(system.coefficient(k, np.zeros(1))[0]) for k in ("lam", "mu", "a", "d")}
         t_v = 1.0 / (system.time_unit / system.transport_times[1])  # as closed_form_parameters' tau
@@ -320,7 +324,7 @@ def _bi_axpy(flint: Any, acc: list[Any], c: Any, x: list[Any]) -> list[Any]:
 
 def _sections(flint: Any, plant: _Plant, T: Any, Tv: Any, Tu: Any) -> tuple[_Section, _Section]:
     arb, arb_poly = flint.arb, flint.arb_poly
-    P, M, Q = arb(plant.p), arb(plant.m), arb(plant.q)
+    P, M, Q = rational_ball(flint, plant.p), rational_ball(flint, plant.m), arb(plant.q)
     kappa = P * M
     a = kappa / (T * T)
     nu = [arb_poly([-Tv, 1]), arb_poly([Tv])]  # theta - t_v (1 - xi)
@@ -403,7 +407,7 @@ def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
     n_tau, n_v = round(plant.tau / ulp), round(plant.t_v / ulp)
     if n_tau * ulp != plant.tau or not 0 < n_v < n_tau:
         raise CertificationError("exact_gains: the times of flight cannot be placed on a grid of ulp(tau)")
-    kappa = abs(plant.p * plant.m)
+    kappa = abs(float(plant.p * plant.m))
     bits = PRECISION + math.ceil(12.0 * math.sqrt(kappa)) + ORDER * 7 + 64
     with precision(flint, bits):
         arb, arb_poly = flint.arb, flint.arb_poly
@@ -454,7 +458,7 @@ def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
         for seg in segments:
             err_max = arb.max(err_max, seg[3] + smooth_sup)
             var_total += seg[4]
-        sigma = arb(plant.shift) / T
+        sigma = rational_ball(flint, plant.shift) / T
         weight_sup = arb.max(arb(1), (sigma * T).exp())
         global_sup = err_max * weight_sup
         global_var = weight_sup * (abs(sigma) * T * err_max + var_total)
