@@ -55,8 +55,8 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
 
     if isinstance(system, GeneralHyperbolic2x2):
         return (
-            "tau and the principal gains q e^{sigma_0 tau}, rho q e^{sigma_0 tau} (and the law's gain times them) "
-            "as doubles computed from the coefficients (a few ulps)"
+            "tau and the principal gains (q and rho q times the exponential weight of a and d, and the law's gain "
+            "times them) as doubles computed from the coefficients (a few ulps)"
         )
     if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
         return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
