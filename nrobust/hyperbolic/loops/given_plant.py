@@ -61,7 +61,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
         return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
-        return "tau = 1/lam + 1/mu as a double"
+        return "tau = 1/lam + 1/mu and the principal gains as doubles (mapped to the exact tau on the exact route only)"
     gains: tuple[float, ...] = ()
     if isinstance(controller, ReflectionController):
         gains = (controller.K,)
