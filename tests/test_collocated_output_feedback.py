@@ -116,14 +116,17 @@ def expm2(M):
     return np.exp(m)[..., None, None] * (np.cosh(D)[..., None, None] * np.eye(2) + sinhc[..., None, None] * N)
 
 
-def laplace_loop(plant, k, g_u, g_v, s, deltas, observer_delay=0.0, nodes=48):
+def laplace_loop(plant, k, g_u, g_v, s, deltas, observer_delay=0.0, nodes=48, kappa=0.0):
     """``F(s; delta)`` of the law ``U = k u(1) + int g_u u + g_v v`` on the collocated observer.
 
     Plant: ``[u; v]' = M [u; v]``, ``[u; v](0) = [q; 1]``; ``D = e^{-s/mu} (v(1) - rho u(1))`` (the
     open loop), ``L = e^{-s/mu} (k u(1) + int g . [u; v])`` (the law through the plant). Observer
     with ``y = 0`` and ``U_o = 1``: ``[u^; v^]' = M [u^; v^] + c [-p_u/lam; p_v/mu]``,
-    ``u^(1) = c``, ``v^(1) = 1``, ``c`` from ``u^(0) = q v^(0)``; ``C_u = k c + int g . [u^; v^]``.
-    Separation: ``F = D (1 - C_u e^{-delta_o s}) - (L - D C_u) e^{-delta s}``.
+    ``u^(1) = c``, ``v^(1) = kappa c + 1`` (the observer's own reflection ``kappa``: ``v^(t, 1) =
+    (rho - kappa) y + kappa u^(t, 1) + U_o``), ``c`` from ``u^(0) = q v^(0)``;
+    ``C_u = k c + int g . [u^; v^]``. Separation: ``F = E (D (1 - C_u e^{-delta_o s}) - (L - D C_u)
+    e^{-delta s})`` with the error's characteristic function ``E = 1 - kappa c_0`` (``c_0``: ``c``
+    at ``kappa = 0``, the output error driven by the command mismatch; ``E = 1`` at ``kappa = 0``).
     """
     lam, mu, q, rho = plant.lam, plant.mu, plant.q, plant.rho
     gains = observer_gains(plant)
@@ -142,11 +145,18 @@ def laplace_loop(plant, k, g_u, g_v, s, deltas, observer_delay=0.0, nodes=48):
         "ij,ijab,ijb->ia", (1 - at)[:, None] * w[None, :], expm2(M * (at[:, None] - y)[..., None, None]), r
     )
     free = expm2(M * (at - 1)[:, None, None])
-    X0, X1 = free[:, :, 1], free[:, :, 0] + forced
+    X0 = free[:, :, 1]
+    E = 1.0
+    if kappa:
+        X1 = free[:, :, 0] + forced
+        E = 1.0 - kappa * (-(X0[0, 0] - q * X0[0, 1]) / (X1[0, 0] - q * X1[0, 1]))
+    X1 = free[:, :, 0] + kappa * free[:, :, 1] + forced
     c = -(X0[0, 0] - q * X0[0, 1]) / (X1[0, 0] - q * X1[0, 1])
     X = X0[1:] + c * X1[1:]
     C_u = k * c + w @ (g_u(x) * X[:, 0] + g_v(x) * X[:, 1])
-    return np.array([D * (1 - C_u * np.exp(-observer_delay * s)) - (L - D * C_u) * np.exp(-d * s) for d in deltas])
+    return np.array(
+        [E * (D * (1 - C_u * np.exp(-observer_delay * s)) - (L - D * C_u) * np.exp(-d * s)) for d in deltas]
+    )
 
 
 def law_gains():
@@ -306,7 +316,7 @@ def test_scope_json_and_bad_input():
 # --------------------------------------------------------------------------------------------- simulation
 
 
-def simulate_loop(plant, law, gains, delay, observer_delay, t_end, cells=100):
+def simulate_loop(plant, law, gains, delay, observer_delay, t_end, cells=100, kappa=0.0):
     """The PDE, the collocated observer and ``law`` on its estimate, on the characteristic lattice.
 
     ``lam = mu = 1``, ``dt = dx = h``: ``u`` reaches node ``i`` from ``i - 1``, ``v`` from ``i + 1``,
@@ -316,7 +326,8 @@ def simulate_loop(plant, law, gains, delay, observer_delay, t_end, cells=100):
     output error ``y - u^(t, 1)`` is extrapolated from the last two even steps. The plant receives
     the command ``delay`` late, the observer replays it ``observer_delay`` late (multiples of
     ``2 h``; with 0 the observer's step is affine in the command of the same step and the law closes
-    that algebraic loop exactly). Returns the even times, ``||(u, v)||_{L^2}`` and
+    that algebraic loop exactly). The observer keeps the reflection ``kappa``: ``v^(t, 1) =
+    (rho - kappa) y + kappa u^(t, 1) + U_o``. Returns the even times, ``||(u, v)||_{L^2}`` and
     ``||(u - u^, v - v^)||_{L^2}``.
     """
     N, h = cells, 1.0 / cells
@@ -374,7 +385,7 @@ def simulate_loop(plant, law, gains, delay, observer_delay, t_end, cells=100):
                 e = (y_new - a[N] if e_pred is None else e_pred) if new else e_old
                 return s_pm * b[idx] + p_u[idx] * e, s_mp * a[idx] + p_v[idx] * e
 
-            return step(uh, vh, n, src, lambda end, a, b: rho * y_new + command)
+            return step(uh, vh, n, src, lambda end, a, b: (rho - kappa) * y_new + kappa * end + command)
 
         if not even_new:
             uh, vh = observe(0.0)

@@ -3,8 +3,8 @@
 parameters (``charts``), the decay-rate/margin trade-off (``tradeoff``), the Rouché delay
 bound (``rouche``), the design of ``U_BS2(K)`` (``design``) and of the filtered law over its
 gain, zero and pole (``filter_design``), of a general state feedback over its gains
-(``state_design``), and the robustness to a mismatch of
-the transport speeds (``mismatch``).
+(``state_design``), of the collocated observer's own reflection (``observer_design``), and
+the robustness to a mismatch of the transport speeds (``mismatch``).
 """
 
 from ...margins.gain import END_KINDS, GainEnd
@@ -34,6 +34,13 @@ from .mismatch import (
     speed_tolerance,
 )
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
+from .observer_design import (
+    OBSERVER_OBJECTIVES,
+    ObserverDesign,
+    collocated_observer_loop,
+    design_collocated_observer,
+    observer_reflection_bounds,
+)
 from .rouche import rouche_delay_bound
 from .state_design import (
     BasisGain,
@@ -63,6 +70,8 @@ __all__ = [
     "MAX_SQUARE_BOXES",
     "MismatchEnd",
     "MismatchRegion",
+    "OBSERVER_OBJECTIVES",
+    "ObserverDesign",
     "ReflectionDesign",
     "SpeedTolerance",
     "SquareProof",
@@ -71,7 +80,9 @@ __all__ = [
     "StateFeedbackLoop",
     "Tradeoff",
     "ab_region",
+    "collocated_observer_loop",
     "delay_margin",
+    "design_collocated_observer",
     "design_filtered",
     "design_filtered_exact",
     "design_reflection",
@@ -85,6 +96,7 @@ __all__ = [
     "mismatch_gain_loop",
     "mismatch_loop",
     "mismatch_region",
+    "observer_reflection_bounds",
     "prove_transport_square",
     "rouche_delay_bound",
     "speed_tolerance",

@@ -115,7 +115,16 @@ from ..kernels.constant import MIN_KERNEL_GRID, Kernels, solve_kernels
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ..plants.law import FeedbackLaw
 
-__all__ = ["CollocatedObserver", "collocated_observer", "command_response", "dual_plant", "observer_gains"]
+__all__ = [
+    "CollocatedObserver",
+    "ObserverReflection",
+    "collocated_observer",
+    "command_response",
+    "dual_plant",
+    "observer_gains",
+    "observer_reflection",
+    "reflection_factors",
+]
 
 Array = NDArray[np.float64]
 
@@ -265,6 +274,27 @@ def command_response(
     return point + QuasiPolynomial([], [], shifted), pieces, deviation
 
 
+def _times_response(
+    system: Hyperbolic2x2, factor: QuasiPolynomial, k: float, pieces: list[DistributedDelay], accuracy: float
+) -> tuple[QuasiPolynomial, float]:
+    """``factor * C`` for ``C = k q e^{-tau s} + int c e^{-nu s}`` stored as ``pieces``, and its estimated error.
+
+    The point term by the product of quasi-polynomials, each piece of ``c`` by
+    :func:`~nrobust.volterra.resolvent_product` (``accuracy``: the estimated error of ``c``).
+    """
+    product = factor * QuasiPolynomial([[k * system.q]], [system.tau])
+    total_accuracy = 0.0
+    empty = np.zeros((1, 1))  # no correction: the stored pieces are the kernel
+    for lo, hi, term in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, strict=True):
+        if term.is_zero:
+            continue
+        window = WindowKernel((term,), float(hi - lo), empty, accuracy)
+        part = resolvent_product(factor.shift(float(lo)), window)
+        product = product + part.product
+        total_accuracy += part.accuracy
+    return product, total_accuracy
+
+
 @dataclass(frozen=True)
 class CollocatedObserver:
     """The collocated observer on a plant, for a law: its gains, ``C_u`` and ``G = (1 - Phi) C_u``.
@@ -329,16 +359,7 @@ def collocated_observer(
         nu = np.linspace(0.0, hi - lo, 65)
         change = max(change, float(np.max(np.abs(a.kernel_at(nu) - b.kernel_at(nu)))))
     accuracy = change + deviation
-    product = open_loop * QuasiPolynomial([[law.boundary_gain * system.q]], [system.tau])
-    total_accuracy = 0.0
-    empty = np.zeros((1, 1))  # no correction: the stored pieces are the kernel
-    for lo, hi, term in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, strict=True):
-        if term.is_zero:
-            continue
-        window = WindowKernel((term,), float(hi - lo), empty, accuracy)
-        part = resolvent_product(open_loop.shift(float(lo)), window)
-        product = product + part.product
-        total_accuracy += part.accuracy
+    product, total_accuracy = _times_response(system, open_loop, law.boundary_gain, pieces, accuracy)
     if coupled:
         assert fine is not None
         grid, p_u, p_v = observer_gains(fine, lam)
@@ -346,3 +367,90 @@ def collocated_observer(
         grid = np.linspace(0.0, 1.0, kernel_grid)
         p_u = p_v = np.zeros(kernel_grid)
     return CollocatedObserver(grid, p_u, p_v, response, product, total_accuracy)
+
+
+def _zero_gain(x: Array) -> Array:
+    return np.zeros_like(np.asarray(x, dtype=float))
+
+
+@dataclass(frozen=True)
+class ObserverReflection:
+    """The terms of an observer that keeps the reflection ``kappa`` (module notes).
+
+    Attributes
+    ----------
+    response : QuasiPolynomial
+        ``H_y``: the output error ``u~(t, 1)`` driven by ``v~(t, 1) = W`` in the error system of
+        ``kappa = 0`` (:func:`command_response` of the law ``U = u(t, 1)``); the error's
+        characteristic function is ``E = 1 - kappa H_y``.
+    open_loop_product, law_product : QuasiPolynomial
+        ``(1 - Phi) H_y`` and ``B~ H_y`` (``B~`` the unfiltered law's factor ``B``).
+    accuracy : float
+        An estimate (not a bound) of the sup-norm error of the products' kernels, as
+        :attr:`CollocatedObserver.accuracy` (0 on an uncoupled plant: ``H_y = q e^{-tau s}``).
+    """
+
+    response: QuasiPolynomial
+    open_loop_product: QuasiPolynomial
+    law_product: QuasiPolynomial
+    accuracy: float
+
+
+def observer_reflection(
+    system: Hyperbolic2x2, open_loop: QuasiPolynomial, law_factor: QuasiPolynomial, kernel_grid: int
+) -> ObserverReflection:
+    """``H_y``, ``(1 - Phi) H_y`` and ``B~ H_y`` of the collocated observer (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The observed plant.
+    open_loop : QuasiPolynomial
+        ``1 - Phi`` (eq. (39)) of ``system``.
+    law_factor : QuasiPolynomial
+        ``B~``: the factor ``B`` of the unfiltered law (real constant point coefficients and
+        plain distributed terms).
+    kernel_grid : int
+        Points of the dual plant's kernel grid (the accuracy estimate, as
+        :func:`collocated_observer`, from the grid with ``(kernel_grid + 1) / 2`` points).
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a collocated observer", system)
+    unit = FeedbackLaw(1.0, _zero_gain, _zero_gain)
+    if system.uncoupled:
+        response = QuasiPolynomial([[system.q]], [system.tau])
+        return ObserverReflection(response, open_loop * response, law_factor * response, 0.0)
+    coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
+    response, pieces, deviation = command_response(
+        system, unit, solve_kernels(dual_plant(system), kernel_grid), kernel_grid
+    )
+    _, coarse_pieces, _ = command_response(system, unit, solve_kernels(dual_plant(system), coarse_grid), coarse_grid)
+    change = 0.0
+    for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
+        nu = np.linspace(0.0, hi - lo, 65)
+        change = max(change, float(np.max(np.abs(a.kernel_at(nu) - b.kernel_at(nu)))))
+    open_product, open_accuracy = _times_response(system, open_loop, 1.0, pieces, change + deviation)
+    law_product, law_accuracy = _times_response(system, law_factor, 1.0, pieces, change + deviation)
+    return ObserverReflection(response, open_product, law_product, max(open_accuracy, law_accuracy))
+
+
+def reflection_factors(
+    A: QuasiPolynomial,
+    B: QuasiPolynomial,
+    reflection: ObserverReflection,
+    kappa: float,
+    numerator: tuple[float, ...] = (1.0,),
+    denominator: tuple[float, ...] = (1.0,),
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(E A, E B)`` with ``E = 1 - kappa H_y``: the state feedback's factors times the error's function.
+
+    ``A = d (1 - Phi)`` and ``B = n B~`` for a law filtered by ``n/d`` (``numerator``,
+    ``denominator``: increasing powers); the collocated loop is then
+    :func:`~nrobust.hyperbolic.loops.output_feedback.output_feedback_factors` of these and ``G``.
+    """
+    if kappa == 0.0:
+        return A, B
+    return (
+        A - reflection.open_loop_product.times_poly(list(denominator)) * kappa,
+        B - reflection.law_product.times_poly(list(numerator)) * kappa,
+    )

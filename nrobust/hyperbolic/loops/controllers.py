@@ -51,7 +51,13 @@ from ..kernels.varying import VaryingKernels, solve_varying_kernels
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem
 from ..plants.law import FeedbackLaw
-from .collocated import CollocatedObserver, collocated_observer
+from .collocated import (
+    CollocatedObserver,
+    ObserverReflection,
+    collocated_observer,
+    observer_reflection,
+    reflection_factors,
+)
 from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .exact_gains import gain_failure, gain_kernel
@@ -75,6 +81,7 @@ __all__ = [
     "characteristic",
     "classify",
     "collocated_observer_of",
+    "observer_reflection_of",
     "loop_factors",
     "loop_route",
     "loop_scope",
@@ -377,6 +384,15 @@ class CollocatedOutputFeedback(_ObserverFeedback):
     factors (the observer's term, in ``A``, depends on the law), and
     :func:`~nrobust.hyperbolic.analyses.design.design_reflection` with ``collocated=True`` designs it.
 
+    The observer may keep a reflection ``kappa`` of its own (``observer_reflection``):
+    ``v^(t, 1) = (rho - kappa) y + kappa u^(t, 1) + U_o``, so that its error reflects
+    ``v~(t, 1) = kappa u~(t, 1)`` and is no longer zero after ``tau``: its characteristic function
+    is ``E = 1 - kappa H_y`` (principal part ``1 - kappa q e^{-tau s}``), a factor of the loop,
+    which is affine in ``kappa`` (:mod:`~nrobust.hyperbolic.loops.collocated`). For U_BS2(K) and
+    ``observer_delay = 0`` the difference operator is ``1 - (rho - K + kappa) q e^{-tau s} +
+    (kappa - K) rho q^2 e^{-2 tau s} + K (rho - kappa) q^2 e^{-(2 tau + delta) s}``;
+    :func:`~nrobust.hyperbolic.analyses.observer_design.design_collocated_observer` designs ``kappa``.
+
     Parameters
     ----------
     controller : Controller
@@ -384,9 +400,24 @@ class CollocatedOutputFeedback(_ObserverFeedback):
     observer_delay : float, default 0
         The delay ``delta_o`` of the commands the observer replays: at ``delta = delta_o`` the
         loop is the state feedback's with that delay.
+    observer_reflection : float, default 0
+        ``kappa``, the reflection the observer keeps at ``x = 1`` (read on the normal form of a
+        general plant, as ``K``); 0 reads it all from the measurement (a nilpotent error).
     """
 
+    observer_reflection: float = 0.0
     _not_a_law = "analyse its loop with loop_factors"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "observer_reflection", finite_real("observer_reflection", self.observer_reflection))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (``observer_reflection`` when it is not 0)."""
+        out = super().to_dict()
+        if self.observer_reflection != 0.0:
+            out["observer_reflection"] = self.observer_reflection
+        return out
 
 
 def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
@@ -414,7 +445,7 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
         if isinstance(controller, _ObserverFeedback) and isinstance(controller.controller, StateFeedback):
             inner = controller.controller
             mapped = StateFeedback(*form.feedback_to_normal(inner.k, inner.g_u, inner.g_v))
-            controller = type(controller)(mapped, controller.observer_delay)
+            controller = dataclasses.replace(controller, controller=mapped)
         return form.system, controller
     return system, controller
 
@@ -651,13 +682,20 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
     """:func:`loop_scope` of a collocated output feedback: the state feedback's, and the observer's."""
     grid = _observer_grid(system, controller, kernel_grid)
     inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
+    kappa = controller.observer_reflection
     if _exact_collocated(system, controller):
-        return inner + "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s})"
+        exact = "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s}"
+        return inner + exact + (", and its reflection's factor 1 - kappa q e^{-tau s})" if kappa else ")")
     observer = collocated_observer_of(system, controller, kernel_grid)
+    accuracy = observer.accuracy
+    reflection = ""
+    if kappa:
+        accuracy = max(accuracy, abs(kappa) * observer_reflection_of(system, controller, kernel_grid).accuracy)
+        reflection = " and the observer's reflection factor 1 - kappa H_y come"
     return (
-        f"a model of the PDE: the state feedback's loop is {inner}; the collocated observer's term (1 - Phi) C_u "
-        f"comes from the kernels of the dual plant on {_collocated_grid(grid)} points, to an estimated "
-        f"{observer.accuracy:.0e}, which is not part of the proof"
+        f"a model of the PDE: the state feedback's loop is {inner}; the collocated observer's term (1 - Phi) C_u"
+        f"{reflection or ' comes'} from the kernels of the dual plant on {_collocated_grid(grid)} points, to an "
+        f"estimated {accuracy:.0e}, which is not part of the proof"
     )
 
 
@@ -736,7 +774,34 @@ def _collocated_loop(
         G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
     else:
         G = collocated_observer_of(system, controller, kernel_grid).product
+    if controller.observer_reflection != 0.0:
+        denominator = (1.0, inner.b) if isinstance(inner, FilteredController) else (1.0,)
+        reflection = observer_reflection_of(system, controller, kernel_grid)
+        A, B = reflection_factors(A, B, reflection, controller.observer_reflection, numerator, denominator)
     return output_feedback_factors(A, B, G, numerator, controller.observer_delay)
+
+
+def observer_reflection_of(
+    system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None = None
+) -> ObserverReflection:
+    """The terms ``H_y``, ``(1 - Phi) H_y``, ``B~ H_y`` of a collocated observer's own reflection on ``system``.
+
+    Its ``accuracy`` is the estimated sup-norm error of the products' kernels
+    (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant).
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
+    return _observer_reflection(
+        system, unfiltered(controller.controller), _observer_grid(system, controller, kernel_grid)
+    )
+
+
+@lru_cache(maxsize=16)
+def _observer_reflection(system: Hyperbolic2x2, law: Controller, route_grid: int | None) -> ObserverReflection:
+    """:func:`observer_reflection_of` for the unfiltered law ``law`` (cached: the loop and the scope ask for it)."""
+    open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
+    law_factor = loop_factors(system, law, route_grid)[1]
+    return observer_reflection(system, open_loop, law_factor, _collocated_grid(route_grid))
 
 
 def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) -> tuple[Any, int | None]:

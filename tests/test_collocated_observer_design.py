@@ -1,0 +1,117 @@
+"""The design of the collocated observer's reflection ``kappa`` (:mod:`nrobust.hyperbolic.analyses.observer_design`).
+
+Checks: the strongly stable interval against the closed form of ``gamma_0`` for U_BS2(K) (module
+notes of :mod:`nrobust.hyperbolic.loops.collocated`); the affine family against the loop built at
+``kappa``; the design against a grid of certified margins of loops built independently of the
+affine family (``loop_factors`` at each ``kappa``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.errors import CertificationError, ParameterError
+from nrobust.hyperbolic.analyses.observer_design import collocated_observer_loop, observer_reflection_bounds
+from nrobust.hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
+    FiniteTimeController,
+    ReflectionController,
+    loop_factors,
+)
+
+PAPER = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+TRANSPORT = nr.TransportSystem(1.0, 2.0, 0.9, 0.6)
+
+
+def _grid_margins(plant, inner, kappas):
+    return np.array(
+        [nr.delay_margin(plant, CollocatedOutputFeedback(inner, 0.0, float(k))).margin for k in kappas], dtype=float
+    )
+
+
+@pytest.mark.parametrize(
+    ("inner", "expected"),
+    [
+        # -0.58 - 1.95 kappa = 1 and 0.75 + 1.75 kappa = 1
+        (ReflectionController(0.1), (-1.58 / 1.95, 0.25 / 1.75)),
+        # 1.445 - 0.7 kappa = 1 and 2.7 kappa - 1.445 = 1
+        (FiniteTimeController(), (0.445 / 0.7, 2.445 / 2.7)),
+    ],
+    ids=["U_BS2(0.1)", "U_BS"],
+)
+def test_strongly_stable_interval_is_the_closed_form(inner, expected):
+    """``|rho - K + kappa| |q| + |kappa - K| |rho| q^2 + |K (rho - kappa)| q^2 < 1`` on the paper's plant."""
+    loop = collocated_observer_loop(PAPER, CollocatedOutputFeedback(inner))
+    # the principal coefficients are the kernels' (exact) point terms: rounding only
+    np.testing.assert_allclose(observer_reflection_bounds(loop), expected, rtol=0, atol=1e-12)
+    for kappa in (-0.3, 0.4, 0.7):
+        A, B = loop_factors(PAPER, CollocatedOutputFeedback(inner, 0.0, kappa))
+        s = np.array([0.2 + 3.0j, -0.1 + 9.0j])
+        # the affine family is the loop built at kappa, up to the rounding of the sums
+        np.testing.assert_allclose(loop.A(kappa)(s), A(s), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(loop.B(kappa)(s), B(s), rtol=0, atol=1e-12)
+
+
+def test_transport_design_beats_the_grid():
+    """An uncoupled plant (the loop is exact): the designed ``kappa`` matches or beats a grid of certified margins."""
+    inner = ReflectionController(0.2)
+    design = nr.design_collocated_observer(TRANSPORT, controller=inner)
+    assert design.design.certified == "checked"
+    lo, hi = design.bounds
+    grid = _grid_margins(TRANSPORT, inner, np.linspace(lo, hi, 9))
+    # the design's margin is certified (relative accuracy about 1e-12); the grid's points lie in the bounds
+    assert design.value >= grid.max() - 1e-9
+    np.testing.assert_allclose(nr.delay_margin(TRANSPORT, design.controller).margin, design.value, rtol=1e-9, atol=0)
+
+
+@pytest.mark.long
+def test_paper_design_beats_the_grid():
+    """U_BS2(0.1) on the paper's plant: the best ``kappa`` is the lower end of the default bounds.
+
+    ``delta*`` grows as ``kappa`` decreases until a curve at ``w ~ 20.6`` meets the one at ``w ~ 3.19``
+    about ``kappa = -0.7177``, just below the bounds: the design is the end ``kappa = -0.714945``,
+    margin ``0.1948028`` (0.1689016 at ``kappa = 0``).
+    """
+    inner = ReflectionController(0.1)
+    design = nr.design_collocated_observer(PAPER, controller=inner)
+    lo, hi = design.bounds
+    assert design.design.kind == "end"
+    np.testing.assert_allclose(design.kappa, lo, rtol=0, atol=1e-12)
+    grid = _grid_margins(PAPER, inner, np.linspace(lo, hi, 5))
+    assert design.value >= grid.max() - 1e-9
+    # the delay margin of the model, certified (checked in floating point), to its accuracy
+    np.testing.assert_allclose(design.value, 0.19480276876, rtol=0, atol=1e-9)
+    assert "observer's reflection" in design.scope and design.design.certificate.of_model
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match="objective"):
+        nr.design_collocated_observer(TRANSPORT, "speed")
+    with pytest.raises(ParameterError, match="margin_at_least"):
+        nr.design_collocated_observer(TRANSPORT, "decay_rate")
+    with pytest.raises(ParameterError, match="margin_at_least"):
+        nr.design_collocated_observer(TRANSPORT, margin_at_least=0.1)
+    with pytest.raises(ParameterError, match="kappa_bounds"):
+        nr.design_collocated_observer(TRANSPORT, kappa_bounds=(0.2, 0.1))
+    with pytest.raises(ParameterError, match="controller"):
+        nr.design_collocated_observer(TRANSPORT, controller="U_BS")
+    with pytest.raises(ParameterError, match="controller"):
+        nr.design_collocated_observer(TRANSPORT, controller=CollocatedOutputFeedback(FiniteTimeController()))
+
+
+def test_a_suboptimal_end_is_refused():
+    """Bounds that end just below the kink at ``kappa ~ -0.7177``: never an end worse than the envelope's top.
+
+    Either the optimum inside the bounds, matching a grid of certified margins, or a
+    ``CertificationError`` saying where a larger margin is.
+    """
+    inner = ReflectionController(0.1)
+    try:
+        design = nr.design_collocated_observer(PAPER, controller=inner, kappa_bounds=(-0.7185, -0.6))
+    except CertificationError as exc:
+        assert "has" in str(exc) and "kappa =" in str(exc)
+        return
+    grid = _grid_margins(PAPER, inner, np.linspace(-0.7185, -0.6, 5))
+    assert design.value >= grid.max() - 1e-9
