@@ -188,7 +188,7 @@ def observer_reflection_bounds(loop: AffineLoop) -> tuple[float, float]:
             if fa < 0.0 <= fb:
                 ends.append(a + (b - a) * (-fa) / (fb - fa))
                 break
-    return ends[0], ends[1]
+    return float(ends[0]), float(ends[1])
 
 
 def design_collocated_observer(
@@ -316,4 +316,4 @@ def _bounds(name: str, value: Any) -> tuple[float, float]:
 def _default_bounds(loop: AffineLoop) -> tuple[float, float]:
     lo, hi = observer_reflection_bounds(loop)
     width = hi - lo
-    return lo + _SHRINK * width, hi - _SHRINK * width
+    return float(lo + _SHRINK * width), float(hi - _SHRINK * width)
