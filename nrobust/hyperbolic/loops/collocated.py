@@ -91,6 +91,25 @@ merge: the condition becomes ``|rho q| + |K q| + 2 |K rho| q^2 < 1``, stricter t
 feedback's (the paper's example, ``rho q = 0.85``, ``K = 0.1``: ``1.12``, no robustness to a
 mismatch ``delta != delta_o``), so the observer should replay the commands undelayed.
 
+**The observer's own reflection.** With ``v^(t, 1) = (rho - kappa) y + kappa u^(t, 1) + U_o``
+(``kappa = 0`` above) the error reflects ``v~(t, 1) = kappa u~(t, 1) + W``. The gains are kept:
+the error system of ``kappa = 0`` driven by ``W' = kappa u~(t, 1) + W``. With ``H_y`` its output
+error ``u~(t, 1)`` per unit ``W'`` (the command response of the law ``U = u(t, 1)``: ``k = 1``, no
+gains, so ``H_y = q e^{-tau s} + int c e^{-nu s}`` with ``c`` from ``L'`` only; not ``q e^{-tau s}``
+alone on a coupled plant: once ``b~(t, 1) != 0`` the Volterra map leaves a source proportional
+to ``b~(t, 1)``, through ``P^{uv}(x, 1)`` and ``P^{vv}(x, 1)``, in the target system), ``W' = W / E``
+with ``E = 1 - kappa H_y``,
+the error's characteristic function, so the law sees ``C_u / E``. Multiplying the loop by ``E``:
+
+    A_o = E A - n G e^{-delta_o s},    B_o = E B + n G,    E A = A - kappa d (1 - Phi) H_y,
+    E B = B - kappa n B~ H_y,
+
+affine in ``kappa`` (:func:`observer_reflection`, :func:`reflection_factors`); at ``delta =
+delta_o`` the loop is ``E`` times the state feedback's, so the zeros of ``E`` are modes of the
+loop. For U_BS2(K) and ``delta_o = 0`` the difference operator is ``1 - (rho - K + kappa) q
+e^{-tau s} + (kappa - K) rho q^2 e^{-2 tau s} + K (rho - kappa) q^2 e^{-(2 tau + delta) s}``,
+strongly stable iff ``|rho - K + kappa| |q| + |(kappa - K) rho| q^2 + |K (rho - kappa)| q^2 < 1``.
+
 :func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's
 gains on the kernel grid (cubic splines, composite Gauss-Legendre rules), stores it as
 polynomial pieces, and ``G`` by :func:`~nrobust.volterra.resolvent_product`; its accuracy is
