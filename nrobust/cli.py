@@ -42,6 +42,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from ._matplotlib_docs import skip_artist_property_docs
 from ._version import __version__
 from .config import DESIGN_FAMILIES, PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
@@ -223,6 +224,7 @@ def run() -> NoReturn:
     (:func:`gc.freeze`: the collections skip them), so the process exits in about 0.05 s, its
     exit handlers run and its streams flushed as usual.
     """
+    skip_artist_property_docs()  # the property lists of help(): a quarter of matplotlib's import
     code = main()
     gc.freeze()
     sys.exit(code)

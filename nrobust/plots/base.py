@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure, SubFigure
 
-__all__ = ["NrobustPlot", "decade_ticks", "figure_png", "get_axes"]
+__all__ = ["NrobustPlot", "decade_ticks", "figure_png", "get_axes", "pin_title"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +80,26 @@ def decade_ticks(ax: Axes) -> None:
 
     ax.yaxis.set_major_formatter(PowerFormatter())
     ax.yaxis.set_minor_formatter(PowerFormatter(labelOnlyBase=False))
+
+
+def pin_title(ax: Axes) -> None:
+    """Place ``ax``'s title once, at the top of the axes, when Matplotlib would place it there.
+
+    At each draw, Matplotlib lifts a title above what may stand over the axes (tick labels or
+    the label of the x axis on top, the offset text of the y axis such as ``1e6``), measuring
+    every y tick label to find out: 0.02-0.05 s of CPU per titled axes. When none of these is
+    there (the x axis at the bottom, no offset text at the axes' final limits, no inset axes),
+    the title stays at the top of the axes: pinned there, it is drawn at the same pixels without
+    the measure. Call it once the axes' limits are final, on axes without twins.
+    """
+    x = ax.xaxis
+    if x.get_ticks_position() in ("top", "unknown") or x.get_label_position() == "top" or ax.child_axes:
+        return
+    formatter = ax.yaxis.get_major_formatter()
+    formatter.set_locs(list(ax.yaxis.get_majorticklocs()))
+    if formatter.get_offset():
+        return
+    ax.set_title(ax.get_title(), fontsize=ax.title.get_fontsize(), y=1.0)
 
 
 #: zlib level of :func:`figure_png` (Pillow's default is 6): the nine figures of ``nrobust paper``

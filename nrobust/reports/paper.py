@@ -27,7 +27,7 @@ from ..hyperbolic.loops.controllers import (
 )
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..hyperbolic.simulate import DEFAULT_CELLS, Simulation, simulate_runs
-from ..plots.base import figure_png
+from ..plots.base import figure_png, pin_title
 from ..plots.charts import stability_chart_plot, tradeoff_plot
 from ..plots.rootlocus import RootLocusData, root_locus_response
 from ..plots.simulation import simulation_figure
@@ -208,8 +208,17 @@ def _run_paper(
     tasks = _paper_tasks(classification.k_bound, t_end, cells, n_K, n_delta, accuracy)
     collecting = gc.isenabled()
     if workers:
-        # loaded once, here, rather than by each worker forked from here: matplotlib (every job draws)
+        # loaded once, here, rather than by each worker forked from here (0.2 s of CPU each): matplotlib
+        # and the image writers Pillow loads on its first save (every job draws), numpy.fft (the chirp-z
+        # sums of certificates and charts), FLINT (the certificates' proofs, with nrobust[rigorous])
+        import matplotlib.backends.backend_agg
         import matplotlib.pyplot  # noqa: F401
+        import numpy.fft  # noqa: F401
+        from PIL import Image
+
+        Image.preinit()
+        if _RIGOROUS:
+            import flint  # noqa: F401
 
         # the objects of the imports left out of garbage collection in the workers forked from here: a
         # full collection there (one per job) otherwise walks all of them (about 0.05 s of CPU each)
@@ -304,6 +313,7 @@ def _chart_figure(chart: StabilityChart, trade: Tradeoff, k_max: float) -> Figur
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     stability_chart_plot(chart, ax=ax, k_bound=k_max, rouche=(trade.Ks, trade.rouche_bounds))
+    pin_title(ax)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
     return fig
 
@@ -314,6 +324,7 @@ def _tradeoff_figure(trade: Tradeoff) -> Figure:
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     tradeoff_plot(trade, ax=ax)
+    pin_title(ax)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
     return fig
 
@@ -324,6 +335,7 @@ def _locus_figure(locus: RootLocusData) -> Figure:
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     locus.plot(ax=ax)
+    pin_title(ax)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.92)  # by hand: one draw, no tight layout
     return fig
 

@@ -38,7 +38,7 @@ from ..hyperbolic.loops.controllers import (
     normalize,
 )
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
-from ..plots.base import figure_png
+from ..plots.base import figure_png, pin_title
 from ..plots.charts import delay_chart_plot
 from ..plots.nyquist import nyquist_response
 from ..plots.rootmap import root_map_region, root_map_response
@@ -231,6 +231,8 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         notes += [f" At delta = {delta:g}: {note.get_text()}".replace("\n", " ") for note in drawn.lines["note"]]
         ax.set_title(f"roots at delta = {delta:g}: {data.count} (certified: {_fmt(data.certified)})", fontsize="small")
     axes[1].set_ylabel("")
+    for ax in (chart_ax, *axes):  # their limits final (the maps share their y axis)
+        pin_title(ax)
     fig.suptitle(f"Closed loop under {_controller_label(cert.controller)}", fontsize="medium")
     fig.subplots_adjust(left=0.08, right=0.96, bottom=0.07, top=0.92, hspace=0.32, wspace=0.22)
     wider = (
@@ -257,6 +259,7 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         A, B, cert.delta_max, omega_max=w_max, n_freq=2001, principal_bound=cert.principal_delayed.spectral_bound
     )
     resp.plot(ax=ax)
+    pin_title(ax)
     fig.subplots_adjust(left=0.14, right=0.97, bottom=0.1, top=0.92)
     out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
     return out, resp
