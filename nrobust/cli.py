@@ -42,10 +42,10 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from ._matplotlib_docs import skip_artist_property_docs
 from ._version import __version__
 from .config import DESIGN_FAMILIES, PiecewiseLinear, load_system_file
 from .errors import NrobustError, ParameterError
+from .plots.base import skip_artist_property_docs
 from .reports.analyze import run_analyze
 from .reports.design import design_summary, run_design
 from .reports.paper import PAPER_SYSTEM, run_paper

@@ -55,7 +55,7 @@ def test_matplotlib_without_property_lists_draws_the_same():
         """
         import hashlib, sys
         if sys.argv[1] == "lean":
-            from nrobust._matplotlib_docs import skip_artist_property_docs
+            from nrobust.plots.base import skip_artist_property_docs
             skip_artist_property_docs()
         import matplotlib
         matplotlib.use("Agg")
@@ -83,7 +83,7 @@ def test_matplotlib_without_property_lists_draws_the_same():
 def test_an_imported_matplotlib_is_left_as_it_is():
     from matplotlib.lines import Line2D
 
-    from nrobust._matplotlib_docs import skip_artist_property_docs
+    from nrobust.plots.base import skip_artist_property_docs
 
     before = list(sys.meta_path)
     skip_artist_property_docs()
