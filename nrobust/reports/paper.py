@@ -34,7 +34,7 @@ from ..plots.simulation import simulation_figure
 from ..sweeps.executors import sweep_map
 from .certificate import Certificate, certify
 from .outputs import RunOutputs
-from .report import render_certificate_figures, write_report
+from .report import RenderedFigures, render_certificate_figures, render_nyquist_figure, write_report
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -108,9 +108,13 @@ def _paper_job(task: tuple[Any, ...]) -> Any:
     if job == "certify":  # the loops one after the other: the second reuses what the first left in memory
         loops, rigorous, accuracy = args
         certs = [
-            certify(system, c, delta_max=d, k_region=False, rigorous=rigorous, accuracy=accuracy) for c, d in loops
+            (certify(system, c, delta_max=d, k_region=False, rigorous=rigorous, accuracy=accuracy), nyquist)
+            for c, d, nyquist in loops
         ]
-        return [(cert, render_certificate_figures(cert)) for cert in certs]
+        return [(cert, render_certificate_figures(cert, nyquist)) for cert, nyquist in certs]
+    if job == "nyquist":  # a loop's Nyquist figure, drawn while another worker certifies the loop
+        controller, delta_max = args
+        return render_nyquist_figure(system, controller, delta_max)
     if job == "charts":  # the chart draws the trade-off's Rouché bounds: one job, two figures
         Ks, deltas, k_max = args
         chart = stability_chart(system, Ks, deltas, progress=False)
@@ -236,6 +240,10 @@ def _run_paper(
         gc.unfreeze()  # this process collects them again (no-ops without workers)
     fig1_runs, fig3_runs, fig1_png, fig3_png = res["simulate"]
     (cert_bs, drawn_bs), (cert_bs2, drawn_bs2) = res["certify"]
+    if cert_bs.kernel_grid is None:  # the grid the Nyquist job took: the figures of U_BS's certificate
+        drawn_bs = RenderedFigures(drawn_bs.pngs + res["nyquist"].pngs, res["nyquist"].rhp_zeros)
+    else:  # a kernel grid chosen for the accuracy asked (a plant off the exact route): drawn here
+        drawn_bs = render_certificate_figures(cert_bs)
     chart, trade, chart_png, trade_png = res["charts"]
     figures = [
         (_FIGURE_CAPTIONS[1], fig1_png),
@@ -272,22 +280,26 @@ def _paper_tasks(
     second costs a good part less than alone), the ``(K, delta)`` chart of U_BS2 on
     ``n_K x n_delta`` gains in ``[-1.2, 1.2] k_max`` and delays in ``[0, 0.5]`` with the
     trade-off on its gains ``K >= 0``, the simulations of figures 1 and 3, the root locus of
-    U_BS2 in ``K`` (seven gains in ``[0, 0.9 k_max]``).
+    U_BS2 in ``K`` (seven gains in ``[0, 0.9 k_max]``), the Nyquist figure of U_BS (its
+    certificate's, drawn apart so that the two workers end together).
     """
     u_bs, u_bs2 = FiniteTimeController(), ReflectionController(PAPER_K)
     Ks = np.linspace(-1.2 * k_max, 1.2 * k_max, n_K)
     deltas = np.linspace(0.0, 0.5, n_delta)
-    # longest first, so that the workers finish together
+    # longest first, so that the workers finish together: the certificates (without U_BS's Nyquist
+    # figure) on one, the chart and the simulations on the other, then the root locus on the first
+    # free and U_BS's Nyquist figure on the other
     return {
         "certify": (
             "certify",
-            ((u_bs, max(PAPER_DELAYS_FIG1)), (u_bs2, max(PAPER_DELAYS_FIG3))),
+            ((u_bs, max(PAPER_DELAYS_FIG1), False), (u_bs2, max(PAPER_DELAYS_FIG3), True)),
             _RIGOROUS,
             accuracy,
         ),
         "charts": ("charts", Ks, deltas, k_max),
         "simulate": ("simulate", t_end, cells),
         "locus": ("locus", np.linspace(0.0, 0.9 * k_max, 7), max(PAPER_DELAYS_FIG3), (-1.0, 0.4, 0.0, 20.0)),
+        "nyquist": ("nyquist", u_bs, max(PAPER_DELAYS_FIG1)),
     }
 
 

@@ -47,7 +47,14 @@ from .certificate import PROVEN, Certificate
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["RenderedFigures", "ReportFiles", "certificate_figures", "render_certificate_figures", "write_report"]
+__all__ = [
+    "RenderedFigures",
+    "ReportFiles",
+    "certificate_figures",
+    "render_certificate_figures",
+    "render_nyquist_figure",
+    "write_report",
+]
 
 
 @dataclass(frozen=True)
@@ -154,17 +161,46 @@ class RenderedFigures:
     rhp_zeros: int | None
 
 
-def render_certificate_figures(cert: Certificate) -> RenderedFigures:
-    """The figures of :func:`certificate_figures` drawn as PNG, with the Nyquist count the report reads."""
+def render_certificate_figures(cert: Certificate, nyquist: bool = True) -> RenderedFigures:
+    """The figures of :func:`certificate_figures` drawn as PNG, with the Nyquist count the report reads.
+
+    With ``nyquist=False``, the first figure only (the Nyquist plot drawn elsewhere by
+    :func:`render_nyquist_figure`, its ``rhp_zeros`` None here): the two then make the
+    certificate's :class:`RenderedFigures` as ``RenderedFigures(roots.pngs + nyq.pngs, nyq.rhp_zeros)``.
+    """
+    if nyquist:
+        figures, resp = _figures(cert)
+    else:
+        figures, resp = [_roots_figure(cert)], None
+    return RenderedFigures(_pngs(figures), None if resp is None else resp.rhp_zeros)
+
+
+def render_nyquist_figure(
+    system: Any, controller: Any, delta_max: float, kernel_grid: int | None = None
+) -> RenderedFigures:
+    """The Nyquist figure of the certificate of ``(system, controller, delta_max)``, without the certificate.
+
+    The same figure and count as :func:`render_certificate_figures` draws from
+    ``certify(system, controller, delta_max=delta_max, kernel_grid=kernel_grid)`` (whose
+    ``kernel_grid`` is the one given, None by default): the principal part's bound is
+    computed here as the certificate computes it. ``nrobust paper`` draws it in one worker
+    while another certifies the loop.
+    """
+    Fd = characteristic(system, controller, delta_max, kernel_grid=kernel_grid)
+    bound = float(Fd.principal_part().chains().bracket[1])  # Certificate.principal_delayed.spectral_bound
+    caption, fig, resp = _nyquist_figure(system, controller, delta_max, kernel_grid, bound)
+    return RenderedFigures(_pngs([(caption, fig)]), resp.rhp_zeros)
+
+
+def _pngs(figures: list[tuple[str, Figure]]) -> tuple[tuple[str, bytes], ...]:
+    """``(caption, PNG)`` of each figure, the figures closed."""
     import matplotlib.pyplot as plt
 
-    figures, nyquist = _figures(cert)
     try:
-        pngs = tuple((caption, figure_png(fig)) for caption, fig in figures)
+        return tuple((caption, figure_png(fig)) for caption, fig in figures)
     finally:
         for _, fig in figures:
             plt.close(fig)
-    return RenderedFigures(pngs, nyquist.rhp_zeros)
 
 
 def _crossing_count(cert: Certificate) -> int | None:
@@ -205,9 +241,17 @@ def _rectangle(box: Sequence[float]) -> str:
 
 def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
     """The standard figures and the Nyquist data behind the last one."""
+    roots = _roots_figure(cert)
+    caption, fig, resp = _nyquist_figure(
+        cert.system, cert.controller, cert.delta_max, cert.kernel_grid, cert.principal_delayed.spectral_bound
+    )
+    return [roots, (caption, fig)], resp
+
+
+def _roots_figure(cert: Certificate) -> tuple[str, Figure]:
+    """The stability chart in the delay above the root maps at ``0`` and ``delta_max``, with its caption."""
     import matplotlib.pyplot as plt
 
-    out: list[tuple[str, Figure]] = []
     fig = plt.figure(figsize=(9.0, 7.0))
     grid = fig.add_gridspec(2, 2, height_ratios=(1.0, 1.9))
     chart_ax = fig.add_subplot(grid[0, :])
@@ -241,28 +285,30 @@ def _figures(cert: Certificate) -> tuple[list[tuple[str, Figure]], Any]:
         else f" The maps' rectangle, {_rectangle(box)}, is wider than the certified region of the tables, "
         f"{_rectangle(cert.region)}, so that the rightmost roots and the chains show: its counts are its own."
     )
-    out.append(
-        (
-            "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
-            "with the chain asymptotes of the difference operator, at delta = 0 and at delta = "
-            f"{cert.delta_max:g} in the same region; above them, the stability chart in the loop delay "
-            "(zeros in Re s > 0 against delta, the delay margin marked)." + wider + "".join(notes),
-            fig,
-        )
+    return (
+        "Closed-loop roots in a region holding the rightmost roots (unstable ones circled in red), "
+        "with the chain asymptotes of the difference operator, at delta = 0 and at delta = "
+        f"{cert.delta_max:g} in the same region; above them, the stability chart in the loop delay "
+        "(zeros in Re s > 0 against delta, the delay margin marked)." + wider + "".join(notes),
+        fig,
     )
 
-    A, B = loop_factors(cert.system, cert.controller, cert.kernel_grid)
+
+def _nyquist_figure(
+    system: Any, controller: Any, delta_max: float, kernel_grid: int | None, principal_bound: float
+) -> tuple[str, Figure, Any]:
+    """The Nyquist plot of the loop at ``delta_max``, its caption and its data."""
+    import matplotlib.pyplot as plt
+
+    A, B = loop_factors(system, controller, kernel_grid)
     # 20 periods of the principal part (a varying lam/mu plant: tau in its time unit)
-    w_max = 20.0 * 2 * np.pi * getattr(cert.system, "time_unit", 1.0) / float(cert.system.tau)
+    w_max = 20.0 * 2 * np.pi * getattr(system, "time_unit", 1.0) / float(system.tau)
     fig, ax = plt.subplots(figsize=(5.0, 5.0))
-    resp = nyquist_response(
-        A, B, cert.delta_max, omega_max=w_max, n_freq=2001, principal_bound=cert.principal_delayed.spectral_bound
-    )
+    resp = nyquist_response(A, B, delta_max, omega_max=w_max, n_freq=2001, principal_bound=principal_bound)
     resp.plot(ax=ax)
     pin_title(ax)
     fig.subplots_adjust(left=0.14, right=0.97, bottom=0.1, top=0.92)
-    out.append((f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {cert.delta_max:g}", fig))
-    return out, resp
+    return f"Nyquist plot of the loop B/A e^(-i w delta) at delta = {delta_max:g}", fig, resp
 
 
 #: The paper's regimes of ``|rho q|`` (:class:`~nrobust.hyperbolic.loops.controllers.Classification`) in words.
