@@ -15,10 +15,10 @@ import pytest
 from PIL import Image
 
 from nrobust.errors import ParameterError
-from nrobust.hyperbolic import ReflectionController, TransportSystem
+from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, TransportSystem
 from nrobust.plots.base import figure_png
 from nrobust.reports.certificate import certify
-from nrobust.reports.report import RenderedFigures, render_certificate_figures, write_report
+from nrobust.reports.report import RenderedFigures, render_certificate_figures, render_nyquist_figure, write_report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -44,6 +44,22 @@ def test_rendered_figures_give_the_report_drawn_in_place(cert, tmp_path):
     assert [p.name for p in there.figures] == [p.name for p in here.figures]
     written = [p.read_bytes() for p in there.figures]
     assert written == [png for _, png in rendered.pngs] + [extra]
+
+
+@pytest.mark.parametrize("controller", [ReflectionController(0.1), FiniteTimeController()], ids=["U_BS2", "U_BS"])
+def test_a_nyquist_figure_drawn_apart_is_the_certificates(controller):
+    # nrobust paper draws U_BS's Nyquist figure in one worker while another certifies the loop: the two
+    # parts make the figures of the certificate, byte for byte, with its Nyquist count (U_BS: none finite,
+    # its chain in Re s > 0 at delta = 0.01; U_BS2 at 0.1: a finite count)
+    system = Hyperbolic2x2(lam=1.0, mu=1.0, sigma_pm=1.0, sigma_mp=1.0, q=1.0, rho=0.85)
+    cert = certify(system, controller, 0.1 if isinstance(controller, ReflectionController) else 0.01, k_region=False)
+    whole = render_certificate_figures(cert)
+    roots = render_certificate_figures(cert, nyquist=False)
+    nyquist = render_nyquist_figure(system, controller, cert.delta_max)
+    assert len(whole.pngs) == 2 and len(roots.pngs) == len(nyquist.pngs) == 1 and roots.rhp_zeros is None
+    assert roots.pngs + nyquist.pngs == whole.pngs
+    assert nyquist.rhp_zeros == whole.rhp_zeros
+    assert (whole.rhp_zeros is None) == isinstance(controller, FiniteTimeController)
 
 
 def test_rendered_figures_are_checked(cert, tmp_path):

@@ -37,5 +37,6 @@ from .report import (
     ReportFiles as ReportFiles,
     certificate_figures as certificate_figures,
     render_certificate_figures as render_certificate_figures,
+    render_nyquist_figure as render_nyquist_figure,
     write_report as write_report,
 )
