@@ -12,15 +12,16 @@ uniform step and the wraps were solved exactly.
 
 from __future__ import annotations
 
+import itertools
+
 import mpmath as mp
 import numpy as np
 import pytest
 
 from nrobust import QuasiPolynomial
-from nrobust.design.gain import AffineLoop, best_margin
+from nrobust.design.gain import AffineLoop, _Curves, _Family, best_margin
 from nrobust.errors import CertificationError
 from nrobust.margins import delay_margin
-from nrobust.roots import spectral_abscissa
 
 mp.mp.dps = 30
 
@@ -145,22 +146,51 @@ def test_a_margin_without_bound_at_a_common_zero_of_a_and_b_is_refused() -> None
     assert best_margin(loop, (-0.6, 1.0)).margin > 90.0  # bounds that leave K_0 out: a design (93.4 at -0.6)
 
 
-def test_no_claim_of_instability_everywhere_when_a_gain_is_stable() -> None:
+def test_an_edge_next_to_a_junction_of_the_crossing_curves() -> None:
     """``A = 0.625 + s + e^{-2.625 s}``, ``B = -0.5 e^{-0.375 s} + p e^{-0.5 s}``: stable without delay for
-    ``p`` above about 0.498 (the abscissa -0.069 at ``p = 1``: below, and the margin 0.509 there), but the scan
-    misses the root that crosses the axis there, and best_margin claimed "certified: F(s; 0, p) has zeros with
-    Re s >= 0 for every p in [-1, 1]". Now it refuses without that claim."""
+    ``p > p_0 ~ 0.4978``, where a root crosses the axis at ``w_0 = 0.8454``, 2.2e-6 above the frequency where the
+    two branches of the crossing curves meet (``D = 0``). The junction was located 3e-6 off, on the side with
+    crossings, and both branches put at ``K = m`` there: the branch's gain jumped over the wrap of its phase at
+    ``w_0``, the edge was missed and best_margin refused ("stable at p = 0.5"). The edge against mpmath's root of
+    ``F(i w; p) = 0`` (``F`` written by hand), the design against certified margins on a grid of ``p``."""
     loop = AffineLoop(
         QuasiPolynomial([[0.625, 1.0], [1.0]], [0.0, 2.625]),
         QuasiPolynomial([[0.0]], [0.0]),
         QuasiPolynomial([[-0.5]], [0.375]),
         QuasiPolynomial([[1.0]], [0.5]),
     )
-    # the rightmost root at p = 1, refined by mpmath on F written by hand: in Re s < 0
-    sa = spectral_abscissa(loop.A(1.0) + loop.B(1.0))
-    F = lambda s: 0.625 + s + mp.exp(-2.625 * s) - 0.5 * mp.exp(-0.375 * s) + mp.exp(-0.5 * s)  # noqa: E731
-    root = mp.findroot(F, mp.mpc(sa.root))
-    np.testing.assert_allclose(float(root.real), sa.value, rtol=1e-10)
-    assert sa.value < -0.06
-    with pytest.raises(CertificationError, match=r"stable at p = "):
-        best_margin(loop, (-1.0, 1.0))
+
+    def F(w, p):
+        s = 1j * w
+        return 0.625 + s + mp.exp(-2.625 * s) - 0.5 * mp.exp(-0.375 * s) + p * mp.exp(-0.5 * s)
+
+    w0, p0 = mp.findroot(lambda w, p: [mp.re(F(w, p)), mp.im(F(w, p))], (0.85, 0.5))
+    np.testing.assert_allclose(float(w0), 0.8453997621808740, rtol=1e-15)
+    # the wrap is solved to rounding on the phase; p_0 moves by dp/dw ~ 0.3 per unit of w there
+    assert _Curves(_Family(loop), -1.0, 1.0, 2_000_000).edges == pytest.approx([float(p0)], rel=0, abs=1e-13)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "end"
+    assert design.K == 1.0
+    # the scan's envelope: margin 0 exactly on the unstable side of p_0, positive on the other
+    assert np.all(design.envelope[design.gains < float(p0)] == 0.0)
+    assert np.all(design.envelope[design.gains > float(p0) + 1e-3] > 0.0)
+    grid = [delay_margin(loop.A(K), loop.B(K)).margin for K in np.linspace(-1.0, 1.0, 41)]
+    assert max(grid[:29]) == 0.0  # p <= 0.4: unstable without delay
+    # the design is certified at K = 1 (a grid gain): the same margin, to the certificate's rounding
+    np.testing.assert_allclose(design.margin, max(grid), rtol=1e-12)
+
+    # and by mpmath at p = 1: the least crossing delay arg(-B/A) / w over the zeros of |A|^2 - |B|^2 in (0, 3.2]
+    # (3.2 is above the scan's crossing bound W = 3.125), each bracketed on 640 cells and refined
+    def A(w):
+        return 0.625 + 1j * w + mp.exp(-2.625j * w)
+
+    def B(w):
+        return -0.5 * mp.exp(-0.375j * w) + mp.exp(-0.5j * w)
+
+    def g(w):
+        return abs(A(w)) ** 2 - abs(B(w)) ** 2
+
+    cells = np.linspace(1e-3, 3.2, 641)
+    zeros = [mp.findroot(g, (a, b), solver="anderson") for a, b in itertools.pairwise(cells) if g(a) * g(b) < 0]
+    delays = [(mp.arg(-B(w) / A(w)) % (2 * mp.pi)) / w for w in zeros]
+    np.testing.assert_allclose(design.margin, float(min(delays)), rtol=1e-12)

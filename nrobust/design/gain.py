@@ -122,6 +122,8 @@ _NEWTON_STEPS = 30
 # distributed terms were computed in floating point, e.g. an output feedback's observer term).
 _NOISE_STEP = 1e-12
 _TWO_PI = 2.0 * np.pi
+#: Steps of a few ulps (growing by 4) that move a junction located to rounding to the side where ``D <= 0``.
+_JUNCTION_NUDGES = 6
 _EPS = float(np.finfo(float).eps)
 
 
@@ -1019,16 +1021,35 @@ class _Curves:
         valid sample.
 
         Near a junction ``K_pm - m ~ sqrt(D)``: the points are spaced quadratically towards
-        the junction, located by eight Illinois steps on ``D``, and evaluated in one batch
-        (vectorised over the junctions). Keyed by ``j``, then by the branch ``sigma``; each
-        array runs from the junction (where both branches meet at ``K = m``) to the valid sample.
+        the junction, located to rounding by Illinois steps on ``D`` (vectorised over the
+        junctions) and taken on the side without crossings (``D <= 0``), and evaluated in one
+        batch. Keyed by ``j``, then by the branch ``sigma``; each array runs from the junction
+        (where both branches meet at ``K = m``) to the valid sample.
+
+        The junction's side matters: there ``K = m`` is the branch's own value
+        ``m + sigma sqrt(max(D, 0))``, so each branch is continuous from it, and a wrap of its phase
+        next to the junction (a root on the axis at ``delta = 0``) is a sign change of the phase
+        between two of its points (:meth:`_split_at_wraps`). On the other side ``K`` would jump by
+        ``sqrt(D)``, ``D`` about the step of the location times ``dD/dw``: a wrap within it was missed.
         """
         j = np.flatnonzero((D[:-1] >= 0.0) != (D[1:] >= 0.0))
         if not j.size:
             return {}
+
+        def disc(x: NDArray) -> NDArray:
+            return self.loop.axis(x).branches()[0]
+
         a, b, fa, fb = w[j].copy(), w[j + 1].copy(), D[j].copy(), D[j + 1].copy()
-        wj = illinois(lambda x: self.loop.axis(x).branches()[0], a, b, fa, fb, steps=8)
+        wj = illinois(disc, a, b, fa, fb)
         valid_end = np.where(D[j] >= 0.0, w[j], w[j + 1])
+        # a few ulps towards the side without crossings when the located point has D > 0
+        toward = np.where(D[j] >= 0.0, 1.0, -1.0)
+        for k in range(_JUNCTION_NUDGES):
+            over = disc(wj) > 0.0
+            if not over.any():
+                break
+            moved = wj + toward * _EPS * np.abs(wj) * 4.0**k
+            wj = np.where(over, np.clip(moved, a, b), wj)
         t = np.linspace(0.0, 1.0, 10)[:-1] ** 2
         points = (wj[:, None] + (valid_end - wj)[:, None] * t[None, :]).ravel()
         at = self.loop.axis(points)
