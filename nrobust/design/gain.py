@@ -1044,11 +1044,11 @@ class _Curves:
         valid_end = np.where(D[j] >= 0.0, w[j], w[j + 1])
         # a few ulps towards the side without crossings when the located point has D > 0
         toward = np.where(D[j] >= 0.0, 1.0, -1.0)
-        for k in range(_JUNCTION_NUDGES):
+        for nudge in range(_JUNCTION_NUDGES):
             over = disc(wj) > 0.0
             if not over.any():
                 break
-            moved = wj + toward * _EPS * np.abs(wj) * 4.0**k
+            moved = wj + toward * _EPS * np.abs(wj) * 4.0**nudge
             wj = np.where(over, np.clip(moved, a, b), wj)
         t = np.linspace(0.0, 1.0, 10)[:-1] ** 2
         points = (wj[:, None] + (valid_end - wj)[:, None] * t[None, :]).ravel()
