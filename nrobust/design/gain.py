@@ -52,7 +52,7 @@ samples, and a missed curve that would lower it is caught by the certificate
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -122,6 +122,8 @@ _NEWTON_STEPS = 30
 # distributed terms were computed in floating point, e.g. an output feedback's observer term).
 _NOISE_STEP = 1e-12
 _TWO_PI = 2.0 * np.pi
+#: Secant steps that take a junction (``D = 0``) from its Illinois estimate to rounding (superlinear from 1e-6).
+_SECANT_STEPS = 8
 #: Steps of a few ulps (growing by 4) that move a junction located to rounding to the side where ``D <= 0``.
 _JUNCTION_NUDGES = 6
 _EPS = float(np.finfo(float).eps)
@@ -899,6 +901,36 @@ def _cat(*parts: Any) -> NDArray[np.float64]:
     return np.concatenate([np.ravel(p) for p in parts])
 
 
+def _side_without_crossings(
+    disc: Callable[[NDArray], NDArray], x: NDArray, a: NDArray, b: NDArray, toward: NDArray
+) -> NDArray:
+    """Zeros of ``disc`` in ``[a, b]`` near ``x`` to rounding, each moved to where ``disc <= 0`` (the side
+    ``toward``, ``+1`` or ``-1``, of the zero), vectorised.
+
+    Secant steps from ``x`` (a simple zero: superlinear), then up to :data:`_JUNCTION_NUDGES` moves of a few
+    ulps towards ``toward`` while ``disc > 0``; a zero that does not get there keeps its last estimate.
+    """
+    x0, f0 = x, disc(x)
+    x1 = np.clip(x0 + 1e-6 * (b - a) * toward, a, b)
+    f1 = disc(x1)
+    for _ in range(_SECANT_STEPS):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x2 = x1 - f1 * (x1 - x0) / (f1 - f0)
+        x2 = np.where(np.isfinite(x2), np.clip(x2, a, b), x1)
+        x0, f0, x1 = x1, f1, x2
+        f1 = disc(x1)
+        if np.all(np.abs(x1 - x0) <= 4.0 * _EPS * np.abs(x1)):
+            break
+    x, f = np.where(np.abs(f1) <= np.abs(f0), x1, x0), np.where(np.abs(f1) <= np.abs(f0), f1, f0)
+    for nudge in range(_JUNCTION_NUDGES):
+        over = f > 0.0
+        if not over.any():
+            break
+        x = np.where(over, np.clip(x + toward * _EPS * np.abs(x) * 4.0**nudge, a, b), x)
+        f = np.where(over, disc(x), f)
+    return x
+
+
 # Points (w, K, d) of a branch.
 _Points = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -1021,16 +1053,17 @@ class _Curves:
         valid sample.
 
         Near a junction ``K_pm - m ~ sqrt(D)``: the points are spaced quadratically towards
-        the junction, located to rounding by Illinois steps on ``D`` (vectorised over the
-        junctions) and taken on the side without crossings (``D <= 0``), and evaluated in one
-        batch. Keyed by ``j``, then by the branch ``sigma``; each array runs from the junction
-        (where both branches meet at ``K = m``) to the valid sample.
+        the junction, located by eight Illinois steps on ``D`` (vectorised over the junctions;
+        for an :class:`AffineLoop` then to rounding and on the side without crossings, ``D <= 0``:
+        :func:`_side_without_crossings`), and evaluated in one batch. Keyed by ``j``, then by
+        the branch ``sigma``; each array runs from the junction (where both branches meet at
+        ``K = m``) to the valid sample.
 
         The junction's side matters: there ``K = m`` is the branch's own value
         ``m + sigma sqrt(max(D, 0))``, so each branch is continuous from it, and a wrap of its phase
         next to the junction (a root on the axis at ``delta = 0``) is a sign change of the phase
         between two of its points (:meth:`_split_at_wraps`). On the other side ``K`` would jump by
-        ``sqrt(D)``, ``D`` about the step of the location times ``dD/dw``: a wrap within it was missed.
+        ``sqrt(D)``, ``D`` about the error of the location times ``dD/dw``: a wrap within it was missed.
         """
         j = np.flatnonzero((D[:-1] >= 0.0) != (D[1:] >= 0.0))
         if not j.size:
@@ -1040,16 +1073,10 @@ class _Curves:
             return self.loop.axis(x).branches()[0]
 
         a, b, fa, fb = w[j].copy(), w[j + 1].copy(), D[j].copy(), D[j + 1].copy()
-        wj = illinois(disc, a, b, fa, fb)
+        wj = illinois(disc, a, b, fa, fb, steps=8)
         valid_end = np.where(D[j] >= 0.0, w[j], w[j + 1])
-        # a few ulps towards the side without crossings when the located point has D > 0
-        toward = np.where(D[j] >= 0.0, 1.0, -1.0)
-        for nudge in range(_JUNCTION_NUDGES):
-            over = disc(wj) > 0.0
-            if not over.any():
-                break
-            moved = wj + toward * _EPS * np.abs(wj) * 4.0**nudge
-            wj = np.where(over, np.clip(moved, a, b), wj)
+        if not self.loop.gain:  # an AffineLoop solves its wraps: each on a branch continuous from the junction
+            wj = _side_without_crossings(disc, wj, a, b, np.where(D[j] >= 0.0, 1.0, -1.0))
         t = np.linspace(0.0, 1.0, 10)[:-1] ** 2
         points = (wj[:, None] + (valid_end - wj)[:, None] * t[None, :]).ravel()
         at = self.loop.axis(points)
