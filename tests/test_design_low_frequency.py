@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from nrobust import QuasiPolynomial
+from nrobust.design import gain
 from nrobust.design.gain import AffineLoop, _Curves, _Family, best_margin
 from nrobust.errors import CertificationError
 from nrobust.margins import delay_margin
@@ -194,3 +195,30 @@ def test_an_edge_next_to_a_junction_of_the_crossing_curves() -> None:
     zeros = [mp.findroot(g, (a, b), solver="anderson") for a, b in itertools.pairwise(cells) if g(a) * g(b) < 0]
     delays = [(mp.arg(-B(w) / A(w)) % (2 * mp.pi)) / w for w in zeros]
     np.testing.assert_allclose(design.margin, float(min(delays)), rtol=1e-12)
+
+
+def test_an_edge_the_scan_misses_is_found_by_certified_verdicts(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The loop above with the junction left at its Illinois estimate (3e-6 off, on the side with crossings: the
+    scan misses the edge as it did before the junction was solved to rounding). The certified nominal verdicts at
+    17 gains differ about ``p_0``: bisected, then ``F(i w; p) = 0`` solved by Newton; the design is the same."""
+    loop = AffineLoop(
+        QuasiPolynomial([[0.625, 1.0], [1.0]], [0.0, 2.625]),
+        QuasiPolynomial([[0.0]], [0.0]),
+        QuasiPolynomial([[-0.5]], [0.375]),
+        QuasiPolynomial([[1.0]], [0.5]),
+    )
+
+    def F(w, p):
+        s = 1j * w
+        return 0.625 + s + mp.exp(-2.625 * s) - 0.5 * mp.exp(-0.375 * s) + p * mp.exp(-0.5 * s)
+
+    w0, p0 = mp.findroot(lambda w, p: [mp.re(F(w, p)), mp.im(F(w, p))], (0.85, 0.5))
+    monkeypatch.setattr(gain, "_side_without_crossings", lambda disc, x, a, b, toward: x)
+    curves = _Curves(_Family(loop), -1.0, 1.0, 2_000_000)
+    assert curves.edges == []  # missed by the scan
+    # Newton on F(i w; p) = 0 converges to rounding: p_0 to a few ulps of its scale
+    ((w_e, p_e),) = gain._missed_edges(curves)
+    np.testing.assert_allclose([w_e, p_e], [float(w0), float(p0)], rtol=0, atol=1e-13)
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.K == 1.0 and design.kind == "end"
+    np.testing.assert_allclose(design.margin, delay_margin(loop.A(1.0), loop.B(1.0)).margin, rtol=1e-12)

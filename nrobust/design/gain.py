@@ -1275,6 +1275,49 @@ class _Curves:
             env[idx], active[idx] = val[better], p
         return env, active
 
+    def add_edges(self, edges: list[tuple[float, float]]) -> None:
+        """Add stability edges ``(w, p)`` found outside the scan (:func:`_missed_edges`): the piece whose phase
+        jumps by more than ``pi`` next to one (between two points whose frequencies or parameters enclose it)
+        is cut there, as at a wrap (the delay ``0`` on one side, ``2 pi / w`` on the other), and the envelope
+        recomputed."""
+        for w_e, p_e in edges:
+            out: list[_Piece] = []
+            for piece in self.pieces:
+                theta = piece.d * piece.w
+                near = ((piece.w[:-1] - w_e) * (piece.w[1:] - w_e) <= 0.0) | (
+                    (piece.K[:-1] - p_e) * (piece.K[1:] - p_e) <= 0.0
+                )
+                jumps = np.flatnonzero((np.abs(np.diff(theta)) > np.pi) & near)
+                if not jumps.size:
+                    out.append(piece)
+                    continue
+                c = int(jumps[0])
+                ws, Ks, ds = piece.w, piece.K, piece.d
+                end, begin = ((_TWO_PI if theta[k] > np.pi else 0.0) / w_e for k in (c, c + 1))
+                out.append(
+                    _Piece(
+                        piece.sigma,
+                        _cat(ws[: c + 1], w_e),
+                        _cat(Ks[: c + 1], p_e),
+                        _cat(ds[: c + 1], end),
+                        piece.start,
+                        "wrap",
+                    )
+                )
+                out.append(
+                    _Piece(
+                        piece.sigma,
+                        _cat(w_e, ws[c + 1 :]),
+                        _cat(p_e, Ks[c + 1 :]),
+                        _cat(begin, ds[c + 1 :]),
+                        "wrap",
+                        piece.stop,
+                    )
+                )
+            self.pieces = out
+        self.envelope, self.active = self._envelope(self.gains)
+        self.edges = sorted({*_stability_edges(self), *(p for _, p in edges if self.K_lo < p < self.K_hi)})
+
     # ------------------------------------------------------------------ exact evaluations
     def on_branch(self, w: float, sigma: float) -> tuple[float, float, float, float]:
         """Exact ``(K, d, dK/dw, dd/dw)`` on the branch ``sigma`` at ``w``."""
@@ -1462,21 +1505,82 @@ def _nominal_mask(curves: _Curves) -> NDArray[np.bool_]:
     return mask
 
 
-#: Parameters (evenly spread, ends included) at which a refusal "unstable without delay everywhere" is checked.
+#: Parameters (evenly spread, ends included) at which the nominal verdict is certified when the scan found no
+#: parameter stable without delay (:func:`_missed_edges`).
 _UNSTABLE_CHECKS = 17
+#: Bisections of the nominal verdict that narrow a missed edge's bracket before Newton (2^-12 of the checks' step).
+_EDGE_BISECTIONS = 12
 
 
-def _check_unstable_everywhere(curves: _Curves) -> None:
-    """Before the claim that ``F(.; 0, p)`` is unstable for every ``p`` of the bounds (a :func:`_nominal_mask`
-    with no stable interval): the nominal verdict at :data:`_UNSTABLE_CHECKS` parameters, each certified; a stable
-    one means a stability edge was missed by the scan, and the claim is not made."""
-    for p in np.linspace(curves.K_lo, curves.K_hi, _UNSTABLE_CHECKS):
-        if curves.loop.nominally_stable(float(p)):
-            raise CertificationError(
-                f"best_margin: the loop without delay is stable at p = {float(p):.12g}, but the scan found no gain "
-                "where its stability changes (a root crossing the axis at delta = 0 was missed); narrower bounds "
-                "around that gain may give a design"
-            )
+def _missed_edges(curves: _Curves) -> list[tuple[float, float]]:
+    """Stability edges ``(w, p)`` the scan missed, each proven by certified verdicts and solved; empty when none
+    is seen.
+
+    Called before the claim that ``F(.; 0, p)`` is unstable for every ``p`` of the bounds (a
+    :func:`_nominal_mask` with no stable interval). The nominal verdict
+    (:meth:`_Family.nominally_stable`, a certified count of the zeros in ``Re s >= 0``) at
+    :data:`_UNSTABLE_CHECKS` parameters: between two of different verdicts a zero crosses the axis
+    (the zeros move continuously with ``p``, the difference operator being strongly stable on the
+    bounds); the bracket is narrowed by :data:`_EDGE_BISECTIONS` verdicts and the crossing solved
+    (:func:`_solved_edge`).
+
+    Raises
+    ------
+    CertificationError
+        A crossing that Newton does not find in its bracket, or verdicts all stable (no bracket).
+    """
+    loop = curves.loop
+    ps = np.linspace(curves.K_lo, curves.K_hi, _UNSTABLE_CHECKS)
+    verdicts = [loop.nominally_stable(float(p)) for p in ps]
+    edges = []
+    for (a, stable_a), (b, stable_b) in itertools.pairwise(zip(ps.tolist(), verdicts)):
+        if stable_a == stable_b:
+            continue
+        for _ in range(_EDGE_BISECTIONS):
+            mid = 0.5 * (a + b)
+            if loop.nominally_stable(mid) == stable_a:
+                a = mid
+            else:
+                b = mid
+        edges.append(_solved_edge(loop, b if stable_a else a, a, b))
+    if any(verdicts) and not edges:
+        stable = float(ps[verdicts.index(True)])
+        raise CertificationError(
+            f"best_margin: the loop without delay is stable at p = {stable:.12g} and at every parameter checked, but "
+            "the scan found it unstable between its stability edges; narrower bounds may give a design"
+        )
+    return edges
+
+
+def _solved_edge(loop: _Family, unstable: float, lo: float, hi: float) -> tuple[float, float]:
+    """``(w, p)``, ``p`` in ``[lo, hi]``, where the zero ``i w`` of ``F(.; 0, p)`` is on the imaginary axis.
+
+    Newton in ``(w, p)`` on the two real equations ``F(i w; 0, p) = 0`` (``F`` affine in ``p``,
+    its ``w``-derivative from the factors' slopes), started from the rightmost zero at the unstable
+    end ``unstable`` of the bracket (:func:`_abscissa`: in ``Re s >= 0``, near the axis).
+    """
+    root = _abscissa(loop, unstable).root
+    x = np.array([abs(root.imag) if root is not None else 0.0, unstable])
+    for _ in range(_NEWTON_STEPS if root is not None else 0):
+        at = loop.axis(np.array([x[0]]), slopes=True)
+        F = complex(at.a0[0] + at.b0[0] + x[1] * (at.a1[0] + at.b1[0]))
+        F_w = complex(at.da0[0] + at.db0[0] + x[1] * (at.da1[0] + at.db1[0]))
+        F_p = complex(at.a1[0] + at.b1[0])
+        J = np.array([[F_w.real, F_p.real], [F_w.imag, F_p.imag]])
+        try:
+            step = np.linalg.solve(J, np.array([F.real, F.imag]))
+        except np.linalg.LinAlgError:
+            break
+        x = x - step
+        if np.all(np.abs(step) <= 4.0 * _EPS * np.maximum(np.abs(x), 1.0)):
+            if lo <= x[1] <= hi:
+                return float(x[0]), float(x[1])
+            break
+    raise CertificationError(
+        f"best_margin: the loop without delay changes stability between p = {lo:.15g} and {hi:.15g} (certified "
+        "counts of its zeros in Re s >= 0), but the scan found no crossing there and Newton on F(i w; 0, p) = 0 did "
+        "not find one in that interval; narrower bounds around it may give a design"
+    )
 
 
 def _candidates(env: NDArray) -> list[int]:
@@ -2596,8 +2700,17 @@ def best_margin(
         )
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     mask = _nominal_mask(curves)
+    missed = [] if mask.any() else _missed_edges(curves)  # no stable gain: unless an edge was missed
+    if missed:
+        curves.add_edges(missed)
+        mask = _nominal_mask(curves)
+        if not mask.any():
+            raise CertificationError(
+                f"best_margin: the loop without delay changes stability at p = {missed[0][1]:.15g}, but no interval "
+                "between the stability edges is stable at its middle (several edges were missed by the scan); "
+                "narrower bounds around it may give a design"
+            )
     if not mask.any():
-        _check_unstable_everywhere(curves)
         raise ParameterError(
             "bounds",
             "parameters of which some give a stable loop without delay (certified: F(s; 0, p) has zeros with "
