@@ -236,6 +236,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "MismatchRegion": mismatch,
         "DelayWindow": window_stability(A, B, (0.1, 0.2)),
         "SpeedTolerance": speed_tolerance(TRANSPORT, ReflectionController(0.1), 0.1, (0.0, 0.1), grid=2),
+        "ObserverDesign": nrobust.design_collocated_observer(
+            TransportSystem(1.0, 2.0, 0.9, 0.6), controller=ReflectionController(0.2)
+        ),
         "NPlusMWindow": check_window(ONE_PLUS_ONE, [[-0.2]], nplusm_delay_margin(ONE_PLUS_ONE, [[-0.2]]), (0.1, 0.2)),
         "NPlusMGainDesign": design_nplusm_gains(
             NPlusMSystem.from_2x2(Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)),
@@ -329,6 +332,7 @@ NAMES = [
     "MismatchRegion",
     "DelayWindow",
     "SpeedTolerance",
+    "ObserverDesign",
     "NPlusMWindow",
     "NPlusMGainDesign",
     "StateFeedbackDesign",

@@ -36,6 +36,7 @@ import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import lru_cache
 from typing import Any
 
@@ -62,7 +63,6 @@ from .delay_form import delay_form
 from .exact_form import exact_form, has_exact_form
 from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
-from .given_plant import rounded_parts
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -87,6 +87,7 @@ __all__ = [
     "loop_scope",
     "normalize",
     "observer_of",
+    "rounded_parts",
     "unfiltered",
 ]
 
@@ -1048,3 +1049,43 @@ def classify(system: Hyperbolic2x2 | GeneralHyperbolic2x2, atol: float = 1e-12) 
         f"|rho q| = {g:.6g} < 1/2: finite-time stabilization can be delay-robust; U_BS2(K) is "
         f"delay-robust for |K| < {k_bound:.6g}.",
     )
+
+
+def _exact_product(*factors: float) -> bool:
+    """True when the floating-point product of ``factors`` (left to right) is the exact one."""
+    value, exact = 1.0, Fraction(1)
+    for f in factors:
+        value, exact = value * f, exact * Fraction(f)
+    return Fraction(value) == exact
+
+
+def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
+    """What the exact-route loop takes rounded from the user's numbers; ``""`` if nothing.
+
+    Empty when a proof about the loop maps to the plant as given (:func:`given_plant_scale`);
+    otherwise the quantities computed in floating point, in words, for a proof's scope.
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        return (
+            "tau and the principal gains (q and rho q times the exponential weight of a and d, and the law's gain "
+            "times them) as doubles computed from the coefficients (a few ulps)"
+        )
+    if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
+        return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
+    if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
+        return "tau = 1/lam + 1/mu and the principal gains as doubles (mapped to the exact tau on the exact route only)"
+    gains: tuple[float, ...] = ()
+    if isinstance(controller, ReflectionController):
+        gains = (controller.K,)
+    elif isinstance(controller, StateFeedback) and not _integral_gains(controller):
+        gains = (-controller.k,)
+    elif not isinstance(controller, (OpenLoop, FiniteTimeController)):
+        return (
+            f"tau = 1/lam + 1/mu as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on "
+            "tau otherwise than through tau s) and the principal gains as products of doubles"
+        )
+    inexact = [name for name, ok in (("rho q", _exact_product(system.rho, system.q)),) if not ok]
+    inexact += [f"{g!r} q" for g in gains if not _exact_product(g, system.q)]
+    if inexact:
+        return f"tau = 1/lam + 1/mu as the double {system.tau!r} and the principal gains {', '.join(inexact)} rounded"
+    return ""

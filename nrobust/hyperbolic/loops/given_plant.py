@@ -28,59 +28,11 @@ from typing import Any, TypeVar
 from ...bounds import RoucheDelayBound
 from ...margins.margin import DelayMargin
 from ...roots.abscissa import SpectralAbscissa
-from ..plants.general import GeneralHyperbolic2x2
-from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .exact_form import has_exact_form
+from .controllers import rounded_parts
 
 __all__ = ["given_plant_scale", "rounded_parts", "to_given_plant"]
 
 _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
-
-
-def _exact_product(*factors: float) -> bool:
-    """True when the floating-point product of ``factors`` (left to right) is the exact one."""
-    value, exact = 1.0, Fraction(1)
-    for f in factors:
-        value, exact = value * f, exact * Fraction(f)
-    return Fraction(value) == exact
-
-
-def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
-    """What the exact-route loop takes rounded from the user's numbers; ``""`` if nothing.
-
-    Empty when a proof about the loop maps to the plant as given (:func:`given_plant_scale`);
-    otherwise the quantities computed in floating point, in words, for a proof's scope.
-    """
-    from .controllers import FiniteTimeController, OpenLoop, ReflectionController, StateFeedback, loop_route
-
-    if isinstance(system, GeneralHyperbolic2x2):
-        return (
-            "tau and the principal gains (q and rho q times the exponential weight of a and d, and the law's gain "
-            "times them) as doubles computed from the coefficients (a few ulps)"
-        )
-    if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
-        return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
-    if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
-        return "tau = 1/lam + 1/mu and the principal gains as doubles (mapped to the exact tau on the exact route only)"
-    gains: tuple[float, ...] = ()
-    if isinstance(controller, ReflectionController):
-        gains = (controller.K,)
-    elif isinstance(controller, StateFeedback) and not _integral(controller):
-        gains = (-controller.k,)
-    elif not isinstance(controller, (OpenLoop, FiniteTimeController)):
-        return (
-            f"tau = 1/lam + 1/mu as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on "
-            "tau otherwise than through tau s) and the principal gains as products of doubles"
-        )
-    inexact = [name for name, ok in (("rho q", _exact_product(system.rho, system.q)),) if not ok]
-    inexact += [f"{g!r} q" for g in gains if not _exact_product(g, system.q)]
-    if inexact:
-        return f"tau = 1/lam + 1/mu as the double {system.tau!r} and the principal gains {', '.join(inexact)} rounded"
-    return ""
-
-
-def _integral(controller: Any) -> bool:
-    return any(callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v))
 
 
 def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = None) -> Fraction | None:
