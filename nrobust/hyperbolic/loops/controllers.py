@@ -1062,8 +1062,9 @@ def _exact_product(*factors: float) -> bool:
 def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
     """What the exact-route loop takes rounded from the user's numbers; ``""`` if nothing.
 
-    Empty when a proof about the loop maps to the plant as given (:func:`given_plant_scale`);
-    otherwise the quantities computed in floating point, in words, for a proof's scope.
+    Empty when a proof about the loop maps to the plant as given
+    (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`); otherwise the quantities
+    computed in floating point, in words, for a proof's scope.
     """
     if isinstance(system, GeneralHyperbolic2x2):
         return (
