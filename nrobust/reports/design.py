@@ -224,29 +224,8 @@ def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
         "",
         f"- objective: the largest {what}{need} (a local optimum: the best of {len(d.runs)} start(s))",
         f"- designed controller: K = {c.K:.6g}, a = {c.a:.6g}, b = {c.b:.6g} (the filter (1 + a s)/(1 + b s))",
-        f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)} "
-        f"({'no root right of it: certified count' if d.abscissa.certified else 'not certified'})",
-        f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
-        f"about {result.scope}",
-        f"- certified: {'yes' if d.certified else 'no'}",
     ]
-    if d.delays is not None:
-        lines.append(f"- requirement: {d.requirement}")
-        for n, w in enumerate(d.windows):
-            which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
-            lines.append(f"  - {which}: {_window_text(w)}")
-    if result.tolerance is not None:
-        t = result.tolerance
-        lines.append(
-            f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
-        )
-        lines.append(f"  - {t.statement}; about {t.scope}")
-    for i, run in enumerate(d.runs):
-        lines.append(
-            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
-            f", {run.reason}"
-        )
-    return lines
+    return lines + _local_design_lines(result)
 
 
 def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> bytes:
@@ -357,29 +336,8 @@ def _state_feedback_markdown(path: Path, result: StateFeedbackDesign, powers: li
         f"- g_u coefficients: {[float(v) for v in p[1 : 1 + n]]}",
         f"- g_v coefficients: {[float(v) for v in p[1 + n :]]}",
         f"- controller: {c!r}",
-        f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)} "
-        f"({'no root right of it: certified count' if d.abscissa.certified else 'not certified'})",
-        f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
-        f"about {result.scope}",
-        f"- certified: {'yes' if d.certified else 'no'}",
     ]
-    if d.delays is not None:
-        lines.append(f"- requirement: {d.requirement}")
-        for i, w in enumerate(d.windows):
-            which = "the designed loop" if i == 0 else f"the plant with speed errors {_corner(result, i - 1)}"
-            lines.append(f"  - {which}: {_window_text(w)}")
-    if result.tolerance is not None:
-        t = result.tolerance
-        lines.append(
-            f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
-        )
-        lines.append(f"  - {t.statement}; about {t.scope}")
-    for i, run in enumerate(d.runs):
-        lines.append(
-            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
-            f", {run.reason}"
-        )
-    return lines
+    return lines + _local_design_lines(result)
 
 
 def _state_feedback_slice(
@@ -770,3 +728,32 @@ def _run_nplusm(
             outputs.write_bytes("design.png", _nplusm_png(system, result)),
         ]
     return tuple(written), result
+
+
+def _local_design_lines(result: FilteredDesign | StateFeedbackDesign) -> list[str]:
+    """The lines every local design's report shares: rate, margin, certificate, requirements, starts."""
+    d = result.design
+    lines = [
+        f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)} "
+        f"({'no root right of it: certified count' if d.abscissa.certified else 'not certified'})",
+        f"- delay margin: {with_accuracy(d.margin.margin, d.margin.accuracy)} ({d.margin.method}); "
+        f"about {result.scope}",
+        f"- certified: {'yes' if d.certified else 'no'}",
+    ]
+    if d.delays is not None:
+        lines.append(f"- requirement: {d.requirement}")
+        for n, w in enumerate(d.windows):
+            which = "the designed loop" if n == 0 else f"the plant with speed errors {_corner(result, n - 1)}"
+            lines.append(f"  - {which}: {_window_text(w)}")
+    if result.tolerance is not None:
+        t = result.tolerance
+        lines.append(
+            f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
+        )
+        lines.append(f"  - {t.statement}; about {t.scope}")
+    for i, run in enumerate(d.runs):
+        lines.append(
+            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
+            f", {run.reason}"
+        )
+    return lines
