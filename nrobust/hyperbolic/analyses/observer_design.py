@@ -104,7 +104,7 @@ class ObserverDesign:
         return self.design.kind
 
     def __repr__(self) -> str:
-        return f"ObserverDesign({self.controller!r}, value={self.value!r}, kind={self.kind!r})"
+        return f"ObserverDesign({self.controller!r}, {self.design!r})"  # the value to its accuracy
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
