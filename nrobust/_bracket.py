@@ -56,6 +56,7 @@ def illinois(
     a, b = np.array(a, dtype=float), np.array(b, dtype=float)
     fa = np.asarray(f(a) if fa is None else fa, dtype=float)
     fb = np.asarray(f(b) if fb is None else fb, dtype=float)
+    moved_a: NDArray[np.bool_] | None = None  # the end the last step replaced: a (True) or b (False)
     for _ in range(200 if steps is None else steps):
         if steps is None:
             width = np.abs(b - a)
@@ -66,8 +67,13 @@ def illinois(
         x = np.clip(np.where(np.isfinite(x), x, 0.5 * (a + b)), np.minimum(a, b), np.maximum(a, b))
         fx = np.asarray(f(x), dtype=float)
         left = np.sign(fx) == np.sign(fa)
-        fb = np.where(left, 0.5 * fb, fb)
-        fa = np.where(left, fa, 0.5 * fa)
+        # only the end kept for the second step in a row has its value halved: regula falsi keeps one end
+        # where f is convex, and halving it then restores order 1.44; halving the kept end at every step
+        # makes each step a damped bisection, of linear convergence (50 evaluations to rounding, not 11)
+        again = np.zeros(left.shape, dtype=bool) if moved_a is None else left == moved_a
+        fb = np.where(left & again, 0.5 * fb, fb)
+        fa = np.where(~left & again, 0.5 * fa, fa)
         a, fa = np.where(left, x, a), np.where(left, fx, fa)
         b, fb = np.where(left, b, x), np.where(left, fb, fx)
+        moved_a = left
     return np.where(np.abs(fa) < np.abs(fb), a, b)

@@ -223,8 +223,9 @@ def test_core_refuses_bad_arguments(loop: AffineGainLoop) -> None:
     with pytest.raises(CertificationError, match="max_evals"):
         best_margin(loop, BOUNDS, max_evals=1000)
     # within 1 % of the strong-stability bound the crossing pairs near w = k pi / tau are born within
-    # gain intervals narrower than the scan resolves: refused, not guessed (the true margin is ~0.0019)
-    with pytest.raises(CertificationError, match="strong-stability"):
+    # gain intervals narrower than the scan resolves: refused, not guessed (the true margin is ~0.0019),
+    # either there or when the certified margin at the end disagrees with the end's equations
+    with pytest.raises(CertificationError, match="strong-stability|missed by the scan"):
         best_margin(loop, (-0.99 * KB, -0.98 * KB))
 
 

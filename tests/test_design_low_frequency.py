@@ -198,8 +198,8 @@ def test_an_edge_next_to_a_junction_of_the_crossing_curves() -> None:
 
 
 def test_an_edge_the_scan_misses_is_found_by_certified_verdicts(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The loop above with the junction left at its Illinois estimate (3e-6 off, on the side with crossings: the
-    scan misses the edge as it did before the junction was solved to rounding). The certified nominal verdicts at
+    """The loop above with the junction put 3e-6 off, on the side with crossings (the scan misses the edge, as
+    it did when the junction was an estimate of a few Illinois steps). The certified nominal verdicts at
     17 gains differ about ``p_0``: bisected, then ``F(i w; p) = 0`` solved by Newton; the design is the same."""
     loop = AffineLoop(
         QuasiPolynomial([[0.625, 1.0], [1.0]], [0.0, 2.625]),
@@ -213,7 +213,8 @@ def test_an_edge_the_scan_misses_is_found_by_certified_verdicts(monkeypatch: pyt
         return 0.625 + s + mp.exp(-2.625 * s) - 0.5 * mp.exp(-0.375 * s) + p * mp.exp(-0.5 * s)
 
     w0, p0 = mp.findroot(lambda w, p: [mp.re(F(w, p)), mp.im(F(w, p))], (0.85, 0.5))
-    monkeypatch.setattr(gain, "_side_without_crossings", lambda disc, x, a, b, toward: x)
+    # the junction put 3e-6 on the side with crossings (``-toward``): the scan then misses the edge
+    monkeypatch.setattr(gain, "_side_without_crossings", lambda disc, x, a, b, toward: x - 3e-6 * toward)
     curves = _Curves(_Family(loop), -1.0, 1.0, 2_000_000)
     assert curves.edges == []  # missed by the scan
     # Newton on F(i w; p) = 0 converges to rounding: p_0 to a few ulps of its scale
