@@ -65,9 +65,9 @@ def test_superlinear_convergence_the_kept_end_halved_only_when_kept_twice() -> N
         (lambda x: np.tan(x) - 1.0, 0.0, 1.5, np.pi / 4),
     ]
     for g, a, b, root in cases:
-        calls = []
+        calls: list[int] = []
 
-        def f(x: np.ndarray, g=g) -> np.ndarray:
+        def f(x: np.ndarray, g=g, calls=calls) -> np.ndarray:
             calls.append(x.size)
             return g(x)
 

@@ -225,7 +225,7 @@ def test_core_refuses_bad_arguments(loop: AffineGainLoop) -> None:
     # within 1 % of the strong-stability bound the crossing pairs near w = k pi / tau are born within
     # gain intervals narrower than the scan resolves: refused, not guessed (the true margin is ~0.0019),
     # either there or when the certified margin at the end disagrees with the end's equations
-    with pytest.raises(CertificationError, match="strong-stability|missed by the scan"):
+    with pytest.raises(CertificationError, match=r"strong-stability|missed by the scan"):
         best_margin(loop, (-0.99 * KB, -0.98 * KB))
 
 
