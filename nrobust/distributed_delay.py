@@ -63,46 +63,65 @@ def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
 
     ``|z| < max(1, kmax / 3)``: the Taylor series ``sum_m (-z)^m / (m! (m + k + 1))`` as one matrix product
     of the powers ``(-z)^m`` with the table ``1 / (m! (m + k + 1))``; elsewhere the forward recursion
-    ``phi_k = (k phi_{k-1} - e^{-z}) / z`` from ``phi_0 = (1 - e^{-z}) / z``.
+    ``phi_k = (k phi_{k-1} - e^{-z}) / z`` from ``phi_0 = (1 - e^{-z}) / z`` (:func:`_phi_recursion`).
     """
     z = np.asarray(z, dtype=complex)
     if z.size == 0:
         return np.zeros((kmax + 1, *z.shape), dtype=complex)
-    mod = np.abs(z)
+    flat = z.ravel()
+    mod = np.abs(flat)
     # The recursion multiplies the rounding of phi_0 by about k! / |z|^k: high orders (the
     # piecewise polynomials of exact kernels) take the series further out.
     small = mod < max(_SERIES_RADIUS, kmax / 3.0)
     n_small = int(np.count_nonzero(small))
+    if n_small < flat.size:
+        # the recursion on every point when most are far (the few near ones are overwritten below: a
+        # boolean column assignment costs more than the recursion on them), else on the far ones only
+        every = 2 * n_small <= flat.size
+        far = _phi_recursion(flat if every else flat[~small], kmax)
+        if every:
+            out = far
+        else:
+            out = np.empty((kmax + 1, flat.size), dtype=complex)
+            out[:, ~small] = far
     if n_small:
-        zs = z if n_small == z.size else z[small]
+        zs = flat if n_small == flat.size else flat[small]
         # Terms until the remainder r^m / m! (r = max |z| < 1) is below 1e-17.
-        r, bound, terms = float(np.max(mod if n_small == z.size else mod[small])), 1.0, 1
+        r, bound, terms = float(np.max(mod[small])), 1.0, 1
         while terms < _SERIES_TERMS + 4 * kmax and bound > 1e-17:
             bound *= r / terms
             terms += 1
         powers = np.empty((terms, zs.size), dtype=complex)  # (-z)^m: a running product, one call
         powers[0] = 1.0
-        np.negative(zs.ravel(), out=powers[1])
+        np.negative(zs, out=powers[1])
         powers[2:] = powers[1]
         np.cumprod(powers[1:], axis=0, out=powers[1:])
         # a real matrix times complex columns, as one real product on the (re, im) pairs
-        acc = (_series_table(kmax, terms) @ powers.view(float)).view(complex).reshape(kmax + 1, *zs.shape)
-        if n_small == z.size:
-            return acc
-        out = np.empty((kmax + 1, *z.shape), dtype=complex)
-        out[:, small] = acc
-    if n_small < z.size:
-        big = ~small
-        zb = z if not n_small else z[big]
-        e = np.exp(-zb)
-        cur = (1.0 - e) / zb
-        rows = [cur]
+        acc = (_series_table(kmax, terms) @ powers.view(float)).view(complex)
+        if n_small == flat.size:
+            out = acc
+        else:
+            out[:, small] = acc
+    return out.reshape(kmax + 1, *z.shape)
+
+
+def _phi_recursion(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
+    """``phi_k(z)``, ``k = 0..kmax``, by the forward recursion (flat ``z``; ``z = 0`` gives nan).
+
+    Times ``1/z``, in place: numpy's division of complex arrays costs about six times this, and
+    the recursion is as accurate (against 40-digit quadrature at ``3 <= |z| <= 6``: 1.5e-13
+    relative for ``k = 9``, 1.3e-13 dividing; 4e-16 for ``k = 0``).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.exp(-z)
+        inv = 1.0 / z
+        out = np.empty((kmax + 1, z.size), dtype=complex)
+        np.multiply(1.0 - e, inv, out=out[0])
         for k in range(1, kmax + 1):
-            cur = (k * cur - e) / zb
-            rows.append(cur)
-        if not n_small:
-            return np.stack(rows)
-        out[:, big] = np.stack(rows)
+            row = out[k]
+            np.multiply(out[k - 1], k, out=row)
+            row -= e
+            row *= inv
     return out
 
 
