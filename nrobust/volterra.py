@@ -27,9 +27,9 @@ series on equal pieces of the window.
 for a quasi-polynomial ``A`` with constant point coefficients and plain distributed terms, as
 one distributed-delay term per interval between the breakpoints of ``A``'s terms shifted by ``0``
 and ``w`` (where the product may jump or have a kink; separate terms keep the jumps at the ends
-of supports): polynomials of degree :data:`DEGREE` on :data:`SEGMENTS_PER_WINDOW` segments per
-window length (doubled on an interval while their deviation from the product exceeds the window
-kernel's share of the error), with the largest deviation of the stored polynomials from the product
+of supports): polynomials of degree :data:`DEGREE` on :data:`SEGMENTS_PER_WINDOW` (or the number
+asked) segments per window length, doubled on an interval while their deviation from the product
+exceeds a relative tolerance when one is asked, with the largest deviation of the stored polynomials from the product
 between their interpolation points in :attr:`ResolventProduct.accuracy`. It is the observer term of an output feedback
 (:mod:`nrobust.hyperbolic.loops.output_feedback`).
 """
@@ -60,13 +60,12 @@ TOLERANCE = 1e-12
 #: Relative agreement accepted after the largest collocation (a cubic-spline kernel's resolvent
 #: converges algebraically; the change is then the stated accuracy).
 ACCEPT = 1e-8
-#: Segments of the stored product per window length ``w``, and the degree of its polynomial on each
-#: (interpolated at Chebyshev points). Eight are enough on the paper's plants: the fit's deviation is then
-#: below the window kernel's share of the error (24 segments change it by less than 1e-14 relative).
-SEGMENTS_PER_WINDOW, DEGREE = 8, 11
-#: Doublings of an interval's segments while the fit's deviation exceeds both the window kernel's share of
-#: the error and :data:`FIT_RTOL` times the kernel's size there.
-REFINEMENTS, FIT_RTOL = 2, 1e-13
+#: Segments of the stored product per window length ``w`` (by default), and the degree of its polynomial
+#: on each (interpolated at Chebyshev points).
+SEGMENTS_PER_WINDOW, DEGREE = 24, 11
+#: Doublings of an interval's segments at most, while the fit's deviation exceeds the tolerance asked of
+#: :func:`resolvent_product`.
+REFINEMENTS = 2
 #: Gauss-Legendre points per sub-interval between breakpoints, beyond the ``(d + 1) / 2`` that make
 #: the rule exact for the product of two pieces of degree ``d`` (the smooth correction ``c`` of the
 #: resolvent is a polynomial to rounding on the short sub-intervals).
@@ -462,7 +461,9 @@ def _fit_interval(
     return term, error, float(np.max(np.abs(exact)))
 
 
-def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> ResolventProduct:
+def resolvent_product(
+    factor: QuasiPolynomial, kernel: WindowKernel, segments: int = SEGMENTS_PER_WINDOW, tolerance: float | None = None
+) -> ResolventProduct:
     """``factor(s) H(s)`` with ``H`` the Laplace transform of a window kernel.
 
     Parameters
@@ -472,11 +473,25 @@ def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> Resolven
         characteristic function ``1 - Phi`` of the delay form, eq. (39)).
     kernel : WindowKernel
         ``h`` on ``[0, w]`` (:func:`window_resolvent`, :func:`window_law`).
+    segments : int, default :data:`SEGMENTS_PER_WINDOW`
+        Segments of the stored polynomials per window length (``>= 1``).
+    tolerance : float, optional
+        With it, the segments of an interval between breakpoints are doubled (at most
+        :data:`REFINEMENTS` times) while the stored polynomials deviate from the product by more
+        than ``tolerance`` times its largest modulus there.
 
     Returns
     -------
     ResolventProduct
+
+    Raises
+    ------
+    ParameterError
+        ``segments`` not a positive integer, ``tolerance`` not positive, or a zero ``factor``.
     """
+    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 1:
+        raise ParameterError("segments", "an integer >= 1", segments)
+    rtol = None if tolerance is None else positive("tolerance", tolerance)
     points, terms = _factor_parts(factor)
     w = kernel.window
     breaks = [d + e for _, d in points for e in (0.0, w)]
@@ -484,18 +499,17 @@ def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> Resolven
     edges = np.unique(np.round(np.asarray(breaks, dtype=float), 14))
     if edges.size < 2:
         raise ParameterError("factor", "a nonzero quasi-polynomial", factor)
-    width = w / SEGMENTS_PER_WINDOW
-    weight = sum(abs(c) for c, _ in points) + sum(float(term.abs_moment(0.0)) for term in terms)
-    share = kernel.accuracy * weight
+    width = w / segments
     pieces, deviation = [], 0.0
     for lo, hi in itertools.pairwise(edges):
         count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
-        for _ in range(REFINEMENTS + 1):
+        for _ in range(REFINEMENTS + 1 if rtol is not None else 1):
             piece, error, scale = _fit_interval(points, terms, kernel, float(lo), float(hi), count)
-            if error <= max(share, FIT_RTOL * scale):
+            if rtol is None or error <= rtol * scale:
                 break
             count *= 2
         pieces.append(piece)
         deviation = max(deviation, error)
-    accuracy = deviation + share
+    weight = sum(abs(c) for c, _ in points) + sum(float(term.abs_moment(0.0)) for term in terms)
+    accuracy = deviation + kernel.accuracy * weight
     return ResolventProduct(QuasiPolynomial([], [], pieces), accuracy, kernel)
