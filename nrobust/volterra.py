@@ -27,9 +27,10 @@ series on equal pieces of the window.
 for a quasi-polynomial ``A`` with constant point coefficients and plain distributed terms, as
 one distributed-delay term per interval between the breakpoints of ``A``'s terms shifted by ``0``
 and ``w`` (where the product may jump or have a kink; separate terms keep the jumps at the ends
-of supports): polynomials of degree :data:`DEGREE` on short segments, with the largest
-deviation of the stored polynomials from the product between their interpolation points in
-:attr:`ResolventProduct.accuracy`. It is the observer term of an output feedback
+of supports): polynomials of degree :data:`DEGREE` on :data:`SEGMENTS_PER_WINDOW` (or the number
+asked) segments per window length, doubled on an interval while their deviation from the product
+exceeds a relative tolerance when one is asked, with the largest deviation of the stored polynomials from the product
+between their interpolation points in :attr:`ResolventProduct.accuracy`. It is the observer term of an output feedback
 (:mod:`nrobust.hyperbolic.loops.output_feedback`).
 """
 
@@ -59,9 +60,12 @@ TOLERANCE = 1e-12
 #: Relative agreement accepted after the largest collocation (a cubic-spline kernel's resolvent
 #: converges algebraically; the change is then the stated accuracy).
 ACCEPT = 1e-8
-#: Segments of the stored product per window length ``w``, and the degree of its polynomial on each
-#: (interpolated at Chebyshev points).
+#: Segments of the stored product per window length ``w`` (by default), and the degree of its polynomial
+#: on each (interpolated at Chebyshev points).
 SEGMENTS_PER_WINDOW, DEGREE = 24, 11
+#: Doublings of an interval's segments at most, while the fit's deviation exceeds the tolerance asked of
+#: :func:`resolvent_product`.
+REFINEMENTS = 2
 #: Gauss-Legendre points per sub-interval between breakpoints, beyond the ``(d + 1) / 2`` that make
 #: the rule exact for the product of two pieces of degree ``d`` (the smooth correction ``c`` of the
 #: resolvent is a polynomial to rounding on the short sub-intervals).
@@ -123,18 +127,24 @@ def _points(term: DistributedDelay) -> int:
     return (term.pieces[2].shape[1]) // 2 + 1 + EXTRA_POINTS
 
 
-def _rule(lo: float, hi: float, breaks: Array, points: int) -> tuple[Array, Array]:
-    """Gauss-Legendre points and weights on ``[lo, hi]``, split at ``breaks`` inside it."""
-    if hi <= lo:
-        return np.zeros(0), np.zeros(0)
-    inner = breaks[(breaks > lo) & (breaks < hi)]
-    edges = np.concatenate([[lo], np.unique(inner), [hi]])
-    widths = np.diff(edges)
+def _rules(lo: Array, hi: Array, breaks: Array, points: int) -> tuple[Array, Array, NDArray[np.intp]]:
+    """Gauss-Legendre points and weights on each ``[lo_i, hi_i]`` split at the row ``breaks[i]`` inside it.
+
+    Returns the nodes and weights of every row in turn (the sub-intervals in increasing order) and the
+    row ``i`` of each node. The breaks outside ``(lo_i, hi_i)`` are moved to its ends, where they split
+    off intervals of zero width, dropped; an empty interval (``hi_i <= lo_i``) has no node.
+    """
+    hi = np.maximum(hi, lo)  # an empty interval: every width zero
+    edges = np.sort(np.clip(breaks, lo[:, None], hi[:, None]), axis=1)
+    edges = np.concatenate([lo[:, None], edges, hi[:, None]], axis=1)
+    widths = np.diff(edges, axis=1)
     keep = widths > 0
     t, g = _gauss(points)
-    nodes = (edges[:-1][keep, None] + widths[keep, None] * t).ravel()
-    weights = (widths[keep, None] * g).ravel()
-    return nodes, weights
+    left, width = edges[:, :-1][keep], widths[keep]
+    nodes = (left[:, None] + width[:, None] * t).ravel()
+    weights = (width[:, None] * g).ravel()
+    owner = np.repeat(np.nonzero(keep)[0], points)
+    return nodes, weights, owner
 
 
 def _chebyshev(n: int, window: float) -> tuple[Array, Array]:
@@ -155,6 +165,27 @@ def _barycentric(nodes: Array, weights: Array, x: Array) -> Array:
     hit = np.flatnonzero(np.any(exact, axis=1))
     rows[hit] = exact[hit].astype(float)
     return rows
+
+
+@lru_cache(maxsize=4)
+def _shifted_chebyshev(degree: int) -> Array:
+    """The coefficients of ``T_k(2 t - 1)``, ``k = 0..degree``, in increasing powers of ``t`` (column ``k``;
+    integers, exact in floating point for the degrees used here)."""
+    rows = [[1], [-1, 2]]  # T_{k+1} = 2 (2 t - 1) T_k - T_{k-1}
+    while len(rows) <= degree:
+        a, b = rows[-1], rows[-2]
+        nxt = [0] * (len(a) + 1)
+        for j, c in enumerate(a):
+            nxt[j] -= 2 * c
+            nxt[j + 1] += 4 * c
+        for j, c in enumerate(b):
+            nxt[j] -= c
+        rows.append(nxt)
+    powers = np.zeros((degree + 1, degree + 1))
+    for k, row in enumerate(rows[: degree + 1]):
+        powers[: len(row), k] = row
+    powers.flags.writeable = False
+    return powers
 
 
 def _sum_terms(terms: tuple[DistributedDelay, ...], x: Array, left: bool) -> Array:
@@ -237,13 +268,14 @@ def _collocate(kernel: DistributedDelay, window: float, n: int, knots: Array) ->
     """
     nodes, weights = _chebyshev(n, window)
     points = _points(kernel)
+    zero = np.zeros(n)
+    lags = nodes[:, None] - knots[None, :]
+    q, g, owner = _rules(zero, nodes, lags, points)
+    rows = (_evaluate(kernel, nodes[owner] - q) * g)[:, None] * _barycentric(nodes, weights, q)
     matrix = np.eye(n)
-    rhs = np.zeros(n)
-    for i, nu in enumerate(nodes):
-        q, g = _rule(0.0, float(nu), nu - knots, points)
-        matrix[i] += (_evaluate(kernel, nu - q) * g) @ _barycentric(nodes, weights, q)
-        q, g = _rule(0.0, float(nu), np.concatenate([knots, nu - knots]), points)
-        rhs[i] = (_evaluate(kernel, nu - q) * g) @ _evaluate(kernel, q)
+    matrix[np.unique(owner)] += np.add.reduceat(rows, np.flatnonzero(np.diff(owner, prepend=-1)), axis=0)
+    q, g, owner = _rules(zero, nodes, np.concatenate([np.broadcast_to(knots, lags.shape), lags], axis=1), points)
+    rhs = np.bincount(owner, weights=_evaluate(kernel, nodes[owner] - q) * g * _evaluate(kernel, q), minlength=n)
     return nodes, np.asarray(np.linalg.solve(matrix, rhs), dtype=float)
 
 
@@ -255,8 +287,8 @@ def _store(function: Callable[[Array], Array], window: float) -> tuple[Array, fl
     left = np.arange(C_PIECES)[:, None] * width
     values = function((left + 0.5 * width * (fit_t + 1.0)).ravel()).reshape(C_PIECES, -1)
     exact = function((left + 0.5 * width * (check_t + 1.0)).ravel()).reshape(C_PIECES, -1)
-    rows = np.array([np.polynomial.chebyshev.chebfit(fit_t, v, C_DEGREE) for v in values])
-    stored = np.array([np.polynomial.chebyshev.chebval(check_t, c) for c in rows])
+    rows = np.polynomial.chebyshev.chebfit(fit_t, values.T, C_DEGREE).T
+    stored = np.polynomial.chebyshev.chebval(check_t, rows.T)
     return rows, float(np.max(np.abs(stored - exact)))
 
 
@@ -334,18 +366,13 @@ def window_law(terms: tuple[DistributedDelay, ...], resolvent: WindowKernel) -> 
     points = max([_points(t) for t in terms] + [resolvent.degree // 2 + 1 + EXTRA_POINTS])
 
     def convolution(sigma: Array) -> Array:
-        rules = [_rule(0.0, float(x), np.concatenate([m_knots, x - r_knots]), points) for x in sigma]
-        sizes = np.array([q.size for q, _ in rules])
-        out = np.zeros(sigma.size)
-        if np.any(sizes):
-            q = np.concatenate([q for q, _ in rules])
-            g = np.concatenate([g for _, g in rules])
-            lag = np.repeat(sigma, sizes) - q
-            owner = np.repeat(np.arange(sigma.size), sizes)
-            out += np.bincount(
-                owner, weights=g * _sum_terms(terms, q, left=False) * resolvent(lag), minlength=sigma.size
-            )
-        return out
+        breaks = np.concatenate(
+            [np.broadcast_to(m_knots, (sigma.size, m_knots.size)), sigma[:, None] - r_knots[None, :]], axis=1
+        )
+        q, g, owner = _rules(np.zeros(sigma.size), sigma, breaks, points)
+        lag = sigma[owner] - q
+        weights = g * _sum_terms(terms, q, left=False) * resolvent(lag)
+        return np.asarray(np.bincount(owner, weights=weights, minlength=sigma.size), dtype=float)
 
     coefficients, deviation = _store(convolution, w)
     grid = np.linspace(0.0, w, 513)
@@ -400,22 +427,43 @@ def _product_kernel(
     for term in terms:
         knots = _knots(term)
         count = max(_points(term), h.degree // 2 + 1 + EXTRA_POINTS)
-        rules = [
-            _rule(max(0.0, x - term.b), min(w, x - term.a), np.concatenate([h_knots, x - knots]), count) for x in nu
-        ]
-        sizes = np.array([q.size for q, _ in rules])
-        if not np.any(sizes):
-            continue
-        q = np.concatenate([q for q, _ in rules])
-        g = np.concatenate([g for _, g in rules])
-        lag = np.repeat(nu, sizes) - q
-        contributions = g * _evaluate(term, lag) * h(q)
-        owner = np.repeat(np.arange(nu.size), sizes)
-        out += np.bincount(owner, weights=contributions, minlength=nu.size)
+        breaks = np.concatenate(
+            [np.broadcast_to(h_knots, (nu.size, h_knots.size)), nu[:, None] - knots[None, :]], axis=1
+        )
+        q, g, owner = _rules(np.maximum(0.0, nu - term.b), np.minimum(w, nu - term.a), breaks, count)
+        if q.size:
+            out += np.bincount(owner, weights=g * _evaluate(term, nu[owner] - q) * h(q), minlength=nu.size)
     return out
 
 
-def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> ResolventProduct:
+def _fit_interval(
+    points: list[tuple[float, float]], terms: list[DistributedDelay], h: WindowKernel, lo: float, hi: float, count: int
+) -> tuple[DistributedDelay, float, float]:
+    """The kernel of ``A H`` on ``[lo, hi]`` as polynomials of degree :data:`DEGREE` on ``count`` equal segments.
+
+    Interpolated at the first-kind Chebyshev points of each segment (the Chebyshev series, then its
+    exact conversion to powers of the segment's variable ``t`` in ``[0, 1]``). Returns the term, the
+    largest deviation of the stored polynomials from the kernel at the midpoints between the
+    interpolation points, and the largest modulus of the kernel there.
+    """
+    cuts = np.linspace(lo, hi, count + 1)
+    middle = 0.5 * (lo + hi)
+    step = np.diff(cuts)
+    fit_t = 0.5 * (1.0 - np.cos((2.0 * np.arange(DEGREE + 1) + 1.0) * np.pi / (2.0 * (DEGREE + 1))))
+    check_t = (np.arange(DEGREE) + 0.5) / DEGREE
+    values = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle)
+    exact = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * check_t).ravel(), middle)
+    series = np.polynomial.chebyshev.chebfit(2.0 * fit_t - 1.0, values.reshape(count, -1).T, DEGREE)
+    coefficients = (_shifted_chebyshev(DEGREE) @ series).T
+    stored = coefficients @ np.polynomial.polynomial.polyvander(check_t, DEGREE).T
+    error = float(np.max(np.abs(stored - exact.reshape(count, -1))))
+    term = DistributedDelay(cuts, None, interpolation="polynomial", coefficients=coefficients)
+    return term, error, float(np.max(np.abs(exact)))
+
+
+def resolvent_product(
+    factor: QuasiPolynomial, kernel: WindowKernel, segments: int = SEGMENTS_PER_WINDOW, tolerance: float | None = None
+) -> ResolventProduct:
     """``factor(s) H(s)`` with ``H`` the Laplace transform of a window kernel.
 
     Parameters
@@ -425,11 +473,25 @@ def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> Resolven
         characteristic function ``1 - Phi`` of the delay form, eq. (39)).
     kernel : WindowKernel
         ``h`` on ``[0, w]`` (:func:`window_resolvent`, :func:`window_law`).
+    segments : int, default :data:`SEGMENTS_PER_WINDOW`
+        Segments of the stored polynomials per window length (``>= 1``).
+    tolerance : float, optional
+        With it, the segments of an interval between breakpoints are doubled (at most
+        :data:`REFINEMENTS` times) while the stored polynomials deviate from the product by more
+        than ``tolerance`` times its largest modulus there.
 
     Returns
     -------
     ResolventProduct
+
+    Raises
+    ------
+    ParameterError
+        ``segments`` not a positive integer, ``tolerance`` not positive, or a zero ``factor``.
     """
+    if isinstance(segments, bool) or not isinstance(segments, (int, np.integer)) or segments < 1:
+        raise ParameterError("segments", "an integer >= 1", segments)
+    rtol = None if tolerance is None else positive("tolerance", tolerance)
     points, terms = _factor_parts(factor)
     w = kernel.window
     breaks = [d + e for _, d in points for e in (0.0, w)]
@@ -437,26 +499,17 @@ def resolvent_product(factor: QuasiPolynomial, kernel: WindowKernel) -> Resolven
     edges = np.unique(np.round(np.asarray(breaks, dtype=float), 14))
     if edges.size < 2:
         raise ParameterError("factor", "a nonzero quasi-polynomial", factor)
-    width = w / SEGMENTS_PER_WINDOW
-    fit_t = 0.5 * (1.0 - np.cos((2.0 * np.arange(DEGREE + 1) + 1.0) * np.pi / (2.0 * (DEGREE + 1))))
-    check_t = (np.arange(DEGREE) + 0.5) / DEGREE
+    width = w / segments
     pieces, deviation = [], 0.0
     for lo, hi in itertools.pairwise(edges):
         count = max(1, int(np.ceil((hi - lo) / width - 1e-9)))
-        cuts = np.linspace(lo, hi, count + 1)
-        middle = 0.5 * (lo + hi)
-        step = np.diff(cuts)
-        values = _product_kernel(points, terms, kernel, (cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle)
-        exact = _product_kernel(points, terms, kernel, (cuts[:-1, None] + step[:, None] * check_t).ravel(), middle)
-        coefficients = []
-        for k, row in enumerate(values.reshape(count, -1)):
-            series = np.polynomial.Chebyshev.fit(fit_t, row, DEGREE, domain=[0.0, 1.0])
-            local = series.convert(kind=np.polynomial.Polynomial, domain=[0.0, 1.0], window=[0.0, 1.0]).coef
-            local = np.pad(local, (0, DEGREE + 1 - local.size))
-            stored = np.polynomial.polynomial.polyval(check_t, local)
-            deviation = max(deviation, float(np.max(np.abs(stored - exact[k * DEGREE : (k + 1) * DEGREE]))))
-            coefficients.append(local)
-        pieces.append(DistributedDelay(cuts, None, interpolation="polynomial", coefficients=np.array(coefficients)))
+        for _ in range(REFINEMENTS + 1 if rtol is not None else 1):
+            piece, error, scale = _fit_interval(points, terms, kernel, float(lo), float(hi), count)
+            if rtol is None or error <= rtol * scale:
+                break
+            count *= 2
+        pieces.append(piece)
+        deviation = max(deviation, error)
     weight = sum(abs(c) for c, _ in points) + sum(float(term.abs_moment(0.0)) for term in terms)
     accuracy = deviation + kernel.accuracy * weight
     return ResolventProduct(QuasiPolynomial([], [], pieces), accuracy, kernel)

@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 import nrobust as nr
+from nrobust.hyperbolic.loops import output_feedback
 from nrobust.hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
     FilteredController,
     OutputFeedback,
     ReflectionController,
@@ -52,7 +54,7 @@ def test_the_stored_loop_is_the_sum_of_its_terms(plant, controller) -> None:
     for stored, parts in ((A, parts_A), (B, parts_B)):
         value = stored(s)
         reference = sum(P(s) for P in parts)
-        # evaluation by a different sum over segments (of length 1/24 instead of 1/8 for N~): rounding only,
+        # evaluation by a different sum over segments (one kernel instead of several): rounding only,
         # measured 4e-14 at |s| = 400 (8e-13 with the filter's numerator 1 + 0.3 s); a term lost or counted
         # twice would be O(0.1)
         tolerance = 1e-11 * (1.0 + np.abs(s))
@@ -92,3 +94,28 @@ def test_the_observer_term_is_shared_by_every_gain() -> None:
     one = observer_of(PAPER, OutputFeedback(ReflectionController(0.1)))
     other = observer_of(PAPER, OutputFeedback(ReflectionController(0.117757776)))
     assert one is other
+
+
+def test_the_collocated_factors_hold_one_kernel_each_within_its_bound_of_their_terms(monkeypatch) -> None:
+    """The collocated loop's kernels (``G`` given as a quasi-polynomial) summed into one per factor on the union
+    of their nodes (steps of 1/24 and 1/8): the oracle is the same loop with its terms kept apart."""
+    controller = CollocatedOutputFeedback(ReflectionController(0.1), 0.0, 0.3)
+    A, B = loop_factors(PAPER, controller)
+    monkeypatch.setattr(output_feedback, "_consolidated", lambda P: P)
+    parts = loop_factors(PAPER, controller)
+    assert len(A.distributed) == len(B.distributed) == 1 and all(len(P.distributed) > 4 for P in parts)
+    s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 1000), 0.3 + 5.0j, -0.2 + 40.0j]
+    rng = np.random.default_rng(3)
+    for stored, separate in zip((A, B), parts):
+        # one sum over the segments instead of several: rounding only (measured 3e-15 relative)
+        np.testing.assert_allclose(stored(s), separate(s), rtol=1e-12, atol=1e-13)
+        (kernel,) = stored.distributed
+        nu = np.sort(rng.uniform(kernel.a, kernel.b, 4000))
+        reference = np.zeros(nu.size)
+        for d in separate.distributed:
+            inside = (nu > d.a) & (nu < d.b)
+            reference[inside] += d.kernel_at(nu[inside])
+        # within the re-expansions' bound (the separate terms' own radii excluded: they are the reference)
+        added = kernel.radius - sum(d.radius for d in separate.distributed)
+        assert 0.0 < added < 1e-12
+        assert np.max(np.abs(kernel.kernel_at(nu) - reference)) <= added

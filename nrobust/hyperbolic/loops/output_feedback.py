@@ -68,6 +68,10 @@ from ...volterra import (
 
 __all__ = ["observer_term", "output_feedback_factors"]
 
+# Segments per window of the stored G, doubled on an interval (nrobust.volterra.resolvent_product) while its fit
+# deviates by more than OBSERVER_RTOL relative: on the paper's plants 8 reach 1e-14 (the resolvent's own error is
+# larger), and G then has a third of the 24 segments of the default, each evaluation of the loop a third of the work.
+OBSERVER_SEGMENTS, OBSERVER_RTOL = 8, 1e-13
 # Segments joined only when their starts are uniformly spaced to this many ulps: the exponential sums over
 # uniform starts are chirp-z transforms (nrobust.distributed_delay), else one exponential per segment and frequency.
 _UNIFORM_ULPS = 8.0
@@ -124,7 +128,7 @@ def _observer_term(open_loop: QuasiPolynomial, m: tuple[DistributedDelay, ...], 
         h = window_law(m, window_resolvent(kernels[0], window))
     else:  # N~ = 0: the window's equation is x = f, h = m
         h = WindowKernel(m, window, np.zeros((C_PIECES, C_DEGREE + 1)), 0.0)
-    return resolvent_product(open_loop, h)
+    return resolvent_product(open_loop, h, OBSERVER_SEGMENTS, OBSERVER_RTOL)
 
 
 def output_feedback_factors(
@@ -137,7 +141,9 @@ def output_feedback_factors(
     """``(A_o, B_o)`` of the output feedback from the state feedback's ``(A, B)`` (module notes).
 
     The collocated observer's loop has the same form
-    (:mod:`~nrobust.hyperbolic.loops.collocated`), its ``G`` given as a quasi-polynomial.
+    (:mod:`~nrobust.hyperbolic.loops.collocated`), its ``G`` given as a quasi-polynomial; the
+    distributed terms of each of its factors are then summed into one kernel on the union of their
+    nodes when that union is uniform (:func:`_consolidated`).
     The observer's ``G`` (a :class:`~nrobust.volterra.ResolventProduct`) is stored as one term
     (:func:`_joined`), and the kernels of ``A`` and ``B`` that its segments refine are stored on
     them (:func:`_refined_onto`, its rounding added to their error bounds), so that each factor
@@ -158,13 +164,11 @@ def output_feedback_factors(
     if term is None:
         return A, B
     if isinstance(term, QuasiPolynomial):
-        G = term
-    else:
-        G = _joined(term.product)
-    ng = G.times_poly(list(numerator))
+        ng = term.times_poly(list(numerator))
+        return _consolidated(A - ng.shift(observer_delay)), _consolidated(B + ng)
+    ng = _joined(term.product).times_poly(list(numerator))
     shifted = ng.shift(observer_delay)
-    if not isinstance(term, QuasiPolynomial):
-        A, B = _refined_onto(A, shifted), _refined_onto(B, ng)
+    A, B = _refined_onto(A, shifted), _refined_onto(B, ng)
     return A - shifted, B + ng
 
 
@@ -187,14 +191,56 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
     if any(d.radius or d.variation_radius for d in terms) or any(u.b != v.a for u, v in itertools.pairwise(terms)):
         return G
     nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
-    starts = nodes[:-1]
-    ideal = starts[0] + (starts[-1] - starts[0]) / max(starts.size - 1, 1) * np.arange(starts.size)
-    if np.max(np.abs(starts - ideal)) > _UNIFORM_ULPS * _EPS * max(float(np.max(np.abs(starts))), 1.0):
+    if not _uniform(nodes[:-1]):
         return G  # segments of several lengths: one sum per length either way, and each interval's is uniform
     degree = max(d.pieces[2].shape[1] for d in terms)
     coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
     joined = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=coefficients)
     return QuasiPolynomial([], [], [joined])
+
+
+def _consolidated(P: QuasiPolynomial) -> QuasiPolynomial:
+    """``P`` with its distributed terms summed into one term on the union of their nodes, when that is uniform.
+
+    The terms (polynomial pieces, one ``q(s)`` and moment, real) are re-expanded on the union's segments
+    (:func:`_refined_term`, zero outside each one's support, its rounding added to the error bounds)
+    and added (:meth:`~nrobust.distributed_delay.DistributedDelay.plus`, the bounds add). On the paper's
+    plant the collocated loop's six kernels (on ``[0, 2]``, ``[2, 4]`` and the four unit intervals,
+    all in steps of ``1/8``) become one, integrated once per evaluation of the loop instead of six times.
+    ``P`` is returned as it is when the terms are fewer than two, of another kind, or their nodes
+    together are not uniformly spaced.
+    """
+    terms = P.distributed
+    if len(terms) < 2:
+        return P
+    first = terms[0]
+    if any(
+        d.interpolation != "polynomial" or d.moment != first.moment or not np.array_equal(d.poly, first.poly)
+        for d in terms
+    ):
+        return P
+    nodes = np.unique(np.concatenate([d.nodes for d in terms]))
+    if nodes.size < 2 or not _uniform(nodes[:-1]):
+        return P
+    degree = max(d.pieces[2].shape[1] for d in terms)
+    target = DistributedDelay(
+        nodes, None, first.poly, first.moment, "polynomial", coefficients=np.zeros((nodes.size - 1, degree))
+    )
+    refined = [_refined_term(d, target) for d in terms]
+    if any(r is None for r in refined):
+        return P
+    total = refined[0]
+    for r in refined[1:]:
+        assert total is not None and r is not None
+        total = total.plus(r)
+    assert total is not None
+    return QuasiPolynomial.from_parts(P.point_terms, [total])
+
+
+def _uniform(starts: np.ndarray) -> bool:
+    """The segment starts are uniformly spaced to :data:`_UNIFORM_ULPS` ulps."""
+    ideal = starts[0] + (starts[-1] - starts[0]) / max(starts.size - 1, 1) * np.arange(starts.size)
+    return bool(np.max(np.abs(starts - ideal)) <= _UNIFORM_ULPS * _EPS * max(float(np.max(np.abs(starts))), 1.0))
 
 
 def _refined_onto(P: QuasiPolynomial, G: QuasiPolynomial) -> QuasiPolynomial:
@@ -204,13 +250,16 @@ def _refined_onto(P: QuasiPolynomial, G: QuasiPolynomial) -> QuasiPolynomial:
     its degree) whose nodes are nodes of ``G``'s term, inside its support, is re-expanded on the finer
     segments (zero beyond its support) so that the sum with ``G`` is one term of ``G``'s segments
     (:meth:`~nrobust.distributed_delay.DistributedDelay.plus`): on the paper's plant ``N~`` of the
-    delay form (16 pieces on ``[0, tau]``) and ``G`` (72 pieces on ``[0, tau + 1/mu]``) become one
+    delay form (16 pieces on ``[0, tau]``) and ``G`` (24 pieces on ``[0, tau + 1/mu]``) become one
     kernel, integrated once per evaluation of the loop instead of twice. The re-expansion
     ``P_i(alpha + beta t)`` is computed in floating point; its error is added to the term's bounds:
-    ``radius`` grows by ``8 (d + 2) eps sum_k (k + 1) |P_ik|`` on each piece (the composition and the
-    rounding of ``alpha``, ``beta``; ``|P_i'| <= sum_k k |P_ik|`` on ``[0, 1]``) and
-    ``variation_radius`` by ``d + 2`` times its sum over the fine segments (the variation of the error
-    on each, ``d`` times its coefficients' sum, and its jumps between them). Other terms are kept.
+    ``radius`` grows by ``8 (d + 2) eps sum_k (k + 1) |P_ik|`` on each fine segment (the composition and
+    the rounding of ``alpha``, ``beta``; ``|P_i'| <= sum_k k |P_ik|`` on ``[0, 1]``; also where a fine
+    segment is the piece itself, where it covers the rounding of the coefficients' sum with the target's),
+    and ``variation_radius`` by ``d + 2`` times the sum of that growth over the fine segments (the
+    variation of the error on each, ``d`` times its coefficients' sum, and its jumps between them) and by
+    the term's ``radius`` at each end of its support inside the target's (where its error jumps to zero).
+    Other terms are kept.
     """
     if len(G.distributed) != 1 or not P.distributed:
         return P
@@ -231,7 +280,7 @@ def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedD
     start, h, coefs = d.pieces
     fine = target.nodes
     degree = target.pieces[2].shape[1] - 1
-    if coefs.shape[1] - 1 > degree or np.iscomplexobj(coefs) or d.a != fine[0] or d.b > fine[-1]:
+    if coefs.shape[1] - 1 > degree or np.iscomplexobj(coefs) or d.a < fine[0] or d.b > fine[-1]:
         return None
     at = np.searchsorted(fine, d.nodes)
     if np.any(at >= fine.size) or not np.array_equal(fine[np.minimum(at, fine.size - 1)], d.nodes):
@@ -252,6 +301,8 @@ def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedD
     weight = _REFINE_ULPS * (d_deg + 2) * _EPS * np.sum(np.abs(coefs) * (np.arange(d_deg + 1) + 1.0), axis=1)
     error = np.zeros(fine.size - 1)
     error[k] = weight[piece]
+    # where d's support ends inside the target's, its error (at most d.radius) jumps to 0
+    ends = d.radius * ((d.a > fine[0]) + (d.b < fine[-1]))
     return DistributedDelay(
         fine,
         None,
@@ -260,7 +311,7 @@ def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedD
         "polynomial",
         coefficients=out,
         radius=_up(d.radius + float(np.max(error))),
-        variation_radius=_up(d.variation_radius + (d_deg + 2) * float(np.sum(error))),
+        variation_radius=_up(d.variation_radius + ends + (d_deg + 2) * float(np.sum(error))),
     )
 
 
