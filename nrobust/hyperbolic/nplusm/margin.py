@@ -81,6 +81,11 @@ class NPlusMMargin:
         (:func:`backstepping_exact_margin`, kernel-free); or that law with the grid kernels
         of :func:`~nrobust.hyperbolic.nplusm.solve_nplusm_kernels` (a model of the law with
         no error bound).
+    margin_bracket : (float, float) or None
+        A proven ``[lower, upper]`` of the margin of the law with exact kernels when the loop
+        carries the grid kernels' proven error (:func:`~nrobust.hyperbolic.nplusm.cascade_delay_margin`,
+        whose ``margin`` is the grid kernels' loop's); None for the other loops, whose ``margin``
+        is itself the claim.
     """
 
     margin: float
@@ -91,6 +96,7 @@ class NPlusMMargin:
     certified: bool
     nominal_unstable: int | None = None
     scope: str = _STATIC_SCOPE
+    margin_bracket: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
