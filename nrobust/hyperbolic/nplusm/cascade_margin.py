@@ -57,7 +57,6 @@ first order in the kernel grid's step.
 
 from __future__ import annotations
 
-import itertools
 import math
 from typing import Any
 
@@ -66,7 +65,7 @@ from numpy.typing import NDArray
 
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
+from ...margins.matrix import GaugeRemainder, circle_crossings
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import NPlusMBackstepping, in_group_part
@@ -89,27 +88,6 @@ def _norm2(x: NDArray[Any]) -> NDArray[np.float64]:
     return np.asarray(np.linalg.norm(x, 2, axis=(-2, -1)) * (1.0 + 1e-12), dtype=float)
 
 
-def _cascade_compound(system: NPlusMSystem) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-    """``(D_m(C^), p, a, b)`` of ``f_V = det((1 - z) M_0 + z V)`` in compound form (module notes)."""
-    n, m = system.n, system.m
-    size = n + 2 * m
-    inv = 1.0 / system.signed_speeds
-    c = np.zeros((size, size))
-    c[: n + m, : n + m] = inv[:, None] * system.sigma
-    c[n + m :, n + m :] = -in_group_part(system) / system.mu[:, None]
-    rate = np.concatenate([inv, -1.0 / system.mu])
-    base = float(np.sum(1.0 / system.mu))
-    subsets = list(itertools.combinations(range(size), m))
-    p = np.array([sum(rate[i] for i in S) + base for S in subsets])
-    for i in np.argsort(p):  # rates equal up to the order of a sum are made equal (groups of the gauge)
-        p[np.abs(p - p[i]) <= 1e-13 * max(1.0, abs(p[i]))] = p[i]
-    b = compound_minors(np.vstack([system.q, np.eye(m), np.eye(m)]), axis=0)
-    roots = np.exp(2j * np.pi * np.arange(m + 1) / (m + 1))
-    ell = np.hstack([-system.r, np.eye(m)])
-    vals = np.array([compound_minors(np.hstack([(1.0 - z) * ell, z * np.eye(m)]), axis=1) for z in roots])
-    return compound_generator(c, m), p, np.fft.fft(vals, axis=0) / (m + 1), b
-
-
 class _CascadeLoop:
     """The grid kernels' loop on the axis, its coefficients in ``z`` and the bounds of the module notes."""
 
@@ -122,9 +100,9 @@ class _CascadeLoop:
         inv = 1.0 / sys.signed_speeds
         c_full = inv[:, None] * sys.sigma
         beta = float(np.linalg.eigvalsh(0.5 * (c_full + c_full.T))[-1]) + 1e-12 * (1.0 + float(np.abs(c_full).sum()))
-        left = float(_norm2(np.hstack([-sys.r, np.eye(sys.m)])))
-        right = float(_norm2(np.vstack([sys.q, np.eye(sys.m)])))
-        self.a0 = left * math.exp(beta) * right * (1.0 + 1e-12)
+        self.left = float(_norm2(np.hstack([-sys.r, np.eye(sys.m)])))
+        self.right = float(_norm2(np.vstack([sys.q, np.eye(sys.m)])))
+        self.a0 = self.left * math.exp(beta) * self.right * (1.0 + 1e-12)
         self.q = (1.0 / mu_min + float(np.max(np.abs(inv)))) * (1.0 + 1e-12)
         v_block, _ = sys.principal_terms()
         self.v_norm = float(_norm2(v_block))
@@ -202,42 +180,77 @@ class _CascadeLoop:
         rounding = EXPM_ROUNDING * EPS * (self.cells + 8) * (1.0 + self.q * (np.abs(w) + 1.0)) * self.alpha[0] ** m
         return np.asarray(np.maximum(df, (np.hypot(dw, dp) + cauchy) / dscale) * (1.0 + 1e-9) + rounding, dtype=float)
 
-    def far_remainder(self, w: float) -> float:
-        """A bound of ``|f - f_V|`` at frequency ``w`` for every ``|z| = 1`` (``inf`` below the integration's reach)."""
-        gap = w / self.mu_max - self.decay_shift
-        if gap <= 0.0:
-            return math.inf
-        b = 2.0 * self.a0 + self.v_norm
-        tau = self.decay / gap + self.eps
-        return float(((b + tau) ** self.m - b**self.m) * (1.0 + 1e-12))
+
+def _principal_inverse(system: NPlusMSystem) -> float:
+    """``kappa >= ||A_0(w, z)^{-1}||`` for every ``w`` and ``|z| <= 1`` (module notes, *Frequency bound*).
+
+    ``A_0 = V (I - X)``, ``X = V^{-1} sum_t (1 - z) R_t e^{-i w tau_t}``, ``|X| <= T = 2 sum_t |V^{-1} R_t|``
+    entrywise. A vector ``x > 0`` with ``T x < x`` proves ``rho(T) < 1`` (Collatz-Wielandt), so
+    ``|(I - X)^{-1}| <= sum_k T^k = (I - T)^{-1}`` entrywise and ``kappa = ||(I - T)^{-1} |V^{-1}|||_F``.
+    Ball arithmetic (python-flint) from ``V`` and the ``R_t`` as doubles.
+
+    Raises
+    ------
+    CertificationError
+        No such ``x`` (``rho(T) >= 1`` or too close to 1 to prove).
+    """
+    import flint
+
+    v_block, point = system.principal_terms()
+    m = system.m
+    v_inv = flint.arb_mat(v_block.tolist()).inv()
+    t = flint.arb_mat(m, m)
+    for _, rq, _ in point:
+        prod = v_inv * flint.arb_mat(rq.tolist())
+        for i in range(m):
+            for j in range(m):
+                t[i, j] += 2 * abs(prod[i, j])
+    upper = np.array([[float(t[i, j].upper()) for j in range(m)] for i in range(m)])
+    vals, vecs = np.linalg.eig(upper)
+    x = np.abs(vecs[:, int(np.argmax(np.abs(vals)))].real) + 1e-9
+    tx = t * flint.arb_mat([[float(v)] for v in x])
+    if not all(float(tx[i, 0].upper()) < x[i] for i in range(m)):
+        raise CertificationError(
+            "cascade margin: the principal part's bound rho(2 sum_t |V^{-1} R_t|) is not proven below 1, so "
+            "no uniform bound of its inverse on the axis (the frequency bound needs one)"
+        )
+    n_mat = (flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)]) - t).inv() * flint.arb_mat([[abs(v_inv[i, j]).upper() for j in range(m)] for i in range(m)])
+    fro = sum(n_mat[i, j] ** 2 for i in range(m) for j in range(m)).sqrt()
+    return float(fro.upper())
 
 
-def _frequency_bound(loop: _CascadeLoop, gamma: float, det_v: float, max_frequency: float) -> float:
-    """``W``: no zero of the exact loop on the axis beyond it, for any ``|z| = 1`` (module notes)."""
+def _frequency_bound(loop: _CascadeLoop, max_frequency: float) -> float:
+    """``W``: the exact loop's ``A(w, z)`` is invertible for ``w >= W`` and every ``|z| = 1`` (module notes)."""
     sys = loop.system
-    dc, p, a, b = _cascade_compound(sys)
-    remainder = GaugeRemainder(dc, p)
-    scale = float(np.linalg.norm(a, axis=1).sum()) * float(np.linalg.norm(b)) * (1.0 + 1e-12)
-    level = det_v * (1.0 - gamma) ** sys.m * (1.0 - 1e-9) - 1e-12 * scale
+    kappa = _principal_inverse(sys)
+    inv = 1.0 / sys.signed_speeds
+    remainder = GaugeRemainder(inv[:, None] * sys.sigma, inv)
+    scale = 2.0 * loop.left * loop.right * (1.0 + 1e-12)
 
     def total(w: float) -> float:
-        return scale * float(remainder(w)) + loop.far_remainder(w)
+        gap = w / loop.mu_max - loop.decay_shift
+        kernel = loop.decay / gap if gap > 0.0 else math.inf
+        return kappa * (scale * float(remainder(w)) + kernel + loop.eps + 1e-12 * loop.alpha[0]) * (1.0 + 1e-12)
 
-    if not level > 0.0:
-        raise CertificationError(f"cascade margin: no room below the principal part's gap ({level:.3g})")
+    if not kappa * loop.eps < 1.0:
+        raise CertificationError(
+            f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) exceeds the principal part's room "
+            f"1 / kappa = {1.0 / kappa:.3g} at every frequency; a finer kernel_grid would help (eps is first order "
+            "in its step)"
+        )
     hi = max(2.0 * remainder.floor, 2.0 * loop.mu_max * loop.decay_shift, 1.0)
-    while not total(hi) < level:
+    while not total(hi) < 1.0:
         hi *= 2.0
         if hi > max_frequency:
             raise CertificationError(
-                f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) and the decay of G's term keep the loop's "
-                f"remainder above the principal part's gap {level:.3g} up to max_frequency = {max_frequency:.3g}; a "
-                "finer kernel_grid (eps is first order in its step) or a larger max_frequency would help"
+                f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) and the decay of G's term keep the "
+                f"loop's remainder above the principal part's room 1 / kappa = {1.0 / kappa:.3g} up to "
+                f"max_frequency = {max_frequency:.3g}; a finer kernel_grid or a larger max_frequency would help"
             )
     lo = 0.0
     while hi - lo > 1e-7 * hi:
         mid = 0.5 * (lo + hi)
-        if total(mid) < level:
+        if total(mid) < 1.0:
             hi = mid
         else:
             lo = mid
@@ -350,7 +363,7 @@ def cascade_delay_margin(
         bound = kernel_error_bound(controller.kernels)
     if not isinstance(bound, KernelErrorBound) or bound.kernel_grid != controller.kernels.grid.size:
         raise ParameterError("bound", "kernel_error_bound(controller.kernels)", type(bound).__name__)
-    lower, gamma, det_v = _principal_gamma(sys, -sys.r)
+    lower, gamma, _ = _principal_gamma(sys, -sys.r)
     if lower >= 1.0 + 1e-12:
         return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _SCOPE, (0.0, 0.0))
     if gamma >= 1.0 - 1e-12:
@@ -359,7 +372,7 @@ def cascade_delay_margin(
             "separated from 1 (the certified bound of its spectral radius must be below 1)"
         )
     loop = _CascadeLoop(controller, bound)
-    W = _frequency_bound(loop, gamma, det_v, max_frequency)
+    W = _frequency_bound(loop, max_frequency)
     bounds = loop.bounds()
     dscale = 1.0 + float(bounds[1].sum()) / float(bounds[0].sum())  # as circle_crossings' evaluator
     max_delay = NPlusMCharacteristic(sys, -sys.r).max_delay
