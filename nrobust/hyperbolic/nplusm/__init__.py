@@ -11,6 +11,7 @@ are deprecated aliases (:data:`nrobust._moved.MOVED_NAMES`).
 
 from ..._moved import moved_attribute
 from .cancellation import CancellationCase, cancellation_study
+from .cascade_margin import cascade_delay_margin
 from .characteristic import BallNPlusM, NPlusMCharacteristic
 from .compound import compound_characteristic
 from .design import (
@@ -59,6 +60,7 @@ __all__ = [
     "backstepping_delay_margin",
     "backstepping_exact_margin",
     "cancellation_study",
+    "cascade_delay_margin",
     "check_window",
     "compound_characteristic",
     "default_gain_bounds",

@@ -32,17 +32,17 @@ the same bounds (Cauchy's estimate on ``|z| = 1``).
 search of :func:`~nrobust.margins.matrix.circle_crossings` as the error of the coefficients, so
 that its exclusions and its Newton-Kantorovich discs hold for the exact loop.
 
-**Frequency bound.** ``f_V = det((1 - z) M_0 + z V)`` is, in compound form, ``det E`` times
-``L(z) exp(C^ - s P^) W^`` with ``C^ = diag(Lambda^{-1} Sigma, -Lambda-^{-1} D)`` and
-``P^ = diag(Lambda^{-1}, -Lambda-^{-1})`` (``E^{-1} V = exp(Lambda-^{-1} (s - D))``), rates
-``p_S = sum_{i in S} P^_i + sum_j 1/mu_j`` of any sign: on the axis the
-:class:`~nrobust.margins.matrix.GaugeRemainder` bounds ``|f_V - F_0|`` by ``sum_d ||a_d|| ||b|| r(w)``,
-and ``F_0``, the principal part of the static cancellation ``K = -R``, obeys ``|F_0| >= |det V|
-(1 - gamma)^m`` (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`). Integrating by
-parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h``, ``||E T_h - V|| <= ||V|| (e^{ell}
-||H(1)|| + ||H(0)|| + e^{ell} TV(H)) / (w / mu_max - ||Lambda-^{-1} D||)``, so
-``|f - f_V| <= (b + tau(w))^m - b^m`` with ``b = 2 a_0 + ||V||`` and ``tau = ||E T_h - V|| + eps``:
-beyond the ``W`` where the sum of both remainders is below the gap, ``f != 0`` on the axis.
+**Frequency bound.** On the axis ``A = A_0 + Delta`` with the principal part ``A_0(w, z) = V -
+(1 - z) sum_t R_t e^{-i w tau_t}`` (:meth:`~nrobust.hyperbolic.nplusm.NPlusMSystem.principal_terms`,
+``K = -R``) and ``||A_0^{-1}|| <= kappa`` for every ``w`` and ``|z| <= 1``
+(:func:`_principal_inverse`: ``rho(2 sum_t |V^{-1} R_t|) < 1`` proven, a Neumann series). The
+rest: ``(1 - z) E [-R, I] (Phi - Phi_0) [Q; I]``, at most ``2 ||[-R, I]|| ||[Q; I]|| r(w)``
+(:class:`~nrobust.margins.matrix.GaugeRemainder` on the axis, ``|E| = 1``), and ``z (E T - V)``.
+Integrating by parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h``
+(``||C(i w)^{-1}|| <= 1 / (w / mu_max - ||Lambda-^{-1} D||)``), ``||E T_h - V|| <= ||V|| (e^{ell}
+(||H(1)|| + TV(H)) + ||H(0)||) / (w / mu_max - ||Lambda-^{-1} D||)``, and the exact kernels add
+``eps``. Beyond the ``W`` where ``kappa`` times the sum is below 1, ``A`` is invertible: ``f != 0``
+on the axis. ``eps`` does not decay in ``w``, so ``kappa eps < 1`` is needed at least.
 
 **The margin.** At ``delta = 0`` the loop is ``det(E T) = det V != 0`` (no root). The delayed
 principal part is strongly stable (``gamma < 1``), so roots enter ``Re s >= 0`` only across the
@@ -125,7 +125,9 @@ class _CascadeLoop:
         self.cells = x.size - 1
         self.roots = np.exp(2j * np.pi * np.arange(self.m + 1) / (self.m + 1))
         # bounds of the exact loop's A = (1 - z) M_0 + z E T and its w-derivatives on the axis, |z| = 1
-        self.alpha = [2.0 * self.a0 * self.q**k + self.t0 / mu_min**k + (self.v_norm if k == 0 else 0.0) for k in range(3)]
+        self.alpha = [
+            2.0 * self.a0 * self.q**k + self.t0 / mu_min**k + (self.v_norm if k == 0 else 0.0) for k in range(3)
+        ]
 
     # ------------------------------------------------------------------ the grid kernels' loop
     def matrices(self, s: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
@@ -164,10 +166,10 @@ class _CascadeLoop:
         return float(a**self.m) * (1.0 + 1e-12)
 
     def level(self, w: NDArray[np.float64], dscale: float) -> NDArray[np.float64]:
-        """Error of each ``c_d(w)`` (and, divided by ``dscale``, of the Jacobian): kernels, Cauchy's formula, rounding."""
+        """Error of each ``c_d(w)`` (and, over ``dscale``, of the Jacobian): kernels, Cauchy's formula, rounding."""
         w = np.asarray(w, dtype=float)
         m, eps = self.m, self.eps
-        m0, et = self.matrices(1j * w)
+        m0, et = self.matrices(np.asarray(1j * w, dtype=np.complex128))
         n0, ne = _norm2(m0), _norm2(et)
         a = 2.0 * n0 + ne
         a1 = self.alpha[1]
@@ -214,8 +216,10 @@ def _principal_inverse(system: NPlusMSystem) -> float:
             "cascade margin: the principal part's bound rho(2 sum_t |V^{-1} R_t|) is not proven below 1, so "
             "no uniform bound of its inverse on the axis (the frequency bound needs one)"
         )
-    n_mat = (flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)]) - t).inv() * flint.arb_mat([[abs(v_inv[i, j]).upper() for j in range(m)] for i in range(m)])
-    fro = sum(n_mat[i, j] ** 2 for i in range(m) for j in range(m)).sqrt()
+    n_mat = (flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)]) - t).inv() * flint.arb_mat(
+        [[abs(v_inv[i, j]).upper() for j in range(m)] for i in range(m)]
+    )
+    fro = sum((n_mat[i, j] ** 2 for i in range(m) for j in range(m)), flint.arb(0)).sqrt()
     return float(fro.upper())
 
 
@@ -257,7 +261,9 @@ def _frequency_bound(loop: _CascadeLoop, max_frequency: float) -> float:
     return hi
 
 
-def _delay_bracket(loop: _CascadeLoop, x: NDArray[np.float64], ev_bounds: NDArray, dscale: float) -> tuple[float, float, float]:
+def _delay_bracket(
+    loop: _CascadeLoop, x: NDArray[np.float64], ev_bounds: NDArray, dscale: float
+) -> tuple[float, float, float]:
     """``(delay, lower, upper)`` of the exact loop's zero next to the grid loop's zero ``x = (w, phi)``.
 
     Newton-Kantorovich at ``x``: with ``J`` the grid loop's Jacobian, ``e_J`` its error and ``S`` the
