@@ -19,18 +19,32 @@ the row factor ``E``). ``D`` commutes with ``Lambda-``, so ``d/dw e^{x C(i w)} =
 e^{x C}`` and ``||d^k/dw^k (E T - V)|| <= mu_min^{-k} t_0``, ``t_0 = ||V|| int_0^1 e^{x ell}
 ||Lambda-^{-1} G_h|| dx + eps`` (``ell`` the logarithmic-norm bound of ``Lambda-^{-1} D`` of
 :mod:`~nrobust.hyperbolic.nplusm.kernel_error`; ``||Lambda-^{-1} G_h||`` is convex on a cell, at
-most its larger end). The determinant is multilinear in the columns and a column's norm is at
-most the matrix's (Hadamard), so with ``alpha_k`` bounding ``||d^k A / dw^k||``:
-``|f| <= alpha_0^m``, ``|f_w| <= m alpha_1 alpha_0^{m-1}``, ``|f_ww| <= m alpha_2 alpha_0^{m-1} +
-m (m - 1) alpha_1^2 alpha_0^{m-2}`` for the exact loop, and each coefficient ``c_d`` of ``z^d`` obeys
-the same bounds (Cauchy's estimate on ``|z| = 1``).
+most its larger end). So ``||A_w|| <= alpha_1 = 2 q a_0 + t_0 / mu_min`` and ``||A|| <= alpha_0 = 2 a_0 +
+||V|| + t_0`` for the exact loop's ``A = (1 - z) M_0 + z E T``, every ``w`` and ``|z| = 1``; with
+``|d det A| <= m ||dA|| ||A||^{m-1}``, ``|f_w| <= L_w = m alpha_1 alpha_0^{m-1}`` and (``dA/dphi = i z
+(E T - M_0)``) ``|f_phi| <= L_phi = m (a_0 + ||V|| + t_0) alpha_0^{m-1}``.
 
-**The kernels' error at a point.** With ``a = ||A_h(w, z)|| <= 2 ||M_0|| + ||E T_h||``,
-``|f - f_h| <= (a + eps)^m - a^m``; the ``w``-derivative moves by at most ``m ((a_1 + eps / mu_min)
-(a + eps)^{m-1} - a_1 a^{m-1})`` and the ``phi``-derivative (``dA/dphi = i z (E T - M_0)``) by
-``m ((a_p + eps) (a + eps)^{m-1} - a_p a^{m-1})``, ``a_p = ||M_0|| + ||E T_h||``. These enter the
-search of :func:`~nrobust.margins.matrix.circle_crossings` as the error of the coefficients, so
-that its exclusions and its Newton-Kantorovich discs hold for the exact loop.
+**Search.** ``f(w, e^{i phi}) = 0`` iff ``sigma_min(A) = 0``. On a cell ``[w_0 +- h_w] x [phi_0 +-
+h_phi]``, ``sigma_min(A(w, z)) >= sigma_min(A(w_0, z_0)) - h_w alpha_1 - h_phi ||E T - M_0||(w_0)``
+(Weyl; ``|z - z_0| <= h_phi``): the derivative bound in ``phi`` is the cell's own. The exact loop
+differs from the computed grid loop by at most ``eps + 3 r(w)`` in norm (``r`` the rounding of the
+matrix exponentials and the Filon steps, ``EXPM_ROUNDING`` units per step as in
+:mod:`~nrobust.hyperbolic.nplusm.characteristic`) and LAPACK's ``sigma_min`` by ``1e-13 ||A||``:
+a cell whose lower bound is positive holds no zero. The others are halved in the direction of
+the larger term, all cells of a round evaluated in one vectorised call (each distinct ``w`` once),
+until the slack ``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of that error: those cells
+stay, the region where the kernels' error leaves the sign of ``f`` open.
+
+**Existence.** The cells left fall in groups of touching cells. In each, Newton steps on the grid
+loop give ``x_0`` and its Jacobian ``J`` in ``(w, phi)``; for ``g = J^{-1} (Re f, Im f)`` of the
+exact loop the signs ``g_1 < 0`` at ``w = w_0 - a``, ``> 0`` at ``w_0 + a`` and ``g_2 < 0`` at
+``phi = phi_0 - a``, ``> 0`` at ``phi_0 + a`` prove a zero in the box (Poincare-Miranda). They are
+checked at the midpoints of short pieces of each face, with ``|f - f_h| <= prod(sigma_i + e) - prod
+sigma_i`` for ``||A - A_h|| <= e``, ``sigma_i`` those of ``A_h`` (in the singular vectors' bases
+``det(Sigma + E') = sum_S det E'[S, S] prod_{i not in S} sigma_i`` and ``|det E'[S, S]| <=
+e^{|S|}``; Ipsen and Rehman, SIAM J. Matrix Anal. Appl. 30, 2008), and the Lipschitz bound ``L_w``
+or ``L_phi`` along the face standing for the rest of each piece. A group without a proven zero is
+refused.
 
 **Frequency bound.** On the axis ``A = A_0 + Delta`` with the principal part ``A_0(w, z) = V -
 (1 - z) sum_t R_t e^{-i w tau_t}`` (:meth:`~nrobust.hyperbolic.nplusm.NPlusMSystem.principal_terms`,
@@ -48,17 +62,18 @@ on the axis. ``eps`` does not decay in ``w``, so ``kappa eps < 1`` is needed at 
 principal part is strongly stable (``gamma < 1``), so roots enter ``Re s >= 0`` only across the
 imaginary axis at a finite frequency (Hale and Verduyn Lunel, neutral equations: the kernel
 terms are distributed delays, which do not move the essential spectrum); the margin is the
-smallest delay ``(-phi mod 2 pi) / w`` over the zeros ``(w, phi)`` of ``f``. Each zero is proven
-in a disc of radius ``r`` about the grid loop's zero (Newton-Kantorovich with the error above),
-so its delay lies in ``[(theta - r) / (w + r), (theta + r) / (w - r)]``; the bracket of the margin
-is the minimum over the zeros of both ends. The bracket's width is of the order of ``eps``:
-first order in the kernel grid's step.
+smallest delay ``(-phi mod 2 pi) / w`` over the zeros ``(w, phi)`` of ``f``. Every zero lies in a
+cell left by the search, so the margin is at least the smallest delay over those cells; one zero
+lies in each proven box, so it is at most the largest delay over a box (the smallest such bound
+over the boxes). The bracket's width is of the order of ``eps``: first order in the kernel grid's
+step (halving with it, measured).
 
-**Cost.** The search's cells are set by the derivative bounds above (Hadamard, uniform in ``w``:
-10 to 100 times the loop's size), and each evaluation of the jet is 13 Filon sweeps over the
-kernel grid: measured 40 s CPU (21 points) and 138 s (41 points) for ``Sigma--_01 = 0.3`` of
-``tests/test_nplusm_cascade_cert.py`` (``W = 37``, no crossing). Sharper bounds (per cell, not
-uniform) and a second-order kernel error are the next steps.
+**Cost.** The exclusion needs no derivative of ``f`` beyond the uniform ``alpha_1`` and evaluates
+the loop's matrices, vectorised, at about 300 to 3000 frequencies; only Newton's steps (eight jets of
+13 evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the plants
+of ``tests/test_nplusm_cascade_cert.py``: ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.5 to 0.8 s
+of CPU on 21 to 81 kernel points, 40 s before on 21 (derivative bounds of ``det`` uniform in ``w``
+and ``phi``, cells proven one Newton step at a time); the plant with a crossing 1.3 to 1.9 s.
 """
 
 from __future__ import annotations
@@ -69,9 +84,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._threads import one_blas_thread
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder, circle_crossings
+from ...margins.matrix import GaugeRemainder
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import NPlusMBackstepping, in_group_part
@@ -84,9 +100,15 @@ _SCOPE = (
     "full-state backstepping law with exact kernels on the PDE, leftward speeds that differ: loop through the "
     "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven"
 )
-# Cauchy's formula for the w-derivative: points on a circle of radius _RING around s = i w, and
-# the radius _OUTER of the circle on which the loop is bounded for the truncation error.
-_RING, _RING_POINTS, _OUTER = 1e-2, 12, 1.0
+# Cauchy's formula for the w-derivative of the grid loop (Newton steps only, no bound rests on it):
+# points on a circle of radius _RING around s = i w.
+_RING, _RING_POINTS = 1e-2, 12
+# The search: phase cells of the first grid, Newton steps to a box's centre, the narrowest cell
+# (relative to max(1, W)), the slack below which a cell is not split (relative to the error of
+# sigma_min), and work bounds on the cells left open and the points of a box's face.
+_PHASE_CELLS, _NEWTON_STEPS, _MIN_WIDTH, _RESOLVE, _MAX_OPEN, _MAX_FACE = 16, 8, 1e-11, 0.25, 4_000, 20_000
+# Cells of the (w, phi) rectangle: centres and half-widths (four arrays of one size).
+_Cells = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 
 def _norm2(x: NDArray[Any]) -> NDArray[np.float64]:
@@ -132,11 +154,15 @@ class _CascadeLoop:
         self.roots = np.exp(2j * np.pi * np.arange(self.m + 1) / (self.m + 1))
         # bounds of the exact loop's A = (1 - z) M_0 + z E T and its w-derivatives on the axis, |z| = 1
         self.alpha = [
-            2.0 * self.a0 * self.q**k + self.t0 / mu_min**k + (self.v_norm if k == 0 else 0.0) for k in range(3)
+            2.0 * self.a0 * self.q**k + self.t0 / mu_min**k + (self.v_norm if k == 0 else 0.0) for k in range(2)
         ]
+        # sup |f_w| and sup |f_phi| of the exact loop on the axis: |d det A| <= m ||dA|| ||A||^{m-1}, and
+        # dA/dphi = i z (E T - M_0)
+        grow = self.m * self.alpha[0] ** (self.m - 1) * (1.0 + 1e-12)
+        self.lipschitz = (grow * self.alpha[1], grow * (self.a0 + self.v_norm + self.t0))
 
     # ------------------------------------------------------------------ the grid kernels' loop
-    def matrices(self, s: NDArray[np.complex128]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    def matrices(self, s: NDArray[Any]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
         """``M_0(s)`` and ``E T_h(s)`` for an array of ``s``."""
         return self.system.loop_matrix(s), self.controller.target_transition(s)
 
@@ -159,34 +185,27 @@ class _CascadeLoop:
         return self.coefs(w), 1j * ds
 
     # ------------------------------------------------------------------ bounds
-    def bounds(self) -> NDArray[np.float64]:
-        """``sup |c_d|, sup |c_d'|, sup |c_d''|`` of the exact loop on the axis (module notes)."""
-        m, (a0, a1, a2) = self.m, self.alpha
-        b = [a0**m, m * a1 * a0 ** (m - 1), m * a2 * a0 ** (m - 1) + m * (m - 1) * a1**2 * a0 ** max(m - 2, 0)]
-        return np.array([[v * (1.0 + 1e-12)] * (m + 1) for v in b])
+    def matrix_rounding(self, w: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Rounding of the computed ``M_0(i w)`` and ``E T_h(i w)`` (matrix exponentials, ``cells`` Filon steps)."""
+        grow = 1.0 + self.q * (np.abs(np.asarray(w, dtype=float)) + 1.0)
+        return np.asarray(EXPM_ROUNDING * EPS * (self.cells + 8) * grow * self.alpha[0], dtype=float)
 
-    def _outer_bound(self) -> float:
-        """``sup |f|`` (exact and grid loops) on the discs ``|s - i w| <= _OUTER``: the rows' factors grow
-        by ``e^{_OUTER q}`` at most, those of ``E T`` by ``e^{_OUTER / mu_min}``."""
-        a = 2.0 * self.a0 * math.exp(_OUTER * self.q) + self.v_norm + self.t0 * math.exp(_OUTER / self.mu_min)
-        return float(a**self.m) * (1.0 + 1e-12)
-
-    def level(self, w: NDArray[np.float64], dscale: float) -> NDArray[np.float64]:
-        """Error of each ``c_d(w)`` (and, over ``dscale``, of the Jacobian): kernels, Cauchy's formula, rounding."""
-        w = np.asarray(w, dtype=float)
-        m, eps = self.m, self.eps
-        m0, et = self.matrices(np.asarray(1j * w, dtype=np.complex128))
-        n0, ne = _norm2(m0), _norm2(et)
-        a = 2.0 * n0 + ne
-        a1 = self.alpha[1]
-        a_p = n0 + ne
-        df = (a + eps) ** m - a**m
-        dw = m * ((a1 + eps / self.mu_min) * (a + eps) ** (m - 1) - a1 * a ** (m - 1))
-        dp = m * ((a_p + eps) * (a + eps) ** (m - 1) - a_p * a ** (m - 1))
-        ratio = (_RING / _OUTER) ** _RING_POINTS
-        cauchy = self._outer_bound() * ratio / (1.0 - ratio) / _OUTER
-        rounding = EXPM_ROUNDING * EPS * (self.cells + 8) * (1.0 + self.q * (np.abs(w) + 1.0)) * self.alpha[0] ** m
-        return np.asarray(np.maximum(df, (np.hypot(dw, dp) + cauchy) / dscale) * (1.0 + 1e-9) + rounding, dtype=float)
+    def exclusion(
+        self, w: NDArray[np.float64], phi: NDArray[np.float64], m0: NDArray[np.complex128], et: NDArray[np.complex128]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(l, p, e)`` at the points ``(w, phi)`` from the computed ``M_0(i w)``, ``E T_h(i w)``: ``l <=
+        sigma_min`` of the exact loop's ``A(w, e^{i phi})``, ``p >= ||E T(i w) - M_0(i w)||``
+        and ``e`` the error allowed for in ``l`` (module notes, *Search*)."""
+        m1 = et - m0
+        a = m0 + np.exp(1j * phi)[:, None, None] * m1
+        sig = np.linalg.svd(a, compute_uv=False)[:, -1]
+        rnd = self.matrix_rounding(w)
+        error = 1e-12 * sig + 1e-13 * _norm2(a) + self.eps + 3.0 * rnd
+        return (
+            np.asarray(sig - error, dtype=float),
+            np.asarray(_norm2(m1) + self.eps + 2.0 * rnd, dtype=float),
+            np.asarray(error, dtype=float),
+        )
 
 
 def _principal_inverse(system: NPlusMSystem) -> float:
@@ -267,52 +286,182 @@ def _frequency_bound(loop: _CascadeLoop, max_frequency: float) -> float:
     return hi
 
 
-def _delay_bracket(
-    loop: _CascadeLoop, x: NDArray[np.float64], ev_bounds: NDArray, dscale: float
-) -> tuple[float, float, float]:
-    """``(delay, lower, upper)`` of the exact loop's zero next to the grid loop's zero ``x = (w, phi)``.
+def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cells:
+    """The cells of ``[0, W] x [0, 2 pi)`` that may hold a zero of the exact loop (module notes, *Search*).
 
-    Newton-Kantorovich at ``x``: with ``J`` the grid loop's Jacobian, ``e_J`` its error and ``S`` the
-    exact loop's second-derivative bound, the exact zero lies within the smallest ``r`` with
-    ``kappa = ||J^{-1}|| (r S + e_J) <= 1/2`` and ``||J^{-1}|| (|f| + err) <= (1 - kappa) r``.
+    Cells the matrix test excludes are dropped, the others halved (in ``w`` or ``phi``, whichever
+    term of the test is larger) until the test's slack ``h_w alpha_1 + h_phi p`` falls below
+    ``_RESOLVE`` times the error of the computed ``sigma_min`` (the kernels' ``eps`` and rounding):
+    finer cells would not exclude more. The loop's matrices are evaluated once per distinct ``w``,
+    all of a round's in one call.
+
+    Raises
+    ------
+    CertificationError
+        More than ``max_points`` evaluations of the loop, or more than ``_MAX_OPEN`` cells left.
     """
-    b = np.asarray(ev_bounds)
-    deg = np.arange(b.shape[1], dtype=float)
-    s_ww, s_wp, s_pp = float(b[2].sum()), float((deg * b[1]).sum()), float((deg**2 * b[0]).sum())
-    second = float(np.sqrt(s_ww**2 + 2.0 * s_wp**2 + s_pp**2)) * (1.0 + 1e-12)
-    c, dc = loop.jet(np.array([x[0]]))
-    z = np.exp(1j * x[1] * deg)
-    f = complex(np.sum(c[0] * z))
-    fw, fp = complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
-    J = np.array([[fw.real, fp.real], [fw.imag, fp.imag]])
-    err = float(loop.level(np.array([x[0]]), dscale)[0]) * deg.size + 4e-16 * float(np.abs(c).sum())
-    jinv = float(np.linalg.norm(np.linalg.inv(J), 2)) * (1.0 + 1e-12)
-    e_j = 1e-12 * float(np.linalg.norm(J, 2)) + err * dscale
-    step = jinv * (abs(f) + err)
-    r = step
-    for _ in range(60):  # r = step / (1 - kappa(r)): the fixed point from below
-        kappa = jinv * (r * second + e_j)
-        if kappa >= 0.5:
+    nw = max(1, math.ceil(W / step))
+    if nw > max_points:
+        raise ParameterError("max_points", f">= {nw} (the first grid up to W = {W:.6g})", max_points)
+    hw0 = 0.5 * W / nw
+    grid_w = (np.arange(nw) + 0.5) * (2 * hw0)
+    grid_p = (np.arange(_PHASE_CELLS) + 0.5) * (2 * np.pi / _PHASE_CELLS)
+    cw, cp = (g.ravel() for g in np.meshgrid(grid_w, grid_p, indexing="ij"))
+    cells: _Cells = (cw, cp, np.full(cw.size, hw0), np.full(cw.size, np.pi / _PHASE_CELLS))
+    width = _MIN_WIDTH * max(1.0, W)
+    cache: dict[float, int] = {}
+    m0_all: list[NDArray[np.complex128]] = []
+    et_all: list[NDArray[np.complex128]] = []
+    left: list[_Cells] = []
+    spent = 0
+    while cells[0].size:
+        cw, cp, hw, hp = cells
+        uw, inv = np.unique(cw, return_inverse=True)
+        new = [w for w in uw.tolist() if w not in cache]
+        if new:
+            spent += len(new)
+            if spent > max_points:
+                raise CertificationError(
+                    f"cascade margin: more than max_points = {max_points} evaluations of the loop (raise max_points)"
+                )
+            m0_new, et_new = loop.matrices(1j * np.array(new))
+            base = len(cache)
+            cache.update((w, base + k) for k, w in enumerate(new))
+            m0_all.extend(m0_new)
+            et_all.extend(et_new)
+        rows = np.array([cache[w] for w in uw.tolist()])[inv]
+        lower, lip_p, error = loop.exclusion(cw, cp, np.asarray(m0_all)[rows], np.asarray(et_all)[rows])
+        slack = hw * loop.alpha[1] + hp * lip_p
+        open_ = lower <= slack
+        done = open_ & ((slack <= _RESOLVE * error) | ((hw <= width) & (hp <= width)))
+        left.append(_select(cells, done))
+        if sum(c[0].size for c in left) > _MAX_OPEN:
             raise CertificationError(
-                f"cascade margin: the crossing near w = {x[0]:.6g} is not isolated within the kernels' error "
-                f"(eps = {loop.eps:.3g}); a finer kernel_grid would help"
+                f"cascade margin: more than {_MAX_OPEN} cells near w in [{cw[done].min():.6g}, {cw[done].max():.6g}] "
+                "stay undecided (the kernels' error or a tangency); a finer kernel_grid may help"
             )
-        r_new = step / (1.0 - kappa)
-        if r_new <= r * (1.0 + 1e-12):
+        split = open_ & ~done
+        cells = _halves(_select(cells, split), (hw * loop.alpha[1] >= hp * lip_p)[split])
+    return tuple(np.concatenate([c[k] for c in left]) for k in range(4))  # type: ignore[return-value]
+
+
+def _groups(cells: _Cells) -> list[NDArray[np.intp]]:
+    """The cells in groups of touching cells (closed rectangles, phases wrapped), as index arrays."""
+    cw, cp, hw, hp = cells
+    label = np.arange(cw.size)
+    touch = (np.abs(cw[:, None] - cw[None]) <= (hw[:, None] + hw[None]) * (1 + 1e-9)) & (
+        np.abs(_wrap(cp[:, None] - cp[None])) <= (hp[:, None] + hp[None]) * (1 + 1e-9)
+    )
+    while True:  # each cell takes the smallest label of its neighbours until none changes
+        nxt = np.min(np.where(touch, label[None], cw.size), axis=1)
+        nxt = nxt[nxt]
+        if np.array_equal(nxt, label):
             break
-        r = r_new
-    r = r * (1.0 + 1e-6)
-    kappa = jinv * (r * second + e_j)
-    if not (kappa <= 0.5 and step <= (1.0 - kappa) * r):
-        raise CertificationError(f"cascade margin: no proven disc about the crossing near w = {x[0]:.6g}")
-    w, theta = float(x[0]), float(np.mod(-x[1], 2 * np.pi))
-    if r >= w:
-        raise CertificationError(f"cascade margin: the crossing near w = {w:.3g} is within {r:.3g} of w = 0")
-    lower = 0.0 if theta - r <= 0.0 or theta + r >= 2 * np.pi else (theta - r) / (w + r)
-    upper = (theta + r) / (w - r)
-    return theta / w, math.nextafter(lower, -math.inf) if lower > 0 else 0.0, math.nextafter(upper, math.inf)
+        label = nxt
+    return [np.flatnonzero(label == k) for k in np.unique(label)]
 
 
+def _face_signs(
+    loop: _CascadeLoop, pts: NDArray[np.float64], coef: NDArray[np.float64], sign: float, slack: float
+) -> bool:
+    """True if ``sign * coef . (Re f, Im f) > slack + ||coef|| |f - f_h|`` at every point (``f`` exact)."""
+    m0, et = loop.matrices(1j * pts[:, 0])
+    z = np.exp(1j * pts[:, 1])
+    a = m0 + z[:, None, None] * (et - m0)
+    f = np.linalg.det(a)
+    sig = np.linalg.svd(a, compute_uv=False) * (1.0 + 1e-12) + 1e-13 * _norm2(a)[:, None]
+    e = loop.eps + 3.0 * loop.matrix_rounding(pts[:, 0])
+    grown = np.prod(sig + e[:, None], axis=1)
+    err = grown - np.prod(sig, axis=1) + 1e-13 * grown  # Ipsen and Rehman's bound, and det's rounding
+    g = coef[0] * f.real + coef[1] * f.imag
+    return bool(np.all(sign * g > slack + float(np.hypot(*coef)) * (1.0 + 1e-12) * err))
+
+
+def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64], float, float] | None:
+    """A box ``[w0 +- a] x [phi0 +- b]`` about a group of cells holding a zero of the exact loop, or None.
+
+    Newton steps on the grid loop from the group's centre give ``x0`` and ``J``; with ``C = J^{-1}``
+    the map ``g = C (Re f, Im f)`` of the exact loop is checked to have ``g_1 < 0`` on the face
+    ``w = w0 - a``, ``> 0`` on ``w0 + a``, ``g_2 < 0`` on ``phi = phi0 - b``, ``> 0`` on ``phi0 + b``,
+    so the box holds a zero (Poincare-Miranda). Each face is checked at the midpoints of pieces of
+    length ``d``, each point standing for its piece through the Lipschitz bound of ``f`` along the
+    face (``L_phi`` or ``L_w`` of the module notes): ``|g_k| > ||C_k|| (|f - f_h| + L d / 2)``.
+    Boxes 1.5, 2, 3 and 4 times the group's extent about ``x0`` are tried.
+    """
+    cw, cp, hw, hp = cells
+    deg = np.arange(loop.m + 1, dtype=float)
+    x = np.array([0.5 * (np.min(cw - hw) + np.max(cw + hw)), cp[0] + np.mean(_wrap(cp - cp[0]))])
+    for _ in range(_NEWTON_STEPS):
+        c, dc = loop.jet(np.array([x[0]]))
+        z = np.exp(1j * x[1] * deg)
+        f = complex(np.sum(c[0] * z))
+        fw, fp = complex(np.sum(dc[0] * z)), complex(np.sum(1j * deg * c[0] * z))
+        J = np.array([[fw.real, fp.real], [fw.imag, fp.imag]])
+        if not np.all(np.isfinite(J)) or abs(np.linalg.det(J)) == 0.0:
+            return None
+        x = x - np.linalg.solve(J, [f.real, f.imag])
+    C = np.linalg.inv(J)
+    if not np.linalg.cond(C) < 1e8:
+        return None  # g = 0 must mean f = 0: C well inside the invertible matrices
+    lip_w, lip_p = loop.lipschitz
+    extent = float(max(np.max(np.abs(cw - x[0]) + hw), np.max(np.abs(_wrap(cp - x[1])) + hp)))
+    for factor in (1.5, 2.0, 3.0, 4.0):
+        a = factor * extent
+        if a >= x[0] or a >= 0.5 * np.pi:
+            return None
+        ok = True
+        for k, lip in ((0, lip_p), (1, lip_w)):  # faces across w (g_1, along phi), across phi (g_2, along w)
+            d = 0.25 * a / (float(np.hypot(*C[k])) * lip)
+            n = math.ceil(2 * a / d)
+            if n > _MAX_FACE:
+                return None
+            along = -a + (np.arange(n) + 0.5) * (2 * a / n)
+            slack = float(np.hypot(*C[k])) * lip * a / n * (1.0 + 1e-12)
+            for sign in (-1.0, 1.0):
+                pts = np.column_stack([x[0] + sign * a + 0 * along, x[1] + along])
+                if k == 1:
+                    pts = np.column_stack([x[0] + along, x[1] + sign * a + 0 * along])
+                ok = ok and _face_signs(loop, pts, C[k], sign, slack)
+        if ok:
+            return x, a, a
+    return None
+
+
+def _delay_range(w: float, phi: float, hw: float, hp: float) -> tuple[float, float]:
+    """Smallest and largest first delay ``theta / w``, ``theta = -phi mod 2 pi``, on ``[w +- hw] x [phi +- hp]``
+    (``w - hw > 0`` for the largest; 0 and ``2 pi / (w - hw)`` where the cell meets ``theta = 0``)."""
+    theta = float(np.mod(-phi, 2 * np.pi))
+    lo_w, hi_w = w - hw, w + hw
+    if theta - hp <= 0.0 or theta + hp >= 2 * np.pi:
+        return 0.0, (2 * np.pi / lo_w if lo_w > 0 else math.inf)
+    lower = math.nextafter((theta - hp) / hi_w, -math.inf)
+    return max(lower, 0.0), (math.nextafter((theta + hp) / lo_w, math.inf) if lo_w > 0 else math.inf)
+
+
+def _wrap(d: Any) -> Any:
+    """Phase differences in ``[-pi, pi)``."""
+    return np.mod(d + np.pi, 2 * np.pi) - np.pi
+
+
+def _select(cells: _Cells, mask: Any) -> _Cells:
+    """The cells picked by a boolean mask (or index array)."""
+    cw, cp, hw, hp = cells
+    return cw[mask], cp[mask], hw[mask], hp[mask]
+
+
+def _halves(cells: _Cells, split_w: NDArray[np.bool_]) -> _Cells:
+    """Each cell halved in ``w`` (where ``split_w``) or in ``phi``."""
+    cw, cp, hw, hp = cells
+    sw, sp = np.where(split_w, 0.5, 0.0), np.where(split_w, 0.0, 0.5)
+    return (
+        np.concatenate([cw - sw * hw, cw + sw * hw]),
+        np.concatenate([cp - sp * hp, cp + sp * hp]),
+        np.tile(np.where(split_w, 0.5 * hw, hw), 2),
+        np.tile(np.where(split_w, hp, 0.5 * hp), 2),
+    )
+
+
+@one_blas_thread()  # many products of small matrices: competing BLAS threads only cost time
 def cascade_delay_margin(
     controller: NPlusMBackstepping,
     bound: KernelErrorBound | None = None,
@@ -323,9 +472,9 @@ def cascade_delay_margin(
     """Proven bracket of the delay margin of the full-state backstepping law, leftward speeds that differ.
 
     The loop through the target's ``G`` (:meth:`~nrobust.hyperbolic.nplusm.NPlusMBackstepping.cascade_loop_matrices`)
-    with the grid kernels, searched on the whole axis by :func:`~nrobust.margins.matrix.circle_crossings`
-    with the proven error ``eps`` of :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound` carried
-    (module notes): every crossing of the law with *exact* kernels is enclosed in a proven disc, and
+    with the grid kernels, searched on the whole axis with the proven error ``eps`` of
+    :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound` carried (module notes): every crossing of
+    the law with *exact* kernels lies in the cells the search leaves, one in each proven box, and
     the margin in ``margin_bracket``.
 
     Parameters
@@ -346,7 +495,7 @@ def cascade_delay_margin(
     Returns
     -------
     NPlusMMargin
-        ``margin`` and the crossings are the grid kernels' loop's; ``margin_bracket`` the proven
+        ``margin`` and the crossings (one per proven box) are the grid kernels' loop's; ``margin_bracket`` the proven
         ``[lower, upper]`` of the exact law's margin (``(inf, inf)``: no crossing at any frequency);
         ``frequency_bound`` the proven ``W`` on the axis; ``nominal_unstable`` 0 (``det(E T) = det V``);
         ``certified`` True.
@@ -358,7 +507,7 @@ def cascade_delay_margin(
         :func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin` is kernel-free).
     CertificationError
         ``gamma_0`` not separated from 1, the kernels' error too large for the frequency bound or to
-        isolate a crossing (a finer kernel grid helps), a tangency, or the work bound.
+        prove a crossing in a box (a finer kernel grid helps), a tangency, or the work bound.
     ImportError
         python-flint is missing (the kernels' error bound).
     """
@@ -385,21 +534,22 @@ def cascade_delay_margin(
         )
     loop = _CascadeLoop(controller, bound)
     W = _frequency_bound(loop, max_frequency)
-    bounds = loop.bounds()
-    dscale = 1.0 + float(bounds[1].sum()) / float(bounds[0].sum())  # as circle_crossings' evaluator
     max_delay = NPlusMCharacteristic(sys, -sys.r).max_delay
-    step = 2.0 * np.pi / (GRID_PER_PERIOD * max_delay)
-    zeros = circle_crossings(
-        loop.coefs, loop.jet, W, bounds, lambda w: loop.level(w, dscale), step=step, max_points=max_points
-    )
-    if not zeros:
+    cells = _search(loop, W, 2.0 * np.pi / (GRID_PER_PERIOD * max_delay), max_points)
+    if not cells[0].size:
         return NPlusMMargin(np.inf, None, (), gamma, W, True, 0, _SCOPE, (np.inf, np.inf))
-    found, lows, highs = [], [], []
-    for w, phi in zeros:
-        delay, lo, hi = _delay_bracket(loop, np.array([w, phi]), bounds, dscale)
-        found.append((w, delay))
-        lows.append(lo)
-        highs.append(hi)
+    lower = min(_delay_range(*cell)[0] for cell in zip(*cells))
+    found, upper = [], math.inf
+    for group in _groups(cells):
+        box = _miranda_box(loop, _select(cells, group))
+        if box is None:
+            k = group[0]
+            raise CertificationError(
+                f"cascade margin: a crossing near w = {cells[0][k]:.6g} is neither excluded nor proven (the "
+                f"kernels' error eps = {loop.eps:.3g}, a tangency or a double crossing); a finer kernel_grid may help"
+            )
+        x, a, b = box
+        found.append((float(x[0]), float(np.mod(-x[1], 2 * np.pi)) / float(x[0])))
+        upper = min(upper, _delay_range(float(x[0]), float(x[1]), a, b)[1])
     best = min(found, key=lambda c: c[1])
-    bracket = (min(lows), min(highs))
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, True, 0, _SCOPE, bracket)
+    return NPlusMMargin(best[1], best[0], tuple(sorted(found)), gamma, W, True, 0, _SCOPE, (lower, upper))
