@@ -11,7 +11,7 @@ are deprecated aliases (:data:`nrobust._moved.MOVED_NAMES`).
 
 from ..._moved import moved_attribute
 from .cancellation import CancellationCase, cancellation_study
-from .cascade_margin import cascade_delay_margin
+from .cascade_margin import backstepping_delay_margin, cascade_delay_margin
 from .characteristic import BallNPlusM, NPlusMCharacteristic
 from .compound import compound_characteristic
 from .design import (
@@ -30,7 +30,6 @@ from .kernels import (
     MAX_NPLUSM_KERNEL_GRID,
     NPlusMBackstepping,
     NPlusMKernels,
-    backstepping_delay_margin,
     solve_nplusm_kernels,
 )
 from .margin import (

@@ -90,11 +90,11 @@ from ...errors import CertificationError, ParameterError
 from ...margins.matrix import GaugeRemainder
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .kernel_error import KernelErrorBound, kernel_error_bound
-from .kernels import NPlusMBackstepping, in_group_part
-from .margin import NPlusMMargin, _principal_gamma
+from .kernels import BACKSTEPPING_ROUTES, CASCADE_SCOPE, KERNEL_SCOPE, NPlusMBackstepping, in_group_part
+from .margin import NPlusMMargin, _principal_gamma, backstepping_exact_margin, pencil_crossings
 from .system import NPlusMSystem
 
-__all__ = ["cascade_delay_margin"]
+__all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
 
 _SCOPE = (
     "full-state backstepping law with exact kernels on the PDE, leftward speeds that differ: loop through the "
@@ -553,3 +553,104 @@ def cascade_delay_margin(
         upper = min(upper, _delay_range(float(x[0]), float(x[1]), a, b)[1])
     best = min(found, key=lambda c: c[1])
     return NPlusMMargin(best[1], best[0], tuple(sorted(found)), gamma, W, True, 0, _SCOPE, (lower, upper))
+
+
+def backstepping_delay_margin(
+    controller: NPlusMBackstepping,
+    omega_max: float | None = None,
+    *,
+    points: int = 800,
+    max_points: int = 200_000,
+    route: str = "integral",
+    rigorous: bool = False,
+) -> NPlusMMargin:
+    """Delay margin of the full-state controller ``U(t - delta)``.
+
+    With ``rigorous=True`` the margin of the law with *exact* kernels: kernel-free when all
+    leftward speeds are equal (as without ``omega_max``), else :func:`cascade_delay_margin`, its
+    ``margin_bracket`` proven for the PDE (the grid kernels' error bounded); ``omega_max``,
+    ``points`` and ``route`` are not used then.
+
+    Without ``omega_max`` (all leftward speeds equal): the certified margin of the law with
+    exact kernels, kernel-free (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`;
+    ``max_points`` its work bound, at least 2 000 000 used); the grid kernels are not used.
+
+    With ``omega_max``: the loop of the grid kernels, through the feedback integral
+    (``route="integral"``, :meth:`NPlusMBackstepping.loop_matrices`) or through the target's
+    ``G`` (``route="cascade"``, :meth:`NPlusMBackstepping.cascade_loop_matrices`: the same loop
+    for the exact kernels, module notes), not certified (``certified=False``). ``gamma_0 >= 1``
+    (full cancellation of reflections, :meth:`NPlusMBackstepping.gamma_0`; for ``m > 1`` with
+    more than four principal delays a sampled lower bound): margin 0, arbitrarily small delays
+    destabilise. Otherwise a root of ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff
+    ``z = e^{-i w delta}`` is an eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit
+    circle; the eigenvalues inside the disk are counted on a grid of ``(0, omega_max]``, each
+    change located by bisection, and the delays are ``(-arg z mod 2 pi) / w``. The delay-free
+    loop is finite-time stable by construction (``nominal_unstable`` is None: not counted).
+    Not certified: a crossing above ``omega_max``, or two crossings of opposite directions
+    between grid points, would be missed, and the scan does not carry the error of the grid's
+    ``J`` or ``G`` (for ``G`` a proven bound of its effect on the loop is
+    :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`).
+
+    Parameters
+    ----------
+    controller : NPlusMBackstepping
+    omega_max : float, optional
+        Upper end ``> 0`` of the scan of the grid kernels' loop (reported as
+        ``frequency_bound``); None (default) for the certified kernel-free margin.
+    points : int, optional
+        Grid points (``>= 16``) of the scan.
+    max_points : int, optional
+        Work bound on evaluations of the loop: ``points`` plus 48 bisection steps per
+        crossing, checked before each grid is evaluated.
+    route : {"integral", "cascade"}, optional
+        The grid kernels' loop scanned with ``omega_max`` (:data:`BACKSTEPPING_ROUTES`): through
+        ``J`` (default) or through ``G``, whose error moves the loop by the same bound at
+        every frequency; ``scope`` names it.
+    rigorous : bool, optional
+        Prove the margin of the law with exact kernels (above); ``max_points`` is then the work
+        bound of :func:`cascade_delay_margin`.
+
+    Raises
+    ------
+    ParameterError
+        ``omega_max`` None for a plant whose leftward speeds differ (its loop needs the
+        kernels: give ``omega_max`` or ``rigorous=True``), or an unknown ``route``.
+    CertificationError
+        ``rigorous=True`` and the bracket cannot be proven (:func:`cascade_delay_margin`: a finer
+        kernel grid helps where the kernels' error is the cause).
+    """
+    if not isinstance(controller, NPlusMBackstepping):
+        raise ParameterError("controller", "an NPlusMBackstepping", type(controller).__name__)
+    if route not in BACKSTEPPING_ROUTES:
+        raise ParameterError("route", f"one of {BACKSTEPPING_ROUTES}", route)
+    if not isinstance(rigorous, bool):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    if rigorous and np.any(controller.system.mu != controller.system.mu[0]):
+        return cascade_delay_margin(controller, max_points=max_points)
+    if rigorous:
+        omega_max = None
+    if omega_max is None:
+        if np.any(controller.system.mu != controller.system.mu[0]):
+            raise ParameterError(
+                "omega_max",
+                "a positive frequency: leftward speeds that differ make the loop depend on the kernels "
+                "(no kernel-free certified margin)",
+                None,
+            )
+        return backstepping_exact_margin(controller.system, max_points=max(max_points, 2_000_000))
+    omega_max = positive("omega_max", omega_max)
+    points = positive_int("points", points, minimum=16)
+    max_points = positive_int("max_points", max_points)
+    bisections = 48
+    if points > max_points:
+        raise ParameterError("max_points", f">= points = {points}", max_points)
+    scope = KERNEL_SCOPE if route == "integral" else CASCADE_SCOPE
+    loop = controller.loop_matrices if route == "integral" else controller.cascade_loop_matrices
+    gamma = controller.gamma_0()
+    if gamma >= 1.0:
+        return NPlusMMargin(0.0, None, (), gamma, 0.0, False, None, scope)
+    found = pencil_crossings(loop, omega_max, points, bisections=bisections, max_points=max_points)
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, None, scope)
+    best = min(found, key=lambda p: p[1])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, None, scope)
