@@ -106,7 +106,8 @@ _RING, _RING_POINTS = 1e-2, 12
 # The search: phase cells of the first grid, Newton steps to a box's centre, the narrowest cell
 # (relative to max(1, W)), the slack below which a cell is not split (relative to the error of
 # sigma_min), and work bounds on the cells left open and the points of a box's face.
-_PHASE_CELLS, _NEWTON_STEPS, _MIN_WIDTH, _RESOLVE, _MAX_OPEN, _MAX_FACE = 16, 8, 1e-11, 0.25, 4_000, 20_000
+_PHASE_CELLS, _NEWTON_STEPS, _MIN_WIDTH, _RESOLVE, _MAX_OPEN, _MAX_FACE = 16, 8, 1e-11, 0.25, 10_000, 20_000
+_BLOCK = 512  # rows of the touching test at a time (memory: _BLOCK times the cells left)
 # Cells of the (w, phi) rectangle: centres and half-widths (four arrays of one size).
 _Cells = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -348,13 +349,19 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
 def _groups(cells: _Cells) -> list[NDArray[np.intp]]:
     """The cells in groups of touching cells (closed rectangles, phases wrapped), as index arrays."""
     cw, cp, hw, hp = cells
+    pairs = []
+    for start in range(0, cw.size, _BLOCK):  # the touching pairs, a block of rows at a time
+        rows = slice(start, start + _BLOCK)
+        touch = (np.abs(cw[rows, None] - cw[None]) <= (hw[rows, None] + hw[None]) * (1 + 1e-9)) & (
+            np.abs(_wrap(cp[rows, None] - cp[None])) <= (hp[rows, None] + hp[None]) * (1 + 1e-9)
+        )
+        i, j = np.nonzero(touch)
+        pairs.append((i + start, j))
+    first, second = np.concatenate([p[0] for p in pairs]), np.concatenate([p[1] for p in pairs])
     label = np.arange(cw.size)
-    touch = (np.abs(cw[:, None] - cw[None]) <= (hw[:, None] + hw[None]) * (1 + 1e-9)) & (
-        np.abs(_wrap(cp[:, None] - cp[None])) <= (hp[:, None] + hp[None]) * (1 + 1e-9)
-    )
     while True:  # each cell takes the smallest label of its neighbours until none changes
-        nxt = np.min(np.where(touch, label[None], cw.size), axis=1)
-        nxt = nxt[nxt]
+        nxt = label.copy()
+        np.minimum.at(nxt, first, label[second])
         if np.array_equal(nxt, label):
             break
         label = nxt
