@@ -91,7 +91,7 @@ from ...margins.matrix import GaugeRemainder
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import BACKSTEPPING_ROUTES, CASCADE_SCOPE, KERNEL_SCOPE, NPlusMBackstepping, in_group_part
-from .margin import NPlusMMargin, _principal_gamma, backstepping_exact_margin, pencil_crossings
+from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings, principal_gamma_bounds
 from .system import NPlusMSystem
 
 __all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
@@ -531,7 +531,7 @@ def cascade_delay_margin(
         bound = kernel_error_bound(controller.kernels)
     if not isinstance(bound, KernelErrorBound) or bound.kernel_grid != controller.kernels.grid.size:
         raise ParameterError("bound", "kernel_error_bound(controller.kernels)", type(bound).__name__)
-    lower, gamma, _ = _principal_gamma(sys, -sys.r)
+    lower, gamma, _ = principal_gamma_bounds(sys, -sys.r)
     if lower >= 1.0 + 1e-12:
         return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _SCOPE, (0.0, 0.0))
     if gamma >= 1.0 - 1e-12:
