@@ -423,7 +423,9 @@ def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64]
             if n > _MAX_FACE:
                 return None
             along = -a + (np.arange(n) + 0.5) * (2 * a / n)
-            slack = float(np.hypot(*C[k])) * lip * a / n * (1.0 + 1e-12)
+            # a piece's farthest point is a / n from its midpoint, plus the rounding of the points' coordinates
+            reach = a / n + 4.0 * EPS * (float(np.max(np.abs(x))) + a)
+            slack = float(np.hypot(*C[k])) * lip * reach * (1.0 + 1e-12)
             for sign in (-1.0, 1.0):
                 pts = np.column_stack([x[0] + sign * a + 0 * along, x[1] + along])
                 if k == 1:
@@ -436,13 +438,14 @@ def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64]
 
 def _delay_range(w: float, phi: float, hw: float, hp: float) -> tuple[float, float]:
     """Smallest and largest first delay ``theta / w``, ``theta = -phi mod 2 pi``, on ``[w +- hw] x [phi +- hp]``
-    (``w - hw > 0`` for the largest; 0 and ``2 pi / (w - hw)`` where the cell meets ``theta = 0``)."""
-    theta = float(np.mod(-phi, 2 * np.pi))
-    lo_w, hi_w = w - hw, w + hw
-    if theta - hp <= 0.0 or theta + hp >= 2 * np.pi:
-        return 0.0, (2 * np.pi / lo_w if lo_w > 0 else math.inf)
-    lower = math.nextafter((theta - hp) / hi_w, -math.inf)
-    return max(lower, 0.0), (math.nextafter((theta + hp) / lo_w, math.inf) if lo_w > 0 else math.inf)
+    (``w - hw > 0`` for the largest; 0 and ``2 pi / (w - hw)`` where the cell meets ``theta = 0``), widened by
+    ``1e-12`` (relative) for the rounding of ``theta`` and of the quotients."""
+    theta, hp = float(np.mod(-phi, 2 * np.pi)), float(hp)
+    lo_w, hi_w = float(w - hw), float(w + hw)
+    if theta - hp <= 1e-12 or theta + hp >= 2 * np.pi - 1e-12:
+        return 0.0, (2 * np.pi / lo_w * (1.0 + 1e-12) if lo_w > 0 else math.inf)
+    lower = (theta - hp) / hi_w * (1.0 - 1e-12)
+    return lower, ((theta + hp) / lo_w * (1.0 + 1e-12) if lo_w > 0 else math.inf)
 
 
 def _wrap(d: Any) -> Any:
