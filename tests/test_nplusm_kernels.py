@@ -20,11 +20,8 @@ from scipy.linalg import expm
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, solve_kernels
 from nrobust.hyperbolic.analyses import delay_margin
-from nrobust.hyperbolic.nplusm.kernels import (
-    NPlusMBackstepping,
-    backstepping_delay_margin,
-    solve_nplusm_kernels,
-)
+from nrobust.hyperbolic.nplusm.cascade_margin import backstepping_delay_margin
+from nrobust.hyperbolic.nplusm.kernels import NPlusMBackstepping, solve_nplusm_kernels
 from nrobust.hyperbolic.nplusm.system import NPlusMSystem
 from nrobust.hyperbolic.simulate import simulate_nplusm
 

@@ -35,8 +35,9 @@ from .loops.delay_form import DelayForm, delay_form
 from .loops.feedback import feedback_factor, laplace_loop_factors
 from .loops.laplace import boundary_function, general_solution
 from .loops.varying_form import VaryingDelayForm, varying_delay_form
+from .nplusm.cascade_margin import backstepping_delay_margin
 from .nplusm.design import NPlusMGainDesign, design_nplusm_gains
-from .nplusm.kernels import NPlusMBackstepping, NPlusMKernels, backstepping_delay_margin, solve_nplusm_kernels
+from .nplusm.kernels import NPlusMBackstepping, NPlusMKernels, solve_nplusm_kernels
 from .plants.frontends import ARZ, SaintVenant, arz, from_riemann, saint_venant
 from .plants.general import GeneralHyperbolic2x2, NormalForm
 from .plants.hyperbolic2x2 import Hyperbolic2x2, TransportSystem

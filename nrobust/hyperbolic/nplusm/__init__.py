@@ -11,6 +11,7 @@ are deprecated aliases (:data:`nrobust._moved.MOVED_NAMES`).
 
 from ..._moved import moved_attribute
 from .cancellation import CancellationCase, cancellation_study
+from .cascade_margin import backstepping_delay_margin, cascade_delay_margin
 from .characteristic import BallNPlusM, NPlusMCharacteristic
 from .compound import compound_characteristic
 from .design import (
@@ -29,7 +30,6 @@ from .kernels import (
     MAX_NPLUSM_KERNEL_GRID,
     NPlusMBackstepping,
     NPlusMKernels,
-    backstepping_delay_margin,
     solve_nplusm_kernels,
 )
 from .margin import (
@@ -59,6 +59,7 @@ __all__ = [
     "backstepping_delay_margin",
     "backstepping_exact_margin",
     "cancellation_study",
+    "cascade_delay_margin",
     "check_window",
     "compound_characteristic",
     "default_gain_bounds",

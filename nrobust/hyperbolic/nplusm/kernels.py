@@ -124,11 +124,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
-from ..._validate import nonnegative, positive, positive_int
+from ..._validate import nonnegative
 from ...errors import ConvergenceError, ParameterError
 from ..kernels.constant import RESOLUTION, check_kernel_grid, p1_interpolate
 from .characteristic import NPlusMCharacteristic
-from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings
 from .system import NPlusMSystem
 
 __all__ = [
@@ -136,7 +135,6 @@ __all__ = [
     "MAX_NPLUSM_KERNEL_GRID",
     "NPlusMBackstepping",
     "NPlusMKernels",
-    "backstepping_delay_margin",
     "solve_nplusm_kernels",
 ]
 
@@ -145,12 +143,13 @@ __all__ = [
 MAX_NPLUSM_KERNEL_GRID = 801
 _MAX_UNKNOWNS = 3_000_000
 _TOL = 1e-12
-_KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
-_CASCADE_SCOPE = (
+KERNEL_SCOPE = "full-state backstepping law with the grid kernels (a model of the exact law, no error bound)"
+CASCADE_SCOPE = (
     "full-state backstepping law, loop through the target's G of the grid kernels "
     "(E T = V (I - int e^{x C} Lambda-^{-1} G); a model of the exact law, its error not carried by the scan)"
 )
-#: The loops :func:`backstepping_delay_margin` scans: the feedback integral ``J`` or the target's ``G``.
+#: The loops :func:`~nrobust.hyperbolic.nplusm.backstepping_delay_margin` scans: the feedback integral ``J`` or
+#: the target's ``G``.
 BACKSTEPPING_ROUTES = ("integral", "cascade")
 
 
@@ -740,86 +739,3 @@ class NPlusMBackstepping:
         return json_safe(
             {"type": "NPlusMBackstepping", "kernels": self.kernels, "convergence_time": self.convergence_time}
         )
-
-
-def backstepping_delay_margin(
-    controller: NPlusMBackstepping,
-    omega_max: float | None = None,
-    *,
-    points: int = 800,
-    max_points: int = 200_000,
-    route: str = "integral",
-) -> NPlusMMargin:
-    """Delay margin of the full-state controller ``U(t - delta)``.
-
-    Without ``omega_max`` (all leftward speeds equal): the certified margin of the law with
-    exact kernels, kernel-free (:func:`~nrobust.hyperbolic.nplusm.backstepping_exact_margin`;
-    ``max_points`` its work bound, at least 2 000 000 used); the grid kernels are not used.
-
-    With ``omega_max``: the loop of the grid kernels, through the feedback integral
-    (``route="integral"``, :meth:`NPlusMBackstepping.loop_matrices`) or through the target's
-    ``G`` (``route="cascade"``, :meth:`NPlusMBackstepping.cascade_loop_matrices`: the same loop
-    for the exact kernels, module notes), not certified (``certified=False``). ``gamma_0 >= 1``
-    (full cancellation of reflections, :meth:`NPlusMBackstepping.gamma_0`; for ``m > 1`` with
-    more than four principal delays a sampled lower bound): margin 0, arbitrarily small delays
-    destabilise. Otherwise a root of ``det(M_0 + e^{-delta s} M_1)`` sits at ``s = i w`` iff
-    ``z = e^{-i w delta}`` is an eigenvalue of the pencil ``M_0 v = -z M_1 v`` on the unit
-    circle; the eigenvalues inside the disk are counted on a grid of ``(0, omega_max]``, each
-    change located by bisection, and the delays are ``(-arg z mod 2 pi) / w``. The delay-free
-    loop is finite-time stable by construction (``nominal_unstable`` is None: not counted).
-    Not certified: a crossing above ``omega_max``, or two crossings of opposite directions
-    between grid points, would be missed, and the scan does not carry the error of the grid's
-    ``J`` or ``G`` (for ``G`` a proven bound of its effect on the loop is
-    :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`).
-
-    Parameters
-    ----------
-    controller : NPlusMBackstepping
-    omega_max : float, optional
-        Upper end ``> 0`` of the scan of the grid kernels' loop (reported as
-        ``frequency_bound``); None (default) for the certified kernel-free margin.
-    points : int, optional
-        Grid points (``>= 16``) of the scan.
-    max_points : int, optional
-        Work bound on evaluations of the loop: ``points`` plus 48 bisection steps per
-        crossing, checked before each grid is evaluated.
-    route : {"integral", "cascade"}, optional
-        The grid kernels' loop scanned with ``omega_max`` (:data:`BACKSTEPPING_ROUTES`): through
-        ``J`` (default) or through ``G``, whose error moves the loop by the same bound at
-        every frequency; ``scope`` names it.
-
-    Raises
-    ------
-    ParameterError
-        ``omega_max`` None for a plant whose leftward speeds differ (its loop needs the
-        kernels: give ``omega_max``), or an unknown ``route``.
-    """
-    if not isinstance(controller, NPlusMBackstepping):
-        raise ParameterError("controller", "an NPlusMBackstepping", type(controller).__name__)
-    if route not in BACKSTEPPING_ROUTES:
-        raise ParameterError("route", f"one of {BACKSTEPPING_ROUTES}", route)
-    if omega_max is None:
-        if np.any(controller.system.mu != controller.system.mu[0]):
-            raise ParameterError(
-                "omega_max",
-                "a positive frequency: leftward speeds that differ make the loop depend on the kernels "
-                "(no kernel-free certified margin)",
-                None,
-            )
-        return backstepping_exact_margin(controller.system, max_points=max(max_points, 2_000_000))
-    omega_max = positive("omega_max", omega_max)
-    points = positive_int("points", points, minimum=16)
-    max_points = positive_int("max_points", max_points)
-    bisections = 48
-    if points > max_points:
-        raise ParameterError("max_points", f">= points = {points}", max_points)
-    scope = _KERNEL_SCOPE if route == "integral" else _CASCADE_SCOPE
-    loop = controller.loop_matrices if route == "integral" else controller.cascade_loop_matrices
-    gamma = controller.gamma_0()
-    if gamma >= 1.0:
-        return NPlusMMargin(0.0, None, (), gamma, 0.0, False, None, scope)
-    found = pencil_crossings(loop, omega_max, points, bisections=bisections, max_points=max_points)
-    if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, omega_max, False, None, scope)
-    best = min(found, key=lambda p: p[1])
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, None, scope)

@@ -81,6 +81,11 @@ class NPlusMMargin:
         (:func:`backstepping_exact_margin`, kernel-free); or that law with the grid kernels
         of :func:`~nrobust.hyperbolic.nplusm.solve_nplusm_kernels` (a model of the law with
         no error bound).
+    margin_bracket : (float, float) or None
+        A proven ``[lower, upper]`` of the margin of the law with exact kernels when the loop
+        carries the grid kernels' proven error (:func:`~nrobust.hyperbolic.nplusm.cascade_delay_margin`,
+        whose ``margin`` is the grid kernels' loop's); None for the other loops, whose ``margin``
+        is itself the claim.
     """
 
     margin: float
@@ -91,6 +96,7 @@ class NPlusMMargin:
     certified: bool
     nominal_unstable: int | None = None
     scope: str = _STATIC_SCOPE
+    margin_bracket: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -266,7 +272,7 @@ def multi_actuator_margin(
     max_points = positive_int("max_points", max_points)
     if points + 64 * system.m * max(1, points // 8) > max_points:
         raise ParameterError("max_points", f">= {points + 64 * system.m * max(1, points // 8)}", max_points)
-    lower, gamma, _ = _principal_gamma(system, k)
+    lower, gamma, _ = principal_gamma_bounds(system, k)
     if lower >= 1.0:
         return NPlusMMargin(0.0, None, (), gamma, 0.0, False)
     count = count_roots(NPlusMCharacteristic(system, k, 0.0), (0.0, omega_max, -omega_max, omega_max))
@@ -285,7 +291,7 @@ def multi_actuator_margin(
     return NPlusMMargin(best[1], best[0], tuple(found), gamma, omega_max, False, 0)
 
 
-def _principal_gamma(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[float, float, float]:
+def principal_gamma_bounds(system: NPlusMSystem, k: NDArray[np.float64]) -> tuple[float, float, float]:
     """``(lower, upper, |det V|)``: a sampled and a certified bound of ``sup rho(V^{-1} sum_t C_t e^{i theta_t})``
     over independent phases of the principal terms ``C_t`` (``R_ab`` and ``K_ab`` apart).
 
@@ -359,7 +365,7 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
     k = system.gain(K)
     max_points = positive_int("max_points", max_points)
     m = system.m
-    lower, gamma, det_v = _principal_gamma(system, k)
+    lower, gamma, det_v = principal_gamma_bounds(system, k)
     if lower >= 1.0 + 1e-12:
         return NPlusMMargin(0.0, None, (), lower, 0.0, True)
     if gamma >= 1.0 - 1e-12:
@@ -457,7 +463,7 @@ def backstepping_exact_margin(system: NPlusMSystem, *, max_points: int = 2_000_0
         )
     max_points = positive_int("max_points", max_points)
     cancel = -system.r
-    lower, gamma, det_v = _principal_gamma(system, cancel)
+    lower, gamma, det_v = principal_gamma_bounds(system, cancel)
     if lower >= 1.0 + 1e-12:
         return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _TARGET_SCOPE)
     if gamma >= 1.0 - 1e-12:
