@@ -79,6 +79,7 @@ and ``phi``, cells proven one Newton step at a time); the plant with a crossing 
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -98,7 +99,9 @@ __all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
 
 _SCOPE = (
     "full-state backstepping law with exact kernels on the PDE, leftward speeds that differ: loop through the "
-    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven"
+    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven, "
+    "with the floating-point rounding of the matrix exponentials, determinants and singular values taken from "
+    "error models (EXPM_ROUNDING), not enclosed in ball arithmetic"
 )
 # Cauchy's formula for the w-derivative of the grid loop (Newton steps only, no bound rests on it):
 # points on a circle of radius _RING around s = i w.
@@ -408,8 +411,11 @@ def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64]
             return None
         x = x - np.linalg.solve(J, [f.real, f.imag])
     C = np.linalg.inv(J)
-    if not np.linalg.cond(C) < 1e8:
-        return None  # g = 0 must mean f = 0: C well inside the invertible matrices
+    # g = 0 must mean f = 0: C (the doubles used, whatever their rounding) invertible, decided exactly by
+    # its determinant in rationals, and not so ill-conditioned that its faces' slack is meaningless
+    (c00, c01), (c10, c11) = (tuple(Fraction(float(v)) for v in row) for row in C)
+    if c00 * c11 - c01 * c10 == 0 or not np.linalg.cond(C) < 1e8:
+        return None
     lip_w, lip_p = loop.lipschitz
     extent = float(max(np.max(np.abs(cw - x[0]) + hw), np.max(np.abs(_wrap(cp - x[1])) + hp)))
     for factor in (1.5, 2.0, 3.0, 4.0):
