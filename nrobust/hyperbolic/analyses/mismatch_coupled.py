@@ -76,7 +76,9 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..loops.controllers import StateFeedback, loop_factors, loop_route
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
+from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .mismatch_gains import GainBounds, gain_bounds, gain_term, gain_variation, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
 
 __all__ = ["MAX_COUPLED_BOXES", "prove_coupled_square"]
@@ -100,8 +102,9 @@ _TAU_SLACK = 2.0**-50
 class _Box:
     """``A1`` and ``B1`` (module notes) for every speed of ``[a0, a1] x [b0, b1]``, in ball arithmetic."""
 
-    def __init__(self, system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> None:
+    def __init__(self, system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float]) -> None:
         self.box = box
+        k = law.k
         flint, P, M, T = _parameters(system, box)
         self.flint = flint
         (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
@@ -110,7 +113,13 @@ class _Box:
         # evaluated, a radius r of a kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
         rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
-        self.B = BallQuasiPolynomial(QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b))
+        B = QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b)
+        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term, an L^1 radius (mismatch_gains)
+            with precision(flint, PRECISION):
+                term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law))
+            if term is not None:
+                B = B + QuasiPolynomial([], [], [_negated(term[0])])
+        self.B = BallQuasiPolynomial(B)
         self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
     def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
@@ -118,6 +127,26 @@ class _Box:
         box = (0.0, 0.0, w0, w1)
         centered = w1 > w0
         return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
+
+
+def _has_gains(law: StateFeedback) -> bool:
+    """True when the law has an integral term (a callable or a nonzero gain)."""
+    return any(callable(g) or g != 0.0 for g in (law.g_u, law.g_v))
+
+
+@lru_cache(maxsize=16)
+def _gain_bounds(system: Hyperbolic2x2, law: StateFeedback) -> GainBounds:
+    """The sups of the law's gains (:func:`~nrobust.hyperbolic.analyses.mismatch_gains.gain_bounds`), once per law."""
+    flint = require_flint()
+    with precision(flint, PRECISION):
+        return gain_bounds(flint, system, law.g_u, law.g_v)
+
+
+def _negated(kernel: DistributedDelay) -> DistributedDelay:
+    """``-kernel`` with the same radius (the stored pieces negated exactly)."""
+    return DistributedDelay(
+        kernel.nodes, None, interpolation="polynomial", coefficients=-kernel.pieces[2], radius=kernel.radius
+    )
 
 
 def _point_coefficients(flint: Any, system: Hyperbolic2x2, k: float) -> tuple[float, float, float, float]:
@@ -272,7 +301,7 @@ def _frequency_bound(v0: Any, v1: Any, v2: Any, gap: Any) -> float:
 
 def prove_coupled_square(
     system: Hyperbolic2x2,
-    k: float,
+    law: float | StateFeedback,
     eps: float,
     delays: tuple[float, float],
     corners: Sequence[tuple[QuasiPolynomial, QuasiPolynomial, DelayWindow]],
@@ -286,8 +315,11 @@ def prove_coupled_square(
     system : Hyperbolic2x2
         The nominal plant, with constant couplings and the closed form
         (:func:`~nrobust.hyperbolic.loops.exact_form.has_exact_form`).
-    k : float
-        The law's gain on ``u(t, 1)``.
+    law : float or StateFeedback
+        The law: its gain ``k`` on ``u(t, 1)`` (``U = k u(t, 1)``), or a ``StateFeedback(k, g_u, g_v)`` whose
+        integral gains are numbers or callables evaluable in ball arithmetic
+        (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_failure` is None), fixed whatever the speeds
+        (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`).
     eps : float
         The tolerance, ``0 < eps < 1``.
     delays : (float, float)
@@ -295,7 +327,7 @@ def prove_coupled_square(
     corners : sequence of (QuasiPolynomial, QuasiPolynomial, DelayWindow)
         The loops of the corners ``(e_lam, e_mu)`` = ``(-eps, -eps), (-eps, eps), (eps, -eps),
         (eps, eps)`` (:func:`~nrobust.hyperbolic.analyses.mismatch_loop`) and their verdicts; the
-        first that is the exact loop of ``U = k u(t, 1)`` on its corner plant (compared with
+        first that is the exact loop of the law on its corner plant (compared with
         :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`) and proven stable on a window
         meeting ``[d_min, d_max]`` is the point the argument starts from.
     max_boxes : int, optional
@@ -318,7 +350,9 @@ def prove_coupled_square(
     max_boxes = positive_int("max_boxes", max_boxes)
     if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
         raise ParameterError("system", "a Hyperbolic2x2 with constant couplings (has_exact_form)", system)
-    k = finite_real("k", k)
+    if not isinstance(law, StateFeedback):
+        law = StateFeedback(finite_real("law", law))
+    k = law.k
     eps = finite_real("eps", eps)
     if not 0.0 < eps < 1.0:
         raise ParameterError("eps", "in (0, 1) (the perturbed speeds stay positive)", eps)
@@ -334,7 +368,7 @@ def prove_coupled_square(
             and window.certified == "proven"
             and window.delays[0] <= d_hi
             and window.delays[1] >= d_lo
-            and _exact_corner(system, k, corner, A, B)
+            and _exact_corner(system, law, corner, A, B)
         ),
         None,
     )
@@ -362,6 +396,15 @@ def prove_coupled_square(
         except CertificationError as exc:
             return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
         v0, v1, v2 = (a + abs(arb(k)) * b for a, b in zip(v_n, v_u))
+        if _has_gains(law):  # the gains' term: |I_g| <= V_g / |z| (mismatch_gains)
+            failure = gain_failure(system, law.g_u, law.g_v)
+            if failure is not None:
+                return SquareProof(False, f"the law's gains have no exact loop: {failure}", taus, nan, nan, 0, nan)
+            with precision(flint, PRECISION):
+                v_g = gain_variation(
+                    flint, P, M, time_ratio(flint, system, square), system.q, _gain_bounds(system, law)
+                )
+            v0, v1 = v0 + v_g, v1 + v_g
         W = _frequency_bound(v0, v1, v2, 1 - c_d)
         if base is None:
             return SquareProof(
@@ -375,7 +418,7 @@ def prove_coupled_square(
                 0,
                 nan,
             )
-        boxes, stuck = _clear(system, k, square, W, d_lo, d_hi, max_boxes)
+        boxes, stuck = _clear(system, law, square, W, d_lo, d_hi, max_boxes)
     if stuck is not None:
         (w0, w1, (a0, a1, b0, b1)), small = stuck
         point = (0.5 * (a0 + a1), 0.5 * (b0 + b1))
@@ -410,23 +453,22 @@ def _corners(eps: float) -> list[tuple[float, float]]:
     return [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
 
 
-def _exact_corner(system: Hyperbolic2x2, k: float, corner: tuple[float, float], A: Any, B: Any) -> bool:
-    """True when ``(A, B)`` is the exact loop of ``U = k u(t, 1)`` on the plant at ``corner``: a point of the family."""
+def _exact_corner(system: Hyperbolic2x2, law: StateFeedback, corner: tuple[float, float], A: Any, B: Any) -> bool:
+    """True when ``(A, B)`` is the exact loop of the law on the plant at ``corner``: a point of the family."""
     plant = dataclasses.replace(system, lam=system.lam * (1.0 + corner[0]), mu=system.mu * (1.0 + corner[1]))
-    law = StateFeedback(k)
     if not has_exact_form(plant) or loop_route(plant, law) != "exact":
         return False
     return bool(loop_factors(plant, law) == (A, B))
 
 
 @lru_cache(maxsize=4096)
-def _box(system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> _Box:
-    return _Box(system, k, box)
+def _box(system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float]) -> _Box:
+    return _Box(system, law, box)
 
 
 def _clear(
     system: Hyperbolic2x2,
-    k: float,
+    law: StateFeedback,
     square: tuple[float, float, float, float],
     W: float,
     d_lo: float,
@@ -442,7 +484,7 @@ def _clear(
     while pending:
         w0, _, w1, box = heapq.heappop(pending)
         boxes += 1
-        part = _box(system, k, box)
+        part = _box(system, law, box)
         flint = part.flint
         arb = flint.arb
         t_lo, t_hi = part.tau
