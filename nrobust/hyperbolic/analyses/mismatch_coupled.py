@@ -69,7 +69,7 @@ from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
 from ..._flint import precision, require_flint, working_precision
-from ..._validate import finite_real, positive_int
+from ..._validate import finite_real, nonnegative, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
 from ...errors import CertificationError, ParameterError
@@ -78,7 +78,7 @@ from ..loops.controllers import StateFeedback, loop_factors, loop_route
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
 from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .mismatch_gains import GainBounds, gain_bounds, gain_term, gain_variation, time_ratio
+from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variation, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
 
 __all__ = ["MAX_COUPLED_BOXES", "prove_coupled_square"]
@@ -102,7 +102,9 @@ _TAU_SLACK = 2.0**-50
 class _Box:
     """``A1`` and ``B1`` (module notes) for every speed of ``[a0, a1] x [b0, b1]``, in ball arithmetic."""
 
-    def __init__(self, system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float]) -> None:
+    def __init__(
+        self, system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float], error: float = 0.0
+    ) -> None:
         self.box = box
         k = law.k
         flint, P, M, T = _parameters(system, box)
@@ -116,7 +118,7 @@ class _Box:
         B = QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b)
         if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term, an L^1 radius (mismatch_gains)
             with precision(flint, PRECISION):
-                term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law))
+                term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law), error)
             if term is not None:
                 B = B + QuasiPolynomial([], [], [_negated(term[0])])
         self.B = BallQuasiPolynomial(B)
@@ -307,6 +309,7 @@ def prove_coupled_square(
     corners: Sequence[tuple[QuasiPolynomial, QuasiPolynomial, DelayWindow]],
     *,
     max_boxes: int = MAX_COUPLED_BOXES,
+    gain_error: float = 0.0,
 ) -> SquareProof:
     """Prove ``U = k u(t, 1)`` on ``system`` stable for every speed error of the square and delay of the window.
 
@@ -332,6 +335,10 @@ def prove_coupled_square(
         meeting ``[d_min, d_max]`` is the point the argument starts from.
     max_boxes : int, optional
         Work bound: boxes of ``(w, e_lam, e_mu)`` examined.
+    gain_error : float, default 0
+        The law's true gains are within this distance of ``law.g_u``, ``law.g_v`` on ``[0, 1]`` (``U_BS2(K)``'s
+        kernel traces: :func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`): the proof holds for
+        every pair of gains that close (the family joins them, its corners' loops those of ``law``).
 
     Returns
     -------
@@ -348,6 +355,7 @@ def prove_coupled_square(
         ``delays`` not a window, or ``max_boxes`` not a positive integer.
     """
     max_boxes = positive_int("max_boxes", max_boxes)
+    gain_error = nonnegative("gain_error", gain_error)
     if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
         raise ParameterError("system", "a Hyperbolic2x2 with constant couplings (has_exact_form)", system)
     if not isinstance(law, StateFeedback):
@@ -405,7 +413,20 @@ def prove_coupled_square(
                     flint, P, M, time_ratio(flint, system, square), system.q, _gain_bounds(system, law)
                 )
             v0, v1 = v0 + v_g, v1 + v_g
-        W = _frequency_bound(v0, v1, v2, 1 - c_d)
+        # gains within gain_error: their part of I_g is at most its L^1 bound, whatever |z|
+        off = error_radius(flint, P, M, system.q, gain_error) if gain_error else arb(0)
+        if not c_d + off < 1:
+            return SquareProof(
+                False,
+                f"the gains' error bound {gain_error:.3g} leaves no margin to the strong stability of the difference "
+                "operator",
+                taus,
+                nan,
+                ball_upper(c_d),
+                0,
+                nan,
+            )
+        W = _frequency_bound(v0, v1, v2, 1 - c_d - off)
         if base is None:
             return SquareProof(
                 False,
@@ -418,7 +439,7 @@ def prove_coupled_square(
                 0,
                 nan,
             )
-        boxes, stuck = _clear(system, law, square, W, d_lo, d_hi, max_boxes)
+        boxes, stuck = _clear(system, law, square, W, d_lo, d_hi, max_boxes, gain_error)
     if stuck is not None:
         (w0, w1, (a0, a1, b0, b1)), small = stuck
         point = (0.5 * (a0 + a1), 0.5 * (b0 + b1))
@@ -462,8 +483,8 @@ def _exact_corner(system: Hyperbolic2x2, law: StateFeedback, corner: tuple[float
 
 
 @lru_cache(maxsize=4096)
-def _box(system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float]) -> _Box:
-    return _Box(system, law, box)
+def _box(system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float], error: float) -> _Box:
+    return _Box(system, law, box, error)
 
 
 def _clear(
@@ -474,6 +495,7 @@ def _clear(
     d_lo: float,
     d_hi: float,
     max_boxes: int,
+    error: float,
 ) -> tuple[int, tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None]:
     """Clear ``[0, W] x`` the square (step 2): the boxes examined, and the box it stopped at (None: cleared)."""
     # lowest frequencies first: a crossing of the family lies there, the high ones only cost boxes
@@ -484,7 +506,7 @@ def _clear(
     while pending:
         w0, _, w1, box = heapq.heappop(pending)
         boxes += 1
-        part = _box(system, law, box)
+        part = _box(system, law, box, error)
         flint = part.flint
         arb = flint.arb
         t_lo, t_hi = part.tau

@@ -30,7 +30,7 @@ kernel widens the enclosures of ``B`` by that much. Derivatives:
   1/(1 - r))``; ``d/dp``, ``d/dm`` act on ``U``, ``V`` only.
 
 Each sup over ``xi, n`` uses ``|0F1(; b; x)| <= 0F1(; b; |kappa| / 4)`` (``|x| <= |kappa| / 4``) and
-``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`_section_bounds`); the gains' sups come from their Taylor
+``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`section_bounds`); the gains' sups come from their Taylor
 models (:func:`_gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``:
 ``|I_g| <= V_g / |z|`` on ``Re z >= 0`` with ``V_g`` the four end values plus ``int |k'|``
 (:func:`gain_variation`).
@@ -52,7 +52,7 @@ from ..loops.exact_gains import _gain_models, _plant, gain_kernel
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_proof import ball_upper
 
-__all__ = ["GainBounds", "gain_bounds", "gain_term", "gain_variation", "time_ratio"]
+__all__ = ["GainBounds", "gain_bounds", "gain_term", "error_radius", "gain_variation", "section_bounds", "time_ratio"]
 
 #: Balls per Taylor-model piece on which the gains' sups are taken.
 _SUBBALLS = 8
@@ -99,7 +99,7 @@ def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBo
     return GainBounds(u0, u1, ue, v0, v1, ve)
 
 
-def _section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any, Any, Any]]:
+def section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any, Any, Any]]:
     """For ``U`` and ``V`` (module notes): sups of ``|.|``, ``|d/dn|``, ``|d/dp|``, ``|d/dm|`` over
     ``0 <= n <= xi <= 1`` and every ``(p, m)`` of the balls."""
     arb = flint.arb
@@ -124,6 +124,18 @@ def _section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any
     return {"U": u, "V": v}
 
 
+def error_radius(flint: Any, P: Any, M: Any, q: float, error: float) -> Any:
+    """The ``L^1`` norm of ``k`` for gains ``e_u``, ``e_v`` with ``|e_u|, |e_v| <= error``, on the balls:
+    ``error (1 + |q| + sup |U| + sup |V|)`` (the first two terms of ``k`` are ``e`` moved and scaled, of ``L^1``
+    norm ``int |e_v|`` and ``|q| int |e_u|``; the third is at most ``error (sup |U| + sup |V|)`` on a set of
+    ``(t, xi)`` of measure at most 1)."""
+    arb = flint.arb
+    if error == 0.0:
+        return arb(0)
+    sec = section_bounds(flint, P, M, q)
+    return arb(error) * (1 + abs(arb(q)) + sec["U"][0] + sec["V"][0])
+
+
 def time_ratio(flint: Any, system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> Any:
     """The ball of ``r = lam' / (lam' + mu')`` over a box of relative speed errors (increasing in
     ``lam'``, decreasing in ``mu'``: its ends at the box's corners)."""
@@ -136,7 +148,7 @@ def time_ratio(flint: Any, system: Hyperbolic2x2, box: tuple[float, float, float
 
 def _lipschitz(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> tuple[Any, Any, Any]:
     """``(L_p, L_m, L_r)``: bounds of the ``L^1`` norms of ``dk/dp``, ``dk/dm``, ``dk/dr`` on the balls (notes)."""
-    sec = _section_bounds(flint, P, M, q)
+    sec = section_bounds(flint, P, M, q)
     (us, un, up, um), (vs, vn, vp, vm) = sec["U"], sec["V"]
     h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
     lp, lm = g.u0 * up + g.v0 * vp, g.u0 * um + g.v0 * vm
@@ -152,7 +164,7 @@ def gain_variation(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) 
     """``V_g``: ``|int_0^1 k(t) e^{-z t} dt| <= V_g / |z|`` on ``Re z >= 0`` for every ``(p, m, r)`` of the balls
     (integration by parts on ``[0, r]`` and ``[r, 1]``: the module notes)."""
     arb = flint.arb
-    sec = _section_bounds(flint, P, M, q)
+    sec = section_bounds(flint, P, M, q)
     (us, un, _, _), (vs, vn, _, _) = sec["U"], sec["V"]
     h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
     r_lo, r_hi = arb(R.lower()), 1 - arb(R.upper())
@@ -173,12 +185,15 @@ def gain_term(
     P: Any,
     M: Any,
     bounds: GainBounds,
+    error: float = 0.0,
 ) -> tuple[DistributedDelay, float] | None:
     """``k`` (module notes) for every speed error of ``box``: the kernel of the box's middle plant on
     ``[0, 1]`` with an ``L^1`` radius holding every kernel of the box, and ``V_g`` of the box.
 
     Returns None when both gains are zero. The radius is an ``L^1`` bound: valid for the integral against
     ``e^{-z t}`` on ``Re z = 0`` only (where :mod:`~nrobust.hyperbolic.analyses.mismatch_coupled` evaluates).
+    With ``error > 0`` it holds the kernels of every pair of gains within ``error`` of ``g_u``, ``g_v``
+    (:func:`error_radius`).
     """
     arb = flint.arb
     a0, a1, b0, b1 = box
@@ -208,7 +223,7 @@ def gain_term(
     delta = 2.0**-52
     sizes = float(np.abs(coefs).sum())
     slack = 4.0 * (DEGREE + 2) * delta * sizes + 4.0 * float(np.finfo(float).eps) * sizes
-    radius = ball_upper(arb(kernel.radius) * arb(tau) + spread) + slack
+    radius = ball_upper(arb(kernel.radius) * arb(tau) + spread + error_radius(flint, P, M, system.q, error)) + slack
     variation = gain_variation(flint, P, M, R, system.q, bounds)
     return (
         DistributedDelay(scaled, None, interpolation="polynomial", coefficients=coefs, radius=radius),
