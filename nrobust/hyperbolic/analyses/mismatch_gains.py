@@ -45,10 +45,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._flint import precision
 from ...errors import CertificationError
 from ...quasipoly import DistributedDelay
-from ..loops.exact_form import DEGREE
-from ..loops.exact_gains import _gain_models, _plant, gain_kernel
+from ..loops.exact_form import DEGREE, PRECISION
+from ..loops.exact_gains import ORDER, _gain_models, _plant, gain_kernel
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_proof import ball_upper
 
@@ -76,23 +77,29 @@ class GainBounds:
 def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBounds:
     """The sups of the gains and of their derivatives, from their Taylor models
     (:mod:`~nrobust.hyperbolic.loops.exact_gains`: a polynomial on each piece within a proven remainder,
-    and the remainder of its derivative)."""
-    arb = flint.arb
+    and the remainder of its derivative), at the precision of ``exact_gains`` (the models' global
+    coefficients cancel); each model is taken back to its local variable ``t`` (``xi = c + r t``,
+    ``|t| <= 1``) before it is evaluated on balls (no cancellation there)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
     plant = _plant(system)
-    n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
-    out = []
-    for mod in (mod_u, mod_v):
-        sup0, sup1 = arb(0), arb(0)
-        for j in range(n):
-            poly, slope = mod.polys[j], mod.polys[j].derivative()
-            half = 1 / arb(2 * n)  # xi = c + r t with r = 1/(2 n) + widen: d/dxi = (1/r) d/dt, 1/r < 2 n
-            for i in range(_SUBBALLS):
-                lo = (j + i / _SUBBALLS) / n
-                xi = arb(lo + 0.5 / (n * _SUBBALLS), 0.5 / (n * _SUBBALLS))
-                sup0 = arb.max(sup0, abs(poly(xi)) + mod.remainder[j])
-                sup1 = arb.max(sup1, abs(slope(xi)) + mod.derivative[j] / half)
-        ends = (abs(mod.polys[0](arb(0))) + mod.remainder[0], abs(mod.polys[-1](arb(1))) + mod.remainder[-1])
-        out.append((sup0, sup1, ends))
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + ORDER * 7 + 64
+    with precision(flint, bits):
+        n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
+        out = []
+        for mod in (mod_u, mod_v):
+            sup0, sup1 = arb(0), arb(0)
+            for j in range(n):
+                c, r = arb(2 * j + 1) / (2 * n), 1 / arb(2 * n)  # the piece [j/n, (j+1)/n]: t in [-1, 1]
+                local = mod.polys[j](arb_poly([c, r]))
+                slope = local.derivative()
+                for i in range(_SUBBALLS):
+                    t = arb(-1 + (2 * i + 1) / _SUBBALLS, 1 / _SUBBALLS)
+                    sup0 = arb.max(sup0, abs(local(t)) + mod.remainder[j])
+                    # d/dxi = (1/r) d/dt; the remainder's derivative is bounded in the model's own t (a radius
+                    # above 1/(2n)): at most 2 n times it in xi
+                    sup1 = arb.max(sup1, (abs(slope(t)) + mod.derivative[j]) * (2 * n))
+            ends = (abs(mod.polys[0](arb(0))) + mod.remainder[0], abs(mod.polys[-1](arb(1))) + mod.remainder[-1])
+            out.append((sup0, sup1, ends))
     (u0, u1, ue), (v0, v1, ve) = out
     if not all(x.is_finite() for x in (u0, u1, v0, v1, *ue, *ve)):
         raise CertificationError("the gains' Taylor models give no finite bound on [0, 1]")
