@@ -644,8 +644,10 @@ class SpeedTolerance:
         ``certified`` is ``"proven on the square"``).
     certified : str
         What is certified: ``"proven on the square"`` (every mismatch of the square and every
-        delay of the window, in ball arithmetic, on an uncoupled plant with ``rigorous=True``:
-        :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square`),
+        delay of the window, in ball arithmetic, with ``rigorous=True``:
+        :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square` on an uncoupled
+        plant, :func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square` on a coupled
+        one with constant couplings),
         ``"proven at the corners"`` or ``"checked at the corners"`` (the other points checked,
         the square between the points not certified), or ``"not met"``.
     statement : str
@@ -839,9 +841,13 @@ def speed_tolerance(
     "proven on the square"``. When that proof stops at a box, the mismatch of that box is
     checked in floating point and joins :attr:`SpeedTolerance.points`: refuted there, the
     tolerance is ``"not met"``; otherwise the corners' certificate stands and
-    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant (the
-    kernel route: the loops are models whose dependence on the speeds has no proven enclosure)
-    the corners' certificate is all there is.
+    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant with
+    constant couplings and ``rigorous=True`` the square is proven the same way for ``U = k u(t, 1)``,
+    ``U_BS2(K)``, ``U_BS`` and a ``StateFeedback`` whose gains evaluate in ball arithmetic
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``U_BS2(K)``'s kernel
+    traces enclosed by :func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`, the
+    corners of the square then proven again on the exact loop of the enclosed law); a filtered law
+    or varying couplings keep the corners' certificate only.
 
     Parameters
     ----------

@@ -1,5 +1,11 @@
 """The square of speed mismatches proven on a coupled plant with constant couplings: :func:`prove_coupled_square`.
 
+The notes below are for ``U = k u(t, 1)``; a law with integral gains fixed whatever the speeds (a
+:class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`, ``U_BS2(K)`` with its traces enclosed) adds
+``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` in step 1
+(:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains known within ``gain_error`` widen it by their
+``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
+
 The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
 no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
 (18)-(20) transporting at ``lam' = lam (1 + e_lam)`` and ``mu' = mu (1 + e_mu)``. Its loop is exact
