@@ -704,7 +704,7 @@ def _square_scope(
             "certified"
         )
     if not rigorous:
-        return "rigorous=True proves it (a proportional law: the loop is the PDE itself)"
+        return "rigorous=True proves it (in ball arithmetic, on the loop of the PDE itself)"
     return None
 
 

@@ -77,20 +77,22 @@ def _fit(gain: Any) -> ChebyshevGain:
     return ChebyshevGain(tuple(float(c) for c in coefs))
 
 
-def _pieces(kernel: DistributedDelay) -> list[tuple[float, float, Any]]:
-    """``(start, end, coefficients in the piece's local variable)`` of a polynomial kernel."""
+def _pieces(kernel: DistributedDelay) -> list[tuple[float, float, float, Any]]:
+    """``(start, end, length, coefficients)`` of each piece of a polynomial kernel: ``N(start + length t) =
+    sum_l c_l t^l`` on ``[start, end]`` (the nodes as stored, the length as the ball evaluation takes it)."""
     if kernel.moment != 0 or not np.array_equal(np.asarray(kernel.poly), [1.0]):
         raise CertificationError("a kernel with a polynomial factor or moment: not a kernel of the exact forms")
     start, h, coefs = kernel.pieces
-    return [(float(a), float(a + w), c) for a, w, c in zip(start, h, coefs)]
+    nodes = np.asarray(kernel.nodes, dtype=float)
+    return [(float(a), float(b), float(w), c) for a, b, w, c in zip(start, nodes[1:], h, coefs)]
 
 
-def _on(flint: Any, pieces: list[tuple[float, float, Any]], lo: float, hi: float, factor: float) -> Any:
+def _on(flint: Any, pieces: list[tuple[float, float, float, Any]], lo: float, hi: float, factor: float) -> Any:
     """``factor`` times the piece covering ``[lo, hi]`` as an ``arb_poly`` in ``t``, ``theta = lo + (hi - lo) t``."""
     arb, arb_poly = flint.arb, flint.arb_poly
-    for a, b, c in pieces:
+    for a, b, h, c in pieces:
         if a <= lo and hi <= b:
-            local = arb_poly([(arb(lo) - arb(a)) / (arb(b) - arb(a)), (arb(hi) - arb(lo)) / (arb(b) - arb(a))])
+            local = arb_poly([(arb(lo) - arb(a)) / arb(h), (arb(hi) - arb(lo)) / arb(h)])
             return arb_poly([arb(float(v)) * factor for v in c])(local)
     raise CertificationError("the kernels' pieces do not cover [0, tau]")
 
@@ -103,7 +105,7 @@ def _residual(flint: Any, fitted: DistributedDelay, K: float, u_tilde: Distribut
     if n_tilde is not None:
         parts.append((_pieces(n_tilde), -1.0))
         radius += arb(n_tilde.radius)
-    cuts = sorted({x for pieces, _ in parts for a, b, _ in pieces for x in (a, b)})
+    cuts = sorted({x for pieces, _ in parts for a, b, _, _ in pieces for x in (a, b)})
     sup = arb(0)
     for lo, hi in itertools.pairwise(cuts):
         diff = sum((_on(flint, pieces, lo, hi, f) for pieces, f in parts), flint.arb_poly(0))
