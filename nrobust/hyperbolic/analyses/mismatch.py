@@ -70,7 +70,7 @@ from ..loops.exact_gains import gain_failure
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
-from .mismatch_coupled import MAX_COUPLED_BOXES, prove_coupled_square
+from .mismatch_coupled import MAX_COUPLED_BOXES, MAX_GAIN_BOXES, prove_coupled_square
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
 from .mismatch_traces import reflection_traces
 
@@ -875,7 +875,9 @@ def speed_tolerance(
         Work bound of the square's proof: boxes of ``(w, tau)`` on an uncoupled plant
         (default :data:`~nrobust.hyperbolic.analyses.mismatch_proof.MAX_SQUARE_BOXES`), of
         ``(tau w, e_lam, e_mu)`` on a coupled one (default
-        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_COUPLED_BOXES`, each box far dearer).
+        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_COUPLED_BOXES`, each box far dearer;
+        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_GAIN_BOXES` for ``U_BS2(K)``, ``U_BS`` and a
+        ``StateFeedback`` with integral gains, dearer again).
 
     Returns
     -------
@@ -903,7 +905,14 @@ def speed_tolerance(
     kernel_grid = check_kernel_grid(kernel_grid)
     max_evals = positive_int("max_evals", max_evals)
     if max_boxes is None:
-        max_boxes = MAX_SQUARE_BOXES if system.uncoupled else MAX_COUPLED_BOXES
+        if system.uncoupled:
+            max_boxes = MAX_SQUARE_BOXES
+        elif isinstance(controller, (ReflectionController, FiniteTimeController)) or (
+            isinstance(controller, StateFeedback) and _integral_gains(controller)
+        ):
+            max_boxes = MAX_GAIN_BOXES
+        else:
+            max_boxes = MAX_COUPLED_BOXES
     max_boxes = positive_int("max_boxes", max_boxes)
     if corner_windows is not None and (
         len(corner_windows) != 4

@@ -87,11 +87,15 @@ from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variation, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
 
-__all__ = ["MAX_COUPLED_BOXES", "prove_coupled_square"]
+__all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
 
 #: Default work bound of :func:`prove_coupled_square`: a box costs a ball evaluation of the closed-form
 #: series (about 14 ms), so 5,000 boxes stop an undecided proof within about a minute and a half.
 MAX_COUPLED_BOXES = 5_000
+#: Default work bound of :func:`~nrobust.hyperbolic.analyses.speed_tolerance` on a coupled plant under a law with
+#: integral gains (``U_BS2(K)``, ``U_BS``): a box of speeds costs the gains' kernel of its middle plant as well
+#: (about 0.1 s of CPU, 0.4 s on a loaded core), so 400 boxes stop an undecided proof within a few minutes.
+MAX_GAIN_BOXES = 400
 #: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
 _PIECES = 16
 #: Balls covering ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are bounded (:func:`_scaled_kernel`).
