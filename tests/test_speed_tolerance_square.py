@@ -117,15 +117,16 @@ def test_square_needs_a_strongly_stable_difference_operator() -> None:
     assert math.isnan(result.frequency_bound)
 
 
-def test_coupled_plant_keeps_the_corners() -> None:
-    """A kernel-route loop (U_BS2's kernel gains on a coupled plant): the corners' certificate only, and why."""
+def test_coupled_plant_proves_the_square_of_reflection() -> None:
+    """U_BS2's kernel gains on a coupled plant: the corners' loops are kernel-route models, the square is proven
+    on the PDE with the traces enclosed (``reflection_traces``; the traces fitted from 21 kernel points, their
+    bound proven whatever the grid)."""
     coupled = Hyperbolic2x2(1.0, 1.0, 0.2, 0.2, 0.5, 0.5)
     result = speed_tolerance(
         coupled, ReflectionController(0.1), 0.05, (0.0, 0.5), grid=2, kernel_grid=21, rigorous=True
     )
-    assert result.met and result.certified == "proven at the corners" and result.route == "kernels"
-    assert "the law's integral gains" in result.statement
-    assert "only the corners are certified" in result.statement and "model of the PDE" in result.scope
+    assert result.met and result.certified == "proven on the square" and result.route == "kernels"
+    assert "kernel traces" in result.statement and "model of the PDE" in result.scope
     with pytest.raises(ParameterError, match="system"):
         prove_transport_square(coupled, 0.1, None, 0.05, (0.0, 0.5), [])
 

@@ -55,6 +55,7 @@ from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, 
 from ..loops.controllers import (
     Controller,
     FilteredController,
+    FiniteTimeController,
     OpenLoop,
     OutputFeedback,
     ReflectionController,
@@ -65,11 +66,13 @@ from ..loops.controllers import (
     unfiltered,
 )
 from ..loops.exact_form import has_exact_form
+from ..loops.exact_gains import gain_failure
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
-from .mismatch_coupled import MAX_COUPLED_BOXES, prove_coupled_square
-from .mismatch_proof import MAX_SQUARE_BOXES, prove_transport_square
+from .mismatch_coupled import MAX_COUPLED_BOXES, MAX_GAIN_BOXES, prove_coupled_square
+from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
+from .mismatch_traces import reflection_traces
 
 __all__ = [
     "JUMP_FRACTION",
@@ -641,8 +644,10 @@ class SpeedTolerance:
         ``certified`` is ``"proven on the square"``).
     certified : str
         What is certified: ``"proven on the square"`` (every mismatch of the square and every
-        delay of the window, in ball arithmetic, on an uncoupled plant with ``rigorous=True``:
-        :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square`),
+        delay of the window, in ball arithmetic, with ``rigorous=True``:
+        :func:`~nrobust.hyperbolic.analyses.mismatch_proof.prove_transport_square` on an uncoupled
+        plant, :func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square` on a coupled
+        one with constant couplings),
         ``"proven at the corners"`` or ``"checked at the corners"`` (the other points checked,
         the square between the points not certified), or ``"not met"``.
     statement : str
@@ -673,16 +678,20 @@ class SpeedTolerance:
 
 
 def _square_scope(
-    system: Hyperbolic2x2, feedback: StateFeedback, filt: tuple[float, float] | None, rigorous: bool
+    system: Hyperbolic2x2,
+    controller: Controller,
+    feedback: StateFeedback,
+    filt: tuple[float, float] | None,
+    rigorous: bool,
 ) -> str | None:
     """Why the square is not proven for this loop (None: :func:`prove_transport_square` or
     :func:`prove_coupled_square` applies)."""
-    if _integral_gains(feedback):
+    if _integral_gains(feedback) and not _enclosed_gains(system, controller, filt):
         where = "the mismatched loops of a coupled plant hold" if not system.uncoupled else "the law has"
         return (
-            f"{where} the law's integral gains (the kernels of the nominal plant), whose dependence on the speeds has "
-            "no proven enclosure here: only the corners are certified (a proportional law U = k u(t, 1) is proven on "
-            "the square)"
+            f"{where} the law's integral gains, which have no proven enclosure here: only the corners are certified "
+            "(on a coupled plant with constant couplings a proportional law U = k u(t, 1), U_BS2(K), U_BS, or a "
+            "StateFeedback whose gains evaluate in ball arithmetic is proven on the square)"
         )
     if not system.uncoupled and not has_exact_form(system):
         return (
@@ -695,8 +704,66 @@ def _square_scope(
             "certified"
         )
     if not rigorous:
-        return "rigorous=True proves it (a proportional law: the loop is the PDE itself)"
+        return "rigorous=True proves it (in ball arithmetic, on the loop of the PDE itself)"
     return None
+
+
+def _coupled_proof(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    feedback: StateFeedback,
+    eps: float,
+    delays: tuple[float, float],
+    corner_loops: list[tuple[QuasiPolynomial, QuasiPolynomial, DelayWindow]],
+    max_boxes: int,
+    kernel_grid: int,
+    max_evals: int,
+) -> tuple[SquareProof, float | None]:
+    """:func:`prove_coupled_square` for the law of ``controller``, and the bound of its gains' error (None: exact).
+
+    ``U_BS2(K)`` (``U_BS``: ``K = rho``) takes the Chebyshev fits of its traces within their proven bound
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`); the corners' loops of that fitted law
+    (exact route) are proven on the window in turn until one is stable, the point the argument starts from.
+    """
+    K = _reflection_gain(controller, system)
+    if K is None:
+        return prove_coupled_square(system, feedback, eps, delays, corner_loops, max_boxes=max_boxes), None
+    nan = math.nan
+    try:
+        law, error = reflection_traces(system, K, kernel_grid)
+    except CertificationError as exc:
+        return SquareProof(
+            False, f"the law's kernel traces are not enclosed: {exc}", (nan, nan), nan, nan, 0, nan
+        ), None
+    fitted = []
+    for a, b in [(a, b) for a in (-eps, eps) for b in (-eps, eps)]:
+        A, B = mismatch_loop(system, law, a, b)
+        try:
+            window = window_stability(A, B, delays, rigorous=True, max_evals=max_evals)
+        except CertificationError:
+            continue
+        fitted.append((A, B, window))
+        if window.stable and window.certified == "proven":
+            break
+    proof = prove_coupled_square(system, law, eps, delays, fitted, max_boxes=max_boxes, gain_error=error)
+    return proof, error
+
+
+def _coupled_text(system: Hyperbolic2x2, controller: Controller, feedback: StateFeedback, traces: float | None) -> str:
+    """The loop a coupled plant's square is proven on, in words."""
+    if traces is not None:
+        return (
+            f"of the coupled plant (N~, U~ and the gains' term in closed form) under {type(controller).__name__}'s "
+            f"law U = {float(feedback.k)!r} u(t, 1) + int g_u u + g_v v dx, its kernel traces g_u, g_v enclosed "
+            f"within {traces:.3g} of Chebyshev polynomials (reflection_traces; the square's proof does not rest on "
+            f"the kernel grid)"
+        )
+    if _integral_gains(feedback):
+        return (
+            f"of the coupled plant (N~, U~ and the gains' term in closed form) under U = k u(t, 1) + int g_u u + "
+            f"g_v v dx, k = {float(feedback.k)!r}"
+        )
+    return f"of the coupled plant (N~ and U~ in closed form) under U = k u(t, 1), k = {float(feedback.k)!r}"
 
 
 def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> tuple[str, str]:
@@ -714,6 +781,26 @@ def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int
     if route == "kernels" and not isinstance(controller, StateFeedback):
         scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
     return route, scope
+
+
+def _reflection_gain(controller: Controller, system: Hyperbolic2x2) -> float | None:
+    """``K`` of ``U_BS2(K)`` (``rho`` for ``U_BS``), None for other controllers."""
+    if isinstance(controller, ReflectionController):
+        return controller.K
+    if isinstance(controller, FiniteTimeController):
+        return system.rho
+    return None
+
+
+def _enclosed_gains(system: Hyperbolic2x2, controller: Controller, filt: tuple[float, float] | None) -> bool:
+    """True when the mismatched loops' integral gains are enclosed on the square: a coupled plant with the closed
+    form, unfiltered, and ``U_BS2(K)``/``U_BS`` (:func:`reflection_traces`) or a ``StateFeedback`` whose gains
+    evaluate in ball arithmetic."""
+    if system.uncoupled or filt is not None or not has_exact_form(system):
+        return False
+    if _reflection_gain(controller, system) is not None:
+        return True
+    return isinstance(controller, StateFeedback) and gain_failure(system, controller.g_u, controller.g_v) is None
 
 
 def _integral_gains(feedback: StateFeedback) -> bool:
@@ -754,9 +841,13 @@ def speed_tolerance(
     "proven on the square"``. When that proof stops at a box, the mismatch of that box is
     checked in floating point and joins :attr:`SpeedTolerance.points`: refuted there, the
     tolerance is ``"not met"``; otherwise the corners' certificate stands and
-    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant (the
-    kernel route: the loops are models whose dependence on the speeds has no proven enclosure)
-    the corners' certificate is all there is.
+    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant with
+    constant couplings and ``rigorous=True`` the square is proven the same way for ``U = k u(t, 1)``,
+    ``U_BS2(K)``, ``U_BS`` and a ``StateFeedback`` whose gains evaluate in ball arithmetic
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``U_BS2(K)``'s kernel
+    traces enclosed by :func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`, the
+    corners of the square then proven again on the exact loop of the enclosed law); a filtered law
+    or varying couplings keep the corners' certificate only.
 
     Parameters
     ----------
@@ -784,7 +875,9 @@ def speed_tolerance(
         Work bound of the square's proof: boxes of ``(w, tau)`` on an uncoupled plant
         (default :data:`~nrobust.hyperbolic.analyses.mismatch_proof.MAX_SQUARE_BOXES`), of
         ``(tau w, e_lam, e_mu)`` on a coupled one (default
-        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_COUPLED_BOXES`, each box far dearer).
+        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_COUPLED_BOXES`, each box far dearer;
+        :data:`~nrobust.hyperbolic.analyses.mismatch_coupled.MAX_GAIN_BOXES` for ``U_BS2(K)``, ``U_BS`` and a
+        ``StateFeedback`` with integral gains, dearer again).
 
     Returns
     -------
@@ -812,7 +905,14 @@ def speed_tolerance(
     kernel_grid = check_kernel_grid(kernel_grid)
     max_evals = positive_int("max_evals", max_evals)
     if max_boxes is None:
-        max_boxes = MAX_SQUARE_BOXES if system.uncoupled else MAX_COUPLED_BOXES
+        if system.uncoupled:
+            max_boxes = MAX_SQUARE_BOXES
+        elif isinstance(controller, (ReflectionController, FiniteTimeController)) or (
+            isinstance(controller, StateFeedback) and _integral_gains(controller)
+        ):
+            max_boxes = MAX_GAIN_BOXES
+        else:
+            max_boxes = MAX_COUPLED_BOXES
     max_boxes = positive_int("max_boxes", max_boxes)
     if corner_windows is not None and (
         len(corner_windows) != 4
@@ -844,7 +944,8 @@ def speed_tolerance(
         )
     else:
         _, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
-        why_not = _square_scope(system, feedback, filt, rigorous)
+        why_not = _square_scope(system, controller, feedback, filt, rigorous)
+    traces: float | None = None
     if met and why_not is None:
         loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
         corner_loops = [(A, B, w) for (A, B), w in zip(loops, windows[:4])]
@@ -852,8 +953,10 @@ def speed_tolerance(
             proof = prove_transport_square(
                 system, feedback.k, filt, eps, (d_lo, d_hi), corner_loops, max_boxes=max_boxes
             )
-        else:  # a proportional law, not filtered (_square_scope): the corners' loops take the exact route
-            proof = prove_coupled_square(system, feedback.k, eps, (d_lo, d_hi), corner_loops, max_boxes=max_boxes)
+        else:  # not filtered, gains enclosed (_square_scope): the corners' loops take the exact route
+            proof, traces = _coupled_proof(
+                system, controller, feedback, eps, (d_lo, d_hi), corner_loops, max_boxes, kernel_grid, max_evals
+            )
         if not proof.proven and not math.isnan(proof.candidate):
             if math.isnan(proof.point[0]):
                 # the mismatch whose round trip is the box's: e_lam = e_mu = e, tau_0 / (1 + e) = tau
@@ -884,7 +987,7 @@ def speed_tolerance(
             f"d = {'1 + ' + repr(float(filt[1])) + ' s' if filt else '1'}, "
             f"n = {'1 + ' + repr(float(filt[0])) + ' s' if filt else '1'}"
             if system.uncoupled
-            else f"of the coupled plant (N~ and U~ in closed form) under U = k u(t, 1), k = {float(feedback.k)!r}"
+            else _coupled_text(system, controller, feedback, traces)
         )
         statement = (
             f"exponentially stable for every (e_lam, e_mu) in [-{float(eps)!r}, {float(eps)!r}]^2 and every delay in "

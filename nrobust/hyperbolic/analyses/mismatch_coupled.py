@@ -1,5 +1,11 @@
 """The square of speed mismatches proven on a coupled plant with constant couplings: :func:`prove_coupled_square`.
 
+The notes below are for ``U = k u(t, 1)``; a law with integral gains fixed whatever the speeds (a
+:class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`, ``U_BS2(K)`` with its traces enclosed) adds
+``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` in step 1
+(:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains known within ``gain_error`` widen it by their
+``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
+
 The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
 no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
 (18)-(20) transporting at ``lam' = lam (1 + e_lam)`` and ``mu' = mu (1 + e_mu)``. Its loop is exact
@@ -69,21 +75,27 @@ from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
 from ..._flint import precision, require_flint, working_precision
-from ..._validate import finite_real, positive_int
+from ..._validate import finite_real, nonnegative, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..loops.controllers import StateFeedback, loop_factors, loop_route
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
+from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variation, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
 
-__all__ = ["MAX_COUPLED_BOXES", "prove_coupled_square"]
+__all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
 
 #: Default work bound of :func:`prove_coupled_square`: a box costs a ball evaluation of the closed-form
 #: series (about 14 ms), so 5,000 boxes stop an undecided proof within about a minute and a half.
 MAX_COUPLED_BOXES = 5_000
+#: Default work bound of :func:`~nrobust.hyperbolic.analyses.speed_tolerance` on a coupled plant under a law with
+#: integral gains (``U_BS2(K)``, ``U_BS``): a box of speeds costs the gains' kernel of its middle plant as well
+#: (about 0.1 s of CPU, 0.4 s on a loaded core), so 400 boxes stop an undecided proof within a few minutes.
+MAX_GAIN_BOXES = 400
 #: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
 _PIECES = 16
 #: Balls covering ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are bounded (:func:`_scaled_kernel`).
@@ -100,8 +112,11 @@ _TAU_SLACK = 2.0**-50
 class _Box:
     """``A1`` and ``B1`` (module notes) for every speed of ``[a0, a1] x [b0, b1]``, in ball arithmetic."""
 
-    def __init__(self, system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> None:
+    def __init__(
+        self, system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float], error: float = 0.0
+    ) -> None:
         self.box = box
+        k = law.k
         flint, P, M, T = _parameters(system, box)
         self.flint = flint
         (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
@@ -110,7 +125,13 @@ class _Box:
         # evaluated, a radius r of a kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
         rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
-        self.B = BallQuasiPolynomial(QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b))
+        B = QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b)
+        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term, an L^1 radius (mismatch_gains)
+            with precision(flint, PRECISION):
+                term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law), error)
+            if term is not None:
+                B = B + QuasiPolynomial([], [], [_negated(term[0])])
+        self.B = BallQuasiPolynomial(B)
         self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
     def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
@@ -118,6 +139,26 @@ class _Box:
         box = (0.0, 0.0, w0, w1)
         centered = w1 > w0
         return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
+
+
+def _has_gains(law: StateFeedback) -> bool:
+    """True when the law has an integral term (a callable or a nonzero gain)."""
+    return any(callable(g) or g != 0.0 for g in (law.g_u, law.g_v))
+
+
+@lru_cache(maxsize=16)
+def _gain_bounds(system: Hyperbolic2x2, law: StateFeedback) -> GainBounds:
+    """The sups of the law's gains (:func:`~nrobust.hyperbolic.analyses.mismatch_gains.gain_bounds`), once per law."""
+    flint = require_flint()
+    with precision(flint, PRECISION):
+        return gain_bounds(flint, system, law.g_u, law.g_v)
+
+
+def _negated(kernel: DistributedDelay) -> DistributedDelay:
+    """``-kernel`` with the same radius (the stored pieces negated exactly)."""
+    return DistributedDelay(
+        kernel.nodes, None, interpolation="polynomial", coefficients=-kernel.pieces[2], radius=kernel.radius
+    )
 
 
 def _point_coefficients(flint: Any, system: Hyperbolic2x2, k: float) -> tuple[float, float, float, float]:
@@ -272,12 +313,13 @@ def _frequency_bound(v0: Any, v1: Any, v2: Any, gap: Any) -> float:
 
 def prove_coupled_square(
     system: Hyperbolic2x2,
-    k: float,
+    law: float | StateFeedback,
     eps: float,
     delays: tuple[float, float],
     corners: Sequence[tuple[QuasiPolynomial, QuasiPolynomial, DelayWindow]],
     *,
     max_boxes: int = MAX_COUPLED_BOXES,
+    gain_error: float = 0.0,
 ) -> SquareProof:
     """Prove ``U = k u(t, 1)`` on ``system`` stable for every speed error of the square and delay of the window.
 
@@ -286,8 +328,11 @@ def prove_coupled_square(
     system : Hyperbolic2x2
         The nominal plant, with constant couplings and the closed form
         (:func:`~nrobust.hyperbolic.loops.exact_form.has_exact_form`).
-    k : float
-        The law's gain on ``u(t, 1)``.
+    law : float or StateFeedback
+        The law: its gain ``k`` on ``u(t, 1)`` (``U = k u(t, 1)``), or a ``StateFeedback(k, g_u, g_v)`` whose
+        integral gains are numbers or callables evaluable in ball arithmetic
+        (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_failure` is None), fixed whatever the speeds
+        (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`).
     eps : float
         The tolerance, ``0 < eps < 1``.
     delays : (float, float)
@@ -295,11 +340,15 @@ def prove_coupled_square(
     corners : sequence of (QuasiPolynomial, QuasiPolynomial, DelayWindow)
         The loops of the corners ``(e_lam, e_mu)`` = ``(-eps, -eps), (-eps, eps), (eps, -eps),
         (eps, eps)`` (:func:`~nrobust.hyperbolic.analyses.mismatch_loop`) and their verdicts; the
-        first that is the exact loop of ``U = k u(t, 1)`` on its corner plant (compared with
+        first that is the exact loop of the law on its corner plant (compared with
         :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`) and proven stable on a window
         meeting ``[d_min, d_max]`` is the point the argument starts from.
     max_boxes : int, optional
         Work bound: boxes of ``(w, e_lam, e_mu)`` examined.
+    gain_error : float, default 0
+        The law's true gains are within this distance of ``law.g_u``, ``law.g_v`` on ``[0, 1]`` (``U_BS2(K)``'s
+        kernel traces: :func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`): the proof holds for
+        every pair of gains that close (the family joins them, its corners' loops those of ``law``).
 
     Returns
     -------
@@ -316,9 +365,12 @@ def prove_coupled_square(
         ``delays`` not a window, or ``max_boxes`` not a positive integer.
     """
     max_boxes = positive_int("max_boxes", max_boxes)
+    gain_error = nonnegative("gain_error", gain_error)
     if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
         raise ParameterError("system", "a Hyperbolic2x2 with constant couplings (has_exact_form)", system)
-    k = finite_real("k", k)
+    if not isinstance(law, StateFeedback):
+        law = StateFeedback(finite_real("law", law))
+    k = law.k
     eps = finite_real("eps", eps)
     if not 0.0 < eps < 1.0:
         raise ParameterError("eps", "in (0, 1) (the perturbed speeds stay positive)", eps)
@@ -334,7 +386,7 @@ def prove_coupled_square(
             and window.certified == "proven"
             and window.delays[0] <= d_hi
             and window.delays[1] >= d_lo
-            and _exact_corner(system, k, corner, A, B)
+            and _exact_corner(system, law, corner, A, B)
         ),
         None,
     )
@@ -362,7 +414,29 @@ def prove_coupled_square(
         except CertificationError as exc:
             return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
         v0, v1, v2 = (a + abs(arb(k)) * b for a, b in zip(v_n, v_u))
-        W = _frequency_bound(v0, v1, v2, 1 - c_d)
+        if _has_gains(law):  # the gains' term: |I_g| <= V_g / |z| (mismatch_gains)
+            failure = gain_failure(system, law.g_u, law.g_v)
+            if failure is not None:
+                return SquareProof(False, f"the law's gains have no exact loop: {failure}", taus, nan, nan, 0, nan)
+            with precision(flint, PRECISION):
+                v_g = gain_variation(
+                    flint, P, M, time_ratio(flint, system, square), system.q, _gain_bounds(system, law)
+                )
+            v0, v1 = v0 + v_g, v1 + v_g
+        # gains within gain_error: their part of I_g is at most its L^1 bound, whatever |z|
+        off = error_radius(flint, P, M, system.q, gain_error) if gain_error else arb(0)
+        if not c_d + off < 1:
+            return SquareProof(
+                False,
+                f"the gains' error bound {gain_error:.3g} leaves no margin to the strong stability of the difference "
+                "operator",
+                taus,
+                nan,
+                ball_upper(c_d),
+                0,
+                nan,
+            )
+        W = _frequency_bound(v0, v1, v2, 1 - c_d - off)
         if base is None:
             return SquareProof(
                 False,
@@ -375,7 +449,7 @@ def prove_coupled_square(
                 0,
                 nan,
             )
-        boxes, stuck = _clear(system, k, square, W, d_lo, d_hi, max_boxes)
+        boxes, stuck = _clear(system, law, square, W, d_lo, d_hi, max_boxes, gain_error)
     if stuck is not None:
         (w0, w1, (a0, a1, b0, b1)), small = stuck
         point = (0.5 * (a0 + a1), 0.5 * (b0 + b1))
@@ -410,28 +484,28 @@ def _corners(eps: float) -> list[tuple[float, float]]:
     return [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
 
 
-def _exact_corner(system: Hyperbolic2x2, k: float, corner: tuple[float, float], A: Any, B: Any) -> bool:
-    """True when ``(A, B)`` is the exact loop of ``U = k u(t, 1)`` on the plant at ``corner``: a point of the family."""
+def _exact_corner(system: Hyperbolic2x2, law: StateFeedback, corner: tuple[float, float], A: Any, B: Any) -> bool:
+    """True when ``(A, B)`` is the exact loop of the law on the plant at ``corner``: a point of the family."""
     plant = dataclasses.replace(system, lam=system.lam * (1.0 + corner[0]), mu=system.mu * (1.0 + corner[1]))
-    law = StateFeedback(k)
     if not has_exact_form(plant) or loop_route(plant, law) != "exact":
         return False
     return bool(loop_factors(plant, law) == (A, B))
 
 
 @lru_cache(maxsize=4096)
-def _box(system: Hyperbolic2x2, k: float, box: tuple[float, float, float, float]) -> _Box:
-    return _Box(system, k, box)
+def _box(system: Hyperbolic2x2, law: StateFeedback, box: tuple[float, float, float, float], error: float) -> _Box:
+    return _Box(system, law, box, error)
 
 
 def _clear(
     system: Hyperbolic2x2,
-    k: float,
+    law: StateFeedback,
     square: tuple[float, float, float, float],
     W: float,
     d_lo: float,
     d_hi: float,
     max_boxes: int,
+    error: float,
 ) -> tuple[int, tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None]:
     """Clear ``[0, W] x`` the square (step 2): the boxes examined, and the box it stopped at (None: cleared)."""
     # lowest frequencies first: a crossing of the family lies there, the high ones only cost boxes
@@ -442,7 +516,7 @@ def _clear(
     while pending:
         w0, _, w1, box = heapq.heappop(pending)
         boxes += 1
-        part = _box(system, k, box)
+        part = _box(system, law, box, error)
         flint = part.flint
         arb = flint.arb
         t_lo, t_hi = part.tau

@@ -1,0 +1,238 @@
+"""The integral term of a law with fixed gains on a coupled plant with mismatched speeds, in ball arithmetic.
+
+A :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback` ``U = k u(t, 1) + int_0^1 g_u u + g_v v dx``
+keeps its gains ``g_u``, ``g_v`` whatever the speeds of the plant it acts on. On the plant (18)-(20) with
+constant couplings its loop is ``B = -(k u_factor + I_g)``
+(:mod:`~nrobust.hyperbolic.loops.exact_gains`), ``I_g = int_0^tau K(theta) e^{-theta s} dtheta``. In the scaled
+frequency ``z = tau s`` of :mod:`~nrobust.hyperbolic.analyses.mismatch_coupled`,
+``I_g = int_0^1 k(t) e^{-z t} dt`` with ``k(t) = tau K(tau t)``, and by the formula of ``K``
+(``t_v = r tau``, ``t_u = (1 - r) tau``)::
+
+    k(t) = G_v(1 - t/r) / r              (t < r)
+         + q G_u((t - r)/(1 - r)) / (1 - r)   (t > r)
+         + int_{xi_0(t)}^1 H(xi, t - r (1 - xi)) dxi,      xi_0 = max(1 - t/r, (t - r)/(1 - r)),
+    H(xi, n) = G_u(xi) U(xi, n) + G_v(xi) V(xi, n),   x = kappa n (xi - n),
+    U = q kappa n 0F1(; 2; x) + p 0F1(; 1; x),   V = kappa (xi - n) 0F1(; 2; x) + m q 0F1(; 1; x),
+
+a function of ``p = sigma_pm / lam'``, ``m = -sigma_mp / mu'`` (``kappa = p m``) and
+``r = t_v / tau = lam' / (lam' + mu')`` alone (``U``, ``V`` are the section's ``U~``, ``V~`` scaled by ``tau``).
+
+:func:`gain_term` encloses ``k`` for every speed of a box: the kernel of a point ``(p_0, m_0, r_0)`` of the
+box (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel` on that plant, rescaled to ``[0, 1]``) within
+an ``L^1`` radius ``L_p |p - p_0| + L_m |m - m_0| + L_r |r - r_0|``: the ``L^1`` norms of the parameter
+derivatives, bounded on the box (:func:`_lipschitz`), independent of the frequency. On ``Re z = 0`` an
+``L^1`` bound of a kernel on ``[0, 1]`` bounds its integral against ``e^{-z t}``, so the radius of the stored
+kernel widens the enclosures of ``B`` by that much. Derivatives:
+
+- ``d/dr`` of the first term has ``L^1`` norm at most ``(sup |G_v'| + sup |G_v|) / r`` inside, plus
+  ``|G_v(0)| / r`` from its moving end; the second ``|q| (sup |G_u'| + 2 sup |G_u|) / (1 - r)`` alike;
+- ``d/dr`` of the third is ``-int (1 - xi) dH/dn dxi - H(xi_0, .) dxi_0/dr`` with ``|dxi_0/dr| <= max(1/r,
+  1/(1 - r))``; ``d/dp``, ``d/dm`` act on ``U``, ``V`` only.
+
+Each sup over ``xi, n`` uses ``|0F1(; b; x)| <= 0F1(; b; |kappa| / 4)`` (``|x| <= |kappa| / 4``) and
+``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`section_bounds`); the gains' sups come from their Taylor
+models (:func:`_gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``:
+``|I_g| <= V_g / |z|`` on ``Re z >= 0`` with ``V_g`` the four end values plus ``int |k'|``
+(:func:`gain_variation`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._flint import precision
+from ...errors import CertificationError
+from ...quasipoly import DistributedDelay
+from ..loops.exact_form import DEGREE, PRECISION
+from ..loops.exact_gains import ORDER, _gain_models, _plant, gain_kernel
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .mismatch_proof import ball_upper
+
+__all__ = ["GainBounds", "gain_bounds", "gain_term", "error_radius", "gain_variation", "section_bounds", "time_ratio"]
+
+#: Balls per Taylor-model piece on which the gains' sups are taken.
+_SUBBALLS = 8
+
+
+@dataclasses.dataclass(frozen=True)
+class GainBounds:
+    """Sups of the effective gains on ``[0, 1]`` (balls' upper bounds, as python-flint ``arb``).
+
+    ``u0 = sup |G_u|``, ``u1 = sup |G_u'|``, ``u_ends = (|G_u(0)|, |G_u(1)|)``, and the same for ``G_v``.
+    """
+
+    u0: Any
+    u1: Any
+    u_ends: tuple[Any, Any]
+    v0: Any
+    v1: Any
+    v_ends: tuple[Any, Any]
+
+
+def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBounds:
+    """The sups of the gains and of their derivatives, from their Taylor models
+    (:mod:`~nrobust.hyperbolic.loops.exact_gains`: a polynomial on each piece within a proven remainder,
+    and the remainder of its derivative), at the precision of ``exact_gains`` (the models' global
+    coefficients cancel); each model is taken back to its local variable ``t`` (``xi = c + r t``,
+    ``|t| <= 1``) before it is evaluated on balls (no cancellation there)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    plant = _plant(system)
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + ORDER * 7 + 64
+    with precision(flint, bits):
+        n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
+        out = []
+        for mod in (mod_u, mod_v):
+            sup0, sup1 = arb(0), arb(0)
+            for j in range(n):
+                c, r = arb(2 * j + 1) / (2 * n), 1 / arb(2 * n)  # the piece [j/n, (j+1)/n]: t in [-1, 1]
+                local = mod.polys[j](arb_poly([c, r]))
+                slope = local.derivative()
+                for i in range(_SUBBALLS):
+                    t = arb(-1 + (2 * i + 1) / _SUBBALLS, 1 / _SUBBALLS)
+                    sup0 = arb.max(sup0, abs(local(t)) + mod.remainder[j])
+                    # d/dxi = (1/r) d/dt; the remainder's derivative is bounded in the model's own t (a radius
+                    # above 1/(2n)): at most 2 n times it in xi
+                    sup1 = arb.max(sup1, (abs(slope(t)) + mod.derivative[j]) * (2 * n))
+            ends = (abs(mod.polys[0](arb(0))) + mod.remainder[0], abs(mod.polys[-1](arb(1))) + mod.remainder[-1])
+            out.append((sup0, sup1, ends))
+    (u0, u1, ue), (v0, v1, ve) = out
+    if not all(x.is_finite() for x in (u0, u1, v0, v1, *ue, *ve)):
+        raise CertificationError("the gains' Taylor models give no finite bound on [0, 1]")
+    return GainBounds(u0, u1, ue, v0, v1, ve)
+
+
+def section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any, Any, Any]]:
+    """For ``U`` and ``V`` (module notes): sups of ``|.|``, ``|d/dn|``, ``|d/dp|``, ``|d/dm|`` over
+    ``0 <= n <= xi <= 1`` and every ``(p, m)`` of the balls."""
+    arb = flint.arb
+    p, m = abs(P).upper(), abs(M).upper()
+    p, m = arb(p), arb(m)
+    Q = abs(arb(q))
+    kap = p * m
+    f1, f2, f3 = (arb(kap / 4).hypgeom_0f1(b) for b in (1, 2, 3))  # 0F1(; b; |kappa|/4) >= |0F1(; b; x)|
+    # x = kappa n (xi - n): |x| <= kappa/4, |dx/dn| <= kappa, |dx/dp| <= m/4, |dx/dm| <= p/4
+    u = (
+        Q * kap * f2 + p * f1,
+        Q * kap * (f2 + kap * f3 / 2) + p * kap * f2,
+        Q * m * (f2 + kap * f3 / 8) + f1 + kap * f2 / 4,
+        Q * p * (f2 + kap * f3 / 8) + p * p * f2 / 4,
+    )
+    v = (
+        kap * f2 + m * Q * f1,
+        kap * (f2 + kap * f3 / 2) + m * Q * kap * f2,
+        m * (f2 + kap * f3 / 8) + m * m * Q * f2 / 4,
+        p * (f2 + kap * f3 / 8) + Q * f1 + kap * Q * f2 / 4,
+    )
+    return {"U": u, "V": v}
+
+
+def error_radius(flint: Any, P: Any, M: Any, q: float, error: float) -> Any:
+    """The ``L^1`` norm of ``k`` for gains ``e_u``, ``e_v`` with ``|e_u|, |e_v| <= error``, on the balls:
+    ``error (1 + |q| + sup |U| + sup |V|)`` (the first two terms of ``k`` are ``e`` moved and scaled, of ``L^1``
+    norm ``int |e_v|`` and ``|q| int |e_u|``; the third is at most ``error (sup |U| + sup |V|)`` on a set of
+    ``(t, xi)`` of measure at most 1)."""
+    arb = flint.arb
+    if error == 0.0:
+        return arb(0)
+    sec = section_bounds(flint, P, M, q)
+    return arb(error) * (1 + abs(arb(q)) + sec["U"][0] + sec["V"][0])
+
+
+def time_ratio(flint: Any, system: Hyperbolic2x2, box: tuple[float, float, float, float]) -> Any:
+    """The ball of ``r = lam' / (lam' + mu')`` over a box of relative speed errors (increasing in
+    ``lam'``, decreasing in ``mu'``: its ends at the box's corners)."""
+    arb = flint.arb
+    a0, a1, b0, b1 = box
+    lo = arb(system.lam) * (1 + arb(a0)) / (arb(system.lam) * (1 + arb(a0)) + arb(system.mu) * (1 + arb(b1)))
+    hi = arb(system.lam) * (1 + arb(a1)) / (arb(system.lam) * (1 + arb(a1)) + arb(system.mu) * (1 + arb(b0)))
+    return lo.union(hi)
+
+
+def _lipschitz(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> tuple[Any, Any, Any]:
+    """``(L_p, L_m, L_r)``: bounds of the ``L^1`` norms of ``dk/dp``, ``dk/dm``, ``dk/dr`` on the balls (notes)."""
+    sec = section_bounds(flint, P, M, q)
+    (us, un, up, um), (vs, vn, vp, vm) = sec["U"], sec["V"]
+    h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
+    lp, lm = g.u0 * up + g.v0 * vp, g.u0 * um + g.v0 * vm
+    r_lo, r_hi = flint.arb(R.lower()), 1 - flint.arb(R.upper())  # r >= r_lo, 1 - r >= r_hi
+    if not (r_lo > 0 and r_hi > 0):
+        raise CertificationError("the ratio of the times of flight leaves (0, 1) on the box")
+    Q = abs(flint.arb(q))
+    lr = (g.v1 + 2 * g.v0) / r_lo + Q * (g.u1 + 2 * g.u0) / r_hi + h_n + h * flint.arb.max(1 / r_lo, 1 / r_hi)
+    return lp, lm, lr
+
+
+def gain_variation(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> Any:
+    """``V_g``: ``|int_0^1 k(t) e^{-z t} dt| <= V_g / |z|`` on ``Re z >= 0`` for every ``(p, m, r)`` of the balls
+    (integration by parts on ``[0, r]`` and ``[r, 1]``: the module notes)."""
+    arb = flint.arb
+    sec = section_bounds(flint, P, M, q)
+    (us, un, _, _), (vs, vn, _, _) = sec["U"], sec["V"]
+    h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
+    r_lo, r_hi = arb(R.lower()), 1 - arb(R.upper())
+    if not (r_lo > 0 and r_hi > 0):
+        raise CertificationError("the ratio of the times of flight leaves (0, 1) on the square")
+    Q = abs(arb(q))
+    ends = (g.v_ends[1] + g.v_ends[0]) / r_lo + Q * (g.u_ends[0] + g.u_ends[1]) / r_hi + 2 * h
+    slopes = g.v1 / r_lo + Q * g.u1 / r_hi + h_n + h * arb.max(1 / r_lo, 1 / r_hi)
+    return ends + slopes
+
+
+def gain_term(
+    flint: Any,
+    system: Hyperbolic2x2,
+    g_u: Any,
+    g_v: Any,
+    box: tuple[float, float, float, float],
+    P: Any,
+    M: Any,
+    bounds: GainBounds,
+    error: float = 0.0,
+) -> tuple[DistributedDelay, float] | None:
+    """``k`` (module notes) for every speed error of ``box``: the kernel of the box's middle plant on
+    ``[0, 1]`` with an ``L^1`` radius holding every kernel of the box, and ``V_g`` of the box.
+
+    Returns None when both gains are zero. The radius is an ``L^1`` bound: valid for the integral against
+    ``e^{-z t}`` on ``Re z = 0`` only (where :mod:`~nrobust.hyperbolic.analyses.mismatch_coupled` evaluates).
+    With ``error > 0`` it holds the kernels of every pair of gains within ``error`` of ``g_u``, ``g_v``
+    (:func:`error_radius`).
+    """
+    arb = flint.arb
+    a0, a1, b0, b1 = box
+    middle = dataclasses.replace(
+        system, lam=system.lam * (1.0 + 0.5 * (a0 + a1)), mu=system.mu * (1.0 + 0.5 * (b0 + b1))
+    )
+    kernel = gain_kernel(middle, g_u, g_v)
+    if kernel is None:
+        return None
+    tau = middle.tau
+    # the point of the kernel: p_0, m_0 exact quotients, r_0 = t_v / tau with t_v on the grid of ulp(tau)
+    ulp = math.ulp(tau)
+    p0 = arb(float(system.sigma_pm)) / arb(middle.lam)  # type: ignore[arg-type]
+    m0 = -arb(float(system.sigma_mp)) / arb(middle.mu)  # type: ignore[arg-type]
+    r0 = arb(round((1.0 / middle.mu) / ulp) * ulp) / arb(tau)
+    R = time_ratio(flint, system, box)
+    P, M, R = P.union(p0), M.union(m0), R.union(r0)
+    lp, lm, lr = _lipschitz(flint, P, M, R, system.q, bounds)
+    spread = lp * abs(P - p0).upper() + lm * abs(M - m0).upper() + lr * abs(R - r0).upper()
+    nodes = np.asarray(kernel.nodes, dtype=float)
+    coefs: NDArray[np.float64] = np.asarray(kernel.pieces[2], dtype=float) * tau
+    scaled = nodes / tau
+    scaled[-1] = 1.0  # tau / tau
+    # the rounded nodes move each point of a piece by at most delta (an affine map of its ends): an L^1 change
+    # of at most delta sup |k'| h <= delta DEGREE sum_l |P_il| inside the piece and 2 delta sup |k| at its
+    # ends; the product by tau rounds each coefficient
+    delta = 2.0**-52
+    sizes = float(np.abs(coefs).sum())
+    slack = 4.0 * (DEGREE + 2) * delta * sizes + 4.0 * float(np.finfo(float).eps) * sizes
+    radius = ball_upper(arb(kernel.radius) * arb(tau) + spread + error_radius(flint, P, M, system.q, error)) + slack
+    variation = gain_variation(flint, P, M, R, system.q, bounds)
+    return (
+        DistributedDelay(scaled, None, interpolation="polynomial", coefficients=coefs, radius=radius),
+        ball_upper(variation),
+    )
