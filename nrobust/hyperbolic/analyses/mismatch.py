@@ -1008,4 +1008,10 @@ def speed_tolerance(
             f"is not proven: {why_not})"
         )
     route, scope = _route_scope(system, controller, kernel_grid)
+    if certified == "proven on the square":  # the statement's loop of the PDE, not the corners' route
+        scope = "the PDE's loop with the speeds in the square, exact in tau s (no kernel grid)" + (
+            f"; the law's gain kernels the fits of their traces, within their proven bound {traces:.1e}"
+            if traces
+            else ""
+        )
     return SpeedTolerance(eps, (d_lo, d_hi), tuple(points), tuple(windows), met, certified, statement, route, scope)

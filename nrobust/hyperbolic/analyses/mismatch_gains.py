@@ -49,7 +49,7 @@ from ..._flint import precision
 from ...errors import CertificationError
 from ...quasipoly import DistributedDelay
 from ..loops.exact_form import DEGREE, PRECISION
-from ..loops.exact_gains import ORDER, _gain_models, _plant, gain_kernel
+from ..loops.exact_gains import ORDER, gain_kernel, gain_models, gain_plant
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_proof import ball_upper
 
@@ -81,10 +81,10 @@ def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBo
     coefficients cancel); each model is taken back to its local variable ``t`` (``xi = c + r t``,
     ``|t| <= 1``) before it is evaluated on balls (no cancellation there)."""
     arb, arb_poly = flint.arb, flint.arb_poly
-    plant = _plant(system)
+    plant = gain_plant(system)
     bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + ORDER * 7 + 64
     with precision(flint, bits):
-        n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
+        n, mod_u, mod_v = gain_models(flint, plant, g_u, g_v)
         out = []
         for mod in (mod_u, mod_v):
             sup0, sup1 = arb(0), arb(0)

@@ -109,7 +109,8 @@ class _Plant:
     weight: float  # E = L (a - d) / (lam + mu)
 
 
-def _plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> _Plant:
+def gain_plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> _Plant:
+    """The numbers of ``system`` the gains' models are built from (``tau``, ``1/mu``, the exact ratios, ``q``, ...)."""
     if not has_exact_form(system):
         raise ParameterError("system", "a plant with constant coefficients (has_exact_form)", system)
     tau, _, _, q, _, _ = closed_form_parameters(system)
@@ -149,7 +150,7 @@ def gain_kernel(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any
         A gain that cannot be enclosed in ball arithmetic to double precision
         (:func:`gain_failure` gives the reason).
     """
-    plant = _plant(system)
+    plant = gain_plant(system)
     for name, g in (("g_u", g_u), ("g_v", g_v)):
         feedback_gain(name, g, plant.length)
     return _cached(plant, g_u, g_v)
@@ -270,7 +271,7 @@ def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str) -> _Models:
     return out
 
 
-def _gain_models(flint: Any, plant: _Plant, g_u: Any, g_v: Any) -> tuple[int, _Models, _Models]:
+def gain_models(flint: Any, plant: _Plant, g_u: Any, g_v: Any) -> tuple[int, _Models, _Models]:
     """Models of both gains on a common partition, refined until their remainders reach double precision."""
     arb = flint.arb
     n = 4
@@ -413,7 +414,7 @@ def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
         arb, arb_poly = flint.arb, flint.arb_poly
         T, Tv = arb(plant.tau), arb(n_v * ulp)
         Tu = T - Tv
-        n, mod_u, mod_v = _gain_models(flint, plant, g_u, g_v)
+        n, mod_u, mod_v = gain_models(flint, plant, g_u, g_v)
         if min(n_v, n_tau - n_v) < 4 * n:
             raise CertificationError("exact_gains: t_v or t_u is too short against tau for a grid of ulp(tau)")
         sec_u, sec_v = _sections(flint, plant, T, Tv, Tu)
