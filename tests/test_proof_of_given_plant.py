@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import nrobust as nr
-from nrobust.hyperbolic import Hyperbolic2x2, ReflectionController, StateFeedback
+from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, StateFeedback
 from nrobust.hyperbolic.loops.controllers import loop_factors
 from nrobust.hyperbolic.loops.exact_form import exact_ratios
 from nrobust.hyperbolic.loops.given_plant import (
@@ -58,12 +58,14 @@ def _fundamental(args, s):
 
 
 def _factors(args, controller, s):
-    """``(A, B)`` of the PDE's loop at ``s``: U_BS2(K) by Theorem 4, ``U = k u(t, 1)`` by the boundary condition."""
+    """``(A, B)`` of the PDE's loop at ``s``: U_BS, U_BS2(K) (Theorem 4), ``U = k u(t, 1)`` (the boundary condition)."""
     rho, q = mp.mpf(args[5]), mp.mpf(args[4])
     zu, zv, tau = _fundamental(args, s)
     A = zv - rho * zu  # e^{-s/mu} (v(1) - rho u(1)) / v(0): the open loop 1 - Phi
     if isinstance(controller, StateFeedback):
         return A, -mp.mpf(controller.k) * zu
+    if isinstance(controller, FiniteTimeController):  # U_BS: B = Phi = 1 - A
+        return A, 1 - A
     round_trip = q * mp.exp(-s * tau)
     return A, mp.mpf(controller.K) * round_trip - (A - 1 + rho * round_trip)  # K q e^{-tau s} - I_N
 
@@ -253,6 +255,8 @@ def test_a_root_within_rounding_of_the_contour_is_not_counted_on_it():
         return sum(region[0] < z.real < region[1] and region[2] < z.imag < region[3] for z in zeros)
 
     moved = nr.count_roots(F0, box, rigorous=True, balls=balls)
+    with pytest.raises(nr.ParameterError, match="balls"):
+        nr.count_roots(F0, box, rigorous=True, balls=F0)
     assert moved.shifted and moved.region[1] > edge and int(moved) == inside(moved.region) == 1
     cert = nr.certify(plant, controller, delta_max=0.1, region=box, rigorous=True, k_region=False)
     status = {c.name: c.status for c in cert.claims}["roots at delta = 0"]
@@ -260,3 +264,17 @@ def test_a_root_within_rounding_of_the_contour_is_not_counted_on_it():
         assert cert.roots_nominal.shifted and cert.roots_nominal.count == inside(cert.roots_nominal.region) == 1
     else:
         assert any(u.startswith("roots at delta = 0") for u in cert.unproven)
+
+
+def test_the_instability_witness_holds_for_the_plant_as_given():
+    """U_BS on ``(3, 7)``: ``2 |rho q| > 1``, so zeros in ``Re s > 0`` at ``delta_max``; the witness box
+    proven on the plant's own loop holds as many zeros of the exact-tau loop (argument principle at 40 digits)."""
+    from nrobust.reports.certificate import _unstable_witness
+
+    args, controller, delta_max = PLANTS[1], FiniteTimeController(), 0.1
+    plant = Hyperbolic2x2(*args)
+    cert = nr.certify(plant, controller, delta_max=delta_max, rigorous=True, k_region=False)
+    assert {c.name: c.status for c in cert.claims}["instability at delta_max"] == PROVEN
+    Fd = nr.characteristic(plant, controller, delta_max)
+    box, n = _unstable_witness(Fd, True, given_plant_balls(plant, controller, delta_max))
+    assert box[0] > 0.0 and n == _winding(_loop(args, controller, delta_max), box) >= 1

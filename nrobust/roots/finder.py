@@ -426,6 +426,8 @@ def find_roots(
         if seeds is None
         else number_array("seeds", seeds, ndim=None, min_size=0).astype(complex).ravel()
     )
+    if balls is not None and not isinstance(balls, BallFunction):
+        raise ParameterError("balls", "a BallFunction (nrobust.balls) or None", type(balls).__name__)
     rigorous = check_rigorous(F, rigorous)
     finder = Finder(F, box, cluster_tol, Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):

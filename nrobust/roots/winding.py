@@ -23,7 +23,7 @@ from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
 from ..balls import BallFunction, ball_function
-from ..errors import CertificationError
+from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, check_function, check_rigorous, magnitude
@@ -715,6 +715,8 @@ def count_roots(
     box = _check_region(region)
     max_evals = positive_int("max_evals", max_evals)
     max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
+    if balls is not None and not isinstance(balls, BallFunction):
+        raise ParameterError("balls", "a BallFunction (nrobust.balls) or None", type(balls).__name__)
     budget = Budget(max_evals)
     if check_rigorous(F, rigorous):
         enclosure = ball_function(F, prec) if balls is None else balls
