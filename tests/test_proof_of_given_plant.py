@@ -10,6 +10,11 @@ No plant was found whose old ball (the loop with ``tau`` rounded) misses the PDE
 the margin moves by ``|tau_d / tau - 1| <= 2^-53`` relative, 1e-3 of the proven balls'
 widths (1e-14 to 1e-12 relative), and the PDE's margin sits near their middle. The map itself
 is therefore tested directly: each mapped end contains the exact scaled value.
+
+Root counts in a rectangle do not map: they are proven on the plant's own loop
+(``given_plant_balls``), and checked here by the argument principle on the exact-tau loop at 40
+digits (the argument unwrapped on samples turning by less than a radian each) and by the
+40-digit roots in their proven boxes.
 """
 
 from __future__ import annotations
