@@ -50,7 +50,7 @@ from ..hyperbolic.loops.controllers import (
     loop_scope,
     normalize,
 )
-from ..hyperbolic.loops.given_plant import given_plant_scale, to_given_plant
+from ..hyperbolic.loops.given_plant import GivenPlantBalls, given_plant_balls, given_plant_scale, to_given_plant
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from ..margins.margin import DelayMargin
@@ -356,13 +356,16 @@ def _representation(system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Co
     return f"N~ the cubic spline of the kernels on the kernel grid ({grid} points)"
 
 
-def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float, float, float, float], int] | None:
+def _unstable_witness(
+    Fd: QuasiPolynomial, rigorous: bool, balls: GivenPlantBalls | None = None
+) -> tuple[tuple[float, float, float, float], int] | None:
     """A box in ``Re s > 0`` holding zeros of ``F(s; delta_max)`` (count and box), or None.
 
     The roots of a neutral loop approach the chains of its difference operator (each chain
     ``Re s = c``, ``Im s = offset + k spacing``): a box of half-width ``min(c/2, 0.1)`` and
     half-height 1 about a chain point with ``c > 0`` is counted (in ball arithmetic with
-    ``rigorous``); a positive count proves the loop unstable.
+    ``rigorous``: on the plant's own loop when ``balls``, :func:`given_plant_balls`, is
+    given); a positive count proves the loop unstable.
     """
     try:
         chains = Fd.principal_part().chains().chains
@@ -374,7 +377,7 @@ def _unstable_witness(Fd: QuasiPolynomial, rigorous: bool) -> tuple[tuple[float,
         r = min(0.5 * chain.real, 0.1)
         box = (chain.real - r, chain.real + r, im - 1.0, im + 1.0)
         try:
-            n = count_roots(Fd, box, rigorous=rigorous)
+            n = count_roots(Fd, box, rigorous=rigorous, balls=balls)
         except CertificationError:
             continue
         if int(n) > 0 and n.region[0] > 0.0:
@@ -665,15 +668,16 @@ class Certificate:
 
     @property
     def _counts_scope(self) -> str:
-        """The root counts' exception to a scope of the plant as given: ``tau`` not a double."""
+        """How the proofs reach the plant as given when ``tau`` is not a double (:func:`given_plant_scale`)."""
         r = given_plant_scale(self.system, self.controller, self.kernel_grid)
         if r is None or r == 1:
             return ""
         return (
-            " The root counts (roots at delta = 0 and at delta_max, instability at delta_max) are proven for the "
-            f"loop with tau the double {self.system.tau!r} (relative change {float(abs(r - 1)):.1e}); the delay "
-            "margin, its crossing, the spectral abscissa and the Rouché range are mapped from it to tau = 1/lam + "
-            "1/mu exactly."
+            f" The loop is built with tau the double {self.system.tau!r} (relative change {float(abs(r - 1)):.1e} "
+            "from tau = 1/lam + 1/mu): the delay margin, its crossing, the spectral abscissa and the Rouché range "
+            "are mapped from it to tau exactly, and the root counts marked proven (roots at delta = 0 and at "
+            "delta_max, instability at delta_max) are proven on the plant's own loop A(r s) + B(r s) e^{-delta s}, "
+            "r = tau / tau_d in a ball: both hold for the plant as given."
         )
 
     # ------------------------------------------------------------------ verdicts
@@ -868,8 +872,15 @@ def certify(
     # slower, and cost more CPU time, when BLAS threads compete for the cores
     with threadpool_limits(1):
         unproven: list[str] = []
-        roots0 = _prove("roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r))
-        rootsd = _prove("roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r))
+        # tau not a double: the counts are proven on the plant's own loop (given_plant_balls), else on F0, Fd
+        balls0 = given_plant_balls(system, controller, 0.0, kernel_grid) if rigorous else None
+        ballsd = given_plant_balls(system, controller, delta_max, kernel_grid) if rigorous else None
+        roots0 = _prove(
+            "roots at delta = 0", rigorous, unproven, lambda r: find_roots(F0, box, rigorous=r, balls=balls0)
+        )
+        rootsd = _prove(
+            "roots at delta_max", rigorous, unproven, lambda r: find_roots(Fd, box, rigorous=r, balls=ballsd)
+        )
         abscissa = _prove(
             "spectral abscissa",
             rigorous,
@@ -932,7 +943,7 @@ def certify(
             rouche,
             kreg,
             delta_max,
-            _unstable_witness(Fd, rigorous) if margin.margin <= delta_max else None,
+            _unstable_witness(Fd, rigorous, ballsd) if margin.margin <= delta_max else None,
         ),
         model_error=model_error,
         unproven=tuple(unproven),

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._json import fields_dict
 from .._validate import number_array, positive, positive_int
 from .._validate import region as _check_region
-from ..balls import ball_function, krawczyk, require_flint, working_precision
+from ..balls import BallFunction, ball_function, krawczyk, require_flint, working_precision
 from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
@@ -352,6 +352,7 @@ def find_roots(
     max_evals: int = 5_000_000,
     rigorous: bool = False,
     prec: int = 53,
+    balls: BallFunction | None = None,
 ) -> RootSet:
     """All roots of ``F`` in a rectangle, certified complete.
 
@@ -380,6 +381,12 @@ def find_roots(
         the proven winding number of its box (``RootSet.proofs``). Matrices too (ball determinant).
     prec : int, optional
         Working precision in bits of the ball arithmetic.
+    balls : BallFunction, optional
+        With ``rigorous``, the enclosure the proof is made with (default
+        ``ball_function(F, prec)``): the search runs on ``F`` and the result is proven for the
+        function ``balls`` encloses, which ``F`` approximates (e.g. the loop of a plant whose
+        transport time is not a double,
+        :func:`~nrobust.hyperbolic.loops.given_plant.given_plant_balls`).
 
     Returns
     -------
@@ -419,6 +426,8 @@ def find_roots(
         if seeds is None
         else number_array("seeds", seeds, ndim=None, min_size=0).astype(complex).ravel()
     )
+    if balls is not None and not isinstance(balls, BallFunction):
+        raise ParameterError("balls", "a BallFunction (nrobust.balls) or None", type(balls).__name__)
     rigorous = check_rigorous(F, rigorous)
     finder = Finder(F, box, cluster_tol, Budget(max_evals))
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
@@ -431,7 +440,7 @@ def find_roots(
         found = find_counted(finder, total, reg, shifted, extra, method, early)
     if not rigorous:
         return found
-    return prove(F, found, ball_function(F, prec), Budget(max_evals), 4)
+    return prove(F, found, ball_function(F, prec) if balls is None else balls, Budget(max_evals), 4)
 
 
 def find_counted(

@@ -22,8 +22,8 @@ from numpy.typing import ArrayLike, NDArray
 from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
-from ..balls import ball_function
-from ..errors import CertificationError
+from ..balls import BallFunction, ball_function
+from ..errors import CertificationError, ParameterError
 from ..qpmatrix import CharacteristicFunction
 from ..quasipoly import QuasiPolynomial
 from ._common import EPS, ROUNDING, Budget, check_function, check_rigorous, magnitude
@@ -659,6 +659,7 @@ def count_roots(
     max_shifts: int = 4,
     rigorous: bool = False,
     prec: int = 53,
+    balls: BallFunction | None = None,
 ) -> RootCount:
     """Certified number of roots of ``F`` (with multiplicity) in a rectangle.
 
@@ -681,6 +682,10 @@ def count_roots(
         characteristic function through its own enclosure (``F.ball_function(prec)``).
     prec : int, optional
         Working precision in bits of the ball arithmetic (``rigorous=True``).
+    balls : BallFunction, optional
+        With ``rigorous``, the enclosure the count is proven with (default
+        ``ball_function(F, prec)``): the count of the function it encloses, which ``F``
+        approximates (e.g. :func:`~nrobust.hyperbolic.loops.given_plant.given_plant_balls`).
 
     Returns
     -------
@@ -710,9 +715,12 @@ def count_roots(
     box = _check_region(region)
     max_evals = positive_int("max_evals", max_evals)
     max_shifts = positive_int("max_shifts", max_shifts, minimum=0)
+    if balls is not None and not isinstance(balls, BallFunction):
+        raise ParameterError("balls", "a BallFunction (nrobust.balls) or None", type(balls).__name__)
     budget = Budget(max_evals)
     if check_rigorous(F, rigorous):
-        n, reg, shifted = ball_count_with_shifts(ball_function(F, prec), box, max_shifts, budget)
+        enclosure = ball_function(F, prec) if balls is None else balls
+        n, reg, shifted = ball_count_with_shifts(enclosure, box, max_shifts, budget)
         return RootCount(n, reg, shifted, budget.used, rigorous=True)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
         n, reg, shifted = count_with_shifts(Counter(F, budget), box, max_shifts)

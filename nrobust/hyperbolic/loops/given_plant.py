@@ -13,6 +13,13 @@ the user's doubles): delays (``delta*``, crossing delays, the Rouché ``delta_0`
 ``r``, frequencies, real parts and decay rates by ``1/r``, counts in half-planes are unchanged.
 :func:`to_given_plant` applies the map to a proven result, each ball end rounded outward.
 
+Counts in a rectangle are not invariant under the map (the rectangle would scale by ``r``):
+they are proven on the plant's own function. With ``A``, ``B`` the factors of the loop as
+built, the plant's loop at delay ``delta`` is ``A(r s) + B(r s) e^{-delta s}`` (``delta`` the
+double given, exact): :func:`given_plant_balls` encloses it with ``r`` an ``arb`` ball, so a
+winding number, a Krawczyk test or a zero-free piece of contour proven with it holds for
+the plant as given.
+
 The principal gains (``rho q``, ``K q``, ``k q``) are products of doubles: the map applies when
 they are exact (the paper's values), otherwise the proof keeps a scope naming what is rounded
 (:func:`rounded_parts`).
@@ -25,12 +32,16 @@ import math
 from fractions import Fraction
 from typing import Any, TypeVar
 
+from ..._flint import precision, require_flint
+from ...balls import BallFunction, ball_function
 from ...bounds import RoucheDelayBound
 from ...margins.margin import DelayMargin
+from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
-from .controllers import rounded_parts
+from .controllers import characteristic, loop_factors, rounded_parts
+from .exact_form import rational_ball
 
-__all__ = ["given_plant_scale", "rounded_parts", "to_given_plant"]
+__all__ = ["GivenPlantBalls", "given_plant_balls", "given_plant_scale", "rounded_parts", "to_given_plant"]
 
 _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
 
@@ -51,6 +62,79 @@ def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = No
     if rounded_parts(system, controller, kernel_grid):
         return None
     return (Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)) / Fraction(system.tau)
+
+
+class GivenPlantBalls(BallFunction):
+    """Enclosure of ``F(s) = A(r s) + B(r s) e^{-delta s}`` for every ``r`` in a ball (module notes).
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The factors of the loop as built (``B`` None at ``delta = 0``: ``A`` is then the
+        whole loop ``A + B``, whose kernels on equal nodes cancel exactly).
+    delta : float
+        The loop delay of the plant, ``>= 0`` (exact: a double).
+    r : Fraction
+        :func:`given_plant_scale`, enclosed in an ``arb`` ball at the working precision.
+    prec : int
+        Working precision in bits.
+
+    Notes
+    -----
+    ``d^k/ds^k F = r^k A^{(k)}(r s) + e^{-delta s} sum_j C(k, j) r^j B^{(j)}(r s) (-delta)^{k-j}``
+    (Leibniz), each factor enclosed on the ball ``r s``.
+    """
+
+    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial | None, delta: float, r: Fraction, prec: int) -> None:
+        self.flint = require_flint()
+        self.prec = prec
+        self._a = ball_function(A, prec)
+        self._b = None if B is None else ball_function(B, prec)
+        self.max_derivative = min(f.max_derivative for f in (self._a, self._b) if f is not None)
+        with precision(self.flint, prec):
+            self._r = rational_ball(self.flint, r)
+        self._delta = self.flint.arb(float(delta))  # exact
+
+    def _eval(self, s: Any, k: int) -> Any:
+        r, delta = self._r, self._delta
+        x = r * s
+        out = r**k * self._a(x, k)
+        if self._b is None:
+            return out
+        terms = self.flint.acb(0)
+        for j in range(k + 1):
+            terms += math.comb(k, j) * r**j * self._b(x, j) * (-delta) ** (k - j)
+        return out + (-delta * s).exp() * terms
+
+
+def given_plant_balls(
+    system: Any, controller: Any, delta: float = 0.0, kernel_grid: int | None = None, prec: int = 53
+) -> GivenPlantBalls | None:
+    """The ball enclosure of the plant's own loop ``F(s; delta)``, ``tau = 1/lam + 1/mu`` exactly.
+
+    Parameters
+    ----------
+    system, controller, kernel_grid
+        As given to :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`.
+    delta : float, optional
+        The loop delay (``>= 0``).
+    prec : int, optional
+        Working precision in bits.
+
+    Returns
+    -------
+    GivenPlantBalls or None
+        None when :func:`given_plant_scale` is None (the proofs are about the loop as built,
+        its scope says what is rounded) or 1 (the loop as built is the plant's: its own
+        :func:`~nrobust.balls.ball_function` applies).
+    """
+    r = given_plant_scale(system, controller, kernel_grid)
+    if r is None or r == 1:
+        return None
+    if delta == 0.0:
+        return GivenPlantBalls(characteristic(system, controller, 0.0, kernel_grid), None, 0.0, r, prec)
+    A, B = loop_factors(system, controller, kernel_grid)
+    return GivenPlantBalls(A, B, delta, r, prec)
 
 
 def _near(x: Fraction) -> float:
