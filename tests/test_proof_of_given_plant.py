@@ -283,3 +283,27 @@ def test_the_instability_witness_holds_for_the_plant_as_given():
     Fd = nr.characteristic(plant, controller, delta_max)
     box, n = _unstable_witness(Fd, True, given_plant_balls(plant, controller, delta_max))
     assert box[0] > 0.0 and n == _winding(_loop(args, controller, delta_max), box) >= 1
+
+
+def test_the_analysis_as_built_covers_the_plants_delay_range(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``r = tau / tau_d < 1`` (lam, mu = 1, 10): the plant's delays up to ``delta_max`` are those of the loop as
+    built up to ``delta_max / r > delta_max``; the loop as built is analysed that far (:func:`built_delay`) and the
+    mapped result is cut at the plant's ``delta_max`` (analysing only to ``delta_max`` left the plant's delays in
+    ``(r delta_max, delta_max]`` unexamined)."""
+    import nrobust.hyperbolic.analyses.margin as analysis
+
+    plant, law = Hyperbolic2x2(1.0, 10.0, 1.0, 1.0, 1.0, 0.85), ReflectionController(0.1)
+    r = given_plant_scale(plant, law)
+    assert r is not None and r < 1
+    asked: list[float] = []
+    core = analysis.factor_delay_margin
+
+    def spy(A, B, **kwargs):
+        asked.append(kwargs["delta_max"])
+        return core(A, B, **kwargs)
+
+    monkeypatch.setattr(analysis, "factor_delay_margin", spy)
+    m = nr.delay_margin(plant, law, delta_max=0.5, rigorous=True)
+    assert Fraction(asked[0]) * r >= Fraction(0.5)  # the analysis reaches the plant's 0.5
+    assert m.delta_max == 0.5 and m.intervals[-1][1] == 0.5 and m.counts[-1][1] == 0.5
+    assert all(d <= 0.5 for c in m.crossings for d in c.delays)

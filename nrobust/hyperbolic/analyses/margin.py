@@ -34,7 +34,7 @@ from ..loops.controllers import (
     normalize,
     observer_of,
 )
-from ..loops.given_plant import to_given_plant
+from ..loops.given_plant import built_delay, to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
@@ -148,9 +148,12 @@ def delay_margin(
             "transfer function alone (QuasiTransferFunction, DelayLTI, python-control system)",
             type(system).__name__,
         )
-    result = factor_delay_margin(A, B, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
-    if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):  # the proof about the plant as given
-        result = to_given_plant(result, system, controller, kernel_grid)
+    plant = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2))
+    # a proof about the plant as given: the loop as built analysed over the delays that map onto [0, delta_max]
+    built = built_delay(delta_max, system, controller, kernel_grid) if plant and rigorous is True else delta_max
+    result = factor_delay_margin(A, B, delta_max=built, verify=verify, max_evals=max_evals, rigorous=rigorous)
+    if plant:
+        result = to_given_plant(result, system, controller, kernel_grid, delta_max if built != delta_max else None)
     of_model = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and (
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )

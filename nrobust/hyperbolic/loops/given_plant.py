@@ -41,7 +41,14 @@ from ...roots.abscissa import SpectralAbscissa
 from .controllers import characteristic, loop_factors, rounded_parts
 from .exact_form import rational_ball
 
-__all__ = ["GivenPlantBalls", "given_plant_balls", "given_plant_scale", "rounded_parts", "to_given_plant"]
+__all__ = [
+    "GivenPlantBalls",
+    "built_delay",
+    "given_plant_balls",
+    "given_plant_scale",
+    "rounded_parts",
+    "to_given_plant",
+]
 
 _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
 
@@ -165,24 +172,46 @@ def _ball(ball: tuple[float, ...] | None, factor: Fraction) -> Any:
     return tuple(_map(v, factor, _down if i % 2 == 0 else _up) for i, v in enumerate(ball))
 
 
-def _margin(result: DelayMargin, r: Fraction) -> DelayMargin:
+def built_delay(delta_max: float | None, system: Any, controller: Any, kernel_grid: int | None = None) -> float | None:
+    """The delay range of the loop as built whose analysis covers the plant's delays up to ``delta_max``.
+
+    Delays of the plant are those of the loop as built times ``r`` (:func:`given_plant_scale`):
+    when ``r < 1`` the loop as built is analysed up to ``delta_max / r`` (rounded up), so that
+    the mapped analysis reaches ``delta_max``; otherwise up to ``delta_max`` itself (it reaches
+    ``r delta_max >= delta_max``). :func:`to_given_plant` with ``delta_max`` then cuts the mapped
+    result at ``delta_max``.
+    """
+    r = given_plant_scale(system, controller, kernel_grid)
+    if delta_max is None or not math.isfinite(delta_max) or r is None or r >= 1:
+        return delta_max
+    return _up(Fraction(delta_max) / r)
+
+
+def _margin(result: DelayMargin, r: Fraction, delta_max: float | None = None) -> DelayMargin:
     ball = _ball(result.margin_ball, r)
     margin = _map(result.margin, r)
     if ball is not None and math.isfinite(margin):
         margin = min(max(margin, ball[0]), ball[1])
+    # the plant's range: the one asked (the analysis reached it, built_delay), else the analysis' own end
+    end = result.delta_max if delta_max is None else delta_max
 
-    def delay(x: float) -> float:  # a delay of the analysis: the range's end stays the range's end
-        return x if x == result.delta_max else min(_map(x, r), result.delta_max)
+    def delay(x: float) -> float:  # a delay of the analysis: the range's end is the plant's range's end
+        return end if x == result.delta_max else min(_map(x, r), end)
 
     crossings = tuple(
         dataclasses.replace(
             c,
             omega=_map(c.omega, 1 / r),
-            delays=tuple(_map(d, r) for d in c.delays),
+            delays=tuple(d for d in (_map(d, r) for d in c.delays) if d <= end),
             ds_ddelta=complex(c.ds_ddelta) / float(r * r),
         )
         for c in result.crossings
     )
+    intervals = tuple((delay(lo), delay(hi)) for lo, hi in result.intervals)
+    counts = tuple((delay(lo), delay(hi), n) for lo, hi, n in result.counts)
+    if delta_max is not None:  # analysed beyond the plant's range: what starts past its end is cut
+        intervals = tuple((lo, hi) for lo, hi in intervals if lo < end)
+        counts = tuple((lo, hi, n) for lo, hi, n in counts if lo < end)
     return dataclasses.replace(
         result,
         margin=margin,
@@ -191,8 +220,9 @@ def _margin(result: DelayMargin, r: Fraction) -> DelayMargin:
         omega_error=_map(result.omega_error, 1 / r, _up) if result.omega_error else result.omega_error,
         frequency_bound=_map(result.frequency_bound, 1 / r, _up),
         crossings=crossings,
-        intervals=tuple((delay(lo), delay(hi)) for lo, hi in result.intervals),
-        counts=tuple((delay(lo), delay(hi), n) for lo, hi, n in result.counts),
+        intervals=intervals,
+        counts=counts,
+        delta_max=end,
     )
 
 
@@ -222,7 +252,9 @@ def _rouche(result: RoucheDelayBound, r: Fraction) -> RoucheDelayBound:
     )
 
 
-def to_given_plant(result: _R, system: Any, controller: Any, kernel_grid: int | None = None) -> _R:
+def to_given_plant(
+    result: _R, system: Any, controller: Any, kernel_grid: int | None = None, delta_max: float | None = None
+) -> _R:
     """A proven result about the loop as built, mapped to the plant as given (module notes).
 
     Parameters
@@ -233,6 +265,9 @@ def to_given_plant(result: _R, system: Any, controller: Any, kernel_grid: int | 
         parts divided by it, each ball end rounded outward (a region searched inward).
     system, controller, kernel_grid
         As given to :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`.
+    delta_max : float, optional
+        For a delay margin computed up to :func:`built_delay` of it: the plant's range, at which
+        the mapped intervals, counts and crossing delays are cut.
 
     Returns
     -------
@@ -245,7 +280,7 @@ def to_given_plant(result: _R, system: Any, controller: Any, kernel_grid: int | 
     if r is None or r == 1:
         return result
     if isinstance(result, DelayMargin):
-        return _margin(result, r)  # type: ignore[return-value]
+        return _margin(result, r, delta_max)  # type: ignore[return-value]
     if isinstance(result, SpectralAbscissa):
         return _abscissa(result, r)  # type: ignore[return-value]
     return _rouche(result, r)
