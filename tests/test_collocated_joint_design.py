@@ -97,7 +97,7 @@ def test_delayed_observer_on_the_paper_plant():
     for k in (lo, hi):
         np.testing.assert_allclose(_gamma(0.85, 1.0, K, k, observer_delay), 1.0, rtol=1e-12)
     # K = 0.1: the least gamma_0 is at kappa = -rho, 0.7225 + 0.1 + 0.085 + 0.17 = 1.0775
-    with pytest.raises(ParameterError, match="1.0775"):
+    with pytest.raises(ParameterError, match=r"1\.0775"):
         nr.design_collocated_observer(PAPER, observer_delay=0.3)
 
 
