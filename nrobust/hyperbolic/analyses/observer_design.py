@@ -17,6 +17,14 @@ the design certified). Its difference operator for U_BS2(K) with ``delta_o = 0``
 e^{-(2 tau + delta) s}``; in general its principal coefficients are affine in ``kappa``, so
 ``gamma_0(kappa)`` is convex and piecewise linear and the interval where it is below 1 (strong
 stability) has closed-form ends (:func:`observer_reflection_bounds`).
+
+**The law and the observer together.** ``A_o`` is affine in ``K`` and in ``kappa``, ``B_o`` bilinear
+(``kappa H_y`` times the law's factor): :func:`collocated_joint_loop` builds it from four loops, and
+:func:`design_collocated_output_feedback` designs ``(K, kappa)`` with the core's local nonsmooth
+optimiser (:func:`nrobust.design.optimize_loop`) over the region where ``gamma_0 <= gamma_max``
+(:func:`joint_bounds`: for fixed ``K`` or fixed ``kappa`` ``gamma_0`` is convex and piecewise
+linear, so each section of the region is solved in closed form), from the exact one-parameter
+design at ``K = 0.1`` and a small grid about it.
 """
 
 from __future__ import annotations
