@@ -38,6 +38,7 @@ from .errors import (
 )
 from .hyperbolic.analyses import (
     ABRegion as ABRegion,
+    CollocatedDesign as CollocatedDesign,
     ExactFilteredDesign as ExactFilteredDesign,
     FilteredDesign as FilteredDesign,
     GainEnd as GainEnd,
@@ -51,6 +52,7 @@ from .hyperbolic.analyses import (
     ab_region as ab_region,
     delay_margin as delay_margin,
     design_collocated_observer as design_collocated_observer,
+    design_collocated_output_feedback as design_collocated_output_feedback,
     design_filtered as design_filtered,
     design_filtered_exact as design_filtered_exact,
     design_reflection as design_reflection,

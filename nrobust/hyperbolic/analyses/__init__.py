@@ -35,10 +35,16 @@ from .mismatch import (
 )
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
 from .observer_design import (
+    JOINT_GAMMA_MAX,
     OBSERVER_OBJECTIVES,
+    CollocatedDesign,
+    CollocatedJointLoop,
     ObserverDesign,
+    collocated_joint_loop,
     collocated_observer_loop,
     design_collocated_observer,
+    design_collocated_output_feedback,
+    joint_bounds,
     observer_reflection_bounds,
 )
 from .rouche import rouche_delay_bound
@@ -55,6 +61,8 @@ from .tradeoffs import Tradeoff, tradeoff
 __all__ = [
     "ABRegion",
     "BasisGain",
+    "CollocatedDesign",
+    "CollocatedJointLoop",
     "DEFAULT_N_GAINS",
     "DESIGN_OBJECTIVES",
     "END_KINDS",
@@ -63,6 +71,7 @@ __all__ = [
     "FilteredDesign",
     "FilteredLoop",
     "GainEnd",
+    "JOINT_GAMMA_MAX",
     "KRegion",
     "MAX_CHART_POINTS",
     "MAX_GAINS",
@@ -80,9 +89,11 @@ __all__ = [
     "StateFeedbackLoop",
     "Tradeoff",
     "ab_region",
+    "collocated_joint_loop",
     "collocated_observer_loop",
     "delay_margin",
     "design_collocated_observer",
+    "design_collocated_output_feedback",
     "design_filtered",
     "design_filtered_exact",
     "design_reflection",
@@ -91,6 +102,7 @@ __all__ = [
     "filtered_loop",
     "default_filter_bounds",
     "default_state_k_bounds",
+    "joint_bounds",
     "k_region",
     "margin_and_decay",
     "mismatch_gain_loop",

@@ -109,6 +109,12 @@ delta_o`` the loop is ``E`` times the state feedback's, so the zeros of ``E`` ar
 loop. For U_BS2(K) and ``delta_o = 0`` the difference operator is ``1 - (rho - K + kappa) q
 e^{-tau s} + (kappa - K) rho q^2 e^{-2 tau s} + K (rho - kappa) q^2 e^{-(2 tau + delta) s}``,
 strongly stable iff ``|rho - K + kappa| |q| + |(kappa - K) rho| q^2 + |K (rho - kappa)| q^2 < 1``.
+With ``delta_o > 0`` the terms of ``G e^{-delta_o s}`` keep their delays: ``E A`` has the principal part
+``(1 - kappa q z)(1 - rho q z)`` (``z = e^{-tau s}``), ``G`` the part ``-K q z (1 - rho q z)``, so the
+operator is ``1 - (rho + kappa) q z + kappa rho q^2 z^2 + K q z e^{-delta_o s} - K rho q^2 z^2
+e^{-delta_o s} + K (rho - kappa) q^2 z^2 e^{-delta s}``, strongly stable iff ``|rho + kappa| |q| +
+|kappa rho| q^2 + |K q| + |K rho| q^2 + |K (rho - kappa)| q^2 < 1`` (on the paper's example no
+``kappa`` makes U_BS2(0.1) strongly stable: at best ``1.0775``, at ``kappa = -rho``).
 
 :func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's
 gains on the kernel grid (cubic splines, composite Gauss-Legendre rules), stores it as
