@@ -126,7 +126,9 @@ def test_coupled_plant_proves_the_square_of_reflection() -> None:
         coupled, ReflectionController(0.1), 0.05, (0.0, 0.5), grid=2, kernel_grid=21, rigorous=True
     )
     assert result.met and result.certified == "proven on the square" and result.route == "kernels"
-    assert "kernel traces" in result.statement and "model of the PDE" in result.scope
+    # the scope is the proof's (the PDE's loop, the traces within their bound), not the corners' kernel route
+    assert "kernel traces" in result.statement
+    assert "no kernel grid" in result.scope and "proven bound" in result.scope
     with pytest.raises(ParameterError, match="system"):
         prove_transport_square(coupled, 0.1, None, 0.05, (0.0, 0.5), [])
 
