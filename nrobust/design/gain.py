@@ -1275,6 +1275,80 @@ class _Curves:
             env[idx], active[idx] = val[better], p
         return env, active
 
+    def refine(self, near: NDArray[np.bool_]) -> None:
+        """Solve every curve that may be the lowest at the grid gains ``near`` and take the lowest exact delay.
+
+        The sampled envelope interpolates each piece linearly in ``K``; near a junction or a birth,
+        where ``K(w)`` moves as a square root, a piece's interpolated delay can be off by more than
+        the gap to the next curve (1e-3 relative on the collocated observer's loop): the lower curve
+        is then hidden, and with it the kink where the two meet. At ``near`` each piece within
+        5 % of the interpolated envelope is solved by Newton on ``g(w; K) = 0`` from its
+        interpolated frequency (vectorised over the pairs), and ``envelope``, ``active`` take the
+        lowest exact delay; a pair that does not converge keeps its interpolated delay, unless a birth
+        ends its piece within four cells (past the exact birth of an interpolated curve: no root there).
+        """
+        idx = np.flatnonzero(near & np.isfinite(self.envelope))
+        if not idx.size:
+            return
+        gains, env = self.gains[idx], self.envelope[idx]
+        rows, Ks, ws, thetas, interp, born = [], [], [], [], [], []
+        cell = 4.0 * (self.K_hi - self.K_lo) / (_N_GAINS - 1)
+        for p, piece in enumerate(self.pieces):
+            if piece.K.size < 2:
+                continue
+            order = np.argsort(piece.K)
+            Kp = piece.K[order]
+            inside = np.flatnonzero((gains >= Kp[0]) & (gains <= Kp[-1]))
+            if not inside.size:
+                continue
+            d = np.interp(gains[inside], Kp, piece.d[order])
+            keep = d < 1.05 * env[inside]  # as :meth:`value`: a curve that may be the lowest
+            inside, d = inside[keep], d[keep]
+            w = np.interp(gains[inside], Kp, piece.w[order])
+            rows.append(np.column_stack([inside, np.full(inside.size, p)]))
+            Ks.append(gains[inside])
+            ws.append(w)
+            thetas.append(d * w)
+            interp.append(d)
+            births = [k for k, how in ((piece.K[0], piece.start), (piece.K[-1], piece.stop)) if how == "birth"]
+            born.append(np.array([any(abs(k - x) <= cell for k in births) for x in gains[inside]], dtype=bool))
+        pairs = np.concatenate(rows).astype(int)
+        d = self._exact_delays(np.concatenate(Ks), np.concatenate(ws), np.concatenate(thetas))
+        # not converged: past the exact birth of an interpolated curve (dropped, as in :meth:`value`), else the
+        # interpolated delay
+        d = np.where(np.isfinite(d), d, np.where(np.concatenate(born), np.inf, np.concatenate(interp)))
+        best, active = np.full(idx.size, np.inf), np.full(idx.size, -1)
+        for (k, p), dk in zip(pairs, d):
+            if dk < best[k]:
+                best[k], active[k] = dk, p
+        found = active >= 0
+        self.envelope[idx[found]], self.active[idx[found]] = best[found], active[found]
+
+    def _exact_delays(self, K: NDArray, w0: NDArray, theta0: NDArray) -> NDArray:
+        """Newton on ``g(w; K) = |A|^2 - |B|^2 = 0`` from ``w0`` at each ``K``, vectorised: the crossing delay on the
+        branch of the phase nearest ``theta0`` (as :meth:`at_gain`), NaN where Newton did not converge."""
+        w = w0.copy()
+        done = np.zeros(w.size, dtype=bool)
+        for _ in range(_NEWTON_STEPS):
+            at = self.loop.axis(w, slopes=True)
+            a, b = at.a0 + K * at.a1, at.b0 + K * at.b1
+            da, db = at.da0 + K * at.da1, at.db0 + K * at.db1
+            g = np.abs(a) ** 2 - np.abs(b) ** 2
+            gw = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(done, 0.0, g / gw)
+            w = w - step
+            done |= np.abs(step) <= 1e-13 * np.abs(w)
+            if done.all():
+                break
+        at = self.loop.axis(w)
+        theta = at.theta(K)
+        theta += _TWO_PI * np.round((theta0 - theta) / _TWO_PI)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = theta / w
+            d = np.where(d < 0.0, d + _TWO_PI / w * np.ceil(-d * w / _TWO_PI), d)  # past a wrap, as :meth:`value`
+        return np.where(done & (w > 0.0), d, np.nan)
+
     def add_edges(self, edges: list[tuple[float, float]]) -> None:
         """Add stability edges ``(w, p)`` found outside the scan (:func:`_missed_edges`): the piece whose phase
         jumps by more than ``pi`` next to one (between two points whose frequencies or parameters enclose it)
@@ -1608,6 +1682,8 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
         p, q = curves.pieces[active[i]], curves.pieces[active[j]]
         lo, hi = sorted((gains[i], gains[j]))
         birth = _birth_in(curves, q, lo, hi) if "birth" in (q.start, q.stop) else None
+        if birth is not None and 0.0 < (birth[0] - gains[i]) * (gains[i] - gains[j]):
+            birth = None  # born beyond gains[i]: q reaches gains[i] too, above p there, and crosses it (a kink)
         if birth is not None:
             Kb, _ = birth
             side = 1.0 if gains[i] > Kb else -1.0
@@ -1627,6 +1703,11 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
         except CertificationError:  # near a birth w(K) turns: d_1(K) - d_2(K) = 0 bracketed in K instead
             K, d = _bracketed_kink(curves, p, q, float(lo), float(hi))
         h = 1e-12 * max(scale, 1e-300)
+        if any(r.at(Kx) is None for r in (p, q) for Kx in (K - h, K + h)):
+            raise _narrow(
+                f"the kink of two crossing curves near [{lo:.15g}, {hi:.15g}] is at K = {K:.15g}, "
+                "beyond the gains where the scan has both"
+            )
         vals = [min(curves.at_gain(Kx, *_start(r, Kx))[1] for r in (p, q)) for Kx in (K - h, K + h)]
         return K, d, "kink", (K - h, K + h), (min(*vals, d), d)
     if i in (0, n - 1):
@@ -1656,11 +1737,15 @@ def _bracketed_kink(curves: _Curves, p: _Piece, q: _Piece, lo: float, hi: float)
         if gap(a) * gap(b) <= 0:
             K = brentq(gap, a, b, xtol=1e-15 * max(abs(a), abs(b), 1e-300), rtol=1e-15)
             return K, curves.at_gain(K, *_start(p, K))[1]
-    raise CertificationError(
-        f"best_margin: the two crossing curves do not change order near [{lo:.15g}, {hi:.15g}]: the scan's "
-        "interpolated curves are off there (features narrower than its step, as near the strong-stability bound, "
-        "where crossing pairs near w = k pi / tau are born within tiny gain intervals); narrower bounds away from "
-        "that limit would help"
+    raise _narrow(f"the two crossing curves do not change order near [{lo:.15g}, {hi:.15g}]")
+
+
+def _narrow(what: str) -> CertificationError:
+    """The refusal where the scan's interpolated curves are off (features narrower than its step)."""
+    return CertificationError(
+        f"best_margin: {what}: the scan's interpolated curves are off there (features narrower than its step, as "
+        "near the strong-stability bound, where crossing pairs near w = k pi / tau are born within tiny gain "
+        "intervals); narrower bounds away from that limit would help"
     )
 
 
@@ -2718,6 +2803,10 @@ def best_margin(
             bounds,
         )
     env = np.where(mask, curves.envelope, 0.0)
+    finite = env[np.isfinite(env)]
+    if finite.size:  # a curve the interpolation hides near the top: solved there (:meth:`_Curves.refine`)
+        curves.refine(mask & (env >= (1.0 - 2.0 * _NEAR_TOP) * float(np.max(finite))))
+        env = np.where(mask, curves.envelope, 0.0)
     scan = (curves.gains, env)
     if np.any(np.isinf(env)):  # gains that no crossing curve reaches, nominally stable: delta* = inf
         idx = np.flatnonzero(np.isinf(env))
