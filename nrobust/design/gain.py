@@ -2909,6 +2909,9 @@ def _best_rate(
         k = int(np.argmax(rates))  # a sample left out has a smaller rate than a computed one: never the first largest
         sa_k = sas[k]
         assert sa_k is not None
+        for peak in _rising_then_falling(curves.loop, Ks, sas, k, scale):
+            if best is None or peak[1] > best[1]:
+                best = peak
         if k in (0, n_rates - 1):
             K_end, event_end = ends[0 if k == 0 else 1]
             cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sa_k)
@@ -2932,6 +2935,47 @@ def _best_rate(
             best = cand
     assert best is not None
     return best
+
+
+def _rate_slope(loop: _Family, K: float, sa: SpectralAbscissa | None) -> float:
+    """``d(-alpha)/dK`` at ``K`` from the rightmost root's sensitivity ``ds/dK = -F_K(s) / F'(s)``
+    (``F = F(.; 0, K)``, ``F_K = F(.; 0, 1) - F(.; 0, 0)``); NaN without a root (the chain value rightmost)."""
+    if sa is None or sa.root is None:
+        return float("nan")
+    z = np.array([complex(sa.root)])
+    F = loop.nominal(K)
+    F_K = complex(loop.nominal(1.0)(z)[0] - loop.nominal(0.0)(z)[0])
+    with np.errstate(all="ignore"):
+        return float((F_K / complex(F.deriv_at(z)[0])).real)
+
+
+def _rising_then_falling(
+    loop: _Family, Ks: NDArray[np.float64], sas: list[SpectralAbscissa | None], k: int, scale: float
+) -> list[_Candidate]:
+    """Interior maxima of the decay rate between computed samples other than about the largest ``k``.
+
+    Between two consecutive computed samples where the rate rises at the first and falls at the
+    second (:func:`_rate_slope`) the continuous rate has a maximum, which may exceed every sample
+    (a peak where two root branches cross, narrower than the samples' spacing): Brent's bounded
+    search there, each a candidate (the brackets ``Ks[k - 1], Ks[k + 1]`` are searched by the caller).
+    """
+    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
+
+    computed = [j for j, sa in enumerate(sas) if sa is not None]
+    slopes = {j: _rate_slope(loop, float(Ks[j]), sas[j]) for j in computed}
+    out: list[_Candidate] = []
+    for a, b in itertools.pairwise(computed):
+        if not (slopes[a] > 0.0 > slopes[b]) or (a >= k - 1 and b <= k + 1 and 0 < k < Ks.size - 1):
+            continue
+        res = minimize_scalar(
+            lambda K: _abscissa(loop, K).value,
+            bounds=(float(Ks[a]), float(Ks[b])),
+            method="bounded",
+            options={"xatol": 1e-10 * max(scale, 1e-300)},
+        )
+        sa = _abscissa(loop, float(res.x))
+        out.append((float(res.x), -sa.value, "interior smooth max", None, sa))
+    return out
 
 
 def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
@@ -2998,7 +3042,9 @@ def best_decay_rate(
     delay below ``d``: ``"pair_birth"``) and moved ``1e-10`` (relative) inside. The rate is
     sampled at ``n_rates`` gains of each feasible interval, ends included; when the largest
     sample is an end, that end is the design (``kind`` ``"margin constraint"`` or ``"end"``),
-    otherwise Brent's bounded search refines the interior maximum. A feasible gain at which the
+    otherwise Brent's bounded search refines the interior maximum; so it does between any two
+    consecutive samples where the rate rises at the first and falls at the second (the rightmost
+    root's sensitivity: a peak narrower than the samples' spacing), the best taken. A feasible gain at which the
     nominal loop has no zero at all (one term ``c e^{-h s}``: finite-time convergence, as
     ``U_BS2(K)``'s target system ``1 - (rho - K) q e^{-tau s}`` at ``K = rho``, eqs. (47), (56)-(58))
     has the decay rate ``inf`` and is the design (``kind`` ``"finite time"``): the rate tends to
