@@ -40,6 +40,9 @@ envelope is at least ``d``, ended by a curve crossing the level ``d`` (the *cros
 :func:`~nrobust.margins.locate_gain_ends`) or a pair birth below it. A feasible gain at which the
 nominal loop is one term ``c e^{-h s}`` (no zero: finite-time convergence, ``U_BS2(K)`` at
 ``K = rho``) has an infinite decay rate, unbounded about it: it is the design (*finite time*).
+Between samples of the rate the rightmost zeros are followed in ``K`` (Newton continuation, the
+sensitivity ``ds/dK = -F_K / F'``): a maximum is where two zeros' real parts cross (a *kink*)
+or where one's slope vanishes (an *interior smooth max*), each solved by ``brentq``.
 
 Features of the curves narrower than the scan step (``pi / (32 T)``, ``T`` the longest delay
 of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near the
@@ -149,7 +152,8 @@ class GainDesign:
     decay_rate : float
         ``-alpha(K)``, ``alpha`` the spectral abscissa of ``F(.; 0, K)``.
     kind : str
-        What decides the optimum (:data:`DESIGN_KINDS`): ``"kink"`` (two crossing curves meet),
+        What decides the optimum (:data:`DESIGN_KINDS`): ``"kink"`` (two crossing curves meet; for
+        the decay rate, two zeros' paths in ``K`` cross, ``Re s_1 = Re s_2``),
         ``"pair birth"`` (the margin jumps down where a crossing pair is born: the supremum is
         not attained, ``K`` is ``1e-10`` (relative) on the good side), ``"interior smooth max"``,
         ``"end"`` (an end of the gain bounds), ``"margin constraint"`` (the decay rate is
@@ -2498,7 +2502,7 @@ def _window_design(
             K_br = (min(K, end.K), max(K, end.K))
             at_end = -_abscissa(curves.loop, end.K).value
             v_br = (min(value, at_end), max(value, at_end))
-        elif kind == "interior smooth max":
+        elif kind in ("interior smooth max", "kink"):
             K_br = (K - 1e-10 * max(_scale(curves), 1e-300), K + 1e-10 * max(_scale(curves), 1e-300))
     else:
         K, value, kind, K_br, v_br = _best_margin_in(curves, env, intervals, max_evals)
@@ -2640,6 +2644,13 @@ def _finite_time_gains(loop: _Family, lo: float, hi: float) -> tuple[list[float]
 # A sample's decay rate is left out when a bound puts it below a computed one by this much (relative): far
 # above the errors of the rates (~1e-14) and of the bounds, far below the differences between samples.
 _RATE_GAP = 1e-9
+# Newton steps, and continuation steps, that follow a zero's path in the gain (:class:`_RootPaths`).
+_PATH_NEWTON = 8
+_PATH_STEPS = 200
+# The shortest continuation step, relative to the distance followed.
+_PATH_MIN_STEP = 1e-3
+# Halvings that look for gains where both paths of a crossing are followed (:func:`_crossing_bracket`).
+_PATH_BISECTIONS = 40
 # Half-width (relative to 1 + |z|) of the box about a root followed by Newton's method in which it is counted.
 _ROOT_BOX = 1e-6
 
@@ -2878,15 +2889,16 @@ def _best_rate(
 ) -> _Candidate:
     """The largest decay rate over the intervals ``((K_a, event_a), (K_b, event_b))``: ``n_rates`` samples
     of each, ends included; an end (``end_kind``, or ``"end"`` at a bound) when its sample is the largest,
-    else Brent's bounded search about the largest interior sample (a :class:`~nrobust.errors.CertificationError`
-    when it ends below that sample). A gain of an interval (up to the events
+    else the maximum about the largest interior sample (:func:`_peak_between` toward the neighbour where the
+    rate rises, else Brent's bounded search between its neighbours; a :class:`~nrobust.errors.CertificationError`
+    when it ends below that sample), and any maximum between two samples where the rate rises then falls
+    (:func:`_rising_then_falling`). A gain of an interval (up to the events
     its ends were moved inside from: :func:`_up_to_events`) at which the nominal loop has no zero
     (:func:`_finite_time_gains`) is the design, its rate ``inf`` (``"finite time"``); one where that holds
     up to rounding only is a :class:`~nrobust.errors.CertificationError`
     (the rate is unbounded there, and no sampled maximum is its supremum)."""
-    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
-
     scale = _scale(curves)
+    paths = _RootPaths(curves.loop)
     exact, near = _finite_time_gains(curves.loop, curves.K_lo, curves.K_hi)
     finite_time = [p for p in exact if any(_up_to_events(p, ends) for ends in intervals)]
     if finite_time:
@@ -2909,73 +2921,264 @@ def _best_rate(
         k = int(np.argmax(rates))  # a sample left out has a smaller rate than a computed one: never the first largest
         sa_k = sas[k]
         assert sa_k is not None
-        for peak in _rising_then_falling(curves.loop, Ks, sas, k, scale):
+        slopes = _rate_slopes(paths, Ks, sas)
+        for peak in _rising_then_falling(curves, paths, Ks, sas, slopes, k, scale):
             if best is None or peak[1] > best[1]:
                 best = peak
         if k in (0, n_rates - 1):
             K_end, event_end = ends[0 if k == 0 else 1]
             cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sa_k)
         else:
-            res = minimize_scalar(
-                lambda K: _abscissa(curves.loop, K).value,
-                bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
-                method="bounded",
-                options={"xatol": 1e-10 * max(scale, 1e-300)},
-            )
-            sa = _abscissa(curves.loop, float(res.x))
-            if -sa.value + _RATE_GAP * (1.0 + abs(rates[k])) < rates[k]:  # not a smooth maximum about the sample
+            side = k + 1 if slopes[k] > 0.0 else k - 1  # the neighbour toward which the rate rises
+            sa_side = sas[side]
+            found = None
+            if sa_side is not None:
+                (i, sa_i), (j, sa_j) = sorted([(k, sa_k), (side, sa_side)], key=lambda t: t[0])
+                found = _peak_between(curves, paths, (float(Ks[i]), sa_i), (float(Ks[j]), sa_j))
+            if found is None:
+                found = _bounded_search(curves, float(Ks[k - 1]), float(Ks[k + 1]), scale)
+            if found[1] + _RATE_GAP * (1.0 + abs(rates[k])) < rates[k]:  # not a smooth maximum about the sample
                 raise CertificationError(
                     f"best_decay_rate: the search about K = {float(Ks[k])!r} (decay rate {rates[k]:.6g}) ended at "
-                    f"K = {float(res.x)!r} with the smaller rate {-sa.value:.6g}: the rate is not smooth there (a "
+                    f"K = {found[0]!r} with the smaller rate {found[1]:.6g}: the rate is not smooth there (a "
                     "spike, or gains where the loop is unstable between the samples); bounds about that K, or more "
                     "samples (n_rates), would help"
                 )
-            cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
+            cand = found
         if best is None or cand[1] > best[1]:
             best = cand
     assert best is not None
     return best
 
 
-def _rate_slope(loop: _Family, K: float, sa: SpectralAbscissa | None) -> float:
-    """``d(-alpha)/dK`` at ``K`` from the rightmost root's sensitivity ``ds/dK = -F_K(s) / F'(s)``
-    (``F = F(.; 0, K)``, ``F_K = F(.; 0, 1) - F(.; 0, 0)``); NaN without a root (the chain value rightmost)."""
-    if sa is None or sa.root is None:
-        return float("nan")
-    z = np.array([complex(sa.root)])
-    F = loop.nominal(K)
-    F_K = complex(loop.nominal(1.0)(z)[0] - loop.nominal(0.0)(z)[0])
-    with np.errstate(all="ignore"):
-        return float((F_K / complex(F.deriv_at(z)[0])).real)
+class _RootPaths:
+    """Zeros of the nominal loop ``F(.; 0, K) = N_0 + K N_1`` followed in ``K`` by Newton's method.
+
+    ``N_1`` is the sum of the parts multiplied by the parameter (as in :func:`_finite_time_gains`);
+    a zero's sensitivity is ``ds/dK = -N_1(s) / F'(s)``, the slope of its decay rate ``-Re s`` is
+    ``Re(N_1(s) / F'(s))``. What is followed here only locates an optimum: its rate is that of the
+    certified abscissa there.
+    """
+
+    def __init__(self, loop: _Family) -> None:
+        self.N0 = loop.nominal(0.0)
+        self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
+        self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
+
+    def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
+        """``F(s), F'(s), N_1(s)`` at ``K``."""
+        z = np.array([s])
+        n1 = complex(self.N1(z)[0])
+        return complex(self.N0(z)[0]) + K * n1, complex(self.dN0(z)[0]) + K * complex(self.dN1(z)[0]), n1
+
+    def slope(self, K: float, s: complex) -> float:
+        """``d(-Re s)/dK`` of the zero ``s`` at ``K``."""
+        _, dF, n1 = self._parts(K, s)
+        with np.errstate(all="ignore"):
+            return float((n1 / dF).real)
+
+    def newton(self, K: float, s: complex) -> complex | None:
+        """The zero of ``F(.; 0, K)`` Newton's method reaches from ``s`` (None if it does not converge)."""
+        with np.errstate(all="ignore"):
+            for _ in range(_PATH_NEWTON):
+                F, dF, _ = self._parts(K, s)
+                step = F / dF
+                s -= step
+                if not np.isfinite(s):
+                    return None
+                if abs(step) <= 1e-14 * (1.0 + abs(s)):
+                    return s
+        return None
+
+    def follow(self, K0: float, s0: complex, K1: float) -> complex:
+        """The zero at ``K1`` on the path of ``s0``, a zero at ``K0``: Euler predictor, Newton corrector,
+        the step halved when the correction exceeds a third of the predicted move (a jump to another
+        path). Raises ``_PathLost`` after :data:`_PATH_STEPS` steps, or when the step falls below
+        :data:`_PATH_MIN_STEP` of ``|K1 - K0|`` (as at the end of a path, where two zeros meet and the
+        sensitivity grows without bound)."""
+        K, s, h = K0, s0, K1 - K0
+        shortest = _PATH_MIN_STEP * abs(K1 - K0)
+        for _ in range(_PATH_STEPS):
+            if K == K1:
+                return s
+            if abs(h) < shortest:
+                break
+            last = abs(K1 - K) <= abs(h)
+            h = K1 - K if last else h
+            _, dF, n1 = self._parts(K, s)
+            move = -n1 / dF * h
+            new = self.newton(K + h, s + move)
+            if new is not None and abs(new - s - move) <= abs(move) / 3.0 + 1e-12 * (1.0 + abs(s)):
+                K, s = (K1 if last else K + h), new
+                h *= 2.0
+            else:
+                h *= 0.5
+        raise _PathLost
+
+
+class _PathLost(Exception):
+    """A zero's path could not be followed (a collision of zeros, or too many steps)."""
+
+
+class _Path:
+    """One zero's path in ``K``, remembered at every gain reached (each new gain followed from the nearest)."""
+
+    def __init__(self, paths: _RootPaths, K: float, s: complex) -> None:
+        self.paths = paths
+        self.known = {K: s}
+
+    def at(self, K: float) -> complex:
+        if K not in self.known:
+            near = min(self.known, key=lambda x: abs(x - K))
+            self.known[K] = self.paths.follow(near, self.known[near], K)
+        return self.known[K]
+
+    def slope(self, K: float) -> float:
+        return self.paths.slope(K, self.at(K))
+
+
+def _rate_slopes(paths: _RootPaths, Ks: NDArray[np.float64], sas: list[SpectralAbscissa | None]) -> dict[int, float]:
+    """``d(-alpha)/dK`` at the computed samples from the rightmost zero's sensitivity; NaN where the chain value
+    is rightmost (no zero)."""
+    return {
+        j: float("nan") if sa.root is None else paths.slope(float(Ks[j]), complex(sa.root))
+        for j, sa in enumerate(sas)
+        if sa is not None
+    }
+
+
+def _peak_between(
+    curves: _Curves, paths: _RootPaths, a: tuple[float, SpectralAbscissa], b: tuple[float, SpectralAbscissa]
+) -> _Candidate | None:
+    """The largest decay rate between ``K_a < K_b``, where it rises at ``K_a`` and falls at ``K_b``, from the
+    paths of the two rightmost zeros; None when they do not decide it (the caller searches then).
+
+    The zero ``s_a`` rightmost at ``K_a`` and ``s_b`` at ``K_b`` are followed (:class:`_RootPaths`). On
+    one path (``s_a`` reaches ``s_b``) the maximum is smooth, ``d Re s/dK = 0`` (Brent's root finder on the
+    slope); on two, the rate peaks where they cross, ``Re s_a(K) = Re s_b(K)`` (a kink), unless the slope of
+    one changes sign before, a smooth maximum of that path. A path may end inside ``[K_a, K_b]`` (two real
+    zeros meet and leave the axis): the crossing is bracketed by bisection where both are followed
+    (:func:`_crossing_bracket`). The result is kept when the certified abscissa at the gain found is the
+    followed zero (its rate to ``1e-9``, relative) and its rate is at least both samples'.
+    """
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+    (Ka, sa_a), (Kb, sa_b) = a, b
+    if sa_a.root is None or sa_b.root is None:
+        return None
+    xtol = 1e-14 * max(abs(Ka), abs(Kb), 1e-300)
+    rb = complex(sa_b.root)
+    up, down = _Path(paths, Ka, complex(sa_a.root)), _Path(paths, Kb, rb)
+    try:
+        if not up.slope(Ka) > 0.0 > down.slope(Kb):
+            return None
+        try:
+            one = abs(up.at(Kb) - rb) <= 1e-9 * (1.0 + abs(rb))
+        except _PathLost:
+            one = False
+        if one:  # one path: a smooth maximum
+            K = brentq(up.slope, Ka, Kb, xtol=xtol, rtol=4 * _EPS)
+            kind, top = "interior smooth max", up
+        else:
+
+            def gap(K: float) -> float:
+                return up.at(K).real - down.at(K).real
+
+            bracket = _crossing_bracket(up, down, Ka, Kb)
+            if bracket is None:
+                return None
+            K = brentq(gap, *bracket, xtol=xtol, rtol=4 * _EPS)
+            kind, top = "kink", max((up, down), key=lambda p: p.at(K).real)
+            if up.slope(K) <= 0.0:
+                K, kind, top = brentq(up.slope, Ka, K, xtol=xtol, rtol=4 * _EPS), "interior smooth max", up
+            elif down.slope(K) >= 0.0:
+                K, kind, top = brentq(down.slope, K, Kb, xtol=xtol, rtol=4 * _EPS), "interior smooth max", down
+        predicted = -top.at(K).real
+    except _PathLost:
+        return None
+    sa = _abscissa(curves.loop, K)
+    rate = -sa.value
+    if abs(rate - predicted) > 1e-9 * (1.0 + abs(rate)) or rate < max(-sa_a.value, -sa_b.value):
+        return None
+    return (K, rate, kind, None, sa)
+
+
+def _crossing_bracket(up: _Path, down: _Path, Ka: float, Kb: float) -> tuple[float, float] | None:
+    """``[x, y]`` in ``[K_a, K_b]`` with both paths followed at ``x`` and ``y``, ``up`` right of ``down`` at
+    ``x`` and not at ``y``; None if bisection finds none in :data:`_PATH_BISECTIONS` halvings.
+
+    ``up`` starts at ``K_a``, ``down`` at ``K_b``, each followed on an interval about its start: a gain
+    where ``up`` is lost, or ``down`` is right of it, lies right of their crossing; one where ``down`` is
+    lost, or ``up`` is right of it, left.
+    """
+
+    def side(K: float) -> tuple[bool, bool]:
+        """(left of the crossing, both followed)."""
+        try:
+            re_up = up.at(K).real
+        except _PathLost:
+            return False, False
+        try:
+            return re_up > down.at(K).real, True
+        except _PathLost:
+            return True, False
+
+    (left_a, x_ok), (left_b, y_ok) = side(Ka), side(Kb)
+    if not left_a or left_b:
+        return None
+    x, y = Ka, Kb
+    for _ in range(_PATH_BISECTIONS):
+        if x_ok and y_ok:
+            return x, y
+        m = 0.5 * (x + y)
+        left, ok = side(m)
+        if left:
+            x, x_ok = m, ok
+        else:
+            y, y_ok = m, ok
+    return None
 
 
 def _rising_then_falling(
-    loop: _Family, Ks: NDArray[np.float64], sas: list[SpectralAbscissa | None], k: int, scale: float
+    curves: _Curves,
+    paths: _RootPaths,
+    Ks: NDArray[np.float64],
+    sas: list[SpectralAbscissa | None],
+    slopes: dict[int, float],
+    k: int,
+    scale: float,
 ) -> list[_Candidate]:
     """Interior maxima of the decay rate between computed samples other than about the largest ``k``.
 
     Between two consecutive computed samples where the rate rises at the first and falls at the
-    second (:func:`_rate_slope`) the continuous rate has a maximum, which may exceed every sample
-    (a peak where two root branches cross, narrower than the samples' spacing): Brent's bounded
-    search there, each a candidate (the brackets ``Ks[k - 1], Ks[k + 1]`` are searched by the caller).
+    second (``slopes``) the continuous rate has a maximum, which may exceed every sample (a peak
+    where two zeros' paths cross, narrower than the samples' spacing): solved by :func:`_peak_between`,
+    else by Brent's bounded search, each a candidate (the samples about ``k`` are the caller's).
     """
-    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
-
-    computed = [j for j, sa in enumerate(sas) if sa is not None]
-    slopes = {j: _rate_slope(loop, float(Ks[j]), sas[j]) for j in computed}
+    computed = sorted(slopes)
     out: list[_Candidate] = []
     for a, b in itertools.pairwise(computed):
         if not (slopes[a] > 0.0 > slopes[b]) or (a >= k - 1 and b <= k + 1 and 0 < k < Ks.size - 1):
             continue
-        res = minimize_scalar(
-            lambda K: _abscissa(loop, K).value,
-            bounds=(float(Ks[a]), float(Ks[b])),
-            method="bounded",
-            options={"xatol": 1e-10 * max(scale, 1e-300)},
-        )
-        sa = _abscissa(loop, float(res.x))
-        out.append((float(res.x), -sa.value, "interior smooth max", None, sa))
+        sa_a, sa_b = sas[a], sas[b]
+        assert sa_a is not None and sa_b is not None
+        peak = _peak_between(curves, paths, (float(Ks[a]), sa_a), (float(Ks[b]), sa_b))
+        out.append(peak if peak is not None else _bounded_search(curves, float(Ks[a]), float(Ks[b]), scale))
     return out
+
+
+def _bounded_search(curves: _Curves, lo: float, hi: float, scale: float) -> _Candidate:
+    """Brent's bounded search of the smallest spectral abscissa on ``[lo, hi]`` (a full abscissa each step)."""
+    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
+
+    res = minimize_scalar(
+        lambda K: _abscissa(curves.loop, K).value,
+        bounds=(lo, hi),
+        method="bounded",
+        options={"xatol": 1e-10 * max(scale, 1e-300)},
+    )
+    sa = _abscissa(curves.loop, float(res.x))
+    return (float(res.x), -sa.value, "interior smooth max", None, sa)
 
 
 def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
@@ -3042,9 +3245,14 @@ def best_decay_rate(
     delay below ``d``: ``"pair_birth"``) and moved ``1e-10`` (relative) inside. The rate is
     sampled at ``n_rates`` gains of each feasible interval, ends included; when the largest
     sample is an end, that end is the design (``kind`` ``"margin constraint"`` or ``"end"``),
-    otherwise Brent's bounded search refines the interior maximum; so it does between any two
-    consecutive samples where the rate rises at the first and falls at the second (the rightmost
-    root's sensitivity: a peak narrower than the samples' spacing), the best taken. A feasible gain at which the
+    otherwise the maximum between it and the neighbour toward which the rate rises is solved;
+    so it is between any two consecutive samples where the rate rises at the first and falls at
+    the second (the rightmost zero's sensitivity ``ds/dK = -F_K / F'``: a peak narrower than the
+    samples' spacing), the best taken. The two samples' rightmost zeros are followed in ``K``
+    (Newton continuation): where their real parts cross the maximum is a ``"kink"``, where one's
+    slope vanishes an ``"interior smooth max"`` (``brentq`` on each equation), kept when the
+    certified abscissa there is the zero followed; otherwise Brent's bounded search of the
+    abscissa (about the largest sample, between its neighbours). A feasible gain at which the
     nominal loop has no zero at all (one term ``c e^{-h s}``: finite-time convergence, as
     ``U_BS2(K)``'s target system ``1 - (rho - K) q e^{-tau s}`` at ``K = rho``, eqs. (47), (56)-(58))
     has the decay rate ``inf`` and is the design (``kind`` ``"finite time"``): the rate tends to
@@ -3152,6 +3360,6 @@ def best_decay_rate(
         K_br = (min(K, end.K), max(K, end.K))
         at_end = -_abscissa(curves.loop, end.K).value
         v_br = (min(rate, at_end), max(rate, at_end))
-    elif kind == "interior smooth max":
+    elif kind in ("interior smooth max", "kink"):
         K_br = (K - 1e-10 * max(scale, 1e-300), K + 1e-10 * max(scale, 1e-300))
     return GainDesign(K, "decay_rate", rate, cert.margin, rate, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan, end)
