@@ -2649,8 +2649,10 @@ _PATH_NEWTON = 8
 _PATH_STEPS = 200
 # The shortest continuation step, relative to the distance followed.
 _PATH_MIN_STEP = 1e-3
+# Halvings of an interval between samples whose two rightmost zeros do not decide its maximum (:func:`_peak_between`).
+_PEAK_HALVINGS = 3
 # Halvings that look for gains where both paths of a crossing are followed (:func:`_crossing_bracket`).
-_PATH_BISECTIONS = 40
+_PATH_BISECTIONS = 12
 # Half-width (relative to 1 + |z|) of the box about a root followed by Newton's method in which it is counted.
 _ROOT_BOX = 1e-6
 
@@ -3048,6 +3050,27 @@ def _rate_slopes(paths: _RootPaths, Ks: NDArray[np.float64], sas: list[SpectralA
 
 
 def _peak_between(
+    curves: _Curves,
+    paths: _RootPaths,
+    a: tuple[float, SpectralAbscissa],
+    b: tuple[float, SpectralAbscissa],
+    halvings: int = _PEAK_HALVINGS,
+) -> _Candidate | None:
+    """A maximum of the decay rate between ``K_a < K_b``, where it rises at ``K_a`` and falls at ``K_b``:
+    :func:`_two_paths_peak`, else (other zeros rightmost between them) the half where the rate rises at one
+    end and falls at the other, from the abscissa at the midpoint, up to ``halvings`` times; None then."""
+    found = _two_paths_peak(curves, paths, a, b)
+    if found is not None or halvings == 0:
+        return found
+    m = 0.5 * (a[0] + b[0])
+    sa = _abscissa(curves.loop, m)
+    if sa.root is None:
+        return None
+    half = (a, (m, sa)) if paths.slope(m, complex(sa.root)) < 0.0 else ((m, sa), b)
+    return _peak_between(curves, paths, *half, halvings - 1)
+
+
+def _two_paths_peak(
     curves: _Curves, paths: _RootPaths, a: tuple[float, SpectralAbscissa], b: tuple[float, SpectralAbscissa]
 ) -> _Candidate | None:
     """The largest decay rate between ``K_a < K_b``, where it rises at ``K_a`` and falls at ``K_b``, from the
@@ -3183,11 +3206,21 @@ def _bounded_search(curves: _Curves, lo: float, hi: float, scale: float) -> _Can
 
 def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     """The event between the feasible grid gain ``i`` and the infeasible ``j``: a curve crossing ``level``
-    (``"crossing"``) or a pair born below it (``"pair_birth"``); the one nearest the feasible side."""
+    (``"crossing"``), a pair born below it (``"pair_birth"``) or the end of nominal stability
+    (``"nominal"``: ``s = 0`` a zero for every delay, ``K`` from ``F(0; 0, K) = 0`` in closed form,
+    :meth:`_Family.zero_root`); the one nearest the feasible side.
+
+    Where a zero leaves through ``s = 0`` the envelope drops to 0 without a curve crossing ``level``:
+    the curve ending at ``w = 0`` has the delay ``B'(0)/B(0) - A'(0)/A(0)`` there, which may be above
+    it (``StateFeedback(k)`` on ``Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)``: ``k = -0.2389191``, margin
+    2.26). A zero leaving through ``i w``, ``w > 0``, ends a curve at delay 0: a crossing of ``level``."""
     from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
 
     lo, hi = sorted((curves.gains[i], curves.gains[j]))
     events: list[GainEnd] = []
+    K0 = curves.loop.zero_root()
+    if K0 is not None and lo - (hi - lo) <= K0 <= hi + (hi - lo):
+        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0))
     for piece in curves.pieces:
         for at_start in (True, False):
             if (piece.start if at_start else piece.stop) == "birth":
@@ -3218,6 +3251,29 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
         )
     feasible = curves.gains[i]
     return min(events, key=lambda e: abs(e.K - feasible))
+
+
+def _unconstrained_rate(
+    loop: AffineGainLoop | AffineLoop, lo: float, hi: float, n_rates: int, max_evals: int, rigorous: bool
+) -> GainDesign:
+    """:func:`best_decay_rate` without a delay requirement: the largest decay rate over ``[lo, hi]``, the loop
+    exponentially stable at ``delta = 0`` (its certified count of zeros in ``Re s > 0`` none)."""
+    curves = _Curves(_Family(loop), lo, hi, max_evals)
+    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
+    K, rate, kind, _, sa = _best_rate(curves, [((lo, None), (hi, None))], n_rates, "end")
+    cert, how = _certify(curves.loop, K, rigorous, max_evals)
+    if not (rate > 0.0 and cert.nominally_stable):
+        best_margin(loop, (lo, hi), max_evals=max_evals)  # raises when no gain is stable without delay (certified)
+        raise CertificationError(
+            f"best_decay_rate: the largest decay rate found, {rate:.6g} at K = {K:.15g}, leaves the loop unstable at "
+            "delta = 0, though the scan has stable gains: the rate peaks between the samples; more samples "
+            "(n_rates) or narrower bounds about the stable gains would help"
+        )
+    half = 1e-10 * max(abs(lo), abs(hi), 1e-300)
+    K_br = (K - half, K + half) if kind in ("interior smooth max", "kink") else (K, K)
+    return GainDesign(
+        K, "decay_rate", rate, cert.margin, rate, kind, K_br, (rate, rate), (lo, hi), cert, how, sa, curves.gains, env
+    )
 
 
 @one_blas_thread()
@@ -3272,12 +3328,16 @@ def best_decay_rate(
     the window too: the feasible set is the intersection, and the design is certified on each
     (:attr:`GainDesign.windows`).
 
+    Without ``margin_at_least`` and ``delays`` the decay rate is maximised over the bounds with no
+    delay requirement, the designed loop exponentially stable at ``delta = 0`` (its delay margin,
+    possibly 0, is reported).
+
     Parameters
     ----------
     loop, bounds, rigorous, max_evals
         As in :func:`best_margin`.
     margin_at_least : float, optional
-        ``d > 0``: the delay margin required (or ``delays``).
+        ``d > 0``: the delay margin required (or ``delays``; neither: no delay requirement).
     delays : (float, float), optional
         ``[d_min, d_max]``: the window of delays on which the loop must be stable
         (``0 <= d_min <= d_max``, ``d_max > 0``); not with ``margin_at_least``.
@@ -3294,8 +3354,8 @@ def best_decay_rate(
     Raises
     ------
     ParameterError
-        As :func:`best_margin`; ``margin_at_least`` not positive, ``delays`` not a window, both or
-        neither given; a requirement no gain of the bounds meets (naming the best achievable:
+        As :func:`best_margin`; ``margin_at_least`` not positive, ``delays`` not a window, both
+        given; a requirement no gain of the bounds meets (naming the best achievable:
         the largest margin, or the end of the stability window from ``d_min`` on the scan).
     CertificationError
         No gain in the bounds has ``delta*(K) >= d``, an end could not be solved, the
@@ -3312,11 +3372,11 @@ def best_decay_rate(
         if delays is None:
             raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
         return _window_design(loop, lo, hi, "decay_rate", delays, scenarios, n_rates, max_evals, rigorous)
-    if margin_at_least is None:
-        raise ParameterError("margin_at_least", "a positive delay margin, or delays=(d_min, d_max)", None)
-    d = positive("margin_at_least", margin_at_least)
     n_rates = positive_int("n_rates", n_rates, 2)
     max_evals = positive_int("max_evals", max_evals)
+    if margin_at_least is None:
+        return _unconstrained_rate(loop, lo, hi, n_rates, max_evals, rigorous)
+    d = positive("margin_at_least", margin_at_least)
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
     scan = (curves.gains, env)
