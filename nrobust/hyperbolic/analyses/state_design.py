@@ -244,6 +244,10 @@ def _affine(loop: StateFeedbackLoop) -> AffineGainLoop:
     return AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0])
 
 
+# How the one-gain engine's refusal of bounds without a gain stable at delta = 0 (certified) begins.
+_NO_STABLE_GAIN = "parameters of which some give a stable loop without delay"
+
+
 def _exact_gain(
     loop: StateFeedbackLoop,
     bounds: tuple[float, float],
@@ -255,8 +259,9 @@ def _exact_gain(
 ) -> GainDesign:
     """The best proportional gain by the one-gain engine (:mod:`nrobust.design.gain`): the global optimum over ``k``.
 
-    A :class:`~nrobust.errors.ParameterError` of the engine about its bounds (no gain stable at
-    ``delta = 0``, certified) is raised about ``k_bounds``.
+    The engine's :class:`~nrobust.errors.ParameterError` that no gain of the bounds is stable at
+    ``delta = 0`` (certified) is raised about ``k_bounds``; its other refusals (e.g. bounds beyond
+    strong stability) as they are.
     """
     affine, others = _affine(loop), tuple(_affine(f) for f in scenarios)
     try:
@@ -266,7 +271,7 @@ def _exact_gain(
             return best_decay_rate(affine, bounds, delays=window, scenarios=others, rigorous=rigorous)
         return best_decay_rate(affine, bounds, margin_at_least=margin_at_least or None, rigorous=rigorous)
     except ParameterError as exc:
-        if exc.name != "bounds":
+        if exc.name != "bounds" or not exc.requirement.startswith(_NO_STABLE_GAIN):
             raise
         raise ParameterError(
             "k_bounds",
@@ -617,10 +622,18 @@ def design_state_feedback(
             for a, b in corners
         )
     kb = given if given is not None else default_state_k_bounds(loop)
-    if not functions:  # one gain: the exact engine's global optimum over k
-        gain = _exact_gain(loop, kb, objective, margin_at_least, window, scenarios, rigorous)
-        one = _exact_design(loop, gain, objective, margin_at_least, window, rigorous)
-        return _finished(plant, loop, one, functions, grid, eps, window, rigorous)
+    if not functions:  # one gain: the exact engine's global optimum over k, else the local search below
+        try:
+            gain = _exact_gain(loop, kb, objective, margin_at_least, window, scenarios, rigorous)
+        except ParameterError as exc:
+            if exc.name == "k_bounds":  # no gain stable at delta = 0, certified
+                raise
+            gain = None  # bounds the engine does not take (e.g. beyond strong stability)
+        except CertificationError:
+            gain = None
+        if gain is not None:
+            one = _exact_design(loop, gain, objective, margin_at_least, window, rigorous)
+            return _finished(plant, loop, one, functions, grid, eps, window, rigorous)
     bounds = (kb, *([coef] * (2 * len(functions))))
     box = np.array(bounds)
     ks, exact = _proportional_starts(loop, kb, objective, margin_at_least, window, scenarios)
