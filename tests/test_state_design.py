@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import nrobust as nr
-from nrobust.errors import CertificationError, ParameterError
+from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses import BasisGain, design_state_feedback, state_feedback_loop
 
 # Uncoupled plant: u(t, x) = q v(t - x/lam, 0), v(t, x) = v(t - (1 - x)/mu, 1) exactly, tau = 1 + 1/2.
