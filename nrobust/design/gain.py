@@ -40,6 +40,9 @@ envelope is at least ``d``, ended by a curve crossing the level ``d`` (the *cros
 :func:`~nrobust.margins.locate_gain_ends`) or a pair birth below it. A feasible gain at which the
 nominal loop is one term ``c e^{-h s}`` (no zero: finite-time convergence, ``U_BS2(K)`` at
 ``K = rho``) has an infinite decay rate, unbounded about it: it is the design (*finite time*).
+Between samples of the rate the rightmost zeros are followed in ``K`` (Newton continuation, the
+sensitivity ``ds/dK = -F_K / F'``): a maximum is where two zeros' real parts cross (a *kink*)
+or where one's slope vanishes (an *interior smooth max*), each solved by ``brentq``.
 
 Features of the curves narrower than the scan step (``pi / (32 T)``, ``T`` the longest delay
 of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near the
@@ -149,7 +152,8 @@ class GainDesign:
     decay_rate : float
         ``-alpha(K)``, ``alpha`` the spectral abscissa of ``F(.; 0, K)``.
     kind : str
-        What decides the optimum (:data:`DESIGN_KINDS`): ``"kink"`` (two crossing curves meet),
+        What decides the optimum (:data:`DESIGN_KINDS`): ``"kink"`` (two crossing curves meet; for
+        the decay rate, two zeros' paths in ``K`` cross, ``Re s_1 = Re s_2``),
         ``"pair birth"`` (the margin jumps down where a crossing pair is born: the supremum is
         not attained, ``K`` is ``1e-10`` (relative) on the good side), ``"interior smooth max"``,
         ``"end"`` (an end of the gain bounds), ``"margin constraint"`` (the decay rate is
@@ -1275,6 +1279,80 @@ class _Curves:
             env[idx], active[idx] = val[better], p
         return env, active
 
+    def refine(self, near: NDArray[np.bool_]) -> None:
+        """Solve every curve that may be the lowest at the grid gains ``near`` and take the lowest exact delay.
+
+        The sampled envelope interpolates each piece linearly in ``K``; near a junction or a birth,
+        where ``K(w)`` moves as a square root, a piece's interpolated delay can be off by more than
+        the gap to the next curve (1e-3 relative on the collocated observer's loop): the lower curve
+        is then hidden, and with it the kink where the two meet. At ``near`` each piece within
+        5 % of the interpolated envelope is solved by Newton on ``g(w; K) = 0`` from its
+        interpolated frequency (vectorised over the pairs), and ``envelope``, ``active`` take the
+        lowest exact delay; a pair that does not converge keeps its interpolated delay, unless a birth
+        ends its piece within four cells (past the exact birth of an interpolated curve: no root there).
+        """
+        idx = np.flatnonzero(near & np.isfinite(self.envelope))
+        if not idx.size:
+            return
+        gains, env = self.gains[idx], self.envelope[idx]
+        rows, Ks, ws, thetas, interp, born = [], [], [], [], [], []
+        cell = 4.0 * (self.K_hi - self.K_lo) / (_N_GAINS - 1)
+        for p, piece in enumerate(self.pieces):
+            if piece.K.size < 2:
+                continue
+            order = np.argsort(piece.K)
+            Kp = piece.K[order]
+            inside = np.flatnonzero((gains >= Kp[0]) & (gains <= Kp[-1]))
+            if not inside.size:
+                continue
+            d = np.interp(gains[inside], Kp, piece.d[order])
+            keep = d < 1.05 * env[inside]  # as :meth:`value`: a curve that may be the lowest
+            inside, d = inside[keep], d[keep]
+            w = np.interp(gains[inside], Kp, piece.w[order])
+            rows.append(np.column_stack([inside, np.full(inside.size, p)]))
+            Ks.append(gains[inside])
+            ws.append(w)
+            thetas.append(d * w)
+            interp.append(d)
+            births = [k for k, how in ((piece.K[0], piece.start), (piece.K[-1], piece.stop)) if how == "birth"]
+            born.append(np.array([any(abs(k - x) <= cell for k in births) for x in gains[inside]], dtype=bool))
+        pairs = np.concatenate(rows).astype(int)
+        d = self._exact_delays(np.concatenate(Ks), np.concatenate(ws), np.concatenate(thetas))
+        # not converged: past the exact birth of an interpolated curve (dropped, as in :meth:`value`), else the
+        # interpolated delay
+        d = np.where(np.isfinite(d), d, np.where(np.concatenate(born), np.inf, np.concatenate(interp)))
+        best, active = np.full(idx.size, np.inf), np.full(idx.size, -1)
+        for (k, p), dk in zip(pairs, d):
+            if dk < best[k]:
+                best[k], active[k] = dk, p
+        found = active >= 0
+        self.envelope[idx[found]], self.active[idx[found]] = best[found], active[found]
+
+    def _exact_delays(self, K: NDArray, w0: NDArray, theta0: NDArray) -> NDArray:
+        """Newton on ``g(w; K) = |A|^2 - |B|^2 = 0`` from ``w0`` at each ``K``, vectorised: the crossing delay on the
+        branch of the phase nearest ``theta0`` (as :meth:`at_gain`), NaN where Newton did not converge."""
+        w = w0.copy()
+        done = np.zeros(w.size, dtype=bool)
+        for _ in range(_NEWTON_STEPS):
+            at = self.loop.axis(w, slopes=True)
+            a, b = at.a0 + K * at.a1, at.b0 + K * at.b1
+            da, db = at.da0 + K * at.da1, at.db0 + K * at.db1
+            g = np.abs(a) ** 2 - np.abs(b) ** 2
+            gw = 2.0 * ((np.conj(a) * da).real - (np.conj(b) * db).real)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(done, 0.0, g / gw)
+            w = w - step
+            done |= np.abs(step) <= 1e-13 * np.abs(w)
+            if done.all():
+                break
+        at = self.loop.axis(w)
+        theta = at.theta(K)
+        theta += _TWO_PI * np.round((theta0 - theta) / _TWO_PI)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = theta / w
+            d = np.where(d < 0.0, d + _TWO_PI / w * np.ceil(-d * w / _TWO_PI), d)  # past a wrap, as :meth:`value`
+        return np.where(done & (w > 0.0), d, np.nan)
+
     def add_edges(self, edges: list[tuple[float, float]]) -> None:
         """Add stability edges ``(w, p)`` found outside the scan (:func:`_missed_edges`): the piece whose phase
         jumps by more than ``pi`` next to one (between two points whose frequencies or parameters enclose it)
@@ -1608,6 +1686,8 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
         p, q = curves.pieces[active[i]], curves.pieces[active[j]]
         lo, hi = sorted((gains[i], gains[j]))
         birth = _birth_in(curves, q, lo, hi) if "birth" in (q.start, q.stop) else None
+        if birth is not None and 0.0 < (birth[0] - gains[i]) * (gains[i] - gains[j]):
+            birth = None  # born beyond gains[i]: q reaches gains[i] too, above p there, and crosses it (a kink)
         if birth is not None:
             Kb, _ = birth
             side = 1.0 if gains[i] > Kb else -1.0
@@ -1627,6 +1707,11 @@ def _solve_candidate(curves: _Curves, i: int, env: NDArray) -> tuple[float, floa
         except CertificationError:  # near a birth w(K) turns: d_1(K) - d_2(K) = 0 bracketed in K instead
             K, d = _bracketed_kink(curves, p, q, float(lo), float(hi))
         h = 1e-12 * max(scale, 1e-300)
+        if any(r.at(Kx) is None for r in (p, q) for Kx in (K - h, K + h)):
+            raise _narrow(
+                f"the kink of two crossing curves near [{lo:.15g}, {hi:.15g}] is at K = {K:.15g}, "
+                "beyond the gains where the scan has both"
+            )
         vals = [min(curves.at_gain(Kx, *_start(r, Kx))[1] for r in (p, q)) for Kx in (K - h, K + h)]
         return K, d, "kink", (K - h, K + h), (min(*vals, d), d)
     if i in (0, n - 1):
@@ -1656,11 +1741,15 @@ def _bracketed_kink(curves: _Curves, p: _Piece, q: _Piece, lo: float, hi: float)
         if gap(a) * gap(b) <= 0:
             K = brentq(gap, a, b, xtol=1e-15 * max(abs(a), abs(b), 1e-300), rtol=1e-15)
             return K, curves.at_gain(K, *_start(p, K))[1]
-    raise CertificationError(
-        f"best_margin: the two crossing curves do not change order near [{lo:.15g}, {hi:.15g}]: the scan's "
-        "interpolated curves are off there (features narrower than its step, as near the strong-stability bound, "
-        "where crossing pairs near w = k pi / tau are born within tiny gain intervals); narrower bounds away from "
-        "that limit would help"
+    raise _narrow(f"the two crossing curves do not change order near [{lo:.15g}, {hi:.15g}]")
+
+
+def _narrow(what: str) -> CertificationError:
+    """The refusal where the scan's interpolated curves are off (features narrower than its step)."""
+    return CertificationError(
+        f"best_margin: {what}: the scan's interpolated curves are off there (features narrower than its step, as "
+        "near the strong-stability bound, where crossing pairs near w = k pi / tau are born within tiny gain "
+        "intervals); narrower bounds away from that limit would help"
     )
 
 
@@ -2413,7 +2502,7 @@ def _window_design(
             K_br = (min(K, end.K), max(K, end.K))
             at_end = -_abscissa(curves.loop, end.K).value
             v_br = (min(value, at_end), max(value, at_end))
-        elif kind == "interior smooth max":
+        elif kind in ("interior smooth max", "kink"):
             K_br = (K - 1e-10 * max(_scale(curves), 1e-300), K + 1e-10 * max(_scale(curves), 1e-300))
     else:
         K, value, kind, K_br, v_br = _best_margin_in(curves, env, intervals, max_evals)
@@ -2555,6 +2644,15 @@ def _finite_time_gains(loop: _Family, lo: float, hi: float) -> tuple[list[float]
 # A sample's decay rate is left out when a bound puts it below a computed one by this much (relative): far
 # above the errors of the rates (~1e-14) and of the bounds, far below the differences between samples.
 _RATE_GAP = 1e-9
+# Newton steps, and continuation steps, that follow a zero's path in the gain (:class:`_RootPaths`).
+_PATH_NEWTON = 8
+_PATH_STEPS = 200
+# The shortest continuation step, relative to the distance followed.
+_PATH_MIN_STEP = 1e-3
+# Halvings of an interval between samples whose two rightmost zeros do not decide its maximum (:func:`_peak_between`).
+_PEAK_HALVINGS = 3
+# Halvings that look for gains where both paths of a crossing are followed (:func:`_crossing_bracket`).
+_PATH_BISECTIONS = 12
 # Half-width (relative to 1 + |z|) of the box about a root followed by Newton's method in which it is counted.
 _ROOT_BOX = 1e-6
 
@@ -2718,6 +2816,10 @@ def best_margin(
             bounds,
         )
     env = np.where(mask, curves.envelope, 0.0)
+    finite = env[np.isfinite(env)]
+    if finite.size:  # a curve the interpolation hides near the top: solved there (:meth:`_Curves.refine`)
+        curves.refine(mask & (env >= (1.0 - 2.0 * _NEAR_TOP) * float(np.max(finite))))
+        env = np.where(mask, curves.envelope, 0.0)
     scan = (curves.gains, env)
     if np.any(np.isinf(env)):  # gains that no crossing curve reaches, nominally stable: delta* = inf
         idx = np.flatnonzero(np.isinf(env))
@@ -2789,15 +2891,16 @@ def _best_rate(
 ) -> _Candidate:
     """The largest decay rate over the intervals ``((K_a, event_a), (K_b, event_b))``: ``n_rates`` samples
     of each, ends included; an end (``end_kind``, or ``"end"`` at a bound) when its sample is the largest,
-    else Brent's bounded search about the largest interior sample (a :class:`~nrobust.errors.CertificationError`
-    when it ends below that sample). A gain of an interval (up to the events
+    else the maximum about the largest interior sample (:func:`_peak_between` toward the neighbour where the
+    rate rises, else Brent's bounded search between its neighbours; a :class:`~nrobust.errors.CertificationError`
+    when it ends below that sample), and any maximum between two samples where the rate rises then falls
+    (:func:`_rising_then_falling`). A gain of an interval (up to the events
     its ends were moved inside from: :func:`_up_to_events`) at which the nominal loop has no zero
     (:func:`_finite_time_gains`) is the design, its rate ``inf`` (``"finite time"``); one where that holds
     up to rounding only is a :class:`~nrobust.errors.CertificationError`
     (the rate is unbounded there, and no sampled maximum is its supremum)."""
-    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
-
     scale = _scale(curves)
+    paths = _RootPaths(curves.loop)
     exact, near = _finite_time_gains(curves.loop, curves.K_lo, curves.K_hi)
     finite_time = [p for p in exact if any(_up_to_events(p, ends) for ends in intervals)]
     if finite_time:
@@ -2820,38 +2923,304 @@ def _best_rate(
         k = int(np.argmax(rates))  # a sample left out has a smaller rate than a computed one: never the first largest
         sa_k = sas[k]
         assert sa_k is not None
+        slopes = _rate_slopes(paths, Ks, sas)
+        for peak in _rising_then_falling(curves, paths, Ks, sas, slopes, k, scale):
+            if best is None or peak[1] > best[1]:
+                best = peak
         if k in (0, n_rates - 1):
             K_end, event_end = ends[0 if k == 0 else 1]
             cand: _Candidate = (K_end, float(rates[k]), "end" if event_end is None else end_kind, event_end, sa_k)
         else:
-            res = minimize_scalar(
-                lambda K: _abscissa(curves.loop, K).value,
-                bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
-                method="bounded",
-                options={"xatol": 1e-10 * max(scale, 1e-300)},
-            )
-            sa = _abscissa(curves.loop, float(res.x))
-            if -sa.value + _RATE_GAP * (1.0 + abs(rates[k])) < rates[k]:  # not a smooth maximum about the sample
+            side = k + 1 if slopes[k] > 0.0 else k - 1  # the neighbour toward which the rate rises
+            sa_side = sas[side]
+            found = None
+            if sa_side is not None:
+                (i, sa_i), (j, sa_j) = sorted([(k, sa_k), (side, sa_side)], key=lambda t: t[0])
+                found = _peak_between(curves, paths, (float(Ks[i]), sa_i), (float(Ks[j]), sa_j))
+            if found is None:
+                found = _bounded_search(curves, float(Ks[k - 1]), float(Ks[k + 1]), scale)
+            if found[1] + _RATE_GAP * (1.0 + abs(rates[k])) < rates[k]:  # not a smooth maximum about the sample
                 raise CertificationError(
                     f"best_decay_rate: the search about K = {float(Ks[k])!r} (decay rate {rates[k]:.6g}) ended at "
-                    f"K = {float(res.x)!r} with the smaller rate {-sa.value:.6g}: the rate is not smooth there (a "
+                    f"K = {found[0]!r} with the smaller rate {found[1]:.6g}: the rate is not smooth there (a "
                     "spike, or gains where the loop is unstable between the samples); bounds about that K, or more "
                     "samples (n_rates), would help"
                 )
-            cand = (float(res.x), -sa.value, "interior smooth max", None, sa)
+            cand = found
         if best is None or cand[1] > best[1]:
             best = cand
     assert best is not None
     return best
 
 
+class _RootPaths:
+    """Zeros of the nominal loop ``F(.; 0, K) = N_0 + K N_1`` followed in ``K`` by Newton's method.
+
+    ``N_1`` is the sum of the parts multiplied by the parameter (as in :func:`_finite_time_gains`);
+    a zero's sensitivity is ``ds/dK = -N_1(s) / F'(s)``, the slope of its decay rate ``-Re s`` is
+    ``Re(N_1(s) / F'(s))``. What is followed here only locates an optimum: its rate is that of the
+    certified abscissa there.
+    """
+
+    def __init__(self, loop: _Family) -> None:
+        self.N0 = loop.nominal(0.0)
+        self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
+        self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
+
+    def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
+        """``F(s), F'(s), N_1(s)`` at ``K``."""
+        z = np.array([s])
+        n1 = complex(self.N1(z)[0])
+        return complex(self.N0(z)[0]) + K * n1, complex(self.dN0(z)[0]) + K * complex(self.dN1(z)[0]), n1
+
+    def slope(self, K: float, s: complex) -> float:
+        """``d(-Re s)/dK`` of the zero ``s`` at ``K``."""
+        _, dF, n1 = self._parts(K, s)
+        with np.errstate(all="ignore"):
+            return float((n1 / dF).real)
+
+    def newton(self, K: float, s: complex) -> complex | None:
+        """The zero of ``F(.; 0, K)`` Newton's method reaches from ``s`` (None if it does not converge)."""
+        with np.errstate(all="ignore"):
+            for _ in range(_PATH_NEWTON):
+                F, dF, _ = self._parts(K, s)
+                step = F / dF
+                s -= step
+                if not np.isfinite(s):
+                    return None
+                if abs(step) <= 1e-14 * (1.0 + abs(s)):
+                    return s
+        return None
+
+    def follow(self, K0: float, s0: complex, K1: float) -> complex:
+        """The zero at ``K1`` on the path of ``s0``, a zero at ``K0``: Euler predictor, Newton corrector,
+        the step halved when the correction exceeds a third of the predicted move (a jump to another
+        path). Raises ``_PathLost`` after :data:`_PATH_STEPS` steps, or when the step falls below
+        :data:`_PATH_MIN_STEP` of ``|K1 - K0|`` (as at the end of a path, where two zeros meet and the
+        sensitivity grows without bound)."""
+        K, s, h = K0, s0, K1 - K0
+        shortest = _PATH_MIN_STEP * abs(K1 - K0)
+        for _ in range(_PATH_STEPS):
+            if K == K1:
+                return s
+            if abs(h) < shortest:
+                break
+            last = abs(K1 - K) <= abs(h)
+            h = K1 - K if last else h
+            _, dF, n1 = self._parts(K, s)
+            move = -n1 / dF * h
+            new = self.newton(K + h, s + move)
+            if new is not None and abs(new - s - move) <= abs(move) / 3.0 + 1e-12 * (1.0 + abs(s)):
+                K, s = (K1 if last else K + h), new
+                h *= 2.0
+            else:
+                h *= 0.5
+        raise _PathLost
+
+
+class _PathLost(Exception):
+    """A zero's path could not be followed (a collision of zeros, or too many steps)."""
+
+
+class _Path:
+    """One zero's path in ``K``, remembered at every gain reached (each new gain followed from the nearest)."""
+
+    def __init__(self, paths: _RootPaths, K: float, s: complex) -> None:
+        self.paths = paths
+        self.known = {K: s}
+
+    def at(self, K: float) -> complex:
+        if K not in self.known:
+            near = min(self.known, key=lambda x: abs(x - K))
+            self.known[K] = self.paths.follow(near, self.known[near], K)
+        return self.known[K]
+
+    def slope(self, K: float) -> float:
+        return self.paths.slope(K, self.at(K))
+
+
+def _rate_slopes(paths: _RootPaths, Ks: NDArray[np.float64], sas: list[SpectralAbscissa | None]) -> dict[int, float]:
+    """``d(-alpha)/dK`` at the computed samples from the rightmost zero's sensitivity; NaN where the chain value
+    is rightmost (no zero)."""
+    return {
+        j: float("nan") if sa.root is None else paths.slope(float(Ks[j]), complex(sa.root))
+        for j, sa in enumerate(sas)
+        if sa is not None
+    }
+
+
+def _peak_between(
+    curves: _Curves,
+    paths: _RootPaths,
+    a: tuple[float, SpectralAbscissa],
+    b: tuple[float, SpectralAbscissa],
+    halvings: int = _PEAK_HALVINGS,
+) -> _Candidate | None:
+    """A maximum of the decay rate between ``K_a < K_b``, where it rises at ``K_a`` and falls at ``K_b``:
+    :func:`_two_paths_peak`, else (other zeros rightmost between them) the half where the rate rises at one
+    end and falls at the other, from the abscissa at the midpoint, up to ``halvings`` times; None then."""
+    found = _two_paths_peak(curves, paths, a, b)
+    if found is not None or halvings == 0:
+        return found
+    m = 0.5 * (a[0] + b[0])
+    sa = _abscissa(curves.loop, m)
+    if sa.root is None:
+        return None
+    half = (a, (m, sa)) if paths.slope(m, complex(sa.root)) < 0.0 else ((m, sa), b)
+    return _peak_between(curves, paths, *half, halvings - 1)
+
+
+def _two_paths_peak(
+    curves: _Curves, paths: _RootPaths, a: tuple[float, SpectralAbscissa], b: tuple[float, SpectralAbscissa]
+) -> _Candidate | None:
+    """The largest decay rate between ``K_a < K_b``, where it rises at ``K_a`` and falls at ``K_b``, from the
+    paths of the two rightmost zeros; None when they do not decide it (the caller searches then).
+
+    The zero ``s_a`` rightmost at ``K_a`` and ``s_b`` at ``K_b`` are followed (:class:`_RootPaths`). On
+    one path (``s_a`` reaches ``s_b``) the maximum is smooth, ``d Re s/dK = 0`` (Brent's root finder on the
+    slope); on two, the rate peaks where they cross, ``Re s_a(K) = Re s_b(K)`` (a kink), unless the slope of
+    one changes sign before, a smooth maximum of that path. A path may end inside ``[K_a, K_b]`` (two real
+    zeros meet and leave the axis): the crossing is bracketed by bisection where both are followed
+    (:func:`_crossing_bracket`). The result is kept when the certified abscissa at the gain found is the
+    followed zero (its rate to ``1e-9``, relative) and its rate is at least both samples'.
+    """
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+    (Ka, sa_a), (Kb, sa_b) = a, b
+    if sa_a.root is None or sa_b.root is None:
+        return None
+    xtol = 1e-14 * max(abs(Ka), abs(Kb), 1e-300)
+    rb = complex(sa_b.root)
+    up, down = _Path(paths, Ka, complex(sa_a.root)), _Path(paths, Kb, rb)
+    try:
+        if not up.slope(Ka) > 0.0 > down.slope(Kb):
+            return None
+        try:
+            one = abs(up.at(Kb) - rb) <= 1e-9 * (1.0 + abs(rb))
+        except _PathLost:
+            one = False
+        if one:  # one path: a smooth maximum
+            K = brentq(up.slope, Ka, Kb, xtol=xtol, rtol=4 * _EPS)
+            kind, top = "interior smooth max", up
+        else:
+
+            def gap(K: float) -> float:
+                return up.at(K).real - down.at(K).real
+
+            bracket = _crossing_bracket(up, down, Ka, Kb)
+            if bracket is None:
+                return None
+            K = brentq(gap, *bracket, xtol=xtol, rtol=4 * _EPS)
+            kind, top = "kink", max((up, down), key=lambda p: p.at(K).real)
+            if up.slope(K) <= 0.0:
+                K, kind, top = brentq(up.slope, Ka, K, xtol=xtol, rtol=4 * _EPS), "interior smooth max", up
+            elif down.slope(K) >= 0.0:
+                K, kind, top = brentq(down.slope, K, Kb, xtol=xtol, rtol=4 * _EPS), "interior smooth max", down
+        predicted = -top.at(K).real
+    except _PathLost:
+        return None
+    sa = _abscissa(curves.loop, K)
+    rate = -sa.value
+    if abs(rate - predicted) > 1e-9 * (1.0 + abs(rate)) or rate < max(-sa_a.value, -sa_b.value):
+        return None
+    return (K, rate, kind, None, sa)
+
+
+def _crossing_bracket(up: _Path, down: _Path, Ka: float, Kb: float) -> tuple[float, float] | None:
+    """``[x, y]`` in ``[K_a, K_b]`` with both paths followed at ``x`` and ``y``, ``up`` right of ``down`` at
+    ``x`` and not at ``y``; None if bisection finds none in :data:`_PATH_BISECTIONS` halvings.
+
+    ``up`` starts at ``K_a``, ``down`` at ``K_b``, each followed on an interval about its start: a gain
+    where ``up`` is lost, or ``down`` is right of it, lies right of their crossing; one where ``down`` is
+    lost, or ``up`` is right of it, left.
+    """
+
+    def side(K: float) -> tuple[bool, bool]:
+        """(left of the crossing, both followed)."""
+        try:
+            re_up = up.at(K).real
+        except _PathLost:
+            return False, False
+        try:
+            return re_up > down.at(K).real, True
+        except _PathLost:
+            return True, False
+
+    (left_a, x_ok), (left_b, y_ok) = side(Ka), side(Kb)
+    if not left_a or left_b:
+        return None
+    x, y = Ka, Kb
+    for _ in range(_PATH_BISECTIONS):
+        if x_ok and y_ok:
+            return x, y
+        m = 0.5 * (x + y)
+        left, ok = side(m)
+        if left:
+            x, x_ok = m, ok
+        else:
+            y, y_ok = m, ok
+    return None
+
+
+def _rising_then_falling(
+    curves: _Curves,
+    paths: _RootPaths,
+    Ks: NDArray[np.float64],
+    sas: list[SpectralAbscissa | None],
+    slopes: dict[int, float],
+    k: int,
+    scale: float,
+) -> list[_Candidate]:
+    """Interior maxima of the decay rate between computed samples other than about the largest ``k``.
+
+    Between two consecutive computed samples where the rate rises at the first and falls at the
+    second (``slopes``) the continuous rate has a maximum, which may exceed every sample (a peak
+    where two zeros' paths cross, narrower than the samples' spacing): solved by :func:`_peak_between`,
+    else by Brent's bounded search, each a candidate (the samples about ``k`` are the caller's).
+    """
+    computed = sorted(slopes)
+    out: list[_Candidate] = []
+    for a, b in itertools.pairwise(computed):
+        if not (slopes[a] > 0.0 > slopes[b]) or (a >= k - 1 and b <= k + 1 and 0 < k < Ks.size - 1):
+            continue
+        sa_a, sa_b = sas[a], sas[b]
+        assert sa_a is not None and sa_b is not None
+        peak = _peak_between(curves, paths, (float(Ks[a]), sa_a), (float(Ks[b]), sa_b))
+        out.append(peak if peak is not None else _bounded_search(curves, float(Ks[a]), float(Ks[b]), scale))
+    return out
+
+
+def _bounded_search(curves: _Curves, lo: float, hi: float, scale: float) -> _Candidate:
+    """Brent's bounded search of the smallest spectral abscissa on ``[lo, hi]`` (a full abscissa each step)."""
+    from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
+
+    res = minimize_scalar(
+        lambda K: _abscissa(curves.loop, K).value,
+        bounds=(lo, hi),
+        method="bounded",
+        options={"xatol": 1e-10 * max(scale, 1e-300)},
+    )
+    sa = _abscissa(curves.loop, float(res.x))
+    return (float(res.x), -sa.value, "interior smooth max", None, sa)
+
+
 def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     """The event between the feasible grid gain ``i`` and the infeasible ``j``: a curve crossing ``level``
-    (``"crossing"``) or a pair born below it (``"pair_birth"``); the one nearest the feasible side."""
+    (``"crossing"``), a pair born below it (``"pair_birth"``) or the end of nominal stability
+    (``"nominal"``: ``s = 0`` a zero for every delay, ``K`` from ``F(0; 0, K) = 0`` in closed form,
+    :meth:`_Family.zero_root`); the one nearest the feasible side.
+
+    Where a zero leaves through ``s = 0`` the envelope drops to 0 without a curve crossing ``level``:
+    the curve ending at ``w = 0`` has the delay ``B'(0)/B(0) - A'(0)/A(0)`` there, which may be above
+    it (``StateFeedback(k)`` on ``Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)``: ``k = -0.2389191``, margin
+    2.26). A zero leaving through ``i w``, ``w > 0``, ends a curve at delay 0: a crossing of ``level``."""
     from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
 
     lo, hi = sorted((curves.gains[i], curves.gains[j]))
     events: list[GainEnd] = []
+    K0 = curves.loop.zero_root()
+    if K0 is not None and lo - (hi - lo) <= K0 <= hi + (hi - lo):
+        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0))
     for piece in curves.pieces:
         for at_start in (True, False):
             if (piece.start if at_start else piece.stop) == "birth":
@@ -2884,6 +3253,29 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     return min(events, key=lambda e: abs(e.K - feasible))
 
 
+def _unconstrained_rate(
+    loop: AffineGainLoop | AffineLoop, lo: float, hi: float, n_rates: int, max_evals: int, rigorous: bool
+) -> GainDesign:
+    """:func:`best_decay_rate` without a delay requirement: the largest decay rate over ``[lo, hi]``, the loop
+    exponentially stable at ``delta = 0`` (its certified count of zeros in ``Re s > 0`` none)."""
+    curves = _Curves(_Family(loop), lo, hi, max_evals)
+    env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
+    K, rate, kind, _, sa = _best_rate(curves, [((lo, None), (hi, None))], n_rates, "end")
+    cert, how = _certify(curves.loop, K, rigorous, max_evals)
+    if not (rate > 0.0 and cert.nominally_stable):
+        best_margin(loop, (lo, hi), max_evals=max_evals)  # raises when no gain is stable without delay (certified)
+        raise CertificationError(
+            f"best_decay_rate: the largest decay rate found, {rate:.6g} at K = {K:.15g}, leaves the loop unstable at "
+            "delta = 0, though the scan has stable gains: the rate peaks between the samples; more samples "
+            "(n_rates) or narrower bounds about the stable gains would help"
+        )
+    half = 1e-10 * max(abs(lo), abs(hi), 1e-300)
+    K_br = (K - half, K + half) if kind in ("interior smooth max", "kink") else (K, K)
+    return GainDesign(
+        K, "decay_rate", rate, cert.margin, rate, kind, K_br, (rate, rate), (lo, hi), cert, how, sa, curves.gains, env
+    )
+
+
 @one_blas_thread()
 def best_decay_rate(
     loop: AffineGainLoop | AffineLoop,
@@ -2909,7 +3301,14 @@ def best_decay_rate(
     delay below ``d``: ``"pair_birth"``) and moved ``1e-10`` (relative) inside. The rate is
     sampled at ``n_rates`` gains of each feasible interval, ends included; when the largest
     sample is an end, that end is the design (``kind`` ``"margin constraint"`` or ``"end"``),
-    otherwise Brent's bounded search refines the interior maximum. A feasible gain at which the
+    otherwise the maximum between it and the neighbour toward which the rate rises is solved;
+    so it is between any two consecutive samples where the rate rises at the first and falls at
+    the second (the rightmost zero's sensitivity ``ds/dK = -F_K / F'``: a peak narrower than the
+    samples' spacing), the best taken. The two samples' rightmost zeros are followed in ``K``
+    (Newton continuation): where their real parts cross the maximum is a ``"kink"``, where one's
+    slope vanishes an ``"interior smooth max"`` (``brentq`` on each equation), kept when the
+    certified abscissa there is the zero followed; otherwise Brent's bounded search of the
+    abscissa (about the largest sample, between its neighbours). A feasible gain at which the
     nominal loop has no zero at all (one term ``c e^{-h s}``: finite-time convergence, as
     ``U_BS2(K)``'s target system ``1 - (rho - K) q e^{-tau s}`` at ``K = rho``, eqs. (47), (56)-(58))
     has the decay rate ``inf`` and is the design (``kind`` ``"finite time"``): the rate tends to
@@ -2929,12 +3328,16 @@ def best_decay_rate(
     the window too: the feasible set is the intersection, and the design is certified on each
     (:attr:`GainDesign.windows`).
 
+    Without ``margin_at_least`` and ``delays`` the decay rate is maximised over the bounds with no
+    delay requirement, the designed loop exponentially stable at ``delta = 0`` (its delay margin,
+    possibly 0, is reported).
+
     Parameters
     ----------
     loop, bounds, rigorous, max_evals
         As in :func:`best_margin`.
     margin_at_least : float, optional
-        ``d > 0``: the delay margin required (or ``delays``).
+        ``d > 0``: the delay margin required (or ``delays``; neither: no delay requirement).
     delays : (float, float), optional
         ``[d_min, d_max]``: the window of delays on which the loop must be stable
         (``0 <= d_min <= d_max``, ``d_max > 0``); not with ``margin_at_least``.
@@ -2951,8 +3354,8 @@ def best_decay_rate(
     Raises
     ------
     ParameterError
-        As :func:`best_margin`; ``margin_at_least`` not positive, ``delays`` not a window, both or
-        neither given; a requirement no gain of the bounds meets (naming the best achievable:
+        As :func:`best_margin`; ``margin_at_least`` not positive, ``delays`` not a window, both
+        given; a requirement no gain of the bounds meets (naming the best achievable:
         the largest margin, or the end of the stability window from ``d_min`` on the scan).
     CertificationError
         No gain in the bounds has ``delta*(K) >= d``, an end could not be solved, the
@@ -2969,11 +3372,11 @@ def best_decay_rate(
         if delays is None:
             raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
         return _window_design(loop, lo, hi, "decay_rate", delays, scenarios, n_rates, max_evals, rigorous)
-    if margin_at_least is None:
-        raise ParameterError("margin_at_least", "a positive delay margin, or delays=(d_min, d_max)", None)
-    d = positive("margin_at_least", margin_at_least)
     n_rates = positive_int("n_rates", n_rates, 2)
     max_evals = positive_int("max_evals", max_evals)
+    if margin_at_least is None:
+        return _unconstrained_rate(loop, lo, hi, n_rates, max_evals, rigorous)
+    d = positive("margin_at_least", margin_at_least)
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
     scan = (curves.gains, env)
@@ -3017,6 +3420,6 @@ def best_decay_rate(
         K_br = (min(K, end.K), max(K, end.K))
         at_end = -_abscissa(curves.loop, end.K).value
         v_br = (min(rate, at_end), max(rate, at_end))
-    elif kind == "interior smooth max":
+    elif kind in ("interior smooth max", "kink"):
         K_br = (K - 1e-10 * max(scale, 1e-300), K + 1e-10 * max(scale, 1e-300))
     return GainDesign(K, "decay_rate", rate, cert.margin, rate, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan, end)

@@ -8,7 +8,8 @@
 ``B`` of one unit gain, all on one kernel grid so that they share one ``A``
 (:class:`StateFeedbackLoop`). :func:`design_state_feedback` maximises the delay margin, or the
 decay rate (optionally under a required margin), over ``p`` with the core's local nonsmooth
-optimiser (:func:`nrobust.design.optimize_loop`) and certifies the design, optionally under a
+optimiser (:func:`nrobust.design.optimize_loop`; without a basis, the loop affine in ``k``, by the
+exact one-gain engine, :mod:`nrobust.design.gain`) and certifies the design, optionally under a
 window of delays (``delays``) and a tolerance on the transport speeds (``speed_tolerance``: the
 gains, fixed functions of ``x``, acting on the four corner plants with mismatched speeds, whose
 loops are linear in ``p`` too: :func:`state_feedback_loop` of each).
@@ -36,8 +37,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._validate import callables, finite_real, positive_int
-from ...design.gain import best_decay_rate, best_margin
-from ...design.local import GAMMA_MAX, LoopDesign, delayed_gamma, optimize_loop
+from ...design.gain import GainDesign, best_decay_rate, best_margin
+from ...design.local import GAMMA_MAX, LocalRun, LoopDesign, delayed_gamma, optimize_loop
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
@@ -238,6 +239,89 @@ def default_state_k_bounds(loop: StateFeedbackLoop) -> tuple[float, float]:
     return -k, k
 
 
+def _affine(loop: StateFeedbackLoop) -> AffineGainLoop:
+    """``A + k B_k e^{-delta s}``: the proportional loop as the one-gain engine's family."""
+    return AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0])
+
+
+# How the one-gain engine's refusal of bounds without a gain stable at delta = 0 (certified) begins.
+_NO_STABLE_GAIN = "parameters of which some give a stable loop without delay"
+
+
+def _exact_gain(
+    loop: StateFeedbackLoop,
+    bounds: tuple[float, float],
+    objective: str,
+    margin_at_least: float | None,
+    window: tuple[float, float] | None,
+    scenarios: tuple[StateFeedbackLoop, ...],
+    rigorous: bool,
+) -> GainDesign:
+    """The best proportional gain by the one-gain engine (:mod:`nrobust.design.gain`): the global optimum over ``k``.
+
+    The engine's :class:`~nrobust.errors.ParameterError` that no gain of the bounds is stable at
+    ``delta = 0`` (certified) is raised about ``k_bounds``; its other refusals (e.g. bounds beyond
+    strong stability) as they are.
+    """
+    affine, others = _affine(loop), tuple(_affine(f) for f in scenarios)
+    try:
+        if objective == "margin":
+            return best_margin(affine, bounds, delays=window, scenarios=others, rigorous=rigorous)
+        if window is not None:
+            return best_decay_rate(affine, bounds, delays=window, scenarios=others, rigorous=rigorous)
+        return best_decay_rate(affine, bounds, margin_at_least=margin_at_least or None, rigorous=rigorous)
+    except ParameterError as exc:
+        if exc.name != "bounds" or not exc.requirement.startswith(_NO_STABLE_GAIN):
+            raise
+        raise ParameterError(
+            "k_bounds",
+            f"{exc.requirement}; with U = k u(t, L) alone, a basis of integral gains (U_BS2(K)'s kernel traces "
+            "projected on it) may stabilise the plant",
+            bounds,
+        ) from None
+
+
+def _exact_design(
+    loop: StateFeedbackLoop,
+    gain: GainDesign,
+    objective: str,
+    margin_at_least: float | None,
+    window: tuple[float, float] | None,
+    rigorous: bool,
+) -> LoopDesign:
+    """The exact proportional optimum ``gain`` as a :class:`LoopDesign` (``local=False``), certified as
+    :func:`~nrobust.design.optimize_loop` certifies its designs: the abscissa (proven when ``rigorous``), the
+    engine's delay margin (verified, or proven) meeting ``margin_at_least``, the windows the engine certified."""
+    p = (float(gain.K),)
+    A, B = loop(np.asarray(p))
+    sa = spectral_abscissa(A + B, rigorous=rigorous)
+    dm = gain.certificate
+    lowest = dm.margin_ball[0] if (rigorous and dm.margin_ball is not None) else dm.margin
+    met = not margin_at_least or lowest >= margin_at_least
+    decided = dm.verified or (math.isinf(dm.margin) and dm.nominally_stable and dm.strongly_stable)
+    if objective == "margin" or not (window is not None and window[0] > 0.0):
+        decided = decided and dm.nominally_stable
+    proven = not rigorous or (gain.certified == "proven" and all(w.certified == "proven" for w in gain.windows))
+    certified = bool(sa.certified and decided and met and proven and all(w.stable for w in gain.windows))
+    value = -sa.value if objective == "decay_rate" else dm.margin
+    run = LocalRun(p, p, float(value), True, 0, 0, 0.0, f"the exact optimum over k: {gain.kind}")
+    return LoopDesign(
+        p,
+        objective,
+        float(value),
+        float(-sa.value),
+        sa,
+        dm,
+        margin_at_least,
+        certified,
+        rigorous,
+        (run,),
+        local=False,
+        delays=window,
+        windows=gain.windows,
+    )
+
+
 def _proportional_starts(
     loop: StateFeedbackLoop,
     bounds: tuple[float, float],
@@ -248,32 +332,23 @@ def _proportional_starts(
 ) -> tuple[list[float], bool]:
     """Starting gains ``k`` with ``g_u = g_v = 0``, and whether the first is the exact optimum.
 
-    The spectral abscissa is sampled at :data:`PROPORTIONAL_SAMPLES` gains of ``bounds`` (those
-    whose delayed loop meets ``gamma_0 <= GAMMA_MAX``). When a sampled gain is stable at
-    ``delta = 0`` (or a window of delays is required), the margin (or the decay rate under a
-    positive margin, or under the window met by the loop and the ``scenarios`` alike) is solved
-    exactly by the one-gain engine (:mod:`nrobust.design.gain`; the loop is affine in ``k``): its
-    gain alone, the global optimum over ``k``. Otherwise (no margin asked, no stable sample, or
-    the engine cannot certify) the local minima of the sampled abscissa, the smallest first.
+    The objective (margin, decay rate with or without a margin, or under a window met by the
+    loop and the ``scenarios`` alike) is solved exactly by the one-gain engine
+    (:func:`_exact_gain`; the loop is affine in ``k``): its gain alone, the global optimum over
+    ``k``. When the engine cannot certify, the spectral abscissa is sampled at
+    :data:`PROPORTIONAL_SAMPLES` gains of ``bounds`` (those whose delayed loop meets
+    ``gamma_0 <= GAMMA_MAX``) and its local minima are the starts, the smallest first.
     """
+    try:
+        return [float(_exact_gain(loop, bounds, objective, margin_at_least, window, scenarios, False).K)], True
+    except (CertificationError, ParameterError):
+        pass
     ks, alphas = [], []
     for k in np.linspace(bounds[0], bounds[1], PROPORTIONAL_SAMPLES):
         B = loop.units[0] * float(k)
         if delayed_gamma(loop.A, B) <= GAMMA_MAX:
             ks.append(float(k))
             alphas.append(spectral_abscissa(loop.A + B).value)
-    if window is not None or (min(alphas, default=math.inf) < 0.0 and (objective == "margin" or margin_at_least)):
-        affine = AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0])
-        others = tuple(AffineGainLoop(f.A, f.units[0] * 0.0, f.units[0]) for f in scenarios)
-        try:
-            if objective == "margin":
-                return [float(best_margin(affine, bounds, delays=window, scenarios=others).K)], True
-            if window is not None:
-                return [float(best_decay_rate(affine, bounds, delays=window, scenarios=others).K)], True
-            required = float(margin_at_least or 0.0)
-            return [float(best_decay_rate(affine, bounds, margin_at_least=required).K)], True
-        except (CertificationError, ParameterError):
-            pass
     a = np.array([math.inf, *alphas, math.inf])
     minima = [i for i in range(len(ks)) if a[i + 1] <= a[i] and a[i + 1] <= a[i + 2]]
     minima.sort(key=lambda i: a[i + 1])
@@ -488,14 +563,16 @@ def design_state_feedback(
         stable iff ``|rho q| + |k q| < 1``).
     basis : sequence of callable
         Functions ``phi_j`` of ``x`` in ``[0, L]``: ``g_u = sum c_j phi_j``, ``g_v = sum d_j phi_j``.
-        Empty: the proportional law ``U = k u(t, L)``.
+        Empty: the proportional law ``U = k u(t, L)``, designed by the exact one-gain engine
+        (:func:`~nrobust.design.best_margin`, :func:`~nrobust.design.best_decay_rate`: the global
+        optimum over ``k``, ``design.local`` False, its kind in ``design.runs[0].reason``).
     coefficient_bounds : (float, float)
         Bounds of every ``c_j`` and ``d_j``.
     starts : int
-        Most local searches, each from a distinct start: the best proportional gain (``g_u =
-        g_v = 0``; exact when a sampled gain is stable at ``delta = 0`` and a margin is asked,
-        :mod:`nrobust.design.gain`, then the only start without a basis; else the local minima
-        of the sampled spectral abscissa); with a basis, also U_BS2(K)'s law projected on it,
+        With a basis, most local searches, each from a distinct start: the best proportional gain
+        (``g_u = g_v = 0``; the exact optimum over ``k`` of :mod:`nrobust.design.gain` when the
+        engine certifies it, so the design can only improve on it; else the local minima of the
+        sampled spectral abscissa); also U_BS2(K)'s law projected on it,
         for the best ``K`` of :func:`~nrobust.hyperbolic.analyses.design.design_reflection`
         (paper's plant, with a margin), ``K = -k`` of the best proportional gain and ``K``
         spread over the ``k`` bounds (the first of these before the proportional starts unless
@@ -516,7 +593,8 @@ def design_state_feedback(
     Raises
     ------
     ParameterError
-        For bad input, naming the argument: ``delays`` not a window or given with
+        For bad input, naming the argument: ``k_bounds`` (or the default bounds) where no ``k``
+        of a proportional law makes the loop stable at ``delta = 0`` (certified); ``delays`` not a window or given with
         ``margin_at_least``; ``speed_tolerance`` outside ``(0, 1)``, without a delay requirement,
         or on a :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2`.
     CertificationError
@@ -544,6 +622,18 @@ def design_state_feedback(
             for a, b in corners
         )
     kb = given if given is not None else default_state_k_bounds(loop)
+    if not functions:  # one gain: the exact engine's global optimum over k, else the local search below
+        try:
+            gain = _exact_gain(loop, kb, objective, margin_at_least, window, scenarios, rigorous)
+        except ParameterError as exc:
+            if exc.name == "k_bounds":  # no gain stable at delta = 0, certified
+                raise
+            gain = None  # bounds the engine does not take (e.g. beyond strong stability)
+        except CertificationError:
+            gain = None
+        if gain is not None:
+            one = _exact_design(loop, gain, objective, margin_at_least, window, rigorous)
+            return _finished(plant, loop, one, functions, grid, eps, window, rigorous)
     bounds = (kb, *([coef] * (2 * len(functions))))
     box = np.array(bounds)
     ks, exact = _proportional_starts(loop, kb, objective, margin_at_least, window, scenarios)
@@ -583,6 +673,21 @@ def design_state_feedback(
     )
     best_run = best.runs[0]
     best = dataclasses.replace(best, runs=(best_run, *(r for r in runs if r is not best_run)))
+    return _finished(plant, loop, best, functions, grid, eps, window, rigorous)
+
+
+def _finished(
+    plant: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    loop: StateFeedbackLoop,
+    best: LoopDesign,
+    functions: tuple[Any, ...],
+    grid: int | None,
+    eps: float | None,
+    window: tuple[float, float] | None,
+    rigorous: bool,
+) -> StateFeedbackDesign:
+    """The design ``best`` as a :class:`StateFeedbackDesign`, its speed tolerance certified on loops built
+    independently (:func:`~nrobust.hyperbolic.analyses.speed_tolerance`) when ``eps`` is given."""
     controller = _controller(best.parameters, functions)
     factors = loop(np.asarray(best.parameters))
     scope = loop_scope(plant, controller, grid, factors)
