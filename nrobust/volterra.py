@@ -73,10 +73,6 @@ REFINEMENTS = 2
 #: up to 1.95, the error exceeded the stated accuracy at the rounding level (by 2.5 times, at 1e-17, for
 #: ``a = 0.08``); with it the error is at most 0.79 of the stated accuracy (against the closed form).
 ROUNDING = 16 * np.finfo(float).eps
-#: Gauss-Legendre points per sub-interval between breakpoints, beyond the ``(d + 1) / 2`` that make
-#: the rule exact for the product of two pieces of degree ``d`` (the smooth correction ``c`` of the
-#: resolvent is a polynomial to rounding on the short sub-intervals).
-EXTRA_POINTS = 3
 #: Gauss-Legendre points per sub-interval of the collocation at most (:func:`_collocation_rule`).
 COLLOCATION_POINTS = 8
 #: Pieces of the stored correction ``c`` on the window, and their degree (Chebyshev series).
@@ -129,11 +125,6 @@ def _gauss(points: int) -> tuple[Array, Array]:
     """Gauss-Legendre nodes and weights on ``[0, 1]``."""
     x, w = np.polynomial.legendre.leggauss(points)
     return 0.5 * (x + 1.0), 0.5 * w
-
-
-def _points(term: DistributedDelay) -> int:
-    """Gauss-Legendre points per sub-interval for products of two pieces of ``term``'s degree."""
-    return (term.pieces[2].shape[1]) // 2 + 1 + EXTRA_POINTS
 
 
 def _rules(lo: Array, hi: Array, breaks: Array, points: int) -> tuple[Array, Array, NDArray[np.intp]]:
@@ -268,6 +259,20 @@ class WindowKernel:
 
     def __repr__(self) -> str:
         return f"WindowKernel(window={self.window:.6g}, terms={len(self.terms)}, accuracy={self.accuracy:.1e})"
+
+
+def _kernel_pieces(kernel: WindowKernel) -> tuple[Array, int]:
+    """The breakpoints of a window kernel inside the window (its stored kernels' knots and the edges of
+    its correction's equal pieces, when it has one) and its largest degree on the pieces between them.
+
+    A Gauss-Legendre rule of ``(d + degree) // 2 + 1`` points on each piece is exact for the kernel
+    times a polynomial of degree ``d``.
+    """
+    pieces, degree = kernel.coefficients.shape[0], kernel.coefficients.shape[1] - 1
+    if not np.any(kernel.coefficients):
+        return kernel.knots, kernel.degree
+    edges = kernel.window * np.arange(1, pieces) / pieces
+    return np.concatenate([kernel.knots, edges]), max(kernel.degree, degree)
 
 
 def _collocation_rule(kernel: DistributedDelay, window: float, n: int) -> tuple[int, Array]:
@@ -406,8 +411,8 @@ def window_law(terms: tuple[DistributedDelay, ...], resolvent: WindowKernel) -> 
         _plain("terms", term)
     w = resolvent.window
     m_knots = _window_knots(terms, w)
-    r_knots = resolvent.knots
-    points = max([_points(t) for t in terms] + [resolvent.degree // 2 + 1 + EXTRA_POINTS])
+    r_knots, r_degree = _kernel_pieces(resolvent)
+    points = (max((t.pieces[2].shape[1] - 1 for t in terms), default=0) + r_degree) // 2 + 1
 
     def convolution(sigma: Array) -> Array:
         breaks = np.concatenate(
@@ -467,10 +472,10 @@ def _product_kernel(
     for c, delay in points:
         if delay < middle < delay + w:
             out += c * h(np.clip(nu - delay, 0.0, w))
-    h_knots = h.knots
+    h_knots, h_degree = _kernel_pieces(h)
     for term in terms:
         knots = _knots(term)
-        count = max(_points(term), h.degree // 2 + 1 + EXTRA_POINTS)
+        count = (term.pieces[2].shape[1] - 1 + h_degree) // 2 + 1
         breaks = np.concatenate(
             [np.broadcast_to(h_knots, (nu.size, h_knots.size)), nu[:, None] - knots[None, :]], axis=1
         )
