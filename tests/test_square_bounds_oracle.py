@@ -62,7 +62,6 @@ def _l1(f: Any, g: Any, cuts: np.ndarray) -> float:
     return float(np.sum(0.5 * (b - a) * (diff @ _W)))
 
 
-@pytest.mark.long
 @pytest.mark.parametrize("box", [(-0.05, 0.05, -0.05, 0.05), (0.09, 0.1, -0.1, -0.09)])
 def test_gain_radius_and_variation_hold_the_kernels_of_the_box(box: tuple[float, float, float, float]) -> None:
     """The box's ``L^1`` radius is at least the ``L^1`` distance of each sampled speed's kernel to the middle
@@ -84,8 +83,8 @@ def test_gain_radius_and_variation_hold_the_kernels_of_the_box(box: tuple[float,
         PLANT, lam=PLANT.lam * (1 + 0.5 * (box[0] + box[1])), mu=PLANT.mu * (1 + 0.5 * (box[2] + box[3]))
     )
     k0, c0 = _scaled_kernel(middle, LAW)
-    rng = np.random.default_rng(3)
-    speeds = [(box[0], box[2]), (box[1], box[3]), *(tuple(rng.uniform(box[::2], box[1::2])) for _ in range(2))]
+    # three corners: the largest distances (the kernels move monotonically with the speeds here)
+    speeds = [(box[0], box[2]), (box[1], box[3]), (box[0], box[3])]
     distances = []
     for e_lam, e_mu in speeds:
         plant = dataclasses.replace(PLANT, lam=PLANT.lam * (1 + e_lam), mu=PLANT.mu * (1 + e_mu))
@@ -96,6 +95,7 @@ def test_gain_radius_and_variation_hold_the_kernels_of_the_box(box: tuple[float,
     assert radius >= max(distances) > 0.0
 
 
+@pytest.mark.long
 def test_trace_bound_holds_a_fine_grid() -> None:
     """``delta`` of ``reflection_traces`` holds ``sup |h - g|`` with ``g`` the traces of grids 401 and 801
     extrapolated to second order (the observed order is 2.3; the extrapolation moves them by ~2e-9, the
