@@ -239,6 +239,9 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         "ObserverDesign": nrobust.design_collocated_observer(
             TransportSystem(1.0, 2.0, 0.9, 0.6), controller=ReflectionController(0.2)
         ),
+        "CollocatedDesign": nrobust.design_collocated_output_feedback(
+            TransportSystem(1.0, 2.0, 0.9, 0.6), "decay_rate", margin_at_least=0.5, x0=[0.2, 0.1], starts=1, max_iter=3
+        ),
         "NPlusMWindow": check_window(ONE_PLUS_ONE, [[-0.2]], nplusm_delay_margin(ONE_PLUS_ONE, [[-0.2]]), (0.1, 0.2)),
         "NPlusMGainDesign": design_nplusm_gains(
             NPlusMSystem.from_2x2(Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)),
@@ -333,6 +336,7 @@ NAMES = [
     "DelayWindow",
     "SpeedTolerance",
     "ObserverDesign",
+    "CollocatedDesign",
     "NPlusMWindow",
     "NPlusMGainDesign",
     "StateFeedbackDesign",

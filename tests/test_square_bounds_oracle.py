@@ -62,7 +62,9 @@ def _l1(f: Any, g: Any, cuts: np.ndarray) -> float:
     return float(np.sum(0.5 * (b - a) * (diff @ _W)))
 
 
-@pytest.mark.parametrize("box", [(-0.05, 0.05, -0.05, 0.05), (0.09, 0.1, -0.1, -0.09)])
+@pytest.mark.parametrize(
+    "box", [(-0.05, 0.05, -0.05, 0.05), pytest.param((0.09, 0.1, -0.1, -0.09), marks=pytest.mark.long)]
+)
 def test_gain_radius_and_variation_hold_the_kernels_of_the_box(box: tuple[float, float, float, float]) -> None:
     """The box's ``L^1`` radius is at least the ``L^1`` distance of each sampled speed's kernel to the middle
     plant's (the radius is a proof: no tolerance; the quadrature of the distance is exact to ~1e-12 on

@@ -31,7 +31,7 @@ kernel widens the enclosures of ``B`` by that much. Derivatives:
 
 Each sup over ``xi, n`` uses ``|0F1(; b; x)| <= 0F1(; b; |kappa| / 4)`` (``|x| <= |kappa| / 4``) and
 ``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`section_bounds`); the gains' sups come from their Taylor
-models (:func:`_gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``:
+models (:func:`gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``:
 ``|I_g| <= V_g / |z|`` on ``Re z >= 0`` with ``V_g`` the four end values plus ``int |k'|``
 (:func:`gain_variation`).
 """
