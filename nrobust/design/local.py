@@ -94,6 +94,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._digits import with_accuracy
 from .._json import json_safe
 from .._newton import newton
 from .._validate import callables, finite_real, is_real_number, nonnegative, positive_int
@@ -1405,6 +1406,24 @@ class LoopDesign:
     local: bool = True
     delays: tuple[float, float] | _Windows | None = None
     windows: tuple[DelayWindow, ...] = field(default=(), repr=False)
+
+    @property
+    def value_text(self) -> str:
+        """:attr:`value` printed to its accuracy (the margin's or the abscissa's), ``+-`` it."""
+        if self.objective == "margin":
+            return with_accuracy(self.value, self.margin.accuracy)
+        return with_accuracy(self.value, self.abscissa.accuracy)
+
+    def __repr__(self) -> str:
+        # the designed parameters are the controller's own numbers (in full); the objective's value and the
+        # decay rate are estimates, printed to their accuracy
+        rate = with_accuracy(self.decay_rate, self.abscissa.accuracy)
+        return (
+            f"LoopDesign(parameters={self.parameters!r}, objective={self.objective!r}, value={self.value_text}, "
+            f"decay_rate={rate}, abscissa={self.abscissa!r}, margin={self.margin!r}, "
+            f"margin_at_least={self.margin_at_least!r}, certified={self.certified}, rigorous={self.rigorous}, "
+            f"local={self.local}, delays={self.delays!r})"
+        )
 
     @property
     def required_windows(self) -> _Windows:

@@ -570,7 +570,7 @@ class CollocatedDesign:
 
     def __repr__(self) -> str:
         return (
-            f"CollocatedDesign(K={self.K:.9g}, kappa={self.kappa:.9g}, {self.design.objective}={self.value:.10g}, "
+            f"CollocatedDesign(K={self.K!r}, kappa={self.kappa!r}, {self.design.objective}={self.design.value_text}, "
             f"certified={self.certified}, local=True)"
         )
 
