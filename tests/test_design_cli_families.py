@@ -114,6 +114,7 @@ def test_state_feedback_command_agrees_with_the_exact_scalar_design(tmp_path: Pa
     assert (out / "design.png").stat().st_size > 0 and "](design.png)" in text
 
 
+@pytest.mark.long  # about a minute of CPU: make fuzz runs it
 @pytest.mark.slow
 def test_state_feedback_command_with_a_basis(tmp_path: Path) -> None:
     """With ``basis = [0]`` (constant ``g_u``, ``g_v``) on 51 kernel points: the first start is the exact

@@ -52,7 +52,7 @@ def _kink(loop: AffineLoop) -> tuple[float, float]:
     return k, _delay(loop, k, 3.18, 3.20)
 
 
-@pytest.mark.parametrize("lo", [-0.74, -0.7185])
+@pytest.mark.parametrize("lo", [pytest.param(-0.74, marks=pytest.mark.long), -0.7185])
 def test_kink_of_a_curve_the_interpolation_hides(loop: AffineLoop, lo: float) -> None:
     design = best_margin(loop, (lo, 0.1), max_evals=2_000_000)
     k, d = _kink(loop)

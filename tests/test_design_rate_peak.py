@@ -28,6 +28,7 @@ def loop() -> AffineGainLoop:
     return AffineGainLoop(family.A, family.units[0] * 0.0, family.units[0])
 
 
+@pytest.mark.long  # about a minute of CPU: make fuzz runs it
 def test_peak_between_samples(loop: AffineGainLoop) -> None:
     design = best_decay_rate(loop, (-0.8415, -0.24), margin_at_least=1.0, n_rates=5)
     assert design.certificate.margin >= 1.0

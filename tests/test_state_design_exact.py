@@ -52,7 +52,7 @@ def _crossing(loop: StateFeedbackLoop) -> tuple[float, float]:
     return k, -_zero(loop, k, -1.2 + 0j).real
 
 
-@pytest.mark.parametrize("margin_at_least", [None, 0.2])
+@pytest.mark.parametrize("margin_at_least", [None, pytest.param(0.2, marks=pytest.mark.long)])
 def test_decay_rate_against_a_grid(loop: StateFeedbackLoop, margin_at_least: float | None) -> None:
     design = nr.design_state_feedback(PLANT, "decay_rate", margin_at_least=margin_at_least, kernel_grid=None)
     assert design.certified and not design.design.local
@@ -89,6 +89,7 @@ def test_margin_against_a_grid(loop: StateFeedbackLoop) -> None:
     np.testing.assert_allclose(margins[-1], design.value, rtol=0, atol=10 * 1e-6)
 
 
+@pytest.mark.long  # about a minute of CPU: make fuzz runs it
 def test_paper_plant_has_no_stable_proportional_gain() -> None:
     paper = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
     for objective, margin in (("margin", None), ("decay_rate", None)):
