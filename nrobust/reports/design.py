@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import io
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -429,12 +430,16 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
         lines.append(f"  - window [{w.window[0]!r}, {w.window[1]!r}]: {verdict}, {proof} ({w.how}{extra})")
     lines.append(f"- certified: {'yes' if result.certified else 'no'}")
     lines.append(f"- optimality: {result.optimality}")
-    for i, run in enumerate(result.runs):
-        lines.append(
-            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
-            f", {run.reason}"
-        )
-    return lines
+    return lines + _start_lines(result.runs)
+
+
+def _start_lines(runs: Sequence[Any]) -> list[str]:
+    """One line per local start: where it began, where it ended, why it stopped."""
+    return [
+        f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
+        f", {run.reason}"
+        for i, run in enumerate(runs)
+    ]
 
 
 #: Gains ``t K`` of the n + m figure.
@@ -751,9 +756,4 @@ def _local_design_lines(result: FilteredDesign | StateFeedbackDesign) -> list[st
             f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
         )
         lines.append(f"  - {t.statement}; about {t.scope}")
-    for i, run in enumerate(d.runs):
-        lines.append(
-            f"- start {i + 1}: {tuple(round(v, 6) for v in run.start)} -> {tuple(round(v, 6) for v in run.parameters)}"
-            f", {run.reason}"
-        )
-    return lines
+    return lines + _start_lines(d.runs)

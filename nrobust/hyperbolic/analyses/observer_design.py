@@ -83,8 +83,25 @@ _SHRINK = 0.1
 _TOP_FRACTION, _TOP_CHECKS = 0.01, 5
 
 
+class _ObserverResult:
+    """What :class:`ObserverDesign` and :class:`CollocatedDesign` read alike from their controller and design."""
+
+    controller: CollocatedOutputFeedback
+    design: Any
+
+    @property
+    def kappa(self) -> float:
+        """The designed observer reflection."""
+        return self.controller.observer_reflection
+
+    @property
+    def value(self) -> float:
+        """The objective at the design: the delay margin or the decay rate."""
+        return float(self.design.value)
+
+
 @dataclass(frozen=True)
-class ObserverDesign:
+class ObserverDesign(_ObserverResult):
     """The designed collocated observer (and law) with its certificate.
 
     Attributes
@@ -104,16 +121,6 @@ class ObserverDesign:
     design: GainDesign
     bounds: tuple[float, float]
     scope: str
-
-    @property
-    def kappa(self) -> float:
-        """The designed observer reflection."""
-        return self.controller.observer_reflection
-
-    @property
-    def value(self) -> float:
-        """The objective at the design: the delay margin or the decay rate."""
-        return float(self.design.value)
 
     @property
     def kind(self) -> str:
@@ -516,7 +523,7 @@ def joint_bounds(
 
 
 @dataclass(frozen=True)
-class CollocatedDesign:
+class CollocatedDesign(_ObserverResult):
     """The jointly designed U_BS2(K) and collocated observer reflection ``kappa``, certified.
 
     Attributes
@@ -552,16 +559,6 @@ class CollocatedDesign:
         inner = self.controller.controller
         assert isinstance(inner, ReflectionController)
         return float(inner.K)
-
-    @property
-    def kappa(self) -> float:
-        """The designed observer reflection."""
-        return self.controller.observer_reflection
-
-    @property
-    def value(self) -> float:
-        """The objective at the design: the delay margin or the decay rate."""
-        return float(self.design.value)
 
     @property
     def certified(self) -> bool:
