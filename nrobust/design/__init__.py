@@ -12,53 +12,9 @@ rate (under a required margin) or of the margin (:func:`optimize_loop`: BFGS wit
 line search, then a pattern search over axes and diagonals; every iterate feasible; the design certified).
 ``pareto``: the best decay rate under each of a list of required margins
 (:func:`pareto_front`).
+Names load on first use (PEP 562), from ``__init__.pyi``.
 """
 
-from .gain import (
-    DESIGN_KINDS,
-    AffineLoop,
-    DelayWindow,
-    GainDesign,
-    best_decay_rate,
-    best_margin,
-    check_delays,
-    window_requirement,
-    window_stability,
-)
-from .local import (
-    GAMMA_MAX,
-    OBJECTIVES,
-    LocalProblem,
-    LocalRun,
-    LoopDesign,
-    ParametricLoop,
-    TrialPoint,
-    delayed_gamma,
-    local_runs,
-    optimize_loop,
-)
-from .pareto import ParetoFront, pareto_front
+import lazy_loader as _lazy
 
-__all__ = [
-    "DESIGN_KINDS",
-    "GAMMA_MAX",
-    "OBJECTIVES",
-    "AffineLoop",
-    "DelayWindow",
-    "GainDesign",
-    "LocalProblem",
-    "LocalRun",
-    "LoopDesign",
-    "ParametricLoop",
-    "ParetoFront",
-    "TrialPoint",
-    "best_decay_rate",
-    "best_margin",
-    "check_delays",
-    "delayed_gamma",
-    "local_runs",
-    "optimize_loop",
-    "pareto_front",
-    "window_requirement",
-    "window_stability",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

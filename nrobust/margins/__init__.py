@@ -6,42 +6,9 @@ imaginary axis and its frequency bound (``axis``), the certified search of the z
 loops ``det(M_0 + e^{-delta s} M_1)`` (``matrix``), and for an affine gain family
 ``A + (B_0 + K R) e^{-delta s}`` the exact ends of the admissible gain intervals (``gain``)
 and the verdict at one gain (``admissible``).
+Names load on first use (PEP 562), from ``__init__.pyi``.
 """
 
-from .admissible import GainVerdict, check_gain_end, gain_verdict, tolerates
-from .axis import AxisGap, AxisJet, frequency_bound
-from .count import UnstableCount, unstable_count
-from .crossing import Crossing, CrossingSearch, crossing_frequencies
-from .gain import END_KINDS, AffineGainLoop, GainEnd, locate_gain_ends
-from .margin import DelayMargin, delay_margin
-from .matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
-from .proven import ProvenCrossings, proven_crossings, proven_gap, proven_zero_root
+import lazy_loader as _lazy
 
-__all__ = [
-    "END_KINDS",
-    "AffineGainLoop",
-    "AxisGap",
-    "AxisJet",
-    "Crossing",
-    "CrossingSearch",
-    "DelayMargin",
-    "GainEnd",
-    "GainVerdict",
-    "GaugeRemainder",
-    "ProvenCrossings",
-    "UnstableCount",
-    "check_gain_end",
-    "circle_crossings",
-    "compound_generator",
-    "compound_minors",
-    "crossing_frequencies",
-    "delay_margin",
-    "frequency_bound",
-    "gain_verdict",
-    "locate_gain_ends",
-    "proven_crossings",
-    "proven_gap",
-    "proven_zero_root",
-    "tolerates",
-    "unstable_count",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

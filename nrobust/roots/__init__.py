@@ -1,9 +1,9 @@
 """Certified roots of quasi-polynomials: counts (``winding``), the search for roots
 (``search``) and the roots with their proofs (``finder``), the spectral abscissa
-(``abscissa``); ``_common`` holds the rounding model, the work budget and the argument checks."""
+(``abscissa``); ``_common`` holds the rounding model, the work budget and the argument checks.
+Names load on first use (PEP 562), from ``__init__.pyi``.
+"""
 
-from .abscissa import SpectralAbscissa, spectral_abscissa
-from .finder import RootSet, find_roots
-from .winding import RootCount, count_roots
+import lazy_loader as _lazy
 
-__all__ = ["RootCount", "RootSet", "SpectralAbscissa", "count_roots", "find_roots", "spectral_abscissa"]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -20,14 +20,15 @@ from ..._progress import show_progress
 from ..._validate import positive, positive_int, renamed_keywords
 from ...errors import CertificationError, ParameterError
 from ...margins.admissible import GainVerdict, check_gain_end, gain_verdict, tolerates
-from ...margins.gain import AffineGainLoop, GainEnd, locate_gain_ends
+from ...margins.gain import END_KINDS, AffineGainLoop, GainEnd, locate_gain_ends
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ..loops.controllers import ReflectionController, classify, loop_factors
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import GainMargin, mapper, real_grid, study_plant
 
-__all__ = ["DEFAULT_N_GAINS", "MAX_GAINS", "KRegion", "k_region", "u_bs2_loop"]
+# END_KINDS and GainEnd, the kinds and ends of a KRegion's intervals, are also exported by nrobust.hyperbolic.analyses
+__all__ = ["DEFAULT_N_GAINS", "END_KINDS", "MAX_GAINS", "GainEnd", "KRegion", "k_region", "u_bs2_loop"]
 
 #: Default number of gains of the grid of :func:`k_region` (and of
 #: :func:`nrobust.certify`'s K-region). For ``U_BS2(K)`` the ends are solved from their

@@ -1,26 +1,8 @@
 """Backstepping kernels of 2x2 plants: constant speeds on the paper's triangle
 (``constant``) and varying speeds (``varying``).
+Names load on first use (PEP 562), from ``__init__.pyi``.
 """
 
-from .constant import (
-    DEFAULT_KERNEL_GRID,
-    MAX_KERNEL_GRID,
-    MIN_KERNEL_GRID,
-    RESOLUTION,
-    Kernels,
-    check_kernel_grid,
-    solve_kernels,
-)
-from .varying import VaryingKernels, solve_varying_kernels
+import lazy_loader as _lazy
 
-__all__ = [
-    "DEFAULT_KERNEL_GRID",
-    "Kernels",
-    "MAX_KERNEL_GRID",
-    "MIN_KERNEL_GRID",
-    "RESOLUTION",
-    "VaryingKernels",
-    "check_kernel_grid",
-    "solve_kernels",
-    "solve_varying_kernels",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

@@ -1,26 +1,8 @@
 """The plants: the paper's 2x2 system in normal form (``hyperbolic2x2``), general 2x2
 plants and their normal form (``general``), physical front ends (``frontends``).
+Names load on first use (PEP 562), from ``__init__.pyi``.
 """
 
-from .frontends import ARZ, GRAVITY, SaintVenant, arz, from_riemann, saint_venant
-from .general import Coefficient, GeneralHyperbolic2x2, NormalForm, as_general
-from .hyperbolic2x2 import Coupling, Hyperbolic2x2, TransportSystem
-from .law import FeedbackLaw, feedback_gain
+import lazy_loader as _lazy
 
-__all__ = [
-    "ARZ",
-    "Coefficient",
-    "Coupling",
-    "FeedbackLaw",
-    "GRAVITY",
-    "GeneralHyperbolic2x2",
-    "Hyperbolic2x2",
-    "NormalForm",
-    "SaintVenant",
-    "TransportSystem",
-    "arz",
-    "as_general",
-    "feedback_gain",
-    "from_riemann",
-    "saint_venant",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)

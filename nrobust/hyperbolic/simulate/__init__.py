@@ -5,26 +5,9 @@
 ``normal_form`` (the paper's plant along its characteristics, and a general plant with a
 constant ``lam/mu`` through its normal form; the marching in ``characteristics``),
 ``general`` (a general plant on time-of-flight grids) and ``nplusm`` (``n + m`` systems).
+Names load on first use (PEP 562), from ``__init__.pyi``.
 """
 
-from .base import Scheme, SimulationResult
-from .general import GeneralSimulation, simulate_general
-from .normal_form import DEFAULT_CELLS, MAX_UPDATES, Simulation, simulate_runs, v_nodes
-from .nplusm import NPlusMSimulation, simulate_nplusm
-from .registry import SCHEMES, simulate
+import lazy_loader as _lazy
 
-__all__ = [
-    "DEFAULT_CELLS",
-    "GeneralSimulation",
-    "MAX_UPDATES",
-    "NPlusMSimulation",
-    "SCHEMES",
-    "Scheme",
-    "Simulation",
-    "SimulationResult",
-    "simulate",
-    "simulate_general",
-    "simulate_nplusm",
-    "simulate_runs",
-    "v_nodes",
-]
+__getattr__, __dir__, __all__ = _lazy.attach_stub(__name__, __file__)
