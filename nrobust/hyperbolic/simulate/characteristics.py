@@ -287,6 +287,78 @@ class Recorder:
             self.v.append(v.copy())
 
 
+class _LatticeStep:
+    """The lattice's step of the interior and of ``x = 0``, elementwise on rows ``(U, V)`` of states.
+
+    ``U`` and ``V`` at ``t_j`` from those at ``t_{j-1}``, nodes ``0 .. n-1`` (``x = 1`` is the
+    loop's); returns ``ru`` at ``x = 1``, the value of ``u`` arriving there before the coupling
+    with the boundary (:meth:`Loop.solve`).
+    """
+
+    def __init__(self, system: Hyperbolic2x2, x: Array, dt: float) -> None:
+        n = x.size - 1
+        xm = (np.arange(n) + 0.5) / n
+        h4 = dt / 4.0  # trapezoidal factor on a half step
+        spm, smp = h4 * system.sigma_pm_at(x), h4 * system.sigma_mp_at(x)
+        self.spm_m, self.smp_m = h4 * system.sigma_pm_at(xm), h4 * system.sigma_mp_at(xm)
+        det_m = 1.0 - self.spm_m * self.smp_m
+        det_i = 1.0 - spm[1:-1] * smp[1:-1]
+        det_0 = 1.0 - smp[0] * system.q
+        if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
+            raise ParameterError("cells", "large enough for the trapezoidal coupling step to be solvable", n)
+        self.inv_m, self.inv_i, self.inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
+        self.spm_l, self.spm_i, self.smp_r, self.smp_i = spm[:-1], spm[1:-1], smp[1:], smp[1:-1]
+        self.spm_last, self.q = float(spm[-1]), float(system.q)
+
+    def __call__(self, U: Array, V: Array) -> Array:
+        # Half step: nodes -> midpoints (u from the left node, v from the right node).
+        ru = U[:, :-1] + self.spm_l * V[:, :-1]
+        rv = V[:, 1:] + self.smp_r * U[:, 1:]
+        um = (ru + self.spm_m * rv) * self.inv_m
+        vm = (rv + self.smp_m * ru) * self.inv_m
+        # Half step: midpoints -> nodes.
+        ru = um + self.spm_m * vm  # arrives at nodes 1..n
+        rv = vm + self.smp_m * um  # arrives at nodes 0..n-1
+        U[:, 1:-1] = (ru[:, :-1] + self.spm_i * rv[:, 1:]) * self.inv_i
+        V[:, 1:-1] = (rv[:, 1:] + self.smp_i * ru[:, :-1]) * self.inv_i
+        V[:, 0] = rv[:, 0] * self.inv_0
+        U[:, 0] = self.q * V[:, 0]
+        return np.asarray(ru[:, -1])
+
+    def matrix(self, n: int) -> sparse.csr_matrix:
+        """The step as a sparse matrix ``T`` on columns ``X = [U; V]`` (``2 (n + 1)`` rows, one column a run).
+
+        ``T X`` holds the new ``U`` and ``V`` at nodes ``0 .. n-1`` and, in the row of ``u(1)``,
+        ``ru`` at ``x = 1`` (the row of ``v(1)`` is zero): the loop then sets both. The new value
+        at a node depends on the old ones within two nodes, so the columns are read from the step
+        of 16 probe states (the unit states of every eighth node of ``u`` or of ``v``), each entry
+        the step of one unit state, computed by the elementwise formulas above.
+        """
+        from scipy import sparse  # lazily: scipy.sparse is slow to import
+
+        size, period = n + 1, 8
+        probes = np.zeros((2 * period, 2 * size))
+        for f in range(2):
+            for c in range(period):
+                probes[f * period + c, f * size + c : (f + 1) * size : period] = 1.0
+        U, V = probes[:, :size].copy(), probes[:, size:].copy()
+        ru = self(U, V)
+        U[:, -1], V[:, -1] = ru, 0.0
+        out = np.hstack([U, V])  # (probe, output)
+        node = np.tile(np.arange(size), 2)  # node of each output
+        rows, cols, vals = [], [], []
+        for f in range(2):
+            for c in range(period):
+                k = node + ((c - node + period // 2) % period) - period // 2  # the probe's node nearest each output
+                hit = (k >= 0) & (k < size) & (out[f * period + c] != 0.0)
+                rows.append(np.flatnonzero(hit))
+                cols.append(f * size + k[hit])
+                vals.append(out[f * period + c][hit])
+        return sparse.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * size, 2 * size)
+        )
+
+
 def march_lattice(
     system: Hyperbolic2x2,
     x: Array,
@@ -301,56 +373,45 @@ def march_lattice(
 
     Several runs of one plant on one grid (other loops, other delays) march together: ``u``
     and ``v`` then hold one row per run, and ``loop`` and ``record`` are one per run. The
-    interior of the lattice is advanced for all rows at once, by the same elementwise
-    operations as one run, so that each run's values are those it has alone.
+    interior of the lattice is advanced for all runs at once by one sparse product
+    (:meth:`_LatticeStep.matrix`: the step is linear and the same for every run), the
+    boundary ``x = 1`` by each run's loop, so that each run's values are those it has alone.
     """
     loops = [loop] if isinstance(loop, Loop) else list(loop)
     records = [record] if isinstance(record, Recorder) else list(record)
-    U, V = np.atleast_2d(u), np.atleast_2d(v)  # views: the rows of u and v are marched in place
-    if not (U.shape == V.shape and U.shape[0] == len(loops) == len(records)):
-        raise ParameterError("(u, v)", "one row of u and of v per loop and recorder", (U.shape, V.shape))
+    U0, V0 = np.atleast_2d(u), np.atleast_2d(v)  # views: the rows of u and v hold the final states
+    if not (U0.shape == V0.shape and U0.shape[0] == len(loops) == len(records)):
+        raise ParameterError("(u, v)", "one row of u and of v per loop and recorder", (U0.shape, V0.shape))
     n = x.size - 1
-    xm = (np.arange(n) + 0.5) / n
-    h4 = dt / 4.0  # trapezoidal factor on a half step
-    spm, smp = h4 * system.sigma_pm_at(x), h4 * system.sigma_mp_at(x)
-    spm_m, smp_m = h4 * system.sigma_pm_at(xm), h4 * system.sigma_mp_at(xm)
-    det_m = 1.0 - spm_m * smp_m
-    det_i = 1.0 - spm[1:-1] * smp[1:-1]
-    det_0 = 1.0 - smp[0] * system.q
-    if np.any(np.abs(det_m) < 1e-12) or np.any(np.abs(det_i) < 1e-12) or abs(det_0) < 1e-12:
-        raise ParameterError("cells", "large enough for the trapezoidal coupling step to be solvable", n)
-    inv_m, inv_i, inv_0 = 1.0 / det_m, 1.0 / det_i, 1.0 / det_0
-    # the weights of every run stacked: the sums over the nodes are taken for all runs at once
-    WU, WV = np.stack([lp.wu for lp in loops]), np.stack([lp.wv for lp in loops])
-    WU_in, WV_in, BG = WU[:, :-1], WV[:, :-1], np.array([lp.bg for lp in loops])
-    NU, NV = np.stack([rec.wu for rec in records]), np.stack([rec.wv for rec in records])
-    spm_l, spm_i, smp_r, smp_i = spm[:-1], spm[1:-1], smp[1:], smp[1:-1]
-    spm_last, q = float(spm[-1]), float(system.q)
-    WU_last, WV_last = WU[:, -1] + BG, WV[:, -1]  # V(t_j) = inner + the terms of x = 1 (bg: the u(1) feedthrough)
+    step = _LatticeStep(system, x, dt)
+    T = step.matrix(n)
+    last_u, last_v = n, 2 * n + 1  # the entries of u(1) and v(1) in a run's state [U, V]
+    # the weights of every run stacked: the sums over the nodes are taken for all runs at once, each
+    # run's on its own contiguous row (as many runs or one: the same sums)
+    BG = np.array([lp.bg for lp in loops])
+    W_in = np.hstack([np.stack([lp.wu for lp in loops]), np.stack([lp.wv for lp in loops])])
+    W_last = W_in[:, [last_u, last_v]].T.copy()
+    W_last[0] += BG  # V(t_j) = inner + the terms of x = 1 (bg: the u(1) feedthrough)
+    W_in[:, [last_u, last_v]] = 0.0
+    NW = np.hstack([np.stack([rec.wu for rec in records]), np.stack([rec.wv for rec in records])])
+    X = np.hstack([U0, V0])  # one row per run
+    runs = range(len(loops))
     for j in range(1, steps + 1):
-        # Half step: nodes -> midpoints (u from the left node, v from the right node).
-        ru = U[:, :-1] + spm_l * V[:, :-1]
-        rv = V[:, 1:] + smp_r * U[:, 1:]
-        um = (ru + spm_m * rv) * inv_m
-        vm = (rv + smp_m * ru) * inv_m
-        # Half step: midpoints -> nodes.
-        ru = um + spm_m * vm  # arrives at nodes 1..n
-        rv = vm + smp_m * um  # arrives at nodes 0..n-1
-        U[:, 1:-1] = (ru[:, :-1] + spm_i * rv[:, 1:]) * inv_i
-        V[:, 1:-1] = (rv[:, 1:] + smp_i * ru[:, :-1]) * inv_i
-        V[:, 0] = rv[:, 0] * inv_0
-        U[:, 0] = q * V[:, 0]
-        inner = _row_dots(U[:, :-1], WU_in) + _row_dots(V[:, :-1], WV_in)
-        for r, lp in enumerate(loops):
-            U[r, -1], V[r, -1] = lp.solve(j, ru[r, -1], spm_last, float(inner[r]))
-        v_now = inner + WU_last * U[:, -1] + WV_last * V[:, -1]
+        X = np.ascontiguousarray((T @ X.T).T)
+        ru = X[:, last_u].tolist()
+        inner = np.einsum("ij,ij->i", X, W_in)
+        for r, v_inner in zip(runs, inner.tolist()):
+            X[r, last_u], X[r, last_v] = loops[r].solve(j, ru[r], step.spm_last, v_inner)
+        v_now = inner + W_last[0] * X[:, last_u] + W_last[1] * X[:, last_v]
         # einsum sums the squares without floating-point checks: an overflow shows as inf, rescaled by l2_norms
-        norms = np.sqrt(np.einsum("ij,ij,ij->i", U, U, NU) + np.einsum("ij,ij,ij->i", V, V, NV))
+        norms = np.sqrt(np.einsum("ij,ij,ij->i", X, X, NW))
+        U, V = X[:, : n + 1], X[:, n + 1 :]
         if not np.isfinite(norms).all():
-            norms = l2_norms(NU, NV, U, V)
-        for r, (lp, rec) in enumerate(zip(loops, records)):
-            lp.advance(j, float(v_now[r]))
-            rec.store(j, float(norms[r]), U[r], V[r])
+            norms = l2_norms(NW[:, : n + 1], NW[:, n + 1 :], U, V)
+        for r, v_r, norm in zip(runs, v_now.tolist(), norms.tolist()):
+            loops[r].advance(j, v_r)
+            records[r].store(j, norm, U[r], V[r])
+    U0[:], V0[:] = X[:, : n + 1], X[:, n + 1 :]
 
 
 def v_grid(mu: float, dt: float, offset: float = 0.0) -> Array:
