@@ -53,9 +53,9 @@ _CZT_BLOCK = 1024
 _CLOSED_FORM_PIECES = 8
 # Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
 _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
-# Results of DistributedDelay.abs_moment kept per term (by their real parts): the root finders
+# Values of DistributedDelay.abs_moment kept per term and moment (by real part): the root finders
 # bound the segments of their contours at a few recurring real parts.
-_ABS_MOMENTS_KEPT = 256
+_ABS_MOMENTS_KEPT = 4096
 
 
 def _phi(z: NDArray[np.complex128], kmax: int) -> NDArray[np.complex128]:
@@ -413,10 +413,8 @@ class DistributedDelay:
         _ends: dict[tuple[int, bool], tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]] = field(
             init=False, repr=False, compare=False
         )
-        # abs_moment's results by (k, x): the bounds of a contour's segments recur at the same real parts
-        _abs_moments: dict[tuple[int, tuple[int, ...], bytes], NDArray[np.float64]] = field(
-            init=False, repr=False, compare=False
-        )
+        # abs_moment's values by k, then x: the bounds of a contour's segments recur at the same real parts
+        _abs_moments: dict[int, dict[float, float]] = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -932,19 +930,23 @@ class DistributedDelay:
 
         ``|N|`` is bounded on each segment by a polynomial (:meth:`_abs_pieces`), whose
         weighted integral is computed exactly; the error bound ``radius`` of ``N_true`` adds
-        ``radius int nu^(m+k) e^{-nu x}``.
+        ``radius int nu^(m+k) e^{-nu x}``. Each value is kept per ``(k, x)``: the root finders
+        bound the segments of their contours at a few recurring real parts, a few at a time.
         """
         x = np.asarray(x, dtype=float)
-        key = (k, x.shape, x.tobytes())
-        cached = self._abs_moments.get(key)
-        if cached is None:
-            flat = x.ravel().astype(complex)
-            stored = np.abs(self._moment_integral(flat, k, absolute=True)).reshape(x.shape)
-            cached = stored + self._radius_integral(x, self.moment + k)
-            if len(self._abs_moments) >= _ABS_MOMENTS_KEPT:
-                self._abs_moments.clear()
-            self._abs_moments[key] = cached
-        return cached.copy()
+        flat = x.ravel().tolist()
+        table = self._abs_moments.setdefault(k, {})
+        out = [table.get(v) for v in flat]
+        missing = [i for i, v in enumerate(out) if v is None]
+        if missing:
+            xs = np.array([flat[i] for i in missing])
+            stored = np.abs(self._moment_integral(xs.astype(complex), k, absolute=True))
+            new = (stored + self._radius_integral(xs, self.moment + k)).tolist()
+            if len(table) + len(new) > _ABS_MOMENTS_KEPT:
+                table.clear()
+            for i, v in zip(missing, new):
+                out[i] = table[flat[i]] = v
+        return np.array(out, dtype=float).reshape(x.shape)
 
     def variation_bound(self, x: ArrayLike) -> NDArray[np.float64]:
         """Bound ``V(x)`` with ``|int N(nu) e^{-nu s} dnu| <= V(Re s) / |s|`` (moment 0).
