@@ -55,7 +55,7 @@ from ..lti.pade import split_integrators
 from ..margins import frequency_bound, unstable_count
 from ..margins.crossing import crossing_search
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
-from .base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes, legend_corner
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -243,7 +243,7 @@ class NyquistResponse:
         _limits(ax, finite, unit_circle)
         ax.axhline(0.0, color="0.8", lw=0.5)
         ax.axvline(0.0, color="0.8", lw=0.5)
-        ax.legend(fontsize="x-small", loc="best")
+        ax.legend(fontsize="x-small", loc=legend_corner(ax))
         return NrobustPlot(lines, ax, ax.figure)
 
     def to_dict(self) -> dict[str, Any]:

@@ -16,7 +16,7 @@ from .._validate import region as check_region
 from ..errors import CertificationError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
 from ..roots import RootSet, SpectralAbscissa, find_roots, spectral_abscissa
-from .base import NrobustPlot, get_axes
+from .base import NrobustPlot, get_axes, legend_corner
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -222,7 +222,7 @@ class RootMapData:
         ax.set_ylim(box[2], box[3])
         ax.set_xlabel("Re s")
         ax.set_ylabel("Im s")
-        ax.legend(fontsize="x-small", loc="upper left" if hidden is not None else "best")
+        ax.legend(fontsize="x-small", loc="upper left" if hidden is not None else legend_corner(ax))
         return NrobustPlot(lines, ax, ax.figure)
 
     def to_dict(self) -> dict[str, Any]:

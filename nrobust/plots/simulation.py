@@ -9,7 +9,7 @@ import numpy as np
 
 from .._validate import positive
 from ..errors import ParameterError
-from .base import NrobustPlot, decade_ticks, get_axes
+from .base import NrobustPlot, decade_ticks, get_axes, legend_corner
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -98,7 +98,7 @@ def simulation_plot(
     ax.set_ylabel("||(u, v)(t)||_L2")
     ax.grid(True, which="major", alpha=0.3)
     if labels is not None:
-        ax.legend(fontsize="x-small", loc="best")
+        ax.legend(fontsize="x-small", loc=legend_corner(ax))
     return NrobustPlot(lines, ax, ax.figure)
 
 
