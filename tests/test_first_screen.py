@@ -328,7 +328,7 @@ def test_a_refused_plant_is_told_the_general_plant_too(call):
 
 # |K q| < 1 - |rho q| (K = 0.1): every delay is tolerated (eq. (54)), an infinite margin
 # with no crossing to check; |rho q| + |K q| > 1 (K = 0.8): the difference operator is not
-# strongly stable, a zero margin, not verified
+# strongly stable, a zero margin decided without a crossing: nothing to verify either
 _SWEEP_TOML = """analysis = "delay_margin"
 executor = "serial"
 [system]
@@ -352,11 +352,12 @@ def test_the_verified_column_says_not_needed_for_an_infinite_margin_and_a_rerun_
     assert "resumed" not in capsys.readouterr().out
     rows = json.loads((out / "sweep.json").read_text())["rows"]
     assert [row["delta_star"] for row in rows] == ["inf", 0.0]
-    # analyze's words ("not needed: infinite, no crossing frequency"; "no"), not False
-    assert [row["verified"] for row in rows] == ["not needed", "no"]
+    # analyze's words ("not needed: infinite, no crossing frequency"; "not needed: zero, decided without a
+    # crossing frequency"), not False
+    assert [row["verified"] for row in rows] == ["not needed", "not needed"]
     csv_rows = [line.split(",") for line in (out / "sweep.csv").read_text().splitlines()]
     column = csv_rows[0].index("verified")
-    assert [row[column] for row in csv_rows[1:]] == ["not needed", "no"]
+    assert [row[column] for row in csv_rows[1:]] == ["not needed", "not needed"]
     assert main(args) == 0
     assert f"resumed: kept 2 of 2 points from {out / 'sweep.jsonl'}" in capsys.readouterr().out
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .._digits import with_accuracy
+from .._digits import lower_bound_text, with_accuracy
 from .._json import fields_dict
 from ..design.local import delayed_gamma
 from ..errors import ParameterError
@@ -330,7 +330,8 @@ def _panel(cert: Certificate) -> _Panel:
     elif cert.nominally_stable:
         lines.append(
             f"**Without delay (delta = 0):** stable; decay rate "
-            f"{with_accuracy(-cert.abscissa.value, cert.abscissa.accuracy)} (the rightmost closed-loop root)."
+            f"{with_accuracy(-cert.abscissa.value, cert.abscissa.accuracy)}{_rate_unit(cert)} (the rightmost "
+            "closed-loop root)."
         )
     else:
         n = "some" if m.nominal_unstable is None else str(m.nominal_unstable)
@@ -369,6 +370,13 @@ def _panel(cert: Certificate) -> _Panel:
             "of SYSTEM.toml, or `certify(..., rigorous=True)`."
         )
     return _Panel(cert.verdict, tuple(lines))
+
+
+def _rate_unit(cert: Certificate) -> str:
+    """`` per time unit (T s)`` for a plant whose delays are in a unit of ``T`` seconds, else empty."""
+    given = cert.system if cert.given_system is None else cert.given_system
+    unit = float(getattr(given, "time_unit", 1.0))
+    return "" if unit == 1.0 else f" per time unit ({unit:g} s)"
 
 
 def _unit(cert: Certificate) -> str:
@@ -426,7 +434,7 @@ def _plant_blocks(cert: Certificate, with_controller: bool = True) -> list[_Para
         out.append(
             _Paragraph(
                 f"{type(controller).__name__} reads K in the normal form's coordinates, not in the plant's: "
-                f"K = {_number(gain)} is the gain {_fmt(-float(gain) * factor)} on the plant's u(t, L) "
+                f"K = {_number(gain)} is the gain {_fmt(-float(gain) * factor + 0.0)} on the plant's u(t, L) "
                 "(with the kernel terms of eq. (53))."
             )
         )
@@ -498,7 +506,7 @@ def _certificate_blocks(
         ),
         (
             "margin verified (residual and count)",
-            "not needed: infinite, no crossing frequency" if np.isposinf(m.margin) else _fmt(m.verified),
+            _verified_text(m),
             "delay_margin",
         ),
         ("how the margin was decided", m.reason, "delay_margin"),
@@ -509,7 +517,7 @@ def _certificate_blocks(
         ),
         (
             "Rouché guaranteed range delta_0",
-            "not applicable (U_BS and U_BS2 only)" if cert.rouche is None else _fmt(cert.rouche.delta_0),
+            _rouche_text(cert),
             "rouche_delay_bound (Theorem 4)" if cert.rouche is not None else "-",
         ),
         (
@@ -575,14 +583,22 @@ def _accuracy_text(cert: Certificate) -> str:
         return "exact: no crossing, hence no delay to estimate"
     if cert.margin_accuracy == 0.0:
         return "exact"
-    return cert.accuracy_statement.split(": ", 1)[1]
+    text = cert.accuracy_statement.split(": ", 1)[1]
+    return text.removeprefix("accuracy ")  # the row's label says it
 
 
 def _opening(cert: Certificate) -> str:
     """The sentence under the verdict: what the paper says of this controller on this plant."""
     cls, controller = cert.classification, cert.controller
+    given = cert.system if cert.given_system is None else cert.given_system
+    normal = ""
+    if isinstance(given, GeneralHyperbolic2x2):  # rho q below is the normal form's, not the plant's rho times q
+        normal = (
+            f" Here rho q = {_fmt(cls.rho_q)} is the normal form's (the plant's rho q = {_fmt(given.rho * given.q)} "
+            "weighted by its diagonal terms a and d), and K is read in the normal form's coordinates."
+        )
     if isinstance(controller, (FiniteTimeController, ReflectionController)):
-        return cls.statement  # the regimes of |rho q| for U_BS and U_BS2 (Theorems 2 to 4)
+        return cls.statement + normal  # the regimes of |rho q| for U_BS and U_BS2 (Theorems 2 to 4)
     if isinstance(controller, FilteredController) and controller.K is not None:
         a, b, K = float(controller.a), float(controller.b), float(controller.K)
         gamma = delayed_gamma(*loop_factors(cert.system, controller))
@@ -601,14 +617,29 @@ def _opening(cert: Certificate) -> str:
             f"{_fmt(gamma)}, {'below' if gamma < 1.0 else 'not below'} 1, the condition for a positive delay margin "
             "(the paper's eq. (17) states it without the absolute value of a)."
         )
-    given = cert.system if cert.given_system is None else cert.given_system
-    coordinates = " (K in the normal form's coordinates)" if isinstance(given, GeneralHyperbolic2x2) else ""
     if isinstance(controller, OpenLoop):
         return (
             f"Open loop (U = 0), open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: "
-            f"{cls.statement}{coordinates}"
+            f"{cls.statement}{normal}"
         )
-    return f"Open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}{coordinates}"
+    return f"Open-loop gain rho q = {_fmt(cls.rho_q)}. For the paper's controllers: {cls.statement}{normal}"
+
+
+def _rouche_text(cert: Certificate) -> str:
+    """The Rouché range ``delta_0`` rounded down (a printed lower bound stays one)."""
+    if cert.rouche is None:
+        return "not applicable (U_BS and U_BS2 only)"
+    delta_0 = float(cert.rouche.delta_0)
+    return "infinity" if np.isposinf(delta_0) else lower_bound_text(delta_0)
+
+
+def _verified_text(m: Any) -> str:
+    """Whether the margin was checked independently, or why there was nothing to check."""
+    if np.isposinf(m.margin):
+        return "not needed: infinite, no crossing frequency"
+    if m.margin == 0.0 and m.omega is None:
+        return "not needed: zero, decided without a crossing frequency"
+    return _fmt(m.verified)
 
 
 def _interval(lo: float, hi: float) -> str:

@@ -80,8 +80,14 @@ class _Analysis:
 
 #: The values of the ``verified`` column of a ``delay_margin`` sweep, the words of ``nrobust
 #: analyze``: ``"yes"`` (the margin was checked independently), ``"no"`` (it was not), and
-#: ``"not needed"`` (an infinite margin: no crossing frequency, nothing to check).
+#: ``"not needed"`` (an infinite margin, or a zero one decided without a crossing frequency: nothing to check).
 VERIFIED_VALUES = ("yes", "no", "not needed")
+
+
+def _nothing_to_verify(result: Any) -> bool:
+    """An infinite margin, or a zero one decided without a crossing frequency: no crossing to check."""
+    margin = float(result.margin)
+    return margin == math.inf or (margin == 0.0 and getattr(result, "omega", None) is None)
 
 
 def _margin_columns(result: Any) -> dict[str, Any]:
@@ -90,7 +96,7 @@ def _margin_columns(result: Any) -> dict[str, Any]:
         "delta_star": margin,
         "nominally_stable": bool(result.nominally_stable),
         "strongly_stable": bool(result.strongly_stable),
-        "verified": VERIFIED_VALUES[2] if margin == math.inf else VERIFIED_VALUES[0 if result.verified else 1],
+        "verified": VERIFIED_VALUES[2] if _nothing_to_verify(result) else VERIFIED_VALUES[0 if result.verified else 1],
     }
 
 
