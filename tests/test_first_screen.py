@@ -380,6 +380,17 @@ def test_the_sweep_chart_draws_an_infinite_margin_apart_from_the_scale_with_a_le
     np.testing.assert_allclose(scaled.norm.vmax, 1.5, rtol=0, atol=0)
 
 
+def _zero_margin(a: float, b: float) -> dict[str, float]:
+    return {"margin": math.inf if a > 0.5 else 0.0}
+
+
+def test_a_sweep_chart_with_one_finite_value_has_a_scale_above_it():
+    # every finite margin is 0: matplotlib's own scale would run from -0.1 to 0.1 (negative margins)
+    result = sweep(_zero_margin, grid(a=[0.0, 1.0], b=[0.0, 1.0]), executor="serial", progress=False)
+    scaled = sweep_chart(result, ["a", "b"], {}, False).axes[0].collections[0]
+    assert (scaled.norm.vmin, scaled.norm.vmax) == (0.0, 1.0)
+
+
 def test_a_resumed_sweep_says_how_many_points_it_kept_from_which_journal(tmp_path, caplog):
     journal = tmp_path / "sweep.jsonl"
     points = grid(a=[0.0, 0.5], b=[0.0, 0.5, 1.0])

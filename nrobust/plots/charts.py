@@ -269,6 +269,9 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
             grid_vals[np.searchsorted(ys, row[x2]), np.searchsorted(xs, row[x])] = row[y]
         finite = grid_vals[np.isfinite(grid_vals)]
         infinite = np.isposinf(grid_vals)
+        low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        if high == low:  # one finite value: a scale above it (matplotlib's would straddle it, e.g. negative margins)
+            high = low + max(abs(low), 1.0)
         # the finite values on the colour scale; an infinite value is no colour of the scale
         # (its top would read as the largest finite value): white, hatched, in the legend
         mesh = ax.pcolormesh(
@@ -277,8 +280,8 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
             np.ma.masked_invalid(grid_vals),
             shading="nearest",
             cmap=matplotlib.colormaps["viridis"].with_extremes(bad="lightgray"),
-            vmin=finite.min() if finite.size else 0.0,
-            vmax=finite.max() if finite.size else 1.0,
+            vmin=low,
+            vmax=high,
         )
         fig.colorbar(mesh, ax=ax, label=f"{y} (finite)")
         handles = []
