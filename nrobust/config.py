@@ -116,6 +116,8 @@ SYSTEM_TYPES: dict[str, Callable[..., Hyperbolic2x2 | GeneralHyperbolic2x2]] = {
     "SaintVenant": _plant_of(saint_venant, "SaintVenant"),
     "ARZ": _plant_of(arz, "ARZ"),
 }
+#: The physical front ends among :data:`SYSTEM_TYPES`: a file's parameters of one are echoed by the report.
+FRONT_ENDS = ("SaintVenant", "ARZ")
 #: The ``n + m`` plant (``[system] type = "NPlusMSystem"``) has its own reader, :func:`_load_nplusm`:
 #: its analysis is a study of static feedbacks, not a 2x2 certificate, and sweeps do not take it.
 NPLUSM_TYPE = "NPlusMSystem"
@@ -670,6 +672,8 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     values: dict[str, Any] = {k: _system_value(kind, k, v) for k, v in params.items()}
     cls = SYSTEM_TYPES[kind]
     system = build_in_section("system", lambda: cls(**values))
+    # a physical front end: its parameters as written, for the report (the plant is its general 2x2 form)
+    physical = (kind, dict(params)) if kind in FRONT_ENDS else None
 
     kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
     values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
@@ -754,5 +758,6 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
         "simulation": simulation,
         "given_system": given_system,
         "given_controller": given_controller,
+        "physical": physical,
         "design": design,
     }

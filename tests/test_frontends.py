@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 
 import nrobust
 from nrobust.cli import main
-from nrobust.config import load_system_file
+from nrobust.config import load_system_file, load_toml
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic import Hyperbolic2x2, boundary_function
 from nrobust.hyperbolic.loops.controllers import (
@@ -467,7 +467,15 @@ def test_toml_state_feedback_gains_are_physical():
 @pytest.mark.parametrize("name", ["saint_venant.toml", "arz.toml"])
 def test_analyze_front_end_files(name, tmp_path):
     assert main(["analyze", str(EXAMPLES / name), "-o", str(tmp_path), "--no-progress"]) == 0
-    assert "delay-robust" in (tmp_path / "report.md").read_text()
+    report = (tmp_path / "report.md").read_text()
+    assert "delay-robust" in report
+    # the front end's own parameters, as the file gives them, before its general 2x2 form
+    physical = load_toml(EXAMPLES / name, "TOML file")["system"]
+    kind = physical.pop("type")
+    given = f"**Given as** {kind} with " + ", ".join(
+        f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in physical.items()
+    )
+    assert given in report
 
 
 @pytest.mark.slow

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -98,7 +99,19 @@ def run_analyze(
                     simulation_figure(runs, [f"delta = {d:g}" for d in sim["delays"]], "Simulation of the PDE"),
                 )
             )
-        files = outputs.final(write_report(cert, outputs.staging, figures=figures))
+        files = outputs.final(write_report(cert, outputs.staging, figures=figures, intro=_physical(spec)))
         outputs.commit()
         bar.update(1)
     return files, cert.verdict
+
+
+def _physical(spec: dict[str, Any]) -> list[str]:
+    """The report's opening line for a physical front end: its parameters as the file gives them."""
+    if spec.get("physical") is None:
+        return []
+    kind, params = spec["physical"]
+    given = ", ".join(f"{k} = {v:g}" if isinstance(v, float) else f"{k} = {v}" for k, v in params.items())
+    return [
+        f"**Given as** {kind} with {given} (the file's [system] table); analysed as the general 2x2 plant "
+        "below, its linearisation about the steady state, in characteristic coordinates."
+    ]
