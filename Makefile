@@ -93,7 +93,7 @@ docs: $(STAMP_DOCS)
 
 bench: $(STAMP_TEST)
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
-	for b in roots kernels margins exact simulate sweep statespace plants imports timeresp design design_local lti; do echo "== benchmarks/$$b.py"; $(BIN)/python benchmarks/$$b.py || exit 1; done
+	for b in roots kernels margins exact simulate sweep statespace plants imports timeresp design design_local lti paper; do echo "== benchmarks/$$b.py"; $(BIN)/python benchmarks/$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) $(VENV310) build *.egg-info .ruff_cache .mypy_cache docs/_build docs/generated docs/auto_examples
