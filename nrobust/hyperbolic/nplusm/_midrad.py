@@ -69,7 +69,7 @@ class Ball:
     def __matmul__(self, other: Ball) -> Ball:
         k = self.mid.shape[-1]
         a, b = np.abs(self.mid), np.abs(other.mid)
-        rad = a @ other.rad + self.rad @ (b + other.rad) + 2.0 * (k + 2) * EPS * (a @ b) + TINY
+        rad = a @ (other.rad + 2.0 * (k + 2) * EPS * b) + self.rad @ (b + other.rad) + TINY
         return Ball(self.mid @ other.mid, rad * UP)
 
     def divide(self, k: int) -> Ball:

@@ -26,21 +26,24 @@ most its larger end). So ``||A_w|| <= alpha_1 = 2 q a_0 + t_0 / mu_min`` and ``|
 
 **Search.** ``f(w, e^{i phi}) = 0`` iff ``sigma_min(A) = 0``. On a cell ``[w_0 +- h_w] x [phi_0 +-
 h_phi]``, ``sigma_min(A(w, z)) >= sigma_min(A(w_0, z_0)) - h_w alpha_1 - h_phi ||E T - M_0||(w_0)``
-(Weyl; ``|z - z_0| <= h_phi``): the derivative bound in ``phi`` is the cell's own. The exact loop
-differs from the computed grid loop by at most ``eps + 3 r(w)`` in norm (``r`` the rounding of the
-matrix exponentials and the Filon steps, ``EXPM_ROUNDING`` units per step as in
-:mod:`~nrobust.hyperbolic.nplusm.characteristic`) and LAPACK's ``sigma_min`` by ``1e-13 ||A||``:
-a cell whose lower bound is positive holds no zero. The others are halved in the direction of
-the larger term, all cells of a round evaluated in one vectorised call (each distinct ``w`` once),
-until the slack ``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of that error: those cells
-stay, the region where the kernels' error leaves the sign of ``f`` open.
+(Weyl; ``|z - z_0| <= h_phi``): the derivative bound in ``phi`` is the cell's own. At the centre,
+``sigma_min`` of the exact loop is at least that of the enclosure's midpoint ``A_h`` (proven below,
+*Enclosures*) minus the Frobenius norm of the enclosure's radius and ``eps``: a cell whose lower
+bound is positive holds no zero. The others are halved in the direction of the larger term, all
+cells of a round evaluated in one vectorised call (each distinct ``w`` once), until the slack
+``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of the gap between the floating-point
+``sigma_min`` of ``A_h`` and that lower bound (mostly ``eps``): those cells stay, the region where
+the kernels' error leaves the sign of ``f`` open. Halving rounds the cells' centres, so each cell
+stands for itself widened by ``64 EPS (W + h_0)`` in ``w`` and ``192 pi EPS`` in ``phi`` (more than the
+drift of 40 generations of halving, and the gap between ``2 pi`` and its float).
 
 **Existence.** The cells left fall in groups of touching cells. In each, Newton steps on the grid
 loop give ``x_0`` and its Jacobian ``J`` in ``(w, phi)``; for ``g = J^{-1} (Re f, Im f)`` of the
 exact loop the signs ``g_1 < 0`` at ``w = w_0 - a``, ``> 0`` at ``w_0 + a`` and ``g_2 < 0`` at
 ``phi = phi_0 - a``, ``> 0`` at ``phi_0 + a`` prove a zero in the box (Poincare-Miranda). They are
-checked at the midpoints of short pieces of each face, with ``|f - f_h| <= prod(sigma_i + e) - prod
-sigma_i`` for ``||A - A_h|| <= e``, ``sigma_i`` those of ``A_h`` (in the singular vectors' bases
+checked at the midpoints of short pieces of each face, with ``f_h = det A_h`` enclosed (cofactors)
+and ``|f - f_h| <= prod(sigma_i + e) - prod sigma_i`` for ``||A - A_h|| <= e``, ``sigma_i`` proven
+upper bounds of the singular values of ``A_h`` (the bound increases with each; in the singular vectors' bases
 ``det(Sigma + E') = sum_S det E'[S, S] prod_{i not in S} sigma_i`` and ``|det E'[S, S]| <=
 e^{|S|}``; Ipsen and Rehman, SIAM J. Matrix Anal. Appl. 30, 2008), and the Lipschitz bound ``L_w``
 or ``L_phi`` along the face standing for the rest of each piece. A group without a proven zero is
@@ -51,7 +54,8 @@ refused.
 ``K = -R``) and ``||A_0^{-1}|| <= kappa`` for every ``w`` and ``|z| <= 1``
 (:func:`_principal_inverse`: ``rho(2 sum_t |V^{-1} R_t|) < 1`` proven, a Neumann series). The
 rest: ``(1 - z) E [-R, I] (Phi - Phi_0) [Q; I]``, at most ``2 ||[-R, I]|| ||[Q; I]|| r(w)``
-(:class:`~nrobust.margins.matrix.GaugeRemainder` on the axis, ``|E| = 1``), and ``z (E T - V)``.
+(the remainder of :class:`~nrobust.margins.matrix.GaugeRemainder` on the axis, ``|E| = 1``, its
+constants ``||N||``, ``||H||``, ``beta_d`` proven in ball arithmetic), and ``z (E T - V)``.
 Integrating by parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h``
 (``||C(i w)^{-1}|| <= 1 / (w / mu_max - ||Lambda-^{-1} D||)``), ``||E T_h - V|| <= ||V|| (e^{ell}
 (||H(1)|| + TV(H)) + ||H(0)||) / (w / mu_max - ||Lambda-^{-1} D||)``, and the exact kernels add
@@ -59,7 +63,9 @@ Integrating by parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h
 on the axis. ``eps`` does not decay in ``w``, so ``kappa eps < 1`` is needed at least.
 
 **The margin.** At ``delta = 0`` the loop is ``det(E T) = det V != 0`` (no root). The delayed
-principal part is strongly stable (``gamma < 1``), so roots enter ``Re s >= 0`` only across the
+principal part is strongly stable: its ``gamma_0``, the largest ``rho(sum_t V^{-1} R_t (e^{i theta_t}
+- e^{i theta'_t}))``, is at most ``rho(2 sum_t |V^{-1} R_t|) < 1`` (proven for ``kappa``; ``rho(X) <=
+rho(|X|)``), so roots enter ``Re s >= 0`` only across the
 imaginary axis at a finite frequency (Hale and Verduyn Lunel, neutral equations: the kernel
 terms are distributed delays, which do not move the essential spectrum); the margin is the
 smallest delay ``(-phi mod 2 pi) / w`` over the zeros ``(w, phi)`` of ``f``. Every zero lies in a
@@ -68,12 +74,27 @@ lies in each proven box, so it is at most the largest delay over a box (the smal
 over the boxes). The bracket's width is of the order of ``eps``: first order in the kernel grid's
 step (halving with it, measured).
 
+**Enclosures.** Every number the proof uses is enclosed, for the plant's data as stored (each
+float an exact rational) and the grid kernels' ``G_h`` at the nodes: the constants above
+(``beta``, the norms, ``V``, ``ell``, ``t_0``, the total variation, ``kappa``, the gauge's
+constants, ``W``'s test) in FLINT's ball arithmetic (python-flint; ``V`` and the ``U_a`` by
+``arb_mat.exp``, ``lambda_max`` and spectral norms by a proven ``L D L^T`` or Frobenius's bound);
+``M_0(i w)`` and ``E T_h(i w)`` at each frequency, and ``e^{i phi}``, in vectorised
+midpoint-radius arithmetic (:mod:`~nrobust.hyperbolic.nplusm._midrad`: the exponentials by
+scaling, a Taylor polynomial with its proven remainder and squaring, every rounding bounded by
+Higham's model of IEEE arithmetic); the singular values of ``A_h`` a posteriori from a
+floating-point SVD (``||U^H U - I||``, ``||A_h - U S V^H||`` enclosed), ``det A_h`` by cofactors, and
+the delays ``theta / w`` with their rounding. ``E T_h`` is the Filon integral of ``G_h`` linear
+between the nodes ``k h`` (``h`` the grid's float step); :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`
+bounds the exact law against ``G_h`` linear between the grid's own ``x_k`` on ``[0, 1]``, and ``eps``
+here adds the difference (``||V|| e^{ell L} (L max slope max |x_k - k h| + |L - 1| max ||H||)``,
+``L = max(1, (N - 1) h)``, about ``1e-16``).
+
 **Cost.** The exclusion needs no derivative of ``f`` beyond the uniform ``alpha_1`` and evaluates
-the loop's matrices, vectorised, at about 300 to 3000 frequencies; only Newton's steps (eight jets of
-13 evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the plants
-of ``tests/test_nplusm_cascade_cert.py``: ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.5 to 0.8 s
-of CPU on 21 to 81 kernel points, 40 s before on 21 (derivative bounds of ``det`` uniform in ``w``
-and ``phi``, cells proven one Newton step at a time); the plant with a crossing 1.3 to 1.9 s.
+the loop's enclosures, vectorised, at about 300 to 3000 frequencies (the Filon sum in
+``log2(cells)`` rounds of pairs); only Newton's steps (eight jets of 13 floating-point
+evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the
+plants of ``tests/test_nplusm_cascade_cert.py``: MEASURED.
 """
 
 from __future__ import annotations
@@ -101,9 +122,9 @@ __all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
 
 _SCOPE = (
     "full-state backstepping law with exact kernels on the PDE, leftward speeds that differ: loop through the "
-    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven, "
-    "with the floating-point rounding of the matrix exponentials, determinants and singular values taken from "
-    "error models (EXPM_ROUNDING), not enclosed in ball arithmetic"
+    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven "
+    "for the PDE, every floating-point step enclosed (ball arithmetic for the constants, midpoint-radius "
+    "enclosures of the loop's matrices, a-posteriori bounds of singular values and determinants)"
 )
 # Cauchy's formula for the w-derivative of the grid loop (Newton steps only, no bound rests on it):
 # points on a circle of radius _RING around s = i w.
@@ -266,7 +287,10 @@ class _CascadeLoop:
         dm = in_group_part(sys) / sys.mu[:, None]
         self._cd = Ball(dm, EPS * np.abs(dm))
         hmat = G / sys.mu[:, None, None]
-        self._g = Ball(np.moveaxis(hmat, 2, 0), EPS * np.abs(np.moveaxis(hmat, 2, 0)))  # (N, m, m)
+        g = Ball(np.moveaxis(hmat, 2, 0), EPS * np.abs(np.moveaxis(hmat, 2, 0)))  # (N, m, m)
+        diff = g[1:] - g[:-1]  # times 1 / h in I_1 / h
+        both = np.concatenate([g.mid[:-1], diff.mid], axis=-1), np.concatenate([g.rad[:-1], diff.rad], axis=-1)
+        self._cells = Ball(both[0][None], both[1][None])  # c_k = [H_k, H_{k+1} - H_k], shape (1, cells, m, 2 m)
         self.roots = np.exp(2j * np.pi * np.arange(self.m + 1) / (self.m + 1))
 
     # ------------------------------------------------------------------ the grid kernels' loop in floating point
@@ -318,14 +342,16 @@ class _CascadeLoop:
         ex = expm(big)
         step, i0 = ex[:, :m, :m], ex[:, :m, m : 2 * m]
         i1 = i0 * hb - ex[:, :m, 2 * m :]
-        g = self._g
-        slopes = g[1:] - g[:-1]  # times 1 / h below, in I_1 / h
-        acc_g, acc_d = g[g.mid.shape[0] - 2], slopes[slopes.mid.shape[0] - 1]
-        acc_g = Ball(np.broadcast_to(acc_g.mid, (w.size, m, m)), np.broadcast_to(acc_g.rad, (w.size, m, m)))
-        acc_d = Ball(np.broadcast_to(acc_d.mid, (w.size, m, m)), np.broadcast_to(acc_d.rad, (w.size, m, m)))
-        for k in range(g.mid.shape[0] - 3, -1, -1):
-            acc_g = g[k] + step @ acc_g
-            acc_d = slopes[k] + step @ acc_d
+        # S = sum_k step^k c_k by pairs: c_{2j} + step c_{2j+1} with step^2 in place of step, log2(cells) rounds
+        c = self._cells
+        power = step[:, None]
+        while c.mid.shape[1] > 1:
+            if c.mid.shape[1] % 2:
+                pad = np.zeros((c.mid.shape[0], 1, *c.mid.shape[2:]))
+                c = Ball(np.concatenate([c.mid, pad], axis=1), np.concatenate([c.rad, pad], axis=1))
+            c = c[:, 0::2] + power @ c[:, 1::2]
+            power = power @ power
+        acc_g, acc_d = c[:, 0, :, :m], c[:, 0, :, m:]
         inv_h = Ball(np.array(1.0 / self.h), np.array(EPS / self.h))
         acc = i0 @ acc_g + (i1 * inv_h) @ acc_d
         et = self.v @ (identity((w.size,), m) - acc)
