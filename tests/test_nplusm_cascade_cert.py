@@ -258,3 +258,16 @@ def test_a_crossing_the_kernels_error_hides_is_refused() -> None:
     refused with a finer grid advised."""
     with pytest.raises(CertificationError, match="finer kernel_grid"):
         cascade_delay_margin(NPlusMBackstepping.for_system(crossing_plant(1.0), 21))
+
+
+def test_refusals_of_the_proof() -> None:
+    """Refused, not guessed: the work bound (``max_points = 200``, the first grid has 175 frequencies) and a principal
+    part whose entrywise bound ``rho(2 sum_t |V^{-1} R_t|)`` is 1.8 (``R = (2, 1)``), for which no uniform bound of
+    ``A_0^{-1}`` is proven."""
+    with pytest.raises(CertificationError, match="max_points"):
+        cascade_delay_margin(NPlusMBackstepping.for_system(crossing_plant(0.5), 21), max_points=200)
+    strong = NPlusMSystem(
+        [1.5], [1.0, 2.0], [[0.0, 0.5, 0.5], [0.5, 0.0, 0.3], [0.5, 0.0, 0.0]], [[0.3, 0.4]], [[2.0], [1.0]]
+    )
+    with pytest.raises(CertificationError, match="not proven below 1"):
+        cm._principal_inverse(strong)
