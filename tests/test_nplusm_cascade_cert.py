@@ -271,3 +271,17 @@ def test_refusals_of_the_proof() -> None:
     )
     with pytest.raises(CertificationError, match="not proven below 1"):
         cm._principal_inverse(strong)
+
+
+def test_a_principal_part_beyond_one_gives_a_proven_zero_margin() -> None:
+    """``R = (2, 1)``: the delayed principal part's ``gamma_0 = 2 sum_b |q_b r_b| = 2`` (closed form: ``V = I``,
+    ``U = 1`` and ``R Q`` of rank one, so ``rho = |sum_b q_b r_b d_b|`` with ``|d_b| <= 2``), proven above 1 in
+    balls: margin 0. ``R = (0.5, 0.3)`` (``gamma_0 = 0.54``) is not claimed above 1."""
+
+    def plant(r: list[list[float]]) -> NPlusMSystem:
+        return NPlusMSystem([1.5], [1.0, 2.0], [[0.0, 0.5, 0.5], [0.5, 0.0, 0.3], [0.5, 0.0, 0.0]], [[0.3, 0.4]], r)
+
+    res = cascade_delay_margin(NPlusMBackstepping.for_system(plant([[2.0], [1.0]]), 21))
+    assert res.certified and res.margin == 0.0 and res.margin_bracket == (0.0, 0.0)
+    np.testing.assert_allclose(res.gamma_0, 2.0, rtol=1e-6)  # a sampled lower end: within 1e-6 of the sup
+    assert cm._gamma_above_one(plant([[2.0], [1.0]])) and not cm._gamma_above_one(plant([[0.5], [0.3]]))
