@@ -188,11 +188,9 @@ def _ball_principal(flint: Any, system: NPlusMSystem) -> tuple[Any, list[Any]]:
     terms = []
     for ga in _speed_groups(system.lam):
         for gb in _speed_groups(system.mu):
-            pr = np.zeros((m, n))
+            pr = np.zeros((m, n))  # P_b R P_a (U is block diagonal on the groups: P_a U = U P_a)
             pr[np.ix_(gb, ga)] = system.r[np.ix_(gb, ga)]
-            sel = np.zeros((n, n))
-            sel[ga, ga] = 1.0
-            terms.append(_arb_matrix(flint, pr) * _arb_matrix(flint, sel) * uq)
+            terms.append(_arb_matrix(flint, pr) * uq)
     return v_block, terms
 
 
@@ -282,9 +280,9 @@ class _CascadeLoop:
             self.alpha = [_up(alpha0), _up(alpha1)]
             grow = m * alpha0 ** (m - 1)
             self.lipschitz = (_up(grow * alpha1), _up(grow * (a0 + v_norm + t0)))
-        # the data of the enclosures: C = Lambda^{-1} Sigma and Lambda^{-1} (exact quotients within EPS relative)
+        # the data of the enclosures: C = Lambda^{-1} Sigma (two roundings) and the quotients (one rounding each)
         inv = 1.0 / sys.signed_speeds
-        self._c = Ball(inv[:, None] * sys.sigma, EPS * np.abs(inv[:, None] * sys.sigma))
+        self._c = Ball(inv[:, None] * sys.sigma, 2.0 * EPS * np.abs(inv[:, None] * sys.sigma))
         self._p = Ball(np.diag(inv), np.diag(EPS * np.abs(inv)))
         self._inv_mu = Ball(1.0 / sys.mu, EPS / sys.mu)
         self._inv_mu_diag = Ball(np.diag(1.0 / sys.mu), np.diag(EPS / sys.mu))
@@ -328,7 +326,7 @@ class _CascadeLoop:
 
         ``M_0``'s row ``j`` is ``e^{-i w / mu_j} [-R, I]_j exp(C - i w Lambda^{-1}) [Q; I]``; ``E T_h =
         V (I - acc)``, ``acc = I_0 S_0 + I_1 S_1`` with ``S = sum_k e^{k h C} [H_k, (H_{k+1} - H_k) / h]``
-        (Horner; ``e^{h C}`` commutes with ``I_0``, ``I_1``), the moments from the exponential of
+        (summed by pairs; ``e^{h C}`` commutes with ``I_0``, ``I_1``), the moments from the exponential of
         ``h [[C, I, 0], [0, 0, I], [0, 0, 0]]``, ``C = Lambda-^{-1} (D - i w)``.
         """
         w = np.asarray(w, dtype=float).reshape(-1)
@@ -376,11 +374,11 @@ class _CascadeLoop:
         ``sigma_min`` of the enclosure's midpoint minus ``l`` (the kernels' error and the radii: the search's
         resolution)."""
         a = m0 + self.unit(phi)[:, None, None] * m1
-        lower, _ = singular_bounds(a.mid)
+        lower, upper = singular_bounds(a.mid)
         dist = (frobenius(a.rad) + self.eps) * UP
         low = lower[:, -1] - dist
         low = low - 2.0 * EPS * np.abs(low) - TINY
-        sig = np.linalg.svd(a.mid, compute_uv=False)[:, -1]
+        sig = 0.5 * (lower[:, -1] + upper[:, -1])  # the floating-point sigma_min, to 1e-12 relative
         return np.asarray(low, dtype=float), np.asarray(np.maximum(sig - low, 0.0), dtype=float)
 
     def phase_lipschitz(self, m1: Ball) -> NDArray[np.float64]:
