@@ -172,5 +172,6 @@ def singular_bounds(a: NDArray[np.complex128]) -> tuple[NDArray[np.float64], NDA
     low_f = np.sqrt(np.maximum(1.0 - d_u, 0.0) * np.maximum(1.0 - d_v, 0.0)) * (1.0 - 4.0 * EPS)
     up_f = np.sqrt((1.0 + d_u) * (1.0 + d_v)) * UP
     lower = (s * low_f[..., None]) * (1.0 - 4.0 * EPS) - res[..., None] * UP
+    lower = lower - 2.0 * EPS * np.abs(lower) - TINY  # the rounding of the difference
     upper = (s * up_f[..., None] + res[..., None]) * UP
     return np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
