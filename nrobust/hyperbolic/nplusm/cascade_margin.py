@@ -33,9 +33,9 @@ bound is positive holds no zero. The others are halved in the direction of the l
 cells of a round evaluated in one vectorised call (each distinct ``w`` once), until the slack
 ``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of the gap between the floating-point
 ``sigma_min`` of ``A_h`` and that lower bound (mostly ``eps``): those cells stay, the region where
-the kernels' error leaves the sign of ``f`` open. Halving rounds the cells' centres, so each cell
-stands for itself widened by ``64 EPS (W + h_0)`` in ``w`` and ``192 pi EPS`` in ``phi`` (more than the
-drift of 40 generations of halving, and the gap between ``2 pi`` and its float).
+the kernels' error leaves the sign of ``f`` open. Halving rounds the cells' centres ``c -+ h / 2``:
+the halves' half-widths are ``h / 2 + EPS (|c| + h)``, so they cover the cell, and the first cells'
+are widened for the rounding of their centres and of ``2 pi``: the cells cover ``[0, W] x [0, 2 pi]``.
 
 **Existence.** The cells left fall in groups of touching cells. In each, Newton steps on the grid
 loop give ``x_0`` and its Jacobian ``J`` in ``(w, phi)``; for ``g = J^{-1} (Re f, Im f)`` of the
@@ -100,7 +100,7 @@ evaluations) and the faces of the boxes (a few hundred points) come on top. Meas
 plants of ``tests/test_nplusm_cascade_cert.py`` (CPU, best of three, load 6 to 9 on two cores):
 ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.3 s on 21 to 81 kernel points (0.3 to 0.6 s with
 the former floating-point error models); the plant with a crossing 0.9 to 1.6 s (1.0 to 1.7 s), of
-which about 0.3 s is ``gamma_0``'s bracket. The brackets moved by about ``2e-9`` (the cells' widening).
+which about 0.3 s is ``gamma_0``'s bracket. The brackets moved by about ``2e-9``.
 """
 
 from __future__ import annotations
@@ -547,10 +547,14 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
     grid_w = (np.arange(nw) + 0.5) * (2 * hw0)
     grid_p = (np.arange(_PHASE_CELLS) + 0.5) * (2 * np.pi / _PHASE_CELLS)
     cw, cp = (g.ravel() for g in np.meshgrid(grid_w, grid_p, indexing="ij"))
-    cells: _Cells = (cw, cp, np.full(cw.size, hw0), np.full(cw.size, np.pi / _PHASE_CELLS))
+    # half-widths widened for the rounding of the centres, of hw0 and of 2 pi: the cells cover [0, W] x [0, 2 pi]
+    cells: _Cells = (
+        cw,
+        cp,
+        np.full(cw.size, hw0 + 4.0 * EPS * (W + hw0)),
+        np.full(cw.size, np.pi / _PHASE_CELLS + 32.0 * EPS),
+    )
     width = _MIN_WIDTH * max(1.0, W)
-    # the cells' centres are rounded when halved: each cell stands for itself widened by these (module notes)
-    grow_w, grow_p = 64.0 * EPS * (W + hw0), 64.0 * EPS * 3.0 * np.pi
     cache: dict[float, int] = {}
     m0_all: list[Ball] = []
     m1_all: list[Ball] = []
@@ -580,7 +584,7 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
         rows = np.array([cache[w] for w in uw.tolist()])[inv]
         lower, error = loop.exclusion(cp, m0_all[0][rows], m1_all[0][rows])
         lip_p = p_all[0][rows]
-        slack = ((hw + grow_w) * loop.alpha[1] + (hp + grow_p) * lip_p) * UP
+        slack = (hw * loop.alpha[1] + hp * lip_p) * UP
         open_ = lower <= slack
         done = open_ & ((slack <= _RESOLVE * error) | ((hw <= width) & (hp <= width)))
         left.append(_select(cells, done))
@@ -591,8 +595,7 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
             )
         split = open_ & ~done
         cells = _halves(_select(cells, split), (hw * loop.alpha[1] >= hp * lip_p)[split])
-    cw, cp, hw, hp = (np.concatenate([c[k] for c in left]) for k in range(4))
-    return cw, cp, hw + grow_w, hp + grow_p
+    return tuple(np.concatenate([c[k] for c in left]) for k in range(4))  # type: ignore[return-value]
 
 
 def _stack(balls: list[Ball]) -> Ball:
@@ -727,14 +730,15 @@ def _select(cells: _Cells, mask: Any) -> _Cells:
 
 
 def _halves(cells: _Cells, split_w: NDArray[np.bool_]) -> _Cells:
-    """Each cell halved in ``w`` (where ``split_w``) or in ``phi``."""
+    """Each cell halved in ``w`` (where ``split_w``) or in ``phi``; the halves' half-widths ``h / 2 + EPS (|c| +
+    h)`` cover the rounding of their centres ``c -+ h / 2``, so the two halves cover the cell."""
     cw, cp, hw, hp = cells
     sw, sp = np.where(split_w, 0.5, 0.0), np.where(split_w, 0.0, 0.5)
     return (
         np.concatenate([cw - sw * hw, cw + sw * hw]),
         np.concatenate([cp - sp * hp, cp + sp * hp]),
-        np.tile(np.where(split_w, 0.5 * hw, hw), 2),
-        np.tile(np.where(split_w, hp, 0.5 * hp), 2),
+        np.tile(np.where(split_w, 0.5 * hw + EPS * (np.abs(cw) + hw), hw), 2),
+        np.tile(np.where(split_w, hp, 0.5 * hp + EPS * (np.abs(cp) + hp)), 2),
     )
 
 
