@@ -97,10 +97,10 @@ here adds the difference (``||V|| e^{ell L} (L max slope max |x_k - k h| + |L - 
 the loop's enclosures, vectorised, at about 300 to 3000 frequencies (the Filon sum in
 ``log2(cells)`` rounds of pairs); only Newton's steps (eight jets of 13 floating-point
 evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the
-plants of ``tests/test_nplusm_cascade_cert.py`` (CPU, best of three, load 6 to 9 on two cores):
-``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.3 s on 21 to 81 kernel points (0.3 to 0.6 s with
-the former floating-point error models); the plant with a crossing 0.9 to 1.6 s (1.0 to 1.7 s), of
-which about 0.3 s is ``gamma_0``'s bracket. The brackets moved by about ``2e-9``.
+plants of ``tests/test_nplusm_cascade_cert.py`` (CPU, best of three, alternated with the former
+code, load 6 to 9 on two cores): ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.3 to 0.6 s on 21 to
+81 kernel points (0.3 to 0.7 s with the former floating-point error models); the plant with a
+crossing 0.9 to 1.9 s (1.0 to 1.8 s), of which about 0.3 s is ``gamma_0``'s bracket. The brackets moved by about ``2e-9``.
 """
 
 from __future__ import annotations
