@@ -100,7 +100,8 @@ evaluations) and the faces of the boxes (a few hundred points) come on top. Meas
 plants of ``tests/test_nplusm_cascade_cert.py`` (CPU, best of three, alternated with the former
 code, load 6 to 9 on two cores): ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.3 to 0.6 s on 21 to
 81 kernel points (0.3 to 0.7 s with the former floating-point error models); the plant with a
-crossing 0.9 to 1.9 s (1.0 to 1.8 s), of which about 0.3 s is ``gamma_0``'s bracket. The brackets moved by about ``2e-9``.
+crossing 0.9 to 1.9 s (1.0 to 1.8 s), of which about 0.3 s is ``gamma_0``'s bracket. The
+brackets moved by about ``2e-9``.
 """
 
 from __future__ import annotations
