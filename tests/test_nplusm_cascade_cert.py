@@ -25,6 +25,7 @@ from nrobust.hyperbolic.nplusm import (
     kernel_error_bound,
 )
 from nrobust.hyperbolic.nplusm import cascade_margin as cm
+from nrobust.margins.matrix import GaugeRemainder
 
 pytest.importorskip("flint")
 mpmath = pytest.importorskip("mpmath")
@@ -86,7 +87,7 @@ def test_the_remainder_beyond_w_bounds_the_exact_loop() -> None:
     W = cm._frequency_bound(loop, 1e6)
     kappa = cm._principal_inverse(ONE_COUPLING)
     inv = 1.0 / ONE_COUPLING.signed_speeds
-    gauge = cm.GaugeRemainder(inv[:, None] * ONE_COUPLING.sigma, inv)
+    gauge = GaugeRemainder(inv[:, None] * ONE_COUPLING.sigma, inv)
     for w in (W, 1.5 * W, 3.7 * W):
         bound = 2 * loop.left * loop.right * float(gauge(w)) + loop.decay / (w / loop.mu_max - loop.decay_shift)
         for t in np.linspace(0, 2 * np.pi, 7):
@@ -127,8 +128,8 @@ def test_the_exclusion_bounds_sigma_min_of_the_exact_loop() -> None:
     loop = cm._CascadeLoop(ctl, kernel_error_bound(ctl.kernels))
     rng = np.random.default_rng(3)
     w, phi = rng.uniform(0.0, 40.0, 40), rng.uniform(0.0, 2 * np.pi, 40)
-    m0, et = loop.matrices(1j * w)
-    lower, _, error = loop.exclusion(w, phi, m0, et)
+    m0, et = loop.enclose(w)
+    lower, error = loop.exclusion(phi, m0, et - m0)
     exact = np.array(
         [
             np.linalg.svd(np.array(exact_a(ONE_COUPLING, float(a), complex(np.exp(1j * b))).tolist(), dtype=complex))[
@@ -138,6 +139,75 @@ def test_the_exclusion_bounds_sigma_min_of_the_exact_loop() -> None:
         ]
     )
     assert np.all(lower <= exact) and np.all(exact <= lower + 2.0 * error)
+
+
+def grid_loop_mp(ctl: NPlusMBackstepping, w: float, z: complex) -> Any:
+    """``(1 - z) M_0 + z E T_h`` at ``s = i w`` in mpmath (40 digits), written here for ``crossing_plant`` (``n = 1``,
+    ``D = 0``: ``V = I``, ``e^{x C} = diag(e^{-s x / mu_a})``): ``M_0`` from mpmath's matrix exponential, ``E T_h``
+    from ``G_h`` linear between the grid's own nodes ``x_k`` (the function ``kernel_error_bound`` compares with),
+    integrated cell by cell in closed form."""
+    sys = ctl.system
+    with mpmath.workdps(40):
+        s = mpmath.mpc(0, w)
+        size = sys.n + sys.m
+        a = mpmath.matrix(size, size)
+        for i in range(size):
+            for k in range(size):
+                a[i, k] = (mpmath.mpf(sys.sigma[i, k]) - (s if i == k else 0)) / mpmath.mpf(sys.signed_speeds[i])
+        phi = mpmath.expm(a) * mpmath.matrix([[sys.q[0, 0], sys.q[0, 1]], [1, 0], [0, 1]])
+        m0 = mpmath.matrix(2, 2)
+        et = mpmath.eye(2)
+        x = [mpmath.mpf(v) for v in ctl.kernels.grid]
+        for j in range(2):
+            rate = -s / mpmath.mpf(sys.mu[j])
+            for c in range(2):
+                m0[j, c] = mpmath.exp(rate) * (phi[1 + j, c] - mpmath.mpf(sys.r[j, 0]) * phi[0, c])
+                if sys.mu[c] > sys.mu[j]:
+                    g = [mpmath.mpf(v) / mpmath.mpf(sys.mu[j]) for v in ctl.kernels.G[j, c]]
+                    total = mpmath.mpc(0)
+                    for k in range(len(x) - 1):  # e^{r t} ((g_k + b (t - x_k)) / r - b / r^2) from x_k to x_k+1
+                        slope = (g[k + 1] - g[k]) / (x[k + 1] - x[k])
+                        for t, sign in ((x[k + 1], 1), (x[k], -1)):
+                            total += (
+                                sign * mpmath.exp(rate * t) * ((g[k] + slope * (t - x[k])) / rate - slope / rate**2)
+                            )
+                    et[j, c] -= total
+        return (1 - z) * m0 + z * et, m0, et
+
+
+def test_the_enclosures_hold_the_grid_loop_in_mpmath() -> None:
+    """``crossing_plant(0.5)`` on 21 points, 6 points ``(w, phi)``: the enclosures of ``M_0`` and ``E T_h`` hold the
+    40-digit values (``E T_h`` within its radius plus the grid's rounding term of ``eps``), and the proven lower bound
+    of ``sigma_min`` of the exact law's loop, plus the kernels' ``eps``, is below the 40-digit ``sigma_min`` of the
+    grid loop and within 1e-9 of it (the radii are about 1e-13: the bound is sharp, not just safe)."""
+    ctl = NPlusMBackstepping.for_system(crossing_plant(0.5), 21)
+    bound = kernel_error_bound(ctl.kernels)
+    loop = cm._CascadeLoop(ctl, bound)
+    grid_term = loop.eps - bound.transition_error
+    assert 0.0 < grid_term < 1e-14
+    w = np.array([0.05, 1.3, 4.0, 7.7, 15.0, 20.5])
+    phi = np.array([0.3, 2.0, 3.1, 4.4, 5.9, 1.0])
+    m0, et = loop.enclose(w)
+    lower, _ = loop.exclusion(phi, m0, et - m0)
+    for k in range(w.size):
+        z = complex(mpmath.exp(mpmath.mpc(0, phi[k])))
+        a, m0_mp, et_mp = grid_loop_mp(ctl, float(w[k]), z)
+        m0_ref = np.array(m0_mp.tolist(), dtype=complex)
+        et_ref = np.array(et_mp.tolist(), dtype=complex)
+        assert np.all(np.abs(m0_ref - m0.mid[k]) <= m0.rad[k])
+        assert np.all(np.abs(et_ref - et.mid[k]) <= et.rad[k] + grid_term)
+        with mpmath.workdps(40):
+            sig = float(min(mpmath.svd_c(a, compute_uv=False)))
+        assert lower[k] + bound.transition_error <= sig <= lower[k] + bound.transition_error + 1e-9
+
+
+def test_the_scope_names_no_error_model() -> None:
+    """The proven bracket's scope says the margin is proven for the PDE and names no floating-point error model
+    (the former scope named ``EXPM_ROUNDING``)."""
+    res = cascade_delay_margin(NPlusMBackstepping.for_system(one_coupling(0.3), 21), max_points=20_000)
+    assert "proven for the PDE" in res.scope and "every floating-point step enclosed" in res.scope
+    assert "error model" not in res.scope and "EXPM_ROUNDING" not in res.scope
+    assert not hasattr(cm, "EXPM_ROUNDING") and not hasattr(cm._CascadeLoop, "matrix_rounding")
 
 
 def test_no_crossing_is_proven_and_the_exact_loop_agrees() -> None:
@@ -188,3 +258,30 @@ def test_a_crossing_the_kernels_error_hides_is_refused() -> None:
     refused with a finer grid advised."""
     with pytest.raises(CertificationError, match="finer kernel_grid"):
         cascade_delay_margin(NPlusMBackstepping.for_system(crossing_plant(1.0), 21))
+
+
+def test_refusals_of_the_proof() -> None:
+    """Refused, not guessed: the work bound (``max_points = 200``, the first grid has 175 frequencies) and a principal
+    part whose entrywise bound ``rho(2 sum_t |V^{-1} R_t|)`` is 1.8 (``R = (2, 1)``), for which no uniform bound of
+    ``A_0^{-1}`` is proven."""
+    with pytest.raises(CertificationError, match="max_points"):
+        cascade_delay_margin(NPlusMBackstepping.for_system(crossing_plant(0.5), 21), max_points=200)
+    strong = NPlusMSystem(
+        [1.5], [1.0, 2.0], [[0.0, 0.5, 0.5], [0.5, 0.0, 0.3], [0.5, 0.0, 0.0]], [[0.3, 0.4]], [[2.0], [1.0]]
+    )
+    with pytest.raises(CertificationError, match="not proven below 1"):
+        cm._principal_inverse(strong)
+
+
+def test_a_principal_part_beyond_one_gives_a_proven_zero_margin() -> None:
+    """``R = (2, 1)``: the delayed principal part's ``gamma_0 = 2 sum_b |q_b r_b| = 2`` (closed form: ``V = I``,
+    ``U = 1`` and ``R Q`` of rank one, so ``rho = |sum_b q_b r_b d_b|`` with ``|d_b| <= 2``), proven above 1 in
+    balls: margin 0. ``R = (0.5, 0.3)`` (``gamma_0 = 0.54``) is not claimed above 1."""
+
+    def plant(r: list[list[float]]) -> NPlusMSystem:
+        return NPlusMSystem([1.5], [1.0, 2.0], [[0.0, 0.5, 0.5], [0.5, 0.0, 0.3], [0.5, 0.0, 0.0]], [[0.3, 0.4]], r)
+
+    res = cascade_delay_margin(NPlusMBackstepping.for_system(plant([[2.0], [1.0]]), 21))
+    assert res.certified and res.margin == 0.0 and res.margin_bracket == (0.0, 0.0)
+    np.testing.assert_allclose(res.gamma_0, 2.0, rtol=1e-6)  # a sampled lower end: within 1e-6 of the sup
+    assert cm._gamma_above_one(plant([[2.0], [1.0]])) and not cm._gamma_above_one(plant([[0.5], [0.3]]))

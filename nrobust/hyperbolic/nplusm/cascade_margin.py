@@ -26,21 +26,24 @@ most its larger end). So ``||A_w|| <= alpha_1 = 2 q a_0 + t_0 / mu_min`` and ``|
 
 **Search.** ``f(w, e^{i phi}) = 0`` iff ``sigma_min(A) = 0``. On a cell ``[w_0 +- h_w] x [phi_0 +-
 h_phi]``, ``sigma_min(A(w, z)) >= sigma_min(A(w_0, z_0)) - h_w alpha_1 - h_phi ||E T - M_0||(w_0)``
-(Weyl; ``|z - z_0| <= h_phi``): the derivative bound in ``phi`` is the cell's own. The exact loop
-differs from the computed grid loop by at most ``eps + 3 r(w)`` in norm (``r`` the rounding of the
-matrix exponentials and the Filon steps, ``EXPM_ROUNDING`` units per step as in
-:mod:`~nrobust.hyperbolic.nplusm.characteristic`) and LAPACK's ``sigma_min`` by ``1e-13 ||A||``:
-a cell whose lower bound is positive holds no zero. The others are halved in the direction of
-the larger term, all cells of a round evaluated in one vectorised call (each distinct ``w`` once),
-until the slack ``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of that error: those cells
-stay, the region where the kernels' error leaves the sign of ``f`` open.
+(Weyl; ``|z - z_0| <= h_phi``): the derivative bound in ``phi`` is the cell's own. At the centre,
+``sigma_min`` of the exact loop is at least that of the enclosure's midpoint ``A_h`` (proven below,
+*Enclosures*) minus the Frobenius norm of the enclosure's radius and ``eps``: a cell whose lower
+bound is positive holds no zero. The others are halved in the direction of the larger term, all
+cells of a round evaluated in one vectorised call (each distinct ``w`` once), until the slack
+``h_w alpha_1 + h_phi ||E T - M_0||`` is a quarter of the gap between the floating-point
+``sigma_min`` of ``A_h`` and that lower bound (mostly ``eps``): those cells stay, the region where
+the kernels' error leaves the sign of ``f`` open. Halving rounds the cells' centres ``c -+ h / 2``:
+the halves' half-widths are ``h / 2 + EPS (|c| + h)``, so they cover the cell, and the first cells'
+are widened for the rounding of their centres and of ``2 pi``: the cells cover ``[0, W] x [0, 2 pi]``.
 
 **Existence.** The cells left fall in groups of touching cells. In each, Newton steps on the grid
 loop give ``x_0`` and its Jacobian ``J`` in ``(w, phi)``; for ``g = J^{-1} (Re f, Im f)`` of the
 exact loop the signs ``g_1 < 0`` at ``w = w_0 - a``, ``> 0`` at ``w_0 + a`` and ``g_2 < 0`` at
 ``phi = phi_0 - a``, ``> 0`` at ``phi_0 + a`` prove a zero in the box (Poincare-Miranda). They are
-checked at the midpoints of short pieces of each face, with ``|f - f_h| <= prod(sigma_i + e) - prod
-sigma_i`` for ``||A - A_h|| <= e``, ``sigma_i`` those of ``A_h`` (in the singular vectors' bases
+checked at the midpoints of short pieces of each face, with ``f_h = det A_h`` enclosed (cofactors)
+and ``|f - f_h| <= prod(sigma_i + e) - prod sigma_i`` for ``||A - A_h|| <= e``, ``sigma_i`` proven
+upper bounds of the singular values of ``A_h`` (the bound increases with each; in the singular vectors' bases
 ``det(Sigma + E') = sum_S det E'[S, S] prod_{i not in S} sigma_i`` and ``|det E'[S, S]| <=
 e^{|S|}``; Ipsen and Rehman, SIAM J. Matrix Anal. Appl. 30, 2008), and the Lipschitz bound ``L_w``
 or ``L_phi`` along the face standing for the rest of each piece. A group without a proven zero is
@@ -51,7 +54,8 @@ refused.
 ``K = -R``) and ``||A_0^{-1}|| <= kappa`` for every ``w`` and ``|z| <= 1``
 (:func:`_principal_inverse`: ``rho(2 sum_t |V^{-1} R_t|) < 1`` proven, a Neumann series). The
 rest: ``(1 - z) E [-R, I] (Phi - Phi_0) [Q; I]``, at most ``2 ||[-R, I]|| ||[Q; I]|| r(w)``
-(:class:`~nrobust.margins.matrix.GaugeRemainder` on the axis, ``|E| = 1``), and ``z (E T - V)``.
+(the remainder of :class:`~nrobust.margins.matrix.GaugeRemainder` on the axis, ``|E| = 1``, its
+constants ``||N||``, ``||H||``, ``beta_d`` proven in ball arithmetic), and ``z (E T - V)``.
 Integrating by parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h``
 (``||C(i w)^{-1}|| <= 1 / (w / mu_max - ||Lambda-^{-1} D||)``), ``||E T_h - V|| <= ||V|| (e^{ell}
 (||H(1)|| + TV(H)) + ||H(0)||) / (w / mu_max - ||Lambda-^{-1} D||)``, and the exact kernels add
@@ -59,21 +63,45 @@ Integrating by parts on the cells of the piecewise-linear ``H = Lambda-^{-1} G_h
 on the axis. ``eps`` does not decay in ``w``, so ``kappa eps < 1`` is needed at least.
 
 **The margin.** At ``delta = 0`` the loop is ``det(E T) = det V != 0`` (no root). The delayed
-principal part is strongly stable (``gamma < 1``), so roots enter ``Re s >= 0`` only across the
+principal part is strongly stable: its ``gamma_0``, the largest ``rho(sum_t V^{-1} R_t (e^{i theta_t}
+- e^{i theta'_t}))``, is at most ``rho(2 sum_t |V^{-1} R_t|) < 1`` (proven for ``kappa``; ``rho(X) <=
+rho(|X|)``), so roots enter ``Re s >= 0`` only across the
 imaginary axis at a finite frequency (Hale and Verduyn Lunel, neutral equations: the kernel
 terms are distributed delays, which do not move the essential spectrum); the margin is the
-smallest delay ``(-phi mod 2 pi) / w`` over the zeros ``(w, phi)`` of ``f``. Every zero lies in a
+smallest delay ``(-phi mod 2 pi) / w`` over the zeros ``(w, phi)`` of ``f``. When the sampled
+``gamma_0`` exceeds 1 the margin is 0, returned once the matrix at a sampled point of the torus,
+formed in balls from the exact data, has an enclosed eigenvalue of modulus above 1
+(:func:`_gamma_above_one`). Every zero lies in a
 cell left by the search, so the margin is at least the smallest delay over those cells; one zero
 lies in each proven box, so it is at most the largest delay over a box (the smallest such bound
 over the boxes). The bracket's width is of the order of ``eps``: first order in the kernel grid's
 step (halving with it, measured).
 
+**Enclosures.** Every number the proof uses is enclosed, for the plant's data as stored (each
+float an exact rational) and the grid kernels' ``G_h`` at the nodes: the constants above
+(``beta``, the norms, ``V``, ``ell``, ``t_0``, the total variation, ``kappa``, the gauge's
+constants, ``W``'s test) in FLINT's ball arithmetic (python-flint; ``V`` and the ``U_a`` by
+``arb_mat.exp``, ``lambda_max`` and spectral norms by a proven ``L D L^T`` or Frobenius's bound);
+``M_0(i w)`` and ``E T_h(i w)`` at each frequency, and ``e^{i phi}``, in vectorised
+midpoint-radius arithmetic (:mod:`~nrobust.hyperbolic.nplusm._midrad`: the exponentials by
+scaling, a Taylor polynomial with its proven remainder and squaring, every rounding bounded by
+Higham's model of IEEE arithmetic); the singular values of ``A_h`` a posteriori from a
+floating-point SVD (``||U^H U - I||``, ``||A_h - U S V^H||`` enclosed), ``det A_h`` by cofactors, and
+the delays ``theta / w`` with their rounding. ``E T_h`` is the Filon integral of ``G_h`` linear
+between the nodes ``k h`` (``h`` the grid's float step); :func:`~nrobust.hyperbolic.nplusm.kernel_error_bound`
+bounds the exact law against ``G_h`` linear between the grid's own ``x_k`` on ``[0, 1]``, and ``eps``
+here adds the difference (``||V|| e^{ell L} (L max slope max |x_k - k h| + |L - 1| max ||H||)``,
+``L = max(1, (N - 1) h)``, about ``1e-16``).
+
 **Cost.** The exclusion needs no derivative of ``f`` beyond the uniform ``alpha_1`` and evaluates
-the loop's matrices, vectorised, at about 300 to 3000 frequencies; only Newton's steps (eight jets of
-13 evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the plants
-of ``tests/test_nplusm_cascade_cert.py``: ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.5 to 0.8 s
-of CPU on 21 to 81 kernel points, 40 s before on 21 (derivative bounds of ``det`` uniform in ``w``
-and ``phi``, cells proven one Newton step at a time); the plant with a crossing 1.3 to 1.9 s.
+the loop's enclosures, vectorised, at about 300 to 3000 frequencies (the Filon sum in
+``log2(cells)`` rounds of pairs); only Newton's steps (eight jets of 13 floating-point
+evaluations) and the faces of the boxes (a few hundred points) come on top. Measured for the
+plants of ``tests/test_nplusm_cascade_cert.py`` (CPU, best of three, alternated with the former
+code, load 6 to 9 on two cores): ``Sigma--_01 = 0.3`` (``W = 37``, no crossing) 0.3 to 0.6 s on 21 to
+81 kernel points (0.3 to 0.7 s with the former floating-point error models); the plant with a
+crossing 0.9 to 1.9 s (1.0 to 1.8 s), of which about 0.3 s is ``gamma_0``'s bracket. The
+brackets moved by about ``2e-9``.
 """
 
 from __future__ import annotations
@@ -85,23 +113,25 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._flint import precision, require_flint
 from ..._threads import one_blas_thread
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder
-from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
+from ._midrad import EPS, TINY, UP, Ball, det, exact, expm, frobenius, identity, singular_bounds
+from .characteristic import GRID_PER_PERIOD, NPlusMCharacteristic, _arb_max, _norm_bound, _sym_top
 from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import BACKSTEPPING_ROUTES, CASCADE_SCOPE, KERNEL_SCOPE, NPlusMBackstepping, in_group_part
 from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings, principal_gamma_bounds
 from .system import NPlusMSystem
+from .system import _groups as _speed_groups
 
 __all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
 
 _SCOPE = (
     "full-state backstepping law with exact kernels on the PDE, leftward speeds that differ: loop through the "
-    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven, "
-    "with the floating-point rounding of the matrix exponentials, determinants and singular values taken from "
-    "error models (EXPM_ROUNDING), not enclosed in ball arithmetic"
+    "target's G, the grid kernels' proven error (kernel_error_bound) carried by the search; margin_bracket proven "
+    "for the PDE, every floating-point step enclosed (ball arithmetic for the constants, midpoint-radius "
+    "enclosures of the loop's matrices, a-posteriori bounds of singular values and determinants)"
 )
 # Cauchy's formula for the w-derivative of the grid loop (Newton steps only, no bound rests on it):
 # points on a circle of radius _RING around s = i w.
@@ -110,64 +140,167 @@ _RING, _RING_POINTS = 1e-2, 12
 # (relative to max(1, W)), the slack below which a cell is not split (relative to the error of
 # sigma_min), and work bounds on the cells left open and the points of a box's face.
 _PHASE_CELLS, _NEWTON_STEPS, _MIN_WIDTH, _RESOLVE, _MAX_OPEN, _MAX_FACE = 16, 8, 1e-11, 0.25, 10_000, 20_000
+_PREC = 80  # bits of the ball arithmetic of the constants
 _BLOCK = 512  # rows of the touching test at a time (memory: _BLOCK times the cells left)
 # Cells of the (w, phi) rectangle: centres and half-widths (four arrays of one size).
 _Cells = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 
-def _norm2(x: NDArray[Any]) -> NDArray[np.float64]:
-    """Spectral norms of a stack of matrices, rounded upwards (relative ``1e-12``)."""
-    return np.asarray(np.linalg.norm(x, 2, axis=(-2, -1)) * (1.0 + 1e-12), dtype=float)
+def _up(ball: Any) -> float:
+    """A float ``>=`` every point of the real ball ``ball``."""
+    return math.nextafter(float(ball.upper()), math.inf)
+
+
+def _arb_matrix(flint: Any, x: NDArray[Any]) -> Any:
+    """The float matrix ``x`` as an exact ``arb_mat``."""
+    return flint.arb_mat([[flint.arb(float(v)) for v in row] for row in np.atleast_2d(x)])
+
+
+def _to_ball(x: Any) -> Ball:
+    """An ``arb_mat`` as a :class:`~nrobust.hyperbolic.nplusm._midrad.Ball` (radius rounded upwards)."""
+    rows, cols = x.nrows(), x.ncols()
+    mid = np.array([[float(x[i, j].mid()) for j in range(cols)] for i in range(rows)])
+    rad = np.array([[_up(x[i, j].rad()) + EPS * abs(float(x[i, j].mid())) for j in range(cols)] for i in range(rows)])
+    return Ball(mid, rad * UP)
+
+
+def _ball_principal(flint: Any, system: NPlusMSystem) -> tuple[Any, list[Any]]:
+    """``V = exp(-Lambda-^{-1} D)`` and the ``R_t = P_b R P_a U_a Q`` of
+    :meth:`~nrobust.hyperbolic.nplusm.NPlusMSystem.principal_terms` as ``arb_mat`` (exact data, proven exponentials)."""
+    n, m = system.n, system.m
+    arb = flint.arb
+
+    def block(rows: NDArray[np.intp], speed: float, sign: int) -> Any:
+        return flint.arb_mat([[arb(float(system.sigma[i, k])) * sign / arb(speed) for k in rows] for i in rows]).exp()
+
+    u_block = flint.arb_mat(n, n)
+    for g in _speed_groups(system.lam):
+        e = block(g, float(system.lam[g[0]]), 1)
+        for a, i in enumerate(g):
+            for b, k in enumerate(g):
+                u_block[int(i), int(k)] = e[a, b]
+    v_block = flint.arb_mat(m, m)
+    for g in _speed_groups(system.mu):
+        e = block(g + n, float(system.mu[g[0]]), -1)
+        for a, i in enumerate(g):
+            for b, k in enumerate(g):
+                v_block[int(i), int(k)] = e[a, b]
+    uq = u_block * _arb_matrix(flint, system.q)
+    terms = []
+    for ga in _speed_groups(system.lam):
+        for gb in _speed_groups(system.mu):
+            pr = np.zeros((m, n))  # P_b R P_a (U is block diagonal on the groups: P_a U = U P_a)
+            pr[np.ix_(gb, ga)] = system.r[np.ix_(gb, ga)]
+            terms.append(_arb_matrix(flint, pr) * uq)
+    return v_block, terms
 
 
 class _CascadeLoop:
-    """The grid kernels' loop on the axis, its coefficients in ``z`` and the bounds of the module notes."""
+    """The grid kernels' loop on the axis, its enclosures and the bounds of the module notes (all proven)."""
 
     def __init__(self, controller: NPlusMBackstepping, bound: KernelErrorBound) -> None:
+        flint = require_flint()
         sys = controller.system
         self.controller, self.system, self.m = controller, sys, sys.m
-        self.eps = float(bound.transition_error)
+        n, m = sys.n, sys.m
         mu_min, mu_max = float(sys.mu.min()), float(sys.mu.max())
-        self.mu_min = mu_min
-        inv = 1.0 / sys.signed_speeds
-        c_full = inv[:, None] * sys.sigma
-        beta = float(np.linalg.eigvalsh(0.5 * (c_full + c_full.T))[-1]) + 1e-12 * (1.0 + float(np.abs(c_full).sum()))
-        self.left = float(_norm2(np.hstack([-sys.r, np.eye(sys.m)])))
-        self.right = float(_norm2(np.vstack([sys.q, np.eye(sys.m)])))
-        self.a0 = self.left * math.exp(beta) * self.right * (1.0 + 1e-12)
-        self.q = (1.0 / mu_min + float(np.max(np.abs(inv)))) * (1.0 + 1e-12)
-        v_block, _ = sys.principal_terms()
-        self.v_norm = float(_norm2(v_block))
-        a_mat = in_group_part(sys) / sys.mu[:, None]
-        sym = 0.5 * (a_mat + a_mat.T)
-        ell = max(0.0, max(sym[i, i] + np.abs(sym[i]).sum() - abs(sym[i, i]) for i in range(sys.m)))
-        ell = ell * (1 + 4 * EPS) + 4 * EPS  # as kernel_error_bound's logarithmic norm
-        mask = sys.mu[None, :] > sys.mu[:, None]
-        H = controller.kernels.G * mask[:, :, None] / sys.mu[:, None, None]  # Lambda-^{-1} G_h(x_k)
+        self.mu_min, self.mu_max = mu_min, mu_max
         x = controller.kernels.grid
         h = float(x[1] - x[0])
-        fro = np.sqrt(np.sum(H**2, axis=(0, 1)))
-        ends = np.maximum(fro[:-1], fro[1:]) * np.exp(ell * x[1:])
-        g_int = float(np.sum(ends) * h) * (1.0 + 1e-12)
-        self.t0 = (self.v_norm * g_int + self.eps) * (1.0 + 1e-12)
-        tv = float(np.sum(np.sqrt(np.sum(np.diff(H, axis=2) ** 2, axis=(0, 1)))))
-        self.decay = self.v_norm * (math.exp(ell) * (fro[-1] + tv) + fro[0]) * (1.0 + 1e-12)
-        self.decay_shift = float(_norm2(a_mat))
-        self.mu_max = mu_max
-        self.cells = x.size - 1
+        self.h = h
+        mask = sys.mu[None, :] > sys.mu[:, None]
+        G = controller.kernels.G * mask[:, :, None]
+        with precision(flint, _PREC):
+            arb = flint.arb
+            speeds = [arb(float(v)) for v in sys.signed_speeds]
+            c_full = [[arb(float(sys.sigma[i, k])) / speeds[i] for k in range(n + m)] for i in range(n + m)]
+            beta = _sym_top(flint, [[0.5 * (c_full[i][k] + c_full[k][i]) for k in range(n + m)] for i in range(n + m)])
+            left = _norm_bound(flint, _arb_matrix(flint, np.hstack([-sys.r, np.eye(m)])))
+            right = _norm_bound(flint, _arb_matrix(flint, np.vstack([sys.q, np.eye(m)])))
+            self.left, self.right = _up(left), _up(right)
+            a0 = left * beta.exp() * right
+            q = 1 / arb(mu_min) + max(1 / abs(v) for v in speeds)
+            v_ball, _ = _ball_principal(flint, sys)
+            self.v = _to_ball(v_ball)
+            v_norm = _norm_bound(flint, v_ball)
+            d_mat = in_group_part(sys)
+            a_mat = [[arb(float(d_mat[i, k])) / arb(float(sys.mu[i])) for k in range(m)] for i in range(m)]
+            self.decay_shift = _up(_norm_bound(flint, flint.arb_mat(a_mat)))
+            sym = [[0.5 * (a_mat[i][k] + a_mat[k][i]) for k in range(m)] for i in range(m)]
+            ell = arb.max(
+                arb(0),
+                _arb_max(
+                    flint, [sym[i][i] + sum((abs(sym[i][k]) for k in range(m) if k != i), arb(0)) for i in range(m)]
+                ),
+            )
+            # Lambda-^{-1} G_h at the nodes, Frobenius norms; the loop integrates the function linear between the
+            # nodes k h (length L = (N - 1) h), kernel_error_bound the one between the grid's x_k on [0, 1]
+            hb = arb(h)
+            fro = []
+            for k in range(x.size):
+                fro.append(
+                    sum(
+                        (arb(float(G[a, c, k])) ** 2 / arb(float(sys.mu[a])) ** 2 for a in range(m) for c in range(m)),
+                        arb(0),
+                    ).sqrt()
+                )
+            steps = [
+                sum(
+                    (
+                        (arb(float(G[a, c, k + 1])) - arb(float(G[a, c, k]))) ** 2 / arb(float(sys.mu[a])) ** 2
+                        for a in range(m)
+                        for c in range(m)
+                    ),
+                    arb(0),
+                ).sqrt()
+                for k in range(x.size - 1)
+            ]
+            length = hb * (x.size - 1)
+            reach = arb.max(arb(1), length)
+            grow_ell = (ell * reach).exp()
+            shift = max(abs(Fraction(float(v)) - k * Fraction(h)) for k, v in enumerate(x))
+            slope = _arb_max(flint, [s_k / hb for s_k in steps])
+            grid = (
+                v_norm
+                * grow_ell
+                * (slope * arb(float(shift)) * (1 + 1e-9) * reach + abs(length - 1) * _arb_max(flint, fro))
+            )
+            eps = arb(float(bound.transition_error)) + grid
+            self.eps = _up(eps)
+            g_int = sum(
+                (hb * arb.max(fro[k], fro[k + 1]) * (ell * hb * (k + 1)).exp() for k in range(x.size - 1)), arb(0)
+            )
+            t0 = v_norm * g_int + eps
+            tv = sum(steps, arb(0))
+            self.decay = _up(v_norm * (grow_ell * (fro[-1] + tv) + fro[0]))
+            self.v_norm = _up(v_norm)
+            self.a0 = _up(a0)
+            # bounds of the exact loop's A = (1 - z) M_0 + z E T and its w-derivative on the axis, |z| = 1
+            alpha0 = 2 * a0 + v_norm + t0
+            alpha1 = 2 * a0 * q + t0 / arb(mu_min)
+            self.alpha = [_up(alpha0), _up(alpha1)]
+            grow = m * alpha0 ** (m - 1)
+            self.lipschitz = (_up(grow * alpha1), _up(grow * (a0 + v_norm + t0)))
+        # the data of the enclosures: C = Lambda^{-1} Sigma (two roundings) and the quotients (one rounding each)
+        inv = 1.0 / sys.signed_speeds
+        self._c = Ball(inv[:, None] * sys.sigma, 2.0 * EPS * np.abs(inv[:, None] * sys.sigma))
+        self._p = Ball(np.diag(inv), np.diag(EPS * np.abs(inv)))
+        self._inv_mu = Ball(1.0 / sys.mu, EPS / sys.mu)
+        self._inv_mu_diag = Ball(np.diag(1.0 / sys.mu), np.diag(EPS / sys.mu))
+        self._w = exact(np.vstack([sys.q, np.eye(m)]))
+        self._l = exact(np.hstack([-sys.r, np.eye(m)]))
+        dm = in_group_part(sys) / sys.mu[:, None]
+        self._cd = Ball(dm, EPS * np.abs(dm))
+        hmat = G / sys.mu[:, None, None]
+        g = Ball(np.moveaxis(hmat, 2, 0), EPS * np.abs(np.moveaxis(hmat, 2, 0)))  # (N, m, m)
+        diff = g[1:] - g[:-1]  # times 1 / h in I_1 / h
+        both = np.concatenate([g.mid[:-1], diff.mid], axis=-1), np.concatenate([g.rad[:-1], diff.rad], axis=-1)
+        self._cells = Ball(both[0][None], both[1][None])  # c_k = [H_k, H_{k+1} - H_k], shape (1, cells, m, 2 m)
         self.roots = np.exp(2j * np.pi * np.arange(self.m + 1) / (self.m + 1))
-        # bounds of the exact loop's A = (1 - z) M_0 + z E T and its w-derivatives on the axis, |z| = 1
-        self.alpha = [
-            2.0 * self.a0 * self.q**k + self.t0 / mu_min**k + (self.v_norm if k == 0 else 0.0) for k in range(2)
-        ]
-        # sup |f_w| and sup |f_phi| of the exact loop on the axis: |d det A| <= m ||dA|| ||A||^{m-1}, and
-        # dA/dphi = i z (E T - M_0)
-        grow = self.m * self.alpha[0] ** (self.m - 1) * (1.0 + 1e-12)
-        self.lipschitz = (grow * self.alpha[1], grow * (self.a0 + self.v_norm + self.t0))
 
-    # ------------------------------------------------------------------ the grid kernels' loop
+    # ------------------------------------------------------------------ the grid kernels' loop in floating point
     def matrices(self, s: NDArray[Any]) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        """``M_0(s)`` and ``E T_h(s)`` for an array of ``s``."""
+        """``M_0(s)`` and ``E T_h(s)`` for an array of ``s`` (floating point: Newton's steps only)."""
         return self.system.loop_matrix(s), self.controller.target_transition(s)
 
     def _coefs_at(self, s: NDArray[np.complex128]) -> NDArray[np.complex128]:
@@ -188,28 +321,71 @@ class _CascadeLoop:
         ds = np.mean(vals / ring[None, :, None], axis=1)  # d/ds; d/dw = i d/ds
         return self.coefs(w), 1j * ds
 
-    # ------------------------------------------------------------------ bounds
-    def matrix_rounding(self, w: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Rounding of the computed ``M_0(i w)`` and ``E T_h(i w)`` (matrix exponentials, ``cells`` Filon steps)."""
-        grow = 1.0 + self.q * (np.abs(np.asarray(w, dtype=float)) + 1.0)
-        return np.asarray(EXPM_ROUNDING * EPS * (self.cells + 8) * grow * self.alpha[0], dtype=float)
+    # ------------------------------------------------------------------ enclosures
+    def enclose(self, w: NDArray[np.float64]) -> tuple[Ball, Ball]:
+        """Enclosures of ``M_0(i w)`` and of ``E T_h(i w)`` (``G_h`` linear between the nodes ``k h``), per ``w``.
+
+        ``M_0``'s row ``j`` is ``e^{-i w / mu_j} [-R, I]_j exp(C - i w Lambda^{-1}) [Q; I]``; ``E T_h =
+        V (I - acc)``, ``acc = I_0 S_0 + I_1 S_1`` with ``S = sum_k e^{k h C} [H_k, (H_{k+1} - H_k) / h]``
+        (summed by pairs; ``e^{h C}`` commutes with ``I_0``, ``I_1``), the moments from the exponential of
+        ``h [[C, I, 0], [0, 0, I], [0, 0, 0]]``, ``C = Lambda-^{-1} (D - i w)``.
+        """
+        w = np.asarray(w, dtype=float).reshape(-1)
+        m = self.m
+        iw = Ball(1j * w)[:, None, None]
+        phi = expm(self._c - iw * self._p) @ self._w
+        rows = self._l @ phi
+        scale = expm((Ball(-1j * w)[:, None] * self._inv_mu)[:, :, None, None])[:, :, 0, 0]
+        m0 = rows * scale[:, :, None]
+        hb = exact(np.array(self.h))
+        cmat = (self._cd - iw * self._inv_mu_diag) * hb
+        mid = np.zeros((w.size, 3 * m, 3 * m), dtype=complex)
+        rad = np.zeros(mid.shape)
+        mid[:, :m, :m], rad[:, :m, :m] = cmat.mid, cmat.rad
+        mid[:, :m, m : 2 * m] = mid[:, m : 2 * m, 2 * m :] = self.h * np.eye(m)
+        big = Ball(mid, rad)
+        ex = expm(big)
+        step, i0 = ex[:, :m, :m], ex[:, :m, m : 2 * m]
+        i1 = i0 * hb - ex[:, :m, 2 * m :]
+        # S = sum_k step^k c_k by pairs: c_{2j} + step c_{2j+1} with step^2 in place of step, log2(cells) rounds
+        c = self._cells
+        power = step[:, None]
+        while c.mid.shape[1] > 1:
+            if c.mid.shape[1] % 2:
+                pad = np.zeros((c.mid.shape[0], 1, *c.mid.shape[2:]))
+                c = Ball(np.concatenate([c.mid, pad], axis=1), np.concatenate([c.rad, pad], axis=1))
+            c = c[:, 0::2] + power @ c[:, 1::2]
+            power = power @ power
+        acc_g, acc_d = c[:, 0, :, :m], c[:, 0, :, m:]
+        inv_h = Ball(np.array(1.0 / self.h), np.array(EPS / self.h))
+        acc = i0 @ acc_g + (i1 * inv_h) @ acc_d
+        et = self.v @ (identity((w.size,), m) - acc)
+        return m0, et
+
+    def unit(self, phi: NDArray[np.float64]) -> Ball:
+        """Enclosures of ``e^{i phi}`` (a ``1 x 1`` exponential)."""
+        phi = np.asarray(phi, dtype=float).reshape(-1)
+        return expm(Ball(1j * phi)[:, None, None])[:, 0, 0]
 
     def exclusion(
-        self, w: NDArray[np.float64], phi: NDArray[np.float64], m0: NDArray[np.complex128], et: NDArray[np.complex128]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """``(l, p, e)`` at the points ``(w, phi)`` from the computed ``M_0(i w)``, ``E T_h(i w)``: ``l <=
-        sigma_min`` of the exact loop's ``A(w, e^{i phi})``, ``p >= ||E T(i w) - M_0(i w)||``
-        and ``e`` the error allowed for in ``l`` (module notes, *Search*)."""
-        m1 = et - m0
-        a = m0 + np.exp(1j * phi)[:, None, None] * m1
-        sig = np.linalg.svd(a, compute_uv=False)[:, -1]
-        rnd = self.matrix_rounding(w)
-        error = 1e-12 * sig + 1e-13 * _norm2(a) + self.eps + 3.0 * rnd
-        return (
-            np.asarray(sig - error, dtype=float),
-            np.asarray(_norm2(m1) + self.eps + 2.0 * rnd, dtype=float),
-            np.asarray(error, dtype=float),
-        )
+        self, phi: NDArray[np.float64], m0: Ball, m1: Ball
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(l, e)`` at the points ``(w, phi)`` from enclosures of ``M_0(i w)`` and ``E T_h(i w) - M_0(i w)``:
+        ``l <= sigma_min`` of the exact loop's ``A(w, e^{i phi})`` (proven) and ``e`` the floating-point
+        ``sigma_min`` of the enclosure's midpoint minus ``l`` (the kernels' error and the radii: the search's
+        resolution)."""
+        a = m0 + self.unit(phi)[:, None, None] * m1
+        lower, upper = singular_bounds(a.mid)
+        dist = (frobenius(a.rad) + self.eps) * UP
+        low = lower[:, -1] - dist
+        low = low - 2.0 * EPS * np.abs(low) - TINY
+        sig = 0.5 * (lower[:, -1] + upper[:, -1])  # the floating-point sigma_min, to 1e-12 relative
+        return np.asarray(low, dtype=float), np.asarray(np.maximum(sig - low, 0.0), dtype=float)
+
+    def phase_lipschitz(self, m1: Ball) -> NDArray[np.float64]:
+        """``p >= ||E T(i w) - M_0(i w)||`` of the exact loop from an enclosure of ``E T_h - M_0``."""
+        _, upper = singular_bounds(m1.mid)
+        return np.asarray((upper[:, 0] + frobenius(m1.rad) + self.eps) * UP, dtype=float)
 
 
 def _principal_inverse(system: NPlusMSystem) -> float:
@@ -218,75 +394,136 @@ def _principal_inverse(system: NPlusMSystem) -> float:
     ``A_0 = V (I - X)``, ``X = V^{-1} sum_t (1 - z) R_t e^{-i w tau_t}``, ``|X| <= T = 2 sum_t |V^{-1} R_t|``
     entrywise. A vector ``x > 0`` with ``T x < x`` proves ``rho(T) < 1`` (Collatz-Wielandt), so
     ``|(I - X)^{-1}| <= sum_k T^k = (I - T)^{-1}`` entrywise and ``kappa = ||(I - T)^{-1} |V^{-1}|||_F``.
-    Ball arithmetic (python-flint) from ``V`` and the ``R_t`` as doubles.
+    Ball arithmetic (python-flint): ``V`` and the ``R_t`` from the plant's data with FLINT's exponentials.
 
     Raises
     ------
     CertificationError
         No such ``x`` (``rho(T) >= 1`` or too close to 1 to prove).
     """
-    import flint
-
-    v_block, point = system.principal_terms()
+    flint = require_flint()
     m = system.m
-    v_inv = flint.arb_mat(v_block.tolist()).inv()
-    t = flint.arb_mat(m, m)
-    for _, rq, _ in point:
-        prod = v_inv * flint.arb_mat(rq.tolist())
-        for i in range(m):
-            for j in range(m):
-                t[i, j] += 2 * abs(prod[i, j])
-    upper = np.array([[float(t[i, j].upper()) for j in range(m)] for i in range(m)])
-    vals, vecs = np.linalg.eig(upper)
-    x = np.abs(vecs[:, int(np.argmax(np.abs(vals)))].real) + 1e-9
-    tx = t * flint.arb_mat([[float(v)] for v in x])
-    if not all(float(tx[i, 0].upper()) < x[i] for i in range(m)):
-        raise CertificationError(
-            "cascade margin: the principal part's bound rho(2 sum_t |V^{-1} R_t|) is not proven below 1, so "
-            "no uniform bound of its inverse on the axis (the frequency bound needs one)"
+    with precision(flint, _PREC):
+        v_block, point = _ball_principal(flint, system)
+        v_inv = v_block.inv()
+        t = flint.arb_mat(m, m)
+        for rq in point:
+            prod = v_inv * rq
+            for i in range(m):
+                for j in range(m):
+                    t[i, j] += 2 * abs(prod[i, j])
+        upper = np.array([[float(t[i, j].upper()) for j in range(m)] for i in range(m)])
+        vals, vecs = np.linalg.eig(upper)
+        x = np.abs(vecs[:, int(np.argmax(np.abs(vals)))].real) + 1e-9
+        tx = t * _arb_matrix(flint, x[:, None])
+        if not all(tx[i, 0] < float(x[i]) for i in range(m)):
+            raise CertificationError(
+                "cascade margin: the principal part's bound rho(2 sum_t |V^{-1} R_t|) is not proven below 1, so "
+                "no uniform bound of its inverse on the axis (the frequency bound needs one)"
+            )
+        eye = flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)])
+        n_mat = (eye - t).inv() * flint.arb_mat([[abs(v_inv[i, j]) for j in range(m)] for i in range(m)])
+        fro = sum((n_mat[i, j] ** 2 for i in range(m) for j in range(m)), flint.arb(0)).sqrt()
+        return _up(fro)
+
+
+def _gamma_above_one(system: NPlusMSystem) -> bool:
+    """True if ``gamma_0 > 1`` of the delayed principal part is proven for the exact data.
+
+    ``gamma_0`` is the supremum over independent phases of ``rho(sum_t V^{-1} R_t (e^{i theta_t} -
+    e^{i theta'_t}))`` (the terms of ``R`` at ``tau_t``, those of ``K = -R`` at ``tau_t + delta``); at the
+    best of 2048 sampled phases (seeded) the matrix is formed from FLINT's ``V`` and ``R_t`` and its
+    eigenvalues enclosed (``acb_mat.eig``, clusters allowed): one of modulus ``> 1`` proves it.
+    """
+    flint = require_flint()
+    with precision(flint, _PREC):
+        v_block, point = _ball_principal(flint, system)
+        coefs = [v_block.inv() * rq for rq in point]
+        mats = [np.array([[float(c[i, j].mid()) for j in range(system.m)] for i in range(system.m)]) for c in coefs]
+        rng = np.random.default_rng(0)
+        theta = rng.uniform(0.0, 2 * np.pi, (2048, 2, len(mats)))
+        total = np.einsum("nk,kij->nij", np.exp(1j * theta[:, 0]) - np.exp(1j * theta[:, 1]), np.array(mats))
+        best = int(np.argmax(np.max(np.abs(np.linalg.eigvals(total)), axis=-1)))
+        acb = flint.acb
+        x = flint.acb_mat(system.m, system.m)
+        for k, c in enumerate(coefs):
+            unit = acb(0, float(theta[best, 0, k])).exp() - acb(0, float(theta[best, 1, k])).exp()
+            x += flint.acb_mat(c) * unit
+        return any(abs(v) > 1 for v in x.eig(multiple=True))
+
+
+class _Gauge:
+    """``r(w)`` of :class:`~nrobust.margins.matrix.GaugeRemainder` for ``C = Lambda^{-1} Sigma``, ``P = Lambda^{-1}``
+    with its constants ``||N||``, ``||H||`` and ``beta_d`` proven in ball arithmetic from the plant's data."""
+
+    def __init__(self, flint: Any, system: NPlusMSystem) -> None:
+        arb = flint.arb
+        speeds = system.signed_speeds
+        size = speeds.size
+        c = [[arb(float(system.sigma[i, k])) / arb(float(speeds[i])) for k in range(size)] for i in range(size)]
+        p = [1 / arb(float(v)) for v in speeds]
+        same = [[speeds[i] == speeds[k] for k in range(size)] for i in range(size)]
+        zero = arb(0)
+        c_d = flint.arb_mat([[c[i][k] if same[i][k] else zero for k in range(size)] for i in range(size)])
+        n_mat = flint.arb_mat(
+            [[zero if same[i][k] else c[i][k] / (p[i] - p[k]) for k in range(size)] for i in range(size)]
         )
-    n_mat = (flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)]) - t).inv() * flint.arb_mat(
-        [[abs(v_inv[i, j]).upper() for j in range(m)] for i in range(m)]
-    )
-    fro = sum((n_mat[i, j] ** 2 for i in range(m) for j in range(m)), flint.arb(0)).sqrt()
-    return float(fro.upper())
+        h_mat = flint.arb_mat(c) * n_mat - n_mat * c_d
+        self.floor = _norm_bound(flint, n_mat)
+        self.h_norm = _norm_bound(flint, h_mat)
+        self.beta_d = _sym_top(flint, [[0.5 * (c_d[i, k] + c_d[k, i]) for k in range(size)] for i in range(size)])
+        self.flint = flint
+
+    def __call__(self, w: Any) -> Any:
+        """The ball of ``r(w)`` (``w`` an arb ball ``> ||N||``)."""
+        t = 1 / (1 - self.floor / w)
+        e = t * self.h_norm
+        return ((1 + self.floor / w) * t * e * (self.beta_d + e / w).exp() + 2 * self.floor * t * self.beta_d.exp()) / w
 
 
 def _frequency_bound(loop: _CascadeLoop, max_frequency: float) -> float:
-    """``W``: the exact loop's ``A(w, z)`` is invertible for ``w >= W`` and every ``|z| = 1`` (module notes)."""
+    """``W``: the exact loop's ``A(w, z)`` is invertible for ``w >= W`` and every ``|z| = 1`` (module notes).
+
+    The test ``kappa (2 ||[-R, I]|| ||[Q; I]|| r(w) + ||E T - V||) < 1`` is evaluated in ball arithmetic
+    at each ``w`` tried; its left side does not increase with ``w``.
+    """
+    flint = require_flint()
     sys = loop.system
     kappa = _principal_inverse(sys)
-    inv = 1.0 / sys.signed_speeds
-    remainder = GaugeRemainder(inv[:, None] * sys.sigma, inv)
-    scale = 2.0 * loop.left * loop.right * (1.0 + 1e-12)
+    with precision(flint, _PREC):
+        arb = flint.arb
+        gauge = _Gauge(flint, sys)
+        scale = 2 * arb(loop.left) * arb(loop.right)
 
-    def total(w: float) -> float:
-        gap = w / loop.mu_max - loop.decay_shift
-        kernel = loop.decay / gap if gap > 0.0 else math.inf
-        return kappa * (scale * float(remainder(w)) + kernel + loop.eps + 1e-12 * loop.alpha[0]) * (1.0 + 1e-12)
+        def below(w: float) -> bool:
+            x = arb(w)
+            if not (x > gauge.floor and x / loop.mu_max > loop.decay_shift):
+                return False
+            kernel = arb(loop.decay) / (x / loop.mu_max - loop.decay_shift)
+            return bool(kappa * (scale * gauge(x) + kernel + loop.eps) < 1)
 
-    if not kappa * loop.eps < 1.0:
-        raise CertificationError(
-            f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) exceeds the principal part's room "
-            f"1 / kappa = {1.0 / kappa:.3g} at every frequency; a finer kernel_grid would help (eps is first order "
-            "in its step)"
-        )
-    hi = max(2.0 * remainder.floor, 2.0 * loop.mu_max * loop.decay_shift, 1.0)
-    while not total(hi) < 1.0:
-        hi *= 2.0
-        if hi > max_frequency:
+        if not kappa * loop.eps < 1.0:
             raise CertificationError(
-                f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) and the decay of G's term keep the "
-                f"loop's remainder above the principal part's room 1 / kappa = {1.0 / kappa:.3g} up to "
-                f"max_frequency = {max_frequency:.3g}; a finer kernel_grid or a larger max_frequency would help"
+                f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) exceeds the principal part's room "
+                f"1 / kappa = {1.0 / kappa:.3g} at every frequency; a finer kernel_grid would help (eps is first "
+                "order in its step)"
             )
-    lo = 0.0
-    while hi - lo > 1e-7 * hi:
-        mid = 0.5 * (lo + hi)
-        if total(mid) < 1.0:
-            hi = mid
-        else:
-            lo = mid
+        hi = max(2.0 * float(gauge.floor.upper()), 2.0 * loop.mu_max * loop.decay_shift, 1.0)
+        while not below(hi):
+            hi *= 2.0
+            if hi > max_frequency:
+                raise CertificationError(
+                    f"cascade margin: the kernels' error (eps = {loop.eps:.3g}) and the decay of G's term keep the "
+                    f"loop's remainder above the principal part's room 1 / kappa = {1.0 / kappa:.3g} up to "
+                    f"max_frequency = {max_frequency:.3g}; a finer kernel_grid or a larger max_frequency would help"
+                )
+        lo = 0.0
+        while hi - lo > 1e-7 * hi:
+            mid = 0.5 * (lo + hi)
+            if below(mid):
+                hi = mid
+            else:
+                lo = mid
     return hi
 
 
@@ -311,11 +548,18 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
     grid_w = (np.arange(nw) + 0.5) * (2 * hw0)
     grid_p = (np.arange(_PHASE_CELLS) + 0.5) * (2 * np.pi / _PHASE_CELLS)
     cw, cp = (g.ravel() for g in np.meshgrid(grid_w, grid_p, indexing="ij"))
-    cells: _Cells = (cw, cp, np.full(cw.size, hw0), np.full(cw.size, np.pi / _PHASE_CELLS))
+    # half-widths widened for the rounding of the centres, of hw0 and of 2 pi: the cells cover [0, W] x [0, 2 pi]
+    cells: _Cells = (
+        cw,
+        cp,
+        np.full(cw.size, hw0 + 4.0 * EPS * (W + hw0)),
+        np.full(cw.size, np.pi / _PHASE_CELLS + 32.0 * EPS),
+    )
     width = _MIN_WIDTH * max(1.0, W)
     cache: dict[float, int] = {}
-    m0_all: list[NDArray[np.complex128]] = []
-    et_all: list[NDArray[np.complex128]] = []
+    m0_all: list[Ball] = []
+    m1_all: list[Ball] = []
+    p_all: list[NDArray[np.float64]] = []
     left: list[_Cells] = []
     spent = 0
     while cells[0].size:
@@ -328,14 +572,20 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
                 raise CertificationError(
                     f"cascade margin: more than max_points = {max_points} evaluations of the loop (raise max_points)"
                 )
-            m0_new, et_new = loop.matrices(1j * np.array(new))
+            m0_new, et_new = loop.enclose(np.array(new))
+            m1_new = et_new - m0_new
             base = len(cache)
             cache.update((w, base + k) for k, w in enumerate(new))
-            m0_all.extend(m0_new)
-            et_all.extend(et_new)
+            m0_all.append(m0_new)
+            m1_all.append(m1_new)
+            p_all.append(loop.phase_lipschitz(m1_new))
+            if len(m0_all) > 1:
+                m0_all, m1_all = [_stack(m0_all)], [_stack(m1_all)]
+                p_all = [np.concatenate(p_all)]
         rows = np.array([cache[w] for w in uw.tolist()])[inv]
-        lower, lip_p, error = loop.exclusion(cw, cp, np.asarray(m0_all)[rows], np.asarray(et_all)[rows])
-        slack = hw * loop.alpha[1] + hp * lip_p
+        lower, error = loop.exclusion(cp, m0_all[0][rows], m1_all[0][rows])
+        lip_p = p_all[0][rows]
+        slack = (hw * loop.alpha[1] + hp * lip_p) * UP
         open_ = lower <= slack
         done = open_ & ((slack <= _RESOLVE * error) | ((hw <= width) & (hp <= width)))
         left.append(_select(cells, done))
@@ -347,6 +597,11 @@ def _search(loop: _CascadeLoop, W: float, step: float, max_points: int) -> _Cell
         split = open_ & ~done
         cells = _halves(_select(cells, split), (hw * loop.alpha[1] >= hp * lip_p)[split])
     return tuple(np.concatenate([c[k] for c in left]) for k in range(4))  # type: ignore[return-value]
+
+
+def _stack(balls: list[Ball]) -> Ball:
+    """The balls concatenated along the first axis."""
+    return Ball(np.concatenate([b.mid for b in balls]), np.concatenate([b.rad for b in balls]))
 
 
 def _groups(cells: _Cells) -> list[NDArray[np.intp]]:
@@ -374,17 +629,27 @@ def _groups(cells: _Cells) -> list[NDArray[np.intp]]:
 def _face_signs(
     loop: _CascadeLoop, pts: NDArray[np.float64], coef: NDArray[np.float64], sign: float, slack: float
 ) -> bool:
-    """True if ``sign * coef . (Re f, Im f) > slack + ||coef|| |f - f_h|`` at every point (``f`` exact)."""
-    m0, et = loop.matrices(1j * pts[:, 0])
-    z = np.exp(1j * pts[:, 1])
-    a = m0 + z[:, None, None] * (et - m0)
-    f = np.linalg.det(a)
-    sig = np.linalg.svd(a, compute_uv=False) * (1.0 + 1e-12) + 1e-13 * _norm2(a)[:, None]
-    e = loop.eps + 3.0 * loop.matrix_rounding(pts[:, 0])
-    grown = np.prod(sig + e[:, None], axis=1)
-    err = grown - np.prod(sig, axis=1) + 1e-13 * grown  # Ipsen and Rehman's bound, and det's rounding
-    g = coef[0] * f.real + coef[1] * f.imag
-    return bool(np.all(sign * g > slack + float(np.hypot(*coef)) * (1.0 + 1e-12) * err))
+    """True if ``sign * coef . (Re f, Im f) > slack`` is proven at every point for the exact loop's ``f``.
+
+    ``f`` lies within ``|f_h - f| <= prod(sigma_i + e) - prod sigma_i`` (Ipsen and Rehman) of the
+    determinant ``f_h`` of the enclosure's midpoint ``A_h``, enclosed by cofactors, with ``sigma_i`` the
+    proven upper bounds of ``A_h``'s singular values and ``e`` the radius's Frobenius norm plus ``eps``.
+    """
+    m0, et = loop.enclose(pts[:, 0])
+    a = m0 + loop.unit(pts[:, 1])[:, None, None] * (et - m0)
+    f = det(exact(a.mid))
+    _, sig = singular_bounds(a.mid)
+    e = (frobenius(a.rad) + loop.eps) * UP
+    sym = np.zeros((sig.shape[0], loop.m + 1))  # elementary symmetric functions of the sigma_i
+    sym[:, 0] = 1.0
+    for i in range(loop.m):
+        sym[:, 1:] = sym[:, 1:] + sig[:, i : i + 1] * sym[:, :-1]
+    grown = sum(e**k * sym[:, loop.m - k] for k in range(1, loop.m + 1)) * UP
+    err = (f.rad + grown) * UP
+    g = coef[0] * f.mid.real + coef[1] * f.mid.imag
+    rounding = 2.0 * EPS * (abs(coef[0]) * np.abs(f.mid.real) + abs(coef[1]) * np.abs(f.mid.imag)) + TINY
+    bound = (slack + float(np.hypot(*coef)) * UP * err + rounding) * UP
+    return bool(np.all(sign * g > bound))
 
 
 def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64], float, float] | None:
@@ -444,14 +709,14 @@ def _miranda_box(loop: _CascadeLoop, cells: _Cells) -> tuple[NDArray[np.float64]
 
 def _delay_range(w: float, phi: float, hw: float, hp: float) -> tuple[float, float]:
     """Smallest and largest first delay ``theta / w``, ``theta = -phi mod 2 pi``, on ``[w +- hw] x [phi +- hp]``
-    (``w - hw > 0`` for the largest; 0 and ``2 pi / (w - hw)`` where the cell meets ``theta = 0``), widened by
-    ``1e-12`` (relative) for the rounding of ``theta`` and of the quotients."""
-    theta, hp = float(np.mod(-phi, 2 * np.pi)), float(hp)
-    lo_w, hi_w = float(w - hw), float(w + hw)
-    if theta - hp <= 1e-12 or theta + hp >= 2 * np.pi - 1e-12:
-        return 0.0, (2 * np.pi / lo_w * (1.0 + 1e-12) if lo_w > 0 else math.inf)
-    lower = (theta - hp) / hi_w * (1.0 - 1e-12)
-    return lower, ((theta + hp) / lo_w * (1.0 + 1e-12) if lo_w > 0 else math.inf)
+    (``w - hw > 0`` for the largest; 0 and ``2 pi / (w - hw)`` where the cell meets ``theta = 0``), widened for
+    the rounding of ``theta`` (``2 pi`` as a float, the reduction) and of the quotients."""
+    theta, hp = float(np.mod(-phi, 2 * np.pi)), float(hp) + 8.0 * EPS * (abs(float(phi)) + 4.0 * np.pi)
+    lo_w, hi_w = float(w - hw) * (1.0 - 2.0 * EPS), float(w + hw) * (1.0 + 2.0 * EPS)
+    if theta - hp <= 0.0 or theta + hp >= 2 * np.pi * (1.0 - 4.0 * EPS):
+        return 0.0, (2 * np.pi / lo_w * (1.0 + 4.0 * EPS) if lo_w > 0 else math.inf)
+    lower = (theta - hp) * (1.0 - 2.0 * EPS) / hi_w * (1.0 - 2.0 * EPS)
+    return lower, ((theta + hp) * (1.0 + 2.0 * EPS) / lo_w * (1.0 + 2.0 * EPS) if lo_w > 0 else math.inf)
 
 
 def _wrap(d: Any) -> Any:
@@ -466,14 +731,15 @@ def _select(cells: _Cells, mask: Any) -> _Cells:
 
 
 def _halves(cells: _Cells, split_w: NDArray[np.bool_]) -> _Cells:
-    """Each cell halved in ``w`` (where ``split_w``) or in ``phi``."""
+    """Each cell halved in ``w`` (where ``split_w``) or in ``phi``; the halves' half-widths ``h / 2 + EPS (|c| +
+    h)`` cover the rounding of their centres ``c -+ h / 2``, so the two halves cover the cell."""
     cw, cp, hw, hp = cells
     sw, sp = np.where(split_w, 0.5, 0.0), np.where(split_w, 0.0, 0.5)
     return (
         np.concatenate([cw - sw * hw, cw + sw * hw]),
         np.concatenate([cp - sp * hp, cp + sp * hp]),
-        np.tile(np.where(split_w, 0.5 * hw, hw), 2),
-        np.tile(np.where(split_w, hp, 0.5 * hp), 2),
+        np.tile(np.where(split_w, 0.5 * hw + EPS * (np.abs(cw) + hw), hw), 2),
+        np.tile(np.where(split_w, hp, 0.5 * hp + EPS * (np.abs(cp) + hp)), 2),
     )
 
 
@@ -542,6 +808,11 @@ def cascade_delay_margin(
         raise ParameterError("bound", "kernel_error_bound(controller.kernels)", type(bound).__name__)
     lower, gamma, _ = principal_gamma_bounds(sys, -sys.r)
     if lower >= 1.0 + 1e-12:
+        if not _gamma_above_one(sys):
+            raise CertificationError(
+                f"cascade margin: gamma_0 of the delayed principal part, sampled at {lower:.12g}, is not proven "
+                "above 1 in ball arithmetic (the margin would be 0)"
+            )
         return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _SCOPE, (0.0, 0.0))
     if gamma >= 1.0 - 1e-12:
         raise CertificationError(

@@ -268,12 +268,18 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
         growth = inv * mat(Vm)
         u = inv * mat(rho[:, None])
         step = (growth * (flint.arb(1) / pieces)).exp()
-        a_mat = np.diag(1.0 / mu) @ in_group_part(sys)
-        sym = 0.5 * (a_mat + a_mat.T)
-        lognorm = max(0.0, max(sym[i, i] + np.abs(sym[i]).sum() - abs(sym[i, i]) for i in range(m)))
-        lognorm = lognorm * (1 + 4 * _EPS) + 4 * _EPS
+        # Lambda-^{-1} D from the exact data (1 / mu_a a ball): Gershgorin's bound of the logarithmic norm of its
+        # symmetric part, and ||V||_F, V = exp(-Lambda-^{-1} D)
+        d_mat = in_group_part(sys)
+        a_ball = flint.arb_mat([[flint.arb(float(d_mat[a, c])) / float(mu[a]) for c in range(m)] for a in range(m)])
+        rows = [
+            0.5 * (a_ball[i, i] + a_ball[i, i])
+            + sum((abs(0.5 * (a_ball[i, k] + a_ball[k, i])) for k in range(m) if k != i), flint.arb(0))
+            for i in range(m)
+        ]
+        lognorm = max(0.0, max(_up(r) for r in rows))
         v_norm = flint.arb(0)
-        for x in (-mat(a_mat)).exp().entries():
+        for x in (-a_ball).exp().entries():
             v_norm += x * x
         v_norm = v_norm.sqrt()
         used = [(a, c) for a in range(m) for c in range(m) if mu[c] > mu[a]]
