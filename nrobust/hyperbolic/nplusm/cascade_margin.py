@@ -118,12 +118,11 @@ from ..._threads import one_blas_thread
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
 from ._midrad import EPS, TINY, UP, Ball, det, exact, expm, frobenius, identity, singular_bounds
-from .characteristic import GRID_PER_PERIOD, NPlusMCharacteristic, _arb_max, _norm_bound, _sym_top
+from .characteristic import GRID_PER_PERIOD, NPlusMCharacteristic, arb_max, spectral_norm_bound, symmetric_top_bound
 from .kernel_error import KernelErrorBound, kernel_error_bound
 from .kernels import BACKSTEPPING_ROUTES, CASCADE_SCOPE, KERNEL_SCOPE, NPlusMBackstepping, in_group_part
 from .margin import NPlusMMargin, backstepping_exact_margin, pencil_crossings, principal_gamma_bounds
-from .system import NPlusMSystem
-from .system import _groups as _speed_groups
+from .system import NPlusMSystem, speed_groups
 
 __all__ = ["backstepping_delay_margin", "cascade_delay_margin"]
 
@@ -174,21 +173,21 @@ def _ball_principal(flint: Any, system: NPlusMSystem) -> tuple[Any, list[Any]]:
         return flint.arb_mat([[arb(float(system.sigma[i, k])) * sign / arb(speed) for k in rows] for i in rows]).exp()
 
     u_block = flint.arb_mat(n, n)
-    for g in _speed_groups(system.lam):
+    for g in speed_groups(system.lam):
         e = block(g, float(system.lam[g[0]]), 1)
         for a, i in enumerate(g):
             for b, k in enumerate(g):
                 u_block[int(i), int(k)] = e[a, b]
     v_block = flint.arb_mat(m, m)
-    for g in _speed_groups(system.mu):
+    for g in speed_groups(system.mu):
         e = block(g + n, float(system.mu[g[0]]), -1)
         for a, i in enumerate(g):
             for b, k in enumerate(g):
                 v_block[int(i), int(k)] = e[a, b]
     uq = u_block * _arb_matrix(flint, system.q)
     terms = []
-    for ga in _speed_groups(system.lam):
-        for gb in _speed_groups(system.mu):
+    for ga in speed_groups(system.lam):
+        for gb in speed_groups(system.mu):
             pr = np.zeros((m, n))  # P_b R P_a (U is block diagonal on the groups: P_a U = U P_a)
             pr[np.ix_(gb, ga)] = system.r[np.ix_(gb, ga)]
             terms.append(_arb_matrix(flint, pr) * uq)
@@ -214,22 +213,24 @@ class _CascadeLoop:
             arb = flint.arb
             speeds = [arb(float(v)) for v in sys.signed_speeds]
             c_full = [[arb(float(sys.sigma[i, k])) / speeds[i] for k in range(n + m)] for i in range(n + m)]
-            beta = _sym_top(flint, [[0.5 * (c_full[i][k] + c_full[k][i]) for k in range(n + m)] for i in range(n + m)])
-            left = _norm_bound(flint, _arb_matrix(flint, np.hstack([-sys.r, np.eye(m)])))
-            right = _norm_bound(flint, _arb_matrix(flint, np.vstack([sys.q, np.eye(m)])))
+            beta = symmetric_top_bound(
+                flint, [[0.5 * (c_full[i][k] + c_full[k][i]) for k in range(n + m)] for i in range(n + m)]
+            )
+            left = spectral_norm_bound(flint, _arb_matrix(flint, np.hstack([-sys.r, np.eye(m)])))
+            right = spectral_norm_bound(flint, _arb_matrix(flint, np.vstack([sys.q, np.eye(m)])))
             self.left, self.right = _up(left), _up(right)
             a0 = left * beta.exp() * right
             q = 1 / arb(mu_min) + max(1 / abs(v) for v in speeds)
             v_ball, _ = _ball_principal(flint, sys)
             self.v = _to_ball(v_ball)
-            v_norm = _norm_bound(flint, v_ball)
+            v_norm = spectral_norm_bound(flint, v_ball)
             d_mat = in_group_part(sys)
             a_mat = [[arb(float(d_mat[i, k])) / arb(float(sys.mu[i])) for k in range(m)] for i in range(m)]
-            self.decay_shift = _up(_norm_bound(flint, flint.arb_mat(a_mat)))
+            self.decay_shift = _up(spectral_norm_bound(flint, flint.arb_mat(a_mat)))
             sym = [[0.5 * (a_mat[i][k] + a_mat[k][i]) for k in range(m)] for i in range(m)]
             ell = arb.max(
                 arb(0),
-                _arb_max(
+                arb_max(
                     flint, [sym[i][i] + sum((abs(sym[i][k]) for k in range(m) if k != i), arb(0)) for i in range(m)]
                 ),
             )
@@ -259,11 +260,11 @@ class _CascadeLoop:
             reach = arb.max(arb(1), length)
             grow_ell = (ell * reach).exp()
             shift = max(abs(Fraction(float(v)) - k * Fraction(h)) for k, v in enumerate(x))
-            slope = _arb_max(flint, [s_k / hb for s_k in steps])
+            slope = arb_max(flint, [s_k / hb for s_k in steps])
             grid = (
                 v_norm
                 * grow_ell
-                * (slope * arb(float(shift)) * (1 + 1e-9) * reach + abs(length - 1) * _arb_max(flint, fro))
+                * (slope * arb(float(shift)) * (1 + 1e-9) * reach + abs(length - 1) * arb_max(flint, fro))
             )
             eps = arb(float(bound.transition_error)) + grid
             self.eps = _up(eps)
@@ -469,9 +470,11 @@ class _Gauge:
             [[zero if same[i][k] else c[i][k] / (p[i] - p[k]) for k in range(size)] for i in range(size)]
         )
         h_mat = flint.arb_mat(c) * n_mat - n_mat * c_d
-        self.floor = _norm_bound(flint, n_mat)
-        self.h_norm = _norm_bound(flint, h_mat)
-        self.beta_d = _sym_top(flint, [[0.5 * (c_d[i, k] + c_d[k, i]) for k in range(size)] for i in range(size)])
+        self.floor = spectral_norm_bound(flint, n_mat)
+        self.h_norm = spectral_norm_bound(flint, h_mat)
+        self.beta_d = symmetric_top_bound(
+            flint, [[0.5 * (c_d[i, k] + c_d[k, i]) for k in range(size)] for i in range(size)]
+        )
         self.flint = flint
 
     def __call__(self, w: Any) -> Any:

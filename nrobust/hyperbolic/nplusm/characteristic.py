@@ -68,7 +68,14 @@ from ...quasipoly import QuasiPolynomial
 from ...roots import SpectralAbscissa, find_roots, spectral_abscissa
 from .system import NPlusMSystem
 
-__all__ = ["BallNPlusM", "NPlusMCharacteristic", "compound_loop"]
+__all__ = [
+    "BallNPlusM",
+    "NPlusMCharacteristic",
+    "arb_max",
+    "compound_loop",
+    "spectral_norm_bound",
+    "symmetric_top_bound",
+]
 
 #: Rounding scale of ``F(s)`` relative to ``||l|| ||r|| e^{beta} (1 + ||C|| + |s| ||P||)``: the
 #: error of a scaling-and-squaring matrix exponential grows with the norm of its argument.
@@ -804,7 +811,7 @@ class _BallFarField:
     sign pattern of :func:`~nrobust.margins.matrix.compound_generator`, the minors ``a_d``
     (inverse DFT over the ``(m + 1)``-th roots of unity, in ``acb``) and ``b`` are ball
     determinants, the principal coefficients use FLINT's proven ``arb_mat.exp``, and the
-    norms and logarithmic norms are proven upper bounds (:func:`_sym_top`). The remainder
+    norms and logarithmic norms are proven upper bounds (:func:`symmetric_top_bound`). The remainder
     is that of :class:`~nrobust.margins.matrix.GaugeRemainder` with ``e^{beta_d}`` replaced
     by ``e^{beta(x)}``, ``beta(x) = max_g (lambda_max(Herm D_gg) - x p_g)`` (``Herm D_d - x P``
     is block diagonal over the groups ``g``, ``P = p_g I`` on each).
@@ -852,10 +859,11 @@ class _BallFarField:
                 [[zero if same[S][T] else d[S][T] / arb(rates[S] - rates[T]) for T in range(size)] for S in range(size)]
             )
             hh = flint.arb_mat(d) * nn - nn * dd
-            self.n_norm = _norm_bound(flint, nn)
-            self.h_norm = _norm_bound(flint, hh)
+            self.n_norm = spectral_norm_bound(flint, nn)
+            self.h_norm = spectral_norm_bound(flint, hh)
             self.tops = [
-                _sym_top(flint, [[0.5 * (d[S][T] + d[T][S]) for T in idx] for S in idx]) for _, idx, _ in self.groups
+                symmetric_top_bound(flint, [[0.5 * (d[S][T] + d[T][S]) for T in idx] for S in idx])
+                for _, idx, _ in self.groups
             ]
             w = np.vstack([sys.q, np.eye(m)])
             b = [flint.arb_mat([[arb(exact(w[i, j])) for j in range(m)] for i in S]).det() for S in subsets]
@@ -914,7 +922,7 @@ class _BallFarField:
                 return True
             if not R > self.n_norm:
                 return False
-            beta = _arb_max(flint, [top - X * rate for (rate, _, _), top in zip(self.groups, self.tops)])
+            beta = arb_max(flint, [top - X * rate for (rate, _, _), top in zip(self.groups, self.tops)])
             t = 1 / (1 - self.n_norm / R)
             e = t * self.h_norm
             r = ((1 + self.n_norm / R) * t * e * (beta + e / R).exp() + 2 * self.n_norm * t * beta.exp()) / R
@@ -922,7 +930,7 @@ class _BallFarField:
             return bool(gap - scale * r > 0)
 
 
-def _arb_max(flint: Any, values: list[Any]) -> Any:
+def arb_max(flint: Any, values: list[Any]) -> Any:
     """The ball of the largest of ``values`` (arb balls)."""
     out = values[0]
     for v in values[1:]:
@@ -930,7 +938,7 @@ def _arb_max(flint: Any, values: list[Any]) -> Any:
     return out
 
 
-def _sym_top(flint: Any, a: list[list[Any]]) -> Any:
+def symmetric_top_bound(flint: Any, a: list[list[Any]]) -> Any:
     """A proven upper bound (an arb ball) of ``lambda_max`` of the symmetric matrix enclosed by ``a``.
 
     ``t`` slightly above the floating-point ``lambda_max`` is proven an upper bound when
@@ -947,25 +955,23 @@ def _sym_top(flint: Any, a: list[list[Any]]) -> Any:
     for j in range(k):
         dj = t - a[j][j] - sum((low[j][q] ** 2 * piv[q] for q in range(j)), arb(0))
         if not dj > 0:
-            return _arb_max(
-                flint, [a[i][i] + sum((abs(a[i][q]) for q in range(k) if q != i), arb(0)) for i in range(k)]
-            )
+            return arb_max(flint, [a[i][i] + sum((abs(a[i][q]) for q in range(k) if q != i), arb(0)) for i in range(k)])
         piv.append(dj)
         for i in range(j + 1, k):
             low[i][j] = (-a[i][j] - sum((low[i][q] * low[j][q] * piv[q] for q in range(j)), arb(0))) / dj
     return t
 
 
-def _norm_bound(flint: Any, x: Any) -> Any:
+def spectral_norm_bound(flint: Any, x: Any) -> Any:
     """A proven upper bound of the spectral norm of the arb matrix ``x``: the smaller of
-    ``sqrt(lambda_max(x^T x))`` (:func:`_sym_top`) and the Frobenius norm."""
+    ``sqrt(lambda_max(x^T x))`` (:func:`symmetric_top_bound`) and the Frobenius norm."""
     arb = flint.arb
     rows, cols = x.nrows(), x.ncols()
     frob = sum((abs(x[i, j]) ** 2 for i in range(rows) for j in range(cols)), arb(0)).sqrt()
     if not frob > 0:
         return frob
     g = x.transpose() * x
-    top = _sym_top(flint, [[g[i, j] for j in range(cols)] for i in range(cols)])
+    top = symmetric_top_bound(flint, [[g[i, j] for j in range(cols)] for i in range(cols)])
     spectral = arb.max(top, arb(0)).sqrt()
     return spectral if spectral.upper() < frob.upper() else frob
 

@@ -60,7 +60,7 @@ from ...errors import ParameterError
 from ...matrix_difference import MatrixDifferenceOperator
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["NPlusMSystem"]
+__all__ = ["NPlusMSystem", "speed_groups"]
 
 
 def _matrix(name: str, value: Any, shape: tuple[int, int]) -> NDArray[np.float64]:
@@ -70,7 +70,7 @@ def _matrix(name: str, value: Any, shape: tuple[int, int]) -> NDArray[np.float64
     return a
 
 
-def _groups(speeds: NDArray[np.float64]) -> list[NDArray[np.intp]]:
+def speed_groups(speeds: NDArray[np.float64]) -> list[NDArray[np.intp]]:
     """Indices of the components sharing each distinct speed."""
     return [np.flatnonzero(speeds == v) for v in np.unique(speeds)]
 
@@ -193,16 +193,16 @@ class NPlusMSystem:
         k = self.gain(K)
         sig, n = self.sigma, self.n
         u_block = np.zeros((n, n))
-        for g in _groups(self.lam):
+        for g in speed_groups(self.lam):
             u_block[np.ix_(g, g)] = expm(sig[np.ix_(g, g)] / self.lam[g][0])
         v_block = np.zeros((self.m, self.m))
-        for g in _groups(self.mu):
+        for g in speed_groups(self.mu):
             v_block[np.ix_(g, g)] = expm(-sig[np.ix_(g + n, g + n)] / self.mu[g][0])
         terms = []
-        for ga in _groups(self.lam):
+        for ga in speed_groups(self.lam):
             pa = np.zeros((n, n))
             pa[ga, ga] = 1.0
-            for gb in _groups(self.mu):
+            for gb in speed_groups(self.mu):
                 pb = np.zeros((self.m, self.m))
                 pb[gb, gb] = 1.0
                 tau = float(1.0 / self.lam[ga][0] + 1.0 / self.mu[gb][0])
