@@ -32,6 +32,8 @@ import math
 from fractions import Fraction
 from typing import Any, TypeVar
 
+import numpy as np
+
 from ..._flint import precision, require_flint
 from ...balls import BallFunction, ball_function
 from ...bounds import RoucheDelayBound
@@ -39,11 +41,13 @@ from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
 from .controllers import characteristic, loop_factors, rounded_parts
-from .exact_form import rational_ball
+from ..plants.general import GeneralHyperbolic2x2
+from .exact_form import closed_form_parameters, rational_ball
 
 __all__ = [
     "GivenPlantBalls",
     "built_delay",
+    "exact_tau",
     "given_plant_balls",
     "given_plant_scale",
     "rounded_parts",
@@ -68,7 +72,22 @@ def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = No
     """
     if rounded_parts(system, controller, kernel_grid):
         return None
-    return (Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)) / Fraction(system.tau)
+    return exact_tau(system) / Fraction(closed_form_parameters(system)[0])
+
+
+def exact_tau(system: Any) -> Fraction:
+    """``tau`` of a plant with constant coefficients as the rational of its numbers.
+
+    ``1/lam + 1/mu`` for :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`,
+    ``(L/lam + L/mu) / time_unit`` for a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` (its round trip in its
+    time unit, the ``tau`` of its normal form).
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        lam, mu = (Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu"))
+        length = Fraction(system.length)
+        return (length / lam + length / mu) / Fraction(system.time_unit)
+    return Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)
 
 
 class GivenPlantBalls(BallFunction):
