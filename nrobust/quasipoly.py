@@ -100,7 +100,8 @@ def _rounding(exact: Any, computed: NDArray) -> NDArray[np.float64]:
 def _fraction_add(a: list[Fraction], b: list[Fraction]) -> list[Fraction]:
     """The sum of two polynomials with rational coefficients (increasing powers)."""
     n = max(len(a), len(b))
-    return [(a[i] if i < len(a) else 0) + (b[i] if i < len(b) else 0) for i in range(n)]
+    zero = Fraction(0)
+    return [(a[i] if i < len(a) else zero) + (b[i] if i < len(b) else zero) for i in range(n)]
 
 
 def _scaled_rounding(p: NDArray, c: complex | float) -> NDArray[np.float64]:
@@ -117,7 +118,9 @@ def _product_rounding(p: NDArray, q: NDArray) -> NDArray[np.float64]:
     computed = polymul(p, q)
     if a is None or b is None:
         return _ROUNDING * min(p.size, q.size) * polymul(np.abs(p), np.abs(q))
-    exact = [sum((a[i] * b[k - i] for i in range(len(a)) if 0 <= k - i < len(b)), Fraction(0)) for k in range(computed.size)]
+    exact = [
+        sum((a[i] * b[k - i] for i in range(len(a)) if 0 <= k - i < len(b)), Fraction(0)) for k in range(computed.size)
+    ]
     bound = _ROUNDING * min(p.size, q.size) * polymul(np.abs(p), np.abs(q))
     return np.where(_rounding(exact, computed) > 0, bound, 0.0)
 
@@ -692,12 +695,7 @@ class QuasiPolynomial:
                     "other", "without distributed terms when self has point radii (a kernel times a ball)", other
                 )
             radii = [
-                _up(
-                    polymul(np.abs(p), rq)
-                    + polymul(rp, np.abs(q))
-                    + polymul(rp, rq)
-                    + _product_rounding(p, q)
-                )
+                _up(polymul(np.abs(p), rq) + polymul(rp, np.abs(q)) + polymul(rp, rq) + _product_rounding(p, q))
                 for (p, _), rp in self._radii_terms()
                 for (q, _), rq in other._radii_terms()
             ]

@@ -471,7 +471,9 @@ class _Axis:
         self.fa, self.fb = ball_function(A), ball_function(B)
         self.kernels = AxisKernels((A, B))
         self.points = [
-            None if not P.point_terms else ball_function(QuasiPolynomial(P.coefs, P.delays, radii=P.point_radii or None))
+            None
+            if not P.point_terms
+            else ball_function(QuasiPolynomial(P.coefs, P.delays, radii=P.point_radii or None))
             for P in (A, B)
         ]
         self.units = [ball_function(QuasiPolynomial([], [], [u])) for u in self.kernels.units]

@@ -676,9 +676,10 @@ class Certificate:
         exact = "L/lam + L/mu" if isinstance(self.system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
         return (
             f" The loop is built with tau the double {closed_form_parameters(self.system)[0]!r} (relative change "
-            f"{float(abs(r - 1)):.1e} from tau = {exact}): the delay margin, its crossing, the spectral abscissa and the Rouché range "
-            "are mapped from it to tau exactly, and the root counts marked proven (roots at delta = 0 and at "
-            "delta_max, instability at delta_max) are proven on the plant's own loop A(r s) + B(r s) e^{-delta s}, "
+            f"{float(abs(r - 1)):.1e} from tau = {exact}): the delay margin, its crossing, the spectral abscissa and "
+            "the Rouché range are mapped from it to tau exactly, and the root counts marked proven (roots at "
+            "delta = 0 and at delta_max, instability at delta_max) are proven on the plant's own loop "
+            "A(r s) + B(r s) e^{-delta s}, "
             "r = tau / tau_d in a ball: both hold for the plant as given."
         )
 

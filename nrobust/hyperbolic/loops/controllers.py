@@ -870,7 +870,9 @@ def _exact_factors(
 _Exact = dict[str, Fraction]
 
 
-def _exact_points(system: Any, controller: Controller) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
+def _exact_points(
+    system: Any, controller: Controller
+) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
     """The exact point coefficients of ``A`` and ``B`` on the closed form, by delay (increasing powers).
 
     Each is a rational combination of ``1``, ``q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau / 2}``
@@ -903,7 +905,9 @@ def _exact_points(system: Any, controller: Controller) -> tuple[dict[float, list
     return A, B
 
 
-def _exact_radii(F: QuasiPolynomial, system: Any, parts: tuple[tuple[dict[float, list[_Exact]], float], ...]) -> QuasiPolynomial:
+def _exact_radii(
+    F: QuasiPolynomial, system: Any, parts: tuple[tuple[dict[float, list[_Exact]], float], ...]
+) -> QuasiPolynomial:
     """``F`` with the radii of its point coefficients from their exact values (``F`` itself when all are exact).
 
     ``parts``: ``(exact point coefficients by delay, shift)`` of the factors whose sum (each
@@ -913,9 +917,9 @@ def _exact_radii(F: QuasiPolynomial, system: Any, parts: tuple[tuple[dict[float,
     """
     exact: dict[float, list[_Exact]] = {}
     for table, delta in parts:
-        for t, coefs in table.items():
+        for t, table_coefs in table.items():
             acc = exact.setdefault(t + delta if delta else t, [])
-            for j, c in enumerate(coefs):
+            for j, c in enumerate(table_coefs):
                 if j == len(acc):
                     acc.append({})
                 for atom, v in c.items():
@@ -930,7 +934,8 @@ def _exact_radii(F: QuasiPolynomial, system: Any, parts: tuple[tuple[dict[float,
 
         stored = {t: p for p, t in F.point_terms}
         delays = sorted(set(stored) | set(exact))
-        coefs, radii = [], []
+        coefs: list[NDArray] = []
+        radii: list[list[float]] = []
         for t in delays:
             p, e = stored.get(t, np.zeros(1)), exact.get(t, [])
             n = max(p.size, len(e))

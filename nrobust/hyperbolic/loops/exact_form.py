@@ -314,7 +314,10 @@ def gain_balls(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[Any, Any, 
 
 
 def ball_radius(flint: Any, value: complex | float, exact: Any) -> float:
-    """A double bounding ``|value - x|`` for every ``x`` in the ball ``exact`` (rounded up; 0 when both are the same point)."""
+    """A double bounding ``|value - x|`` for every ``x`` in the ball ``exact``.
+
+    Rounded up; 0 when ``exact`` is the point ``value``.
+    """
     z = complex(value)
     diff = (flint.acb(z.real, z.imag) if z.imag else flint.arb(z.real)) - exact
     if diff.is_zero():

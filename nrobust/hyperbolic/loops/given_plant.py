@@ -40,8 +40,8 @@ from ...bounds import RoucheDelayBound
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
-from .controllers import characteristic, loop_factors, rounded_parts
 from ..plants.general import GeneralHyperbolic2x2
+from .controllers import characteristic, loop_factors, rounded_parts
 from .exact_form import closed_form_parameters, rational_ball
 
 __all__ = [
