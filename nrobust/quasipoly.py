@@ -21,7 +21,7 @@ import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from math import comb, factorial
+from math import comb, factorial, inf, nextafter
 from typing import Any
 
 import numpy as np
@@ -85,15 +85,16 @@ def _checked_radii(radii: Sequence[ArrayLike] | None, count: int) -> list[NDArra
 
 
 def _rounding(exact: Any, computed: NDArray) -> NDArray[np.float64]:
-    """Bound of ``|computed - exact|`` per coefficient: 0 where the real result is exact (checked
-    in rationals), ``2^-50 |computed|`` elsewhere (a few roundings of at most ``2^-53`` each)."""
+    """Bound of ``|computed - exact|`` per coefficient: for a real result the distance to the rational
+    ``exact`` rounded up (0 where exact), else ``2^-50 |computed|`` (a few roundings of ``2^-53`` each)."""
     computed = np.asarray(computed)
     out = _ROUNDING * np.abs(computed)
     if np.iscomplexobj(computed):
         return out
     for i, (x, e) in enumerate(zip(computed.tolist(), exact)):
-        if Fraction(x) == e:
-            out[i] = 0.0
+        error = abs(Fraction(x) - e)
+        bound = float(error)
+        out[i] = bound if Fraction(bound) >= error else nextafter(bound, inf)
     return out
 
 
@@ -113,16 +114,16 @@ def _scaled_rounding(p: NDArray, c: complex | float) -> NDArray[np.float64]:
 
 
 def _product_rounding(p: NDArray, q: NDArray) -> NDArray[np.float64]:
-    """Bound of the rounding of ``polymul(p, q)`` (0 where exact): sums of up to ``min`` products."""
+    """Bound of the rounding of ``polymul(p, q)``: exact in rationals for real factors, else
+    ``2^-50`` relative per product summed."""
     a, b = _exact_poly(p), _exact_poly(q)
-    computed = polymul(p, q)
     if a is None or b is None:
         return _ROUNDING * min(p.size, q.size) * polymul(np.abs(p), np.abs(q))
+    computed = polymul(p, q)
     exact = [
         sum((a[i] * b[k - i] for i in range(len(a)) if 0 <= k - i < len(b)), Fraction(0)) for k in range(computed.size)
     ]
-    bound = _ROUNDING * min(p.size, q.size) * polymul(np.abs(p), np.abs(q))
-    return np.where(_rounding(exact, computed) > 0, bound, 0.0)
+    return _rounding(exact, computed)
 
 
 def _exact_poly(p: NDArray) -> list[Fraction] | None:
