@@ -776,7 +776,7 @@ def _retarded_abscissa(
     march ends with :class:`~nrobust.errors.CertificationError` when the work bound
     ``max_evals`` (shared by all steps) is exhausted.
     """
-    if _is_exponential_polynomial(F):
+    if _is_exponential_polynomial(F) and F.exact_points:  # the roots of p itself (not of a ball of them)
         half = 1.01 * max(radius, _MIN_HALF_HEIGHT)
         exact = _polynomial_abscissa(F, (-half, half, *_band(half, real)))
         if exact is not None:
