@@ -130,6 +130,26 @@ def test_the_proven_counts_agree_with_the_argument_principle(delta, expected):
     assert _winding(F, (0.0, W, -W, W)) == count
 
 
+def test_the_certificate_holds_for_the_pde():
+    """The certificate's proven abscissa bracket and root boxes hold the 40-digit roots of the PDE's loop."""
+    plant = GeneralHyperbolic2x2(**COUPLED)
+    cert = nr.certify(plant, StateFeedback(K), delta_max=1.0, rigorous=True, k_region=False)
+    assert "the plant as given" in cert.scope and "L/lam + L/mu" in cert.scope
+
+    def F(s):
+        return sum(_factors(COUPLED, K, s))
+
+    with mp.workdps(DPS):
+        ab = cert.abscissa
+        root = mp.findroot(F, mp.mpc(ab.root))
+        assert mp.mpf(ab.value_bracket[0]) <= root.real <= mp.mpf(ab.value_bracket[1])
+        roots = cert.roots_nominal
+        assert roots.rigorous and roots.count == len(roots.boxes) > 0
+        for z, box in zip(roots.roots, roots.boxes):
+            r = mp.findroot(F, mp.mpc(z))
+            assert mp.mpf(box[0]) <= r.real <= mp.mpf(box[1]) and mp.mpf(box[2]) <= r.imag <= mp.mpf(box[3])
+
+
 def test_the_abscissa_bracket_holds_for_the_uncoupled_plant():
     """``F(s; 0) = 1 - (rho + k) q e^{sigma_0 tau} e^{-tau s}``: every root has ``Re s = ln((rho + k) q w) / tau``.
 

@@ -28,8 +28,12 @@ tail, the truncation of each piece's expansion and the rounding of its coefficie
 double precision) in :attr:`~nrobust.quasipoly.DistributedDelay.radius`, and of its total
 variation in ``variation_radius``. The ratios ``p``, ``m`` and the shift ``sigma_0 tau`` enter
 the series as balls of the exact quotients of the user's numbers (:func:`exact_ratios`), so
-their rounding is part of that bound. Every ball enclosure of a loop built on it
-(:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with one exception: the
+their rounding is part of that bound. The principal gains ``q e^{sigma_0 tau / 2}``,
+``rho q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau}`` are irrational for a general plant (and a
+product ``rho q`` of doubles need not be a double): :func:`gain_balls` encloses them from the
+user's numbers, and the loop's point coefficients carry the distance of their doubles to them as
+radii (:class:`~nrobust.quasipoly.QuasiPolynomial`'s ``radii``). Every ball enclosure of a loop
+built on it (:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with one exception: the
 transport time is the double ``tau_d`` nearest ``tau = 1/lam + 1/mu`` (the principal delays of
 :class:`~nrobust.quasipoly.QuasiPolynomial` are doubles). Since ``tau N~(tau t)`` depends on
 ``p``, ``m``, ``q``, ``rho`` and ``sigma_0 tau`` only, the loop of an unfiltered law is a

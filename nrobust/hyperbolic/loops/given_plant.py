@@ -20,9 +20,14 @@ double given, exact): :func:`given_plant_balls` encloses it with ``r`` an ``arb`
 winding number, a Krawczyk test or a zero-free piece of contour proven with it holds for
 the plant as given.
 
-The principal gains (``rho q``, ``K q``, ``k q``) are products of doubles: the map applies when
-they are exact (the paper's values), otherwise the proof keeps a scope naming what is rounded
-(:func:`rounded_parts`).
+The principal gains (``rho q``, ``K q``, ``k q``, times ``e^{sigma_0 tau}`` or
+``e^{sigma_0 tau / 2}`` for a general plant) are doubles rounded from their exact values: the
+loop carries each with a proven radius (``QuasiPolynomial(..., radii=...)``, enclosed from the
+user's numbers by :func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), so a proof about the
+loop as built holds for every loop with gains in those balls, the plant's among them, and the
+map applies to it. A general plant with constant coefficients has ``tau = L/lam + L/mu``
+(:func:`exact_tau`). Where the loop is not a function of ``tau s`` (a filtered law, integral
+gains) the proof keeps a scope naming what is rounded (:func:`rounded_parts`).
 """
 
 from __future__ import annotations
@@ -60,10 +65,10 @@ _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
 def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = None) -> Fraction | None:
     """``r = tau / tau_d``: the factor mapping proofs about the loop as built to the plant as given.
 
-    ``tau = 1/lam + 1/mu`` exactly (the user's doubles as rationals), ``tau_d`` the double
-    :attr:`Hyperbolic2x2.tau` the loop is built with. None when the loop is not a function of
-    ``tau s`` and ``delta / tau`` with exact gains (:func:`rounded_parts` says what is rounded):
-    then the proofs hold for the loop as built.
+    ``tau`` exactly (:func:`exact_tau`: the user's doubles as rationals), ``tau_d`` the double the
+    loop is built with (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_parameters`). None
+    when the loop is not a function of ``tau s`` and ``delta / tau`` with its gains enclosed
+    (:func:`rounded_parts` says what is rounded): then the proofs hold for the loop as built.
 
     Parameters
     ----------
