@@ -859,10 +859,9 @@ def _exact_factors(
         A, B = 1.0 - phi, B if kernel is None else B - QuasiPolynomial([], [], [kernel])
     else:
         A, B = controller.factors(phi, i_n, round_trip)
-    exact = _exact_points(system, controller) if isinstance(form, ExactForm) else None
-    if exact is None:
+    if not isinstance(form, ExactForm):
         return A, B
-    return _exact_radii(A, system, ((exact[0], 0.0),)), _exact_radii(B, system, ((exact[1], 0.0),))
+    return _exact_radii(A, system, controller, (("A", 0.0),)), _exact_radii(B, system, controller, (("B", 0.0),))
 
 
 #: An exact point coefficient: rational multiples of ``1``, ``q e^{sigma_0 tau}`` (``"w"``) and
@@ -906,18 +905,74 @@ def _exact_points(
 
 
 def _exact_radii(
-    F: QuasiPolynomial, system: Any, parts: tuple[tuple[dict[float, list[_Exact]], float], ...]
+    F: QuasiPolynomial, system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
 ) -> QuasiPolynomial:
     """``F`` with the radii of its point coefficients from their exact values (``F`` itself when all are exact).
 
-    ``parts``: ``(exact point coefficients by delay, shift)`` of the factors whose sum (each
-    shifted by its delay, as :meth:`~nrobust.quasipoly.QuasiPolynomial.shift` does) is ``F``'s
-    point part. The exact coefficients are summed as rationals, then enclosed in balls, and each
-    radius bounds ``|stored - exact|`` (:func:`~nrobust.hyperbolic.loops.exact_form.ball_radius`).
+    ``parts``: the factors (``"A"``, ``"B"`` of :func:`_exact_points`) and their shifts whose sum
+    is ``F``'s point part (:func:`_exact_balls`); each radius bounds ``|stored - exact|``
+    (:func:`~nrobust.hyperbolic.loops.exact_form.ball_radius`). ``F`` itself for a controller
+    whose factors :func:`_exact_points` does not list, or without python-flint (the radii serve the ball
+    arithmetic only, which needs it).
     """
+    try:
+        flint = require_flint()
+    except ImportError:
+        return F
+    exact = _cached_balls(system, controller, parts)
+    if exact is None:
+        return F
+    with precision(flint, PRECISION):
+        stored = {t: p for p, t in F.point_terms}
+        delays = sorted(set(stored) | set(exact))
+        coefs: list[NDArray] = []
+        radii: list[list[float]] = []
+        for t in delays:
+            p, e = stored.get(t, np.zeros(1)), exact.get(t, [])
+            n = max(p.size, len(e))
+            p = np.concatenate([p, np.zeros(n - p.size, dtype=p.dtype)])
+            coefs.append(p)
+            radii.append([ball_radius(flint, p[j], e[j] if j < len(e) else flint.arb(0)) for j in range(n)])
+    if not any(any(r) for r in radii):  # every stored coefficient exact
+        return F if not F.point_radii else QuasiPolynomial(coefs, delays, F.distributed)
+    return QuasiPolynomial(coefs, delays, F.distributed, radii=radii)
+
+
+def _cached_balls(
+    system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
+) -> dict[float, list[Any]] | None:
+    """:func:`_exact_balls`, cached per factor: a sum whose shifted delays are all distinct is the union of
+    the factors' balls (only coinciding delays need the rational sum)."""
+    if len(parts) > 1:
+        tables = [_cached_balls(system, controller, ((name, 0.0),)) for name, _ in parts]
+        shifted = []
+        for table, (_, delta) in zip(tables, parts):
+            if table is None:
+                return None
+            shifted.append({t + delta if delta else t: c for t, c in table.items()})
+        if sum(len(table) for table in shifted) == len(set().union(*shifted)):
+            return {t: c for table in shifted for t, c in table.items()}
+    try:
+        return _exact_balls(system, controller, parts)
+    except TypeError:  # an unhashable plant or controller: not cached
+        return _exact_balls.__wrapped__(system, controller, parts)
+
+
+@lru_cache(maxsize=256)
+def _exact_balls(
+    system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
+) -> dict[float, list[Any]] | None:
+    """The exact point coefficients of the sum of ``parts`` (factor ``"A"`` or ``"B"``, shift) as ``arb`` balls.
+
+    Summed as rational combinations first (:data:`_Exact`): terms that cancel exactly give an
+    exact 0. None for a controller whose factors :func:`_exact_points` does not list.
+    """
+    points = _exact_points(system, controller)
+    if points is None:
+        return None
     exact: dict[float, list[_Exact]] = {}
-    for table, delta in parts:
-        for t, table_coefs in table.items():
+    for name, delta in parts:
+        for t, table_coefs in points[0 if name == "A" else 1].items():
             acc = exact.setdefault(t + delta if delta else t, [])
             for j, c in enumerate(table_coefs):
                 if j == len(acc):
@@ -932,19 +987,7 @@ def _exact_radii(
         def ball(c: _Exact) -> Any:
             return sum((atoms[k] * (flint.arb(v.numerator) / v.denominator) for k, v in c.items() if v), flint.arb(0))
 
-        stored = {t: p for p, t in F.point_terms}
-        delays = sorted(set(stored) | set(exact))
-        coefs: list[NDArray] = []
-        radii: list[list[float]] = []
-        for t in delays:
-            p, e = stored.get(t, np.zeros(1)), exact.get(t, [])
-            n = max(p.size, len(e))
-            p = np.concatenate([p, np.zeros(n - p.size, dtype=p.dtype)])
-            coefs.append(p)
-            radii.append([ball_radius(flint, p[j], ball(e[j]) if j < len(e) else flint.arb(0)) for j in range(n)])
-    if not any(any(r) for r in radii):  # every stored coefficient exact
-        return F if not F.point_radii else QuasiPolynomial(coefs, delays, F.distributed)
-    return QuasiPolynomial(coefs, delays, F.distributed, radii=radii)
+        return {t: [ball(c) for c in coefs] for t, coefs in exact.items()}
 
 
 @renamed_keywords(n="kernel_grid")
@@ -1026,15 +1069,17 @@ def characteristic(
     """
     delta = nonnegative("delta", delta)
     a, b = loop_factors(system, controller, kernel_grid)
-    F = a + b.shift(delta)
+    shifted = b.shift(delta)
+    F = a + shifted
     if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)) or not has_exact_form(system):
         return F
-    exact = _exact_points(system, controller) if loop_route(system, controller, kernel_grid) == "exact" else None
-    if exact is None:
+    if a.exact_points and b.exact_points and not {t for _, t in a.point_terms} & {t for _, t in shifted.point_terms}:
+        return F  # no coefficient summed: those of the exact factors
+    if loop_route(system, controller, kernel_grid) != "exact":
         return F
     # the radii of the sum from its exact values: a cancellation (U_BS at delta = 0) is exact, not a ball,
     # and the rounding of a sum (rho q - K q at delta = 0) is enclosed
-    return _exact_radii(F, system, ((exact[0], 0.0), (exact[1], delta)))
+    return _exact_radii(F, system, controller, (("A", 0.0), ("B", delta)))
 
 
 @dataclass(frozen=True)

@@ -122,7 +122,7 @@ class ExactForm:
         arithmetic from the user's numbers; 0 when the doubles are exact. ``characteristic``
         and ``u_factor`` carry them as the radii of their point coefficients
         (:class:`~nrobust.quasipoly.QuasiPolynomial`), so every ball enclosure of a loop built
-        on them holds for the plant as given.
+        on them holds for the plant as given. Zeros without python-flint (no proof runs without it).
     """
 
     tau: float
@@ -284,8 +284,14 @@ def _exact_form(tau: float, p: Fraction, m: Fraction, q: float, rho: float, shif
 def _gain_radii(
     q: float, rho: float, shift: Fraction, q_half: float, rho_q: float, q_round: float
 ) -> tuple[float, float, float]:
-    """Bounds of ``|q_half - q e^{s/2}|``, ``|rho_q - rho q e^{s}|``, ``|q_round - q e^{s}|`` (``s = sigma_0 tau``)."""
-    flint = require_flint()
+    """Bounds of ``|q_half - q e^{s/2}|``, ``|rho_q - rho q e^{s}|``, ``|q_round - q e^{s}|`` (``s = sigma_0 tau``).
+
+    Zeros without python-flint: the radii serve the ball arithmetic only, which needs it.
+    """
+    try:
+        flint = require_flint()
+    except ImportError:
+        return 0.0, 0.0, 0.0
     with precision(flint, PRECISION):
         exact = _gain_balls(flint, q, rho, shift)
         return tuple(ball_radius(flint, v, x) for v, x in zip((q_half, rho_q, q_round), exact))  # type: ignore[return-value]
