@@ -14,7 +14,10 @@ What is enclosed
 floating-point numbers are taken as exact rationals and nothing else is approximated.
 
 * A point term ``p_k(s) e^{-tau_k s}``: the stored coefficients of ``p_k`` and the stored
-  delay ``tau_k``.
+  delay ``tau_k``; a coefficient with a radius (``QuasiPolynomial(..., radii=...)``, e.g. a
+  plant's gain ``rho q e^{sigma_0 tau}`` rounded to a double) is the ball of that radius
+  about it, so the enclosure holds for every function with coefficients in those balls
+  (exact coefficients cost nothing more).
 * A distributed term ``q(s) int nu^m N(nu) e^{-nu s} dnu``: ``N`` is the interpolant as
   stored per segment (``DistributedDelay.pieces``: the start ``nu_i``, the length ``h_i``
   and the coefficients ``P_il`` of ``N(nu_i + h_i t) = sum_l P_il t^l``, e.g. the cubic
@@ -96,6 +99,7 @@ __all__ = [
     "enclose_box",
     "enclose_segment",
     "krawczyk",
+    "radius_acb",
     "require_flint",
     "working_precision",
 ]
@@ -284,6 +288,15 @@ def _to_acb(flint: ModuleType, c: Any) -> Any:
     return flint.acb(z.real, z.imag) if z.imag else flint.acb(z.real)
 
 
+def radius_acb(flint: ModuleType, c: Any, r: float) -> Any:
+    """The ``acb`` of a point coefficient ``c`` within ``r``: real for a real ``c`` (the function stays real)."""
+    z = complex(c)
+    if not r:
+        return _to_acb(flint, z)
+    rad = float(r)
+    return flint.acb(flint.arb(z.real, rad), flint.arb(z.imag, rad)) if z.imag else flint.acb(flint.arb(z.real, rad))
+
+
 @functools.lru_cache(maxsize=64)
 def _series_poly(lmax: int, terms: int, prec: int) -> list[Any]:
     """``acb_poly`` of ``sum_{n<terms} (-z)^n / (n! (n + l + 1))`` for ``l = 0..lmax``."""
@@ -429,7 +442,12 @@ class BallQuasiPolynomial(BallFunction):
         self.flint = require_flint()
         with precision(self.flint, self.prec):
             self._delays = [(self.flint.arb(-float(t)), float(t)) for _, t in F.point_terms]
-            self._coefs = [[_to_acb(self.flint, c) for c in p] for p, _ in F.point_terms]
+            self._coefs = [
+                [_to_acb(self.flint, c) for c in p]
+                if not np.any(r)
+                else [radius_acb(self.flint, c, rc) for c, rc in zip(p, r)]
+                for (p, _), r in zip(F.point_terms, F.radii_of())
+            ]
             self._dist = [_DistributedBalls(self.flint, d) for d in F.distributed]
         # highest l of phi_l(s h) at k = 0 (``lmax + k`` for the k-th derivative)
         self._lmax = max((d.moment + d.pieces[2].shape[1] - 1 for d in F.distributed), default=0)

@@ -20,7 +20,8 @@ import functools
 import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from math import comb, factorial
+from fractions import Fraction
+from math import comb, factorial, inf, nextafter
 from typing import Any
 
 import numpy as np
@@ -46,6 +47,98 @@ def _polyadd(a: NDArray, b: NDArray) -> NDArray:
     out[: a.size] += a
     out[: b.size] += b
     return out
+
+
+# Relative bound of the rounding of a coefficient computed by a few floating-point operations
+# (each at most 2^-53 relative), and the factor rounding a radius computed in floating point up.
+_ROUNDING = 2.0**-50
+_RADIUS_UP = 1.0 + 2.0**-48
+
+
+def _up(r: Any) -> NDArray[np.float64]:
+    """A radius computed in floating point, rounded up (relative ``2^-48`` plus the least subnormal)."""
+    r = np.abs(np.asarray(r, dtype=float))
+    return np.where(r > 0, r * _RADIUS_UP + 5e-324, 0.0)
+
+
+def _radius_add(a: NDArray | None, b: NDArray | None) -> NDArray | None:
+    """The sum of two radius arrays (None: zero), padded to the longer, rounded up."""
+    if a is None or b is None:
+        return b if a is None else a
+    return _up(_polyadd(np.asarray(a, dtype=float), np.asarray(b, dtype=float)))
+
+
+def _checked_radii(radii: Sequence[ArrayLike] | None, count: int) -> list[NDArray[np.float64]] | None:
+    """``radii`` as arrays (one per point term), or None when not given.
+
+    Radii given, even all zero, make the algebra account for its roundings: the stored
+    coefficients are then known to be those of the function meant.
+    """
+    if radii is None:
+        return None
+    if len(radii) != count:
+        raise ParameterError("radii", f"one radius array per entry of coefs ({count})", radii)
+    out = [real_array("radii", np.atleast_1d(np.asarray(r, dtype=float)), min_size=1) for r in radii]
+    if any(np.any(r < 0) for r in out):
+        raise ParameterError("radii", ">= 0", radii)
+    return out
+
+
+def _rounding(exact: Any, computed: NDArray) -> NDArray[np.float64]:
+    """Bound of ``|computed - exact|`` per coefficient: for a real result the distance to the rational
+    ``exact`` rounded up (0 where exact), else ``2^-50 |computed|`` (a few roundings of ``2^-53`` each)."""
+    computed = np.asarray(computed)
+    out = _ROUNDING * np.abs(computed)
+    if np.iscomplexobj(computed):
+        return out
+    for i, (x, e) in enumerate(zip(computed.tolist(), exact)):
+        error = abs(Fraction(x) - e)
+        bound = float(error)
+        out[i] = bound if Fraction(bound) >= error else nextafter(bound, inf)
+    return out
+
+
+def _fraction_add(a: list[Fraction], b: list[Fraction]) -> list[Fraction]:
+    """The sum of two polynomials with rational coefficients (increasing powers)."""
+    n = max(len(a), len(b))
+    zero = Fraction(0)
+    return [(a[i] if i < len(a) else zero) + (b[i] if i < len(b) else zero) for i in range(n)]
+
+
+def _scaled_rounding(p: NDArray, c: complex | float) -> NDArray[np.float64]:
+    """Bound of the rounding of ``c p`` (0 where exact)."""
+    exact = _exact_poly(p)
+    if exact is None or isinstance(c, complex):
+        return _ROUNDING * np.abs(p * c)
+    return _rounding([x * Fraction(c) for x in exact], p * c)
+
+
+def _product_rounding(p: NDArray, q: NDArray) -> NDArray[np.float64]:
+    """Bound of the rounding of ``polymul(p, q)``: exact in rationals for real factors, else
+    ``2^-50`` relative per product summed."""
+    a, b = _exact_poly(p), _exact_poly(q)
+    if a is None or b is None:
+        return _ROUNDING * min(p.size, q.size) * polymul(np.abs(p), np.abs(q))
+    computed = polymul(p, q)
+    exact = [
+        sum((a[i] * b[k - i] for i in range(len(a)) if 0 <= k - i < len(b)), Fraction(0)) for k in range(computed.size)
+    ]
+    return _rounding(exact, computed)
+
+
+def _exact_poly(p: NDArray) -> list[Fraction] | None:
+    """The coefficients of a real ``p`` as rationals (None for a complex one)."""
+    return None if np.iscomplexobj(p) else [Fraction(x) for x in p.tolist()]
+
+
+def _term(p: NDArray, r: NDArray | None) -> tuple[NDArray, NDArray[np.float64]]:
+    """The coefficients and radii of a kept term, of one length: ``p`` padded with zeros under a positive
+    radius beyond its last coefficient (its degree is then that of the ball)."""
+    if r is None:
+        return p, np.zeros(p.size)
+    positive = np.flatnonzero(r > 0)
+    n = max(p.size, int(positive[-1]) + 1 if positive.size else 0)
+    return _polyadd(p, np.zeros(n, dtype=p.dtype)), _polyadd(np.asarray(r[:n], dtype=float), np.zeros(n))
 
 
 def _segments(
@@ -186,6 +279,15 @@ class QuasiPolynomial:
         ``tau_k >= 0``, one per entry of ``coefs``; equal delays are merged.
     distributed : sequence of DistributedDelay, optional
         Distributed-delay terms.
+    radii : sequence of array_like, optional
+        Proven radii of the point coefficients, aligned with ``coefs``: the function meant has
+        each coefficient within its radius of the stored one (real and imaginary parts each; a
+        real coefficient stays real), e.g. a plant's gain ``rho q e^{sigma_0 tau}``, irrational,
+        rounded to a double. Ball evaluation
+        (:mod:`nrobust.balls`) and the proofs built on it enclose every such function; the
+        floating-point evaluation uses the stored coefficients. The algebra carries the radii
+        and, once one is positive, adds the rounding of every coefficient it computes (about
+        ``2^-50`` relative). Default: none, the stored coefficients are the function's.
 
     Notes
     -----
@@ -205,9 +307,16 @@ class QuasiPolynomial:
 
     point_terms: tuple[tuple[NDArray, float], ...]
     distributed: tuple[DistributedDelay, ...]
+    #: Radii of the point coefficients (:class:`QuasiPolynomial`'s ``radii``), aligned with
+    #: ``point_terms``; ``()`` when every stored coefficient is exact.
+    point_radii: tuple[NDArray[np.float64], ...]
 
     def __init__(
-        self, coefs: Sequence[ArrayLike], delays: ArrayLike, distributed: Iterable[DistributedDelay] = ()
+        self,
+        coefs: Sequence[ArrayLike],
+        delays: ArrayLike,
+        distributed: Iterable[DistributedDelay] = (),
+        radii: Sequence[ArrayLike] | None = None,
     ) -> None:
         if isinstance(coefs, (str, bytes)) or not isinstance(coefs, Sequence | np.ndarray):
             raise ParameterError("coefs", "a sequence of coefficient sequences", coefs)
@@ -222,31 +331,61 @@ class QuasiPolynomial:
                 raise ParameterError("distributed", "a sequence of DistributedDelay", d)
         if len(coefs) == 0 and not dist:
             raise ParameterError("coefs", "non-empty (or at least one distributed term)", coefs)
+        radius = _checked_radii(radii, len(coefs))
         merged: dict[float, NDArray] = {}
+        merged_radius: dict[float, NDArray | None] = {}
         summed = set()
         for k, (c, t) in enumerate(zip(coefs, taus.tolist())):
             p = as_poly(f"coefs[{k}]", c)
             if t in merged:
-                merged[t] = _polyadd(merged[t], p)
+                total = _polyadd(merged[t], p)
+                if radius is not None:  # the rounding of the sum
+                    a, b = _exact_poly(merged[t]), _exact_poly(p)
+                    exact = [] if a is None or b is None else _fraction_add(a, b)
+                    merged_radius[t] = _radius_add(merged_radius.get(t), _rounding(exact, total))
+                merged[t] = total
                 summed.add(t)
             else:
                 merged[t] = p
+            if radius is not None:
+                merged_radius[t] = _radius_add(merged_radius.get(t), radius[k])
         for t in summed:  # a sum may end in zeros
             merged[t] = as_poly("coefs", merged[t])
-        terms = tuple((p, t) for t, p in sorted(merged.items()) if p[-1] != 0)
-        object.__setattr__(self, "point_terms", terms)
+        if radius is None:
+            terms = tuple((p, t) for t, p in sorted(merged.items()) if p[-1] != 0)
+            object.__setattr__(self, "point_terms", terms)
+            object.__setattr__(self, "point_radii", ())
+        else:  # a term with a positive radius stays, its stored coefficients zero or not
+            kept = [(t, *_term(p, merged_radius.get(t))) for t, p in sorted(merged.items())]
+            kept = [(t, p, r) for t, p, r in kept if p[-1] != 0 or r[-1] > 0]
+            object.__setattr__(self, "point_terms", tuple((p, t) for t, p, _ in kept))
+            object.__setattr__(self, "point_radii", tuple(r for _, _, r in kept))
         object.__setattr__(self, "distributed", _merge_distributed(dist))
 
     @classmethod
     def from_parts(
-        cls, terms: Iterable[tuple[NDArray, float]], distributed: Iterable[DistributedDelay]
+        cls,
+        terms: Iterable[tuple[NDArray, float]],
+        distributed: Iterable[DistributedDelay],
+        radii: Sequence[ArrayLike] | None = None,
     ) -> QuasiPolynomial:
-        """The quasi-polynomial of point terms ``(coefficients, delay)`` and distributed terms, merged."""
+        """The quasi-polynomial of point terms ``(coefficients, delay)`` (with ``radii``) and distributed terms."""
         terms = list(terms)
         dist = tuple(distributed)
         if not terms and not dist:
             return cls([[0.0]], [0.0])
-        return cls([p for p, _ in terms], [t for _, t in terms], dist)
+        return cls([p for p, _ in terms], [t for _, t in terms], dist, radii)
+
+    def radii_of(self) -> list[NDArray[np.float64]]:
+        """The radius array of each point term (zeros when exact), aligned with ``point_terms``."""
+        if self.point_radii:
+            return list(self.point_radii)
+        return [np.zeros(p.size) for p, _ in self.point_terms]
+
+    @property
+    def exact_points(self) -> bool:
+        """True when every stored point coefficient is the function's own (no positive radius)."""
+        return not any(np.any(r > 0) for r in self.point_radii)
 
     @classmethod
     def from_coefficient_array(cls, coefs: ArrayLike, delays: ArrayLike) -> list[Any]:
@@ -301,6 +440,7 @@ class QuasiPolynomial:
             F = object.__new__(cls)
             terms = tuple((c[k, : e[k]].copy(), t) for k, t in enumerate(order) if keep[k])
             object.__setattr__(F, "point_terms", terms)
+            object.__setattr__(F, "point_radii", ())
             object.__setattr__(F, "distributed", ())
             entries.append(F)
         nested: list[Any] = entries
@@ -434,13 +574,19 @@ class QuasiPolynomial:
     def derivative(self) -> QuasiPolynomial:
         """``F'`` as a quasi-polynomial (distributed terms gain one moment)."""
         terms = [(_polyadd(polyder(p), -t * p), t) for p, t in self.point_terms]
+        radii = None
+        if self.point_radii:  # (p' - t p) with p within r: within r' + t r, plus the rounding
+            radii = [
+                _up(_polyadd(polyder(r), t * r) + _ROUNDING * _polyadd(np.abs(polyder(p)), np.abs(t * p)))
+                for (p, t), r in zip(self.point_terms, self.point_radii)
+            ]
         dist: list[DistributedDelay] = []
         for d in self.distributed:
             dq = polyder(d.poly)
             if np.any(dq != 0):
                 dist.append(d.replace(poly=dq))
             dist.append(d.times(-1.0, moment=d.moment + 1))
-        return QuasiPolynomial.from_parts(terms, dist)
+        return QuasiPolynomial.from_parts(terms, dist, radii)
 
     def deriv_bound(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
         """Upper bound of ``|F'(s)|`` on each segment ``[a, b]`` of the complex plane.
@@ -510,8 +656,9 @@ class QuasiPolynomial:
             other = QuasiPolynomial([np.array([other])], [0.0])
         if not isinstance(other, QuasiPolynomial):
             return NotImplemented
+        radii = None if not (self.point_radii or other.point_radii) else self.radii_of() + other.radii_of()
         return QuasiPolynomial.from_parts(
-            list(self.point_terms) + list(other.point_terms), self.distributed + other.distributed
+            list(self.point_terms) + list(other.point_terms), self.distributed + other.distributed, radii
         )
 
     __radd__ = __add__
@@ -528,8 +675,11 @@ class QuasiPolynomial:
     def __mul__(self, other: Any) -> QuasiPolynomial:
         if isinstance(other, (int, float, complex, np.number)):
             c = complex(other) if isinstance(other, complex) or np.iscomplexobj(other) else float(other)
+            radii = None
+            if self.point_radii:  # c p within |c| r, plus the rounding of c p
+                radii = [_up(abs(c) * r + _scaled_rounding(p, c)) for (p, _), r in self._radii_terms()]
             return QuasiPolynomial.from_parts(
-                [(p * c, t) for p, t in self.point_terms], [d.scale(c) for d in self.distributed]
+                [(p * c, t) for p, t in self.point_terms], [d.scale(c) for d in self.distributed], radii
             )
         if not isinstance(other, QuasiPolynomial):
             return NotImplemented
@@ -539,7 +689,22 @@ class QuasiPolynomial:
             return other * self
         terms = [(polymul(p, r), t + u) for p, t in self.point_terms for r, u in other.point_terms]
         dist = [e.times_poly(p) for p, t in self.point_terms for d in other.distributed for e in d.shift(t)]
-        return QuasiPolynomial.from_parts(terms, dist)
+        radii = None
+        if self.point_radii or other.point_radii:
+            if self.point_radii and other.distributed:
+                raise ParameterError(
+                    "other", "without distributed terms when self has point radii (a kernel times a ball)", other
+                )
+            radii = [
+                _up(polymul(np.abs(p), rq) + polymul(rp, np.abs(q)) + polymul(rp, rq) + _product_rounding(p, q))
+                for (p, _), rp in self._radii_terms()
+                for (q, _), rq in other._radii_terms()
+            ]
+        return QuasiPolynomial.from_parts(terms, dist, radii)
+
+    def _radii_terms(self) -> list[tuple[tuple[NDArray, float], NDArray[np.float64]]]:
+        """``(term, radius)`` pairs of the point terms (zero radii when exact)."""
+        return list(zip(self.point_terms, self.radii_of()))
 
     __rmul__ = __mul__
 
@@ -553,6 +718,7 @@ class QuasiPolynomial:
         return QuasiPolynomial.from_parts(
             [(p, t + delta) for p, t in self.point_terms],
             [e for d in self.distributed for e in d.shift(delta)],
+            list(self.point_radii) or None,
         )
 
     # ------------------------------------------------------------------ display
@@ -578,15 +744,21 @@ class QuasiPolynomial:
             and all(t == u and np.array_equal(p, r) for (p, t), (r, u) in zip(self.point_terms, other.point_terms))
             # the merged distributed terms are pairwise unequal: as sets they keep every term
             and frozenset(self.distributed) == frozenset(other.distributed)
+            and len(self.point_radii) == len(other.point_radii)
+            and all(np.array_equal(r, u) for r, u in zip(self.point_radii, other.point_radii))
         )
 
     def __hash__(self) -> int:
         points = tuple((t, canonical_bytes(p)) for p, t in self.point_terms)
-        return hash((points, frozenset(self.distributed)))
+        radii = tuple(canonical_bytes(r) for r in self.point_radii)
+        return hash((points, frozenset(self.distributed), radii))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description: ``coefs`` and ``delays`` of the point terms, ``distributed``."""
-        return json_safe({"coefs": self.coefs, "delays": self.delays, "distributed": self.distributed})
+        data = {"coefs": self.coefs, "delays": self.delays, "distributed": self.distributed}
+        if self.point_radii:
+            data["radii"] = list(self.point_radii)
+        return json_safe(data)
 
 
 def as_quasipolynomial(name: str, value: Any) -> QuasiPolynomial:

@@ -152,12 +152,18 @@ def test_the_ratios_are_exact_rationals():
     assert (p, m, shift) == (Fraction(1, 3), Fraction(-2, 7), 0)
 
 
-def test_a_rounded_principal_gain_keeps_the_scope():
-    """``rho q = 0.3 * 0.1`` is not a double: the proof is about the rounded product, and says so."""
-    plant, controller = Hyperbolic2x2(1.0, 3.0, 1.0, 1.0, 0.1, 0.3), ReflectionController(0.1)
-    assert given_plant_scale(plant, controller) is None
-    assert "rho q" in rounded_parts(plant, controller)
-    assert "rho q" in nr.delay_margin(plant, controller, rigorous=True).scope
+def test_a_rounded_principal_gain_is_a_ball_about_the_plant():
+    """``rho q = 0.3 * 0.1`` is not a double: the loop carries it as a ball, and the margin of the PDE
+    (``tau = 4/3`` and ``rho q`` exact, 40 digits) lies in the proven ball."""
+    args = (1.0, 3.0, 1.0, 1.0, 0.1, 0.3)
+    plant, controller = Hyperbolic2x2(*args), ReflectionController(0.1)
+    assert given_plant_scale(plant, controller) is not None
+    assert rounded_parts(plant, controller) == ""
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" in dm.scope
+    if np.isfinite(dm.margin):
+        lo, hi = dm.margin_ball
+        assert mp.mpf(lo) <= _pde_margin(args, controller, dm.omega)[1] <= mp.mpf(hi)
 
 
 # ---------------------------------------------------------------------------------------------------- root counts
@@ -232,9 +238,18 @@ def test_the_plant_balls_enclose_the_loop_with_tau_exact(delta):
                 truth = mp.diff(F, mp.mpc(s), k)
             with working_precision(200) as flint:  # the 40-digit value as a ball far narrower than the enclosure
                 assert value.contains(flint.acb(truth)), (s, k, value, truth)
-    # tau a double, or a rounded principal gain: no map, the loop's own enclosure applies
+    # tau a double: no map, the loop's own enclosure applies
     assert given_plant_balls(Hyperbolic2x2(*COUNT_PLANTS[0]), controller, delta) is None
-    assert given_plant_balls(Hyperbolic2x2(1.0, 3.0, 1.0, 1.0, 0.1, 0.3), controller, delta) is None
+    # a rounded principal gain (rho q = 0.3 * 0.1): its ball is part of the plant's enclosure
+    args = (1.0, 3.0, 1.0, 1.0, 0.1, 0.3)
+    balls = given_plant_balls(Hyperbolic2x2(*args), controller, delta)
+    assert isinstance(balls, GivenPlantBalls)
+    F = _loop(args, controller, delta)
+    for s in (complex(-1.0, 30.0), complex(0.5, -7.0)):
+        with mp.workdps(DPS):
+            truth = F(mp.mpc(s))
+        with working_precision(200) as flint:
+            assert balls(s, 0).contains(flint.acb(truth))
 
 
 def test_a_root_within_rounding_of_the_contour_is_not_counted_on_it():

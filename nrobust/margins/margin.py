@@ -668,13 +668,15 @@ def delay_margin(
     crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
     events = _events(crossings, delta_max, A.is_real and B.is_real)
     # The nominal count, and the count on the first interval (0, first positive crossing delay).
-    radius = W if proof is None else min(W, proven_zero_radius(A + B) or W)  # W: a bound for every delay
-    nominal = None if zero_root or 0.0 in events else unstable_count(A + B, radius, rigorous=rigorous).count
+    nominal_loop = A + B if proof is None else _proven_sum(A, B)
+    radius = W if proof is None else min(W, proven_zero_radius(nominal_loop) or W)  # W: a bound for every delay
+    nominal = None if zero_root or 0.0 in events else unstable_count(nominal_loop, radius, rigorous=rigorous).count
     first = nominal
     if nominal is None and not zero_root:
         marks = sorted(d for d in events if d > 0.0)
         probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
-        first = unstable_count(A + B.shift(probe), W, rigorous=rigorous).count
+        loop = A + B.shift(probe) if proof is None else _proven_sum(A, B.shift(probe))
+        first = unstable_count(loop, W, rigorous=rigorous).count
     counts, intervals = _windows(first, events, delta_max, crossings)
     stable_at_zero = nominal == 0
     margin, omega, reason = _first_axis_root(crossings, zero_root, stable_at_zero)
@@ -708,6 +710,12 @@ def delay_margin(
         margin_ball=ball,
         omega_error=_omega_error(A, B, omega, crossings, proof, zero_root),
     )
+
+
+def _proven_sum(A: QuasiPolynomial, B: QuasiPolynomial) -> QuasiPolynomial:
+    """``A + B`` whose point coefficients hold the exact sums: the rounding of a coefficient summed in
+    floating point (equal delays) becomes its radius (:class:`~nrobust.quasipoly.QuasiPolynomial`'s ``radii``)."""
+    return QuasiPolynomial.from_parts(A.point_terms, A.distributed, A.radii_of()) + B
 
 
 # Safety factor of the floating-point estimate of omega's error (see DelayMargin.omega_accuracy).

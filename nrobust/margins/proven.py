@@ -77,7 +77,7 @@ from numpy.typing import NDArray
 from .._flint import working_precision
 from .._json import fields_dict
 from .._validate import positive_int
-from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint
+from ..balls import ball_abs_moment, ball_function, ball_variation_bound, radius_acb, require_flint
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
@@ -282,8 +282,8 @@ class _Slopes:
         points: list[dict[float, list[Any]]] = [{}, {}]
         units: list[dict[int, list[Any]]] = [{}, {}]
         for side, P in enumerate((A, B)):
-            for p, t in P.point_terms:
-                _accumulate(points[side], float(t), [_to_acb(flint, c) for c in p])
+            for (p, t), radius in zip(P.point_terms, P.radii_of()):
+                _accumulate(points[side], float(t), [radius_acb(flint, c, r) for c, r in zip(p, radius)])
             for k, c, q in kernels.terms[side]:
                 _accumulate(units[side], k, [_to_acb(flint, c) * _to_acb(flint, x) for x in q])
         self.degree = 0
@@ -406,18 +406,26 @@ def _bound_balls(flint: Any, parts: tuple[QuasiPolynomial, ...], W: float) -> tu
     principal = principal_gap({str(order): (P, order) for order, P in enumerate(parts)}, n, 0.0)
     if principal is None:
         return None
-    lead = [(c, float(t), order) for order, P in enumerate(parts) for c, t in P.leading_terms(n)]
+    # the s^n coefficients, each with its radius (a zero one with a positive radius too)
+    lead = [
+        (complex(p[n]), float(t), order, float(r[n]))
+        for order, P in enumerate(parts)
+        for (p, t), r in zip(P.point_terms, P.radii_of())
+        if p.size == n + 1 and (p[n] != 0 or r[n] > 0)
+    ]
     lead.sort(key=lambda e: (e[1], e[2]))
-    gap = _abs_arb(flint, complex(lead[0][0]))
-    for c, _, _ in lead[1:]:
-        gap -= _abs_arb(flint, complex(c))
+    if lead[0][1] != principal.t0:
+        return None  # a ball of zero coefficients first: no term dominates for every function
+    gap = _abs_arb(flint, lead[0][0]) - arb(lead[0][3])
+    for c, _, _, r in lead[1:]:
+        gap -= _abs_arb(flint, c) + arb(r)
     R = arb(W)
     tail = arb(0)
     for P in parts:
-        for p, _ in P.point_terms:
+        for (p, _), radius in zip(P.point_terms, P.radii_of()):
             for j in range(min(p.size, n)):
-                if p[j] != 0:
-                    tail += _abs_arb(flint, complex(p[j])) * R ** (j - n)
+                if p[j] != 0 or radius[j] > 0:
+                    tail += (_abs_arb(flint, complex(p[j])) + arb(float(radius[j]))) * R ** (j - n)
         for d in P.distributed:
             mod = _moduli(d)
             qpow = _abs_poly(flint, d.poly, R, 0) / R**n
@@ -462,7 +470,12 @@ class _Axis:
         self.flint = require_flint()
         self.fa, self.fb = ball_function(A), ball_function(B)
         self.kernels = AxisKernels((A, B))
-        self.points = [None if not P.point_terms else ball_function(QuasiPolynomial(P.coefs, P.delays)) for P in (A, B)]
+        self.points = [
+            None
+            if not P.point_terms
+            else ball_function(QuasiPolynomial(P.coefs, P.delays, radii=P.point_radii or None))
+            for P in (A, B)
+        ]
         self.units = [ball_function(QuasiPolynomial([], [], [u])) for u in self.kernels.units]
         flint = self.flint
         # the kernel terms c q(s) J_k(s) of each side, c and q as exact balls (converted once)
@@ -587,6 +600,8 @@ def _axis_square(flint: Any, P: QuasiPolynomial) -> Any:
 def _exact_route(flint: Any, A: QuasiPolynomial, B: QuasiPolynomial, real: bool) -> list[tuple[Any, int, int]] | None:
     """Real zeros ``(ball, multiplicity, slope)`` of ``g`` for polynomial loops, or None."""
     if A.distributed or B.distributed or len(A.point_terms) > 1 or len(B.point_terms) > 1:
+        return None
+    if not (A.exact_points and B.exact_points):  # coefficients known to a radius: not rationals
         return None
     g = _axis_square(flint, A) - _axis_square(flint, B)
     if g.is_zero():

@@ -50,6 +50,7 @@ from ..hyperbolic.loops.controllers import (
     loop_scope,
     normalize,
 )
+from ..hyperbolic.loops.exact_form import closed_form_parameters
 from ..hyperbolic.loops.given_plant import GivenPlantBalls, given_plant_balls, given_plant_scale, to_given_plant
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
@@ -672,11 +673,13 @@ class Certificate:
         r = given_plant_scale(self.system, self.controller, self.kernel_grid)
         if r is None or r == 1:
             return ""
+        exact = "L/lam + L/mu" if isinstance(self.system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
         return (
-            f" The loop is built with tau the double {self.system.tau!r} (relative change {float(abs(r - 1)):.1e} "
-            "from tau = 1/lam + 1/mu): the delay margin, its crossing, the spectral abscissa and the Rouché range "
-            "are mapped from it to tau exactly, and the root counts marked proven (roots at delta = 0 and at "
-            "delta_max, instability at delta_max) are proven on the plant's own loop A(r s) + B(r s) e^{-delta s}, "
+            f" The loop is built with tau the double {closed_form_parameters(self.system)[0]!r} (relative change "
+            f"{float(abs(r - 1)):.1e} from tau = {exact}): the delay margin, its crossing, the spectral abscissa and "
+            "the Rouché range are mapped from it to tau exactly, and the root counts marked proven (roots at "
+            "delta = 0 and at delta_max, instability at delta_max) are proven on the plant's own loop "
+            "A(r s) + B(r s) e^{-delta s}, "
             "r = tau / tau_d in a ball: both hold for the plant as given."
         )
 

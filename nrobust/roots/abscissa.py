@@ -392,8 +392,9 @@ def _spectral_abscissa(
         result = replace(result, certified=False)
     if proof is None:
         return replace(result, root_box=None)
-    # the chains only of a principal part with exact coefficients (not computed in floating point)
-    exact = isinstance(F, QuasiPolynomial | QuasiPolynomialMatrix)
+    # the chains only of a principal part with exact coefficients (not computed in floating point,
+    # nor known to a radius only)
+    exact = isinstance(F, QuasiPolynomialMatrix) or (isinstance(F, QuasiPolynomial) and F.exact_points)
     return _proven_brackets(result, D if exact else None, region is None, proof)
 
 
@@ -522,7 +523,9 @@ def _ball_far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float, prec: 
     ``x > C_D``) exceeds ``sum |p_kj| R^(j-n) e^{-r_k x} + sum |q_j| R^(j-n) e^{t0 x} min(M_0, V / R)``
     (:func:`~nrobust.balls.ball_abs_moment`, :func:`~nrobust.balls.ball_variation_bound`).
     Each term is monotone in ``|s|`` and ``Re s``, so the strict inequality at ``(x, R)``
-    holds on the whole set, where ``|e^{t0 s} F(s)| / |s|^n`` is then positive.
+    holds on the whole set, where ``|e^{t0 s} F(s)| / |s|^n`` is then positive. A point
+    coefficient known to a radius (``QuasiPolynomial(..., radii=...)``) enters with it: the
+    gap less it for ``a_0``, the others and the tail plus it.
     """
     lead = F.leading_terms(n)
     if not lead or min_delay(F) < lead[0][1] or not (np.isfinite(x) and np.isfinite(R) and R > 0):
@@ -537,10 +540,12 @@ def _ball_far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float, prec: 
 
         gap = abs(acb(complex(lead[0][0]))) - sum((abs(acb(complex(a))) * weight(t) for a, t in lead[1:]), arb(0))
         tail = arb(0)
-        for p, t in F.point_terms:
+        for (p, t), radius in zip(F.point_terms, F.radii_of()):
+            if p.size == n + 1 and radius[n] > 0:  # the s^n coefficient's ball: a_0 less it, the others more
+                gap -= arb(float(radius[n])) * (arb(1) if t == t0 else weight(t))
             for j in range(min(p.size, n)):
-                if p[j] != 0:
-                    tail += abs(acb(complex(p[j]))) / Rb ** (n - j) * weight(t)
+                if p[j] != 0 or radius[j] > 0:
+                    tail += (abs(acb(complex(p[j]))) + arb(float(radius[j]))) / Rb ** (n - j) * weight(t)
         for d in F.distributed:
             qpow = sum((abs(acb(complex(c))) / Rb ** (n - j) for j, c in enumerate(d.poly) if c != 0), arb(0))
             bound = ball_abs_moment(d, x, 0, prec=prec) * (T0 * X).exp()
@@ -771,7 +776,7 @@ def _retarded_abscissa(
     march ends with :class:`~nrobust.errors.CertificationError` when the work bound
     ``max_evals`` (shared by all steps) is exhausted.
     """
-    if _is_exponential_polynomial(F):
+    if _is_exponential_polynomial(F) and F.exact_points:  # the roots of p itself (not of a ball of them)
         half = 1.01 * max(radius, _MIN_HALF_HEIGHT)
         exact = _polynomial_abscissa(F, (-half, half, *_band(half, real)))
         if exact is not None:

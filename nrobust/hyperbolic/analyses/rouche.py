@@ -83,6 +83,7 @@ def rouche_delay_bound(
     """
     grid = None if kernel_grid is None else check_kernel_grid(kernel_grid)
     closed: DistributedDelay | None = None
+    form = None
     if grid is None and has_exact_form(system):  # N~ in closed form: a bound for the PDE itself
         form = exact_form(system)
         q, rho, closed = form.q, form.rho, form.N_tilde
@@ -102,7 +103,14 @@ def rouche_delay_bound(
         raise ParameterError("controller", "a ReflectionController or FiniteTimeController", controller)
     eps0 = 1.0 - abs(q * rho) - abs(K * q)
     if rigorous:  # the float at or below the exact 1 - |q rho| - |K q|
-        eps0 = _epsilon_0(1 - abs(Fraction(q) * Fraction(rho)) - abs(Fraction(K) * Fraction(q)), True)
+        if form is None:
+            rho_q, k_q = abs(Fraction(q) * Fraction(rho)), abs(Fraction(K) * Fraction(q))
+        else:  # the plant's rho q and q (times e^{sigma_0 tau}, e^{sigma_0 tau / 2}) within the exact form's radii
+            rho_q = abs(Fraction(form.rho_q)) + Fraction(form.rho_q_radius)
+            k_q = abs(Fraction(K)) * (abs(Fraction(q)) + Fraction(form.q_radius))
+            if isinstance(controller, FiniteTimeController):  # U_BS: K q = rho q
+                k_q = rho_q
+        eps0 = _epsilon_0(1 - rho_q - k_q, True)
     if closed is not None:
         # the L1 modulus is sharp for a fine linear kernel: the closed form's pieces, linearised
         N = closed.linearized(_LINEAR_POINTS)

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._flint import precision, require_flint
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, nonnegative, positive, renamed_keywords
 from ...errors import ParameterError
@@ -60,7 +61,15 @@ from .collocated import (
     reflection_factors,
 )
 from .delay_form import delay_form
-from .exact_form import exact_form, has_exact_form
+from .exact_form import (
+    PRECISION,
+    ExactForm,
+    ball_radius,
+    closed_form_parameters,
+    exact_form,
+    gain_balls,
+    has_exact_form,
+)
 from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
 from .output_feedback import observer_term, output_feedback_factors
@@ -658,7 +667,10 @@ def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
 
 
 #: :func:`loop_scope`'s words for a loop whose proofs map to the plant as given (``given_plant_scale``).
-_AS_GIVEN = "the plant as given: its numbers exact, tau = 1/lam + 1/mu included (given_plant_scale)"
+_AS_GIVEN = (
+    "the plant as given: its numbers exact, tau mapped to its exact value (given_plant_scale) and the principal "
+    "gains enclosed with the proven radii of their rounding"
+)
 
 
 def _output_feedback_scope(
@@ -841,10 +853,141 @@ def _exact_factors(
     round_trip = QuasiPolynomial([[form.q]], [form.tau])
     phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
     if isinstance(controller, StateFeedback):
-        B = form.u_factor * (-controller.k)
+        u_factor = QuasiPolynomial.from_parts(form.u_factor.point_terms, form.u_factor.distributed)  # its floats
+        B = u_factor * (-controller.k)
         kernel = gain_kernel(system, controller.g_u, controller.g_v) if _integral_gains(controller) else None
-        return 1.0 - phi, B if kernel is None else B - QuasiPolynomial([], [], [kernel])
-    return controller.factors(phi, i_n, round_trip)
+        A, B = 1.0 - phi, B if kernel is None else B - QuasiPolynomial([], [], [kernel])
+    else:
+        A, B = controller.factors(phi, i_n, round_trip)
+    if not isinstance(form, ExactForm):
+        return A, B
+    return _exact_radii(A, system, controller, (("A", 0.0),)), _exact_radii(B, system, controller, (("B", 0.0),))
+
+
+#: An exact point coefficient: rational multiples of ``1``, ``q e^{sigma_0 tau}`` (``"w"``) and
+#: ``q e^{sigma_0 tau / 2}`` (``"h"``), summed exactly before they are enclosed in balls.
+_Exact = dict[str, Fraction]
+
+
+def _exact_points(
+    system: Any, controller: Controller
+) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
+    """The exact point coefficients of ``A`` and ``B`` on the closed form, by delay (increasing powers).
+
+    Each is a rational combination of ``1``, ``q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau / 2}``
+    (:func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`) with the user's numbers (``rho``,
+    the controller's gains) as rationals; None for a controller whose factors are not listed here.
+    """
+    tau = closed_form_parameters(system)[0]
+    rho = Fraction(float(system.rho))
+
+    def w(c: Any) -> _Exact:
+        return {"w": Fraction(c)}
+
+    A: dict[float, list[_Exact]] = {0.0: [{"1": Fraction(1)}], tau: [w(-rho)]}
+    B: dict[float, list[_Exact]]
+    if isinstance(controller, OpenLoop):
+        B = {}
+    elif isinstance(controller, FiniteTimeController):
+        B = {tau: [w(rho)]}
+    elif isinstance(controller, ReflectionController):
+        B = {tau: [{"h": Fraction(controller.K)}]}
+    elif isinstance(controller, FilteredController):
+        a, b = Fraction(controller.a), Fraction(controller.b)
+        g = w(rho) if controller.K is None else {"h": Fraction(controller.K)}
+        A = {0.0: [{"1": Fraction(1)}, {"1": b}], tau: [w(-rho), w(-rho * b)]}
+        B = {tau: [g, {k: v * a for k, v in g.items()}]}
+    elif isinstance(controller, StateFeedback):
+        B = {tau: [w(-Fraction(controller.k))]}
+    else:
+        return None
+    return A, B
+
+
+def _exact_radii(
+    F: QuasiPolynomial, system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
+) -> QuasiPolynomial:
+    """``F`` with the radii of its point coefficients from their exact values (``F`` itself when all are exact).
+
+    ``parts``: the factors (``"A"``, ``"B"`` of :func:`_exact_points`) and their shifts whose sum
+    is ``F``'s point part (:func:`_exact_balls`); each radius bounds ``|stored - exact|``
+    (:func:`~nrobust.hyperbolic.loops.exact_form.ball_radius`). ``F`` itself for a controller
+    whose factors :func:`_exact_points` does not list, or without python-flint (the radii serve the ball
+    arithmetic only, which needs it).
+    """
+    try:
+        flint = require_flint()
+    except ImportError:
+        return F
+    exact = _cached_balls(system, controller, parts)
+    if exact is None:
+        return F
+    with precision(flint, PRECISION):
+        stored = {t: p for p, t in F.point_terms}
+        delays = sorted(set(stored) | set(exact))
+        coefs: list[NDArray] = []
+        radii: list[list[float]] = []
+        for t in delays:
+            p, e = stored.get(t, np.zeros(1)), exact.get(t, [])
+            n = max(p.size, len(e))
+            p = np.concatenate([p, np.zeros(n - p.size, dtype=p.dtype)])
+            coefs.append(p)
+            radii.append([ball_radius(flint, p[j], e[j] if j < len(e) else flint.arb(0)) for j in range(n)])
+    if not any(any(r) for r in radii):  # every stored coefficient exact
+        return F if not F.point_radii else QuasiPolynomial(coefs, delays, F.distributed)
+    return QuasiPolynomial(coefs, delays, F.distributed, radii=radii)
+
+
+def _cached_balls(
+    system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
+) -> dict[float, list[Any]] | None:
+    """:func:`_exact_balls`, cached per factor: a sum whose shifted delays are all distinct is the union of
+    the factors' balls (only coinciding delays need the rational sum)."""
+    if len(parts) > 1:
+        tables = [_cached_balls(system, controller, ((name, 0.0),)) for name, _ in parts]
+        shifted = []
+        for table, (_, delta) in zip(tables, parts):
+            if table is None:
+                return None
+            shifted.append({t + delta if delta else t: c for t, c in table.items()})
+        if sum(len(table) for table in shifted) == len(set().union(*shifted)):
+            return {t: c for table in shifted for t, c in table.items()}
+    try:
+        return _exact_balls(system, controller, parts)
+    except TypeError:  # an unhashable plant or controller: not cached
+        return _exact_balls.__wrapped__(system, controller, parts)
+
+
+@lru_cache(maxsize=256)
+def _exact_balls(
+    system: Any, controller: Controller, parts: tuple[tuple[str, float], ...]
+) -> dict[float, list[Any]] | None:
+    """The exact point coefficients of the sum of ``parts`` (factor ``"A"`` or ``"B"``, shift) as ``arb`` balls.
+
+    Summed as rational combinations first (:data:`_Exact`): terms that cancel exactly give an
+    exact 0. None for a controller whose factors :func:`_exact_points` does not list.
+    """
+    points = _exact_points(system, controller)
+    if points is None:
+        return None
+    exact: dict[float, list[_Exact]] = {}
+    for name, delta in parts:
+        for t, table_coefs in points[0 if name == "A" else 1].items():
+            acc = exact.setdefault(t + delta if delta else t, [])
+            for j, c in enumerate(table_coefs):
+                if j == len(acc):
+                    acc.append({})
+                for atom, v in c.items():
+                    acc[j][atom] = acc[j].get(atom, Fraction(0)) + v
+    h, _, w = gain_balls(system)
+    flint = require_flint()
+    with precision(flint, PRECISION):
+        atoms = {"1": flint.arb(1), "w": w, "h": h}
+
+        def ball(c: _Exact) -> Any:
+            return sum((atoms[k] * (flint.arb(v.numerator) / v.denominator) for k, v in c.items() if v), flint.arb(0))
+
+        return {t: [ball(c) for c in coefs] for t, coefs in exact.items()}
 
 
 @renamed_keywords(n="kernel_grid")
@@ -926,7 +1069,17 @@ def characteristic(
     """
     delta = nonnegative("delta", delta)
     a, b = loop_factors(system, controller, kernel_grid)
-    return a + b.shift(delta)
+    shifted = b.shift(delta)
+    F = a + shifted
+    if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)) or not has_exact_form(system):
+        return F
+    if a.exact_points and b.exact_points and not {t for _, t in a.point_terms} & {t for _, t in shifted.point_terms}:
+        return F  # no coefficient summed: those of the exact factors
+    if loop_route(system, controller, kernel_grid) != "exact":
+        return F
+    # the radii of the sum from its exact values: a cancellation (U_BS at delta = 0) is exact, not a ball,
+    # and the rounding of a sum (rho q - K q at delta = 0) is enclosed
+    return _exact_radii(F, system, controller, (("A", 0.0), ("B", delta)))
 
 
 @dataclass(frozen=True)
@@ -1062,31 +1215,30 @@ def _exact_product(*factors: float) -> bool:
 def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) -> str:
     """What the exact-route loop takes rounded from the user's numbers; ``""`` if nothing.
 
-    Empty when a proof about the loop maps to the plant as given
-    (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`); otherwise the quantities
-    computed in floating point, in words, for a proof's scope.
+    Empty when a proof about the loop holds for the plant as given: on the exact route the
+    principal gains (``rho q``, the law's gain times ``q``, times the exponential weight
+    ``e^{sigma_0 tau}`` of a general plant) carry proven radii
+    (:attr:`~nrobust.hyperbolic.loops.exact_form.ExactForm.rho_q_radius`), and ``tau`` is
+    mapped exactly (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`) for a loop
+    that is a function of ``tau s`` and ``delta / tau``. Otherwise the quantities computed in
+    floating point, in words, for a proof's scope.
     """
-    if isinstance(system, GeneralHyperbolic2x2):
+    general = isinstance(system, GeneralHyperbolic2x2)
+    if general and not has_exact_form(system):
         return (
             "tau and the principal gains (q and rho q times the exponential weight of a and d, and the law's gain "
             "times them) as doubles computed from the coefficients (a few ulps)"
         )
-    if not isinstance(system, Hyperbolic2x2) or not has_exact_form(system):
+    if not isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) or not has_exact_form(system):
         return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
+    tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
-        return "tau = 1/lam + 1/mu and the principal gains as doubles (mapped to the exact tau on the exact route only)"
-    gains: tuple[float, ...] = ()
-    if isinstance(controller, ReflectionController):
-        gains = (controller.K,)
-    elif isinstance(controller, StateFeedback) and not _integral_gains(controller):
-        gains = (-controller.k,)
-    elif not isinstance(controller, (OpenLoop, FiniteTimeController)):
-        return (
-            f"tau = 1/lam + 1/mu as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on "
-            "tau otherwise than through tau s) and the principal gains as products of doubles"
-        )
-    inexact = [name for name, ok in (("rho q", _exact_product(system.rho, system.q)),) if not ok]
-    inexact += [f"{g!r} q" for g in gains if not _exact_product(g, system.q)]
-    if inexact:
-        return f"tau = 1/lam + 1/mu as the double {system.tau!r} and the principal gains {', '.join(inexact)} rounded"
-    return ""
+        return f"tau = {tau} and the principal gains as doubles (mapped to the exact tau on the exact route only)"
+    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController)) or (
+        isinstance(controller, StateFeedback) and not _integral_gains(controller)
+    ):
+        return ""
+    return (
+        f"tau = {tau} as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on tau "
+        "otherwise than through tau s)"
+    )

@@ -28,8 +28,12 @@ tail, the truncation of each piece's expansion and the rounding of its coefficie
 double precision) in :attr:`~nrobust.quasipoly.DistributedDelay.radius`, and of its total
 variation in ``variation_radius``. The ratios ``p``, ``m`` and the shift ``sigma_0 tau`` enter
 the series as balls of the exact quotients of the user's numbers (:func:`exact_ratios`), so
-their rounding is part of that bound. Every ball enclosure of a loop built on it
-(:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with one exception: the
+their rounding is part of that bound. The principal gains ``q e^{sigma_0 tau / 2}``,
+``rho q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau}`` are irrational for a general plant (and a
+product ``rho q`` of doubles need not be a double): :func:`gain_balls` encloses them from the
+user's numbers, and the loop's point coefficients carry the distance of their doubles to them as
+radii (:class:`~nrobust.quasipoly.QuasiPolynomial`'s ``radii``). Every ball enclosure of a loop
+built on it (:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with one exception: the
 transport time is the double ``tau_d`` nearest ``tau = 1/lam + 1/mu`` (the principal delays of
 :class:`~nrobust.quasipoly.QuasiPolynomial` are doubles). Since ``tau N~(tau t)`` depends on
 ``p``, ``m``, ``q``, ``rho`` and ``sigma_0 tau`` only, the loop of an unfiltered law is a
@@ -62,6 +66,8 @@ __all__ = [
     "closed_form_series",
     "exact_form",
     "exact_ratios",
+    "ball_radius",
+    "gain_balls",
     "rational_ball",
     "exact_output_map",
     "expand_piece",
@@ -109,6 +115,14 @@ class ExactForm:
         ``U~ = e^{sigma_0 nu} (q h_11 + p W / tau)``; a proportional feedback
         ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``; integral gains subtract
         their term ``I_g`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`).
+    q_radius, rho_q_radius, u_radius : float
+        Proven bounds of the distance of ``q``, ``rho_q`` and the point gain
+        ``q e^{sigma_0 tau}`` of ``u_factor`` to their exact values (the exponential weight
+        ``e^{sigma_0 tau}`` is irrational: the doubles are rounded), enclosed in ball
+        arithmetic from the user's numbers; 0 when the doubles are exact. ``characteristic``
+        and ``u_factor`` carry them as the radii of their point coefficients
+        (:class:`~nrobust.quasipoly.QuasiPolynomial`), so every ball enclosure of a loop built
+        on them holds for the plant as given. Zeros without python-flint (no proof runs without it).
     """
 
     tau: float
@@ -118,6 +132,9 @@ class ExactForm:
     N_tilde: DistributedDelay | None
     characteristic: QuasiPolynomial
     u_factor: QuasiPolynomial
+    q_radius: float = 0.0
+    rho_q_radius: float = 0.0
+    u_radius: float = 0.0
 
 
 def has_exact_form(system: object) -> bool:
@@ -243,8 +260,9 @@ def _exact_form(tau: float, p: Fraction, m: Fraction, q: float, rho: float, shif
     q_round = q * weight
     rho_q = rho * q_round  # the product B of StateFeedback(-rho) forms: the natural gain cancels exactly
     half = math.exp(0.5 * float(shift))
-    principal = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau])
-    u_point = QuasiPolynomial([[q_round]], [tau])
+    q_radius, rho_q_radius, u_radius = _gain_radii(q, rho, shift, q * half, rho_q, q_round)
+    principal = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], radii=[[0.0], [rho_q_radius]])
+    u_point = QuasiPolynomial([[q_round]], [tau], radii=[[u_radius]])
     uncoupled = p == 0 or m == 0  # kappa = 0: W = 1, h_11 = h_22 = 0
     n_zero = uncoupled and m * Fraction(q) == Fraction(rho) * p
     n_tilde = None if n_zero else _kernel(tau, p, m, shift, ("N", q, rho))
@@ -257,7 +275,64 @@ def _exact_form(tau: float, p: Fraction, m: Fraction, q: float, rho: float, shif
         n_tilde,
         principal if n_tilde is None else principal + QuasiPolynomial([], [], [n_tilde]),
         u_point if u_tilde is None else u_point + QuasiPolynomial([], [], [u_tilde]),
+        q_radius,
+        rho_q_radius,
+        u_radius,
     )
+
+
+def _gain_radii(
+    q: float, rho: float, shift: Fraction, q_half: float, rho_q: float, q_round: float
+) -> tuple[float, float, float]:
+    """Bounds of ``|q_half - q e^{s/2}|``, ``|rho_q - rho q e^{s}|``, ``|q_round - q e^{s}|`` (``s = sigma_0 tau``).
+
+    Zeros without python-flint: the radii serve the ball arithmetic only, which needs it.
+    """
+    try:
+        flint = require_flint()
+    except ImportError:
+        return 0.0, 0.0, 0.0
+    with precision(flint, PRECISION):
+        exact = _gain_balls(flint, q, rho, shift)
+        return tuple(ball_radius(flint, v, x) for v, x in zip((q_half, rho_q, q_round), exact))  # type: ignore[return-value]
+
+
+def _gain_balls(flint: Any, q: float, rho: float, shift: Fraction) -> tuple[Any, Any, Any]:
+    """``q e^{s/2}``, ``rho q e^{s}``, ``q e^{s}`` as ``arb`` balls (the exponential of the rational ``s``)."""
+    arb = flint.arb
+    S = rational_ball(flint, shift)
+    Q, R = arb(q), arb(rho)
+    return Q * (S / 2).exp(), R * Q * S.exp(), Q * S.exp()
+
+
+def gain_balls(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[Any, Any, Any]:
+    """The exact principal gains of the closed form as ``arb`` balls at :data:`PRECISION` bits.
+
+    ``q e^{sigma_0 tau / 2}``, ``rho q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau}`` (the values
+    :class:`ExactForm`'s ``q``, ``rho_q`` and the point gain of ``u_factor`` round to doubles),
+    from the user's numbers (``sigma_0 tau`` the rational of :func:`exact_ratios`).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+    """
+    _, _, _, q, rho, _ = closed_form_parameters(system)
+    flint = require_flint()
+    with precision(flint, PRECISION):
+        return _gain_balls(flint, q, rho, exact_ratios(system)[2])
+
+
+def ball_radius(flint: Any, value: complex | float, exact: Any) -> float:
+    """A double bounding ``|value - x|`` for every ``x`` in the ball ``exact``.
+
+    Rounded up; 0 when ``exact`` is the point ``value``.
+    """
+    z = complex(value)
+    diff = (flint.acb(z.real, z.imag) if z.imag else flint.arb(z.real)) - exact
+    if diff.is_zero():
+        return 0.0
+    return math.nextafter(float(abs(diff).upper()), math.inf)
 
 
 def _kernel(

@@ -20,9 +20,14 @@ double given, exact): :func:`given_plant_balls` encloses it with ``r`` an ``arb`
 winding number, a Krawczyk test or a zero-free piece of contour proven with it holds for
 the plant as given.
 
-The principal gains (``rho q``, ``K q``, ``k q``) are products of doubles: the map applies when
-they are exact (the paper's values), otherwise the proof keeps a scope naming what is rounded
-(:func:`rounded_parts`).
+The principal gains (``rho q``, ``K q``, ``k q``, times ``e^{sigma_0 tau}`` or
+``e^{sigma_0 tau / 2}`` for a general plant) are doubles rounded from their exact values: the
+loop carries each with a proven radius (``QuasiPolynomial(..., radii=...)``, enclosed from the
+user's numbers by :func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), so a proof about the
+loop as built holds for every loop with gains in those balls, the plant's among them, and the
+map applies to it. A general plant with constant coefficients has ``tau = L/lam + L/mu``
+(:func:`exact_tau`). Where the loop is not a function of ``tau s`` (a filtered law, integral
+gains) the proof keeps a scope naming what is rounded (:func:`rounded_parts`).
 """
 
 from __future__ import annotations
@@ -32,18 +37,22 @@ import math
 from fractions import Fraction
 from typing import Any, TypeVar
 
+import numpy as np
+
 from ..._flint import precision, require_flint
 from ...balls import BallFunction, ball_function
 from ...bounds import RoucheDelayBound
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
+from ..plants.general import GeneralHyperbolic2x2
 from .controllers import characteristic, loop_factors, rounded_parts
-from .exact_form import rational_ball
+from .exact_form import closed_form_parameters, rational_ball
 
 __all__ = [
     "GivenPlantBalls",
     "built_delay",
+    "exact_tau",
     "given_plant_balls",
     "given_plant_scale",
     "rounded_parts",
@@ -56,10 +65,10 @@ _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
 def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = None) -> Fraction | None:
     """``r = tau / tau_d``: the factor mapping proofs about the loop as built to the plant as given.
 
-    ``tau = 1/lam + 1/mu`` exactly (the user's doubles as rationals), ``tau_d`` the double
-    :attr:`Hyperbolic2x2.tau` the loop is built with. None when the loop is not a function of
-    ``tau s`` and ``delta / tau`` with exact gains (:func:`rounded_parts` says what is rounded):
-    then the proofs hold for the loop as built.
+    ``tau`` exactly (:func:`exact_tau`: the user's doubles as rationals), ``tau_d`` the double the
+    loop is built with (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_parameters`). None
+    when the loop is not a function of ``tau s`` and ``delta / tau`` with its gains enclosed
+    (:func:`rounded_parts` says what is rounded): then the proofs hold for the loop as built.
 
     Parameters
     ----------
@@ -68,7 +77,22 @@ def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = No
     """
     if rounded_parts(system, controller, kernel_grid):
         return None
-    return (Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)) / Fraction(system.tau)
+    return exact_tau(system) / Fraction(closed_form_parameters(system)[0])
+
+
+def exact_tau(system: Any) -> Fraction:
+    """``tau`` of a plant with constant coefficients as the rational of its numbers.
+
+    ``1/lam + 1/mu`` for :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`,
+    ``(L/lam + L/mu) / time_unit`` for a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` (its round trip in its
+    time unit, the ``tau`` of its normal form).
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        lam, mu = (Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu"))
+        length = Fraction(system.length)
+        return (length / lam + length / mu) / Fraction(system.time_unit)
+    return Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)
 
 
 class GivenPlantBalls(BallFunction):
