@@ -2966,6 +2966,10 @@ class _RootPaths:
         self.N0 = loop.nominal(0.0)
         self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
         self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
+        # follow(K0, s0, K1) by its arguments (None: the path lost): the searches of one design ask again for
+        # the same continuations (each path of :func:`_two_paths_peak` from the same samples), lost ones the
+        # dearest (every step size down to the smallest is tried)
+        self.followed: dict[tuple[float, complex, float], complex | None] = {}
 
     def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
         """``F(s), F'(s), N_1(s)`` at ``K``."""
@@ -2997,7 +3001,20 @@ class _RootPaths:
         the step halved when the correction exceeds a third of the predicted move (a jump to another
         path). Raises ``_PathLost`` after :data:`_PATH_STEPS` steps, or when the step falls below
         :data:`_PATH_MIN_STEP` of ``|K1 - K0|`` (as at the end of a path, where two zeros meet and the
-        sensitivity grows without bound)."""
+        sensitivity grows without bound). Remembered by its arguments (:attr:`followed`)."""
+        key = (K0, s0, K1)
+        if key not in self.followed:
+            try:
+                self.followed[key] = self._follow(K0, s0, K1)
+            except _PathLost:
+                self.followed[key] = None
+        found = self.followed[key]
+        if found is None:
+            raise _PathLost
+        return found
+
+    def _follow(self, K0: float, s0: complex, K1: float) -> complex:
+        """:meth:`follow`, not remembered."""
         K, s, h = K0, s0, K1 - K0
         shortest = _PATH_MIN_STEP * abs(K1 - K0)
         for _ in range(_PATH_STEPS):
