@@ -55,6 +55,7 @@ from ..loops.controllers import (
     loop_scope,
     observer_reflection_of,
 )
+from ..loops.output_feedback import _consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
@@ -153,8 +154,14 @@ def collocated_observer_loop(system: Hyperbolic2x2, controller: CollocatedOutput
     inner = controller.controller
     numerator = [1.0, inner.a] if isinstance(inner, FilteredController) else [1.0]
     denominator = [1.0, inner.b] if isinstance(inner, FilteredController) else [1.0]
+    # the products' kernels (one per interval between breakpoints) summed into one term each where their
+    # nodes together are uniform, as loop_factors stores A_0 and B_0: on the paper's plant five kernels each,
+    # integrated once per evaluation instead of five times
     return AffineLoop(
-        A0, -reflection.open_loop_product.times_poly(denominator), B0, -reflection.law_product.times_poly(numerator)
+        A0,
+        _consolidated(-reflection.open_loop_product.times_poly(denominator)),
+        B0,
+        _consolidated(-reflection.law_product.times_poly(numerator)),
     )
 
 
