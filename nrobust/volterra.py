@@ -168,7 +168,7 @@ def _barycentric(nodes: Array, weights: Array, x: Array) -> Array:
 
 
 @lru_cache(maxsize=4)
-def _shifted_chebyshev(degree: int) -> Array:
+def shifted_chebyshev(degree: int) -> Array:
     """The coefficients of ``T_k(2 t - 1)``, ``k = 0..degree``, in increasing powers of ``t`` (column ``k``;
     integers, exact in floating point for the degrees used here)."""
     rows = [[1], [-1, 2]]  # T_{k+1} = 2 (2 t - 1) T_k - T_{k-1}
@@ -503,7 +503,7 @@ def _fit_interval(
     values = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle)
     exact = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * check_t).ravel(), middle)
     series = np.polynomial.chebyshev.chebfit(2.0 * fit_t - 1.0, values.reshape(count, -1).T, DEGREE)
-    coefficients = (_shifted_chebyshev(DEGREE) @ series).T
+    coefficients = (shifted_chebyshev(DEGREE) @ series).T
     stored = coefficients @ np.polynomial.polynomial.polyvander(check_t, DEGREE).T
     error = float(np.max(np.abs(stored - exact.reshape(count, -1))))
     term = DistributedDelay(cuts, None, interpolation="polynomial", coefficients=coefficients)

@@ -1225,8 +1225,12 @@ class _Curves:
                 _, m, root, _ = self._sample(wx, slopes=False)
                 for k, x, Kx in zip(keep.tolist(), wx.tolist(), (m + sigma * root).tolist()):
                     solved[brackets[k]] = (x, Kx)
+        wrapped = {i for i, _ in solved}
         out: list[_Piece] = []
         for i, (ws, Ks, ds, how, stop) in enumerate(items):
+            if i not in wrapped:
+                out.append(_Piece(sigma, ws, Ks, ds, how, stop))
+                continue
             theta = ds * ws
             start, start_how = 0, how
             w_prev, K_prev, d_prev = np.zeros(0), np.zeros(0), np.zeros(0)

@@ -136,7 +136,7 @@ from numpy.typing import NDArray
 from ...distributed_delay import DistributedDelay
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
-from ...volterra import WindowKernel, resolvent_product
+from ...volterra import WindowKernel, resolvent_product, shifted_chebyshev
 from ..kernels.constant import MIN_KERNEL_GRID, Kernels, solve_kernels
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ..plants.law import FeedbackLaw
@@ -266,14 +266,12 @@ def _pieces(sample: Callable[[Array, float], Array], breaks: Array) -> tuple[lis
         middle = 0.5 * (lo + hi)
         values = sample((cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle).reshape(count, -1)
         exact = sample((cuts[:-1, None] + step[:, None] * check_t).ravel(), middle).reshape(count, -1)
-        coefficients = []
-        for row, check in zip(values, exact, strict=True):
-            series = np.polynomial.Chebyshev.fit(fit_t, row, DEGREE, domain=[0.0, 1.0])
-            local = series.convert(kind=np.polynomial.Polynomial, domain=[0.0, 1.0], window=[0.0, 1.0]).coef
-            local = np.pad(local, (0, DEGREE + 1 - local.size))
-            deviation = max(deviation, float(np.max(np.abs(np.polynomial.polynomial.polyval(check_t, local) - check))))
-            coefficients.append(local)
-        terms.append(DistributedDelay(cuts - lo, None, interpolation="polynomial", coefficients=np.array(coefficients)))
+        # the Chebyshev series of every segment at once, then their exact conversion to powers of t in [0, 1]
+        series = np.polynomial.chebyshev.chebfit(2.0 * fit_t - 1.0, values.T, DEGREE)
+        coefficients = (shifted_chebyshev(DEGREE) @ series).T
+        stored = coefficients @ np.polynomial.polynomial.polyvander(check_t, DEGREE).T
+        deviation = max(deviation, float(np.max(np.abs(stored - exact))))
+        terms.append(DistributedDelay(cuts - lo, None, interpolation="polynomial", coefficients=coefficients))
     return terms, deviation
 
 
