@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import fields_dict, json_safe
+from ..._threads import one_blas_thread
 from ..._validate import finite_real, nonnegative, positive, positive_int
 from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin
 from ...design.local import LoopDesign, optimize_loop
@@ -248,6 +249,7 @@ def observer_reflection_bounds(loop: AffineLoop) -> tuple[float, float]:
     return interval
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_collocated_observer(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
@@ -759,6 +761,7 @@ def _check_model(
             )
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_collocated_output_feedback(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
