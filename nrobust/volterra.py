@@ -99,7 +99,8 @@ def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
         idx = np.searchsorted(start, x, side="right") - 1
     idx = np.clip(idx, 0, start.size - 1)
     t = (x - start[idx]) / h[idx]
-    return np.polynomial.polynomial.polyval(t, poly_t[idx].T, tensor=False)
+    # each power's coefficients gathered into one contiguous row (Horner's steps read whole rows)
+    return np.polynomial.polynomial.polyval(t, np.ascontiguousarray(poly_t.T)[:, idx], tensor=False)
 
 
 def _knots(term: DistributedDelay) -> Array:
@@ -249,7 +250,8 @@ class WindowKernel:
         position = flat / self.window * pieces
         idx = np.clip(position.astype(int), 0, pieces - 1)
         t = 2.0 * (position - idx) - 1.0
-        return np.polynomial.chebyshev.chebval(t, self.coefficients[idx].T, tensor=False).reshape(x.shape)
+        series = np.ascontiguousarray(self.coefficients.T)[:, idx]  # each degree's coefficients in one row
+        return np.polynomial.chebyshev.chebval(t, series, tensor=False).reshape(x.shape)
 
     def __call__(self, nu: ArrayLike) -> Array:
         """The kernel at ``nu`` in ``[0, w]`` (the stored kernels' left values at ``w``)."""
