@@ -83,8 +83,8 @@ _SHRINK = 0.1
 #: Gains near the top of the sampled envelope (within this fraction of it) whose delay margins the
 #: design must match or beat, at most this many.
 _TOP_FRACTION, _TOP_CHECKS = 0.01, 5
-#: Newton steps of :func:`_crossing_delay`.
-_NEWTON_STEPS = 30
+#: Newton steps of :func:`_crossing_delay`, and the design's crossings it starts from (at most).
+_NEWTON_STEPS, _CROSSING_STARTS = 30, 3
 
 
 class _ObserverResult:
@@ -345,24 +345,27 @@ def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
     within :data:`_TOP_FRACTION` of its top are checked, so that a kink whose equations converged to
     another pair of curves, or an end the envelope overrates, is not returned as the best ``kappa``.
     A crossing delay of the loop at such a gain bounds its margin from above (a zero lies on the axis
-    there): the design's crossing continued to the gain by Newton's method (:func:`_crossing_delay`)
-    settles the check when it is no larger than the design's margin, else the gain's certified margin
-    (:func:`~nrobust.margins.delay_margin`) decides.
+    there): one of the design's crossings (the critical one first) continued to the gain by Newton's method
+    (:func:`_crossing_delay`) settles the check when its delay is no larger than the design's margin, else the
+    gain's certified margin (:func:`~nrobust.margins.delay_margin`) decides.
     """
     env = np.asarray(design.envelope, dtype=float)
     near = np.flatnonzero(env >= (1.0 - _TOP_FRACTION) * float(np.max(env)))
     picks = {int(np.argmax(env))} | {int(near[int(i)]) for i in np.linspace(0, near.size - 1, _TOP_CHECKS).round()}
     limit = design.value * (1.0 + 1e-9)
-    omega = design.certificate.omega
+    # the design's critical crossing first, then its other crossings by their first delay (at a kink the
+    # top gains on either side continue one of the two crossings that meet)
+    cert = design.certificate
+    later = sorted((c for c in cert.crossings if c.delays), key=lambda c: c.delays[0])
+    starts = [w for w in dict.fromkeys([cert.omega, *(c.omega for c in later)]) if w is not None and w > 0.0]
     for i in sorted(picks):
         top = float(design.gains[i])
         if top == design.K:
             continue
         A, B = loop.A(top), loop.B(top)
-        if omega is not None and omega > 0.0:
-            tau = _crossing_delay(A, B, float(omega))
-            if tau is not None and tau <= limit:
-                continue
+        taus = (_crossing_delay(A, B, float(w)) for w in starts[:_CROSSING_STARTS])
+        if any(tau is not None and tau <= limit for tau in taus):
+            continue
         margin = delay_margin(A, B)
         if margin.margin > limit:
             raise CertificationError(
