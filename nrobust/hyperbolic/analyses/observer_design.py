@@ -56,7 +56,7 @@ from ..loops.controllers import (
     loop_scope,
     observer_reflection_of,
 )
-from ..loops.output_feedback import _consolidated
+from ..loops.output_feedback import consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
@@ -160,9 +160,9 @@ def collocated_observer_loop(system: Hyperbolic2x2, controller: CollocatedOutput
     # integrated once per evaluation instead of five times
     return AffineLoop(
         A0,
-        _consolidated(-reflection.open_loop_product.times_poly(denominator)),
+        consolidated(-reflection.open_loop_product.times_poly(denominator)),
         B0,
-        _consolidated(-reflection.law_product.times_poly(numerator)),
+        consolidated(-reflection.law_product.times_poly(numerator)),
     )
 
 
