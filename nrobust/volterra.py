@@ -99,7 +99,8 @@ def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
         idx = np.searchsorted(start, x, side="right") - 1
     idx = np.clip(idx, 0, start.size - 1)
     t = (x - start[idx]) / h[idx]
-    return np.polynomial.polynomial.polyval(t, poly_t[idx].T, tensor=False)
+    # each power's coefficients gathered into one contiguous row (Horner's steps read whole rows)
+    return np.polynomial.polynomial.polyval(t, np.ascontiguousarray(poly_t.T)[:, idx], tensor=False)
 
 
 def _knots(term: DistributedDelay) -> Array:
@@ -168,7 +169,7 @@ def _barycentric(nodes: Array, weights: Array, x: Array) -> Array:
 
 
 @lru_cache(maxsize=4)
-def _shifted_chebyshev(degree: int) -> Array:
+def shifted_chebyshev(degree: int) -> Array:
     """The coefficients of ``T_k(2 t - 1)``, ``k = 0..degree``, in increasing powers of ``t`` (column ``k``;
     integers, exact in floating point for the degrees used here)."""
     rows = [[1], [-1, 2]]  # T_{k+1} = 2 (2 t - 1) T_k - T_{k-1}
@@ -249,7 +250,8 @@ class WindowKernel:
         position = flat / self.window * pieces
         idx = np.clip(position.astype(int), 0, pieces - 1)
         t = 2.0 * (position - idx) - 1.0
-        return np.polynomial.chebyshev.chebval(t, self.coefficients[idx].T, tensor=False).reshape(x.shape)
+        series = np.ascontiguousarray(self.coefficients.T)[:, idx]  # each degree's coefficients in one row
+        return np.polynomial.chebyshev.chebval(t, series, tensor=False).reshape(x.shape)
 
     def __call__(self, nu: ArrayLike) -> Array:
         """The kernel at ``nu`` in ``[0, w]`` (the stored kernels' left values at ``w``)."""
@@ -503,7 +505,7 @@ def _fit_interval(
     values = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle)
     exact = _product_kernel(points, terms, h, (cuts[:-1, None] + step[:, None] * check_t).ravel(), middle)
     series = np.polynomial.chebyshev.chebfit(2.0 * fit_t - 1.0, values.reshape(count, -1).T, DEGREE)
-    coefficients = (_shifted_chebyshev(DEGREE) @ series).T
+    coefficients = (shifted_chebyshev(DEGREE) @ series).T
     stored = coefficients @ np.polynomial.polynomial.polyvander(check_t, DEGREE).T
     error = float(np.max(np.abs(stored - exact.reshape(count, -1))))
     term = DistributedDelay(cuts, None, interpolation="polynomial", coefficients=coefficients)

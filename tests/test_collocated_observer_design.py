@@ -8,11 +8,16 @@ affine family (``loop_factors`` at each ``kappa``).
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 import pytest
 
 import nrobust as nr
+from nrobust.design import AffineLoop, best_margin
 from nrobust.errors import CertificationError, ParameterError
+from nrobust.hyperbolic.analyses import observer_design
 from nrobust.hyperbolic.analyses.observer_design import collocated_observer_loop, observer_reflection_bounds
 from nrobust.hyperbolic.loops.controllers import (
     CollocatedOutputFeedback,
@@ -20,6 +25,7 @@ from nrobust.hyperbolic.loops.controllers import (
     ReflectionController,
     loop_factors,
 )
+from nrobust.quasipoly import QuasiPolynomial
 
 PAPER = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 TRANSPORT = nr.TransportSystem(1.0, 2.0, 0.9, 0.6)
@@ -115,3 +121,36 @@ def test_a_suboptimal_end_is_refused():
         return
     grid = _grid_margins(PAPER, inner, np.linspace(-0.7185, -0.6, 5))
     assert design.value >= grid.max() - 1e-9
+
+
+def test_envelope_top_check_by_crossing_delays(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The check near the top of the envelope bounds each gain's margin by a crossing delay.
+
+    ``(s + 1) + (3 + p) e^{-delta s}``, ``p`` in ``[-1, 1]``: the margin ``arccos(-1/b) / sqrt(b^2 - 1)``,
+    ``b = 3 + p``, falls with ``p`` (the design is the end ``p = -1``). The crossing delays continued from the
+    design's crossing equal that closed form (to 4 ulp: Newton's ``w`` and the ``arccos`` each to rounding),
+    settle the check without any certified margin, and a value lowered 1 % below the top is refused (the
+    crossing delay exceeds it, and the certified margin at that gain confirms it).
+    """
+    loop = AffineLoop(
+        QuasiPolynomial([[1.0, 1.0]], [0.0]),
+        QuasiPolynomial([[0.0]], [0.0]),
+        QuasiPolynomial([[3.0]], [0.0]),
+        QuasiPolynomial([[1.0]], [0.0]),
+    )
+    design = best_margin(loop, (-1.0, 1.0))
+    assert design.kind == "end" and design.K == -1.0
+    for p in np.linspace(-1.0, -0.98, 5):
+        b = 3.0 + p
+        tau = observer_design._crossing_delay(loop.A(p), loop.B(p), design.certificate.omega)
+        assert tau is not None
+        np.testing.assert_allclose(tau, math.acos(-1.0 / b) / math.sqrt(b * b - 1.0), rtol=1e-15)
+
+    def no_margin(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a certified margin was computed")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(observer_design, "delay_margin", no_margin)
+        observer_design._check_envelope_top(loop, design)
+    with pytest.raises(CertificationError, match="has"):
+        observer_design._check_envelope_top(loop, dataclasses.replace(design, value=0.99 * design.value))

@@ -101,7 +101,7 @@ def test_the_collocated_factors_hold_one_kernel_each_within_its_bound_of_their_t
     of their nodes (steps of 1/24 and 1/8): the oracle is the same loop with its terms kept apart."""
     controller = CollocatedOutputFeedback(ReflectionController(0.1), 0.0, 0.3)
     A, B = loop_factors(PAPER, controller)
-    monkeypatch.setattr(output_feedback, "_consolidated", lambda P: P)
+    monkeypatch.setattr(output_feedback, "consolidated", lambda P: P)
     parts = loop_factors(PAPER, controller)
     assert len(A.distributed) == len(B.distributed) == 1 and all(len(P.distributed) > 4 for P in parts)
     s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 1000), 0.3 + 5.0j, -0.2 + 40.0j]

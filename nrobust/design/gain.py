@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from fractions import Fraction
 from typing import Any
 
@@ -664,6 +664,15 @@ class _Axis:
         return np.mod(np.angle(-(self.b0 + K * self.b1) / (self.a0 + K * self.a1)), _TWO_PI)
 
 
+def _joined(first: _Axis, second: _Axis) -> _Axis:
+    """The samples of ``first`` then those of ``second``."""
+    joined: dict[str, Any] = {}
+    for f in fields(_Axis):
+        a, b = getattr(first, f.name), getattr(second, f.name)
+        joined[f.name] = None if a is None else np.concatenate([a, b])
+    return _Axis(**joined)
+
+
 def _kernel_sign(base: DistributedDelay, d: DistributedDelay) -> float:
     """``1`` or ``-1`` when ``d`` stores the kernel of ``base`` or its negation (same segments and moment), else 0."""
     if d.moment != base.moment or not all(np.array_equal(u, v) for u, v in zip(d.pieces[:2], base.pieces[:2])):
@@ -957,8 +966,13 @@ class _Curves:
                 "to the strong-stability bound need more)"
             )
         low = dw * 2.0 ** (-np.arange(_PER_OCTAVE * _LOW_OCTAVES, 0, -1) / _PER_OCTAVE)
-        w = np.concatenate([low, dw * np.arange(1, n - low.size + 1, dtype=float)])
-        D, m, root, at = self._sample(w)
+        uniform = dw * np.arange(1, n - low.size + 1, dtype=float)
+        w = np.concatenate([low, uniform])
+        # the uniform samples evaluated apart from the geometric ones: on a vertical line of uniform steps the
+        # distributed terms are chirp-z transforms (:mod:`nrobust.distributed_delay`), not an exponential per
+        # node and sample
+        at = _joined(loop.axis(low, slopes=True), loop.axis(uniform, slopes=True))
+        D, m, root = at.branches()
         junctions = self._junctions(w, D)
         pole = np.sign(at.curvature())
         poles = self._poles(w, D, m, root, pole)
@@ -1126,6 +1140,7 @@ class _Curves:
         gap = (valid[:-1] != valid[1:]) | (pole[:-1] != pole[1:])
         cuts = np.flatnonzero(turn | wrap | gap)
         start, how = 0, "edge"
+        items: list[tuple[NDArray, NDArray, NDArray, str, str]] = []
         for c in [*cuts.tolist(), w.size - 1]:
             lo, hi = start, c
             if c == w.size - 1:
@@ -1168,8 +1183,9 @@ class _Curves:
                     w_pole, K_pole = poles[hi][:2]
                     d_pole = self._pole_delay(poles[hi], theta[hi])
                     ws, Ks, ds = _cat(ws, w_pole), _cat(Ks, K_pole), _cat(ds, d_pole)
-                self.pieces.extend(self._split_at_wraps(sigma, ws, Ks, ds, how, stop))
+                items.append((ws, Ks, ds, how, stop))
             start, how = c + 1, stop
+        self.pieces.extend(self._split_at_wraps(sigma, items))
 
     @staticmethod
     def _pole_delay(pole: tuple[float, float, float, float, float], theta_near: float) -> float:
@@ -1177,52 +1193,70 @@ class _Curves:
         w, theta = pole[0], pole[2]
         return (theta + _TWO_PI * np.round((theta_near - theta) / _TWO_PI)) / w
 
-    def _split_at_wraps(self, sigma: float, ws: NDArray, Ks: NDArray, ds: NDArray, how: str, stop: str) -> list[_Piece]:
-        """The piece, cut where its phase wraps between points added near a junction (not between samples).
+    def _split_at_wraps(self, sigma: float, items: list[tuple[NDArray, NDArray, NDArray, str, str]]) -> list[_Piece]:
+        """The pieces ``(w, K, d, start, stop)`` of the branch, each cut where its phase wraps between points added
+        near a junction (not between samples).
 
-        Each such wrap is solved by ``brentq`` on the principal ``arg(-B/A)`` along the branch and
+        Each such wrap is solved by the Illinois iteration on the principal ``arg(-B/A)`` along the branch,
+        every wrap of the branch at once (:func:`~nrobust._bracket.illinois`, to the rounding of ``w``), and
         ends both parts (the delay ``0`` on one side, ``2 pi / w`` on the other).
         """
-        theta = ds * ws
-        jumps = np.flatnonzero(np.abs(np.diff(theta)) > np.pi) if not self.loop.gain else ()
         span = self.K_hi - self.K_lo
-        # (a piece away from the bounds is never on the envelope)
-        if not len(jumps) or (Ks.size and (Ks.min() > self.K_hi + span or Ks.max() < self.K_lo - span)):
-            return [_Piece(sigma, ws, Ks, ds, how, stop)]
-        from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+        brackets: list[tuple[int, int]] = []  # (item, c): a wrap between the points c and c + 1 of the item
+        for i, (ws, Ks, ds, _, _) in enumerate(items):
+            jumps = np.flatnonzero(np.abs(np.diff(ds * ws)) > np.pi) if not self.loop.gain else ()
+            # (a piece away from the bounds is never on the envelope)
+            if len(jumps) and not (Ks.size and (Ks.min() > self.K_hi + span or Ks.max() < self.K_lo - span)):
+                brackets += [(i, int(c)) for c in jumps]
+        solved: dict[tuple[int, int], tuple[float, float]] = {}  # (item, c) -> (w, K) at the wrap
+        if brackets:
 
-        def phase(x: float) -> float:
-            _, m, root, at = self._sample(np.array([x]), slopes=False)
-            K = m + sigma * root
-            return float(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1))[0])
+            def phase(x: NDArray) -> NDArray:
+                _, m, root, at = self._sample(np.asarray(x, dtype=float), slopes=False)
+                K = m + sigma * root
+                return np.asarray(np.angle(-(at.b0 + K * at.b1) / (at.a0 + K * at.a1)), dtype=float)
 
-        out, start, start_how = [], 0, how
-        w_prev, K_prev, d_prev = np.zeros(0), np.zeros(0), np.zeros(0)
-        for c in jumps:
-            wa, wb = float(ws[c]), float(ws[c + 1])
-            fa, fb = phase(wa), phase(wb)
-            if fa * fb > 0:
+            ends = np.array([(items[i][0][c], items[i][0][c + 1]) for i, c in brackets], dtype=float)
+            a, b = ends.min(axis=1), ends.max(axis=1)
+            fa, fb = phase(np.concatenate([a, b])).reshape(2, -1)
+            keep = np.flatnonzero(fa * fb <= 0)
+            if keep.size:
+                wx = illinois(phase, a[keep], b[keep], fa[keep], fb[keep], rtol=2e-15)
+                _, m, root, _ = self._sample(wx, slopes=False)
+                for k, x, Kx in zip(keep.tolist(), wx.tolist(), (m + sigma * root).tolist()):
+                    solved[brackets[k]] = (x, Kx)
+        wrapped = {i for i, _ in solved}
+        out: list[_Piece] = []
+        for i, (ws, Ks, ds, how, stop) in enumerate(items):
+            if i not in wrapped:
+                out.append(_Piece(sigma, ws, Ks, ds, how, stop))
                 continue
-            wx = brentq(phase, min(wa, wb), max(wa, wb), xtol=1e-15 * max(wa, wb), rtol=1e-15)
-            _, m, root, _ = self._sample(np.array([wx]), slopes=False)
-            Kx = float(m[0] + sigma * root[0])
-            end = (_TWO_PI if theta[c] > np.pi else 0.0) / wx
+            theta = ds * ws
+            start, start_how = 0, how
+            w_prev, K_prev, d_prev = np.zeros(0), np.zeros(0), np.zeros(0)
+            for c in range(ws.size - 1):
+                if (i, c) not in solved:
+                    continue
+                w_wrap, K_wrap = solved[i, c]
+                end = (_TWO_PI if theta[c] > np.pi else 0.0) / w_wrap
+                out.append(
+                    _Piece(
+                        sigma,
+                        _cat(w_prev, ws[start : c + 1], w_wrap),
+                        _cat(K_prev, Ks[start : c + 1], K_wrap),
+                        _cat(d_prev, ds[start : c + 1], end),
+                        start_how,
+                        "wrap",
+                    )
+                )
+                begin = (_TWO_PI if theta[c + 1] > np.pi else 0.0) / w_wrap
+                w_prev, K_prev, d_prev = np.array([w_wrap]), np.array([K_wrap]), np.array([begin])
+                start, start_how = c + 1, "wrap"
             out.append(
                 _Piece(
-                    sigma,
-                    _cat(w_prev, ws[start : c + 1], wx),
-                    _cat(K_prev, Ks[start : c + 1], Kx),
-                    _cat(d_prev, ds[start : c + 1], end),
-                    start_how,
-                    "wrap",
+                    sigma, _cat(w_prev, ws[start:]), _cat(K_prev, Ks[start:]), _cat(d_prev, ds[start:]), start_how, stop
                 )
             )
-            begin = (_TWO_PI if theta[c + 1] > np.pi else 0.0) / wx
-            w_prev, K_prev, d_prev = np.array([wx]), np.array([Kx]), np.array([begin])
-            start, start_how = c + 1, "wrap"
-        out.append(
-            _Piece(sigma, _cat(w_prev, ws[start:]), _cat(K_prev, Ks[start:]), _cat(d_prev, ds[start:]), start_how, stop)
-        )
         return out
 
     def _births(
@@ -2966,6 +3000,10 @@ class _RootPaths:
         self.N0 = loop.nominal(0.0)
         self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
         self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
+        # follow(K0, s0, K1) by its arguments (None: the path lost): the searches of one design ask again for
+        # the same continuations (each path of :func:`_two_paths_peak` from the same samples), lost ones the
+        # dearest (every step size down to the smallest is tried)
+        self.followed: dict[tuple[float, complex, float], complex | None] = {}
 
     def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
         """``F(s), F'(s), N_1(s)`` at ``K``."""
@@ -2997,7 +3035,20 @@ class _RootPaths:
         the step halved when the correction exceeds a third of the predicted move (a jump to another
         path). Raises ``_PathLost`` after :data:`_PATH_STEPS` steps, or when the step falls below
         :data:`_PATH_MIN_STEP` of ``|K1 - K0|`` (as at the end of a path, where two zeros meet and the
-        sensitivity grows without bound)."""
+        sensitivity grows without bound). Remembered by its arguments (:attr:`followed`)."""
+        key = (K0, s0, K1)
+        if key not in self.followed:
+            try:
+                self.followed[key] = self._follow(K0, s0, K1)
+            except _PathLost:
+                self.followed[key] = None
+        found = self.followed[key]
+        if found is None:
+            raise _PathLost
+        return found
+
+    def _follow(self, K0: float, s0: complex, K1: float) -> complex:
+        """:meth:`follow`, not remembered."""
         K, s, h = K0, s0, K1 - K0
         shortest = _PATH_MIN_STEP * abs(K1 - K0)
         for _ in range(_PATH_STEPS):

@@ -97,6 +97,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._digits import with_accuracy
 from .._json import json_safe
 from .._newton import newton
+from .._threads import one_blas_thread
 from .._validate import callables, finite_real, is_real_number, nonnegative, positive_int
 from ..errors import CertificationError, ParameterError
 from ..margins import Crossing, DelayMargin, delay_margin, frequency_bound
@@ -1290,6 +1291,7 @@ class _Local:
             )
         return m, iterations
 
+    @one_blas_thread()  # in whichever process runs the start
     def __call__(self, start: Sequence[float]) -> LocalRun:
         problem = self.problem
         counter = [1]
@@ -1562,6 +1564,7 @@ def local_runs(
     )
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def optimize_loop(
     loop: ParametricLoop,
     bounds: ArrayLike,

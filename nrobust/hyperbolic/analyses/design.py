@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..._json import fields_dict
+from ..._threads import one_blas_thread
 from ..._validate import nonnegative, positive
 from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin, check_delays
 from ...errors import CertificationError, ParameterError
@@ -196,6 +197,7 @@ def _check_affine(loop: AffineLoop, K: float, factors: tuple[QuasiPolynomial, Qu
             )
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_reflection(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import fields_dict, json_safe
+from ..._threads import one_blas_thread
 from ..._validate import finite_real, nonnegative, positive, positive_int
 from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin
 from ...design.local import LoopDesign, optimize_loop
@@ -55,6 +56,7 @@ from ..loops.controllers import (
     loop_scope,
     observer_reflection_of,
 )
+from ..loops.output_feedback import consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
@@ -78,9 +80,11 @@ OBSERVER_OBJECTIVES = ("margin", "decay_rate")
 #: Default bounds: the strongly stable interval less this fraction of its width at each end (the
 #: crossing curves reach frequencies growing like 1/distance to its ends).
 _SHRINK = 0.1
-#: Gains near the top of the sampled envelope (within this fraction of it) whose certified margins the
+#: Gains near the top of the sampled envelope (within this fraction of it) whose delay margins the
 #: design must match or beat, at most this many.
 _TOP_FRACTION, _TOP_CHECKS = 0.01, 5
+#: Newton steps of :func:`_crossing_delay`, and the design's crossings it starts from (at most).
+_NEWTON_STEPS, _CROSSING_STARTS = 30, 3
 
 
 class _ObserverResult:
@@ -151,8 +155,14 @@ def collocated_observer_loop(system: Hyperbolic2x2, controller: CollocatedOutput
     inner = controller.controller
     numerator = [1.0, inner.a] if isinstance(inner, FilteredController) else [1.0]
     denominator = [1.0, inner.b] if isinstance(inner, FilteredController) else [1.0]
+    # the products' kernels (one per interval between breakpoints) summed into one term each where their
+    # nodes together are uniform, as loop_factors stores A_0 and B_0: on the paper's plant five kernels each,
+    # integrated once per evaluation instead of five times
     return AffineLoop(
-        A0, -reflection.open_loop_product.times_poly(denominator), B0, -reflection.law_product.times_poly(numerator)
+        A0,
+        consolidated(-reflection.open_loop_product.times_poly(denominator)),
+        B0,
+        consolidated(-reflection.law_product.times_poly(numerator)),
     )
 
 
@@ -239,6 +249,7 @@ def observer_reflection_bounds(loop: AffineLoop) -> tuple[float, float]:
     return interval
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_collocated_observer(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
@@ -327,28 +338,71 @@ def design_collocated_observer(
 
 
 def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
-    """No certified margin near the top of the sampled envelope beats the design's (else it is not the optimum).
+    """No delay margin near the top of the sampled envelope beats the design's (else it is not the optimum).
 
     The envelope only locates the optimum (interpolated on the sampled crossing curves, it can err
     by about 1e-3 where a curve is steep in ``kappa``); up to :data:`_TOP_CHECKS` gains where it is
-    within :data:`_TOP_FRACTION` of its top are checked with a certified margin, so that a kink whose
-    equations converged to another pair of curves, or an end the envelope overrates, is not
-    returned as the best ``kappa``.
+    within :data:`_TOP_FRACTION` of its top are checked, so that a kink whose equations converged to
+    another pair of curves, or an end the envelope overrates, is not returned as the best ``kappa``.
+    A crossing delay of the loop at such a gain bounds its margin from above (a zero lies on the axis
+    there): one of the design's crossings (the critical one first) continued to the gain by Newton's method
+    (:func:`_crossing_delay`) settles the check when its delay is no larger than the design's margin, else the
+    gain's certified margin (:func:`~nrobust.margins.delay_margin`) decides.
     """
     env = np.asarray(design.envelope, dtype=float)
     near = np.flatnonzero(env >= (1.0 - _TOP_FRACTION) * float(np.max(env)))
     picks = {int(np.argmax(env))} | {int(near[int(i)]) for i in np.linspace(0, near.size - 1, _TOP_CHECKS).round()}
+    limit = design.value * (1.0 + 1e-9)
+    # the design's critical crossing first, then its other crossings by their first delay (at a kink the
+    # top gains on either side continue one of the two crossings that meet)
+    cert = design.certificate
+    later = sorted((c for c in cert.crossings if c.delays), key=lambda c: c.delays[0])
+    starts = [w for w in dict.fromkeys([cert.omega, *(c.omega for c in later)]) if w is not None and w > 0.0]
     for i in sorted(picks):
         top = float(design.gains[i])
         if top == design.K:
             continue
-        margin = delay_margin(loop.A(top), loop.B(top))
-        if margin.margin > design.value * (1.0 + 1e-9):
+        A, B = loop.A(top), loop.B(top)
+        taus = (_crossing_delay(A, B, float(w)) for w in starts[:_CROSSING_STARTS])
+        if any(tau is not None and tau <= limit for tau in taus):
+            continue
+        margin = delay_margin(A, B)
+        if margin.margin > limit:
             raise CertificationError(
                 f"design_collocated_observer: the {design.kind} at kappa = {design.K:.12g} has delay margin "
                 f"{design.value:.12g}, but kappa = {top:.12g} has {margin.margin:.12g} (the equations of the "
                 "optimum converged away from the top of the envelope): kappa_bounds about the latter give its optimum"
             )
+
+
+def _crossing_delay(A: QuasiPolynomial, B: QuasiPolynomial, w0: float) -> float | None:
+    """The smallest delay ``tau >= 0`` with ``A(i w) + B(i w) e^{-i w tau} = 0`` at a zero ``w > 0`` of ``g(w) =
+    |A(i w)|^2 - |B(i w)|^2`` that Newton's method reaches from ``w0``; None when it does not converge to rounding.
+
+    ``tau = theta / w``, ``theta = arg(-B(i w) / A(i w))`` in ``[0, 2 pi)``: the loop has the zero ``i w`` at
+    that delay, so its delay margin is at most ``tau`` (to the rounding of ``w``, at the level of ``1e-14``).
+    """
+    w = w0
+    for _ in range(_NEWTON_STEPS):
+        s = np.array([1j * w])
+        a, b = complex(A(s)[0]), complex(B(s)[0])
+        da, db = 1j * complex(A.deriv_at(s)[0]), 1j * complex(B.deriv_at(s)[0])  # d/dw of A(i w), B(i w)
+        g_w = 2.0 * ((a.conjugate() * da).real - (b.conjugate() * db).real)
+        if g_w == 0.0 or a == 0.0:
+            return None
+        step = (abs(a) ** 2 - abs(b) ** 2) / g_w
+        w -= step
+        if not w > 0.0:
+            return None
+        if abs(step) <= 1e-14 * w:
+            break
+    else:
+        return None
+    s = np.array([1j * w])
+    a, b = complex(A(s)[0]), complex(B(s)[0])
+    if not abs(abs(a) - abs(b)) <= 1e-12 * (abs(a) + abs(b)):
+        return None
+    return float(np.mod(np.angle(-b / a), 2.0 * np.pi)) / w
 
 
 def _bounds(name: str, value: Any) -> tuple[float, float]:
@@ -710,6 +764,7 @@ def _check_model(
             )
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_collocated_output_feedback(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",

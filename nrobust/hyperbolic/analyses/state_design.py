@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
+from ..._threads import one_blas_thread
 from ..._validate import callables, finite_real, positive_int
 from ...design.gain import GainDesign, best_decay_rate, best_margin
 from ...design.local import GAMMA_MAX, LocalRun, LoopDesign, delayed_gamma, optimize_loop
@@ -517,6 +518,7 @@ class StateFeedbackDesign:
         )
 
 
+@one_blas_thread()  # many small products: competing BLAS threads only cost time
 def design_state_feedback(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",

@@ -128,6 +128,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -135,7 +136,7 @@ from numpy.typing import NDArray
 from ...distributed_delay import DistributedDelay
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
-from ...volterra import WindowKernel, resolvent_product
+from ...volterra import WindowKernel, resolvent_product, shifted_chebyshev
 from ..kernels.constant import MIN_KERNEL_GRID, Kernels, solve_kernels
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ..plants.law import FeedbackLaw
@@ -169,6 +170,13 @@ def dual_plant(system: Hyperbolic2x2) -> Hyperbolic2x2:
     return Hyperbolic2x2(
         system.mu, system.lam, system.sigma_pm, system.sigma_mp, system.lam * system.q / system.mu, 0.0
     )
+
+
+@lru_cache(maxsize=8)
+def _dual_kernels(system: Hyperbolic2x2, kernel_grid: int) -> Kernels:
+    """The kernels of :func:`dual_plant` on ``kernel_grid`` points (cached: the observer's term ``G`` and its
+    reflection's terms are built on the same grids)."""
+    return solve_kernels(dual_plant(system), kernel_grid)
 
 
 def observer_gains(kernels: Kernels, lam: float) -> tuple[Array, Array, Array]:
@@ -258,14 +266,12 @@ def _pieces(sample: Callable[[Array, float], Array], breaks: Array) -> tuple[lis
         middle = 0.5 * (lo + hi)
         values = sample((cuts[:-1, None] + step[:, None] * fit_t).ravel(), middle).reshape(count, -1)
         exact = sample((cuts[:-1, None] + step[:, None] * check_t).ravel(), middle).reshape(count, -1)
-        coefficients = []
-        for row, check in zip(values, exact, strict=True):
-            series = np.polynomial.Chebyshev.fit(fit_t, row, DEGREE, domain=[0.0, 1.0])
-            local = series.convert(kind=np.polynomial.Polynomial, domain=[0.0, 1.0], window=[0.0, 1.0]).coef
-            local = np.pad(local, (0, DEGREE + 1 - local.size))
-            deviation = max(deviation, float(np.max(np.abs(np.polynomial.polynomial.polyval(check_t, local) - check))))
-            coefficients.append(local)
-        terms.append(DistributedDelay(cuts - lo, None, interpolation="polynomial", coefficients=np.array(coefficients)))
+        # the Chebyshev series of every segment at once, then their exact conversion to powers of t in [0, 1]
+        series = np.polynomial.chebyshev.chebfit(2.0 * fit_t - 1.0, values.T, DEGREE)
+        coefficients = (shifted_chebyshev(DEGREE) @ series).T
+        stored = coefficients @ np.polynomial.polynomial.polyvander(check_t, DEGREE).T
+        deviation = max(deviation, float(np.max(np.abs(stored - exact))))
+        terms.append(DistributedDelay(cuts - lo, None, interpolation="polynomial", coefficients=coefficients))
     return terms, deviation
 
 
@@ -374,10 +380,10 @@ def collocated_observer(
     lam = system.lam
     coupled = not system.uncoupled
     coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
-    fine = solve_kernels(dual_plant(system), kernel_grid) if coupled else None
+    fine = _dual_kernels(system, kernel_grid) if coupled else None
     law = law_on(kernel_grid)
     response, pieces, deviation = command_response(system, law, fine, kernel_grid)
-    coarse = solve_kernels(dual_plant(system), coarse_grid) if coupled else None
+    coarse = _dual_kernels(system, coarse_grid) if coupled else None
     _, coarse_pieces, _ = command_response(system, law_on(coarse_grid), coarse, coarse_grid)
     change = 0.0
     for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
@@ -446,10 +452,8 @@ def observer_reflection(
         response = QuasiPolynomial([[system.q]], [system.tau])
         return ObserverReflection(response, open_loop * response, law_factor * response, 0.0)
     coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
-    response, pieces, deviation = command_response(
-        system, unit, solve_kernels(dual_plant(system), kernel_grid), kernel_grid
-    )
-    _, coarse_pieces, _ = command_response(system, unit, solve_kernels(dual_plant(system), coarse_grid), coarse_grid)
+    response, pieces, deviation = command_response(system, unit, _dual_kernels(system, kernel_grid), kernel_grid)
+    _, coarse_pieces, _ = command_response(system, unit, _dual_kernels(system, coarse_grid), coarse_grid)
     change = 0.0
     for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
         nu = np.linspace(0.0, hi - lo, 65)

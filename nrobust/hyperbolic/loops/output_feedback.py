@@ -143,7 +143,7 @@ def output_feedback_factors(
     The collocated observer's loop has the same form
     (:mod:`~nrobust.hyperbolic.loops.collocated`), its ``G`` given as a quasi-polynomial; the
     distributed terms of each of its factors are then summed into one kernel on the union of their
-    nodes when that union is uniform (:func:`_consolidated`).
+    nodes when that union is uniform (:func:`consolidated`).
     The observer's ``G`` (a :class:`~nrobust.volterra.ResolventProduct`) is stored as one term
     (:func:`_joined`), and the kernels of ``A`` and ``B`` that its segments refine are stored on
     them (:func:`_refined_onto`, its rounding added to their error bounds), so that each factor
@@ -165,7 +165,7 @@ def output_feedback_factors(
         return A, B
     if isinstance(term, QuasiPolynomial):
         ng = term.times_poly(list(numerator))
-        return _consolidated(A - ng.shift(observer_delay)), _consolidated(B + ng)
+        return consolidated(A - ng.shift(observer_delay)), consolidated(B + ng)
     ng = _joined(term.product).times_poly(list(numerator))
     shifted = ng.shift(observer_delay)
     A, B = _refined_onto(A, shifted), _refined_onto(B, ng)
@@ -199,7 +199,7 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
     return QuasiPolynomial([], [], [joined])
 
 
-def _consolidated(P: QuasiPolynomial) -> QuasiPolynomial:
+def consolidated(P: QuasiPolynomial) -> QuasiPolynomial:
     """``P`` with its distributed terms summed into one term on the union of their nodes, when that is uniform.
 
     The terms (polynomial pieces, one ``q(s)`` and moment, real) are re-expanded on the union's segments

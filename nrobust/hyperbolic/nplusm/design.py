@@ -77,6 +77,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._json import json_safe
 from ..._newton import newton
+from ..._threads import one_blas_thread
 from ..._validate import finite_real, positive_int
 from ...design.local import (
     ABOVE_LINE,
@@ -816,6 +817,7 @@ def _x0(x0: Any, system: NPlusMSystem, bounds: NDArray[np.float64]) -> NDArray[n
     return p
 
 
+@one_blas_thread()  # many exponentials of small matrices: competing BLAS threads only cost time
 def design_nplusm_gains(
     system: NPlusMSystem,
     objective: str = "decay_rate",
