@@ -330,9 +330,11 @@ class _LatticeStep:
 
         ``T X`` holds the new ``U`` and ``V`` at nodes ``0 .. n-1`` and, in the row of ``u(1)``,
         ``ru`` at ``x = 1`` (the row of ``v(1)`` is zero): the loop then sets both. The new value
-        at a node depends on the old ones within two nodes, so the columns are read from the step
-        of 16 probe states (the unit states of every eighth node of ``u`` or of ``v``), each entry
-        the step of one unit state, computed by the elementwise formulas above.
+        at a node depends on the old ones at that node and its two neighbours, so the columns are
+        read from the step of 16 probe states (the unit states of every eighth node of ``u`` or of
+        ``v``: no two of a probe reach one node), each entry the step of one unit state, computed
+        by the elementwise formulas above. The matrix is checked against the elementwise step on
+        one state of random values.
         """
         from scipy import sparse  # lazily: scipy.sparse is slow to import
 
@@ -354,9 +356,15 @@ class _LatticeStep:
                 rows.append(np.flatnonzero(hit))
                 cols.append(f * size + k[hit])
                 vals.append(out[f * period + c][hit])
-        return sparse.csr_matrix(
+        T = sparse.csr_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(2 * size, 2 * size)
         )
+        state = np.random.default_rng(0).uniform(-1.0, 1.0, (1, 2 * size))
+        U, V = state[:, :size].copy(), state[:, size:].copy()
+        U[:, -1], V[:, -1] = self(U, V), 0.0
+        if not np.allclose(T @ state[0], np.hstack([U, V])[0], rtol=1e-12, atol=1e-12):
+            raise AssertionError("the lattice step's matrix differs from the elementwise step")
+        return T
 
 
 def march_lattice(
