@@ -182,6 +182,19 @@ def test_reflection_gain_on_a_general_plant_is_said_to_be_a_normal_form_quantity
     assert f"is the gain {-0.05 / scale:.6g} on the plant's u(t, L)" in text
 
 
+def test_a_general_plants_rho_q_is_said_to_be_the_normal_forms(tmp_path):
+    # q rho = 0.54 as written; the classification's rho q is the normal form's (weighted by a and d)
+    _, spec = _plant_text(tmp_path, "ReflectionController", "K = 0.05")
+    cert = certify(spec["system"], spec["controller"], delta_max=0.1, k_region=False)
+    rho_q = spec["system"].normal_form().system.rho * spec["system"].normal_form().system.q
+    assert abs(cert.classification.rho_q - 0.54) > 1e-3  # the two differ on this plant
+    files = write_report(cert, tmp_path / "out")
+    text = " ".join(Path(files.markdown).read_text().split())
+    assert f"Here rho q = {cert.classification.rho_q:.6g} is the normal form's (the plant's rho q = 0.54" in text
+    assert f"{rho_q:.6g}" == f"{cert.classification.rho_q:.6g}"
+    assert "K is read in the normal form's coordinates." in text
+
+
 def test_a_root_map_wider_than_the_certified_region_says_its_rectangle():
     """Delayed chains in Re s > 0 (c_D > 0 at delta_max) widen the maps beyond the certified region of the
     tables, whose counts then differ from the maps' own: the caption gives both rectangles."""

@@ -593,10 +593,13 @@ def _opening(cert: Certificate) -> str:
     given = cert.system if cert.given_system is None else cert.given_system
     normal = ""
     if isinstance(given, GeneralHyperbolic2x2):  # rho q below is the normal form's, not the plant's rho times q
-        normal = (
-            f" Here rho q = {_fmt(cls.rho_q)} is the normal form's (the plant's rho q = {_fmt(given.rho * given.q)} "
-            "weighted by its diagonal terms a and d), and K is read in the normal form's coordinates."
-        )
+        own = float(given.rho * given.q)
+        if not np.isclose(cls.rho_q, own, rtol=1e-12, atol=0.0):
+            normal = (
+                f" Here rho q = {_fmt(cls.rho_q)} is the normal form's (the plant's rho q = {_fmt(own)} weighted by "
+                "its diagonal terms a and d)."
+            )
+        normal += " K is read in the normal form's coordinates."
     if isinstance(controller, (FiniteTimeController, ReflectionController)):
         return cls.statement + normal  # the regimes of |rho q| for U_BS and U_BS2 (Theorems 2 to 4)
     if isinstance(controller, FilteredController) and controller.K is not None:
