@@ -190,6 +190,15 @@ class DelayMargin:
         return max(1e-12 * abs(self.margin), 20.0 * float(self.residual) / max(float(self.omega), 1e-300)) + model
 
     @property
+    def without_crossing(self) -> bool:
+        """True for a margin decided with no crossing to verify: ``inf``, or 0 with no crossing frequency.
+
+        ``verified`` (a crossing's residual and count checked) is then not needed: the reports'
+        verified row and a sweep's ``verified`` column say so.
+        """
+        return bool(np.isposinf(self.margin) or (self.margin == 0.0 and self.omega is None))
+
+    @property
     def method(self) -> str:
         """``"ball arithmetic"`` (``rigorous=True``: proven) or ``"floating point"`` (checked)."""
         return "ball arithmetic" if self.rigorous else "floating point"

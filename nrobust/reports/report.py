@@ -638,11 +638,11 @@ def _rouche_text(cert: Certificate) -> str:
 
 def _verified_text(m: Any) -> str:
     """Whether the margin was checked independently, or why there was nothing to check."""
+    if not m.without_crossing:
+        return _fmt(m.verified)
     if np.isposinf(m.margin):
         return "not needed: infinite, no crossing frequency"
-    if m.margin == 0.0 and m.omega is None:
-        return "not needed: zero, decided without a crossing frequency"
-    return _fmt(m.verified)
+    return "not needed: zero, decided without a crossing frequency"
 
 
 def _interval(lo: float, hi: float) -> str:

@@ -84,19 +84,13 @@ class _Analysis:
 VERIFIED_VALUES = ("yes", "no", "not needed")
 
 
-def _nothing_to_verify(result: Any) -> bool:
-    """An infinite margin, or a zero one decided without a crossing frequency: no crossing to check."""
-    margin = float(result.margin)
-    return margin == math.inf or (margin == 0.0 and getattr(result, "omega", None) is None)
-
-
 def _margin_columns(result: Any) -> dict[str, Any]:
     margin = float(result.margin)
     return {
         "delta_star": margin,
         "nominally_stable": bool(result.nominally_stable),
         "strongly_stable": bool(result.strongly_stable),
-        "verified": VERIFIED_VALUES[2] if _nothing_to_verify(result) else VERIFIED_VALUES[0 if result.verified else 1],
+        "verified": VERIFIED_VALUES[2] if result.without_crossing else VERIFIED_VALUES[0 if result.verified else 1],
     }
 
 
