@@ -372,17 +372,21 @@ def _panel(cert: Certificate) -> _Panel:
     return _Panel(cert.verdict, tuple(lines))
 
 
+def _time_unit(cert: Certificate) -> float:
+    """The seconds of the time unit the plant's delays are in (1 when not said)."""
+    given = cert.system if cert.given_system is None else cert.given_system
+    return float(getattr(given, "time_unit", 1.0))
+
+
 def _rate_unit(cert: Certificate) -> str:
     """`` per time unit (T s)`` for a plant whose delays are in a unit of ``T`` seconds, else empty."""
-    given = cert.system if cert.given_system is None else cert.given_system
-    unit = float(getattr(given, "time_unit", 1.0))
+    unit = _time_unit(cert)
     return "" if unit == 1.0 else f" per time unit ({unit:g} s)"
 
 
 def _unit(cert: Certificate) -> str:
     """`` (time unit: T s)`` for a plant whose delays are in a unit of ``T`` seconds, else empty."""
-    given = cert.system if cert.given_system is None else cert.given_system
-    unit = float(getattr(given, "time_unit", 1.0))
+    unit = _time_unit(cert)
     return "" if unit == 1.0 else f" (time unit: {unit:g} s)"
 
 
