@@ -96,6 +96,7 @@ html_context = {"default_mode": "light"}
 # configuration can be cached. The examples save their figures (``python examples/X.py OUT``
 # writes them into OUT): those files are the gallery's images, not the figures left open.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import gallery_hooks  # noqa: E402  (the directory above, on sys.path)
 
 sphinx_gallery_conf = {
     "examples_dirs": str(ROOT / "examples"),
@@ -237,5 +238,6 @@ def _write_shadowed_modules(app: Any, config: Any = None) -> None:
 
 def setup(app: Any) -> None:
     app.connect("config-inited", _write_shadowed_modules)  # before the sources are listed
+    app.connect("build-finished", gallery_hooks.remove_output)  # examples/out lives during the build only
     app.connect("autodoc-skip-member", _skip_foreign)
     app.connect("missing-reference", _resolve_by_import)

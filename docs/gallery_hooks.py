@@ -1,33 +1,46 @@
 """sphinx-gallery hooks of the nrobust documentation (named in ``docs/conf.py``).
 
-The examples write their figures into the directory given as their first argument: the
-gallery runs each with a directory of its own under ``docs/_build/gallery-output/`` and
-shows the PNG files it wrote, in name order, each on its own row at the size it was saved
-at. The directory is passed relative to the directory the example runs in (sphinx-gallery
-runs it in ``examples/``), so that what an example prints about its output names no path
-of the machine that built the pages.
+The examples write their figures into the directory given as their first argument
+(``python examples/X.py OUT``; default ``out/``). The gallery runs each example in
+``examples/`` (sphinx-gallery's working directory) with the argument ``out``, as a user
+would type it, so that what an example prints about its output (``figures in out/``) names
+no path of the machine that built the pages; it shows the PNG files the example wrote, in
+name order, each on its own row at the size it was saved at. ``examples/out`` exists only
+during the build: :func:`claim_output` creates it (and refuses to touch a directory of that
+name that the build did not create) and :func:`remove_output` deletes it when the build ends.
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 from typing import Any
 
-OUTPUT = Path(__file__).resolve().parent / "_build" / "gallery-output"
+#: The examples' output directory during the build, as the examples see it (``out``).
+OUTPUT = Path(__file__).resolve().parent.parent / "examples" / "out"
+#: The file that marks :data:`OUTPUT` as the build's own.
+MARKER = OUTPUT / ".written-by-the-docs-build"
 
 
-def _output_dir(src_file: str) -> Path:
-    return OUTPUT / Path(src_file).stem
+def claim_output(app: Any = None) -> None:
+    """Create :data:`OUTPUT` for the build; an ``examples/out`` the build did not create is an error."""
+    if OUTPUT.exists() and not MARKER.exists():
+        raise RuntimeError(f"{OUTPUT} exists and was not written by the documentation build: move it away first")
+    shutil.rmtree(OUTPUT, ignore_errors=True)
+    OUTPUT.mkdir(parents=True)
+    MARKER.touch()
+
+
+def remove_output(app: Any = None, exception: BaseException | None = None) -> None:
+    """Delete :data:`OUTPUT` when the build ends (if it is the build's own)."""
+    if MARKER.exists():
+        shutil.rmtree(OUTPUT)
 
 
 def example_argv(gallery_conf: dict[str, Any], script_vars: dict[str, Any]) -> list[str]:
-    """The command line of an example: its own, empty, output directory, as a relative path."""
-    out = _output_dir(script_vars["src_file"])
-    shutil.rmtree(out, ignore_errors=True)
-    out.mkdir(parents=True)
-    return [os.path.relpath(out, Path(script_vars["src_file"]).parent)]
+    """The command line of an example: ``out``, emptied of the previous example's files."""
+    claim_output()
+    return [OUTPUT.name]
 
 
 def written_figures(block: Any, block_vars: dict[str, Any], gallery_conf: dict[str, Any]) -> str:
@@ -38,9 +51,8 @@ def written_figures(block: Any, block_vars: dict[str, Any], gallery_conf: dict[s
     """
     from sphinx_gallery.scrapers import figure_rst
 
-    out = _output_dir(block_vars["src_file"])
     rst = []
-    for png, target in zip(sorted(out.glob("*.png")), block_vars["image_path_iterator"]):
+    for png, target in zip(sorted(OUTPUT.glob("*.png")), block_vars["image_path_iterator"]):
         shutil.copyfile(png, target)
         rst.append(figure_rst([target], gallery_conf["src_dir"], fig_titles=png.stem.replace("_", " ")))
     return "".join(rst)

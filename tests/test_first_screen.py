@@ -391,6 +391,20 @@ def test_a_sweep_chart_with_one_finite_value_has_a_scale_above_it():
     assert (scaled.norm.vmin, scaled.norm.vmax) == (0.0, 1.0)
 
 
+def test_a_geometric_sweep_axis_is_drawn_in_log_scale_with_cells_centred_on_their_samples():
+    """K = 1e-3, 1e-2, 1e-1 (a geometric sweep): cells end at the geometric means (10^-2.5,
+    10^-1.5), not at the arithmetic midpoints (0.0055, 0.055) that would give the first sample a
+    sliver and the last a wide cell; the even axis b keeps linear cells; the samples are marked."""
+    result = sweep(_unit_margin, grid(a=[1e-3, 1e-2, 1e-1], b=[0.0, 0.5, 1.0]), executor="serial", progress=False)
+    ax = sweep_chart(result, ["a", "b"], {}, False).axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
+    corners = ax.collections[0].get_coordinates()  # (rows + 1, columns + 1, 2): the cells' corners
+    np.testing.assert_allclose(corners[0, :, 0], [10**-3.5, 10**-2.5, 10**-1.5, 10**-0.5], rtol=1e-12)
+    np.testing.assert_allclose(corners[:, 0, 1], [-0.25, 0.25, 0.75, 1.25], rtol=0, atol=1e-15)
+    dots = [line for line in ax.get_lines() if line.get_marker() == "."]
+    assert len(dots) == 1 and len(dots[0].get_xdata()) == 9
+
+
 def test_a_resumed_sweep_says_how_many_points_it_kept_from_which_journal(tmp_path, caplog):
     journal = tmp_path / "sweep.jsonl"
     points = grid(a=[0.0, 0.5], b=[0.0, 0.5, 1.0])

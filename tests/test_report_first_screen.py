@@ -213,3 +213,57 @@ def test_a_root_map_wider_than_the_certified_region_says_its_rectangle():
     region = re.search(r"certified region of the tables, Re s in \[(\S+), (\S+)\], Im s in \[(\S+), (\S+)\]", caption)
     assert region is not None
     np.testing.assert_allclose([float(v.rstrip(",")) for v in region.groups()], cert.region, rtol=5e-4)
+
+
+def test_root_counts_are_named_as_the_claims_name_them(filtered, tmp_path):
+    """A float certificate's root counts are "checked in floating point" everywhere (the quantities
+    table, the root maps' titles, the per-box table), as its claims are: never "certified" beside a
+    claim marked checked."""
+    md = write_report(filtered, tmp_path).markdown.read_text()
+    for delta in ("0", "0.5"):
+        row = next(line for line in md.splitlines() if line.startswith(f"| roots in the region, delta = {delta} |"))
+        assert "(checked in floating point)" in row, row
+    assert "certified: yes" not in md and "Certified root counts" not in md
+    assert "Root counts per box (argument principle with a step control, checked in floating point):" in md
+
+
+def test_proven_abscissa_claim_states_its_bracket(tmp_path):
+    """The proven abscissa claim gives the bracket that holds the value (ln(rho q - K q)/tau for
+    U_BS2(K) at delta = 0, closed form), so that its bound, the bracket's right end, is seen to be
+    looser than the value beside it for a reason."""
+    import mpmath
+
+    cert = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True)
+    claim = next(c for c in cert.claims if c.name == "spectral abscissa")
+    match = re.search(r"has Re s in \[(\S+), (\S+)\]: no zero with Re s > (\S+)$", claim.statement)
+    assert match, claim.statement
+    lo, hi, bound = (float(g) for g in match.groups())
+    exact = float(mpmath.log(mpmath.mpf("0.85") - mpmath.mpf("0.1")) / 2)
+    assert lo <= exact <= hi and hi == bound and hi - lo < 1e-6
+    md = write_report(cert, tmp_path).markdown.read_text()
+    assert claim.statement in md
+
+
+def test_a_sampled_coefficient_is_reported_by_its_samples_and_the_splines_undershoot_apart():
+    """Samples 1, 1, 0.1, 0.1, 1 of ``a``: the plant line gives the samples' range [0.1, 1]; the
+    cubic spline through them dips below 0 between the two low samples (not-a-knot, checked here
+    with scipy's own spline), which the line names as the model's range, not as data."""
+    from scipy.interpolate import make_interp_spline
+
+    from nrobust.reports.report import _plant_blocks
+
+    x, v = [0.0, 0.25, 0.5, 0.75, 1.0], [1.0, 1.0, 0.1, 0.1, 1.0]
+    spline_min = float(make_interp_spline(x, v, k=3)(np.linspace(0, 1, 100001)).min())
+    assert spline_min < -0.04
+    plant = GeneralHyperbolic2x2(lam=1.0, mu=1.0, a=(x, v), b=0.0, c=0.0, d=0.0, q=1.0, rho=0.5)
+    cert = SimpleNamespace(system=plant, given_system=None, controller=StateFeedback(-0.5), given_controller=None)
+    line = _plant_blocks(cert)[0].text
+    match = re.search(
+        r"a = 5 samples in \[0\.1, 1\] \(the cubic spline through them, the model analysed, ranges over "
+        r"\[(\S+), (\S+)\]\)",
+        line,
+    )
+    assert match, line
+    # six digits, each true: the dense grid's minimum (step 1e-5) is within 1e-9 of the spline's
+    spline_max = float(make_interp_spline(x, v, k=3)(np.linspace(0, 1, 100001)).max())
+    assert match.groups() == (f"{spline_min:.6g}", f"{spline_max:.6g}")

@@ -224,6 +224,7 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import ListedColormap
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     table = result.table()
@@ -274,23 +275,26 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
             high = low + max(abs(low), 1.0)
         # the finite values on the colour scale; an infinite value is no colour of the scale
         # (its top would read as the largest finite value): white, hatched, in the legend
+        # cells bounded half-way between samples (geometrically on a log-spaced axis, which is
+        # then drawn in log scale), and a dot at each sample: the values are the samples'
+        (x_edges, x_log), (y_edges, y_log) = _cell_edges(xs), _cell_edges(ys)
         mesh = ax.pcolormesh(
-            xs,
-            ys,
+            x_edges,
+            y_edges,
             np.ma.masked_invalid(grid_vals),
-            shading="nearest",
+            shading="flat",
             cmap=matplotlib.colormaps["viridis"].with_extremes(bad="lightgray"),
             vmin=low,
             vmax=high,
         )
         fig.colorbar(mesh, ax=ax, label=f"{y} (finite)")
-        handles = []
+        handles: list[Any] = []
         if infinite.any():
             ax.pcolor(
-                xs,
-                ys,
+                x_edges,
+                y_edges,
                 np.ma.masked_where(~infinite, np.ones_like(grid_vals)),
-                shading="nearest",
+                shading="flat",
                 cmap=ListedColormap(["white"]),
                 hatch="///",
                 edgecolor="0.25",
@@ -299,6 +303,13 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
             handles.append(Patch(facecolor="white", edgecolor="0.25", hatch="///", label=f"{y} = inf"))
         if (~ok).any() or np.isnan(grid_vals).any():
             handles.append(Patch(facecolor="lightgray", label="failed or missing"))
+        gx, gy = np.meshgrid(xs, ys)
+        ax.plot(gx.ravel(), gy.ravel(), ".", color="0.15", ms=2.0)
+        handles.append(Line2D([], [], ls="", marker=".", color="0.15", ms=4.0, label="sample (cells half-way between)"))
+        if x_log:
+            ax.set_xscale("log")
+        if y_log:
+            ax.set_yscale("log")
         if handles:
             ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=2, fontsize="small")
         ax.set_xlabel(x)
@@ -329,3 +340,27 @@ def sweep_chart(result: SweepResult, swept: Sequence[str], plot: Mapping[str, st
         ax.set_ylabel(y)
     ax.set_title(title, fontsize="medium")
     return fig
+
+
+def _cell_edges(values: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The edges of the cells around sorted samples, and whether the axis is log-spaced.
+
+    A positive axis whose ratios are more even than its differences (a geometric sweep, say
+    ``K = 1e-3 ... 1e-1``) is log-spaced: its cells end at the geometric means of neighbours
+    and it is drawn in log scale, so each cell is centred on its sample as the eye reads it.
+    Otherwise the cells end at the arithmetic midpoints. A single sample gets a cell of width
+    1 (or of ``|value|``) around it.
+    """
+    v = np.asarray(values, dtype=float)
+    if v.size == 1:
+        half = 0.5 * (abs(v[0]) or 1.0)
+        return np.array([v[0] - half, v[0] + half]), False
+    steps = np.diff(v)
+    log = bool(v[0] > 0 and v.size > 2)
+    if log:
+        ratios = np.diff(np.log(v))
+        log = bool(np.ptp(ratios) / np.mean(ratios) < np.ptp(steps) / np.mean(steps))
+    w = np.log(v) if log else v
+    inner = 0.5 * (w[1:] + w[:-1])
+    edges = np.concatenate([[w[0] - (inner[0] - w[0])], inner, [w[-1] + (w[-1] - inner[-1])]])
+    return (np.exp(edges) if log else edges), log

@@ -500,9 +500,7 @@ def _claims(
     out.append(
         Claim(
             "spectral abscissa",
-            "F(s; 0) has no zero at all"
-            if np.isneginf(abscissa.value)
-            else f"no zero of F(s; 0) with Re s > {_outward(abscissa.upper_bound, 10, True)}",
+            "F(s; 0) has no zero at all" if np.isneginf(abscissa.value) else _abscissa_statement(abscissa),
             status(abscissa.rigorous and abscissa.certified),
             "spectral_abscissa",
         )
@@ -531,6 +529,23 @@ def _claims(
             )
         )
     return tuple(out)
+
+
+def _abscissa_statement(abscissa: SpectralAbscissa) -> str:
+    """The abscissa claim: the bound it proves, and how that bound stands to the value the tables give.
+
+    The claim is the upper end (``F`` has no zero right of it), rounded up to 10 digits; with a
+    proven ``value_bracket`` its lower end too, so that a reader sees why the bound is looser
+    than the estimated value beside it (the value is inside the bracket, the bound its right end).
+    """
+    hi = _outward(abscissa.upper_bound, 10, True)
+    if abscissa.rigorous and abscissa.value_bracket is not None:
+        lo = _outward(abscissa.value_bracket[0], 10, False)
+        return f"the rightmost zero of F(s; 0) has Re s in [{lo}, {hi}]: no zero with Re s > {hi}"
+    return (
+        f"no zero of F(s; 0) with Re s > {hi} (a bound above the spectral abscissa; the value in the "
+        "quantities table is the rightmost root found)"
+    )
 
 
 def _versions() -> dict[str, str]:

@@ -47,6 +47,9 @@ from .certificate import PROVEN, Certificate
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from ..plots.rootmap import RootMapData
+    from ..roots import RootSet
+
 __all__ = [
     "RenderedFigures",
     "ReportFiles",
@@ -273,7 +276,7 @@ def _roots_figure(cert: Certificate) -> tuple[str, Figure]:
         data = root_map_response(F, box, roots=roots if same else None, chains=principal.chains)
         drawn = data.plot(ax=ax)
         notes += [f" At delta = {delta:g}: {note.get_text()}".replace("\n", " ") for note in drawn.lines["note"]]
-        ax.set_title(f"roots at delta = {delta:g}: {data.count} (certified: {_fmt(data.certified)})", fontsize="small")
+        ax.set_title(f"roots at delta = {delta:g}: {data.count} ({_count_status(data)})", fontsize="small")
     axes[1].set_ylabel("")
     for ax in (chart_ax, *axes):  # their limits final (the maps share their y axis)
         pin_title(ax)
@@ -398,13 +401,32 @@ def _number(value: Any) -> str:
 
 
 def _profile_text(plant: GeneralHyperbolic2x2, name: str) -> str:
-    """A coefficient of a general plant: its number, or the range of its values on ``[0, L]`` (101 points, 6 digits)."""
+    """A coefficient of a general plant: its number, or the range of its values on ``[0, L]`` (6 digits).
+
+    A function: the range of 101 values on ``[0, L]``. Samples: the range of the samples the
+    user gave, and, when the cubic spline through them (the model analysed) leaves that range
+    between samples, the spline's range too (its extremes exactly: the zeros of its derivative),
+    so that an undershoot is not read as data.
+    """
     profile = plant.profiles[name]
     if profile.constant:
         return _number(profile.describe())
-    values = np.asarray(profile(np.linspace(0.0, plant.length, 101)), dtype=float)
+    if not isinstance(profile.value, tuple):
+        values = np.asarray(profile(np.linspace(0.0, plant.length, 101)), dtype=float)
+        low, high = _fmt(values.min()), _fmt(values.max())
+        return low if low == high else f"varying in [{low}, {high}]"
+    from scipy.interpolate import PPoly  # lazily, as the plant's own spline
+
+    # the spline's extremes: at the ends and where its derivative vanishes (exactly, piece by piece)
+    stationary = PPoly.from_spline(profile.spline.derivative()).roots(extrapolate=False)
+    values = profile(np.concatenate([[0.0, plant.length], stationary[np.isfinite(stationary)]]))
     low, high = _fmt(values.min()), _fmt(values.max())
-    return low if low == high else f"varying in [{low}, {high}]"
+    samples = np.asarray(profile.value[1], dtype=float)
+    s_low, s_high = _fmt(samples.min()), _fmt(samples.max())
+    text = f"{samples.size} samples in [{s_low}, {s_high}]"
+    if (low, high) != (s_low, s_high) and (values.min() < samples.min() or values.max() > samples.max()):
+        text += f" (the cubic spline through them, the model analysed, ranges over [{low}, {high}])"
+    return text
 
 
 def _plant_blocks(cert: Certificate, with_controller: bool = True) -> list[_Paragraph]:
@@ -526,12 +548,12 @@ def _certificate_blocks(
         ),
         (
             "roots in the region, delta = 0",
-            f"{cert.roots_nominal.count} (certified: {_fmt(cert.roots_nominal.certified)})",
+            f"{cert.roots_nominal.count} ({_count_status(cert.roots_nominal)})",
             "find_roots",
         ),
         (
             f"roots in the region, delta = {cert.delta_max:g}",
-            f"{cert.roots_delayed.count} (certified: {_fmt(cert.roots_delayed.certified)})",
+            f"{cert.roots_delayed.count} ({_count_status(cert.roots_delayed)})",
             "find_roots",
         ),
         ("region (Re min, Re max, Im min, Im max)", ", ".join(_fmt(v, 4) for v in cert.region), "certify"),
@@ -570,10 +592,25 @@ def _certificate_blocks(
         for box, c in zip(np.asarray(rs.boxes).reshape(-1, 4), rs.box_counts)
     )
     if box_rows:
-        blocks.append(_Paragraph("Certified root counts per box (argument principle with a certified step):"))
+        how = (
+            "proven in ball arithmetic"
+            if cert.roots_nominal.rigorous and cert.roots_delayed.rigorous
+            else "checked in floating point"
+        )
+        blocks.append(_Paragraph(f"Root counts per box (argument principle with a step control, {how}):"))
         blocks.append(_Table(("loop", "box", "roots"), box_rows, summary=f"{len(box_rows)} boxes, one root count each"))
     blocks += pictures[1:]
     return blocks, rendered
+
+
+def _count_status(roots: RootSet | RootMapData) -> str:
+    """How a root count is known, in the words of the claims: proven, checked, or not settled.
+
+    A root map's own count (its wider rectangle) is always a floating-point one.
+    """
+    if not roots.certified:
+        return "not every root accounted for"
+    return "proven in ball arithmetic" if getattr(roots, "rigorous", False) else "checked in floating point"
 
 
 def _at_delta_max(text: str, cert: Certificate) -> str:
