@@ -419,3 +419,34 @@ def test_root_map_region_work_bound_keeps_the_base():
     assert capped[3] < 300.0
     wide = plots.root_map_region(F, base=(-1.0, 0.5, -200.0, 200.0), abscissa=sa, max_roots=100)
     assert wide[2] == -200.0 and wide[3] == 200.0
+
+
+def test_the_legend_keeps_off_a_note_in_the_corner_it_would_take():
+    """Lines in three corners, the lower left empty: the legend goes there, unless a note placed
+    in axes fractions (the simulation plot's "axis cut at ...") stands there."""
+    from nrobust.plots.base import legend_corner
+
+    fig, ax = plt.subplots()
+    for x, y in ((0.9, 0.9), (0.1, 0.9), (0.9, 0.1)):
+        ax.plot([x - 0.05, x + 0.05], [y, y], "k-")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    assert legend_corner(ax) == "lower left"
+    ax.text(0.01, 0.02, "axis cut at 1e-04", transform=ax.transAxes)
+    assert legend_corner(ax) != "lower left"
+    plt.close(fig)
+
+
+def test_the_paper_figure_1_legend_does_not_hide_its_axis_cut_note():
+    """Figure 1 of ``nrobust paper``: the legend's box and the note's box do not overlap when drawn."""
+    from nrobust.reports.paper import paper_figure
+
+    fig = paper_figure(1)
+    ax = fig.axes[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    notes = [t for t in ax.texts if t.get_text().startswith("axis cut")]
+    assert notes
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not any(legend.overlaps(t.get_window_extent(renderer)) for t in notes)
+    plt.close(fig)

@@ -108,7 +108,8 @@ def legend_corner(ax: Axes, width: float = 0.45, height: float = 0.35) -> Corner
     What ``loc="best"`` decides, for the four corners, from the vertices of the lines drawn in
     data coordinates: matplotlib's search also tests every line segment against nine candidate
     boxes when the figure is drawn, which on a curve of a few thousand points (a Nyquist plot)
-    costs more than the rest of the figure. Call it once the axes' limits are final.
+    costs more than the rest of the figure. A text placed in axes fractions (a note) takes its
+    corner. Call it once the axes' limits are final.
     """
     data = [ln.get_xydata() for ln in ax.get_lines() if ln.get_transform() == ax.transData]
     points = np.vstack(data) if data else np.zeros((0, 2))
@@ -120,6 +121,19 @@ def legend_corner(ax: Axes, width: float = 0.45, height: float = 0.35) -> Corner
     left, bottom = xy[:, 0] <= width, xy[:, 1] <= height
     inside = (0.0 <= xy).all(axis=1) & (xy <= 1.0).all(axis=1)
     counts = [int(np.sum(inside & a & b)) for a, b in ((right, top), (left, top), (left, bottom), (right, bottom))]
+    # a note placed in axes fractions (the simulation plot's "axis cut at ..."): its corner is taken
+    for note in (t for t in ax.texts if t.get_transform() == ax.transAxes and t.get_text()):
+        nx, ny = note.get_position()
+        for k, (cx, cy) in enumerate(
+            (
+                (nx >= 1.0 - width, ny >= 1.0 - height),
+                (nx <= width, ny >= 1.0 - height),
+                (nx <= width, ny <= height),
+                (nx >= 1.0 - width, ny <= height),
+            )
+        ):
+            if cx and cy:
+                counts[k] = len(xy) + 1
     return _CORNERS[counts.index(min(counts))]
 
 
