@@ -98,7 +98,7 @@ def test_delayed_root_map_needs_no_second_abscissa_search(filtered, monkeypatch)
 def test_float_path_says_what_it_guarantees_and_how_to_prove(infinite):
     cert = infinite
     assert not cert.rigorous
-    assert "certified integers" in cert.scope and "argument principle" in cert.scope
+    assert "integers checked in floating point" in cert.scope and "argument principle" in cert.scope
     assert "checked" in cert.scope and "not proven" in cert.scope
     assert "rigorous = true" in cert.scope and "[analysis]" in cert.scope
 
@@ -210,7 +210,9 @@ def test_a_root_map_wider_than_the_certified_region_says_its_rectangle():
     assert said is not None, caption
     # 4 significant digits of the rectangle drawn (the map's limits are the rectangle's)
     np.testing.assert_allclose([float(v) for v in said.groups()], [re_lo, re_hi, im_lo, im_hi], rtol=5e-4)
-    region = re.search(r"certified region of the tables, Re s in \[(\S+), (\S+)\], Im s in \[(\S+), (\S+)\]", caption)
+    region = re.search(
+        r"region of the tables \(the certificate's\), Re s in \[(\S+), (\S+)\], Im s in \[(\S+), (\S+)\]", caption
+    )
     assert region is not None
     np.testing.assert_allclose([float(v.rstrip(",")) for v in region.groups()], cert.region, rtol=5e-4)
 

@@ -129,8 +129,8 @@ PROVEN = "proven (ball arithmetic)"
 CHECKED = "checked (floating point)"
 #: What a certificate computed without ``rigorous`` guarantees, and how to get proofs.
 FLOAT_SCOPE = (
-    "Without proofs, the root counts are still certified integers: the argument principle with a step "
-    "control that bounds the change of argument between samples. The floating-point values (the delay margin, "
+    "Without proofs, the root counts are integers checked in floating point: the argument principle with a "
+    "step control that bounds the change of argument between samples. The other values (the delay margin, "
     "the crossing frequencies, the spectral abscissa, the Rouché range) are checked with a rounding "
     "allowance, not proven. To prove them in ball arithmetic (python-flint, pip install nrobust[rigorous]): "
     "rigorous = true in the [analysis] table of SYSTEM.toml, or certify(..., rigorous=True)."

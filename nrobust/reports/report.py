@@ -285,7 +285,7 @@ def _roots_figure(cert: Certificate) -> tuple[str, Figure]:
     wider = (
         ""
         if same
-        else f" The maps' rectangle, {_rectangle(box)}, is wider than the certified region of the tables, "
+        else f" The maps' rectangle, {_rectangle(box)}, is wider than the region of the tables (the certificate's), "
         f"{_rectangle(cert.region)}, so that the rightmost roots and the chains show: its counts are its own."
     )
     return (
