@@ -64,7 +64,7 @@ speeds (:mod:`~nrobust.hyperbolic.nplusm.speed_box`), the scenarios of :class:`N
 iterate meets the windows and ``gamma_max`` on each, and the window clearance and the phase before the first
 take the worst of them. The design is then certified at the vertices and checked at the other points of a
 grid of 3 points per speed (:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they
-sit in ``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices does not imply it
+sit in ``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it
 inside the box, which is not certified between the points.
 
 **Local.** The optimum is local: the best of the starts, each ending where neither the line

@@ -10,7 +10,7 @@ Each speed has its own error: the plant transports ``u_i`` at ``lam_i (1 + e_i)`
 ``Phi(s) = exp(Lambda^{-1} (Sigma - s I))``: not affinely (not even on an uncoupled plant, where
 they move the round trips ``1/lam_i + 1/mu_j`` inside exponentials of ``s``), and the stability
 windows of a delay loop are not continuous in its data (a pair of crossing frequencies is born where
-``|A(i w)| = |B(i w)|`` gains a double zero). So stability at the vertices does not imply it inside
+``|A(i w)| = |B(i w)|`` gains a double zero). So stability at the vertices need not imply it inside
 the box: the verdicts at the vertices are certified, those at the other points of the grid are
 computed by the same certified tools at those points only, and the box between the points is not
 certified (:class:`NPlusMSpeedTolerance` says so in its statement), as for the square of the 2x2
@@ -207,7 +207,7 @@ class NPlusMSpeedTolerance:
                 f"the {dimension} relative speed errors ({how}), and at the {len(points) - vertices} other points of "
                 "the grid of 3 points per speed (by the same tools, at those points only); between the points not "
                 "certified: the speeds enter the loop through exp(Lambda^-1 (Sigma - s I)) and E(s), not affinely, "
-                "and the stability windows are not continuous in them, so stability at the vertices does not imply "
+                "and the stability windows are not continuous in them, so stability at the vertices need not imply "
                 "it inside the box"
             )
         return cls(eps, delays, points, vertices, windows, met, certified, statement)
