@@ -35,6 +35,7 @@ from .hyperbolic.loops.controllers import (
     loop_route,
     normalize,
 )
+from .hyperbolic.nplusm.speed_box import check_box_tolerance
 from .hyperbolic.nplusm.system import NPlusMSystem
 from .hyperbolic.plants.frontends import arz, saint_venant
 from .hyperbolic.plants.general import GeneralHyperbolic2x2
@@ -194,12 +195,14 @@ _DESIGN_KEYS: dict[str, Any] = {
 _STATE_FEEDBACK_KEYS = ("k_bounds", "basis", "coefficient_bounds", "kernel_grid")
 _GAIN_KEYS = ("K", "a", "b", "observer_delay")
 #: Keys of ``[design]`` in an ``NPlusMSystem`` file (family ``"nplusm"``,
-#: :func:`~nrobust.hyperbolic.nplusm.design_nplusm_gains`'s parameters) and their defaults.
+#: :func:`~nrobust.hyperbolic.nplusm.design_nplusm_gains`'s parameters) and their defaults;
+#: ``speed_tolerance``: the relative error of every speed in (0, 1), with a delay requirement.
 _NPLUSM_DESIGN_KEYS: dict[str, Any] = {
     "family": "nplusm",
     "objective": "decay_rate",
     "margin_at_least": None,
     "delays": None,
+    "speed_tolerance": None,
     "K_bounds": None,
     "x0": None,
     "starts": 4,
@@ -527,6 +530,17 @@ def _nplusm_design(table: Any, system: NPlusMSystem) -> dict[str, Any]:
             raise ParameterError(f"design.{key}", "an integer in [1, 1000]", v)
     if not isinstance(d["rigorous"], bool):
         raise ParameterError("design.rigorous", "true or false", d["rigorous"])
+    if d["speed_tolerance"] is not None:
+        # (0, 1) and at most MAX_SPEED_CORNERS vertices of the box of the n + m speeds' errors
+        d["speed_tolerance"] = check_box_tolerance(
+            _number("design.speed_tolerance", d["speed_tolerance"]), system, "design.speed_tolerance"
+        )
+        if d["delays"] is None and d["margin_at_least"] is None:
+            raise ParameterError(
+                "design.speed_tolerance",
+                "given with a delay requirement (design.delays or design.margin_at_least) that the speeds must keep",
+                d["speed_tolerance"],
+            )
     return d
 
 

@@ -156,10 +156,10 @@ def test_nplusm_command_with_a_window(tmp_path: Path) -> None:
 
 def test_the_command_line_overrides_the_nplusm_file(tmp_path: Path) -> None:
     """``--k-bounds`` and ``--family nplusm`` reach the design (the bounds pin the gain: one point wide
-    around the bound of the file), ``--speed-tolerance`` is refused for ``n + m`` (exit code 2)."""
+    around the bound of the file), a ``--speed-tolerance`` outside ``(0, 1)`` is refused (exit code 2)."""
     system = tmp_path / "SYSTEM.toml"
     system.write_text(NPLUSM_TOML.replace("x0 = [[-0.4]]\n", ""))
-    assert main(["design", str(system), "-o", str(tmp_path / "bad"), "--speed-tolerance", "0.1"]) == 2
+    assert main(["design", str(system), "-o", str(tmp_path / "bad"), "--speed-tolerance", "1.5"]) == 2
     assert main(["design", str(system), "-o", str(tmp_path / "sf"), "--family", "state_feedback"]) == 2
     state = tmp_path / "STATE.toml"
     state.write_text(STATE_TOML)

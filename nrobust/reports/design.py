@@ -428,6 +428,13 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
         proof = "certified" if w.certified else "not certified"
         extra = f", crossing delay {w.crossing:.6g} inside" if w.crossing is not None else ""
         lines.append(f"  - window [{w.window[0]!r}, {w.window[1]!r}]: {verdict}, {proof} ({w.how}{extra})")
+    t = result.tolerance
+    if t is not None:
+        lines.append(
+            f"- speed tolerance {float(t.eps)!r} on every speed: {'met' if t.met else 'not met'} at the "
+            f"{len(t.points)} points examined, {t.certified}"
+        )
+        lines.append(f"  - {t.statement}")
     lines.append(f"- certified: {'yes' if result.certified else 'no'}")
     lines.append(f"- optimality: {result.optimality}")
     return lines + _start_lines(result.runs)
@@ -495,10 +502,12 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
             f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
         )
     if isinstance(result, NPlusMGainDesign):
+        t = result.tolerance
+        tolerance = "" if t is None else f"; speed tolerance {float(t.eps)!r}: {t.certified}"
         return (
             f"K = {[list(row) for row in result.K]}: {result.objective} = "
             f"{with_accuracy(result.value, result.accuracy)} (a local optimum; certified: "
-            f"{'yes' if result.certified else 'no'})"
+            f"{'yes' if result.certified else 'no'}{tolerance})"
         )
     if isinstance(result, StateFeedbackDesign):
         sf = result.design
@@ -536,7 +545,8 @@ def run_design(
     ``family = "reflection"`` or ``"filtered"``, ``delays`` with ``"output_feedback"`` and
     ``"collocated_output_feedback"`` too; ``"state_feedback"`` takes both, and ``K_bounds`` are its
     ``k_bounds``; an ``NPlusMSystem`` file's family is ``"nplusm"``, ``K_bounds`` a pair for every
-    entry of ``K``, ``delays`` its windows, no speed tolerance). The report states each
+    entry of ``K``, ``delays`` its windows, ``speed_tolerance`` the relative error of every speed).
+    The report states each
     requirement and whether it is met and proven. The file and ``out_dir`` are checked before any computation; the
     files are written as one set (:class:`~nrobust.reports.outputs.RunOutputs`). Returns the
     written paths and the design.
@@ -691,11 +701,8 @@ def _run_nplusm(
     """``nrobust design`` on an ``NPlusMSystem`` file: the gain matrix ``K`` (family ``"nplusm"``)."""
     if family is not None and family != "nplusm":
         raise ParameterError("family (--family)", '"nplusm" for an NPlusMSystem file', family)
-    if speed_tolerance is not None:
-        raise ParameterError(
-            "speed_tolerance (--speed-tolerance)", 'left out for family = "nplusm" (not supported)', speed_tolerance
-        )
     given: dict[str, Any] = spec.get("design") or {}
+    speed_tolerance = speed_tolerance if speed_tolerance is not None else given.get("speed_tolerance")
     objective = objective or given.get("objective", "decay_rate")
     margin_at_least = margin_at_least if margin_at_least is not None else given.get("margin_at_least")
     windows: Any = delays if delays is not None else given.get("delays")
@@ -715,6 +722,7 @@ def _run_nplusm(
             starts=int(given.get("starts", 4)),
             max_iter=int(given.get("max_iter", 60)),
             rigorous=rigorous,
+            speed_tolerance=speed_tolerance,
         )
         lines = _nplusm_markdown(path, result)
         lines += ["", "![the certified delay margin along the gains t K, the design at t = 1](design.png)"]
@@ -724,7 +732,7 @@ def _run_nplusm(
             "family": "nplusm",
             "margin_at_least": margin_at_least,
             "delays": windows,
-            "speed_tolerance": None,
+            "speed_tolerance": speed_tolerance,
             **result.to_dict(),
         }
         written = [

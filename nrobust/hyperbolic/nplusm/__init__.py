@@ -2,7 +2,8 @@
 characteristic function (``characteristic``) and its compound form (``compound``), the delay
 margins (``margin``), the partial cancellations (``cancellation``), the backstepping kernels
 and the full-state controller (``kernels``), the proven bound of the grid kernels' error
-(``kernel_error``), the design of the gain matrix ``K`` (``design``).
+(``kernel_error``), the design of the gain matrix ``K`` (``design``) and the box of speed errors it may
+be required to tolerate (``speed_box``).
 
 The simulation moved to :mod:`nrobust.hyperbolic.simulate` (``simulate_nplusm``,
 ``NPlusMSimulation``, the scheme ``"n+m characteristics"`` of ``simulate``); the old names here
@@ -22,6 +23,7 @@ from .design import (
     default_gain_bounds,
     design_nplusm_gains,
     gain_gradient,
+    nplusm_speed_tolerance,
     principal_gamma,
 )
 from .kernel_error import KernelErrorBound, kernel_error_bound
@@ -40,6 +42,7 @@ from .margin import (
     nplusm_delay_margin,
     pencil_crossings,
 )
+from .speed_box import NPlusMSpeedTolerance
 from .system import NPlusMSystem
 
 __all__ = [
@@ -54,6 +57,7 @@ __all__ = [
     "NPlusMGainProblem",
     "NPlusMKernels",
     "NPlusMMargin",
+    "NPlusMSpeedTolerance",
     "NPlusMSystem",
     "NPlusMWindow",
     "backstepping_delay_margin",
@@ -69,6 +73,7 @@ __all__ = [
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
+    "nplusm_speed_tolerance",
     "pencil_crossings",
     "principal_gamma",
     "solve_nplusm_kernels",

@@ -58,6 +58,15 @@ window, and no zero in ``Re s >= 0`` at ``delta = d_min`` (the nominal count whe
 lies below ``d_min``, else :func:`~nrobust.roots.count_roots` of ``F(.; d_min)`` on ``[0, W] x
 [-W, W]``: ``W`` bounds the zeros in ``Re s >= 0`` for every delay).
 
+**Speed tolerance.** ``speed_tolerance=eps`` holds the windows (a required margin ``d`` is the window
+``[0, d]``) with the same ``K`` on the plants at the ``2^(n+m)`` vertices of the box of relative errors of the
+speeds (:mod:`~nrobust.hyperbolic.nplusm.speed_box`), the scenarios of :class:`NPlusMGainProblem`: every
+iterate meets the windows and ``gamma_max`` on each, and the window clearance and the phase before the first
+take the worst of them. The design is then certified at the vertices and checked at the other points of a
+grid of 3 points per speed (:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they
+sit in ``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it
+inside the box, which is not certified between the points.
+
 **Local.** The optimum is local: the best of the starts, each ending where neither the line
 search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
 bounds (:class:`~nrobust.design.LoopDesign` says the same of the scalar designs). For one
@@ -79,6 +88,7 @@ from ..._json import json_safe
 from ..._newton import newton
 from ..._threads import one_blas_thread
 from ..._validate import finite_real, positive_int
+from ...design.gain import check_delays
 from ...design.local import (
     ABOVE_LINE,
     BELOW_REQUIREMENT,
@@ -95,6 +105,7 @@ from ...roots import SpectralAbscissa, count_roots, spectral_abscissa
 from ...sweeps.executors import sweep_map
 from .characteristic import EPS, NPlusMCharacteristic
 from .margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin
+from .speed_box import NPlusMSpeedTolerance, check_box_tolerance, perturbed_system, speed_box
 from .system import NPlusMSystem
 
 __all__ = [
@@ -105,6 +116,7 @@ __all__ = [
     "design_nplusm_gains",
     "check_window",
     "gain_gradient",
+    "nplusm_speed_tolerance",
     "principal_gamma",
     "window_clearance",
 ]
@@ -389,6 +401,53 @@ def check_window(system: NPlusMSystem, K: ArrayLike, dm: NPlusMMargin, window: t
     return NPlusMWindow((lo, hi), n == 0, dm.certified, None, n, how)
 
 
+def nplusm_speed_tolerance(system: NPlusMSystem, K: ArrayLike, eps: float, delays: Any) -> NPlusMSpeedTolerance:
+    """Stability of ``U = K u(t - delta, 1)`` on windows of delays under relative speed errors ``|e_i| <= eps``.
+
+    At each vertex of the box of ``n + m`` speed errors (:func:`~.speed_box.speed_box`) and at the other
+    points of its grid of 3 points per speed, the plant with the perturbed speeds
+    (:func:`~.speed_box.perturbed_system`) gets its certified delay margin (:func:`nplusm_delay_margin`,
+    :func:`multi_actuator_delay_margin` for several actuators) and a verdict on each window
+    (:func:`check_window`: no crossing delay in it, a certified count at its start). Certified at those
+    points; the box between them is not (:mod:`~.speed_box`: the speeds do not enter the loop affinely).
+
+    Parameters
+    ----------
+    system : NPlusMSystem
+    K : array_like, shape (m, n)
+    eps : float
+        The tolerance, in ``(0, 1)``, with at most :data:`~.speed_box.MAX_SPEED_CORNERS` vertices.
+    delays : (float, float) or sequence of them
+        The windows ``[d_min, d_max]`` (a required margin ``d`` is ``(0, d)``).
+
+    Returns
+    -------
+    NPlusMSpeedTolerance
+
+    Raises
+    ------
+    ParameterError
+        A bad argument, before any work.
+    CertificationError
+        A delay margin failed at a point.
+    """
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", type(system).__name__)
+    k = system.gain(K)
+    eps = check_box_tolerance(eps, system, "eps")
+    windows = _merged(check_windows(delays))
+    if not windows:
+        raise ParameterError("delays", "a window (d_min, d_max) or a sequence of them", delays)
+    vertices, others = speed_box(system.n + system.m, eps)
+    points = (*vertices, *others)
+    verdicts = []
+    for errors in points:
+        plant = perturbed_system(system, errors)
+        dm = _margin(plant, k)
+        verdicts.append(tuple(check_window(plant, k, dm, w) for w in windows))
+    return NPlusMSpeedTolerance.from_verdicts(eps, windows, points, len(vertices), tuple(verdicts))
+
+
 def _margin(system: NPlusMSystem, K: NDArray[np.float64]) -> NPlusMMargin:
     """The certified delay margin: :func:`nplusm_delay_margin` for one actuator, else the compound form."""
     if system.m == 1:
@@ -437,6 +496,11 @@ class NPlusMGainProblem:
         Windows of delays (ascending, disjoint) on which a feasible ``K`` is stable (module notes);
         ``want="margin"`` is then minus the window margin, ``want="abscissa"`` the largest spectral
         abscissa at ``delta = 0`` and at each ``d_min``.
+    scenarios : tuple of NPlusMSystem
+        Further plants (the vertices of a box of speed errors, :func:`~.speed_box.perturbed_system`)
+        held with the same ``K`` to the windows and to ``gamma_max``: a feasible ``K`` meets them on every
+        one, the window margin and the phase before the first take the worst of the plant and these.
+        Only with ``windows``.
     """
 
     system: NPlusMSystem
@@ -445,7 +509,12 @@ class NPlusMGainProblem:
     margin_at_least: float | None
     gamma_max: float = GAMMA_MAX
     windows: tuple[tuple[float, float], ...] = ()
+    scenarios: tuple[NPlusMSystem, ...] = ()
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
+
+    def plant(self, j: int) -> NPlusMSystem:
+        """The plant ``j``: ``0`` the nominal one, ``1, 2, ...`` the scenarios."""
+        return self.system if j == 0 else self.scenarios[j - 1]
 
     @property
     def screened(self) -> int:
@@ -456,11 +525,11 @@ class NPlusMGainProblem:
         """``K`` of the parameters ``p``."""
         return np.asarray(p, dtype=float).reshape(self.system.m, self.system.n)
 
-    def margin(self, K: NDArray[np.float64]) -> NPlusMMargin:
-        """The certified delay margin at ``K`` (remembered in this process)."""
-        key = K.tobytes()
+    def margin(self, K: NDArray[np.float64], j: int = 0) -> NPlusMMargin:
+        """The certified delay margin at ``K`` of the plant ``j`` (:meth:`plant`; remembered in this process)."""
+        key = K.tobytes() + bytes([j])
         if key not in self.memo.margins:
-            self.memo.margins[key] = _margin(self.system, K)
+            self.memo.margins[key] = _margin(self.plant(j), K)
         return self.memo.margins[key]
 
     def abscissa(self, K: NDArray[np.float64]) -> SpectralAbscissa:
@@ -487,10 +556,12 @@ class NPlusMGainProblem:
             memo.screened += 1
             return TrialPoint(p, False, floor, none, floor, math.nan, "above the line (remembered bound)", True)
         K = self.gain(p)
-        gamma = principal_gamma(self.system, K)
-        if not gamma <= self.gamma_max:
+        gammas = [principal_gamma(plant, K) for plant in (self.system, *self.scenarios)]
+        j = int(np.argmax(gammas))
+        if not gammas[j] <= self.gamma_max:
             memo.screened += 1
-            reason = f"gamma = {gamma:.6g} of the delayed principal part above gamma_max"
+            which = "" if j == 0 else f" of scenario {j - 1}"
+            reason = f"gamma = {gammas[j]:.6g} of the delayed principal part{which} above gamma_max"
             return TrialPoint(p, False, math.inf, none, math.nan, math.nan, reason)
         try:
             if objective == "window":
@@ -571,60 +642,77 @@ class NPlusMGainProblem:
         self, p: NDArray[np.float64], F: NPlusMCharacteristic, sa: SpectralAbscissa
     ) -> NDArray[np.float64]:
         if sa.root is not None and not sa.approached_at_infinity:
-            return np.asarray(gain_gradient(self.system, F.K, complex(sa.root), F.delta).real.ravel(), dtype=float)
+            return np.asarray(gain_gradient(F.system, F.K, complex(sa.root), F.delta).real.ravel(), dtype=float)
         grad = np.zeros(p.size)
         for i in range(p.size):  # the chain value c_D(K), by central differences
             h = CHAIN_STEP * max(1.0, abs(float(p[i])), float(self.bounds[i, 1] - self.bounds[i, 0]))
             lo, hi = p.copy(), p.copy()
             lo[i], hi[i] = max(p[i] - h, self.bounds[i, 0]), min(p[i] + h, self.bounds[i, 1])
             c = [
-                NPlusMCharacteristic(self.system, self.gain(x), F.delta).principal_part().spectral_bound().value
+                NPlusMCharacteristic(F.system, self.gain(x), F.delta).principal_part().spectral_bound().value
                 for x in (lo, hi)
             ]
             grad[i] = (c[1] - c[0]) / (hi[i] - lo[i])
         return grad
 
     def _windows_missed(self, K: NDArray[np.float64]) -> tuple[str, float]:
-        """Why ``K`` misses the windows (empty if it meets them, in floating point), and its delay margin."""
-        dm = self.margin(K)
-        if dm.nominal_unstable != 0 or not dm.certified:
-            return "the loop is not stable at delta = 0 (or its margin is not certified)", dm.margin
-        c, _ = window_clearance(self.system, K, dm, self.windows)
-        if not c > 0.0:
-            return f"the loop is not stable on the windows (clearance {c:.6g})", dm.margin
-        return "", dm.margin
+        """Why ``K`` misses the windows on the plant or a scenario (empty if it meets them, in floating point),
+        and the plant's delay margin."""
+        margin = self.margin(K).margin
+        for j in range(1 + len(self.scenarios)):
+            which = "the loop" if j == 0 else f"scenario {j - 1}"
+            dm = self.margin(K, j)
+            if dm.nominal_unstable != 0 or not dm.certified:
+                return f"{which} is not stable at delta = 0 (or its margin is not certified)", margin
+            c, _ = window_clearance(self.plant(j), K, dm, self.windows)
+            if not c > 0.0:
+                return f"{which} is not stable on the windows (clearance {c:.6g})", margin
+        return "", margin
 
     def _window_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
-        """Minus the window margin ``d_max,m + c`` with its gradient (module notes); :data:`NO_WINDOW` when
-        the loop is unstable at ``delta = 0`` or no stability window holds a window."""
+        """Minus the window margin ``d_max,m + c`` with its gradient (module notes), ``c`` the least clearance
+        over the plant and the scenarios; :data:`NO_WINDOW` when one is unstable at ``delta = 0`` or has no
+        stability window holding a window."""
         none = np.zeros(p.size)
-        dm = self.margin(K)
-        if dm.nominal_unstable != 0 or not dm.certified:
-            reason = f"{NO_WINDOW} [0, h): the loop is not stable at delta = 0 (or its margin is not certified)"
-            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, reason)
-        c, end = window_clearance(self.system, K, dm, self.windows)
-        if not math.isfinite(c):
-            reason = f"{NO_WINDOW} holding each of {[list(w) for w in self.windows]} for the loop"
-            return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, reason)
+        margin = self.margin(K).margin
+        worst: tuple[float, tuple[float, float, int] | None, int] = (math.inf, None, 0)
+        for j in range(1 + len(self.scenarios)):
+            which = "the loop" if j == 0 else f"scenario {j - 1}"
+            dm = self.margin(K, j)
+            if dm.nominal_unstable != 0 or not dm.certified:
+                reason = f"{NO_WINDOW} [0, h): {which} is not stable at delta = 0 (or its margin is not certified)"
+                return TrialPoint(p, False, math.inf, none, math.nan, margin, reason)
+            c, end = window_clearance(self.plant(j), K, dm, self.windows)
+            if not math.isfinite(c):
+                reason = f"{NO_WINDOW} holding each of {[list(w) for w in self.windows]} for {which}"
+                return TrialPoint(p, False, math.inf, none, math.nan, margin, reason)
+            if c < worst[0]:
+                worst = (c, end, j)
+        c, end, j = worst
         grad = np.zeros(p.size)
         if end is not None:
             w, tau, side = end
-            g, _ = _margin_sensitivity(self.system, K, w, tau)
+            g, _ = _margin_sensitivity(self.plant(j), K, w, tau)
             grad = side * g.ravel()
         value = self.windows[-1][1] + c
         return TrialPoint(p, True, -value, -grad, math.nan, value)
 
     def _delayed_abscissa_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
         """The phase before the first: the largest spectral abscissa of ``F(.; delta, K)`` over ``delta = 0`` and
-        the windows' ``d_min``, with the gradient of the rightmost root (or chain) of the largest."""
-        worst: tuple[float, float, SpectralAbscissa | None] = (-math.inf, 0.0, None)
-        for delta in sorted({0.0, *(lo for lo, _ in self.windows)}):
-            sa = self.abscissa(K) if delta == 0.0 else spectral_abscissa(NPlusMCharacteristic(self.system, K, delta))
-            if sa.value > worst[0]:
-                worst = (sa.value, delta, sa)
-        value, delta, rightmost = worst
+        the windows' ``d_min``, of the plant and the scenarios, with the gradient of the rightmost root (or
+        chain) of the largest."""
+        worst: tuple[float, float, int, SpectralAbscissa | None] = (-math.inf, 0.0, 0, None)
+        for j in range(1 + len(self.scenarios)):
+            for delta in sorted({0.0, *(lo for lo, _ in self.windows)}):
+                if j == 0 and delta == 0.0:
+                    sa = self.abscissa(K)
+                else:
+                    sa = spectral_abscissa(NPlusMCharacteristic(self.plant(j), K, delta))
+                if sa.value > worst[0]:
+                    worst = (sa.value, delta, j, sa)
+        value, delta, j, rightmost = worst
         assert rightmost is not None
-        F = NPlusMCharacteristic(self.system, K, delta)
+        F = NPlusMCharacteristic(self.plant(j), K, delta)
         return TrialPoint(p, True, value, self._abscissa_gradient(p, F, rightmost), value, math.nan)
 
     def _margin_point(self, p: NDArray[np.float64], K: NDArray[np.float64]) -> TrialPoint:
@@ -676,8 +764,9 @@ class NPlusMGainDesign:
         :func:`principal_gamma` at ``K`` (below 1: the delayed principal part is strongly stable).
     certified : bool
         True if the abscissa is certified, and the margin (when computed) is certified, of a loop
-        stable at ``delta = 0``, and meets the requirement. It certifies the values at ``K``, not
-        that ``K`` is optimal.
+        stable at ``delta = 0``, and meets the requirement (with ``speed_tolerance``: at every point of
+        :attr:`tolerance`, certified at its vertices). It certifies the values at ``K``, not that ``K``
+        is optimal.
     rigorous : bool
         True if the abscissa is proven in ball arithmetic (the margin is the floating-point
         certificate of :mod:`~nrobust.hyperbolic.nplusm.margin` either way).
@@ -694,6 +783,11 @@ class NPlusMGainDesign:
     windows : tuple of NPlusMWindow
         The verdict on each window (:func:`check_window`); ``certified`` requires each stable and
         certified.
+    tolerance : NPlusMSpeedTolerance or None
+        With ``speed_tolerance``: the verdicts on the box of speed errors (:func:`nplusm_speed_tolerance`),
+        certified at its vertices and checked at the other points of a grid; ``certified`` requires every
+        point stable and every vertex's verdict certified. The box between the points is not certified
+        (:attr:`NPlusMSpeedTolerance.statement`).
     """
 
     K: tuple[tuple[float, ...], ...]
@@ -714,6 +808,7 @@ class NPlusMGainDesign:
     optimality: str = LOCAL_STATEMENT
     delays: tuple[tuple[float, float], ...] = ()
     windows: tuple[NPlusMWindow, ...] = ()
+    tolerance: NPlusMSpeedTolerance | None = None
 
     @property
     def gain(self) -> NDArray[np.float64]:
@@ -727,7 +822,9 @@ class NPlusMGainDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs", "windows")}
+        skip = ("abscissa", "margin", "runs", "windows", "tolerance")
+        data = {k: v for k, v in vars(self).items() if k not in skip}
+        data["tolerance"] = None if self.tolerance is None else self.tolerance.to_dict()
         data["delays"] = [list(w) for w in self.delays]
         data["windows"] = [w.to_dict() for w in self.windows]
         data["K"] = [list(row) for row in self.K]
@@ -832,6 +929,7 @@ def design_nplusm_gains(
     tol: float = 1e-6,
     rigorous: bool = False,
     executor: Any = "serial",
+    speed_tolerance: float | None = None,
 ) -> NPlusMGainDesign:
     """The gain matrix ``K`` of ``U(t) = K u(t - delta, 1)`` with the best decay rate or delay margin, certified.
 
@@ -874,6 +972,16 @@ def design_nplusm_gains(
         Prove the design's abscissa in ball arithmetic (python-flint).
     executor : "serial", None, str, int, Executor or dask.distributed.Client
         Where the starts run (``"serial"``: in this process; otherwise :func:`nrobust.sweep_map`).
+    speed_tolerance : float, optional
+        ``eps`` in ``(0, 1)``: the delay requirement (the windows of ``delays``, or ``margin_at_least``
+        ``d`` as the window ``[0, d]``; one of them is needed) must hold too, with the same ``K``, on the
+        plants whose speeds are ``lam_i (1 + e_i)``, ``mu_j (1 + e_{n+j})`` at the ``2^(n+m)`` vertices
+        ``|e_i| = eps`` of the box of speed errors (:func:`~.speed_box.perturbed_system`; at most
+        :data:`~.speed_box.MAX_SPEED_CORNERS` vertices), and each vertex's ``gamma`` within
+        ``gamma_max``: at every iterate, each vertex one more certified margin per evaluation. The design's
+        verdicts are then certified at the vertices and checked at the other points of the grid of 3 points
+        per speed (:attr:`NPlusMGainDesign.tolerance`, :func:`nplusm_speed_tolerance`); the box between
+        the points is not certified (the speeds do not enter the loop affinely, :mod:`~.speed_box`).
 
     Returns
     -------
@@ -882,10 +990,12 @@ def design_nplusm_gains(
     Raises
     ------
     ParameterError
-        For bad input, before any work.
+        For bad input, before any work; ``speed_tolerance`` outside ``(0, 1)``, without a delay
+        requirement, or with more than :data:`~.speed_box.MAX_SPEED_CORNERS` vertices.
     CertificationError
         No start reached a feasible ``K`` (widen ``K_bounds``, give a feasible ``x0``, add starts
-        or lower ``margin_at_least``), or the design's abscissa cannot be proven (``rigorous``).
+        or lower ``margin_at_least``, or ``speed_tolerance``), or the design's abscissa cannot be
+        proven (``rigorous``).
 
     Examples
     --------
@@ -910,21 +1020,34 @@ def design_nplusm_gains(
         raise ParameterError("tol", "> 0", tol)
     if not isinstance(rigorous, bool):
         raise ParameterError("rigorous", "True or False", rigorous)
+    eps = None if speed_tolerance is None else check_box_tolerance(speed_tolerance, system)
+    if eps is not None and not windows:
+        if not margin_at_least:
+            raise ParameterError(
+                "speed_tolerance",
+                "given with a delay requirement (delays, or margin_at_least > 0) that the speeds must keep",
+                speed_tolerance,
+            )
+        windows, margin_at_least = (check_delays((0.0, margin_at_least), "margin_at_least"),), None
     bounds = _gain_bounds(system, K_bounds)
     start = _x0(x0, system, bounds)
     map_: Callable[[Callable[[Any], Any], Iterable[Any]], Iterable[Any]] = (
         map if isinstance(executor, str) and executor == "serial" else sweep_map(executor, progress=False)
     )
     level = windows[-1][1] if windows else margin_at_least
-    problem = NPlusMGainProblem(system, bounds, objective, level, gamma_max, windows)
+    vertices = () if eps is None else speed_box(system.n + system.m, eps)[0]
+    scenarios = tuple(perturbed_system(system, e) for e in vertices)
+    problem = NPlusMGainProblem(system, bounds, objective, level, gamma_max, windows, scenarios)
     runs = local_runs(problem, x0=start, starts=starts, max_iter=max_iter, tol=tol, map=map_)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
         raise CertificationError(
             f"design_nplusm_gains: no start reached a feasible gain ({reasons}); widen K_bounds, give a feasible x0, "
-            "add starts or lower margin_at_least (or narrow delays)"
+            "add starts or lower margin_at_least (or narrow delays"
+            + (", or lower speed_tolerance: scenario j is the vertex j of the box of speed errors" if eps else "")
+            + ")"
         )
-    return _certify(system, problem, runs, rigorous)
+    return _certify(system, problem, runs, rigorous, eps)
 
 
 def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
@@ -939,7 +1062,7 @@ def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, floa
 
 
 def _certify(
-    system: NPlusMSystem, problem: NPlusMGainProblem, runs: list[LocalRun], rigorous: bool
+    system: NPlusMSystem, problem: NPlusMGainProblem, runs: list[LocalRun], rigorous: bool, eps: float | None
 ) -> NPlusMGainDesign:
     K = problem.gain(runs[0].parameters)
     F = NPlusMCharacteristic(system, K, 0.0)
@@ -949,6 +1072,10 @@ def _certify(
     met = dm is None or (dm.certified and dm.nominal_unstable == 0 and (d is None or dm.margin >= d))
     verdicts = tuple(check_window(system, K, dm, w) for w in problem.windows) if dm is not None else ()
     met = met and all(v.stable and v.certified for v in verdicts)
+    tolerance = None
+    if eps is not None:
+        tolerance = nplusm_speed_tolerance(system, K, eps, problem.windows)
+        met = met and tolerance.certified == "certified at the vertices"
     if problem.objective == "decay_rate":
         value = -sa.value
         accuracy = sa.accuracy if sa.accuracy is not None else math.inf
@@ -975,4 +1102,5 @@ def _certify(
         tuple(runs),
         delays=problem.windows,
         windows=verdicts,
+        tolerance=tolerance,
     )

@@ -1,0 +1,314 @@
+"""A tolerance on the transport speeds in the gain design of an n + m system (``speed_tolerance=``).
+
+The plant is the coupled 2x2 plant of ``tests/test_nplusm_design.py`` as a 1 + 1 system (``lam = mu = 1``,
+``sigma+- = 1.5``, ``sigma-+ = 0.5``, ``q = 0.8``, ``r = 0.4``). The oracle is written here in mpmath at 40
+digits, from the PDE and not from nrobust's builders: the loop ``F(s; delta) = A(s) + B(s) e^{-delta s}``
+with ``A = e^{-s/mu} (Phi_v - r Phi_u)``, ``B = -k e^{-s/mu} Phi_u``, ``[Phi_u; Phi_v] = exp(M) [q; 1]``,
+``M = Lambda^{-1} (Sigma - s I)`` exponentiated in closed form (a 2 x 2 matrix:
+``e^{tr/2} (cosh(D) I + sinh(D)/D (M - tr/2 I))``, ``D^2 = (tr/2)^2 - det``). For each plant with perturbed
+speeds it finds every crossing frequency (the zeros of ``|A(i w)|^2 - |B(i w)|^2``, bracketed on a grid and
+refined by the Illinois method) with its first crossing delay, and counts the zeros of ``F(.; 0)`` in
+``[0, 4] x [-40, 40]`` by the argument principle (the winding of ``F`` along the rectangle).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from pathlib import Path
+
+import mpmath as mp
+import pytest
+
+from nrobust.cli import main
+from nrobust.config import load_system_file
+from nrobust.errors import CertificationError, ParameterError
+from nrobust.hyperbolic.nplusm import NPlusMSystem, design_nplusm_gains, nplusm_delay_margin
+from nrobust.hyperbolic.nplusm.design import nplusm_speed_tolerance
+from nrobust.hyperbolic.nplusm.speed_box import MAX_SPEED_CORNERS, perturbed_system, speed_box
+
+SIGMA_PM, SIGMA_MP, Q, R = 1.5, 0.5, 0.8, 0.4
+SYSTEM = NPlusMSystem([1.0], [1.0], [[0.0, SIGMA_PM], [SIGMA_MP, 0.0]], [[Q]], [[R]])
+#: The design of the tests: the best decay rate with a delay margin of at least 1.2, k in [-0.8, -0.3].
+DESIGN = {"margin_at_least": 1.2, "K_bounds": (-0.8, -0.3), "x0": [[-0.5]], "starts": 1}
+
+
+def _factors(s: mp.mpc, lam: float, mu: float, k: float) -> tuple[mp.mpc, mp.mpc]:
+    """``(A(s), B(s))`` of the 1 + 1 loop with speeds ``lam``, ``mu`` and gain ``k``, at 40 digits."""
+    with mp.workdps(40):
+        s = mp.mpc(s)
+        lam_, mu_ = mp.mpf(lam), mp.mpf(mu)
+        a, b = -s / lam_, mp.mpf(SIGMA_PM) / lam_
+        c, d = -mp.mpf(SIGMA_MP) / mu_, s / mu_
+        half = (a + d) / 2
+        root = mp.sqrt(half**2 - (a * d - b * c))
+        ch = mp.cosh(root)
+        sh = mp.sinh(root) / root if root != 0 else mp.mpf(1)
+        e = mp.exp(half)
+        phi_u = e * (ch + sh * (a - half)) * Q + e * sh * b
+        phi_v = e * sh * c * Q + e * (ch + sh * (d - half))
+        scale = mp.exp(-s / mu_)
+        return scale * (phi_v - R * phi_u), -k * scale * phi_u
+
+
+def _gap(w: mp.mpf, lam: float, mu: float, k: float) -> mp.mpf:
+    A, B = _factors(mp.mpc(0, w), lam, mu, k)
+    return abs(A) ** 2 - abs(B) ** 2
+
+
+def _crossings(lam: float, mu: float, k: float, top: float = 40.0, step: float = 0.02) -> list[tuple[float, float]]:
+    """Every crossing ``(w, first delay)`` with ``0 < w <= top``: ``|A(i w)| = |B(i w)|`` and ``e^{-i w delta} =
+    -A/B``. Beyond ``top`` the principal parts keep ``|A| >= 1 - |r q| - O(1/w)`` above ``|B| <= |k q| + O(1/w)``
+    (checked on samples up to 200: at least half the principal parts' gap ``(1 - |r q|)^2 - (k q)^2 > 0``)."""
+    with mp.workdps(40):
+        for w in range(int(top), 201, 4):
+            assert _gap(mp.mpf(w), lam, mu, k) > 0.5 * ((1.0 - abs(R * Q)) ** 2 - (k * Q) ** 2) > 0.0
+        n = round(top / step)
+        grid = [mp.mpf(step) * j for j in range(1, n + 1)]
+        values = [_gap(w, lam, mu, k) for w in grid]
+        out = []
+        for lo, hi, g_lo, g_hi in zip(grid, grid[1:], values, values[1:]):
+            if g_lo * g_hi < 0:
+                w = mp.findroot(lambda x: _gap(x, lam, mu, k), (lo, hi), solver="illinois")
+                A, B = _factors(mp.mpc(0, w), lam, mu, k)
+                out.append((float(w), float(mp.fmod(mp.arg(-B / A) + 2 * mp.pi, 2 * mp.pi) / w)))
+        return out
+
+
+def _zeros_in_box(lam: float, mu: float, k: float, x: float = 4.0, y: float = 40.0) -> int:
+    """The zeros of ``F(.; 0) = A + B`` in ``[0, x] x [-y, y]``: the winding number of ``F`` along its boundary,
+    steps halved until the argument turns by less than 0.3 between samples. Outside it, in ``Re s >= 0``, ``|F|
+    >= 1 - |(r + k) q| - O(1/|s|)`` (the principal part ``1 - (r + k) q e^{-2 s}``): no zero there."""
+    corners = [mp.mpc(0, -y), mp.mpc(x, -y), mp.mpc(x, y), mp.mpc(0, y), mp.mpc(0, -y)]
+
+    def F(s: mp.mpc) -> mp.mpc:
+        A, B = _factors(s, lam, mu, k)
+        return A + B
+
+    turn = mp.mpf(0)
+    with mp.workdps(40):
+        for z0, z1 in itertools.pairwise(corners):
+            t, h, f0 = mp.mpf(0), mp.mpf("0.05") / abs(z1 - z0), F(z0)
+            while t < 1:
+                step = min(h, 1 - t)
+                f1 = F(z0 + (t + step) * (z1 - z0))
+                change = mp.arg(f1 / f0)
+                if abs(change) > 0.3 and step > 1e-9:
+                    h = step / 2
+                    continue
+                turn += change
+                t, f0, h = t + step, f1, min(2 * step, mp.mpf("0.05") / abs(z1 - z0))
+        return int(mp.nint(turn / (2 * mp.pi)))
+
+
+def _first_delay(lam: float, mu: float, k: float) -> float:
+    return min((delay for _, delay in _crossings(lam, mu, k)), default=math.inf)
+
+
+def test_the_box_of_speed_errors_and_its_plants() -> None:
+    """The vertices and the other points of the 3-point grid (centre left out) of a 2 + 1 plant; the perturbed
+    plant scales each speed by its own factor and keeps the rest."""
+    vertices, others = speed_box(3, 0.2)
+    assert len(vertices) == 8 and len(others) == 27 - 8 - 1 and (0.0, 0.0, 0.0) not in others
+    assert vertices[0] == (-0.2, -0.2, -0.2) and vertices[-1] == (0.2, 0.2, 0.2)
+    plant = NPlusMSystem([1.0, 0.5], [1.5], [[0, 0, 0.4], [0, 0, 0.3], [0.5, -0.4, 0]], [[0.6], [0.5]], [[0.5, 0.4]])
+    moved = perturbed_system(plant, (0.1, -0.2, 0.3))
+    assert list(moved.lam) == [1.1, 0.4] and list(moved.mu) == [1.5 * 1.3]
+    assert (moved.sigma == plant.sigma).all() and (moved.q == plant.q).all() and (moved.r == plant.r).all()
+    with pytest.raises(ParameterError) as info:
+        perturbed_system(plant, (0.1, -1.0, 0.0))
+    assert info.value.name == "errors"
+
+
+def test_the_design_under_a_speed_tolerance_is_stable_at_every_vertex() -> None:
+    """The best decay rate with a margin of at least 1.2 sits where the margin is 1.2 (``k = -0.467578``): the
+    nominal design is on a speed-sensitive edge, and at the vertex ``(e_lam, e_mu) = (-0.1, 0.1)`` its loop has a
+    crossing delay 1.1268 (the oracle), inside ``[0, 1.2]``. With ``speed_tolerance=0.1`` the design moves to
+    ``k = -0.441025``: at each of the 4 vertices the oracle finds no zero of ``F(.; 0)`` in ``Re s >= 0`` and no
+    crossing delay up to 1.2, so the loop is stable for every delay in ``[0, 1.2]``; the first crossing delay of
+    the worst vertex is 1.2000118 (the requirement binds: the local search stops with pattern steps of ``1e-5``
+    of the width 0.5, ``5e-6`` in ``k``, and that delay's slope in ``k`` is about 2.9, so within ``1e-4`` of 1.2;
+    measured 1.2e-5), and a gain ``1e-3`` lower misses it there (1.19713). The decay rate paid for it: 0.7007
+    nominally, 0.5563 under the tolerance. nrobust's certified margin at that vertex agrees with the oracle's
+    crossing delay to ``1e-8`` (measured 2e-16). About 4.5 s of CPU time (the designs 1.3 s and 2.6 s)."""
+    nominal = design_nplusm_gains(SYSTEM, "decay_rate", **DESIGN)
+    assert nominal.certified and nominal.tolerance is None
+    assert _first_delay(0.9, 1.1, nominal.K[0][0]) < 1.2 - 0.05
+    design = design_nplusm_gains(SYSTEM, "decay_rate", speed_tolerance=0.1, **DESIGN)
+    t = design.tolerance
+    assert t is not None and design.certified and t.met and t.certified == "certified at the vertices"
+    assert design.delays == ((0.0, 1.2),) and design.margin_at_least is None
+    assert t.vertices == 4 and t.points[:4] == ((-0.1, -0.1), (-0.1, 0.1), (0.1, -0.1), (0.1, 0.1))
+    assert all(w.stable and w.certified for verdicts in t.windows for w in verdicts)
+    assert "need not imply it inside the box" in t.statement and "certified" in repr(design)
+    k = design.K[0][0]
+    first = {}
+    for e_lam, e_mu in t.points[:4]:
+        assert _zeros_in_box(1.0 + e_lam, 1.0 + e_mu, k) == 0
+        first[(e_lam, e_mu)] = _first_delay(1.0 + e_lam, 1.0 + e_mu, k)
+    worst = min(first, key=lambda p: first[p])
+    assert 1.2 <= first[worst] < 1.2 + 1e-4
+    assert _first_delay(1.0 + worst[0], 1.0 + worst[1], k - 1e-3) < 1.2
+    dm = nplusm_delay_margin(perturbed_system(SYSTEM, worst), design.K)
+    assert dm.certified and abs(dm.margin - first[worst]) < 1e-8
+    assert design.value < nominal.value
+    json.dumps(design.to_dict(), allow_nan=False)
+
+
+def test_an_infeasible_tolerance_is_a_certification_error_with_advice() -> None:
+    """With ``speed_tolerance=0.3`` the design finds no gain of ``[-0.8, -0.3]`` keeping the margin 1.2 at every
+    vertex (its first phase raises the worst window margin to 1.025 only) and says what would help. The oracle:
+    at 6 gains spread over the bounds a vertex misses the requirement, by a crossing delay below 1.2 (every
+    ``k <= -0.4``: at ``(-0.3, 0.3)`` from 0.38 to 1.178) or by a zero in ``Re s > 0`` at ``delta = 0`` (``k =
+    -0.3``, at ``(-0.3, -0.3)``; its vertex ``(-0.3, 0.3)`` has its first crossing delay at 1.548). About 7 s of
+    CPU time (the design 1.8 s)."""
+    with pytest.raises(CertificationError, match="lower speed_tolerance"):
+        design_nplusm_gains(SYSTEM, "decay_rate", speed_tolerance=0.3, **DESIGN)
+    vertices = speed_box(2, 0.3)[0]
+    for j in range(6):
+        k = -0.8 + 0.1 * j
+        plants = [(1.0 + a, 1.0 + b) for a, b in vertices]
+        assert any(_first_delay(lam, mu, k) < 1.2 for lam, mu in plants) or any(
+            _zeros_in_box(lam, mu, k) > 0 for lam, mu in plants
+        )
+    assert _zeros_in_box(0.7, 0.7, -0.3) == 1 and _first_delay(0.7, 1.3, -0.3) > 1.2
+
+
+def test_a_gain_checked_on_the_box() -> None:
+    """``nplusm_speed_tolerance`` on the nominal design's gain: not met, the vertex ``(-0.1, 0.1)`` among the
+    points refuted (its crossing delay 1.1268, the oracle of the test above)."""
+    tol = nplusm_speed_tolerance(SYSTEM, [[-0.467578125]], 0.1, (0.0, 1.2))
+    assert not tol.met and tol.certified == "not met" and len(tol.points) == 8
+    assert "(-0.1, 0.1)" in tol.statement and "not met" in repr(tol)
+
+
+class _NoWork(Exception):
+    pass
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"speed_tolerance": -0.1, "margin_at_least": 1.0}, "speed_tolerance"),
+        ({"speed_tolerance": 0.0, "margin_at_least": 1.0}, "speed_tolerance"),
+        ({"speed_tolerance": 1.0, "margin_at_least": 1.0}, "speed_tolerance"),
+        ({"speed_tolerance": math.nan, "margin_at_least": 1.0}, "speed_tolerance"),
+        ({"speed_tolerance": "0.1", "margin_at_least": 1.0}, "speed_tolerance"),
+        ({"speed_tolerance": 0.1}, "speed_tolerance"),  # no delay requirement
+    ],
+)
+def test_bad_tolerance_is_refused_before_any_work(kwargs: dict, name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    import nrobust.hyperbolic.nplusm.design as design
+
+    def no_work(*args: object, **kw: object) -> None:
+        raise _NoWork
+
+    monkeypatch.setattr(design, "local_runs", no_work)
+    with pytest.raises(ParameterError) as info:
+        design_nplusm_gains(SYSTEM, **kwargs)
+    assert info.value.name == name
+
+
+def test_too_many_vertices_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 3 + 2 plant has 32 vertices, above ``MAX_SPEED_CORNERS = 16``: refused naming ``speed_tolerance``."""
+    import nrobust.hyperbolic.nplusm.design as design
+
+    monkeypatch.setattr(design, "local_runs", lambda *a, **k: (_ for _ in ()).throw(_NoWork()))
+    big = NPlusMSystem([1.0, 2.0, 3.0], [1.0, 2.0], [[0.0] * 5] * 5, [[0.5, 0.0]] * 3, [[0.1, 0.0, 0.0]] * 2)
+    assert 2**5 > MAX_SPEED_CORNERS
+    with pytest.raises(ParameterError, match="MAX_SPEED_CORNERS") as info:
+        design_nplusm_gains(big, margin_at_least=1.0, speed_tolerance=0.1, K_bounds=(-0.1, 0.1))
+    assert info.value.name == "speed_tolerance"
+    with pytest.raises(ParameterError) as info:
+        nplusm_speed_tolerance(SYSTEM, [[-0.4]], 1.5, (0.0, 1.0))
+    assert info.value.name == "eps"
+    with pytest.raises(ParameterError) as info:
+        nplusm_speed_tolerance(SYSTEM, [[-0.4]], 0.1, None)
+    assert info.value.name == "delays"
+
+
+TOML = """
+[system]
+type = "NPlusMSystem"
+lam = [1.0]
+mu = [1.0]
+sigma = [[0.0, 1.5], [0.5, 0.0]]
+q = [[0.8]]
+r = [[0.4]]
+
+[controller]
+type = "Cancellation"
+fractions = [[0.0]]
+
+[analysis]
+region = [-3.0, 1.0, 0.0, 40.0]
+
+[design]
+family = "nplusm"
+objective = "decay_rate"
+margin_at_least = 1.2
+speed_tolerance = 0.1
+K_bounds = [-0.8, -0.3]
+x0 = [[-0.5]]
+starts = 1
+"""
+
+
+def test_the_command_takes_the_tolerance(tmp_path: Path) -> None:
+    """``nrobust design`` on an ``NPlusMSystem`` file with ``speed_tolerance``: the design of the test above
+    (the same gain), the report stating what is certified and what only checked. About 3 s of CPU time."""
+    system = tmp_path / "SYSTEM.toml"
+    system.write_text(TOML)
+    out = tmp_path / "out"
+    assert main(["design", str(system), "-o", str(out)]) == 0
+    data = json.loads((out / "design.json").read_text())
+    text = (out / "design.md").read_text()
+    assert data["speed_tolerance"] == 0.1 and data["certified"]
+    assert data["tolerance"]["certified"] == "certified at the vertices" and data["tolerance"]["vertices"] == 4
+    assert abs(data["K"][0][0] - (-0.441025)) < 1e-5
+    assert "- speed tolerance 0.1 on every speed: met at the 8 points examined, certified at the vertices" in text
+    assert "between the points not certified" in text
+
+
+#: A 3 + 2 plant: its box of speed errors has 32 vertices.
+BIG = """
+[system]
+type = "NPlusMSystem"
+lam = [1.0, 2.0, 3.0]
+mu = [1.0, 2.0]
+sigma = [[0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0],
+         [0.0, 0.0, 0.0, 0.0, 0.0]]
+q = [[0.5, 0.0], [0.5, 0.0], [0.5, 0.0]]
+r = [[0.1, 0.0, 0.0], [0.1, 0.0, 0.0]]
+
+[controller]
+type = "Cancellation"
+fractions = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
+
+[analysis]
+region = [-3.0, 1.0, 0.0, 40.0]
+
+[design]
+family = "nplusm"
+margin_at_least = 1.2
+speed_tolerance = 0.1
+"""
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        (TOML.replace("speed_tolerance = 0.1", "speed_tolerance = 1.5"), "in \\(0, 1\\)"),
+        (TOML.replace("margin_at_least = 1.2\n", ""), "delay requirement"),
+        (BIG, "MAX_SPEED_CORNERS"),
+    ],
+)
+def test_the_file_tolerance_is_checked(tmp_path: Path, toml: str, message: str) -> None:
+    """``[design] speed_tolerance`` outside ``(0, 1)``, without a delay requirement, or with more vertices than
+    ``MAX_SPEED_CORNERS``: a ParameterError naming it when the file is read."""
+    system = tmp_path / "SYSTEM.toml"
+    system.write_text(toml)
+    with pytest.raises(ParameterError, match=message) as info:
+        load_system_file(system)
+    assert info.value.name == "design.speed_tolerance"
