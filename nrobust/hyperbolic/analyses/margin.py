@@ -87,9 +87,10 @@ def delay_margin(
         As in :func:`nrobust.margins.delay_margin`. ``rigorous=True`` proves the margin in
         ball arithmetic for the loop as built: for a plant with constant coefficients (and no
         ``kernel_grid``) that is the PDE itself (``N~`` in closed form with a proven error
-        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`), as given for an
-        unfiltered law with exact principal gains (the ball mapped from the loop with ``tau``
-        rounded to a double, :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`);
+        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`), as given for the
+        paper's laws, filtered or not, and a proportional feedback (the ball mapped from the
+        loop with ``tau`` rounded to a double,
+        :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`);
         otherwise the model, ``N~`` the cubic spline on the kernel grid (``DelayMargin.scope``
         says which).
     kernel_grid : int, optional

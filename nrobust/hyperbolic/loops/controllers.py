@@ -69,6 +69,7 @@ from .exact_form import (
     exact_form,
     gain_balls,
     has_exact_form,
+    tau_ratio,
 )
 from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
@@ -603,7 +604,11 @@ def _uncoupled(system: Any) -> bool:
 
 
 def loop_scope(
-    system: Any, controller: Any, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+    system: Any,
+    controller: Any,
+    kernel_grid: int | None,
+    factors: tuple[QuasiPolynomial, QuasiPolynomial],
+    mapped: bool = True,
 ) -> str:
     """What a proof about the loop ``factors`` of ``system`` is about, in one line.
 
@@ -613,7 +618,27 @@ def loop_scope(
         As given to :func:`loop_factors`.
     factors : tuple of QuasiPolynomial
         Its result ``(A, B)``.
+    mapped : bool, default True
+        Whether the proofs were mapped to the exact ``tau``
+        (:func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`). False for proofs about the
+        loop as built (a design's certificate): where ``tau`` is not a double, the scope then says
+        that they hold with ``tau`` rounded.
     """
+    scope = _loop_scope(system, controller, kernel_grid, factors)
+    if mapped or _AS_GIVEN not in scope or tau_ratio(system) == 1:
+        return scope
+    tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
+    return scope.replace(
+        _AS_GIVEN,
+        f"tau = {tau} as the double {closed_form_parameters(system)[0]!r} (the proofs are about the loop as "
+        "built, not mapped to the exact tau); the principal gains enclosed with the proven radii of their rounding",
+    )
+
+
+def _loop_scope(
+    system: Any, controller: Any, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+) -> str:
+    """:func:`loop_scope` of proofs mapped to the exact ``tau`` where the map applies."""
     if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):  # its law's scope, with its own numbers
         scope = (
             _output_feedback_scope(system, controller, kernel_grid, factors)
@@ -877,6 +902,10 @@ def _exact_points(
     Each is a rational combination of ``1``, ``q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau / 2}``
     (:func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`) with the user's numbers (``rho``,
     the controller's gains) as rationals; None for a controller whose factors are not listed here.
+    A filter's ``a``, ``b`` enter as ``a / r``, ``b / r`` (``r`` of
+    :func:`~nrobust.hyperbolic.loops.exact_form.tau_ratio`): the plant's loop at ``s`` is the loop
+    with those filter constants at ``r s`` (:mod:`~nrobust.hyperbolic.loops.given_plant`), so the
+    loop's balls enclose that loop, which the proofs map back to the plant.
     """
     tau = closed_form_parameters(system)[0]
     rho = Fraction(float(system.rho))
@@ -893,7 +922,9 @@ def _exact_points(
     elif isinstance(controller, ReflectionController):
         B = {tau: [{"h": Fraction(controller.K)}]}
     elif isinstance(controller, FilteredController):
-        a, b = Fraction(controller.a), Fraction(controller.b)
+        # in x = r s the plant's loop is the loop as built of the filter (a / r, b / r): the balls are theirs
+        r = tau_ratio(system)
+        a, b = Fraction(controller.a) / r, Fraction(controller.b) / r
         g = w(rho) if controller.K is None else {"h": Fraction(controller.K)}
         A = {0.0: [{"1": Fraction(1)}, {"1": b}], tau: [w(-rho), w(-rho * b)]}
         B = {tau: [g, {k: v * a for k, v in g.items()}]}
@@ -1220,8 +1251,9 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     ``e^{sigma_0 tau}`` of a general plant) carry proven radii
     (:attr:`~nrobust.hyperbolic.loops.exact_form.ExactForm.rho_q_radius`), and ``tau`` is
     mapped exactly (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`) for a loop
-    that is a function of ``tau s`` and ``delta / tau``. Otherwise the quantities computed in
-    floating point, in words, for a proof's scope.
+    that is a function of ``tau s`` and ``delta / tau``, or a filtered law's (its ``a``, ``b``
+    enclosed as ``a / r``, ``b / r``). Otherwise the quantities computed in floating point, in
+    words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
     if general and not has_exact_form(system):
@@ -1234,7 +1266,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
         return f"tau = {tau} and the principal gains as doubles (mapped to the exact tau on the exact route only)"
-    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController)) or (
+    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController, FilteredController)) or (
         isinstance(controller, StateFeedback) and not _integral_gains(controller)
     ):
         return ""
