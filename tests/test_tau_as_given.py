@@ -242,3 +242,125 @@ def test_a_designs_scope_says_tau_is_rounded_when_its_proofs_are_not_mapped():
     assert "as the double 0.47619047619047616" in rounded.scope and "not mapped" in rounded.scope
     exact = design_filtered_exact(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85), "margin", parameters=parameters)
     assert "the plant as given" in exact.scope
+
+
+# ---------------------------------------------------------------------------------------------- output feedbacks
+def _collocated_factors(args, law, s):
+    """``(A, B)`` of the collocated output feedback on an uncoupled plant, from the PDE and the observer.
+
+    Plant: ``u(1) = q e^{-s/lam}``, ``v(1) = e^{s/mu}`` (``v(0) = 1``), ``v(1) = rho u(1) + e^{-delta s} U``.
+    Observer (no coupling, no injection): ``v^(1) = rho y + U``, ``y = u(1)`` measured, ``u^(1) = q e^{-tau s}
+    v^(1)``; the law on the estimate ``U = -(n/d) K u^(1)`` (``n/d = (1 + a s)/(1 + b s)``). Solving for ``U``:
+    ``(v(1) - rho u(1))(d + n K q e^{-tau s}) + e^{-delta s} n K rho q u(1) e^{-tau s} = 0``, times ``e^{-s/mu}``.
+    """
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    gain = rho if law.K is None else mp.mpf(law.K)
+    n, d = 1 + mp.mpf(law.a) * s, 1 + mp.mpf(law.b) * s
+    u1, v1, round_trip = q * mp.exp(-s / lam), mp.exp(s / mu), mp.exp(-s * (1 / lam + 1 / mu))
+    scale = mp.exp(-s / mu)
+    return scale * (v1 - rho * u1) * (d + n * gain * q * round_trip), scale * n * gain * rho * q * u1 * round_trip
+
+
+#: Uncoupled plants (``tau = 10/21``, ``10/3``): the observers' terms are exact, the loops functions of ``tau s``.
+OBSERVED = [
+    ((3.0, 7.0, 0.0, 0.0, 1.0, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3)), _collocated_factors),
+    ((0.3, 0.7, 0.0, 0.0, 0.9, 0.6), nr.OutputFeedback(FilteredController(0.05, 0.3)), _uncoupled_factors),
+]
+
+
+@pytest.mark.parametrize(("args", "controller", "oracle"), OBSERVED)
+def test_the_proven_margin_of_an_exact_observer_holds_for_the_plant_as_given(args, controller, oracle):
+    plant = Hyperbolic2x2(*args)
+    assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" in dm.scope and "observer is exact" in dm.scope
+    w, truth = _pde_margin(lambda s: oracle(args, controller.controller, s), dm.omega)
+    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+
+
+def test_the_collocated_loop_encloses_the_observers_gains():
+    """``k q`` and ``k rho q^2`` of ``G`` are not doubles (``0.85 * 0.7``): the loop's balls enclose the loop of the
+    PDE and the observer with ``tau`` exact (``given_plant_balls`` at 40 digits), the certificate is about the plant
+    as given, and its proven counts are the exact loop's windings."""
+    from nrobust._flint import working_precision
+
+    args = (3.0, 7.0, 0.0, 0.0, 0.7, 0.85)
+    controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))
+    plant = Hyperbolic2x2(*args)
+
+    def loop(delta):
+        def F(s):
+            A, B = _collocated_factors(args, controller.controller, s)
+            return A + B * mp.exp(-mp.mpf(delta) * s)
+
+        return F
+
+    for delta in (0.0, 0.2):
+        balls = given_plant_balls(plant, controller, delta)
+        assert isinstance(balls, GivenPlantBalls)
+        for s in (complex(-1.0, 30.0), complex(0.5, -7.0)):
+            for k in range(2):
+                with mp.workdps(DPS):
+                    truth = mp.diff(loop(delta), mp.mpc(s), k)
+                with working_precision(200) as fl:
+                    assert balls(s, k).contains(fl.acb(truth)), (delta, s, k)
+    cert = nr.certify(plant, controller, delta_max=0.2, rigorous=True, k_region=False)
+    assert "the plant as given" in cert.scope and "root counts marked proven" in cert.scope
+    claims = {c.name: c.status for c in cert.claims}
+    for roots, delta, name in (
+        (cert.roots_nominal, 0.0, "roots at delta = 0"),
+        (cert.roots_delayed, 0.2, "roots at delta_max"),
+    ):
+        assert claims[name] == PROVEN and roots.count == _winding(loop(delta), roots.region)
+
+
+def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
+    """An observer delay (``delta_o / r`` is not a double) or an observer reflection: the scope names the rounding."""
+    plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 1.0, 0.85)
+    for controller in (
+        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_delay=0.01),
+        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_reflection=0.1),
+    ):
+        assert given_plant_scale(plant, controller) is None
+        dm = nr.delay_margin(plant, controller, rigorous=True)
+        assert "the plant as given" not in dm.scope and "as the double 0.47619047619047616" in dm.scope
+
+
+@pytest.mark.parametrize(
+    ("args", "controller"),
+    [
+        ((3.0, 7.0, 1.0, 1.0, 0.7, 0.85), FilteredController(0.2, 0.5, 0.1)),
+        ((3.0, 7.0, 1.0, 1.0, 0.7, 0.85), FilteredController(0.05, 0.3)),
+        ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))),
+        ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3, -0.1))),
+    ],
+)
+def test_the_point_coefficients_are_balls_about_the_scaled_loop(args, controller):
+    """Each stored point coefficient is within its radius of the exact one of the loop at ``x = r s``: the filter
+    ``(a / r, b / r)``, ``E = e^{-tau_d x}``, written here in rationals from the module table of ``controllers``
+    and the collocated loop above (the stored ``a``, ``b`` themselves are not in these balls' centres)."""
+    from fractions import Fraction
+
+    plant = Hyperbolic2x2(*args)
+    lam, mu, q, rho = (Fraction(args[k]) for k in (0, 1, 4, 5))
+    r = (1 / lam + 1 / mu) / Fraction(plant.tau)
+    law = controller.controller if isinstance(controller, nr.CollocatedOutputFeedback) else controller
+    a, b = Fraction(law.a) / r, Fraction(law.b) / r
+    K = rho if law.K is None else Fraction(law.K)
+    if isinstance(controller, nr.CollocatedOutputFeedback):  # (1 - rho q E)(1 + b x + (1 + a x) K q E), B_o
+        A = {0: [1, b], 1: [K * q - rho * q, K * q * a - rho * q * b], 2: [-rho * q * K * q, -rho * q * K * q * a]}
+        B = {2: [K * rho * q * q, K * rho * q * q * a]}
+    else:  # (1 + b x)(1 - rho q E), (1 + a x) K q E
+        A = {0: [1, b], 1: [-rho * q, -rho * q * b]}
+        B = {1: [K * q, K * q * a]}
+    A_built, B_built = nr.loop_factors(plant, controller)
+    moved = 0
+    for built, exact in ((A_built, A), (B_built, B)):
+        assert {t for _, t in built.point_terms} == {j * plant.tau for j in exact}
+        for (coefs, t), radii in zip(built.point_terms, built.radii_of()):
+            truth = exact[round(t / plant.tau)]
+            for c, rad, x in zip(coefs, radii, truth):
+                assert abs(Fraction(float(c)) - x) <= Fraction(float(rad))
+                moved += Fraction(float(c)) != x
+    assert moved > 0  # the radii are needed: a stored coefficient differs from its exact value

@@ -598,6 +598,20 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
     return _uncoupled(system) and not (isinstance(inner, StateFeedback) and _integral_gains(inner))
 
 
+def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
+    """True when the collocated loop is, in ``r s``, the loop as built with its constants scaled (module notes of
+    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact, no observer delay, no observer reflection.
+
+    ``G = (1 - Phi) k q e^{-tau s}`` is then a function of ``tau s``; a delay ``delta_o`` would be
+    ``delta_o / r`` in the loop as built (not a double), and the reflection's factor is not enclosed.
+    """
+    return (
+        _exact_collocated(system, controller)
+        and controller.observer_delay == 0.0
+        and controller.observer_reflection == 0.0
+    )
+
+
 def _uncoupled(system: Any) -> bool:
     """True for a plant whose ``N~`` is zero by construction (no in-domain coupling)."""
     return bool(getattr(system, "uncoupled", False))
@@ -645,7 +659,8 @@ def _loop_scope(
             if isinstance(controller, OutputFeedback)
             else _collocated_scope(system, controller, kernel_grid)
         )
-        return scope.replace(_AS_GIVEN, rounded_parts(system, controller, kernel_grid))
+        rounded = rounded_parts(system, controller, kernel_grid)
+        return scope.replace(_AS_GIVEN, rounded) if rounded else scope
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         return (
@@ -816,7 +831,10 @@ def _collocated_loop(
         denominator = (1.0, inner.b) if isinstance(inner, FilteredController) else (1.0,)
         reflection = observer_reflection_of(system, controller, kernel_grid)
         A, B = reflection_factors(A, B, reflection, controller.observer_reflection, numerator, denominator)
-    return output_feedback_factors(A, B, G, numerator, controller.observer_delay)
+    A, B = output_feedback_factors(A, B, G, numerator, controller.observer_delay)
+    if grid is None and _scaled_collocated(system, controller) and has_exact_form(system):
+        return _exact_radii(A, system, controller, (("A", 0.0),)), _exact_radii(B, system, controller, (("B", 0.0),))
+    return A, B
 
 
 def observer_reflection_of(
@@ -930,9 +948,43 @@ def _exact_points(
         B = {tau: [g, {k: v * a for k, v in g.items()}]}
     elif isinstance(controller, StateFeedback):
         B = {tau: [w(-Fraction(controller.k))]}
+    elif isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller):
+        return _collocated_points(system, controller)
     else:
         return None
     return A, B
+
+
+def _collocated_points(
+    system: Hyperbolic2x2, controller: CollocatedOutputFeedback
+) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
+    """:func:`_exact_points` of an exact collocated loop: ``A - n G``, ``B + n G``, ``G = (1 - Phi) k q e^{-tau s}``.
+
+    On an uncoupled :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` every coefficient is a
+    rational of the user's numbers (``q e^{sigma_0 tau} = q``): ``G = k q e^{-tau s} - k rho q^2 e^{-2 tau s}``,
+    ``k`` the law's boundary gain, ``n = 1 + (a / r) s`` for a filtered law (``1`` otherwise).
+    """
+    inner = _exact_points(system, controller.controller)
+    if inner is None:
+        return None
+    tau = closed_form_parameters(system)[0]
+    q, rho = Fraction(system.q), Fraction(system.rho)
+    atoms = {"1": Fraction(1), "w": q, "h": q}
+
+    def rational(table: dict[float, list[_Exact]]) -> dict[float, list[Fraction]]:
+        return {t: [sum((atoms[k] * v for k, v in c.items()), Fraction(0)) for c in cs] for t, cs in table.items()}
+
+    A, B = (rational(table) for table in inner)
+    law = controller.controller
+    k = Fraction(unfiltered(law).feedback_law(system).boundary_gain)
+    n = [Fraction(1), Fraction(law.a) / tau_ratio(system)] if isinstance(law, FilteredController) else [Fraction(1)]
+    for t, g in ((tau, k * q), (tau + tau, -rho * q * k * q)):  # n G, by delay
+        for j, c in enumerate(n):
+            for table, sign in ((A, -1), (B, 1)):
+                coefs = table.setdefault(t, [])
+                coefs.extend([Fraction(0)] * (j + 1 - len(coefs)))
+                coefs[j] += sign * c * g
+    return tuple({t: [{"1": c} for c in cs] for t, cs in table.items()} for table in (A, B))  # type: ignore[return-value]
 
 
 def _exact_radii(
@@ -1270,6 +1322,16 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         isinstance(controller, StateFeedback) and not _integral_gains(controller)
     ):
         return ""
+    if (isinstance(controller, OutputFeedback) and observer_of(system, controller, kernel_grid) is None) or (
+        isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)
+    ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
+        return rounded_parts(system, controller.controller, kernel_grid)
+    if isinstance(controller, _ObserverFeedback):
+        return (
+            f"tau = {tau} as the double {system.tau!r} and the observer's terms as computed in floating point (the "
+            f"{type(controller).__name__} loop is not mapped to the exact tau: an observer delay or reflection, or "
+            "an observer term with a kernel)"
+        )
     return (
         f"tau = {tau} as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on tau "
         "otherwise than through tau s)"

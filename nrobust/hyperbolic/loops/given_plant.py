@@ -17,7 +17,12 @@ A filtered law (section 2.3.2) has ``F(s) = (1 + b s) G(tau s) + (1 + a s) H(tau
 at ``s`` it is the loop built with ``tau_d`` and the filter ``(a / r, b / r)`` at ``r s``, with the
 delay ``delta / r``. The loop as built carries the user's ``a``, ``b`` with radii that enclose
 ``a / r``, ``b / r`` (exact rationals), so a proof about it holds for that loop, and the same map
-takes it to the plant as given.
+takes it to the plant as given. So do the output feedbacks whose observer is exact on an uncoupled
+plant: an :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` whose law reads no value of
+the measurement's window (its loop is the law's), and a
+:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback` without an observer delay
+or reflection, whose observer term ``(1 - Phi) k q e^{-tau s}`` is a function of ``tau s`` (its
+point coefficients, products of the user's numbers, enclosed as exact rationals).
 
 Counts in a rectangle are not invariant under the map (the rectangle would scale by ``r``):
 they are proven on the plant's own function. With ``A``, ``B`` the factors of the loop as
@@ -33,7 +38,8 @@ user's numbers by :func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), so a
 loop as built holds for every loop with gains in those balls, the plant's among them, and the
 map applies to it. A general plant with constant coefficients has ``tau = L/lam + L/mu``
 (:func:`~nrobust.hyperbolic.loops.exact_form.exact_tau`). Where the loop is not of these forms
-(integral gains, output feedbacks) the proof keeps a scope naming what is rounded
+(integral gains, an observer term with a kernel, an observer delay or reflection) the proof
+keeps a scope naming what is rounded
 (:func:`rounded_parts`).
 """
 
