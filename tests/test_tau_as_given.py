@@ -1,9 +1,12 @@
-"""Proofs about the plant as given for the filtered law: ``tau = 1/lam + 1/mu`` not a double.
+"""Proofs about the plant as given for filtered laws and exact observers: ``tau = 1/lam + 1/mu`` not a double.
 
 The filtered loop ``(1 + b s)(1 - Phi) + (1 + a s) B e^{-delta s}`` is not a function of ``tau s``
 alone, but at ``s`` it is the loop built with ``tau_d`` and the filter ``(a / r, b / r)`` at ``r s``
 (``r = tau / tau_d``): the loop carries ``a / r``, ``b / r`` as balls and the proofs are mapped by
-``r`` as for the unfiltered laws.
+``r`` as for the unfiltered laws. So are the output feedbacks whose observer is exact on an
+uncoupled plant (the collocated observer's term ``(1 - Phi) k q e^{-tau s}``, its coefficients
+enclosed from the user's numbers). Loops rebuilt from their point terms keep the radii; proofs
+about a general plant's normal form, or not mapped (a design's), say so in their scope.
 
 Oracle, sharing no code with the package: the Laplace-domain solution of the PDE,
 ``[u; v](1, s) = expm(M(s)) [q; 1]`` with ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]``
@@ -364,3 +367,45 @@ def test_the_point_coefficients_are_balls_about_the_scaled_loop(args, controller
                 assert abs(Fraction(float(c)) - x) <= Fraction(float(rad))
                 moved += Fraction(float(c)) != x
     assert moved > 0  # the radii are needed: a stored coefficient differs from its exact value
+
+
+# ------------------------------------------------------------------------- loops rebuilt from their point terms
+def test_loops_rebuilt_from_their_point_terms_keep_the_radii():
+    """The design's merged nominal loop and truncated factors, and an output feedback's loop refined onto its observer
+    term, keep the radii of the point coefficients (``rho q = 0.85 * 0.7`` is not a double): each stored coefficient
+    stays within its radius of the exact rational, as in the loop they were built from."""
+    from fractions import Fraction
+
+    from nrobust.design.gain import _merged, _truncated
+
+    plant = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 0.7, 0.85)
+    rho_q = Fraction(0.85) * Fraction(0.7)
+
+    def holds(P, j, exact):  # the coefficient of s^j e^{-tau s} within its radius of ``exact``
+        c, rad = next((p, r) for (p, t), r in zip(P.point_terms, P.radii_of()) if t == plant.tau)
+        return abs(Fraction(float(c[j])) - exact) <= Fraction(float(rad[j]))
+
+    law = FilteredController(0.05, 0.3)
+    A, B = nr.loop_factors(plant, law)
+    F = A + B  # (1 + b s)(1 - Phi) + (1 + a s) Phi: rho q (a - b) s e^{-tau s}
+    merged = _merged(F)
+    assert len(merged.distributed) < len(F.distributed)  # the kernels N and -N written once: rebuilt
+    assert holds(A, 0, -rho_q) and holds(merged, 1, rho_q * (Fraction(law.a) - Fraction(law.b)))
+    truncated = _truncated(A, 1)
+    assert all(p.size == 1 for p, _ in truncated.point_terms) and holds(truncated, 0, -rho_q)
+    observed, _ = nr.loop_factors(plant, nr.OutputFeedback(nr.ReflectionController(0.1)))
+    assert holds(observed, 0, -rho_q)
+
+
+def test_proofs_about_a_general_plants_normal_form_say_so():
+    """A collocated output feedback on a general plant is analysed on its normal form, whose ``lam, mu, q, rho``
+    are doubles computed from the coefficients: its proofs, mapped to that normal form's exact ``tau``, are not
+    about the plant as given, and the scopes of the margin, the certificate and a design say so."""
+    general = GeneralHyperbolic2x2(lam=0.3, mu=0.7, a=0.1, b=0.0, c=0.0, d=-0.2, q=0.6, rho=0.7, length=1.3)
+    controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))
+    dm = nr.delay_margin(general, controller, rigorous=True)
+    cert = nr.certify(general, controller, delta_max=0.1, rigorous=True, k_region=False)
+    design = nr.design_reflection(general, "margin").design.certificate
+    for scope in (dm.scope, cert.scope, cert.margin.scope, design.scope):
+        assert "the plant's normal form as computed in floating point" in scope
+        assert "the plant as given" not in scope

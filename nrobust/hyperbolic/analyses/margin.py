@@ -113,6 +113,7 @@ def delay_margin(
     if controller is None and (isinstance(system, QuasiTransferFunction) or hasattr(system, "ninputs")):
         # a loop transfer function: a QuasiTransferFunction, a DelayLTI or a python-control system
         return loop_delay_margin(system, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
+    normalized = False  # the proofs are about the normal form of a general plant
     if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
             raise ParameterError(
@@ -129,8 +130,9 @@ def delay_margin(
                 )
             normal: tuple[Hyperbolic2x2, Controller] = normalize(system, controller)
             system, controller = normal
+            normalized = True
         A, B = loop_factors(system, controller, kernel_grid)
-        scope = loop_scope(system, controller, kernel_grid, (A, B))
+        scope = loop_scope(system, controller, kernel_grid, (A, B), normal_form=normalized)
     elif isinstance(system, QuasiPolynomial):
         if not isinstance(controller, QuasiPolynomial):
             raise ParameterError(

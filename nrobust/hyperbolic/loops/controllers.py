@@ -623,6 +623,7 @@ def loop_scope(
     kernel_grid: int | None,
     factors: tuple[QuasiPolynomial, QuasiPolynomial],
     mapped: bool = True,
+    normal_form: bool = False,
 ) -> str:
     """What a proof about the loop ``factors`` of ``system`` is about, in one line.
 
@@ -637,15 +638,25 @@ def loop_scope(
         (:func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`). False for proofs about the
         loop as built (a design's certificate): where ``tau`` is not a double, the scope then says
         that they hold with ``tau`` rounded.
+    normal_form : bool, default False
+        True when ``system`` is the normal form of the user's general plant
+        (:meth:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2.normal_form`, computed in
+        floating point): the proofs are about that normal form as given, which the scope says.
     """
     scope = _loop_scope(system, controller, kernel_grid, factors)
-    if mapped or _AS_GIVEN not in scope or tau_ratio(system) == 1:
+    unmapped = not mapped and _AS_GIVEN in scope and tau_ratio(system) != 1
+    if not (unmapped or normal_form) or _AS_GIVEN not in scope:
         return scope
+    plant = _NORMAL_FORM if normal_form else "the plant as given"
+    if not unmapped:
+        return scope.replace(_AS_GIVEN, plant + _AS_GIVEN.removeprefix("the plant as given"))
     tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
     return scope.replace(
         _AS_GIVEN,
-        f"tau = {tau} as the double {closed_form_parameters(system)[0]!r} (the proofs are about the loop as "
-        "built, not mapped to the exact tau); the principal gains enclosed with the proven radii of their rounding",
+        f"{plant.removesuffix(', taken as given').replace('the plant as given', 'the plant')} with tau = {tau} as "
+        f"the double {closed_form_parameters(system)[0]!r} (the proofs are about the loop as built, not mapped to "
+        "the exact tau), its other numbers exact and the principal gains enclosed with the proven radii of their "
+        "rounding",
     )
 
 
@@ -705,6 +716,12 @@ def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
         return rounded
     return _AS_GIVEN
 
+
+#: :func:`loop_scope`'s words for the normal form of a general plant, in place of "the plant as given".
+_NORMAL_FORM = (
+    "the plant's normal form as computed in floating point (its lam, mu, q, rho within a few ulps of the plant's), "
+    "taken as given"
+)
 
 #: :func:`loop_scope`'s words for a loop whose proofs map to the plant as given (``given_plant_scale``).
 _AS_GIVEN = (
