@@ -647,16 +647,14 @@ def loop_scope(
     unmapped = not mapped and _AS_GIVEN in scope and tau_ratio(system) != 1
     if not (unmapped or normal_form) or _AS_GIVEN not in scope:
         return scope
-    plant = _NORMAL_FORM if normal_form else "the plant as given"
-    if not unmapped:
-        return scope.replace(_AS_GIVEN, plant + _AS_GIVEN.removeprefix("the plant as given"))
+    if not unmapped:  # the normal form's numbers taken as given
+        return scope.replace(_AS_GIVEN, _NORMAL_FORM + " taken as given" + _AS_GIVEN.removeprefix("the plant as given"))
     tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
     return scope.replace(
         _AS_GIVEN,
-        f"{plant.removesuffix(', taken as given').replace('the plant as given', 'the plant')} with tau = {tau} as "
-        f"the double {closed_form_parameters(system)[0]!r} (the proofs are about the loop as built, not mapped to "
-        "the exact tau), its other numbers exact and the principal gains enclosed with the proven radii of their "
-        "rounding",
+        f"{_NORMAL_FORM if normal_form else 'the plant'} with tau = {tau} as the double "
+        f"{closed_form_parameters(system)[0]!r} (the proofs are about the loop as built, not mapped to the exact "
+        "tau), its other numbers exact and the principal gains enclosed with the proven radii of their rounding",
     )
 
 
@@ -719,8 +717,7 @@ def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
 
 #: :func:`loop_scope`'s words for the normal form of a general plant, in place of "the plant as given".
 _NORMAL_FORM = (
-    "the plant's normal form as computed in floating point (its lam, mu, q, rho within a few ulps of the plant's), "
-    "taken as given"
+    "the plant's normal form as computed in floating point (its lam, mu, q, rho within a few ulps of the plant's)"
 )
 
 #: :func:`loop_scope`'s words for a loop whose proofs map to the plant as given (``given_plant_scale``).
@@ -1001,7 +998,11 @@ def _collocated_points(
                 coefs = table.setdefault(t, [])
                 coefs.extend([Fraction(0)] * (j + 1 - len(coefs)))
                 coefs[j] += sign * c * g
-    return tuple({t: [{"1": c} for c in cs] for t, cs in table.items()} for table in (A, B))  # type: ignore[return-value]
+
+    def exact(table: dict[float, list[Fraction]]) -> dict[float, list[_Exact]]:
+        return {t: [{"1": c} for c in cs] for t, cs in table.items()}
+
+    return exact(A), exact(B)
 
 
 def _exact_radii(
