@@ -324,7 +324,7 @@ def _merged(F: QuasiPolynomial) -> QuasiPolynomial:
         out.append(d)
     if len(out) == len(F.distributed):
         return F
-    return QuasiPolynomial.from_parts(F.point_terms, out)
+    return QuasiPolynomial.from_parts(F.point_terms, out, F.point_radii or None)
 
 
 def _zero_free_radius(F: QuasiPolynomial) -> float:
@@ -386,9 +386,10 @@ def _degree_drop(top: dict[tuple[float, int], tuple[float, float]]) -> Fraction 
 
 
 def _truncated(P: QuasiPolynomial, n: int) -> QuasiPolynomial:
-    """``P`` without its ``s^n`` coefficients (its point terms cut to degree ``n - 1``)."""
-    terms = [(p[:n], t) for p, t in P.point_terms if np.any(p[:n] != 0.0)]
-    return QuasiPolynomial.from_parts(terms, P.distributed)
+    """``P`` without its ``s^n`` coefficients (its point terms cut to degree ``n - 1``, with their radii)."""
+    kept = [(p[:n], t, r[:n]) for (p, t), r in zip(P.point_terms, P.radii_of()) if np.any(p[:n] != 0.0)]
+    radii = [r for _, _, r in kept] if P.point_radii else None
+    return QuasiPolynomial.from_parts([(p, t) for p, t, _ in kept], P.distributed, radii)
 
 
 def _interval_text(intervals: Sequence[tuple[float, float, bool, bool]]) -> str:

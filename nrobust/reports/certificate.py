@@ -669,7 +669,13 @@ class Certificate:
         if self.route in ("exact", "observer"):  # loop_scope says what the observer's term is (a model)
             return (
                 "Claims marked proven hold for "
-                + loop_scope(self.system, self.controller, self.kernel_grid, loop_factors(self.system, self.controller))
+                + loop_scope(
+                    self.system,
+                    self.controller,
+                    self.kernel_grid,
+                    loop_factors(self.system, self.controller),
+                    normal_form=self.given_system is not None,
+                )
                 + "; they are proven in ball arithmetic (python-flint)."
                 + self._counts_scope
             )
@@ -695,7 +701,8 @@ class Certificate:
             "the Rouché range are mapped from it to tau exactly, and the root counts marked proven (roots at "
             "delta = 0 and at delta_max, instability at delta_max) are proven on the plant's own loop "
             "A(r s) + B(r s) e^{-delta s}, "
-            "r = tau / tau_d in a ball: both hold for the plant as given."
+            "r = tau / tau_d in a ball: both hold for "
+            + ("its normal form as computed." if self.given_system is not None else "the plant as given.")
         )
 
     # ------------------------------------------------------------------ verdicts
@@ -911,6 +918,13 @@ def certify(
             unproven,
             lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid),
         )
+        if given_system is not system:  # the proofs are about the normal form computed in floating point
+            margin = dataclasses.replace(
+                margin,
+                scope=loop_scope(
+                    system, controller, kernel_grid, loop_factors(system, controller, kernel_grid), normal_form=True
+                ),
+            )
         rouche = (
             _prove(
                 "Rouché delay range",

@@ -365,7 +365,7 @@ def design_reflection(
         factors = (loop.A, loop.B(design.K))
     certificate = dataclasses.replace(
         design.certificate,
-        scope=loop_scope(plant, controller, None, factors),
+        scope=loop_scope(plant, controller, None, factors, mapped=False, normal_form=plant is not system),
         of_model=loop_route(plant, controller, None) != "exact" and not plant.uncoupled,
     )
     tolerance = None

@@ -447,7 +447,7 @@ def design_filtered(
         map=mapper(executor, progress, "filtered design"),
     )
     controller = loop.controller(design.parameters)
-    scope = loop_scope(plant, controller, None, loop(np.asarray(design.parameters)))
+    scope = loop_scope(plant, controller, None, loop(np.asarray(design.parameters)), mapped=False)
     tolerance = None
     if eps is not None and window is not None and isinstance(plant, Hyperbolic2x2):
         tolerance = tolerance_on_square(
@@ -727,5 +727,5 @@ def design_filtered_exact(
         raise ParameterError(f"parameters[{name!r}]", exc.requirement, exc.value) from exc
     controller = family.controller([design.K])
     return ExactFilteredDesign(
-        controller, name, design, loop_scope(plant, controller, None, family(np.array([design.K])))
+        controller, name, design, loop_scope(plant, controller, None, family(np.array([design.K])), mapped=False)
     )

@@ -87,9 +87,10 @@ def delay_margin(
         As in :func:`nrobust.margins.delay_margin`. ``rigorous=True`` proves the margin in
         ball arithmetic for the loop as built: for a plant with constant coefficients (and no
         ``kernel_grid``) that is the PDE itself (``N~`` in closed form with a proven error
-        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`), as given for an
-        unfiltered law with exact principal gains (the ball mapped from the loop with ``tau``
-        rounded to a double, :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`);
+        bound, :func:`~nrobust.hyperbolic.loops.controllers.loop_route`), as given for the
+        paper's laws, filtered or not, and a proportional feedback (the ball mapped from the
+        loop with ``tau`` rounded to a double,
+        :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`);
         otherwise the model, ``N~`` the cubic spline on the kernel grid (``DelayMargin.scope``
         says which).
     kernel_grid : int, optional
@@ -112,6 +113,7 @@ def delay_margin(
     if controller is None and (isinstance(system, QuasiTransferFunction) or hasattr(system, "ninputs")):
         # a loop transfer function: a QuasiTransferFunction, a DelayLTI or a python-control system
         return loop_delay_margin(system, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
+    normalized = False  # the proofs are about the normal form of a general plant
     if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
             raise ParameterError(
@@ -128,8 +130,9 @@ def delay_margin(
                 )
             normal: tuple[Hyperbolic2x2, Controller] = normalize(system, controller)
             system, controller = normal
+            normalized = True
         A, B = loop_factors(system, controller, kernel_grid)
-        scope = loop_scope(system, controller, kernel_grid, (A, B))
+        scope = loop_scope(system, controller, kernel_grid, (A, B), normal_form=normalized)
     elif isinstance(system, QuasiPolynomial):
         if not isinstance(controller, QuasiPolynomial):
             raise ParameterError(

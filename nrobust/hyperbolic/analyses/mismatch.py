@@ -157,6 +157,7 @@ def _measured(B: QuasiPolynomial, window: float, move: float) -> QuasiPolynomial
     return QuasiPolynomial.from_parts(
         [(p, t + move) for p, t in B.point_terms],
         [d.replace(nodes=d.nodes + move) for d in terms if d is not None],
+        B.point_radii or None,
     )
 
 

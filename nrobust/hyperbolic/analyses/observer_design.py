@@ -330,7 +330,7 @@ def design_collocated_observer(
         design = best_decay_rate(loop, bounds, margin_at_least=margin_at_least, rigorous=rigorous, max_evals=max_evals)
     designed = _reflection_controller(base, design.K)
     factors = loop_factors(plant, designed)
-    scope = loop_scope(plant, designed, None, factors)
+    scope = loop_scope(plant, designed, None, factors, mapped=False, normal_form=plant is not system)
     certificate = dataclasses.replace(
         design.certificate, scope=scope, of_model=loop_route(plant, designed, None) != "exact" and not plant.uncoupled
     )
@@ -881,7 +881,7 @@ def design_collocated_output_feedback(
     controller = loop.controller(best.parameters)
     factors = loop_factors(plant, controller)
     _check_model(loop, best.parameters, factors, 2.0 * max(float(best.margin.omega or 0.0), 1.0))
-    scope = loop_scope(plant, controller, None, factors)
+    scope = loop_scope(plant, controller, None, factors, mapped=False, normal_form=plant is not system)
     failed = tuple(
         r if isinstance(r, str) else f"start {r.runs[0].start}: not certified"
         for r in results

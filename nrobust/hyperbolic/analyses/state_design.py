@@ -692,7 +692,7 @@ def _finished(
     independently (:func:`~nrobust.hyperbolic.analyses.speed_tolerance`) when ``eps`` is given."""
     controller = _controller(best.parameters, functions)
     factors = loop(np.asarray(best.parameters))
-    scope = loop_scope(plant, controller, grid, factors)
+    scope = loop_scope(plant, controller, grid, factors, mapped=False)
     tolerance = None
     if eps is not None and window is not None and isinstance(plant, Hyperbolic2x2):
         tolerance = tolerance_on_square(

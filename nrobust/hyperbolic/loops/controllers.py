@@ -69,6 +69,7 @@ from .exact_form import (
     exact_form,
     gain_balls,
     has_exact_form,
+    tau_ratio,
 )
 from .exact_gains import gain_failure, gain_kernel
 from .feedback import feedback_factor
@@ -597,13 +598,32 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
     return _uncoupled(system) and not (isinstance(inner, StateFeedback) and _integral_gains(inner))
 
 
+def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
+    """True when the collocated loop is, in ``r s``, the loop as built with its constants scaled (module notes of
+    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact, no observer delay, no observer reflection.
+
+    ``G = (1 - Phi) k q e^{-tau s}`` is then a function of ``tau s``; a delay ``delta_o`` would be
+    ``delta_o / r`` in the loop as built (not a double), and the reflection's factor is not enclosed.
+    """
+    return (
+        _exact_collocated(system, controller)
+        and controller.observer_delay == 0.0
+        and controller.observer_reflection == 0.0
+    )
+
+
 def _uncoupled(system: Any) -> bool:
     """True for a plant whose ``N~`` is zero by construction (no in-domain coupling)."""
     return bool(getattr(system, "uncoupled", False))
 
 
 def loop_scope(
-    system: Any, controller: Any, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+    system: Any,
+    controller: Any,
+    kernel_grid: int | None,
+    factors: tuple[QuasiPolynomial, QuasiPolynomial],
+    mapped: bool = True,
+    normal_form: bool = False,
 ) -> str:
     """What a proof about the loop ``factors`` of ``system`` is about, in one line.
 
@@ -613,14 +633,43 @@ def loop_scope(
         As given to :func:`loop_factors`.
     factors : tuple of QuasiPolynomial
         Its result ``(A, B)``.
+    mapped : bool, default True
+        Whether the proofs were mapped to the exact ``tau``
+        (:func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`). False for proofs about the
+        loop as built (a design's certificate): where ``tau`` is not a double, the scope then says
+        that they hold with ``tau`` rounded.
+    normal_form : bool, default False
+        True when ``system`` is the normal form of the user's general plant
+        (:meth:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2.normal_form`, computed in
+        floating point): the proofs are about that normal form as given, which the scope says.
     """
+    scope = _loop_scope(system, controller, kernel_grid, factors)
+    unmapped = not mapped and _AS_GIVEN in scope and tau_ratio(system) != 1
+    if not (unmapped or normal_form) or _AS_GIVEN not in scope:
+        return scope
+    if not unmapped:  # the normal form's numbers taken as given
+        return scope.replace(_AS_GIVEN, _NORMAL_FORM + " taken as given" + _AS_GIVEN.removeprefix("the plant as given"))
+    tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
+    return scope.replace(
+        _AS_GIVEN,
+        f"{_NORMAL_FORM if normal_form else 'the plant'} with tau = {tau} as the double "
+        f"{closed_form_parameters(system)[0]!r} (the proofs are about the loop as built, not mapped to the exact "
+        "tau), its other numbers exact and the principal gains enclosed with the proven radii of their rounding",
+    )
+
+
+def _loop_scope(
+    system: Any, controller: Any, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
+) -> str:
+    """:func:`loop_scope` of proofs mapped to the exact ``tau`` where the map applies."""
     if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):  # its law's scope, with its own numbers
         scope = (
             _output_feedback_scope(system, controller, kernel_grid, factors)
             if isinstance(controller, OutputFeedback)
             else _collocated_scope(system, controller, kernel_grid)
         )
-        return scope.replace(_AS_GIVEN, rounded_parts(system, controller, kernel_grid))
+        rounded = rounded_parts(system, controller, kernel_grid)
+        return scope.replace(_AS_GIVEN, rounded) if rounded else scope
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
         return (
@@ -665,6 +714,11 @@ def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
         return rounded
     return _AS_GIVEN
 
+
+#: :func:`loop_scope`'s words for the normal form of a general plant, in place of "the plant as given".
+_NORMAL_FORM = (
+    "the plant's normal form as computed in floating point (its lam, mu, q, rho within a few ulps of the plant's)"
+)
 
 #: :func:`loop_scope`'s words for a loop whose proofs map to the plant as given (``given_plant_scale``).
 _AS_GIVEN = (
@@ -791,7 +845,10 @@ def _collocated_loop(
         denominator = (1.0, inner.b) if isinstance(inner, FilteredController) else (1.0,)
         reflection = observer_reflection_of(system, controller, kernel_grid)
         A, B = reflection_factors(A, B, reflection, controller.observer_reflection, numerator, denominator)
-    return output_feedback_factors(A, B, G, numerator, controller.observer_delay)
+    A, B = output_feedback_factors(A, B, G, numerator, controller.observer_delay)
+    if grid is None and _scaled_collocated(system, controller) and has_exact_form(system):
+        return _exact_radii(A, system, controller, (("A", 0.0),)), _exact_radii(B, system, controller, (("B", 0.0),))
+    return A, B
 
 
 def observer_reflection_of(
@@ -877,6 +934,10 @@ def _exact_points(
     Each is a rational combination of ``1``, ``q e^{sigma_0 tau}`` and ``q e^{sigma_0 tau / 2}``
     (:func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`) with the user's numbers (``rho``,
     the controller's gains) as rationals; None for a controller whose factors are not listed here.
+    A filter's ``a``, ``b`` enter as ``a / r``, ``b / r`` (``r`` of
+    :func:`~nrobust.hyperbolic.loops.exact_form.tau_ratio`): the plant's loop at ``s`` is the loop
+    with those filter constants at ``r s`` (:mod:`~nrobust.hyperbolic.loops.given_plant`), so the
+    loop's balls enclose that loop, which the proofs map back to the plant.
     """
     tau = closed_form_parameters(system)[0]
     rho = Fraction(float(system.rho))
@@ -893,15 +954,55 @@ def _exact_points(
     elif isinstance(controller, ReflectionController):
         B = {tau: [{"h": Fraction(controller.K)}]}
     elif isinstance(controller, FilteredController):
-        a, b = Fraction(controller.a), Fraction(controller.b)
+        # in x = r s the plant's loop is the loop as built of the filter (a / r, b / r): the balls are theirs
+        r = tau_ratio(system)
+        a, b = Fraction(controller.a) / r, Fraction(controller.b) / r
         g = w(rho) if controller.K is None else {"h": Fraction(controller.K)}
         A = {0.0: [{"1": Fraction(1)}, {"1": b}], tau: [w(-rho), w(-rho * b)]}
         B = {tau: [g, {k: v * a for k, v in g.items()}]}
     elif isinstance(controller, StateFeedback):
         B = {tau: [w(-Fraction(controller.k))]}
+    elif isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller):
+        return _collocated_points(system, controller)
     else:
         return None
     return A, B
+
+
+def _collocated_points(
+    system: Hyperbolic2x2, controller: CollocatedOutputFeedback
+) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
+    """:func:`_exact_points` of an exact collocated loop: ``A - n G``, ``B + n G``, ``G = (1 - Phi) k q e^{-tau s}``.
+
+    On an uncoupled :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` every coefficient is a
+    rational of the user's numbers (``q e^{sigma_0 tau} = q``): ``G = k q e^{-tau s} - k rho q^2 e^{-2 tau s}``,
+    ``k`` the law's boundary gain, ``n = 1 + (a / r) s`` for a filtered law (``1`` otherwise).
+    """
+    inner = _exact_points(system, controller.controller)
+    if inner is None:
+        return None
+    tau = closed_form_parameters(system)[0]
+    q, rho = Fraction(system.q), Fraction(system.rho)
+    atoms = {"1": Fraction(1), "w": q, "h": q}
+
+    def rational(table: dict[float, list[_Exact]]) -> dict[float, list[Fraction]]:
+        return {t: [sum((atoms[k] * v for k, v in c.items()), Fraction(0)) for c in cs] for t, cs in table.items()}
+
+    A, B = (rational(table) for table in inner)
+    law = controller.controller
+    k = Fraction(unfiltered(law).feedback_law(system).boundary_gain)
+    n = [Fraction(1), Fraction(law.a) / tau_ratio(system)] if isinstance(law, FilteredController) else [Fraction(1)]
+    for t, g in ((tau, k * q), (tau + tau, -rho * q * k * q)):  # n G, by delay
+        for j, c in enumerate(n):
+            for table, sign in ((A, -1), (B, 1)):
+                coefs = table.setdefault(t, [])
+                coefs.extend([Fraction(0)] * (j + 1 - len(coefs)))
+                coefs[j] += sign * c * g
+
+    def exact(table: dict[float, list[Fraction]]) -> dict[float, list[_Exact]]:
+        return {t: [{"1": c} for c in cs] for t, cs in table.items()}
+
+    return exact(A), exact(B)
 
 
 def _exact_radii(
@@ -1220,8 +1321,9 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     ``e^{sigma_0 tau}`` of a general plant) carry proven radii
     (:attr:`~nrobust.hyperbolic.loops.exact_form.ExactForm.rho_q_radius`), and ``tau`` is
     mapped exactly (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`) for a loop
-    that is a function of ``tau s`` and ``delta / tau``. Otherwise the quantities computed in
-    floating point, in words, for a proof's scope.
+    that is a function of ``tau s`` and ``delta / tau``, or a filtered law's (its ``a``, ``b``
+    enclosed as ``a / r``, ``b / r``). Otherwise the quantities computed in floating point, in
+    words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
     if general and not has_exact_form(system):
@@ -1234,10 +1336,20 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
         return f"tau = {tau} and the principal gains as doubles (mapped to the exact tau on the exact route only)"
-    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController)) or (
+    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController, FilteredController)) or (
         isinstance(controller, StateFeedback) and not _integral_gains(controller)
     ):
         return ""
+    if (isinstance(controller, OutputFeedback) and observer_of(system, controller, kernel_grid) is None) or (
+        isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)
+    ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
+        return rounded_parts(system, controller.controller, kernel_grid)
+    if isinstance(controller, _ObserverFeedback):
+        return (
+            f"tau = {tau} as the double {system.tau!r} and the observer's terms as computed in floating point (the "
+            f"{type(controller).__name__} loop is not mapped to the exact tau: an observer delay or reflection, or "
+            "an observer term with a kernel)"
+        )
     return (
         f"tau = {tau} as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on tau "
         "otherwise than through tau s)"

@@ -37,9 +37,9 @@ built on it (:mod:`nrobust.balls`) is then an enclosure for the PDE itself, with
 transport time is the double ``tau_d`` nearest ``tau = 1/lam + 1/mu`` (the principal delays of
 :class:`~nrobust.quasipoly.QuasiPolynomial` are doubles). Since ``tau N~(tau t)`` depends on
 ``p``, ``m``, ``q``, ``rho`` and ``sigma_0 tau`` only, the loop of an unfiltered law is a
-function of ``z = tau s`` and of ``delta / tau``:
-:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale` maps the proofs for ``tau_d``
-to the plant as given.
+function of ``z = tau s`` and of ``delta / tau`` (a filtered law's, of ``z``, ``delta / tau`` and
+``a / tau``, ``b / tau``): :func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale` maps
+the proofs for ``tau_d`` to the plant as given.
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ __all__ = [
     "closed_form_series",
     "exact_form",
     "exact_ratios",
+    "exact_tau",
     "ball_radius",
     "gain_balls",
     "rational_ball",
@@ -73,6 +74,7 @@ __all__ = [
     "expand_piece",
     "has_exact_form",
     "series_tail",
+    "tau_ratio",
 ]
 
 #: Degree of the polynomial pieces of the exact ``N~``.
@@ -247,6 +249,35 @@ def exact_ratios(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> tuple[Fraction
         shift = length * (c["a"] / c["lam"] + c["d"] / c["mu"])
         return length * c["b"] / c["lam"], -length * c["c"] / c["mu"], shift
     raise ParameterError("system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients", system)
+
+
+def exact_tau(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> Fraction:
+    """``tau`` of a plant with constant coefficients as the rational of its numbers.
+
+    ``1/lam + 1/mu`` for :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`,
+    ``(L/lam + L/mu) / time_unit`` for a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` (its round trip in its
+    time unit, the ``tau`` of its normal form).
+    """
+    if isinstance(system, GeneralHyperbolic2x2):
+        lam, mu = (Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu"))
+        length = Fraction(system.length)
+        return (length / lam + length / mu) / Fraction(system.time_unit)
+    return Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)
+
+
+def tau_ratio(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> Fraction:
+    """``r = tau / tau_d``: :func:`exact_tau` over the double ``tau_d`` the closed form is built with.
+
+    The loop of the plant as given is the loop as built with ``s`` scaled by ``r``
+    (:mod:`~nrobust.hyperbolic.loops.given_plant`); 1 when ``tau`` is a double.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+    """
+    return exact_tau(system) / Fraction(closed_form_parameters(system)[0])
 
 
 def rational_ball(flint: Any, x: Fraction) -> Any:

@@ -13,6 +13,17 @@ the user's doubles): delays (``delta*``, crossing delays, the Rouché ``delta_0`
 ``r``, frequencies, real parts and decay rates by ``1/r``, counts in half-planes are unchanged.
 :func:`to_given_plant` applies the map to a proven result, each ball end rounded outward.
 
+A filtered law (section 2.3.2) has ``F(s) = (1 + b s) G(tau s) + (1 + a s) H(tau s) e^{-delta s}``:
+at ``s`` it is the loop built with ``tau_d`` and the filter ``(a / r, b / r)`` at ``r s``, with the
+delay ``delta / r``. The loop as built carries the user's ``a``, ``b`` with radii that enclose
+``a / r``, ``b / r`` (exact rationals), so a proof about it holds for that loop, and the same map
+takes it to the plant as given. So do the output feedbacks whose observer is exact on an uncoupled
+plant: an :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` whose law reads no value of
+the measurement's window (its loop is the law's), and a
+:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback` without an observer delay
+or reflection, whose observer term ``(1 - Phi) k q e^{-tau s}`` is a function of ``tau s`` (its
+point coefficients, products of the user's numbers, enclosed as exact rationals).
+
 Counts in a rectangle are not invariant under the map (the rectangle would scale by ``r``):
 they are proven on the plant's own function. With ``A``, ``B`` the factors of the loop as
 built, the plant's loop at delay ``delta`` is ``A(r s) + B(r s) e^{-delta s}`` (``delta`` the
@@ -26,8 +37,10 @@ loop carries each with a proven radius (``QuasiPolynomial(..., radii=...)``, enc
 user's numbers by :func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), so a proof about the
 loop as built holds for every loop with gains in those balls, the plant's among them, and the
 map applies to it. A general plant with constant coefficients has ``tau = L/lam + L/mu``
-(:func:`exact_tau`). Where the loop is not a function of ``tau s`` (a filtered law, integral
-gains) the proof keeps a scope naming what is rounded (:func:`rounded_parts`).
+(:func:`~nrobust.hyperbolic.loops.exact_form.exact_tau`). Where the loop is not of these forms
+(integral gains, an observer term with a kernel, an observer delay or reflection) the proof
+keeps a scope naming what is rounded
+(:func:`rounded_parts`).
 """
 
 from __future__ import annotations
@@ -37,17 +50,14 @@ import math
 from fractions import Fraction
 from typing import Any, TypeVar
 
-import numpy as np
-
 from ..._flint import precision, require_flint
 from ...balls import BallFunction, ball_function
 from ...bounds import RoucheDelayBound
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
-from ..plants.general import GeneralHyperbolic2x2
 from .controllers import characteristic, loop_factors, rounded_parts
-from .exact_form import closed_form_parameters, rational_ball
+from .exact_form import exact_tau, rational_ball, tau_ratio
 
 __all__ = [
     "GivenPlantBalls",
@@ -65,10 +75,10 @@ _R = TypeVar("_R", DelayMargin, SpectralAbscissa, RoucheDelayBound)
 def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = None) -> Fraction | None:
     """``r = tau / tau_d``: the factor mapping proofs about the loop as built to the plant as given.
 
-    ``tau`` exactly (:func:`exact_tau`: the user's doubles as rationals), ``tau_d`` the double the
-    loop is built with (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_parameters`). None
-    when the loop is not a function of ``tau s`` and ``delta / tau`` with its gains enclosed
-    (:func:`rounded_parts` says what is rounded): then the proofs hold for the loop as built.
+    :func:`~nrobust.hyperbolic.loops.exact_form.tau_ratio`: ``tau`` exactly (the user's doubles as
+    rationals) over ``tau_d``, the double the loop is built with. None when the loop is not, in
+    ``r s``, a loop of the same law built with ``tau_d`` and its gains enclosed (:func:`rounded_parts`
+    says what is rounded): then the proofs hold for the loop as built.
 
     Parameters
     ----------
@@ -77,22 +87,7 @@ def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = No
     """
     if rounded_parts(system, controller, kernel_grid):
         return None
-    return exact_tau(system) / Fraction(closed_form_parameters(system)[0])
-
-
-def exact_tau(system: Any) -> Fraction:
-    """``tau`` of a plant with constant coefficients as the rational of its numbers.
-
-    ``1/lam + 1/mu`` for :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`,
-    ``(L/lam + L/mu) / time_unit`` for a
-    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` (its round trip in its
-    time unit, the ``tau`` of its normal form).
-    """
-    if isinstance(system, GeneralHyperbolic2x2):
-        lam, mu = (Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu"))
-        length = Fraction(system.length)
-        return (length / lam + length / mu) / Fraction(system.time_unit)
-    return Fraction(1) / Fraction(system.lam) + Fraction(1) / Fraction(system.mu)
+    return tau_ratio(system)
 
 
 class GivenPlantBalls(BallFunction):

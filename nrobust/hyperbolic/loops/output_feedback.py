@@ -234,7 +234,7 @@ def consolidated(P: QuasiPolynomial) -> QuasiPolynomial:
         assert total is not None and r is not None
         total = total.plus(r)
     assert total is not None
-    return QuasiPolynomial.from_parts(P.point_terms, [total])
+    return QuasiPolynomial.from_parts(P.point_terms, [total], P.point_radii or None)
 
 
 def _uniform(starts: np.ndarray) -> bool:
@@ -270,7 +270,7 @@ def _refined_onto(P: QuasiPolynomial, G: QuasiPolynomial) -> QuasiPolynomial:
     if all(t is None for t in terms):
         return P
     kept = [d if t is None else t for d, t in zip(P.distributed, terms)]
-    return QuasiPolynomial.from_parts(P.point_terms, kept)
+    return QuasiPolynomial.from_parts(P.point_terms, kept, P.point_radii or None)
 
 
 def _refined_term(d: DistributedDelay, target: DistributedDelay) -> DistributedDelay | None:

@@ -1,0 +1,411 @@
+"""Proofs about the plant as given for filtered laws and exact observers: ``tau = 1/lam + 1/mu`` not a double.
+
+The filtered loop ``(1 + b s)(1 - Phi) + (1 + a s) B e^{-delta s}`` is not a function of ``tau s``
+alone, but at ``s`` it is the loop built with ``tau_d`` and the filter ``(a / r, b / r)`` at ``r s``
+(``r = tau / tau_d``): the loop carries ``a / r``, ``b / r`` as balls and the proofs are mapped by
+``r`` as for the unfiltered laws. So are the output feedbacks whose observer is exact on an
+uncoupled plant (the collocated observer's term ``(1 - Phi) k q e^{-tau s}``, its coefficients
+enclosed from the user's numbers). Loops rebuilt from their point terms keep the radii; proofs
+about a general plant's normal form, or not mapped (a design's), say so in their scope.
+
+Oracle, sharing no code with the package: the Laplace-domain solution of the PDE,
+``[u; v](1, s) = expm(M(s)) [q; 1]`` with ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]``
+(``mpmath.expm`` at 40 digits, ``tau = 1/lam + 1/mu`` exact), the open loop
+``1 - Phi = e^{-s/mu} (v(1) - rho u(1))`` and the filtered law's factors of the module table of
+``controllers`` (section 2.3.2 of the paper); on an uncoupled plant, the loop written from the
+boundary conditions ``v(1) = rho u(1) + U``, ``U = -(1 + a s)/(1 + b s) K u(1) e^{-delta s}``.
+Crossings, roots and windings are solved at 40 digits (``mpmath.findroot``, the argument
+principle).
+
+No case was found where the old proofs (the loop with ``tau`` rounded to a double, not mapped)
+miss the plant's value: over 21 finite margins on six plants (``lam, mu`` = 3, 7; 0.3, 0.7; 1, 3;
+1, 10) and four filters, the PDE's margin lay at least 4e-15 inside the old balls (1e-14 to 2e-12
+wide), while ``tau`` moves it by at most 2e-15 (``|r - 1| <= 2^-53`` times the margin); seven of
+the eight abscissae attained by a root have brackets 2e-11 to 8e-11 wide (the eighth 0.04), the
+plant's root at least 1e-11 inside. The tests below therefore check
+the new claims (the plant's value in the mapped ball, the enclosure of the plant's own loop, the
+scope) against the oracle; the scope and the enclosure fail before the change.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.hyperbolic import FilteredController, Hyperbolic2x2
+from nrobust.hyperbolic.loops.given_plant import (
+    GivenPlantBalls,
+    given_plant_balls,
+    given_plant_scale,
+    rounded_parts,
+)
+from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
+from nrobust.reports.certificate import PROVEN
+
+flint = pytest.importorskip("flint")
+
+DPS = 40
+
+
+def _open_loop(args, s):
+    """``(1 - Phi(s), tau)``: ``e^{-s/mu} (v(1) - rho u(1))`` from ``[u; v](0) = [q; 1]`` by ``mpmath.expm``."""
+    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)
+    E = mp.expm(mp.matrix([[-s / lam, spm / lam], [-smp / mu, s / mu]]))
+    u, v = E[0, 0] * q + E[0, 1], E[1, 0] * q + E[1, 1]
+    return mp.exp(-s / mu) * (v - rho * u), 1 / lam + 1 / mu
+
+
+def _factors(args, law, s):
+    """``(A, B)`` of the filtered law: ``(1 + b s)(1 - Phi)`` and ``(1 + a s) (K q e^{-tau s} - I_N)``.
+
+    ``I_N = rho q e^{-tau s} - Phi``; U_BS (``K`` None) has ``K = rho``, so ``B = (1 + a s) Phi``.
+    """
+    q, rho = mp.mpf(args[4]), mp.mpf(args[5])
+    one_minus_phi, tau = _open_loop(args, s)
+    gain = rho if law.K is None else mp.mpf(law.K)
+    unfiltered = (gain - rho) * q * mp.exp(-tau * s) + 1 - one_minus_phi
+    return (1 + mp.mpf(law.b) * s) * one_minus_phi, (1 + mp.mpf(law.a) * s) * unfiltered
+
+
+def _uncoupled_factors(args, law, s):
+    """``(A, B)`` of an uncoupled plant from its boundary conditions (no backstepping formula).
+
+    ``u(1) = q e^{-s/lam} v(0)``, ``v(1) = e^{s/mu} v(0)``, ``v(1) = rho u(1) + U`` with
+    ``U = -(1 + a s)/(1 + b s) K u(1) e^{-delta s}``, times ``(1 + b s) e^{-s/mu} / v(0)``.
+    """
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    gain = rho if law.K is None else mp.mpf(law.K)
+    u1, v1 = q * mp.exp(-s / lam), mp.exp(s / mu)
+    scale = mp.exp(-s / mu)
+    return scale * (1 + mp.mpf(law.b) * s) * (v1 - rho * u1), scale * (1 + mp.mpf(law.a) * s) * gain * u1
+
+
+def _loop(args, law, delta):
+    def F(s):
+        A, B = _factors(args, law, s)
+        return A + B * mp.exp(-mp.mpf(delta) * s)
+
+    return F
+
+
+def _pde_margin(factors, w0):
+    """``(w, delta*)``: the crossing ``|A(i w)| = |B(i w)|`` near ``w0`` and its first delay, at 40 digits."""
+    with mp.workdps(DPS):
+
+        def g(w):
+            A, B = factors(mp.mpc(0, w))
+            return abs(A) ** 2 - abs(B) ** 2
+
+        w = mp.findroot(g, mp.mpf(w0))
+        A, B = factors(mp.mpc(0, w))
+        return w, (-mp.arg(-A / B)) % (2 * mp.pi) / w  # e^{-i w delta} = -A / B
+
+
+def _winding(F, region, n=300):
+    """Winding number of ``F`` about the rectangle, the argument unwrapped on ``4 n`` samples at 40 digits
+    (asserted to turn by less than a radian between samples, so that no turn is missed)."""
+    with mp.workdps(DPS):
+        x0, x1, y0, y1 = (mp.mpf(v) for v in region)
+        corners = [mp.mpc(x0, y0), mp.mpc(x1, y0), mp.mpc(x1, y1), mp.mpc(x0, y1)]
+        values = [F(a + (b - a) * mp.mpf(j) / n) for a, b in zip(corners, corners[1:] + corners[:1]) for j in range(n)]
+        values.append(values[0])
+        steps = [mp.arg(b / a) for a, b in itertools.pairwise(values)]
+    assert max(abs(t) for t in steps) < 1.0
+    return int(mp.nint(mp.fsum(steps) / (2 * mp.pi)))
+
+
+#: ``tau = 10/21`` and ``p = 1/3``, ``m = -1/7`` (none a double), ``tau = 10/3`` with ``lam, mu = 0.3, 0.7``.
+CASES = [
+    ((3.0, 7.0, 1.0, 1.0, 1.0, 0.85), FilteredController(0.2, 0.5, 0.1)),
+    ((3.0, 7.0, 1.0, 1.0, 1.0, 0.85), FilteredController(0.05, 0.3)),
+    ((3.0, 7.0, 2.0, 3.0, 0.9, 0.5), FilteredController(0.3, 0.6, -0.1)),
+    ((0.3, 0.7, 0.5, -0.4, 0.8, 0.6), FilteredController(0.05, 0.3)),
+]
+
+
+@pytest.mark.parametrize(("args", "law"), CASES)
+def test_the_proven_margin_of_a_filtered_law_holds_for_the_plant_as_given(args, law):
+    plant = Hyperbolic2x2(*args)
+    assert rounded_parts(plant, law) == "" and given_plant_scale(plant, law) != 1
+    dm = nr.delay_margin(plant, law, rigorous=True)
+    assert "the plant as given" in dm.scope and "as the double" not in dm.scope
+    w, truth = _pde_margin(lambda s: _factors(args, law, s), dm.omega)
+    lo, hi = dm.margin_ball
+    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
+    # the proven crossing frequency is the PDE's: 1e-12 relative bounds its accuracy here (measured 1e-15)
+    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+
+
+def test_the_proven_margin_of_a_filtered_law_on_an_uncoupled_plant_holds_for_its_boundary_conditions():
+    """The loop written from the boundary conditions, not from the backstepping formula of the package."""
+    args, law = (3.0, 7.0, 0.0, 0.0, 1.0, 0.85), FilteredController(0.05, 0.3)
+    dm = nr.delay_margin(Hyperbolic2x2(*args), law, rigorous=True)
+    assert "the plant as given" in dm.scope
+
+    _, truth = _pde_margin(lambda s: _uncoupled_factors(args, law, s), dm.omega)
+    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+
+
+def test_the_proven_margin_of_a_filtered_law_on_a_general_plant_holds_for_the_plant_as_given():
+    """``GeneralHyperbolic2x2`` with ``lam, mu = 0.3, 0.7`` on ``L = 1.3`` (``tau = L/lam + L/mu`` not a double):
+    ``1 - Phi = e^{-(s - d) L / mu} (v(L) - rho u(L))`` from ``expm(L M(s))``, U_BS filtered."""
+    c = dict(lam=0.3, mu=0.7, a=0.1, b=0.4, c=-0.5, d=-0.2, q=0.6, rho=0.7, length=1.3)
+    law = FilteredController(0.05, 0.3)
+    plant = GeneralHyperbolic2x2(**c)
+    assert rounded_parts(plant, law) == "" and given_plant_scale(plant, law) != 1
+
+    def factors(s):
+        lam, mu, a, b, cc, d, q, L, rho = (
+            mp.mpf(c[k]) for k in ("lam", "mu", "a", "b", "c", "d", "q", "length", "rho")
+        )
+        E = mp.expm(L * mp.matrix([[(a - s) / lam, b / lam], [-cc / mu, (s - d) / mu]]))
+        u, v = E[0, 0] * q + E[0, 1], E[1, 0] * q + E[1, 1]
+        one_minus_phi = mp.exp(-(s - d) * L / mu) * (v - rho * u)
+        return (1 + mp.mpf(law.b) * s) * one_minus_phi, (1 + mp.mpf(law.a) * s) * (1 - one_minus_phi)
+
+    dm = nr.delay_margin(plant, law, rigorous=True)
+    assert "the plant as given" in dm.scope
+    _, truth = _pde_margin(factors, dm.omega)
+    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+
+
+def test_the_plant_balls_enclose_the_filtered_loop_with_tau_exact():
+    """``given_plant_balls`` of a filtered law encloses ``F``, ``F'``, ``F''`` of the exact-tau loop (40 digits);
+    before, the filtered law had no enclosure of the plant's own loop (None)."""
+    from nrobust._flint import working_precision
+
+    args, law = CASES[0]
+    for delta in (0.0, 0.3):
+        balls = given_plant_balls(Hyperbolic2x2(*args), law, delta)
+        assert isinstance(balls, GivenPlantBalls)
+        F = _loop(args, law, delta)
+        for s in (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-4.0, 150.0)):
+            for k in range(3):
+                value = balls(s, k)
+                with mp.workdps(DPS):
+                    truth = mp.diff(F, mp.mpc(s), k)
+                with working_precision(200) as fl:  # the 40-digit value, far narrower than the enclosure
+                    assert value.contains(fl.acb(truth)), (delta, s, k, value, truth)
+
+
+def test_the_chain_abscissa_of_a_filtered_law_is_in_the_proven_bracket():
+    """Uncoupled plant: the roots approach ``Re s = ln(|b rho - a K| q / b) / tau`` (the difference operator
+    ``b (1 - rho q e^{-tau s}) + a K q e^{-tau s}`` at ``delta = 0``), in closed form with ``tau`` exact."""
+    args, law = (3.0, 7.0, 0.0, 0.0, 1.0, 0.85), FilteredController(0.2, 0.5, 0.1)
+    plant = Hyperbolic2x2(*args)
+    cert = nr.certify(plant, law, delta_max=0.3, rigorous=True, k_region=False)
+    ab = cert.abscissa
+    assert ab.rigorous and ab.approached_at_infinity
+    with mp.workdps(DPS):
+        lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+        chain = mp.log(abs(mp.mpf(law.b) * rho - mp.mpf(law.a) * mp.mpf(law.K)) * q / mp.mpf(law.b)) / (
+            1 / lam + 1 / mu
+        )
+    assert mp.mpf(ab.value_bracket[0]) <= chain <= mp.mpf(ab.value_bracket[1])
+    assert "the plant as given" in cert.scope
+
+
+def test_the_certificate_of_a_filtered_law_holds_for_the_plant_as_given():
+    """``certify(plant, FilteredController(...), rigorous=True)`` end to end: the scope, the abscissa attained by a
+    root (in its proven bracket), the margin ball, and the proven root counts (argument principle at 40 digits)."""
+    args, law = CASES[2]
+    plant, delta_max = Hyperbolic2x2(*args), 0.3
+    cert = nr.certify(plant, law, delta_max=delta_max, rigorous=True, k_region=False)
+    assert "the plant as given" in cert.scope and "root counts marked proven" in cert.scope
+    assert "as the double" not in cert.scope.split("they are proven")[0]
+    claims = {c.name: c.status for c in cert.claims}
+    assert claims["spectral abscissa"] == PROVEN and claims["delay margin"] == PROVEN
+    ab = cert.abscissa
+    assert not ab.approached_at_infinity
+    with mp.workdps(DPS):
+        root = mp.findroot(_loop(args, law, 0.0), mp.mpc(ab.root))
+    assert mp.mpf(ab.value_bracket[0]) <= root.real <= mp.mpf(ab.value_bracket[1])
+    _, truth = _pde_margin(lambda s: _factors(args, law, s), cert.margin.omega)
+    assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+    for roots, delta, name in (
+        (cert.roots_nominal, 0.0, "roots at delta = 0"),
+        (cert.roots_delayed, delta_max, "roots at delta_max"),
+    ):
+        assert claims[name] == PROVEN and roots.rigorous
+        assert roots.count == _winding(_loop(args, law, delta), roots.region)
+
+
+def test_a_designs_scope_says_tau_is_rounded_when_its_proofs_are_not_mapped():
+    """A filtered design's certificate is proven on the loop as built (the family with ``tau_d``): its scope
+    says so where ``tau`` is not a double, and says the plant as given where it is (``lam = mu = 1``)."""
+    from nrobust.hyperbolic.analyses.filter_design import design_filtered_exact
+
+    parameters = {"K": 0.1, "b": 0.5, "a": (0.0, 0.3)}
+    rounded = design_filtered_exact(Hyperbolic2x2(*CASES[0][0]), "margin", parameters=parameters, rigorous=True)
+    assert "the plant as given" not in rounded.scope
+    assert "as the double 0.47619047619047616" in rounded.scope and "not mapped" in rounded.scope
+    exact = design_filtered_exact(Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85), "margin", parameters=parameters)
+    assert "the plant as given" in exact.scope
+
+
+# ---------------------------------------------------------------------------------------------- output feedbacks
+def _collocated_factors(args, law, s):
+    """``(A, B)`` of the collocated output feedback on an uncoupled plant, from the PDE and the observer.
+
+    Plant: ``u(1) = q e^{-s/lam}``, ``v(1) = e^{s/mu}`` (``v(0) = 1``), ``v(1) = rho u(1) + e^{-delta s} U``.
+    Observer (no coupling, no injection): ``v^(1) = rho y + U``, ``y = u(1)`` measured, ``u^(1) = q e^{-tau s}
+    v^(1)``; the law on the estimate ``U = -(n/d) K u^(1)`` (``n/d = (1 + a s)/(1 + b s)``). Solving for ``U``:
+    ``(v(1) - rho u(1))(d + n K q e^{-tau s}) + e^{-delta s} n K rho q u(1) e^{-tau s} = 0``, times ``e^{-s/mu}``.
+    """
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    gain = rho if law.K is None else mp.mpf(law.K)
+    n, d = 1 + mp.mpf(law.a) * s, 1 + mp.mpf(law.b) * s
+    u1, v1, round_trip = q * mp.exp(-s / lam), mp.exp(s / mu), mp.exp(-s * (1 / lam + 1 / mu))
+    scale = mp.exp(-s / mu)
+    return scale * (v1 - rho * u1) * (d + n * gain * q * round_trip), scale * n * gain * rho * q * u1 * round_trip
+
+
+#: Uncoupled plants (``tau = 10/21``, ``10/3``): the observers' terms are exact, the loops functions of ``tau s``.
+OBSERVED = [
+    ((3.0, 7.0, 0.0, 0.0, 1.0, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3)), _collocated_factors),
+    ((0.3, 0.7, 0.0, 0.0, 0.9, 0.6), nr.OutputFeedback(FilteredController(0.05, 0.3)), _uncoupled_factors),
+]
+
+
+@pytest.mark.parametrize(("args", "controller", "oracle"), OBSERVED)
+def test_the_proven_margin_of_an_exact_observer_holds_for_the_plant_as_given(args, controller, oracle):
+    plant = Hyperbolic2x2(*args)
+    assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" in dm.scope and "observer is exact" in dm.scope
+    w, truth = _pde_margin(lambda s: oracle(args, controller.controller, s), dm.omega)
+    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+
+
+def test_the_collocated_loop_encloses_the_observers_gains():
+    """``k q`` and ``k rho q^2`` of ``G`` are not doubles (``0.85 * 0.7``): the loop's balls enclose the loop of the
+    PDE and the observer with ``tau`` exact (``given_plant_balls`` at 40 digits), the certificate is about the plant
+    as given, and its proven counts are the exact loop's windings."""
+    from nrobust._flint import working_precision
+
+    args = (3.0, 7.0, 0.0, 0.0, 0.7, 0.85)
+    controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))
+    plant = Hyperbolic2x2(*args)
+
+    def loop(delta):
+        def F(s):
+            A, B = _collocated_factors(args, controller.controller, s)
+            return A + B * mp.exp(-mp.mpf(delta) * s)
+
+        return F
+
+    for delta in (0.0, 0.2):
+        balls = given_plant_balls(plant, controller, delta)
+        assert isinstance(balls, GivenPlantBalls)
+        for s in (complex(-1.0, 30.0), complex(0.5, -7.0)):
+            for k in range(2):
+                with mp.workdps(DPS):
+                    truth = mp.diff(loop(delta), mp.mpc(s), k)
+                with working_precision(200) as fl:
+                    assert balls(s, k).contains(fl.acb(truth)), (delta, s, k)
+    cert = nr.certify(plant, controller, delta_max=0.2, rigorous=True, k_region=False)
+    assert "the plant as given" in cert.scope and "root counts marked proven" in cert.scope
+    claims = {c.name: c.status for c in cert.claims}
+    for roots, delta, name in (
+        (cert.roots_nominal, 0.0, "roots at delta = 0"),
+        (cert.roots_delayed, 0.2, "roots at delta_max"),
+    ):
+        assert claims[name] == PROVEN and roots.count == _winding(loop(delta), roots.region)
+
+
+def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
+    """An observer delay (``delta_o / r`` is not a double) or an observer reflection: the scope names the rounding."""
+    plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 1.0, 0.85)
+    for controller in (
+        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_delay=0.01),
+        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_reflection=0.1),
+    ):
+        assert given_plant_scale(plant, controller) is None
+        dm = nr.delay_margin(plant, controller, rigorous=True)
+        assert "the plant as given" not in dm.scope and "as the double 0.47619047619047616" in dm.scope
+
+
+@pytest.mark.parametrize(
+    ("args", "controller"),
+    [
+        ((3.0, 7.0, 1.0, 1.0, 0.7, 0.85), FilteredController(0.2, 0.5, 0.1)),
+        ((3.0, 7.0, 1.0, 1.0, 0.7, 0.85), FilteredController(0.05, 0.3)),
+        ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))),
+        ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3, -0.1))),
+    ],
+)
+def test_the_point_coefficients_are_balls_about_the_scaled_loop(args, controller):
+    """Each stored point coefficient is within its radius of the exact one of the loop at ``x = r s``: the filter
+    ``(a / r, b / r)``, ``E = e^{-tau_d x}``, written here in rationals from the module table of ``controllers``
+    and the collocated loop above (the stored ``a``, ``b`` themselves are not in these balls' centres)."""
+    from fractions import Fraction
+
+    plant = Hyperbolic2x2(*args)
+    lam, mu, q, rho = (Fraction(args[k]) for k in (0, 1, 4, 5))
+    r = (1 / lam + 1 / mu) / Fraction(plant.tau)
+    law = controller.controller if isinstance(controller, nr.CollocatedOutputFeedback) else controller
+    a, b = Fraction(law.a) / r, Fraction(law.b) / r
+    K = rho if law.K is None else Fraction(law.K)
+    if isinstance(controller, nr.CollocatedOutputFeedback):  # (1 - rho q E)(1 + b x + (1 + a x) K q E), B_o
+        A = {0: [1, b], 1: [K * q - rho * q, K * q * a - rho * q * b], 2: [-rho * q * K * q, -rho * q * K * q * a]}
+        B = {2: [K * rho * q * q, K * rho * q * q * a]}
+    else:  # (1 + b x)(1 - rho q E), (1 + a x) K q E
+        A = {0: [1, b], 1: [-rho * q, -rho * q * b]}
+        B = {1: [K * q, K * q * a]}
+    A_built, B_built = nr.loop_factors(plant, controller)
+    moved = 0
+    for built, exact in ((A_built, A), (B_built, B)):
+        assert {t for _, t in built.point_terms} == {j * plant.tau for j in exact}
+        for (coefs, t), radii in zip(built.point_terms, built.radii_of()):
+            truth = exact[round(t / plant.tau)]
+            for c, rad, x in zip(coefs, radii, truth):
+                assert abs(Fraction(float(c)) - x) <= Fraction(float(rad))
+                moved += Fraction(float(c)) != x
+    assert moved > 0  # the radii are needed: a stored coefficient differs from its exact value
+
+
+# ------------------------------------------------------------------------- loops rebuilt from their point terms
+def test_loops_rebuilt_from_their_point_terms_keep_the_radii():
+    """The design's merged nominal loop and truncated factors, and an output feedback's loop refined onto its observer
+    term, keep the radii of the point coefficients (``rho q = 0.85 * 0.7`` is not a double): each stored coefficient
+    stays within its radius of the exact rational, as in the loop they were built from."""
+    from fractions import Fraction
+
+    from nrobust.design.gain import _merged, _truncated
+
+    plant = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 0.7, 0.85)
+    rho_q = Fraction(0.85) * Fraction(0.7)
+
+    def holds(P, j, exact):  # the coefficient of s^j e^{-tau s} within its radius of ``exact``
+        c, rad = next((p, r) for (p, t), r in zip(P.point_terms, P.radii_of()) if t == plant.tau)
+        return abs(Fraction(float(c[j])) - exact) <= Fraction(float(rad[j]))
+
+    law = FilteredController(0.05, 0.3)
+    A, B = nr.loop_factors(plant, law)
+    F = A + B  # (1 + b s)(1 - Phi) + (1 + a s) Phi: rho q (a - b) s e^{-tau s}
+    merged = _merged(F)
+    assert len(merged.distributed) < len(F.distributed)  # the kernels N and -N written once: rebuilt
+    assert holds(A, 0, -rho_q) and holds(merged, 1, rho_q * (Fraction(law.a) - Fraction(law.b)))
+    truncated = _truncated(A, 1)
+    assert all(p.size == 1 for p, _ in truncated.point_terms) and holds(truncated, 0, -rho_q)
+    observed, _ = nr.loop_factors(plant, nr.OutputFeedback(nr.ReflectionController(0.1)))
+    assert holds(observed, 0, -rho_q)
+
+
+def test_proofs_about_a_general_plants_normal_form_say_so():
+    """A collocated output feedback on a general plant is analysed on its normal form, whose ``lam, mu, q, rho``
+    are doubles computed from the coefficients: its proofs, mapped to that normal form's exact ``tau``, are not
+    about the plant as given, and the scopes of the margin, the certificate and a design say so."""
+    general = GeneralHyperbolic2x2(lam=0.3, mu=0.7, a=0.1, b=0.0, c=0.0, d=-0.2, q=0.6, rho=0.7, length=1.3)
+    controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))
+    dm = nr.delay_margin(general, controller, rigorous=True)
+    cert = nr.certify(general, controller, delta_max=0.1, rigorous=True, k_region=False)
+    design = nr.design_reflection(general, "margin").design.certificate
+    for scope in (dm.scope, cert.scope, cert.margin.scope, design.scope):
+        assert "the plant's normal form as computed in floating point" in scope
+        assert "the plant as given" not in scope
