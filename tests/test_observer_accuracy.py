@@ -1,0 +1,107 @@
+"""The delay margins of output-feedback designs carry an accuracy, and every printed digit is true.
+
+The designed loops are models of the PDE (the observer's term is computed in floating point);
+their margins are printed to the accuracy of :func:`observer_margin_error`. The oracles share
+none of that estimate: the kernel route (the state feedback from kernels on a grid instead of
+the closed form, the observer on the same grid) on finer grids, Richardson-extrapolated at the
+order the grids show (2 for the collocated observer, 3 for the output feedback).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.design import AffineLoop, best_margin
+from nrobust.hyperbolic.analyses.observer_accuracy import observer_margin_error
+from nrobust.hyperbolic.loops.controllers import loop_factors
+from nrobust.margins import delay_margin as factor_delay_margin
+from nrobust.quasipoly import QuasiPolynomial
+
+PAPER = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
+NUMBER = r"(-?[0-9.]+(?:e[-+]?[0-9]+)?) \+- ([0-9]e[-+]?[0-9]+)"
+
+
+def printed(text: str, name: str) -> tuple[str, float, float]:
+    """``name=VALUE +- ACC`` in a repr: the value's text, the value and the accuracy (else the test fails)."""
+    match = re.search(rf"{name}={NUMBER}", text)
+    assert match is not None, f"{name} printed without an accuracy: {text}"
+    return match.group(1), float(match.group(1)), float(match.group(2))
+
+
+def decimals(text: str) -> int:
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+def richardson(values: list[float], order: float) -> float:
+    """The limit of the last two values on grids halving their step, at the given order."""
+    return values[-1] + (values[-1] - values[-2]) / (2.0**order - 1.0)
+
+
+@pytest.mark.slow
+def test_collocated_observer_design_margin_digits():
+    """``design_collocated_observer``: ``margin=0.1948028 +- 4e-7``, the kernel route on 201 and 401 points
+    (order 2 from 101, 201, 401: ratio 4.0) extrapolates to 0.194802641 (801 and 1601 points agree to 1e-12)."""
+    design = nr.design_collocated_observer(PAPER, "margin", controller=nr.ReflectionController(0.1))
+    text = repr(design)
+    assert "GainDesign(kappa=" in text and "accuracy not estimated" not in text
+    digits, value, accuracy = printed(text, "margin")
+    margins = [nr.delay_margin(PAPER, design.controller, kernel_grid=n).margin for n in (101, 201, 401)]
+    ratio = (margins[1] - margins[0]) / (margins[2] - margins[1])
+    assert 3.0 < ratio < 5.0  # observed order 2
+    truth = richardson(margins, 2.0)
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))  # no digit beyond the accuracy
+    # the estimate is not absurdly loose: within 10 times the true error of the unrounded margin
+    assert accuracy <= 10.0 * abs(design.design.margin - truth)
+    # the plant-level margin of the designed controller states the same accuracy
+    check = nr.delay_margin(PAPER, design.controller)
+    assert check.model_error is not None and abs(check.margin - truth) <= check.accuracy
+
+
+@pytest.mark.slow
+def test_output_feedback_design_margin_digits():
+    """``design_reflection(..., output_feedback=True)``: ``margin=0.144456116613 +- 4e-12``; the kernel route on
+    201 and 401 points (order 3: ratio 7.9 from 101) extrapolates to 0.14445611661337 (from 401 and 801: 1e-13
+    apart)."""
+    design = nr.design_reflection(PAPER, "decay_rate", margin_at_least=0.1, output_feedback=True)
+    text = repr(design)
+    assert "accuracy not estimated" not in text
+    digits, value, accuracy = printed(text, "margin")
+    margins = [nr.delay_margin(PAPER, design.controller, kernel_grid=n).margin for n in (101, 201, 401)]
+    ratio = (margins[1] - margins[0]) / (margins[2] - margins[1])
+    assert 6.0 < ratio < 10.0  # observed order 3
+    truth = richardson(margins, 3.0)
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))
+
+
+def test_collocated_estimate_is_the_grid_study():
+    """The collocated estimate is the change of the margin from the observer on 101 to 201 points when the
+    changes contract: here the loop on 101 points built in full (its margin by the core) moved by the same."""
+    controller = nr.CollocatedOutputFeedback(nr.ReflectionController(0.1), 0.0, -0.7)
+    A, B = loop_factors(PAPER, controller)
+    margin = factor_delay_margin(A, B)
+    error = observer_margin_error(PAPER, controller, margin, (A, B))
+    assert error is not None and 0.0 < error < 1e-5
+    # the same loop with every kernel on 101 points: the state feedback's kernel route moves the margin by
+    # about 1e-10 (measured on 201 points), far below the observer's share
+    coarse = nr.delay_margin(PAPER, controller, kernel_grid=101).margin
+    np.testing.assert_allclose(error, abs(margin.margin - coarse), rtol=0.01)
+
+
+def test_design_summary_names_the_parameter():
+    """A design over another parameter than ``K`` prints its name: ``GainDesign(kappa=...``, ``(b=...``."""
+    loop = AffineLoop(
+        QuasiPolynomial([[1.0, 1.0]], [0.0]),
+        QuasiPolynomial([[0.0]], [0.0]),
+        QuasiPolynomial([[3.0]], [0.0]),
+        QuasiPolynomial([[1.0]], [0.0]),
+    )
+    design = best_margin(loop, (-1.0, 1.0))
+    assert repr(design).startswith("GainDesign(K=")
+    assert design.summary("b") == repr(design).replace("GainDesign(K=", "GainDesign(b=", 1)
