@@ -49,6 +49,11 @@ from .mismatch_proof import (
     SquareProof as SquareProof,
     prove_transport_square as prove_transport_square,
 )
+from .observer_accuracy import (
+    OBSERVER_SAFETY as OBSERVER_SAFETY,
+    crossing_delay as crossing_delay,
+    observer_margin_error as observer_margin_error,
+)
 from .observer_design import (
     JOINT_GAMMA_MAX as JOINT_GAMMA_MAX,
     OBSERVER_OBJECTIVES as OBSERVER_OBJECTIVES,
