@@ -51,8 +51,9 @@ from .mismatch_proof import (
 )
 from .observer_accuracy import (
     OBSERVER_SAFETY as OBSERVER_SAFETY,
+    STUDY_SAFETY as STUDY_SAFETY,
     crossing_delay as crossing_delay,
-    observer_margin_error as observer_margin_error,
+    observer_model_error as observer_model_error,
 )
 from .observer_design import (
     JOINT_GAMMA_MAX as JOINT_GAMMA_MAX,

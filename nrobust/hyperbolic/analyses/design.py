@@ -48,7 +48,7 @@ from ._common import study_plant
 from .kregion import u_bs2_loop
 from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
-from .observer_accuracy import observer_margin_error
+from .observer_accuracy import observer_model_error
 
 __all__ = ["DESIGN_OBJECTIVES", "ReflectionDesign", "design_reflection"]
 
@@ -365,14 +365,15 @@ def design_reflection(
     else:
         factors = (loop.A, loop.B(design.K))
     of_model = loop_route(plant, controller, None) != "exact" and not plant.uncoupled
-    model_error = None
+    model_error = omega_model_error = None
     if of_model and isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):
-        model_error = observer_margin_error(plant, controller, design.certificate, factors)
+        model_error, omega_model_error = observer_model_error(plant, controller, design.certificate, factors)
     certificate = dataclasses.replace(
         design.certificate,
         scope=loop_scope(plant, controller, None, factors),
         of_model=of_model,
         model_error=model_error,
+        omega_model_error=omega_model_error,
     )
     tolerance = None
     if eps is not None and window is not None:

@@ -33,7 +33,7 @@ from ..loops.controllers import (
 from ..loops.given_plant import built_delay, to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .observer_accuracy import observer_margin_error
+from .observer_accuracy import observer_model_error
 
 __all__ = ["delay_margin", "margin_and_decay"]
 
@@ -154,15 +154,17 @@ def delay_margin(
     of_model = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and (
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )
-    model_error = None
+    model_error = omega_model_error = None
     if (
         of_model
         and isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2))
         and isinstance(controller, (OutputFeedback, CollocatedOutputFeedback))
         and loop_route(system, controller, kernel_grid) == "observer"
     ):
-        model_error = observer_margin_error(system, controller, result, (A, B))
-    return dataclasses.replace(result, scope=scope, of_model=of_model, model_error=model_error)
+        model_error, omega_model_error = observer_model_error(system, controller, result, (A, B))
+    return dataclasses.replace(
+        result, scope=scope, of_model=of_model, model_error=model_error, omega_model_error=omega_model_error
+    )
 
 
 def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str, float]:

@@ -60,7 +60,7 @@ from ..loops.output_feedback import consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
-from .observer_accuracy import crossing_delay, observer_margin_error
+from .observer_accuracy import crossing_delay, observer_model_error
 
 __all__ = [
     "JOINT_GAMMA_MAX",
@@ -335,8 +335,10 @@ def design_collocated_observer(
     scope = loop_scope(plant, designed, None, factors)
     certificate = design.certificate
     of_model = loop_route(plant, designed, None) != "exact" and not plant.uncoupled
-    model_error = observer_margin_error(plant, designed, certificate, factors) if of_model else None
-    certificate = dataclasses.replace(certificate, scope=scope, of_model=of_model, model_error=model_error)
+    errors = observer_model_error(plant, designed, certificate, factors) if of_model else (None, None)
+    certificate = dataclasses.replace(
+        certificate, scope=scope, of_model=of_model, model_error=errors[0], omega_model_error=errors[1]
+    )
     return ObserverDesign(designed, dataclasses.replace(design, certificate=certificate), bounds, scope)
 
 
@@ -856,6 +858,12 @@ def design_collocated_output_feedback(
     factors = loop_factors(plant, controller)
     _check_model(loop, best.parameters, factors, 2.0 * max(float(best.margin.omega or 0.0), 1.0))
     scope = loop_scope(plant, controller, None, factors)
+    if loop_route(plant, controller, None) != "exact" and not plant.uncoupled:  # a model: its error estimated
+        errors = observer_model_error(plant, controller, best.margin, factors)
+        margin = dataclasses.replace(
+            best.margin, scope=scope, of_model=True, model_error=errors[0], omega_model_error=errors[1]
+        )
+        best = dataclasses.replace(best, margin=margin)
     failed = tuple(
         r if isinstance(r, str) else f"start {r.runs[0].start}: not certified"
         for r in results
