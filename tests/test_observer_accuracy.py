@@ -9,6 +9,7 @@ order the grids show (2 for the collocated observer, 3 for the output feedback).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -17,8 +18,8 @@ import pytest
 
 import nrobust as nr
 from nrobust.design import AffineLoop, best_margin
-from nrobust.hyperbolic.analyses.observer_accuracy import STUDY_SAFETY, observer_model_error
-from nrobust.hyperbolic.loops.controllers import loop_factors
+from nrobust.hyperbolic.analyses.observer_accuracy import STUDY_SAFETY, observer_model_error, observer_rate_error
+from nrobust.hyperbolic.loops.controllers import characteristic, loop_factors
 from nrobust.margins import delay_margin as factor_delay_margin
 from nrobust.quasipoly import QuasiPolynomial
 
@@ -118,6 +119,33 @@ def test_collocated_estimate_is_the_grid_study():
     coarse = nr.delay_margin(PAPER, controller, kernel_grid=101)
     np.testing.assert_allclose(error, STUDY_SAFETY * abs(margin.margin - coarse.margin), rtol=0.01)
     np.testing.assert_allclose(omega_error, STUDY_SAFETY * abs(margin.omega - coarse.omega), rtol=0.01)
+
+
+@pytest.mark.slow
+def test_collocated_decay_rate_digits():
+    """U_BS with the collocated observer keeping ``kappa = 0.715462`` (the margin design of ``docs/design.md``):
+    the rightmost root is a zero of ``E = 1 - kappa H_y``, from the dual plant's kernels, so the decay rate is a
+    model's. It was printed ``-0.007114825033559 +- 7e-15``; the kernel route on 101, 201 and 401 points (ratio
+    6.2: order 2.6) extrapolates to -0.00711482497, 6e-11 from the model's value."""
+    controller = nr.CollocatedOutputFeedback(nr.FiniteTimeController(), 0.0, 0.715462)
+    factors = loop_factors(PAPER, controller)
+    abscissa = nr.spectral_abscissa(characteristic(PAPER, controller, 0.0))
+    error = observer_rate_error(PAPER, controller, abscissa, factors)
+    assert error is not None
+    text = repr(dataclasses.replace(abscissa, model_error=error))
+    digits, value, accuracy = printed(text, "value")
+    values = [
+        nr.spectral_abscissa(characteristic(PAPER, controller, 0.0, kernel_grid=n)).value for n in (101, 201, 401)
+    ]
+    ratio = (values[1] - values[0]) / (values[2] - values[1])
+    assert 4.0 < ratio < 9.0
+    truth = richardson(values, math.log2(ratio))
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))
+    # a rate that is the state feedback's (the zeros of E further left) has no model error
+    controller = nr.CollocatedOutputFeedback(nr.ReflectionController(0.1), 0.0, -0.714945)
+    abscissa = nr.spectral_abscissa(characteristic(PAPER, controller, 0.0))
+    assert observer_rate_error(PAPER, controller, abscissa, loop_factors(PAPER, controller)) < 1e-15
 
 
 def test_design_summary_names_the_parameter():

@@ -54,6 +54,7 @@ from .observer_accuracy import (
     STUDY_SAFETY as STUDY_SAFETY,
     crossing_delay as crossing_delay,
     observer_model_error as observer_model_error,
+    observer_rate_error as observer_rate_error,
 )
 from .observer_design import (
     JOINT_GAMMA_MAX as JOINT_GAMMA_MAX,

@@ -34,6 +34,7 @@ import numpy as np
 
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
+from ...roots import SpectralAbscissa
 from ..kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID
 from ..loops.controllers import (
     CollocatedOutputFeedback,
@@ -51,7 +52,7 @@ from ..loops.controllers import (
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["OBSERVER_SAFETY", "STUDY_SAFETY", "crossing_delay", "observer_model_error"]
+__all__ = ["OBSERVER_SAFETY", "STUDY_SAFETY", "crossing_delay", "observer_model_error", "observer_rate_error"]
 
 #: Safety factor of the first-order estimate of an :class:`OutputFeedback`'s margin error (its observer
 #: term's stated accuracy is itself an estimate, and the second-order terms are left out).
@@ -214,27 +215,84 @@ def _crossing_change(
     w: float,
     tau: float,
 ) -> tuple[float, float] | None:
-    """The first-order change ``(dw, dtau)`` of the crossing ``(w, tau)`` when the observer's responses are ``other``.
-
-    The loop is ``A_o = d (1 - Phi)(1 - kappa H_y) - n (1 - Phi) C_u e^{-delta_o s}``, ``B_o = n B~ (1 - kappa
-    H_y) + n (1 - Phi) C_u`` (:mod:`~nrobust.hyperbolic.loops.collocated`), affine in ``(C_u, H_y)``: the change
-    ``dF`` of ``F = A_o + B_o e^{-tau s}`` at ``s = i w`` is exact from the responses' values there, and the
-    crossing moves by ``-M^{-1} (Re dF, Im dF)`` (:func:`_crossing_inverse`). None at a tangency.
-    """
+    """The first-order change ``(dw, dtau)`` of the crossing ``(w, tau)`` when the observer's responses are ``other``:
+    ``-M^{-1} (Re dF, Im dF)`` (:func:`_crossing_inverse`, :func:`_loop_change`). None at a tangency."""
     inverse = _crossing_inverse(factors, w, tau)
     if inverse is None:
         return None
-    s = np.array([1j * w])
-    inner = controller.controller
-    num = 1.0 + inner.a * s[0] if isinstance(inner, FilteredController) else 1.0
-    den = 1.0 + inner.b * s[0] if isinstance(inner, FilteredController) else 1.0
-    kappa, delta_o = controller.observer_reflection, controller.observer_delay
-    open_loop = complex(loop_factors(system, OpenLoop())[0](s)[0])
-    law = complex(loop_factors(system, unfiltered(inner))[1](s)[0])
-    d_c = complex(other[0](s)[0]) - complex(fine[0](s)[0])
-    d_h = complex(other[1](s)[0]) - complex(fine[1](s)[0])
-    d_a = -kappa * den * open_loop * d_h - num * open_loop * d_c * np.exp(-delta_o * s[0])
-    d_b = -kappa * num * law * d_h + num * open_loop * d_c
-    d_f = d_a + d_b * np.exp(-tau * s[0])
+    d_f = _loop_change(system, controller, fine, other, 1j * w, tau)
     dw, dtau = -inverse @ np.array([d_f.real, d_f.imag])
     return float(dw), float(dtau)
+
+
+def _loop_change(
+    system: Hyperbolic2x2,
+    controller: CollocatedOutputFeedback,
+    fine: tuple[QuasiPolynomial, QuasiPolynomial],
+    other: tuple[QuasiPolynomial, QuasiPolynomial],
+    s: complex,
+    delay: float,
+) -> complex:
+    """The change of ``F(s; delay) = A_o(s) + B_o(s) e^{-delay s}`` when the observer's responses are ``other``.
+
+    The loop is ``A_o = d (1 - Phi)(1 - kappa H_y) - n (1 - Phi) C_u e^{-delta_o s}``, ``B_o = n B~ (1 - kappa
+    H_y) + n (1 - Phi) C_u`` (:mod:`~nrobust.hyperbolic.loops.collocated`), affine in ``(C_u, H_y)``: the change
+    is exact from the responses' values at ``s``.
+    """
+    at = np.array([s])
+    inner = controller.controller
+    num = 1.0 + inner.a * s if isinstance(inner, FilteredController) else 1.0
+    den = 1.0 + inner.b * s if isinstance(inner, FilteredController) else 1.0
+    kappa, delta_o = controller.observer_reflection, controller.observer_delay
+    open_loop = complex(loop_factors(system, OpenLoop())[0](at)[0])
+    law = complex(loop_factors(system, unfiltered(inner))[1](at)[0])
+    d_c = complex(other[0](at)[0]) - complex(fine[0](at)[0])
+    d_h = complex(other[1](at)[0]) - complex(fine[1](at)[0])
+    d_a = -kappa * den * open_loop * d_h - num * open_loop * d_c * np.exp(-delta_o * s)
+    d_b = -kappa * num * law * d_h + num * open_loop * d_c
+    return complex(d_a + d_b * np.exp(-delay * s))
+
+
+def observer_rate_error(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: OutputFeedback | CollocatedOutputFeedback,
+    abscissa: SpectralAbscissa,
+    factors: tuple[QuasiPolynomial, QuasiPolynomial],
+) -> float | None:
+    """The estimated distance of the rightmost root of ``controller``'s loop at ``delta = 0`` (``abscissa``, of
+    ``A_o + B_o``) to the PDE's, in each of its parts; None where not estimated.
+
+    At ``delta = delta_o`` the loop is ``E`` times the state feedback's, whose factors are in
+    closed form: with ``E = 1`` (an :class:`OutputFeedback`, or a collocated observer with
+    ``kappa = 0``) and ``delta_o = 0`` the observer's terms cancel and the error is 0. A collocated
+    observer with ``kappa != 0`` (the zeros of ``E = 1 - kappa H_y``, from the dual plant's
+    kernels, are modes of the loop) or ``delta_o > 0``: the convergence study in the observer's
+    grid (module notes), the root moved to first order ``ds = -dF / F'``, the larger of the
+    studies of its real and imaginary parts. None for an :class:`OutputFeedback` with
+    ``delta_o > 0``, a chain value (the rightmost roots approached at infinity), or no root.
+    """
+    if loop_route(system, controller) != "observer":
+        return None
+    kappa = getattr(controller, "observer_reflection", 0.0)
+    if kappa == 0.0 and controller.observer_delay == 0.0:
+        return 0.0
+    root = abscissa.root
+    if not isinstance(controller, CollocatedOutputFeedback) or not isinstance(system, Hyperbolic2x2):
+        return None
+    if root is None or abscissa.approached_at_infinity:
+        return None
+    A, B = factors
+    at = np.array([complex(root)])
+    slope = complex(A.deriv_at(at)[0]) + complex(B.deriv_at(at)[0])
+    if slope == 0.0:
+        return None
+    grid = DEFAULT_KERNEL_GRID
+    fine = (collocated_observer_of(system, controller).response, observer_reflection_of(system, controller).response)
+    moves = [
+        -_loop_change(system, controller, fine, collocated_responses_of(system, controller, n), complex(root), 0.0)
+        / slope
+        for n in ((grid + 1) // 2, (grid + 3) // 4)
+    ]
+    # the finest root minus the coarser ones' (moves[0]: 101 points, moves[1]: 51)
+    d2, d1 = -moves[0], moves[0] - moves[1]
+    return max(_study(d1.real, d2.real), _study(d1.imag, d2.imag))

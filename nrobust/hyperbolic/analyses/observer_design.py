@@ -60,7 +60,7 @@ from ..loops.output_feedback import consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
-from .observer_accuracy import crossing_delay, observer_model_error
+from .observer_accuracy import crossing_delay, observer_model_error, observer_rate_error
 
 __all__ = [
     "JOINT_GAMMA_MAX",
@@ -339,7 +339,11 @@ def design_collocated_observer(
     certificate = dataclasses.replace(
         certificate, scope=scope, of_model=of_model, model_error=errors[0], omega_model_error=errors[1]
     )
-    return ObserverDesign(designed, dataclasses.replace(design, certificate=certificate), bounds, scope)
+    abscissa = design.abscissa
+    if of_model:  # the zeros of E = 1 - kappa H_y are modes of the loop: the rate is a model's too
+        abscissa = dataclasses.replace(abscissa, model_error=observer_rate_error(plant, designed, abscissa, factors))
+    design = dataclasses.replace(design, certificate=certificate, abscissa=abscissa)
+    return ObserverDesign(designed, design, bounds, scope)
 
 
 def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
