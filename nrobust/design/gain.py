@@ -227,13 +227,22 @@ class GainDesign:
         return (float(k_hi - k_lo), 0.0 if v_hi == v_lo else float(v_hi - v_lo))
 
     def __repr__(self) -> str:
+        return self.summary()
+
+    def summary(self, parameter: str = "K") -> str:
+        """The repr with the designed parameter named ``parameter`` (``"kappa"``, ``"a"``, ``"b"``: what ``K`` is).
+
+        Each number with the digits its accuracy supports: the parameter to the width of
+        :attr:`K_bracket`, the margin to its certificate's accuracy (plus the width of
+        :attr:`value_bracket` when it is the objective), the decay rate to its abscissa's.
+        """
         k_acc, v_acc = self.accuracy
         # the margin at K is known to its certificate's accuracy; as the optimum, to the value bracket too
         margin_acc = self.certificate.accuracy
         if self.objective == "margin" and margin_acc is not None:
             margin_acc += v_acc
         return (
-            f"GainDesign(K={with_accuracy(self.K, k_acc)}, objective={self.objective!r}, kind={self.kind!r}, "
+            f"GainDesign({parameter}={with_accuracy(self.K, k_acc)}, objective={self.objective!r}, kind={self.kind!r}, "
             f"margin={with_accuracy(self.margin, margin_acc)}, "
             f"decay_rate={with_accuracy(self.decay_rate, self.abscissa.accuracy)}, certified={self.certified!r})"
         )

@@ -129,6 +129,9 @@ class DelayMargin:
         error, set by the plant-level ``delay_margin`` when the model states its own accuracy
         (an output feedback's observer term); it is added to :attr:`accuracy`. None: not
         estimated here.
+    omega_model_error : float or None
+        For a model: an estimate of the crossing frequency's change from the model's error, set
+        with :attr:`model_error`; it is added to :attr:`omega_accuracy`. None: not estimated here.
     """
 
     margin: float
@@ -153,13 +156,18 @@ class DelayMargin:
     of_model: bool = False
     omega_error: float | None = None
     model_error: float | None = None
+    omega_model_error: float | None = None
 
     @property
     def omega_accuracy(self) -> float | None:
         """A bound of ``|omega - w|`` (proven with ``rigorous``, else an estimate: :attr:`omega_error`);
-        None if unknown or for a model of the plant (:attr:`of_model`: its distance to the
-        plant's crossing comes from a convergence study, :attr:`nrobust.Certificate.margin_accuracy`)."""
-        return None if self.of_model else self.omega_error
+        for a model of the plant (:attr:`of_model`) :attr:`omega_model_error` is added, None when it is
+        not known (its distance to the plant's crossing is not estimated here)."""
+        if not self.of_model:
+            return self.omega_error
+        if self.omega_error is None or self.omega_model_error is None:
+            return None
+        return self.omega_error + self.omega_model_error
 
     @property
     def accuracy(self) -> float | None:
@@ -551,7 +559,8 @@ def _first_axis_root(
         return float("inf"), None, "no crossing frequency: stable for every delay"
     first_crossing = crossings[0]
     kind = "tangency (a double root touches the axis and returns)" if first_crossing.tangential else "crossing"
-    return first_crossing.delays[0], first_crossing.omega, f"first {kind} at w = {first_crossing.omega:.10g}"
+    # the frequency is the margin's omega, printed there to its accuracy (a model's can be known to 1e-7 only)
+    return first_crossing.delays[0], first_crossing.omega, f"first {kind} (at omega)"
 
 
 def _checked(

@@ -96,6 +96,11 @@ class SpectralAbscissa:
     error_estimate : float or None
         The floating-point estimate of ``|value - sup {Re s : F(s) = 0}|`` that :attr:`accuracy`
         falls back on without a proven ``value_bracket`` (see there); None when not known.
+    model_error : float or None
+        For the loop of a model of a plant: an estimate of the abscissa's distance to the
+        plant's, set by the caller that knows the model (an output feedback's observer term:
+        :func:`~nrobust.hyperbolic.analyses.observer_accuracy.observer_rate_error`); added to
+        :attr:`accuracy`. None: not estimated.
     """
 
     value: float
@@ -111,15 +116,17 @@ class SpectralAbscissa:
     chain_bracket: tuple[float, float] | None = None
     value_bracket: tuple[float, float] | None = None
     error_estimate: float | None = None
+    model_error: float | None = None
 
     @property
     def accuracy(self) -> float | None:
         """A bound of ``|value - sup {Re s : F(s) = 0}|``: proven, or a conservative estimate; None if unknown.
 
-        It is about ``F`` as represented. For the loop of a model of the PDE (the kernel route,
-        ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``) the model's own
-        error is not included: the core cannot know it (for the margin it is estimated by the
-        convergence study in the kernel grid of :attr:`nrobust.Certificate.margin_accuracy`).
+        It is about ``F`` as represented, plus :attr:`model_error` when the caller estimated the
+        model's own error. For the loop of a model of the PDE (the kernel route,
+        ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``) it is otherwise not
+        included: the core cannot know it (for the margin it is estimated by the convergence
+        study in the kernel grid of :attr:`nrobust.Certificate.margin_accuracy`).
 
         * With ``rigorous`` and a ``value_bracket``: the distance from ``value`` to the far end
           of the bracket, rounded up (proven, for ``F`` as represented).
@@ -143,27 +150,31 @@ class SpectralAbscissa:
         """
         if self.value == -np.inf:
             return 0.0
+        model = 0.0 if self.model_error is None else self.model_error
         if self.rigorous and self.value_bracket is not None:
             lo, hi = self.value_bracket
             radius = max(hi - self.value, self.value - lo)
-            return float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0
-        return self.error_estimate
+            return (float(np.nextafter(radius, np.inf)) if radius > 0.0 else 0.0) + model
+        return None if self.error_estimate is None else self.error_estimate + model
 
     @property
     def root_accuracy(self) -> tuple[float | None, float | None]:
         """Bounds of the errors of ``Re root`` and ``Im root``: proven (the distances to the far
         edges of ``root_box``, with ``rigorous``) or the floating-point :attr:`error_estimate` of
-        the root (both parts); None if unknown or if ``value`` is the chain value."""
+        the root (both parts), plus :attr:`model_error`; None if unknown or if ``value`` is the chain value."""
         if self.root is None or self.approached_at_infinity:
             return None, None
+        model = 0.0 if self.model_error is None else self.model_error
         if self.rigorous and self.root_box is not None:
             x0, x1, y0, y1 = self.root_box
             re, im = self.root.real, self.root.imag
             return (
-                float(np.nextafter(max(x1 - re, re - x0, 0.0), np.inf)),
-                float(np.nextafter(max(y1 - im, im - y0, 0.0), np.inf)),
+                float(np.nextafter(max(x1 - re, re - x0, 0.0), np.inf)) + model,
+                float(np.nextafter(max(y1 - im, im - y0, 0.0), np.inf)) + model,
             )
-        return self.error_estimate, self.error_estimate
+        if self.error_estimate is None:
+            return None, None
+        return self.error_estimate + model, self.error_estimate + model
 
     def __repr__(self) -> str:
         """Each number labelled by what backs it: ``proven`` (ball arithmetic), ``floating point``

@@ -49,6 +49,13 @@ from .mismatch_proof import (
     SquareProof as SquareProof,
     prove_transport_square as prove_transport_square,
 )
+from .observer_accuracy import (
+    OBSERVER_SAFETY as OBSERVER_SAFETY,
+    STUDY_SAFETY as STUDY_SAFETY,
+    crossing_delay as crossing_delay,
+    observer_model_error as observer_model_error,
+    observer_rate_error as observer_rate_error,
+)
 from .observer_design import (
     JOINT_GAMMA_MAX as JOINT_GAMMA_MAX,
     OBSERVER_OBJECTIVES as OBSERVER_OBJECTIVES,

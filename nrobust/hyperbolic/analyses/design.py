@@ -48,6 +48,7 @@ from ._common import study_plant
 from .kregion import u_bs2_loop
 from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
+from .observer_accuracy import observer_model_error, observer_rate_error
 
 __all__ = ["DESIGN_OBJECTIVES", "ReflectionDesign", "design_reflection"]
 
@@ -363,10 +364,18 @@ def design_reflection(
         _check_affine(loop, design.K, factors, 2.0 * max(float(design.certificate.omega or 0.0), 1.0))
     else:
         factors = (loop.A, loop.B(design.K))
+    of_model = loop_route(plant, controller, None) != "exact" and not plant.uncoupled
+    model_error = omega_model_error = None
+    abscissa = design.abscissa
+    if of_model and isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):
+        model_error, omega_model_error = observer_model_error(plant, controller, design.certificate, factors)
+        abscissa = dataclasses.replace(abscissa, model_error=observer_rate_error(plant, controller, abscissa, factors))
     certificate = dataclasses.replace(
         design.certificate,
         scope=loop_scope(plant, controller, None, factors, mapped=False, normal_form=plant is not system),
-        of_model=loop_route(plant, controller, None) != "exact" and not plant.uncoupled,
+        of_model=of_model,
+        model_error=model_error,
+        omega_model_error=omega_model_error,
     )
     tolerance = None
     if eps is not None and window is not None:
@@ -379,4 +388,6 @@ def design_reflection(
             rigorous=rigorous,
             corner_windows=design.windows[1:],
         )
-    return ReflectionDesign(controller, dataclasses.replace(design, certificate=certificate), tolerance)
+    return ReflectionDesign(
+        controller, dataclasses.replace(design, certificate=certificate, abscissa=abscissa), tolerance
+    )

@@ -594,7 +594,7 @@ class ExactFilteredDesign:
         )
 
     def __repr__(self) -> str:
-        return f"ExactFilteredDesign({self.controller!r}, parameter={self.parameter!r}, {self.design!r})"
+        return f"ExactFilteredDesign({self.controller!r}, {self.design.summary(self.parameter)})"
 
 
 def _exact_bounds(

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
-
 from ..._validate import renamed_keywords
 from ...errors import ParameterError
 from ...lti.allmargin import loop_delay_margin
@@ -25,18 +23,17 @@ from ...roots import spectral_abscissa
 from ..loops.controllers import (
     CollocatedOutputFeedback,
     Controller,
-    FilteredController,
     OutputFeedback,
     characteristic,
     loop_factors,
     loop_route,
     loop_scope,
     normalize,
-    observer_of,
 )
 from ..loops.given_plant import built_delay, to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .observer_accuracy import observer_model_error
 
 __all__ = ["delay_margin", "margin_and_decay"]
 
@@ -160,45 +157,17 @@ def delay_margin(
     of_model = isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and (
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )
-    model_error = None
+    model_error = omega_model_error = None
     if (
         of_model
         and isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2))
-        and isinstance(controller, OutputFeedback)
+        and isinstance(controller, (OutputFeedback, CollocatedOutputFeedback))
         and loop_route(system, controller, kernel_grid) == "observer"
     ):
-        model_error = _observer_margin_error(system, controller, B, result)
-    return dataclasses.replace(result, scope=scope, of_model=of_model, model_error=model_error)
-
-
-#: Safety factor of the first-order estimate of an output feedback's margin error (its observer
-#: term's stated accuracy is itself an estimate, and the second-order terms are left out).
-_OBSERVER_SAFETY = 10.0
-
-
-def _observer_margin_error(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: OutputFeedback, B: QuasiPolynomial, result: DelayMargin
-) -> float | None:
-    """The margin's change from the error of the observer term ``G`` (first order, with a safety factor).
-
-    ``G``'s kernel errs by at most ``e`` (its stated accuracy) on a support of length ``T``, so
-    ``A_o = A - n G e^{-delta_o s}`` and ``B_o = B + n G`` err by ``e T |n(i w)|`` each on the
-    axis, ``F(i w; delta)`` by twice that, and the crossing delay by that over
-    ``|dF/d delta| = w |B_o(i w)|``.
-    """
-    if not np.isfinite(result.margin) or result.margin == 0.0:
-        return 0.0
-    term = observer_of(system, controller)
-    if term is None or result.omega is None or result.omega <= 0.0:
-        return None
-    inner = controller.controller
-    s = 1j * float(result.omega)
-    numerator = abs(1.0 + inner.a * s) if isinstance(inner, FilteredController) else 1.0
-    total = sum(d.b - d.a for d in term.product.distributed)
-    slope = float(result.omega) * abs(complex(B(s)))
-    if slope <= 0.0:
-        return None
-    return _OBSERVER_SAFETY * 2.0 * term.accuracy * total * numerator / slope
+        model_error, omega_model_error = observer_model_error(system, controller, result, (A, B))
+    return dataclasses.replace(
+        result, scope=scope, of_model=of_model, model_error=model_error, omega_model_error=omega_model_error
+    )
 
 
 def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str, float]:

@@ -60,6 +60,7 @@ from ..loops.output_feedback import consolidated
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, study_plant
+from .observer_accuracy import crossing_delay, observer_model_error, observer_rate_error
 
 __all__ = [
     "JOINT_GAMMA_MAX",
@@ -83,8 +84,8 @@ _SHRINK = 0.1
 #: Gains near the top of the sampled envelope (within this fraction of it) whose delay margins the
 #: design must match or beat, at most this many.
 _TOP_FRACTION, _TOP_CHECKS = 0.01, 5
-#: Newton steps of :func:`_crossing_delay`, and the design's crossings it starts from (at most).
-_NEWTON_STEPS, _CROSSING_STARTS = 30, 3
+#: The design's crossings continued to a gain near the top of the envelope (at most).
+_CROSSING_STARTS = 3
 
 
 class _ObserverResult:
@@ -132,7 +133,8 @@ class ObserverDesign(_ObserverResult):
         return self.design.kind
 
     def __repr__(self) -> str:
-        return f"ObserverDesign({self.controller!r}, {self.design!r})"  # the value to its accuracy
+        # the designed parameter is the observer's reflection kappa; each value to its accuracy
+        return f"ObserverDesign({self.controller!r}, {self.design.summary('kappa')})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -331,10 +333,17 @@ def design_collocated_observer(
     designed = _reflection_controller(base, design.K)
     factors = loop_factors(plant, designed)
     scope = loop_scope(plant, designed, None, factors, mapped=False, normal_form=plant is not system)
+    certificate = design.certificate
+    of_model = loop_route(plant, designed, None) != "exact" and not plant.uncoupled
+    errors = observer_model_error(plant, designed, certificate, factors) if of_model else (None, None)
     certificate = dataclasses.replace(
-        design.certificate, scope=scope, of_model=loop_route(plant, designed, None) != "exact" and not plant.uncoupled
+        certificate, scope=scope, of_model=of_model, model_error=errors[0], omega_model_error=errors[1]
     )
-    return ObserverDesign(designed, dataclasses.replace(design, certificate=certificate), bounds, scope)
+    abscissa = design.abscissa
+    if of_model:  # the zeros of E = 1 - kappa H_y are modes of the loop: the rate is a model's too
+        abscissa = dataclasses.replace(abscissa, model_error=observer_rate_error(plant, designed, abscissa, factors))
+    design = dataclasses.replace(design, certificate=certificate, abscissa=abscissa)
+    return ObserverDesign(designed, design, bounds, scope)
 
 
 def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
@@ -345,9 +354,10 @@ def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
     within :data:`_TOP_FRACTION` of its top are checked, so that a kink whose equations converged to
     another pair of curves, or an end the envelope overrates, is not returned as the best ``kappa``.
     A crossing delay of the loop at such a gain bounds its margin from above (a zero lies on the axis
-    there): one of the design's crossings (the critical one first) continued to the gain by Newton's method
-    (:func:`_crossing_delay`) settles the check when its delay is no larger than the design's margin, else the
-    gain's certified margin (:func:`~nrobust.margins.delay_margin`) decides.
+    there): one of the design's crossings (the critical one first) continued to the gain by Newton's
+    method (:func:`~nrobust.hyperbolic.analyses.observer_accuracy.crossing_delay`) settles the check
+    when its delay is no larger than the design's margin, else the gain's certified margin
+    (:func:`~nrobust.margins.delay_margin`) decides.
     """
     env = np.asarray(design.envelope, dtype=float)
     near = np.flatnonzero(env >= (1.0 - _TOP_FRACTION) * float(np.max(env)))
@@ -363,8 +373,8 @@ def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
         if top == design.K:
             continue
         A, B = loop.A(top), loop.B(top)
-        taus = (_crossing_delay(A, B, float(w)) for w in starts[:_CROSSING_STARTS])
-        if any(tau is not None and tau <= limit for tau in taus):
+        found = (crossing_delay(A, B, float(w)) for w in starts[:_CROSSING_STARTS])
+        if any(f is not None and f[1] <= limit for f in found):
             continue
         margin = delay_margin(A, B)
         if margin.margin > limit:
@@ -373,36 +383,6 @@ def _check_envelope_top(loop: AffineLoop, design: GainDesign) -> None:
                 f"{design.value:.12g}, but kappa = {top:.12g} has {margin.margin:.12g} (the equations of the "
                 "optimum converged away from the top of the envelope): kappa_bounds about the latter give its optimum"
             )
-
-
-def _crossing_delay(A: QuasiPolynomial, B: QuasiPolynomial, w0: float) -> float | None:
-    """The smallest delay ``tau >= 0`` with ``A(i w) + B(i w) e^{-i w tau} = 0`` at a zero ``w > 0`` of ``g(w) =
-    |A(i w)|^2 - |B(i w)|^2`` that Newton's method reaches from ``w0``; None when it does not converge to rounding.
-
-    ``tau = theta / w``, ``theta = arg(-B(i w) / A(i w))`` in ``[0, 2 pi)``: the loop has the zero ``i w`` at
-    that delay, so its delay margin is at most ``tau`` (to the rounding of ``w``, at the level of ``1e-14``).
-    """
-    w = w0
-    for _ in range(_NEWTON_STEPS):
-        s = np.array([1j * w])
-        a, b = complex(A(s)[0]), complex(B(s)[0])
-        da, db = 1j * complex(A.deriv_at(s)[0]), 1j * complex(B.deriv_at(s)[0])  # d/dw of A(i w), B(i w)
-        g_w = 2.0 * ((a.conjugate() * da).real - (b.conjugate() * db).real)
-        if g_w == 0.0 or a == 0.0:
-            return None
-        step = (abs(a) ** 2 - abs(b) ** 2) / g_w
-        w -= step
-        if not w > 0.0:
-            return None
-        if abs(step) <= 1e-14 * w:
-            break
-    else:
-        return None
-    s = np.array([1j * w])
-    a, b = complex(A(s)[0]), complex(B(s)[0])
-    if not abs(abs(a) - abs(b)) <= 1e-12 * (abs(a) + abs(b)):
-        return None
-    return float(np.mod(np.angle(-b / a), 2.0 * np.pi)) / w
 
 
 def _bounds(name: str, value: Any) -> tuple[float, float]:
@@ -882,6 +862,12 @@ def design_collocated_output_feedback(
     factors = loop_factors(plant, controller)
     _check_model(loop, best.parameters, factors, 2.0 * max(float(best.margin.omega or 0.0), 1.0))
     scope = loop_scope(plant, controller, None, factors, mapped=False, normal_form=plant is not system)
+    if loop_route(plant, controller, None) != "exact" and not plant.uncoupled:  # a model: its error estimated
+        errors = observer_model_error(plant, controller, best.margin, factors)
+        margin = dataclasses.replace(
+            best.margin, scope=scope, of_model=True, model_error=errors[0], omega_model_error=errors[1]
+        )
+        best = dataclasses.replace(best, margin=margin)
     failed = tuple(
         r if isinstance(r, str) else f"start {r.runs[0].start}: not certified"
         for r in results

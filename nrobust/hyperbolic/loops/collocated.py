@@ -145,6 +145,7 @@ __all__ = [
     "CollocatedObserver",
     "ObserverReflection",
     "collocated_observer",
+    "collocated_responses",
     "command_response",
     "dual_plant",
     "observer_gains",
@@ -398,6 +399,32 @@ def collocated_observer(
         grid = np.linspace(0.0, 1.0, kernel_grid)
         p_u = p_v = np.zeros(kernel_grid)
     return CollocatedObserver(grid, p_u, p_v, response, product, total_accuracy)
+
+
+def collocated_responses(
+    system: Hyperbolic2x2, law: FeedbackLaw, kernel_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(C_u, H_y)`` from the kernels of the dual plant on ``kernel_grid`` points alone.
+
+    The responses of :func:`collocated_observer` and :func:`observer_reflection` without their
+    products by ``1 - Phi`` and ``B~`` and without their accuracy estimates: the loop on a grid is
+    known from them at a point, which is what a convergence study in the observer's grid needs.
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The observed plant.
+    law : FeedbackLaw
+        The unfiltered law, its gains read on ``kernel_grid`` points.
+    kernel_grid : int
+        Points of the dual plant's kernel grid.
+    """
+    kernels = None if system.uncoupled else _dual_kernels(system, kernel_grid)
+    unit = FeedbackLaw(1.0, _zero_gain, _zero_gain)
+    return (
+        command_response(system, law, kernels, kernel_grid)[0],
+        command_response(system, unit, kernels, kernel_grid)[0],
+    )
 
 
 def _zero_gain(x: Array) -> Array:

@@ -57,6 +57,7 @@ from .collocated import (
     CollocatedObserver,
     ObserverReflection,
     collocated_observer,
+    collocated_responses,
     observer_reflection,
     reflection_factors,
 )
@@ -91,6 +92,7 @@ __all__ = [
     "characteristic",
     "classify",
     "collocated_observer_of",
+    "collocated_responses_of",
     "observer_reflection_of",
     "loop_factors",
     "loop_route",
@@ -816,6 +818,12 @@ def _collocated(system: Hyperbolic2x2, inner: Controller, route_grid: int | None
     ``route_grid``: the kernel grid of the state feedback's route (None: the exact route, whose
     ``1 - Phi`` is used, the observer's kernels on the default grid).
     """
+    open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
+    return collocated_observer(system, _law_on(system, inner), open_loop, _collocated_grid(route_grid))
+
+
+def _law_on(system: Hyperbolic2x2, inner: Controller) -> Callable[[int], FeedbackLaw]:
+    """``grid -> FeedbackLaw``: the unfiltered law of ``inner``, its gains from kernels on ``grid`` points."""
     law = unfiltered(inner)
 
     def law_on(n: int) -> FeedbackLaw:
@@ -823,8 +831,22 @@ def _collocated(system: Hyperbolic2x2, inner: Controller, route_grid: int | None
             return law.feedback_law(system)
         return law.feedback_law(system, _kernels(system, n))
 
-    open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
-    return collocated_observer(system, law_on, open_loop, _collocated_grid(route_grid))
+    return law_on
+
+
+def collocated_responses_of(
+    system: Any, controller: CollocatedOutputFeedback, observer_grid: int
+) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """``(C_u, H_y)`` of ``controller``'s collocated observer with the dual plant's kernels on ``observer_grid`` points.
+
+    :func:`~nrobust.hyperbolic.loops.collocated.collocated_responses`: the observer's responses
+    alone (on the default grid they are ``collocated_observer_of(...).response`` and
+    ``observer_reflection_of(...).response``), for a convergence study in the observer's grid.
+    """
+    if not isinstance(system, Hyperbolic2x2):
+        raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
+    grid = check_kernel_grid(observer_grid)
+    return collocated_responses(system, _law_on(system, controller.controller)(grid), grid)
 
 
 def _collocated_loop(

@@ -1,0 +1,161 @@
+"""The delay margins of output-feedback designs carry an accuracy, and every printed digit is true.
+
+The designed loops are models of the PDE (the observer's term is computed in floating point);
+their margins are printed to the accuracy of :func:`observer_model_error`. The oracles share
+none of that estimate: the kernel route (the state feedback from kernels on a grid instead of
+the closed form, the observer on the same grid) on finer grids, Richardson-extrapolated at the
+order the grids show (2 for the collocated observer, 3 for the output feedback).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.design import AffineLoop, best_margin
+from nrobust.hyperbolic.analyses.observer_accuracy import STUDY_SAFETY, observer_model_error, observer_rate_error
+from nrobust.hyperbolic.loops.controllers import characteristic, loop_factors
+from nrobust.margins import delay_margin as factor_delay_margin
+from nrobust.quasipoly import QuasiPolynomial
+
+PAPER = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
+NUMBER = r"(-?[0-9.]+(?:e[-+]?[0-9]+)?) \+- ([0-9]e[-+]?[0-9]+)"
+
+
+def printed(text: str, name: str) -> tuple[str, float, float]:
+    """``name=VALUE +- ACC`` in a repr: the value's text, the value and the accuracy (else the test fails)."""
+    match = re.search(rf"{name}={NUMBER}", text)
+    assert match is not None, f"{name} printed without an accuracy: {text}"
+    return match.group(1), float(match.group(1)), float(match.group(2))
+
+
+def decimals(text: str) -> int:
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+def richardson(values: list[float], order: float) -> float:
+    """The limit of the last two values on grids halving their step, at the given order."""
+    return values[-1] + (values[-1] - values[-2]) / (2.0**order - 1.0)
+
+
+@pytest.mark.slow
+def test_collocated_observer_design_margin_digits():
+    """``design_collocated_observer``: ``margin=0.1948028 +- 8e-7``, the kernel route on 201 and 401 points
+    (order 2 from 101, 201, 401: ratio 4.0) extrapolates to 0.194802641 (801 and 1601 points agree to 1e-12)."""
+    design = nr.design_collocated_observer(PAPER, "margin", controller=nr.ReflectionController(0.1))
+    text = repr(design)
+    assert "GainDesign(kappa=" in text and "accuracy not estimated" not in text
+    digits, value, accuracy = printed(text, "margin")
+    routes = [nr.delay_margin(PAPER, design.controller, kernel_grid=n) for n in (101, 201, 401)]
+    margins = [m.margin for m in routes]
+    ratio = (margins[1] - margins[0]) / (margins[2] - margins[1])
+    assert 3.0 < ratio < 5.0  # observed order 2
+    truth = richardson(margins, 2.0)
+    # the crossing frequency of the designed loop, printed to its accuracy too
+    omega_digits, omega, omega_accuracy = printed(repr(design.design.certificate), "omega")
+    assert abs(omega - richardson([m.omega for m in routes], 2.0)) <= omega_accuracy
+    assert decimals(omega_digits) == -math.floor(math.log10(omega_accuracy))
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))  # no digit beyond the accuracy
+    # the estimate is not absurdly loose: within 20 times the true error of the unrounded margin
+    assert accuracy <= 20.0 * abs(design.design.margin - truth)
+    # the plant-level margin of the designed controller states the same accuracy
+    check = nr.delay_margin(PAPER, design.controller)
+    assert check.model_error is not None and abs(check.margin - truth) <= check.accuracy
+
+
+@pytest.mark.slow
+def test_joint_collocated_design_margin_digits():
+    """``design_collocated_output_feedback`` (one start): its margin was printed ``+- 2e-13`` (the accuracy of the
+    model's crossing) though the model is 1e-7 from the PDE; now to the observer grid's study."""
+    design = nr.design_collocated_output_feedback(PAPER, "margin", starts=1)
+    digits, value, accuracy = printed(repr(design), "margin")
+    # order 1 from 101 to 401 points (ratio 2.0), order 2 from 201 to 801 (ratio 4.0)
+    margins = [nr.delay_margin(PAPER, design.controller, kernel_grid=n).margin for n in (201, 401, 801)]
+    assert 3.0 < (margins[1] - margins[0]) / (margins[2] - margins[1]) < 5.0  # observed order 2
+    truth = richardson(margins, 2.0)
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))
+
+
+@pytest.mark.slow
+def test_output_feedback_design_margin_digits():
+    """``design_reflection(..., output_feedback=True)``: ``margin=0.144456116613 +- 4e-12``; the kernel route on
+    201 and 401 points (order 3: ratio 7.9 from 101) extrapolates to 0.14445611661337 (from 401 and 801: 1e-13
+    apart)."""
+    design = nr.design_reflection(PAPER, "decay_rate", margin_at_least=0.1, output_feedback=True)
+    text = repr(design)
+    assert "accuracy not estimated" not in text
+    digits, value, accuracy = printed(text, "margin")
+    routes = [nr.delay_margin(PAPER, design.controller, kernel_grid=n) for n in (101, 201, 401)]
+    margins = [m.margin for m in routes]
+    ratio = (margins[1] - margins[0]) / (margins[2] - margins[1])
+    assert 6.0 < ratio < 10.0  # observed order 3
+    truth = richardson(margins, 3.0)
+    omega_digits, omega, omega_accuracy = printed(repr(design.design.certificate), "omega")
+    assert abs(omega - richardson([m.omega for m in routes], 3.0)) <= omega_accuracy
+    assert decimals(omega_digits) == -math.floor(math.log10(omega_accuracy))
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))
+
+
+def test_collocated_estimate_is_the_grid_study():
+    """The collocated estimate is ``STUDY_SAFETY`` times the change of the margin (and of its crossing frequency)
+    from the observer on 101 to 201 points when the changes contract: here the loop on 101 points built in full
+    (its margin by the core) moved by the same."""
+    controller = nr.CollocatedOutputFeedback(nr.ReflectionController(0.1), 0.0, -0.7)
+    A, B = loop_factors(PAPER, controller)
+    margin = factor_delay_margin(A, B)
+    error, omega_error = observer_model_error(PAPER, controller, margin, (A, B))
+    assert error is not None and 0.0 < error < 1e-5
+    assert omega_error is not None and 0.0 < omega_error < 1e-4
+    # the same loop with every kernel on 101 points: the state feedback's kernel route moves the margin by
+    # about 1e-10 (measured on 201 points), far below the observer's share
+    coarse = nr.delay_margin(PAPER, controller, kernel_grid=101)
+    np.testing.assert_allclose(error, STUDY_SAFETY * abs(margin.margin - coarse.margin), rtol=0.01)
+    np.testing.assert_allclose(omega_error, STUDY_SAFETY * abs(margin.omega - coarse.omega), rtol=0.01)
+
+
+@pytest.mark.slow
+def test_collocated_decay_rate_digits():
+    """U_BS with the collocated observer keeping ``kappa = 0.715462`` (the margin design of ``docs/design.md``):
+    the rightmost root is a zero of ``E = 1 - kappa H_y``, from the dual plant's kernels, so the decay rate is a
+    model's. It was printed ``-0.007114825033559 +- 7e-15``; the kernel route on 101, 201 and 401 points (ratio
+    6.2: order 2.6) extrapolates to -0.00711482497, 6e-11 from the model's value."""
+    controller = nr.CollocatedOutputFeedback(nr.FiniteTimeController(), 0.0, 0.715462)
+    factors = loop_factors(PAPER, controller)
+    abscissa = nr.spectral_abscissa(characteristic(PAPER, controller, 0.0))
+    error = observer_rate_error(PAPER, controller, abscissa, factors)
+    assert error is not None
+    text = repr(dataclasses.replace(abscissa, model_error=error))
+    digits, value, accuracy = printed(text, "value")
+    values = [
+        nr.spectral_abscissa(characteristic(PAPER, controller, 0.0, kernel_grid=n)).value for n in (101, 201, 401)
+    ]
+    ratio = (values[1] - values[0]) / (values[2] - values[1])
+    assert 4.0 < ratio < 9.0
+    truth = richardson(values, math.log2(ratio))
+    assert abs(value - truth) <= accuracy
+    assert decimals(digits) == -math.floor(math.log10(accuracy))
+    # a rate that is the state feedback's (the zeros of E further left) has no model error
+    controller = nr.CollocatedOutputFeedback(nr.ReflectionController(0.1), 0.0, -0.714945)
+    abscissa = nr.spectral_abscissa(characteristic(PAPER, controller, 0.0))
+    assert observer_rate_error(PAPER, controller, abscissa, loop_factors(PAPER, controller)) < 1e-15
+
+
+def test_design_summary_names_the_parameter():
+    """A design over another parameter than ``K`` prints its name: ``GainDesign(kappa=...``, ``(b=...``."""
+    loop = AffineLoop(
+        QuasiPolynomial([[1.0, 1.0]], [0.0]),
+        QuasiPolynomial([[0.0]], [0.0]),
+        QuasiPolynomial([[3.0]], [0.0]),
+        QuasiPolynomial([[1.0]], [0.0]),
+    )
+    design = best_margin(loop, (-1.0, 1.0))
+    assert repr(design).startswith("GainDesign(K=")
+    assert design.summary("b") == repr(design).replace("GainDesign(K=", "GainDesign(b=", 1)
