@@ -1,11 +1,12 @@
-"""Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, and
-Krawczyk's test.
+"""Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, the
+ball of a coefficient known to a radius, and Krawczyk's test.
 
 python-flint is the optional extra ``nrobust[rigorous]``. Every module that computes in
 ball arithmetic loads it with :func:`require_flint` (an ``ImportError`` that says how to
 install it) and proves isolated simple zeros with :func:`krawczyk`: the root finder
 (:mod:`nrobust.roots.finder`) and the spectral bound of difference operators
-(:mod:`nrobust.difference`). :mod:`nrobust.balls` re-exports these names; this module
+(:mod:`nrobust.difference`), each coefficient known to a radius as :func:`radius_acb`.
+:mod:`nrobust.balls` re-exports these names; this module
 sits below it because ``nrobust.difference``, which ``nrobust.balls`` depends on through
 ``nrobust.quasipoly``, needs them too.
 """
@@ -19,7 +20,7 @@ from typing import Any
 
 from ._validate import positive_int
 
-__all__ = ["INSTALL_HINT", "acb_box", "krawczyk", "precision", "require_flint", "working_precision"]
+__all__ = ["INSTALL_HINT", "acb_box", "krawczyk", "precision", "radius_acb", "require_flint", "working_precision"]
 
 #: Message of the error raised when python-flint is missing.
 INSTALL_HINT = "rigorous=True needs python-flint (ball arithmetic): pip install nrobust[rigorous]"
@@ -82,6 +83,16 @@ def acb_box(x0: float, x1: float, y0: float, y1: float) -> Any:
     re = arb(x0) if x0 == x1 else arb(x0).union(arb(x1))
     im = arb(y0) if y0 == y1 else arb(y0).union(arb(y1))
     return flint.acb(re, im)
+
+
+def radius_acb(flint: ModuleType, c: Any, r: float) -> Any:
+    """The ``acb`` of a point coefficient ``c`` within ``r`` (real and imaginary parts each): real for a
+    real ``c`` (the function stays real); the exact point ``c`` when ``r`` is 0."""
+    z = complex(c)
+    rad = float(r)
+    if z.imag:
+        return flint.acb(flint.arb(z.real, rad), flint.arb(z.imag, rad)) if rad else flint.acb(z.real, z.imag)
+    return flint.acb(flint.arb(z.real, rad)) if rad else flint.acb(z.real)
 
 
 def krawczyk(

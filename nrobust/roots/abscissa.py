@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from .._digits import with_accuracy
 from .._json import fields_dict
@@ -392,10 +392,17 @@ def _spectral_abscissa(
         result = replace(result, certified=False)
     if proof is None:
         return replace(result, root_box=None)
-    # the chains only of a principal part with exact coefficients (not computed in floating point,
-    # nor known to a radius only)
-    exact = isinstance(F, QuasiPolynomialMatrix) or (isinstance(F, QuasiPolynomial) and F.exact_points)
-    return _proven_brackets(result, D if exact else None, region is None, proof)
+    # the chains only of a principal part whose coefficients are exact or known to proven radii (not
+    # computed in floating point)
+    radii = F.principal_radii() if isinstance(F, QuasiPolynomial) else None
+    known = isinstance(F, QuasiPolynomialMatrix) or radii is not None
+    return _proven_brackets(result, D if known else None, radii, region is None, _is_difference(F), proof)
+
+
+def _is_difference(F: QuasiPolynomial) -> bool:
+    """True if ``F`` is its own principal part, ``sum_k a_k e^{-tau_k s}`` (point terms of degree 0 only):
+    its zeros are those of the difference operator, no root lies right of ``c_D``."""
+    return isinstance(F, QuasiPolynomial) and not F.distributed and F.degree == 0
 
 
 # Safety factor of the floating-point error estimates: 40 times the largest ratio (0.37) of the
@@ -443,30 +450,45 @@ def _chain_estimate(D: DifferenceOperator, bound: SpectralBound) -> float | None
 
 
 def _proven_brackets(
-    result: SpectralAbscissa, D: DifferenceOperator | None, whole: bool, prec: int
+    result: SpectralAbscissa,
+    D: DifferenceOperator | None,
+    radii: NDArray[np.float64] | None,
+    whole: bool,
+    difference: bool,
+    prec: int,
 ) -> SpectralAbscissa:
     """``result`` with ``chain_bracket`` and ``value_bracket`` proven in ball arithmetic.
 
-    ``D`` None: the principal part's coefficients are not exact (computed in floating point,
+    ``D`` None: the principal part's coefficients are not known (computed in floating point,
     as for :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic`), so no chain bracket.
+    ``radii``: the proven radii of ``D``'s coefficients
+    (:meth:`~nrobust.quasipoly.QuasiPolynomial.principal_radii`): the chain bracket then holds ``c_D``
+    of every principal part in the balls, the function's among them
+    (:meth:`~nrobust.difference.DifferenceOperator.proven_spectral_bound`).
 
     The lower end of the chain bracket bounds the supremum from below only when the whole
     plane is searched (``whole``) or the chains are the value's source anyway; with a
     ``region`` the supremum is over the roots in it, and only ``root_box`` bounds it below.
+    Its upper end bounds the supremum from above when ``F`` is a difference operator
+    (``difference``: every zero lies on a chain), so its bracket is then the chains'.
     """
     chain = None
     if D is not None and np.isfinite(result.strong_bound):
-        sb = D.proven_spectral_bound(prec)
+        sb = D.proven_spectral_bound(prec, radii)
         chain = (sb.lower, sb.upper)
     lows = []
     if result.root_box is not None:
         lows.append(result.root_box[0])
     if chain is not None and whole:
         lows.append(chain[0])
+    upper = result.upper_bound
+    if chain is not None and difference:
+        upper = min(upper, chain[1])
+        result = replace(result, upper_bound=upper)
     if result.root is None and not lows:  # no root at all (c e^{-tau s}, or none in the region)
-        value = (-np.inf, result.upper_bound) if result.value == -np.inf else None
+        value = (-np.inf, upper) if result.value == -np.inf else None
     else:
-        value = (max(lows), result.upper_bound) if lows else None
+        value = (max(lows), upper) if lows else None
     result = replace(result, chain_bracket=chain, value_bracket=value)
     return result if value is None else _inside_bracket(result, value)
 
