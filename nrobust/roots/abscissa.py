@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._digits import with_accuracy
+from .._flint import krawczyk_image
 from .._json import fields_dict
 from .._validate import positive, positive_int
 from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint, working_precision
@@ -515,10 +516,57 @@ def _inside_bracket(result: SpectralAbscissa, bracket: tuple[float, float]) -> S
 
 def _roots(F: QuasiPolynomial, region: ArrayLike, cluster_tol: float, max_evals: int, proof: int | None) -> RootSet:
     """:func:`find_roots`, proven in ball arithmetic when ``proof`` (a precision) is given, with
-    its rightmost clusters separated (:func:`_separated`)."""
+    its rightmost clusters separated (:func:`_separated`) and the boxes of its rightmost roots
+    contracted (:func:`_contracted`)."""
     rigorous = proof is not None
     found = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals, rigorous=rigorous, prec=proof or 53)
-    return _separated(F, found, max_evals)
+    return _contracted(F, _separated(F, found, max_evals), proof)
+
+
+# Krawczyk contractions of the box of a rightmost root.
+_CONTRACTIONS = 4
+
+
+def _contracted(F: QuasiPolynomial, roots: RootSet, proof: int | None) -> RootSet:
+    """``roots`` with the proven boxes of its rightmost simple roots contracted by Krawczyk's operator.
+
+    A box proven to hold one simple zero (``box_counts`` 1) holds it in ``K(X) & X`` too
+    (:func:`~nrobust._flint.krawczyk_image`: ``K(X)`` holds every zero in ``X``); iterated from
+    the box's centre, the box shrinks from the ``1e-11 (1 + |z|)`` of the proof to the rounding
+    of ``F``, and so does the upper end of the value bracket, which is the right edge of these
+    boxes. Each contracted box keeps the root found in floating point (the hull with it). The
+    boxes contracted are those reaching right of every box's left edge (the candidates for
+    the rightmost root).
+    """
+    if proof is None or not roots.rigorous or not len(roots) or isinstance(F, FarField):
+        return roots
+    boxes = roots.boxes.copy()
+    floor = float(np.max(boxes[:, 0]))
+    balls = ball_function(F, proof)
+    flint = require_flint()
+    for i in np.flatnonzero((boxes[:, 1] >= floor) & (roots.box_counts == 1)):
+        x0, x1, y0, y1 = (float(v) for v in boxes[i])
+        for _ in range(_CONTRACTIONS):
+            c = flint.acb(0.5 * (x0 + x1), 0.5 * (y0 + y1))
+            K = krawczyk_image((x0, x1, y0, y1), c, balls(c), lambda X: balls(X, 1), prec=balls.prec)
+            if K is None or not K.is_finite():
+                break
+            box = (
+                max(x0, float(np.nextafter(float(K.real.lower()), -np.inf))),
+                min(x1, float(np.nextafter(float(K.real.upper()), np.inf))),
+                max(y0, float(np.nextafter(float(K.imag.lower()), -np.inf))),
+                min(y1, float(np.nextafter(float(K.imag.upper()), np.inf))),
+            )
+            if not (box[0] <= box[1] and box[2] <= box[3]) or box == (x0, x1, y0, y1):
+                break
+            x0, x1, y0, y1 = box
+        w = complex(roots.roots[i])
+        boxes[i] = (min(x0, w.real), max(x1, w.real), min(y0, w.imag), max(y1, w.imag))
+    z = roots.roots
+    dx = np.maximum(np.abs(boxes[:, 0] - z.real), np.abs(boxes[:, 1] - z.real))
+    dy = np.maximum(np.abs(boxes[:, 2] - z.imag), np.abs(boxes[:, 3] - z.imag))
+    radii = np.where(roots.box_counts == 1, np.minimum(roots.radii, np.hypot(dx, dy)), roots.radii)
+    return replace(roots, boxes=boxes, radii=radii)
 
 
 def _separated(F: QuasiPolynomial, roots: RootSet, max_evals: int) -> RootSet:
@@ -872,7 +920,7 @@ def _march(
                                 F, [(x_far + f * (top - x_far), R) for f in (0, 1e-6, 0.01, 0.5, 1)], proof
                             )
                         roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
-                    roots = _separated(F, roots, max_evals)
+                    roots = _contracted(F, _separated(F, roots, max_evals), proof)
                     return _abscissa_from(roots, chain_value, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
                 if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:
