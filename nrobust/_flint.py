@@ -1,11 +1,12 @@
-"""Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, and
-Krawczyk's test.
+"""Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, the
+ball of a coefficient known to a radius, and Krawczyk's test.
 
 python-flint is the optional extra ``nrobust[rigorous]``. Every module that computes in
 ball arithmetic loads it with :func:`require_flint` (an ``ImportError`` that says how to
 install it) and proves isolated simple zeros with :func:`krawczyk`: the root finder
 (:mod:`nrobust.roots.finder`) and the spectral bound of difference operators
-(:mod:`nrobust.difference`). :mod:`nrobust.balls` re-exports these names; this module
+(:mod:`nrobust.difference`), each coefficient known to a radius as :func:`radius_acb`.
+:mod:`nrobust.balls` re-exports these names; this module
 sits below it because ``nrobust.difference``, which ``nrobust.balls`` depends on through
 ``nrobust.quasipoly``, needs them too.
 """
@@ -19,7 +20,16 @@ from typing import Any
 
 from ._validate import positive_int
 
-__all__ = ["INSTALL_HINT", "acb_box", "krawczyk", "precision", "require_flint", "working_precision"]
+__all__ = [
+    "INSTALL_HINT",
+    "acb_box",
+    "krawczyk",
+    "krawczyk_image",
+    "precision",
+    "radius_acb",
+    "require_flint",
+    "working_precision",
+]
 
 #: Message of the error raised when python-flint is missing.
 INSTALL_HINT = "rigorous=True needs python-flint (ball arithmetic): pip install nrobust[rigorous]"
@@ -84,6 +94,16 @@ def acb_box(x0: float, x1: float, y0: float, y1: float) -> Any:
     return flint.acb(re, im)
 
 
+def radius_acb(flint: ModuleType, c: Any, r: float) -> Any:
+    """The ``acb`` of a point coefficient ``c`` within ``r`` (real and imaginary parts each): real for a
+    real ``c`` (the function stays real); the exact point ``c`` when ``r`` is 0."""
+    z = complex(c)
+    rad = float(r)
+    if z.imag:
+        return flint.acb(flint.arb(z.real, rad), flint.arb(z.imag, rad)) if rad else flint.acb(z.real, z.imag)
+    return flint.acb(flint.arb(z.real, rad)) if rad else flint.acb(z.real)
+
+
 def krawczyk(
     box: tuple[float, float, float, float],
     center: Any,
@@ -120,16 +140,36 @@ def krawczyk(
     bool
         True when the test proves the zero; False when it fails or does not apply.
     """
-    flint = require_flint()
+    K = krawczyk_image(box, center, value, derivative, inverse, prec)
+    if K is None:
+        return False
     x0, x1, y0, y1 = box
-    X = acb_box(x0, x1, y0, y1)
+    re, im = K.real, K.imag
+    return bool(re > x0 and re < x1 and im > y0 and im < y1)
+
+
+def krawczyk_image(
+    box: tuple[float, float, float, float],
+    center: Any,
+    value: Any,
+    derivative: Callable[[Any], Any],
+    inverse: Any = None,
+    prec: int | None = None,
+) -> Any:
+    """Krawczyk's operator ``K(X) = c - y F(c) + (1 - y F'(X)) (X - c)`` on the rectangle ``box`` (an ``acb``).
+
+    ``K(X)`` holds every zero of ``F`` in ``X`` (for any ``c`` in ``X`` and ``y != 0``), so
+    ``K(X) & X`` is a smaller enclosure of a zero already proven in ``X``; :func:`krawczyk`
+    proves one. Parameters as there; None when the default ``y`` does not exist (a zero
+    midpoint of ``F'(X)``, or an enclosure that is not finite).
+    """
+    flint = require_flint()
+    X = acb_box(*box)
     dfx = derivative(X)
     if inverse is None:
         slope = complex(float(dfx.real.mid()), float(dfx.imag.mid()))
         if slope == 0 or not (value.is_finite() and dfx.is_finite()):
-            return False
+            return None
         inverse = flint.acb(1.0 / slope)
     with precision(flint, flint.ctx.prec if prec is None else prec):
-        K = center - inverse * value + (1 - inverse * dfx) * (X - center)
-    re, im = K.real, K.imag
-    return bool(re > x0 and re < x1 and im > y0 and im < y1)
+        return center - inverse * value + (1 - inverse * dfx) * (X - center)

@@ -78,7 +78,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._flint import INSTALL_HINT as INSTALL_HINT
-from ._flint import acb_box, krawczyk, precision, require_flint, working_precision
+from ._flint import acb_box, krawczyk, precision, radius_acb, require_flint, working_precision
 from ._validate import positive_int
 from .errors import ParameterError
 from .qpmatrix import QuasiPolynomialMatrix
@@ -286,15 +286,6 @@ def _hull(flint: ModuleType, values: NDArray[np.float64]) -> Any:
 def _to_acb(flint: ModuleType, c: Any) -> Any:
     z = complex(c)
     return flint.acb(z.real, z.imag) if z.imag else flint.acb(z.real)
-
-
-def radius_acb(flint: ModuleType, c: Any, r: float) -> Any:
-    """The ``acb`` of a point coefficient ``c`` within ``r``: real for a real ``c`` (the function stays real)."""
-    z = complex(c)
-    if not r:
-        return _to_acb(flint, z)
-    rad = float(r)
-    return flint.acb(flint.arb(z.real, rad), flint.arb(z.imag, rad)) if z.imag else flint.acb(flint.arb(z.real, rad))
 
 
 @functools.lru_cache(maxsize=64)

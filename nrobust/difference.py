@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._flint import krawczyk, working_precision
+from ._flint import krawczyk, precision, radius_acb, working_precision
 from ._json import fields_dict, json_safe
 from ._newton import newton
 from ._validate import number_array, real_array
@@ -483,30 +483,46 @@ class DifferenceOperator:
                 return float(min(cand.real - r, upper))
         return -np.inf
 
-    def proven_spectral_bound(self, prec: int = 53) -> SpectralBound:
+    def proven_spectral_bound(self, prec: int = 53, radii: ArrayLike | None = None) -> SpectralBound:
         """``c_D`` of ``D`` as represented, bracketed in ball arithmetic (python-flint).
 
-        The stored floats of the coefficients and delays are taken as exact numbers.
+        The stored floats of the delays are taken as exact numbers, and so are those of the
+        coefficients unless ``radii`` are given: then the bracket holds ``c_D`` of every
+        operator ``sum_k b_k e^{-tau_k s}`` with each ``b_k`` within ``radii[k]`` of ``a_k``
+        (real and imaginary parts each), e.g. the principal part of a loop whose gains are
+        irrational numbers rounded to doubles (``QuasiPolynomial(..., radii=...)``).
 
         * Delays exactly commensurate as stored (every ``r_k`` an integer multiple
           ``n_k H`` of one rational ``H``, e.g. dyadic delays ``0, 1, 2.5``; ``n_k <= 1000``):
           the roots of ``P(z) = sum_k a_k z^{n_k}`` are isolated by FLINT (exact rational
           coefficients, multiplicities included) and ``c_D = max_i -ln|z_i| / H`` is enclosed
-          in ``arb``: a tight bracket, ``exact=True``.
+          in ``arb``: a tight bracket, ``exact=True``. With ``radii``, each root ``m_i`` of the
+          stored ``P`` (simple roots only) is the centre of a disc of radius
+          ``deg P |P(m_i)| / |P'(m_i)|``, ``P`` and ``P'`` enclosed with the coefficients'
+          balls: every polynomial of the balls has a root in each disc (the disc of radius
+          ``n |p / p'|`` about any point holds a root of a polynomial ``p`` of degree ``n``);
+          when the discs are disjoint and no ball of ``a_0`` or of the leading coefficient
+          holds 0, it has exactly one root in each, and its ``c_D`` lies in the bracket of
+          ``-ln|z| / H`` over the discs.
         * Otherwise (incommensurate, or commensurate only to the 1e-10 of
           :meth:`commensurate_step`, as ``2.0, 2.1`` are: their ratio as stored is not
-          ``20/21``): ``upper`` is a proven ``C_D``, a ``c`` with
-          ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` in ``arb`` (no zero with ``Re s >= c``), and
-          ``lower`` the left edge of a square proven by Krawczyk's test to hold a zero of
-          ``D`` (Newton from the chain seeds), ``-inf`` if none is proven. For stored delays
-          that are not exactly commensurate ``c_D`` may lie anywhere in ``[c_D(h), C_D]``
-          (the chain abscissa of a neutral equation is not continuous in the delays: Hale and
-          Verduyn Lunel), so no tighter statement about ``D`` as represented is available.
+          ``20/21``; or a multiple root with ``radii``): ``upper`` is a proven ``C_D``, a
+          ``c`` with ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` in ``arb`` (no zero with
+          ``Re s >= c``; with ``radii`` for the largest ``|b_k|`` and the smallest ``|b_0|``),
+          and ``lower`` the left edge of a square proven by Krawczyk's test to hold a zero of
+          ``D`` (of every operator of the balls with ``radii``; Newton from the chain seeds),
+          ``-inf`` if none is proven. For stored delays that are not exactly commensurate
+          ``c_D`` may lie anywhere in ``[c_D(h), C_D]`` (the chain abscissa of a neutral
+          equation is not continuous in the delays: Hale and Verduyn Lunel), so no tighter
+          statement about ``D`` as represented is available.
 
         Parameters
         ----------
         prec : int, optional
             Working precision in bits.
+        radii : array_like, optional
+            Proven radii of the coefficients, one per entry of :attr:`coefs` (``>= 0``).
+            Default: the stored coefficients are exact.
 
         Returns
         -------
@@ -516,23 +532,77 @@ class DifferenceOperator:
         Raises
         ------
         ParameterError
-            ``prec`` outside 16..4096.
+            ``prec`` outside 16..4096; ``radii`` not one finite value ``>= 0`` per coefficient.
         CertificationError
-            The ball enclosures cannot confirm ``C_D`` (non-finite values).
+            The ball enclosures cannot confirm ``C_D`` (non-finite values), or the ball of
+            ``a_0`` holds 0 (the principal part of some operator of the balls is another).
         ImportError
             python-flint is not installed (``pip install nrobust[rigorous]``).
         """
+        r = self._radii(radii)
         if self.coefs.size == 1:
             return SpectralBound(-np.inf, -np.inf, True, None, proven=True)
         with working_precision(prec) as flint:
+            a = [radius_acb(flint, c, rk) for c, rk in zip(self.coefs, r)]
+            if not abs(a[0]) > 0:
+                raise CertificationError(
+                    f"the ball of a_0 = {complex(self.coefs[0])!r} (radius {float(r[0])!r}) holds 0: the principal "
+                    "part is not known; give the coefficients to a smaller radius"
+                )
             exact = _exact_commensurate(self.delays)
             if exact is not None:
-                bracket = _ball_chain_bound(flint, self.coefs, *exact)
+                if np.any(r > 0):
+                    bracket = _family_chain_bound(flint, self.coefs, a, *exact)
+                else:
+                    bracket = _ball_chain_bound(flint, self.coefs, *exact)
                 if bracket is not None:
                     return SpectralBound(*bracket, True, float(exact[0]), proven=True)
-            upper = _ball_strong_bound(flint, self, self.strong_spectral_bound())
-            lower = _ball_zero_lower_bound(flint, self)
+            upper = _ball_strong_bound(flint, a, self.delays, self.strong_spectral_bound())
+            lower = _ball_zero_lower_bound(flint, self, a)
             return SpectralBound(min(lower, upper), upper, False, None, proven=True)
+
+    def proven_gamma_0(self, prec: int = 53, radii: ArrayLike | None = None) -> tuple[float, float]:
+        """``gamma_0 = sum_{k>=1} |a_k| / |a_0|`` enclosed in ball arithmetic (python-flint).
+
+        Parameters
+        ----------
+        prec : int, optional
+            Working precision in bits.
+        radii : array_like, optional
+            As in :meth:`proven_spectral_bound`: the bracket then holds ``gamma_0`` of every
+            operator with coefficients in the balls.
+
+        Returns
+        -------
+        (lower, upper) : tuple of float
+            Doubles rounded outwards; ``upper = inf`` when the ball of ``a_0`` holds 0.
+
+        Raises
+        ------
+        ParameterError
+            ``prec`` outside 16..4096, or bad ``radii``.
+        ImportError
+            python-flint is not installed (``pip install nrobust[rigorous]``).
+        """
+        r = self._radii(radii)
+        if self.coefs.size == 1:
+            return 0.0, 0.0
+        with working_precision(prec) as flint:
+            a = [abs(radius_acb(flint, c, rk)) for c, rk in zip(self.coefs, r)]
+            total = sum(a[1:], flint.arb(0))
+            if not a[0] > 0:
+                return _outward(total.lower() / a[0].upper(), np.inf)
+            ratio = total / a[0]
+            return _outward(ratio.lower(), ratio.upper())
+
+    def _radii(self, radii: ArrayLike | None) -> NDArray[np.float64]:
+        """``radii`` checked against :attr:`coefs` (zeros when None)."""
+        if radii is None:
+            return np.zeros(self.coefs.size)
+        r = real_array("radii", np.atleast_1d(np.asarray(radii, dtype=float)))
+        if r.shape != self.coefs.shape or np.any(r < 0):
+            raise ParameterError("radii", f"one finite radius >= 0 per coefficient ({self.coefs.size})", radii)
+        return r
 
     # ------------------------------------------------------------------ output
     def __repr__(self) -> str:
@@ -716,6 +786,21 @@ def _outward(lo: Any, hi: Any) -> tuple[float, float]:
     return float(np.nextafter(a, -np.inf)), float(np.nextafter(b, np.inf))
 
 
+# Precision (bits) at which the roots of a complex P are isolated, and the tolerance they are refined to.
+_ROOTS_PREC = 128
+_ROOTS_TOL = 2.0**-110
+
+
+def _complex_roots(flint: Any, poly: list[complex]) -> list[Any] | None:
+    """The roots of ``sum_j poly[j] z^j`` (exact complex coefficients) in balls refined to :data:`_ROOTS_TOL`,
+    or None when FLINT cannot isolate them (a multiple root)."""
+    with precision(flint, _ROOTS_PREC):
+        try:
+            return list(flint.acb_poly([flint.acb(c.real, c.imag) for c in poly]).roots(_ROOTS_TOL, 4 * _ROOTS_PREC))
+        except ValueError:
+            return None
+
+
 def _ball_chain_bound(flint: Any, coefs: NDArray, H: Fraction, n: list[int]) -> tuple[float, float] | None:
     """Bracket of ``max_i -ln|z_i| / H`` over the roots of ``sum_k a_k z^{n_k}``, or None if not isolated."""
     poly = [0.0 + 0.0j] * (n[-1] + 1)
@@ -724,10 +809,10 @@ def _ball_chain_bound(flint: Any, coefs: NDArray, H: Fraction, n: list[int]) -> 
     if all(c.imag == 0 for c in poly):
         roots = [z for z, _ in flint.fmpq_poly([flint.fmpq(*c.real.as_integer_ratio()) for c in poly]).complex_roots()]
     else:
-        try:
-            roots = flint.acb_poly([flint.acb(c.real, c.imag) for c in poly]).roots()
-        except ValueError:  # a multiple root of complex P: not isolated by acb_poly
+        found = _complex_roots(flint, poly)
+        if found is None:
             return None
+        roots = found
     h = flint.arb(flint.fmpq(H.numerator, H.denominator))
     reals = [-(abs(z).log()) / h for z in roots]
     if not reals or not all(x.is_finite() for x in reals):
@@ -735,29 +820,83 @@ def _ball_chain_bound(flint: Any, coefs: NDArray, H: Fraction, n: list[int]) -> 
     return _outward(max(float(x.lower()) for x in reals), max(float(x.upper()) for x in reals))
 
 
-def _ball_strong_bound(flint: Any, D: DifferenceOperator, guess: float) -> float:
-    """A double ``c >= guess`` with ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` proven (``r_k`` as stored)."""
-    a = [abs(flint.acb(complex(v).real, complex(v).imag)) for v in D.coefs]
-    t0 = flint.arb(float(D.delays[0]))
-    r = [flint.arb(float(t)) - t0 for t in D.delays[1:]]
+def _family_chain_bound(
+    flint: Any, coefs: NDArray, a: list[Any], H: Fraction, n: list[int]
+) -> tuple[float, float] | None:
+    """Bracket of ``max_i -ln|z_i| / H`` over the roots of every ``sum_k b_k z^{n_k}`` with ``b_k`` in the
+    balls ``a``, or None when the roots of the stored polynomial are not simple or their discs overlap.
+
+    Each root ``m`` of the stored polynomial (rational coefficients, isolated by FLINT) is the
+    centre of the disc of radius ``deg |P(m)| / |P'(m)|``, ``P`` and ``P'`` enclosed with the
+    balls ``a`` (see :meth:`DifferenceOperator.proven_spectral_bound`).
+    """
+    degree = n[-1]
+    stored = [0j] * (degree + 1)
+    balls = [flint.acb(0)] * (degree + 1)
+    for c, b, k in zip(coefs, a, n):
+        stored[k] += complex(c)
+        balls[k] += b
+    if not abs(balls[degree]) > 0:
+        return None  # a ball of the leading coefficient holds 0: some polynomial of the balls has fewer roots
+    if all(c.imag == 0 for c in stored):
+        found = flint.fmpq_poly([flint.fmpq(*c.real.as_integer_ratio()) for c in stored]).complex_roots()
+        centres = [z for z, mult in found if mult == 1]
+    else:
+        found = _complex_roots(flint, stored)
+        if found is None:
+            return None
+        centres = found
+    if len(centres) != degree:  # a multiple root: no disc holds exactly one root of every polynomial
+        return None
+    with precision(flint, max(flint.ctx.prec, _ROOTS_PREC)):  # the discs as small as the balls allow
+        P = flint.acb_poly(balls)
+        dP = P.derivative()
+        discs = []
+        for z in centres:
+            m = flint.acb(z.real.mid(), z.imag.mid())
+            slope = abs(dP(m))
+            if not slope > 0:
+                return None
+            discs.append((m, degree * abs(P(m)).upper() / slope.lower()))
+    for i, (m, rho) in enumerate(discs):
+        for w, sigma in discs[:i]:
+            if not abs(m - w) > rho + sigma:
+                return None
+    h = flint.arb(flint.fmpq(H.numerator, H.denominator))
+    ends = []
+    for m, rho in discs:
+        near, far = abs(m) - rho, abs(m) + rho
+        if not near > 0:
+            return None  # a disc about 0: a chain at +inf for some polynomial of the balls
+        ends.append((-(far.log()) / h, -(near.log()) / h))
+    if not all(lo.is_finite() and hi.is_finite() for lo, hi in ends):
+        return None
+    return _outward(max(float(lo.lower()) for lo, _ in ends), max(float(hi.upper()) for _, hi in ends))
+
+
+def _ball_strong_bound(flint: Any, a: list[Any], delays: NDArray[np.float64], guess: float) -> float:
+    """A double ``c >= guess`` with ``sum_{k>=1} |a_k| e^{-r_k c} < |a_0|`` proven (``r_k`` as stored) for every
+    ``a_k`` in the balls ``a``."""
+    mags = [abs(ak) for ak in a]
+    t0 = flint.arb(float(delays[0]))
+    r = [flint.arb(float(t)) - t0 for t in delays[1:]]
     c = float(guess)
     for j in range(200):
         x = flint.arb(c)
-        if sum((ak * (-rk * x).exp() for ak, rk in zip(a[1:], r)), flint.arb(0)) < a[0]:
+        if sum((ak * (-rk * x).exp() for ak, rk in zip(mags[1:], r)), flint.arb(0)) < mags[0]:
             return c
         c = float(c + 2.0**j * np.finfo(float).eps * (1.0 + abs(c)))
     raise CertificationError(f"ball arithmetic cannot confirm the strong spectral bound near {guess!r}; raise prec")
 
 
-def _ball_zero_lower_bound(flint: Any, D: DifferenceOperator) -> float:
+def _ball_zero_lower_bound(flint: Any, D: DifferenceOperator, a: list[Any]) -> float:
     """The largest ``Re s`` of a square proven by Krawczyk's test to hold a zero of ``D``, minus its half-width.
 
     Krawczyk's test (:func:`nrobust.balls.krawczyk`) on squares ``X`` about candidate zeros
-    ``c``, with ``y ~ 1/D'(c)`` (``D`` and ``D'`` enclosed in ``acb`` with the stored
-    coefficients and delays).
+    ``c``, with ``y ~ 1/D'(c)`` (``D`` and ``D'`` enclosed in ``acb`` with the coefficients'
+    balls ``a`` and the stored delays: the square holds a zero of every operator of the balls).
     """
     seeds = _zero_candidates(D)
-    a = [flint.acb(complex(v).real, complex(v).imag) for v in D.coefs]
     tau = [flint.arb(float(t)) for t in D.delays]
 
     def value(s: Any, k: int) -> Any:

@@ -532,6 +532,26 @@ class QuasiPolynomial:
         coefs = np.array([a for a, _ in lead], dtype=complex)
         return DifferenceOperator(coefs.real if self.is_real else coefs, [t for _, t in lead])
 
+    def principal_radii(self) -> NDArray[np.float64] | None:
+        """The radii of the coefficients of :meth:`principal_part`, aligned with its ``coefs``.
+
+        Zeros when the stored coefficients are exact. None when a ball of an ``s^n``
+        coefficient is centred on a stored 0 (``QuasiPolynomial(..., radii=...)``): the
+        principal part of some function of the balls then has a term that
+        :meth:`principal_part` does not.
+        """
+        n = self.degree
+        out = []
+        for (p, _), r in zip(self.point_terms, self.radii_of()):
+            if p.size - 1 != n:
+                continue
+            if p[n] == 0:
+                if r[n] > 0:
+                    return None
+                continue
+            out.append(float(r[n]))
+        return np.array(out, dtype=float)
+
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
         """Evaluate ``F(s)`` on an array of complex ``s``."""

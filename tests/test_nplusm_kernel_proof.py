@@ -176,3 +176,25 @@ def test_uses_the_points_of_the_loop() -> None:
     exact = np.array([[[1.0, -G_01 * (1 - np.exp(-z)) / z], [0.0, 1.0]] for z in S])
     got = NPlusMBackstepping.for_system(ONE_COUPLING, 13).target_transition(S)
     assert np.all(np.linalg.norm(got - exact, 2, axis=(1, 2)) <= b.transition_error)
+
+
+def test_the_divisors_of_the_bound_are_rounded_down() -> None:
+    """Speeds ``mu_0``, ``mu_1`` 2.8e-8 apart: ``r = |1 - mu_1 / mu_0|`` in floating point is 3.1e-9 above its
+    exact value (the ratio rounded, then a cancellation), beyond any allowance for rounding; the bound divides
+    by the exact rates, slope gaps and slopes rounded down (mpmath, 40 digits), and compares slopes exactly."""
+    from nrobust.hyperbolic.nplusm.kernel_error import _slope_gaps
+
+    mu0, mu1 = 2.0924042183036358, 2.092404276281823
+    close = NPlusMSystem([1.5], [mu0, mu1], [[0, 0.5, 0.5], [0.5, 0, 0.2], [0.5, 0.1, 0]], [[0.5, 0.5]], [[0.3], [0.2]])
+    same, gaps, rates, moduli = _slope_gaps(close)
+    with mpmath.workdps(40):
+        lam, mu = [mpmath.mpf(1.5)], [mpmath.mpf(mu0), mpmath.mpf(mu1)]
+        slopes = [(-lam[b] if b < 1 else mu[b - 1]) / mu[a] for a in range(2) for b in range(3)]
+        for e, x in enumerate(slopes):
+            assert rates[e] <= abs(1 - x) <= rates[e] * (1 + 1e-15) + 1e-300
+            assert moduli[e] <= abs(x) <= moduli[e] * (1 + 1e-15)
+            for f, y in enumerate(slopes):
+                assert gaps[e, f] <= abs(x - y) <= gaps[e, f] * (1 + 1e-15) + 1e-300
+                assert same[e, f] == (x == y)
+        # L_01 (e = 2): the floating-point rate exceeds the exact one
+        assert abs(1.0 - mu1 / mu0) > abs(1 - slopes[2]) * (1 + 1e-9)

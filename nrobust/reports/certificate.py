@@ -80,10 +80,12 @@ class PrincipalPart:
         ``a_k`` (real parts; the loops of the paper are real) and ``tau_k``.
     gamma_0 : float
         ``sum_{k >= 1} |a_k| / |a_0|``; for U_BS this is ``2 |rho q|`` (eq. (11)), for
-        U_BS2(K) ``|rho q| + |K q|`` (eq. (54)).
+        U_BS2(K) ``|rho q| + |K q|`` at a delay ``delta > 0`` (eq. (54) is ``gamma_0 < 1``).
+        Within :attr:`gamma_0_ball` when that is given.
     strongly_stable : bool
         ``gamma_0 < 1``: the loop's high-frequency chains stay in ``Re s < 0`` for every
-        small delay (Hale and Verduyn Lunel).
+        small delay (Hale and Verduyn Lunel). With :attr:`gamma_0_ball`, True only when
+        proven (its upper end below 1).
     strong_spectral_bound : float
         ``C_D``, the supremum of the chains' abscissa over small delay perturbations.
     spectral_bound : float
@@ -91,6 +93,14 @@ class PrincipalPart:
         commensurate delays, the certified upper end of its bracket otherwise).
     chains : tuple of float
         Abscissae ``Re s`` of the root chains, rightmost first (commensurate delays only).
+    gamma_0_ball : tuple of float or None
+        With ``certify(..., rigorous=True)``: ``(lo, hi)`` proven in ball arithmetic to hold
+        ``gamma_0`` of every difference operator whose coefficients lie in the proven balls
+        of the loop's principal coefficients (``QuasiPolynomial(..., radii=...)``: the
+        plant's own gains, irrational ones included; the stored coefficients, taken as
+        exact, when the loop carries no radii), ends rounded outwards
+        (:meth:`~nrobust.difference.DifferenceOperator.proven_gamma_0`). None without
+        proofs, or when a ball is centred on a stored zero coefficient.
     """
 
     delta: float
@@ -101,25 +111,50 @@ class PrincipalPart:
     strong_spectral_bound: float
     spectral_bound: float
     chains: tuple[float, ...]
+    gamma_0_ball: tuple[float, float] | None = None
+
+    @property
+    def gamma_0_accuracy(self) -> float | None:
+        """A proven bound of ``|gamma_0 - gamma_0 of the loop|``: the distance to the far end of
+        :attr:`gamma_0_ball`, rounded up; None without it."""
+        if self.gamma_0_ball is None:
+            return None
+        lo, hi = self.gamma_0_ball
+        return float(np.nextafter(max(hi - self.gamma_0, self.gamma_0 - lo), np.inf))
+
+    @property
+    def gamma_0_text(self) -> str:
+        """``gamma_0`` with the digits its proven accuracy supports (6 significant digits without proofs)."""
+        if self.gamma_0_ball is None:
+            return f"{self.gamma_0:.6g}"
+        return with_accuracy(self.gamma_0, self.gamma_0_accuracy) + " (proven)"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (infinities as strings)."""
         return fields_dict(self)
 
 
-def _principal(F: QuasiPolynomial, delta: float) -> PrincipalPart:
+def _principal(F: QuasiPolynomial, delta: float, rigorous: bool = False) -> PrincipalPart:
+    """The :class:`PrincipalPart` of ``F``; with ``rigorous``, its ``gamma_0`` proven with the radii of ``F``."""
     D = F.principal_part()
     chains = D.chains()
     bound = chains.bracket[1]  # c_D when commensurate, else the certified upper end
+    gamma, stable, ball = float(D.gamma_0), bool(D.is_strongly_stable()), None
+    radii = F.principal_radii() if rigorous else None
+    if radii is not None:
+        ball = D.proven_gamma_0(radii=radii)
+        gamma = min(max(gamma, ball[0]), ball[1])
+        stable = ball[1] < 1.0
     return PrincipalPart(
         float(delta),
         tuple(float(np.real(a)) for a in D.coefs),
         tuple(float(t) for t in D.delays),
-        float(D.gamma_0),
-        bool(D.is_strongly_stable()),
+        gamma,
+        stable,
         float(D.strong_spectral_bound()),
         float(bound),
         tuple(float(c.real) for c in chains.chains),
+        ball,
     )
 
 
@@ -955,8 +990,8 @@ def certify(
         controller=controller,
         delta_max=delta_max,
         classification=classification,
-        principal_nominal=_principal(F0, 0.0),
-        principal_delayed=_principal(Fd, delta_max),
+        principal_nominal=_principal(F0, 0.0, rigorous),
+        principal_delayed=_principal(Fd, delta_max, rigorous),
         roots_nominal=roots0,
         roots_delayed=rootsd,
         abscissa=abscissa,

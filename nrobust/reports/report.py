@@ -504,10 +504,10 @@ def _certificate_blocks(
     rows = [
         ("open-loop gain rho q", _fmt(cls.rho_q), "classify (section 2)"),
         ("regime", _REGIMES.get(cls.regime, cls.regime), "classify"),
-        ("gamma_0 of the difference operator, delta = 0", _fmt(cert.principal_nominal.gamma_0), "principal_part"),
+        ("gamma_0 of the difference operator, delta = 0", cert.principal_nominal.gamma_0_text, "principal_part"),
         (
             f"gamma_0 of the difference operator, delta = {cert.delta_max:g}",
-            _fmt(cert.principal_delayed.gamma_0),
+            cert.principal_delayed.gamma_0_text,
             gamma_source,
         ),
         ("strongly stable for small delays", _fmt(m.strongly_stable), "delay_margin"),

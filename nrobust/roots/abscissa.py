@@ -6,9 +6,10 @@ from dataclasses import dataclass, replace
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from .._digits import with_accuracy
+from .._flint import krawczyk_image
 from .._json import fields_dict
 from .._validate import positive, positive_int
 from ..balls import ball_abs_moment, ball_function, ball_variation_bound, require_flint, working_precision
@@ -403,10 +404,17 @@ def _spectral_abscissa(
         result = replace(result, certified=False)
     if proof is None:
         return replace(result, root_box=None)
-    # the chains only of a principal part with exact coefficients (not computed in floating point,
-    # nor known to a radius only)
-    exact = isinstance(F, QuasiPolynomialMatrix) or (isinstance(F, QuasiPolynomial) and F.exact_points)
-    return _proven_brackets(result, D if exact else None, region is None, proof)
+    # the chains only of a principal part whose coefficients are exact or known to proven radii (not
+    # computed in floating point)
+    radii = F.principal_radii() if isinstance(F, QuasiPolynomial) else None
+    known = isinstance(F, QuasiPolynomialMatrix) or radii is not None
+    return _proven_brackets(result, D if known else None, radii, region is None, _is_difference(F), proof)
+
+
+def _is_difference(F: QuasiPolynomial) -> bool:
+    """True if ``F`` is its own principal part, ``sum_k a_k e^{-tau_k s}`` (point terms of degree 0 only):
+    its zeros are those of the difference operator, no root lies right of ``c_D``."""
+    return isinstance(F, QuasiPolynomial) and not F.distributed and F.degree == 0
 
 
 # Safety factor of the floating-point error estimates: 40 times the largest ratio (0.37) of the
@@ -454,30 +462,45 @@ def _chain_estimate(D: DifferenceOperator, bound: SpectralBound) -> float | None
 
 
 def _proven_brackets(
-    result: SpectralAbscissa, D: DifferenceOperator | None, whole: bool, prec: int
+    result: SpectralAbscissa,
+    D: DifferenceOperator | None,
+    radii: NDArray[np.float64] | None,
+    whole: bool,
+    difference: bool,
+    prec: int,
 ) -> SpectralAbscissa:
     """``result`` with ``chain_bracket`` and ``value_bracket`` proven in ball arithmetic.
 
-    ``D`` None: the principal part's coefficients are not exact (computed in floating point,
+    ``D`` None: the principal part's coefficients are not known (computed in floating point,
     as for :class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic`), so no chain bracket.
+    ``radii``: the proven radii of ``D``'s coefficients
+    (:meth:`~nrobust.quasipoly.QuasiPolynomial.principal_radii`): the chain bracket then holds ``c_D``
+    of every principal part in the balls, the function's among them
+    (:meth:`~nrobust.difference.DifferenceOperator.proven_spectral_bound`).
 
     The lower end of the chain bracket bounds the supremum from below only when the whole
     plane is searched (``whole``) or the chains are the value's source anyway; with a
     ``region`` the supremum is over the roots in it, and only ``root_box`` bounds it below.
+    Its upper end bounds the supremum from above when ``F`` is a difference operator
+    (``difference``: every zero lies on a chain), so its bracket is then the chains'.
     """
     chain = None
     if D is not None and np.isfinite(result.strong_bound):
-        sb = D.proven_spectral_bound(prec)
+        sb = D.proven_spectral_bound(prec, radii)
         chain = (sb.lower, sb.upper)
     lows = []
     if result.root_box is not None:
         lows.append(result.root_box[0])
     if chain is not None and whole:
         lows.append(chain[0])
+    upper = result.upper_bound
+    if chain is not None and difference:
+        upper = min(upper, chain[1])
+        result = replace(result, upper_bound=upper)
     if result.root is None and not lows:  # no root at all (c e^{-tau s}, or none in the region)
-        value = (-np.inf, result.upper_bound) if result.value == -np.inf else None
+        value = (-np.inf, upper) if result.value == -np.inf else None
     else:
-        value = (max(lows), result.upper_bound) if lows else None
+        value = (max(lows), upper) if lows else None
     result = replace(result, chain_bracket=chain, value_bracket=value)
     return result if value is None else _inside_bracket(result, value)
 
@@ -504,10 +527,57 @@ def _inside_bracket(result: SpectralAbscissa, bracket: tuple[float, float]) -> S
 
 def _roots(F: QuasiPolynomial, region: ArrayLike, cluster_tol: float, max_evals: int, proof: int | None) -> RootSet:
     """:func:`find_roots`, proven in ball arithmetic when ``proof`` (a precision) is given, with
-    its rightmost clusters separated (:func:`_separated`)."""
+    its rightmost clusters separated (:func:`_separated`) and the boxes of its rightmost roots
+    contracted (:func:`_contracted`)."""
     rigorous = proof is not None
     found = find_roots(F, region, cluster_tol=cluster_tol, max_evals=max_evals, rigorous=rigorous, prec=proof or 53)
-    return _separated(F, found, max_evals)
+    return _contracted(F, _separated(F, found, max_evals), proof)
+
+
+# Krawczyk contractions of the box of a rightmost root.
+_CONTRACTIONS = 4
+
+
+def _contracted(F: QuasiPolynomial, roots: RootSet, proof: int | None) -> RootSet:
+    """``roots`` with the proven boxes of its rightmost simple roots contracted by Krawczyk's operator.
+
+    A box proven to hold one simple zero (``box_counts`` 1) holds it in ``K(X) & X`` too
+    (:func:`~nrobust._flint.krawczyk_image`: ``K(X)`` holds every zero in ``X``); iterated from
+    the box's centre, the box shrinks from the ``1e-11 (1 + |z|)`` of the proof to the rounding
+    of ``F``, and so does the upper end of the value bracket, which is the right edge of these
+    boxes. Each contracted box keeps the root found in floating point (the hull with it). The
+    boxes contracted are those reaching right of every box's left edge (the candidates for
+    the rightmost root).
+    """
+    if proof is None or not roots.rigorous or not len(roots) or isinstance(F, FarField):
+        return roots
+    boxes = roots.boxes.copy()
+    floor = float(np.max(boxes[:, 0]))
+    balls = ball_function(F, proof)
+    flint = require_flint()
+    for i in np.flatnonzero((boxes[:, 1] >= floor) & (roots.box_counts == 1)):
+        x0, x1, y0, y1 = (float(v) for v in boxes[i])
+        for _ in range(_CONTRACTIONS):
+            c = flint.acb(0.5 * (x0 + x1), 0.5 * (y0 + y1))
+            K = krawczyk_image((x0, x1, y0, y1), c, balls(c), lambda X: balls(X, 1), prec=balls.prec)
+            if K is None or not K.is_finite():
+                break
+            box = (
+                max(x0, float(np.nextafter(float(K.real.lower()), -np.inf))),
+                min(x1, float(np.nextafter(float(K.real.upper()), np.inf))),
+                max(y0, float(np.nextafter(float(K.imag.lower()), -np.inf))),
+                min(y1, float(np.nextafter(float(K.imag.upper()), np.inf))),
+            )
+            if not (box[0] <= box[1] and box[2] <= box[3]) or box == (x0, x1, y0, y1):
+                break
+            x0, x1, y0, y1 = box
+        w = complex(roots.roots[i])
+        boxes[i] = (min(x0, w.real), max(x1, w.real), min(y0, w.imag), max(y1, w.imag))
+    z = roots.roots
+    dx = np.maximum(np.abs(boxes[:, 0] - z.real), np.abs(boxes[:, 1] - z.real))
+    dy = np.maximum(np.abs(boxes[:, 2] - z.imag), np.abs(boxes[:, 3] - z.imag))
+    radii = np.where(roots.box_counts == 1, np.minimum(roots.radii, np.hypot(dx, dy)), roots.radii)
+    return replace(roots, boxes=boxes, radii=radii)
 
 
 def _separated(F: QuasiPolynomial, roots: RootSet, max_evals: int) -> RootSet:
@@ -861,7 +931,7 @@ def _march(
                                 F, [(x_far + f * (top - x_far), R) for f in (0, 1e-6, 0.01, 0.5, 1)], proof
                             )
                         roots = prove(F, roots, ball_function(F, proof), Budget(max_evals), _ABSCISSA_SHIFTS)
-                    roots = _separated(F, roots, max_evals)
+                    roots = _contracted(F, _separated(F, roots, max_evals), proof)
                     return _abscissa_from(roots, chain_value, x_max, roots.certified, upper_from_roots=roots.certified)
             elif whole:  # p(s) e^{-tau s} with no root at all: p is a nonzero constant
                 if proof is not None and ball_count_with_shifts(ball_function(F, proof), reg, 0, budget)[0] != 0:

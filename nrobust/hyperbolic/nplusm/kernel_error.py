@@ -69,6 +69,9 @@ nondecreasing), for ``G~ - G_h`` by the ``L^1`` bound times ``e^{max(mu_2, 0)}``
 
 The small matrices (``(I - N)^{-1}``, the exponentials, the sum) are computed in ball
 arithmetic (python-flint); the defects in floating point with a bound of their rounding. The
+slopes are compared, and the divisors ``|slope_f - slope_e|``, ``r_e``, ``|slope_e|`` taken, as
+rationals of the speeds rounded down (two close slopes rounded to doubles would move their
+difference by ``2^-53 / |slope_f - slope_e|`` relative, beyond any allowance for rounding). The
 loop's bound is first order in the grid step (``tests/test_nplusm_kernel_proof.py``: 0.092,
 0.047, 0.023 on 21, 41, 81 points where the error of ``G`` is of order 2, 4.7e-4 to 3.0e-5); the
 supremum ``g_error`` is not (a kink smeared over one cell at ``xi = 0``).
@@ -78,6 +81,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -132,6 +136,38 @@ class KernelErrorBound:
 def _up(ball: Any) -> float:
     """A float ``>=`` every point of the real ball ``ball``."""
     return math.nextafter(float(ball.upper()), math.inf)
+
+
+def _down(x: Fraction) -> float:
+    """The largest float ``<= x``."""
+    f = float(x)
+    return math.nextafter(f, -math.inf) if Fraction(f) > x else f
+
+
+def _exact_slopes(system: Any) -> list[Fraction]:
+    """The slope ``dxi/dx`` of each entry ``e = a (n + m) + b`` as the rational of the system's numbers:
+    ``-lam_b / mu_a`` (``K``), ``mu_c / mu_a`` (``L_ac``), as :func:`entry_kind` gives them in floating point."""
+    n, m = system.n, system.m
+    lam = [Fraction(float(x)) for x in system.lam]
+    mu = [Fraction(float(x)) for x in system.mu]
+    return [(-lam[b] if b < n else mu[b - n]) / mu[a] for a in range(m) for b in range(n + m)]
+
+
+def _slope_gaps(system: Any) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The slopes of the kernel entries compared exactly: ``(same, gaps, rates, moduli)``.
+
+    ``same[e, f]``: the entries share their characteristics (equal slopes as rationals, not as
+    rounded doubles); ``gaps[e, f] <= |slope_e - slope_f|``, ``rates[e] <= |1 - slope_e|`` (the growth
+    rate ``r_e`` of ``phi``) and ``moduli[e] <= |slope_e|``, floats rounded down from the exact
+    values: the bound divides by them, and a slope rounded to a double moves a difference of
+    close slopes by up to ``2^-53 / |slope_e - slope_f|`` relative.
+    """
+    slopes = _exact_slopes(system)
+    same = np.array([[x == y for y in slopes] for x in slopes])
+    gaps = np.array([[_down(abs(x - y)) for y in slopes] for x in slopes])
+    rates = np.array([_down(abs(1 - x)) for x in slopes])
+    moduli = np.array([_down(abs(x)) for x in slopes])
+    return same, gaps, rates, moduli
 
 
 def _triangle_defects(
@@ -201,7 +237,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
     lq = sys.lam[:, None] * sys.q
     entries = [entry_kind(sys, a, b) for a in range(m) for b in range(width)]
     slopes = np.array([sl for _, sl, _ in entries])
-    rates = np.abs(1.0 - slopes)
+    same_slope, gaps, rates, moduli = _slope_gaps(sys)
     mu_row = np.repeat(mu, width)
     MZ = np.tensordot(M, Z, axes=(1, 0))
     scale = np.tensordot(np.abs(M), np.abs(Z), axes=(1, 0)) * E
@@ -225,11 +261,17 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
             beta[e] = max(beta[e], float(np.max(np.abs(rel) + err)))
     # entries of equal slope share their characteristics: their couplings are integrated exactly (integrating
     # factor e^{tau Ms}, entrywise at most X = exp(|Ms|) over x-lengths <= 1), the others form A
-    same_slope = slopes[:, None] == slopes[None, :]
-    inner = np.where(same_slope, np.abs(M) / mu_row[:, None], 0.0)
     off = np.where(same_slope, 0.0, np.abs(M))
     with precision(flint, _PREC):
-        big = flint.arb_mat([[flint.arb(float(v)) for v in row] for row in inner]).exp()
+        # an entry of M is one double or the rounded sum of two (sigma_bb - D_aa): within 2^-53 of it relative,
+        # so |M| (1 + 2^-52) bounds the exact one; the exponent in balls (entrywise monotone)
+        bound = 1 + flint.arb(2) ** -52
+        big = flint.arb_mat(
+            [
+                [flint.arb(abs(float(M[i, j]))) * bound / float(mu_row[i]) if same_slope[i, j] else 0 for j in range(E)]
+                for i in range(E)
+            ]
+        ).exp()
         X = np.array([[_up(big[i, j]) for j in range(E)] for i in range(E)])
     coupling = np.zeros((E, E))  # |B_e|: the boundary relation at xi = 0 reads K_ak(x_f, 0)
     for e, (kind, _, _) in enumerate(entries):
@@ -241,14 +283,14 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
     first = X @ (beta + defect) * up
     cross = np.empty((E, E))  # cross[f]: int of |rho_h| along a characteristic of f (x-length <= 1)
     for f in range(E):
-        dslope = np.abs(slopes - slopes[f])
         with np.errstate(divide="ignore", invalid="ignore"):
-            spread = np.where(dslope > 0, defect_l1 / dslope, np.inf)
+            spread = np.where(gaps[f] > 0, defect_l1 / gaps[f], np.inf)
         cross[f] = X @ (beta + np.minimum(defect, spread)) * up
     # residual of the one-step Picard image Z~ = Phi(Z_h): A applied to the residual of Z_h
     rho = X @ ((coupling * first[None, :]).sum(axis=1) + (off / mu_row[:, None] * cross).sum(axis=1)) * up**2
     # int_0^1 |Z~_e - Z_h,e|(x, 0) dx: the Picard step moves the trace at xi = 0 by the residual of Z_h there
-    trace_l1 = X @ (beta + np.minimum(defect, defect_l1 / np.abs(slopes))) * up
+    with np.errstate(divide="ignore"):
+        trace_l1 = X @ (beta + np.minimum(defect, defect_l1 / moduli)) * up
 
     is_same = np.array([kind == "same" for kind, _, _ in entries])
     Nm = X @ (coupling + np.where(is_same[:, None], off / mu_row[:, None], 0.0))
@@ -283,6 +325,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
             v_norm += x * x
         v_norm = v_norm.sqrt()
         used = [(a, c) for a in range(m) for c in range(m) if mu[c] > mu[a]]
+        lq_ball = [[abs(flint.arb(float(sys.lam[j])) * float(sys.q[j, c])) for c in range(m)] for j in range(n)]
         total = flint.arb(0)
         g_sup = np.zeros((m, m))
         for k in range(1, pieces + 1):
@@ -291,7 +334,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
             for a, c in used:
                 g = mu[c] * u[a * width + n + c, 0]
                 for j in range(n):
-                    g += abs(float(lq[j, c])) * u[a * width + j, 0]
+                    g += lq_ball[j][c] * u[a * width + j, 0]
                 if k == pieces:
                     g_sup[a, c] = _up(g)
                 norm2 += (g / float(mu[a])) ** 2
