@@ -77,12 +77,24 @@ _FOOT_TOL = 1e-12
 # Tolerance on the triangle 0 <= xi <= x <= 1 when evaluating kernels.
 _DOMAIN_TOL = 1e-12
 
+#: Feet whose Lagrange weights are computed in Python floats (:func:`_lagrange_weights`).
+_FEW_FEET = 8
+
 _K_NAMES = {"Kuu": (0, 0), "Kuv": (0, 1), "Kvu": (1, 0), "Kvv": (1, 1)}
 _L_NAMES = {"Laa": (0, 0), "Lab": (0, 1), "Lba": (1, 0), "Lbb": (1, 1)}
 
 
 def _lagrange_weights(t: Array, order: int) -> Array:
-    """Lagrange weights of the nodes ``0, ..., order-1`` at the points ``t``, shape ``(len(t), order)``."""
+    """Lagrange weights of the nodes ``0, ..., order-1`` at the points ``t``, shape ``(len(t), order)``.
+
+    A few points (the feet shifted inwards at the end of each level of the march) in Python floats: the same
+    operations in the same order, so the same numbers, without the cost of numpy's calls on tiny arrays.
+    """
+    if t.size <= _FEW_FEET:
+        return np.array(
+            [[math.prod((x - m) / (k - m) for m in range(order) if m != k) for k in range(order)] for x in t.tolist()],
+            dtype=float,
+        ).reshape(t.size, order)
     w = np.ones((t.size, order))
     for k in range(order):
         for m in range(order):
