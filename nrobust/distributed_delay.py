@@ -52,6 +52,9 @@ _BLOCK = 1 << 20
 _CZT_BLOCK = 1024
 # Kernels of at most this many pieces are summed in closed form away from s = 0 (_closed_form).
 _CLOSED_FORM_PIECES = 8
+# Complex entries of the (blocks, columns, FFT length) arrays a chirp-z round transforms together: rounds that stay
+# in the caches (measured 15-20 % faster than 1 << 20 on 27000 to 106000 frequencies; the same numbers).
+_CZT_ROUND = 1 << 16
 # Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
 _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 # Values of DistributedDelay.abs_moment kept per term and moment (by real part): the root finders
@@ -185,7 +188,7 @@ def _exp_sums(
     idx = np.arange(n)
     out = np.empty((s.size, coef.shape[1]), dtype=complex)
     # blocks of frequencies w0 + (lo + k) dw, k < m, transformed together within the memory bound
-    per_round = max(1, _BLOCK // (nfft * coef.shape[1]))
+    per_round = max(1, _CZT_ROUND // (nfft * coef.shape[1]))
     starts = np.arange(0, s.size, m)
     for r in range(0, starts.size, per_round):
         firsts = starts[r : r + per_round]

@@ -89,3 +89,21 @@ def test_empty():
     assert moment_integrals([], np.array([1j])) == []
     (row,) = moment_integrals(_kernels()[:1], np.zeros(0, dtype=complex), (0,))
     assert row[0].shape == (0,)
+
+
+def test_long_line_in_rounds():
+    """A chirp-z line of 5000 frequencies (several rounds of blocks) against the direct sums of the same terms
+    (chunks of 50 points: an exponential matrix each). Measured 1.6e-14 of the largest value (the chirp's phase
+    rounding on blocks of 1024 frequencies); ``1e-12`` is loose for it and far below a misplaced block."""
+    rng = np.random.default_rng(5)
+    nodes = np.linspace(0.0, 4.0, 97)
+    terms = [
+        DistributedDelay(nodes, None, interpolation="polynomial", coefficients=rng.uniform(-1.0, 1.0, (96, 12)))
+        for _ in range(2)
+    ]
+    s = 1j * 2.0**-6 * np.arange(1, 5001)
+    out = moment_integrals(terms, s, (0, 1))
+    for i, term in enumerate(terms):
+        for j, extra in enumerate((0, 1)):
+            direct = np.concatenate([moment_integrals([term], s[k : k + 50], (extra,))[0][0] for k in range(0, 5000, 50)])
+            assert np.max(np.abs(out[i][j] - direct)) <= 1e-12 * np.max(np.abs(direct))
