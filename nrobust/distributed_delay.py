@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 import itertools
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from math import comb, factorial
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -36,7 +37,7 @@ from ._json import fields_dict, json_safe
 from ._validate import nonnegative, number_array, real_array
 from .errors import ParameterError
 
-__all__ = ["DistributedDelay", "as_poly", "canonical_bytes", "polyder", "polymul", "polyval"]
+__all__ = ["DistributedDelay", "as_poly", "canonical_bytes", "moment_integrals", "polyder", "polymul", "polyval"]
 
 # |z| below which phi_k(z) = int_0^1 t^k e^{-z t} dt is summed as a Taylor series
 # (the closed-form recursion loses digits by cancellation there; for order k the radius
@@ -51,6 +52,9 @@ _BLOCK = 1 << 20
 _CZT_BLOCK = 1024
 # Kernels of at most this many pieces are summed in closed form away from s = 0 (_closed_form).
 _CLOSED_FORM_PIECES = 8
+# Complex entries of the (blocks, columns, FFT length) arrays a chirp-z round transforms together: rounds that stay
+# in the caches (measured 15-20 % faster than 1 << 20 on 27000 to 106000 frequencies; the same numbers).
+_CZT_ROUND = 1 << 16
 # Below these sizes the direct (s x nodes) exponential matrix is as fast as a chirp-z.
 _CZT_MIN_S, _CZT_MIN_NODES = 64, 16
 # Values of DistributedDelay.abs_moment kept per term and moment (by real part): the root finders
@@ -184,7 +188,7 @@ def _exp_sums(
     idx = np.arange(n)
     out = np.empty((s.size, coef.shape[1]), dtype=complex)
     # blocks of frequencies w0 + (lo + k) dw, k < m, transformed together within the memory bound
-    per_round = max(1, _BLOCK // (nfft * coef.shape[1]))
+    per_round = max(1, _CZT_ROUND // (nfft * coef.shape[1]))
     starts = np.arange(0, s.size, m)
     for r in range(0, starts.size, per_round):
         firsts = starts[r : r + per_round]
@@ -195,6 +199,58 @@ def _exp_sums(
             size = min(m, s.size - first)
             out[first : first + size] = y[b, :, :size].T
     return out * np.exp(-nu[0] * s)[:, None]
+
+
+def moment_integrals(
+    terms: Sequence[DistributedDelay], s: ArrayLike, extras: Sequence[int] = (0,)
+) -> list[list[NDArray[np.complex128]]]:
+    """``int nu^(m+e) N(nu) e^{-nu s} dnu`` of each term's interpolant for each ``e`` in ``extras``, at flat ``s``.
+
+    ``out[i][j]`` is that of ``terms[i]`` for ``extras[j]``: for ``e = 0`` the term with ``q = 1``,
+    for ``e = 1`` minus its derivative in ``s``. Each is the sum over the term's segments of one
+    length of ``sum_l E_l(s) phi_l(s h)`` (:class:`DistributedDelay`, notes), ``E_l`` the exponential
+    sum of the ``l``-th coefficients over the segments' starts; where these sums are direct
+    (``exp(-outer(s, nu)) @ c``, :func:`_exp_sums`: not a chirp-z line), the segments that start at
+    the same nodes (the kernels of one loop on one grid, and the moments of one kernel) share one
+    exponential matrix, their coefficients side by side in one product. Terms of at most
+    :data:`_CLOSED_FORM_PIECES` pieces and chirp-z lines are summed term by term. The numbers are
+    those of each term's own evaluation (the same exponentials, products and ``phi``).
+    """
+    flat: NDArray[np.complex128] = np.asarray(s, dtype=complex).ravel()
+    out: list[list[Any]] = [[None] * len(extras) for _ in terms]
+    line = _uniform_line(flat) is not None
+    shared: dict[bytes, list[tuple[int, int, int, _SegmentGroup]]] = {}
+    parts: dict[tuple[int, int, int], NDArray[np.complex128]] = {}
+    for i, term in enumerate(terms):
+        for j, extra in enumerate(extras):
+            if term.pieces[0].size <= _CLOSED_FORM_PIECES:
+                out[i][j] = term._moment_integral(flat, extra)
+                continue
+            for g, group in enumerate(term._segment_groups(extra)):
+                if line and group.step is not None:  # a chirp-z transform: no exponential matrix to share
+                    phi = _phi(flat * group.h, group.coef.shape[1] - 1)
+                    parts[(i, j, g)] = np.einsum("sl,ls->s", _exp_sums(flat, group.start, group.coef, group.step), phi)
+                else:
+                    shared.setdefault(group.start.tobytes(), []).append((i, j, g, group))
+    for members in shared.values():
+        sums = _exp_sums(flat, members[0][3].start, np.concatenate([m[3].coef for m in members], axis=1))
+        phis: dict[tuple[float, int], NDArray[np.complex128]] = {}
+        column = 0
+        for i, j, g, group in members:
+            width = group.coef.shape[1]
+            key = (group.h, width - 1)
+            if key not in phis:
+                phis[key] = _phi(flat * group.h, width - 1)
+            parts[(i, j, g)] = np.einsum("sl,ls->s", sums[:, column : column + width], phis[key])
+            column += width
+    for i, term in enumerate(terms):
+        for j, extra in enumerate(extras):
+            if out[i][j] is None:  # the groups' parts added in their order, as the term's own sum adds them
+                total = np.zeros(flat.shape, dtype=complex)
+                for g in range(len(term._segment_groups(extra))):
+                    total += parts[(i, j, g)]
+                out[i][j] = total
+    return out
 
 
 def _fast_length(n: int) -> int:

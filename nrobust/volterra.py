@@ -99,8 +99,35 @@ def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
         idx = np.searchsorted(start, x, side="right") - 1
     idx = np.clip(idx, 0, start.size - 1)
     t = (x - start[idx]) / h[idx]
-    # each power's coefficients gathered into one contiguous row (Horner's steps read whole rows)
-    return np.polynomial.polynomial.polyval(t, np.ascontiguousarray(poly_t.T)[:, idx], tensor=False)
+    return _horner(np.ascontiguousarray(poly_t.T), idx, t)
+
+
+def _horner(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
+    """``sum_l rows[l, idx] t^l`` by Horner's steps, each gathering one power's coefficients at ``idx``.
+
+    The steps of numpy's ``polyval`` (``c_l + out t``, the same numbers) without its table of every
+    coefficient at every point, which is many times the points' size.
+    """
+    out = rows[-1][idx]
+    for row in rows[-2::-1]:
+        out *= t
+        out += row[idx]
+    return out
+
+
+def _clenshaw(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
+    """``sum_k rows[k, idx] T_k(t)`` by Clenshaw's recurrence, each step gathering one degree's coefficients.
+
+    The steps of numpy's ``chebval`` (the same numbers) without its table of every coefficient at every
+    point.
+    """
+    if rows.shape[0] == 1:
+        return rows[0][idx] + 0.0 * t
+    t2 = 2.0 * t
+    c0, c1 = rows[-2][idx], rows[-1][idx]
+    for row in rows[-3::-1]:
+        c0, c1 = row[idx] - c1, c0 + c1 * t2
+    return c0 + c1 * t
 
 
 def _knots(term: DistributedDelay) -> Array:
@@ -250,8 +277,7 @@ class WindowKernel:
         position = flat / self.window * pieces
         idx = np.clip(position.astype(int), 0, pieces - 1)
         t = 2.0 * (position - idx) - 1.0
-        series = np.ascontiguousarray(self.coefficients.T)[:, idx]  # each degree's coefficients in one row
-        return np.polynomial.chebyshev.chebval(t, series, tensor=False).reshape(x.shape)
+        return _clenshaw(np.ascontiguousarray(self.coefficients.T), idx, t).reshape(x.shape)
 
     def __call__(self, nu: ArrayLike) -> Array:
         """The kernel at ``nu`` in ``[0, w]`` (the stored kernels' left values at ``w``)."""

@@ -69,7 +69,7 @@ from .._json import fields_dict
 from .._threads import one_blas_thread
 from .._validate import finite_real, positive, positive_int
 from ..bounds import TailBound, joint_degree, min_delay, principal_gap, radius_where
-from ..distributed_delay import DistributedDelay, polyder, polyval
+from ..distributed_delay import DistributedDelay, moment_integrals, polyder, polyval
 from ..errors import CertificationError, ParameterError
 from ..margins.axis import frequency_bound
 from ..margins.count import unstable_count
@@ -700,7 +700,9 @@ class _SharedKernels:
     ``J_k = int nu^k N e^{-nu s} dnu``, and its derivative ``q' J_m - q J_{m+1}``
     (:class:`~nrobust.distributed_delay.DistributedDelay`): ``J_m`` and ``J_{m+1}`` are computed once per
     kernel (its term with ``q = 1``, negated for a negated kernel, which is exact) and combined as the terms
-    combine them, so the values are those of each quasi-polynomial's own evaluation, bit for bit.
+    combine them, so the values are those of each quasi-polynomial's own evaluation, bit for bit. The kernels
+    and their two moments are integrated together (:func:`~nrobust.distributed_delay.moment_integrals`: those on
+    the same segments, as the kernels of a collocated observer's loop, share their exponentials).
     """
 
     def __init__(self, parts: Sequence[QuasiPolynomial]) -> None:
@@ -719,7 +721,8 @@ class _SharedKernels:
 
     def __call__(self, s: NDArray[np.complex128], slopes: bool) -> tuple[list[NDArray], list[NDArray] | None]:
         """The values of the parts at ``s`` (1-d), and their derivatives when ``slopes``."""
-        j0 = [b(s) for b in self.kernels]
+        sums = moment_integrals(self.kernels, s, (0, 1) if slopes else (0,))
+        j0 = [row[0] for row in sums]
         values = []
         for points, row in zip(self.points, self.terms):
             out = points(s) if points.point_terms else np.zeros(s.shape, dtype=complex)
@@ -729,7 +732,7 @@ class _SharedKernels:
             values.append(out)
         if not slopes:
             return values, None
-        j1 = [-b.deriv_at(s) for b in self.kernels]
+        j1 = [row[1] for row in sums]  # J_{m+1} = -dJ_m/ds
         derivs = []
         for points, row in zip(self.points, self.terms):
             out = points.deriv_at(s) if points.point_terms else np.zeros(s.shape, dtype=complex)

@@ -68,6 +68,7 @@ from numpy.polynomial import polynomial as npoly
 from numpy.typing import ArrayLike, NDArray
 
 from ..bounds import TailBound, joint_degree, principal_gap
+from ..distributed_delay import moment_integrals
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
 
@@ -183,7 +184,7 @@ class AxisKernels:
 
     def sums(self, s: NDArray, extra: int) -> list[NDArray[np.complex128]]:
         """``J_{m+extra}(s)`` of every kernel (read-only arrays, remembered: :class:`_RememberedSums`)."""
-        return [_remembered_sum(self._shift(k, extra), c, extra, s) for k, c in enumerate(self.contents)]
+        return _remembered_sum([self._shift(k, extra) for k in range(len(self.units))], self.contents, extra, s)
 
     def _shift(self, k: int, extra: int) -> DistributedDelay:
         """Unit ``k`` with ``extra`` more powers of ``nu`` (:func:`_with_moment`)."""
@@ -228,26 +229,37 @@ class _RememberedSums:
         # on the instance only, as on an lru_cache (the class itself is no cache to empty)
         self.cache_clear: Callable[[], None] = self._forget
 
-    def __call__(self, shifted: DistributedDelay, content: tuple, extra: int, s: NDArray) -> NDArray[np.complex128]:
-        """The sum at ``s`` of ``shifted``, a unit (stored numbers ``content``, :func:`_content`) with
-        ``extra`` more powers (:func:`_with_moment`)."""
+    def __call__(
+        self, shifted: Sequence[DistributedDelay], contents: Sequence[tuple], extra: int, s: NDArray
+    ) -> list[NDArray[np.complex128]]:
+        """The sums at ``s`` of ``shifted``, units (stored numbers ``contents``, :func:`_content`) with
+        ``extra`` more powers (:func:`_with_moment`); those not kept are summed together
+        (:func:`~nrobust.distributed_delay.moment_integrals`: units on the same segments share their
+        exponentials), the same numbers as each unit's own sum."""
         # equal kernels stored as real and as complex numbers are summed differently: the types enter the key
-        key = (content, extra, s.dtype.str, s.shape, s.tobytes())
+        where = (extra, s.dtype.str, s.shape, s.tobytes())
+        keys = [(content, *where) for content in contents]
         with self._lock:
-            hit = self._kept.get(key)
-            if hit is not None:
-                self._kept.move_to_end(key)
-                return hit
-        value = shifted(s)
-        value.flags.writeable = False
-        if value.nbytes <= _SUMS_KEPT_BYTES // 4:
-            with self._lock:
-                if key not in self._kept:
-                    self._kept[key] = value
-                    self._bytes += value.nbytes
-                while self._bytes > _SUMS_KEPT_BYTES:
-                    self._bytes -= self._kept.popitem(last=False)[1].nbytes
-        return value
+            values: list[NDArray | None] = [self._kept.get(key) for key in keys]
+            for key, value in zip(keys, values):
+                if value is not None:
+                    self._kept.move_to_end(key)
+        missing = [i for i, value in enumerate(values) if value is None]
+        if not missing:
+            return [v for v in values if v is not None]
+        sums = moment_integrals([shifted[i] for i in missing], s, (0,))
+        for i, row in zip(missing, sums):
+            value = row[0].reshape(s.shape)
+            value.flags.writeable = False
+            values[i] = value
+            if value.nbytes <= _SUMS_KEPT_BYTES // 4:
+                with self._lock:
+                    if keys[i] not in self._kept:
+                        self._kept[keys[i]] = value
+                        self._bytes += value.nbytes
+                    while self._bytes > _SUMS_KEPT_BYTES:
+                        self._bytes -= self._kept.popitem(last=False)[1].nbytes
+        return [v for v in values if v is not None]
 
     def _forget(self) -> None:
         """Forget every kept sum."""

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -76,12 +77,24 @@ _FOOT_TOL = 1e-12
 # Tolerance on the triangle 0 <= xi <= x <= 1 when evaluating kernels.
 _DOMAIN_TOL = 1e-12
 
+#: Feet whose Lagrange weights are computed in Python floats (:func:`_lagrange_weights`).
+_FEW_FEET = 8
+
 _K_NAMES = {"Kuu": (0, 0), "Kuv": (0, 1), "Kvu": (1, 0), "Kvv": (1, 1)}
 _L_NAMES = {"Laa": (0, 0), "Lab": (0, 1), "Lba": (1, 0), "Lbb": (1, 1)}
 
 
 def _lagrange_weights(t: Array, order: int) -> Array:
-    """Lagrange weights of the nodes ``0, ..., order-1`` at the points ``t``, shape ``(len(t), order)``."""
+    """Lagrange weights of the nodes ``0, ..., order-1`` at the points ``t``, shape ``(len(t), order)``.
+
+    A few points (the feet shifted inwards at the end of each level of the march) in Python floats: the same
+    operations in the same order, so the same numbers, without the cost of numpy's calls on tiny arrays.
+    """
+    if t.size <= _FEW_FEET:
+        return np.array(
+            [[math.prod((x - m) / (k - m) for m in range(order) if m != k) for k in range(order)] for x in t.tolist()],
+            dtype=float,
+        ).reshape(t.size, order)
     w = np.ones((t.size, order))
     for k in range(order):
         for m in range(order):
@@ -408,9 +421,26 @@ class Kernels:
 
 
 def _solve_grid(system: Hyperbolic2x2, n: int) -> tuple[Array, Array]:
-    """``K`` and ``L`` on the grid with ``n`` points, second order."""
+    """``K`` and ``L`` on the grid with ``n`` points, second order (read-only when kept: :func:`_kept_grid`)."""
+    if n <= _KEPT_GRID:
+        return _kept_grid(system, n)
     K = _solve_K(system, n)
     return K, resolvent(K)
+
+
+#: Largest grid whose plain solution :func:`_kept_grid` keeps: the coarse half of an extrapolated solve is the
+#: fine grid of the solve on that grid (the collocated observer solves 201 and 101 points, for its accuracy
+#: estimate), about 2.6 MB at 201 points.
+_KEPT_GRID = DEFAULT_KERNEL_GRID
+
+
+@lru_cache(maxsize=8)
+def _kept_grid(system: Hyperbolic2x2, n: int) -> tuple[Array, Array]:
+    """:func:`_solve_grid` on a grid of at most :data:`_KEPT_GRID` points, read-only and kept."""
+    K = _solve_K(system, n)
+    L = resolvent(K)
+    K.flags.writeable = L.flags.writeable = False
+    return K, L
 
 
 def _richardson(fine: Array, coarse: Array) -> Array:
@@ -547,6 +577,8 @@ def solve_kernels(
         K_coarse, L_coarse = _solve_grid(system, (n + 1) // 2)
         K, L = _richardson(K, K_coarse), _richardson(L, L_coarse)
         method += "; Richardson-extrapolated"
+    elif not K.flags.writeable:  # a kept solution: the caller's own copy
+        K, L = K.copy(), L.copy()
     if not (np.all(np.isfinite(K)) and np.all(np.isfinite(L))):
         raise ParameterError("kernel_grid", "large enough for the kernel scheme to be well posed", n)
     return Kernels(system=system, grid=np.linspace(0.0, 1.0, n), K=K, L=L, method=method)

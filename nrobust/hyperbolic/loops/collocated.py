@@ -209,12 +209,57 @@ def _composite_rule(lo: Array, hi: Array) -> tuple[Array, Array]:
     return lo[:, None] + width[:, None] * ref[None, :], width[:, None] * weight[None, :]
 
 
+def _splines(values: Array) -> list[Callable[[Array], Array]]:
+    """The not-a-knot cubic splines through the columns of ``values`` on the uniform grid of ``[0, 1]`` (4 rows at
+    least), as functions on ``[0, 1]``.
+
+    Their second derivatives ``M`` at the nodes solve ``h M_{i-1} + 4 h M_i + h M_{i+1} = 6 (d_i - d_{i-1})``
+    (``h`` the step, ``d_i`` the slopes of the data) with ``M`` linear on the first two and on the last two steps
+    (the third derivative continuous at the second and the last but one node). The splines of scipy's
+    ``CubicSpline`` (its default ``bc_type``) to rounding (``3.4e-15`` of their size measured on grids of 5 to
+    201 points), without its import (0.3 s of CPU in a fresh process).
+    """
+    n = values.shape[0]
+    h = 1.0 / (n - 1)
+    x = np.linspace(0.0, 1.0, n)
+    slopes = np.diff(values, axis=0) / h
+    inner = np.arange(1, n - 1)
+    matrix = np.zeros((n, n))
+    matrix[inner, inner - 1] = h
+    matrix[inner, inner] = 4.0 * h
+    matrix[inner, inner + 1] = h
+    matrix[0, :3] = [h, -2.0 * h, h]
+    matrix[-1, -3:] = [h, -2.0 * h, h]
+    rhs = np.zeros(values.shape)
+    rhs[1:-1] = 6.0 * np.diff(slopes, axis=0)
+    M = np.linalg.solve(matrix, rhs)
+    # on step i, in powers of x - x_i: y_i, d_i - h (2 M_i + M_{i+1}) / 6, M_i / 2, (M_{i+1} - M_i) / (6 h)
+    cubic = (values[:-1], slopes - h * (2.0 * M[:-1] + M[1:]) / 6.0, 0.5 * M[:-1], np.diff(M, axis=0) / (6.0 * h))
+
+    def spline(column: int) -> Callable[[Array], Array]:
+        c0, c1, c2, c3 = (np.ascontiguousarray(c[:, column]) for c in cubic)
+
+        def evaluate(points: Array) -> Array:
+            # the step of each point from its position (next to a node, either side: the spline is continuous)
+            i = np.clip((points * (n - 1)).astype(np.intp), 0, n - 2)
+            dx = points - x[i]
+            out = c3[i] * dx
+            out += c2[i]
+            out *= dx
+            out += c1[i]
+            out *= dx
+            out += c0[i]
+            return out
+
+        return evaluate
+
+    return [spline(k) for k in range(values.shape[1])]
+
+
 def _response_sampler(
     system: Hyperbolic2x2, law: FeedbackLaw, kernels: Kernels | None, n: int
 ) -> Callable[[Array, float], Array]:
     """``(t, middle) -> c(t)`` on one smooth piece of ``[0, tau]`` (``middle`` picks its branches)."""
-    from scipy.interpolate import CubicSpline  # lazily: a slow import
-
     lam, mu, q, k = system.lam, system.mu, system.q, law.boundary_gain
     q_dual = lam * q / mu
     x = np.linspace(0.0, 1.0, n)
@@ -227,7 +272,7 @@ def _response_sampler(
         F_a = f_a - (w * K[0, 0]) @ f_a - (w * K[0, 1]) @ f_b
         F_b = f_b - (w * K[1, 0]) @ f_a - (w * K[1, 1]) @ f_b
         L_aa, L_ab = kernels.L[0, 0, -1, :], kernels.L[0, 1, -1, :]
-    Fa, Fb, Laa, Lab = (CubicSpline(x, v) for v in (F_a, F_b, L_aa, L_ab))
+    Fa, Fb, Laa, Lab = _splines(np.stack([F_a, F_b, L_aa, L_ab], axis=1))
     t_v, t_u, tau = 1.0 / mu, 1.0 / lam, system.tau
 
     def sample(t: Array, middle: float) -> Array:
