@@ -416,6 +416,10 @@ class DistributedDelay:
         )
         # abs_moment's values by k, then x: the bounds of a contour's segments recur at the same real parts
         _abs_moments: dict[int, dict[float, float]] = field(init=False, repr=False, compare=False)
+        # built on first use by variation_bound: its terms that do not depend on x
+        _variation: list[tuple[list[tuple[float, float]], NDArray[np.float64]]] = field(
+            init=False, repr=False, compare=False
+        )
 
     def __init__(
         self,
@@ -494,6 +498,7 @@ class DistributedDelay:
             ("_groups", {}),
             ("_ends", {}),
             ("_abs_moments", {}),
+            ("_variation", []),
         ):
             object.__setattr__(self, name, value)
 
@@ -961,17 +966,21 @@ class DistributedDelay:
             raise ParameterError("moment", "0 for variation_bound", self.moment)
         x = np.asarray(x, dtype=float)
         start, h, poly_t = self.pieces
+        if not self._variation:  # the jumps and the slopes, the same at every x: formed once
+            # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
+            slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
+            self._variation.append((self._jumps(), slope))
+        jumps, slope = self._variation[0]
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
-        for where, size in self._jumps():
+        for where, size in jumps:
             out = out + size * np.exp(-where * x)
-        # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
-        slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
         xe = x[..., None]
         with np.errstate(divide="ignore", invalid="ignore"):
+            decay = np.exp(-start * xe)
             seg = np.where(
                 np.abs(xe * h) < 1e-8,
-                h * np.exp(-start * xe),
-                np.exp(-start * xe) * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
+                h * decay,
+                decay * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
             )
         return out + np.sum(slope * seg, axis=-1) + self._radius_variation(x)
 

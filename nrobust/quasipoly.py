@@ -16,6 +16,7 @@ error does not grow with ``|Im s|``, are :class:`~nrobust.distributed_delay.Dist
 
 from __future__ import annotations
 
+import cmath
 import functools
 import warnings
 from collections.abc import Iterable, Sequence
@@ -766,8 +767,9 @@ class QuasiPolynomialsAtPoint:
 
     For the many single-point evaluations of a continuation (Newton's method on a zero followed in a
     parameter), where the numpy calls of each term, not their arithmetic, cost most: the exponentials
-    ``e^{-tau_k s}`` of the delays of every function are formed in one call (exactly 1 for ``tau_k = 0``),
-    the polynomials ``p_k(s)`` by Horner's scheme in complex arithmetic, and the distributed terms by
+    ``e^{-tau_k s}`` of the distinct delays of all functions are formed once each (:mod:`cmath`; exactly 1
+    for ``tau_k = 0``; by numpy, ``inf`` or ``nan``, beyond the doubles), the polynomials ``p_k(s)`` by
+    Horner's scheme in complex arithmetic, and the distributed terms by
     :class:`~nrobust.distributed_delay.TermsAtPoint`, which forms the exponentials of the segments shared by
     several terms (a function and its derivative) once. The values are those of ``F(s)`` to rounding.
 
@@ -791,6 +793,7 @@ class QuasiPolynomialsAtPoint:
                 raise ParameterError("functions", "a sequence of QuasiPolynomial", F)
         delays = sorted({t for F in self.functions for _, t in F.point_terms})
         self._delays = np.array(delays, dtype=float)
+        self._delay_list: list[float] = self._delays.tolist()
         # per function: (index of the delay, coefficients from the highest power down) of each point term
         self._points = tuple(
             tuple((delays.index(t), p[::-1].tolist()) for p, t in F.point_terms) for F in self.functions
@@ -801,10 +804,13 @@ class QuasiPolynomialsAtPoint:
     def __call__(self, s: complex) -> tuple[complex, ...]:
         """The value of each function at ``s``."""
         s = complex(s)
-        with np.errstate(over="ignore", invalid="ignore"):
-            e = np.exp(-(s * self._delays))
-        e[self._delays == 0] = 1.0
-        exps = e.tolist()
+        try:
+            exps = [cmath.exp(-(s * t)) if t else 1.0 for t in self._delay_list]
+        except (OverflowError, ValueError):  # beyond the doubles: inf or nan, as numpy gives them
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = np.exp(-(s * self._delays))
+            e[self._delays == 0] = 1.0
+            exps = e.tolist()
         out = []
         for terms in self._points:
             total = 0j
