@@ -3032,15 +3032,20 @@ class _RootPaths:
         self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
         self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
         self.values = QuasiPolynomialsAtPoint((self.N0, self.dN0, self.N1, self.dN1))
+        # _parts by (K, s): continuations toward different gains try the same first steps (a fifth of the calls)
+        self.parts: dict[tuple[float, complex], tuple[complex, complex, complex]] = {}
         # follow(K0, s0, K1) by its arguments (None: the path lost): the searches of one design ask again for
         # the same continuations (each path of :func:`_two_paths_peak` from the same samples), lost ones the
         # dearest (every step size down to the smallest is tried)
         self.followed: dict[tuple[float, complex, float], complex | None] = {}
 
     def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
-        """``F(s), F'(s), N_1(s)`` at ``K``."""
-        n0, dn0, n1, dn1 = self.values(s)
-        return n0 + K * n1, dn0 + K * dn1, n1
+        """``F(s), F'(s), N_1(s)`` at ``K`` (remembered: :attr:`parts`)."""
+        found = self.parts.get((K, s))
+        if found is None:
+            n0, dn0, n1, dn1 = self.values(s)
+            found = self.parts[(K, s)] = (n0 + K * n1, dn0 + K * dn1, n1)
+        return found
 
     def slope(self, K: float, s: complex) -> float:
         """``d(-Re s)/dK`` of the zero ``s`` at ``K``."""
