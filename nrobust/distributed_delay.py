@@ -37,7 +37,16 @@ from ._json import fields_dict, json_safe
 from ._validate import nonnegative, number_array, real_array
 from .errors import ParameterError
 
-__all__ = ["DistributedDelay", "as_poly", "canonical_bytes", "moment_integrals", "polyder", "polymul", "polyval"]
+__all__ = [
+    "DistributedDelay",
+    "TermsAtPoint",
+    "as_poly",
+    "canonical_bytes",
+    "moment_integrals",
+    "polyder",
+    "polymul",
+    "polyval",
+]
 
 # |z| below which phi_k(z) = int_0^1 t^k e^{-z t} dt is summed as a Taylor series
 # (the closed-form recursion loses digits by cancellation there; for order k the radius
@@ -471,6 +480,10 @@ class DistributedDelay:
         )
         # abs_moment's values by k, then x: the bounds of a contour's segments recur at the same real parts
         _abs_moments: dict[int, dict[float, float]] = field(init=False, repr=False, compare=False)
+        # built on first use by variation_bound: its terms that do not depend on x
+        _variation: list[tuple[list[tuple[float, float]], NDArray[np.float64]]] = field(
+            init=False, repr=False, compare=False
+        )
 
     def __init__(
         self,
@@ -549,6 +562,7 @@ class DistributedDelay:
             ("_groups", {}),
             ("_ends", {}),
             ("_abs_moments", {}),
+            ("_variation", []),
         ):
             object.__setattr__(self, name, value)
 
@@ -1016,17 +1030,21 @@ class DistributedDelay:
             raise ParameterError("moment", "0 for variation_bound", self.moment)
         x = np.asarray(x, dtype=float)
         start, h, poly_t = self.pieces
+        if not self._variation:  # the jumps and the slopes, the same at every x: formed once
+            # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
+            slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
+            self._variation.append((self._jumps(), slope))
+        jumps, slope = self._variation[0]
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
-        for where, size in self._jumps():
+        for where, size in jumps:
             out = out + size * np.exp(-where * x)
-        # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
-        slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
         xe = x[..., None]
         with np.errstate(divide="ignore", invalid="ignore"):
+            decay = np.exp(-start * xe)
             seg = np.where(
                 np.abs(xe * h) < 1e-8,
-                h * np.exp(-start * xe),
-                np.exp(-start * xe) * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
+                h * decay,
+                decay * -np.expm1(-h * xe) / np.where(xe == 0, 1.0, xe),
             )
         return out + np.sum(slope * seg, axis=-1) + self._radius_variation(x)
 
@@ -1132,6 +1150,109 @@ class DistributedDelay:
         out = fields_dict(self)
         if self.interpolation == "polynomial":
             out["coefficients"] = json_safe(self.pieces[2])
+        return out
+
+
+def _phi_at(z: complex, kmax: int) -> list[complex]:
+    """:func:`_phi` at one point ``z``, as a list (``k = 0..kmax``).
+
+    The Taylor series as :func:`_phi` sums it (the same terms, the same table, the powers ``(-z)^m`` by the
+    same running product, here in complex arithmetic); the recursion by :func:`_phi` itself.
+    """
+    r = abs(z)
+    if not r < max(_SERIES_RADIUS, kmax / 3.0):
+        return list(_phi(np.array([z], dtype=complex), kmax)[:, 0].tolist())
+    bound, terms = 1.0, 1
+    while terms < _SERIES_TERMS + 4 * kmax and bound > 1e-17:
+        bound *= r / terms
+        terms += 1
+    powers = [1.0 + 0j]
+    for _ in range(terms - 1):
+        powers.append(powers[-1] * -z)
+    pairs = np.array(powers, dtype=complex).view(float).reshape(terms, 2)
+    return list((_series_table(kmax, terms) @ pairs).view(complex)[:, 0].tolist())
+
+
+class _SharedSegments(NamedTuple):
+    """Segments of one length ``h`` and starts ``nu_i`` shared by several terms, their coefficients stacked.
+
+    ``coef_t[c]`` (real) or ``coef[:, c]`` (complex) is the coefficient ``c_il`` of ``l = columns[c][1]`` of
+    the term ``columns[c][0]`` (its :class:`_SegmentGroup`), ``kmax`` the highest ``l``.
+    """
+
+    h: float
+    negative_start: NDArray[np.float64]
+    coef: NDArray
+    coef_t: NDArray[np.float64] | None
+    columns: tuple[tuple[int, int], ...]
+    kmax: int
+
+
+class TermsAtPoint:
+    """The values of several distributed terms at one complex point: ``[d(s) for d in terms]``, sharing work.
+
+    For the many single-point evaluations of a continuation (Newton's method on a zero followed in a
+    parameter), where the numpy calls of each term, not their arithmetic, cost most. A term's integral
+    over the segments of one length ``h`` is ``sum_l phi_l(s h) sum_i c_il e^{-nu_i s}``
+    (:meth:`DistributedDelay._moment_integral`): for segments shared by several terms (the same ``h`` and
+    starts ``nu_i``, as a function and its derivative have) the exponentials ``e^{-nu_i s}`` are formed once
+    and multiplied by the coefficients of every term in one product (real coefficients: one real product on
+    the real and imaginary parts), and ``phi_l(s h)`` is formed once, to the highest order among them
+    (:func:`_phi_at`). A kernel of at most :data:`_CLOSED_FORM_PIECES` pieces is evaluated by the term itself
+    (its closed form away from ``s = 0``). The values are those of ``d(s)`` to rounding.
+
+    Parameters
+    ----------
+    terms : sequence of DistributedDelay
+        The terms, in the order of the values returned.
+    """
+
+    def __init__(self, terms: Sequence[DistributedDelay]) -> None:
+        self.terms = tuple(terms)
+        for d in self.terms:
+            if not isinstance(d, DistributedDelay):
+                raise ParameterError("terms", "a sequence of DistributedDelay", d)
+        self._alone = tuple(i for i, d in enumerate(self.terms) if d.pieces[0].size <= _CLOSED_FORM_PIECES)
+        shared: dict[tuple[float, bytes], list[tuple[int, _SegmentGroup]]] = {}
+        for i, d in enumerate(self.terms):
+            if i not in self._alone:
+                for g in d._segment_groups(0):
+                    shared.setdefault((g.h, g.start.tobytes()), []).append((i, g))
+        groups = []
+        for entries in shared.values():
+            coef = np.hstack([g.coef for _, g in entries])
+            real = coef.dtype.kind != "c"
+            groups.append(
+                _SharedSegments(
+                    entries[0][1].h,
+                    -entries[0][1].start,
+                    coef,
+                    np.ascontiguousarray(coef.T) if real else None,
+                    tuple((i, order) for i, g in entries for order in range(g.coef.shape[1])),
+                    max(g.coef.shape[1] for _, g in entries) - 1,
+                )
+            )
+        self._shared = tuple(groups)
+        self._polys = tuple((i, d.poly) for i, d in enumerate(self.terms) if d.poly.size > 1 and i not in self._alone)
+
+    def __call__(self, s: complex) -> list[complex]:
+        """The value of each term at ``s``."""
+        s = complex(s)
+        out = [0j] * len(self.terms)
+        for g in self._shared:
+            e = np.exp(s * g.negative_start)
+            if g.coef_t is not None:  # (columns, nodes) times the (re, im) pairs of e: one real product
+                sums = (g.coef_t @ e.view(float).reshape(-1, 2)).view(complex)[:, 0].tolist()
+            else:
+                sums = (e @ g.coef).tolist()
+            phi = _phi_at(s * g.h, g.kmax)
+            for (i, order), v in zip(g.columns, sums):
+                out[i] += v * phi[order]
+        z = np.array([s], dtype=complex)
+        for i, q in self._polys:
+            out[i] *= complex(polyval(q, z)[0])
+        for i in self._alone:
+            out[i] = complex(self.terms[i](z)[0])
         return out
 
 

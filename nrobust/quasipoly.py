@@ -16,6 +16,7 @@ error does not grow with ``|Im s|``, are :class:`~nrobust.distributed_delay.Dist
 
 from __future__ import annotations
 
+import cmath
 import functools
 import warnings
 from collections.abc import Iterable, Sequence
@@ -30,10 +31,10 @@ from numpy.typing import ArrayLike, NDArray
 from ._json import json_safe
 from ._validate import is_real_number, nonnegative, number_array, real_array
 from .difference import DifferenceOperator
-from .distributed_delay import DistributedDelay, as_poly, canonical_bytes, polyder, polymul, polyval
+from .distributed_delay import DistributedDelay, TermsAtPoint, as_poly, canonical_bytes, polyder, polymul, polyval
 from .errors import ParameterError
 
-__all__ = ["DistributedDelay", "QuasiPolynomial", "as_quasipolynomial"]
+__all__ = ["DistributedDelay", "QuasiPolynomial", "QuasiPolynomialsAtPoint", "as_quasipolynomial"]
 
 # deriv_bound, abs_bound and magnitude evaluate the moments of |N| on real parts rounded
 # down to this grid.
@@ -779,6 +780,69 @@ class QuasiPolynomial:
         if self.point_radii:
             data["radii"] = list(self.point_radii)
         return json_safe(data)
+
+
+class QuasiPolynomialsAtPoint:
+    """The values of several quasi-polynomials at one complex point: ``tuple(complex(F(s)) for F in functions)``.
+
+    For the many single-point evaluations of a continuation (Newton's method on a zero followed in a
+    parameter), where the numpy calls of each term, not their arithmetic, cost most: the exponentials
+    ``e^{-tau_k s}`` of the distinct delays of all functions are formed once each (:mod:`cmath`; exactly 1
+    for ``tau_k = 0``; by numpy, ``inf`` or ``nan``, beyond the doubles), the polynomials ``p_k(s)`` by
+    Horner's scheme in complex arithmetic, and the distributed terms by
+    :class:`~nrobust.distributed_delay.TermsAtPoint`, which forms the exponentials of the segments shared by
+    several terms (a function and its derivative) once. The values are those of ``F(s)`` to rounding.
+
+    Parameters
+    ----------
+    functions : sequence of QuasiPolynomial
+        The functions, in the order of the values returned.
+
+    Examples
+    --------
+    >>> F = QuasiPolynomial([[0, 1], [1]], [0, 1])
+    >>> at = QuasiPolynomialsAtPoint([F, F.derivative()])
+    >>> [round(abs(v), 12) for v in at(0.0)]
+    [1.0, 0.0]
+    """
+
+    def __init__(self, functions: Sequence[QuasiPolynomial]) -> None:
+        self.functions = tuple(functions)
+        for F in self.functions:
+            if not isinstance(F, QuasiPolynomial):
+                raise ParameterError("functions", "a sequence of QuasiPolynomial", F)
+        delays = sorted({t for F in self.functions for _, t in F.point_terms})
+        self._delays = np.array(delays, dtype=float)
+        self._delay_list: list[float] = self._delays.tolist()
+        # per function: (index of the delay, coefficients from the highest power down) of each point term
+        self._points = tuple(
+            tuple((delays.index(t), p[::-1].tolist()) for p, t in F.point_terms) for F in self.functions
+        )
+        self._owners = tuple(i for i, F in enumerate(self.functions) for _ in F.distributed)
+        self._terms = TermsAtPoint([d for F in self.functions for d in F.distributed])
+
+    def __call__(self, s: complex) -> tuple[complex, ...]:
+        """The value of each function at ``s``."""
+        s = complex(s)
+        try:
+            exps = [cmath.exp(-(s * t)) if t else 1.0 for t in self._delay_list]
+        except (OverflowError, ValueError):  # beyond the doubles: inf or nan, as numpy gives them
+            with np.errstate(over="ignore", invalid="ignore"):
+                e = np.exp(-(s * self._delays))
+            e[self._delays == 0] = 1.0
+            exps = e.tolist()
+        out = []
+        for terms in self._points:
+            total = 0j
+            for k, coefs in terms:
+                value = coefs[0]
+                for c in coefs[1:]:
+                    value = value * s + c
+                total += value * exps[k]
+            out.append(total)
+        for owner, value in zip(self._owners, self._terms(s)):
+            out[owner] += value
+        return tuple(out)
 
 
 def as_quasipolynomial(name: str, value: Any) -> QuasiPolynomial:

@@ -266,6 +266,18 @@ def test_state_feedback_kernel_route_converges_to_laplace_route():
     assert np.all(orders > 2.5), orders
 
 
+def test_proportional_state_feedback_kernel_route_converges_to_laplace_route():
+    """``U = k u(t, 1)`` alone: the inner integrals of the zero gains are zero (not summed), the kernel route still
+    converges to the Laplace route at third order."""
+    plant = Hyperbolic2x2(1.0, 1.0, 1.5, 0.5, 0.8, 0.4)
+    _, BL = laplace_loop_factors(plant, -0.5, 0.0, 0.0, S, steps=1600)
+    errs = [np.abs(-feedback_factor(plant, -0.5, 0.0, 0.0, kernel_grid=n)(S) - BL).max() for n in (101, 201, 401)]
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    # Measured: 7.1e-9 at 201 points, 9.6e-10 at 401 (orders 2.8, 2.9).
+    assert errs[1] < 1e-7
+    assert np.all(orders > 2.5), orders
+
+
 def test_proportional_feedback_on_transport_has_the_closed_form_margin():
     """``U = -k u(1)`` on ``1 - rho q e^{-tau s} + k q e^{-(tau+delta) s}``: margin 0 or inf by |rho q| vs |k q|."""
     plant = TransportSystem(1.0, 1.0, 1.0, 0.4)

@@ -174,6 +174,22 @@ def test_variation_bound_controls_decay():
         assert np.all(np.abs(d(s)) <= d.variation_bound(x) / np.abs(s))
 
 
+def test_variation_bound_closed_form_at_every_call():
+    """``N = 1 + nu`` on ``[0, 1]`` with a jump of ``-1.5`` at ``0.5`` (linear, exact):
+    ``V(x) = 1 + 1.5 e^{-x} + 1.5 e^{-x/2} + (1 - e^{-x}) / x``; the slopes and jumps formed at the first call
+    serve the later ones (the values in any order, against the closed form, to 1e-14)."""
+    d = DistributedDelay([0.0, 0.5, 0.5, 1.0], [1.0, 1.5, 0.0, 0.5])
+    xs = np.array([2.0, -1.0, 0.0, 0.3])
+
+    def closed(x: float) -> float:
+        inner = 1.0 if x == 0.0 else -np.expm1(-x) / x
+        return 1.0 + 0.5 * np.exp(-x) + 1.5 * np.exp(-0.5 * x) + inner
+
+    for x in (*xs, *xs[::-1]):
+        np.testing.assert_allclose(d.variation_bound(float(x)), closed(float(x)), rtol=1e-14)
+    np.testing.assert_allclose(d.variation_bound(xs), [closed(float(x)) for x in xs], rtol=1e-14)
+
+
 @pytest.mark.parametrize(
     "kwargs, name",
     [

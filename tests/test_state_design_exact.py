@@ -18,9 +18,10 @@ import pytest
 from scipy.optimize import brentq
 
 import nrobust as nr
+from nrobust.design import best_decay_rate
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses.state_design import StateFeedbackLoop, state_feedback_loop
-from nrobust.margins import delay_margin
+from nrobust.margins import AffineGainLoop, delay_margin
 from nrobust.roots import spectral_abscissa
 
 PLANT = nr.Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)
@@ -71,6 +72,39 @@ def test_decay_rate_against_a_grid(loop: StateFeedbackLoop, margin_at_least: flo
     assert design.design.runs[0].reason.endswith("kink")
     np.testing.assert_allclose(design.parameters[0], k, rtol=0, atol=2e-10)
     np.testing.assert_allclose(design.value, rate, rtol=0, atol=35 * 2e-10 + 1e-12)
+
+
+# The decay-rate designs on the default kernel grid, 201 points (k, rate, Im of the rightmost zero, margin, its
+# crossing frequency), as computed when
+# each function of the root paths was evaluated by its own numpy call and the designed loop's abscissa computed
+# again: the single-point evaluation (QuasiPolynomialsAtPoint) and the engine's abscissa taken for the equal
+# loop move them by 1-2 ulps (measured); 1e-12 relative is the stated tolerance of that change.
+RECORDED = {
+    1.0: (-0.5107675457954793, 1.2060128064764166, 4.468934951761815, 1.0874071412468305, 0.6378931323010821),
+    None: (-0.5107675457954779, 1.2060128064764228, 4.4689349517618115, 1.0874071412468336, 0.6378931323010802),
+}
+
+
+@pytest.mark.parametrize("margin_at_least", [1.0, None])
+def test_decay_rate_designs_as_recorded(margin_at_least: float | None) -> None:
+    design = nr.design_state_feedback(PLANT, "decay_rate", margin_at_least=margin_at_least)
+    loop = state_feedback_loop(PLANT, kernel_grid=201)
+    d = design.design
+    assert design.certified and d.runs[0].reason.endswith("kink")
+    assert d.abscissa.root is not None
+    got = [design.parameters[0], d.value, d.abscissa.root.imag, d.margin.margin, d.margin.omega]
+    np.testing.assert_allclose(got, RECORDED[margin_at_least], rtol=1e-12, atol=0)
+    # the abscissa taken from the engine is the designed loop's: computed again from the loop, the same
+    again = spectral_abscissa(loop.A + loop.units[0] * design.parameters[0])
+    assert (again.value, again.root, again.certified) == (d.abscissa.value, d.abscissa.root, d.abscissa.certified)
+
+
+def test_gain_design_holds_its_nominal_loop(loop: StateFeedbackLoop) -> None:
+    """``GainDesign.nominal`` is ``F(.; 0, K)``, the loop of ``GainDesign.abscissa``, and stays out of ``to_dict``."""
+    gain = best_decay_rate(AffineGainLoop(loop.A, loop.units[0] * 0.0, loop.units[0]), (-0.8415, 0.8415))
+    assert gain.nominal == loop.A + loop.units[0] * gain.K
+    assert spectral_abscissa(loop.A + loop.units[0] * gain.K).value == gain.abscissa.value
+    assert "nominal" not in gain.to_dict()
 
 
 def test_margin_against_a_grid(loop: StateFeedbackLoop) -> None:

@@ -76,7 +76,7 @@ from ..margins.count import unstable_count
 from ..margins.gain import AffineGainLoop, AxisBound, GainEnd, nominally_stable
 from ..margins.margin import DelayMargin, delay_margin
 from ..margins.proven import proven_crossings
-from ..quasipoly import QuasiPolynomial
+from ..quasipoly import QuasiPolynomial, QuasiPolynomialsAtPoint
 from ..roots import SpectralAbscissa, count_roots, spectral_abscissa
 
 __all__ = [
@@ -194,6 +194,9 @@ class GainDesign:
         The intervals of gains meeting the window for every loop: an end inside the bounds of the
         gain is solved from its equation and moved ``1e-10`` (relative) inside, an end at a bound
         is that bound.
+    nominal : QuasiPolynomial or None
+        The nominal loop ``F(.; 0, K)`` whose spectral abscissa is :attr:`abscissa` (a caller holding a
+        loop equal to it, ``==``, need not compute that abscissa again); not in :meth:`to_dict`.
     """
 
     K: float
@@ -214,6 +217,7 @@ class GainDesign:
     delays: tuple[float, float] | None = None
     windows: tuple[DelayWindow, ...] = ()
     feasible: tuple[tuple[float, float], ...] = ()
+    nominal: QuasiPolynomial | None = None
 
     @property
     def requirement(self) -> str:
@@ -249,7 +253,7 @@ class GainDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the certificate and abscissa as their dictionaries)."""
-        data = fields_dict(self, exclude=("end",))
+        data = fields_dict(self, exclude=("end", "nominal"))
         data["end"] = None if self.end is None else self.end._asdict()
         data["accuracy"] = list(self.accuracy)
         return data
@@ -2598,6 +2602,7 @@ def _window_design(
         (d_lo, d_hi),
         windows,
         feasible,
+        curves.loop.nominal(K),
     )
 
 
@@ -2880,7 +2885,20 @@ def best_margin(
         inf = float("inf")
         sa = _abscissa(curves.loop, K)
         return GainDesign(
-            K, "margin", inf, inf, -sa.value, "no crossing", (K, K), (inf, inf), (lo, hi), cert, how, sa, *scan
+            K,
+            "margin",
+            inf,
+            inf,
+            -sa.value,
+            "no crossing",
+            (K, K),
+            (inf, inf),
+            (lo, hi),
+            cert,
+            how,
+            sa,
+            *scan,
+            nominal=curves.loop.nominal(K),
         )
     finite = env
     solved = [_solve_candidate(curves, i, finite) for i in _candidates(finite)]
@@ -2899,7 +2917,20 @@ def best_margin(
         )
     sa = _abscissa(curves.loop, K)
     return GainDesign(
-        K, "margin", cert.margin, cert.margin, -sa.value, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan
+        K,
+        "margin",
+        cert.margin,
+        cert.margin,
+        -sa.value,
+        kind,
+        K_br,
+        v_br,
+        (lo, hi),
+        cert,
+        how,
+        sa,
+        *scan,
+        nominal=curves.loop.nominal(K),
     )
 
 
@@ -3013,16 +3044,21 @@ class _RootPaths:
         self.N0 = loop.nominal(0.0)
         self.N1 = loop.loop.R if isinstance(loop.loop, AffineGainLoop) else loop.loop.A1 + loop.loop.B1
         self.dN0, self.dN1 = self.N0.derivative(), self.N1.derivative()
+        self.values = QuasiPolynomialsAtPoint((self.N0, self.dN0, self.N1, self.dN1))
+        # _parts by (K, s): continuations toward different gains try the same first steps (a fifth of the calls)
+        self.parts: dict[tuple[float, complex], tuple[complex, complex, complex]] = {}
         # follow(K0, s0, K1) by its arguments (None: the path lost): the searches of one design ask again for
         # the same continuations (each path of :func:`_two_paths_peak` from the same samples), lost ones the
         # dearest (every step size down to the smallest is tried)
         self.followed: dict[tuple[float, complex, float], complex | None] = {}
 
     def _parts(self, K: float, s: complex) -> tuple[complex, complex, complex]:
-        """``F(s), F'(s), N_1(s)`` at ``K``."""
-        z = np.array([s])
-        n1 = complex(self.N1(z)[0])
-        return complex(self.N0(z)[0]) + K * n1, complex(self.dN0(z)[0]) + K * complex(self.dN1(z)[0]), n1
+        """``F(s), F'(s), N_1(s)`` at ``K`` (remembered: :attr:`parts`)."""
+        found = self.parts.get((K, s))
+        if found is None:
+            n0, dn0, n1, dn1 = self.values(s)
+            found = self.parts[(K, s)] = (n0 + K * n1, dn0 + K * dn1, n1)
+        return found
 
     def slope(self, K: float, s: complex) -> float:
         """``d(-Re s)/dK`` of the zero ``s`` at ``K``."""
@@ -3336,7 +3372,21 @@ def _unconstrained_rate(
     half = 1e-10 * max(abs(lo), abs(hi), 1e-300)
     K_br = (K - half, K + half) if kind in ("interior smooth max", "kink") else (K, K)
     return GainDesign(
-        K, "decay_rate", rate, cert.margin, rate, kind, K_br, (rate, rate), (lo, hi), cert, how, sa, curves.gains, env
+        K,
+        "decay_rate",
+        rate,
+        cert.margin,
+        rate,
+        kind,
+        K_br,
+        (rate, rate),
+        (lo, hi),
+        cert,
+        how,
+        sa,
+        curves.gains,
+        env,
+        nominal=curves.loop.nominal(K),
     )
 
 
@@ -3486,4 +3536,20 @@ def best_decay_rate(
         v_br = (min(rate, at_end), max(rate, at_end))
     elif kind in ("interior smooth max", "kink"):
         K_br = (K - 1e-10 * max(scale, 1e-300), K + 1e-10 * max(scale, 1e-300))
-    return GainDesign(K, "decay_rate", rate, cert.margin, rate, kind, K_br, v_br, (lo, hi), cert, how, sa, *scan, end)
+    return GainDesign(
+        K,
+        "decay_rate",
+        rate,
+        cert.margin,
+        rate,
+        kind,
+        K_br,
+        v_br,
+        (lo, hi),
+        cert,
+        how,
+        sa,
+        *scan,
+        end,
+        nominal=curves.loop.nominal(K),
+    )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, TypeGuard, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -246,9 +246,16 @@ class FarField(Protocol):
         """A radius ``R`` with no root in ``{Re s >= x, |s| >= R}``, or None."""
 
 
+def _is_far_field(F: Any) -> TypeGuard[FarField]:
+    """``isinstance(F, FarField)``, at once for a :class:`~nrobust.quasipoly.QuasiPolynomial` (not one): the
+    protocol's check looks its methods up each time (some 10 us), and the far field is asked about hundreds
+    of times per abscissa."""
+    return type(F) is not QuasiPolynomial and isinstance(F, FarField)
+
+
 def _degree(F: QuasiPolynomial) -> int:
     """The joint degree of a quasi-polynomial; 0 for a :class:`FarField` (unused by its bounds)."""
-    return 0 if isinstance(F, FarField) else joint_degree(F)
+    return 0 if _is_far_field(F) else joint_degree(F)
 
 
 def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
@@ -259,7 +266,7 @@ def _root_free_radius(F: QuasiPolynomial, x: float) -> float | None:
     :func:`nrobust.bounds.root_free_region`); both are monotone in ``|s|`` and ``Re s``.
     A :class:`FarField` gives its own.
     """
-    if isinstance(F, FarField):
+    if _is_far_field(F):
         return F.far_field_radius(x)
     n = joint_degree(F)
     g = principal_gap({"F": (F, 0)}, n, x)
@@ -587,7 +594,7 @@ def _separated(F: QuasiPolynomial, roots: RootSet, max_evals: int) -> RootSet:
     the rightmost centroid are separated in ball arithmetic of higher precision
     (:func:`~nrobust.roots.finder.separate_clusters`) when they can be.
     """
-    if isinstance(F, FarField) or not len(roots) or not roots.certified:
+    if _is_far_field(F) or not len(roots) or not roots.certified:
         return roots
     if int(roots.multiplicities.max()) == 1:
         return roots
@@ -683,7 +690,7 @@ def _right_half_plane(F: QuasiPolynomial, x0: float, step: float) -> tuple[float
         R = _root_free_radius(F, x)
         if R is not None:
             return x, R
-    g = None if isinstance(F, FarField) else principal_gap({"F": (F, 0)}, joint_degree(F), x)
+    g = None if _is_far_field(F) else principal_gap({"F": (F, 0)}, joint_degree(F), x)
     if g is not None and g.gap > 0.0:
         raise ParameterError(
             "F",
@@ -766,7 +773,7 @@ def _band_edge(F: QuasiPolynomial, x_lo: float, x_min: float, height: float, pro
 
 def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
     """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= R}`` (see :func:`_root_free_radius`)."""
-    if isinstance(F, FarField):
+    if _is_far_field(F):
         return F.far_field_holds(x, R)
     g = principal_gap({"F": (F, 0)}, n, x)
     return g is not None and g.gap > 0.0 and bool(TailBound(F, n, x, g.t0)(R) < g.gap)
@@ -795,7 +802,7 @@ def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float, x_lo: flo
 
 def _is_exponential_polynomial(F: QuasiPolynomial) -> bool:
     """True if ``F = p(s) e^{-tau s}``: its far-field bound does not depend on ``Re s``."""
-    return not isinstance(F, FarField) and len(F.point_terms) == 1 and not F.distributed
+    return not _is_far_field(F) and len(F.point_terms) == 1 and not F.distributed
 
 
 def _polynomial_abscissa(F: QuasiPolynomial, region: Region) -> SpectralAbscissa | None:

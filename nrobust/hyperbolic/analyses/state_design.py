@@ -295,7 +295,9 @@ def _exact_design(
     engine's delay margin (verified, or proven) meeting ``margin_at_least``, the windows the engine certified."""
     p = (float(gain.K),)
     A, B = loop(np.asarray(p))
-    sa = spectral_abscissa(A + B, rigorous=rigorous)
+    F = A + B
+    # the engine's floating-point abscissa is of this loop when its nominal loop is this one
+    sa = gain.abscissa if not rigorous and gain.nominal == F else spectral_abscissa(F, rigorous=rigorous)
     dm = gain.certificate
     lowest = dm.margin_ball[0] if (rigorous and dm.margin_ball is not None) else dm.margin
     met = not margin_at_least or lowest >= margin_at_least

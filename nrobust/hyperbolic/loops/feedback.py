@@ -47,10 +47,13 @@ Array = NDArray[np.float64]
 
 
 def _column_integrals(weight: Array, table: Array) -> Array:
-    """``int_{xi_j}^1 weight(x) table(x, xi_j) dx`` on the grid (Simpson, per column)."""
+    """``int_{xi_j}^1 weight(x) table(x, xi_j) dx`` on the grid (Simpson, per column); zero for a zero weight
+    (a gain without one of its integral terms: ``k`` alone has neither)."""
+    n = weight.size
+    if not np.any(weight):
+        return np.zeros(n)
     from scipy.integrate import simpson  # lazily: scipy.integrate is slow to import
 
-    n = weight.size
     h = 1.0 / (n - 1)
     out = np.zeros(n)
     for j in range(n - 1):
