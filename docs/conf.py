@@ -86,7 +86,7 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version", "theme-version"],
     # the API contract and the generated reference: the whole width for their tables
-    "secondary_sidebar_items": {"**": ["page-toc"], "api": [], "reference": []},
+    "secondary_sidebar_items": {"**": ["page-toc"], "api": [], "reference": [], "generated/*": []},
 }
 html_sidebars = {"index": [], "five_minutes": [], "api": [], "reference": []}
 html_context = {"default_mode": "light"}

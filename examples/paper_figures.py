@@ -5,7 +5,7 @@ Plant of the simulation section: ``lam = mu = sigma_pm = sigma_mp = q = 1``, ``r
 Figure 1: U_BS (eq. (47)) with ``delta = 0`` and ``delta = 0.01``: finite-time
 convergence without delay, instability with the smallest delay (Theorem 3,
 ``rho q = 0.85 > 1/2``). Figure 3: U_BS2 with ``K = 0.1`` (eq. (53)) with
-``delta = 0, 0.01, 0.1``: stable for every delay, at the rate ``ln(0.75)/2`` without delay.
+``delta = 0, 0.01, 0.1``: stable for every delay, decaying at the rate ``-ln(0.75)/2`` without delay.
 
 The figures are those of ``nrobust paper`` (:func:`nrobust.reports.paper.paper_figure`: same
 horizon, initial state and axis); ``docs/figures/`` holds their output.

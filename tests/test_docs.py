@@ -299,3 +299,14 @@ def test_examples_open_with_a_gallery_title():
         if len(lines) < 2 or not lines[0].strip() or lines[1] != "=" * len(lines[0]):
             untitled.append(path.name)
     assert not untitled, "examples without a title line underlined with '=': " + ", ".join(untitled)
+
+
+def test_no_equation_number_inside_an_aligned_block():
+    """MathJax refuses ``\\tag`` inside ``aligned`` ("\\tag not allowed in aligned environment"): a
+    page would show that error instead of its equations. Numbered systems use ``align*``."""
+    bad = []
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        for block in re.findall(r"\\begin\{aligned\}(.*?)\\end\{aligned\}", page.read_text(), flags=re.S):
+            if "\\tag" in block:
+                bad.append(page.name)
+    assert not bad, bad

@@ -424,3 +424,15 @@ def test_filtered_transport_loop_has_a_finite_margin_when_rho_q_above_half(a: fl
     W = dm.frequency_bound
     assert int(count_roots(F, (0.0, 1.01 * W, -1.01 * W, 1.01 * W))) == 2
     assert dm.margin == delay_margin(TransportSystem(1.0, 1.0, 1.0, rho_q), FilteredController(a, b)).margin
+
+
+def test_a_proven_infinite_margin_says_so_without_an_interval_of_infinities():
+    """The reason of a proven infinite margin names no ``[inf, inf]`` (an internal interval in words)."""
+    import nrobust
+    from nrobust.hyperbolic import TransportSystem
+
+    margin = nrobust.delay_margin(
+        TransportSystem(lam=1.0, mu=1.0, q=1.0, rho=0.3), nrobust.ReflectionController(0.1), rigorous=True
+    )
+    assert margin.margin == np.inf and margin.rigorous
+    assert "inf" not in margin.reason and margin.reason.endswith("(proven in ball arithmetic)")

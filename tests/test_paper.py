@@ -122,6 +122,15 @@ def test_the_paper_job_at_full_size(tmp_path):
     stable = data["chart"]["K_stable_up_to_0.1_on_grid"]
     assert min(stable) > -0.15 and max(stable) < 0.15  # inside the paper's bound (54)
     assert (tmp_path / "report.html").stat().st_size > 100_000
+    # the answer first: right under the title, a panel saying which law survives a delay, each verdict
+    # (the margin with its accuracy) and how much is proven; the details come after it
+    md = (tmp_path / "report.md").read_text().splitlines()
+    assert md[2] == "> **The paper's example (section 5): U_BS2(K = 0.1) is delay-robust; U_BS is not**"
+    end = next(k for k in range(2, len(md)) if not md[k].startswith(">"))
+    text = "\n".join(md[2:end])
+    assert "**U_BS:** FiniteTimeController: stable without delay but with zero delay margin" in text
+    assert "**U_BS2(K = 0.1):** ReflectionController: delay-robust" in text and "0.22953913027" in text
+    assert "**Proven:** 17 of 17 claims" in text
 
 
 def test_a_hidden_progress_bar_does_not_load_tqdm():

@@ -706,7 +706,11 @@ def delay_margin(
         ball = _margin_ball(proof, zero_root, nominal)
         if not ball[0] <= margin <= ball[1]:
             margin = 0.5 * (ball[0] + ball[1])
-        reason += f" (proven in ball arithmetic: delta* in [{ball[0]:.17g}, {ball[1]:.17g}])"
+        reason += (
+            " (proven in ball arithmetic)"
+            if np.isposinf(ball[0])
+            else f" (proven in ball arithmetic: delta* in [{ball[0]:.17g}, {ball[1]:.17g}])"
+        )
     return DelayMargin(
         margin=float(margin),
         omega=None if omega is None else float(omega),

@@ -333,8 +333,12 @@ def _panel(cert: Certificate) -> _Panel:
     elif cert.nominally_stable:
         lines.append(
             f"**Without delay (delta = 0):** stable; decay rate "
-            f"{with_accuracy(-cert.abscissa.value, cert.abscissa.accuracy)}{_rate_unit(cert)} (the rightmost "
-            "closed-loop root)."
+            f"{with_accuracy(-cert.abscissa.value, cert.abscissa.accuracy)}{_rate_unit(cert)} "
+            + (
+                "(the abscissa of the rightmost chain of roots, approached as Im s grows)."
+                if cert.abscissa.approached_at_infinity
+                else "(the rightmost closed-loop root)."
+            )
         )
     else:
         n = "some" if m.nominal_unstable is None else str(m.nominal_unstable)
@@ -496,11 +500,11 @@ def _certificate_blocks(
         blocks += _plant_blocks(cert)
     blocks += [_Heading(3, "Details"), _Paragraph(f"**Verdict.** {cert.verdict}"), _Paragraph(_opening(cert))]
     if isinstance(cert.controller, FiniteTimeController):
-        gamma_source = "principal_part (< 1: eq. (11))"
+        gamma_source = "principal_part (eq. (11): strongly stable when < 1)"
     elif isinstance(cert.controller, ReflectionController):
-        gamma_source = "principal_part (< 1: eq. (54))"
+        gamma_source = "principal_part (eq. (54): strongly stable when < 1)"
     else:
-        gamma_source = "principal_part (< 1: strongly stable)"
+        gamma_source = "principal_part (strongly stable when < 1)"
     rows = [
         ("open-loop gain rho q", _fmt(cls.rho_q), "classify (section 2)"),
         ("regime", _REGIMES.get(cls.regime, cls.regime), "classify"),
@@ -821,6 +825,7 @@ def write_report(
     title: str = "nrobust delay-robustness report",
     intro: Sequence[str] = (),
     rendered: Sequence[RenderedFigures] | None = None,
+    answer: tuple[str, Sequence[str]] | None = None,
 ) -> ReportFiles:
     """Write a Markdown report, a self-contained HTML report and the certificates' JSON.
 
@@ -842,6 +847,9 @@ def write_report(
         The standard figures of each certificate, already drawn
         (:func:`render_certificate_figures`, e.g. in the worker that certified it); by
         default they are drawn here.
+    answer : (str, sequence of str), optional
+        The answer of a report with several certificates, set apart right after the title and
+        before ``intro``: a headline and a few lines (each section keeps its own panel).
 
     Returns
     -------
@@ -867,6 +875,8 @@ def write_report(
     fig_dir.mkdir(parents=True, exist_ok=True)
 
     blocks: list[Any] = [_Heading(1, title)]
+    if answer is not None:
+        blocks.append(_Panel(answer[0], tuple(answer[1])))
     blocks += [_Paragraph(p) for p in intro]
     if len(certs) > 1:  # one plant, several controllers: the plant once, each controller in its section
         blocks += _plant_blocks(certs[0], with_controller=False)

@@ -126,7 +126,12 @@ def _feedback_law(system: Hyperbolic2x2, controller: Any, kernels: Any, kernel_g
     if hasattr(controller, "boundary_gain") and hasattr(controller, "gain_u"):
         return controller
     if not callable(getattr(controller, "feedback_law", None)):
-        raise ParameterError("controller", "a FeedbackLaw or an object with feedback_law(system, kernels)", controller)
+        raise ParameterError(
+            "controller",
+            "a controller (OpenLoop, FiniteTimeController, ReflectionController, FilteredController, StateFeedback, "
+            "OutputFeedback, CollocatedOutputFeedback), a FeedbackLaw, or an object with feedback_law(system, kernels)",
+            controller,
+        )
     if kernels is None and not system.uncoupled:
         kernels = solve_kernels(system, kernel_grid)
     return controller.feedback_law(system, kernels)
