@@ -27,6 +27,7 @@ from nrobust._digits import lower_bound_text, with_accuracy
 from nrobust.hyperbolic.analyses import k_region, margin_and_decay, tradeoff
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import delay_margin
+from nrobust.reports.report import _end_text as report_end_text
 
 PAPER = nrobust.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
 
@@ -225,4 +226,9 @@ def test_k_region_ends_against_an_independent_solve() -> None:
         assert abs(gain(w).imag) < 1e-30
         assert_true_and_tight(end.K, end.accuracy, gain(w).real)
         assert with_accuracy(end.K, end.accuracy) in repr(region)
+        # the end's frequency: within its estimated accuracy of the 40-digit root, printed to it
+        assert_true_and_tight(end.omega, end.omega_accuracy, w)
+        assert end.delay == delta_max and end.delay_accuracy == 0.0
+        assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}, delay={delta_max!r})" in repr(end)
+        assert f"a root at i ({with_accuracy(end.omega, end.omega_accuracy)})" in report_end_text(end)
     assert region.end_accuracies == ((region.tol, region.tol),)
