@@ -232,3 +232,39 @@ def test_k_region_ends_against_an_independent_solve() -> None:
         assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}, delay={delta_max!r})" in repr(end)
         assert f"a root at i ({with_accuracy(end.omega, end.omega_accuracy)})" in report_end_text(end)
     assert region.end_accuracies == ((region.tol, region.tol),)
+
+
+# ---------------------------------------------------------------------------------------- crossings
+def _printed(text: str) -> tuple[mp.mpf, mp.mpf]:
+    """The printed value and the half unit of its last digit (``"1.2345 (accuracy not estimated)"``, no bound)."""
+    number = text.split(" ")[0]
+    decimals = len(number.split(".")[1]) if "." in number else 0
+    return mp.mpf(number), mp.mpf(10) ** -decimals / 2
+
+
+def test_crossing_reprs_print_their_accuracy() -> None:
+    """``s^2 + 1`` against ``s``: crossings at ``w = phi`` (delay ``(pi/2)/phi``, the margin) and
+    ``1/phi`` (delay ``(3 pi/2) phi``); every printed digit of the reprs against the closed forms."""
+    A = QuasiPolynomial([[1.0, 0.0, 1.0]], [0.0])
+    B = QuasiPolynomial([[0.0, 1.0]], [0.0])
+    phi = (1 + mp.sqrt(5)) / 2
+    for rigorous in (False, True):
+        dm = delay_margin(A, B, delta_max=20.0, rigorous=rigorous)
+        first, second = dm.crossings
+        assert first.omega_accuracy == dm.omega_accuracy and first.delay_accuracy == dm.accuracy
+        assert_true_and_tight(first.omega, first.omega_accuracy, phi)
+        assert_true_and_tight(first.delays[0], first.delay_accuracy, mp.pi / 2 / phi)
+        assert_true_and_tight(second.omega, second.omega_accuracy, 1 / phi)
+        assert second.delay_accuracy is None  # not estimated: 6 significant digits, all true
+        text = repr(second)
+        assert "delta_0=7.62481 (accuracy not estimated)" in text
+        value, half = _printed(text.split("delta_0=")[1])
+        assert abs(value - 3 * mp.pi / 2 * phi) <= half
+        for c, w in ((first, phi), (second, 1 / phi)):
+            printed, bound = repr(c).split("period=")[1].split(",")[0].split(" +- ")
+            assert abs(mp.mpf(printed) - 2 * mp.pi / w) <= mp.mpf(bound), repr(c)
+            assert f"omega={with_accuracy(c.omega, c.omega_accuracy)}" in repr(c)
+    # a model of the plant without a model error: nothing about the plant is known to these digits
+    model = dataclasses.replace(dm, of_model=True)
+    assert all(c.omega_accuracy is None and c.delay_accuracy is None for c in model.crossings)
+    assert "omega=1.61803 (accuracy not estimated)" in repr(model.crossings[0])

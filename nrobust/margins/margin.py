@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -157,6 +157,19 @@ class DelayMargin:
     omega_error: float | None = None
     model_error: float | None = None
     omega_model_error: float | None = None
+
+    def __post_init__(self) -> None:
+        # the crossings carry the accuracies this margin states: the margin's crossing its
+        # omega_accuracy and accuracy, the others theirs about A and B, withdrawn for a model
+        own = [c.omega == self.omega and c.delays[0] == self.margin for c in self.crossings]
+        if any(own) or self.of_model:
+            crossings = tuple(
+                replace(c, omega_accuracy=self.omega_accuracy, delay_accuracy=self.accuracy)
+                if mine
+                else (replace(c, omega_accuracy=None, delay_accuracy=None) if self.of_model else c)
+                for c, mine in zip(self.crossings, own)
+            )
+            object.__setattr__(self, "crossings", crossings)
 
     @property
     def omega_accuracy(self) -> float | None:
@@ -684,6 +697,9 @@ def delay_margin(
     if common.size:
         return _common_zero(search, common, zero_root, delta_max)
     crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
+    crossings = tuple(
+        replace(c, omega_accuracy=_omega_error(A, B, c.omega, crossings, proof, zero_root)) for c in crossings
+    )
     events = _events(crossings, delta_max, A.is_real and B.is_real)
     # The nominal count, and the count on the first interval (0, first positive crossing delay).
     nominal_loop = A + B if proof is None else _proven_sum(A, B)
