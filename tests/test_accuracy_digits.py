@@ -268,3 +268,27 @@ def test_crossing_reprs_print_their_accuracy() -> None:
     model = dataclasses.replace(dm, of_model=True)
     assert all(c.omega_accuracy is None and c.delay_accuracy is None for c in model.crossings)
     assert "omega=1.61803 (accuracy not estimated)" in repr(model.crossings[0])
+
+
+def test_bisection_ends_carry_their_margins_accuracies() -> None:
+    """A bisection end's ``omega`` and ``delay`` are the first crossing of the margin just outside (at
+    ``K -+ accuracy``): re-solved there at 40 digits, ``|A(i w)| = |B(i w)|``, ``delay = arg(-B/A) / w``."""
+    from nrobust.hyperbolic import loop_factors
+
+    region = k_region(
+        PAPER, 0.05, controller=lambda K: nrobust.ReflectionController(K), Ks=[-0.11, 0.0, 0.15], tol=1e-3
+    )
+    ((lower, upper),) = region.ends
+    for end, outside in ((lower, lower.K - lower.accuracy), (upper, upper.K + upper.accuracy)):
+        assert end.kind == "bisection"
+        A, B = loop_factors(PAPER, nrobust.ReflectionController(outside))
+        fa, fb = mp_function(A), mp_function(B)
+        w = mp.findroot(
+            lambda x, fa=fa, fb=fb: abs(fa(1j * x)) ** 2 - abs(fb(1j * x)) ** 2,
+            mp.mpf(end.omega),
+            tol=mp.mpf(10) ** -35,
+        )
+        delay = (mp.arg(-fb(1j * w) / fa(1j * w)) % (2 * mp.pi)) / w
+        assert_true_and_tight(end.omega, end.omega_accuracy, w)
+        assert_true_and_tight(end.delay, end.delay_accuracy, delay)
+        assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}" in repr(end)
