@@ -422,7 +422,8 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     ]
     if dm is not None:
         lines.append(
-            f"- delay margin: {dm.margin:.10g} ({'certified' if dm.certified else 'not certified'}); about {dm.scope}"
+            f"- delay margin: {with_accuracy(dm.margin, dm.accuracy)} "
+            f"({'certified' if dm.certified else 'not certified'}); about {dm.scope}"
         )
     for w in result.windows:
         verdict = "stable" if w.stable else "not stable"
