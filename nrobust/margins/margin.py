@@ -161,7 +161,7 @@ class DelayMargin:
     def __post_init__(self) -> None:
         # the crossings carry the accuracies this margin states: the margin's crossing its
         # omega_accuracy and accuracy, the others theirs about A and B, withdrawn for a model
-        own = [c.omega == self.omega and c.delays[0] == self.margin for c in self.crossings]
+        own = [c.omega == self.omega and bool(c.delays) and c.delays[0] == self.margin for c in self.crossings]
         if any(own) or self.of_model:
             crossings = tuple(
                 replace(c, omega_accuracy=self.omega_accuracy, delay_accuracy=self.accuracy)
