@@ -27,6 +27,7 @@ from nrobust._digits import lower_bound_text, with_accuracy
 from nrobust.hyperbolic.analyses import k_region, margin_and_decay, tradeoff
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import delay_margin
+from nrobust.reports.report import _end_text as report_end_text
 
 PAPER = nrobust.Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)
 
@@ -225,4 +226,69 @@ def test_k_region_ends_against_an_independent_solve() -> None:
         assert abs(gain(w).imag) < 1e-30
         assert_true_and_tight(end.K, end.accuracy, gain(w).real)
         assert with_accuracy(end.K, end.accuracy) in repr(region)
+        # the end's frequency: within its estimated accuracy of the 40-digit root, printed to it
+        assert_true_and_tight(end.omega, end.omega_accuracy, w)
+        assert end.delay == delta_max and end.delay_accuracy == 0.0
+        assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}, delay={delta_max!r})" in repr(end)
+        assert f"a root at i ({with_accuracy(end.omega, end.omega_accuracy)})" in report_end_text(end)
     assert region.end_accuracies == ((region.tol, region.tol),)
+
+
+# ---------------------------------------------------------------------------------------- crossings
+def _printed(text: str) -> tuple[mp.mpf, mp.mpf]:
+    """The printed value and the half unit of its last digit (``"1.2345 (accuracy not estimated)"``, no bound)."""
+    number = text.split(" ")[0]
+    decimals = len(number.split(".")[1]) if "." in number else 0
+    return mp.mpf(number), mp.mpf(10) ** -decimals / 2
+
+
+def test_crossing_reprs_print_their_accuracy() -> None:
+    """``s^2 + 1`` against ``s``: crossings at ``w = phi`` (delay ``(pi/2)/phi``, the margin) and
+    ``1/phi`` (delay ``(3 pi/2) phi``); every printed digit of the reprs against the closed forms."""
+    A = QuasiPolynomial([[1.0, 0.0, 1.0]], [0.0])
+    B = QuasiPolynomial([[0.0, 1.0]], [0.0])
+    phi = (1 + mp.sqrt(5)) / 2
+    for rigorous in (False, True):
+        dm = delay_margin(A, B, delta_max=20.0, rigorous=rigorous)
+        first, second = dm.crossings
+        assert first.omega_accuracy == dm.omega_accuracy and first.delay_accuracy == dm.accuracy
+        assert_true_and_tight(first.omega, first.omega_accuracy, phi)
+        assert_true_and_tight(first.delays[0], first.delay_accuracy, mp.pi / 2 / phi)
+        assert_true_and_tight(second.omega, second.omega_accuracy, 1 / phi)
+        assert second.delay_accuracy is None  # not estimated: 6 significant digits, all true
+        text = repr(second)
+        assert "delta_0=7.62481 (accuracy not estimated)" in text
+        value, half = _printed(text.split("delta_0=")[1])
+        assert abs(value - 3 * mp.pi / 2 * phi) <= half
+        for c, w in ((first, phi), (second, 1 / phi)):
+            printed, bound = repr(c).split("period=")[1].split(",")[0].split(" +- ")
+            assert abs(mp.mpf(printed) - 2 * mp.pi / w) <= mp.mpf(bound), repr(c)
+            assert f"omega={with_accuracy(c.omega, c.omega_accuracy)}" in repr(c)
+    # a model of the plant without a model error: nothing about the plant is known to these digits
+    model = dataclasses.replace(dm, of_model=True)
+    assert all(c.omega_accuracy is None and c.delay_accuracy is None for c in model.crossings)
+    assert "omega=1.61803 (accuracy not estimated)" in repr(model.crossings[0])
+
+
+def test_bisection_ends_carry_their_margins_accuracies() -> None:
+    """A bisection end's ``omega`` and ``delay`` are the first crossing of the margin just outside (at
+    ``K -+ accuracy``): re-solved there at 40 digits, ``|A(i w)| = |B(i w)|``, ``delay = arg(-B/A) / w``."""
+    from nrobust.hyperbolic import loop_factors
+
+    region = k_region(
+        PAPER, 0.05, controller=lambda K: nrobust.ReflectionController(K), Ks=[-0.11, 0.0, 0.15], tol=1e-3
+    )
+    ((lower, upper),) = region.ends
+    for end, outside in ((lower, lower.K - lower.accuracy), (upper, upper.K + upper.accuracy)):
+        assert end.kind == "bisection"
+        A, B = loop_factors(PAPER, nrobust.ReflectionController(outside))
+        fa, fb = mp_function(A), mp_function(B)
+        w = mp.findroot(
+            lambda x, fa=fa, fb=fb: abs(fa(1j * x)) ** 2 - abs(fb(1j * x)) ** 2,
+            mp.mpf(end.omega),
+            tol=mp.mpf(10) ** -35,
+        )
+        delay = (mp.arg(-fb(1j * w) / fa(1j * w)) % (2 * mp.pi)) / w
+        assert_true_and_tight(end.omega, end.omega_accuracy, w)
+        assert_true_and_tight(end.delay, end.delay_accuracy, delay)
+        assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}" in repr(end)

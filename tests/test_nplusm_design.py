@@ -9,10 +9,12 @@ of the certified abscissa and margin for the gradients; closed forms for ``gamma
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from nrobust import StateFeedback, delay_margin
 from nrobust.design import TrialPoint, best_decay_rate, best_margin, local_runs
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses.state_design import state_feedback_loop
@@ -27,6 +29,7 @@ from nrobust.hyperbolic.nplusm import (
 from nrobust.hyperbolic.nplusm.design import K_BOUND_FRACTION, NPlusMGainProblem, default_gain_bounds
 from nrobust.hyperbolic.plants.hyperbolic2x2 import Hyperbolic2x2
 from nrobust.margins.gain import AffineGainLoop
+from nrobust.reports.design import _nplusm_markdown
 from nrobust.roots import spectral_abscissa
 
 # a coupled 2 + 1 system (distinct speeds, no diagonal couplings: U_a = V = 1) with one actuator
@@ -211,6 +214,13 @@ def test_one_plus_one_margin_agrees_with_the_exact_scalar_design() -> None:
     np.testing.assert_allclose(design.K[0][0], exact.K, atol=1e-5)
     np.testing.assert_allclose(design.value, exact.margin, atol=5e-5)
     assert design.value <= exact.margin + 1e-9 and design.accuracy < 1e-9
+    # the report prints the designed loop's margin to its accuracy: against the scalar route's margin at that k
+    (line,) = [
+        x for x in _nplusm_markdown(Path("plant.toml"), design) if x.startswith("- delay margin: ") and "about" in x
+    ]
+    printed, bound = line.removeprefix("- delay margin: ").split(" (")[0].split(" +- ")
+    scalar = delay_margin(PLANT, StateFeedback(float(design.K[0][0])))
+    assert abs(float(printed) - scalar.margin) <= 1.5 * float(bound) + scalar.accuracy, (line, scalar)
 
 
 @pytest.mark.long

@@ -2277,7 +2277,7 @@ def _window_events(curves: _Curves, i: int, j: int, d_lo: float, d_hi: float) ->
     births: list[_Birth] = []
     K0 = curves.loop.zero_root()
     if K0 is not None and lo - width <= K0 <= hi + width:
-        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0))
+        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0, None, 0.0, 0.0))
     for piece in curves.pieces:
         if piece.K.size < 2 or np.max(piece.K) < lo - width or np.min(piece.K) > hi + width:
             continue
@@ -2289,7 +2289,9 @@ def _window_events(curves: _Curves, i: int, j: int, d_lo: float, d_hi: float) ->
             if how == "birth":
                 births.append((end_K, piece, at_start, ks))
             elif how == "wrap" and d_lo == 0.0:  # a root on the axis at delta = 0: the nominal loop changes
-                events.append(GainEnd(end_K, "nominal", float(piece.w[0] if at_start else piece.w[-1]), 0.0))
+                events.append(
+                    GainEnd(end_K, "nominal", float(piece.w[0] if at_start else piece.w[-1]), 0.0, delay_accuracy=0.0)
+                )
         for k in ks:
             for level in (d_lo, d_hi) if d_lo > 0.0 else (d_hi,):
                 f_s = piece.d + _TWO_PI * k / piece.w - level
@@ -2305,7 +2307,9 @@ def _window_events(curves: _Curves, i: int, j: int, d_lo: float, d_hi: float) ->
                     if f(wa) * f(wc) > 0:
                         continue
                     wx = brentq(f, wa, wc, xtol=1e-15 * wc, rtol=1e-15)
-                    events.append(GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level))
+                    events.append(
+                        GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level, delay_accuracy=0.0)
+                    )
     return events, births
 
 
@@ -3320,7 +3324,7 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     events: list[GainEnd] = []
     K0 = curves.loop.zero_root()
     if K0 is not None and lo - (hi - lo) <= K0 <= hi + (hi - lo):
-        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0))
+        events.append(GainEnd(float(K0), "nominal", 0.0, 0.0, None, 0.0, 0.0))
     for piece in curves.pieces:
         for at_start in (True, False):
             if (piece.start if at_start else piece.stop) == "birth":
@@ -3344,7 +3348,9 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
             if f(wa) * f(wc) > 0:
                 continue
             wx = brentq(f, wa, wc, xtol=1e-15 * wc, rtol=1e-15)
-            events.append(GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level))
+            events.append(
+                GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level, delay_accuracy=0.0)
+            )
     if not events:
         raise CertificationError(
             f"best_decay_rate: no equation found for the end of the feasible gains in [{lo:.12g}, {hi:.12g}]"

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import positive_int
 from ..errors import ParameterError
@@ -55,6 +56,7 @@ ZERO_TOL = 1e-12
 _MAX_EVENTS = 100_000
 # The search range extends past W by this much (relative, absolute).
 _EXTEND_REL, _EXTEND_ABS = 1e-6, 1e-9
+_EPS = float(np.finfo(float).eps)
 
 
 # ============================================================================ results
@@ -76,6 +78,16 @@ class Crossing:
         ``ds/ddelta`` at ``s = i w``, ``delta = delays[0]``.
     tangential : bool
         True when ``|A|^2 - |B|^2`` has a double zero at ``w`` (to rounding): a tangency.
+    omega_accuracy : float or None
+        A bound of ``|omega - w|``, ``w`` the exact crossing frequency (proven with
+        ``rigorous``, else an estimate: :attr:`nrobust.margins.DelayMargin.omega_error`'s, set by
+        :func:`~nrobust.margins.delay_margin`); for a model of the plant its
+        :attr:`~nrobust.margins.DelayMargin.omega_accuracy` on the margin's crossing and None on
+        the others. None when not known.
+    delay_accuracy : float or None
+        A bound of ``|delays[0] - delta_c|``: the margin's
+        :attr:`~nrobust.margins.DelayMargin.accuracy` on the crossing that gives the margin,
+        None on the others (not estimated).
     """
 
     omega: float
@@ -83,6 +95,8 @@ class Crossing:
     direction: int
     ds_ddelta: complex
     tangential: bool
+    omega_accuracy: float | None = None
+    delay_accuracy: float | None = None
 
     @property
     def period(self) -> float:
@@ -91,7 +105,13 @@ class Crossing:
 
     def __repr__(self) -> str:
         kind = {1: "destabilising", -1: "stabilising", 0: "tangential"}[self.direction]
-        return f"Crossing(omega={self.omega:.10g}, delta_0={self.delays[0]:.10g}, period={self.period:.6g}, {kind})"
+        w_acc = self.omega_accuracy
+        period_acc = None if w_acc is None else self.period * (w_acc / abs(self.omega) + _EPS)
+        return (
+            f"Crossing(omega={with_accuracy(self.omega, w_acc)}, "
+            f"delta_0={with_accuracy(self.delays[0], self.delay_accuracy)}, "
+            f"period={with_accuracy(self.period, period_acc)}, {kind})"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (``ds_ddelta`` as ``[real, imag]``)."""

@@ -64,6 +64,10 @@ _CAP_SHRINK = 4.0
 _MODEL_SAFETY = 10.0
 _BRACKET_CELLS = 1e-3
 _EPS = float(np.finfo(float).eps)
+# Safety factor on the residual of an end's frequency (AffineGainLoop.end_omega_error): 13 times
+# the largest ratio (1.17) of the true error (mpmath, 40 digits) to the unscaled estimate, measured
+# on six crossing ends of three plants (tests/test_accuracy_digits.py checks the paper's).
+_OMEGA_SAFETY = 16.0
 # Order of the kinds when two events fall on the same gain (to rounding).
 _KIND_ORDER = {"nominal": 0, "crossing": 1, "pair_birth": 2, "strong_stability": 3}
 
@@ -100,6 +104,16 @@ class GainEnd(NamedTuple):
         the critical gains, so the end lies in that bracket), or the width of the last
         bisection step. None before verification (:func:`locate_gain_ends` solves ``K`` from
         its equation to ``1e-14`` in ``w``, a precision not certified by itself) or when not known.
+    omega_accuracy : float or None
+        An estimate of ``|omega - w_end|``, ``w_end`` the frequency of the exact end
+        (:meth:`AffineGainLoop.end_omega_error` for a verified crossing or nominal end; the
+        margin's :attr:`~nrobust.margins.DelayMargin.omega_accuracy` for a bisection end; 0 when
+        ``omega`` is ``inf``). None when not estimated (a pair birth).
+    delay_accuracy : float or None
+        A bound of ``|delay - delay_end|``: 0 where the delay is given (``delta_max`` at a
+        crossing, ``0`` at a nominal or strong-stability end), the margin's
+        :attr:`~nrobust.margins.DelayMargin.accuracy` for a bisection end; None when not
+        estimated (a pair birth's crossing delay).
     """
 
     K: float
@@ -107,11 +121,14 @@ class GainEnd(NamedTuple):
     omega: float
     delay: float
     accuracy: float | None = None
+    omega_accuracy: float | None = None
+    delay_accuracy: float | None = None
 
     def __repr__(self) -> str:
         return (
             f"GainEnd(K={with_accuracy(self.K, self.accuracy)}, kind={self.kind!r}, "
-            f"omega={self.omega:.10g}, delay={self.delay:.10g})"
+            f"omega={with_accuracy(self.omega, self.omega_accuracy)}, "
+            f"delay={with_accuracy(self.delay, self.delay_accuracy)})"
         )
 
 
@@ -197,6 +214,38 @@ class AffineGainLoop:
         """``F(.; delta, K)``."""
         B = self.B(K)
         return self.A + (B.shift(delta) if delta > 0 else B)
+
+    def end_omega_error(self, end: GainEnd, K_accuracy: float) -> float | None:
+        """An estimate of ``|omega - w_end|`` for a crossing or nominal ``end`` whose gain is within
+        ``K_accuracy`` of the exact end ``(w_end, K_end)``.
+
+        At the end's delay ``delta`` both ends solve ``F(i w; delta, K) = 0``; to first order
+        ``F(i omega; K) = F'(i omega) i (omega - w_end) + R(i omega) e^{-i omega delta} (K - K_end)``,
+        so ``|omega - w_end| <= (|F(i omega)| + |R(i omega)| K_accuracy) / |F'(i omega)|``. The
+        residual gets the safety factor :data:`_OMEGA_SAFETY` (with the rounding noise
+        ``eps M``, ``M`` :meth:`~nrobust.quasipoly.QuasiPolynomial.magnitude`), the linearised
+        gain term a factor 2, and ``eps |omega|`` is added. None for another kind, ``omega = inf``
+        or ``F' = 0`` (a multiple root).
+        """
+        if end.kind not in ("crossing", "nominal") or not np.isfinite(end.omega):
+            return None
+        s = np.array([1j * end.omega])
+        F = self.loop_at(end.K, end.delay)
+        slope = abs(complex(F.deriv_at(s)[0]))
+        if not slope > 0.0:
+            return None
+        noise = abs(complex(F(s)[0])) + _EPS * float(F.magnitude(s)[0])
+        shift = abs(complex(self.R(s)[0])) * K_accuracy
+        return (_OMEGA_SAFETY * noise + 2.0 * shift) / slope + _EPS * abs(end.omega)
+
+    def verified_end(self, end: GainEnd, K_accuracy: float) -> GainEnd:
+        """``end`` with its accuracies once its gain is verified to ``K_accuracy``
+        (:attr:`GainEnd.accuracy`, :attr:`GainEnd.omega_accuracy`, :attr:`GainEnd.delay_accuracy`)."""
+        given = end.kind in ("crossing", "nominal", "strong_stability")
+        omega_accuracy = 0.0 if end.kind == "strong_stability" else self.end_omega_error(end, K_accuracy)
+        return end._replace(
+            accuracy=K_accuracy, omega_accuracy=omega_accuracy, delay_accuracy=0.0 if given else end.delay_accuracy
+        )
 
 
 @dataclass(frozen=True)
@@ -581,7 +630,8 @@ class _Scan:
 
         def keep(K: float, kind: str, x: float, delta: float) -> None:
             if lo_w <= K <= hi_w:
-                crit.append(GainEnd(float(K), kind, float(x), float(delta)))
+                given = 0.0 if kind in ("crossing", "nominal") else None  # delta_max or 0: exact
+                crit.append(GainEnd(float(K), kind, float(x), float(delta), delay_accuracy=given))
             elif -kb < K < kb:
                 self.beyond.append(float(K))
 
@@ -868,7 +918,7 @@ def locate_gain_ends(
             moved = True
         if not moved:
             break
-    lower = GainEnd(-kb, "strong_stability", float("inf"), 0.0)
-    upper = GainEnd(kb, "strong_stability", float("inf"), 0.0)
+    lower = GainEnd(-kb, "strong_stability", float("inf"), 0.0, None, 0.0, 0.0)
+    upper = GainEnd(kb, "strong_stability", float("inf"), 0.0, None, 0.0, 0.0)
     ends = [lower, *inside, upper]
     return [(ends[k], ends[k + 1]) for k in range(len(ok)) if ok[k]]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -157,6 +157,19 @@ class DelayMargin:
     omega_error: float | None = None
     model_error: float | None = None
     omega_model_error: float | None = None
+
+    def __post_init__(self) -> None:
+        # the crossings carry the accuracies this margin states: the margin's crossing its
+        # omega_accuracy and accuracy, the others theirs about A and B, withdrawn for a model
+        own = [c.omega == self.omega and bool(c.delays) and c.delays[0] == self.margin for c in self.crossings]
+        if any(own) or self.of_model:
+            crossings = tuple(
+                replace(c, omega_accuracy=self.omega_accuracy, delay_accuracy=self.accuracy)
+                if mine
+                else (replace(c, omega_accuracy=None, delay_accuracy=None) if self.of_model else c)
+                for c, mine in zip(self.crossings, own)
+            )
+            object.__setattr__(self, "crossings", crossings)
 
     @property
     def omega_accuracy(self) -> float | None:
@@ -701,6 +714,8 @@ def delay_margin(
     verified, residual = False, None
     if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
         verified, residual = _checked(A, B, margin, omega, W, axis_gap, max_evals, verify and w_bound is not None)
+    omega_error, *errors = _omega_errors(A, B, [omega, *(c.omega for c in crossings)], crossings, proof, zero_root)
+    crossings = tuple(replace(c, omega_accuracy=e) for c, e in zip(crossings, errors))
     ball = None
     if proof is not None:
         ball = _margin_ball(proof, zero_root, nominal)
@@ -730,7 +745,7 @@ def delay_margin(
         evaluations=search.evaluations,
         rigorous=rigorous,
         margin_ball=ball,
-        omega_error=_omega_error(A, B, omega, crossings, proof, zero_root),
+        omega_error=omega_error,
     )
 
 
@@ -744,34 +759,40 @@ def _proven_sum(A: QuasiPolynomial, B: QuasiPolynomial) -> QuasiPolynomial:
 _OMEGA_SAFETY = 16.0
 
 
-def _omega_error(
+def _omega_errors(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
-    omega: float | None,
+    omegas: list[float | None],
     crossings: tuple[Crossing, ...],
     proof: ProvenCrossings | None,
     zero_root: bool,
-) -> float | None:
-    """:attr:`DelayMargin.omega_error`: from the proven enclosure of ``omega`` (``proof``), or
-    the residual of ``g(w) = |A(i w)|^2 - |B(i w)|^2`` over ``|g'(w)|``."""
-    if omega is None:
-        return None
-    if zero_root and omega == 0.0:
-        return 0.0
-    if proof is not None:
-        balls = [*proof.omegas, *proof.unresolved]
-        if not balls:
-            return None
-        lo, hi = min(balls, key=lambda b: max(b[0] - omega, omega - b[1], 0.0))
-        return float(np.nextafter(max(hi - omega, omega - lo, 0.0), np.inf))
-    if any(c.tangential for c in crossings if c.omega == omega):
-        return None
-    s = np.array([1j * omega])
-    a, b = complex(A(s)[0]), complex(B(s)[0])
-    da, db = 1j * complex(A.deriv_at(s)[0]), 1j * complex(B.deriv_at(s)[0])  # d/dw of A(i w), B(i w)
-    slope = abs(2.0 * ((a.conjugate() * da).real - (b.conjugate() * db).real))
+) -> list[float | None]:
+    """:attr:`DelayMargin.omega_error` of each frequency of ``omegas`` (one evaluation of ``A`` and ``B``
+    for all): from the proven enclosure of ``omega`` (``proof``), or the residual of
+    ``g(w) = |A(i w)|^2 - |B(i w)|^2`` over ``|g'(w)|``."""
+    out: list[float | None] = [None] * len(omegas)
+    todo = []
+    for k, omega in enumerate(omegas):
+        if omega is None:
+            continue
+        if zero_root and omega == 0.0:
+            out[k] = 0.0
+        elif proof is not None:
+            balls = [*proof.omegas, *proof.unresolved]
+            if balls:
+                lo, hi = min(balls, key=lambda b: max(b[0] - omega, omega - b[1], 0.0))
+                out[k] = float(np.nextafter(max(hi - omega, omega - lo, 0.0), np.inf))
+        elif not any(c.tangential for c in crossings if c.omega == omega):
+            todo.append(k)
+    if not todo:
+        return out
+    w = np.array([omegas[k] for k in todo], dtype=float)
+    s = 1j * w
+    a, b = A(s), B(s)
+    da, db = 1j * A.deriv_at(s), 1j * B.deriv_at(s)  # d/dw of A(i w), B(i w)
+    slope = np.abs(2.0 * ((a.conj() * da).real - (b.conj() * db).real))
     eps = float(np.finfo(float).eps)
-    noise = abs(abs(a) ** 2 - abs(b) ** 2) + eps * (float(A.magnitude(s)[0]) ** 2 + float(B.magnitude(s)[0]) ** 2)
-    if not slope > 0.0:
-        return None
-    return _OMEGA_SAFETY * noise / slope + eps * abs(omega)
+    noise = np.abs(np.abs(a) ** 2 - np.abs(b) ** 2) + eps * (A.magnitude(s) ** 2 + B.magnitude(s) ** 2)
+    for k, sl, no, x in zip(todo, slope, noise, w):
+        out[k] = float(_OMEGA_SAFETY * no / sl + eps * abs(x)) if sl > 0.0 else None
+    return out

@@ -177,7 +177,8 @@ def _reflection_markdown(
         which = "meeting the requirement" if d.delays is not None else "with a large enough margin"
         lines.append(
             f"- the end of the gains {which}: K = {with_accuracy(d.end.K, end_accuracy)}, "
-            f"{d.end.kind.replace('_', ' ')} at w = {d.end.omega:.6g}, delay {d.end.delay:.6g}"
+            f"{d.end.kind.replace('_', ' ')} at w = {with_accuracy(d.end.omega, d.end.omega_accuracy)}, "
+            f"delay {with_accuracy(d.end.delay, d.end.delay_accuracy)}"
         )
     if d.delays is not None:
         d_lo, d_hi = d.delays
@@ -421,7 +422,8 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     ]
     if dm is not None:
         lines.append(
-            f"- delay margin: {dm.margin:.10g} ({'certified' if dm.certified else 'not certified'}); about {dm.scope}"
+            f"- delay margin: {with_accuracy(dm.margin, dm.accuracy)} "
+            f"({'certified' if dm.certified else 'not certified'}); about {dm.scope}"
         )
     for w in result.windows:
         verdict = "stable" if w.stable else "not stable"

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from .._digits import with_accuracy
 from .._json import json_safe
 from .._progress import progress_bar
 from ..hyperbolic.nplusm import CancellationCase, NPlusMSystem, cancellation_study
@@ -31,8 +32,8 @@ def _cells(row: CancellationCase) -> tuple[str, ...]:
         ", ".join(f"{c:g}" for c in row.fractions),
         ", ".join(f"{k:.4g}" for k in row.gain),
         f"{row.gamma_0:.4f}",
-        f"{row.abscissa:.4f}",
-        f"{row.margin.margin:.4f}",
+        with_accuracy(row.abscissa, row.abscissa_accuracy),
+        with_accuracy(row.margin.margin, row.margin.accuracy),
         "yes" if row.robust else "no",
     )
 

@@ -708,12 +708,14 @@ def _box_text(box: Any) -> str:
 
 def _end_text(end: Any) -> str:
     """What closes an interval at a :class:`~nrobust.hyperbolic.analyses.GainEnd`, in words."""
+    omega = with_accuracy(end.omega, end.omega_accuracy)
     if end.kind == "crossing":
-        return f"crossing (a root at i {_fmt(end.omega, 8)} for delta = delta_max)"
+        return f"crossing (a root at i ({omega}) for delta = delta_max)"
     if end.kind == "pair_birth":
-        return f"pair birth (|A| = |B| touches at w = {_fmt(end.omega, 8)}, crossing delay {_fmt(end.delay, 8)})"
+        delay = with_accuracy(end.delay, end.delay_accuracy)
+        return f"pair birth (|A| = |B| touches at w = {omega}, crossing delay {delay})"
     if end.kind == "nominal":
-        return f"nominal loop unstable (a root at i {_fmt(end.omega, 8)} for delta = 0)"
+        return f"nominal loop unstable (a root at i ({omega}) for delta = 0)"
     if end.kind == "strong_stability":
         return "strong-stability limit |rho q| + |K q| = 1"
     return "bisection on delay margins"

@@ -191,7 +191,7 @@ def _exact_region(
                     f"interval ({lo.K:.12g}, {hi.K:.12g}) could not be verified on the bracket "
                     f"[{min(end.K - tol, end.K + tol):.15g}, {max(end.K - tol, end.K + tol):.15g}]: {why}"
                 )
-    pairs = [(lo._replace(accuracy=tol), hi._replace(accuracy=tol)) for lo, hi in pairs]  # verified on K +- tol
+    pairs = [(loop.verified_end(lo, tol), loop.verified_end(hi, tol)) for lo, hi in pairs]  # verified on K +- tol
     intervals = tuple((float(lo.K), float(hi.K)) for lo, hi in pairs)
     for K, good in zip(grid, ok):
         near_end = any(min(abs(K - lo), abs(K - hi)) <= 2.0 * tol for lo, hi in intervals)
@@ -238,7 +238,11 @@ def _bisection_region(
         first = outer.crossings[0] if outer.crossings else None
         omega = float("inf") if first is None else abs(first.omega)
         delay = float(outer.margin) if first is None else float(first.delays[0])
-        return GainEnd(float(good), "bisection", omega, delay, abs(good - bad))
+        # the first crossing is the margin's (its omega and delta*), printed to the margin's accuracies
+        margins_own = first is None or (outer.omega is not None and abs(outer.omega) == omega)
+        omega_accuracy = (0.0 if first is None else outer.omega_accuracy) if margins_own else None
+        delay_accuracy = outer.accuracy if delay == outer.margin else None
+        return GainEnd(float(good), "bisection", omega, delay, abs(good - bad), omega_accuracy, delay_accuracy)
 
     ends: list[tuple[GainEnd, GainEnd]] = []
     k = 0
@@ -254,12 +258,12 @@ def _bisection_region(
         lo = (
             edge(grid[k], lo_bad, lo_outer)
             if lo_bad < grid[k]
-            else GainEnd(float(grid[k]), "bisection", float("inf"), 0.0)
+            else GainEnd(float(grid[k]), "bisection", float("inf"), 0.0, None, 0.0, 0.0)
         )
         hi = (
             edge(grid[j], hi_bad, hi_outer)
             if hi_bad > grid[j]
-            else GainEnd(float(grid[j]), "bisection", float("inf"), 0.0)
+            else GainEnd(float(grid[j]), "bisection", float("inf"), 0.0, None, 0.0, 0.0)
         )
         ends.append((lo, hi))
         k = j + 1

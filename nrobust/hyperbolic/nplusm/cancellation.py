@@ -39,6 +39,9 @@ class CancellationCase:
         Every root of ``region`` was found.
     margin : NPlusMMargin
         The delay margin search.
+    abscissa_accuracy : float or None
+        A bound of the abscissa's error (:attr:`nrobust.roots.SpectralAbscissa.accuracy`:
+        proven, or a conservative estimate); None when not known.
     """
 
     fractions: tuple[float, ...]
@@ -47,6 +50,7 @@ class CancellationCase:
     abscissa: float
     abscissa_certified: bool
     margin: NPlusMMargin
+    abscissa_accuracy: float | None = None
 
     @property
     def robust(self) -> bool:
@@ -81,6 +85,8 @@ def cancellation_study(
         ab = spectral_abscissa(NPlusMCharacteristic(system, K, 0.0), region)
         m = nplusm_delay_margin(system, K)
         out.append(
-            CancellationCase(tuple(map(float, c)), tuple(map(float, K[0])), m.gamma_0, float(ab.value), ab.certified, m)
+            CancellationCase(
+                tuple(map(float, c)), tuple(map(float, K[0])), m.gamma_0, float(ab.value), ab.certified, m, ab.accuracy
+            )
         )
     return tuple(out)
