@@ -34,6 +34,14 @@ def test_analyze_full_cancellation_is_not_delay_robust(tmp_path: Path) -> None:
     assert not cases[(1.0, 0.0)]["robust"] and cases[(0.0, 1.0)]["robust"]
     assert "(0, 1)" in verdict and "(1, 1)" not in verdict
     assert files.markdown.read_text().count("|") > 30 and files.html.exists()
+    # the answer first: a panel under the title (the verdict, the plant, the largest margin with its
+    # accuracy, what is proven), in the words of the 2 x 2 reports: nothing "certified" on the float path
+    md = files.markdown.read_text().splitlines()
+    assert md[2] == "> **Delay-robust cancellations: (0, 0); (0, 1); (0.5, 0.5)**"
+    panel = "\n".join(md[2 : next(k for k in range(2, len(md)) if not md[k].startswith(">"))])
+    assert "**Largest delay margin:** cancelled fractions (0, 0): delta* = infinity (stable for every delay)" in panel
+    assert "**Proven:** nothing in ball arithmetic" in panel and "checked in floating point" in panel
+    assert "certified" not in files.markdown.read_text() and "<blockquote>" in files.html.read_text()
 
 
 @pytest.mark.slow
