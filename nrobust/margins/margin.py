@@ -619,7 +619,7 @@ def delay_margin(
     max_evals: int = 2_000_000,
     rigorous: bool = False,
 ) -> DelayMargin:
-    """Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
+    r"""Delay margin and stability intervals of ``F(s; delta) = A(s) + B(s) e^{-delta s}``.
 
     For a plant and a controller, :func:`nrobust.delay_margin` builds ``A`` and ``B`` with
     :func:`nrobust.hyperbolic.loop_factors` (e.g. eq. (60) for
@@ -667,6 +667,24 @@ def delay_margin(
 
     Notes
     -----
+    A zero of
+
+    .. math::
+
+        F(s; \delta) = A(s) + B(s)\, e^{-\delta s}
+
+    reaches the imaginary axis at :math:`s = i\omega` only where
+    :math:`|A(i\omega)| = |B(i\omega)|`, and then at the delays
+
+    .. math::
+
+        \delta_{k}(\omega) = \frac{\arg\left(-B(i\omega)/A(i\omega)\right) + 2\pi k}{\omega}, \qquad k \in \mathbb{Z};
+
+    the margin :math:`\delta^*` is the smallest delay at which a crossing is destabilising,
+    searched on :math:`[0, W]` with :math:`W` a proven bound beyond which
+    :math:`|A(i\omega)| > |B(i\omega)|` (it exists when the principal parts leave a positive
+    gap: strong stability of the loop's difference operator).
+
     When ``B`` (or ``A``) is identically zero the loop does not depend on the delay: the
     margin is ``inf`` if the other factor is exponentially stable (certified count, no
     zero on the axis), else 0. When ``A`` and ``B`` vanish together at some ``i w`` the

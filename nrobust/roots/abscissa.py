@@ -289,7 +289,7 @@ def spectral_abscissa(
     rigorous: bool = False,
     prec: int = 53,
 ) -> SpectralAbscissa:
-    """The supremum of the real parts of the roots of ``F``, with its rightmost root.
+    r"""The supremum of the real parts of the roots of ``F``, with its rightmost root.
 
     Parameters
     ----------
@@ -336,7 +336,14 @@ def spectral_abscissa(
 
     Notes
     -----
-    For retarded ``F`` the search marches on the root-free far field
+    The spectral abscissa is
+
+    .. math::
+
+        \alpha(F) = \sup \{\operatorname{Re} s : F(s) = 0\},
+
+    and the loop decays at every rate below :math:`-\alpha(F)`. For retarded ``F`` the search
+    marches on the root-free far field
     (:func:`_retarded_abscissa`): boxes that hold every root with ``Re s >= x(R)`` grow
     until one holds a root; ``-inf`` is returned only for ``c e^{-tau s}``, which has no
     root. For neutral ``F`` with principal part ``D``, no root lies in ``Re s > C_D + m`` outside
