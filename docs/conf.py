@@ -86,7 +86,7 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version", "theme-version"],
     # the API contract and the generated reference: the whole width for their tables
-    "secondary_sidebar_items": {"**": ["page-toc"], "api": [], "reference": [], "generated/*": []},
+    "secondary_sidebar_items": {"**": ["page-toc"], "api": [], "reference": []},
 }
 html_sidebars = {"index": [], "five_minutes": [], "api": [], "reference": []}
 html_context = {"default_mode": "light"}
@@ -134,6 +134,8 @@ def _find(dotted: str) -> tuple[bool, object]:
     import dataclasses
     import importlib
 
+    if not dotted:  # the parent of a top-level name (``cmath``)
+        return False, None
     parts = dotted.split(".")
     for cut in range(len(parts), 0, -1):
         try:
