@@ -12,6 +12,7 @@ from nrobust import ParameterError, spectral_abscissa
 from nrobust.config import load_system_file
 from nrobust.hyperbolic.nplusm import NPlusMCharacteristic, nplusm_delay_margin
 from nrobust.reports.analyze import run_analyze
+from nrobust.roots import count_roots
 
 TOML = Path(__file__).resolve().parents[1] / "examples" / "drift_flux.toml"
 
@@ -42,6 +43,31 @@ def test_analyze_full_cancellation_is_not_delay_robust(tmp_path: Path) -> None:
     assert "**Largest delay margin:** cancelled fractions (0, 0): delta* = infinity (stable for every delay)" in panel
     assert "**Proven:** nothing in ball arithmetic" in panel and "checked in floating point" in panel
     assert "certified" not in files.markdown.read_text() and "<blockquote>" in files.html.read_text()
+
+
+@pytest.mark.slow
+def test_analyze_figure_after_the_panel(tmp_path: Path) -> None:
+    """One picture after the panel: the delay-free roots of the case with the largest margin, checked in balls."""
+    files, _ = run_analyze(TOML, tmp_path, progress=False)
+    (png,) = files.figures
+    assert png == tmp_path / "figures" / "roots_delay_free.png" and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = files.markdown.read_text().splitlines()
+    end = next(k for k in range(2, len(md)) if not md[k].startswith(">"))  # the panel's end
+    assert md[end] == "" and md[end + 1].startswith("![") and md[end + 1].endswith("](figures/roots_delay_free.png)")
+    assert md[end + 3].startswith("*Roots of the delay-free loop (delta = 0) for cancelled fractions (0, 0)")
+    assert "checked in floating point" in md[end + 3] and "certified" not in md[end + 3]
+    page = files.html.read_text()
+    assert page.index("</blockquote><figure>") < page.index("<table>") and "data:image/png;base64," in page
+    figure = json.loads(files.json[0].read_text())["figure"]
+    roots = np.array([complex(re, im) for re, im in figure["roots"]])
+    # independent oracle: the count and the abscissa proven in ball arithmetic (FLINT), no float root search;
+    # the proven root box has radius 2e-11 and the float abscissa an accuracy of 1e-13: 1e-9 is room for both
+    F = NPlusMCharacteristic(load_system_file(TOML)["system"], [[0.0, 0.0]], 0.0)
+    region = tuple(figure["region"])
+    assert figure["count"] == roots.size == int(count_roots(F, region, rigorous=True)) == 2
+    proven = spectral_abscissa(F, region, rigorous=True)
+    assert proven.rigorous and np.all(roots.real <= proven.value + 1e-9)
+    assert abs(roots.real.max() - proven.value) <= 1e-9 and figure["unstable"] == 0
 
 
 @pytest.mark.slow
