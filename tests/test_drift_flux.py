@@ -71,6 +71,20 @@ def test_analyze_figure_after_the_panel(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
+def test_analyze_figure_without_a_robust_case(tmp_path: Path) -> None:
+    """No delay-robust case: the first listed is drawn (full cancellation: no root, finite-time convergence)."""
+    toml = tmp_path / "full.toml"
+    listed = "[[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.5]]"
+    toml.write_text(TOML.read_text().replace(listed, "[[1.0, 1.0]]"))
+    files, verdict = run_analyze(toml, tmp_path / "out", progress=False)
+    assert verdict == "no listed cancellation keeps a positive delay margin" and files.figures[0].exists()
+    figure = json.loads(files.json[0].read_text())["figure"]
+    assert "for cancelled fractions (1, 1), the first case listed, delta* = 0" in figure["caption"]
+    F = NPlusMCharacteristic(load_system_file(toml)["system"], [[-0.6, -0.4]], 0.0)
+    assert figure["count"] == len(figure["roots"]) == int(count_roots(F, tuple(figure["region"]), rigorous=True)) == 0
+
+
+@pytest.mark.slow
 def test_margin_of_the_void_wave_cancellation() -> None:
     """Certified abscissae on both sides of the margin (independent of the frequency search)."""
     system = load_system_file(TOML)["system"]
