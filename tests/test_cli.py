@@ -356,7 +356,7 @@ def test_report_wording_of_boxes_infinite_margins_and_piecewise_couplings():
     from nrobust.reports.report import _box_text, _certificate_blocks, _Table
 
     assert _box_text((-0.14582605, -0.14185603, -18.85154093, -18.84757091)) == (
-        "Re [-0.1458, -0.1419] x Im [-18.852, -18.848]"
+        "Re [-0.1459, -0.1418] x Im [-18.852, -18.847]"  # rounded outwards: the printed box contains the box
     )
     assert _box_text((0.5, 0.5, -1.0, 1.0)) == "Re 0.5 x Im [-1, 1]"
     cert = certify(TransportSystem(1.0, 1.0, 1.0, 0.5), ReflectionController(0.1), 0.1, k_region=False)

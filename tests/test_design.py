@@ -10,6 +10,7 @@ gains located by k_region's engine (locate_gain_ends); certified delay margins o
 from __future__ import annotations
 
 import json
+import re
 import time
 from pathlib import Path
 
@@ -262,6 +263,29 @@ def test_design_command_states_the_requirement_and_the_edge(tmp_path: Path) -> N
     assert data["margin_at_least"] == 0.15
     edge = data["edge"]
     assert edge["margin_below"] >= 0.15 > edge["margin_above"]  # the pair born past K = 0.1417493386
+    # each margin printed with its accuracy; the one below the edge (no pair near birth) within it of
+    # the least crossing delay of the equations |A(i w)| = |B(i w)| solved here at 30 digits
+    line = next(line for line in text.splitlines() if "on the edge" in line)
+    printed = re.search(r"the margin is (\S+) \+- (\S+) at K - \S+ and \S+ \+- \S+ at K \+", line)
+    assert printed, line
+    K = data["design"]["K"] - edge["step"]
+    with mp.workdps(30):
+        assert abs(mp.mpf(printed.group(1)) - _margin_mp(mp.mpf(K))) <= float(printed.group(2))
+
+
+def _margin_mp(K: mp.mpf) -> mp.mpf:
+    """The least crossing delay of ``A + B e^{-delta s}`` (eq. (60)): ``|A| = |B|`` bracketed on a grid of
+    ``(0, 60]`` (a crossing missed would make it larger), each root refined, its delay by :func:`_delay_mp`."""
+
+    def gap(w: mp.mpf) -> mp.mpf:
+        A, B = _factors_mp(mp.mpc(0, w), K)
+        return abs(A) - abs(B)
+
+    ws = np.linspace(1e-3, 60.0, 3000)
+    values = [gap(w) for w in ws]
+    brackets = [(a, b) for a, b, fa, fb in zip(ws, ws[1:], values, values[1:]) if fa * fb < 0]
+    roots = [mp.findroot(gap, bracket, solver="anderson") for bracket in brackets]
+    return min(_delay_mp(w, K) for w in roots)
 
 
 def test_a_requirement_above_the_best_margin_is_a_bad_input() -> None:

@@ -26,7 +26,7 @@ import numpy as np
 import scipy
 from threadpoolctl import threadpool_limits
 
-from .._digits import with_accuracy
+from .._digits import lower_bound_text, with_accuracy
 from .._json import fields_dict, json_safe
 from .._validate import positive, positive_int, renamed_keywords
 from .._validate import region as check_region
@@ -1057,8 +1057,8 @@ def _check_delta_max(
         where = "the default region" if default_region else "the region"
         raise ParameterError(
             "delta_max",
-            f"in (0, {limit:.6g}] for this loop and {where} (Re s >= {box[0]:.6g}): beyond, the delayed loop "
-            "e^{-(tau + delta_max) s} overflows double precision there, or its kernel nodes merge",
+            f"in (0, {lower_bound_text(limit)}] for this loop and {where} (Re s >= {box[0]:.6g}): beyond, the "
+            "delayed loop e^{-(tau + delta_max) s} overflows double precision there, or its kernel nodes merge",
             delta_max,
         )
 

@@ -77,26 +77,29 @@ from .outputs import RunOutputs, check_output_dir
 __all__ = ["design_summary", "run_design"]
 
 
-def _edge(system: Any, result: ReflectionDesign) -> dict[str, float] | None:
+def _edge(system: Any, result: ReflectionDesign) -> dict[str, Any] | None:
     """The margins just inside and just past a design on the end of the admissible gains (None elsewhere).
 
     A best decay rate under a required margin sits on an end of the gains that meet it: the
     margin falls below the requirement past it, by a jump where a crossing pair is born. The
     margins at ``K -+ h`` (``h`` = 1e-6 of the searched interval) show on which side the
-    requirement holds and how steep the edge is.
+    requirement holds and how steep the edge is; ``accuracy_below`` and ``accuracy_above`` bound
+    the error of each margin (:attr:`~nrobust.margins.DelayMargin.accuracy`, None when not known).
     """
     d = result.design
     if d.end is None:
         return None
     h = 1e-6 * float(d.bounds[1] - d.bounds[0])
     observer = result.controller if isinstance(result.controller, (OutputFeedback, CollocatedOutputFeedback)) else None
-    margins = {}
+    edge: dict[str, Any] = {"step": h}
     for name, K in (("below", d.K - h), ("above", d.K + h)):
         law: Controller = ReflectionController(K)
         if observer is not None:
             law = type(observer)(law, observer.observer_delay)
-        margins[name] = float(delay_margin(system, law).margin)
-    return {"step": h, "margin_below": margins["below"], "margin_above": margins["above"]}
+        dm = delay_margin(system, law)
+        edge[f"margin_{name}"] = float(dm.margin)
+        edge[f"accuracy_{name}"] = dm.accuracy
+    return edge
 
 
 def _value_accuracy(d: GainDesign) -> float | None:
@@ -131,6 +134,12 @@ def _window_text(window: DelayWindow) -> str:
     return f"stable on the window {inner_interval_text(lo, hi)}, from {low} to {high}, {window.certified}"
 
 
+def _edge_margin_text(edge: dict[str, Any], side: str) -> str:
+    """The margin on ``side`` (``"below"`` or ``"above"``) of an :func:`_edge`, with its accuracy."""
+    margin = float(edge[f"margin_{side}"])
+    return "infinity" if np.isposinf(margin) else with_accuracy(margin, edge[f"accuracy_{side}"])
+
+
 def _feasible_text(d: GainDesign) -> str:
     """The intervals of gains meeting the requirement, each end said to be a bound of ``K`` or solved."""
     spans = []
@@ -147,7 +156,10 @@ def _feasible_text(d: GainDesign) -> str:
 
 
 def _reflection_markdown(
-    path: Path, result: ReflectionDesign, margin_at_least: float | None = None, edge: dict[str, float] | None = None
+    path: Path,
+    result: ReflectionDesign,
+    margin_at_least: float | None = None,
+    edge: dict[str, Any] | None = None,
 ) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
@@ -200,8 +212,8 @@ def _reflection_markdown(
         lines.append(f"  - {t.statement}; about {t.scope}")
     if edge is not None:
         lines.append(
-            f"- on the edge: the margin is {edge['margin_below']:.6g} at K - {edge['step']:.1g} and "
-            f"{edge['margin_above']:.6g} at K + {edge['step']:.1g}; the requirement holds on one side only, so "
+            f"- on the edge: the margin is {_edge_margin_text(edge, 'below')} at K - {edge['step']:.1g} and "
+            f"{_edge_margin_text(edge, 'above')} at K + {edge['step']:.1g}; the requirement holds on one side only, so "
             "a gain implemented with an error must be chosen inside, away from this end"
         )
     lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
@@ -591,7 +603,7 @@ def run_design(
             speed_tolerance,
         )
     outputs = RunOutputs(out_dir, "design")
-    edge: dict[str, float] | None = None
+    edge: dict[str, Any] | None = None
     scan: GainDesign | str = "not a filtered design"
     with outputs:
         result: ReflectionDesign | FilteredDesign | StateFeedbackDesign

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .._digits import lower_bound_text, with_accuracy
+from .._digits import lower_bound_text, upper_bound_text, with_accuracy
 from .._json import fields_dict
 from ..design.local import delayed_gamma
 from ..errors import ParameterError
@@ -691,13 +691,26 @@ def _verified_text(m: Any) -> str:
 
 
 def _interval(lo: float, hi: float) -> str:
-    """``[lo, hi]`` with the digits needed to tell the ends apart (a point when they are equal)."""
+    """``[lo, hi]`` printed around itself, with the digits needed to tell the ends apart.
+
+    ``lo`` is rounded down and ``hi`` up, so the printed interval contains the proven one (to
+    the nearest, ``[0.123456789, 0.123457999]`` would print as ``[0.123457, 0.123458]``, which
+    leaves ``lo`` out). A side of zero width is printed as its number in full.
+    """
     if lo == hi:
-        return _fmt(lo, 10)
+        return repr(float(lo))
     digits = 4
-    while digits < 15 and _fmt(lo, digits) == _fmt(hi, digits):
+    while digits < 17 and _fmt(lo, digits) == _fmt(hi, digits):
         digits += 1
-    return f"[{_fmt(lo, digits)}, {_fmt(hi, digits)}]"
+    return f"[{_trimmed(lower_bound_text(lo, digits))}, {_trimmed(upper_bound_text(hi, digits))}]"
+
+
+def _trimmed(text: str) -> str:
+    """A decimal numeral without the trailing zeros of its fraction (``-1.000`` -> ``-1``)."""
+    mantissa, _, exponent = text.partition("e")
+    if "." in mantissa:
+        mantissa = mantissa.rstrip("0").rstrip(".")
+    return mantissa + ("e" + exponent if exponent else "")
 
 
 def _box_text(box: Any) -> str:
@@ -730,7 +743,10 @@ def _k_region_text(kreg: Any) -> str:
         f"({with_accuracy(lo.K, lo.accuracy)}, {with_accuracy(hi.K, hi.accuracy)}): lower end {_end_text(lo)}, "
         f"upper end {_end_text(hi)}"
         for lo, hi in kreg.ends
-    ] or [f"({_fmt(lo, 10)}, {_fmt(hi, 10)})" for lo, hi in kreg.intervals]
+    ] or [
+        f"({with_accuracy(lo, lo_acc)}, {with_accuracy(hi, hi_acc)})"
+        for (lo, hi), (lo_acc, hi_acc) in zip(kreg.intervals, kreg.end_accuracies)
+    ]
     return f"{'; '.join(parts)}; each end verified to {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
 
 
