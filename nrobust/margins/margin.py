@@ -191,8 +191,11 @@ class DelayMargin:
         the floating-point estimate ``max(1e-12 |margin|, 20 residual / omega)``: the
         crossing's residual turned into a delay through ``|dF/d delta| = omega |B|`` (``|A| =
         |B|`` there), with a floor 1000 times the largest distance to the proven ball measured
-        on the test plants (3e-16 relative). For a model of the plant (:attr:`of_model`, the
-        kernel route: ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``)
+        on the test plants (3e-16 relative), plus the crossing frequency's error carried by the
+        slope of the crossing delay in the frequency (``_from_omega``: just past a pair birth,
+        where that slope is steep, the residual alone understated the error). For a model of
+        the plant (:attr:`of_model`, the kernel route:
+        ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``)
         :attr:`model_error`, its estimated distance to the plant's margin, is added; None when
         it is not known, with ``rigorous`` too (the ball is proven about the model, not the
         plant): :func:`nrobust.certify` estimates it by a convergence study in the kernel grid.
@@ -208,7 +211,25 @@ class DelayMargin:
             return 0.0
         if self.omega is None or self.residual is None:
             return None
-        return max(1e-12 * abs(self.margin), 20.0 * float(self.residual) / max(float(self.omega), 1e-300)) + model
+        from_residual = max(1e-12 * abs(self.margin), 20.0 * float(self.residual) / max(float(self.omega), 1e-300))
+        return from_residual + self._from_omega() + model
+
+    def _from_omega(self) -> float:
+        """The margin's error carried by the crossing frequency's: ``|d delta/d omega| omega_error``.
+
+        ``delta(omega) = (arg(-B/A)(i omega) + 2 pi k) / omega`` on the crossing's phase; at the
+        crossing, with ``d = ds/d delta`` the root's sensitivity, ``d delta/d omega =
+        Im(d) / |d|^2`` (``F_delta = i omega A``, ``F_s = A (A'/A - B'/B + delta)``). The residual
+        alone misses it: a frequency off the curve ``|A| = |B|`` by ``e`` leaves a residual of
+        order ``e |g'|`` whatever the slope of the phase.
+        """
+        crossing = next((c for c in self.crossings if c.omega == self.omega), None)
+        if crossing is None or self.omega_error is None:
+            return 0.0
+        d = complex(crossing.ds_ddelta)
+        if d == 0.0:
+            return float("inf")
+        return float(self.omega_error) * abs(d.imag) / abs(d) ** 2
 
     @property
     def without_crossing(self) -> bool:
