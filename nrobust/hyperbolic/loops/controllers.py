@@ -845,8 +845,14 @@ def collocated_responses_of(
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
-    grid = check_kernel_grid(observer_grid)
-    return collocated_responses(system, _law_on(system, controller.controller)(grid), grid)
+    return _responses(system, unfiltered(controller.controller), check_kernel_grid(observer_grid))
+
+
+@lru_cache(maxsize=16)
+def _responses(system: Hyperbolic2x2, law: Controller, grid: int) -> tuple[QuasiPolynomial, QuasiPolynomial]:
+    """:func:`collocated_responses_of` for the unfiltered law ``law`` (cached: a design's studies ask for them at
+    every candidate ``kappa`` and for the margin and the decay rate alike)."""
+    return collocated_responses(system, _law_on(system, law)(grid), grid)
 
 
 def _collocated_loop(
