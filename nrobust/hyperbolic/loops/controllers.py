@@ -825,13 +825,16 @@ def _collocated(system: Hyperbolic2x2, inner: Controller, route_grid: int | None
 def _law_on(system: Hyperbolic2x2, inner: Controller) -> Callable[[int], FeedbackLaw]:
     """``grid -> FeedbackLaw``: the unfiltered law of ``inner``, its gains from kernels on ``grid`` points."""
     law = unfiltered(inner)
+    return lambda n: _law(system, law, n)
 
-    def law_on(n: int) -> FeedbackLaw:
-        if isinstance(law, StateFeedback) or system.uncoupled:
-            return law.feedback_law(system)
-        return law.feedback_law(system, _kernels(system, n))
 
-    return law_on
+@lru_cache(maxsize=32)
+def _law(system: Hyperbolic2x2, law: Controller, n: int) -> FeedbackLaw:
+    """The unfiltered ``law``'s gains from kernels on ``n`` points (cached: one object per law and grid, so that
+    the observer's responses to it, cached by law, are computed once)."""
+    if isinstance(law, StateFeedback) or system.uncoupled:
+        return law.feedback_law(system)
+    return law.feedback_law(system, _kernels(system, n))
 
 
 def collocated_responses_of(
@@ -845,14 +848,8 @@ def collocated_responses_of(
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
-    return _responses(system, unfiltered(controller.controller), check_kernel_grid(observer_grid))
-
-
-@lru_cache(maxsize=16)
-def _responses(system: Hyperbolic2x2, law: Controller, grid: int) -> tuple[QuasiPolynomial, QuasiPolynomial]:
-    """:func:`collocated_responses_of` for the unfiltered law ``law`` (cached: a design's studies ask for them at
-    every candidate ``kappa`` and for the margin and the decay rate alike)."""
-    return collocated_responses(system, _law_on(system, law)(grid), grid)
+    grid = check_kernel_grid(observer_grid)
+    return collocated_responses(system, _law_on(system, controller.controller)(grid), grid)
 
 
 def _collocated_loop(
