@@ -159,3 +159,33 @@ def test_design_summary_names_the_parameter():
     design = best_margin(loop, (-1.0, 1.0))
     assert repr(design).startswith("GainDesign(K=")
     assert design.summary("b") == repr(design).replace("GainDesign(K=", "GainDesign(b=", 1)
+
+
+def test_collocated_study_computes_each_response_once(monkeypatch):
+    """The observer's term, its reflection and the convergence study share their responses: ``command_response``
+    runs once per law and grid (the study's grids 201, 101 and 51 are those of the term's accuracy estimate),
+    and the study's responses on the default grid are the term's and the reflection's, bit for bit."""
+    from nrobust.hyperbolic.loops import collocated
+    from nrobust.hyperbolic.loops.controllers import (
+        collocated_observer_of,
+        collocated_responses_of,
+        observer_reflection_of,
+    )
+
+    plant = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.8)  # a plant of this test alone: no response is cached yet
+    controller = nr.CollocatedOutputFeedback(nr.ReflectionController(0.15), observer_reflection=-0.3)
+    calls = []
+    original = collocated.command_response
+
+    def counted(system, law, kernels, kernel_grid):
+        calls.append((law.boundary_gain, kernel_grid))
+        return original(system, law, kernels, kernel_grid)
+
+    monkeypatch.setattr(collocated, "command_response", counted)
+    term = collocated_observer_of(plant, controller)
+    reflection = observer_reflection_of(plant, controller)
+    study = {n: collocated_responses_of(plant, controller, n) for n in (201, 101, 51)}
+    assert len(calls) == len(set(calls)) == 6  # C_u and H_y on three grids
+    s = 1j * np.linspace(0.0, 40.0, 33) + 0.05
+    assert np.array_equal(study[201][0](s), term.response(s))
+    assert np.array_equal(study[201][1](s), reflection.response(s))

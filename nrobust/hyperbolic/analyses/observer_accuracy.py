@@ -41,12 +41,10 @@ from ..loops.controllers import (
     FilteredController,
     OpenLoop,
     OutputFeedback,
-    collocated_observer_of,
     collocated_responses_of,
     loop_factors,
     loop_route,
     observer_of,
-    observer_reflection_of,
     unfiltered,
 )
 from ..plants.general import GeneralHyperbolic2x2
@@ -191,7 +189,7 @@ def _collocated_error(
     coarse, coarsest = (grid + 1) // 2, (grid + 3) // 4
     if coarsest < MIN_KERNEL_GRID:
         return None, None
-    fine = (collocated_observer_of(system, controller).response, observer_reflection_of(system, controller).response)
+    fine = collocated_responses_of(system, controller, grid)
     rows = []
     for n in (coarse, coarsest):
         other = collocated_responses_of(system, controller, n)
@@ -287,7 +285,7 @@ def observer_rate_error(
     if slope == 0.0:
         return None
     grid = DEFAULT_KERNEL_GRID
-    fine = (collocated_observer_of(system, controller).response, observer_reflection_of(system, controller).response)
+    fine = collocated_responses_of(system, controller, grid)
     moves = [
         -_loop_change(system, controller, fine, collocated_responses_of(system, controller, n), complex(root), 0.0)
         / slope

@@ -126,7 +126,7 @@ model of the PDE, as the kernel route is.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -352,7 +352,7 @@ def command_response(
 
 
 def _times_response(
-    system: Hyperbolic2x2, factor: QuasiPolynomial, k: float, pieces: list[DistributedDelay], accuracy: float
+    system: Hyperbolic2x2, factor: QuasiPolynomial, k: float, pieces: Sequence[DistributedDelay], accuracy: float
 ) -> tuple[QuasiPolynomial, float]:
     """``factor * C`` for ``C = k q e^{-tau s} + int c e^{-nu s}`` stored as ``pieces``, and its estimated error.
 
@@ -426,11 +426,9 @@ def collocated_observer(
     lam = system.lam
     coupled = not system.uncoupled
     coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
-    fine = _dual_kernels(system, kernel_grid) if coupled else None
     law = law_on(kernel_grid)
-    response, pieces, deviation = command_response(system, law, fine, kernel_grid)
-    coarse = _dual_kernels(system, coarse_grid) if coupled else None
-    _, coarse_pieces, _ = command_response(system, law_on(coarse_grid), coarse, coarse_grid)
+    response, pieces, deviation = _law_response(system, law, kernel_grid)
+    _, coarse_pieces, _ = _law_response(system, law_on(coarse_grid), coarse_grid)
     change = 0.0
     for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
         nu = np.linspace(0.0, hi - lo, 65)
@@ -438,8 +436,7 @@ def collocated_observer(
     accuracy = change + deviation
     product, total_accuracy = _times_response(system, open_loop, law.boundary_gain, pieces, accuracy)
     if coupled:
-        assert fine is not None
-        grid, p_u, p_v = observer_gains(fine, lam)
+        grid, p_u, p_v = observer_gains(_dual_kernels(system, kernel_grid), lam)
     else:
         grid = np.linspace(0.0, 1.0, kernel_grid)
         p_u = p_v = np.zeros(kernel_grid)
@@ -464,16 +461,31 @@ def collocated_responses(
     kernel_grid : int
         Points of the dual plant's kernel grid.
     """
+    return _law_response(system, law, kernel_grid)[0], _law_response(system, _UNIT_LAW, kernel_grid)[0]
+
+
+@lru_cache(maxsize=32)
+def _law_response(
+    system: Hyperbolic2x2, law: FeedbackLaw, kernel_grid: int
+) -> tuple[QuasiPolynomial, tuple[DistributedDelay, ...], float]:
+    """:func:`command_response` of ``law`` with the dual plant's kernels on ``kernel_grid`` points (none on an
+    uncoupled plant): the response, its pieces and their deviation.
+
+    Cached (a law is its own key: its gains compare by identity): the observer's term and its accuracy
+    estimate, the observer's reflection (the law ``U = u(t, 1)``, whose response ``H_y`` depends on the
+    plant and the grid alone) and the convergence study in the observer's grid ask for the same grids.
+    """
     kernels = None if system.uncoupled else _dual_kernels(system, kernel_grid)
-    unit = FeedbackLaw(1.0, _zero_gain, _zero_gain)
-    return (
-        command_response(system, law, kernels, kernel_grid)[0],
-        command_response(system, unit, kernels, kernel_grid)[0],
-    )
+    response, pieces, deviation = command_response(system, law, kernels, kernel_grid)
+    return response, tuple(pieces), deviation
 
 
 def _zero_gain(x: Array) -> Array:
     return np.zeros_like(np.asarray(x, dtype=float))
+
+
+#: The law ``U = u(t, 1)``, whose response through the error system is ``H_y``.
+_UNIT_LAW = FeedbackLaw(1.0, _zero_gain, _zero_gain)
 
 
 @dataclass(frozen=True)
@@ -519,13 +531,12 @@ def observer_reflection(
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a collocated observer", system)
-    unit = FeedbackLaw(1.0, _zero_gain, _zero_gain)
     if system.uncoupled:
         response = QuasiPolynomial([[system.q]], [system.tau])
         return ObserverReflection(response, open_loop * response, law_factor * response, 0.0)
     coarse_grid = max((kernel_grid + 1) // 2, MIN_KERNEL_GRID)
-    response, pieces, deviation = command_response(system, unit, _dual_kernels(system, kernel_grid), kernel_grid)
-    _, coarse_pieces, _ = command_response(system, unit, _dual_kernels(system, coarse_grid), coarse_grid)
+    response, pieces, deviation = _law_response(system, _UNIT_LAW, kernel_grid)
+    _, coarse_pieces, _ = _law_response(system, _UNIT_LAW, coarse_grid)
     change = 0.0
     for lo, hi, a, b in zip(_breaks(system)[:-1], _breaks(system)[1:], pieces, coarse_pieces, strict=True):
         nu = np.linspace(0.0, hi - lo, 65)

@@ -825,13 +825,16 @@ def _collocated(system: Hyperbolic2x2, inner: Controller, route_grid: int | None
 def _law_on(system: Hyperbolic2x2, inner: Controller) -> Callable[[int], FeedbackLaw]:
     """``grid -> FeedbackLaw``: the unfiltered law of ``inner``, its gains from kernels on ``grid`` points."""
     law = unfiltered(inner)
+    return lambda n: _law(system, law, n)
 
-    def law_on(n: int) -> FeedbackLaw:
-        if isinstance(law, StateFeedback) or system.uncoupled:
-            return law.feedback_law(system)
-        return law.feedback_law(system, _kernels(system, n))
 
-    return law_on
+@lru_cache(maxsize=32)
+def _law(system: Hyperbolic2x2, law: Controller, n: int) -> FeedbackLaw:
+    """The unfiltered ``law``'s gains from kernels on ``n`` points (cached: one object per law and grid, so that
+    the observer's responses to it, cached by law, are computed once)."""
+    if isinstance(law, StateFeedback) or system.uncoupled:
+        return law.feedback_law(system)
+    return law.feedback_law(system, _kernels(system, n))
 
 
 def collocated_responses_of(
