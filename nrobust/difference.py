@@ -238,7 +238,8 @@ class SpectralBound:
     lower, upper : float
         ``lower <= c_D <= upper``; equal when ``exact``. ``-inf`` when ``D`` has no zero.
     exact : bool
-        True for commensurate delays (``c_D`` from the roots of ``P(z)``).
+        True for commensurate delays (``c_D`` from the roots of ``P(z)``); False for a bracket of
+        every operator whose coefficients lie in balls (``radii``), commensurate or not.
     step : float or None
         The common step ``h`` when exact.
     proven : bool
@@ -555,8 +556,9 @@ class DifferenceOperator:
                     bracket = _family_chain_bound(flint, self.coefs, a, *exact)
                 else:
                     bracket = _ball_chain_bound(flint, self.coefs, *exact)
-                if bracket is not None:
-                    return SpectralBound(*bracket, True, float(exact[0]), proven=True)
+                if bracket is not None:  # with radii a bracket of the family's c_D, not one value
+                    family = bool(np.any(r > 0))
+                    return SpectralBound(*bracket, not family, None if family else float(exact[0]), proven=True)
             upper = _ball_strong_bound(flint, a, self.delays, self.strong_spectral_bound())
             lower = _ball_zero_lower_bound(flint, self, a)
             return SpectralBound(min(lower, upper), upper, False, None, proven=True)

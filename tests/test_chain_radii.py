@@ -93,7 +93,7 @@ def test_the_chain_bracket_is_as_wide_as_the_balls():
     with mp.workdps(DPS):
         for x in (mp.mpf(a) - mp.mpf(r), mp.mpf(a) + mp.mpf(r)):
             assert mp.mpf(sb.lower) <= mp.log(abs(x)) / mp.mpf(tau) <= mp.mpf(sb.upper)
-    assert sb.exact and sb.upper - sb.lower <= 1e-15
+    assert not sb.exact and sb.upper - sb.lower <= 1e-15  # a bracket of the family, 1e-15 wide
 
 
 def test_a_multiple_root_falls_back_to_the_strong_bound():
@@ -233,3 +233,13 @@ def test_the_coupled_plant_has_a_tight_proven_abscissa():
     with mp.workdps(DPS):
         root = mp.findroot(lambda s: sum(_factors(COUPLED, K, s)), mp.mpc(ab.root))
         assert mp.mpf(lo) <= root.real <= mp.mpf(hi)
+
+
+def test_a_bracket_of_a_family_is_not_called_exact():
+    """Commensurate delays with radii: the bracket holds c_D of every operator of the balls, so it is a
+    bracket (its repr gives both ends), not one exact value; without radii it stays exact."""
+    D = DifferenceOperator([1.0, 0.5, 0.2], [1.0, 2.0, 3.5])
+    family = D.proven_spectral_bound(radii=[0.0, 0.01, 0.01])
+    assert not family.exact and family.step is None and family.lower < family.upper
+    assert "bracket" in repr(family)
+    assert D.proven_spectral_bound().exact

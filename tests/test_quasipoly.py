@@ -176,7 +176,7 @@ def test_variation_bound_controls_decay():
 
 def test_variation_bound_closed_form_at_every_call():
     """``N = 1 + nu`` on ``[0, 1]`` with a jump of ``-1.5`` at ``0.5`` (linear, exact):
-    ``V(x) = 1 + 1.5 e^{-x} + 1.5 e^{-x/2} + (1 - e^{-x}) / x``; the slopes and jumps formed at the first call
+    ``V(x) = 1 + 0.5 e^{-x} + 1.5 e^{-x/2} + (1 - e^{-x}) / x``; the slopes and jumps formed at the first call
     serve the later ones (the values in any order, against the closed form, to 1e-14)."""
     d = DistributedDelay([0.0, 0.5, 0.5, 1.0], [1.0, 1.5, 0.0, 0.5])
     xs = np.array([2.0, -1.0, 0.0, 0.3])

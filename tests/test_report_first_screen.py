@@ -237,7 +237,7 @@ def test_proven_abscissa_claim_states_its_bracket(tmp_path):
 
     cert = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True)
     claim = next(c for c in cert.claims if c.name == "spectral abscissa")
-    match = re.search(r"has Re s in \[(\S+), (\S+)\]: no zero with Re s > (\S+)$", claim.statement)
+    match = re.search(r"lies in \[(\S+), (\S+)\]: no zero with Re s > (\S+)$", claim.statement)
     assert match, claim.statement
     lo, hi, bound = (float(g) for g in match.groups())
     exact = float(mpmath.log(mpmath.mpf("0.85") - mpmath.mpf("0.1")) / 2)

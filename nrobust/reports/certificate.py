@@ -576,7 +576,7 @@ def _abscissa_statement(abscissa: SpectralAbscissa) -> str:
     hi = _outward(abscissa.upper_bound, 10, True)
     if abscissa.rigorous and abscissa.value_bracket is not None:
         lo = _outward(abscissa.value_bracket[0], 10, False)
-        return f"the rightmost zero of F(s; 0) has Re s in [{lo}, {hi}]: no zero with Re s > {hi}"
+        return f"sup Re s over the zeros of F(s; 0) lies in [{lo}, {hi}]: no zero with Re s > {hi}"
     return (
         f"no zero of F(s; 0) with Re s > {hi} (a bound above the spectral abscissa; the value in the "
         "quantities table is the rightmost root found)"

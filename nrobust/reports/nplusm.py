@@ -57,7 +57,7 @@ def _margin_text(row: CancellationCase) -> str:
     if margin == float("inf"):
         return "infinity (stable for every delay)"
     if margin == 0.0:
-        return "0"
+        return "0" if row.margin.error is not None else "0 (the delay-free loop's zeros not counted)"
     return with_accuracy(margin, row.margin.accuracy)
 
 
@@ -92,10 +92,11 @@ def _panel(system: NPlusMSystem, rows: tuple[CancellationCase, ...]) -> tuple[st
             f"rate without delay {with_accuracy(-best.abscissa, best.abscissa_accuracy)}."
         )
     lines.append(
-        "**Proven:** nothing in ball arithmetic; gamma_0 is exact, the abscissae and the delay margins are checked "
-        "in floating point (root counts by the argument principle with a step control; a proven frequency bound and a "
-        "complete crossing search). For proofs: `spectral_abscissa(NPlusMCharacteristic(system, K), rigorous=True)`, "
-        "and `backstepping_delay_margin(..., rigorous=True)` for the full-state law."
+        "**Proven:** nothing in ball arithmetic; gamma_0 in closed form, the abscissae and the delay margins are "
+        "checked in floating point (root counts by the argument principle with a step control; a proven frequency "
+        "bound and a complete crossing search). For proofs: "
+        "`spectral_abscissa(NPlusMCharacteristic(system, K), rigorous=True)`, and "
+        "`backstepping_delay_margin(..., rigorous=True)` for the full-state law."
     )
     return verdict[:1].upper() + verdict[1:], lines
 

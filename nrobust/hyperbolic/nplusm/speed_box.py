@@ -192,7 +192,7 @@ class NPlusMSpeedTolerance:
         if not met:
             bad = [p for p, verdicts in zip(points, windows) if not all(w.stable for w in verdicts)]
             certified = "not met"
-            statement = f"not stable for every delay in {span} at the speed errors " + ", ".join(
+            statement = f"not shown stable for every delay in {span} at the speed errors " + ", ".join(
                 "(" + ", ".join(f"{float(e)!r}" for e in p) + ")" for p in bad
             )
         else:
