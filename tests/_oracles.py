@@ -921,6 +921,20 @@ class PDELoop:
                 x0, f0, x1, f1 = x1, f1, x2, self.F_mp(x2, delta)
             raise OracleUnsure(f"secant iteration from {s0} did not converge")
 
+    def is_zero(self, s: complex, delta: float) -> bool:
+        """True if the double ``s`` is a zero of ``F(.; delta)`` to its rounding: ``|F(s)|`` within
+        ``1000 |F'(s)| eps (1 + |s|)`` (a zero rounded to a double moves ``F`` by ``|F'| eps |s|``).
+
+        A secant iteration (:meth:`polish`) can stall far left, where ``F`` is the small difference of
+        terms of size ``e^{-Re s tau}`` and flat at the working precision, at a point that is no zero
+        (``|F| = 1`` was seen there, with ``|F'| = 1e-3``).
+        """
+        value = self.F_mp(s, delta)
+        with mp.workdps(self.DPS + 10):
+            h = mp.mpf(10) ** -12 * (1 + abs(mp.mpc(s)))
+            slope = abs(self.F_mp(mp.mpc(s) + h, delta) - self.F_mp(mp.mpc(s) - h, delta)) / (2 * h)
+            return bool(abs(value) <= 1000 * slope * mp.mpf(2.0**-52) * (1 + abs(mp.mpc(s))))
+
     def roots_near(self, box: Region, delta: float, n_re: int = 12, n_im: int = 60) -> list[complex]:
         """Zeros of ``F(.; delta)`` reached by Newton's method in double precision from a grid of
         seeds in ``box`` (``Im >= 0`` half: ``F`` is real), then polished at ``DPS`` digits; not

@@ -764,6 +764,8 @@ class Certificate:
             return self.margin.accuracy
         if self.model_error is None or not np.isfinite(self.model_error.error):
             return None
+        if self.margin.model_error == self.model_error.error:  # the margin carries the study's error: one sum
+            return self.margin.accuracy
         on_model = self.margin.margin_ball
         own = 0.0 if on_model is None else max(on_model[1] - self.delay_margin, self.delay_margin - on_model[0])
         own = max(own, 1e-12 * abs(self.delay_margin)) if np.isfinite(self.delay_margin) else 0.0
