@@ -484,6 +484,8 @@ def _claims(
     else:
         text = f"delta* = {with_accuracy(margin.margin, margin.accuracy)}"
     reason = margin.reason.split(" (proven in ball arithmetic")[0]
+    if "stable for every delay" in reason:  # said once
+        text = text.replace(" (stable for every delay)", "")
     out.append(Claim("delay margin", f"{text}: {reason}", status(margin.rigorous), "delay_margin"))
     if margin.margin_ball is not None and margin.margin_ball[0] > delta_max:
         out.append(
