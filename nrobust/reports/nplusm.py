@@ -2,8 +2,9 @@
 
 For a one-actuator plant (``[system] type = "NPlusMSystem"``) the file lists partial
 cancellations of the top reflection (``[controller] type = "Cancellation"``); each is
-analysed by :func:`~nrobust.hyperbolic.nplusm.cancellation_study` (exact ``gamma_0`` of the
-delayed principal part, certified abscissa of the delay-free loop, delay margin) and the
+analysed by :func:`~nrobust.hyperbolic.nplusm.cancellation_study` (``gamma_0`` of the delayed
+principal part in closed form; the abscissa of the delay-free loop and the delay margin checked
+in floating point) and the
 table is written as ``report.md``, ``report.html`` and ``report.json`` in one committed set
 (:class:`~nrobust.reports.outputs.RunOutputs`), with one figure after the answer panel: the
 roots of the delay-free loop of the most delay-robust case (``figures/``, embedded in the HTML).

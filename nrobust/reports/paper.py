@@ -254,7 +254,7 @@ def _run_paper(
     ]
     admissible = _stable_gains(chart)
     summary = _paper_summary(system, classification, cert_bs, cert_bs2, chart, trade, fig1_runs, fig3_runs, admissible)
-    intro = _paper_intro(classification, cert_bs, cert_bs2, summary, admissible)
+    intro = _paper_intro(cert_bs, cert_bs2, summary, admissible)
     files = write_report(
         [cert_bs, cert_bs2],
         outputs.staging,
@@ -442,13 +442,12 @@ def _paper_answer(classification: Classification, cert_bs: Certificate, cert_bs2
 
 
 def _paper_intro(
-    classification: Classification,
     cert_bs: Certificate,
     cert_bs2: Certificate,
     summary: dict[str, Any],
     admissible: list[float],
 ) -> list[str]:
-    """The report's opening paragraphs: the example, the two loops, the growth rates, what is proven."""
+    """The details under the answer panel: the two loops, the growth rates, the gains, what is proven."""
     bs2 = summary[f"U_BS2(K={PAPER_K:g})"]
     reason = cert_bs.margin.reason
     return [
