@@ -26,6 +26,7 @@ import itertools
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from fractions import Fraction
 from math import comb, factorial
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -1102,15 +1103,39 @@ class DistributedDelay:
         """Multiply by ``e^{-delta s}``: the support moves to ``[a + delta, b + delta]``.
 
         For a moment ``m > 0`` the weight ``(mu - delta)^m`` expands into terms of lower
-        moment, hence a tuple.
+        moment, hence a tuple. A term whose stored kernel is zero (its true kernel within
+        ``radius`` of 0, e.g. the term holding the jump of a kernel between two doubles,
+        :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`) moves onto the doubles
+        enclosing ``[a + delta, b + delta]``, one segment, so that its support stays inside it
+        however short it is; where an end moves outward the true kernel may jump there, which
+        adds ``2 radius`` to ``variation_radius``.
         """
         delta = nonnegative("delta", delta)
         m = self.moment
+        if delta != 0 and not np.any(self._data):
+            base = self._enclosed(delta)
+            return tuple(base.times(comb(m, j) * (-delta) ** (m - j), moment=j) for j in range(m + 1))
         return tuple(
             self.times(comb(m, j) * (-delta) ** (m - j), nodes=self.nodes + delta, moment=j)
             for j in range(m + 1)
             if j == m or delta != 0
         )
+
+    def _enclosed(self, delta: float) -> DistributedDelay:
+        """This zero term on the doubles enclosing ``[a + delta, b + delta]`` (:meth:`shift`)."""
+        lo, hi = self.a + delta, self.b + delta
+        moved = False
+        if Fraction(lo) > Fraction(self.a) + Fraction(delta):
+            lo, moved = float(np.nextafter(lo, -np.inf)), True
+        if Fraction(hi) < Fraction(self.b) + Fraction(delta):
+            hi, moved = float(np.nextafter(hi, np.inf)), True
+        zero: dict[str, Any] = (
+            {"coefficients": np.zeros((1, self.pieces[2].shape[1]), dtype=self.pieces[2].dtype)}
+            if self.interpolation == "polynomial"
+            else {"values": np.zeros(2, dtype=self.values.dtype)}
+        )
+        variation = _up(self.variation_radius + 2.0 * self.radius) if moved else self.variation_radius
+        return self.replace(nodes=np.array([lo, hi]), variation_radius=variation, **zero)
 
     def scale(self, c: complex) -> DistributedDelay:
         """Multiply by a constant (applied to the values, so equal supports still merge)."""

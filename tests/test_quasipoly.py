@@ -322,6 +322,28 @@ def test_cubic_pieces_bounds_and_algebra():
     assert e.poly.tolist() == [1.0] and e.values.tolist() == [3.0, 6.0]
 
 
+def test_a_zero_term_shifted_keeps_its_support_inside_its_nodes():
+    """A term zero within its radius, one ulp long: shifted by delays whose ulp is wider, its nodes are the doubles
+    enclosing ``[a + delta, b + delta]`` (exact rationals), its variation gains ``2 radius`` where an end moved; and
+    a moment expands as for any term. Before, ``nodes + delta`` rounded both ends onto one double (a ParameterError).
+    """
+    from fractions import Fraction
+
+    a = 1.4285714285714284
+    nodes = [a, a + np.spacing(4.0)]
+    d = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=[[0.0]], radius=0.1, variation_radius=1)
+    for delta in (7.1, 10.42, 1e6):
+        (moved,) = d.shift(delta)
+        lo, hi = Fraction(d.a) + Fraction(delta), Fraction(d.b) + Fraction(delta)
+        assert Fraction(moved.a) <= lo < hi <= Fraction(moved.b) and moved.nodes.size == 2
+        assert moved.radius == d.radius and moved.variation_radius >= d.variation_radius + 2 * d.radius
+        assert not np.any(moved.pieces[2])
+    exact = d.shift(2.0**-40)[0]  # a + delta, b + delta exact: nothing moves outward
+    assert exact.b - exact.a == d.b - d.a and exact.variation_radius == d.variation_radius
+    first = d.replace(moment=1).shift(7.1)
+    assert [t.moment for t in first] == [0, 1] and first[0].radius >= 7.1 * d.radius
+
+
 def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
     x = np.r_[np.linspace(0, 1, 9), np.linspace(1, 2, 9)]
     v = np.r_[np.sin(4 * x[:9]), 1 + np.cos(3 * x[9:])]

@@ -30,6 +30,7 @@ scope) against the oracle; the scope and the enclosure fail before the change.
 from __future__ import annotations
 
 import itertools
+import math
 
 import mpmath as mp
 import numpy as np
@@ -409,3 +410,172 @@ def test_proofs_about_a_general_plants_normal_form_say_so():
     for scope in (dm.scope, cert.scope, cert.margin.scope, design.scope):
         assert "the plant's normal form as computed in floating point" in scope
         assert "the plant as given" not in scope
+
+
+# ------------------------------------------------------------------------------------ integral gains
+def _gains_factors(c, law, s):
+    """``(A, B)`` of ``StateFeedback(k, a_u + b_u x, a_v + b_v x)`` on the PDE at ``s``, in closed form at 40 digits.
+
+    ``d/dx [u; v] = M [u; v]``, ``M = [[(a - s)/lam, b/lam], [-c/mu, (s - d)/mu]]``, ``[u; v](0) = [q; 1]``;
+    ``e^{x M} = e^{h x} (cosh(D x) I + sinh(D x)/D N)`` (``h`` half the trace, ``N = M - h I``, ``D^2 = -det N``),
+    so ``int_0^L (alpha + beta x) [u; v] dx`` needs ``P(l) = int_0^L (alpha + beta x) e^{l x} dx`` at ``l = h +- D``.
+    ``A = e^{-(s - d) L/mu} (v(L) - rho u(L))``, ``B = -e^{-(s - d) L/mu} (k u(L) + int_0^L g_u u + g_v v dx)``
+    (the boundary condition ``v(L) = rho u(L) + U e^{-delta s}``), ``tau = L/lam + L/mu`` exact.
+    """
+    lam, mu, a, b, cc, d, q, rho, L = (mp.mpf(c[k]) for k in ("lam", "mu", "a", "b", "c", "d", "q", "rho", "length"))
+    k, (au, bu), (av, bv) = mp.mpf(law[0]), (mp.mpf(x) for x in law[1]), (mp.mpf(x) for x in law[2])
+    m00, m01, m10, m11 = (a - s) / lam, b / lam, -cc / mu, (s - d) / mu
+    h = (m00 + m11) / 2
+    D = mp.sqrt(((m00 - m11) / 2) ** 2 + m01 * m10)
+    w = (q, mp.mpf(1))
+    nw = ((m00 - h) * q + m01, m10 * q + (m11 - h))
+    state = [mp.exp(h * L) * (mp.cosh(D * L) * w[i] + mp.sinh(D * L) / D * nw[i]) for i in range(2)]
+
+    def P(lmb, alpha, beta):
+        e = mp.exp(lmb * L)
+        return alpha * (e - 1) / lmb + beta * (e * (lmb * L - 1) + 1) / lmb**2
+
+    def integral(i, alpha, beta):
+        plus, minus = P(h + D, alpha, beta), P(h - D, alpha, beta)
+        return (plus + minus) / 2 * w[i] + (plus - minus) / (2 * D) * nw[i]
+
+    norm = mp.exp(-(s - d) * L / mu)
+    total = integral(0, au, bu) + integral(1, av, bv)
+    return norm * (state[1] - rho * state[0]), -norm * (k * state[0] + total)
+
+
+def _paper(lam, mu, spm, smp, q, rho):
+    return dict(lam=lam, mu=mu, a=0.0, b=spm, c=smp, d=0.0, q=q, rho=rho, length=1.0)
+
+
+#: ``(coefficients, (k, (a_u, b_u), (a_v, b_v)))``: ``lam, mu = 0.3, 0.7`` (``t_v = tau_d lam / (lam + mu)`` between two
+#: multiples of ``ulp(tau_d)``), ``3, 7`` (``tau = 10/21`` not a double, ``t_v`` on the grid), a general plant.
+GAINS = [
+    (_paper(0.3, 0.7, 0.5, -0.4, 0.8, 0.6), (-0.6, (0.1, 0.2), (-0.1, 0.0))),
+    (_paper(3.0, 7.0, 2.0, 3.0, 0.9, 0.5), (-0.3, (0.1, 0.2), (-0.3, 0.0))),
+    (
+        dict(lam=0.3, mu=0.7, a=0.1, b=0.4, c=-0.5, d=-0.2, q=0.6, rho=0.7, length=1.3),
+        (-0.6, (0.1, 0.2), (-0.1, 0.0)),
+    ),
+]
+
+
+def _gains_case(c, law):
+    """The package's plant and ``StateFeedback`` of a case of :data:`GAINS`."""
+    if c["a"] or c["d"] or c["length"] != 1.0:
+        plant = GeneralHyperbolic2x2(**c)
+    else:
+        plant = Hyperbolic2x2(c["lam"], c["mu"], c["b"], c["c"], c["q"], c["rho"])
+    (au, bu), (av, bv) = law[1], law[2]
+    return plant, nr.StateFeedback(law[0], lambda x: au + bu * x, lambda x: av + bv * x)
+
+
+@pytest.mark.parametrize(("c", "law"), GAINS)
+def test_the_proven_margin_of_a_state_feedback_with_integral_gains_holds_for_the_plant_as_given(c, law):
+    """Before, the proofs took ``t_v`` rounded to a multiple of ``ulp(tau)`` and ``tau`` as the double: the scope said
+    so and the margin was not mapped. The old balls held the PDE's margin too (6e-14 to 4e-13 inside), the rounding
+    moving it by about 1e-16; the old crossing frequency of the general plant was 1e-14 from the PDE's."""
+    plant, controller = _gains_case(c, law)
+    assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" in dm.scope and "as the double" not in dm.scope
+    w, truth = _pde_margin(lambda s: _gains_factors(c, law, s), dm.omega)
+    lo, hi = dm.margin_ball
+    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
+    # the proven crossing frequency is the PDE's: 1e-12 relative bounds its accuracy here (measured below 1e-15)
+    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+
+
+@pytest.mark.parametrize(("c", "law"), [GAINS[0], GAINS[2]])
+def test_the_plant_balls_enclose_the_loop_with_integral_gains_and_tau_exact(c, law):
+    """``given_plant_balls`` of a state feedback with integral gains encloses ``F``, ``F'``, ``F''`` of the PDE's loop
+    with ``tau`` exact (40 digits); before, there was no enclosure of the plant's own loop (None)."""
+    from nrobust._flint import working_precision
+
+    plant, controller = _gains_case(c, law)
+    for delta in (0.0, 0.7):
+        balls = given_plant_balls(plant, controller, delta)
+        assert isinstance(balls, GivenPlantBalls)
+
+        def F(s, delta=delta):
+            A, B = _gains_factors(c, law, s)
+            return A + B * mp.exp(-mp.mpf(delta) * s)
+
+        for s in (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-0.2, 150.0)):
+            for k in range(3):
+                value = balls(s, k)
+                with mp.workdps(DPS):
+                    truth = mp.diff(F, mp.mpc(s), k)
+                with working_precision(200) as fl:  # the 40-digit value, far narrower than the enclosure
+                    assert value.contains(fl.acb(truth)), (delta, s, k, value, truth)
+
+
+def test_the_jump_of_the_gains_kernel_between_two_doubles_is_held_by_a_proven_term():
+    """``lam, mu = 0.3, 0.7``: the loop as built (``tau_d``) has ``t_v = tau_d lam / (lam + mu)``, not a multiple of
+    ``ulp(tau_d)``. Its kernel ``r K(r theta)`` jumps there by ``r (q g_u(0) lam - g_v(0) mu)`` (the point delays of
+    ``e^{-s t_v} [u; v](x, s)``: ``q e^{-s (t_v + x/lam)}`` and ``e^{-s (1 - x)/mu}``, weighted by the gains); the
+    stored kernel jumps by as much at the nearest multiple, and the second term, on the ulp holding ``t_v``, has
+    that jump as its radius (1e-12 above it at most). Shifted by a loop delay whose ulp is wider than its own, the
+    term keeps its support inside its nodes (before, the rounded sum made it empty: a ParameterError)."""
+    from fractions import Fraction
+
+    from nrobust.hyperbolic.loops.exact_gains import gain_terms
+
+    c, law = GAINS[0]
+    plant, controller = _gains_case(c, law)
+    lam, mu, q = Fraction(c["lam"]), Fraction(c["mu"]), Fraction(c["q"])
+    tau_d = Fraction(plant.tau)
+    r = (1 / lam + 1 / mu) / tau_d
+    t_v = tau_d * lam / (lam + mu)
+    kernel, term = gain_terms(plant, controller.g_u, controller.g_v)
+    jump = r * (q * Fraction(law[1][0]) * lam - Fraction(law[2][0]) * mu)
+    assert term.nodes.size == 2 and term.b - term.a == math.ulp(plant.tau)
+    assert Fraction(term.a) < t_v < Fraction(term.b) and not np.any(term.pieces[2])
+    ulp = Fraction(math.ulp(plant.tau))
+    node = float(round(t_v / ulp) * ulp)  # the multiple of ulp(tau_d) nearest t_v: an end of the term
+    assert node in (term.a, term.b)
+    assert abs(float(jump)) <= term.radius <= abs(float(jump)) + 1e-12
+    start, _, coefs = kernel.pieces
+    i = int(np.flatnonzero(start == node)[0])
+    stored = complex(coefs[i, 0] - coefs[i - 1].sum()).real
+    assert abs(stored - float(jump)) < 1e-12 and abs(stored) > 1e6 * kernel.radius
+    delta = 7.1  # ulp(t_v + delta) = 4 ulp(tau_d): t_v + delta rounds onto a node of the shifted grid
+    (moved,) = term.shift(delta)
+    assert Fraction(moved.a) <= Fraction(term.a) + Fraction(delta) <= Fraction(term.b) + Fraction(delta)
+    assert Fraction(term.b) + Fraction(delta) <= Fraction(moved.b)
+    assert moved.radius == term.radius and moved.variation_radius >= term.variation_radius + 2 * term.radius
+
+
+def test_the_certificate_of_a_state_feedback_with_integral_gains_holds_for_the_plant_as_given():
+    """``certify(plant, StateFeedback(k, g_u, g_v), rigorous=True)`` end to end on ``lam, mu = 0.3, 0.7``: the scope,
+    the abscissa (its root re-solved at 40 digits in its proven bracket), the margin ball, and the proven root
+    counts (the argument principle at 40 digits)."""
+    c, law = GAINS[0]
+    plant, controller = _gains_case(c, law)
+    delta_max = 0.5
+    cert = nr.certify(plant, controller, delta_max=delta_max, rigorous=True, k_region=False)
+    assert "the plant as given" in cert.scope and "root counts marked proven" in cert.scope
+    assert "as the double" not in cert.scope.split("they are proven")[0]
+    claims = {x.name: x.status for x in cert.claims}
+    assert claims["spectral abscissa"] == PROVEN and claims["delay margin"] == PROVEN
+
+    def loop(delta):
+        def F(s):
+            A, B = _gains_factors(c, law, s)
+            return A + B * mp.exp(-mp.mpf(delta) * s)
+
+        return F
+
+    ab = cert.abscissa
+    assert ab.rigorous and ab.root is not None
+    with mp.workdps(DPS):
+        root = mp.findroot(loop(0.0), mp.mpc(ab.root))
+    assert mp.mpf(ab.value_bracket[0]) <= root.real <= mp.mpf(ab.value_bracket[1])
+    _, truth = _pde_margin(lambda s: _gains_factors(c, law, s), cert.margin.omega)
+    assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+    for roots, delta, name in (
+        (cert.roots_nominal, 0.0, "roots at delta = 0"),
+        (cert.roots_delayed, delta_max, "roots at delta_max"),
+    ):
+        assert claims[name] == PROVEN and roots.rigorous
+        assert roots.count == _winding(loop(delta), roots.region)

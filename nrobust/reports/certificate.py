@@ -1048,13 +1048,17 @@ def _check_delta_max(
 
     Two limits: ``e^{-(tau + delta_max) s}`` must stay finite on the left edge of ``box``
     (``tau`` the longest delay of ``B``), and the nodes of the kernels of ``B``, shifted by
-    ``delta_max``, must stay apart (their spacing above the rounding of ``delta_max``).
+    ``delta_max``, must stay apart (their spacing above the rounding of ``delta_max``). A term
+    whose stored kernel is zero (zero within its radius) moves onto the doubles enclosing its
+    shifted support however short it is (:meth:`~nrobust.quasipoly.DistributedDelay.shift`).
     """
     B = factors[1]
     limits = []
     if box[0] < 0.0:
         limits.append(_LOG_MAX / -box[0] - B.max_delay)
-    spacings = [np.min(np.diff(d.nodes)[np.diff(d.nodes) > 0.0], initial=np.inf) for d in B.distributed]
+    spacings = [
+        np.min(np.diff(d.nodes)[np.diff(d.nodes) > 0.0], initial=np.inf) for d in B.distributed if np.any(d.pieces[2])
+    ]
     limits.append(min(spacings, default=np.inf) * 2.0**_NODE_BITS)
     limit = min(limits)
     if delta_max > limit:

@@ -72,7 +72,7 @@ from .exact_form import (
     has_exact_form,
     tau_ratio,
 )
-from .exact_gains import gain_failure, gain_kernel
+from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
@@ -558,7 +558,7 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     evaluated in ball arithmetic (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_failure`
     is None): ``N~`` in closed form and the gains' kernel with proven error bounds
     (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`,
-    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`), so a proof about the loop is
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`), so a proof about the loop is
     a proof about the PDE; also a :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`
     whose couplings are functions of ``x`` with a proven ``N~`` and ``U~``
     (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
@@ -680,14 +680,21 @@ def _loop_scope(
             f"{rounded_parts(system, controller, kernel_grid)})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
-        radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
+        gains = isinstance(controller, StateFeedback) and _integral_gains(controller)
+        # the terms holding the jump of the gains' kernel: their radius is that jump, not an accuracy
+        moved = {(d.a, d.b) for d in gain_terms(system, controller.g_u, controller.g_v)[1:]} if gains else set()
+        radius = max((d.radius for f in factors for d in f.distributed if (d.a, d.b) not in moved), default=0.0)
         kernel = (
             f"N~ in closed form, stored within a proven {radius:.1e} that every enclosure includes"
             if radius
             else "N~ = 0 exactly (uncoupled plant: no kernel)"
         )
-        if isinstance(controller, StateFeedback) and _integral_gains(controller):
-            kernel += "; the integral gains as Taylor models in ball arithmetic, t_v rounded to a multiple of ulp(tau)"
+        if gains:
+            kernel += "; the integral gains as Taylor models in ball arithmetic" + (
+                ", the jump of their kernel at t_v (not a double) held by a proven term on the ulp(tau) next to it"
+                if moved
+                else ""
+            )
         return f"the PDE itself ({kernel}; {_given(system, controller, kernel_grid)})"
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return (
@@ -937,8 +944,8 @@ def _exact_factors(
     if isinstance(controller, StateFeedback):
         u_factor = QuasiPolynomial.from_parts(form.u_factor.point_terms, form.u_factor.distributed)  # its floats
         B = u_factor * (-controller.k)
-        kernel = gain_kernel(system, controller.g_u, controller.g_v) if _integral_gains(controller) else None
-        A, B = 1.0 - phi, B if kernel is None else B - QuasiPolynomial([], [], [kernel])
+        terms = gain_terms(system, controller.g_u, controller.g_v) if _integral_gains(controller) else ()
+        A, B = 1.0 - phi, B - QuasiPolynomial([], [], terms) if terms else B
     else:
         A, B = controller.factors(phi, i_n, round_trip)
     if not isinstance(form, ExactForm):
@@ -1347,8 +1354,10 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     (:attr:`~nrobust.hyperbolic.loops.exact_form.ExactForm.rho_q_radius`), and ``tau`` is
     mapped exactly (:func:`~nrobust.hyperbolic.loops.given_plant.given_plant_scale`) for a loop
     that is a function of ``tau s`` and ``delta / tau``, or a filtered law's (its ``a``, ``b``
-    enclosed as ``a / r``, ``b / r``). Otherwise the quantities computed in floating point, in
-    words, for a proof's scope.
+    enclosed as ``a / r``, ``b / r``), or a state feedback's with integral gains (their kernel
+    built with ``t_v = tau_d lam / (lam + mu)`` exactly,
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`). Otherwise the quantities computed
+    in floating point, in words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
     if general and not has_exact_form(system):
@@ -1361,9 +1370,9 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
         return f"tau = {tau} and the principal gains as doubles (mapped to the exact tau on the exact route only)"
-    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController, FilteredController)) or (
-        isinstance(controller, StateFeedback) and not _integral_gains(controller)
-    ):
+    if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController, FilteredController)):
+        return ""
+    if isinstance(controller, StateFeedback):  # integral gains: their kernel built with t_v / r (gain_terms)
         return ""
     if (isinstance(controller, OutputFeedback) and observer_of(system, controller, kernel_grid) is None) or (
         isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)

@@ -49,8 +49,31 @@ difference to the true kernel (Taylor remainders times the bounds of ``U``, ``V`
 tails times the bounds of the models; expansion and rounding) is the kernel's ``radius``, and
 the bound of its total variation (the same with the derivatives, and twice the sup bound at
 each segment's end) its ``variation_radius``. The nodes are multiples of ``ulp(tau)`` (exact
-differences), with ``t_v`` rounded to one: proofs are about the plant with that ``t_v`` and
-``tau`` the double of the exact form, a relative change of ``t_v`` below ``2^-52 tau / t_v``.
+differences).
+
+The plant as given. The loop is built with ``tau_d``, the double nearest ``tau``, and
+``I_g`` of the plant at ``s`` is that of the loop as built at ``r s`` (``r = tau / tau_d``):
+``r K(r theta)`` is ``K`` with ``t_v``, ``t_u``, ``tau`` divided by ``r`` (each term above is
+``1 / t`` times a function of ``theta / t``; ``U``, ``V`` are ``1 / tau`` times functions of
+``theta / tau`` and ``xi``), ``sigma theta`` and ``G`` unchanged. :func:`gain_terms` builds it
+with ``T = tau_d`` and ``t_v = tau_d lam / (lam + mu)`` (``= t_v / r``: an exact rational, an
+``arb`` ball), so that proofs about the loop map to the plant
+(:mod:`~nrobust.hyperbolic.loops.given_plant`). That ``t_v`` lies between two multiples of
+``ulp(tau)``: the stored kernel jumps at the nearer one, ``n_v ulp``, and on the part ``D``
+between the two (at most half an ulp) it is the other branch's. A second term covers ``D``:
+on the ulp between ``n_v ulp`` and the next multiple past ``t_v`` it is zero within a
+``radius`` ``J``, the jump ``|e^{sigma theta} (K_left - K_right)|`` enclosed there plus the
+kernel's own ``radius`` (the true branch within it of its series, the stored piece within it
+of the other branch's series), and its ``variation_radius`` on its interior is ``J`` (its jump
+at ``t_v``) plus the kernel's ``variation_radius`` and ``ulp`` times the slope of
+``e^{sigma theta} (K_left - K_right)``. The kernel's own bounds hold for the true kernel
+off ``D`` and the stored one on ``D``: its error jumps to zero at both ends of ``D``, by at
+most its ``radius`` each, which the two sup bounds at that segment end already count. An
+enclosure widens by ``J ulp(tau) e^{...}`` (the ``L^1`` norm of the term), a bound of the far
+field (:func:`~nrobust.balls.ball_variation_bound`) by about ``3 J``. :func:`gain_kernel`
+takes ``t_v`` the double ``1/mu`` rounded to a multiple of ``ulp(tau_d)``: one term, the kernel
+of a plant within a relative ``2^-52 tau / t_v`` of the given one, for the analyses that
+enclose a box of plants around it (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`).
 """
 
 from __future__ import annotations
@@ -82,7 +105,7 @@ from .exact_form import (
     series_tail,
 )
 
-__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel"]
+__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel", "gain_terms"]
 
 #: Taylor order of the models of the gains on each piece of ``[0, 1]``.
 ORDER = 20
@@ -97,34 +120,53 @@ _AGREEMENT = 1e-8
 
 @dataclass(frozen=True)
 class _Plant:
-    """The numbers of the closed form: ``p``, ``m`` and ``shift`` exact (``exact_ratios``), the rest doubles."""
+    """The numbers of the closed form: ``t_v``, ``p``, ``m``, ``shift`` and ``weight`` exact, the rest doubles."""
 
     tau: float
-    t_v: float
+    t_v: Fraction  # where K jumps: a multiple of ulp(tau) (gain_kernel) or tau lam / (lam + mu) (gain_terms)
     p: Fraction
     m: Fraction
     q: float
     shift: Fraction
     length: float
-    weight: float  # E = L (a - d) / (lam + mu)
+    weight: Fraction  # E = L (a - d) / (lam + mu)
 
 
-def gain_plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> _Plant:
-    """The numbers of ``system`` the gains' models are built from (``tau``, ``1/mu``, the exact ratios, ``q``, ...)."""
+def gain_plant(system: Hyperbolic2x2 | GeneralHyperbolic2x2, exact_times: bool = False) -> _Plant:
+    """The numbers of ``system`` the gains' models are built from (``tau``, ``t_v``, the exact ratios, ``q``, ...).
+
+    ``tau`` is the double ``tau_d`` of the closed form. With ``exact_times``, ``t_v`` is
+    ``tau_d lam / (lam + mu)`` exactly: the time of flight of ``v`` of the loop as built that the
+    plant as given maps to (:mod:`~nrobust.hyperbolic.loops.given_plant`, ``t_v / tau`` is
+    ``lam / (lam + mu)`` for both); otherwise the double ``1/mu`` (``L/mu`` in the time unit)
+    rounded to a multiple of ``ulp(tau_d)``, as :func:`gain_kernel` takes it.
+    """
     if not has_exact_form(system):
         raise ParameterError("system", "a plant with constant coefficients (has_exact_form)", system)
     tau, _, _, q, _, _ = closed_form_parameters(system)
     p, m, shift = exact_ratios(system)
     if isinstance(system, GeneralHyperbolic2x2):
-        c = {k: float(system.coefficient(k, np.zeros(1))[0]) for k in ("lam", "mu", "a", "d")}
+        c = {k: Fraction(float(system.coefficient(k, np.zeros(1))[0])) for k in ("lam", "mu", "a", "d")}
         t_v = 1.0 / (system.time_unit / system.transport_times[1])  # as closed_form_parameters' tau
-        weight = system.length * (c["a"] - c["d"]) / (c["lam"] + c["mu"])
-        return _Plant(tau, t_v, p, m, q, shift, system.length, weight)
-    return _Plant(tau, 1.0 / system.mu, p, m, q, shift, 1.0, 0.0)
+        length = system.length
+        weight = Fraction(length) * (c["a"] - c["d"]) / (c["lam"] + c["mu"])
+        lam, mu = c["lam"], c["mu"]
+    else:
+        t_v, length, weight = 1.0 / system.mu, 1.0, Fraction(0)
+        lam, mu = Fraction(system.lam), Fraction(system.mu)
+    ulp = Fraction(math.ulp(tau))
+    time = Fraction(tau) * lam / (lam + mu) if exact_times else round(Fraction(t_v) / ulp) * ulp
+    return _Plant(tau, time, p, m, q, shift, length, weight)
 
 
 def gain_kernel(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any) -> DistributedDelay | None:
-    """The kernel ``e^{sigma theta} K(theta)`` of ``I_g`` on ``[0, tau]`` with proven error bounds (module notes).
+    """The kernel ``e^{sigma theta} K(theta)`` of ``I_g`` on ``[0, tau]`` with proven error bounds, ``t_v`` on the grid.
+
+    The kernel of the plant with ``tau`` the double ``tau_d`` and ``t_v`` the double ``1/mu``
+    rounded to a multiple of ``ulp(tau_d)`` (:func:`gain_plant`), a relative change of ``t_v``
+    below ``2^-52 tau / t_v``: one point of a box of plants for the analyses of uncertain speeds.
+    The loop of ``StateFeedback(k, g_u, g_v)`` takes :func:`gain_terms`, whose proofs map to the
+    plant as given.
 
     Parameters
     ----------
@@ -139,8 +181,7 @@ def gain_kernel(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any
     -------
     DistributedDelay or None
         Polynomial pieces with ``radius`` and ``variation_radius`` (None when both gains
-        are 0); the loop factor of ``StateFeedback(k, g_u, g_v)`` is
-        ``B = -(k u_factor + I_g)``.
+        are 0).
 
     Raises
     ------
@@ -150,22 +191,51 @@ def gain_kernel(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any
         A gain that cannot be enclosed in ball arithmetic to double precision
         (:func:`gain_failure` gives the reason).
     """
-    plant = gain_plant(system)
-    for name, g in (("g_u", g_u), ("g_v", g_v)):
-        feedback_gain(name, g, plant.length)
-    return _cached(plant, g_u, g_v)
+    terms = _terms(gain_plant(system), g_u, g_v)
+    return terms[0] if terms else None
+
+
+def gain_terms(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
+    """The distributed terms of ``I_g`` in the loop as built: ``t_v = tau_d lam / (lam + mu)`` exactly (module notes).
+
+    ``I_g`` of the plant as given at ``s`` is the sum of their integrals at ``r s``
+    (``r = tau / tau_d``, :func:`~nrobust.hyperbolic.loops.exact_form.tau_ratio`), so proofs about
+    the loop ``B = -(k u_factor + I_g)`` built with them map to the plant as given
+    (:mod:`~nrobust.hyperbolic.loops.given_plant`).
+
+    Parameters
+    ----------
+    system, g_u, g_v
+        As for :func:`gain_kernel`.
+
+    Returns
+    -------
+    tuple of DistributedDelay
+        Empty when both gains are 0; else the kernel's polynomial pieces on ``[0, tau_d]``
+        with their jump at the multiple of ``ulp(tau_d)`` nearest ``t_v``, followed, when ``t_v``
+        is not that multiple, by a term on the ``ulp(tau_d)`` between them: zero within a proven
+        ``radius`` (the size of the jump) and ``variation_radius``.
+
+    Raises
+    ------
+    ParameterError, CertificationError
+        As :func:`gain_kernel`.
+    """
+    return _terms(gain_plant(system, exact_times=True), g_u, g_v)
 
 
 def gain_failure(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any) -> str | None:
-    """Why :func:`gain_kernel` cannot build the exact kernel of these gains (None when it can)."""
+    """Why :func:`gain_terms` cannot build the exact kernel of these gains (None when it can)."""
     try:
-        gain_kernel(system, g_u, g_v)
+        gain_terms(system, g_u, g_v)
     except CertificationError as exc:
         return str(exc)
     return None
 
 
-def _cached(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+def _terms(plant: _Plant, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
+    for name, g in (("g_u", g_u), ("g_v", g_v)):
+        feedback_gain(name, g, plant.length)
     try:
         hash((g_u, g_v))
     except TypeError:  # an unhashable callable: built every time
@@ -174,7 +244,7 @@ def _cached(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
 
 
 @lru_cache(maxsize=32)
-def _kernel_cached(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+def _kernel_cached(plant: _Plant, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
     return _kernel(plant, g_u, g_v)
 
 
@@ -233,7 +303,7 @@ def _effective(flint: Any, g: Any, plant: _Plant, xi: Any, name: str) -> list[An
     try:
         out = _call(flint, g, xi * plant.length, name) * plant.length
         if plant.weight:
-            out = out * ((xi - 1) * plant.weight).exp()
+            out = out * ((xi - 1) * rational_ball(flint, plant.weight)).exp()
     finally:
         flint.ctx.cap = cap
     if out.prec < ORDER + 1:  # a coefficient not computed is unknown, not zero
@@ -258,7 +328,9 @@ def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str) -> _Models:
             top = _effective(flint, g, plant, arb_series([arb(c, r), arb(r)], prec=ORDER + 1), name)[ORDER]
         except CertificationError:  # the ball of the whole piece is too wide (e.g. a denominator about 0)
             top = arb("inf")
-        floating = float(values(np.array([plant.length * c]))[0]) * plant.length * math.exp(-plant.weight * (1 - c))
+        floating = (
+            float(values(np.array([plant.length * c]))[0]) * plant.length * math.exp(-float(plant.weight) * (1 - c))
+        )
         if abs(floating - float(head[0].mid())) > _AGREEMENT * (1.0 + abs(floating)) + float(head[0].rad()):
             raise CertificationError(
                 f"the gain {name} gives {float(head[0].mid())!r} on balls and {floating!r} on arrays at "
@@ -400,19 +472,20 @@ def _partial(flint: Any, rows: list[Any], poly: Any, start: Any, end: Any) -> An
     return upper - acc
 
 
-def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
+def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
+    """The terms of :func:`gain_terms` for ``plant`` (its ``t_v`` exact; on the grid: one term)."""
     if _is_zero(g_u) and _is_zero(g_v):
-        return None
+        return ()
     flint = require_flint()
     ulp = math.ulp(plant.tau)
-    n_tau, n_v = round(plant.tau / ulp), round(plant.t_v / ulp)
+    n_tau, n_v = round(plant.tau / ulp), round(plant.t_v / Fraction(ulp))
     if n_tau * ulp != plant.tau or not 0 < n_v < n_tau:
         raise CertificationError("exact_gains: the times of flight cannot be placed on a grid of ulp(tau)")
     kappa = abs(float(plant.p * plant.m))
     bits = PRECISION + math.ceil(12.0 * math.sqrt(kappa)) + ORDER * 7 + 64
     with precision(flint, bits):
         arb, arb_poly = flint.arb, flint.arb_poly
-        T, Tv = arb(plant.tau), arb(n_v * ulp)
+        T, Tv = arb(plant.tau), rational_ball(flint, plant.t_v)
         Tu = T - Tv
         n, mod_u, mod_v = gain_models(flint, plant, g_u, g_v)
         if min(n_v, n_tau - n_v) < 4 * n:
@@ -463,7 +536,44 @@ def _kernel(plant: _Plant, g_u: Any, g_v: Any) -> DistributedDelay | None:
         weight_sup = arb.max(arb(1), (sigma * T).exp())
         global_sup = err_max * weight_sup
         global_var = weight_sup * (abs(sigma) * T * err_max + var_total)
-        return _store(flint, segments, sigma, ulp, n_tau, global_sup, global_var)
+        kernel = _store(flint, segments, sigma, ulp, n_tau, global_sup, global_var)
+        if kernel is None:
+            return ()
+        if plant.t_v == n_v * Fraction(ulp):
+            return (kernel,)
+        return kernel, _displacement(flint, kernel, segments[n - 1][2], segments[n][2], sigma, plant.t_v, n_v, ulp)
+
+
+def _displacement(
+    flint: Any, kernel: DistributedDelay, left: Any, right: Any, sigma: Any, t_v: Fraction, n_v: int, ulp: float
+) -> DistributedDelay:
+    """The term on the ``ulp(tau)`` between the node ``n_v ulp`` and the true jump ``t_v`` (module notes).
+
+    ``kernel`` jumps at the node from ``left`` (the series of the last segment of ``theta < t_v``) to
+    ``right``; on the part ``D`` between the node and ``t_v`` the true kernel is the other
+    branch's. The term is zero within ``radius`` ``J = |e^{sigma theta} (left - right)|`` on the
+    ulp plus the kernel's ``radius`` (the true branch within it of its series, the stored piece
+    within it of the other's), and the variation on its interior is ``J`` (its jump at ``t_v``),
+    plus the kernel's ``variation_radius`` (the same two errors on ``D``) and ``ulp`` times the
+    slope of ``e^{sigma theta} (left - right)``.
+    """
+    arb = flint.arb
+    node = n_v * ulp
+    lo, hi = (node, node + ulp) if t_v > node else (node - ulp, node)
+    hull = arb(lo).union(arb(hi))
+    diff = left - right
+    weight = (sigma * hull).exp()
+    jump = abs(weight * diff(hull)) + arb(kernel.radius)
+    slope = abs(weight * (sigma * diff(hull) + diff.derivative()(hull)))
+    variation = jump + arb(kernel.variation_radius) + arb(ulp) * slope
+    return DistributedDelay(
+        np.array([lo, hi]),
+        None,
+        interpolation="polynomial",
+        coefficients=np.zeros((1, 1)),
+        radius=float(jump.upper()),
+        variation_radius=float(variation.upper()),
+    )
 
 
 def _check_segment(flint: Any, xi0: Any, lo: float, hi: float, j: int, n: int) -> None:

@@ -37,9 +37,11 @@ loop carries each with a proven radius (``QuasiPolynomial(..., radii=...)``, enc
 user's numbers by :func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), so a proof about the
 loop as built holds for every loop with gains in those balls, the plant's among them, and the
 map applies to it. A general plant with constant coefficients has ``tau = L/lam + L/mu``
-(:func:`~nrobust.hyperbolic.loops.exact_form.exact_tau`). Where the loop is not of these forms
-(integral gains, an observer term with a kernel, an observer delay or reflection) the proof
-keeps a scope naming what is rounded
+(:func:`~nrobust.hyperbolic.loops.exact_form.exact_tau`). A state feedback's integral gains
+enter by the kernel of ``I_g``, built with ``t_v / r`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`:
+its jump between two doubles held by a proven term), so its loop too is the loop as built at
+``r s``. Where the loop is not of these forms (an observer term with a kernel, an observer
+delay or reflection) the proof keeps a scope naming what is rounded
 (:func:`rounded_parts`).
 """
 
