@@ -320,8 +320,14 @@ def test_the_collocated_loop_encloses_the_observers_gains():
 
 
 def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
-    """An observer delay (``delta_o / r`` is not a double) or an observer reflection: the scope names the rounding."""
+    """An observer delay (``delta_o / r`` is not a double) or an observer reflection: the scope names the rounding and
+    its size, ``|tau_d - tau| / tau`` with ``tau = 10/21`` (rounded up to two digits: at least the exact value, and
+    within 10% of it); before, the size was not said."""
+    import re
+    from fractions import Fraction
+
     plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 1.0, 0.85)
+    gap = abs(Fraction(0.47619047619047616) / Fraction(10, 21) - 1)
     for controller in (
         nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_delay=0.01),
         nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_reflection=0.1),
@@ -329,6 +335,8 @@ def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
         assert given_plant_scale(plant, controller) is None
         dm = nr.delay_margin(plant, controller, rigorous=True)
         assert "the plant as given" not in dm.scope and "as the double 0.47619047619047616" in dm.scope
+        said = re.search(r"as the double 0\.47619047619047616 \(a relative (\S+) from the exact tau\)", dm.scope)
+        assert said and gap <= Fraction(said.group(1)) <= gap * Fraction(11, 10)
 
 
 @pytest.mark.parametrize(

@@ -32,6 +32,7 @@ the last one, derived again from ``U_1 = -(1 + a s)/(1 + b s) rho u(1, s)``, has
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -43,6 +44,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._digits import upper_bound_text
 from ..._flint import precision, require_flint
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, nonnegative, positive, renamed_keywords
@@ -651,12 +653,11 @@ def loop_scope(
         return scope
     if not unmapped:  # the normal form's numbers taken as given
         return scope.replace(_AS_GIVEN, _NORMAL_FORM + " taken as given" + _AS_GIVEN.removeprefix("the plant as given"))
-    tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
     return scope.replace(
         _AS_GIVEN,
-        f"{_NORMAL_FORM if normal_form else 'the plant'} with tau = {tau} as the double "
-        f"{closed_form_parameters(system)[0]!r} (the proofs are about the loop as built, not mapped to the exact "
-        "tau), its other numbers exact and the principal gains enclosed with the proven radii of their rounding",
+        f"{_NORMAL_FORM if normal_form else 'the plant'} with {_rounded_tau(system)} (the proofs are about the loop as "
+        "built, not mapped to the exact tau), its other numbers exact and the principal gains enclosed with the "
+        "proven radii of their rounding",
     )
 
 
@@ -1380,11 +1381,27 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         return rounded_parts(system, controller.controller, kernel_grid)
     if isinstance(controller, _ObserverFeedback):
         return (
-            f"tau = {tau} as the double {system.tau!r} and the observer's terms as computed in floating point (the "
+            f"{_rounded_tau(system)} and the observer's terms as computed in floating point (the "
             f"{type(controller).__name__} loop is not mapped to the exact tau: an observer delay or reflection, or "
             "an observer term with a kernel)"
         )
     return (
-        f"tau = {tau} as the double {system.tau!r} (the law's {type(controller).__name__} loop depends on tau "
-        "otherwise than through tau s)"
+        f"{_rounded_tau(system)} (the law's {type(controller).__name__} loop depends on tau otherwise than through "
+        "tau s)"
     )
+
+
+def _rounded_tau(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> str:
+    """``tau = 1/lam + 1/mu as the double tau_d``, with ``|tau_d - tau| / tau`` rounded up (``tau`` exact).
+
+    The size of what a proof about the loop as built leaves rounded: a few ``2^-53`` (``tau_d`` is
+    the floating-point sum of the two times of flight, each rounded).
+    """
+    tau = "L/lam + L/mu" if isinstance(system, GeneralHyperbolic2x2) else "1/lam + 1/mu"
+    text = f"tau = {tau} as the double {closed_form_parameters(system)[0]!r}"
+    gap = abs(1 - 1 / tau_ratio(system))
+    if gap == 0:
+        return text + " (exact)"
+    bound = float(gap)
+    bound = math.nextafter(bound, math.inf) if Fraction(bound) < gap else bound
+    return text + f" (a relative {upper_bound_text(bound, 2)} from the exact tau)"
