@@ -25,6 +25,14 @@ the eight abscissae attained by a root have brackets 2e-11 to 8e-11 wide (the ei
 plant's root at least 1e-11 inside. The tests below therefore check
 the new claims (the plant's value in the mapped ball, the enclosure of the plant's own loop, the
 scope) against the oracle; the scope and the enclosure fail before the change.
+
+A state feedback with integral gains ``g_u``, ``g_v`` (section at the end): the oracle is the PDE's state in closed
+form (the 2x2 exponential by ``cosh``/``sinh`` of its eigenvalues, the gains' integral by the primitives of
+``(alpha + beta x) e^{l x}``), at 40 digits with ``tau`` exact. The old proofs (``t_v`` rounded to a multiple of
+``ulp(tau)``, ``tau`` the double) did not miss either: on ``lam, mu = 0.3, 0.7``, ``3, 7`` and a general plant the
+PDE's margin lay 5e-14 to 4e-13 inside balls 1e-13 to 8e-13 wide. The new term holding the kernel's jump between
+two doubles is checked against the jump written from the PDE (its size, ``0.094`` here, times an ulp, is below
+the rounding of the loop: no enclosure shows it).
 """
 
 from __future__ import annotations
@@ -319,24 +327,71 @@ def test_the_collocated_loop_encloses_the_observers_gains():
         assert claims[name] == PROVEN and roots.count == _winding(loop(delta), roots.region)
 
 
-def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
-    """An observer delay (``delta_o / r`` is not a double) or an observer reflection: the scope names the rounding and
-    its size, ``|tau_d - tau| / tau`` with ``tau = 10/21`` (rounded up to two digits: at least the exact value, and
-    within 10% of it); before, the size was not said."""
+def test_an_observer_delay_keeps_tau_rounded_and_says_by_how_much():
+    """An observer delay (``delta_o / r`` is not a double): the scope names the rounding and its size,
+    ``|tau_d - tau| / tau`` with ``tau = 10/21`` (rounded up to two digits: at least the exact value, and within 10%
+    of it); before, the size was not said."""
     import re
     from fractions import Fraction
 
     plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 1.0, 0.85)
     gap = abs(Fraction(0.47619047619047616) / Fraction(10, 21) - 1)
-    for controller in (
-        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_delay=0.01),
-        nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_reflection=0.1),
-    ):
-        assert given_plant_scale(plant, controller) is None
-        dm = nr.delay_margin(plant, controller, rigorous=True)
-        assert "the plant as given" not in dm.scope and "as the double 0.47619047619047616" in dm.scope
-        said = re.search(r"as the double 0\.47619047619047616 \(a relative (\S+) from the exact tau\)", dm.scope)
-        assert said and gap <= Fraction(said.group(1)) <= gap * Fraction(11, 10)
+    controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3), observer_delay=0.01)
+    assert given_plant_scale(plant, controller) is None
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" not in dm.scope and "as the double 0.47619047619047616" in dm.scope
+    said = re.search(r"as the double 0\.47619047619047616 \(a relative (\S+) from the exact tau\)", dm.scope)
+    assert said and gap <= Fraction(said.group(1)) <= gap * Fraction(11, 10)
+
+
+def _reflected_factors(args, law, kappa, s):
+    """``(A, B)`` of the collocated output feedback whose observer keeps the reflection ``kappa``, from the PDE.
+
+    As :func:`_collocated_factors` with ``v^(1) = (rho - kappa) y + kappa u^(1) + U``: ``u^(1) = q e^{-tau s} v^(1)``
+    gives ``u^(1) (1 - kappa q E) = q E ((rho - kappa) y + U)`` (``E = e^{-tau s}``), the law ``U = -(n/d) K u^(1)``
+    ``U = -n K q E (rho - kappa) y / (d (1 - kappa q E) + n K q E)``, and ``v(1) - rho u(1) = e^{-delta s} U``.
+    """
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    gain, kap = (rho if law.K is None else mp.mpf(law.K)), mp.mpf(kappa)
+    n, d = 1 + mp.mpf(law.a) * s, 1 + mp.mpf(law.b) * s
+    u1, v1, E = q * mp.exp(-s / lam), mp.exp(s / mu), mp.exp(-s * (1 / lam + 1 / mu))
+    scale = mp.exp(-s / mu)
+    return scale * (v1 - rho * u1) * (d * (1 - kap * q * E) + n * gain * q * E), scale * n * gain * q * E * (
+        rho - kap
+    ) * u1
+
+
+@pytest.mark.parametrize("kappa", [0.1, -0.3])
+def test_an_observer_reflection_holds_for_the_plant_as_given(kappa):
+    """The observer's own reflection on an uncoupled plant multiplies the loop by ``1 - kappa q e^{-tau s}``, a
+    function of ``tau s``: the proofs map to the plant as given (before, the scope said ``tau`` rounded). The margin
+    ball holds the PDE's, and the plant's balls its loop at 40 digits (``rho q`` and ``kappa q rho q`` not doubles)."""
+    from nrobust._flint import working_precision
+
+    args, law = (3.0, 7.0, 0.0, 0.0, 1.0, 0.85), FilteredController(0.02, 0.3)
+    plant = Hyperbolic2x2(*args)
+    controller = nr.CollocatedOutputFeedback(law, observer_reflection=kappa)
+    assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
+    dm = nr.delay_margin(plant, controller, rigorous=True)
+    assert "the plant as given" in dm.scope and "as the double" not in dm.scope
+    w, truth = _pde_margin(lambda s: _reflected_factors(args, law, kappa, s), dm.omega)
+    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+    plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 0.7, 0.85)
+    for delta in (0.0, 0.2):
+        balls = given_plant_balls(plant, controller, delta)
+        assert isinstance(balls, GivenPlantBalls)
+
+        def F(s, delta=delta):
+            A, B = _reflected_factors((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), law, kappa, s)
+            return A + B * mp.exp(-mp.mpf(delta) * s)
+
+        for s in (complex(-1.0, 30.0), complex(0.5, -7.0)):
+            for k in range(2):
+                with mp.workdps(DPS):
+                    value = mp.diff(F, mp.mpc(s), k)
+                with working_precision(200) as fl:
+                    assert balls(s, k).contains(fl.acb(value)), (delta, s, k)
 
 
 @pytest.mark.parametrize(
@@ -346,6 +401,10 @@ def test_an_observer_that_is_not_a_function_of_tau_s_keeps_tau_rounded():
         ((3.0, 7.0, 1.0, 1.0, 0.7, 0.85), FilteredController(0.05, 0.3)),
         ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))),
         ((3.0, 7.0, 0.0, 0.0, 0.7, 0.85), nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3, -0.1))),
+        (
+            (3.0, 7.0, 0.0, 0.0, 0.7, 0.85),
+            nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3, -0.1), observer_reflection=0.3),
+        ),
     ],
 )
 def test_the_point_coefficients_are_balls_about_the_scaled_loop(args, controller):
@@ -360,9 +419,14 @@ def test_the_point_coefficients_are_balls_about_the_scaled_loop(args, controller
     law = controller.controller if isinstance(controller, nr.CollocatedOutputFeedback) else controller
     a, b = Fraction(law.a) / r, Fraction(law.b) / r
     K = rho if law.K is None else Fraction(law.K)
-    if isinstance(controller, nr.CollocatedOutputFeedback):  # (1 - rho q E)(1 + b x + (1 + a x) K q E), B_o
-        A = {0: [1, b], 1: [K * q - rho * q, K * q * a - rho * q * b], 2: [-rho * q * K * q, -rho * q * K * q * a]}
-        B = {2: [K * rho * q * q, K * rho * q * q * a]}
+    if isinstance(controller, nr.CollocatedOutputFeedback):  # (1 - rho q E)((1 + b x)(1 - k q E) + (1 + a x) K q E)
+        k = Fraction(controller.observer_reflection) * q  # the observer's reflection kappa, times q
+        A = {
+            0: [1, b],
+            1: [K * q - rho * q - k, K * q * a - rho * q * b - k * b],
+            2: [rho * q * k - rho * q * K * q, rho * q * k * b - rho * q * K * q * a],
+        }
+        B = {2: [K * (rho * q - k) * q, K * (rho * q - k) * q * a]}  # n K q^2 (rho - kappa) E^2
     else:  # (1 + b x)(1 - rho q E), (1 + a x) K q E
         A = {0: [1, b], 1: [-rho * q, -rho * q * b]}
         B = {1: [K * q, K * q * a]}

@@ -604,16 +604,13 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
 
 def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
     """True when the collocated loop is, in ``r s``, the loop as built with its constants scaled (module notes of
-    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact, no observer delay, no observer reflection.
+    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact and no observer delay.
 
-    ``G = (1 - Phi) k q e^{-tau s}`` is then a function of ``tau s``; a delay ``delta_o`` would be
-    ``delta_o / r`` in the loop as built (not a double), and the reflection's factor is not enclosed.
+    ``G = (1 - Phi) k q e^{-tau s}`` and the reflection's factor ``E = 1 - kappa q e^{-tau s}`` are then
+    functions of ``tau s`` (their coefficients enclosed from the user's numbers, :func:`_collocated_points`);
+    a delay ``delta_o`` would be ``delta_o / r`` in the loop as built (not a double).
     """
-    return (
-        _exact_collocated(system, controller)
-        and controller.observer_delay == 0.0
-        and controller.observer_reflection == 0.0
-    )
+    return _exact_collocated(system, controller) and controller.observer_delay == 0.0
 
 
 def _uncoupled(system: Any) -> bool:
@@ -1005,11 +1002,15 @@ def _exact_points(
 def _collocated_points(
     system: Hyperbolic2x2, controller: CollocatedOutputFeedback
 ) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
-    """:func:`_exact_points` of an exact collocated loop: ``A - n G``, ``B + n G``, ``G = (1 - Phi) k q e^{-tau s}``.
+    """:func:`_exact_points` of an exact collocated loop: ``E A - n G`` and ``E B + n G``.
 
-    On an uncoupled :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` every coefficient is a
-    rational of the user's numbers (``q e^{sigma_0 tau} = q``): ``G = k q e^{-tau s} - k rho q^2 e^{-2 tau s}``,
-    ``k`` the law's boundary gain, ``n = 1 + (a / r) s`` for a filtered law (``1`` otherwise).
+    ``A``, ``B`` the law's (:func:`_exact_points`). On an uncoupled
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` every coefficient is a rational of
+    the user's numbers (``q e^{sigma_0 tau} = q``): ``G = (1 - Phi) k q e^{-tau s}`` is
+    ``k q e^{-tau s} - k rho q^2 e^{-2 tau s}``, ``k`` the law's boundary gain,
+    ``n = 1 + (a / r) s`` for a filtered law (``1`` otherwise), and the observer's reflection
+    ``E = 1 - kappa q e^{-tau s}`` (``H_y = q e^{-tau s}``, :mod:`~nrobust.hyperbolic.loops.collocated`;
+    ``E = 1`` without it).
     """
     inner = _exact_points(system, controller.controller)
     if inner is None:
@@ -1021,7 +1022,7 @@ def _collocated_points(
     def rational(table: dict[float, list[_Exact]]) -> dict[float, list[Fraction]]:
         return {t: [sum((atoms[k] * v for k, v in c.items()), Fraction(0)) for c in cs] for t, cs in table.items()}
 
-    A, B = (rational(table) for table in inner)
+    A, B = (_reflected(rational(table), Fraction(controller.observer_reflection) * q, tau) for table in inner)
     law = controller.controller
     k = Fraction(unfiltered(law).feedback_law(system).boundary_gain)
     n = [Fraction(1), Fraction(law.a) / tau_ratio(system)] if isinstance(law, FilteredController) else [Fraction(1)]
@@ -1036,6 +1037,18 @@ def _collocated_points(
         return {t: [{"1": c} for c in cs] for t, cs in table.items()}
 
     return exact(A), exact(B)
+
+
+def _reflected(table: dict[float, list[Fraction]], kappa_q: Fraction, tau: float) -> dict[float, list[Fraction]]:
+    """``(1 - kappa_q e^{-tau s})`` times the factor of point coefficients ``table`` (by delay, increasing powers)."""
+    out = {t: list(cs) for t, cs in table.items()}
+    if kappa_q:
+        for t, cs in table.items():
+            coefs = out.setdefault(t + tau, [])
+            coefs.extend([Fraction(0)] * (len(cs) - len(coefs)))
+            for j, c in enumerate(cs):
+                coefs[j] -= kappa_q * c
+    return out
 
 
 def _exact_radii(
@@ -1382,7 +1395,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     if isinstance(controller, _ObserverFeedback):
         return (
             f"{_rounded_tau(system)} and the observer's terms as computed in floating point (the "
-            f"{type(controller).__name__} loop is not mapped to the exact tau: an observer delay or reflection, or "
+            f"{type(controller).__name__} loop is not mapped to the exact tau: an observer delay, or "
             "an observer term with a kernel)"
         )
     return (

@@ -20,9 +20,10 @@ delay ``delta / r``. The loop as built carries the user's ``a``, ``b`` with radi
 takes it to the plant as given. So do the output feedbacks whose observer is exact on an uncoupled
 plant: an :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` whose law reads no value of
 the measurement's window (its loop is the law's), and a
-:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback` without an observer delay
-or reflection, whose observer term ``(1 - Phi) k q e^{-tau s}`` is a function of ``tau s`` (its
-point coefficients, products of the user's numbers, enclosed as exact rationals).
+:class:`~nrobust.hyperbolic.loops.controllers.CollocatedOutputFeedback` without an observer delay,
+whose observer term ``(1 - Phi) k q e^{-tau s}`` and observer reflection's factor
+``1 - kappa q e^{-tau s}`` are functions of ``tau s`` (their point coefficients, products of the
+user's numbers, enclosed as exact rationals).
 
 Counts in a rectangle are not invariant under the map (the rectangle would scale by ``r``):
 they are proven on the plant's own function. With ``A``, ``B`` the factors of the loop as
@@ -41,8 +42,8 @@ map applies to it. A general plant with constant coefficients has ``tau = L/lam 
 enter by the kernel of ``I_g``, built with ``t_v / r`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`:
 its jump between two doubles held by a proven term), so its loop too is the loop as built at
 ``r s``. Where the loop is not of these forms (an observer term with a kernel, an observer
-delay or reflection) the proof keeps a scope naming what is rounded
-(:func:`rounded_parts`).
+delay: ``delta_o / r`` is not a double) the proof keeps a scope naming what is rounded and by
+how much (:func:`rounded_parts`).
 """
 
 from __future__ import annotations
