@@ -545,8 +545,9 @@ def _gains_case(c, law):
 @pytest.mark.parametrize(("c", "law"), GAINS)
 def test_the_proven_margin_of_a_state_feedback_with_integral_gains_holds_for_the_plant_as_given(c, law):
     """Before, the proofs took ``t_v`` rounded to a multiple of ``ulp(tau)`` and ``tau`` as the double: the scope said
-    so and the margin was not mapped. The old balls held the PDE's margin too (6e-14 to 4e-13 inside), the rounding
-    moving it by about 1e-16; the old crossing frequency of the general plant was 1e-14 from the PDE's."""
+    so and the margin was not mapped. The old balls held the PDE's margin too (5e-14 to 4e-13 inside), the rounding
+    moving it by about 1e-16; the old crossing frequency of the general plant was 1.0e-14 from the PDE's, within
+    its stated 1.1e-14."""
     plant, controller = _gains_case(c, law)
     assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
     dm = nr.delay_margin(plant, controller, rigorous=True)
