@@ -662,7 +662,8 @@ class DistributedDelay:
         The error bounds add, except when the stored kernels are exact opposites with equal
         bounds: two such terms are taken to stand for opposite true kernels (they come from
         one kernel and its negation, e.g. ``I_N - I_N`` in a loop at ``delta = 0``), so their
-        sum is exactly zero.
+        sum is exactly zero. A stored kernel that is zero (a term that is only its error bound)
+        never cancels: two such terms need not stand for one kernel.
         """
         if not self.mergeable(other):
             raise ParameterError("other", "a term with the same nodes, polynomial, moment and interpolation", other)
@@ -670,6 +671,7 @@ class DistributedDelay:
             self.radius == other.radius
             and self.variation_radius == other.variation_radius
             and np.array_equal(self._data, -other._data)
+            and bool(np.any(self._data != 0))
         )
         radius = 0.0 if opposite else _up(self.radius + other.radius)
         variation = 0.0 if opposite else _up(self.variation_radius + other.variation_radius)

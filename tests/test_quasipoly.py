@@ -344,6 +344,18 @@ def test_a_zero_term_shifted_keeps_its_support_inside_its_nodes():
     assert [t.moment for t in first] == [0, 1] and first[0].radius >= 7.1 * d.radius
 
 
+def test_terms_that_are_only_their_error_bound_never_cancel():
+    """Two zero kernels with equal radii are two unknown kernels each within the radius (e.g. ``|N| <= 0.1`` and
+    ``|M| <= 0.1``): their sum is within ``0.2``, not zero; opposite nonzero kernels with equal bounds still
+    cancel (one kernel and its negation)."""
+    nodes = [0.5, 1.5]
+    z = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=[[0.0]], radius=0.1, variation_radius=1)
+    total = z.plus(z.times(-1.0))
+    assert total.radius >= 0.2 and total.variation_radius >= 2  # the kernel 0.2 = 0.1 + 0.1 lies within it
+    k = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=[[0.7]], radius=0.1)
+    assert k.plus(k.times(-1.0)).radius == 0.0
+
+
 def test_spline_total_variation_and_linear_deviation_are_upper_bounds():
     x = np.r_[np.linspace(0, 1, 9), np.linspace(1, 2, 9)]
     v = np.r_[np.sin(4 * x[:9]), 1 + np.cos(3 * x[9:])]
