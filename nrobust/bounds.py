@@ -147,11 +147,19 @@ class PrincipalGap:
         Delay of the first (dominating) principal term.
     first : str
         Which part carries the first term (``"A"``, ``"B"``, ...).
+    error : float
+        A bound of the rounding in ``gap`` (its floating-point evaluation from the stored
+        coefficients): ``(m + 3) eps (|a_first| + sum |a_k| e^{...})`` for ``m`` principal
+        terms, twice the first-order bound ``(m + 5) u``, ``u = eps / 2``, of the moduli and
+        the exponential factors (``2 u`` each), the ``m - 2`` additions and the subtraction
+        (Higham, *Accuracy and Stability of Numerical Algorithms*, eq. (4.4)). A gap of the
+        size of ``error`` is zero to rounding: its sign is not known.
     """
 
     gap: float
     t0: float
     first: str
+    error: float = 0.0
 
 
 def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: float = 0.0) -> PrincipalGap | None:
@@ -172,7 +180,8 @@ def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: flo
         if (min_delay(P), order) < (t0, order0):
             return None
     others = sum(a * np.exp(-(t - t0) * x0) for a, t, _, _ in lead[1:])
-    return PrincipalGap(float(a0 - others), float(t0), label0)
+    error = (len(lead) + 3) * float(np.finfo(float).eps) * float(a0 + others)
+    return PrincipalGap(float(a0 - others), float(t0), label0, error)
 
 
 def radius_where(tail: Callable[[float], float], level: float, what: str) -> float:

@@ -131,7 +131,8 @@ def _window_text(window: DelayWindow) -> str:
         high = "the end 2 d_max + 1 of the delays searched (no crossing delay up to it)"
     else:
         high = "the end of the stability window"
-    return f"stable on the window {inner_interval_text(lo, hi)}, from {low} to {high}, {window.certified}"
+    window_text = inner_interval_text(lo, hi, accuracies=(dm.end_accuracy(lo), dm.end_accuracy(hi)))
+    return f"stable on the window {window_text}, from {low} to {high}, {window.certified}"
 
 
 def _edge_margin_text(edge: dict[str, Any], side: str) -> str:
