@@ -472,10 +472,12 @@ def _gap_accuracy(A: QuasiPolynomial, B: QuasiPolynomial, gap: float, rounding: 
     (proven), else ``rounding`` (:attr:`~nrobust.bounds.PrincipalGap.error`); 0 for ``gap = -inf``."""
     if not np.isfinite(gap):
         return 0.0
-    if not rigorous:
-        return rounding
-    lo, hi = proven_gap(A, B)
-    return float(np.nextafter(max(hi - gap, gap - lo, 0.0), np.inf))
+    return _far_end(gap, proven_gap(A, B)) if rigorous else rounding
+
+
+def _far_end(x: float, ball: tuple[float, float]) -> float:
+    """The distance from ``x`` to the far end of ``ball``, rounded up."""
+    return float(np.nextafter(max(ball[1] - x, x - ball[0], 0.0), np.inf))
 
 
 def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float | None) -> DelayMargin:
@@ -790,7 +792,7 @@ def delay_margin(
         return _not_strongly_stable(A, B, zero_root, delta_max, rigorous)
     proof, search, axis_gap = _search(A, B, w_bound, max_evals, rigorous)
     W = search.frequency_bound
-    gap_accuracy = _gap_accuracy(A, B, search.gap, _principal_gap(A, B, False)[1], rigorous)
+    gap_accuracy = _principal_gap(A, B, False)[1] if proof is None else _far_end(search.gap, proof.gap)
     common = common_axis_zeros(axis_gap, search)
     if common.size:
         return _common_zero(search, common, zero_root, delta_max, gap_accuracy)
@@ -865,23 +867,29 @@ def _with_delay_accuracies(
 ) -> tuple[Crossing, ...]:
     """Each crossing with :attr:`~nrobust.margins.crossing.Crossing.delay_accuracies` (and ``delay_accuracy``,
     its first): proven from ``proof``'s enclosures, else estimated as :attr:`DelayMargin.accuracy` is."""
-    out = []
-    for c in crossings:
-        accs = _proven_delay_accuracies(c, proof) if proof is not None else _delay_estimates(A, B, c)
-        out.append(replace(c, delay_accuracy=accs[0] if accs else None, delay_accuracies=accs))
-    return tuple(out)
+    if proof is not None:
+        return tuple(_with_accuracies(c, _proven_delay_accuracies(c, proof)) for c in crossings)
+    if not crossings:
+        return crossings
+    s = 1j * np.array([c.omega for c in crossings], dtype=float)  # A and B at every crossing frequency at once
+    return tuple(_with_accuracies(c, _delay_estimates(c, a, b)) for c, a, b in zip(crossings, A(s), B(s)))
 
 
-def _delay_estimates(A: QuasiPolynomial, B: QuasiPolynomial, c: Crossing) -> tuple[float | None, ...]:
-    """The floating-point estimate of :attr:`DelayMargin.accuracy` at each delay ``tau_k`` of ``c``:
-    ``max(1e-12 tau_k, 20 residual_k / |w|)`` plus ``omega_accuracy |Im(1/d_k)|``, with ``1/d_k = 1/d_0 -
-    i (tau_k - tau_0) / w`` (``d = ds/d delta``: ``1/d = (A'/A - B'/B + delta) / s`` on the axis)."""
+def _with_accuracies(c: Crossing, accuracies: tuple[float | None, ...]) -> Crossing:
+    """``c`` with ``accuracies`` as its :attr:`~nrobust.margins.crossing.Crossing.delay_accuracies` (the first
+    its ``delay_accuracy``)."""
+    return replace(c, delay_accuracy=accuracies[0] if accuracies else None, delay_accuracies=accuracies)
+
+
+def _delay_estimates(c: Crossing, a: complex, b: complex) -> tuple[float | None, ...]:
+    """The floating-point estimate of :attr:`DelayMargin.accuracy` at each delay ``tau_k`` of ``c`` (``a, b``:
+    ``A`` and ``B`` at ``i w``): ``max(1e-12 tau_k, 20 residual_k / |w|)`` plus ``omega_accuracy |Im(1/d_k)|``,
+    with ``1/d_k = 1/d_0 - i (tau_k - tau_0) / w`` (``d = ds/d delta``: ``1/d = (A'/A - B'/B + delta) / s`` on
+    the axis)."""
     if c.omega_accuracy is None or c.tangential or c.omega == 0.0:
         return (None,) * len(c.delays)
-    s = np.array([1j * c.omega])
-    a, b = complex(A(s)[0]), complex(B(s)[0])
     taus = np.asarray(c.delays, dtype=float)
-    residual = np.abs(a + b * np.exp(-s[0] * taus)) / (abs(a) + abs(b))
+    residual = np.abs(a + b * np.exp(-1j * c.omega * taus)) / (abs(a) + abs(b))
     from_residual = np.maximum(1e-12 * taus, 20.0 * residual / abs(c.omega))
     d0 = complex(c.ds_ddelta)
     if d0 == 0.0:
