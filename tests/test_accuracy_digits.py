@@ -392,3 +392,29 @@ def test_the_certificates_principal_gap_to_its_accuracy(q: float, K: float, rigo
     assert abs(mp.mpf(printed) - exact) <= 1.5 * mp.mpf(bound), (claim.statement, exact)
     assert abs(cert.margin.gap - exact) <= cert.margin.gap_accuracy <= 1e-14
     assert cert.margin.rigorous == rigorous
+
+
+# ---------------------------------------------------------------------------------------- a window of delays
+@pytest.mark.parametrize("rigorous", [False, True])
+def test_a_delay_window_prints_its_stability_window_and_clearance_to_their_accuracy(rigorous: bool) -> None:
+    """``s^2 - 0.1 s + 1 + 0.5 e^{-delta s}``: ``|1 - w^2 - 0.1 i w| = 0.5`` is quadratic in ``w^2``; the first
+    delays ``arg(-0.5 / (1 - w^2 - 0.1 i w)) / w`` (mod ``2 pi``), a stabilising ``t1`` then a destabilising
+    ``t2``, in mpmath: the loop is stable on ``(t1, t2)``, which holds ``[4.7, 4.9]``."""
+    from nrobust.design import window_stability
+
+    a = QuasiPolynomial([[1.0, -0.1, 1.0]], [0.0])
+    window = window_stability(a, QuasiPolynomial([[0.5]], [0.0]), (4.7, 4.9), rigorous=rigorous)
+    p = 2 - mp.mpf("0.1") ** 2
+    root = mp.sqrt(p**2 - 4 * (1 - mp.mpf("0.5") ** 2))
+    t1, t2 = (
+        (mp.arg(-mp.mpf("0.5") / (1 - u - 1j * mp.mpf("0.1") * mp.sqrt(u))) % (2 * mp.pi)) / mp.sqrt(u)
+        for u in ((p - root) / 2, (p + root) / 2)
+    )
+    assert window.stable and window.enclosing is not None
+    printed = window.reason.split("stable on the window (")[1].split(")")[0]
+    lo, hi = (mp.mpf(x) for x in printed.split(", "))
+    assert t1 <= lo < hi <= t2, (window.reason, t1, t2)
+    exact = min(mp.mpf("4.7") - t1, t2 - mp.mpf("4.9"))
+    assert window.clearance_accuracy is not None
+    assert_true_and_tight(window.clearance, window.clearance_accuracy, exact)
+    assert f"clearance={with_accuracy(window.clearance, window.clearance_accuracy)})" in repr(window)
