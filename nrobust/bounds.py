@@ -149,11 +149,12 @@ class PrincipalGap:
         Which part carries the first term (``"A"``, ``"B"``, ...).
     error : float
         A bound of the rounding in ``gap`` (its floating-point evaluation from the stored
-        coefficients): ``(m + 3) eps (|a_first| + sum |a_k| e^{...})`` for ``m`` principal
-        terms, twice the first-order bound ``(m + 5) u``, ``u = eps / 2``, of the moduli and
-        the exponential factors (``2 u`` each), the ``m - 2`` additions and the subtraction
-        (Higham, *Accuracy and Stability of Numerical Algorithms*, eq. (4.4)). A gap of the
-        size of ``error`` is zero to rounding: its sign is not known.
+        coefficients): ``(m + 3) eps S``, ``S = |a_first| + sum |a_k| e^{...}``, for ``m``
+        principal terms; at least 1.6 times the first-order bound ``(m + 4) u S``, ``u = eps / 2``,
+        of the moduli (``2 u`` each), the exponential factors (``3 u``), the ``m - 2`` additions
+        (the bound of recursive summation, Higham, *Accuracy and Stability of Numerical
+        Algorithms*, chapter 4) and the subtraction. A gap of the size of ``error`` is zero to
+        rounding: its sign is not known.
     """
 
     gap: float
