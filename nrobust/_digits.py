@@ -22,6 +22,7 @@ def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6)
     accuracy : float or None
         A bound (proven, or a conservative estimate) of ``|value - truth|``; 0 for an exact
         value (printed in full); None when it is not known (``significant`` digits, marked).
+        A value that rounds to 0 at the place of the accuracy is printed ``0``.
     significant : int, default 6
         Significant digits printed when the accuracy is not known.
 
@@ -31,6 +32,8 @@ def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6)
     '0.229539130276 +- 2e-12'
     >>> with_accuracy(0.22953913027614878, None)
     '0.229539 (accuracy not estimated)'
+    >>> with_accuracy(5.55e-17, 1.3e-15)
+    '0 +- 2e-15'
     """
     if not math.isfinite(value):
         return "inf" if value > 0 else ("-inf" if value < 0 else "nan")
@@ -38,13 +41,16 @@ def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6)
         return f"{value:.{significant}g} (accuracy not estimated)"
     if accuracy <= 0.0:
         return repr(float(value))
-    if accuracy <= abs(value) * 2.0**-52 or accuracy < 1e-300:  # below the double's own resolution
-        return f"{float(value)!r} +- {accuracy:.0e}"
-    exponent = math.floor(math.log10(accuracy))
-    lead = math.ceil(accuracy / 10.0**exponent - 1e-9)
+    exact = Decimal(float(accuracy))  # its leading digit rounded up (subnormal accuracies too)
+    exponent = exact.adjusted()
+    lead = math.ceil(float(exact.scaleb(-exponent)) - 1e-9)
     if lead >= 10:
         lead, exponent = 1, exponent + 1
     bound = f"{lead}e{exponent:+03d}".replace("e+0", "e+").replace("e-0", "e-")
+    if accuracy <= abs(value) * 2.0**-52 or accuracy < 1e-300:  # below the double's own resolution
+        return f"{float(value)!r} +- {bound}" if value else f"0 +- {bound}"
+    if abs(value) < 0.5 * 10.0**exponent:  # zero to its accuracy: no string of zeros, no digit below the bound
+        return f"0 +- {bound}"
     if abs(value) >= 1e15 or (value != 0.0 and abs(value) < 1e-4):
         digits = max(0, math.floor(math.log10(abs(value))) - exponent) if value else 0
         return f"{value:.{digits}e} +- {bound}"
@@ -89,18 +95,37 @@ def upper_bound_text(value: float, digits: int = 6) -> str:
     return _directed_text(value, digits, ROUND_CEILING)
 
 
-def inner_interval_text(lo: float, hi: float, digits: int = 10) -> str:
+def inner_interval_text(
+    lo: float, hi: float, digits: int = 10, *, accuracies: tuple[float | None, float | None] | None = None
+) -> str:
     """``(lo, hi)`` printed inside itself: ``lo`` rounded up, ``hi`` rounded down, to ``digits`` digits.
 
     What is claimed of every point of ``(lo, hi)`` (a stability window, gains meeting a
-    requirement) then holds for every printed point.
+    requirement) then holds for every printed point. With ``accuracies = (a_lo, a_hi)``, bounds
+    of the errors of the computed ends, each end is first moved inward by its own, so that the
+    printed interval lies inside the true one too; an end whose accuracy is None is only rounded
+    inward, and the text says that its accuracy is not estimated. An interval narrower than its
+    ends' accuracies is printed as computed, and said to be.
 
     Examples
     --------
     >>> inner_interval_text(0.60459978807807, 1.2345678901234, 6)
     '(0.604600, 1.23456)'
+    >>> inner_interval_text(0.0, 0.22953913027614878, 12, accuracies=(0.0, 2e-12))
+    '(0, 0.229539130274)'
     """
-    return f"({upper_bound_text(lo, digits)}, {lower_bound_text(hi, digits)})"
+    if accuracies is None:
+        return f"({upper_bound_text(lo, digits)}, {lower_bound_text(hi, digits)})"
+    a_lo, a_hi = accuracies
+    inner_lo = math.nextafter(lo + a_lo, math.inf) if a_lo else lo
+    inner_hi = math.nextafter(hi - a_hi, -math.inf) if a_hi else hi
+    if not inner_lo < inner_hi:
+        return f"{inner_interval_text(lo, hi, digits)} (narrower than its ends' accuracy)"
+    text = inner_interval_text(inner_lo, inner_hi, digits)
+    unknown = [name for name, a in (("lower", a_lo), ("upper", a_hi)) if a is None]
+    if unknown:
+        text += f" ({' and '.join(unknown)} end{'s' if len(unknown) == 2 else ''}: accuracy not estimated)"
+    return text
 
 
 def _directed_text(value: float, digits: int, rounding: str) -> str:

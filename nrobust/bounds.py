@@ -147,11 +147,20 @@ class PrincipalGap:
         Delay of the first (dominating) principal term.
     first : str
         Which part carries the first term (``"A"``, ``"B"``, ...).
+    error : float
+        A bound of the rounding in ``gap`` (its floating-point evaluation from the stored
+        coefficients): ``(m + 3) eps S``, ``S = |a_first| + sum |a_k| e^{...}``, for ``m``
+        principal terms; at least 1.6 times the first-order bound ``(m + 4) u S``, ``u = eps / 2``,
+        of the moduli (``2 u`` each), the exponential factors (``3 u``), the ``m - 2`` additions
+        (the bound of recursive summation, Higham, *Accuracy and Stability of Numerical
+        Algorithms*, chapter 4) and the subtraction. A gap of the size of ``error`` is zero to
+        rounding: its sign is not known.
     """
 
     gap: float
     t0: float
     first: str
+    error: float = 0.0
 
 
 def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: float = 0.0) -> PrincipalGap | None:
@@ -172,7 +181,8 @@ def principal_gap(parts: dict[str, tuple[QuasiPolynomial, int]], n: int, x0: flo
         if (min_delay(P), order) < (t0, order0):
             return None
     others = sum(a * np.exp(-(t - t0) * x0) for a, t, _, _ in lead[1:])
-    return PrincipalGap(float(a0 - others), float(t0), label0)
+    error = (len(lead) + 3) * float(np.finfo(float).eps) * float(a0 + others)
+    return PrincipalGap(float(a0 - others), float(t0), label0, error)
 
 
 def radius_where(tail: Callable[[float], float], level: float, what: str) -> float:

@@ -23,7 +23,7 @@ import pytest
 
 import nrobust
 from nrobust import QuasiPolynomial, spectral_abscissa
-from nrobust._digits import lower_bound_text, with_accuracy
+from nrobust._digits import inner_interval_text, lower_bound_text, with_accuracy
 from nrobust.hyperbolic.analyses import k_region, margin_and_decay, tradeoff
 from nrobust.hyperbolic.analyses.kregion import u_bs2_loop
 from nrobust.margins import delay_margin
@@ -235,16 +235,10 @@ def test_k_region_ends_against_an_independent_solve() -> None:
 
 
 # ---------------------------------------------------------------------------------------- crossings
-def _printed(text: str) -> tuple[mp.mpf, mp.mpf]:
-    """The printed value and the half unit of its last digit (``"1.2345 (accuracy not estimated)"``, no bound)."""
-    number = text.split(" ")[0]
-    decimals = len(number.split(".")[1]) if "." in number else 0
-    return mp.mpf(number), mp.mpf(10) ** -decimals / 2
-
-
 def test_crossing_reprs_print_their_accuracy() -> None:
-    """``s^2 + 1`` against ``s``: crossings at ``w = phi`` (delay ``(pi/2)/phi``, the margin) and
-    ``1/phi`` (delay ``(3 pi/2) phi``); every printed digit of the reprs against the closed forms."""
+    """``s^2 + 1`` against ``s``: crossings at ``w = phi`` (delays ``(pi/2 + 2 pi k)/phi``, the first the
+    margin) and ``1/phi`` (delays ``(3 pi/2 + 2 pi k) phi``); every printed digit of the reprs and every
+    delay's accuracy against the closed forms."""
     A = QuasiPolynomial([[1.0, 0.0, 1.0]], [0.0])
     B = QuasiPolynomial([[0.0, 1.0]], [0.0])
     phi = (1 + mp.sqrt(5)) / 2
@@ -255,11 +249,12 @@ def test_crossing_reprs_print_their_accuracy() -> None:
         assert_true_and_tight(first.omega, first.omega_accuracy, phi)
         assert_true_and_tight(first.delays[0], first.delay_accuracy, mp.pi / 2 / phi)
         assert_true_and_tight(second.omega, second.omega_accuracy, 1 / phi)
-        assert second.delay_accuracy is None  # not estimated: 6 significant digits, all true
-        text = repr(second)
-        assert "delta_0=7.62481 (accuracy not estimated)" in text
-        value, half = _printed(text.split("delta_0=")[1])
-        assert abs(value - 3 * mp.pi / 2 * phi) <= half
+        assert second.delay_accuracy == second.delay_accuracies[0]
+        for k, (delay, accuracy) in enumerate(zip(first.delays, first.delay_accuracies)):
+            assert_true_and_tight(delay, accuracy, (mp.pi / 2 + 2 * mp.pi * k) / phi)
+        for k, (delay, accuracy) in enumerate(zip(second.delays, second.delay_accuracies)):
+            assert_true_and_tight(delay, accuracy, (3 * mp.pi / 2 + 2 * mp.pi * k) * phi)
+        assert f"delta_0={with_accuracy(second.delays[0], second.delay_accuracy)}" in repr(second)
         for c, w in ((first, phi), (second, 1 / phi)):
             printed, bound = repr(c).split("period=")[1].split(",")[0].split(" +- ")
             assert abs(mp.mpf(printed) - 2 * mp.pi / w) <= mp.mpf(bound), repr(c)
@@ -267,6 +262,7 @@ def test_crossing_reprs_print_their_accuracy() -> None:
     # a model of the plant without a model error: nothing about the plant is known to these digits
     model = dataclasses.replace(dm, of_model=True)
     assert all(c.omega_accuracy is None and c.delay_accuracy is None for c in model.crossings)
+    assert all(a is None for c in model.crossings for a in c.delay_accuracies)
     assert "omega=1.61803 (accuracy not estimated)" in repr(model.crossings[0])
 
 
@@ -292,3 +288,133 @@ def test_bisection_ends_carry_their_margins_accuracies() -> None:
         assert_true_and_tight(end.omega, end.omega_accuracy, w)
         assert_true_and_tight(end.delay, end.delay_accuracy, delay)
         assert f"omega={with_accuracy(end.omega, end.omega_accuracy)}" in repr(end)
+
+
+# ---------------------------------------------------------------------------------------- every crossing delay
+@pytest.mark.parametrize("rigorous", [False, True])
+def test_every_crossing_delay_of_the_paper_loop_within_its_accuracy(rigorous: bool) -> None:
+    """``U_BS2(0.1)`` up to ``delta = 3``: each crossing re-solved at 40 digits, ``|A(i w)| = |B(i w)|``,
+    and each of its delays ``(arg(-B/A) mod 2 pi + 2 pi k) / w``; the stability windows printed inside
+    the windows of those delays."""
+    A, B = nrobust.hyperbolic.loop_factors(PAPER, nrobust.ReflectionController(0.1))
+    dm = delay_margin(A, B, delta_max=3.0, rigorous=rigorous)
+    fa, fb = mp_function(A), mp_function(B)
+    exact = {}
+    assert len(dm.crossings) == 5 and sum(len(c.delays) for c in dm.crossings) == 10
+    for c in dm.crossings:
+        w = mp.findroot(lambda x: abs(fa(1j * x)) ** 2 - abs(fb(1j * x)) ** 2, mp.mpf(c.omega), tol=mp.mpf(10) ** -35)
+        phase = mp.arg(-fb(1j * w) / fa(1j * w)) % (2 * mp.pi)
+        assert len(c.delay_accuracies) == len(c.delays)
+        for k, (delay, accuracy) in enumerate(zip(c.delays, c.delay_accuracies)):
+            exact[delay] = (phase + 2 * mp.pi * k) / w
+            assert_true_and_tight(delay, accuracy, exact[delay])
+            assert dm.end_accuracy(delay) == accuracy
+    exact[0.0] = mp.mpf(0)
+    assert len(dm.intervals) == 2
+    for lo, hi in dm.intervals:  # (0, delta*) and a window between two later crossing delays
+        text = inner_interval_text(lo, hi, 6, accuracies=(dm.end_accuracy(lo), dm.end_accuracy(hi)))
+        printed_lo, printed_hi = (mp.mpf(x) for x in text.strip("()").split(", "))
+        assert exact[lo] <= printed_lo < printed_hi <= exact[hi], (text, exact[lo], exact[hi])
+
+
+def test_inner_interval_text_with_the_accuracies_of_its_ends() -> None:
+    """Each end moved inward by its accuracy, then rounded inward (checked on the exact binary values)."""
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        lo = float(rng.uniform(0.0, 2.0))
+        hi = lo + float(10.0 ** rng.uniform(-8, 1))
+        a_lo, a_hi = (float(10.0 ** rng.uniform(-16, -9)) for _ in range(2))
+        text = inner_interval_text(lo, hi, 8, accuracies=(a_lo, a_hi))
+        if text.endswith("(narrower than its ends' accuracy)"):
+            assert hi - lo <= a_lo + a_hi * (1 + 1e-9)
+            continue
+        p_lo, p_hi = (Decimal(x) for x in text.strip("()").split(", "))
+        assert Decimal(lo) + Decimal(a_lo) <= p_lo and p_hi <= Decimal(hi) - Decimal(a_hi)
+    assert (
+        inner_interval_text(0.5, 1.5, 6, accuracies=(0.0, None))
+        == "(0.500000, 1.50000) (upper end: accuracy not estimated)"
+    )
+    assert inner_interval_text(0.5, 0.5 + 1e-12, 6, accuracies=(1e-12, 1e-12)).endswith(
+        "(narrower than its ends' accuracy)"
+    )
+
+
+# ---------------------------------------------------------------------------------------- a value 0 to its accuracy
+@pytest.mark.parametrize(
+    ("value", "accuracy", "text"),
+    [
+        (0.0, 1e-20, "0 +- 1e-20"),
+        (0.0, 1e-300, "0 +- 1e-300"),
+        (0.0, 1e-310, "0 +- 1e-310"),
+        (5.55e-17, 1.3e-15, "0 +- 2e-15"),
+        (-3e-6, 1e-3, "0 +- 1e-3"),
+        (0.0, 2.5, "0 +- 3e+0"),
+    ],
+)
+def test_a_value_zero_to_its_accuracy_prints_0(value: float, accuracy: float, text: str) -> None:
+    assert with_accuracy(value, accuracy) == text
+
+
+def test_with_accuracy_prints_a_short_value_within_half_a_unit_of_its_bound() -> None:
+    """On the exact binary value (Decimal): the printed value is within half a unit of the bound's digit (or
+    is the value itself), the bound is at least the accuracy (rounded up, a subnormal one too: ``3.03e-153``
+    printed ``3e-153`` before), and no value prints a string of zeros."""
+    rng = np.random.default_rng(5)
+    for _ in range(3000):
+        value = float(rng.choice([0.0, 1.0, -1.0]) * 10.0 ** rng.uniform(-30, 20))
+        accuracy = float(10.0 ** rng.uniform(-320, 5))
+        printed, bound = with_accuracy(value, accuracy).split(" +- ")
+        assert len(printed) <= 40, (value, accuracy, printed)
+        assert Decimal(bound) >= Decimal(accuracy) * Decimal("0.999999999")
+        unit = Decimal("1e" + bound.split("e")[1])
+        # below the double's resolution the value is printed as it is (its shortest round-trip digits)
+        assert abs(Decimal(printed) - Decimal(value)) <= unit / 2 or float(printed) == value
+
+
+# ---------------------------------------------------------------------------------------- the principal gap
+@pytest.mark.parametrize(
+    ("q", "K", "rigorous"),
+    [
+        (1.0, 0.15 + 1.2345e-15, False),  # gamma_0 above 1 by 1.19e-15: the gap a difference of nearly equal numbers
+        (1.0, 0.15 + 1.2345e-15, True),
+        (1.0, 0.15, False),  # 1 - 0.85 - 0.15 in binary: 2.8e-17, computed 0
+        (1.0, 0.1, True),
+        (0.7, 1.0 / 0.7 - 0.85 + 3e-15, False),  # rho q and K q rounded: the rounding bound covers them
+    ],
+)
+def test_the_certificates_principal_gap_to_its_accuracy(q: float, K: float, rigorous: bool) -> None:
+    """The gap ``1 - |rho q| - |K q|`` of ``U_BS2(K)`` (eq. (54)) in mpmath on the given doubles."""
+    plant = nrobust.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, q, 0.85)
+    cert = nrobust.certify(plant, nrobust.ReflectionController(K), delta_max=0.5, k_region=False, rigorous=rigorous)
+    exact = 1 - mp.mpf(0.85) * mp.mpf(q) - abs(mp.mpf(K) * mp.mpf(q))
+    (claim,) = [c for c in cert.claims if c.name == "strong stability"]
+    printed, bound = claim.statement.split("principal gap ")[1].rstrip(")").split(" +- ")
+    assert abs(mp.mpf(printed) - exact) <= 1.5 * mp.mpf(bound), (claim.statement, exact)
+    assert abs(cert.margin.gap - exact) <= cert.margin.gap_accuracy <= 1e-14
+    assert cert.margin.rigorous == rigorous
+
+
+# ---------------------------------------------------------------------------------------- a window of delays
+@pytest.mark.parametrize("rigorous", [False, True])
+def test_a_delay_window_prints_its_stability_window_and_clearance_to_their_accuracy(rigorous: bool) -> None:
+    """``s^2 - 0.1 s + 1 + 0.5 e^{-delta s}``: ``|1 - w^2 - 0.1 i w| = 0.5`` is quadratic in ``w^2``; the first
+    delays ``arg(-0.5 / (1 - w^2 - 0.1 i w)) / w`` (mod ``2 pi``), a stabilising ``t1`` then a destabilising
+    ``t2``, in mpmath: the loop is stable on ``(t1, t2)``, which holds ``[4.7, 4.9]``."""
+    from nrobust.design import window_stability
+
+    a = QuasiPolynomial([[1.0, -0.1, 1.0]], [0.0])
+    window = window_stability(a, QuasiPolynomial([[0.5]], [0.0]), (4.7, 4.9), rigorous=rigorous)
+    p = 2 - mp.mpf("0.1") ** 2
+    root = mp.sqrt(p**2 - 4 * (1 - mp.mpf("0.5") ** 2))
+    t1, t2 = (
+        (mp.arg(-mp.mpf("0.5") / (1 - u - 1j * mp.mpf("0.1") * mp.sqrt(u))) % (2 * mp.pi)) / mp.sqrt(u)
+        for u in ((p - root) / 2, (p + root) / 2)
+    )
+    assert window.stable and window.enclosing is not None
+    printed = window.reason.split("stable on the window (")[1].split(")")[0]
+    lo, hi = (mp.mpf(x) for x in printed.split(", "))
+    assert t1 <= lo < hi <= t2, (window.reason, t1, t2)
+    exact = min(mp.mpf("4.7") - t1, t2 - mp.mpf("4.9"))
+    assert window.clearance_accuracy is not None
+    assert_true_and_tight(window.clearance, window.clearance_accuracy, exact)
+    assert f"clearance={with_accuracy(window.clearance, window.clearance_accuracy)})" in repr(window)

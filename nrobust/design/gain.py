@@ -1982,7 +1982,7 @@ class DelayWindow:
         The stability window of :attr:`DelayMargin.intervals` that contains ``[d_min, d_max]``.
     clearance : float
         The distance from the window to the nearest crossing delay (``inf`` without one; 0 when
-        a crossing delay lies inside).
+        a crossing delay lies inside); :attr:`clearance_accuracy` bounds its error.
     margin : DelayMargin
         The delay margin and the windows up to ``2 d_max + 1``.
     reason : str
@@ -1999,11 +1999,23 @@ class DelayWindow:
     margin: DelayMargin
     reason: str
 
+    @property
+    def clearance_accuracy(self) -> float | None:
+        """A bound of the error of :attr:`clearance`: the accuracy of the nearest crossing delay
+        (:meth:`DelayMargin.end_accuracy`); 0 for a clearance of 0 or ``inf``; None when not estimated."""
+        if self.clearance == 0.0 or not np.isfinite(self.clearance):
+            return 0.0
+        d_lo, d_hi = self.delays
+        marks = [d for c in self.margin.crossings for d in c.delays]
+        nearest = min(marks, key=lambda d: max(d_lo - d, d - d_hi, 0.0))
+        return self.margin.end_accuracy(nearest)
+
     def __repr__(self) -> str:
         d_lo, d_hi = self.delays
+        clearance = "inf" if np.isposinf(self.clearance) else with_accuracy(self.clearance, self.clearance_accuracy)
         return (
-            f"DelayWindow(delays=[{d_lo:.6g}, {d_hi:.6g}], stable={self.stable}, certified={self.certified!r}, "
-            f"count={self.count}, clearance={self.clearance:.3g})"
+            f"DelayWindow(delays=[{d_lo!r}, {d_hi!r}], stable={self.stable}, certified={self.certified!r}, "
+            f"count={self.count}, clearance={clearance})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -2190,7 +2202,8 @@ def window_stability(
     horizon = 2.0 * d_hi + 1.0  # the delays searched (_window_margin)
     start = "delta = 0" if lo == 0.0 else "a crossing delay"
     end = "a crossing delay" if hi < horizon else "the end of the delays searched"
-    reason = f"stable on the window {inner_interval_text(lo, hi)} (from {start} to {end})"
+    window_text = inner_interval_text(lo, hi, accuracies=(dm.end_accuracy(lo), dm.end_accuracy(hi)))
+    reason = f"stable on the window {window_text} (from {start} to {end})"
     if how == "proven":
         unproven = _proven_clear(A, B, d_lo, d_hi)
         how = f"checked (the proof failed: {unproven})" if unproven else "proven"

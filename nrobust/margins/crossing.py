@@ -87,7 +87,15 @@ class Crossing:
     delay_accuracy : float or None
         A bound of ``|delays[0] - delta_c|``: the margin's
         :attr:`~nrobust.margins.DelayMargin.accuracy` on the crossing that gives the margin,
-        None on the others (not estimated).
+        else ``delay_accuracies[0]``; None when not known.
+    delay_accuracies : tuple of (float or None)
+        A bound of the error of each of ``delays`` (set by :func:`~nrobust.margins.delay_margin`):
+        proven with ``rigorous`` (from the enclosures of the first delay and of the frequency,
+        ``delta_k = delta_0 + 2 pi k / |w|``), else the estimate of the margin's
+        :attr:`~nrobust.margins.DelayMargin.accuracy` made at each delay (its residual, and the
+        frequency's error carried by the slope ``|Im(1/d_k)|``, ``1/d_k = 1/d_0 - i (delta_k -
+        delta_0) / w``, ``d = ds/d delta``). None entries (or an empty tuple): not known (a
+        tangency, a model of the plant).
     """
 
     omega: float
@@ -97,6 +105,7 @@ class Crossing:
     tangential: bool
     omega_accuracy: float | None = None
     delay_accuracy: float | None = None
+    delay_accuracies: tuple[float | None, ...] = ()
 
     @property
     def period(self) -> float:

@@ -83,6 +83,7 @@ class DelayMargin:
         ``W``: no crossing (and no zero in ``Re s >= 0``) for ``|s| > W``, every delta.
     gap : float
         ``|a_0| - sum |others|`` of the principal terms (``> 0`` iff strongly stable).
+        :attr:`gap_accuracy` bounds its error.
     verified : bool
         The margin was checked independently: a certified count by the argument
         principle (on the boundary of the half disc of radius ``1.01 W``, the imaginary
@@ -132,6 +133,12 @@ class DelayMargin:
     omega_model_error : float or None
         For a model: an estimate of the crossing frequency's change from the model's error, set
         with :attr:`model_error`; it is added to :attr:`omega_accuracy`. None: not estimated here.
+    gap_accuracy : float or None
+        A bound of ``|gap - g|``, ``g`` the principal gap of ``A`` and ``B`` as represented: with
+        ``rigorous`` the distance from ``gap`` to the far end of its enclosure in ball arithmetic
+        (:func:`~nrobust.margins.proven.proven_gap`, proven), else the rounding bound of its
+        floating-point sum (:attr:`nrobust.bounds.PrincipalGap.error`); 0 for an advanced-type
+        loop (``gap = -inf``). A gap within it of 0 is zero to rounding. None: not known.
     """
 
     margin: float
@@ -157,19 +164,31 @@ class DelayMargin:
     omega_error: float | None = None
     model_error: float | None = None
     omega_model_error: float | None = None
+    gap_accuracy: float | None = None
 
     def __post_init__(self) -> None:
         # the crossings carry the accuracies this margin states: the margin's crossing its
         # omega_accuracy and accuracy, the others theirs about A and B, withdrawn for a model
         own = [c.omega == self.omega and bool(c.delays) and c.delays[0] == self.margin for c in self.crossings]
         if any(own) or self.of_model:
-            crossings = tuple(
-                replace(c, omega_accuracy=self.omega_accuracy, delay_accuracy=self.accuracy)
-                if mine
-                else (replace(c, omega_accuracy=None, delay_accuracy=None) if self.of_model else c)
-                for c, mine in zip(self.crossings, own)
-            )
+            crossings = tuple(self._stated(c, mine) for c, mine in zip(self.crossings, own))
             object.__setattr__(self, "crossings", crossings)
+
+    def _stated(self, crossing: Crossing, own: bool) -> Crossing:
+        """``crossing`` with the accuracies this margin states: the margin's on its own first delay; none
+        on a model's other crossings and delays (their distance to the plant's is not estimated)."""
+        if not own and not self.of_model:
+            return crossing
+        model = (None,) * len(crossing.delays) if self.of_model else crossing.delay_accuracies
+        if not own:
+            return replace(crossing, omega_accuracy=None, delay_accuracy=None, delay_accuracies=model)
+        rest = tuple(model[1:]) if len(model) == len(crossing.delays) else (None,) * (len(crossing.delays) - 1)
+        return replace(
+            crossing,
+            omega_accuracy=self.omega_accuracy,
+            delay_accuracy=self.accuracy,
+            delay_accuracies=(self.accuracy, *rest),
+        )
 
     @property
     def omega_accuracy(self) -> float | None:
@@ -230,6 +249,24 @@ class DelayMargin:
         if d == 0.0:
             return float("inf")
         return float(self.omega_error) * abs(d.imag) / abs(d) ** 2
+
+    def end_accuracy(self, delay: float) -> float | None:
+        """A bound of the error of ``delay``, an end of :attr:`intervals`; None when not estimated.
+
+        0 for ``delay = 0`` and for :attr:`delta_max` when it is not a crossing delay (given, not
+        computed); :attr:`accuracy` for the margin; for a crossing delay its
+        :attr:`~nrobust.margins.crossing.Crossing.delay_accuracies` entry.
+        """
+        crossings = [c for c in self.crossings if delay in c.delays]
+        if delay == 0.0 or (delay == self.delta_max and not crossings):
+            return 0.0
+        if delay == self.margin:
+            return self.accuracy
+        for c in crossings:
+            k = c.delays.index(delay)
+            if k < len(c.delay_accuracies):
+                return c.delay_accuracies[k]
+        return None
 
     @property
     def without_crossing(self) -> bool:
@@ -342,6 +379,7 @@ def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: floa
     """
     principal = principal_gap({"P": (P, 0)}, joint_degree(P), 0.0)
     gap = float("-inf") if principal is None else principal.gap
+    gap_accuracy = 0.0 if principal is None else principal.error
     nominal: int | None = None
     radius: float | None = None
     if principal is not None and gap > 0.0 and not zero_root:
@@ -366,6 +404,7 @@ def _delay_free(P: QuasiPolynomial, which: str, zero_root: bool, delta_max: floa
         delta_max=d_max,
         frequency_bound=radius,
         gap=gap,
+        gap_accuracy=gap_accuracy,
         verified=False,
         residual=None,
         reason=(
@@ -419,15 +458,31 @@ def _zero_root(A: QuasiPolynomial, B: QuasiPolynomial, rigorous: bool) -> bool:
     return zero_root
 
 
-def _principal_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
-    """The principal gap ``|a_0| - sum |others|`` of the loop (``-inf`` for an advanced-type loop)."""
+def _principal_gap(A: QuasiPolynomial, B: QuasiPolynomial, rigorous: bool) -> tuple[float, float]:
+    """The principal gap ``|a_0| - sum |others|`` of the loop (``-inf`` for an advanced-type loop) and a
+    bound of its error (:attr:`DelayMargin.gap_accuracy`: proven with ``rigorous``)."""
     principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
-    return float("-inf") if principal is None else principal.gap
+    if principal is None:
+        return float("-inf"), 0.0
+    return principal.gap, _gap_accuracy(A, B, principal.gap, principal.error, rigorous)
+
+
+def _gap_accuracy(A: QuasiPolynomial, B: QuasiPolynomial, gap: float, rounding: float, rigorous: bool) -> float:
+    """A bound of the error of ``gap``: the distance to the far end of :func:`proven_gap` with ``rigorous``
+    (proven), else ``rounding`` (:attr:`~nrobust.bounds.PrincipalGap.error`); 0 for ``gap = -inf``."""
+    if not np.isfinite(gap):
+        return 0.0
+    return _far_end(gap, proven_gap(A, B)) if rigorous else rounding
+
+
+def _far_end(x: float, ball: tuple[float, float]) -> float:
+    """The distance from ``x`` to the far end of ``ball``, rounded up."""
+    return float(np.nextafter(max(ball[1] - x, x - ball[0], 0.0), np.inf))
 
 
 def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float | None) -> DelayMargin:
     """The rigorous route when ``A(0) + B(0) = 0`` is proven: margin 0 whatever the crossings."""
-    gap = _principal_gap(A, B)
+    gap, gap_accuracy = _principal_gap(A, B, True)
     return DelayMargin(
         margin=0.0,
         omega=0.0,
@@ -441,6 +496,7 @@ def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float |
         delta_max=float("inf") if delta_max is None else delta_max,
         frequency_bound=None,
         gap=gap,
+        gap_accuracy=gap_accuracy,
         verified=False,
         residual=None,
         reason="s = 0 is a root for every delay (A(0) + B(0) = 0 exactly, in ball arithmetic)",
@@ -455,18 +511,18 @@ def _not_strongly_stable(
 ) -> DelayMargin:
     """The principal part: no frequency bound, so the difference operator is not strongly stable
     for small ``delta > 0`` (or the loop is of advanced type) and the margin is 0 (Theorem 3)."""
-    principal = principal_gap({"A": (A, 0), "B": (B, 1)}, joint_degree(A, B), 0.0)
-    gap = float("-inf") if principal is None else principal.gap
-    if rigorous and principal is not None and not proven_gap(A, B)[1] < 0.0:
+    gap, rounding = _principal_gap(A, B, False)
+    if rigorous and np.isfinite(gap) and not proven_gap(A, B)[1] < 0.0:
         raise CertificationError(
             f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
             "the boundary of strong stability to rounding): zero margin not proven"
         )
     nominal = unstable_count(A + B).count
+    gap_accuracy = _gap_accuracy(A, B, gap, rounding, rigorous)
     reason = (
         "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
-        if principal is None
-        else f"difference operator not strongly stable for small delta > 0 (gap {gap:.6g}"
+        if not np.isfinite(gap)
+        else f"difference operator not strongly stable for small delta > 0 (gap {with_accuracy(gap, gap_accuracy)}"
         + (" <= 0" if gap <= 0 else ", zero to rounding")
         + "): zero margin"
     )
@@ -483,6 +539,7 @@ def _not_strongly_stable(
         delta_max=0.0 if delta_max is None else delta_max,
         frequency_bound=None,
         gap=gap,
+        gap_accuracy=gap_accuracy,
         verified=False,
         residual=None,
         reason=reason,
@@ -517,7 +574,9 @@ def _float_search(
     return crossing_search(A, B, w_bound, max_evals)
 
 
-def _common_zero(search: CrossingSearch, common: NDArray, zero_root: bool, delta_max: float | None) -> DelayMargin:
+def _common_zero(
+    search: CrossingSearch, common: NDArray, zero_root: bool, delta_max: float | None, gap_accuracy: float
+) -> DelayMargin:
     """``A`` and ``B`` vanish together at ``i w`` (``common[0] = w``): a root on the axis for every delay."""
     return DelayMargin(
         margin=0.0,
@@ -532,6 +591,7 @@ def _common_zero(search: CrossingSearch, common: NDArray, zero_root: bool, delta
         delta_max=float("inf") if delta_max is None else delta_max,
         frequency_bound=search.frequency_bound,
         gap=search.gap,
+        gap_accuracy=gap_accuracy,
         verified=False,
         residual=None,
         reason=f"A and B vanish together at s = i w, w = {common[0]:.10g}: a root on the axis for every delay",
@@ -732,9 +792,10 @@ def delay_margin(
         return _not_strongly_stable(A, B, zero_root, delta_max, rigorous)
     proof, search, axis_gap = _search(A, B, w_bound, max_evals, rigorous)
     W = search.frequency_bound
+    gap_accuracy = _principal_gap(A, B, False)[1] if proof is None else _far_end(search.gap, proof.gap)
     common = common_axis_zeros(axis_gap, search)
     if common.size:
-        return _common_zero(search, common, zero_root, delta_max)
+        return _common_zero(search, common, zero_root, delta_max, gap_accuracy)
     crossings, delta_max = axis_crossings(A, B, search, delta_max, axis_gap)
     events = _events(crossings, delta_max, A.is_real and B.is_real)
     # The nominal count, and the count on the first interval (0, first positive crossing delay).
@@ -754,7 +815,9 @@ def delay_margin(
     if stable_at_zero and np.isfinite(margin) and margin > 0 and omega is not None:
         verified, residual = _checked(A, B, margin, omega, W, axis_gap, max_evals, verify and w_bound is not None)
     omega_error, *errors = _omega_errors(A, B, [omega, *(c.omega for c in crossings)], crossings, proof, zero_root)
-    crossings = tuple(replace(c, omega_accuracy=e) for c, e in zip(crossings, errors))
+    crossings = _with_delay_accuracies(
+        A, B, tuple(replace(c, omega_accuracy=e) for c, e in zip(crossings, errors)), proof
+    )
     ball = None
     if proof is not None:
         ball = _margin_ball(proof, zero_root, nominal)
@@ -778,6 +841,7 @@ def delay_margin(
         delta_max=float(delta_max),
         frequency_bound=W,
         gap=search.gap,
+        gap_accuracy=gap_accuracy,
         verified=verified,
         residual=residual,
         reason=reason,
@@ -796,6 +860,61 @@ def _proven_sum(A: QuasiPolynomial, B: QuasiPolynomial) -> QuasiPolynomial:
 
 # Safety factor of the floating-point estimate of omega's error (see DelayMargin.omega_accuracy).
 _OMEGA_SAFETY = 16.0
+
+
+def _with_delay_accuracies(
+    A: QuasiPolynomial, B: QuasiPolynomial, crossings: tuple[Crossing, ...], proof: ProvenCrossings | None
+) -> tuple[Crossing, ...]:
+    """Each crossing with :attr:`~nrobust.margins.crossing.Crossing.delay_accuracies` (and ``delay_accuracy``,
+    its first): proven from ``proof``'s enclosures, else estimated as :attr:`DelayMargin.accuracy` is."""
+    if proof is not None:
+        return tuple(_with_accuracies(c, _proven_delay_accuracies(c, proof)) for c in crossings)
+    if not crossings:
+        return crossings
+    s = 1j * np.array([c.omega for c in crossings], dtype=float)  # A and B at every crossing frequency at once
+    return tuple(_with_accuracies(c, _delay_estimates(c, a, b)) for c, a, b in zip(crossings, A(s), B(s)))
+
+
+def _with_accuracies(c: Crossing, accuracies: tuple[float | None, ...]) -> Crossing:
+    """``c`` with ``accuracies`` as its :attr:`~nrobust.margins.crossing.Crossing.delay_accuracies` (the first
+    its ``delay_accuracy``)."""
+    return replace(c, delay_accuracy=accuracies[0] if accuracies else None, delay_accuracies=accuracies)
+
+
+def _delay_estimates(c: Crossing, a: complex, b: complex) -> tuple[float | None, ...]:
+    """The floating-point estimate of :attr:`DelayMargin.accuracy` at each delay ``tau_k`` of ``c`` (``a, b``:
+    ``A`` and ``B`` at ``i w``): ``max(1e-12 tau_k, 20 residual_k / |w|)`` plus ``omega_accuracy |Im(1/d_k)|``,
+    with ``1/d_k = 1/d_0 - i (tau_k - tau_0) / w`` (``d = ds/d delta``: ``1/d = (A'/A - B'/B + delta) / s`` on
+    the axis)."""
+    if c.omega_accuracy is None or c.tangential or c.omega == 0.0:
+        return (None,) * len(c.delays)
+    taus = np.asarray(c.delays, dtype=float)
+    residual = np.abs(a + b * np.exp(-1j * c.omega * taus)) / (abs(a) + abs(b))
+    from_residual = np.maximum(1e-12 * taus, 20.0 * residual / abs(c.omega))
+    d0 = complex(c.ds_ddelta)
+    if d0 == 0.0:
+        return (float("inf"),) * len(c.delays)
+    slope = np.abs((1.0 / d0).imag - (taus - taus[0]) / c.omega)
+    return tuple(float(v) for v in from_residual + c.omega_accuracy * slope)
+
+
+def _proven_delay_accuracies(c: Crossing, proof: ProvenCrossings) -> tuple[float | None, ...]:
+    """The distance from each delay ``tau_k`` of ``c`` to the far end of its enclosure
+    ``[d_lo + 2 pi k / |w|_hi, d_hi + 2 pi k / |w|_lo]`` (``proof``'s enclosures of the first delay and of
+    ``w``; each end moved outward by ``4 eps`` of its modulus, above the rounding of its three operations
+    and of ``pi``); None when no proven enclosure holds ``c.omega`` (a tangency to rounding)."""
+    ball = next(((w, d) for w, d in zip(proof.omegas, proof.delays) if w[0] <= c.omega <= w[1]), None)
+    if ball is None or ball[0][0] <= 0.0 <= ball[0][1]:
+        return (None,) * len(c.delays)
+    (w_lo, w_hi), (d_lo, d_hi) = ball
+    slow, fast = min(abs(w_lo), abs(w_hi)), max(abs(w_lo), abs(w_hi))
+    wide = 4.0 * float(np.finfo(float).eps)
+    out: list[float | None] = []
+    for k, tau in enumerate(c.delays):
+        lo, hi = d_lo + 2.0 * np.pi * k / fast, d_hi + 2.0 * np.pi * k / slow
+        lo, hi = lo - wide * abs(lo), hi + wide * abs(hi)
+        out.append(float(np.nextafter(max(hi - tau, tau - lo, 0.0), np.inf)))
+    return tuple(out)
 
 
 def _omega_errors(

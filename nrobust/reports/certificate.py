@@ -453,7 +453,7 @@ def _claims(
             "strong stability",
             "the difference operator of F(s; delta) is "
             + ("" if margin.strongly_stable else "not ")
-            + f"strongly stable for small delta > 0 (principal gap {margin.gap:.6g})",
+            + f"strongly stable for small delta > 0 (principal gap {with_accuracy(margin.gap, margin.gap_accuracy)})",
             status(margin.rigorous),
             "delay_margin",
         ),

@@ -68,7 +68,7 @@ from ..hyperbolic.loops.controllers import (
     ReflectionController,
 )
 from ..hyperbolic.nplusm.design import NPlusMGainDesign, design_nplusm_gains, principal_gamma
-from ..hyperbolic.nplusm.margin import multi_actuator_delay_margin, nplusm_delay_margin
+from ..hyperbolic.nplusm.margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin
 from ..hyperbolic.nplusm.system import NPlusMSystem
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..margins.gain import AffineGainLoop
@@ -131,7 +131,8 @@ def _window_text(window: DelayWindow) -> str:
         high = "the end 2 d_max + 1 of the delays searched (no crossing delay up to it)"
     else:
         high = "the end of the stability window"
-    return f"stable on the window {inner_interval_text(lo, hi)}, from {low} to {high}, {window.certified}"
+    window_text = inner_interval_text(lo, hi, accuracies=(dm.end_accuracy(lo), dm.end_accuracy(hi)))
+    return f"stable on the window {window_text}, from {low} to {high}, {window.certified}"
 
 
 def _edge_margin_text(edge: dict[str, Any], side: str) -> str:
@@ -440,7 +441,7 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     for w in result.windows:
         verdict = "stable" if w.stable else "not stable"
         proof = "certified" if w.certified else "not certified"
-        extra = f", crossing delay {w.crossing:.6g} inside" if w.crossing is not None else ""
+        extra = "" if w.crossing is None else f", crossing delay {_window_crossing_text(w.crossing, dm)} inside"
         lines.append(f"  - window [{w.window[0]!r}, {w.window[1]!r}]: {verdict}, {proof} ({w.how}{extra})")
     t = result.tolerance
     if t is not None:
@@ -452,6 +453,12 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     lines.append(f"- certified: {'yes' if result.certified else 'no'}")
     lines.append(f"- optimality: {result.optimality}")
     return lines + _start_lines(result.runs)
+
+
+def _window_crossing_text(delay: float, dm: NPlusMMargin | None) -> str:
+    """A crossing delay inside a window of an n + m design: with the margin's accuracy when it is the
+    margin, else marked as not estimated (the other crossing delays carry none)."""
+    return with_accuracy(delay, dm.accuracy if dm is not None and delay == dm.margin else None)
 
 
 def _start_lines(runs: Sequence[Any]) -> list[str]:

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from .._digits import lower_bound_text, upper_bound_text, with_accuracy
+from .._digits import inner_interval_text, lower_bound_text, upper_bound_text, with_accuracy
 from .._json import fields_dict
 from ..design.local import delayed_gamma
 from ..errors import ParameterError
@@ -542,7 +542,11 @@ def _certificate_blocks(
         ("how the margin was decided", m.reason, "delay_margin"),
         (
             f"stable delay intervals in [0, {cert.delta_max:g}]",
-            ", ".join(f"({_fmt(lo)}, {_fmt(hi)})" for lo, hi in m.intervals) or "none",
+            ", ".join(
+                inner_interval_text(lo, hi, 6, accuracies=(m.end_accuracy(lo), m.end_accuracy(hi)))
+                for lo, hi in m.intervals
+            )
+            or "none",
             "delay_margin",
         ),
         (

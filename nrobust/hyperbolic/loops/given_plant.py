@@ -56,6 +56,7 @@ from typing import Any, TypeVar
 from ..._flint import precision, require_flint
 from ...balls import BallFunction, ball_function
 from ...bounds import RoucheDelayBound
+from ...margins.crossing import Crossing
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
@@ -209,6 +210,26 @@ def built_delay(delta_max: float | None, system: Any, controller: Any, kernel_gr
     return _up(Fraction(delta_max) / r)
 
 
+def _crossing(c: Crossing, r: Fraction, end: float) -> Crossing:
+    """A crossing of the loop as built mapped to the plant's delays (``* r``) up to ``end``: each delay's
+    accuracy times ``r``, rounded up, plus the rounding of the mapped delay."""
+    delays = [_map(d, r) for d in c.delays]
+    keep = [d <= end for d in delays]
+    accuracies = tuple(
+        None if a is None else math.nextafter(_map(a, r, _up) + math.ulp(d), math.inf)
+        for a, d, kept in zip(c.delay_accuracies, delays, keep)
+        if kept
+    )
+    return dataclasses.replace(
+        c,
+        omega=_map(c.omega, 1 / r),
+        delays=tuple(d for d, kept in zip(delays, keep) if kept),
+        ds_ddelta=complex(c.ds_ddelta) / float(r * r),
+        delay_accuracy=accuracies[0] if accuracies else None,
+        delay_accuracies=accuracies,
+    )
+
+
 def _margin(result: DelayMargin, r: Fraction, delta_max: float | None = None) -> DelayMargin:
     ball = _ball(result.margin_ball, r)
     margin = _map(result.margin, r)
@@ -220,15 +241,7 @@ def _margin(result: DelayMargin, r: Fraction, delta_max: float | None = None) ->
     def delay(x: float) -> float:  # a delay of the analysis: the range's end is the plant's range's end
         return end if x == result.delta_max else min(_map(x, r), end)
 
-    crossings = tuple(
-        dataclasses.replace(
-            c,
-            omega=_map(c.omega, 1 / r),
-            delays=tuple(d for d in (_map(d, r) for d in c.delays) if d <= end),
-            ds_ddelta=complex(c.ds_ddelta) / float(r * r),
-        )
-        for c in result.crossings
-    )
+    crossings = tuple(_crossing(c, r, end) for c in result.crossings)
     intervals = tuple((delay(lo), delay(hi)) for lo, hi in result.intervals)
     counts = tuple((delay(lo), delay(hi), n) for lo, hi, n in result.counts)
     if delta_max is not None:  # analysed beyond the plant's range: what starts past its end is cut
