@@ -436,3 +436,28 @@ def test_a_proven_infinite_margin_says_so_without_an_interval_of_infinities():
     )
     assert margin.margin == np.inf and margin.rigorous
     assert "inf" not in margin.reason and margin.reason.endswith("(proven in ball arithmetic)")
+
+
+@pytest.mark.parametrize("ulps", [0, 3, 12])
+def test_a_proven_zero_margin_needs_the_plants_gap_negative(ulps: int) -> None:
+    """``U_BS2(K)`` on ``q = 0.7``, ``rho = 0.85`` with ``K`` near ``1/q - rho``: the gap ``1 - rho q - K q`` of the
+    plant as given (exact products of its doubles, in fractions) is ``+4.1e-17`` at ``ulps = 0`` (strongly stable:
+    the margin is not 0), negative beyond. The stored ``rho q`` and ``K q`` are rounded: the proven gap's ball must
+    hold the plant's gap on both sides (its upper end was the lower end of the coefficients' balls, and the margin 0
+    was claimed proven at ``ulps = 0``)."""
+    from fractions import Fraction
+
+    from nrobust import Hyperbolic2x2, ReflectionController
+
+    q, rho = 0.7, 0.85
+    K0 = 1 / q - rho
+    K = K0 + ulps * np.spacing(K0)
+    gap = 1 - Fraction(rho) * Fraction(q) - Fraction(K) * Fraction(q)
+    assert (gap > 0) == (ulps == 0)
+    try:
+        dm = delay_margin(Hyperbolic2x2(1, 1, 1, 1, q, rho), ReflectionController(K), rigorous=True, delta_max=0.5)
+    except CertificationError:
+        assert ulps < 12  # near the boundary a refusal is honest; 12 ulps (gap -8e-16) is decided
+        return
+    assert dm.margin > 0 if gap > 0 else dm.margin == 0
+    assert abs(Fraction(dm.gap) - gap) <= Fraction(dm.gap_accuracy)

@@ -416,9 +416,11 @@ def _bound_balls(flint: Any, parts: tuple[QuasiPolynomial, ...], W: float) -> tu
     lead.sort(key=lambda e: (e[1], e[2]))
     if lead[0][1] != principal.t0:
         return None  # a ball of zero coefficients first: no term dominates for every function
-    gap = _abs_arb(flint, lead[0][0]) - arb(lead[0][3])
+    # each coefficient's radius widens the gap's ball on both sides (its lower end is what the proofs use; the
+    # whole ball holds the gap of every function of the balls, which the reports print)
+    gap = _abs_arb(flint, lead[0][0]) + arb(0, lead[0][3])
     for c, _, _, r in lead[1:]:
-        gap -= _abs_arb(flint, c) + arb(r)
+        gap -= _abs_arb(flint, c) + arb(0, r)
     R = arb(W)
     tail = arb(0)
     for P in parts:
