@@ -29,7 +29,7 @@ from nrobust.errors import CertificationError, ParameterError
 from nrobust.hyperbolic.nplusm import NPlusMSystem, design_nplusm_gains, nplusm_delay_margin
 from nrobust.hyperbolic.nplusm.design import NPlusMGainProblem, nplusm_speed_tolerance
 from nrobust.hyperbolic.nplusm.speed_box import MAX_SPEED_CORNERS, perturbed_system, speed_box
-from nrobust.reports.design import design_summary
+from nrobust.reports.design import _nplusm_markdown, design_summary
 
 SIGMA_PM, SIGMA_MP, Q, R = 1.5, 0.5, 0.8, 0.4
 SYSTEM = NPlusMSystem([1.0], [1.0], [[0.0, SIGMA_PM], [SIGMA_MP, 0.0]], [[Q]], [[R]])
@@ -374,3 +374,9 @@ def test_the_most_robust_gain_under_a_tolerance_beats_a_grid_of_gains() -> None:
     assert best > 1.2 and design.value >= best - design.accuracy, (design.value, best)
     assert "least of the nominal plant and the vertices" in design_summary(design)
     assert f"value={with_accuracy(design.value, design.accuracy)}" in repr(design)
+    lines = _nplusm_markdown(Path("plant.toml"), design)
+    assert design.tolerance is not None
+    for (a, b), t in zip(design.tolerance.points, truth[1:]):
+        (line,) = [x for x in lines if x.startswith(f"  - delay margin at the vertex ({a!r}, {b!r}): ")]
+        printed, bound = line.split(": ")[1].split(" +- ")
+        assert abs(float(printed) - t) <= 1.5 * float(bound), (line, t)

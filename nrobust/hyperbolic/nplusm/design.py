@@ -503,8 +503,8 @@ class NPlusMGainProblem:
     scenarios : tuple of NPlusMSystem
         Further plants (the vertices of a box of speed errors, :func:`~.speed_box.perturbed_system`)
         held with the same ``K`` to the windows and to ``gamma_max``: a feasible ``K`` meets them on every
-        one, the window margin and the phase before the first take the worst of the plant and these.
-        Only with ``windows``.
+        one, the window margin, the phase before the first and the objective ``"margin"`` take the worst of
+        the plant and these. Only with ``windows``.
     """
 
     system: NPlusMSystem
