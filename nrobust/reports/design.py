@@ -418,6 +418,8 @@ def _state_feedback_png(system: Any, result: StateFeedbackDesign, scan: GainDesi
 
 def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     what = "delay margin" if result.objective == "margin" else "decay rate at delta = 0"
+    if result.objective == "margin" and result.vertex_margins:
+        what = f"least delay margin of the nominal plant and the {len(result.vertex_margins)} vertices"
     need = "" if result.margin_at_least is None else f", with a delay margin of at least {result.margin_at_least:g}"
     if result.delays:
         need += ", stable for every delay in " + ", ".join(f"[{lo!r}, {hi!r}]" for lo, hi in result.delays)
@@ -450,6 +452,12 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
             f"{len(t.points)} points examined, {t.certified}"
         )
         lines.append(f"  - {t.statement}")
+        for e, vm in zip(t.points, result.vertex_margins):
+            where = ", ".join(f"{float(x)!r}" for x in e)
+            lines.append(f"  - delay margin at the vertex ({where}): {with_accuracy(vm.margin, vm.accuracy)}")
+        if result.vertex_margins and result.worst_margin is not None:
+            worst = with_accuracy(result.worst_margin, result.worst_margin_accuracy)
+            lines.append(f"  - least delay margin of the nominal plant and the vertices: {worst}")
     lines.append(f"- certified: {'yes' if result.certified else 'no'}")
     lines.append(f"- optimality: {result.optimality}")
     return lines + _start_lines(result.runs)
@@ -525,8 +533,13 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
     if isinstance(result, NPlusMGainDesign):
         t = result.tolerance
         tolerance = "" if t is None else f"; speed tolerance {float(t.eps)!r}: {t.certified}"
+        least = (
+            " (least of the nominal plant and the vertices)"
+            if result.vertex_margins and result.objective == "margin"
+            else ""
+        )
         return (
-            f"K = {[list(row) for row in result.K]}: {result.objective} = "
+            f"K = {[list(row) for row in result.K]}: {result.objective}{least} = "
             f"{with_accuracy(result.value, result.accuracy)} (a local optimum; certified: "
             f"{'yes' if result.certified else 'no'}{tolerance})"
         )

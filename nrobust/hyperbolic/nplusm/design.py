@@ -62,10 +62,13 @@ lies below ``d_min``, else :func:`~nrobust.roots.count_roots` of ``F(.; d_min)``
 ``[0, d]``) with the same ``K`` on the plants at the ``2^(n+m)`` vertices of the box of relative errors of the
 speeds (:mod:`~nrobust.hyperbolic.nplusm.speed_box`), the scenarios of :class:`NPlusMGainProblem`: every
 iterate meets the windows and ``gamma_max`` on each, and the window clearance and the phase before the first
-take the worst of them. The design is then certified at the vertices and checked at the other points of a
-grid of 3 points per speed (:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they
-sit in ``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it
-inside the box, which is not certified between the points.
+take the worst of them. The objective ``"margin"`` is then the least certified margin of the nominal plant
+and the vertices, ``min_j delta*_j(K)`` (the margin guaranteed at every certified point, the gradient that of
+the least one's critical crossing: nonsmooth where two plants tie); ``"decay_rate"`` stays the nominal one.
+The design is then certified at the vertices and checked at the other points of a grid of 3 points per speed
+(:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they sit in ``E(s)`` and in
+``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it inside the box, which is
+not certified between the points.
 
 **Local.** The optimum is local: the best of the starts, each ending where neither the line
 search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
@@ -84,6 +87,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import with_accuracy
 from ..._json import json_safe
 from ..._newton import newton
 from ..._threads import one_blas_thread
@@ -104,7 +108,7 @@ from ...errors import CertificationError, ParameterError
 from ...roots import SpectralAbscissa, count_roots, spectral_abscissa
 from ...sweeps.executors import sweep_map
 from .characteristic import EPS, NPlusMCharacteristic
-from .margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin
+from .margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin, smallest_delay_error
 from .speed_box import NPlusMSpeedTolerance, check_box_tolerance, perturbed_system, speed_box
 from .system import NPlusMSystem
 
@@ -499,8 +503,8 @@ class NPlusMGainProblem:
     scenarios : tuple of NPlusMSystem
         Further plants (the vertices of a box of speed errors, :func:`~.speed_box.perturbed_system`)
         held with the same ``K`` to the windows and to ``gamma_max``: a feasible ``K`` meets them on every
-        one, the window margin and the phase before the first take the worst of the plant and these.
-        Only with ``windows``.
+        one, the window margin, the phase before the first and the objective ``"margin"`` take the worst of
+        the plant and these. Only with ``windows``.
     """
 
     system: NPlusMSystem
@@ -728,10 +732,12 @@ class NPlusMGainProblem:
             missed, _ = self._windows_missed(K)
             if missed:
                 return TrialPoint(p, False, math.inf, none, math.nan, dm.margin, f"{BELOW_REQUIREMENT}: {missed}")
-        if dm.omega is None or not math.isfinite(dm.margin):
-            return TrialPoint(p, True, -dm.margin, none, math.nan, dm.margin)
-        grad, _ = _margin_sensitivity(self.system, K, float(dm.omega), dm.margin)
-        return TrialPoint(p, True, -dm.margin, -grad.ravel(), math.nan, dm.margin)
+        j = min(range(1 + len(self.scenarios)), key=lambda i: self.margin(K, i).margin)
+        worst = self.margin(K, j)  # the least margin of the plant and the scenarios (all certified: windows held)
+        if worst.omega is None or not math.isfinite(worst.margin):
+            return TrialPoint(p, True, -worst.margin, none, math.nan, dm.margin)
+        grad, _ = _margin_sensitivity(self.plant(j), K, float(worst.omega), worst.margin)
+        return TrialPoint(p, True, -worst.margin, -grad.ravel(), math.nan, dm.margin)
 
 
 @dataclass(frozen=True)
@@ -745,12 +751,15 @@ class NPlusMGainDesign:
     objective : str
         ``"decay_rate"`` or ``"margin"``.
     value : float
-        The objective at ``K``: the decay rate ``-alpha`` of the delay-free loop, or ``delta*``.
+        The objective at ``K``: the decay rate ``-alpha`` of the delay-free loop, or the delay margin
+        :attr:`worst_margin` (``delta*`` of the nominal plant; with ``speed_tolerance`` the least of it and
+        the vertices' :attr:`vertex_margins`).
     accuracy : float
         A bound of the error of ``value``: for the decay rate the abscissa's
         (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`: proven with ``rigorous``, else its
-        floating-point estimate); for the margin a floating-point estimate (the Newton step of
-        the crossing equation from the reported crossing, ``|F|`` raised by its rounding scale).
+        floating-point estimate); for the margin the margins' :attr:`NPlusMMargin.accuracy`
+        combined by :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (a floating-point
+        estimate; ``inf`` when one is not estimated).
     abscissa : SpectralAbscissa
         Of the delay-free loop at ``K``: certified (no root right of ``upper_bound``), proven in
         ball arithmetic with ``rigorous`` (:meth:`NPlusMCharacteristic.proven_abscissa`).
@@ -788,6 +797,10 @@ class NPlusMGainDesign:
         certified at its vertices and checked at the other points of a grid; ``certified`` requires every
         point stable and every vertex's verdict certified. The box between the points is not certified
         (:attr:`NPlusMSpeedTolerance.statement`).
+    vertex_margins : tuple of NPlusMMargin
+        With ``speed_tolerance`` and a margin: the certified delay margin at each vertex of the box, in the
+        order of ``tolerance.points``; empty otherwise. :attr:`worst_margin` is the least of them and
+        :attr:`margin`.
     """
 
     K: tuple[tuple[float, ...], ...]
@@ -809,11 +822,40 @@ class NPlusMGainDesign:
     delays: tuple[tuple[float, float], ...] = ()
     windows: tuple[NPlusMWindow, ...] = ()
     tolerance: NPlusMSpeedTolerance | None = None
+    vertex_margins: tuple[NPlusMMargin, ...] = ()
 
     @property
     def gain(self) -> NDArray[np.float64]:
         """``K`` as an ``(m, n)`` array."""
         return np.array(self.K, dtype=float)
+
+    @property
+    def worst_margin(self) -> float | None:
+        """The least certified delay margin of the nominal plant and the vertices of the box of speed errors
+        (:attr:`vertex_margins`; the nominal margin without ``speed_tolerance``), None without a margin."""
+        if self.margin is None:
+            return None
+        return min(m.margin for m in (self.margin, *self.vertex_margins))
+
+    @property
+    def worst_margin_accuracy(self) -> float | None:
+        """A bound of the error of :attr:`worst_margin`: the margins' accuracies combined by
+        :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (None when one is not estimated)."""
+        if self.margin is None:
+            return None
+        margins = (self.margin, *self.vertex_margins)
+        return smallest_delay_error([m.margin for m in margins], [m.accuracy for m in margins])
+
+    def __repr__(self) -> str:
+        worst = ""
+        if self.vertex_margins and self.worst_margin is not None:
+            text = with_accuracy(self.worst_margin, self.worst_margin_accuracy)
+            worst = f", worst_margin={text} (nominal and {len(self.vertex_margins)} vertices)"
+        return (
+            f"NPlusMGainDesign(K={[list(row) for row in self.K]}, objective={self.objective!r}, "
+            f"value={with_accuracy(self.value, self.accuracy)}, margin={self.margin!r}{worst}, "
+            f"certified={self.certified}, rigorous={self.rigorous}, local={self.local}, tolerance={self.tolerance!r})"
+        )
 
     @property
     def decay_rate(self) -> float:
@@ -822,7 +864,7 @@ class NPlusMGainDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        skip = ("abscissa", "margin", "runs", "windows", "tolerance")
+        skip = ("abscissa", "margin", "runs", "windows", "tolerance", "vertex_margins")
         data = {k: v for k, v in vars(self).items() if k not in skip}
         data["tolerance"] = None if self.tolerance is None else self.tolerance.to_dict()
         data["delays"] = [list(w) for w in self.delays]
@@ -835,6 +877,8 @@ class NPlusMGainDesign:
             "value_bracket": self.abscissa.value_bracket,
         }
         data["margin"] = None if self.margin is None else self.margin.to_dict()
+        data["vertex_margins"] = [m.to_dict() for m in self.vertex_margins]
+        data["worst_margin"] = self.worst_margin
         data["runs"] = [run.to_dict() for run in self.runs]
         return json_safe(data)
 
@@ -944,7 +988,8 @@ def design_nplusm_gains(
     system : NPlusMSystem
     objective : {"decay_rate", "margin"}
         Maximise ``-alpha`` (the spectral abscissa of the delay-free loop) or the delay margin
-        (the same delay on every actuator).
+        (the same delay on every actuator; with ``speed_tolerance`` the least margin of the nominal
+        plant and the vertices of the box, :attr:`NPlusMGainDesign.worst_margin`).
     margin_at_least : float, optional
         With ``"decay_rate"``: require ``delta* >= margin_at_least``. A start below it first
         maximises the margin.
@@ -978,8 +1023,10 @@ def design_nplusm_gains(
         plants whose speeds are ``lam_i (1 + e_i)``, ``mu_j (1 + e_{n+j})`` at the ``2^(n+m)`` vertices
         ``|e_i| = eps`` of the box of speed errors (:func:`~.speed_box.perturbed_system`; at most
         :data:`~.speed_box.MAX_SPEED_CORNERS` vertices), and each vertex's ``gamma`` within
-        ``gamma_max``: at every iterate, each vertex one more certified margin per evaluation. The design's
-        verdicts are then certified at the vertices and checked at the other points of the grid of 3 points
+        ``gamma_max``: at every iterate, each vertex one more certified margin per evaluation. With
+        ``"margin"`` the objective is the least margin of the nominal plant and the vertices (the guaranteed
+        one; :attr:`NPlusMGainDesign.vertex_margins` and :attr:`~NPlusMGainDesign.margin` state each). The
+        design's verdicts are then certified at the vertices and checked at the other points of the grid of 3 points
         per speed (:attr:`NPlusMGainDesign.tolerance`, :func:`nplusm_speed_tolerance`); the box between
         the points is not certified (the speeds do not enter the loop affinely, :mod:`~.speed_box`).
 
@@ -1076,15 +1123,18 @@ def _certify(
     if eps is not None:
         tolerance = nplusm_speed_tolerance(system, K, eps, problem.windows)
         met = met and tolerance.certified == "certified at the vertices"
+    vertex_margins = (
+        () if eps is None or dm is None else tuple(problem.margin(K, j) for j in range(1, 1 + len(problem.scenarios)))
+    )
     if problem.objective == "decay_rate":
         value = -sa.value
         accuracy = sa.accuracy if sa.accuracy is not None else math.inf
     else:
         assert dm is not None
-        value = dm.margin
-        accuracy = 0.0
-        if dm.omega is not None and math.isfinite(dm.margin):
-            _, accuracy = _margin_sensitivity(system, K, float(dm.omega), dm.margin)
+        margins = (dm, *vertex_margins)
+        value = min(m.margin for m in margins)
+        error = smallest_delay_error([m.margin for m in margins], [m.accuracy for m in margins])
+        accuracy = math.inf if error is None else error
     return NPlusMGainDesign(
         tuple(tuple(map(float, row)) for row in K),
         problem.objective,
@@ -1103,4 +1153,5 @@ def _certify(
         delays=problem.windows,
         windows=verdicts,
         tolerance=tolerance,
+        vertex_margins=vertex_margins,
     )

@@ -11,13 +11,14 @@ kernels, one leftward speed: :func:`backstepping_exact_margin` (certified, kerne
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import upper_bound_text, with_accuracy
 from ..._json import fields_dict
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
@@ -30,11 +31,13 @@ from .system import NPlusMSystem
 __all__ = [
     "NPlusMMargin",
     "backstepping_exact_margin",
+    "compound_delay_error",
     "crossing_delay_error",
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
     "pencil_crossings",
+    "smallest_delay_error",
 ]
 
 _STATIC_SCOPE = "static gain U = K u(t - delta, 1) on the PDE"
@@ -88,10 +91,14 @@ class NPlusMMargin:
         whose ``margin`` is the grid kernels' loop's); None for the other loops, whose ``margin``
         is itself the claim.
     error : float or None
-        For :func:`nplusm_delay_margin`: 0 for a margin 0 or ``inf`` decided by the structure
-        (``gamma_0 >= 1``, an unstable delay-free loop, no crossing), else an estimate of the
-        error of ``margin`` from the crossing's (:func:`crossing_delay_error`). None when not
-        estimated.
+        0 for a margin 0 or ``inf`` decided by the structure (``gamma_0 >= 1``, an unstable
+        delay-free loop, no crossing), else an estimate of the error of ``margin`` from every
+        crossing's (:func:`crossing_delay_error` for :func:`nplusm_delay_margin`,
+        :func:`compound_delay_error` for :func:`multi_actuator_delay_margin` and
+        :func:`backstepping_exact_margin`), combined by :func:`smallest_delay_error`: a crossing
+        whose first delay is within its error of ``margin`` may be the smallest, and the error
+        covers it. None when not estimated (the capped scan of :func:`multi_actuator_margin`, the
+        grid kernels' loops, a crossing whose error is unknown).
     """
 
     margin: float
@@ -114,14 +121,24 @@ class NPlusMMargin:
             return float(np.nextafter(max(hi - self.margin, self.margin - lo, 0.0), np.inf))
         return self.error
 
+    def __repr__(self) -> str:
+        omega = "None" if self.omega is None else with_accuracy(self.omega, None)
+        return (
+            f"NPlusMMargin(margin={with_accuracy(self.margin, self.accuracy)}, omega={omega}, "
+            f"crossings={len(self.crossings)}, gamma_0<={upper_bound_text(self.gamma_0)}, certified={self.certified}, "
+            f"nominal_unstable={self.nominal_unstable}, scope={self.scope!r})"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return fields_dict(self)
 
 
-# Safety factor of crossing_delay_error: the largest ratio of the true error (crossings re-solved on
-# 40-digit matrix exponentials) to the unscaled estimate was 0.09 on ten crossings of three systems
-# (tests/test_nplusm_digits.py checks four), 16 leaves 170 times that.
+# Safety factor of crossing_delay_error and compound_delay_error: the largest ratio of the true error
+# (crossings re-solved on 40-digit matrix exponentials) to the unscaled estimate was 0.09 on ten crossings
+# of three systems for the first (tests/test_nplusm_digits.py checks four), and 0.09 on eight crossings of
+# seven loops for the second (m = 1 and 2, static gains and the backstepping law; from 0.001 to 0.09;
+# tests/test_nplusm_digits.py checks five): 16 leaves 170 times that.
 _DELAY_SAFETY = 16.0
 
 
@@ -144,6 +161,43 @@ def crossing_delay_error(F: NPlusMCharacteristic, omega: float, delay: float) ->
     dphi = e / abs(a) + e / abs(b)
     turn = abs((db / b - da / a).real - delay)
     return _DELAY_SAFETY * (turn * dw + dphi) / omega + EPS * delay
+
+
+def smallest_delay_error(delays: Sequence[float], errors: Sequence[float | None]) -> float | None:
+    """A bound of the error of ``min(delays)`` when each delay is known to within its error.
+
+    The true smallest delay lies in ``[min_i (d_i - e_i), min_i (d_i + e_i)]`` (``min`` is monotone
+    in each argument): a delay other than the smallest, within its own error of it, may be the
+    true smallest. The bound is the distance from ``min(delays)`` to the far end of that interval,
+    at least the smallest delay's own error.
+
+    Parameters
+    ----------
+    delays : sequence of float
+        The computed delays (not empty).
+    errors : sequence of float or None
+        A bound of each delay's error (None: not known).
+
+    Returns
+    -------
+    float or None
+        None when any error is unknown (its delay may be the smallest, by any amount).
+
+    Examples
+    --------
+    >>> smallest_delay_error([1.0, 2.0], [0.125, 0.125])
+    0.125
+    >>> smallest_delay_error([1.0, 1.25], [0.125, 0.5])  # the second may be the smaller, down to 0.75
+    0.25
+    """
+    if len(delays) != len(errors) or not delays:
+        raise ParameterError("errors", f"one error per delay ({len(delays)}), at least one", len(errors))
+    if any(e is None for e in errors):
+        return None
+    best = min(delays)
+    lower = min(d - e for d, e in zip(delays, errors) if e is not None)
+    upper = min(d + e for d, e in zip(delays, errors) if e is not None)
+    return max(best - lower, upper - best)
 
 
 def pencil_crossings(
@@ -268,7 +322,7 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
     if not found:
         return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0, error=0.0)
     best = min(found, key=lambda p: p[1])
-    error = crossing_delay_error(F, best[0], best[1])
+    error = smallest_delay_error([d for _, d in found], [crossing_delay_error(F, w, d) for w, d in found])
     return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0, error=error)
 
 
@@ -400,7 +454,8 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
     Returns
     -------
     NPlusMMargin
-        ``gamma_0`` is the certified upper bound used in step 1 (exact for ``m = 1``).
+        ``gamma_0`` is the certified upper bound used in step 1 (exact for ``m = 1``); ``error``
+        from every crossing's :func:`compound_delay_error` (:func:`smallest_delay_error`).
 
     Raises
     ------
@@ -413,7 +468,7 @@ def multi_actuator_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_point
     m = system.m
     lower, gamma, det_v = principal_gamma_bounds(system, k)
     if lower >= 1.0 + 1e-12:
-        return NPlusMMargin(0.0, None, (), lower, 0.0, True)
+        return NPlusMMargin(0.0, None, (), lower, 0.0, True, error=0.0)
     if gamma >= 1.0 - 1e-12:
         raise CertificationError(
             f"multi-actuator margin: gamma_0 of the delayed principal part in [{lower:.12g}, {gamma:.12g}] is not "
@@ -487,7 +542,8 @@ def backstepping_exact_margin(system: NPlusMSystem, *, max_points: int = 2_000_0
     NPlusMMargin
         ``scope`` names the exact law; ``certified`` as in :func:`multi_actuator_delay_margin`
         (floating-point certificate with rounding bounds; the kernels of a grid are not used,
-        so their error does not enter). ``nominal_unstable`` is 0 by the identity above.
+        so their error does not enter). ``nominal_unstable`` is 0 by the identity above; ``error``
+        as in :func:`multi_actuator_delay_margin`.
 
     Raises
     ------
@@ -511,7 +567,7 @@ def backstepping_exact_margin(system: NPlusMSystem, *, max_points: int = 2_000_0
     cancel = -system.r
     lower, gamma, det_v = principal_gamma_bounds(system, cancel)
     if lower >= 1.0 + 1e-12:
-        return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _TARGET_SCOPE)
+        return NPlusMMargin(0.0, None, (), lower, 0.0, True, None, _TARGET_SCOPE, error=0.0)
     if gamma >= 1.0 - 1e-12:
         raise CertificationError(
             f"backstepping margin: gamma_0 of the delayed principal part in [{lower:.12g}, {gamma:.12g}] is not "
@@ -537,7 +593,8 @@ def _compound_margin(
 ) -> NPlusMMargin:
     """Steps 2-4 of :func:`multi_actuator_delay_margin` for a loop ``sum_d z^d a_d^T exp(D - s diag(p)) b``
     whose principal part obeys ``|F_0| >= det_v (1 - gamma)^m`` on ``Re s >= 0``, ``|z| <= 1``
-    (``gamma < 1``); ``nominal(radius)`` counts the delay-free loop's roots in ``[0, radius] x [-radius, radius]``."""
+    (``gamma < 1``); ``nominal(radius)`` counts the delay-free loop's roots in ``[0, radius] x [-radius, radius]``.
+    The margin's error: :func:`compound_delay_error` of each crossing, :func:`smallest_delay_error` of them."""
     from scipy.linalg import expm  # lazily: a slow import
 
     a_norm = np.linalg.norm(a, axis=1)
@@ -547,7 +604,8 @@ def _compound_margin(
     W = GaugeRemainder(dc, p).radius(scale, level)
     count = nominal(max(W, 1.0))
     if count != 0:
-        return NPlusMMargin(0.0, None, (), gamma, W, count is not None, count, scope)
+        error = None if count is None else 0.0
+        return NPlusMMargin(0.0, None, (), gamma, W, count is not None, count, scope, error=error)
     beta = float(np.linalg.eigvalsh(0.5 * (dc + dc.conj().T))[-1]) + 1e-12 * (1.0 + float(np.abs(dc).sum()))
     pn = float(np.max(p))
     growth = np.exp(beta) * b_norm * a_norm * (1.0 + 1e-12)
@@ -577,6 +635,49 @@ def _compound_margin(
     found = tuple((w, float(np.mod(-phi, 2 * np.pi) / w)) for w, phi in zeros)
     certified = gamma < 1.0 - 1e-12
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0, scope)
+        return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0, scope, error=0.0)
     best = min(found, key=lambda c: c[1])
-    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0, scope)
+    errors = [compound_delay_error(jet, rounding, w, d) for w, d in found]
+    error = smallest_delay_error([d for _, d in found], errors)
+    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0, scope, error=error)
+
+
+def compound_delay_error(
+    jet: Callable[[NDArray[np.float64]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+    rounding: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    omega: float,
+    delay: float,
+) -> float | None:
+    """An estimate of the error of the first delay of a crossing of ``f(w, z) = sum_d c_d(w) z^d`` (compound form).
+
+    At ``phi = -omega delay``, with ``f``, ``f_w = sum_d c_d' z^d``, ``f_phi = sum_d i d c_d z^d`` at
+    ``z = e^{i phi}``, the Newton step of the two real equations ``Re f = Im f = 0`` in ``(w, phi)``,
+    ``|f|`` raised by the rounding level ``e`` of the ``D + 1`` coefficients (``(D + 1) e``, the
+    triangle inequality), bounds the distance to the crossing: ``dw``, ``dphi``. The delay
+    ``(-phi mod 2 pi) / w`` moves by ``(dphi + delay dw) / w``. Times 16 (:data:`_DELAY_SAFETY`,
+    the study in :func:`_compound_margin`'s notes), plus ``eps delay``. None when the Jacobian is
+    singular to rounding (a tangency).
+
+    Parameters
+    ----------
+    jet : callable
+        ``w -> (c_d(w), c_d'(w))``, each of shape ``(w.size, D + 1)``.
+    rounding : callable
+        ``w -> e``: a bound of the rounding error of each computed ``c_d(w)``.
+    omega, delay : float
+        The crossing frequency ``> 0`` and its first delay.
+
+    Returns
+    -------
+    float or None
+    """
+    c, dc = jet(np.array([float(omega)]))
+    e = float(np.asarray(rounding(np.array([float(omega)])))[0])
+    orders = np.arange(c.shape[1])
+    z = np.exp(-1j * omega * delay * orders)
+    f, f_w, f_phi = complex(c[0] @ z), complex(dc[0] @ z), complex((1j * orders * c[0]) @ z)
+    J = np.array([[f_w.real, f_phi.real], [f_w.imag, f_phi.imag]])
+    if not np.linalg.cond(J) < 1.0 / EPS:
+        return None
+    step = np.abs(np.linalg.inv(J)).sum(axis=1) * (abs(f) + c.shape[1] * e)
+    return _DELAY_SAFETY * float(step[1] + delay * step[0]) / omega + EPS * delay
