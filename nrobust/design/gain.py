@@ -21,8 +21,8 @@ continuous, and its maximum over ``[K_lo, K_hi]`` is one of:
 
 * a *kink*: two curves meet, ``g(w_1; K) = g(w_2; K) = 0`` and ``d_1 = d_2``: a Newton
   iteration in ``(K, w_1, w_2)`` with the exact Jacobian;
-* a *pair birth*: the envelope jumps down where a curve is born (``dK/dw = 0``, solved by
-  ``brentq`` in ``w``); the supremum is approached from the side without the pair and not
+* a *pair birth*: the envelope jumps down where a curve is born (``dK/dw = 0``, solved in its
+  bracket in ``w``); the supremum is approached from the side without the pair and not
   attained, so the design is that gain moved ``1e-10`` (relative) to that side;
 * an *interior smooth max* of one curve: ``d(d)/dw = 0`` along the branch (``brentq``);
 * an *end* of ``[K_lo, K_hi]``.
