@@ -111,9 +111,9 @@ def test_long_line_in_rounds():
 
 
 def test_shared_line_same_numbers_as_each_term():
-    """Kernels on one uniform grid share one chirp-z transform per moment (their columns side by side, fewer
-    blocks per round): still bit for bit each term's own transform, on a line of several rounds (3000
-    frequencies: three blocks of 1024) and for both moments, whose ``phi`` of different orders are not shared."""
+    """Kernels on one uniform grid share ``phi`` on a chirp-z line (one per segment length and order): still bit
+    for bit each term's own evaluation, on a line of several blocks (3000 frequencies: three blocks of 1024) and
+    for both moments, whose ``phi`` of different orders are not shared."""
     rng = np.random.default_rng(11)
     nodes = np.linspace(0.0, 2.0, 49)
     terms = [
