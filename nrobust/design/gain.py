@@ -1171,35 +1171,35 @@ class _Curves:
             else:
                 stop = "junction"
             if valid[lo] and valid[hi]:
-                ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
+                # the point (or points) the piece starts from before its samples and ends at after them: one
+                # kind each (``how``, ``stop``), joined to the samples in one concatenation per array
+                first: tuple[Any, Any, Any] | None = None
+                last: tuple[Any, Any, Any] | None = None
                 if how == "birth":  # the extremum between the samples
-                    wb, Kb, db = births[lo - 1]
-                    ws, Ks, ds = _cat(wb, ws), _cat(Kb, Ks), _cat(db, ds)
-                if stop == "birth":
-                    wb, Kb, db = births[hi]
-                    ws, Ks, ds = _cat(ws, wb), _cat(Ks, Kb), _cat(ds, db)
-                if how == "junction" and lo - 1 in junctions:
-                    wx, Kx, dx = junctions[lo - 1][sigma]
-                    ws, Ks, ds = _cat(wx, ws), _cat(Kx, Ks), _cat(dx, ds)
-                if stop == "junction" and hi in junctions:
-                    wx, Kx, dx = junctions[hi][sigma]
-                    ws, Ks, ds = _cat(ws, wx[::-1]), _cat(Ks, Kx[::-1]), _cat(ds, dx[::-1])
-                if how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
+                    first = births[lo - 1]
+                elif how == "junction" and lo - 1 in junctions:
+                    first = junctions[lo - 1][sigma]
+                elif how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
                     w_wrap, K_wrap = wraps[lo - 1]
-                    d_wrap = (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = _cat(w_wrap, ws), _cat(K_wrap, Ks), _cat(d_wrap, ds)
-                if stop == "wrap" and hi in wraps:
+                    first = (w_wrap, K_wrap, (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap)
+                elif how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
+                    first = (*poles[lo - 1][:2], self._pole_delay(poles[lo - 1], theta[lo]))
+                if stop == "birth":
+                    last = births[hi]
+                elif stop == "junction" and hi in junctions:
+                    wx, Kx, dx = junctions[hi][sigma]
+                    last = (wx[::-1], Kx[::-1], dx[::-1])
+                elif stop == "wrap" and hi in wraps:
                     w_wrap, K_wrap = wraps[hi]
-                    d_wrap = (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = _cat(ws, w_wrap), _cat(Ks, K_wrap), _cat(ds, d_wrap)
-                if how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
-                    w_pole, K_pole = poles[lo - 1][:2]
-                    d_pole = self._pole_delay(poles[lo - 1], theta[lo])
-                    ws, Ks, ds = _cat(w_pole, ws), _cat(K_pole, Ks), _cat(d_pole, ds)
-                if stop == "pole" and hi in poles and poles[hi][3] == sigma:
-                    w_pole, K_pole = poles[hi][:2]
-                    d_pole = self._pole_delay(poles[hi], theta[hi])
-                    ws, Ks, ds = _cat(ws, w_pole), _cat(Ks, K_pole), _cat(ds, d_pole)
+                    last = (w_wrap, K_wrap, (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap)
+                elif stop == "pole" and hi in poles and poles[hi][3] == sigma:
+                    last = (*poles[hi][:2], self._pole_delay(poles[hi], theta[hi]))
+                ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
+                if first is not None or last is not None:
+                    ws, Ks, ds = (
+                        _cat(*([] if first is None else [first[k]]), x, *([] if last is None else [last[k]]))
+                        for k, x in enumerate((ws, Ks, ds))
+                    )
                 items.append((ws, Ks, ds, how, stop))
             start, how = c + 1, stop
         self.pieces.extend(self._split_at_wraps(sigma, items))
