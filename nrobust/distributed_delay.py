@@ -222,36 +222,42 @@ def moment_integrals(
     sum of the ``l``-th coefficients over the segments' starts; where these sums are direct
     (``exp(-outer(s, nu)) @ c``, :func:`_exp_sums`: not a chirp-z line), the segments that start at
     the same nodes (the kernels of one loop on one grid, and the moments of one kernel) share one
-    exponential matrix, their coefficients side by side in one product. Terms of at most
-    :data:`_CLOSED_FORM_PIECES` pieces and chirp-z lines are summed term by term. The numbers are
-    those of each term's own evaluation (the same exponentials, products and ``phi``).
+    exponential matrix, their coefficients side by side in one product; on a chirp-z line each group has its
+    own transform (side by side, the columns' sums would be read with strides: slower). Either way the
+    segments of one length and degree share ``phi`` (the kernels of one loop on one grid: computed once, not
+    once per kernel). Terms of at most :data:`_CLOSED_FORM_PIECES` pieces are summed term by term. The
+    numbers are those of each term's own evaluation (the same exponentials, products, transforms and ``phi``).
     """
     flat: NDArray[np.complex128] = np.asarray(s, dtype=complex).ravel()
     out: list[list[Any]] = [[None] * len(extras) for _ in terms]
     line = _uniform_line(flat) is not None
     shared: dict[bytes, list[tuple[int, int, int, _SegmentGroup]]] = {}
     parts: dict[tuple[int, int, int], NDArray[np.complex128]] = {}
+    phis: dict[tuple[float, int], NDArray[np.complex128]] = {}
+
+    def phi(group: _SegmentGroup) -> NDArray[np.complex128]:
+        key = (group.h, group.coef.shape[1] - 1)
+        if key not in phis:
+            phis[key] = _phi(flat * group.h, group.coef.shape[1] - 1)
+        return phis[key]
+
     for i, term in enumerate(terms):
         for j, extra in enumerate(extras):
             if term.pieces[0].size <= _CLOSED_FORM_PIECES:
                 out[i][j] = term._moment_integral(flat, extra)
                 continue
             for g, group in enumerate(term._segment_groups(extra)):
-                if line and group.step is not None:  # a chirp-z transform: no exponential matrix to share
-                    phi = _phi(flat * group.h, group.coef.shape[1] - 1)
-                    parts[(i, j, g)] = np.einsum("sl,ls->s", _exp_sums(flat, group.start, group.coef, group.step), phi)
+                if line and group.step is not None:  # a chirp-z transform of its own
+                    sums = _exp_sums(flat, group.start, group.coef, group.step)
+                    parts[(i, j, g)] = np.einsum("sl,ls->s", sums, phi(group))
                 else:
                     shared.setdefault(group.start.tobytes(), []).append((i, j, g, group))
     for members in shared.values():
         sums = _exp_sums(flat, members[0][3].start, np.concatenate([m[3].coef for m in members], axis=1))
-        phis: dict[tuple[float, int], NDArray[np.complex128]] = {}
         column = 0
         for i, j, g, group in members:
             width = group.coef.shape[1]
-            key = (group.h, width - 1)
-            if key not in phis:
-                phis[key] = _phi(flat * group.h, width - 1)
-            parts[(i, j, g)] = np.einsum("sl,ls->s", sums[:, column : column + width], phis[key])
+            parts[(i, j, g)] = np.einsum("sl,ls->s", sums[:, column : column + width], phi(group))
             column += width
     for i, term in enumerate(terms):
         for j, extra in enumerate(extras):

@@ -108,3 +108,21 @@ def test_long_line_in_rounds():
             chunks = [moment_integrals([term], s[k : k + 50], (extra,))[0][0] for k in range(0, s.size, 50)]
             direct = np.concatenate(chunks)
             assert np.max(np.abs(out[i][j] - direct)) <= 1e-12 * np.max(np.abs(direct))
+
+
+def test_shared_line_same_numbers_as_each_term():
+    """Kernels on one uniform grid share ``phi`` on a chirp-z line (one per segment length and order): still bit
+    for bit each term's own evaluation, on a line of several blocks (3000 frequencies: three blocks of 1024) and
+    for both moments, whose ``phi`` of different orders are not shared."""
+    rng = np.random.default_rng(11)
+    nodes = np.linspace(0.0, 2.0, 49)
+    terms = [
+        DistributedDelay(nodes, None, interpolation="polynomial", coefficients=rng.uniform(-1.0, 1.0, (48, 12)))
+        for _ in range(3)
+    ]
+    s = 0.01 + 1j * 2.0**-5 * np.arange(1, 3001)
+    out = moment_integrals(terms, s, (0, 1))
+    for i, term in enumerate(terms):
+        unit = term.replace(poly=[1.0])
+        assert np.array_equal(out[i][0], unit(s))
+        assert np.array_equal(out[i][1], -unit.deriv_at(s))

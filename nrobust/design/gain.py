@@ -21,8 +21,8 @@ continuous, and its maximum over ``[K_lo, K_hi]`` is one of:
 
 * a *kink*: two curves meet, ``g(w_1; K) = g(w_2; K) = 0`` and ``d_1 = d_2``: a Newton
   iteration in ``(K, w_1, w_2)`` with the exact Jacobian;
-* a *pair birth*: the envelope jumps down where a curve is born (``dK/dw = 0``, solved by
-  ``brentq`` in ``w``); the supremum is approached from the side without the pair and not
+* a *pair birth*: the envelope jumps down where a curve is born (``dK/dw = 0``, solved in its
+  bracket in ``w``); the supremum is approached from the side without the pair and not
   attained, so the design is that gain moved ``1e-10`` (relative) to that side;
 * an *interior smooth max* of one curve: ``d(d)/dw = 0`` along the branch (``brentq``);
 * an *end* of ``[K_lo, K_hi]``.
@@ -1171,35 +1171,35 @@ class _Curves:
             else:
                 stop = "junction"
             if valid[lo] and valid[hi]:
-                ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
+                # the point (or points) the piece starts from before its samples and ends at after them: one
+                # kind each (``how``, ``stop``), joined to the samples in one concatenation per array
+                first: tuple[Any, Any, Any] | None = None
+                last: tuple[Any, Any, Any] | None = None
                 if how == "birth":  # the extremum between the samples
-                    wb, Kb, db = births[lo - 1]
-                    ws, Ks, ds = _cat(wb, ws), _cat(Kb, Ks), _cat(db, ds)
-                if stop == "birth":
-                    wb, Kb, db = births[hi]
-                    ws, Ks, ds = _cat(ws, wb), _cat(Ks, Kb), _cat(ds, db)
-                if how == "junction" and lo - 1 in junctions:
-                    wx, Kx, dx = junctions[lo - 1][sigma]
-                    ws, Ks, ds = _cat(wx, ws), _cat(Kx, Ks), _cat(dx, ds)
-                if stop == "junction" and hi in junctions:
-                    wx, Kx, dx = junctions[hi][sigma]
-                    ws, Ks, ds = _cat(ws, wx[::-1]), _cat(Ks, Kx[::-1]), _cat(ds, dx[::-1])
-                if how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
+                    first = births[lo - 1]
+                elif how == "junction" and lo - 1 in junctions:
+                    first = junctions[lo - 1][sigma]
+                elif how == "wrap" and lo - 1 in wraps:  # theta tends to 0 or 2 pi at the wrap
                     w_wrap, K_wrap = wraps[lo - 1]
-                    d_wrap = (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = _cat(w_wrap, ws), _cat(K_wrap, Ks), _cat(d_wrap, ds)
-                if stop == "wrap" and hi in wraps:
+                    first = (w_wrap, K_wrap, (_TWO_PI if theta[lo] > np.pi else 0.0) / w_wrap)
+                elif how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
+                    first = (*poles[lo - 1][:2], self._pole_delay(poles[lo - 1], theta[lo]))
+                if stop == "birth":
+                    last = births[hi]
+                elif stop == "junction" and hi in junctions:
+                    wx, Kx, dx = junctions[hi][sigma]
+                    last = (wx[::-1], Kx[::-1], dx[::-1])
+                elif stop == "wrap" and hi in wraps:
                     w_wrap, K_wrap = wraps[hi]
-                    d_wrap = (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap
-                    ws, Ks, ds = _cat(ws, w_wrap), _cat(Ks, K_wrap), _cat(ds, d_wrap)
-                if how == "pole" and lo - 1 in poles and poles[lo - 1][4] == sigma:
-                    w_pole, K_pole = poles[lo - 1][:2]
-                    d_pole = self._pole_delay(poles[lo - 1], theta[lo])
-                    ws, Ks, ds = _cat(w_pole, ws), _cat(K_pole, Ks), _cat(d_pole, ds)
-                if stop == "pole" and hi in poles and poles[hi][3] == sigma:
-                    w_pole, K_pole = poles[hi][:2]
-                    d_pole = self._pole_delay(poles[hi], theta[hi])
-                    ws, Ks, ds = _cat(ws, w_pole), _cat(Ks, K_pole), _cat(ds, d_pole)
+                    last = (w_wrap, K_wrap, (_TWO_PI if theta[hi] > np.pi else 0.0) / w_wrap)
+                elif stop == "pole" and hi in poles and poles[hi][3] == sigma:
+                    last = (*poles[hi][:2], self._pole_delay(poles[hi], theta[hi]))
+                ws, Ks, ds = w[lo : hi + 1], K[lo : hi + 1], d[lo : hi + 1]
+                if first is not None or last is not None:
+                    ws, Ks, ds = (
+                        _cat(*([] if first is None else [first[k]]), x, *([] if last is None else [last[k]]))
+                        for k, x in enumerate((ws, Ks, ds))
+                    )
                 items.append((ws, Ks, ds, how, stop))
             start, how = c + 1, stop
         self.pieces.extend(self._split_at_wraps(sigma, items))
@@ -1810,10 +1810,18 @@ def _start(piece: _Piece, K: float) -> tuple[float, float]:
     return s[0], s[1] * s[0]
 
 
+def _zero_in(f: Callable[[float], float], a: float, b: float, fa: float, fb: float, xtol: float) -> float:
+    """A zero of the scalar ``f`` in ``[a, b]`` (``f(a) f(b) <= 0``, values given) to ``xtol + 1e-15 |x|``.
+
+    The Illinois iteration of :func:`~nrobust._bracket.illinois` on the one bracket: no import of
+    ``scipy.optimize`` (0.3 s of CPU in a fresh process, more than the rest of a design's equation solving).
+    """
+    zero = illinois(lambda x: np.array([f(float(x[0]))]), [a], [b], [fa], [fb], rtol=1e-15, xtol=xtol)
+    return float(zero[0])
+
+
 def _birth_in(curves: _Curves, piece: _Piece, lo: float, hi: float) -> tuple[float, float] | None:
     """The birth that starts or ends ``piece`` with its gain in ``[lo, hi]`` (widened by a few cells): ``(K, w)``."""
-    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
-
     width = 4.0 * (curves.gains[1] - curves.gains[0])
     for at_start in (True, False):
         if (piece.start if at_start else piece.stop) != "birth":
@@ -1826,7 +1834,7 @@ def _birth_in(curves: _Curves, piece: _Piece, lo: float, hi: float) -> tuple[flo
         fa, fb = slope(a), slope(b)
         if fa * fb > 0:
             continue
-        wb = brentq(slope, a, b, xtol=1e-15 * we, rtol=1e-15)
+        wb = _zero_in(slope, a, b, fa, fb, 1e-15 * we)
         Kb = curves.on_branch(wb, piece.sigma)[0]
         if lo - width <= Kb <= hi + width:
             return Kb, wb
@@ -3331,8 +3339,6 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
     the curve ending at ``w = 0`` has the delay ``B'(0)/B(0) - A'(0)/A(0)`` there, which may be above
     it (``StateFeedback(k)`` on ``Hyperbolic2x2(1, 1, 1.5, 0.5, 0.8, 0.4)``: ``k = -0.2389191``, margin
     2.26). A zero leaving through ``i w``, ``w > 0``, ends a curve at delay 0: a crossing of ``level``."""
-    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
-
     lo, hi = sorted((curves.gains[i], curves.gains[j]))
     events: list[GainEnd] = []
     K0 = curves.loop.zero_root()
@@ -3358,9 +3364,10 @@ def _level_end(curves: _Curves, i: int, j: int, level: float) -> GainEnd:
                 return curves.on_branch(x, sigma)[1] - level
 
             wa, wc = piece.w[c], piece.w[c + 1]
-            if f(wa) * f(wc) > 0:
+            fa, fc = f(wa), f(wc)
+            if fa * fc > 0:
                 continue
-            wx = brentq(f, wa, wc, xtol=1e-15 * wc, rtol=1e-15)
+            wx = _zero_in(f, wa, wc, fa, fc, 1e-15 * wc)
             events.append(
                 GainEnd(curves.on_branch(wx, piece.sigma)[0], "crossing", float(wx), level, delay_accuracy=0.0)
             )

@@ -1291,7 +1291,7 @@ class _Local:
             )
         return m, iterations
 
-    @one_blas_thread()  # in whichever process runs the start
+    @one_blas_thread(scipy_linalg=True)  # in whichever process runs the start (nnls: scipy)
     def __call__(self, start: Sequence[float]) -> LocalRun:
         problem = self.problem
         counter = [1]
@@ -1564,7 +1564,7 @@ def local_runs(
     )
 
 
-@one_blas_thread()  # many small products: competing BLAS threads only cost time
+@one_blas_thread(scipy_linalg=True)  # many small products: competing BLAS threads only cost time
 def optimize_loop(
     loop: ParametricLoop,
     bounds: ArrayLike,

@@ -575,7 +575,7 @@ class StateSpaceTDS:
     def _find(self, region: tuple[float, float, float, float], options: dict[str, Any]) -> RootSet:
         """:func:`~nrobust.roots.find_roots` on ``det M`` seeded with :meth:`generator_eigenvalues`."""
         x0, x1, y0, y1 = region
-        with one_blas_thread():
+        with one_blas_thread(scipy_linalg=True):
             seeds = self._generator_eigenvalues(max(abs(y0), abs(y1)), _SEED_MIN_POINTS, _SEED_EXTRA_POINTS)
             pad = 0.02 * min(x1 - x0, y1 - y0)
             inside = (
@@ -659,7 +659,7 @@ class StateSpaceTDS:
 
     def abscissa(self, region: ArrayLike, **options: Any) -> SpectralAbscissa:
         """Spectral abscissa of ``det M`` in a rectangle (:func:`~nrobust.roots.spectral_abscissa`)."""
-        with one_blas_thread():
+        with one_blas_thread(scipy_linalg=True):
             return spectral_abscissa(self.characteristic_matrix(), region, **options)
 
     def is_strongly_stable(self) -> bool:

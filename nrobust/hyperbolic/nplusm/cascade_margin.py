@@ -746,7 +746,7 @@ def _halves(cells: _Cells, split_w: NDArray[np.bool_]) -> _Cells:
     )
 
 
-@one_blas_thread()  # many products of small matrices: competing BLAS threads only cost time
+@one_blas_thread(scipy_linalg=True)  # many products of small matrices: competing BLAS threads only cost time
 def cascade_delay_margin(
     controller: NPlusMBackstepping,
     bound: KernelErrorBound | None = None,

@@ -958,7 +958,7 @@ def _x0(x0: Any, system: NPlusMSystem, bounds: NDArray[np.float64]) -> NDArray[n
     return p
 
 
-@one_blas_thread()  # many exponentials of small matrices: competing BLAS threads only cost time
+@one_blas_thread(scipy_linalg=True)  # many exponentials of small matrices: competing BLAS threads only cost time
 def design_nplusm_gains(
     system: NPlusMSystem,
     objective: str = "decay_rate",
