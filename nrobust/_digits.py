@@ -41,22 +41,27 @@ def with_accuracy(value: float, accuracy: float | None, *, significant: int = 6)
         return f"{value:.{significant}g} (accuracy not estimated)"
     if accuracy <= 0.0:
         return repr(float(value))
-    exact = Decimal(float(accuracy))  # its leading digit rounded up (subnormal accuracies too)
-    exponent = exact.adjusted()
-    lead = math.ceil(float(exact.scaleb(-exponent)) - 1e-9)
-    if lead >= 10:
-        lead, exponent = 1, exponent + 1
-    bound = f"{lead}e{exponent:+03d}".replace("e+0", "e+").replace("e-0", "e-")
+    bound, exponent = _bound_text(accuracy)
     if accuracy <= abs(value) * 2.0**-52 or accuracy < 1e-300:  # below the double's own resolution
         return f"{float(value)!r} +- {bound}" if value else f"0 +- {bound}"
     if abs(value) < 0.5 * 10.0**exponent:  # zero to its accuracy: no string of zeros, no digit below the bound
-        return f"0 +- {bound}"
+        return f"0 +- {_bound_text(float(Decimal(abs(value)) + Decimal(accuracy)))[0]}"  # 0 holds the value too
     if abs(value) >= 1e15 or (value != 0.0 and abs(value) < 1e-4):
         digits = max(0, math.floor(math.log10(abs(value))) - exponent) if value else 0
         return f"{value:.{digits}e} +- {bound}"
     decimals = max(0, -exponent)
     rounded = round(value, -exponent) if exponent > 0 else value
     return f"{rounded:.{decimals}f} +- {bound}"
+
+
+def _bound_text(accuracy: float) -> tuple[str, int]:
+    """``accuracy`` (``> 0``) with its leading digit rounded up, as printed, and its decimal exponent."""
+    exact = Decimal(float(accuracy))  # subnormal accuracies too
+    exponent = exact.adjusted()
+    lead = math.ceil(float(exact.scaleb(-exponent)) - 1e-9)
+    if lead >= 10:
+        lead, exponent = 1, exponent + 1
+    return f"{lead}e{exponent:+03d}".replace("e+0", "e+").replace("e-0", "e-"), exponent
 
 
 def lower_bound_text(value: float, digits: int = 6) -> str:
@@ -115,7 +120,13 @@ def inner_interval_text(
     '(0, 0.229539130274)'
     """
     if accuracies is None:
-        return f"({upper_bound_text(lo, digits)}, {lower_bound_text(hi, digits)})"
+        # more digits where rounding inward would cross the ends (an interval narrower than the printed
+        # resolution); two adjacent doubles are printed as they are
+        for places in range(digits, 18):
+            low, high = upper_bound_text(lo, places), lower_bound_text(hi, places)
+            if Decimal(low) < Decimal(high):
+                return f"({low}, {high})"
+        return f"({lo!r}, {hi!r})"
     a_lo, a_hi = accuracies
     inner_lo = math.nextafter(lo + a_lo, math.inf) if a_lo else lo
     inner_hi = math.nextafter(hi - a_hi, -math.inf) if a_hi else hi

@@ -153,8 +153,11 @@ class PrincipalGap:
         principal terms; at least 1.6 times the first-order bound ``(m + 4) u S``, ``u = eps / 2``,
         of the moduli (``2 u`` each), the exponential factors (``3 u``), the ``m - 2`` additions
         (the bound of recursive summation, Higham, *Accuracy and Stability of Numerical
-        Algorithms*, chapter 4) and the subtraction. A gap of the size of ``error`` is zero to
-        rounding: its sign is not known.
+        Algorithms*, chapter 4) and the subtraction. It covers also a rounding of each stored
+        coefficient by ``u`` (at least 1.4 times ``(m + 5) u S``), so for coefficients that are one
+        rounded product of the plant's numbers (``rho q``, ``K q``) it bounds the error of the gap
+        of the plant as given. A gap of the size of ``error`` is zero to rounding: its sign is not
+        known.
     """
 
     gap: float

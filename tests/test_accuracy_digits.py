@@ -329,7 +329,10 @@ def test_inner_interval_text_with_the_accuracies_of_its_ends() -> None:
             assert hi - lo <= a_lo + a_hi * (1 + 1e-9)
             continue
         p_lo, p_hi = (Decimal(x) for x in text.strip("()").split(", "))
-        assert Decimal(lo) + Decimal(a_lo) <= p_lo and p_hi <= Decimal(hi) - Decimal(a_hi)
+        assert Decimal(lo) + Decimal(a_lo) <= p_lo < p_hi <= Decimal(hi) - Decimal(a_hi), text
+    # narrower than the printed resolution: more digits (up to 17), never an inverted pair
+    assert inner_interval_text(1.0, 1.000000001, 6, accuracies=(1e-12, 1e-12)) == "(1.0000000001, 1.0000000009)"
+    assert inner_interval_text(1.0, 1.0000000000000002, 6) == "(1.0000000000000000, 1.0000000000000002)"
     assert (
         inner_interval_text(0.5, 1.5, 6, accuracies=(0.0, None))
         == "(0.500000, 1.50000) (upper end: accuracy not estimated)"
@@ -347,12 +350,15 @@ def test_inner_interval_text_with_the_accuracies_of_its_ends() -> None:
         (0.0, 1e-300, "0 +- 1e-300"),
         (0.0, 1e-310, "0 +- 1e-310"),
         (5.55e-17, 1.3e-15, "0 +- 2e-15"),
-        (-3e-6, 1e-3, "0 +- 1e-3"),
+        (4.9e-16, 1.6e-15, "0 +- 3e-15"),  # 0 printed: the bound holds the value too (2.09e-15 was 2e-15)
+        (-3e-6, 1e-3, "0 +- 2e-3"),
         (0.0, 2.5, "0 +- 3e+0"),
     ],
 )
 def test_a_value_zero_to_its_accuracy_prints_0(value: float, accuracy: float, text: str) -> None:
     assert with_accuracy(value, accuracy) == text
+    bound = Decimal(text.split(" +- ")[1])  # every truth within it (the leading digit's rounding as above)
+    assert bound >= (abs(Decimal(value)) + Decimal(accuracy)) * Decimal("0.999999999")
 
 
 def test_with_accuracy_prints_a_short_value_within_half_a_unit_of_its_bound() -> None:
@@ -418,3 +424,20 @@ def test_a_delay_window_prints_its_stability_window_and_clearance_to_their_accur
     assert window.clearance_accuracy is not None
     assert_true_and_tight(window.clearance, window.clearance_accuracy, exact)
     assert f"clearance={with_accuracy(window.clearance, window.clearance_accuracy)})" in repr(window)
+
+
+def test_a_window_holding_a_crossing_delay_has_a_clearance_0_to_its_accuracy() -> None:
+    """``s^2 - 0.1 s + 1 + 0.5 e^{-delta s}`` on a window holding the crossing delay ``t2`` (mpmath as above): the
+    clearance 0 is not exact (``t2`` as computed may lie on either side of the window's end by its accuracy), its
+    accuracy is the crossing delay's."""
+    from nrobust.design import window_stability
+
+    a = QuasiPolynomial([[1.0, -0.1, 1.0]], [0.0])
+    p = 2 - mp.mpf("0.1") ** 2
+    u = (p + mp.sqrt(p**2 - 4 * (1 - mp.mpf("0.5") ** 2))) / 2
+    t2 = (mp.arg(-mp.mpf("0.5") / (1 - u - 1j * mp.mpf("0.1") * mp.sqrt(u))) % (2 * mp.pi)) / mp.sqrt(u)
+    window = window_stability(a, QuasiPolynomial([[0.5]], [0.0]), (float(t2) - 0.1, float(t2) + 0.05))
+    assert not window.stable and window.clearance == 0.0
+    accuracy = window.clearance_accuracy
+    assert accuracy is not None and 0.0 < accuracy < 1e-8
+    assert any(abs(d - t2) <= accuracy for c in window.margin.crossings for d in c.delays)

@@ -330,6 +330,7 @@ def _merged(F: QuasiPolynomial) -> QuasiPolynomial:
                 and np.array_equal(d.nodes, e.nodes)
                 and np.array_equal(d.values, -e.values)
                 and np.array_equal(d.pieces[2], -e.pieces[2])
+                and bool(np.any(d.pieces[2] != 0))  # a zero kernel is only its error bound: never one kernel twice
             ):
                 d = d.replace(poly=np.polynomial.polynomial.polysub(d.poly, e.poly))
                 del terms[i]
@@ -2009,14 +2010,22 @@ class DelayWindow:
 
     @property
     def clearance_accuracy(self) -> float | None:
-        """A bound of the error of :attr:`clearance`: the accuracy of the nearest crossing delay
-        (:meth:`DelayMargin.end_accuracy`); 0 for a clearance of 0 or ``inf``; None when not estimated."""
-        if self.clearance == 0.0 or not np.isfinite(self.clearance):
+        """A bound of the error of :attr:`clearance`: the largest accuracy
+        (:meth:`DelayMargin.end_accuracy`) of the crossing delays that could be the nearest one
+        (distance to the window within the clearance plus their accuracy; a clearance of 0 too: a
+        crossing delay computed inside may lie outside by its accuracy); 0 for ``inf``; None when
+        one of them is not estimated."""
+        if not np.isfinite(self.clearance):
             return 0.0
         d_lo, d_hi = self.delays
-        marks = [d for c in self.margin.crossings for d in c.delays]
-        nearest = min(marks, key=lambda d: max(d_lo - d, d - d_hi, 0.0))
-        return self.margin.end_accuracy(nearest)
+        accuracies = []
+        for d in (d for c in self.margin.crossings for d in c.delays):
+            accuracy = self.margin.end_accuracy(d)
+            if accuracy is None:
+                return None
+            if max(d_lo - d, d - d_hi, 0.0) <= self.clearance + accuracy:
+                accuracies.append(accuracy)
+        return max(accuracies, default=0.0)
 
     def __repr__(self) -> str:
         d_lo, d_hi = self.delays

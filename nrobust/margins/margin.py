@@ -523,7 +523,7 @@ def _not_strongly_stable(
         "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
         if not np.isfinite(gap)
         else f"difference operator not strongly stable for small delta > 0 (gap {with_accuracy(gap, gap_accuracy)}"
-        + (" <= 0" if gap <= 0 else ", zero to rounding")
+        + (" < 0" if gap + gap_accuracy < 0 else ", zero to its accuracy")
         + "): zero margin"
     )
     return DelayMargin(

@@ -116,7 +116,7 @@ class ExactForm:
         coordinates: ``q e^{sigma_0 tau} e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` with
         ``U~ = e^{sigma_0 nu} (q h_11 + p W / tau)``; a proportional feedback
         ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``; integral gains subtract
-        their term ``I_g`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_kernel`).
+        their term ``I_g`` (:func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`).
     q_radius, rho_q_radius, u_radius : float
         Proven bounds of the distance of ``q``, ``rho_q`` and the point gain
         ``q e^{sigma_0 tau}`` of ``u_factor`` to their exact values (the exponential weight

@@ -51,7 +51,7 @@ the bound of its total variation (the same with the derivatives, and twice the s
 each segment's end) its ``variation_radius``. The nodes are multiples of ``ulp(tau)`` (exact
 differences).
 
-The plant as given. The loop is built with ``tau_d``, the double nearest ``tau``, and
+The plant as given. The loop is built with ``tau_d`` (``1/lam + 1/mu`` in floating point), and
 ``I_g`` of the plant at ``s`` is that of the loop as built at ``r s`` (``r = tau / tau_d``):
 ``r K(r theta)`` is ``K`` with ``t_v``, ``t_u``, ``tau`` divided by ``r`` (each term above is
 ``1 / t`` times a function of ``theta / t``; ``U``, ``V`` are ``1 / tau`` times functions of

@@ -1,7 +1,7 @@
 """Proofs about the plant as given, from proofs about its loop with ``tau`` rounded to a double.
 
 The loop of a plant with constant coefficients is built with the transport time ``tau_d``,
-the double nearest ``tau = 1/lam + 1/mu`` (the delays of
+``tau = 1/lam + 1/mu`` computed in floating point (the delays of
 :class:`~nrobust.quasipoly.QuasiPolynomial` are doubles), and the ratios ``p``, ``m`` exact
 (:func:`~nrobust.hyperbolic.loops.exact_form.exact_ratios`). Since ``tau N~(tau t)`` depends on
 ``p``, ``m``, ``q`` and ``rho`` only (:mod:`~nrobust.hyperbolic.loops.exact_form`), the

@@ -63,7 +63,7 @@ couplings, their remainders grown by ``sup |P| (e^{e_E} - 1)`` (and
 ``rho~ = rho e^{-E(L)} e^{k}`` is a ball whose radius enters the residual and the pieces of
 ``N~``. ``U~`` is returned in the plant's coordinates, times the ball ``e^{A(L) + k - D(L)}``, so a
 feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays a double: ``tau``,
-the double nearest ``(L / lam + L / mu) / time_unit``, and the principal gains
+the double ``(L / lam + L / mu) / time_unit`` computed in floating point, and the principal gains
 ``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
 so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
 given as samples (the cubic spline is the model the user gave) and varying speeds are refused
@@ -121,8 +121,8 @@ class VaryingProof:
     Attributes
     ----------
     tau, q, rho_q : float
-        The round trip ``1/lam + 1/mu`` (for a general plant the double nearest
-        ``(L/lam + L/mu) / time_unit``), ``q`` of the normal form and the principal gain
+        The round trip ``1/lam + 1/mu`` (for a general plant the double
+        ``(L/lam + L/mu) / time_unit`` computed in floating point), ``q`` of the normal form and the principal gain
         ``rho q`` (``rho q e^{A(L) - D(L)}`` rounded to a double for a general plant).
     N_tilde, U_tilde : DistributedDelay or None
         Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
