@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -190,3 +191,35 @@ def test_two_term_gain_bound_holds_the_closed_form(case: str) -> None:
         peak = float(np.max(ys * np.abs(_integral_terms(plant, law, 1j * ys / tau, 1000))))
         assert v1 + v2 / 300.0 >= peak >= v1 / 3.0
     assert case == "exp_gains" or v_g > 10.0 * v1
+
+
+def _ball(re: tuple[float, float], im: tuple[float, float]) -> Any:
+    """The complex ball of the rectangle ``re x im`` (an enclosure of every point of it)."""
+    arb = flint.arb
+    return flint.acb(arb(re[0]).union(arb(re[1])), arb(im[0]).union(arb(im[1])))
+
+
+def test_crossing_free_clears_low_frequencies_by_the_loop_itself() -> None:
+    """``crossing_free`` on a box with ``w`` in ``[0, 0.5]`` and the delays ``[0, 0.2]``: the factors' moduli overlap
+    and ``-A/B`` is about a positive real (its argument's ball holds 0, so no crossing delay is resolved near
+    ``w = 0``), yet ``F = A + B e^{-i w delta}`` has no zero: ``Re F <= 1.05 - 1.19 cos(0.1) < 0`` for ``A`` in
+    ``[0.95, 1.05] + i [-0.7, 0.7]``, ``B`` in ``[-1.21, -1.19]`` (the oracle, a closed form; checked on a dense
+    sample of the box too). Cleared now, undecided before. With ``B = -1`` and ``A = 1`` the box holds the zero
+    ``w = 0`` of every delay, and with ``A = e^{0.05 i}`` the zero ``w delta = 0.05``: not cleared."""
+    from nrobust.hyperbolic.analyses.mismatch_proof import crossing_free
+
+    arb = flint.arb
+    A, B = _ball((0.95, 1.05), (-0.7, 0.7)), _ball((-1.21, -1.19), (0.0, 0.0))
+    w = arb(0).union(arb(0.5))
+    gap = abs(A) ** 2 - abs(B) ** 2
+    assert not (gap > 0 or gap < 0)  # the moduli overlap: the first test does not decide
+    assert 1.05 - 1.19 * math.cos(0.1) < 0.0
+    grid = np.linspace(0.0, 1.0, 9)
+    a = (0.95 + 0.1 * grid)[:, None] + 1j * (-0.7 + 1.4 * grid)[None, :]
+    turns = np.exp(-1j * np.linspace(0.0, 0.1, 21))  # w delta in [0, 0.5 x 0.2]
+    values = a[:, :, None, None] + np.array([-1.21, -1.2, -1.19])[None, None, :, None] * turns[None, None, None, :]
+    assert np.max(values.real) < 0.0
+    assert crossing_free(flint, A, B, w, 0.0, 0.2)
+    assert not crossing_free(flint, _ball((1.0, 1.0), (0.0, 0.0)), _ball((-1.0, -1.0), (0.0, 0.0)), w, 0.0, 0.2)
+    shifted = flint.acb(arb(math.cos(0.05)), arb(math.sin(0.05)))  # F = e^{0.05 i} - e^{-i w delta}
+    assert not crossing_free(flint, shifted, _ball((-1.0, -1.0), (0.0, 0.0)), w, 0.0, 0.2)
