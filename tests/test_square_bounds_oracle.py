@@ -64,37 +64,50 @@ def _l1(f: Any, g: Any, cuts: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize(
-    "box", [(-0.05, 0.05, -0.05, 0.05), pytest.param((0.09, 0.1, -0.1, -0.09), marks=pytest.mark.long)]
+    ("case", "box"),
+    [
+        ("exp_gains", (-0.05, 0.05, -0.05, 0.05)),
+        ("paper_traces", (-0.05, 0.05, -0.05, 0.05)),
+        ("paper_traces", (-0.0025, 0.0, 0.0, 0.0025)),
+        pytest.param("exp_gains", (0.09, 0.1, -0.1, -0.09), marks=pytest.mark.long),
+    ],
 )
-def test_gain_radius_and_variation_hold_the_kernels_of_the_box(box: tuple[float, float, float, float]) -> None:
+def test_gain_radius_and_variation_hold_the_kernels_of_the_box(
+    case: str, box: tuple[float, float, float, float]
+) -> None:
     """The box's ``L^1`` radius is at least the ``L^1`` distance of each sampled speed's kernel to the middle
     plant's (the radius is a proof: no tolerance; the quadrature of the distance is exact to ~1e-12 on
-    polynomial pieces), and ``V_g / |z| >= |I_g(z)|`` at ``|z|`` from 20 to 500."""
+    polynomial pieces), and ``V_g / |z| >= |I_g(z)|`` at ``|z|`` from 20 to 500. The speeds: the four corners
+    and two random points of the box. Observed radius / largest distance: 2.6 to 3.0 for the gains ``e^x``,
+    ``1 + x^2``, 6.2 to 7.1 for ``U_BS2(0.1)``'s traces on the paper's plant (its kernels' jump at ``r``
+    nearly cancels, and the moving jump is bounded by the jump itself)."""
     from nrobust._flint import precision
     from nrobust.hyperbolic.analyses.mismatch_gains import gain_bounds, gain_term
     from nrobust.hyperbolic.loops.exact_form import PRECISION
 
+    system, law = (PLANT, LAW) if case == "exp_gains" else _paper_law()
     arb = flint.arb
     with precision(flint, PRECISION):
-        lam = arb(PLANT.lam) * (1 + arb(box[0]).union(arb(box[1])))
-        mu = arb(PLANT.mu) * (1 + arb(box[2]).union(arb(box[3])))
-        P, M = arb(float(PLANT.sigma_pm)) / lam, -arb(float(PLANT.sigma_mp)) / mu
-        term = gain_term(flint, PLANT, LAW.g_u, LAW.g_v, box, P, M, gain_bounds(flint, PLANT, LAW.g_u, LAW.g_v))
+        lam = arb(system.lam) * (1 + arb(box[0]).union(arb(box[1])))
+        mu = arb(system.mu) * (1 + arb(box[2]).union(arb(box[3])))
+        P, M = arb(float(system.sigma_pm)) / lam, -arb(float(system.sigma_mp)) / mu
+        term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, gain_bounds(flint, system, law.g_u, law.g_v))
     assert term is not None
     radius, v_g = term[0].radius, term[1]
     middle = dataclasses.replace(
-        PLANT, lam=PLANT.lam * (1 + 0.5 * (box[0] + box[1])), mu=PLANT.mu * (1 + 0.5 * (box[2] + box[3]))
+        system, lam=system.lam * (1 + 0.5 * (box[0] + box[1])), mu=system.mu * (1 + 0.5 * (box[2] + box[3]))
     )
-    k0, c0 = _scaled_kernel(middle, LAW)
-    # three corners: the largest distances (the kernels move monotonically with the speeds here)
-    speeds = [(box[0], box[2]), (box[1], box[3]), (box[0], box[3])]
+    k0, c0 = _scaled_kernel(middle, law)
+    rng = np.random.default_rng(3)
+    speeds = [(a, b) for a in box[:2] for b in box[2:]]
+    speeds += [tuple(rng.uniform([box[0], box[2]], [box[1], box[3]])) for _ in range(2)]
     distances = []
     for e_lam, e_mu in speeds:
-        plant = dataclasses.replace(PLANT, lam=PLANT.lam * (1 + e_lam), mu=PLANT.mu * (1 + e_mu))
-        k, c = _scaled_kernel(plant, LAW)
+        plant = dataclasses.replace(system, lam=system.lam * (1 + e_lam), mu=system.mu * (1 + e_mu))
+        k, c = _scaled_kernel(plant, law)
         distances.append(_l1(k, k0, np.concatenate([c, c0])))
         for z in (20.0, 100.0, 500.0):
-            assert v_g / z >= abs(_closed_form(plant, LAW, 1j * z / plant.tau, 4 * int(z) + 200))
+            assert v_g / z >= abs(_closed_form(plant, law, 1j * z / plant.tau, 4 * int(z) + 200))
     assert radius >= max(distances) > 0.0
 
 

@@ -24,10 +24,17 @@ derivatives, bounded on the box (:func:`_lipschitz`), independent of the frequen
 ``L^1`` bound of a kernel on ``[0, 1]`` bounds its integral against ``e^{-z t}``, so the radius of the stored
 kernel widens the enclosures of ``B`` by that much. Derivatives:
 
-- ``d/dr`` of the first term has ``L^1`` norm at most ``(sup |G_v'| + sup |G_v|) / r`` inside, plus
-  ``|G_v(0)| / r`` from its moving end; the second ``|q| (sup |G_u'| + 2 sup |G_u|) / (1 - r)`` alike;
-- ``d/dr`` of the third is ``-int (1 - xi) dH/dn dxi - H(xi_0, .) dxi_0/dr`` with ``|dxi_0/dr| <= max(1/r,
-  1/(1 - r))``; ``d/dp``, ``d/dm`` act on ``U``, ``V`` only.
+- in ``r``, at ``t`` on the same side of ``r`` and ``r_0``: ``d/dr`` of the first term has ``L^1`` norm at
+  most ``(sup |G_v'| / 2 + sup |G_v|) / r`` (``int_0^r |G_v'(1 - t/r)| t / r^3 dt <= sup |G_v'| / (2 r)``),
+  the second ``|q| (sup |G_u'| / 2 + sup |G_u|) / (1 - r)``; ``d/dr`` of the third is
+  ``-int (1 - xi) dH/dn dxi - H(xi_0, n_0) dxi_0/dr``, of ``L^1`` norm at most ``sup |H_n| / 6 + sup |H|``
+  (``int_0^1 int_{xi_0}^1 (1 - xi) dxi dt = 1/6``, ``int |dxi_0/dr| dt = 1/2`` on each side);
+- between ``r_0`` and ``r`` (a length ``|r - r_0|``) the two kernels differ by at most
+  ``|G_v(0) / r - q G_u(0) / r_0'| + |r - r_0| (sup |G_v'| / r^2 + |q| sup |G_u'| / (1 - r)^2 + sup |H|
+  max(1/r, 1/(1 - r)) + sup |H_n|)`` (``r_0' = 1 - r_0``; the jump of ``k`` at ``r``, which moves, is small when
+  ``q G_u(0) / (1 - r)`` and ``G_v(0) / r`` nearly cancel, as for the traces of ``U_BS2(K)``); ``L_r`` adds it;
+- ``d/dp``, ``d/dm`` act on ``U``, ``V`` only, in the third term, whose domain ``xi_0(t) <= xi <= 1`` has area
+  ``1/2``: ``L_p = (sup |G_u| sup |U_p| + sup |G_v| sup |V_p|) / 2``, ``L_m`` alike.
 
 Each sup over ``xi, n`` uses ``|0F1(; b; x)| <= 0F1(; b; |kappa| / 4)`` (``|x| <= |kappa| / 4``) and
 ``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`section_bounds`); the gains' sups come from their Taylor
@@ -170,7 +177,7 @@ def section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any,
     return {"U": u, "V": v}
 
 
-def section_curvatures(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any]]:
+def _section_curvatures(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any]]:
     """For ``U`` and ``V`` (module notes): sups of ``|d/dxi|`` and ``|d^2/dn^2|`` over ``0 <= n <= xi <= 1`` and
     every ``(p, m)`` of the balls.
 
@@ -221,17 +228,23 @@ def time_ratio(flint: Any, system: Hyperbolic2x2, box: tuple[float, float, float
 
 
 def _lipschitz(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> tuple[Any, Any, Any]:
-    """``(L_p, L_m, L_r)``: bounds of the ``L^1`` norms of ``dk/dp``, ``dk/dm``, ``dk/dr`` on the balls (notes)."""
+    """``(L_p, L_m, L_r)``: ``L_p |p - p_0| + L_m |m - m_0| + L_r |r - r_0|`` bounds the ``L^1`` distance of the
+    kernels of two points of the balls (the notes; ``L_r`` holds the moving jump at ``r`` for any two ``r`` of
+    ``R``: its term second order in ``|r - r_0|`` is bounded with the width of ``R``)."""
+    arb = flint.arb
     sec = section_bounds(flint, P, M, q)
     (us, un, up, um), (vs, vn, vp, vm) = sec["U"], sec["V"]
     h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
-    lp, lm = g.u0 * up + g.v0 * vp, g.u0 * um + g.v0 * vm
-    r_lo, r_hi = flint.arb(R.lower()), 1 - flint.arb(R.upper())  # r >= r_lo, 1 - r >= r_hi
+    lp, lm = (g.u0 * up + g.v0 * vp) / 2, (g.u0 * um + g.v0 * vm) / 2  # over an area 1/2 of (t, xi)
+    r_lo, r_hi = arb(R.lower()), 1 - arb(R.upper())  # r >= r_lo, 1 - r >= r_hi
     if not (r_lo > 0 and r_hi > 0):
         raise CertificationError("the ratio of the times of flight leaves (0, 1) on the box")
-    Q = abs(flint.arb(q))
-    lr = (g.v1 + 2 * g.v0) / r_lo + Q * (g.u1 + 2 * g.u0) / r_hi + h_n + h * flint.arb.max(1 / r_lo, 1 / r_hi)
-    return lp, lm, lr
+    Q = abs(arb(q))
+    inside = (g.v1 / 2 + g.v0) / r_lo + Q * (g.u1 / 2 + g.u0) / r_hi + h_n / 6 + h
+    jump = abs(g.v_at[0] / R - arb(q) * g.u_at[0] / (1 - R))  # each R a point of the ball on its own
+    width = arb(R.upper()) - arb(R.lower())
+    near = g.v1 / r_lo**2 + Q * g.u1 / r_hi**2 + h * arb.max(1 / r_lo, 1 / r_hi) + h_n
+    return lp, lm, inside + jump + width * near
 
 
 def gain_variation(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> Any:
@@ -256,7 +269,7 @@ def gain_variations(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds)
     parts once and twice on ``[0, r]`` and ``[r, 1]``: the module notes)."""
     arb = flint.arb
     first = gain_variation(flint, P, M, R, q, g)
-    sec, curv = section_bounds(flint, P, M, q), section_curvatures(flint, P, M, q)
+    sec, curv = section_bounds(flint, P, M, q), _section_curvatures(flint, P, M, q)
     (us, un, _, _), (vs, vn, _, _) = sec["U"], sec["V"]
     (ux, unn), (vx, vnn) = curv["U"], curv["V"]
     h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
