@@ -197,7 +197,7 @@ def test_traces_are_the_gains_of_the_law() -> None:
 
 
 def test_reflection_square_is_proven_and_agrees_with_a_scan() -> None:
-    """U_BS2(0.1) on a coupled plant proven on the square ``[-0.05, 0.05]^2`` x ``[0, 1]`` (about 60 boxes), and
+    """U_BS2(0.1) on a coupled plant proven on the square ``[-0.05, 0.05]^2`` x ``[0, 1]`` (11 boxes), and
     the oracle with the grid's gains stable on the window at every point of a 5 x 5 grid (no zero in
     ``Re s > 0`` without delay, first crossing delay beyond the window)."""
     result = speed_tolerance(MILD, ReflectionController(REFLECTION_K), EPS, WINDOW, grid=2, rigorous=True)
@@ -239,3 +239,63 @@ def test_a_proof_out_of_boxes_falls_back_to_the_corners() -> None:
     result = speed_tolerance(MILD, ReflectionController(REFLECTION_K), EPS, WINDOW, grid=2, rigorous=True, max_boxes=5)
     assert result.met and result.certified == "proven at the corners"
     assert "work bound" in result.statement and "proven on the square" not in result.statement
+
+
+PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+
+
+def _paper_first_crossing(e_lam: float, e_mu: float, K: float) -> float:
+    """The smallest delay with a zero of ``A + B e^{-delta s}`` on ``i (0, 30]`` for U_BS2(K) on the paper's plant
+    with mismatched speeds, from the Laplace-domain oracle (the 2x2 exponential in closed form, :func:`_exp_np`;
+    the gains from the kernels on 401 points, not the package's fits; 16 panels for ``|s| <= 30``)."""
+    from scipy.optimize import brentq
+
+    from nrobust.hyperbolic.kernels.constant import solve_kernels
+
+    law = ReflectionController(K).feedback_law(PAPER, solve_kernels(PAPER, 401))
+    lam, mu = PAPER.lam * (1 + e_lam), PAPER.mu * (1 + e_mu)
+    x, wts = _gauss(panels=16)
+    g_u, g_v = (np.asarray(g(x), dtype=float) for g in (law.gain_u, law.gain_v))
+
+    def factors(w: Any) -> tuple[Any, Any]:
+        s = 1j * np.asarray(w, dtype=float)[..., None]
+        e11, e12, e21, e22 = _exp_np(1.0, s, lam, mu, 1.0, 1.0)
+        f11, f12, f21, f22 = _exp_np(x, s, lam, mu, 1.0, 1.0)
+        u1, v1 = e11 + e12, e21 + e22  # q = 1
+        integral = ((g_u * (f11 + f12) + g_v * (f21 + f22)) * np.exp(-s * (1 - x) / mu) * wts).sum(axis=-1)
+        return (v1 - PAPER.rho * u1)[..., 0], -(-K * u1[..., 0] + integral)
+
+    def gap(w: Any) -> Any:
+        A, B = factors(w)
+        return np.abs(A) ** 2 - np.abs(B) ** 2
+
+    grid = np.linspace(1e-6, 30.0, 6001)
+    g = gap(grid)
+    best = np.inf
+    for i in np.nonzero(np.sign(g[:-1]) != np.sign(g[1:]))[0]:
+        wc = brentq(gap, grid[i], grid[i + 1], xtol=1e-13)
+        A, B = factors(np.array(wc))
+        best = min(best, float((-np.angle(-A / B)) % (2 * np.pi) / wc))
+    return best
+
+
+def test_paper_square_past_its_margin_is_not_met() -> None:
+    """The paper's plant under U_BS2(0.1) with the delays ``[0, 0.2]``: its margin 0.2295 at the centre (the
+    oracle), but 0.1913 at the corner ``(e_lam, e_mu) = (-0.05, 0.05)``: the square of ``eps = 0.05`` is not
+    met, and the verdict says so whatever the proof's bounds."""
+    assert _paper_first_crossing(0.0, 0.0, 0.1) == pytest.approx(0.22954, abs=1e-4)
+    assert _paper_first_crossing(-0.05, 0.05, 0.1) == pytest.approx(0.19126, abs=1e-4)
+    result = speed_tolerance(PAPER, ReflectionController(0.1), 0.05, (0.0, 0.2), grid=2, rigorous=True)
+    assert result.certified == "not met" and not result.met
+    assert "(-0.05, 0.05)" in result.statement
+
+
+@pytest.mark.slow
+def test_paper_square_is_proven_for_a_small_tolerance() -> None:
+    """The paper's plant under U_BS2(0.1) proven on ``[-0.002, 0.002]^2`` x ``[0, 0.2]`` (about 2,200 boxes, 16 s
+    of CPU; its frequency bound ``W`` near 173 in ``tau s``), and the oracle's first crossing delay beyond the
+    window at the corners and the centre (0.2291 to 0.2300)."""
+    for e_lam, e_mu in [(-0.002, -0.002), (-0.002, 0.002), (0.002, -0.002), (0.002, 0.002), (0.0, 0.0)]:
+        assert _paper_first_crossing(e_lam, e_mu, 0.1) > 0.229
+    result = speed_tolerance(PAPER, ReflectionController(0.1), 0.002, (0.0, 0.2), grid=2, rigorous=True, max_boxes=4000)
+    assert result.met and result.certified == "proven on the square", result.statement

@@ -2,9 +2,9 @@
 
 The notes below are for ``U = k u(t, 1)``; a law with integral gains fixed whatever the speeds (a
 :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`, ``U_BS2(K)`` with its traces enclosed) adds
-``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` in step 1
-(:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains known within ``gain_error`` widen it by their
-``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
+``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` and by
+``V_{g,1} / |z| + V_{g,2} / |z|^2`` in step 1 (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains
+known within ``gain_error`` widen it by their ``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
 
 The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
 no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
@@ -84,7 +84,7 @@ from ..loops.controllers import StateFeedback, loop_factors, loop_route
 from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_exact_form
 from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variation, time_ratio
+from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variations, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
 
 __all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
@@ -414,15 +414,15 @@ def prove_coupled_square(
         except CertificationError as exc:
             return SquareProof(False, str(exc), taus, nan, ball_upper(c_d), 0, nan)
         v0, v1, v2 = (a + abs(arb(k)) * b for a, b in zip(v_n, v_u))
-        if _has_gains(law):  # the gains' term: |I_g| <= V_g / |z| (mismatch_gains)
+        if _has_gains(law):  # the gains' term: |I_g| <= V_g / |z|, <= V_{g,1} / |z| + V_{g,2} / |z|^2 (mismatch_gains)
             failure = gain_failure(system, law.g_u, law.g_v)
             if failure is not None:
                 return SquareProof(False, f"the law's gains have no exact loop: {failure}", taus, nan, nan, 0, nan)
             with precision(flint, PRECISION):
-                v_g = gain_variation(
+                v_g, v_g1, v_g2 = gain_variations(
                     flint, P, M, time_ratio(flint, system, square), system.q, _gain_bounds(system, law)
                 )
-            v0, v1 = v0 + v_g, v1 + v_g
+            v0, v1, v2 = v0 + v_g, v1 + v_g1, v2 + v_g2
         # gains within gain_error: their part of I_g is at most its L^1 bound, whatever |z|
         off = error_radius(flint, P, M, system.q, gain_error) if gain_error else arb(0)
         if not c_d + off < 1:

@@ -24,16 +24,38 @@ derivatives, bounded on the box (:func:`_lipschitz`), independent of the frequen
 ``L^1`` bound of a kernel on ``[0, 1]`` bounds its integral against ``e^{-z t}``, so the radius of the stored
 kernel widens the enclosures of ``B`` by that much. Derivatives:
 
-- ``d/dr`` of the first term has ``L^1`` norm at most ``(sup |G_v'| + sup |G_v|) / r`` inside, plus
-  ``|G_v(0)| / r`` from its moving end; the second ``|q| (sup |G_u'| + 2 sup |G_u|) / (1 - r)`` alike;
-- ``d/dr`` of the third is ``-int (1 - xi) dH/dn dxi - H(xi_0, .) dxi_0/dr`` with ``|dxi_0/dr| <= max(1/r,
-  1/(1 - r))``; ``d/dp``, ``d/dm`` act on ``U``, ``V`` only.
+- in ``r``, at ``t`` on the same side of ``r`` and ``r_0``: ``d/dr`` of the first term has ``L^1`` norm at
+  most ``(sup |G_v'| / 2 + sup |G_v|) / r`` (``int_0^r |G_v'(1 - t/r)| t / r^3 dt <= sup |G_v'| / (2 r)``),
+  the second ``|q| (sup |G_u'| / 2 + sup |G_u|) / (1 - r)``; ``d/dr`` of the third is
+  ``-int (1 - xi) dH/dn dxi - H(xi_0, n_0) dxi_0/dr``, of ``L^1`` norm at most ``sup |H_n| / 6 + sup |H|``
+  (``int_0^1 int_{xi_0}^1 (1 - xi) dxi dt = 1/6``, ``int |dxi_0/dr| dt = 1/2`` on each side);
+- between ``r_0`` and ``r`` (a length ``|r - r_0|``) the two kernels differ by at most
+  ``|G_v(0) / r - q G_u(0) / r_0'| + |r - r_0| (sup |G_v'| / r^2 + |q| sup |G_u'| / (1 - r)^2 + sup |H|
+  max(1/r, 1/(1 - r)) + sup |H_n|)`` (``r_0' = 1 - r_0``; the jump of ``k`` at ``r``, which moves, is small when
+  ``q G_u(0) / (1 - r)`` and ``G_v(0) / r`` nearly cancel, as for the traces of ``U_BS2(K)``); ``L_r`` adds it;
+- ``d/dp``, ``d/dm`` act on ``U``, ``V`` only, in the third term, whose domain ``xi_0(t) <= xi <= 1`` has area
+  ``1/2``: ``L_p = (sup |G_u| sup |U_p| + sup |G_v| sup |V_p|) / 2``, ``L_m`` alike.
 
 Each sup over ``xi, n`` uses ``|0F1(; b; x)| <= 0F1(; b; |kappa| / 4)`` (``|x| <= |kappa| / 4``) and
 ``d/dx 0F1(; b; x) = 0F1(; b + 1; x) / b`` (:func:`section_bounds`); the gains' sups come from their Taylor
-models (:func:`gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``:
-``|I_g| <= V_g / |z|`` on ``Re z >= 0`` with ``V_g`` the four end values plus ``int |k'|``
-(:func:`gain_variation`).
+models (:func:`gain_bounds`). For the frequency bound, integrating by parts on ``[0, r]`` and ``[r, 1]``
+(``k`` is smooth on each, with a jump and a kink at ``r``), once: ``|I_g| <= V_g / |z|`` on ``Re z >= 0``
+with ``V_g`` the four end values plus ``int |k'|``; twice: ``|I_g| <= V_{g,1} / |z| + V_{g,2} / |z|^2`` with
+
+    ``V_{g,1} = |k(0)| + |k(r+) - k(r-)| + |k(1)|``,
+    ``k(0) = G_v(1) / r``, ``k(1) = q G_u(1) / (1 - r)``, ``k(r+) - k(r-) = q G_u(0) / (1 - r) - G_v(0) / r``,
+
+(the third term of ``k`` is continuous and vanishes at ``t = 0`` and ``t = 1``) and
+``V_{g,2} = |k'(0)| + |k'(r+) - k'(r-)| + |k'(1)| + int |k''|`` (:func:`gain_variations`). With
+``H = G_u U + G_v V`` and ``n_0 = t - r (1 - xi_0)`` (``0`` below ``r``, ``xi_0`` above),
+
+    ``k'  = -G_v' / r^2 + H(xi_0, 0) / r + int H_n``                         (t < r),
+    ``k'  = q G_u' / (1 - r)^2 - H(xi_0, xi_0) / (1 - r) + int H_n``           (t > r),
+    ``k'' = G_v'' / r^3 - H_xi(xi_0, 0) / r^2 + H_n(xi_0, 0) / r + int H_nn``  (t < r),
+    ``k'' = q G_u'' / (1 - r)^3 - (H_xi + H_n)(xi_0, xi_0) / (1 - r)^2 - H_n(xi_0, xi_0) / (1 - r) + int H_nn``,
+
+the integrals over ``[xi_0, 1]`` at ``n = t - r (1 - xi)``; each term bounded by the sups of
+:func:`section_bounds` (``U``, ``V`` and their first and second derivatives) and of the gains.
 """
 
 from __future__ import annotations
@@ -53,7 +75,16 @@ from ..loops.exact_gains import ORDER, gain_kernel, gain_models, gain_plant
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_proof import ball_upper
 
-__all__ = ["GainBounds", "gain_bounds", "gain_term", "error_radius", "gain_variation", "section_bounds", "time_ratio"]
+__all__ = [
+    "GainBounds",
+    "gain_bounds",
+    "gain_term",
+    "error_radius",
+    "gain_variation",
+    "gain_variations",
+    "section_bounds",
+    "time_ratio",
+]
 
 #: Balls per Taylor-model piece on which the gains' sups are taken.
 _SUBBALLS = 8
@@ -63,7 +94,8 @@ _SUBBALLS = 8
 class GainBounds:
     """Sups of the effective gains on ``[0, 1]`` (balls' upper bounds, as python-flint ``arb``).
 
-    ``u0 = sup |G_u|``, ``u1 = sup |G_u'|``, ``u_ends = (|G_u(0)|, |G_u(1)|)``, and the same for ``G_v``.
+    ``u0 = sup |G_u|``, ``u1 = sup |G_u'|``, ``u_ends = (|G_u(0)|, |G_u(1)|)``, ``u2 = sup |G_u''|`` and
+    ``u_at = (G_u(0), G_u(1))`` (signed balls), and the same for ``G_v``.
     """
 
     u0: Any
@@ -72,6 +104,10 @@ class GainBounds:
     v0: Any
     v1: Any
     v_ends: tuple[Any, Any]
+    u2: Any
+    v2: Any
+    u_at: tuple[Any, Any]
+    v_at: tuple[Any, Any]
 
 
 def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBounds:
@@ -79,7 +115,12 @@ def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBo
     (:mod:`~nrobust.hyperbolic.loops.exact_gains`: a polynomial on each piece within a proven remainder,
     and the remainder of its derivative), at the precision of ``exact_gains`` (the models' global
     coefficients cancel); each model is taken back to its local variable ``t`` (``xi = c + r t``,
-    ``|t| <= 1``) before it is evaluated on balls (no cancellation there)."""
+    ``|t| <= 1``) before it is evaluated on balls (no cancellation there).
+
+    A model's remainder is ``R(t) = G(c + r t) - P(t)`` with ``|R| <= rem``, the enclosure of the Taylor
+    coefficient of order ``ORDER`` over the piece; by Taylor's theorem for ``R'`` and ``R''`` (the
+    remainders of the expansions of ``d/dt`` and ``d^2/dt^2``), ``|R'| <= ORDER rem`` (the models'
+    ``derivative``) and ``|R''| <= ORDER (ORDER - 1) rem``."""
     arb, arb_poly = flint.arb, flint.arb_poly
     plant = gain_plant(system)
     bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + ORDER * 7 + 64
@@ -87,23 +128,28 @@ def gain_bounds(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainBo
         n, mod_u, mod_v = gain_models(flint, plant, g_u, g_v)
         out = []
         for mod in (mod_u, mod_v):
-            sup0, sup1 = arb(0), arb(0)
+            sup0, sup1, sup2 = arb(0), arb(0), arb(0)
             for j in range(n):
                 c, r = arb(2 * j + 1) / (2 * n), 1 / arb(2 * n)  # the piece [j/n, (j+1)/n]: t in [-1, 1]
                 local = mod.polys[j](arb_poly([c, r]))
                 slope = local.derivative()
+                curve = slope.derivative()
                 for i in range(_SUBBALLS):
                     t = arb(-1 + (2 * i + 1) / _SUBBALLS, 1 / _SUBBALLS)
                     sup0 = arb.max(sup0, abs(local(t)) + mod.remainder[j])
-                    # d/dxi = (1/r) d/dt; the remainder's derivative is bounded in the model's own t (a radius
-                    # above 1/(2n)): at most 2 n times it in xi
+                    # d/dxi = (1/r) d/dt; the remainder's derivatives are bounded in the model's own t (a radius
+                    # above 1/(2n)): at most 2 n (4 n^2) times them in xi
                     sup1 = arb.max(sup1, (abs(slope(t)) + mod.derivative[j]) * (2 * n))
-            ends = (abs(mod.polys[0](arb(0))) + mod.remainder[0], abs(mod.polys[-1](arb(1))) + mod.remainder[-1])
-            out.append((sup0, sup1, ends))
-    (u0, u1, ue), (v0, v1, ve) = out
-    if not all(x.is_finite() for x in (u0, u1, v0, v1, *ue, *ve)):
+                    sup2 = arb.max(sup2, (abs(curve(t)) + (ORDER - 1) * mod.derivative[j]) * (4 * n * n))
+            at = (
+                mod.polys[0](arb(0)) + arb(0, ball_upper(mod.remainder[0])),
+                mod.polys[-1](arb(1)) + arb(0, ball_upper(mod.remainder[-1])),
+            )
+            out.append((sup0, sup1, (abs(at[0]), abs(at[1])), sup2, at))
+    (u0, u1, ue, u2, ua), (v0, v1, ve, v2, va) = out
+    if not all(x.is_finite() for x in (u0, u1, u2, v0, v1, v2, *ue, *ve)):
         raise CertificationError("the gains' Taylor models give no finite bound on [0, 1]")
-    return GainBounds(u0, u1, ue, v0, v1, ve)
+    return GainBounds(u0, u1, ue, v0, v1, ve, u2, v2, ua, va)
 
 
 def section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any, Any, Any]]:
@@ -131,6 +177,34 @@ def section_bounds(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any,
     return {"U": u, "V": v}
 
 
+def _section_curvatures(flint: Any, P: Any, M: Any, q: float) -> dict[str, tuple[Any, Any]]:
+    """For ``U`` and ``V`` (module notes): sups of ``|d/dxi|`` and ``|d^2/dn^2|`` over ``0 <= n <= xi <= 1`` and
+    every ``(p, m)`` of the balls.
+
+    With ``F_b = 0F1(; b; x)``, ``|F_b| <= f_b = 0F1(; b; |kappa| / 4)``, ``F_b' = F_{b + 1} / b`` and
+    ``x = kappa n (xi - n)``: ``|x_xi| = |kappa| n <= |kappa|``, ``|x_n| = |kappa (xi - 2 n)| <= |kappa|``,
+    ``x_nn = -2 kappa``, ``n (xi - n) <= 1/4``.
+    """
+    arb = flint.arb
+    p, m = arb(abs(P).upper()), arb(abs(M).upper())
+    Q = abs(arb(q))
+    kap = p * m
+    f2, f3, f4 = (arb(kap / 4).hypgeom_0f1(b) for b in (2, 3, 4))
+    # U = q kappa n F2 + p F1: U_xi = q kappa^2 n^2 F3 / 2 + p kappa n F2,
+    # U_nn = 2 q kappa F2' x_n + q kappa n (F2'' x_n^2 + F2' x_nn) + p (F1'' x_n^2 + F1' x_nn)
+    u = (
+        Q * kap * kap * f3 / 2 + p * kap * f2,
+        Q * kap * kap * f3 + Q * kap * (kap * kap * f4 / 6 + kap * f3) + p * (kap * kap * f3 / 2 + 2 * kap * f2),
+    )
+    # V = kappa (xi - n) F2 + m q F1: V_xi = kappa F2 + kappa^2 (xi - n) n F3 / 2 + m q kappa n F2,
+    # V_nn = -2 kappa F2' x_n + kappa (xi - n) (F2'' x_n^2 + F2' x_nn) + m q (F1'' x_n^2 + F1' x_nn)
+    v = (
+        kap * f2 + kap * kap * f3 / 8 + m * Q * kap * f2,
+        kap * kap * f3 + kap * (kap * kap * f4 / 6 + kap * f3) + m * Q * (kap * kap * f3 / 2 + 2 * kap * f2),
+    )
+    return {"U": u, "V": v}
+
+
 def error_radius(flint: Any, P: Any, M: Any, q: float, error: float) -> Any:
     """The ``L^1`` norm of ``k`` for gains ``e_u``, ``e_v`` with ``|e_u|, |e_v| <= error``, on the balls:
     ``error (1 + |q| + sup |U| + sup |V|)`` (the first two terms of ``k`` are ``e`` moved and scaled, of ``L^1``
@@ -154,17 +228,23 @@ def time_ratio(flint: Any, system: Hyperbolic2x2, box: tuple[float, float, float
 
 
 def _lipschitz(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> tuple[Any, Any, Any]:
-    """``(L_p, L_m, L_r)``: bounds of the ``L^1`` norms of ``dk/dp``, ``dk/dm``, ``dk/dr`` on the balls (notes)."""
+    """``(L_p, L_m, L_r)``: ``L_p |p - p_0| + L_m |m - m_0| + L_r |r - r_0|`` bounds the ``L^1`` distance of the
+    kernels of two points of the balls (the notes; ``L_r`` holds the moving jump at ``r`` for any two ``r`` of
+    ``R``: its term second order in ``|r - r_0|`` is bounded with the width of ``R``)."""
+    arb = flint.arb
     sec = section_bounds(flint, P, M, q)
     (us, un, up, um), (vs, vn, vp, vm) = sec["U"], sec["V"]
     h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
-    lp, lm = g.u0 * up + g.v0 * vp, g.u0 * um + g.v0 * vm
-    r_lo, r_hi = flint.arb(R.lower()), 1 - flint.arb(R.upper())  # r >= r_lo, 1 - r >= r_hi
+    lp, lm = (g.u0 * up + g.v0 * vp) / 2, (g.u0 * um + g.v0 * vm) / 2  # over an area 1/2 of (t, xi)
+    r_lo, r_hi = arb(R.lower()), 1 - arb(R.upper())  # r >= r_lo, 1 - r >= r_hi
     if not (r_lo > 0 and r_hi > 0):
         raise CertificationError("the ratio of the times of flight leaves (0, 1) on the box")
-    Q = abs(flint.arb(q))
-    lr = (g.v1 + 2 * g.v0) / r_lo + Q * (g.u1 + 2 * g.u0) / r_hi + h_n + h * flint.arb.max(1 / r_lo, 1 / r_hi)
-    return lp, lm, lr
+    Q = abs(arb(q))
+    inside = (g.v1 / 2 + g.v0) / r_lo + Q * (g.u1 / 2 + g.u0) / r_hi + h_n / 6 + h
+    jump = abs(g.v_at[0] / R - arb(q) * g.u_at[0] / (1 - R))  # each R a point of the ball on its own
+    width = arb(R.upper()) - arb(R.lower())
+    near = g.v1 / r_lo**2 + Q * g.u1 / r_hi**2 + h * arb.max(1 / r_lo, 1 / r_hi) + h_n
+    return lp, lm, inside + jump + width * near
 
 
 def gain_variation(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> Any:
@@ -181,6 +261,38 @@ def gain_variation(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) 
     ends = (g.v_ends[1] + g.v_ends[0]) / r_lo + Q * (g.u_ends[0] + g.u_ends[1]) / r_hi + 2 * h
     slopes = g.v1 / r_lo + Q * g.u1 / r_hi + h_n + h * arb.max(1 / r_lo, 1 / r_hi)
     return ends + slopes
+
+
+def gain_variations(flint: Any, P: Any, M: Any, R: Any, q: float, g: GainBounds) -> tuple[Any, Any, Any]:
+    """``(V_g, V_{g,1}, V_{g,2})``: ``|int_0^1 k(t) e^{-z t} dt|`` is at most ``V_g / |z|`` and at most
+    ``V_{g,1} / |z| + V_{g,2} / |z|^2`` on ``Re z >= 0`` for every ``(p, m, r)`` of the balls (integration by
+    parts once and twice on ``[0, r]`` and ``[r, 1]``: the module notes)."""
+    arb = flint.arb
+    first = gain_variation(flint, P, M, R, q, g)
+    sec, curv = section_bounds(flint, P, M, q), _section_curvatures(flint, P, M, q)
+    (us, un, _, _), (vs, vn, _, _) = sec["U"], sec["V"]
+    (ux, unn), (vx, vnn) = curv["U"], curv["V"]
+    h, h_n = g.u0 * us + g.v0 * vs, g.u0 * un + g.v0 * vn
+    h_xi = g.u1 * us + g.u0 * ux + g.v1 * vs + g.v0 * vx
+    h_nn = g.u0 * unn + g.v0 * vnn
+    Q = arb(q)
+    rest = 1 - R  # 1 - r as a ball (R stays in (0, 1): gain_variation checked it)
+    values = abs(g.v_at[1] / R) + abs(Q * g.u_at[0] / rest - g.v_at[0] / R) + abs(Q * g.u_at[1] / rest)
+    r_lo, s_lo = arb(R.lower()), arb(rest.lower())  # r >= r_lo, 1 - r >= s_lo
+    r_hi, s_hi = arb(R.upper()), arb(rest.upper())
+    Qa = abs(Q)
+    ends = (
+        g.v1 / r_lo**2
+        + h / r_lo  # |k'(0)|
+        + Qa * g.u1 / s_lo**2
+        + h / s_lo  # |k'(1)|
+        + Qa * g.u1 / s_lo**2
+        + g.v1 / r_lo**2
+        + h * (1 / r_lo + 1 / s_lo)  # |k'(r+) - k'(r-)|
+    )
+    below = g.v2 / r_lo**2 + h_xi / r_lo + h_n + r_hi * h_nn  # int_0^r |k''| <= r sup |k''|
+    above = Qa * g.u2 / s_lo**2 + (h_xi + h_n) / s_lo + h_n + s_hi * h_nn
+    return first, values, ends + below + above
 
 
 def gain_term(

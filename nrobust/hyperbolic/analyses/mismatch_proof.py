@@ -229,8 +229,10 @@ def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) 
     """True when ``A + B e^{-i w delta} != 0`` for every ``w`` in the ball ``w >= 0`` and ``delta`` in ``[d_lo, d_hi]``.
 
     ``A``, ``B`` are ``acb`` enclosures of the factors on the box (every point of it): cleared by
-    the sign of ``|A|^2 - |B|^2``, or by every crossing delay ``(2 pi k - arg(-A/B))/w`` lying
-    outside the window.
+    the sign of ``|A|^2 - |B|^2``, by ``A + B e^{-i w delta}`` enclosed away from 0 with ``w delta`` a
+    ball (near ``w = 0``, where ``arg(-A/B)`` is a multiple of ``2 pi`` and the crossing delays are not
+    resolved: ``F(0) = A + B`` for every delay), or by every crossing delay ``(2 pi k - arg(-A/B))/w``
+    lying outside the window.
     """
     arb, acb = flint.arb, flint.acb
     gap = abs(A) ** 2 - abs(B) ** 2
@@ -238,6 +240,9 @@ def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) 
         return True
     if B.contains(0) or not B.is_finite():
         return False
+    delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
+    if not (A + B * acb(0, -(w * delays)).exp()).contains(0):
+        return True
     Q = -A / B  # F = 0 iff e^{-i w delta} = Q
     mid = complex(float(Q.real.mid()), float(Q.imag.mid()))
     if mid == 0:
@@ -248,7 +253,6 @@ def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) 
         return False
     phase = arb(turn) + rotated.arg()
     two_pi = 2 * arb.pi()
-    delays = arb(d_lo) if d_lo == d_hi else arb(d_lo).union(arb(d_hi))
     # w delta + phase must be a multiple of 2 pi: the crossing delays (2 pi k - phase) / w
     span = (w * delays + phase) / two_pi
     if not span.contains_integer():
