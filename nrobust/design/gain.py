@@ -130,6 +130,8 @@ _SECANT_STEPS = 8
 #: Steps of a few ulps (growing by 4) that move a junction located to rounding to the side where ``D <= 0``.
 _JUNCTION_NUDGES = 6
 _EPS = float(np.finfo(float).eps)
+#: Halvings of a sample cell where a pole and a junction of the crossing curves share it (:meth:`_Curves._split_poles`).
+_POLE_SPLITS = 40
 
 
 @dataclass(frozen=True, eq=False)
@@ -687,6 +689,17 @@ def _joined(first: _Axis, second: _Axis) -> _Axis:
     return _Axis(**joined)
 
 
+def _inserted(at: _Axis, more: _Axis) -> _Axis:
+    """The samples of ``at`` and ``more`` by increasing frequency."""
+    order = np.argsort(np.concatenate([at.w, more.w]), kind="stable")
+    joined = _joined(at, more)
+    ordered: dict[str, Any] = {}
+    for f in fields(_Axis):
+        x = getattr(joined, f.name)
+        ordered[f.name] = None if x is None else x[order]
+    return _Axis(**ordered)
+
+
 def _kernel_sign(base: DistributedDelay, d: DistributedDelay) -> float:
     """``1`` or ``-1`` when ``d`` stores the kernel of ``base`` or its negation (same segments and moment), else 0."""
     if d.moment != base.moment or not all(np.array_equal(u, v) for u, v in zip(d.pieces[:2], base.pieces[:2])):
@@ -984,11 +997,11 @@ class _Curves:
             )
         low = dw * 2.0 ** (-np.arange(_PER_OCTAVE * _LOW_OCTAVES, 0, -1) / _PER_OCTAVE)
         uniform = dw * np.arange(1, n - low.size + 1, dtype=float)
-        w = np.concatenate([low, uniform])
         # the uniform samples evaluated apart from the geometric ones: on a vertical line of uniform steps the
         # distributed terms are chirp-z transforms (:mod:`nrobust.distributed_delay`), not an exponential per
         # node and sample
-        at = _joined(loop.axis(low, slopes=True), loop.axis(uniform, slopes=True))
+        at = self._split_poles(_joined(loop.axis(low, slopes=True), loop.axis(uniform, slopes=True)))
+        w = at.w
         D, m, root = at.branches()
         junctions = self._junctions(w, D)
         pole = np.sign(at.curvature())
@@ -1004,6 +1017,36 @@ class _Curves:
         self.gains = np.linspace(K_lo, K_hi, _N_GAINS)
         self.envelope, self.active = self._envelope(self.gains)
         self.edges = _stability_edges(self)
+
+    def _split_poles(self, at: _Axis) -> _Axis:
+        """The samples ``at`` with more between two samples where ``c_2`` changes sign but ``D < 0`` at one of them.
+
+        Next to a pole (``c_2 = 0``) ``D`` is large and positive (one root of ``g`` passes through
+        ``p = inf``): in such a cell a junction (``D = 0``) lies between the pole and the sample
+        where ``D < 0``, and the piece of the curve between them, which reaches every parameter
+        beyond the junction's, is not seen by the samples (on the collocated observer's loop of the
+        plant ``(1, 1, 1, 1, 1, 0.8)`` a pole and a junction 0.005 apart at ``w = 3.18``, a curve
+        with the smallest crossing delay at the parameters below ``-0.51``). The cell is halved
+        until the pole has valid samples on both sides (:meth:`_poles`, :meth:`_junctions` then
+        treat each event in its own cell), at most :data:`_POLE_SPLITS` times, else a
+        :class:`~nrobust.errors.CertificationError`.
+        """
+        if self.loop.gain:  # c_2 = -|R|^2: no pole
+            return at
+        for _ in range(_POLE_SPLITS):
+            D = at.branches()[0]
+            pole, valid = np.sign(at.curvature()), D >= 0.0
+            j = np.flatnonzero((pole[:-1] != pole[1:]) & ~(valid[:-1] & valid[1:]))
+            if not j.size:
+                return at
+            mid = 0.5 * (at.w[j] + at.w[j + 1])
+            at = _inserted(at, self.loop.axis(mid, slopes=True))
+        w = float(at.w[j[0]])
+        raise CertificationError(
+            f"best_margin: the crossing curves of the parameters [{self.K_lo:.12g}, {self.K_hi:.12g}] pass through "
+            f"p = inf and meet a junction (D = 0) within {2.0**-_POLE_SPLITS:.3g} of a sample step of each other "
+            f"near w = {w:.12g}; the scan cannot tell the pieces apart there (other bounds may help)"
+        )
 
     def cell(self, w: float) -> float:
         """The spacing of the samples about the frequency ``w``: ``dw``, or less below it (geometric samples)."""
