@@ -49,7 +49,9 @@ of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near t
 strong-stability bound, crossing pairs are born within tiny gain intervals: on the paper's
 plant, gains within about 1 % of it); the returned margin is certified whatever happens between
 samples, and a missed curve that would lower it is caught by the certificate
-(:class:`~nrobust.errors.CertificationError`, never a wrong margin).
+(:class:`~nrobust.errors.CertificationError`, never a wrong margin). About a pole (a branch
+through ``p = inf``) the step is halved until no junction shares the pole's cell and the branch
+through infinity has passed the bounds at the samples on both sides.
 """
 
 from __future__ import annotations
