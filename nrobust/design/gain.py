@@ -3314,6 +3314,8 @@ def _two_paths_peak(
             one = abs(up.at(Kb) - rb) <= 1e-9 * (1.0 + abs(rb))
         except _PathLost:
             one = False
+        if one and not up.slope(Kb) < 0.0:  # the followed zero's slope at K_b, not the certified one's: undecided
+            return None
         if one:  # one path: a smooth maximum
             K = brentq(up.slope, Ka, Kb, xtol=xtol, rtol=4 * _EPS)
             kind, top = "interior smooth max", up
