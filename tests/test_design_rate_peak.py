@@ -18,6 +18,7 @@ from scipy.optimize import brentq, newton
 import nrobust as nr
 from nrobust.design.gain import best_decay_rate
 from nrobust.hyperbolic.analyses.state_design import state_feedback_loop
+from nrobust.hyperbolic.loops.controllers import CollocatedOutputFeedback, ReflectionController, loop_factors
 from nrobust.margins import AffineGainLoop, delay_margin
 from nrobust.roots import spectral_abscissa
 
@@ -70,3 +71,23 @@ def test_peak_is_the_crossing_of_two_zeros(loop: AffineGainLoop) -> None:
     # ~1e-16; 1e-12 leaves room for the rounding of the two evaluations of the loop near the crossing
     np.testing.assert_allclose(design.K, k, rtol=0, atol=1e-12)
     np.testing.assert_allclose(design.value, -_zero(loop, k, -1.2 + 0j).real, rtol=1e-12)
+
+
+def test_collocated_observer_rate_design_on_a_plateau() -> None:
+    """The collocated observer's decay-rate design for U_BS2(0.1) on ``(1, 1, 1, 1, 1, 0.7)`` with a margin of at
+    least 0.1: the rate is the slower of the observer's error and the law's target system, flat at the latter's
+    (0.25541) over a range of ``kappa``; where the zero followed from one sample reached the other's with a slope
+    of the other sign, Brent's root finder was given no bracket (a ``ValueError``). The design must reach the best
+    rate of a grid of loops built at each ``kappa`` (certified spectral abscissae, errors ~1e-14; certified
+    margins of at least 0.1), and its margin, certified again, must meet the requirement."""
+    plant, inner = nr.Hyperbolic2x2(1, 1, 1, 1, 1, 0.7), ReflectionController(0.1)
+    design = nr.design_collocated_observer(plant, "decay_rate", controller=inner, margin_at_least=0.1)
+    assert nr.delay_margin(plant, design.controller).margin >= 0.1
+    lo, hi = design.bounds
+    best = -np.inf
+    for kappa in np.linspace(lo, hi, 9):
+        law = CollocatedOutputFeedback(inner, 0.0, float(kappa))
+        if nr.delay_margin(plant, law).margin >= 0.1:
+            A, B = loop_factors(plant, law)
+            best = max(best, -spectral_abscissa(A + B).value)
+    assert design.design.decay_rate >= best - 1e-9 * best

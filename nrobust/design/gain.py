@@ -49,7 +49,9 @@ of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near t
 strong-stability bound, crossing pairs are born within tiny gain intervals: on the paper's
 plant, gains within about 1 % of it); the returned margin is certified whatever happens between
 samples, and a missed curve that would lower it is caught by the certificate
-(:class:`~nrobust.errors.CertificationError`, never a wrong margin).
+(:class:`~nrobust.errors.CertificationError`, never a wrong margin). About a pole (a branch
+through ``p = inf``) the step is halved until no junction shares the pole's cell and the branch
+through infinity has passed the bounds at the samples on both sides.
 """
 
 from __future__ import annotations
@@ -130,6 +132,8 @@ _SECANT_STEPS = 8
 #: Steps of a few ulps (growing by 4) that move a junction located to rounding to the side where ``D <= 0``.
 _JUNCTION_NUDGES = 6
 _EPS = float(np.finfo(float).eps)
+#: Halvings of a sample cell about a pole of the crossing curves (:meth:`_Curves._split_poles`).
+_POLE_SPLITS = 40
 
 
 @dataclass(frozen=True, eq=False)
@@ -688,6 +692,17 @@ def _joined(first: _Axis, second: _Axis) -> _Axis:
     return _Axis(**joined)
 
 
+def _inserted(at: _Axis, more: _Axis) -> _Axis:
+    """The samples of ``at`` and ``more`` by increasing frequency."""
+    order = np.argsort(np.concatenate([at.w, more.w]), kind="stable")
+    joined = _joined(at, more)
+    ordered: dict[str, Any] = {}
+    for f in fields(_Axis):
+        x = getattr(joined, f.name)
+        ordered[f.name] = None if x is None else x[order]
+    return _Axis(**ordered)
+
+
 def _kernel_sign(base: DistributedDelay, d: DistributedDelay) -> float:
     """``1`` or ``-1`` when ``d`` stores the kernel of ``base`` or its negation (same segments and moment), else 0."""
     if d.moment != base.moment or not all(np.array_equal(u, v) for u, v in zip(d.pieces[:2], base.pieces[:2])):
@@ -985,11 +1000,11 @@ class _Curves:
             )
         low = dw * 2.0 ** (-np.arange(_PER_OCTAVE * _LOW_OCTAVES, 0, -1) / _PER_OCTAVE)
         uniform = dw * np.arange(1, n - low.size + 1, dtype=float)
-        w = np.concatenate([low, uniform])
         # the uniform samples evaluated apart from the geometric ones: on a vertical line of uniform steps the
         # distributed terms are chirp-z transforms (:mod:`nrobust.distributed_delay`), not an exponential per
         # node and sample
-        at = _joined(loop.axis(low, slopes=True), loop.axis(uniform, slopes=True))
+        at = self._split_poles(_joined(loop.axis(low, slopes=True), loop.axis(uniform, slopes=True)))
+        w = at.w
         D, m, root = at.branches()
         junctions = self._junctions(w, D)
         pole = np.sign(at.curvature())
@@ -1005,6 +1020,59 @@ class _Curves:
         self.gains = np.linspace(K_lo, K_hi, _N_GAINS)
         self.envelope, self.active = self._envelope(self.gains)
         self.edges = _stability_edges(self)
+
+    def _split_poles(self, at: _Axis) -> _Axis:
+        """The samples ``at`` with more in the cells where ``c_2`` changes sign (a pole) that leave out part of a curve.
+
+        Next to a pole (``c_2 = 0``) one root of ``g``, ``m + sign(m) sqrt D``, passes through
+        ``p = inf`` and ``D`` is large and positive. The samples leave out part of a curve when
+        ``D < 0`` at one end of the cell (a junction, ``D = 0``, lies between the pole and that
+        end: on the collocated observer's loop of the plant ``(1, 1, 1, 1, 1, 0.8)`` a pole and a
+        junction 0.005 apart at ``w = 3.18``, and a curve with the smallest crossing delay at the
+        parameters below ``-0.51`` between them), or when the root that passes through infinity is,
+        at an end, on the near side of the bounds (widened by their width; the parameters from it
+        to infinity are reached between that end and the pole: of the plant ``(1, 1, 1, 1, 1, 0.9)``,
+        every parameter below ``-0.22`` at ``w`` in ``[15.703, 15.716]``). Such a cell is halved
+        until neither holds (:meth:`_poles`, :meth:`_junctions` then treat each event in its own cell,
+        and the pieces reach beyond the bounds), at most :data:`_POLE_SPLITS` times, else a
+        :class:`~nrobust.errors.CertificationError`.
+        """
+        if self.loop.gain:  # c_2 = -|R|^2: no pole
+            return at
+        c2 = at.curvature()
+        k = np.flatnonzero(np.sign(c2[:-1]) != np.sign(c2[1:]))
+        if not k.size:
+            return at
+        # each pole's finite root -c_0 / (2 h) and the direction sign(-h c_2) in which the other leaves, by side
+        w_pole = illinois(lambda x: self.loop.axis(x).curvature(), at.w[k].copy(), at.w[k + 1].copy(), steps=12)
+        there = self.loop.axis(w_pole)
+        h = (np.conj(there.a0) * there.a1).real - (np.conj(there.b0) * there.b1).real
+        c0 = np.abs(there.a0) ** 2 - np.abs(there.b0) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            finite = -c0 / (2.0 * h)
+        span = self.K_hi - self.K_lo
+        for _ in range(_POLE_SPLITS):
+            D, m, root = at.branches()
+            pole, valid = np.sign(at.curvature()), D >= 0.0
+            j = np.flatnonzero(pole[:-1] != pole[1:])
+            which = np.clip(np.searchsorted(w_pole, at.w[j]), 0, w_pole.size - 1)  # the pole in each cell
+            short = np.zeros(j.size, dtype=bool)
+            for e in (j, j + 1):
+                up, down = m[e] + root[e], m[e] - root[e]
+                far = np.where(np.abs(up - finite[which]) >= np.abs(down - finite[which]), up, down)
+                out = -np.sign(h[which] * pole[e])
+                short |= ((out > 0) & (far <= self.K_hi + span)) | ((out < 0) & (far >= self.K_lo - span))
+            j = j[~(valid[j] & valid[j + 1]) | short]
+            if not j.size:
+                return at
+            mid = 0.5 * (at.w[j] + at.w[j + 1])
+            at = _inserted(at, self.loop.axis(mid, slopes=True))
+        w = float(at.w[j[0]])
+        raise CertificationError(
+            f"best_margin: a crossing curve of the parameters [{self.K_lo:.12g}, {self.K_hi:.12g}] passes through "
+            f"p = inf near w = {w:.12g}, and {_POLE_SPLITS} halvings of the sample step about it leave a junction "
+            "(D = 0) beside it or its root short of the bounds; the scan cannot follow it there (other bounds may help)"
+        )
 
     def cell(self, w: float) -> float:
         """The spacing of the samples about the frequency ``w``: ``dw``, or less below it (geometric samples)."""
@@ -1282,8 +1350,11 @@ class _Curves:
     ) -> dict[int, tuple[float, float, float]]:
         """``(w, K, d)`` at each extremum of the branch's ``K(w)`` (a pair birth) in ``[w_j, w_{j+1}]``, keyed by ``j``.
 
-        For an :class:`AffineLoop`, those with a parameter near the bounds are solved by twelve
-        Illinois steps on ``dK/dw`` (vectorised over the births); the others, and those of an
+        For an :class:`AffineLoop`, those whose estimate or samples are near the bounds, or on either side
+        of them, are solved by twelve Illinois steps on ``dK/dw`` (vectorised over the births; on the
+        collocated observer's loop of the plant ``(1, 1, 1, 1, 1, 0.9)`` an estimate of ``0.863`` for a
+        birth at ``-2.406`` between two poles 0.035 apart made a curve seem to reach the bounds, where no
+        root follows it); the others, and those of an
         :class:`~nrobust.margins.AffineGainLoop`, are estimated from the linear slope (the
         candidates near the top are solved exactly in any case).
         """
@@ -1297,7 +1368,11 @@ class _Curves:
         Kb = K[j] + 0.5 * slope[j] * (wb - w[j])
         db = d[j] + t * (d[j + 1] - d[j])
         span = self.K_hi - self.K_lo
-        near = np.flatnonzero((Kb <= self.K_hi + span) & (Kb >= self.K_lo - span))
+        # the estimate or a sample near the bounds, or the bounds between them: the estimate overshoots where
+        # ``K(w)`` is far from quadratic over the cell (between two poles ``K`` moves by hundreds per unit of ``w``)
+        low = np.minimum(np.minimum(K[j], K[j + 1]), Kb)
+        high = np.maximum(np.maximum(K[j], K[j + 1]), Kb)
+        near = np.flatnonzero((low <= self.K_hi + span) & (high >= self.K_lo - span))
         if near.size and not self.loop.gain:  # an AffineGainLoop keeps the estimates
 
             def f(x: NDArray) -> NDArray:
@@ -1342,12 +1417,31 @@ class _Curves:
         interpolated frequency (vectorised over the pairs), and ``envelope``, ``active`` take the
         lowest exact delay; a pair that does not converge keeps its interpolated delay, unless a birth
         ends its piece within four cells (past the exact birth of an interpolated curve: no root there).
+        Where the lowest exact delay exceeds the interpolated envelope, the pieces within 5 % of it are
+        solved too, until none is added: next to a pole ``K(w)`` is steep and the interpolation can be
+        off by 10 % (on the collocated observer's loop of the plant ``(1, 1, 1, 1, 1, 0.9)`` a curve
+        interpolated at 0.1250 is at 0.1379, above the one at 0.1282 that the window had left out).
         """
         idx = np.flatnonzero(near & np.isfinite(self.envelope))
         if not idx.size:
             return
-        gains, env = self.gains[idx], self.envelope[idx]
-        rows, Ks, ws, thetas, interp, born = [], [], [], [], [], []
+        gains = self.gains[idx]
+        best, active = np.full(idx.size, np.inf), np.full(idx.size, -1)
+        below, limit = np.zeros(idx.size), self.envelope[idx]
+        # until no gain's lowest exact delay exceeds the delay the window was taken about
+        while np.any(limit > below):
+            pairs, d = self._exact_pairs(gains, 1.05 * below, 1.05 * limit)
+            for (k, p), dk in zip(pairs, d):
+                if dk < best[k]:
+                    best[k], active[k] = dk, p
+            below, limit = limit, np.where(best > limit, best, limit)
+        found = active >= 0
+        self.envelope[idx[found]], self.active[idx[found]] = best[found], active[found]
+
+    def _exact_pairs(self, gains: NDArray, lower: NDArray, upper: NDArray) -> tuple[NDArray, NDArray]:
+        """The pairs ``(gain index, piece)`` whose interpolated delay lies in ``[lower, upper)`` at the gain, and their
+        exact delays (:meth:`refine`)."""
+        rows, Ks, ws, thetas, interp, born = [np.zeros((0, 2), dtype=int)], [], [], [], [], []
         cell = 4.0 * (self.K_hi - self.K_lo) / (_N_GAINS - 1)
         for p, piece in enumerate(self.pieces):
             if piece.K.size < 2:
@@ -1358,7 +1452,7 @@ class _Curves:
             if not inside.size:
                 continue
             d = np.interp(gains[inside], Kp, piece.d[order])
-            keep = d < 1.05 * env[inside]  # as :meth:`value`: a curve that may be the lowest
+            keep = (d >= lower[inside]) & (d < upper[inside])  # as :meth:`value`: a curve that may be the lowest
             inside, d = inside[keep], d[keep]
             w = np.interp(gains[inside], Kp, piece.w[order])
             rows.append(np.column_stack([inside, np.full(inside.size, p)]))
@@ -1369,16 +1463,12 @@ class _Curves:
             births = [k for k, how in ((piece.K[0], piece.start), (piece.K[-1], piece.stop)) if how == "birth"]
             born.append(np.array([any(abs(k - x) <= cell for k in births) for x in gains[inside]], dtype=bool))
         pairs = np.concatenate(rows).astype(int)
+        if not pairs.size:
+            return pairs, np.zeros(0)
         d = self._exact_delays(np.concatenate(Ks), np.concatenate(ws), np.concatenate(thetas))
         # not converged: past the exact birth of an interpolated curve (dropped, as in :meth:`value`), else the
         # interpolated delay
-        d = np.where(np.isfinite(d), d, np.where(np.concatenate(born), np.inf, np.concatenate(interp)))
-        best, active = np.full(idx.size, np.inf), np.full(idx.size, -1)
-        for (k, p), dk in zip(pairs, d):
-            if dk < best[k]:
-                best[k], active[k] = dk, p
-        found = active >= 0
-        self.envelope[idx[found]], self.active[idx[found]] = best[found], active[found]
+        return pairs, np.where(np.isfinite(d), d, np.where(np.concatenate(born), np.inf, np.concatenate(interp)))
 
     def _exact_delays(self, K: NDArray, w0: NDArray, theta0: NDArray) -> NDArray:
         """Newton on ``g(w; K) = |A|^2 - |B|^2 = 0`` from ``w0`` at each ``K``, vectorised: the crossing delay on the
@@ -3233,6 +3323,8 @@ def _two_paths_peak(
             one = abs(up.at(Kb) - rb) <= 1e-9 * (1.0 + abs(rb))
         except _PathLost:
             one = False
+        if one and not up.slope(Kb) < 0.0:  # the followed zero's slope at K_b, not the certified one's: undecided
+            return None
         if one:  # one path: a smooth maximum
             K = brentq(up.slope, Ka, Kb, xtol=xtol, rtol=4 * _EPS)
             kind, top = "interior smooth max", up
