@@ -840,10 +840,14 @@ class PDELoop:
         if self.principal_gap(x0, delta) <= 1e-9:
             raise OracleUnsure(f"principal part not dominant on Re s >= {x0}")
         R = 1.0
-        while self._lower(x0, delta, R) <= 0.0:
-            R *= 1.25
-            if R > cap:
-                raise OracleUnsure(f"far-field radius above {cap}")
+        try:
+            with np.errstate(over="raise", invalid="raise"):  # far left (rho q = 1e-226) the bounds leave doubles
+                while self._lower(x0, delta, R) <= 0.0:
+                    R *= 1.25
+                    if R > cap:
+                        raise OracleUnsure(f"far-field radius above {cap}")
+        except FloatingPointError:
+            raise OracleUnsure(f"bounds at Re s >= {x0:.4g} overflow double precision") from None
         return R
 
     def _derivative_bound(self, x0: float, delta: float, r: np.ndarray) -> np.ndarray:
