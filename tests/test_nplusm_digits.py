@@ -206,3 +206,17 @@ def test_the_smallest_delay_error_covers_the_competition() -> None:
     with pytest.raises(ParameterError) as info:
         smallest_delay_error([1.0, 2.0], [0.1])
     assert info.value.name == "errors"
+
+
+def test_an_infinite_margin_is_exact() -> None:
+    """No crossing: the margin ``inf`` is exact (``inf - inf`` gave an accuracy ``nan``), alone, among other
+    infinite margins, and for a design whose every margin is infinite (``|r q| < 1`` with ``|B| < |A|`` on the
+    axis: ``K`` small on the 1 + 1 plant below)."""
+    from nrobust.hyperbolic.nplusm import design_nplusm_gains
+
+    assert smallest_delay_error([np.inf], [0.0]) == 0.0
+    assert smallest_delay_error([np.inf, np.inf], [0.0, 0.0]) == 0.0
+    assert smallest_delay_error([np.inf, 2.0], [0.0, 0.25]) == 0.25
+    system = NPlusMSystem([1.0], [1.0], [[0.0, 0.3], [0.2, 0.0]], [[-1.0]], [[0.5]])
+    design = design_nplusm_gains(system, "margin", K_bounds=(-0.4, 0.4), x0=[[0.1]], starts=1)
+    assert design.value == np.inf and design.accuracy == 0.0

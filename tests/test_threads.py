@@ -51,8 +51,9 @@ def test_blas_limited_and_scipy_imported_on_request():
     assert [p for p, _ in out["plain"]] == [p for p, _ in out["before"]]
     assert all(n == 1 for _, n in out["plain"])
     assert out["after_plain"] == out["before"]
-    # scipy_linalg=True: scipy's own BLAS loaded, and every BLAS on one thread inside
-    assert len(out["scipy"]) == len(out["before"]) + 1
+    # scipy_linalg=True: scipy's own BLAS loaded (none more where numpy and scipy share one), every BLAS on one
+    # thread inside
+    assert len(out["before"]) <= len(out["scipy"]) <= len(out["before"]) + 1
     assert all(n == 1 for _, n in out["scipy"])
     # once scipy.linalg is loaded a plain block limits its BLAS too
     assert len(out["loaded"]) == len(out["scipy"]) and all(n == 2 for _, n in out["loaded"])

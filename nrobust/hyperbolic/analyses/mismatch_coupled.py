@@ -39,8 +39,9 @@ of the boxes ``(p, m, eta)``:
    the ``V`` bounded on the whole square). For strong couplings ``sup |G'|`` and ``sup |G''|`` grow like
    ``e^{2 sqrt|kappa|}``: the second ``W`` grows like its square root.
 2. *No zero on the imaginary axis.* Boxes of ``(w, e_lam, e_mu)`` covering ``[0, W] x`` the square
-   are cleared in ball arithmetic by the sign of ``|A1|^2 - |B1|^2`` or by every crossing ``eta`` of the
-   box lying outside its range (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free`); an
+   are cleared in ball arithmetic by the sign of ``|A1|^2 - |B1|^2``, by every crossing ``eta`` of the
+   box lying outside its range, or by ``A + B e^{-i w delta}`` (``w delta`` a ball over the box and the
+   delays) enclosed away from 0 (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free`); an
    undecided box is halved in ``w``, or in a speed when the enclosure at the middle ``w`` alone does not
    decide either, up to ``max_boxes`` boxes.
 3. *One point.* The loop of a corner, proven stable on a window meeting the delays asked, lies in the

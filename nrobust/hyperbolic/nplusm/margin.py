@@ -11,6 +11,7 @@ kernels, one leftward speed: :func:`backstepping_exact_margin` (certified, kerne
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -189,14 +190,18 @@ def smallest_delay_error(delays: Sequence[float], errors: Sequence[float | None]
     0.125
     >>> smallest_delay_error([1.0, 1.25], [0.125, 0.5])  # the second may be the smaller, down to 0.75
     0.25
+    >>> smallest_delay_error([math.inf], [0.0])  # no crossing
+    0.0
     """
     if len(delays) != len(errors) or not delays:
         raise ParameterError("errors", f"one error per delay ({len(delays)}), at least one", len(errors))
     if any(e is None for e in errors):
         return None
     best = min(delays)
-    lower = min(d - e for d, e in zip(delays, errors) if e is not None)
-    upper = min(d + e for d, e in zip(delays, errors) if e is not None)
+    if math.isinf(best):  # no crossing: an infinite margin is exact
+        return 0.0
+    lower = min(d - e for d, e in zip(delays, errors))
+    upper = min(d + e for d, e in zip(delays, errors))
     return max(best - lower, upper - best)
 
 
@@ -655,7 +660,7 @@ def compound_delay_error(
     ``|f|`` raised by the rounding level ``e`` of the ``D + 1`` coefficients (``(D + 1) e``, the
     triangle inequality), bounds the distance to the crossing: ``dw``, ``dphi``. The delay
     ``(-phi mod 2 pi) / w`` moves by ``(dphi + delay dw) / w``. Times 16 (:data:`_DELAY_SAFETY`,
-    the study in :func:`_compound_margin`'s notes), plus ``eps delay``. None when the Jacobian is
+    the study in the notes above it), plus ``eps delay``. None when the Jacobian is
     singular to rounding (a tangency).
 
     Parameters
