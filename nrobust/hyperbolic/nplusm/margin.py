@@ -195,13 +195,14 @@ def smallest_delay_error(delays: Sequence[float], errors: Sequence[float | None]
     """
     if len(delays) != len(errors) or not delays:
         raise ParameterError("errors", f"one error per delay ({len(delays)}), at least one", len(errors))
-    if any(e is None for e in errors):
+    known = [e for e in errors if e is not None]
+    if len(known) < len(errors):
         return None
     best = min(delays)
     if math.isinf(best):  # no crossing: an infinite margin is exact
         return 0.0
-    lower = min(d - e for d, e in zip(delays, errors))
-    upper = min(d + e for d, e in zip(delays, errors))
+    lower = min(d - e for d, e in zip(delays, known))
+    upper = min(d + e for d, e in zip(delays, known))
     return max(best - lower, upper - best)
 
 
