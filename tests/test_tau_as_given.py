@@ -45,6 +45,7 @@ import numpy as np
 import pytest
 
 import nrobust as nr
+from nrobust._flint import working_precision
 from nrobust.hyperbolic import FilteredController, Hyperbolic2x2
 from nrobust.hyperbolic.loops.given_plant import (
     GivenPlantBalls,
@@ -182,23 +183,26 @@ def test_the_proven_margin_of_a_filtered_law_on_a_general_plant_holds_for_the_pl
     assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
 
 
+def _assert_encloses(balls, F, points, delta) -> None:
+    """``balls(s, k)`` holds the ``k``-th derivative of the 40-digit ``F`` at each point, ``k = 0, 1, 2``."""
+    for s in points:
+        for k in range(3):
+            value = balls(s, k)
+            with mp.workdps(DPS):
+                truth = mp.diff(F, mp.mpc(s), k)
+            with working_precision(200) as fl:  # the 40-digit value, far narrower than the enclosure
+                assert value.contains(fl.acb(truth)), (delta, s, k, value, truth)
+
+
 def test_the_plant_balls_enclose_the_filtered_loop_with_tau_exact():
     """``given_plant_balls`` of a filtered law encloses ``F``, ``F'``, ``F''`` of the exact-tau loop (40 digits);
     before, the filtered law had no enclosure of the plant's own loop (None)."""
-    from nrobust._flint import working_precision
-
     args, law = CASES[0]
     for delta in (0.0, 0.3):
         balls = given_plant_balls(Hyperbolic2x2(*args), law, delta)
         assert isinstance(balls, GivenPlantBalls)
         F = _loop(args, law, delta)
-        for s in (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-4.0, 150.0)):
-            for k in range(3):
-                value = balls(s, k)
-                with mp.workdps(DPS):
-                    truth = mp.diff(F, mp.mpc(s), k)
-                with working_precision(200) as fl:  # the 40-digit value, far narrower than the enclosure
-                    assert value.contains(fl.acb(truth)), (delta, s, k, value, truth)
+        _assert_encloses(balls, F, (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-4.0, 150.0)), delta)
 
 
 def test_the_chain_abscissa_of_a_filtered_law_is_in_the_proven_bracket():
@@ -295,8 +299,6 @@ def test_the_collocated_loop_encloses_the_observers_gains():
     """``k q`` and ``k rho q^2`` of ``G`` are not doubles (``0.85 * 0.7``): the loop's balls enclose the loop of the
     PDE and the observer with ``tau`` exact (``given_plant_balls`` at 40 digits), the certificate is about the plant
     as given, and its proven counts are the exact loop's windings."""
-    from nrobust._flint import working_precision
-
     args = (3.0, 7.0, 0.0, 0.0, 0.7, 0.85)
     controller = nr.CollocatedOutputFeedback(FilteredController(0.02, 0.3))
     plant = Hyperbolic2x2(*args)
@@ -366,8 +368,6 @@ def test_an_observer_reflection_holds_for_the_plant_as_given(kappa):
     """The observer's own reflection on an uncoupled plant multiplies the loop by ``1 - kappa q e^{-tau s}``, a
     function of ``tau s``: the proofs map to the plant as given (before, the scope said ``tau`` rounded). The margin
     ball holds the PDE's, and the plant's balls its loop at 40 digits (``rho q`` and ``kappa q rho q`` not doubles)."""
-    from nrobust._flint import working_precision
-
     args, law = (3.0, 7.0, 0.0, 0.0, 1.0, 0.85), FilteredController(0.02, 0.3)
     plant = Hyperbolic2x2(*args)
     controller = nr.CollocatedOutputFeedback(law, observer_reflection=kappa)
@@ -563,8 +563,6 @@ def test_the_proven_margin_of_a_state_feedback_with_integral_gains_holds_for_the
 def test_the_plant_balls_enclose_the_loop_with_integral_gains_and_tau_exact(c, law):
     """``given_plant_balls`` of a state feedback with integral gains encloses ``F``, ``F'``, ``F''`` of the PDE's loop
     with ``tau`` exact (40 digits); before, there was no enclosure of the plant's own loop (None)."""
-    from nrobust._flint import working_precision
-
     plant, controller = _gains_case(c, law)
     for delta in (0.0, 0.7):
         balls = given_plant_balls(plant, controller, delta)
@@ -574,13 +572,7 @@ def test_the_plant_balls_enclose_the_loop_with_integral_gains_and_tau_exact(c, l
             A, B = _gains_factors(c, law, s)
             return A + B * mp.exp(-mp.mpf(delta) * s)
 
-        for s in (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-0.2, 150.0)):
-            for k in range(3):
-                value = balls(s, k)
-                with mp.workdps(DPS):
-                    truth = mp.diff(F, mp.mpc(s), k)
-                with working_precision(200) as fl:  # the 40-digit value, far narrower than the enclosure
-                    assert value.contains(fl.acb(truth)), (delta, s, k, value, truth)
+        _assert_encloses(balls, F, (complex(-1.0, 30.0), complex(0.5, -7.0), complex(-0.2, 150.0)), delta)
 
 
 def test_the_jump_of_the_gains_kernel_between_two_doubles_is_held_by_a_proven_term():
