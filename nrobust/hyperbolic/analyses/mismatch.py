@@ -40,6 +40,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import with_accuracy
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, positive, positive_int
 from ...design.gain import DelayWindow, check_delays, window_stability
@@ -818,7 +819,7 @@ def _integral_gains(feedback: StateFeedback) -> bool:
 
 class _Probes(NamedTuple):
     """What the checks of the undecided boxes found: the first mismatch refuted (with its verdict) or None, and
-    what was checked, in words."""
+    in words that mismatch or what was checked."""
 
     refuted: tuple[tuple[float, float], DelayWindow] | None
     text: str
@@ -867,7 +868,13 @@ def _probe_undecided(
             undecided_points += 1
             continue
         if not window.stable:
-            return _Probes((point, window), "")
+            dm = window.margin
+            margin = with_accuracy(dm.margin, dm.accuracy) + (" (proven)" if dm.rigorous else "")
+            text = (
+                f"({point[0]!r}, {point[1]!r}) lies in a box of mismatches the square's proof left undecided: "
+                f"{window.reason}, delay margin {margin}"
+            )
+            return _Probes((point, window), text)
     decided = len(probes) - undecided_points
     text = (
         f"the middle and corners of {boxes} of the {len(undecided)} boxes of mismatches it left undecided checked in "
@@ -1010,6 +1017,7 @@ def speed_tolerance(
     proven = all(w.certified == "proven" for w in windows[:4])
     proof = None
     why_not: str | None
+    found = ""
     if isinstance(controller, OutputFeedback):
         # the observer designed on the nominal plant is in every mismatched loop (a model in floating point)
         why_not = (
@@ -1040,13 +1048,16 @@ def speed_tolerance(
                 points.append(probes.refuted[0])
                 windows.append(probes.refuted[1])
                 met = False
+                found = f"; {probes.text}"
             else:
                 why_not = f"{why_not}; {probes.text}"
     if not met:
         certified = "not met"
         bad = [p for p, w in zip(points, windows) if not w.stable]
-        statement = f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = " + ", ".join(
-            f"({float(a)!r}, {float(b)!r})" for a, b in bad
+        statement = (
+            f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = "
+            + ", ".join(f"({float(a)!r}, {float(b)!r})" for a, b in bad)
+            + found
         )
     elif proof is not None and proof.proven:
         certified = "proven on the square"
