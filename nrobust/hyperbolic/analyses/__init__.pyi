@@ -36,6 +36,7 @@ from .margin import (
 )
 from .mismatch import (
     MAX_MISMATCH_POINTS as MAX_MISMATCH_POINTS,
+    MAX_UNDECIDED_PROBES as MAX_UNDECIDED_PROBES,
     MismatchEnd as MismatchEnd,
     MismatchRegion as MismatchRegion,
     SpeedTolerance as SpeedTolerance,

@@ -40,6 +40,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import with_accuracy
 from ..._json import fields_dict, json_safe
 from ..._validate import finite_real, positive, positive_int
 from ...design.gain import DelayWindow, check_delays, window_stability
@@ -77,6 +78,7 @@ from .mismatch_traces import reflection_traces
 __all__ = [
     "JUMP_FRACTION",
     "MAX_MISMATCH_POINTS",
+    "MAX_UNDECIDED_PROBES",
     "MismatchEnd",
     "MismatchRegion",
     "SpeedTolerance",
@@ -93,6 +95,11 @@ __all__ = [
 #: and a verified delay margin (1 to 5 s on the paper's plant at 201 kernel points on a shared
 #: core), so this bound is a few hours of work; a larger grid is refused before any work.
 MAX_MISMATCH_POINTS = 4096
+
+#: Most mismatches :func:`speed_tolerance` checks in the boxes the square's proof left undecided (the corners
+#: and middle of each, in the proof's order): each a delay margin and a count in floating point (0.05 to 0.3 s
+#: on a shared core), so this bound is about a minute at most.
+MAX_UNDECIDED_PROBES = 256
 
 #: A change of the margin across an end's final bracket larger than this fraction of
 #: ``delta_max`` is reported as a jump (kind ``"jump"``) rather than a continuous crossing of
@@ -634,8 +641,9 @@ class SpeedTolerance:
     delays : (float, float)
         The window ``[d_min, d_max]`` of delays required at every mismatch.
     points : tuple of (float, float)
-        The mismatches examined: the ``grid x grid`` points of the square, corners first, then
-        the mismatch where the square's proof stopped when the verdict there is refuted.
+        The mismatches examined: the ``grid x grid`` points of the square, corners first, then,
+        when the square's proof stopped, the first mismatch of the boxes it left undecided whose
+        verdict is refuted.
     windows : tuple of DelayWindow
         The verdict at each point (:func:`nrobust.design.window_stability`): at the four corners
         with the rigour asked (proven in ball arithmetic with ``rigorous=True``), elsewhere in
@@ -809,6 +817,74 @@ def _integral_gains(feedback: StateFeedback) -> bool:
     return any(callable(g) or g != 0.0 for g in (feedback.g_u, feedback.g_v))
 
 
+class _Probes(NamedTuple):
+    """What the checks of the undecided boxes found: the first mismatch refuted (with its verdict) or None, and
+    in words that mismatch or what was checked."""
+
+    refuted: tuple[tuple[float, float], DelayWindow] | None
+    text: str
+
+
+def _probe_undecided(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    eps: float,
+    delays: tuple[float, float],
+    undecided: tuple[tuple[float, float, float, float], ...],
+    examined: list[tuple[float, float]],
+    kernel_grid: int,
+    max_evals: int,
+) -> _Probes:
+    """Check the middle and corners of the boxes of mismatches a square's proof left undecided, in its order.
+
+    Each mismatch (clipped to the square, those in ``examined`` skipped) gets the window's verdict in floating
+    point, up to :data:`MAX_UNDECIDED_PROBES` of them; the first refuted is checked again with the delay margin
+    proven in ball arithmetic (:func:`nrobust.design.window_stability` with ``rigorous=True``), whose verdict
+    stands when it is made.
+    """
+    seen = set(examined)
+    probes: list[tuple[float, float]] = []
+    boxes = 0
+    for a0, a1, b0, b1 in undecided:
+        if len(probes) >= MAX_UNDECIDED_PROBES:
+            break
+        boxes += 1
+        for a, b in ((0.5 * (a0 + a1), 0.5 * (b0 + b1)), (a0, b0), (a0, b1), (a1, b0), (a1, b1)):
+            point = (min(max(a, -eps), eps), min(max(b, -eps), eps))
+            if point not in seen and len(probes) < MAX_UNDECIDED_PROBES:
+                seen.add(point)
+                probes.append(point)
+    undecided_points = 0
+    for point in probes:
+        A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid)
+        try:
+            window = window_stability(A, B, delays, max_evals=max_evals)
+            if not window.stable:
+                try:
+                    window = window_stability(A, B, delays, rigorous=True, max_evals=max_evals)
+                except CertificationError:
+                    pass  # the verdict in floating point stands
+        except CertificationError:
+            undecided_points += 1
+            continue
+        if not window.stable:
+            dm = window.margin
+            margin = with_accuracy(dm.margin, dm.accuracy) + (" (proven)" if dm.rigorous else "")
+            text = (
+                f"({point[0]!r}, {point[1]!r}) lies in a box of mismatches the square's proof left undecided: "
+                f"{window.reason}, delay margin {margin}"
+            )
+            return _Probes((point, window), text)
+    decided = len(probes) - undecided_points
+    text = (
+        f"the middle and corners of {boxes} of the {len(undecided)} boxes of mismatches it left undecided checked in "
+        f"floating point: {decided} points stable"
+    )
+    if undecided_points:
+        text += f", {undecided_points} not decided"
+    return _Probes(None, text)
+
+
 def speed_tolerance(
     system: Hyperbolic2x2,
     controller: Controller,
@@ -839,10 +915,14 @@ def speed_tolerance(
     moves only the round trip ``tau``; a strongly stable difference operator keeps the zeros off
     infinity, no zero crosses the imaginary axis for any ``tau`` of the square and delay of the
     window, proven on boxes in ball arithmetic, and a corner is proven stable), ``certified ==
-    "proven on the square"``. When that proof stops at a box, the mismatch of that box is
-    checked in floating point and joins :attr:`SpeedTolerance.points`: refuted there, the
-    tolerance is ``"not met"``; otherwise the corners' certificate stands and
-    :attr:`SpeedTolerance.statement` says why the square is not proven. On a coupled plant with
+    "proven on the square"``. When that proof stops (out of boxes, or at a box it cannot decide),
+    the middle and corners of the boxes of mismatches it left undecided
+    (:attr:`~nrobust.hyperbolic.analyses.mismatch_proof.SquareProof.undecided`: the box it stopped
+    at, then the pending ones, smallest first; at most :data:`MAX_UNDECIDED_PROBES` mismatches) are
+    checked in floating point, a refuted one again with its delay margin proven in ball
+    arithmetic: the first refuted joins :attr:`SpeedTolerance.points` and the tolerance is
+    ``"not met"``; otherwise the corners' certificate stands and :attr:`SpeedTolerance.statement`
+    says why the square is not proven and how many points of the undecided boxes were checked. On a coupled plant with
     constant couplings and ``rigorous=True`` the square is proven the same way for ``U = k u(t, 1)``,
     ``U_BS2(K)``, ``U_BS`` and a ``StateFeedback`` whose gains evaluate in ball arithmetic
     (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``U_BS2(K)``'s kernel
@@ -937,6 +1017,7 @@ def speed_tolerance(
     proven = all(w.certified == "proven" for w in windows[:4])
     proof = None
     why_not: str | None
+    found = ""
     if isinstance(controller, OutputFeedback):
         # the observer designed on the nominal plant is in every mismatched loop (a model in floating point)
         why_not = (
@@ -958,28 +1039,25 @@ def speed_tolerance(
             proof, traces = _coupled_proof(
                 system, controller, feedback, eps, (d_lo, d_hi), corner_loops, max_boxes, kernel_grid, max_evals
             )
-        if not proof.proven and not math.isnan(proof.candidate):
-            if math.isnan(proof.point[0]):
-                # the mismatch whose round trip is the box's: e_lam = e_mu = e, tau_0 / (1 + e) = tau
-                e = min(max(system.tau / proof.candidate - 1.0, -eps), eps)
-                e_lam, e_mu = e, e
-            else:
-                e_lam, e_mu = (min(max(e, -eps), eps) for e in proof.point)
-            A, B = mismatch_loop(system, controller, e_lam, e_mu, kernel_grid=kernel_grid)
-            try:
-                probe = window_stability(A, B, (d_lo, d_hi), max_evals=max_evals)
-            except CertificationError:
-                probe = None
-            if probe is not None and not probe.stable:
-                points.append((e_lam, e_mu))
-                windows.append(probe)
-                met = False
         why_not = None if proof.proven else proof.reason
+        if proof.undecided:
+            probes = _probe_undecided(
+                system, controller, eps, (d_lo, d_hi), proof.undecided, points, kernel_grid, max_evals
+            )
+            if probes.refuted is not None:
+                points.append(probes.refuted[0])
+                windows.append(probes.refuted[1])
+                met = False
+                found = f"; {probes.text}"
+            else:
+                why_not = f"{why_not}; {probes.text}"
     if not met:
         certified = "not met"
         bad = [p for p, w in zip(points, windows) if not w.stable]
-        statement = f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = " + ", ".join(
-            f"({float(a)!r}, {float(b)!r})" for a, b in bad
+        statement = (
+            f"not stable on [{float(d_lo)!r}, {float(d_hi)!r}] at (e_lam, e_mu) = "
+            + ", ".join(f"({float(a)!r}, {float(b)!r})" for a, b in bad)
+            + found
         )
     elif proof is not None and proof.proven:
         certified = "proven on the square"

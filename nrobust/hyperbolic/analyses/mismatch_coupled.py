@@ -450,9 +450,15 @@ def prove_coupled_square(
                 0,
                 nan,
             )
-        boxes, stuck = _clear(system, law, square, W, d_lo, d_hi, max_boxes, gain_error)
+        boxes, stuck, pending = _clear(system, law, square, W, d_lo, d_hi, max_boxes, gain_error)
     if stuck is not None:
         (w0, w1, (a0, a1, b0, b1)), small = stuck
+        # the speed boxes left undecided: the one stopped at, then the pending ones, smallest (deepest) first
+        lowest: dict[tuple[float, float, float, float], float] = {}
+        for lo, _, _, speeds in pending:
+            lowest[speeds] = min(lo, lowest.get(speeds, math.inf))
+        rest = sorted(lowest, key=lambda b: ((b[1] - b[0]) * (b[3] - b[2]), lowest[b]))
+        undecided = tuple(dict.fromkeys([(a0, a1, b0, b1), *rest]))
         point = (0.5 * (a0 + a1), 0.5 * (b0 + b1))
         why = (
             f"a zero of F on the imaginary axis near tau w = {0.5 * (w0 + w1):.9g} at (e_lam, e_mu) = "
@@ -463,7 +469,17 @@ def prove_coupled_square(
             else f"the work bound max_boxes = {max_boxes} was reached (at tau w in [{w0:.6g}, {w1:.6g}], e_lam in "
             f"[{a0:.6g}, {a1:.6g}], e_mu in [{b0:.6g}, {b1:.6g}]); a larger max_boxes or a smaller tolerance decides"
         )
-        return SquareProof(False, why, taus, W, ball_upper(c_d), boxes, system.tau / (1.0 + point[0]), point=point)
+        return SquareProof(
+            False,
+            why,
+            taus,
+            W,
+            ball_upper(c_d),
+            boxes,
+            system.tau / (1.0 + point[0]),
+            point=point,
+            undecided=undecided,
+        )
     w_text, cd_text = upper_bound_text(W), upper_bound_text(ball_upper(c_d))
     return SquareProof(
         True,
@@ -507,8 +523,13 @@ def _clear(
     d_hi: float,
     max_boxes: int,
     error: float,
-) -> tuple[int, tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None]:
-    """Clear ``[0, W] x`` the square (step 2): the boxes examined, and the box it stopped at (None: cleared)."""
+) -> tuple[
+    int,
+    tuple[tuple[float, float, tuple[float, float, float, float]], bool] | None,
+    list[tuple[float, int, float, tuple[float, float, float, float]]],
+]:
+    """Clear ``[0, W] x`` the square (step 2): the boxes examined, the box it stopped at (None: cleared) and the
+    boxes ``(w0, age, w1, speeds)`` still pending then."""
     # lowest frequencies first: a crossing of the family lies there, the high ones only cost boxes
     pending: list[tuple[float, int, float, tuple[float, float, float, float]]] = [(0.0, 0, W, square)]
     order = itertools.count(1)  # ties in w broken by age
@@ -531,7 +552,7 @@ def _clear(
         speed_small = max(a1 - a0, b1 - b0) <= _MIN_WIDTH * span
         w_small = (w1 - w0) <= _MIN_WIDTH * max(1.0, W)
         if (speed_small and w_small) or boxes >= max_boxes:
-            return boxes, ((w0, w1, box), speed_small and w_small)
+            return boxes, ((w0, w1, box), speed_small and w_small), pending
         split_speed = w_small
         if not split_speed and not speed_small:  # does the speed box alone keep the middle w undecided?
             wm = 0.5 * (w0 + w1)
@@ -549,4 +570,4 @@ def _clear(
             children = [(w0, wm, box), (wm, w1, box)]
         for lo, hi, child in children:
             heapq.heappush(pending, (lo, next(order), hi, child))
-    return boxes, None
+    return boxes, None, []

@@ -99,6 +99,13 @@ class SquareProof(NamedTuple):
         The mismatch ``(e_lam, e_mu)`` of the box the subdivision stopped at on a coupled plant
         (:func:`~nrobust.hyperbolic.analyses.mismatch_coupled.prove_coupled_square`; ``nan``
         otherwise).
+    undecided : tuple of (float, float, float, float)
+        Boxes ``(e_lam_lo, e_lam_hi, e_mu_lo, e_mu_hi)`` of mismatches the subdivision left undecided when
+        it stopped (empty otherwise): the box it stopped at first, then those still pending, the
+        smallest first (where the subdivision went deepest). On an uncoupled plant each is the
+        diagonal box of an undecided range of ``tau``: every mismatch of it has its round trip in that
+        range, to rounding (``tau`` falls in each speed). The edges may pass the square's by the widening that
+        holds the corners' rounded speeds.
     """
 
     proven: bool
@@ -110,6 +117,7 @@ class SquareProof(NamedTuple):
     candidate: float
     base: int = -1
     point: tuple[float, float] = (math.nan, math.nan)
+    undecided: tuple[tuple[float, float, float, float], ...] = ()
 
 
 def ball_lower(x: Any) -> float:
@@ -223,6 +231,18 @@ class _Axis:
         w = arb(w0).union(arb(w1))
         A, B = self.fam.factors(w, arb(t0).union(arb(t1)))
         return crossing_free(self.flint, A, B, w, self.d_lo, self.d_hi)
+
+
+def _diagonal_boxes(
+    tau0: float, intervals: Sequence[tuple[float, float]]
+) -> tuple[tuple[float, float, float, float], ...]:
+    """The diagonal boxes ``[e_lo, e_hi]^2`` of mismatches whose round trips ``tau_0 / (1 + e)`` on the diagonal
+    span the ranges ``[t0, t1]`` of ``tau`` (``tau_0`` the nominal one; repeated ranges once)."""
+    out: dict[tuple[float, float, float, float], None] = {}
+    for t0, t1 in intervals:
+        lo, hi = tau0 / t1 - 1.0, tau0 / t0 - 1.0
+        out[(lo, hi, lo, hi)] = None
+    return tuple(out)
 
 
 def crossing_free(flint: Any, A: Any, B: Any, w: Any, d_lo: float, d_hi: float) -> bool:
@@ -428,7 +448,9 @@ def prove_transport_square(
                     else f"the work bound max_boxes = {max_boxes} was reached (at w in [{w0:.6g}, {w1:.6g}], tau in "
                     f"[{t0:.9g}, {t1:.9g}]); a larger max_boxes or a smaller tolerance decides"
                 )
-                return SquareProof(False, why, (t_lo, t_hi), W, c_d, boxes, 0.5 * (t0 + t1))
+                pending = sorted({(a, b) for _, _, a, b in stack}, key=lambda t: t[1] - t[0])
+                undecided = _diagonal_boxes(system.tau, [(t0, t1), *pending])
+                return SquareProof(False, why, (t_lo, t_hi), W, c_d, boxes, 0.5 * (t0 + t1), undecided=undecided)
             if (w1 - w0) * (t1 + d_hi) >= w1 * (t1 - t0):
                 wm = 0.5 * (w0 + w1)
                 stack += [(w0, wm, t0, t1), (wm, w1, t0, t1)]
