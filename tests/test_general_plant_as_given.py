@@ -24,6 +24,7 @@ from fractions import Fraction
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import winding_number
 
 import nrobust as nr
 from nrobust.balls import ball_eval
@@ -67,19 +68,6 @@ def _pde_margin(args, k, w0):
         w = mp.findroot(g, mp.mpf(w0))
         A, B = _factors(args, k, mp.mpc(0, w))
         return w, (-mp.arg(-A / B)) % (2 * mp.pi) / w  # e^{-i w delta} = -A / B
-
-
-def _winding(F, region, n=400):
-    """Winding number of ``F`` about the rectangle, the argument unwrapped on ``4 n`` samples at 40 digits
-    (asserted to turn by less than a radian between samples, so no turn is missed)."""
-    with mp.workdps(DPS):
-        x0, x1, y0, y1 = (mp.mpf(v) for v in region)
-        corners = [mp.mpc(x0, y0), mp.mpc(x1, y0), mp.mpc(x1, y1), mp.mpc(x0, y1)]
-        values = [F(a + (b - a) * mp.mpf(j) / n) for a, b in zip(corners, corners[1:] + corners[:1]) for j in range(n)]
-        values.append(values[0])
-        steps = [mp.arg(b / a) for a, b in itertools.pairwise(values)]
-    assert max(abs(t) for t in steps) < 1.0
-    return int(mp.nint(mp.fsum(steps) / (2 * mp.pi)))
 
 
 def test_the_scope_is_the_plant_as_given():
@@ -127,7 +115,7 @@ def test_the_proven_counts_agree_with_the_argument_principle(delta, expected):
         return A + B * mp.exp(-mp.mpf(delta) * s)
 
     W = dm.frequency_bound
-    assert _winding(F, (0.0, W, -W, W)) == count
+    assert winding_number(F, (0.0, W, -W, W), 400) == count
 
 
 def test_the_certificate_holds_for_the_pde():

@@ -37,12 +37,12 @@ the rounding of the loop: no enclosure shows it).
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import winding_number
 
 import nrobust as nr
 from nrobust._flint import working_precision
@@ -115,17 +115,14 @@ def _pde_margin(factors, w0):
         return w, (-mp.arg(-A / B)) % (2 * mp.pi) / w  # e^{-i w delta} = -A / B
 
 
-def _winding(F, region, n=300):
-    """Winding number of ``F`` about the rectangle, the argument unwrapped on ``4 n`` samples at 40 digits
-    (asserted to turn by less than a radian between samples, so that no turn is missed)."""
-    with mp.workdps(DPS):
-        x0, x1, y0, y1 = (mp.mpf(v) for v in region)
-        corners = [mp.mpc(x0, y0), mp.mpc(x1, y0), mp.mpc(x1, y1), mp.mpc(x0, y1)]
-        values = [F(a + (b - a) * mp.mpf(j) / n) for a, b in zip(corners, corners[1:] + corners[:1]) for j in range(n)]
-        values.append(values[0])
-        steps = [mp.arg(b / a) for a, b in itertools.pairwise(values)]
-    assert max(abs(t) for t in steps) < 1.0
-    return int(mp.nint(mp.fsum(steps) / (2 * mp.pi)))
+def _assert_margin_holds(margin, factors, omega=True):
+    """The proven ball of ``margin`` holds the PDE's delay margin (:func:`_pde_margin` from its crossing); with
+    ``omega`` its crossing frequency is the PDE's: 1e-12 relative bounds its accuracy here (measured below 1e-15)."""
+    w, truth = _pde_margin(factors, margin.omega)
+    lo, hi = margin.margin_ball
+    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
+    if omega:
+        np.testing.assert_allclose(margin.omega, float(w), rtol=1e-12)
 
 
 #: ``tau = 10/21`` and ``p = 1/3``, ``m = -1/7`` (none a double), ``tau = 10/3`` with ``lam, mu = 0.3, 0.7``.
@@ -143,11 +140,7 @@ def test_the_proven_margin_of_a_filtered_law_holds_for_the_plant_as_given(args, 
     assert rounded_parts(plant, law) == "" and given_plant_scale(plant, law) != 1
     dm = nr.delay_margin(plant, law, rigorous=True)
     assert "the plant as given" in dm.scope and "as the double" not in dm.scope
-    w, truth = _pde_margin(lambda s: _factors(args, law, s), dm.omega)
-    lo, hi = dm.margin_ball
-    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
-    # the proven crossing frequency is the PDE's: 1e-12 relative bounds its accuracy here (measured 1e-15)
-    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+    _assert_margin_holds(dm, lambda s: _factors(args, law, s))
 
 
 def test_the_proven_margin_of_a_filtered_law_on_an_uncoupled_plant_holds_for_its_boundary_conditions():
@@ -156,8 +149,7 @@ def test_the_proven_margin_of_a_filtered_law_on_an_uncoupled_plant_holds_for_its
     dm = nr.delay_margin(Hyperbolic2x2(*args), law, rigorous=True)
     assert "the plant as given" in dm.scope
 
-    _, truth = _pde_margin(lambda s: _uncoupled_factors(args, law, s), dm.omega)
-    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+    _assert_margin_holds(dm, lambda s: _uncoupled_factors(args, law, s), omega=False)
 
 
 def test_the_proven_margin_of_a_filtered_law_on_a_general_plant_holds_for_the_plant_as_given():
@@ -179,8 +171,7 @@ def test_the_proven_margin_of_a_filtered_law_on_a_general_plant_holds_for_the_pl
 
     dm = nr.delay_margin(plant, law, rigorous=True)
     assert "the plant as given" in dm.scope
-    _, truth = _pde_margin(factors, dm.omega)
-    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
+    _assert_margin_holds(dm, factors, omega=False)
 
 
 def _assert_encloses(balls, F, points, delta) -> None:
@@ -237,14 +228,13 @@ def test_the_certificate_of_a_filtered_law_holds_for_the_plant_as_given():
     with mp.workdps(DPS):
         root = mp.findroot(_loop(args, law, 0.0), mp.mpc(ab.root))
     assert mp.mpf(ab.value_bracket[0]) <= root.real <= mp.mpf(ab.value_bracket[1])
-    _, truth = _pde_margin(lambda s: _factors(args, law, s), cert.margin.omega)
-    assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+    _assert_margin_holds(cert.margin, lambda s: _factors(args, law, s), omega=False)
     for roots, delta, name in (
         (cert.roots_nominal, 0.0, "roots at delta = 0"),
         (cert.roots_delayed, delta_max, "roots at delta_max"),
     ):
         assert claims[name] == PROVEN and roots.rigorous
-        assert roots.count == _winding(_loop(args, law, delta), roots.region)
+        assert roots.count == winding_number(_loop(args, law, delta), roots.region)
 
 
 def test_a_designs_scope_says_tau_is_rounded_when_its_proofs_are_not_mapped():
@@ -290,9 +280,7 @@ def test_the_proven_margin_of_an_exact_observer_holds_for_the_plant_as_given(arg
     assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
     dm = nr.delay_margin(plant, controller, rigorous=True)
     assert "the plant as given" in dm.scope and "observer is exact" in dm.scope
-    w, truth = _pde_margin(lambda s: oracle(args, controller.controller, s), dm.omega)
-    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
-    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+    _assert_margin_holds(dm, lambda s: oracle(args, controller.controller, s))
 
 
 def test_the_collocated_loop_encloses_the_observers_gains():
@@ -326,7 +314,7 @@ def test_the_collocated_loop_encloses_the_observers_gains():
         (cert.roots_nominal, 0.0, "roots at delta = 0"),
         (cert.roots_delayed, 0.2, "roots at delta_max"),
     ):
-        assert claims[name] == PROVEN and roots.count == _winding(loop(delta), roots.region)
+        assert claims[name] == PROVEN and roots.count == winding_number(loop(delta), roots.region)
 
 
 def test_an_observer_delay_keeps_tau_rounded_and_says_by_how_much():
@@ -374,9 +362,7 @@ def test_an_observer_reflection_holds_for_the_plant_as_given(kappa):
     assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
     dm = nr.delay_margin(plant, controller, rigorous=True)
     assert "the plant as given" in dm.scope and "as the double" not in dm.scope
-    w, truth = _pde_margin(lambda s: _reflected_factors(args, law, kappa, s), dm.omega)
-    assert mp.mpf(dm.margin_ball[0]) <= truth <= mp.mpf(dm.margin_ball[1])
-    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+    _assert_margin_holds(dm, lambda s: _reflected_factors(args, law, kappa, s))
     plant = Hyperbolic2x2(3.0, 7.0, 0.0, 0.0, 0.7, 0.85)
     for delta in (0.0, 0.2):
         balls = given_plant_balls(plant, controller, delta)
@@ -552,11 +538,7 @@ def test_the_proven_margin_of_a_state_feedback_with_integral_gains_holds_for_the
     assert rounded_parts(plant, controller) == "" and given_plant_scale(plant, controller) != 1
     dm = nr.delay_margin(plant, controller, rigorous=True)
     assert "the plant as given" in dm.scope and "as the double" not in dm.scope
-    w, truth = _pde_margin(lambda s: _gains_factors(c, law, s), dm.omega)
-    lo, hi = dm.margin_ball
-    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
-    # the proven crossing frequency is the PDE's: 1e-12 relative bounds its accuracy here (measured below 1e-15)
-    np.testing.assert_allclose(dm.omega, float(w), rtol=1e-12)
+    _assert_margin_holds(dm, lambda s: _gains_factors(c, law, s))
 
 
 @pytest.mark.parametrize(("c", "law"), [GAINS[0], GAINS[2]])
@@ -636,11 +618,10 @@ def test_the_certificate_of_a_state_feedback_with_integral_gains_holds_for_the_p
     with mp.workdps(DPS):
         root = mp.findroot(loop(0.0), mp.mpc(ab.root))
     assert mp.mpf(ab.value_bracket[0]) <= root.real <= mp.mpf(ab.value_bracket[1])
-    _, truth = _pde_margin(lambda s: _gains_factors(c, law, s), cert.margin.omega)
-    assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+    _assert_margin_holds(cert.margin, lambda s: _gains_factors(c, law, s), omega=False)
     for roots, delta, name in (
         (cert.roots_nominal, 0.0, "roots at delta = 0"),
         (cert.roots_delayed, delta_max, "roots at delta_max"),
     ):
         assert claims[name] == PROVEN and roots.rigorous
-        assert roots.count == _winding(loop(delta), roots.region)
+        assert roots.count == winding_number(loop(delta), roots.region)
