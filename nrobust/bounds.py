@@ -93,6 +93,13 @@ class TailBound:
     non-increasing in ``R`` and, when every delay is ``>= t0``, in ``Re s >= x0``. The
     kernel integrals are computed once; calls cost a few flops.
 
+    With ``second_order`` (``x0 = t0 = 0``: the half-plane ``Re s >= 0``) a distributed term
+    of moment 0 is bounded by ``|q|(R) R^-n min(M_0, V / R, V_1 / R + V_2 / R^2)``, its kernel
+    integrated by parts twice
+    (:meth:`~nrobust.distributed_delay.DistributedDelay.second_order_variation`): for a kernel
+    with jumps ``V_1``, its end values and jumps, can be much less than ``V``, which also holds
+    ``int |N'|``.
+
     Parameters
     ----------
     P : QuasiPolynomial
@@ -103,9 +110,20 @@ class TailBound:
         Smallest real part considered.
     t0 : float
         Delay by which ``P`` is normalised (the delay of the first principal term).
+    second_order : bool, optional
+        Integrate the kernels by parts twice (default False); requires ``x0 = t0 = 0``.
+
+    Raises
+    ------
+    ParameterError
+        ``second_order`` with ``x0`` or ``t0`` not 0.
     """
 
-    def __init__(self, P: QuasiPolynomial, n: int, x0: float, t0: float) -> None:
+    def __init__(self, P: QuasiPolynomial, n: int, x0: float, t0: float, *, second_order: bool = False) -> None:
+        if second_order and x0 != 0.0:
+            raise ParameterError("x0", "0 with second_order=True (the half-plane Re s >= 0)", x0)
+        if second_order and t0 != 0.0:
+            raise ParameterError("t0", "0 with second_order=True (no normalising delay)", t0)
         self.n = n
         self.point = np.zeros(n)
         # far to the left the weights e^{-(tau - t0) x0} overflow: an infinite bound is
@@ -115,11 +133,12 @@ class TailBound:
                 m = min(p.size, n)
                 a = np.abs(p[:m])
                 self.point[:m] += np.where(a > 0, a * np.exp(-(t - t0) * x0), 0.0)
-            self.dist: list[tuple[NDArray, float, float]] = []
+            self.dist: list[tuple[NDArray, float, float, float, float]] = []
             for d in P.distributed:
                 m0 = float(d.abs_moment(x0, 0)) * np.exp(t0 * x0)
                 v = float(d.variation_bound(x0)) * np.exp(t0 * x0) if d.moment == 0 else np.inf
-                self.dist.append((np.abs(d.poly), m0, v))
+                v1, v2 = d.second_order_variation() if second_order and d.moment == 0 else (np.inf, np.inf)
+                self.dist.append((np.abs(d.poly), m0, v, v1, v2))
 
     def __call__(self, radius: ArrayLike) -> NDArray[np.float64]:
         """The bound at ``|s| = R`` (vectorised over ``R > 0``)."""
@@ -129,9 +148,9 @@ class TailBound:
             for j, c in enumerate(self.point):
                 if c:
                     out = out + c * R ** (j - self.n)
-            for q, m0, v in self.dist:
+            for q, m0, v, v1, v2 in self.dist:
                 qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q) if c)
-                out = out + qpow * np.minimum(m0, v / R)
+                out = out + qpow * np.minimum(np.minimum(m0, v / R), v1 / R + v2 / R**2)
         return np.where(np.isnan(out), np.inf, out)
 
 

@@ -563,12 +563,16 @@ def _uniform_crossing_bound(
     """A frequency ``W`` with ``|A(i w; p)| != |B(i w; p)|`` for ``|w| >= W`` and every ``p`` in ``[lo, hi]``.
 
     On the axis ``| |A| - |B| | >= |w|^n (G(p) - T_A(|w|) - T_B(|w|))``, ``G`` the principal gap
-    (:func:`_piece_gap`, affine between the zeros of the ``s^n`` coefficients: its least value on a piece is
-    at an end) and ``T`` the :class:`~nrobust.bounds.TailBound` of the lower powers and distributed terms,
-    at most ``T_{P_0} + |p| T_{P_1}`` for ``P_0 + p P_1`` (the triangle inequality on each coefficient and
-    kernel). On each piece ``W`` is where that sum, with ``|p|`` its largest on the piece, falls below the
-    least gap (less the rounding of the sums, as :func:`~nrobust.margins.frequency_bound`); the largest over
-    the pieces is returned. The interval is strongly stable (:func:`_check_strongly_stable`).
+    (:func:`_piece_gap`, affine between the zeros of the ``s^n`` coefficients) and ``T`` the
+    :class:`~nrobust.bounds.TailBound` of the lower powers and distributed terms, at most
+    ``T_{P_0} + |p| T_{P_1}`` for ``P_0 + p P_1`` (the triangle inequality on each coefficient and kernel),
+    each kernel integrated by parts twice (``second_order``: its end values and jumps over ``|w|``, the
+    variation of its derivative over ``|w|^2``; once, the whole variation of a kernel with jumps decays only
+    like ``1/|w|``). On a piece ``G(p) - T(p, R)`` is concave in ``p`` (``G`` affine, ``T`` convex): it is
+    positive on the piece where it is at both ends, so ``W`` is the larger of the radii where ``T`` falls
+    below ``G`` (less the rounding of the sums, as :func:`~nrobust.margins.frequency_bound`) at the two
+    ends; the largest over the pieces is returned. The interval is strongly stable
+    (:func:`_check_strongly_stable`).
 
     Raises
     ------
@@ -578,7 +582,7 @@ def _uniform_crossing_bound(
     """
     n = joint_degree(*parts)
     top = _top_coefficients(parts, n)
-    tails = [TailBound(P, n, 0.0, 0.0) for P in parts]
+    tails = [TailBound(P, n, 0.0, 0.0, second_order=True) for P in parts]
     zeros = {-a / b for a, b in top.values() if b != 0.0}
     points = sorted({lo, hi, *(z for z in zeros if lo < z < hi)})
     out = 0.0
@@ -593,13 +597,13 @@ def _uniform_crossing_bound(
                 "principal gap of the loop tends to 0 where every s^n coefficient vanishes (the degree drops); bounds "
                 "that leave that parameter out would help"
             )
-        P = max(abs(a), abs(b))
+        for p, g, r in ((a, g_a, r_a), (b, g_b, r_b)):
 
-        def tail(R: float, P: float = P) -> float:
-            with np.errstate(over="ignore"):
-                return float(tails[0](R) + P * tails[1](R) + tails[2](R) + P * tails[3](R))
+            def tail(R: float, P: float = abs(p)) -> float:
+                with np.errstate(over="ignore"):
+                    return float(tails[0](R) + P * tails[1](R) + tails[2](R) + P * tails[3](R))
 
-        out = max(out, radius_where(tail, level, "crossing bound"))
+            out = max(out, radius_where(tail, g * (1.0 - 1e-9) - r, "crossing bound"))
     return out
 
 
