@@ -150,7 +150,10 @@ class TailBound:
                     out = out + c * R ** (j - self.n)
             for q, m0, v, v1, v2 in self.dist:
                 qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q) if c)
-                out = out + qpow * np.minimum(np.minimum(m0, v / R), v1 / R + v2 / R**2)
+                kernel = np.minimum(m0, v / R)
+                if v1 < np.inf:  # second_order
+                    kernel = np.minimum(kernel, v1 / R + v2 / R**2)
+                out = out + qpow * kernel
         return np.where(np.isnan(out), np.inf, out)
 
 
