@@ -76,6 +76,7 @@ from .exact_form import (
 )
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
+from .observer_proof import proven_observer_failure, proven_observer_term
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -566,13 +567,18 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
     a state feedback with integral gains. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
-    studies. ``"observer"``: an :class:`OutputFeedback` whose state
-    feedback takes the exact route; its observer term is computed in floating point with an
+    studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
+    too when its observer term is exact (uncoupled plant) or enclosed with a proven error
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant couplings, a law
+    reading ``N~`` or ``U~`` on the window). ``"observer"``: an output feedback whose state
+    feedback takes the exact route and whose observer term is computed in floating point with an
     estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
     """
     if isinstance(controller, OutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
-        return "observer" if inner == "exact" and not _uncoupled(system) else inner
+        if inner != "exact" or _uncoupled(system) or _proven_observer(system, controller):
+            return inner
+        return "observer"
     if isinstance(controller, CollocatedOutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
         return "observer" if inner == "exact" and not _exact_collocated(system, controller) else inner
@@ -611,6 +617,25 @@ def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
     a delay ``delta_o`` would be ``delta_o / r`` in the loop as built (not a double).
     """
     return _exact_collocated(system, controller) and controller.observer_delay == 0.0
+
+
+def _window_law(law: Controller) -> tuple[str, float] | None:
+    """The unfiltered ``law``'s kernel on the measurement's window, for
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: ``("N", 1)`` for ``m = N~``
+    (U_BS, U_BS2(K)), ``("U", k)`` for ``m = k U~`` (``StateFeedback(k)`` without integral gains); None otherwise."""
+    if isinstance(law, (FiniteTimeController, ReflectionController)):
+        return ("N", 1.0)
+    if isinstance(law, StateFeedback) and not _integral_gains(law):
+        return ("U", float(law.k))
+    return None
+
+
+def _proven_observer(system: Any, controller: OutputFeedback) -> bool:
+    """True when the observer term of ``controller`` on ``system`` is enclosed with a proven error (not on an
+    uncoupled plant, where the observer needs no term)."""
+    if _uncoupled(system):
+        return False
+    return proven_observer_failure(system, _window_law(unfiltered(controller.controller))) is None
 
 
 def _uncoupled(system: Any) -> bool:
@@ -742,6 +767,13 @@ def _output_feedback_scope(
     inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
     if term is None:
         return inner + "; the observer is exact (N~ = 0: the measurement gives every value the law uses)"
+    if grid is None and _proven_observer(system, controller):
+        radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
+        return (
+            f"the PDE itself (N~ in closed form within a proven {radius:.1e}; the observer's term (1 - Phi) H "
+            f"enclosed in ball arithmetic within a proven {term.accuracy:.1e}, which every enclosure includes; "
+            f"{_given(system, controller, kernel_grid)})"
+        )
     observer = (
         f"the observer's term (1 - Phi) H computed in floating point to an estimated {term.accuracy:.0e}, "
         "which is not part of the proof"
@@ -795,9 +827,12 @@ def unfiltered(controller: Controller) -> Controller:
 
 
 def observer_of(system: Any, controller: OutputFeedback, kernel_grid: int | None = None) -> Any:
-    """The observer term ``G`` of an output feedback on ``system`` (a ``ResolventProduct``; None if ``G = 0``).
+    """The observer term ``G`` of an output feedback on ``system`` (None if ``G = 0``).
 
-    Its ``accuracy`` is the estimated sup-norm error of ``G``'s kernel
+    A ``ProvenObserverTerm`` where its error is proven (constant couplings on the exact route,
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`): its ``accuracy`` is a
+    proven sup-norm bound of the error of ``G``'s kernel; otherwise a ``ResolventProduct`` whose
+    ``accuracy`` is the estimated sup-norm error
     (:func:`~nrobust.hyperbolic.loops.output_feedback.observer_term`).
     """
     return _observer(system, controller, kernel_grid)[0]
@@ -913,6 +948,8 @@ def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) 
             system,
         )
     grid = _observer_grid(system, controller, kernel_grid)
+    if grid is None and _proven_observer(system, controller):
+        return proven_observer_term(system, _window_law(unfiltered(controller.controller))), grid  # type: ignore[arg-type]
     open_loop, _ = loop_factors(system, OpenLoop(), grid)
     _, law = loop_factors(system, unfiltered(controller.controller), grid)
     plant = normalize(system, OpenLoop())[0]
@@ -1392,6 +1429,20 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)
     ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
         return rounded_parts(system, controller.controller, kernel_grid)
+    if (
+        isinstance(controller, OutputFeedback)
+        and isinstance(system, Hyperbolic2x2)
+        and _proven_observer(system, controller)
+    ):
+        window = 1.0 / system.mu
+        exact = Fraction(window) == 1 / Fraction(system.mu)
+        if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
+            return ""
+        rounded = "" if exact else " (rounded)"
+        return (
+            f"{_rounded_tau(system)} and the window 1/mu as the double {window!r}{rounded} (the OutputFeedback loop "
+            "is not mapped to the exact tau: its observer term has a kernel on the window)"
+        )
     if isinstance(controller, _ObserverFeedback):
         return (
             f"{_rounded_tau(system)} and the observer's terms as computed in floating point (the "

@@ -1,0 +1,273 @@
+"""The output feedback's observer term proven on coupled plants with constant couplings: proofs about the PDE.
+
+``OutputFeedback(law)`` measures ``y = v(t, 0)`` and predicts the state over the window ``w = 1/mu``; its loop is
+``A - G``, ``B + G`` (no observer delay) with ``G = (1 - Phi) H``, ``H(s) = int_0^w h(nu) e^{-nu s} dnu`` and
+``h + N~ * h = m`` on ``[0, w]`` (``m = N~`` for U_BS2(K) and U_BS). The loop's ``G`` now carries a proven error
+bound, so the proven delay margin, abscissa and certificate hold for the PDE, and the scope says so.
+
+Oracle, sharing no code with the package, at 40 digits:
+
+* ``1 - Phi = e^{-s/mu} (v(1) - rho u(1))`` from ``[u; v](1) = expm(M(s)) [q; 1]``,
+  ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]`` (the Laplace-domain solution of the PDE);
+* ``N~`` from its series (``W``, ``h_11``, ``h_22`` summed term by term), checked in the test against the PDE:
+  ``int_0^tau N~(nu) e^{-nu s} dnu = (1 - Phi) - 1 + rho q e^{-tau s}`` by ``mpmath.quad`` at two points;
+* ``h`` by Chebyshev collocation of the Volterra equation (36 first-kind points, the integrals by a 40-point
+  Gauss-Legendre rule whose nodes are refined by Newton's method at 40 digits), a method unlike the
+  package's (a Taylor polynomial from a triangular recursion); ``h`` is entire, so the collocation converges
+  geometrically: doubling the points changes ``H`` by less than 1e-30 (checked below);
+* crossings ``|A_o(i w)| = |B_o(i w)|`` by ``mpmath.findroot``.
+
+Before the change the observer term was floating point with an estimated error and the scope said "a model of
+the PDE": the scope tests fail there; the balls held the PDE's values already (the float term was within 3e-15
+of the proven one, the balls 1e-12 to 1e-11 wide), so the containment tests pass on both.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, StateFeedback
+from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope, observer_of
+from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure
+from nrobust.reports.certificate import PROVEN
+
+pytest.importorskip("flint")
+
+DPS = 40
+PAPER = (1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+SECOND = (1.0, 2.0, 0.4, 0.5, 1.0, 0.3)
+
+
+def _open_loop(args, s):
+    """``1 - Phi(s)`` from the PDE's Laplace-domain solution."""
+    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)
+    E = mp.expm(mp.matrix([[-s / lam, spm / lam], [-smp / mu, s / mu]]))
+    u, v = E[0, 0] * q + E[0, 1], E[1, 0] * q + E[1, 1]
+    return mp.exp(-s / mu) * (v - rho * u)
+
+
+def _kernel(args):
+    """``N~(nu)`` on ``[0, tau]`` from its series: ``h_22 - rho q h_11 + (m q - rho p) W / tau``."""
+    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)  # exact: doubles
+    with mp.workdps(DPS + 10):
+        tau, p, m = 1 / lam + 1 / mu, spm / lam, -smp / mu
+        a = p * m / tau**2
+
+    def N(nu):
+        x = a * nu * (tau - nu)
+        W = I1 = mp.mpf(0)
+        term, k = mp.mpf(1), 0
+        while True:  # term = x^k / (k!)^2
+            W += term
+            I1 += term / (k + 1)  # x^k / (k! (k + 1)!)
+            k += 1
+            term *= x / (k * k)
+            if abs(term) < mp.mpf(10) ** (-DPS - 10) and k > 3:
+                break
+        h22, h11 = a * (tau - nu) * I1, a * nu * I1
+        return h22 - rho * q * h11 + (m * q - rho * p) / tau * W
+
+    return N
+
+
+@functools.cache
+def _gauss(n):
+    """Gauss-Legendre nodes and weights on ``[0, 1]`` at :data:`DPS` digits (numpy's nodes refined by Newton)."""
+    with mp.workdps(DPS + 10):
+        nodes, weights = [], []
+        for x0 in np.polynomial.legendre.leggauss(n)[0]:
+            x = mp.findroot(lambda t: mp.legendre(n, t), mp.mpf(x0))
+            dp = n * (x * mp.legendre(n, x) - mp.legendre(n - 1, x)) / (x * x - 1)
+            nodes.append((x + 1) / 2)
+            weights.append(1 / ((1 - x * x) * dp * dp))
+        return nodes, weights
+
+
+@functools.cache
+def _window_kernel(args, n=36):
+    """``h`` at ``n`` Chebyshev points of ``[0, w]`` and the barycentric weights: ``(I + M) h = N~`` (collocation)."""
+    with mp.workdps(DPS + 10):
+        w = 1 / mp.mpf(args[1])
+        N = _kernel(args)
+        theta = [(2 * j + 1) * mp.pi / (2 * n) for j in range(n)]
+        x = [w / 2 * (1 - mp.cos(t)) for t in theta]
+        bary = [(-1) ** j * mp.sin(t) for j, t in enumerate(theta)]
+        gx, gw = _gauss(40)
+        M = mp.matrix(n, n)
+        for i in range(n):
+            for y, wt in zip(gx, gw):
+                yy = x[i] * y
+                row = _lagrange(x, bary, yy)
+                weight = wt * x[i] * N(x[i] - yy)
+                for j in range(n):
+                    M[i, j] += weight * row[j]
+            M[i, i] += 1
+        h = mp.lu_solve(M, mp.matrix([N(v) for v in x]))
+        return x, bary, [h[j] for j in range(n)]
+
+
+def _lagrange(x, bary, y):
+    """The barycentric interpolation weights of the values at ``x`` for the point ``y``."""
+    terms = []
+    for xj, bj in zip(x, bary):
+        if y == xj:
+            return [mp.mpf(1) if v == xj else mp.mpf(0) for v in x]
+        terms.append(bj / (y - xj))
+    total = mp.fsum(terms)
+    return [t / total for t in terms]
+
+
+def _h(args, y, n=36):
+    x, bary, h = _window_kernel(args, n)
+    return mp.fdot(_lagrange(x, bary, y), h)
+
+
+def _H(args, s, n=36):
+    """``int_0^w h(nu) e^{-nu s} dnu`` (Gauss-Legendre, 40 points; ``h`` a polynomial of degree ``n - 1``)."""
+    w = 1 / mp.mpf(args[1])
+    gx, gw = _gauss(40)
+    return w * mp.fsum(wt * _h(args, w * y, n) * mp.exp(-w * y * s) for y, wt in zip(gx, gw))
+
+
+def _factors(args, law, s):
+    """``(A_o, B_o) = (A - G, B + G)``, ``G = (1 - Phi) H``, ``B = K q e^{-tau s} - I_N`` (``K = rho`` for U_BS)."""
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    tau = 1 / lam + 1 / mu
+    A = _open_loop(args, s)
+    gain = rho if isinstance(law, FiniteTimeController) else mp.mpf(law.K)
+    B = (gain - rho) * q * mp.exp(-tau * s) + 1 - A
+    G = A * _H(args, s)
+    return A - G, B + G
+
+
+def _pde_margin(args, law, w0):
+    """``(w, delta*)``: the crossing near ``w0`` and its first delay, at 40 digits."""
+    with mp.workdps(DPS):
+
+        def g(w):
+            A, B = _factors(args, law, mp.mpc(0, w))
+            return abs(A) ** 2 - abs(B) ** 2
+
+        w = mp.findroot(g, mp.mpf(w0))
+        A, B = _factors(args, law, mp.mpc(0, w))
+        return w, (-mp.arg(-A / B)) % (2 * mp.pi) / w
+
+
+# ------------------------------------------------------------------------------------------- the oracle itself
+def test_the_oracles_kernel_is_the_pdes_and_its_collocation_has_converged():
+    """``N~``'s series is the PDE's (its transform is ``(1 - Phi) - 1 + rho q e^{-tau s}``), and the collocation
+    of ``h`` with 36 points agrees with 48 to 1e-30 in ``H``."""
+    for args in (PAPER, SECOND):
+        lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+        N = _kernel(args)
+        with mp.workdps(DPS):
+            tau = 1 / lam + 1 / mu
+            for s in (mp.mpc(0.7, 1.3), mp.mpc(-0.2, 4.0)):
+                transform = mp.quad(lambda nu, s=s, N=N: N(nu) * mp.exp(-nu * s), [0, tau / 2, tau])
+                assert abs(transform - (_open_loop(args, s) - 1 + rho * q * mp.exp(-tau * s))) < mp.mpf(10) ** -30
+                assert abs(_H(args, s) - _H(args, s, 48)) < mp.mpf(10) ** -30
+
+
+# ----------------------------------------------------------------------------------------- the enclosure of G
+@pytest.mark.parametrize("args", [PAPER, SECOND])
+def test_the_stored_observer_term_is_within_its_proven_radius_of_the_pdes(args):
+    """At points of each interval the stored kernel of ``G`` is within its term's ``radius`` of the oracle's
+    ``g = h 1_[0, w] - rho q h(. - tau) + N~ * h`` (by ``mpmath.quad``), and the radius is at most 1e-15 here
+    (the brief's bound is 1e-9)."""
+    law = ReflectionController(0.1)
+    G = observer_of(Hyperbolic2x2(*args), nr.OutputFeedback(law))
+    assert G.accuracy <= 1e-15
+    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    with mp.workdps(DPS):
+        tau, w = 1 / lam + 1 / mu, 1 / mu
+    N = _kernel(args)
+
+    def g(nu):
+        lo, hi = max(mp.mpf(0), nu - tau), min(w, nu)
+        conv = mp.quad(lambda x: N(nu - x) * _h(args, x), [lo, hi]) if hi > lo else 0
+        own = _h(args, nu) if nu <= w else 0
+        late = -rho * q * _h(args, nu - tau) if nu >= tau else 0
+        return own + late + conv
+
+    with mp.workdps(DPS):
+        for term in G.product.distributed[:3]:
+            for t in (0.03, 0.41, 0.97):
+                nu = term.a + t * (term.b - term.a)
+                start, h, coefs = term.pieces
+                i = int(np.searchsorted(start, nu, side="right") - 1)
+                t_local = mp.mpf(nu - start[i]) / mp.mpf(h[i])  # the piece in exact arithmetic: no rounding here
+                stored = mp.fsum(mp.mpf(c) * t_local**k for k, c in enumerate(coefs[i]))
+                assert abs(stored - g(mp.mpf(nu))) <= term.radius
+
+
+# --------------------------------------------------------------------------------------------- the loop's claims
+@pytest.mark.parametrize(
+    ("args", "law"),
+    [
+        (PAPER, ReflectionController(0.1)),
+        (SECOND, ReflectionController(0.1)),
+        (SECOND, FiniteTimeController()),
+    ],
+)
+def test_the_proven_margin_of_an_output_feedback_holds_for_the_pde(args, law):
+    """The proven delay-margin ball holds the PDE's margin (40 digits), the crossing frequency agrees to 1e-12, and
+    the scope says the proofs are about the PDE itself."""
+    plant, controller = Hyperbolic2x2(*args), nr.OutputFeedback(law)
+    assert loop_route(plant, controller) == "exact"
+    margin = nr.delay_margin(plant, controller, rigorous=True)
+    assert margin.rigorous and 0 < margin.margin < np.inf
+    w, truth = _pde_margin(args, law, margin.omega)
+    lo, hi = margin.margin_ball
+    assert mp.mpf(lo) <= truth <= mp.mpf(hi)
+    np.testing.assert_allclose(margin.omega, float(w), rtol=1e-12)
+    assert margin.scope.startswith("the PDE itself") and "observer's term (1 - Phi) H enclosed" in margin.scope
+    assert not margin.of_model and "model" not in margin.scope
+
+
+def test_the_certificate_of_an_output_feedback_holds_for_the_pde():
+    """``certify(plant, OutputFeedback(U_BS2(0.1)), rigorous=True)`` on the paper's plant: the claims proven, the
+    scope the PDE's, the margin ball holds the PDE's margin, and the abscissa bracket the closed form
+    ``ln((rho - K) q) / tau`` of the target system (the loop at ``delta = 0``, where ``G`` cancels)."""
+    plant, controller = Hyperbolic2x2(*PAPER), nr.OutputFeedback(ReflectionController(0.1))
+    cert = nr.certify(plant, controller, delta_max=0.1, rigorous=True, k_region=False)
+    claims = {c.name: c.status for c in cert.claims}
+    assert claims["delay margin"] == PROVEN and claims["spectral abscissa"] == PROVEN
+    assert "the PDE itself" in cert.scope and "a model of the PDE" not in cert.scope
+    _, truth = _pde_margin(PAPER, controller.controller, cert.margin.omega)
+    assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+    with mp.workdps(DPS):
+        chain = mp.log((mp.mpf(0.85) - mp.mpf(0.1)) * 1) / 2
+    lo, hi = cert.abscissa.value_bracket
+    assert mp.mpf(lo) <= chain <= mp.mpf(hi)
+
+
+def test_a_plant_whose_end_of_support_is_not_a_double_keeps_the_term_past_it():
+    """``tau + 1/mu`` not a double (``lam, mu = 1, 3``): the last interval ends at the double below it and a term on
+    the next ulp holds the rest of ``g``; the margin ball still holds the PDE's, the scope names the rounded
+    ``tau`` and window."""
+    args, law = (1.0, 3.0, 1.0, 1.0, 1.0, 0.85), ReflectionController(0.1)
+    plant, controller = Hyperbolic2x2(*args), nr.OutputFeedback(law)
+    terms = observer_of(plant, controller).product.distributed
+    assert len(terms) == 4 and terms[3].b - terms[3].a == np.spacing(terms[3].a)
+    margin = nr.delay_margin(plant, controller, rigorous=True)
+    _, truth = _pde_margin(args, law, margin.omega)
+    assert mp.mpf(margin.margin_ball[0]) <= truth <= mp.mpf(margin.margin_ball[1])
+    assert margin.scope.startswith("the PDE itself") and "the window 1/mu as the double" in margin.scope
+
+
+def test_a_state_feedback_and_a_strong_coupling():
+    """A state feedback ``U = k u(t, 1)`` reads ``k U~`` on the window: proven too; a coupling too strong for the
+    Gronwall bound (``kappa = 36``) keeps the floating-point term, and the scope says it is a model."""
+    plant = Hyperbolic2x2(*SECOND)
+    assert loop_route(plant, nr.OutputFeedback(StateFeedback(-0.3))) == "exact"
+    strong = Hyperbolic2x2(1.0, 1.0, 6.0, 6.0, 0.5, 0.5)
+    controller = nr.OutputFeedback(ReflectionController(0.1))
+    assert "too strong" in proven_observer_failure(strong, ("N", 1.0))
+    assert loop_route(strong, controller) == "observer"
+    A, B = nr.loop_factors(strong, controller)
+    assert loop_scope(strong, controller, None, (A, B)).startswith("a model of the PDE")
