@@ -32,6 +32,8 @@ import pytest
 
 import nrobust as nr
 from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, StateFeedback
+from nrobust._flint import working_precision
+from nrobust.balls import ball_function
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope, observer_of
 from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure
 from nrobust.reports.certificate import PROVEN
@@ -203,6 +205,26 @@ def test_the_stored_observer_term_is_within_its_proven_radius_of_the_pdes(args):
                 t_local = mp.mpf(nu - start[i]) / mp.mpf(h[i])  # the piece in exact arithmetic: no rounding here
                 stored = mp.fsum(mp.mpf(c) * t_local**k for k, c in enumerate(coefs[i]))
                 assert abs(stored - g(mp.mpf(nu))) <= term.radius
+
+
+def test_the_loops_balls_enclose_the_pdes_loop():
+    """The ball enclosure of the loop ``A_o + B_o e^{-delta s}`` (the one every proof evaluates) holds the PDE's loop
+    and its first derivative at 40 digits, at ``delta = 0.3`` (where ``G`` does not cancel)."""
+    law, delta = ReflectionController(0.1), 0.3
+    plant, controller = Hyperbolic2x2(*PAPER), nr.OutputFeedback(law)
+    balls = ball_function(nr.characteristic(plant, controller, delta), 53)  # tau = 2 exact: the loop as built
+
+    def F(s):
+        A, B = _factors(PAPER, law, s)
+        return A + B * mp.exp(-mp.mpf(delta) * s)
+
+    for s in (complex(-0.5, 6.3), complex(0.3, -17.0), complex(-2.0, 90.0)):
+        for k in (0, 1):
+            value = balls(s, k)
+            with mp.workdps(DPS):
+                truth = mp.diff(F, mp.mpc(s), k)
+            with working_precision(200) as fl:
+                assert value.contains(fl.acb(truth)), (s, k, value, truth)
 
 
 # --------------------------------------------------------------------------------------------- the loop's claims
