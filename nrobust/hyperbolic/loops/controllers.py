@@ -762,7 +762,8 @@ _AS_GIVEN = (
 def _output_feedback_scope(
     system: Any, controller: OutputFeedback, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
 ) -> str:
-    """:func:`loop_scope` of an output feedback: the state feedback's, and the observer term's accuracy."""
+    """:func:`loop_scope` of an output feedback: the state feedback's, and the observer term's accuracy (a proven
+    radius on the exact route, where the proofs are about the PDE; an estimate otherwise, a model)."""
     term, grid = _observer(system, controller, kernel_grid)
     inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
     if term is None:
@@ -1407,8 +1408,10 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     that is a function of ``tau s`` and ``delta / tau``, or a filtered law's (its ``a``, ``b``
     enclosed as ``a / r``, ``b / r``), or a state feedback's with integral gains (their kernel
     built with ``t_v = tau_d lam / (lam + mu)`` exactly,
-    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`). Otherwise the quantities computed
-    in floating point, in words, for a proof's scope.
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`), or an output feedback whose proven
+    observer term (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`) is built
+    with ``tau`` and the window ``1/mu`` exact (doubles). Otherwise the quantities computed in
+    floating point, in words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
     if general and not has_exact_form(system):
