@@ -35,7 +35,7 @@ from nrobust._flint import working_precision
 from nrobust.balls import ball_function
 from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, StateFeedback
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope, observer_of
-from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure
+from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure, proven_observer_term
 from nrobust.hyperbolic.loops.output_feedback import observer_term
 from nrobust.reports.certificate import PROVEN
 
@@ -320,3 +320,13 @@ def test_a_state_feedback_and_a_strong_coupling():
     assert loop_route(strong, controller) == "observer"
     A, B = nr.loop_factors(strong, controller)
     assert loop_scope(strong, controller, None, (A, B)).startswith("a model of the PDE")
+
+
+def test_bad_input_is_refused_before_work():
+    """``law`` must be ``("N" | "U", c)``, ``c`` finite, and the plant a ``Hyperbolic2x2`` with constant couplings."""
+    plant = Hyperbolic2x2(*PAPER)
+    for law in (("X", 1.0), ("N", float("nan")), ("N",), "N"):
+        with pytest.raises(nr.ParameterError, match="law"):
+            proven_observer_term(plant, law)
+    with pytest.raises(nr.ParameterError, match="system"):
+        proven_observer_term(Hyperbolic2x2(1.0, 1.0, lambda x: 1.0 + x, 1.0, 1.0, 0.85), ("N", 1.0))

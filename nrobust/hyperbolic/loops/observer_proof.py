@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from ..._flint import precision, require_flint
-from ...errors import CertificationError
+from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
@@ -123,10 +123,27 @@ def proven_observer_failure(system: Any, law: tuple[str, float] | None) -> str |
     """
     if law is None:
         return "a law whose kernel on the window is not c N~ or c U~ (integral gains)"
-    if not (isinstance(system, Hyperbolic2x2) and system.constant_couplings and has_exact_form(system)):
+    law = _checked_law(law)
+    if not _covered(system):
         return "a plant other than Hyperbolic2x2 with constant couplings"
     out = _attempt(system, law)
     return out if isinstance(out, str) else None
+
+
+def _covered(system: Any) -> bool:
+    """True for the plants the enclosure covers: :class:`Hyperbolic2x2` with constant couplings."""
+    return isinstance(system, Hyperbolic2x2) and system.constant_couplings and has_exact_form(system)
+
+
+def _checked_law(law: Any) -> tuple[str, float]:
+    """``law`` as ``(kind, c)``, or a :class:`~nrobust.errors.ParameterError`."""
+    admissible = '("N" or "U", a finite real c): the law\'s kernel c N~ or c U~ on the window'
+    if not (isinstance(law, tuple) and len(law) == 2 and law[0] in ("N", "U")):
+        raise ParameterError("law", admissible, law)
+    c = law[1]
+    if isinstance(c, bool) or not isinstance(c, (int, float, np.integer, np.floating)) or not math.isfinite(c):
+        raise ParameterError("law", admissible, law)
+    return (law[0], float(c))
 
 
 def proven_observer_term(system: Hyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm:
@@ -142,9 +159,15 @@ def proven_observer_term(system: Hyperbolic2x2, law: tuple[str, float]) -> Prove
 
     Raises
     ------
+    ParameterError
+        ``system`` not a :class:`Hyperbolic2x2` with constant couplings, or ``law`` not ``("N" | "U", c)``
+        with ``c`` finite.
     CertificationError
         :func:`proven_observer_failure` is not None (the reason).
     """
+    law = _checked_law(law)
+    if not _covered(system):
+        raise ParameterError("system", "a Hyperbolic2x2 with constant couplings", system)
     reason = proven_observer_failure(system, law)
     if reason is not None:
         raise CertificationError(f"proven_observer_term: {reason}; the observer's term is computed in floating point")
