@@ -771,8 +771,9 @@ def _output_feedback_scope(
     if grid is None and _proven_observer(system, controller):
         radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
         return (
-            f"the PDE itself (N~ in closed form within a proven {radius:.1e}; the observer's term (1 - Phi) H "
-            f"enclosed in ball arithmetic within a proven {term.accuracy:.1e}, which every enclosure includes; "
+            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(radius, 2)}; the observer's term "
+            f"(1 - Phi) H enclosed in ball arithmetic within a proven {upper_bound_text(term.accuracy, 2)}, which "
+            "every enclosure includes; "
             f"{_given(system, controller, kernel_grid)})"
         )
     observer = (
