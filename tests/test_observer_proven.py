@@ -8,9 +8,11 @@ bound, so the proven delay margin, abscissa and certificate hold for the PDE, an
 Oracle, sharing no code with the package, at 40 digits:
 
 * ``1 - Phi = e^{-s/mu} (v(1) - rho u(1))`` from ``[u; v](1) = expm(M(s)) [q; 1]``,
-  ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]`` (the Laplace-domain solution of the PDE);
-* ``N~`` from its series (``W``, ``h_11``, ``h_22`` summed term by term), checked in the test against the PDE:
-  ``int_0^tau N~(nu) e^{-nu s} dnu = (1 - Phi) - 1 + rho q e^{-tau s}`` by ``mpmath.quad`` at two points;
+  ``M(s) = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]`` (the Laplace-domain solution of the PDE; for a
+  general plant ``e^{-(s - d) L/mu} (v(L) - rho u(L))`` with ``M = [[(a - s)/lam, b/lam], [-c/mu, (s - d)/mu]]``);
+* ``N~`` from its series (``W``, ``h_11``, ``h_22`` summed term by term, times ``e^{sigma nu}`` on a general
+  plant), checked in the test against the PDE: ``int_0^tau N~(nu) e^{-nu s} dnu = (1 - Phi) - 1 +
+  rho q e^{sigma tau} e^{-tau s}`` by ``mpmath.quad`` at two points;
 * ``h`` by Chebyshev collocation of the Volterra equation (36 first-kind points, the integrals by a 40-point
   Gauss-Legendre rule whose nodes are refined by Newton's method at 40 digits), a method unlike the
   package's (a Taylor polynomial from a triangular recursion); ``h`` is entire, so the collocation converges
@@ -37,6 +39,7 @@ from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionCo
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope, observer_of
 from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure, proven_observer_term
 from nrobust.hyperbolic.loops.output_feedback import observer_term
+from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
 from nrobust.reports.certificate import PROVEN
 
 pytest.importorskip("flint")
@@ -44,21 +47,49 @@ pytest.importorskip("flint")
 DPS = 40
 PAPER = (1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 SECOND = (1.0, 2.0, 0.4, 0.5, 1.0, 0.3)
+#: A general plant with constant coefficients (lam, mu, a, b, c, d, q, rho, L): its weight e^{sigma nu} is not 1.
+GENERAL = ("general", 0.3, 0.7, 0.1, 0.2, 0.3, -0.2, 0.6, 0.7, 1.3)
+
+
+def _plant(args):
+    """The plant of ``args`` (:func:`_coefficients`)."""
+    if args[0] == "general":
+        lam, mu, a, b, c, d, q, rho, L = args[1:]
+        return GeneralHyperbolic2x2(lam=lam, mu=mu, a=a, b=b, c=c, d=d, q=q, rho=rho, length=L)
+    return Hyperbolic2x2(*args)
+
+
+def _coefficients(args):
+    """``(lam, mu, a, b, c, d, q, rho, L)`` of the paper's plant ``args = (lam, mu, sigma_pm, sigma_mp, q, rho)``
+    (``a = d = 0``, ``L = 1``) or of a general plant ``args = ("general", lam, mu, a, b, c, d, q, rho, L)``."""
+    if args[0] == "general":
+        return tuple(mp.mpf(v) for v in args[1:])  # exact: doubles
+    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)
+    return lam, mu, mp.mpf(0), spm, smp, mp.mpf(0), q, rho, mp.mpf(1)
+
+
+def _params(args):
+    """``(tau, w, p, m, sigma, q, rho)``: the round trip, the window ``L/mu``, ``p = b L/lam``, ``m = -c L/mu``, the
+    weight ``sigma = (a L/lam + d L/mu)/tau`` of ``N~ = e^{sigma nu} N~_0`` (module notes of ``exact_form``)."""
+    lam, mu, a, b, c, d, q, rho, L = _coefficients(args)
+    with mp.workdps(DPS + 10):
+        tau = L / lam + L / mu
+        return tau, L / mu, b * L / lam, -c * L / mu, (a * L / lam + d * L / mu) / tau, q, rho
 
 
 def _open_loop(args, s):
-    """``1 - Phi(s)`` from the PDE's Laplace-domain solution."""
-    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)
-    E = mp.expm(mp.matrix([[-s / lam, spm / lam], [-smp / mu, s / mu]]))
+    """``1 - Phi(s)`` from the PDE's Laplace-domain solution: ``e^{-(s - d) L/mu} (v(L) - rho u(L))``,
+    ``[u; v](L) = expm(L M(s)) [q; 1]``, ``M = [[(a - s)/lam, b/lam], [-c/mu, (s - d)/mu]]``."""
+    lam, mu, a, b, c, d, q, rho, L = _coefficients(args)
+    E = mp.expm(L * mp.matrix([[(a - s) / lam, b / lam], [-c / mu, (s - d) / mu]]))
     u, v = E[0, 0] * q + E[0, 1], E[1, 0] * q + E[1, 1]
-    return mp.exp(-s / mu) * (v - rho * u)
+    return mp.exp(-(s - d) * L / mu) * (v - rho * u)
 
 
 def _kernel(args):
-    """``N~(nu)`` on ``[0, tau]`` from its series: ``h_22 - rho q h_11 + (m q - rho p) W / tau``."""
-    lam, mu, spm, smp, q, rho = (mp.mpf(v) for v in args)  # exact: doubles
+    """``N~(nu)`` on ``[0, tau]``: ``e^{sigma nu}`` times its series ``h_22 - rho q h_11 + (m q - rho p) W / tau``."""
+    tau, _, p, m, sigma, q, rho = _params(args)
     with mp.workdps(DPS + 10):
-        tau, p, m = 1 / lam + 1 / mu, spm / lam, -smp / mu
         a = p * m / tau**2
 
     def N(nu):
@@ -73,7 +104,7 @@ def _kernel(args):
             if abs(term) < mp.mpf(10) ** (-DPS - 10) and k > 3:
                 break
         h22, h11 = a * (tau - nu) * I1, a * nu * I1
-        return h22 - rho * q * h11 + (m * q - rho * p) / tau * W
+        return mp.exp(sigma * nu) * (h22 - rho * q * h11 + (m * q - rho * p) / tau * W)
 
     return N
 
@@ -95,7 +126,7 @@ def _gauss(n):
 def _window_kernel(args, n=36):
     """``h`` at ``n`` Chebyshev points of ``[0, w]`` and the barycentric weights: ``(I + M) h = N~`` (collocation)."""
     with mp.workdps(DPS + 10):
-        w = 1 / mp.mpf(args[1])
+        w = _params(args)[1]
         N = _kernel(args)
         theta = [(2 * j + 1) * mp.pi / (2 * n) for j in range(n)]
         x = [w / 2 * (1 - mp.cos(t)) for t in theta]
@@ -132,18 +163,19 @@ def _h(args, y, n=36):
 
 def _H(args, s, n=36):
     """``int_0^w h(nu) e^{-nu s} dnu`` (Gauss-Legendre, 40 points; ``h`` a polynomial of degree ``n - 1``)."""
-    w = 1 / mp.mpf(args[1])
+    w = _params(args)[1]
     gx, gw = _gauss(40)
     return w * mp.fsum(wt * _h(args, w * y, n) * mp.exp(-w * y * s) for y, wt in zip(gx, gw))
 
 
 def _factors(args, law, s):
-    """``(A_o, B_o) = (A - G, B + G)``, ``G = (1 - Phi) H``, ``B = K q e^{-tau s} - I_N`` (``K = rho`` for U_BS)."""
-    lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
-    tau = 1 / lam + 1 / mu
+    """``(A_o, B_o) = (A - G, B + G)``, ``G = (1 - Phi) H``, ``B = K q e^{sigma tau/2} e^{-tau s} - I_N`` with
+    ``I_N = (1 - Phi) - 1 + rho q e^{sigma tau} e^{-tau s}`` (U_BS: ``rho q e^{sigma tau}`` for the first gain)."""
+    tau, _, _, _, sigma, q, rho = _params(args)
     A = _open_loop(args, s)
-    gain = rho if isinstance(law, FiniteTimeController) else mp.mpf(law.K)
-    B = (gain - rho) * q * mp.exp(-tau * s) + 1 - A
+    principal = rho * q * mp.exp(sigma * tau)
+    gain = principal if isinstance(law, FiniteTimeController) else mp.mpf(law.K) * q * mp.exp(sigma * tau / 2)
+    B = (gain - principal) * mp.exp(-tau * s) + 1 - A
     G = A * _H(args, s)
     return A - G, B + G
 
@@ -165,14 +197,14 @@ def _pde_margin(args, law, w0):
 def test_the_oracles_kernel_is_the_pdes_and_its_collocation_has_converged():
     """``N~``'s series is the PDE's (its transform is ``(1 - Phi) - 1 + rho q e^{-tau s}``), and the collocation
     of ``h`` with 36 points agrees with 48 to 1e-30 in ``H``."""
-    for args in (PAPER, SECOND):
-        lam, mu, _, _, q, rho = (mp.mpf(v) for v in args)
+    for args in (PAPER, SECOND, GENERAL):
+        tau, _, _, _, sigma, q, rho = _params(args)
         N = _kernel(args)
         with mp.workdps(DPS):
-            tau = 1 / lam + 1 / mu
+            principal = rho * q * mp.exp(sigma * tau)
             for s in (mp.mpc(0.7, 1.3), mp.mpc(-0.2, 4.0)):
                 transform = mp.quad(lambda nu, s=s, N=N: N(nu) * mp.exp(-nu * s), [0, tau / 2, tau])
-                assert abs(transform - (_open_loop(args, s) - 1 + rho * q * mp.exp(-tau * s))) < mp.mpf(10) ** -30
+                assert abs(transform - (_open_loop(args, s) - 1 + principal * mp.exp(-tau * s))) < mp.mpf(10) ** -30
                 assert abs(_H(args, s) - _H(args, s, 48)) < mp.mpf(10) ** -30
 
 
@@ -261,12 +293,13 @@ def test_the_proven_term_agrees_with_the_floating_point_route(args):
         (PAPER, ReflectionController(0.1)),
         (SECOND, ReflectionController(0.1)),
         (SECOND, FiniteTimeController()),
+        (GENERAL, ReflectionController(0.1)),
     ],
 )
 def test_the_proven_margin_of_an_output_feedback_holds_for_the_pde(args, law):
     """The proven delay-margin ball holds the PDE's margin (40 digits), the crossing frequency agrees to 1e-12, and
-    the scope says the proofs are about the PDE itself."""
-    plant, controller = Hyperbolic2x2(*args), nr.OutputFeedback(law)
+    the scope says the proofs are about the PDE itself (a general plant with constant coefficients too)."""
+    plant, controller = _plant(args), nr.OutputFeedback(law)
     assert loop_route(plant, controller) == "exact"
     margin = nr.delay_margin(plant, controller, rigorous=True)
     assert margin.rigorous and 0 < margin.margin < np.inf

@@ -77,6 +77,7 @@ from .exact_form import (
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
 from .observer_proof import proven_observer_failure, proven_observer_term
+from .observer_proof import window as observer_window
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -569,7 +570,7 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
     studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
     too when its observer term is exact (uncoupled plant) or enclosed with a proven error
-    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant couplings, a law
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant coefficients, a law
     reading ``N~`` or ``U~`` on the window). ``"observer"``: an output feedback whose state
     feedback takes the exact route and whose observer term is computed in floating point with an
     estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
@@ -831,7 +832,7 @@ def unfiltered(controller: Controller) -> Controller:
 def observer_of(system: Any, controller: OutputFeedback, kernel_grid: int | None = None) -> Any:
     """The observer term ``G`` of an output feedback on ``system`` (None if ``G = 0``).
 
-    A ``ProvenObserverTerm`` where its error is proven (constant couplings on the exact route,
+    A ``ProvenObserverTerm`` where its error is proven (constant coefficients on the exact route,
     :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`): its ``accuracy`` is a
     proven sup-norm bound of the error of ``G``'s kernel; otherwise a ``ResolventProduct`` whose
     ``accuracy`` is the estimated sup-norm error
@@ -1433,18 +1434,15 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)
     ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
         return rounded_parts(system, controller.controller, kernel_grid)
-    if (
-        isinstance(controller, OutputFeedback)
-        and isinstance(system, Hyperbolic2x2)
-        and _proven_observer(system, controller)
-    ):
-        window = 1.0 / system.mu
-        exact = Fraction(window) == 1 / Fraction(system.mu)
+    if isinstance(controller, OutputFeedback) and _proven_observer(system, controller):
+        w = observer_window(system)
+        exact = isinstance(system, Hyperbolic2x2) and Fraction(w) == 1 / Fraction(system.mu)
         if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
             return ""
-        rounded = "" if exact else " (rounded)"
+        window = "the normal form's window 1/mu" if general else "the window 1/mu"
+        rounded = " (rounded)" if not (general or exact) else ""
         return (
-            f"{_rounded_tau(system)} and the window 1/mu as the double {window!r}{rounded} (the OutputFeedback loop "
+            f"{_rounded_tau(system)} and {window} as the double {w!r}{rounded} (the OutputFeedback loop "
             "is not mapped to the exact tau: its observer term has a kernel on the window)"
         )
     if isinstance(controller, _ObserverFeedback):

@@ -1,4 +1,4 @@
-"""The observer term ``G = (1 - Phi) H`` of an output feedback, enclosed with a proven error (constant couplings).
+"""The observer term ``G = (1 - Phi) H`` of an output feedback, enclosed with a proven error (constant coefficients).
 
 On the paper's plant (18)-(20) with constant couplings the kernel ``N~`` of eq. (40) and the
 law's kernel ``m`` on the measurement's window ``[0, w]`` (``w = 1/mu``;
@@ -41,6 +41,15 @@ size. Each stored term carries ``radius = |g - g^| + `` its pieces' largest erro
 pieces' errors (their variation and the jumps between them): every ball enclosure of the loop built
 on ``G`` includes the PDE's own term.
 
+**General plants.** A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant
+coefficients has ``N~ = e^{sigma nu} N~_0`` and ``U~ = e^{sigma nu} U~_0`` (``sigma = sigma_0`` of
+:mod:`~nrobust.hyperbolic.loops.exact_form`, from the exact rational ``sigma_0 tau``), the window
+``1/mu`` of its normal form and ``rho q e^{sigma_0 tau}`` for ``rho q``: ``S`` is the series times the
+Taylor polynomial ``E`` of ``e^{sigma nu}`` with :data:`_EXP_TERMS` terms, whose remainder on ``[0, tau]``
+is at most ``r = |sigma tau|^n / n! e^{|sigma| tau}`` (``r' = |sigma| |sigma tau|^(n-1) / (n-1)! e^{|sigma| tau}``
+for the derivative), so ``b`` becomes ``e^{|sigma| tau} b + sup |S_0| r`` and ``b'`` becomes
+``e^{|sigma| tau} (|sigma| b + b') + sup |S_0'| r + sup |S_0| r'``.
+
 What stays a double is what the state feedback's exact loop takes as such: ``tau`` and the window
 ``1/mu`` (nodes of the loop). The nodes of the stored terms are doubles whose differences are exact
 (checked; Sterbenz's lemma on segments no longer than the interval's start), each piece expanded from
@@ -65,10 +74,11 @@ import numpy as np
 from ..._flint import precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
 
-__all__ = ["DEGREE", "TARGET", "ProvenObserverTerm", "proven_observer_failure", "proven_observer_term"]
+__all__ = ["DEGREE", "TARGET", "ProvenObserverTerm", "proven_observer_failure", "proven_observer_term", "window"]
 
 #: Degree of the stored polynomial pieces of ``G``.
 DEGREE = 11
@@ -83,6 +93,8 @@ WINDOW_TARGET = 2.0**-48
 #: Pieces of ``[0, L]`` on which the sup of a polynomial is bounded (the monomial sum on all of it overstates
 #: it by the cancellation of a strongly coupled kernel's coefficients).
 SUP_PIECES = 16
+# Terms of the Taylor polynomial of e^{sigma nu} (a general plant's weight), its remainder bounded in _weighted.
+_EXP_TERMS = 60
 # Working precision (bits) of the ball arithmetic.
 _PRECISION = 256
 
@@ -125,14 +137,23 @@ def proven_observer_failure(system: Any, law: tuple[str, float] | None) -> str |
         return "a law whose kernel on the window is not c N~ or c U~ (integral gains)"
     law = _checked_law(law)
     if not _covered(system):
-        return "a plant other than Hyperbolic2x2 with constant couplings"
+        return "a plant other than Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients"
     out = _attempt(system, law)
     return out if isinstance(out, str) else None
 
 
 def _covered(system: Any) -> bool:
-    """True for the plants the enclosure covers: :class:`Hyperbolic2x2` with constant couplings."""
+    """True for the plants the enclosure covers: :class:`Hyperbolic2x2` with constant couplings, or a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant coefficients."""
+    if isinstance(system, GeneralHyperbolic2x2):
+        return system.constant_ratio and has_exact_form(system)
     return isinstance(system, Hyperbolic2x2) and system.constant_couplings and has_exact_form(system)
+
+
+def window(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> float:
+    """The measurement's window ``w = 1/mu`` (of the normal form for a general plant), as the loop takes it."""
+    plant = system.normal_form().system if isinstance(system, GeneralHyperbolic2x2) else system
+    return 1.0 / plant.mu
 
 
 def _checked_law(law: Any) -> tuple[str, float]:
@@ -146,13 +167,13 @@ def _checked_law(law: Any) -> tuple[str, float]:
     return (law[0], float(c))
 
 
-def proven_observer_term(system: Hyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm:
-    """``G`` of an output feedback on a plant with constant couplings, with proven error bounds (module notes).
+def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm:
+    """``G`` of an output feedback on a plant with constant coefficients, with proven error bounds (module notes).
 
     Parameters
     ----------
-    system : Hyperbolic2x2
-        The paper's plant with constant couplings.
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The paper's plant with constant couplings, or a general plant with constant coefficients.
     law : tuple of (str, float)
         ``("N", c)`` when the law's kernel on the window is ``m = c N~`` (U_BS, U_BS2(K): ``c = 1``),
         ``("U", c)`` when ``m = c U~`` (a state feedback ``U = c u(t, 1)``).
@@ -160,14 +181,16 @@ def proven_observer_term(system: Hyperbolic2x2, law: tuple[str, float]) -> Prove
     Raises
     ------
     ParameterError
-        ``system`` not a :class:`Hyperbolic2x2` with constant couplings, or ``law`` not ``("N" | "U", c)``
-        with ``c`` finite.
+        ``system`` not a plant with constant coefficients (:func:`proven_observer_failure`), or ``law``
+        not ``("N" | "U", c)`` with ``c`` finite.
     CertificationError
         :func:`proven_observer_failure` is not None (the reason).
     """
     law = _checked_law(law)
     if not _covered(system):
-        raise ParameterError("system", "a Hyperbolic2x2 with constant couplings", system)
+        raise ParameterError(
+            "system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients (constant lam/mu)", system
+        )
     reason = proven_observer_failure(system, law)
     if reason is not None:
         raise CertificationError(f"proven_observer_term: {reason}; the observer's term is computed in floating point")
@@ -177,9 +200,9 @@ def proven_observer_term(system: Hyperbolic2x2, law: tuple[str, float]) -> Prove
 
 
 @lru_cache(maxsize=16)
-def _attempt(system: Hyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm | str:
+def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm | str:
     """The enclosure, or the reason it failed."""
-    tau, w = system.tau, 1.0 / system.mu
+    tau, w = closed_form_parameters(system)[0], window(system)
     try:
         flint = require_flint()
     except ImportError:
@@ -251,17 +274,36 @@ def _taylor(poly: _Poly, S: Any, Sm: Any, degree: int) -> Any:
     return poly.arb_poly([arb((d[k] / poly.fact(k)).mid()) for k in range(degree + 1)])
 
 
-def _enclose(flint: Any, system: Hyperbolic2x2, law: tuple[str, float], tau: float, w: float) -> ProvenObserverTerm:
+def _weighted(poly: _Poly, series: Any, bound: Any, dbound: Any, sigma: Any, T: Any) -> tuple[Any, Any, Any]:
+    """``e^{sigma nu}`` times a series and its tail bounds on ``[0, tau]`` (module notes, "General plants")."""
+    if sigma.is_zero():
+        return series, bound, dbound
+    arb = poly.arb
+    E = poly.arb_poly([sigma**j / poly.fact(j) for j in range(_EXP_TERMS)])
+    grow = (abs(sigma) * T).exp()
+    x = abs(sigma) * T
+    rest = x**_EXP_TERMS / poly.fact(_EXP_TERMS) * grow  # |e^{sigma nu} - E| on [0, tau]
+    drest = abs(sigma) * x ** (_EXP_TERMS - 1) / poly.fact(_EXP_TERMS - 1) * grow
+    sup, dsup = poly.sup(series, T), poly.sup(series.derivative(), T)
+    new_bound = grow * bound + sup * rest
+    new_dbound = grow * (abs(sigma) * bound + dbound) + dsup * rest + sup * drest
+    return series * E, arb(new_bound.upper()), arb(new_dbound.upper())
+
+
+def _enclose(
+    flint: Any, system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], tau: float, w: float
+) -> ProvenObserverTerm:
     """:func:`proven_observer_term` at the working precision."""
     poly = _Poly(flint)
     arb = flint.arb
     _, _, _, q, rho, _ = closed_form_parameters(system)
-    p_ratio, m_ratio, _ = exact_ratios(system)
+    p_ratio, m_ratio, shift = exact_ratios(system)
     T, W = arb(tau), arb(w)
     P = arb(p_ratio.numerator) / arb(p_ratio.denominator)
     M = arb(m_ratio.numerator) / arb(m_ratio.denominator)
-    S, b, db = closed_form_series(flint, T, P, M, ("N", q, rho))
-    Sm, bm, dbm = closed_form_series(flint, T, P, M, (law[0], q, rho))
+    sigma = arb(shift.numerator) / arb(shift.denominator) / T
+    S, b, db = _weighted(poly, *closed_form_series(flint, T, P, M, ("N", q, rho)), sigma, T)
+    Sm, bm, dbm = _weighted(poly, *closed_form_series(flint, T, P, M, (law[0], q, rho)), sigma, T)
     c = arb(float(law[1]))
     Sm, bm, dbm = Sm * c, bm * abs(c), dbm * abs(c)
     if all(x.is_zero() for x in poly.coeffs(Sm)) and bool(bm == 0):

@@ -44,7 +44,7 @@ left to design are the law's (``K`` of U_BS2) and ``delta_o``.
 
 :func:`observer_term` computes ``G`` (:func:`~nrobust.volterra.resolvent_product`) in floating
 point, with an estimate of its error: a proof about the loop is a proof about this model. On a
-plant with constant couplings :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`
+plant with constant coefficients :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`
 encloses ``G`` with a proven error instead (the loop of
 :func:`~nrobust.hyperbolic.loops.controllers.loop_factors` on the exact route), and a proof is about
 the PDE.
