@@ -122,22 +122,32 @@ def test_no_observer_needed():
     assert "the observer is exact" in loop_scope(uncoupled, controller, None, loop_factors(uncoupled, controller))
 
 
-def test_scope_says_the_loop_is_a_model():
+def test_scope_says_the_loop_is_the_pdes():
+    """The observer's term is proven on the paper's plant (constant couplings): the loop is the PDE's."""
     controller = OutputFeedback(ReflectionController(0.1))
-    assert loop_route(PAPER, controller) == "observer"
+    assert loop_route(PAPER, controller) == "exact"
     scope = loop_scope(PAPER, controller, None, loop_factors(PAPER, controller))
-    assert scope.startswith("a model of the PDE") and "not part of the proof" in scope
+    assert scope.startswith("the PDE itself") and "enclosed in ball arithmetic" in scope
     margin = nr.delay_margin(PAPER, controller)
-    assert margin.of_model and margin.scope == scope
+    assert not margin.of_model and margin.scope == scope
+
+
+def test_scope_says_the_loop_is_a_model_where_the_observer_term_is_not_proven():
+    """A coupling too strong for the proven observer term (``kappa = 36``): floating point, and a model."""
+    strong = nr.Hyperbolic2x2(1.0, 1.0, 6.0, 6.0, 0.5, 0.5)
+    controller = OutputFeedback(ReflectionController(0.1))
+    assert loop_route(strong, controller) == "observer"
+    scope = loop_scope(strong, controller, None, loop_factors(strong, controller))
+    assert scope.startswith("a model of the PDE") and "not part of the proof" in scope
 
 
 @pytest.mark.long
-def test_rigorous_margin_is_about_the_model():
-    """In ball arithmetic the margin is proven for the loop as computed, and the scope says it is a model."""
+def test_rigorous_margin_is_about_the_pde():
+    """In ball arithmetic the margin is proven for the PDE, and the float margin lies in its ball."""
     controller = OutputFeedback(ReflectionController(0.1))
     proven = nr.delay_margin(PAPER, controller, rigorous=True)
     checked = nr.delay_margin(PAPER, controller)
-    assert proven.of_model and proven.scope.startswith("a model of the PDE")
+    assert not proven.of_model and proven.scope.startswith("the PDE itself")
     lo, hi = proven.margin_ball
     assert lo <= checked.margin <= hi
 
@@ -147,8 +157,8 @@ def test_margin_is_a_crossing_of_the_literal_loop():
     margin = nr.delay_margin(PAPER, controller)
     assert margin.nominally_stable and margin.strongly_stable
     assert 0.16 < margin.margin < nr.delay_margin(PAPER, ReflectionController(0.1)).margin
-    # the observer term's stated accuracy carried to the margin (first order, safety factor 10)
-    assert margin.model_error is not None and margin.accuracy is not None and margin.accuracy < 1e-10
+    # the observer term is proven: no model error to add
+    assert margin.model_error is None and margin.accuracy is not None and margin.accuracy < 1e-10
     (value,) = oracle(PAPER, controller, 1j * margin.omega, (margin.margin,))
     np.testing.assert_allclose(abs(value), 0.0, atol=2e-8)
 
@@ -157,7 +167,7 @@ def test_margin_is_a_crossing_of_the_literal_loop():
 def test_design_matches_certified_neighbours():
     design = design_reflection(PAPER, "margin", output_feedback=True)
     assert isinstance(design.controller, OutputFeedback) and design.kind == "kink"
-    assert design.design.certificate.of_model
+    assert not design.design.certificate.of_model
     best = design.value
     for K in (design.K - 0.02, design.K - 1e-3, design.K + 1e-3, design.K + 0.02):
         assert nr.delay_margin(PAPER, OutputFeedback(ReflectionController(K))).margin < best
@@ -212,9 +222,10 @@ def test_product_segments_and_their_refinement():
 
 def test_the_observer_term_on_fewer_segments_is_the_default_one():
     """G on 8 segments per window (the observer's) and on the default 24: two fits of one product, each
-    within its stated accuracy of it, so within the sum of both of each other."""
-    term = observer_of(PAPER, OutputFeedback(ReflectionController(0.1)))
+    within its stated accuracy of it, so within the sum of both of each other; and the proven term (a Taylor
+    polynomial of h, exact convolutions in ball arithmetic) within its proven radius plus that of both."""
     open_loop = loop_factors(PAPER, OpenLoop())[0]
+    term = observer_term(open_loop, loop_factors(PAPER, ReflectionController(0.1))[1], 1.0)
     default = resolvent_product(open_loop, term.kernel)
     sizes = [sum(d.pieces[0].size for d in p.product.distributed) for p in (term, default)]
     assert sizes == [24, 72]
@@ -224,6 +235,8 @@ def test_the_observer_term_on_fewer_segments_is_the_default_one():
     # sup-norm errors times the support's length bound the transforms' difference on Re s >= 0
     assert np.max(difference) <= (term.accuracy + default.accuracy) * length
     assert term.accuracy < 2e-13  # measured 8.5e-14 (9.1e-14 on 24 segments)
+    proven = observer_of(PAPER, OutputFeedback(ReflectionController(0.1)))
+    assert np.max(np.abs(term.product(s) - proven.product(s))) <= (term.accuracy + proven.accuracy) * length
 
 
 def test_exponential_kernel_resolvent():
@@ -317,7 +330,7 @@ def test_design_command_for_output_feedback(tmp_path):
     assert main(["design", str(system), "-o", str(out)]) == 0
     text = (out / "design.md").read_text()
     assert text.startswith("# Design of U_BS2(K) on the state predicted from v(t, 0)")
-    assert re.search(r"K = 0\.117757776215\d* \+- \de-1[23] \(kink\)", text) and "a model of the PDE" in text
+    assert re.search(r"K = 0\.117757776215\d* \+- \de-1[23] \(kink\)", text) and "the PDE itself" in text
     data = json.loads((out / "design.json").read_text())
     assert data["family"] == "output_feedback" and data["controller"]["controller"] == "OutputFeedback"
 

@@ -76,6 +76,8 @@ from .exact_form import (
 )
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
+from .observer_proof import proven_observer_failure, proven_observer_term
+from .observer_proof import window as observer_window
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -566,13 +568,18 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
     a state feedback with integral gains. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
-    studies. ``"observer"``: an :class:`OutputFeedback` whose state
-    feedback takes the exact route; its observer term is computed in floating point with an
+    studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
+    too when its observer term is exact (uncoupled plant) or enclosed with a proven error
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant coefficients, a law
+    reading ``N~`` or ``U~`` on the window). ``"observer"``: an output feedback whose state
+    feedback takes the exact route and whose observer term is computed in floating point with an
     estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
     """
     if isinstance(controller, OutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
-        return "observer" if inner == "exact" and not _uncoupled(system) else inner
+        if inner != "exact" or _uncoupled(system) or _proven_observer(system, controller):
+            return inner
+        return "observer"
     if isinstance(controller, CollocatedOutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
         return "observer" if inner == "exact" and not _exact_collocated(system, controller) else inner
@@ -611,6 +618,25 @@ def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
     a delay ``delta_o`` would be ``delta_o / r`` in the loop as built (not a double).
     """
     return _exact_collocated(system, controller) and controller.observer_delay == 0.0
+
+
+def _window_law(law: Controller) -> tuple[str, float] | None:
+    """The unfiltered ``law``'s kernel on the measurement's window, for
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: ``("N", 1)`` for ``m = N~``
+    (U_BS, U_BS2(K)), ``("U", k)`` for ``m = k U~`` (``StateFeedback(k)`` without integral gains); None otherwise."""
+    if isinstance(law, (FiniteTimeController, ReflectionController)):
+        return ("N", 1.0)
+    if isinstance(law, StateFeedback) and not _integral_gains(law):
+        return ("U", float(law.k))
+    return None
+
+
+def _proven_observer(system: Any, controller: OutputFeedback) -> bool:
+    """True when the observer term of ``controller`` on ``system`` is enclosed with a proven error (not on an
+    uncoupled plant, where the observer needs no term)."""
+    if _uncoupled(system):
+        return False
+    return proven_observer_failure(system, _window_law(unfiltered(controller.controller))) is None
 
 
 def _uncoupled(system: Any) -> bool:
@@ -737,11 +763,20 @@ _AS_GIVEN = (
 def _output_feedback_scope(
     system: Any, controller: OutputFeedback, kernel_grid: int | None, factors: tuple[QuasiPolynomial, QuasiPolynomial]
 ) -> str:
-    """:func:`loop_scope` of an output feedback: the state feedback's, and the observer term's accuracy."""
+    """:func:`loop_scope` of an output feedback: the state feedback's, and the observer term's accuracy (a proven
+    radius on the exact route, where the proofs are about the PDE; an estimate otherwise, a model)."""
     term, grid = _observer(system, controller, kernel_grid)
     inner = loop_scope(system, controller.controller, grid, loop_factors(system, controller.controller, grid))
     if term is None:
         return inner + "; the observer is exact (N~ = 0: the measurement gives every value the law uses)"
+    if grid is None and _proven_observer(system, controller):
+        radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
+        return (
+            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(radius, 2)}; the observer's term "
+            f"(1 - Phi) H enclosed in ball arithmetic within a proven {upper_bound_text(term.accuracy, 2)}, which "
+            "every enclosure includes; "
+            f"{_given(system, controller, kernel_grid)})"
+        )
     observer = (
         f"the observer's term (1 - Phi) H computed in floating point to an estimated {term.accuracy:.0e}, "
         "which is not part of the proof"
@@ -795,9 +830,12 @@ def unfiltered(controller: Controller) -> Controller:
 
 
 def observer_of(system: Any, controller: OutputFeedback, kernel_grid: int | None = None) -> Any:
-    """The observer term ``G`` of an output feedback on ``system`` (a ``ResolventProduct``; None if ``G = 0``).
+    """The observer term ``G`` of an output feedback on ``system`` (None if ``G = 0``).
 
-    Its ``accuracy`` is the estimated sup-norm error of ``G``'s kernel
+    A ``ProvenObserverTerm`` where its error is proven (constant coefficients on the exact route,
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`): its ``accuracy`` is a
+    proven sup-norm bound of the error of ``G``'s kernel; otherwise a ``ResolventProduct`` whose
+    ``accuracy`` is the estimated sup-norm error
     (:func:`~nrobust.hyperbolic.loops.output_feedback.observer_term`).
     """
     return _observer(system, controller, kernel_grid)[0]
@@ -913,6 +951,8 @@ def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) 
             system,
         )
     grid = _observer_grid(system, controller, kernel_grid)
+    if grid is None and _proven_observer(system, controller):
+        return proven_observer_term(system, _window_law(unfiltered(controller.controller))), grid  # type: ignore[arg-type]
     open_loop, _ = loop_factors(system, OpenLoop(), grid)
     _, law = loop_factors(system, unfiltered(controller.controller), grid)
     plant = normalize(system, OpenLoop())[0]
@@ -1370,8 +1410,10 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     that is a function of ``tau s`` and ``delta / tau``, or a filtered law's (its ``a``, ``b``
     enclosed as ``a / r``, ``b / r``), or a state feedback's with integral gains (their kernel
     built with ``t_v = tau_d lam / (lam + mu)`` exactly,
-    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`). Otherwise the quantities computed
-    in floating point, in words, for a proof's scope.
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`), or an output feedback whose proven
+    observer term (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`) is built
+    with ``tau`` and the window ``1/mu`` exact (doubles). Otherwise the quantities computed in
+    floating point, in words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
     if general and not has_exact_form(system):
@@ -1392,6 +1434,17 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         isinstance(controller, CollocatedOutputFeedback) and _scaled_collocated(system, controller)
     ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
         return rounded_parts(system, controller.controller, kernel_grid)
+    if isinstance(controller, OutputFeedback) and _proven_observer(system, controller):
+        w = observer_window(system)
+        exact = isinstance(system, Hyperbolic2x2) and Fraction(w) == 1 / Fraction(system.mu)
+        if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
+            return ""
+        window = "the normal form's window 1/mu" if general else "the window 1/mu"
+        rounded = " (rounded)" if not (general or exact) else ""
+        return (
+            f"{_rounded_tau(system)} and {window} as the double {w!r}{rounded} (the OutputFeedback loop "
+            "is not mapped to the exact tau: its observer term has a kernel on the window)"
+        )
     if isinstance(controller, _ObserverFeedback):
         return (
             f"{_rounded_tau(system)} and the observer's terms as computed in floating point (the "

@@ -43,12 +43,17 @@ where the boundary ``x = 0`` reflects the measured ``y`` (``u(t, 0) = q y(t)``).
 left to design are the law's (``K`` of U_BS2) and ``delta_o``.
 
 :func:`observer_term` computes ``G`` (:func:`~nrobust.volterra.resolvent_product`) in floating
-point, with an estimate of its error: a proof about the loop is a proof about this model.
+point, with an estimate of its error: a proof about the loop is a proof about this model. On a
+plant with constant coefficients :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`
+encloses ``G`` with a proven error instead (the loop of
+:func:`~nrobust.hyperbolic.loops.controllers.loop_factors` on the exact route), and a proof is about
+the PDE.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -179,7 +184,9 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
     (:func:`~nrobust.volterra.resolvent_product`), all of one segment length on the paper's plants.
     As one term of the same pieces (the same stored kernel, coefficients zero-padded to one degree),
     the loop integrates them as one exponential sum over all the segments instead of one per interval
-    (the values agree to rounding). Terms that are not plain polynomial pieces on consecutive
+    (the values agree to rounding). The joined term's error bounds are the largest of the terms' ``radius``
+    and the sum of their ``variation_radius`` and of the jumps of the error where they meet (the two
+    radii at each inner end). Terms that are not plain polynomial pieces on consecutive
     intervals, or whose segments together are not uniform (several lengths), are left as they are.
     """
     terms = G.distributed
@@ -188,14 +195,25 @@ def _joined(G: QuasiPolynomial) -> QuasiPolynomial:
     )
     if len(terms) < 2 or G.point_terms or not plain:
         return G
-    if any(d.radius or d.variation_radius for d in terms) or any(u.b != v.a for u, v in itertools.pairwise(terms)):
+    if any(u.b != v.a for u, v in itertools.pairwise(terms)):
         return G
     nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
     if not _uniform(nodes[:-1]):
         return G  # segments of several lengths: one sum per length either way, and each interval's is uniform
     degree = max(d.pieces[2].shape[1] for d in terms)
     coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
-    joined = DistributedDelay(nodes, None, interpolation="polynomial", coefficients=coefficients)
+    # the error of the joined kernel: the largest of the terms', its variation theirs and its jumps where they meet
+    variation = math.fsum(
+        [d.variation_radius for d in terms] + [u.radius + v.radius for u, v in itertools.pairwise(terms)]
+    )
+    joined = DistributedDelay(
+        nodes,
+        None,
+        interpolation="polynomial",
+        coefficients=coefficients,
+        radius=max(d.radius for d in terms),
+        variation_radius=_up(variation) if variation else 0.0,
+    )
     return QuasiPolynomial([], [], [joined])
 
 

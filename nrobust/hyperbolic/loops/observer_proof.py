@@ -1,0 +1,418 @@
+"""The observer term ``G = (1 - Phi) H`` of an output feedback, enclosed with a proven error (constant coefficients).
+
+On the paper's plant (18)-(20) with constant couplings the kernel ``N~`` of eq. (40) and the
+law's kernel ``m`` on the measurement's window ``[0, w]`` (``w = 1/mu``;
+:mod:`~nrobust.hyperbolic.loops.output_feedback`) are truncated series ``S``, ``S_m`` in ``nu``
+with ball coefficients and proven tails: ``|N~ - S| <= b``, ``|N~' - S'| <= b'`` on ``[0, tau]``
+(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`; ``m = N~`` for U_BS and U_BS2(K),
+``m = k U~`` for a state feedback ``U = k u(t, 1)``). The law applied to the prediction,
+``h = m - m * r`` (``r`` the resolvent of ``N~`` on the window), solves the convolution equation
+of the second kind ``h + N~ * h = m`` on ``[0, w]`` (``h + h * N~ = m - m * r + m * N~ - m * (r + r * N~)
+= m``), and ``G``'s kernel is
+
+    g = h 1_[0, w] - rho q h(. - tau) + N~ * h      on [0, tau + w],
+
+a polynomial on each of ``[0, w]``, ``[w, tau]`` and ``[tau, tau + w]`` when ``N~`` and ``h`` are.
+
+**The enclosure.** ``h^``, the Taylor polynomial of ``h`` at 0 of degree ``D`` from the triangular
+recursion of the equation with ``S``, ``S_m`` (midpoints kept: ``h^`` is a definite polynomial),
+has the residual ``R = S_m - h^ - S * h^``, a polynomial computed exactly in ball arithmetic
+(``int_0^u f(x) g(u - x) dx`` of two polynomials has the coefficients
+``(sum_{i + j = k} f_i i! g_j j!) / (k + 1)!`` of ``u^(k + 1)``). The error ``e = h - h^`` solves
+``e + N~ * e = (m - S_m) + R - (N~ - S) * h^``, whose right side is at most
+``r_0 = b_m + sup |R| + b ||h^||_1``, so by Gronwall's lemma ``|e| <= E = r_0 e^{K w}``,
+``K = sup |N~|`` on the window. Differentiating the equation,
+``|e'| <= E' = b_m' + sup |R'| + b sup |h^| + b' ||h^||_1 + (K + w K') E`` (``K' = sup |N~'|``).
+``g^``, the kernel above with ``S``, ``h^`` and the ball of ``rho q`` from the user's numbers
+(:func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), is exact polynomial algebra
+(the convolution on ``[w, tau]`` and ``[tau, tau + w]`` from the one on ``[0, nu]`` with ``h^``
+and ``S`` shifted), and ``g - g^ = e 1 - rho q e(. - tau) + S * e + (N~ - S) * h``, so
+
+    |g - g^|  <= E (1 + |rho q| + ||S||_1) + b w (sup |h^| + E),
+    |g - g^|' <= E' (1 + |rho q|) + (2 sup |S| + ||S'||_1) E + (2 b + b' w) (sup |h^| + E)
+
+(sups and ``L1`` norms on ``[0, tau]`` for ``S``, on ``[0, w]`` for ``h^``; the sup of a polynomial
+on ``[0, L]`` bounded by the sums of the moduli of its coefficients on :data:`SUP_PIECES` pieces).
+Each interval's ``g^`` is expanded on equal segments into polynomials of degree :data:`DEGREE`
+rounded to doubles, the dropped and rounded coefficients (with the balls' radii) bounding each
+piece's error; segments are doubled until that error is below :data:`TARGET` times the kernel's
+size. Each stored term carries ``radius = |g - g^| + `` its pieces' largest error and
+``variation_radius`` = its length times the bound of ``|g - g^|'`` plus three times the sum of its
+pieces' errors (their variation and the jumps between them): every ball enclosure of the loop built
+on ``G`` includes the PDE's own term.
+
+**General plants.** A :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant
+coefficients has ``N~ = e^{sigma nu} N~_0`` and ``U~ = e^{sigma nu} U~_0`` (``sigma = sigma_0`` of
+:mod:`~nrobust.hyperbolic.loops.exact_form`, from the exact rational ``sigma_0 tau``), the window
+``1/mu`` of its normal form and ``rho q e^{sigma_0 tau}`` for ``rho q``: ``S`` is the series times the
+Taylor polynomial ``E`` of ``e^{sigma nu}`` with :data:`_EXP_TERMS` terms, whose remainder on ``[0, tau]``
+is at most ``r = |sigma tau|^n / n! e^{|sigma| tau}`` (``r' = |sigma| |sigma tau|^(n-1) / (n-1)! e^{|sigma| tau}``
+for the derivative), so ``b`` becomes ``e^{|sigma| tau} b + sup |S_0| r`` and ``b'`` becomes
+``e^{|sigma| tau} (|sigma| b + b') + sup |S_0'| r + sup |S_0| r'``.
+
+What stays a double is what the state feedback's exact loop takes as such: ``tau`` and the window
+``1/mu`` (nodes of the loop). The nodes of the stored terms are doubles whose differences are exact
+(checked; Sterbenz's lemma on segments no longer than the interval's start), each piece expanded from
+its own nodes. Where ``tau + w`` is not a double the last interval ends at the double below it,
+and a term of zero kernel on the next ulp holds the rest of ``g`` with the radius
+``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there) and the variation that
+plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is held
+(:mod:`~nrobust.hyperbolic.loops.exact_gains`).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..._flint import precision, require_flint
+from ...errors import CertificationError, ParameterError
+from ...quasipoly import DistributedDelay, QuasiPolynomial
+from ..plants.general import GeneralHyperbolic2x2
+from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
+
+__all__ = ["DEGREE", "TARGET", "ProvenObserverTerm", "proven_observer_failure", "proven_observer_term", "window"]
+
+#: Degree of the stored polynomial pieces of ``G``.
+DEGREE = 11
+#: Largest error of a stored piece, relative to the largest ``sum |P_j|`` of the pieces (plus ``2^-60``).
+TARGET = 2.0**-50
+#: Segments per window length at first, and the most segments per window length tried.
+SEGMENTS, MAX_SEGMENTS = 8, 256
+#: Degrees of the Taylor polynomial ``h^`` tried in turn, beyond the degree of ``S``.
+EXTRA_DEGREES = (24, 48, 96, 192)
+#: Largest proven error of ``h^`` accepted, relative to ``sup |h^|`` (plus ``2^-60``).
+WINDOW_TARGET = 2.0**-48
+#: Pieces of ``[0, L]`` on which the sup of a polynomial is bounded (the monomial sum on all of it overstates
+#: it by the cancellation of a strongly coupled kernel's coefficients).
+SUP_PIECES = 16
+# Terms of the Taylor polynomial of e^{sigma nu} (a general plant's weight), its remainder bounded in _weighted.
+_EXP_TERMS = 60
+# Working precision (bits) of the ball arithmetic.
+_PRECISION = 256
+
+
+@dataclass(frozen=True)
+class ProvenObserverTerm:
+    """``G = (1 - Phi) H`` with proven error bounds (module notes).
+
+    Attributes
+    ----------
+    product : QuasiPolynomial
+        ``G``: one distributed term of polynomial pieces per interval ``[0, w]``, ``[w, tau]``,
+        ``[tau, tau + w]`` (and the term on the ulp past it, module notes), each with ``radius`` and
+        ``variation_radius`` bounding the distance of its kernel to the PDE's (sup and total variation).
+    accuracy : float
+        The largest ``radius`` of the three intervals' terms: a proven sup-norm bound of the stored
+        kernel's error (a term on the ulp past ``tau + w``, when ``tau + w`` is not a double, holds
+        the kernel's value there: its radius is that value's bound, module notes).
+    window_error : float
+        ``E``, the proven bound of ``|h - h^|`` on the window.
+    """
+
+    product: QuasiPolynomial
+    accuracy: float
+    window_error: float
+
+
+def proven_observer_failure(system: Any, law: tuple[str, float] | None) -> str | None:
+    """Why :func:`proven_observer_term` cannot enclose ``G`` for this plant and law (None when it can).
+
+    Parameters
+    ----------
+    system : Any
+        The plant.
+    law : tuple of (str, float) or None
+        The law's kernel on the window: ``("N", c)`` for ``m = c N~``, ``("U", c)`` for ``m = c U~``;
+        None for a law the enclosure does not cover.
+    """
+    if law is None:
+        return "a law whose kernel on the window is not c N~ or c U~ (integral gains)"
+    law = _checked_law(law)
+    if not _covered(system):
+        return "a plant other than Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients"
+    out = _attempt(system, law)
+    return out if isinstance(out, str) else None
+
+
+def _covered(system: Any) -> bool:
+    """True for the plants the enclosure covers: :class:`Hyperbolic2x2` with constant couplings, or a
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant coefficients."""
+    if isinstance(system, GeneralHyperbolic2x2):
+        return system.constant_ratio and has_exact_form(system)
+    return isinstance(system, Hyperbolic2x2) and system.constant_couplings and has_exact_form(system)
+
+
+def window(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> float:
+    """The measurement's window ``w = 1/mu`` (of the normal form for a general plant), as the loop takes it."""
+    plant = system.normal_form().system if isinstance(system, GeneralHyperbolic2x2) else system
+    return 1.0 / plant.mu
+
+
+def _checked_law(law: Any) -> tuple[str, float]:
+    """``law`` as ``(kind, c)``, or a :class:`~nrobust.errors.ParameterError`."""
+    admissible = '("N" or "U", a finite real c): the law\'s kernel c N~ or c U~ on the window'
+    if not (isinstance(law, tuple) and len(law) == 2 and law[0] in ("N", "U")):
+        raise ParameterError("law", admissible, law)
+    c = law[1]
+    if isinstance(c, bool) or not isinstance(c, (int, float, np.integer, np.floating)) or not math.isfinite(c):
+        raise ParameterError("law", admissible, law)
+    return (law[0], float(c))
+
+
+def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm:
+    """``G`` of an output feedback on a plant with constant coefficients, with proven error bounds (module notes).
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        The paper's plant with constant couplings, or a general plant with constant coefficients.
+    law : tuple of (str, float)
+        ``("N", c)`` when the law's kernel on the window is ``m = c N~`` (U_BS, U_BS2(K): ``c = 1``),
+        ``("U", c)`` when ``m = c U~`` (a state feedback ``U = c u(t, 1)``).
+
+    Raises
+    ------
+    ParameterError
+        ``system`` not a plant with constant coefficients (:func:`proven_observer_failure`), or ``law``
+        not ``("N" | "U", c)`` with ``c`` finite.
+    CertificationError
+        :func:`proven_observer_failure` is not None (the reason).
+    """
+    law = _checked_law(law)
+    if not _covered(system):
+        raise ParameterError(
+            "system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients (constant lam/mu)", system
+        )
+    reason = proven_observer_failure(system, law)
+    if reason is not None:
+        raise CertificationError(f"proven_observer_term: {reason}; the observer's term is computed in floating point")
+    out = _attempt(system, law)
+    assert isinstance(out, ProvenObserverTerm)
+    return out
+
+
+@lru_cache(maxsize=16)
+def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm | str:
+    """The enclosure, or the reason it failed."""
+    tau, w = closed_form_parameters(system)[0], window(system)
+    try:
+        flint = require_flint()
+    except ImportError:
+        return "no ball arithmetic (python-flint is not installed)"
+    p, m, _ = exact_ratios(system)
+    try:
+        with precision(flint, _PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
+            return _enclose(flint, system, law, tau, w)
+    except CertificationError as exc:
+        return str(exc)
+
+
+class _Poly:
+    """Helpers of exact polynomial algebra on ``arb_poly`` (factorials cached)."""
+
+    def __init__(self, flint: Any) -> None:
+        self.flint = flint
+        self.arb, self.arb_poly = flint.arb, flint.arb_poly
+        self._fact = [flint.arb(1)]
+
+    def fact(self, k: int) -> Any:
+        while len(self._fact) <= k:
+            self._fact.append(self._fact[-1] * len(self._fact))
+        return self._fact[k]
+
+    def coeffs(self, p: Any) -> list[Any]:
+        return list(p.coeffs())
+
+    def conv(self, f: Any, g: Any) -> Any:
+        """``u -> int_0^u f(x) g(u - x) dx`` (exact)."""
+        fc, gc = self.coeffs(f), self.coeffs(g)
+        if not fc or not gc:
+            return self.arb_poly([0])
+        F = self.arb_poly([c * self.fact(j) for j, c in enumerate(fc)])
+        G = self.arb_poly([c * self.fact(j) for j, c in enumerate(gc)])
+        P = self.coeffs(F * G)
+        return self.arb_poly([self.arb(0)] + [c / self.fact(k + 1) for k, c in enumerate(P)])
+
+    def shift(self, p: Any, a: Any) -> Any:
+        """``x -> p(a + x)``."""
+        return p(self.arb_poly([a, self.arb(1)]))
+
+    def sup(self, p: Any, length: Any) -> Any:
+        """An upper bound of ``|p|`` on ``[0, length]``: the largest ``sum_k |c_k|`` of ``p`` on :data:`SUP_PIECES`
+        equal pieces, each in its variable ``t`` in ``[0, 1]``."""
+        width = length / SUP_PIECES
+        out = self.arb(0)
+        for j in range(SUP_PIECES):
+            local = self.coeffs(p(self.arb_poly([width * j, width])))
+            out = self.arb.max(out, sum((abs(c) for c in local), self.arb(0)))
+        return self.arb(out.upper())
+
+
+def _taylor(poly: _Poly, S: Any, Sm: Any, degree: int) -> Any:
+    """The Taylor polynomial of degree ``degree`` at 0 of ``h``, ``h + S * h = S_m`` (midpoints kept).
+
+    With ``d_k = k! h_k``: ``d_k = k! m_k - sum_{j < k} (k - 1 - j)! S_{k-1-j} d_j``.
+    """
+    arb = poly.arb
+    s = poly.coeffs(S)
+    fs = [c * poly.fact(i) for i, c in enumerate(s)]
+    mc = poly.coeffs(Sm)
+    d: list[Any] = []
+    for k in range(degree + 1):
+        value = (mc[k] if k < len(mc) else arb(0)) * poly.fact(k)
+        for j in range(max(0, k - len(fs)), k):
+            value -= fs[k - 1 - j] * d[j]
+        d.append(value)
+    return poly.arb_poly([arb((d[k] / poly.fact(k)).mid()) for k in range(degree + 1)])
+
+
+def _weighted(poly: _Poly, series: Any, bound: Any, dbound: Any, sigma: Any, T: Any) -> tuple[Any, Any, Any]:
+    """``e^{sigma nu}`` times a series and its tail bounds on ``[0, tau]`` (module notes, "General plants")."""
+    if sigma.is_zero():
+        return series, bound, dbound
+    arb = poly.arb
+    E = poly.arb_poly([sigma**j / poly.fact(j) for j in range(_EXP_TERMS)])
+    grow = (abs(sigma) * T).exp()
+    x = abs(sigma) * T
+    rest = x**_EXP_TERMS / poly.fact(_EXP_TERMS) * grow  # |e^{sigma nu} - E| on [0, tau]
+    drest = abs(sigma) * x ** (_EXP_TERMS - 1) / poly.fact(_EXP_TERMS - 1) * grow
+    sup, dsup = poly.sup(series, T), poly.sup(series.derivative(), T)
+    new_bound = grow * bound + sup * rest
+    new_dbound = grow * (abs(sigma) * bound + dbound) + dsup * rest + sup * drest
+    return series * E, arb(new_bound.upper()), arb(new_dbound.upper())
+
+
+def _enclose(
+    flint: Any, system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], tau: float, w: float
+) -> ProvenObserverTerm:
+    """:func:`proven_observer_term` at the working precision."""
+    poly = _Poly(flint)
+    arb = flint.arb
+    _, _, _, q, rho, _ = closed_form_parameters(system)
+    p_ratio, m_ratio, shift = exact_ratios(system)
+    T, W = arb(tau), arb(w)
+    P = arb(p_ratio.numerator) / arb(p_ratio.denominator)
+    M = arb(m_ratio.numerator) / arb(m_ratio.denominator)
+    sigma = arb(shift.numerator) / arb(shift.denominator) / T
+    S, b, db = _weighted(poly, *closed_form_series(flint, T, P, M, ("N", q, rho)), sigma, T)
+    Sm, bm, dbm = _weighted(poly, *closed_form_series(flint, T, P, M, (law[0], q, rho)), sigma, T)
+    c = arb(float(law[1]))
+    Sm, bm, dbm = Sm * c, bm * abs(c), dbm * abs(c)
+    if all(x.is_zero() for x in poly.coeffs(Sm)) and bool(bm == 0):
+        raise CertificationError("the law reads no value of the window (G = 0: no term to enclose)")
+    rho_q = gain_balls(system)[1]
+    # norms of S on [0, w] and [0, tau]
+    K = poly.sup(S, W) + b
+    dK = poly.sup(S.derivative(), W) + db
+    S_sup = poly.sup(S, T)
+    S_l1 = S_sup * T
+    dS_l1 = poly.sup(S.derivative(), T) * T
+    h = R = None
+    E = arb("inf")
+    for extra in EXTRA_DEGREES:
+        h = _taylor(poly, S, Sm, len(poly.coeffs(S)) + extra)
+        R = Sm - h - poly.conv(h, S)
+        h_sup = poly.sup(h, W)
+        r0 = bm + poly.sup(R, W) + b * W * h_sup
+        E = arb((r0 * (K * W).exp()).upper())
+        if bool(E < WINDOW_TARGET * h_sup + arb(2.0**-60)):
+            break
+    else:
+        raise CertificationError(
+            f"the Taylor polynomial of the observer's kernel h on the window does not reach {WINDOW_TARGET:.0e} "
+            f"with degree {len(poly.coeffs(S)) + EXTRA_DEGREES[-1]} (a coupling too strong for one polynomial)"
+        )
+    assert h is not None and R is not None
+    dE = dbm + poly.sup(R.derivative(), W) + b * h_sup + db * W * h_sup + (K + W * dK) * E
+    h_bound = h_sup + E
+    sup_err = E * (1 + abs(rho_q) + S_l1) + b * W * h_bound
+    slope = dE * (1 + abs(rho_q)) + (2 * S_sup + dS_l1) * E + (2 * b + db * W) * h_bound
+    # g^ on the three intervals, each in its local variable from the interval's start
+    C = poly.conv(h, S)
+    g1 = h + C
+    g2 = poly.shift(C, W) - poly.conv(poly.shift(h, W), S)
+    g3 = -rho_q * h + poly.shift(g2, T - W) - poly.conv(h, poly.shift(S, T))
+    end = tau + w
+    if Fraction(end) > Fraction(tau) + Fraction(w):
+        end = math.nextafter(end, -math.inf)
+    intervals = ((0.0, w, g1), (w, tau, g2), (tau, end, g3))
+    terms = [_store(flint, g, lo, hi, w, sup_err, slope) for lo, hi, g in intervals]
+    if Fraction(end) != Fraction(tau) + Fraction(w):  # the rest of g, on (end, tau + w], held by a proven term
+        g_sup = (abs(rho_q) + (S_sup + b) * W) * h_bound
+        dh = poly.sup(h.derivative(), W) + dE
+        g_slope = abs(rho_q) * dh + (S_sup + b) * h_bound + (poly.sup(S.derivative(), T) + db) * W * h_bound
+        after = math.nextafter(end, math.inf)
+        variation = g_sup + (arb(after) - arb(end)) * g_slope
+        terms.append(
+            DistributedDelay(
+                np.array([end, after]),
+                None,
+                interpolation="polynomial",
+                coefficients=np.zeros((1, 1)),
+                radius=math.nextafter(float(g_sup.upper()), math.inf),
+                variation_radius=math.nextafter(float(variation.upper()), math.inf),
+            )
+        )
+    accuracy = max(t.radius for t in terms[:3])
+    return ProvenObserverTerm(QuasiPolynomial([], [], terms), accuracy, float(E.upper()))
+
+
+def _nodes(lo: float, hi: float, step: float) -> list[float] | None:
+    """``lo, lo + step, ...`` (rounded) below ``hi``, then ``hi``: None unless every difference is exact."""
+    count = max(1, math.ceil((hi - lo) / step - 1e-9))
+    nodes = [lo + j * step for j in range(count)] + [hi]
+    if any(Fraction(b - a) != Fraction(b) - Fraction(a) or not a < b for a, b in itertools.pairwise(nodes)):
+        return None
+    return nodes
+
+
+def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slope: Any) -> DistributedDelay:
+    """The interval's ``g^`` (in ``nu - lo``) as pieces of degree :data:`DEGREE` on equal segments, proven bounds."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    segments = SEGMENTS
+    while segments <= MAX_SEGMENTS:
+        mant, expo = math.frexp(w / segments)
+        step = math.ldexp(math.floor(mant * 2**40) / 2**40, expo)
+        nodes = _nodes(lo, hi, step)
+        if nodes is None:
+            raise CertificationError(f"the nodes of G on [{lo!r}, {hi!r}] are not exact in double precision")
+        heads, errors, sizes = [], [], []
+        for a, b in itertools.pairwise(nodes):
+            offset, width = arb(a) - arb(lo), arb(b) - arb(a)
+            local = list(g(arb_poly([offset, width])).coeffs())
+            head = [float(x.mid()) for x in local[: DEGREE + 1]] + [0.0] * max(0, DEGREE + 1 - len(local))
+            error = sum((abs(x - arb(y)) for x, y in zip(local[: DEGREE + 1], head)), arb(0))
+            error += sum((abs(x) for x in local[DEGREE + 1 :]), arb(0))
+            heads.append(head)
+            errors.append(error)
+            sizes.append(sum((abs(y) for y in head), 0.0))
+        threshold = arb(TARGET * max(sizes)) + arb(2.0**-60)
+        if all(bool(e < threshold) for e in errors):
+            break
+        segments *= 2
+    else:
+        raise CertificationError(
+            f"G needs more than {MAX_SEGMENTS} pieces per window of degree {DEGREE} to reach double precision"
+        )
+    largest = arb(0)
+    for e in errors:
+        largest = arb.max(largest, e)
+    total = sum(errors, arb(0))
+    radius = sup_err + largest
+    variation = slope * (arb(hi) - arb(lo)) + 3 * total
+    return DistributedDelay(
+        np.asarray(nodes),
+        None,
+        interpolation="polynomial",
+        coefficients=np.asarray(heads),
+        radius=math.nextafter(float(radius.upper()), math.inf),
+        variation_radius=math.nextafter(float(variation.upper()), math.inf),
+    )
