@@ -3104,7 +3104,8 @@ def _plateau(
     accuracy of the optimum's (a plateau: the rightmost zero, or chain, does not move with the parameter), or None.
 
     The rate at ``K' = K -+ _PLATEAU_PROBE * scale`` (inside ``interval``) is within ``acc(K) + acc(K')`` of the
-    rate at ``K`` (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`) on at least one side; each such side is then
+    rate at ``K`` (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`; not where the chains of the principal part
+    bound it below that first, as in :func:`_sampled_abscissas`) on at least one side; each such side is then
     extended to the end of ``interval`` if the rate is within there too, else to the last gain within of
     ``_PLATEAU_BISECTIONS`` bisections toward it; and the rate is within at ``_PLATEAU_SAMPLES`` gains spread over
     ``[L, U]`` (else None: the rate is not flat between). Checked at those gains, not between them.
@@ -3114,7 +3115,11 @@ def _plateau(
     rate, acc = -sa.value, sa.accuracy
 
     def flat(x: float) -> bool:
-        other = _abscissa(loop, x)
+        F = loop.nominal(x)
+        chain = float(F.principal_part().spectral_bound().upper)  # the rate is at most -c_D (as in the samples)
+        if np.isfinite(chain) and -chain + 2e-12 * (1.0 + abs(chain)) < rate - acc:
+            return False
+        other = spectral_abscissa(F)
         return other.accuracy is not None and abs(-other.value - rate) <= acc + other.accuracy
 
     step = _PLATEAU_PROBE * max(scale, 1e-300)
@@ -3144,10 +3149,18 @@ def _with_plateau(
     scale: float,
 ) -> tuple[_Candidate, tuple[float, float] | None]:
     """``best`` as ``"plateau"`` (without an end event) with its interval (:func:`_plateau`) when the decay rate
-    is flat about it in the interval of ``intervals`` that holds it; else ``best`` and None."""
+    is flat about it in the interval of ``intervals`` that holds it; else ``best`` and None.
+
+    Not looked for (no abscissa computed) where the rightmost zero moves with the gain: its slope
+    (:meth:`_RootPaths.slope`) changes the rate over the probe by ``1e3`` times its accuracy or more.
+    """
     K, rate, kind, _, sa = best
-    if kind == "finite time" or not np.isfinite(rate):
+    if kind == "finite time" or not np.isfinite(rate) or sa.accuracy is None:
         return best, None
+    if sa.root is not None and not sa.approached_at_infinity:
+        slope = _RootPaths(loop).slope(K, complex(sa.root))
+        if abs(slope) * _PLATEAU_PROBE * scale >= 1e3 * sa.accuracy:
+            return best, None
     holding = [(a, b) for a, b in intervals if a <= K <= b]
     if not holding:
         return best, None
