@@ -105,6 +105,7 @@ DESIGN_KINDS = (
     "window end",
     "window",
     "finite time",
+    "plateau",
 )
 # Samples of the axis per half period pi / T of the fastest oscillation of the factors.
 _STEPS = 32
@@ -165,9 +166,13 @@ class GainDesign:
         largest where ``delta*(K) = d``: :attr:`end` gives the event), ``"no crossing"``
         (an infinite margin), ``"finite time"`` (the nominal loop has no zero at ``K``: one term
         ``c e^{-h s}``, e.g. ``U_BS2(rho)`` = ``U_BS``; the decay rate is ``inf``, unbounded and not
-        smooth about ``K``).
+        smooth about ``K``), ``"plateau"`` (the decay rate is flat about ``K``: its rightmost zero, or
+        chain, does not move with the gain, e.g. a zero of a filter whose pole cancels it; every gain of
+        :attr:`K_bracket` is optimal to the rate's accuracy).
     K_bracket : (float, float)
-        The optimal gain lies in it (for a pair birth: the birth and ``K``).
+        The optimal gain lies in it (for a pair birth: the birth and ``K``); for a plateau, the interval about
+        ``K`` on which the decay rate is within its accuracy of the optimum (checked at its ends, by bisection
+        to ``2^-40`` of the feasible interval, and at 9 gains spread over it; not between them).
     value_bracket : (float, float)
         The optimal value (supremum) lies in it.
     bounds : (float, float)
@@ -2895,9 +2900,17 @@ def _window_design(
         raise _window_infeasible(curves, d_lo, d_hi, len(others), max_evals)
     end: GainEnd | None = None
     if objective == "decay_rate":
-        K, value, kind, end, sa = _best_rate(curves, [(a, b) for a, b, _ in intervals], n_rates, "window end")
+        best, plateau = _with_plateau(
+            curves.loop,
+            _best_rate(curves, [(a, b) for a, b, _ in intervals], n_rates, "window end"),
+            [(a[0], b[0]) for a, b, _ in intervals],
+            _scale(curves),
+        )
+        K, value, kind, end, sa = best
         K_br, v_br = (K, K), (value, value)
-        if end is not None:
+        if plateau is not None:
+            K_br = plateau
+        elif end is not None:
             K_br = (min(K, end.K), max(K, end.K))
             at_end = -_abscissa(curves.loop, end.K).value
             v_br = (min(value, at_end), max(value, at_end))
@@ -3298,6 +3311,87 @@ def _unbounded_at_zero(loop: _Family, K: float) -> None:
 
 
 _Candidate = tuple[float, float, str, GainEnd | None, SpectralAbscissa]
+
+# A plateau of the decay rate about its optimum is looked for this far from it (relative to the scale of the gains):
+# a smooth maximum falls there by its curvature times 1e-6, a kink or an end by its slope times 1e-3, each far above
+# the rates' accuracies (~1e-15 to 1e-12); a plateau not at all.
+_PLATEAU_PROBE = 1e-3
+# Bisections of each end of a plateau, and samples of the plateau found at which the rate is checked.
+_PLATEAU_BISECTIONS = 40
+_PLATEAU_SAMPLES = 9
+
+
+def _plateau(
+    loop: _Family, K: float, sa: SpectralAbscissa, interval: tuple[float, float], scale: float
+) -> tuple[float, float] | None:
+    """The interval ``[L, U]`` of ``interval`` about the optimum ``K`` on which the decay rate stays within its
+    accuracy of the optimum's (a plateau: the rightmost zero, or chain, does not move with the parameter), or None.
+
+    The rate at ``K' = K -+ _PLATEAU_PROBE * scale`` (inside ``interval``) is within ``acc(K) + acc(K')`` of the
+    rate at ``K`` (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`; not where the chains of the principal part
+    bound it below that first, as in :func:`_sampled_abscissas`) on at least one side; each such side is then
+    extended to the end of ``interval`` if the rate is within there too, else to the last gain within of
+    ``_PLATEAU_BISECTIONS`` bisections toward it; and the rate is within at ``_PLATEAU_SAMPLES`` gains spread over
+    ``[L, U]`` (else None: the rate is not flat between). Checked at those gains, not between them.
+    """
+    if sa.accuracy is None or not np.isfinite(sa.value):
+        return None
+    rate, acc = -sa.value, sa.accuracy
+
+    def flat(x: float) -> bool:
+        F = loop.nominal(x)
+        chain = float(F.principal_part().spectral_bound().upper)  # the rate is at most -c_D (as in the samples)
+        if np.isfinite(chain) and -chain + 2e-12 * (1.0 + abs(chain)) < rate - acc:
+            return False
+        other = spectral_abscissa(F)
+        return other.accuracy is not None and abs(-other.value - rate) <= acc + other.accuracy
+
+    step = _PLATEAU_PROBE * max(scale, 1e-300)
+    ends = [K, K]
+    for i, (direction, end) in enumerate(((-1.0, interval[0]), (1.0, interval[1]))):
+        probe = min(K + step, end) if direction > 0 else max(K - step, end)
+        if probe == K or not flat(probe):
+            continue
+        if flat(end):
+            ends[i] = end
+            continue
+        inside, outside = probe, end
+        for _ in range(_PLATEAU_BISECTIONS):
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if flat(mid) else (inside, mid)
+        ends[i] = inside
+    lo, hi = ends
+    if lo == hi or not all(flat(x) for x in np.linspace(lo, hi, _PLATEAU_SAMPLES)):
+        return None
+    return float(lo), float(hi)
+
+
+def _with_plateau(
+    loop: _Family,
+    best: _Candidate,
+    intervals: list[tuple[float, float]],
+    scale: float,
+) -> tuple[_Candidate, tuple[float, float] | None]:
+    """``best`` as ``"plateau"`` (without an end event) with its interval (:func:`_plateau`) when the decay rate
+    is flat about it in the interval of ``intervals`` that holds it; else ``best`` and None.
+
+    Not looked for (no abscissa computed) where the rightmost zero moves with the gain: its slope
+    (:meth:`_RootPaths.slope`) changes the rate over the probe by ``1e3`` times its accuracy or more.
+    """
+    K, rate, kind, _, sa = best
+    if kind == "finite time" or not np.isfinite(rate) or sa.accuracy is None:
+        return best, None
+    if sa.root is not None and not sa.approached_at_infinity:
+        slope = _RootPaths(loop).slope(K, complex(sa.root))
+        if abs(slope) * _PLATEAU_PROBE * scale >= 1e3 * sa.accuracy:
+            return best, None
+    holding = [(a, b) for a, b in intervals if a <= K <= b]
+    if not holding:
+        return best, None
+    found = _plateau(loop, K, sa, holding[0], scale)
+    if found is None:
+        return best, None
+    return (K, rate, "plateau", None, sa), found
 
 
 def _up_to_events(p: float, ends: tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]) -> bool:
@@ -3711,7 +3805,10 @@ def _unconstrained_rate(
     exponentially stable at ``delta = 0`` (its certified count of zeros in ``Re s > 0`` none)."""
     curves = _Curves(_Family(loop), lo, hi, max_evals)
     env = np.where(_nominal_mask(curves), curves.envelope, 0.0)
-    K, rate, kind, _, sa = _best_rate(curves, [((lo, None), (hi, None))], n_rates, "end")
+    best, plateau = _with_plateau(
+        curves.loop, _best_rate(curves, [((lo, None), (hi, None))], n_rates, "end"), [(lo, hi)], _scale(curves)
+    )
+    K, rate, kind, _, sa = best
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     if not (rate > 0.0 and cert.nominally_stable):
         best_margin(loop, (lo, hi), max_evals=max_evals)  # raises when no gain is stable without delay (certified)
@@ -3722,6 +3819,8 @@ def _unconstrained_rate(
         )
     half = 1e-10 * max(abs(lo), abs(hi), 1e-300)
     K_br = (K - half, K + half) if kind in ("interior smooth max", "kink") else (K, K)
+    if plateau is not None:
+        K_br = plateau
     return GainDesign(
         K,
         "decay_rate",
@@ -3873,7 +3972,12 @@ def best_decay_rate(
             event = _level_end(curves, k, k + side, d)
             ends.append((event.K - side * _OFFSET * scale, event))
         intervals.append((ends[0], ends[1]))
-    best = _best_rate(curves, intervals, n_rates, "margin constraint")
+    best, plateau = _with_plateau(
+        curves.loop,
+        _best_rate(curves, intervals, n_rates, "margin constraint"),
+        [(a[0], b[0]) for a, b in intervals],
+        scale,
+    )
     K, rate, kind, end, sa = best
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     if not cert.margin >= d:
@@ -3881,7 +3985,9 @@ def best_decay_rate(
             f"best_decay_rate: the certified delay margin at the design K = {K:.15g} is {cert.margin:.15g} < {d:.15g}"
         )
     K_br, v_br = (K, K), (rate, rate)
-    if end is not None:  # the supremum: the rate at the end itself (not feasible at a pair birth)
+    if plateau is not None:
+        K_br = plateau
+    elif end is not None:  # the supremum: the rate at the end itself (not feasible at a pair birth)
         K_br = (min(K, end.K), max(K, end.K))
         at_end = -_abscissa(curves.loop, end.K).value
         v_br = (min(rate, at_end), max(rate, at_end))

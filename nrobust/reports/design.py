@@ -420,6 +420,9 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
     what = "delay margin" if result.objective == "margin" else "decay rate at delta = 0"
     if result.objective == "margin" and result.vertex_margins:
         what = f"least delay margin of the nominal plant and the {len(result.vertex_margins)} vertices"
+    if result.objective == "decay_rate" and result.vertex_abscissae:
+        what = f"least decay rate at delta = 0 of the nominal plant and the {len(result.vertex_abscissae)} vertices"
+    worst_value = [f"- {what}: {with_accuracy(result.value, result.accuracy)}"]
     need = "" if result.margin_at_least is None else f", with a delay margin of at least {result.margin_at_least:g}"
     if result.delays:
         need += ", stable for every delay in " + ", ".join(f"[{lo!r}, {hi!r}]" for lo, hi in result.delays)
@@ -429,7 +432,7 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
         "",
         f"- objective: the largest {what}{need} (a local optimum: the best of {result.starts} start(s))",
         f"- designed gain: K = {[list(row) for row in result.K]}",
-        *([f"- {what}: {with_accuracy(result.value, result.accuracy)}"] if result.objective == "margin" else []),
+        *(worst_value if result.objective == "margin" or result.vertex_abscissae else []),
         f"- decay rate at delta = 0: {with_accuracy(result.decay_rate, result.abscissa.accuracy)} "
         f"({'certified' if result.abscissa.certified else 'not certified'}"
         f"{', proven in ball arithmetic' if result.rigorous else ''})",
@@ -458,6 +461,19 @@ def _nplusm_markdown(path: Path, result: NPlusMGainDesign) -> list[str]:
         if result.vertex_margins and result.worst_margin is not None:
             worst = with_accuracy(result.worst_margin, result.worst_margin_accuracy)
             lines.append(f"  - least delay margin of the nominal plant and the vertices: {worst}")
+        for e, sa in zip(t.points, result.vertex_abscissae):
+            where = ", ".join(f"{float(x)!r}" for x in e)
+            proof = ("certified" if sa.certified else "not certified") + (
+                ", proven in ball arithmetic" if result.rigorous else ""
+            )
+            rate = with_accuracy(-sa.value, sa.accuracy)
+            lines.append(f"  - decay rate at delta = 0 at the vertex ({where}): {rate} ({proof})")
+        if result.vertex_abscissae:
+            worst = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+            lines.append(
+                f"  - least decay rate at delta = 0 of the nominal plant and the vertices: {worst} (between the "
+                "vertices not certified)"
+            )
     lines.append(f"- certified: {'yes' if result.certified else 'no'}")
     lines.append(f"- optimality: {result.optimality}")
     return lines + _start_lines(result.runs)
@@ -534,9 +550,7 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
         t = result.tolerance
         tolerance = "" if t is None else f"; speed tolerance {float(t.eps)!r}: {t.certified}"
         least = (
-            " (least of the nominal plant and the vertices)"
-            if result.vertex_margins and result.objective == "margin"
-            else ""
+            " (least of the nominal plant and the vertices)" if result.vertex_margins or result.vertex_abscissae else ""
         )
         return (
             f"K = {[list(row) for row in result.K]}: {result.objective}{least} = "

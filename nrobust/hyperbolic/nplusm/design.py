@@ -62,13 +62,15 @@ lies below ``d_min``, else :func:`~nrobust.roots.count_roots` of ``F(.; d_min)``
 ``[0, d]``) with the same ``K`` on the plants at the ``2^(n+m)`` vertices of the box of relative errors of the
 speeds (:mod:`~nrobust.hyperbolic.nplusm.speed_box`), the scenarios of :class:`NPlusMGainProblem`: every
 iterate meets the windows and ``gamma_max`` on each, and the window clearance and the phase before the first
-take the worst of them. The objective ``"margin"`` is then the least certified margin of the nominal plant
-and the vertices, ``min_j delta*_j(K)`` (the margin guaranteed at every certified point, the gradient that of
-the least one's critical crossing: nonsmooth where two plants tie); ``"decay_rate"`` stays the nominal one.
-The design is then certified at the vertices and checked at the other points of a grid of 3 points per speed
-(:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they sit in ``E(s)`` and in
-``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it inside the box, which is
-not certified between the points.
+take the worst of them. The objective is then the worst of the nominal plant and the vertices, the value
+guaranteed at every certified point: ``"margin"`` the least certified margin ``min_j delta*_j(K)`` (the
+gradient that of the least one's critical crossing), ``"decay_rate"`` the least decay rate, i.e. the largest
+certified spectral abscissa ``max_j alpha_j(K)`` of the delay-free loops (the gradient that of the rightmost
+root, or chain, of the largest); both nonsmooth where two plants tie. The design is then certified at the
+vertices (their margins and abscissae stated one by one) and checked at the other points of a grid of 3
+points per speed (:func:`nplusm_speed_tolerance`). The speeds do not enter the loop affinely (they sit in
+``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it inside
+the box, and neither the stability nor the decay rate is certified between the points.
 
 **Local.** The optimum is local: the best of the starts, each ending where neither the line
 search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
@@ -462,7 +464,8 @@ def _margin(system: NPlusMSystem, K: NDArray[np.float64]) -> NPlusMMargin:
 @dataclass(eq=False)
 class _Memo:
     """What one process learned: complete evaluations by ``(K, objective)``, lower bounds of rejected points,
-    abscissae and margins by ``K``, the rightmost roots of earlier points, and the evaluations settled by a bound."""
+    abscissae and margins by ``K``, the rightmost roots of earlier points, the evaluations settled by a bound, and
+    the plant with the largest abscissa at the last ``K`` (:meth:`NPlusMGainProblem.worst_abscissa`)."""
 
     points: dict[tuple[bytes, str], TrialPoint] = field(default_factory=dict)
     floors: dict[tuple[bytes, str], float] = field(default_factory=dict)
@@ -470,6 +473,7 @@ class _Memo:
     margins: dict[bytes, NPlusMMargin] = field(default_factory=dict)
     roots: list[complex] = field(default_factory=list)
     screened: int = 0
+    worst_plant: int = 0
 
     def add_root(self, s: complex | None) -> None:
         if s is None or not np.isfinite(s):
@@ -503,8 +507,9 @@ class NPlusMGainProblem:
     scenarios : tuple of NPlusMSystem
         Further plants (the vertices of a box of speed errors, :func:`~.speed_box.perturbed_system`)
         held with the same ``K`` to the windows and to ``gamma_max``: a feasible ``K`` meets them on every
-        one, the window margin, the phase before the first and the objective ``"margin"`` take the worst of
-        the plant and these. Only with ``windows``.
+        one, the window margin, the phase before the first and the objective (``"margin"``: the least margin;
+        ``"decay_rate"``: the largest abscissa, :meth:`worst_abscissa`) take the worst of the plant and these.
+        Only with ``windows``.
     """
 
     system: NPlusMSystem
@@ -536,12 +541,30 @@ class NPlusMGainProblem:
             self.memo.margins[key] = _margin(self.plant(j), K)
         return self.memo.margins[key]
 
-    def abscissa(self, K: NDArray[np.float64]) -> SpectralAbscissa:
-        """The certified spectral abscissa of the delay-free loop at ``K`` (remembered in this process)."""
-        key = K.tobytes()
+    def abscissa(self, K: NDArray[np.float64], j: int = 0) -> SpectralAbscissa:
+        """The certified spectral abscissa of the delay-free loop at ``K`` of the plant ``j`` (:meth:`plant`;
+        remembered in this process)."""
+        key = K.tobytes() + bytes([j])
         if key not in self.memo.abscissae:
-            self.memo.abscissae[key] = spectral_abscissa(NPlusMCharacteristic(self.system, K, 0.0))
+            self.memo.abscissae[key] = spectral_abscissa(NPlusMCharacteristic(self.plant(j), K, 0.0))
         return self.memo.abscissae[key]
+
+    def worst_abscissa(self, K: NDArray[np.float64], above: float = math.inf) -> tuple[int, SpectralAbscissa]:
+        """``(j, alpha_j)``: the largest certified spectral abscissa of the delay-free loops at ``K`` of the plant
+        and the scenarios, and the plant ``j`` that has it (the first of those that tie); or, once one is found
+        above ``above``, that one (a lower bound of the largest). The plant first, then the one that had the
+        largest at the last ``K``, then the others."""
+        last = self.memo.worst_plant
+        order = [0, *([last] if last else []), *(i for i in range(1, 1 + len(self.scenarios)) if i != last)]
+        worst = (0, self.abscissa(K))
+        for j in order[1:]:
+            if worst[1].value > above:
+                break
+            sa = self.abscissa(K, j)
+            if sa.value > worst[1].value or (sa.value == worst[1].value and j < worst[0]):
+                worst = (j, sa)
+        self.memo.worst_plant = worst[0]
+        return worst
 
     def __call__(self, p: ArrayLike, want: str | None = None, above: float = math.inf) -> TrialPoint:
         p = np.asarray(p, dtype=float)
@@ -588,8 +611,9 @@ class NPlusMGainProblem:
         memo = self.memo
         none = np.zeros(p.size)
         F = NPlusMCharacteristic(self.system, K, 0.0)
-        sa = memo.abscissae.get(K.tobytes())
-        if sa is None:  # the cheap rejections first: a zero right of the line, then the margin
+        sa = memo.abscissae.get(K.tobytes() + bytes([0]))
+        if sa is None:  # the cheap rejections first, a zero right of the line (the nominal abscissa is at most
+            # the worst), then the margin
             floor, why = self._floor(F, above)
             if floor > above:
                 memo.screened += 1
@@ -610,9 +634,12 @@ class NPlusMGainProblem:
         if sa is None:
             sa = self.abscissa(K)
             memo.add_root(sa.root)
-        if sa.value > above:
-            return TrialPoint(p, True, sa.value, none, sa.value, margin, ABOVE_LINE)
-        return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+        j, worst = self.worst_abscissa(K, above)
+        if worst.value > above:
+            return TrialPoint(p, True, worst.value, none, worst.value, margin, ABOVE_LINE)
+        if j:
+            F = NPlusMCharacteristic(self.plant(j), K, 0.0)
+        return TrialPoint(p, True, worst.value, self._abscissa_gradient(p, F, worst), worst.value, margin)
 
     def _floor(self, F: NPlusMCharacteristic, above: float) -> tuple[float, str]:
         """A lower bound of the abscissa of ``F`` above ``above``, or ``-inf``: the chains of the
@@ -708,8 +735,8 @@ class NPlusMGainProblem:
         worst: tuple[float, float, int, SpectralAbscissa | None] = (-math.inf, 0.0, 0, None)
         for j in range(1 + len(self.scenarios)):
             for delta in sorted({0.0, *(lo for lo, _ in self.windows)}):
-                if j == 0 and delta == 0.0:
-                    sa = self.abscissa(K)
+                if delta == 0.0:
+                    sa = self.abscissa(K, j)
                 else:
                     sa = spectral_abscissa(NPlusMCharacteristic(self.plant(j), K, delta))
                 if sa.value > worst[0]:
@@ -751,15 +778,17 @@ class NPlusMGainDesign:
     objective : str
         ``"decay_rate"`` or ``"margin"``.
     value : float
-        The objective at ``K``: the decay rate ``-alpha`` of the delay-free loop, or the delay margin
-        :attr:`worst_margin` (``delta*`` of the nominal plant; with ``speed_tolerance`` the least of it and
-        the vertices' :attr:`vertex_margins`).
+        The objective at ``K``: the decay rate :attr:`worst_decay_rate` (``-alpha`` of the delay-free loop of
+        the nominal plant; with ``speed_tolerance`` the least of it and the vertices' decay rates,
+        :attr:`vertex_abscissae`), or the delay margin :attr:`worst_margin` (``delta*`` of the nominal plant;
+        with ``speed_tolerance`` the least of it and the vertices' :attr:`vertex_margins`).
     accuracy : float
-        A bound of the error of ``value``: for the decay rate the abscissa's
-        (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`: proven with ``rigorous``, else its
-        floating-point estimate); for the margin the margins' :attr:`NPlusMMargin.accuracy`
-        combined by :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (a floating-point
-        estimate; ``inf`` when one is not estimated).
+        A bound of the error of ``value``: for the decay rate the abscissae's
+        (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`: proven with ``rigorous``, else their
+        floating-point estimates), for the margin the margins' :attr:`NPlusMMargin.accuracy`, each
+        combined over the nominal plant and the vertices by
+        :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (``inf`` when one is not
+        estimated).
     abscissa : SpectralAbscissa
         Of the delay-free loop at ``K``: certified (no root right of ``upper_bound``), proven in
         ball arithmetic with ``rigorous`` (:meth:`NPlusMCharacteristic.proven_abscissa`).
@@ -772,7 +801,8 @@ class NPlusMGainDesign:
     gamma : float
         :func:`principal_gamma` at ``K`` (below 1: the delayed principal part is strongly stable).
     certified : bool
-        True if the abscissa is certified, and the margin (when computed) is certified, of a loop
+        True if the abscissa is certified (with ``speed_tolerance``: each of :attr:`vertex_abscissae` too), and
+        the margin (when computed) is certified, of a loop
         stable at ``delta = 0``, and meets the requirement (with ``speed_tolerance``: at every point of
         :attr:`tolerance`, certified at its vertices). It certifies the values at ``K``, not that ``K``
         is optimal.
@@ -801,6 +831,11 @@ class NPlusMGainDesign:
         With ``speed_tolerance`` and a margin: the certified delay margin at each vertex of the box, in the
         order of ``tolerance.points``; empty otherwise. :attr:`worst_margin` is the least of them and
         :attr:`margin`.
+    vertex_abscissae : tuple of SpectralAbscissa
+        With ``speed_tolerance``: the certified spectral abscissa of the delay-free loop at each vertex of the
+        box (proven in ball arithmetic with ``rigorous``), in the order of ``tolerance.points``; empty
+        otherwise. :attr:`worst_decay_rate` is the least decay rate of them and :attr:`abscissa`. Between the
+        vertices it is not certified (the speeds do not enter the loop affinely).
     """
 
     K: tuple[tuple[float, ...], ...]
@@ -823,6 +858,7 @@ class NPlusMGainDesign:
     windows: tuple[NPlusMWindow, ...] = ()
     tolerance: NPlusMSpeedTolerance | None = None
     vertex_margins: tuple[NPlusMMargin, ...] = ()
+    vertex_abscissae: tuple[SpectralAbscissa, ...] = ()
 
     @property
     def gain(self) -> NDArray[np.float64]:
@@ -846,11 +882,28 @@ class NPlusMGainDesign:
         margins = (self.margin, *self.vertex_margins)
         return smallest_delay_error([m.margin for m in margins], [m.accuracy for m in margins])
 
+    @property
+    def worst_decay_rate(self) -> float:
+        """The least decay rate ``-alpha`` of the delay-free loops of the nominal plant and the vertices of the box
+        of speed errors (:attr:`vertex_abscissae`; the nominal :attr:`decay_rate` without ``speed_tolerance``)."""
+        return float(min(-a.value for a in (self.abscissa, *self.vertex_abscissae)))
+
+    @property
+    def worst_decay_rate_accuracy(self) -> float | None:
+        """A bound of the error of :attr:`worst_decay_rate`: the abscissae's accuracies combined by
+        :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (None when one is not estimated)."""
+        return _least_rate_error((self.abscissa, *self.vertex_abscissae))
+
     def __repr__(self) -> str:
         worst = ""
+        if self.vertex_abscissae:
+            text = with_accuracy(self.worst_decay_rate, self.worst_decay_rate_accuracy)
+            worst += f", worst_decay_rate={text}"
         if self.vertex_margins and self.worst_margin is not None:
             text = with_accuracy(self.worst_margin, self.worst_margin_accuracy)
-            worst = f", worst_margin={text} (nominal and {len(self.vertex_margins)} vertices)"
+            worst += f", worst_margin={text}"
+        if worst:
+            worst += f" (nominal and {len(self.vertex_abscissae) or len(self.vertex_margins)} vertices)"
         return (
             f"NPlusMGainDesign(K={[list(row) for row in self.K]}, objective={self.objective!r}, "
             f"value={with_accuracy(self.value, self.accuracy)}, margin={self.margin!r}{worst}, "
@@ -864,23 +917,37 @@ class NPlusMGainDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        skip = ("abscissa", "margin", "runs", "windows", "tolerance", "vertex_margins")
+        skip = ("abscissa", "margin", "runs", "windows", "tolerance", "vertex_margins", "vertex_abscissae")
         data = {k: v for k, v in vars(self).items() if k not in skip}
         data["tolerance"] = None if self.tolerance is None else self.tolerance.to_dict()
         data["delays"] = [list(w) for w in self.delays]
         data["windows"] = [w.to_dict() for w in self.windows]
         data["K"] = [list(row) for row in self.K]
-        data["abscissa"] = {
-            "value": self.abscissa.value,
-            "upper_bound": self.abscissa.upper_bound,
-            "certified": self.abscissa.certified,
-            "value_bracket": self.abscissa.value_bracket,
-        }
+        data["abscissa"] = _abscissa_dict(self.abscissa)
+        data["vertex_abscissae"] = [_abscissa_dict(a) for a in self.vertex_abscissae]
+        data["worst_decay_rate"] = self.worst_decay_rate
         data["margin"] = None if self.margin is None else self.margin.to_dict()
         data["vertex_margins"] = [m.to_dict() for m in self.vertex_margins]
         data["worst_margin"] = self.worst_margin
         data["runs"] = [run.to_dict() for run in self.runs]
         return json_safe(data)
+
+
+def _abscissa_dict(sa: SpectralAbscissa) -> dict[str, Any]:
+    return {
+        "value": sa.value,
+        "upper_bound": sa.upper_bound,
+        "certified": sa.certified,
+        "value_bracket": sa.value_bracket,
+    }
+
+
+def _least_rate_error(abscissae: Iterable[SpectralAbscissa]) -> float | None:
+    """A bound of the error of the least decay rate ``min_j (-alpha_j)`` from the abscissae's accuracies
+    (:func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error`: a rate within its error of the least may be
+    the true least); None when one is not estimated."""
+    abscissae = tuple(abscissae)
+    return smallest_delay_error([-a.value for a in abscissae], [a.accuracy for a in abscissae])
 
 
 def default_gain_bounds(system: NPlusMSystem) -> NDArray[np.float64]:
@@ -987,9 +1054,11 @@ def design_nplusm_gains(
     ----------
     system : NPlusMSystem
     objective : {"decay_rate", "margin"}
-        Maximise ``-alpha`` (the spectral abscissa of the delay-free loop) or the delay margin
-        (the same delay on every actuator; with ``speed_tolerance`` the least margin of the nominal
-        plant and the vertices of the box, :attr:`NPlusMGainDesign.worst_margin`).
+        Maximise ``-alpha`` (the spectral abscissa of the delay-free loop; with ``speed_tolerance`` the
+        least decay rate of the nominal plant and the vertices of the box,
+        :attr:`NPlusMGainDesign.worst_decay_rate`) or the delay margin (the same delay on every actuator;
+        with ``speed_tolerance`` the least margin of the nominal plant and the vertices,
+        :attr:`NPlusMGainDesign.worst_margin`).
     margin_at_least : float, optional
         With ``"decay_rate"``: require ``delta* >= margin_at_least``. A start below it first
         maximises the margin.
@@ -1023,9 +1092,12 @@ def design_nplusm_gains(
         plants whose speeds are ``lam_i (1 + e_i)``, ``mu_j (1 + e_{n+j})`` at the ``2^(n+m)`` vertices
         ``|e_i| = eps`` of the box of speed errors (:func:`~.speed_box.perturbed_system`; at most
         :data:`~.speed_box.MAX_SPEED_CORNERS` vertices), and each vertex's ``gamma`` within
-        ``gamma_max``: at every iterate, each vertex one more certified margin per evaluation. With
-        ``"margin"`` the objective is the least margin of the nominal plant and the vertices (the guaranteed
-        one; :attr:`NPlusMGainDesign.vertex_margins` and :attr:`~NPlusMGainDesign.margin` state each). The
+        ``gamma_max``: at every iterate, each vertex one more certified margin per evaluation. The objective
+        is then the worst of the nominal plant and the vertices (the guaranteed one): with ``"margin"`` the
+        least margin (:attr:`NPlusMGainDesign.vertex_margins` and :attr:`~NPlusMGainDesign.margin` state
+        each), with ``"decay_rate"`` the least decay rate, each vertex one more certified abscissa per
+        evaluation (:attr:`NPlusMGainDesign.vertex_abscissae` and :attr:`~NPlusMGainDesign.abscissa` state
+        each). The
         design's verdicts are then certified at the vertices and checked at the other points of the grid of 3 points
         per speed (:attr:`NPlusMGainDesign.tolerance`, :func:`nplusm_speed_tolerance`); the box between
         the points is not certified (the speeds do not enter the loop affinely, :mod:`~.speed_box`).
@@ -1126,9 +1198,18 @@ def _certify(
     vertex_margins = (
         () if eps is None or dm is None else tuple(problem.margin(K, j) for j in range(1, 1 + len(problem.scenarios)))
     )
+    vertex_abscissae: tuple[SpectralAbscissa, ...] = ()
+    if eps is not None:
+        vertex_abscissae = tuple(
+            NPlusMCharacteristic(problem.plant(j), K, 0.0).proven_abscissa() if rigorous else problem.abscissa(K, j)
+            for j in range(1, 1 + len(problem.scenarios))
+        )
+        met = met and all(a.certified for a in vertex_abscissae)
     if problem.objective == "decay_rate":
-        value = -sa.value
-        accuracy = sa.accuracy if sa.accuracy is not None else math.inf
+        abscissae = (sa, *vertex_abscissae)
+        value = min(-a.value for a in abscissae)
+        error = _least_rate_error(abscissae)
+        accuracy = math.inf if error is None else error
     else:
         assert dm is not None
         margins = (dm, *vertex_margins)
@@ -1154,4 +1235,5 @@ def _certify(
         windows=verdicts,
         tolerance=tolerance,
         vertex_margins=vertex_margins,
+        vertex_abscissae=vertex_abscissae,
     )
