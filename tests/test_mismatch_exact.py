@@ -227,3 +227,16 @@ def test_a_proven_margin_tolerates_by_its_ball() -> None:
     assert tolerates(dm, exact - 1e-9)
     wide = dc.replace(dm, margin_ball=(exact - 1e-3, exact + 1e-3))
     assert not tolerates(wide, exact - 1e-4) and tolerates(wide, exact - 2e-3)
+
+
+def test_speed_tolerance_corners_are_proven_about_the_pde() -> None:
+    """The corners of ``speed_tolerance(..., rigorous=True)`` under ``U_BS2(K)`` on a coupled plant are proven on the
+    exact loops of the true law (the square's proof cut to one box: the corners' certificate); the scope says that
+    the other points are the kernel route's and that the corners' proofs hold with ``tau`` rounded."""
+    from nrobust.hyperbolic.analyses import speed_tolerance
+
+    result = speed_tolerance(SECOND, ReflectionController(K), 0.03, (0.0, 1.0), grid=2, rigorous=True, max_boxes=1)
+    assert result.met and result.certified == "proven at the corners" and result.route == "exact"
+    assert all(w.certified == "proven" for w in result.windows[:4])
+    assert result.scope.startswith("the corners: the PDE itself")
+    assert "not mapped to the exact tau" in result.scope and "the kernel route" in result.scope

@@ -844,14 +844,17 @@ def _coupled_text(system: Hyperbolic2x2, controller: Controller, feedback: State
     return f"of the coupled plant (N~ and U~ in closed form) under U = k u(t, 1), k = {float(feedback.k)!r}"
 
 
-def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int, rigorous: bool) -> tuple[str, str]:
+def _route_scope(
+    system: Hyperbolic2x2, controller: Controller, kernel_grid: int, rigorous: bool, mapped: bool = True
+) -> tuple[str, str]:
     """The route and the scope of the mismatched loops.
 
     The exact route (an uncoupled plant; a coupled one with constant couplings under ``U_BS2(K)``/``U_BS``
     unfiltered, their traces enclosed, or a ``StateFeedback`` whose gains evaluate in ball arithmetic): the PDE
     itself, each mismatched plant being ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` as computed in floating point;
-    its margin is mapped to its exact ``tau`` unless the law is filtered. Otherwise :func:`loop_scope` of the
-    kernel route, with why the exact route was not taken.
+    with ``mapped`` its margin is mapped to its exact ``tau`` unless the law is filtered (otherwise the proofs
+    are about its loop built with ``tau`` rounded). Otherwise :func:`loop_scope` of the kernel route, with why
+    the exact route was not taken.
     """
     if isinstance(controller, OutputFeedback):
         route = loop_route(system, controller)
@@ -861,7 +864,7 @@ def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int
     plant, feedback, filt, enclosure = _mismatched(system, controller, 0.0, 0.0, kernel_grid, rigorous)
     route = loop_route(plant, feedback)
     if route == "exact":
-        return route, _exact_scope(system, feedback, filt, enclosure)
+        return route, _exact_scope(system, filt, enclosure, mapped and filt is None)
     scope = loop_scope(plant, feedback, kernel_grid, _loop(plant, feedback, None, kernel_grid))
     if not isinstance(controller, StateFeedback):
         scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
@@ -876,23 +879,16 @@ def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int
 
 
 def _exact_scope(
-    system: Hyperbolic2x2,
-    feedback: StateFeedback,
-    filt: tuple[float, float] | None,
-    enclosure: TraceEnclosure | None,
+    system: Hyperbolic2x2, filt: tuple[float, float] | None, enclosure: TraceEnclosure | None, mapped: bool
 ) -> str:
     """The scope of mismatched loops on the exact route (:func:`_route_scope`)."""
     plants = "each mismatched plant is lam (1 + e_lam), mu (1 + e_mu) as computed in floating point, its numbers exact"
-    if filt is None:
-        plants += (
-            ", tau mapped to its exact value 1/lam' + 1/mu' (given_plant_scale) and the principal gains enclosed "
-            "with the proven radii of their rounding"
-        )
+    if mapped:
+        plants += ", tau mapped to its exact value 1/lam' + 1/mu' (given_plant_scale)"
     else:
-        plants += (
-            ", tau the double nearest 1/lam' + 1/mu' (a filtered law's loop is not mapped to the exact tau) and the "
-            "principal gains enclosed with the proven radii of their rounding"
-        )
+        why = "a filtered law's loop is" if filt is not None else "the proofs are"
+        plants += f", tau the double nearest 1/lam' + 1/mu' ({why} not mapped to the exact tau)"
+    plants += " and the principal gains enclosed with the proven radii of their rounding"
     if system.uncoupled:
         return f"the PDE itself (uncoupled: N~ = 0, the law U = k u(t, 1); {plants})"
     radius = max((d.radius for d in loop_factors(system, OpenLoop())[0].distributed), default=0.0)
@@ -1206,7 +1202,7 @@ def speed_tolerance(
             f"between the points not certified (the stability windows are not continuous in the mismatch; the square "
             f"is not proven: {why_not})"
         )
-    route, scope = _route_scope(system, controller, kernel_grid, rigorous)
+    route, scope = _route_scope(system, controller, kernel_grid, rigorous, mapped=False)
     if rigorous and not isinstance(controller, OutputFeedback):
         if _mismatched(system, controller, 0.0, 0.0, kernel_grid, True).enclosure is not None:
             scope = (
