@@ -679,7 +679,9 @@ def _checked(
     max_evals: int,
     verify: bool,
 ) -> tuple[bool, float]:
-    """``(verified, residual)``: the residual of ``F(i w; delta*)`` (raises unless at rounding level)
+    """``(verified, residual)``: the residual of ``F(i w; delta*)`` (raises unless at rounding level plus the
+    kernels' proven radii, :func:`_stored_radius`: a margin proven for the true kernels need not be a zero of
+    the stored ones)
     and, with ``verify``, no unstable zero at ``delta* (1 - 1e-3)`` (raises otherwise)."""
     s = np.array([1j * omega])
     Fm = A(s) + B(s) * np.exp(-s * margin)
