@@ -118,15 +118,15 @@ def test_square_needs_a_strongly_stable_difference_operator() -> None:
 
 
 def test_coupled_plant_proves_the_square_of_reflection() -> None:
-    """U_BS2's kernel gains on a coupled plant: the corners' loops are kernel-route models, the square is proven
-    on the PDE with the traces enclosed (``reflection_traces``; the traces fitted from 21 kernel points, their
-    bound proven whatever the grid)."""
+    """U_BS2's kernel gains on a coupled plant: the corners' loops are exact loops of the traces' fits with their
+    proven error (``rigorous=True``), the square is proven on the PDE with the traces enclosed
+    (``reflection_traces``; the traces fitted from 21 kernel points, their bound proven whatever the grid)."""
     coupled = Hyperbolic2x2(1.0, 1.0, 0.2, 0.2, 0.5, 0.5)
     result = speed_tolerance(
         coupled, ReflectionController(0.1), 0.05, (0.0, 0.5), grid=2, kernel_grid=21, rigorous=True
     )
-    assert result.met and result.certified == "proven on the square" and result.route == "kernels"
-    # the scope is the proof's (the PDE's loop, the traces within their bound), not the corners' kernel route
+    assert result.met and result.certified == "proven on the square" and result.route == "exact"
+    # the scope is the proof's (the PDE's loop, the traces within their bound), not the corners' route
     assert "kernel traces" in result.statement
     assert "no kernel grid" in result.scope and "proven bound" in result.scope
     with pytest.raises(ParameterError, match="system"):

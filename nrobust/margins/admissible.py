@@ -150,6 +150,10 @@ def tolerates(margin: DelayMargin | GainVerdict, delta_max: float) -> bool:
     """True if the loop is stable for every delay in ``[0, delta_max]`` (admissible).
 
     That is: nominally stable and ``margin > delta_max`` (the margin is the first delay with a
-    root on the axis, so the whole of ``[0, delta_max]`` is covered).
+    root on the axis, so the whole of ``[0, delta_max]`` is covered). A margin proven in ball
+    arithmetic must exceed ``delta_max`` with its whole ball (a loop whose kernels are known within
+    proven radii can have a ball wider than the digits of ``margin``).
     """
-    return bool(margin.nominally_stable and margin.margin > delta_max)
+    ball = getattr(margin, "margin_ball", None)
+    lowest = margin.margin if ball is None else min(margin.margin, ball[0])
+    return bool(margin.nominally_stable and lowest > delta_max)

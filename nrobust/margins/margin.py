@@ -657,6 +657,18 @@ def _first_axis_root(
     return first_crossing.delays[0], first_crossing.omega, f"first {kind} (at omega)"
 
 
+def _stored_radius(F: QuasiPolynomial, omega: float) -> float:
+    """A bound of ``|F_true(i w) - F(i w)|`` from the proven radii of ``F``'s kernels: ``radius (b - a) b^m |q(i w)|``
+    each (a kernel within ``radius`` of its stored pieces, weight ``nu^m``, polynomial factor ``q``); 0 for a
+    loop stored exactly. A margin proven for ``F_true`` has its crossing within that of a zero of ``F``."""
+    out = 0.0
+    for d in F.distributed:
+        if d.radius:
+            q = abs(np.polynomial.polynomial.polyval(1j * omega, np.asarray(d.poly, dtype=complex)))
+            out += d.radius * (d.b - d.a) * d.b**d.moment * float(q)
+    return out
+
+
 def _checked(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
@@ -667,12 +679,15 @@ def _checked(
     max_evals: int,
     verify: bool,
 ) -> tuple[bool, float]:
-    """``(verified, residual)``: the residual of ``F(i w; delta*)`` (raises unless at rounding level)
+    """``(verified, residual)``: the residual of ``F(i w; delta*)`` (raises unless at rounding level plus the
+    kernels' proven radii, :func:`_stored_radius`: a margin proven for the true kernels need not be a zero of
+    the stored ones)
     and, with ``verify``, no unstable zero at ``delta* (1 - 1e-3)`` (raises otherwise)."""
     s = np.array([1j * omega])
     Fm = A(s) + B(s) * np.exp(-s * margin)
-    residual = float(abs(Fm[0]) / (abs(A(s)[0]) + abs(B(s)[0])))
-    if residual > 1e-8:
+    size = abs(A(s)[0]) + abs(B(s)[0])
+    residual = float(abs(Fm[0]) / size)
+    if residual > 1e-8 + (_stored_radius(A, omega) + _stored_radius(B, omega)) / size:
         raise CertificationError(
             f"delay_margin: F(i w; delta*) does not vanish at delta* = {margin:.12g}, w = {omega:.12g} "
             f"(relative residual {residual:.3g})"

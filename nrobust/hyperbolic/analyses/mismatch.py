@@ -9,12 +9,22 @@ nominal gains on the perturbed plant: ``A = 1 - Phi`` and ``B = -P`` of the pert
 (:func:`~nrobust.hyperbolic.loops.feedback.feedback_factor`, its inverse kernels and ``N~`` on
 the kernel grid), times ``1 + b s`` and ``1 + a s`` for a filtered controller (section 2.3.2).
 
-The route is the kernel route of :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`
-whenever a gain has an integral term (every coupled plant): a certificate is then about a model
-of the PDE, the nominal gains and the perturbed plant's ``N~`` and ``M`` being cubic splines of
-kernels on ``kernel_grid`` points (:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`).
 On an uncoupled plant the paper's laws are ``U = k u(t, 1)`` (no kernel), the route is exact
-and a certificate is about the PDE itself.
+and a certificate is about the PDE itself; so is a ``StateFeedback`` whose gains evaluate in ball
+arithmetic on a plant with constant couplings. With ``rigorous=True`` (:func:`mismatch_region`, the
+corners of :func:`speed_tolerance`), ``U_BS2(K)`` and ``U_BS`` unfiltered on a coupled plant with
+constant couplings take the exact route as well: the gains are Chebyshev fits ``h`` of the traces
+within a proven ``delta`` of the true ones
+(:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`), and since the kernel of the
+law's term is linear in the gains, the loop's ``B`` carries zero kernels whose radii hold that of
+``h - g`` on the perturbed plant (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.gain_error_terms`):
+a proven margin holds for the PDE under the true law, mapped to the exact round trip of the perturbed
+plant (its speeds the doubles ``lam (1 + e_lam)``, ``mu (1 + e_mu)``). Otherwise (a filtered law,
+varying couplings, traces that cannot be enclosed, or in floating point, where it is about 3 times
+cheaper) the route is the kernel route of :func:`~nrobust.hyperbolic.loops.controllers.loop_factors`:
+a certificate is then about a model of the PDE, the nominal gains and the perturbed plant's ``N~`` and
+``M`` being cubic splines of kernels on ``kernel_grid`` points
+(:func:`~nrobust.hyperbolic.loops.controllers.loop_scope`).
 
 An :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` is an input-output map from the
 measurement ``v(t, 0)`` and its own commands, designed on the nominal plant: its observer
@@ -68,12 +78,13 @@ from ..loops.controllers import (
 )
 from ..loops.exact_form import has_exact_form
 from ..loops.exact_gains import gain_failure
+from ..loops.given_plant import to_given_plant
 from ..loops.output_feedback import observer_term
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import mapper, real_grid
 from .mismatch_coupled import MAX_COUPLED_BOXES, MAX_GAIN_BOXES, prove_coupled_square
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
-from .mismatch_traces import reflection_traces
+from .mismatch_traces import TraceEnclosure, gain_error_terms, reflection_traces, trace_enclosure
 
 __all__ = [
     "JUMP_FRACTION",
@@ -132,26 +143,63 @@ def _check_pair(system: Any, controller: Any) -> None:
         )
 
 
+class _Mismatched(NamedTuple):
+    """The perturbed plant, the nominal law as a state feedback on it, the law's filter, and the enclosure of
+    ``U_BS2(K)``'s traces when its gains are their Chebyshev fits (the exact route)."""
+
+    plant: Hyperbolic2x2
+    feedback: StateFeedback
+    filt: tuple[float, float] | None
+    enclosure: TraceEnclosure | None
+
+
 def _mismatched(
-    system: Hyperbolic2x2, controller: Controller, e_lam: float, e_mu: float, kernel_grid: int
-) -> tuple[Hyperbolic2x2, StateFeedback, tuple[float, float] | None]:
-    """The perturbed plant, the nominal law as a state feedback on it, and the law's filter."""
+    system: Hyperbolic2x2, controller: Controller, e_lam: float, e_mu: float, kernel_grid: int, exact: bool = False
+) -> _Mismatched:
+    """The perturbed plant and the nominal law on it (:class:`_Mismatched`).
+
+    With ``exact``, ``U_BS2(K)`` and ``U_BS`` on a coupled plant with constant couplings take their traces
+    enclosed (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`) where that succeeds;
+    otherwise (and a filtered law, varying couplings) the kernel traces on ``kernel_grid`` points.
+    """
     plant = dataclasses.replace(system, lam=system.lam * (1.0 + e_lam), mu=system.mu * (1.0 + e_mu))
     if isinstance(controller, StateFeedback):
-        return plant, controller, None
+        return _Mismatched(plant, controller, None, None)
+    enclosure = _enclosure(system, controller, kernel_grid) if exact else None
+    if isinstance(enclosure, TraceEnclosure):
+        return _Mismatched(plant, enclosure.law, None, enclosure)
     kernels = None if system.uncoupled else _nominal_kernels(system, kernel_grid)
     law = controller.feedback_law(system, kernels)
     if system.uncoupled:  # the paper's laws without kernels: U = k u(t, 1), no integral term
-        return plant, StateFeedback(law.boundary_gain), law.filter
-    return plant, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v), law.filter
+        return _Mismatched(plant, StateFeedback(law.boundary_gain), law.filter, None)
+    return _Mismatched(plant, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v), law.filter, None)
+
+
+def _enclosure(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> TraceEnclosure | str | None:
+    """The enclosed traces of an unfiltered ``U_BS2(K)``/``U_BS`` on a coupled plant with constant couplings, the
+    reason they are not enclosed (a string), or None (another law, an uncoupled plant, varying couplings)."""
+    K = _reflection_gain(controller, system)
+    if K is None or system.uncoupled or not has_exact_form(system):
+        return None
+    try:
+        return trace_enclosure(system, K, kernel_grid)
+    except CertificationError as exc:
+        return str(exc)
 
 
 def _loop(
-    plant: Hyperbolic2x2, feedback: StateFeedback, filt: tuple[float, float] | None, kernel_grid: int
+    plant: Hyperbolic2x2,
+    feedback: StateFeedback,
+    filt: tuple[float, float] | None,
+    kernel_grid: int,
+    enclosure: TraceEnclosure | None = None,
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
-    """``(A, B)`` of the state feedback on ``plant``, through the law's filter ``(1 + a s)/(1 + b s)``."""
+    """``(A, B)`` of the state feedback on ``plant``, through the law's filter ``(1 + a s)/(1 + b s)``; with
+    ``enclosure``, ``B`` holds the terms of the gains' error (:func:`gain_error_terms`): the loop of the true law."""
     grid = kernel_grid if loop_route(plant, feedback) == "kernels" else None
     A, B = loop_factors(plant, feedback, grid)
+    if enclosure is not None:
+        B = B - QuasiPolynomial([], [], list(gain_error_terms(enclosure, plant)))
     if filt is None:
         return A, B
     a, b = filt
@@ -202,6 +250,7 @@ def mismatch_loop(
     e_mu: float,
     *,
     kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
 ) -> tuple[QuasiPolynomial, QuasiPolynomial]:
     """Loop factors of ``controller`` designed for ``system``, acting on the plant with mismatched speeds.
 
@@ -214,13 +263,23 @@ def mismatch_loop(
     :class:`~nrobust.hyperbolic.loops.controllers.FilteredController`. A ``StateFeedback``
     controller keeps its own gains.
 
-    Route: on a coupled plant the kernel route (gains with an integral term): the nominal gains,
-    the perturbed ``N~`` and the feedback kernel ``M`` are cubic splines of kernels on
-    ``kernel_grid`` points, so ``F = A + B e^{-delta s}`` is a model of the PDE and a certificate
-    about it is about that model. On an uncoupled plant (or a proportional ``StateFeedback``)
-    the paper's laws are ``U = k u(t, 1)`` and the route is exact: the PDE itself. With
-    ``e_lam = e_mu = 0`` the factors are those of ``loop_factors(system, controller)`` to the
-    accuracy of the kernel route (about ``1e-9`` on the paper's plant at 201 points).
+    Route: on an uncoupled plant (or a proportional ``StateFeedback``) the paper's laws are
+    ``U = k u(t, 1)`` and the route is exact: the PDE itself; so is a ``StateFeedback`` whose gains
+    evaluate in ball arithmetic on a plant with constant couplings
+    (:func:`~nrobust.hyperbolic.loops.controllers.loop_route`). With ``rigorous=True``, ``U_BS2(K)`` and
+    ``U_BS`` (unfiltered) on a coupled plant with constant couplings take the exact route too: the law
+    with its traces' Chebyshev fits ``h`` (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`),
+    ``N~``, ``U~`` and the fits' term in closed form, and ``B`` holds two zero kernels whose proven radii hold
+    the kernel of the fits' error (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.gain_error_terms`), so
+    a proof in ball arithmetic about ``F = A + B e^{-delta s}`` holds for the PDE under the true law (the
+    plant with the speeds as computed in floating point, its loop built with ``tau`` rounded: a proof maps to
+    the exact ``tau`` by :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`). Otherwise (and where
+    the traces are not enclosed, a filtered law, varying couplings) the kernel route: the nominal gains, the
+    perturbed ``N~`` and the feedback kernel ``M`` are cubic splines of kernels on ``kernel_grid`` points, so
+    ``F`` is a model of the PDE and a certificate about it is about that model (about 3 times cheaper to
+    build than the exact loop of the fits). With ``e_lam = e_mu = 0`` the kernel route's factors are those of
+    ``loop_factors(system, controller)`` to about ``1e-9`` on the paper's plant at 201 points (the errors of
+    the nominal kernels cancel there; its traces are within about ``2e-6`` of the true ones, so are the fits).
 
     Parameters
     ----------
@@ -231,7 +290,10 @@ def mismatch_loop(
     e_lam, e_mu : float
         Relative errors of the speeds, each ``> -1``.
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid of the nominal gains and of the perturbed plant's loop.
+        Kernel grid of the nominal gains and of the perturbed plant's loop (with ``rigorous=True``, of
+        the traces that are fitted; their bound does not rest on it).
+    rigorous : bool, default False
+        Build the loop of the true law for proofs in ball arithmetic (the exact route above).
 
     Returns
     -------
@@ -243,7 +305,8 @@ def mismatch_loop(
     kernel_grid = check_kernel_grid(kernel_grid)
     if isinstance(controller, OutputFeedback):
         return _observed(system, controller, e_lam, e_mu, kernel_grid)
-    return _loop(*_mismatched(system, controller, e_lam, e_mu, kernel_grid), kernel_grid)
+    plant, feedback, filt, enclosure = _mismatched(system, controller, e_lam, e_mu, kernel_grid, rigorous)
+    return _loop(plant, feedback, filt, kernel_grid, enclosure)
 
 
 @dataclass(frozen=True)
@@ -262,10 +325,13 @@ class _MismatchMargin:
             if isinstance(self.controller, OutputFeedback):
                 A, B = _observed(self.system, self.controller, point[0], point[1], self.kernel_grid)
             else:
-                A, B = _loop(
-                    *_mismatched(self.system, self.controller, point[0], point[1], self.kernel_grid),
-                    self.kernel_grid,
+                plant, feedback, filt, enclosure = _mismatched(
+                    self.system, self.controller, point[0], point[1], self.kernel_grid, self.rigorous
                 )
+                A, B = _loop(plant, feedback, filt, self.kernel_grid, enclosure)
+                if filt is None and loop_route(plant, feedback) == "exact":  # the loop as built is in tau s
+                    dm = factor_delay_margin(A, B, verify=True, max_evals=self.max_evals, rigorous=self.rigorous)
+                    return to_given_plant(dm, plant, feedback)
             return factor_delay_margin(A, B, verify=True, max_evals=self.max_evals, rigorous=self.rigorous)
         except CertificationError as exc:
             return str(exc)
@@ -457,8 +523,11 @@ def mismatch_region(
     born or the nominal loop loses stability, and there the end is only known to lie between
     the two certified points. A change of verdict and back between two axis points is not seen.
 
-    What a certificate is about: :attr:`MismatchRegion.scope` (on a coupled plant a model of the
-    PDE with the kernels on ``kernel_grid`` points; on an uncoupled plant the PDE itself).
+    What a certificate is about: :attr:`MismatchRegion.scope` (on an uncoupled plant the PDE itself; on
+    a coupled plant with constant couplings with ``rigorous=True`` under ``U_BS2(K)``, ``U_BS`` or a
+    ``StateFeedback`` whose gains evaluate in ball arithmetic, the PDE itself under the true law,
+    each margin ball holding the fitted traces' proven error: wider than a model's; otherwise a model
+    of the PDE with the kernels on ``kernel_grid`` points).
 
     Parameters
     ----------
@@ -534,7 +603,7 @@ def mismatch_region(
             _axis_end(evaluate, axis, below, delta_max, tol),
             _axis_end(evaluate, axis, above, delta_max, tol),
         )
-    route, scope = _route_scope(system, controller, kernel_grid)
+    route, scope = _route_scope(system, controller, kernel_grid, bool(rigorous))
     return MismatchRegion(
         lam_axis,
         mu_axis,
@@ -775,21 +844,64 @@ def _coupled_text(system: Hyperbolic2x2, controller: Controller, feedback: State
     return f"of the coupled plant (N~ and U~ in closed form) under U = k u(t, 1), k = {float(feedback.k)!r}"
 
 
-def _route_scope(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> tuple[str, str]:
-    """The route and the scope of the mismatched loops (as :func:`loop_route`, :func:`loop_scope` say)."""
+def _route_scope(
+    system: Hyperbolic2x2, controller: Controller, kernel_grid: int, rigorous: bool, mapped: bool = True
+) -> tuple[str, str]:
+    """The route and the scope of the mismatched loops.
+
+    The exact route (an uncoupled plant; a coupled one with constant couplings under ``U_BS2(K)``/``U_BS``
+    unfiltered, their traces enclosed, or a ``StateFeedback`` whose gains evaluate in ball arithmetic): the PDE
+    itself, each mismatched plant being ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` as computed in floating point;
+    with ``mapped`` its margin is mapped to its exact ``tau`` unless the law is filtered (otherwise the proofs
+    are about its loop built with ``tau`` rounded). Otherwise :func:`loop_scope` of the kernel route, with why
+    the exact route was not taken.
+    """
     if isinstance(controller, OutputFeedback):
         route = loop_route(system, controller)
         route_grid = kernel_grid if route == "kernels" else None
         scope = loop_scope(system, controller, route_grid, loop_factors(system, controller, route_grid))
         return route, scope + "; the observer and the law designed on the nominal plant, acting on the mismatched one"
-    plant, feedback, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+    plant, feedback, filt, enclosure = _mismatched(system, controller, 0.0, 0.0, kernel_grid, rigorous)
     route = loop_route(plant, feedback)
-    scope = loop_scope(
-        plant, feedback, kernel_grid if route == "kernels" else None, _loop(plant, feedback, None, kernel_grid)
-    )
-    if route == "kernels" and not isinstance(controller, StateFeedback):
+    if route == "exact":
+        return route, _exact_scope(system, filt, enclosure, mapped and filt is None)
+    scope = loop_scope(plant, feedback, kernel_grid, _loop(plant, feedback, None, kernel_grid))
+    if not isinstance(controller, StateFeedback):
         scope += f"; the gains: kernel traces of the nominal plant on {kernel_grid} points"
+        refused = _enclosure(system, controller, kernel_grid)
+        if isinstance(refused, TraceEnclosure):
+            scope += " (rigorous=True takes the exact route: the PDE itself, the traces enclosed)"
+        elif isinstance(refused, str):
+            scope += f" (their enclosure, the exact route, is refused: {refused})"
+        elif filt is not None and not system.uncoupled and has_exact_form(system):
+            scope += " (a filtered law keeps the kernel route)"
     return route, scope
+
+
+def _exact_scope(
+    system: Hyperbolic2x2, filt: tuple[float, float] | None, enclosure: TraceEnclosure | None, mapped: bool
+) -> str:
+    """The scope of mismatched loops on the exact route (:func:`_route_scope`)."""
+    plants = "each mismatched plant is lam (1 + e_lam), mu (1 + e_mu) as computed in floating point, its numbers exact"
+    if mapped:
+        plants += ", tau mapped to its exact value 1/lam' + 1/mu' (given_plant_scale)"
+    else:
+        why = "a filtered law's loop is" if filt is not None else "the proofs are"
+        plants += f", tau the double nearest 1/lam' + 1/mu' ({why} not mapped to the exact tau)"
+    plants += " and the principal gains enclosed with the proven radii of their rounding"
+    if system.uncoupled:
+        return f"the PDE itself (uncoupled: N~ = 0, the law U = k u(t, 1); {plants})"
+    radius = max((d.radius for d in loop_factors(system, OpenLoop())[0].distributed), default=0.0)
+    kernel = f"N~ and U~ in closed form, stored within a proven {radius:.1e} that every enclosure includes"
+    if enclosure is None:
+        gains = "the integral gains as Taylor models in ball arithmetic"
+    else:
+        gains = (
+            f"the law's gains enclosed within {enclosure.error:.1e} of Chebyshev fits of its kernel traces "
+            f"(trace_enclosure: the traces of eq. (53) on the nominal plant, their total variations within "
+            f"{max(enclosure.variation_u, enclosure.variation_v):.1e}; every enclosure holds the true law)"
+        )
+    return f"the PDE itself ({kernel}; {gains}; {plants})"
 
 
 def _reflection_gain(controller: Controller, system: Hyperbolic2x2) -> float | None:
@@ -839,8 +951,8 @@ def _probe_undecided(
 
     Each mismatch (clipped to the square, those in ``examined`` skipped) gets the window's verdict in floating
     point, up to :data:`MAX_UNDECIDED_PROBES` of them; the first refuted is checked again with the delay margin
-    proven in ball arithmetic (:func:`nrobust.design.window_stability` with ``rigorous=True``), whose verdict
-    stands when it is made.
+    proven in ball arithmetic (:func:`nrobust.design.window_stability` with ``rigorous=True`` on
+    :func:`mismatch_loop` with ``rigorous=True``), whose verdict stands when it is made.
     """
     seen = set(examined)
     probes: list[tuple[float, float]] = []
@@ -861,6 +973,7 @@ def _probe_undecided(
             window = window_stability(A, B, delays, max_evals=max_evals)
             if not window.stable:
                 try:
+                    A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid, rigorous=True)
                     window = window_stability(A, B, delays, rigorous=True, max_evals=max_evals)
                 except CertificationError:
                     pass  # the verdict in floating point stands
@@ -1010,8 +1123,9 @@ def speed_tolerance(
         if n < 4 and corner_windows is not None:
             windows.append(corner_windows[n])
             continue
-        A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid)
-        windows.append(window_stability(A, B, (d_lo, d_hi), rigorous=rigorous and n < 4, max_evals=max_evals))
+        corner = rigorous and n < 4
+        A, B = mismatch_loop(system, controller, point[0], point[1], kernel_grid=kernel_grid, rigorous=corner)
+        windows.append(window_stability(A, B, (d_lo, d_hi), rigorous=corner, max_evals=max_evals))
     points = [*corners, *inner]
     met = all(w.stable for w in windows)
     proven = all(w.certified == "proven" for w in windows[:4])
@@ -1025,11 +1139,13 @@ def speed_tolerance(
             "floating point (a model): only the corners are certified"
         )
     else:
-        _, feedback, filt = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
+        _, feedback, filt, _ = _mismatched(system, controller, 0.0, 0.0, kernel_grid)
         why_not = _square_scope(system, controller, feedback, filt, rigorous)
     traces: float | None = None
     if met and why_not is None:
-        loops = [mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid) for a, b in corners]
+        loops = [
+            mismatch_loop(system, controller, a, b, kernel_grid=kernel_grid, rigorous=rigorous) for a, b in corners
+        ]
         corner_loops = [(A, B, w) for (A, B), w in zip(loops, windows[:4])]
         if system.uncoupled:
             proof = prove_transport_square(
@@ -1086,7 +1202,13 @@ def speed_tolerance(
             f"between the points not certified (the stability windows are not continuous in the mismatch; the square "
             f"is not proven: {why_not})"
         )
-    route, scope = _route_scope(system, controller, kernel_grid)
+    route, scope = _route_scope(system, controller, kernel_grid, rigorous, mapped=False)
+    if rigorous and not isinstance(controller, OutputFeedback):
+        if _mismatched(system, controller, 0.0, 0.0, kernel_grid, True).enclosure is not None:
+            scope = (
+                f"the corners: {scope}; the other points (floating point): the kernel route with the traces on "
+                f"{kernel_grid} points"
+            )
     if certified == "proven on the square":  # the statement's loop of the PDE, not the corners' route
         scope = "the PDE's loop with the speeds in the square, exact in tau s (no kernel grid)" + (
             f"; the law's gain kernels the fits of their traces, within their proven bound {traces:.1e}"

@@ -21,6 +21,10 @@ ball arithmetic), and the residual ``R = K[h] - K U~ - N~`` is bounded in ball a
 ``E(y) <= c_1 sup |R| + c_1 c_2 int_y^1 E``, and Gronwall's lemma gives
 ``sup |e| <= c_1 sup |R| e^{c_1 c_2}``: the law's gains are ``h`` within that bound.
 
+The error ``e`` also has a bounded variation (:func:`trace_enclosure`), and the law with the gains ``h``
+on any plant with constant couplings has the true law's term within two zero kernels of proven radii and
+variations (:func:`gain_error_terms`): a proof about that loop holds for the true law.
+
 The Volterra identity is that of the plant the exact forms describe, whose round trip is the double ``tau`` and
 ``t_v`` on the grid of ``ulp(tau)``: the enclosure is refused (:class:`~nrobust.errors.CertificationError`)
 unless both are the plant's own (e.g. ``lam = mu = 1``).
@@ -33,7 +37,7 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -42,13 +46,20 @@ from ...errors import CertificationError
 from ...quasipoly import DistributedDelay
 from ..kernels.constant import solve_kernels
 from ..loops.controllers import ReflectionController, StateFeedback
-from ..loops.exact_form import PRECISION, exact_form, has_exact_form
-from ..loops.exact_gains import gain_kernel
+from ..loops.exact_form import PRECISION, exact_form, has_exact_form, rational_ball
+from ..loops.exact_gains import gain_kernel, gain_plant
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import section_bounds
 from .mismatch_proof import ball_upper
 
-__all__ = ["CHEBYSHEV_DEGREE", "ChebyshevGain", "reflection_traces"]
+__all__ = [
+    "CHEBYSHEV_DEGREE",
+    "ChebyshevGain",
+    "TraceEnclosure",
+    "gain_error_terms",
+    "reflection_traces",
+    "trace_enclosure",
+]
 
 #: Degree of the Chebyshev fits of the traces.
 CHEBYSHEV_DEGREE = 24
@@ -97,26 +108,71 @@ def _on(flint: Any, pieces: list[tuple[float, float, float, Any]], lo: float, hi
     raise CertificationError("the kernels' pieces do not cover [0, tau]")
 
 
-def _residual(flint: Any, fitted: DistributedDelay, K: float, u_tilde: DistributedDelay, n_tilde: Any) -> Any:
-    """A bound of ``sup |K[h] - K U~ - N~|`` on ``[0, tau]`` (the module notes), the stored radii included."""
+class _Residual(NamedTuple):
+    """Bounds of ``R = K[h] - K U~ - N~`` (the module notes), the stored kernels' radii included."""
+
+    sup: Any  # sup |R| on [0, tau]
+    variation_v: Any  # its total variation on (0, t_v)
+    variation_u: Any  # on (t_v, tau)
+
+
+def _residual(
+    flint: Any, fitted: DistributedDelay, K: float, u_tilde: DistributedDelay, n_tilde: Any, t_v: float
+) -> _Residual:
+    """Bounds of ``|K[h] - K U~ - N~|`` on ``[0, tau]`` and of its total variation on each side of ``t_v``.
+
+    On each piece of the common partition the difference is a polynomial ``sum_l c_l t^l`` in ``t`` on
+    ``[0, 1]``: ``|.| <= sum_l |c_l|`` and its variation ``<= sum_l l |c_l|``; a jump of the pieces at a node
+    other than ``t_v`` adds to the variation of its side. The true kernels are within ``radius`` of the
+    stored ones, their differences of total variation at most ``variation_radius``.
+    """
     arb = flint.arb
     parts = [(_pieces(fitted), 1.0), (_pieces(u_tilde), -K)]
     radius = arb(fitted.radius) + abs(arb(K)) * arb(u_tilde.radius)
+    spread = arb(fitted.variation_radius) + abs(arb(K)) * arb(u_tilde.variation_radius)
     if n_tilde is not None:
         parts.append((_pieces(n_tilde), -1.0))
         radius += arb(n_tilde.radius)
+        spread += arb(n_tilde.variation_radius)
     cuts = sorted({x for pieces, _ in parts for a, b, _, _ in pieces for x in (a, b)})
     sup = arb(0)
+    variation = {"v": arb(0), "u": arb(0)}
+    previous = None  # the value of the last piece at its right end, within the same side of t_v
     for lo, hi in itertools.pairwise(cuts):
         diff = sum((_on(flint, pieces, lo, hi, f) for pieces, f in parts), flint.arb_poly(0))
-        sup = arb.max(sup, sum((abs(c) for c in diff.coeffs()), arb(0)))  # |sum c_l t^l| <= sum |c_l| on [0, 1]
-    return sup + radius
+        coefs = diff.coeffs() or [arb(0)]
+        sup = arb.max(sup, sum((abs(c) for c in coefs), arb(0)))  # |sum c_l t^l| <= sum |c_l| on [0, 1]
+        side = "v" if hi <= t_v else "u"
+        if previous is not None and lo != t_v:
+            variation[side] += abs(coefs[0] - previous)
+        variation[side] += sum((j * abs(c) for j, c in enumerate(coefs)), arb(0))
+        previous = sum(coefs, arb(0))
+    return _Residual(sup + radius, variation["v"] + spread, variation["u"] + spread)
 
 
-@lru_cache(maxsize=8)
+@dataclass(frozen=True)
+class TraceEnclosure:
+    """``U_BS2(K)``'s law with Chebyshev gains ``h`` and proven bounds of ``e = h - g`` (``g`` the true traces).
+
+    Attributes
+    ----------
+    law : StateFeedback
+        ``StateFeedback(-K, h_u, h_v)``, :class:`ChebyshevGain` gains.
+    error : float
+        ``sup |e_u|, sup |e_v| <= error`` on ``[0, 1]``.
+    variation_u, variation_v : float
+        Bounds of the total variations of ``e_u`` and ``e_v`` on ``(0, 1)``.
+    """
+
+    law: StateFeedback
+    error: float
+    variation_u: float
+    variation_v: float
+
+
 def reflection_traces(system: Hyperbolic2x2, K: float, kernel_grid: int = 201) -> tuple[StateFeedback, float]:
     """``U_BS2(K)``'s law on ``system`` as a :class:`StateFeedback` with polynomial gains and the bound of their
-    distance to the true gains (module notes).
+    distance to the true gains (module notes; :func:`trace_enclosure` adds the bounds of its variation).
 
     Parameters
     ----------
@@ -138,6 +194,31 @@ def reflection_traces(system: Hyperbolic2x2, K: float, kernel_grid: int = 201) -
     CertificationError
         A plant outside the closed form, ``q = 0``, a round trip or ``t_v`` that are not the plant's own
         doubles, or gains that cannot be enclosed.
+    """
+    enclosure = trace_enclosure(system, K, kernel_grid)
+    return enclosure.law, enclosure.error
+
+
+@lru_cache(maxsize=8)
+def trace_enclosure(system: Hyperbolic2x2, K: float, kernel_grid: int = 201) -> TraceEnclosure:
+    """:func:`reflection_traces` with the bounds of the variation of the error ``e = h - g``.
+
+    ``e`` solves ``K[e] = R`` on the plant the law is designed for (module notes), so
+    ``e_v(y) = t_v (R - J)(t_v (1 - y))`` and ``e_u(y) = t_u / q (R - J)(t_v + t_u y)`` with
+    ``J(theta) = int_{xi_0(theta)}^1 (e_u U + e_v V)(xi, theta) dxi``. With ``|e| <= delta``,
+    ``|U|, |V| <= s_U / tau, s_V / tau`` and ``|dU/dtheta|, |dV/dtheta| <= s'_U / tau^2, s'_V / tau^2``
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_gains.section_bounds`: the sections scaled by ``tau``), the
+    variation of ``J`` on ``(0, t_v)`` is at most ``delta ((s_U + s_V) / tau + t_v (s'_U + s'_V) / tau^2)``
+    (``|d xi_0 / d theta| = 1 / t_v``), and on ``(t_v, tau)`` the same with ``t_u``; the variation of ``R`` on
+    each side is bounded from its pieces (:func:`_residual`).
+
+    Parameters, Raises
+    ------------------
+    As :func:`reflection_traces`.
+
+    Returns
+    -------
+    TraceEnclosure
     """
     if not has_exact_form(system) or system.uncoupled:
         raise CertificationError("the traces are enclosed on a coupled plant with the closed form only")
@@ -162,12 +243,90 @@ def reflection_traces(system: Hyperbolic2x2, K: float, kernel_grid: int = 201) -
     flint = require_flint()
     with precision(flint, PRECISION):
         arb = flint.arb
-        residual = _residual(flint, fitted, K, u_tilde, form.N_tilde)
+        residual = _residual(flint, fitted, K, u_tilde, form.N_tilde, t_v)
         P = arb(float(system.sigma_pm)) / arb(system.lam)  # type: ignore[arg-type]
         M = -arb(float(system.sigma_mp)) / arb(system.mu)  # type: ignore[arg-type]
         sec = section_bounds(flint, P, M, system.q)
         T, Tv = arb(tau), arb(t_v)
-        c1 = arb.max(Tv, (T - Tv) / abs(arb(system.q)))
+        Tu = T - Tv
+        Q = abs(arb(system.q))
+        c1 = arb.max(Tv, Tu / Q)
         c2 = (sec["U"][0] + sec["V"][0]) / T  # the sections U, V of exact_gains are the scaled ones over tau
-        delta = c1 * residual * (c1 * c2).exp()
-        return fitted_law, ball_upper(delta)
+        slope = (sec["U"][1] + sec["V"][1]) / (T * T)
+        delta = arb(ball_upper(c1 * residual.sup * (c1 * c2).exp()))
+        variation_v = Tv * (residual.variation_v + delta * (c2 + Tv * slope))
+        variation_u = Tu / Q * (residual.variation_u + delta * (c2 + Tu * slope))
+        return TraceEnclosure(fitted_law, float(delta), ball_upper(variation_u), ball_upper(variation_v))
+
+
+def gain_error_terms(enclosure: TraceEnclosure, plant: Hyperbolic2x2) -> tuple[DistributedDelay, DistributedDelay]:
+    """Two zero kernels whose radii hold the kernel of ``I_e``, ``e = h - g``, in the loop of ``plant`` as built.
+
+    The law with the gains ``h`` acts on ``plant`` (any speeds, the couplings of the plant the traces were
+    designed on or others with the closed form) through the kernel of ``I_h`` of
+    :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`, built with ``tau_d`` and ``t_v = tau_d lam / (lam +
+    mu)``; the true law's term is ``I_g = I_h - I_e``, and ``K[e]`` is linear in ``e`` (module notes), in the
+    frame of the loop as built (``t_u = tau_d - t_v``, the sections ``U``, ``V`` of ``plant``)::
+
+        |K[e]| <= delta (1 / t_v + (s_U + s_V) / tau_d)         on [0, t_v],
+        |K[e]| <= delta (|q| / t_u + (s_U + s_V) / tau_d)       on [t_v, tau_d],
+
+    its variation on ``(0, t_v)`` at most ``V_v / t_v + delta ((s_U + s_V) / tau_d + t_v (s'_U + s'_V) / tau_d^2)``
+    and on ``(t_v, tau_d)`` ``|q| V_u / t_u`` plus the same with ``t_u`` (``V_u``, ``V_v`` the variations of
+    ``e_u``, ``e_v``, :class:`TraceEnclosure`; the sups as in :func:`trace_enclosure`). ``t_v`` is not a double:
+    the first term ends at the double ``t_-`` below it, the second starts there with the larger radius, and its
+    variation holds the part of ``(t_-, t_v)``, the jump at ``t_v`` (at most the sum of the two radii) and the
+    ``u`` side. Added to ``B`` (any sign: the terms are zero within their radii), every ball enclosure and
+    bound of the far field holds for the loop of the true law.
+
+    Parameters
+    ----------
+    enclosure : TraceEnclosure
+        The law's gains and the bounds of their error (:func:`trace_enclosure`).
+    plant : Hyperbolic2x2
+        The plant the law acts on, with constant couplings.
+
+    Returns
+    -------
+    (DistributedDelay, DistributedDelay)
+        On ``[0, t_-]`` and ``[t_-, tau_d]``, zero within their ``radius`` and ``variation_radius``.
+    """
+    pl = gain_plant(plant, exact_times=True)
+    if pl.shift != 0 or pl.weight != 0:
+        raise CertificationError("the gains' error terms are built for a Hyperbolic2x2 (no exponential weight)")
+    flint = require_flint()
+    with precision(flint, PRECISION):
+        arb = flint.arb
+        T, Tv = arb(pl.tau), rational_ball(flint, pl.t_v)
+        Tu = T - Tv
+        Q = abs(arb(pl.q))
+        sec = section_bounds(flint, rational_ball(flint, pl.p), rational_ball(flint, pl.m), pl.q)
+        c = (sec["U"][0] + sec["V"][0]) / T
+        slope = (sec["U"][1] + sec["V"][1]) / (T * T)
+        delta = arb(enclosure.error)
+        radius_v, radius_u = delta * (1 / Tv + c), delta * (Q / Tu + c)
+        variation_v = arb(enclosure.variation_v) / Tv + delta * (c + Tv * slope)
+        variation_u = Q * arb(enclosure.variation_u) / Tu + delta * (c + Tu * slope)
+        below = float(pl.t_v)
+        if Fraction(below) > pl.t_v:
+            below = math.nextafter(below, -math.inf)
+        if not 0.0 < below < pl.tau:
+            raise CertificationError("the time of flight t_v leaves (0, tau) in floating point")
+        zero = np.zeros((1, 1))
+        first = DistributedDelay(
+            np.array([0.0, below]),
+            None,
+            interpolation="polynomial",
+            coefficients=zero,
+            radius=ball_upper(radius_v),
+            variation_radius=ball_upper(variation_v),
+        )
+        second = DistributedDelay(
+            np.array([below, pl.tau]),
+            None,
+            interpolation="polynomial",
+            coefficients=zero,
+            radius=ball_upper(arb.max(radius_v, radius_u)),
+            variation_radius=ball_upper(variation_u + variation_v + radius_v + radius_u),
+        )
+        return first, second
