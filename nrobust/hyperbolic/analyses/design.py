@@ -256,8 +256,9 @@ def design_reflection(
         floating point; ``design.certified`` says which).
     output_feedback : bool, optional
         Design ``OutputFeedback(ReflectionController(K), observer_delay)``: the law on the
-        state predicted from the measurement ``v(t, 0)`` (the proof is then about a model:
-        the observer's term is computed in floating point, ``design.certificate.scope``).
+        state predicted from the measurement ``v(t, 0)`` (on a plant with constant coefficients the
+        observer's term is enclosed in ball arithmetic and the proof is about the PDE; elsewhere about a
+        model: ``design.certificate.scope`` says which).
     observer_delay : float, optional
         The actuation delay the observer assumes (with ``output_feedback`` only).
     collocated : bool, optional

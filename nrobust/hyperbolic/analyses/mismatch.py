@@ -29,8 +29,9 @@ a certificate is then about a model of the PDE, the nominal gains and the pertur
 An :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback` is an input-output map from the
 measurement ``v(t, 0)`` and its own commands, designed on the nominal plant: its observer
 predicts with the nominal delay form and window ``1/mu`` while the plant transports at the
-perturbed speeds (:func:`mismatch_loop`; the observer's term is computed in floating point, a
-model as in :mod:`~nrobust.hyperbolic.loops.output_feedback`).
+perturbed speeds (:func:`mismatch_loop`; the nominal observer's term of
+:mod:`~nrobust.hyperbolic.loops.output_feedback` replayed through the perturbed plant's delay form in
+floating point: a model of the PDE, as :func:`mismatch_region`'s scope says).
 
 The delay margin is not a continuous function of the mismatch: where ``|A(i w)|^2 - |B(i w)|^2``
 gains a double zero a pair of crossing frequencies is born and the margin jumps down to its

@@ -1,9 +1,11 @@
 """How far an output feedback's delay margin is from the PDE's: the observer term's share of the model error.
 
-On the ``"observer"`` route (:func:`~nrobust.hyperbolic.loops.controllers.loop_route`) the state
-feedback is in closed form and only the observer's term is computed in floating point, so the
-loop is a model of the PDE. :func:`observer_model_error` estimates the distances of its margin and
-its crossing frequency to the PDE's, which :attr:`nrobust.margins.DelayMargin.model_error` and
+On the ``"observer"`` route (:func:`~nrobust.hyperbolic.loops.controllers.loop_route`: a law with
+integral gains, couplings too strong for the observer's proven enclosure, or a collocated observer on a
+coupled plant) the state feedback is in closed form and only the observer's term is computed in
+floating point, so the loop is a model of the PDE. :func:`observer_model_error` estimates the
+distances of its margin and its crossing frequency to the PDE's, which
+:attr:`nrobust.margins.DelayMargin.model_error` and
 :attr:`~nrobust.margins.DelayMargin.omega_model_error` add to their accuracies:
 
 * :class:`~nrobust.hyperbolic.loops.controllers.OutputFeedback`: its term ``G`` is computed to
