@@ -20,11 +20,18 @@ series of the module notes of ``exact_form`` in ``theta``, with ``a = kappa``)::
     A1 = 1 - rho q e^{-z} + int_0^1 G_N(theta) e^{-z theta} dtheta,
     B1 = -k (q e^{-z} + int_0^1 G_U(theta) e^{-z theta} dtheta).
 
-A box of speeds ``E`` gives balls of ``p`` and ``m``: the series at the midpoint
-(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`) within the mean-value bound of the
-kernels' slopes in ``(p, m)`` holds every kernel of the box (:func:`_scaled_kernel`), and its pieces
-stored with that radius give enclosures of ``A1`` and ``B1`` (:mod:`nrobust.balls`) for every speed
-of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
+A box of speeds ``E`` gives balls of ``p`` and ``m`` around a midpoint ``(p_0, m_0)``. The kernels enter
+``A1`` and ``B1`` in the centred (mean-value) form, first order in the box with an excess second order::
+
+    int_0^1 G(theta; p, m) e^{-z theta} dtheta  in  int_0^1 G(theta; p_0, m_0) e^{-z theta} dtheta
+        + D_p(z) [p - p_0] + D_m(z) [m - m_0],    D_p(z) = int_0^1 dG/dp(theta; E) e^{-z theta} dtheta,
+
+the first integral the series at the midpoint (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`,
+:func:`_scaled_kernel`) evaluated in ball arithmetic (:mod:`nrobust.balls`), ``D_p``, ``D_m`` complex balls
+(:class:`_Slopes`: the slopes in closed form enclosed on cells of ``theta`` for every ``(p, m)`` of the box, each
+cell's integral against ``e^{-z theta}`` in closed form), so the width of ``D_p [p - p_0]`` is ``|D_p|``, not
+``sup |dG/dp|``, times the box: the oscillation of ``e^{-z theta}`` is kept. ``eta`` ranges over
+``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
 the no-crossing argument of :mod:`~nrobust.hyperbolic.analyses.mismatch_proof` on the connected union
 of the boxes ``(p, m, eta)``:
 
@@ -99,8 +106,8 @@ MAX_COUPLED_BOXES = 5_000
 MAX_GAIN_BOXES = 400
 #: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
 _PIECES = 16
-#: Balls covering ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are bounded (:func:`_scaled_kernel`).
-_SLOPE_BALLS = 64
+#: Cells of ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are enclosed (:class:`_Slopes`).
+_SLOPE_CELLS = 64
 #: Relative widening of the square: the corners' speeds, rounded to doubles, lie in it.
 _WIDEN = 1e-12
 #: Width below which a box is not halved again, relative to ``W`` (frequency) or ``eps`` (speeds).
@@ -121,6 +128,8 @@ class _Box:
         flint, P, M, T = _parameters(system, box)
         self.flint = flint
         (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
+        self.slopes = [_Slopes(flint, P, M, system.q, system.rho, w) for w in ("N", "U")]
+        self.k = k
         # the point coefficients rho q and -k q range over [c - err, c + err] (c the double): the error
         # of each joins the radius of the kernel next to it (on Re z = 0, where the factors are
         # evaluated, a radius r of a kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
@@ -136,10 +145,18 @@ class _Box:
         self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
     def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
-        """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box."""
+        """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box: the
+        loop of the midpoint's kernels and the slopes' term of the centred form (module notes)."""
         box = (0.0, 0.0, w0, w1)
         centered = w1 > w0
-        return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
+        arb = self.flint.arb
+        cells = _cell_integrals(self.flint, arb(w0).union(arb(w1)))
+        n_slope, u_slope = (part.spread(cells) for part in self.slopes)
+        u_slope = abs(arb(self.k)) * u_slope
+        return (
+            self.A.on_box(box, centered=centered) + self.flint.acb(arb(0, n_slope), arb(0, n_slope)),
+            self.B.on_box(box, centered=centered) + self.flint.acb(arb(0, u_slope), arb(0, u_slope)),
+        )
 
 
 def _has_gains(law: StateFeedback) -> bool:
@@ -186,31 +203,80 @@ def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -
 
 
 def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[NDArray[np.float64], float]:
-    """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
-    radius holding the kernel of every ``(p, m)`` of the balls.
-
-    The pieces are those of the midpoint ``(p_0, m_0)`` (the series at a point: tight); every kernel of
-    the box is within ``sup |dG/dp| rad(P) + sup |dG/dm| rad(M)`` of it (:func:`_parameter_slopes`, the
-    mean-value theorem), a bound first order in the box's width (the series with the balls themselves
-    overestimates by orders of magnitude when the coupling is strong).
-    """
+    """``G_N`` or ``G_U`` of the midpoint ``(p_0, m_0)`` of the balls on ``_PIECES`` pieces of ``[0, 1]``: the
+    coefficients in ``t`` of each piece and a radius holding that kernel (the series at a point: tight; the
+    other speeds of the box are the slopes' term, :class:`_Slopes`)."""
     arb = flint.arb
     bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
     with precision(flint, bits):
-        p0, m0 = arb(P.mid()), arb(M.mid())
-        series, bound, _ = closed_form_series(flint, arb(1), p0, m0, (which, q, rho))
+        series, bound, _ = closed_form_series(flint, arb(1), arb(P.mid()), arb(M.mid()), (which, q, rho))
         width = 1.0 / _PIECES
         heads, err = [], arb(0)
         for i in range(_PIECES):
             head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
             heads.append(head)
             err = arb.max(err, e)
-        spread = arb(0)
-        for i in range(_SLOPE_BALLS):
-            theta = arb((i + 0.5) / _SLOPE_BALLS, 0.5 / _SLOPE_BALLS)
-            d_p, d_m = _parameter_slopes(flint, P, M, q, rho, which, theta)
-            spread = arb.max(spread, abs(d_p) * abs(P - p0).upper() + abs(d_m) * abs(M - m0).upper())
-        return np.asarray(heads), ball_upper(bound + err + spread)
+        return np.asarray(heads), ball_upper(bound + err)
+
+
+class _Slopes:
+    """The slopes' term of the centred form (module notes) of ``G_N`` or ``G_U`` over balls ``P``, ``M``.
+
+    On each cell ``C_i`` of width ``h = 1 / _SLOPE_CELLS`` around ``theta_i`` the slope ``dG/dp`` of every
+    ``(p, m)`` of the balls lies in a ball ``c_i +- r_i`` (:func:`_parameter_slopes`), so on ``z = i w``
+    (``|e^{-z theta}| = 1``)
+
+        ``D_p(z) in sum_i c_i h e^{-i w theta_i} sinc(w h / 2) +- h sum_i r_i``
+
+    (``int_{C_i} e^{-i w theta} dtheta = h e^{-i w theta_i} sinc(w h / 2)``), and ``D_m`` alike. By the mean-value
+    theorem at each ``theta`` (the point on the segment from ``(p_0, m_0)`` to ``(p, m)``, in the balls),
+    ``int (G(p, m) - G(p_0, m_0)) e^{-z theta}`` is ``(p - p_0)`` times a point of ``D_p`` plus ``(m - m_0)``
+    times a point of ``D_m``.
+    """
+
+    def __init__(self, flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> None:
+        arb = flint.arb
+        self.flint = flint
+        bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
+        self.offsets = (abs(P - arb(P.mid())).upper(), abs(M - arb(M.mid())).upper())
+        self.mids: tuple[list[Any], list[Any]] = ([], [])
+        rest = [arb(0), arb(0)]
+        with precision(flint, bits):
+            for i in range(_SLOPE_CELLS):
+                theta = arb((i + 0.5) / _SLOPE_CELLS, 0.5 / _SLOPE_CELLS)
+                for j, d in enumerate(_parameter_slopes(flint, P, M, q, rho, which, theta)):
+                    if not d.is_finite():
+                        raise CertificationError("the kernels' slopes on the box are not finite (couplings too strong)")
+                    self.mids[j].append(arb(d.mid()))
+                    rest[j] += arb(d.rad())
+        self.rest = (rest[0] / _SLOPE_CELLS, rest[1] / _SLOPE_CELLS)
+
+    def spread(self, cells: list[Any]) -> Any:
+        """An upper bound (an ``arb``) of ``|D_p(i w)| |p - p_0| + |D_m(i w)| |m - m_0|`` for every ``w`` of a ball
+        and ``(p, m)`` of the balls, from the cells' integrals ``int_{C_i} e^{-i w theta} dtheta`` on that ball
+        (:func:`_cell_integrals`)."""
+        flint = self.flint
+        arb, acb = flint.arb, flint.acb
+        out = arb(0)
+        for mids, rest, offset in zip(self.mids, self.rest, self.offsets):
+            total = acb(0)
+            for c, t in zip(mids, cells):
+                total += c * t
+            out += (abs(total) + rest) * offset
+        return arb(out.upper())
+
+
+def _cell_integrals(flint: Any, w: Any) -> list[Any]:
+    """``int_{C_i} e^{-i w theta} dtheta = h e^{-i w theta_i} sinc(w h / 2)`` on the cells ``C_i`` of
+    :class:`_Slopes` (``h = 1 / _SLOPE_CELLS``, ``theta_i = (i + 1/2) h``) for every ``w`` of the ball ``w``: the
+    turns by powers of ``e^{-i w h}``."""
+    arb, acb = flint.arb, flint.acb
+    h = arb(1) / _SLOPE_CELLS
+    step = acb(0, -(w * h)).exp()
+    out = [acb(0, -(w * h / 2)).exp() * (h * (w * h / 2).sinc())]
+    for _ in range(_SLOPE_CELLS - 1):
+        out.append(out[-1] * step)
+    return out
 
 
 def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, theta: Any) -> tuple[Any, Any]:
