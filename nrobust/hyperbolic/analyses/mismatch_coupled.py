@@ -94,6 +94,7 @@ from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variations, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
+from .mismatch_slopes import T_CELLS, GainPieces, GainSlopes, cell_integrals, gain_pieces
 
 __all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
 
@@ -136,11 +137,15 @@ class _Box:
         rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
         B = QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b)
-        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term, an L^1 radius (mismatch_gains)
+        self.gains: tuple[GainSlopes, float] | None = None
+        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term at the middle plant (mismatch_gains)
             with precision(flint, PRECISION):
                 term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law), error)
+                if term is not None:
+                    slopes = GainSlopes(flint, _gain_pieces(system, law), system.q, *term.balls, term.offsets)
             if term is not None:
-                B = B + QuasiPolynomial([], [], [_negated(term[0])])
+                B = B + QuasiPolynomial([], [], [_negated(term.kernel)])
+                self.gains = (slopes, term.spread)
         self.B = BallQuasiPolynomial(B)
         self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
@@ -150,9 +155,13 @@ class _Box:
         box = (0.0, 0.0, w0, w1)
         centered = w1 > w0
         arb = self.flint.arb
-        cells = _cell_integrals(self.flint, arb(w0).union(arb(w1)))
+        w = arb(w0).union(arb(w1))
+        cells = cell_integrals(self.flint, w, _SLOPE_CELLS)
         n_slope, u_slope = (part.spread(cells) for part in self.slopes)
         u_slope = abs(arb(self.k)) * u_slope
+        if self.gains is not None:  # the smaller of the centred form and the L^1 bound of the gains' kernels
+            slopes, spread = self.gains
+            u_slope += arb.min(slopes.spread(w, cell_integrals(self.flint, w, T_CELLS)), arb(spread))
         return (
             self.A.on_box(box, centered=centered) + self.flint.acb(arb(0, n_slope), arb(0, n_slope)),
             self.B.on_box(box, centered=centered) + self.flint.acb(arb(0, u_slope), arb(0, u_slope)),
@@ -170,6 +179,13 @@ def _gain_bounds(system: Hyperbolic2x2, law: StateFeedback) -> GainBounds:
     flint = require_flint()
     with precision(flint, PRECISION):
         return gain_bounds(flint, system, law.g_u, law.g_v)
+
+
+@lru_cache(maxsize=16)
+def _gain_pieces(system: Hyperbolic2x2, law: StateFeedback) -> GainPieces:
+    """The Taylor models of the law's gains (:func:`~nrobust.hyperbolic.analyses.mismatch_slopes.gain_pieces`),
+    once per law."""
+    return gain_pieces(require_flint(), system, law.g_u, law.g_v)
 
 
 def _negated(kernel: DistributedDelay) -> DistributedDelay:
@@ -254,7 +270,7 @@ class _Slopes:
     def spread(self, cells: list[Any]) -> Any:
         """An upper bound (an ``arb``) of ``|D_p(i w)| |p - p_0| + |D_m(i w)| |m - m_0|`` for every ``w`` of a ball
         and ``(p, m)`` of the balls, from the cells' integrals ``int_{C_i} e^{-i w theta} dtheta`` on that ball
-        (:func:`_cell_integrals`)."""
+        (:func:`~nrobust.hyperbolic.analyses.mismatch_slopes.cell_integrals`)."""
         flint = self.flint
         arb, acb = flint.arb, flint.acb
         out = arb(0)
@@ -264,19 +280,6 @@ class _Slopes:
                 total += c * t
             out += (abs(total) + rest) * offset
         return arb(out.upper())
-
-
-def _cell_integrals(flint: Any, w: Any) -> list[Any]:
-    """``int_{C_i} e^{-i w theta} dtheta = h e^{-i w theta_i} sinc(w h / 2)`` on the cells ``C_i`` of
-    :class:`_Slopes` (``h = 1 / _SLOPE_CELLS``, ``theta_i = (i + 1/2) h``) for every ``w`` of the ball ``w``: the
-    turns by powers of ``e^{-i w h}``."""
-    arb, acb = flint.arb, flint.acb
-    h = arb(1) / _SLOPE_CELLS
-    step = acb(0, -(w * h)).exp()
-    out = [acb(0, -(w * h / 2)).exp() * (h * (w * h / 2).sinc())]
-    for _ in range(_SLOPE_CELLS - 1):
-        out.append(out[-1] * step)
-    return out
 
 
 def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, theta: Any) -> tuple[Any, Any]:
