@@ -2,9 +2,11 @@
 
 The notes below are for ``U = k u(t, 1)``; a law with integral gains fixed whatever the speeds (a
 :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`, ``U_BS2(K)`` with its traces enclosed) adds
-``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` and by
-``V_{g,1} / |z| + V_{g,2} / |z|^2`` in step 1 (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains
-known within ``gain_error`` widen it by their ``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
+``-I_g`` to ``B1``, enclosed on each box by the kernel of its middle plant and the smaller of the ``L^1`` bound
+of the other kernels of the box (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`) and the centred form in
+``(p, m, r)`` (:mod:`~nrobust.hyperbolic.analyses.mismatch_slopes`), and bounded by ``V_g / |z|`` and by
+``V_{g,1} / |z| + V_{g,2} / |z|^2`` in step 1; gains known within ``gain_error`` widen it by their ``L^1`` part
+and lower the gap ``1 - c_D`` of step 1 by as much.
 
 The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
 no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
@@ -554,7 +556,8 @@ def prove_coupled_square(
         True,
         f"no zero on i [0, {w_text}] in the scaled frequency z = tau s for any (e_lam, e_mu) of the square and delay "
         f"of the window ({boxes} boxes of (tau w, e_lam, e_mu) in ball arithmetic, the kernels N~ and U~ in closed "
-        f"form with the speeds as balls), none with Re z >= 0 and |z| >= {w_text} (c_D <= {cd_text} < 1), and the "
+        f"form with the speeds as balls, centred at each box's middle), none with Re z >= 0 and |z| >= {w_text} "
+        f"(c_D <= {cd_text} < 1), and the "
         f"loop of corners[{base}] proven stable on the window: the count in Re s > 0 is 0 on the whole connected set",
         taus,
         W,

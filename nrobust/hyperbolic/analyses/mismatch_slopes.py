@@ -115,15 +115,12 @@ def gain_pieces(flint: Any, system: Hyperbolic2x2, g_u: Any, g_v: Any) -> GainPi
 
 def cell_integrals(flint: Any, w: Any, cells: int) -> list[Any]:
     """``int_{C_i} e^{-i w t} dt = h e^{-i w t_i} sinc(w h / 2)`` on the cells ``C_i`` of ``[0, 1]``
-    (``h = 1 / cells``, ``t_i = (i + 1/2) h``) for every ``w`` of the ball ``w``: the turns by powers of
-    ``e^{-i w h}``."""
+    (``h = 1 / cells``, ``t_i = (i + 1/2) h``) for every ``w`` of the ball ``w``, each turn from its own exponential
+    (powers of ``e^{-i w h}`` would wrap: a product of complex balls widens by up to ``sqrt(2)``)."""
     arb, acb = flint.arb, flint.acb
     h = arb(1) / cells
-    step = acb(0, -(w * h)).exp()
-    out = [acb(0, -(w * h / 2)).exp() * (h * (w * h / 2).sinc())]
-    for _ in range(cells - 1):
-        out.append(out[-1] * step)
-    return out
+    width = h * (w * h / 2).sinc()
+    return [acb(0, -(w * (h * (i + 0.5)))).exp() * width for i in range(cells)]
 
 
 class GainSlopes:
