@@ -2,9 +2,11 @@
 
 The notes below are for ``U = k u(t, 1)``; a law with integral gains fixed whatever the speeds (a
 :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`, ``U_BS2(K)`` with its traces enclosed) adds
-``-I_g`` to ``B1``, enclosed on each box in ``L^1`` and bounded by ``V_g / |z|`` and by
-``V_{g,1} / |z| + V_{g,2} / |z|^2`` in step 1 (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`); gains
-known within ``gain_error`` widen it by their ``L^1`` part and lower the gap ``1 - c_D`` of step 1 by as much.
+``-I_g`` to ``B1``, enclosed on each box by the kernel of its middle plant and the smaller of the ``L^1`` bound
+of the other kernels of the box (:mod:`~nrobust.hyperbolic.analyses.mismatch_gains`) and the centred form in
+``(p, m, r)`` (:mod:`~nrobust.hyperbolic.analyses.mismatch_slopes`), and bounded by ``V_g / |z|`` and by
+``V_{g,1} / |z| + V_{g,2} / |z|^2`` in step 1; gains known within ``gain_error`` widen it by their ``L^1`` part
+and lower the gap ``1 - c_D`` of step 1 by as much.
 
 The law ``U = k u(t, 1)`` (a proportional :class:`~nrobust.hyperbolic.loops.controllers.StateFeedback`:
 no integral gain, so the law does not depend on the speeds it was designed for) acts on the plant
@@ -20,11 +22,18 @@ series of the module notes of ``exact_form`` in ``theta``, with ``a = kappa``)::
     A1 = 1 - rho q e^{-z} + int_0^1 G_N(theta) e^{-z theta} dtheta,
     B1 = -k (q e^{-z} + int_0^1 G_U(theta) e^{-z theta} dtheta).
 
-A box of speeds ``E`` gives balls of ``p`` and ``m``: the series at the midpoint
-(:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`) within the mean-value bound of the
-kernels' slopes in ``(p, m)`` holds every kernel of the box (:func:`_scaled_kernel`), and its pieces
-stored with that radius give enclosures of ``A1`` and ``B1`` (:mod:`nrobust.balls`) for every speed
-of the box; ``eta`` ranges over ``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
+A box of speeds ``E`` gives balls of ``p`` and ``m`` around a midpoint ``(p_0, m_0)``. The kernels enter
+``A1`` and ``B1`` in the centred (mean-value) form, first order in the box with an excess second order::
+
+    int_0^1 G(theta; p, m) e^{-z theta} dtheta  in  int_0^1 G(theta; p_0, m_0) e^{-z theta} dtheta
+        + D_p(z) [p - p_0] + D_m(z) [m - m_0],    D_p(z) = int_0^1 dG/dp(theta; E) e^{-z theta} dtheta,
+
+the first integral the series at the midpoint (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`,
+:func:`_scaled_kernel`) evaluated in ball arithmetic (:mod:`nrobust.balls`), ``D_p``, ``D_m`` complex balls
+(:class:`_Slopes`: the slopes in closed form enclosed on cells of ``theta`` for every ``(p, m)`` of the box, each
+cell's integral against ``e^{-z theta}`` in closed form), so the width of ``D_p [p - p_0]`` is ``|D_p|``, not
+``sup |dG/dp|``, times the box: the oscillation of ``e^{-z theta}`` is kept. ``eta`` ranges over
+``[d_min / tau_max(E), d_max / tau_min(E)]``. The proof is
 the no-crossing argument of :mod:`~nrobust.hyperbolic.analyses.mismatch_proof` on the connected union
 of the boxes ``(p, m, eta)``:
 
@@ -87,6 +96,7 @@ from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variations, time_ratio
 from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
+from .mismatch_slopes import T_CELLS, GainPieces, GainSlopes, cell_integrals, gain_pieces
 
 __all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
 
@@ -99,8 +109,8 @@ MAX_COUPLED_BOXES = 5_000
 MAX_GAIN_BOXES = 400
 #: Pieces of ``[0, 1]`` on which the scaled kernels are stored for a box of speeds.
 _PIECES = 16
-#: Balls covering ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are bounded (:func:`_scaled_kernel`).
-_SLOPE_BALLS = 64
+#: Cells of ``[0, 1]`` on which the kernels' slopes in ``(p, m)`` are enclosed (:class:`_Slopes`).
+_SLOPE_CELLS = 64
 #: Relative widening of the square: the corners' speeds, rounded to doubles, lie in it.
 _WIDEN = 1e-12
 #: Width below which a box is not halved again, relative to ``W`` (frequency) or ``eps`` (speeds).
@@ -121,25 +131,43 @@ class _Box:
         flint, P, M, T = _parameters(system, box)
         self.flint = flint
         (g_n, r_n), (g_u, r_u) = (_scaled_kernel(flint, P, M, system.q, system.rho, w) for w in ("N", "U"))
+        self.slopes = [_Slopes(flint, P, M, system.q, system.rho, w) for w in ("N", "U")]
+        self.k = k
         # the point coefficients rho q and -k q range over [c - err, c + err] (c the double): the error
         # of each joins the radius of the kernel next to it (on Re z = 0, where the factors are
         # evaluated, a radius r of a kernel on [0, 1] widens the value by r, and |e^{-z}| = 1)
         rq, kq, err_a, err_b = _point_coefficients(flint, system, k)
         self.A = BallQuasiPolynomial(QuasiPolynomial([[1.0], [-rq]], [0.0, 1.0]) + _distributed(g_n, r_n, 1.0, err_a))
         B = QuasiPolynomial([[kq]], [1.0]) + _distributed(g_u, r_u, -k, err_b)
-        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term, an L^1 radius (mismatch_gains)
+        self.gains: tuple[GainSlopes, float] | None = None
+        if _has_gains(law):  # B1 = -(k u_factor + I_g): the gains' term at the middle plant (mismatch_gains)
             with precision(flint, PRECISION):
                 term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, _gain_bounds(system, law), error)
+                if term is not None:
+                    slopes = GainSlopes(flint, _gain_pieces(system, law), system.q, *term.balls, term.offsets)
             if term is not None:
-                B = B + QuasiPolynomial([], [], [_negated(term[0])])
+                B = B + QuasiPolynomial([], [], [_negated(term.kernel)])
+                self.gains = (slopes, term.spread)
         self.B = BallQuasiPolynomial(B)
         self.tau = (T.lower(), T.upper())  # tau over the box, widened (_parameters)
 
     def factors(self, w0: float, w1: float) -> tuple[Any, Any]:
-        """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box."""
+        """Enclosures of ``A1(i w)`` and ``B1(i w)`` for ``w`` in ``[w0, w1]`` and every speed of the box: the
+        loop of the midpoint's kernels and the slopes' term of the centred form (module notes)."""
         box = (0.0, 0.0, w0, w1)
         centered = w1 > w0
-        return self.A.on_box(box, centered=centered), self.B.on_box(box, centered=centered)
+        arb = self.flint.arb
+        w = arb(w0).union(arb(w1))
+        cells = cell_integrals(self.flint, w, _SLOPE_CELLS)
+        n_slope, u_slope = (part.spread(cells) for part in self.slopes)
+        u_slope = abs(arb(self.k)) * u_slope
+        if self.gains is not None:  # the smaller of the centred form and the L^1 bound of the gains' kernels
+            slopes, spread = self.gains
+            u_slope += arb.min(slopes.spread(w, cell_integrals(self.flint, w, T_CELLS)), arb(spread))
+        return (
+            self.A.on_box(box, centered=centered) + self.flint.acb(arb(0, n_slope), arb(0, n_slope)),
+            self.B.on_box(box, centered=centered) + self.flint.acb(arb(0, u_slope), arb(0, u_slope)),
+        )
 
 
 def _has_gains(law: StateFeedback) -> bool:
@@ -153,6 +181,13 @@ def _gain_bounds(system: Hyperbolic2x2, law: StateFeedback) -> GainBounds:
     flint = require_flint()
     with precision(flint, PRECISION):
         return gain_bounds(flint, system, law.g_u, law.g_v)
+
+
+@lru_cache(maxsize=16)
+def _gain_pieces(system: Hyperbolic2x2, law: StateFeedback) -> GainPieces:
+    """The Taylor models of the law's gains (:func:`~nrobust.hyperbolic.analyses.mismatch_slopes.gain_pieces`),
+    once per law."""
+    return gain_pieces(require_flint(), system, law.g_u, law.g_v)
 
 
 def _negated(kernel: DistributedDelay) -> DistributedDelay:
@@ -186,31 +221,67 @@ def _parameters(system: Hyperbolic2x2, box: tuple[float, float, float, float]) -
 
 
 def _scaled_kernel(flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> tuple[NDArray[np.float64], float]:
-    """``G_N`` or ``G_U`` on ``_PIECES`` pieces of ``[0, 1]``: the coefficients in ``t`` of each piece and a
-    radius holding the kernel of every ``(p, m)`` of the balls.
-
-    The pieces are those of the midpoint ``(p_0, m_0)`` (the series at a point: tight); every kernel of
-    the box is within ``sup |dG/dp| rad(P) + sup |dG/dm| rad(M)`` of it (:func:`_parameter_slopes`, the
-    mean-value theorem), a bound first order in the box's width (the series with the balls themselves
-    overestimates by orders of magnitude when the coupling is strong).
-    """
+    """``G_N`` or ``G_U`` of the midpoint ``(p_0, m_0)`` of the balls on ``_PIECES`` pieces of ``[0, 1]``: the
+    coefficients in ``t`` of each piece and a radius holding that kernel (the series at a point: tight; the
+    other speeds of the box are the slopes' term, :class:`_Slopes`)."""
     arb = flint.arb
     bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
     with precision(flint, bits):
-        p0, m0 = arb(P.mid()), arb(M.mid())
-        series, bound, _ = closed_form_series(flint, arb(1), p0, m0, (which, q, rho))
+        series, bound, _ = closed_form_series(flint, arb(1), arb(P.mid()), arb(M.mid()), (which, q, rho))
         width = 1.0 / _PIECES
         heads, err = [], arb(0)
         for i in range(_PIECES):
             head, e, _ = expand_piece(flint, series, arb(0), i * width, width)
             heads.append(head)
             err = arb.max(err, e)
-        spread = arb(0)
-        for i in range(_SLOPE_BALLS):
-            theta = arb((i + 0.5) / _SLOPE_BALLS, 0.5 / _SLOPE_BALLS)
-            d_p, d_m = _parameter_slopes(flint, P, M, q, rho, which, theta)
-            spread = arb.max(spread, abs(d_p) * abs(P - p0).upper() + abs(d_m) * abs(M - m0).upper())
-        return np.asarray(heads), ball_upper(bound + err + spread)
+        return np.asarray(heads), ball_upper(bound + err)
+
+
+class _Slopes:
+    """The slopes' term of the centred form (module notes) of ``G_N`` or ``G_U`` over balls ``P``, ``M``.
+
+    On each cell ``C_i`` of width ``h = 1 / _SLOPE_CELLS`` around ``theta_i`` the slope ``dG/dp`` of every
+    ``(p, m)`` of the balls lies in a ball ``c_i +- r_i`` (:func:`_parameter_slopes`), so on ``z = i w``
+    (``|e^{-z theta}| = 1``)
+
+        ``D_p(z) in sum_i c_i h e^{-i w theta_i} sinc(w h / 2) +- h sum_i r_i``
+
+    (``int_{C_i} e^{-i w theta} dtheta = h e^{-i w theta_i} sinc(w h / 2)``), and ``D_m`` alike. By the mean-value
+    theorem at each ``theta`` (the point on the segment from ``(p_0, m_0)`` to ``(p, m)``, in the balls),
+    ``int (G(p, m) - G(p_0, m_0)) e^{-z theta}`` is ``(p - p_0)`` times a point of ``D_p`` plus ``(m - m_0)``
+    times a point of ``D_m``.
+    """
+
+    def __init__(self, flint: Any, P: Any, M: Any, q: float, rho: float, which: str) -> None:
+        arb = flint.arb
+        self.flint = flint
+        bits = PRECISION + math.ceil(12.0 * math.sqrt(ball_upper(abs(P * M))))
+        self.offsets = (abs(P - arb(P.mid())).upper(), abs(M - arb(M.mid())).upper())
+        self.mids: tuple[list[Any], list[Any]] = ([], [])
+        rest = [arb(0), arb(0)]
+        with precision(flint, bits):
+            for i in range(_SLOPE_CELLS):
+                theta = arb((i + 0.5) / _SLOPE_CELLS, 0.5 / _SLOPE_CELLS)
+                for j, d in enumerate(_parameter_slopes(flint, P, M, q, rho, which, theta)):
+                    if not d.is_finite():
+                        raise CertificationError("the kernels' slopes on the box are not finite (couplings too strong)")
+                    self.mids[j].append(arb(d.mid()))
+                    rest[j] += arb(d.rad())
+        self.rest = (rest[0] / _SLOPE_CELLS, rest[1] / _SLOPE_CELLS)
+
+    def spread(self, cells: list[Any]) -> Any:
+        """An upper bound (an ``arb``) of ``|D_p(i w)| |p - p_0| + |D_m(i w)| |m - m_0|`` for every ``w`` of a ball
+        and ``(p, m)`` of the balls, from the cells' integrals ``int_{C_i} e^{-i w theta} dtheta`` on that ball
+        (:func:`~nrobust.hyperbolic.analyses.mismatch_slopes.cell_integrals`)."""
+        flint = self.flint
+        arb, acb = flint.arb, flint.acb
+        out = arb(0)
+        for mids, rest, offset in zip(self.mids, self.rest, self.offsets):
+            total = acb(0)
+            for c, t in zip(mids, cells):
+                total += c * t
+            out += (abs(total) + rest) * offset
+        return arb(out.upper())
 
 
 def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: str, theta: Any) -> tuple[Any, Any]:
@@ -485,7 +556,8 @@ def prove_coupled_square(
         True,
         f"no zero on i [0, {w_text}] in the scaled frequency z = tau s for any (e_lam, e_mu) of the square and delay "
         f"of the window ({boxes} boxes of (tau w, e_lam, e_mu) in ball arithmetic, the kernels N~ and U~ in closed "
-        f"form with the speeds as balls), none with Re z >= 0 and |z| >= {w_text} (c_D <= {cd_text} < 1), and the "
+        f"form with the speeds as balls, centred at each box's middle), none with Re z >= 0 and |z| >= {w_text} "
+        f"(c_D <= {cd_text} < 1), and the "
         f"loop of corners[{base}] proven stable on the window: the count in Re s > 0 is 0 on the whole connected set",
         taus,
         W,

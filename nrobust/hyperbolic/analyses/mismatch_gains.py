@@ -62,7 +62,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,6 +77,7 @@ from .mismatch_proof import ball_upper
 
 __all__ = [
     "GainBounds",
+    "GainTerm",
     "gain_bounds",
     "gain_term",
     "error_radius",
@@ -88,6 +89,31 @@ __all__ = [
 
 #: Balls per Taylor-model piece on which the gains' sups are taken.
 _SUBBALLS = 8
+
+
+class GainTerm(NamedTuple):
+    """The gains' term of :func:`gain_term` over a box of speeds.
+
+    Attributes
+    ----------
+    kernel : DistributedDelay
+        ``k`` of the point ``(p_0, m_0, r_0)`` (the box's middle plant) on ``[0, 1]``, its radius an ``L^1`` bound
+        (its error and the gains' ``error``).
+    variation : float
+        ``V_g`` of the box.
+    spread : float
+        An ``L^1`` bound of ``k(p, m, r) - k(p_0, m_0, r_0)`` over the box (:func:`_lipschitz`).
+    balls : (arb, arb, arb)
+        The balls ``P``, ``M``, ``R`` of the box, holding ``(p_0, m_0, r_0)``.
+    offsets : (float, float, float)
+        Upper bounds of ``|p - p_0|``, ``|m - m_0|``, ``|r - r_0|`` over the box.
+    """
+
+    kernel: DistributedDelay
+    variation: float
+    spread: float
+    balls: tuple[Any, Any, Any]
+    offsets: tuple[float, float, float]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -305,14 +331,15 @@ def gain_term(
     M: Any,
     bounds: GainBounds,
     error: float = 0.0,
-) -> tuple[DistributedDelay, float] | None:
-    """``k`` (module notes) for every speed error of ``box``: the kernel of the box's middle plant on
-    ``[0, 1]`` with an ``L^1`` radius holding every kernel of the box, and ``V_g`` of the box.
+) -> GainTerm | None:
+    """``k`` (module notes) for every speed error of ``box``: the kernel of the box's middle plant ``(p_0, m_0,
+    r_0)`` on ``[0, 1]``, the ``L^1`` distance to it of every kernel of the box, and ``V_g`` of the box.
 
-    Returns None when both gains are zero. The radius is an ``L^1`` bound: valid for the integral against
-    ``e^{-z t}`` on ``Re z = 0`` only (where :mod:`~nrobust.hyperbolic.analyses.mismatch_coupled` evaluates).
-    With ``error > 0`` it holds the kernels of every pair of gains within ``error`` of ``g_u``, ``g_v``
-    (:func:`error_radius`).
+    Returns None when both gains are zero. The kernel's radius and ``spread`` are ``L^1`` bounds: valid for the
+    integral against ``e^{-z t}`` on ``Re z = 0`` only (where :mod:`~nrobust.hyperbolic.analyses.mismatch_coupled`
+    evaluates). With ``error > 0`` the radius holds the kernels of every pair of gains within ``error`` of
+    ``g_u``, ``g_v`` (:func:`error_radius`) at the middle plant, ``spread`` the other speeds' for the gains
+    ``g_u``, ``g_v``.
     """
     arb = flint.arb
     a0, a1, b0, b1 = box
@@ -342,9 +369,12 @@ def gain_term(
     delta = 2.0**-52
     sizes = float(np.abs(coefs).sum())
     slack = 4.0 * (DEGREE + 2) * delta * sizes + 4.0 * float(np.finfo(float).eps) * sizes
-    radius = ball_upper(arb(kernel.radius) * arb(tau) + spread + error_radius(flint, P, M, system.q, error)) + slack
+    radius = ball_upper(arb(kernel.radius) * arb(tau) + error_radius(flint, P, M, system.q, error)) + slack
     variation = gain_variation(flint, P, M, R, system.q, bounds)
-    return (
+    return GainTerm(
         DistributedDelay(scaled, None, interpolation="polynomial", coefficients=coefs, radius=radius),
         ball_upper(variation),
+        ball_upper(spread),
+        (P, M, R),
+        (ball_upper(abs(P - p0)), ball_upper(abs(M - m0)), ball_upper(abs(R - r0))),
     )
