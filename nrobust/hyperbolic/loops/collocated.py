@@ -519,7 +519,9 @@ class ObserverReflection:
         ``(1 - Phi) H_y`` and ``B~ H_y`` (``B~`` the unfiltered law's factor ``B``).
     accuracy : float
         An estimate (not a bound) of the sup-norm error of the products' kernels, as
-        :attr:`CollocatedObserver.accuracy` (0 on an uncoupled plant: ``H_y = q e^{-tau s}``).
+        :attr:`CollocatedObserver.accuracy` (0 on an uncoupled plant: ``H_y = q e^{-tau s}``); a proven bound
+        where the products are closed forms enclosed in ball arithmetic
+        (:func:`~nrobust.hyperbolic.loops.controllers.observer_reflection_of`).
     """
 
     response: QuasiPolynomial

@@ -628,8 +628,12 @@ def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
     (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
     """
-    inner = controller.controller
-    if _uncoupled(system) or not isinstance(inner, StateFeedback) or _integral_gains(inner):
+    return _proven_law(system, controller.controller)
+
+
+def _proven_law(system: Any, law: Controller) -> bool:
+    """:func:`_proven_collocated` for the state feedback ``law``."""
+    if _uncoupled(system) or not isinstance(law, StateFeedback) or _integral_gains(law):
         return False
     return proven_collocated_failure(system) is None
 
@@ -947,19 +951,9 @@ def _collocated_loop(
         k = unfiltered(inner).feedback_law(system).boundary_gain
         open_loop = loop_factors(system, OpenLoop(), grid)[0]
         G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
-    elif grid is None and _proven_collocated(system, controller):
-        # C_u = k u_factor, H_y = u_factor, B = -k u_factor: E A = A - kappa (1 - Phi) u_factor,
-        # E B = B + kappa k u_factor^2, G = k (1 - Phi) u_factor (module notes of collocated)
+    elif grid is None and _proven_collocated(system, controller):  # C_u = k u_factor (module notes of collocated)
         assert isinstance(inner, StateFeedback)
-        k, kappa = float(inner.k), controller.observer_reflection
-        products = proven_collocated_products(system)
-        if kappa != 0.0:
-            A, B = A - products.open_loop_product * kappa, B + products.square * kappa * k
-        A, B = output_feedback_factors(A, B, products.open_loop_product * k, numerator, controller.observer_delay)
-        if _scaled_collocated(system, controller):
-            parts = (("A", 0.0),)
-            return _exact_radii(A, system, controller, parts), _exact_radii(B, system, controller, (("B", 0.0),))
-        return A, B
+        G = proven_collocated_products(system).open_loop_product * float(inner.k)
     else:
         G = collocated_observer_of(system, controller, kernel_grid).product
     if controller.observer_reflection != 0.0:
@@ -978,7 +972,10 @@ def observer_reflection_of(
     """The terms ``H_y``, ``(1 - Phi) H_y``, ``B~ H_y`` of a collocated observer's own reflection on ``system``.
 
     Its ``accuracy`` is the estimated sup-norm error of the products' kernels
-    (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant).
+    (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant), or their
+    proven bound where the terms are closed forms enclosed in ball arithmetic (``StateFeedback(k)`` on the
+    exact route: ``H_y = u_factor``, ``B~ H_y = -k u_factor^2``,
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
@@ -990,6 +987,13 @@ def observer_reflection_of(
 @lru_cache(maxsize=16)
 def _observer_reflection(system: Hyperbolic2x2, law: Controller, route_grid: int | None) -> ObserverReflection:
     """:func:`observer_reflection_of` for the unfiltered law ``law`` (cached: the loop and the scope ask for it)."""
+    if route_grid is None and _proven_law(system, law):
+        assert isinstance(law, StateFeedback)
+        products = proven_collocated_products(system)
+        terms = products.open_loop_product.distributed + products.square.distributed
+        accuracy = max(d.radius for d in terms)
+        law_product = products.square * -float(law.k)
+        return ObserverReflection(exact_form(system).u_factor, products.open_loop_product, law_product, accuracy)
     open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
     law_factor = loop_factors(system, law, route_grid)[1]
     return observer_reflection(system, open_loop, law_factor, _collocated_grid(route_grid))
