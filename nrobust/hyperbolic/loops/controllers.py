@@ -405,6 +405,9 @@ class CollocatedOutputFeedback(_ObserverFeedback):
     constant ``lam/mu`` through its normal form); for U_BS2(K) the loop is affine in ``K`` in both
     factors (the observer's term, in ``A``, depends on the law), and
     :func:`~nrobust.hyperbolic.analyses.design.design_reflection` with ``collocated=True`` designs it.
+    Under ``StateFeedback(k)`` (no integral gains) on a plant with constant couplings the observer's
+    responses are closed forms and the loop is proven for the PDE (:func:`loop_route` ``"exact"``); a law
+    with an integral part takes them from the dual plant's kernels (a model).
 
     The observer may keep a reflection ``kappa`` of its own (``observer_reflection``):
     ``v^(t, 1) = (rho - kappa) y + kappa u^(t, 1) + U_o``, so that its error reflects
