@@ -706,8 +706,11 @@ class DistributedDelay:
         )
         radius = 0.0 if opposite else _up(self.radius + other.radius)
         variation = 0.0 if opposite else _up(self.variation_radius + other.variation_radius)
-        if self.interpolation == "polynomial":
-            return self._combined(self.pieces[2] + other.pieces[2], radius, variation, self.moment)
+        if self.interpolation == "polynomial":  # pieces of two degrees: the lower one's coefficients padded with zeros
+            mine, theirs = self.pieces[2], other.pieces[2]
+            width = max(mine.shape[1], theirs.shape[1])
+            mine, theirs = (np.pad(c, ((0, 0), (0, width - c.shape[1]))) for c in (mine, theirs))
+            return self._combined(mine + theirs, radius, variation, self.moment)
         return self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
 
     def mergeable(self, other: DistributedDelay) -> bool:

@@ -116,6 +116,23 @@ e^{-delta_o s} + K (rho - kappa) q^2 z^2 e^{-delta s}``, strongly stable iff ``|
 |kappa rho| q^2 + |K q| + |K rho| q^2 + |K (rho - kappa)| q^2 < 1`` (on the paper's example no
 ``kappa`` makes U_BS2(0.1) strongly stable: at best ``1.0775``, at ``kappa = -rho``).
 
+**Closed forms.** ``H_y`` needs no kernel: with ``Phi(x, s)`` the fundamental matrix of the plant's
+equations in the Laplace domain (``[u; v]' = M(s) [u; v]``, ``M = [[-s/lam, sigma^{+-}/lam],
+[-sigma^{-+}/mu, s/mu]]``), ``[phi_u; phi_v] = Phi(1, s) [q; 1]`` and ``g(x) = int_0^x Phi(x - xi)
+diag(1/lam, -1/mu) [p_u; p_v](xi) dxi``, the error of ``kappa = 0`` driven by ``W`` has
+``u~(1) (1 + g_u(1)) = phi_u v~(0)`` and ``W = v~(0) D / (1 + g_u(1))``,
+``D = phi_v (1 + g_u(1)) - g_v(1) phi_u``. ``D`` is entire of exponential type without zeros (the error
+system has no modes) and tends to ``e^{s/mu}`` as the uncoupled plant's, so ``D = e^{s/mu}`` and
+``H_y = e^{-s/mu} phi_u``: the transfer of ``u(t, 1)`` in the delay form, ``u_factor = q e^{-tau s} +
+int_0^tau U~ e^{-nu s}`` of :mod:`~nrobust.hyperbolic.loops.exact_form` (``-B/k`` of ``StateFeedback(k)``;
+the kernel route's ``H_y`` converges to it at third order). For ``StateFeedback(k)`` (no integral gains)
+``C_u = k H_y``, so its collocated loop is ``E A = A - kappa (1 - Phi) u_factor``, ``E B = B + kappa k
+u_factor^2``, ``G = k (1 - Phi) u_factor``, products of closed forms enclosed in ball arithmetic
+(:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`): proofs about it hold for
+the PDE. A law with an integral part ``int K^{v.}(1, xi) (u, v) dxi`` (U_BS, U_BS2(K)) applied to the error
+reads ``int K^{v.}(1, .) g``, a composition of the plant's kernels with the dual plant's that the
+``2 x 2`` exponential does not give: its ``C_u`` stays the kernel route's below.
+
 :func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's
 gains on the kernel grid (cubic splines, composite Gauss-Legendre rules), stores it as
 polynomial pieces, and ``G`` by :func:`~nrobust.volterra.resolvent_product`; its accuracy is
@@ -502,7 +519,9 @@ class ObserverReflection:
         ``(1 - Phi) H_y`` and ``B~ H_y`` (``B~`` the unfiltered law's factor ``B``).
     accuracy : float
         An estimate (not a bound) of the sup-norm error of the products' kernels, as
-        :attr:`CollocatedObserver.accuracy` (0 on an uncoupled plant: ``H_y = q e^{-tau s}``).
+        :attr:`CollocatedObserver.accuracy` (0 on an uncoupled plant: ``H_y = q e^{-tau s}``); a proven bound
+        where the products are closed forms enclosed in ball arithmetic
+        (:func:`~nrobust.hyperbolic.loops.controllers.observer_reflection_of`).
     """
 
     response: QuasiPolynomial

@@ -76,7 +76,12 @@ from .exact_form import (
 )
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
-from .observer_proof import proven_observer_failure, proven_observer_term
+from .observer_proof import (
+    proven_collocated_failure,
+    proven_collocated_products,
+    proven_observer_failure,
+    proven_observer_term,
+)
 from .observer_proof import window as observer_window
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
@@ -400,6 +405,9 @@ class CollocatedOutputFeedback(_ObserverFeedback):
     constant ``lam/mu`` through its normal form); for U_BS2(K) the loop is affine in ``K`` in both
     factors (the observer's term, in ``A``, depends on the law), and
     :func:`~nrobust.hyperbolic.analyses.design.design_reflection` with ``collocated=True`` designs it.
+    Under ``StateFeedback(k)`` (no integral gains) on a plant with constant couplings the observer's
+    responses are closed forms and the loop is proven for the PDE (:func:`loop_route` ``"exact"``); a law
+    with an integral part takes them from the dual plant's kernels (a model).
 
     The observer may keep a reflection ``kappa`` of its own (``observer_reflection``):
     ``v^(t, 1) = (rho - kappa) y + kappa u^(t, 1) + U_o``, so that its error reflects
@@ -571,9 +579,14 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
     too when its observer term is exact (uncoupled plant) or enclosed with a proven error
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant coefficients, a law
-    reading ``N~`` or ``U~`` on the window). ``"observer"``: an output feedback whose state
-    feedback takes the exact route and whose observer term is computed in floating point with an
-    estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`), so the loop is a model.
+    reading ``N~`` or ``U~`` on the window). A :class:`CollocatedOutputFeedback` is ``"exact"`` on an
+    uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
+    integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
+    products enclosed in ball arithmetic:
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`). ``"observer"``: an output
+    feedback whose state feedback takes the exact route and whose observer term is computed in floating
+    point with an estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`,
+    :mod:`~nrobust.hyperbolic.loops.collocated`), so the loop is a model.
     """
     if isinstance(controller, OutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
@@ -582,7 +595,8 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
         return "observer"
     if isinstance(controller, CollocatedOutputFeedback):
         inner = loop_route(system, controller.controller, kernel_grid)
-        return "observer" if inner == "exact" and not _exact_collocated(system, controller) else inner
+        closed = _exact_collocated(system, controller) or _proven_collocated(system, controller)
+        return "observer" if inner == "exact" and not closed else inner
     if kernel_grid is None and _proven_varying(system, controller):
         return "exact"
     if kernel_grid is not None or not has_exact_form(system):
@@ -609,15 +623,35 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
     return _uncoupled(system) and not (isinstance(inner, StateFeedback) and _integral_gains(inner))
 
 
+def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
+    """True when the collocated observer's terms on a coupled plant are closed forms enclosed in ball arithmetic.
+
+    A :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings under
+    ``StateFeedback(k)`` without integral gains: ``C_u = k u_factor`` and ``H_y = u_factor``
+    (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
+    """
+    return _proven_law(system, controller.controller)
+
+
+def _proven_law(system: Any, law: Controller) -> bool:
+    """:func:`_proven_collocated` for the state feedback ``law``."""
+    if _uncoupled(system) or not isinstance(law, StateFeedback) or _integral_gains(law):
+        return False
+    return proven_collocated_failure(system) is None
+
+
 def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
     """True when the collocated loop is, in ``r s``, the loop as built with its constants scaled (module notes of
-    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact and no observer delay.
+    :mod:`~nrobust.hyperbolic.loops.given_plant`): its observer exact or proven and no observer delay.
 
-    ``G = (1 - Phi) k q e^{-tau s}`` and the reflection's factor ``E = 1 - kappa q e^{-tau s}`` are then
-    functions of ``tau s`` (their coefficients enclosed from the user's numbers, :func:`_collocated_points`);
-    a delay ``delta_o`` would be ``delta_o / r`` in the loop as built (not a double).
+    ``G = (1 - Phi) C_u`` and the reflection's factor ``E = 1 - kappa H_y`` are then functions of ``tau s``
+    (their point coefficients enclosed from the user's numbers, :func:`_collocated_points`; the kernels of a
+    proven observer's products built with ``tau_d`` and ``p``, ``m`` exact, as ``N~``); a delay ``delta_o``
+    would be ``delta_o / r`` in the loop as built (not a double).
     """
-    return _exact_collocated(system, controller) and controller.observer_delay == 0.0
+    closed = _exact_collocated(system, controller) or _proven_collocated(system, controller)
+    return closed and controller.observer_delay == 0.0
 
 
 def _window_law(law: Controller) -> tuple[str, float] | None:
@@ -795,6 +829,19 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
     if _exact_collocated(system, controller):
         exact = "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s}"
         return inner + exact + (", and its reflection's factor 1 - kappa q e^{-tau s})" if kappa else ")")
+    if grid is None and _proven_collocated(system, controller):
+        products = proven_collocated_products(system)
+        terms = products.open_loop_product.distributed + (products.square.distributed if kappa else ())
+        radius = max(d.radius for d in terms)
+        law = loop_factors(system, controller.controller, None)
+        closed = max((d.radius for f in law for d in f.distributed), default=0.0)
+        return (
+            f"the PDE itself (N~ and U~ in closed form within a proven {upper_bound_text(closed, 2)}; the "
+            "collocated observer's responses in closed form, "
+            f"C_u = k u_factor{' and H_y = u_factor' if kappa else ''}, their products with 1 - Phi"
+            f"{' and u_factor' if kappa else ''} enclosed in ball arithmetic within a proven "
+            f"{upper_bound_text(radius, 2)}, which every enclosure includes; {_given(system, controller, kernel_grid)})"
+        )
     observer = collocated_observer_of(system, controller, kernel_grid)
     accuracy = observer.accuracy
     reflection = ""
@@ -907,6 +954,9 @@ def _collocated_loop(
         k = unfiltered(inner).feedback_law(system).boundary_gain
         open_loop = loop_factors(system, OpenLoop(), grid)[0]
         G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
+    elif grid is None and _proven_collocated(system, controller):  # C_u = k u_factor (module notes of collocated)
+        assert isinstance(inner, StateFeedback)
+        G = proven_collocated_products(system).open_loop_product * float(inner.k)
     else:
         G = collocated_observer_of(system, controller, kernel_grid).product
     if controller.observer_reflection != 0.0:
@@ -925,7 +975,10 @@ def observer_reflection_of(
     """The terms ``H_y``, ``(1 - Phi) H_y``, ``B~ H_y`` of a collocated observer's own reflection on ``system``.
 
     Its ``accuracy`` is the estimated sup-norm error of the products' kernels
-    (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant).
+    (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant), or their
+    proven bound where the terms are closed forms enclosed in ball arithmetic (``StateFeedback(k)`` on the
+    exact route: ``H_y = u_factor``, ``B~ H_y = -k u_factor^2``,
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
@@ -937,6 +990,13 @@ def observer_reflection_of(
 @lru_cache(maxsize=16)
 def _observer_reflection(system: Hyperbolic2x2, law: Controller, route_grid: int | None) -> ObserverReflection:
     """:func:`observer_reflection_of` for the unfiltered law ``law`` (cached: the loop and the scope ask for it)."""
+    if route_grid is None and _proven_law(system, law):
+        assert isinstance(law, StateFeedback)
+        products = proven_collocated_products(system)
+        terms = products.open_loop_product.distributed + products.square.distributed
+        accuracy = max(d.radius for d in terms)
+        law_product = products.square * -float(law.k)
+        return ObserverReflection(exact_form(system).u_factor, products.open_loop_product, law_product, accuracy)
     open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
     law_factor = loop_factors(system, law, route_grid)[1]
     return observer_reflection(system, open_loop, law_factor, _collocated_grid(route_grid))
@@ -1042,11 +1102,12 @@ def _exact_points(
 def _collocated_points(
     system: Hyperbolic2x2, controller: CollocatedOutputFeedback
 ) -> tuple[dict[float, list[_Exact]], dict[float, list[_Exact]]] | None:
-    """:func:`_exact_points` of an exact collocated loop: ``E A - n G`` and ``E B + n G``.
+    """:func:`_exact_points` of an exact or proven collocated loop: ``E A - n G`` and ``E B + n G``.
 
-    ``A``, ``B`` the law's (:func:`_exact_points`). On an uncoupled
+    ``A``, ``B`` the law's (:func:`_exact_points`). On a
     :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` every coefficient is a rational of
-    the user's numbers (``q e^{sigma_0 tau} = q``): ``G = (1 - Phi) k q e^{-tau s}`` is
+    the user's numbers (``q e^{sigma_0 tau} = q``); the point part of ``C_u`` is ``k q e^{-tau s}`` and that of
+    ``H_y`` is ``q e^{-tau s}`` (coupled or not), so the point part of ``G = (1 - Phi) C_u`` is
     ``k q e^{-tau s} - k rho q^2 e^{-2 tau s}``, ``k`` the law's boundary gain,
     ``n = 1 + (a / r) s`` for a filtered law (``1`` otherwise), and the observer's reflection
     ``E = 1 - kappa q e^{-tau s}`` (``H_y = q e^{-tau s}``, :mod:`~nrobust.hyperbolic.loops.collocated`;
@@ -1444,6 +1505,14 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         return (
             f"{_rounded_tau(system)} and {window} as the double {w!r}{rounded} (the OutputFeedback loop "
             "is not mapped to the exact tau: its observer term has a kernel on the window)"
+        )
+    if isinstance(controller, CollocatedOutputFeedback) and _proven_collocated(system, controller):
+        # only the observer delay keeps the loop from the map: with tau a double the loop as built is the plant's
+        if tau_ratio(system) == 1:
+            return ""
+        return (
+            f"{_rounded_tau(system)} (the CollocatedOutputFeedback loop is not mapped to the exact tau: an observer "
+            "delay)"
         )
     if isinstance(controller, _ObserverFeedback):
         return (

@@ -58,6 +58,20 @@ and a term of zero kernel on the next ulp holds the rest of ``g`` with the radiu
 ``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there) and the variation that
 plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is held
 (:mod:`~nrobust.hyperbolic.loops.exact_gains`).
+
+**The collocated observer.** Under ``StateFeedback(k)`` the collocated observer's loop is made of
+``(1 - Phi) u_factor`` and ``u_factor^2`` (:mod:`~nrobust.hyperbolic.loops.collocated`, "Closed forms"),
+products of two factors ``c_0 + c_tau e^{-tau s} + int_0^tau f e^{-nu s}`` and
+``d_0 + d_tau e^{-tau s} + int_0^tau g e^{-nu s}`` whose kernels are the series ``S``, ``R`` of ``N~`` and
+``U~`` with tails ``|f - S| <= b``, ``|g - R| <= e`` (and ``b'``, ``e'`` for the derivatives). The
+product's kernel is ``c_0 g + d_0 f + f * g`` on ``[0, tau]`` and ``c_tau g + d_tau f + f * g`` on
+``[tau, 2 tau]``; there, with ``C = S * R`` the convolution of the polynomials continued past ``tau``,
+``(S * R)(tau + v) = C(tau + v) - (S * R(tau + .))(v) - (S(tau + .) * R)(v)``, exact polynomial algebra.
+``|f * g - S * R| <= tau (b (sup |R| + e) + sup |S| e)``; the derivative of a convolution is a product of
+values plus ``f * g'``, so its error is at most ``b (sup |R| + e) + sup |S| e + tau (b (sup |R'| + e') +
+sup |S| e')``; the point parts add ``|c| e + |d| b`` and ``|c| e' + |d| b'``. Each interval is stored as
+``G``'s are, and the point coefficients ``c_0 d_0``, ``c_0 d_tau + c_tau d_0``, ``c_tau d_tau`` (balls of
+the user's numbers) as doubles with their radii.
 """
 
 from __future__ import annotations
@@ -78,7 +92,17 @@ from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
 
-__all__ = ["DEGREE", "TARGET", "ProvenObserverTerm", "proven_observer_failure", "proven_observer_term", "window"]
+__all__ = [
+    "DEGREE",
+    "TARGET",
+    "ProvenCollocatedProducts",
+    "ProvenObserverTerm",
+    "proven_collocated_failure",
+    "proven_collocated_products",
+    "proven_observer_failure",
+    "proven_observer_term",
+    "window",
+]
 
 #: Degree of the stored polynomial pieces of ``G``.
 DEGREE = 11
@@ -416,3 +440,130 @@ def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slo
         radius=math.nextafter(float(radius.upper()), math.inf),
         variation_radius=math.nextafter(float(variation.upper()), math.inf),
     )
+
+
+@dataclass(frozen=True)
+class ProvenCollocatedProducts:
+    """The products of closed forms that make the collocated observer's loop, with proven error bounds.
+
+    On the paper's plant with constant couplings the collocated observer's responses are closed
+    forms (:mod:`~nrobust.hyperbolic.loops.collocated`): ``H_y = u_factor = q e^{-tau s} +
+    int_0^tau U~(nu) e^{-nu s} dnu``, and for ``StateFeedback(k)`` ``C_u = k H_y``. Its loop is then
+    made of the two products below (module notes, "The collocated observer").
+
+    Attributes
+    ----------
+    open_loop_product : QuasiPolynomial
+        ``(1 - Phi) u_factor``.
+    square : QuasiPolynomial
+        ``u_factor^2``.
+    """
+
+    open_loop_product: QuasiPolynomial
+    square: QuasiPolynomial
+
+
+def proven_collocated_products(system: Hyperbolic2x2) -> ProvenCollocatedProducts:
+    """``(1 - Phi) u_factor`` and ``u_factor^2`` with proven error bounds (module notes, "The collocated observer").
+
+    Parameters
+    ----------
+    system : Hyperbolic2x2
+        The paper's plant with constant couplings (and the closed form of
+        :func:`~nrobust.hyperbolic.loops.exact_form.has_exact_form`).
+
+    Raises
+    ------
+    ParameterError
+        ``system`` is not such a plant.
+    CertificationError
+        No ball arithmetic (python-flint), or the products' pieces cannot be stored to double precision.
+    """
+    if not _collocated_covered(system):
+        raise ParameterError("system", "a Hyperbolic2x2 with constant couplings (the closed form of the loop)", system)
+    out = _collocated_attempt(system)
+    if isinstance(out, str):
+        raise CertificationError(f"proven_collocated_products: {out}; the collocated observer's terms are a model")
+    return out
+
+
+def proven_collocated_failure(system: Any) -> str | None:
+    """Why :func:`proven_collocated_products` cannot enclose the products for ``system`` (None when it can)."""
+    if not _collocated_covered(system):
+        return "a plant other than Hyperbolic2x2 with constant couplings"
+    out = _collocated_attempt(system)
+    return out if isinstance(out, str) else None
+
+
+def _collocated_covered(system: Any) -> bool:
+    """True for the plants whose collocated observer has closed-form responses: :class:`Hyperbolic2x2` with constant
+    couplings (a general plant's normal form is refused by the collocated observer's caller)."""
+    return isinstance(system, Hyperbolic2x2) and system.constant_couplings and has_exact_form(system)
+
+
+@lru_cache(maxsize=8)
+def _collocated_attempt(system: Hyperbolic2x2) -> ProvenCollocatedProducts | str:
+    """:func:`proven_collocated_products`, or the reason it failed."""
+    try:
+        flint = require_flint()
+    except ImportError:
+        return "no ball arithmetic (python-flint is not installed)"
+    p, m, _ = exact_ratios(system)
+    try:
+        with precision(flint, _PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
+            return _collocated_enclose(flint, system)
+    except CertificationError as exc:
+        return str(exc)
+
+
+def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
+    """:func:`proven_collocated_products` at the working precision."""
+    poly = _Poly(flint)
+    arb = flint.arb
+    tau, _, _, q, rho, _ = closed_form_parameters(system)
+    p_ratio, m_ratio, _ = exact_ratios(system)
+    T = arb(tau)
+    P = arb(p_ratio.numerator) / arb(p_ratio.denominator)
+    M = arb(m_ratio.numerator) / arb(m_ratio.denominator)
+    _, rho_q, q_ball = gain_balls(system)
+    open_loop = (arb(1), -rho_q, *closed_form_series(flint, T, P, M, ("N", q, rho)))
+    u_factor = (arb(0), q_ball, *closed_form_series(flint, T, P, M, ("U", q, rho)))
+    return ProvenCollocatedProducts(
+        _proven_product(flint, poly, tau, open_loop, u_factor), _proven_product(flint, poly, tau, u_factor, u_factor)
+    )
+
+
+def _proven_product(flint: Any, poly: _Poly, tau: float, f: tuple[Any, ...], g: tuple[Any, ...]) -> QuasiPolynomial:
+    """The product of ``c_0 + c_tau e^{-tau s} + int_0^tau S e^{-nu s}`` (tail bounds ``b``, ``b'``) by another.
+
+    ``f = (c_0, c_tau, S, b, b')``. The point terms ``c_0 d_0``, ``c_0 d_tau + c_tau d_0`` (at ``tau``) and
+    ``c_tau d_tau`` (at ``2 tau``) are stored as doubles with the radii of their balls; the kernel is
+    ``c_0 T + d_0 S + S * T`` on ``[0, tau]`` and ``c_tau T + d_tau S + S * T`` on ``[tau, 2 tau]`` (in
+    ``v = nu - tau``), the convolution of the polynomials extended past ``tau`` less the parts beyond
+    (module notes, "The collocated observer").
+    """
+    arb = flint.arb
+    c0, ct, S, b, db = f
+    d0, dt, R, e, de = g
+    Tb = arb(tau)
+    s_sup, r_sup = poly.sup(S, Tb), poly.sup(R, Tb)
+    dr_sup = poly.sup(R.derivative(), Tb)
+    # |S~ * R~ - S * R| and the bound of its derivative's error (the point value and the integral)
+    conv_err = Tb * (b * (r_sup + e) + s_sup * e)
+    conv_slope = b * (r_sup + e) + s_sup * e + Tb * (b * (dr_sup + de) + s_sup * de)
+    C = poly.conv(S, R)
+    first = R * c0 + S * d0 + C
+    second = R * ct + S * dt + poly.shift(C, Tb) - poly.conv(S, poly.shift(R, Tb)) - poly.conv(poly.shift(S, Tb), R)
+    terms = [
+        _store(flint, kernel, lo, hi, tau, abs(c) * e + abs(d) * b + conv_err, abs(c) * de + abs(d) * db + conv_slope)
+        for kernel, lo, hi, c, d in ((first, 0.0, tau, c0, d0), (second, tau, 2.0 * tau, ct, dt))
+    ]
+    points, radii = [], []
+    for value, delay in ((c0 * d0, 0.0), (c0 * dt + ct * d0, tau), (ct * dt, 2.0 * tau)):
+        if value.is_zero():
+            continue
+        mid = float(value.mid())
+        gap = abs(value - arb(mid))
+        points.append((np.array([mid]), delay))
+        radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
+    return QuasiPolynomial.from_parts(points, terms, radii or None)
