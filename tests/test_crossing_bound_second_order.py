@@ -163,3 +163,15 @@ def test_collocated_crossing_bound_is_sound_and_tight() -> None:
     A0, A1, B0, B1 = family.affine
     shifted = (A0, A1.shift(0.1), B0, B1.shift(0.1))
     assert _circle_crossing_bound(shifted, lo, hi, 123.0) == 123.0
+
+
+def test_a_zero_length_interval_of_gains_has_the_bound_of_its_gain() -> None:
+    """``crossing_bound(K, K)``: one gain, a piece of zero length (it divided by zero before), a bound no smaller
+    than the sampled last crossing of that gain's loop and no larger than that of an interval holding it."""
+    family = _Family(_collocated_loop(PAPER, 0.0))
+    W = family.crossing_bound(0.1, 0.1)
+    assert 0.0 < W <= family.crossing_bound(0.0, 0.2)
+    A, B = (family.A(0.1), family.B(0.1))
+    w = np.arange(1, int(4 * W * 64)) / 64.0
+    gap = np.abs(A(1j * w)) - np.abs(B(1j * w))
+    assert not np.any(np.diff(np.sign(gap[w > W])))

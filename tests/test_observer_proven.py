@@ -212,8 +212,7 @@ def test_the_oracles_kernel_is_the_pdes_and_its_collocation_has_converged():
 @pytest.mark.parametrize("args", [PAPER, SECOND])
 def test_the_stored_observer_term_is_within_its_proven_radius_of_the_pdes(args):
     """At points of each interval the stored kernel of ``G`` is within its term's ``radius`` of the oracle's
-    ``g = h 1_[0, w] - rho q h(. - tau) + N~ * h`` (by ``mpmath.quad``), and the radius is at most 1e-15 here
-    (the brief's bound is 1e-9)."""
+    ``g = h 1_[0, w] - rho q h(. - tau) + N~ * h`` (by ``mpmath.quad``), and the radius is at most 1e-15 here."""
     law = ReflectionController(0.1)
     G = observer_of(Hyperbolic2x2(*args), nr.OutputFeedback(law))
     assert G.accuracy <= 1e-15
@@ -363,3 +362,20 @@ def test_bad_input_is_refused_before_work():
             proven_observer_term(plant, law)
     with pytest.raises(nr.ParameterError, match="system"):
         proven_observer_term(Hyperbolic2x2(1.0, 1.0, lambda x: 1.0 + x, 1.0, 1.0, 0.85), ("N", 1.0))
+
+
+def test_the_scope_says_what_is_rounded_and_where_the_accuracy_holds() -> None:
+    """On ``(1, 3, ...)`` ``tau + w = 4/3`` is not a double: the printed accuracy of ``G`` holds but on the ulp past
+    it (a term holding the kernel's value there, radius about 1.75); the window ``1/3`` is a rounded double, its
+    relative distance to ``1/3`` (exact fractions: at most 2^-54 / (1/3)) printed as for ``tau``."""
+    from fractions import Fraction
+
+    plant = Hyperbolic2x2(1.0, 3.0, 1.0, 1.0, 1.0, 0.85)
+    controller = nr.OutputFeedback(ReflectionController(0.1))
+    term = observer_of(plant, controller)
+    assert len(term.product.distributed) == 4 and term.product.distributed[3].radius > 1.0
+    scope = loop_scope(plant, controller, None, nr.loop_factors(plant, controller))
+    assert "but the ulp past its double" in scope
+    gap = abs(Fraction(1.0 / 3.0) * 3 - 1)
+    assert 0 < gap <= Fraction(1, 2**53)
+    assert "the window 1/mu as the double 0.3333333333333333 (a relative 5.6e-17 from the exact window)" in scope

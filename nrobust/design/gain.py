@@ -591,6 +591,8 @@ def _uniform_crossing_bound(
     tails = [TailBound(P, n, 0.0, 0.0, second_order=True) for P in parts]
     zeros = {-a / b for a, b in top.values() if b != 0.0}
     points = sorted({lo, hi, *(z for z in zeros if lo < z < hi)})
+    if len(points) == 1:  # one parameter: a piece of zero length
+        points *= 2
     out = 0.0
     for a, b in itertools.pairwise(points):
         mid = 0.5 * (a + b)

@@ -807,8 +807,8 @@ def _output_feedback_scope(
         radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
         return (
             f"the PDE itself (N~ in closed form within a proven {upper_bound_text(radius, 2)}; the observer's term "
-            f"(1 - Phi) H enclosed in ball arithmetic within a proven {upper_bound_text(term.accuracy, 2)}, which "
-            "every enclosure includes; "
+            f"(1 - Phi) H enclosed in ball arithmetic within a proven {upper_bound_text(term.accuracy, 2)}"
+            f"{_LAST_ULP if len(term.product.distributed) > 3 else ''}, which every enclosure includes; "
             f"{_given(system, controller, kernel_grid)})"
         )
     observer = (
@@ -819,6 +819,13 @@ def _output_feedback_scope(
         radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
         return f"a model of the PDE: N~ in closed form within a proven {radius:.1e}, and {observer}"
     return f"{inner}; {observer}"
+
+
+#: :func:`_output_feedback_scope`'s words for the term on the ulp past ``tau + w`` (not a double) of a proven ``G``.
+_LAST_ULP = (
+    " on [0, tau + w] but the ulp past its double, where a term zero within the proven bound of the kernel's value "
+    "holds it"
+)
 
 
 def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None) -> str:
@@ -1501,7 +1508,15 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
             return ""
         window = "the normal form's window 1/mu" if general else "the window 1/mu"
-        rounded = " (rounded)" if not (general or exact) else ""
+        if general:  # the normal form's mu is itself computed in floating point
+            rounded = " (computed in floating point from the plant's numbers, not the exact window)"
+        elif not exact:
+            gap = abs(Fraction(w) * Fraction(system.mu) - 1)
+            bound = float(gap)
+            bound = math.nextafter(bound, math.inf) if Fraction(bound) < gap else bound
+            rounded = f" (a relative {upper_bound_text(bound, 2)} from the exact window)"
+        else:
+            rounded = ""
         return (
             f"{_rounded_tau(system)} and {window} as the double {w!r}{rounded} (the OutputFeedback loop "
             "is not mapped to the exact tau: its observer term has a kernel on the window)"
