@@ -211,6 +211,15 @@ def _reflection_markdown(
         verdict = "met" if t.met else "not met"
         lines.append(f"- speed tolerance {float(t.eps)!r} on lam and mu: {verdict}, {t.certified}")
         lines.append(f"  - {t.statement}; about {t.scope}")
+    if result.corner_abscissae:
+        least = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+        lines.append(
+            f"- least decay rate at delta = 0 of the nominal plant and the {len(result.corner_abscissae)} corners: "
+            f"{least} (the gain maximises the nominal rate; between the corners not certified)"
+        )
+        for n, sa in enumerate(result.corner_abscissae):
+            rate = with_accuracy(-sa.value, sa.accuracy)
+            lines.append(f"  - the plant with speed errors {_corner(result, n)}: {rate}")
     if edge is not None:
         lines.append(
             f"- on the edge: the margin is {_edge_margin_text(edge, 'below')} at K - {edge['step']:.1g} and "
@@ -543,8 +552,13 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
     if isinstance(result, ReflectionDesign):
         d = result.design
         k_acc, _ = d.accuracy
+        least = ""
+        if result.corner_abscissae:
+            text = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+            least = f" (nominal); least of the nominal plant and the corners {text}"
         return (
             f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
+            f"{least}"
         )
     if isinstance(result, NPlusMGainDesign):
         t = result.tolerance
