@@ -1,16 +1,15 @@
-"""The decay rates a reflection design under a speed tolerance guarantees: each corner's and the least.
+"""The decay rates a design under a speed tolerance guarantees: each corner's and the least.
 
-``design_reflection(..., "decay_rate", speed_tolerance=eps)`` maximises the nominal decay rate among the gains
-meeting the window at the corners; the rate at a corner can be far lower (the paper's plant: 0.172 nominal,
-0.107 at (-0.05, -0.05)). Oracles: on a transport plant the corner loop at ``delta = 0`` is
-``1 - (rho - K) q e^{-tau' s}``, ``tau' = 1/(lam (1 + e_lam)) + 1/(mu (1 + e_mu))``, whose rate
+``design_reflection(..., "decay_rate", speed_tolerance=eps)`` (and the filtered and state-feedback designs)
+maximises the nominal decay rate among the gains meeting the window at the corners; the rate at a corner can be far
+lower (the paper's plant: 0.172 nominal, 0.107 at (-0.05, -0.05)). Oracles: on a transport plant the corner loop at
+``delta = 0`` is ``1 - (rho - K) q e^{-tau' s}``, ``tau' = 1/(lam (1 + e_lam)) + 1/(mu (1 + e_mu))``, whose rate
 ``-ln|(rho - K) q| / tau'`` is computed here by mpmath at 40 digits; on the paper's coupled plant the loop of the
-corner plant built here (``dataclasses.replace`` of ``lam`` and ``mu``) under the law's gains from kernels on
-201 points (:func:`~nrobust.hyperbolic.loops.controllers.loop_factors` of a ``StateFeedback``, not the
-mismatched loop's route). The corners' rates with the design's kernel grid of 31 points move by ``1.2e-7``
-to 61 points and ``4.6e-9`` more to 121 (a ratio of about 25 as the grid doubles), so the oracle on 201 points
-is within ``1e-9`` of the PDE's rate: the design's stated accuracy plus ``1e-9`` must hold.
-"""
+corner plant built here (``dataclasses.replace`` of ``lam`` and ``mu``) under the law's gains from kernels on 201
+points (:func:`~nrobust.hyperbolic.loops.controllers.loop_factors` of a ``StateFeedback``, not the mismatched loop's
+route). The corners' rates with the design's kernel grid of 31 points move by ``1.2e-7`` to 61 points and ``4.6e-9``
+more to 121 (a ratio of about 25 as the grid doubles), so the oracle on 201 points is within ``1e-9`` of the PDE's
+rate: the design's stated accuracy plus ``1e-9`` must hold."""
 
 from __future__ import annotations
 
@@ -22,10 +21,10 @@ import mpmath as mp
 import pytest
 
 from nrobust import Hyperbolic2x2, StateFeedback
-from nrobust.hyperbolic.analyses import design_reflection
+from nrobust.hyperbolic.analyses import design_filtered, design_reflection, design_state_feedback
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.loops.controllers import ReflectionController, loop_factors
-from nrobust.reports.design import _reflection_markdown, design_summary
+from nrobust.reports.design import _local_design_lines, _reflection_markdown, design_summary
 from nrobust.roots import spectral_abscissa
 
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
@@ -90,3 +89,32 @@ def test_no_corner_rates_without_the_decay_rate_under_a_tolerance() -> None:
     design = design_reflection(TRANSPORT, "decay_rate", margin_at_least=1.0)
     assert design.corner_abscissae == () and design.worst_decay_rate == design.design.decay_rate
     assert "worst_decay_rate" not in repr(design) and "worst_decay_rate" not in design.to_dict()
+
+
+def test_corner_rates_of_a_state_feedback_design_in_closed_form() -> None:
+    """``U = k u(t, 1)`` on the transport plant: each corner's rate ``-ln|(rho + k) q| / tau'`` (mpmath)."""
+    design = design_state_feedback(TRANSPORT, "decay_rate", margin_at_least=1.0, speed_tolerance=0.2)
+    assert design.tolerance is not None and len(design.corner_abscissae) == 4
+    K = -design.parameters[0]  # U_BS2(K) is k = -K on the transport plant
+    for (a, b), sa in zip(design.tolerance.points[:4], design.corner_abscissae):
+        assert sa.accuracy is not None and abs(-sa.value - float(_transport_rate(K, a, b))) <= sa.accuracy
+    assert design.worst_decay_rate == min(design.corner_decay_rates) < design.value
+    data = json.loads(json.dumps(design.to_dict(), allow_nan=False))
+    assert data["worst_decay_rate"] == design.worst_decay_rate
+
+
+def test_corner_rates_of_a_filtered_design() -> None:
+    """The filtered law on the transport plant: each corner's rate against the corner plant's own loop
+    (``loop_factors`` of the plant built here with the designed controller: on a transport plant the law has no
+    kernels, so this is the PDE's loop, by another route than the mismatched loops)."""
+    design = design_filtered(TRANSPORT, margin_at_least=1.0, speed_tolerance=0.2)
+    assert design.tolerance is not None and len(design.corner_abscissae) == 4
+    for (a, b), sa in zip(design.tolerance.points[:4], design.corner_abscissae):
+        corner = dataclasses.replace(TRANSPORT, lam=TRANSPORT.lam * (1.0 + a), mu=TRANSPORT.mu * (1.0 + b))
+        A, B = loop_factors(corner, design.controller)
+        oracle = spectral_abscissa(A + B)
+        assert sa.accuracy is not None and oracle.accuracy is not None
+        assert abs(sa.value - oracle.value) <= sa.accuracy + oracle.accuracy
+    assert design.worst_decay_rate == min(design.corner_decay_rates) < design.value - 0.3
+    report = "\n".join(_local_design_lines(design))
+    assert "least decay rate at delta = 0 of the nominal plant and the 4 corners: 1.87894" in report

@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from ..._digits import with_accuracy
 from ..._json import fields_dict
 from ..._threads import one_blas_thread
 from ..._validate import nonnegative, positive
@@ -32,8 +31,8 @@ from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin,
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
-from ...roots import SpectralAbscissa, spectral_abscissa
-from ..kernels.constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, check_kernel_grid
+from ...roots import SpectralAbscissa
+from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import (
     CollocatedOutputFeedback,
     Controller,
@@ -44,14 +43,13 @@ from ..loops.controllers import (
     loop_route,
     loop_scope,
 )
-from ..nplusm.margin import smallest_delay_error
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import study_plant
+from ._common import CornerRates, study_plant
 from .kregion import u_bs2_loop
-from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop, mismatch_loop
+from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_abscissa, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
-from .observer_accuracy import STUDY_SAFETY, observer_model_error, observer_rate_error
+from .observer_accuracy import observer_model_error, observer_rate_error
 
 __all__ = ["DESIGN_OBJECTIVES", "ReflectionDesign", "design_reflection"]
 
@@ -67,7 +65,7 @@ _AFFINE_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
-class ReflectionDesign:
+class ReflectionDesign(CornerRates):
     """The designed ``U_BS2(K)`` with its certificate.
 
     Attributes
@@ -119,40 +117,12 @@ class ReflectionDesign:
         """What decides the optimum (:data:`nrobust.design.gain.DESIGN_KINDS`)."""
         return self.design.kind
 
-    @property
-    def corner_decay_rates(self) -> tuple[float, ...]:
-        """The decay rate ``-alpha`` at ``delta = 0`` at each corner of the speed tolerance
-        (:attr:`corner_abscissae`; empty without them)."""
-        return tuple(float(-a.value) for a in self.corner_abscissae)
-
-    @property
-    def worst_decay_rate(self) -> float:
-        """The least decay rate at ``delta = 0`` of the nominal plant and the corners of the speed tolerance
-        (:attr:`corner_decay_rates`; the nominal ``design.decay_rate`` without them)."""
-        return float(min(-a.value for a in (self.design.abscissa, *self.corner_abscissae)))
-
-    @property
-    def worst_decay_rate_accuracy(self) -> float | None:
-        """A bound of the error of :attr:`worst_decay_rate`: the abscissae's accuracies combined by
-        :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (None when one is not estimated)."""
-        abscissae = (self.design.abscissa, *self.corner_abscissae)
-        return smallest_delay_error([-a.value for a in abscissae], [a.accuracy for a in abscissae])
-
     def __repr__(self) -> str:
-        worst = ""
-        if self.corner_abscissae:
-            text = with_accuracy(self.worst_decay_rate, self.worst_decay_rate_accuracy)
-            worst = f", worst_decay_rate={text} (nominal and {len(self.corner_abscissae)} corners)"
-        return f"ReflectionDesign({self.controller!r}, {self.design!r}{worst})"
+        return f"ReflectionDesign({self.controller!r}, {self.design!r}{self.worst_text()})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (with the corners' decay rates and the least of them and the nominal one)."""
-        data = fields_dict(self)
-        if self.corner_abscissae:
-            data["corner_decay_rates"] = list(self.corner_decay_rates)
-            data["worst_decay_rate"] = self.worst_decay_rate
-            data["worst_decay_rate_accuracy"] = self.worst_decay_rate_accuracy
-        return data
+        return {**fields_dict(self), **self.corner_dict()}
 
 
 def _design_error(exc: ParameterError, eps: float | None, window: tuple[float, float] | None) -> ParameterError:
@@ -234,52 +204,6 @@ def _check_affine(loop: AffineLoop, K: float, factors: tuple[QuasiPolynomial, Qu
                 f"design_reflection: the collocated loop is not affine in K to rounding ({err:.2e} at K = {K:.15g} "
                 "between the model from K = 0, 1 and the loop built at K), so the design is not about that loop"
             )
-
-
-def _corner_abscissa(
-    plant: Hyperbolic2x2,
-    K: float,
-    errors: tuple[float, float],
-    loop: AffineGainLoop,
-    kernel_grid: int,
-    rigorous: bool,
-) -> SpectralAbscissa:
-    """The spectral abscissa at ``delta = 0`` of ``U_BS2(K)`` on the plant with speed errors ``errors``.
-
-    ``loop`` is that corner's :func:`mismatch_gain_loop` on ``kernel_grid = n`` points. On an uncoupled plant the
-    law is ``U = k u(t, 1)`` and the loop is the PDE's (``model_error = 0``). On a coupled plant the law's gains
-    and the perturbed loop are splines of kernels, and ``model_error`` is a convergence study in the kernel grid:
-    the rightmost root moved to first order, ``ds = -dF / F'``, by the loops built on ``2n - 1`` and ``4n - 3``
-    points (changes ``d_1`` then ``d_2`` as the spacing halves, in each part). When they have one sign and
-    ``|d_2| <= |d_1| / 2`` the root's error on ``n`` points is at most ``|d_1| + 2 |d_2|`` (a geometric tail of
-    ratio ``<= 1/2``), and the estimate is ``STUDY_SAFETY`` times that; otherwise ``2 STUDY_SAFETY (|d_1| +
-    |d_2|)``. Floating point, not proven; None (not estimated) for a chain value or ``4n - 3`` above the
-    largest kernel grid.
-    """
-    F = loop.S + loop.R * K  # A + B_0 + K R: the loop at delta = 0
-    sa = spectral_abscissa(F, rigorous=rigorous)
-    if plant.uncoupled:
-        return dataclasses.replace(sa, model_error=0.0)
-    finest = 4 * kernel_grid - 3
-    if sa.root is None or sa.approached_at_infinity or finest > MAX_KERNEL_GRID:
-        return sa
-    at = np.array([complex(sa.root)])
-    slope = complex(F.deriv_at(at)[0])
-    if slope == 0.0:
-        return sa
-    law = ReflectionController(K)
-    moves = []  # the root on the finer grid minus ours
-    for n in (2 * kernel_grid - 1, finest):
-        A, B = mismatch_loop(plant, law, *errors, kernel_grid=n)
-        moves.append(-(complex((A + B)(at)[0]) - complex(F(at)[0])) / slope)
-    d1, d2 = moves[0], moves[1] - moves[0]
-    bounds = []
-    for a, b in ((d1.real, d2.real), (d1.imag, d2.imag)):
-        if a * b > 0.0 and abs(b) <= 0.5 * abs(a):
-            bounds.append(STUDY_SAFETY * (abs(a) + 2.0 * abs(b)))
-        else:
-            bounds.append(2.0 * STUDY_SAFETY * (abs(a) + abs(b)))
-    return dataclasses.replace(sa, model_error=max(bounds))
 
 
 @one_blas_thread()  # many small products: competing BLAS threads only cost time
@@ -467,8 +391,9 @@ def design_reflection(
     tolerance = None
     corner_abscissae: tuple[SpectralAbscissa, ...] = ()
     if eps is not None and objective == "decay_rate":
+        law = ReflectionController(design.K)
         corner_abscissae = tuple(
-            _corner_abscissa(plant, design.K, e, c, kernel_grid, rigorous) for e, c in zip(corners, scenarios)
+            mismatch_abscissa(plant, law, a, b, kernel_grid=kernel_grid, rigorous=rigorous) for a, b in corners
         )
     if eps is not None and window is not None:
         tolerance = tolerance_on_square(
