@@ -21,7 +21,7 @@ import mpmath as mp
 import pytest
 
 from nrobust import Hyperbolic2x2, StateFeedback
-from nrobust.hyperbolic.analyses import design_filtered, design_reflection, design_state_feedback
+from nrobust.hyperbolic.analyses import design_filtered, design_reflection, design_state_feedback, mismatch_abscissa
 from nrobust.hyperbolic.kernels.constant import solve_kernels
 from nrobust.hyperbolic.loops.controllers import ReflectionController, loop_factors
 from nrobust.reports.design import _local_design_lines, _reflection_markdown, design_summary
@@ -118,3 +118,16 @@ def test_corner_rates_of_a_filtered_design() -> None:
     assert design.worst_decay_rate == min(design.corner_decay_rates) < design.value - 0.3
     report = "\n".join(_local_design_lines(design))
     assert "least decay rate at delta = 0 of the nominal plant and the 4 corners: 1.87894" in report
+
+
+def test_a_proof_the_balls_cannot_complete_gives_the_studied_float() -> None:
+    """``rigorous=True`` on the paper's plant: the enclosed traces' radii (about 4e-3) keep the roots' boxes
+    from separating, so the corner's abscissa is the floating-point one with its grid study, and says so; it
+    holds the corner loop's rate on 201 kernel points (module notes)."""
+    K = 0.1414123233383696
+    sa = mismatch_abscissa(PAPER, ReflectionController(K), -0.05, -0.05, kernel_grid=31, rigorous=True)
+    law = ReflectionController(K).feedback_law(PAPER, solve_kernels(PAPER, ORACLE_GRID))
+    corner = dataclasses.replace(PAPER, lam=PAPER.lam * 0.95, mu=PAPER.mu * 0.95)
+    A, B = loop_factors(corner, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v))
+    assert not sa.rigorous and sa.model_error is not None and sa.accuracy is not None
+    assert abs(sa.value - spectral_abscissa(A + B).value) <= sa.accuracy + ORACLE_ERROR

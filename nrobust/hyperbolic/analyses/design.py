@@ -84,9 +84,11 @@ class ReflectionDesign(CornerRates):
     corner_abscissae : tuple of SpectralAbscissa
         With ``speed_tolerance`` and ``objective="decay_rate"``: the spectral abscissa at ``delta = 0`` of the
         loop of the designed law on the plant with speed errors at each corner of the square, in the order of
-        ``tolerance.points[:4]`` (certified roots; proven in ball arithmetic with ``rigorous=True``); empty
-        otherwise. The designed gain maximises the nominal decay rate only: :attr:`worst_decay_rate` is what the
-        law guarantees at the nominal plant and the corners (between the corners it is not certified).
+        ``tolerance.points[:4]`` (:func:`~nrobust.hyperbolic.analyses.mismatch_abscissa`: certified roots, proven
+        in ball arithmetic with ``rigorous=True`` where the balls decide, each one's ``rigorous`` says; on the
+        kernel route with a ``model_error`` from a convergence study in the kernel grid); empty otherwise. The
+        designed gain maximises the nominal decay rate only: :attr:`worst_decay_rate` is what the law guarantees
+        at the nominal plant and the corners (between the corners it is not certified).
     """
 
     controller: Controller
