@@ -211,6 +211,7 @@ def _reflection_markdown(
         verdict = "met" if t.met else "not met"
         lines.append(f"- speed tolerance {float(t.eps)!r} on lam and mu: {verdict}, {t.certified}")
         lines.append(f"  - {t.statement}; about {t.scope}")
+    lines += _corner_rate_lines(result)
     if edge is not None:
         lines.append(
             f"- on the edge: the margin is {_edge_margin_text(edge, 'below')} at K - {edge['step']:.1g} and "
@@ -218,6 +219,20 @@ def _reflection_markdown(
             "a gain implemented with an error must be chosen inside, away from this end"
         )
     lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
+    return lines
+
+
+def _corner_rate_lines(result: ReflectionDesign | FilteredDesign | StateFeedbackDesign) -> list[str]:
+    """The least decay rate of the nominal plant and the corners of the speed tolerance, and each corner's."""
+    if not result.corner_abscissae:
+        return []
+    least = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+    lines = [
+        f"- least decay rate at delta = 0 of the nominal plant and the {len(result.corner_abscissae)} corners: "
+        f"{least} (the design maximises the nominal rate; between the corners not certified)"
+    ]
+    for n, sa in enumerate(result.corner_abscissae):
+        lines.append(f"  - the plant with speed errors {_corner(result, n)}: {with_accuracy(-sa.value, sa.accuracy)}")
     return lines
 
 
@@ -543,8 +558,13 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
     if isinstance(result, ReflectionDesign):
         d = result.design
         k_acc, _ = d.accuracy
+        least = ""
+        if result.corner_abscissae:
+            text = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+            least = f" (nominal); least of the nominal plant and the corners {text}"
         return (
             f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
+            f"{least}"
         )
     if isinstance(result, NPlusMGainDesign):
         t = result.tolerance
@@ -812,4 +832,4 @@ def _local_design_lines(result: FilteredDesign | StateFeedbackDesign) -> list[st
             f"- speed tolerance {float(t.eps)!r} on lam and mu: {'met' if t.met else 'not met'}, {t.certified}"
         )
         lines.append(f"  - {t.statement}; about {t.scope}")
-    return lines + _start_lines(d.runs)
+    return lines + _corner_rate_lines(result) + _start_lines(d.runs)

@@ -40,6 +40,7 @@ from .mismatch import (
     MismatchEnd as MismatchEnd,
     MismatchRegion as MismatchRegion,
     SpeedTolerance as SpeedTolerance,
+    mismatch_abscissa as mismatch_abscissa,
     mismatch_gain_loop as mismatch_gain_loop,
     mismatch_loop as mismatch_loop,
     mismatch_region as mismatch_region,

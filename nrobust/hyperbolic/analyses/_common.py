@@ -11,17 +11,77 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..._digits import with_accuracy
 from ..._progress import progress_bar
 from ..._validate import is_real_number, real_array
 from ...errors import CertificationError, ParameterError
 from ...margins.margin import DelayMargin
+from ...roots import SpectralAbscissa
 from ...sweeps.executors import sweep_map
 from ..loops.controllers import ReflectionController, StateFeedback
+from ..nplusm.margin import smallest_delay_error
 from ..plants.general import GeneralHyperbolic2x2, NormalForm
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .margin import delay_margin
 
-__all__ = ["GainMargin", "OnNormalForm", "check_system", "mapper", "real_grid", "reflection", "study_plant"]
+__all__ = [
+    "CornerRates",
+    "GainMargin",
+    "OnNormalForm",
+    "check_system",
+    "mapper",
+    "real_grid",
+    "reflection",
+    "study_plant",
+]
+
+
+class CornerRates:
+    """The decay rates a 2x2 design under a speed tolerance guarantees (a mixin of the design results).
+
+    The class sets ``corner_abscissae`` (the abscissae at ``delta = 0`` at the corners of the square of speed
+    errors, in the order of ``tolerance.points[:4]``; empty without them) and ``design.abscissa`` (the nominal
+    plant's).
+    """
+
+    corner_abscissae: tuple[SpectralAbscissa, ...]
+    design: Any
+
+    @property
+    def corner_decay_rates(self) -> tuple[float, ...]:
+        """The decay rate ``-alpha`` at ``delta = 0`` at each corner of the speed tolerance (empty without them)."""
+        return tuple(float(-a.value) for a in self.corner_abscissae)
+
+    @property
+    def worst_decay_rate(self) -> float:
+        """The least decay rate at ``delta = 0`` of the nominal plant and the corners of the speed tolerance
+        (the nominal ``design.abscissa``'s without them)."""
+        return float(min(-a.value for a in (self.design.abscissa, *self.corner_abscissae)))
+
+    @property
+    def worst_decay_rate_accuracy(self) -> float | None:
+        """A bound of the error of :attr:`worst_decay_rate`: the abscissae's accuracies combined by
+        :func:`~nrobust.hyperbolic.nplusm.margin.smallest_delay_error` (None when one is not estimated)."""
+        abscissae = (self.design.abscissa, *self.corner_abscissae)
+        return smallest_delay_error([-a.value for a in abscissae], [a.accuracy for a in abscissae])
+
+    def worst_text(self) -> str:
+        """``", worst_decay_rate=... (nominal and 4 corners)"`` to its accuracy for a repr; empty without
+        corners."""
+        if not self.corner_abscissae:
+            return ""
+        text = with_accuracy(self.worst_decay_rate, self.worst_decay_rate_accuracy)
+        return f", worst_decay_rate={text} (nominal and {len(self.corner_abscissae)} corners)"
+
+    def corner_dict(self) -> dict[str, Any]:
+        """The corners' rates, the least and its accuracy for ``to_dict()`` (empty without corners)."""
+        if not self.corner_abscissae:
+            return {}
+        return {
+            "corner_decay_rates": list(self.corner_decay_rates),
+            "worst_decay_rate": self.worst_decay_rate,
+            "worst_decay_rate_accuracy": self.worst_decay_rate_accuracy,
+        }
 
 
 def mapper(

@@ -31,6 +31,7 @@ from ...design.gain import AffineLoop, GainDesign, best_decay_rate, best_margin,
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
+from ...roots import SpectralAbscissa
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import (
     CollocatedOutputFeedback,
@@ -44,9 +45,9 @@ from ..loops.controllers import (
 )
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import study_plant
+from ._common import CornerRates, study_plant
 from .kregion import u_bs2_loop
-from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_gain_loop
+from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_abscissa, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
 from .observer_accuracy import observer_model_error, observer_rate_error
 
@@ -64,7 +65,7 @@ _AFFINE_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
-class ReflectionDesign:
+class ReflectionDesign(CornerRates):
     """The designed ``U_BS2(K)`` with its certificate.
 
     Attributes
@@ -80,11 +81,20 @@ class ReflectionDesign:
     tolerance : SpeedTolerance or None
         With ``speed_tolerance``: the verdicts on the square of speed mismatches (the corners
         certified, the other points of a grid checked; :func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
+    corner_abscissae : tuple of SpectralAbscissa
+        With ``speed_tolerance`` and ``objective="decay_rate"``: the spectral abscissa at ``delta = 0`` of the
+        loop of the designed law on the plant with speed errors at each corner of the square, in the order of
+        ``tolerance.points[:4]`` (:func:`~nrobust.hyperbolic.analyses.mismatch_abscissa`: certified roots, proven
+        in ball arithmetic with ``rigorous=True`` where the balls decide, each one's ``rigorous`` says; on the
+        kernel route with a ``model_error`` from a convergence study in the kernel grid); empty otherwise. The
+        designed gain maximises the nominal decay rate only: :attr:`worst_decay_rate` is what the law guarantees
+        at the nominal plant and the corners (between the corners it is not certified).
     """
 
     controller: Controller
     design: GainDesign
     tolerance: SpeedTolerance | None = None
+    corner_abscissae: tuple[SpectralAbscissa, ...] = ()
 
     @property
     def requirement(self) -> str:
@@ -110,11 +120,11 @@ class ReflectionDesign:
         return self.design.kind
 
     def __repr__(self) -> str:
-        return f"ReflectionDesign({self.controller!r}, {self.design!r})"
+        return f"ReflectionDesign({self.controller!r}, {self.design!r}{self.worst_text()})"
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready description."""
-        return fields_dict(self)
+        """JSON-ready description (with the corners' decay rates and the least of them and the nominal one)."""
+        return {**fields_dict(self), **self.corner_dict()}
 
 
 def _design_error(exc: ParameterError, eps: float | None, window: tuple[float, float] | None) -> ParameterError:
@@ -236,6 +246,9 @@ def design_reflection(
     proven: the corners, and with ``rigorous=True`` the whole square where the loop is the PDE
     itself, an uncoupled plant under ``U = k u(t, 1)``; elsewhere never the continuum between the
     points).
+    With ``"decay_rate"`` the gain maximises the nominal decay rate among those gains; the rate at each
+    corner is stated (:attr:`ReflectionDesign.corner_abscissae`) and the least of them and the nominal one
+    (:attr:`ReflectionDesign.worst_decay_rate`) is what the law guarantees there.
 
     Parameters
     ----------
@@ -379,6 +392,12 @@ def design_reflection(
         omega_model_error=omega_model_error,
     )
     tolerance = None
+    corner_abscissae: tuple[SpectralAbscissa, ...] = ()
+    if eps is not None and objective == "decay_rate":
+        law = ReflectionController(design.K)
+        corner_abscissae = tuple(
+            mismatch_abscissa(plant, law, a, b, kernel_grid=kernel_grid, rigorous=rigorous) for a, b in corners
+        )
     if eps is not None and window is not None:
         tolerance = tolerance_on_square(
             plant,
@@ -390,5 +409,5 @@ def design_reflection(
             corner_windows=design.windows[1:],
         )
     return ReflectionDesign(
-        controller, dataclasses.replace(design, certificate=certificate, abscissa=abscissa), tolerance
+        controller, dataclasses.replace(design, certificate=certificate, abscissa=abscissa), tolerance, corner_abscissae
     )

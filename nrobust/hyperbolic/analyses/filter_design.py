@@ -33,12 +33,19 @@ from ...design.pareto import ParetoFront, pareto_front
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
+from ...roots import SpectralAbscissa
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid
 from ..loops.controllers import FilteredController, ReflectionController, classify, loop_factors, loop_scope
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import mapper
-from .mismatch import SpeedTolerance, check_local_requirements, check_speed_tolerance, mismatch_gain_loop
+from ._common import CornerRates, mapper
+from .mismatch import (
+    SpeedTolerance,
+    check_local_requirements,
+    check_speed_tolerance,
+    mismatch_abscissa,
+    mismatch_gain_loop,
+)
 from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = [
@@ -203,7 +210,7 @@ def _split(
 
 
 @dataclass(frozen=True)
-class FilteredDesign:
+class FilteredDesign(CornerRates):
     """A designed ``FilteredController(a, b, K)`` with its certificate.
 
     Attributes
@@ -227,6 +234,7 @@ class FilteredDesign:
     design: LoopDesign
     scope: str
     tolerance: SpeedTolerance | None = None
+    corner_abscissae: tuple[SpectralAbscissa, ...] = ()
 
     @property
     def value(self) -> float:
@@ -255,6 +263,7 @@ class FilteredDesign:
                 "scope": self.scope,
                 "tolerance": None if self.tolerance is None else self.tolerance.to_dict(),
                 "requirement": self.requirement,
+                **self.corner_dict(),
             }
         )
 
@@ -459,6 +468,12 @@ def design_filtered(
             rigorous=rigorous,
             corner_windows=design.windows[1:],
         )
+        if objective == "decay_rate":  # the nominal rate is maximised: state each corner's
+            corner_abscissae = tuple(
+                mismatch_abscissa(plant, controller, a, b, kernel_grid=kernel_grid, rigorous=rigorous)
+                for a, b in tolerance.points[:4]
+            )
+            return FilteredDesign(controller, design, scope, tolerance, corner_abscissae)
     return FilteredDesign(controller, design, scope, tolerance)
 
 

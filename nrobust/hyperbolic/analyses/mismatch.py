@@ -62,8 +62,9 @@ from ...margins.gain import AffineGainLoop
 from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
+from ...roots import SpectralAbscissa, spectral_abscissa
 from ...volterra import resolvent_product
-from ..kernels.constant import DEFAULT_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
+from ..kernels.constant import DEFAULT_KERNEL_GRID, MAX_KERNEL_GRID, Kernels, check_kernel_grid, solve_kernels
 from ..loops.controllers import (
     Controller,
     FilteredController,
@@ -86,6 +87,7 @@ from ._common import mapper, real_grid
 from .mismatch_coupled import MAX_COUPLED_BOXES, MAX_GAIN_BOXES, prove_coupled_square
 from .mismatch_proof import MAX_SQUARE_BOXES, SquareProof, prove_transport_square
 from .mismatch_traces import TraceEnclosure, gain_error_terms, reflection_traces, trace_enclosure
+from .observer_accuracy import STUDY_SAFETY
 
 __all__ = [
     "JUMP_FRACTION",
@@ -96,6 +98,7 @@ __all__ = [
     "SpeedTolerance",
     "check_local_requirements",
     "check_speed_tolerance",
+    "mismatch_abscissa",
     "mismatch_gain_loop",
     "mismatch_loop",
     "mismatch_region",
@@ -308,6 +311,80 @@ def mismatch_loop(
         return _observed(system, controller, e_lam, e_mu, kernel_grid)
     plant, feedback, filt, enclosure = _mismatched(system, controller, e_lam, e_mu, kernel_grid, rigorous)
     return _loop(plant, feedback, filt, kernel_grid, enclosure)
+
+
+def mismatch_abscissa(
+    system: Hyperbolic2x2,
+    controller: Controller,
+    e_lam: float,
+    e_mu: float,
+    *,
+    kernel_grid: int = DEFAULT_KERNEL_GRID,
+    rigorous: bool = False,
+) -> SpectralAbscissa:
+    """The spectral abscissa at ``delta = 0`` of ``controller`` designed for ``system``, on the plant with speeds
+    ``lam (1 + e_lam)``, ``mu (1 + e_mu)``: its decay rate there is ``-value``.
+
+    The loop is :func:`mismatch_loop`'s (with ``rigorous``; the abscissa proven in ball arithmetic then). On its
+    exact route (the PDE itself: an uncoupled plant, or with ``rigorous=True`` the enclosed traces of ``U_BS2(K)``
+    and ``U_BS`` on constant couplings, or a ``StateFeedback`` whose gains evaluate in balls) ``model_error`` is
+    0. On the kernel route the loop is a model on ``kernel_grid = n`` points, and ``model_error`` a convergence
+    study in the kernel grid: the rightmost root moved to first order, ``ds = -dF / F'``, by the loops built on
+    ``2n - 1`` and ``4n - 3`` points (changes ``d_1`` then ``d_2`` as the spacing halves, in each part). When
+    they have one sign and ``|d_2| <= |d_1| / 2`` the root's error on ``n`` points is at most ``|d_1| + 2 |d_2|``
+    (a geometric tail of ratio ``<= 1/2``) and the estimate is :data:`STUDY_SAFETY` times that; otherwise
+    ``2 STUDY_SAFETY (|d_1| + |d_2|)``. Floating point, not proven. On the paper's plant under ``U_BS2(0.1414)``,
+    ``(e_lam, e_mu) = (-0.05, -0.05)``, 31 points: the rate ``0.10684494`` moves by ``1.2e-7`` to 61 points and
+    ``4.6e-9`` more to 121; the estimate is ``2.5e-7``. None (not estimated): an output feedback, a chain value,
+    or ``4n - 3`` above ``MAX_KERNEL_GRID``.
+
+    With ``rigorous=True`` a proof the ball arithmetic cannot complete (the radii of the enclosed traces, about
+    ``4e-3`` on the paper's plant, make the roots' boxes overlap) gives the floating-point result instead:
+    ``rigorous`` of the result says which.
+
+    Parameters
+    ----------
+    system, controller, e_lam, e_mu, kernel_grid, rigorous
+        As in :func:`mismatch_loop`.
+
+    Returns
+    -------
+    SpectralAbscissa
+    """
+    A, B = mismatch_loop(system, controller, e_lam, e_mu, kernel_grid=kernel_grid, rigorous=rigorous)
+    F = A + B  # the loop at delta = 0
+    try:
+        sa = spectral_abscissa(F, rigorous=rigorous)
+    except CertificationError:
+        if not rigorous:
+            raise
+        # the balls are too wide to separate the roots (the enclosed traces' radii): floating point, studied
+        return mismatch_abscissa(system, controller, e_lam, e_mu, kernel_grid=kernel_grid)
+    if isinstance(controller, OutputFeedback):
+        return sa
+    plant, feedback, _, _ = _mismatched(system, controller, e_lam, e_mu, kernel_grid, rigorous)
+    if loop_route(plant, feedback) == "exact":
+        return dataclasses.replace(sa, model_error=0.0)
+    kernel_grid = check_kernel_grid(kernel_grid)
+    finest = 4 * kernel_grid - 3
+    if sa.root is None or sa.approached_at_infinity or finest > MAX_KERNEL_GRID:
+        return sa
+    at = np.array([complex(sa.root)])
+    slope = complex(F.deriv_at(at)[0])
+    if slope == 0.0:
+        return sa
+    moves = []  # the root on the finer grid minus ours
+    for n in (2 * kernel_grid - 1, finest):
+        A_n, B_n = mismatch_loop(system, controller, e_lam, e_mu, kernel_grid=n)
+        moves.append(-(complex((A_n + B_n)(at)[0]) - complex(F(at)[0])) / slope)
+    d1, d2 = moves[0], moves[1] - moves[0]
+    bounds = []
+    for a, b in ((d1.real, d2.real), (d1.imag, d2.imag)):
+        if a * b > 0.0 and abs(b) <= 0.5 * abs(a):
+            bounds.append(STUDY_SAFETY * (abs(a) + 2.0 * abs(b)))
+        else:
+            bounds.append(2.0 * STUDY_SAFETY * (abs(a) + abs(b)))
+    return dataclasses.replace(sa, model_error=max(bounds))
 
 
 @dataclass(frozen=True)

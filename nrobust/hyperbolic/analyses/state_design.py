@@ -43,14 +43,14 @@ from ...design.local import GAMMA_MAX, LocalRun, LoopDesign, delayed_gamma, opti
 from ...errors import CertificationError, ParameterError
 from ...margins.gain import AffineGainLoop
 from ...quasipoly import QuasiPolynomial
-from ...roots import spectral_abscissa
+from ...roots import SpectralAbscissa, spectral_abscissa
 from ..kernels.constant import DEFAULT_KERNEL_GRID, check_kernel_grid, solve_kernels
 from ..loops.controllers import ReflectionController, StateFeedback, loop_factors, loop_scope
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import mapper
+from ._common import CornerRates, mapper
 from .design import design_reflection
-from .mismatch import SpeedTolerance, check_local_requirements
+from .mismatch import SpeedTolerance, check_local_requirements, mismatch_abscissa
 from .mismatch import speed_tolerance as tolerance_on_square
 
 __all__ = [
@@ -461,7 +461,7 @@ def _stable(design: LoopDesign) -> bool:
 
 
 @dataclass(frozen=True)
-class StateFeedbackDesign:
+class StateFeedbackDesign(CornerRates):
     """A designed ``StateFeedback(k, g_u, g_v)`` with its certificate.
 
     Attributes
@@ -487,6 +487,7 @@ class StateFeedbackDesign:
     design: LoopDesign
     scope: str
     tolerance: SpeedTolerance | None = None
+    corner_abscissae: tuple[SpectralAbscissa, ...] = ()
 
     @property
     def value(self) -> float:
@@ -516,6 +517,7 @@ class StateFeedbackDesign:
                 "scope": self.scope,
                 "tolerance": None if self.tolerance is None else self.tolerance.to_dict(),
                 "requirement": self.requirement,
+                **self.corner_dict(),
             }
         )
 
@@ -697,12 +699,13 @@ def _finished(
     scope = loop_scope(plant, controller, grid, factors, mapped=False)
     tolerance = None
     if eps is not None and window is not None and isinstance(plant, Hyperbolic2x2):
+        tolerance_grid = grid if grid is not None else DEFAULT_KERNEL_GRID
         tolerance = tolerance_on_square(
             plant,
             controller,
             eps,
             window,
-            kernel_grid=grid if grid is not None else DEFAULT_KERNEL_GRID,
+            kernel_grid=tolerance_grid,
             rigorous=rigorous,
         )
         missed = [p for p, w in zip(tolerance.points[:4], tolerance.windows[:4]) if not w.stable]
@@ -713,4 +716,10 @@ def _finished(
                 f"{tolerance.route!r}): the design's own loops and these differ; give kernel_grid=None for an "
                 "exact route, or a finer grid"
             )
+        if best.objective == "decay_rate":  # the nominal rate is maximised: state each corner's
+            corner_abscissae = tuple(
+                mismatch_abscissa(plant, controller, a, b, kernel_grid=tolerance_grid, rigorous=rigorous)
+                for a, b in tolerance.points[:4]
+            )
+            return StateFeedbackDesign(controller, tuple(best.parameters), best, scope, tolerance, corner_abscissae)
     return StateFeedbackDesign(controller, tuple(best.parameters), best, scope, tolerance)
