@@ -572,7 +572,10 @@ class DistributedDelay:
     ``(a, b)`` at most ``variation_radius``. Evaluation (floating point and ball) is of the
     stored ``N``; every bound (:meth:`abs_moment`, :meth:`variation_bound`,
     :meth:`total_variation`, :meth:`linear_deviation`, and the enclosures of
-    :mod:`nrobust.balls`) holds for ``N_true``.
+    :mod:`nrobust.balls`) holds for ``N_true``. The algebra (:meth:`times`, :meth:`plus`,
+    :meth:`restricted`, :meth:`shift`) carries the bounds and, for a term that has them, adds the
+    rounding of every kernel coefficient it stores (nothing when the operation is exact), so that
+    they hold for the exact result of the operation on ``N_true``.
 
     Parameters
     ----------
@@ -1118,11 +1121,16 @@ class DistributedDelay:
             last = np.polynomial.polynomial.polyval(1.0, poly_t[np.searchsorted(start, b, side="left") - 1])
             nodes.append(x)
             values.append(np.append(inner, last))
-            extra = max(extra, ((b - a) / (points - 1)) ** 2 / 8.0 * curvature)
-        radius = _up(self.radius + extra + rounding)
+            spacing = float(np.max(np.diff(x))) * (1.0 + 2.0 * _U)  # the rounded nodes' largest gap
+            extra = max(extra, spacing**2 / 8.0 * curvature)
         x, v = np.concatenate(nodes), np.concatenate(values)
-        # TV(N_true - N_lin) <= TV(N_true) + TV(N_lin) on (a, b), jumps included
-        linear_tv = float(np.sum(np.abs(np.diff(v))))
+        steps = np.abs(np.diff(v))
+        # the rounding of the curvature's sums and products, and of the slopes v_{i+1} - v_i the pieces store (a
+        # piece ends within 2^-53 |v_{i+1} - v_i| of the next value)
+        extra *= 1.0 + (poly_t.shape[1] + 8) * 2.0 * _U
+        radius = _up((self.radius + extra + rounding + _U * float(np.max(steps, initial=0.0))) * (1.0 + 4.0 * _U))
+        # TV(N_true - N_lin) <= TV(N_true) + TV(N_lin) on (a, b), jumps included; the sum raised by its rounding
+        linear_tv = float(np.sum(steps)) * (1.0 + (steps.size + 6) * 2.0 * _U)
         return DistributedDelay(
             x, v, interpolation="linear", radius=radius, variation_radius=_up(self.total_variation() + linear_tv)
         )
@@ -1340,9 +1348,11 @@ class DistributedDelay:
         jumps = sum(size for _, size in self._jumps())
         inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
         stored = float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
-        return (
-            _up(stored + 2.0 * self.radius + self.variation_radius) if self.radius or self.variation_radius else stored
-        )
+        if not self._bounded:
+            return stored
+        # the float sums of the jumps and slopes raised by their rounding
+        stored *= 1.0 + (poly_t.size + len(self._jumps()) + 6) * 2.0 * _U
+        return _up(stored + 2.0 * self.radius + self.variation_radius)
 
     def linear_deviation(self) -> float:
         """Upper bound of ``int |N_true - N_lin|``, ``N_lin`` the linear interpolant of the values.
@@ -1388,11 +1398,35 @@ class DistributedDelay:
         delta = nonnegative("delta", delta)
         m = self.moment
         if delta == 0:
-            return (self.times(1.0, nodes=self.nodes, moment=m),)
-        moved = (self._enclosed(delta),) if not np.any(self._data) else self._moved(delta)
+            return (self.times(1.0, moment=m),)
         return tuple(
-            term._times_exact(comb(m, j) * (-Fraction(delta)) ** (m - j), j) for j in range(m + 1) for term in moved
+            term._times_exact(comb(m, j) * (-Fraction(delta)) ** (m - j), j)
+            for j in range(m + 1)
+            for term in self.moved(delta)
         )
+
+    def moved(self, delta: float) -> tuple[DistributedDelay, ...]:
+        """The kernel moved by ``delta`` (either sign), its weight kept: ``q(s) int nu^m N(nu - delta) e^{-nu s} dnu``.
+
+        The support becomes ``[a + delta, b + delta]`` (``a + delta >= 0``). For a moment 0 this is the term
+        times ``e^{-delta s}`` (:meth:`shift` expands the weight of a higher moment). A zero stored kernel
+        moves onto the doubles enclosing its new support (:meth:`shift`); a term that carries error bounds
+        and whose nodes round gains their rounding (:meth:`_moved`), with a term on the ulp around each
+        rounded end of a piece where the kernel jumps, hence a tuple.
+
+        Parameters
+        ----------
+        delta : float
+            The displacement, finite, with ``a + delta >= 0``.
+        """
+        if isinstance(delta, bool) or not isinstance(delta, (int, float, np.integer, np.floating)):
+            raise ParameterError("delta", "a finite real number", delta)
+        delta = float(delta)
+        if not np.isfinite(delta) or self.a + delta < 0:
+            raise ParameterError("delta", f"finite, with a + delta >= 0 (a = {self.a:.6g})", delta)
+        if delta == 0:
+            return (self,)
+        return (self._enclosed(delta),) if not np.any(self._data) else self._moved(delta)
 
     def _times_exact(self, factor: Fraction, moment: int) -> DistributedDelay:
         """``factor`` (rational) times the term, with ``moment``: by its nearest double, whose rounding, for a
@@ -1407,7 +1441,7 @@ class DistributedDelay:
         return out._with_rounding(error, _up(dc * self.radius), _up(dc * self.variation_radius))
 
     def _moved(self, delta: float) -> tuple[DistributedDelay, ...]:
-        """The term on the nodes ``fl(nu_j + delta)`` (:meth:`shift`, ``delta > 0``), and, for a term with error
+        """The term on the nodes ``fl(nu_j + delta)`` (:meth:`moved`, ``delta != 0``), and, for a term with error
         bounds, the terms on the ulps where the true ends of its pieces ``nu_j + delta`` fall.
 
         Segment ``i`` of the stored kernel is ``P_i((nu - nu_i) / h_i)``; moved, the stored kernel is

@@ -205,3 +205,65 @@ def test_unbounded_terms_unchanged() -> None:
     assert d.plus(d.times(0.1)).radius == 0.0
     assert d.restricted(0.5 * (d.a + float(d.nodes[1]))).radius == 0.0
     assert [m.radius for m in d.shift(0.1)] == [0.0]
+
+
+@pytest.mark.parametrize("delta", [0.1, 2.7])
+def test_shift_of_a_moment_carries_its_weights_rounding(delta: float) -> None:
+    """``int nu^2 N(nu) e^{-nu s}`` times ``e^{-delta s}``: the weights ``C(2, j) (-delta)^(2 - j)`` of
+    ``(mu - delta)^2`` round; the terms' sum is within their radii of the exact moved kernel."""
+    d = _term(1).replace(moment=2)
+    moved = d.shift(delta)
+    offset = Fraction(delta)
+    for nu in _points(d.nodes, offset):
+        base = _kernel(d, nu - offset)
+        exact = ((nu - offset) ** 2 * base[0], (nu - offset) ** 2 * base[1])
+        parts = [(nu**m.moment * _kernel(m, nu)[0], nu**m.moment * _kernel(m, nu)[1]) for m in moved]
+        stored = (sum((p[0] for p in parts), Fraction(0)), sum((p[1] for p in parts), Fraction(0)))
+        gap2 = (exact[0] - stored[0]) ** 2 + (exact[1] - stored[1]) ** 2
+        covering = [m for m in moved if Fraction(m.a) <= nu <= Fraction(m.b)]
+        old = (nu - offset) ** 2 * Fraction(d.radius) if Fraction(d.a) <= nu - offset <= Fraction(d.b) else 0
+        allowed = sum((nu**m.moment * Fraction(m.radius) for m in covering), Fraction(0)) - old
+        assert gap2 == 0 or (allowed > 0 and gap2 <= allowed**2), (float(nu), float(gap2) ** 0.5, float(allowed))
+
+
+def test_a_constant_factor_of_the_constructor_carries_its_rounding() -> None:
+    """``poly=[c]`` moves ``c`` into the pieces: their rounding joins the bounds given."""
+    d = _term(0)
+    scaled = DistributedDelay(
+        d.nodes,
+        None,
+        poly=[0.1],
+        interpolation="polynomial",
+        coefficients=d.pieces[2],
+        radius=d.radius,
+        variation_radius=d.variation_radius,
+    )
+    sup, tv = _gaps(lambda nu: _kernel(d, nu, 0.1), lambda nu: _kernel(scaled, nu), _points(d.nodes))
+    assert sup > 0
+    dr, dv = _added(scaled, 0.1 * d.radius * (1 + 2**-50), 0.1 * d.variation_radius * (1 + 2**-50))
+    assert Fraction(sup) <= dr and Fraction(tv) <= dv
+
+
+@pytest.mark.parametrize("delta", [-0.0128331688, -0.25, 0.1])
+def test_moved_either_way_carries_the_rounding(delta: float) -> None:
+    """``moved(delta)``: the stored kernels' sum within the terms' radii of ``N(nu - delta)``, exactly."""
+    d = _term(2)
+    moved = d.moved(delta)
+    offset = Fraction(delta)
+    for nu in sorted(set(_points(d.nodes, offset) + _points(moved[0].nodes))):
+        (er, ei) = _kernel(d, nu - offset)
+        parts = [_kernel(m, nu) for m in moved]
+        sr, si = sum((p[0] for p in parts), Fraction(0)), sum((p[1] for p in parts), Fraction(0))
+        gap2 = (er - sr) ** 2 + (ei - si) ** 2
+        covering = [m for m in moved if Fraction(m.a) <= nu <= Fraction(m.b)]
+        allowed = sum((Fraction(m.radius) for m in covering), Fraction(0)) - (Fraction(d.radius) if covering else 0)
+        assert gap2 == 0 or (allowed > 0 and gap2 <= allowed**2), (float(nu), float(gap2) ** 0.5, float(allowed))
+
+
+def test_moved_checks_its_argument() -> None:
+    d = _term(0)
+    with pytest.raises(ValueError, match="delta"):
+        d.moved(-1.0)  # a = 0.3: the support would start below 0
+    with pytest.raises(ValueError, match="delta"):
+        d.moved(float("nan"))
+    assert d.moved(0.0) == (d,)
