@@ -430,6 +430,123 @@ def _up(x: float) -> float:
     return float(np.nextafter(np.nextafter(x, np.inf), np.inf)) if x else 0.0
 
 
+# Error-free transformations (Knuth's TwoSum, Dekker's TwoProduct with Veltkamp's splitting) and the bounds
+# they give of the rounding of kernel coefficients computed by the algebra (DistributedDelay.times, plus,
+# restricted, shift): the rounding is added to a term's error bounds when the term carries them.
+_U = 2.0**-53
+# Veltkamp's splitting constant 2^27 + 1; the splitting is exact below this modulus (no overflow).
+_SPLITTER = 134217729.0
+_SPLIT_MAX = 2.0**990
+# Products below this modulus may underflow in the partial products of TwoProduct (then only bounded).
+_PRODUCT_MIN = 2.0**-960
+
+
+def _two_sum(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(s, e)`` with ``s = fl(a + b)`` and ``a + b = s + e`` exactly (Knuth; no overflow)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def _split(a: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Veltkamp's splitting ``a = hi + lo`` into halves of 26 bits each."""
+    c = _SPLITTER * a
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+def _two_product(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(p, e)`` with ``p = fl(a b)`` and ``|a b - p - e|`` zero or, where the splitting or the partial
+    products may leave the normal range, ``e`` a bound ``2^-52 |p| + 2^-1070`` of ``|a b - p|`` itself."""
+    p = a * b
+    ah, al = _split(a)
+    bh, bl = _split(b)
+    e = ((ah * bh - p) + ah * bl + al * bh) + al * bl
+    doubtful = (a != 0) & (b != 0) & ((np.abs(p) < _PRODUCT_MIN) | (np.abs(a) > _SPLIT_MAX) | (np.abs(b) > _SPLIT_MAX))
+    if np.any(doubtful):
+        e = np.where(doubtful, 2.0 * _U * np.abs(p) + 2.0**-1070, e)
+    return p, e
+
+
+def _excess(hi: NDArray[np.float64], lo: NDArray[np.float64], stored: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bound of ``|hi + lo - stored|`` per entry: ``(|fl(hi - stored)| + |lo|)`` rounded up (0 where both are 0)."""
+    out = np.abs(hi - stored) + np.abs(lo)
+    return np.where(out > 0, out * (1.0 + 4.0 * _U) + 2.0**-1074, 0.0)
+
+
+def _real_parts(a: NDArray) -> NDArray[np.float64]:
+    """The real and imaginary parts of ``a`` side by side (a real ``a`` as it is)."""
+    a = np.ascontiguousarray(a)
+    return a.view(np.float64) if np.iscomplexobj(a) else a.astype(np.float64)
+
+
+def _scaled_error(pieces: NDArray, c: complex, stored: NDArray) -> NDArray[np.float64]:
+    """Bound of ``|c P - S|`` per coefficient of ``P = pieces`` (``S = stored``, the computed ``c P``).
+
+    Real and imaginary parts each by TwoProduct (``Re(c P) = x a - y b`` for ``c = x + i y``, ``P = a + i b``),
+    the two products added by TwoSum: zero where the product is exact.
+    """
+    width = max(pieces.shape[1], stored.shape[1])
+    pieces, stored = (np.pad(p, ((0, 0), (0, width - p.shape[1]))) for p in (pieces, stored))
+    a, b = pieces.real.astype(float), (pieces.imag if np.iscomplexobj(pieces) else np.zeros(pieces.shape))
+    x, y = float(np.real(c)), float(np.imag(c))
+    out = np.zeros(pieces.shape)  # |Re| + |Im| bounds the modulus
+    parts = ((a, x, b, -y, stored.real), (a, y, b, x, stored.imag if np.iscomplexobj(stored) else np.zeros(a.shape)))
+    for first, f, second, g, target in parts:
+        p1, e1 = _two_product(first, np.full(first.shape, f))
+        p2, e2 = _two_product(second, np.full(second.shape, g))
+        s, es = _two_sum(p1, p2)
+        out = out + _excess(s, np.abs(es) + np.abs(e1) + np.abs(e2), target)
+    return np.where(out > 0, out * (1.0 + 2.0 * _U), 0.0)
+
+
+def _summed_error(first: NDArray, second: NDArray, stored: NDArray) -> NDArray[np.float64]:
+    """Bound of ``|P + Q - S|`` per coefficient (``S = stored``, the computed ``P + Q``), by TwoSum on the real and
+    imaginary parts: zero where the sum is exact."""
+    width = max(first.shape[1], second.shape[1], stored.shape[1])
+    kind = np.result_type(first, second, stored)
+    first, second, stored = (np.pad(p, ((0, 0), (0, width - p.shape[1]))).astype(kind) for p in (first, second, stored))
+    s, e = _two_sum(_real_parts(first), _real_parts(second))
+    out = _excess(s, e, _real_parts(stored))
+    if np.iscomplexobj(stored):  # |Re| + |Im| bounds the modulus
+        out = out[..., 0::2] + out[..., 1::2]
+        out = np.where(out > 0, out * (1.0 + 2.0 * _U), 0.0)
+    return out
+
+
+def _sums_up(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Upper bounds of the row sums of the non-negative ``x``: the float sums raised by their rounding."""
+    total = np.sum(x, axis=-1)
+    return np.where(total > 0, total * (1.0 + (x.shape[-1] + 2) * 2.0 * _U) + 2.0**-1074, 0.0)
+
+
+def _composed(p: list[Fraction], alpha: Fraction, beta: Fraction) -> list[Fraction]:
+    """The coefficients of ``P(alpha + beta t)`` in powers of ``t`` (increasing), exactly (Horner's scheme)."""
+    out = [Fraction(0)] * len(p)
+    for c in reversed(p):
+        out = [alpha * x + (beta * out[k - 1] if k else 0) for k, x in enumerate(out)]
+        out[0] += c
+    return out
+
+
+def _up_each(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each of the non-negative ``x`` (a sum of three rounded terms) raised by ``4 2^-53`` relative."""
+    return np.where(x > 0, x * (1.0 + 4.0 * _U) + 2.0**-1074, 0.0)
+
+
+def _error_bounds(err: NDArray[np.float64]) -> tuple[float, float]:
+    """``(sup, variation)`` of a piecewise polynomial error with coefficients of ``t^k`` within ``err[i, k]``.
+
+    On a piece, ``|E(t)| <= sum_k err_k`` for ``t`` in ``[0, 1]`` and ``int_0^1 |E'| <= sum_k k err_k``; the
+    jumps at the ends of each piece are at most ``|E(0)| + |E(1)| <= err_0 + sum_k err_k``.
+    """
+    if not np.any(err):
+        return 0.0, 0.0
+    per_piece = _sums_up(err)
+    ends = _sums_up(err * np.arange(err.shape[1])) + err[:, 0] + per_piece
+    return float(np.max(per_piece)), _up(float(_sums_up(_up_each(ends))))
+
+
 class _SegmentGroup(NamedTuple):
     """Segments of one length ``h``: starts ``nu_i``, coefficients ``c[i, l]``, spacing of the starts if uniform."""
 
@@ -455,7 +572,10 @@ class DistributedDelay:
     ``(a, b)`` at most ``variation_radius``. Evaluation (floating point and ball) is of the
     stored ``N``; every bound (:meth:`abs_moment`, :meth:`variation_bound`,
     :meth:`total_variation`, :meth:`linear_deviation`, and the enclosures of
-    :mod:`nrobust.balls`) holds for ``N_true``.
+    :mod:`nrobust.balls`) holds for ``N_true``. The algebra (:meth:`times`, :meth:`plus`,
+    :meth:`restricted`, :meth:`shift`) carries the bounds and, for a term that has them, adds the
+    rounding of every kernel coefficient it stores (nothing when the operation is exact), so that
+    they hold for the exact result of the operation on ``N_true``.
 
     Parameters
     ----------
@@ -558,7 +678,10 @@ class DistributedDelay:
             if v.shape != x.shape:
                 raise ParameterError("values", f"numbers, one per node ({x.size})", values)
         v = v.astype(np.result_type(v, q, float))
+        unscaled = None  # the pieces before a constant factor moves into them, when their rounding counts
         if q.size == 1:  # canonical form: a constant factor lives in the values
+            if (radius or variation_radius) and q[0] != 1.0:
+                unscaled = (q[0], pieces[2] if pieces is not None else _TABULATED[interpolation](x, v)[2])
             if pieces is not None:
                 pieces = (pieces[0], pieces[1], pieces[2] * q[0])
             if abs(q[0]) != 1.0:  # a sign or a unit phase is exact
@@ -568,6 +691,10 @@ class DistributedDelay:
             pieces = _TABULATED[interpolation](x, v)
         else:
             pieces = (pieces[0], pieces[1], pieces[2].astype(np.result_type(pieces[2], v)))
+        if unscaled is not None:  # the rounding of the scaled pieces
+            sup, variation = _error_bounds(_scaled_error(unscaled[1], unscaled[0], pieces[2]))
+            if sup or variation:
+                radius, variation_radius = _up(radius + sup), _up(variation_radius + variation)
         self._store(x, v, q, int(moment), interpolation, radius, variation_radius, pieces)
 
     def _store(
@@ -636,25 +763,37 @@ class DistributedDelay:
     def restricted(self, lo: float) -> DistributedDelay | None:
         """The term on ``[max(a, lo), b]``: its pieces there, as polynomial pieces (None if ``lo >= b``).
 
-        The stored kernel is kept exactly (a segment cut by ``lo`` is re-expanded in the variable
-        of its remaining part); the error bounds are kept.
+        A segment cut by ``lo`` is re-expanded in the variable ``t'`` of its remaining part
+        ``[lo, nu_1]``: ``P(alpha + beta t')`` with ``alpha = (lo - nu_0) / h``, ``beta = (nu_1 - lo)_fl / h``,
+        composed in rational arithmetic and rounded to the nearest doubles. The error bounds are kept; a term
+        that carries them adds the rounding of the re-expanded coefficients (:meth:`_with_rounding`), the
+        other pieces are kept exactly.
         """
         lo = float(lo)
         if lo >= self.b:
             return None
         start, h, poly_t = self.pieces
         keep = start + h > lo
-        start, h, poly_t = start[keep], h[keep], poly_t[keep].copy()
-        if start[0] < lo:  # t = alpha + beta t' on the part [lo, start + h] of the first segment
-            alpha, beta = (lo - start[0]) / h[0], (start[0] + h[0] - lo) / h[0]
-            local = Polynomial(poly_t[0])(Polynomial([alpha, beta])).coef
-            poly_t[0] = np.pad(local, (0, poly_t.shape[1] - local.size))
-            h = h.copy()
-            h[0] = start[0] + h[0] - lo
-            start = start.copy()
-            start[0] = lo
-        return DistributedDelay(
-            np.append(start, start[-1] + h[-1]),
+        start, poly_t = start[keep], poly_t[keep].copy()
+        nodes = np.append(start, self.b)
+        error = None
+        if start[0] < lo:
+            nodes[0] = lo
+            cut = float(nodes[1] - lo)  # the new length, as the constructor computes it from the nodes
+            h0 = Fraction(float(h[keep][0]))
+            alpha, beta = (Fraction(lo) - Fraction(float(start[0]))) / h0, Fraction(cut) / h0
+            parts = [poly_t[0].real, poly_t[0].imag] if np.iscomplexobj(poly_t) else [poly_t[0]]
+            rounded, error = [], np.zeros((poly_t.shape[0], poly_t.shape[1]))
+            for part in parts:
+                exact = _composed([Fraction(x) for x in part.tolist()], alpha, beta)
+                near = [float(x) for x in exact]
+                rounded.append(np.array(near))
+                error[0] += [float(abs(Fraction(x) - e)) for x, e in zip(near, exact)]
+            poly_t[0] = rounded[0] + 1j * rounded[1] if len(rounded) == 2 else rounded[0]
+            # each |x - e| is below half an ulp of x: its float is at most 2^-53 |x| too large or small
+            error[0] = np.where(error[0] > 0, error[0] * (1.0 + 4.0 * _U) + 2.0**-1074, 0.0)
+        out = DistributedDelay(
+            nodes,
             None,
             self.poly,
             self.moment,
@@ -663,9 +802,14 @@ class DistributedDelay:
             radius=self.radius,
             variation_radius=self.variation_radius,
         )
+        return out._with_rounding(error) if error is not None and self._bounded else out
 
     def times(self, c: complex, **changes: Any) -> DistributedDelay:
-        """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``."""
+        """``c`` times the term (kernel, stored and true, and its error bounds), with ``changes``.
+
+        A term with error bounds adds the rounding of its scaled coefficients (:meth:`_with_rounding`): zero when
+        every product is exact (``c`` a sign, a power of two, or a unit of ``1, -1, i, -i``).
+        """
         factor = abs(c)
         if self.interpolation == "polynomial" and set(changes) <= {"moment"}:  # the coefficients scaled
             radius, variation = (
@@ -676,16 +820,62 @@ class DistributedDelay:
             moment = changes.get("moment", self.moment)
             if isinstance(moment, bool) or not isinstance(moment, (int, np.integer)) or moment < 0:
                 raise ParameterError("moment", "an integer >= 0", moment)
-            return self._combined(self.pieces[2] * c, radius, variation, int(moment))
-        if self.interpolation == "polynomial":
-            changes["coefficients"] = self.pieces[2] * c
+            out = self._combined(self.pieces[2] * c, radius, variation, int(moment))
         else:
-            changes["values"] = self.values * c
-        if factor == 1.0:  # exact: a sign or a unit phase
-            return self.replace(**changes)
-        return self.replace(
-            radius=_up(self.radius * factor), variation_radius=_up(self.variation_radius * factor), **changes
+            if self.interpolation == "polynomial":
+                changes["coefficients"] = self.pieces[2] * c
+            else:
+                changes["values"] = self.values * c
+            if factor == 1.0:  # exact: a sign or a unit phase
+                out = self.replace(**changes)
+            else:
+                out = self.replace(
+                    radius=_up(self.radius * factor), variation_radius=_up(self.variation_radius * factor), **changes
+                )
+        if not self._bounded or "nodes" in changes:
+            return out
+        return out._with_rounding(_scaled_error(self.pieces[2], c, out.pieces[2]))
+
+    @property
+    def _bounded(self) -> bool:
+        """True when the term carries error bounds: the algebra then adds the rounding of what it computes."""
+        return bool(self.radius or self.variation_radius)
+
+    def _with_rounding(self, error: ArrayLike | None, radius: float = 0.0, variation: float = 0.0) -> DistributedDelay:
+        """The term with its error bounds raised by a piecewise polynomial error of its stored kernel.
+
+        Parameters
+        ----------
+        error : array_like
+            ``error[i, k] >= 0`` bounds the modulus of the error of the coefficient of ``t^k`` on segment ``i``
+            (the shape of ``pieces[2]``, or fewer columns): ``radius`` grows by ``max_i sum_k error[i, k]``
+            (``|t^k| <= 1`` on a segment), ``variation_radius`` by ``sum_i (sum_k k error[i, k]) + error[i, 0]
+            + sum_k error[i, k]`` (``int_0^1 |E'|``, and the jumps at the segment's ends). A zero ``error`` returns
+            the term itself. None: no coefficient error.
+        radius, variation : float, optional
+            Further amounts added to ``radius`` and ``variation_radius``.
+        """
+        sup, tv = 0.0, 0.0
+        if error is not None:
+            err = real_array("error", error, ndim=2)
+            if err.shape[0] != self.pieces[2].shape[0] or np.any(err < 0):
+                raise ParameterError("error", f"an array of {self.pieces[2].shape[0]} rows of numbers >= 0", err.shape)
+            sup, tv = _error_bounds(err)
+        sup, tv = sup + radius, tv + variation
+        if not (sup or tv):
+            return self
+        out = object.__new__(DistributedDelay)
+        out._store(
+            self.nodes,
+            self.values,
+            self.poly,
+            self.moment,
+            self.interpolation,
+            _up(self.radius + sup),
+            _up(self.variation_radius + tv),
+            self.pieces,
         )
+        return out
 
     def plus(self, other: DistributedDelay) -> DistributedDelay:
         """The sum of two terms with the same nodes, polynomial, moment and interpolation.
@@ -694,7 +884,9 @@ class DistributedDelay:
         bounds: two such terms are taken to stand for opposite true kernels (they come from
         one kernel and its negation, e.g. ``I_N - I_N`` in a loop at ``delta = 0``), so their
         sum is exactly zero. A stored kernel that is zero (a term that is only its error bound)
-        never cancels: two such terms need not stand for one kernel.
+        never cancels: two such terms need not stand for one kernel. When either term carries error
+        bounds, the rounding of the summed coefficients is added (:meth:`_with_rounding`; zero when
+        every sum is exact).
         """
         if not self.mergeable(other):
             raise ParameterError("other", "a term with the same nodes, polynomial, moment and interpolation", other)
@@ -710,8 +902,12 @@ class DistributedDelay:
             mine, theirs = self.pieces[2], other.pieces[2]
             width = max(mine.shape[1], theirs.shape[1])
             mine, theirs = (np.pad(c, ((0, 0), (0, width - c.shape[1]))) for c in (mine, theirs))
-            return self._combined(mine + theirs, radius, variation, self.moment)
-        return self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
+            out = self._combined(mine + theirs, radius, variation, self.moment)
+        else:
+            out = self.replace(values=self.values + other.values, radius=radius, variation_radius=variation)
+        if opposite or not (self._bounded or other._bounded):
+            return out
+        return out._with_rounding(_summed_error(self.pieces[2], other.pieces[2], out.pieces[2]))
 
     def mergeable(self, other: DistributedDelay) -> bool:
         """True when :meth:`plus` applies: same nodes, polynomial, moment and interpolation."""
@@ -925,11 +1121,16 @@ class DistributedDelay:
             last = np.polynomial.polynomial.polyval(1.0, poly_t[np.searchsorted(start, b, side="left") - 1])
             nodes.append(x)
             values.append(np.append(inner, last))
-            extra = max(extra, ((b - a) / (points - 1)) ** 2 / 8.0 * curvature)
-        radius = _up(self.radius + extra + rounding)
+            spacing = float(np.max(np.diff(x))) * (1.0 + 2.0 * _U)  # the rounded nodes' largest gap
+            extra = max(extra, spacing**2 / 8.0 * curvature)
         x, v = np.concatenate(nodes), np.concatenate(values)
-        # TV(N_true - N_lin) <= TV(N_true) + TV(N_lin) on (a, b), jumps included
-        linear_tv = float(np.sum(np.abs(np.diff(v))))
+        steps = np.abs(np.diff(v))
+        # the rounding of the curvature's sums and products, and of the slopes v_{i+1} - v_i the pieces store (a
+        # piece ends within 2^-53 |v_{i+1} - v_i| of the next value)
+        extra *= 1.0 + (poly_t.shape[1] + 8) * 2.0 * _U
+        radius = _up((self.radius + extra + rounding + _U * float(np.max(steps, initial=0.0))) * (1.0 + 4.0 * _U))
+        # TV(N_true - N_lin) <= TV(N_true) + TV(N_lin) on (a, b), jumps included; the sum raised by its rounding
+        linear_tv = float(np.sum(steps)) * (1.0 + (steps.size + 6) * 2.0 * _U)
         return DistributedDelay(
             x, v, interpolation="linear", radius=radius, variation_radius=_up(self.total_variation() + linear_tv)
         )
@@ -1147,9 +1348,11 @@ class DistributedDelay:
         jumps = sum(size for _, size in self._jumps())
         inner = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]))
         stored = float(abs(self.values[0]) + abs(self.values[-1]) + jumps + inner)
-        return (
-            _up(stored + 2.0 * self.radius + self.variation_radius) if self.radius or self.variation_radius else stored
-        )
+        if not self._bounded:
+            return stored
+        # the float sums of the jumps and slopes raised by their rounding
+        stored *= 1.0 + (poly_t.size + len(self._jumps()) + 6) * 2.0 * _U
+        return _up(stored + 2.0 * self.radius + self.variation_radius)
 
     def linear_deviation(self) -> float:
         """Upper bound of ``int |N_true - N_lin|``, ``N_lin`` the linear interpolant of the values.
@@ -1187,18 +1390,134 @@ class DistributedDelay:
         :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`) moves onto the doubles
         enclosing ``[a + delta, b + delta]``, one segment, so that its support stays inside it
         however short it is; where an end moves outward the true kernel may jump there, which
-        adds ``2 radius`` to ``variation_radius``.
+        adds ``2 radius`` to ``variation_radius``. A term that carries error bounds and whose
+        nodes ``nu_j + delta`` round (:meth:`_moved`) gains the displacement of its pieces in its
+        bounds and a term on the ulp around each rounded node; the weights
+        ``C(m, j) (-delta)^(m - j)`` are rounded to the nearest doubles and their rounding joins the bounds.
         """
         delta = nonnegative("delta", delta)
         m = self.moment
-        if delta != 0 and not np.any(self._data):
-            base = self._enclosed(delta)
-            return tuple(base.times(comb(m, j) * (-delta) ** (m - j), moment=j) for j in range(m + 1))
+        if delta == 0:
+            return (self.times(1.0, moment=m),)
         return tuple(
-            self.times(comb(m, j) * (-delta) ** (m - j), nodes=self.nodes + delta, moment=j)
+            term._times_exact(comb(m, j) * (-Fraction(delta)) ** (m - j), j)
             for j in range(m + 1)
-            if j == m or delta != 0
+            for term in self.moved(delta)
         )
+
+    def moved(self, delta: float) -> tuple[DistributedDelay, ...]:
+        """The kernel moved by ``delta`` (either sign), its weight kept: ``q(s) int nu^m N(nu - delta) e^{-nu s} dnu``.
+
+        The support becomes ``[a + delta, b + delta]`` (``a + delta >= 0``). For a moment 0 this is the term
+        times ``e^{-delta s}`` (:meth:`shift` expands the weight of a higher moment). A zero stored kernel
+        moves onto the doubles enclosing its new support (:meth:`shift`); a term that carries error bounds
+        and whose nodes round gains their rounding (:meth:`_moved`), with a term on the ulp around each
+        rounded end of a piece where the kernel jumps, hence a tuple.
+
+        Parameters
+        ----------
+        delta : float
+            The displacement, finite, with ``a + delta >= 0``.
+        """
+        if isinstance(delta, bool) or not isinstance(delta, (int, float, np.integer, np.floating)):
+            raise ParameterError("delta", "a finite real number", delta)
+        delta = float(delta)
+        if not np.isfinite(delta) or self.a + delta < 0:
+            raise ParameterError("delta", f"finite, with a + delta >= 0 (a = {self.a:.6g})", delta)
+        if delta == 0:
+            return (self,)
+        return (self._enclosed(delta),) if not np.any(self._data) else self._moved(delta)
+
+    def _times_exact(self, factor: Fraction, moment: int) -> DistributedDelay:
+        """``factor`` (rational) times the term, with ``moment``: by its nearest double, whose rounding, for a
+        term with error bounds, joins them (``|factor - c| (|N| + radius)``)."""
+        c = float(factor)
+        out = self.times(c, moment=moment)
+        rounding = abs(Fraction(c) - factor)
+        if not rounding or not self._bounded:
+            return out
+        dc = _up(float(rounding))
+        error = np.where(self.pieces[2] != 0, np.abs(self.pieces[2]) * dc * (1.0 + 4.0 * _U) + 2.0**-1074, 0.0)
+        return out._with_rounding(error, _up(dc * self.radius), _up(dc * self.variation_radius))
+
+    def _moved(self, delta: float) -> tuple[DistributedDelay, ...]:
+        """The term on the nodes ``fl(nu_j + delta)`` (:meth:`moved`, ``delta != 0``), and, for a term with error
+        bounds, the terms on the ulps where the true ends of its pieces ``nu_j + delta`` fall.
+
+        Segment ``i`` of the stored kernel is ``P_i((nu - nu_i) / h_i)``; moved, the stored kernel is
+        ``P'_i((nu - nu'_i) / h'_i)`` with ``nu'_i = fl(nu_i + delta)``, ``h'_i`` the new segment's length
+        (``P' = P`` for polynomial pieces, a spline of the same values on the new nodes). The argument
+        moves by at most ``d_i = (|nu'_i - nu_i - delta| + |h'_i - h_i| + w_i) / h_i`` (``w_i`` the larger
+        rounding of its two ends), so the piece moves by at most ``G = max_i d_i sup |P_i'|`` (``sup |P'| <=
+        sum_k k |P_k| (1 + 2 d)^(k-1)`` on ``[-d, 1 + d]``) and its variation by
+        ``|h'_i / h_i - 1| sup |P_i'| + d_i sup |P_i''|``, plus ``2 G`` at each node and ``2 radius`` at each
+        term on an ulp. Between a rounded node and the true one the stored kernel is the other piece's: a
+        term with a zero kernel on the two doubles around the true node holds it, within
+        ``|jump| + 2 G + radius`` (its variation twice that plus ``variation_radius``); where the jump is at
+        most ``radius`` (a continuous kernel's rounding) the main term's bounds take it instead
+        (``|jump| + 2 G``, and four times that in variation).
+        """
+        start, h, poly_t = self.pieces
+        nodes = self.nodes + delta
+        if not self._bounded:
+            return (self.replace(nodes=nodes),)
+        distinct = np.append(start, self.b)
+        moved, rounded = _two_sum(distinct, np.full(distinct.shape, delta))  # nu_j + delta = moved + rounded
+        out = self.replace(nodes=nodes)
+        if out.pieces[2].shape != poly_t.shape:
+            raise ParameterError("delta", "a shift that keeps the term's segments apart", delta)
+        new_h = out.pieces[1]
+        dh = np.abs(new_h - h) * (1.0 + 2.0 * _U)
+        if not np.any(rounded) and not np.any(dh):
+            return (out._with_rounding(_excess(poly_t, np.zeros(poly_t.shape), out.pieces[2])),)
+        e = np.abs(rounded)
+        d = (e[:-1] + dh + np.maximum(e[:-1], e[1:])) / h * (1.0 + 8.0 * _U)
+        k = np.arange(poly_t.shape[1])
+        size = np.abs(poly_t)
+        grow = (1.0 + 2.0 * d[:, None] + 4.0 * _U) ** np.maximum(k - 1, 0)  # |t| <= 1 + d + 2 u
+        slope = _sums_up(size * k * grow)
+        curvature = _sums_up(size * k * np.maximum(k - 1, 0) * grow)
+        g = float(np.max(_up_each(slope * d)))
+        variation = _sums_up(_up_each(slope * dh / h * (1.0 + 4.0 * _U) + curvature * d)) + 2.0 * g * distinct.size
+        left = np.append(0.0, _sums_up(size))  # the stored kernel's one-sided values at the nodes, and their rounding
+        value_left = np.append(0.0, np.sum(poly_t, axis=1))
+        value_right = np.append(poly_t[:, 0], 0.0)
+        slivers, folded_sup, folded_variation = [], 0.0, 0.0
+        for j in np.flatnonzero(rounded).tolist():
+            jump = (abs(complex(value_left[j] - value_right[j])) + 2.0 * poly_t.shape[1] * _U * float(left[j])) * (
+                1.0 + 4.0 * _U
+            )
+            if jump <= self.radius:  # a jump of the stored kernel's rounding: within the main term's bounds
+                folded_sup = max(folded_sup, jump + 2.0 * g)
+                folded_variation += 4.0 * (jump + 2.0 * g)
+                continue
+            radius = _up(jump + 2.0 * g + self.radius)
+            node = float(moved[j])
+            lo, hi = (
+                (node, float(np.nextafter(node, np.inf)))
+                if rounded[j] > 0
+                else (float(np.nextafter(node, -np.inf)), node)
+            )
+            slivers.append(
+                DistributedDelay(
+                    [lo, hi],
+                    None,
+                    self.poly,
+                    self.moment,
+                    "polynomial",
+                    coefficients=np.zeros((1, 1), dtype=poly_t.dtype),
+                    radius=radius,
+                    variation_radius=_up(2.0 * radius + self.variation_radius),
+                )
+            )
+        # the main term's error drops to 0 on each sliver: 2 radius more at its edges
+        folded_variation += 2.0 * self.radius * len(slivers)
+        main = out._with_rounding(
+            _excess(poly_t, np.zeros(poly_t.shape), out.pieces[2]),
+            _up(g + folded_sup),
+            _up(float(variation) + folded_variation),
+        )
+        return (main, *slivers)
 
     def _enclosed(self, delta: float) -> DistributedDelay:
         """This zero term on the doubles enclosing ``[a + delta, b + delta]`` (:meth:`shift`)."""

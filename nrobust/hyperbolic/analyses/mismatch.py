@@ -215,7 +215,7 @@ def _measured(B: QuasiPolynomial, window: float, move: float) -> QuasiPolynomial
     terms = [d.restricted(window) for d in B.distributed]
     return QuasiPolynomial.from_parts(
         [(p, t + move) for p, t in B.point_terms],
-        [d.replace(nodes=d.nodes + move) for d in terms if d is not None],
+        [e for d in terms if d is not None for e in d.moved(move)],
         B.point_radii or None,
     )
 
