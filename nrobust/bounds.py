@@ -152,7 +152,7 @@ class TailBound:
                 qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q) if c)
                 kernel = np.minimum(m0, v / R)
                 if v1 < np.inf:  # second_order
-                    kernel = np.minimum(kernel, v1 / R + v2 / R**2)
+                    kernel = np.minimum(kernel, v1 / R + v2 / (R * R))
                 out = out + qpow * kernel
         return np.where(np.isnan(out), np.inf, out)
 
