@@ -53,8 +53,8 @@ on a whole rectangle or segment, directly or by the mean-value form
 ``F(c) + F'(B) (B - c)``. All of them accept ``prec`` (bits of the ball midpoints,
 default 53) and restore python-flint's working precision on return
 (:func:`working_precision` does the same for arithmetic done by the caller).
-:func:`ball_abs_moment` and :func:`ball_variation_bound` bound the kernel of a
-distributed term, for root-free far fields. :func:`acb_to_disc` turns a ball into a
+:func:`ball_abs_moment`, :func:`ball_variation_bound` and :func:`ball_second_order_variation`
+bound the kernel of a distributed term, for root-free far fields. :func:`acb_to_disc` turns a ball into a
 double midpoint and radius.
 
 Cost: about 10 us per evaluation of a point term and 5 us per spline segment of a
@@ -94,6 +94,7 @@ __all__ = [
     "ball_eval",
     "ball_eval_many",
     "ball_function",
+    "ball_second_order_variation",
     "ball_values",
     "ball_variation_bound",
     "enclose_box",
@@ -720,3 +721,86 @@ def ball_variation_bound(d: DistributedDelay, x: float, *, prec: int = 53) -> An
             err = 2 * flint.arb(d.radius) + flint.arb(d.variation_radius)
             out += err * _segment_exp_max(flint, a, b, X)
         return out
+
+
+@functools.cache
+def _powers_in_chebyshev(size: int) -> tuple[tuple[Fraction, ...], ...]:
+    """``M[k][l]``, exactly: the coefficient of ``T_k(x)`` in ``((1 + x) / 2)^l``, ``k, l < size``
+    (``x T_0 = T_1``, ``x T_k = (T_(k+1) + T_(k-1)) / 2``)."""
+    columns = [[Fraction(1)] + [Fraction(0)] * (size - 1)]
+    for _ in range(1, size):
+        c = columns[-1]
+        x_c = [Fraction(0)] * (size + 1)
+        for k, v in enumerate(c):
+            if k == 0:
+                x_c[1] += v
+            else:
+                x_c[k + 1] += v / 2
+                x_c[k - 1] += v / 2
+        columns.append([(c[k] + x_c[k]) / 2 for k in range(size)])
+    return tuple(tuple(columns[col][k] for col in range(size)) for k in range(size))
+
+
+def _ball_bend(flint: ModuleType, coefs: list[Any]) -> Any:
+    """An ``arb`` bound of ``int_0^1 |P''(t)| dt`` for ``P = sum_l c_l t^l`` (``acb`` coefficients): the lesser of
+    ``sum_l l |c_l|`` and the moduli of the Chebyshev coefficients of ``P''`` on ``[0, 1]`` summed (``|T_k| <= 1``),
+    the coefficients of ``t^j = ((1 + x) / 2)^j`` exact rationals."""
+    if len(coefs) < 3:
+        return flint.arb(0)
+    powers = sum((j * abs(c) for j, c in enumerate(coefs) if j >= 2), flint.arb(0))
+    second = [c * (j * (j - 1)) for j, c in enumerate(coefs) if j >= 2]
+    table = _powers_in_chebyshev(len(second))
+    cheb = flint.arb(0)
+    for row in table:
+        b = flint.acb(0)
+        for c, m in zip(second, row):
+            if m:
+                b += c * (flint.arb(m.numerator) / m.denominator)
+        cheb += abs(b)
+    return powers.min(cheb)
+
+
+def ball_second_order_variation(d: DistributedDelay, *, prec: int = 53) -> tuple[Any, Any]:
+    """``arb`` bounds ``(V_1, V_2)`` with ``|int N(nu) e^{-nu s} dnu| <= V_1 / |s| + V_2 / |s|^2`` on ``Re s >= 0``
+    (moment 0).
+
+    :meth:`~nrobust.distributed_delay.DistributedDelay.second_order_variation` in ball arithmetic, for ``N`` as
+    represented: integration by parts twice on each segment (``N(nu_i + h_i t) = P_i(t)``, every
+    ``|e^{-nu s}| <= 1``). ``V_1`` sums the end values ``|P_i(0)|`` and ``|P_i(1)|`` (at a node shared exactly by
+    two segments the jump ``|P_{i+1}(0) - P_i(1)|`` instead of both), ``V_2`` the same for ``N'``
+    (``P_i'(0) / h_i``, ``P_i'(1) / h_i``) and ``int |N''| = int_0^1 |P_i''| / h_i``, bounded by the lesser of
+    ``sum_l l |P_il|`` and the moduli of the Chebyshev coefficients of ``P_i''`` summed, over ``h_i``. The error
+    bounds of a kernel known to within ``radius`` are integrated by parts once: ``2 radius + variation_radius``
+    joins ``V_1``.
+    """
+    if d.moment != 0:
+        raise ParameterError("moment", "0 for ball_second_order_variation", d.moment)
+    flint = require_flint()
+    with precision(flint, prec):
+        start, h, poly_t = d.pieces
+        v1, v2 = flint.arb(0), flint.arb(0)
+        carry: tuple[Any, Any] | None = None  # value and slope at the right end of the previous segment, if shared
+        for i, (s0, hv, p) in enumerate(zip(start, h, poly_t)):
+            coefs = [_to_acb(flint, c) for c in p]
+            step = flint.arb(float(hv))
+            left = coefs[0]
+            right = sum(coefs, flint.acb(0))
+            slope_left = coefs[1] / step if len(coefs) > 1 else flint.acb(0)
+            slope_right = sum((j * c for j, c in enumerate(coefs)), flint.acb(0)) / step
+            if carry is None:
+                v1 += abs(left)
+                v2 += abs(slope_left)
+            else:
+                v1 += abs(left - carry[0])
+                v2 += abs(slope_left - carry[1])
+            shared = i + 1 < start.size and Fraction(float(s0)) + Fraction(float(hv)) == Fraction(float(start[i + 1]))
+            if shared:
+                carry = (right, slope_right)
+            else:
+                v1 += abs(right)
+                v2 += abs(slope_right)
+                carry = None
+            v2 += _ball_bend(flint, coefs) / step
+        if d.radius or d.variation_radius:
+            v1 += 2 * flint.arb(d.radius) + flint.arb(d.variation_radius)
+        return v1, v2

@@ -93,12 +93,14 @@ class TailBound:
     non-increasing in ``R`` and, when every delay is ``>= t0``, in ``Re s >= x0``. The
     kernel integrals are computed once; calls cost a few flops.
 
-    With ``second_order`` (``x0 = t0 = 0``: the half-plane ``Re s >= 0``) a distributed term
-    of moment 0 is bounded by ``|q|(R) R^-n min(M_0, V / R, V_1 / R + V_2 / R^2)``, its kernel
-    integrated by parts twice
+    With ``second_order`` (``x0 >= 0``) a distributed term of moment 0 is bounded by
+    ``|q|(R) R^-n min(M_0, V / R, V_1 / R + V_2 / R^2)``, its kernel integrated by parts twice
     (:meth:`~nrobust.distributed_delay.DistributedDelay.second_order_variation`): for a kernel
     with jumps ``V_1``, its end values and jumps, can be much less than ``V``, which also holds
-    ``int |N'|``.
+    ``int |N'|``. ``V_1`` and ``V_2`` need only ``|e^{-nu s}| <= 1`` for ``nu >= 0``, ``Re s >= 0``:
+    normalised, the kernel on ``[a, b]`` is one on ``[a - t0, b - t0]``, so where ``a >= t0`` (every
+    delay ``>= t0``, as above) the bound holds on ``Re s >= x0``, and on the axis (``x0 = 0``,
+    ``|e^{t0 s}| = 1``) for every kernel.
 
     Parameters
     ----------
@@ -111,19 +113,17 @@ class TailBound:
     t0 : float
         Delay by which ``P`` is normalised (the delay of the first principal term).
     second_order : bool, optional
-        Integrate the kernels by parts twice (default False); requires ``x0 = t0 = 0``.
+        Integrate the kernels by parts twice (default False); requires ``x0 >= 0``.
 
     Raises
     ------
     ParameterError
-        ``second_order`` with ``x0`` or ``t0`` not 0.
+        ``second_order`` with ``x0 < 0``.
     """
 
     def __init__(self, P: QuasiPolynomial, n: int, x0: float, t0: float, *, second_order: bool = False) -> None:
-        if second_order and x0 != 0.0:
-            raise ParameterError("x0", "0 with second_order=True (the half-plane Re s >= 0)", x0)
-        if second_order and t0 != 0.0:
-            raise ParameterError("t0", "0 with second_order=True (no normalising delay)", t0)
+        if second_order and not x0 >= 0.0:
+            raise ParameterError("x0", ">= 0 with second_order=True (the half-plane Re s >= 0)", x0)
         self.n = n
         self.point = np.zeros(n)
         # far to the left the weights e^{-(tau - t0) x0} overflow: an infinite bound is
@@ -152,7 +152,7 @@ class TailBound:
                 qpow = sum(c * R ** (j - self.n) for j, c in enumerate(q) if c)
                 kernel = np.minimum(m0, v / R)
                 if v1 < np.inf:  # second_order
-                    kernel = np.minimum(kernel, v1 / R + v2 / R**2)
+                    kernel = np.minimum(kernel, v1 / R + v2 / (R * R))
                 out = out + qpow * kernel
         return np.where(np.isnan(out), np.inf, out)
 

@@ -636,6 +636,8 @@ class DistributedDelay:
         _variation: list[tuple[list[tuple[float, float]], NDArray[np.float64]]] = field(
             init=False, repr=False, compare=False
         )
+        # built on first use by second_order_variation
+        _second_order: list[tuple[float, float]] = field(init=False, repr=False, compare=False)
 
     def __init__(
         self,
@@ -722,6 +724,7 @@ class DistributedDelay:
             ("_ends", {}),
             ("_abs_moments", {}),
             ("_variation", []),
+            ("_second_order", []),
         ):
             object.__setattr__(self, name, value)
 
@@ -1306,6 +1309,12 @@ class DistributedDelay:
         """
         if self.moment != 0:
             raise ParameterError("moment", "0 for second_order_variation", self.moment)
+        if not self._second_order:  # formed once: the frequency bound of every delay margin asks for it
+            self._second_order.append(self._second_order_sums())
+        return self._second_order[0]
+
+    def _second_order_sums(self) -> tuple[float, float]:
+        """:meth:`second_order_variation` computed."""
         start, h, poly_t = self.pieces
         degree = np.arange(poly_t.shape[1])
         first, last = poly_t[:, 0], np.sum(poly_t, axis=1)

@@ -15,7 +15,9 @@ operator of ``F(.; delta)`` is strongly stable for small delays). On the axis ev
 ``|e^{-tau s}| = 1``: if ``a_0`` belongs to ``A``, ``|D_A(i w)| - |D_B(i w)| >= gap``
 (otherwise ``|D_B| - |D_A| >= gap``), and :class:`nrobust.bounds.TailBound` gives
 ``|R_P(i w)| <= |w|^n r_P(|w|)`` with ``r_P`` non-increasing (lower powers decay like
-``|w|^(j-n)``, kernels like ``V/|w|`` by integration by parts). Hence ::
+``|w|^(j-n)``, kernels like the lesser of ``V/|w|`` and ``V_1/|w| + V_2/|w|^2``, integrated by
+parts once and twice: ``TailBound(..., second_order=True)``; the least of two valid bounds is
+one, and ``V_1``, the end values and jumps of the kernel, can be much less than ``V``). Hence ::
 
     | |A(i w)| - |B(i w)| | >= |w|^n (gap - r_A(|w|) - r_B(|w|)).
 
@@ -532,7 +534,8 @@ def frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, floa
     level = gap * (1.0 - _GAP_ROOM_REL) - _GAP_ROOM_EPS * _EPS * total
     if level <= 0.0:
         return None
-    tail_a, tail_b = TailBound(A, degree, 0.0, t0), TailBound(B, degree, 0.0, t0)
+    tail_a = TailBound(A, degree, 0.0, t0, second_order=True)
+    tail_b = TailBound(B, degree, 0.0, t0, second_order=True)
 
     def tail(R: NDArray) -> NDArray:
         with np.errstate(over="ignore"):

@@ -12,8 +12,9 @@ the gap is below the rounding of its floating-point sum (``|b_n / a_n| = 1 - 2^-
 the tail bound at half the gap proven positive in :func:`proven_gap`; it is then proven:
 the principal gap ``|a_0| - sum |a_k|`` (in ``_GAP_PREC`` bits) and the tail bound
 ``r_A(W) + r_B(W)`` (point terms of lower degree, and kernels by
-``|q|(W) W^-n min(M_0, V_0 / W)`` with ``M_0 >= int nu^m |N|`` and ``V_0`` the variation
-bound of integration by parts, both summed in balls from the stored pieces of ``N``)
+``|q|(W) W^-n min(M_0, V_0 / W, V_1 / W + V_2 / W^2)`` with ``M_0 >= int nu^m |N|``, ``V_0`` the
+variation bound of integration by parts and ``V_1``, ``V_2`` those of integration by parts twice,
+all summed in balls from the stored pieces of ``N``)
 are enclosed and ``r(W) < gap`` is checked on the balls. Then
 ``| |A(i w)| - |B(i w)| | > 0`` for ``|w| >= W`` and, on ``Re s >= 0``, every zero of
 ``F(.; delta)`` has ``|s| < W`` (the estimate of :mod:`nrobust.margins.axis`).
@@ -77,7 +78,14 @@ from numpy.typing import NDArray
 from .._flint import working_precision
 from .._json import fields_dict
 from .._validate import positive_int
-from ..balls import ball_abs_moment, ball_function, ball_variation_bound, radius_acb, require_flint
+from ..balls import (
+    ball_abs_moment,
+    ball_function,
+    ball_second_order_variation,
+    ball_variation_bound,
+    radius_acb,
+    require_flint,
+)
 from ..bounds import TailBound, joint_degree, principal_gap, radius_where, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import DistributedDelay, QuasiPolynomial
@@ -211,19 +219,27 @@ def _interval(flint: Any, a: float, b: float) -> Any:
 
 # ============================================================================ term bounds
 class _Moduli:
-    """Proven bounds of a kernel: ``M_k >= int nu^(m+k) |N|`` (``k = 0, 1, 2``), ``V_0`` and ``nu_max``.
+    """Proven bounds of a kernel: ``M_k >= int nu^(m+k) |N|`` (``k = 0, 1, 2``), ``V_0``, ``(V_1, V_2)`` and
+    ``nu_max``.
 
-    :func:`nrobust.balls.ball_abs_moment` and :func:`nrobust.balls.ball_variation_bound` at
-    ``Re s = 0`` (``N`` as represented: the stored spline pieces); ``V_0`` only for moment 0.
+    :func:`nrobust.balls.ball_abs_moment`, :func:`nrobust.balls.ball_variation_bound` at ``Re s = 0`` and
+    :func:`nrobust.balls.ball_second_order_variation` (``N`` as represented: the stored spline pieces); ``V_0``
+    and ``(V_1, V_2)`` only for moment 0.
     """
 
     def __init__(self, flint: Any, d: DistributedDelay) -> None:
         start, h, _ = d.pieces
         self.M = [ball_abs_moment(d, 0.0, k) for k in range(3)]
         self.V0 = ball_variation_bound(d, 0.0) if d.moment == 0 else None
+        self.kernel = d
         self.nu_max = flint.arb(0)
         for s0, hv in zip(start, h):
             self.nu_max = self.nu_max.max(flint.arb(float(s0)) + flint.arb(float(hv)))
+
+    @functools.cached_property
+    def V12(self) -> tuple[Any, Any] | None:
+        """``(V_1, V_2)``, formed on first use (only the frequency bound needs them)."""
+        return ball_second_order_variation(self.kernel) if self.kernel.moment == 0 else None
 
 
 def _abs_arb(flint: Any, c: complex) -> Any:
@@ -431,7 +447,10 @@ def _bound_balls(flint: Any, parts: tuple[QuasiPolynomial, ...], W: float) -> tu
         for d in P.distributed:
             mod = _moduli(d)
             qpow = _abs_poly(flint, d.poly, R, 0) / R**n
-            bound = mod.M[0] if mod.V0 is None else mod.M[0].min(mod.V0 / R)
+            bound = mod.M[0]
+            if mod.V0 is not None and mod.V12 is not None:
+                # integrated by parts once and twice (every delay >= t0: TailBound's notes)
+                bound = bound.min(mod.V0 / R).min(mod.V12[0] / R + mod.V12[1] / R**2)
             tail += qpow * bound
     return gap, tail
 
@@ -460,7 +479,8 @@ def _frequency_bound(A: QuasiPolynomial, B: QuasiPolynomial) -> float:
     n = joint_degree(A, B)
     principal = principal_gap({"A": (A, 0), "B": (B, 1)}, n, 0.0)
     assert principal is not None  # the gap is proven positive
-    tail_a, tail_b = TailBound(A, n, 0.0, principal.t0), TailBound(B, n, 0.0, principal.t0)
+    tail_a = TailBound(A, n, 0.0, principal.t0, second_order=True)
+    tail_b = TailBound(B, n, 0.0, principal.t0, second_order=True)
     return radius_where(lambda R: float(tail_a(R) + tail_b(R)), 0.5 * low, "proven crossing search")
 
 
