@@ -1302,10 +1302,10 @@ class DistributedDelay:
         ``|e^{-nu s}| <= 1``. The error
         bounds of ``N_true`` are integrated by parts once (sup ``radius`` at the ends, total variation
         ``variation_radius``): ``2 radius + variation_radius`` joins ``V_1``. Each bound is raised by
-        ``1e-12`` of the moduli summed, above the rounding of the sums. Pieces that do not meet (to a
-        few ulps) count both of their ends. With ``V_1 <= V`` (:meth:`variation_bound` at ``x = 0``)
-        the bound decays like ``V_1 / |s|``: for a kernel with jumps ``V_1`` holds only the ends and
-        jumps, ``V`` also the whole variation ``int |N'|``.
+        ``1e-12`` of the moduli summed, above the rounding of the sums. Pieces that do not meet exactly
+        (``nu_i + h_i`` not the next start, as in :mod:`nrobust.balls`) count both of their ends. With
+        ``V_1 <= V`` (:meth:`variation_bound` at ``x = 0``) the bound decays like ``V_1 / |s|``: for a
+        kernel with jumps ``V_1`` holds only the ends and jumps, ``V`` also the whole variation ``int |N'|``.
         """
         if self.moment != 0:
             raise ParameterError("moment", "0 for second_order_variation", self.moment)
@@ -1321,8 +1321,12 @@ class DistributedDelay:
         slope_first = (poly_t[:, 1] if poly_t.shape[1] > 1 else np.zeros(h.size)) / h
         slope_last = np.sum(poly_t * degree, axis=1) / h
         bend = _bend(poly_t) / h
-        ends = start + h
-        meet = np.abs(start[1:] - ends[:-1]) <= 4.0 * float(np.finfo(float).eps) * np.maximum(np.abs(ends[:-1]), 1.0)
+        # pieces meet when start + h is the next start exactly (TwoSum: the rounded sum and its exact error); a gap
+        # or an overlap of an ulp adds an integral over it that does not decay in |s|, so both ends count there
+        ends = start[:-1] + h[:-1]
+        back = ends - start[:-1]
+        error = (start[:-1] - (ends - back)) + (h[:-1] - back)
+        meet = (ends == start[1:]) & (error == 0.0)
 
         def sums(left: NDArray, right: NDArray) -> tuple[float, float]:
             """The end values and jumps of a function with ``left``, ``right`` at each piece's ends, and the

@@ -173,3 +173,23 @@ def test_a_zero_length_interval_of_gains_has_the_bound_of_its_gain() -> None:
     w = np.arange(1, int(4 * W * 64)) / 64.0
     gap = np.abs(A(1j * w)) - np.abs(B(1j * w))
     assert not np.any(np.diff(np.sign(gap[w > W])))
+
+
+def test_pieces_that_overlap_by_an_ulp_count_both_ends() -> None:
+    """``N = 1`` on ``[0.1, 1000.3]`` and ``[1000.3, 1001]``: the first piece, ``0.1 + fl(1000.3 - 0.1)``, ends
+    ``2.3e-14`` past the second's start, so the stored pieces overlap there and their integral (each constant piece
+    exactly, ``(e^{-a s} - e^{-b s}) / s``, 40 digits) has a part that does not decay in ``|s|``: near
+    ``w = (2k + 1) pi / 1000.9`` it exceeded the bound taken with the pieces meeting (``V_1 = 2``). Both ends count
+    (``V_1 = 4``) and the bound holds there."""
+    d = DistributedDelay([0.1, 1000.3, 1001.0], [1.0, 1.0, 1.0])
+    start, h, _ = d.pieces
+    assert start[0] + h[0] != start[1] or mp.mpf(float(start[0])) + mp.mpf(float(h[0])) != mp.mpf(float(start[1]))
+    v1, v2 = d.second_order_variation()
+    assert v1 == pytest.approx(4.0, rel=1e-11) and v1 >= 4.0
+    with mp.workdps(40):
+        pieces = [(mp.mpf(float(a)), mp.mpf(float(a)) + mp.mpf(float(b))) for a, b in zip(start, h)]
+        for j in range(-3, 4):
+            w = mp.mpf(2 * (10**6 + j) + 1) * mp.pi / mp.mpf("1000.9")
+            s = mp.mpc(0, w)
+            integral = abs(sum((mp.exp(-a * s) - mp.exp(-b * s)) / s for a, b in pieces))
+            assert integral <= v1 / w + v2 / w**2

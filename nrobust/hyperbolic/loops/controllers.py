@@ -1510,7 +1510,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         window = "the normal form's window 1/mu" if general else "the window 1/mu"
         if general:  # the normal form's mu is itself computed in floating point
             rounded = " (computed in floating point from the plant's numbers, not the exact window)"
-        elif not exact:
+        elif not exact and isinstance(system, Hyperbolic2x2):
             gap = abs(Fraction(w) * Fraction(system.mu) - 1)
             bound = float(gap)
             bound = math.nextafter(bound, math.inf) if Fraction(bound) < gap else bound
