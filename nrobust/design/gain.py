@@ -42,7 +42,9 @@ nominal loop is one term ``c e^{-h s}`` (no zero: finite-time convergence, ``U_B
 ``K = rho``) has an infinite decay rate, unbounded about it: it is the design (*finite time*).
 Between samples of the rate the rightmost zeros are followed in ``K`` (Newton continuation, the
 sensitivity ``ds/dK = -F_K / F'``): a maximum is where two zeros' real parts cross (a *kink*)
-or where one's slope vanishes (an *interior smooth max*), each solved by ``brentq``.
+or where one's slope vanishes (an *interior smooth max*), each solved by ``brentq``. With ``worst_case=True``
+it maximises the least rate of the loop and its scenarios (loops of the same gain, e.g. on plants with speed
+errors): an end, a peak of one rate, or a *tie* where two rates are equal (``brentq`` on their difference).
 
 Features of the curves narrower than the scan step (``pi / (32 T)``, ``T`` the longest delay
 of the factors, or ``W / 256``, ``W`` the frequency bound) can be missed (near the
@@ -106,6 +108,7 @@ DESIGN_KINDS = (
     "window",
     "finite time",
     "plateau",
+    "tie",
 )
 # Samples of the axis per half period pi / T of the fastest oscillation of the factors.
 _STEPS = 32
@@ -168,7 +171,8 @@ class GainDesign:
         ``c e^{-h s}``, e.g. ``U_BS2(rho)`` = ``U_BS``; the decay rate is ``inf``, unbounded and not
         smooth about ``K``), ``"plateau"`` (the decay rate is flat about ``K``: its rightmost zero, or
         chain, does not move with the gain, e.g. a zero of a filter whose pole cancels it; every gain of
-        :attr:`K_bracket` is optimal to the rate's accuracy).
+        :attr:`K_bracket` is optimal to the rate's accuracy), ``"tie"`` (with ``worst_case=True``: the least decay
+        rate of the loop and its scenarios is largest where two of them are equal, ``r_i(K) = r_j(K)``).
     K_bracket : (float, float)
         The optimal gain lies in it (for a pair birth: the birth and ``K``); for a plateau, the interval about
         ``K`` on which the decay rate is within its accuracy of the optimum (checked at its ends, by bisection
@@ -207,6 +211,10 @@ class GainDesign:
     nominal : QuasiPolynomial or None
         The nominal loop ``F(.; 0, K)`` whose spectral abscissa is :attr:`abscissa` (a caller holding a
         loop equal to it, ``==``, need not compute that abscissa again); not in :meth:`to_dict`.
+    scenario_abscissae : tuple of SpectralAbscissa
+        With ``worst_case=True`` (:func:`best_decay_rate`): the spectral abscissa at ``delta = 0`` of each
+        scenario's loop at ``K``; ``value`` is the least decay rate of :attr:`abscissa` and these
+        (:attr:`least_rate_accuracy`); empty otherwise.
     """
 
     K: float
@@ -228,6 +236,7 @@ class GainDesign:
     windows: tuple[DelayWindow, ...] = ()
     feasible: tuple[tuple[float, float], ...] = ()
     nominal: QuasiPolynomial | None = None
+    scenario_abscissae: tuple[SpectralAbscissa, ...] = ()
 
     @property
     def requirement(self) -> str:
@@ -239,6 +248,14 @@ class GainDesign:
         """``(width of K_bracket, width of value_bracket)``: how tightly the optimum is known."""
         (k_lo, k_hi), (v_lo, v_hi) = self.K_bracket, self.value_bracket
         return (float(k_hi - k_lo), 0.0 if v_hi == v_lo else float(v_hi - v_lo))
+
+    @property
+    def least_rate_accuracy(self) -> float | None:
+        """A bound of the error of the least decay rate of :attr:`abscissa` and :attr:`scenario_abscissae` (the
+        least of values each within ``a_j`` of the true one is within ``max_j a_j`` of the true least); None when
+        one abscissa's accuracy is not known."""
+        accuracies = [sa.accuracy for sa in (self.abscissa, *self.scenario_abscissae)]
+        return None if any(a is None for a in accuracies) else float(max(a for a in accuracies if a is not None))
 
     def __repr__(self) -> str:
         return self.summary()
@@ -255,10 +272,14 @@ class GainDesign:
         margin_acc = self.certificate.accuracy
         if self.objective == "margin" and margin_acc is not None:
             margin_acc += v_acc
+        least = ""
+        if self.scenario_abscissae:
+            acc = self.least_rate_accuracy
+            least = f", least_rate={with_accuracy(self.value, None if acc is None else acc + v_acc)}"
         return (
             f"GainDesign({parameter}={with_accuracy(self.K, k_acc)}, objective={self.objective!r}, kind={self.kind!r}, "
             f"margin={with_accuracy(self.margin, margin_acc)}, "
-            f"decay_rate={with_accuracy(self.decay_rate, self.abscissa.accuracy)}, certified={self.certified!r})"
+            f"decay_rate={with_accuracy(self.decay_rate, self.abscissa.accuracy)}{least}, certified={self.certified!r})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -2901,7 +2922,18 @@ def _window_design(
     if not intervals:
         raise _window_infeasible(curves, d_lo, d_hi, len(others), max_evals)
     end: GainEnd | None = None
-    if objective == "decay_rate":
+    scenario_abscissae: tuple[SpectralAbscissa, ...] = ()
+    if objective == "least_rate":
+        K, value, kind, end, sas, K_br = _least_rate_design(
+            [c.loop for c in all_curves], [(a, b) for a, b, _ in intervals], n_rates, _scale(curves)
+        )
+        sa, scenario_abscissae = sas[0], tuple(sas[1:])
+        v_br = (value, value)
+        if end is not None:  # the supremum: the least rate at the end itself (not feasible at a pair birth)
+            at_end = min(-_abscissa(c.loop, end.K).value for c in all_curves)
+            v_br = (min(value, at_end), max(value, at_end))
+        objective = "decay_rate"
+    elif objective == "decay_rate":
         best, plateau = _with_plateau(
             curves.loop,
             _best_rate(curves, [(a, b) for a, b, _ in intervals], n_rates, "window end"),
@@ -2966,11 +2998,88 @@ def _window_design(
         windows,
         feasible,
         curves.loop.nominal(K),
+        scenario_abscissae,
     )
 
 
 def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
     return spectral_abscissa(loop.nominal(K))
+
+
+# Samples of each loop's decay rate in a feasible interval for the least rate, at least (its ties and peaks are
+# found between them).
+_LEAST_SAMPLES = 9
+
+
+def _least_rate_design(
+    loops: list[_Family],
+    intervals: list[tuple[tuple[float, GainEnd | None], tuple[float, GainEnd | None]]],
+    n_rates: int,
+    scale: float,
+) -> tuple[float, float, str, GainEnd | None, list[SpectralAbscissa], tuple[float, float]]:
+    """The gain of the intervals with the largest least decay rate ``min_j r_j(K)`` of ``loops`` at ``delta = 0``.
+
+    Each ``r_j = -alpha_j`` (the certified spectral abscissa of ``F_j(.; 0, K)``) is continuous and piecewise
+    smooth, so the maximum of their least is an end of an interval (``"window end"``, or ``"end"`` at a bound),
+    a peak of one ``r_j`` (``"interior smooth max"``: Brent's bounded search of the least rate between the
+    neighbours of a sample where the least rate is largest and one loop the least on both sides), or a gain
+    where two rates tie, ``r_i = r_j`` (``"tie"``: ``brentq`` on ``r_i - r_j`` between two consecutive samples
+    whose least loops differ). All rates are sampled at ``max(n_rates, _LEAST_SAMPLES)`` gains of each interval,
+    ends included; the candidates are the ends, every tie bracketed by the samples and every sampled peak, and
+    the largest least rate among them is the design. A peak or a second tie narrower than the samples' spacing
+    can be missed: the value is the certified least rate at the gain returned, the optimality is that of the
+    samples' candidates.
+
+    Returns
+    -------
+    (K, value, kind, end, abscissae, K_bracket)
+        ``end`` the event of a ``"window end"``; ``abscissae`` those of ``loops`` at ``K`` (in their order);
+        ``K_bracket`` the gains the optimum is known to lie in (the end and its event; ``brentq``'s or the
+        search's tolerance about a tie or a peak).
+    """
+    from scipy.optimize import brentq, minimize_scalar  # loaded on first use (the start-up of the commands)
+
+    xtol = 1e-12 * max(scale, 1e-300)
+    cache: dict[float, list[SpectralAbscissa]] = {}
+
+    def abscissae(K: float) -> list[SpectralAbscissa]:
+        if K not in cache:
+            cache[K] = [_abscissa(loop, K) for loop in loops]
+        return cache[K]
+
+    def rates(K: float) -> NDArray[np.float64]:
+        return np.array([-sa.value for sa in abscissae(float(K))])
+
+    Candidate = tuple[float, float, str, GainEnd | None, tuple[float, float]]
+    candidates: list[Candidate] = []
+    n = max(n_rates, _LEAST_SAMPLES)
+    for (K_a, event_a), (K_b, event_b) in intervals:
+        Ks = np.linspace(K_a, K_b, n) if K_b > K_a else np.array([K_a])
+        R = np.array([rates(float(K)) for K in Ks])  # R[k, j]: loop j's rate at the sample k
+        least, which = R.min(axis=1), R.argmin(axis=1)
+        for K_end, event in ((K_a, event_a), (K_b, event_b)):
+            at = (min(K_end, event.K), max(K_end, event.K)) if event is not None else (K_end, K_end)
+            candidates.append((K_end, float(rates(K_end).min()), "end" if event is None else "window end", event, at))
+        for k in range(Ks.size - 1):
+            i, j = int(which[k]), int(which[k + 1])
+            a, b = float(Ks[k]), float(Ks[k + 1])
+            if i != j and R[k, i] < R[k, j] and R[k + 1, i] > R[k + 1, j]:  # r_i - r_j changes sign in [a, b]
+                K = float(brentq(lambda x, i=i, j=j: float(rates(x)[i] - rates(x)[j]), a, b, xtol=xtol, rtol=4 * _EPS))
+                width = xtol + 4 * _EPS * abs(K)
+                candidates.append((K, float(rates(K).min()), "tie", None, (K - width, K + width)))
+        for k in range(1, Ks.size - 1):
+            if least[k] >= least[k - 1] and least[k] >= least[k + 1] and which[k - 1] == which[k] == which[k + 1]:
+                res = minimize_scalar(
+                    lambda x: -float(rates(x).min()),
+                    bounds=(float(Ks[k - 1]), float(Ks[k + 1])),
+                    method="bounded",
+                    options={"xatol": 1e-10 * max(scale, 1e-300)},
+                )
+                K = float(res.x)
+                width = 1e-10 * max(scale, 1e-300)
+                candidates.append((K, float(rates(K).min()), "interior smooth max", None, (K - width, K + width)))
+    K, value, kind, end, K_br = max(candidates, key=lambda c: c[1])
+    return K, value, kind, end, abscissae(K), K_br
 
 
 # A coefficient of the nominal loop is a rounding residue at a parameter when it is below this many units of
@@ -3850,6 +3959,7 @@ def best_decay_rate(
     margin_at_least: float | None = None,
     delays: tuple[float, float] | None = None,
     scenarios: tuple[AffineGainLoop | AffineLoop, ...] = (),
+    worst_case: bool = False,
     rigorous: bool = False,
     n_rates: int = 5,
     max_evals: int = 2_000_000,
@@ -3909,13 +4019,21 @@ def best_decay_rate(
         (``0 <= d_min <= d_max``, ``d_max > 0``); not with ``margin_at_least``.
     scenarios : tuple of AffineGainLoop or AffineLoop, optional
         Further loops of the same parameter that must be stable on the window (with ``delays``).
+    worst_case : bool, optional
+        With ``delays``: maximise the least decay rate at ``delta = 0`` of the loop and the ``scenarios``,
+        ``min_j r_j(K)``, over the feasible gains instead of the loop's own (an end
+        of the feasible gains, a peak of one ``r_j``, or a *tie* ``r_i = r_j`` solved by ``brentq``; ``kind``
+        ``"tie"``). ``value`` is then that least rate, ``decay_rate`` the loop's own, and
+        :attr:`GainDesign.scenario_abscissae` the scenarios' abscissae at the design.
     n_rates : int, optional
-        Gains at which the decay rate is sampled in each feasible interval (``>= 2``).
+        Gains at which the decay rate is sampled in each feasible interval (``>= 2``; with ``worst_case`` at
+        least 9, of every loop: a peak or a tie narrower than their spacing can be missed).
 
     Returns
     -------
     GainDesign
-        ``value`` is the decay rate; ``end`` the event at a ``"margin constraint"`` optimum.
+        ``value`` is the decay rate (the least one with ``worst_case``); ``end`` the event at a
+        ``"margin constraint"`` optimum.
 
     Raises
     ------
@@ -3930,6 +4048,10 @@ def best_decay_rate(
         about the largest interior sample ends at a smaller rate (the rate not smooth there).
     """
     lo, hi = _checked_loop(loop, bounds)
+    if not isinstance(worst_case, (bool, np.bool_)):
+        raise ParameterError("worst_case", "True or False", worst_case)
+    if worst_case and delays is None:
+        raise ParameterError("worst_case", "False without delays (the least rate is over the loop and scenarios)", True)
     if delays is not None or scenarios:
         if margin_at_least is not None:
             raise ParameterError(
@@ -3937,7 +4059,8 @@ def best_decay_rate(
             )
         if delays is None:
             raise ParameterError("delays", "a window [d_min, d_max] with scenarios", None)
-        return _window_design(loop, lo, hi, "decay_rate", delays, scenarios, n_rates, max_evals, rigorous)
+        objective = "least_rate" if worst_case else "decay_rate"
+        return _window_design(loop, lo, hi, objective, delays, scenarios, n_rates, max_evals, rigorous)
     n_rates = positive_int("n_rates", n_rates, 2)
     max_evals = positive_int("max_evals", max_evals)
     if margin_at_least is None:

@@ -109,7 +109,10 @@ def _value_accuracy(d: GainDesign) -> float | None:
     A design on a bound of ``K`` has a bracket of width 0, but its value is still a computed abscissa or margin.
     """
     _, v_acc = d.accuracy
-    own = d.abscissa.accuracy if d.objective == "decay_rate" else d.certificate.accuracy
+    if d.scenario_abscissae:  # the least rate of the loop and the scenarios
+        own = d.least_rate_accuracy
+    else:
+        own = d.abscissa.accuracy if d.objective == "decay_rate" else d.certificate.accuracy
     return None if own is None else v_acc + own
 
 
@@ -164,6 +167,8 @@ def _reflection_markdown(
 ) -> list[str]:
     d, cert = result.design, result.design.certificate
     what = "delay margin" if d.objective == "margin" else "decay rate at delta = 0"
+    if result.corner_abscissae:
+        what = f"least decay rate at delta = 0 of the nominal plant and the {len(result.corner_abscissae)} corners"
     need = "" if margin_at_least is None else f" with a delay margin of at least {margin_at_least:g}"
     k_acc, _ = d.accuracy
     law = "U_BS2(K)"
@@ -183,8 +188,9 @@ def _reflection_markdown(
         f"- delay margin of the designed loop: {with_accuracy(cert.margin, cert.accuracy)}, {d.certified} "
         f"({cert.method}); about {cert.scope}",
     ]
-    if d.objective == "margin":
-        lines.append(f"- decay rate at delta = 0: {with_accuracy(d.decay_rate, d.abscissa.accuracy)}")
+    if d.objective == "margin" or result.corner_abscissae:
+        nominal = " of the nominal plant" if result.corner_abscissae else ""
+        lines.append(f"- decay rate at delta = 0{nominal}: {with_accuracy(d.decay_rate, d.abscissa.accuracy)}")
     if d.end is not None:
         end_accuracy = d.end.accuracy if d.end.accuracy is not None or d.end.K != d.K else k_acc
         which = "meeting the requirement" if d.delays is not None else "with a large enough margin"
@@ -227,9 +233,10 @@ def _corner_rate_lines(result: ReflectionDesign | FilteredDesign | StateFeedback
     if not result.corner_abscissae:
         return []
     least = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+    which = "it" if isinstance(result, ReflectionDesign) else "the nominal rate"
     lines = [
         f"- least decay rate at delta = 0 of the nominal plant and the {len(result.corner_abscissae)} corners: "
-        f"{least} (the design maximises the nominal rate; between the corners not certified)"
+        f"{least} (the design maximises {which}; between the corners not certified)"
     ]
     for n, sa in enumerate(result.corner_abscissae):
         lines.append(f"  - the plant with speed errors {_corner(result, n)}: {with_accuracy(-sa.value, sa.accuracy)}")
@@ -558,13 +565,15 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
     if isinstance(result, ReflectionDesign):
         d = result.design
         k_acc, _ = d.accuracy
-        least = ""
-        if result.corner_abscissae:
+        if result.corner_abscissae:  # the design maximises the least rate of the nominal plant and the corners
             text = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
-            least = f" (nominal); least of the nominal plant and the corners {text}"
+            nominal = with_accuracy(d.decay_rate, d.abscissa.accuracy)
+            return (
+                f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), least decay rate of the nominal plant and the corners "
+                f"{text}; nominal {nominal}"
+            )
         return (
             f"K = {with_accuracy(d.K, k_acc)} ({d.kind}), {d.objective} = {with_accuracy(d.value, _value_accuracy(d))}"
-            f"{least}"
         )
     if isinstance(result, NPlusMGainDesign):
         t = result.tolerance

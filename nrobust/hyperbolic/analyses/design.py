@@ -87,8 +87,8 @@ class ReflectionDesign(CornerRates):
         ``tolerance.points[:4]`` (:func:`~nrobust.hyperbolic.analyses.mismatch_abscissa`: certified roots, proven
         in ball arithmetic with ``rigorous=True`` where the balls decide, each one's ``rigorous`` says; on the
         kernel route with a ``model_error`` from a convergence study in the kernel grid); empty otherwise. The
-        designed gain maximises the nominal decay rate only: :attr:`worst_decay_rate` is what the law guarantees
-        at the nominal plant and the corners (between the corners it is not certified).
+        designed gain maximises the least decay rate of the nominal plant and the corners: :attr:`worst_decay_rate`
+        is what the law guarantees there (between the corners it is not certified).
     """
 
     controller: Controller
@@ -111,7 +111,9 @@ class ReflectionDesign(CornerRates):
 
     @property
     def value(self) -> float:
-        """The objective at the design: the delay margin or the decay rate."""
+        """The objective at the design: the delay margin or the decay rate (with ``speed_tolerance``, the least
+        decay rate of the nominal loop and the corners' loops; :attr:`worst_decay_rate` gives it with its
+        accuracy)."""
         return self.design.value
 
     @property
@@ -246,9 +248,15 @@ def design_reflection(
     proven: the corners, and with ``rigorous=True`` the whole square where the loop is the PDE
     itself, an uncoupled plant under ``U = k u(t, 1)``; elsewhere never the continuum between the
     points).
-    With ``"decay_rate"`` the gain maximises the nominal decay rate among those gains; the rate at each
-    corner is stated (:attr:`ReflectionDesign.corner_abscissae`) and the least of them and the nominal one
-    (:attr:`ReflectionDesign.worst_decay_rate`) is what the law guarantees there.
+    With ``"decay_rate"`` the gain maximises the least decay rate at ``delta = 0`` of the nominal loop and the
+    four corners' among those gains, ``min_j r_j(K)`` (``best_decay_rate(..., worst_case=True)``: an end of the
+    feasible gains, a peak of one rate, or a gain where two rates tie, ``kind`` ``"tie"``, solved by ``brentq``
+    on ``r_i - r_j``; found from samples of all rates, so a peak or tie narrower than their spacing can be
+    missed); ``value`` is that least rate on the corners' loops as designed (``kernel_grid``), ``design.decay_rate``
+    the nominal one. The rate at each corner is stated again with its model error
+    (:attr:`ReflectionDesign.corner_abscissae`), and the least of them and the nominal one
+    (:attr:`ReflectionDesign.worst_decay_rate`, with its accuracy) is what the law guarantees there (between the
+    corners it is not certified).
 
     Parameters
     ----------
@@ -363,7 +371,9 @@ def design_reflection(
         if objective == "margin":
             design = best_margin(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
         elif window is not None:
-            design = best_decay_rate(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
+            design = best_decay_rate(
+                loop, K_bounds, delays=window, scenarios=scenarios, worst_case=eps is not None, rigorous=rigorous
+            )
         else:
             design = best_decay_rate(loop, K_bounds, margin_at_least=d, rigorous=rigorous)
     except ParameterError as exc:
@@ -408,6 +418,11 @@ def design_reflection(
             rigorous=rigorous,
             corner_windows=design.windows[1:],
         )
-    return ReflectionDesign(
-        controller, dataclasses.replace(design, certificate=certificate, abscissa=abscissa), tolerance, corner_abscissae
-    )
+    design = dataclasses.replace(design, certificate=certificate, abscissa=abscissa)
+    if corner_abscissae:  # the corners' rates with their model errors: the least rate to its accuracy
+        least = float(min(-a.value for a in (abscissa, *corner_abscissae)))
+        below, above = design.value - design.value_bracket[0], design.value_bracket[1] - design.value
+        design = dataclasses.replace(
+            design, value=least, value_bracket=(least - below, least + above), scenario_abscissae=corner_abscissae
+        )
+    return ReflectionDesign(controller, design, tolerance, corner_abscissae)
