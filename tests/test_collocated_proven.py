@@ -226,3 +226,16 @@ def test_polynomial_terms_of_two_degrees_add():
     assert 0.25 <= total.radius <= 0.25 * (1 + 1e-12) and 0.5 <= total.variation_radius <= 0.5 * (1 + 1e-12)
     for s in (0.5 + 1j, -1 + 3j):
         assert abs(total(s) - (low(s) + high(s))) < 1e-14
+
+
+def test_an_undecided_loop_without_delay_is_not_called_unstable():
+    """``kappa = rho = 0.2`` and ``observer_delay = 0.05`` on ``(1, 2, 1, 1, 1, 0.2)``: the input delay's principal
+    term vanishes and ``A``'s own principal part, stable at ``observer_delay / tau = 1/30`` as given (its roots at
+    ``Re s <= -0.145``), is not strongly stable in its two delays. The margin is 0 (Theorem 3: small changes of those
+    delays destabilise) and the count without delay is not decided: the reason says that ``nominally_stable`` False
+    means not certified (it read as unstable before)."""
+    plant = Hyperbolic2x2(*SECOND)
+    controller = nr.CollocatedOutputFeedback(StateFeedback(-0.6), observer_reflection=0.2, observer_delay=0.05)
+    margin = nr.delay_margin(plant, controller, rigorous=True)
+    assert margin.margin == 0.0 and margin.nominal_unstable is None
+    assert "not certified, not unstable" in margin.reason

@@ -171,8 +171,9 @@ class GainDesign:
         ``c e^{-h s}``, e.g. ``U_BS2(rho)`` = ``U_BS``; the decay rate is ``inf``, unbounded and not
         smooth about ``K``), ``"plateau"`` (the decay rate is flat about ``K``: its rightmost zero, or
         chain, does not move with the gain, e.g. a zero of a filter whose pole cancels it; every gain of
-        :attr:`K_bracket` is optimal to the rate's accuracy), ``"tie"`` (with ``worst_case=True``: the least decay
-        rate of the loop and its scenarios is largest where two of them are equal, ``r_i(K) = r_j(K)``).
+        :attr:`K_bracket` checked, at its ends and 9 gains inside, is optimal to the rate's accuracy),
+        ``"tie"`` (with ``worst_case=True``: the least decay rate of the loop and its scenarios is largest
+        where two of them are equal, ``r_i(K) = r_j(K)``).
     K_bracket : (float, float)
         The optimal gain lies in it (for a pair birth: the birth and ``K``); for a plateau, the interval about
         ``K`` on which the decay rate is within its accuracy of the optimum (checked at its ends, by bisection

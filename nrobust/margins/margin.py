@@ -526,6 +526,12 @@ def _not_strongly_stable(
         + (" < 0" if gap + gap_accuracy < 0 else ", zero to its accuracy")
         + "): zero margin"
     )
+    if nominal is None:  # e.g. A's own principal part not strongly stable: stable only at its delays' exact ratio
+        reason += (
+            "; the loop without delay is not decided (its count is not certified: the principal part of A + B "
+            "may be stable at its delays as given and not under small changes of them), so nominally_stable "
+            "False means not certified, not unstable"
+        )
     return DelayMargin(
         margin=0.0,
         omega=None,

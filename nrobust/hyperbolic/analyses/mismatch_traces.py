@@ -135,6 +135,10 @@ def _residual(
         radius += arb(n_tilde.radius)
         spread += arb(n_tilde.variation_radius)
     cuts = sorted({x for pieces, _ in parts for a, b, _, _ in pieces for x in (a, b)})
+    if t_v not in cuts:  # a cell across t_v would book its part on the v side to the u side's variation
+        raise CertificationError(
+            f"the kernels' pieces do not meet at t_v = {t_v!r}: the variations on each side of it are not separated"
+        )
     sup = arb(0)
     variation = {"v": arb(0), "u": arb(0)}
     previous = None  # the value of the last piece at its right end, within the same side of t_v

@@ -78,6 +78,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import lru_cache
@@ -227,6 +228,11 @@ def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tupl
 def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm | str:
     """The enclosure, or the reason it failed."""
     tau, w = closed_form_parameters(system)[0], window(system)
+    return _in_balls(system, lambda flint: _enclose(flint, system, law, tau, w))
+
+
+def _in_balls(system: Hyperbolic2x2 | GeneralHyperbolic2x2, enclose: Callable[[Any], Any]) -> Any:
+    """``enclose(flint)`` at the working precision of the plant's couplings, or the reason it failed (a string)."""
     try:
         flint = require_flint()
     except ImportError:
@@ -234,7 +240,7 @@ def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float
     p, m, _ = exact_ratios(system)
     try:
         with precision(flint, _PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
-            return _enclose(flint, system, law, tau, w)
+            return enclose(flint)
     except CertificationError as exc:
         return str(exc)
 
@@ -504,16 +510,7 @@ def _collocated_covered(system: Any) -> bool:
 @lru_cache(maxsize=8)
 def _collocated_attempt(system: Hyperbolic2x2) -> ProvenCollocatedProducts | str:
     """:func:`proven_collocated_products`, or the reason it failed."""
-    try:
-        flint = require_flint()
-    except ImportError:
-        return "no ball arithmetic (python-flint is not installed)"
-    p, m, _ = exact_ratios(system)
-    try:
-        with precision(flint, _PRECISION + math.ceil(12.0 * math.sqrt(abs(float(p * m))))):
-            return _collocated_enclose(flint, system)
-    except CertificationError as exc:
-        return str(exc)
+    return _in_balls(system, lambda flint: _collocated_enclose(flint, system))
 
 
 def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
