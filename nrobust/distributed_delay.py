@@ -434,6 +434,9 @@ def _up(x: float) -> float:
 # they give of the rounding of kernel coefficients computed by the algebra (DistributedDelay.times, plus,
 # restricted, shift): the rounding is added to a term's error bounds when the term carries them.
 _U = 2.0**-53
+# Jumps of a moved kernel at most this fraction of its size (fitted pieces meeting to rounding) are folded into
+# its error bounds (DistributedDelay._moved) rather than held each by a term on an ulp: one term, not one per node.
+_FOLD = 2.0**-40
 # Veltkamp's splitting constant 2^27 + 1; the splitting is exact below this modulus (no overflow).
 _SPLITTER = 134217729.0
 _SPLIT_MAX = 2.0**990
@@ -1467,8 +1470,9 @@ class DistributedDelay:
         term on an ulp. Between a rounded node and the true one the stored kernel is the other piece's: a
         term with a zero kernel on the two doubles around the true node holds it, within
         ``|jump| + 2 G + radius`` (its variation twice that plus ``variation_radius``); where the jump is at
-        most ``radius`` (a continuous kernel's rounding) the main term's bounds take it instead
-        (``|jump| + 2 G``, and four times that in variation).
+        most ``radius`` or :data:`_FOLD` times the kernel's size (a continuous kernel's rounding, or the
+        mismatch of two fitted pieces) the main term's bounds take it instead (``|jump| + 2 G``, and four times
+        that in variation): one term, its radius raised by at most that, not a term per node.
         """
         start, h, poly_t = self.pieces
         nodes = self.nodes + delta
@@ -1496,11 +1500,12 @@ class DistributedDelay:
         value_left = np.append(0.0, np.sum(poly_t, axis=1))
         value_right = np.append(poly_t[:, 0], 0.0)
         slivers, folded_sup, folded_variation = [], 0.0, 0.0
+        fold = max(self.radius, _FOLD * float(np.max(left)))
         for j in np.flatnonzero(rounded).tolist():
             jump = (abs(complex(value_left[j] - value_right[j])) + 2.0 * poly_t.shape[1] * _U * float(left[j])) * (
                 1.0 + 4.0 * _U
             )
-            if jump <= self.radius:  # a jump of the stored kernel's rounding: within the main term's bounds
+            if jump <= fold:  # a jump of the stored kernel's rounding or fit: within the main term's bounds
                 folded_sup = max(folded_sup, jump + 2.0 * g)
                 folded_variation += 4.0 * (jump + 2.0 * g)
                 continue

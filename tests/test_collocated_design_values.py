@@ -26,7 +26,7 @@ RECORDED = {
     ),
     "observer rate": (
         (-0.7149450549450549, 0.14384103622589053, 0.19480276875922264, 0.14384103622589053, 3.191491014857545),
-        "end",
+        "plateau",  # the rate -ln|(rho - K) q| / tau of the law does not move with kappa (it was labelled "end")
     ),
     "collocated law rate": (
         (0.1928571428571429, 0.20992692278013209, 0.15254352234083313, 0.20992692278013209, 15.69957001902849),

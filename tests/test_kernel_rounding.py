@@ -267,3 +267,32 @@ def test_moved_checks_its_argument() -> None:
     with pytest.raises(ValueError, match="delta"):
         d.moved(float("nan"))
     assert d.moved(0.0) == (d,)
+
+
+@pytest.mark.parametrize("delta", [0.1, 1.0 / 3.0])
+def test_a_fitted_kernels_small_jumps_fold_into_its_bounds(delta: float) -> None:
+    """Pieces that meet to ``1e-15`` (a fitted kernel's mismatch, above its ``radius`` of ``1e-17`` and below
+    ``2^-40`` of its size) moved onto rounded nodes: one term, its radius raised to hold the other piece's values on
+    the ulp between each rounded node and the true one (exact rational oracle at the nodes and beside them)."""
+    first, second = [1.0, 0.5, -0.25], [1.25 + 1e-15, -0.2, 0.1]
+    d = DistributedDelay(
+        [0.3, 0.7, 1.1, 1.5],
+        None,
+        interpolation="polynomial",
+        coefficients=[first, second, [sum(second) + 1e-15, 0.3, 0.0]],
+        radius=1e-17,
+        variation_radius=1e-17,
+    )
+    main, *ends = d.shift(delta)
+    assert main.radius >= 1e-15  # the inner nodes' mismatches folded in
+    # a term on an ulp only where the kernel truly jumps: at the ends of its support (to 0 outside)
+    assert len(ends) <= 2 and all(min(abs(e.a - main.a), abs(e.b - main.b)) <= 1e-15 for e in ends)
+    offset = Fraction(delta)
+    inner = [Fraction(float(v)) + offset for v in d.nodes[1:-1]] + [Fraction(float(v)) for v in main.nodes[1:-1]]
+    points = [
+        p
+        for p in sorted(set(_points(d.nodes, offset) + _points(main.nodes)))
+        if min(abs(p - q) for q in inner) < Fraction(1, 10)
+    ]
+    sup, _ = _gaps(lambda nu: _kernel(d, nu - offset), lambda nu: _kernel(main, nu), points)
+    assert sup <= main.radius - d.radius
