@@ -214,11 +214,8 @@ def trace_enclosure(system: Hyperbolic2x2, K: float, kernel_grid: int = 201) -> 
     (:func:`~nrobust.hyperbolic.analyses.mismatch_gains.section_bounds`: the sections scaled by ``tau``), the
     variation of ``J`` on ``(0, t_v)`` is at most ``delta ((s_U + s_V) / tau + t_v (s'_U + s'_V) / tau^2)``
     (``|d xi_0 / d theta| = 1 / t_v``), and on ``(t_v, tau)`` the same with ``t_u``; the variation of ``R`` on
-    each side is bounded from its pieces (:func:`_residual`).
-
-    Parameters, Raises
-    ------------------
-    As :func:`reflection_traces`.
+    each side is bounded from its pieces (:func:`_residual`). Its parameters and errors are those of
+    :func:`reflection_traces`.
 
     Returns
     -------

@@ -26,7 +26,7 @@ has the residual ``R = S_m - h^ - S * h^``, a polynomial computed exactly in bal
 ``g^``, the kernel above with ``S``, ``h^`` and the ball of ``rho q`` from the user's numbers
 (:func:`~nrobust.hyperbolic.loops.exact_form.gain_balls`), is exact polynomial algebra
 (the convolution on ``[w, tau]`` and ``[tau, tau + w]`` from the one on ``[0, nu]`` with ``h^``
-and ``S`` shifted), and ``g - g^ = e 1 - rho q e(. - tau) + S * e + (N~ - S) * h``, so
+and ``S`` shifted), and ``g - g^ = e 1 - rho q e(. - tau) + S * e + (N~ - S) * h``, so::
 
     |g - g^|  <= E (1 + |rho q| + ||S||_1) + b w (sup |h^| + E),
     |g - g^|' <= E' (1 + |rho q|) + (2 sup |S| + ||S'||_1) E + (2 b + b' w) (sup |h^| + E)
