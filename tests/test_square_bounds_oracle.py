@@ -28,6 +28,24 @@ LAW = StateFeedback(-0.2, lambda x: 0.1 * np.exp(x), lambda x: -0.2 * (1 + x**2)
 _X, _W = np.polynomial.legendre.leggauss(30)
 
 
+def _middle_plant(system, box):
+    """The plant at the middle of the box of relative speed errors."""
+    return dataclasses.replace(
+        system, lam=system.lam * (1 + 0.5 * (box[0] + box[1])), mu=system.mu * (1 + 0.5 * (box[2] + box[3]))
+    )
+
+
+def _box_gain_term(flint, system, law, box):
+    """``gain_term`` of ``law``'s gains over the box of relative speed errors ``box`` (its ``p``, ``m`` as balls)."""
+    from nrobust.hyperbolic.analyses.mismatch_gains import gain_bounds, gain_term
+
+    arb = flint.arb
+    lam = arb(system.lam) * (1 + arb(box[0]).union(arb(box[1])))
+    mu = arb(system.mu) * (1 + arb(box[2]).union(arb(box[3])))
+    P, M = arb(float(system.sigma_pm)) / lam, -arb(float(system.sigma_mp)) / mu
+    return gain_term(flint, system, law.g_u, law.g_v, box, P, M, gain_bounds(flint, system, law.g_u, law.g_v))
+
+
 def _closed_form(system: Hyperbolic2x2, law: StateFeedback, s: complex, n: int) -> complex:
     """``int_0^1 g(x) . e^{x M(s)} (q, 1) e^{-s/mu} dx``, ``M = [[-s/lam, sigma_pm/lam], [-sigma_mp/mu, s/mu]]``
     (eigen-decomposition of ``M``, ``n``-point Gauss-Legendre)."""
@@ -82,21 +100,14 @@ def test_gain_radius_and_variation_hold_the_kernels_of_the_box(
     ``1 + x^2``, 6.2 to 7.1 for ``U_BS2(0.1)``'s traces on the paper's plant (its kernels' jump at ``r``
     nearly cancels, and the moving jump is bounded by the jump itself)."""
     from nrobust._flint import precision
-    from nrobust.hyperbolic.analyses.mismatch_gains import gain_bounds, gain_term
     from nrobust.hyperbolic.loops.exact_form import PRECISION
 
     system, law = (PLANT, LAW) if case == "exp_gains" else _paper_law()
-    arb = flint.arb
     with precision(flint, PRECISION):
-        lam = arb(system.lam) * (1 + arb(box[0]).union(arb(box[1])))
-        mu = arb(system.mu) * (1 + arb(box[2]).union(arb(box[3])))
-        P, M = arb(float(system.sigma_pm)) / lam, -arb(float(system.sigma_mp)) / mu
-        term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, gain_bounds(flint, system, law.g_u, law.g_v))
+        term = _box_gain_term(flint, system, law, box)
     assert term is not None
     radius, v_g = term.kernel.radius + term.spread, term.variation
-    middle = dataclasses.replace(
-        system, lam=system.lam * (1 + 0.5 * (box[0] + box[1])), mu=system.mu * (1 + 0.5 * (box[2] + box[3]))
-    )
+    middle = _middle_plant(system, box)
     k0, c0 = _scaled_kernel(middle, law)
     rng = np.random.default_rng(3)
     speeds = [(a, b) for a in box[:2] for b in box[2:]]
@@ -249,26 +260,20 @@ def test_centred_gain_term_holds_the_closed_form(box: tuple[float, float, float,
     variation dominates (observed 10 to 61 times), still below the ``L^1`` bound of ``gain_term`` (the proof's
     bound before the centred form), which is 4.9 to 5.2 times the centred bound at 6.4."""
     from nrobust._flint import precision
-    from nrobust.hyperbolic.analyses.mismatch_gains import gain_bounds, gain_term
     from nrobust.hyperbolic.analyses.mismatch_slopes import T_CELLS, GainSlopes, cell_integrals, gain_pieces
     from nrobust.hyperbolic.loops.exact_form import PRECISION
 
     system, law = _paper_law()
     arb = flint.arb
     with precision(flint, PRECISION):
-        lam = arb(system.lam) * (1 + arb(box[0]).union(arb(box[1])))
-        mu = arb(system.mu) * (1 + arb(box[2]).union(arb(box[3])))
-        P, M = arb(float(system.sigma_pm)) / lam, -arb(float(system.sigma_mp)) / mu
-        term = gain_term(flint, system, law.g_u, law.g_v, box, P, M, gain_bounds(flint, system, law.g_u, law.g_v))
+        term = _box_gain_term(flint, system, law, box)
         assert term is not None
         slopes = GainSlopes(flint, gain_pieces(flint, system, law.g_u, law.g_v), system.q, *term.balls, term.offsets)
         zs = (0.5, 6.4, 50.0, 150.0)
         bounds = [float(slopes.spread(arb(z), cell_integrals(flint, arb(z), T_CELLS)).upper()) for z in zs]
     rng = np.random.default_rng(4)
     speeds = [(a, b) for a in box[:2] for b in box[2:]] + [tuple(rng.uniform(box[::2], box[1::2])) for _ in range(3)]
-    middle = dataclasses.replace(
-        system, lam=system.lam * (1 + 0.5 * (box[0] + box[1])), mu=system.mu * (1 + 0.5 * (box[2] + box[3]))
-    )
+    middle = _middle_plant(system, box)
     centre = _integral_terms(middle, law, 1j * np.array(zs) / middle.tau, 1000)
     worst = np.zeros(len(zs))
     for e_lam, e_mu in speeds:
