@@ -69,6 +69,18 @@ def _term(seed: int, complex_: bool = False, pieces: int = 4, degree: int = 5, r
     )
 
 
+def _dyadic_term() -> DistributedDelay:
+    """Two pieces on dyadic nodes with dyadic coefficients: sums, doublings and unit shifts of it are exact."""
+    return DistributedDelay(
+        [0.0, 0.5, 1.0],
+        None,
+        interpolation="polynomial",
+        coefficients=[[1.0, 0.5, 0.25], [0.75, 2.0, -1.0]],
+        radius=1e-12,
+        variation_radius=1e-12,
+    )
+
+
 def _added(new: DistributedDelay, old_radius: float, old_variation: float) -> tuple[Fraction, Fraction]:
     return Fraction(new.radius) - Fraction(old_radius), Fraction(new.variation_radius) - Fraction(old_variation)
 
@@ -120,14 +132,7 @@ def test_plus_carries_the_rounding(seed: int) -> None:
 
 
 def test_exact_sums_add_nothing() -> None:
-    d = DistributedDelay(
-        [0.0, 0.5, 1.0],
-        None,
-        interpolation="polynomial",
-        coefficients=[[1.0, 0.5, 0.25], [0.75, 2.0, -1.0]],
-        radius=1e-12,
-        variation_radius=1e-12,
-    )
+    d = _dyadic_term()
     out = d.plus(d.times(2.0))
     assert np.array_equal(out.pieces[2], 3.0 * d.pieces[2])
     # the bounds are exactly those of the summands added (each rounded up), no rounding of the kernel
@@ -185,14 +190,7 @@ def test_shift_carries_the_rounding(seed: int, delta: float) -> None:
 
 
 def test_exact_shift_adds_nothing() -> None:
-    d = DistributedDelay(
-        [0.0, 0.5, 1.0],
-        None,
-        interpolation="polynomial",
-        coefficients=[[1.0, 0.5, 0.25], [0.75, 2.0, -1.0]],
-        radius=1e-12,
-        variation_radius=1e-12,
-    )
+    d = _dyadic_term()
     (out,) = d.shift(1.0)
     assert out.radius == d.radius and out.variation_radius == d.variation_radius
     assert np.array_equal(out.nodes, d.nodes + 1.0) and np.array_equal(out.pieces[2], d.pieces[2])
