@@ -734,13 +734,29 @@ class QuasiPolynomial:
         return self * QuasiPolynomial([coefs], [0.0])
 
     def shift(self, delta: float) -> QuasiPolynomial:
-        """Multiply by ``e^{-delta s}`` (a loop delay ``delta >= 0``)."""
+        """Multiply by ``e^{-delta s}`` (a loop delay ``delta >= 0``).
+
+        A point delay ``t`` becomes the double nearest ``t + delta`` (:meth:`shift_is_exact` tells whether
+        every sum is a double); a distributed term moves as
+        :meth:`~nrobust.quasipoly.DistributedDelay.shift` says, a term with error bounds carrying the
+        rounding of its nodes in them. A proof about ``A + B e^{-delta s}`` with a sum that rounds encloses
+        ``B e^{-delta s}`` as a product instead (e.g.
+        :func:`~nrobust.hyperbolic.loops.given_plant.given_plant_balls`).
+        """
         delta = nonnegative("delta", delta)
         return QuasiPolynomial.from_parts(
             [(p, t + delta) for p, t in self.point_terms],
             [e for d in self.distributed for e in d.shift(delta)],
             list(self.point_radii) or None,
         )
+
+    def shift_is_exact(self, delta: float) -> bool:
+        """True when :meth:`shift` by ``delta`` moves every point delay and every node of a distributed term to
+        the exact sum ``t + delta`` (a double): then ``self.shift(delta)`` is ``e^{-delta s}`` times ``self``."""
+        delta = nonnegative("delta", delta)
+        shift = Fraction(delta)
+        delays = [t for _, t in self.point_terms] + [float(x) for d in self.distributed for x in d.nodes]
+        return all(Fraction(t + delta) == Fraction(t) + shift for t in delays)
 
     # ------------------------------------------------------------------ display
     def __repr__(self) -> str:

@@ -238,8 +238,10 @@ def test_the_plant_balls_enclose_the_loop_with_tau_exact(delta):
                 truth = mp.diff(F, mp.mpc(s), k)
             with working_precision(200) as flint:  # the 40-digit value as a ball far narrower than the enclosure
                 assert value.contains(flint.acb(truth)), (s, k, value, truth)
-    # tau a double: no map, the loop's own enclosure applies
-    assert given_plant_balls(Hyperbolic2x2(*COUNT_PLANTS[0]), controller, delta) is None
+    # tau a double: no map, the loop's own enclosure applies at delta = 0; at 0.3 the loop's point delays
+    # tau + 0.3 are not doubles, so the enclosure is of A + B e^{-delta s} with delta exact (r = 1)
+    own = given_plant_balls(Hyperbolic2x2(*COUNT_PLANTS[0]), controller, delta)
+    assert own is None if delta == 0.0 else isinstance(own, GivenPlantBalls)
     # a rounded principal gain (rho q = 0.3 * 0.1): its ball is part of the plant's enclosure
     args = (1.0, 3.0, 1.0, 1.0, 0.1, 0.3)
     balls = given_plant_balls(Hyperbolic2x2(*args), controller, delta)

@@ -1522,12 +1522,14 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
             "is not mapped to the exact tau: its observer term has a kernel on the window)"
         )
     if isinstance(controller, CollocatedOutputFeedback) and _proven_collocated(system, controller):
-        # only the observer delay keeps the loop from the map: with tau a double the loop as built is the plant's
+        # only the observer delay keeps the loop from the map: with tau a double the loop as built is the plant's,
+        # but for the delays t + delta_o of the observer's point terms, rounded where they are not doubles
+        sums = _observer_delay_sums(system, controller)
         if tau_ratio(system) == 1:
-            return ""
+            return sums
         return (
             f"{_rounded_tau(system)} (the CollocatedOutputFeedback loop is not mapped to the exact tau: an observer "
-            "delay)"
+            f"delay){'; ' + sums if sums else ''}"
         )
     if isinstance(controller, _ObserverFeedback):
         return (
@@ -1538,6 +1540,26 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     return (
         f"{_rounded_tau(system)} (the law's {type(controller).__name__} loop depends on tau otherwise than through "
         "tau s)"
+    )
+
+
+def _observer_delay_sums(system: Any, controller: CollocatedOutputFeedback) -> str:
+    """The delays ``t + delta_o`` of the proven collocated observer's point terms (``G e^{-delta_o s}``,
+    :func:`~nrobust.hyperbolic.loops.output_feedback.output_feedback_factors`) that are not doubles, with the
+    largest relative rounding of the doubles the loop holds instead, rounded up; ``""`` if every sum is a double.
+    (Its distributed terms carry the rounding of their moved nodes in their proven bounds.)"""
+    delta_o = Fraction(controller.observer_delay)
+    delays = [t for _, t in proven_collocated_products(system).open_loop_product.point_terms]
+    gaps = [abs(Fraction(t + float(delta_o)) / (Fraction(t) + delta_o) - 1) for t in delays if t + float(delta_o) > 0]
+    gap = max(gaps, default=Fraction(0))
+    if gap == 0:
+        return ""
+    bound = float(gap)
+    bound = math.nextafter(bound, math.inf) if Fraction(bound) < gap else bound
+    sums = " and ".join(f"{t!r} + delta_o" for t in delays)
+    return (
+        f"the observer's point delays {sums} as the nearest doubles (a relative {upper_bound_text(bound, 2)} at "
+        "most from the exact sums)"
     )
 
 

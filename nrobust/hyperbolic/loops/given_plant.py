@@ -156,15 +156,22 @@ def given_plant_balls(
     GivenPlantBalls or None
         None when :func:`given_plant_scale` is None (the proofs are about the loop as built,
         its scope says what is rounded) or 1 (the loop as built is the plant's: its own
-        :func:`~nrobust.balls.ball_function` applies).
+        :func:`~nrobust.balls.ball_function` applies), unless ``delta > 0`` moves a point delay
+        ``t`` of ``B`` to a sum ``t + delta`` that is not a double
+        (:meth:`~nrobust.quasipoly.QuasiPolynomial.shift_is_exact`): ``F = A + B.shift(delta)``
+        then holds it rounded, and the enclosure, with ``r = 1`` in that case, is of
+        ``A + B e^{-delta s}`` with ``delta`` exact.
     """
     r = given_plant_scale(system, controller, kernel_grid)
-    if r is None or r == 1:
-        return None
     if delta == 0.0:
+        if r is None or r == 1:
+            return None
         return GivenPlantBalls(characteristic(system, controller, 0.0, kernel_grid), None, 0.0, r, prec)
     A, B = loop_factors(system, controller, kernel_grid)
-    return GivenPlantBalls(A, B, delta, r, prec)
+    if (r is None or r == 1) and B.shift_is_exact(delta):
+        return None
+    # the delays t + delta of F's point terms round: B e^{-delta s} is enclosed as a product, delta exact
+    return GivenPlantBalls(A, B, delta, Fraction(1) if r is None else r, prec)
 
 
 def _near(x: Fraction) -> float:
