@@ -88,6 +88,7 @@ __all__ = [
     "BallDeterminant",
     "BallFunction",
     "BallQuasiPolynomial",
+    "DelayedSumBalls",
     "acb_box",
     "acb_to_disc",
     "ball_abs_moment",
@@ -555,6 +556,62 @@ def acb_to_disc(ball: Any) -> tuple[complex, float]:
     # |error| <= (rre + |mre| eps) + (rim + |mim| eps) >= hypot; the sum rounded up by 4 eps
     rad = (rre + rim + (abs(mre) + abs(mim)) * _EPS) * (1.0 + 4 * _EPS) + 5e-324
     return complex(mre, mim), rad
+
+
+class DelayedSumBalls(BallFunction):
+    """Enclosure of ``F(s) = A(r s) + B(r s) e^{-delta s}``, ``delta`` exact, for every ``r`` in a ball.
+
+    ``A + B.shift(delta)`` holds each point delay ``t + delta`` of ``B`` as the nearest double
+    (:meth:`~nrobust.quasipoly.QuasiPolynomial.shift_is_exact`); the product form keeps ``delta`` as given.
+    ``r`` (a rational, enclosed in an ``arb`` ball at the working precision; 1 by default) scales ``s`` in the
+    factors: :class:`~nrobust.hyperbolic.loops.given_plant.GivenPlantBalls` maps a loop built with a rounded
+    ``tau`` to the plant's.
+
+    Parameters
+    ----------
+    A, B : QuasiPolynomial
+        The factors (``B`` None: ``F = A(r s)``, e.g. a loop at ``delta = 0`` whose kernels on equal nodes
+        cancel exactly in ``A + B``).
+    delta : float
+        The delay, ``>= 0`` (a double, exact).
+    r : Fraction, optional
+        The scale of ``s`` in the factors (default 1).
+    prec : int, optional
+        Working precision in bits.
+
+    Notes
+    -----
+    ``d^k/ds^k F = r^k A^{(k)}(r s) + e^{-delta s} sum_j C(k, j) r^j B^{(j)}(r s) (-delta)^{k-j}``
+    (Leibniz), each factor enclosed on the ball ``r s``.
+    """
+
+    def __init__(
+        self,
+        A: QuasiPolynomial,
+        B: QuasiPolynomial | None,
+        delta: float,
+        r: Fraction = Fraction(1),
+        prec: int = 53,
+    ) -> None:
+        self.flint = require_flint()
+        self.prec = prec
+        self._a = ball_function(A, prec)
+        self._b = None if B is None else ball_function(B, prec)
+        self.max_derivative = min(f.max_derivative for f in (self._a, self._b) if f is not None)
+        with precision(self.flint, prec):
+            self._r = self.flint.arb(r.numerator) / self.flint.arb(r.denominator)
+        self._delta = self.flint.arb(float(delta))  # exact
+
+    def _eval(self, s: Any, k: int) -> Any:
+        r, delta = self._r, self._delta
+        x = r * s
+        out = r**k * self._a(x, k)
+        if self._b is None:
+            return out
+        terms = self.flint.acb(0)
+        for j in range(k + 1):
+            terms += math.comb(k, j) * r**j * self._b(x, j) * (-delta) ** (k - j)
+        return out + (-delta * s).exp() * terms
 
 
 @functools.lru_cache(maxsize=32)

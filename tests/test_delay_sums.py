@@ -11,7 +11,7 @@ names the delays ``tau + delta_o`` it holds rounded.
 Oracle, sharing no code with the package: the uncoupled plant's loop under U_BS2(K) written from its boundary
 conditions (``v(1) = rho u(1) + U`` with ``U = (K - rho) u(1)`` applied ``delta`` late, eqs. (47)-(52) of the paper
 with no coupling): ``F = 1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` up to the factor of the round trip,
-evaluated by mpmath at 60 digits with every delay the exact sum of the user's doubles; exactness of a sum decided
+evaluated by mpmath at 90 digits with every delay the exact sum of the user's doubles; exactness of a sum decided
 by mpmath at 200 bits.
 """
 
@@ -23,11 +23,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nrobust._flint import working_precision
-from nrobust.balls import ball_function
+from nrobust.balls import DelayedSumBalls, ball_function
 from nrobust.hyperbolic import CollocatedOutputFeedback, Hyperbolic2x2, ReflectionController, StateFeedback
 from nrobust.hyperbolic.loops.controllers import characteristic, loop_factors, loop_scope
 from nrobust.hyperbolic.loops.given_plant import GivenPlantBalls, given_plant_balls
-from nrobust.quasipoly import QuasiPolynomial
+from nrobust.margins.count import unstable_count
+from nrobust.quasipoly import DistributedDelay, QuasiPolynomial
 
 flint = pytest.importorskip("flint")
 
@@ -64,7 +65,7 @@ def test_the_plant_balls_hold_the_exact_delay_where_the_rounded_loop_does_not():
     balls = given_plant_balls(plant, law, DELTA, prec=200)
     assert isinstance(balls, GivenPlantBalls)
     rounded = ball_function(characteristic(plant, law, DELTA), 200)
-    with mp.workdps(60):
+    with mp.workdps(90):  # 200-bit balls (60 digits) at |s| ~ 1e7: the oracle far narrower
         for s in POINTS:
             truth = _uncoupled_loop(mp.mpc(s))
             assert _contains(balls(s), truth), s
@@ -101,3 +102,42 @@ def test_the_collocated_scope_names_the_observer_delays_it_rounds():
     assert "the plant as given" not in scope
     exact = CollocatedOutputFeedback(StateFeedback(-0.2), 0.5)
     assert "the plant as given" in loop_scope(plant, exact, None, loop_factors(plant, exact))
+
+
+def test_the_delayed_sum_encloses_the_loop_with_the_delay_exact():
+    """``DelayedSumBalls(A, B, delta)`` (core) contains ``A + B e^{-delta s}`` with ``1 + 0.1`` and the kernel's
+    nodes moved exactly (mpmath, kernel integrated by ``mpmath.quad``), ``F``, ``F'`` and ``F''``."""
+    A = QuasiPolynomial([[-1.0, 1.0]], [0.0])  # s - 1
+    B = QuasiPolynomial([[0.5]], [1.0], [DistributedDelay([0.0, 0.25, 0.75], [1.0, -2.0, 0.5], poly=[0.25])])
+    delta = 0.1
+    balls = DelayedSumBalls(A, B, delta, prec=100)  # 30 digits: the 40-digit oracle is far narrower
+
+    def F(s: mp.mpc) -> mp.mpc:
+        d = mp.mpf(delta)
+        kernel = mp.quad(lambda nu: _hat(nu) * mp.exp(-nu * s), [0, mp.mpf(0.25), mp.mpf(0.75)])
+        return s - 1 + (mp.mpf(0.5) * mp.exp(-s) + mp.mpf(0.25) * kernel) * mp.exp(-d * s)
+
+    with mp.workdps(40):
+        for s in (complex(0.3, 2.0), complex(-0.5, 17.0)):
+            for k in range(3):
+                assert _contains(balls(s, k), mp.diff(F, mp.mpc(s), k)), (s, k)
+
+
+def _hat(nu: mp.mpf) -> mp.mpf:
+    """The linear interpolant of the values ``1, -2, 0.5`` at ``0, 0.25, 0.75`` (its slopes -12 and 5 exact)."""
+    a, b = mp.mpf(0.25), mp.mpf(0.75)
+    if nu <= a:
+        return 1 + (-2 - 1) * nu / a
+    return -2 + (mp.mpf(0.5) + 2) * (nu - a) / (b - a)
+
+
+def test_a_count_proven_with_the_delayed_sum():
+    """``unstable_count(..., balls=DelayedSumBalls(...))``: ``s - 1 + e^{-(1 + 0.1) s} / 2`` has one zero in
+    ``Re s > 0`` (real: ``s - 1 + e^{-1.1 s}/2`` is -0.5 at 0 and grows to +inf), ``s + 2 - e^{-(1 + 0.1) s}``
+    none (``|s + 2| >= 2 > 1`` there)."""
+    for poly, expected in (([-1.0, 1.0], 1), ([2.0, 1.0], 0)):
+        A = QuasiPolynomial([poly], [0.0])
+        B = QuasiPolynomial([[0.5 if expected else -1.0]], [1.0])
+        assert not B.shift_is_exact(0.1)
+        count = unstable_count(A + B.shift(0.1), 4.0, rigorous=True, balls=DelayedSumBalls(A, B, 0.1))
+        assert count.count == expected

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._json import fields_dict
+from ..balls import BallFunction
 from ..bounds import joint_degree, principal_gap, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial
@@ -106,6 +107,7 @@ def unstable_count(
     loop: tuple[QuasiPolynomial, QuasiPolynomial, float] | None = None,
     kernels: AxisKernels | None = None,
     max_evals: int = 2_000_000,
+    balls: BallFunction | None = None,
 ) -> UnstableCount:
     """Certified number of zeros of ``F`` with ``Re s > 0`` (module notes: the edge rule).
 
@@ -123,6 +125,10 @@ def unstable_count(
         The loop factors with ``F = A + B e^{-delta s}`` and a given ``radius``: the
         argument principle on the half disc (:func:`axis_count`, floating point) is
         tried first, with ``kernels`` and the work bound ``max_evals``.
+    balls : BallFunction, optional
+        With ``rigorous``, the enclosure the count is proven with (:func:`nrobust.count_roots`), e.g.
+        :class:`~nrobust.balls.DelayedSumBalls` of ``A + B e^{-delta s}`` where ``F = A + B.shift(delta)``
+        holds a rounded delay.
 
     Returns
     -------
@@ -152,11 +158,11 @@ def unstable_count(
             return UnstableCount(on_axis, R, None, on_axis, False, "argument principle on the half disc")
     r = 1.01 * radius + 1e-9
     if F.is_real:
-        upper = count_roots(F, (0.0, r, 0.0, r), rigorous=rigorous)
+        upper = count_roots(F, (0.0, r, 0.0, r), rigorous=rigorous, balls=balls)
         if not upper.shifted:
             n = 2 * int(upper)
             return UnstableCount(n, r, (0.0, r, -r, r), n, rigorous, "count_roots on the upper box, doubled")
-    count = count_roots(F, (0.0, r, -r, r), rigorous=rigorous)
+    count = count_roots(F, (0.0, r, -r, r), rigorous=rigorous, balls=balls)
     on_edge = count.region[0] != 0.0
     return UnstableCount(
         None if on_edge else int(count),

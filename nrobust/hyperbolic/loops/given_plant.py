@@ -53,15 +53,13 @@ import math
 from fractions import Fraction
 from typing import Any, TypeVar
 
-from ..._flint import precision, require_flint
-from ...balls import BallFunction, ball_function
+from ...balls import DelayedSumBalls
 from ...bounds import RoucheDelayBound
 from ...margins.crossing import Crossing
 from ...margins.margin import DelayMargin
-from ...quasipoly import QuasiPolynomial
 from ...roots.abscissa import SpectralAbscissa
 from .controllers import characteristic, loop_factors, rounded_parts
-from .exact_form import exact_tau, rational_ball, tau_ratio
+from .exact_form import exact_tau, tau_ratio
 
 __all__ = [
     "GivenPlantBalls",
@@ -94,47 +92,24 @@ def given_plant_scale(system: Any, controller: Any, kernel_grid: int | None = No
     return tau_ratio(system)
 
 
-class GivenPlantBalls(BallFunction):
-    """Enclosure of ``F(s) = A(r s) + B(r s) e^{-delta s}`` for every ``r`` in a ball (module notes).
+class GivenPlantBalls(DelayedSumBalls):
+    """Enclosure of the plant's loop ``F(s) = A(r s) + B(r s) e^{-delta s}`` for every ``r`` in a ball (module notes).
+
+    :class:`~nrobust.balls.DelayedSumBalls` with ``A``, ``B`` the factors of the loop as built (``B`` None at
+    ``delta = 0``: ``A`` is then the whole loop ``A + B``, whose kernels on equal nodes cancel exactly),
+    ``delta`` the plant's loop delay (a double, exact) and ``r`` :func:`given_plant_scale`.
 
     Parameters
     ----------
     A, B : QuasiPolynomial
-        The factors of the loop as built (``B`` None at ``delta = 0``: ``A`` is then the
-        whole loop ``A + B``, whose kernels on equal nodes cancel exactly).
+        The factors of the loop as built.
     delta : float
-        The loop delay of the plant, ``>= 0`` (exact: a double).
+        The loop delay of the plant, ``>= 0``.
     r : Fraction
-        :func:`given_plant_scale`, enclosed in an ``arb`` ball at the working precision.
+        :func:`given_plant_scale` (1 where only ``delta`` is kept exact).
     prec : int
         Working precision in bits.
-
-    Notes
-    -----
-    ``d^k/ds^k F = r^k A^{(k)}(r s) + e^{-delta s} sum_j C(k, j) r^j B^{(j)}(r s) (-delta)^{k-j}``
-    (Leibniz), each factor enclosed on the ball ``r s``.
     """
-
-    def __init__(self, A: QuasiPolynomial, B: QuasiPolynomial | None, delta: float, r: Fraction, prec: int) -> None:
-        self.flint = require_flint()
-        self.prec = prec
-        self._a = ball_function(A, prec)
-        self._b = None if B is None else ball_function(B, prec)
-        self.max_derivative = min(f.max_derivative for f in (self._a, self._b) if f is not None)
-        with precision(self.flint, prec):
-            self._r = rational_ball(self.flint, r)
-        self._delta = self.flint.arb(float(delta))  # exact
-
-    def _eval(self, s: Any, k: int) -> Any:
-        r, delta = self._r, self._delta
-        x = r * s
-        out = r**k * self._a(x, k)
-        if self._b is None:
-            return out
-        terms = self.flint.acb(0)
-        for j in range(k + 1):
-            terms += math.comb(k, j) * r**j * self._b(x, j) * (-delta) ** (k - j)
-        return out + (-delta * s).exp() * terms
 
 
 def given_plant_balls(
