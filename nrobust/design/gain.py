@@ -1057,6 +1057,16 @@ class _Family:
         # evaluations of quasi-polynomials per sample of the axis (values and slopes)
         self.evals_per_sample = _EVALS_PER_SAMPLE if self.gain else 2 * (4 - cheap)
         self.max_delay = max(P.max_delay for P in self.parts)
+        # the spectral abscissas of F(.; 0, p) computed so far: the samples of the best rate, its search and the
+        # check of a plateau meet at the same parameters
+        self._abscissas: dict[float, SpectralAbscissa] = {}
+
+    def abscissa(self, p: float) -> SpectralAbscissa:
+        """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``)."""
+        sa = self._abscissas.get(p)
+        if sa is None:
+            sa = self._abscissas[p] = spectral_abscissa(self.nominal(p))
+        return sa
 
     def axis(self, w: NDArray[np.float64], slopes: bool = False) -> _Axis:
         """The factors at ``s = i w`` (with their ``w``-derivatives when ``slopes``)."""
@@ -2032,7 +2042,7 @@ def _solved_edge(loop: _Family, unstable: float, lo: float, hi: float) -> tuple[
     its ``w``-derivative from the factors' slopes), started from the rightmost zero at the unstable
     end ``unstable`` of the bracket (:func:`_abscissa`: in ``Re s >= 0``, near the axis).
     """
-    root = _abscissa(loop, unstable).root
+    root = loop.abscissa(unstable).root
     x = np.array([abs(root.imag) if root is not None else 0.0, unstable])
     for _ in range(_NEWTON_STEPS if root is not None else 0):
         at = loop.axis(np.array([x[0]]), slopes=True)
@@ -2931,7 +2941,7 @@ def _window_design(
         sa, scenario_abscissae = sas[0], tuple(sas[1:])
         v_br = (value, value)
         if end is not None:  # the supremum: the least rate at the end itself (not feasible at a pair birth)
-            at_end = min(-_abscissa(c.loop, end.K).value for c in all_curves)
+            at_end = min(-c.loop.abscissa(end.K).value for c in all_curves)
             v_br = (min(value, at_end), max(value, at_end))
         objective = "decay_rate"
     elif objective == "decay_rate":
@@ -2947,7 +2957,7 @@ def _window_design(
             K_br = plateau
         elif end is not None:
             K_br = (min(K, end.K), max(K, end.K))
-            at_end = -_abscissa(curves.loop, end.K).value
+            at_end = -curves.loop.abscissa(end.K).value
             v_br = (min(value, at_end), max(value, at_end))
         elif kind in ("interior smooth max", "kink"):
             K_br = (K - 1e-10 * max(_scale(curves), 1e-300), K + 1e-10 * max(_scale(curves), 1e-300))
@@ -2957,7 +2967,7 @@ def _window_design(
             end = min((e for a, b, _ in intervals for e in (a, b)), key=lambda e: abs(e[0] - K))[1]
             if end is not None:  # the end itself is not feasible: the design is 1e-10 (relative) inside
                 K_br = (min(K, end.K), max(K, end.K))
-        sa = _abscissa(curves.loop, K)
+        sa = curves.loop.abscissa(K)
     cert, how = _certify(curves.loop, K, rigorous, max_evals)
     if objective == "margin" and np.isfinite(value):
         tol = 1e-9 * max(value, 1e-300) + (cert.accuracy or 0.0)
@@ -3003,10 +3013,6 @@ def _window_design(
     )
 
 
-def _abscissa(loop: _Family, K: float) -> SpectralAbscissa:
-    return spectral_abscissa(loop.nominal(K))
-
-
 # Samples of each loop's decay rate in a feasible interval for the least rate, at least (its ties and peaks are
 # found between them).
 _LEAST_SAMPLES = 9
@@ -3045,7 +3051,7 @@ def _least_rate_design(
 
     def abscissae(K: float) -> list[SpectralAbscissa]:
         if K not in cache:
-            cache[K] = [_abscissa(loop, K) for loop in loops]
+            cache[K] = [loop.abscissa(K) for loop in loops]
         return cache[K]
 
     def rates(K: float) -> NDArray[np.float64]:
@@ -3239,7 +3245,7 @@ def _sampled_abscissas(loop: _Family, Ks: NDArray[np.float64], first: int) -> li
             near = out[min(computed, key=lambda i: abs(Ks[i] - Ks[j]))]
             if near is not None and near.root is not None and below(_root_bound(Fs[j], near.root)):
                 continue
-        sa = spectral_abscissa(Fs[j])
+        sa = loop.abscissa(float(Ks[j]))
         out[j] = sa
         best = max(best, -sa.value)
     return out
@@ -3356,7 +3362,7 @@ def best_margin(
                 f"best_margin: no crossing curve reaches K = {K:.12g}, but its delay margin is {cert.margin}"
             )
         inf = float("inf")
-        sa = _abscissa(curves.loop, K)
+        sa = curves.loop.abscissa(K)
         return GainDesign(
             K,
             "margin",
@@ -3388,7 +3394,7 @@ def best_margin(
             f"best_margin: the {kind} at K = {K:.15g} gives delta* = {value:.15g} by its equations, the certified "
             f"delay margin there is {cert.margin:.15g}: a crossing curve was missed by the scan"
         )
-    sa = _abscissa(curves.loop, K)
+    sa = curves.loop.abscissa(K)
     return GainDesign(
         K,
         "margin",
@@ -3455,7 +3461,7 @@ def _plateau(
         chain = float(F.principal_part().spectral_bound().upper)  # the rate is at most -c_D (as in the samples)
         if np.isfinite(chain) and -chain + 2e-12 * (1.0 + abs(chain)) < rate - acc:
             return False
-        other = spectral_abscissa(F)
+        other = loop.abscissa(x)
         return other.accuracy is not None and abs(-other.value - rate) <= acc + other.accuracy
 
     step = _PLATEAU_PROBE * max(scale, 1e-300)
@@ -3536,7 +3542,7 @@ def _best_rate(
     exact, near = _finite_time_gains(curves.loop, curves.K_lo, curves.K_hi)
     finite_time = [p for p in exact if any(_up_to_events(p, ends) for ends in intervals)]
     if finite_time:
-        return (finite_time[0], np.inf, "finite time", None, _abscissa(curves.loop, finite_time[0]))
+        return (finite_time[0], np.inf, "finite time", None, curves.loop.abscissa(finite_time[0]))
     best: _Candidate | None = None
     for ends in intervals:
         (K_a, event_a), (K_b, event_b) = ends
@@ -3717,7 +3723,7 @@ def _peak_between(
     if found is not None or halvings == 0:
         return found
     m = 0.5 * (a[0] + b[0])
-    sa = _abscissa(curves.loop, m)
+    sa = curves.loop.abscissa(m)
     if sa.root is None:
         return None
     half = (a, (m, sa)) if paths.slope(m, complex(sa.root)) < 0.0 else ((m, sa), b)
@@ -3775,7 +3781,7 @@ def _two_paths_peak(
         predicted = -top.at(K).real
     except _PathLost:
         return None
-    sa = _abscissa(curves.loop, K)
+    sa = curves.loop.abscissa(K)
     rate = -sa.value
     if abs(rate - predicted) > 1e-9 * (1.0 + abs(rate)) or rate < max(-sa_a.value, -sa_b.value):
         return None
@@ -3851,12 +3857,12 @@ def _bounded_search(curves: _Curves, lo: float, hi: float, scale: float) -> _Can
     from scipy.optimize import minimize_scalar  # scipy.optimize loads on first use (the start-up of the commands)
 
     res = minimize_scalar(
-        lambda K: _abscissa(curves.loop, K).value,
+        lambda K: curves.loop.abscissa(K).value,
         bounds=(lo, hi),
         method="bounded",
         options={"xatol": 1e-10 * max(scale, 1e-300)},
     )
-    sa = _abscissa(curves.loop, float(res.x))
+    sa = curves.loop.abscissa(float(res.x))
     return (float(res.x), -sa.value, "interior smooth max", None, sa)
 
 
@@ -4115,7 +4121,7 @@ def best_decay_rate(
         K_br = plateau
     elif end is not None:  # the supremum: the rate at the end itself (not feasible at a pair birth)
         K_br = (min(K, end.K), max(K, end.K))
-        at_end = -_abscissa(curves.loop, end.K).value
+        at_end = -curves.loop.abscissa(end.K).value
         v_br = (min(rate, at_end), max(rate, at_end))
     elif kind in ("interior smooth max", "kink"):
         K_br = (K - 1e-10 * max(scale, 1e-300), K + 1e-10 * max(scale, 1e-300))
