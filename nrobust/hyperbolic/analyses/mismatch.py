@@ -13,8 +13,8 @@ On an uncoupled plant the paper's laws are ``U = k u(t, 1)`` (no kernel), the ro
 and a certificate is about the PDE itself; so is a ``StateFeedback`` whose gains evaluate in ball
 arithmetic on a plant with constant couplings. With ``rigorous=True`` (:func:`mismatch_region`, the
 corners of :func:`speed_tolerance`), ``U_BS2(K)`` and ``U_BS`` unfiltered on a coupled plant with
-constant couplings take the exact route as well: the gains are Chebyshev fits ``h`` of the traces
-within a proven ``delta`` of the true ones
+constant couplings take the exact route as well: the gains are Chebyshev polynomials ``h`` solving the
+traces' Volterra identity, within a proven ``delta`` of the true ones
 (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`), and since the kernel of the
 law's term is linear in the gains, the loop's ``B`` carries zero kernels whose radii hold that of
 ``h - g`` on the perturbed plant (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.gain_error_terms`):
@@ -186,7 +186,7 @@ def _enclosure(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) 
     if K is None or system.uncoupled or not has_exact_form(system):
         return None
     try:
-        return trace_enclosure(system, K, kernel_grid)
+        return trace_enclosure(system, K)
     except CertificationError as exc:
         return str(exc)
 
@@ -272,18 +272,18 @@ def mismatch_loop(
     evaluate in ball arithmetic on a plant with constant couplings
     (:func:`~nrobust.hyperbolic.loops.controllers.loop_route`). With ``rigorous=True``, ``U_BS2(K)`` and
     ``U_BS`` (unfiltered) on a coupled plant with constant couplings take the exact route too: the law
-    with its traces' Chebyshev fits ``h`` (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`),
-    ``N~``, ``U~`` and the fits' term in closed form, and ``B`` holds two zero kernels whose proven radii hold
-    the kernel of the fits' error (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.gain_error_terms`), so
+    with its traces' Chebyshev polynomials ``h`` (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.trace_enclosure`),
+    ``N~``, ``U~`` and the term of ``h`` in closed form, and ``B`` holds two zero kernels whose proven radii hold
+    the kernel of ``h``'s error (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.gain_error_terms`), so
     a proof in ball arithmetic about ``F = A + B e^{-delta s}`` holds for the PDE under the true law (the
     plant with the speeds as computed in floating point, its loop built with ``tau`` rounded: a proof maps to
     the exact ``tau`` by :func:`~nrobust.hyperbolic.loops.given_plant.to_given_plant`). Otherwise (and where
     the traces are not enclosed, a filtered law, varying couplings) the kernel route: the nominal gains, the
     perturbed ``N~`` and the feedback kernel ``M`` are cubic splines of kernels on ``kernel_grid`` points, so
     ``F`` is a model of the PDE and a certificate about it is about that model (about 3 times cheaper to
-    build than the exact loop of the fits). With ``e_lam = e_mu = 0`` the kernel route's factors are those of
+    build than the exact loop of ``h``). With ``e_lam = e_mu = 0`` the kernel route's factors are those of
     ``loop_factors(system, controller)`` to about ``1e-9`` on the paper's plant at 201 points (the errors of
-    the nominal kernels cancel there; its traces are within about ``2e-6`` of the true ones, so are the fits).
+    the nominal kernels cancel there; its traces are within about ``2e-6`` of the true ones).
 
     Parameters
     ----------
@@ -294,8 +294,8 @@ def mismatch_loop(
     e_lam, e_mu : float
         Relative errors of the speeds, each ``> -1``.
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
-        Kernel grid of the nominal gains and of the perturbed plant's loop (with ``rigorous=True``, of
-        the traces that are fitted; their bound does not rest on it).
+        Kernel grid of the nominal gains and of the perturbed plant's loop (not used by the exact route of
+        ``rigorous=True``).
     rigorous : bool, default False
         Build the loop of the true law for proofs in ball arithmetic (the exact route above).
 
@@ -877,7 +877,7 @@ def _coupled_proof(
 ) -> tuple[SquareProof, float | None]:
     """:func:`prove_coupled_square` for the law of ``controller``, and the bound of its gains' error (None: exact).
 
-    ``U_BS2(K)`` (``U_BS``: ``K = rho``) takes the Chebyshev fits of its traces within their proven bound
+    ``U_BS2(K)`` (``U_BS``: ``K = rho``) takes the Chebyshev polynomials of its traces within their proven bound
     (:func:`~nrobust.hyperbolic.analyses.mismatch_traces.reflection_traces`); the corners' loops of that fitted law
     (exact route) are proven on the window in turn until one is stable, the point the argument starts from.
     """
@@ -886,7 +886,7 @@ def _coupled_proof(
         return prove_coupled_square(system, feedback, eps, delays, corner_loops, max_boxes=max_boxes), None
     nan = math.nan
     try:
-        law, error = reflection_traces(system, K, kernel_grid)
+        law, error = reflection_traces(system, K)
     except CertificationError as exc:
         return SquareProof(
             False, f"the law's kernel traces are not enclosed: {exc}", (nan, nan), nan, nan, 0, nan
@@ -975,8 +975,8 @@ def _exact_scope(
         gains = "the integral gains as Taylor models in ball arithmetic"
     else:
         gains = (
-            f"the law's gains enclosed within {enclosure.error:.1e} of Chebyshev fits of its kernel traces "
-            f"(trace_enclosure: the traces of eq. (53) on the nominal plant, their total variations within "
+            f"the law's gains enclosed within {enclosure.error:.1e} of Chebyshev polynomials (trace_enclosure: "
+            f"the traces of eq. (53) on the nominal plant solved by collocation, their errors' total variations within "
             f"{max(enclosure.variation_u, enclosure.variation_v):.1e}; every enclosure holds the true law)"
         )
     return f"the PDE itself ({kernel}; {gains}; {plants})"
@@ -1289,7 +1289,7 @@ def speed_tolerance(
             )
     if certified == "proven on the square":  # the statement's loop of the PDE, not the corners' route
         scope = "the PDE's loop with the speeds in the square, exact in tau s (no kernel grid)" + (
-            f"; the law's gain kernels the fits of their traces, within their proven bound {traces:.1e}"
+            f"; the law's gain kernels Chebyshev polynomials of their traces, within their proven bound {traces:.1e}"
             if traces
             else ""
         )
