@@ -269,3 +269,16 @@ def test_state_feedback_with_ball_gains_is_mapped_to_each_perturbed_plant() -> N
     assert r != 1
     built = delay_margin(*loop_factors(plant, law), rigorous=True)
     assert region.margins[0, 0] == pytest.approx(float(Fraction(built.margin) * r), rel=0, abs=1e-15)
+
+
+def test_the_kernel_grid_of_the_traces_is_deprecated() -> None:
+    """``trace_enclosure(..., kernel_grid)`` and ``reflection_traces(..., kernel_grid)`` still run, warn, and give the
+    traces solved by collocation (the grid is not used)."""
+    from nrobust.hyperbolic.analyses.mismatch_traces import reflection_traces
+
+    with pytest.warns(DeprecationWarning, match="kernel_grid is deprecated"):
+        old = trace_enclosure(SECOND, K, 201)
+    assert old == trace_enclosure(SECOND, K)
+    with pytest.warns(DeprecationWarning, match="kernel_grid is deprecated"):
+        law, bound = reflection_traces(SECOND, K, 401)
+    assert (law, bound) == (old.law, old.error)
