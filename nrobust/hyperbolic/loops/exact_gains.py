@@ -51,6 +51,22 @@ the bound of its total variation (the same with the derivatives, and twice the s
 each segment's end) its ``variation_radius``. The nodes are multiples of ``ulp(tau)`` (exact
 differences).
 
+The window. An output feedback's observer reads the law's kernel on ``[0, w]``, ``w = 1/mu`` the
+transport time of ``v`` (:mod:`~nrobust.hyperbolic.loops.observer_proof`), where ``K`` is its branch
+``theta < t_v`` alone when ``w <= t_v``. :func:`window_series` gives that branch as one polynomial
+``K^`` in ``theta``: one Taylor model of each gain on all of ``[0, 1]`` (``n = 1``), refused when its
+remainder is not below :data:`~nrobust.hyperbolic.loops.exact_form.TARGET` times the gain's size. With
+``r_g`` the models' remainders, ``P_g`` their sizes and ``Delta = sum_g r_g sup |U_g| + P_g tail_g``
+(``U_g`` the section ``U`` or ``V`` of the gain, ``tail_g`` its dropped terms), on the window
+(``xi_0 = 1 - theta / t_v`` in ``[0, 1]``, an integral over at most a unit length)::
+
+    |K - K^|   <= r_v / t_v + Delta,
+    |K - K^|'  <= r_v' / t_v^2 + Delta / t_v + Delta'
+
+(``K' = -G_v'(xi_0) / t_v^2 + F(xi_0, theta) / t_v + int_{xi_0}^1 dF/dtheta dxi`` with
+``F = G_u U + G_v V``; ``r_v'`` the bound of the model's derivative in ``xi``, ``ORDER`` times the
+remainder over the piece's half-width; ``Delta'`` as ``Delta`` with the sections' slopes).
+
 The plant as given. The loop is built with ``tau_d`` (``1/lam + 1/mu`` in floating point), and
 ``I_g`` of the plant at ``s`` is that of the loop as built at ``r s`` (``r = tau / tau_d``):
 ``r K(r theta)`` is ``K`` with ``t_v``, ``t_u``, ``tau`` divided by ``r`` (each term above is
@@ -105,7 +121,7 @@ from .exact_form import (
     series_tail,
 )
 
-__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel", "gain_terms"]
+__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel", "gain_terms", "window_series"]
 
 #: Taylor order of the models of the gains on each piece of ``[0, 1]``.
 ORDER = 20
@@ -231,6 +247,77 @@ def gain_failure(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: An
     except CertificationError as exc:
         return str(exc)
     return None
+
+
+def window_series(
+    flint: Any, system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any, window: float
+) -> tuple[Any, Any, Any] | None:
+    """``K`` of ``I_g`` on the observer's window ``[0, window]`` as one polynomial, with proven error bounds.
+
+    The branch ``theta < t_v`` of the kernel of :func:`gain_terms` (``t_v = tau_d lam / (lam + mu)``
+    exactly), without the weight ``e^{sigma theta}``, from one Taylor model of each gain on ``[0, 1]``
+    (module notes, "The window").
+
+    Parameters
+    ----------
+    flint : module
+        python-flint (the series is computed at the precision of :func:`gain_terms` or the caller's, the
+        larger).
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+    g_u, g_v : float or callable
+        The integral gains, as for :func:`gain_kernel`.
+    window : float
+        ``w``, at most ``t_v`` (in the loop's time unit).
+
+    Returns
+    -------
+    tuple of (arb_poly, arb, arb) or None
+        The polynomial in ``theta`` and bounds of ``|K - K^|`` and ``|K' - K^'|`` on ``[0, window]``;
+        None when both gains are 0.
+
+    Raises
+    ------
+    ParameterError
+        A plant without the closed form, or a gain not finite on ``[0, L]``.
+    CertificationError
+        ``window`` past ``t_v``, or a gain whose one Taylor model of order :data:`ORDER` on ``[0, L]`` does
+        not reach double precision (or that cannot be evaluated in ball arithmetic).
+    """
+    plant = gain_plant(system, exact_times=True)
+    for name, g in (("g_u", g_u), ("g_v", g_v)):
+        feedback_gain(name, g, plant.length)
+    if _is_zero(g_u) and _is_zero(g_v):
+        return None
+    if Fraction(window) > plant.t_v:
+        raise CertificationError(
+            f"the window {window!r} reaches past the time of flight t_v = tau_d lam / (lam + mu) of the gains' kernel "
+            "(its jump would fall inside the window)"
+        )
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + ORDER * 7 + 64
+    with precision(flint, max(bits, flint.ctx.prec)):
+        arb, arb_poly = flint.arb, flint.arb_poly
+        T, Tv = arb(plant.tau), rational_ball(flint, plant.t_v)
+        models = {name: _models(flint, g, plant, 1, name) for name, g in (("g_u", g_u), ("g_v", g_v))}
+        for name, mod in models.items():
+            if not bool(mod.remainder[0] < TARGET * mod.size[0] + arb(2.0**-60)):
+                raise CertificationError(
+                    f"the gain {name} needs more than one Taylor model of order {ORDER} on [0, L] to reach double "
+                    "precision (the observer's window takes each gain as one polynomial)"
+                )
+        sections = dict(zip(("g_u", "g_v"), _sections(flint, plant, T, Tv, T - Tv)))
+        start = arb_poly([1, -1 / Tv])  # xi_0 = 1 - theta / t_v
+        series = models["g_v"].polys[0](start) * (1 / Tv)
+        spread, slope = arb(0), arb(0)
+        for name, mod in models.items():
+            sec = sections[name]
+            series += _partial(flint, sec.rows, mod.polys[0], start, arb(1))
+            spread += mod.remainder[0] * sec.sup + mod.size[0] * sec.tail
+            slope += mod.remainder[0] * sec.slope + mod.size[0] * sec.tail_slope
+        half = arb(1 / 2 + _WIDEN)  # the model's half-width: its derivative in xi is its derivative in t over it
+        bound = models["g_v"].remainder[0] / Tv + spread
+        dbound = models["g_v"].derivative[0] / (half * Tv * Tv) + spread / Tv + slope
+        return series, arb(bound.upper()), arb(dbound.upper())
 
 
 def _terms(plant: _Plant, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
