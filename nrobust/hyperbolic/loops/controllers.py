@@ -580,8 +580,8 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     too when its observer term is exact (uncoupled plant) or enclosed with a proven error
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant coefficients, a law
     reading ``N~`` or ``U~`` on the window, and a state feedback's integral gains there with one Taylor model
-    each, :func:`~nrobust.hyperbolic.loops.exact_gains.window_series`). A :class:`CollocatedOutputFeedback` is ``"exact"`` on an
-    uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
+    each, :func:`~nrobust.hyperbolic.loops.exact_gains.window_series`). A :class:`CollocatedOutputFeedback` is
+    ``"exact"`` on an uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
     integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
     products enclosed in ball arithmetic:
     :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`). ``"observer"``: an output
@@ -839,10 +839,11 @@ def _gains_scope(system: Any, law: Controller) -> str:
     terms = gain_terms(system, law.g_u, law.g_v)
     if not terms:
         return ""
-    moved = ", its jump at t_v (not a double) held by a proven term on the ulp(tau) next to it" if len(terms) > 1 else ""
+    moved = ", its jump at t_v (not a double) held by a proven term on the ulp(tau) next to it"
     return (
         "; the integral gains as Taylor models in ball arithmetic, their kernel within a proven "
-        f"{upper_bound_text(terms[0].radius, 2)}{moved} and on the observer's window one polynomial with proven tails"
+        f"{upper_bound_text(terms[0].radius, 2)}{moved if len(terms) > 1 else ''} and on the observer's window one "
+        "polynomial with proven tails"
     )
 
 
@@ -1043,13 +1044,13 @@ def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) 
             system,
         )
     grid = _observer_grid(system, controller, kernel_grid)
+    law = unfiltered(controller.controller)
     if grid is None and _proven_observer(system, controller):
-        law = unfiltered(controller.controller)
         return proven_observer_term(system, _window_law(law), _window_gains(law)), grid  # type: ignore[arg-type]
     open_loop, _ = loop_factors(system, OpenLoop(), grid)
-    _, law = loop_factors(system, unfiltered(controller.controller), grid)
+    _, factor = loop_factors(system, law, grid)
     plant = normalize(system, OpenLoop())[0]
-    return observer_term(open_loop, law, 1.0 / plant.mu), grid
+    return observer_term(open_loop, factor, 1.0 / plant.mu), grid
 
 
 def _output_feedback_loop(
