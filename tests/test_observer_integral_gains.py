@@ -39,7 +39,8 @@ from nrobust.balls import ball_function
 from nrobust.hyperbolic import Hyperbolic2x2, StateFeedback
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope
 from nrobust.hyperbolic.loops.exact_gains import window_series
-from nrobust.hyperbolic.loops.observer_proof import proven_observer_failure, proven_observer_term
+from nrobust.hyperbolic.loops.observer_proof import proof_window, proven_observer_failure, proven_observer_term, window
+from nrobust.hyperbolic.plants.general import GeneralHyperbolic2x2
 from nrobust.reports.certificate import PROVEN
 
 pytest.importorskip("flint")
@@ -343,6 +344,37 @@ def test_the_certificate_holds_for_the_pde():
     assert "the PDE itself" in cert.scope and "a model of the PDE" not in cert.scope
     _, truth = _pde_margin(SECOND, cert.margin.omega)
     assert mp.mpf(cert.margin.margin_ball[0]) <= truth <= mp.mpf(cert.margin.margin_ball[1])
+
+
+def test_a_window_rounded_past_the_gains_jump_is_taken_below_it():
+    """``lam, mu = 0.3, 0.7``: the double ``1/mu`` lies above ``t_v = tau_d lam / (lam + mu)`` (exact), where the
+    gains' kernel jumps; the proven term takes the largest double below it as the window, the scope prints that
+    double, and the margin ball (width 2e-12) holds the PDE's margin (the rounding of ``tau`` and the window, 1e-16
+    relative, is far inside it)."""
+    case = ((0.3, 0.7, 0.4, 0.5, 1.0, 0.3), -0.6, (0.0, 0.2), (0.1, 0.0))
+    plant, controller = _plant_law(case)
+    gains = (controller.controller.g_u, controller.controller.g_v)
+    assert proof_window(plant, gains) == np.nextafter(window(plant), 0.0) and proof_window(plant) == window(plant)
+    assert loop_route(plant, controller) == "exact"
+    margin = nr.delay_margin(plant, controller, rigorous=True)
+    _, truth = _pde_margin(case, margin.omega)
+    assert mp.mpf(margin.margin_ball[0]) <= truth <= mp.mpf(margin.margin_ball[1])
+    assert margin.scope.startswith("the PDE itself")
+    assert "the window 1/mu as the double 1.4285714285714284" in margin.scope
+
+
+def test_a_general_plant_with_constant_coefficients_is_proven_too():
+    """A ``GeneralHyperbolic2x2`` with constant coefficients: the gains' kernel with its weights on the normal form's
+    window (rounded below ``t_v``), the route exact, the scope the normal form's as computed; the proven margin
+    ball holds the floating-point route's margin (a consistency check: no 40-digit oracle of the general plant's
+    observer here)."""
+    plant = GeneralHyperbolic2x2(lam=0.3, mu=0.7, a=0.1, b=0.2, c=0.3, d=-0.2, q=0.6, rho=0.7, length=1.3)
+    controller = nr.OutputFeedback(StateFeedback(-0.3, g_u=lambda x: -0.3 * x, g_v=-0.2))
+    assert loop_route(plant, controller) == "exact"
+    margin = nr.delay_margin(plant, controller, rigorous=True)
+    assert margin.scope.startswith("the PDE itself") and "the normal form's window 1/mu as the double" in margin.scope
+    floating = nr.delay_margin(plant, controller)
+    assert margin.margin_ball[0] <= floating.margin <= margin.margin_ball[1]
 
 
 def test_a_gain_that_one_taylor_model_does_not_reach_keeps_the_model_and_says_so():

@@ -77,12 +77,12 @@ from .exact_form import (
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
 from .observer_proof import (
+    proof_window,
     proven_collocated_failure,
     proven_collocated_products,
     proven_observer_failure,
     proven_observer_term,
 )
-from .observer_proof import window as observer_window
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -1530,7 +1530,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
         return rounded_parts(system, controller.controller, kernel_grid)
     if isinstance(controller, OutputFeedback) and _proven_observer(system, controller):
-        w = observer_window(system)
+        w = proof_window(system, _window_gains(unfiltered(controller.controller)))
         exact = isinstance(system, Hyperbolic2x2) and Fraction(w) == 1 / Fraction(system.mu)
         if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
             return ""

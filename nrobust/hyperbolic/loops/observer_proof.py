@@ -54,13 +54,15 @@ for the derivative), so ``b`` becomes ``e^{|sigma| tau} b + sup |S_0| r`` and ``
 ``e^{|sigma| tau} (|sigma| b + b') + sup |S_0'| r + sup |S_0| r'``.
 
 What stays a double is what the state feedback's exact loop takes as such: ``tau`` and the window
-``1/mu`` (nodes of the loop). The nodes of the stored terms are doubles whose differences are exact
-(checked; Sterbenz's lemma on segments no longer than the interval's start), each piece expanded from
-its own nodes. Where ``tau + w`` is not a double the last interval ends at the double below it,
-and a term of zero kernel on the next ulp holds the rest of ``g`` with the radius
-``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there) and the variation that
-plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is held
-(:mod:`~nrobust.hyperbolic.loops.exact_gains`).
+``1/mu`` (nodes of the loop). With integral gains the window must not pass the time of flight ``t_v`` of the
+gains' kernel (``tau_d lam / (lam + mu)`` exactly, where it jumps): where the double ``1/mu`` lies above it
+(rounding), the window is the largest double not above ``t_v`` (:func:`proof_window`; the scope prints it).
+The nodes of the stored terms are doubles whose differences are exact (checked; Sterbenz's lemma on
+segments no longer than the interval's start), each piece expanded from its own nodes. Where ``tau + w`` is
+not a double the last interval ends at the double below it, and a term of zero kernel on the next ulp holds
+the rest of ``g`` with the radius ``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there)
+and the variation that plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is
+held (:mod:`~nrobust.hyperbolic.loops.exact_gains`).
 
 **The collocated observer.** Under ``StateFeedback(k)`` the collocated observer's loop is made of
 ``(1 - Phi) u_factor`` and ``u_factor^2`` (:mod:`~nrobust.hyperbolic.loops.collocated`, "Closed forms"),
@@ -95,7 +97,7 @@ from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
-from .exact_gains import window_series
+from .exact_gains import gain_plant, window_series
 
 __all__ = [
     "DEGREE",
@@ -106,6 +108,7 @@ __all__ = [
     "proven_collocated_products",
     "proven_observer_failure",
     "proven_observer_term",
+    "proof_window",
     "window",
 ]
 
@@ -189,6 +192,20 @@ def window(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> float:
     return 1.0 / plant.mu
 
 
+def proof_window(system: Hyperbolic2x2 | GeneralHyperbolic2x2, gains: tuple[Any, Any] = (0.0, 0.0)) -> float:
+    """The window :func:`proven_observer_term` builds ``G`` on: :func:`window`, or with integral gains whose kernel
+    jumps below it (its ``t_v = tau_d lam / (lam + mu)`` exactly, rounding), the largest double not above ``t_v``
+    (module notes)."""
+    w = window(system)
+    if all(not callable(g) and float(g) == 0.0 for g in gains):
+        return w
+    t_v = gain_plant(system, exact_times=True).t_v
+    if Fraction(w) <= t_v:
+        return w
+    below = float(t_v)
+    return math.nextafter(below, -math.inf) if Fraction(below) > t_v else below
+
+
 def _checked_law(law: Any) -> tuple[str, float]:
     """``law`` as ``(kind, c)``, or a :class:`~nrobust.errors.ParameterError`."""
     admissible = '("N" or "U", a finite real c): the law\'s kernel c N~ or c U~ on the window'
@@ -256,7 +273,7 @@ def _attempt(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], gains: tuple[Any, Any]
 ) -> ProvenObserverTerm | str:
     """The enclosure, or the reason it failed."""
-    tau, w = closed_form_parameters(system)[0], window(system)
+    tau, w = closed_form_parameters(system)[0], proof_window(system, gains)
     return _in_balls(system, lambda flint: _enclose(flint, system, law, gains, tau, w))
 
 
