@@ -21,8 +21,8 @@ Oracle, sharing no code with the package, at 40 digits (the structure of ``test_
   method), checked against 48 points; crossings ``|A_o(i w)| = |B_o(i w)|`` and roots by ``mpmath.findroot``.
 
 Before the change the observer term of such a law was floating point and the scope "a model of the PDE": the scope,
-route and certificate tests fail there; the model's balls held the PDE's values (measured, see the report of the
-change), so the containment tests pass on both.
+route and certificate tests fail there; the model's balls held the PDE's values (measured: both margin balls and the
+abscissa bracket at ``delta = 0.3``), so the containment tests pass on both.
 """
 
 from __future__ import annotations
