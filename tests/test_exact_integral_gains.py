@@ -204,8 +204,8 @@ def test_gains_that_balls_cannot_evaluate_take_the_kernel_route():
     assert loop_route(plant, law(), kernel_grid=101) == "kernels"
     assert loop_route(plant, StateFeedback(-1.2, 0.1, 0.0)) == "exact"
     assert gain_kernel(plant, 0.0, 0.0) is None
-    # an output feedback whose law has integral gains: the exact law with the observer's model term
-    assert loop_route(plant, OutputFeedback(law())) == "observer"
+    # an output feedback whose law has integral gains: the observer's term proven too (test_observer_integral_gains)
+    assert loop_route(plant, OutputFeedback(law())) == "exact"
 
 
 def test_kernel_is_stored_with_double_precision_bounds():

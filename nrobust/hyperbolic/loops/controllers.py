@@ -77,12 +77,12 @@ from .exact_form import (
 from .exact_gains import gain_failure, gain_terms
 from .feedback import feedback_factor
 from .observer_proof import (
+    proof_window,
     proven_collocated_failure,
     proven_collocated_products,
     proven_observer_failure,
     proven_observer_term,
 )
-from .observer_proof import window as observer_window
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
 from .varying_proof import has_varying_proof, varying_proof
@@ -579,8 +579,9 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
     too when its observer term is exact (uncoupled plant) or enclosed with a proven error
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: constant coefficients, a law
-    reading ``N~`` or ``U~`` on the window). A :class:`CollocatedOutputFeedback` is ``"exact"`` on an
-    uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
+    reading ``N~`` or ``U~`` on the window, and a state feedback's integral gains there with one Taylor model
+    each, :func:`~nrobust.hyperbolic.loops.exact_gains.window_series`). A :class:`CollocatedOutputFeedback` is
+    ``"exact"`` on an uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
     integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
     products enclosed in ball arithmetic:
     :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`). ``"observer"``: an output
@@ -657,12 +658,20 @@ def _scaled_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
 def _window_law(law: Controller) -> tuple[str, float] | None:
     """The unfiltered ``law``'s kernel on the measurement's window, for
     :func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`: ``("N", 1)`` for ``m = N~``
-    (U_BS, U_BS2(K)), ``("U", k)`` for ``m = k U~`` (``StateFeedback(k)`` without integral gains); None otherwise."""
+    (U_BS, U_BS2(K)), ``("U", k)`` for ``m = k U~`` (``StateFeedback(k, g_u, g_v)``, its integral gains'
+    kernel added by :func:`_window_gains`); None otherwise."""
     if isinstance(law, (FiniteTimeController, ReflectionController)):
         return ("N", 1.0)
-    if isinstance(law, StateFeedback) and not _integral_gains(law):
+    if isinstance(law, StateFeedback):
         return ("U", float(law.k))
     return None
+
+
+def _window_gains(law: Controller) -> tuple[Any, Any]:
+    """The integral gains ``(g_u, g_v)`` of the unfiltered ``law`` (zeros for a law without them)."""
+    if isinstance(law, StateFeedback):
+        return (law.g_u, law.g_v)
+    return (0.0, 0.0)
 
 
 def _proven_observer(system: Any, controller: OutputFeedback) -> bool:
@@ -670,7 +679,8 @@ def _proven_observer(system: Any, controller: OutputFeedback) -> bool:
     uncoupled plant, where the observer needs no term)."""
     if _uncoupled(system):
         return False
-    return proven_observer_failure(system, _window_law(unfiltered(controller.controller))) is None
+    law = unfiltered(controller.controller)
+    return proven_observer_failure(system, _window_law(law), _window_gains(law)) is None
 
 
 def _uncoupled(system: Any) -> bool:
@@ -806,7 +816,8 @@ def _output_feedback_scope(
     if grid is None and _proven_observer(system, controller):
         radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
         return (
-            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(radius, 2)}; the observer's term "
+            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(radius, 2)}"
+            f"{_gains_scope(system, controller.controller)}; the observer's term "
             f"(1 - Phi) H enclosed in ball arithmetic within a proven {upper_bound_text(term.accuracy, 2)}"
             f"{_LAST_ULP if len(term.product.distributed) > 3 else ''}, which every enclosure includes; "
             f"{_given(system, controller, kernel_grid)})"
@@ -819,6 +830,21 @@ def _output_feedback_scope(
         radius = max((d.radius for d in loop_factors(system, OpenLoop(), None)[0].distributed), default=0.0)
         return f"a model of the PDE: N~ in closed form within a proven {radius:.1e}, and {observer}"
     return f"{inner}; {observer}"
+
+
+def _gains_scope(system: Any, law: Controller) -> str:
+    """:func:`_output_feedback_scope`'s words on a state feedback's integral gains (``""`` without them)."""
+    if not (isinstance(law, StateFeedback) and _integral_gains(law)):
+        return ""
+    terms = gain_terms(system, law.g_u, law.g_v)
+    if not terms:
+        return ""
+    moved = ", its jump at t_v (not a double) held by a proven term on the ulp(tau) next to it"
+    return (
+        "; the integral gains as Taylor models in ball arithmetic, their kernel within a proven "
+        f"{upper_bound_text(terms[0].radius, 2)}{moved if len(terms) > 1 else ''} and on the observer's window one "
+        "polynomial with proven tails"
+    )
 
 
 #: :func:`_output_feedback_scope`'s words for the term on the ulp past ``tau + w`` (not a double) of a proven ``G``.
@@ -1018,12 +1044,13 @@ def _observer(system: Any, controller: OutputFeedback, kernel_grid: int | None) 
             system,
         )
     grid = _observer_grid(system, controller, kernel_grid)
+    law = unfiltered(controller.controller)
     if grid is None and _proven_observer(system, controller):
-        return proven_observer_term(system, _window_law(unfiltered(controller.controller))), grid  # type: ignore[arg-type]
+        return proven_observer_term(system, _window_law(law), _window_gains(law)), grid  # type: ignore[arg-type]
     open_loop, _ = loop_factors(system, OpenLoop(), grid)
-    _, law = loop_factors(system, unfiltered(controller.controller), grid)
+    _, factor = loop_factors(system, law, grid)
     plant = normalize(system, OpenLoop())[0]
-    return observer_term(open_loop, law, 1.0 / plant.mu), grid
+    return observer_term(open_loop, factor, 1.0 / plant.mu), grid
 
 
 def _output_feedback_loop(
@@ -1503,7 +1530,7 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     ):  # the state feedback's loop, or its loop and an exact observer term in tau s: as the law's
         return rounded_parts(system, controller.controller, kernel_grid)
     if isinstance(controller, OutputFeedback) and _proven_observer(system, controller):
-        w = observer_window(system)
+        w = proof_window(system, _window_gains(unfiltered(controller.controller)))
         exact = isinstance(system, Hyperbolic2x2) and Fraction(w) == 1 / Fraction(system.mu)
         if exact and tau_ratio(system) == 1:  # the loop as built is the plant's
             return ""

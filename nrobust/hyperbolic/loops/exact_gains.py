@@ -51,6 +51,23 @@ the bound of its total variation (the same with the derivatives, and twice the s
 each segment's end) its ``variation_radius``. The nodes are multiples of ``ulp(tau)`` (exact
 differences).
 
+The window. An output feedback's observer reads the law's kernel on ``[0, w]``, ``w = 1/mu`` the
+transport time of ``v`` (:mod:`~nrobust.hyperbolic.loops.observer_proof`), where ``K`` is its branch
+``theta < t_v`` alone when ``w <= t_v``. :func:`window_series` gives that branch as one polynomial
+``K^`` in ``theta``: one Taylor model of each gain on all of ``[0, 1]`` (``n = 1``, of the first order of
+:data:`WINDOW_ORDERS` that reaches double precision), refused when its
+remainder is not below :data:`~nrobust.hyperbolic.loops.exact_form.TARGET` times the gain's size. With
+``r_g`` the models' remainders, ``P_g`` their sizes and ``Delta = sum_g r_g sup |U_g| + P_g tail_g``
+(``U_g`` the section ``U`` or ``V`` of the gain, ``tail_g`` its dropped terms), on the window
+(``xi_0 = 1 - theta / t_v`` in ``[0, 1]``, an integral over at most a unit length)::
+
+    |K - K^|   <= r_v / t_v + Delta,
+    |K - K^|'  <= r_v' / t_v^2 + Delta / t_v + Delta'
+
+(``K' = -G_v'(xi_0) / t_v^2 + F(xi_0, theta) / t_v + int_{xi_0}^1 dF/dtheta dxi`` with
+``F = G_u U + G_v V``; ``r_v'`` the bound of the model's derivative in ``xi``, its order times the
+remainder over the piece's half-width; ``Delta'`` as ``Delta`` with the sections' slopes).
+
 The plant as given. The loop is built with ``tau_d`` (``1/lam + 1/mu`` in floating point), and
 ``I_g`` of the plant at ``s`` is that of the loop as built at ``r s`` (``r = tau / tau_d``):
 ``r K(r theta)`` is ``K`` with ``t_v``, ``t_u``, ``tau`` divided by ``r`` (each term above is
@@ -105,10 +122,12 @@ from .exact_form import (
     series_tail,
 )
 
-__all__ = ["MAX_GAIN_PIECES", "ORDER", "gain_failure", "gain_kernel", "gain_terms"]
+__all__ = ["MAX_GAIN_PIECES", "ORDER", "WINDOW_ORDERS", "gain_failure", "gain_kernel", "gain_terms", "window_series"]
 
 #: Taylor order of the models of the gains on each piece of ``[0, 1]``.
 ORDER = 20
+#: Orders tried for the one Taylor model of each gain on ``[0, 1]`` of :func:`window_series`.
+WINDOW_ORDERS = (ORDER, 2 * ORDER, 4 * ORDER)
 #: Most pieces of ``[0, 1]`` tried for the models of the gains.
 MAX_GAIN_PIECES = 64
 # Each model is valid on its piece widened by this much on both sides (the nodes of theta,
@@ -233,6 +252,85 @@ def gain_failure(system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: An
     return None
 
 
+def window_series(
+    flint: Any, system: Hyperbolic2x2 | GeneralHyperbolic2x2, g_u: Any, g_v: Any, window: float
+) -> tuple[Any, Any, Any] | None:
+    """``K`` of ``I_g`` on the observer's window ``[0, window]`` as one polynomial, with proven error bounds.
+
+    The branch ``theta < t_v`` of the kernel of :func:`gain_terms` (``t_v = tau_d lam / (lam + mu)``
+    exactly), without the weight ``e^{sigma theta}``, from one Taylor model of each gain on ``[0, 1]``
+    (module notes, "The window").
+
+    Parameters
+    ----------
+    flint : module
+        python-flint (the series is computed at the precision of :func:`gain_terms` or the caller's, the
+        larger).
+    system : Hyperbolic2x2 or GeneralHyperbolic2x2
+        A plant with constant coefficients.
+    g_u, g_v : float or callable
+        The integral gains, as for :func:`gain_kernel`.
+    window : float
+        ``w``, at most ``t_v`` (in the loop's time unit).
+
+    Returns
+    -------
+    tuple of (arb_poly, arb, arb) or None
+        The polynomial in ``theta`` and bounds of ``|K - K^|`` and ``|K' - K^'|`` on ``[0, window]``;
+        None when both gains are 0.
+
+    Raises
+    ------
+    ParameterError
+        A plant without the closed form, or a gain not finite on ``[0, L]``.
+    CertificationError
+        ``window`` past ``t_v``, or a gain whose one Taylor model of order ``WINDOW_ORDERS[-1]`` on ``[0, L]`` does
+        not reach double precision (or that cannot be evaluated in ball arithmetic).
+    """
+    plant = gain_plant(system, exact_times=True)
+    for name, g in (("g_u", g_u), ("g_v", g_v)):
+        feedback_gain(name, g, plant.length)
+    if _is_zero(g_u) and _is_zero(g_v):
+        return None
+    if Fraction(window) > plant.t_v:
+        raise CertificationError(
+            f"the window {window!r} reaches past the time of flight t_v = tau_d lam / (lam + mu) of the gains' kernel "
+            "(its jump would fall inside the window)"
+        )
+    bits = PRECISION + math.ceil(12.0 * math.sqrt(abs(float(plant.p * plant.m)))) + WINDOW_ORDERS[-1] * 7 + 64
+    with precision(flint, max(bits, flint.ctx.prec)):
+        arb, arb_poly = flint.arb, flint.arb_poly
+        T, Tv = arb(plant.tau), rational_ball(flint, plant.t_v)
+        models = {name: _window_model(flint, g, plant, name) for name, g in (("g_u", g_u), ("g_v", g_v))}
+        sections = dict(zip(("g_u", "g_v"), _sections(flint, plant, T, Tv, T - Tv)))
+        start = arb_poly([1, -1 / Tv])  # xi_0 = 1 - theta / t_v
+        series = models["g_v"].polys[0](start) * (1 / Tv)
+        spread, slope = arb(0), arb(0)
+        for name, mod in models.items():
+            sec = sections[name]
+            series += _partial(flint, sec.rows, mod.polys[0], start, arb(1))
+            spread += mod.remainder[0] * sec.sup + mod.size[0] * sec.tail
+            slope += mod.remainder[0] * sec.slope + mod.size[0] * sec.tail_slope
+        half = arb(1 / 2 + _WIDEN)  # the model's half-width: its derivative in xi is its derivative in t over it
+        bound = models["g_v"].remainder[0] / Tv + spread
+        dbound = models["g_v"].derivative[0] / (half * Tv * Tv) + spread / Tv + slope
+        return series, arb(bound.upper()), arb(dbound.upper())
+
+
+def _window_model(flint: Any, g: Any, plant: _Plant, name: str) -> _Models:
+    """One Taylor model of the effective gain on ``[0, 1]``, of the first order of :data:`WINDOW_ORDERS` whose
+    remainder is below :data:`~nrobust.hyperbolic.loops.exact_form.TARGET` times its size."""
+    arb = flint.arb
+    for order in WINDOW_ORDERS:
+        model = _models(flint, g, plant, 1, name, order)
+        if bool(model.remainder[0] < TARGET * model.size[0] + arb(2.0**-60)):
+            return model
+    raise CertificationError(
+        f"the gain {name} needs more than one Taylor model of order {WINDOW_ORDERS[-1]} on [0, L] to reach double "
+        "precision (the observer's window takes each gain as one polynomial)"
+    )
+
+
 def _terms(plant: _Plant, g_u: Any, g_v: Any) -> tuple[DistributedDelay, ...]:
     for name, g in (("g_u", g_u), ("g_v", g_v)):
         feedback_gain(name, g, plant.length)
@@ -265,7 +363,7 @@ class _Models:
     size: list[Any]  # sup |P|
 
 
-def _call(flint: Any, g: Any, x: Any, name: str) -> Any:
+def _call(flint: Any, g: Any, x: Any, name: str, order: int = ORDER) -> Any:
     """``g`` at the series ``x``, as an ``arb_series`` (CertificationError when it is not one).
 
     ``g`` is called on a one-element object array holding ``x``: arithmetic and numpy's
@@ -274,7 +372,7 @@ def _call(flint: Any, g: Any, x: Any, name: str) -> Any:
     """
     arb, arb_series = flint.arb, flint.arb_series
     if not callable(g):
-        return arb_series([arb(float(g))], prec=ORDER + 1)
+        return arb_series([arb(float(g))], prec=order + 1)
     holder = np.empty(1, dtype=object)
     holder[0] = x
     try:
@@ -288,28 +386,28 @@ def _call(flint: Any, g: Any, x: Any, name: str) -> Any:
     if isinstance(out, arb_series):
         return out
     if isinstance(out, (int, float, arb)) and not isinstance(out, bool):
-        return arb_series([arb(float(out)) if not isinstance(out, arb) else out], prec=ORDER + 1)
+        return arb_series([arb(float(out)) if not isinstance(out, arb) else out], prec=order + 1)
     raise CertificationError(
         f"the gain {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series it gave "
         f"{type(out).__name__})"
     )
 
 
-def _effective(flint: Any, g: Any, plant: _Plant, xi: Any, name: str) -> list[Any]:
-    """The coefficients of ``G(xi) = L e^{-E (1 - xi)} g(L xi)`` for the series ``xi``, padded to ``ORDER + 1``."""
+def _effective(flint: Any, g: Any, plant: _Plant, xi: Any, name: str, order: int = ORDER) -> list[Any]:
+    """The coefficients of ``G(xi) = L e^{-E (1 - xi)} g(L xi)`` for the series ``xi``, padded to ``order + 1``."""
     arb = flint.arb
     cap = flint.ctx.cap
-    flint.ctx.cap = ORDER + 1  # series functions (exp, cos, ...) truncate at the global cap
+    flint.ctx.cap = order + 1  # series functions (exp, cos, ...) truncate at the global cap
     try:
-        out = _call(flint, g, xi * plant.length, name) * plant.length
+        out = _call(flint, g, xi * plant.length, name, order) * plant.length
         if plant.weight:
             out = out * ((xi - 1) * rational_ball(flint, plant.weight)).exp()
     finally:
         flint.ctx.cap = cap
-    if out.prec < ORDER + 1:  # a coefficient not computed is unknown, not zero
-        raise CertificationError(f"the gain {name} gave a series truncated before the order {ORDER} of its model")
-    coefs = list(out.coeffs())[: ORDER + 1]
-    coefs += [arb(0)] * (ORDER + 1 - len(coefs))  # computed to O(t^(ORDER + 1)): the rest are zeros
+    if out.prec < order + 1:  # a coefficient not computed is unknown, not zero
+        raise CertificationError(f"the gain {name} gave a series truncated before the order {order} of its model")
+    coefs = list(out.coeffs())[: order + 1]
+    coefs += [arb(0)] * (order + 1 - len(coefs))  # computed to O(t^(order + 1)): the rest are zeros
     if not all(c.is_finite() for c in coefs):
         raise CertificationError(
             f"the gain {name} is not enclosed by finite balls on [0, L] (not analytic there, or too large)"
@@ -317,15 +415,16 @@ def _effective(flint: Any, g: Any, plant: _Plant, xi: Any, name: str) -> list[An
     return coefs
 
 
-def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str) -> _Models:
+def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str, order: int = ORDER) -> _Models:
+    """Taylor models of order ``order`` of the effective gain on ``n`` pieces of ``[0, 1]`` (module notes)."""
     arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
     out = _Models([], [], [], [])
     values = feedback_gain(name, g, plant.length)
     for j in range(n):
         c, r = (2 * j + 1) / (2 * n), 1 / (2 * n) + _WIDEN
-        head = _effective(flint, g, plant, arb_series([arb(c), arb(r)], prec=ORDER + 1), name)[:ORDER]
+        head = _effective(flint, g, plant, arb_series([arb(c), arb(r)], prec=order + 1), name, order)[:order]
         try:
-            top = _effective(flint, g, plant, arb_series([arb(c, r), arb(r)], prec=ORDER + 1), name)[ORDER]
+            top = _effective(flint, g, plant, arb_series([arb(c, r), arb(r)], prec=order + 1), name, order)[order]
         except CertificationError:  # the ball of the whole piece is too wide (e.g. a denominator about 0)
             top = arb("inf")
         floating = (
@@ -338,7 +437,7 @@ def _models(flint: Any, g: Any, plant: _Plant, n: int, name: str) -> _Models:
             )
         out.polys.append(arb_poly(head)(arb_poly([-arb(c) / arb(r), 1 / arb(r)])))
         out.remainder.append(abs(top))
-        out.derivative.append(ORDER * abs(top))
+        out.derivative.append(order * abs(top))
         out.size.append(sum((abs(x) for x in head), arb(0)))
     return out
 

@@ -5,7 +5,10 @@ law's kernel ``m`` on the measurement's window ``[0, w]`` (``w = 1/mu``;
 :mod:`~nrobust.hyperbolic.loops.output_feedback`) are truncated series ``S``, ``S_m`` in ``nu``
 with ball coefficients and proven tails: ``|N~ - S| <= b``, ``|N~' - S'| <= b'`` on ``[0, tau]``
 (:func:`~nrobust.hyperbolic.loops.exact_form.closed_form_series`; ``m = N~`` for U_BS and U_BS2(K),
-``m = k U~`` for a state feedback ``U = k u(t, 1)``). The law applied to the prediction,
+``m = k U~`` for a state feedback ``U = k u(t, 1)``; with integral gains ``m = k U~ + e^{sigma nu} K``,
+``K`` the branch before ``t_v`` of their kernel as one polynomial with proven tails,
+:func:`~nrobust.hyperbolic.loops.exact_gains.window_series`, ``b_m``, ``b_m'`` the sums of the two
+kernels' bounds). The law applied to the prediction,
 ``h = m - m * r`` (``r`` the resolvent of ``N~`` on the window), solves the convolution equation
 of the second kind ``h + N~ * h = m`` on ``[0, w]`` (``h + h * N~ = m - m * r + m * N~ - m * (r + r * N~)
 = m``), and ``G``'s kernel is
@@ -51,13 +54,15 @@ for the derivative), so ``b`` becomes ``e^{|sigma| tau} b + sup |S_0| r`` and ``
 ``e^{|sigma| tau} (|sigma| b + b') + sup |S_0'| r + sup |S_0| r'``.
 
 What stays a double is what the state feedback's exact loop takes as such: ``tau`` and the window
-``1/mu`` (nodes of the loop). The nodes of the stored terms are doubles whose differences are exact
-(checked; Sterbenz's lemma on segments no longer than the interval's start), each piece expanded from
-its own nodes. Where ``tau + w`` is not a double the last interval ends at the double below it,
-and a term of zero kernel on the next ulp holds the rest of ``g`` with the radius
-``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there) and the variation that
-plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is held
-(:mod:`~nrobust.hyperbolic.loops.exact_gains`).
+``1/mu`` (nodes of the loop). With integral gains the window must not pass the time of flight ``t_v`` of the
+gains' kernel (``tau_d lam / (lam + mu)`` exactly, where it jumps): where the double ``1/mu`` lies above it
+(rounding), the window is the largest double not above ``t_v`` (:func:`proof_window`; the scope prints it).
+The nodes of the stored terms are doubles whose differences are exact (checked; Sterbenz's lemma on
+segments no longer than the interval's start), each piece expanded from its own nodes. Where ``tau + w`` is
+not a double the last interval ends at the double below it, and a term of zero kernel on the next ulp holds
+the rest of ``g`` with the radius ``(|rho q| + (sup |S| + b) w) (sup |h^| + E)`` (a bound of ``|g|`` there)
+and the variation that plus the ulp times a bound of ``|g'|``, as the jump of an integral gain's kernel is
+held (:mod:`~nrobust.hyperbolic.loops.exact_gains`).
 
 **The collocated observer.** Under ``StateFeedback(k)`` the collocated observer's loop is made of
 ``(1 - Phi) u_factor`` and ``u_factor^2`` (:mod:`~nrobust.hyperbolic.loops.collocated`, "Closed forms"),
@@ -92,6 +97,7 @@ from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .exact_form import closed_form_parameters, closed_form_series, exact_ratios, gain_balls, has_exact_form
+from .exact_gains import gain_plant, window_series
 
 __all__ = [
     "DEGREE",
@@ -102,6 +108,7 @@ __all__ = [
     "proven_collocated_products",
     "proven_observer_failure",
     "proven_observer_term",
+    "proof_window",
     "window",
 ]
 
@@ -147,7 +154,9 @@ class ProvenObserverTerm:
     window_error: float
 
 
-def proven_observer_failure(system: Any, law: tuple[str, float] | None) -> str | None:
+def proven_observer_failure(
+    system: Any, law: tuple[str, float] | None, gains: tuple[Any, Any] = (0.0, 0.0)
+) -> str | None:
     """Why :func:`proven_observer_term` cannot enclose ``G`` for this plant and law (None when it can).
 
     Parameters
@@ -157,13 +166,15 @@ def proven_observer_failure(system: Any, law: tuple[str, float] | None) -> str |
     law : tuple of (str, float) or None
         The law's kernel on the window: ``("N", c)`` for ``m = c N~``, ``("U", c)`` for ``m = c U~``;
         None for a law the enclosure does not cover.
+    gains : tuple, default (0.0, 0.0)
+        The integral gains ``(g_u, g_v)`` of a state feedback, whose kernel adds to ``m``.
     """
     if law is None:
-        return "a law whose kernel on the window is not c N~ or c U~ (integral gains)"
+        return "a law whose kernel on the window is not c N~ or c U~ (plus the kernel of integral gains)"
     law = _checked_law(law)
     if not _covered(system):
         return "a plant other than Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients"
-    out = _attempt(system, law)
+    out = _cached_attempt(system, law, gains)
     return out if isinstance(out, str) else None
 
 
@@ -181,6 +192,20 @@ def window(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> float:
     return 1.0 / plant.mu
 
 
+def proof_window(system: Hyperbolic2x2 | GeneralHyperbolic2x2, gains: tuple[Any, Any] = (0.0, 0.0)) -> float:
+    """The window :func:`proven_observer_term` builds ``G`` on: :func:`window`, or with integral gains whose kernel
+    jumps below it (its ``t_v = tau_d lam / (lam + mu)`` exactly, rounding), the largest double not above ``t_v``
+    (module notes)."""
+    w = window(system)
+    if all(not callable(g) and float(g) == 0.0 for g in gains):
+        return w
+    t_v = gain_plant(system, exact_times=True).t_v
+    if Fraction(w) <= t_v:
+        return w
+    below = float(t_v)
+    return math.nextafter(below, -math.inf) if Fraction(below) > t_v else below
+
+
 def _checked_law(law: Any) -> tuple[str, float]:
     """``law`` as ``(kind, c)``, or a :class:`~nrobust.errors.ParameterError`."""
     admissible = '("N" or "U", a finite real c): the law\'s kernel c N~ or c U~ on the window'
@@ -192,7 +217,9 @@ def _checked_law(law: Any) -> tuple[str, float]:
     return (law[0], float(c))
 
 
-def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm:
+def proven_observer_term(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], gains: tuple[Any, Any] = (0.0, 0.0)
+) -> ProvenObserverTerm:
     """``G`` of an output feedback on a plant with constant coefficients, with proven error bounds (module notes).
 
     Parameters
@@ -202,12 +229,16 @@ def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tupl
     law : tuple of (str, float)
         ``("N", c)`` when the law's kernel on the window is ``m = c N~`` (U_BS, U_BS2(K): ``c = 1``),
         ``("U", c)`` when ``m = c U~`` (a state feedback ``U = c u(t, 1)``).
+    gains : tuple, default (0.0, 0.0)
+        The integral gains ``(g_u, g_v)`` of ``StateFeedback(c, g_u, g_v)`` (numbers or callables, as for
+        :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`): their kernel ``e^{sigma nu} K`` adds to
+        ``m`` (:func:`~nrobust.hyperbolic.loops.exact_gains.window_series`).
 
     Raises
     ------
     ParameterError
-        ``system`` not a plant with constant coefficients (:func:`proven_observer_failure`), or ``law``
-        not ``("N" | "U", c)`` with ``c`` finite.
+        ``system`` not a plant with constant coefficients (:func:`proven_observer_failure`), ``law``
+        not ``("N" | "U", c)`` with ``c`` finite, or ``gains`` not two gains finite on ``[0, L]``.
     CertificationError
         :func:`proven_observer_failure` is not None (the reason).
     """
@@ -216,19 +247,34 @@ def proven_observer_term(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tupl
         raise ParameterError(
             "system", "a Hyperbolic2x2 or GeneralHyperbolic2x2 with constant coefficients (constant lam/mu)", system
         )
-    reason = proven_observer_failure(system, law)
+    reason = proven_observer_failure(system, law, gains)
     if reason is not None:
         raise CertificationError(f"proven_observer_term: {reason}; the observer's term is computed in floating point")
-    out = _attempt(system, law)
+    out = _cached_attempt(system, law, gains)
     assert isinstance(out, ProvenObserverTerm)
     return out
 
 
+def _cached_attempt(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], gains: tuple[Any, Any]
+) -> ProvenObserverTerm | str:
+    """:func:`_attempt`, cached unless a gain is unhashable (a ParameterError for gains that are not two gains)."""
+    if not (isinstance(gains, tuple) and len(gains) == 2):
+        raise ParameterError("gains", "a pair (g_u, g_v) of integral gains (numbers or callables)", gains)
+    try:
+        hash(gains)
+    except TypeError:
+        return _attempt.__wrapped__(system, law, gains)
+    return _attempt(system, law, gains)
+
+
 @lru_cache(maxsize=16)
-def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float]) -> ProvenObserverTerm | str:
+def _attempt(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], gains: tuple[Any, Any]
+) -> ProvenObserverTerm | str:
     """The enclosure, or the reason it failed."""
-    tau, w = closed_form_parameters(system)[0], window(system)
-    return _in_balls(system, lambda flint: _enclose(flint, system, law, tau, w))
+    tau, w = closed_form_parameters(system)[0], proof_window(system, gains)
+    return _in_balls(system, lambda flint: _enclose(flint, system, law, gains, tau, w))
 
 
 def _in_balls(system: Hyperbolic2x2 | GeneralHyperbolic2x2, enclose: Callable[[Any], Any]) -> Any:
@@ -305,7 +351,7 @@ def _taylor(poly: _Poly, S: Any, Sm: Any, degree: int) -> Any:
 
 
 def _weighted(poly: _Poly, series: Any, bound: Any, dbound: Any, sigma: Any, T: Any) -> tuple[Any, Any, Any]:
-    """``e^{sigma nu}`` times a series and its tail bounds on ``[0, tau]`` (module notes, "General plants")."""
+    """``e^{sigma nu}`` times a series and its tail bounds on ``[0, T]`` (module notes, "General plants")."""
     if sigma.is_zero():
         return series, bound, dbound
     arb = poly.arb
@@ -321,7 +367,12 @@ def _weighted(poly: _Poly, series: Any, bound: Any, dbound: Any, sigma: Any, T: 
 
 
 def _enclose(
-    flint: Any, system: Hyperbolic2x2 | GeneralHyperbolic2x2, law: tuple[str, float], tau: float, w: float
+    flint: Any,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    law: tuple[str, float],
+    gains: tuple[Any, Any],
+    tau: float,
+    w: float,
 ) -> ProvenObserverTerm:
     """:func:`proven_observer_term` at the working precision."""
     poly = _Poly(flint)
@@ -336,6 +387,10 @@ def _enclose(
     Sm, bm, dbm = _weighted(poly, *closed_form_series(flint, T, P, M, (law[0], q, rho)), sigma, T)
     c = arb(float(law[1]))
     Sm, bm, dbm = Sm * c, bm * abs(c), dbm * abs(c)
+    integral = window_series(flint, system, *gains, w)
+    if integral is not None:  # the gains' kernel e^{sigma nu} K on the window, bounded there
+        Sg, bg, dbg = _weighted(poly, *integral, sigma, W)
+        Sm, bm, dbm = Sm + Sg, bm + bg, dbm + dbg
     if all(x.is_zero() for x in poly.coeffs(Sm)) and bool(bm == 0):
         raise CertificationError("the law reads no value of the window (G = 0: no term to enclose)")
     rho_q = gain_balls(system)[1]
