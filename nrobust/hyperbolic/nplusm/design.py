@@ -72,7 +72,7 @@ points per speed (:func:`nplusm_speed_tolerance`). The speeds do not enter the l
 ``E(s)`` and in ``exp(Lambda^{-1} (Sigma - s I))``), so stability at the vertices need not imply it inside
 the box, and neither the stability nor the decay rate is certified between the points by the design;
 ``nplusm_speed_tolerance(system, K, eps, delays, inside=True)`` proves the stability there for one actuator
-(:mod:`~nrobust.hyperbolic.nplusm.speed_proof`; about ten times the cost of the points' verdicts, so opt-in).
+(:mod:`~nrobust.hyperbolic.nplusm.speed_proof`; about fifty times the cost of the points' verdicts, so opt-in).
 
 **Local.** The optimum is local: the best of the starts, each ending where neither the line
 search nor the pattern search finds a better feasible point, down to steps of ``1e-5`` of the
@@ -430,9 +430,9 @@ def nplusm_speed_tolerance(
     unless ``inside=True`` (one actuator): when every point is stable and every vertex certified, each
     window is then proven on the whole box by subdivision in ball arithmetic
     (:func:`~.speed_proof.prove_speed_box`, starting from a vertex's verdict), and
-    :attr:`NPlusMSpeedTolerance.inside` says whether it was. Opt-in: it costs about ten times the points'
-    verdicts on the plant of the tests (``eps = 0.05``: 3.9 s against 0.4 s of CPU time), more for wider
-    boxes and higher frequency bounds.
+    :attr:`NPlusMSpeedTolerance.inside` says whether it was. Opt-in: it costs about fifty times the points'
+    verdicts on the plant of the tests (``eps = 0.05``: 3.5 to 3.9 s against 0.07 to 0.08 s of CPU time),
+    more for wider boxes, more speeds and higher frequency bounds.
 
     Parameters
     ----------
