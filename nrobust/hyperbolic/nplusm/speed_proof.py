@@ -22,11 +22,14 @@ connected set ``S x [d_min, d_max]``:
    the gap's lower bound over ``S``, proven in ball arithmetic (``r`` is non-increasing), leaves no zero
    with ``Re s >= 0`` and ``|s| >= W``, for every plant of ``S`` and every delay; ``gap > 0`` is the strong
    stability of the difference operator (``gamma_0 < 1``) over ``S``.
-2. *No zero on the imaginary axis.* Boxes of ``(w, S')``, ``S'`` a sub-box of ``S``, covering ``[0, W] x
-   S`` are cleared by :func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free` (the sign of
-   ``|A|^2 - |B|^2``, every crossing delay of the box outside the window, or ``F`` enclosed away from 0);
-   an undecided box is halved in ``w`` or in the speed that moves the phase most, up to ``max_boxes``
-   boxes. ``w < 0`` follows by conjugation (real coefficients).
+2. *No zero on the imaginary axis.* Boxes of ``(w, S')``, ``S'`` a sub-box of ``S`` in the inverse speeds,
+   covering ``[0, W] x S`` are cleared by :func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free`
+   (the sign of ``|A|^2 - |B|^2``, every crossing delay of the box outside the window, or ``F`` enclosed
+   away from 0), with ``A``, ``B`` enclosed first by the ball exponential, then, if that does not decide,
+   by Taylor's formula of order 2 about the box's middle (:meth:`_Family.centred`: tight where the ball
+   exponential's wrapping is not); an undecided box is halved in the parameter with the largest share of
+   the enclosures' widths (lower frequencies first), up to ``max_boxes`` boxes. ``w < 0`` follows by
+   conjugation (real coefficients).
 3. *One point.* A plant of ``S`` certified stable on the window (a vertex's verdict,
    :func:`~nrobust.hyperbolic.nplusm.design.check_window`: its certified margin and count).
 
@@ -34,8 +37,8 @@ The zeros in ``Re s >= 0`` then stay in the half-disc ``|s| < W``, none reaches 
 and the delay move in the connected set, so their number is the same everywhere (the argument principle):
 zero at the point of step 3. No zero in ``Re s >= 0`` and a strongly stable difference operator make the
 loop exponentially stable for every plant of the box and every delay of the window. Steps 1 and 2 are
-proven in ball arithmetic; step 3 is as certified as the vertex's verdict (floating point with proven
-rounding room, :func:`~nrobust.hyperbolic.nplusm.nplusm_delay_margin`). The box ``S`` holds the speeds
+proven in ball arithmetic; step 3 is as certified as the vertex's verdict (floating point with rounding
+room, :func:`~nrobust.hyperbolic.nplusm.nplusm_delay_margin`). The box ``S`` holds the speeds
 ``c (1 + e)``, ``|e| <= eps``, exactly, and the doubles the perturbed plants store.
 
 Several actuators (``m > 1``: ``F`` a polynomial of degree ``m`` in ``e^{-delta s}``) are not covered.
