@@ -967,7 +967,8 @@ def spectral_norm_bound(flint: Any, x: Any) -> Any:
     ``sqrt(lambda_max(x^T x))`` (:func:`symmetric_top_bound`) and the Frobenius norm."""
     arb = flint.arb
     rows, cols = x.nrows(), x.ncols()
-    frob = sum((abs(x[i, j]) ** 2 for i in range(rows) for j in range(cols)), arb(0)).sqrt()
+    squares = sum((abs(x[i, j]) * abs(x[i, j]) for i in range(rows) for j in range(cols)), arb(0))
+    frob = squares.nonnegative_part().sqrt()  # x * x, not x ** 2: a power of a ball holding 0 is nan
     if not frob > 0:
         return frob
     g = x.transpose() * x

@@ -13,13 +13,17 @@ windows of a delay loop are not continuous in its data (a pair of crossing frequ
 ``|A(i w)| = |B(i w)|`` gains a double zero). So stability at the vertices need not imply it inside
 the box: the verdicts at the vertices are certified, those at the other points of the grid are
 computed by the same certified tools at those points only, and the box between the points is not
-certified (:class:`NPlusMSpeedTolerance` says so in its statement), as for the square of the 2x2
-plant (:func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
+certified (:class:`NPlusMSpeedTolerance` says so in its statement), unless it is proven: for one
+actuator ``nplusm_speed_tolerance(..., inside=True)`` proves the windows on the whole box by subdivision
+in ball arithmetic (:mod:`~nrobust.hyperbolic.nplusm.speed_proof`, the argument of the square of the 2x2
+plant, :func:`~nrobust.hyperbolic.analyses.speed_tolerance` with ``rigorous=True``), and
+:attr:`NPlusMSpeedTolerance.inside` says whether it was.
 """
 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -156,8 +160,12 @@ class NPlusMSpeedTolerance:
         stable), ``"not certified at the vertices"`` (stable, but a vertex's verdict could not be
         certified), or ``"not met"`` (a point is not stable on a window).
     statement : str
-        The tolerance in words: what is certified, what is only checked, and that the box between the
-        points is not certified.
+        The tolerance in words: what is certified, what is only checked, and whether the box between the
+        points is certified (with the proof's reason, or why not).
+    inside : bool
+        True when stability on every window is certified on the whole box, not only at the points
+        (:func:`~nrobust.hyperbolic.nplusm.speed_proof.prove_speed_box`, asked by
+        ``nplusm_speed_tolerance(..., inside=True)``); False when not asked or not proven.
     """
 
     eps: float
@@ -168,11 +176,12 @@ class NPlusMSpeedTolerance:
     met: bool
     certified: str
     statement: str
+    inside: bool = False
 
     def __repr__(self) -> str:
         return (
             f"NPlusMSpeedTolerance(eps={float(self.eps)!r}, met={self.met}, certified={self.certified!r}, "
-            f"points={len(self.points)})"
+            f"points={len(self.points)}, inside={self.inside})"
         )
 
     @classmethod
@@ -183,8 +192,13 @@ class NPlusMSpeedTolerance:
         points: tuple[tuple[float, ...], ...],
         vertices: int,
         windows: tuple[tuple[WindowVerdict, ...], ...],
+        proofs: Sequence[tuple[bool, str]] = (),
     ) -> NPlusMSpeedTolerance:
-        """The tolerance from the verdicts at ``points`` (the first ``vertices`` of them the vertices), in words."""
+        """The tolerance from the verdicts at ``points`` (the first ``vertices`` of them the vertices), in words.
+
+        ``proofs``: one ``(proven, reason)`` per window of ``delays`` when the inside of the box was examined
+        (:func:`~nrobust.hyperbolic.nplusm.speed_proof.prove_speed_box`), else empty.
+        """
         met = all(w.stable for verdicts in windows for w in verdicts)
         at_vertices = all(w.certified for verdicts in windows[:vertices] for w in verdicts)
         dimension = len(points[0])
@@ -205,12 +219,21 @@ class NPlusMSpeedTolerance:
             statement = (
                 f"stable for every delay in {span} at the {vertices} vertices of the box |e_i| <= {float(eps)!r} of "
                 f"the {dimension} relative speed errors ({how}), and at the {len(points) - vertices} other points of "
-                "the grid of 3 points per speed (by the same tools, at those points only); between the points not "
-                "certified: the speeds enter the loop through exp(Lambda^-1 (Sigma - s I)) and E(s), not affinely, "
-                "and the stability windows are not continuous in them, so stability at the vertices need not imply "
-                "it inside the box"
+                "the grid of 3 points per speed (by the same tools, at those points only); "
             )
-        return cls(eps, delays, points, vertices, windows, met, certified, statement)
+            failed = [reason for proven, reason in proofs if not proven]
+            if proofs and not failed:
+                statement += "between the points certified too, on the whole box: " + "; ".join(r for _, r in proofs)
+            elif proofs:
+                statement += "between the points not certified: " + failed[0]
+            else:
+                statement += (
+                    "between the points not certified: the speeds enter the loop through exp(Lambda^-1 (Sigma - s I)) "
+                    "and E(s), not affinely, and the stability windows are not continuous in them, so stability at the "
+                    "vertices need not imply it inside the box"
+                )
+        inside = met and bool(proofs) and all(proven for proven, _ in proofs)
+        return cls(eps, delays, points, vertices, windows, met, certified, statement, inside)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (each verdict as its dictionary)."""
@@ -224,5 +247,6 @@ class NPlusMSpeedTolerance:
                 "met": self.met,
                 "certified": self.certified,
                 "statement": self.statement,
+                "inside": self.inside,
             }
         )
