@@ -168,6 +168,9 @@ ABOVE_LINE = "above the line search's line"
 #: The reason of a first-phase point without a stability window that can hold the required window (it starts
 #: the phase before: the largest abscissa at the windows' ``delta = d_min`` lowered below 0).
 NO_WINDOW = "no stability window"
+#: Functions of a maximum (the worst-case abscissa) within this much of it, relative to ``1 + |max|``, are active
+#: together: their gradients' convex hull gives the pattern search a descent direction along a tie's ridge.
+NEAR_TIE = 1e-3
 #: The phase before the first stops once the largest abscissa at the ``d_min`` is below ``-STABLE_BY`` times its
 #: value at the start (any negative value makes a stability window exist; a little more keeps it from the edge).
 STABLE_BY = 1e-2
@@ -291,7 +294,10 @@ class TrialPoint:
     what was computed of them (``nan`` otherwise), ``reason`` why a point is infeasible or
     rejected. ``screened`` points were rejected by a bound without their value: ``value`` is
     then a lower bound of the function minimised (above the line that rejected them), and they
-    are never feasible, so they can never become an iterate.
+    are never feasible, so they can never become an iterate. ``active`` (a point of a maximum of
+    several functions, e.g. the worst-case abscissa) holds the gradients of every function within
+    :data:`NEAR_TIE` of the maximum when there are two or more (the pattern search then tries the
+    steepest descent of their convex hull, which a tie's ridge needs); None otherwise.
     """
 
     p: NDArray[np.float64]
@@ -302,6 +308,7 @@ class TrialPoint:
     margin: float
     reason: str = ""
     screened: bool = False
+    active: NDArray[np.float64] | None = None
 
 
 class LocalProblem(Protocol):
@@ -701,7 +708,34 @@ class _Problem:
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
         top, F_top, family = worst
         gradient = self._abscissa_gradient(p, F_top, top, family)
-        return TrialPoint(p, True, top.value, gradient, top.value, margin)
+        active = None
+        if self.worst_case:  # the loops near the largest abscissa: a tie's ridge needs all their gradients
+            near = NEAR_TIE * (1.0 + abs(top.value))
+            pieces = [(sa, F, None), *self._scenario_abscissae(p)]
+            rows = [
+                self._abscissa_gradient(p, F_j, sa_j, f_j) if F_j is not F_top else gradient
+                for sa_j, F_j, f_j in pieces
+                if sa_j.value >= top.value - near
+            ]
+            active = np.array(rows) if len(rows) > 1 else None
+        return TrialPoint(p, True, top.value, gradient, top.value, margin, active=active)
+
+    def _scenario_abscissae(
+        self, p: NDArray[np.float64]
+    ) -> list[tuple[SpectralAbscissa, QuasiPolynomial, ParametricLoop]]:
+        """The scenarios' abscissae at ``delta = 0`` remembered at ``p`` (by :meth:`_worst_abscissa`), with
+        their loops and families."""
+        out = []
+        for n, family in enumerate(self.scenarios):
+            sa_n = self.memo.abscissae.get(self._scenario_key(p, n))
+            if sa_n is not None:
+                A_n, B_n = family(p)
+                out.append((sa_n, A_n + B_n, family))
+        return out
+
+    @staticmethod
+    def _scenario_key(p: NDArray[np.float64], n: int) -> bytes:
+        return p.tobytes() + b"scenario" + n.to_bytes(4, "little")
 
     def _worst_abscissa(
         self, p: NDArray[np.float64], above: float
@@ -720,7 +754,7 @@ class _Problem:
             family = self.scenarios[n]
             A_n, B_n = family(p)
             F_n = A_n + B_n
-            key = p.tobytes() + b"scenario" + n.to_bytes(4, "little")
+            key = self._scenario_key(p, n)
             sa_n = memo.abscissae.get(key)
             if sa_n is None:
                 lower = F_n.principal_part().spectral_bound().lower
@@ -1037,17 +1071,23 @@ class _Problem:
 
 def _min_norm_convex(G: NDArray[np.float64]) -> float:
     """``min ||sum_j l_j g_j||`` over ``l >= 0``, ``sum l = 1`` (rows of ``G`` the gradients)."""
+    return float(np.linalg.norm(_min_norm_point(G)))
+
+
+def _min_norm_point(G: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The point ``sum_j l_j g_j`` of least norm of the convex hull of the rows of ``G`` (``l >= 0``, ``sum l =
+    1``): minus it is the steepest descent direction of the maximum of functions with these gradients."""
     from scipy.optimize import nnls
 
     k = G.shape[0]
     if k == 1:
-        return float(np.linalg.norm(G[0]))
+        return np.asarray(G[0], dtype=float)
     scale = max(1.0, float(np.abs(G).max())) * 1e3
     M = np.vstack([G.T, scale * np.ones((1, k))])
     rhs = np.concatenate([np.zeros(G.shape[1]), [scale]])
     lam, _ = nnls(M, rhs)
     lam = lam / lam.sum() if lam.sum() > 0 else np.full(k, 1.0 / k)
-    return float(np.linalg.norm(lam @ G))
+    return np.asarray(lam @ G, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -1259,10 +1299,13 @@ class _Local:
         even Lipschitz, or at a corner of the feasible set, where a crossing pair is born) BFGS
         has no descent step to take; the pattern search needs none and only accepts feasible,
         better points. Its directions are the coordinate axes, the diagonals of every pair of
-        axes (a corner of the feasible set is often crossed along a diagonal only) and the last
-        gradient's descent direction, each scaled by the bounds' widths. A step that improves is
-        followed by steps twice as long in its direction while they improve (a long valley is
-        crossed in a few evaluations, each accepted one costing a complete certification). It
+        axes (a corner of the feasible set is often crossed along a diagonal only), the last
+        gradient's descent direction and, at a tie of a maximum (:attr:`TrialPoint.active`), minus the
+        least-norm point of the convex hull of the active gradients (the steepest descent of the
+        maximum: a tie's ridge is rarely along an axis or a diagonal), each scaled by the bounds' widths.
+        A step that improves is followed by steps twice as long in its direction while they improve (a
+        long valley is crossed in a few evaluations, each accepted one costing a complete
+        certification). It
         stops early once ``value <= stop_below``.
         """
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
@@ -1275,6 +1318,10 @@ class _Local:
             g = x.gradient * width
             if np.any(g != 0.0):
                 directions.insert(0, -g / np.max(np.abs(g)))
+            if x.active is not None:  # a tie: the steepest descent of the active gradients' hull (bounds' units)
+                v = _min_norm_point(x.active * width)
+                if np.any(v != 0.0):
+                    directions.insert(0, -v / np.max(np.abs(v)))
             for d in directions:
                 # a step past a bound stops on it: an optimum on the boundary is reached, not only approached
                 trial = np.clip(x.p + step * d * width, self.problem.bounds[:, 0], self.problem.bounds[:, 1])

@@ -286,17 +286,17 @@ def _exact_optimum(
     objective: str,
     margin_at_least: float | None,
     window: tuple[float, float] | None,
-) -> float | None:
-    """The parameter of :func:`~nrobust.design.best_margin` or :func:`~nrobust.design.best_decay_rate`
+) -> GainDesign | None:
+    """The design of :func:`~nrobust.design.best_margin` or :func:`~nrobust.design.best_decay_rate`
     under the requirement (a margin, or a window met by ``loop`` and ``others`` alike; with ``others`` the
     decay rate is the least of them all, ``worst_case``); None when it fails."""
     try:
         if objective == "margin":
-            return best_margin(loop, bounds, delays=window, scenarios=others).K
+            return best_margin(loop, bounds, delays=window, scenarios=others)
         worst_case = bool(others) and window is not None
         return best_decay_rate(
             loop, bounds, margin_at_least=margin_at_least, delays=window, scenarios=others, worst_case=worst_case
-        ).K
+        )
     except (CertificationError, ParameterError):
         return None
 
@@ -316,22 +316,26 @@ def _warm_start(
     :meth:`FilteredLoop.affine`, as :func:`design_filtered_exact` solves it). Otherwise the
     unfiltered optimum, the best U_BS2(K*) with ``a = b`` (as
     :func:`~nrobust.hyperbolic.analyses.design.design_reflection` solves it): with ``a = b`` the
-    filter is 1, so the filtered design can only improve on it. None when the exact design fails,
-    or ``a`` and ``b`` cannot be equal within their bounds.
+    filter is 1, its loop that of U_BS2(K*) times ``1 + a s``, so for the decay rate ``a = b`` is
+    ``1/(2 r)`` (``r`` the rate of U_BS2(K*), the least one with ``scenarios``: the zero ``-1/a`` at
+    ``-2 r`` does not bind; clipped to the bounds), and the filtered design can only improve on it. None
+    when the exact design fails, or ``a`` and ``b`` cannot be equal within their bounds.
     """
     requirement = (objective, margin_at_least, window)
     if len(loop.free) == 1:
         one = (float(bounds[0, 0]), float(bounds[0, 1]))
         best = _exact_optimum(loop.affine(), tuple(s.affine() for s in scenarios), one, *requirement)
         if best is not None:
-            return np.array([best])
+            return np.array([best.K])
     values: dict[str, float] = dict(loop.fixed)
+    rate = math.nan
     if "K" in loop.free:
         k_bounds = (float(bounds[loop.free.index("K"), 0]), float(bounds[loop.free.index("K"), 1]))
         K = _exact_optimum(loop.reflection(), tuple(s.reflection() for s in scenarios), k_bounds, *requirement)
         if K is None:
             return None
-        values["K"] = K
+        values["K"] = K.K
+        rate = K.value
     box = {name: bounds[i] for i, name in enumerate(loop.free)}
     lo = max(box["a"][0] if "a" in box else -math.inf, box["b"][0] if "b" in box else -math.inf)
     hi = min(box["a"][1] if "a" in box else math.inf, box["b"][1] if "b" in box else math.inf)
@@ -343,6 +347,9 @@ def _warm_start(
     if not lo <= hi or not math.isfinite(lo + hi):
         return None
     shared = 0.5 * (lo + hi)
+    if objective == "decay_rate" and math.isfinite(rate) and rate > 0.0:
+        # the common factor's zero -1/a at twice the rate, left of the law's rightmost zero: it does not bind
+        shared = min(max(0.5 / rate, lo), hi)
     values.setdefault("a", shared)
     values.setdefault("b", shared)
     if values["a"] != values["b"]:
