@@ -104,6 +104,7 @@ def test_corner_rates_of_a_state_feedback_design_in_closed_form() -> None:
     assert data["worst_decay_rate"] == design.worst_decay_rate
 
 
+@pytest.mark.long  # about 30 s of CPU: four starts of the least rate of five loops
 def test_corner_rates_of_a_filtered_design() -> None:
     """The filtered law on the transport plant: each corner's rate against the corner plant's own loop
     (``loop_factors`` of the plant built here with the designed controller: on a transport plant the law has no

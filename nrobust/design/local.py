@@ -39,6 +39,13 @@ holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly stabl
 loop too a negative abscissa at one delay opens a window of delays), and the first phase continues
 from there.
 
+With ``worst_case`` the decay rate is the least of the loop's and the scenarios' (the largest of
+their abscissae at ``delta = 0`` is minimised, e.g. the guaranteed rate under a tolerance on the
+plant's data), nonsmooth where two are equal: the gradient is the largest one's, and at a near-tie
+the pattern search also tries minus the least-norm point of the convex hull of the gradients of
+every abscissa within :data:`NEAR_TIE` of the largest, the steepest descent of the maximum along the
+tie's ridge.
+
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
 (and it jumps where a crossing pair is born). They are differentiable almost everywhere, with
