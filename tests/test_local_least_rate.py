@@ -111,7 +111,6 @@ def test_the_least_rate_beats_a_grid_of_certified_parameters(design: FilteredDes
     assert _feasible(c.K, c.b)
 
 
-@pytest.mark.long
 def test_the_least_rate_beats_the_nominal_rate_design(design: FilteredDesign) -> None:
     """The nominal-rate design of the same loops, requirement, bounds and start (``worst_case=False``) guarantees
     less at the corners (1.518 against 1.5455)."""
@@ -127,7 +126,6 @@ def test_the_least_rate_beats_the_nominal_rate_design(design: FilteredDesign) ->
     assert design.value >= old_least + 0.01
 
 
-@pytest.mark.long
 def test_the_corner_rates_are_those_of_the_corner_plants(design: FilteredDesign) -> None:
     """The design's own corner abscissae (``design.scenario_abscissae``) and those restated
     (``corner_abscissae``) are the corner plants' own loops' to their accuracy; ``value`` the least of them."""
@@ -178,7 +176,6 @@ def _transport_rate(k: float, e_lam: float, e_mu: float) -> mp.mpf:
         return -mp.log(abs((mp.mpf(p.rho) + mp.mpf(k)) * mp.mpf(p.q))) / tau
 
 
-@pytest.mark.long
 def test_a_state_feedback_design_maximises_the_least_rate() -> None:
     """``U = k u(t, 1) + int c u + d v dx`` (a constant basis) with ``|k| <= 0.3``: every rate rises as ``k``
     falls, the corner ``(-0.2, -0.2)`` (the longest round trip) binds, and the least rate is largest at ``k =
