@@ -1,9 +1,9 @@
 """The decay rates a design under a speed tolerance guarantees: each corner's and the least.
 
 ``design_reflection(..., "decay_rate", speed_tolerance=eps)`` maximises the least decay rate of the nominal plant
-and the corners among the gains meeting the window at the corners (the filtered and state-feedback designs the
-nominal one); the rate at a corner can be far lower than the nominal (the paper's plant: 0.172 nominal, 0.107 at
-(-0.05, -0.05)). Oracles: on a transport plant the corner loop at
+and the corners among the gains meeting the window at the corners (the filtered and state-feedback designs too,
+over their parameters); the rate at a corner can be far lower than the nominal (the paper's plant: 0.172 nominal,
+0.107 at (-0.05, -0.05)). Oracles: on a transport plant the corner loop at
 ``delta = 0`` is ``1 - (rho - K) q e^{-tau' s}``, ``tau' = 1/(lam (1 + e_lam)) + 1/(mu (1 + e_mu))``, whose rate
 ``-ln|(rho - K) q| / tau'`` is computed here by mpmath at 40 digits; on the paper's coupled plant the loop of the
 corner plant built here (``dataclasses.replace`` of ``lam`` and ``mu``) under the law's gains from kernels on 201
@@ -99,11 +99,12 @@ def test_corner_rates_of_a_state_feedback_design_in_closed_form() -> None:
     K = -design.parameters[0]  # U_BS2(K) is k = -K on the transport plant
     for (a, b), sa in zip(design.tolerance.points[:4], design.corner_abscissae):
         assert sa.accuracy is not None and abs(-sa.value - float(_transport_rate(K, a, b))) <= sa.accuracy
-    assert design.worst_decay_rate == min(design.corner_decay_rates) < design.value
+    assert design.worst_decay_rate == min(design.corner_decay_rates) == design.value < design.design.decay_rate
     data = json.loads(json.dumps(design.to_dict(), allow_nan=False))
     assert data["worst_decay_rate"] == design.worst_decay_rate
 
 
+@pytest.mark.long  # about 30 s of CPU: four starts of the least rate of five loops
 def test_corner_rates_of_a_filtered_design() -> None:
     """The filtered law on the transport plant: each corner's rate against the corner plant's own loop
     (``loop_factors`` of the plant built here with the designed controller: on a transport plant the law has no
@@ -116,9 +117,10 @@ def test_corner_rates_of_a_filtered_design() -> None:
         oracle = spectral_abscissa(A + B)
         assert sa.accuracy is not None and oracle.accuracy is not None
         assert abs(sa.value - oracle.value) <= sa.accuracy + oracle.accuracy
-    assert design.worst_decay_rate == min(design.corner_decay_rates) < design.value - 0.3
+    assert design.worst_decay_rate == min(design.corner_decay_rates) == design.value < design.design.decay_rate - 0.5
     report = "\n".join(_local_design_lines(design))
-    assert "least decay rate at delta = 0 of the nominal plant and the 4 corners: 1.87894" in report
+    assert "least decay rate at delta = 0 of the nominal plant and the 4 corners: 2.82576" in report
+    assert "(the design maximises it;" in report
 
 
 def test_a_proof_the_balls_cannot_complete_gives_the_studied_float() -> None:

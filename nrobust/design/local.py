@@ -39,6 +39,13 @@ holds (``gamma_0 <= gamma_max < 1`` keeps the difference operator strongly stabl
 loop too a negative abscissa at one delay opens a window of delays), and the first phase continues
 from there.
 
+With ``worst_case`` the decay rate is the least of the loop's and the scenarios' (the largest of
+their abscissae at ``delta = 0`` is minimised, e.g. the guaranteed rate under a tolerance on the
+plant's data), nonsmooth where two are equal: the gradient is the largest one's, and at a near-tie
+the pattern search also tries minus the least-norm point of the convex hull of the gradients of
+every abscissa within :data:`NEAR_TIE` of the largest, the steepest descent of the maximum along the
+tie's ridge.
+
 Both functions are nonsmooth: the abscissa where two roots (or a root and a chain of a
 neutral loop) share the rightmost real part, the margin where two crossing branches meet
 (and it jumps where a crossing pair is born). They are differentiable almost everywhere, with
@@ -168,6 +175,9 @@ ABOVE_LINE = "above the line search's line"
 #: The reason of a first-phase point without a stability window that can hold the required window (it starts
 #: the phase before: the largest abscissa at the windows' ``delta = d_min`` lowered below 0).
 NO_WINDOW = "no stability window"
+#: Functions of a maximum (the worst-case abscissa) within this much of it, relative to ``1 + |max|``, are active
+#: together: their gradients' convex hull gives the pattern search a descent direction along a tie's ridge.
+NEAR_TIE = 1e-3
 #: The phase before the first stops once the largest abscissa at the ``d_min`` is below ``-STABLE_BY`` times its
 #: value at the start (any negative value makes a stability window exist; a little more keeps it from the edge).
 STABLE_BY = 1e-2
@@ -291,7 +301,10 @@ class TrialPoint:
     what was computed of them (``nan`` otherwise), ``reason`` why a point is infeasible or
     rejected. ``screened`` points were rejected by a bound without their value: ``value`` is
     then a lower bound of the function minimised (above the line that rejected them), and they
-    are never feasible, so they can never become an iterate.
+    are never feasible, so they can never become an iterate. ``active`` (a point of a maximum of
+    several functions, e.g. the worst-case abscissa) holds the gradients of every function within
+    :data:`NEAR_TIE` of the maximum when there are two or more (the pattern search then tries the
+    steepest descent of their convex hull, which a tie's ridge needs); None otherwise.
     """
 
     p: NDArray[np.float64]
@@ -302,6 +315,7 @@ class TrialPoint:
     margin: float
     reason: str = ""
     screened: bool = False
+    active: NDArray[np.float64] | None = None
 
 
 class LocalProblem(Protocol):
@@ -351,7 +365,8 @@ class _Memo:
     scenarios' loops among them); ``screened`` counts the evaluations settled by a bound (the
     gamma of the delayed loop, the chains, a witness) and ``full`` those that ran a spectral
     abscissa or a crossing search; ``binding`` is the scenario that last missed the windows
-    (checked first).
+    (checked first); ``worst`` the scenario with the largest abscissa at the last point of a worst-case
+    decay rate (computed first).
     """
 
     points: dict[tuple[bytes, str], TrialPoint] = field(default_factory=dict)
@@ -362,6 +377,7 @@ class _Memo:
     screened: int = 0
     full: int = 0
     binding: int = 0
+    worst: int = 0
 
     def add_root(self, s: complex | None) -> None:
         """Keep ``s`` (a rightmost root) as the newest witness, in place of those within ``1e-3 (1 + |s|)``."""
@@ -507,7 +523,9 @@ class _Problem:
     ``margin_at_least`` is the required margin, or with ``windows`` the end ``h_m`` of the last (the
     level the first phase raises the window margin to); ``windows`` the required intervals of
     delays (disjoint, ascending: the windows and the margin's ``[0, d]`` merged, module notes), which
-    every loop of ``scenarios`` must meet too (:meth:`_window_clearance`).
+    every loop of ``scenarios`` must meet too (:meth:`_window_clearance`). ``worst_case``: the decay-rate
+    objective minimises the largest abscissa at ``delta = 0`` of the loop and the scenarios
+    (:meth:`_worst_abscissa`).
     """
 
     loop: ParametricLoop
@@ -517,6 +535,7 @@ class _Problem:
     gamma_max: float = 1.0
     windows: _Windows = ()
     scenarios: tuple[ParametricLoop, ...] = ()
+    worst_case: bool = False
     memo: _Memo = field(default_factory=_Memo, compare=False, repr=False)
 
     @property
@@ -678,6 +697,13 @@ class _Problem:
             memo.add_root(sa.root)
         if sa.value > above:
             return TrialPoint(p, True, sa.value, np.zeros(p.size), sa.value, math.nan, ABOVE_LINE)
+        worst: tuple[SpectralAbscissa, QuasiPolynomial, ParametricLoop | None] = (sa, F, None)
+        if self.worst_case:  # before the requirement, which costs a crossing search of every loop
+            found = self._worst_abscissa(p, above)
+            if isinstance(found, TrialPoint):
+                return found
+            if found is not None and found[0].value > sa.value:
+                worst = found
         margin = math.nan
         if self.windows:
             why = self._window_missed(p, A, B, sa)
@@ -687,7 +713,75 @@ class _Problem:
             ok, margin = self._meets(A, B, sa, d)
             if not ok:
                 return TrialPoint(p, False, math.inf, np.zeros(p.size), sa.value, margin, BELOW_REQUIREMENT)
-        return TrialPoint(p, True, sa.value, self._abscissa_gradient(p, F, sa), sa.value, margin)
+        top, F_top, family = worst
+        gradient = self._abscissa_gradient(p, F_top, top, family)
+        active = None
+        if self.worst_case:  # the loops near the largest abscissa: a tie's ridge needs all their gradients
+            near = NEAR_TIE * (1.0 + abs(top.value))
+            pieces = [(sa, F, None), *self._scenario_abscissae(p)]
+            rows = [
+                self._abscissa_gradient(p, F_j, sa_j, f_j) if F_j is not F_top else gradient
+                for sa_j, F_j, f_j in pieces
+                if sa_j.value >= top.value - near
+            ]
+            active = np.array(rows) if len(rows) > 1 else None
+        return TrialPoint(p, True, top.value, gradient, top.value, margin, active=active)
+
+    def _scenario_abscissae(
+        self, p: NDArray[np.float64]
+    ) -> list[tuple[SpectralAbscissa, QuasiPolynomial, ParametricLoop]]:
+        """The scenarios' abscissae at ``delta = 0`` remembered at ``p`` (by :meth:`_worst_abscissa`), with
+        their loops and families."""
+        out = []
+        for n, family in enumerate(self.scenarios):
+            sa_n = self.memo.abscissae.get(self._scenario_key(p, n))
+            if sa_n is not None:
+                A_n, B_n = family(p)
+                out.append((sa_n, A_n + B_n, family))
+        return out
+
+    @staticmethod
+    def _scenario_key(p: NDArray[np.float64], n: int) -> bytes:
+        return p.tobytes() + b"scenario" + n.to_bytes(4, "little")
+
+    def _worst_abscissa(
+        self, p: NDArray[np.float64], above: float
+    ) -> TrialPoint | tuple[SpectralAbscissa, QuasiPolynomial, ParametricLoop] | None:
+        """The largest spectral abscissa at ``delta = 0`` of the scenarios' loops ``A_j + B_j`` at ``p``, with
+        that loop and its family (None without scenarios); or, as soon as one is found above ``above``, the
+        point rejected there (screened by a bound of :meth:`_abscissa_floor`, or above the line: a lower bound
+        of the largest). The scenario that was largest at the last point first (the worst-case objective,
+        ``max(alpha_0, alpha_1, ...)``: its value is that of the largest, its gradient that one's; where two
+        tie it is not differentiable, and the stationarity measure samples both gradients nearby).
+        """
+        memo = self.memo
+        order = sorted(range(len(self.scenarios)), key=lambda n: n != memo.worst)
+        worst: tuple[SpectralAbscissa, QuasiPolynomial, ParametricLoop] | None = None
+        for n in order:
+            family = self.scenarios[n]
+            A_n, B_n = family(p)
+            F_n = A_n + B_n
+            key = self._scenario_key(p, n)
+            sa_n = memo.abscissae.get(key)
+            if sa_n is None:
+                lower = F_n.principal_part().spectral_bound().lower
+                if lower > above:
+                    memo.screened += 1
+                    return self._screened(p, float(lower), "decay_rate", f"above the line (scenario {n}'s chains)")
+                floor, why = self._abscissa_floor(F_n, above)
+                if floor > above:
+                    memo.screened += 1
+                    return self._screened(p, floor, "decay_rate", f"above the line (scenario {n}: {why})")
+                memo.full += 1
+                sa_n = memo.abscissae[key] = spectral_abscissa(F_n)
+                memo.add_root(sa_n.root)
+            if sa_n.value > above:
+                memo.worst = n
+                return TrialPoint(p, True, sa_n.value, np.zeros(p.size), sa_n.value, math.nan, ABOVE_LINE)
+            if worst is None or sa_n.value > worst[0].value:
+                worst = (sa_n, F_n, family)
+                memo.worst = n
+        return worst
 
     @property
     def _from_zero(self) -> float | None:
@@ -984,17 +1078,23 @@ class _Problem:
 
 def _min_norm_convex(G: NDArray[np.float64]) -> float:
     """``min ||sum_j l_j g_j||`` over ``l >= 0``, ``sum l = 1`` (rows of ``G`` the gradients)."""
+    return float(np.linalg.norm(_min_norm_point(G)))
+
+
+def _min_norm_point(G: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The point ``sum_j l_j g_j`` of least norm of the convex hull of the rows of ``G`` (``l >= 0``, ``sum l =
+    1``): minus it is the steepest descent direction of the maximum of functions with these gradients."""
     from scipy.optimize import nnls
 
     k = G.shape[0]
     if k == 1:
-        return float(np.linalg.norm(G[0]))
+        return np.asarray(G[0], dtype=float)
     scale = max(1.0, float(np.abs(G).max())) * 1e3
     M = np.vstack([G.T, scale * np.ones((1, k))])
     rhs = np.concatenate([np.zeros(G.shape[1]), [scale]])
     lam, _ = nnls(M, rhs)
     lam = lam / lam.sum() if lam.sum() > 0 else np.full(k, 1.0 / k)
-    return float(np.linalg.norm(lam @ G))
+    return np.asarray(lam @ G, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -1206,10 +1306,13 @@ class _Local:
         even Lipschitz, or at a corner of the feasible set, where a crossing pair is born) BFGS
         has no descent step to take; the pattern search needs none and only accepts feasible,
         better points. Its directions are the coordinate axes, the diagonals of every pair of
-        axes (a corner of the feasible set is often crossed along a diagonal only) and the last
-        gradient's descent direction, each scaled by the bounds' widths. A step that improves is
-        followed by steps twice as long in its direction while they improve (a long valley is
-        crossed in a few evaluations, each accepted one costing a complete certification). It
+        axes (a corner of the feasible set is often crossed along a diagonal only), the last
+        gradient's descent direction and, at a tie of a maximum (:attr:`TrialPoint.active`), minus the
+        least-norm point of the convex hull of the active gradients (the steepest descent of the
+        maximum: a tie's ridge is rarely along an axis or a diagonal), each scaled by the bounds' widths.
+        A step that improves is followed by steps twice as long in its direction while they improve (a
+        long valley is crossed in a few evaluations, each accepted one costing a complete
+        certification). It
         stops early once ``value <= stop_below``.
         """
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
@@ -1222,6 +1325,10 @@ class _Local:
             g = x.gradient * width
             if np.any(g != 0.0):
                 directions.insert(0, -g / np.max(np.abs(g)))
+            if x.active is not None:  # a tie: the steepest descent of the active gradients' hull (bounds' units)
+                v = _min_norm_point(x.active * width)
+                if np.any(v != 0.0):
+                    directions.insert(0, -v / np.max(np.abs(v)))
             for d in directions:
                 # a step past a bound stops on it: an optimum on the boundary is reached, not only approached
                 trial = np.clip(x.p + step * d * width, self.problem.bounds[:, 0], self.problem.bounds[:, 1])
@@ -1360,9 +1467,10 @@ class LoopDesign:
     objective : str
         ``"decay_rate"`` or ``"margin"``.
     value : float
-        The objective's value at the design (the decay rate ``-alpha``, or ``delta*``).
+        The objective's value at the design (the decay rate ``-alpha``, or ``delta*``; with
+        ``worst_case`` the least decay rate of the loop and the scenarios).
     decay_rate : float
-        ``-alpha`` at ``delta = 0``.
+        ``-alpha`` at ``delta = 0`` (of the loop, not the scenarios).
     abscissa : SpectralAbscissa
         Of ``F(.; 0, p)`` at the design (certified; ``rigorous=True`` proves its bracket).
     margin : DelayMargin
@@ -1393,6 +1501,10 @@ class LoopDesign:
         (:attr:`loop_windows` groups them): the loop's, one per window of :attr:`required_windows`
         (its margin is :attr:`margin`); each scenario's, with a required margin ``d > 0`` first its
         ``[0, d]`` (``delta* > d``), then one per window. Empty without ``delays`` and ``scenarios``.
+    scenario_abscissae : tuple of SpectralAbscissa
+        With ``worst_case`` (:func:`optimize_loop`): the certified spectral abscissa at ``delta = 0`` of
+        each scenario's loop at the design (proven when ``rigorous``), in the order of the scenarios;
+        :attr:`value` is the least decay rate of :attr:`abscissa` and these. Empty otherwise.
     """
 
     parameters: tuple[float, ...]
@@ -1408,13 +1520,22 @@ class LoopDesign:
     local: bool = True
     delays: tuple[float, float] | _Windows | None = None
     windows: tuple[DelayWindow, ...] = field(default=(), repr=False)
+    scenario_abscissae: tuple[SpectralAbscissa, ...] = field(default=(), repr=False)
+
+    @property
+    def value_accuracy(self) -> float | None:
+        """A bound of the error of :attr:`value`: the margin's accuracy, or the abscissa's (with
+        :attr:`scenario_abscissae`, the largest of theirs and the loop's: the least of values each within
+        ``a_j`` of its true one is within ``max_j a_j`` of the true least); None when one is not estimated."""
+        if self.objective == "margin":
+            return self.margin.accuracy
+        accuracies = [a.accuracy for a in (self.abscissa, *self.scenario_abscissae)]
+        return None if any(a is None for a in accuracies) else float(max(a for a in accuracies if a is not None))
 
     @property
     def value_text(self) -> str:
-        """:attr:`value` printed to its accuracy (the margin's or the abscissa's), ``+-`` it."""
-        if self.objective == "margin":
-            return with_accuracy(self.value, self.margin.accuracy)
-        return with_accuracy(self.value, self.abscissa.accuracy)
+        """:attr:`value` printed to its accuracy (:attr:`value_accuracy`), ``+-`` it."""
+        return with_accuracy(self.value, self.value_accuracy)
 
     def __repr__(self) -> str:
         # the designed parameters are the controller's own numbers (in full); the objective's value and the
@@ -1474,8 +1595,13 @@ class LoopDesign:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
-        data = {k: v for k, v in vars(self).items() if k not in ("abscissa", "margin", "runs", "windows")}
+        skip = ("abscissa", "margin", "runs", "windows", "scenario_abscissae")
+        data = {k: v for k, v in vars(self).items() if k not in skip}
         data["abscissa"] = {"value": self.abscissa.value, "upper_bound": self.abscissa.upper_bound}
+        if self.scenario_abscissae:
+            data["scenario_abscissae"] = [
+                {"value": a.value, "upper_bound": a.upper_bound} for a in self.scenario_abscissae
+            ]
         data["margin"] = self.margin.to_dict()
         data["runs"] = [run.to_dict() for run in self.runs]
         data["windows"] = [w.to_dict() for w in self.windows]
@@ -1573,6 +1699,7 @@ def optimize_loop(
     margin_at_least: float | None = None,
     delays: tuple[float, float] | Sequence[tuple[float, float]] | None = None,
     scenarios: Sequence[ParametricLoop] = (),
+    worst_case: bool = False,
     gamma_max: float = GAMMA_MAX,
     x0: ArrayLike | None = None,
     starts: int = 1,
@@ -1619,6 +1746,13 @@ def optimize_loop(
         ``gamma_max`` as well, and certified at the design (:attr:`LoopDesign.windows`). Each must return
         a pair ``(A, B)`` of :class:`~nrobust.quasipoly.QuasiPolynomial` (a ``ParameterError``
         naming it at the first call that returns anything else, as for ``loop``).
+    worst_case : bool
+        With ``"decay_rate"`` and ``scenarios``: maximise the least decay rate at ``delta = 0`` of the loop
+        and the scenarios, ``min_j -alpha_j(p)`` (the largest abscissa minimised: nonsmooth where two are
+        equal, the gradient that of the largest; the stationarity measure samples the gradients of both
+        sides of such a tie), instead of the loop's own. :attr:`LoopDesign.value` is then that least rate,
+        :attr:`LoopDesign.decay_rate` the loop's, and :attr:`LoopDesign.scenario_abscissae` the scenarios'
+        certified abscissae at the design.
     gamma_max : float
         Require ``gamma_0 <= gamma_max`` for the delayed loop's difference operator
         (:func:`delayed_gamma`; below 1: strongly stable). As ``gamma_0 -> 1`` the chains of
@@ -1662,6 +1796,12 @@ def optimize_loop(
     )
     if scenarios and not windows and not margin_at_least:
         raise ParameterError("delays", "a window [d_min, d_max], or margin_at_least > 0, with scenarios", None)
+    if not isinstance(worst_case, (bool, np.bool_)):
+        raise ParameterError("worst_case", "True or False", worst_case)
+    if worst_case and not (objective == "decay_rate" and scenarios):
+        raise ParameterError(
+            "worst_case", "False unless objective='decay_rate' with scenarios (the least rate is over them)", True
+        )
     starts = positive_int("starts", starts)
     max_iter = positive_int("max_iter", max_iter)
     tol = finite_real("tol", tol)
@@ -1675,7 +1815,7 @@ def optimize_loop(
     level = intervals[-1][1] if intervals else margin_at_least
     loop = _Checked(loop, "loop")
     scenarios = tuple(_Checked(scenario, f"scenarios[{n}]") for n, scenario in enumerate(scenarios))
-    problem = _Problem(loop, box, objective, level, gamma_max, intervals, scenarios)
+    problem = _Problem(loop, box, objective, level, gamma_max, intervals, scenarios, bool(worst_case))
     runs = local_runs(problem, x0=x0, starts=starts, max_iter=max_iter, tol=tol, map=map)
     if not runs or not runs[0].feasible:
         reasons = "; ".join(sorted({r.reason for r in runs}))
@@ -1686,7 +1826,7 @@ def optimize_loop(
             "add starts or " + " or ".join(remedies)
         )
     required = windows[0] if len(windows) == 1 else windows or None
-    return _certify(loop, runs, objective, margin_at_least, rigorous, required, scenarios)
+    return _certify(loop, runs, objective, margin_at_least, rigorous, required, scenarios, bool(worst_case))
 
 
 def _certify(
@@ -1697,8 +1837,12 @@ def _certify(
     rigorous: bool,
     delays: tuple[float, float] | _Windows | None = None,
     scenarios: tuple[ParametricLoop, ...] = (),
+    worst_case: bool = False,
 ) -> LoopDesign:
-    """The best run's design with its certificates (:class:`LoopDesign`); ``delays`` as the record keeps it."""
+    """The best run's design with its certificates (:class:`LoopDesign`); ``delays`` as the record keeps it.
+
+    With ``worst_case`` each scenario's abscissa at ``delta = 0`` is certified too, and the value is the least
+    decay rate of the loop and the scenarios."""
     best = runs[0]
     p = np.asarray(best.parameters)
     A, B = loop(p)
@@ -1731,8 +1875,10 @@ def _certify(
         # unstable at delta = 0 (a certified count of its zeros in Re s > 0): the margin is 0, the windows certify
         decided = bool(dm.strongly_stable and dm.nominal_unstable)
     proven = not rigorous or all(w.certified == "proven" for w in certificates)
-    certified = bool(sa.certified and decided and met and proven)
-    value = -sa.value if objective == "decay_rate" else dm.margin
+    scenario_loops = (s(p) for s in scenarios) if worst_case else ()
+    others = tuple(spectral_abscissa(A_n + B_n, rigorous=rigorous) for A_n, B_n in scenario_loops)
+    certified = bool(sa.certified and decided and met and proven and all(o.certified for o in others))
+    value = -max(a.value for a in (sa, *others)) if objective == "decay_rate" else dm.margin
     return LoopDesign(
         best.parameters,
         objective,
@@ -1746,4 +1892,5 @@ def _certify(
         tuple(runs),
         delays=delays,
         windows=tuple(certificates),
+        scenario_abscissae=others,
     )

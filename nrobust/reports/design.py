@@ -233,10 +233,9 @@ def _corner_rate_lines(result: ReflectionDesign | FilteredDesign | StateFeedback
     if not result.corner_abscissae:
         return []
     least = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
-    which = "it" if isinstance(result, ReflectionDesign) else "the nominal rate"
     lines = [
         f"- least decay rate at delta = 0 of the nominal plant and the {len(result.corner_abscissae)} corners: "
-        f"{least} (the design maximises {which}; between the corners not certified)"
+        f"{least} (the design maximises it; between the corners not certified)"
     ]
     for n, sa in enumerate(result.corner_abscissae):
         lines.append(f"  - the plant with speed errors {_corner(result, n)}: {with_accuracy(-sa.value, sa.accuracy)}")
@@ -586,10 +585,14 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
             f"{with_accuracy(result.value, result.accuracy)} (a local optimum; certified: "
             f"{'yes' if result.certified else 'no'}{tolerance})"
         )
+    least = ""
+    if result.corner_abscissae:  # the design maximises the least rate of the nominal plant and the corners
+        text = with_accuracy(result.worst_decay_rate, result.worst_decay_rate_accuracy)
+        least = f"least decay rate of the nominal plant and the corners {text}; nominal "
     if isinstance(result, StateFeedbackDesign):
         sf = result.design
         return (
-            f"StateFeedback parameters {tuple(round(v, 6) for v in result.parameters)}: decay rate "
+            f"StateFeedback parameters {tuple(round(v, 6) for v in result.parameters)}: {least}decay rate "
             f"{with_accuracy(sf.decay_rate, sf.abscissa.accuracy)}, delay margin "
             f"{with_accuracy(sf.margin.margin, sf.margin.accuracy)} (a local optimum; certified: "
             f"{'yes' if sf.certified else 'no'})"
@@ -597,7 +600,7 @@ def design_summary(result: ReflectionDesign | FilteredDesign | StateFeedbackDesi
     c, local = result.controller, result.design
     margin = with_accuracy(local.margin.margin, local.margin.accuracy)
     return (
-        f"FilteredController(a={c.a:.6g}, b={c.b:.6g}, K={c.K:.6g}): decay rate "
+        f"FilteredController(a={c.a:.6g}, b={c.b:.6g}, K={c.K:.6g}): {least}decay rate "
         f"{with_accuracy(local.decay_rate, local.abscissa.accuracy)}, delay "
         f"margin {margin} (a local optimum; certified: {'yes' if local.certified else 'no'})"
     )

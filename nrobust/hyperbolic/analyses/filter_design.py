@@ -7,8 +7,9 @@ margin, over any of the three parameters (the others fixed) with the core's loca
 optimiser (:func:`nrobust.design.optimize_loop`), and certifies the design, optionally
 under a window of delays (``delays``) and a tolerance on the transport speeds
 (``speed_tolerance``: the four corner plants with mismatched speeds, the law designed on the
-nominal one, must meet the window too); :func:`filtered_front` is the trade-off of decay rate
-against delay margin over all three.
+nominal one, must meet the window too, and the decay rate maximised is the least of the nominal
+plant's and the corners'); :func:`filtered_front` is the trade-off of decay rate against delay
+margin over all three.
 With one free parameter the loop is affine in it (``K`` and ``a`` in ``B``, the pole ``b``
 in ``A``), and :func:`design_filtered_exact` finds the global optimum over its interval from
 the equations of its kind (a kink of ``delta*(p)``, a pair birth, a smooth maximum, an end, or
@@ -228,6 +229,13 @@ class FilteredDesign(CornerRates):
         certified with the design, the other points of a 3 x 3 grid checked, the whole square
         proven on an uncoupled plant with ``rigorous=True``;
         :func:`~nrobust.hyperbolic.analyses.speed_tolerance`).
+    corner_abscissae : tuple of SpectralAbscissa
+        With ``speed_tolerance`` and the decay-rate objective: the spectral abscissa at ``delta = 0`` of the
+        designed law on each corner plant, in the order of ``tolerance.points[:4]``, restated on loops built by
+        :func:`~nrobust.hyperbolic.analyses.mismatch_abscissa` with its model error (the design's own, on the
+        corner loops it optimised, are ``design.scenario_abscissae``); empty otherwise. The parameters maximise
+        the least decay rate of the nominal plant and the corners: :attr:`worst_decay_rate` is what the law
+        guarantees there (between the corners it is not certified).
     """
 
     controller: FilteredController
@@ -238,8 +246,11 @@ class FilteredDesign(CornerRates):
 
     @property
     def value(self) -> float:
-        """The objective at the design (decay rate or delay margin)."""
-        return self.design.value
+        """The objective at the design: the delay margin, or the decay rate (with ``speed_tolerance``, the
+        least decay rate of the nominal loop and the corners' loops restated by
+        :func:`~nrobust.hyperbolic.analyses.mismatch_abscissa`, :attr:`worst_decay_rate`, which gives its
+        accuracy; ``design.decay_rate`` is the nominal one)."""
+        return self.worst_decay_rate if self.corner_abscissae else self.design.value
 
     @property
     def certified(self) -> bool:
@@ -275,13 +286,17 @@ def _exact_optimum(
     objective: str,
     margin_at_least: float | None,
     window: tuple[float, float] | None,
-) -> float | None:
-    """The parameter of :func:`~nrobust.design.best_margin` or :func:`~nrobust.design.best_decay_rate`
-    under the requirement (a margin, or a window met by ``loop`` and ``others`` alike); None when it fails."""
+) -> GainDesign | None:
+    """The design of :func:`~nrobust.design.best_margin` or :func:`~nrobust.design.best_decay_rate`
+    under the requirement (a margin, or a window met by ``loop`` and ``others`` alike; with ``others`` the
+    decay rate is the least of them all, ``worst_case``); None when it fails."""
     try:
         if objective == "margin":
-            return best_margin(loop, bounds, delays=window, scenarios=others).K
-        return best_decay_rate(loop, bounds, margin_at_least=margin_at_least, delays=window, scenarios=others).K
+            return best_margin(loop, bounds, delays=window, scenarios=others)
+        worst_case = bool(others) and window is not None
+        return best_decay_rate(
+            loop, bounds, margin_at_least=margin_at_least, delays=window, scenarios=others, worst_case=worst_case
+        )
     except (CertificationError, ParameterError):
         return None
 
@@ -294,28 +309,33 @@ def _warm_start(
     window: tuple[float, float] | None = None,
     scenarios: tuple[FilteredLoop, ...] = (),
 ) -> NDArray[np.float64] | None:
-    """A start solved exactly by the one-parameter engine (:mod:`nrobust.design.gain`), under the same requirement.
+    """A start solved exactly by the one-parameter engine (:mod:`nrobust.design.gain`), under the same requirement
+    and objective (with ``scenarios``, the decay rate the least of the loop's and theirs).
 
     One free parameter: the global optimum on its interval (the loop is affine in it,
     :meth:`FilteredLoop.affine`, as :func:`design_filtered_exact` solves it). Otherwise the
     unfiltered optimum, the best U_BS2(K*) with ``a = b`` (as
     :func:`~nrobust.hyperbolic.analyses.design.design_reflection` solves it): with ``a = b`` the
-    filter is 1, so the filtered design can only improve on it. None when the exact design fails,
-    or ``a`` and ``b`` cannot be equal within their bounds.
+    filter is 1, its loop that of U_BS2(K*) times ``1 + a s``, so for the decay rate ``a = b`` is
+    ``1/(2 r)`` (``r`` the rate of U_BS2(K*), the least one with ``scenarios``: the zero ``-1/a`` at
+    ``-2 r`` does not bind; clipped to the bounds), and the filtered design can only improve on it. None
+    when the exact design fails, or ``a`` and ``b`` cannot be equal within their bounds.
     """
     requirement = (objective, margin_at_least, window)
     if len(loop.free) == 1:
         one = (float(bounds[0, 0]), float(bounds[0, 1]))
         best = _exact_optimum(loop.affine(), tuple(s.affine() for s in scenarios), one, *requirement)
         if best is not None:
-            return np.array([best])
+            return np.array([best.K])
     values: dict[str, float] = dict(loop.fixed)
+    rate = math.nan
     if "K" in loop.free:
         k_bounds = (float(bounds[loop.free.index("K"), 0]), float(bounds[loop.free.index("K"), 1]))
         K = _exact_optimum(loop.reflection(), tuple(s.reflection() for s in scenarios), k_bounds, *requirement)
         if K is None:
             return None
-        values["K"] = K
+        values["K"] = K.K
+        rate = K.value
     box = {name: bounds[i] for i, name in enumerate(loop.free)}
     lo = max(box["a"][0] if "a" in box else -math.inf, box["b"][0] if "b" in box else -math.inf)
     hi = min(box["a"][1] if "a" in box else math.inf, box["b"][1] if "b" in box else math.inf)
@@ -327,6 +347,9 @@ def _warm_start(
     if not lo <= hi or not math.isfinite(lo + hi):
         return None
     shared = 0.5 * (lo + hi)
+    if objective == "decay_rate" and math.isfinite(rate) and rate > 0.0:
+        # the common factor's zero -1/a at twice the rate, left of the law's rightmost zero: it does not bind
+        shared = min(max(0.5 / rate, lo), hi)
     values.setdefault("a", shared)
     values.setdefault("b", shared)
     if values["a"] != values["b"]:
@@ -381,6 +404,11 @@ def design_filtered(
     checked at the other points of a 3 x 3 grid of the square (:attr:`FilteredDesign.tolerance`,
     which says what is proven: the corners, and with ``rigorous=True`` the whole square where the
     loop is the PDE itself, an uncoupled plant; elsewhere never the continuum between the points).
+    With ``speed_tolerance`` and ``objective="decay_rate"`` the parameters maximise the least decay rate at
+    ``delta = 0`` of the nominal loop and the four corners' (``optimize_loop(..., worst_case=True)``: nonsmooth
+    where two rates tie, a local optimum); ``value`` is that least rate, on the corners' loops restated with
+    their model errors (:attr:`FilteredDesign.corner_abscissae`, :attr:`FilteredDesign.worst_decay_rate` with
+    its accuracy), ``design.decay_rate`` the nominal rate.
 
     Parameters
     ----------
@@ -449,6 +477,7 @@ def design_filtered(
         margin_at_least=margin_at_least,
         delays=window,
         scenarios=scenarios,
+        worst_case=objective == "decay_rate" and bool(scenarios),
         x0=x0,
         starts=starts,
         max_iter=max_iter,
@@ -468,7 +497,7 @@ def design_filtered(
             rigorous=rigorous,
             corner_windows=design.windows[1:],
         )
-        if objective == "decay_rate":  # the nominal rate is maximised: state each corner's
+        if objective == "decay_rate":  # the least rate is maximised: each corner's restated with its model error
             corner_abscissae = tuple(
                 mismatch_abscissa(plant, controller, a, b, kernel_grid=kernel_grid, rigorous=rigorous)
                 for a, b in tolerance.points[:4]

@@ -12,7 +12,8 @@ optimiser (:func:`nrobust.design.optimize_loop`; without a basis, the loop affin
 exact one-gain engine, :mod:`nrobust.design.gain`) and certifies the design, optionally under a
 window of delays (``delays``) and a tolerance on the transport speeds (``speed_tolerance``: the
 gains, fixed functions of ``x``, acting on the four corner plants with mismatched speeds, whose
-loops are linear in ``p`` too: :func:`state_feedback_loop` of each).
+loops are linear in ``p`` too: :func:`state_feedback_loop` of each; the decay rate maximised is then
+the least of the nominal plant's and the corners').
 
 Unlike U_BS2(K), whose target system is exponentially stable for every ``|K|`` below the
 bound of eq. (54), a state feedback can leave the nominal loop unstable (``k = 0`` on the
@@ -260,6 +261,9 @@ def _exact_gain(
 ) -> GainDesign:
     """The best proportional gain by the one-gain engine (:mod:`nrobust.design.gain`): the global optimum over ``k``.
 
+    With ``scenarios`` (a window required of them too) the decay rate is the least of the loop's and theirs
+    (``worst_case``).
+
     The engine's :class:`~nrobust.errors.ParameterError` that no gain of the bounds is stable at
     ``delta = 0`` (certified) is raised about ``k_bounds``; its other refusals (e.g. bounds beyond
     strong stability) as they are.
@@ -269,7 +273,9 @@ def _exact_gain(
         if objective == "margin":
             return best_margin(affine, bounds, delays=window, scenarios=others, rigorous=rigorous)
         if window is not None:
-            return best_decay_rate(affine, bounds, delays=window, scenarios=others, rigorous=rigorous)
+            return best_decay_rate(
+                affine, bounds, delays=window, scenarios=others, worst_case=bool(others), rigorous=rigorous
+            )
         return best_decay_rate(affine, bounds, margin_at_least=margin_at_least or None, rigorous=rigorous)
     except ParameterError as exc:
         if exc.name != "bounds" or not exc.requirement.startswith(_NO_STABLE_GAIN):
@@ -289,15 +295,21 @@ def _exact_design(
     margin_at_least: float | None,
     window: tuple[float, float] | None,
     rigorous: bool,
+    scenarios: tuple[StateFeedbackLoop, ...] = (),
 ) -> LoopDesign:
     """The exact proportional optimum ``gain`` as a :class:`LoopDesign` (``local=False``), certified as
     :func:`~nrobust.design.optimize_loop` certifies its designs: the abscissa (proven when ``rigorous``), the
-    engine's delay margin (verified, or proven) meeting ``margin_at_least``, the windows the engine certified."""
+    engine's delay margin (verified, or proven) meeting ``margin_at_least``, the windows the engine certified;
+    for the least decay rate of the loop and ``scenarios`` (``gain.scenario_abscissae``), each scenario's
+    abscissa too, the value the least rate."""
     p = (float(gain.K),)
     A, B = loop(np.asarray(p))
     F = A + B
     # the engine's floating-point abscissa is of this loop when its nominal loop is this one
     sa = gain.abscissa if not rigorous and gain.nominal == F else spectral_abscissa(F, rigorous=rigorous)
+    others = gain.scenario_abscissae
+    if others and rigorous:
+        others = tuple(spectral_abscissa(s.A + s.B(p), rigorous=True) for s in scenarios)
     dm = gain.certificate
     lowest = dm.margin_ball[0] if (rigorous and dm.margin_ball is not None) else dm.margin
     met = not margin_at_least or lowest >= margin_at_least
@@ -305,8 +317,9 @@ def _exact_design(
     if objective == "margin" or not (window is not None and window[0] > 0.0):
         decided = decided and dm.nominally_stable
     proven = not rigorous or (gain.certified == "proven" and all(w.certified == "proven" for w in gain.windows))
-    certified = bool(sa.certified and decided and met and proven and all(w.stable for w in gain.windows))
-    value = -sa.value if objective == "decay_rate" else dm.margin
+    stable = all(w.stable for w in gain.windows) and all(o.certified for o in others)
+    certified = bool(sa.certified and decided and met and proven and stable)
+    value = -max(a.value for a in (sa, *others)) if objective == "decay_rate" else dm.margin
     run = LocalRun(p, p, float(value), True, 0, 0, 0.0, f"the exact optimum over k: {gain.kind}")
     return LoopDesign(
         p,
@@ -322,6 +335,7 @@ def _exact_design(
         local=False,
         delays=window,
         windows=gain.windows,
+        scenario_abscissae=others,
     )
 
 
@@ -421,6 +435,7 @@ class _FromStart:
             margin_at_least=margin_at_least,
             delays=self.window if required else None,
             scenarios=self.scenarios if required else (),
+            worst_case=required and objective == "decay_rate" and bool(self.scenarios),
             x0=x0,
             starts=1,
             rigorous=self.rigorous,
@@ -480,6 +495,13 @@ class StateFeedbackDesign(CornerRates):
         certified again on loops built by :func:`~nrobust.hyperbolic.analyses.mismatch_loop`
         (:func:`~nrobust.hyperbolic.analyses.speed_tolerance`), the other points of a 3 x 3 grid
         checked.
+    corner_abscissae : tuple of SpectralAbscissa
+        With ``speed_tolerance`` and the decay-rate objective: the spectral abscissa at ``delta = 0`` of the
+        designed law on each corner plant, in the order of ``tolerance.points[:4]``, restated on loops built by
+        :func:`~nrobust.hyperbolic.analyses.mismatch_abscissa` with its model error (the design's own, on the
+        corner loops it optimised, are ``design.scenario_abscissae``); empty otherwise. The gains maximise the
+        least decay rate of the nominal plant and the corners: :attr:`worst_decay_rate` is what the law
+        guarantees there (between the corners it is not certified).
     """
 
     controller: StateFeedback
@@ -491,8 +513,11 @@ class StateFeedbackDesign(CornerRates):
 
     @property
     def value(self) -> float:
-        """The objective at the design (decay rate or delay margin)."""
-        return self.design.value
+        """The objective at the design: the delay margin, or the decay rate (with ``speed_tolerance``, the
+        least decay rate of the nominal loop and the corners' loops restated by
+        :func:`~nrobust.hyperbolic.analyses.mismatch_abscissa`, :attr:`worst_decay_rate`, which gives its
+        accuracy; ``design.decay_rate`` is the nominal one)."""
+        return self.worst_decay_rate if self.corner_abscissae else self.design.value
 
     @property
     def certified(self) -> bool:
@@ -560,7 +585,12 @@ def design_state_feedback(
         with speeds ``lam (1 + e_lam)``, ``mu (1 + e_mu)`` at the four corners ``|e_lam| = |e_mu| =
         eps``, the gains unchanged (four more loops, :func:`state_feedback_loop` of each plant); the
         design is then certified at the corners on loops built independently and checked at the
-        other points of a 3 x 3 grid (:attr:`StateFeedbackDesign.tolerance`). A
+        other points of a 3 x 3 grid (:attr:`StateFeedbackDesign.tolerance`). With ``"decay_rate"``
+        the gains maximise the least decay rate at ``delta = 0`` of the nominal loop and the four
+        corners' (the exact engine's ``worst_case`` without a basis, ``optimize_loop(...,
+        worst_case=True)`` with one: nonsmooth where two rates tie, a local optimum); ``value`` is that
+        least rate, on the corners' loops restated with their model errors
+        (:attr:`StateFeedbackDesign.corner_abscissae`), ``design.decay_rate`` the nominal rate. A
         :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` or ``TransportSystem``
         plant only (constant speeds).
     k_bounds : (float, float), optional
@@ -638,7 +668,7 @@ def design_state_feedback(
         except CertificationError:
             gain = None
         if gain is not None:
-            one = _exact_design(loop, gain, objective, margin_at_least, window, rigorous)
+            one = _exact_design(loop, gain, objective, margin_at_least, window, rigorous, scenarios)
             return _finished(plant, loop, one, functions, grid, eps, window, rigorous)
     bounds = (kb, *([coef] * (2 * len(functions))))
     box = np.array(bounds)
@@ -716,7 +746,7 @@ def _finished(
                 f"{tolerance.route!r}): the design's own loops and these differ; give kernel_grid=None for an "
                 "exact route, or a finer grid"
             )
-        if best.objective == "decay_rate":  # the nominal rate is maximised: state each corner's
+        if best.objective == "decay_rate":  # the least rate is maximised: each corner's restated with its model error
             corner_abscissae = tuple(
                 mismatch_abscissa(plant, controller, a, b, kernel_grid=tolerance_grid, rigorous=rigorous)
                 for a, b in tolerance.points[:4]
