@@ -31,7 +31,7 @@ from _collocated_oracle import DPS, CollocatedPDE, horner
 import nrobust as nr
 from nrobust.hyperbolic import CollocatedOutputFeedback, Hyperbolic2x2, ReflectionController
 from nrobust.hyperbolic.kernels.constant import solve_kernels
-from nrobust.hyperbolic.loops.collocated import dual_plant, observer_gains
+from nrobust.hyperbolic.loops.collocated import _gregory_weights, dual_plant, observer_gains
 from nrobust.hyperbolic.loops.controllers import collocated_observer_of, loop_route
 
 PAPER = (1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
@@ -71,6 +71,24 @@ def test_the_kernel_route_gains_converge_to_the_series(args, error_201):
         errors.append(max(np.max(np.abs(p_u - exact_u)), np.max(np.abs(p_v - exact_v))))
     assert errors[2] < error_201
     assert 6 < errors[0] / errors[1] < 10 and 6 < errors[1] / errors[2] < 10
+
+
+def test_the_composition_weights_are_third_order_on_every_row():
+    """``F = (I - K') f`` integrates on ``[0, x_i]`` for every node ``i`` of the uniform grid: the trapezoidal rule
+    with Gregory's end corrections ``h/12 (-f_0 + f_1 + f_{i-1} - f_i)`` is exact on linear functions (the
+    corrections cancel) and third order on every row from the smallest kernel grid (5 points) on: on
+    ``e^x cos(3 x)`` the largest error over the rows falls by 8.2 to 9.0 per halving (measured 3.1e-2 on 5 points,
+    6.5e-7 on 129)."""
+    errors = []
+    for n in (5, 9, 17, 33, 65, 129):
+        x = np.linspace(0.0, 1.0, n)
+        w = _gregory_weights(n)
+        assert w.shape == (n, n) and np.all(w[np.triu_indices(n, 1)] == 0.0)
+        np.testing.assert_allclose(w @ (2.0 - 3.0 * x), 2.0 * x - 1.5 * x**2, rtol=0.0, atol=1e-15)
+        exact = (np.exp(x) * (np.cos(3.0 * x) + 3.0 * np.sin(3.0 * x)) - 1.0) / 10.0
+        errors.append(np.max(np.abs(w @ (np.exp(x) * np.cos(3.0 * x)) - exact)))
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert np.all((7.0 < ratios) & (ratios < 9.5))
 
 
 @pytest.mark.parametrize(("args", "kappa", "error_201"), [(PAPER, 0.0, 2e-7), (PAPER, -0.3, 2e-7), (SECOND, 0.0, 1e-9)])
