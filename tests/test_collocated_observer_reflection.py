@@ -86,11 +86,11 @@ def test_transport_loop_is_the_closed_form(inner, K, filt, kappa, observer_delay
 @pytest.mark.parametrize(
     ("plant", "observer_delay", "kappa", "atol"),
     [
-        (SLOW_V, 0.0, 0.4, 1e-7),
-        (SLOW_V, 0.1, -0.7, 1e-7),
-        (SLOW_V, 0.0, 1.5, 1e-7),
-        (PAPER, 0.0, 0.3, 5e-7),
-        (PAPER, 0.05, -0.4, 5e-7),
+        (SLOW_V, 0.0, 0.4, 5e-8),
+        (SLOW_V, 0.1, -0.7, 5e-8),
+        (SLOW_V, 0.0, 1.5, 5e-8),
+        (PAPER, 0.0, 0.3, 1e-8),
+        (PAPER, 0.05, -0.4, 1e-8),
         (TRANSPORT, 0.1, 0.5, 1e-13),
     ],
     ids=["coupled", "observer delay", "unstable error", "paper", "paper delayed", "transport"],
@@ -98,9 +98,10 @@ def test_transport_loop_is_the_closed_form(inner, K, filt, kappa, observer_delay
 def test_loop_is_the_laplace_domain_loop(plant, observer_delay, kappa, atol):
     """``A_o + B_o e^{-delta s}`` against the Laplace-domain plant and observer, ``E`` included.
 
-    The package's terms come from kernels on 201 points: measured 1.1e-8 on ``SLOW_V`` and 2.1e-7
-    on the paper's plant (stronger couplings), the same as at ``kappa = 0``, and 4 times less on 401
-    points (the kernels' second-order error); the oracle errs by about 1e-13 (48-point rules on
+    The package's terms come from kernels on 201 points: measured 7.4e-9 to 1.1e-8 on ``SLOW_V`` and 1.6e-9 to
+    1.9e-9 on the paper's plant, 8 times less on 401 points (third order: the kernels, and their composition with
+    the law's gains by the trapezoidal rule with Gregory's end corrections; 2.1e-7 on the paper's plant and 4
+    times less per halving with the plain trapezoidal rule); the oracle errs by about 1e-13 (48-point rules on
     analytic integrands).
     """
     k, g_u, g_v = law_gains()
@@ -116,8 +117,8 @@ def test_paper_law_is_the_laplace_domain_loop():
     """U_BS2(0.1) on the paper's plant (gains from its own kernels) with ``kappa = 0.2``, against the oracle.
 
     The law's integral gains come from the plant's kernels on 401 points, read by the oracle as a
-    cubic spline: measured 1.05e-6, the same at ``kappa = 0`` (the law's and the observer's kernels on
-    201 points), hence 3e-6.
+    cubic spline: measured 7.9e-9 (the law's and the observer's kernels on 201 points; 1.05e-6 with the plain
+    trapezoidal composition), hence 3e-8.
     """
     from scipy.interpolate import CubicSpline
 
@@ -129,7 +130,7 @@ def test_paper_law_is_the_laplace_domain_loop():
     for s in POINTS:
         mine = np.array([A(s) + B(s) * np.exp(-d * s) for d in deltas])
         expected = laplace_loop(PAPER, law.boundary_gain, g_u, g_v, s, deltas, 0.0, kappa=0.2)
-        np.testing.assert_allclose(mine, expected, rtol=0, atol=3e-6)
+        np.testing.assert_allclose(mine, expected, rtol=0, atol=3e-8)
 
 
 def test_default_is_the_nilpotent_observer_bit_for_bit():
