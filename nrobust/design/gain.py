@@ -2040,7 +2040,7 @@ def _solved_edge(loop: _Family, unstable: float, lo: float, hi: float) -> tuple[
 
     Newton in ``(w, p)`` on the two real equations ``F(i w; 0, p) = 0`` (``F`` affine in ``p``,
     its ``w``-derivative from the factors' slopes), started from the rightmost zero at the unstable
-    end ``unstable`` of the bracket (:func:`_abscissa`: in ``Re s >= 0``, near the axis).
+    end ``unstable`` of the bracket (its spectral abscissa: in ``Re s >= 0``, near the axis).
     """
     root = loop.abscissa(unstable).root
     x = np.array([abs(root.imag) if root is not None else 0.0, unstable])
