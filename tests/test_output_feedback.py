@@ -133,9 +133,11 @@ def test_scope_says_the_loop_is_the_pdes():
 
 
 def test_scope_says_the_loop_is_a_model_where_the_observer_term_is_not_proven():
-    """A coupling too strong for the proven observer term (``kappa = 36``): floating point, and a model."""
+    """An integral gain with a pole near ``[0, 1]`` (not one Taylor model on the window): the observer's term is not
+    proven, floating point, and a model (``kappa = 36`` under U_BS2(0.1), where the proof refused before, is proven
+    now: ``tests/test_observer_proven.py``)."""
     strong = nr.Hyperbolic2x2(1.0, 1.0, 6.0, 6.0, 0.5, 0.5)
-    controller = OutputFeedback(ReflectionController(0.1))
+    controller = OutputFeedback(StateFeedback(-0.2, g_v=lambda x: 0.1 / (1.05 - x)))
     assert loop_route(strong, controller) == "observer"
     scope = loop_scope(strong, controller, None, loop_factors(strong, controller))
     assert scope.startswith("a model of the PDE") and "not part of the proof" in scope
