@@ -219,3 +219,46 @@ def test_the_norm_bound_of_a_ball_matrix_holding_zero_is_finite() -> None:
         x = flint.arb_mat([[arb(0, 0.642), arb(0)], [arb(0), arb(0, 0.642)]])
         bound = spectral_norm_bound(flint, x)
         assert math.isfinite(float(bound.upper())) and float(bound.upper()) >= 0.642
+
+
+DESIGN_WITH_ROOM = {"margin_at_least": 0.5, "K_bounds": (-0.8, -0.3), "x0": [[-0.5]], "starts": 1}
+
+
+@pytest.mark.long
+def test_a_design_proven_on_the_whole_box() -> None:
+    """``design_nplusm_gains(..., speed_tolerance=0.05, inside=True)`` with a margin of at least 0.5 (the rate binds,
+    not the window): the designed gain's window ``[0, 0.5]`` is proven on the whole box (about 28,000 boxes, 30 s of
+    CPU), and the oracle finds no crossing delay below 0.5 at interior plants off the grid."""
+    from nrobust.hyperbolic.nplusm.design import design_nplusm_gains
+
+    design = design_nplusm_gains(SYSTEM, "decay_rate", speed_tolerance=EPS, inside=True, **DESIGN_WITH_ROOM)
+    assert design.tolerance is not None and design.tolerance.inside
+    assert "between the points certified too, on the whole box" in design.tolerance.statement
+    k = design.K[0][0]
+    for e_lam, e_mu in ((0.013, -0.037), (-0.041, 0.022), (0.049, 0.049)):
+        assert _first_delay(_moved(PLANT, e_lam, e_mu), k, 20.0) > 0.5
+
+
+def test_a_design_whose_proof_inside_stops_keeps_its_points(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A proof inside the box that stops at its work bound (here made to stop at once) leaves the design and its
+    verdicts at the points, ``inside`` False and the reason in the statement; ``inside`` is refused without a
+    tolerance or with several actuators, before any work."""
+    import nrobust.hyperbolic.nplusm.design as design_module
+
+    def stops(*args: object, **kwargs: object) -> None:
+        raise CertificationError("prove_speed_box: the work bound max_boxes = 1 was reached")
+
+    monkeypatch.setattr(design_module, "prove_speed_box", stops)
+    design = design_module.design_nplusm_gains(
+        SYSTEM, "decay_rate", speed_tolerance=EPS, inside=True, **DESIGN_WITH_ROOM
+    )
+    assert design.tolerance is not None and not design.tolerance.inside
+    assert design.tolerance.certified == "certified at the vertices"
+    assert "the proof inside the box stopped: prove_speed_box: the work bound" in design.tolerance.statement
+    with pytest.raises(ParameterError) as info:
+        design_module.design_nplusm_gains(SYSTEM, "decay_rate", inside=True, **DESIGN_WITH_ROOM)
+    assert info.value.name == "inside"
+    two = NPlusMSystem([1.5], [1.0, 2.0], np.zeros((3, 3)), [[0.6, 0.4]], [[0.5], [0.3]])
+    with pytest.raises(ParameterError) as info:
+        design_module.design_nplusm_gains(two, "decay_rate", speed_tolerance=EPS, inside=True, margin_at_least=0.5)
+    assert info.value.name == "inside"

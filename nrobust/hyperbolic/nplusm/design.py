@@ -83,6 +83,7 @@ on the affine loop of ``StateFeedback(k)``, the same law): tests.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -1074,6 +1075,7 @@ def design_nplusm_gains(
     rigorous: bool = False,
     executor: Any = "serial",
     speed_tolerance: float | None = None,
+    inside: bool = False,
 ) -> NPlusMGainDesign:
     """The gain matrix ``K`` of ``U(t) = K u(t - delta, 1)`` with the best decay rate or delay margin, certified.
 
@@ -1133,7 +1135,13 @@ def design_nplusm_gains(
         each). The
         design's verdicts are then certified at the vertices and checked at the other points of the grid of 3 points
         per speed (:attr:`NPlusMGainDesign.tolerance`, :func:`nplusm_speed_tolerance`); the box between
-        the points is not certified (the speeds do not enter the loop affinely, :mod:`~.speed_box`).
+        the points is not certified (the speeds do not enter the loop affinely, :mod:`~.speed_box`) unless
+        ``inside``.
+    inside : bool, optional
+        With ``speed_tolerance`` and one actuator: prove the designed ``K``'s windows on the whole box of speed
+        errors (``nplusm_speed_tolerance(..., inside=True)``, about fifty times the points' verdicts, once, after
+        the optimisation); :attr:`NPlusMSpeedTolerance.inside` of :attr:`NPlusMGainDesign.tolerance` says
+        whether it was, and its statement why not (a proof stopped at its work bound included).
 
     Returns
     -------
@@ -1173,6 +1181,8 @@ def design_nplusm_gains(
     if not isinstance(rigorous, bool):
         raise ParameterError("rigorous", "True or False", rigorous)
     eps = None if speed_tolerance is None else check_box_tolerance(speed_tolerance, system)
+    if not isinstance(inside, bool) or (inside and (eps is None or system.m != 1)):
+        raise ParameterError("inside", "True or False; True with speed_tolerance and one actuator (m = 1)", inside)
     if eps is not None and not windows:
         if not margin_at_least:
             raise ParameterError(
@@ -1199,7 +1209,21 @@ def design_nplusm_gains(
             + (", or lower speed_tolerance: scenario j is the vertex j of the box of speed errors" if eps else "")
             + ")"
         )
-    return _certify(system, problem, runs, rigorous, eps)
+    return _certify(system, problem, runs, rigorous, eps, inside)
+
+
+def _tolerance(
+    system: NPlusMSystem, K: NDArray[np.float64], eps: float, windows: tuple[tuple[float, float], ...], inside: bool
+) -> NPlusMSpeedTolerance:
+    """:func:`nplusm_speed_tolerance` of the designed ``K``; a proof inside the box that stops at its work bound
+    leaves the verdicts at the points, its reason in the statement (the design is not lost)."""
+    try:
+        return nplusm_speed_tolerance(system, K, eps, windows, inside=inside)
+    except CertificationError as exc:
+        if not inside:
+            raise
+        points = nplusm_speed_tolerance(system, K, eps, windows)
+        return dataclasses.replace(points, statement=f"{points.statement}; the proof inside the box stopped: {exc}")
 
 
 def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
@@ -1214,7 +1238,12 @@ def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, floa
 
 
 def _certify(
-    system: NPlusMSystem, problem: NPlusMGainProblem, runs: list[LocalRun], rigorous: bool, eps: float | None
+    system: NPlusMSystem,
+    problem: NPlusMGainProblem,
+    runs: list[LocalRun],
+    rigorous: bool,
+    eps: float | None,
+    inside: bool = False,
 ) -> NPlusMGainDesign:
     K = problem.gain(runs[0].parameters)
     F = NPlusMCharacteristic(system, K, 0.0)
@@ -1226,7 +1255,7 @@ def _certify(
     met = met and all(v.stable and v.certified for v in verdicts)
     tolerance = None
     if eps is not None:
-        tolerance = nplusm_speed_tolerance(system, K, eps, problem.windows)
+        tolerance = _tolerance(system, K, eps, problem.windows, inside)
         met = met and tolerance.certified == "certified at the vertices"
     vertex_margins = (
         () if eps is None or dm is None else tuple(problem.margin(K, j) for j in range(1, 1 + len(problem.scenarios)))
