@@ -131,13 +131,26 @@ def _hat(nu: mp.mpf) -> mp.mpf:
     return -2 + (mp.mpf(0.5) + 2) * (nu - a) / (b - a)
 
 
-def test_a_count_proven_with_the_delayed_sum():
+def test_a_count_proven_with_the_delayed_sum(monkeypatch: pytest.MonkeyPatch):
     """``unstable_count(..., balls=DelayedSumBalls(...))``: ``s - 1 + e^{-(1 + 0.1) s} / 2`` has one zero in
     ``Re s > 0`` (real: ``s - 1 + e^{-1.1 s}/2`` is -0.5 at 0 and grows to +inf), ``s + 2 - e^{-(1 + 0.1) s}``
-    none (``|s + 2| >= 2 > 1`` there)."""
+    none (``|s + 2| >= 2 > 1`` there); the count is proven with the enclosure given (``count_roots`` receives it)."""
+    import nrobust.margins.count as count_module
+
+    given_balls = []
+    count_roots = count_module.count_roots
+
+    def recording(*args: object, **kwargs: object) -> object:
+        given_balls.append(kwargs.get("balls"))
+        return count_roots(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(count_module, "count_roots", recording)
     for poly, expected in (([-1.0, 1.0], 1), ([2.0, 1.0], 0)):
         A = QuasiPolynomial([poly], [0.0])
         B = QuasiPolynomial([[0.5 if expected else -1.0]], [1.0])
         assert not B.shift_is_exact(0.1)
-        count = unstable_count(A + B.shift(0.1), 4.0, rigorous=True, balls=DelayedSumBalls(A, B, 0.1))
+        balls = DelayedSumBalls(A, B, 0.1)
+        given_balls.clear()
+        count = unstable_count(A + B.shift(0.1), 4.0, rigorous=True, balls=balls)
         assert count.count == expected
+        assert given_balls and all(b is balls for b in given_balls)

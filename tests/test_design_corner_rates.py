@@ -123,14 +123,25 @@ def test_corner_rates_of_a_filtered_design() -> None:
     assert "(the design maximises it;" in report
 
 
-def test_a_proof_the_balls_cannot_complete_gives_the_studied_float() -> None:
-    """``rigorous=True`` on the paper's plant: the enclosed traces' radii (about 4e-3) keep the roots' boxes
-    from separating, so the corner's abscissa is the floating-point one with its grid study, and says so; it
-    holds the corner loop's rate on 201 kernel points (module notes)."""
+def test_the_corner_rate_is_proven_with_the_enclosed_traces() -> None:
+    """``rigorous=True`` on the paper's plant: the enclosed traces (within a proven 4.1e-12) let the corner's
+    abscissa be proven about the PDE under the true law (before, with traces fitted to the kernel route's within
+    4e-3, the roots' boxes overlapped and the result was the floating-point one); its bracket holds the corner
+    loop's rate on 201 kernel points (module notes)."""
     K = 0.1414123233383696
     sa = mismatch_abscissa(PAPER, ReflectionController(K), -0.05, -0.05, kernel_grid=31, rigorous=True)
     law = ReflectionController(K).feedback_law(PAPER, solve_kernels(PAPER, ORACLE_GRID))
     corner = dataclasses.replace(PAPER, lam=PAPER.lam * 0.95, mu=PAPER.mu * 0.95)
     A, B = loop_factors(corner, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v))
-    assert not sa.rigorous and sa.model_error is not None and sa.accuracy is not None
-    assert abs(sa.value - spectral_abscissa(A + B).value) <= sa.accuracy + ORACLE_ERROR
+    assert sa.rigorous and sa.model_error == 0.0
+    lo, hi = sa.value_bracket
+    assert lo - ORACLE_ERROR <= spectral_abscissa(A + B).value <= hi + ORACLE_ERROR
+
+
+def test_traces_too_wide_to_prove_with_take_the_kernel_route() -> None:
+    """On ``Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5)`` the traces' proven bound is about ``3.6e72`` (Gronwall's factor):
+    the exact route is not taken (before, the loop carried radii ``4e74`` and the abscissa refused with a
+    ``ParameterError`` about the root-free radius); the kernel route's abscissa comes with its grid study."""
+    strong = Hyperbolic2x2(1.0, 1.0, 4.0, 4.0, 0.5, 0.5)
+    sa = mismatch_abscissa(strong, ReflectionController(0.1), -0.05, -0.05, kernel_grid=31, rigorous=True)
+    assert sa.model_error is not None and sa.model_error > 0.0

@@ -165,3 +165,25 @@ def test_sampled_rates_of_the_gain_left_out_by_the_chains() -> None:
     rates = _rates(_sampled_abscissas(fam, Ks, 4))
     assert np.isfinite(rates).sum() == 1
     np.testing.assert_allclose(rates[4], -np.log((RHO - Ks[4]) * Q) / TAU, rtol=0, atol=1e-12)
+
+
+def test_a_minimum_of_the_curve_is_not_the_design() -> None:
+    """The margin of this loop falls from the bound ``K = -1`` (0.071796) to a minimum at ``K = -0.92`` (0.071583),
+    then rises to the gain where the loop without delay loses stability (``K = -0.7234615``). The design is that
+    end, moved inside (margin 0.0733678, a supremum not attained), not the minimum or the bound: it beats the
+    certified margins of a grid of 31 gains on ``[-1, -0.7]`` (the public ``delay_margin``, which shares only the
+    loop with the design), the last stable one 0.073241 at ``K = -0.73``."""
+    from nrobust.design.gain import best_margin
+    from nrobust.margins import delay_margin
+
+    loop = AffineLoop(
+        QuasiPolynomial([[1.454, 1.0], [-1.751]], [0.0, 1.928]),
+        QuasiPolynomial([[-0.6]], [0.0]),
+        QuasiPolynomial([[-1.584]], [1.529]),
+        QuasiPolynomial([[-2.0]], [0.333]),
+    )
+    design = best_margin(loop, (-1.0, 1.0))
+    grid = [delay_margin(loop.A(K), loop.B(K)).margin for K in np.linspace(-1.0, -0.7, 31)]
+    assert design.kind == "end" and abs(design.K + 0.7234615) < 1e-6
+    assert design.margin >= max(grid) and max(grid) > 0.0732
+    np.testing.assert_allclose(design.margin, delay_margin(loop.A(design.K), loop.B(design.K)).margin, rtol=1e-12)

@@ -17,7 +17,7 @@ import re
 import numpy as np
 import pytest
 from _budget import FUZZ, budget
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from nrobust import QuasiPolynomial
@@ -48,8 +48,20 @@ def loops(draw: st.DrawFn) -> AffineLoop:
     )
 
 
+#: Found by this test: the margin rises toward the gain where the loop without delay loses stability
+#: (``K = -0.72346``, margin 0.073368), past a minimum of the curve at ``K = -0.92`` that the design took for its
+#: smooth maximum (it returned the bound ``K = -1``, margin 0.071796, below the grid's 0.072207 at ``K = -0.8``).
+_EDGE_ABOVE_A_MINIMUM = AffineLoop(
+    QuasiPolynomial([[1.454, 1.0], [-1.751]], [0.0, 1.928]),
+    QuasiPolynomial([[-0.6]], [0.0]),
+    QuasiPolynomial([[-1.584]], [1.529]),
+    QuasiPolynomial([[-2.0]], [0.333]),
+)
+
+
 @budget(3, 0.2)
 @given(loops())
+@example(loop=_EDGE_ABOVE_A_MINIMUM)
 def test_best_margin_beats_a_grid_of_certified_margins(loop: AffineLoop) -> None:
     try:
         design = best_margin(loop, (-1.0, 1.0))

@@ -262,3 +262,26 @@ def test_a_design_whose_proof_inside_stops_keeps_its_points(monkeypatch: pytest.
     with pytest.raises(ParameterError) as info:
         design_module.design_nplusm_gains(two, "decay_rate", speed_tolerance=EPS, inside=True, margin_at_least=0.5)
     assert info.value.name == "inside"
+
+
+class _Claimed:
+    """A verdict claiming stability (to start the proof where the window is not stable)."""
+
+    stable = True
+    certified = True
+
+    def to_dict(self) -> dict[str, object]:
+        return {"stable": True, "certified": True}
+
+
+def test_a_crossing_inside_the_window_ends_the_proof_at_its_least_box() -> None:
+    """The window ``[0, 1.5]`` holds the first crossing delay of every plant of a box ``eps = 1e-9`` about the test
+    plant (1.2384 at ``k = -0.441025``, the oracle): given a verdict that claims stability at a vertex, the proof
+    finds no box free of crossings about that frequency, halves down to its least width and refuses there, naming
+    the frequency (not the work bound)."""
+    first = _first_delay(PLANT, GAIN, 10.0)
+    assert 1.0 < first < 1.5
+    vertices = [(-1e-9, -1e-9), (-1e-9, 1e-9), (1e-9, -1e-9), (1e-9, 1e-9)]
+    proof = prove_speed_box(SYSTEM, [[GAIN]], 1e-9, (0.0, 1.5), vertices, [_Claimed()] * 4)
+    assert not proof.proven and proof.undecided
+    assert "a zero of F on the imaginary axis for w in" in proof.reason

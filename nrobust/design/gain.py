@@ -2201,8 +2201,9 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
     The scanned curve is linear between its samples, so its largest value sits at a sample and the
     exact maximum may lie up to a sample's spacing in ``w`` away (many cells of gains where ``K``
     moves fast with ``w``): ``d(d)/dw = 0`` is bracketed between the piece's samples about ``i``,
-    widened, and solved by ``brentq`` (kept when the curve is the lowest there and the nominal loop
-    stable). Otherwise (across a junction, or a curve still rising where the nominal stability ends)
+    widened, and solved by ``brentq`` (kept when the curve is the lowest there, at least its sampled value at
+    ``i``, so a maximum and not a minimum, and the nominal loop stable). Otherwise (across a junction, or a
+    curve still rising where the nominal stability ends)
     Brent's bounded search runs on the exact envelope over the stable gains about ``i``, its window
     moved while the maximum sits at one of its ends: beyond the stable gains ``curves.value`` knows
     no crossing (``inf``) although every margin is 0. A maximum at a stability edge
@@ -2232,7 +2233,9 @@ def _smooth_max(curves: _Curves, i: int, env: NDArray) -> tuple[float, float, st
             w = brentq(slope, a, b, xtol=1e-15 * b, rtol=1e-15)
             K, d, dK, _ = curves.on_branch(w, piece.sigma)
             lowest = curves.K_lo <= K <= curves.K_hi and abs(curves.value(K) - d) <= 1e-12 * d
-            if lowest and curves.loop.nominally_stable(K):
+            # a maximum, not a minimum of the curve: at least the sampled envelope at i (whose samples are the
+            # curve's values; a minimum farther along the branch is lower)
+            if lowest and d >= env[i] * (1.0 - 1e-9) and curves.loop.nominally_stable(K):
                 half = abs(dK) * 4e-15 * w  # the bracket of w mapped to K; the value is flat there
                 return K, d, "interior smooth max", (K - half, K + half), (d, d)
             break

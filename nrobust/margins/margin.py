@@ -32,7 +32,6 @@ from numpy.typing import ArrayLike, NDArray
 from .._digits import with_accuracy
 from .._json import fields_dict
 from .._validate import positive_int
-from ..balls import DelayedSumBalls
 from ..bounds import joint_degree, principal_gap, root_free_region
 from ..errors import CertificationError, ParameterError
 from ..quasipoly import QuasiPolynomial, as_quasipolynomial
@@ -829,9 +828,7 @@ def delay_margin(
         marks = sorted(d for d in events if d > 0.0)
         probe = 0.5 * marks[0] if marks else (1.0 if not np.isfinite(delta_max) else 0.5 * delta_max)
         loop = A + B.shift(probe) if proof is None else _proven_sum(A, B.shift(probe))
-        # a rounded delay t + probe: the proof encloses A + B e^{-probe s} with the probe exact
-        balls = None if proof is None or B.shift_is_exact(probe) else DelayedSumBalls(A, B, probe)
-        first = unstable_count(loop, W, rigorous=rigorous, balls=balls).count
+        first = unstable_count(loop, W, rigorous=rigorous).count
     counts, intervals = _windows(first, events, delta_max, crossings)
     stable_at_zero = nominal == 0
     margin, omega, reason = _first_axis_root(crossings, zero_root, stable_at_zero)

@@ -96,6 +96,7 @@ __all__ = [
     "MismatchEnd",
     "MismatchRegion",
     "SpeedTolerance",
+    "USABLE_TRACE_BOUND",
     "check_local_requirements",
     "check_speed_tolerance",
     "mismatch_abscissa",
@@ -179,16 +180,33 @@ def _mismatched(
     return _Mismatched(plant, StateFeedback(law.boundary_gain, law.gain_u, law.gain_v), law.filter, None)
 
 
+#: Largest proven bound of the enclosed traces, relative to their size, with which the exact route is taken.
+USABLE_TRACE_BOUND = 1e-2
+
+
 def _enclosure(system: Hyperbolic2x2, controller: Controller, kernel_grid: int) -> TraceEnclosure | str | None:
     """The enclosed traces of an unfiltered ``U_BS2(K)``/``U_BS`` on a coupled plant with constant couplings, the
-    reason they are not enclosed (a string), or None (another law, an uncoupled plant, varying couplings)."""
+    reason they are not enclosed (a string), or None (another law, an uncoupled plant, varying couplings).
+
+    A bound above :data:`USABLE_TRACE_BOUND` times the traces' size (their largest modulus at 201 points) is a
+    reason too: the loop's error terms would outweigh its kernels, and their radii overflow its frequency bounds
+    (``3.6e72`` on ``Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5)``, where Gronwall's factor of the traces is ``e^{166}``).
+    """
     K = _reflection_gain(controller, system)
     if K is None or system.uncoupled or not has_exact_form(system):
         return None
     try:
-        return trace_enclosure(system, K)
+        enclosure = trace_enclosure(system, K)
     except CertificationError as exc:
         return str(exc)
+    x = np.linspace(0.0, 1.0, 201)
+    size = max(float(np.max(np.abs(enclosure.law.g_u(x)))), float(np.max(np.abs(enclosure.law.g_v(x)))))
+    if not enclosure.error <= USABLE_TRACE_BOUND * size:
+        return (
+            f"the traces' proven bound {enclosure.error:.1e} exceeds {USABLE_TRACE_BOUND:g} times their size "
+            f"{size:.1e} (Gronwall's factor of a strong coupling)"
+        )
+    return enclosure
 
 
 def _loop(
@@ -338,9 +356,9 @@ def mismatch_abscissa(
     ``4.6e-9`` more to 121; the estimate is ``2.5e-7``. None (not estimated): an output feedback, a chain value,
     or ``4n - 3`` above ``MAX_KERNEL_GRID``.
 
-    With ``rigorous=True`` a proof the ball arithmetic cannot complete (the radii of the enclosed traces, about
-    ``4e-3`` on the paper's plant, make the roots' boxes overlap) gives the floating-point result instead:
-    ``rigorous`` of the result says which.
+    With ``rigorous=True`` a proof the ball arithmetic cannot complete (radii of the enclosed traces that make the
+    roots' boxes overlap) gives the floating-point result instead: ``rigorous`` of the result says which. On the
+    paper's plant the traces' bound (``4.1e-12``) lets the proof complete.
 
     Parameters
     ----------

@@ -521,8 +521,10 @@ class StateFeedbackDesign(CornerRates):
 
     @property
     def certified(self) -> bool:
-        """Whether the design's abscissa and margin are certified (see :class:`LoopDesign`)."""
-        return self.design.certified
+        """Whether the design's abscissa and margin are certified (see :class:`LoopDesign`), and with
+        ``speed_tolerance`` each restated corner abscissa of :attr:`corner_abscissae` too (the least of which is
+        :attr:`value`)."""
+        return self.design.certified and all(a.certified for a in self.corner_abscissae)
 
     @property
     def requirement(self) -> str:

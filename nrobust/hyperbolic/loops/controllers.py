@@ -1577,13 +1577,14 @@ def _observer_delay_sums(system: Any, controller: CollocatedOutputFeedback) -> s
     (Its distributed terms carry the rounding of their moved nodes in their proven bounds.)"""
     delta_o = Fraction(controller.observer_delay)
     delays = [t for _, t in proven_collocated_products(system).open_loop_product.point_terms]
-    gaps = [abs(Fraction(t + float(delta_o)) / (Fraction(t) + delta_o) - 1) for t in delays if t + float(delta_o) > 0]
-    gap = max(gaps, default=Fraction(0))
-    if gap == 0:
+    gaps = {t: abs(Fraction(t + float(delta_o)) / (Fraction(t) + delta_o) - 1) for t in delays if Fraction(t) + delta_o}
+    rounded = [t for t, g in gaps.items() if g]
+    if not rounded:
         return ""
+    gap = max(gaps[t] for t in rounded)
     bound = float(gap)
     bound = math.nextafter(bound, math.inf) if Fraction(bound) < gap else bound
-    sums = " and ".join(f"{t!r} + delta_o" for t in delays)
+    sums = " and ".join(f"{t!r} + delta_o" for t in rounded)
     return (
         f"the observer's point delays {sums} as the nearest doubles (a relative {upper_bound_text(bound, 2)} at "
         "most from the exact sums)"
