@@ -124,9 +124,12 @@ def test_gain_radius_and_variation_hold_the_kernels_of_the_box(
 
 @pytest.mark.long
 def test_trace_bound_holds_a_fine_grid() -> None:
-    """``delta`` of ``reflection_traces`` holds ``sup |h - g|`` with ``g`` the traces of grids 401 and 801
-    extrapolated to second order (the observed order is 2.3; the extrapolation moves them by ~2e-9, the
-    measured ``sup |h - g|`` is ~4e-8 and ``delta`` ~1e-7)."""
+    """``h`` of ``reflection_traces`` agrees with ``g``, the traces of grids 401 and 801 extrapolated to second
+    order, within ``delta`` plus the oracle's own error, taken as four times the extrapolation's change (the
+    observed order is 2.3: the change overstates the extrapolated traces' error). Since the traces are solved by
+    collocation ``delta`` (7.5e-14) is far below the oracle's accuracy (``sup |h - g|`` measured 7.8e-10, the
+    extrapolation's change about 2e-9); fitted to the kernel route's traces they were within ``delta`` ~1e-7 of
+    it, ``sup |h - g|`` ~4e-8."""
     from nrobust.hyperbolic.analyses.mismatch_traces import reflection_traces
     from nrobust.hyperbolic.kernels.constant import solve_kernels
     from nrobust.hyperbolic.loops.controllers import ReflectionController
@@ -138,7 +141,8 @@ def test_trace_bound_holds_a_fine_grid() -> None:
     for h, name in ((law.g_u, "gain_u"), (law.g_v, "gain_v")):
         g1, g2 = (np.asarray(getattr(f, name)(x), dtype=float) for f in (coarse, fine))
         truth = g2 + (g2 - g1) / 3.0
-        assert delta >= np.max(np.abs(np.asarray(h(x), dtype=float) - truth)) > 0.0
+        oracle_error = 4.0 * float(np.max(np.abs(g2 - g1))) / 3.0
+        assert np.max(np.abs(np.asarray(h(x), dtype=float) - truth)) <= delta + oracle_error
 
 
 def _integral_terms(system: Hyperbolic2x2, law: StateFeedback, s: np.ndarray, n: int) -> np.ndarray:
