@@ -50,6 +50,7 @@ Derivations
 
 from __future__ import annotations
 
+import functools
 import inspect
 import itertools
 import math
@@ -1237,3 +1238,86 @@ class VaryingPDELoop:
             with mp.workdps(self.DPS):
                 out.append((wc, float(((-mp.arg(-A / B)) % (2 * mp.pi)) / wc)))
         return out
+
+
+@functools.cache
+def gauss_legendre(n: int, dps: int) -> tuple[list, list]:
+    """Gauss-Legendre nodes and weights on ``[0, 1]`` at ``dps`` digits (numpy's nodes refined by Newton)."""
+    with mp.workdps(dps + 10):
+        nodes, weights = [], []
+        for x0 in np.polynomial.legendre.leggauss(n)[0]:
+            x = mp.findroot(lambda t: mp.legendre(n, t), mp.mpf(x0))
+            dp = n * (x * mp.legendre(n, x) - mp.legendre(n - 1, x)) / (x * x - 1)
+            nodes.append((x + 1) / 2)
+            weights.append(1 / ((1 - x * x) * dp * dp))
+        return nodes, weights
+
+
+def one_plus_one_factors(s: mp.mpc, plant: Sequence[float], k: float) -> tuple[mp.mpc, mp.mpc]:
+    """``(A(s), B(s))`` of the ``1 + 1`` loop of ``plant = (lam, mu, sigma+-, sigma-+, q, r)`` under
+    ``U = k u(t - delta, 1)``: the closed form of the 2x2 exponential (``cosh``/``sinh`` of its eigenvalues), at the
+    working precision."""
+    lam, mu, s_pm, s_mp, q, r = (mp.mpf(v) for v in plant)
+    a, b = -s / lam, s_pm / lam
+    c, d = -s_mp / mu, s / mu
+    half = (a + d) / 2
+    root = mp.sqrt(half**2 - (a * d - b * c))
+    ch = mp.cosh(root)
+    sh = mp.sinh(root) / root if root != 0 else mp.mpf(1)
+    e = mp.exp(half)
+    phi_u = e * (ch + sh * (a - half)) * q + e * sh * b
+    phi_v = e * sh * c * q + e * (ch + sh * (d - half))
+    scale = mp.exp(-s / mu)
+    return scale * (phi_v - r * phi_u), -mp.mpf(k) * scale * phi_u
+
+
+def barycentric(x: Sequence, bary: Sequence, y: object) -> list:
+    """The weights of the values at the nodes ``x`` (barycentric weights ``bary``) that interpolate at ``y``."""
+    terms = []
+    for xj, bj in zip(x, bary):
+        if y == xj:
+            return [mp.mpf(1) if v == xj else mp.mpf(0) for v in x]
+        terms.append(bj / (y - xj))
+    total = mp.fsum(terms)
+    return [t / total for t in terms]
+
+
+def window_collocation(
+    kernel: Callable[[object], object], rhs: Callable[[object], object], w: object, n: int, dps: int
+) -> tuple[list, list, list]:
+    """``h`` with ``h + kernel * h = rhs`` on ``[0, w]`` (a convolution equation of the second kind) at ``n``
+    Chebyshev points, the convolution by Gauss-Legendre with 40 points on ``[0, nu]``: ``(x, bary, h)``."""
+    with mp.workdps(dps + 10):
+        theta = [(2 * j + 1) * mp.pi / (2 * n) for j in range(n)]
+        x = [w / 2 * (1 - mp.cos(t)) for t in theta]
+        bary = [(-1) ** j * mp.sin(t) for j, t in enumerate(theta)]
+        gx, gw = gauss_legendre(40, dps)
+        M = mp.matrix(n, n)
+        for i in range(n):
+            for y, wt in zip(gx, gw):
+                row = barycentric(x, bary, x[i] * y)
+                weight = wt * x[i] * kernel(x[i] - x[i] * y)
+                for j in range(n):
+                    M[i, j] += weight * row[j]
+            M[i, i] += 1
+        h = mp.lu_solve(M, mp.matrix([rhs(v) for v in x]))
+        return x, bary, [h[j] for j in range(n)]
+
+
+def assert_balls_contain(
+    balls: Callable[..., object],
+    F: Callable[[mp.mpc], mp.mpc],
+    points: Sequence[complex],
+    orders: Sequence[int],
+    dps: int,
+) -> None:
+    """Each enclosure ``balls(s, k)`` holds ``F^{(k)}(s)`` computed by mpmath at ``dps`` digits (as a 200-bit ball)."""
+    from nrobust._flint import working_precision
+
+    for s in points:
+        for k in orders:
+            value = balls(s, k)
+            with mp.workdps(dps):
+                truth = mp.diff(F, mp.mpc(s), k)
+            with working_precision(200) as fl:
+                assert value.contains(fl.acb(truth)), (s, k, value, truth)  # type: ignore[attr-defined]

@@ -16,6 +16,7 @@ import math
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import one_plus_one_factors
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -37,18 +38,7 @@ EPS, WINDOW = 0.05, (0.0, 1.2)
 
 def _factors(s: mp.mpc, plant: tuple[float, ...], k: float) -> tuple[mp.mpc, mp.mpc]:
     """``(A(s), B(s))`` of the ``1 + 1`` loop ``plant = (lam, mu, sigma+-, sigma-+, q, r)`` with gain ``k``."""
-    lam, mu, s_pm, s_mp, q, r = (mp.mpf(v) for v in plant)
-    a, b = -s / lam, s_pm / lam
-    c, d = -s_mp / mu, s / mu
-    half = (a + d) / 2
-    root = mp.sqrt(half**2 - (a * d - b * c))
-    ch = mp.cosh(root)
-    sh = mp.sinh(root) / root if root != 0 else mp.mpf(1)
-    e = mp.exp(half)
-    phi_u = e * (ch + sh * (a - half)) * q + e * sh * b
-    phi_v = e * sh * c * q + e * (ch + sh * (d - half))
-    scale = mp.exp(-s / mu)
-    return scale * (phi_v - r * phi_u), -mp.mpf(k) * scale * phi_u
+    return one_plus_one_factors(s, plant, k)
 
 
 def _first_delay(plant: tuple[float, ...], k: float, top: float, step: float = 0.02) -> float:

@@ -22,7 +22,7 @@ from pathlib import Path
 import mpmath as mp
 import numpy as np
 import pytest
-from _oracles import winding_number
+from _oracles import one_plus_one_factors, winding_number
 
 from nrobust._digits import with_accuracy
 from nrobust.cli import main
@@ -44,19 +44,7 @@ DESIGN = {"margin_at_least": 1.2, "K_bounds": (-0.8, -0.3), "x0": [[-0.5]], "sta
 def _factors(s: mp.mpc, lam: float, mu: float, k: float) -> tuple[mp.mpc, mp.mpc]:
     """``(A(s), B(s))`` of the 1 + 1 loop with speeds ``lam``, ``mu`` and gain ``k``, at 40 digits."""
     with mp.workdps(40):
-        s = mp.mpc(s)
-        lam_, mu_ = mp.mpf(lam), mp.mpf(mu)
-        a, b = -s / lam_, mp.mpf(SIGMA_PM) / lam_
-        c, d = -mp.mpf(SIGMA_MP) / mu_, s / mu_
-        half = (a + d) / 2
-        root = mp.sqrt(half**2 - (a * d - b * c))
-        ch = mp.cosh(root)
-        sh = mp.sinh(root) / root if root != 0 else mp.mpf(1)
-        e = mp.exp(half)
-        phi_u = e * (ch + sh * (a - half)) * Q + e * sh * b
-        phi_v = e * sh * c * Q + e * (ch + sh * (d - half))
-        scale = mp.exp(-s / mu_)
-        return scale * (phi_v - R * phi_u), -k * scale * phi_u
+        return one_plus_one_factors(mp.mpc(s), (lam, mu, SIGMA_PM, SIGMA_MP, Q, R), k)
 
 
 def _gap(w: mp.mpf, lam: float, mu: float, k: float) -> mp.mpf:

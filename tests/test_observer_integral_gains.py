@@ -32,6 +32,7 @@ import functools
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import assert_balls_contain, barycentric, gauss_legendre, window_collocation
 
 import nrobust as nr
 from nrobust._flint import working_precision
@@ -123,56 +124,18 @@ def _m(case, nu):
 
 
 @functools.cache
-def _gauss(n):
-    """Gauss-Legendre nodes and weights on ``[0, 1]`` at :data:`DPS` digits (numpy's nodes refined by Newton)."""
-    with mp.workdps(DPS + 10):
-        nodes, weights = [], []
-        for x0 in np.polynomial.legendre.leggauss(n)[0]:
-            x = mp.findroot(lambda t: mp.legendre(n, t), mp.mpf(x0))
-            dp = n * (x * mp.legendre(n, x) - mp.legendre(n - 1, x)) / (x * x - 1)
-            nodes.append((x + 1) / 2)
-            weights.append(1 / ((1 - x * x) * dp * dp))
-        return nodes, weights
-
-
-def _lagrange(x, bary, y):
-    terms = []
-    for xj, bj in zip(x, bary):
-        if y == xj:
-            return [mp.mpf(1) if v == xj else mp.mpf(0) for v in x]
-        terms.append(bj / (y - xj))
-    total = mp.fsum(terms)
-    return [t / total for t in terms]
-
-
-@functools.cache
 def _window_kernel(case, n=36):
     """``h`` at ``n`` Chebyshev points of ``[0, w]`` and the barycentric weights: ``(I + N~ *) h = m``."""
-    with mp.workdps(DPS + 10):
-        w = _numbers(case)[7]
-        N = _series(case, 1)
-        theta = [(2 * j + 1) * mp.pi / (2 * n) for j in range(n)]
-        x = [w / 2 * (1 - mp.cos(t)) for t in theta]
-        bary = [(-1) ** j * mp.sin(t) for j, t in enumerate(theta)]
-        gx, gw = _gauss(40)
-        M = mp.matrix(n, n)
-        for i in range(n):
-            for y, wt in zip(gx, gw):
-                row = _lagrange(x, bary, x[i] * y)
-                weight = wt * x[i] * N(x[i] - x[i] * y)[0]
-                for j in range(n):
-                    M[i, j] += weight * row[j]
-            M[i, i] += 1
-        h = mp.lu_solve(M, mp.matrix([_m(case, v) for v in x]))
-        return x, bary, [h[j] for j in range(n)]
+    N = _series(case, 1)
+    return window_collocation(lambda nu: N(nu)[0], lambda nu: _m(case, nu), _numbers(case)[7], n, DPS)
 
 
 def _H(case, s, n=36):
     """``int_0^w h(nu) e^{-nu s} dnu`` (Gauss-Legendre, 40 points; ``h`` a polynomial of degree ``n - 1``)."""
     w = _numbers(case)[7]
     x, bary, h = _window_kernel(case, n)
-    gx, gw = _gauss(40)
-    return w * mp.fsum(wt * mp.fdot(_lagrange(x, bary, w * y), h) * mp.exp(-w * y * s) for y, wt in zip(gx, gw))
+    gx, gw = gauss_legendre(40, DPS)
+    return w * mp.fsum(wt * mp.fdot(barycentric(x, bary, w * y), h) * mp.exp(-w * y * s) for y, wt in zip(gx, gw))
 
 
 def _integral(case, s):
@@ -288,13 +251,7 @@ def test_the_loops_balls_enclose_the_pdes_loop():
         A, B = _factors(SECOND, s)
         return A + B * mp.exp(-mp.mpf(delta) * s)
 
-    for s in (complex(-0.5, 6.3), complex(0.3, -17.0)):
-        for k in (0, 1):
-            value = balls(s, k)
-            with mp.workdps(DPS):
-                truth = mp.diff(F, mp.mpc(s), k)
-            with working_precision(200) as fl:
-                assert value.contains(fl.acb(truth)), (s, k, value, truth)
+    assert_balls_contain(balls, F, (complex(-0.5, 6.3), complex(0.3, -17.0)), (0, 1), DPS)
 
 
 @pytest.mark.parametrize("case", [SECOND, PAPER], ids=["second", "paper"])

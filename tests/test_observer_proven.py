@@ -31,9 +31,9 @@ import functools
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import assert_balls_contain, barycentric, gauss_legendre, window_collocation
 
 import nrobust as nr
-from nrobust._flint import working_precision
 from nrobust.balls import ball_function
 from nrobust.hyperbolic import FiniteTimeController, Hyperbolic2x2, ReflectionController, StateFeedback
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope, observer_of
@@ -114,61 +114,21 @@ def _kernel(args):
 
 
 @functools.cache
-def _gauss(n):
-    """Gauss-Legendre nodes and weights on ``[0, 1]`` at :data:`DPS` digits (numpy's nodes refined by Newton)."""
-    with mp.workdps(DPS + 10):
-        nodes, weights = [], []
-        for x0 in np.polynomial.legendre.leggauss(n)[0]:
-            x = mp.findroot(lambda t: mp.legendre(n, t), mp.mpf(x0))
-            dp = n * (x * mp.legendre(n, x) - mp.legendre(n - 1, x)) / (x * x - 1)
-            nodes.append((x + 1) / 2)
-            weights.append(1 / ((1 - x * x) * dp * dp))
-        return nodes, weights
-
-
-@functools.cache
 def _window_kernel(args, n=36):
     """``h`` at ``n`` Chebyshev points of ``[0, w]`` and the barycentric weights: ``(I + M) h = N~`` (collocation)."""
-    with mp.workdps(DPS + 10):
-        w = _params(args)[1]
-        N = _kernel(args)
-        theta = [(2 * j + 1) * mp.pi / (2 * n) for j in range(n)]
-        x = [w / 2 * (1 - mp.cos(t)) for t in theta]
-        bary = [(-1) ** j * mp.sin(t) for j, t in enumerate(theta)]
-        gx, gw = _gauss(40)
-        M = mp.matrix(n, n)
-        for i in range(n):
-            for y, wt in zip(gx, gw):
-                yy = x[i] * y
-                row = _lagrange(x, bary, yy)
-                weight = wt * x[i] * N(x[i] - yy)
-                for j in range(n):
-                    M[i, j] += weight * row[j]
-            M[i, i] += 1
-        h = mp.lu_solve(M, mp.matrix([N(v) for v in x]))
-        return x, bary, [h[j] for j in range(n)]
-
-
-def _lagrange(x, bary, y):
-    """The barycentric interpolation weights of the values at ``x`` for the point ``y``."""
-    terms = []
-    for xj, bj in zip(x, bary):
-        if y == xj:
-            return [mp.mpf(1) if v == xj else mp.mpf(0) for v in x]
-        terms.append(bj / (y - xj))
-    total = mp.fsum(terms)
-    return [t / total for t in terms]
+    N = _kernel(args)
+    return window_collocation(N, N, _params(args)[1], n, DPS)
 
 
 def _h(args, y, n=36):
     x, bary, h = _window_kernel(args, n)
-    return mp.fdot(_lagrange(x, bary, y), h)
+    return mp.fdot(barycentric(x, bary, y), h)
 
 
 def _H(args, s, n=36):
     """``int_0^w h(nu) e^{-nu s} dnu`` (Gauss-Legendre, 40 points; ``h`` a polynomial of degree ``n - 1``)."""
     w = _params(args)[1]
-    gx, gw = _gauss(40)
+    gx, gw = gauss_legendre(40, DPS)
     return w * mp.fsum(wt * _h(args, w * y, n) * mp.exp(-w * y * s) for y, wt in zip(gx, gw))
 
 
@@ -263,13 +223,7 @@ def test_the_loops_balls_enclose_the_pdes_loop(args, law):
         A, B = _factors(args, law, s)
         return A + B * mp.exp(-mp.mpf(delta) * s)
 
-    for s in (complex(-0.5, 6.3), complex(0.3, -17.0), complex(-2.0, 90.0)):
-        for k in (0, 1):
-            value = balls(s, k)
-            with mp.workdps(DPS):
-                truth = mp.diff(F, mp.mpc(s), k)
-            with working_precision(200) as fl:
-                assert value.contains(fl.acb(truth)), (s, k, value, truth)
+    assert_balls_contain(balls, F, (complex(-0.5, 6.3), complex(0.3, -17.0), complex(-2.0, 90.0)), (0, 1), DPS)
 
 
 @pytest.mark.parametrize(
