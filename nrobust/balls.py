@@ -564,8 +564,7 @@ class DelayedSumBalls(BallFunction):
     ``A + B.shift(delta)`` holds each point delay ``t + delta`` of ``B`` as the nearest double
     (:meth:`~nrobust.quasipoly.QuasiPolynomial.shift_is_exact`); the product form keeps ``delta`` as given.
     ``r`` (a rational, enclosed in an ``arb`` ball at the working precision; 1 by default) scales ``s`` in the
-    factors: :class:`~nrobust.hyperbolic.loops.given_plant.GivenPlantBalls` maps a loop built with a rounded
-    ``tau`` to the plant's.
+    factors: a loop built with a rounded time scale ``tau_d`` is the loop of the exact ``tau = r tau_d`` at ``r s``.
 
     Parameters
     ----------

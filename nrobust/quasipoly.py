@@ -740,8 +740,7 @@ class QuasiPolynomial:
         every sum is a double); a distributed term moves as
         :meth:`~nrobust.quasipoly.DistributedDelay.shift` says, a term with error bounds carrying the
         rounding of its nodes in them. A proof about ``A + B e^{-delta s}`` with a sum that rounds encloses
-        ``B e^{-delta s}`` as a product instead (e.g.
-        :func:`~nrobust.hyperbolic.loops.given_plant.given_plant_balls`).
+        ``B e^{-delta s}`` as a product instead (:class:`~nrobust.balls.DelayedSumBalls`).
         """
         delta = nonnegative("delta", delta)
         return QuasiPolynomial.from_parts(

@@ -9,10 +9,10 @@ rigorous certificate's roots at ``delta_max`` are proven with it), and the prove
 names the delays ``tau + delta_o`` it holds rounded.
 
 Oracle, sharing no code with the package: the uncoupled plant's loop under U_BS2(K) written from its boundary
-conditions (``v(1) = rho u(1) + U`` with ``U = (K - rho) u(1)`` applied ``delta`` late, eqs. (47)-(52) of the paper
+conditions (``v(1) = rho u(1) + U`` with ``U = -K u(1)`` applied ``delta`` late, eqs. (47)-(52) of the paper
 with no coupling): ``F = 1 - rho q e^{-tau s} + K q e^{-(tau + delta) s}`` up to the factor of the round trip,
 evaluated by mpmath at 90 digits with every delay the exact sum of the user's doubles; exactness of a sum decided
-by mpmath at 200 bits.
+by mpmath's exact addition (``fadd(..., exact=True)``).
 """
 
 from __future__ import annotations
@@ -52,8 +52,7 @@ def test_the_rounded_sum_is_what_the_loop_holds():
     """The premise: ``2 + 0.1`` is not a double, and the loop as built holds the rounded sum."""
     F = characteristic(Hyperbolic2x2(*PLANT), ReflectionController(K), DELTA)
     assert 2.1 in [t for _, t in F.point_terms]
-    with mp.workprec(200):
-        assert mp.mpf(2.0) + mp.mpf(DELTA) != mp.mpf(2.0 + DELTA)
+    assert mp.fadd(2.0, DELTA, exact=True) != mp.mpf(2.0 + DELTA)
     assert not loop_factors(Hyperbolic2x2(*PLANT), ReflectionController(K))[1].shift_is_exact(DELTA)
 
 
@@ -85,8 +84,7 @@ def test_an_exact_sum_keeps_the_loops_own_balls():
 def test_shift_is_exact_agrees_with_the_sums_at_200_bits(delays: list[float], delta: float):
     """``shift_is_exact`` is True exactly when every ``t + delta`` (mpmath, exactly) is a double."""
     F = QuasiPolynomial([[1.0]] * len(delays), delays)
-    with mp.workprec(200):
-        exact = all(mp.fadd(t, delta, exact=True) == mp.mpf(t + delta) for _, t in F.point_terms)
+    exact = all(mp.fadd(t, delta, exact=True) == mp.mpf(t + delta) for _, t in F.point_terms)
     assert F.shift_is_exact(delta) == exact
 
 
@@ -94,8 +92,7 @@ def test_the_collocated_scope_names_the_observer_delays_it_rounds():
     """The proven collocated observer with ``delta_o = 0.05`` holds ``1.5 + 0.05`` and ``3.0 + 0.05`` rounded: the
     scope says so (before: "the plant as given"); ``delta_o = 0.5`` (exact sums) keeps "the plant as given"."""
     plant = Hyperbolic2x2(1, 2, 0.4, 0.5, 1, 0.3)
-    with mp.workprec(200):
-        assert mp.mpf(1.5) + mp.mpf(0.05) != mp.mpf(1.5 + 0.05)
+    assert mp.fadd(1.5, 0.05, exact=True) != mp.mpf(1.5 + 0.05)
     rounded = CollocatedOutputFeedback(StateFeedback(-0.2), 0.05)
     scope = loop_scope(plant, rounded, None, loop_factors(plant, rounded))
     assert "1.5 + delta_o and 3.0 + delta_o as the nearest doubles" in scope

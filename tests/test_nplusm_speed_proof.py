@@ -240,7 +240,9 @@ def test_a_design_whose_proof_inside_stops_keeps_its_points(monkeypatch: pytest.
 
     monkeypatch.setattr(design_module, "prove_speed_box", stops)
     # the final check of the design (its optimisation, about 20 s, is the long test's above)
-    tolerance = design_module._tolerance(SYSTEM, np.array([[GAIN]]), EPS, (WINDOW,), True)
+    tolerance = design_module._box_tolerance(
+        SYSTEM, np.array([[GAIN]]), EPS, (WINDOW,), True, 50_000, stopped_raises=False
+    )
     assert not tolerance.inside and tolerance.certified == "certified at the vertices"
     assert "the proof inside the box stopped: prove_speed_box: the work bound" in tolerance.statement
     with pytest.raises(ParameterError) as info:

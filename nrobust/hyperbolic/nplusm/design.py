@@ -83,7 +83,6 @@ on the affine loop of ``StateFeedback(k)``, the same law): tests.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -469,6 +468,22 @@ def nplusm_speed_tolerance(
     if not isinstance(inside, bool) or (inside and system.m != 1):
         raise ParameterError("inside", "True or False; True for one actuator (m = 1) only", inside)
     max_boxes = positive_int("max_boxes", max_boxes)
+    return _box_tolerance(system, k, eps, windows, inside, max_boxes, stopped_raises=True)
+
+
+def _box_tolerance(
+    system: NPlusMSystem,
+    k: NDArray[np.float64],
+    eps: float,
+    windows: tuple[tuple[float, float], ...],
+    inside: bool,
+    max_boxes: int,
+    *,
+    stopped_raises: bool,
+) -> NPlusMSpeedTolerance:
+    """:func:`nplusm_speed_tolerance` of checked arguments; a proof inside the box that reaches ``max_boxes``
+    raises its :class:`~nrobust.errors.CertificationError` (``stopped_raises``) or leaves its reason in the
+    statement (a design's final check: the design is not lost, its verdicts at the points are not recomputed)."""
     vertices, others = speed_box(system.n + system.m, eps)
     points = (*vertices, *others)
     verdicts = []
@@ -481,7 +496,13 @@ def nplusm_speed_tolerance(
     if inside and stable and all(v.certified for row in verdicts[: len(vertices)] for v in row):
         for j, w in enumerate(windows):
             at = [row[j] for row in verdicts[: len(vertices)]]
-            proof = prove_speed_box(system, k, eps, w, vertices, at, max_boxes=max_boxes)
+            try:
+                proof = prove_speed_box(system, k, eps, w, vertices, at, max_boxes=max_boxes)
+            except CertificationError as exc:
+                if stopped_raises:
+                    raise
+                proofs.append((False, f"the proof inside the box stopped: {exc}"))
+                break
             proofs.append((proof.proven, proof.reason))
     elif inside and stable:
         proofs.append((False, "a vertex's verdict is not certified, so no point to start the proof from"))
@@ -1212,20 +1233,6 @@ def design_nplusm_gains(
     return _certify(system, problem, runs, rigorous, eps, inside)
 
 
-def _tolerance(
-    system: NPlusMSystem, K: NDArray[np.float64], eps: float, windows: tuple[tuple[float, float], ...], inside: bool
-) -> NPlusMSpeedTolerance:
-    """:func:`nplusm_speed_tolerance` of the designed ``K``; a proof inside the box that stops at its work bound
-    leaves the verdicts at the points, its reason in the statement (the design is not lost)."""
-    try:
-        return nplusm_speed_tolerance(system, K, eps, windows, inside=inside)
-    except CertificationError as exc:
-        if not inside:
-            raise
-        points = nplusm_speed_tolerance(system, K, eps, windows)
-        return dataclasses.replace(points, statement=f"{points.statement}; the proof inside the box stopped: {exc}")
-
-
 def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, float], ...]:
     """The windows as disjoint closed intervals, ascending (windows that meet are one)."""
     merged: list[tuple[float, float]] = []
@@ -1255,7 +1262,7 @@ def _certify(
     met = met and all(v.stable and v.certified for v in verdicts)
     tolerance = None
     if eps is not None:
-        tolerance = _tolerance(system, K, eps, problem.windows, inside)
+        tolerance = _box_tolerance(system, K, eps, problem.windows, inside, MAX_BOX_PROOF_BOXES, stopped_raises=False)
         met = met and tolerance.certified == "certified at the vertices"
     vertex_margins = (
         () if eps is None or dm is None else tuple(problem.margin(K, j) for j in range(1, 1 + len(problem.scenarios)))
