@@ -53,6 +53,7 @@ def pareto_response(
     *,
     delays: tuple[float, float] | Sequence[tuple[float, float]] | None = None,
     scenarios: Sequence[ParametricLoop] | Mapping[str, ParametricLoop] = (),
+    worst_case: bool = False,
     x0: ArrayLike | None = None,
     starts: int = 1,
     max_iter: int = 60,
@@ -63,7 +64,8 @@ def pareto_response(
 
     The front of :func:`nrobust.design.pareto_front` (same parameters: the best certified
     decay rate of ``loop`` under each required margin of ``required``, within ``bounds``, with
-    the windows ``delays`` and the ``scenarios``), wrapped so that
+    the windows ``delays`` and the ``scenarios``; with ``worst_case`` the least rate of the loop and the
+    scenarios), wrapped so that
     ``pareto_response(loop, bounds, required).plot()`` draws it (:func:`pareto_plot`).
 
     Returns
@@ -78,6 +80,7 @@ def pareto_response(
         required,
         delays=delays,
         scenarios=scenarios,
+        worst_case=worst_case,
         x0=x0,
         starts=starts,
         max_iter=max_iter,
@@ -103,7 +106,8 @@ def pareto_plot(front: ParetoFront, ax: Axes | None = None, annotate: bool = Tru
     -------
     NrobustPlot
         ``lines["front"]`` with x = the designs' delay margins (the infinite ones at the
-        largest requirement, drawn hollow) and y = their decay rates; ``lines["required"]``
+        largest requirement, drawn hollow) and y = their decay rates (with :attr:`ParetoFront.worst_case` the
+        least rates of the loop and the scenarios, as the axis says); ``lines["required"]``
         the requirements; ``lines["windows"]`` the windows of delays every design is stable on
         too (shaded; :attr:`ParetoFront.delays`). The title names the scenarios held to the
         requirements (:attr:`ParetoFront.scenarios`).
@@ -129,8 +133,9 @@ def pareto_plot(front: ParetoFront, ax: Axes | None = None, annotate: bool = Tru
             label = ", ".join(f"{v:.3g}" for v in design.parameters)
             ax.annotate(f"({label})", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=6)
     ax.set_xlabel("delay margin delta*")
-    ax.set_ylabel("decay rate (- spectral abscissa)")
-    title = "Best decay rate under a required delay margin"
+    least = bool(front.worst_case)
+    ax.set_ylabel("least decay rate of the loop and the scenarios" if least else "decay rate (- spectral abscissa)")
+    title = f"Best {'least ' if least else ''}decay rate under a required delay margin"
     if windows:
         title += " and stable on " + ", ".join(f"[{float(lo)!r}, {float(hi)!r}]" for lo, hi in windows)
     scenarios = tuple(front.scenarios)

@@ -9,7 +9,7 @@ under a window of delays (``delays``) and a tolerance on the transport speeds
 (``speed_tolerance``: the four corner plants with mismatched speeds, the law designed on the
 nominal one, must meet the window too, and the decay rate maximised is the least of the nominal
 plant's and the corners'); :func:`filtered_front` is the trade-off of decay rate against delay
-margin over all three.
+margin over all three (under a speed tolerance, of the least rate, as :func:`design_filtered` maximises it).
 With one free parameter the loop is affine in it (``K`` and ``a`` in ``B``, the pole ``b``
 in ``A``), and :func:`design_filtered_exact` finds the global optimum over its interval from
 the equations of its kind (a kink of ``delta*(p)``, a pair birth, a smooth maximum, an end, or
@@ -18,6 +18,7 @@ where ``delta*(p)`` equals a required margin) with the core's :mod:`nrobust.desi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -532,7 +533,13 @@ def filtered_front(
     eps)``, the law designed on ``system``, held to every requirement of the loop (stable for every
     delay in ``[0, d_j]`` and in each window), as ``scenarios`` of the front named by their
     mismatch ``(e_lam, e_mu)``. Only the corners are certified, as by :func:`design_filtered`
-    (:func:`~nrobust.hyperbolic.analyses.speed_tolerance` checks the square between them).
+    (:func:`~nrobust.hyperbolic.analyses.speed_tolerance` checks the square between them). With
+    ``speed_tolerance`` each point maximises, as :func:`design_filtered` does, the least decay rate at
+    ``delta = 0`` of the nominal loop and the corners' (``pareto_front(..., worst_case=True)``), and the front's
+    :attr:`~nrobust.design.ParetoFront.decay_rates` are those least rates, with the corners' abscissae restated
+    by :func:`~nrobust.hyperbolic.analyses.mismatch_abscissa` with its model error
+    (:attr:`~nrobust.design.ParetoFront.scenario_abscissae`, as :attr:`FilteredDesign.corner_abscissae`; a point
+    is certified only with them): a point is :func:`design_filtered`'s ``value`` at its margin from the same start.
 
     Parameters
     ----------
@@ -564,24 +571,45 @@ def filtered_front(
     free, bounds = _split(plant, parameters)
     loop = filtered_loop(plant, free)
     scenarios: dict[str, FilteredLoop] = {}
+    corners: list[tuple[float, float]] = []
     if speed_tolerance is not None:
         eps = check_speed_tolerance(speed_tolerance, plant=plant)
         corners = [(e_lam, e_mu) for e_lam in (-eps, eps) for e_mu in (-eps, eps)]  # _corner_loops' order
         names = [f"(e_lam, e_mu) = ({e_lam!r}, {e_mu!r})" for e_lam, e_mu in corners]
         # a Hyperbolic2x2: check_speed_tolerance refuses any other plant
         scenarios = dict(zip(names, _corner_loops(cast(Hyperbolic2x2, plant), loop, eps, kernel_grid)))
-    return pareto_front(
+    front = pareto_front(
         loop,
         bounds,
         required,
         delays=delays,
         scenarios=scenarios,
+        worst_case=bool(scenarios),
         x0=x0,
         starts=starts,
         max_iter=max_iter,
         rigorous=rigorous,
         map=mapper(executor, progress, "trade-off front"),
     )
+    if not corners:
+        return front
+    # each point's corners restated with their model error, as design_filtered's corner_abscissae
+    restated = tuple(
+        tuple(
+            mismatch_abscissa(
+                cast(Hyperbolic2x2, plant),
+                loop.controller(design.parameters),
+                e_lam,
+                e_mu,
+                kernel_grid=kernel_grid,
+                rigorous=rigorous,
+            )
+            for e_lam, e_mu in corners
+        )
+        for design in front.designs
+    )
+    least = [min(-a.value for a in (d.abscissa, *r)) for d, r in zip(front.designs, restated)]
+    return dataclasses.replace(front, decay_rates=np.array(least, dtype=float), scenario_abscissae=restated)
 
 
 @dataclass(frozen=True)
