@@ -15,11 +15,17 @@ Oracles, sharing no code with the optimiser:
   its loop at ``delta = 0`` on the corner plant is ``(1 + a s)(1 - (rho - K) q e^{-tau' s})``, ``tau' = 1/(lam
   (1 + e_lam)) + 1/(mu (1 + e_mu))``, whose rate is ``min(1/a, -ln|(rho - K) q| / tau')``; ``|K| + rho < 1`` leaves
   every delay stable, so the least rate is the corner ``(-eps, -eps)``'s (the longest ``tau'``) at the bound
-  ``K = 0.99 (1 - rho q) / q`` of ``design_filtered``'s defaults, computed here by mpmath at 40 digits.
+  ``K = 0.99 (1 - rho q) / q`` of ``design_filtered``'s defaults, computed here by mpmath at 40 digits;
+* the same law on the paper's coupled plant, whose corner loops are models on the kernel grid: with ``a = b`` its
+  rate is U_BS2(K)'s (the common factor's zero ``-1/a = -10`` is far left), computed on the corner plant built
+  here (``dataclasses.replace`` of ``lam`` and ``mu``) under the law's gains from kernels on 201 points (a
+  ``StateFeedback`` through ``loop_factors``, not the mismatched loops' route), within ``1e-9`` of the PDE's
+  rate (``tests/test_design_corner_rates.py``'s study): the front's stated accuracy plus ``1e-9`` must hold.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import matplotlib
@@ -27,10 +33,13 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from nrobust import Hyperbolic2x2, QuasiPolynomial
+from nrobust import Hyperbolic2x2, QuasiPolynomial, StateFeedback
 from nrobust.design import pareto_front
 from nrobust.errors import ParameterError
 from nrobust.hyperbolic.analyses import design_filtered, filtered_front
+from nrobust.hyperbolic.kernels.constant import solve_kernels
+from nrobust.hyperbolic.loops.controllers import ReflectionController, loop_factors
+from nrobust.roots import spectral_abscissa
 
 matplotlib.use("Agg")
 
@@ -41,6 +50,9 @@ TIE_TOL = 2e-5
 TRANSPORT = Hyperbolic2x2(1.0, 2.0, 0.0, 0.0, 1.0, 0.5)
 EPS = 0.2
 FILTER_ONE = {"K": None, "a": 0.1, "b": 0.1}
+PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
+# the oracle's kernel grid: within 1e-9 of the limit (module notes)
+ORACLE_GRID, ORACLE_ERROR = 201, 1e-9
 
 
 def rising(p: np.ndarray) -> tuple[QuasiPolynomial, QuasiPolynomial]:
@@ -116,7 +128,7 @@ def test_worst_case_needs_scenarios() -> None:
 
 def test_filtered_front_under_a_speed_tolerance_is_design_filtered() -> None:
     """Each point of the front is ``design_filtered``'s design at its margin, and its least rate is the corner
-    ``(-eps, -eps)``'s rate in closed form (module notes), within the stated accuracy (about 3 s of CPU)."""
+    ``(-eps, -eps)``'s rate in closed form (module notes), within the stated accuracy (about 6 s of CPU)."""
     with mp.workdps(40):
         K = mp.mpf("0.99") * (1 - mp.mpf(TRANSPORT.rho) * mp.mpf(TRANSPORT.q)) / mp.mpf(TRANSPORT.q)
         tau = 1 / (mp.mpf(TRANSPORT.lam) * (1 - mp.mpf(EPS))) + 1 / (mp.mpf(TRANSPORT.mu) * (1 - mp.mpf(EPS)))
@@ -134,3 +146,27 @@ def test_filtered_front_under_a_speed_tolerance_is_design_filtered() -> None:
         accuracy = single.worst_decay_rate_accuracy
         assert accuracy is not None and abs(rate - single.value) <= accuracy
         assert design.decay_rate > rate + 0.5  # the nominal rate, 1.25 times the least
+
+
+@pytest.mark.long  # about 60 s of CPU: the corner loops on 31 kernel points, each restated with its model error
+def test_filtered_front_on_a_coupled_plant_states_the_model_error() -> None:
+    """The paper's plant, ``speed_tolerance=0.05``: the point's least rate against the corner loops on 201 kernel
+    points (module notes), within the accuracy the front states (the corners' convergence studies)."""
+    eps = 0.05
+    front = filtered_front(PAPER, [0.1], speed_tolerance=eps, parameters=FILTER_ONE, x0=[0.1], kernel_grid=31)
+    assert front.worst_case and front.certified
+    ((K,),) = (d.parameters for d in front.designs)
+    law = ReflectionController(K).feedback_law(PAPER, solve_kernels(PAPER, ORACLE_GRID))
+    feedback = StateFeedback(law.boundary_gain, law.gain_u, law.gain_v)
+    A, B = loop_factors(PAPER, ReflectionController(K))
+    oracle = [-spectral_abscissa(A + B).value]
+    for (e_lam, e_mu), sa in zip([(a, b) for a in (-eps, eps) for b in (-eps, eps)], front.scenario_abscissae[0]):
+        corner = dataclasses.replace(PAPER, lam=PAPER.lam * (1.0 + e_lam), mu=PAPER.mu * (1.0 + e_mu))
+        A, B = loop_factors(corner, feedback)
+        oracle.append(-spectral_abscissa(A + B).value)
+        assert sa.model_error is not None and sa.model_error > 0.0  # restated on a model: its error studied
+    (accuracy,) = front.decay_rate_accuracies
+    assert accuracy is not None and accuracy < 1e-5  # the convergence studies are not vacuous
+    assert abs(front.decay_rates[0] - min(oracle)) <= accuracy + ORACLE_ERROR
+    assert front.designs[0].decay_rate > front.decay_rates[0] + 0.05  # the nominal 0.172, the least 0.107
+    assert "decay_rates=[0.10684" in repr(front) and str(float(front.decay_rates[0])) not in repr(front)
