@@ -742,10 +742,11 @@ def _loop_scope(
         return scope.replace(_AS_GIVEN, rounded) if rounded else scope
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
+        assumption = varying_proof(system).assumption  # varying speeds: what the plant proven takes exactly
         return (
             "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
             f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; "
-            f"{rounded_parts(system, controller, kernel_grid)})"
+            f"{rounded_parts(system, controller, kernel_grid)}{'; ' + assumption if assumption else ''})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
         gains = isinstance(controller, StateFeedback) and _integral_gains(controller)

@@ -1,4 +1,4 @@
-"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x`` (constant speeds).
+"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x``.
 
 For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
 ``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
@@ -66,8 +66,33 @@ feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays 
 the double ``(L / lam + L / mu) / time_unit`` computed in floating point, and the principal gains
 ``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
 so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
-given as samples (the cubic spline is the model the user gave) and varying speeds are refused
-with a reason (:func:`varying_failure`): the kernel route, a model.
+given as samples (the cubic spline is the model the user gave) and speeds whose ratio varies
+are refused with a reason (:func:`varying_failure`): the kernel route or the characteristic
+route (:mod:`~nrobust.hyperbolic.loops.varying_form`), a model.
+
+**Varying speeds.** Speeds ``lam(x)``, ``mu(x)`` given as functions with a constant ratio
+(``mu = lam / r``) are made constant by ``y = phi(x) / phi(L)``, ``phi = int_0^x 1/lam``
+(``plants/general.py``, step 2 of the normal form). The ratio is taken exactly: ``r`` is the double
+``lam/mu`` (or ``1 / (mu/lam)``) that the speeds agree with to rounding on arrays and to the last
+bit on an ``arb_series`` (every coefficient of ``lam - r mu`` holds 0), else no proof. The slowness
+``L / lam(L xi)`` is a Taylor model on ``[0, 1]`` (as the couplings above, remainder ``eps``), so
+``phi(L xi) = Phi(xi) + e(xi)``, ``Phi`` its exact integral and ``|e(xi)| <= eps xi``, and
+``phi(L)`` is a ball. A ball ``y`` maps to the ball ``x(y)`` between two points ``xi`` at which
+``Phi(xi) -+ eps xi`` is proven below or above ``phi(L) y`` (``phi`` increases), found by Newton's
+method on ``Phi``. The Taylor coefficients of ``x(Y(t))`` for an arb_series ``Y`` follow from
+``dx/dy = phi(L) lam(x)`` by Picard passes on series (the ``k``-th fixes the coefficient of
+``t^k``; ball arithmetic encloses them for every ``y`` of ``Y``'s constant ball). A coefficient at
+``x(y)`` is then a function of ``y`` evaluated on an arb_series as above, and with
+``t_u = phi(L)``, ``t_v = r t_u``::
+
+    alpha = t_u a,   delta = -t_v d,   k_r = t_u b e^{E} e^{-k},   k_w = -t_v c e^{-E} e^{k}
+
+at ``x(y)`` (for constant speeds ``t_u = L / lam``, ``t_v = L / mu``); the proof above applies
+unchanged. ``tau`` is the double nearest the ball ``(1 + r) phi(L) / time_unit``, and the plant
+proven is the one with both speeds times ``phi(L) / t_u'``, ``t_u' = tau time_unit / (1 + r)``
+(a factor within about ``2^-53`` of 1, bounded and stated in :attr:`VaryingProof.assumption` with
+``mu = lam / r``, which the proof's scope quotes). A speed without ball evaluation or not
+analytic on a disc about ``[0, L]`` wide enough for one model of order :data:`ORDER` has no proof.
 
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
@@ -85,6 +110,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..._digits import upper_bound_text
 from ..._flint import precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
@@ -131,6 +157,10 @@ class VaryingProof:
         the plant's own coordinates for a general plant).
     characteristic : QuasiPolynomial
         ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
+    assumption : str
+        For varying speeds, what the plant proven takes that the plant given may not be exactly (the
+        speeds' ratio and their factor making ``tau`` a double, module notes "Varying speeds"); ``""``
+        otherwise.
     u_factor : QuasiPolynomial
         ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
         ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` (``q e^{A(L) - D(L)}`` rounded to a
@@ -138,7 +168,7 @@ class VaryingProof:
         with ``B = -k u_factor``).
     """
 
-    __slots__ = ("N_tilde", "U_tilde", "characteristic", "q", "rho_q", "tau", "u_factor")
+    __slots__ = ("N_tilde", "U_tilde", "assumption", "characteristic", "q", "rho_q", "tau", "u_factor")
 
     def __init__(
         self,
@@ -148,8 +178,10 @@ class VaryingProof:
         N_tilde: DistributedDelay | None,
         U_tilde: DistributedDelay | None,
         u_point: float | None = None,
+        assumption: str = "",
     ) -> None:
         self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
+        self.assumption = assumption
         self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
         point = q if u_point is None else u_point
         self.u_factor = QuasiPolynomial([[point]], [tau], [U_tilde] if U_tilde is not None else [])
@@ -159,12 +191,13 @@ def has_varying_proof(system: object) -> bool:
     """True for a plant with coefficients given as functions whose ``N~`` is proven.
 
     A :class:`Hyperbolic2x2` with a coupling given as a function, or a
-    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant speeds and
-    one of ``a, b, c, d`` a function (module notes, "General plants").
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with one of ``a, b, c, d`` a
+    function (module notes, "General plants") or speeds given as functions with a constant ratio
+    (module notes, "Varying speeds").
     """
     if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
         return False
-    if isinstance(system, GeneralHyperbolic2x2) and all(system.is_constant(k) for k in _GENERAL):
+    if isinstance(system, GeneralHyperbolic2x2) and all(system.is_constant(k) for k in ("lam", "mu", *_GENERAL)):
         return False
     return isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and varying_failure(system) is None
 
@@ -183,8 +216,8 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
         of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate; or a general
-        plant with constant ``lam, mu`` and ``a, b, c, d`` numbers or such functions on
-        ``[0, L]``.
+        plant with ``a, b, c, d`` numbers or such functions on ``[0, L]`` and ``lam, mu`` numbers
+        or such functions with a constant ratio.
 
     Returns
     -------
@@ -195,7 +228,7 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     ParameterError
         Not a :class:`Hyperbolic2x2` or :class:`GeneralHyperbolic2x2`.
     CertificationError
-        A coefficient that cannot be enclosed (samples, varying speeds, no ball arithmetic),
+        A coefficient that cannot be enclosed (samples, a varying speed ratio, no ball arithmetic),
         or a residual too large to be useful (:func:`varying_failure` gives the reason).
     """
     out = _attempt(system)
@@ -212,7 +245,7 @@ def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str
             return reason
         # the coefficients' values at the check points key the cache, as the couplings' below
         points = system.length * _CHECK_POINTS
-        key = tuple(float(v) for name in _GENERAL for v in system.coefficient(name, points))
+        key = tuple(float(v) for name in ("lam", "mu", *_GENERAL) for v in system.coefficient(name, points))
         return _attempt_cached(system, key)
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 (constant speeds) or GeneralHyperbolic2x2", system)
@@ -229,18 +262,18 @@ def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str
 
 def _general_failure(system: GeneralHyperbolic2x2) -> str | None:
     """Why a general plant is outside the proof before any enclosure is tried (None: it is not)."""
-    for name in ("lam", "mu"):
-        if not system.is_constant(name):
-            return (
-                f"the speed {name} is a function: the proof covers constant speeds given as numbers; the kernel "
-                "route (kernel_grid=...) gives a model of the PDE"
-            )
-    for name in _GENERAL:
+    for name in ("lam", "mu", *_GENERAL):
         if isinstance(getattr(system, name), tuple):
+            kind = "speed" if name in ("lam", "mu") else "coefficient"
             return (
-                f"the coefficient {name} is given as samples: its cubic spline is the model of the plant, which "
+                f"the {kind} {name} is given as samples: its cubic spline is the model of the plant, which "
                 "the kernel route (kernel_grid=...) takes"
             )
+    if not system.constant_ratio:
+        return (
+            "the speeds' ratio lam/mu varies: the proof covers speeds with a constant ratio; the characteristic "
+            "route (varying_delay_form) gives a model of the PDE"
+        )
     return None
 
 
@@ -259,6 +292,37 @@ def _attempt_uncached(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingPr
 # --------------------------------------------------------------------------- coupling models
 
 
+def _on_series(flint: Any, value: Any, series: Any, name: str) -> Any:
+    """``value`` (a number or a user's callable on arrays) at one arb_series, as an arb_series of its length."""
+    arb, arb_series = flint.arb, flint.arb_series
+    what = f"the speed {name}" if name in ("lam", "mu") else f"the coupling {name}"
+    if not callable(value):
+        return arb_series([arb(float(value))], prec=series.prec)
+    holder = np.empty(1, dtype=object)
+    holder[0] = series
+    cap = flint.ctx.cap
+    flint.ctx.cap = series.prec  # series functions truncate at the global cap
+    try:
+        out = value(holder)
+    except Exception as exc:  # a user's callable may raise anything on an object array: no model
+        raise CertificationError(
+            f"{what} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
+        ) from None
+    finally:
+        flint.ctx.cap = cap
+    if isinstance(out, np.ndarray) and out.size == 1:
+        out = out.reshape(-1)[0]
+    if isinstance(out, (int, float)) and not isinstance(out, bool):
+        out = arb(float(out))
+    if isinstance(out, arb):  # constant in x
+        out = arb_series([out], prec=series.prec)
+    if not isinstance(out, arb_series):
+        raise CertificationError(f"{what} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})")
+    if out.prec < series.prec:
+        raise CertificationError(f"{what} gave a series truncated before the order {series.prec - 1}")
+    return out
+
+
 def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any, Any, Any]:
     """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``."""
     arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
@@ -266,28 +330,7 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any,
         return arb_poly([arb(float(value)) * scale]), arb(0), arb(0)
 
     def call(centre: Any) -> list[Any]:
-        holder = np.empty(1, dtype=object)
-        holder[0] = arb_series([centre, arb(0.5)], prec=ORDER + 1)
-        cap = flint.ctx.cap
-        flint.ctx.cap = ORDER + 1  # series functions truncate at the global cap
-        try:
-            out = value(holder)
-        except Exception as exc:  # a user's callable may raise anything on an object array: no model
-            raise CertificationError(
-                f"the coupling {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
-            ) from None
-        finally:
-            flint.ctx.cap = cap
-        if isinstance(out, np.ndarray) and out.size == 1:
-            out = out.reshape(-1)[0]
-        if isinstance(out, (int, float)) and not isinstance(out, bool):
-            out = arb_series([arb(float(out))], prec=ORDER + 1)
-        if not isinstance(out, arb_series):
-            raise CertificationError(
-                f"the coupling {name} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})"
-            )
-        if out.prec < ORDER + 1:
-            raise CertificationError(f"the coupling {name} gave a series truncated before the order {ORDER}")
+        out = _on_series(flint, value, arb_series([centre, arb(0.5)], prec=ORDER + 1), name)
         coefs = list(out.coeffs())[: ORDER + 1]
         coefs += [arb(0)] * (ORDER + 1 - len(coefs))
         return coefs
@@ -435,6 +478,88 @@ class _Bi:
         return total
 
 
+# --------------------------------------------------------------------------- varying speeds
+
+
+class _SpeedMap:
+    """``x(y)`` of a general plant whose speeds vary with a constant ratio (module notes, "Varying speeds").
+
+    ``y = phi(x) / phi(L)``: ``phi(L xi) = Phi(xi) + e(xi)``, ``Phi`` the exact integral of the
+    Taylor model of the slowness ``L / lam(L xi)`` on ``[0, 1]``, ``|e(xi)| <= eps xi``; ``t_u`` the
+    ball ``phi(L)``. :meth:`x_of` gives the Taylor coefficients of ``x(Y(t))`` for an arb_series
+    ``Y`` (all ``y`` in its constant ball at once) from ``dx/dy = t_u lam(x)``.
+    """
+
+    def __init__(self, flint: Any, g: GeneralHyperbolic2x2) -> None:
+        arb = flint.arb
+        self.flint, self.lam, self.L = flint, g.lam, arb(g.length)
+        length, L = g.length, self.L
+
+        def slowness(xi: Any) -> Any:
+            return L / _on_series(flint, g.lam, xi.reshape(-1)[0] * L, "lam")
+
+        self.P, self.eps, _ = _model(
+            flint, slowness, lambda xi: length / g.coefficient("lam", length * np.asarray(xi)), arb(1), "lam"
+        )
+        if not bool(self.eps < _RESIDUAL * _poly_sup(flint, self.P)):
+            raise CertificationError(
+                f"the speed lam is not within double precision of one Taylor model of order {ORDER} on [0, L] "
+                f"(remainder {float(self.eps.upper()):.1e}): the kernel route (kernel_grid=...) gives a model of "
+                "the PDE"
+            )
+        self.Phi = self.P.integral()
+        self.t_u = self.Phi(arb(1)) + arb(0, float(self.eps.upper()))
+        self.cache: dict[tuple[tuple[float, ...], int], Any] = {}
+
+    def _inverse(self, y: Any, side: int) -> Any:
+        """``xi`` with ``phi(L xi)`` proven below (``side = -1``) or above (``+1``) ``t_u y`` (``y`` exact)."""
+        arb = self.flint.arb
+        if (side < 0 and y <= 0) or (side > 0 and y >= 1):
+            return arb(0 if side < 0 else 1)
+        target = self.t_u * y
+        xi = y
+        for _ in range(60):  # Newton at the working precision on the centre of the model
+            step = ((self.Phi(xi) - target.mid()) / self.P(xi)).mid()
+            xi = (xi - step).mid()
+            if abs(float(step)) < 2.0**-170:
+                break
+        gap = 2.0**-170
+        while gap < 2.0**-8:
+            point = arb.max(arb(0), arb.min(arb(1), xi + side * gap))
+            value = self.Phi(point) - side * self.eps * point  # phi(L point) lies beyond it from the target
+            if bool(value > target) if side > 0 else bool(value < target):
+                return point
+            gap *= 256.0
+        raise CertificationError("the map y = phi(x)/phi(L) of the speed lam could not be inverted in ball arithmetic")
+
+    def x_ball(self, y: Any) -> Any:
+        """A ball holding ``x(y')`` for every ``y'`` of the ball ``y`` within ``[0, 1]``."""
+        low, high = self._inverse(y.lower(), -1), self._inverse(y.upper(), 1)
+        return self.L * low.union(high)
+
+    def x_of(self, Y: Any) -> Any:
+        """``x(Y(t))`` as an arb_series of the length of ``Y`` (Picard: the ``k``-th pass fixes ``t^k``)."""
+        flint = self.flint
+        coefs = Y.coeffs()
+        key = tuple(float(v) for c in coefs for v in (c.mid(), c.rad()))
+        exact = all(c.mid() == flint.arb(float(c.mid())) for c in coefs)
+        if exact and (key, Y.prec) in self.cache:
+            return self.cache[(key, Y.prec)]
+        x0 = self.x_ball(coefs[0])
+        cap = flint.ctx.cap
+        flint.ctx.cap = Y.prec  # series arithmetic truncates at the global cap
+        try:
+            slope = Y.derivative() * self.t_u
+            X = flint.arb_series([x0], prec=Y.prec)
+            for _ in range(Y.prec):
+                X = x0 + (_on_series(flint, self.lam, X, "lam") * slope).integral()
+        finally:
+            flint.ctx.cap = cap
+        if exact:
+            self.cache[(key, Y.prec)] = X
+        return X
+
+
 # --------------------------------------------------------------------------- the proof
 
 
@@ -450,6 +575,7 @@ class _Setup(NamedTuple):
     rho_q: float  # the double of the open loop's principal gain
     u_point: float  # the double of the point delay of u_factor
     u_weight: Any  # the ball by which U~ of the normal form is multiplied in u_factor
+    assumption: str = ""  # what the plant proven takes that the plant given may not be exactly
 
 
 def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
@@ -471,7 +597,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             except CertificationError:
                 if n == DEGREES[-1]:
                     raise
-    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point)
+    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption)
 
 
 def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
@@ -483,25 +609,89 @@ def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
     return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1))
 
 
-def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
-    """The normal form of a general plant with constant speeds, enclosed (module notes, "General plants")."""
+class _Geometry(NamedTuple):
+    """The change of variable ``y = phi(x) / phi(L)`` of a general plant, enclosed."""
+
+    t_u: Any  # ball: int_0^L 1/lam of the plant proven
+    t_v: Any  # ball: int_0^L 1/mu of the plant proven
+    tau: float  # (t_u + t_v) / time_unit, a double
+    x_series: Any  # arb_series in y -> arb_series in x of x(y)
+    x_arrays: Any  # x(y) on arrays (the plant's tables), for the models' check
+    assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
+
+
+def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
+    """``x(y)``, ``t_u``, ``t_v`` and ``tau`` (module notes, "General plants" and "Varying speeds")."""
     arb = flint.arb
-    length, lam, mu = g.length, float(g.lam), float(g.mu)  # type: ignore[arg-type]
-    L = arb(length)
+    length, L = g.length, arb(g.length)
+    if g.is_constant("lam") and g.is_constant("mu"):  # x = L y
+        lam, mu = float(g.lam), float(g.mu)  # type: ignore[arg-type]
+        tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
+        return _Geometry(L / arb(lam), L / arb(mu), tau, lambda Y: Y * L, lambda y: length * np.asarray(y), "")
+    # mu = lam / r exactly, r = lam/mu (a double) or 1 / (mu/lam) (mu/lam a double): the ratio the speeds agree
+    # with on arrays to rounding and on balls to the last bit (every coefficient of lam - r mu holds 0)
+    points = length * _CHECK_POINTS
+    lam_at, mu_at = g.coefficient("lam", points), g.coefficient("mu", points)
+    up, down = float(lam_at[0] / mu_at[0]), float(mu_at[0] / lam_at[0])
+    centre = flint.arb_series([L / 2, L / 2], prec=ORDER + 1)
+    cap = flint.ctx.cap
+    flint.ctx.cap = ORDER + 1
+    try:
+        lam_s, mu_s = _on_series(flint, g.lam, centre, "lam"), _on_series(flint, g.mu, centre, "mu")
+        ratios = [
+            (R, said)
+            for R, said in ((arb(up), f"mu = lam / {up!r}"), (1 / arb(down), f"mu = {down!r} lam"))
+            if np.all(np.abs(lam_at - float(R.mid()) * mu_at) <= 4.0 * np.finfo(float).eps * lam_at)
+            and all(c.contains(0) for c in (lam_s - mu_s * R).coeffs())
+        ]
+    finally:
+        flint.ctx.cap = cap
+    if not ratios:
+        raise CertificationError(
+            "the speeds' ratio lam/mu is not constant to the last bit (on arrays and in ball arithmetic): the "
+            "proof needs mu = lam / r exactly; the kernel route (kernel_grid=...) gives a model of the PDE"
+        )
+    R, said = ratios[0]
+    speed = _SpeedMap(flint, g)
+    # tau the double nearest (1 + r) phi(L) / time_unit: the plant proven has both speeds times phi(L) / t_u
+    tau = float((speed.t_u * (1 + R) / arb(g.time_unit)).mid())
+    t_u = arb(tau) * arb(g.time_unit) / (1 + R)
+    change = float(abs(speed.t_u / t_u - 1).upper())
+    assumption = (
+        f"{said} exactly (the speeds' ratio) and both speeds times a factor within "
+        f"{upper_bound_text(change, 2)} of 1 so that tau is the double {tau!r}"
+    )
+
+    def x_arrays(y: Any) -> Any:
+        return np.asarray(g.tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
+
+    return _Geometry(t_u, R * t_u, tau, speed.x_of, x_arrays, assumption)
+
+
+def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
+    """The normal form of a general plant, enclosed (module notes, "General plants" and "Varying speeds")."""
+    arb = flint.arb
+    geo = _geometry(flint, g)
 
     def physical(name: str) -> tuple[Any, Any]:
-        """The coefficient ``name`` as a function of ``y`` (``x = L y``): on balls and on arrays."""
+        """The coefficient ``name`` as a function of ``y`` (at ``x(y)``): on balls and on arrays."""
         value = getattr(g, name)
         if not callable(value):
             return float(value), None
-        return (lambda y: value(y * L)), (lambda y: g.coefficient(name, length * np.asarray(y)))
 
-    # A(L y) = int_0^y alpha, D(L y) = int_0^y delta: alpha = L a / lam, delta = -L d / mu at x = L y
+        def on_balls(y: Any) -> Any:
+            holder = np.empty(1, dtype=object)
+            holder[0] = geo.x_series(y.reshape(-1)[0])
+            return value(holder)
+
+        return on_balls, (lambda y: g.coefficient(name, geo.x_arrays(y)))
+
+    # A(x(y)) = int_0^y alpha, D(x(y)) = int_0^y delta: alpha = t_u a, delta = -t_v d at x(y)
     a_value, a_at = physical("a")
     d_value, d_at = physical("d")
-    P_a, e_a, _ = _model(flint, a_value, a_at, L / arb(lam), "a")
-    P_d, e_d, _ = _model(flint, d_value, d_at, -L / arb(mu), "d")
-    E = P_d.integral() - P_a.integral()  # D - A at x = L y, within e_E (and its derivative too)
+    P_a, e_a, _ = _model(flint, a_value, a_at, geo.t_u, "a")
+    P_d, e_d, _ = _model(flint, d_value, d_at, -geo.t_v, "d")
+    E = P_d.integral() - P_a.integral()  # D - A at x(y), within e_E (and its derivative too)
     e_E = e_a + e_d
     q_n = g.normal_form().system.q  # the normal form's q~ = q e^{-k}: k is read as log(q / q~), q~ exact
     ek = arb(q_n) / arb(g.q)  # e^{-k}
@@ -525,7 +715,8 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         def on_arrays(y: Any) -> Any:
             y = np.asarray(y, dtype=float)
             own = at(y) if at is not None else np.full(y.shape, value)
-            exponent = sign * (g.D(length * y) - g.A(length * y))
+            x = geo.x_arrays(y)
+            exponent = sign * (g.D(x) - g.A(x))
             return own * np.exp(exponent) * (q_n / g.q) ** sign
 
         P, eps, eps1 = _model(flint, on_balls, on_arrays, scale, name)
@@ -534,12 +725,13 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         size, slope = _poly_sup(flint, P) + eps, _poly_sup(flint, P.derivative()) + eps1
         return P, eps + size * grow, eps1 + slope * grow + size * e_E * e_E.exp()
 
-    model_r = coupling("b", 1, L / arb(lam))
-    model_w = coupling("c", -1, -L / arb(mu))
+    model_r = coupling("b", 1, geo.t_u)
+    model_w = coupling("c", -1, -geo.t_v)
     rho = g.rho
     u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
-    tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
-    return _Setup(model_r, model_w, arb(q_n), arb(rho) * weight, tau, q_n, rho * u_point, u_point, weight)
+    return _Setup(
+        model_r, model_w, arb(q_n), arb(rho) * weight, geo.tau, q_n, rho * u_point, u_point, weight, geo.assumption
+    )
 
 
 def _kernels(flint: Any, setup: _Setup, n: int, last: bool) -> tuple[DistributedDelay | None, DistributedDelay | None]:
