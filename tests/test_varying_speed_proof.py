@@ -117,6 +117,58 @@ def test_ball_enclosures_contain_the_plants_ode_solution(s):
         assert ball.real.rad() < 1e-12 and ball.imag.rad() < 1e-12
 
 
+def _lam_2(x):
+    return 2.0 + 0.5 * np.sin(x)
+
+
+# length and time unit not 1, every coefficient varying (d constant: its exponent still varies with mu)
+OTHER = GeneralHyperbolic2x2(
+    _lam_2,
+    lambda x: _lam_2(x) / 3.0,
+    lambda x: 0.2 * x,
+    lambda x: 0.8 + 0.0 * x,
+    lambda x: 0.4 * np.cos(x),
+    -0.1,
+    0.8,
+    0.3,
+    length=1.3,
+    time_unit=3.0,
+)
+
+
+@pytest.mark.parametrize("s", [0.3j, 2.0j, 0.4 + 5.0j, -0.2 + 12.0j])
+def test_length_and_time_unit_against_the_ode(s):
+    """OTHER (L = 1.3, time in units of 3): the open loop and u(L, s) in balls hold the ODE's (20 digits).
+
+    In the equations' time the Laplace variable is ``s / 3``; ``A = e^{-(s/3) t_v - D(L)} (v - rho u)(L)``.
+    """
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(OTHER)
+    with mp.workdps(20):
+        z = mp.mpc(s) / 3
+
+        def rhs(x, y):
+            lam = 2 + mp.mpf(0.5) * mp.sin(x)
+            mu = lam / 3
+            a, c = mp.mpf(0.2) * x, mp.mpf(0.4) * mp.cos(x)
+            return [((a - z) * y[0] + mp.mpf(0.8) * y[1]) / lam, ((z + mp.mpf(0.1)) * y[1] - c * y[0]) / mu]
+
+        length = mp.mpf(1.3)
+        u, v = mp.odefun(rhs, 0, [mp.mpf(0.8), mp.mpf(1)])(length)
+        t_v = mp.quad(lambda x: 3 / (2 + mp.mpf(0.5) * mp.sin(x)), [0, length])
+        D_L = mp.quad(lambda x: mp.mpf(0.1) * 3 / (2 + mp.mpf(0.5) * mp.sin(x)), [0, length])
+        weight = mp.exp(-z * t_v - D_L)
+        A, U = weight * (v - mp.mpf(0.3) * u), weight * u
+    tau = proof.tau
+    for F, value in ((proof.characteristic, A), (proof.u_factor, U)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # as in the test above: the principal gains' doubles and the speeds' factor (4e-17 here)
+        slack = 1e-18 + (2.0 * 2.0**-53 + abs(s) * tau * 4e-17) * np.exp(-tau * s.real)
+        _inside(ball, complex(value), slack)
+        assert ball.real.rad() < 1e-12 and ball.imag.rad() < 1e-12
+
+
 def test_proven_margin_contains_the_pde_margin_and_says_so():
     """U_BS2(K): the proven ball contains the plant's margin, solved anew at 20 digits and stored at 32."""
     assert has_varying_proof(PLANT) and loop_route(PLANT, ReflectionController(K)) == "exact"

@@ -412,8 +412,8 @@ def _picard(kr: np.ndarray, kw: np.ndarray, q: float, n: int) -> tuple[np.ndarra
                 break
     if not (np.all(np.isfinite(F)) and np.all(np.isfinite(G))):
         raise CertificationError(
-            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong); the "
-            "kernel route (kernel_grid=...) gives a model of the PDE"
+            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong, or with large "
+            "monomial coefficients on [0, 1]); the kernel route (kernel_grid=...) gives a model of the PDE"
         )
     return F, G
 
@@ -703,10 +703,7 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         factor = ek if sign > 0 else 1 / ek
 
         def on_balls(y: Any) -> Any:
-            x = y.reshape(-1)[0]
-            exponent = arb(0)
-            for c in reversed(E.coeffs()):  # Horner: E(x) on an arb_series
-                exponent = exponent * x + c
+            exponent = _poly_on_series(flint, E, y.reshape(-1)[0])
             own = value(y) if callable(value) else value
             if isinstance(own, np.ndarray):
                 own = own.reshape(-1)[0]
@@ -830,6 +827,19 @@ def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any
         radius=float((piece_sup + sup_err).upper()),
         variation_radius=float((piece_var + var_err).upper()),
     )
+
+
+def _poly_on_series(flint: Any, p: Any, Y: Any) -> Any:
+    """``p(Y)`` for an arb_poly ``p`` and an arb_series ``Y``, Taylor-shifted first to the centre ``m`` of ``Y``'s
+    constant ball: Horner's rule in ``Y - m`` (a constant ball about 0) encloses ``p``'s Taylor coefficients at
+    every point of the ball far more tightly than Horner's rule in ``Y`` (monomials about 0 on a wide ball)."""
+    m = Y.coeffs()[0].mid()
+    shifted = p(flint.arb_poly([m, 1]))
+    step = Y - m
+    out = flint.arb(0)
+    for c in reversed(shifted.coeffs()):
+        out = out * step + c
+    return out
 
 
 def _poly_sup(flint: Any, p: Any) -> Any:
