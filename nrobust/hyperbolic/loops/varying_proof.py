@@ -66,33 +66,39 @@ feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays 
 the double ``(L / lam + L / mu) / time_unit`` computed in floating point, and the principal gains
 ``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
 so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
-given as samples (the cubic spline is the model the user gave) and speeds whose ratio varies
-are refused with a reason (:func:`varying_failure`): the kernel route or the characteristic
-route (:mod:`~nrobust.hyperbolic.loops.varying_form`), a model.
+given as samples (the cubic spline is the model the user gave) are refused with a reason
+(:func:`varying_failure`): the kernel route, a model.
 
-**Varying speeds.** Speeds ``lam(x)``, ``mu(x)`` given as functions with a constant ratio
-(``mu = lam / r``) are made constant by ``y = phi(x) / phi(L)``, ``phi = int_0^x 1/lam``
-(``plants/general.py``, step 2 of the normal form). The ratio is taken exactly: ``r`` is the double
-``lam/mu`` (or ``1 / (mu/lam)``) that the speeds agree with to rounding on arrays and to the last
-bit on an ``arb_series`` (every coefficient of ``lam - r mu`` holds 0), else no proof. The slowness
-``L / lam(L xi)`` is a Taylor model on ``[0, 1]`` (as the couplings above, remainder ``eps``), so
-``phi(L xi) = Phi(xi) + e(xi)``, ``Phi`` its exact integral and ``|e(xi)| <= eps xi``, and
-``phi(L)`` is a ball. A ball ``y`` maps to the ball ``x(y)`` between two points ``xi`` at which
-``Phi(xi) -+ eps xi`` is proven below or above ``phi(L) y`` (``phi`` increases), found by Newton's
-method on ``Phi``. The Taylor coefficients of ``x(Y(t))`` for an arb_series ``Y`` follow from
-``dx/dy = phi(L) lam(x)`` by Picard passes on series (the ``k``-th fixes the coefficient of
-``t^k``; ball arithmetic encloses them for every ``y`` of ``Y``'s constant ball). A coefficient at
-``x(y)`` is then a function of ``y`` evaluated on an arb_series as above, and with
-``t_u = phi(L)``, ``t_v = r t_u``::
+**Varying speeds.** Speeds ``lam(x)``, ``mu(x)`` given as functions (any ratio) are made constant
+along the characteristics by ``y = T(x) / T(L)``, ``T = int_0^x 1/lam + 1/mu`` the round-trip
+time: in ``theta = T(x)`` the characteristic system of
+:mod:`~nrobust.hyperbolic.loops.varying_form` (``f`` along diagonals, ``g`` along rows, diagonal
+terms ``p = dA/dtheta``, ``e = dD/dtheta``) becomes, with ``f = e^{A} f~``, ``g = e^{D} g~`` (the
+diagonal terms removed by the same exponents as the normal form's), the Volterra system above
+with ``A = (theta - nu) / T(L)``, ``V = nu / T(L)`` and, at ``x(y)``::
 
-    alpha = t_u a,   delta = -t_v d,   k_r = t_u b e^{E} e^{-k},   k_w = -t_v c e^{-E} e^{k}
+    alpha = s_u a,   delta = -s_v d,   k_r = s_u b e^{E} e^{-k},   k_w = -s_v c e^{-E} e^{k},
+    s_u = T(L) mu / (lam + mu),   s_v = T(L) lam / (lam + mu)
 
-at ``x(y)`` (for constant speeds ``t_u = L / lam``, ``t_v = L / mu``); the proof above applies
-unchanged. ``tau`` is the double nearest the ball ``(1 + r) phi(L) / time_unit``, and the plant
-proven is the one with both speeds times ``phi(L) / t_u'``, ``t_u' = tau time_unit / (1 + r)``
-(a factor within about ``2^-53`` of 1, bounded and stated in :attr:`VaryingProof.assumption` with
-``mu = lam / r``, which the proof's scope quotes). A speed without ball evaluation or not
-analytic on a disc about ``[0, L]`` wide enough for one model of order :data:`ORDER` has no proof.
+(for constant speeds ``s_u = L / lam``, ``s_v = L / mu``; for a constant ratio this is the normal
+form's ``y = phi(x) / phi(L)``), and ``N~``, ``U~`` as above: the proof applies unchanged. What is
+new is ``x(y)`` in ball arithmetic. The slowness ``L (1/lam + 1/mu)(L xi)`` is a Taylor model on
+``[0, 1]`` (as the couplings above, remainder ``eps``), so ``T(L xi) = Phi(xi) + e(xi)``, ``Phi``
+its exact integral and ``|e(xi)| <= eps xi``, and ``T(L)`` is a ball. A ball ``y`` maps to the
+ball ``x(y)`` between two points ``xi`` at which ``Phi(xi) -+ eps xi`` is proven below or above
+``T(L) y`` (``T`` increases), found by Newton's method on ``Phi``. The Taylor coefficients of
+``x(Y(t))`` for an arb_series ``Y`` follow from ``dx/dy = T(L) / (1/lam + 1/mu)(x)`` by Picard
+passes on series (the ``k``-th fixes the coefficient of ``t^k``; ball arithmetic encloses them for
+every ``y`` of ``Y``'s constant ball). A coefficient at ``x(y)`` times its weight is then a
+function of ``y`` evaluated on an arb_series and modelled as above. The balance ``k`` is the
+normal form's for a constant ratio, else the mid-range of ``D - A`` likewise (read as
+``log(q / q~)``, ``q~`` a double). ``tau`` is the double nearest the ball ``T(L) / time_unit``:
+the plant proven has both speeds times ``T(L) / (tau time_unit)``, a factor within about
+``2^-53`` of 1 that :attr:`VaryingProof.assumption` bounds and the proof's scope quotes. On a
+varying ratio the loop route serves the laws the characteristic route serves (not U_BS2(K),
+defined on the normal form). A speed without ball evaluation, or whose ``1/lam + 1/mu`` or
+``x(y)`` is not analytic on a disc about ``[0, 1]`` wide enough for one model of order
+:data:`ORDER`, has no proof.
 
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
@@ -135,6 +141,8 @@ _RESIDUAL = 2.0**-27
 _TOP_BALLS = 64
 # Points at which a coupling's model must agree with its values on arrays (and which key the cache).
 _CHECK_POINTS = np.linspace(0.0, 1.0, 17)
+# Most pieces of [0, L] on which 1/lam + 1/mu is modelled for the map y = T(x)/T(L) (a power of 2).
+_MAP_PIECES = 16
 # Balls covering [0, 1] in the bounds of univariate polynomials.
 _SUP_BALLS = 64
 # The in-domain coefficients of a general plant.
@@ -159,8 +167,7 @@ class VaryingProof:
         ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
     assumption : str
         For varying speeds, what the plant proven takes that the plant given may not be exactly (the
-        speeds' ratio and their factor making ``tau`` a double, module notes "Varying speeds"); ``""``
-        otherwise.
+        speeds' factor making ``tau`` a double, module notes "Varying speeds"); ``""`` otherwise.
     u_factor : QuasiPolynomial
         ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
         ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` (``q e^{A(L) - D(L)}`` rounded to a
@@ -192,8 +199,8 @@ def has_varying_proof(system: object) -> bool:
 
     A :class:`Hyperbolic2x2` with a coupling given as a function, or a
     :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with one of ``a, b, c, d`` a
-    function (module notes, "General plants") or speeds given as functions with a constant ratio
-    (module notes, "Varying speeds").
+    function (module notes, "General plants") or speeds given as functions (module notes,
+    "Varying speeds").
     """
     if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
         return False
@@ -216,8 +223,7 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
         of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate; or a general
-        plant with ``a, b, c, d`` numbers or such functions on ``[0, L]`` and ``lam, mu`` numbers
-        or such functions with a constant ratio.
+        plant with ``a, b, c, d``, ``lam, mu`` numbers or such functions on ``[0, L]``.
 
     Returns
     -------
@@ -228,7 +234,7 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     ParameterError
         Not a :class:`Hyperbolic2x2` or :class:`GeneralHyperbolic2x2`.
     CertificationError
-        A coefficient that cannot be enclosed (samples, a varying speed ratio, no ball arithmetic),
+        A coefficient that cannot be enclosed (samples, no ball arithmetic),
         or a residual too large to be useful (:func:`varying_failure` gives the reason).
     """
     out = _attempt(system)
@@ -269,11 +275,6 @@ def _general_failure(system: GeneralHyperbolic2x2) -> str | None:
                 f"the {kind} {name} is given as samples: its cubic spline is the model of the plant, which "
                 "the kernel route (kernel_grid=...) takes"
             )
-    if not system.constant_ratio:
-        return (
-            "the speeds' ratio lam/mu varies: the proof covers speeds with a constant ratio; the characteristic "
-            "route (varying_delay_form) gives a model of the PDE"
-        )
     return None
 
 
@@ -482,55 +483,94 @@ class _Bi:
 
 
 class _SpeedMap:
-    """``x(y)`` of a general plant whose speeds vary with a constant ratio (module notes, "Varying speeds").
+    """``x(y)`` of a general plant whose speeds vary with ``x`` (module notes, "Varying speeds").
 
-    ``y = phi(x) / phi(L)``: ``phi(L xi) = Phi(xi) + e(xi)``, ``Phi`` the exact integral of the
-    Taylor model of the slowness ``L / lam(L xi)`` on ``[0, 1]``, ``|e(xi)| <= eps xi``; ``t_u`` the
-    ball ``phi(L)``. :meth:`x_of` gives the Taylor coefficients of ``x(Y(t))`` for an arb_series
-    ``Y`` (all ``y`` in its constant ball at once) from ``dx/dy = t_u lam(x)``.
+    ``y = T(x) / T(L)``, ``T = int_0^x 1/lam + 1/mu``, on ``m`` equal pieces ``[a_j, b_j]`` of
+    ``[0, 1]`` in ``xi = x / L``: ``T(L (a_j + h u)) = C_j + Phi_j(u) + e_j(u)``, ``Phi_j`` the exact
+    integral of the Taylor model of the slowness ``L h (1/lam + 1/mu)`` on the piece, ``|e_j(u)| <= eps_j u``
+    and ``C_j`` the ball of ``T(L a_j)``; ``m`` doubles (up to :data:`_MAP_PIECES`) until the map's
+    enclosure is far below double precision (its width is the width of every Taylor coefficient's ball).
+    ``total`` is the ball ``T(L)``. :meth:`x_of` gives the Taylor coefficients of ``x(Y(t))`` for an
+    arb_series ``Y`` (all ``y`` in its constant ball at once) from ``dx/dy = T(L) / (1/lam + 1/mu)(x)``.
     """
 
     def __init__(self, flint: Any, g: GeneralHyperbolic2x2) -> None:
         arb = flint.arb
-        self.flint, self.lam, self.L = flint, g.lam, arb(g.length)
-        length, L = g.length, self.L
-
-        def slowness(xi: Any) -> Any:
-            return L / _on_series(flint, g.lam, xi.reshape(-1)[0] * L, "lam")
-
-        self.P, self.eps, _ = _model(
-            flint, slowness, lambda xi: length / g.coefficient("lam", length * np.asarray(xi)), arb(1), "lam"
-        )
-        if not bool(self.eps < _RESIDUAL * _poly_sup(flint, self.P)):
+        self.flint, self.g, self.L = flint, g, arb(g.length)
+        pieces = 1
+        while True:
+            self.pieces: list[tuple[Any, Any, Any, Any, Any]] = []
+            for j in range(pieces):  # each piece starts at the ball T(L a_j) of those before it
+                self.pieces.append(self._piece(j, pieces))
+            if bool(self.total.rad() < 2.0**-150 * self.total.mid()) or 2 * pieces > _MAP_PIECES:
+                break
+            pieces *= 2
+        if not bool(self.total.rad() < _RESIDUAL * 2.0**-26 * self.total.mid()):
             raise CertificationError(
-                f"the speed lam is not within double precision of one Taylor model of order {ORDER} on [0, L] "
-                f"(remainder {float(self.eps.upper()):.1e}): the kernel route (kernel_grid=...) gives a model of "
-                "the PDE"
+                f"the speeds' 1/lam + 1/mu is not within double precision of Taylor models of order {ORDER} on "
+                f"{pieces} pieces of [0, L] (T(L) within {float(self.total.rad()):.1e}): the kernel route "
+                "(kernel_grid=...) gives a model of the PDE"
             )
-        self.Phi = self.P.integral()
-        self.t_u = self.Phi(arb(1)) + arb(0, float(self.eps.upper()))
         self.cache: dict[tuple[tuple[float, ...], int], Any] = {}
 
+    @property
+    def total(self) -> Any:
+        """The ball ``T(L)``."""
+        start, _, Phi, eps, _ = self.pieces[-1]
+        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, float(eps.upper()))
+
+    def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any, Any]:
+        """``(C_j, P_j, Phi_j, eps_j, a_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
+        flint, g, L = self.flint, self.g, self.L
+        arb, length = flint.arb, g.length
+        h, a = arb(1) / pieces, arb(j) / pieces  # exact: pieces is a power of 2
+
+        def slowness(u: Any) -> Any:
+            return self.slowness((a + h * u.reshape(-1)[0]) * L) * L * h
+
+        def slowness_at(u: Any) -> Any:
+            x = length * (j + np.asarray(u)) / pieces
+            return length / pieces * (1.0 / g.coefficient("lam", x) + 1.0 / g.coefficient("mu", x))
+
+        P, eps, _ = _model(flint, slowness, slowness_at, arb(1), "lam, mu")
+        start = arb(0) if j == 0 else self.total  # self.pieces holds the pieces before j
+        return start, P, P.integral(), eps, a
+
+    def slowness(self, X: Any) -> Any:
+        """``1/lam + 1/mu`` at the arb_series ``X`` (of ``x``)."""
+        flint, g = self.flint, self.g
+        return 1 / _on_series(flint, g.lam, X, "lam") + 1 / _on_series(flint, g.mu, X, "mu")
+
+    def _at(self, xi: Any) -> tuple[Any, Any]:
+        """The ball ``T(L xi)`` and ``dT/dxi`` (centre) at an exact ``xi`` of ``[0, 1]``."""
+        arb = self.flint.arb
+        m = len(self.pieces)
+        j = min(m - 1, max(0, int(float(xi) * m)))
+        start, P, Phi, eps, a = self.pieces[j]
+        u = (xi - a) * m
+        return start + Phi(u) + arb(0, float((eps * abs(u)).upper())), (P(u) * m).mid()
+
     def _inverse(self, y: Any, side: int) -> Any:
-        """``xi`` with ``phi(L xi)`` proven below (``side = -1``) or above (``+1``) ``t_u y`` (``y`` exact)."""
+        """``xi`` with ``T(L xi)`` proven below (``side = -1``) or above (``+1``) ``T(L) y`` (``y`` exact)."""
         arb = self.flint.arb
         if (side < 0 and y <= 0) or (side > 0 and y >= 1):
             return arb(0 if side < 0 else 1)
-        target = self.t_u * y
+        target = self.total * y
         xi = y
-        for _ in range(60):  # Newton at the working precision on the centre of the model
-            step = ((self.Phi(xi) - target.mid()) / self.P(xi)).mid()
-            xi = (xi - step).mid()
+        for _ in range(60):  # Newton at the working precision on the centres
+            value, slope = self._at(xi)
+            step = ((value.mid() - target.mid()) / slope).mid()
+            xi = arb.max(arb(0), arb.min(arb(1), (xi - step).mid()))
             if abs(float(step)) < 2.0**-170:
                 break
         gap = 2.0**-170
         while gap < 2.0**-8:
             point = arb.max(arb(0), arb.min(arb(1), xi + side * gap))
-            value = self.Phi(point) - side * self.eps * point  # phi(L point) lies beyond it from the target
+            value, _ = self._at(point)
             if bool(value > target) if side > 0 else bool(value < target):
                 return point
             gap *= 256.0
-        raise CertificationError("the map y = phi(x)/phi(L) of the speed lam could not be inverted in ball arithmetic")
+        raise CertificationError("the map y = T(x)/T(L) of the speeds could not be inverted in ball arithmetic")
 
     def x_ball(self, y: Any) -> Any:
         """A ball holding ``x(y')`` for every ``y'`` of the ball ``y`` within ``[0, 1]``."""
@@ -549,10 +589,10 @@ class _SpeedMap:
         cap = flint.ctx.cap
         flint.ctx.cap = Y.prec  # series arithmetic truncates at the global cap
         try:
-            slope = Y.derivative() * self.t_u
+            slope = Y.derivative() * self.total
             X = flint.arb_series([x0], prec=Y.prec)
             for _ in range(Y.prec):
-                X = x0 + (_on_series(flint, self.lam, X, "lam") * slope).integral()
+                X = x0 + (slope / self.slowness(X)).integral()
         finally:
             flint.ctx.cap = cap
         if exact:
@@ -610,96 +650,98 @@ def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
 
 
 class _Geometry(NamedTuple):
-    """The change of variable ``y = phi(x) / phi(L)`` of a general plant, enclosed."""
+    """The change of variable ``y = T(x) / T(L)`` of a general plant, enclosed (``x = L y`` for constant speeds)."""
 
-    t_u: Any  # ball: int_0^L 1/lam of the plant proven
-    t_v: Any  # ball: int_0^L 1/mu of the plant proven
-    tau: float  # (t_u + t_v) / time_unit, a double
+    tau: float  # T(L) / time_unit of the plant proven, a double
     x_series: Any  # arb_series in y -> arb_series in x of x(y)
     x_arrays: Any  # x(y) on arrays (the plant's tables), for the models' check
+    weight: Any  # (arb_series of x, "u" or "v") -> the weight s_u or s_v there; None for constant speeds
+    weight_at: Any  # the same on arrays of x
+    scales: tuple[Any, Any]  # constant speeds: the balls L / lam, L / mu (the weights); else (1, 1)
     assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
 
 
 def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
-    """``x(y)``, ``t_u``, ``t_v`` and ``tau`` (module notes, "General plants" and "Varying speeds")."""
+    """``x(y)``, the weights ``s_u, s_v`` and ``tau`` (module notes, "General plants" and "Varying speeds")."""
     arb = flint.arb
     length, L = g.length, arb(g.length)
     if g.is_constant("lam") and g.is_constant("mu"):  # x = L y
         lam, mu = float(g.lam), float(g.mu)  # type: ignore[arg-type]
         tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
-        return _Geometry(L / arb(lam), L / arb(mu), tau, lambda Y: Y * L, lambda y: length * np.asarray(y), "")
-    # mu = lam / r exactly, r = lam/mu (a double) or 1 / (mu/lam) (mu/lam a double): the ratio the speeds agree
-    # with on arrays to rounding and on balls to the last bit (every coefficient of lam - r mu holds 0)
-    points = length * _CHECK_POINTS
-    lam_at, mu_at = g.coefficient("lam", points), g.coefficient("mu", points)
-    up, down = float(lam_at[0] / mu_at[0]), float(mu_at[0] / lam_at[0])
-    centre = flint.arb_series([L / 2, L / 2], prec=ORDER + 1)
-    cap = flint.ctx.cap
-    flint.ctx.cap = ORDER + 1
-    try:
-        lam_s, mu_s = _on_series(flint, g.lam, centre, "lam"), _on_series(flint, g.mu, centre, "mu")
-        ratios = [
-            (R, said)
-            for R, said in ((arb(up), f"mu = lam / {up!r}"), (1 / arb(down), f"mu = {down!r} lam"))
-            if np.all(np.abs(lam_at - float(R.mid()) * mu_at) <= 4.0 * np.finfo(float).eps * lam_at)
-            and all(c.contains(0) for c in (lam_s - mu_s * R).coeffs())
-        ]
-    finally:
-        flint.ctx.cap = cap
-    if not ratios:
-        raise CertificationError(
-            "the speeds' ratio lam/mu is not constant to the last bit (on arrays and in ball arithmetic): the "
-            "proof needs mu = lam / r exactly; the kernel route (kernel_grid=...) gives a model of the PDE"
-        )
-    R, said = ratios[0]
+        scales = (L / arb(lam), L / arb(mu))
+        return _Geometry(tau, lambda Y: Y * L, lambda y: length * np.asarray(y), None, None, scales, "")
+    from scipy.interpolate import CubicHermiteSpline  # lazily: a slow import
+
     speed = _SpeedMap(flint, g)
-    # tau the double nearest (1 + r) phi(L) / time_unit: the plant proven has both speeds times phi(L) / t_u
-    tau = float((speed.t_u * (1 + R) / arb(g.time_unit)).mid())
-    t_u = arb(tau) * arb(g.time_unit) / (1 + R)
-    change = float(abs(speed.t_u / t_u - 1).upper())
-    assumption = (
-        f"{said} exactly (the speeds' ratio) and both speeds times a factor within "
-        f"{upper_bound_text(change, 2)} of 1 so that tau is the double {tau!r}"
-    )
+    # tau the double nearest T(L) / time_unit: the plant proven has both speeds times T(L) / (tau time_unit)
+    tau = float((speed.total / arb(g.time_unit)).mid())
+    total = arb(tau) * arb(g.time_unit)
+    change = float(abs(speed.total / total - 1).upper())
+    assumption = f"both speeds times a factor within {upper_bound_text(change, 2)} of 1 (tau the double {tau!r})"
+
+    def weight(X: Any, side: str) -> Any:
+        inv_lam, inv_mu = 1 / _on_series(flint, g.lam, X, "lam"), 1 / _on_series(flint, g.mu, X, "mu")
+        return total * (inv_lam if side == "u" else inv_mu) / (inv_lam + inv_mu)
+
+    def weight_at(x: Any, side: str) -> Any:
+        inv_lam, inv_mu = 1.0 / g.coefficient("lam", x), 1.0 / g.coefficient("mu", x)
+        return g.tau * (inv_lam if side == "u" else inv_mu) / (inv_lam + inv_mu)
+
+    nodes = g.tables.x
+    rate = 1.0 / g.coefficient("lam", nodes) + 1.0 / g.coefficient("mu", nodes)
+    x_of_y = CubicHermiteSpline((g.phi(nodes) + g.psi(nodes)) / g.tau, nodes, g.tau / rate)
 
     def x_arrays(y: Any) -> Any:
-        return np.asarray(g.tables.x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
+        return np.asarray(x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
 
-    return _Geometry(t_u, R * t_u, tau, speed.x_of, x_arrays, assumption)
+    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, (arb(1), arb(1)), assumption)
 
 
 def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     """The normal form of a general plant, enclosed (module notes, "General plants" and "Varying speeds")."""
     arb = flint.arb
     geo = _geometry(flint, g)
+    length, L = g.length, arb(g.length)
 
-    def physical(name: str) -> tuple[Any, Any]:
-        """The coefficient ``name`` as a function of ``y`` (at ``x(y)``): on balls and on arrays."""
+    def physical(name: str, side: str) -> tuple[Any, Any, Any]:
+        """The coefficient ``name`` times the weight of ``side`` as a function of ``y`` (at ``x(y)``): on balls,
+        on arrays, and the constant scale of the model (the weight itself for constant speeds)."""
         value = getattr(g, name)
-        if not callable(value):
-            return float(value), None
+        if geo.weight is None:
+            scale = geo.scales[0 if side == "u" else 1]
+            if not callable(value):
+                return float(value), None, scale
+            return (lambda y: value(y * L)), (lambda y: g.coefficient(name, length * np.asarray(y))), scale
 
         def on_balls(y: Any) -> Any:
-            holder = np.empty(1, dtype=object)
-            holder[0] = geo.x_series(y.reshape(-1)[0])
-            return value(holder)
+            X = geo.x_series(y.reshape(-1)[0])
+            return _on_series(flint, value, X, name) * geo.weight(X, side)
 
-        return on_balls, (lambda y: g.coefficient(name, geo.x_arrays(y)))
+        def on_arrays(y: Any) -> Any:
+            x = geo.x_arrays(y)
+            return g.coefficient(name, x) * geo.weight_at(x, side)
 
-    # A(x(y)) = int_0^y alpha, D(x(y)) = int_0^y delta: alpha = t_u a, delta = -t_v d at x(y)
-    a_value, a_at = physical("a")
-    d_value, d_at = physical("d")
-    P_a, e_a, _ = _model(flint, a_value, a_at, geo.t_u, "a")
-    P_d, e_d, _ = _model(flint, d_value, d_at, -geo.t_v, "d")
+        return on_balls, on_arrays, arb(1)
+
+    # A(x(y)) = int_0^y alpha, D(x(y)) = int_0^y delta: alpha = s_u a, delta = -s_v d at x(y)
+    a_value, a_at, a_scale = physical("a", "u")
+    d_value, d_at, d_scale = physical("d", "v")
+    P_a, e_a, _ = _model(flint, a_value, a_at, a_scale, "a")
+    P_d, e_d, _ = _model(flint, d_value, d_at, -d_scale, "d")
     E = P_d.integral() - P_a.integral()  # D - A at x(y), within e_E (and its derivative too)
     e_E = e_a + e_d
-    q_n = g.normal_form().system.q  # the normal form's q~ = q e^{-k}: k is read as log(q / q~), q~ exact
+    # q~ = q e^{-k}: k is read as log(q / q~), q~ exact; k the normal form's balance (the mid-range of D - A)
+    if g.constant_ratio:
+        q_n = g.normal_form().system.q
+    else:
+        exponent = g.D(g.tables.x) - g.A(g.tables.x)
+        q_n = g.q * float(np.exp(-0.5 * (np.max(exponent) + np.min(exponent))))
     ek = arb(q_n) / arb(g.q)  # e^{-k}
     E_end = E(arb(1)) + arb(0, float(e_E.upper()))
     weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
 
-    def coupling(name: str, sign: int, scale: Any) -> tuple[Any, Any, Any]:
-        value, at = physical(name)
+    def coupling(name: str, sign: int) -> tuple[Any, Any, Any]:
+        value, at, scale = physical(name, "u" if sign > 0 else "v")
         factor = ek if sign > 0 else 1 / ek
 
         def on_balls(y: Any) -> Any:
@@ -716,14 +758,14 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
             exponent = sign * (g.D(x) - g.A(x))
             return own * np.exp(exponent) * (q_n / g.q) ** sign
 
-        P, eps, eps1 = _model(flint, on_balls, on_arrays, scale, name)
+        P, eps, eps1 = _model(flint, on_balls, on_arrays, sign * scale, name)
         # the true coupling is the model's times e^{sign r}, |r| <= e_E, |r'| <= e_E
         grow = e_E.exp() - 1
         size, slope = _poly_sup(flint, P) + eps, _poly_sup(flint, P.derivative()) + eps1
         return P, eps + size * grow, eps1 + slope * grow + size * e_E * e_E.exp()
 
-    model_r = coupling("b", 1, geo.t_u)
-    model_w = coupling("c", -1, -geo.t_v)
+    model_r = coupling("b", 1)
+    model_w = coupling("c", -1)
     rho = g.rho
     u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
     return _Setup(
