@@ -499,7 +499,7 @@ class _SpeedMap:
         self.flint, self.g, self.L = flint, g, arb(g.length)
         pieces = 1
         while True:
-            self.pieces: list[tuple[Any, Any, Any, Any, Any]] = []
+            self.pieces: list[tuple[Any, Any, Any, Any]] = []
             for j in range(pieces):  # each piece starts at the ball T(L a_j) of those before it
                 self.pieces.append(self._piece(j, pieces))
             if bool(self.total.rad() < 2.0**-150 * self.total.mid()) or 2 * pieces > _MAP_PIECES:
@@ -516,11 +516,11 @@ class _SpeedMap:
     @property
     def total(self) -> Any:
         """The ball ``T(L)``."""
-        start, _, Phi, eps, _ = self.pieces[-1]
+        start, _, Phi, eps = self.pieces[-1]
         return start + Phi(self.flint.arb(1)) + self.flint.arb(0, float(eps.upper()))
 
-    def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any, Any]:
-        """``(C_j, P_j, Phi_j, eps_j, a_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
+    def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any]:
+        """``(C_j, P_j, Phi_j, eps_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
         flint, g, L = self.flint, self.g, self.L
         arb, length = flint.arb, g.length
         h, a = arb(1) / pieces, arb(j) / pieces  # exact: pieces is a power of 2
@@ -534,7 +534,7 @@ class _SpeedMap:
 
         P, eps, _ = _model(flint, slowness, slowness_at, arb(1), "lam, mu")
         start = arb(0) if j == 0 else self.total  # self.pieces holds the pieces before j
-        return start, P, P.integral(), eps, a
+        return start, P, P.integral(), eps
 
     def slowness(self, X: Any) -> Any:
         """``1/lam + 1/mu`` at the arb_series ``X`` (of ``x``)."""
@@ -545,9 +545,9 @@ class _SpeedMap:
         """The ball ``T(L xi)`` and ``dT/dxi`` (centre) at an exact ``xi`` of ``[0, 1]``."""
         arb = self.flint.arb
         m = len(self.pieces)
-        j = min(m - 1, max(0, int(float(xi) * m)))
-        start, P, Phi, eps, a = self.pieces[j]
-        u = (xi - a) * m
+        j = min(m - 1, int(float((xi * m).floor())))  # exact: m is a power of 2, so u = m xi - j lies in [0, 1]
+        start, P, Phi, eps = self.pieces[j]
+        u = xi * m - j
         return start + Phi(u) + arb(0, float((eps * abs(u)).upper())), (P(u) * m).mid()
 
     def _inverse(self, y: Any, side: int) -> Any:
