@@ -244,3 +244,28 @@ def test_a_tiny_kernel_is_proven_with_its_absolute_error():
         for F, value in ((proof.characteristic, weight * v), (proof.u_factor, weight * u)):
             # slack: the doubles of tau and of q e^{A(L)} (a few ulps, times |e^{-tau s}| <= e^{0.4})
             _inside(ball_eval(F, flint.acb(s.real, s.imag)), complex(value), 1e-15)
+
+
+def test_an_exponent_with_slowly_decaying_taylor_coefficients_keeps_a_tight_proof():
+    """``a = 0.5/(2.4 - x)`` (a pole 1.4 from [0, 1]): the exponent ``D - A`` on each ball's series is
+    Taylor-shifted to the ball's centre before Horner's rule. In the monomials about 0 the coupling's model
+    widened and the proven radius of ``N~`` was 3.8e-13 (5.4e-15 now); the balls hold the ODE's values.
+    """
+    from nrobust.balls import ball_eval
+
+    plant = GeneralHyperbolic2x2(LAM, MU, lambda x: 0.5 / (2.4 - x), _b, 0.5, -0.2, Q, RHO)
+    proof = varying_proof(plant)
+    assert proof.N_tilde.radius < 2e-14
+    for s in (0.4j, 0.5 + 7.0j):
+        with mp.workdps(20):
+            z = mp.mpc(s)
+
+            def rhs(x, y, z=z):
+                a, b = mp.mpf(0.5) / (mp.mpf(2.4) - x), 1 + mp.mpf(0.2) * x
+                return [((a - z) * y[0] + b * y[1]) / LAM, ((z + mp.mpf(0.2)) * y[1] - mp.mpf(0.5) * y[0]) / MU]
+
+            u, v = mp.odefun(rhs, 0, [mp.mpf(Q), mp.mpf(1)])(1)
+            D_L = mp.mpf(0.2) / MU  # D = -int d/mu with d = -0.2
+            weight = mp.exp(-z / MU - D_L)
+        # slack: the doubles of tau and the principal gains (2^-53 relative, times |e^{-tau s}| <= 1)
+        _inside(ball_eval(proof.characteristic, flint.acb(s.real, s.imag)), complex(weight * (v - RHO * u)), 1e-15)
