@@ -86,12 +86,16 @@ def _laplace_crossing(
 
 @pytest.mark.slow
 def test_varying_speed_ratio_margin_is_within_its_estimated_accuracy() -> None:
-    """The characteristic route (no normal form) is refined as the kernel grid is."""
+    """The characteristic route (no normal form) is refined as the kernel grid is.
+
+    ``kernel_grid`` given: the model route (without it the loop of this plant is proven, ``varying_proof``);
+    the proven margin lies within the model's estimated accuracy too.
+    """
     plant = GeneralHyperbolic2x2(
         lam=lambda x: 1.0 + 0.3 * x, mu=1.0, a=0.0, b=0.5, c=lambda x: 0.4 - 0.2 * x, d=0.0, q=0.7, rho=0.4
     )
     k = -1.0
-    cert = certify(plant, StateFeedback(k), delta_max=0.5, k_region=False, region=(-2, 1, -20, 20))
+    cert = certify(plant, StateFeedback(k), delta_max=0.5, k_region=False, region=(-2, 1, -20, 20), kernel_grid=201)
     assert cert.model_error is not None and "characteristic route" in cert.model_error.statement
     accuracy = cert.margin_accuracy
     assert accuracy is not None and accuracy < 1e-5
@@ -99,6 +103,9 @@ def test_varying_speed_ratio_margin_is_within_its_estimated_accuracy() -> None:
     assert omega is not None
     delta, _ = _laplace_crossing(plant, k, omega, cert.delay_margin, steps=4000)
     assert abs(cert.delay_margin - delta) <= accuracy
+    assert loop_route(plant, StateFeedback(k)) == "exact"
+    proven = delay_margin(plant, StateFeedback(k), delta_max=0.5, rigorous=True)
+    assert not proven.of_model and abs(cert.delay_margin - proven.margin) <= accuracy
 
 
 def test_uniform_flow_canal_takes_the_exact_route_and_prints_its_accuracy() -> None:

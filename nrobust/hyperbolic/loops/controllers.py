@@ -459,8 +459,9 @@ def normalize(system: Any, controller: Any) -> tuple[Any, Any]:
     plus the kernel terms of eq. (53). The characteristic
     function changes by the constant factor ``e^{D(L)}`` only, so spectra and margins are
     those of the general plant. A general plant with a varying ``lam/mu`` has no normal form
-    and passes unchanged with its controller: every analysis takes it by the characteristic
-    route (:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`). Any other plant (and
+    and passes unchanged with its controller: its loop is proven (:func:`loop_route` ``"exact"``) or
+    taken by the characteristic route
+    (:func:`~nrobust.hyperbolic.loops.varying_form.varying_delay_form`). Any other plant (and
     its controller) passes unchanged.
     """
     if isinstance(system, GeneralHyperbolic2x2) and system.constant_ratio:
@@ -519,9 +520,7 @@ def _varying_factors(
             kernels = _varying_kernels(system, check_kernel_grid(kernel_grid))
             return 1.0 - phi, -kernels.feedback_factor(controller.k, controller.g_u, controller.g_v)
         return 1.0 - phi, form.u_factor() * (-controller.k)
-    if isinstance(controller, ReflectionController) or (
-        isinstance(controller, FilteredController) and controller.K is not None
-    ):
+    if _needs_normal_form(controller):
         raise ParameterError(
             "controller",
             "OpenLoop, FiniteTimeController, FilteredController(a, b) or StateFeedback on a plant with a varying "
@@ -572,9 +571,11 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     (:func:`~nrobust.hyperbolic.loops.exact_form.exact_form`,
     :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`), so a proof about the loop is
     a proof about the PDE; also a :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2`
-    whose couplings are functions of ``x`` with a proven ``N~`` and ``U~``
+    whose couplings, or a :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` whose
+    coefficients or speeds, are functions of ``x`` with a proven ``N~`` and ``U~``
     (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) under a controller other than
-    a state feedback with integral gains. ``"kernels"``: ``N~`` (and the gains of a state feedback) from
+    a state feedback with integral gains (nor U_BS2(K) on a varying ``lam/mu``). ``"kernels"``: ``N~``
+    (and the gains of a state feedback) from
     kernels on a grid, a model of the plant whose distance to it is measured by convergence
     studies. An :class:`OutputFeedback` whose state feedback takes the exact route is ``"exact"``
     too when its observer term is exact (uncoupled plant) or enclosed with a proven error
@@ -611,11 +612,21 @@ def _proven_varying(system: Any, controller: Any) -> bool:
     """True for couplings that vary with ``x`` whose ``N~`` (and ``U~``) are proven, and a controller using only them.
 
     :func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`: the paper's controllers and
-    a :class:`StateFeedback` without integral gains.
+    a :class:`StateFeedback` without integral gains; on a general plant with a varying ``lam/mu`` not
+    U_BS2(K) (defined on the normal form, refused there by :func:`loop_factors`).
     """
     if isinstance(controller, StateFeedback) and _integral_gains(controller):
         return False
+    if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio and _needs_normal_form(controller):
+        return False
     return has_varying_proof(system)
+
+
+def _needs_normal_form(controller: Any) -> bool:
+    """True for U_BS2(K) and a filtered law with ``K``: their ``K q`` is a quantity of the normal form."""
+    return isinstance(controller, ReflectionController) or (
+        isinstance(controller, FilteredController) and controller.K is not None
+    )
 
 
 def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
@@ -742,10 +753,11 @@ def _loop_scope(
         return scope.replace(_AS_GIVEN, rounded) if rounded else scope
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
+        assumption = varying_proof(system).assumption  # varying speeds: what the plant proven takes exactly
         return (
             "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
             f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; "
-            f"{rounded_parts(system, controller, kernel_grid)})"
+            f"{rounded_parts(system, controller, kernel_grid)}{'; ' + assumption if assumption else ''})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
         gains = isinstance(controller, StateFeedback) and _integral_gains(controller)

@@ -1,4 +1,4 @@
-"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x`` (constant speeds).
+"""``N~`` of eq. (40) with a proven error bound for coefficients that vary with ``x``.
 
 For the paper's plant (18)-(20) with constant ``lam, mu, q, rho`` and couplings
 ``sigma_pm(x)``, ``sigma_mp(x)`` given as functions, the characteristic route of
@@ -66,8 +66,39 @@ feedback ``U = k u(t, L)`` closes the loop with ``B = -k u_factor``. What stays 
 the double ``(L / lam + L / mu) / time_unit`` computed in floating point, and the principal gains
 ``q e^{A(L) - D(L)}`` and ``rho q e^{A(L) - D(L)}`` (rounded to nearest from their enclosures,
 so the proof is of the plant with these values, relative changes of ``2^-53``). Coefficients
-given as samples (the cubic spline is the model the user gave) and varying speeds are refused
-with a reason (:func:`varying_failure`): the kernel route, a model.
+given as samples (the cubic spline is the model the user gave) are refused with a reason
+(:func:`varying_failure`): the kernel route, a model.
+
+**Varying speeds.** Speeds ``lam(x)``, ``mu(x)`` given as functions (any ratio) are made constant
+along the characteristics by ``y = T(x) / T(L)``, ``T = int_0^x 1/lam + 1/mu`` the round-trip
+time: in ``theta = T(x)`` the characteristic system of
+:mod:`~nrobust.hyperbolic.loops.varying_form` (``f`` along diagonals, ``g`` along rows, diagonal
+terms ``p = dA/dtheta``, ``e = dD/dtheta``) becomes, with ``f = e^{A} f~``, ``g = e^{D} g~`` (the
+diagonal terms removed by the same exponents as the normal form's), the Volterra system above
+with ``A = (theta - nu) / T(L)``, ``V = nu / T(L)`` and, at ``x(y)``::
+
+    alpha = s_u a,   delta = -s_v d,   k_r = s_u b e^{E} e^{-k},   k_w = -s_v c e^{-E} e^{k},
+    s_u = T(L) mu / (lam + mu),   s_v = T(L) lam / (lam + mu)
+
+(for constant speeds ``s_u = L / lam``, ``s_v = L / mu``; for a constant ratio this is the normal
+form's ``y = phi(x) / phi(L)``), and ``N~``, ``U~`` as above: the proof applies unchanged. What is
+new is ``x(y)`` in ball arithmetic. The slowness ``L (1/lam + 1/mu)(L xi)`` is a Taylor model on
+``[0, 1]`` (as the couplings above, remainder ``eps``), so ``T(L xi) = Phi(xi) + e(xi)``, ``Phi``
+its exact integral and ``|e(xi)| <= eps xi``, and ``T(L)`` is a ball. A ball ``y`` maps to the
+ball ``x(y)`` between two points ``xi`` at which ``Phi(xi) -+ eps xi`` is proven below or above
+``T(L) y`` (``T`` increases), found by Newton's method on ``Phi``. The Taylor coefficients of
+``x(Y(t))`` for an arb_series ``Y`` follow from ``dx/dy = T(L) / (1/lam + 1/mu)(x)`` by Picard
+passes on series (the ``k``-th fixes the coefficient of ``t^k``; ball arithmetic encloses them for
+every ``y`` of ``Y``'s constant ball). A coefficient at ``x(y)`` times its weight is then a
+function of ``y`` evaluated on an arb_series and modelled as above. The balance ``k`` is the
+normal form's for a constant ratio, else the mid-range of ``D - A`` likewise (read as
+``log(q / q~)``, ``q~`` a double). ``tau`` is the double nearest the ball ``T(L) / time_unit``:
+the plant proven has both speeds times ``T(L) / (tau time_unit)``, a factor within about
+``2^-53`` of 1 that :attr:`VaryingProof.assumption` bounds and the proof's scope quotes. On a
+varying ratio the loop route serves the laws the characteristic route serves (not U_BS2(K),
+defined on the normal form). A speed without ball evaluation, or whose ``1/lam + 1/mu`` or
+``x(y)`` is not analytic on a disc about ``[0, 1]`` wide enough for one model of order
+:data:`ORDER`, has no proof.
 
 A coupling that fails on ``arb_series`` (comparisons, conversions to float, ...), is not
 analytic on a disc about ``[0, 1]`` large enough for one model of order :data:`ORDER` to reach
@@ -85,6 +116,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..._digits import upper_bound_text
 from ..._flint import precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
@@ -109,6 +141,8 @@ _RESIDUAL = 2.0**-27
 _TOP_BALLS = 64
 # Points at which a coupling's model must agree with its values on arrays (and which key the cache).
 _CHECK_POINTS = np.linspace(0.0, 1.0, 17)
+# Most pieces of [0, L] on which 1/lam + 1/mu is modelled for the map y = T(x)/T(L) (a power of 2).
+_MAP_PIECES = 16
 # Balls covering [0, 1] in the bounds of univariate polynomials.
 _SUP_BALLS = 64
 # The in-domain coefficients of a general plant.
@@ -131,6 +165,9 @@ class VaryingProof:
         the plant's own coordinates for a general plant).
     characteristic : QuasiPolynomial
         ``1 - rho q e^{-tau s} + int_0^tau N~(nu) e^{-nu s} dnu``, the open loop.
+    assumption : str
+        For varying speeds, what the plant proven takes that the plant given may not be exactly (the
+        speeds' factor making ``tau`` a double, module notes "Varying speeds"); ``""`` otherwise.
     u_factor : QuasiPolynomial
         ``e^{-s t_v} u(1, s)`` normalised as the characteristic function:
         ``q e^{-tau s} + int_0^tau U~(nu) e^{-nu s} dnu`` (``q e^{A(L) - D(L)}`` rounded to a
@@ -138,7 +175,7 @@ class VaryingProof:
         with ``B = -k u_factor``).
     """
 
-    __slots__ = ("N_tilde", "U_tilde", "characteristic", "q", "rho_q", "tau", "u_factor")
+    __slots__ = ("N_tilde", "U_tilde", "assumption", "characteristic", "q", "rho_q", "tau", "u_factor")
 
     def __init__(
         self,
@@ -148,8 +185,10 @@ class VaryingProof:
         N_tilde: DistributedDelay | None,
         U_tilde: DistributedDelay | None,
         u_point: float | None = None,
+        assumption: str = "",
     ) -> None:
         self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
+        self.assumption = assumption
         self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
         point = q if u_point is None else u_point
         self.u_factor = QuasiPolynomial([[point]], [tau], [U_tilde] if U_tilde is not None else [])
@@ -159,12 +198,13 @@ def has_varying_proof(system: object) -> bool:
     """True for a plant with coefficients given as functions whose ``N~`` is proven.
 
     A :class:`Hyperbolic2x2` with a coupling given as a function, or a
-    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with constant speeds and
-    one of ``a, b, c, d`` a function (module notes, "General plants").
+    :class:`~nrobust.hyperbolic.plants.general.GeneralHyperbolic2x2` with one of ``a, b, c, d`` a
+    function (module notes, "General plants") or speeds given as functions (module notes,
+    "Varying speeds").
     """
     if isinstance(system, Hyperbolic2x2) and system.constant_couplings:
         return False
-    if isinstance(system, GeneralHyperbolic2x2) and all(system.is_constant(k) for k in _GENERAL):
+    if isinstance(system, GeneralHyperbolic2x2) and all(system.is_constant(k) for k in ("lam", "mu", *_GENERAL)):
         return False
     return isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) and varying_failure(system) is None
 
@@ -183,8 +223,7 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     system : Hyperbolic2x2 or GeneralHyperbolic2x2
         The paper's plant, constant speeds, ``sigma_pm`` and ``sigma_mp`` numbers or functions
         of ``x`` on ``[0, 1]`` that python-flint's ``arb_series`` can evaluate; or a general
-        plant with constant ``lam, mu`` and ``a, b, c, d`` numbers or such functions on
-        ``[0, L]``.
+        plant with ``a, b, c, d``, ``lam, mu`` numbers or such functions on ``[0, L]``.
 
     Returns
     -------
@@ -195,7 +234,7 @@ def varying_proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     ParameterError
         Not a :class:`Hyperbolic2x2` or :class:`GeneralHyperbolic2x2`.
     CertificationError
-        A coefficient that cannot be enclosed (samples, varying speeds, no ball arithmetic),
+        A coefficient that cannot be enclosed (samples, no ball arithmetic),
         or a residual too large to be useful (:func:`varying_failure` gives the reason).
     """
     out = _attempt(system)
@@ -212,7 +251,7 @@ def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str
             return reason
         # the coefficients' values at the check points key the cache, as the couplings' below
         points = system.length * _CHECK_POINTS
-        key = tuple(float(v) for name in _GENERAL for v in system.coefficient(name, points))
+        key = tuple(float(v) for name in ("lam", "mu", *_GENERAL) for v in system.coefficient(name, points))
         return _attempt_cached(system, key)
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 (constant speeds) or GeneralHyperbolic2x2", system)
@@ -229,16 +268,11 @@ def _attempt(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof | str
 
 def _general_failure(system: GeneralHyperbolic2x2) -> str | None:
     """Why a general plant is outside the proof before any enclosure is tried (None: it is not)."""
-    for name in ("lam", "mu"):
-        if not system.is_constant(name):
-            return (
-                f"the speed {name} is a function: the proof covers constant speeds given as numbers; the kernel "
-                "route (kernel_grid=...) gives a model of the PDE"
-            )
-    for name in _GENERAL:
+    for name in ("lam", "mu", *_GENERAL):
         if isinstance(getattr(system, name), tuple):
+            kind = "speed" if name in ("lam", "mu") else "coefficient"
             return (
-                f"the coefficient {name} is given as samples: its cubic spline is the model of the plant, which "
+                f"the {kind} {name} is given as samples: its cubic spline is the model of the plant, which "
                 "the kernel route (kernel_grid=...) takes"
             )
     return None
@@ -259,6 +293,37 @@ def _attempt_uncached(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingPr
 # --------------------------------------------------------------------------- coupling models
 
 
+def _on_series(flint: Any, value: Any, series: Any, name: str) -> Any:
+    """``value`` (a number or a user's callable on arrays) at one arb_series, as an arb_series of its length."""
+    arb, arb_series = flint.arb, flint.arb_series
+    what = f"the speed {name}" if name in ("lam", "mu") else f"the coupling {name}"
+    if not callable(value):
+        return arb_series([arb(float(value))], prec=series.prec)
+    holder = np.empty(1, dtype=object)
+    holder[0] = series
+    cap = flint.ctx.cap
+    flint.ctx.cap = series.prec  # series functions truncate at the global cap
+    try:
+        out = value(holder)
+    except Exception as exc:  # a user's callable may raise anything on an object array: no model
+        raise CertificationError(
+            f"{what} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
+        ) from None
+    finally:
+        flint.ctx.cap = cap
+    if isinstance(out, np.ndarray) and out.size == 1:
+        out = out.reshape(-1)[0]
+    if isinstance(out, (int, float)) and not isinstance(out, bool):
+        out = arb(float(out))
+    if isinstance(out, arb):  # constant in x
+        out = arb_series([out], prec=series.prec)
+    if not isinstance(out, arb_series):
+        raise CertificationError(f"{what} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})")
+    if out.prec < series.prec:
+        raise CertificationError(f"{what} gave a series truncated before the order {series.prec - 1}")
+    return out
+
+
 def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any, Any, Any]:
     """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``."""
     arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
@@ -266,28 +331,7 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any,
         return arb_poly([arb(float(value)) * scale]), arb(0), arb(0)
 
     def call(centre: Any) -> list[Any]:
-        holder = np.empty(1, dtype=object)
-        holder[0] = arb_series([centre, arb(0.5)], prec=ORDER + 1)
-        cap = flint.ctx.cap
-        flint.ctx.cap = ORDER + 1  # series functions truncate at the global cap
-        try:
-            out = value(holder)
-        except Exception as exc:  # a user's callable may raise anything on an object array: no model
-            raise CertificationError(
-                f"the coupling {name} cannot be evaluated in ball arithmetic (on a python-flint arb_series: {exc})"
-            ) from None
-        finally:
-            flint.ctx.cap = cap
-        if isinstance(out, np.ndarray) and out.size == 1:
-            out = out.reshape(-1)[0]
-        if isinstance(out, (int, float)) and not isinstance(out, bool):
-            out = arb_series([arb(float(out))], prec=ORDER + 1)
-        if not isinstance(out, arb_series):
-            raise CertificationError(
-                f"the coupling {name} cannot be evaluated in ball arithmetic (it gave {type(out).__name__})"
-            )
-        if out.prec < ORDER + 1:
-            raise CertificationError(f"the coupling {name} gave a series truncated before the order {ORDER}")
+        out = _on_series(flint, value, arb_series([centre, arb(0.5)], prec=ORDER + 1), name)
         coefs = list(out.coeffs())[: ORDER + 1]
         coefs += [arb(0)] * (ORDER + 1 - len(coefs))
         return coefs
@@ -369,8 +413,8 @@ def _picard(kr: np.ndarray, kw: np.ndarray, q: float, n: int) -> tuple[np.ndarra
                 break
     if not (np.all(np.isfinite(F)) and np.all(np.isfinite(G))):
         raise CertificationError(
-            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong); the "
-            "kernel route (kernel_grid=...) gives a model of the PDE"
+            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong, or with large "
+            "monomial coefficients on [0, 1]); the kernel route (kernel_grid=...) gives a model of the PDE"
         )
     return F, G
 
@@ -435,6 +479,127 @@ class _Bi:
         return total
 
 
+# --------------------------------------------------------------------------- varying speeds
+
+
+class _SpeedMap:
+    """``x(y)`` of a general plant whose speeds vary with ``x`` (module notes, "Varying speeds").
+
+    ``y = T(x) / T(L)``, ``T = int_0^x 1/lam + 1/mu``, on ``m`` equal pieces ``[a_j, b_j]`` of
+    ``[0, 1]`` in ``xi = x / L``: ``T(L (a_j + h u)) = C_j + Phi_j(u) + e_j(u)``, ``Phi_j`` the exact
+    integral of the Taylor model of the slowness ``L h (1/lam + 1/mu)`` on the piece, ``|e_j(u)| <= eps_j u``
+    and ``C_j`` the ball of ``T(L a_j)``; ``m`` doubles (up to :data:`_MAP_PIECES`) until the map's
+    enclosure is far below double precision (its width is the width of every Taylor coefficient's ball).
+    ``total`` is the ball ``T(L)``. :meth:`x_of` gives the Taylor coefficients of ``x(Y(t))`` for an
+    arb_series ``Y`` (all ``y`` in its constant ball at once) from ``dx/dy = T(L) / (1/lam + 1/mu)(x)``.
+    """
+
+    def __init__(self, flint: Any, g: GeneralHyperbolic2x2) -> None:
+        arb = flint.arb
+        self.flint, self.g, self.L = flint, g, arb(g.length)
+        pieces = 1
+        while True:
+            self.pieces: list[tuple[Any, Any, Any, Any]] = []
+            for j in range(pieces):  # each piece starts at the ball T(L a_j) of those before it
+                self.pieces.append(self._piece(j, pieces))
+            if bool(self.total.rad() < 2.0**-150 * self.total.mid()) or 2 * pieces > _MAP_PIECES:
+                break
+            pieces *= 2
+        if not bool(self.total.rad() < _RESIDUAL * 2.0**-26 * self.total.mid()):
+            raise CertificationError(
+                f"the speeds' 1/lam + 1/mu is not within double precision of Taylor models of order {ORDER} on "
+                f"{pieces} pieces of [0, L] (T(L) within {float(self.total.rad()):.1e}): the kernel route "
+                "(kernel_grid=...) gives a model of the PDE"
+            )
+        self.cache: dict[tuple[tuple[float, ...], int], Any] = {}
+
+    @property
+    def total(self) -> Any:
+        """The ball ``T(L)``."""
+        start, _, Phi, eps = self.pieces[-1]
+        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, float(eps.upper()))
+
+    def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any]:
+        """``(C_j, P_j, Phi_j, eps_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
+        flint, g, L = self.flint, self.g, self.L
+        arb, length = flint.arb, g.length
+        h, a = arb(1) / pieces, arb(j) / pieces  # exact: pieces is a power of 2
+
+        def slowness(u: Any) -> Any:
+            return self.slowness((a + h * u.reshape(-1)[0]) * L) * L * h
+
+        def slowness_at(u: Any) -> Any:
+            x = length * (j + np.asarray(u)) / pieces
+            return length / pieces * (1.0 / g.coefficient("lam", x) + 1.0 / g.coefficient("mu", x))
+
+        P, eps, _ = _model(flint, slowness, slowness_at, arb(1), "lam, mu")
+        start = arb(0) if j == 0 else self.total  # self.pieces holds the pieces before j
+        return start, P, P.integral(), eps
+
+    def slowness(self, X: Any) -> Any:
+        """``1/lam + 1/mu`` at the arb_series ``X`` (of ``x``)."""
+        flint, g = self.flint, self.g
+        return 1 / _on_series(flint, g.lam, X, "lam") + 1 / _on_series(flint, g.mu, X, "mu")
+
+    def _at(self, xi: Any) -> tuple[Any, Any]:
+        """The ball ``T(L xi)`` and ``dT/dxi`` (centre) at an exact ``xi`` of ``[0, 1]``."""
+        arb = self.flint.arb
+        m = len(self.pieces)
+        j = min(m - 1, int(float((xi * m).floor())))  # exact: m is a power of 2, so u = m xi - j lies in [0, 1]
+        start, P, Phi, eps = self.pieces[j]
+        u = xi * m - j
+        return start + Phi(u) + arb(0, float((eps * abs(u)).upper())), (P(u) * m).mid()
+
+    def _inverse(self, y: Any, side: int) -> Any:
+        """``xi`` with ``T(L xi)`` proven below (``side = -1``) or above (``+1``) ``T(L) y`` (``y`` exact)."""
+        arb = self.flint.arb
+        if (side < 0 and y <= 0) or (side > 0 and y >= 1):
+            return arb(0 if side < 0 else 1)
+        target = self.total * y
+        xi = y
+        for _ in range(60):  # Newton at the working precision on the centres
+            value, slope = self._at(xi)
+            step = ((value.mid() - target.mid()) / slope).mid()
+            xi = arb.max(arb(0), arb.min(arb(1), (xi - step).mid()))
+            if abs(float(step)) < 2.0**-170:
+                break
+        gap = 2.0**-170
+        while gap < 2.0**-8:
+            point = arb.max(arb(0), arb.min(arb(1), xi + side * gap))
+            value, _ = self._at(point)
+            if bool(value > target) if side > 0 else bool(value < target):
+                return point
+            gap *= 256.0
+        raise CertificationError("the map y = T(x)/T(L) of the speeds could not be inverted in ball arithmetic")
+
+    def x_ball(self, y: Any) -> Any:
+        """A ball holding ``x(y')`` for every ``y'`` of the ball ``y`` within ``[0, 1]``."""
+        low, high = self._inverse(y.lower(), -1), self._inverse(y.upper(), 1)
+        return self.L * low.union(high)
+
+    def x_of(self, Y: Any) -> Any:
+        """``x(Y(t))`` as an arb_series of the length of ``Y`` (Picard: the ``k``-th pass fixes ``t^k``)."""
+        flint = self.flint
+        coefs = Y.coeffs()
+        key = tuple(float(v) for c in coefs for v in (c.mid(), c.rad()))
+        exact = all(c.mid() == flint.arb(float(c.mid())) for c in coefs)
+        if exact and (key, Y.prec) in self.cache:
+            return self.cache[(key, Y.prec)]
+        x0 = self.x_ball(coefs[0])
+        cap = flint.ctx.cap
+        flint.ctx.cap = Y.prec  # series arithmetic truncates at the global cap
+        try:
+            slope = Y.derivative() * self.total
+            X = flint.arb_series([x0], prec=Y.prec)
+            for _ in range(Y.prec):
+                X = x0 + (slope / self.slowness(X)).integral()
+        finally:
+            flint.ctx.cap = cap
+        if exact:
+            self.cache[(key, Y.prec)] = X
+        return X
+
+
 # --------------------------------------------------------------------------- the proof
 
 
@@ -450,6 +615,7 @@ class _Setup(NamedTuple):
     rho_q: float  # the double of the open loop's principal gain
     u_point: float  # the double of the point delay of u_factor
     u_weight: Any  # the ball by which U~ of the normal form is multiplied in u_factor
+    assumption: str = ""  # what the plant proven takes that the plant given may not be exactly
 
 
 def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
@@ -471,7 +637,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             except CertificationError:
                 if n == DEGREES[-1]:
                     raise
-    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point)
+    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption)
 
 
 def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
@@ -483,40 +649,103 @@ def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
     return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1))
 
 
-def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
-    """The normal form of a general plant with constant speeds, enclosed (module notes, "General plants")."""
+class _Geometry(NamedTuple):
+    """The change of variable ``y = T(x) / T(L)`` of a general plant, enclosed (``x = L y`` for constant speeds)."""
+
+    tau: float  # T(L) / time_unit of the plant proven, a double
+    x_series: Any  # arb_series in y -> arb_series in x of x(y)
+    x_arrays: Any  # x(y) on arrays (the plant's tables), for the models' check
+    weight: Any  # (arb_series of x, "u" or "v") -> the weight s_u or s_v there; None for constant speeds
+    weight_at: Any  # the same on arrays of x
+    scales: tuple[Any, Any]  # constant speeds: the balls L / lam, L / mu (the weights); else (1, 1)
+    assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
+
+
+def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
+    """``x(y)``, the weights ``s_u, s_v`` and ``tau`` (module notes, "General plants" and "Varying speeds")."""
     arb = flint.arb
-    length, lam, mu = g.length, float(g.lam), float(g.mu)  # type: ignore[arg-type]
-    L = arb(length)
+    length, L = g.length, arb(g.length)
+    if g.is_constant("lam") and g.is_constant("mu"):  # x = L y
+        lam, mu = float(g.lam), float(g.mu)  # type: ignore[arg-type]
+        tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
+        scales = (L / arb(lam), L / arb(mu))
+        return _Geometry(tau, lambda Y: Y * L, lambda y: length * np.asarray(y), None, None, scales, "")
+    from scipy.interpolate import CubicHermiteSpline  # lazily: a slow import
 
-    def physical(name: str) -> tuple[Any, Any]:
-        """The coefficient ``name`` as a function of ``y`` (``x = L y``): on balls and on arrays."""
+    speed = _SpeedMap(flint, g)
+    # tau the double nearest T(L) / time_unit: the plant proven has both speeds times T(L) / (tau time_unit)
+    tau = float((speed.total / arb(g.time_unit)).mid())
+    total = arb(tau) * arb(g.time_unit)
+    change = float(abs(speed.total / total - 1).upper())
+    assumption = f"both speeds times a factor within {upper_bound_text(change, 2)} of 1 (tau the double {tau!r})"
+
+    def weight(X: Any, side: str) -> Any:
+        inv_lam, inv_mu = 1 / _on_series(flint, g.lam, X, "lam"), 1 / _on_series(flint, g.mu, X, "mu")
+        return total * (inv_lam if side == "u" else inv_mu) / (inv_lam + inv_mu)
+
+    def weight_at(x: Any, side: str) -> Any:
+        inv_lam, inv_mu = 1.0 / g.coefficient("lam", x), 1.0 / g.coefficient("mu", x)
+        return g.tau * (inv_lam if side == "u" else inv_mu) / (inv_lam + inv_mu)
+
+    nodes = g.tables.x
+    rate = 1.0 / g.coefficient("lam", nodes) + 1.0 / g.coefficient("mu", nodes)
+    x_of_y = CubicHermiteSpline((g.phi(nodes) + g.psi(nodes)) / g.tau, nodes, g.tau / rate)
+
+    def x_arrays(y: Any) -> Any:
+        return np.asarray(x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
+
+    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, (arb(1), arb(1)), assumption)
+
+
+def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
+    """The normal form of a general plant, enclosed (module notes, "General plants" and "Varying speeds")."""
+    arb = flint.arb
+    geo = _geometry(flint, g)
+    length, L = g.length, arb(g.length)
+
+    def physical(name: str, side: str) -> tuple[Any, Any, Any]:
+        """The coefficient ``name`` times the weight of ``side`` as a function of ``y`` (at ``x(y)``): on balls,
+        on arrays, and the constant scale of the model (the weight itself for constant speeds)."""
         value = getattr(g, name)
-        if not callable(value):
-            return float(value), None
-        return (lambda y: value(y * L)), (lambda y: g.coefficient(name, length * np.asarray(y)))
+        if geo.weight is None:
+            scale = geo.scales[0 if side == "u" else 1]
+            if not callable(value):
+                return float(value), None, scale
+            return (lambda y: value(y * L)), (lambda y: g.coefficient(name, length * np.asarray(y))), scale
 
-    # A(L y) = int_0^y alpha, D(L y) = int_0^y delta: alpha = L a / lam, delta = -L d / mu at x = L y
-    a_value, a_at = physical("a")
-    d_value, d_at = physical("d")
-    P_a, e_a, _ = _model(flint, a_value, a_at, L / arb(lam), "a")
-    P_d, e_d, _ = _model(flint, d_value, d_at, -L / arb(mu), "d")
-    E = P_d.integral() - P_a.integral()  # D - A at x = L y, within e_E (and its derivative too)
+        def on_balls(y: Any) -> Any:
+            X = geo.x_series(y.reshape(-1)[0])
+            return _on_series(flint, value, X, name) * geo.weight(X, side)
+
+        def on_arrays(y: Any) -> Any:
+            x = geo.x_arrays(y)
+            return g.coefficient(name, x) * geo.weight_at(x, side)
+
+        return on_balls, on_arrays, arb(1)
+
+    # A(x(y)) = int_0^y alpha, D(x(y)) = int_0^y delta: alpha = s_u a, delta = -s_v d at x(y)
+    a_value, a_at, a_scale = physical("a", "u")
+    d_value, d_at, d_scale = physical("d", "v")
+    P_a, e_a, _ = _model(flint, a_value, a_at, a_scale, "a")
+    P_d, e_d, _ = _model(flint, d_value, d_at, -d_scale, "d")
+    E = P_d.integral() - P_a.integral()  # D - A at x(y), within e_E (and its derivative too)
     e_E = e_a + e_d
-    q_n = g.normal_form().system.q  # the normal form's q~ = q e^{-k}: k is read as log(q / q~), q~ exact
+    # q~ = q e^{-k}: k is read as log(q / q~), q~ exact; k the normal form's balance (the mid-range of D - A)
+    if g.constant_ratio:
+        q_n = g.normal_form().system.q
+    else:
+        exponent = g.D(g.tables.x) - g.A(g.tables.x)
+        q_n = g.q * float(np.exp(-0.5 * (np.max(exponent) + np.min(exponent))))
     ek = arb(q_n) / arb(g.q)  # e^{-k}
     E_end = E(arb(1)) + arb(0, float(e_E.upper()))
     weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
 
-    def coupling(name: str, sign: int, scale: Any) -> tuple[Any, Any, Any]:
-        value, at = physical(name)
+    def coupling(name: str, sign: int) -> tuple[Any, Any, Any]:
+        value, at, scale = physical(name, "u" if sign > 0 else "v")
         factor = ek if sign > 0 else 1 / ek
 
         def on_balls(y: Any) -> Any:
-            x = y.reshape(-1)[0]
-            exponent = arb(0)
-            for c in reversed(E.coeffs()):  # Horner: E(x) on an arb_series
-                exponent = exponent * x + c
+            exponent = _poly_on_series(flint, E, y.reshape(-1)[0])
             own = value(y) if callable(value) else value
             if isinstance(own, np.ndarray):
                 own = own.reshape(-1)[0]
@@ -525,21 +754,23 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         def on_arrays(y: Any) -> Any:
             y = np.asarray(y, dtype=float)
             own = at(y) if at is not None else np.full(y.shape, value)
-            exponent = sign * (g.D(length * y) - g.A(length * y))
+            x = geo.x_arrays(y)
+            exponent = sign * (g.D(x) - g.A(x))
             return own * np.exp(exponent) * (q_n / g.q) ** sign
 
-        P, eps, eps1 = _model(flint, on_balls, on_arrays, scale, name)
+        P, eps, eps1 = _model(flint, on_balls, on_arrays, sign * scale, name)
         # the true coupling is the model's times e^{sign r}, |r| <= e_E, |r'| <= e_E
         grow = e_E.exp() - 1
         size, slope = _poly_sup(flint, P) + eps, _poly_sup(flint, P.derivative()) + eps1
         return P, eps + size * grow, eps1 + slope * grow + size * e_E * e_E.exp()
 
-    model_r = coupling("b", 1, L / arb(lam))
-    model_w = coupling("c", -1, -L / arb(mu))
+    model_r = coupling("b", 1)
+    model_w = coupling("c", -1)
     rho = g.rho
     u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
-    tau = float((Fraction(length) / Fraction(lam) + Fraction(length) / Fraction(mu)) / Fraction(g.time_unit))
-    return _Setup(model_r, model_w, arb(q_n), arb(rho) * weight, tau, q_n, rho * u_point, u_point, weight)
+    return _Setup(
+        model_r, model_w, arb(q_n), arb(rho) * weight, geo.tau, q_n, rho * u_point, u_point, weight, geo.assumption
+    )
 
 
 def _kernels(flint: Any, setup: _Setup, n: int, last: bool) -> tuple[DistributedDelay | None, DistributedDelay | None]:
@@ -638,6 +869,19 @@ def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any
         radius=float((piece_sup + sup_err).upper()),
         variation_radius=float((piece_var + var_err).upper()),
     )
+
+
+def _poly_on_series(flint: Any, p: Any, Y: Any) -> Any:
+    """``p(Y)`` for an arb_poly ``p`` and an arb_series ``Y``, Taylor-shifted first to the centre ``m`` of ``Y``'s
+    constant ball: Horner's rule in ``Y - m`` (a constant ball about 0) encloses ``p``'s Taylor coefficients at
+    every point of the ball far more tightly than Horner's rule in ``Y`` (monomials about 0 on a wide ball)."""
+    m = Y.coeffs()[0].mid()
+    shifted = p(flint.arb_poly([m, 1]))
+    step = Y - m
+    out = flint.arb(0)
+    for c in reversed(shifted.coeffs()):
+        out = out * step + c
+    return out
 
 
 def _poly_sup(flint: Any, p: Any) -> Any:

@@ -26,9 +26,10 @@ The transformation is an exact change of variables (no approximation beyond the
 quadrature of ``phi, psi, A, D`` and the cubic-spline tabulation of the couplings on 2049
 nodes, both at rounding level for smooth coefficients: 8e-15 relative measured), so the
 two plants have the same spectrum, delay margins and closed-loop behaviour. Proofs do not
-rest on these tables: with constant speeds and ``a, b, c, d`` numbers or functions,
-:mod:`~nrobust.hyperbolic.loops.varying_proof` encloses ``A, D`` and the couplings in ball
-arithmetic; coefficients given as samples are the user's model (their cubic spline).
+rest on these tables: with every coefficient a number or a function,
+:mod:`~nrobust.hyperbolic.loops.varying_proof` encloses ``x(y)``, ``A, D`` and the couplings in
+ball arithmetic (a varying ``lam/mu`` too, through its characteristic system); coefficients given
+as samples are the user's model (their cubic spline).
 """
 
 from __future__ import annotations

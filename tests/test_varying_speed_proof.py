@@ -1,0 +1,323 @@
+"""Proofs about a general plant whose speeds vary with ``x`` (the PDE itself), at a constant or varying ratio.
+
+Oracles share no code with :mod:`nrobust.hyperbolic.loops.varying_proof`: the Laplace-domain
+equations of the plant as given (``lam(x)``, ``mu(x)`` in the equations, no change of variable)
+solved by mpmath's Taylor integrator (``mpmath.odefun``) with ``int 1/lam``, ``int d/mu`` by
+``mpmath.quad``, the crossing equations ``|A(i w)| = |B(i w)|`` solved on it by ``mpmath.findroot``,
+``tau`` in closed form (``(1 + r) log(1 + 0.3) / 0.3``), and the kernel route (constant ratio) or the
+characteristic route (varying ratio) on refined grids.
+"""
+
+from __future__ import annotations
+
+import mpmath as mp
+import numpy as np
+import pytest
+
+import nrobust as nr
+from nrobust.hyperbolic import GeneralHyperbolic2x2, OpenLoop, ReflectionController
+from nrobust.hyperbolic.loops.controllers import loop_factors, loop_route, loop_scope
+from nrobust.hyperbolic.loops.varying_proof import has_varying_proof, varying_failure, varying_proof
+
+flint = pytest.importorskip("flint")
+
+Q, RHO, K, D = 1.0, 0.5, 0.1, -0.2
+
+
+def _lam(x):
+    return 1.0 + 0.3 * x
+
+
+def _mu(x):
+    return _lam(x) / 2.0
+
+
+def _b(x):
+    return 1.0 + 0.2 * x
+
+
+PLANT = GeneralHyperbolic2x2(_lam, _mu, 0.0, _b, 0.5, D, Q, RHO)
+# The margin of U_BS2(0.1) on PLANT: the crossing equations solved by mpmath.findroot at 32 digits on the
+# ODE's solution (test_margin_of_the_pde_at_32_digits, marked long, recomputes it; 20 digits agree to 1e-20).
+PDE_MARGIN = "1.5574365331123466410776606735281"
+PDE_OMEGA = "0.70482197624013607583998101793746"
+
+
+def _ode(s, dps=20):
+    """``(A, e^{-s t_v - D(L)} u(L, s), B of U_BS2(K))`` of PLANT from ``[u; v](0) = [q; 1]`` (mpmath).
+
+    ``u_x = ((a - s) u + b v) / lam``, ``v_x = ((s - d) v - c u) / mu`` with ``a = 0``, ``c = 0.5``;
+    ``t_v = int 1/mu``, ``D = -int d/mu`` by quadrature. ``B = 1 - A + (K q~ - rho q e^{-D(L)}) e^{-tau s}``,
+    ``q~`` the normal form's (``K`` is read in its coordinates), ``tau = int 1/lam + int 1/mu``.
+    """
+    with mp.workdps(dps):
+        s = mp.mpc(s)
+        slope = mp.mpf(0.3)  # the double 0.3 of _lam
+
+        def rhs(x, y):
+            lam = 1 + slope * x
+            return [(-s * y[0] + (1 + mp.mpf(0.2) * x) * y[1]) / lam, ((s - D) * y[1] - mp.mpf(0.5) * y[0]) / (lam / 2)]
+
+        u, v = mp.odefun(rhs, 0, [mp.mpf(Q), mp.mpf(1)])(1)
+        t_u = mp.quad(lambda x: 1 / (1 + slope * x), [0, 1])
+        t_v = mp.quad(lambda x: 2 / (1 + slope * x), [0, 1])
+        D_L = -mp.quad(lambda x: D * 2 / (1 + slope * x), [0, 1])
+        weight = mp.exp(-s * t_v - D_L)
+        A = weight * (v - mp.mpf(RHO) * u)
+        principal = mp.mpf(K) * mp.mpf(PLANT.normal_form().system.q) - mp.mpf(RHO) * mp.mpf(Q) * mp.exp(-D_L)
+        B = 1 - A + principal * mp.exp(-s * (t_u + t_v))
+        return A, weight * u, B
+
+
+def _crossing(dps, omega):
+    """The margin and crossing frequency on the ODE's solution at ``dps`` digits, from ``omega``."""
+
+    def gap(w):
+        A, _, B = _ode(1j * w, dps)
+        return abs(A) ** 2 - abs(B) ** 2
+
+    with mp.workdps(dps):
+        w = mp.findroot(gap, mp.mpf(omega), tol=mp.mpf(10) ** (4 - dps))
+        A, _, B = _ode(1j * w, dps)
+        return ((-mp.arg(-A / B)) % (2 * mp.pi)) / w, w
+
+
+def _inside(ball, value, slack):
+    assert float(ball.real.lower()) - slack <= float(value.real) <= float(ball.real.upper()) + slack
+    assert float(ball.imag.lower()) - slack <= float(value.imag) <= float(ball.imag.upper()) + slack
+
+
+def test_round_trip_in_closed_form():
+    """``tau = (1 + r) log(1.3) / 0.3`` for ``lam = 1 + 0.3 x``, ``mu = lam / r`` (r = 2, 1/3, 3), to the double."""
+    for r, mu in ((2.0, _mu), (1.0 / 3.0, lambda x: 3.0 * _lam(x)), (3.0, lambda x: _lam(x) / 3.0)):
+        plant = GeneralHyperbolic2x2(_lam, mu, 0.0, 0.0, 0.0, 0.0, Q, RHO)
+        proof = varying_proof(plant)
+        with mp.workdps(40):
+            ratio = mp.mpf(1) / 3 if r < 1 else mp.mpf(r)  # mu = 3 lam: the ratio is 1/3 exactly
+            tau = (1 + ratio) * mp.log(1 + mp.mpf(0.3)) / mp.mpf(0.3)
+            # the double nearest: within half an ulp (the enclosure of phi(L) is far narrower)
+            assert abs(mp.mpf(proof.tau) - tau) <= mp.mpf(np.spacing(proof.tau)) / 2
+        assert proof.N_tilde is None and proof.assumption.startswith("both speeds times a factor within")
+
+
+@pytest.mark.parametrize("s", [0.4j, 3.0j, 0.5 + 7.0j, -0.3 + 25.0j])
+def test_ball_enclosures_contain_the_plants_ode_solution(s):
+    """The open loop and u(L, s) in ball arithmetic contain the plant's values (mpmath ODE, 20 digits)."""
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(PLANT)
+    A, u, _ = _ode(s)
+    tau = proof.tau
+    for F, value in ((proof.characteristic, A), (proof.u_factor, u)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # the doubles of rho q e^{-D(L)} and q e^{-D(L)} (2^-53 relative, times |e^{-tau s}|) and the plant proven,
+        # whose speeds are the plant's times a factor within 2.5e-17 of 1 (a relative change of t_u, t_v and so
+        # of the phases s t_u, s t_v: |s| tau 2.5e-17 per unit of |e^{-tau s}|); 1e-18 covers the ODE's digits
+        slack = 1e-18 + (2.0 * 2.0**-53 + abs(s) * tau * 2.5e-17) * np.exp(-tau * s.real)
+        _inside(ball, value, slack)
+        assert ball.real.rad() < 1e-12 and ball.imag.rad() < 1e-12
+
+
+def _lam_2(x):
+    return 2.0 + 0.5 * np.sin(x)
+
+
+# length and time unit not 1, every coefficient varying (d constant: its exponent still varies with mu)
+OTHER = GeneralHyperbolic2x2(
+    _lam_2,
+    lambda x: _lam_2(x) / 3.0,
+    lambda x: 0.2 * x,
+    lambda x: 0.8 + 0.0 * x,
+    lambda x: 0.4 * np.cos(x),
+    -0.1,
+    0.8,
+    0.3,
+    length=1.3,
+    time_unit=3.0,
+)
+
+
+@pytest.mark.parametrize("s", [0.3j, 2.0j, 0.4 + 5.0j, -0.2 + 12.0j])
+def test_length_and_time_unit_against_the_ode(s):
+    """OTHER (L = 1.3, time in units of 3): the open loop and u(L, s) in balls hold the ODE's (20 digits).
+
+    In the equations' time the Laplace variable is ``s / 3``; ``A = e^{-(s/3) t_v - D(L)} (v - rho u)(L)``.
+    """
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(OTHER)
+    with mp.workdps(20):
+        z = mp.mpc(s) / 3
+
+        def rhs(x, y):
+            lam = 2 + mp.mpf(0.5) * mp.sin(x)
+            mu = lam / 3
+            a, c = mp.mpf(0.2) * x, mp.mpf(0.4) * mp.cos(x)
+            return [((a - z) * y[0] + mp.mpf(0.8) * y[1]) / lam, ((z + mp.mpf(0.1)) * y[1] - c * y[0]) / mu]
+
+        length = mp.mpf(1.3)
+        u, v = mp.odefun(rhs, 0, [mp.mpf(0.8), mp.mpf(1)])(length)
+        t_v = mp.quad(lambda x: 3 / (2 + mp.mpf(0.5) * mp.sin(x)), [0, length])
+        D_L = mp.quad(lambda x: mp.mpf(0.1) * 3 / (2 + mp.mpf(0.5) * mp.sin(x)), [0, length])
+        weight = mp.exp(-z * t_v - D_L)
+        A, U = weight * (v - mp.mpf(0.3) * u), weight * u
+    tau = proof.tau
+    for F, value in ((proof.characteristic, A), (proof.u_factor, U)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # as in the test above: the principal gains' doubles and the speeds' factor (4e-17 here)
+        slack = 1e-18 + (2.0 * 2.0**-53 + abs(s) * tau * 4e-17) * np.exp(-tau * s.real)
+        _inside(ball, complex(value), slack)
+        assert ball.real.rad() < 1e-12 and ball.imag.rad() < 1e-12
+
+
+def test_proven_margin_contains_the_pde_margin_and_says_so():
+    """U_BS2(K): the proven ball contains the plant's margin, solved anew at 20 digits and stored at 32."""
+    assert has_varying_proof(PLANT) and loop_route(PLANT, ReflectionController(K)) == "exact"
+    dm = nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, rigorous=True)
+    lo, hi = dm.margin_ball
+    # the ball's width (2.2e-13 measured) is far above 1 ulp: containment is a real check
+    assert lo <= float(PDE_MARGIN) <= hi and hi - lo < 1e-11
+    margin, omega = _crossing(20, dm.omega)
+    assert lo <= float(margin) <= hi
+    with mp.workdps(32):
+        assert abs(margin - mp.mpf(PDE_MARGIN)) < 1e-18 and abs(omega - mp.mpf(PDE_OMEGA)) < 1e-18
+    np.testing.assert_allclose(dm.omega, float(PDE_OMEGA), rtol=1e-12)  # proven to about 1e-14
+    assert dm.scope.startswith("the PDE itself") and not dm.of_model
+    assert "both speeds times a factor within 2.5e-17 of 1" in dm.scope
+    # the kernel route's model (201 points) lies outside: the proof is not about it
+    model = nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, kernel_grid=201)
+    assert not lo <= model.margin <= hi and model.of_model
+
+
+def test_kernel_route_converges_to_the_proven_margin():
+    """The kernel route on 201, 401, 801 points converges to the proven margin at its observed order.
+
+    Its errors measured on 101 ... 801 points: 4.0e-9, 3.4e-10, 3.7e-11, 4.0e-12 (orders 3.6, 3.2, 3.2: the
+    asymptotic third order from 201 points on). Richardson with the observed order must meet the proven
+    margin within a fifth of the last difference (the order known to +-0.5).
+    """
+    proven = nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, rigorous=True).margin
+    grids = (201, 401, 801)
+    margins = [nr.delay_margin(PLANT, ReflectionController(K), delta_max=20.0, kernel_grid=n).margin for n in grids]
+    d1, d2 = margins[1] - margins[0], margins[2] - margins[1]
+    order = np.log2(d1 / d2)
+    assert 2.5 < order < 3.5
+    extrapolated = margins[2] + d2 / (2.0**order - 1.0)
+    np.testing.assert_allclose(extrapolated, proven, rtol=0, atol=0.2 * abs(d2))
+
+
+@pytest.mark.long
+def test_margin_of_the_pde_at_32_digits():
+    """Recompute PDE_MARGIN: the crossing equations on the ODE's solution at 32 digits."""
+    margin, omega = _crossing(32, PDE_OMEGA)
+    with mp.workdps(32):
+        assert abs(margin - mp.mpf(PDE_MARGIN)) < mp.mpf(10) ** -26
+        assert abs(omega - mp.mpf(PDE_OMEGA)) < mp.mpf(10) ** -26
+
+
+# A varying ratio lam/mu (no normal form: the characteristic route's Goursat system, enclosed the same way)
+VARYING = GeneralHyperbolic2x2(_lam, lambda x: 2.0 - 0.5 * x, 0.1, _b, lambda x: 0.5 * np.exp(-x), D, Q, RHO)
+K_U = -0.3  # U = K_U u(t - delta, L)
+# Its margin under StateFeedback(K_U): the crossing equations at 32 digits on the ODE (20 digits agree to 4e-21).
+VARYING_MARGIN = "2.1604242238010756013279508591705"
+VARYING_OMEGA = "0.49334821705571696834308985848694"
+
+
+def _ode_varying(s, dps=20):
+    """``(v - rho u, K_U u)`` at ``x = 1`` of VARYING from ``[u; v](0) = [q; 1]`` (mpmath).
+
+    The closed loop is ``(v - rho u)(1, s) - K_U e^{-s delta} u(1, s) = 0``.
+    """
+    with mp.workdps(dps):
+        s = mp.mpc(s)
+
+        def rhs(x, y):
+            lam, mu = 1 + mp.mpf(0.3) * x, 2 - mp.mpf(0.5) * x
+            b, c = 1 + mp.mpf(0.2) * x, mp.mpf(0.5) * mp.exp(-x)
+            return [((mp.mpf(0.1) - s) * y[0] + b * y[1]) / lam, ((s - D) * y[1] - c * y[0]) / mu]
+
+        u, v = mp.odefun(rhs, 0, [mp.mpf(Q), mp.mpf(1)])(1)
+        return v - mp.mpf(RHO) * u, mp.mpf(K_U) * u
+
+
+def _varying_crossing(dps, omega):
+    def gap(w):
+        A, B = _ode_varying(1j * w, dps)
+        return abs(A) ** 2 - abs(B) ** 2
+
+    with mp.workdps(dps):
+        w = mp.findroot(gap, mp.mpf(omega), tol=mp.mpf(10) ** (4 - dps))
+        A, B = _ode_varying(1j * w, dps)
+        return ((-mp.arg(A / B)) % (2 * mp.pi)) / w, w
+
+
+@pytest.mark.parametrize("s", [0.4j, 3.0j, 0.5 + 7.0j, -0.3 + 25.0j])
+def test_varying_ratio_enclosures_contain_the_plants_ode_solution(s):
+    """A varying lam/mu: the open loop and u(1, s), normalised by ``e^{-s t_v - D(1)}``, hold the ODE's."""
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(VARYING)
+    A, B = _ode_varying(s)
+    with mp.workdps(20):
+        t_v = mp.quad(lambda x: 1 / (2 - mp.mpf(0.5) * x), [0, 1])
+        D_L = -mp.quad(lambda x: D / (2 - mp.mpf(0.5) * x), [0, 1])
+        weight = mp.exp(-mp.mpc(s) * t_v - D_L)
+    tau = proof.tau
+    for F, value in ((proof.characteristic, weight * A), (proof.u_factor, weight * B / K_U)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # the principal gains' doubles and the speeds' factor (3.0e-17 here), as for PLANT
+        slack = 1e-18 + (2.0 * 2.0**-53 + abs(s) * tau * 3e-17) * np.exp(-tau * s.real)
+        _inside(ball, complex(value), slack)
+        assert ball.real.rad() < 1e-12 and ball.imag.rad() < 1e-12
+
+
+def test_varying_ratio_margin_contains_the_pde_margin():
+    """StateFeedback(K_U) on a varying lam/mu: the proven ball holds the PDE's margin (20 digits anew, 32 stored);
+    the characteristic route's model (its default grid) lies outside it, and converges to it."""
+    law = nr.hyperbolic.StateFeedback(K_U)
+    assert has_varying_proof(VARYING) and loop_route(VARYING, law) == "exact"
+    dm = nr.delay_margin(VARYING, law, delta_max=20.0, rigorous=True)
+    lo, hi = dm.margin_ball
+    assert lo <= float(VARYING_MARGIN) <= hi and hi - lo < 1e-11  # 1.2e-13 measured
+    margin, omega = _varying_crossing(20, dm.omega)
+    assert lo <= float(margin) <= hi
+    with mp.workdps(32):
+        assert abs(margin - mp.mpf(VARYING_MARGIN)) < 1e-18 and abs(omega - mp.mpf(VARYING_OMEGA)) < 1e-18
+    assert dm.scope.startswith("the PDE itself") and not dm.of_model
+    model = nr.delay_margin(VARYING, law, delta_max=20.0, kernel_grid=201)
+    assert model.of_model and not lo <= model.margin <= hi
+    assert abs(model.margin - dm.margin) < 1e-11  # fourth order: 1.1e-12 measured on 201 points
+
+
+@pytest.mark.long
+def test_varying_ratio_margin_at_32_digits():
+    margin, omega = _varying_crossing(32, VARYING_OMEGA)
+    with mp.workdps(32):
+        assert abs(margin - mp.mpf(VARYING_MARGIN)) < mp.mpf(10) ** -26
+        assert abs(omega - mp.mpf(VARYING_OMEGA)) < mp.mpf(10) ** -26
+
+
+def test_u_bs2_stays_refused_on_a_varying_ratio():
+    """U_BS2(K) is defined on the normal form, which a varying lam/mu lacks: refused, as on the model route."""
+    assert loop_route(VARYING, ReflectionController(K)) == "kernels"
+    with pytest.raises(nr.ParameterError, match="normal form"):
+        loop_factors(VARYING, ReflectionController(K))
+
+
+def test_what_the_proof_does_not_cover_is_refused_with_a_reason():
+    """Speeds as samples or without balls, a speed not analytic enough: the model, and why."""
+    x = np.linspace(0.0, 1.0, 21)
+    cases = {
+        "samples": GeneralHyperbolic2x2((x, _lam(x)), (x, _mu(x)), 0.0, _b, 0.5, D, Q, RHO),
+        "abs()": GeneralHyperbolic2x2(
+            lambda x: 1.0 + 0.3 * np.abs(x - 0.5), lambda x: (1.0 + 0.3 * np.abs(x - 0.5)) / 2, 0.0, _b, 0.5, D, Q, RHO
+        ),
+        "Taylor model": GeneralHyperbolic2x2(
+            lambda x: 1.0 / (1.02 - x), lambda x: 0.5 / (1.02 - x), 0.0, _b, 0.5, D, Q, RHO
+        ),
+    }
+    for words, plant in cases.items():
+        reason = varying_failure(plant)
+        assert reason is not None and words in reason
+        assert not has_varying_proof(plant) and loop_route(plant, OpenLoop()) == "kernels"
+        assert loop_scope(plant, OpenLoop(), None, loop_factors(plant, OpenLoop())).startswith("a model of the PDE")
