@@ -1450,6 +1450,8 @@ class DistributedDelay:
     def _times_exact(self, factor: Fraction, moment: int) -> DistributedDelay:
         """``factor`` (rational) times the term, with ``moment``: by its nearest double, whose rounding, for a
         term with error bounds, joins them (``|factor - c| (|N| + radius)``)."""
+        if factor == 1 and moment == self.moment and self.interpolation == "polynomial":
+            return self  # times(1.0) is the term itself (its coefficients and bounds unchanged, no rounding)
         c = float(factor)
         out = self.times(c, moment=moment)
         rounding = abs(Fraction(c) - factor)
