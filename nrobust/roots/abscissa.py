@@ -789,10 +789,12 @@ def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
 
 # The principal gap and tail bound of a quasi-polynomial by (degree, real part), kept while it lives: the
 # edges x(R) of the march at successive radii bisect the same bracket (a third of their real parts recur).
-_GAPS_AND_TAILS: weakref.WeakKeyDictionary[QuasiPolynomial, dict[tuple[int, float], tuple[Any, TailBound | None]]]
-_GAPS_AND_TAILS = weakref.WeakKeyDictionary()
-# Real parts kept per quasi-polynomial (the table is emptied when full).
-_GAPS_AND_TAILS_KEPT = 1024
+# Keyed by the object itself (its id, checked by a weak reference): equal quasi-polynomials may hold their
+# terms in another order, and the bounds sum them in order.
+_GAPS_AND_TAILS: dict[int, tuple[weakref.ref[QuasiPolynomial], dict[tuple[int, float], tuple[Any, TailBound | None]]]]
+_GAPS_AND_TAILS = {}
+# Quasi-polynomials, and real parts per quasi-polynomial, kept (each table emptied when full).
+_GAPS_AND_TAILS_FUNCTIONS, _GAPS_AND_TAILS_KEPT = 64, 1024
 
 
 def _gap_and_tail(F: QuasiPolynomial, n: int, x: float) -> tuple[Any, TailBound | None]:
@@ -800,9 +802,12 @@ def _gap_and_tail(F: QuasiPolynomial, n: int, x: float) -> tuple[Any, TailBound 
     the gap is positive (else None); remembered for a :class:`~nrobust.quasipoly.QuasiPolynomial`."""
     table = None
     if type(F) is QuasiPolynomial:
-        table = _GAPS_AND_TAILS.get(F)
-        if table is None:
-            table = _GAPS_AND_TAILS[F] = {}
+        entry = _GAPS_AND_TAILS.get(id(F))
+        if entry is None or entry[0]() is not F:
+            if len(_GAPS_AND_TAILS) >= _GAPS_AND_TAILS_FUNCTIONS:
+                _GAPS_AND_TAILS.clear()
+            entry = _GAPS_AND_TAILS[id(F)] = (weakref.ref(F), {})
+        table = entry[1]
         found = table.get((n, x))
         if found is not None:
             return found
