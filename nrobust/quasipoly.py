@@ -602,7 +602,12 @@ class QuasiPolynomial:
         return out
 
     def derivative(self) -> QuasiPolynomial:
-        """``F'`` as a quasi-polynomial (distributed terms gain one moment)."""
+        """``F'`` as a quasi-polynomial (distributed terms gain one moment); built once per function (the root
+        counts on its contours ask for it each time a step needs the second-order bound)."""
+        return self._derivative
+
+    @functools.cached_property
+    def _derivative(self) -> QuasiPolynomial:
         terms = [(_polyadd(polyder(p), -t * p), t) for p, t in self.point_terms]
         radii = None
         if self.point_radii:  # (p' - t p) with p within r: within r' + t r, plus the rounding
