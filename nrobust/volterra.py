@@ -94,11 +94,11 @@ def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
     """The stored kernel at ``x`` in ``[a, b]``; at a shared node the left piece's value when ``left``."""
     start, h, poly_t = term.pieces
     if left:
-        idx = np.searchsorted(start + h, x, side="left")
+        idx = np.asarray(np.searchsorted(start + h, x, side="left"))
     else:
-        idx = np.searchsorted(start, x, side="right") - 1
-    idx = np.clip(idx, 0, start.size - 1)
-    t = (x - start[idx]) / h[idx]
+        idx = np.asarray(np.searchsorted(start, x, side="right") - 1)
+    np.minimum(np.maximum(idx, 0, out=idx), start.size - 1, out=idx)  # np.clip, in place
+    t = (x - np.take(start, idx)) / np.take(h, idx)
     return _horner(np.ascontiguousarray(poly_t.T), idx, t)
 
 
@@ -108,10 +108,10 @@ def _horner(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
     The steps of numpy's ``polyval`` (``c_l + out t``, the same numbers) without its table of every
     coefficient at every point, which is many times the points' size.
     """
-    out = rows[-1][idx]
+    out = np.take(rows[-1], idx)
     for row in rows[-2::-1]:
         out *= t
-        out += row[idx]
+        out += np.take(row, idx)
     return out
 
 
