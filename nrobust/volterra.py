@@ -122,11 +122,11 @@ def _clenshaw(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
     point.
     """
     if rows.shape[0] == 1:
-        return rows[0][idx] + 0.0 * t
+        return np.take(rows[0], idx) + 0.0 * t
     t2 = 2.0 * t
-    c0, c1 = rows[-2][idx], rows[-1][idx]
+    c0, c1 = np.take(rows[-2], idx), np.take(rows[-1], idx)
     for row in rows[-3::-1]:
-        c0, c1 = row[idx] - c1, c0 + c1 * t2
+        c0, c1 = np.take(row, idx) - c1, c0 + c1 * t2
     return c0 + c1 * t
 
 
@@ -275,7 +275,8 @@ class WindowKernel:
         flat = x.ravel()
         pieces = self.coefficients.shape[0]
         position = flat / self.window * pieces
-        idx = np.clip(position.astype(int), 0, pieces - 1)
+        idx = position.astype(int)
+        np.minimum(np.maximum(idx, 0, out=idx), pieces - 1, out=idx)  # np.clip, in place
         t = 2.0 * (position - idx) - 1.0
         return _clenshaw(np.ascontiguousarray(self.coefficients.T), idx, t).reshape(x.shape)
 
