@@ -636,7 +636,7 @@ class DistributedDelay:
         # abs_moment's values by k, then x: the bounds of a contour's segments recur at the same real parts
         _abs_moments: dict[int, dict[float, float]] = field(init=False, repr=False, compare=False)
         # built on first use by variation_bound: its terms that do not depend on x
-        _variation: list[tuple[list[tuple[float, float]], NDArray[np.float64]]] = field(
+        _variation: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = field(
             init=False, repr=False, compare=False
         )
         # built on first use by second_order_variation
@@ -1277,11 +1277,14 @@ class DistributedDelay:
         if not self._variation:  # the jumps and the slopes, the same at every x: formed once
             # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
             slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
-            self._variation.append((self._jumps(), slope))
-        jumps, slope = self._variation[0]
+            jumps = self._jumps()
+            self._variation.append((np.array([j[0] for j in jumps]), np.array([j[1] for j in jumps]), slope))
+        where, size, slope = self._variation[0]
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
-        for where, size in jumps:
-            out = out + size * np.exp(-where * x)
+        if where.size:  # the jumps' terms added one after another (a cumulative sum: the order of the sum kept)
+            axes = (-1,) + (1,) * x.ndim
+            terms = size.reshape(axes) * np.exp(-where.reshape(axes) * x)
+            out = np.cumsum(np.concatenate([out[None, ...], terms]), axis=0)[-1]
         xe = x[..., None]
         with np.errstate(divide="ignore", invalid="ignore"):
             decay = np.exp(-start * xe)
@@ -1447,6 +1450,8 @@ class DistributedDelay:
     def _times_exact(self, factor: Fraction, moment: int) -> DistributedDelay:
         """``factor`` (rational) times the term, with ``moment``: by its nearest double, whose rounding, for a
         term with error bounds, joins them (``|factor - c| (|N| + radius)``)."""
+        if factor == 1 and moment == self.moment and self.interpolation == "polynomial":
+            return self  # times(1.0) is the term itself (its coefficients and bounds unchanged, no rounding)
         c = float(factor)
         out = self.times(c, moment=moment)
         rounding = abs(Fraction(c) - factor)

@@ -256,15 +256,24 @@ def _merge_distributed(terms: Sequence[DistributedDelay]) -> tuple[DistributedDe
     Exact cancellation matters: ``A + B`` of a loop with ``B = K q e^{-tau s} - I_N`` and
     ``A = 1 - rho q e^{-tau s} + I_N`` must not keep ``I_N - I_N`` as rounding noise.
     """
-    merged: list[DistributedDelay] = []
+    merged: dict[tuple[Any, ...], DistributedDelay] = {}  # by first appearance, as the terms are given
     for d in terms:
-        for i, m in enumerate(merged):
-            if m.mergeable(d):
-                merged[i] = m.plus(d)
-                break
-        else:
-            merged.append(d)
-    return tuple(d for d in merged if not d.is_zero)
+        key = _merge_key(d)
+        m = merged.get(key)
+        merged[key] = d if m is None else m.plus(d)
+    return tuple(d for d in merged.values() if not d.is_zero)
+
+
+def _merge_key(d: DistributedDelay) -> tuple[Any, ...]:
+    """A key equal for two terms exactly when :meth:`DistributedDelay.mergeable` holds between them.
+
+    Python's numbers compare (and hash) as numpy's elementwise ``==`` of ``array_equal`` does (``-0.0``
+    equal to ``0.0``, a real number to the complex one with zero imaginary part, a nan to nothing), and
+    tuples of different lengths differ as arrays of different shapes do: the terms are merged in one pass
+    instead of each against every kept one.
+    """
+    nodes, poly = np.asarray(d.nodes), np.asarray(d.poly)
+    return (d.moment, d.interpolation, nodes.shape, poly.shape, *nodes.ravel().tolist(), *poly.ravel().tolist())
 
 
 @dataclass(frozen=True, eq=False)
@@ -593,7 +602,12 @@ class QuasiPolynomial:
         return out
 
     def derivative(self) -> QuasiPolynomial:
-        """``F'`` as a quasi-polynomial (distributed terms gain one moment)."""
+        """``F'`` as a quasi-polynomial (distributed terms gain one moment); built once per function (the root
+        counts on its contours ask for it each time a step needs the second-order bound)."""
+        return self._derivative
+
+    @functools.cached_property
+    def _derivative(self) -> QuasiPolynomial:
         terms = [(_polyadd(polyder(p), -t * p), t) for p, t in self.point_terms]
         radii = None
         if self.point_radii:  # (p' - t p) with p within r: within r' + t r, plus the rounding

@@ -94,11 +94,11 @@ def _evaluate(term: DistributedDelay, x: Array, left: bool = False) -> Array:
     """The stored kernel at ``x`` in ``[a, b]``; at a shared node the left piece's value when ``left``."""
     start, h, poly_t = term.pieces
     if left:
-        idx = np.searchsorted(start + h, x, side="left")
+        idx = np.asarray(np.searchsorted(start + h, x, side="left"))
     else:
-        idx = np.searchsorted(start, x, side="right") - 1
-    idx = np.clip(idx, 0, start.size - 1)
-    t = (x - start[idx]) / h[idx]
+        idx = np.asarray(np.searchsorted(start, x, side="right") - 1)
+    np.minimum(np.maximum(idx, 0, out=idx), start.size - 1, out=idx)  # np.clip, in place
+    t = (x - np.take(start, idx)) / np.take(h, idx)
     return _horner(np.ascontiguousarray(poly_t.T), idx, t)
 
 
@@ -108,10 +108,10 @@ def _horner(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
     The steps of numpy's ``polyval`` (``c_l + out t``, the same numbers) without its table of every
     coefficient at every point, which is many times the points' size.
     """
-    out = rows[-1][idx]
+    out = np.take(rows[-1], idx)
     for row in rows[-2::-1]:
         out *= t
-        out += row[idx]
+        out += np.take(row, idx)
     return out
 
 
@@ -122,11 +122,11 @@ def _clenshaw(rows: Array, idx: NDArray[np.intp], t: Array) -> Array:
     point.
     """
     if rows.shape[0] == 1:
-        return rows[0][idx] + 0.0 * t
+        return np.take(rows[0], idx) + 0.0 * t
     t2 = 2.0 * t
-    c0, c1 = rows[-2][idx], rows[-1][idx]
+    c0, c1 = np.take(rows[-2], idx), np.take(rows[-1], idx)
     for row in rows[-3::-1]:
-        c0, c1 = row[idx] - c1, c0 + c1 * t2
+        c0, c1 = np.take(row, idx) - c1, c0 + c1 * t2
     return c0 + c1 * t
 
 
@@ -275,7 +275,8 @@ class WindowKernel:
         flat = x.ravel()
         pieces = self.coefficients.shape[0]
         position = flat / self.window * pieces
-        idx = np.clip(position.astype(int), 0, pieces - 1)
+        idx = position.astype(int)
+        np.minimum(np.maximum(idx, 0, out=idx), pieces - 1, out=idx)  # np.clip, in place
         t = 2.0 * (position - idx) - 1.0
         return _clenshaw(np.ascontiguousarray(self.coefficients.T), idx, t).reshape(x.shape)
 

@@ -1021,6 +1021,10 @@ class _SharedKernels:
         return values, derivs
 
 
+# Nominal loops F(.; 0, p) a _Family keeps (the bisections of a plateau's ends ask for about 80).
+_NOMINALS_KEPT = 128
+
+
 class _Family:
     """The loop being designed, :class:`AffineGainLoop` or :class:`AffineLoop`, behind one interface."""
 
@@ -1060,6 +1064,9 @@ class _Family:
         # the spectral abscissas of F(.; 0, p) computed so far: the samples of the best rate, its search and the
         # check of a plateau meet at the same parameters
         self._abscissas: dict[float, SpectralAbscissa] = {}
+        # F(.; 0, p) by p: the samples' chain bounds, their abscissas and the plateau's checks build the same
+        # loops (each a few milliseconds: the kernels scaled with their error bounds, added and merged)
+        self._nominals: dict[tuple[float, float], QuasiPolynomial] = {}
 
     def abscissa(self, p: float) -> SpectralAbscissa:
         """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``)."""
@@ -1107,8 +1114,14 @@ class _Family:
 
     def nominal(self, p: float) -> QuasiPolynomial:
         """``F(.; 0, p) = A + B``, each kernel shared by ``A`` and ``B`` with opposite signs written once
-        (:func:`_merged`)."""
-        return _merged(self.A(p) + self.B(p))
+        (:func:`_merged`); built once per ``p`` (the last :data:`_NOMINALS_KEPT` kept)."""
+        key = (float(p), math.copysign(1.0, p))  # -0.0 apart from 0.0: the signs of zero products kept
+        F = self._nominals.get(key)
+        if F is None:
+            if len(self._nominals) >= _NOMINALS_KEPT:
+                self._nominals.clear()
+            F = self._nominals[key] = _merged(self.A(p) + self.B(p))
+        return F
 
     def nominally_stable(self, p: float) -> bool:
         """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``.

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, replace
 from typing import Any, Protocol, TypeGuard, runtime_checkable
 
@@ -782,8 +783,41 @@ def _far_field_holds(F: QuasiPolynomial, n: int, x: float, R: float) -> bool:
     """True if ``F`` is proven root-free on ``{Re s >= x, |s| >= R}`` (see :func:`_root_free_radius`)."""
     if _is_far_field(F):
         return F.far_field_holds(x, R)
+    g, tail = _gap_and_tail(F, n, x)
+    return tail is not None and bool(tail(R) < g.gap)
+
+
+# The principal gap and tail bound of a quasi-polynomial by (degree, real part), kept while it lives: the
+# edges x(R) of the march at successive radii bisect the same bracket (a third of their real parts recur).
+# Keyed by the object itself (its id, checked by a weak reference): equal quasi-polynomials may hold their
+# terms in another order, and the bounds sum them in order.
+_GAPS_AND_TAILS: dict[int, tuple[weakref.ref[QuasiPolynomial], dict[tuple[int, float], tuple[Any, TailBound | None]]]]
+_GAPS_AND_TAILS = {}
+# Quasi-polynomials, and real parts per quasi-polynomial, kept (each table emptied when full).
+_GAPS_AND_TAILS_FUNCTIONS, _GAPS_AND_TAILS_KEPT = 64, 1024
+
+
+def _gap_and_tail(F: QuasiPolynomial, n: int, x: float) -> tuple[Any, TailBound | None]:
+    """:func:`~nrobust.bounds.principal_gap` of ``F`` at ``x``, and its :class:`~nrobust.bounds.TailBound` where
+    the gap is positive (else None); remembered for a :class:`~nrobust.quasipoly.QuasiPolynomial`."""
+    table = None
+    if type(F) is QuasiPolynomial:
+        entry = _GAPS_AND_TAILS.get(id(F))
+        if entry is None or entry[0]() is not F:
+            if len(_GAPS_AND_TAILS) >= _GAPS_AND_TAILS_FUNCTIONS:
+                _GAPS_AND_TAILS.clear()
+            entry = _GAPS_AND_TAILS[id(F)] = (weakref.ref(F), {})
+        table = entry[1]
+        found = table.get((n, x))
+        if found is not None:
+            return found
     g = principal_gap({"F": (F, 0)}, n, x)
-    return g is not None and g.gap > 0.0 and bool(TailBound(F, n, x, g.t0)(R) < g.gap)
+    out = (g, TailBound(F, n, x, g.t0) if g is not None and g.gap > 0.0 else None)
+    if table is not None:
+        if len(table) >= _GAPS_AND_TAILS_KEPT:
+            table.clear()
+        table[(n, float(x))] = out
+    return out
 
 
 def _far_field_edge(F: QuasiPolynomial, n: int, R: float, x_hi: float, x_lo: float | None = None) -> float:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Any
 
@@ -423,9 +423,16 @@ class Kernels:
 def _solve_grid(system: Hyperbolic2x2, n: int) -> tuple[Array, Array]:
     """``K`` and ``L`` on the grid with ``n`` points, second order (read-only when kept: :func:`_kept_grid`)."""
     if n <= _KEPT_GRID:
-        return _kept_grid(system, n)
+        return _kept_grid(_kernel_plant(system), n)
     K = _solve_K(system, n)
     return K, resolvent(K)
+
+
+def _kernel_plant(system: Hyperbolic2x2) -> Hyperbolic2x2:
+    """``system`` with ``rho = 0``, the key of its kept kernels: eqs. (24)-(29) hold the speeds, the couplings and
+    ``q``, not the proximal reflection, so plants that differ only in it share one solution (on the paper's plant,
+    ``lam = mu`` and ``q = 1``, the plant and the dual plant of its collocated observer)."""
+    return system if system.rho == 0.0 else replace(system, rho=0.0)
 
 
 #: Largest grid whose plain solution :func:`_kept_grid` keeps: the coarse half of an extrapolated solve is the

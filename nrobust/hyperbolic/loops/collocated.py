@@ -226,12 +226,20 @@ def _gregory_weights(n: int) -> Array:
     return w
 
 
-def _composite_rule(lo: Array, hi: Array) -> tuple[Array, Array]:
-    """Composite Gauss-Legendre nodes and weights on each ``[lo_j, hi_j]`` (rows; empty where ``hi <= lo``)."""
+@lru_cache(maxsize=1)
+def _unit_rule() -> tuple[Array, Array]:
+    """The composite Gauss-Legendre nodes and weights of ``[0, 1]`` (read-only: every rule is this one scaled)."""
     t, g = np.polynomial.legendre.leggauss(QUADRATURE_POINTS)
     cells = np.linspace(0.0, 1.0, QUADRATURE_CELLS + 1)
     ref = (cells[:-1, None] + (0.5 * (t + 1.0))[None, :] / QUADRATURE_CELLS).ravel()
     weight = np.tile(0.5 * g / QUADRATURE_CELLS, QUADRATURE_CELLS)
+    ref.flags.writeable = weight.flags.writeable = False
+    return ref, weight
+
+
+def _composite_rule(lo: Array, hi: Array) -> tuple[Array, Array]:
+    """Composite Gauss-Legendre nodes and weights on each ``[lo_j, hi_j]`` (rows; empty where ``hi <= lo``)."""
+    ref, weight = _unit_rule()
     width = np.maximum(hi - lo, 0.0)
     return lo[:, None] + width[:, None] * ref[None, :], width[:, None] * weight[None, :]
 
@@ -268,14 +276,16 @@ def _splines(values: Array) -> list[Callable[[Array], Array]]:
 
         def evaluate(points: Array) -> Array:
             # the step of each point from its position (next to a node, either side: the spline is continuous)
-            i = np.clip((points * (n - 1)).astype(np.intp), 0, n - 2)
-            dx = points - x[i]
-            out = c3[i] * dx
-            out += c2[i]
+            # (clipped in place and gathered by take: np.clip and fancy indexing of integer arrays cost twice as much)
+            i = (points * (n - 1)).astype(np.intp)
+            np.minimum(np.maximum(i, 0, out=i), n - 2, out=i)
+            dx = points - np.take(x, i)
+            out = np.take(c3, i) * dx
+            out += np.take(c2, i)
             out *= dx
-            out += c1[i]
+            out += np.take(c1, i)
             out *= dx
-            out += c0[i]
+            out += np.take(c0, i)
             return out
 
         return evaluate
