@@ -431,8 +431,9 @@ def _solve_grid(system: Hyperbolic2x2, n: int) -> tuple[Array, Array]:
 def _kernel_plant(system: Hyperbolic2x2) -> Hyperbolic2x2:
     """``system`` with ``rho = 0``, the key of its kept kernels: eqs. (24)-(29) hold the speeds, the couplings and
     ``q``, not the proximal reflection, so plants that differ only in it share one solution (on the paper's plant,
-    ``lam = mu`` and ``q = 1``, the plant and the dual plant of its collocated observer)."""
-    return system if system.rho == 0.0 else replace(system, rho=0.0)
+    ``lam = mu`` and ``q = 1``, the plant and the dual plant of its collocated observer). A subclass keeps its own
+    key: its couplings might read ``rho``."""
+    return system if system.rho == 0.0 or type(system) is not Hyperbolic2x2 else replace(system, rho=0.0)
 
 
 #: Largest grid whose plain solution :func:`_kept_grid` keeps: the coarse half of an extrapolated solve is the
