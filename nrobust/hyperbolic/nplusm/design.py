@@ -432,8 +432,8 @@ def nplusm_speed_tolerance(
     (:func:`~.speed_proof.prove_speed_box`, starting from a vertex's verdict), and
     :attr:`NPlusMSpeedTolerance.inside` says whether it was. Opt-in: it costs about fifty times the points'
     verdicts on the ``1 + 1`` plant of the tests (``eps = 0.05``: 3.5 to 3.9 s against 0.07 to 0.08 s of CPU time),
-    more for wider boxes, more speeds and higher frequency bounds (on the ``1 + 2`` plant of the tests, ``eps =
-    0.01``: 1.4 to 1.6 s against 6.0 to 6.3 s).
+    more for wider boxes, more speeds and higher frequency bounds; on the ``1 + 2`` plant of the tests (``eps =
+    0.01``) 1.0 to 1.05 s against 6.0 to 6.3 s for its 26 points, 18 s at ``eps = 0.02``.
 
     Parameters
     ----------

@@ -773,7 +773,8 @@ def _several_actuators(
         for j, h in enumerate(halves):
             ends[2 * j, j] -= h
             ends[2 * j + 1, j] += h
-        moves = np.abs(loop.values(ends)[1::2] - loop.values(ends)[0::2])
+        values = loop.values(ends)
+        moves = np.abs(values[1::2] - values[0::2])
         if system.m == 2:  # the roots in z decide for every delay of the window: the delay is not halved
             moves[-1] = 0.0
         j = int(np.argmax(moves))
