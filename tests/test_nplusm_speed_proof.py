@@ -186,12 +186,8 @@ def test_a_box_whose_rates_meet_is_not_certified_inside() -> None:
 
 
 def test_bad_arguments_are_refused_before_work() -> None:
-    """``inside=True`` with several actuators, a non-boolean ``inside``, a bad ``max_boxes``: ParameterErrors naming
-    them."""
-    two = NPlusMSystem([1.5], [1.0, 2.0], np.zeros((3, 3)), [[0.6, 0.4]], [[0.5], [0.3]])
-    with pytest.raises(ParameterError) as info:
-        nplusm_speed_tolerance(two, [[0.1], [0.0]], 0.1, (0.0, 1.0), inside=True)
-    assert info.value.name == "inside"
+    """A non-boolean ``inside``, a bad ``max_boxes``: ParameterErrors naming them (several actuators are taken:
+    ``tests/test_nplusm_speed_proof_multi.py``)."""
     with pytest.raises(ParameterError) as info:
         nplusm_speed_tolerance(SYSTEM, [[GAIN]], 0.1, (0.0, 1.0), inside="yes")  # type: ignore[arg-type]
     assert info.value.name == "inside"
@@ -232,7 +228,7 @@ def test_a_design_proven_on_the_whole_box() -> None:
 def test_a_design_whose_proof_inside_stops_keeps_its_points(monkeypatch: pytest.MonkeyPatch) -> None:
     """A proof inside the box that stops at its work bound (here made to stop at once) leaves the design and its
     verdicts at the points, ``inside`` False and the reason in the statement; ``inside`` is refused without a
-    tolerance or with several actuators, before any work."""
+    tolerance, before any work."""
     import nrobust.hyperbolic.nplusm.design as design_module
 
     def stops(*args: object, **kwargs: object) -> None:
@@ -247,10 +243,6 @@ def test_a_design_whose_proof_inside_stops_keeps_its_points(monkeypatch: pytest.
     assert "the proof inside the box stopped: prove_speed_box: the work bound" in tolerance.statement
     with pytest.raises(ParameterError) as info:
         design_module.design_nplusm_gains(SYSTEM, "decay_rate", inside=True, **DESIGN_WITH_ROOM)
-    assert info.value.name == "inside"
-    two = NPlusMSystem([1.5], [1.0, 2.0], np.zeros((3, 3)), [[0.6, 0.4]], [[0.5], [0.3]])
-    with pytest.raises(ParameterError) as info:
-        design_module.design_nplusm_gains(two, "decay_rate", speed_tolerance=EPS, inside=True, margin_at_least=0.5)
     assert info.value.name == "inside"
 
 

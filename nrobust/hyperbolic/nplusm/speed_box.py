@@ -13,8 +13,8 @@ windows of a delay loop are not continuous in its data (a pair of crossing frequ
 ``|A(i w)| = |B(i w)|`` gains a double zero). So stability at the vertices need not imply it inside
 the box: the verdicts at the vertices are certified, those at the other points of the grid are
 computed by the same certified tools at those points only, and the box between the points is not
-certified (:class:`NPlusMSpeedTolerance` says so in its statement), unless it is proven: for one
-actuator ``nplusm_speed_tolerance(..., inside=True)`` proves the windows on the whole box by subdivision
+certified (:class:`NPlusMSpeedTolerance` says so in its statement), unless it is proven:
+``nplusm_speed_tolerance(..., inside=True)`` proves the windows on the whole box by subdivision
 in ball arithmetic (:mod:`~nrobust.hyperbolic.nplusm.speed_proof`, the argument of the square of the 2x2
 plant, :func:`~nrobust.hyperbolic.analyses.speed_tolerance` with ``rigorous=True``), and
 :attr:`NPlusMSpeedTolerance.inside` says whether it was.

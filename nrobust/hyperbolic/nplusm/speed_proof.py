@@ -1,4 +1,4 @@
-"""Stability on the whole box of speed errors of an ``n + 1`` plant, certified: :func:`prove_speed_box`.
+"""Stability on the whole box of speed errors of an ``n + m`` plant, certified: :func:`prove_speed_box`.
 
 The loop of one actuator under ``U = K u(t - delta, 1)`` is ``F(s) = A(s) + B(s) e^{-delta s}`` with
 ``A = l_A^T G(s) W``, ``B = l_B^T G(s) W``, ``G(s) = exp(C - s P)``, ``C = Lambda^{-1} Sigma``,
@@ -41,14 +41,38 @@ proven in ball arithmetic; step 3 is as certified as the vertex's verdict (float
 room, :func:`~nrobust.hyperbolic.nplusm.nplusm_delay_margin`). The box ``S`` holds the speeds
 ``c (1 + e)``, ``|e| <= eps``, exactly, and the doubles the perturbed plants store.
 
-Several actuators (``m > 1``: ``F`` a polynomial of degree ``m`` in ``e^{-delta s}``) are not covered.
+**Several actuators** (``m > 1``, one delay ``delta`` on every actuator). ``F = det(X - z Y) = sum_d c_d(s) z^d``
+with ``z = e^{-delta s}`` (:class:`_Loop`), a polynomial of degree ``m`` in ``z``; the same three steps:
+
+1. In the compound form ``F = sum_d z^d a_d^T exp(D - s diag(p)) b``
+   (:func:`~nrobust.hyperbolic.nplusm.characteristic.compound_loop`) every subset ``S`` of ``m`` components is
+   its own group (the rates ``p_S`` of distinct subsets are distinct linear forms in the inverse speeds; those
+   coupled by ``D`` must stay apart over the box), so ``F_0 = det(V - E(s) (R + z K) Delta_u(s) Q)`` with the
+   diagonal transitions ``Delta_u = diag(e^{c_ii - s/lam_i})``, ``V = diag(e^{c_{v_j v_j}})`` (Cauchy and Binet).
+   On ``Re s >= 0`` and ``|z| <= 1`` the entries of ``T = V^{-1} E (R + z K) Delta_u Q`` are bounded in modulus by
+   those of ``Gamma = V^{-1} (|R| + |K|) diag(e^{c_ii}) |Q|``, so ``|F_0| >= det V (1 - rho(Gamma))^m`` with
+   ``rho(Gamma)`` bounded above over ``S`` by Collatz and Wielandt's ratio (:func:`_principal_gap`; ``rho < 1`` is
+   also the strong stability of the difference operator for every delay). With ``|F - F_0| <= sum_d ||a_d|| ||b||
+   r(|s|)``, the gauge remainder of ``D``, this gives ``W`` as for one actuator (:func:`_compound_tail`).
+2. Boxes of ``(w, S', [delta])`` covering ``[0, W] x S x [d_min, d_max]``, with ``c_d`` enclosed by the ball
+   exponentials of ``C - i w P_j`` (one per actuator) and the determinants' expansion by rows, are cleared when
+   one ``|c_k|`` exceeds the sum of the others (no root on ``|z| = 1``, so none for any delay; Rouché), when
+   ``m = 2`` and each root of the quadratic in ``z`` is off the unit circle or has every crossing delay outside
+   the window (:func:`_roots_clear`), or when ``F`` with ``z = e^{-i w delta}`` as a ball is enclosed away from 0;
+   otherwise the parameter along which ``F`` moves most (floating point, a choice only) is halved (the delay only
+   for ``m > 2``), up to ``max_boxes`` boxes.
+3. As for one actuator.
+
+The ball exponential wraps over boxes where ``w`` times the spread of the inverse speeds is large (no Taylor form
+for ``m > 1``), so the frequency bound ``W`` sets the cost: weakly coupled plants, small tolerances.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -58,8 +82,9 @@ from ..._digits import lower_bound_text, upper_bound_text
 from ..._flint import working_precision
 from ..._validate import positive_int
 from ...errors import CertificationError, ParameterError
+from ...margins.matrix import compound_generator
 from ..analyses.mismatch_proof import ball_lower, ball_upper, crossing_free
-from .characteristic import spectral_norm_bound, symmetric_top_bound
+from .characteristic import arb_max, spectral_norm_bound, symmetric_top_bound
 from .speed_box import WindowVerdict, perturbed_system
 from .system import NPlusMSystem
 
@@ -92,7 +117,7 @@ class SpeedBoxProof:
     base : int
         The index in ``points`` of the plant the argument starts from (``-1`` when none).
     undecided : tuple of float
-        The speeds ``(lam_1, ..., lam_n, mu)`` at the middle of the box the subdivision stopped at
+        The speeds ``(lam_1, ..., lam_n, mu_1, ..., mu_m)`` at the middle of the box the subdivision stopped at
         (empty otherwise): where to look for an unstable plant.
     """
 
@@ -223,6 +248,238 @@ class _Family:
         return out[0], out[1], shares
 
 
+class _Loop:
+    """The loop of ``m`` actuators on the imaginary axis over boxes of ``(w, a_1, ..., a_n, b_1, ..., b_m)``,
+    ``a_i = 1/lam_i``, ``b_j = 1/mu_j``, in ball arithmetic (module notes, "Several actuators").
+
+    ``E(s) (Phi_v - (R + K z) Phi_u) = X - z Y`` at ``s = i w``, ``z = e^{-delta s}``: row ``j`` of ``X`` is
+    ``(-R_j, e_j)^T G_j W`` and of ``Y`` is ``(K_j, 0)^T G_j W`` with ``G_j = exp(C - i w P_j)``, ``C = Lambda^{-1}
+    Sigma`` and ``P_j = Lambda^{-1} + I/mu_j`` (:class:`~nrobust.hyperbolic.nplusm.NPlusMCharacteristic`);
+    ``F = det(X - z Y) = sum_d c_d z^d``.
+    """
+
+    def __init__(self, flint: Any, system: NPlusMSystem, K: Any) -> None:
+        self.flint = flint
+        arb, acb = flint.arb, flint.acb
+        n, m = system.n, system.m
+        self.n, self.m, self.system, self.K = n, m, system, K
+        self.sigma = [[arb(float(v)) for v in row] for row in system.sigma]
+        w = np.vstack([system.q, np.eye(m)])
+        self.w_float = w
+        self.w = flint.acb_mat(n + m, m, [acb(float(v)) for v in w.ravel()])
+        self.x_rows = [[-arb(float(v)) for v in system.r[j]] + [arb(int(i == j)) for i in range(m)] for j in range(m)]
+        self.y_rows = [[arb(float(v)) for v in K[j]] + [arb(0)] * m for j in range(m)]
+
+    def generator(self, inverse: Sequence[Any]) -> list[list[Any]]:
+        """``C`` for the ball inverse speeds ``(a_1, ..., a_n, b_1, ..., b_m)``."""
+        n = self.n
+        rows = [*inverse[:n], *(-b for b in inverse[n:])]
+        return [[rows[i] * self.sigma[i][k] for k in range(len(rows))] for i in range(len(rows))]
+
+    def coefficients(self, w: Any, inverse: Sequence[Any]) -> list[Any]:
+        """Enclosures of ``c_0, ..., c_m`` for every ``w`` of the ball and plant of the ball inverse speeds.
+
+        By multilinearity in the rows, ``c_d = (-1)^d sum_{|T| = d} det(rows T of Y, the others of X)``.
+        """
+        flint, n, m = self.flint, self.n, self.m
+        acb, size = flint.acb, n + m
+        c = self.generator(inverse)
+        x_rows, y_rows = [], []
+        for j in range(m):
+            b = inverse[n + j]
+            # the diagonal of P_j: a_i + b_j on u_i, b_j - b_k on v_k (exactly 0 on v_j)
+            p = [inverse[i] + b for i in range(n)] + [b - inverse[n + k] if k != j else None for k in range(m)]
+            entries = [
+                (acb(c[i][k], -(w * p[i])) if p[i] is not None else acb(c[i][k])) if i == k else acb(c[i][k])
+                for i in range(size)
+                for k in range(size)
+            ]
+            gw = flint.acb_mat(size, size, entries).exp() * self.w
+            cols = [[gw[i, col] for i in range(size)] for col in range(m)]
+            x_rows.append([_ball_sum([u * v for u, v in zip(self.x_rows[j], col)], acb(0)) for col in cols])
+            y_rows.append([_ball_sum([u * v for u, v in zip(self.y_rows[j], col)], acb(0)) for col in cols])
+        out = []
+        for d in range(m + 1):
+            total = acb(0)
+            for T in itertools.combinations(range(m), d):
+                rows = [y_rows[j] if j in T else x_rows[j] for j in range(m)]
+                total += flint.acb_mat(m, m, [v for row in rows for v in row]).det()
+            out.append(total if d % 2 == 0 else -total)
+        return out
+
+    def values(self, points: np.ndarray) -> np.ndarray:
+        """``F`` in floating point at the rows ``(w, a_1, ..., a_n, b_1, ..., b_m, delta)`` of ``points``: which
+        parameter moves it most on a box (the one to halve), not part of the proof."""
+        from scipy.linalg import expm  # lazily: a slow import
+
+        n, m = self.n, self.m
+        w, delta = points[:, 0], points[:, -1]
+        a, b = points[:, 1 : 1 + n], points[:, 1 + n : 1 + n + m]
+        inv = np.hstack([a, -b])
+        c = inv[:, :, None] * self.system.sigma[None]
+        z = np.exp(-1j * delta * w)
+        eye = np.eye(n + m)
+        rows = []
+        for j in range(m):
+            p = inv + b[:, j : j + 1]
+            g = expm(c - 1j * w[:, None, None] * p[:, :, None] * eye[None])
+            ell = np.hstack(
+                [-(self.system.r[j][None] + z[:, None] * self.K[j][None]), np.tile(eye[n + j, n:], (len(w), 1))]
+            )
+            rows.append(np.einsum("pi,pik,kl->pl", ell, g, self.w_float))
+        return np.asarray(np.linalg.det(np.stack(rows, axis=1)))
+
+
+def _no_root_on_circle(coefficients: Sequence[Any]) -> bool:
+    """True when ``sum_d c_d z^d != 0`` for every ``|z| = 1`` and every polynomial of the ball coefficients:
+    one ``|c_k|`` above the sum of the others (Rouché), as ``|A| != |B|`` for one actuator."""
+    mags = [abs(c) for c in coefficients]
+    return any(v > _ball_sum(mags[:k] + mags[k + 1 :], v * 0) for k, v in enumerate(mags))
+
+
+def _roots_clear(flint: Any, coefficients: Sequence[Any], w: Any, window: tuple[float, float]) -> bool:
+    """For two actuators: True when no root ``z`` of ``c_0 + c_1 z + c_2 z^2`` equals ``e^{-i w delta}`` for a ``w``
+    of the ball and a delay of ``window``.
+
+    The roots are enclosed by ``(-c_1 +- S) / (2 c_2)``, ``S`` an enclosure of the principal square root of the
+    discriminant (each root of each polynomial of the ball coefficients lies in one of the two balls, whatever
+    the branch); each is cleared as ``-A/B`` of one actuator is
+    (:func:`~nrobust.hyperbolic.analyses.mismatch_proof.crossing_free` with ``A = -z``, ``B = 1``: off the unit
+    circle, or every crossing delay outside the window).
+    """
+    if len(coefficients) != 3 or coefficients[2].contains(0):
+        return False
+    c0, c1, c2 = coefficients
+    root = (c1 * c1 - 4 * c0 * c2).sqrt()
+    one = flint.acb(1)
+    return all(
+        bool(z.is_finite()) and crossing_free(flint, -z, one, w, *window)
+        for z in ((-c1 + root) / (2 * c2), (-c1 - root) / (2 * c2))
+    )
+
+
+def _principal_gap(flint: Any, system: NPlusMSystem, K: Any, c: Sequence[Sequence[Any]]) -> Any:
+    """A ball whose lower end bounds ``|F_0|`` below on ``Re s >= 0`` for every delay and every plant of the box
+    (``C`` enclosed by ``c``), or why none.
+
+    ``F_0 = det(V - E(s) (R + z K) Delta_u(s) Q)``, ``V = diag(e^{c_{v_j v_j}})``, ``Delta_u = diag(e^{c_ii - s /
+    lam_i})``, ``|z| <= 1``: the modulus of each entry of ``T = V^{-1} E (R + z K) Delta_u Q`` is at most that of
+    ``Gamma = V^{-1} (|R| + |K|) diag(e^{c_ii}) |Q|``, so every eigenvalue of ``T`` has modulus at most
+    ``rho(Gamma)`` (Perron and Frobenius) and ``|F_0| >= det V (1 - rho(Gamma))^m``. ``rho(Gamma) <= max_j (Gamma
+    x)_j / x_j`` for any positive ``x`` (Collatz and Wielandt; ``x`` near Perron's vector). Below 1 this is also the
+    strong stability of the difference operator for every delay.
+    """
+    arb, n, m = flint.arb, system.n, system.m
+    grow = [c[i][i].exp() for i in range(n)]
+    gamma = [
+        [
+            (-c[n + j][n + j]).exp()
+            * _ball_sum(
+                [
+                    (abs(arb(float(system.r[j, i]))) + abs(arb(float(K[j, i]))))
+                    * grow[i]
+                    * abs(arb(float(system.q[i, k])))
+                    for i in range(n)
+                ],
+                arb(0),
+            )
+            for k in range(m)
+        ]
+        for j in range(m)
+    ]
+    upper = np.array([[ball_upper(x) for x in row] for row in gamma])
+    values, vectors = np.linalg.eig(upper)
+    x = np.abs(vectors[:, int(np.argmax(np.abs(values)))].real)
+    x = x / max(float(np.max(x)), 1e-300) + 1e-6
+    rho = arb_max(
+        flint,
+        [_ball_sum([gamma[j][k] * arb(float(x[k])) for k in range(m)], arb(0)) / arb(float(x[j])) for j in range(m)],
+    )
+    if not rho < 1:
+        return (
+            "the difference operator is not proven strongly stable over the box (the spectral radius of V^-1 (|R| "
+            f"+ |K|) U |Q| is not shown below 1 at every plant of it: at most {upper_bound_text(ball_upper(rho))}): "
+            "zeros may come from infinity; a smaller gain or tolerance decides"
+        )
+    det_v = _ball_sum([c[n + j][n + j] for j in range(m)], arb(0)).exp()
+    return det_v * (1 - rho) ** m
+
+
+def _compound_tail(flint: Any, loop: _Loop, system: NPlusMSystem, K: Any, inverse: Sequence[Any]) -> float | str:
+    """``W`` of several actuators (module notes, "Several actuators") over the ball inverse speeds, proven; or why
+    not.
+
+    The compound form ``F = sum_d z^d a_d^T exp(D - s diag(p)) b`` (:func:`~.characteristic.compound_loop`): ``D =
+    D_m(C)`` and the rates ``p_S = sum_{u_i in S} a_i + sum_{v_j not in S} b_j`` in balls, each subset ``S`` its
+    own group (the rates of distinct subsets are distinct linear forms; an entry ``D_ST`` that can be nonzero needs
+    ``p_S != p_T`` over the box). The principal part ``sum_{d, S} z^d a_{d,S} e^{D_SS - s p_S} b_S`` keeps its term
+    of rate 0 (``S`` the ``v``'s, ``e^{tr C_vv}``) above the others' sum on ``Re s >= 0`` for every delay, and
+    ``|F - F_0| <= sum_d ||a_d|| ||b|| r(|s|)``.
+    """
+    arb, n, m = flint.arb, system.n, system.m
+    size = n + m
+    c = loop.generator(inverse)
+    subsets = list(itertools.combinations(range(size), m))
+    count = len(subsets)
+    rates = [
+        _ball_sum([inverse[i] for i in S if i < n] + [inverse[n + j] for j in range(m) if n + j not in S], arb(0))
+        for S in subsets
+    ]
+    d = [[arb(0) for _ in range(count)] for _ in range(count)]
+    for i in range(size):
+        for k in range(size):
+            if system.sigma[k, i] == 0:
+                continue
+            unit = np.zeros((size, size))
+            unit[k, i] = 1.0
+            pattern = compound_generator(unit, m).real  # small integers, exact
+            for a_, b_ in zip(*np.nonzero(pattern)):
+                d[a_][b_] += int(pattern[a_, b_]) * c[k][i]
+    N = [[arb(0) for _ in range(count)] for _ in range(count)]
+    for S in range(count):
+        for T in range(count):
+            if S == T or d[S][T] == 0:
+                continue
+            if (rates[S] - rates[T]).contains(0):
+                names = [
+                    ", ".join(f"{'uv'[i >= n]}_{i + 1 if i < n else i - n + 1}" for i in subsets[X]) for X in (S, T)
+                ]
+                return (
+                    f"the round-trip rates of the components {{{names[0]}}} and {{{names[1]}}} of the compound "
+                    "form meet in the box (their speeds can make them equal): the gauge bound of the far field needs "
+                    "them apart; a smaller tolerance decides"
+                )
+            N[S][T] = d[S][T] / (rates[S] - rates[T])
+    Nm = flint.arb_mat(N)
+    Dd = flint.arb_mat([[d[S][S] if S == T else arb(0) for T in range(count)] for S in range(count)])
+    H = flint.arb_mat(d) * Nm - Nm * Dd
+    n_norm = arb(ball_upper(spectral_norm_bound(flint, Nm)))
+    h_norm = arb(ball_upper(spectral_norm_bound(flint, H)))
+    beta = arb(max(ball_upper(d[S][S]) for S in range(count)))
+    exact = [[arb(float(v)) for v in row] for row in np.hstack([-system.r, np.eye(m)])]
+    gain = [[arb(float(v)) for v in row] for row in np.hstack([-K, np.zeros((m, m))])]
+    b = [flint.arb_mat([[arb(float(v)) for v in loop.w_float[i]] for i in S]).det() for S in subsets]
+    a = [
+        [
+            _ball_sum(
+                [
+                    flint.arb_mat([[(gain if j in T else exact)[j][col] for col in S] for j in range(m)]).det()
+                    for T in itertools.combinations(range(m), dg)
+                ],
+                arb(0),
+            )
+            for S in subsets
+        ]
+        for dg in range(m + 1)
+    ]
+    gap = _principal_gap(flint, system, K, c)
+    if isinstance(gap, str):
+        return gap
+    b_norm = _ball_sum([x * x for x in b], arb(0)).sqrt()
+    scale = _ball_sum([_ball_sum([x * x for x in row], arb(0)).sqrt() * b_norm for row in a], arb(0))
+    return _radius(flint, n_norm, h_norm, beta, scale, gap)
+
+
 def _ball_sum(terms: Sequence[Any], start: Any) -> Any:
     """``start`` plus the balls ``terms``."""
     out = start
@@ -264,6 +521,14 @@ def _tail(flint: Any, fam: _Family, system: NPlusMSystem, K: Any, inverse: Seque
     scale = ((_ball_sum([x * x for x in r], arb(1))).sqrt() + _ball_sum([x * x for x in gain], arb(0)).sqrt()) * (
         _ball_sum([x * x for x in q], arb(1)).sqrt()
     )
+    return _radius(flint, n_norm, h_norm, beta, scale, gap)
+
+
+def _radius(flint: Any, n_norm: Any, h_norm: Any, beta: Any, scale: Any, gap: Any) -> float | str:
+    """The least radius (to ``1e-7`` relative) where ``scale r(|s|) < gap`` is proven, ``r`` the gauge remainder of
+    :class:`~nrobust.margins.matrix.GaugeRemainder` with ``||N|| <= n_norm``, ``||H|| <= h_norm`` and the
+    logarithmic norm ``beta`` (balls); or why there is none."""
+    arb = flint.arb
     level = ball_lower(gap)
 
     def remainder(rho: Any) -> Any:
@@ -294,8 +559,9 @@ def _speed_box(system: NPlusMSystem, eps: float, points: Sequence[tuple[float, .
     ``points`` store (:func:`~.speed_box.perturbed_system`)."""
     with working_precision(53) as flint:
         arb = flint.arb
-        nominal = [*map(float, system.lam), float(system.mu[0])]
-        stored = [(*perturbed_system(system, e).lam, perturbed_system(system, e).mu[0]) for e in points]
+        nominal = [*map(float, system.lam), *map(float, system.mu)]
+        plants = [perturbed_system(system, e) for e in points]
+        stored = [(*plant.lam, *plant.mu) for plant in plants]
         out = []
         for i, c in enumerate(nominal):
             ball = arb(c) * (1 + arb(0, eps))
@@ -320,8 +586,8 @@ def prove_speed_box(
     Parameters
     ----------
     system : NPlusMSystem
-        The nominal plant, one actuator (``m = 1``).
-    K : array_like, shape (1, n)
+        The nominal plant (several actuators: module notes, "Several actuators").
+    K : array_like, shape (m, n)
     eps : float
         The tolerance, in ``(0, 1)``.
     window : (float, float)
@@ -343,13 +609,13 @@ def prove_speed_box(
     Raises
     ------
     ParameterError
-        Several actuators, ``eps`` outside ``(0, 1)``, ``points`` and ``verdicts`` of different lengths,
+        Not an ``NPlusMSystem``, ``eps`` outside ``(0, 1)``, ``points`` and ``verdicts`` of different lengths,
         ``max_boxes`` not a positive integer.
     CertificationError
         The work bound ``max_boxes`` was reached before a decision.
     """
-    if not isinstance(system, NPlusMSystem) or system.m != 1:
-        raise ParameterError("system", "an NPlusMSystem with one actuator (m = 1)", system)
+    if not isinstance(system, NPlusMSystem):
+        raise ParameterError("system", "an NPlusMSystem", system)
     k = system.gain(K)
     if not 0.0 < eps < 1.0:
         raise ParameterError("eps", "in (0, 1) (the perturbed speeds stay positive)", eps)
@@ -357,74 +623,169 @@ def prove_speed_box(
         raise ParameterError("verdicts", f"one verdict per point ({len(points)})", len(verdicts))
     max_boxes = positive_int("max_boxes", max_boxes)
     d_lo, d_hi = (float(v) for v in window)
-    nan = math.nan
     base = next((j for j, v in enumerate(verdicts) if v.stable and v.certified), -1)
     if base < 0:
-        return SpeedBoxProof(False, "no point of the box is certified stable on the window", nan, 0)
+        return SpeedBoxProof(False, "no point of the box is certified stable on the window", math.nan, 0)
     bounds = _speed_box(system, eps, points)
     with working_precision(53) as flint:
         arb = flint.arb
-        fam = _Family(flint, system, k)
-
-        def balls(box: Sequence[tuple[float, float]]) -> list[Any]:
-            return [arb(lo).union(arb(hi)) for lo, hi in box]
-
-        # the box of inverse speeds (a_1, ..., a_n, b), rounded outwards
+        # the box of inverse speeds (a_1, ..., a_n, b_1, ..., b_m), rounded outwards
         inverse = tuple((ball_lower(1 / arb(hi)), ball_upper(1 / arb(lo))) for lo, hi in bounds)
-        W = _tail(flint, fam, system, k, balls(inverse))
-        if isinstance(W, str):
-            return SpeedBoxProof(False, W, nan, 0, base)
-        c, _ = fam.generator(balls(inverse))
-        fam.beta = symmetric_top_bound(flint, [[(c[i][j] + c[j][i]) / 2 for j in range(len(c))] for i in range(len(c))])
-        stack: list[tuple[float, float, tuple[tuple[float, float], ...]]] = [(0.0, W, inverse)]
-        boxes = 0
-        while stack:
-            w0, w1, box = stack.pop()
-            boxes += 1
-            w = arb(w0).union(arb(w1))
-            A, B = fam.factors(w, balls(box))
-            if crossing_free(flint, A, B, w, d_lo, d_hi):
-                continue
-            A, B, shares = fam.centred(w0, w1, box)
-            if crossing_free(flint, A, B, w, d_lo, d_hi):
-                continue
-            # halve the parameter with the largest share of the enclosures' widths
-            j = int(np.argmax(shares))
-            lo, hi = (w0, w1) if j == 0 else box[j - 1]
-            if hi - lo <= _MIN_WIDTH * max(1.0, abs(hi)):
-                speeds = [(ball_lower(1 / arb(b)), ball_upper(1 / arb(a))) for a, b in box]
-                where = ", ".join(f"[{lower_bound_text(a, 9)}, {upper_bound_text(b, 9)}]" for a, b in speeds)
-                return SpeedBoxProof(
-                    False,
-                    "a zero of F on the imaginary axis for w in "
-                    f"[{lower_bound_text(w0, 9)}, {upper_bound_text(w1, 9)}] at speeds (lam_1, ..., lam_n, mu) in "
-                    f"{where} for a delay of the window (or a crossing delay at an end of the window): not stable "
-                    "there, or not decided; a smaller tolerance or a window clear of the crossing delays decides",
-                    W,
-                    boxes,
-                    base,
-                    tuple(0.5 * (a + b) for a, b in speeds),
-                )
-            if boxes >= max_boxes:
-                raise CertificationError(
-                    f"prove_speed_box: the work bound max_boxes = {max_boxes} was reached (at w in [{w0:.6g}, "
-                    f"{w1:.6g}]); a larger max_boxes or a smaller tolerance decides"
-                )
-            mid = 0.5 * (lo + hi)
-            if j == 0:  # the lower frequencies first: a crossing, where it is not stable, is found early
-                stack += [(mid, w1, box), (w0, mid, box)]
-            else:
-                left, right = list(box), list(box)
-                left[j - 1], right[j - 1] = (lo, mid), (mid, hi)
-                stack += [(w0, w1, tuple(left)), (w0, w1, tuple(right))]
+        prove = _one_actuator if system.m == 1 else _several_actuators
+        outcome = prove(flint, system, k, inverse, (d_lo, d_hi), max_boxes)
+    if isinstance(outcome, SpeedBoxProof):
+        return replace(outcome, base=base)
+    W, boxes = outcome
     span = ", ".join(f"[{upper_bound_text(lo, 9)}, {lower_bound_text(hi, 9)}]" for lo, hi in bounds)
-    top = upper_bound_text(W)
+    names = "lam_1, ..., lam_n, mu" if system.m == 1 else "lam_1, ..., lam_n, mu_1, ..., mu_m"
+    strong = "gamma_0 < 1" if system.m == 1 else "the principal term of rate 0 dominant"
     return SpeedBoxProof(
         True,
-        f"no zero on the imaginary axis for any speeds (lam_1, ..., lam_n, mu) in {span} and delay of the window "
-        f"({boxes} boxes in ball arithmetic), none with Re s >= 0 and |s| >= {top} (gamma_0 < 1 on the box), and "
-        f"the plant of points[{base}] certified stable on the window: no zero in Re s >= 0 anywhere on the box",
+        f"no zero on the imaginary axis for any speeds ({names}) in {span} and delay of the window "
+        f"({boxes} boxes in ball arithmetic), none with Re s >= 0 and |s| >= {upper_bound_text(W)} ({strong} on the "
+        f"box), and the plant of points[{base}] certified stable on the window: no zero in Re s >= 0 anywhere on the "
+        "box",
         W,
         boxes,
         base,
     )
+
+
+def _balls(flint: Any, box: Sequence[tuple[float, float]]) -> list[Any]:
+    """The arb balls of the float intervals ``box``."""
+    return [flint.arb(lo).union(flint.arb(hi)) for lo, hi in box]
+
+
+def _undecided(
+    flint: Any, w0: float, w1: float, box: Sequence[tuple[float, float]], W: float, boxes: int
+) -> SpeedBoxProof:
+    """The outcome at a box that no subdivision decides (``box`` the intervals of the inverse speeds)."""
+    arb = flint.arb
+    speeds = [(ball_lower(1 / arb(b)), ball_upper(1 / arb(a))) for a, b in box]
+    where = ", ".join(f"[{lower_bound_text(a, 9)}, {upper_bound_text(b, 9)}]" for a, b in speeds)
+    return SpeedBoxProof(
+        False,
+        "a zero of F on the imaginary axis for w in "
+        f"[{lower_bound_text(w0, 9)}, {upper_bound_text(w1, 9)}] at speeds (lam_1, ..., lam_n, mu_1, ..., mu_m) in "
+        f"{where} for a delay of the window (or a crossing delay at an end of the window): not stable there, or not "
+        "decided; a smaller tolerance or a window clear of the crossing delays decides",
+        W,
+        boxes,
+        -1,
+        tuple(0.5 * (a + b) for a, b in speeds),
+    )
+
+
+def _stopped(max_boxes: int, w0: float, w1: float) -> CertificationError:
+    """The refusal at the work bound."""
+    return CertificationError(
+        f"prove_speed_box: the work bound max_boxes = {max_boxes} was reached (at w in [{w0:.6g}, {w1:.6g}]); a "
+        "larger max_boxes or a smaller tolerance decides"
+    )
+
+
+def _one_actuator(
+    flint: Any,
+    system: NPlusMSystem,
+    k: Any,
+    inverse: tuple[tuple[float, float], ...],
+    window: tuple[float, float],
+    max_boxes: int,
+) -> tuple[float, int] | SpeedBoxProof:
+    """Steps 1 and 2 of the module notes for ``m = 1``: ``(W, boxes)``, or the outcome that is not proven."""
+    arb = flint.arb
+    d_lo, d_hi = window
+    fam = _Family(flint, system, k)
+    W = _tail(flint, fam, system, k, _balls(flint, inverse))
+    if isinstance(W, str):
+        return SpeedBoxProof(False, W, math.nan, 0)
+    c, _ = fam.generator(_balls(flint, inverse))
+    fam.beta = symmetric_top_bound(flint, [[(c[i][j] + c[j][i]) / 2 for j in range(len(c))] for i in range(len(c))])
+    stack: list[tuple[float, float, tuple[tuple[float, float], ...]]] = [(0.0, W, inverse)]
+    boxes = 0
+    while stack:
+        w0, w1, box = stack.pop()
+        boxes += 1
+        w = arb(w0).union(arb(w1))
+        A, B = fam.factors(w, _balls(flint, box))
+        if crossing_free(flint, A, B, w, d_lo, d_hi):
+            continue
+        A, B, shares = fam.centred(w0, w1, box)
+        if crossing_free(flint, A, B, w, d_lo, d_hi):
+            continue
+        # halve the parameter with the largest share of the enclosures' widths
+        j = int(np.argmax(shares))
+        lo, hi = (w0, w1) if j == 0 else box[j - 1]
+        if hi - lo <= _MIN_WIDTH * max(1.0, abs(hi)):
+            return _undecided(flint, w0, w1, box, W, boxes)
+        if boxes >= max_boxes:
+            raise _stopped(max_boxes, w0, w1)
+        mid = 0.5 * (lo + hi)
+        if j == 0:  # the lower frequencies first: a crossing, where it is not stable, is found early
+            stack += [(mid, w1, box), (w0, mid, box)]
+        else:
+            left, right = list(box), list(box)
+            left[j - 1], right[j - 1] = (lo, mid), (mid, hi)
+            stack += [(w0, w1, tuple(left)), (w0, w1, tuple(right))]
+    return W, boxes
+
+
+def _several_actuators(
+    flint: Any,
+    system: NPlusMSystem,
+    k: Any,
+    inverse: tuple[tuple[float, float], ...],
+    window: tuple[float, float],
+    max_boxes: int,
+) -> tuple[float, int] | SpeedBoxProof:
+    """Steps 1 and 2 of the module notes for ``m > 1`` (module notes, "Several actuators"): ``(W, boxes)``, or the
+    outcome that is not proven.
+
+    A box of ``(w, a_1, ..., a_n, b_1, ..., b_m, delta)`` is cleared when one coefficient of ``F = sum_d c_d z^d``
+    dominates (no zero for any ``|z| = 1``, so for any delay), or when ``F`` with ``z = e^{-i w delta}`` as a ball
+    is enclosed away from 0; otherwise the parameter along which ``F`` moves most (floating point, a choice only) is
+    halved.
+    """
+    acb = flint.acb
+    loop = _Loop(flint, system, k)
+    W = _compound_tail(flint, loop, system, k, _balls(flint, inverse))
+    if isinstance(W, str):
+        return SpeedBoxProof(False, W, math.nan, 0)
+    stack: list[tuple[tuple[float, float], ...]] = [((0.0, W), *inverse, window)]
+    boxes = 0
+    while stack:
+        box = stack.pop()
+        boxes += 1
+        balls = _balls(flint, box)
+        coefficients = loop.coefficients(balls[0], balls[1:-1])
+        if _no_root_on_circle(coefficients) or _roots_clear(flint, coefficients, balls[0], window):
+            continue
+        z = acb(0, -(balls[0] * balls[-1])).exp()
+        value = coefficients[-1]
+        for c in reversed(coefficients[:-1]):
+            value = value * z + c
+        if not value.contains(0):
+            continue
+        # halve the parameter along which F moves most between the ends of the box (through its middle)
+        mids = np.array([0.5 * (lo + hi) for lo, hi in box])
+        halves = np.array([0.5 * (hi - lo) for lo, hi in box])
+        ends = np.repeat(mids[None], 2 * len(box), axis=0)
+        for j, h in enumerate(halves):
+            ends[2 * j, j] -= h
+            ends[2 * j + 1, j] += h
+        values = loop.values(ends)
+        moves = np.abs(values[1::2] - values[0::2])
+        if system.m == 2:  # the roots in z decide for every delay of the window: the delay is not halved
+            moves[-1] = 0.0
+        j = int(np.argmax(moves))
+        lo, hi = box[j]
+        (w0, w1) = box[0]
+        if hi - lo <= _MIN_WIDTH * max(1.0, abs(hi)):
+            return _undecided(flint, w0, w1, box[1:-1], W, boxes)
+        if boxes >= max_boxes:
+            raise _stopped(max_boxes, w0, w1)
+        mid = 0.5 * (lo + hi)
+        left, right = list(box), list(box)
+        left[j], right[j] = (lo, mid), (mid, hi)
+        stack += [tuple(right), tuple(left)]  # the lower frequencies first
+    return W, boxes
