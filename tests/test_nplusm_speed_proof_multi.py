@@ -122,3 +122,23 @@ def test_the_tolerance_with_two_actuators_proven_inside() -> None:
     tol = nplusm_speed_tolerance(SYSTEM, GAIN, EPS, WINDOW, inside=True)
     assert tol.met and tol.certified == "certified at the vertices" and tol.inside
     assert "between the points certified too, on the whole box" in tol.statement
+
+
+def test_three_actuators_are_refused_before_work() -> None:
+    """Three actuators: a ``ParameterError`` naming ``inside`` (and ``system`` for the proof itself) before any
+    verdict is computed (boxes of the delay were not decided on the plants tried)."""
+    c = 0.1
+    three = NPlusMSystem(
+        [1.5],
+        [1.0, 2.0, 1.5],
+        [[0, c, c, 0], [c, 0, 0, 0], [c, 0, 0, 0], [0, 0, c, 0]],
+        [[0.3, 0.4, 0.2]],
+        [[0.5], [0.3], [0.2]],
+    )
+    gain = [[-0.4], [-0.2], [-0.1]]
+    with pytest.raises(ParameterError) as info:
+        nplusm_speed_tolerance(three, gain, 0.002, (0.0, 0.5), inside=True)
+    assert info.value.name == "inside" and "at most 2 actuators" in str(info.value)
+    with pytest.raises(ParameterError) as info:
+        prove_speed_box(three, gain, 0.002, (0.0, 0.5), [], [])
+    assert info.value.name == "system"

@@ -114,7 +114,7 @@ from ...sweeps.executors import sweep_map
 from .characteristic import EPS, NPlusMCharacteristic
 from .margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin, smallest_delay_error
 from .speed_box import NPlusMSpeedTolerance, check_box_tolerance, perturbed_system, speed_box
-from .speed_proof import MAX_BOX_PROOF_BOXES, prove_speed_box
+from .speed_proof import MAX_BOX_PROOF_BOXES, MAX_PROVEN_ACTUATORS, prove_speed_box
 from .system import NPlusMSystem
 
 __all__ = [
@@ -466,8 +466,8 @@ def nplusm_speed_tolerance(
     windows = _merged(check_windows(delays))
     if not windows:
         raise ParameterError("delays", "a window (d_min, d_max) or a sequence of them", delays)
-    if not isinstance(inside, bool):
-        raise ParameterError("inside", "True or False", inside)
+    if not isinstance(inside, bool) or (inside and system.m > MAX_PROVEN_ACTUATORS):
+        raise ParameterError("inside", f"True or False; True with at most {MAX_PROVEN_ACTUATORS} actuators", inside)
     max_boxes = positive_int("max_boxes", max_boxes)
     return _box_tolerance(system, k, eps, windows, inside, max_boxes, stopped_raises=True)
 
@@ -1203,8 +1203,10 @@ def design_nplusm_gains(
     if not isinstance(rigorous, bool):
         raise ParameterError("rigorous", "True or False", rigorous)
     eps = None if speed_tolerance is None else check_box_tolerance(speed_tolerance, system)
-    if not isinstance(inside, bool) or (inside and eps is None):
-        raise ParameterError("inside", "True or False; True with speed_tolerance", inside)
+    if not isinstance(inside, bool) or (inside and (eps is None or system.m > MAX_PROVEN_ACTUATORS)):
+        raise ParameterError(
+            "inside", f"True or False; True with speed_tolerance and at most {MAX_PROVEN_ACTUATORS} actuators", inside
+        )
     if eps is not None and not windows:
         if not margin_at_least:
             raise ParameterError(

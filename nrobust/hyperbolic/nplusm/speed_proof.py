@@ -59,8 +59,9 @@ with ``z = e^{-delta s}`` (:class:`_Loop`), a polynomial of degree ``m`` in ``z`
    one ``|c_k|`` exceeds the sum of the others (no root on ``|z| = 1``, so none for any delay; Rouché), when
    ``m = 2`` and each root of the quadratic in ``z`` is off the unit circle or has every crossing delay outside
    the window (:func:`_roots_clear`), or when ``F`` with ``z = e^{-i w delta}`` as a ball is enclosed away from 0;
-   otherwise the parameter along which ``F`` moves most (floating point, a choice only) is halved (the delay only
-   for ``m > 2``), up to ``max_boxes`` boxes.
+   otherwise the parameter along which ``F`` moves most (floating point, a choice only; never the delay, which the
+   roots decide, nor a parameter at the smallest width) is halved, up to ``max_boxes`` boxes. At most
+   :data:`MAX_PROVEN_ACTUATORS` actuators.
 3. As for one actuator.
 
 The ball exponential wraps over boxes where ``w`` times the spread of the inverse speeds is large (no Taylor form
@@ -88,11 +89,16 @@ from .characteristic import arb_max, spectral_norm_bound, symmetric_top_bound
 from .speed_box import WindowVerdict, perturbed_system
 from .system import NPlusMSystem
 
-__all__ = ["MAX_BOX_PROOF_BOXES", "SpeedBoxProof", "prove_speed_box"]
+__all__ = ["MAX_BOX_PROOF_BOXES", "MAX_PROVEN_ACTUATORS", "SpeedBoxProof", "prove_speed_box"]
 
 #: Default work bound of :func:`prove_speed_box`: boxes of ``(w, speeds)`` examined (a few hundred
 #: microseconds each for ``n + m = 2``).
 MAX_BOX_PROOF_BOXES = 50_000
+
+#: Most actuators of a proof inside the box: for ``m = 2`` the roots of ``F`` in ``z = e^{-delta s}`` decide every
+#: delay of the window at once; with three, boxes of the delay too were not decided within the work bound on the
+#: plants tried (weak couplings, ``eps = 0.002``), so they are not offered.
+MAX_PROVEN_ACTUATORS = 2
 
 #: Relative width below which an undecided box is not halved again: a zero on the imaginary axis sits
 #: in it (or a crossing delay at an end of the window), and no subdivision decides.
@@ -616,6 +622,10 @@ def prove_speed_box(
     """
     if not isinstance(system, NPlusMSystem):
         raise ParameterError("system", "an NPlusMSystem", system)
+    if system.m > MAX_PROVEN_ACTUATORS:
+        raise ParameterError(
+            "system", f"at most {MAX_PROVEN_ACTUATORS} actuators (m) for a proof inside the box", system.m
+        )
     k = system.gain(K)
     if not 0.0 < eps < 1.0:
         raise ParameterError("eps", "in (0, 1) (the perturbed speeds stay positive)", eps)
@@ -775,12 +785,15 @@ def _several_actuators(
             ends[2 * j + 1, j] += h
         values = loop.values(ends)
         moves = np.abs(values[1::2] - values[0::2])
-        if system.m == 2:  # the roots in z decide for every delay of the window: the delay is not halved
-            moves[-1] = 0.0
+        # a parameter at the smallest width is not halved again; the roots in z decide for every delay of the
+        # window, so the delay is not halved either
+        narrow = [hi - lo <= _MIN_WIDTH * max(1.0, abs(hi)) for lo, hi in box]
+        narrow[-1] = True
+        moves[narrow] = -1.0
         j = int(np.argmax(moves))
         lo, hi = box[j]
         (w0, w1) = box[0]
-        if hi - lo <= _MIN_WIDTH * max(1.0, abs(hi)):
+        if narrow[j]:
             return _undecided(flint, w0, w1, box[1:-1], W, boxes)
         if boxes >= max_boxes:
             raise _stopped(max_boxes, w0, w1)
