@@ -349,6 +349,36 @@ def test_the_proven_margin_of_a_strong_coupling_holds_for_the_pde():
     assert margin.scope.startswith("the PDE itself")
 
 
+def test_a_crossing_of_kappa_36_is_isolated_where_the_balls_of_g_prime_cancel():
+    """``kappa = -36`` under U_BS2(0.1): near ``w = 0.7243`` the ball of ``g' = -2 Im(conj(A) A') + 2 Im(conj(B) B')``
+    on an interval loses the cancellation of its two terms (each about ``|A| |A'| = 1.7e7`` against
+    ``g' = -1.1e4``): on ``[0.7242, 0.7244]`` it is ``+-5.6e4``, ``g''`` ``+-1e5``, and the search refused there
+    ("cannot decide") once the bisection reached ``1e-9 W`` (``W = 6.8e4``). The centred form
+    ``g'(c) + g''(I) (I - c)`` (``+-10`` there) proves one simple zero, decreasing, whose enclosure holds the PDE's
+    crossing (40 digits, :func:`_pde_margin`'s equation)."""
+    from nrobust.margins.proven import _Axis, _decide
+
+    law = ReflectionController(0.1)
+    A, B = nr.loop_factors(Hyperbolic2x2(*STRONG36), nr.OutputFeedback(law))
+    axis = _Axis(A, B, 1000)
+    zeros, unresolved = [], []
+    work = [(0.7242, 0.7244, 0, 0)]
+    for _ in range(40):  # the old bisection reached its floor in 2 rounds, then refused
+        work = [part for cluster in work for part in _decide(axis, *cluster, 67787.0, zeros, unresolved)]
+    assert not work and not unresolved and len(zeros) == 1
+    ((w, slope),) = zeros
+    with mp.workdps(DPS):
+
+        def g(x):
+            a, b = _factors(STRONG36, law, mp.mpc(0, x))
+            return abs(a) ** 2 - abs(b) ** 2
+
+        truth = mp.findroot(g, mp.mpf("0.7243"))
+    assert slope == -1 and mp.mpf(w.lower()) <= truth <= mp.mpf(w.upper())
+    assert w.rad() < 1e-9  # the balls of g (radius 5e-7 against g' = -1.1e4) fix w to 5e-11
+    assert axis.evals < 100  # measured 26
+
+
 def test_bad_input_is_refused_before_work():
     """``law`` must be ``("N" | "U", c)``, ``c`` finite, and the plant a ``Hyperbolic2x2`` with constant couplings."""
     plant = Hyperbolic2x2(*PAPER)
