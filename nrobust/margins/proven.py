@@ -108,6 +108,9 @@ _PLAN_FLOOR = 2e-2
 _PLAN_POINTS = 2000
 _PLAN_DENSITY = 64.0
 _PLAN_PER_EVAL = 16
+# The planning grid is evaluated in chunks of this many points (the kernel sums hold a few
+# complex arrays of ten times the chunk's size).
+_PLAN_CHUNK = 1 << 16
 # Blocks of the frequency range with their own Lipschitz bound; failing segments are cut
 # into _CUT pieces, at most _CUT_ROUNDS times, before they join a cluster.
 _BLOCKS = 64
@@ -716,9 +719,12 @@ def _plan(
         )
     n = int(n)
     w = np.linspace(lo, hi, n)
-    a, b, _, _ = AxisFunction(A, B, n, kernels).factors(w)
-    h = np.abs(a) - np.abs(b)
-    g = np.abs(a) ** 2 - np.abs(b) ** 2
+    h, g = np.empty(n), np.empty(n)
+    planning = AxisFunction(A, B, n, kernels)
+    for k in range(0, n, _PLAN_CHUNK):
+        a, b, _, _ = planning.factors(w[k : k + _PLAN_CHUNK])
+        h[k : k + _PLAN_CHUNK] = np.abs(a) - np.abs(b)
+        g[k : k + _PLAN_CHUNK] = np.abs(a) ** 2 - np.abs(b) ** 2
     floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
     block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, lips.size - 1)
     # the walk below reads single entries: Python lists of the same doubles (the same arithmetic)
