@@ -236,3 +236,27 @@ def test_a_crossing_of_tiny_frequency_does_not_blow_up_the_default_range() -> No
     # the reported crossing solves the crossing equation (residual at rounding level)
     assert abs(A(np.array([s]))[0] + B(np.array([s]))[0] * np.exp(-s * dm.margin)) < 1e-9
     assert abs(abs(A(np.array([s]))[0]) - abs(B(np.array([s]))[0])) < 1e-9
+
+
+def test_the_default_delay_range_bounds_the_delays_of_all_crossings_together() -> None:
+    """Thousands of crossings of short period (a strongly coupled output feedback has them up to ``w ~ 1e4``): the
+    default range ends where the delays up to it, counted directly here (``floor((t - base) / period) + 1``), reach
+    about ``_MAX_EVENTS`` together; the former rule (each crossing below the bound alone) let these 4000 crossings
+    enumerate 2.8e6 delays. A few crossings keep one full period past every first delay."""
+    from nrobust.margins.crossing import _MAX_EVENTS, _default_range
+
+    rng = np.random.default_rng(7)
+    omega = rng.uniform(1.0, 1e4, 4000)
+    period = 2.0 * np.pi / omega
+    base = rng.uniform(0.0, 1.0, omega.size) * period
+
+    def enumerated(t: float) -> int:
+        ahead = base <= t
+        return int(np.sum(np.floor((t - base[ahead]) / period[ahead]) + 1)) + int(np.count_nonzero(~ahead))
+
+    former = min(float(np.max(base + period)), float(np.min(base + (_MAX_EVENTS - 1) * period)))
+    assert enumerated(former) > 20 * _MAX_EVENTS
+    t = _default_range(base, period)
+    assert 0.9 * _MAX_EVENTS <= enumerated(t) <= _MAX_EVENTS + omega.size
+    few_base, few_period = base[:3], period[:3]
+    assert _default_range(few_base, few_period) == float(np.max(few_base + few_period))

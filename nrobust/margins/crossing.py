@@ -243,6 +243,30 @@ def common_axis_zeros(axis_gap: AxisGap, search: CrossingSearch) -> NDArray[np.f
     return w[np.abs(a) <= 1e-9 * axis_gap.scales[0](w)]
 
 
+def _default_range(base: NDArray[np.float64], period: NDArray[np.float64]) -> float:
+    """The default ``delta_max``: one full period past every first delay ``base``, or less.
+
+    A crossing of tiny frequency has a long period, and a loop may have thousands of
+    crossings of short period (a strongly coupled output feedback): the range ends where
+    the delays ``base_k + j period_k`` up to it, counted by ``sum_k ((t - base_k) / period_k + 1)``
+    over ``base_k <= t`` (at least their number), reach ``_MAX_EVENTS`` (each crossing keeps
+    its first delay, which the margin needs).
+    """
+    full = float(np.max(base + period))
+
+    def count(t: float) -> float:
+        ahead = base <= t
+        return float(np.sum((t - base[ahead]) / period[ahead] + 1.0))
+
+    if count(full) <= _MAX_EVENTS:
+        return full
+    lo, hi = float(np.min(base)), full  # count(lo) is the number of first delays at lo: below the bound
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if count(mid) <= _MAX_EVENTS else (lo, mid)
+    return lo
+
+
 def axis_crossings(
     A: QuasiPolynomial,
     B: QuasiPolynomial,
@@ -253,8 +277,8 @@ def axis_crossings(
     """Delay sequences and directions at every crossing frequency; returns ``delta_max`` too.
 
     ``delta_max = None`` selects one full period past the first delay of every crossing,
-    ``max_c (delta_{c,0} + 2 pi / |w_c|)`` (``inf`` without crossings), or less where a crossing
-    of long period would make another one enumerate more than ``_MAX_EVENTS`` delays. The direction is
+    ``max_c (delta_{c,0} + 2 pi / |w_c|)`` (``inf`` without crossings), or less where the crossings
+    would enumerate more than ``_MAX_EVENTS`` delays together (:func:`_default_range`). The direction is
     ``slope * sign(w)`` with the certified slope of the search (0 at a tangency).
     """
     w = search.omegas
@@ -270,9 +294,7 @@ def axis_crossings(
     base = np.mod(np.angle(-b / a) / w, period)
     base[(base > period * (1 - ZERO_TOL)) | (base < period * ZERO_TOL)] = 0.0
     if delta_max is None:
-        # a crossing of tiny frequency has a long period: the range ends where a faster crossing reaches
-        # _MAX_EVENTS delays (each crossing keeps its first delay, which the margin needs)
-        delta_max = min(float(np.max(base + period)), float(np.min(base + (_MAX_EVENTS - 1) * period)))
+        delta_max = _default_range(base, period)
     elif not np.isfinite(delta_max):
         raise ParameterError(
             "delta_max", "finite: the loop has crossing frequencies, hence infinitely many crossing delays", delta_max

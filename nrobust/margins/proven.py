@@ -37,7 +37,11 @@ segment is then checked in balls; failures are cut, and stretches where ``|h|`` 
 become clusters.
 
 **Isolation.** On a cluster ``I`` (balls ``A^{(k)}(i I)``, ``B^{(k)}(i I)`` over the whole
-interval): ``g' = -2 Im(conj(A) A') + 2 Im(conj(B) B')``. If ``0`` is not in ``g'(I)`` and
+interval): ``g' = -2 Im(conj(A) A') + 2 Im(conj(B) B')``, or, where that ball holds ``0``, its
+intersection with the centred form ``g'(c) + g''(I) (I - c)`` (``c`` the midpoint): the ball on ``I``
+loses the cancellation of the two terms, each of size ``|A| |A'|`` and far above ``g'`` where
+``|A|`` and ``|B|`` nearly agree (strongly coupled loops), while the centred form's radius
+shrinks with the square of the width. If ``0`` is not in ``g'(I)`` and
 the proven signs of ``g`` at the ends differ, ``I`` holds exactly one zero, simple, with
 the proven sign of ``g'`` (the direction of the crossing, ``sign(g') sign(w)``); the
 interval Newton operator ``m - g(m) / g'(J)`` shrinks its enclosure ``J`` to a few ulps.
@@ -104,6 +108,9 @@ _PLAN_FLOOR = 2e-2
 _PLAN_POINTS = 2000
 _PLAN_DENSITY = 64.0
 _PLAN_PER_EVAL = 16
+# The planning grid is evaluated in chunks of this many points (the kernel sums hold a few
+# complex arrays of ten times the chunk's size).
+_PLAN_CHUNK = 1 << 16
 # Blocks of the frequency range with their own Lipschitz bound; failing segments are cut
 # into _CUT pieces, at most _CUT_ROUNDS times, before they join a cluster.
 _BLOCKS = 64
@@ -556,6 +563,29 @@ class _Axis:
         (a, b), (da, db), (d2a, d2b) = self.jet(s, 2)
         return 2 * (_sq(da) - (a.conjugate() * d2a).real) - 2 * (_sq(db) - (b.conjugate() * d2b).real)
 
+    def g1_on(self, iv: Any) -> Any:
+        """``g'`` on the interval ``iv`` (an arb): its ball on the interval, else the centred form.
+
+        The ball of ``g' = -2 Im(conj(A) A') + 2 Im(conj(B) B')`` on an interval loses the
+        cancellation of its two terms (each of size ``|A| |A'|``, far above ``g'`` where
+        ``|A|`` and ``|B|`` nearly agree: a strongly coupled loop), so its radius is a
+        fixed multiple of the interval's. Where it holds 0, the mean value theorem gives
+        ``g'(w) in g'(c) + g''(I) (w - c)`` (``c`` the midpoint), whose radius is that of
+        ``g''(I)`` times the interval's: both enclose ``g'`` on ``iv``, so their
+        intersection does.
+        """
+        flint = self.flint
+        direct = self.g1(flint.acb(0, iv))
+        if not direct.contains(0):
+            return direct
+        c = iv.mid()
+        centred = self.g1(flint.acb(0, c)) + self.g2(flint.acb(0, iv)) * (iv - c)
+        if not centred.overlaps(direct):
+            raise CertificationError(
+                "proven crossing search: two enclosures of g' on one interval are disjoint (inconsistent balls)"
+            )
+        return centred.intersection(direct)
+
 
 def _sq(z: Any) -> Any:
     """``|z|^2`` (products: ``x**2`` of a ball holding 0 is not finite in python-flint)."""
@@ -689,9 +719,12 @@ def _plan(
         )
     n = int(n)
     w = np.linspace(lo, hi, n)
-    a, b, _, _ = AxisFunction(A, B, n, kernels).factors(w)
-    h = np.abs(a) - np.abs(b)
-    g = np.abs(a) ** 2 - np.abs(b) ** 2
+    h, g = np.empty(n), np.empty(n)
+    planning = AxisFunction(A, B, n, kernels)
+    for k in range(0, n, _PLAN_CHUNK):
+        a, b, _, _ = planning.factors(w[k : k + _PLAN_CHUNK])
+        h[k : k + _PLAN_CHUNK] = np.abs(a) - np.abs(b)
+        g[k : k + _PLAN_CHUNK] = np.abs(a) ** 2 - np.abs(b) ** 2
     floor = _PLAN_FLOOR * max(float(np.max(np.abs(h))), 1e-300)
     block = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, lips.size - 1)
     # the walk below reads single entries: Python lists of the same doubles (the same arithmetic)
@@ -853,7 +886,7 @@ def _decide(
         sa = _gsign_at(axis, a)
     if sb == 0:
         sb = _gsign_at(axis, b)
-    d1 = axis.g1(s)
+    d1 = axis.g1_on(iv)
     slope = _sign(d1)
     if slope and sa and sb:
         if sa != sb:
@@ -911,12 +944,12 @@ def _newton(axis: _Axis, a: float, b: float, s_a: int, slope: int, d_iv: Any, or
     """
     flint = axis.flint
     f = axis.g if order == 0 else axis.g1
-    df = axis.g1 if order == 0 else axis.g2
+    df = axis.g1_on if order == 0 else (lambda iv: axis.g2(flint.acb(0, iv)))
     x = _interval(flint, a, b)
     rad_d = float(x.rad())
     for _ in range(_NEWTON_STEPS):
         if d_iv is None or float(x.rad()) < 1e-3 * rad_d:  # an enclosure of the derivative on x
-            d_iv, rad_d = df(flint.acb(0, x)), float(x.rad())
+            d_iv, rad_d = df(x), float(x.rad())
         if d_iv.contains(0):
             break
         m = x.mid()
