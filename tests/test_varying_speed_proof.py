@@ -321,3 +321,48 @@ def test_what_the_proof_does_not_cover_is_refused_with_a_reason():
         assert reason is not None and words in reason
         assert not has_varying_proof(plant) and loop_route(plant, OpenLoop()) == "kernels"
         assert loop_scope(plant, OpenLoop(), None, loop_factors(plant, OpenLoop())).startswith("a model of the PDE")
+
+
+def _plant_with_weight():
+    """A plant whose ``e^{A(L) - D(L)}`` is known only to its Taylor models' error (about 1e-10)."""
+    return GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x),
+        lambda x: 0.7 + 0.1 * x**2,
+        lambda x: 0.3 * np.sin(x),
+        0.0,
+        0.3,
+        lambda x: -0.2 + 0.1 * x,
+        0.7,
+        -0.4,
+        length=1.3,
+        time_unit=0.5,
+    )
+
+
+def _weighted_gains():
+    """``(rho q e^{A(L) - D(L)}, q e^{A(L) - D(L)})`` of :func:`_plant_with_weight` by mpmath quadrature (40 digits)."""
+    with mp.workdps(40):
+        m = mp.mpf
+        A = mp.quad(lambda x: m(0.3) * mp.sin(x) / (m(1.2) * mp.exp(m(0.3) * x)), [0, m(1.3)])
+        D = -mp.quad(lambda x: (m(-0.2) + m(0.1) * x) / (m(0.7) + m(0.1) * x**2), [0, m(1.3)])
+        u = m(0.7) * mp.exp(A - D)
+        return m(-0.4) * u, u
+
+
+def test_principal_gains_carry_the_radii_of_the_weight():
+    """The doubles ``rho q e^{A(L) - D(L)}`` and ``q e^{A(L) - D(L)}`` are the midpoints of balls of radius about
+    1e-11 (the Taylor models of ``a``, ``d``): the loop's point coefficients carry those radii, which hold the
+    plant's values (quadrature), and the scope no longer calls them a few ulps nor states tau twice."""
+    plant = _plant_with_weight()
+    rho_q, u = _weighted_gains()
+    proof = varying_proof(plant)
+    assert 0 < proof.rho_q_radius < 1e-9 and 0 < proof.u_radius < 1e-9
+    A, B = loop_factors(plant, nr.hyperbolic.StateFeedback(1.1))
+    (one, t0), (p, t) = A.point_terms
+    assert t0 == 0 and one[0] == 1 and t == proof.tau
+    radius = A.point_radii[1][0]
+    assert radius >= proof.rho_q_radius and abs(mp.mpf(p[0]) + rho_q) <= radius
+    ((pb, tb),) = B.point_terms
+    assert tb == proof.tau and abs(mp.mpf(pb[0]) + mp.mpf(1.1) * u) <= B.point_radii[0][0]
+    scope = loop_scope(plant, nr.hyperbolic.StateFeedback(1.1), None, (A, B))
+    assert "few ulps" not in scope and "proven radii" in scope and scope.count("tau") == 1

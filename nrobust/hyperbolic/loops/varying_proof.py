@@ -122,7 +122,7 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .exact_form import MAX_PIECES, TARGET, expand_piece
+from .exact_form import MAX_PIECES, TARGET, ball_radius, expand_piece
 
 __all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
 
@@ -158,6 +158,10 @@ class VaryingProof:
         The round trip ``1/lam + 1/mu`` (for a general plant the double
         ``(L/lam + L/mu) / time_unit`` computed in floating point), ``q`` of the normal form and the principal gain
         ``rho q`` (``rho q e^{A(L) - D(L)}`` rounded to a double for a general plant).
+    rho_q_radius, u_radius : float
+        Proven bounds of ``|rho_q - rho q e^{A(L) - D(L)}|`` and of the distance of ``u_factor``'s point
+        coefficient to ``q e^{A(L) - D(L)}`` (``e^{A(L) - D(L)} = 1`` for a :class:`Hyperbolic2x2`): the
+        radii of the point coefficients of ``characteristic`` and ``u_factor``.
     N_tilde, U_tilde : DistributedDelay or None
         Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
         to the PDE's kernels (sup and total variation). ``U~ = f(tau, .)``: the
@@ -175,7 +179,18 @@ class VaryingProof:
         with ``B = -k u_factor``).
     """
 
-    __slots__ = ("N_tilde", "U_tilde", "assumption", "characteristic", "q", "rho_q", "tau", "u_factor")
+    __slots__ = (
+        "N_tilde",
+        "U_tilde",
+        "assumption",
+        "characteristic",
+        "q",
+        "rho_q",
+        "rho_q_radius",
+        "tau",
+        "u_factor",
+        "u_radius",
+    )
 
     def __init__(
         self,
@@ -186,12 +201,24 @@ class VaryingProof:
         U_tilde: DistributedDelay | None,
         u_point: float | None = None,
         assumption: str = "",
+        radii: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
         self.assumption = assumption
-        self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
+        self.rho_q_radius, self.u_radius = radii
+        self.characteristic = QuasiPolynomial(
+            [[1.0], [-rho_q]],
+            [0.0, tau],
+            [N_tilde] if N_tilde is not None else [],
+            radii=[[0.0], [self.rho_q_radius]] if self.rho_q_radius else None,
+        )
         point = q if u_point is None else u_point
-        self.u_factor = QuasiPolynomial([[point]], [tau], [U_tilde] if U_tilde is not None else [])
+        self.u_factor = QuasiPolynomial(
+            [[point]],
+            [tau],
+            [U_tilde] if U_tilde is not None else [],
+            radii=[[self.u_radius]] if self.u_radius else None,
+        )
 
 
 def has_varying_proof(system: object) -> bool:
@@ -616,6 +643,7 @@ class _Setup(NamedTuple):
     u_point: float  # the double of the point delay of u_factor
     u_weight: Any  # the ball by which U~ of the normal form is multiplied in u_factor
     assumption: str = ""  # what the plant proven takes that the plant given may not be exactly
+    radii: tuple[float, float] = (0.0, 0.0)  # bounds of the distance of rho_q and u_point to the exact values
 
 
 def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
@@ -637,7 +665,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             except CertificationError:
                 if n == DEGREES[-1]:
                     raise
-    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption)
+    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption, setup.radii)
 
 
 def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
@@ -646,7 +674,8 @@ def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
     model_r = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(system.lam), "sigma_pm")
     model_w = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(system.mu), "sigma_mp")
     q, rho = system.q, system.rho
-    return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1))
+    radii = (ball_radius(flint, rho * q, arb(rho) * arb(q)), 0.0)
+    return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1), "", radii)
 
 
 class _Geometry(NamedTuple):
@@ -767,9 +796,21 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     model_r = coupling("b", 1)
     model_w = coupling("c", -1)
     rho = g.rho
-    u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
+    u_ball = arb(g.q) * (-E_end).exp()  # q e^{A(L) - D(L)}
+    u_point = float(u_ball.mid())
+    radii = (ball_radius(flint, rho * u_point, arb(rho) * u_ball), ball_radius(flint, u_point, u_ball))
     return _Setup(
-        model_r, model_w, arb(q_n), arb(rho) * weight, geo.tau, q_n, rho * u_point, u_point, weight, geo.assumption
+        model_r,
+        model_w,
+        arb(q_n),
+        arb(rho) * weight,
+        geo.tau,
+        q_n,
+        rho * u_point,
+        u_point,
+        weight,
+        geo.assumption,
+        radii,
     )
 
 
