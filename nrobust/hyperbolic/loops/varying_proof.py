@@ -83,10 +83,12 @@ with ``A = (theta - nu) / T(L)``, ``V = nu / T(L)`` and, at ``x(y)``::
 (for constant speeds ``s_u = L / lam``, ``s_v = L / mu``; for a constant ratio this is the normal
 form's ``y = phi(x) / phi(L)``), and ``N~``, ``U~`` as above: the proof applies unchanged. What is
 new is ``x(y)`` in ball arithmetic. The slowness ``L (1/lam + 1/mu)(L xi)`` is a Taylor model on
-``[0, 1]`` (as the couplings above, remainder ``eps``), so ``T(L xi) = Phi(xi) + e(xi)``, ``Phi``
-its exact integral and ``|e(xi)| <= eps xi``, and ``T(L)`` is a ball. A ball ``y`` maps to the
-ball ``x(y)`` between two points ``xi`` at which ``Phi(xi) -+ eps xi`` is proven below or above
-``T(L) y`` (``T`` increases), found by Newton's method on ``Phi``. The Taylor coefficients of
+each of ``m`` equal pieces of ``[0, 1]`` (as the couplings above, remainder ``eps_j``; ``m`` doubles
+from 1 up to 16 until ``T(L)`` is far below double precision), so on the piece ``[a_j, a_j + h]``
+``T(L (a_j + h u)) = C_j + Phi_j(u) + e_j(u)``, ``Phi_j`` the model's exact integral, ``|e_j(u)| <= eps_j u``
+and ``C_j`` the ball of ``T(L a_j)`` (from the pieces before), and ``T(L)`` is a ball. A ball ``y`` maps
+to the ball ``x(y)`` between two points at which ``C_j + Phi_j(u) -+ eps_j u`` is proven below or above
+``T(L) y`` (``T`` increases), found by Newton's method on ``Phi_j``. The Taylor coefficients of
 ``x(Y(t))`` for an arb_series ``Y`` follow from ``dx/dy = T(L) / (1/lam + 1/mu)(x)`` by Picard
 passes on series (the ``k``-th fixes the coefficient of ``t^k``; ball arithmetic encloses them for
 every ``y`` of ``Y``'s constant ball). A coefficient at ``x(y)`` times its weight is then a
@@ -155,9 +157,11 @@ class VaryingProof:
     Attributes
     ----------
     tau, q, rho_q : float
-        The round trip ``1/lam + 1/mu`` (for a general plant the double
-        ``(L/lam + L/mu) / time_unit`` computed in floating point), ``q`` of the normal form and the principal gain
-        ``rho q`` (``rho q e^{A(L) - D(L)}`` rounded to a double for a general plant).
+        The round trip ``1/lam + 1/mu`` (for a general plant with constant speeds the double nearest
+        ``(L/lam + L/mu) / time_unit``; with varying speeds the double nearest the ball
+        ``int_0^L (1/lam + 1/mu) / time_unit``, the speeds of the plant proven scaled to make it exact:
+        ``assumption``), ``q`` of the normal form and the principal gain ``rho q`` (``rho q e^{A(L) - D(L)}``
+        rounded to a double for a general plant).
     rho_q_radius, u_radius : float
         Proven bounds of ``|rho_q - rho q e^{A(L) - D(L)}|`` and of the distance of ``u_factor``'s point
         coefficient to ``q e^{A(L) - D(L)}`` (``e^{A(L) - D(L)} = 1`` for a :class:`Hyperbolic2x2`): the
@@ -686,7 +690,7 @@ class _Geometry(NamedTuple):
     x_arrays: Any  # x(y) on arrays (the plant's tables), for the models' check
     weight: Any  # (arb_series of x, "u" or "v") -> the weight s_u or s_v there; None for constant speeds
     weight_at: Any  # the same on arrays of x
-    scales: tuple[Any, Any]  # constant speeds: the balls L / lam, L / mu (the weights); else (1, 1)
+    scales: tuple[Any, Any] | None  # constant speeds: the balls L / lam, L / mu (the weights); else None
     assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
 
 
@@ -723,7 +727,7 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     def x_arrays(y: Any) -> Any:
         return np.asarray(x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
 
-    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, (arb(1), arb(1)), assumption)
+    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, None, assumption)
 
 
 def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
@@ -736,7 +740,7 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         """The coefficient ``name`` times the weight of ``side`` as a function of ``y`` (at ``x(y)``): on balls,
         on arrays, and the constant scale of the model (the weight itself for constant speeds)."""
         value = getattr(g, name)
-        if geo.weight is None:
+        if geo.scales is not None:  # constant speeds
             scale = geo.scales[0 if side == "u" else 1]
             if not callable(value):
                 return float(value), None, scale
