@@ -391,3 +391,65 @@ def test_printed_gap_holds_the_pdes():
         D = -mp.quad(lambda x: (m(-0.2) + m(0.1) * x) / (m(0.7) + m(0.1) * x**2), [0, m(0.8)])
         gap = 1 - 2 * m(0.6) * m(1.1) * mp.exp(A - D)
         assert abs(mp.mpf(centre) - gap) <= mp.mpf(radius)
+
+
+_WIDE = GeneralHyperbolic2x2(
+    lambda x: 5.0 + x,
+    lambda x: 0.5 + 0.1 * np.sin(2 * x),
+    -0.3,
+    0.9,
+    lambda x: -0.8 + 0.5 * x,
+    0.25,
+    -1.2,
+    0.3,
+    length=0.8,
+)
+
+
+def _ode_wide(s, dps=20):
+    """``(e^{-s t_v - D(L)} (v - rho u), e^{-s t_v - D(L)} u)`` at ``x = L`` of _WIDE from ``[u; v](0) = [q; 1]``."""
+    with mp.workdps(dps):
+        s, m = mp.mpc(s), mp.mpf
+
+        def mu(x):
+            return m(0.5) + m(0.1) * mp.sin(2 * x)
+
+        def rhs(x, y):
+            c = m(-0.8) + m(0.5) * x
+            return [((m(-0.3) - s) * y[0] + m(0.9) * y[1]) / (5 + x), ((s - m(0.25)) * y[1] - c * y[0]) / mu(x)]
+
+        u, v = mp.odefun(rhs, 0, [m(-1.2), m(1)])(m(0.8))
+        t_v = mp.quad(lambda x: 1 / mu(x), [0, m(0.8)])
+        D_L = -mp.quad(lambda x: m(0.25) / mu(x), [0, m(0.8)])
+        weight = mp.exp(-s * t_v - D_L)
+        return weight * (v - m(0.3) * u), weight * u
+
+
+@pytest.mark.parametrize("s", [0.5j, 1.0 + 4.0j])
+def test_kernel_stored_from_midpoints_holds_the_ode(s):
+    """A plant whose ``R`` and ``u_weight`` carry radii near 1e-15: the kernel is stored from the midpoint
+    polynomial with those radii in its bounds (refused before: "proven error (3.2e-12) too large"), and the open
+    loop and ``u_factor`` in ball arithmetic hold the ODE's (mpmath, 20 digits)."""
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(_WIDE)
+    factor = float(proof.assumption.split("within ")[1].split(" of 1")[0])
+    assert factor < 1e-16
+    A, u = _ode_wide(s)
+    for F, value in ((proof.characteristic, A), (proof.u_factor, u)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # the speeds' factor (a relative change of the phases: |s| tau 1e-16 per unit of |e^{-tau s}|); 1e-18
+        # covers the ODE's digits
+        _inside(ball, complex(value), 1e-18 + abs(s) * proof.tau * 1e-16 * np.exp(-proof.tau * s.real))
+        assert ball.real.rad() < 1e-9 and ball.imag.rad() < 1e-9
+
+
+def test_refusal_on_a_long_plant_names_the_overestimation():
+    """Speeds analytic on a wide disc about ``[0, L]`` (``1.2 e^{0.3 x}``, ``0.7 + 0.1 x^2``, whose zeros are at
+    ``+-2.6i``) on ``L = 1.5``: the remainder's bound on wide balls is refused, and the reason names ball
+    arithmetic's overestimation besides a singularity."""
+    plant = GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4, length=1.5
+    )
+    reason = varying_failure(plant)
+    assert reason is not None and "overestimating the remainder's coefficient" in reason

@@ -659,8 +659,10 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
-                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], or a coupling that "
-                    "varies too fast for that order; the kernel route (kernel_grid=...) gives a model of the PDE"
+                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], a coupling that "
+                    "varies too fast for that order, or (varying speeds, long L) ball arithmetic overestimating the "
+                    f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1]; the kernel route "
+                    "(kernel_grid=...) gives a model of the PDE"
                 )
         for n in DEGREES:
             try:
@@ -872,18 +874,33 @@ def _along(flint: Any, c: np.ndarray) -> Any:
 
 
 def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any) -> DistributedDelay | None:
-    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
-    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``."""
+    """``line(nu / T) / T`` on ``[0, tau]`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
+    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``.
+
+    The pieces expand the midpoint polynomial of ``line``: its distance ``sum_k delta_k V^k / T`` to ``line``'s
+    (``|delta_k|`` at most the radius of the coefficient ``k``, ``0 <= V = nu / T <= r = max(1, tau / T)``) is at
+    most ``sum_k |delta_k| r^k / T`` in sup and in total variation (each ``V^k`` increases), added to both bounds:
+    the radii of ``R``, ``u_weight`` and the models cannot then keep the pieces from double precision.
+    """
     arb, arb_poly = flint.arb, flint.arb_poly
-    series = line(arb_poly([0, 1 / T])) * (1 / T)
+    tau = float(T.mid())
+    coeffs = line.coeffs()
+    reach = arb.max(arb(1), arb(tau) / T)
+    spread = sum((arb(c.rad()) * reach**k for k, c in enumerate(coeffs)), arb(0)) / T
+    sup_err, var_err = sup_err + spread, var_err + spread
+    series = arb_poly([arb(c.mid()) for c in coeffs])(arb_poly([0, 1 / T])) * (1 / T)
     size = _poly_sup(flint, series(arb_poly([0, T])))
+    if not size.is_finite():
+        raise CertificationError(
+            "the kernel's size bound is not finite (its polynomial's coefficients overflow): the kernel route "
+            "(kernel_grid=...) gives a model of the PDE"
+        )
     if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + floor)):
         raise CertificationError(
             f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
-    tau = float(T.mid())
     pieces = 8
     while True:
         mant, expo = math.frexp(tau / pieces)
