@@ -218,3 +218,15 @@ def test_speeds_other_than_one_against_the_ode():
         # normalised as the characteristic function (1 at s = inf along the real axis)
         got = complex(proof.characteristic(np.array([s]))[0])
         np.testing.assert_allclose(got, want, rtol=1e-10)  # proof radius ~1e-13, mpmath at 20 digits
+
+
+def test_rounded_rho_q_carries_its_radius():
+    """``rho q`` of VARYING is not a double: its rounding (exact rationals) is the radius of the loop's principal
+    point coefficient, within a few ulps."""
+    from fractions import Fraction
+
+    proof = varying_proof(VARYING)
+    error = abs(Fraction(RHO) * Fraction(Q) - Fraction(proof.rho_q))
+    assert error > 0 and error <= proof.rho_q_radius <= 4 * np.spacing(proof.rho_q)
+    A, _ = loop_factors(VARYING, FiniteTimeController())
+    assert A.point_terms[1][1] == proof.tau and A.point_radii[1][0] >= error

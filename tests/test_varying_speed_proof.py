@@ -321,3 +321,135 @@ def test_what_the_proof_does_not_cover_is_refused_with_a_reason():
         assert reason is not None and words in reason
         assert not has_varying_proof(plant) and loop_route(plant, OpenLoop()) == "kernels"
         assert loop_scope(plant, OpenLoop(), None, loop_factors(plant, OpenLoop())).startswith("a model of the PDE")
+
+
+def _plant_with_weight():
+    """A plant whose ``e^{A(L) - D(L)}`` is known only to its Taylor models' error (about 1e-10)."""
+    return GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x),
+        lambda x: 0.7 + 0.1 * x**2,
+        lambda x: 0.3 * np.sin(x),
+        0.0,
+        0.3,
+        lambda x: -0.2 + 0.1 * x,
+        0.7,
+        -0.4,
+        length=1.3,
+        time_unit=0.5,
+    )
+
+
+def _weighted_gains():
+    """``(rho q e^{A(L) - D(L)}, q e^{A(L) - D(L)})`` of :func:`_plant_with_weight` by mpmath quadrature (40 digits)."""
+    with mp.workdps(40):
+        m = mp.mpf
+        A = mp.quad(lambda x: m(0.3) * mp.sin(x) / (m(1.2) * mp.exp(m(0.3) * x)), [0, m(1.3)])
+        D = -mp.quad(lambda x: (m(-0.2) + m(0.1) * x) / (m(0.7) + m(0.1) * x**2), [0, m(1.3)])
+        u = m(0.7) * mp.exp(A - D)
+        return m(-0.4) * u, u
+
+
+def test_principal_gains_carry_the_radii_of_the_weight():
+    """The doubles ``rho q e^{A(L) - D(L)}`` and ``q e^{A(L) - D(L)}`` are the midpoints of balls of radius about
+    1e-11 (the Taylor models of ``a``, ``d``): the loop's point coefficients carry those radii, which hold the
+    plant's values (quadrature), and the scope no longer calls them a few ulps nor states tau twice."""
+    plant = _plant_with_weight()
+    rho_q, u = _weighted_gains()
+    proof = varying_proof(plant)
+    assert 0 < proof.rho_q_radius < 1e-9 and 0 < proof.u_radius < 1e-9
+    A, B = loop_factors(plant, nr.hyperbolic.StateFeedback(1.1))
+    (one, t0), (p, t) = A.point_terms
+    assert t0 == 0 and one[0] == 1 and t == proof.tau
+    radius = A.point_radii[1][0]
+    assert radius >= proof.rho_q_radius and abs(mp.mpf(p[0]) + rho_q) <= radius
+    ((pb, tb),) = B.point_terms
+    assert tb == proof.tau and abs(mp.mpf(pb[0]) + mp.mpf(1.1) * u) <= B.point_radii[0][0]
+    scope = loop_scope(plant, nr.hyperbolic.StateFeedback(1.1), None, (A, B))
+    assert "few ulps" not in scope and "proven radii" in scope and scope.count("tau") == 1
+
+
+def test_printed_gap_holds_the_pdes():
+    """U_BS on a varying ratio with ``a, d`` functions: the printed gap ``1 - 2|rho q e^{A(L) - D(L)}|`` of the
+    difference operator, with its +-, holds the PDE's (mpmath quadrature, 40 digits); it printed
+    -0.1784997696313675 +- 3e-17 when the gain's radius was left out (the PDE's is 4.3e-17 away)."""
+    plant = GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x),
+        lambda x: 0.7 + 0.1 * x**2,
+        lambda x: 0.3 * np.sin(x),
+        lambda x: 0.6 * np.exp(-x / 2),
+        lambda x: 0.4 * np.cos(x),
+        lambda x: -0.2 + 0.1 * x,
+        1.1,
+        0.6,
+        length=0.8,
+    )
+    reason = nr.delay_margin(plant, nr.hyperbolic.FiniteTimeController(), delta_max=30.0, rigorous=True).reason
+    centre, radius = reason.split("(gap ")[1].split(" < 0")[0].split(" +- ")
+    with mp.workdps(40):
+        m = mp.mpf
+        A = mp.quad(lambda x: m(0.3) * mp.sin(x) / (m(1.2) * mp.exp(m(0.3) * x)), [0, m(0.8)])
+        D = -mp.quad(lambda x: (m(-0.2) + m(0.1) * x) / (m(0.7) + m(0.1) * x**2), [0, m(0.8)])
+        gap = 1 - 2 * m(0.6) * m(1.1) * mp.exp(A - D)
+        assert abs(mp.mpf(centre) - gap) <= mp.mpf(radius)
+
+
+_WIDE = GeneralHyperbolic2x2(
+    lambda x: 5.0 + x,
+    lambda x: 0.5 + 0.1 * np.sin(2 * x),
+    -0.3,
+    0.9,
+    lambda x: -0.8 + 0.5 * x,
+    0.25,
+    -1.2,
+    0.3,
+    length=0.8,
+)
+
+
+def _ode_wide(s, dps=20):
+    """``(e^{-s t_v - D(L)} (v - rho u), e^{-s t_v - D(L)} u)`` at ``x = L`` of _WIDE from ``[u; v](0) = [q; 1]``."""
+    with mp.workdps(dps):
+        s, m = mp.mpc(s), mp.mpf
+
+        def mu(x):
+            return m(0.5) + m(0.1) * mp.sin(2 * x)
+
+        def rhs(x, y):
+            c = m(-0.8) + m(0.5) * x
+            return [((m(-0.3) - s) * y[0] + m(0.9) * y[1]) / (5 + x), ((s - m(0.25)) * y[1] - c * y[0]) / mu(x)]
+
+        u, v = mp.odefun(rhs, 0, [m(-1.2), m(1)])(m(0.8))
+        t_v = mp.quad(lambda x: 1 / mu(x), [0, m(0.8)])
+        D_L = -mp.quad(lambda x: m(0.25) / mu(x), [0, m(0.8)])
+        weight = mp.exp(-s * t_v - D_L)
+        return weight * (v - m(0.3) * u), weight * u
+
+
+@pytest.mark.parametrize("s", [0.5j, 1.0 + 4.0j])
+def test_kernel_stored_from_midpoints_holds_the_ode(s):
+    """A plant whose ``R`` and ``u_weight`` carry radii near 1e-15: the kernel is stored from the midpoint
+    polynomial with those radii in its bounds (refused before: "proven error (3.2e-12) too large"), and the open
+    loop and ``u_factor`` in ball arithmetic hold the ODE's (mpmath, 20 digits)."""
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(_WIDE)
+    factor = float(proof.assumption.split("within ")[1].split(" of 1")[0])
+    assert factor < 1e-16
+    A, u = _ode_wide(s)
+    for F, value in ((proof.characteristic, A), (proof.u_factor, u)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # the speeds' factor (a relative change of the phases: |s| tau 1e-16 per unit of |e^{-tau s}|); 1e-18
+        # covers the ODE's digits
+        _inside(ball, complex(value), 1e-18 + abs(s) * proof.tau * 1e-16 * np.exp(-proof.tau * s.real))
+        assert ball.real.rad() < 1e-9 and ball.imag.rad() < 1e-9
+
+
+def test_refusal_on_a_long_plant_names_the_overestimation():
+    """Speeds analytic on a wide disc about ``[0, L]`` (``1.2 e^{0.3 x}``, ``0.7 + 0.1 x^2``, whose zeros are at
+    ``+-2.6i``) on ``L = 1.5``: the remainder's bound on wide balls is refused, and the reason names ball
+    arithmetic's overestimation besides a singularity."""
+    plant = GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4, length=1.5
+    )
+    reason = varying_failure(plant)
+    assert reason is not None and "overestimating the remainder's coefficient" in reason

@@ -85,7 +85,7 @@ from .observer_proof import (
 )
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
-from .varying_proof import has_varying_proof, varying_proof
+from .varying_proof import VaryingProof, has_varying_proof, varying_proof
 
 __all__ = [
     "Classification",
@@ -753,11 +753,10 @@ def _loop_scope(
         return scope.replace(_AS_GIVEN, rounded) if rounded else scope
     if loop_route(system, controller, kernel_grid) == "exact" and not has_exact_form(system):
         radius = max((d.radius for f in factors for d in f.distributed), default=0.0)
-        assumption = varying_proof(system).assumption  # varying speeds: what the plant proven takes exactly
         return (
             "the PDE itself (N~ from the Volterra form of the kernel equations with the couplings as Taylor "
-            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; "
-            f"{rounded_parts(system, controller, kernel_grid)}{'; ' + assumption if assumption else ''})"
+            f"models, a proven a-posteriori bound {radius:.1e} that every enclosure includes; the principal gains "
+            f"enclosed with the proven radii of their computation; {rounded_parts(system, controller, kernel_grid)})"
         )
     if loop_route(system, controller, kernel_grid) == "exact":
         gains = isinstance(controller, StateFeedback) and _integral_gains(controller)
@@ -1084,9 +1083,15 @@ def _exact_factors(
     form = exact_form(system) if has_exact_form(system) else varying_proof(system)
     i_n = QuasiPolynomial([], [], [form.N_tilde]) if form.N_tilde is not None else QuasiPolynomial([[0.0]], [0.0])
     round_trip = QuasiPolynomial([[form.q]], [form.tau])
-    phi = QuasiPolynomial([[form.rho_q]], [form.tau]) - i_n
+    # a varying plant's rho_q carries its radius here; the closed form's radii come from _exact_radii
+    radius = form.rho_q_radius if isinstance(form, VaryingProof) else 0.0
+    phi = QuasiPolynomial([[form.rho_q]], [form.tau], radii=[[radius]] if radius else None) - i_n
     if isinstance(controller, StateFeedback):
-        u_factor = QuasiPolynomial.from_parts(form.u_factor.point_terms, form.u_factor.distributed)  # its floats
+        u_factor = (
+            form.u_factor
+            if isinstance(form, VaryingProof)
+            else QuasiPolynomial.from_parts(form.u_factor.point_terms, form.u_factor.distributed)  # its floats
+        )
         B = u_factor * (-controller.k)
         terms = gain_terms(system, controller.g_u, controller.g_v) if _integral_gains(controller) else ()
         A, B = 1.0 - phi, B - QuasiPolynomial([], [], terms) if terms else B
@@ -1519,10 +1524,18 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
     built with ``t_v = tau_d lam / (lam + mu)`` exactly,
     :func:`~nrobust.hyperbolic.loops.exact_gains.gain_terms`), or an output feedback whose proven
     observer term (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_observer_term`) is built
-    with ``tau`` and the window ``1/mu`` exact (doubles). Otherwise the quantities computed in
-    floating point, in words, for a proof's scope.
+    with ``tau`` and the window ``1/mu`` exact (doubles). On a plant with a proven varying ``N~``
+    (:func:`~nrobust.hyperbolic.loops.varying_proof.varying_proof`) the principal gains carry proven
+    radii (:attr:`~nrobust.hyperbolic.loops.varying_proof.VaryingProof.rho_q_radius`) and this names
+    ``tau`` rounded, or for varying speeds the speeds' factor making ``tau`` a double (its
+    ``assumption``). Otherwise the quantities computed in floating point, in words, for a proof's scope.
     """
     general = isinstance(system, GeneralHyperbolic2x2)
+    tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
+    if kernel_grid is None and _proven_varying(system, controller):
+        # the principal gains carry the proven radii of their computation (VaryingProof.rho_q_radius, u_radius);
+        # varying speeds: the speeds scaled to make tau a double (VaryingProof.assumption) instead of tau rounded
+        return varying_proof(system).assumption or f"tau = {tau} as a double (a few ulps)"
     if general and not has_exact_form(system):
         return (
             "tau and the principal gains (q and rho q times the exponential weight of a and d, and the law's gain "
@@ -1530,7 +1543,6 @@ def rounded_parts(system: Any, controller: Any, kernel_grid: int | None = None) 
         )
     if not isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)) or not has_exact_form(system):
         return "tau and the principal gains as doubles computed from the parameters (a few ulps)"
-    tau = "L/lam + L/mu" if general else "1/lam + 1/mu"
     if kernel_grid is not None or loop_route(system, controller, kernel_grid) != "exact":
         return f"tau = {tau} and the principal gains as doubles (mapped to the exact tau on the exact route only)"
     if isinstance(controller, (OpenLoop, FiniteTimeController, ReflectionController, FilteredController)):

@@ -83,10 +83,12 @@ with ``A = (theta - nu) / T(L)``, ``V = nu / T(L)`` and, at ``x(y)``::
 (for constant speeds ``s_u = L / lam``, ``s_v = L / mu``; for a constant ratio this is the normal
 form's ``y = phi(x) / phi(L)``), and ``N~``, ``U~`` as above: the proof applies unchanged. What is
 new is ``x(y)`` in ball arithmetic. The slowness ``L (1/lam + 1/mu)(L xi)`` is a Taylor model on
-``[0, 1]`` (as the couplings above, remainder ``eps``), so ``T(L xi) = Phi(xi) + e(xi)``, ``Phi``
-its exact integral and ``|e(xi)| <= eps xi``, and ``T(L)`` is a ball. A ball ``y`` maps to the
-ball ``x(y)`` between two points ``xi`` at which ``Phi(xi) -+ eps xi`` is proven below or above
-``T(L) y`` (``T`` increases), found by Newton's method on ``Phi``. The Taylor coefficients of
+each of ``m`` equal pieces of ``[0, 1]`` (as the couplings above, remainder ``eps_j``; ``m`` doubles
+from 1 up to 16 until ``T(L)`` is far below double precision), so on the piece ``[a_j, a_j + h]``
+``T(L (a_j + h u)) = C_j + Phi_j(u) + e_j(u)``, ``Phi_j`` the model's exact integral, ``|e_j(u)| <= eps_j u``
+and ``C_j`` the ball of ``T(L a_j)`` (from the pieces before), and ``T(L)`` is a ball. A ball ``y`` maps
+to the ball ``x(y)`` between two points at which ``C_j + Phi_j(u) -+ eps_j u`` is proven below or above
+``T(L) y`` (``T`` increases), found by Newton's method on ``Phi_j``. The Taylor coefficients of
 ``x(Y(t))`` for an arb_series ``Y`` follow from ``dx/dy = T(L) / (1/lam + 1/mu)(x)`` by Picard
 passes on series (the ``k``-th fixes the coefficient of ``t^k``; ball arithmetic encloses them for
 every ``y`` of ``Y``'s constant ball). A coefficient at ``x(y)`` times its weight is then a
@@ -122,7 +124,7 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .exact_form import MAX_PIECES, TARGET, expand_piece
+from .exact_form import MAX_PIECES, TARGET, ball_radius, expand_piece
 
 __all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_failure", "varying_proof"]
 
@@ -155,9 +157,15 @@ class VaryingProof:
     Attributes
     ----------
     tau, q, rho_q : float
-        The round trip ``1/lam + 1/mu`` (for a general plant the double
-        ``(L/lam + L/mu) / time_unit`` computed in floating point), ``q`` of the normal form and the principal gain
-        ``rho q`` (``rho q e^{A(L) - D(L)}`` rounded to a double for a general plant).
+        The round trip ``1/lam + 1/mu`` (for a general plant with constant speeds the double nearest
+        ``(L/lam + L/mu) / time_unit``; with varying speeds the double nearest the ball
+        ``int_0^L (1/lam + 1/mu) / time_unit``, the speeds of the plant proven scaled to make it exact:
+        ``assumption``), ``q`` of the normal form and the principal gain ``rho q`` (``rho q e^{A(L) - D(L)}``
+        rounded to a double for a general plant).
+    rho_q_radius, u_radius : float
+        Proven bounds of ``|rho_q - rho q e^{A(L) - D(L)}|`` and of the distance of ``u_factor``'s point
+        coefficient to ``q e^{A(L) - D(L)}`` (``e^{A(L) - D(L)} = 1`` for a :class:`Hyperbolic2x2`): the
+        radii of the point coefficients of ``characteristic`` and ``u_factor``.
     N_tilde, U_tilde : DistributedDelay or None
         Polynomial pieces (None: zero); ``radius`` and ``variation_radius`` bound the distance
         to the PDE's kernels (sup and total variation). ``U~ = f(tau, .)``: the
@@ -175,7 +183,18 @@ class VaryingProof:
         with ``B = -k u_factor``).
     """
 
-    __slots__ = ("N_tilde", "U_tilde", "assumption", "characteristic", "q", "rho_q", "tau", "u_factor")
+    __slots__ = (
+        "N_tilde",
+        "U_tilde",
+        "assumption",
+        "characteristic",
+        "q",
+        "rho_q",
+        "rho_q_radius",
+        "tau",
+        "u_factor",
+        "u_radius",
+    )
 
     def __init__(
         self,
@@ -186,12 +205,24 @@ class VaryingProof:
         U_tilde: DistributedDelay | None,
         u_point: float | None = None,
         assumption: str = "",
+        radii: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         self.tau, self.q, self.rho_q, self.N_tilde, self.U_tilde = tau, q, rho_q, N_tilde, U_tilde
         self.assumption = assumption
-        self.characteristic = QuasiPolynomial([[1.0], [-rho_q]], [0.0, tau], [N_tilde] if N_tilde is not None else [])
+        self.rho_q_radius, self.u_radius = radii
+        self.characteristic = QuasiPolynomial(
+            [[1.0], [-rho_q]],
+            [0.0, tau],
+            [N_tilde] if N_tilde is not None else [],
+            radii=[[0.0], [self.rho_q_radius]] if self.rho_q_radius else None,
+        )
         point = q if u_point is None else u_point
-        self.u_factor = QuasiPolynomial([[point]], [tau], [U_tilde] if U_tilde is not None else [])
+        self.u_factor = QuasiPolynomial(
+            [[point]],
+            [tau],
+            [U_tilde] if U_tilde is not None else [],
+            radii=[[self.u_radius]] if self.u_radius else None,
+        )
 
 
 def has_varying_proof(system: object) -> bool:
@@ -616,6 +647,7 @@ class _Setup(NamedTuple):
     u_point: float  # the double of the point delay of u_factor
     u_weight: Any  # the ball by which U~ of the normal form is multiplied in u_factor
     assumption: str = ""  # what the plant proven takes that the plant given may not be exactly
+    radii: tuple[float, float] = (0.0, 0.0)  # bounds of the distance of rho_q and u_point to the exact values
 
 
 def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
@@ -627,8 +659,10 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
-                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], or a coupling that "
-                    "varies too fast for that order; the kernel route (kernel_grid=...) gives a model of the PDE"
+                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], a coupling that "
+                    "varies too fast for that order, or (varying speeds, long L) ball arithmetic overestimating the "
+                    f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1]; the kernel route "
+                    "(kernel_grid=...) gives a model of the PDE"
                 )
         for n in DEGREES:
             try:
@@ -637,7 +671,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             except CertificationError:
                 if n == DEGREES[-1]:
                     raise
-    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption)
+    return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption, setup.radii)
 
 
 def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
@@ -646,7 +680,8 @@ def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
     model_r = _model(flint, system.sigma_pm, system.sigma_pm_at, 1 / arb(system.lam), "sigma_pm")
     model_w = _model(flint, system.sigma_mp, system.sigma_mp_at, -1 / arb(system.mu), "sigma_mp")
     q, rho = system.q, system.rho
-    return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1))
+    radii = (ball_radius(flint, rho * q, arb(rho) * arb(q)), 0.0)
+    return _Setup(model_r, model_w, arb(q), arb(rho), system.tau, q, rho * q, q, arb(1), "", radii)
 
 
 class _Geometry(NamedTuple):
@@ -657,7 +692,7 @@ class _Geometry(NamedTuple):
     x_arrays: Any  # x(y) on arrays (the plant's tables), for the models' check
     weight: Any  # (arb_series of x, "u" or "v") -> the weight s_u or s_v there; None for constant speeds
     weight_at: Any  # the same on arrays of x
-    scales: tuple[Any, Any]  # constant speeds: the balls L / lam, L / mu (the weights); else (1, 1)
+    scales: tuple[Any, Any] | None  # constant speeds: the balls L / lam, L / mu (the weights); else None
     assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
 
 
@@ -694,7 +729,7 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     def x_arrays(y: Any) -> Any:
         return np.asarray(x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
 
-    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, (arb(1), arb(1)), assumption)
+    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, None, assumption)
 
 
 def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
@@ -707,7 +742,7 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         """The coefficient ``name`` times the weight of ``side`` as a function of ``y`` (at ``x(y)``): on balls,
         on arrays, and the constant scale of the model (the weight itself for constant speeds)."""
         value = getattr(g, name)
-        if geo.weight is None:
+        if geo.scales is not None:  # constant speeds
             scale = geo.scales[0 if side == "u" else 1]
             if not callable(value):
                 return float(value), None, scale
@@ -767,9 +802,21 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     model_r = coupling("b", 1)
     model_w = coupling("c", -1)
     rho = g.rho
-    u_point = float((arb(g.q) * (-E_end).exp()).mid())  # q e^{A(L) - D(L)}
+    u_ball = arb(g.q) * (-E_end).exp()  # q e^{A(L) - D(L)}
+    u_point = float(u_ball.mid())
+    radii = (ball_radius(flint, rho * u_point, arb(rho) * u_ball), ball_radius(flint, u_point, u_ball))
     return _Setup(
-        model_r, model_w, arb(q_n), arb(rho) * weight, geo.tau, q_n, rho * u_point, u_point, weight, geo.assumption
+        model_r,
+        model_w,
+        arb(q_n),
+        arb(rho) * weight,
+        geo.tau,
+        q_n,
+        rho * u_point,
+        u_point,
+        weight,
+        geo.assumption,
+        radii,
     )
 
 
@@ -827,18 +874,33 @@ def _along(flint: Any, c: np.ndarray) -> Any:
 
 
 def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any) -> DistributedDelay | None:
-    """``line(nu / tau) / tau`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
-    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``."""
+    """``line(nu / T) / T`` on ``[0, tau]`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
+    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``.
+
+    The pieces expand the midpoint polynomial of ``line``: its distance ``sum_k delta_k V^k / T`` to ``line``'s
+    (``|delta_k|`` at most the radius of the coefficient ``k``, ``0 <= V = nu / T <= r = max(1, tau / T)``) is at
+    most ``sum_k |delta_k| r^k / T`` in sup and in total variation (each ``V^k`` increases), added to both bounds:
+    the radii of ``R``, ``u_weight`` and the models cannot then keep the pieces from double precision.
+    """
     arb, arb_poly = flint.arb, flint.arb_poly
-    series = line(arb_poly([0, 1 / T])) * (1 / T)
+    tau = float(T.mid())
+    coeffs = line.coeffs()
+    reach = arb.max(arb(1), arb(tau) / T)
+    spread = sum((arb(c.rad()) * reach**k for k, c in enumerate(coeffs)), arb(0)) / T
+    sup_err, var_err = sup_err + spread, var_err + spread
+    series = arb_poly([arb(c.mid()) for c in coeffs])(arb_poly([0, 1 / T])) * (1 / T)
     size = _poly_sup(flint, series(arb_poly([0, T])))
+    if not size.is_finite():
+        raise CertificationError(
+            "the kernel's size bound is not finite (its polynomial's coefficients overflow): the kernel route "
+            "(kernel_grid=...) gives a model of the PDE"
+        )
     if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + floor)):
         raise CertificationError(
             f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
-    tau = float(T.mid())
     pieces = 8
     while True:
         mant, expo = math.frexp(tau / pieces)
