@@ -1109,6 +1109,8 @@ class VaryingPDELoop:
     """
 
     DPS = 20
+    #: ``crossing_near`` stops at a secant step below ``10^-STEP_DIGITS``.
+    STEP_DIGITS = 2 * DPS - 8
 
     def __init__(
         self,
@@ -1209,7 +1211,9 @@ class VaryingPDELoop:
 
         with mp.workdps(self.DPS):
             try:
-                w = mp.findroot(g, mp.mpf(w0), tol=mp.mpf(10) ** (-2 * self.DPS + 8))
+                # the secant's second point near w0 (mpmath's default, w0 + 1/4, costs several more solves)
+                start = (mp.mpf(w0), mp.mpf(w0) * (1 + mp.mpf(10) ** -8) + mp.mpf(10) ** -8)
+                w = mp.findroot(g, start, tol=mp.mpf(10) ** -self.STEP_DIGITS)
             except (ValueError, ZeroDivisionError):
                 raise OracleUnsure(f"findroot did not settle near w = {w0}") from None
             if abs(w - w0) > 1e-6 * (1 + abs(w0)):
@@ -1285,6 +1289,9 @@ class VaryingSpeedPDELoop(VaryingPDELoop):
     """
 
     DPS = 25
+    #: Steps of about the values' 25 digits (the crossing's delay to 1e-20 or better): each step is an ODE
+    #: solve of about a second, and smaller steps only chase the rounding.
+    STEP_DIGITS = DPS - 3
 
     def __init__(
         self,

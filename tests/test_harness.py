@@ -1066,7 +1066,7 @@ def speed_factor(assumption: str) -> float:
     return float(found.group(1)) if found else 0.0
 
 
-@budget(ci=2, weight=0.05)
+@budget(ci=1, weight=0.05)
 @given(varying_speed_plants(), st.tuples(st.floats(-0.4, 1.0), st.floats(0.0, 25.0), st.floats(0.0, 25.0)))
 @example(
     (
@@ -1094,11 +1094,11 @@ def speed_factor(assumption: str) -> float:
             },
             0.7,
             0.4,
-            ("state", -0.3),
+            ("state", -0.6),
             time_unit=2.0,
         ),
-        nr.StateFeedback(-0.3),
-        "the fixed example: lam = 1.2 (1 + 0.4 x), mu = 0.8 e^{0.3 x}, L = 1.3, time_unit = 2, U = -0.3 u(t, L)",
+        nr.StateFeedback(-0.6),
+        "the fixed example: lam = 1.2 (1 + 0.4 x), mu = 0.8 e^{0.3 x}, L = 1.3, time_unit = 2, U = -0.6 u(t, L)",
     ),
     (-0.3, 4.0, 15.0),
 )
@@ -1107,7 +1107,8 @@ def _prop_varying_speeds(case: tuple, points: tuple[float, float, float]) -> Non
     plant, o, controller, what = case
     STATS.case()
     flint = pytest.importorskip("flint")
-    out = call(varying_proof, plant)
+    # a refusal after the largest kernel (4096 pieces) takes about 5 s of CPU: wall time on a loaded machine
+    out = call(varying_proof, plant, seconds=max(EXAMPLE_SECONDS, 60.0))
     if not settle(out, test, "varying_proof", what):
         return
     proof = out.value
@@ -1136,10 +1137,10 @@ def _prop_varying_speeds(case: tuple, points: tuple[float, float, float]) -> Non
     dm = out.value
     STATS.claim(dm.scope.startswith("the PDE itself"), test, f"delay_margin scope: {dm.scope!r}", what)
     out = call(nr.delay_margin, plant, controller, delta_max=20.0)
-    if not settle(out, test, "delay_margin", what) or not 0.0 < out.value.margin < math.inf:
+    if not settle(out, test, "delay_margin", what) or out.value.omega is None or not 0.0 < out.value.margin < 20.0:
         return
     found = unsure_guard(lambda: o.crossing_near(out.value.omega))  # the PDE's crossing the float margin found
-    if found is None or dm.margin_ball is None:
+    if found is None or dm.margin_ball is None or found[1] > 20.0:
         return
     lo, hi = dm.margin_ball
     slack = ulps(hi) + (1e-15 + factor) * (1 + found[1])  # the rounded tau and gains, the speeds' factor
