@@ -57,6 +57,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import Any
 
 import mpmath as mp
 import numpy as np
@@ -1108,6 +1109,8 @@ class VaryingPDELoop:
     """
 
     DPS = 20
+    #: ``crossing_near`` stops at a secant step below ``10^-STEP_DIGITS``.
+    STEP_DIGITS = 2 * DPS - 8
 
     def __init__(
         self,
@@ -1208,7 +1211,9 @@ class VaryingPDELoop:
 
         with mp.workdps(self.DPS):
             try:
-                w = mp.findroot(g, mp.mpf(w0), tol=mp.mpf(10) ** (-2 * self.DPS + 8))
+                # the secant's second point near w0 (mpmath's default, w0 + 1/4, costs several more solves)
+                start = (mp.mpf(w0), mp.mpf(w0) * (1 + mp.mpf(10) ** -8) + mp.mpf(10) ** -8)
+                w = mp.findroot(g, start, tol=mp.mpf(10) ** -self.STEP_DIGITS)
             except (ValueError, ZeroDivisionError):
                 raise OracleUnsure(f"findroot did not settle near w = {w0}") from None
             if abs(w - w0) > 1e-6 * (1 + abs(w0)):
@@ -1237,6 +1242,128 @@ class VaryingPDELoop:
             A, B, _ = self.factors_mp(mp.mpc(0, wc))
             with mp.workdps(self.DPS):
                 out.append((wc, float(((-mp.arg(-A / B)) % (2 * mp.pi)) / wc)))
+        return out
+
+
+@dataclass(frozen=True)
+class Speed:
+    """A speed on ``[0, L]``: ``c0 (1 + e1 x + e2 x^2)`` (``kind == "poly"``) or ``c0 e^{e1 x}``
+    (``"exp"``), or another speed divided by ``ratio`` (``of`` that speed: a constant ratio). The same
+    formula as a callable for nrobust (numpy arrays and python-flint ``arb_series`` alike: only
+    arithmetic and ``np.exp``) and in mpmath for the oracle."""
+
+    kind: str
+    c0: float
+    e1: float = 0.0
+    e2: float = 0.0
+    of: Speed | None = None
+
+    def numpy(self) -> Callable[[Any], Any]:
+        c0, e1, e2 = self.c0, self.e1, self.e2
+        if self.of is not None:
+            base = self.of.numpy()
+            return lambda x: base(x) / c0
+        if self.kind == "exp":
+            return lambda x: c0 * np.exp(e1 * x)
+        return lambda x: c0 * (1.0 + e1 * x + e2 * x * x)
+
+    def mp(self, x):
+        c0, e1, e2 = (mp.mpf(v) for v in (self.c0, self.e1, self.e2))
+        if self.of is not None:
+            return self.of.mp(x) / c0
+        return c0 * mp.exp(e1 * x) if self.kind == "exp" else c0 * (1 + e1 * x + e2 * x * x)
+
+
+class VaryingSpeedPDELoop(VaryingPDELoop):
+    """:class:`VaryingPDELoop` with speeds ``lam(x)``, ``mu(x)`` that vary and a time unit.
+
+    The Laplace-domain equations of the plant as given, in its own ``x`` (no change of variable):
+    ``u_x = ((a - z) u + b v)/lam(x)``, ``v_x = ((z - d) v - c u)/mu(x)`` with ``z = s / time_unit``
+    (``s`` the Laplace variable in the plant's time unit, as nrobust's delays and frequencies), from
+    ``[u; v](0) = [q; 1]``; the normalisation ``w = e^{-z t_v - D(L)}`` with ``t_v = int_0^L 1/mu``,
+    ``D(L) = -int_0^L d/mu``, ``A(L) = int_0^L a/lam`` (``mpmath.quad``), so the principal part of
+    the open loop is ``1 - rho q e^{A(L) - D(L)} e^{-tau s}`` with
+    ``tau = (int_0^L 1/lam + 1/mu) / time_unit``: a characteristic leaves ``x = 0`` and returns after
+    ``t_u + t_v``, and ``u``, ``v`` gain ``e^{A}``, ``e^{-D}`` on the way. The loops closed by
+    ``B`` are those of :class:`VaryingPDELoop`. Values at ``DPS`` digits (``mpmath.odefun``).
+    """
+
+    DPS = 25
+    #: Steps of about the values' 25 digits (the crossing's delay to 1e-20 or better): each step is an ODE
+    #: solve of about a second, and smaller steps only chase the rounding.
+    STEP_DIGITS = DPS - 3
+
+    def __init__(
+        self,
+        lam: Speed,
+        mu: Speed,
+        length: float,
+        coefs: dict[str, Profile],
+        q: float,
+        rho: float,
+        controller: tuple,
+        q_normal: float | None = None,
+        time_unit: float = 1.0,
+    ) -> None:
+        self.lam_of, self.mu_of, self.time_unit = lam, mu, time_unit
+        self.L, self.coefs, self.q, self.rho = length, coefs, q, rho
+        self.controller, self.q_normal = controller, q if q_normal is None else q_normal
+        with mp.workdps(self.DPS + 10):
+            L = mp.mpf(length)
+            self.t_u = mp.quad(lambda x: 1 / lam.mp(x), [0, L])
+            self.t_v = mp.quad(lambda x: 1 / mu.mp(x), [0, L])
+            self.tau = float((self.t_u + self.t_v) / mp.mpf(time_unit))
+            self.A_L = mp.quad(lambda x: coefs["a"].mp(x) / lam.mp(x), [0, L])
+            self.D_L = -mp.quad(lambda x: coefs["d"].mp(x) / mu.mp(x), [0, L])
+            self.principal = mp.mpf(rho) * mp.mpf(q) * mp.exp(self.A_L - self.D_L)
+
+    def _end(self, s):
+        """``(w u(L), w v(L))`` at ``DPS`` digits, ``s`` in the plant's time unit."""
+        lam, mu, co = self.lam_of.mp, self.mu_of.mp, self.coefs
+        with mp.workdps(self.DPS + 5):
+            z = mp.mpc(s) / mp.mpf(self.time_unit)
+
+            def rhs(x, y):
+                return [
+                    ((co["a"].mp(x) - z) * y[0] + co["b"].mp(x) * y[1]) / lam(x),
+                    ((z - co["d"].mp(x)) * y[1] - co["c"].mp(x) * y[0]) / mu(x),
+                ]
+
+            u, v = mp.odefun(rhs, 0, [mp.mpf(self.q), mp.mpf(1)])(mp.mpf(self.L))
+            w = mp.exp(-z * self.t_v - self.D_L)
+            return w * u, w * v
+
+    def gap_np(self, w: np.ndarray) -> np.ndarray:
+        """``|A(i w)| - |B(i w)|`` in double precision (DOP853), one ODE per frequency."""
+        from scipy.integrate import solve_ivp
+
+        co = {k: p.numpy() for k, p in self.coefs.items()}
+        lam, mu = self.lam_of.numpy(), self.mu_of.numpy()
+        t_v, D_L, prin = float(self.t_v), float(self.D_L), float(self.principal)
+        out = np.empty(len(w))
+        for i, wi in enumerate(w):
+            s = 1j * wi
+            z = s / self.time_unit
+
+            def rhs(x: float, y: np.ndarray, z: complex = z) -> np.ndarray:
+                return np.array(
+                    [
+                        ((co["a"](x) - z) * y[0] + co["b"](x) * y[1]) / lam(x),
+                        ((z - co["d"](x)) * y[1] - co["c"](x) * y[0]) / mu(x),
+                    ]
+                )
+
+            sol = solve_ivp(
+                rhs, (0.0, self.L), np.array([self.q, 1.0], dtype=complex), "DOP853", rtol=1e-12, atol=1e-14
+            )
+            u, v = sol.y[:, -1] * np.exp(-z * t_v - D_L)
+            A = v - self.rho * u
+            kind = self.controller[0]
+            if kind == "reflection":
+                B = 1 - A + (self.controller[1] * self.q_normal - prin) * np.exp(-s * self.tau)
+            else:  # ("state", k): U = k u(t, L)
+                B = -self.controller[1] * u
+            out[i] = abs(A) - abs(B)
         return out
 
 

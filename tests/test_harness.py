@@ -20,6 +20,7 @@ from __future__ import annotations
 import inspect
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, is_dataclass
@@ -38,7 +39,9 @@ from _oracles import (
     OracleUnsure,
     PDELoop,
     Profile,
+    Speed,
     VaryingPDELoop,
+    VaryingSpeedPDELoop,
     chain_abscissa,
     chain_roots,
     count_in_box,
@@ -50,7 +53,7 @@ from _oracles import (
     transport_margin,
     z_roots,
 )
-from hypothesis import assume, given
+from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
 import nrobust as nr
@@ -1005,6 +1008,154 @@ def _prop_varying_plants(case: tuple, data: st.DataObject) -> None:
 def test_varying_plants_against_the_pde() -> None:
     """Proofs about plants with varying coefficients against the Laplace-domain ODE of the original plant."""
     run(_prop_varying_plants, "pde_varying")
+
+
+# ============================================================================ 4e. varying speeds (the PDE itself)
+@st.composite
+def speeds(draw: st.DrawFn, length: float) -> Speed:
+    """A speed on ``[0, L]``: ``c0 (1 + e1 x + e2 x^2)`` or ``c0 e^{e1 x}``, at least ``0.4 c0`` there."""
+    c0 = draw(st.floats(0.5, 3.0))
+    if draw(st.booleans()):
+        return Speed("exp", c0, draw(st.floats(-1.0, 1.0)) / length)
+    e1, e2 = draw(st.floats(-0.3, 1.0)), draw(st.just(0.0) | st.floats(-0.3, 0.6))
+    return Speed("poly", c0, e1 / length, e2 / length**2)
+
+
+@st.composite
+def varying_speed_plants(draw: st.DrawFn) -> tuple[Any, VaryingSpeedPDELoop, Any, str]:
+    """A general plant whose speeds vary (at a constant ratio or not) with varying ``a, b, c, d``, a
+    length and a time unit, closed by ``U = k u(t, L)`` or (constant ratio) U_BS2(K), ``K`` inside or
+    outside ``(1 - |rho~ q~|)/|q~|``; returned with its ODE oracle."""
+    length, time_unit = draw(st.floats(0.5, 2.0)), draw(st.floats(0.5, 3.0))
+    lam = draw(speeds(length))
+    mu = Speed("ratio", draw(st.floats(0.3, 3.0)), of=lam) if draw(st.booleans()) else draw(speeds(length))
+    coefs = {"a": draw(profiles(0.4)), "b": draw(profiles(1.5)), "c": draw(profiles(1.5)), "d": draw(profiles(0.4))}
+    q = draw(st.floats(0.1, 1.0) | st.floats(-1.0, -0.1))
+    rho = draw(st.floats(-1.0, 1.0))
+    plant = nr.GeneralHyperbolic2x2(
+        lam.numpy(),
+        mu.numpy(),
+        *(coefs[k].numpy() for k in "abcd"),
+        q,
+        rho,
+        length=length,  # type: ignore[arg-type]
+        time_unit=time_unit,
+    )
+    o = VaryingSpeedPDELoop(lam, mu, length, coefs, q, rho, ("open",), time_unit=time_unit)
+    principal = float(abs(o.principal))
+    assume(principal < 0.95)
+    if mu.of is not None and draw(st.booleans()):
+        o.q_normal = plant.normal_form().system.q  # K is read in the normal form's coordinates
+        f = draw(st.floats(-0.95, 0.95) | st.floats(1.05, 2.0) | st.floats(-2.0, -1.05))
+        spec: tuple = ("reflection", f * (1.0 - principal) / abs(o.q_normal))
+        controller: Any = ReflectionController(spec[1])
+    else:
+        spec = ("state", -rho + draw(st.floats(-0.3, 0.3)))
+        controller = nr.StateFeedback(spec[1])
+    o.controller = spec
+    what = (
+        f"GeneralHyperbolic2x2(lam={lam}, mu={mu}, {coefs}, q={q!r}, rho={rho!r}, length={length!r}, "
+        f"time_unit={time_unit!r}), {spec}"
+    )
+    return plant, o, controller, what
+
+
+def speed_factor(assumption: str) -> float:
+    """The bound on the factor of the speeds proven, from ``VaryingProof.assumption`` (0: none stated)."""
+    found = re.search(r"a factor within ([0-9.eE+-]+) of 1", assumption)
+    return float(found.group(1)) if found else 0.0
+
+
+@budget(ci=1, weight=0.05)
+@given(varying_speed_plants(), st.tuples(st.floats(-0.4, 1.0), st.floats(0.0, 25.0), st.floats(0.0, 25.0)))
+@example(
+    (
+        nr.GeneralHyperbolic2x2(
+            Speed("poly", 1.2, 0.4).numpy(),
+            Speed("exp", 0.8, 0.3).numpy(),
+            0.0,
+            Profile("exp", 0.8, 0.0, 0.5).numpy(),
+            Profile("sin", 0.5, 0.3, 2.0, 0.5).numpy(),
+            0.0,
+            0.7,
+            0.4,
+            length=1.3,
+            time_unit=2.0,
+        ),
+        VaryingSpeedPDELoop(
+            Speed("poly", 1.2, 0.4),
+            Speed("exp", 0.8, 0.3),
+            1.3,
+            {
+                "a": Profile("sin", 0.0),
+                "b": Profile("exp", 0.8, 0.0, 0.5),
+                "c": Profile("sin", 0.5, 0.3, 2.0, 0.5),
+                "d": Profile("sin", 0.0),
+            },
+            0.7,
+            0.4,
+            ("state", -0.6),
+            time_unit=2.0,
+        ),
+        nr.StateFeedback(-0.6),
+        "the fixed example: lam = 1.2 (1 + 0.4 x), mu = 0.8 e^{0.3 x}, L = 1.3, time_unit = 2, U = -0.6 u(t, L)",
+    ),
+    (-0.3, 4.0, 15.0),
+)
+def _prop_varying_speeds(case: tuple, points: tuple[float, float, float]) -> None:
+    test = "pde_varying_speeds"
+    plant, o, controller, what = case
+    STATS.case()
+    flint = pytest.importorskip("flint")
+    # a refusal after the largest kernel (4096 pieces) takes about 5 s of CPU: wall time on a loaded machine
+    out = call(varying_proof, plant, seconds=max(EXAMPLE_SECONDS, 60.0))
+    if not settle(out, test, "varying_proof", what):
+        return
+    proof = out.value
+    factor = speed_factor(proof.assumption)
+    for s in (complex(0.0, points[1]), complex(points[0], points[2])):  # on and off the imaginary axis
+        truth = unsure_guard(lambda s=s: o.factors_mp(s))
+        if truth is None:
+            continue
+        A, _, u = (complex(v) for v in truth)
+        # tau and the principal gains are doubles rounded from their values, the speeds proven are the
+        # plant's times a factor within `factor` of 1 (the scope says so): relative changes of the gains
+        # (a few ulps) and of the phases (|s| tau times the factor); the ODE's 25 digits
+        grow = math.exp(o.tau * max(0.0, -s.real))
+        slack = (1e-20 + 8 * 2.0**-52 * (1 + abs(s) * o.tau) + abs(s) * o.tau * factor) * (2 + abs(A) + abs(u)) * grow
+        for name, F, value in (("open loop", proof.characteristic, A), ("u(L, s)", proof.u_factor, u)):
+            ball = ball_eval(F, flint.acb(s.real, s.imag))
+            STATS.claim(
+                _inside_ball(ball, value, slack), test, f"{name} at s = {s!r}: ball {ball} misses {value!r}", what
+            )
+    if loop_route(plant, controller) != "exact":
+        STATS.refusal(test)
+        return
+    out = call(nr.delay_margin, plant, controller, delta_max=20.0, rigorous=True)
+    if not settle(out, test, "delay_margin(rigorous=True)", what):
+        return
+    dm = out.value
+    STATS.claim(dm.scope.startswith("the PDE itself"), test, f"delay_margin scope: {dm.scope!r}", what)
+    out = call(nr.delay_margin, plant, controller, delta_max=20.0)
+    if not settle(out, test, "delay_margin", what) or out.value.omega is None or not 0.0 < out.value.margin < 20.0:
+        return
+    found = unsure_guard(lambda: o.crossing_near(out.value.omega))  # the PDE's crossing the float margin found
+    if found is None or dm.margin_ball is None or found[1] > 20.0:
+        return
+    lo, hi = dm.margin_ball
+    slack = ulps(hi) + (1e-15 + factor) * (1 + found[1])  # the rounded tau and gains, the speeds' factor
+    STATS.claim(
+        lo - slack <= found[1] <= hi + slack,
+        test,
+        f"delay_margin: ball {dm.margin_ball} misses the PDE's crossing delay {found[1]!r} at w = {found[0]!r} "
+        f"(float margin {out.value.margin!r})",
+        what,
+    )
+
+
+def test_varying_speeds_against_the_pde() -> None:
+    """Proofs about plants whose speeds and coefficients vary against the Laplace-domain ODE of the plant."""
+    run(_prop_varying_speeds, "pde_varying_speeds")
 
 
 # ============================================================================ 5. bad input
