@@ -51,7 +51,15 @@ from ..._flint import precision
 from ...errors import CertificationError
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["KernelEnclosure", "inverse_kernel_enclosure", "kernel_enclosure"]
+__all__ = [
+    "KernelEnclosure",
+    "ResponsePieces",
+    "dual_enclosures",
+    "inverse_kernel_enclosure",
+    "kernel_enclosure",
+    "polynomial_integral",
+    "response_pieces",
+]
 
 #: Degrees tried for the kernels' Taylor polynomials, and working precisions (bits) tried at each: the
 #: recursion cancels (alternating sweeps), so the balls need far more bits than the result keeps. Measured at
@@ -78,6 +86,8 @@ class KernelEnclosure:
     error : Any
         An ``arb`` upper bound of the largest distance on ``T`` between a kernel and its polynomial
         (any polynomial with coefficients in the balls).
+    slope : Any
+        An ``arb`` upper bound of the partial derivatives of that distance on ``T``.
     degree : int
         The polynomials' degree.
     bits : int
@@ -86,6 +96,7 @@ class KernelEnclosure:
 
     coefficients: dict[str, dict[tuple[int, int], Any]]
     error: Any
+    slope: Any
     degree: int
     bits: int
 
@@ -114,8 +125,9 @@ class _Pair:
     partner: int
 
 
-def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[dict], list[dict], Any]:
-    """The Taylor coefficients of the ``A_p`` and ``B_p`` up to ``degree`` and the bound of the remainder."""
+def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[dict], list[dict], Any, Any]:
+    """The Taylor coefficients of the ``A_p`` and ``B_p`` up to ``degree``, the bound of the remainder and of its
+    first partial derivatives."""
     arb = flint.arb
     A: list[dict[tuple[int, int], Any]] = [{}, {}]
     B: list[dict[tuple[int, int], Any]] = [{}, {}]
@@ -150,12 +162,30 @@ def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[di
         rate = arb.max(rate, arb.max(abs(pair.a), arb.max(abs(pair.b), abs(pair.r * pairs[pair.partner].b))))
         source = arb.max(source, arb.max(source_a[p], arb.max(source_b[p], abs(pair.r) * source_b[pair.partner])))
     growth = arb(1) if rate == 0 else (rate.exp() - 1) / rate
-    return A, B, arb((source * growth).upper())
+    error = arb((source * growth).upper())
+    # the x-derivatives of the error: the same system, sources differentiated, diagonal data
+    # E_{B,x}(x, x) = (b E_A + S_B) / (1 + kappa) (module notes, "The derivatives")
+    def top_slope(table: dict[tuple[int, int], Any]) -> Any:
+        return sum((i * abs(table[(i, degree - i)]) for i in range(degree + 1)), arb(0))
+
+    diagonal = [(abs(pair.b) * error + source_b[p]) / (1 + pair.kappa) for p, pair in enumerate(pairs)]
+    slope_a = [abs(pair.a) * top_slope(B[p]) for p, pair in enumerate(pairs)]
+    slope_b = [abs(pair.b) * top_slope(A[p]) for p, pair in enumerate(pairs)]
+    start, slope_source = arb(0), arb(0)
+    for p, pair in enumerate(pairs):
+        start = arb.max(start, arb.max(diagonal[p], abs(pair.r) * diagonal[pair.partner]))
+        slope_source = arb.max(slope_source, arb.max(slope_a[p], arb.max(slope_b[p], abs(pair.r) * slope_b[pair.partner])))
+    along_x = (start + slope_source) * rate.exp()
+    slope = along_x
+    for p, pair in enumerate(pairs):
+        slope = arb.max(slope, along_x + abs(pair.a) * error + source_a[p])
+        slope = arb.max(slope, (along_x + abs(pair.b) * error + source_b[p]) / pair.kappa)
+    return A, B, error, arb(slope.upper())
 
 
 def _enclosed(
     flint: Any, pairs_of: Callable[[], tuple[_Pair, _Pair]]
-) -> tuple[list[dict], list[dict], Any, int, int]:
+) -> tuple[list[dict], list[dict], Any, Any, int, int]:
     """:func:`_solve` of the pairs ``pairs_of()`` (built at the working precision) at the first degree of :data:`DEGREES` and precision of :data:`PRECISIONS` whose remainder
     bound is below :data:`TARGET` (a higher precision is tried while it lowers the bound by 4 at least); a
     :class:`CertificationError` when none is."""
@@ -164,9 +194,9 @@ def _enclosed(
         previous = None
         for bits in PRECISIONS:
             with precision(flint, bits):
-                A, B, error = _solve(flint, pairs_of(), degree)
-            if error < TARGET:
-                return A, B, error, degree, bits
+                A, B, error, slope = _solve(flint, pairs_of(), degree)
+            if error < TARGET and slope < TARGET:
+                return A, B, error, slope, degree, bits
             if best is None or error < best:
                 best = error
             if previous is not None and not error < previous / 4:
@@ -204,8 +234,8 @@ def kernel_enclosure(flint: Any, system: Hyperbolic2x2) -> KernelEnclosure:
             _Pair(spm / mu, smp / mu, lam / mu, -smp / (lam + mu), lam * q / mu, 1),
         )
 
-    A, B, error, degree, bits = _enclosed(flint, pairs)
-    return KernelEnclosure({"uu": A[0], "uv": B[0], "vu": B[1], "vv": A[1]}, error, degree, bits)
+    A, B, error, slope, degree, bits = _enclosed(flint, pairs)
+    return KernelEnclosure({"uu": A[0], "uv": B[0], "vu": B[1], "vv": A[1]}, error, slope, degree, bits)
 
 
 def inverse_kernel_enclosure(flint: Any, system: Hyperbolic2x2) -> KernelEnclosure:
@@ -225,8 +255,8 @@ def inverse_kernel_enclosure(flint: Any, system: Hyperbolic2x2) -> KernelEnclosu
             _Pair(-smp / mu, spm / lam, mu / lam, spm / (lam + mu), lam * q / mu, 0),
         )
 
-    A, B, error, degree, bits = _enclosed(flint, pairs)
-    return KernelEnclosure({"uu": A[0], "vu": B[0], "uv": B[1], "vv": A[1]}, error, degree, bits)
+    A, B, error, slope, degree, bits = _enclosed(flint, pairs)
+    return KernelEnclosure({"uu": A[0], "vu": B[0], "uv": B[1], "vv": A[1]}, error, slope, degree, bits)
 
 
 def _sum_abs(flint: Any, values: Any) -> Any:
@@ -246,14 +276,17 @@ class ResponsePieces:
         On ``[t_j, t_{j+1}]`` an ``arb_poly`` in ``nu - t_j``.
     error : Any
         An ``arb`` bound of ``|c - piece|`` on every piece.
+    slope : Any
+        An ``arb`` bound of the derivative of ``c - piece`` on every piece.
     """
 
     breaks: tuple[Any, ...]
     pieces: tuple[Any, ...]
     error: Any
+    slope: Any
 
 
-def _integral(flint: Any, P: Any, Q: Any, alpha: Any, w: Any, lo: Any, hi: Any) -> Any:
+def polynomial_integral(flint: Any, P: Any, Q: Any, alpha: Any, w: Any, lo: Any, hi: Any) -> Any:
     """``u -> int_{lo(u)}^{hi(u)} P(xi) Q(alpha xi + w(u)) dxi`` (``lo``, ``hi``, ``w``: polynomials in ``u``).
 
     ``Q(alpha xi + w) = sum_k (alpha xi)^k Q_k(w)`` with ``Q_k`` the ``k``-th Taylor coefficient of ``Q``, and
@@ -325,6 +358,26 @@ def response_pieces(flint: Any, system: Hyperbolic2x2, K: float) -> ResponsePiec
             + (2 + abs(q_dual)) * e_integral
             + abs(k) * arb.max(arb(1), abs(q)) * e_L
         )
+        # the derivatives' errors: F' = f' - K'(xi, xi) f - int K'_x f, and d/dt of each term of c (module notes)
+        e_df = plant.slope * (1 + abs(reflected))
+        size_df = arb.max(_sum_abs(flint, f_a.derivative().coeffs()), _sum_abs(flint, f_b.derivative().coeffs()))
+        e_dF = e_df + 4 * (size_K * e_f + K_dual.error * (size_f + e_f) + K_dual.slope * (size_f + e_f))
+        e_dF += 2 * _sum_abs(flint, (i * abs(c) for name in NAMES for (i, _), c in K_dual.coefficients[name].items())) * e_f
+        size_dF = arb.max(_sum_abs(flint, F_a.derivative().coeffs()), _sum_abs(flint, F_b.derivative().coeffs()))
+        size_dL = arb.max(_sum_abs(flint, L_aa.derivative().coeffs()), _sum_abs(flint, L_ab.derivative().coeffs()))
+        e_dL = L_dual.slope
+        e_d_integral = arb.max(e_dL * (size_F + e_F) + size_dL * e_F, e_L * (size_dF + e_dF) + size_L * e_dF)
+        speed = arb.max(lam, mu)
+        slope = (
+            mu
+            * speed
+            * (
+                (1 + abs(q_dual)) * e_dF
+                + (3 + 2 * abs(q_dual)) * e_integral
+                + (2 + abs(q_dual)) * e_d_integral
+                + abs(k) * (1 + abs(q)) * e_dL
+            )
+        )
         t_u, t_v = 1 / lam, 1 / mu
         tau = t_u + t_v
         ends = sorted({0.0, 1.0 / system.lam, 1.0 / system.mu, system.tau})
@@ -336,20 +389,20 @@ def response_pieces(flint: Any, system: Hyperbolic2x2, K: float) -> ResponsePiec
             t = arb_poly([start, 1])  # nu = start + u
             if middle < 1.0 / system.mu:
                 total = F_a(1 - mu * t)
-                total += _integral(flint, L_aa, F_a, arb(1), -mu * t, mu * t, one)
+                total += polynomial_integral(flint, L_aa, F_a, arb(1), -mu * t, mu * t, one)
                 upper = mu * t
             else:
                 total = q_dual * F_b(lam * (t - t_v))
                 upper = one
             lower = mu * (t - t_u) if middle > 1.0 / system.lam else zero
-            total += q_dual * _integral(flint, L_aa, F_b, -lam / mu, lam * t, lower, upper)
+            total += q_dual * polynomial_integral(flint, L_aa, F_b, -lam / mu, lam * t, lower, upper)
             if middle < 1.0 / system.lam:
-                total += _integral(flint, L_ab, F_b, arb(1), lam * t, zero, 1 - lam * t)
+                total += polynomial_integral(flint, L_ab, F_b, arb(1), lam * t, zero, 1 - lam * t)
                 total -= k * L_ab(1 - lam * t)
             else:
                 total -= q * k * L_aa(mu * (t - t_u))
             pieces.append(-mu * total)
-    return ResponsePieces(tuple(breaks), tuple(pieces), arb(error.upper()))
+    return ResponsePieces(tuple(breaks), tuple(pieces), arb(error.upper()), arb(slope.upper()))
 
 
 def dual_enclosures(flint: Any, system: Hyperbolic2x2) -> tuple[KernelEnclosure, KernelEnclosure]:

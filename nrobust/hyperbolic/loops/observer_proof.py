@@ -121,6 +121,7 @@ from .exact_form import (
     gain_balls,
     has_exact_form,
 )
+from .collocated_proof import polynomial_integral, response_pieces
 from .exact_gains import gain_plant, window_series
 
 __all__ = [
@@ -132,6 +133,7 @@ __all__ = [
     "proven_collocated_products",
     "proven_observer_failure",
     "proven_observer_term",
+    "proven_response_product",
     "proof_window",
     "window",
 ]
@@ -640,9 +642,8 @@ def _collocated_attempt(system: Hyperbolic2x2) -> ProvenCollocatedProducts | str
     return _in_balls(system, lambda flint: _collocated_enclose(flint, system))
 
 
-def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
-    """:func:`proven_collocated_products` at the working precision."""
-    poly = _Poly(flint)
+def _closed_forms(flint: Any, system: Hyperbolic2x2) -> tuple[float, tuple[Any, ...], tuple[Any, ...]]:
+    """``tau`` and ``1 - Phi``, ``u_factor`` as ``(c_0, c_tau, S, b, b')`` (:func:`_proven_product`)."""
     arb = flint.arb
     tau, _, _, q, rho, _ = closed_form_parameters(system)
     p_ratio, m_ratio, _ = exact_ratios(system)
@@ -652,6 +653,13 @@ def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedPr
     _, rho_q, q_ball = gain_balls(system)
     open_loop = (arb(1), -rho_q, *closed_form_series(flint, T, P, M, ("N", q, rho)))
     u_factor = (arb(0), q_ball, *closed_form_series(flint, T, P, M, ("U", q, rho)))
+    return tau, open_loop, u_factor
+
+
+def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
+    """:func:`proven_collocated_products` at the working precision."""
+    poly = _Poly(flint)
+    tau, open_loop, u_factor = _closed_forms(flint, system)
     return ProvenCollocatedProducts(
         _proven_product(flint, poly, tau, open_loop, u_factor), _proven_product(flint, poly, tau, u_factor, u_factor)
     )
@@ -691,3 +699,73 @@ def _proven_product(flint: Any, poly: _Poly, tau: float, f: tuple[Any, ...], g: 
         points.append((np.array([mid]), delay))
         radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
     return QuasiPolynomial.from_parts(points, terms, radii or None)
+
+
+def proven_response_product(system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
+    """``G = (1 - Phi) C_u`` of the collocated observer under U_BS2(K) (``K = rho``: U_BS), proven.
+
+    ``C_u = -K q e^{-tau s} + int_0^tau c e^{-nu s}`` with ``c`` from the kernels' proven enclosures
+    (:func:`~nrobust.hyperbolic.loops.collocated_proof.response_pieces`), ``1 - Phi`` the closed form; the
+    kernel of ``G`` is ``c(nu) - rho q c(nu - tau) - K q S(nu - tau) + (S * c)(nu)`` on the pieces between
+    ``t_j`` and ``t_j + tau`` (``t_j`` the ends of ``c``'s pieces), stored as :func:`_store` stores the others.
+
+    Raises
+    ------
+    CertificationError
+        No ball arithmetic, an end of a piece that is not a double, or a bound not reached.
+    """
+    out = _in_balls(system, lambda flint: _response_enclose(flint, system, float(K)))
+    if isinstance(out, str):
+        raise CertificationError(f"proven_response_product: {out}; the collocated observer's terms are a model")
+    return out
+
+
+def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
+    """:func:`proven_response_product` at the working precision."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    poly = _Poly(flint)
+    tau, (c0, ct, S, b, db), _ = _closed_forms(flint, system)
+    response = response_pieces(flint, system, K)
+    ends = [float(t.mid()) for t in response.breaks]
+    if any(not t.is_exact() for t in response.breaks) or ends[-1] != tau:
+        raise CertificationError("an end of the command response's pieces is not a double")
+    e, de = response.error, response.slope
+    T = arb(tau)
+    s_sup, ds_sup = poly.sup(S, T), poly.sup(S.derivative(), T)
+    c_sup = arb(0)
+    for lo, hi, piece in zip(ends[:-1], ends[1:], response.pieces, strict=True):
+        c_sup = arb.max(c_sup, poly.sup(piece, arb(hi) - arb(lo)))
+    kq = -arb(K) * arb(float(system.q))
+    conv_err = T * (b * (c_sup + e) + s_sup * e)
+    conv_slope = 2 * (b * (c_sup + e) + s_sup * e) + T * (db * (c_sup + e) + ds_sup * e)
+    sup_err = e + abs(ct) * e + abs(kq) * b + conv_err
+    slope = de + abs(ct) * de + abs(kq) * db + conv_slope
+    cuts = sorted({*ends, *(t + tau for t in ends)})
+    if any(t + tau - tau != t for t in ends):
+        raise CertificationError("an end of the product's pieces is not a double")
+    terms = []
+    for lo, hi in itertools.pairwise(cuts):
+        middle = 0.5 * (lo + hi)
+        u = arb_poly([arb(0), arb(1)])
+        kernel = arb_poly([0])
+        for j, piece in enumerate(response.pieces):
+            start, stop = ends[j], ends[j + 1]
+            if start <= middle - tau < stop:
+                kernel += piece(u + (arb(lo) - arb(tau) - arb(start))) * ct
+            if start <= middle < stop:
+                kernel += piece(u + (arb(lo) - arb(start))) * c0
+            if middle - stop >= tau or middle - start <= 0.0:
+                continue
+            lower = arb_poly([0]) if middle - stop <= 0.0 else u + (arb(lo) - arb(stop))
+            upper = arb_poly([T]) if middle - start >= tau else u + (arb(lo) - arb(start))
+            kernel += polynomial_integral(flint, S, piece, arb(-1), u + (arb(lo) - arb(start)), lower, upper)
+        if middle > tau:
+            kernel += S(u + (arb(lo) - T)) * kq
+        terms.append(_store(flint, kernel, lo, hi, tau, sup_err, slope))
+    points, radii = [], []
+    for value, delay in ((c0 * kq, tau), (ct * kq, 2.0 * tau)):
+        mid = float(value.mid())
+        gap = abs(value - arb(mid))
+        points.append((np.array([mid]), delay))
+        radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
+    return QuasiPolynomial.from_parts(points, terms, radii)
