@@ -79,6 +79,8 @@ from .feedback import feedback_factor
 from .observer_proof import (
     proof_window,
     proven_collocated_failure,
+    proven_response_failure,
+    proven_response_product,
     proven_collocated_products,
     proven_observer_failure,
     proven_observer_term,
@@ -632,7 +634,27 @@ def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
     (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
     """
-    return _proven_law(system, controller.controller)
+    inner = controller.controller
+    if isinstance(inner, (FiniteTimeController, ReflectionController)):
+        return _proven_response(system, controller) is not None
+    return _proven_law(system, inner)
+
+
+def _proven_response(system: Any, controller: CollocatedOutputFeedback) -> float | None:
+    """``K`` of U_BS2(K) (``rho`` for U_BS) when the collocated observer's ``G = (1 - Phi) C_u`` is enclosed with a
+    proven error (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`: a coupled
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings, the observer keeping no
+    reflection); None otherwise."""
+    inner = controller.controller
+    if controller.observer_reflection != 0.0 or _uncoupled(system):
+        return None
+    if isinstance(inner, ReflectionController):
+        K = float(inner.K)
+    elif isinstance(inner, FiniteTimeController):
+        K = float(system.rho)
+    else:
+        return None
+    return K if proven_response_failure(system, K) is None else None
 
 
 def _proven_law(system: Any, law: Controller) -> bool:
@@ -862,6 +884,18 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
     if _exact_collocated(system, controller):
         exact = "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s}"
         return inner + exact + (", and its reflection's factor 1 - kappa q e^{-tau s})" if kappa else ")")
+    if grid is None and _proven_response(system, controller) is not None:
+        K = _proven_response(system, controller)
+        assert K is not None
+        radius = max(d.radius for d in proven_response_product(system, K).distributed)
+        law = loop_factors(system, controller.controller, None)
+        closed = max((d.radius for f in law for d in f.distributed), default=0.0)
+        return (
+            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(closed, 2)}; the collocated "
+            "observer's command response C_u from the plant's and the dual plant's kernels as Taylor polynomials "
+            "with proven remainders, its product with 1 - Phi enclosed in ball arithmetic within a proven "
+            f"{upper_bound_text(radius, 2)}, which every enclosure includes; {_given(system, controller, kernel_grid)})"
+        )
     if grid is None and _proven_collocated(system, controller):
         products = proven_collocated_products(system)
         terms = products.open_loop_product.distributed + (products.square.distributed if kappa else ())
@@ -987,9 +1021,13 @@ def _collocated_loop(
         k = unfiltered(inner).feedback_law(system).boundary_gain
         open_loop = loop_factors(system, OpenLoop(), grid)[0]
         G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
-    elif grid is None and _proven_collocated(system, controller):  # C_u = k u_factor (module notes of collocated)
-        assert isinstance(inner, StateFeedback)
-        G = proven_collocated_products(system).open_loop_product * float(inner.k)
+    elif grid is None and _proven_collocated(system, controller):
+        K = _proven_response(system, controller)
+        if K is not None:  # C_u from the kernels' proven enclosures (module notes of collocated_proof)
+            G = proven_response_product(system, K)
+        else:  # C_u = k u_factor (module notes of collocated)
+            assert isinstance(inner, StateFeedback)
+            G = proven_collocated_products(system).open_loop_product * float(inner.k)
     else:
         G = collocated_observer_of(system, controller, kernel_grid).product
     if controller.observer_reflection != 0.0:
@@ -1159,7 +1197,7 @@ def _collocated_points(
 
     A, B = (_reflected(rational(table), Fraction(controller.observer_reflection) * q, tau) for table in inner)
     law = controller.controller
-    k = Fraction(unfiltered(law).feedback_law(system).boundary_gain)
+    k = Fraction(_boundary_gain(system, unfiltered(law)))
     n = [Fraction(1), Fraction(law.a) / tau_ratio(system)] if isinstance(law, FilteredController) else [Fraction(1)]
     for t, g in ((tau, k * q), (tau + tau, -rho * q * k * q)):  # n G, by delay
         for j, c in enumerate(n):
@@ -1172,6 +1210,15 @@ def _collocated_points(
         return {t: [{"1": c} for c in cs] for t, cs in table.items()}
 
     return exact(A), exact(B)
+
+
+def _boundary_gain(system: Hyperbolic2x2, law: Controller) -> float:
+    """The boundary gain ``k`` of the unfiltered ``law`` (``-K`` for U_BS2(K), ``-rho`` for U_BS), without kernels."""
+    if isinstance(law, ReflectionController):
+        return -float(law.K)
+    if isinstance(law, FiniteTimeController):
+        return -float(system.rho)
+    return float(law.feedback_law(system).boundary_gain)
 
 
 def _reflected(table: dict[float, list[Fraction]], kappa_q: Fraction, tau: float) -> dict[float, list[Fraction]]:

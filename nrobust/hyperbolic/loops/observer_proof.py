@@ -133,6 +133,7 @@ __all__ = [
     "proven_collocated_products",
     "proven_observer_failure",
     "proven_observer_term",
+    "proven_response_failure",
     "proven_response_product",
     "proof_window",
     "window",
@@ -714,10 +715,26 @@ def proven_response_product(system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
     CertificationError
         No ball arithmetic, an end of a piece that is not a double, or a bound not reached.
     """
-    out = _in_balls(system, lambda flint: _response_enclose(flint, system, float(K)))
+    out = _response_attempt(system, float(K))
     if isinstance(out, str):
         raise CertificationError(f"proven_response_product: {out}; the collocated observer's terms are a model")
     return out
+
+
+def proven_response_failure(system: Any, K: float) -> str | None:
+    """Why :func:`proven_response_product` cannot enclose ``G`` for ``system`` and ``K`` (None when it can)."""
+    if not _collocated_covered(system):
+        return "a plant other than Hyperbolic2x2 with constant couplings"
+    if system.uncoupled:
+        return "an uncoupled plant (its collocated observer is exact)"
+    out = _response_attempt(system, float(K))
+    return out if isinstance(out, str) else None
+
+
+@lru_cache(maxsize=8)
+def _response_attempt(system: Hyperbolic2x2, K: float) -> QuasiPolynomial | str:
+    """:func:`proven_response_product`, or the reason it failed."""
+    return _in_balls(system, lambda flint: _response_enclose(flint, system, K))
 
 
 def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
