@@ -116,8 +116,10 @@ def test_a_low_degree_enclosure_holds_the_kernel_and_its_slope():
                 x, xi = mp.mpf(x), mp.mpf(xi)
                 worst = max(worst, abs(_at(poly, x, xi) - _at(truth[name], x, xi)))
                 for dx, dxi in ((1, 0), (0, 1)):
+
                     def d(t, dx=dx, dxi=dxi):
                         return {(i - dx, j - dxi): c * (i if dx else j) for (i, j), c in t.items() if (i if dx else j)}
+
                     worst_slope = max(worst_slope, abs(_at(d(poly), x, xi) - _at(d(truth[name]), x, xi)))
     assert 1e-10 < worst <= float(error.upper())
     assert worst_slope <= float(slope.upper())
@@ -183,7 +185,7 @@ def test_the_command_response_is_the_pdes(args, K):
             for j, piece in enumerate(response.pieces):
                 a, b = _mid(response.breaks[j]), _mid(response.breaks[j + 1])
                 c = [_mid(x) for x in piece.coeffs()]
-                total += mp.quad(lambda u, a=a, c=c: horner(c, u) * mp.exp(-(a + u) * s), [0, b - a])
+                total += mp.quad(lambda u, a=a, c=c, s=s: horner(c, u) * mp.exp(-(a + u) * s), [0, b - a])
             assert abs(total - pde.responses(s)[0]) < 1e-38
 
 

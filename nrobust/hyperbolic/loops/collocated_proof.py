@@ -39,12 +39,28 @@ the ``x``-range ``[0, x - xi]`` disjoint from ``A_p``'s own ``[x - xi, x]``), th
 ``C = max_p (|a_p|, |b_p|, |r_p b_{pi(p)}|)`` and ``S = max_p (sup |S_{A,p}|, sup |S_{B,p}|,
 |r_p| sup |S_{B,pi(p)}|)``, so (Gronwall) ``|E| <= S (e^C - 1) / C`` on ``T``. The sup of a homogeneous
 part on ``T`` is at most the sum of its coefficients' moduli.
+
+**The derivatives.** With constant couplings ``E_x`` solves the same system with the sources
+differentiated in ``x``; on the diagonal ``E_B(x, x) = 0`` and the transport equation give
+``E_{B,x} = (b E_A + S_B) / (1 + kappa)`` (bounded by the above), and the reflection holds for ``E_x``.
+The same characteristics give ``m_1(x) <= D + int_0^x (C m_1 + S_1)``, ``D`` the largest diagonal datum
+(times ``|r_p|`` for the reflected), ``S_1`` the sources' ``x``-derivatives (sums of ``i |c_ij|``), so
+``|E_x| <= (D + S_1) e^C``; then ``E_{A,xi} = a E_B + S_A - E_{A,x}`` and ``E_{B,xi} = (E_{B,x} - b E_A -
+S_B) / kappa`` from the transport equations.
+
+**The command response.** :func:`response_pieces` evaluates the formula of ``c`` (module notes of
+:mod:`~nrobust.hyperbolic.loops.collocated`) on each piece between ``0, 1/lam, 1/mu, tau`` with the
+polynomials: ``F = (I - K') f`` by exact integration of monomials, each integral over ``xi`` with
+limits linear in ``t`` by :func:`polynomial_integral`; the error of ``c`` and of its derivative follow from
+the remainders, the derivative bounds and the sums of the polynomials' coefficients (sup bounds on
+``[0, 1]``), every integral over an interval of length at most 1. A plant with ``q = 0`` is refused (the
+reflection ``K^{uu}(x, 0) = mu / (lam q) K^{uv}(x, 0)`` divides by ``q``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from ..._flint import precision
@@ -163,6 +179,7 @@ def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[di
         source = arb.max(source, arb.max(source_a[p], arb.max(source_b[p], abs(pair.r) * source_b[pair.partner])))
     growth = arb(1) if rate == 0 else (rate.exp() - 1) / rate
     error = arb((source * growth).upper())
+
     # the x-derivatives of the error: the same system, sources differentiated, diagonal data
     # E_{B,x}(x, x) = (b E_A + S_B) / (1 + kappa) (module notes, "The derivatives")
     def top_slope(table: dict[tuple[int, int], Any]) -> Any:
@@ -174,7 +191,9 @@ def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[di
     start, slope_source = arb(0), arb(0)
     for p, pair in enumerate(pairs):
         start = arb.max(start, arb.max(diagonal[p], abs(pair.r) * diagonal[pair.partner]))
-        slope_source = arb.max(slope_source, arb.max(slope_a[p], arb.max(slope_b[p], abs(pair.r) * slope_b[pair.partner])))
+        slope_source = arb.max(
+            slope_source, arb.max(slope_a[p], arb.max(slope_b[p], abs(pair.r) * slope_b[pair.partner]))
+        )
     along_x = (start + slope_source) * rate.exp()
     slope = along_x
     for p, pair in enumerate(pairs):
@@ -186,8 +205,9 @@ def _solve(flint: Any, pairs: tuple[_Pair, _Pair], degree: int) -> tuple[list[di
 def _enclosed(
     flint: Any, pairs_of: Callable[[], tuple[_Pair, _Pair]]
 ) -> tuple[list[dict], list[dict], Any, Any, int, int]:
-    """:func:`_solve` of the pairs ``pairs_of()`` (built at the working precision) at the first degree of :data:`DEGREES` and precision of :data:`PRECISIONS` whose remainder
-    bound is below :data:`TARGET` (a higher precision is tried while it lowers the bound by 4 at least); a
+    """:func:`_solve` of the pairs ``pairs_of()`` (built at the working precision) at the first degree of
+    :data:`DEGREES` and precision of :data:`PRECISIONS` whose remainder bound and slope bound are below
+    :data:`TARGET` (a higher precision is tried while it lowers the bound by 4 at least); a
     :class:`CertificationError` when none is."""
     best = None
     for degree in DEGREES:
@@ -209,7 +229,7 @@ def _enclosed(
 
 
 def _constants(flint: Any, system: Hyperbolic2x2) -> tuple[Any, ...]:
-    """The plant's constants as balls; a :class:`CertificationError` unless the couplings are constant and ``q != 0``."""
+    """The plant's constants as balls; a :class:`CertificationError` unless its couplings are constant and ``q != 0``."""
     if not isinstance(system, Hyperbolic2x2) or callable(system.sigma_pm) or callable(system.sigma_mp):
         raise CertificationError("the kernels are enclosed for a Hyperbolic2x2 with constant couplings only")
     if system.q == 0.0:
@@ -354,15 +374,14 @@ def response_pieces(flint: Any, system: Hyperbolic2x2, K: float) -> ResponsePiec
         e_L = L_dual.error
         e_integral = size_L * e_F + e_L * (size_F + e_F)
         error = mu * (
-            arb.max(arb(1), abs(q_dual)) * e_F
-            + (2 + abs(q_dual)) * e_integral
-            + abs(k) * arb.max(arb(1), abs(q)) * e_L
+            arb.max(arb(1), abs(q_dual)) * e_F + (2 + abs(q_dual)) * e_integral + abs(k) * arb.max(arb(1), abs(q)) * e_L
         )
         # the derivatives' errors: F' = f' - K'(xi, xi) f - int K'_x f, and d/dt of each term of c (module notes)
         e_df = plant.slope * (1 + abs(reflected))
-        size_df = arb.max(_sum_abs(flint, f_a.derivative().coeffs()), _sum_abs(flint, f_b.derivative().coeffs()))
         e_dF = e_df + 4 * (size_K * e_f + K_dual.error * (size_f + e_f) + K_dual.slope * (size_f + e_f))
-        e_dF += 2 * _sum_abs(flint, (i * abs(c) for name in NAMES for (i, _), c in K_dual.coefficients[name].items())) * e_f
+        e_dF += (
+            2 * _sum_abs(flint, (i * abs(c) for name in NAMES for (i, _), c in K_dual.coefficients[name].items())) * e_f
+        )
         size_dF = arb.max(_sum_abs(flint, F_a.derivative().coeffs()), _sum_abs(flint, F_b.derivative().coeffs()))
         size_dL = arb.max(_sum_abs(flint, L_aa.derivative().coeffs()), _sum_abs(flint, L_ab.derivative().coeffs()))
         e_dL = L_dual.slope
@@ -407,5 +426,7 @@ def response_pieces(flint: Any, system: Hyperbolic2x2, K: float) -> ResponsePiec
 
 def dual_enclosures(flint: Any, system: Hyperbolic2x2) -> tuple[KernelEnclosure, KernelEnclosure]:
     """``K'`` and ``L'`` of the dual plant ``Hyperbolic2x2(mu, lam, sigma^{+-}, sigma^{-+}, lam q / mu, 0)``."""
-    dual = Hyperbolic2x2(system.mu, system.lam, system.sigma_pm, system.sigma_mp, system.lam * system.q / system.mu, 0.0)
+    dual = Hyperbolic2x2(
+        system.mu, system.lam, system.sigma_pm, system.sigma_mp, system.lam * system.q / system.mu, 0.0
+    )
     return kernel_enclosure(flint, dual), inverse_kernel_enclosure(flint, dual)

@@ -79,11 +79,11 @@ from .feedback import feedback_factor
 from .observer_proof import (
     proof_window,
     proven_collocated_failure,
-    proven_response_failure,
-    proven_response_product,
     proven_collocated_products,
     proven_observer_failure,
     proven_observer_term,
+    proven_response_failure,
+    proven_response_product,
 )
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
@@ -586,7 +586,9 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     ``"exact"`` on an uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
     integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
     products enclosed in ball arithmetic:
-    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`). ``"observer"``: an output
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`) or under U_BS2(K) and U_BS with
+    an observer keeping no reflection (``C_u`` from the kernels' proven Taylor enclosures:
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`). ``"observer"``: an output
     feedback whose state feedback takes the exact route and whose observer term is computed in floating
     point with an estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`,
     :mod:`~nrobust.hyperbolic.loops.collocated`), so the loop is a model.
@@ -627,12 +629,13 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
 
 
 def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
-    """True when the collocated observer's terms on a coupled plant are closed forms enclosed in ball arithmetic.
+    """True when the collocated observer's terms on a coupled plant are enclosed in ball arithmetic.
 
     A :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings under
     ``StateFeedback(k)`` without integral gains: ``C_u = k u_factor`` and ``H_y = u_factor``
     (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
-    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`); under U_BS2(K) or U_BS
+    (unfiltered, no observer reflection) ``G`` from the kernels' proven enclosures (:func:`_proven_response`).
     """
     inner = controller.controller
     if isinstance(inner, (FiniteTimeController, ReflectionController)):

@@ -113,6 +113,7 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .collocated_proof import polynomial_integral, response_pieces
 from .exact_form import (
     KAPPA_MAX,
     closed_form_parameters,
@@ -121,7 +122,6 @@ from .exact_form import (
     gain_balls,
     has_exact_form,
 )
-from .collocated_proof import polynomial_integral, response_pieces
 from .exact_gains import gain_plant, window_series
 
 __all__ = [
