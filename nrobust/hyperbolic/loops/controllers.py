@@ -586,8 +586,8 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     ``"exact"`` on an uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
     integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
     products enclosed in ball arithmetic:
-    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`) or under U_BS2(K) and U_BS with
-    an observer keeping no reflection (``C_u`` from the kernels' proven Taylor enclosures:
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`) or under U_BS2(K) and U_BS
+    without an observer delay (``C_u`` from the kernels' proven Taylor enclosures:
     :func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`). ``"observer"``: an output
     feedback whose state feedback takes the exact route and whose observer term is computed in floating
     point with an estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`,
@@ -635,7 +635,8 @@ def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
     ``StateFeedback(k)`` without integral gains: ``C_u = k u_factor`` and ``H_y = u_factor``
     (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
     (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`); under U_BS2(K) or U_BS
-    (unfiltered, no observer reflection) ``G`` from the kernels' proven enclosures (:func:`_proven_response`).
+    (unfiltered, no observer delay) ``G`` from the kernels' proven enclosures (:func:`_proven_response`), the
+    reflection's terms from ``u_factor`` and ``(1 - Phi) u_factor`` (:func:`observer_reflection_of`).
     """
     inner = controller.controller
     if isinstance(inner, (FiniteTimeController, ReflectionController)):
@@ -646,10 +647,10 @@ def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> boo
 def _proven_response(system: Any, controller: CollocatedOutputFeedback) -> float | None:
     """``K`` of U_BS2(K) (``rho`` for U_BS) when the collocated observer's ``G = (1 - Phi) C_u`` is enclosed with a
     proven error (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`: a coupled
-    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings, the observer keeping no
-    reflection); None otherwise."""
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings, the observer replaying
+    the commands undelayed); None otherwise."""
     inner = controller.controller
-    if controller.observer_reflection != 0.0 or _uncoupled(system):
+    if controller.observer_delay != 0.0 or _uncoupled(system):
         return None
     if isinstance(inner, ReflectionController):
         K = float(inner.K)
@@ -891,13 +892,17 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
         K = _proven_response(system, controller)
         assert K is not None
         radius = max(d.radius for d in proven_response_product(system, K).distributed)
+        if kappa:
+            radius = max(radius, observer_reflection_of(system, controller, kernel_grid).accuracy)
         law = loop_factors(system, controller.controller, None)
         closed = max((d.radius for f in law for d in f.distributed), default=0.0)
+        reflection = " and the reflection's H_y = u_factor in closed form" if kappa else ""
         return (
             f"the PDE itself (N~ in closed form within a proven {upper_bound_text(closed, 2)}; the collocated "
             "observer's command response C_u from the plant's and the dual plant's kernels as Taylor polynomials "
-            "with proven remainders, its product with 1 - Phi enclosed in ball arithmetic within a proven "
-            f"{upper_bound_text(radius, 2)}, which every enclosure includes; {_given(system, controller, kernel_grid)})"
+            f"with proven remainders{reflection}, their products with 1 - Phi{' and B~' if kappa else ''} enclosed "
+            f"in ball arithmetic within a proven {upper_bound_text(radius, 2)}, which every enclosure includes; "
+            f"{_given(system, controller, kernel_grid)})"
         )
     if grid is None and _proven_collocated(system, controller):
         products = proven_collocated_products(system)
@@ -1052,7 +1057,9 @@ def observer_reflection_of(
     (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant), or their
     proven bound where the terms are closed forms enclosed in ball arithmetic (``StateFeedback(k)`` on the
     exact route: ``H_y = u_factor``, ``B~ H_y = -k u_factor^2``,
-    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`; U_BS2(K) and U_BS on a coupled
+    plant: ``B~ = Phi + (K - rho) q e^{-tau s}``, so ``B~ H_y = u_factor - (1 - Phi) u_factor + (K - rho) q
+    e^{-tau s} u_factor``).
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
@@ -1071,6 +1078,23 @@ def _observer_reflection(system: Hyperbolic2x2, law: Controller, route_grid: int
         accuracy = max(d.radius for d in terms)
         law_product = products.square * -float(law.k)
         return ObserverReflection(exact_form(system).u_factor, products.open_loop_product, law_product, accuracy)
+    if (
+        route_grid is None
+        and isinstance(law, (FiniteTimeController, ReflectionController))
+        and not _uncoupled(system)
+        and proven_collocated_failure(system) is None
+    ):
+        # B~ = K q e^{-tau s} - I_N = Phi + (K - rho) q e^{-tau s} (delay form (39)), so B~ H_y = u_factor -
+        # (1 - Phi) u_factor + (K - rho) q e^{-tau s} u_factor: the proven product and u_factor shifted
+        u_factor = exact_form(system).u_factor
+        open_product = proven_collocated_products(system).open_loop_product
+        K = float(law.K) if isinstance(law, ReflectionController) else float(system.rho)
+        law_product = u_factor - open_product
+        if K != system.rho:
+            law_product = law_product + u_factor.shift(system.tau) * ((K - system.rho) * system.q)
+        terms = open_product.distributed + u_factor.distributed
+        accuracy = max(d.radius for d in terms)
+        return ObserverReflection(u_factor, open_product, law_product, accuracy)
     open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
     law_factor = loop_factors(system, law, route_grid)[1]
     return observer_reflection(system, open_loop, law_factor, _collocated_grid(route_grid))
