@@ -134,9 +134,11 @@ reads ``int K^{v.}(1, .) g``, a composition of the plant's kernels with the dual
 ``2 x 2`` exponential does not give: with constant couplings its ``c`` is built from the kernels ``K``, ``K'``
 and ``L'`` as Taylor polynomials with proven remainders (:mod:`~nrobust.hyperbolic.loops.collocated_proof`)
 and ``G`` enclosed in ball arithmetic
-(:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`), for an observer keeping no
-reflection and ends ``1/lam``, ``1/mu``, ``tau`` that are doubles; otherwise it is the kernel route's below.
-So is ``StateFeedback(k, g_u, g_v)``'s: its integral part reads the error state ``e^{-s/mu} W ((1 + g(1)_u) Phi(x) [q; 1] - phi_u g(x))``
+(:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`), for an observer replaying the
+commands undelayed and ends ``1/lam``, ``1/mu``, ``tau`` that are doubles (its reflection's ``B~ H_y`` is
+``u_factor - (1 - Phi) u_factor + (K - rho) q e^{-tau s} u_factor``, as ``B~ = Phi + (K - rho) q e^{-tau s}``);
+otherwise it is the kernel route's below. So is ``StateFeedback(k, g_u, g_v)``'s: its integral part reads the
+error state ``e^{-s/mu} W ((1 + g(1)_u) Phi(x) [q; 1] - phi_u g(x))``
 against ``g_u``, ``g_v``, and ``g(x)`` carries the observer's gains ``p_u``, ``p_v`` (the dual plant's kernels).
 
 :func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's

@@ -229,7 +229,7 @@ def _enclosed(
 
 
 def _constants(flint: Any, system: Hyperbolic2x2) -> tuple[Any, ...]:
-    """The plant's constants as balls; a :class:`CertificationError` unless its couplings are constant and ``q != 0``."""
+    """The plant's constants as balls; a :class:`CertificationError` unless its couplings are constant, ``q != 0``."""
     if not isinstance(system, Hyperbolic2x2) or callable(system.sigma_pm) or callable(system.sigma_mp):
         raise CertificationError("the kernels are enclosed for a Hyperbolic2x2 with constant couplings only")
     if system.q == 0.0:
