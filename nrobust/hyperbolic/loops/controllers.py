@@ -1427,7 +1427,12 @@ def characteristic(
     a, b = loop_factors(system, controller, kernel_grid)
     shifted = b.shift(delta)
     F = a + shifted
-    if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)) or not has_exact_form(system):
+    collocated = isinstance(controller, CollocatedOutputFeedback)
+    if (
+        isinstance(controller, OutputFeedback)
+        or (collocated and not _scaled_collocated(system, controller))
+        or not has_exact_form(system)
+    ):
         return F
     if a.exact_points and b.exact_points and not {t for _, t in a.point_terms} & {t for _, t in shifted.point_terms}:
         return F  # no coefficient summed: those of the exact factors

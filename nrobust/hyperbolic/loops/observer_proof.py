@@ -536,8 +536,15 @@ def _nodes(lo: float, hi: float, step: float) -> list[float] | None:
 
 def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slope: Any) -> DistributedDelay:
     """The interval's ``g^`` (in ``nu - lo``) as pieces of degree :data:`DEGREE` on equal segments, proven bounds."""
+    return _store_counted(flint, g, lo, hi, w, sup_err, slope, SEGMENTS)[0]
+
+
+def _store_counted(
+    flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slope: Any, segments: int
+) -> tuple[DistributedDelay, int]:
+    """:func:`_store` with ``segments`` per ``w`` at first (doubled until the pieces reach the target), and the
+    segments per ``w`` it took."""
     arb, arb_poly = flint.arb, flint.arb_poly
-    segments = SEGMENTS
     while segments <= MAX_SEGMENTS:
         mant, expo = math.frexp(w / segments)
         step = math.ldexp(math.floor(mant * 2**40) / 2**40, expo)
@@ -568,7 +575,7 @@ def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slo
     total = sum(errors, arb(0))
     radius = sup_err + largest
     variation = slope * (arb(hi) - arb(lo)) + 3 * total
-    return DistributedDelay(
+    term = DistributedDelay(
         np.asarray(nodes),
         None,
         interpolation="polynomial",
@@ -576,6 +583,7 @@ def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slo
         radius=math.nextafter(float(radius.upper()), math.inf),
         variation_radius=math.nextafter(float(variation.upper()), math.inf),
     )
+    return term, segments
 
 
 @dataclass(frozen=True)
@@ -738,7 +746,38 @@ def _response_attempt(system: Hyperbolic2x2, K: float) -> QuasiPolynomial | str:
 
 
 def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
-    """:func:`proven_response_product` at the working precision."""
+    """:func:`proven_response_product` at the working precision, its kernel stored on the segments of
+    :func:`_response_segments` at least (``G`` is affine in ``K``: the loops at two gains then share their nodes,
+    and their affine combinations cancel term by term where the loop does)."""
+    kernels, sup_err, slope, points = _response_kernels(flint, system, K)
+    segments = _response_segments(system)
+    terms = [
+        _store_counted(flint, kernel, lo, hi, system.tau, sup_err, slope, count)[0]
+        for (lo, hi, kernel), count in zip(kernels, segments, strict=True)
+    ]
+    return QuasiPolynomial.from_parts(points[0], terms, points[1])
+
+
+@lru_cache(maxsize=8)
+def _response_segments(system: Hyperbolic2x2) -> tuple[int, ...]:
+    """Per piece of ``G``'s kernel, the segments per ``tau`` that both ``K = 0`` and ``K = 1`` need."""
+    flint = require_flint()
+    counts = []
+    with precision(flint, _PRECISION):
+        zero, one = _response_kernels(flint, system, 0.0)[0], _response_kernels(flint, system, 1.0)[0]
+        zero_arb = flint.arb(0)
+        for (lo, hi, a), (_, _, b) in zip(zero, one, strict=True):
+            counts.append(
+                max(_store_counted(flint, g, lo, hi, system.tau, zero_arb, zero_arb, SEGMENTS)[1] for g in (a, b))
+            )
+    return tuple(counts)
+
+
+def _response_kernels(
+    flint: Any, system: Hyperbolic2x2, K: float
+) -> tuple[list[tuple[float, float, Any]], Any, Any, tuple[list, list]]:
+    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``), the bounds of its error and of its
+    derivative's, and its point terms with their radii (:func:`proven_response_product`)."""
     arb, arb_poly = flint.arb, flint.arb_poly
     poly = _Poly(flint)
     tau, (c0, ct, S, b, db), _ = _closed_forms(flint, system)
@@ -760,7 +799,7 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
     cuts = sorted({*ends, *(t + tau for t in ends)})
     if any(t + tau - tau != t for t in ends):
         raise CertificationError("an end of the product's pieces is not a double")
-    terms = []
+    kernels = []
     for lo, hi in itertools.pairwise(cuts):
         middle = 0.5 * (lo + hi)
         u = arb_poly([arb(0), arb(1)])
@@ -778,11 +817,11 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
             kernel += polynomial_integral(flint, S, piece, arb(-1), u + (arb(lo) - arb(start)), lower, upper)
         if middle > tau:
             kernel += S(u + (arb(lo) - T)) * kq
-        terms.append(_store(flint, kernel, lo, hi, tau, sup_err, slope))
+        kernels.append((lo, hi, kernel))
     points, radii = [], []
     for value, delay in ((c0 * kq, tau), (ct * kq, 2.0 * tau)):
         mid = float(value.mid())
         gap = abs(value - arb(mid))
         points.append((np.array([mid]), delay))
         radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
-    return QuasiPolynomial.from_parts(points, terms, radii)
+    return kernels, sup_err, slope, (points, radii)
