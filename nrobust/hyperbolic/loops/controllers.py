@@ -1427,10 +1427,9 @@ def characteristic(
     a, b = loop_factors(system, controller, kernel_grid)
     shifted = b.shift(delta)
     F = a + shifted
-    collocated = isinstance(controller, CollocatedOutputFeedback)
     if (
         isinstance(controller, OutputFeedback)
-        or (collocated and not _scaled_collocated(system, controller))
+        or (isinstance(controller, CollocatedOutputFeedback) and not _scaled_collocated(system, controller))
         or not has_exact_form(system)
     ):
         return F
