@@ -332,6 +332,12 @@ class AffineLoop:
         B = self.B(p)
         return self.A(p) + (B.shift(delta) if delta > 0 else B)
 
+    def nominal(self, p: float) -> QuasiPolynomial:
+        """``F(.; 0, p)`` as ``(A_0 + B_0) + p (A_1 + B_1)``: a change shared by ``A_1`` and ``B_1`` with
+        opposite signs cancels before it is multiplied by ``p``, so its rounding and radius do not enter (the
+        collocated loop at ``K = rho``: its point terms at ``2 tau`` are 0, not a ball about 0)."""
+        return (self.A0 + self.B0) + (self.A1 + self.B1) * p
+
 
 def _is_zero(P: QuasiPolynomial) -> bool:
     return not P.point_terms and not P.distributed
@@ -1107,7 +1113,9 @@ class _Family:
 
     def nominal(self, p: float) -> QuasiPolynomial:
         """``F(.; 0, p) = A + B``, each kernel shared by ``A`` and ``B`` with opposite signs written once
-        (:func:`_merged`)."""
+        (:func:`_merged`); an :class:`AffineLoop` without a filter's ``s`` factor by :meth:`AffineLoop.nominal`."""
+        if isinstance(self.loop, AffineLoop) and not (self.a1_times_s or self.b1_times_s):
+            return _merged(self.loop.nominal(p))
         return _merged(self.A(p) + self.B(p))
 
     def nominally_stable(self, p: float) -> bool:

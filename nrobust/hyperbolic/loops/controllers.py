@@ -1278,6 +1278,14 @@ def _exact_radii(
     exact = _cached_balls(system, controller, parts)
     if exact is None:
         return F
+    return _with_radii(flint, F, exact)
+
+
+def _with_radii(
+    flint: Any, F: QuasiPolynomial, exact: dict[float, list[Any]], keep_zero: bool = False
+) -> QuasiPolynomial:
+    """``F`` with the radii of its point coefficients bounding ``|stored - exact|`` (:func:`_exact_radii`); with
+    ``keep_zero`` radii of 0 are stored too (so that a product with a number bounds its rounding)."""
     with precision(flint, PRECISION):
         stored = {t: p for p, t in F.point_terms}
         delays = sorted(set(stored) | set(exact))
@@ -1289,7 +1297,7 @@ def _exact_radii(
             p = np.concatenate([p, np.zeros(n - p.size, dtype=p.dtype)])
             coefs.append(p)
             radii.append([ball_radius(flint, p[j], e[j] if j < len(e) else flint.arb(0)) for j in range(n)])
-    if not any(any(r) for r in radii):  # every stored coefficient exact
+    if not keep_zero and not any(any(r) for r in radii):  # every stored coefficient exact
         return F if not F.point_radii else QuasiPolynomial(coefs, delays, F.distributed)
     return QuasiPolynomial(coefs, delays, F.distributed, radii=radii)
 
@@ -1328,13 +1336,25 @@ def _exact_balls(
         return None
     exact: dict[float, list[_Exact]] = {}
     for name, delta in parts:
-        for t, table_coefs in points[0 if name == "A" else 1].items():
-            acc = exact.setdefault(t + delta if delta else t, [])
-            for j, c in enumerate(table_coefs):
-                if j == len(acc):
-                    acc.append({})
-                for atom, v in c.items():
-                    acc[j][atom] = acc[j].get(atom, Fraction(0)) + v
+        _accumulate(exact, points[0 if name == "A" else 1], delta, Fraction(1))
+    return _balls(system, exact)
+
+
+def _accumulate(
+    exact: dict[float, list[_Exact]], table: dict[float, list[_Exact]], delta: float, sign: Fraction
+) -> None:
+    """Add ``sign`` times the point coefficients ``table``, shifted by ``delta``, to ``exact`` (rationally)."""
+    for t, table_coefs in table.items():
+        acc = exact.setdefault(t + delta if delta else t, [])
+        for j, c in enumerate(table_coefs):
+            if j == len(acc):
+                acc.append({})
+            for atom, v in c.items():
+                acc[j][atom] = acc[j].get(atom, Fraction(0)) + sign * v
+
+
+def _balls(system: Any, exact: dict[float, list[_Exact]]) -> dict[float, list[Any]]:
+    """The rational combinations ``exact`` of the plant's gains as ``arb`` balls."""
     h, _, w = gain_balls(system)
     flint = require_flint()
     with precision(flint, PRECISION):
@@ -1344,6 +1364,36 @@ def _exact_balls(
             return sum((atoms[k] * (flint.arb(v.numerator) / v.denominator) for k, v in c.items() if v), flint.arb(0))
 
         return {t: [ball(c) for c in coefs] for t, coefs in exact.items()}
+
+
+def gain_slope_factors(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, at_zero: Controller, at_one: Controller
+) -> tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial]:
+    """``(A_0, A_1 - A_0, B_0, B_1 - B_0)``: the factors of a loop affine in a gain, from the controllers at gains
+    0 and 1, so that the loop at ``K`` is ``(A_0 + K (A_1 - A_0)) + (B_0 + K (B_1 - B_0)) e^{-delta s}``.
+
+    Where the factors' point coefficients are exact rationals of the plant's numbers (the exact and proven
+    routes), the radii of the differences' point coefficients bound them against the exact differences, not
+    the sum of the two loops' radii: a coefficient whose exact slope is a double has radius 0 (and a product
+    with ``K`` the radius of its rounding). So at the gain where point terms of the loop cancel (``K = rho`` for
+    U_BS2(K), eqs. (56)-(58): the target system ``1``), summed as ``(A_0 + B_0) + K ((A_1 - A_0) + (B_1 -
+    B_0))`` (:meth:`nrobust.design.AffineLoop.nominal`), they are exactly 0, not balls about 0.
+    """
+    A0, B0 = loop_factors(system, at_zero)
+    A1, B1 = loop_factors(system, at_one)
+    slopes = [A1 - A0, B1 - B0]
+    zero, one = _exact_points(system, at_zero), _exact_points(system, at_one)
+    if zero is not None and one is not None:
+        try:
+            flint = require_flint()
+        except ImportError:
+            flint = None
+        for i in (0, 1) if flint is not None else ():
+            exact: dict[float, list[_Exact]] = {}
+            _accumulate(exact, one[i], 0.0, Fraction(1))
+            _accumulate(exact, zero[i], 0.0, Fraction(-1))
+            slopes[i] = _with_radii(flint, slopes[i], _balls(system, exact), keep_zero=True)
+    return A0, slopes[0], B0, slopes[1]
 
 
 @renamed_keywords(n="kernel_grid")

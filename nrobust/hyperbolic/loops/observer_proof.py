@@ -748,8 +748,21 @@ def _response_attempt(system: Hyperbolic2x2, K: float) -> QuasiPolynomial | str:
 def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
     """:func:`proven_response_product` at the working precision, its kernel stored on the segments of
     :func:`_response_segments` at least (``G`` is affine in ``K``: the loops at two gains then share their nodes,
-    and their affine combinations cancel term by term where the loop does)."""
-    kernels, sup_err, slope, points = _response_kernels(flint, system, K)
+    and their affine combinations cancel term by term where the loop does).
+
+    ``C_u`` is affine in the law's gains (``k = -K`` and ``g_u, g_v`` of eq. (53)), so ``G``'s kernel at ``K`` is
+    ``(1 - K) G_0 + K G_1`` of the enclosures at ``K = 0`` and ``K = 1`` (:func:`_response_basis`, once per
+    plant), within ``|1 - K| e_0 + |K| e_1`` of their bounds; its point terms are formed at ``K`` directly.
+    """
+    arb = flint.arb
+    basis = _response_basis(system)
+    if isinstance(basis, str):
+        raise CertificationError(basis)
+    (zero, e_0, s_0), (one, e_1, s_1) = basis
+    a, b = arb(1) - arb(K), arb(K)
+    kernels = [(lo, hi, g_0 * a + g_1 * b) for (lo, hi, g_0), (_, _, g_1) in zip(zero, one, strict=True)]
+    sup_err, slope = abs(a) * e_0 + abs(b) * e_1, abs(a) * s_0 + abs(b) * s_1
+    points = _response_points(flint, system, K)
     segments = _response_segments(system)
     terms = [
         _store_counted(flint, kernel, lo, hi, system.tau, sup_err, slope, count)[0]
@@ -759,12 +772,22 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
 
 
 @lru_cache(maxsize=8)
+def _response_basis(system: Hyperbolic2x2) -> tuple[tuple[list[tuple[float, float, Any]], Any, Any], ...] | str:
+    """``G``'s kernels with the bounds of their errors and of their derivatives' at ``K = 0`` and ``K = 1``
+    (:func:`_response_kernels`), or the reason they failed."""
+    return _in_balls(system, lambda flint: tuple(_response_kernels(flint, system, K) for K in (0.0, 1.0)))
+
+
+@lru_cache(maxsize=8)
 def _response_segments(system: Hyperbolic2x2) -> tuple[int, ...]:
     """Per piece of ``G``'s kernel, the segments per ``tau`` that both ``K = 0`` and ``K = 1`` need."""
     flint = require_flint()
     counts = []
+    basis = _response_basis(system)
+    if isinstance(basis, str):
+        raise CertificationError(basis)
     with precision(flint, _PRECISION):
-        zero, one = _response_kernels(flint, system, 0.0)[0], _response_kernels(flint, system, 1.0)[0]
+        zero, one = basis[0][0], basis[1][0]
         zero_arb = flint.arb(0)
         for (lo, hi, a), (_, _, b) in zip(zero, one, strict=True):
             counts.append(
@@ -773,11 +796,9 @@ def _response_segments(system: Hyperbolic2x2) -> tuple[int, ...]:
     return tuple(counts)
 
 
-def _response_kernels(
-    flint: Any, system: Hyperbolic2x2, K: float
-) -> tuple[list[tuple[float, float, Any]], Any, Any, tuple[list, list]]:
-    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``), the bounds of its error and of its
-    derivative's, and its point terms with their radii (:func:`proven_response_product`)."""
+def _response_kernels(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list[tuple[float, float, Any]], Any, Any]:
+    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``) and the bounds of its error and of
+    its derivative's (:func:`proven_response_product`)."""
     arb, arb_poly = flint.arb, flint.arb_poly
     poly = _Poly(flint)
     tau, (c0, ct, S, b, db), _ = _closed_forms(flint, system)
@@ -818,10 +839,19 @@ def _response_kernels(
         if middle > tau:
             kernel += S(u + (arb(lo) - T)) * kq
         kernels.append((lo, hi, kernel))
+    return kernels, sup_err, slope
+
+
+def _response_points(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list, list]:
+    """``G``'s point terms ``c_0 k q e^{-tau s}`` and ``c_tau k q e^{-2 tau s}`` (``k = -K``; ``c_0, c_tau`` the point
+    coefficients of ``1 - Phi``) with the radii of their rounding (:func:`proven_response_product`)."""
+    arb = flint.arb
+    tau, (c0, ct, _, _, _), _ = _closed_forms(flint, system)
+    kq = -arb(K) * arb(float(system.q))
     points, radii = [], []
     for value, delay in ((c0 * kq, tau), (ct * kq, 2.0 * tau)):
         mid = float(value.mid())
         gap = abs(value - arb(mid))
         points.append((np.array([mid]), delay))
         radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
-    return kernels, sup_err, slope, (points, radii)
+    return points, radii
