@@ -768,7 +768,33 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
         _store_counted(flint, kernel, lo, hi, system.tau, sup_err, slope, count)[0]
         for (lo, hi, kernel), count in zip(kernels, segments, strict=True)
     ]
-    return QuasiPolynomial.from_parts(points[0], terms, points[1])
+    return QuasiPolynomial.from_parts(points[0], [_one_kernel(terms)], points[1])
+
+
+def _one_kernel(terms: list[DistributedDelay]) -> DistributedDelay:
+    """The pieces of consecutive ``terms`` as one kernel, their coefficients as stored (no rounding).
+
+    Its error bound is the largest of the terms' (they hold on disjoint intervals), its variation theirs and the
+    jumps of the error where they meet (the two radii). As one kernel, integration by parts counts the jumps of
+    ``G``'s kernel where the terms meet, not both of their ends (the frequency bounds, the second-order
+    variation of :meth:`~nrobust.distributed_delay.DistributedDelay.second_order_variation`).
+    """
+    if len(terms) < 2:
+        return terms[0]
+    nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
+    degree = max(d.pieces[2].shape[1] for d in terms)
+    coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
+    variation = math.fsum(
+        [d.variation_radius for d in terms] + [u.radius + v.radius for u, v in itertools.pairwise(terms)]
+    )
+    return DistributedDelay(
+        nodes,
+        None,
+        interpolation="polynomial",
+        coefficients=coefficients,
+        radius=max(d.radius for d in terms),
+        variation_radius=math.nextafter(math.nextafter(variation, math.inf), math.inf),
+    )
 
 
 @lru_cache(maxsize=8)
