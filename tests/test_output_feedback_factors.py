@@ -133,20 +133,25 @@ def test_the_collocated_factors_hold_one_kernel_each_within_its_bound_of_their_t
 
 def test_the_proven_collocated_factors_keep_their_bounds() -> None:
     """Under U_BS2(K) the collocated loop is proven (every kernel with its ball-arithmetic bound, at most 9e-16): its
-    factors keep their terms, as summing them into one would bound the sum by the re-expansion's rounding, 3.4e-13
-    on ``B_o`` here (it did, and the proven margin's ball at ``kappa = -0.715`` was 45 times wider). The oracle of the
-    rule is the same kernels without bounds (a model's): those are summed into one."""
+    factors keep their terms. Where their nodes' union is uniform (``B_o``'s kernels on ``[0, 2]``: ``N~`` and the
+    reflection's product, steps 1/8 and 1/4) summing them into one would bound the sum by the re-expansion's
+    rounding, far above their bounds (with ``G`` in pieces of uniform union ``B_o`` was summed so: 3.4e-13, and the
+    proven margin's ball at ``kappa = -0.715`` was 45 times wider). The oracle of the rule is the same kernels
+    without bounds (a model's): those are summed into one, with the same values."""
     controller = CollocatedOutputFeedback(ReflectionController(0.1), 0.0, 0.3)
     assert loop_route(PAPER, controller) == "exact"
     A, B = loop_factors(PAPER, controller)
     for P in (A, B):
-        assert len(P.distributed) > 4 and all(0.0 < d.radius < 1e-15 for d in P.distributed)
+        assert len(P.distributed) > 2 and all(0.0 < d.radius < 1e-15 for d in P.distributed)
         assert output_feedback.consolidated(P) is P
+    first = QuasiPolynomial.from_parts((), [d for d in B.distributed if d.a == 0.0 and d.b == 2.0])
+    assert len(first.distributed) == 2 and output_feedback.consolidated(first) is first
     unbounded = [
-        DistributedDelay(d.nodes, None, d.poly, d.moment, "polynomial", coefficients=d.pieces[2]) for d in B.distributed
+        DistributedDelay(d.nodes, None, d.poly, d.moment, "polynomial", coefficients=d.pieces[2])
+        for d in first.distributed
     ]
-    bare = QuasiPolynomial.from_parts(B.point_terms, unbounded)
+    bare = QuasiPolynomial.from_parts((), unbounded)
     (summed,) = output_feedback.consolidated(bare).distributed
-    assert summed.radius > 2.0 * sum(d.radius for d in B.distributed)
+    assert summed.radius > 2.0 * sum(d.radius for d in first.distributed)
     s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 200), 0.3 + 5.0j]
-    np.testing.assert_allclose(output_feedback.consolidated(bare)(s), B(s), rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(output_feedback.consolidated(bare)(s), first(s), rtol=1e-12, atol=1e-13)
