@@ -1093,10 +1093,12 @@ class _Family:
         self._abscissas: dict[float, SpectralAbscissa] = {}
 
     def abscissa(self, p: float) -> SpectralAbscissa:
-        """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``)."""
+        """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``); of
+        :meth:`combined` where that is one term (no zero: :func:`_finite_time_gains`)."""
         sa = self._abscissas.get(p)
         if sa is None:
-            sa = self._abscissas[p] = spectral_abscissa(self.nominal(p))
+            F = self.combined(p)
+            sa = self._abscissas[p] = spectral_abscissa(F if _single_term(F) else self.nominal(p))
         return sa
 
     def axis(self, w: NDArray[np.float64], slopes: bool = False) -> _Axis:
@@ -1138,10 +1140,15 @@ class _Family:
 
     def nominal(self, p: float) -> QuasiPolynomial:
         """``F(.; 0, p) = A + B``, each kernel shared by ``A`` and ``B`` with opposite signs written once
-        (:func:`_merged`); an :class:`AffineLoop` without a filter's ``s`` factor by :meth:`AffineLoop.nominal`."""
+        (:func:`_merged`)."""
+        return _merged(self.A(p) + self.B(p))
+
+    def combined(self, p: float) -> QuasiPolynomial:
+        """:meth:`nominal`, an :class:`AffineLoop` without a filter's ``s`` factor as :meth:`AffineLoop.nominal`
+        (the changes of ``A`` and ``B`` summed before the product with ``p``)."""
         if isinstance(self.loop, AffineLoop) and not (self.a1_times_s or self.b1_times_s):
             return _merged(self.loop.nominal(p))
-        return _merged(self.A(p) + self.B(p))
+        return self.nominal(p)
 
     def nominally_stable(self, p: float) -> bool:
         """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``.
@@ -3200,7 +3207,7 @@ def _finite_time_gains(loop: _Family, lo: float, hi: float) -> tuple[list[float]
             for _ in range(_NEIGHBOURS):
                 p = float(np.nextafter(p, direction))
                 tries.append(p)
-        hit = next((p for p in tries if lo <= p <= hi and _single_term(loop.nominal(p))), None)
+        hit = next((p for p in tries if lo <= p <= hi and _single_term(loop.combined(p))), None)
         if hit is not None:
             exact.append(hit)
         elif _distributed_residue(loop, loop.nominal(p_star), p_star):
