@@ -162,10 +162,11 @@ def test_weak_reflection_kink_against_grid():
 @pytest.mark.long
 @pytest.mark.timeout(1800)  # about a minute of CPU for the design and one more for the grid; more on a loaded machine
 def test_paper_plant_kink_against_grid():
-    """The paper's plant (rho q = 0.85) with the default bounds ``0.9 (-1/18, 3/14)``."""
+    """The paper's plant (rho q = 0.85) with the default bounds ``0.9 (-1/18, 3/14)``; its collocated loop is
+    proven (``test_collocated_proof.py``), so the certificate is about the PDE, not a model."""
     result = design_reflection(PAPER, output_feedback=True, collocated=True)
     np.testing.assert_allclose(result.design.bounds, (-0.05, 0.9 * 0.15 / 0.7), rtol=1e-14)
-    assert result.kind == "kink" and result.design.certificate.of_model
+    assert result.kind == "kink" and not result.design.certificate.of_model
     check_against_grid(PAPER, result, np.linspace(-0.05, 0.19, 13))
     check_kink(PAPER, result, 1e-4)
 

@@ -26,10 +26,15 @@ import numpy as np
 import pytest
 
 import nrobust as nr
-from nrobust.design import best_decay_rate
+from nrobust.design import AffineLoop, best_decay_rate
 from nrobust.errors import CertificationError
 from nrobust.hyperbolic.analyses.design import ReflectionDesign
-from nrobust.hyperbolic.loops.controllers import CollocatedOutputFeedback, ReflectionController
+from nrobust.hyperbolic.loops.controllers import (
+    CollocatedOutputFeedback,
+    ReflectionController,
+    gain_slope_factors,
+    loop_route,
+)
 from nrobust.margins import AffineGainLoop
 from nrobust.quasipoly import QuasiPolynomial
 
@@ -109,6 +114,24 @@ def test_collocated_design_is_u_bs(collocated: ReflectionDesign) -> None:
     assert collocated.K == RHO and collocated.kind == "finite time" and collocated.value == np.inf
     assert isinstance(collocated.controller, CollocatedOutputFeedback)
     assert collocated.design.certificate.margin >= 0.05 and collocated.design.certificate.nominally_stable
+
+
+def test_the_affine_collocated_loop_is_the_target_system_at_rho() -> None:
+    """The design's loop affine in ``K`` (``gain_slope_factors``: the collocated loop is proven here, its point
+    coefficients balls): at ``K = rho`` its nominal loop is the target system ``1 - (rho - K) q e^{-tau s}`` (eqs.
+    (56)-(58)), the constant 1 with no radius, and one floating-point step away the single term ``(rho - K) q`` at
+    ``tau`` is that double exactly. Before the slopes' radii came from exact differences they were the two loops'
+    radii added, and ``1 + (0 +- 3.3e-17) e^{-2 s} + (0 +- 3.3e-18) e^{-4 s}`` was no single term."""
+    at_zero, at_one = (CollocatedOutputFeedback(ReflectionController(K)) for K in (0.0, 1.0))
+    assert loop_route(WEAK, at_one) == "exact"
+    loop = AffineLoop(*gain_slope_factors(WEAK, at_zero, at_one))
+    F = loop.nominal(RHO)
+    assert not F.distributed and [(list(p), t) for p, t in F.point_terms] == [([1.0], 0.0)]
+    assert not any(r.any() for r in F.point_radii)
+    for K in (np.nextafter(RHO, 1.0), np.nextafter(RHO, 0.0)):
+        F = loop.nominal(float(K))
+        assert not F.distributed and [(list(p), t) for p, t in F.point_terms] == [([1.0], 0.0), ([K - RHO], TAU)]
+        np.testing.assert_allclose(F(S), 1.0 - (RHO - K) * np.exp(-TAU * S), rtol=0, atol=1e-15)
 
 
 @pytest.mark.long  # 1.5 s of CPU each (the observer's kernels)

@@ -189,10 +189,13 @@ def test_the_design_loop_in_kappa_is_the_proven_loop():
 
 def test_laws_with_an_integral_part_stay_a_model():
     """U_BS2(K) and a state feedback with integral gains read the dual plant's kernels composed with the plant's:
-    their collocated loops stay the kernel route's, and the scope says it is a model."""
+    the state feedback's collocated loop, and U_BS2(K)'s with an observer delay, stay the kernel route's, and the
+    scope says it is a model (U_BS2(K) without it is proven: ``test_collocated_proof.py``)."""
     plant = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
-    for law in (ReflectionController(0.1), StateFeedback(-0.3, g_u=0.1)):
-        controller = nr.CollocatedOutputFeedback(law)
+    for controller in (
+        nr.CollocatedOutputFeedback(ReflectionController(0.1), observer_delay=0.05),
+        nr.CollocatedOutputFeedback(StateFeedback(-0.3, g_u=0.1)),
+    ):
         assert loop_route(plant, controller) == "observer"
         A, B = nr.loop_factors(plant, controller)
         assert loop_scope(plant, controller, None, (A, B)).startswith("a model of the PDE")

@@ -89,14 +89,15 @@ _LOOPS = {
     "U_BS2(0.1)": (ReflectionController(0.1), None, 0.7),
     "U_BS2(0.1) spline": (ReflectionController(0.1), 201, 0.7),
     "U_BS filtered": (FilteredController(0.0, 0.1), None, 1.0),
-    "collocated": (CollocatedOutputFeedback(ReflectionController(K_COLLOCATED)), None, 0.45),
+    "collocated": (CollocatedOutputFeedback(ReflectionController(K_COLLOCATED)), None, 0.6),
 }
 
 
 @pytest.mark.parametrize("name", list(_LOOPS))
 def test_paper_loops_bound_not_above_the_first_order_and_no_crossing_beyond(name: str) -> None:
     """``W`` is at most the first-order bound (at most ``ratio`` of it: 78 against 122 and 114 for ``U_BS2(0.1)``,
-    194 against 202 filtered, 705 against 1647 for the collocated loop) and ``|A(i w)| - |B(i w)|`` is positive
+    194 against 202 filtered, 1218 against 2187 for the collocated loop, proven: its two kernels ``N~`` and ``G``
+    bounded each, where the kernel route's one kernel gave 705 against 1647) and ``|A(i w)| - |B(i w)|`` is positive
     (``A`` dominates) on a grid of step ``1/32`` from ``W`` to ``2 W`` (the loops' delays are at most 4: 50 points
     per period)."""
     controller, grid, ratio = _LOOPS[name]
@@ -140,8 +141,12 @@ def test_ball_bounds_hold_the_closed_forms() -> None:
 
 
 def test_proven_bound_of_the_collocated_loop() -> None:
-    """The proven crossing set of the collocated loop proves ``W = 705`` in balls (1647 integrated by parts once)
-    and finds the eleven crossings of the floating-point search, each inside its proven interval."""
+    """The proven crossing set of the collocated loop proves ``W = 1218`` in balls (2187 integrated by parts once)
+    and finds the eleven crossings of the floating-point search, each inside its proven interval. The loop is
+    proven: ``N~`` and ``G`` are two kernels (``G``'s pieces joined into one as stored), each integrated by parts
+    twice, so their jumps at ``tau`` and ends at 0 add where the kernel route's one kernel (``W = 705``) let them
+    cancel; one kernel on their nodes' union would re-expand the proven pieces and bound the sum by that rounding,
+    about 1000 times their bounds (``output_feedback.consolidated``). ``G`` as four kernels gave 1904."""
     pytest.importorskip("flint")
     from nrobust import crossing_frequencies
     from nrobust.margins.proven import proven_crossings
@@ -149,7 +154,7 @@ def test_proven_bound_of_the_collocated_loop() -> None:
     A, B = loop_factors(PAPER, CollocatedOutputFeedback(ReflectionController(K_COLLOCATED)))
     proof = proven_crossings(A, B)
     assert proof.frequency_bound == frequency_bound(A, B)[0]
-    assert proof.frequency_bound <= 0.45 * _first_order_bound(A, B)
+    assert proof.frequency_bound <= 0.6 * _first_order_bound(A, B)
     found = crossing_frequencies(A, B).omegas
     assert len(proof.omegas) == len(found) == 11
     for (lo, hi), w in zip(proof.omegas, found):

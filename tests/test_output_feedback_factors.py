@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import nrobust as nr
+from nrobust.distributed_delay import DistributedDelay
 from nrobust.hyperbolic.loops import output_feedback
 from nrobust.hyperbolic.loops.controllers import (
     CollocatedOutputFeedback,
@@ -21,8 +22,10 @@ from nrobust.hyperbolic.loops.controllers import (
     OutputFeedback,
     ReflectionController,
     loop_factors,
+    loop_route,
     observer_of,
 )
+from nrobust.quasipoly import QuasiPolynomial
 
 PAPER = nr.Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 #: Unequal speeds: the window 1/mu = 2, the round trip tau = 2.5.
@@ -101,25 +104,54 @@ def test_the_observer_term_is_shared_by_every_gain() -> None:
 
 
 def test_the_collocated_factors_hold_one_kernel_each_within_its_bound_of_their_terms(monkeypatch) -> None:
-    """The collocated loop's kernels (``G`` given as a quasi-polynomial) summed into one per factor on the union
-    of their nodes (steps of 1/24 and 1/8): the oracle is the same loop with its terms kept apart."""
-    controller = CollocatedOutputFeedback(ReflectionController(0.1), 0.0, 0.3)
-    A, B = loop_factors(PAPER, controller)
+    """A model collocated loop's kernels (``G`` given as a quasi-polynomial, from kernels on a grid: the filtered
+    law's) summed into one in ``B_o`` on the union of their nodes (steps of 1/24 and 1/8); ``A_o``'s are left apart
+    (the reflection's terms there carry the filter's denominator ``1 + b s``: another kind). The oracle is the same
+    loop with its terms kept apart. (Under U_BS2(K) the loop is proven and keeps its terms: the test below.)"""
+    controller = CollocatedOutputFeedback(FilteredController(0.3, 0.5, 0.05), 0.0, 0.3)
+    assert loop_route(PAPER, controller) == "observer"
+    B = loop_factors(PAPER, controller)[1]
     monkeypatch.setattr(output_feedback, "consolidated", lambda P: P)
     parts = loop_factors(PAPER, controller)
-    assert len(A.distributed) == len(B.distributed) == 1 and all(len(P.distributed) > 4 for P in parts)
+    assert len(B.distributed) == 1 and all(len(P.distributed) > 4 for P in parts)
     s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 1000), 0.3 + 5.0j, -0.2 + 40.0j]
     rng = np.random.default_rng(3)
-    for stored, separate in zip((A, B), parts):
-        # one sum over the segments instead of several: rounding only (measured 3e-15 relative)
-        np.testing.assert_allclose(stored(s), separate(s), rtol=1e-12, atol=1e-13)
-        (kernel,) = stored.distributed
-        nu = np.sort(rng.uniform(kernel.a, kernel.b, 4000))
-        reference = np.zeros(nu.size)
-        for d in separate.distributed:
-            inside = (nu > d.a) & (nu < d.b)
-            reference[inside] += d.kernel_at(nu[inside])
-        # within the re-expansions' bound (the separate terms' own radii excluded: they are the reference)
-        added = kernel.radius - sum(d.radius for d in separate.distributed)
-        assert 0.0 < added < 1e-12
-        assert np.max(np.abs(kernel.kernel_at(nu) - reference)) <= added
+    separate = parts[1]
+    # one sum over the segments instead of several: rounding only (measured 3e-15 relative)
+    np.testing.assert_allclose(B(s), separate(s), rtol=1e-12, atol=1e-13)
+    (kernel,) = B.distributed
+    nu = np.sort(rng.uniform(kernel.a, kernel.b, 4000))
+    reference = np.zeros(nu.size)
+    for d in separate.distributed:
+        inside = (nu > d.a) & (nu < d.b)
+        reference[inside] += d.kernel_at(nu[inside])
+    # within the re-expansions' bound (the separate terms' own radii excluded: they are the reference)
+    added = kernel.radius - sum(d.radius for d in separate.distributed)
+    assert 0.0 < added < 1e-12
+    assert np.max(np.abs(kernel.kernel_at(nu) - reference)) <= added
+
+
+def test_the_proven_collocated_factors_keep_their_bounds() -> None:
+    """Under U_BS2(K) the collocated loop is proven (every kernel with its ball-arithmetic bound, at most 9e-16): its
+    factors keep their terms. Where their nodes' union is uniform (``B_o``'s kernels on ``[0, 2]``: ``N~`` and the
+    reflection's product, steps 1/8 and 1/4) summing them into one would bound the sum by the re-expansion's
+    rounding, far above their bounds (with ``G`` in pieces of uniform union ``B_o`` was summed so: 3.4e-13, and the
+    proven margin's ball at ``kappa = -0.715`` was 45 times wider). The oracle of the rule is the same kernels
+    without bounds (a model's): those are summed into one, with the same values."""
+    controller = CollocatedOutputFeedback(ReflectionController(0.1), 0.0, 0.3)
+    assert loop_route(PAPER, controller) == "exact"
+    A, B = loop_factors(PAPER, controller)
+    for P in (A, B):
+        assert len(P.distributed) > 2 and all(0.0 < d.radius < 1e-15 for d in P.distributed)
+        assert output_feedback.consolidated(P) is P
+    first = QuasiPolynomial.from_parts((), [d for d in B.distributed if d.a == 0.0 and d.b == 2.0])
+    assert len(first.distributed) == 2 and output_feedback.consolidated(first) is first
+    unbounded = [
+        DistributedDelay(d.nodes, None, d.poly, d.moment, "polynomial", coefficients=d.pieces[2])
+        for d in first.distributed
+    ]
+    bare = QuasiPolynomial.from_parts((), unbounded)
+    (summed,) = output_feedback.consolidated(bare).distributed
+    assert summed.radius > 2.0 * sum(d.radius for d in first.distributed)
+    s = np.r_[0.0, 1j * np.geomspace(1e-3, 400.0, 200), 0.3 + 5.0j]
+    np.testing.assert_allclose(output_feedback.consolidated(bare)(s), first(s), rtol=1e-12, atol=1e-13)

@@ -332,6 +332,12 @@ class AffineLoop:
         B = self.B(p)
         return self.A(p) + (B.shift(delta) if delta > 0 else B)
 
+    def nominal(self, p: float) -> QuasiPolynomial:
+        """``F(.; 0, p)`` as ``(A_0 + B_0) + p (A_1 + B_1)``: a change shared by ``A_1`` and ``B_1`` with
+        opposite signs cancels before it is multiplied by ``p``, so its rounding and radius do not enter (the
+        collocated loop at ``K = rho``: its point terms at ``2 tau`` are 0, not a ball about 0)."""
+        return (self.A0 + self.B0) + (self.A1 + self.B1) * p
+
 
 def _is_zero(P: QuasiPolynomial) -> bool:
     return not P.point_terms and not P.distributed
@@ -821,11 +827,12 @@ def _circle_crossing_bound(
     on) is found by bisection in ``log eps``; ``1 / e`` is returned when less than ``W``.
     """
     A0, A1, B0, B1 = parts
-    if joint_degree(*parts) != 0 or any(P.point_radii for P in parts):
+    if joint_degree(*parts) != 0:
         return W
     k0, k1 = _opposite_kernels(A0, B0), _opposite_kernels(A1, B1)
     if k0 is None or k1 is None:
         return W
+    margin = _radii_margin(parts, k0, k1, max(abs(lo), abs(hi)))
     points = [(index, Fraction(t), complex(c[0])) for index, P in enumerate(parts) for c, t in P.point_terms]
     delays = [t for _, t, _ in points] + [Fraction(float(x)) for d in (*k0, *k1) for x in (d.a, d.b)]
     base = _common_base(set(delays))
@@ -843,17 +850,41 @@ def _circle_crossing_bound(
     for log_points in range(_CIRCLE_POINTS[0], _CIRCLE_POINTS[1] + 1):
         bound = _CircleBound(trimmed, rest, lo, hi, 2**log_points)
         at_zero = bound(0.0)
-        if at_zero <= 0.0 or (np.pi / bound.K) * bound.d_h > 0.1 * at_zero:
+        if at_zero <= margin or (np.pi / bound.K) * bound.d_h > 0.1 * at_zero:
             continue
         good = 1.0 / W
-        if bound(good) <= 0.0:
+        if bound(good) <= margin:
             return W
         bad = good * 2.0**40
         for _ in range(48):
             mid = float(np.sqrt(good * bad))
-            good, bad = (mid, bad) if bound(mid) > 0.0 else (good, mid)
+            good, bad = (mid, bad) if bound(mid) > margin else (good, mid)
         return min(W, float(np.nextafter(1.0 / good, np.inf)))
     return W
+
+
+def _radii_margin(
+    parts: tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial],
+    k0: list[DistributedDelay],
+    k1: list[DistributedDelay],
+    big: float,
+) -> float:
+    """What the lower bound ``l`` of ``g = |A|^2 - |B|^2`` of the stored loop must exceed for the loop whose point
+    coefficients lie within the parts' radii (:func:`_circle_crossing_bound`; 0 without radii).
+
+    On the axis the true ``|A| - |B|`` is at least the stored one less ``rho``, the radii summed (``|p| <= big``),
+    and the stored ``|A| - |B| = g / (|A| + |B|) >= l / U`` with ``U`` the point coefficients' moduli and twice
+    the kernels' ``int |N|`` summed (``|A| + |B| <= |a| + |b| + 2 |I|``): ``l > U rho`` leaves no crossing.
+    """
+    weights = (1.0, big, 1.0, big)
+    rho = math.fsum(w * float(np.sum(r)) for P, w in zip(parts, weights, strict=True) for r in P.radii_of())
+    if rho == 0.0:
+        return 0.0
+    moduli = math.fsum(
+        w * float(np.sum(np.abs(c))) for P, w in zip(parts, weights, strict=True) for c, _ in P.point_terms
+    )
+    mass = math.fsum(float(d.abs_moment(0.0, 0)) for d in k0) + big * math.fsum(float(d.abs_moment(0.0, 0)) for d in k1)
+    return (moduli + 2.0 * mass) * rho * (1.0 + 1e-12)
 
 
 def _check_strongly_stable(
@@ -1069,10 +1100,12 @@ class _Family:
         self._nominals: dict[tuple[float, float], QuasiPolynomial] = {}
 
     def abscissa(self, p: float) -> SpectralAbscissa:
-        """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``)."""
+        """:func:`~nrobust.roots.spectral_abscissa` of :meth:`nominal` at ``p`` (computed once per ``p``); of
+        :meth:`combined` where that is one term (no zero: :func:`_finite_time_gains`)."""
         sa = self._abscissas.get(p)
         if sa is None:
-            sa = self._abscissas[p] = spectral_abscissa(self.nominal(p))
+            F = self.combined(p)
+            sa = self._abscissas[p] = spectral_abscissa(F if _single_term(F) else self.nominal(p))
         return sa
 
     def axis(self, w: NDArray[np.float64], slopes: bool = False) -> _Axis:
@@ -1122,6 +1155,13 @@ class _Family:
                 self._nominals.clear()
             F = self._nominals[key] = _merged(self.A(p) + self.B(p))
         return F
+
+    def combined(self, p: float) -> QuasiPolynomial:
+        """:meth:`nominal`, an :class:`AffineLoop` without a filter's ``s`` factor as :meth:`AffineLoop.nominal`
+        (the changes of ``A`` and ``B`` summed before the product with ``p``)."""
+        if isinstance(self.loop, AffineLoop) and not (self.a1_times_s or self.b1_times_s):
+            return _merged(self.loop.nominal(p))
+        return self.nominal(p)
 
     def nominally_stable(self, p: float) -> bool:
         """Certified: ``F(.; 0, p)`` has no zero with ``Re s >= 0``.
@@ -3180,7 +3220,7 @@ def _finite_time_gains(loop: _Family, lo: float, hi: float) -> tuple[list[float]
             for _ in range(_NEIGHBOURS):
                 p = float(np.nextafter(p, direction))
                 tries.append(p)
-        hit = next((p for p in tries if lo <= p <= hi and _single_term(loop.nominal(p))), None)
+        hit = next((p for p in tries if lo <= p <= hi and _single_term(loop.combined(p))), None)
         if hit is not None:
             exact.append(hit)
         elif _distributed_residue(loop, loop.nominal(p_star), p_star):

@@ -39,6 +39,7 @@ from ..loops.controllers import (
     OutputFeedback,
     ReflectionController,
     classify,
+    gain_slope_factors,
     loop_factors,
     loop_route,
     loop_scope,
@@ -190,10 +191,15 @@ def _collocated_k_bounds(plant: Hyperbolic2x2, observer_delay: float) -> tuple[f
 
 
 def _collocated_loop(plant: Hyperbolic2x2, observer_delay: float) -> AffineLoop:
-    """The collocated loop as ``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` from its factors at ``K = 0, 1``."""
-    A0, B0 = loop_factors(plant, CollocatedOutputFeedback(ReflectionController(0.0), observer_delay))
-    A1, B1 = loop_factors(plant, CollocatedOutputFeedback(ReflectionController(1.0), observer_delay))
-    return AffineLoop(A0, A1 - A0, B0, B1 - B0)
+    """The collocated loop as ``(A_0 + K A_1) + (B_0 + K B_1) e^{-delta s}`` from its factors at ``K = 0, 1``
+    (:func:`~nrobust.hyperbolic.loops.controllers.gain_slope_factors`: at ``K = rho`` the point terms cancel to 0)."""
+    return AffineLoop(
+        *gain_slope_factors(
+            plant,
+            CollocatedOutputFeedback(ReflectionController(0.0), observer_delay),
+            CollocatedOutputFeedback(ReflectionController(1.0), observer_delay),
+        )
+    )
 
 
 def _check_affine(loop: AffineLoop, K: float, factors: tuple[QuasiPolynomial, QuasiPolynomial], top: float) -> None:

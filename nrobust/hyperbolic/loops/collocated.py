@@ -131,8 +131,14 @@ u_factor^2``, ``G = k (1 - Phi) u_factor``, products of closed forms enclosed in
 (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`): proofs about it hold for
 the PDE. A law with an integral part ``int K^{v.}(1, xi) (u, v) dxi`` (U_BS, U_BS2(K)) applied to the error
 reads ``int K^{v.}(1, .) g``, a composition of the plant's kernels with the dual plant's that the
-``2 x 2`` exponential does not give: its ``C_u`` stays the kernel route's below. So does ``StateFeedback(k, g_u,
-g_v)``: its integral part reads the error state ``e^{-s/mu} W ((1 + g(1)_u) Phi(x) [q; 1] - phi_u g(x))``
+``2 x 2`` exponential does not give: with constant couplings its ``c`` is built from the kernels ``K``, ``K'``
+and ``L'`` as Taylor polynomials with proven remainders (:mod:`~nrobust.hyperbolic.loops.collocated_proof`)
+and ``G`` enclosed in ball arithmetic
+(:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`), for an observer replaying the
+commands undelayed and ends ``1/lam``, ``1/mu``, ``tau`` that are doubles (its reflection's ``B~ H_y`` is
+``u_factor - (1 - Phi) u_factor + (K - rho) q e^{-tau s} u_factor``, as ``B~ = Phi + (K - rho) q e^{-tau s}``);
+otherwise it is the kernel route's below. So is ``StateFeedback(k, g_u, g_v)``'s: its integral part reads the
+error state ``e^{-s/mu} W ((1 + g(1)_u) Phi(x) [q; 1] - phi_u g(x))``
 against ``g_u``, ``g_v``, and ``g(x)`` carries the observer's gains ``p_u``, ``p_v`` (the dual plant's kernels).
 
 :func:`collocated_observer` computes ``c`` from the kernels of the dual plant and the law's

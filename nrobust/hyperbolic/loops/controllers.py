@@ -82,6 +82,8 @@ from .observer_proof import (
     proven_collocated_products,
     proven_observer_failure,
     proven_observer_term,
+    proven_response_failure,
+    proven_response_product,
 )
 from .output_feedback import observer_term, output_feedback_factors
 from .varying_form import DEFAULT_CHARACTERISTIC_GRID, VaryingDelayForm, varying_delay_form
@@ -585,7 +587,9 @@ def loop_route(system: Any, controller: Any, kernel_grid: int | None = None) -> 
     ``"exact"`` on an uncoupled plant, and on a coupled one with constant couplings under ``StateFeedback(k)`` without
     integral gains (its observer's responses ``C_u = k u_factor``, ``H_y = u_factor`` in closed form, their
     products enclosed in ball arithmetic:
-    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`). ``"observer"``: an output
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`) or under U_BS2(K) and U_BS
+    without an observer delay (``C_u`` from the kernels' proven Taylor enclosures:
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`). ``"observer"``: an output
     feedback whose state feedback takes the exact route and whose observer term is computed in floating
     point with an estimated error (:mod:`~nrobust.hyperbolic.loops.output_feedback`,
     :mod:`~nrobust.hyperbolic.loops.collocated`), so the loop is a model.
@@ -636,14 +640,36 @@ def _exact_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool
 
 
 def _proven_collocated(system: Any, controller: CollocatedOutputFeedback) -> bool:
-    """True when the collocated observer's terms on a coupled plant are closed forms enclosed in ball arithmetic.
+    """True when the collocated observer's terms on a coupled plant are enclosed in ball arithmetic.
 
     A :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings under
     ``StateFeedback(k)`` without integral gains: ``C_u = k u_factor`` and ``H_y = u_factor``
     (:mod:`~nrobust.hyperbolic.loops.collocated`), the loop made of ``(1 - Phi) u_factor`` and ``u_factor^2``
-    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
+    (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`); under U_BS2(K) or U_BS
+    (unfiltered, no observer delay) ``G`` from the kernels' proven enclosures (:func:`_proven_response`), the
+    reflection's terms from ``u_factor`` and ``(1 - Phi) u_factor`` (:func:`observer_reflection_of`).
     """
-    return _proven_law(system, controller.controller)
+    inner = controller.controller
+    if isinstance(inner, (FiniteTimeController, ReflectionController)):
+        return _proven_response(system, controller) is not None
+    return _proven_law(system, inner)
+
+
+def _proven_response(system: Any, controller: CollocatedOutputFeedback) -> float | None:
+    """``K`` of U_BS2(K) (``rho`` for U_BS) when the collocated observer's ``G = (1 - Phi) C_u`` is enclosed with a
+    proven error (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`: a coupled
+    :class:`~nrobust.hyperbolic.plants.hyperbolic2x2.Hyperbolic2x2` with constant couplings, the observer replaying
+    the commands undelayed); None otherwise."""
+    inner = controller.controller
+    if controller.observer_delay != 0.0 or _uncoupled(system):
+        return None
+    if isinstance(inner, ReflectionController):
+        K = float(inner.K)
+    elif isinstance(inner, FiniteTimeController):
+        K = float(system.rho)
+    else:
+        return None
+    return K if proven_response_failure(system, K) is None else None
 
 
 def _proven_law(system: Any, law: Controller) -> bool:
@@ -873,6 +899,22 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
     if _exact_collocated(system, controller):
         exact = "; the collocated observer is exact (uncoupled plant: C_u = k q e^{-tau s}"
         return inner + exact + (", and its reflection's factor 1 - kappa q e^{-tau s})" if kappa else ")")
+    if grid is None and _proven_response(system, controller) is not None:
+        K = _proven_response(system, controller)
+        assert K is not None
+        radius = max(d.radius for d in proven_response_product(system, K).distributed)
+        if kappa:
+            radius = max(radius, observer_reflection_of(system, controller, kernel_grid).accuracy)
+        law = loop_factors(system, controller.controller, None)
+        closed = max((d.radius for f in law for d in f.distributed), default=0.0)
+        reflection = " and the reflection's H_y = u_factor in closed form" if kappa else ""
+        return (
+            f"the PDE itself (N~ in closed form within a proven {upper_bound_text(closed, 2)}; the collocated "
+            "observer's command response C_u from the plant's and the dual plant's kernels as Taylor polynomials "
+            f"with proven remainders{reflection}, their products with 1 - Phi{' and B~' if kappa else ''} enclosed "
+            f"in ball arithmetic within a proven {upper_bound_text(radius, 2)}, which every enclosure includes; "
+            f"{_given(system, controller, kernel_grid)})"
+        )
     if grid is None and _proven_collocated(system, controller):
         products = proven_collocated_products(system)
         terms = products.open_loop_product.distributed + (products.square.distributed if kappa else ())
@@ -998,9 +1040,13 @@ def _collocated_loop(
         k = unfiltered(inner).feedback_law(system).boundary_gain
         open_loop = loop_factors(system, OpenLoop(), grid)[0]
         G = open_loop * QuasiPolynomial([[k * system.q]], [system.tau])
-    elif grid is None and _proven_collocated(system, controller):  # C_u = k u_factor (module notes of collocated)
-        assert isinstance(inner, StateFeedback)
-        G = proven_collocated_products(system).open_loop_product * float(inner.k)
+    elif grid is None and _proven_collocated(system, controller):
+        K = _proven_response(system, controller)
+        if K is not None:  # C_u from the kernels' proven enclosures (module notes of collocated_proof)
+            G = proven_response_product(system, K)
+        else:  # C_u = k u_factor (module notes of collocated)
+            assert isinstance(inner, StateFeedback)
+            G = proven_collocated_products(system).open_loop_product * float(inner.k)
     else:
         G = collocated_observer_of(system, controller, kernel_grid).product
     if controller.observer_reflection != 0.0:
@@ -1022,7 +1068,9 @@ def observer_reflection_of(
     (:func:`~nrobust.hyperbolic.loops.collocated.observer_reflection`; 0 on an uncoupled plant), or their
     proven bound where the terms are closed forms enclosed in ball arithmetic (``StateFeedback(k)`` on the
     exact route: ``H_y = u_factor``, ``B~ H_y = -k u_factor^2``,
-    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`).
+    :func:`~nrobust.hyperbolic.loops.observer_proof.proven_collocated_products`; U_BS2(K) and U_BS on a coupled
+    plant: ``B~ = Phi + (K - rho) q e^{-tau s}``, so ``B~ H_y = u_factor - (1 - Phi) u_factor + (K - rho) q
+    e^{-tau s} u_factor``).
     """
     if not isinstance(system, Hyperbolic2x2):
         raise ParameterError("system", "a Hyperbolic2x2 or TransportSystem for a CollocatedOutputFeedback", system)
@@ -1041,6 +1089,23 @@ def _observer_reflection(system: Hyperbolic2x2, law: Controller, route_grid: int
         accuracy = max(d.radius for d in terms)
         law_product = products.square * -float(law.k)
         return ObserverReflection(exact_form(system).u_factor, products.open_loop_product, law_product, accuracy)
+    if (
+        route_grid is None
+        and isinstance(law, (FiniteTimeController, ReflectionController))
+        and not _uncoupled(system)
+        and proven_collocated_failure(system) is None
+    ):
+        # B~ = K q e^{-tau s} - I_N = Phi + (K - rho) q e^{-tau s} (delay form (39)), so B~ H_y = u_factor -
+        # (1 - Phi) u_factor + (K - rho) q e^{-tau s} u_factor: the proven product and u_factor shifted
+        u_factor = exact_form(system).u_factor
+        open_product = proven_collocated_products(system).open_loop_product
+        K = float(law.K) if isinstance(law, ReflectionController) else float(system.rho)
+        law_product = u_factor - open_product
+        if K != system.rho:
+            law_product = law_product + u_factor.shift(system.tau) * ((K - system.rho) * system.q)
+        terms = open_product.distributed + u_factor.distributed
+        accuracy = max(d.radius for d in terms)
+        return ObserverReflection(u_factor, open_product, law_product, accuracy)
     open_loop = loop_factors(system, OpenLoop(), route_grid)[0]
     law_factor = loop_factors(system, law, route_grid)[1]
     return observer_reflection(system, open_loop, law_factor, _collocated_grid(route_grid))
@@ -1176,7 +1241,7 @@ def _collocated_points(
 
     A, B = (_reflected(rational(table), Fraction(controller.observer_reflection) * q, tau) for table in inner)
     law = controller.controller
-    k = Fraction(unfiltered(law).feedback_law(system).boundary_gain)
+    k = Fraction(_boundary_gain(system, unfiltered(law)))
     n = [Fraction(1), Fraction(law.a) / tau_ratio(system)] if isinstance(law, FilteredController) else [Fraction(1)]
     for t, g in ((tau, k * q), (tau + tau, -rho * q * k * q)):  # n G, by delay
         for j, c in enumerate(n):
@@ -1189,6 +1254,15 @@ def _collocated_points(
         return {t: [{"1": c} for c in cs] for t, cs in table.items()}
 
     return exact(A), exact(B)
+
+
+def _boundary_gain(system: Hyperbolic2x2, law: Controller) -> float:
+    """The boundary gain ``k`` of the unfiltered ``law`` (``-K`` for U_BS2(K), ``-rho`` for U_BS), without kernels."""
+    if isinstance(law, ReflectionController):
+        return -float(law.K)
+    if isinstance(law, FiniteTimeController):
+        return -float(system.rho)
+    return float(law.feedback_law(system).boundary_gain)
 
 
 def _reflected(table: dict[float, list[Fraction]], kappa_q: Fraction, tau: float) -> dict[float, list[Fraction]]:
@@ -1221,6 +1295,14 @@ def _exact_radii(
     exact = _cached_balls(system, controller, parts)
     if exact is None:
         return F
+    return _with_radii(flint, F, exact)
+
+
+def _with_radii(
+    flint: Any, F: QuasiPolynomial, exact: dict[float, list[Any]], keep_zero: bool = False
+) -> QuasiPolynomial:
+    """``F`` with the radii of its point coefficients bounding ``|stored - exact|`` (:func:`_exact_radii`); with
+    ``keep_zero`` radii of 0 are stored too (so that a product with a number bounds its rounding)."""
     with precision(flint, PRECISION):
         stored = {t: p for p, t in F.point_terms}
         delays = sorted(set(stored) | set(exact))
@@ -1232,7 +1314,7 @@ def _exact_radii(
             p = np.concatenate([p, np.zeros(n - p.size, dtype=p.dtype)])
             coefs.append(p)
             radii.append([ball_radius(flint, p[j], e[j] if j < len(e) else flint.arb(0)) for j in range(n)])
-    if not any(any(r) for r in radii):  # every stored coefficient exact
+    if not keep_zero and not any(any(r) for r in radii):  # every stored coefficient exact
         return F if not F.point_radii else QuasiPolynomial(coefs, delays, F.distributed)
     return QuasiPolynomial(coefs, delays, F.distributed, radii=radii)
 
@@ -1271,13 +1353,25 @@ def _exact_balls(
         return None
     exact: dict[float, list[_Exact]] = {}
     for name, delta in parts:
-        for t, table_coefs in points[0 if name == "A" else 1].items():
-            acc = exact.setdefault(t + delta if delta else t, [])
-            for j, c in enumerate(table_coefs):
-                if j == len(acc):
-                    acc.append({})
-                for atom, v in c.items():
-                    acc[j][atom] = acc[j].get(atom, Fraction(0)) + v
+        _accumulate(exact, points[0 if name == "A" else 1], delta, Fraction(1))
+    return _balls(system, exact)
+
+
+def _accumulate(
+    exact: dict[float, list[_Exact]], table: dict[float, list[_Exact]], delta: float, sign: Fraction
+) -> None:
+    """Add ``sign`` times the point coefficients ``table``, shifted by ``delta``, to ``exact`` (rationally)."""
+    for t, table_coefs in table.items():
+        acc = exact.setdefault(t + delta if delta else t, [])
+        for j, c in enumerate(table_coefs):
+            if j == len(acc):
+                acc.append({})
+            for atom, v in c.items():
+                acc[j][atom] = acc[j].get(atom, Fraction(0)) + sign * v
+
+
+def _balls(system: Any, exact: dict[float, list[_Exact]]) -> dict[float, list[Any]]:
+    """The rational combinations ``exact`` of the plant's gains as ``arb`` balls."""
     h, _, w = gain_balls(system)
     flint = require_flint()
     with precision(flint, PRECISION):
@@ -1287,6 +1381,36 @@ def _exact_balls(
             return sum((atoms[k] * (flint.arb(v.numerator) / v.denominator) for k, v in c.items() if v), flint.arb(0))
 
         return {t: [ball(c) for c in coefs] for t, coefs in exact.items()}
+
+
+def gain_slope_factors(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2, at_zero: Controller, at_one: Controller
+) -> tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial, QuasiPolynomial]:
+    """``(A_0, A_1 - A_0, B_0, B_1 - B_0)``: the factors of a loop affine in a gain, from the controllers at gains
+    0 and 1, so that the loop at ``K`` is ``(A_0 + K (A_1 - A_0)) + (B_0 + K (B_1 - B_0)) e^{-delta s}``.
+
+    Where the factors' point coefficients are exact rationals of the plant's numbers (the exact and proven
+    routes), the radii of the differences' point coefficients bound them against the exact differences, not
+    the sum of the two loops' radii: a coefficient whose exact slope is a double has radius 0 (and a product
+    with ``K`` the radius of its rounding). So at the gain where point terms of the loop cancel (``K = rho`` for
+    U_BS2(K), eqs. (56)-(58): the target system ``1``), summed as ``(A_0 + B_0) + K ((A_1 - A_0) + (B_1 -
+    B_0))`` (:meth:`nrobust.design.AffineLoop.nominal`), they are exactly 0, not balls about 0.
+    """
+    A0, B0 = loop_factors(system, at_zero)
+    A1, B1 = loop_factors(system, at_one)
+    slopes = [A1 - A0, B1 - B0]
+    zero, one = _exact_points(system, at_zero), _exact_points(system, at_one)
+    if zero is not None and one is not None:
+        try:
+            flint = require_flint()
+        except ImportError:
+            flint = None
+        for i in (0, 1) if flint is not None else ():
+            exact: dict[float, list[_Exact]] = {}
+            _accumulate(exact, one[i], 0.0, Fraction(1))
+            _accumulate(exact, zero[i], 0.0, Fraction(-1))
+            slopes[i] = _with_radii(flint, slopes[i], _balls(system, exact), keep_zero=True)
+    return A0, slopes[0], B0, slopes[1]
 
 
 @renamed_keywords(n="kernel_grid")
@@ -1370,7 +1494,11 @@ def characteristic(
     a, b = loop_factors(system, controller, kernel_grid)
     shifted = b.shift(delta)
     F = a + shifted
-    if isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)) or not has_exact_form(system):
+    if (
+        isinstance(controller, OutputFeedback)
+        or (isinstance(controller, CollocatedOutputFeedback) and not _scaled_collocated(system, controller))
+        or not has_exact_form(system)
+    ):
         return F
     if a.exact_points and b.exact_points and not {t for _, t in a.point_terms} & {t for _, t in shifted.point_terms}:
         return F  # no coefficient summed: those of the exact factors

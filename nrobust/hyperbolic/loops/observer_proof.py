@@ -113,6 +113,7 @@ from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .collocated_proof import polynomial_integral, response_pieces
 from .exact_form import (
     KAPPA_MAX,
     closed_form_parameters,
@@ -132,6 +133,8 @@ __all__ = [
     "proven_collocated_products",
     "proven_observer_failure",
     "proven_observer_term",
+    "proven_response_failure",
+    "proven_response_product",
     "proof_window",
     "window",
 ]
@@ -533,8 +536,15 @@ def _nodes(lo: float, hi: float, step: float) -> list[float] | None:
 
 def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slope: Any) -> DistributedDelay:
     """The interval's ``g^`` (in ``nu - lo``) as pieces of degree :data:`DEGREE` on equal segments, proven bounds."""
+    return _store_counted(flint, g, lo, hi, w, sup_err, slope, SEGMENTS)[0]
+
+
+def _store_counted(
+    flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slope: Any, segments: int
+) -> tuple[DistributedDelay, int]:
+    """:func:`_store` with ``segments`` per ``w`` at first (doubled until the pieces reach the target), and the
+    segments per ``w`` it took."""
     arb, arb_poly = flint.arb, flint.arb_poly
-    segments = SEGMENTS
     while segments <= MAX_SEGMENTS:
         mant, expo = math.frexp(w / segments)
         step = math.ldexp(math.floor(mant * 2**40) / 2**40, expo)
@@ -565,7 +575,7 @@ def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slo
     total = sum(errors, arb(0))
     radius = sup_err + largest
     variation = slope * (arb(hi) - arb(lo)) + 3 * total
-    return DistributedDelay(
+    term = DistributedDelay(
         np.asarray(nodes),
         None,
         interpolation="polynomial",
@@ -573,6 +583,7 @@ def _store(flint: Any, g: Any, lo: float, hi: float, w: float, sup_err: Any, slo
         radius=math.nextafter(float(radius.upper()), math.inf),
         variation_radius=math.nextafter(float(variation.upper()), math.inf),
     )
+    return term, segments
 
 
 @dataclass(frozen=True)
@@ -640,9 +651,8 @@ def _collocated_attempt(system: Hyperbolic2x2) -> ProvenCollocatedProducts | str
     return _in_balls(system, lambda flint: _collocated_enclose(flint, system))
 
 
-def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
-    """:func:`proven_collocated_products` at the working precision."""
-    poly = _Poly(flint)
+def _closed_forms(flint: Any, system: Hyperbolic2x2) -> tuple[float, tuple[Any, ...], tuple[Any, ...]]:
+    """``tau`` and ``1 - Phi``, ``u_factor`` as ``(c_0, c_tau, S, b, b')`` (:func:`_proven_product`)."""
     arb = flint.arb
     tau, _, _, q, rho, _ = closed_form_parameters(system)
     p_ratio, m_ratio, _ = exact_ratios(system)
@@ -652,6 +662,13 @@ def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedPr
     _, rho_q, q_ball = gain_balls(system)
     open_loop = (arb(1), -rho_q, *closed_form_series(flint, T, P, M, ("N", q, rho)))
     u_factor = (arb(0), q_ball, *closed_form_series(flint, T, P, M, ("U", q, rho)))
+    return tau, open_loop, u_factor
+
+
+def _collocated_enclose(flint: Any, system: Hyperbolic2x2) -> ProvenCollocatedProducts:
+    """:func:`proven_collocated_products` at the working precision."""
+    poly = _Poly(flint)
+    tau, open_loop, u_factor = _closed_forms(flint, system)
     return ProvenCollocatedProducts(
         _proven_product(flint, poly, tau, open_loop, u_factor), _proven_product(flint, poly, tau, u_factor, u_factor)
     )
@@ -691,3 +708,176 @@ def _proven_product(flint: Any, poly: _Poly, tau: float, f: tuple[Any, ...], g: 
         points.append((np.array([mid]), delay))
         radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
     return QuasiPolynomial.from_parts(points, terms, radii or None)
+
+
+def proven_response_product(system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
+    """``G = (1 - Phi) C_u`` of the collocated observer under U_BS2(K) (``K = rho``: U_BS), proven.
+
+    ``C_u = -K q e^{-tau s} + int_0^tau c e^{-nu s}`` with ``c`` from the kernels' proven enclosures
+    (:func:`~nrobust.hyperbolic.loops.collocated_proof.response_pieces`), ``1 - Phi`` the closed form; the
+    kernel of ``G`` is ``c(nu) - rho q c(nu - tau) - K q S(nu - tau) + (S * c)(nu)`` on the pieces between
+    ``t_j`` and ``t_j + tau`` (``t_j`` the ends of ``c``'s pieces), stored as :func:`_store` stores the others.
+
+    Raises
+    ------
+    CertificationError
+        No ball arithmetic, an end of a piece that is not a double, or a bound not reached.
+    """
+    out = _response_attempt(system, float(K))
+    if isinstance(out, str):
+        raise CertificationError(f"proven_response_product: {out}; the collocated observer's terms are a model")
+    return out
+
+
+def proven_response_failure(system: Any, K: float) -> str | None:
+    """Why :func:`proven_response_product` cannot enclose ``G`` for ``system`` and ``K`` (None when it can)."""
+    if not _collocated_covered(system):
+        return "a plant other than Hyperbolic2x2 with constant couplings"
+    if system.uncoupled:
+        return "an uncoupled plant (its collocated observer is exact)"
+    out = _response_attempt(system, float(K))
+    return out if isinstance(out, str) else None
+
+
+@lru_cache(maxsize=8)
+def _response_attempt(system: Hyperbolic2x2, K: float) -> QuasiPolynomial | str:
+    """:func:`proven_response_product`, or the reason it failed."""
+    return _in_balls(system, lambda flint: _response_enclose(flint, system, K))
+
+
+def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
+    """:func:`proven_response_product` at the working precision, its kernel stored on the segments of
+    :func:`_response_segments` at least (``G`` is affine in ``K``: the loops at two gains then share their nodes,
+    and their affine combinations cancel term by term where the loop does).
+
+    ``C_u`` is affine in the law's gains (``k = -K`` and ``g_u, g_v`` of eq. (53)), so ``G``'s kernel at ``K`` is
+    ``(1 - K) G_0 + K G_1`` of the enclosures at ``K = 0`` and ``K = 1`` (:func:`_response_basis`, once per
+    plant), within ``|1 - K| e_0 + |K| e_1`` of their bounds; its point terms are formed at ``K`` directly.
+    """
+    arb = flint.arb
+    basis = _response_basis(system)
+    if isinstance(basis, str):
+        raise CertificationError(basis)
+    (zero, e_0, s_0), (one, e_1, s_1) = basis
+    a, b = arb(1) - arb(K), arb(K)
+    kernels = [(lo, hi, g_0 * a + g_1 * b) for (lo, hi, g_0), (_, _, g_1) in zip(zero, one, strict=True)]
+    sup_err, slope = abs(a) * e_0 + abs(b) * e_1, abs(a) * s_0 + abs(b) * s_1
+    points = _response_points(flint, system, K)
+    segments = _response_segments(system)
+    terms = [
+        _store_counted(flint, kernel, lo, hi, system.tau, sup_err, slope, count)[0]
+        for (lo, hi, kernel), count in zip(kernels, segments, strict=True)
+    ]
+    return QuasiPolynomial.from_parts(points[0], [_one_kernel(terms)], points[1])
+
+
+def _one_kernel(terms: list[DistributedDelay]) -> DistributedDelay:
+    """The pieces of consecutive ``terms`` as one kernel, their coefficients as stored (no rounding).
+
+    Its error bound is the largest of the terms' (they hold on disjoint intervals), its variation theirs and the
+    jumps of the error where they meet (the two radii). As one kernel, integration by parts counts the jumps of
+    ``G``'s kernel where the terms meet, not both of their ends (the frequency bounds, the second-order
+    variation of :meth:`~nrobust.distributed_delay.DistributedDelay.second_order_variation`).
+    """
+    if len(terms) < 2:
+        return terms[0]
+    nodes = np.concatenate([terms[0].nodes[:1], *(d.nodes[1:] for d in terms)])
+    degree = max(d.pieces[2].shape[1] for d in terms)
+    coefficients = np.concatenate([np.pad(d.pieces[2], ((0, 0), (0, degree - d.pieces[2].shape[1]))) for d in terms])
+    variation = math.fsum(
+        [d.variation_radius for d in terms] + [u.radius + v.radius for u, v in itertools.pairwise(terms)]
+    )
+    return DistributedDelay(
+        nodes,
+        None,
+        interpolation="polynomial",
+        coefficients=coefficients,
+        radius=max(d.radius for d in terms),
+        variation_radius=math.nextafter(math.nextafter(variation, math.inf), math.inf),
+    )
+
+
+@lru_cache(maxsize=8)
+def _response_basis(system: Hyperbolic2x2) -> tuple[tuple[list[tuple[float, float, Any]], Any, Any], ...] | str:
+    """``G``'s kernels with the bounds of their errors and of their derivatives' at ``K = 0`` and ``K = 1``
+    (:func:`_response_kernels`), or the reason they failed."""
+    return _in_balls(system, lambda flint: tuple(_response_kernels(flint, system, K) for K in (0.0, 1.0)))
+
+
+@lru_cache(maxsize=8)
+def _response_segments(system: Hyperbolic2x2) -> tuple[int, ...]:
+    """Per piece of ``G``'s kernel, the segments per ``tau`` that both ``K = 0`` and ``K = 1`` need."""
+    flint = require_flint()
+    counts = []
+    basis = _response_basis(system)
+    if isinstance(basis, str):
+        raise CertificationError(basis)
+    with precision(flint, _PRECISION):
+        zero, one = basis[0][0], basis[1][0]
+        zero_arb = flint.arb(0)
+        for (lo, hi, a), (_, _, b) in zip(zero, one, strict=True):
+            counts.append(
+                max(_store_counted(flint, g, lo, hi, system.tau, zero_arb, zero_arb, SEGMENTS)[1] for g in (a, b))
+            )
+    return tuple(counts)
+
+
+def _response_kernels(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list[tuple[float, float, Any]], Any, Any]:
+    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``) and the bounds of its error and of
+    its derivative's (:func:`proven_response_product`)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
+    poly = _Poly(flint)
+    tau, (c0, ct, S, b, db), _ = _closed_forms(flint, system)
+    response = response_pieces(flint, system, K)
+    ends = [float(t.mid()) for t in response.breaks]
+    if any(not t.is_exact() for t in response.breaks) or ends[-1] != tau:
+        raise CertificationError("an end of the command response's pieces is not a double")
+    e, de = response.error, response.slope
+    T = arb(tau)
+    s_sup, ds_sup = poly.sup(S, T), poly.sup(S.derivative(), T)
+    c_sup = arb(0)
+    for lo, hi, piece in zip(ends[:-1], ends[1:], response.pieces, strict=True):
+        c_sup = arb.max(c_sup, poly.sup(piece, arb(hi) - arb(lo)))
+    kq = -arb(K) * arb(float(system.q))
+    conv_err = T * (b * (c_sup + e) + s_sup * e)
+    conv_slope = 2 * (b * (c_sup + e) + s_sup * e) + T * (db * (c_sup + e) + ds_sup * e)
+    sup_err = e + abs(ct) * e + abs(kq) * b + conv_err
+    slope = de + abs(ct) * de + abs(kq) * db + conv_slope
+    cuts = sorted({*ends, *(t + tau for t in ends)})
+    if any(t + tau - tau != t for t in ends):
+        raise CertificationError("an end of the product's pieces is not a double")
+    kernels = []
+    for lo, hi in itertools.pairwise(cuts):
+        middle = 0.5 * (lo + hi)
+        u = arb_poly([arb(0), arb(1)])
+        kernel = arb_poly([0])
+        for j, piece in enumerate(response.pieces):
+            start, stop = ends[j], ends[j + 1]
+            if start <= middle - tau < stop:
+                kernel += piece(u + (arb(lo) - arb(tau) - arb(start))) * ct
+            if start <= middle < stop:
+                kernel += piece(u + (arb(lo) - arb(start))) * c0
+            if middle - stop >= tau or middle - start <= 0.0:
+                continue
+            lower = arb_poly([0]) if middle - stop <= 0.0 else u + (arb(lo) - arb(stop))
+            upper = arb_poly([T]) if middle - start >= tau else u + (arb(lo) - arb(start))
+            kernel += polynomial_integral(flint, S, piece, arb(-1), u + (arb(lo) - arb(start)), lower, upper)
+        if middle > tau:
+            kernel += S(u + (arb(lo) - T)) * kq
+        kernels.append((lo, hi, kernel))
+    return kernels, sup_err, slope
+
+
+def _response_points(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list, list]:
+    """``G``'s point terms ``c_0 k q e^{-tau s}`` and ``c_tau k q e^{-2 tau s}`` (``k = -K``; ``c_0, c_tau`` the point
+    coefficients of ``1 - Phi``) with the radii of their rounding (:func:`proven_response_product`)."""
+    arb = flint.arb
+    tau, (c0, ct, _, _, _), _ = _closed_forms(flint, system)
+    kq = -arb(K) * arb(float(system.q))
+    points, radii = [], []
+    for value, delay in ((c0 * kq, tau), (ct * kq, 2.0 * tau)):
+        mid = float(value.mid())
+        gap = abs(value - arb(mid))
+        points.append((np.array([mid]), delay))
+        radii.append([0.0 if gap.is_zero() else math.nextafter(float(gap.upper()), math.inf)])
+    return points, radii
