@@ -49,8 +49,8 @@ def _same_term(a: DistributedDelay, b: DistributedDelay) -> bool:
 
 def test_variation_bound_adds_the_jumps_in_order(loop):
     """The jumps' terms ``|[N]| e^{-nu x}`` added one after another, as the sequential sum written here, bit for
-    bit: on the loop's kernel (95 jumps of rounding size between fitted pieces), a spline with jumps, scalar and
-    array ``x`` (with ``x`` where the exponentials overflow)."""
+    bit: on the loop's kernels (jumps of rounding size between their pieces), splines with one and 59 jumps, scalar
+    and array ``x`` (with ``x`` where the exponentials overflow)."""
 
     def sequential(d: DistributedDelay, x):
         x = np.asarray(x, dtype=float)
@@ -67,13 +67,16 @@ def test_variation_bound_adds_the_jumps_in_order(loop):
         )
         return out + np.sum(slope * seg, axis=-1) + d._radius_variation(x)
 
+    rng = np.random.default_rng(5)
+    # a kernel with a jump at each of 59 interior nodes (a node given twice), as a fitted kernel of many pieces has
+    many = np.repeat(np.linspace(0.0, 3.0, 61), 2)[1:-1]
     terms = [
         loop.B0.distributed[0],
         loop.A1.distributed[0],
         DistributedDelay([0.0, 1.0, 1.0, 2.5], [1.0, 2.0, -1.0, 0.5]),
+        DistributedDelay(many, rng.normal(0.0, 1.0, many.size)),
     ]
-    assert len(terms[0]._jumps()) > 50
-    rng = np.random.default_rng(5)
+    assert len(terms[0]._jumps()) > 5 and len(terms[-1]._jumps()) > 50
     xs = [0.0, -0.0, 1e-9, -0.14, 3.0, -400.0, *rng.normal(0.0, 2.0, 50)]
     with np.errstate(over="ignore", invalid="ignore"):
         for d in terms:
@@ -149,7 +152,7 @@ def test_far_field_bounds_kept_per_function(loop):
     assert g == cold_gap and cold_gap.gap > 0.0
     radii = np.geomspace(1.0, 1e6, 25)
     assert np.array_equal(tail(radii), cold_tail(radii))
-    twin = QuasiPolynomial.from_parts(F.point_terms, F.distributed)
+    twin = QuasiPolynomial.from_parts(F.point_terms, F.distributed, F.radii_of())
     assert twin == F and abscissa._gap_and_tail(twin, n, x)[1] is not tail
     assert abscissa._gap_and_tail(F, n, np.nextafter(x, 0.0))[1] is not tail
     for R in (2.0, 50.0, 1e4):

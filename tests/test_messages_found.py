@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from test_general import RHO, general_plant
 
+import nrobust as nr
 from nrobust import (
     CertificationError,
     Hyperbolic2x2,
@@ -16,6 +17,7 @@ from nrobust import (
     QuasiPolynomial,
     ReflectionController,
     StateFeedback,
+    TransportSystem,
     certify,
     spectral_abscissa,
 )
@@ -92,6 +94,24 @@ def test_rigorous_margin_with_a_gap_below_float_rounding() -> None:
     np.testing.assert_allclose(dm.margin, float(delta), rtol=1e-12)
     assert dm.omega is not None
     np.testing.assert_allclose(dm.omega, float(w), rtol=1e-9)
+
+
+def test_float_margin_with_a_gap_below_rounding_is_not_called_zero() -> None:
+    """The floating-point gap of these loops is ``0 +- r``: a zero margin was returned (verified False) where the
+    margin is ``3.82e-8`` (the loop above) or ``inf`` (the transport plant with ``|q K| = 1 - 2^-53``, found by the
+    property-based harness: ``1 - q K e^{-tau s}`` has a positive gap, so every delay is stable); the ball gap decides,
+    and the float path refuses with the remedy. An exactly zero gap keeps its zero margin."""
+    pytest.importorskip("flint")
+    A, B = QuasiPolynomial([[1.0, 1.0]], [0.0]), QuasiPolynomial([[2.0, 1.0 - 2.0**-52]], [0.0])
+    with pytest.raises(CertificationError, match=r"positive in ball arithmetic.*rigorous=True"):
+        delay_margin(A, B)
+    plant, controller = TransportSystem(1.625, 2.125, -1.0, 0.0), ReflectionController(-0.9999999999999999)
+    with pytest.raises(CertificationError, match="positive in ball arithmetic"):
+        nr.delay_margin(plant, controller)
+    proven = nr.delay_margin(plant, controller, rigorous=True)
+    assert proven.margin == np.inf and proven.strongly_stable
+    at_boundary = delay_margin(A, QuasiPolynomial([[2.0, 1.0]], [0.0]))  # |b_1| = |a_1| exactly
+    assert at_boundary.margin == 0.0 and not at_boundary.strongly_stable
 
 
 def test_natural_gain_cancels_the_reflection_of_a_general_plant_exactly() -> None:

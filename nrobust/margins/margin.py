@@ -506,6 +506,31 @@ def _proven_zero_root(A: QuasiPolynomial, B: QuasiPolynomial, delta_max: float |
     )
 
 
+def _zero_gap_decided(A: QuasiPolynomial, B: QuasiPolynomial, gap: float, gap_accuracy: float) -> None:
+    """Refuse a zero margin whose gap is zero to its floating-point accuracy unless ball arithmetic decides it.
+
+    The floating-point gap ``0 +- r`` does not say whether the difference operator is strongly stable: the gap in
+    ball arithmetic (:func:`~nrobust.margins.proven.proven_gap`) does when it is negative, or exactly zero (the
+    margin is then 0); a positive one means a strongly stable loop whose frequency bound is beyond the floating-point
+    search, and a ball holding 0 leaves it undecided.
+    """
+    lo, hi = proven_gap(A, B)
+    if hi < 0.0 or lo == hi == 0.0:
+        return
+    text = with_accuracy(gap, gap_accuracy)
+    if lo > 0.0:
+        raise CertificationError(
+            f"delay_margin: the principal gap {text} is zero to its floating-point accuracy but positive in ball "
+            f"arithmetic ([{lo:.3g}, {hi:.3g}]): the loop's difference operator is strongly stable and its margin "
+            "is not 0; delay_margin(..., rigorous=True) computes it"
+        )
+    raise CertificationError(
+        f"delay_margin: the principal gap {text} is zero to rounding (in ball arithmetic [{lo:.3g}, {hi:.3g}]): "
+        "strong stability is not decided, nor a zero margin; exact coefficients (or coefficients away from the "
+        "boundary |b_0| = |a_0|) decide"
+    )
+
+
 def _not_strongly_stable(
     A: QuasiPolynomial, B: QuasiPolynomial, zero_root: bool, delta_max: float | None, rigorous: bool
 ) -> DelayMargin:
@@ -517,8 +542,10 @@ def _not_strongly_stable(
             f"delay_margin(rigorous=True): the principal gap {gap:.3g} is not proven negative (the loop is at "
             "the boundary of strong stability to rounding): zero margin not proven"
         )
-    nominal = unstable_count(A + B).count
     gap_accuracy = _gap_accuracy(A, B, gap, rounding, rigorous)
+    if not rigorous and np.isfinite(gap) and gap + gap_accuracy >= 0.0:
+        _zero_gap_decided(A, B, gap, gap_accuracy)
+    nominal = unstable_count(A + B).count
     reason = (
         "advanced-type loop: chains of roots in Re s > 0 for every delta > 0"
         if not np.isfinite(gap)

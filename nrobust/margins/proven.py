@@ -969,12 +969,15 @@ def _newton(axis: _Axis, a: float, b: float, s_a: int, slope: int, d_iv: Any, or
 def proven_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
     """Enclosure ``(lo, hi)`` of the principal gap ``|a_0| - sum |a_k|`` of the loop (ball arithmetic).
 
-    ``(-inf, -inf)`` for an advanced-type loop (no first principal term dominates).
+    ``(-inf, -inf)`` for an advanced-type loop (no first principal term dominates); ``(0.0, 0.0)`` when the
+    gap is exactly zero (``|b_0| = |a_0|`` of real coefficients, say).
     """
     flint = require_flint()
     res = _proven_bound(flint, (A, B), 1.0)
     if res is None:
         return (-math.inf, -math.inf)
+    if res[0].is_zero():
+        return (0.0, 0.0)
     return _lo(res[0]), _hi(res[0])
 
 
