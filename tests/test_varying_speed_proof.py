@@ -444,12 +444,80 @@ def test_kernel_stored_from_midpoints_holds_the_ode(s):
         assert ball.real.rad() < 1e-9 and ball.imag.rad() < 1e-9
 
 
+def _ode_couplings(lam, mu, b, c, q, rho, length, s, dps=20):
+    """``(e^{-s t_v} (v - rho u), e^{-s t_v} u)`` at ``x = L`` of a plant with ``a = d = 0`` (mpmath, ``dps`` digits).
+
+    ``u_x = (-s u + b v) / lam``, ``v_x = (s v - c u) / mu`` from ``[u; v](0) = [q; 1]``, ``t_v = int_0^L 1/mu``
+    by quadrature; ``lam, mu, b, c`` mpmath functions of ``x``.
+    """
+    with mp.workdps(dps):
+        s, m = mp.mpc(s), mp.mpf
+
+        def rhs(x, y):
+            return [(-s * y[0] + b(x) * y[1]) / lam(x), (s * y[1] - c(x) * y[0]) / mu(x)]
+
+        u, v = mp.odefun(rhs, 0, [m(q), m(1)])(m(length))
+        weight = mp.exp(-s * mp.quad(lambda x: 1 / mu(x), [0, m(length)]))
+        return weight * (v - m(rho) * u), weight * u
+
+
+def _holds_the_ode(plant, mp_plant, s):
+    """The open loop and ``u_factor`` of ``plant``'s proof in ball arithmetic hold the ODE's values at ``s``."""
+    from nrobust.balls import ball_eval
+
+    proof = varying_proof(plant)
+    factor = float(proof.assumption.split("within ")[1].split(" of 1")[0])
+    assert factor < 1e-15
+    A, u = _ode_couplings(*mp_plant, s)
+    for F, value in ((proof.characteristic, A), (proof.u_factor, u)):
+        ball = ball_eval(F, flint.acb(s.real, s.imag))
+        # the speeds' factor (a relative change of the phases: |s| tau factor per unit of |e^{-tau s}|); 1e-18
+        # covers the ODE's 20 digits
+        _inside(ball, complex(value), 1e-18 + abs(s) * proof.tau * factor * np.exp(-proof.tau * s.real))
+        assert ball.real.rad() < 1e-9 and ball.imag.rad() < 1e-9
+
+
+# Speeds analytic on a wide disc about [0, L] (zeros of mu at +-2.6i) on L = 1.5: ball arithmetic on the 64 balls
+# of [0, 1] bounded the remainder's coefficient of k_r(y) (through x(y)) by 2.6e-7 (its value near 1e-27)
+_LONG = (lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4)
+_LONG_MP = (
+    lambda x: mp.mpf(1.2) * mp.exp(mp.mpf(0.3) * x),
+    lambda x: mp.mpf(0.7) + mp.mpf(0.1) * x**2,
+    lambda x: mp.mpf(0.5),
+    lambda x: mp.mpf(0.3),
+    0.7,
+    -0.4,
+    1.5,
+)
+
+
+def _lv(x):
+    return 2 * (1 - 0.27 * x + 0.58 * x * x)
+
+
+def _lv_mp(x):
+    return 2 * (1 - mp.mpf(0.27) * x + mp.mpf(0.58) * x * x)
+
+
+@pytest.mark.parametrize("s", [0.5j, 1.0 + 4.0j])
+def test_long_plant_proven_by_halving_the_top_balls(s):
+    """The plant above is proven (refused before: "k_r not within double precision ... (remainder 2.6e-07)") and
+    its open loop and ``u_factor`` hold the ODE's (mpmath, 20 digits)."""
+    _holds_the_ode(GeneralHyperbolic2x2(*_LONG, length=1.5), _LONG_MP, s)
+
+
+@pytest.mark.parametrize("s", [0.5j, -0.2 + 6.0j])
+def test_quadratic_speed_proven_by_halving_the_top_balls(s):
+    """``lam = 2 (1 - 0.27 x + 0.58 x^2)`` (zeros at ``0.23 +- 1.29i``), ``mu = lam / 1.3``, ``L = 0.727``: proven
+    (refused before: "k_r not within double precision of one Taylor model"), and it holds the ODE's."""
+    plant = GeneralHyperbolic2x2(_lv, lambda x: _lv(x) / 1.3, 0.0, 0.5, 1.2, 0.0, 0.7, 0.4, length=0.727)
+    mp_plant = (_lv_mp, lambda x: _lv_mp(x) / mp.mpf(1.3), lambda x: mp.mpf(0.5), lambda x: mp.mpf(1.2))
+    _holds_the_ode(plant, (*mp_plant, 0.7, 0.4, 0.727), s)
+
+
 def test_refusal_on_a_long_plant_names_the_overestimation():
-    """Speeds analytic on a wide disc about ``[0, L]`` (``1.2 e^{0.3 x}``, ``0.7 + 0.1 x^2``, whose zeros are at
-    ``+-2.6i``) on ``L = 1.5``: the remainder's bound on wide balls is refused, and the reason names ball
-    arithmetic's overestimation besides a singularity."""
-    plant = GeneralHyperbolic2x2(
-        lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4, length=1.5
-    )
+    """The plant above on ``L = 2``: the remainder's bound on balls, even halved, is refused, and the reason names
+    ball arithmetic's overestimation besides a singularity."""
+    plant = GeneralHyperbolic2x2(*_LONG, length=2.0)
     reason = varying_failure(plant)
     assert reason is not None and "overestimating the remainder's coefficient" in reason

@@ -20,10 +20,12 @@ the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
 from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` (``x = 1/2 + t/2``,
 the Taylor polynomial of order :data:`ORDER` - 1 in ``t``) and calls on 64 balls covering
 ``[0, 1]``, whose coefficients of ``t^ORDER`` bound the Lagrange remainder (and, times
-``2 ORDER``, that of the derivative), as :mod:`~nrobust.hyperbolic.loops.exact_gains` does for
-integral gains; the model must agree with the coupling evaluated on arrays at 17 points of
-``[0, 1]`` (a function that acts differently on balls is refused). A Picard iteration in
-floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
+``2 ORDER``, that of the derivative; a ball whose bound is above ``2^-44`` of the sum of the model's
+``|coefficients|`` is halved, up to :data:`_TOP_DEPTH` times, while its halves bound it at least twice
+tighter: ball arithmetic overestimates on wide balls, above all through ``x(y)`` of varying speeds), as
+:mod:`~nrobust.hyperbolic.loops.exact_gains` does for integral gains; the model must agree with the
+coupling evaluated on arrays at 17 points of ``[0, 1]`` (a function that acts differently on balls is
+refused). A Picard iteration in floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
 :data:`DEGREES` whose bound is small enough). Their residual
 ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
 polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
@@ -141,6 +143,8 @@ _AGREEMENT = 1e-8
 _RESIDUAL = 2.0**-27
 # Balls covering [0, 1] on which the coefficient of order ORDER of a coupling's model is bounded.
 _TOP_BALLS = 64
+# Most halvings of a top ball whose bound is far above the model's size.
+_TOP_DEPTH = 5
 # Points at which a coupling's model must agree with its values on arrays (and which key the cache).
 _CHECK_POINTS = np.linspace(0.0, 1.0, 17)
 # Most pieces of [0, L] on which 1/lam + 1/mu is modelled for the map y = T(x)/T(L) (a power of 2).
@@ -368,10 +372,30 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any,
         return coefs
 
     head = call(arb(0.5))[:ORDER]
-    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball)
+    # the remainder's coefficient is worth bounding more tightly (smaller balls) down to this size
+    goal = sum((abs(c) for c in head), arb(0)) * 2.0**-44 + 2.0**-64
+
+    def own(centre: float, radius: float) -> Any:
+        """An exact upper bound of ``|coefficient of t^ORDER|`` at every centre of the ball (one call)."""
+        return abs(call(arb(centre, radius + 2.0**-30 * radius))[ORDER]).upper()
+
+    def bound(centre: float, radius: float, out: Any, depth: int) -> Any:
+        """``out`` (the ball's own bound) or, where smaller, the largest of its halves' bounds."""
+        if depth == _TOP_DEPTH or not out.is_finite() or bool(out < goal):
+            return out
+        halves = [(centre + side * radius / 2, radius / 2) for side in (-1, 1)]
+        bounds = [own(c, r) for c, r in halves]
+        largest = arb.max(*bounds)
+        if not bool(2 * largest < out):  # halving does not tighten it: not ball arithmetic's overestimation
+            return largest if bool(largest < out) else out
+        return arb.max(*(bound(c, r, b, depth + 1) for (c, r), b in zip(halves, bounds)))
+
+    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball),
+    # halved where ball arithmetic overestimates it (a wide ball of x(y) for varying speeds, module notes)
     top = arb(0)
     for k in range(_TOP_BALLS):
-        top = arb.max(top, abs(call(arb((2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS) + 2.0**-30))[ORDER]))
+        centre, radius = (2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS)
+        top = arb.max(top, bound(centre, radius, own(centre, radius), 0))
     if not (all(c.is_finite() for c in head) and top.is_finite()):
         raise CertificationError(f"the coupling {name} is not enclosed by finite balls on [0, 1] (not analytic there)")
     # x = 1/2 + t/2: the model in t, then in x (t = 2 x - 1); the remainder is |top| |t|^ORDER.
@@ -661,8 +685,8 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
                     f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], a coupling that "
                     "varies too fast for that order, or (varying speeds, long L) ball arithmetic overestimating the "
-                    f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1]; the kernel route "
-                    "(kernel_grid=...) gives a model of the PDE"
+                    f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1], even halved {_TOP_DEPTH} "
+                    "times; the kernel route (kernel_grid=...) gives a model of the PDE"
                 )
         for n in DEGREES:
             try:
