@@ -38,7 +38,7 @@ DEGREE = 50
 #: Most terms of the Taylor series in ``x`` of the Laplace-domain profiles: a series stops past the gains' degree
 #: and ``2 |M(s)|`` (``|M|`` the largest row sum) once its last term is below ``10^-(DPS + 5)``; the terms then
 #: fall by at least half each (``|M| / (n + 1)``), so the rest is at most the last term.
-X_TERMS = 400
+X_TERMS = 1200
 
 
 def kernel_pair(a, b, kappa, g, r):
@@ -119,6 +119,8 @@ class CollocatedPDE:
             fv = self.p_v[n] / self.mu if n <= DEGREE else 0
             Y.append(((m11 * yu + m12 * yv) / (n + 1), (m21 * yu + m22 * yv) / (n + 1)))
             Z.append(((m11 * zu + m12 * zv + fu) / (n + 1), (m21 * zu + m22 * zv + fv) / (n + 1)))
+        else:
+            raise AssertionError(f"the profiles' series at s = {s} did not reach 1e-{DPS + 5} in {X_TERMS} terms")
         return Y, Z
 
     def _law(self, series):
@@ -130,7 +132,11 @@ class CollocatedPDE:
 
     def responses(self, s):
         """``(C_u, T, e^{-s/mu} Delta, 1 - Phi, e^{-s/mu} (Y_v(1) - (rho - K) Y_u(1) - int g . Y))``."""
-        with mp.workdps(DPS + 10):
+        # the series' terms grow to about e^{|M|} before they fall: that many more digits keep DPS + 10 in the sum
+        size = abs(complex(s)) / float(min(self.lam, self.mu)) + float(
+            abs(self.spm) / self.lam + abs(self.smp) / self.mu
+        )
+        with mp.workdps(DPS + 10 + int(size / 2.302585) + 1):
             s = mp.mpc(s)
             Y, Z = self._profiles(s)
             yu, yv = (mp.fsum(y[c] for y in Y) for c in (0, 1))

@@ -3153,8 +3153,13 @@ _NEIGHBOURS = 4
 
 
 def _single_term(F: QuasiPolynomial) -> bool:
-    """``F = c e^{-h s}`` with a constant ``c != 0``: a quasi-polynomial without any zero."""
-    return not F.distributed and len(F.point_terms) == 1 and F.point_terms[0][0].size == 1
+    """``F = c e^{-h s}`` with a constant ``c`` proven nonzero (``|c|`` above its radius): no zero anywhere."""
+    return (
+        not F.distributed
+        and len(F.point_terms) == 1
+        and F.point_terms[0][0].size == 1
+        and bool(abs(F.point_terms[0][0][0]) > F.radii_of()[0][0])
+    )
 
 
 def _distributed_residue(loop: _Family, F: QuasiPolynomial, p: float) -> bool:
