@@ -9,6 +9,7 @@ simulated PDE.
 from __future__ import annotations
 
 import itertools
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -24,7 +25,13 @@ from nrobust.hyperbolic.nplusm import (
     nplusm_delay_margin,
 )
 from nrobust.hyperbolic.simulate import simulate_nplusm
-from nrobust.margins.matrix import GaugeRemainder, circle_crossings, compound_generator, compound_minors
+from nrobust.margins.matrix import (
+    GaugeRemainder,
+    circle_crossings,
+    compound_generator,
+    compound_generator_of,
+    compound_minors,
+)
 
 TWO_ONE = NPlusMSystem(
     [1.0, 0.5], [1.5], [[0.0, 0.0, 0.4], [0.0, 0.0, 0.3], [0.5, -0.4, 0.0]], [[0.6], [0.5]], [[0.5, 0.4]]
@@ -182,3 +189,16 @@ def test_multi_actuator_margin_without_omega_max_is_the_certified_route(monkeypa
     monkeypatch.setattr(nplusm, "multi_actuator_delay_margin", certified)
     assert multi_actuator_margin(BOTH, K_BOTH, max_points=1234) == "certified"
     assert calls == [((BOTH, K_BOTH), {"max_points": 1234})]
+
+
+def test_compound_generator_of_rationals_is_the_generator() -> None:
+    """``compound_generator_of`` on exact rationals (``Fraction``) equals ``compound_generator`` of the same matrix
+    (a float one with integer-ratio entries: both exact), entry by entry, skipping the zero entries."""
+    rng = np.random.default_rng(7)
+    for size, m in ((3, 1), (3, 2), (4, 2), (4, 3)):
+        A = rng.integers(-4, 5, (size, size)) / 8.0
+        A[rng.random((size, size)) < 0.3] = 0.0
+        exact = [[Fraction(v) for v in row] for row in A]
+        got = compound_generator_of(exact, A != 0, m, Fraction(0))
+        want = compound_generator(A, m)
+        assert np.array_equal(np.array(got, dtype=float), want.real) and not np.any(want.imag)

@@ -41,8 +41,9 @@ at one point), raises :class:`~nrobust.errors.CertificationError`.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import positive_int
 from ..errors import CertificationError, ParameterError
 
-__all__ = ["GaugeRemainder", "circle_crossings", "compound_generator", "compound_minors"]
+__all__ = ["GaugeRemainder", "circle_crossings", "compound_generator", "compound_generator_of", "compound_minors"]
 
 # Initial cells of the circle of phases.
 _PHASE_CELLS = 64
@@ -113,6 +114,39 @@ def compound_generator(A: ArrayLike, m: int) -> NDArray[np.complex128]:
                 # sorting T moves k past the entries of S strictly between i and k
                 sign = -1.0 if sum(min(i, k) < j < max(i, k) for j in S) % 2 else 1.0
                 out[index[tuple(sorted(T))], col] += sign * a[k, i]
+    return out
+
+
+def compound_generator_of(entries: Sequence[Sequence[Any]], nonzero: ArrayLike, m: int, zero: Any) -> list[list[Any]]:
+    """:func:`compound_generator` of a matrix whose entries are numbers of another kind (balls, rationals).
+
+    ``D_m`` is linear in the matrix and its entries for a unit matrix are small integers, so the generator is the sum
+    over the entries ``entries[k][i]`` where ``nonzero[k, i]`` of that pattern times the entry, each sum starting at
+    ``zero`` (exact arithmetic on the integers: a ball sum encloses the generator of every matrix of the balls).
+
+    Parameters
+    ----------
+    entries : sequence of sequence
+        The ``N x N`` entries, of any type with ``+`` and multiplication by ``int``.
+    nonzero : array_like of bool, shape (N, N)
+        Where an entry can be nonzero (the others are skipped).
+    m : int
+        ``1 <= m <= N``.
+    zero : object
+        The zero of the entries' type.
+    """
+    mask = np.asarray(nonzero, dtype=bool)
+    size = mask.shape[0]
+    count = len(_subsets(size, m))
+    out = [[zero for _ in range(count)] for _ in range(count)]
+    for i, k in itertools.product(range(size), repeat=2):
+        if not mask[k, i]:
+            continue
+        unit = np.zeros((size, size))
+        unit[k, i] = 1.0
+        pattern = compound_generator(unit, m).real  # small integers, exact
+        for a, b in zip(*np.nonzero(pattern)):
+            out[a][b] += int(pattern[a, b]) * entries[k][i]
     return out
 
 

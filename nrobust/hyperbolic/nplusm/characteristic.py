@@ -62,7 +62,7 @@ from ..._validate import nonnegative, positive_int
 from ...balls import BallFunction, working_precision
 from ...difference import DifferenceOperator
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import GaugeRemainder, compound_generator, compound_minors
+from ...margins.matrix import GaugeRemainder, compound_generator, compound_generator_of, compound_minors
 from ...qpmatrix import FirstDerivative, QuasiPolynomialMatrix
 from ...quasipoly import QuasiPolynomial
 from ...roots import SpectralAbscissa, find_roots, spectral_abscissa
@@ -838,16 +838,7 @@ class _BallFarField:
                 for S in subsets
             ]
             c = [[arb(exact(sys.sigma[i, k]) * inv_q[i]) for k in range(N)] for i in range(N)]
-            d = [[arb(0) for _ in range(size)] for _ in range(size)]
-            for i in range(N):
-                for k in range(N):
-                    if sys.sigma[k, i] == 0:
-                        continue
-                    unit = np.zeros((N, N))
-                    unit[k, i] = 1.0
-                    pattern = compound_generator(unit, m).real  # small integers, exact
-                    for a_, b_ in zip(*np.nonzero(pattern)):
-                        d[a_][b_] += int(pattern[a_, b_]) * c[k][i]
+            d = compound_generator_of(c, sys.sigma != 0, m, arb(0))
             groups: dict[Any, list[int]] = {}
             for S, rate in enumerate(rates):
                 groups.setdefault(rate, []).append(S)

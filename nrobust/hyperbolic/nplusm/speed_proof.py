@@ -83,7 +83,7 @@ from ..._digits import lower_bound_text, upper_bound_text
 from ..._flint import working_precision
 from ..._validate import positive_int
 from ...errors import CertificationError, ParameterError
-from ...margins.matrix import compound_generator
+from ...margins.matrix import compound_generator_of
 from ..analyses.mismatch_proof import ball_lower, ball_upper, crossing_free
 from .characteristic import arb_max, spectral_norm_bound, symmetric_top_bound
 from .speed_box import WindowVerdict, perturbed_system
@@ -431,16 +431,7 @@ def _compound_tail(flint: Any, loop: _Loop, system: NPlusMSystem, K: Any, invers
         _ball_sum([inverse[i] for i in S if i < n] + [inverse[n + j] for j in range(m) if n + j not in S], arb(0))
         for S in subsets
     ]
-    d = [[arb(0) for _ in range(count)] for _ in range(count)]
-    for i in range(size):
-        for k in range(size):
-            if system.sigma[k, i] == 0:
-                continue
-            unit = np.zeros((size, size))
-            unit[k, i] = 1.0
-            pattern = compound_generator(unit, m).real  # small integers, exact
-            for a_, b_ in zip(*np.nonzero(pattern)):
-                d[a_][b_] += int(pattern[a_, b_]) * c[k][i]
+    d = compound_generator_of(c, system.sigma != 0, m, arb(0))
     N = [[arb(0) for _ in range(count)] for _ in range(count)]
     for S in range(count):
         for T in range(count):
