@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import time
 
 import mpmath
@@ -121,6 +122,14 @@ def test_float_margin_with_a_gap_below_rounding_is_not_called_zero() -> None:
     for rigorous in (False, True):
         at_boundary = delay_margin(A, boundary, rigorous=rigorous)
         assert at_boundary.margin == 0.0 and not at_boundary.strongly_stable
+
+
+def test_float_margin_at_a_zero_gap_without_flint(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without python-flint (an extra) the floating-point margin at a gap zero to its accuracy keeps its zero margin
+    and says that ball arithmetic would decide (no ImportError on the floating-point path)."""
+    monkeypatch.setitem(sys.modules, "flint", None)
+    edge = nr.delay_margin(Hyperbolic2x2(1, 1, 1, 1, 1, 0.85), ReflectionController(0.15))
+    assert edge.margin == 0.0 and "pip install nrobust[rigorous]" in edge.reason
 
 
 def test_natural_gain_cancels_the_reflection_of_a_general_plant_exactly() -> None:

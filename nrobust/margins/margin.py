@@ -522,7 +522,10 @@ def _zero_gap_decided(
     ball arithmetic decides within :data:`ZERO_GAP_EVALS` (a loop with no crossing, say), else the words the zero
     margin's reason adds (it is 0 for any change of the coefficients beyond the gap, not decided for them as given).
     """
-    lo, hi = proven_gap(A, B)
+    try:
+        lo, hi = proven_gap(A, B)
+    except ImportError:  # python-flint is an extra: without it the zero margin stands as the float gap has it
+        return "; ball arithmetic (pip install nrobust[rigorous]) would decide the gap's sign"
     if hi < 0.0 or lo == hi == 0.0:
         return ""
     if lo > 0.0:
