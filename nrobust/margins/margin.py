@@ -520,7 +520,7 @@ def _zero_gap_decided(
     ball arithmetic (:func:`~nrobust.margins.proven.proven_gap`) does when it is negative or exactly zero (the
     margin is 0: returns ``""``). A positive one means a strongly stable loop: its proven margin when the search in
     ball arithmetic decides within :data:`ZERO_GAP_EVALS` (a loop with no crossing, say), else the words the zero
-    margin's reason adds (it is 0 for any change of the coefficients beyond the gap, not decided for them as given).
+    margin's reason adds (it is 0 after changes of the coefficients of the gap's size, not decided for them as given).
     """
     try:
         lo, hi = proven_gap(A, B)
@@ -535,9 +535,9 @@ def _zero_gap_decided(
             pass
         return (
             f"; in ball arithmetic the gap is [{lo:.3g}, {hi:.3g}] > 0: strongly stable for the coefficients as "
-            "given, with a frequency bound beyond reach, so the zero margin holds for any change of the "
-            "coefficients beyond the gap and is not decided for them as given (delay_margin(..., rigorous=True) "
-            "with a larger max_evals)"
+            "given, with a frequency bound beyond reach: the margin is 0 after changes of the coefficients of the "
+            "gap's size, and not decided for them as given (delay_margin(..., rigorous=True) with a larger "
+            "max_evals)"
         )
     return (
         f"; in ball arithmetic the gap is [{lo:.3g}, {hi:.3g}]: the zero margin is not decided for the coefficients "
