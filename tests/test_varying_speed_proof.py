@@ -499,14 +499,14 @@ def _lv_mp(x):
     return 2 * (1 - mp.mpf(0.27) * x + mp.mpf(0.58) * x * x)
 
 
-@pytest.mark.parametrize("s", [0.5j, 1.0 + 4.0j])
+@pytest.mark.parametrize("s", [0.5j, pytest.param(1.0 + 4.0j, marks=pytest.mark.long)])
 def test_long_plant_proven_by_halving_the_top_balls(s):
     """The plant above is proven (refused before: "k_r not within double precision ... (remainder 2.6e-07)") and
     its open loop and ``u_factor`` hold the ODE's (mpmath, 20 digits)."""
     _holds_the_ode(GeneralHyperbolic2x2(*_LONG, length=1.5), _LONG_MP, s)
 
 
-@pytest.mark.parametrize("s", [0.5j, -0.2 + 6.0j])
+@pytest.mark.parametrize("s", [pytest.param(0.5j, marks=pytest.mark.long), -0.2 + 6.0j])
 def test_quadratic_speed_proven_by_halving_the_top_balls(s):
     """``lam = 2 (1 - 0.27 x + 0.58 x^2)`` (zeros at ``0.23 +- 1.29i``), ``mu = lam / 1.3``, ``L = 0.727``: proven
     (refused before: "k_r not within double precision of one Taylor model"), and it holds the ODE's."""
