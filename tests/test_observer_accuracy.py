@@ -51,7 +51,7 @@ def richardson(values: list[float], order: float) -> float:
     return values[-1] + (values[-1] - values[-2]) / (2.0**order - 1.0)
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 11-16 s each: the model plant's grid studies
 def test_collocated_observer_design_margin_digits():
     """``design_collocated_observer`` on ``MODEL``: ``margin=0.264731517 +- 2e-9`` (on the paper's plant, before its
     loop was proven, ``0.194802642 +- 3e-9``, and ``0.1948028 +- 8e-7`` while the loop was second order in its grid);
@@ -83,7 +83,7 @@ def test_collocated_observer_design_margin_digits():
     assert check.model_error is not None and abs(check.margin - truth) <= check.accuracy
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 11-16 s each: the model plant's grid studies
 def test_joint_collocated_design_margin_digits():
     """``design_collocated_output_feedback`` (one start): its margin was printed ``+- 2e-13`` (the accuracy of the
     model's crossing) though the model is 1e-7 from the PDE; now to the observer grid's study: ``0.19487749 +- 2e-8``.
@@ -100,7 +100,7 @@ def test_joint_collocated_design_margin_digits():
     assert decimals(digits) == -math.floor(math.log10(accuracy))
 
 
-@pytest.mark.slow
+@pytest.mark.long  # 11-16 s each: the model plant's grid studies
 def test_output_feedback_design_margin_digits():
     """``design_reflection(..., output_feedback=True)``: ``margin=0.144456116613 +- 4e-12``; the kernel route on
     201 and 401 points (order 3: ratio 7.9 from 101) extrapolates to 0.14445611661337 (from 401 and 801: 1e-13

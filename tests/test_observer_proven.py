@@ -169,6 +169,7 @@ def _pde_margin(args, law, w0, H=_H):
 
 
 # ------------------------------------------------------------------------------------------- the oracle itself
+@pytest.mark.long  # 15 s: the oracle's own convergence, at 40 digits
 def test_the_oracles_kernel_is_the_pdes_and_its_collocation_has_converged():
     """``N~``'s series is the PDE's (its transform is ``(1 - Phi) - 1 + rho q e^{-tau s}``), and the collocation
     of ``h`` with 36 points agrees with 48 to 1e-30 in ``H`` (on the strong couplings ``H`` is about 1e3 and the

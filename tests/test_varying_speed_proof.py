@@ -515,6 +515,7 @@ def test_quadratic_speed_proven_by_halving_the_top_balls(s):
     _holds_the_ode(plant, (*mp_plant, 0.7, 0.4, 0.727), s)
 
 
+@pytest.mark.long  # 16 s: five halvings of every top ball before the refusal
 def test_refusal_on_a_long_plant_names_the_overestimation():
     """The plant above on ``L = 2``: the remainder's bound on balls, even halved, is refused, and the reason names
     ball arithmetic's overestimation besides a singularity."""
