@@ -136,9 +136,15 @@ def test_report_counts_unstable_zeros_by_two_routes(tmp_path):
 def test_scope_says_how_each_plant_kind_represents_n_tilde():
     """The rigorous scope names the representation of N~ actually certified: kernels, none, or the
     characteristic route of a varying lam/mu (whose N~ has no kernel)."""
+    # varying speeds on a plant the proof refuses (its kernels' Picard iteration diverges at L = 3)
+    refused = GeneralHyperbolic2x2(
+        lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4, length=3.0
+    )
+    scope = certify(refused, StateFeedback(-0.3), delta_max=0.5, k_region=False, rigorous=True).scope
+    assert "characteristic route" in scope and "spline of the kernels" not in scope
     varying = GeneralHyperbolic2x2(lambda x: 1.0 + x, lambda x: 2.0 - x, 0.2, np.cos, 0.5, -0.3, 0.9, 0.6)
     scope = certify(varying, StateFeedback(-0.3), delta_max=0.5, k_region=False, rigorous=True).scope
-    assert "characteristic route" in scope and "spline of the kernels" not in scope
+    assert "the PDE itself" in scope and "speeds times a factor within" in scope
     scope = certify(SYSTEM, ReflectionController(0.1), delta_max=0.1, k_region=False, rigorous=True).scope
     assert "N~ = 0 exactly" in scope and "kernels on the kernel grid" not in scope
     coupled = Hyperbolic2x2(1.0, 1.0, 0.5, 0.5, 0.9, 0.6)

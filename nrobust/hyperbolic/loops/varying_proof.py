@@ -20,13 +20,18 @@ the closed form of :mod:`~nrobust.hyperbolic.loops.exact_form`).
 from one call of ``sigma`` on a python-flint ``arb_series`` at ``x = 1/2`` (``x = 1/2 + t/2``,
 the Taylor polynomial of order :data:`ORDER` - 1 in ``t``) and calls on 64 balls covering
 ``[0, 1]``, whose coefficients of ``t^ORDER`` bound the Lagrange remainder (and, times
-``2 ORDER``, that of the derivative; a ball whose bound is above ``2^-44`` of the sum of the model's
-``|coefficients|`` is halved, up to :data:`_TOP_DEPTH` times, while its halves bound it at least twice
-tighter: ball arithmetic overestimates on wide balls, above all through ``x(y)`` of varying speeds), as
-:mod:`~nrobust.hyperbolic.loops.exact_gains` does for integral gains; the model must agree with the
+``2 ORDER``, that of the derivative). Ball arithmetic overestimates that coefficient on a wide ball,
+above all through ``x(y)`` of varying speeds (10^20 times its value on balls of width 1/64): each
+ball's bound is the least of its ball value and of the coefficient's Taylor expansion about the ball's
+centre to :data:`_SHIFT` terms (the coefficients at the exact centre are tight, the ball's enters as
+the last term, times ``(2 r)^16``); a ball whose bound is still above ``2^-44`` of the sum of the
+model's ``|coefficients|`` is halved, largest bound first, up to :data:`_TOP_DEPTH` times, while its
+halves bound it at least twice tighter. (The models of integral gains in
+:mod:`~nrobust.hyperbolic.loops.exact_gains` are built the same way, without the shift.) The model must agree with the
 coupling evaluated on arrays at 17 points of ``[0, 1]`` (a function that acts differently on balls is
 refused). A Picard iteration in floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
-:data:`DEGREES` whose bound is small enough). Their residual
+:data:`DEGREES` whose bound is small enough; for varying speeds a screening pass with the models' remainders
+taken as 0 finds that degree, or the refusal, before the remainders are bounded). Their residual
 ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
 polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
 remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
@@ -112,6 +117,7 @@ double precision, or a coupling too strong for :data:`DEGREES` has no proof:
 
 from __future__ import annotations
 
+import heapq
 import itertools
 import math
 from fractions import Fraction
@@ -145,6 +151,8 @@ _RESIDUAL = 2.0**-27
 _TOP_BALLS = 64
 # Most halvings of a top ball whose bound is far above the model's size.
 _TOP_DEPTH = 5
+# Terms of the Taylor expansion about a top ball's centre of the coefficient bounding the remainder.
+_SHIFT = 16
 # Points at which a coupling's model must agree with its values on arrays (and which key the cache).
 _CHECK_POINTS = np.linspace(0.0, 1.0, 17)
 # Most pieces of [0, L] on which 1/lam + 1/mu is modelled for the map y = T(x)/T(L) (a power of 2).
@@ -359,16 +367,20 @@ def _on_series(flint: Any, value: Any, series: Any, name: str) -> Any:
     return out
 
 
-def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any, Any, Any]:
-    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``."""
+def _model(flint: Any, value: Any, at: Any, scale: Any, name: str, remainder: bool = True) -> tuple[Any, Any, Any]:
+    """``(P, eps, eps')`` of ``scale * value`` on ``[0, 1]`` (``scale`` a ball), ``P`` an arb_poly in ``x``.
+
+    ``remainder=False``: ``eps = eps' = 0``, the screening pass of :func:`_proof` (the bound of the remainder,
+    on balls halved where ball arithmetic overestimates it, is most of a varying-speed proof's time).
+    """
     arb, arb_poly, arb_series = flint.arb, flint.arb_poly, flint.arb_series
     if not callable(value):
         return arb_poly([arb(float(value)) * scale]), arb(0), arb(0)
 
-    def call(centre: Any) -> list[Any]:
-        out = _on_series(flint, value, arb_series([centre, arb(0.5)], prec=ORDER + 1), name)
-        coefs = list(out.coeffs())[: ORDER + 1]
-        coefs += [arb(0)] * (ORDER + 1 - len(coefs))
+    def call(centre: Any, length: int = ORDER + 1) -> list[Any]:
+        out = _on_series(flint, value, arb_series([centre, arb(0.5)], prec=length), name)
+        coefs = list(out.coeffs())[:length]
+        coefs += [arb(0)] * (length - len(coefs))
         return coefs
 
     head = call(arb(0.5))[:ORDER]
@@ -376,26 +388,51 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str) -> tuple[Any,
     goal = sum((abs(c) for c in head), arb(0)) * 2.0**-44 + 2.0**-64
 
     def own(centre: float, radius: float) -> Any:
-        """An exact upper bound of ``|coefficient of t^ORDER|`` at every centre of the ball (one call)."""
-        return abs(call(arb(centre, radius + 2.0**-30 * radius))[ORDER]).upper()
+        """An exact upper bound of ``|c_ORDER(xi)|`` (the coefficient of ``t^ORDER`` at the centre ``xi``,
+        ``x = xi + t/2``) for every ``xi`` of the ball: the least of its ball value and of its Taylor expansion
+        about the centre, ``sum_{m < S} C(ORDER + m, m) |c_(ORDER + m)(centre)| (2 r)^m`` plus the same term at
+        ``m = S`` on the ball (``S`` :data:`_SHIFT`; two calls): the coefficients at the exact centre are tight
+        where ball arithmetic's overestimation on a wide ball (varying speeds' ``x(y)``) reaches 10^20 times
+        the true coefficient, and the ball's enters only times ``(2 r)^S``."""
+        wide = radius + 2.0**-30 * radius
+        ball = call(arb(centre, wide), ORDER + _SHIFT + 1)
+        point = call(arb(centre), ORDER + _SHIFT + 1)
+        step = 2 * arb(wide)
+        shifted = arb(math.comb(ORDER + _SHIFT, _SHIFT)) * abs(ball[ORDER + _SHIFT]) * step**_SHIFT
+        for m in range(_SHIFT):
+            shifted += arb(math.comb(ORDER + m, m)) * abs(point[ORDER + m]) * step**m
+        return arb.min(abs(ball[ORDER]), shifted).upper()
 
-    def bound(centre: float, radius: float, out: Any, depth: int) -> Any:
-        """``out`` (the ball's own bound) or, where smaller, the largest of its halves' bounds."""
-        if depth == _TOP_DEPTH or not out.is_finite() or bool(out < goal):
-            return out
+    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball),
+    # best first: the ball of the largest bound is halved (up to _TOP_DEPTH times) while that at least halves
+    # its bound (ball arithmetic's overestimation: a wide ball of x(y) for varying speeds, module notes) and the
+    # bound is above the goal; the sup is the largest bound once that ball cannot be refined.
+    order = itertools.count()
+    cover: list[tuple[float, int, Any, float, float, int, bool]] = []
+
+    def push(out: Any, centre: float, radius: float, depth: int, final: bool) -> None:
+        key = float(out.upper()) if out.is_finite() else math.inf
+        heapq.heappush(cover, (-key, next(order), out, centre, radius, depth, final))
+
+    for k in range(_TOP_BALLS if remainder else 0):
+        centre, radius = (2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS)
+        push(own(centre, radius), centre, radius, 0, False)
+    while cover:
+        _, _, out, centre, radius, depth, final = cover[0]
+        if final or depth == _TOP_DEPTH or not out.is_finite() or bool(out < goal):
+            break
+        heapq.heappop(cover)
         halves = [(centre + side * radius / 2, radius / 2) for side in (-1, 1)]
         bounds = [own(c, r) for c, r in halves]
         largest = arb.max(*bounds)
         if not bool(2 * largest < out):  # halving does not tighten it: not ball arithmetic's overestimation
-            return largest if bool(largest < out) else out
-        return arb.max(*(bound(c, r, b, depth + 1) for (c, r), b in zip(halves, bounds)))
-
-    # sup of the coefficient of t^ORDER over [0, 1], from balls covering it (less overestimation than one ball),
-    # halved where ball arithmetic overestimates it (a wide ball of x(y) for varying speeds, module notes)
+            push(largest if bool(largest < out) else out, centre, radius, depth, True)
+        else:
+            for (c, r), b in zip(halves, bounds):
+                push(b, c, r, depth + 1, False)
     top = arb(0)
-    for k in range(_TOP_BALLS):
-        centre, radius = (2 * k + 1) / (2 * _TOP_BALLS), 1 / (2 * _TOP_BALLS)
-        top = arb.max(top, bound(centre, radius, own(centre, radius), 0))
+    for entry in cover:
+        top = arb.max(top, entry[2])
     if not (all(c.is_finite() for c in head) and top.is_finite()):
         raise CertificationError(f"the coupling {name} is not enclosed by finite balls on [0, 1] (not analytic there)")
     # x = 1/2 + t/2: the model in t, then in x (t = 2 x - 1); the remainder is |top| |t|^ORDER.
@@ -642,12 +679,14 @@ class _SpeedMap:
             return self.cache[(key, Y.prec)]
         x0 = self.x_ball(coefs[0])
         cap = flint.ctx.cap
-        flint.ctx.cap = Y.prec  # series arithmetic truncates at the global cap
         try:
-            slope = Y.derivative() * self.total
-            X = flint.arb_series([x0], prec=Y.prec)
-            for _ in range(Y.prec):
-                X = x0 + (slope / self.slowness(X)).integral()
+            flint.ctx.cap = Y.prec  # series arithmetic truncates at the global cap
+            slope = list((Y.derivative() * self.total).coeffs())
+            X = flint.arb_series([x0], prec=1)
+            for length in range(2, Y.prec + 1):  # X right to t^(length - 2): the pass makes it right to t^(length - 1)
+                flint.ctx.cap = length
+                X = flint.arb_series(list(X.coeffs()), prec=length)
+                X = x0 + (flint.arb_series(slope[:length], prec=length) / self.slowness(X)).integral()
         finally:
             flint.ctx.cap = cap
         if exact:
@@ -678,7 +717,12 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
     flint = require_flint()
     arb = flint.arb
     with precision(flint, _PRECISION):
-        setup = _general_setup(flint, system) if isinstance(system, GeneralHyperbolic2x2) else _setup(flint, system)
+        if isinstance(system, GeneralHyperbolic2x2):
+            geo = _geometry(flint, system)
+            first = _screen(flint, system, geo)
+            setup = _general_setup(flint, system, geo)
+        else:
+            first, setup = 0, _setup(flint, system)
         for (P, eps, _), name in ((setup.model_r, "k_r"), (setup.model_w, "k_w")):
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
@@ -688,7 +732,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
                     f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1], even halved {_TOP_DEPTH} "
                     "times; the kernel route (kernel_grid=...) gives a model of the PDE"
                 )
-        for n in DEGREES:
+        for n in DEGREES[first:]:
             try:
                 n_tilde, u_tilde = _kernels(flint, setup, n, n == DEGREES[-1])
                 break
@@ -696,6 +740,26 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
                 if n == DEGREES[-1]:
                     raise
     return VaryingProof(setup.tau, setup.q, setup.rho_q, n_tilde, u_tilde, setup.u_point, setup.assumption, setup.radii)
+
+
+def _screen(flint: Any, system: GeneralHyperbolic2x2, geo: _Geometry) -> int:
+    """The index in :data:`DEGREES` of the first degree worth proving at.
+
+    For varying speeds the kernels' error bound is first found with the models' remainders taken as 0,
+    which only lowers it (but for the rounding of the models' centres), so a plant refused there is refused
+    by the proof, in a fraction of its time (bounding the remainders is most of it); 0 for constant speeds.
+    """
+    if geo.scales is not None:
+        return 0
+    setup = _general_setup(flint, system, geo, remainder=False)
+    for index, n in enumerate(DEGREES[:-1]):
+        try:
+            _kernels(flint, setup, n, False, screen=True)
+            return index
+        except CertificationError:
+            pass
+    _kernels(flint, setup, DEGREES[-1], True, screen=True)  # raises for a plant the proof would refuse
+    return len(DEGREES) - 1
 
 
 def _setup(flint: Any, system: Hyperbolic2x2) -> _Setup:
@@ -718,6 +782,7 @@ class _Geometry(NamedTuple):
     weight_at: Any  # the same on arrays of x
     scales: tuple[Any, Any] | None  # constant speeds: the balls L / lam, L / mu (the weights); else None
     assumption: str  # what the plant proven takes that the plant given may not be exactly ("": nothing)
+    change: float = 0.0  # a bound of |factor - 1|, the factor of the speeds in the assumption
 
 
 def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
@@ -753,13 +818,13 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     def x_arrays(y: Any) -> Any:
         return np.asarray(x_of_y(np.clip(np.asarray(y, dtype=float), 0.0, 1.0)))
 
-    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, None, assumption)
+    return _Geometry(tau, speed.x_of, x_arrays, weight, weight_at, None, assumption, change)
 
 
-def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
-    """The normal form of a general plant, enclosed (module notes, "General plants" and "Varying speeds")."""
+def _general_setup(flint: Any, g: GeneralHyperbolic2x2, geo: _Geometry, remainder: bool = True) -> _Setup:
+    """The normal form of a general plant, enclosed (module notes, "General plants" and "Varying speeds"),
+    ``geo`` its change of variable; ``remainder=False``: the models' remainders taken as 0 (:func:`_screen`)."""
     arb = flint.arb
-    geo = _geometry(flint, g)
     length, L = g.length, arb(g.length)
 
     def physical(name: str, side: str) -> tuple[Any, Any, Any]:
@@ -785,8 +850,8 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     # A(x(y)) = int_0^y alpha, D(x(y)) = int_0^y delta: alpha = s_u a, delta = -s_v d at x(y)
     a_value, a_at, a_scale = physical("a", "u")
     d_value, d_at, d_scale = physical("d", "v")
-    P_a, e_a, _ = _model(flint, a_value, a_at, a_scale, "a")
-    P_d, e_d, _ = _model(flint, d_value, d_at, -d_scale, "d")
+    P_a, e_a, _ = _model(flint, a_value, a_at, a_scale, "a", remainder)
+    P_d, e_d, _ = _model(flint, d_value, d_at, -d_scale, "d", remainder)
     E = P_d.integral() - P_a.integral()  # D - A at x(y), within e_E (and its derivative too)
     e_E = e_a + e_d
     # q~ = q e^{-k}: k is read as log(q / q~), q~ exact; k the normal form's balance (the mid-range of D - A)
@@ -797,6 +862,8 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
         q_n = g.q * float(np.exp(-0.5 * (np.max(exponent) + np.min(exponent))))
     ek = arb(q_n) / arb(g.q)  # e^{-k}
     E_end = E(arb(1)) + arb(0, float(e_E.upper()))
+    # A(L) - D(L) of the plant proven is the factor of the assumption times the given plant's: the ball holds both
+    E_end += arb(0, float((abs(E_end) * geo.change).upper()))
     weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
 
     def coupling(name: str, sign: int) -> tuple[Any, Any, Any]:
@@ -817,7 +884,7 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
             exponent = sign * (g.D(x) - g.A(x))
             return own * np.exp(exponent) * (q_n / g.q) ** sign
 
-        P, eps, eps1 = _model(flint, on_balls, on_arrays, sign * scale, name)
+        P, eps, eps1 = _model(flint, on_balls, on_arrays, sign * scale, name, remainder)
         # the true coupling is the model's times e^{sign r}, |r| <= e_E, |r'| <= e_E
         grow = e_E.exp() - 1
         size, slope = _poly_sup(flint, P) + eps, _poly_sup(flint, P.derivative()) + eps1
@@ -844,8 +911,11 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2) -> _Setup:
     )
 
 
-def _kernels(flint: Any, setup: _Setup, n: int, last: bool) -> tuple[DistributedDelay | None, DistributedDelay | None]:
-    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes).
+def _kernels(
+    flint: Any, setup: _Setup, n: int, last: bool, screen: bool = False
+) -> tuple[DistributedDelay | None, DistributedDelay | None]:
+    """``N~`` and ``U~`` from ``F^, G^`` of total degree ``n`` and the bound of their error (module notes);
+    ``screen``: the bound's check only (:func:`_screen`), ``(None, None)`` when it passes.
 
     ``last``: the last degree tried, where an error below :data:`_RESIDUAL` of the loop's scale (its
     constant term 1) is accepted even when it is not below that fraction of a small kernel.
@@ -877,13 +947,20 @@ def _kernels(flint: Any, setup: _Setup, n: int, last: bool) -> tuple[Distributed
     eF_A = rF_A + C1 * M + C * eG_A
     eG_V = rG_V + C1 * M + C * eF_V
     T, W = arb(setup.tau), abs(setup.u_weight)
-    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau (rho a ball: its radius
-    # goes into the pieces' rounding)
+    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau in [0, reach]
     F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
+    # The balls rho and u_weight enter as their centres times F^, their radii times the bounds of |F^| and of
+    # its variation along the line (on the triangle, whose side A + V = 1 it is): the line's monomial
+    # coefficients can be 10^12 times |F^| (alternating), too large for the radii to multiply them.
+    F_size, F_var = sup_F, sF_V + bi.sup(bi.derivative(F, 0))
+    R_mid, R_rad = arb(R.mid()), arb(R.rad())
+    u_mid, u_rad = arb(setup.u_weight.mid()), arb(setup.u_weight.rad())
     floor = arb(_RESIDUAL if last else 2.0**-60)
-    n_err, n_var = (1 + abs(R)) * M / T, (eG_V + eG_A + abs(R) * (eF_V + eF_A)) / T
-    n_tilde = _store(flint, G_line - F_line * R, T, n_err, n_var, floor)
-    u_tilde = _store(flint, F_line * setup.u_weight, T, W * M / T, W * (eF_V + eF_A) / T, floor)
+    n_err = ((1 + abs(R)) * M + R_rad * F_size) / T
+    n_var = (eG_V + eG_A + abs(R) * (eF_V + eF_A) + R_rad * F_var) / T
+    n_tilde = _store(flint, G_line - F_line * R_mid, T, n_err, n_var, floor, screen)
+    u_err, u_var = (W * M + u_rad * F_size) / T, (W * (eF_V + eF_A) + u_rad * F_var) / T
+    u_tilde = _store(flint, F_line * u_mid, T, u_err, u_var, floor, screen)
     return n_tilde, u_tilde
 
 
@@ -897,9 +974,12 @@ def _along(flint: Any, c: np.ndarray) -> Any:
     return out
 
 
-def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any) -> DistributedDelay | None:
+def _store(
+    flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any, screen: bool = False
+) -> DistributedDelay | None:
     """``line(nu / T) / T`` on ``[0, tau]`` as pieces, the proven bounds ``sup_err, var_err`` added to their own;
-    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor``.
+    ``sup_err`` must be below :data:`_RESIDUAL` of the kernel's size or below ``floor`` (``screen``: that check
+    only, None when it passes).
 
     The pieces expand the midpoint polynomial of ``line``: its distance ``sum_k delta_k V^k / T`` to ``line``'s
     (``|delta_k|`` at most the radius of the coefficient ``k``, ``0 <= V = nu / T <= r = max(1, tau / T)``) is at
@@ -925,6 +1005,8 @@ def _store(flint: Any, line: Any, T: Any, sup_err: Any, var_err: Any, floor: Any
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
+    if screen:  # the error bound is all the screening pass asks
+        return None
     pieces = 8
     while True:
         mant, expo = math.frexp(tau / pieces)
