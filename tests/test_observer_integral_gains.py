@@ -178,6 +178,7 @@ def _plant_law(case):
 
 
 # ------------------------------------------------------------------------------------------- the oracle itself
+@pytest.mark.long  # 9 s: the oracle's own convergence study (make fuzz)
 def test_the_oracles_kernels_are_the_pdes_and_its_collocation_has_converged():
     """The sections' series are the PDE's (their transforms are the matrix exponential's), the gains' kernel on both
     branches transforms to the integral of the gains against it, and 36 collocation points agree with 48 to 1e-30."""

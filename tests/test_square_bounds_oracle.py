@@ -85,7 +85,7 @@ def _l1(f: Any, g: Any, cuts: np.ndarray) -> float:
     ("case", "box"),
     [
         ("exp_gains", (-0.05, 0.05, -0.05, 0.05)),
-        ("paper_traces", (-0.05, 0.05, -0.05, 0.05)),
+        pytest.param("paper_traces", (-0.05, 0.05, -0.05, 0.05), marks=pytest.mark.long),  # 6 s
         ("paper_traces", (-0.0025, 0.0, 0.0, 0.0025)),
         pytest.param("exp_gains", (0.09, 0.1, -0.1, -0.09), marks=pytest.mark.long),
     ],

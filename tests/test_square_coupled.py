@@ -230,7 +230,10 @@ def test_box_kernels_hold_the_kernel_of_the_midpoint(spm: float, smp: float) -> 
                 assert abs(float(_kernel_mp(which, p, m, q, rho, t)) - stored) <= radius + 1e-15 * abs(stored)
 
 
-@pytest.mark.parametrize(("spm", "smp", "sharp"), [(0.4, 0.5, 4.0), (1.0, 1.0, 4.0), (8.0, -6.0, 1e3)])
+@pytest.mark.parametrize(
+    ("spm", "smp", "sharp"),
+    [(0.4, 0.5, 4.0), (1.0, 1.0, 4.0), pytest.param(8.0, -6.0, 1e3, marks=pytest.mark.long)],  # the last 7 s
+)
 def test_slopes_hold_the_kernels_of_the_box(spm: float, smp: float, sharp: float) -> None:
     """The slopes' term of the centred form bounds ``|int_0^1 (G(theta; p, m) - G(theta; p_0, m_0)) e^{-i w theta}
     dtheta|`` for speeds of a box of 0.25 % (its corners and a random point) at ``w`` from 0 to 100, the integral by
