@@ -13,6 +13,7 @@ sits below it because ``nrobust.difference``, which ``nrobust.balls`` depends on
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import ModuleType
@@ -25,9 +26,11 @@ __all__ = [
     "acb_box",
     "krawczyk",
     "krawczyk_image",
+    "lower_float",
     "precision",
     "radius_acb",
     "require_flint",
+    "upper_float",
     "working_precision",
 ]
 
@@ -68,6 +71,16 @@ class precision:
 
     def __exit__(self, *exc: object) -> None:
         self._ctx.prec = self._old
+
+
+def upper_float(ball: Any) -> float:
+    """A double at or above every point of the arb ``ball`` (``float`` rounds its upper end to nearest)."""
+    return math.nextafter(float(ball.upper()), math.inf)
+
+
+def lower_float(ball: Any) -> float:
+    """A double at or below every point of the arb ``ball``."""
+    return math.nextafter(float(ball.lower()), -math.inf)
 
 
 @contextmanager

@@ -565,6 +565,6 @@ def test_long_plant_on_l_2_proven_by_the_shifted_remainder():
 
 def test_a_plant_the_screening_refuses_is_refused_with_the_proofs_reason():
     """On ``L = 3`` the kernels' Picard iteration diverges: the screening pass (the models without their remainders)
-    finds it before the remainders are bounded, and the reason is the proof's."""
+    finds it before the remainders are bounded (the proof would refuse it too, its remainder of ``k_r`` 2.3e-2)."""
     reason = varying_failure(GeneralHyperbolic2x2(*_LONG, length=3.0))
     assert reason is not None and "Picard iteration diverges at degree 96" in reason

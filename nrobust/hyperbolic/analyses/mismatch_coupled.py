@@ -84,7 +84,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
-from ..._flint import precision, require_flint, working_precision
+from ..._flint import lower_float, precision, require_flint, upper_float, working_precision
 from ..._validate import finite_real, nonnegative, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
@@ -305,7 +305,7 @@ def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: s
 def _theta_product(flint: Any, theta: Any) -> Any:
     """The ball of ``theta (1 - theta)`` over the ball ``theta`` (concave, largest at 1/2: no dependency)."""
     arb = flint.arb
-    lo, hi = float(theta.lower()), float(theta.upper())
+    lo, hi = lower_float(theta), upper_float(theta)
     u = (arb(lo) * (1 - arb(lo))).union(arb(hi) * (1 - arb(hi)))
     return u.union(arb(0.25)) if lo <= 0.5 <= hi else u
 

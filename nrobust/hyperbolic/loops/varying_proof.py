@@ -26,8 +26,7 @@ ball's bound is the least of its ball value and of the coefficient's Taylor expa
 centre to :data:`_SHIFT` terms (the coefficients at the exact centre are tight, the ball's enters as
 the last term, times ``(2 r)^16``); a ball whose bound is still above ``2^-44`` of the sum of the
 model's ``|coefficients|`` is halved, largest bound first, up to :data:`_TOP_DEPTH` times, while its
-halves bound it at least twice tighter. (The models of integral gains in
-:mod:`~nrobust.hyperbolic.loops.exact_gains` are built the same way, without the shift.) The model must agree with the
+halves bound it at least twice tighter. The model must agree with the
 coupling evaluated on arrays at 17 points of ``[0, 1]`` (a function that acts differently on balls is
 refused). A Picard iteration in floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
 :data:`DEGREES` whose bound is small enough; for varying speeds a screening pass with the models' remainders
@@ -127,7 +126,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..._digits import upper_bound_text
-from ..._flint import precision, require_flint
+from ..._flint import precision, require_flint, upper_float
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
@@ -396,6 +395,8 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str, remainder: bo
         the true coefficient, and the ball's enters only times ``(2 r)^S``."""
         wide = radius + 2.0**-30 * radius
         ball = call(arb(centre, wide), ORDER + _SHIFT + 1)
+        if bool(abs(ball[ORDER]) < goal):  # tight enough: the expansion is not needed
+            return abs(ball[ORDER]).upper()
         point = call(arb(centre), ORDER + _SHIFT + 1)
         step = 2 * arb(wide)
         shifted = arb(math.comb(ORDER + _SHIFT, _SHIFT)) * abs(ball[ORDER + _SHIFT]) * step**_SHIFT
@@ -609,7 +610,7 @@ class _SpeedMap:
     def total(self) -> Any:
         """The ball ``T(L)``."""
         start, _, Phi, eps = self.pieces[-1]
-        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, float(eps.upper()))
+        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, upper_float(eps))
 
     def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any]:
         """``(C_j, P_j, Phi_j, eps_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
@@ -640,7 +641,7 @@ class _SpeedMap:
         j = min(m - 1, int(float((xi * m).floor())))  # exact: m is a power of 2, so u = m xi - j lies in [0, 1]
         start, P, Phi, eps = self.pieces[j]
         u = xi * m - j
-        return start + Phi(u) + arb(0, float((eps * abs(u)).upper())), (P(u) * m).mid()
+        return start + Phi(u) + arb(0, upper_float(eps * abs(u))), (P(u) * m).mid()
 
     def _inverse(self, y: Any, side: int) -> Any:
         """``xi`` with ``T(L xi)`` proven below (``side = -1``) or above (``+1``) ``T(L) y`` (``y`` exact)."""
@@ -727,8 +728,9 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
-                    f"[0, 1] (remainder {float(eps.upper()):.1e}): a singularity near [0, 1], a coupling that "
-                    "varies too fast for that order, or (varying speeds, long L) ball arithmetic overestimating the "
+                    f"[0, 1] (remainder {upper_bound_text(upper_float(eps), 2)}): a singularity near [0, 1], a "
+                    "coupling that varies too fast for that order, or (varying speeds, long L) ball arithmetic "
+                    "overestimating the "
                     f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1], even halved {_TOP_DEPTH} "
                     "times; the kernel route (kernel_grid=...) gives a model of the PDE"
                 )
@@ -746,8 +748,10 @@ def _screen(flint: Any, system: GeneralHyperbolic2x2, geo: _Geometry) -> int:
     """The index in :data:`DEGREES` of the first degree worth proving at.
 
     For varying speeds the kernels' error bound is first found with the models' remainders taken as 0,
-    which only lowers it (but for the rounding of the models' centres), so a plant refused there is refused
-    by the proof, in a fraction of its time (bounding the remainders is most of it); 0 for constant speeds.
+    which only lowers it (but for the rounding of the models' centres), so a plant refused there would be
+    refused by the proof too (possibly for another reason found first: a remainder too large), in a
+    fraction of its time (bounding the remainders is most of it); 0 for constant speeds. The reason says
+    which bound it is.
     """
     if geo.scales is not None:
         return 0
@@ -800,7 +804,7 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     # tau the double nearest T(L) / time_unit: the plant proven has both speeds times T(L) / (tau time_unit)
     tau = float((speed.total / arb(g.time_unit)).mid())
     total = arb(tau) * arb(g.time_unit)
-    change = float(abs(speed.total / total - 1).upper())
+    change = upper_float(abs(speed.total / total - 1))
     assumption = f"both speeds times a factor within {upper_bound_text(change, 2)} of 1 (tau the double {tau!r})"
 
     def weight(X: Any, side: str) -> Any:
@@ -861,9 +865,9 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2, geo: _Geometry, remainde
         exponent = g.D(g.tables.x) - g.A(g.tables.x)
         q_n = g.q * float(np.exp(-0.5 * (np.max(exponent) + np.min(exponent))))
     ek = arb(q_n) / arb(g.q)  # e^{-k}
-    E_end = E(arb(1)) + arb(0, float(e_E.upper()))
-    # A(L) - D(L) of the plant proven is the factor of the assumption times the given plant's: the ball holds both
-    E_end += arb(0, float((abs(E_end) * geo.change).upper()))
+    E_end = E(arb(1)) + arb(0, upper_float(e_E))
+    # the given plant's A(L) - D(L) is the factor of the assumption times the proven plant's: the ball holds both
+    E_end += arb(0, upper_float(abs(E_end) * geo.change))
     weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
 
     def coupling(name: str, sign: int) -> tuple[Any, Any, Any]:
@@ -947,7 +951,7 @@ def _kernels(
     eF_A = rF_A + C1 * M + C * eG_A
     eG_V = rG_V + C1 * M + C * eF_V
     T, W = arb(setup.tau), abs(setup.u_weight)
-    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau in [0, reach]
+    # N^ = (G^ - rho F^)(1 - V, V) / tau and U^ = F^(1 - V, V) / tau, V = nu / tau in [0, 1] (T is tau)
     F_line, G_line = _along(flint, F_hat), _along(flint, G_hat)
     # The balls rho and u_weight enter as their centres times F^, their radii times the bounds of |F^| and of
     # its variation along the line (on the triangle, whose side A + V = 1 it is): the line's monomial
@@ -1000,8 +1004,11 @@ def _store(
             "(kernel_grid=...) gives a model of the PDE"
         )
     if not (sup_err.is_finite() and bool(sup_err < _RESIDUAL * size + floor)):
+        what = "proven error of the kernel"
+        if screen:
+            what = "error bound of the kernel without the couplings' Taylor remainders"
         raise CertificationError(
-            f"the proven error of the kernel ({float(sup_err.upper()):.1e}) is too large: couplings not analytic on "
+            f"the {what} ({upper_bound_text(upper_float(sup_err), 2)}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
@@ -1034,8 +1041,8 @@ def _store(
         None,
         interpolation="polynomial",
         coefficients=np.asarray(coefs),
-        radius=float((piece_sup + sup_err).upper()),
-        variation_radius=float((piece_var + var_err).upper()),
+        radius=upper_float(piece_sup + sup_err),
+        variation_radius=upper_float(piece_var + var_err),
     )
 
 
