@@ -136,7 +136,7 @@ def test_report_counts_unstable_zeros_by_two_routes(tmp_path):
 def test_scope_says_how_each_plant_kind_represents_n_tilde():
     """The rigorous scope names the representation of N~ actually certified: kernels, none, or the
     characteristic route of a varying lam/mu (whose N~ has no kernel)."""
-    # varying speeds on a plant the proof refuses (its kernels' Picard iteration diverges at L = 3)
+    # varying speeds on a plant the proof refuses (its kernels' error at the last degree is too large at L = 3)
     refused = GeneralHyperbolic2x2(
         lambda x: 1.2 * np.exp(0.3 * x), lambda x: 0.7 + 0.1 * x**2, 0.0, 0.5, 0.3, 0.0, 0.7, -0.4, length=3.0
     )

@@ -506,7 +506,8 @@ def _holds_the_ode(plant, mp_plant, s):
     from nrobust.balls import ball_eval
 
     proof = varying_proof(plant)
-    factor = float(proof.assumption.split("within ")[1].split(" of 1")[0])
+    # constant speeds: tau is 1/lam + 1/mu in floating point, no factor on the speeds
+    factor = float(proof.assumption.split("within ")[1].split(" of 1")[0]) if proof.assumption else 0.0
     assert factor < 1e-15
     A, u = _ode_couplings(*mp_plant, s)
     for F, value in ((proof.characteristic, A), (proof.u_factor, u)):
@@ -564,7 +565,9 @@ def test_long_plant_on_l_2_proven_by_the_shifted_remainder():
 
 
 def test_a_plant_the_screening_refuses_is_refused_with_the_proofs_reason():
-    """On ``L = 3`` the kernels' Picard iteration diverges: the screening pass (the models without their remainders)
-    finds it before the remainders are bounded (the proof would refuse it too, its remainder of ``k_r`` 2.3e-2)."""
+    """On ``L = 3`` the kernels' error at the last degree (128) is too large (6.9e-7: the residual of the truncation,
+    the Picard iteration in high precision gives the same): the screening pass (the models without their remainders)
+    finds it before the remainders are bounded, and says its bound omits them (the proof would refuse the plant too,
+    its remainder of ``k_r`` 2.3e-2)."""
     reason = varying_failure(GeneralHyperbolic2x2(*_LONG, length=3.0))
-    assert reason is not None and "Picard iteration diverges at degree 96" in reason
+    assert reason is not None and "without the couplings' Taylor remainders" in reason and "degree 128" in reason

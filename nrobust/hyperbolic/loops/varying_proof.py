@@ -30,7 +30,12 @@ halves bound it at least twice tighter. The model must agree with the
 coupling evaluated on arrays at 17 points of ``[0, 1]`` (a function that acts differently on balls is
 refused). A Picard iteration in floating point gives polynomials ``F^, G^`` of total degree ``n`` (the first of
 :data:`DEGREES` whose bound is small enough; for varying speeds a screening pass with the models' remainders
-taken as 0 finds that degree, or the refusal, before the remainders are bounded). Their residual
+taken as 0 finds that degree, or the refusal, before the remainders are bounded). The integrals raise the total
+degree by one, so the iteration is done once, degree by degree, in the basis ``b_ij = C(i + j, i) A^i V^j`` (at
+most 1 on the triangle), where multiplying by ``A + V`` makes convex combinations of coefficients and integrating
+divides them by ``i + j + 1``: each rounding is relative to the coefficients it combines (the monomial coefficients
+of a function of size 1 on the triangle reach ``C(n, n/2)``, ``10^37`` at ``n = 128``, and products by FFT, whose
+error is relative to the largest coefficient, swamped the small ones). Their residual
 ``R = T(F^, G^) - (F^, G^)`` (``T`` the right-hand sides with the true couplings) is the
 polynomial ``T_P(F^, G^) - (F^, G^)`` computed exactly in ball arithmetic, plus the models'
 remainders, ``|R_F| <= eps_r (1 + sup |G^|)`` and
@@ -48,7 +53,9 @@ Differentiating the Volterra system gives the derivatives of ``E``:
 ``A, V`` exchanged, ``C' = max(sup |k_r'|, sup |k_w'|)``. Along ``A = 1 - V``,
 ``|N~ - N^| <= (1 + |rho|) M / tau`` and the total variation of ``N~ - N^`` on ``[0, tau]`` is at
 most ``sup |(d_V - d_A)(E_G - rho E_F)| / tau``. The sups of polynomials on the triangle are
-bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` there).
+bounded by ``sum |c_ij| i^i j^j / (i + j)^(i + j)`` (the largest ``A^i V^j`` there), those of
+univariate polynomials on ``[0, 1]`` (the couplings, the kernels along ``A = 1 - V``, whose monomial coefficients
+reach ``10^10`` for a kernel of size 1) on 64 balls, each after an exact Taylor shift to its centre.
 ``N^`` is then stored as polynomial pieces by
 :func:`~nrobust.hyperbolic.loops.exact_form.expand_piece` (the rounding of each piece added to
 the bounds): a ball enclosure built on it holds for the PDE itself.
@@ -138,8 +145,8 @@ __all__ = ["DEGREES", "ORDER", "VaryingProof", "has_varying_proof", "varying_fai
 #: Order of the Taylor model of each coupling on ``[0, 1]``.
 ORDER = 40
 #: Total degrees of the polynomials ``F^, G^`` of the Picard iteration, tried in turn.
-DEGREES = (56, 96)
-# Working precision (bits) of the residual.
+DEGREES = (56, 96, 128)
+# Working precision (bits) of the residual (the monomial coefficients of F^, G^ reach C(128, 64) < 2^124).
 _PRECISION = 192
 # Relative agreement asked of the ball model with the coupling evaluated on arrays at _CHECK_POINTS.
 _AGREEMENT = 1e-8
@@ -454,60 +461,61 @@ def _model(flint: Any, value: Any, at: Any, scale: Any, name: str, remainder: bo
 # --------------------------------------------------------------------------- bivariate polynomials
 
 
-def _shift(coef: np.ndarray, n: int) -> np.ndarray:
-    """Coefficients ``c[i, j]`` of ``P(A + V)`` (``A^i V^j``) from those of ``P(x)``, total degree <= n."""
-    out = np.zeros((n + 1, n + 1))
-    for k, c in enumerate(coef[: n + 1]):
-        for i in range(k + 1):
-            out[i, k - i] = c * math.comb(k, i)
+def _raise(u: np.ndarray) -> np.ndarray:
+    """``(A + V) u`` for the coefficients ``u[i]`` of a homogeneous part of degree ``m = len(u) - 1`` in the basis
+    ``b_ij = C(i + j, i) A^i V^j``: ``(A + V) b_ij = ((i + 1) b_(i+1,j) + (j + 1) b_(i,j+1)) / (m + 1)``, each new
+    coefficient a convex combination of two old ones."""
+    m = len(u) - 1
+    weight = np.arange(m + 2) / (m + 1)
+    out = np.zeros(m + 2)
+    out[1:] = u * weight[1:]
+    out[:-1] += u * weight[::-1][:-1]
     return out
 
 
-def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Product truncated to the total degree of ``a`` (floating point)."""
-    n = a.shape[0] - 1
-    from scipy.signal import fftconvolve  # lazily: a slow import
-
-    full = fftconvolve(a, b)[: n + 1, : n + 1]
-    i, j = np.indices(full.shape)
-    full[i + j > n] = 0.0
-    return full
-
-
-def _integrate(c: np.ndarray, axis: int) -> np.ndarray:
-    """Antiderivative from 0 along ``axis`` (0: ``A``, 1: ``V``), truncated to the total degree of ``c``."""
-    n = c.shape[0] - 1
-    out = np.zeros_like(c)
-    k = np.arange(1, n + 1, dtype=float)
-    if axis == 1:
-        out[:, 1:] = c[:, :-1] / k
-    else:
-        out[1:, :] = c[:-1, :] / k[:, None]
-    i, j = np.indices(out.shape)
-    out[i + j > n] = 0.0
+def _times(p: np.ndarray, parts: list[np.ndarray], k: int) -> np.ndarray:
+    """The part of degree ``k`` of ``P(A + V) H`` (``p`` the coefficients of ``P(x)``, ``parts[m]`` those of ``H``'s
+    part of degree ``m`` in the basis of :func:`_raise`), by Horner's rule:
+    ``sum_l p_l (A + V)^l H_(k - l)``."""
+    low = max(0, k - len(p) + 1)
+    out = p[k - low] * parts[low]
+    for m in range(low + 1, k + 1):
+        out = _raise(out) + p[k - m] * parts[m]
     return out
 
 
 def _picard(kr: np.ndarray, kw: np.ndarray, q: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``F^, G^``: the Picard iteration of the Volterra system in floating point (module notes)."""
-    KR, KW = _shift(kr, n), _shift(kw, n)
-    base_f = np.zeros((n + 1, n + 1))
-    base_f[: len(kr[: n + 1]), 0] = kr[: n + 1]
-    base_g = np.zeros((n + 1, n + 1))
-    base_g[0, : len(kw[: n + 1])] = q * kw[: n + 1]
-    F, G = base_f, base_g
-    with np.errstate(all="ignore"):  # a divergent iteration is caught below
-        for _ in range(4 * n):
-            F_new = base_f + _integrate(_mul(KR, G), 1)
-            G_new = base_g + _integrate(_mul(KW, F), 0)
-            change = np.max(np.abs(F_new - F)) + np.max(np.abs(G_new - G))
-            F, G = F_new, G_new
-            if not np.isfinite(change) or change <= 1e-18 * (1.0 + np.max(np.abs(F)) + np.max(np.abs(G))):
-                break
+    """``F^, G^`` of total degree ``n``: the Volterra system's Picard iteration in floating point (module notes).
+
+    The integrals raise the total degree by one, so the part of degree ``k`` of ``F, G`` is fixed by the parts
+    below it: the iteration is done once, degree by degree. The parts are held in the basis
+    ``b_ij = C(i + j, i) A^i V^j`` (at most 1 on the triangle; the monomial coefficients of an ``O(1)`` function
+    there are up to ``C(n, n/2)`` times larger), in which ``(A + V) b_ij`` is a convex combination
+    (:func:`_raise`) and ``int_0^V b_ij dS = b_(i,j+1) / (i + j + 1)``, ``int_0^A b_ij dA' = b_(i+1,j) / (i + j + 1)``:
+    each rounding is relative to the coefficients it combines, not to the largest one.
+    Returns the monomial coefficients ``c[i, j]`` of ``A^i V^j``.
+    """
+    f: list[np.ndarray] = []
+    g: list[np.ndarray] = []
+    with np.errstate(all="ignore"):  # an overflow is caught below
+        for k in range(n + 1):
+            f_k, g_k = np.zeros(k + 1), np.zeros(k + 1)
+            f_k[k] = kr[k] if k < len(kr) else 0.0  # k_r(A)
+            g_k[0] = q * kw[k] if k < len(kw) else 0.0  # q k_w(V)
+            if k:
+                f_k[:-1] += _times(kr, g, k - 1) / k  # int_0^V k_r(A + S) G(A, S) dS
+                g_k[1:] += _times(kw, f, k - 1) / k  # int_0^A k_w(A' + V) F(A', V) dA'
+            f.append(f_k)
+            g.append(g_k)
+    F, G = np.zeros((n + 1, n + 1)), np.zeros((n + 1, n + 1))
+    for k in range(n + 1):
+        i = np.arange(k + 1)
+        binomial = np.array([float(math.comb(k, int(j))) for j in i])
+        F[i, k - i], G[i, k - i] = f[k] * binomial, g[k] * binomial
     if not (np.all(np.isfinite(F)) and np.all(np.isfinite(G))):
         raise CertificationError(
-            f"the kernel equations' Picard iteration diverges at degree {n} (couplings too strong, or with large "
-            "monomial coefficients on [0, 1]); the kernel route (kernel_grid=...) gives a model of the PDE"
+            f"the kernel equations' Picard iteration overflows at degree {n} (couplings too strong, or models with "
+            "huge monomial coefficients on [0, 1]); the kernel route (kernel_grid=...) gives a model of the PDE"
         )
     return F, G
 
@@ -1060,9 +1068,14 @@ def _poly_on_series(flint: Any, p: Any, Y: Any) -> Any:
 
 
 def _poly_sup(flint: Any, p: Any) -> Any:
-    """A bound of ``|p(x)|`` on ``[0, 1]`` (``p`` an arb_poly), from its values on 64 balls covering it."""
-    arb = flint.arb
+    """A bound of ``|p(x)|`` on ``[0, 1]`` (``p`` an arb_poly), from 64 balls covering it: on each, ``p`` is
+    Taylor-shifted to the ball's centre (exactly) and evaluated on the ball about 0 (Horner's rule on the monomials
+    about 0 multiplies their moduli by the ball's radius: ``10^10`` times too large for alternating coefficients of
+    ``10^10`` and a function of size 1)."""
+    arb, arb_poly = flint.arb, flint.arb_poly
     out = arb(0)
+    step = arb(0, 1 / (2 * _SUP_BALLS))
     for k in range(_SUP_BALLS):
-        out = arb.max(out, abs(p(arb((2 * k + 1) / (2 * _SUP_BALLS), 1 / (2 * _SUP_BALLS)))))
+        local = p(arb_poly([arb((2 * k + 1) / (2 * _SUP_BALLS)), 1]))
+        out = arb.max(out, abs(local(step)))
     return out
