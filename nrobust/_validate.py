@@ -192,3 +192,19 @@ def renamed_keywords(**renames: str) -> Callable[[Callable[_P, _R]], Callable[_P
         return wrapper
 
     return decorate
+
+
+_Array = TypeVar("_Array", bound="np.ndarray[Any, Any]")
+
+
+def read_only(arr: _Array) -> _Array:
+    """``arr`` marked read-only and returned: an array an immutable value class keeps.
+
+    The classes of loop data (quasi-polynomials, distributed terms, difference operators)
+    keep copies of what they are given and mark them so: an in-place write then raises
+    numpy's ``ValueError`` instead of leaving the results kept for the object (keyed by its
+    identity, or built once) describing other numbers. ``arr`` must be the class's own
+    array (a copy of the caller's), not a view of one the caller may still write.
+    """
+    arr.flags.writeable = False
+    return arr
