@@ -206,5 +206,5 @@ def read_only(arr: _Array) -> _Array:
     identity, or built once) describing other numbers. ``arr`` must be the class's own
     array (a copy of the caller's), not a view of one the caller may still write.
     """
-    arr.flags.writeable = False
+    arr.setflags(write=False)
     return arr
