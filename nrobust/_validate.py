@@ -208,3 +208,28 @@ def read_only(arr: _Array) -> _Array:
     """
     arr.setflags(write=False)
     return arr
+
+
+def read_only_state(obj: object, state: dict[str, Any]) -> None:
+    """``obj.__setstate__(state)`` of an immutable value class: ``state`` set, its arrays marked read-only.
+
+    numpy's pickles do not keep the flag, so an unpickled or deep-copied object would hold writable
+    arrays (its caches included); every array reached through tuples, lists, dicts and the attributes of
+    nrobust's own objects is marked again (:func:`read_only`).
+    """
+    seen: set[int] = set()
+    todo: list[Any] = [state]
+    while todo:
+        item = todo.pop()
+        if id(item) in seen:
+            continue
+        seen.add(id(item))
+        if isinstance(item, np.ndarray):
+            read_only(item)
+        elif isinstance(item, (tuple, list)):
+            todo.extend(item)
+        elif isinstance(item, dict):
+            todo.extend(item.values())
+        elif type(item).__module__.startswith("nrobust") and hasattr(item, "__dict__"):
+            todo.extend(vars(item).values())
+    obj.__dict__.update(state)

@@ -35,7 +35,7 @@ from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict, json_safe
-from ._validate import nonnegative, number_array, read_only, real_array
+from ._validate import nonnegative, number_array, read_only, read_only_state, real_array
 from .errors import ParameterError
 
 __all__ = [
@@ -736,6 +736,10 @@ class DistributedDelay:
             ("_second_order", []),
         ):
             object.__setattr__(self, name, value)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     def _combined(self, coefficients: NDArray, radius: float, variation_radius: float, moment: int) -> DistributedDelay:
         """A polynomial-piece term on the same segments and polynomial with the given coefficients.

@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
-from ._validate import is_real_number, number_array, positive, positive_int, read_only, real_array
+from ._validate import is_real_number, number_array, positive, positive_int, read_only, read_only_state, real_array
 from .difference import Chains, chains_of, cluster_polynomial_roots, commensurate
 from .errors import CertificationError, ParameterError
 
@@ -193,6 +193,10 @@ class MatrixDifferenceOperator:
         order = np.argsort(t)  # the selections are copies of the caller's arrays, marked read-only
         object.__setattr__(self, "coefs", read_only(a[order]))
         object.__setattr__(self, "delays", read_only(t[order]))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @property
     def size(self) -> int:

@@ -47,7 +47,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validate import read_only, real_array
+from ._validate import read_only, read_only_state, real_array
 from .difference import DifferenceOperator
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
@@ -535,6 +535,10 @@ class QuasiPolynomialMatrix:
             out.append(tuple(as_quasipolynomial(f"entries[{i}][{j}]", e) for j, e in enumerate(row)))
         object.__setattr__(self, "entries", tuple(out))
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
+
     @classmethod
     def diagonal(cls, entries: Sequence[Any]) -> QuasiPolynomialMatrix:
         """The diagonal matrix with the given entries."""
@@ -938,6 +942,10 @@ class ExpandedDeterminant:
         self._matrix: QuasiPolynomialMatrix | None = matrix
         self._source: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._setup(exact)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @classmethod
     def from_coefficients(cls, coefs: ArrayLike, delays: ArrayLike) -> ExpandedDeterminant | None:

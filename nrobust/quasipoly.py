@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import json_safe
-from ._validate import is_real_number, nonnegative, number_array, read_only, real_array
+from ._validate import is_real_number, nonnegative, number_array, read_only, read_only_state, real_array
 from .difference import DifferenceOperator
 from .distributed_delay import DistributedDelay, TermsAtPoint, as_poly, canonical_bytes, polyder, polymul, polyval
 from .errors import ParameterError
@@ -375,6 +375,10 @@ class QuasiPolynomial:
             object.__setattr__(self, "point_terms", tuple((read_only(p), t) for t, p, _ in kept))
             object.__setattr__(self, "point_radii", tuple(read_only(r) for _, _, r in kept))
         object.__setattr__(self, "distributed", _merge_distributed(dist))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @classmethod
     def from_parts(

@@ -266,3 +266,31 @@ def test_matrix_difference_operator_arrays_are_read_only_copies() -> None:
     A[:], t[:] = 3.0, 2.0
     _close(D(S), want, scale)
     assert D.delays.tolist() == [1.0]
+
+
+# ---------------------------------------------------------------------- copies
+def _loop_objects() -> list[Any]:
+    """One of each class, with its caches built."""
+    s = QuasiPolynomial([[0.0, 1.0]], [0.0])
+    kernel = DistributedDelay(np.linspace(0.0, 1.0, 5), np.linspace(0.0, 1.0, 5))
+    F = QuasiPolynomial([[0.0, 1.0], [0.5]], [0.0, 1.0], [kernel])
+    M = QuasiPolynomialMatrix([[s + 1.0, QuasiPolynomial([[1.0]], [1.0])], [QuasiPolynomial([[0.5]], [0.5]), s + 2.0]])
+    Q = M.exact_expansion()
+    D, MD = DifferenceOperator([1.0, -0.5], [0.0, 1.0]), MatrixDifferenceOperator([[[0.0, 0.5], [0.25, 0.0]]], [1.0])
+    for f in (F, M, Q, D, MD, kernel):
+        f(S)
+    F.deriv_bound(S, S + 0.1), F.derivative(), M.deriv_bound(S, S + 0.1), Q.deriv_bound(S, S + 0.1)
+    return [F, kernel, M, Q, D, MD]
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy", "copy"])
+def test_copies_keep_read_only_arrays(how: str) -> None:
+    """numpy's pickles drop the read-only flag: an unpickled or copied object marks its arrays again."""
+    import copy
+    import pickle
+
+    duplicate = {"pickle": lambda x: pickle.loads(pickle.dumps(x)), "deepcopy": copy.deepcopy, "copy": copy.copy}[how]
+    for obj in _loop_objects():
+        twin = duplicate(obj)
+        assert _all_read_only(twin) >= 2
+        _close(twin(S), obj(S).tolist(), np.abs(obj(S)).tolist())
