@@ -210,12 +210,16 @@ def read_only(arr: _Array) -> _Array:
     return arr
 
 
+_SCALARS = (float, int, complex, str, type(None))
+
+
 def read_only_state(obj: object, state: dict[str, Any]) -> None:
     """``obj.__setstate__(state)`` of an immutable value class: ``state`` set, its arrays marked read-only.
 
     numpy's pickles do not keep the flag, so an unpickled or deep-copied object would hold writable
     arrays (its caches included); every array reached through tuples, lists, dicts and the attributes of
-    nrobust's own objects is marked again (:func:`read_only`).
+    nrobust's own objects is marked again (:func:`read_only`), except through the objects that have a
+    ``__setstate__`` of their own (they mark theirs when they are built).
     """
     seen: set[int] = set()
     todo: list[Any] = [state]
@@ -225,11 +229,16 @@ def read_only_state(obj: object, state: dict[str, Any]) -> None:
             continue
         seen.add(id(item))
         if isinstance(item, np.ndarray):
-            read_only(item)
-        elif isinstance(item, (tuple, list)):
-            todo.extend(item)
+            item.setflags(write=False)  # read_only, inline: a loop's state holds a hundred arrays
+            continue
+        if isinstance(item, (tuple, list)):
+            children: Any = item
         elif isinstance(item, dict):
-            todo.extend(item.values())
-        elif type(item).__module__.startswith("nrobust") and hasattr(item, "__dict__"):
-            todo.extend(vars(item).values())
+            children = item.values()
+        elif type(item).__module__.startswith("nrobust") and not hasattr(item, "__setstate__"):
+            children = vars(item).values() if hasattr(item, "__dict__") else ()
+        else:
+            continue
+        # numbers are most of the entries (the moments kept per real part): not walked one by one
+        todo.extend(x for x in children if not isinstance(x, _SCALARS))
     obj.__dict__.update(state)
