@@ -192,3 +192,53 @@ def renamed_keywords(**renames: str) -> Callable[[Callable[_P, _R]], Callable[_P
         return wrapper
 
     return decorate
+
+
+_Array = TypeVar("_Array", bound="np.ndarray[Any, Any]")
+
+
+def read_only(arr: _Array) -> _Array:
+    """``arr`` marked read-only and returned: an array an immutable value class keeps.
+
+    The classes of loop data (quasi-polynomials, distributed terms, difference operators)
+    keep copies of what they are given and mark them so: an in-place write then raises
+    numpy's ``ValueError`` instead of leaving the results kept for the object (keyed by its
+    identity, or built once) describing other numbers. ``arr`` must be the class's own
+    array (a copy of the caller's), not a view of one the caller may still write.
+    """
+    arr.setflags(write=False)
+    return arr
+
+
+_SCALARS = (float, int, complex, str, type(None))
+
+
+def read_only_state(obj: object, state: dict[str, Any]) -> None:
+    """``obj.__setstate__(state)`` of an immutable value class: ``state`` set, its arrays marked read-only.
+
+    numpy's pickles do not keep the flag, so an unpickled or deep-copied object would hold writable
+    arrays (its caches included); every array reached through tuples, lists, dicts and the attributes of
+    nrobust's own objects is marked again (:func:`read_only`), except through the objects that have a
+    ``__setstate__`` of their own (they mark theirs when they are built).
+    """
+    seen: set[int] = set()
+    todo: list[Any] = [state]
+    while todo:
+        item = todo.pop()
+        if id(item) in seen:
+            continue
+        seen.add(id(item))
+        if isinstance(item, np.ndarray):
+            item.setflags(write=False)  # read_only, inline: a loop's state holds a hundred arrays
+            continue
+        if isinstance(item, (tuple, list)):
+            children: Any = item
+        elif isinstance(item, dict):
+            children = item.values()
+        elif type(item).__module__.startswith("nrobust") and not hasattr(item, "__setstate__"):
+            children = vars(item).values() if hasattr(item, "__dict__") else ()
+        else:
+            continue
+        # numbers are most of the entries (the moments kept per real part): not walked one by one
+        todo.extend(x for x in children if not isinstance(x, _SCALARS))
+    obj.__dict__.update(state)

@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._flint import krawczyk, precision, radius_acb, working_precision
 from ._json import fields_dict, json_safe
 from ._newton import newton
-from ._validate import number_array, real_array
+from ._validate import number_array, read_only, read_only_state, real_array
 from .errors import CertificationError, ParameterError
 
 __all__ = ["Chain", "Chains", "DifferenceOperator", "SpectralBound"]
@@ -313,8 +313,13 @@ class DifferenceOperator:
         if merged[0] == 0:
             raise ParameterError("coefs", f"nonzero at the smallest delay {uniq[0]:g} (a_0 != 0)", coefs)
         keep = merged != 0
-        object.__setattr__(self, "coefs", _complex_if_needed(merged[keep]))
-        object.__setattr__(self, "delays", uniq[keep])
+        # copies of the caller's arrays (number_array, real_array, the boolean selection), marked read-only
+        object.__setattr__(self, "coefs", read_only(_complex_if_needed(merged[keep])))
+        object.__setattr__(self, "delays", read_only(uniq[keep]))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:

@@ -35,7 +35,7 @@ from numpy.polynomial import Polynomial
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict, json_safe
-from ._validate import nonnegative, number_array, real_array
+from ._validate import nonnegative, number_array, read_only, read_only_state, real_array
 from .errors import ParameterError
 
 __all__ = [
@@ -713,7 +713,13 @@ class DistributedDelay:
         variation_radius: float,
         pieces: tuple[NDArray, NDArray, NDArray],
     ) -> None:
-        """Set every attribute (the fields, the pieces and empty caches) of a frozen instance."""
+        """Set every attribute (the fields, the pieces and empty caches) of a frozen instance.
+
+        The arrays are the term's own (copies of the caller's, or shared with another term), marked
+        read-only: the results kept for the term (its segment groups, end terms, moments) stay its own.
+        """
+        for arr in (nodes, values, poly, *pieces):
+            read_only(arr)
         for name, value in (
             ("nodes", nodes),
             ("values", values),
@@ -730,6 +736,10 @@ class DistributedDelay:
             ("_second_order", []),
         ):
             object.__setattr__(self, name, value)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     def _combined(self, coefficients: NDArray, radius: float, variation_radius: float, moment: int) -> DistributedDelay:
         """A polynomial-piece term on the same segments and polynomial with the given coefficients.
@@ -1006,7 +1016,9 @@ class DistributedDelay:
             for g in range(hs.size):
                 idx = np.flatnonzero(inverse == g)
                 nu = start[idx]
-                built.append(_SegmentGroup(float(np.mean(h[idx])), nu, coef[idx], _arithmetic_step(nu)))
+                built.append(
+                    _SegmentGroup(float(np.mean(h[idx])), read_only(nu), read_only(coef[idx]), _arithmetic_step(nu))
+                )
             groups = self._groups[key] = tuple(built)
         return groups
 
@@ -1177,7 +1189,7 @@ class DistributedDelay:
             np.add.at(size[j], where, np.abs(np.concatenate([lo[j], hi[j]])))
         bound = np.abs(jump) + 4.0 * np.finfo(float).eps * size
         for arr in (nodes, jump, bound):
-            arr.flags.writeable = False
+            read_only(arr)
         self._ends[(extra, absolute)] = (nodes, jump, bound)
         return nodes, jump, bound
 
@@ -1278,7 +1290,8 @@ class DistributedDelay:
             # |N'| <= sum_j j |P_ij| / h on segment i (exact for the linear interpolant).
             slope = np.sum(np.abs(poly_t[:, 1:]) * np.arange(1, poly_t.shape[1]), axis=1) / h
             jumps = self._jumps()
-            self._variation.append((np.array([j[0] for j in jumps]), np.array([j[1] for j in jumps]), slope))
+            where, size = np.array([j[0] for j in jumps]), np.array([j[1] for j in jumps])
+            self._variation.append((read_only(where), read_only(size), read_only(slope)))
         where, size, slope = self._variation[0]
         out = np.abs(self.values[0]) * np.exp(-self.a * x) + np.abs(self.values[-1]) * np.exp(-self.b * x)
         if where.size:  # the jumps' terms added one after another (a cumulative sum: the order of the sum kept)

@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import fields_dict
-from ._validate import is_real_number, number_array, positive, positive_int, real_array
+from ._validate import is_real_number, number_array, positive, positive_int, read_only, read_only_state, real_array
 from .difference import Chains, chains_of, cluster_polynomial_roots, commensurate
 from .errors import CertificationError, ParameterError
 
@@ -190,9 +190,13 @@ class MatrixDifferenceOperator:
             raise ParameterError(
                 "coefs", f"at most {_MAX_DELAYS} matrices (the certificate covers a torus)", a.shape[0]
             )
-        order = np.argsort(t)
-        object.__setattr__(self, "coefs", a[order])
-        object.__setattr__(self, "delays", t[order])
+        order = np.argsort(t)  # the selections are copies of the caller's arrays, marked read-only
+        object.__setattr__(self, "coefs", read_only(a[order]))
+        object.__setattr__(self, "delays", read_only(t[order]))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @property
     def size(self) -> int:

@@ -47,7 +47,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._validate import real_array
+from ._validate import read_only, read_only_state, real_array
 from .difference import DifferenceOperator
 from .errors import ParameterError
 from .quasipoly import QuasiPolynomial, as_quasipolynomial
@@ -177,7 +177,7 @@ def _det(m: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """
     n = m.shape[-1]
     if n == 1:
-        return m[..., 0, 0]
+        return m[..., 0, 0].copy()  # not a view of ``m`` (the values a matrix keeps)
     if n == 2:
         return m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
     if n == 3:
@@ -481,11 +481,11 @@ def _compile(entries: tuple[tuple[QuasiPolynomial, ...], ...]) -> _Compiled:
             for m in range(j, P):
                 taylor[m - j, j, order] = comb(m, j) * c[:, m].reshape(K, n * n)
     return _Compiled(
-        taus=tau,
-        values=np.concatenate([c.reshape(K * P, n * n) for c in derivs], axis=1),
-        moduli=np.abs(np.concatenate([c.reshape(K * P, n * n) for c in derivs[:2]], axis=1)),
-        taylor=taylor[:, : P - 1].reshape(P, (P - 1) * 3 * K * n * n),
-        constant=np.abs(taylor[0, P - 1]).transpose(1, 0, 2).reshape(K, 3 * n * n),
+        taus=read_only(tau),
+        values=read_only(np.concatenate([c.reshape(K * P, n * n) for c in derivs], axis=1)),
+        moduli=read_only(np.abs(np.concatenate([c.reshape(K * P, n * n) for c in derivs[:2]], axis=1))),
+        taylor=read_only(taylor[:, : P - 1].reshape(P, (P - 1) * 3 * K * n * n)),
+        constant=read_only(np.abs(taylor[0, P - 1]).transpose(1, 0, 2).reshape(K, 3 * n * n)),
         dist=tuple(dist),
     )
 
@@ -534,6 +534,10 @@ class QuasiPolynomialMatrix:
                 raise ParameterError(f"entries[{i}]", f"a row of {n} entries (a square matrix)", row)
             out.append(tuple(as_quasipolynomial(f"entries[{i}][{j}]", e) for j, e in enumerate(row)))
         object.__setattr__(self, "entries", tuple(out))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @classmethod
     def diagonal(cls, entries: Sequence[Any]) -> QuasiPolynomialMatrix:
@@ -704,7 +708,7 @@ class QuasiPolynomialMatrix:
             return self._tensor_values(flat, 1)
         w = self._compiled.weights(flat)
         v = self._tensor_values(flat, 2, w)
-        object.__setattr__(self, "_last", (flat.copy(), v, w))
+        object.__setattr__(self, "_last", (read_only(flat.copy()), read_only(v), read_only(w)))
         return v
 
     def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
@@ -939,6 +943,10 @@ class ExpandedDeterminant:
         self._source: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._setup(exact)
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
+
     @classmethod
     def from_coefficients(cls, coefs: ArrayLike, delays: ArrayLike) -> ExpandedDeterminant | None:
         """``det M`` of ``M_ij(s) = sum_k sum_p coefs[i, j, k, p] s^p e^{-delays[k] s}``, expanded exactly.
@@ -979,7 +987,7 @@ class ExpandedDeterminant:
         if exact is None:
             return None
         obj = cls.__new__(cls)
-        obj._matrix, obj._source = None, (c, t)
+        obj._matrix, obj._source = None, (read_only(c), read_only(t))
         try:
             obj._setup(exact)
         except OverflowError:  # a coefficient beyond the doubles: no rounding of the expansion
@@ -1009,9 +1017,9 @@ class ExpandedDeterminant:
         at = ([where[tau] for tau, _ in groups], [k for _, k in groups])
         coef[at] = [total / exact.scale for total, _ in groups.values()]
         weight[at] = [size / exact.scale * (1.0 + 4.0 * _UNIT) for _, size in groups.values()]  # rounded up
-        self._coef = coef
-        self._taus = np.array(taus)
-        self._weight = weight
+        self._coef = read_only(coef)
+        self._taus = read_only(np.array(taus))
+        self._weight = read_only(weight)
         K, P = coef.shape
         J = _TAYLOR_TERMS + 3  # Q, Q', ..., Q^{(L + 2)}
         derivs = [coef]
@@ -1023,9 +1031,11 @@ class ExpandedDeterminant:
             derivs.append(nxt)
         stack = np.array(derivs).transpose(1, 2, 0).reshape(K * P, J)  # row k P + p, column j
         # W(s) @ _values: Q^{(j)}(s) for j < J, with W(s)[k P + p] = e^{-tau_k s} s^p
-        self._values = stack.astype(complex)
+        self._values = read_only(stack.astype(complex))
         # |W| @ _moduli: the sums of the moduli of the monomials of Q^{(j)}, then the two sums of the gap
-        self._moduli = np.column_stack([np.abs(stack), weight.ravel(), (self._taus[:, None] * weight).ravel()])
+        self._moduli = read_only(
+            np.column_stack([np.abs(stack), weight.ravel(), (self._taus[:, None] * weight).ravel()])
+        )
         # rounding allowance of a value (relative to the sum of the moduli of its terms, times 1 + tau |s|):
         # the weights (P products and an exponential) and the sum of K P products
         self._allowance = max(_ROUNDING, 2.0 * _UNIT * (K * P + 2 * P + 8))
@@ -1045,7 +1055,7 @@ class ExpandedDeterminant:
             if kept[0].shape == flat.shape and np.logical_and.reduce(kept[0] == flat):
                 return kept
         w = self._weights(flat)
-        kept = (flat.copy(), w, w @ self._values[:, :2])
+        kept = (read_only(flat.copy()), read_only(w), read_only(w @ self._values[:, :2]))
         if flat.size <= _KEPT:
             self._last = [kept, *self._last[:1]]
         return kept
@@ -1075,11 +1085,11 @@ class ExpandedDeterminant:
 
     def __call__(self, s: ArrayLike) -> NDArray[np.complex128]:
         """``Q(s)``."""
-        return self._batch(s)[2][:, 0].reshape(np.shape(s))
+        return self._batch(s)[2][:, 0].reshape(np.shape(s)).copy()  # not a view of the kept batch
 
     def deriv_at(self, s: ArrayLike) -> NDArray[np.complex128]:
         """``Q'(s)``."""
-        return self._batch(s)[2][:, 1].reshape(np.shape(s))
+        return self._batch(s)[2][:, 1].reshape(np.shape(s)).copy()
 
     def magnitude(self, s: ArrayLike) -> NDArray[np.float64]:
         """Rounding scale of ``Q(s)``: the sum of the moduli of its monomials."""
@@ -1160,7 +1170,7 @@ class ExpandedDeterminant:
         powers = np.logical_or.reduce(nonzero, axis=0).nonzero()[0]
         if not powers.size:
             raise _zero_determinant()
-        return nonzero, int(powers[-1])
+        return read_only(nonzero), int(powers[-1])
 
     @functools.cached_property
     def kind(self) -> str:

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._json import json_safe
-from ._validate import is_real_number, nonnegative, number_array, real_array
+from ._validate import is_real_number, nonnegative, number_array, read_only, read_only_state, real_array
 from .difference import DifferenceOperator
 from .distributed_delay import DistributedDelay, TermsAtPoint, as_poly, canonical_bytes, polyder, polymul, polyval
 from .errors import ParameterError
@@ -222,7 +222,9 @@ def _point_tensor(terms: tuple[tuple[NDArray, float], ...]) -> _PointTensor:
         for j in range(size):  # q^{(j)} / j! = sum_k C(k, j) c_k s^(k - j)
             rows.append(c[:, j:] * np.array([comb(k, j) for k in range(j, size)], dtype=float))
         taylor.append(tuple(rows))
-    return _PointTensor(taus, (taylor[0], taylor[1]), np.abs(coef))
+    for arr in (taus, *taylor[0], *taylor[1]):
+        read_only(arr)
+    return _PointTensor(taus, (taylor[0], taylor[1]), read_only(np.abs(coef)))
 
 
 def _horner_rows(c: NDArray, s: NDArray) -> NDArray:
@@ -361,16 +363,22 @@ class QuasiPolynomial:
                 merged_radius[t] = _radius_add(merged_radius.get(t), radius[k])
         for t in summed:  # a sum may end in zeros
             merged[t] = as_poly("coefs", merged[t])
+        # the arrays kept are copies of the caller's (as_poly, _checked_radii), marked read-only: the
+        # results kept for this object (its derivative, its tensor, the root finders' bounds) stay its own
         if radius is None:
-            terms = tuple((p, t) for t, p in sorted(merged.items()) if p[-1] != 0)
+            terms = tuple((read_only(p), t) for t, p in sorted(merged.items()) if p[-1] != 0)
             object.__setattr__(self, "point_terms", terms)
             object.__setattr__(self, "point_radii", ())
         else:  # a term with a positive radius stays, its stored coefficients zero or not
             kept = [(t, *_term(p, merged_radius.get(t))) for t, p in sorted(merged.items())]
             kept = [(t, p, r) for t, p, r in kept if p[-1] != 0 or r[-1] > 0]
-            object.__setattr__(self, "point_terms", tuple((p, t) for t, p, _ in kept))
-            object.__setattr__(self, "point_radii", tuple(r for _, _, r in kept))
+            object.__setattr__(self, "point_terms", tuple((read_only(p), t) for t, p, _ in kept))
+            object.__setattr__(self, "point_radii", tuple(read_only(r) for _, _, r in kept))
         object.__setattr__(self, "distributed", _merge_distributed(dist))
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Unpickled or deep-copied: its arrays marked read-only again (numpy's pickles drop the flag)."""
+        read_only_state(self, state)
 
     @classmethod
     def from_parts(
@@ -448,7 +456,7 @@ class QuasiPolynomial:
         entries = []
         for c, e, keep in zip(flat, flat_ends.tolist(), flat_present.tolist()):
             F = object.__new__(cls)
-            terms = tuple((c[k, : e[k]].copy(), t) for k, t in enumerate(order) if keep[k])
+            terms = tuple((read_only(c[k, : e[k]].copy()), t) for k, t in enumerate(order) if keep[k])
             object.__setattr__(F, "point_terms", terms)
             object.__setattr__(F, "point_radii", ())
             object.__setattr__(F, "distributed", ())
