@@ -1,5 +1,6 @@
 """Access to python-flint (FLINT's Arb ball arithmetic): loading it, its working precision, the
-ball of a coefficient known to a radius, and Krawczyk's test.
+ball of a coefficient known to a radius, the doubles outside a ball (:func:`ball_lower`,
+:func:`ball_upper`: ``float`` rounds an end to nearest), and Krawczyk's test.
 
 python-flint is the optional extra ``nrobust[rigorous]``. Every module that computes in
 ball arithmetic loads it with :func:`require_flint` (an ``ImportError`` that says how to
@@ -26,11 +27,11 @@ __all__ = [
     "acb_box",
     "krawczyk",
     "krawczyk_image",
-    "lower_float",
+    "ball_lower",
     "precision",
     "radius_acb",
     "require_flint",
-    "upper_float",
+    "ball_upper",
     "working_precision",
 ]
 
@@ -73,12 +74,12 @@ class precision:
         self._ctx.prec = self._old
 
 
-def upper_float(ball: Any) -> float:
+def ball_upper(ball: Any) -> float:
     """A double at or above every point of the arb ``ball`` (``float`` rounds its upper end to nearest)."""
     return math.nextafter(float(ball.upper()), math.inf)
 
 
-def lower_float(ball: Any) -> float:
+def ball_lower(ball: Any) -> float:
     """A double at or below every point of the arb ``ball``."""
     return math.nextafter(float(ball.lower()), -math.inf)
 

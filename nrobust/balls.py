@@ -78,7 +78,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._flint import INSTALL_HINT as INSTALL_HINT
-from ._flint import acb_box, krawczyk, precision, radius_acb, require_flint, upper_float, working_precision
+from ._flint import acb_box, ball_upper, krawczyk, precision, radius_acb, require_flint, working_precision
 from ._validate import positive_int
 from .errors import ParameterError
 from .qpmatrix import QuasiPolynomialMatrix
@@ -317,7 +317,7 @@ def _phi_balls(flint: ModuleType, z: Any, lmax: int, prec: int) -> list[Any]:
             # tail: sum_{n >= N} r^n / (n! (n + l + 1)) <= r^N / (N! (N + l + 1)) (N + 1) / (N + 1 - r)
             tail = flint.arb(r) ** terms / flint.arb.fac_ui(terms) / (terms + l_ + 1)
             tail *= flint.arb(terms + 1) / (terms + 1 - flint.arb(r))
-            t = upper_float(tail)
+            t = ball_upper(tail)
             return polys[l_](z) + flint.acb(flint.arb(0, t), flint.arb(0, t))
 
         if r > 1.0:

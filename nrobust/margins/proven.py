@@ -79,7 +79,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._flint import working_precision
+from .._flint import ball_lower, ball_upper, working_precision
 from .._json import fields_dict
 from .._validate import positive_int
 from ..balls import (
@@ -202,18 +202,6 @@ class ProvenCrossings:
 
 
 # ============================================================================ balls to floats
-def _lo(x: Any) -> float:
-    """A float at or below every point of the arb ``x``."""
-    v = float(x.lower())
-    return math.nextafter(v, -math.inf)
-
-
-def _hi(x: Any) -> float:
-    """A float at or above every point of the arb ``x``."""
-    v = float(x.upper())
-    return math.nextafter(v, math.inf)
-
-
 def _sign(x: Any) -> int:
     """Proven sign of the arb ``x`` (0 when it encloses 0)."""
     return 1 if x > 0 else (-1 if x < 0 else 0)
@@ -620,11 +608,11 @@ def _first_delay(flint: Any, a: Any, b: Any, w: Any, w_sign: int) -> tuple[float
             return None
     if w.contains(0):  # a zero of g near w = 0: only a lower bound of its delay
         low = abs(phi).lower() / abs(w).upper()
-        return (_lo(low), math.inf) if low > 0 else None
+        return (ball_lower(low), math.inf) if low > 0 else None
     delay = phi / w
     if not delay > 0:
         return None
-    return _lo(delay), _hi(delay)
+    return ball_lower(delay), ball_upper(delay)
 
 
 # ============================================================================ exact route (polynomial loops)
@@ -809,8 +797,8 @@ def _ball_route(axis: _Axis, lo: float, hi: float, A: QuasiPolynomial, B: QuasiP
         B,
         axis.kernels,
         edges,
-        np.array([_hi(x) for x in lips]),
-        np.array([_hi(x) for x in curvs]),
+        np.array([ball_upper(x) for x in lips]),
+        np.array([ball_upper(x) for x in curvs]),
         axis.max_evals,
     )
 
@@ -924,7 +912,7 @@ def _decide(
     gstar = axis.g(flint.acb(0, wstar)) * sigma
     if gstar > 0:
         return []
-    lo_s, hi_s = _lo(wstar), _hi(wstar)
+    lo_s, hi_s = ball_lower(wstar), ball_upper(wstar)
     if gstar < 0:
         if sa == sigma:
             zeros.append((_newton(axis, a, lo_s, sa, -sigma, None, order=0), -sigma))
@@ -932,7 +920,7 @@ def _decide(
             zeros.append((_newton(axis, hi_s, b, -sigma, sigma, None, order=0), sigma))
         return []
     reach = (2 * gstar.abs_upper() / d2.abs_lower()).sqrt()
-    unresolved.append((max(a, _lo(wstar - reach)), min(b, _hi(wstar + reach)), wstar))
+    unresolved.append((max(a, ball_lower(wstar - reach)), min(b, ball_upper(wstar + reach)), wstar))
     return []
 
 
@@ -978,7 +966,7 @@ def proven_gap(A: QuasiPolynomial, B: QuasiPolynomial) -> tuple[float, float]:
         return (-math.inf, -math.inf)
     if res[0].is_zero():
         return (0.0, 0.0)
-    return _lo(res[0]), _hi(res[0])
+    return ball_lower(res[0]), ball_upper(res[0])
 
 
 def proven_zero_radius(F: QuasiPolynomial) -> float | None:
@@ -1087,7 +1075,7 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
     zeros: list[tuple[Any, int, int]]
     unresolved: list[tuple[float, float, Any]] = []
     if exact is not None:
-        zeros = [(w, m, sl) for w, m, sl in exact if _hi(abs(w)) < hi]
+        zeros = [(w, m, sl) for w, m, sl in exact if ball_upper(abs(w)) < hi]
         method = "exact polynomial"
     else:
         found, unresolved = _ball_route(axis, lo, hi, A, B)
@@ -1103,10 +1091,11 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
         delay = _first_delay(flint, a, b, w, sign)
         if delay is None:
             raise CertificationError(
-                f"proven crossing search: the first delay of the crossing at w in [{_lo(w):.17g}, {_hi(w):.17g}] "
-                "is not proven (a root on the imaginary axis at a delay near 0 modulo the period, or A(i w) near 0)"
+                "proven crossing search: the first delay of the crossing at w in "
+                f"[{ball_lower(w):.17g}, {ball_upper(w):.17g}] is not proven (a root on the imaginary axis at a delay "
+                "near 0 modulo the period, or A(i w) near 0)"
             )
-        omegas.append((_lo(w), _hi(w)))
+        omegas.append((ball_lower(w), ball_upper(w)))
         mults.append(mult)
         slopes.append(slope)
         delays.append(delay)
@@ -1126,7 +1115,7 @@ def proven_crossings(A: QuasiPolynomial, B: QuasiPolynomial, *, max_evals: int =
         unresolved=tuple((a_, b_) for a_, b_, _ in unresolved),
         unresolved_delays=tuple(un_delays),
         frequency_bound=float(W),
-        gap=(_lo(gap), _hi(gap)),
+        gap=(ball_lower(gap), ball_upper(gap)),
         method=method,
         evaluations=axis.evals,
     )

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._flint import lower_float, upper_float
+from .._flint import ball_lower, ball_upper
 from .._json import json_safe
 from .._validate import positive_int
 from .._validate import region as _check_region
@@ -459,7 +459,7 @@ def _arg_interval(value: Any) -> tuple[float, float] | None:
         arg, shift = (-value).arg(), np.pi
     else:
         arg, shift = value.arg(), 0.0
-    lo, hi = lower_float(arg), upper_float(arg)
+    lo, hi = ball_lower(arg), ball_upper(arg)
     if not (np.isfinite(lo) and np.isfinite(hi)) or hi - lo >= 3.0:
         return None
     # outward rounding of the conversions to double and of the shift by pi

@@ -84,7 +84,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._digits import upper_bound_text
-from ..._flint import lower_float, precision, require_flint, upper_float, working_precision
+from ..._flint import ball_lower, ball_upper, precision, require_flint, working_precision
 from ..._validate import finite_real, nonnegative, positive_int
 from ...balls import BallQuasiPolynomial
 from ...design.gain import DelayWindow, check_delays
@@ -95,7 +95,7 @@ from ..loops.exact_form import PRECISION, closed_form_series, expand_piece, has_
 from ..loops.exact_gains import gain_failure
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import GainBounds, error_radius, gain_bounds, gain_term, gain_variations, time_ratio
-from .mismatch_proof import SquareProof, ball_lower, ball_upper, crossing_free
+from .mismatch_proof import SquareProof, crossing_free
 from .mismatch_slopes import T_CELLS, GainPieces, GainSlopes, cell_integrals, gain_pieces
 
 __all__ = ["MAX_COUPLED_BOXES", "MAX_GAIN_BOXES", "prove_coupled_square"]
@@ -305,7 +305,7 @@ def _parameter_slopes(flint: Any, P: Any, M: Any, q: float, rho: float, which: s
 def _theta_product(flint: Any, theta: Any) -> Any:
     """The ball of ``theta (1 - theta)`` over the ball ``theta`` (concave, largest at 1/2: no dependency)."""
     arb = flint.arb
-    lo, hi = lower_float(theta), upper_float(theta)
+    lo, hi = ball_lower(theta), ball_upper(theta)
     u = (arb(lo) * (1 - arb(lo))).union(arb(hi) * (1 - arb(hi)))
     return u.union(arb(0.25)) if lo <= 0.5 <= hi else u
 

@@ -67,13 +67,12 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._flint import precision
+from ..._flint import ball_upper, precision
 from ...errors import CertificationError
 from ...quasipoly import DistributedDelay
 from ..loops.exact_form import DEGREE, PRECISION
 from ..loops.exact_gains import ORDER, gain_kernel, gain_models, gain_plant
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .mismatch_proof import ball_upper
 
 __all__ = [
     "GainBounds",

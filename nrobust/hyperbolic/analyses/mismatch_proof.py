@@ -53,14 +53,14 @@ from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 from ..._digits import lower_bound_text, upper_bound_text
-from ..._flint import working_precision
+from ..._flint import ball_lower, ball_upper, working_precision
 from ..._validate import finite_real, positive, positive_int
 from ...design.gain import DelayWindow, check_delays
 from ...errors import ParameterError
 from ...quasipoly import QuasiPolynomial
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 
-__all__ = ["MAX_SQUARE_BOXES", "SquareProof", "ball_lower", "ball_upper", "crossing_free", "prove_transport_square"]
+__all__ = ["MAX_SQUARE_BOXES", "SquareProof", "crossing_free", "prove_transport_square"]
 
 #: Default work bound of :func:`prove_transport_square`: boxes of ``(w, tau)`` examined (about
 #: 60 us each on a shared core; a filtered loop at ``eps = 0.2`` takes a few thousand).
@@ -118,16 +118,6 @@ class SquareProof(NamedTuple):
     base: int = -1
     point: tuple[float, float] = (math.nan, math.nan)
     undecided: tuple[tuple[float, float, float, float], ...] = ()
-
-
-def ball_lower(x: Any) -> float:
-    """A float at or below every point of the arb ``x``."""
-    return math.nextafter(float(x.lower()), -math.inf)
-
-
-def ball_upper(x: Any) -> float:
-    """A float at or above every point of the arb ``x``."""
-    return math.nextafter(float(x.upper()), math.inf)
 
 
 def _poly(coefficients: Sequence[Any], s: Any) -> Any:

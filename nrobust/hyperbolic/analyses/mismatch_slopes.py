@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..._flint import lower_float, precision, upper_float
+from ..._flint import ball_lower, ball_upper, precision
 from ...errors import CertificationError
 from ..loops.exact_form import PRECISION
 from ..loops.exact_gains import ORDER, gain_models, gain_plant
@@ -74,14 +74,14 @@ class GainPieces:
             pieces = []
             for j in range(n):
                 local = mod.polys[j](arb_poly([arb(2 * j + 1) / (2 * n), 1 / arb(2 * n)]))
-                rem = arb(0, upper_float(mod.remainder[j]))
-                slope_rem = arb(0, upper_float(mod.derivative[j] * (2 * n)))
+                rem = arb(0, ball_upper(mod.remainder[j]))
+                slope_rem = arb(0, ball_upper(mod.derivative[j] * (2 * n)))
                 pieces.append((local, local.derivative() * (2 * n), rem, slope_rem))
             self.local.append(pieces)
 
     def _at(self, g: int, X: Any, which: int) -> Any:
         arb = self.flint.arb
-        lo, hi = max(lower_float(X), 0.0), min(upper_float(X), 1.0)
+        lo, hi = max(ball_lower(X), 0.0), min(ball_upper(X), 1.0)
         if lo > hi:  # no true argument in the ball: any point of [0, 1] is as good
             lo = hi = min(max(float(X.mid()), 0.0), 1.0)
         n = self.n
@@ -145,7 +145,7 @@ class GainSlopes:
         self.flint, self.R, self.offsets = flint, R, offsets
         Q = arb(q)
         kap = P * M
-        r_lo, r_hi = lower_float(R), upper_float(R)
+        r_lo, r_hi = ball_lower(R), ball_upper(R)
         if not (0.0 < r_lo and r_hi < 1.0):
             raise CertificationError("the ratio of the times of flight leaves (0, 1) on the box")
         self.jump = gains.value(1, arb(0)) / R - Q * gains.value(0, arb(0)) / (1 - R)
@@ -175,8 +175,8 @@ class GainSlopes:
 
         def inner(t: Any, xi0: Any) -> tuple[Any, Any, Any]:
             """``(int H_p, int H_m, int (1 - xi) H_n)`` over ``[xi_0, 1]``, for ``t`` and ``xi_0`` balls."""
-            lo = lower_float(xi0)
-            hi = upper_float(xi0)
+            lo = ball_lower(xi0)
+            hi = ball_upper(xi0)
             out = [arb(0), arb(0), arb(0)]
             for j, X in enumerate(xis):
                 if (j + 1) * h_xi <= lo:

@@ -51,7 +51,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._flint import precision, require_flint
+from ..._flint import ball_upper, precision, require_flint
 from ...errors import CertificationError
 from ...quasipoly import DistributedDelay
 from ..loops.controllers import StateFeedback
@@ -59,7 +59,6 @@ from ..loops.exact_form import PRECISION, exact_form, has_exact_form, rational_b
 from ..loops.exact_gains import gain_kernel, gain_plant
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from .mismatch_gains import section_bounds
-from .mismatch_proof import ball_upper
 
 __all__ = [
     "CHEBYSHEV_DEGREE",

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from ..._flint import precision, require_flint, upper_float
+from ..._flint import ball_upper, precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
@@ -561,8 +561,8 @@ def _pieces(
         None,
         interpolation="polynomial",
         coefficients=np.asarray(coefs),
-        radius=upper_float(global_sup + sup_err),
-        variation_radius=upper_float(global_var + var_err + jumps),
+        radius=ball_upper(global_sup + sup_err),
+        variation_radius=ball_upper(global_var + var_err + jumps),
     )
 
 

@@ -104,7 +104,7 @@ from typing import Any
 
 import numpy as np
 
-from ..._flint import precision, require_flint, upper_float
+from ..._flint import ball_upper, precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay
 from ..plants.general import GeneralHyperbolic2x2
@@ -670,8 +670,8 @@ def _displacement(
         None,
         interpolation="polynomial",
         coefficients=np.zeros((1, 1)),
-        radius=upper_float(jump),
-        variation_radius=upper_float(variation),
+        radius=ball_upper(jump),
+        variation_radius=ball_upper(variation),
     )
 
 
@@ -748,6 +748,6 @@ def _store(
         None,
         interpolation="polynomial",
         coefficients=np.asarray(coefs),
-        radius=upper_float(sup),
-        variation_radius=upper_float(global_var + var_err + jumps + ends),
+        radius=ball_upper(sup),
+        variation_radius=ball_upper(global_var + var_err + jumps + ends),
     )

@@ -108,7 +108,7 @@ from typing import Any
 
 import numpy as np
 
-from ..._flint import precision, require_flint, upper_float
+from ..._flint import ball_upper, precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
@@ -522,7 +522,7 @@ def _enclose(
             )
         )
     accuracy = max(t.radius for t in terms[:3])
-    return ProvenObserverTerm(QuasiPolynomial([], [], terms), accuracy, upper_float(E))
+    return ProvenObserverTerm(QuasiPolynomial([], [], terms), accuracy, ball_upper(E))
 
 
 def _nodes(lo: float, hi: float, step: float) -> list[float] | None:

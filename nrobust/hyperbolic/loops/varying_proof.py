@@ -133,7 +133,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..._digits import upper_bound_text
-from ..._flint import precision, require_flint, upper_float
+from ..._flint import ball_upper, precision, require_flint
 from ...errors import CertificationError, ParameterError
 from ...quasipoly import DistributedDelay, QuasiPolynomial
 from ..plants.general import GeneralHyperbolic2x2
@@ -618,7 +618,7 @@ class _SpeedMap:
     def total(self) -> Any:
         """The ball ``T(L)``."""
         start, _, Phi, eps = self.pieces[-1]
-        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, upper_float(eps))
+        return start + Phi(self.flint.arb(1)) + self.flint.arb(0, ball_upper(eps))
 
     def _piece(self, j: int, pieces: int) -> tuple[Any, Any, Any, Any]:
         """``(C_j, P_j, Phi_j, eps_j)`` of the piece ``j`` of ``pieces`` (``C_j`` from the pieces before)."""
@@ -649,7 +649,7 @@ class _SpeedMap:
         j = min(m - 1, int(float((xi * m).floor())))  # exact: m is a power of 2, so u = m xi - j lies in [0, 1]
         start, P, Phi, eps = self.pieces[j]
         u = xi * m - j
-        return start + Phi(u) + arb(0, upper_float(eps * abs(u))), (P(u) * m).mid()
+        return start + Phi(u) + arb(0, ball_upper(eps * abs(u))), (P(u) * m).mid()
 
     def _inverse(self, y: Any, side: int) -> Any:
         """``xi`` with ``T(L xi)`` proven below (``side = -1``) or above (``+1``) ``T(L) y`` (``y`` exact)."""
@@ -736,7 +736,7 @@ def _proof(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> VaryingProof:
             if not bool(eps < _RESIDUAL * _poly_sup(flint, P) + arb(2.0**-60)):
                 raise CertificationError(
                     f"the coupling {name} is not within double precision of one Taylor model of order {ORDER} on "
-                    f"[0, 1] (remainder {upper_bound_text(upper_float(eps), 2)}): a singularity near [0, 1], a "
+                    f"[0, 1] (remainder {upper_bound_text(ball_upper(eps), 2)}): a singularity near [0, 1], a "
                     "coupling that varies too fast for that order, or (varying speeds, long L) ball arithmetic "
                     "overestimating the "
                     f"remainder's coefficient on the {_TOP_BALLS} balls covering [0, 1], even halved {_TOP_DEPTH} "
@@ -812,7 +812,7 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     # tau the double nearest T(L) / time_unit: the plant proven has both speeds times T(L) / (tau time_unit)
     tau = float((speed.total / arb(g.time_unit)).mid())
     total = arb(tau) * arb(g.time_unit)
-    change = upper_float(abs(speed.total / total - 1))
+    change = ball_upper(abs(speed.total / total - 1))
     assumption = f"both speeds times a factor within {upper_bound_text(change, 2)} of 1 (tau the double {tau!r})"
 
     def weight(X: Any, side: str) -> Any:
@@ -873,9 +873,9 @@ def _general_setup(flint: Any, g: GeneralHyperbolic2x2, geo: _Geometry, remainde
         exponent = g.D(g.tables.x) - g.A(g.tables.x)
         q_n = g.q * float(np.exp(-0.5 * (np.max(exponent) + np.min(exponent))))
     ek = arb(q_n) / arb(g.q)  # e^{-k}
-    E_end = E(arb(1)) + arb(0, upper_float(e_E))
+    E_end = E(arb(1)) + arb(0, ball_upper(e_E))
     # the given plant's A(L) - D(L) is the factor of the assumption times the proven plant's: the ball holds both
-    E_end += arb(0, upper_float(abs(E_end) * geo.change))
+    E_end += arb(0, ball_upper(abs(E_end) * geo.change))
     weight = (-E_end).exp() / ek  # e^{A(L) + k - D(L)} = rho~ / rho
 
     def coupling(name: str, sign: int) -> tuple[Any, Any, Any]:
@@ -1016,7 +1016,7 @@ def _store(
         if screen:
             what = "error bound of the kernel without the couplings' Taylor remainders"
         raise CertificationError(
-            f"the {what} ({upper_bound_text(upper_float(sup_err), 2)}) is too large: couplings not analytic on "
+            f"the {what} ({upper_bound_text(ball_upper(sup_err), 2)}) is too large: couplings not analytic on "
             f"a disc about [0, 1] wide enough for a Taylor model of order {ORDER}, or too strong for degree "
             f"{DEGREES[-1]}; the kernel route (kernel_grid=...) gives a model of the PDE"
         )
@@ -1049,8 +1049,8 @@ def _store(
         None,
         interpolation="polynomial",
         coefficients=np.asarray(coefs),
-        radius=upper_float(piece_sup + sup_err),
-        variation_radius=upper_float(piece_var + var_err),
+        radius=ball_upper(piece_sup + sup_err),
+        variation_radius=ball_upper(piece_var + var_err),
     )
 
 

@@ -113,7 +113,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._flint import precision, require_flint
+from ..._flint import ball_upper, precision, require_flint
 from ..._threads import one_blas_thread
 from ..._validate import positive, positive_int
 from ...errors import CertificationError, ParameterError
@@ -145,11 +145,6 @@ _BLOCK = 512  # rows of the touching test at a time (memory: _BLOCK times the ce
 _Cells = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
 
-def _up(ball: Any) -> float:
-    """A float ``>=`` every point of the real ball ``ball``."""
-    return math.nextafter(float(ball.upper()), math.inf)
-
-
 def _arb_matrix(flint: Any, x: NDArray[Any]) -> Any:
     """The float matrix ``x`` as an exact ``arb_mat``."""
     return flint.arb_mat([[flint.arb(float(v)) for v in row] for row in np.atleast_2d(x)])
@@ -159,7 +154,9 @@ def _to_ball(x: Any) -> Ball:
     """An ``arb_mat`` as a :class:`~nrobust.hyperbolic.nplusm._midrad.Ball` (radius rounded upwards)."""
     rows, cols = x.nrows(), x.ncols()
     mid = np.array([[float(x[i, j].mid()) for j in range(cols)] for i in range(rows)])
-    rad = np.array([[_up(x[i, j].rad()) + EPS * abs(float(x[i, j].mid())) for j in range(cols)] for i in range(rows)])
+    rad = np.array(
+        [[ball_upper(x[i, j].rad()) + EPS * abs(float(x[i, j].mid())) for j in range(cols)] for i in range(rows)]
+    )
     return Ball(mid, rad * UP)
 
 
@@ -218,7 +215,7 @@ class _CascadeLoop:
             )
             left = spectral_norm_bound(flint, _arb_matrix(flint, np.hstack([-sys.r, np.eye(m)])))
             right = spectral_norm_bound(flint, _arb_matrix(flint, np.vstack([sys.q, np.eye(m)])))
-            self.left, self.right = _up(left), _up(right)
+            self.left, self.right = ball_upper(left), ball_upper(right)
             a0 = left * beta.exp() * right
             q = 1 / arb(mu_min) + max(1 / abs(v) for v in speeds)
             v_ball, _ = _ball_principal(flint, sys)
@@ -226,7 +223,7 @@ class _CascadeLoop:
             v_norm = spectral_norm_bound(flint, v_ball)
             d_mat = in_group_part(sys)
             a_mat = [[arb(float(d_mat[i, k])) / arb(float(sys.mu[i])) for k in range(m)] for i in range(m)]
-            self.decay_shift = _up(spectral_norm_bound(flint, flint.arb_mat(a_mat)))
+            self.decay_shift = ball_upper(spectral_norm_bound(flint, flint.arb_mat(a_mat)))
             sym = [[0.5 * (a_mat[i][k] + a_mat[k][i]) for k in range(m)] for i in range(m)]
             ell = arb.max(
                 arb(0),
@@ -267,21 +264,21 @@ class _CascadeLoop:
                 * (slope * arb(float(shift)) * (1 + 1e-9) * reach + abs(length - 1) * arb_max(flint, fro))
             )
             eps = arb(float(bound.transition_error)) + grid
-            self.eps = _up(eps)
+            self.eps = ball_upper(eps)
             g_int = sum(
                 (hb * arb.max(fro[k], fro[k + 1]) * (ell * hb * (k + 1)).exp() for k in range(x.size - 1)), arb(0)
             )
             t0 = v_norm * g_int + eps
             tv = sum(steps, arb(0))
-            self.decay = _up(v_norm * (grow_ell * (fro[-1] + tv) + fro[0]))
-            self.v_norm = _up(v_norm)
-            self.a0 = _up(a0)
+            self.decay = ball_upper(v_norm * (grow_ell * (fro[-1] + tv) + fro[0]))
+            self.v_norm = ball_upper(v_norm)
+            self.a0 = ball_upper(a0)
             # bounds of the exact loop's A = (1 - z) M_0 + z E T and its w-derivative on the axis, |z| = 1
             alpha0 = 2 * a0 + v_norm + t0
             alpha1 = 2 * a0 * q + t0 / arb(mu_min)
-            self.alpha = [_up(alpha0), _up(alpha1)]
+            self.alpha = [ball_upper(alpha0), ball_upper(alpha1)]
             grow = m * alpha0 ** (m - 1)
-            self.lipschitz = (_up(grow * alpha1), _up(grow * (a0 + v_norm + t0)))
+            self.lipschitz = (ball_upper(grow * alpha1), ball_upper(grow * (a0 + v_norm + t0)))
         # the data of the enclosures: C = Lambda^{-1} Sigma (two roundings) and the quotients (one rounding each)
         inv = 1.0 / sys.signed_speeds
         self._c = Ball(inv[:, None] * sys.sigma, 2.0 * EPS * np.abs(inv[:, None] * sys.sigma))
@@ -425,7 +422,7 @@ def _principal_inverse(system: NPlusMSystem) -> float:
         eye = flint.arb_mat([[float(i == j) for j in range(m)] for i in range(m)])
         n_mat = (eye - t).inv() * flint.arb_mat([[abs(v_inv[i, j]) for j in range(m)] for i in range(m)])
         fro = sum((n_mat[i, j] ** 2 for i in range(m) for j in range(m)), flint.arb(0)).sqrt()
-        return _up(fro)
+        return ball_upper(fro)
 
 
 def _gamma_above_one(system: NPlusMSystem) -> bool:

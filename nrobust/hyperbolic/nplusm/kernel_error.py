@@ -87,7 +87,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._flint import precision, require_flint
+from ..._flint import ball_upper, precision, require_flint
 from ..._json import fields_dict
 from ..._validate import positive_int
 from ...errors import ParameterError
@@ -131,11 +131,6 @@ class KernelErrorBound:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
         return fields_dict(self)
-
-
-def _up(ball: Any) -> float:
-    """A float ``>=`` every point of the real ball ``ball``."""
-    return math.nextafter(float(ball.upper()), math.inf)
 
 
 def _down(x: Fraction) -> float:
@@ -272,7 +267,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
                 for i in range(E)
             ]
         ).exp()
-        X = np.array([[_up(big[i, j]) for j in range(E)] for i in range(E)])
+        X = np.array([[ball_upper(big[i, j]) for j in range(E)] for i in range(E)])
     coupling = np.zeros((E, E))  # |B_e|: the boundary relation at xi = 0 reads K_ak(x_f, 0)
     for e, (kind, _, _) in enumerate(entries):
         a, b = divmod(e, width)
@@ -319,7 +314,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
             + sum((abs(0.5 * (a_ball[i, k] + a_ball[k, i])) for k in range(m) if k != i), flint.arb(0))
             for i in range(m)
         ]
-        lognorm = max(0.0, max(_up(r) for r in rows))
+        lognorm = max(0.0, max(ball_upper(r) for r in rows))
         v_norm = flint.arb(0)
         for x in (-a_ball).exp().entries():
             v_norm += x * x
@@ -336,7 +331,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
                 for j in range(n):
                     g += lq_ball[j][c] * u[a * width + j, 0]
                 if k == pieces:
-                    g_sup[a, c] = _up(g)
+                    g_sup[a, c] = ball_upper(g)
                 norm2 += (g / float(mu[a])) ** 2
             total += norm2.sqrt() * (flint.arb(lognorm) * k / pieces).exp()
         # the Picard step Z~ - Z_h at xi = 0: in sup for g_error, in L^1 for the loop
@@ -346,7 +341,7 @@ def kernel_error_bound(kernels: NPlusMKernels, *, pieces: int = 256) -> KernelEr
             sup = mu[c] * first[a * width + n + c] + sum(abs(lq[j, c]) * first[a * width + j] for j in range(n))
             g_sup[a, c] = math.nextafter(g_sup[a, c] + float(sup) * (1 + 8 * (n + 2) * _EPS), math.inf)
             step_l1 += flint.arb(float(l1) * (1 + 8 * (n + 2) * _EPS)) / float(mu[a])
-        eps = _up(v_norm * (total / pieces + step_l1 * flint.arb(lognorm).exp()))
-        kernel_error = np.array([_up(u[e, 0] + first[e]) for e in range(E)])
-        growth_up = np.array([[_up(growth[i, j]) for j in range(E)] for i in range(E)])
+        eps = ball_upper(v_norm * (total / pieces + step_l1 * flint.arb(lognorm).exp()))
+        kernel_error = np.array([ball_upper(u[e, 0] + first[e]) for e in range(E)])
+        growth_up = np.array([[ball_upper(growth[i, j]) for j in range(E)] for i in range(E)])
     return KernelErrorBound(N, rho, growth_up, kernel_error, g_sup, eps)

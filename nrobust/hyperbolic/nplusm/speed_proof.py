@@ -80,11 +80,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..._digits import lower_bound_text, upper_bound_text
-from ..._flint import working_precision
+from ..._flint import ball_lower, ball_upper, working_precision
 from ..._validate import positive_int
 from ...errors import CertificationError, ParameterError
 from ...margins.matrix import compound_generator_of
-from ..analyses.mismatch_proof import ball_lower, ball_upper, crossing_free
+from ..analyses.mismatch_proof import crossing_free
 from .characteristic import arb_max, spectral_norm_bound, symmetric_top_bound
 from .speed_box import WindowVerdict, perturbed_system
 from .system import NPlusMSystem
