@@ -80,3 +80,19 @@ def test_recorded_values(name):
     assert certificate.accuracy <= 5e-11 and certificate.omega_accuracy <= 5e-11
     assert abs(design.margin - pde_margin) <= certificate.accuracy
     assert abs(certificate.omega - pde_omega) <= certificate.omega_accuracy
+
+
+def test_the_plateau_ends_where_the_observers_chain_overtakes_the_laws():
+    """On ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.8)`` under U_BS2(0.1) the rate design is a plateau at the law's
+    ``-ln|(rho - K) q| / tau = -ln 0.7 / 2`` that ends where the observer's chain ``-ln|kappa| / tau`` (the reflection
+    of its target system; ``lam q / mu = 1`` here) falls below it: ``kappa = -(rho - K) q = -0.7``. The end is solved
+    on the chain's rate (measured 6.2e-14 from -0.7; the 40 bisections of the abscissa it replaced stopped 1.6e-12
+    away): tolerance 1e-12."""
+    rho, K = 0.8, 0.1
+    plant = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, rho)
+    design = nr.design_collocated_observer(
+        plant, "decay_rate", controller=ReflectionController(K), margin_at_least=0.1
+    ).design
+    assert design.kind == "plateau"
+    assert design.decay_rate == pytest.approx(-math.log(rho - K) / 2.0, rel=RTOL, abs=0.0)
+    assert design.K_bracket[0] == pytest.approx(-(rho - K), rel=0.0, abs=1e-12)

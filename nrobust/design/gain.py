@@ -3509,9 +3509,11 @@ def _plateau(
     The rate at ``K' = K -+ _PLATEAU_PROBE * scale`` (inside ``interval``) is within ``acc(K) + acc(K')`` of the
     rate at ``K`` (:attr:`~nrobust.roots.SpectralAbscissa.accuracy`; not where the chains of the principal part
     bound it below that first, as in :func:`_sampled_abscissas`) on at least one side; each such side is then
-    extended to the end of ``interval`` if the rate is within there too, else to the last gain within of
-    ``_PLATEAU_BISECTIONS`` bisections toward it; and the rate is within at ``_PLATEAU_SAMPLES`` gains spread over
-    ``[L, U]`` (else None: the rate is not flat between). Checked at those gains, not between them.
+    extended to the end of ``interval`` if the rate is within there too, else to the kink where the plateau ends
+    (:func:`_plateau_kink`: the zero rightmost beyond it, followed back, reaches the plateau's rate) if the rate is
+    within there, else to the last gain within of ``_PLATEAU_BISECTIONS`` bisections toward it; and the rate is
+    within at ``_PLATEAU_SAMPLES`` gains spread over ``[L, U]`` (else None: the rate is not flat between). Checked
+    at those gains, not between them.
     """
     if sa.accuracy is None or not np.isfinite(sa.value):
         return None
@@ -3535,6 +3537,10 @@ def _plateau(
             ends[i] = end
             continue
         inside, outside = probe, end
+        kink = _plateau_kink(loop, rate, acc, inside, outside, scale)
+        if kink is not None and flat(kink):
+            ends[i] = kink
+            continue
         for _ in range(_PLATEAU_BISECTIONS):
             mid = 0.5 * (inside + outside)
             inside, outside = (mid, outside) if flat(mid) else (inside, mid)
@@ -3543,6 +3549,41 @@ def _plateau(
     if lo == hi or not all(flat(x) for x in np.linspace(lo, hi, _PLATEAU_SAMPLES)):
         return None
     return float(lo), float(hi)
+
+
+def _plateau_kink(
+    loop: _Family, rate: float, accuracy: float, inside: float, outside: float, scale: float
+) -> float | None:
+    """The gain between ``inside`` (on a plateau of the decay rate ``rate``, known within ``accuracy``) and ``outside``
+    (off it) where the plateau ends: where the rate of the zero rightmost at ``outside``, followed back along its path
+    (:class:`_RootPaths`), is ``rate - accuracy / 2`` (for a chain of zeros approached at infinity: the rate of its
+    asymptote, the spectral bound of the principal part, which is flat on the plateau when a chain makes it). Brent's
+    method on that continuous rate, to ``1e-12`` of ``scale``, a dozen cheap evaluations where bisections of the
+    certified abscissa took forty. None where that rate does not fall through the level between ``inside`` and
+    ``outside`` (another zero ends the plateau, or a path is lost): the bisections of :func:`_plateau` decide.
+    """
+    from scipy.optimize import brentq  # scipy.optimize loads on first use (the start-up of the commands)
+
+    sa = loop.abscissa(outside)
+    if sa.root is None:
+        return None
+    if sa.approached_at_infinity:  # a chain of zeros: its asymptote, the principal part's spectral bound
+
+        def gap(K: float) -> float:
+            return -float(loop.nominal(K).principal_part().spectral_bound().upper) - rate + 0.5 * accuracy
+
+    else:
+        path = _Path(_RootPaths(loop), outside, complex(sa.root))
+
+        def gap(K: float) -> float:
+            return -path.at(K).real - rate + 0.5 * accuracy
+
+    try:
+        if not (gap(outside) < 0.0 < gap(inside)):
+            return None
+        return float(brentq(gap, inside, outside, xtol=1e-12 * max(scale, 1e-300), rtol=4 * _EPS))
+    except _PathLost:
+        return None
 
 
 def _with_plateau(
@@ -3692,6 +3733,8 @@ class _RootPaths:
         with np.errstate(all="ignore"):
             for _ in range(_PATH_NEWTON):
                 F, dF, _ = self._parts(K, s)
+                if dF == 0:  # a multiple zero
+                    return None
                 step = F / dF
                 s -= step
                 if not np.isfinite(s):
@@ -3729,6 +3772,8 @@ class _RootPaths:
             last = abs(K1 - K) <= abs(h)
             h = K1 - K if last else h
             _, dF, n1 = self._parts(K, s)
+            if dF == 0:  # two zeros meet: the end of the path
+                break
             move = -n1 / dF * h
             new = self.newton(K + h, s + move)
             if new is not None and abs(new - s - move) <= abs(move) / 3.0 + 1e-12 * (1.0 + abs(s)):
