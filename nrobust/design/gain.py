@@ -179,7 +179,8 @@ class GainDesign:
         ``K`` on which the decay rate is within its accuracy of the optimum (checked at its ends, by bisection
         to ``2^-40`` of the feasible interval, and at 9 gains spread over it; not between them).
     value_bracket : (float, float)
-        The optimal value (supremum) lies in it.
+        The optimal value (supremum) lies in it: the values the equations and the certificate give, widened by
+        their accuracy (the certificate's for a margin, the abscissa's for a rate) and rounded outward.
     bounds : (float, float)
         The gains searched.
     certificate : DelayMargin
@@ -2202,6 +2203,17 @@ def _bracketed_kink(curves: _Curves, p: _Piece, q: _Piece, lo: float, hi: float)
     raise _narrow(f"the two crossing curves do not change order near [{lo:.15g}, {hi:.15g}]")
 
 
+def _outward(bracket: tuple[float, float], accuracy: float | None) -> tuple[float, float]:
+    """``bracket`` of an optimal value widened by ``accuracy``, the error of the values it was formed from (the
+    equations' solutions and the certified margin or abscissa agree to it), ends rounded outward: the supremum lies
+    in it (a kink's value, ``0.23229251319039868`` as computed, is 2.2 ulp below the PDE's). As formed where the
+    accuracy is not known."""
+    lo, hi = float(bracket[0]), float(bracket[1])
+    if accuracy is None or not (np.isfinite(lo) and np.isfinite(hi) and np.isfinite(accuracy)):
+        return lo, hi
+    return math.nextafter(lo - accuracy, -math.inf), math.nextafter(hi + accuracy, math.inf)
+
+
 def _narrow(what: str) -> CertificationError:
     """The refusal where the scan's interpolated curves are off (features narrower than its step)."""
     return CertificationError(
@@ -3046,6 +3058,8 @@ def _window_design(
             )
     rate = -sa.value
     feasible = tuple((float(a[0]), float(b[0])) for a, b, _ in intervals)
+    known = [a.accuracy for a in (sa, *scenario_abscissae) if a.accuracy is not None]
+    rate_accuracy = max(known) if len(known) == 1 + len(scenario_abscissae) else None
     return GainDesign(
         K,
         objective,
@@ -3054,7 +3068,7 @@ def _window_design(
         rate,
         kind,
         K_br,
-        v_br,
+        _outward(v_br, cert.accuracy if objective == "margin" else rate_accuracy),
         (lo, hi),
         cert,
         how,
@@ -3464,7 +3478,7 @@ def best_margin(
         -sa.value,
         kind,
         K_br,
-        v_br,
+        _outward(v_br, cert.accuracy),
         (lo, hi),
         cert,
         how,
@@ -4053,7 +4067,7 @@ def _unconstrained_rate(
         rate,
         kind,
         K_br,
-        (rate, rate),
+        _outward((rate, rate), sa.accuracy),
         (lo, hi),
         cert,
         how,
@@ -4239,7 +4253,7 @@ def best_decay_rate(
         rate,
         kind,
         K_br,
-        v_br,
+        _outward(v_br, sa.accuracy),
         (lo, hi),
         cert,
         how,

@@ -46,7 +46,7 @@ from ..loops.controllers import (
 )
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import CornerRates, study_plant
+from ._common import CornerRates, exact_loop_plant, study_plant
 from .kregion import u_bs2_loop
 from .mismatch import SpeedTolerance, check_speed_tolerance, mismatch_abscissa, mismatch_gain_loop
 from .mismatch import speed_tolerance as tolerance_on_square
@@ -360,15 +360,17 @@ def design_reflection(
         k_lo, k_hi = _collocated_k_bounds(plant, observer_delay) if collocated else (-kb, kb)
         K_bounds = (fraction * k_lo, fraction * k_hi)
     loop: AffineGainLoop | AffineLoop
+    source: Hyperbolic2x2 | GeneralHyperbolic2x2 = plant  # the plant whose loops are built
     if collocated:
         loop = _collocated_loop(plant, nonnegative("observer_delay", observer_delay))
+    elif output_feedback:
+        observed = OutputFeedback(ReflectionController(0.0), nonnegative("observer_delay", observer_delay))
+        loop = AffineGainLoop(*loop_factors(plant, observed), u_bs2_loop(plant).R)
     else:
-        loop = u_bs2_loop(plant)
-        if output_feedback:
-            observed = OutputFeedback(ReflectionController(0.0), nonnegative("observer_delay", observer_delay))
-            loop = AffineGainLoop(*loop_factors(plant, observed), loop.R)
-        elif observer_delay != 0.0:
+        if observer_delay != 0.0:
             raise ParameterError("observer_delay", "0 unless output_feedback=True", observer_delay)
+        source = exact_loop_plant(system, plant)
+        loop = u_bs2_loop(source)
     scenarios: tuple[AffineGainLoop, ...] = ()
     if eps is not None:
         corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
@@ -394,7 +396,7 @@ def design_reflection(
         _check_affine(loop, design.K, factors, 2.0 * max(float(design.certificate.omega or 0.0), 1.0))
     else:
         factors = (loop.A, loop.B(design.K))
-    of_model = loop_route(plant, controller, None) != "exact" and not plant.uncoupled
+    of_model = loop_route(source, controller, None) != "exact" and not plant.uncoupled
     model_error = omega_model_error = None
     abscissa = design.abscissa
     if of_model and isinstance(controller, (OutputFeedback, CollocatedOutputFeedback)):
@@ -402,7 +404,7 @@ def design_reflection(
         abscissa = dataclasses.replace(abscissa, model_error=observer_rate_error(plant, controller, abscissa, factors))
     certificate = dataclasses.replace(
         design.certificate,
-        scope=loop_scope(plant, controller, None, factors, mapped=False, normal_form=plant is not system),
+        scope=loop_scope(source, controller, None, factors, mapped=False, normal_form=source is not system),
         of_model=of_model,
         model_error=model_error,
         omega_model_error=omega_model_error,

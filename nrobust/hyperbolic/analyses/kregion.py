@@ -24,8 +24,9 @@ from ...margins.gain import END_KINDS, AffineGainLoop, GainEnd, locate_gain_ends
 from ...margins.margin import DelayMargin
 from ...quasipoly import QuasiPolynomial
 from ..loops.controllers import ReflectionController, classify, loop_factors
+from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from ._common import GainMargin, mapper, real_grid, study_plant
+from ._common import GainMargin, exact_loop_plant, mapper, real_grid, study_plant
 
 # END_KINDS and GainEnd, the kinds and ends of a KRegion's intervals, are also exported by nrobust.hyperbolic.analyses
 __all__ = ["DEFAULT_N_GAINS", "END_KINDS", "MAX_GAINS", "GainEnd", "KRegion", "k_region", "u_bs2_loop"]
@@ -114,18 +115,26 @@ class KRegion:
         return data
 
 
-def u_bs2_loop(system: Hyperbolic2x2) -> AffineGainLoop:
+def u_bs2_loop(system: Hyperbolic2x2 | GeneralHyperbolic2x2) -> AffineGainLoop:
     """The loop of ``U_BS2(K)`` on ``system``: ``A + (B_0 + K q e^{-tau s}) e^{-delta s}`` (eq. (60)).
+
+    A general plant with a constant ``lam / mu`` (its own loop, where that is exact while its normal form's
+    tabulated couplings are a model: :func:`~nrobust.hyperbolic.analyses._common.exact_loop_plant`) has the
+    principal gain of its normal form in place of ``q``.
 
     Raises
     ------
     CertificationError
-        The loop factors are not affine in ``K`` with ``R = q e^{-tau s}``.
+        The loop factors are not affine in ``K`` with ``R`` one point term (``q e^{-tau s}`` on the paper's plant).
     """
     A, B0 = loop_factors(system, ReflectionController(0.0))
     A1, B1 = loop_factors(system, ReflectionController(1.0))
     R = B1 - B0
-    if A1 != A or R.distributed or R != QuasiPolynomial([[system.q]], [system.tau]):
+    if isinstance(system, Hyperbolic2x2):
+        affine = R == QuasiPolynomial([[system.q]], [system.tau])
+    else:
+        affine = not R.distributed and len(R.point_terms) == 1 and R.point_terms[0][0].size == 1
+    if A1 != A or R.distributed or not affine:
         raise CertificationError("k_region: the U_BS2(K) loop is not A + (B_0 + K q e^{-tau s}) e^{-delta s}")
     return AffineGainLoop(A, B0, R)
 
@@ -160,7 +169,7 @@ def _grid_verdicts(
 
 
 def _exact_region(
-    system: Hyperbolic2x2,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     delta_max: float,
     kb: float,
     grid: NDArray,
@@ -169,7 +178,8 @@ def _exact_region(
     max_evals: int,
     progress: bool | None,
 ) -> KRegion:
-    """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked."""
+    """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked (``system``: the plant whose loops
+    are built, :func:`~nrobust.hyperbolic.analyses._common.exact_loop_plant`)."""
     loop = u_bs2_loop(system)
     pairs = locate_gain_ends(loop, delta_max, kb, tol, max_evals) if kb > 0 else []
     probes: list[float] = []
@@ -367,6 +377,7 @@ def k_region(
     """
     if Ks is None:
         n_gains = positive_int("n_gains", n_gains, 3, MAX_GAINS)
+    given = system
     system, controller = study_plant(system, controller, "k_region")
     delta_max = positive("delta_max", delta_max)
     max_evals = positive_int("max_evals", max_evals)
@@ -382,5 +393,5 @@ def k_region(
     if grid.size > MAX_GAINS:
         raise ParameterError("Ks", f"at most MAX_GAINS = {MAX_GAINS} gains long", grid.size)
     if controller is None or controller is ReflectionController:
-        return _exact_region(system, delta_max, kb, grid, tol, executor, max_evals, progress)
+        return _exact_region(exact_loop_plant(given, system), delta_max, kb, grid, tol, executor, max_evals, progress)
     return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)

@@ -812,8 +812,10 @@ def _geometry(flint: Any, g: GeneralHyperbolic2x2) -> _Geometry:
     # tau the double nearest T(L) / time_unit: the plant proven has both speeds times T(L) / (tau time_unit)
     tau = float((speed.total / arb(g.time_unit)).mid())
     total = arb(tau) * arb(g.time_unit)
-    change = ball_upper(abs(speed.total / total - 1))
-    assumption = f"both speeds times a factor within {upper_bound_text(change, 2)} of 1 (tau the double {tau!r})"
+    gap = abs(speed.total / total - 1)
+    change = 0.0 if gap.is_zero() else ball_upper(gap)  # exactly 1 when T(L) is the double (no 5e-324 printed)
+    factor = "as given" if change == 0.0 else f"times a factor within {upper_bound_text(change, 2)} of 1"
+    assumption = f"both speeds {factor} (tau the double {tau!r})"
 
     def weight(X: Any, side: str) -> Any:
         inv_lam, inv_mu = 1 / _on_series(flint, g.lam, X, "lam"), 1 / _on_series(flint, g.mu, X, "mu")
