@@ -74,7 +74,8 @@ def test_decay_rate_against_a_grid(loop: StateFeedbackLoop, margin_at_least: flo
     np.testing.assert_allclose(design.value, rate, rtol=0, atol=35 * 2e-10 + 1e-12)
 
 
-# The decay-rate designs on the default kernel grid, 201 points (k, rate, Im of the rightmost zero, margin, its
+# The decay-rate designs on the kernel grid of 201 points (the default until the exact route became it: the exact
+# designs differ by up to 1.3e-8, the grid's error) (k, rate, Im of the rightmost zero, margin, its
 # crossing frequency), as computed when
 # each function of the root paths was evaluated by its own numpy call and the designed loop's abscissa computed
 # again: the single-point evaluation (QuasiPolynomialsAtPoint) and the engine's abscissa taken for the equal
@@ -87,7 +88,7 @@ RECORDED = {
 
 @pytest.mark.parametrize("margin_at_least", [1.0, None])
 def test_decay_rate_designs_as_recorded(margin_at_least: float | None) -> None:
-    design = nr.design_state_feedback(PLANT, "decay_rate", margin_at_least=margin_at_least)
+    design = nr.design_state_feedback(PLANT, "decay_rate", margin_at_least=margin_at_least, kernel_grid=201)
     loop = state_feedback_loop(PLANT, kernel_grid=201)
     d = design.design
     assert design.certified and d.runs[0].reason.endswith("kink")
@@ -135,3 +136,19 @@ def test_paper_plant_has_no_stable_proportional_gain() -> None:
     family = state_feedback_loop(paper)
     ks = np.linspace(-0.1485, 0.1485, 21)
     assert all(spectral_abscissa(family.A + family.units[0] * float(k)).value > 0.8 for k in ks)
+
+
+@pytest.mark.slow
+def test_the_default_route_is_exact_and_a_speed_tolerance_holds(loop: StateFeedbackLoop) -> None:
+    """Without a basis the default is the exact route (it was 201 kernel points): the design is the exact loop's
+    crossing of its two rightmost zeros (``_crossing`` on ``state_feedback_loop(PLANT)``, the exact route; ``k`` to
+    2e-10 as above) with the PDE's scope, and a speed tolerance certified at the corners on ``mismatch_loop``'s exact
+    loops, where the 201-point design was refused ("the design's own loops and these differ")."""
+    design = nr.design_state_feedback(PLANT, "decay_rate", margin_at_least=1.0)
+    assert design.scope.startswith("the PDE itself")
+    k, _ = _crossing(loop)
+    np.testing.assert_allclose(design.parameters[0], k, rtol=0, atol=2e-10)
+    tolerant = nr.design_state_feedback(
+        PLANT, "decay_rate", margin_at_least=1.0, speed_tolerance=0.05, k_bounds=(-0.8, -0.3), starts=1
+    )
+    assert tolerant.tolerance is not None and tolerant.tolerance.met

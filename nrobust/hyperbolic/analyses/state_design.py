@@ -562,7 +562,7 @@ def design_state_feedback(
     coefficient_bounds: tuple[float, float] = (-1.0, 1.0),
     starts: int = 4,
     rigorous: bool = False,
-    kernel_grid: int | None = 201,
+    kernel_grid: int | None = None,
     executor: Any = "serial",
 ) -> StateFeedbackDesign:
     """The state feedback ``U = k u(t, L) + int_0^L g_u u + g_v v dx`` with the best margin or decay rate.
@@ -618,9 +618,10 @@ def design_state_feedback(
         ``delta = 0`` first maximises its decay rate (the core takes no margin of an unstable loop).
     rigorous : bool
         Certify every start's design in ball arithmetic (:func:`nrobust.design.optimize_loop`).
-    kernel_grid : int or None
+    kernel_grid : int or None, default None
         Kernel grid of every unit gain's loop (one ``A`` for all). None: the exact route for a
-        proportional law on constant coefficients (no basis), else 201 points.
+        proportional law (no basis) where the plant has one, else 201 points; a grid makes every loop,
+        and the corners' of a speed tolerance, the kernel route's (a model).
     executor : None, str, int, Executor or dask.distributed.Client
         Where the starts run (:func:`nrobust.sweep_map`); ``"serial"`` in this process.
 
