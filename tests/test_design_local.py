@@ -95,6 +95,9 @@ def test_design_reaches_the_closed_form_optimum(transport: nr.TransportSystem) -
     assert design.certified and math.isinf(design.design.margin.margin)
     assert design.controller.K == pytest.approx(k_hi, abs=2e-5)
     assert design.design.local and "PDE itself" in design.scope
+    words = design.design.optimality
+    assert words.startswith("local: the best of 1 start,") and "not global" in words
+    assert design.design.to_dict()["optimality"] == words
 
 
 def test_every_iterate_is_feasible_and_the_requirement_holds() -> None:
@@ -110,6 +113,12 @@ def test_every_iterate_is_feasible_and_the_requirement_holds() -> None:
     # the decay rate of s + 1 + k grows with k (root -1 - k) until the margin binds at 0.8
     assert margin >= 0.8 - 1e-9 and design.certified
     np.testing.assert_allclose(design.margin.margin, margin, rtol=1e-9)
+    # every accepted iterate met the requirement (closed form; |k| <= 1: no crossing, the margin is infinite)
+    path = design.runs[0].path
+    assert len(path) >= 3 and path[0] == (0.5,) and path[-1] == design.parameters
+    for (kk,) in path:
+        assert 0.0 <= kk <= 5.0
+        assert kk <= 1.0 or math.acos(-1.0 / kk) / math.sqrt(kk * kk - 1.0) >= 0.8 - 1e-9, kk
     with pytest.raises(CertificationError, match="no start reached a feasible design"):
         # the margin decreases with k: at most arccos(-1/1.5)/sqrt(1.25) = 2.0577 on [1.5, 5]
         optimize_loop(loop, [(1.5, 5.0)], margin_at_least=2.2, x0=[3.0], max_iter=5)

@@ -1123,6 +1123,10 @@ class LocalRun:
         Evaluations settled by a bound, without a spectral abscissa or a crossing search: the
         ``gamma_0`` of the delayed loop, the chains of the principal part, a root or a crossing
         continued from a witness of an earlier evaluation, a value remembered at the same point.
+    path : tuple of tuple of float
+        The iterates of the main phase, each feasible when accepted: the first feasible point, every
+        step the line search accepted and every step of the pattern search that improved (empty when
+        no feasible point was reached).
     """
 
     start: tuple[float, ...]
@@ -1134,6 +1138,7 @@ class LocalRun:
     stationarity: float
     reason: str
     screened: int = 0
+    path: tuple[tuple[float, ...], ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
@@ -1255,8 +1260,10 @@ class _Local:
         x: TrialPoint,
         counter: list[int],
         stop_below: float = -math.inf,
+        path: list[tuple[float, ...]] | None = None,
     ) -> tuple[TrialPoint, int, float, str]:
-        """Minimise from the feasible ``x``; stop early once ``value <= stop_below``."""
+        """Minimise from the feasible ``x``; stop early once ``value <= stop_below``; each accepted iterate appended
+        to ``path``."""
         width = self.problem.bounds[:, 1] - self.problem.bounds[:, 0]
         scale = 0.05 * float(np.linalg.norm(width))
         n = x.p.size
@@ -1289,6 +1296,8 @@ class _Local:
                 V = np.eye(n) - rho * np.outer(s, yy)
                 H = V @ H @ V.T + rho * np.outer(s, s)
             x = y
+            if path is not None:
+                path.append(tuple(map(float, x.p)))
             samples = [*samples, y][-SAMPLED_GRADIENTS:]
         near = [y for y in samples if np.linalg.norm((y.p - x.p) / width) <= 1e-3]
         return x, self.max_iter, _min_norm_convex(np.array([y.gradient for y in near])), "iteration limit"
@@ -1299,8 +1308,10 @@ class _Local:
         x: TrialPoint,
         counter: list[int],
         stop_below: float = -math.inf,
+        path: list[tuple[float, ...]] | None = None,
     ) -> TrialPoint:
-        """A pattern search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths).
+        """A pattern search from ``x`` (steps halved to ``POLISH_TOL`` of the bounds' widths; each accepted point
+        appended to ``path``).
 
         Where the line search stalls (at a kink where two roots meet, whose abscissa is not
         even Lipschitz, or at a corner of the feasible set, where a crossing pair is born) BFGS
@@ -1337,7 +1348,7 @@ class _Local:
                 y = f(trial, x.value)
                 counter[0] += 1
                 if y.feasible and y.value < x.value:
-                    x = self._extrapolate(f, self.problem.bounds, y, step * d * width, counter, stop_below)
+                    x = self._extrapolate(f, self.problem.bounds, y, step * d * width, counter, stop_below, path)
                     break
             else:
                 step /= 2.0
@@ -1351,8 +1362,12 @@ class _Local:
         move: NDArray[np.float64],
         counter: list[int],
         stop_below: float,
+        path: list[tuple[float, ...]] | None = None,
     ) -> TrialPoint:
-        """From ``x``, reached by ``move``: steps of 2, 4, ... ``move`` (clipped to ``bounds``) while they improve."""
+        """From ``x``, reached by ``move``: steps of 2, 4, ... ``move`` (clipped to ``bounds``) while they improve
+        (``x`` and each accepted step appended to ``path``)."""
+        if path is not None:
+            path.append(tuple(map(float, x.p)))
         while x.value > stop_below:
             move = 2.0 * move
             trial = np.clip(x.p + move, bounds[:, 0], bounds[:, 1])
@@ -1363,6 +1378,8 @@ class _Local:
             if not (y.feasible and y.value < x.value):
                 break
             x = y
+            if path is not None:
+                path.append(tuple(map(float, x.p)))
         return x
 
     def stabilise(self, m: TrialPoint, counter: list[int]) -> tuple[TrialPoint, int]:
@@ -1439,8 +1456,9 @@ class _Local:
                 x.reason,
                 problem.screened - screened,
             )
-        x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter)
-        polished = self.polish(lambda q, above: problem(q, above=above), x, counter)
+        path = [tuple(map(float, x.p))]
+        x, its, stationarity, reason = self.minimise(lambda q, above: problem(q, above=above), x, counter, path=path)
+        polished = self.polish(lambda q, above: problem(q, above=above), x, counter, path=path)
         if polished.value < x.value:
             x, reason = polished, reason + "; then improved by a pattern search"
         return LocalRun(
@@ -1453,6 +1471,7 @@ class _Local:
             float(stationarity),
             reason,
             problem.screened - screened,
+            tuple(path),
         )
 
 
@@ -1593,6 +1612,17 @@ class LoopDesign:
         """The best run's stationarity measure (see :class:`LocalRun`)."""
         return self.runs[0].stationarity
 
+    @property
+    def optimality(self) -> str:
+        """What is known of the optimality of :attr:`parameters`, in words (as the ``n + m`` designs state it)."""
+        starts = len(self.runs)
+        return (
+            f"local: the best of {starts} start{'s' if starts != 1 else ''}, each ending where neither the line search "
+            f"nor the pattern search finds a better feasible point down to steps of {POLISH_TOL:g} of the bounds "
+            f"(stationarity measure {self.stationarity:.1e}); not proven locally optimal (the objective is nonsmooth "
+            "and nonconvex) and not global"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the abscissa and the margin as their own dictionaries)."""
         skip = ("abscissa", "margin", "runs", "windows", "scenario_abscissae")
@@ -1606,6 +1636,7 @@ class LoopDesign:
         data["runs"] = [run.to_dict() for run in self.runs]
         data["windows"] = [w.to_dict() for w in self.windows]
         data["requirement"] = self.requirement
+        data["optimality"] = self.optimality
         return json_safe(data)
 
 
