@@ -345,3 +345,23 @@ def test_the_margin_just_past_a_pair_birth_is_within_its_accuracy() -> None:
         error = abs(mp.mpf(margin.margin) - exact)
     assert error > 5e-14  # the case where the residual's estimate alone fell short
     assert margin.accuracy is not None and error <= margin.accuracy
+
+
+def test_a_speed_tolerance_on_a_general_plant_is_the_normal_forms_only_where_they_agree() -> None:
+    """The square of speed errors is built on the normal form. With ``a = d = 0`` the normal form of the plant with
+    its speeds times ``(1 + e_lam, 1 + e_mu)`` is the normal form with its speeds so scaled, couplings unchanged
+    (checked here on varying speeds of constant ratio, ``L = 1.5``); with ``a != 0`` its couplings change with the
+    speeds, and the tolerance is refused (it was granted on the normal form's square)."""
+
+    def plant(f_lam: float, f_mu: float, a: float = 0.0) -> nrobust.GeneralHyperbolic2x2:
+        return nrobust.GeneralHyperbolic2x2(
+            lambda x: f_lam * (1 + 0.3 * x), lambda x: f_mu * 2 * (1 + 0.3 * x), a, 0.5, 0.4, 0.0, 0.9, 0.6, length=1.5
+        )
+
+    nominal, perturbed = plant(1.0, 1.0).normal_form().system, plant(1.01, 0.98).normal_form().system
+    np.testing.assert_allclose([perturbed.lam / nominal.lam, perturbed.mu / nominal.mu], [1.01, 0.98], rtol=1e-14)
+    y = np.linspace(0.0, 1.0, 7)
+    for name in ("sigma_pm", "sigma_mp"):
+        np.testing.assert_allclose(getattr(perturbed, name)(y), getattr(nominal, name)(y), rtol=1e-14)
+    with pytest.raises(ParameterError, match="speed_tolerance"):
+        nrobust.design_reflection(plant(1.0, 1.0, a=0.3), "decay_rate", margin_at_least=0.1, speed_tolerance=0.01)

@@ -217,6 +217,13 @@ def _check_affine(loop: AffineLoop, K: float, factors: tuple[QuasiPolynomial, Qu
 
 
 @one_blas_thread()  # many small products: competing BLAS threads only cost time
+def _speeds_scale_alone(system: GeneralHyperbolic2x2) -> bool:
+    """True when relative errors of the speeds of ``system`` change its normal form's speeds by the same factors
+    and nothing else (``a = d = 0``: the couplings ``b``, ``c`` and the change of variable do not depend on them),
+    so that the square of speed errors of the normal form is the plant's."""
+    return all(system.is_constant(name) and float(getattr(system, name)) == 0.0 for name in ("a", "d"))
+
+
 def design_reflection(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     objective: str = "margin",
@@ -300,7 +307,8 @@ def design_reflection(
     speed_tolerance : float, optional
         ``eps`` in ``(0, 1)``: the relative error of ``lam`` and ``mu`` (both signs, together) under
         which the window (or ``[0, margin_at_least]``) must hold too; not with
-        ``output_feedback``.
+        ``output_feedback``, nor for a general plant whose ``a`` or ``d`` is not 0 (its normal form's
+        couplings change with the speeds).
     kernel_grid : int, default :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID`
         Kernel grid of the mismatched loops (with ``speed_tolerance`` on a coupled plant).
 
@@ -335,6 +343,13 @@ def design_reflection(
             "margin_at_least", "None with objective='margin' (it constrains the decay rate)", margin_at_least
         )
     eps = None if speed_tolerance is None else check_speed_tolerance(speed_tolerance)
+    if eps is not None and isinstance(system, GeneralHyperbolic2x2) and not _speeds_scale_alone(system):
+        raise ParameterError(
+            "speed_tolerance",
+            "None for a GeneralHyperbolic2x2 whose a or d is not 0: the square of speed errors is built on the "
+            "normal form, whose couplings change with the speeds through a / lam and d / mu",
+            speed_tolerance,
+        )
     if eps is not None:
         if output_feedback:
             raise ParameterError("speed_tolerance", "None with output_feedback=True", speed_tolerance)
