@@ -70,9 +70,9 @@ def _delay_mp(w: mp.mpf, K: mp.mpf) -> mp.mpf:
     return (theta if theta >= 0 else theta + 2 * mp.pi) / w
 
 
-def test_kink_of_the_paper_matches_mpmath(best: tuple[GainDesign, float]) -> None:
-    design, _ = best
-    assert design.kind == "kink"
+def _kink_mp() -> tuple[mp.mpf, mp.mpf, mp.mpf]:
+    """``(K, w1, w2)`` of the kink of delta*(K), at 40 digits: the gain where the crossing branches at
+    ``w1`` ~ 3.17 (left of the maximum) and ``w2`` ~ 6.27 (right) have the same delay."""
     mp.mp.dps = 40
 
     def equations(K: mp.mpf, w1: mp.mpf, w2: mp.mpf) -> list[mp.mpf]:
@@ -80,8 +80,14 @@ def test_kink_of_the_paper_matches_mpmath(best: tuple[GainDesign, float]) -> Non
         A2, B2 = _factors_mp(mp.mpc(0, w2), K)
         return [abs(A1) ** 2 - abs(B1) ** 2, abs(A2) ** 2 - abs(B2) ** 2, _delay_mp(w1, K) - _delay_mp(w2, K)]
 
-    # the two crossing branches meeting at the maximum: w ~ 3.17 (left of it) and w ~ 6.27 (right)
     K, w1, w2 = mp.findroot(equations, (mp.mpf("0.079"), mp.mpf("3.17"), mp.mpf("6.27")))
+    return K, w1, w2
+
+
+def test_kink_of_the_paper_matches_mpmath(best: tuple[GainDesign, float]) -> None:
+    design, _ = best
+    assert design.kind == "kink"
+    K, w1, w2 = _kink_mp()
     margin = _delay_mp(w1, K)
     # 1e-10: the design's Newton solves to ~1e-15; the loop factors carry a proven 2.1e-16 and rounding
     np.testing.assert_allclose(design.K, float(K), rtol=0, atol=1e-10)
@@ -306,6 +312,31 @@ def test_a_requirement_above_the_best_margin_is_a_bad_input() -> None:
     design = best_margin(loop, BOUNDS)
     assert repr(design).startswith("GainDesign(K=0.0785529300") and "+-" in repr(design)
     assert all(type(a) is float for a in design.accuracy)
+
+
+def test_a_margin_out_of_reach_is_named_before_a_speed_tolerance() -> None:
+    """margin_at_least = 0.25 with speed_tolerance = 0.01: no gain reaches 0.25 even on the nominal plant, so the
+    error names margin_at_least and the largest margin, the kink's (mpmath, 40 digits), to its printed accuracy,
+    not the tolerance (as it did after 24 s of CPU on the corners' loops; now the nominal check, under 2 s)."""
+    with pytest.raises(ParameterError) as info:
+        nrobust.design_reflection(
+            Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, Q, RHO), "decay_rate", margin_at_least=0.25, speed_tolerance=0.01
+        )
+    assert info.value.name == "margin_at_least"
+    printed = re.search(r"at most (0\.\d+) \+- (\de-\d+), .* a kink\)", str(info.value))
+    assert printed is not None, str(info.value)
+    K, w1, _ = _kink_mp()
+    assert abs(mp.mpf(printed.group(1)) - _delay_mp(w1, K)) <= float(printed.group(2))
+
+
+def test_a_tolerance_out_of_reach_is_still_named() -> None:
+    """margin_at_least = 0.22 (below the kink's 0.2323: met on the nominal plant) with speed_tolerance = 0.05:
+    no gain meets [0, 0.22] at the corners too, and the error names the tolerance."""
+    with pytest.raises(ParameterError, match="no gain meets the window") as info:
+        nrobust.design_reflection(
+            Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, Q, RHO), "decay_rate", margin_at_least=0.22, speed_tolerance=0.05
+        )
+    assert info.value.name == "speed_tolerance"
 
 
 def test_the_margin_just_past_a_pair_birth_is_within_its_accuracy() -> None:

@@ -1,7 +1,8 @@
 """``nrobust design``: a controller for the plant of a SYSTEM.toml file, designed and certified.
 
 The plant is the ``[system]`` section of the file (the ``[controller]`` and ``[analysis]``
-sections are read and checked as for ``nrobust analyze``, and not used). The family, the
+sections may be left out; when given they are checked as for ``nrobust analyze``, and not used:
+:func:`~nrobust.config.load_system_file` with ``for_design=True``). The family, the
 objective, the requirement and the parameters' bounds come from the file's ``[design]``
 section (:func:`nrobust.config.load_system_file`), each overridden by the command line's
 options when given:
@@ -642,7 +643,7 @@ def run_design(
         raise ParameterError("objective", f"one of {DESIGN_OBJECTIVES}", objective)
     if family is not None and family not in DESIGN_FAMILIES:
         raise ParameterError("family", f"one of {DESIGN_FAMILIES}", family)
-    spec = load_system_file(path)
+    spec = load_system_file(path, for_design=True)
     if spec.get("kind") == NPLUSM_TYPE:
         return _run_nplusm(
             Path(path), spec, out_dir, objective, margin_at_least, K_bounds, rigorous, family, delays, speed_tolerance
