@@ -19,7 +19,8 @@
     (``OBJ = margin``) or the largest decay rate (``decay_rate``) with a margin of at least
     ``D``, or stable for every delay in ``[D_MIN, D_MAX]`` (and under a relative error ``EPS``
     of both speeds); each option defaults to the file's ``[design]`` section. Writes ``design.json``,
-    ``design.md`` and ``design.png`` (the delay margin against the gain, the design marked).
+    ``design.md`` and ``design.png`` (the delay margin against the gain, the design marked; for
+    ``U_BS2(K)`` also its decay rate against ``K`` and the trade-off of rate against margin).
 ``nrobust sweep SWEEP.toml -o OUT/ [--dask ADDRESS] [--restart]``
     A parameter sweep or Monte Carlo study (:func:`nrobust.sweeps.run_sweep_file`); run
     again on the same ``OUT/``, it resumes where it stopped (``--restart``: from scratch).

@@ -408,12 +408,13 @@ def build_in_section(key: str, build: Callable[[], Any]) -> Any:
         raise ParameterError(f"{key}.{exc.name}", exc.requirement, exc.value) from None
 
 
-def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
+def _load_nplusm(spec: dict[str, Any], for_design: bool = False) -> dict[str, Any]:
     """An ``n + m`` file: ``[system] type = "NPlusMSystem"`` (``lam``, ``mu``, ``sigma``, ``q``, ``r``),
     ``[controller] type = "Cancellation"`` with ``fractions`` (rows of cancelled fractions of
     ``R``), ``[analysis] region``, optionally ``[design]`` (family ``"nplusm"``, read by ``nrobust
     design``). Returns ``kind = "NPlusMSystem"``, ``system``, ``cancellations``, ``region`` and
-    ``design`` (None without the section)."""
+    ``design`` (None without the section). ``for_design``: ``[controller]`` and ``[analysis]`` may be
+    left out (``cancellations`` and ``region`` then None), as ``nrobust design`` reads neither."""
     sections = ("system", "controller", "analysis", "design")
     for key in spec:
         if key not in sections:
@@ -433,6 +434,14 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
         if key not in table:
             raise ParameterError(f"system.{key}", "given for NPlusMSystem", None)
     system = build_in_section("system", lambda: NPlusMSystem(**table))
+    rows = None if for_design and "controller" not in spec else _cancellations(spec, system)
+    box = None if for_design and "analysis" not in spec else _nplusm_region(spec)
+    design = _nplusm_design(spec["design"], system) if "design" in spec else None
+    return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box, "design": design}
+
+
+def _cancellations(spec: dict[str, Any], system: NPlusMSystem) -> list[list[float]]:
+    """The ``[controller]`` of an ``n + m`` file: ``type = "Cancellation"``, one row of fractions per input."""
     controller = _table(spec, "controller", True)
     if controller.get("type") != "Cancellation" or set(controller) != {"type", "fractions"}:
         raise ParameterError("controller", 'type = "Cancellation" and fractions = [[c_1, ..., c_n], ...]', controller)
@@ -442,6 +451,11 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     rows = [[_number("controller.fractions", c) for c in row] if isinstance(row, list) else None for row in fractions]
     if any(row is None or len(row) != system.n for row in rows):
         raise ParameterError("controller.fractions", f"rows of {system.n} numbers (one per u component)", fractions)
+    return [row for row in rows if row is not None]
+
+
+def _nplusm_region(spec: dict[str, Any]) -> tuple[float, ...]:
+    """The ``[analysis] region`` of an ``n + m`` file: ``[re_min, re_max, im_min, im_max]``."""
     analysis = _options(_table(spec, "analysis", True), "analysis", {"region": None})
     region = analysis["region"]
     if not isinstance(region, list) or len(region) != 4:
@@ -449,8 +463,7 @@ def _load_nplusm(spec: dict[str, Any]) -> dict[str, Any]:
     box = tuple(_number("analysis.region", v) for v in region)
     if not (box[0] < box[1] and box[2] < box[3]):
         raise ParameterError("analysis.region", "a non-empty rectangle: re_min < re_max, im_min < im_max", region)
-    design = _nplusm_design(spec["design"], system) if "design" in spec else None
-    return {"kind": NPLUSM_TYPE, "system": system, "cancellations": rows, "region": box, "design": design}
+    return box
 
 
 def _bounds(key: str, value: Any) -> tuple[float, float]:
@@ -652,8 +665,14 @@ def _design(table: dict[str, Any]) -> dict[str, Any]:
     return d
 
 
-def load_system_file(path: str | Path) -> dict[str, Any]:
+def load_system_file(path: str | Path, *, for_design: bool = False) -> dict[str, Any]:
     """Read a SYSTEM.toml file (schema in ``docs/getting_started.md``).
+
+    ``for_design=True`` reads the file of ``nrobust design``, which designs the controller: the
+    ``[controller]`` and ``[analysis]`` sections may then be left out (``controller`` and
+    ``given_controller`` None, ``delta_max`` None, the other analysis keys their defaults; an
+    ``NPlusMSystem`` file's ``cancellations`` and ``region`` None); when given they are checked as
+    for ``nrobust analyze``, except that ``delta_max`` may be left out.
 
     Returns
     -------
@@ -677,7 +696,7 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     """
     spec = load_toml(path, "TOML file")
     if isinstance(spec.get("system"), dict) and spec["system"].get("type") == NPLUSM_TYPE:
-        return _load_nplusm(spec)
+        return _load_nplusm(spec, for_design)
     for key in spec:
         if key not in _TOP_KEYS:
             raise unknown_key(key, f"a section of the file: one of {list(_TOP_KEYS)}", key, _TOP_KEYS, spec[key])
@@ -689,19 +708,25 @@ def load_system_file(path: str | Path) -> dict[str, Any]:
     # a physical front end: its parameters as written, for the report (the plant is its general 2x2 form)
     physical = (kind, dict(params)) if kind in FRONT_ENDS else None
 
-    kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
-    values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
-    controller = build_in_section("controller", lambda: CONTROLLER_TYPES[kind](**values))
+    controller: Controller | None = None  # nrobust design without [controller]: the controller is designed
+    if not (for_design and "controller" not in spec):
+        kind, params = _typed(_table(spec, "controller", True), "controller", _CONTROLLER_KEYS, _CONTROLLER_OPTIONAL)
+        values = {k: _number(f"controller.{k}", v) for k, v in params.items()}
+        controller = build_in_section("controller", lambda: CONTROLLER_TYPES[kind](**values))
     given_system, given_controller = system, controller  # as written, for the report
-    if loop_route(system, controller) != "exact":  # constant coefficients: analysed as written, exactly
-        system, controller = normalize(system, controller)  # a varying lam/mu: unchanged (characteristic route)
+    # the plant as for a paper's controller when none is given (the route is the same for all of them)
+    if loop_route(system, OpenLoop() if controller is None else controller) != "exact":
+        # constant coefficients: analysed as written, exactly; a varying lam/mu: unchanged (characteristic route)
+        system, controller = normalize(system, controller)
 
-    analysis = _options(_table(spec, "analysis", True), "analysis", _ANALYSIS_KEYS)
-    if analysis["delta_max"] is None:
+    analysis = _options(_table(spec, "analysis", not for_design), "analysis", _ANALYSIS_KEYS)
+    delta_max = None
+    if analysis["delta_max"] is None and not for_design:
         raise ParameterError("analysis.delta_max", "given (the largest loop delay of interest, > 0)")
-    delta_max = _number("analysis.delta_max", analysis["delta_max"])
-    if delta_max <= 0:
-        raise ParameterError("analysis.delta_max", "> 0", analysis["delta_max"])
+    if analysis["delta_max"] is not None:
+        delta_max = _number("analysis.delta_max", analysis["delta_max"])
+        if delta_max <= 0:
+            raise ParameterError("analysis.delta_max", "> 0", analysis["delta_max"])
     region = analysis["region"]
     if region is not None:
         if not isinstance(region, list) or len(region) != 4:

@@ -332,6 +332,31 @@ def test_a_requirement_above_the_best_margin_is_a_bad_input() -> None:
     assert all(type(a) is float for a in design.accuracy)
 
 
+def test_a_margin_out_of_reach_is_named_before_a_speed_tolerance() -> None:
+    """margin_at_least = 0.25 with speed_tolerance = 0.01: no gain reaches 0.25 even on the nominal plant, so the
+    error names margin_at_least and the largest margin, the kink's (mpmath, 40 digits), to its printed accuracy,
+    not the tolerance (as it did after 24 s of CPU on the corners' loops; now the nominal check, under 2 s)."""
+    with pytest.raises(ParameterError) as info:
+        nrobust.design_reflection(
+            Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, Q, RHO), "decay_rate", margin_at_least=0.25, speed_tolerance=0.01
+        )
+    assert info.value.name == "margin_at_least"
+    printed = re.search(r"at most (0\.\d+) \+- (\de-\d+), .* a kink\)", str(info.value))
+    assert printed is not None, str(info.value)
+    _, _, _, margin = _paper_kink()
+    assert abs(mp.mpf(printed.group(1)) - margin) <= float(printed.group(2))
+
+
+def test_a_tolerance_out_of_reach_is_still_named() -> None:
+    """margin_at_least = 0.22 (below the kink's 0.2323: met on the nominal plant) with speed_tolerance = 0.05:
+    no gain meets [0, 0.22] at the corners too, and the error names the tolerance."""
+    with pytest.raises(ParameterError, match="no gain meets the window") as info:
+        nrobust.design_reflection(
+            Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, Q, RHO), "decay_rate", margin_at_least=0.22, speed_tolerance=0.05
+        )
+    assert info.value.name == "speed_tolerance"
+
+
 def test_the_margin_just_past_a_pair_birth_is_within_its_accuracy() -> None:
     """K = 0.1417493636, just past the birth of a crossing pair (K = 0.1417493386): the crossing delay is
     steep in the frequency, whose error the residual alone missed (accuracy 1.4e-13 against an error of

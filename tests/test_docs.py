@@ -6,6 +6,8 @@
 * Every dotted ``nrobust.xxx`` name in backticks in ``README.md`` and ``docs/*.md``
   resolves (except a former home, written ``was `nrobust.old```), and every file path
   in backticks (``nrobust/...``, ``tests/...``, ...) exists.
+* The SYSTEM.toml of ``docs/getting_started.md`` (its ```toml block with a ``[design]`` table) runs
+  verbatim under ``nrobust design``, and the error it documents is the one printed.
 * Every ```python block of ``docs/*.md`` runs: the blocks of one page run in order as
   one script (later blocks use the names of earlier ones), in a temporary directory,
   with matplotlib's Agg backend and warnings as errors. A block whose first line is
@@ -310,3 +312,44 @@ def test_no_equation_number_inside_an_aligned_block():
             if "\\tag" in block:
                 bad.append(page.name)
     assert not bad, bad
+
+
+def _getting_started_system() -> str:
+    """The SYSTEM.toml block of docs/getting_started.md (the 2x2 plant's, with every section)."""
+    text = (ROOT / "docs" / "getting_started.md").read_text()
+    blocks = [m.group(2) for m in _FENCE.finditer(text) if m.group(1) == "toml"]
+    (block,) = [b for b in blocks if 'type = "Hyperbolic2x2"' in b and "[design]" in b]
+    return block
+
+
+def test_getting_started_system_file_designs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``nrobust design`` on the schema's example as printed (the python blocks ran; this one did not, and its
+    [design] table once gave both ``delays`` and ``margin_at_least``, and a margin its plant cannot reach).
+
+    Oracle of the designed gain: U_BS2(K)'s decay rate at ``delta = 0`` is ``-ln|(rho - K) q| / tau`` (Lemma 3,
+    ``tau = 1/lam + 1/mu = 2``), whatever the couplings; 1e-9 bounds the design's bracket (about 1e-11).
+    The error the page quotes for ``margin_at_least = 0.2`` is the one printed."""
+    import json
+
+    from nrobust.cli import main
+
+    block = _getting_started_system()
+    path = tmp_path / "SYSTEM.toml"
+    path.write_text(block)
+    assert main(["design", str(path), "-o", str(tmp_path / "out")]) == 0, capsys.readouterr().err
+    data = json.loads((tmp_path / "out" / "design.json").read_text())
+    required = float(re.search(r"^margin_at_least = ([\d.]+)", block, re.M).group(1))
+    assert data["margin_at_least"] == required and data["design"]["margin"] >= required
+    K = data["design"]["K"]
+    assert abs(data["design"]["decay_rate"] + np.log(abs((0.85 - K) * 1.0)) / 2.0) < 1e-9
+    assert (tmp_path / "out" / "design.png").stat().st_size > 0
+
+    quoted = re.search(
+        r"`(nrobust: error: margin_at_least must be at most [^`]*\(got 0\.2\))`",
+        (ROOT / "docs" / "getting_started.md").read_text(),
+    )
+    assert quoted is not None
+    path.write_text(re.sub(r"^margin_at_least = [\d.]+", "margin_at_least = 0.2", block, flags=re.M))
+    capsys.readouterr()
+    assert main(["design", str(path), "-o", str(tmp_path / "refused")]) == 2
+    assert " ".join(capsys.readouterr().err.split()) == " ".join(quoted.group(1).split())

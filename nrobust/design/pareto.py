@@ -44,6 +44,10 @@ _Windows = tuple[tuple[float, float], ...]
 class ParetoFront:
     """Decay rate against required delay margin, one certified local design per requirement.
 
+    Drawn by :func:`nrobust.plots.pareto_plot`; as data with ``.plot()``,
+    :class:`nrobust.plots.ParetoResponse` wraps it (``ParetoResponse(front).plot()``): the core computes
+    and draws nothing, so the front itself has no ``plot`` method.
+
     Attributes
     ----------
     required : ndarray

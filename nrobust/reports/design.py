@@ -1,7 +1,8 @@
 """``nrobust design``: a controller for the plant of a SYSTEM.toml file, designed and certified.
 
 The plant is the ``[system]`` section of the file (the ``[controller]`` and ``[analysis]``
-sections are read and checked as for ``nrobust analyze``, and not used). The family, the
+sections may be left out; when given they are checked as for ``nrobust analyze``, and not used:
+:func:`~nrobust.config.load_system_file` with ``for_design=True``). The family, the
 objective, the requirement and the parameters' bounds come from the file's ``[design]``
 section (:func:`nrobust.config.load_system_file`), each overridden by the command line's
 options when given:
@@ -26,7 +27,8 @@ options when given:
 
 Written: ``design.json`` (the design with its certificate), ``design.md`` (the design in words,
 each number with the digits its accuracy supports) and ``design.png`` (the delay margin against
-``K`` with the requirement and the design marked: the trade-off; for the filtered law, with the
+``K`` with the requirement and the design marked, the decay rate at ``delta = 0`` against ``K``, and the
+trade-off: the best decay rate of the sampled gains against the margin they keep; for the filtered law, with the
 designed filter; for the state feedback, the designed integral gains and the margin against ``k``
 with them; for ``n + m``, the certified margin along the gains ``t K``), as one set with
 ``manifest.json``.
@@ -66,12 +68,14 @@ from ..hyperbolic.loops.controllers import (
     Controller,
     OutputFeedback,
     ReflectionController,
+    loop_factors,
 )
 from ..hyperbolic.nplusm.design import NPlusMGainDesign, design_nplusm_gains, principal_gamma
 from ..hyperbolic.nplusm.margin import NPlusMMargin, multi_actuator_delay_margin, nplusm_delay_margin
 from ..hyperbolic.nplusm.system import NPlusMSystem
 from ..hyperbolic.plants.general import GeneralHyperbolic2x2
 from ..margins.gain import AffineGainLoop
+from ..roots import spectral_abscissa
 from .outputs import RunOutputs, check_output_dir
 
 __all__ = ["design_summary", "run_design"]
@@ -224,7 +228,11 @@ def _reflection_markdown(
             f"{_edge_margin_text(edge, 'above')} at K + {edge['step']:.1g}; the requirement holds on one side only, so "
             "a gain implemented with an error must be chosen inside, away from this end"
         )
-    lines += ["", "![delay margin and decay rate against K, the design marked](design.png)"]
+    lines += [
+        "",
+        "![delay margin and decay rate at delta = 0 against K, and the best sampled decay rate against the delay "
+        "margin, the design marked](design.png)",
+    ]
     return lines
 
 
@@ -264,38 +272,106 @@ def _filtered_markdown(path: Path, result: FilteredDesign) -> list[str]:
     return lines + _local_design_lines(result)
 
 
-def _tradeoff_png(result: ReflectionDesign, margin_at_least: float | None) -> bytes:
-    """The delay margin against ``K`` (the scanned envelope), the requirement and the design marked."""
+#: Gains of the scan at which the report computes the decay rate at ``delta = 0`` (about 0.1 s in all on the
+#: paper's plant, 1 s under the collocated observer): the rate curve and the trade-off are drawn from them.
+_RATE_SAMPLES = 41
+
+
+def _rate_samples(system: Any, result: ReflectionDesign) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(K, delta*(K), decay rate at delta = 0)`` at :data:`_RATE_SAMPLES` gains of the design's scan.
+
+    The margins are the scan's (:attr:`~nrobust.design.GainDesign.envelope`, 0 where the loop is unstable
+    without delay); each rate is ``-alpha`` of the designed law's loop with that gain at ``delta = 0``
+    (:func:`~nrobust.roots.spectral_abscissa`, floating point), of the nominal plant.
+    """
+    d = result.design
+    gains, envelope = np.asarray(d.gains, dtype=float), np.asarray(d.envelope, dtype=float)
+    picked = np.unique(np.linspace(0, gains.size - 1, min(_RATE_SAMPLES, gains.size)).round().astype(int))
+    observer = result.controller if isinstance(result.controller, (OutputFeedback, CollocatedOutputFeedback)) else None
+    rates = []
+    for K in gains[picked]:
+        law: Controller = ReflectionController(float(K))
+        if observer is not None:
+            law = type(observer)(law, observer.observer_delay)
+        A, B = loop_factors(system, law)
+        rates.append(-float(spectral_abscissa(A + B).value))
+    return gains[picked], envelope[picked], np.asarray(rates)
+
+
+def _best_sampled_rates(margins: np.ndarray, rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The trade-off of samples: for each finite margin ``m`` of ``margins``, the best of ``rates`` among the
+    samples whose margin is at least ``m`` (ascending ``m``; a staircase that does not rise)."""
+    finite = np.isfinite(margins)
+    levels = np.unique(margins[finite])
+    best = np.array([np.max(rates[margins >= m]) for m in levels])
+    return levels, best
+
+
+def _tradeoff_figure(
+    result: ReflectionDesign, margin_at_least: float | None, samples: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> Any:
+    """Three panels: the delay margin against ``K`` (the scanned envelope, the requirement and the design
+    marked), the decay rate at ``delta = 0`` against ``K`` (:func:`_rate_samples`), and the best sampled rate
+    against the margin it keeps (:func:`_best_sampled_rates`), the design marked."""
     import matplotlib.pyplot as plt
 
     d = result.design
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig, (ax, ax_rate, ax_trade) = plt.subplots(1, 3, figsize=(15.0, 4.4))
     ax.plot(d.gains, d.envelope, label="delay margin delta*(K) (the scan behind the design)")
     if d.objective == "decay_rate" and margin_at_least is not None:
         ax.axhline(margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {margin_at_least:g}")
     if d.delays is not None:
         ax.axhspan(d.delays[0], d.delays[1], color="0.85", label=f"required window [{d.delays[0]:g}, {d.delays[1]:g}]")
-    ax.plot(
-        [d.K],
-        [d.margin],
-        "o",
-        color="C3",
-        label=f"design: K = {d.K:.6g} ({d.kind}), decay rate {d.decay_rate:.4g}",
-    )
+    design_label = f"design: K = {d.K:.6g} ({d.kind}), decay rate {d.decay_rate:.4g}"
+    ax.plot([d.K], [d.margin], "o", color="C3", label=design_label)
     ax.set_xlabel("K")
     ax.set_ylabel("delay")
     finite = np.asarray(d.envelope)[np.isfinite(d.envelope)]
     if finite.size:
-        ax.set_ylim(0.0, 1.2 * float(np.max(finite)))
-    return _png(fig, ax)
+        ax.set_ylim(0.0, 1.45 * float(np.max(finite)))  # room for the legend
+    ax.legend(fontsize="x-small", loc="upper left")
+
+    gains, margins, rates = samples
+    ax_rate.plot(gains, rates, ".-", color="C2", label=f"decay rate at delta = 0 ({gains.size} gains of the scan)")
+    ax_rate.plot([d.K], [d.decay_rate], "o", color="C3", label="design")
+    ax_rate.set_xlabel("K")
+    ax_rate.set_ylabel("decay rate (nominal plant)")
+    ax_rate.legend(fontsize="small")
+
+    levels, best = _best_sampled_rates(margins, rates)
+    ax_trade.step(levels, best, where="post", color="C1", label="best sampled rate with a margin >= delta")
+    ax_trade.plot(margins, rates, ".", color="0.6", label="the sampled gains")
+    ax_trade.plot([d.margin], [d.decay_rate], "o", color="C3", label="design")
+    if d.objective == "decay_rate" and margin_at_least is not None:
+        ax_trade.axvline(margin_at_least, color="0.5", lw=0.8, ls="--", label=f"required margin {margin_at_least:g}")
+    ax_trade.set_xlabel("delay margin delta")
+    ax_trade.set_ylabel("decay rate at delta = 0")
+    ax_trade.set_title("trade-off (samples, floating point)", fontsize="small")
+    ax_trade.legend(fontsize="x-small")
+    return fig
+
+
+def _tradeoff_png(
+    result: ReflectionDesign, margin_at_least: float | None, samples: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> bytes:
+    """:func:`_tradeoff_figure` as PNG bytes."""
+    fig = _tradeoff_figure(result, margin_at_least, samples)
+    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.12, top=0.93, wspace=0.25)
+    return _save_png(fig)
 
 
 def _png(fig: Any, ax: Any) -> bytes:
     """The trade-off figure ``fig`` (its legend on ``ax``) as PNG bytes, then closed."""
-    import matplotlib.pyplot as plt
 
     ax.legend(fontsize="small")
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.12, top=0.95)
+    return _save_png(fig)
+
+
+def _save_png(fig: Any) -> bytes:
+    """``fig`` as PNG bytes, then closed."""
+    import matplotlib.pyplot as plt
+
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
@@ -642,7 +718,7 @@ def run_design(
         raise ParameterError("objective", f"one of {DESIGN_OBJECTIVES}", objective)
     if family is not None and family not in DESIGN_FAMILIES:
         raise ParameterError("family", f"one of {DESIGN_FAMILIES}", family)
-    spec = load_system_file(path)
+    spec = load_system_file(path, for_design=True)
     if spec.get("kind") == NPLUSM_TYPE:
         return _run_nplusm(
             Path(path), spec, out_dir, objective, margin_at_least, K_bounds, rigorous, family, delays, speed_tolerance
@@ -758,7 +834,8 @@ def run_design(
             outputs.write_text("design.md", "\n".join(lines) + "\n"),
         ]
         if isinstance(result, ReflectionDesign):
-            written.append(outputs.write_bytes("design.png", _tradeoff_png(result, margin_at_least)))
+            samples = _rate_samples(spec["system"], result)
+            written.append(outputs.write_bytes("design.png", _tradeoff_png(result, margin_at_least, samples)))
         elif isinstance(result, StateFeedbackDesign):
             written.append(outputs.write_bytes("design.png", _state_feedback_png(spec["given_system"], result, scan)))
         elif not isinstance(scan, str):

@@ -146,6 +146,36 @@ def _design_error(exc: ParameterError, eps: float | None, window: tuple[float, f
     )
 
 
+def _nominal_requirement(
+    loop: AffineGainLoop | AffineLoop,
+    bounds: tuple[float, float],
+    objective: str,
+    window: tuple[float, float],
+    margin_at_least: float | None,
+) -> None:
+    """Raise the nominal plant's refusal of the delay requirement when no gain meets it there.
+
+    Called before the design under a speed tolerance (on the nominal plant and the corners
+    together, seconds to tens of seconds when it finds no gain): the same design without the corners
+    (a fraction of that) tells whether the requirement itself is out of reach (the error then names
+    ``margin_at_least``, with the largest margin a gain of the bounds reaches, or ``delays``), so
+    that a refusal of the design with the corners is the tolerance's. Returns when the nominal plant
+    meets it, and when that design cannot decide (the design with the corners then runs and says).
+    """
+    try:
+        if margin_at_least is not None:
+            best_decay_rate(loop, bounds, margin_at_least=margin_at_least)
+        elif objective == "margin":
+            best_margin(loop, bounds, delays=window)
+        else:
+            best_decay_rate(loop, bounds, delays=window)
+    except ParameterError as exc:
+        if exc.name in ("margin_at_least", "delays"):
+            raise _design_error(exc, None, None) from exc
+    except CertificationError:
+        return
+
+
 def _collocated_k_bounds(plant: Hyperbolic2x2, observer_delay: float) -> tuple[float, float]:
     """The gains for which the collocated output feedback's difference operator is strongly stable.
 
@@ -390,6 +420,8 @@ def design_reflection(
     if eps is not None:
         corners = [(a, b) for a in (-eps, eps) for b in (-eps, eps)]
         scenarios = tuple(mismatch_gain_loop(plant, a, b, kernel_grid=kernel_grid) for a, b in corners)
+    if scenarios and window is not None:  # the requirement itself first: the tolerance is to blame only if met
+        _nominal_requirement(loop, K_bounds, objective, window, margin_at_least)
     try:
         if objective == "margin":
             design = best_margin(loop, K_bounds, delays=window, scenarios=scenarios, rigorous=rigorous)
