@@ -260,16 +260,19 @@ OFF_THE_DOUBLES = (
 )
 
 
-@pytest.mark.parametrize("args", OFF_THE_DOUBLES)
-def test_the_proven_margin_holds_the_pdes_where_the_ends_are_not_doubles(args):
+@pytest.mark.parametrize(
+    ("args", "kappa"), [(OFF_THE_DOUBLES[0], 0.0), (OFF_THE_DOUBLES[1], 0.0), (OFF_THE_DOUBLES[0], -0.3)]
+)
+def test_the_proven_margin_holds_the_pdes_where_the_ends_are_not_doubles(args, kappa):
     """The rigorous margin's ball contains the PDE's (oracle, 40 digits) and the scope says the PDE itself, mapped
     to the exact ``tau`` (before: "a model of the PDE", ``G`` from kernels on 201 points, and on ``(1, 3, 1, 1, 1,
-    0.85)`` a ball 7.2e-9 from the PDE's margin)."""
+    0.85)`` a ball 7.2e-9 from the PDE's margin); with the observer's reflection ``kappa = -0.3`` the PDE's
+    0.581547317037402 in the ball ``[0.5815473170371488, 0.581547317037656]`` (measured)."""
     plant = Hyperbolic2x2(*args)
-    controller = CollocatedOutputFeedback(ReflectionController(0.1))
+    controller = CollocatedOutputFeedback(ReflectionController(0.1), observer_reflection=kappa)
     assert loop_route(plant, controller) == "exact"
     proven = nr.delay_margin(plant, controller, rigorous=True)
-    _, truth = CollocatedPDE(args, 0.1).crossing(proven.omega)
+    _, truth = CollocatedPDE(args, 0.1, kappa).crossing(proven.omega)
     lo, hi = proven.margin_ball
     with mp.workdps(DPS):
         assert mp.mpf(lo) <= truth <= mp.mpf(hi)
