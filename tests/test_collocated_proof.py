@@ -12,6 +12,9 @@ rigorous ball ``[0.1689014326376654, 0.16890143271962718]`` missed the PDE's mar
 
 from __future__ import annotations
 
+import math
+from fractions import Fraction
+
 import mpmath as mp
 import pytest
 from _collocated_oracle import DPS, CollocatedPDE, horner, kernel_pair
@@ -26,6 +29,8 @@ from nrobust.hyperbolic.loops.collocated_proof import (
     response_pieces,
 )
 from nrobust.hyperbolic.loops.controllers import loop_route, loop_scope
+from nrobust.hyperbolic.loops.given_plant import GivenPlantBalls, given_plant_balls
+from nrobust.hyperbolic.loops.observer_proof import proven_response_product
 
 flint = pytest.importorskip("flint")
 
@@ -230,15 +235,104 @@ def test_the_proven_margin_holds_the_pdes(args, K, kappa):
     assert proven.scope.startswith("the PDE itself")
 
 
-def test_u_bs_and_a_model_where_a_piece_ends_off_the_doubles():
-    """U_BS (``FiniteTimeController``) takes the proven loop too; a plant whose ``1/mu`` is not a double
-    (``mu = 1.5``) keeps the kernel route's model, said so by its route and scope."""
+def test_u_bs_and_a_model_with_an_observer_delay():
+    """U_BS (``FiniteTimeController``) takes the proven loop too, and so does a plant whose ``1/mu`` is not a double
+    (``mu = 1.5``; it kept the kernel route's model before the ends of ``c``'s pieces were placed on doubles with
+    the ulps around them held by proven terms); an observer delay keeps the kernel route's model, said so by its
+    route and scope."""
     plant = Hyperbolic2x2(*PAPER)
     assert loop_route(plant, CollocatedOutputFeedback(FiniteTimeController())) == "exact"
     other = Hyperbolic2x2(1.0, 1.5, 0.8, 1.0, 1.0, 0.6)
-    controller = CollocatedOutputFeedback(ReflectionController(0.1))
+    assert loop_route(other, CollocatedOutputFeedback(ReflectionController(0.1))) == "exact"
+    controller = CollocatedOutputFeedback(ReflectionController(0.1), observer_delay=0.2)
     assert loop_route(other, controller) == "observer"
     assert loop_scope(other, controller, None, nr.loop_factors(other, controller)).startswith("a model of the PDE")
+
+
+#: Plants whose ends ``1/lam``, ``1/mu`` and ``tau`` are not all doubles (``tau`` neither), with the PDE's margin
+#: under the collocated U_BS2(0.1) (oracle, measured) and the proven ball (measured).
+OFF_THE_DOUBLES = (
+    # 0.4984519912862440..., ball [0.49845199128597434, 0.4984519912865134]; the kernel route's model had
+    # [0.49845199847310367, 0.49845199847377036], 7.2e-9 away
+    (1.0, 3.0, 1.0, 1.0, 1.0, 0.85),
+    # 0.965748634102588..., ball [0.9657486341024308, 0.9657486341027454]
+    (1.1, 0.7, 0.8, 0.6, 0.9, 0.5),
+)
+
+
+@pytest.mark.parametrize(
+    ("args", "kappa"), [(OFF_THE_DOUBLES[0], 0.0), (OFF_THE_DOUBLES[1], 0.0), (OFF_THE_DOUBLES[0], -0.3)]
+)
+def test_the_proven_margin_holds_the_pdes_where_the_ends_are_not_doubles(args, kappa):
+    """The rigorous margin's ball contains the PDE's (oracle, 40 digits) and the scope says the PDE itself, mapped
+    to the exact ``tau`` (before: "a model of the PDE", ``G`` from kernels on 201 points, and on ``(1, 3, 1, 1, 1,
+    0.85)`` a ball 7.2e-9 from the PDE's margin); with the observer's reflection ``kappa = -0.3`` the PDE's
+    0.581547317037402 in the ball ``[0.5815473170371488, 0.581547317037656]`` (measured)."""
+    plant = Hyperbolic2x2(*args)
+    controller = CollocatedOutputFeedback(ReflectionController(0.1), observer_reflection=kappa)
+    assert loop_route(plant, controller) == "exact"
+    proven = nr.delay_margin(plant, controller, rigorous=True)
+    _, truth = CollocatedPDE(args, 0.1, kappa).crossing(proven.omega)
+    lo, hi = proven.margin_ball
+    with mp.workdps(DPS):
+        assert mp.mpf(lo) <= truth <= mp.mpf(hi)
+    assert not proven.of_model
+    assert proven.scope.startswith("the PDE itself")
+    assert "tau mapped to its exact value" in proven.scope
+
+
+@pytest.mark.parametrize("args", OFF_THE_DOUBLES)
+@pytest.mark.parametrize("delta", [0.0, 0.3])
+def test_the_plants_balls_hold_the_pdes_loop_where_the_ends_are_not_doubles(args, delta):
+    """``given_plant_balls`` (the loop as built at ``r s``, ``r = tau / tau_d`` a ball) contains the PDE's
+    ``A_o + B_o e^{-delta s}`` (oracle, 40 digits) at four points, to the left of the axis too (radii measured
+    4e-16 to 4e-12)."""
+    from nrobust._flint import working_precision
+
+    plant = Hyperbolic2x2(*args)
+    controller = CollocatedOutputFeedback(ReflectionController(0.1))
+    balls = given_plant_balls(plant, controller, delta)
+    assert isinstance(balls, GivenPlantBalls)
+    pde = CollocatedPDE(args, 0.1)
+    for s in (*POINTS, -1.0 + 30.0j):
+        A, B = pde.factors(mp.mpc(s))
+        with mp.workdps(DPS):
+            truth = A + B * mp.exp(-delta * mp.mpc(s))
+        value = balls(s, 0)
+        with working_precision(200) as flint:
+            assert value.contains(flint.acb(truth)), (s, value, truth)
+
+
+def test_the_nodes_stand_for_the_ends_within_an_ulp():
+    """``G``'s kernel on ``(1, 3, 1, 1, 1, 0.85)``: ``t_v / r = 3 tau_d / 4`` and the ends plus ``tau`` are not
+    doubles; each is held by a term on one ``ulp(2 tau_d)`` next to the node standing for it, zero within a proven
+    radius, whose ends bracket the true end (exact rationals)."""
+    plant = Hyperbolic2x2(1.0, 3.0, 1.0, 1.0, 1.0, 0.85)
+    kernel, *moved = proven_response_product(plant, 0.1).distributed
+    tau = Fraction(plant.tau)
+    ends = {3 * tau / 4, tau + tau / 4, tau + 3 * tau / 4}
+    assert len(moved) == len(ends)
+    unit = math.ulp(2.0 * plant.tau)
+    for term in moved:
+        lo, hi = (Fraction(x) for x in term.nodes)
+        assert hi - lo == Fraction(unit) and not term.pieces[2].any()
+        assert sum(lo < end < hi for end in ends) == 1
+        assert 0.0 < term.radius < 1e-14
+    assert all(Fraction(x) not in ends for x in kernel.nodes)
+
+
+def test_the_design_of_the_observer_is_certified_of_the_pde():
+    """``design_collocated_observer`` on ``(1, 3, 1, 1, 1, 0.85)`` under U_BS2(0.1): its certificate is about the PDE
+    (before: ``of_model`` True, a model); its margin is the PDE's at the designed ``kappa`` within the certificate's
+    accuracy (oracle; the design is proven for the loop as built, ``tau`` a relative 5.6e-17 from the exact, which
+    moves the margin by about 3e-17, far below that accuracy, measured 6.7e-13)."""
+    args = (1.0, 3.0, 1.0, 1.0, 1.0, 0.85)
+    result = nr.design_collocated_observer(Hyperbolic2x2(*args), "margin", controller=ReflectionController(0.1))
+    certificate = result.design.certificate
+    assert not certificate.of_model and certificate.scope.startswith("the PDE itself")
+    _, truth = CollocatedPDE(args, 0.1, result.design.K).crossing(certificate.omega)
+    with mp.workdps(DPS):
+        assert abs(mp.mpf(result.design.margin) - truth) <= certificate.accuracy
 
 
 def test_certify_end_to_end_on_the_pde():

@@ -49,7 +49,8 @@ The same characteristics give ``m_1(x) <= D + int_0^x (C m_1 + S_1)``, ``D`` the
 S_B) / kappa`` from the transport equations.
 
 **The command response.** :func:`response_pieces` evaluates the formula of ``c`` (module notes of
-:mod:`~nrobust.hyperbolic.loops.collocated`) on each piece between ``0, 1/lam, 1/mu, tau`` with the
+:mod:`~nrobust.hyperbolic.loops.collocated`) on each piece between ``0, 1/lam, 1/mu, tau`` (exact rationals of the
+user's doubles, compared exactly: the pieces are those of the PDE whether or not the ends are doubles) with the
 polynomials: ``F = (I - K') f`` by exact integration of monomials, each integral over ``xi`` with
 limits linear in ``t`` by :func:`polynomial_integral`; the error of ``c`` and of its derivative follow from
 the remainders, the derivative bounds and the sums of the polynomials' coefficients (sup bounds on
@@ -61,6 +62,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 from ..._flint import precision
@@ -303,12 +305,15 @@ class ResponsePieces:
         An ``arb`` bound of ``|c - piece|`` on every piece.
     slope : Any
         An ``arb`` bound of the derivative of ``c - piece`` on every piece.
+    times : tuple of Fraction
+        The same ends as exact rationals of the user's doubles.
     """
 
     breaks: tuple[Any, ...]
     pieces: tuple[Any, ...]
     error: Any
     slope: Any
+    times: tuple[Fraction, ...]
 
 
 def polynomial_integral(flint: Any, P: Any, Q: Any, alpha: Any, w: Any, lo: Any, hi: Any) -> Any:
@@ -412,29 +417,32 @@ def response_pieces(flint: Any, system: Hyperbolic2x2, K: float) -> ResponsePiec
         )
         t_u, t_v = 1 / lam, 1 / mu
         tau = t_u + t_v
-        ends = sorted({0.0, 1.0 / system.lam, 1.0 / system.mu, system.tau})
-        breaks = [arb(0)] + [t_u if e == 1.0 / system.lam else t_v if e == 1.0 / system.mu else tau for e in ends[1:]]
+        # the ends as exact rationals (equal ones merged, the pieces chosen by exact comparisons) and as balls
+        exact_u, exact_v = 1 / Fraction(system.lam), 1 / Fraction(system.mu)
+        balls = {Fraction(0): arb(0), exact_u: t_u, exact_v: t_v, exact_u + exact_v: tau}
+        times = sorted(balls)
         pieces = []
         zero, one = arb_poly([0]), arb_poly([1])
-        for j in range(len(breaks) - 1):
-            start, middle = breaks[j], 0.5 * (ends[j] + ends[j + 1])
+        for j in range(len(times) - 1):
+            start, middle = balls[times[j]], (times[j] + times[j + 1]) / 2
             t = arb_poly([start, 1])  # nu = start + u
-            if middle < 1.0 / system.mu:
+            if middle < exact_v:
                 total = F_a(1 - mu * t)
                 total += polynomial_integral(flint, L_aa, F_a, arb(1), -mu * t, mu * t, one)
                 upper = mu * t
             else:
                 total = q_dual * F_b(lam * (t - t_v))
                 upper = one
-            lower = mu * (t - t_u) if middle > 1.0 / system.lam else zero
+            lower = mu * (t - t_u) if middle > exact_u else zero
             total += q_dual * polynomial_integral(flint, L_aa, F_b, -lam / mu, lam * t, lower, upper)
-            if middle < 1.0 / system.lam:
+            if middle < exact_u:
                 total += polynomial_integral(flint, L_ab, F_b, arb(1), lam * t, zero, 1 - lam * t)
                 total -= k * L_ab(1 - lam * t)
             else:
                 total -= q * k * L_aa(mu * (t - t_u))
             pieces.append(-mu * total)
-    return ResponsePieces(tuple(breaks), tuple(pieces), arb(error.upper()), arb(slope.upper()))
+    breaks = tuple(balls[t] for t in times)
+    return ResponsePieces(breaks, tuple(pieces), arb(error.upper()), arb(slope.upper()), tuple(times))
 
 
 def dual_enclosures(flint: Any, system: Hyperbolic2x2) -> tuple[KernelEnclosure, KernelEnclosure]:

@@ -891,6 +891,14 @@ _LAST_ULP = (
 )
 
 
+#: :func:`_collocated_scope`'s words for the terms on the ulps around the ends of a proven ``G``'s pieces that are
+#: not doubles (:func:`~nrobust.hyperbolic.loops.observer_proof.proven_response_product`).
+_MOVED_ENDS = (
+    " but on the ulps around the ends of its pieces that are not doubles (t_u, t_v of the loop as built and them plus "
+    "tau), where terms zero within the proven bound of the kernel's jump hold it"
+)
+
+
 def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_grid: int | None) -> str:
     """:func:`loop_scope` of a collocated output feedback: the state feedback's, and the observer's."""
     grid = _observer_grid(system, controller, kernel_grid)
@@ -902,7 +910,8 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
     if grid is None and _proven_response(system, controller) is not None:
         K = _proven_response(system, controller)
         assert K is not None
-        radius = max(d.radius for d in proven_response_product(system, K).distributed)
+        kernel, *moved = proven_response_product(system, K).distributed
+        radius = kernel.radius
         if kappa:
             radius = max(radius, observer_reflection_of(system, controller, kernel_grid).accuracy)
         law = loop_factors(system, controller.controller, None)
@@ -912,8 +921,8 @@ def _collocated_scope(system: Any, controller: CollocatedOutputFeedback, kernel_
             f"the PDE itself (N~ in closed form within a proven {upper_bound_text(closed, 2)}; the collocated "
             "observer's command response C_u from the plant's and the dual plant's kernels as Taylor polynomials "
             f"with proven remainders{reflection}, their products with 1 - Phi{' and B~' if kappa else ''} enclosed "
-            f"in ball arithmetic within a proven {upper_bound_text(radius, 2)}, which every enclosure includes; "
-            f"{_given(system, controller, kernel_grid)})"
+            f"in ball arithmetic within a proven {upper_bound_text(radius, 2)}{_MOVED_ENDS if moved else ''}, which "
+            f"every enclosure includes; {_given(system, controller, kernel_grid)})"
         )
     if grid is None and _proven_collocated(system, controller):
         products = proven_collocated_products(system)

@@ -94,6 +94,26 @@ values plus ``f * g'``, so its error is at most ``b (sup |R| + e) + sup |S| e + 
 sup |S| e')``; the point parts add ``|c| e + |d| b`` and ``|c| e' + |d| b'``. Each interval is stored as
 ``G``'s are, and the point coefficients ``c_0 d_0``, ``c_0 d_tau + c_tau d_0``, ``c_tau d_tau`` (balls of
 the user's numbers) as doubles with their radii.
+
+**Ends that are not doubles.** Under U_BS2(K) and U_BS the collocated observer's ``C_u`` has the kernel
+``c`` of :func:`~nrobust.hyperbolic.loops.collocated_proof.response_pieces`, a polynomial on each piece between
+``0, t_u = 1/lam, t_v = 1/mu, tau`` (exact rationals of the user's doubles), and ``G``'s kernel one on each piece
+between those ends and them plus ``tau``. The loop is built with ``tau_d``, the double ``tau`` rounds to, so that
+proofs about it map to the plant as given by ``r = tau / tau_d``
+(:mod:`~nrobust.hyperbolic.loops.given_plant`): ``C_u`` of the plant at ``s`` is that of the loop as built at
+``r s``, whose kernel is ``r c(r nu)`` on ``[0, tau_d]`` (``nu -> r nu`` in the Laplace integral), with the ends
+``t_j / r`` (exact rationals, ``tau / r = tau_d``), each piece ``r P_j(r u)`` and the bounds ``r e``, ``r^2 e'``.
+``G``'s pieces are computed on the true ends (balls of the rationals: the convolution's limits, the shifts of
+``c``'s pieces) and stored from nodes that are doubles: each end itself where it is one, otherwise the nearest
+multiple of ``U = ulp(2 tau_d)`` (whose sums with the segments' steps are exact below ``2 tau_d``). Between a node
+and its true end (at most ``U / 2``) the stored kernel is the neighbouring piece's polynomial; a term of zero
+kernel on the ``U`` between the node and the next multiple past the end holds that: its ``radius`` is
+``J = |P_left - P_right|`` enclosed on that ulp plus the stored kernel's radius (the true kernel there is one piece
+within its bound, the stored one the other piece within its rounding), and its ``variation_radius`` is ``J`` (the
+jump at the end), the kernel's variation, twice its radius (the kernel's error, taken as zero between node and end,
+jumps at both) and ``U |P_left' - P_right'|`` there. The pieces of ``G`` are continuous or nearly so at these ends
+(``J`` is about the kernel's radius on the plants of the tests), so an enclosure widens by about ``J U``. Ends
+within two ulps of each other are refused (:class:`~nrobust.errors.CertificationError`).
 """
 
 from __future__ import annotations
@@ -121,6 +141,8 @@ from .exact_form import (
     exact_ratios,
     gain_balls,
     has_exact_form,
+    rational_ball,
+    tau_ratio,
 )
 from .exact_gains import gain_plant, window_series
 
@@ -716,12 +738,14 @@ def proven_response_product(system: Hyperbolic2x2, K: float) -> QuasiPolynomial:
     ``C_u = -K q e^{-tau s} + int_0^tau c e^{-nu s}`` with ``c`` from the kernels' proven enclosures
     (:func:`~nrobust.hyperbolic.loops.collocated_proof.response_pieces`), ``1 - Phi`` the closed form; the
     kernel of ``G`` is ``c(nu) - rho q c(nu - tau) - K q S(nu - tau) + (S * c)(nu)`` on the pieces between
-    ``t_j`` and ``t_j + tau`` (``t_j`` the ends of ``c``'s pieces), stored as :func:`_store` stores the others.
+    ``t_j`` and ``t_j + tau`` (``t_j`` the ends of ``c``'s pieces), stored as :func:`_store` stores the others: the
+    loop as built with ``tau_d``, its ``c`` scaled by ``r = tau / tau_d``, and after the kernel a term on the ulp
+    around each end that is not a double (module notes, "Ends that are not doubles").
 
     Raises
     ------
     CertificationError
-        No ball arithmetic, an end of a piece that is not a double, or a bound not reached.
+        No ball arithmetic, two ends of ``G``'s pieces within two ulps of each other, or a bound not reached.
     """
     out = _response_attempt(system, float(K))
     if isinstance(out, str):
@@ -758,7 +782,7 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
     basis = _response_basis(system)
     if isinstance(basis, str):
         raise CertificationError(basis)
-    (zero, e_0, s_0), (one, e_1, s_1) = basis
+    (zero, e_0, s_0, slivers), (one, e_1, s_1, _) = basis
     a, b = arb(1) - arb(K), arb(K)
     kernels = [(lo, hi, g_0 * a + g_1 * b) for (lo, hi, g_0), (_, _, g_1) in zip(zero, one, strict=True)]
     sup_err, slope = abs(a) * e_0 + abs(b) * e_1, abs(a) * s_0 + abs(b) * s_1
@@ -768,7 +792,9 @@ def _response_enclose(flint: Any, system: Hyperbolic2x2, K: float) -> QuasiPolyn
         _store_counted(flint, kernel, lo, hi, system.tau, sup_err, slope, count)[0]
         for (lo, hi, kernel), count in zip(kernels, segments, strict=True)
     ]
-    return QuasiPolynomial.from_parts(points[0], [_one_kernel(terms)], points[1])
+    kernel = _one_kernel(terms)
+    moved = [_sliver(flint, kernels[i - 1], kernels[i], lo, hi, kernel) for i, lo, hi in slivers]
+    return QuasiPolynomial.from_parts(points[0], [kernel, *moved], points[1])
 
 
 def _one_kernel(terms: list[DistributedDelay]) -> DistributedDelay:
@@ -798,7 +824,9 @@ def _one_kernel(terms: list[DistributedDelay]) -> DistributedDelay:
 
 
 @lru_cache(maxsize=8)
-def _response_basis(system: Hyperbolic2x2) -> tuple[tuple[list[tuple[float, float, Any]], Any, Any], ...] | str:
+def _response_basis(
+    system: Hyperbolic2x2,
+) -> tuple[tuple[list[tuple[float, float, Any]], Any, Any, tuple[tuple[int, float, float], ...]], ...] | str:
     """``G``'s kernels with the bounds of their errors and of their derivatives' at ``K = 0`` and ``K = 1``
     (:func:`_response_kernels`), or the reason they failed."""
     return _in_balls(system, lambda flint: tuple(_response_kernels(flint, system, K) for K in (0.0, 1.0)))
@@ -822,50 +850,117 @@ def _response_segments(system: Hyperbolic2x2) -> tuple[int, ...]:
     return tuple(counts)
 
 
-def _response_kernels(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list[tuple[float, float, Any]], Any, Any]:
-    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``) and the bounds of its error and of
-    its derivative's (:func:`proven_response_product`)."""
+def _response_kernels(
+    flint: Any, system: Hyperbolic2x2, K: float
+) -> tuple[list[tuple[float, float, Any]], Any, Any, tuple[tuple[int, float, float], ...]]:
+    """``G``'s kernel on each of its pieces (``(lo, hi, arb_poly in nu - lo)``, ``lo``, ``hi`` the nodes of
+    :func:`_product_cuts`), the bounds of its error and of its derivative's (:func:`proven_response_product`), and the
+    ulps ``(i, lo, hi)`` around the cuts ``i`` whose node is not the true end (module notes, "Ends that are not
+    doubles")."""
     arb, arb_poly = flint.arb, flint.arb_poly
     poly = _Poly(flint)
     tau, (c0, ct, S, b, db), _ = _closed_forms(flint, system)
-    response = response_pieces(flint, system, K)
-    ends = [float(t.mid()) for t in response.breaks]
-    if any(not t.is_exact() for t in response.breaks) or ends[-1] != tau:
-        raise CertificationError("an end of the command response's pieces is not a double")
-    e, de = response.error, response.slope
-    T = arb(tau)
+    times, breaks, pieces, e, de = _built_response(flint, system, K)
+    T, whole = arb(tau), Fraction(tau)
     s_sup, ds_sup = poly.sup(S, T), poly.sup(S.derivative(), T)
     c_sup = arb(0)
-    for lo, hi, piece in zip(ends[:-1], ends[1:], response.pieces, strict=True):
-        c_sup = arb.max(c_sup, poly.sup(piece, arb(hi) - arb(lo)))
+    for lo, hi, piece in zip(breaks[:-1], breaks[1:], pieces, strict=True):
+        c_sup = arb.max(c_sup, poly.sup(piece, hi - lo))
     kq = -arb(K) * arb(float(system.q))
     conv_err = T * (b * (c_sup + e) + s_sup * e)
     conv_slope = 2 * (b * (c_sup + e) + s_sup * e) + T * (db * (c_sup + e) + ds_sup * e)
     sup_err = e + abs(ct) * e + abs(kq) * b + conv_err
     slope = de + abs(ct) * de + abs(kq) * db + conv_slope
-    cuts = sorted({*ends, *(t + tau for t in ends)})
-    if any(t + tau - tau != t for t in ends):
-        raise CertificationError("an end of the product's pieces is not a double")
+    cuts, nodes, slivers = _product_cuts(times, tau)
+    u = arb_poly([arb(0), arb(1)])
     kernels = []
-    for lo, hi in itertools.pairwise(cuts):
-        middle = 0.5 * (lo + hi)
-        u = arb_poly([arb(0), arb(1)])
+    for i in range(len(cuts) - 1):
+        middle, start = (cuts[i] + cuts[i + 1]) / 2, arb(nodes[i])  # the piece's polynomial in nu - nodes[i]
         kernel = arb_poly([0])
-        for j, piece in enumerate(response.pieces):
-            start, stop = ends[j], ends[j + 1]
-            if start <= middle - tau < stop:
-                kernel += piece(u + (arb(lo) - arb(tau) - arb(start))) * ct
-            if start <= middle < stop:
-                kernel += piece(u + (arb(lo) - arb(start))) * c0
-            if middle - stop >= tau or middle - start <= 0.0:
+        for j, piece in enumerate(pieces):
+            left, right = times[j], times[j + 1]
+            if left <= middle - whole < right:
+                kernel += piece(u + (start - T - breaks[j])) * ct
+            if left <= middle < right:
+                kernel += piece(u + (start - breaks[j])) * c0
+            if middle - right >= whole or middle - left <= 0:
                 continue
-            lower = arb_poly([0]) if middle - stop <= 0.0 else u + (arb(lo) - arb(stop))
-            upper = arb_poly([T]) if middle - start >= tau else u + (arb(lo) - arb(start))
-            kernel += polynomial_integral(flint, S, piece, arb(-1), u + (arb(lo) - arb(start)), lower, upper)
-        if middle > tau:
-            kernel += S(u + (arb(lo) - T)) * kq
-        kernels.append((lo, hi, kernel))
-    return kernels, sup_err, slope
+            lower = arb_poly([0]) if middle - right <= 0 else u + (start - breaks[j + 1])
+            upper = arb_poly([T]) if middle - left >= whole else u + (start - breaks[j])
+            kernel += polynomial_integral(flint, S, piece, arb(-1), u + (start - breaks[j]), lower, upper)
+        if middle > whole:
+            kernel += S(u + (start - T)) * kq
+        kernels.append((nodes[i], nodes[i + 1], kernel))
+    return kernels, sup_err, slope, slivers
+
+
+def _built_response(
+    flint: Any, system: Hyperbolic2x2, K: float
+) -> tuple[list[Fraction], list[Any], list[Any], Any, Any]:
+    """The command response's kernel of the loop as built, ``r c(r nu)`` on ``[0, tau_d]`` (module notes, "Ends
+    that are not doubles"): its ends ``t_j / r`` (exact rationals and balls), its pieces in ``nu - t_j / r`` and the
+    bounds of their error and of its derivative."""
+    response = response_pieces(flint, system, K)
+    r = tau_ratio(system)
+    R = rational_ball(flint, r)
+    times = [t / r for t in response.times]
+    if times[-1] != Fraction(system.tau):
+        raise CertificationError("the command response does not end at the loop's tau")
+    scaled = flint.arb_poly([0, R])
+    pieces = [piece(scaled) * R for piece in response.pieces]
+    breaks = [rational_ball(flint, t) for t in times]
+    return times, breaks, pieces, response.error * R, response.slope * R * R
+
+
+def _product_cuts(
+    times: list[Fraction], tau: float
+) -> tuple[list[Fraction], list[float], tuple[tuple[int, float, float], ...]]:
+    """The ends of ``G``'s pieces (those of ``c`` and them plus ``tau``: exact rationals), the nodes that stand for
+    them (each end if it is a double, else the nearest multiple of ``ulp(2 tau)``), and per node that is not its
+    end the ulp ``(i, lo, hi)`` between the node and the next multiple past the end (module notes)."""
+    unit = Fraction(math.ulp(2.0 * tau))
+    cuts = sorted({*times, *(t + Fraction(tau) for t in times)})
+    nodes: list[float] = []
+    slivers: list[tuple[int, float, float]] = []
+    for i, cut in enumerate(cuts):
+        node = float(cut)
+        if Fraction(node) != cut:
+            multiple = round(cut / unit)
+            node = float(multiple * unit)
+            other = float((multiple + (1 if cut > multiple * unit else -1)) * unit)
+            slivers.append((i, min(node, other), max(node, other)))
+        nodes.append(node)
+    if any(Fraction(b) - Fraction(a) <= 2 * unit for a, b in itertools.pairwise(nodes)):
+        raise CertificationError("two ends of the product's pieces lie within two ulps of each other")
+    return cuts, nodes, tuple(slivers)
+
+
+def _sliver(
+    flint: Any, left: tuple[float, float, Any], right: tuple[float, float, Any], lo: float, hi: float, kernel: Any
+) -> DistributedDelay:
+    """The term on the ulp ``[lo, hi]`` around an end of ``G``'s pieces that is not a double (module notes).
+
+    ``left``, ``right``: the pieces that meet at the node, each ``(start, stop, polynomial in nu - start)``;
+    ``kernel``: the stored kernel (its ``radius`` and ``variation_radius``). Zero within ``radius`` ``J`` =
+    ``|left - right|`` on the ulp plus the kernel's radius; its variation ``J`` (the jump at the end), the kernel's
+    variation and twice its radius (the kernel's own error, taken as zero between node and end, jumps there) and
+    the ulp times ``|left' - right'|``.
+    """
+    arb = flint.arb
+    hull = arb(lo).union(arb(hi))
+    (a, _, P), (b, _, Q) = left, right
+    gap = P(hull - arb(a)) - Q(hull - arb(b))
+    rate = P.derivative()(hull - arb(a)) - Q.derivative()(hull - arb(b))
+    jump = abs(gap) + arb(kernel.radius)
+    variation = jump + arb(kernel.variation_radius) + 2 * arb(kernel.radius) + (arb(hi) - arb(lo)) * abs(rate)
+    return DistributedDelay(
+        np.array([lo, hi]),
+        None,
+        interpolation="polynomial",
+        coefficients=np.zeros((1, 1)),
+        radius=ball_upper(jump),
+        variation_radius=ball_upper(variation),
+    )
 
 
 def _response_points(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list, list]:
