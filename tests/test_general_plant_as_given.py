@@ -235,3 +235,16 @@ def test_the_algebra_carries_the_radii():
     kernel = nr.DistributedDelay([0.0, 1.0], [1.0, 2.0])
     with pytest.raises(nr.ParameterError):
         _ = G * QuasiPolynomial([], [], [kernel])
+
+
+def test_coefficients_given_as_samples_are_the_plants_model_in_the_scope() -> None:
+    """A coefficient given as samples: the cubic spline through them is the user's model of the plant, and the
+    kernel route a model of that; the scope says both and the proven ball's reason says "for the model" (before:
+    "proven in ball arithmetic: delta* in [3.1115744173041091, 3.1115744173043924]", the spline plant's own margin
+    3.11157441799810 lying 7e-10 outside)."""
+    xs = np.linspace(0.0, 1.0, 21)
+    plant = nr.GeneralHyperbolic2x2(1.2, 0.8, (xs, 0.1 + 0.1 * xs), 0.3, 0.3, -0.1, 0.6, 0.4)
+    dm = nr.delay_margin(plant, nr.StateFeedback(-0.9), rigorous=True)
+    assert dm.of_model and dm.scope.startswith("a model of the PDE")
+    assert dm.scope.endswith("a given as samples: the cubic spline through them is the plant's model")
+    assert "(proven in ball arithmetic for the model: delta* in [" in dm.reason

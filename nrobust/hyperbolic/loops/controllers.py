@@ -801,24 +801,36 @@ def _loop_scope(
                 else ""
             )
         return f"the PDE itself ({kernel}; {_given(system, controller, kernel_grid)})"
+    samples = _samples(system)
     if isinstance(system, GeneralHyperbolic2x2) and not system.constant_ratio:
         return (
             "a model of the PDE: N~ the cubic spline of the characteristic route (varying lam/mu); its distance "
-            "to the PDE is not part of the proof"
+            f"to the PDE is not part of the proof{samples}"
         )
     grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
     if kernel_grid is None and isinstance(controller, StateFeedback) and has_exact_form(system):
         reason = gain_failure(system, controller.g_u, controller.g_v)
         return (
             f"a model of the PDE: the integral gains have no exact loop ({reason}), so N~ and the gains come from "
-            f"the kernels on {grid} points; its distance to the PDE is not part of the proof"
+            f"the kernels on {grid} points; its distance to the PDE is not part of the proof{samples}"
         )
     if isinstance(system, Hyperbolic2x2) and system.uncoupled:
         return f"the PDE itself (uncoupled: N~ = 0; {_given(system, controller, kernel_grid)})"
     return (
         f"a model of the PDE: N~ the cubic spline of the kernels on {grid} points; its distance to the PDE is "
-        "not part of the proof (a convergence study estimates it)"
+        f"not part of the proof (a convergence study estimates it){samples}"
     )
+
+
+def _samples(system: Any) -> str:
+    """:func:`loop_scope`'s words for coefficients of a general plant given as samples (``""`` when none is): the
+    cubic spline through them is the user's model of the plant, and what any proof is about."""
+    if not isinstance(system, GeneralHyperbolic2x2):
+        return ""
+    names = [name for name in ("lam", "mu", "a", "b", "c", "d") if isinstance(getattr(system, name), tuple)]
+    if not names:
+        return ""
+    return f"; {', '.join(names)} given as samples: the cubic spline through them is the plant's model"
 
 
 def _given(system: Any, controller: Any, kernel_grid: int | None) -> str:
