@@ -1,6 +1,7 @@
 """``n + m`` plants with constant coefficients: the plant and its loop (``system``), the certified
 characteristic function (``characteristic``) and its compound form (``compound``), the delay
-margins (``margin``; proven in ball arithmetic: ``proven_margin``), the partial cancellations (``cancellation``), the backstepping kernels
+margins (``margin``; proven in ball arithmetic: ``proven_margin``), the partial cancellations
+(``cancellation``), the backstepping kernels
 and the full-state controller (``kernels``), the proven bound of the grid kernels' error
 (``kernel_error``), the design of the gain matrix ``K`` (``design``) and the box of speed errors it may
 be required to tolerate (``speed_box``).

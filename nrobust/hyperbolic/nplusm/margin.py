@@ -95,7 +95,8 @@ class NPlusMMargin:
         A proven ``[lower, upper]`` of the margin: of the law with exact kernels when the loop
         carries the grid kernels' proven error (:func:`~nrobust.hyperbolic.nplusm.cascade_delay_margin`,
         whose ``margin`` is the grid kernels' loop's), or of this loop with ``rigorous``
-        (``margin`` then lies in it); None for the other loops, whose ``margin`` is itself the claim.
+        (``margin`` then lies in it); None for the other loops, whose ``margin`` is itself the claim,
+        and for a margin 0 or ``inf`` decided by the structure (exact).
     error : float or None
         0 for a margin 0 or ``inf`` decided by the structure (``gamma_0 >= 1``, an unstable
         delay-free loop, no crossing), else an estimate of the error of ``margin`` from every
@@ -389,12 +390,10 @@ def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) ->
     radius = max(W, 1.0)
     count = count_roots(F, (0.0, radius, -radius, radius), rigorous=True, prec=prec)
     if int(count) != 0:  # unstable without delay: the margin 0 is exact
-        return NPlusMMargin(
-            0.0, None, (), gamma, W, True, int(count), _PROVEN_SCOPE, (0.0, 0.0), 0.0, None, True
-        )
+        return NPlusMMargin(0.0, None, (), gamma, W, True, int(count), _PROVEN_SCOPE, None, 0.0, None, True)
     found, _ = proven_axis_crossings(F.ball_function(prec), W, max_evals=max_evals)
     if not found:
-        return NPlusMMargin(np.inf, None, (), gamma, W, True, 0, _PROVEN_SCOPE, (np.inf, np.inf), 0.0, None, True)
+        return NPlusMMargin(np.inf, None, (), gamma, W, True, 0, _PROVEN_SCOPE, None, 0.0, None, True)
     lo = min(c.delay[0] for c in found)
     hi = min(c.delay[1] for c in found)
     near = [c for c in found if c.delay[0] <= hi]  # each may hold the smallest delay
@@ -404,9 +403,7 @@ def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) ->
     crossings = tuple((0.5 * (c.omega[0] + c.omega[1]), 0.5 * (c.delay[0] + c.delay[1])) for c in found)
     bracket = (lo, hi)
     error = float(np.nextafter(max(hi - margin, margin - lo), np.inf))
-    return NPlusMMargin(
-        margin, omega, crossings, gamma, W, True, 0, _PROVEN_SCOPE, bracket, error, (w_lo, w_hi), True
-    )
+    return NPlusMMargin(margin, omega, crossings, gamma, W, True, 0, _PROVEN_SCOPE, bracket, error, (w_lo, w_hi), True)
 
 
 def multi_actuator_margin(

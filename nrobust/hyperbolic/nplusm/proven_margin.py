@@ -33,6 +33,7 @@ delay near a multiple of the period) is refused.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -197,7 +198,7 @@ def proven_axis_crossings(
     brackets: list[tuple[float, float, int]] = []
     with working_precision(balls.prec) as flint:
         arb = flint.arb
-        todo = list(zip(grid[:-1], grid[1:]))
+        todo = list(itertools.pairwise(grid))
         while todo:
             a, b = todo.pop()
             iv = arb(a).union(arb(b))
