@@ -1,7 +1,8 @@
 """Delay margins of ``U(t) = K u(t - delta, 1)`` on ``n + m`` systems, the same delay on every actuator.
 
 One actuator: :func:`nplusm_delay_margin` (certified: proven frequency bound and complete
-crossing search of ``|A(i w)| = |B(i w)|``). Any ``m``: :func:`multi_actuator_delay_margin`
+crossing search of ``|A(i w)| = |B(i w)|``; with ``rigorous=True`` proven in ball arithmetic for
+the PDE itself, :mod:`~nrobust.hyperbolic.nplusm.proven_margin`). Any ``m``: :func:`multi_actuator_delay_margin`
 (certified, in compound form) and :func:`multi_actuator_margin` (with ``omega_max``: a capped
 scan of the pencil ``M_0 v = -z M_1 v``, :func:`pencil_crossings`, which the backstepping
 controller's margin with grid kernels also uses). The full-state backstepping law with exact
@@ -389,6 +390,13 @@ def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) ->
     W = proven_frequency_bound(F, prec=prec)
     radius = max(W, 1.0)
     count = count_roots(F, (0.0, radius, -radius, radius), rigorous=True, prec=prec)
+    x0, x1, y0, y1 = count.region  # an edge may have been shifted off a root: what was counted where
+    covers = x0 <= 0.0 and x1 >= W and y0 <= -W and y1 >= W
+    if not (covers if int(count) == 0 else x0 >= 0.0):
+        raise CertificationError(
+            f"proven delay margin: the delay-free loop's roots were counted in {count.region} (an edge shifted off a "
+            f"root near it), which does not decide Re s >= 0 within |s| < W = {W!r}; raise prec"
+        )
     if int(count) != 0:  # unstable without delay: the margin 0 is exact
         return NPlusMMargin(0.0, None, (), gamma, W, True, int(count), _PROVEN_SCOPE, None, 0.0, None, True)
     found, _ = proven_axis_crossings(F.ball_function(prec), W, max_evals=max_evals)
