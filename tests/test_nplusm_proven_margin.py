@@ -13,7 +13,13 @@ import pytest
 
 from nrobust._digits import with_accuracy
 from nrobust.errors import CertificationError, ParameterError
-from nrobust.hyperbolic.nplusm import NPlusMSystem, nplusm_delay_margin
+from nrobust.hyperbolic.nplusm import (
+    NPlusMCharacteristic,
+    NPlusMSystem,
+    cancellation_study,
+    nplusm_delay_margin,
+    proven_axis_crossings,
+)
 
 mp = pytest.importorskip("mpmath")
 pytest.importorskip("flint")
@@ -75,12 +81,28 @@ def test_proven_ball_holds_the_margin_and_its_crossing(system: NPlusMSystem, K) 
 
 
 def test_near_tangency_every_crossing_enclosed() -> None:
-    K = [[TANGENT * (1.0 + 1e-9)]]  # the tangency split into two crossings 2e-5 apart, plus the first one
+    """The tangency split into two crossings 2e-5 apart, plus the first one: each proven enclosure holds the
+    oracle's crossing and delay, with the oracle's sign of ``g'``."""
+    K = [[TANGENT * (1.0 + 1e-9)]]
     proven = nplusm_delay_margin(ONE_PLUS_ONE, np.array(K), rigorous=True)
     assert len(proven.crossings) == 3 and proven.margin_bracket is not None
+    F = NPlusMCharacteristic(ONE_PLUS_ONE, np.array(K))
+    found, _ = proven_axis_crossings(F.ball_function(), proven.frequency_bound)
     delays = []
-    for w0, _ in proven.crossings:
-        delays.append(_crossing(ONE_PLUS_ONE, K, w0)[1])
+    with mp.workdps(40):
+        for c in found:
+            w, delay = _crossing(ONE_PLUS_ONE, K, 0.5 * (c.omega[0] + c.omega[1]))
+            assert c.omega[0] <= w <= c.omega[1] and c.delay[0] <= delay <= c.delay[1], (c, w, delay)
+            slope = mp.diff(
+                lambda x: (
+                    abs(_factors(ONE_PLUS_ONE, K, mp.mpc(0, x))[0]) ** 2
+                    - abs(_factors(ONE_PLUS_ONE, K, mp.mpc(0, x))[1]) ** 2
+                ),
+                w,
+            )
+            assert c.slope == (1 if slope > 0 else -1)
+            delays.append(delay)
+    assert [c.slope for c in found] == [1, -1, 1]  # g < 0 between the two split crossings
     lo, hi = proven.margin_bracket
     assert lo <= min(delays) <= hi
 
@@ -106,6 +128,8 @@ def test_rigorous_refusals_and_bad_input() -> None:
         nplusm_delay_margin(COUPLED, np.array([[0.0, -0.4]]), rigorous="yes")  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="prec"):
         nplusm_delay_margin(COUPLED, np.array([[0.0, -0.4]]), rigorous=True, prec=8)
+    with pytest.raises(ParameterError, match="rigorous"):
+        cancellation_study(ONE_PLUS_ONE, [[0.5]], (-2.0, 1.0, -0.25, 6.0), rigorous=1)  # type: ignore[arg-type]
 
 
 NPLUSM_FILE = """
