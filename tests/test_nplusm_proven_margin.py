@@ -169,3 +169,9 @@ def test_analyze_proves_the_study(tmp_path) -> None:
     _, delay = _crossing(ONE_PLUS_ONE, [[-0.25]], half["margin"]["omega"])
     assert lo <= delay <= hi and hi - lo < 1e-9
     assert "**Proven:** in ball arithmetic for the PDE itself" in files.markdown.read_text(encoding="utf-8")
+
+
+def test_no_gain_no_crossing() -> None:
+    """``K = 0``: ``B = 0``, so ``|A| = |B|`` only at a root of the stable open loop on the axis: never."""
+    proven = nplusm_delay_margin(COUPLED, np.zeros((1, 2)), rigorous=True)
+    assert proven.margin == np.inf and proven.accuracy == 0.0 and proven.rigorous and not proven.crossings

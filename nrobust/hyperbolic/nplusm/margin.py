@@ -106,7 +106,8 @@ class NPlusMMargin:
         :func:`backstepping_exact_margin`), combined by :func:`smallest_delay_error`: a crossing
         whose first delay is within its error of ``margin`` may be the smallest, and the error
         covers it. None when not estimated (the capped scan of :func:`multi_actuator_margin`, the
-        grid kernels' loops, a crossing whose error is unknown).
+        grid kernels' loops, a crossing whose error is unknown). With ``rigorous``: the proven
+        distance from ``margin`` to the far end of ``margin_bracket``.
     omega_bracket : (float, float) or None
         With ``rigorous``: a proven enclosure of the crossing frequency of the margin (the hull
         of the enclosures of the crossings whose delay may be the smallest); else None.
