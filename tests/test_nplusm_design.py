@@ -250,6 +250,7 @@ def test_one_plus_one_agrees_with_the_exact_scalar_design() -> None:
     assert design.certified and design.local and design.margin is not None
     assert design.rigorous and design.abscissa.value_bracket is not None and design.accuracy < 1e-9
     assert design.margin.margin >= 1.2
+    assert design.margin.rigorous and design.margin.margin_bracket is not None  # proven for the PDE too
     np.testing.assert_allclose(design.K[0][0], exact.K, atol=1e-5)
     np.testing.assert_allclose(design.value, exact.decay_rate, atol=1e-4)
     assert design.value <= exact.decay_rate + 1e-9

@@ -58,10 +58,9 @@ def run_analyze(
     check_output_dir(out_dir)  # before the plant is built (a steady profile, a front end's ODE)
     spec = load_system_file(path)
     if spec.get("kind") == NPLUSM_TYPE:  # an n + m plant: the cancellation study
-        for name, value in (("accuracy", accuracy), ("rigorous", rigorous)):
-            if value is not None:
-                raise ParameterError(name, "left out for an n + m plant (its cancellation study has none)", value)
-        return run_nplusm_analyze(spec, out_dir, progress)
+        if accuracy is not None:
+            raise ParameterError("accuracy", "left out for an n + m plant (its cancellation study has none)", accuracy)
+        return run_nplusm_analyze(spec, out_dir, progress, rigorous=bool(rigorous))
     sim = spec["simulation"]
     outputs = RunOutputs(out_dir, "analyze")  # checked before anything is computed
     # one BLAS thread: the small eigenvalue problems (the chains of a difference operator) run tens of

@@ -1,6 +1,7 @@
 """``n + m`` plants with constant coefficients: the plant and its loop (``system``), the certified
 characteristic function (``characteristic``) and its compound form (``compound``), the delay
-margins (``margin``), the partial cancellations (``cancellation``), the backstepping kernels
+margins (``margin``; proven in ball arithmetic: ``proven_margin``), the partial cancellations
+(``cancellation``), the backstepping kernels
 and the full-state controller (``kernels``), the proven bound of the grid kernels' error
 (``kernel_error``), the design of the gain matrix ``K`` (``design``) and the box of speed errors it may
 be required to tolerate (``speed_box``).
@@ -42,6 +43,7 @@ from .margin import (
     nplusm_delay_margin,
     pencil_crossings,
 )
+from .proven_margin import ProvenAxisCrossing, proven_axis_crossings, proven_frequency_bound
 from .speed_box import NPlusMSpeedTolerance
 from .system import NPlusMSystem
 
@@ -60,6 +62,7 @@ __all__ = [
     "NPlusMSpeedTolerance",
     "NPlusMSystem",
     "NPlusMWindow",
+    "ProvenAxisCrossing",
     "backstepping_delay_margin",
     "backstepping_exact_margin",
     "cancellation_study",
@@ -76,6 +79,8 @@ __all__ = [
     "nplusm_speed_tolerance",
     "pencil_crossings",
     "principal_gamma",
+    "proven_axis_crossings",
+    "proven_frequency_bound",
     "solve_nplusm_kernels",
 ]
 

@@ -42,6 +42,9 @@ class CancellationCase:
     abscissa_accuracy : float or None
         A bound of the abscissa's error (:attr:`nrobust.roots.SpectralAbscissa.accuracy`:
         proven, or a conservative estimate); None when not known.
+    rigorous : bool
+        True: the abscissa is proven in ball arithmetic, and the margin too when ``gamma_0 < 1``
+        (:attr:`NPlusMMargin.rigorous`; the margin 0 of ``gamma_0 >= 1`` is decided in floating point).
     """
 
     fractions: tuple[float, ...]
@@ -51,6 +54,7 @@ class CancellationCase:
     abscissa_certified: bool
     margin: NPlusMMargin
     abscissa_accuracy: float | None = None
+    rigorous: bool = False
 
     @property
     def robust(self) -> bool:
@@ -63,7 +67,7 @@ class CancellationCase:
 
 
 def cancellation_study(
-    system: NPlusMSystem, cancellations: Any, region: tuple[float, float, float, float]
+    system: NPlusMSystem, cancellations: Any, region: tuple[float, float, float, float], *, rigorous: bool = False
 ) -> tuple[CancellationCase, ...]:
     """Delay robustness of the partial cancellations ``K = -diag(c) R`` of a one-actuator system.
 
@@ -72,21 +76,33 @@ def cancellation_study(
     of the delay-free loop in ``region`` (:func:`~nrobust.roots.spectral_abscissa` on
     :class:`NPlusMCharacteristic`) and :func:`nplusm_delay_margin`. The paper's
     conclusion (Section 5) is that cancelling every reflection (finite-time convergence)
-    is not delay-robust: full cancellation doubles ``gamma_0``.
+    is not delay-robust: full cancellation doubles ``gamma_0``. With ``rigorous=True`` the
+    abscissae and the margins of the cases with ``gamma_0 < 1`` are proven in ball arithmetic for
+    the PDE itself (``rigorous=True`` of both functions).
     """
     if system.m != 1:
         raise ParameterError("system", "one actuator (m = 1)", system.m)
+    if not isinstance(rigorous, bool):
+        raise ParameterError("rigorous", "True or False", rigorous)
     rows = real_array("cancellations", cancellations, ndim=2)
     if rows.shape[1] != system.n:
         raise ParameterError("cancellations", f"rows of {system.n} fractions", rows.shape)
     out = []
     for c in rows:
         K = -(c * system.r[0])[None, :] + 0.0  # + 0.0: no signed zeros in the gains
-        ab = spectral_abscissa(NPlusMCharacteristic(system, K, 0.0), region)
-        m = nplusm_delay_margin(system, K)
+        F = NPlusMCharacteristic(system, K, 0.0)
+        ab = spectral_abscissa(F, region, rigorous=rigorous)
+        m = nplusm_delay_margin(system, K, rigorous=rigorous and F.gamma_0() < 1.0 - 1e-12)
         out.append(
             CancellationCase(
-                tuple(map(float, c)), tuple(map(float, K[0])), m.gamma_0, float(ab.value), ab.certified, m, ab.accuracy
+                tuple(map(float, c)),
+                tuple(map(float, K[0])),
+                m.gamma_0,
+                float(ab.value),
+                ab.certified,
+                m,
+                ab.accuracy,
+                rigorous,
             )
         )
     return tuple(out)

@@ -765,6 +765,27 @@ class BallNPlusM(BallFunction):
             out.append(g * self._w)
         return out
 
+    def factor_jet(self, s: Any, order: int = 0) -> list[tuple[Any, Any]]:
+        """``[(A^(b)(s) / b!, B^(b)(s) / b!) for b = 0..order]``: the factors of ``F = A + B e^{-delta s}`` (``m = 1``).
+
+        ``A = (-R, 1) G(s) W`` and ``B = (-K, 0) G(s) W`` with ``G = exp(C - s P)`` (the row of
+        the loop matrix split by the loop delay, :meth:`NPlusMCharacteristic.factors`), enclosed
+        over the ball ``s`` from the same proven exponential as ``F``; independent of ``delta``.
+
+        Raises
+        ------
+        ParameterError
+            ``m != 1``, or ``order`` outside ``0..4``.
+        """
+        sys = self.F.system
+        if sys.m != 1:
+            raise ParameterError("system", "one actuator (m = 1) for the factors A, B", sys.m)
+        order = self._order(order)
+        with working_precision(self.prec) as flint:
+            ell_a = flint.acb_mat(1, sys.n + 1, [-r for r in self._r[0]] + [flint.acb(1)])
+            ell_b = flint.acb_mat(1, sys.n + 1, [-k for k in self._k[0]] + [flint.acb(0)])
+            return [((ell_a * g)[0, 0], (ell_b * g)[0, 0]) for g in self._jet(0, flint.acb(s), order)]
+
     def _rows(self, s: Any, k: int) -> list[list[Any]]:
         """``rows[j][b]``: the ``b``-th Taylor coefficient of row ``j`` (a list of ``m`` balls), ``b = 0..k``."""
         flint = self.flint

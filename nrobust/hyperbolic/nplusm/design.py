@@ -863,8 +863,10 @@ class NPlusMGainDesign:
         :attr:`tolerance`, certified at its vertices). It certifies the values at ``K``, not that ``K``
         is optimal.
     rigorous : bool
-        True if the abscissa is proven in ball arithmetic (the margin is the floating-point
-        certificate of :mod:`~nrobust.hyperbolic.nplusm.margin` either way).
+        True if the abscissa is proven in ball arithmetic, and with one actuator the margins too
+        (:func:`nplusm_delay_margin` with ``rigorous=True``: :attr:`NPlusMMargin.rigorous`); with
+        several actuators the margins are the floating-point certificate of
+        :func:`multi_actuator_delay_margin`.
     starts, evaluations : int
         Starts run, and evaluations of the objective over all of them.
     runs : tuple of LocalRun
@@ -1140,7 +1142,8 @@ def design_nplusm_gains(
     tol : float
         Stationarity at which a start stops (:class:`~nrobust.design.LocalRun`).
     rigorous : bool
-        Prove the design's abscissa in ball arithmetic (python-flint).
+        Prove the design's abscissa in ball arithmetic (python-flint), and with one actuator its
+        delay margins (:func:`nplusm_delay_margin` with ``rigorous=True``).
     executor : "serial", None, str, int, Executor or dask.distributed.Client
         Where the starts run (``"serial"``: in this process; otherwise :func:`nrobust.sweep_map`).
     speed_tolerance : float, optional
@@ -1247,6 +1250,15 @@ def _merged(windows: tuple[tuple[float, float], ...]) -> tuple[tuple[float, floa
     return tuple(merged)
 
 
+def _certificate_margin(problem: NPlusMGainProblem, K: NDArray[np.float64], j: int, rigorous: bool) -> NPlusMMargin:
+    """The margin the certificate reports for plant ``j``: with ``rigorous`` and one actuator proven in ball
+    arithmetic (:func:`nplusm_delay_margin`), else the problem's certified one."""
+    plant = problem.plant(j)
+    if rigorous and plant.m == 1:
+        return nplusm_delay_margin(plant, K, rigorous=True)
+    return problem.margin(K, j)
+
+
 def _certify(
     system: NPlusMSystem,
     problem: NPlusMGainProblem,
@@ -1259,7 +1271,8 @@ def _certify(
     F = NPlusMCharacteristic(system, K, 0.0)
     sa = F.proven_abscissa() if rigorous else problem.abscissa(K)
     d = None if problem.windows else problem.margin_at_least
-    dm = problem.margin(K) if (problem.objective == "margin" or problem.margin_at_least is not None) else None
+    need_margin = problem.objective == "margin" or problem.margin_at_least is not None
+    dm = _certificate_margin(problem, K, 0, rigorous) if need_margin else None
     met = dm is None or (dm.certified and dm.nominal_unstable == 0 and (d is None or dm.margin >= d))
     verdicts = tuple(check_window(system, K, dm, w) for w in problem.windows) if dm is not None else ()
     met = met and all(v.stable and v.certified for v in verdicts)
@@ -1268,7 +1281,9 @@ def _certify(
         tolerance = _box_tolerance(system, K, eps, problem.windows, inside, MAX_BOX_PROOF_BOXES, stopped_raises=False)
         met = met and tolerance.certified == "certified at the vertices"
     vertex_margins = (
-        () if eps is None or dm is None else tuple(problem.margin(K, j) for j in range(1, 1 + len(problem.scenarios)))
+        ()
+        if eps is None or dm is None
+        else tuple(_certificate_margin(problem, K, j, rigorous) for j in range(1, 1 + len(problem.scenarios)))
     )
     vertex_abscissae: tuple[SpectralAbscissa, ...] = ()
     if eps is not None:

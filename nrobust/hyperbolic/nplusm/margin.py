@@ -1,7 +1,8 @@
 """Delay margins of ``U(t) = K u(t - delta, 1)`` on ``n + m`` systems, the same delay on every actuator.
 
 One actuator: :func:`nplusm_delay_margin` (certified: proven frequency bound and complete
-crossing search of ``|A(i w)| = |B(i w)|``). Any ``m``: :func:`multi_actuator_delay_margin`
+crossing search of ``|A(i w)| = |B(i w)|``; with ``rigorous=True`` proven in ball arithmetic for
+the PDE itself, :mod:`~nrobust.hyperbolic.nplusm.proven_margin`). Any ``m``: :func:`multi_actuator_delay_margin`
 (certified, in compound form) and :func:`multi_actuator_margin` (with ``omega_max``: a capped
 scan of the pencil ``M_0 v = -z M_1 v``, :func:`pencil_crossings`, which the backstepping
 controller's margin with grid kernels also uses). The full-state backstepping law with exact
@@ -27,6 +28,7 @@ from ...margins.matrix import GaugeRemainder, circle_crossings, compound_generat
 from ...roots import count_roots
 from .characteristic import EPS, EXPM_ROUNDING, GRID_PER_PERIOD, NPlusMCharacteristic
 from .compound import compound_characteristic, compound_loop
+from .proven_margin import proven_axis_crossings, proven_frequency_bound
 from .system import NPlusMSystem
 
 __all__ = [
@@ -42,6 +44,10 @@ __all__ = [
 ]
 
 _STATIC_SCOPE = "static gain U = K u(t - delta, 1) on the PDE"
+_PROVEN_SCOPE = (
+    "static gain U = K u(t - delta, 1) on the PDE itself, proven in ball arithmetic (its exact Laplace-domain loop, "
+    "the stored parameters as exact rationals)"
+)
 _TARGET_SCOPE = (
     "full-state backstepping law with exact kernels on the PDE (kernel-free: E (Phi_v - J) = exp(-Sigma--/mu))"
 )
@@ -87,10 +93,11 @@ class NPlusMMargin:
         of :func:`~nrobust.hyperbolic.nplusm.solve_nplusm_kernels` (a model of the law with
         no error bound).
     margin_bracket : (float, float) or None
-        A proven ``[lower, upper]`` of the margin of the law with exact kernels when the loop
+        A proven ``[lower, upper]`` of the margin: of the law with exact kernels when the loop
         carries the grid kernels' proven error (:func:`~nrobust.hyperbolic.nplusm.cascade_delay_margin`,
-        whose ``margin`` is the grid kernels' loop's); None for the other loops, whose ``margin``
-        is itself the claim.
+        whose ``margin`` is the grid kernels' loop's), or of this loop with ``rigorous``
+        (``margin`` then lies in it); None for the other loops, whose ``margin`` is itself the claim,
+        and for a margin 0 or ``inf`` decided by the structure (exact).
     error : float or None
         0 for a margin 0 or ``inf`` decided by the structure (``gamma_0 >= 1``, an unstable
         delay-free loop, no crossing), else an estimate of the error of ``margin`` from every
@@ -99,7 +106,15 @@ class NPlusMMargin:
         :func:`backstepping_exact_margin`), combined by :func:`smallest_delay_error`: a crossing
         whose first delay is within its error of ``margin`` may be the smallest, and the error
         covers it. None when not estimated (the capped scan of :func:`multi_actuator_margin`, the
-        grid kernels' loops, a crossing whose error is unknown).
+        grid kernels' loops, a crossing whose error is unknown). With ``rigorous``: the proven
+        distance from ``margin`` to the far end of ``margin_bracket``.
+    omega_bracket : (float, float) or None
+        With ``rigorous``: a proven enclosure of the crossing frequency of the margin (the hull
+        of the enclosures of the crossings whose delay may be the smallest); else None.
+    rigorous : bool
+        True: every claim (the frequency bound, the count of the delay-free loop, the
+        crossings and ``margin_bracket``) is proven in ball arithmetic for the PDE itself
+        (:func:`nplusm_delay_margin` with ``rigorous=True``).
     """
 
     margin: float
@@ -112,6 +127,8 @@ class NPlusMMargin:
     scope: str = _STATIC_SCOPE
     margin_bracket: tuple[float, float] | None = None
     error: float | None = None
+    omega_bracket: tuple[float, float] | None = None
+    rigorous: bool = False
 
     @property
     def accuracy(self) -> float | None:
@@ -122,12 +139,21 @@ class NPlusMMargin:
             return float(np.nextafter(max(hi - self.margin, self.margin - lo, 0.0), np.inf))
         return self.error
 
+    @property
+    def omega_accuracy(self) -> float | None:
+        """A proven bound of the crossing frequency's error (from :attr:`omega_bracket`), else None."""
+        if self.omega is None or self.omega_bracket is None:
+            return None
+        lo, hi = self.omega_bracket
+        return float(np.nextafter(max(hi - self.omega, self.omega - lo, 0.0), np.inf))
+
     def __repr__(self) -> str:
-        omega = "None" if self.omega is None else with_accuracy(self.omega, None)
+        omega = "None" if self.omega is None else with_accuracy(self.omega, self.omega_accuracy)
+        rigorous = ", rigorous=True" if self.rigorous else ""
         return (
             f"NPlusMMargin(margin={with_accuracy(self.margin, self.accuracy)}, omega={omega}, "
-            f"crossings={len(self.crossings)}, gamma_0<={upper_bound_text(self.gamma_0)}, certified={self.certified}, "
-            f"nominal_unstable={self.nominal_unstable}, scope={self.scope!r})"
+            f"crossings={len(self.crossings)}, gamma_0<={upper_bound_text(self.gamma_0)}, certified={self.certified}"
+            f"{rigorous}, nominal_unstable={self.nominal_unstable}, scope={self.scope!r})"
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -274,7 +300,9 @@ def pencil_crossings(
     return tuple(found)
 
 
-def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000) -> NPlusMMargin:
+def nplusm_delay_margin(
+    system: NPlusMSystem, K: ArrayLike, *, max_points: int = 2_000_000, rigorous: bool = False, prec: int = 53
+) -> NPlusMMargin:
     """Certified delay margin of ``U(t) = K u(t - delta, 1)`` on a one-actuator ``n + 1`` system.
 
     ``F(s; delta) = A(s) + B(s) e^{-delta s}`` (module notes): a root reaches ``s = i w``
@@ -283,6 +311,15 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
     (:meth:`NPlusMCharacteristic.frequency_bound`) there is no crossing; on ``[0, W]``
     the search is complete (:meth:`NPlusMCharacteristic.crossing_frequencies`: Lipschitz
     exclusion of ``|A| - |B|``, then monotonicity of ``g`` from a bound of ``|g''|``).
+
+    With ``rigorous=True`` every step is proven in ball arithmetic for the PDE itself
+    (:mod:`~nrobust.hyperbolic.nplusm.proven_margin`: ``A`` and ``B`` from FLINT's proven
+    matrix exponential, the stored parameters as exact rationals): the frequency bound
+    (:func:`~nrobust.hyperbolic.nplusm.proven_frequency_bound`, for every delay at once), the
+    count of the delay-free loop's roots in ``Re s >= 0`` (:func:`~nrobust.roots.count_roots`
+    with ``rigorous=True`` on ``[0, W] x [-W, W]``), every crossing on ``[0, W]`` with the ball
+    of its frequency and first delay (:func:`~nrobust.hyperbolic.nplusm.proven_axis_crossings`),
+    hence ``margin_bracket`` and ``omega_bracket``; ``margin`` and ``omega`` are their midpoints.
 
     Parameters
     ----------
@@ -293,7 +330,11 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
         The gain.
     max_points : int, optional
         Work bound on evaluations of ``A`` and ``B`` on the axis, checked before each grid
-        is allocated.
+        is allocated (with ``rigorous``: on the ball evaluations of the crossing search).
+    rigorous : bool, optional
+        Prove the margin in ball arithmetic (python-flint, ``pip install nrobust[rigorous]``).
+    prec : int, optional
+        Working precision in bits of the ball arithmetic (``rigorous=True``).
 
     Returns
     -------
@@ -303,12 +344,19 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
     ------
     CertificationError
         The work bound was hit, or ``g`` has a zero of even multiplicity (a tangency) to
-        rounding that the search cannot decide.
+        rounding that the search cannot decide. With ``rigorous``, also: ``gamma_0 >= 1``
+        (the margin 0 is decided in floating point only), or a step not proven in balls
+        (the message names it; a higher ``prec`` or a slight change of the gain helps).
     """
     F = NPlusMCharacteristic(system, K, 0.0)
     if system.m != 1:
         raise ParameterError("system", "one actuator (m = 1): the loop is then A + B e^{-delta s}", system.m)
     max_points = positive_int("max_points", max_points)
+    if not isinstance(rigorous, bool):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    prec = positive_int("prec", prec, minimum=16, maximum=4096)
+    if rigorous:
+        return _proven_static_margin(F, max_points, prec)
     gamma = F.gamma_0()
     if gamma >= 1.0:
         return NPlusMMargin(0.0, None, (), gamma, 0.0, gamma > 1.0 + 1e-12, error=0.0 if gamma > 1.0 + 1e-12 else None)
@@ -330,6 +378,41 @@ def nplusm_delay_margin(system: NPlusMSystem, K: ArrayLike, *, max_points: int =
     best = min(found, key=lambda p: p[1])
     error = smallest_delay_error([d for _, d in found], [crossing_delay_error(F, w, d) for w, d in found])
     return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0, error=error)
+
+
+def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) -> NPlusMMargin:
+    """The ``rigorous=True`` route of :func:`nplusm_delay_margin` (its notes)."""
+    gamma = F.gamma_0()
+    if gamma >= 1.0 - 1e-12:
+        raise CertificationError(
+            f"proven delay margin: gamma_0 = {gamma:.12g} of the delayed principal part is not below 1 (the margin 0 "
+            "of gamma_0 > 1 is decided in floating point: rigorous=False)"
+        )
+    W = proven_frequency_bound(F, prec=prec)
+    radius = max(W, 1.0)
+    count = count_roots(F, (0.0, radius, -radius, radius), rigorous=True, prec=prec)
+    x0, x1, y0, y1 = count.region  # an edge may have been shifted off a root: what was counted where
+    covers = x0 <= 0.0 and x1 >= W and y0 <= -W and y1 >= W
+    if not (covers if int(count) == 0 else x0 >= 0.0):
+        raise CertificationError(
+            f"proven delay margin: the delay-free loop's roots were counted in {count.region} (an edge shifted off a "
+            f"root near it), which does not decide Re s >= 0 within |s| < W = {W!r}; raise prec"
+        )
+    if int(count) != 0:  # unstable without delay: the margin 0 is exact
+        return NPlusMMargin(0.0, None, (), gamma, W, True, int(count), _PROVEN_SCOPE, None, 0.0, None, True)
+    found, _ = proven_axis_crossings(F.ball_function(prec), W, max_evals=max_evals)
+    if not found:
+        return NPlusMMargin(np.inf, None, (), gamma, W, True, 0, _PROVEN_SCOPE, None, 0.0, None, True)
+    lo = min(c.delay[0] for c in found)
+    hi = min(c.delay[1] for c in found)
+    near = [c for c in found if c.delay[0] <= hi]  # each may hold the smallest delay
+    w_lo, w_hi = min(c.omega[0] for c in near), max(c.omega[1] for c in near)
+    margin = min(max(0.5 * (lo + hi), lo), hi)
+    omega = min(max(0.5 * (w_lo + w_hi), w_lo), w_hi)
+    crossings = tuple((0.5 * (c.omega[0] + c.omega[1]), 0.5 * (c.delay[0] + c.delay[1])) for c in found)
+    bracket = (lo, hi)
+    error = float(np.nextafter(max(hi - margin, margin - lo), np.inf))
+    return NPlusMMargin(margin, omega, crossings, gamma, W, True, 0, _PROVEN_SCOPE, bracket, error, (w_lo, w_hi), True)
 
 
 def multi_actuator_margin(
