@@ -101,8 +101,9 @@ class GainEnd(NamedTuple):
         half-width ``tol`` of the bracket ``[K - tol, K + tol]`` on whose two sides
         :func:`~nrobust.hyperbolic.analyses.k_region` confirms the verdicts (admissible inside,
         a certified unstable root or no strong stability outside; the verdict changes only at
-        the critical gains, so the end lies in that bracket), or the width of the last
-        bisection step. None before verification (:func:`locate_gain_ends` solves ``K`` from
+        the critical gains, so the end lies in that bracket; with ``k_region(..., rigorous=True)``
+        and the end proven, the distance to the farther of its two probe gains as rounded), or the
+        width of the last bisection step. None before verification (:func:`locate_gain_ends` solves ``K`` from
         its equation to ``1e-14`` in ``w``, a precision not certified by itself) or when not known.
     omega_accuracy : float or None
         An estimate of ``|omega - w_end|``, ``w_end`` the frequency of the exact end

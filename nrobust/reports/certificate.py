@@ -565,7 +565,27 @@ def _claims(
                 "k_region",
             )
         )
+        if kreg.rigorous and kreg.intervals:
+            out.append(_gain_ends_claim(kreg))
     return tuple(out)
+
+
+def _gain_ends_claim(kreg: KRegion) -> Claim:
+    """The claim on the ends of the admissible gains of ``k_region(..., rigorous=True)``: proven when every end is
+    (:attr:`~nrobust.hyperbolic.analyses.KRegion.proven`), else checked, with the reasons."""
+    ends = ", ".join(
+        f"{with_accuracy(end.K, end.accuracy)} ({end.kind.replace('_', ' ')})" for pair in kreg.ends for end in pair
+    )
+    how = (
+        f"each end of the admissible gains ({ends}) lies, within its accuracy, between a gain stable for every "
+        f"delay in [0, {kreg.delta_max:g}] (a proven delay margin above it, the nominal loop proven stable) and "
+        "one that is not (a proven crossing delay below it, or a proven unstable nominal loop), on the exact loop "
+        "of the PDE; that no other end lies between two ends rests on the floating-point scan"
+    )
+    if kreg.ends_proven:
+        return Claim("admissible gain ends", how, PROVEN, "k_region (rigorous)")
+    why = "; ".join(kreg.unproven) or "no proof decided"
+    return Claim("admissible gain ends", f"not all proven ({why}); checked in floating point", CHECKED, "k_region")
 
 
 def _abscissa_statement(abscissa: SpectralAbscissa) -> str:
@@ -623,7 +643,8 @@ class Certificate:
     k_region : object or None
         :func:`nrobust.hyperbolic.analyses.k_region` for ``U_BS2(K)``: the gains ``K`` keeping every
         delay in ``[0, delta_max]`` stable, each end solved from its own equations and verified
-        (``KRegion.ends`` gives its kind: crossing, pair birth, nominal, strong-stability limit).
+        (``KRegion.ends`` gives its kind: crossing, pair birth, nominal, strong-stability limit);
+        with ``rigorous`` each end proven for the PDE where the proofs decide (``KRegion.proven``).
     region : tuple of float
         The rectangle of the root counts.
     versions : dict
@@ -883,7 +904,9 @@ def certify(
     rigorous : bool
         Prove the root counts, the spectral abscissa, the delay margin (with its crossing)
         and the Rouché range in ball arithmetic (python-flint, ``pip install
-        nrobust[rigorous]``), and estimate the model error of ``N~`` (:class:`ModelError`).
+        nrobust[rigorous]``), prove the ends of the admissible gains (``k_region(...,
+        rigorous=True)``: the claim "admissible gain ends"), and estimate the model error of
+        ``N~`` (:class:`ModelError`).
         Every claim of the certificate (:attr:`Certificate.claims`) says whether it is
         :data:`PROVEN` or :data:`CHECKED`.
     kernel_grid : int, optional
@@ -983,7 +1006,7 @@ def certify(
         if k_region and isinstance(controller, ReflectionController) and classification.k_bound > 0:
             n_gains = positive_int("n_gains", n_gains, 3)
             try:
-                kreg = analyses.k_region(system, delta_max, n_gains=n_gains)
+                kreg = analyses.k_region(system, delta_max, n_gains=n_gains, rigorous=rigorous)
             except CertificationError as exc:
                 k_region_error = str(exc)
     model_error = _model_error(system, controller, margin, kernel_grid)

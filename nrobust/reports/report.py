@@ -751,7 +751,8 @@ def _k_region_text(kreg: Any) -> str:
         f"({with_accuracy(lo, lo_acc)}, {with_accuracy(hi, hi_acc)})"
         for (lo, hi), (lo_acc, hi_acc) in zip(kreg.intervals, kreg.end_accuracies)
     ]
-    return f"{'; '.join(parts)}; each end verified to {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
+    how = "proven for the PDE" if kreg.ends_proven else "verified"
+    return f"{'; '.join(parts)}; each end {how} to {_fmt(kreg.tol, 3)} (paper bound |K| < {_fmt(kreg.paper_bound)})"
 
 
 # ---------------------------------------------------------------------- renderers

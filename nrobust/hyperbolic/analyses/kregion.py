@@ -7,6 +7,7 @@ is verified; for any other family the grid's changes of verdict are bisected on 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -27,6 +28,7 @@ from ..loops.controllers import ReflectionController, classify, loop_factors
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import GainMargin, exact_loop_plant, mapper, real_grid, study_plant
+from .margin import delay_margin
 
 # END_KINDS and GainEnd, the kinds and ends of a KRegion's intervals, are also exported by nrobust.hyperbolic.analyses
 __all__ = ["DEFAULT_N_GAINS", "END_KINDS", "MAX_GAINS", "GainEnd", "KRegion", "k_region", "u_bs2_loop"]
@@ -77,6 +79,20 @@ class KRegion:
         ``"bisection"`` for a ``controller`` family other than ``U_BS2(K)``).
     method : str
         ``"equations"`` (ends solved from the equations of their kind) or ``"bisection"``.
+    rigorous : bool
+        ``k_region(..., rigorous=True)``: each end was put to a proof for the PDE (:attr:`proven`).
+    proven : tuple of (bool, bool)
+        With :attr:`rigorous`, for each interval, whether its lower and upper end are proven for the
+        PDE: at the two gains that bracket the end (``end.K -+ tol``), proven delay margins of the
+        exact loop (:func:`~nrobust.hyperbolic.analyses.delay_margin` with ``rigorous=True``) find the
+        inner gain admissible (the nominal loop proven stable, the margin's ball above ``delta_max``)
+        and the outer gain not (a crossing delay's ball below ``delta_max``, the nominal loop proven
+        unstable, or the difference operator proven not strongly stable). The admissible set then has
+        a boundary point within :attr:`GainEnd.accuracy` of ``end.K``. That no other end lies between
+        two ends rests on the floating-point scan. Empty without :attr:`rigorous`.
+    unproven : tuple of str
+        With :attr:`rigorous`, why each end that is not proven could not be (it is then checked in
+        floating point only).
     """
 
     intervals: tuple[tuple[float, float], ...]
@@ -88,6 +104,15 @@ class KRegion:
     tol: float
     ends: tuple[tuple[GainEnd, GainEnd], ...] = ()
     method: str = "bisection"
+    rigorous: bool = False
+    proven: tuple[tuple[bool, bool], ...] = ()
+    unproven: tuple[str, ...] = ()
+
+    @property
+    def ends_proven(self) -> bool:
+        """True when every end of every interval is proven for the PDE (:attr:`proven`; False
+        without :attr:`rigorous` or without an interval)."""
+        return self.rigorous and bool(self.proven) and all(lo and hi for lo, hi in self.proven)
 
     @property
     def end_accuracies(self) -> tuple[tuple[float | None, float | None], ...]:
@@ -106,7 +131,10 @@ class KRegion:
             )
             or "empty"
         )
-        return f"KRegion(delta_max={self.delta_max:.6g}, K in {ivs}, paper bound |K| < {self.paper_bound:.6g})"
+        proofs = ""
+        if self.rigorous and self.intervals:
+            proofs = ", ends proven for the PDE" if self.ends_proven else ", ends not all proven (see unproven)"
+        return f"KRegion(delta_max={self.delta_max:.6g}, K in {ivs}, paper bound |K| < {self.paper_bound:.6g}{proofs})"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description; each end as ``{"K", "kind", "omega", "delay", "accuracy"}``."""
@@ -168,6 +196,50 @@ def _grid_verdicts(
     return np.array([dm.margin for dm in checked]), np.array([tolerates(dm, delta_max) for dm in checked])
 
 
+def _proven_margin(plant: Hyperbolic2x2 | GeneralHyperbolic2x2, K: float, delta_max: float) -> DelayMargin | str:
+    """The delay margin of ``U_BS2(K)`` on ``plant`` proven for the PDE, or why there is none."""
+    try:
+        dm = delay_margin(plant, ReflectionController(K), delta_max=delta_max, verify=False, rigorous=True)
+    except CertificationError as exc:
+        return f"the proof of the delay margin at K = {K:.15g} failed ({exc})"
+    if not dm.rigorous or dm.of_model:
+        return f"the delay margin at K = {K:.15g} is proven for a model of the plant only ({dm.scope})"
+    return dm
+
+
+def _proven_side(dm: DelayMargin, delta_max: float, inside: bool) -> str | None:
+    """None if the proven margin ``dm`` shows its gain admissible (``inside``) or not, else why not.
+
+    Admissible: strongly stable, the nominal loop proven stable and the margin's ball above
+    ``delta_max`` (an infinite margin: no crossing). Not admissible: the difference operator not
+    strongly stable, zeros of the nominal loop counted in ``Re s > 0``, or a crossing delay whose
+    ball lies below ``delta_max``.
+    """
+    ball = dm.margin_ball
+    if inside:
+        above = np.isposinf(dm.margin) or (ball is not None and ball[0] > delta_max)
+        if dm.strongly_stable and dm.nominally_stable and above:
+            return None
+        return f"inside, the proven margin {ball} does not exceed {delta_max:g} with a stable nominal loop"
+    below = dm.nominally_stable and ball is not None and ball[1] < delta_max
+    if not dm.strongly_stable or bool(dm.nominal_unstable) or below:
+        return None
+    return f"outside, the proven margin {ball} does not lie below {delta_max:g}"
+
+
+def _prove_end(
+    plant: Hyperbolic2x2 | GeneralHyperbolic2x2, end: GainEnd, K_in: float, K_out: float, delta_max: float
+) -> str | None:
+    """None if ``end`` is proven for the PDE between the gains ``K_in`` (admissible) and ``K_out`` (not), else why not
+    (:attr:`KRegion.proven`)."""
+    for K, inside in ((K_in, True), (K_out, False)):
+        dm = _proven_margin(plant, K, delta_max)
+        why = dm if isinstance(dm, str) else _proven_side(dm, delta_max, inside)
+        if why is not None:
+            return f"the {end.kind} end K = {end.K:.15g}: {why}"
+    return None
+
+
 def _exact_region(
     system: Hyperbolic2x2 | GeneralHyperbolic2x2,
     delta_max: float,
@@ -177,9 +249,12 @@ def _exact_region(
     executor: Any,
     max_evals: int,
     progress: bool | None,
+    rigorous: bool = False,
+    given: Any = None,
 ) -> KRegion:
     """:func:`k_region` of ``U_BS2(K)``: ends from their equations, each checked (``system``: the plant whose loops
-    are built, :func:`~nrobust.hyperbolic.analyses._common.exact_loop_plant`)."""
+    are built, :func:`~nrobust.hyperbolic.analyses._common.exact_loop_plant`), and with ``rigorous`` proven for the
+    plant as given (``given``) where the proofs decide."""
     loop = u_bs2_loop(system)
     pairs = locate_gain_ends(loop, delta_max, kb, tol, max_evals) if kb > 0 else []
     probes: list[float] = []
@@ -192,16 +267,39 @@ def _exact_region(
         results = list(mapper(executor, progress, "k_region: delay margins")(verdict, [*grid, *probes]))
     margins, ok = _grid_verdicts(delta_max, grid, results[: grid.size])
     checks = iter(results[grid.size :])
+    proven: list[tuple[bool, bool]] = []
+    unproven: list[str] = []
+    verified: list[tuple[GainEnd, GainEnd]] = []
     for lo, hi in pairs:
+        pair: list[GainEnd] = []
+        flags: list[bool] = []
         for end, sign in ((lo, 1.0), (hi, -1.0)):
-            why = check_gain_end(end, next(checks), end.K - sign * tol, loop, delta_max)
-            if why is not None:
+            K_in, K_out = end.K + sign * tol, end.K - sign * tol
+            why = check_gain_end(end, next(checks), K_out, loop, delta_max)
+            proof = None
+            if rigorous:  # a proof also settles an end that floating point cannot (a bracket too tight for it)
+                mapped = (
+                    f"the {end.kind} end K = {end.K:.15g}: its loops are the normal form's, computed in floating point"
+                )
+                proof = _prove_end(system, end, K_in, K_out, delta_max) if system is given else mapped
+            if why is not None and (not rigorous or proof is not None):
                 raise CertificationError(
                     f"k_region: the end K = {end.K:.15g} ({end.kind}, w = {end.omega:.10g}) of the admissible "
                     f"interval ({lo.K:.12g}, {hi.K:.12g}) could not be verified on the bracket "
-                    f"[{min(end.K - tol, end.K + tol):.15g}, {max(end.K - tol, end.K + tol):.15g}]: {why}"
+                    f"[{min(K_in, K_out):.15g}, {max(K_in, K_out):.15g}]: {why}"
+                    + (f"; nor proven: {proof}" if proof else "")
                 )
-    pairs = [(loop.verified_end(lo, tol), loop.verified_end(hi, tol)) for lo, hi in pairs]  # verified on K +- tol
+            end = loop.verified_end(end, tol)  # verified on K +- tol
+            if rigorous and proof is None:  # the bracket holds both probes as they were rounded
+                end = end._replace(accuracy=float(np.nextafter(max(abs(K_in - end.K), abs(K_out - end.K)), np.inf)))
+            elif proof is not None:
+                unproven.append(proof)
+            pair.append(end)
+            flags.append(rigorous and proof is None)
+        verified.append((pair[0], pair[1]))
+        if rigorous:
+            proven.append((flags[0], flags[1]))
+    pairs = verified
     intervals = tuple((float(lo.K), float(hi.K)) for lo, hi in pairs)
     for K, good in zip(grid, ok):
         near_end = any(min(abs(K - lo), abs(K - hi)) <= 2.0 * tol for lo, hi in intervals)
@@ -211,7 +309,20 @@ def _exact_region(
                 f"k_region: at the grid gain K = {K:.12g} the delay margin says {'' if good else 'not '}admissible, "
                 f"the located intervals {intervals} say the opposite"
             )
-    return KRegion(intervals, delta_max, kb, grid, margins, ok, tol, tuple(pairs), "equations")
+    return KRegion(
+        intervals,
+        delta_max,
+        kb,
+        grid,
+        margins,
+        ok,
+        tol,
+        tuple(pairs),
+        "equations",
+        rigorous,
+        tuple(proven),
+        tuple(unproven),
+    )
 
 
 def _bisection_region(
@@ -293,6 +404,7 @@ def k_region(
     executor: Any = "serial",
     max_evals: int = 2_000_000,
     progress: bool | None = None,
+    rigorous: bool = False,
 ) -> KRegion:
     """Gains keeping the loop stable for every delay in ``[0, delta_max]``, with exact ends.
 
@@ -325,8 +437,19 @@ def k_region(
     Features narrower than the scan step ``pi / (4 (2 tau + delta_max))`` in frequency can
     be missed; a verified end is exact whatever happens between ends.
 
+    With ``rigorous=True`` each end of ``U_BS2(K)`` is also proven for the PDE: at its two
+    probe gains ``end.K -+ tol`` the delay margins of the exact loop, proven in ball arithmetic
+    (:func:`~nrobust.hyperbolic.analyses.delay_margin` with ``rigorous=True``), find the inner
+    gain admissible and the outer one not, so that an end of the admissible set lies between
+    them as a theorem (:attr:`KRegion.proven`; the end's :attr:`GainEnd.accuracy` is then the
+    distance to the farther probe). An end the proofs cannot decide (a margin's ball that
+    straddles ``delta_max``, a loop that is a model of the plant) stays checked in floating
+    point, and :attr:`KRegion.unproven` says why. That no other end lies between two ends rests
+    on the floating-point scan.
+
     For any other ``controller`` family the grid's changes of verdict are bisected to
-    ``tol`` on delay margins instead (kind ``"bisection"``).
+    ``tol`` on delay margins instead (kind ``"bisection"``; with ``rigorous`` its ends are
+    not proven, and :attr:`KRegion.unproven` says so).
 
     Parameters
     ----------
@@ -361,6 +484,10 @@ def k_region(
     progress : bool, optional
         A progress bar over the delay margins on stderr; by default only when stderr is a
         terminal or Jupyter.
+    rigorous : bool, default False
+        Prove each end for the PDE as above (python-flint, ``pip install nrobust[rigorous]``;
+        four proven delay margins per interval). Without it the ends are checked in floating
+        point only, at no extra cost.
 
     Returns
     -------
@@ -377,6 +504,9 @@ def k_region(
     """
     if Ks is None:
         n_gains = positive_int("n_gains", n_gains, 3, MAX_GAINS)
+    if not isinstance(rigorous, (bool, np.bool_)):
+        raise ParameterError("rigorous", "True or False", rigorous)
+    rigorous = bool(rigorous)
     given = system
     system, controller = study_plant(system, controller, "k_region")
     delta_max = positive("delta_max", delta_max)
@@ -393,5 +523,12 @@ def k_region(
     if grid.size > MAX_GAINS:
         raise ParameterError("Ks", f"at most MAX_GAINS = {MAX_GAINS} gains long", grid.size)
     if controller is None or controller is ReflectionController:
-        return _exact_region(exact_loop_plant(given, system), delta_max, kb, grid, tol, executor, max_evals, progress)
-    return _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)
+        plant = exact_loop_plant(given, system)
+        return _exact_region(plant, delta_max, kb, grid, tol, executor, max_evals, progress, rigorous, given)
+    region = _bisection_region(system, delta_max, kb, grid, tol, controller, executor, max_evals, progress)
+    if not rigorous:
+        return region
+    why = "the ends of a controller family other than U_BS2(K) are bisected on floating-point delay margins"
+    return dataclasses.replace(
+        region, rigorous=True, proven=tuple((False, False) for _ in region.ends), unproven=(why,) if region.ends else ()
+    )
