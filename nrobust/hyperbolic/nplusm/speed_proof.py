@@ -55,17 +55,21 @@ with ``z = e^{-delta s}`` (:class:`_Loop`), a polynomial of degree ``m`` in ``z`
    also the strong stability of the difference operator for every delay). With ``|F - F_0| <= sum_d ||a_d|| ||b||
    r(|s|)``, the gauge remainder of ``D``, this gives ``W`` as for one actuator (:func:`_compound_tail`).
 2. Boxes of ``(w, S', [delta])`` covering ``[0, W] x S x [d_min, d_max]``, with ``c_d`` enclosed by the ball
-   exponentials of ``C - i w P_j`` (one per actuator) and the determinants' expansion by rows, are cleared when
-   one ``|c_k|`` exceeds the sum of the others (no root on ``|z| = 1``, so none for any delay; Rouché), when
-   ``m = 2`` and each root of the quadratic in ``z`` is off the unit circle or has every crossing delay outside
-   the window (:func:`_roots_clear`), or when ``F`` with ``z = e^{-i w delta}`` as a ball is enclosed away from 0;
-   otherwise the parameter along which ``F`` moves most (floating point, a choice only; never the delay, which the
-   roots decide, nor a parameter at the smallest width) is halved, up to ``max_boxes`` boxes. At most
-   :data:`MAX_PROVEN_ACTUATORS` actuators.
+   exponentials of ``C - i w P_j`` (one per actuator) and the determinants' expansion by rows, then, if that does not
+   decide, by Taylor's formula of order 2 about the box's middle (:meth:`_Loop.centred`: the derivatives of the rows
+   by Van Loan's block exponential and of the determinants by the product rule, the remainder from Dyson's bounds
+   and Hadamard's inequality), are cleared when one ``|c_k|`` exceeds the sum of the others (no root on ``|z| = 1``,
+   so none for any delay; Rouché), when ``m = 2`` and each root of the quadratic in ``z`` is off the unit circle or
+   has every crossing delay outside the window (:func:`_roots_clear`), or when ``F`` with ``z = e^{-i w delta}`` as
+   a ball is enclosed away from 0; otherwise the parameter with the largest share of the centred enclosures' widths
+   (never the delay, which the roots decide, nor a parameter at the smallest width) is halved, up to ``max_boxes``
+   boxes. At most :data:`MAX_PROVEN_ACTUATORS` actuators.
 3. As for one actuator.
 
-The ball exponential wraps over boxes where ``w`` times the spread of the inverse speeds is large (no Taylor form
-for ``m > 1``), so the frequency bound ``W`` sets the cost: weakly coupled plants, small tolerances.
+The ball exponential wraps over boxes where ``w`` times the spread of the inverse speeds is large; the centred form
+does not (its width is first order in the box, with the derivatives of the plant at the middle), so it decides
+boxes several times larger there. The first-order term still grows with ``w`` (the phases ``e^{-i w p}`` move with
+the speeds), so the frequency bound ``W`` sets the cost: weakly coupled plants, moderate tolerances.
 """
 
 from __future__ import annotations
@@ -401,7 +405,6 @@ class _Loop:
                 slopes.append(exact(row))
             for k in range(m):
                 d_p = np.array([float(k == j)] * n + [float(k == j) - float(k == ell) for ell in range(m)])
-                d_p[n + j] = 0.0
                 row = (-1j * w[:, None, None] * d_p[None, :, None]) * eye
                 row[:, n + k] -= sigma[n + k]
                 slopes.append(exact(row))
