@@ -933,6 +933,6 @@ def _several_actuators(
             mid = 0.5 * (lo + hi)
             left, right = list(box), list(box)
             left[j], right[j] = (lo, mid), (mid, hi)
-            children += [tuple(right), tuple(left)]
-        stack += children  # the lower frequencies first
+            children = [tuple(right), tuple(left), *children]
+        stack += children  # the first box popped on top again, its lower half first: the lower frequencies first
     return W, boxes
