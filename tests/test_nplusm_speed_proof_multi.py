@@ -196,8 +196,7 @@ def test_the_centred_enclosure_holds_direct_evaluations(
     plants at the box's corners (where the first-order term is largest) and at random points, from the plant's own
     floating-point characteristic function (rounding below 1e-13 for coefficients about 1, so the slack 1e-12). On the
     tiny boxes the first-order term decides the radius and the corners reach 0.4 to 0.7 of it (measured): the
-    derivatives are those of the plant, not merely bounds. At ``w`` about 150 on the 2 + 2 plant the centred radius
-    is at most a third of the ball exponential's (0.028 against 0.154 measured for ``c_0``)."""
+    derivatives are those of the plant, not merely bounds."""
     from nrobust._flint import working_precision
     from nrobust.hyperbolic.nplusm.speed_proof import _Loop
 
@@ -208,7 +207,6 @@ def test_the_centred_enclosure_holds_direct_evaluations(
         balls = [flint.arb(lo).union(flint.arb(hi)) for lo, hi in box]
         loop = _Loop(flint, system, gain, balls[1:])
         coefficients, shares = loop.centred([box])[0]
-        ball = loop.coefficients(balls[0], balls[1:])
     assert len(coefficients) == system.m + 1 and np.all(shares >= 0.0)
     mids = np.array([complex(c.mid()) for c in coefficients])
     radii = np.array([float(c.rad()) for c in coefficients])  # acb: the rectangle holds the disc of this radius
@@ -223,8 +221,6 @@ def test_the_centred_enclosure_holds_direct_evaluations(
         reach = np.maximum(reach, np.abs(direct - mids) / radii)
     if hw < 1e-3:
         assert max(reach) > 0.4
-    if w0 > 100.0 and hw > 1e-3:
-        assert float(coefficients[0].rad()) < float(ball[0].rad()) / 3.0
 
 
 WIDE_EPS = 0.02
@@ -238,9 +234,9 @@ def _wide_proof() -> SpeedBoxProof:
 
 @pytest.mark.long
 def test_a_wider_box_proven_with_the_centred_form() -> None:
-    """``eps = 0.02`` is proven within 15,000 boxes (6,985 measured, about 2.3 s of CPU time; the ball exponentials
-    alone needed 48,589 boxes and 18 s, so the work bound stopped them): the centred form clears the boxes where the
-    ball exponentials wrap."""
+    """``eps = 0.02`` is proven within 15,000 boxes (7,037 measured, about 1.3 s of CPU time; the ball exponentials
+    needed 48,589 boxes and 18 s, so the work bound would have stopped them): the centred form clears the boxes where
+    the ball exponentials wrap."""
     proof = _wide_proof()
     assert proof.proven and proof.base == 0 and proof.undecided == ()
     assert proof.boxes < 15_000
