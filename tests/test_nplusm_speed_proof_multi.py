@@ -83,7 +83,7 @@ def test_inside_points_agree_with_direct_margins(e_lam: float, e_mu1: float, e_m
 def test_a_window_holding_a_crossing_is_refused() -> None:
     """The window ``[0, 20]`` holds the nominal plant's first crossing delay (its certified margin, about 18.74, at
     the crossing frequency 0.14861): given a verdict that claims stability, the proof on a box ``eps = 1e-9`` about
-    the plant is not proven: it halves down to its least width about that frequency and names it (2,115 boxes
+    the plant is not proven: it halves down to its least width about that frequency and names it (1,880 boxes
     measured, the work bound 20,000 not reached). The frequency of the margin holds to about 1e-12 and the box moves
     it by about 1e-9 relative: the named interval within 1e-8 of it."""
     dm = multi_actuator_delay_margin(SYSTEM, GAIN)
