@@ -10,6 +10,7 @@ box proof (no ball arithmetic, no subdivision over the speeds).
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 import pytest
@@ -82,7 +83,7 @@ def test_inside_points_agree_with_direct_margins(e_lam: float, e_mu1: float, e_m
 def test_a_window_holding_a_crossing_is_refused() -> None:
     """The window ``[0, 20]`` holds the nominal plant's first crossing delay (its certified margin, about 18.74, at
     the crossing frequency 0.14861): given a verdict that claims stability, the proof on a box ``eps = 1e-9`` about
-    the plant is not proven: it halves down to its least width about that frequency and names it (2,115 boxes
+    the plant is not proven: it halves down to its least width about that frequency and names it (1,880 boxes
     measured, the work bound 20,000 not reached). The frequency of the margin holds to about 1e-12 and the box moves
     it by about 1e-9 relative: the named interval within 1e-8 of it."""
     dm = multi_actuator_delay_margin(SYSTEM, GAIN)
@@ -124,21 +125,195 @@ def test_the_tolerance_with_two_actuators_proven_inside() -> None:
     assert "between the points certified too, on the whole box" in tol.statement
 
 
-def test_three_actuators_are_refused_before_work() -> None:
-    """Three actuators: a ``ParameterError`` naming ``inside`` (and ``system`` for the proof itself) before any
-    verdict is computed (boxes of the delay were not decided on the plants tried)."""
+#: A coupled ``1 + 3`` plant and a gain with the certified margin 5.62 (``multi_actuator_delay_margin``).
+THREE_COUPLING = 0.2
+THREE = NPlusMSystem(
+    [1.5],
+    [1.0, 2.0, 1.5],
+    [
+        [0, THREE_COUPLING, THREE_COUPLING, THREE_COUPLING],
+        [THREE_COUPLING, 0, 0, 0],
+        [THREE_COUPLING, 0, 0, 0],
+        [THREE_COUPLING, 0, THREE_COUPLING, 0],
+    ],
+    [[0.3, 0.4, 0.2]],
+    [[0.5], [0.3], [0.2]],
+)
+THREE_GAIN = [[-0.7], [-0.3], [-0.2]]
+THREE_EPS, THREE_WINDOW = 1e-4, (0.0, 2.0)
+
+
+@functools.cache
+def _three_proof() -> SpeedBoxProof:
+    """The proof for three actuators on the box ``eps = 1e-4`` and the window ``[0, 2]`` (once)."""
+    dm = multi_actuator_delay_margin(THREE, THREE_GAIN)
+    verdict = check_window(THREE, THREE_GAIN, dm, THREE_WINDOW)
+    return prove_speed_box(THREE, THREE_GAIN, THREE_EPS, THREE_WINDOW, [(0.0,) * 4], [verdict], max_boxes=10_000)
+
+
+def test_three_actuators_proven_inside() -> None:
+    """Three actuators (``F`` a cubic in ``z``, cleared by a dominant coefficient or ``z`` as a ball over the window):
+    the window ``[0, 2]`` proven on the box ``eps = 1e-4`` within 10,000 boxes (2,403 measured, about 1.2 s of CPU
+    time; ``W`` about 122)."""
+    proof = _three_proof()
+    assert proof.proven and proof.base == 0 and 100.0 < proof.frequency_bound < 150.0
+
+
+@settings(max_examples=3, deadline=None, derandomize=True)
+@given(st.lists(st.floats(-THREE_EPS, THREE_EPS), min_size=4, max_size=4))
+def test_three_actuator_points_agree_with_direct_margins(errors: list[float]) -> None:
+    """At points drawn inside the box proven above the plant's own certified margin is beyond the window's end, with
+    no zero in ``Re s >= 0`` at ``delta = 0``."""
+    assert _three_proof().proven
+    dm = multi_actuator_delay_margin(perturbed_system(THREE, tuple(errors)), THREE_GAIN)
+    assert dm.certified and dm.nominal_unstable == 0 and dm.margin > THREE_WINDOW[1]
+
+
+def test_four_actuators_are_refused_before_work() -> None:
+    """Four actuators: the proof is a ``ParameterError`` naming ``system`` before any work (at most
+    ``MAX_PROVEN_ACTUATORS = 3``), and the tolerance one naming ``eps`` (the box of a ``1 + 4`` plant has 32 vertices,
+    above ``MAX_SPEED_CORNERS``)."""
     c = 0.1
-    three = NPlusMSystem(
+    four = NPlusMSystem(
         [1.5],
-        [1.0, 2.0, 1.5],
-        [[0, c, c, 0], [c, 0, 0, 0], [c, 0, 0, 0], [0, 0, c, 0]],
-        [[0.3, 0.4, 0.2]],
-        [[0.5], [0.3], [0.2]],
+        [1.0, 2.0, 1.5, 1.2],
+        [[0, c, c, 0, 0], [c, 0, 0, 0, 0], [c, 0, 0, 0, 0], [0, 0, c, 0, 0], [c, 0, 0, 0, 0]],
+        [[0.3, 0.4, 0.2, 0.1]],
+        [[0.5], [0.3], [0.2], [0.1]],
     )
-    gain = [[-0.4], [-0.2], [-0.1]]
+    gain = [[-0.4], [-0.2], [-0.1], [-0.1]]
     with pytest.raises(ParameterError) as info:
-        nplusm_speed_tolerance(three, gain, 0.002, (0.0, 0.5), inside=True)
-    assert info.value.name == "inside" and "at most 2 actuators" in str(info.value)
+        prove_speed_box(four, gain, 0.002, (0.0, 0.5), [], [])
+    assert info.value.name == "system" and "at most 3 actuators" in str(info.value)
     with pytest.raises(ParameterError) as info:
-        prove_speed_box(three, gain, 0.002, (0.0, 0.5), [], [])
-    assert info.value.name == "system"
+        nplusm_speed_tolerance(four, gain, 0.002, (0.0, 0.5), inside=True)
+    assert info.value.name == "eps"
+
+
+#: The fully coupled ``2 + 2`` plant of ``tests/test_nplusm_design.py`` (couplings up to 0.6) and a gain with the
+#: certified margin 4.6096 (``multi_actuator_delay_margin``).
+TWO_TWO = NPlusMSystem(
+    [1.0, 0.5],
+    [1.0, 2.0],
+    [[0.0, 0.1, 0.5, 0.2], [0.1, 0.0, 0.2, -0.3], [0.4, 0.1, 0.0, 0.1], [0.2, 0.6, 0.1, 0.0]],
+    [[0.8, 0.1], [0.2, 0.7]],
+    [[0.5, 0.2], [0.1, -0.4]],
+)
+TWO_GAIN = np.array([[-0.3, 0.0], [0.0, 0.2]])
+
+
+def _inverse_box(system: NPlusMSystem, eps: float) -> list[tuple[float, float]]:
+    """Float intervals of the inverse speeds holding ``1 / (c (1 + e))`` for ``|e| <= eps`` (one ulp outwards)."""
+    speeds = np.concatenate([system.lam, system.mu])
+    return [
+        (float(np.nextafter(1.0 / (c * (1.0 + eps)), 0.0)), float(np.nextafter(1.0 / (c * (1.0 - eps)), 2.0)))
+        for c in speeds
+    ]
+
+
+def _direct_coefficients(plant: NPlusMSystem, gain: np.ndarray, w: float) -> np.ndarray:
+    """``c_0, ..., c_m`` of ``F(i w) = sum_d c_d z^d`` from the plant's own floating-point characteristic function
+    (``NPlusMCharacteristic``: scipy's ``expm`` and numpy's determinant, no ball arithmetic) at the ``m + 1`` delays
+    putting ``z = e^{-i w delta}`` on the roots of unity of order ``m + 1`` (a well-conditioned Vandermonde system)."""
+    from nrobust.hyperbolic.nplusm import NPlusMCharacteristic
+
+    k = plant.m + 1
+    delays = 2.0 * np.pi * np.arange(k) / (k * w)
+    z = np.exp(-1j * w * delays)
+    f = [complex(NPlusMCharacteristic(plant, gain, d)(np.array([1j * w]))[0]) for d in delays]
+    return np.asarray(np.linalg.solve(np.vander(z, increasing=True), f))
+
+
+@pytest.mark.parametrize(
+    ("system", "gain", "w0", "hw", "eps"),
+    [
+        (SYSTEM, np.array(GAIN), 11.0, 0.05, 1e-3),
+        (TWO_TWO, TWO_GAIN, 5.0, 0.05, 1e-3),
+        (TWO_TWO, TWO_GAIN, 150.0, 0.01, 1e-5),
+        (TWO_TWO, TWO_GAIN, 150.0, 1e-6, 1e-8),
+        (SYSTEM, np.array(GAIN), 11.0, 1e-6, 1e-8),
+    ],
+)
+def test_the_centred_enclosure_holds_direct_evaluations(
+    system: NPlusMSystem, gain: np.ndarray, w0: float, hw: float, eps: float
+) -> None:
+    """The centred enclosures of ``c_0, ..., c_m`` on a box of ``(w, inverse speeds)`` hold the coefficients of the
+    plants at the box's corners (where the first-order term is largest) and at random points, from the plant's own
+    floating-point characteristic function (rounding below 1e-13 for coefficients about 1, so the slack 1e-12). On the
+    tiny boxes the first-order term decides the radius and the corners reach 0.4 to 0.7 of it (measured): the
+    derivatives are those of the plant, not merely bounds."""
+    from nrobust._flint import working_precision
+    from nrobust.hyperbolic.nplusm.speed_proof import _Loop
+
+    rng = np.random.default_rng(7)
+    box = [(w0, w0 + hw), *_inverse_box(system, eps)]
+    speeds = np.concatenate([system.lam, system.mu])
+    with working_precision(53) as flint:
+        balls = [flint.arb(lo).union(flint.arb(hi)) for lo, hi in box]
+        loop = _Loop(flint, system, gain, balls[1:])
+        coefficients, shares = loop.centred([box])[0]
+    assert len(coefficients) == system.m + 1 and np.all(shares >= 0.0)
+    mids = np.array([complex(c.mid()) for c in coefficients])
+    radii = np.array([float(c.rad()) for c in coefficients])  # acb: the rectangle holds the disc of this radius
+    corners = list(itertools.product((-1.0, 1.0), repeat=speeds.size + 1))
+    inside = [tuple(rng.uniform(-1.0, 1.0, speeds.size + 1)) for _ in range(10)]
+    reach = np.zeros(system.m + 1)
+    for point in corners + inside:
+        plant_speeds = speeds * (1.0 + eps * np.array(point[1:]))
+        plant = NPlusMSystem(plant_speeds[: system.n], plant_speeds[system.n :], system.sigma, system.q, system.r)
+        direct = _direct_coefficients(plant, gain, w0 + hw * (1.0 + point[0]) / 2.0)
+        assert np.all(np.abs(direct - mids) <= radii + 1e-12)
+        reach = np.maximum(reach, np.abs(direct - mids) / radii)
+    if hw < 1e-3:
+        assert max(reach) > 0.4
+
+
+WIDE_EPS = 0.02
+
+
+@functools.cache
+def _wide_proof() -> SpeedBoxProof:
+    """The proof on the box ``eps = 0.02`` and the window ``[0, 5]`` from the nominal plant's verdict (once)."""
+    return prove_speed_box(SYSTEM, GAIN, WIDE_EPS, WINDOW, [NOMINAL], [_nominal_verdict(WINDOW)], max_boxes=15_000)
+
+
+@pytest.mark.long
+def test_a_wider_box_proven_with_the_centred_form() -> None:
+    """``eps = 0.02`` is proven within 15,000 boxes (7,037 measured, about 1.3 s of CPU time; the ball exponentials
+    needed 48,589 boxes and 18 s, so the work bound would have stopped them): the centred form clears the boxes where
+    the ball exponentials wrap."""
+    proof = _wide_proof()
+    assert proof.proven and proof.base == 0 and proof.undecided == ()
+    assert proof.boxes < 15_000
+
+
+@pytest.mark.long
+@settings(max_examples=4, deadline=None, derandomize=True)
+@given(st.floats(-WIDE_EPS, WIDE_EPS), st.floats(-WIDE_EPS, WIDE_EPS), st.floats(-WIDE_EPS, WIDE_EPS))
+def test_wide_box_points_agree_with_direct_margins(e_lam: float, e_mu1: float, e_mu2: float) -> None:
+    """At points drawn inside the box ``eps = 0.02`` proven above, the plant's own certified delay margin is beyond the
+    window's end and its loop has no zero in ``Re s >= 0`` at ``delta = 0``."""
+    assert _wide_proof().proven
+    plant = perturbed_system(SYSTEM, (e_lam, e_mu1, e_mu2))
+    dm = multi_actuator_delay_margin(plant, GAIN)
+    assert dm.certified and dm.nominal_unstable == 0 and dm.margin > WINDOW[1]
+
+
+def test_a_box_holding_an_unstable_plant_is_refused() -> None:
+    """On the box ``eps = 0.001`` the certified margins at the vertices range from 18.51 (all speeds low) to 18.98 (all
+    high): the window ``[0, 18.75]`` holds the crossing delay of the low vertex, so that plant is unstable there,
+    while the high vertex is certified stable on it. From the high vertex's verdict the proof is refused: not proven,
+    or stopped at the work bound (2,000 boxes; it halves towards the crossing at w = 0.147)."""
+    eps, window = 1e-3, (0.0, 18.75)
+    low, high = (-eps, -eps, -eps), (eps, eps, eps)
+    dm_low = multi_actuator_delay_margin(perturbed_system(SYSTEM, low), GAIN)
+    dm_high = multi_actuator_delay_margin(perturbed_system(SYSTEM, high), GAIN)
+    assert dm_low.certified and dm_low.margin < window[1] < dm_high.margin
+    verdict = check_window(perturbed_system(SYSTEM, high), GAIN, dm_high, window)
+    assert verdict.stable and verdict.certified
+    try:
+        proof = prove_speed_box(SYSTEM, GAIN, eps, window, [high], [verdict], max_boxes=2_000)
+    except CertificationError as error:
+        assert "max_boxes = 2000" in str(error)
+    else:
+        assert not proof.proven
