@@ -178,3 +178,17 @@ def test_ends_of_a_model_stay_checked_in_the_certificate() -> None:
     (ends,) = [c for c in cert.claims if c.name == "admissible gain ends"]
     assert ends.status == CHECKED and "proven for a model of the plant only" in ends.statement
     assert cert.k_region is not None and not cert.k_region.ends_proven
+
+
+def test_an_end_at_the_strong_stability_limit_says_how_it_is_proven() -> None:
+    """On the uncoupled ``Hyperbolic2x2(1, 1, 0, 0, 0.7, 0.9)`` the ends are the strong-stability limits
+    ``+-(1 - |rho q|) / |q|`` (closed form): the outer probe is proven not admissible by its difference operator,
+    proven not strongly stable, which the proven claim names (it gave only a crossing or the nominal loop)."""
+    plant = Hyperbolic2x2(1.0, 1.0, 0.0, 0.0, 0.7, 0.9)
+    cert = certify(plant, ReflectionController(0.1), delta_max=0.2, rigorous=True)
+    ends = {c.name: c for c in cert.claims}["admissible gain ends"]
+    assert ends.status == PROVEN and "a difference operator proven not strongly stable" in ends.statement
+    kreg = k_region(plant, 0.2, rigorous=True)
+    limit = (1.0 - 0.9 * 0.7) / 0.7
+    (lo, hi), *_ = kreg.ends
+    assert abs(lo.K + limit) <= lo.accuracy and abs(hi.K - limit) <= hi.accuracy

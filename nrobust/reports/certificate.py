@@ -579,7 +579,8 @@ def _gain_ends_claim(kreg: KRegion) -> Claim:
     how = (
         f"each end of the admissible gains ({ends}) lies, within its accuracy, between a gain stable for every "
         f"delay in [0, {kreg.delta_max:g}] (a proven delay margin above it, the nominal loop proven stable) and "
-        "one that is not (a proven crossing delay below it, or a proven unstable nominal loop), on the exact loop "
+        "one that is not (a proven crossing delay below it, a proven unstable nominal loop, or a difference "
+        "operator proven not strongly stable), on the exact loop "
         "of the PDE; that no other end lies between two ends rests on the floating-point scan"
     )
     if kreg.ends_proven:

@@ -289,7 +289,9 @@ def _exact_region(
                     f"[{min(K_in, K_out):.15g}, {max(K_in, K_out):.15g}]: {why}"
                     + (f"; nor proven: {proof}" if proof else "")
                 )
-            end = loop.verified_end(end, tol)  # verified on K +- tol
+            # verified on K +- tol; where only the proof settled it (floating point could not), the gain alone is
+            # known: omega and the delay keep the accuracies they had (not those of a verified end)
+            end = loop.verified_end(end, tol) if why is None else end
             if rigorous and proof is None:  # the bracket holds both probes as they were rounded
                 end = end._replace(accuracy=float(np.nextafter(max(abs(K_in - end.K), abs(K_out - end.K)), np.inf)))
             elif proof is not None:

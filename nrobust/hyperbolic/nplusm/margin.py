@@ -392,7 +392,7 @@ def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) ->
     radius = max(W, 1.0)
     count = count_roots(F, (0.0, radius, -radius, radius), rigorous=True, prec=prec)
     x0, x1, y0, y1 = count.region  # an edge may have been shifted off a root: what was counted where
-    covers = x0 <= 0.0 and x1 >= W and y0 <= -W and y1 >= W
+    covers = x0 <= 0.0 and x1 >= W and y0 <= -W and y1 >= W  # shifted edges move outward: a defensive check
     if not (covers if int(count) == 0 else x0 >= 0.0):
         raise CertificationError(
             f"proven delay margin: the delay-free loop's roots were counted in {count.region} (an edge shifted off a "

@@ -216,7 +216,12 @@ def proven_axis_crossings(
                         brackets.append((a, b, _sign(slope)))
                     continue
             if b - a <= min_width:
-                where = "|A(0)| = |B(0)| to rounding (a root at s = 0 for some delay)" if a == 0.0 else "a tangency"
+                where = (
+                    "|A(0)| = |B(0)| to rounding: g vanishes at w = 0, the crossings near it have delays growing "
+                    "without bound"
+                    if a == 0.0
+                    else "a tangency"
+                )
                 raise CertificationError(
                     f"proven crossing search: |A(i w)| = |B(i w)| is not decided on [{a!r}, {b!r}] in ball arithmetic "
                     f"({where}, or a zero indistinguishable from one); a slight change of the gain would decide it"
