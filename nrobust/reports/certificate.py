@@ -35,7 +35,7 @@ from ..bounds import RoucheDelayBound
 from ..errors import CertificationError, ParameterError
 from ..hyperbolic import analyses
 from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion
-from ..hyperbolic.analyses.grid_study import MAX_ACCURACY_GRID, GridStudy, grid_study
+from ..hyperbolic.analyses.grid_study import MAX_ACCURACY_GRID, GridStudy, grid_study, study_scope
 from ..hyperbolic.analyses.margin import studied_delay_margin
 from ..hyperbolic.analyses.rouche import rouche_delay_bound
 from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID, check_kernel_grid
@@ -931,7 +931,8 @@ def certify(
                 margin,
                 scope=loop_scope(
                     system, controller, kernel_grid, loop_factors(system, controller, kernel_grid), normal_form=True
-                ),
+                )
+                + (study_scope(study) if margin.model_error is not None and study is not None else ""),
             )
         rouche = (
             _prove(

@@ -26,6 +26,7 @@ from .grid_study import (
     MAX_ACCURACY_GRID as MAX_ACCURACY_GRID,
     GridStudy as GridStudy,
     grid_study as grid_study,
+    study_scope as study_scope,
 )
 from .kregion import (
     DEFAULT_N_GAINS as DEFAULT_N_GAINS,

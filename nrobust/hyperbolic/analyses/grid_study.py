@@ -22,7 +22,7 @@ from ...errors import CertificationError, ParameterError
 from ...margins.margin import DelayMargin
 from ..kernels.constant import MIN_KERNEL_GRID
 
-__all__ = ["MAX_ACCURACY_GRID", "GridStudy", "grid_study"]
+__all__ = ["MAX_ACCURACY_GRID", "GridStudy", "grid_study", "study_scope"]
 
 #: Finest kernel grid a convergence study (and :func:`nrobust.certify` for an ``accuracy`` target) refines to.
 MAX_ACCURACY_GRID = 1601
@@ -123,6 +123,14 @@ def grid_study(margin_on: Callable[[int], DelayMargin], grid: int, margin: Delay
         float(omega_estimate) if np.isfinite(omega_estimate) else None,
         order,
         statement + " (floating point, not proven)",
+    )
+
+
+def study_scope(study: GridStudy) -> str:
+    """The words a margin's scope gains from ``study``: its estimate, floating point, not proven."""
+    return (
+        f"; a convergence study in the kernel grid estimates the margin's distance to the PDE's at "
+        f"{study.estimate:.2g} (floating point, not proven)"
     )
 
 

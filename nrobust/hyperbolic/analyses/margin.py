@@ -40,7 +40,7 @@ from ..loops.controllers import (
 from ..loops.given_plant import built_delay, to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .grid_study import GridStudy, grid_study
+from .grid_study import GridStudy, grid_study, study_scope
 from .observer_accuracy import observer_model_error
 
 __all__ = ["delay_margin", "margin_and_decay"]
@@ -224,10 +224,7 @@ def studied_delay_margin(
         studied = grid_study(margin_on, grid, result)
         if studied is not None and np.isfinite(studied.estimate):
             model_error, omega_model_error = studied.estimate, studied.omega_estimate
-            scope += (
-                f"; a convergence study in the kernel grid estimates the margin's distance to the PDE's at "
-                f"{studied.estimate:.2g} (floating point, not proven)"
-            )
+            scope += study_scope(studied)
     if of_model:  # a ball about the loop as represented, not the PDE's: the reason says so (the scope says why)
         result = dataclasses.replace(result, reason=result.reason.replace(_PROVEN, _PROVEN + " for the model"))
     studied_margin = dataclasses.replace(
