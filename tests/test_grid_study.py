@@ -132,6 +132,10 @@ def test_study_of_a_margin_decided_by_structure_is_exact() -> None:
     study = grid_study(margin_on, 201, margin_on(201))
     assert study is not None and study.estimate == 0.0 and calls == [201, 101]
     assert grid_study(margin_on, 7, margin_on(201)) is None  # too coarse to halve
+    # a margin infinite on the grid but finite on coarser ones: no finite estimate (before: twice the finite step)
+    margin_on, _ = _sequence({51: 1.0, 101: 1.001, 201: np.inf, 401: np.inf})
+    study = grid_study(margin_on, 201, margin_on(201))
+    assert study is not None and study.estimate == np.inf
 
 
 def test_certify_runs_one_study_and_states_it(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -176,7 +176,9 @@ def _estimate(values: Sequence[float], grids: Sequence[int], grid: int) -> tuple
             f"moves by {abs(d3):.2g} from {grid} to {grids[at + 1]} points, monotone at observed order {order:.2g} "
             f"from {grids[at - 1]} points: its model error is estimated at {2.0 * abs(d3):.2g}",
         )
-    finite = [abs(d) for d in diffs if np.isfinite(d)]
+    if any(np.isinf(d) for d in diffs):  # the value jumps to or from inf between grids
+        return float("inf"), None, f"is infinite on some of {grids[0]} to {grids[-1]} points only: not estimated"
+    finite = [abs(d) for d in diffs if np.isfinite(d)]  # nan: a grid refused
     estimate = 2.0 * max(finite) if finite else float("nan")
     return (
         estimate,

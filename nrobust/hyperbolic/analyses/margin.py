@@ -13,7 +13,6 @@ returns the study too, or skips it (the study's own margins, sweeps over gains).
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 
@@ -135,8 +134,8 @@ def delay_margin(
 
 
 def studied_delay_margin(
-    system: Any,
-    controller: Any,
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2 | QuasiPolynomial | QuasiTransferFunction | DelayLTI,
+    controller: Controller | QuasiPolynomial | None,
     *,
     delta_max: float | None = None,
     verify: bool = True,
