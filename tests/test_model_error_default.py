@@ -124,11 +124,15 @@ def test_uniform_flow_canal_takes_the_exact_route_and_prints_its_accuracy() -> N
 
 def test_a_ball_proven_about_a_model_is_not_printed_as_the_plants_accuracy() -> None:
     """Varying couplings without ball arithmetic: the rigorous ball is about N~ on the grid; the plant's accuracy
-    comes from the study (np.minimum does not act on arb_series, so there is no proven N~)."""
+    comes from the study (np.minimum does not act on arb_series, so there is no proven N~), which ``delay_margin``
+    makes itself (before, its accuracy was None and its repr said "accuracy not estimated")."""
     plant = Hyperbolic2x2(1.0, 2.0, lambda x: 0.5 * (1.0 + np.minimum(x, 2.0)), -0.4, 0.8, 0.9)
     margin = delay_margin(plant, ReflectionController(0.3), rigorous=True)
-    assert margin.of_model and margin.margin_ball is not None and margin.accuracy is None
-    assert "+-" not in repr(margin).split("omega=")[0]  # no radius of the model's ball printed as the plant's
+    assert margin.of_model and margin.margin_ball is not None and margin.model_error is not None
+    lo, hi = margin.margin_ball
+    # the printed accuracy is the study's estimate (plus the ball's radius), not the model's ball alone
+    assert margin.accuracy is not None and margin.accuracy >= margin.model_error > 1e3 * (hi - lo)
+    assert f"margin={with_accuracy(margin.margin, margin.accuracy)}," in repr(margin)
     cert = certify(plant, ReflectionController(0.3), k_region=False, region=(-2, 1, -20, 20))
     assert cert.margin.accuracy is not None and cert.margin.accuracy == cert.margin_accuracy
     assert "+-" in repr(cert.margin).split("omega=")[0]

@@ -245,10 +245,18 @@ def test_a_crossing_is_proven_and_the_kernel_route_converges_inside() -> None:
         for n in (81, 161)
     ]
     exact = oracle[1] + (oracle[1] - oracle[0]) / 3.0
+    # the crossing frequency alike: proven omega_bracket against the same oracle's frequencies, extrapolated
+    loops = [NPlusMBackstepping.for_system(sys, n) for n in (81, 161)]
+    omegas = [backstepping_delay_margin(loop, 30.0, route="integral").omega for loop in loops]
+    exact_omega = omegas[1] + (omegas[1] - omegas[0]) / 3.0
     for res in (coarse, fine):
         lo, hi = res.margin_bracket
         assert res.certified and lo < exact < hi and lo <= res.margin <= hi
         assert len(res.crossings) == 1
+        w_lo, w_hi = res.omega_bracket
+        assert w_lo < exact_omega < w_hi and res.omega_accuracy is not None
+        assert abs(res.omega - exact_omega) <= res.omega_accuracy < 1.0
+        assert "accuracy not estimated" not in repr(res)
     width = [r.margin_bracket[1] - r.margin_bracket[0] for r in (coarse, fine)]
     assert width[1] < 0.6 * width[0] and width[1] < 0.12
 

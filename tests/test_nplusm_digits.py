@@ -68,10 +68,16 @@ def test_static_margin_within_its_accuracy(system: NPlusMSystem, K) -> None:
     K = np.array(K, dtype=float)
     m = nplusm_delay_margin(system, K)
     assert m.omega is not None and m.accuracy == m.error
-    _, delay = _crossing_40_digits(system, K, m.omega)
+    w, delay = _crossing_40_digits(system, K, m.omega)
     error = float(abs(delay - m.margin))
     assert error <= m.accuracy <= max(1e-10, 1e4 * max(error, 1e-14)), (error, m.accuracy)
     _true_to_printed_digits(with_accuracy(m.margin, m.accuracy), delay)
+    # the crossing frequency: measured errors 4e-17 to 1.8e-15, at most 0.12 of the unscaled Newton step
+    # (_OMEGA_SAFETY = 16), estimates 2.5e-13 to 2.9e-13
+    omega_error = float(abs(w - m.omega))
+    assert m.omega_accuracy is not None and omega_error <= m.omega_accuracy <= 1e-11, (omega_error, m.omega_accuracy)
+    _true_to_printed_digits(with_accuracy(m.omega, m.omega_accuracy), w)
+    assert f"omega={with_accuracy(m.omega, m.omega_accuracy)}," in repr(m) and "not estimated" not in repr(m)
 
 
 def test_structural_margins_are_exact() -> None:
@@ -186,12 +192,22 @@ def test_compound_margin_within_its_accuracy(system: NPlusMSystem, K) -> None:
     m = backstepping_exact_margin(system) if K is None else multi_actuator_delay_margin(system, K)
     assert m.certified and m.nominal_unstable == 0 and m.error is not None and m.accuracy == m.error
     det = _mp_loop(system, K, K is None)
-    delays = [_mp_crossing_delay(det, w, d)[1] for w, d in m.crossings]
+    solved = [_mp_crossing_delay(det, w, d) for w, d in m.crossings]
+    delays = [d for _, d in solved]
     truth = min(delays)
     error = float(abs(truth - m.margin))
     assert error <= m.accuracy <= max(1e-9 * max(1.0, m.margin), 1e4 * max(error, 1e-14)), (error, m.accuracy)
     _true_to_printed_digits(with_accuracy(m.margin, m.accuracy), truth)
     assert f"margin={with_accuracy(m.margin, m.accuracy)}," in repr(m)
+    # the crossing frequency of every crossing that may be the smallest lies within omega_accuracy (measured errors
+    # 2e-16 to 6e-15, at most 0.13 of the unscaled Newton step; in the tied case both crossings' frequencies)
+    assert m.omega is not None and m.omega_accuracy is not None
+    contenders = [w for w, d in solved if d - truth <= 2.0 * m.accuracy]
+    assert all(abs(float(w) - m.omega) <= m.omega_accuracy for w in contenders)
+    if K is not TIED:
+        assert m.omega_accuracy <= 1e-10
+    _true_to_printed_digits(with_accuracy(m.omega, m.omega_accuracy), min(solved, key=lambda c: c[1])[0])
+    assert f"omega={with_accuracy(m.omega, m.omega_accuracy)}," in repr(m)
     if K is TIED:
         assert len(delays) == 2 and abs(delays[0] - delays[1]) < 1e-12
 

@@ -128,7 +128,8 @@ class DelayMargin:
     model_error : float or None
         For a model (:attr:`of_model`): an estimate of the margin's change from the model's
         error, set by the plant-level ``delay_margin`` when the model states its own accuracy
-        (an output feedback's observer term); it is added to :attr:`accuracy`. None: not
+        (an output feedback's observer term) or from a convergence study in the kernel grid (the
+        kernel route: floating point, not proven); it is added to :attr:`accuracy`. None: not
         estimated here.
     omega_model_error : float or None
         For a model: an estimate of the crossing frequency's change from the model's error, set
@@ -217,7 +218,7 @@ class DelayMargin:
         ``nrobust.hyperbolic.loops.controllers.loop_route(...) == "kernels"``)
         :attr:`model_error`, its estimated distance to the plant's margin, is added; None when
         it is not known, with ``rigorous`` too (the ball is proven about the model, not the
-        plant): :func:`nrobust.certify` estimates it by a convergence study in the kernel grid.
+        plant): the plant-level ``delay_margin`` estimates it by a convergence study in the kernel grid.
         """
         if self.of_model and self.model_error is None:
             return None  # a ball proven about a model says nothing of the plant's margin

@@ -34,7 +34,9 @@ from .._version import __version__
 from ..bounds import RoucheDelayBound
 from ..errors import CertificationError, ParameterError
 from ..hyperbolic import analyses
-from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion, delay_margin
+from ..hyperbolic.analyses import DEFAULT_N_GAINS, KRegion
+from ..hyperbolic.analyses.grid_study import MAX_ACCURACY_GRID, GridStudy, grid_study, study_scope
+from ..hyperbolic.analyses.margin import studied_delay_margin
 from ..hyperbolic.analyses.rouche import rouche_delay_bound
 from ..hyperbolic.kernels.constant import DEFAULT_KERNEL_GRID, MIN_KERNEL_GRID, check_kernel_grid
 from ..hyperbolic.loops.controllers import (
@@ -249,9 +251,14 @@ class ModelError:
 
 
 def _model_error(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, margin: DelayMargin, grid: int | None
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2,
+    controller: Controller,
+    margin: DelayMargin,
+    grid: int | None,
+    study: GridStudy | None,
 ) -> ModelError:
-    """No model on the exact route; on the kernel route, the margin on the grid and on two coarser ones."""
+    """No model on the exact route; on the kernel route, the convergence study of the margin (``study``, made
+    here when ``delay_margin`` did not: an uncoupled plant with integral gains)."""
     gains = isinstance(controller, StateFeedback) and any(
         callable(g) or g != 0.0 for g in (controller.g_u, controller.g_v)
     )
@@ -269,9 +276,12 @@ def _model_error(
             "no model: N~ (and a state feedback's gain kernels) in closed form, its proven error bound in every proof",
         )
     grid = DEFAULT_KERNEL_GRID if grid is None else grid
-    coarse = (grid - 1) // 2 + 1
+    if study is None:
+        study = grid_study(
+            lambda n: studied_delay_margin(system, controller, kernel_grid=n, study=False)[0], grid, margin
+        )
     spline = _spline(system, grid)
-    if coarse < MIN_KERNEL_GRID:  # too few points to halve: no comparison to make
+    if study is None:  # too few points to halve: no comparison to make
         return ModelError(
             grid,
             grid,
@@ -281,17 +291,12 @@ def _model_error(
             f"{spline}, too few to compare with a grid half as fine "
             f"(at least {2 * MIN_KERNEL_GRID - 1} points): the model error is not estimated",
         )
-    other = delay_margin(system, controller, kernel_grid=coarse).margin
-    diff = _difference(margin.margin, other)
-    if diff == 0.0 and not (np.isfinite(other) and other > 0.0):
-        statement = (
-            f"{spline}; the delay margin is {other:g} on {coarse} "
-            f"and on {grid} points (decided by the structure of the loop, not by the values of N~)"
-        )
-        return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement)
-    estimate, order, evidence = _convergence_study(system, controller, grid, float(margin.margin), float(other))
-    statement = f"{spline}; the delay margin moves by {diff:.2g} from {coarse} to {grid} points; {evidence}"
-    return ModelError(grid, coarse, float(margin.margin), float(other), diff, statement, order, estimate)
+    diff = _difference(margin.margin, study.coarse_margin)
+    statement = f"{spline}; {study.statement}"
+    estimate = None if study.estimate == 0.0 and diff == 0.0 else study.estimate
+    return ModelError(
+        grid, study.coarse_grid, float(margin.margin), study.coarse_margin, diff, statement, study.order, estimate
+    )
 
 
 def _spline(system: Hyperbolic2x2 | GeneralHyperbolic2x2, grid: int) -> str:
@@ -304,67 +309,6 @@ def _spline(system: Hyperbolic2x2 | GeneralHyperbolic2x2, grid: int) -> str:
     if getattr(system, "uncoupled", False):
         return f"N~ = 0 (uncoupled plant); the integral gains are integrated by Simpson's rule on {grid} points"
     return f"N~ is the cubic spline of the kernels on {grid} points"
-
-
-def _convergence_study(
-    system: Hyperbolic2x2 | GeneralHyperbolic2x2, controller: Controller, grid: int, margin: float, coarse_margin: float
-) -> tuple[float, float | None, str]:
-    """The estimated model error of the margin on ``grid`` points, its observed order, and the evidence in words.
-
-    With ``m0, m1, m2`` the margins on ``(grid + 3) / 4``, ``(grid + 1) / 2`` and ``grid``
-    points: when ``m1 - m0`` and ``m2 - m1`` have one sign and the second is at most half the
-    first (observed order at least 1), the remaining error of ``m2`` is at most ``|m2 - m1|``
-    (a geometric tail of ratio ``<= 1/2``). Otherwise the grid ``2 grid - 1`` is added and the
-    same test made on ``m1, m2, m3``: the error of ``m2`` is then at most ``2 |m3 - m2|``.
-    When neither holds (convergence not yet monotone), twice the largest difference is the
-    estimate, and the statement says it is rough. Floating point throughout, not proven.
-    """
-    coarse = (grid - 1) // 2 + 1
-    coarsest = (coarse - 1) // 2 + 1
-    d2 = margin - coarse_margin
-    d1 = float("nan")
-    if coarsest >= MIN_KERNEL_GRID:
-        d1 = coarse_margin - delay_margin(system, controller, kernel_grid=coarsest).margin
-    if _contracting(d1, d2):
-        order = float(np.log2(abs(d1) / abs(d2)))
-        return (
-            abs(d2),
-            order,
-            f"monotone at observed order {order:.2g} from {coarsest}, {coarse} and {grid} points: its model error "
-            f"is estimated at {abs(d2):.2g} (floating point, not proven)",
-        )
-    fine = 2 * grid - 1
-    if fine > MAX_ACCURACY_GRID:
-        estimate = 2.0 * max(abs(d2), abs(d1) if np.isfinite(d1) else 0.0)
-        return (
-            estimate,
-            None,
-            f"not yet monotone from {coarsest} points on: its model error is estimated roughly at {estimate:.2g}, "
-            f"twice the largest difference (floating point, not proven)",
-        )
-    d3 = delay_margin(system, controller, kernel_grid=fine).margin - margin
-    if _contracting(d2, d3):
-        order = float(np.log2(abs(d2) / abs(d3)))
-        return (
-            2.0 * abs(d3),
-            order,
-            f"not monotone from {coarsest} points, monotone at observed order {order:.2g} from {coarse}, {grid} "
-            f"and {fine} points (the margin moves by {abs(d3):.2g} to {fine}): its model error is estimated at "
-            f"{2.0 * abs(d3):.2g} (floating point, not proven)",
-        )
-    finite = [abs(d) for d in (d1, d2, d3) if np.isfinite(d)]
-    estimate = 2.0 * max(finite) if finite else float("nan")
-    return (
-        estimate,
-        None,
-        f"not monotone on {coarsest} to {fine} points: its model error is estimated roughly at {estimate:.2g}, "
-        "twice the largest difference (floating point, not proven)",
-    )
-
-
-def _contracting(first: float, second: float) -> bool:
-    """True when two successive differences have one sign and the second is at most half the first."""
-    return bool(np.isfinite(first) and np.isfinite(second) and first * second > 0.0 and abs(second) <= 0.5 * abs(first))
 
 
 def _difference(a: float, b: float) -> float:
@@ -975,18 +919,21 @@ def certify(
             unproven,
             lambda r: to_given_plant(spectral_abscissa(F0, rigorous=r), system, controller, kernel_grid),
         )
-        margin = _prove(
+        margin, study = _prove(
             "delay margin",
             rigorous,
             unproven,
-            lambda r: delay_margin(system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid),
+            lambda r: studied_delay_margin(
+                system, controller, delta_max=delta_max, rigorous=r, kernel_grid=kernel_grid
+            ),
         )
         if given_system is not system:  # the proofs are about the normal form computed in floating point
             margin = dataclasses.replace(
                 margin,
                 scope=loop_scope(
                     system, controller, kernel_grid, loop_factors(system, controller, kernel_grid), normal_form=True
-                ),
+                )
+                + (study_scope(study) if margin.model_error is not None and study is not None else ""),
             )
         rouche = (
             _prove(
@@ -1010,7 +957,7 @@ def certify(
                 kreg = analyses.k_region(system, delta_max, n_gains=n_gains, rigorous=rigorous)
             except CertificationError as exc:
                 k_region_error = str(exc)
-    model_error = _model_error(system, controller, margin, kernel_grid)
+    model_error = _model_error(system, controller, margin, kernel_grid, study)
     if margin.of_model and margin.model_error is None and np.isfinite(model_error.error):
         margin = dataclasses.replace(margin, model_error=model_error.error)  # its repr then carries the accuracy
     return Certificate(
@@ -1049,17 +996,15 @@ def certify(
     )
 
 
-#: Finest kernel grid :func:`certify` refines to for an ``accuracy`` target on the kernel route.
-MAX_ACCURACY_GRID = 1601
-
-
 def _grid_for(system: Any, controller: Controller, grid: int, accuracy: float) -> int:
     """The first grid ``n, 2 n - 1, ...`` on which the margin moves by less than ``accuracy`` from ``(n + 1) / 2``."""
     while (grid - 1) // 2 + 1 < MIN_KERNEL_GRID:
         grid = 2 * grid - 1
-    coarse = delay_margin(system, controller, kernel_grid=(grid - 1) // 2 + 1, verify=False).margin
+    coarse = studied_delay_margin(system, controller, kernel_grid=(grid - 1) // 2 + 1, verify=False, study=False)[
+        0
+    ].margin
     while True:
-        fine = delay_margin(system, controller, kernel_grid=grid, verify=False).margin
+        fine = studied_delay_margin(system, controller, kernel_grid=grid, verify=False, study=False)[0].margin
         if _difference(fine, coarse) <= accuracy or 2 * grid - 1 > MAX_ACCURACY_GRID:
             return grid
         grid, coarse = 2 * grid - 1, fine  # the fine margin is the next grid's coarse one

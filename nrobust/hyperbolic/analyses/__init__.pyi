@@ -22,6 +22,12 @@ from .filter_design import (
     filtered_front as filtered_front,
     filtered_loop as filtered_loop,
 )
+from .grid_study import (
+    MAX_ACCURACY_GRID as MAX_ACCURACY_GRID,
+    GridStudy as GridStudy,
+    grid_study as grid_study,
+    study_scope as study_scope,
+)
 from .kregion import (
     DEFAULT_N_GAINS as DEFAULT_N_GAINS,
     END_KINDS as END_KINDS,

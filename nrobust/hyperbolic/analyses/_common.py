@@ -22,7 +22,7 @@ from ..loops.controllers import ReflectionController, StateFeedback, loop_route
 from ..nplusm.margin import smallest_delay_error
 from ..plants.general import GeneralHyperbolic2x2, NormalForm
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
-from .margin import delay_margin
+from .margin import studied_delay_margin
 
 __all__ = [
     "CornerRates",
@@ -203,9 +203,14 @@ class GainMargin:
     max_evals: int = 2_000_000
 
     def __call__(self, K: float) -> DelayMargin:
-        return delay_margin(
-            self.system, self.family(float(K)), delta_max=self.delta_max, verify=False, max_evals=self.max_evals
-        )
+        return studied_delay_margin(  # a sweep: no convergence study per gain
+            self.system,
+            self.family(float(K)),
+            delta_max=self.delta_max,
+            verify=False,
+            max_evals=self.max_evals,
+            study=False,
+        )[0]
 
     def checked(self, K: float) -> DelayMargin | str:
         """The margin at ``K``, or the message of its CertificationError."""

@@ -21,7 +21,7 @@ from ...roots import spectral_abscissa
 from ..loops.controllers import FilteredController, FiniteTimeController, loop_factors, normalize
 from ..plants.general import GeneralHyperbolic2x2
 from ._common import GainMargin, check_system, mapper, real_grid, reflection, study_plant
-from .margin import delay_margin
+from .margin import studied_delay_margin
 
 __all__ = ["MAX_CHART_POINTS", "ABRegion", "StabilityChart", "ab_region", "stability_chart"]
 
@@ -63,7 +63,9 @@ class _PartialFilter:
         a, b = ab
         big = max(abs(a), b)
         if big <= _FILTER_SCALE:
-            return delay_margin(self.system, FilteredController(a, b), delta_max=self.delta_max, verify=False)
+            return studied_delay_margin(  # a chart: no convergence study per point
+                self.system, FilteredController(a, b), delta_max=self.delta_max, verify=False, study=False
+            )[0]
         FilteredController(a, b)  # the same validation of (a, b)
         c = float(2.0 ** -np.ceil(np.log2(big)))
         A, B = loop_factors(self.system, FiniteTimeController())  # (1 - Phi, Phi)
@@ -123,7 +125,7 @@ def ab_region(system: Any, delta_max: float, a: ArrayLike, b: ArrayLike, *, exec
     ``1 - rho q e^{-tau s} + (a/b) rho q e^{-(tau + delta) s}``, strongly stable iff
     ``|rho q| (1 + |a|/b) < 1``; this, not the one-sided ``a/b < (1 - |rho q|)/|rho q|``
     of eq. (17), is necessary for a positive margin. Each grid point is decided by
-    :func:`delay_margin` (nominal stability and ``delta* > delta_max``).
+    :func:`~nrobust.hyperbolic.analyses.delay_margin` (nominal stability and ``delta* > delta_max``).
 
     Parameters
     ----------
@@ -237,7 +239,7 @@ def stability_chart(
 ) -> StabilityChart:
     """Stability chart of ``U_BS2(K)`` in the ``(K, delta)`` plane (section 4.2.1).
 
-    For each gain one :func:`delay_margin` analysis gives the number of unstable zeros for
+    For each gain one :func:`~nrobust.hyperbolic.analyses.delay_margin` analysis gives the number of unstable zeros for
     every delay at once (certified count at ``delta = 0`` plus signed crossings) and the
     exact boundary curves ``delta_{c,k}(K)``. With ``quantity="abscissa"`` the spectral
     abscissa is computed at every grid point (:func:`nrobust.roots.spectral_abscissa`;

@@ -28,7 +28,7 @@ from ..loops.controllers import ReflectionController, classify, loop_factors
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
 from ._common import GainMargin, exact_loop_plant, mapper, real_grid, study_plant
-from .margin import delay_margin
+from .margin import studied_delay_margin
 
 # END_KINDS and GainEnd, the kinds and ends of a KRegion's intervals, are also exported by nrobust.hyperbolic.analyses
 __all__ = ["DEFAULT_N_GAINS", "END_KINDS", "MAX_GAINS", "GainEnd", "KRegion", "k_region", "u_bs2_loop"]
@@ -199,7 +199,9 @@ def _grid_verdicts(
 def _proven_margin(plant: Hyperbolic2x2 | GeneralHyperbolic2x2, K: float, delta_max: float) -> DelayMargin | str:
     """The delay margin of ``U_BS2(K)`` on ``plant`` proven for the PDE, or why there is none."""
     try:
-        dm = delay_margin(plant, ReflectionController(K), delta_max=delta_max, verify=False, rigorous=True)
+        dm = studied_delay_margin(  # a model's margin is refused below: no convergence study
+            plant, ReflectionController(K), delta_max=delta_max, verify=False, rigorous=True, study=False
+        )[0]
     except CertificationError as exc:
         return f"the proof of the delay margin at K = {K:.15g} failed ({exc})"
     if not dm.rigorous or dm.of_model:

@@ -4,12 +4,17 @@
 builds the loop factors (:func:`nrobust.hyperbolic.loop_factors`, eq. (60) for
 ``U_BS2(K)``) and returns the margin of ``F(s; delta) = A(s) + B(s) e^{-delta s}`` computed
 by :func:`nrobust.margins.delay_margin`; :func:`margin_and_decay` adds the nominal decay rate
-(the default analysis of :func:`nrobust.robustness`).
+(the default analysis of :func:`nrobust.robustness`). On the kernel route the margin and its
+crossing frequency carry the model errors a convergence study in the kernel grid estimates
+(:func:`~nrobust.hyperbolic.analyses.grid_study.grid_study`); :func:`studied_delay_margin`
+returns the study too, or skips it (the study's own margins, sweeps over gains).
 """
 
 from __future__ import annotations
 
 import dataclasses
+
+import numpy as np
 
 from ..._validate import renamed_keywords
 from ...errors import ParameterError
@@ -20,6 +25,7 @@ from ...margins.margin import DelayMargin
 from ...margins.margin import delay_margin as factor_delay_margin
 from ...quasipoly import QuasiPolynomial
 from ...roots import spectral_abscissa
+from ..kernels.constant import DEFAULT_KERNEL_GRID
 from ..loops.controllers import (
     CollocatedOutputFeedback,
     Controller,
@@ -33,6 +39,7 @@ from ..loops.controllers import (
 from ..loops.given_plant import built_delay, to_given_plant
 from ..plants.general import GeneralHyperbolic2x2
 from ..plants.hyperbolic2x2 import Hyperbolic2x2
+from .grid_study import GridStudy, grid_study, study_scope
 from .observer_accuracy import observer_model_error
 
 __all__ = ["delay_margin", "margin_and_decay"]
@@ -95,7 +102,12 @@ def delay_margin(
         formerly ``n``, a deprecated alias). Default: the exact route where it applies, else
         :data:`~nrobust.hyperbolic.kernels.constant.DEFAULT_KERNEL_GRID` points. On the kernel
         route the margin converges at an observed order between 1.8 and 3 in
-        ``1/kernel_grid`` (``docs/margins.md``).
+        ``1/kernel_grid`` (``docs/margins.md``), and the margin's and the crossing frequency's
+        distances to the PDE's are estimated by a convergence study on ``(kernel_grid + 3) / 4``
+        and ``(kernel_grid + 1) / 2`` points (and ``2 kernel_grid - 1`` when not yet monotone):
+        :attr:`~nrobust.margins.DelayMargin.model_error` and
+        :attr:`~nrobust.margins.DelayMargin.omega_model_error`, floating point, not proven
+        (:func:`~nrobust.hyperbolic.analyses.grid_study.grid_study`; the scope says so).
 
     Raises
     ------
@@ -110,6 +122,39 @@ def delay_margin(
     if controller is None and (isinstance(system, QuasiTransferFunction) or hasattr(system, "ninputs")):
         # a loop transfer function: a QuasiTransferFunction, a DelayLTI or a python-control system
         return loop_delay_margin(system, delta_max=delta_max, verify=verify, max_evals=max_evals, rigorous=rigorous)
+    return studied_delay_margin(
+        system,
+        controller,
+        delta_max=delta_max,
+        verify=verify,
+        max_evals=max_evals,
+        kernel_grid=kernel_grid,
+        rigorous=rigorous,
+    )[0]
+
+
+def studied_delay_margin(
+    system: Hyperbolic2x2 | GeneralHyperbolic2x2 | QuasiPolynomial | QuasiTransferFunction | DelayLTI,
+    controller: Controller | QuasiPolynomial | None,
+    *,
+    delta_max: float | None = None,
+    verify: bool = True,
+    max_evals: int = 2_000_000,
+    kernel_grid: int | None = None,
+    rigorous: bool = False,
+    study: bool = True,
+) -> tuple[DelayMargin, GridStudy | None]:
+    """:func:`delay_margin` of a plant and a controller (or of ``A, B``), and its convergence study.
+
+    The study (:func:`~nrobust.hyperbolic.analyses.grid_study.grid_study`) is made on the kernel
+    route only, with ``study`` (the study's own margins are computed without one); its estimates
+    are the margin's ``model_error`` and ``omega_model_error``. Parameters as :func:`delay_margin`.
+
+    Returns
+    -------
+    (DelayMargin, GridStudy or None)
+        The margin, and the study (None when not made or when the grid is too coarse to halve).
+    """
     normalized = False  # the proofs are about the normal form of a general plant
     if isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2)):
         if not isinstance(controller, Controller):
@@ -158,6 +203,7 @@ def delay_margin(
         loop_route(system, controller, kernel_grid) != "exact" and not getattr(system, "uncoupled", False)
     )
     model_error = omega_model_error = None
+    studied = None
     if (
         of_model
         and isinstance(system, (Hyperbolic2x2, GeneralHyperbolic2x2))
@@ -165,11 +211,25 @@ def delay_margin(
         and loop_route(system, controller, kernel_grid) == "observer"
     ):
         model_error, omega_model_error = observer_model_error(system, controller, result, (A, B))
+    if study and of_model and loop_route(system, controller, kernel_grid) == "kernels":
+        given = (system, controller)
+
+        def margin_on(grid: int) -> DelayMargin:
+            return studied_delay_margin(
+                *given, delta_max=delta_max, verify=verify, max_evals=max_evals, kernel_grid=grid, study=False
+            )[0]
+
+        grid = DEFAULT_KERNEL_GRID if kernel_grid is None else kernel_grid
+        studied = grid_study(margin_on, grid, result)
+        if studied is not None and np.isfinite(studied.estimate):
+            model_error, omega_model_error = studied.estimate, studied.omega_estimate
+            scope += study_scope(studied)
     if of_model:  # a ball about the loop as represented, not the PDE's: the reason says so (the scope says why)
         result = dataclasses.replace(result, reason=result.reason.replace(_PROVEN, _PROVEN + " for the model"))
-    return dataclasses.replace(
+    studied_margin = dataclasses.replace(
         result, scope=scope, of_model=of_model, model_error=model_error, omega_model_error=omega_model_error
     )
+    return studied_margin, studied
 
 
 # The words of a proven margin's reason (nrobust.margins.margin), completed on a model's loop.
@@ -189,7 +249,7 @@ def margin_and_decay(system: Hyperbolic2x2, controller: Controller) -> dict[str,
         ``decay_rate = -abscissa`` and ``decay_rate_accuracy``, a bound of the error of both:
         the abscissa's :attr:`~nrobust.roots.SpectralAbscissa.accuracy` (``nan`` when not known).
     """
-    margin = delay_margin(system, controller)
+    margin = studied_delay_margin(system, controller, study=False)[0]  # the margin's value only
     result = spectral_abscissa(characteristic(system, controller, 0.0))
     abscissa, accuracy = float(result.value), result.accuracy
     return {

@@ -839,7 +839,23 @@ def cascade_delay_margin(
         found.append((float(x[0]), float(np.mod(-x[1], 2 * np.pi)) / float(x[0])))
         upper = min(upper, _delay_range(float(x[0]), float(x[1]), a, b)[1])
     best = min(found, key=lambda c: c[1])
-    return NPlusMMargin(best[1], best[0], tuple(sorted(found)), gamma, W, True, 0, _SCOPE, (lower, upper))
+    bracket = (lower, upper)
+    omegas = _omega_range(cells, upper)
+    crossings = tuple(sorted(found))
+    return NPlusMMargin(best[1], best[0], crossings, gamma, W, True, 0, _SCOPE, bracket, omega_bracket=omegas)
+
+
+def _omega_range(cells: _Cells, upper: float) -> tuple[float, float]:
+    """A proven enclosure of the exact law's crossing frequency at its margin, the margin at most ``upper``.
+
+    Every crossing on ``[0, W]`` lies in a cell of the search, and the margin's crossing in one whose delays
+    reach down to ``upper`` at least: the hull of those cells' frequencies, rounded outwards.
+    """
+    cw, _, hw, _ = cells
+    near = np.array([_delay_range(*cell)[0] <= upper for cell in zip(*cells)])
+    lo = float(np.min(cw[near] - hw[near])) * (1.0 - 2.0 * EPS)
+    hi = float(np.max(cw[near] + hw[near])) * (1.0 + 2.0 * EPS)
+    return max(lo, 0.0), hi
 
 
 def backstepping_delay_margin(

@@ -35,12 +35,15 @@ __all__ = [
     "NPlusMMargin",
     "backstepping_exact_margin",
     "compound_delay_error",
+    "compound_omega_error",
     "crossing_delay_error",
+    "crossing_omega_error",
     "multi_actuator_delay_margin",
     "multi_actuator_margin",
     "nplusm_delay_margin",
     "pencil_crossings",
     "smallest_delay_error",
+    "smallest_omega_error",
 ]
 
 _STATIC_SCOPE = "static gain U = K u(t - delta, 1) on the PDE"
@@ -110,11 +113,20 @@ class NPlusMMargin:
         distance from ``margin`` to the far end of ``margin_bracket``.
     omega_bracket : (float, float) or None
         With ``rigorous``: a proven enclosure of the crossing frequency of the margin (the hull
-        of the enclosures of the crossings whose delay may be the smallest); else None.
+        of the enclosures of the crossings whose delay may be the smallest); with a proven
+        ``margin_bracket`` of the law with exact kernels (:func:`~nrobust.hyperbolic.nplusm.cascade_delay_margin`)
+        that of the exact law's crossing frequency (the hull of the search's cells whose delays
+        may be the smallest); else None.
     rigorous : bool
         True: every claim (the frequency bound, the count of the delay-free loop, the
         crossings and ``margin_bracket``) is proven in ball arithmetic for the PDE itself
         (:func:`nplusm_delay_margin` with ``rigorous=True``).
+    omega_error : float or None
+        Without ``omega_bracket``: an estimate of the error of ``omega`` (:func:`crossing_omega_error`
+        for :func:`nplusm_delay_margin`, :func:`compound_omega_error` for
+        :func:`multi_actuator_delay_margin` and :func:`backstepping_exact_margin`), widened by
+        :func:`smallest_omega_error` to the crossings whose delay may be the smallest; None when
+        not estimated.
     """
 
     margin: float
@@ -129,6 +141,7 @@ class NPlusMMargin:
     error: float | None = None
     omega_bracket: tuple[float, float] | None = None
     rigorous: bool = False
+    omega_error: float | None = None
 
     @property
     def accuracy(self) -> float | None:
@@ -141,9 +154,12 @@ class NPlusMMargin:
 
     @property
     def omega_accuracy(self) -> float | None:
-        """A proven bound of the crossing frequency's error (from :attr:`omega_bracket`), else None."""
-        if self.omega is None or self.omega_bracket is None:
+        """A bound of the crossing frequency's error: proven from :attr:`omega_bracket`, else the estimate
+        :attr:`omega_error`; None when not known."""
+        if self.omega is None:
             return None
+        if self.omega_bracket is None:
+            return self.omega_error
         lo, hi = self.omega_bracket
         return float(np.nextafter(max(hi - self.omega, self.omega - lo, 0.0), np.inf))
 
@@ -168,6 +184,9 @@ class NPlusMMargin:
 # tests/test_nplusm_digits.py checks five): 16 leaves 170 times that.
 _DELAY_SAFETY = 16.0
 
+# Safety factor of crossing_omega_error and compound_omega_error (the same Newton steps, for the frequency).
+_OMEGA_SAFETY = 16.0
+
 
 def crossing_delay_error(F: NPlusMCharacteristic, omega: float, delay: float) -> float | None:
     """An estimate of the error of the first delay ``delay = (arg(-B/A) mod 2 pi) / omega`` of a crossing.
@@ -178,6 +197,26 @@ def crossing_delay_error(F: NPlusMCharacteristic, omega: float, delay: float) ->
     ``|phi' - delay| dw / w + dphi / w`` (``phi' = Re(B'/B - A'/A)``, derivatives in ``s``).
     Times 16 (:data:`_DELAY_SAFETY`), plus ``eps delay``. None at a tangency (``g' = 0``).
     """
+    step = _axis_step(F, omega)
+    if step is None:
+        return None
+    dw, dphi, phase_slope = step
+    turn = abs(phase_slope - delay)
+    return _DELAY_SAFETY * (turn * dw + dphi) / omega + EPS * delay
+
+
+def crossing_omega_error(F: NPlusMCharacteristic, omega: float) -> float | None:
+    """An estimate of the error of a crossing frequency ``omega`` of ``|A(i w)| = |B(i w)|``.
+
+    The Newton step ``dw`` of :func:`crossing_delay_error` (``|g|`` raised by the rounding level),
+    times :data:`_OMEGA_SAFETY`, plus ``eps omega``. None at a tangency (``g' = 0``).
+    """
+    step = _axis_step(F, omega)
+    return None if step is None else _OMEGA_SAFETY * step[0] + EPS * omega
+
+
+def _axis_step(F: NPlusMCharacteristic, omega: float) -> tuple[float, float, float] | None:
+    """``(dw, dphi, phi')`` of :func:`crossing_delay_error` at ``omega``; None at a tangency."""
     A, B, dA, dB, level, _ = F.axis_jet(np.array([omega]))
     a, b, da, db = complex(A[0]), complex(B[0]), complex(dA[0]), complex(dB[0])
     e = float(max(level[0][0], level[1][0]))
@@ -185,9 +224,31 @@ def crossing_delay_error(F: NPlusMCharacteristic, omega: float, delay: float) ->
     if not slope > 0.0:
         return None
     dw = (abs(abs(a) ** 2 - abs(b) ** 2) + 2.0 * (abs(a) + abs(b)) * e) / slope
-    dphi = e / abs(a) + e / abs(b)
-    turn = abs((db / b - da / a).real - delay)
-    return _DELAY_SAFETY * (turn * dw + dphi) / omega + EPS * delay
+    return dw, e / abs(a) + e / abs(b), (db / b - da / a).real
+
+
+def smallest_omega_error(
+    crossings: Sequence[tuple[float, float]], delay_errors: Sequence[float | None], omega_errors: Sequence[float | None]
+) -> float | None:
+    """A bound of the error of the crossing frequency of the smallest delay, each crossing ``(w, delay)`` known
+    to within its errors.
+
+    Every crossing whose delay interval reaches below the smallest delay's upper end may be the
+    true smallest (as in :func:`smallest_delay_error`): the bound is the largest distance from the
+    smallest delay's ``w`` to the far end of such a crossing's frequency interval. None when an
+    error it needs is unknown.
+    """
+    best = min(range(len(crossings)), key=lambda i: crossings[i][1])
+    if delay_errors[best] is None:
+        return None
+    upper = crossings[best][1] + float(delay_errors[best])  # type: ignore[arg-type]
+    bound = 0.0
+    for (w, d), de, we in zip(crossings, delay_errors, omega_errors):
+        if de is None or d - de <= upper:
+            if we is None or de is None:
+                return None
+            bound = max(bound, abs(w - crossings[best][0]) + we)
+    return bound
 
 
 def smallest_delay_error(delays: Sequence[float], errors: Sequence[float | None]) -> float | None:
@@ -376,8 +437,10 @@ def nplusm_delay_margin(
     if not found:
         return NPlusMMargin(np.inf, None, (), gamma, W, certified, 0, error=0.0)
     best = min(found, key=lambda p: p[1])
-    error = smallest_delay_error([d for _, d in found], [crossing_delay_error(F, w, d) for w, d in found])
-    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0, error=error)
+    delay_errors = [crossing_delay_error(F, w, d) for w, d in found]
+    error = smallest_delay_error([d for _, d in found], delay_errors)
+    omega_error = smallest_omega_error(found, delay_errors, [crossing_omega_error(F, w) for w, _ in found])
+    return NPlusMMargin(best[1], best[0], tuple(found), gamma, W, certified, 0, error=error, omega_error=omega_error)
 
 
 def _proven_static_margin(F: NPlusMCharacteristic, max_evals: int, prec: int) -> NPlusMMargin:
@@ -728,7 +791,8 @@ def _compound_margin(
     best = min(found, key=lambda c: c[1])
     errors = [compound_delay_error(jet, rounding, w, d) for w, d in found]
     error = smallest_delay_error([d for _, d in found], errors)
-    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0, scope, error=error)
+    omega_error = smallest_omega_error(found, errors, [compound_omega_error(jet, rounding, w, d) for w, d in found])
+    return NPlusMMargin(best[1], best[0], found, gamma, W, certified, 0, scope, error=error, omega_error=omega_error)
 
 
 def compound_delay_error(
@@ -760,6 +824,34 @@ def compound_delay_error(
     -------
     float or None
     """
+    step = _compound_step(jet, rounding, omega, delay)
+    if step is None:
+        return None
+    return _DELAY_SAFETY * float(step[1] + delay * step[0]) / omega + EPS * delay
+
+
+def compound_omega_error(
+    jet: Callable[[NDArray[np.float64]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+    rounding: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    omega: float,
+    delay: float,
+) -> float | None:
+    """An estimate of the error of the crossing frequency ``omega`` of a crossing in compound form.
+
+    The Newton step ``dw`` of :func:`compound_delay_error`, times :data:`_OMEGA_SAFETY`, plus
+    ``eps omega``. None when the Jacobian is singular to rounding (a tangency).
+    """
+    step = _compound_step(jet, rounding, omega, delay)
+    return None if step is None else _OMEGA_SAFETY * float(step[0]) + EPS * omega
+
+
+def _compound_step(
+    jet: Callable[[NDArray[np.float64]], tuple[NDArray[np.complex128], NDArray[np.complex128]]],
+    rounding: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    omega: float,
+    delay: float,
+) -> NDArray[np.float64] | None:
+    """The bound ``(dw, dphi)`` of :func:`compound_delay_error`'s Newton step; None at a tangency."""
     c, dc = jet(np.array([float(omega)]))
     e = float(np.asarray(rounding(np.array([float(omega)])))[0])
     orders = np.arange(c.shape[1])
@@ -768,5 +860,4 @@ def compound_delay_error(
     J = np.array([[f_w.real, f_phi.real], [f_w.imag, f_phi.imag]])
     if not np.linalg.cond(J) < 1.0 / EPS:
         return None
-    step = np.abs(np.linalg.inv(J)).sum(axis=1) * (abs(f) + c.shape[1] * e)
-    return _DELAY_SAFETY * float(step[1] + delay * step[0]) / omega + EPS * delay
+    return np.asarray(np.abs(np.linalg.inv(J)).sum(axis=1) * (abs(f) + c.shape[1] * e), dtype=float)
