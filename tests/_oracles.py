@@ -1448,3 +1448,30 @@ def assert_balls_contain(
                 truth = mp.diff(F, mp.mpc(s), k)
             with working_precision(200) as fl:
                 assert value.contains(fl.acb(truth)), (s, k, value, truth)  # type: ignore[attr-defined]
+
+
+# ============================================================================ the paper's plant in closed form
+#: ``delta*`` of U_BS2(0.1) on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)``: its crossing equations
+#: (:func:`paper_factors`) solved at 40 digits.
+PAPER_MARGIN = 0.2295391302761485093812871100572
+#: ``delta*`` of U_BS2(0.1) on ``Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5)``, the same equations (14 digits; the exact route
+#: gives 0.08708699915035, ``docs/margins.md``).
+PDE_MARGIN_STRONG = 0.08708699915035
+
+
+def paper_factors(s: Any, K: Any, rho: str = "0.85", q: str = "1") -> tuple[Any, Any]:
+    """``A(s)`` and ``B(s; K)`` of U_BS2(K) (eq. (60)) on the paper's plant, at mpmath's working precision.
+
+    The Laplace transform of the plant is ``[u; v]' = [[-s, 1], [-1, s]] [u; v]`` with ``[u; v](0) = [q; 1]``;
+    ``M^2 = (s^2 - 1) I`` gives ``exp(M) = cosh(k) I + sinh(k)/k M``, ``k^2 = s^2 - 1``. ``A = e^{-s} (v(1) - rho
+    u(1))`` is the open loop's characteristic function, and at ``delta = 0`` the loop is ``1 - (rho - K) q e^{-2 s}``
+    (the kernels cancel), so ``B = 1 - rho q e^{-2 s} - A + K q e^{-2 s}``.
+    """
+    rho_, q_ = mp.mpf(rho), mp.mpf(q)
+    k = mp.sqrt(s * s - 1)
+    c, sk = mp.cosh(k), mp.sinh(k) / k
+    u1 = (c - s * sk) * q_ + sk
+    v1 = -sk * q_ + (c + s * sk)
+    A = mp.exp(-s) * (v1 - rho_ * u1)
+    z = mp.exp(-2 * s)
+    return A, 1 - rho_ * q_ * z - A + K * q_ * z

@@ -17,6 +17,7 @@ from pathlib import Path
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import paper_factors
 from scipy.optimize import brentq, minimize_scalar
 
 import nrobust
@@ -45,27 +46,9 @@ def best(loop: AffineGainLoop) -> tuple[GainDesign, float]:
     return design, time.process_time() - start
 
 
-def _factors_mp(s: mp.mpc, K: mp.mpf) -> tuple[mp.mpc, mp.mpc]:
-    """A(s) and B(s; K) of eq. (60) from the boundary function, at 40 digits.
-
-    The Laplace transform of the plant is [u; v]' = [[-s, 1], [-1, s]] [u; v] with
-    [u; v](0) = [q; 1]; M^2 = (s^2 - 1) I gives exp(M) = cosh(k) I + sinh(k)/k M, k^2 = s^2 - 1.
-    A = e^{-s} (v(1) - rho u(1)) is the open loop's characteristic function, and at delta = 0
-    the loop is 1 - (rho - K) q e^{-tau s} (the kernels cancel), so B = 1 - rho q e^{-tau s} - A + K q e^{-tau s}.
-    """
-    rho, q = mp.mpf(RHO), mp.mpf(Q)
-    k = mp.sqrt(s * s - 1)
-    c, sk = mp.cosh(k), mp.sinh(k) / k
-    u1 = (c - s * sk) * q + sk
-    v1 = -sk * q + (c + s * sk)
-    A = mp.exp(-s) * (v1 - rho * u1)
-    z = mp.exp(-2 * s)
-    return A, 1 - rho * q * z - A + K * q * z
-
-
 def _delay_mp(w: mp.mpf, K: mp.mpf) -> mp.mpf:
     """theta / w, theta = arg(-B/A) in [0, 2 pi): the first delay of the crossing at i w."""
-    A, B = _factors_mp(mp.mpc(0, w), K)
+    A, B = paper_factors(mp.mpc(0, w), K)
     theta = mp.arg(-B / A)
     return (theta if theta >= 0 else theta + 2 * mp.pi) / w
 
@@ -75,8 +58,8 @@ def _paper_kink() -> tuple[mp.mpf, mp.mpf, mp.mpf, mp.mpf]:
     mp.mp.dps = 40
 
     def equations(K: mp.mpf, w1: mp.mpf, w2: mp.mpf) -> list[mp.mpf]:
-        A1, B1 = _factors_mp(mp.mpc(0, w1), K)
-        A2, B2 = _factors_mp(mp.mpc(0, w2), K)
+        A1, B1 = paper_factors(mp.mpc(0, w1), K)
+        A2, B2 = paper_factors(mp.mpc(0, w2), K)
         return [abs(A1) ** 2 - abs(B1) ** 2, abs(A2) ** 2 - abs(B2) ** 2, _delay_mp(w1, K) - _delay_mp(w2, K)]
 
     # the two crossing branches meeting at the maximum: w ~ 3.17 (left of it) and w ~ 6.27 (right)
@@ -311,7 +294,7 @@ def _margin_mp(K: mp.mpf, ws: np.ndarray | None = None) -> mp.mpf:
     :func:`_delay_mp`; ``inf`` when the grid brackets none."""
 
     def gap(w: mp.mpf) -> mp.mpf:
-        A, B = _factors_mp(mp.mpc(0, w), K)
+        A, B = paper_factors(mp.mpc(0, w), K)
         return abs(A) - abs(B)
 
     ws = np.linspace(1e-3, 60.0, 3000) if ws is None else ws

@@ -14,6 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from _oracles import PAPER_MARGIN, PDE_MARGIN_STRONG
 
 import nrobust.hyperbolic.analyses.margin as margin_module
 import nrobust.reports.certificate as certificate_module
@@ -27,11 +28,6 @@ from nrobust import (
     with_accuracy,
 )
 from nrobust.hyperbolic.analyses.grid_study import grid_study
-
-#: delta* of U_BS2(0.1) on the paper's plant, the crossing equations at 40 digits.
-PAPER_MARGIN = 0.2295391302761485093812871100572
-#: delta* of U_BS2(0.1) on Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5), the same equations (14 digits).
-PDE_MARGIN_STRONG = 0.08708699915035
 
 
 def _within_printed(text: str, truth: float) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import paper_factors
 
 from nrobust import (
     CertificationError,
@@ -33,29 +34,13 @@ pytest.importorskip("flint")
 PAPER = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, 0.85)
 
 
-def _factors(s: mp.mpc, K: mp.mpf) -> tuple[mp.mpc, mp.mpc]:
-    """``A(s)`` and ``B(s; K)`` of ``U_BS2(K)`` (eq. (60)) on the paper's plant, at mpmath's precision.
-
-    ``[u; v](0) = [q; 1]``, ``A = e^{-s} (v(1) - rho u(1))`` the open loop; at ``delta = 0`` the loop is
-    ``1 - (rho - K) q e^{-2 s}`` (the kernels cancel), which gives ``B = 1 - rho q e^{-2 s} - A + K q e^{-2 s}``.
-    """
-    rho, q = mp.mpf("0.85"), mp.mpf(1)
-    k = mp.sqrt(s * s - 1)
-    ch, sh = mp.cosh(k), mp.sinh(k) / k
-    u1 = (ch - s * sh) * q + sh
-    v1 = -sh * q + (ch + s * sh)
-    A = mp.exp(-s) * (v1 - rho * u1)
-    z = mp.exp(-2 * s)
-    return A, 1 - rho * q * z - A + K * q * z
-
-
 def _crossing_end(K0: str, w0: str, delta_max: float) -> mp.mpf:
     """The gain with a root at ``i w`` for ``delta = delta_max``: ``A + B e^{-i w delta_max} = 0``."""
     with mp.workdps(40):
         d = mp.mpf(delta_max)
 
         def F(K: mp.mpf, w: mp.mpf) -> list[mp.mpf]:
-            A, B = _factors(mp.mpc(0, w), K)
+            A, B = paper_factors(mp.mpc(0, w), K)
             value = A + B * mp.exp(-mp.mpc(0, w) * d)
             return [value.real, value.imag]
 
@@ -68,11 +53,11 @@ def _pair_birth(K0: str, w0: str) -> tuple[mp.mpf, mp.mpf, mp.mpf]:
     with mp.workdps(40):
 
         def g(w: mp.mpf, K: mp.mpf) -> mp.mpf:
-            A, B = _factors(mp.mpc(0, w), K)
+            A, B = paper_factors(mp.mpc(0, w), K)
             return abs(A) ** 2 - abs(B) ** 2
 
         K, w = mp.findroot(lambda K, w: [g(w, K), mp.diff(lambda x: g(x, K), w)], (mp.mpf(K0), mp.mpf(w0)))
-        A, B = _factors(mp.mpc(0, w), K)
+        A, B = paper_factors(mp.mpc(0, w), K)
         theta = mp.arg(-B / A)
         return +K, +w, (theta if theta >= 0 else theta + 2 * mp.pi) / w
 

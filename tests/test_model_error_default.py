@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _oracles import PAPER_MARGIN, PDE_MARGIN_STRONG
 
 from nrobust import (
     GeneralHyperbolic2x2,
@@ -30,12 +31,6 @@ from nrobust.config import load_system_file
 from nrobust.hyperbolic.loops.controllers import loop_route
 from nrobust.hyperbolic.loops.feedback import laplace_loop_factors
 from nrobust.hyperbolic.plants.frontends import saint_venant
-
-#: delta* of U_BS2(0.1) on the paper's plant, the crossing equations at 40 digits.
-PAPER_MARGIN = 0.2295391302761485093812871100572
-#: delta* of U_BS2(0.1) on Hyperbolic2x2(1, 1, 4, 4, 0.5, 0.5), the same equations (the exact route
-#: gives 0.08708699915035, ``docs/margins.md``); 14 digits suffice against errors of 1e-8.
-PDE_MARGIN_STRONG = 0.08708699915035
 
 
 @pytest.mark.parametrize(

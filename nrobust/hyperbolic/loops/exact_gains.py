@@ -665,12 +665,18 @@ def _displacement(
     jump = abs(weight * diff(hull)) + arb(kernel.radius)
     slope = abs(weight * (sigma * diff(hull) + diff.derivative()(hull)))
     variation = jump + arb(kernel.variation_radius) + arb(ulp) * slope
+    return zero_term(lo, hi, jump, variation)
+
+
+def zero_term(lo: float, hi: float, radius: Any, variation: Any) -> DistributedDelay:
+    """A term of zero kernel on ``[lo, hi]`` within the proven ``radius`` (sup) and ``variation`` (total variation)
+    of the ``arb`` bounds given: it holds a kernel's mismatch on an ulp where a jump falls between two doubles."""
     return DistributedDelay(
         np.array([lo, hi]),
         None,
         interpolation="polynomial",
         coefficients=np.zeros((1, 1)),
-        radius=ball_upper(jump),
+        radius=ball_upper(radius),
         variation_radius=ball_upper(variation),
     )
 

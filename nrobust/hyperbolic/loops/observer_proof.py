@@ -144,7 +144,7 @@ from .exact_form import (
     rational_ball,
     tau_ratio,
 )
-from .exact_gains import gain_plant, window_series
+from .exact_gains import gain_plant, window_series, zero_term
 
 __all__ = [
     "DEGREE",
@@ -953,14 +953,7 @@ def _sliver(
     rate = P.derivative()(hull - arb(a)) - Q.derivative()(hull - arb(b))
     jump = abs(gap) + arb(kernel.radius)
     variation = jump + arb(kernel.variation_radius) + 2 * arb(kernel.radius) + (arb(hi) - arb(lo)) * abs(rate)
-    return DistributedDelay(
-        np.array([lo, hi]),
-        None,
-        interpolation="polynomial",
-        coefficients=np.zeros((1, 1)),
-        radius=ball_upper(jump),
-        variation_radius=ball_upper(variation),
-    )
+    return zero_term(lo, hi, jump, variation)
 
 
 def _response_points(flint: Any, system: Hyperbolic2x2, K: float) -> tuple[list, list]:
