@@ -20,6 +20,7 @@ import time
 import mpmath as mp
 import numpy as np
 import pytest
+from _oracles import paper_factors
 from scipy.optimize import brentq
 
 from nrobust import Hyperbolic2x2
@@ -40,21 +41,10 @@ PLANT = Hyperbolic2x2(1.0, 1.0, 1.0, 1.0, 1.0, RHO)
 
 
 def _factors_mp(s: mp.mpc, K: mp.mpf, a: mp.mpf, b: mp.mpf) -> tuple[mp.mpc, mp.mpc]:
-    """A(s) (1 + b s) and B(s; K) (1 + a s): eq. (60) with the filter, at the working precision.
-
-    The Laplace transform of the plant is [u; v]' = [[-s, 1], [-1, s]] [u; v] with [u; v](0) = [q; 1];
-    M^2 = (s^2 - 1) I gives exp(M) = cosh(k) I + sinh(k)/k M, k^2 = s^2 - 1. A = e^{-s} (v(1) - rho u(1))
-    is the open loop's characteristic function, and at delta = 0 the unfiltered loop is
-    1 - (rho - K) q e^{-2 s} (the kernels cancel), so B = 1 - rho q e^{-2 s} - A + K q e^{-2 s}.
-    """
-    rho, q = mp.mpf(RHO), mp.mpf(Q)
-    k = mp.sqrt(s * s - 1)
-    c, sk = mp.cosh(k), mp.sinh(k) / k
-    u1 = (c - s * sk) * q + sk
-    v1 = -sk * q + (c + s * sk)
-    A = mp.exp(-s) * (v1 - rho * u1)
-    z = mp.exp(-2 * s)
-    return A * (1 + b * s), (1 - rho * q * z - A + K * q * z) * (1 + a * s)
+    """A(s) (1 + b s) and B(s; K) (1 + a s): eq. (60) with the filter, at the working precision (the unfiltered
+    factors of the paper's plant in closed form, :func:`_oracles.paper_factors`)."""
+    A, B = paper_factors(s, K)
+    return A * (1 + b * s), B * (1 + a * s)
 
 
 def _delay_mp(w: mp.mpf, K: mp.mpf, a: mp.mpf, b: mp.mpf) -> mp.mpf:
