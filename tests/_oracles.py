@@ -1586,7 +1586,14 @@ class NPlusMLoop:
             w = mp.mpf(w)
             M0, M1 = self.matrices_mp(mp.mpc(0, w), self.DPS + 10)
             c = self.z_polynomial(lambda i, j: M0[i, j], lambda i, j: M1[i, j])
-            zs = [-c[0] / c[1]] if self.m == 1 else list(_polyroots(c, 60)[0])
+            if self.m == 1:
+                zs = [-c[0] / c[1]]
+            else:  # the root of larger modulus from the formula without cancellation, the other by Vieta
+                disc = mp.sqrt(c[1] * c[1] - 4 * c[0] * c[2])
+                big = max(-c[1] + disc, -c[1] - disc, key=abs)
+                if big == 0:
+                    raise OracleUnsure(f"det(M_0 + z M_1) = c_0 at w = {w}")
+                zs = [2 * c[0] / big] + ([big / (2 * c[2])] if c[2] != 0 else [])  # c_2 = 0: a root at infinity
             return [(float(abs(z)), float(((-mp.arg(z)) % (2 * mp.pi)) / w)) for z in zs]
 
     def crossing_near(self, w0: float, d0: float) -> tuple[float, float]:
