@@ -1450,6 +1450,7 @@ def assert_balls_contain(
                 assert value.contains(fl.acb(truth)), (s, k, value, truth)  # type: ignore[attr-defined]
 
 
+<<<<<<< HEAD
 # ============================================================================ the paper's plant in closed form
 #: ``delta*`` of U_BS2(0.1) on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)``: its crossing equations
 #: (:func:`paper_factors`) solved at 40 digits.
@@ -1475,3 +1476,235 @@ def paper_factors(s: Any, K: Any, rho: str = "0.85", q: str = "1") -> tuple[Any,
     A = mp.exp(-s) * (v1 - rho_ * u1)
     z = mp.exp(-2 * s)
     return A, 1 - rho_ * q_ * z - A + K * q_ * z
+=======
+# ============================================================ n + m plants (constant coefficients)
+class NPlusMLoop:
+    """``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` of the ``n + m`` plant
+    ``u_t + diag(lam) u_x = S_uu u + S_uv v``, ``v_t - diag(mu) v_x = S_vu u + S_vv v`` on ``[0, 1]``,
+    ``u(t, 0) = Q v(t, 0)``, ``v(t, 1) = R u(t, 1) + U(t)``, ``U(t) = K u(t - delta, 1)``.
+
+    Derivation: with zero initial data the Laplace transforms ``w = (u, v)`` satisfy
+    ``s u + diag(lam) u_x = S_u w`` and ``s v - diag(mu) v_x = S_v w``, i.e.
+    ``w_x = diag(lam, -mu)^{-1} (Sigma - s I) w``; so ``w(1) = expm(diag(lam, -mu)^{-1} (Sigma - s I)) w(0)``
+    with ``w(0) = [Q; I] v(0)`` (the distal condition), and ``[Phi_u; Phi_v]`` the two row blocks of
+    that product. The proximal condition with the delayed feedback is ``(Phi_v - (R + K e^{-delta s})
+    Phi_u) v(0) = 0``: a nonzero solution iff its determinant vanishes. Row ``j`` is scaled by
+    ``e^{-s/mu_j}`` (the normalisation nrobust documents, ``det(E(s) (...))``, ``E = diag(e^{-s/mu_j})``),
+    so ``M_0 = E (Phi_v - R Phi_u)`` and ``M_1 = -E K Phi_u``. With ``Sigma = 0`` and ``m = 1``:
+    ``F = 1 - sum_i (R_i + K_i e^{-delta s}) Q_i e^{-(1/lam_i + 1/mu) s}``.
+
+    On ``s = i w`` a root needs ``z = e^{-i w delta}`` on the unit circle with ``det(M_0 + z M_1) = 0``,
+    a polynomial of degree ``m <= 2`` in ``z`` (written out below); a root ``z`` with ``|z| = 1`` gives the
+    delays ``(-arg z mod 2 pi + 2 pi k) / w``. Values at ``DPS`` digits come from ``mpmath.expm`` (two
+    precisions that must agree), scans from ``scipy.linalg.expm`` in double precision.
+    """
+
+    DPS = 30
+
+    def __init__(self, lam: Sequence[float], mu: Sequence[float], sigma, q, r, K) -> None:
+        self.lam, self.mu = [float(v) for v in lam], [float(v) for v in mu]
+        self.n, self.m = len(self.lam), len(self.mu)
+        if self.m not in (1, 2):
+            raise ValueError("the oracle is written for m = 1 or 2")
+        self.sigma = np.asarray(sigma, dtype=float)
+        self.q, self.r, self.K = (
+            np.asarray(a, dtype=float).reshape(shape)
+            for a, shape in ((q, (self.n, self.m)), (r, (self.m, self.n)), (K, (self.m, self.n)))
+        )
+        self.speeds = np.array(self.lam + [-v for v in self.mu])
+        #: The longest round trip ``max_ij 1/lam_i + 1/mu_j``: the fastest oscillation of ``F`` on the axis.
+        self.tau = max(1.0 / a + 1.0 / b for a in self.lam for b in self.mu)
+
+    # ---------------------------------------------------------------- values
+    def matrices_mp(self, s, dps: int):
+        """``(M_0(s), M_1(s))`` at ``dps`` digits."""
+        N, n = self.n + self.m, self.n
+        with mp.workdps(dps):
+            s = mp.mpc(s)
+            gen = mp.matrix(N, N)
+            for i in range(N):
+                for j in range(N):
+                    gen[i, j] = (mp.mpf(self.sigma[i, j]) - (s if i == j else 0)) / mp.mpf(self.speeds[i])
+            phi = mp.expm(gen)
+            w0 = mp.matrix(N, self.m)
+            for j in range(self.m):
+                w0[n + j, j] = 1
+                for i in range(n):
+                    w0[i, j] = mp.mpf(self.q[i, j])
+            col = phi * w0
+            M0, M1 = mp.matrix(self.m, self.m), mp.matrix(self.m, self.m)
+            for j in range(self.m):
+                e = mp.exp(-s / mp.mpf(self.mu[j]))
+                for k in range(self.m):
+                    pu = [col[i, k] for i in range(n)]
+                    M0[j, k] = e * (col[n + j, k] - mp.fsum(mp.mpf(self.r[j, i]) * pu[i] for i in range(n)))
+                    M1[j, k] = -e * mp.fsum(mp.mpf(self.K[j, i]) * pu[i] for i in range(n))
+            return M0, M1
+
+    def _F_at(self, s, delta, dps: int):
+        M0, M1 = self.matrices_mp(s, dps)
+        with mp.workdps(dps):
+            return mp.det(M0 + mp.exp(-mp.mpc(s) * mp.mpf(delta)) * M1)
+
+    def F_mp(self, s, delta) -> Any:
+        """``F(s; delta)`` to ``DPS`` digits; the precision grows with the terms that cancel left of the
+        axis (``e^{-Re s (tau + delta)}``), and two precisions 30 digits apart must agree."""
+        x = float(mp.re(mp.mpc(s)))
+        extra = max(0.0, -x) * (2.0 * self.tau + float(delta)) / math.log(10.0)
+        if not extra <= 500.0:
+            raise OracleUnsure(f"terms at s = {s} need more than 500 extra digits")
+        dps = self.DPS + 10 + math.ceil(extra)
+        f1, f2 = self._F_at(s, delta, dps), self._F_at(s, delta, dps + 30)
+        with mp.workdps(self.DPS + 10):
+            if abs(f1 - f2) > mp.mpf(10) ** (-self.DPS + 5) * (1 + abs(f2)):
+                raise OracleUnsure(f"F at s = {s} is not settled at {dps} digits")
+            return +f2
+
+    def matrices_np(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_0, M_1)`` in double precision, shape ``s.shape + (m, m)``."""
+        from scipy.linalg import expm
+
+        s = np.asarray(s, dtype=complex).reshape(-1)
+        N, n = self.n + self.m, self.n
+        gen = (self.sigma[None] - s[:, None, None] * np.eye(N)[None]) / self.speeds[None, :, None]
+        col = expm(gen) @ np.vstack([self.q, np.eye(self.m)])
+        pu, pv = col[:, :n, :], col[:, n:, :]
+        e = np.exp(-s[:, None] / np.array(self.mu)[None, :])[:, :, None]
+        return e * (pv - self.r[None] @ pu), -e * (self.K[None] @ pu)
+
+    def F_np(self, s: np.ndarray, delta: float) -> np.ndarray:
+        s = np.asarray(s, dtype=complex)
+        M0, M1 = self.matrices_np(s)
+        return np.linalg.det(M0 + np.exp(-delta * s.reshape(-1))[:, None, None] * M1).reshape(s.shape)
+
+    # ---------------------------------------------------------------- the axis
+    def z_polynomial(self, a: Callable[[int, int], Any], b: Callable[[int, int], Any]) -> list:
+        """Coefficients ``[c_0, .., c_m]`` of ``det(M_0 + z M_1)``, the entries given as ``a(i, j)``, ``b(i, j)``
+        (``m = 1``: ``a + z b``; ``m = 2``: ``det M_0 + z (a_00 b_11 + b_00 a_11 - a_01 b_10 - b_01 a_10)
+        + z^2 det M_1``)."""
+        if self.m == 1:
+            return [a(0, 0), b(0, 0)]
+        c0 = a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0)
+        c1 = a(0, 0) * b(1, 1) + b(0, 0) * a(1, 1) - a(0, 1) * b(1, 0) - b(0, 1) * a(1, 0)
+        c2 = b(0, 0) * b(1, 1) - b(0, 1) * b(1, 0)
+        return [c0, c1, c2]
+
+    def log_moduli(self, w: np.ndarray) -> np.ndarray:
+        """``log|z_k(i w)|`` of the roots of ``det(M_0 + z M_1)`` in ``z``, sorted, shape ``(w.size, m)``
+        (``+inf`` for a root at infinity, ``M_1`` singular: that branch does not reach ``|z| = 1``)."""
+        M0, M1 = self.matrices_np(1j * np.asarray(w, dtype=float))
+        c = self.z_polynomial(lambda i, j: M0[:, i, j], lambda i, j: M1[:, i, j])
+        with np.errstate(all="ignore"):
+            if self.m == 1:
+                z = (-c[0] / c[1])[:, None]
+            else:
+                disc = np.sqrt(c[1] * c[1] - 4 * c[0] * c[2])
+                big = np.where(np.abs(-c[1] + disc) >= np.abs(-c[1] - disc), -c[1] + disc, -c[1] - disc)
+                z1 = big / (2 * c[2])  # the larger root, and the smaller one by Vieta (no cancellation)
+                z2 = 2 * c[0] / big
+                z = np.stack([z1, z2], axis=1)
+            out = np.sort(np.log(np.abs(z)), axis=1)
+        return np.where(np.isnan(out), np.inf, out)
+
+    def first_delay(self, w) -> list[tuple[float, float]]:
+        """``(|z|, delta)`` of each root ``z`` of ``det(M_0 + z M_1)`` at ``s = i w`` (``DPS`` digits),
+        ``delta = (-arg z mod 2 pi) / w``."""
+        with mp.workdps(self.DPS + 10):
+            w = mp.mpf(w)
+            M0, M1 = self.matrices_mp(mp.mpc(0, w), self.DPS + 10)
+            c = self.z_polynomial(lambda i, j: M0[i, j], lambda i, j: M1[i, j])
+            if self.m == 1:
+                zs = [-c[0] / c[1]]
+            else:  # the root of larger modulus from the formula without cancellation, the other by Vieta
+                disc = mp.sqrt(c[1] * c[1] - 4 * c[0] * c[2])
+                big = max(-c[1] + disc, -c[1] - disc, key=abs)
+                if big == 0:
+                    raise OracleUnsure(f"det(M_0 + z M_1) = c_0 at w = {w}")
+                zs = [2 * c[0] / big] + ([big / (2 * c[2])] if c[2] != 0 else [])  # c_2 = 0: a root at infinity
+            return [(float(abs(z)), float(((-mp.arg(z)) % (2 * mp.pi)) / w)) for z in zs]
+
+    def crossing_near(self, w0: float, d0: float) -> tuple[float, float]:
+        """``(w, delta)`` with ``F(i w; delta) = 0`` from ``(w0, d0)`` (``mpmath.findroot``, two real unknowns),
+        ``delta`` reduced to the first delay of that crossing; OracleUnsure if it does not settle nearby."""
+
+        def eqs(w, d):
+            f = self.F_mp(mp.mpc(0, w), d)
+            return mp.re(f), mp.im(f)
+
+        with mp.workdps(self.DPS):
+            try:
+                w, d = mp.findroot(eqs, (mp.mpf(w0), mp.mpf(d0)), tol=mp.mpf(10) ** (-2 * self.DPS + 12))
+            except (ValueError, ZeroDivisionError):
+                raise OracleUnsure(f"findroot did not settle from (w, delta) = ({w0}, {d0})") from None
+            if abs(w - w0) > 1e-6 * (1 + abs(w0)) or w <= 0:
+                raise OracleUnsure(f"findroot went from w = {w0} to {w}")
+            period = 2 * mp.pi / w
+            return float(w), float(d - mp.floor(d / period) * period)
+
+    def crossings_in_band(self, w_max: float) -> list[tuple[float, float]]:
+        """``(w, delta)`` of the sign changes of each sorted ``log|z_k(i w)|`` on ``(0, w_max]`` (step
+        ``2 pi / (64 tau)``, refined by ``brentq`` in double precision), ``delta`` the first delay; a local
+        minimum of ``|log|z_k||`` below ``1e-6`` without a sign change raises OracleUnsure (a tangency)."""
+        from scipy.optimize import brentq
+
+        n = int(w_max / (2 * math.pi / (64 * self.tau))) + 2
+        w = np.linspace(1e-6, w_max, n)
+        g = self.log_moduli(w)
+        out = []
+        for k in range(self.m):
+            gk = g[:, k]
+            inner = np.arange(1, n - 1)
+            low = (np.abs(gk[inner]) <= np.abs(gk[inner - 1])) & (np.abs(gk[inner]) <= np.abs(gk[inner + 1]))
+            if np.any(low & (np.abs(gk[inner]) < 1e-6) & (np.sign(gk[inner - 1]) == np.sign(gk[inner + 1]))):
+                raise OracleUnsure("|z| - 1 nearly touches zero between grid points")
+            for i in np.flatnonzero(np.sign(gk[:-1]) != np.sign(gk[1:])):
+                wc = brentq(lambda x, k=k: float(self.log_moduli(np.array([x]))[0, k]), w[i], w[i + 1], xtol=1e-14)
+                # the root z on the unit circle (of the two, the one whose modulus is nearest 1)
+                _, delay = min(self.first_delay(wc), key=lambda t: abs(math.log(t[0])))
+                out.append((wc, delay))
+        return out
+
+    # ---------------------------------------------------------------- roots
+    def polish(self, s0: complex, delta: float) -> Any:
+        """A zero of ``F(.; delta)`` by the secant method (``mpmath.findroot``) from ``s0``; OracleUnsure if it
+        does not settle within ``1e-6 (1 + |s0|)`` of ``s0``."""
+        with mp.workdps(self.DPS):
+            try:
+                r = mp.findroot(lambda s: self.F_mp(s, delta), mp.mpc(s0), tol=mp.mpf(10) ** (-2 * self.DPS + 12))
+            except (ValueError, ZeroDivisionError):
+                raise OracleUnsure(f"secant iteration from {s0} did not converge") from None
+            if abs(r - s0) > 1e-6 * (1 + abs(s0)):
+                raise OracleUnsure(f"secant iteration went from {s0} to {r}")
+            return r
+
+    def roots_near(
+        self, box: Region, delta: float, n_re: int = 8, n_im: int = 40, right_of: float = -math.inf
+    ) -> list[complex]:
+        """Zeros of ``F(.; delta)`` reached by Newton's method in double precision from a grid of seeds in
+        ``box`` (``Im >= 0``: ``F`` is real), those with ``Re s > right_of - 1e-6`` polished at ``DPS``
+        digits; not a complete search."""
+        x0, x1, y0, y1 = box
+        xs, ys = np.linspace(x0, x1, n_re), np.linspace(max(0.0, y0), max(y1, 0.0), n_im)
+        s = (xs[:, None] + 1j * ys[None, :]).ravel()
+        with np.errstate(all="ignore"):
+            for _ in range(30):
+                h = 1e-6 * (1 + np.abs(s))
+                d = (self.F_np(s + h, delta) - self.F_np(s - h, delta)) / (2 * h)
+                step = self.F_np(s, delta) / d
+                step = np.where(np.isfinite(step), step, 0.0)
+                s = s - np.clip(np.abs(step), 0, 0.5) * np.exp(1j * np.angle(step))
+            res = np.abs(self.F_np(s, delta))
+        keep = np.isfinite(s) & (s.real > x0 - 1.0) & (s.real < x1 + 1.0) & (np.abs(s.imag) < y1 + 1.0) & (res < 1e-8)
+        keep &= s.real > right_of - 1e-6
+        out: list[complex] = []
+        for z in s[keep]:
+            if any(abs(z - v) < 1e-6 * (1 + abs(v)) for v in out):
+                continue
+            try:
+                r = complex(self.polish(complex(z), delta))
+            except OracleUnsure:
+                continue
+            if not any(abs(r - v) < 1e-12 * (1 + abs(v)) for v in out):
+                out.append(r)
+        return out
+>>>>>>> fuzznm21

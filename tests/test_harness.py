@@ -18,6 +18,7 @@ examples per unit weight of each test, random (not derandomised), with
 from __future__ import annotations
 
 import inspect
+import itertools
 import math
 import os
 import re
@@ -28,6 +29,7 @@ from fractions import Fraction
 from functools import partial
 from typing import Any
 
+import mpmath as mp
 import numpy as np
 import pytest
 from _budget import FUZZ
@@ -36,6 +38,7 @@ from _fuzzstats import STATS
 from _guards import Hang, hard_deadline, memory_cap
 from _oracles import (
     LoopOracle,
+    NPlusMLoop,
     OracleUnsure,
     PDELoop,
     Profile,
@@ -69,6 +72,12 @@ from nrobust import (
 from nrobust.balls import ball_eval
 from nrobust.hyperbolic.loops.controllers import loop_route
 from nrobust.hyperbolic.loops.varying_proof import has_varying_proof, varying_proof
+from nrobust.hyperbolic.nplusm import (
+    NPlusMCharacteristic,
+    NPlusMSystem,
+    multi_actuator_delay_margin,
+    nplusm_delay_margin,
+)
 
 # ============================================================================ budget
 EXAMPLE_SECONDS = float(os.environ.get("NROBUST_FUZZ_EXAMPLE_SECONDS", "60" if FUZZ else "15"))
@@ -1179,6 +1188,148 @@ def test_varying_speeds_against_the_pde() -> None:
     run(_prop_varying_speeds, "pde_varying_speeds")
 
 
+# ============================================================================ 4f. n + m plants (the PDE itself)
+@st.composite
+def nplusm_plants(draw: st.DrawFn) -> tuple[tuple, tuple]:
+    """``n + m`` plants (``n`` in 1..2, ``m = 1`` mostly, else 2) with distinct speeds, couplings small to
+    moderate (the diagonal zero or not) and a gain ``K``; ``R`` and ``K`` scaled so that a bound of
+    ``gamma_0`` of the delayed principal part (the row sums of ``V^{-1} (|R| + |K|) |U Q|``, groups of one
+    speed each) is a drawn value below 1. Returns the plant's arguments and ``K``."""
+    n, m = draw(st.integers(1, 2)), draw(st.sampled_from([1, 1, 1, 2]))
+    lam = draw(st.lists(st.floats(0.4, 3.0), min_size=n, max_size=n))
+    mu = draw(st.lists(st.floats(0.4, 3.0), min_size=m, max_size=m))
+    assume(all(abs(a - b) > 0.05 for a, b in itertools.combinations(lam, 2)))
+    assume(all(abs(a - b) > 0.05 for a, b in itertools.combinations(mu, 2)))
+    scale = draw(st.sampled_from([0.3, 1.0, 2.0]))
+    entry = st.just(0.0) | st.floats(-scale, scale).filter(lambda x: abs(x) > 1e-3)
+    sigma = np.array([[draw(entry) for _ in range(n + m)] for _ in range(n + m)])
+    if draw(st.booleans()):
+        np.fill_diagonal(sigma, 0.0)
+    reflection = st.floats(0.05, 1.0) | st.floats(-1.0, -0.05)  # as in constant_plants: chains in view
+    q = np.array([[draw(reflection) for _ in range(m)] for _ in range(n)])
+    r = np.array([[draw(reflection) for _ in range(n)] for _ in range(m)])
+    k = np.array([[draw(st.just(0.0) | st.floats(-1.5, 1.5)) for _ in range(n)] for _ in range(m)])
+    u = np.exp(np.diag(sigma)[:n] / np.array(lam))[:, None] * np.abs(q)  # |U_a Q|
+    v_inv = np.exp(np.diag(sigma)[n:] / np.array(mu))[:, None]
+    rows = (v_inv * (np.abs(r) + np.abs(k)) @ u).sum(axis=1)
+    gamma = float(rows.max())
+    target = draw(st.floats(0.05, 0.9))
+    if gamma > target:
+        r, k = r * (target / gamma), k * (target / gamma)
+    return (lam, mu, sigma.tolist(), q.tolist(), r.tolist()), k.tolist()
+
+
+def check_nplusm_margin(test: str, o: NPlusMLoop, dm: Any, what: str, case: str) -> bool:
+    """A delay margin of an ``n + m`` loop against the oracle's crossings: the oracle's crossing from the
+    reported ``(omega, margin)`` lies in the claimed interval (``margin_bracket``, or ``margin +- error``),
+    and the scan of a band finds no crossing below its lower end. True iff the margin claims an unstable
+    delay-free loop (checked by the caller on the abscissa)."""
+    if dm.margin == 0.0:
+        # gamma_0 < 1 by construction: a margin 0 must come from an unstable delay-free loop
+        unstable = bool(dm.nominal_unstable)
+        STATS.claim(unstable, test, f"{what}: margin 0 with nominal_unstable = {dm.nominal_unstable}", case)
+        return unstable
+    band = min(max(1.5 * (dm.omega or 0.0), 20.0 / o.tau), 40.0 / o.tau)
+    if math.isinf(dm.margin):
+        crossings = unsure_guard(lambda: o.crossings_in_band(band))
+        if crossings is not None:
+            STATS.claim(not crossings, test, f"{what}: margin inf, the PDE crosses at {crossings[:3]}", case)
+        return False
+    if dm.margin_bracket is not None:
+        lo, hi = dm.margin_bracket
+        slack = ulps(hi)
+    elif dm.error is not None:
+        lo, hi, slack = dm.margin - dm.error, dm.margin + dm.error, ulps(dm.margin)
+    else:
+        STATS.unsure()  # no stated accuracy: nothing to check the digits against
+        return False
+    found = unsure_guard(lambda: o.crossing_near(dm.omega, dm.margin))
+    if found is not None:
+        STATS.claim(
+            lo - slack <= found[1] <= hi + slack,
+            test,
+            f"{what}: [{lo!r}, {hi!r}] misses the PDE's crossing delay {found[1]!r} at w = {found[0]!r}",
+            case,
+        )
+    crossings = unsure_guard(lambda: o.crossings_in_band(band))
+    if crossings is not None:
+        early = [c for c in crossings if c[1] < lo - 1e-8 * (1 + lo)]  # the double-precision scan's accuracy
+        where = f"the PDE crosses at (w, delta) = {early[:3]} (band {band:.3g})"
+        STATS.claim(not early, test, f"{what}: lower end {lo!r}, {where}", case)
+    return False
+
+
+def check_nplusm_abscissa(test: str, o: NPlusMLoop, sa: Any, delta: float, unstable: bool, case: str) -> None:
+    """The proven abscissa of an ``n + m`` loop: the oracle's root polished from the reported root lies in the
+    proven box and in ``value_bracket``; no oracle root found right of the proven upper bound; a loop claimed
+    unstable (``unstable``, ``delta = 0``) has the oracle's root in ``Re s > 0``."""
+    hi = float(sa.upper_bound)
+    if sa.root is not None and sa.root_box is not None:
+        r = unsure_guard(lambda: complex(o.polish(sa.root, delta)))
+        if r is not None:
+            x0, x1, y0, y1 = sa.root_box
+            lo_b, hi_b = sa.value_bracket
+            slack = 1e-14 * (1 + abs(r))
+            inside = x0 - slack <= r.real <= x1 + slack and y0 - slack <= abs(r.imag) <= y1 + slack
+            STATS.claim(
+                inside and lo_b - slack <= r.real <= hi_b + slack,
+                test,
+                f"proven_abscissa: root {sa.root!r} (box {sa.root_box}, bracket {sa.value_bracket}), PDE root {r!r}",
+                case,
+            )
+            if unstable:
+                STATS.claim(r.real > 0, test, f"nominal_unstable claimed, the PDE's rightmost root {r!r}", case)
+    elif unstable:
+        STATS.contradiction(test, f"nominal_unstable claimed, proven abscissa {sa!r} has no root", case)
+    y = 10.0 + (abs(sa.root.imag) if sa.root is not None else 0.0)
+    found = unsure_guard(lambda: o.roots_near((hi, hi + 1.5, 0.0, y), delta, right_of=hi))
+    if found is not None:
+        right = [r for r in found if r.real > hi + ulps(hi) + 1e-12 * (1 + abs(r))]
+        STATS.claim(not right, test, f"proven_abscissa: upper bound {hi!r}, PDE root(s) {right[:3]}", case)
+
+
+@budget(ci=2, weight=0.2)
+@given(nplusm_plants(), st.data())
+def _prop_nplusm_plants(plant: tuple, data: st.DataObject) -> None:
+    test = "pde_nplusm"
+    args, k = plant
+    STATS.case()
+    case = f"NPlusMSystem{args}, K = {k}"
+    pytest.importorskip("flint")
+    system = NPlusMSystem(*args)
+    o = NPlusMLoop(*args, k)
+    unstable, first = False, 1.0
+    if system.m == 1:
+        out = call(nplusm_delay_margin, system, k, rigorous=True)
+        if settle(out, test, "nplusm_delay_margin(rigorous=True)", case):
+            dm = out.value
+            proven = dm.rigorous and (dm.margin_bracket is not None or dm.margin in (0.0, math.inf))
+            STATS.claim(proven, test, f"nplusm_delay_margin(rigorous=True): no proven bracket in {dm!r}", case)
+            unstable = check_nplusm_margin(test, o, dm, "nplusm_delay_margin(rigorous=True)", case)
+            first = dm.margin if 0.0 < dm.margin < math.inf else first
+        out = call(nplusm_delay_margin, system, k)
+        if settle(out, test, "nplusm_delay_margin", case):
+            unstable |= check_nplusm_margin(test, o, out.value, "nplusm_delay_margin", case)
+    out = call(multi_actuator_delay_margin, system, k)
+    if settle(out, test, "multi_actuator_delay_margin", case):
+        dm = out.value
+        unstable |= check_nplusm_margin(test, o, dm, "multi_actuator_delay_margin", case)
+        first = dm.margin if system.m > 1 and 0.0 < dm.margin < math.inf else first
+    delta = 0.0 if unstable else data.draw(st.sampled_from([0.0, 0.5, 1.0, 1.5])) * first
+    dcase = case + f", delta = {delta!r}"
+    # a work bound: near a chain the proven far field can need a rectangle of size 1e3 (tens of seconds);
+    # the refusal is counted
+    out = call(NPlusMCharacteristic(system, k, delta).proven_abscissa, max_evals=200_000)
+    if settle(out, test, "proven_abscissa", dcase):
+        check_nplusm_abscissa(test, o, out.value, delta, unstable, dcase)
+
+
+def test_nplusm_plants_against_the_pde() -> None:
+    """Proven and certified margins and proven abscissae of ``n + m`` plants against the Laplace solution
+    of the PDE at 30 digits."""
+    run(_prop_nplusm_plants, "pde_nplusm")
+
+
 # ============================================================================ 5. bad input
 NAN, INF = float("nan"), float("inf")
 JUNK: list[Any] = [None, "1", object(), {"a": 1}, 1 + 1j, True, [1.0, 2.0]]
@@ -1503,3 +1654,55 @@ def test_the_pde_oracle_confirms_a_root_before_it_contradicts() -> None:
     paper = PDELoop(1.0, 1.0, 1.0, 1.0, 1.0, 0.85, ("reflection", 0.1))
     root = complex(paper.polish(complex(-0.1438, 3.14), 0.0))  # ln(0.75)/2 + i pi (eq. (56)-(58))
     assert abs(root - complex(np.log(0.75) / 2, np.pi)) < 1e-12 and paper.is_zero(root, 0.0)
+
+
+def test_the_nplusm_oracle_on_known_cases() -> None:
+    """The ``n + m`` oracle against closed forms and against the ODE oracle of the ``1 + 1`` plant.
+
+    Without couplings ``Phi`` is diagonal and ``F = 1 - sum_i (R_i + K_i e^{-delta s}) Q_i e^{-(1/lam_i + 1/mu) s}``;
+    with one term (``a = R Q``, ``b = K Q``) a crossing has ``|1 - a e^{-i w tau}| = |b|``, i.e.
+    ``cos(w tau) = (1 + a^2 - b^2) / (2 a)``, and ``e^{-i w delta} = -(1 - a e^{-i w tau}) / (-b e^{-i w tau})``.
+    With diagonal ``Q, R, K`` and two actuators the determinant is the product of two such loops.
+    """
+    s, d = mp.mpc("0.3", "2.7"), 0.7
+    o = NPlusMLoop([1.0, 2.5], [1.25], np.zeros((3, 3)), [[0.5], [0.375]], [[0.25, -0.125]], [[0.5, 0.25]])
+    with mp.workdps(40):
+        closed = 1 - mp.fsum(
+            (mp.mpf(r) + mp.mpf(k) * mp.exp(-d * s)) * mp.mpf(q) * mp.exp(-(1 / mp.mpf(lam) + mp.mpf("0.8")) * s)
+            for r, k, q, lam in ((0.25, 0.5, 0.5, 1.0), (-0.125, 0.25, 0.375, 2.5))
+        )
+        assert abs(o.F_mp(s, d) - closed) < mp.mpf(10) ** -28
+    # the 1 + 1 plant with U = k u(t, 1) against the Taylor integration of its ODE (20 digits)
+    lam, mu, a, b, c, dd, q, rho, k = 1.2, 0.8, 0.3, 1.1, -0.7, -0.25, 0.6, 0.4, 0.35
+    ode = VaryingPDELoop(
+        lam, mu, 1.0, {n: Profile("sin", v) for n, v in zip("abcd", (a, b, c, dd))}, q, rho, ("state", k)
+    )
+    A, B, _ = ode.factors_mp(s)
+    M0, M1 = NPlusMLoop([lam], [mu], [[a, b], [c, dd]], [[q]], [[rho]], [[k]]).matrices_mp(s, 40)
+    with mp.workdps(30):  # the ODE oracle works at 20 digits and also divides by e^{D(L)}
+        scale = mp.exp(-ode.D_L)
+        assert abs(M0[0, 0] * scale - A) < 1e-18 and abs(M1[0, 0] * scale - B) < 1e-18
+    # crossings of one loop and of two decoupled loops (m = 2)
+    loops = [(1.0, 1.0, 1.0, 0.5, 0.625), (2.0, 0.5, 1.0, -0.75, 0.5)]  # (lam, mu, q, rho, k): a = rho q, b = k q
+    truth: list[list[tuple[float, float]]] = []
+    for lam, mu, q, rho, k in loops:
+        tau, a, b = 1 / lam + 1 / mu, rho * q, k * q
+        theta = math.acos((1 + a * a - b * b) / (2 * a))
+        found = []
+        for wt in sorted(x + 2 * math.pi * j for j in range(4) for x in (theta, 2 * math.pi - theta)):
+            w = wt / tau
+            e = complex(math.cos(wt), -math.sin(wt))
+            found.append((w, float(np.angle(-(1 - a * e) / (-b * e)) * -1 % (2 * math.pi) / w)))
+        truth.append([c for c in found if c[0] <= 10.0])
+    one = NPlusMLoop([1.0], [1.0], np.zeros((2, 2)), [[1.0]], [[0.5]], [[0.625]])
+    got = one.crossings_in_band(10.0)
+    assert len(got) == len(truth[0]) and np.allclose(got, truth[0], rtol=1e-12, atol=0)
+    w0, d0 = truth[0][0]
+    wc, dc = one.crossing_near(w0 * (1 + 1e-9), d0 * (1 + 1e-9))
+    assert abs(wc - w0) < 1e-13 and abs(dc - d0) < 1e-12
+    two = NPlusMLoop(
+        [1.0, 2.0], [1.0, 0.5], np.zeros((4, 4)), np.diag([1.0, 1.0]), np.diag([0.5, -0.75]), np.diag([0.625, 0.5])
+    )
+    got = sorted(two.crossings_in_band(10.0))
+    both = sorted(truth[0] + truth[1])
+    assert len(got) == len(both) and np.allclose(got, both, rtol=1e-12, atol=0)
