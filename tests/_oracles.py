@@ -1450,7 +1450,6 @@ def assert_balls_contain(
                 assert value.contains(fl.acb(truth)), (s, k, value, truth)  # type: ignore[attr-defined]
 
 
-<<<<<<< HEAD
 # ============================================================================ the paper's plant in closed form
 #: ``delta*`` of U_BS2(0.1) on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)``: its crossing equations
 #: (:func:`paper_factors`) solved at 40 digits.
@@ -1476,7 +1475,8 @@ def paper_factors(s: Any, K: Any, rho: str = "0.85", q: str = "1") -> tuple[Any,
     A = mp.exp(-s) * (v1 - rho_ * u1)
     z = mp.exp(-2 * s)
     return A, 1 - rho_ * q_ * z - A + K * q_ * z
-=======
+
+
 # ============================================================ n + m plants (constant coefficients)
 class NPlusMLoop:
     """``F(s; delta) = det(M_0(s) + e^{-delta s} M_1(s))`` of the ``n + m`` plant
@@ -1707,4 +1707,3 @@ class NPlusMLoop:
             if not any(abs(r - v) < 1e-12 * (1 + abs(v)) for v in out):
                 out.append(r)
         return out
->>>>>>> fuzznm21
