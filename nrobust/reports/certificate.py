@@ -866,7 +866,7 @@ def certify(
         Target accuracy of the delay margin. On the exact route it is met by the proof or
         the floating-point estimate (:attr:`Certificate.margin_accuracy`); on the kernel
         route the grid is refined (each grid ``2 n - 1`` points, up to
-        :data:`MAX_ACCURACY_GRID`) until the margin moves by less than ``accuracy`` from
+        ``MAX_ACCURACY_GRID``) until the margin moves by less than ``accuracy`` from
         the grid half as fine. :attr:`Certificate.accuracy_statement` says what was
         achieved.
 

@@ -65,7 +65,7 @@ def grid_study(margin_on: Callable[[int], DelayMargin], grid: int, margin: Delay
     points (``margin_on(n)``, computed without a study of their own): when ``m1 - m0`` and
     ``m2 - m1`` have one sign and the second is at most half the first (observed order at
     least 1), the remaining error of ``m2`` is at most ``|m2 - m1|`` (a geometric tail of ratio
-    ``<= 1/2``). Otherwise the grid ``2 grid - 1`` is added (up to :data:`MAX_ACCURACY_GRID`)
+    ``<= 1/2``). Otherwise the grid ``2 grid - 1`` is added (up to ``MAX_ACCURACY_GRID``)
     and the same test made on ``m1, m2, m3``: the error of ``m2`` is then at most
     ``2 |m3 - m2|``. When neither holds (convergence not yet monotone), twice the largest
     difference is the estimate, a rough one. The crossing frequency is studied alike on the
