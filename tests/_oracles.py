@@ -959,33 +959,19 @@ class PDELoop:
         seeds in ``box`` (``Im >= 0`` half: ``F`` is real), then polished at ``DPS`` digits; not
         a complete search (the counts are :meth:`count_in_box`)."""
         x0, x1, y0, y1 = box
-        xs, ys = np.linspace(x0, x1, n_re), np.linspace(max(0.0, y0), max(y1, 0.0), n_im)
-        s = (xs[:, None] + 1j * ys[None, :]).ravel()
-        with np.errstate(all="ignore"):
-            for _ in range(40):
-                h = 1e-6 * (1 + np.abs(s))
-                d = (self.F_np(s + h, delta) - self.F_np(s - h, delta)) / (2 * h)
-                step = self.F_np(s, delta) / d
-                step = np.where(np.isfinite(step), step, 0.0)
-                s = s - np.clip(np.abs(step), 0, 1.0) * np.exp(1j * np.angle(step))
+        s = newton_from_grid(lambda z: self.F_np(z, delta), box, n_re, n_im, steps=40, max_step=1.0)
         width = max(x1 - x0, y1 - y0)
         top = max(abs(y0), abs(y1)) + width
         keep = np.isfinite(s) & (s.real > x0 - width) & (s.real < x1 + width) & (np.abs(s.imag) < top)
         with np.errstate(all="ignore"):
             res = np.abs(self.F_np(s, delta)) / (1 + self._size_bound(min(x0, 0.0), delta, np.abs(s)))
-        cand = s[keep & (res < 1e-6)]
-        out: list[complex] = []
-        for z in cand:
-            if any(abs(z - w) < 1e-6 * (1 + abs(w)) for w in out):
-                continue
-            try:
-                r = complex(self.polish(complex(z), delta))
-            except OracleUnsure:
-                continue
+
+        def polished(z: complex) -> complex:
+            r = complex(self.polish(z, delta))
             self._check_np(r, delta)
-            if not any(abs(r - w) < 1e-12 * (1 + abs(w)) for w in out):
-                out.append(r)
-        return out
+            return r
+
+        return distinct_polished(s[keep & (res < 1e-6)], polished)
 
     # ---------------------------------------------------------------- delay margin
     def nominal_unstable(self) -> int:
@@ -1450,6 +1436,41 @@ def assert_balls_contain(
                 assert value.contains(fl.acb(truth)), (s, k, value, truth)  # type: ignore[attr-defined]
 
 
+# ============================================================================ zeros by Newton's method from a grid
+def newton_from_grid(
+    F: Callable[[np.ndarray], np.ndarray], box: Region, n_re: int, n_im: int, steps: int, max_step: float
+) -> np.ndarray:
+    """Where Newton's method on ``F`` (a vectorised double-precision function; derivative by central differences)
+    takes ``steps`` steps, each at most ``max_step`` long, from an ``n_re x n_im`` grid of seeds over the ``Im >= 0``
+    half of ``box`` (the functions are real)."""
+    x0, x1, y0, y1 = box
+    xs, ys = np.linspace(x0, x1, n_re), np.linspace(max(0.0, y0), max(y1, 0.0), n_im)
+    s = (xs[:, None] + 1j * ys[None, :]).ravel()
+    with np.errstate(all="ignore"):
+        for _ in range(steps):
+            h = 1e-6 * (1 + np.abs(s))
+            step = F(s) / ((F(s + h) - F(s - h)) / (2 * h))
+            step = np.where(np.isfinite(step), step, 0.0)
+            s = s - np.clip(np.abs(step), 0, max_step) * np.exp(1j * np.angle(step))
+    return s
+
+
+def distinct_polished(candidates: np.ndarray, polish: Callable[[complex], complex]) -> list[complex]:
+    """The distinct zeros ``polish`` reaches from ``candidates`` (a candidate within ``1e-6`` of one taken is skipped;
+    an :class:`OracleUnsure` polish is left out; two polished zeros within ``1e-12`` are one)."""
+    out: list[complex] = []
+    for z in candidates:
+        if any(abs(z - w) < 1e-6 * (1 + abs(w)) for w in out):
+            continue
+        try:
+            r = polish(complex(z))
+        except OracleUnsure:
+            continue
+        if not any(abs(r - w) < 1e-12 * (1 + abs(w)) for w in out):
+            out.append(r)
+    return out
+
+
 # ============================================================================ the paper's plant in closed form
 #: ``delta*`` of U_BS2(0.1) on the paper's plant ``Hyperbolic2x2(1, 1, 1, 1, 1, 0.85)``: its crossing equations
 #: (:func:`paper_factors`) solved at 40 digits.
@@ -1683,27 +1704,10 @@ class NPlusMLoop:
         """Zeros of ``F(.; delta)`` reached by Newton's method in double precision from a grid of seeds in
         ``box`` (``Im >= 0``: ``F`` is real), those with ``Re s > right_of - 1e-6`` polished at ``DPS``
         digits; not a complete search."""
-        x0, x1, y0, y1 = box
-        xs, ys = np.linspace(x0, x1, n_re), np.linspace(max(0.0, y0), max(y1, 0.0), n_im)
-        s = (xs[:, None] + 1j * ys[None, :]).ravel()
+        x0, x1, _, y1 = box
+        s = newton_from_grid(lambda z: self.F_np(z, delta), box, n_re, n_im, steps=30, max_step=0.5)
         with np.errstate(all="ignore"):
-            for _ in range(30):
-                h = 1e-6 * (1 + np.abs(s))
-                d = (self.F_np(s + h, delta) - self.F_np(s - h, delta)) / (2 * h)
-                step = self.F_np(s, delta) / d
-                step = np.where(np.isfinite(step), step, 0.0)
-                s = s - np.clip(np.abs(step), 0, 0.5) * np.exp(1j * np.angle(step))
             res = np.abs(self.F_np(s, delta))
         keep = np.isfinite(s) & (s.real > x0 - 1.0) & (s.real < x1 + 1.0) & (np.abs(s.imag) < y1 + 1.0) & (res < 1e-8)
         keep &= s.real > right_of - 1e-6
-        out: list[complex] = []
-        for z in s[keep]:
-            if any(abs(z - v) < 1e-6 * (1 + abs(v)) for v in out):
-                continue
-            try:
-                r = complex(self.polish(complex(z), delta))
-            except OracleUnsure:
-                continue
-            if not any(abs(r - v) < 1e-12 * (1 + abs(v)) for v in out):
-                out.append(r)
-        return out
+        return distinct_polished(s[keep], lambda z: complex(self.polish(z, delta)))
